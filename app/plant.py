@@ -1,0 +1,191 @@
+"""The plant file (TOML): buses and devices, with errors that name file, line and problem."""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from devices.registry import DEVICE_TYPES
+
+PLANTS_DIR = Path(__file__).resolve().parent.parent / "plants"
+DEMO_PLANT = PLANTS_DIR / "demo.toml"
+
+# bus type -> key -> (python type, default); None default = required
+BUS_KEYS: dict[str, dict[str, tuple[type | tuple[type, ...], Any]]] = {
+    "modbus-rtu": {
+        "port": (str, None),
+        "baudrate": (int, 19200),
+        "parity": (str, "E"),
+        "stopbits": (int, 1),
+        "bytesize": (int, 8),
+        "timeout": ((int, float), 0.5),
+        "retries": (int, 1),
+        "poll_period": ((int, float), 0.5),
+        "simulate": (bool, False),
+        "wire_delay": (bool, False),
+    },
+}
+COMMON_BUS_KEYS = {"name", "type", "description"}
+COMMON_DEVICE_KEYS = {"name", "type", "bus", "description"}
+
+
+class PlantError(ValueError):
+    """A plant file that cannot be used; the message says where and what."""
+
+
+@dataclass
+class BusConfig:
+    name: str
+    type: str
+    options: dict[str, Any]
+    line: int = 0
+
+    @property
+    def simulated(self) -> bool:
+        return bool(self.options.get("simulate"))
+
+    @property
+    def endpoint(self) -> str:
+        return str(self.options.get("port") or self.options.get("channel") or "")
+
+
+@dataclass
+class DeviceConfig:
+    name: str
+    type: str
+    bus: str
+    options: dict[str, Any]
+    line: int = 0
+
+
+@dataclass
+class PlantViewConfig:
+    public: bool = False
+
+
+@dataclass
+class Plant:
+    name: str
+    path: Path | None
+    buses: dict[str, BusConfig] = field(default_factory=dict)
+    devices: dict[str, DeviceConfig] = field(default_factory=dict)
+    plant_view: PlantViewConfig = field(default_factory=PlantViewConfig)
+
+    def devices_on(self, bus: str) -> list[DeviceConfig]:
+        return [d for d in self.devices.values() if d.bus == bus]
+
+
+def _header_lines(text: str, table: str) -> list[int]:
+    """Line numbers (1-based) of each ``[[table]]`` header, in order."""
+    pattern = re.compile(rf"^\s*\[\[\s*{re.escape(table)}\s*\]\]")
+    return [i + 1 for i, line in enumerate(text.splitlines()) if pattern.match(line)]
+
+
+def _key_line(text: str, start: int, key: str) -> int:
+    """Line of ``key =`` in the table that starts at ``start`` (falls back to ``start``)."""
+    lines = text.splitlines()
+    pattern = re.compile(rf"^\s*{re.escape(key)}\s*=")
+    for i in range(start, len(lines)):
+        if i > start - 1 and lines[i].lstrip().startswith("["):
+            break
+        if pattern.match(lines[i]):
+            return i + 1
+    return start
+
+
+def load_plant(path: str | Path) -> Plant:
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise PlantError(f"{path}: cannot read the plant file: {exc.strerror or exc}") from None
+    return parse_plant(text, path)
+
+
+def parse_plant(text: str, path: Path | None = None) -> Plant:
+    where = str(path) if path else "<plant>"
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise PlantError(f"{where}: not valid TOML: {exc}") from None
+
+    def fail(line: int, message: str) -> PlantError:
+        return PlantError(f"{where}:{line}: {message}")
+
+    unknown_top = set(data) - {"name", "bus", "device", "plant_view"}
+    if unknown_top:
+        raise fail(1, f"unknown section(s) {', '.join(sorted(unknown_top))}; expected [[bus]], [[device]], [plant_view]")
+    plant = Plant(name=str(data.get("name") or (path.stem if path else "plant")), path=path)
+    pv = data.get("plant_view", {})
+    plant.plant_view = PlantViewConfig(public=bool(pv.get("public", False)))
+
+    bus_lines = _header_lines(text, "bus")
+    for index, raw in enumerate(data.get("bus", [])):
+        line = bus_lines[index] if index < len(bus_lines) else 1
+        name = raw.get("name")
+        if not isinstance(name, str) or not name:
+            raise fail(line, "bus without a name (add name = \"...\")")
+        if name in plant.buses:
+            raise fail(line, f"duplicate bus name '{name}' (first at line {plant.buses[name].line})")
+        btype = raw.get("type")
+        if btype not in BUS_KEYS:
+            raise fail(_key_line(text, line, "type"), f"bus '{name}': unknown type {btype!r}; known: {', '.join(BUS_KEYS)}")
+        spec = BUS_KEYS[btype]
+        options: dict[str, Any] = {}
+        for key, value in raw.items():
+            if key in COMMON_BUS_KEYS:
+                continue
+            if key not in spec:
+                raise fail(_key_line(text, line, key), f"bus '{name}': unknown key '{key}'; known: {', '.join(spec)}")
+            typ = spec[key][0]
+            if isinstance(value, bool) and typ is not bool or not isinstance(value, typ):
+                raise fail(_key_line(text, line, key), f"bus '{name}': '{key}' has the wrong type ({value!r})")
+            options[key] = value
+        for key, (_typ, default) in spec.items():
+            if key not in options:
+                if default is None:
+                    raise fail(line, f"bus '{name}': '{key}' is required")
+                options[key] = default
+        if btype == "modbus-rtu":
+            if options["parity"] not in ("N", "E", "O"):
+                raise fail(_key_line(text, line, "parity"), f"bus '{name}': parity must be \"N\", \"E\" or \"O\"")
+            if options["timeout"] <= 0:
+                raise fail(_key_line(text, line, "timeout"), f"bus '{name}': timeout must be > 0 s")
+        plant.buses[name] = BusConfig(name, btype, options, line)
+
+    device_lines = _header_lines(text, "device")
+    for index, raw in enumerate(data.get("device", [])):
+        line = device_lines[index] if index < len(device_lines) else 1
+        name = raw.get("name")
+        if not isinstance(name, str) or not name:
+            raise fail(line, "device without a name (add name = \"...\")")
+        if not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
+            raise fail(line, f"device name '{name}' may only contain letters, digits, '_', '.', '-'")
+        if name in plant.devices:
+            raise fail(line, f"duplicate device name '{name}' (first at line {plant.devices[name].line})")
+        dtype = raw.get("type")
+        if dtype not in DEVICE_TYPES:
+            raise fail(_key_line(text, line, "type"), f"device '{name}': unknown type {dtype!r}; known: {', '.join(DEVICE_TYPES)}")
+        bus = raw.get("bus")
+        if bus not in plant.buses:
+            raise fail(_key_line(text, line, "bus"), f"device '{name}': unknown bus {bus!r}; defined buses: {', '.join(plant.buses) or 'none'}")
+        device_type = DEVICE_TYPES[dtype]
+        if plant.buses[bus].type not in device_type.bus_types:
+            raise fail(_key_line(text, line, "bus"), f"device '{name}': a {dtype} cannot sit on a {plant.buses[bus].type} bus")
+        options = {k: v for k, v in raw.items() if k not in COMMON_DEVICE_KEYS}
+        for key, message in device_type.check_config(options):
+            raise fail(_key_line(text, line, key), f"device '{name}': {message}")
+        plant.devices[name] = DeviceConfig(name, dtype, bus, options, line)
+
+    for bus in plant.buses.values():
+        seen: dict[Any, str] = {}
+        for dev in plant.devices_on(bus.name):
+            ident = DEVICE_TYPES[dev.type].bus_identity(dev.options)
+            if ident is not None and ident in seen:
+                raise fail(dev.line, f"device '{dev.name}': address {ident} is already used by '{seen[ident]}' on bus '{bus.name}'")
+            if ident is not None:
+                seen[ident] = dev.name
+    return plant

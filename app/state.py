@@ -1,0 +1,192 @@
+"""Live state of every device: register values with timestamps, counters, history, events.
+
+Written only by the bus worker; read by pages and the API. No UI imports.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+from devices.params import Param, ParamMap
+
+HISTORY_SECONDS = 600  # charts show "the last minutes"
+EVENT_LIMIT = 200
+
+
+@dataclass
+class Counters:
+    requests: int = 0
+    responses: int = 0
+    timeouts: int = 0
+    crc_errors: int = 0
+    exceptions: int = 0
+    write_errors: int = 0
+
+    @property
+    def errors(self) -> int:
+        return self.timeouts + self.crc_errors + self.exceptions + self.write_errors
+
+    def as_dict(self) -> dict[str, int]:
+        return {
+            "requests": self.requests,
+            "responses": self.responses,
+            "timeouts": self.timeouts,
+            "crc_errors": self.crc_errors,
+            "exceptions": self.exceptions,
+            "write_errors": self.write_errors,
+        }
+
+
+@dataclass
+class Event:
+    time: float
+    level: str  # "info", "warning", "error"
+    text: str
+
+
+@dataclass
+class DeviceState:
+    name: str
+    type: str
+    bus: str
+    params: ParamMap | None = None
+    stale_after: float = 3.0
+    online: bool | None = None  # None: not asked yet
+    last_seen: float | None = None
+    last_error: str = ""
+    last_error_time: float | None = None
+    counters: Counters = field(default_factory=Counters)
+    registers: dict[tuple[str, int], tuple[int, float]] = field(default_factory=dict)
+    history: deque = field(default_factory=lambda: deque(maxlen=HISTORY_SECONDS * 10))
+    events: deque = field(default_factory=lambda: deque(maxlen=EVENT_LIMIT))
+    unsaved: set[str] = field(default_factory=set)  # parameter keys written since Save-Settings
+    info: dict[str, Any] = field(default_factory=dict)  # adapter-specific live facts
+
+    # -- written by adapters -------------------------------------------------------
+    def update_registers(self, space: str, start: int, values: list[int], now: float | None = None) -> None:
+        now = time.time() if now is None else now
+        for offset, value in enumerate(values):
+            self.registers[(space, start + offset)] = (int(value) & 0xFFFF, now)
+        self.mark_seen(now)
+
+    def mark_seen(self, now: float | None = None) -> None:
+        self.online = True
+        self.last_seen = time.time() if now is None else now
+
+    def mark_offline(self, message: str) -> None:
+        if self.online is not False:
+            self.event("error", message)
+        self.online = False
+        self.error(message, log=False)
+
+    def error(self, message: str, log: bool = True) -> None:
+        self.last_error = message
+        self.last_error_time = time.time()
+        if log:
+            self.event("error", message)
+
+    def event(self, level: str, text: str) -> None:
+        self.events.append(Event(time.time(), level, text))
+
+    def add_history(self, sample: dict[str, float], now: float | None = None) -> None:
+        self.history.append((time.time() if now is None else now, sample))
+
+    # -- read by pages -------------------------------------------------------------
+    @property
+    def status(self) -> str:
+        """"online", "stale", "offline" or "unknown" (never asked)."""
+        if self.online is None:
+            return "unknown"
+        if not self.online:
+            return "offline"
+        if self.age is not None and self.age > self.stale_after:
+            return "stale"
+        return "online"
+
+    @property
+    def age(self) -> float | None:
+        return None if self.last_seen is None else max(0.0, time.time() - self.last_seen)
+
+    def raw(self, param: Param) -> int | None:
+        """Combined raw value of a parameter, or None until every word was read."""
+        words = []
+        for address in param.addresses:
+            entry = self.registers.get((param.space, address))
+            if entry is None:
+                return None
+            words.append(entry[0])
+        return param.combine(words)
+
+    def read_time(self, param: Param) -> float | None:
+        entry = self.registers.get((param.space, param.address))
+        return None if entry is None else entry[1]
+
+    def value(self, name: str) -> int | float | None:
+        if self.params is None or name not in self.params.by_name:
+            return None
+        param = self.params.by_name[name]
+        raw = self.raw(param)
+        return None if raw is None else param.decode(raw)
+
+    def values(self) -> dict[str, dict[str, Any]]:
+        """Every known parameter by name: decoded value, raw, unit, text, read time."""
+        result: dict[str, dict[str, Any]] = {}
+        if self.params is None:
+            return result
+        for param in self.params:
+            raw = self.raw(param)
+            if raw is None:
+                continue
+            entry: dict[str, Any] = {
+                "value": param.decode(raw),
+                "raw": raw,
+                "unit": param.unit,
+                "text": param.display(raw),
+                "address": param.address,
+                "space": param.space,
+                "access": param.access.value,
+                "time": self.read_time(param),
+            }
+            if param.enum is not None:
+                entry["name"] = param.enum_name(raw)
+            if param.fields:
+                entry["fields"] = param.field_values(raw)
+            result[param.label or param.name] = entry
+        return result
+
+    def summary(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "type": self.type,
+            "bus": self.bus,
+            "online": self.status == "online",
+            "status": self.status,
+            "last_seen": self.last_seen,
+            "last_error": self.last_error,
+            "counters": self.counters.as_dict(),
+        }
+
+
+@dataclass
+class BusState:
+    name: str
+    type: str
+    endpoint: str
+    connected: bool = False
+    last_error: str = ""
+    reconnects: int = 0
+    transactions: deque = field(default_factory=lambda: deque(maxlen=2000))  # monitor ring buffer
+
+
+class StateStore:
+    """All live state of one plant."""
+
+    def __init__(self) -> None:
+        self.devices: dict[str, DeviceState] = {}
+        self.buses: dict[str, BusState] = {}
+
+    def device(self, name: str) -> DeviceState:
+        return self.devices[name]

@@ -1,0 +1,342 @@
+"""HD-Lock twin: several simulated locks on one Modbus RTU line.
+
+The line is a TCP port carrying RTU frames (a pyserial ``socket://`` URL on the
+master side), served by pymodbus. Behaviour follows the document: factory
+defaults, volatile holding registers with Save/Restore to a simulated flash,
+Set-Address with its condition, firmware-protected registers, answers to
+broadcast address 0, and a door/bolt model with motor current.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from collections.abc import Sequence
+from urllib.parse import urlparse
+
+from pymodbus.constants import ExcCodes
+from pymodbus.datastore import ModbusServerContext
+from pymodbus.exceptions import NoSuchIdException
+from pymodbus.framer import FramerType
+from pymodbus.server import ModbusTcpServer
+
+from devices.hdlock import codec
+from devices.hdlock.params import HOLDING, INPUT, PARAMS
+from devices.params import Access
+
+log = logging.getLogger(__name__)
+
+TICK_S = 0.05
+BOLT_MAX = 115  # section 3.1: ~115 increments when fully extended
+BOLT_SPEED = 160.0  # increments per second (about 0.7 s for a full stroke)
+DOOR_TRAVEL_S = 1.2  # time for the strike plate to swing in or out of range
+
+# Plausible values for registers whose factory value the document does not print.
+TYPICAL_HOLDING = {
+    3: 1, 10: 112, 11: 100, 12: 180, 13: 400, 14: 400, 15: 20, 16: 1500, 17: 900, 18: 20, 19: 50,
+    20: 2, 21: 12, 22: 180, 23: 400, 24: 400, 25: 10, 26: 1500, 27: 900, 28: 20, 29: 50,
+    30: 500, 31: 10, 32: 3, 33: 5, 40: 4, 41: 2, 3007: 0, 3008: 0,
+}
+TYPICAL_INPUT = {14: 72, 15: 0b100111, 100: 57, 102: 3, 103: 2}
+
+
+class HdLockTwin:
+    """One simulated lock: its registers and its physics."""
+
+    def __init__(self, address: int = 1, serial: int = 0x000A1234, door_closed: bool = False, name: str = ""):
+        self.name = name or f"lock@{address}"
+        self.address = address
+        self.input: dict[int, int] = {}
+        self.holding: dict[int, int] = {}
+        for param in PARAMS:
+            store = self.input if param.space == INPUT else self.holding
+            default = param.default
+            if default is None:
+                default = (TYPICAL_INPUT if param.space == INPUT else TYPICAL_HOLDING).get(param.address, 0)
+            for address_, word in zip(param.addresses, param.split(default)):
+                store[address_] = word
+        self.holding[103] = address
+        self.input[104], self.input[105] = serial >> 16 & 0xFFFF, serial & 0xFFFF
+        self.writable = {a for p in PARAMS.space(HOLDING) if p.access is Access.RW for a in p.addresses}
+        self.flash = self._settings()
+        # physics
+        self.door_target_closed = door_closed
+        self.door_pos = 0.0 if door_closed else 1.0  # 0 = in place, 1 = out of range
+        self.bolt = 0.0
+        self.current_ma = 0.0
+        self.line_input = True  # LOCK-REQUEST input (>10 V)
+        self.strong_magnet = False
+        self.in_place_since: float | None = None
+        self.state_since = time.monotonic()
+        self.motor_since = time.monotonic()
+        self.toggle = False
+        self._last_line = self.line_input
+        self.silent = False  # fault injection: stops answering
+        self.max_time = {"lock": 0, "unlock": 0}
+        self._move_start: float | None = None
+        self.step(0.0)
+
+    # -- registers ---------------------------------------------------------------------
+    def _settings(self) -> dict[int, int]:
+        return {a: self.holding[a] for a in self.writable if a < 2000 or a >= 3000}
+
+    def read(self, space: str, address: int, count: int) -> list[int] | ExcCodes:
+        store = self.input if space == INPUT else self.holding
+        values = []
+        for a in range(address, address + count):
+            if a not in store:
+                return ExcCodes.ILLEGAL_ADDRESS
+            values.append(store[a])
+        return values
+
+    def write(self, address: int, value: int) -> ExcCodes | None:
+        if address not in self.holding:
+            return ExcCodes.ILLEGAL_ADDRESS
+        if address not in self.writable:
+            return None  # firmware protection: acknowledged, not taken (read-back shows it)
+        param = PARAMS.get(HOLDING, address)
+        if param is not None and param.enum is not None and param.decode(value) not in param.enum:
+            return None  # refused by the firmware; the old value stays
+        self.holding[address] = value & 0xFFFF
+        if address in (4, 1002):  # the two LockRequestSource registers mirror each other
+            self.holding[4] = self.holding[1002] = value & 0xFFFF
+        if address == codec.REG_COMMAND and value:
+            self._command(value)
+        if address == 32770 and value == 1:
+            self.reset()
+        return None
+
+    def _command(self, command: int) -> None:
+        p0, p1, p2 = (self.holding[a] for a in (codec.REG_PARAM0, codec.REG_PARAM1, codec.REG_PARAM2))
+        if command == codec.SystemCommand.SAVE_SETTINGS:
+            self.flash = self._settings()
+            self.input[101] = (self.input[101] + 1) & 0xFFFF
+            self.holding[0] = (self.holding[0] + 1) & 0xFFFF
+        elif command == codec.SystemCommand.RESTORE_SETTINGS:
+            self.holding.update(self.flash)
+        elif command == codec.SystemCommand.SET_MODBUS_ADDRESS:
+            if codec.set_address_accepted(p1, p2, self.holding[1000]) and 1 <= p0 <= 254:
+                self.address = p0
+                self.holding[103] = p0
+        self.holding[codec.REG_COMMAND] = 0
+
+    def reset(self) -> None:
+        """Power cycle: unsaved holding registers are lost."""
+        self.holding.update(self.flash)
+
+    @property
+    def serial(self) -> int:
+        return codec.serial_number(self.input[104], self.input[105])
+
+    # -- controls of the simulated plant -------------------------------------------------
+    def close_door(self) -> None:
+        self.door_target_closed = True
+
+    def open_door(self) -> None:
+        self.door_target_closed = False
+
+    def set_line_input(self, active: bool) -> None:
+        self.line_input = active
+
+    # -- physics -----------------------------------------------------------------------
+    def step(self, dt: float) -> None:
+        now = time.monotonic()
+        h, i = self.holding, self.input
+        # door: the strike plate swings into range
+        target = 0.0 if self.door_target_closed else 1.0
+        travel = dt / DOOR_TRAVEL_S
+        if abs(self.door_pos - target) <= travel:
+            self.door_pos = target
+        else:
+            self.door_pos += travel if target > self.door_pos else -travel
+        proximity = round(self.door_pos * 100)
+        locked_side = self.bolt > 5
+        # section 3.2.7: the closed-door window is wider while locked (thresholds -30 / -60)
+        threshold = -codec.to_signed16(h[3006] if locked_side else h[3004])
+        in_place = proximity < threshold and not self.strong_magnet
+        if in_place and self.in_place_since is None:
+            self.in_place_since = now
+        if not in_place:
+            self.in_place_since = None
+        door_in_position = in_place and (now - self.in_place_since) * 1000 >= h[3000]
+        # lock request (section 3.2.2)
+        source = h[1002]
+        line = self.line_input
+        if line != self._last_line:
+            kind = source & 0x7F
+            if kind == 5 or (kind == 6 and line) or (kind == 7 and not line):
+                self.toggle = not self.toggle
+            self._last_line = line
+        cond1 = {0: False, 1: True, 2: self.strong_magnet, 3: not line, 4: line}.get(source & 0x7F, self.toggle)
+        cond2 = True if source & 0x80 else door_in_position
+        request = cond1 and cond2
+        # bolt
+        old_bolt = self.bolt
+        if request and self.bolt < BOLT_MAX:
+            self.bolt = min(BOLT_MAX, self.bolt + BOLT_SPEED * dt)
+        elif not request and self.bolt > 0:
+            self.bolt = max(0.0, self.bolt - BOLT_SPEED * dt)
+        moving_out, moving_in = self.bolt > old_bolt, self.bolt < old_bolt
+        moving = moving_out or moving_in
+        if moving and self._move_start is None:
+            self._move_start = now
+        if not moving and self._move_start is not None:
+            took = int((now - self._move_start) * 1000)
+            key = "lock" if self.bolt > 5 else "unlock"
+            register = 1004 if key == "lock" else 1003
+            h[register] = max(h[register], min(took, 0xFFFF))
+            self._move_start = None
+        target_ma = 420.0 if moving else (35.0 if self.bolt >= BOLT_MAX else 0.0)
+        self.current_ma += (target_ma - self.current_ma) * min(1.0, dt * 12) if dt else 0
+        bolt = round(self.bolt)
+        locked = bolt >= h[11]
+        unlocked = bolt <= h[21]
+        status = 0
+        status |= codec.LOCK_REQUEST | codec.LOCK_REQUEST_BIT4 if request else 0
+        status |= codec.PROXIMITY_IN_PLACE if in_place else 0
+        status |= codec.DOOR_IN_POSITION if door_in_position else 0
+        status |= codec.PROXIMITY_OVERRANGE if self.strong_magnet else 0
+        status |= codec.FORCE_ACTIVE if source & 0x80 else 0
+        status |= codec.BOLT_LOCKED if locked and not moving_in else 0
+        status |= codec.BOLT_UNLOCKED if unlocked and not moving_out else 0
+        status |= codec.BOLT_MOVING_OUT if moving_out else 0
+        status |= codec.BOLT_MOVING_IN if moving_in else 0
+        # state machine (input 9)
+        state = 4 if locked and not moving else 2 if unlocked and not moving else 3 if moving_out else 5
+        if state != i[9]:
+            self.state_since = now
+        motor = 1 if moving_out else 2 if moving_in else 0
+        if motor != i[3]:
+            self.motor_since, i[61] = now, i[60]
+            if motor == 0:
+                i[54] = 1  # MotorResult AtPos
+        hall1 = 255 if self.strong_magnet else max(0, 200 - proximity * 2)
+        hall2 = 255 if self.strong_magnet else max(0, 190 - proximity * 2)
+        current = round(self.current_ma)
+        i.update({
+            0: int(locked), 1: int(request), 2: bolt, 3: motor, 4: round(BOLT_SPEED) if moving else 0,
+            5: hall1, 6: hall2, 7: proximity, 8: 3 if door_in_position else (2 if in_place else 1),
+            9: state, 10: min(0xFFFF, int((now - self.state_since) * 1000)), 11: 0, 12: 0, 13: 0,
+            16: h[3006] if locked_side else h[3004],
+            50: bolt, 51: round(BOLT_SPEED) if moving_out else (0x10000 - round(BOLT_SPEED) if moving_in else 0),
+            52: round(BOLT_SPEED) if moving else 0, 53: 4 if moving else 0xFFFF, 55: 80 if moving else (5 if bolt else 0),
+            56: 19 if moving else 0, 57: current, 58: max(i.get(58, 0), current),
+            59: 0, 60: min(0xFFFF, int((now - self.motor_since) * 1000)), 62: 24, 63: current,
+        })
+        h.update({
+            2: bolt, 1000: status, 1001: bolt, 1005: proximity, 1006: hall1 << 8 | hall2,
+            1007: 31, 1008: 24100, 1009: current, 1010: max(h.get(1010, 0), current),
+        })
+        h[4] = h[1002]
+
+
+class HdLockContext(ModbusServerContext):
+    """pymodbus datastore that routes each request to the twin with that address."""
+
+    def __init__(self, twins: Sequence[HdLockTwin], wire_delay: float = 0.0):
+        # not calling super().__init__: this context answers by itself
+        self.twins = list(twins)
+        self.old_simulator = True
+        self.simdevices = []
+        self.wire_delay = wire_delay  # seconds per character (11 bits / baud), 0 = none
+
+    def device_ids(self) -> list[int]:
+        return [t.address for t in self.twins]
+
+    def _twin(self, device_id: int) -> HdLockTwin:
+        if device_id == codec.MODBUS_BROADCAST:
+            answering = [t for t in self.twins if not t.silent]
+            if len(answering) == 1:  # section 5.6: a single lock answers the broadcast
+                return answering[0]
+            raise NoSuchIdException("broadcast with several locks: the answers collide")
+        for twin in self.twins:
+            if twin.address == device_id and not twin.silent:
+                return twin
+        raise NoSuchIdException(f"no lock at {device_id}")
+
+    async def _line_time(self, request_chars: int, response_chars: int) -> None:
+        if self.wire_delay:
+            # both frames on the wire plus the 3.5-character gap after each
+            await asyncio.sleep((request_chars + response_chars + 7) * self.wire_delay)
+
+    async def async_getValues(self, device_id, func_code, address, count=1):
+        twin = self._twin(device_id)
+        if func_code == 6:  # the echo after a write
+            return [twin.holding.get(address, 0)]
+        space = INPUT if func_code == 4 else HOLDING
+        await self._line_time(8, 5 + 2 * count)
+        return twin.read(space, address, count)
+
+    async def async_setValues(self, device_id, func_code, address, values):
+        if func_code != 6:
+            return ExcCodes.ILLEGAL_FUNCTION  # SPEC-NOTES: only 0x03, 0x04, 0x06 are used
+        if device_id == 255:  # section 4.3: broadcast address change to all locks
+            for twin in self.twins:
+                twin.write(address, values[0])
+            raise NoSuchIdException("broadcast 255: no answer")
+        twin = self._twin(device_id)
+        await self._line_time(8, 8)
+        return twin.write(address, values[0])
+
+
+def _host_port(url: str) -> tuple[str, int]:
+    parsed = urlparse(url)
+    if parsed.scheme != "socket" or not parsed.port:
+        raise ValueError(f"a simulated Modbus line needs a socket://host:port URL, not {url!r}")
+    return parsed.hostname or "127.0.0.1", parsed.port
+
+
+class HdLockSim:
+    """All simulated locks of one plant-file bus, served on the bus's endpoint."""
+
+    def __init__(self, bus, devices):
+        self.bus = bus
+        self.twins: dict[str, HdLockTwin] = {}
+        for dev in devices:
+            self.twins[dev.name] = HdLockTwin(
+                address=dev.options["address"],
+                serial=dev.options.get("serial") or 0x000A0000 + dev.options["address"],
+                door_closed=dev.options.get("door", "open") == "closed",
+                name=dev.name,
+            )
+        delay = 11.0 / bus.options["baudrate"] if bus.options.get("wire_delay") else 0.0
+        self.context = HdLockContext(list(self.twins.values()), wire_delay=delay)
+        self.server: ModbusTcpServer | None = None
+        self._task: asyncio.Task | None = None
+        self.corrupt_next = 0  # fault injection: damage the CRC of the next n answers
+
+    def _trace(self, sending: bool, data: bytes) -> bytes:
+        if sending and self.corrupt_next > 0 and data:
+            self.corrupt_next -= 1
+            return data[:-1] + bytes([data[-1] ^ 0xFF])
+        return data
+
+    async def start(self) -> None:
+        host, port = _host_port(self.bus.options["port"])
+        self.server = ModbusTcpServer(
+            self.context,
+            framer=FramerType.RTU,
+            address=(host, port),
+            ignore_missing_devices=True,
+            trace_packet=self._trace,
+        )
+        await self.server.serve_forever(background=True)
+        self._task = asyncio.create_task(self._run(), name=f"sim {self.bus.name}")
+
+    async def _run(self) -> None:
+        last = time.monotonic()
+        while True:
+            await asyncio.sleep(TICK_S)
+            now = time.monotonic()
+            for twin in self.twins.values():
+                twin.step(now - last)
+            last = now
+
+    async def stop(self) -> None:
+        if self._task:
+            self._task.cancel()
+            self._task = None
+        if self.server:
+            await self.server.shutdown()
+            self.server = None

@@ -1,0 +1,229 @@
+"""The generic parameter model every device's ``params.py`` is written in.
+
+Pure: no I/O. A :class:`Param` describes one register (or a group of 16-bit
+words forming one value) and knows how to decode, display, validate and encode
+it. Register tables, input validation, the JSON API, backup and restore are all
+driven by these objects, so a new device only has to describe its registers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from enum import Enum
+
+
+class Access(str, Enum):
+    """Access classes as printed in the device documents."""
+
+    R = "R"  # read only (input registers, live values)
+    RW = "RW"  # read / write by the commissioning engineer
+    RO = "RO"  # read only (protected by the firmware)
+    MFR = "MFR"  # manufacturer only: shown, never written
+
+
+class ParamError(ValueError):
+    """An entry that cannot be written to a parameter (range, type, access)."""
+
+
+@dataclass(frozen=True)
+class Field:
+    """A named group of bits inside a register (a status bit is a 1-bit field)."""
+
+    name: str
+    shift: int
+    width: int = 1
+    description: str = ""
+
+    def extract(self, raw: int) -> int:
+        return (raw >> self.shift) & ((1 << self.width) - 1)
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter of a device.
+
+    :param space: register space, e.g. ``"input"`` or ``"holding"``
+    :param address: first register address
+    :param words: number of 16-bit words (2 = 32-bit value, high word first)
+    :param signed: two's complement
+    :param scale: decoded value = raw * scale
+    :param enum: raw value -> name
+    :param fields: named bit fields (status words, packed bytes)
+    :param minimum: smallest decoded value accepted on write
+    :param maximum: largest decoded value accepted on write
+    :param confirm: text shown before writing the value(s) in ``confirm_values``
+    :param never_write: the GUI never offers to write it, whatever its access class
+    """
+
+    name: str
+    space: str
+    address: int
+    access: Access = Access.R
+    unit: str = ""
+    description: str = ""
+    words: int = 1
+    signed: bool = False
+    scale: float = 1
+    enum: Mapping[int, str] | None = None
+    fields: tuple[Field, ...] = ()
+    minimum: float | None = None
+    maximum: float | None = None
+    default: int | None = None
+    confirm: str = ""
+    confirm_values: tuple[int, ...] = ()
+    never_write: bool = False
+    label: str = ""  # display name where the document's name is not unique
+    extra: Mapping[str, str] = field(default_factory=dict)
+
+    # -- identity -------------------------------------------------------------------
+    @property
+    def key(self) -> str:
+        """Unique key of the parameter within its device."""
+        return f"{self.space}:{self.address}"
+
+    @property
+    def addresses(self) -> range:
+        return range(self.address, self.address + self.words)
+
+    @property
+    def writable(self) -> bool:
+        """True only for parameters a commissioning engineer may write."""
+        return self.access is Access.RW and not self.never_write and self.words == 1
+
+    @property
+    def bits(self) -> int:
+        return 16 * self.words
+
+    # -- conversions -----------------------------------------------------------------
+    def combine(self, words: list[int]) -> int:
+        """Join register words (high word first) into one unsigned raw value."""
+        raw = 0
+        for word in words:
+            raw = (raw << 16) | (word & 0xFFFF)
+        return raw
+
+    def split(self, raw: int) -> list[int]:
+        return [(raw >> (16 * (self.words - 1 - i))) & 0xFFFF for i in range(self.words)]
+
+    def decode(self, raw: int) -> int | float:
+        """Raw unsigned register value -> engineering value (signed, scaled)."""
+        value = raw
+        if self.signed and raw & (1 << (self.bits - 1)):
+            value = raw - (1 << self.bits)
+        if self.scale != 1:
+            return round(value * self.scale, 6)
+        return value
+
+    def encode(self, value: int | float) -> int:
+        """Engineering value -> raw unsigned register value (two's complement)."""
+        raw = round(value / self.scale) if self.scale != 1 else int(value)
+        if raw < 0:
+            raw += 1 << self.bits
+        return raw & ((1 << self.bits) - 1)
+
+    def enum_name(self, raw: int) -> str | None:
+        if self.enum is None:
+            return None
+        value = self.decode(raw)
+        return self.enum.get(int(value))
+
+    def display(self, raw: int) -> str:
+        """Human text of a raw value: enum name, signed value with unit, or bits."""
+        value = self.decode(raw)
+        if self.enum is not None:
+            name = self.enum.get(int(value))
+            return f"{name} ({value})" if name else f"{value} (undefined)"
+        if self.fields:
+            if all(f.width == 1 for f in self.fields):
+                active = [f.name for f in self.fields if f.extract(raw)]
+                return ", ".join(active) if active else "-"
+            return ", ".join(f"{f.name}={f.extract(raw)}" for f in self.fields)
+        return f"{value} {self.unit}".strip()
+
+    def field_values(self, raw: int) -> dict[str, int]:
+        return {f.name: f.extract(raw) for f in self.fields}
+
+    def validate(self, value: int | float | str) -> int:
+        """Check an entry for writing and return the raw register value.
+
+        Accepts the decoded number, or an enum name. Raises :class:`ParamError`
+        with a message that says what is allowed.
+        """
+        if not self.writable:
+            raise ParamError(f"{self.name} is {self.access.value} and cannot be written")
+        if isinstance(value, str):
+            text = value.strip()
+            if self.enum is not None:
+                for number, name in self.enum.items():
+                    if name.lower() == text.lower():
+                        value = number
+                        break
+            if isinstance(value, str):
+                try:
+                    value = float(text) if "." in text else int(text, 0)
+                except ValueError:
+                    raise ParamError(f"{self.name}: '{text}' is not a number") from None
+        if isinstance(value, float) and self.scale == 1:
+            if not value.is_integer():
+                raise ParamError(f"{self.name}: {value} is not a whole number")
+            value = int(value)
+        low, high = self.limits()
+        if not low <= value <= high:
+            raise ParamError(f"{self.name}: {value} is outside {low} .. {high} {self.unit}".rstrip())
+        if self.enum is not None and int(value) not in self.enum:
+            allowed = ", ".join(f"{k} {v}" for k, v in self.enum.items())
+            raise ParamError(f"{self.name}: {value} is not one of: {allowed}")
+        return self.encode(value)
+
+    def limits(self) -> tuple[float, float]:
+        """Range accepted on write: the declared range, else the register's range."""
+        if self.signed:
+            low, high = -(1 << (self.bits - 1)), (1 << (self.bits - 1)) - 1
+        else:
+            low, high = 0, (1 << self.bits) - 1
+        low, high = low * self.scale, high * self.scale
+        if self.minimum is not None:
+            low = self.minimum
+        if self.maximum is not None:
+            high = self.maximum
+        return low, high
+
+    def needs_confirmation(self, raw: int) -> str:
+        """The warning to show before writing ``raw``, or ``""``."""
+        if self.confirm and (not self.confirm_values or raw in self.confirm_values):
+            return self.confirm
+        return ""
+
+
+class ParamMap:
+    """The parameter map of one device type, indexed by key and by name."""
+
+    def __init__(self, params: list[Param]):
+        self.params = list(params)
+        self.by_key = {p.key: p for p in self.params}
+        self.by_name: dict[str, Param] = {}
+        for p in self.params:
+            self.by_name.setdefault(p.label or p.name, p)
+        if len(self.by_key) != len(self.params):
+            raise ValueError("duplicate parameter address")
+
+    def __iter__(self):
+        return iter(self.params)
+
+    def space(self, space: str) -> list[Param]:
+        return [p for p in self.params if p.space == space]
+
+    def get(self, space: str, address: int) -> Param | None:
+        return self.by_key.get(f"{space}:{address}")
+
+    def blocks(self, space: str, max_count: int = 64) -> list[tuple[int, int]]:
+        """Contiguous (start, count) read blocks that cover every register of a space."""
+        addresses = sorted({a for p in self.space(space) for a in p.addresses})
+        blocks: list[tuple[int, int]] = []
+        for a in addresses:
+            if blocks and blocks[-1][0] + blocks[-1][1] == a and blocks[-1][1] < max_count:
+                blocks[-1] = (blocks[-1][0], blocks[-1][1] + 1)
+            else:
+                blocks.append((a, 1))
+        return blocks
