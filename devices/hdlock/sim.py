@@ -239,6 +239,7 @@ class HdLockContext(ModbusServerContext):
         self.twins = list(twins)
         self.old_simulator = True
         self.simdevices = []
+        self._echo_twin = self.twins[0]
         self.wire_delay = wire_delay  # seconds per character (11 bits / baud), 0 = none
 
     def device_ids(self) -> list[int]:
@@ -261,9 +262,9 @@ class HdLockContext(ModbusServerContext):
             await asyncio.sleep((request_chars + response_chars + 7) * self.wire_delay)
 
     async def async_getValues(self, device_id, func_code, address, count=1):
+        if func_code == 6:  # the echo after a write, from the lock written (its address may just have changed)
+            return [self._echo_twin.holding.get(address, 0)]
         twin = self._twin(device_id)
-        if func_code == 6:  # the echo after a write
-            return [twin.holding.get(address, 0)]
         space = INPUT if func_code == 4 else HOLDING
         await self._line_time(8, 5 + 2 * count)
         return twin.read(space, address, count)
@@ -277,6 +278,7 @@ class HdLockContext(ModbusServerContext):
             raise NoSuchIdException("broadcast 255: no answer")
         twin = self._twin(device_id)
         await self._line_time(8, 8)
+        self._echo_twin = twin
         return twin.write(address, values[0])
 
 
@@ -321,7 +323,11 @@ class HdLockSim:
             ignore_missing_devices=True,
             trace_packet=self._trace,
         )
-        await self.server.serve_forever(background=True)
+        try:
+            await self.server.serve_forever(background=True)
+        except RuntimeError:
+            self.server = None
+            raise OSError(f"cannot listen on {host}:{port} for the simulated line {self.bus.name}: port in use?") from None
         self._task = asyncio.create_task(self._run(), name=f"sim {self.bus.name}")
 
     async def _run(self) -> None:

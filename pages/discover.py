@@ -1,0 +1,61 @@
+"""Discover locks on an RS485 line: broadcast read (one lock) and an address scan (several)."""
+
+from __future__ import annotations
+
+from nicegui import ui
+
+from app import runtime as rt
+
+
+def open_discover_dialog(bus: str) -> None:
+    runtime = rt.current()
+    known = {d.options.get("address"): d.name for d in runtime.plant.devices_on(bus)}
+    with ui.dialog() as dialog, ui.card().classes("w-[36rem]"):
+        ui.label(f"Discover locks on {bus}").classes("text-h6")
+        ui.label(
+            "First a read at broadcast address 0 (answered when a single lock is on the line), then a scan "
+            "of the address range. Polling on this line pauses meanwhile. Each silent address costs one timeout."
+        ).classes("text-caption text-grey-8")
+        with ui.row():
+            first = ui.number("From", value=1, min=1, max=254, format="%d").props("dense outlined").classes("w-24")
+            last = ui.number("To", value=16, min=1, max=254, format="%d").props("dense outlined").classes("w-24")
+        progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
+        status = ui.label().classes("text-body2")
+        results = ui.column().classes("gap-1")
+        with ui.row().classes("justify-end w-full"):
+            ui.button("Close", on_click=dialog.close).props("flat")
+            start = ui.button("Start", icon="search")
+
+    def on_progress(done: int, total: int) -> None:
+        progress.set_value(done / total)
+        status.set_text(f"scanned {done} of {total} addresses")
+
+    async def run() -> None:
+        a, b = int(first.value or 1), int(last.value or 1)
+        if not 1 <= a <= b <= 254:
+            ui.notify("Enter a range within 1..254, From <= To", type="warning")
+            return
+        start.disable()
+        results.clear()
+        status.set_text("reading broadcast address 0 ...")
+        try:
+            found = await runtime.worker.discover(bus, a, b, on_progress)
+        except Exception as exc:
+            ui.notify(f"discover failed: {exc}", type="negative")
+            found = []
+        finally:
+            start.enable()
+        status.set_text(f"found {len(found)} lock{'s' if len(found) != 1 else ''}")
+        with results:
+            for entry in found:
+                plant_name = known.get(entry["address"])
+                serial = entry.get("serial")
+                ui.label(
+                    f"address {entry['address']}"
+                    + (f" · serial {serial}" if serial is not None else "")
+                    + f" · via {entry['via']}"
+                    + (f" · in plant as {plant_name}" if plant_name else " · not in the plant file")
+                ).classes("mono")
+
+    start.on_click(run)
+    dialog.open()

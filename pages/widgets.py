@@ -1,0 +1,147 @@
+"""Widgets shared by device pages: lamps, register tables, live charts, write dialogs."""
+
+from __future__ import annotations
+
+from collections.abc import Awaitable, Callable
+from datetime import datetime
+
+from nicegui import ui
+
+from app import runtime as rt
+from app.state import DeviceState
+from app.worker import PermissionDenied
+from devices.params import Param
+
+CHART_WINDOW_S = 300
+
+
+def session_role() -> str:
+    """Role of the browser session. Served on loopback, ``commission`` needs no login."""
+    return "engineer"
+
+
+class Lamp:
+    """A named indicator light; ``kind`` "ok" (green), "warn" (yellow) or "alarm" (red)."""
+
+    def __init__(self, name: str, kind: str = "ok", tooltip: str = ""):
+        with ui.row().classes("items-center gap-1 no-wrap") as self.row:
+            self.dot = ui.element("span").classes(f"lamp {'' if kind == 'ok' else kind}")
+            ui.label(name).classes("text-body2")
+            if tooltip:
+                ui.tooltip(tooltip)
+        self.row.props(f'data-lamp="{name}"')
+        self.kind = kind
+
+    def set(self, on: bool | None) -> None:
+        self.dot.classes(remove="on unknown")
+        if on is None:
+            self.dot.classes(add="unknown")
+        elif on:
+            self.dot.classes(add="on")
+        self.row.props(f'data-on="{"unknown" if on is None else int(bool(on))}"')
+
+
+REGISTER_COLUMNS = [
+    {"name": "address", "label": "Addr", "field": "address", "align": "right", "sortable": True},
+    {"name": "name", "label": "Name", "field": "name", "align": "left"},
+    {"name": "value", "label": "Value", "field": "value", "align": "left"},
+    {"name": "raw", "label": "Raw", "field": "raw", "align": "left", "classes": "mono"},
+    {"name": "access", "label": "Access", "field": "access", "align": "center"},
+    {"name": "age", "label": "Read", "field": "age", "align": "right"},
+]
+
+
+class RegisterTable:
+    """Live table of one register space of a device (address, name, value, raw, access)."""
+
+    def __init__(self, state: DeviceState, params: list[Param]):
+        self.state = state
+        self.params = params
+        self.table = ui.table(columns=REGISTER_COLUMNS, rows=[], row_key="key", pagination=0).classes("w-full reg-table")
+        self.table.props("dense flat bordered")
+        self.table.add_slot(
+            "body-cell-name",
+            '<q-td :props="props" :title="props.row.description" style="cursor: help">'
+            '{{ props.value }}<q-badge v-if="props.row.unsaved" color="orange" class="q-ml-xs">unsaved</q-badge></q-td>',
+        )
+        self.update()
+
+    def update(self) -> None:
+        rows = []
+        for p in self.params:
+            raw = self.state.raw(p)
+            read = self.state.read_time(p)
+            rows.append({
+                "key": p.key,
+                "address": p.address if p.words == 1 else f"{p.address}-{p.address + p.words - 1}",
+                "name": p.label or p.name,
+                "value": "-" if raw is None else p.display(raw),
+                "raw": "-" if raw is None else f"0x{raw:0{4 * p.words}X}",
+                "access": p.access.value + (" (never written)" if p.never_write and p.access.value == "RW" else ""),
+                "age": "-" if read is None else datetime.fromtimestamp(read).strftime("%H:%M:%S"),
+                "description": p.description,
+                "unsaved": p.key in self.state.unsaved,
+            })
+        self.table.rows = rows
+        self.table.update()
+
+
+class HistoryChart:
+    """Rolling plotly time chart of the device history samples."""
+
+    def __init__(self, state: DeviceState, series: list[str], window_s: int = CHART_WINDOW_S, height: int = 320):
+        self.state = state
+        self.series = series
+        self.window_s = window_s
+        self.figure = {
+            "data": [{"type": "scatter", "mode": "lines", "name": s, "x": [], "y": []} for s in series],
+            "layout": {
+                "margin": {"l": 50, "r": 10, "t": 10, "b": 40},
+                "height": height,
+                "xaxis": {"type": "date"},
+                "legend": {"orientation": "h", "y": -0.2},
+                "uirevision": "keep",
+            },
+            "config": {"displaylogo": False, "responsive": True},
+        }
+        self.plot = ui.plotly(self.figure).classes("w-full")
+        self.update()
+
+    def update(self) -> None:
+        if not self.state.history:
+            return
+        last = self.state.history[-1][0]
+        samples = [(t, s) for t, s in self.state.history if t >= last - self.window_s]
+        xs = [datetime.fromtimestamp(t).isoformat(timespec="milliseconds") for t, _ in samples]
+        for trace, name in zip(self.figure["data"], self.series):
+            trace["x"] = xs
+            trace["y"] = [s.get(name) for _, s in samples]
+        self.plot.update()
+
+
+async def confirm(title: str, text: str, ok: str = "Continue", danger: bool = True) -> bool:
+    """Modal confirmation; resolves True only when the engineer presses ``ok``."""
+    with ui.dialog() as dialog, ui.card().classes("max-w-lg"):
+        ui.label(title).classes("text-h6")
+        ui.label(text).classes("text-body1" + (" text-negative" if danger else ""))
+        with ui.row().classes("justify-end w-full"):
+            ui.button("Cancel", on_click=lambda: dialog.submit(False)).props("flat")
+            ui.button(ok, color="negative" if danger else "primary", on_click=lambda: dialog.submit(True))
+    result = await dialog
+    dialog.delete()
+    return bool(result)
+
+
+async def run_command(device: str, action: Callable[[object], Awaitable[object]], describe: str, success: str = "") -> tuple[bool, object]:
+    """Submit a command to the worker and report the outcome as a notification."""
+    try:
+        result = await rt.current().worker.command(device, action, role=session_role(), describe=describe)
+    except PermissionDenied as exc:
+        ui.notify(str(exc), type="negative")
+        return False, None
+    except Exception as exc:  # every adapter error carries a message for the engineer
+        ui.notify(f"{describe}: {exc}", type="negative", multi_line=True, close_button="OK", timeout=15000)
+        return False, None
+    if success:
+        ui.notify(success, type="positive")
+    return True, result
