@@ -1,0 +1,91 @@
+"""The command line: help, plant errors at start-up, and `commission sim` in its own process."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+
+import pytest
+from conftest import free_port, wait_for
+
+from app.cli import main
+from app.plant import parse_plant
+from app.runtime import Runtime
+
+
+def test_help_documents_everything(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    for words in ("--plant", "--host", "--port", "--no-sim", "commission sim", "demo plant"):
+        assert words in out
+
+
+def test_malformed_plant_stops_with_its_line(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[[bus]]\nname = "l"\ntype = "modbus-rtu"\nport = "/dev/x"\n[[device]]\nname = "d"\ntype = "hdlock"\nbus = "l"\naddress = 999\n')
+    with pytest.raises(SystemExit) as exc:
+        main(["--plant", str(bad)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert f"{bad}:9:" in err and "outside 1..254" in err
+
+
+def test_sim_without_simulated_bus_says_so(tmp_path, capsys):
+    plant = tmp_path / "real.toml"
+    plant.write_text('[[bus]]\nname = "l"\ntype = "modbus-rtu"\nport = "/dev/ttyUSB0"\n')
+    assert main(["sim", "--plant", str(plant)]) == 2
+    assert "simulate = true" in capsys.readouterr().err
+
+
+async def test_missing_serial_port_is_reported_and_worker_keeps_running():
+    plant = parse_plant(
+        '[[bus]]\nname = "l"\ntype = "modbus-rtu"\nport = "/dev/ttyNOPE"\ntimeout = 0.1\npoll_period = 0.1\n'
+        '[[device]]\nname = "d"\ntype = "hdlock"\nbus = "l"\naddress = 1\n'
+    )
+    runtime = Runtime(plant, simulate=False)
+    await runtime.start()
+    try:
+        state = runtime.store.devices["d"]
+        assert await wait_for(lambda: state.status == "offline", timeout=5)
+        assert "/dev/ttyNOPE" in runtime.store.buses["l"].last_error
+        assert "/dev/ttyNOPE" in state.last_error
+        assert all(not t.done() for t in runtime.worker.tasks)
+    finally:
+        await runtime.stop()
+
+
+async def test_gui_worker_talks_to_commission_sim_in_another_process(tmp_path):
+    port = free_port()
+    text = (
+        f'[[bus]]\nname = "line1"\ntype = "modbus-rtu"\nport = "socket://127.0.0.1:{port}"\nsimulate = true\n'
+        "timeout = 0.3\npoll_period = 0.1\n"
+        '[[device]]\nname = "door-1"\ntype = "hdlock"\nbus = "line1"\naddress = 3\nserial = 123456\n'
+    )
+    path = tmp_path / "plant.toml"
+    path.write_text(text)
+    proc = subprocess.Popen([sys.executable, "-m", "app.cli", "sim", "--plant", str(path)], stdout=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        assert "simulating line1" in line and "door-1" in line
+        runtime = Runtime(parse_plant(text), simulate=False)  # the GUI side: no twins of its own
+        await runtime.start()
+        try:
+            state = runtime.store.devices["door-1"]
+            assert await wait_for(lambda: state.value("SerialNumber") == 123456, timeout=10)
+            adapter = runtime.worker.adapters["door-1"]
+            from devices.hdlock.params import PARAMS
+
+            await adapter.write_param(PARAMS.by_name["LockRequestDelay"], 250)
+            assert state.value("LockRequestDelay") == 250
+        finally:
+            await runtime.stop()
+    finally:
+        proc.terminate()
+        try:
+            assert proc.wait(timeout=10) == 0
+        finally:
+            if proc.poll() is None:
+                proc.kill()

@@ -1,0 +1,351 @@
+"""Pages and JSON API with NiceGUI's simulated user, against twins polled over real Modbus RTU.
+
+Each test gets its own NiceGUI app (reset globals), a two-lock plant on a free localhost
+port and ``Runtime(plant, simulate=True)``, registered by ``app.web.register`` before the
+app's lifespan starts (which starts the twins and the worker through ``app.on_startup``).
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import os
+from collections.abc import AsyncIterator
+from dataclasses import dataclass
+
+import httpx
+import pytest
+from conftest import modbus_plant
+from nicegui import core, ui
+from nicegui.functions.download import download
+from nicegui.functions.navigate import Navigate
+from nicegui.functions.notify import notify
+from nicegui.testing import User
+from nicegui.testing.general import nicegui_reset_globals, prepare_simulation
+from nicegui.testing.user_interaction import UserInteraction
+from webutil import eventually
+
+from app import runtime as rt
+from app.runtime import Runtime
+from app.worker import PermissionDenied
+from devices.hdlock.params import PARAMS, REMOVE_MAGNET
+
+DELAY = PARAMS.by_name["LockRequestDelay"]  # holding 3000, factory 200 ms
+REMOVE = PARAMS.by_name["SettingsRemoveMagnet"]  # holding 3005, enum, 1 needs a confirmation
+
+
+@dataclass
+class Env:
+    user: User
+    runtime: Runtime
+
+    def twin(self, name: str = "door-1"):
+        return self.runtime.twins[name]
+
+    def state(self, name: str = "door-1"):
+        return self.runtime.store.devices[name]
+
+
+@pytest.fixture
+async def env(caplog: pytest.LogCaptureFixture) -> AsyncIterator[Env]:
+    """A simulated user on the app of a two-lock plant (door-1 at 1, door-2 at 2)."""
+    plant = modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
+    with nicegui_reset_globals():
+        os.environ["NICEGUI_USER_SIMULATION"] = "true"
+        try:
+            prepare_simulation()
+            runtime = Runtime(plant, simulate=True)
+            # nicegui_reset_globals drops the module of every page function (app.web) at the end,
+            # so import it afresh for each app.
+            importlib.import_module("app.web").register(runtime)
+            ui.run(storage_secret="test secret")
+            async with core.app.router.lifespan_context(core.app):
+                async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:
+                    yield Env(User(client), runtime)
+        finally:
+            os.environ.pop("NICEGUI_USER_SIMULATION", None)
+            ui.navigate = Navigate()
+            ui.notify = notify
+            ui.download = download
+            rt.set_current(None)
+    errors = [r for r in caplog.get_records("call") if r.levelno >= logging.ERROR]
+    assert not errors, "unexpected ERROR logs: " + "; ".join(r.getMessage() for r in errors)
+
+
+async def online(env: Env, *names: str) -> None:
+    """Wait until the worker has polled every named lock completely."""
+    names = names or ("door-1", "door-2")
+
+    def check() -> None:
+        for name in names:
+            state = env.state(name)
+            assert state.status == "online", f"{name} is {state.status}: {state.last_error}"
+            assert state.value("SerialNumber") is not None, f"{name}: serial not read yet"
+
+    await eventually(check, timeout=10)
+
+
+# -- finding elements by the app's data-* props (the pages set no .mark() markers) --------------
+
+
+def by_prop(user: User, prop: str, value: str, kind: type[ui.element] = ui.element) -> UserInteraction:
+    """The single visible element of ``kind`` whose ``prop`` is ``value``."""
+    assert user.client is not None
+    found = {e for e in user.client.elements.values() if isinstance(e, kind) and e.props.get(prop) == value and e.visible}
+    assert len(found) == 1, f"expected one {kind.__name__} with {prop}={value!r}, found {len(found)}"
+    return UserInteraction(user, found, None)
+
+
+def entry(user: User, param: str) -> UserInteraction:
+    return by_prop(user, "data-param", param)
+
+
+def write_button(user: User, param: str) -> UserInteraction:
+    return by_prop(user, "data-write", param, ui.button)
+
+
+def lamp_on(user: User, name: str) -> str | None:
+    """``data-on`` of the lamp named ``name``: "1", "0" or "unknown"."""
+    return by_prop(user, "data-lamp", name).elements.copy().pop().props.get("data-on")
+
+
+def spy_writes(twin) -> list[tuple[int, int]]:
+    """Record every register write that reaches the twin (over the wire, via FC 0x06)."""
+    writes: list[tuple[int, int]] = []
+    original = twin.write
+
+    def recording(address: int, value: int):
+        writes.append((address, value))
+        return original(address, value)
+
+    twin.write = recording
+    return writes
+
+
+# -- overview and device page -------------------------------------------------------------------
+
+
+async def test_overview_lists_both_locks_online(env: Env):
+    user = env.user
+    await user.open("/")
+    await user.should_see("Overview")
+    await user.should_see("plant: plant")
+    for name in ("door-1", "door-2"):
+        await user.should_see(name)
+    await user.should_see(kind=ui.label, content="HD-Lock on line1")
+    assert len(user.find(kind=ui.label, content="HD-Lock on line1").elements) == 2
+    await online(env)
+    # the tiles refresh once a second
+    await user.should_see(kind=ui.badge, content="online", retries=30)
+
+    def both_online() -> None:
+        badges = [e for e in user.find(kind=ui.badge, content="online").elements if e.text == "online"]
+        assert len(badges) == 2, f"{len(badges)} tiles say online"
+
+    await eventually(both_online, timeout=5)
+    counters = [e.text for e in user.find(kind=ui.label, content="req ").elements]
+    assert len(counters) == 2
+    for text in counters:
+        assert "timeouts" in text and "CRC" in text and "write err" in text
+        assert int(text.split()[1]) > 0, f"no requests counted: {text}"
+    await user.should_see(kind=ui.label, content="BoltPosition: ")
+    await user.should_see(kind=ui.label, content="DoorState: ")
+    await user.should_see("connected")
+
+
+async def test_tile_click_opens_device_page(env: Env):
+    user = env.user
+    await user.open("/")
+    await user.should_see("door-2")
+    tile = by_prop(user, "data-device", "door-2", ui.card)
+    tile.trigger("click")
+    await user.should_see("HD-Lock door-2", retries=20)
+
+
+async def test_device_page_shows_lamps_and_enums(env: Env):
+    user = env.user
+    await online(env, "door-1")
+    await user.open("/device/door-1")
+    await user.should_see("HD-Lock door-1")
+    await user.should_see("LockStatus (holding 1000)")
+    for lamp in ("LockRequest", "ProximityInPlace", "DoorInPosition", "BoltLocked", "BoltUnlocked", "BoltMovingOut"):
+        await user.should_see(kind=ui.label, content=lamp)
+        assert lamp_on(user, lamp) in ("0", "1")
+    for key in ("DoorState", "StateMachineState", "MotorState"):
+        await user.should_see(kind=ui.label, content=key)
+    # the door of door-1 starts open: nothing locks, the bolt is retracted
+    assert lamp_on(user, "DoorInPosition") == "0"
+    assert lamp_on(user, "BoltUnlocked") == "1"
+    await user.should_see("Modbus address 1 · serial 655361")
+    await user.should_see("Close door")
+
+
+async def test_unknown_device_page(env: Env):
+    await env.user.open("/device/nope")
+    await env.user.should_see("The plant has no device named 'nope'.")
+
+
+# -- writing parameters -----------------------------------------------------------------------
+
+
+async def test_write_parameter_then_save_settings(env: Env):
+    user, twin, state = env.user, env.twin(), env.state()
+    await online(env, "door-1")
+    await user.open("/device/door-1")
+    await user.should_see("HD-Lock door-1")
+    await user.should_not_see(kind=ui.badge, content="unsaved")
+    assert twin.holding[3000] == 200
+    saved_before = twin.input[101]
+
+    entry(user, "LockRequestDelay").type("500")
+    write_button(user, "LockRequestDelay").click()
+
+    await eventually(lambda: twin.holding[3000] == 500, what="twin holding 3000 == 500")
+    await user.should_see("LockRequestDelay = 500 ms written and read back", retries=20)
+    assert DELAY.key in state.unsaved
+    await user.should_see(kind=ui.badge, content="1 unsaved change", retries=20)
+    await user.should_see(kind=ui.badge, content="unsaved")
+    assert twin.flash[3000] == 200, "a write must stay volatile until Save-Settings"
+
+    user.find(kind=ui.button, content="Save-Settings").click()
+
+    await eventually(lambda: twin.input[101] == saved_before + 1, what="SavedSettings counted up")
+    await user.should_see("Settings saved to the lock's flash", retries=20)
+    assert not state.unsaved
+    assert twin.flash[3000] == 500
+    await user.should_not_see(kind=ui.badge, content="unsaved", retries=20)
+
+
+async def test_out_of_range_value_is_refused_without_writing(env: Env):
+    user, twin = env.user, env.twin()
+    await online(env, "door-1")
+    await user.open("/device/door-1")
+    await user.should_see("HD-Lock door-1")
+    writes = spy_writes(twin)
+    requests = env.state().counters.requests
+
+    entry(user, "LockRequestDelay").type("70000")
+    write_button(user, "LockRequestDelay").click()
+
+    await user.should_see("LockRequestDelay: 70000 is outside 0 .. 65535 ms", retries=10)
+    await eventually(lambda: env.state().counters.requests > requests)  # polling goes on ...
+    assert writes == []  # ... but nothing was written
+    assert twin.holding[3000] == 200
+    assert not env.state().unsaved
+
+
+async def test_empty_entry_asks_for_a_value(env: Env):
+    user, twin = env.user, env.twin()
+    await online(env, "door-1")
+    await user.open("/device/door-1")
+    writes = spy_writes(twin)
+    write_button(user, "LockRequestDelay").click()
+    await user.should_see("LockRequestDelay: enter a value first")
+    assert writes == []
+
+
+def choose(user: User, param: str, value: int, options: dict[int, str]) -> None:
+    """Open the select of ``param`` and click the option for ``value``, as a person would."""
+    select = entry(user, param)
+    label = f"{options[value]} ({value})"
+    select.click()  # opens the popup
+    UserInteraction(user, select.elements, label).click()  # picks the option
+    (element,) = select.elements
+    assert element.value == value
+
+
+async def test_remove_magnet_asks_for_confirmation_and_cancel_writes_nothing(env: Env):
+    user, twin = env.user, env.twin()
+    await online(env, "door-1")
+    await user.open("/device/door-1")
+    await user.should_see("HD-Lock door-1")
+    writes = spy_writes(twin)
+
+    choose(user, "SettingsRemoveMagnet", 1, REMOVE_MAGNET)
+    write_button(user, "SettingsRemoveMagnet").click()
+
+    await user.should_see("Write SettingsRemoveMagnet = Retract when magnet removed (1)?", retries=10)
+    await user.should_see(kind=ui.label, content="Security risk")
+    await user.should_see(kind=ui.label, content="unlocked from outside")
+    user.find(kind=ui.button, content="Cancel").click()
+
+    await user.should_not_see(kind=ui.label, content="Security risk", retries=20)
+    await eventually(lambda: env.state().counters.requests > 0)
+    assert writes == []
+    assert twin.holding[3005] == 0
+    assert not env.state().unsaved
+
+
+async def test_remove_magnet_written_after_confirmation(env: Env):
+    user, twin = env.user, env.twin()
+    await online(env, "door-1")
+    await user.open("/device/door-1")
+    await user.should_see("HD-Lock door-1")
+
+    choose(user, "SettingsRemoveMagnet", 1, REMOVE_MAGNET)
+    write_button(user, "SettingsRemoveMagnet").click()
+    await user.should_see(kind=ui.label, content="Security risk", retries=10)
+    user.find(kind=ui.button, content="Write anyway").click()
+
+    await eventually(lambda: twin.holding[3005] == 1, what="twin holding 3005 == 1")
+    await user.should_see("written and read back", retries=20)
+    assert REMOVE.key in env.state().unsaved
+
+
+# -- JSON API and the worker's role check -------------------------------------------------------
+
+
+async def test_api_devices(env: Env):
+    await online(env)
+    client = env.user.http_client
+    response = await client.get("/api/devices")
+    assert response.status_code == 200
+    devices = {d["name"]: d for d in response.json()}
+    assert set(devices) == {"door-1", "door-2"}
+    for d in devices.values():
+        assert d["type"] == "hdlock" and d["bus"] == "line1"
+        assert d["online"] is True and d["status"] == "online"
+        assert d["counters"]["requests"] > 0 and d["counters"]["timeouts"] == 0
+        assert "values" not in d
+
+
+async def test_api_device_values_by_document_name(env: Env):
+    await online(env, "door-1")
+    response = await env.user.http_client.get("/api/devices/door-1")
+    assert response.status_code == 200
+    body = response.json()
+    assert body["name"] == "door-1" and body["online"] is True
+    values = body["values"]
+    for key in ("BoltPosition", "LockStatus", "SettingsProximityThresholdUnlock", "SerialNumber", "LockRequestDelay"):
+        assert key in values, f"{key} missing from the API values"
+        assert {"value", "raw", "unit"} <= set(values[key]), values[key]
+    assert values["BoltPosition"]["unit"] == "Inc"
+    assert values["BoltPosition"]["value"] == 0  # door open: bolt retracted
+    threshold = values["SettingsProximityThresholdUnlock"]
+    assert threshold["value"] == -30 and threshold["raw"] == 65506
+    serial = values["SerialNumber"]
+    assert serial["value"] == serial["raw"] == 0x000A0001  # input 104 << 16 | input 105
+    assert values["LockRequestDelay"] == {**values["LockRequestDelay"], "value": 200, "unit": "ms"}
+    status = values["LockStatus"]
+    assert status["fields"]["BoltUnlocked"] == 1 and status["fields"]["BoltLocked"] == 0
+    # the holding copies of BoltPosition carry their own labels and do not shadow the input
+    assert "BoltPosition (HR1001)" in values
+
+    missing = await env.user.http_client.get("/api/devices/nope")
+    assert missing.status_code == 404
+
+
+async def test_worker_refuses_writes_for_viewer(env: Env):
+    twin = env.twin()
+    await online(env, "door-1")
+    writes = spy_writes(twin)
+    with pytest.raises(PermissionDenied):
+        await env.runtime.worker.command(
+            "door-1", lambda a: a.write_param(DELAY, 999), role="viewer", user="tester", describe="write LockRequestDelay"
+        )
+    assert writes == []
+    assert twin.holding[3000] == 200
+    assert any(e.level == "warning" and "refused for tester (viewer)" in e.text for e in env.state().events)
+    # the engineer may
+    await env.runtime.worker.command("door-1", lambda a: a.write_param(DELAY, 999), role="engineer")
+    assert twin.holding[3000] == 999

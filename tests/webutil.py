@@ -1,0 +1,96 @@
+"""Helpers shared by the page tests (simulated user) and the browser tests."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import socket
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+from collections.abc import Callable
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+DEMO_PLANT = ROOT / "plants" / "demo.toml"
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+async def eventually(check: Callable[[], object], timeout: float = 5.0, interval: float = 0.05, what: str = "") -> None:
+    """Retry ``check`` (which raises AssertionError, or returns falsy) until it passes or ``timeout`` ends."""
+    loop = asyncio.get_running_loop()
+    end = loop.time() + timeout
+    while True:
+        try:
+            result = check()
+            if asyncio.iscoroutine(result):
+                result = await result
+            if result is None or result:
+                return
+            error: AssertionError | None = AssertionError(f"not true within {timeout} s: {what or check}")
+        except AssertionError as exc:
+            error = exc
+        if loop.time() >= end:
+            raise error
+        await asyncio.sleep(interval)
+
+
+# -- the app as a separate process (browser tests) ---------------------------------------------
+
+
+def demo_plant_text(bus_port: int) -> str:
+    """The demo plant file with the simulated line moved to ``bus_port``."""
+    text = DEMO_PLANT.read_text()
+    assert 'port = "socket://127.0.0.1:5020"' in text, "demo plant no longer names socket://127.0.0.1:5020"
+    return text.replace("socket://127.0.0.1:5020", f"socket://127.0.0.1:{bus_port}")
+
+
+def wait_http(url: str, proc: subprocess.Popen | None = None, timeout: float = 20.0) -> None:
+    """Wait until ``url`` answers 200 (raise if ``proc`` dies or ``timeout`` passes)."""
+    end = time.monotonic() + timeout
+    last: object = None
+    while time.monotonic() < end:
+        if proc is not None and proc.poll() is not None:
+            raise RuntimeError(f"the app exited with {proc.returncode} before answering {url}")
+        try:
+            with urllib.request.urlopen(url, timeout=1) as response:
+                if response.status == 200:
+                    return
+                last = response.status
+        except (urllib.error.URLError, ConnectionError, OSError) as exc:
+            last = exc
+        time.sleep(0.1)
+    raise TimeoutError(f"{url} did not answer within {timeout} s (last: {last})")
+
+
+def start_app(plant_file: Path, port: int, log_file: Path) -> subprocess.Popen:
+    """``python -m app.cli --plant plant_file --port port`` with its output in ``log_file``."""
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    env.pop("NICEGUI_USER_SIMULATION", None)
+    env.pop("PYTEST_CURRENT_TEST", None)  # NiceGUI must not think it runs inside pytest
+    with open(log_file, "wb") as log:
+        return subprocess.Popen(
+            [sys.executable, "-m", "app.cli", "--plant", str(plant_file), "--port", str(port)],
+            cwd=ROOT,
+            env=env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+
+
+def stop_app(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=5)
