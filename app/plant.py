@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import tomllib
 
 from devices.registry import DEVICE_TYPES
 
@@ -27,7 +28,16 @@ BUS_KEYS: dict[str, dict[str, tuple[type | tuple[type, ...], Any]]] = {
         "simulate": (bool, False),
         "wire_delay": (bool, False),
     },
+    "can": {
+        "interface": (str, None),  # python-can interface: socketcan, pcan, kvaser, slcan, gs_usb, virtual, udp_multicast ...
+        "channel": ((str, int), None),
+        "bitrate": (int, 250000),
+        "timeout": ((int, float), 0.5),
+        "poll_period": ((int, float), 2.0),
+        "simulate": (bool, False),
+    },
 }
+PASSTHROUGH_BUS_TYPES = {"can"}  # further keys go to the bus library unchanged
 COMMON_BUS_KEYS = {"name", "type", "description"}
 COMMON_DEVICE_KEYS = {"name", "type", "bus", "description"}
 
@@ -72,6 +82,7 @@ class Plant:
     path: Path | None
     buses: dict[str, BusConfig] = field(default_factory=dict)
     devices: dict[str, DeviceConfig] = field(default_factory=dict)
+    sim_devices: dict[str, DeviceConfig] = field(default_factory=dict)  # simulated, not (yet) in the plant
     plant_view: PlantViewConfig = field(default_factory=PlantViewConfig)
 
     def devices_on(self, bus: str) -> list[DeviceConfig]:
@@ -88,8 +99,8 @@ def _key_line(text: str, start: int, key: str) -> int:
     """Line of ``key =`` in the table that starts at ``start`` (falls back to ``start``)."""
     lines = text.splitlines()
     pattern = re.compile(rf"^\s*{re.escape(key)}\s*=")
-    for i in range(start, len(lines)):
-        if i > start - 1 and lines[i].lstrip().startswith("["):
+    for i in range(start, len(lines)):  # ``start`` is 1-based: this begins below the header
+        if lines[i].lstrip().startswith("["):
             break
         if pattern.match(lines[i]):
             return i + 1
@@ -115,9 +126,9 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
     def fail(line: int, message: str) -> PlantError:
         return PlantError(f"{where}:{line}: {message}")
 
-    unknown_top = set(data) - {"name", "bus", "device", "plant_view"}
+    unknown_top = set(data) - {"name", "bus", "device", "sim_device", "plant_view"}
     if unknown_top:
-        raise fail(1, f"unknown section(s) {', '.join(sorted(unknown_top))}; expected [[bus]], [[device]], [plant_view]")
+        raise fail(1, f"unknown section(s) {', '.join(sorted(unknown_top))}; expected [[bus]], [[device]], [[sim_device]], [plant_view]")
     plant = Plant(name=str(data.get("name") or (path.stem if path else "plant")), path=path)
     pv = data.get("plant_view", {})
     plant.plant_view = PlantViewConfig(public=bool(pv.get("public", False)))
@@ -138,6 +149,9 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
         for key, value in raw.items():
             if key in COMMON_BUS_KEYS:
                 continue
+            if key not in spec and btype in PASSTHROUGH_BUS_TYPES:
+                options[key] = value
+                continue
             if key not in spec:
                 raise fail(_key_line(text, line, key), f"bus '{name}': unknown key '{key}'; known: {', '.join(spec)}")
             typ = spec[key][0]
@@ -152,20 +166,39 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
         if btype == "modbus-rtu":
             if options["parity"] not in ("N", "E", "O"):
                 raise fail(_key_line(text, line, "parity"), f"bus '{name}': parity must be \"N\", \"E\" or \"O\"")
-            if options["timeout"] <= 0:
-                raise fail(_key_line(text, line, "timeout"), f"bus '{name}': timeout must be > 0 s")
+        if options["timeout"] <= 0:
+            raise fail(_key_line(text, line, "timeout"), f"bus '{name}': timeout must be > 0 s")
+        if btype == "can" and not 5000 <= options["bitrate"] <= 1_000_000:
+            raise fail(_key_line(text, line, "bitrate"), f"bus '{name}': bitrate {options['bitrate']} is outside 5000..1000000 bit/s")
         plant.buses[name] = BusConfig(name, btype, options, line)
 
-    device_lines = _header_lines(text, "device")
-    for index, raw in enumerate(data.get("device", [])):
+    _parse_devices(text, data, plant, "device", plant.devices, fail)
+    _parse_devices(text, data, plant, "sim_device", plant.sim_devices, fail)
+
+    for bus in plant.buses.values():
+        seen: dict[Any, str] = {}
+        for dev in plant.devices_on(bus.name) + [d for d in plant.sim_devices.values() if d.bus == bus.name]:
+            ident = DEVICE_TYPES[dev.type].bus_identity(dev.options, bus.type)
+            if ident is not None and ident in seen:
+                raise fail(dev.line, f"device '{dev.name}': address {ident} is already used by '{seen[ident]}' on bus '{bus.name}'")
+            if ident is not None:
+                seen[ident] = dev.name
+    return plant
+
+
+def _parse_devices(text, data, plant, table, target, fail) -> None:
+    """``[[device]]`` (in the plant) and ``[[sim_device]]`` (only in the simulation, to be discovered)."""
+    device_lines = _header_lines(text, table)
+    for index, raw in enumerate(data.get(table, [])):
         line = device_lines[index] if index < len(device_lines) else 1
         name = raw.get("name")
         if not isinstance(name, str) or not name:
             raise fail(line, "device without a name (add name = \"...\")")
         if not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
             raise fail(line, f"device name '{name}' may only contain letters, digits, '_', '.', '-'")
-        if name in plant.devices:
-            raise fail(line, f"duplicate device name '{name}' (first at line {plant.devices[name].line})")
+        if name in plant.devices or name in plant.sim_devices:
+            first = (plant.devices.get(name) or plant.sim_devices[name]).line
+            raise fail(line, f"duplicate device name '{name}' (first at line {first})")
         dtype = raw.get("type")
         if dtype not in DEVICE_TYPES:
             raise fail(_key_line(text, line, "type"), f"device '{name}': unknown type {dtype!r}; known: {', '.join(DEVICE_TYPES)}")
@@ -176,16 +209,29 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
         if plant.buses[bus].type not in device_type.bus_types:
             raise fail(_key_line(text, line, "bus"), f"device '{name}': a {dtype} cannot sit on a {plant.buses[bus].type} bus")
         options = {k: v for k, v in raw.items() if k not in COMMON_DEVICE_KEYS}
-        for key, message in device_type.check_config(options):
+        for key, message in device_type.check_config(options, plant.buses[bus].type):
             raise fail(_key_line(text, line, key), f"device '{name}': {message}")
-        plant.devices[name] = DeviceConfig(name, dtype, bus, options, line)
+        target[name] = DeviceConfig(name, dtype, bus, options, line)
 
-    for bus in plant.buses.values():
-        seen: dict[Any, str] = {}
-        for dev in plant.devices_on(bus.name):
-            ident = DEVICE_TYPES[dev.type].bus_identity(dev.options)
-            if ident is not None and ident in seen:
-                raise fail(dev.line, f"device '{dev.name}': address {ident} is already used by '{seen[ident]}' on bus '{bus.name}'")
-            if ident is not None:
-                seen[ident] = dev.name
-    return plant
+
+def device_toml(dev: DeviceConfig) -> str:
+    """The ``[[device]]`` table of a device, to paste into (or append to) a plant file."""
+    lines = ["[[device]]", f'name = "{dev.name}"', f'type = "{dev.type}"', f'bus = "{dev.bus}"']
+    for key, value in dev.options.items():
+        if isinstance(value, bool):
+            lines.append(f"{key} = {'true' if value else 'false'}")
+        elif isinstance(value, int | float):
+            lines.append(f"{key} = {value}")
+        else:
+            lines.append(f'{key} = "{value}"')
+    return "\n".join(lines) + "\n"
+
+
+def append_device(path: Path, dev: DeviceConfig) -> None:
+    """Append a device to a plant file, checking first that the result still loads."""
+    text = path.read_text(encoding="utf-8")
+    new_text = text.rstrip("\n") + "\n\n" + device_toml(dev)
+    parse_plant(new_text, path)  # raises PlantError before anything is written
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(new_text, encoding="utf-8")
+    tmp.replace(path)

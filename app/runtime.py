@@ -24,13 +24,14 @@ class SimulatedPlant:
             if only_flagged and not bus.simulated:
                 continue
             by_type: dict[str, list] = {}
-            for dev in plant.devices_on(bus.name):
+            extra = [d for d in plant.sim_devices.values() if d.bus == bus.name]
+            for dev in plant.devices_on(bus.name) + extra:
                 by_type.setdefault(dev.type, []).append(dev)
             for type_name, devs in by_type.items():
-                device_type = DEVICE_TYPES[type_name]
-                if not device_type.sim:
+                sim_class = DEVICE_TYPES[type_name].sim_class(bus.type)
+                if sim_class is None:
                     continue
-                server = device_type.load("sim")(bus, devs)
+                server = sim_class(bus, devs)
                 self.servers.append(server)
                 self.twins.update(server.twins)
 

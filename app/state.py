@@ -24,10 +24,11 @@ class Counters:
     crc_errors: int = 0
     exceptions: int = 0
     write_errors: int = 0
+    malformed: int = 0  # frames that could not be decoded
 
     @property
     def errors(self) -> int:
-        return self.timeouts + self.crc_errors + self.exceptions + self.write_errors
+        return self.timeouts + self.crc_errors + self.exceptions + self.write_errors + self.malformed
 
     def as_dict(self) -> dict[str, int]:
         return {
@@ -37,6 +38,7 @@ class Counters:
             "crc_errors": self.crc_errors,
             "exceptions": self.exceptions,
             "write_errors": self.write_errors,
+            "malformed": self.malformed,
         }
 
 

@@ -14,8 +14,9 @@ import time
 from collections.abc import Awaitable, Callable
 from typing import Any
 
+from app.can_bus import CanBus, CanBusState
 from app.modbus_line import ModbusLine
-from app.plant import Plant
+from app.plant import DeviceConfig, Plant
 from app.state import BusState, DeviceState, StateStore
 from devices.registry import DEVICE_TYPES
 
@@ -38,24 +39,75 @@ class Worker:
         self.adapters: dict[str, Any] = {}
         self.tasks: list[asyncio.Task] = []
         self.paused: set[str] = set()  # buses whose polling is held (e.g. during a scan)
+        self.can_buses: dict[str, CanBus] = {}
         for bus in plant.buses.values():
-            bus_state = BusState(bus.name, bus.type, bus.endpoint)
-            self.store.buses[bus.name] = bus_state
-            if bus.type == "modbus-rtu":
+            if bus.type == "can":
+                can_state = CanBusState(bus.name, bus.type, f"{bus.options['interface']} {bus.options['channel']}")
+                self.store.buses[bus.name] = can_state
+                self.can_buses[bus.name] = CanBus(bus.name, bus.options, can_state)
+            else:
+                bus_state = BusState(bus.name, bus.type, bus.endpoint)
+                self.store.buses[bus.name] = bus_state
                 self.lines[bus.name] = ModbusLine(bus.name, bus.options, bus_state)
+        self.discovered: dict[str, dict[tuple[bool, int], dict]] = {name: {} for name in self.can_buses}
+        for name, can_bus in self.can_buses.items():
+            can_bus.listeners.append(lambda msg, bus=name: self._discover_frame(bus, msg))
         for dev in plant.devices.values():
-            device_type = DEVICE_TYPES[dev.type]
-            bus = plant.buses[dev.bus]
-            period = bus.options.get("poll_period", 0.5)
-            state = DeviceState(
-                dev.name, dev.type, dev.bus, params=device_type.params,
-                stale_after=max(3.0, 3 * period + 2 * bus.options.get("timeout", 0.5)),
-            )
-            self.store.devices[dev.name] = state
-            adapter_cls = device_type.load("adapter")
-            self.adapters[dev.name] = adapter_cls(dev, state, self.lines.get(dev.bus))
+            self._add_adapter(dev)
+
+    def _add_adapter(self, dev: DeviceConfig) -> None:
+        device_type = DEVICE_TYPES[dev.type]
+        bus = self.plant.buses[dev.bus]
+        period = bus.options.get("poll_period", 0.5)
+        state = DeviceState(
+            dev.name, dev.type, dev.bus, params=device_type.params,
+            stale_after=max(3.0, 3 * period + 2 * bus.options.get("timeout", 0.5)),
+        )
+        self.store.devices[dev.name] = state
+        transport = self.lines.get(dev.bus) or self.can_buses.get(dev.bus)
+        self.adapters[dev.name] = device_type.adapter_class(bus.type)(dev, state, transport)
+
+    # -- CAN discovery -----------------------------------------------------------------------
+    def _discover_frame(self, bus: str, msg) -> None:
+        """A frame whose ID no adapter owns: does some device type recognise it?"""
+        key = (msg.is_extended_id, msg.arbitration_id)
+        known = self.discovered[bus].get(key)
+        if known is not None:
+            known["last_seen"] = time.time()
+            known["frames"] += 1
+            return
+        for device_type in DEVICE_TYPES.values():
+            if not device_type.can_codec or "can" not in device_type.bus_types:
+                continue
+            entry = importlib.import_module(device_type.can_codec).discovered(msg.arbitration_id, msg.is_extended_id, bytes(msg.data))
+            if entry:
+                entry.update(first_seen=time.time(), last_seen=time.time(), frames=1, bus=bus)
+                self.discovered[bus][key] = entry
+                log.info("%s: discovered %s at %s", bus, entry["type"], key)
+                return
+
+    def known_ids(self, bus: str) -> set[tuple[bool, int]]:
+        """IDs of devices on a CAN bus (in the plant or discovered): for decoding in the monitor."""
+        can_bus = self.can_buses.get(bus)
+        if can_bus is None:
+            return set()
+        return set(can_bus.handlers) | set(self.discovered.get(bus, {}))
+
+    def adopt(self, dev: DeviceConfig) -> None:
+        """Take a discovered device into the running plant (the plant file is the caller's business)."""
+        if dev.name in self.plant.devices:
+            raise ValueError(f"a device named {dev.name!r} exists already")
+        self.plant.devices[dev.name] = dev
+        self._add_adapter(dev)
+        for key, entry in list(self.discovered.get(dev.bus, {}).items()):
+            if DEVICE_TYPES[dev.type].bus_identity(dev.options, "can") == DEVICE_TYPES[entry["type"]].bus_identity(
+                {"device_id": entry["device_id"], "extended": entry["extended"]}, "can"
+            ):
+                del self.discovered[dev.bus][key]
 
     async def start(self) -> None:
+        for can_bus in self.can_buses.values():
+            await can_bus.start()
         for name in self.plant.buses:
             self.tasks.append(asyncio.create_task(self._poll_bus(name), name=f"bus {name}"))
 
@@ -70,16 +122,22 @@ class Worker:
         self.tasks.clear()
         for line in self.lines.values():
             line.close()
+        for can_bus in self.can_buses.values():
+            await can_bus.stop()
 
     async def _poll_bus(self, bus_name: str) -> None:
         """Round-robin polling of every device on the bus, at the configured period."""
         bus = self.plant.buses[bus_name]
         period = bus.options.get("poll_period", 0.5)
-        names = [d.name for d in self.plant.devices_on(bus_name)]
         while True:
             started = time.monotonic()
-            if bus_name not in self.paused:
-                for name in names:
+            can_bus = self.can_buses.get(bus_name)
+            if can_bus is not None and not can_bus.state.connected:
+                for name in [d.name for d in self.plant.devices_on(bus_name)]:
+                    if self.store.devices[name].online is not False and can_bus.state.last_error:
+                        self.store.devices[name].mark_offline(f"bus {bus_name}: {can_bus.state.last_error}")
+            elif bus_name not in self.paused:
+                for name in [d.name for d in self.plant.devices_on(bus_name)]:
                     try:
                         await self.adapters[name].poll()
                     except asyncio.CancelledError:

@@ -19,26 +19,36 @@ from devices.params import ParamMap
 class DeviceType:
     """What the application needs to know about one kind of device.
 
-    :param make_adapter: ``(config, state, transport) -> adapter`` (imported lazily)
-    :param make_sims: ``(bus_config, device_configs) -> twin server`` for the simulated plant
-    :param check_config: ``options -> [(key, message)]`` for the plant-file loader
-    :param bus_identity: ``options -> address`` that must be unique on a bus, or None
+    :param adapters: bus type -> ``"module:Class"`` of ``(config, state, transport) -> adapter``
+    :param sims: bus type -> ``"module:Class"`` of ``(bus_config, device_configs) -> twin server``
+    :param check_config: ``(options, bus_type) -> [(key, message)]`` for the plant-file loader
+    :param bus_identity: ``(options, bus_type) -> address`` that must be unique on a bus, or None
+    :param can_codec: ``"module"`` with ``describe_frame(id, ext, data, known) -> str | None`` and
+        ``discovered(id, ext, data) -> dict | None`` for the bus monitor and discovery
     """
 
     name: str
     title: str
     bus_types: tuple[str, ...]
     params: ParamMap | None
-    adapter: str  # "module:callable"
-    sim: str = ""  # "module:callable"
-    check_config: Callable[[dict[str, Any]], list[tuple[str, str]]] = lambda options: []
-    bus_identity: Callable[[dict[str, Any]], Any] = lambda options: None
+    adapters: dict[str, str]
+    sims: dict[str, str] = field(default_factory=dict)
+    check_config: Callable[[dict[str, Any], str], list[tuple[str, str]]] = lambda options, bus_type: []
+    bus_identity: Callable[[dict[str, Any], str], Any] = lambda options, bus_type: None
+    can_codec: str = ""
     key_values: tuple[str, ...] = ()  # parameter names shown on tiles
     extra: dict[str, Any] = field(default_factory=dict)
 
-    def load(self, what: str) -> Callable[..., Any]:
-        module, _, attr = getattr(self, what).partition(":")
-        return getattr(importlib.import_module(module), attr)
+    def adapter_class(self, bus_type: str) -> Callable[..., Any]:
+        return _load(self.adapters[bus_type])
+
+    def sim_class(self, bus_type: str) -> Callable[..., Any] | None:
+        return _load(self.sims[bus_type]) if bus_type in self.sims else None
+
+
+def _load(spec: str) -> Callable[..., Any]:
+    module, _, attr = spec.partition(":")
+    return getattr(importlib.import_module(module), attr)
 
 
 def _discover() -> dict[str, DeviceType]:

@@ -22,6 +22,7 @@ def content(name: str) -> None:
     runtime = rt.current()
     state = runtime.store.devices[name]
     twin = runtime.twins.get(name)
+    is_can = getattr(runtime.worker.adapters[name], "transport", "") == "can"
     with frame(f"HD-Lock {name}"):
         # -- identity and health --------------------------------------------------------
         with ui.card().classes("w-full"):
@@ -51,8 +52,13 @@ def content(name: str) -> None:
                 chart = HistoryChart(state, list(CHART_SERIES))
             with ui.column().classes("col gap-4"):
                 if twin is not None:
-                    _sim_controls(twin)
-                _set_address_card(name, state)
+                    _sim_controls(twin, is_can)
+                if is_can:
+                    can_status = _can_status_card(state)
+                    _can_commands_card(name, state)
+                else:
+                    can_status = None
+                    _set_address_card(name, state)
 
         # -- writable parameters -----------------------------------------------------------
         param_rows = _parameter_card(name, state)
@@ -76,10 +82,12 @@ def content(name: str) -> None:
             values = state.values()
             serial = values.get("SerialNumber", {}).get("value")
             fw = values.get("FirmwareVersion", {}).get("value")
+            where = f"CAN device ID {state.info.get('device_id')}" if is_can else f"Modbus address {state.info.get('address')}"
             ident.set_text(
-                f"Modbus address {state.info.get('address')} · serial {serial if serial is not None else '-'}"
-                f" · firmware V{fw if fw is not None else '-'}"
+                f"{where} · serial {serial if serial is not None else '-'} · firmware V{fw if fw is not None else '-'}"
             )
+            if can_status is not None:
+                can_status()
             seen.set_text(f"last seen {fmt_age(state.age)}")
             c = state.counters
             counters.set_text(
@@ -105,9 +113,12 @@ def content(name: str) -> None:
         ui.timer(1.0, chart.update)
 
 
-def _sim_controls(twin) -> None:
+def _sim_controls(twin, is_can: bool) -> None:
     with ui.card().classes("w-full bg-purple-1"):
         ui.label("Simulated lock (demo)").classes("text-subtitle1")
+        if is_can:
+            rate = ui.label().classes("text-caption")
+            ui.timer(1.0, lambda: rate.set_text(f"simulated lock runs at {twin.can_bitrate} bit/s, device ID {twin.device_id}"))
         with ui.row():
             ui.button("Close door", icon="door_front", on_click=twin.close_door).props("data-testid=sim-close")
             ui.button("Open door", icon="meeting_room", on_click=twin.open_door).props("outline data-testid=sim-open")
@@ -115,6 +126,9 @@ def _sim_controls(twin) -> None:
             ui.switch("LOCK-REQUEST input active", value=twin.line_input, on_change=lambda e: twin.set_line_input(e.value))
             ui.switch("Strong magnet", value=twin.strong_magnet, on_change=lambda e: setattr(twin, "strong_magnet", e.value))
             ui.switch("Stop answering", value=twin.silent, on_change=lambda e: setattr(twin, "silent", e.value))
+            if is_can:
+                ui.switch("Firmware-update mode", value=twin.fwu_mode, on_change=lambda e: setattr(twin, "fwu_mode", e.value))
+                ui.button("Back to the bus bit rate", on_click=lambda: setattr(twin, "can_bitrate", _bus_bitrate(twin))).props("flat dense")
 
 
 def _parameter_card(name: str, state):
@@ -261,3 +275,109 @@ def _set_address_card(name: str, state) -> None:
     button.on_click(send)
     update_preview()
     ui.timer(1.0, update_preview)
+
+
+def _bus_bitrate(twin) -> int:
+    runtime = rt.current()
+    for server in runtime.sim.servers if runtime.sim else []:
+        if twin in getattr(server, "twins", {}).values() and hasattr(server, "bitrate"):
+            return server.bitrate
+    return codec.CAN_DEFAULT_BITRATE
+
+
+def _can_status_card(state):
+    """What the periodic status frame (section 6.5.1) and FWU status (6.5.2) say."""
+    with ui.card().classes("w-full"):
+        ui.label("CAN status frame (every 1000 ms)").classes("text-subtitle1")
+        text = ui.label("no status frame yet").classes("text-body2 mono")
+        fwu = ui.label().classes("text-body2 text-warning")
+
+    def refresh() -> None:
+        frame = state.info.get("can_status")
+        if frame is not None:
+            source = PARAMS.by_name["LockRequestSource"].enum.get(frame.lock_request_source, "?")
+            text.set_text(
+                f"Status 0x{frame.status:04X} · motorPos {frame.motor_pos} Inc · proximity {frame.proximity} Inc"
+                f" · LockRequestSource (low 6 bits) {frame.lock_request_source} {source}"
+            )
+        f = state.info.get("fwu")
+        fwu.set_text(
+            "" if f is None else f"FWU status: firmware-update mode, {'flashing' if f.flashing else 'not flashing'}, "
+            f"{'application' if f.application else 'boot loader'} (no status frames meanwhile)"
+        )
+
+    return refresh
+
+
+def _can_commands_card(name: str, state) -> None:
+    """Commands through 0x700 and Set Device Address through 0x701 (section 6.6)."""
+    sources = PARAMS.by_name["LockRequestSource"].enum
+    with ui.card().classes("w-full"):
+        ui.label("CAN commands (0x700, 0x701)").classes("text-subtitle1")
+        broadcast = ui.checkbox("Send to all locks on this bus (broadcast, device ID 0)")
+        with ui.row().classes("items-center"):
+            source = ui.select({k: f"{v} (0x{k:02X})" for k, v in sources.items()}, label="LockRequestSource").props("dense outlined options-dense").classes("w-72")
+            ui.button("Set", on_click=lambda: _send_source(name, source.value, broadcast.value)).props("dense")
+        with ui.row().classes("items-center"):
+            rate = ui.select(
+                {k: f"{r // 1000 if r % 1000 == 0 else r / 1000:g} kbit/s" + (f" ({length})" if length else "") for k, (r, length) in codec.CAN_BITRATES.items()},
+                label="CAN bit rate",
+            ).props("dense outlined options-dense").classes("w-72")
+            ui.button("Set", on_click=lambda: _send_bitrate(name, rate.value, broadcast.value)).props("dense color=negative")
+        ui.separator()
+        ui.label("Set Device Address (0x701)").classes("text-body2 text-weight-medium")
+        ui.label(
+            "IDs above 0x7FF are extended (29-bit) automatically; tick Extended to use an extended ID up to 0x7FF "
+            "(the request then carries 0x80000000)."
+        ).classes("text-caption text-grey-8")
+        with ui.row().classes("items-center"):
+            new_id = ui.input("New device ID (dec or 0x hex)").props("dense outlined").classes("w-56")
+            extended = ui.checkbox("Extended")
+            ui.button("Send", on_click=lambda: _send_device_id(name, new_id.value, extended.value)).props("dense")
+
+
+async def _send_source(name: str, value, broadcast: bool) -> None:
+    if value is None:
+        ui.notify("Choose a LockRequestSource first", type="warning")
+        return
+    label = PARAMS.by_name["LockRequestSource"].enum[value]
+    if broadcast and not await confirm("Broadcast to every lock?", f"Every lock on this bus gets LockRequestSource {label} (0x{value:02X}).", ok="Send to all"):
+        return
+    await run_command(name, lambda a: a.set_lock_request_source(value, broadcast=broadcast), "cmdSetLockRequestSource",
+                      success=f"LockRequestSource {label} sent" + (" to all locks" if broadcast else " and read back"))
+
+
+async def _send_bitrate(name: str, code, broadcast: bool) -> None:
+    if code is None:
+        ui.notify("Choose a bit rate first", type="warning")
+        return
+    rate = codec.CAN_BITRATES[code][0]
+    who = "Every lock on this bus" if broadcast else "The lock"
+    if not await confirm(
+        f"Switch to {rate} bit/s?",
+        f"{who} leaves this bus at once and is unreachable until the bus itself is switched to {rate} bit/s "
+        "(change bitrate in the plant file and restart). Send Save-Settings first if other changes should be kept.",
+        ok="Switch bit rate",
+    ):
+        return
+    await run_command(name, lambda a: a.set_can_bitrate(code, broadcast=broadcast), "cmdSetCANbaudrate", success=f"bit rate {rate} bit/s sent")
+
+
+async def _send_device_id(name: str, text: str, extended: bool) -> None:
+    try:
+        value = int(str(text).strip(), 0)
+        new = codec.DeviceId.make(value, extended or None)
+    except (ValueError, codec.CodecError) as exc:
+        ui.notify(f"New device ID: {exc}" if isinstance(exc, codec.CodecError) else "Enter the new device ID as a number, e.g. 11 or 0x1A2B", type="warning")
+        return
+    if value == 0:
+        ui.notify("0 is the broadcast address", type="warning")
+        return
+    if not await confirm(f"Change the device ID to {new}?", "The lock answers only under the new ID from now on. Change device_id in the plant file too.", ok="Send"):
+        return
+    ok, heard = await run_command(name, lambda a: a.set_device_address(new.value, new.extended), "Set Device Address")
+    if ok:
+        if heard:
+            ui.notify(f"The lock answers under {new} now", type="positive")
+        else:
+            ui.notify("No frame under the new ID: the lock may have kept its old ID", type="warning")

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import os
+import time
+
 from nicegui import ui
 
 from app import runtime as rt
+from app.plant import DEMO_PLANT, DeviceConfig, append_device, device_toml
 from devices.registry import DEVICE_TYPES
 from pages.frame import fmt_age, frame, set_status_badge
 
@@ -41,10 +45,12 @@ class DeviceTile:
             self.values.classes(add="stale")
         else:
             self.values.classes(remove="stale")
-        c = s.counters
-        self.counters.set_text(
-            f"req {c.requests}  timeouts {c.timeouts}  CRC {c.crc_errors}  exc {c.exceptions}  write err {c.write_errors}"
-        )
+        c = s.counters.as_dict()
+        names = {"requests": "req", "timeouts": "timeouts", "crc_errors": "CRC", "exceptions": "exc",
+                 "write_errors": "write err", "malformed": "malformed"}
+        self.counters.set_text("  ".join(
+            f"{names[k]} {v}" for k, v in c.items() if k in names and (v or k in ("requests", "timeouts"))
+        ))
         self.error.set_text(s.last_error if s.status != "online" else "")
 
 
@@ -66,14 +72,19 @@ def content() -> None:
                     ui.button("Discover locks", icon="search", on_click=lambda b=bus.name: open_discover_dialog(b)).props("flat dense")
 
             def show_conn(label=conn, state=bus_state) -> None:
-                label.set_text("connected" if state.connected else f"not connected: {state.last_error or 'opening...'}")
-                label.classes(replace="text-caption " + ("text-positive" if state.connected else "text-negative"))
+                text = "connected" if state.connected else f"not connected: {state.last_error or 'opening...'}"
+                if state.connected and hasattr(state, "bus_state"):
+                    text += f" · {state.bus_state} · {state.rx_frames} frames in, {state.error_frames} error frames"
+                label.set_text(text)
+                label.classes(replace="text-caption " + ("text-positive" if state.connected and getattr(state, "bus_state", "") != "bus-off" else "text-negative"))
 
             show_conn()
             ui.timer(1.0, show_conn)
-            with ui.row().classes("gap-4"):
+            with ui.row().classes("gap-4") as row:
                 for dev in runtime.plant.devices_on(bus.name):
                     tiles.append(DeviceTile(dev.name))
+            if bus.type == "can":
+                _discovered_section(bus.name, row, tiles)
         if not runtime.plant.devices:
             ui.label("This plant file lists no devices.").classes("text-grey-8")
 
@@ -82,3 +93,76 @@ def content() -> None:
                 tile.update()
 
         ui.timer(1.0, update)
+
+
+def _discovered_section(bus: str, tile_row, tiles: list) -> None:
+    """Devices heard on a CAN bus that the plant does not list yet, with Adopt."""
+    runtime = rt.current()
+    box = ui.column().classes("gap-1")
+    shown: list = [None]
+
+    def refresh() -> None:
+        entries = list(runtime.worker.discovered.get(bus, {}).items())
+        signature = [(k, round(e["last_seen"] / 5)) for k, e in entries]
+        if signature == shown[0]:
+            return
+        shown[0] = signature
+        box.clear()
+        if not entries:
+            return
+        with box:
+            ui.label(f"Discovered on {bus}, not in the plant file").classes("text-subtitle2")
+            for _key, entry in entries:
+                with ui.row().classes("items-center gap-3"):
+                    ui.icon("fiber_new", color="orange")
+                    ident = f"{entry['device_id']} ({'ext' if entry['extended'] else 'std'} 0x{entry['device_id']:X})"
+                    title = DEVICE_TYPES[entry["type"]].title
+                    ui.label(f"{title} with device ID {ident}").classes("text-body2")
+                    ui.label(f"{entry['frames']} frames, last {fmt_age(time.time() - entry['last_seen'])}").classes("text-caption text-grey-8")
+                    ui.button("Adopt", icon="add", on_click=lambda e=entry: _adopt_dialog(bus, e, tile_row, tiles)).props("dense outline").props(
+                        f'data-adopt="{entry["device_id"]}"'
+                    )
+
+    refresh()
+    ui.timer(2.0, refresh)
+
+
+def _adopt_dialog(bus: str, entry: dict, tile_row, tiles: list) -> None:
+    runtime = rt.current()
+    suggested = f"{entry['type']}-{entry['device_id']}"
+    path = runtime.plant.path
+
+    def config(name: str) -> DeviceConfig:
+        return DeviceConfig(name, entry["type"], bus, {"device_id": entry["device_id"], "extended": entry["extended"]})
+
+    with ui.dialog() as dialog, ui.card().classes("w-[34rem]"):
+        ui.label("Adopt a discovered device").classes("text-h6")
+        name = ui.input("Name in the plant", value=suggested).props("outlined dense")
+        ui.label("Lines for the plant file:").classes("text-caption text-grey-8")
+        lines = ui.code(device_toml(config(suggested)), language="toml").classes("w-full")
+        name.on_value_change(lambda e: lines.set_content(device_toml(config(e.value or suggested))))
+        writable = path is not None and path.exists() and os.access(path, os.W_OK) and path.resolve() != DEMO_PLANT.resolve()
+        note = f"Write appends them to {path}." if writable else "The plant file cannot be written here (built-in or read-only): copy the lines."
+        ui.label(note).classes("text-caption")
+
+        def take(write: bool) -> None:
+            dev = config(name.value or suggested)
+            try:
+                if write:
+                    append_device(path, dev)
+                runtime.worker.adopt(dev)
+            except (ValueError, OSError) as exc:
+                ui.notify(f"Cannot adopt: {exc}", type="negative", multi_line=True)
+                return
+            with tile_row:
+                tiles.append(DeviceTile(dev.name))
+            ui.notify(f"{dev.name} added to the running plant" + (f" and to {path.name}" if write else ""), type="positive")
+            dialog.close()
+
+        with ui.row().classes("justify-end w-full"):
+            ui.button("Cancel", on_click=dialog.close).props("flat")
+            ui.button("Add to the running plant", on_click=lambda: take(False)).props("outline")
+            write_button = ui.button("Add and write to the plant file", on_click=lambda: take(True))
+            if not writable:
+                write_button.disable()
+    dialog.open()

@@ -82,8 +82,9 @@ class RegisterTable:
                 "description": p.description,
                 "unsaved": p.key in self.state.unsaved,
             })
-        self.table.rows = rows
-        self.table.update()
+        if rows != self.table.rows:
+            self.table.rows = rows
+            self.table.update()
 
 
 class HistoryChart:

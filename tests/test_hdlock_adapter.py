@@ -14,7 +14,6 @@ from devices.hdlock.adapter import CommandError, discover
 from devices.hdlock.params import PARAMS
 
 
-
 @pytest.fixture
 async def running(plant):
     runtime = Runtime(plant, simulate=True)
@@ -49,7 +48,8 @@ async def test_door_closes_and_bolt_locks(running):
     running.twins["door-1"].close_door()
     assert await wait_for(lambda: (state.value("LockStatus") or 0) & 0x0004, timeout=5)  # DoorInPosition
     assert await wait_for(lambda: (state.value("LockStatus") or 0) & 0x0100, timeout=5)  # BoltLocked
-    assert state.value("BoltPosition") >= 100
+    # input registers are read before holding 1000 in a poll: BoltPosition follows one poll later
+    assert await wait_for(lambda: state.value("BoltPosition") >= 100, timeout=2)
     assert await wait_for(lambda: state.value("StateMachineState") == 4, timeout=3)  # Locked
     assert any(sample["MotorCurrent [mA]"] for _, sample in state.history)
 

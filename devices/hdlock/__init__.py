@@ -1,4 +1,4 @@
-"""BSS HD-Lock 102000.X door lock (Modbus RTU on RS485)."""
+"""BSS HD-Lock 102000.X door lock: Modbus RTU on RS485, or its CAN protocol."""
 
 from typing import Any
 
@@ -6,31 +6,54 @@ from devices.hdlock import codec
 from devices.hdlock.params import PARAMS
 from devices.registry import DeviceType
 
+SIM_KEYS = {"serial": "simulated twin: serial number", "door": 'simulated twin: "open" or "closed"'}
 
-def _check_config(options: dict[str, Any]) -> list[tuple[str, str]]:
+
+def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str]]:
     errors = []
-    address = options.get("address")
-    if not isinstance(address, int) or isinstance(address, bool):
-        errors.append(("address", "'address' (Modbus slave address 1..254) is required"))
-    elif not codec.MODBUS_ADDRESS_MIN <= address <= codec.MODBUS_ADDRESS_MAX:
-        errors.append(("address", f"address {address} is outside {codec.MODBUS_ADDRESS_MIN}..{codec.MODBUS_ADDRESS_MAX}"))
+    if bus_type == "modbus-rtu":
+        known = {"address"}
+        address = options.get("address")
+        if not isinstance(address, int) or isinstance(address, bool):
+            errors.append(("address", "'address' (Modbus slave address 1..254) is required"))
+        elif not codec.MODBUS_ADDRESS_MIN <= address <= codec.MODBUS_ADDRESS_MAX:
+            errors.append(("address", f"address {address} is outside {codec.MODBUS_ADDRESS_MIN}..{codec.MODBUS_ADDRESS_MAX}"))
+    else:
+        known = {"device_id", "extended"}
+        device_id = options.get("device_id")
+        if not isinstance(device_id, int) or isinstance(device_id, bool):
+            errors.append(("device_id", "'device_id' (the lock's CAN device ID; factory default: its serial number) is required"))
+        elif not 1 <= device_id <= codec.EXT_ID_MAX:
+            errors.append(("device_id", f"device_id {device_id} is outside 1..0x1FFFFFFF"))
+        if "extended" in options and not isinstance(options["extended"], bool):
+            errors.append(("extended", "extended must be true or false"))
     serial = options.get("serial", 0)
     if not isinstance(serial, int) or not 0 <= serial <= 0xFFFFFFFF:
         errors.append(("serial", "serial must be a 32-bit number"))
-    unknown = set(options) - {"address", "serial", "door"}
-    for key in sorted(unknown):
-        errors.append((key, f"unknown key '{key}'; known: address, serial (simulated twin), door (simulated twin: \"open\"/\"closed\")"))
+    for key in sorted(set(options) - known - set(SIM_KEYS)):
+        allowed = ", ".join(sorted(known | set(SIM_KEYS)))
+        errors.append((key, f"unknown key '{key}' for an HD-Lock on a {bus_type} bus; known: {allowed}"))
     return errors
+
+
+def _identity(options: dict[str, Any], bus_type: str):
+    if bus_type == "modbus-rtu":
+        return options.get("address")
+    device_id = options.get("device_id")
+    if not isinstance(device_id, int):
+        return None
+    return str(codec.DeviceId.make(device_id, options.get("extended")))
 
 
 DEVICE_TYPE = DeviceType(
     name="hdlock",
     title="HD-Lock",
-    bus_types=("modbus-rtu",),
+    bus_types=("modbus-rtu", "can"),
     params=PARAMS,
-    adapter="devices.hdlock.adapter:HdLockAdapter",
-    sim="devices.hdlock.sim:HdLockSim",
+    adapters={"modbus-rtu": "devices.hdlock.adapter:HdLockAdapter", "can": "devices.hdlock.adapter:HdLockCanAdapter"},
+    sims={"modbus-rtu": "devices.hdlock.sim:HdLockSim", "can": "devices.hdlock.sim:HdLockCanSim"},
     check_config=_check_config,
-    bus_identity=lambda options: options.get("address"),
+    bus_identity=_identity,
+    can_codec="devices.hdlock.codec",
     key_values=("DoorState", "LockStatus", "BoltPosition"),
 )

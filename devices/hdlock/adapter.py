@@ -189,3 +189,229 @@ async def discover(line: ModbusLine, first: int = 1, last: int = 247, progress=N
         if progress:
             progress(n, total)
     return sorted(found.values(), key=lambda d: d["address"])
+
+
+# -- CAN -------------------------------------------------------------------------------------
+
+CAN_FRAME_BITS = 135  # an extended 6-byte answer with stuffing, roughly
+
+
+class HdLockCanAdapter:
+    """One lock on a shared :class:`app.can_bus.CanBus`, addressed by its device ID (section 6)."""
+
+    params = PARAMS
+    transport = "can"
+
+    def __init__(self, config, state: DeviceState, bus):
+        self.config = config
+        self.state = state
+        self.bus = bus
+        self.device_id = codec.DeviceId.make(config.options["device_id"], config.options.get("extended"))
+        self.blocks = {space: PARAMS.blocks(space) for space in (INPUT, HOLDING)}
+        self.timeout = float(bus.options.get("timeout", 0.5))
+        self.state.params = PARAMS
+        self.state.stale_after = 2.5  # status every 1000 ms (section 6.5)
+        self._waiting: dict[tuple[str, int], asyncio.Future] = {}
+        self._subscribe()
+
+    # -- frames ----------------------------------------------------------------------------
+    def _subscribe(self) -> None:
+        self.bus.subscribe(self.device_id.extended, self.device_id.value, self.on_frame)
+        self.state.info["device_id"] = str(self.device_id)
+
+    def on_frame(self, msg) -> None:
+        """Every frame under this lock's device ID (called in the event loop)."""
+        try:
+            frame = codec.decode_lock_frame(bytes(msg.data))
+        except codec.CodecError as exc:
+            self.state.counters.malformed += 1
+            self.state.error(f"malformed frame {bytes(msg.data).hex(' ')}: {exc}", log=False)
+            return
+        state = self.state
+        if isinstance(frame, codec.StatusFrame):
+            state.info["can_status"] = frame
+            state.info["fwu"] = None
+            state.update_registers(HOLDING, 1000, [frame.status])
+            state.update_registers(HOLDING, 1001, [frame.motor_pos])
+            state.info["proximity"] = frame.proximity
+            state.info["lock_request_source_low6"] = frame.lock_request_source
+            state.add_history({
+                "BoltPosition [Inc]": frame.motor_pos,
+                "MotorCurrent [mA]": state.value("MotorCurrent"),
+                "Proximity [Inc]": frame.proximity,
+            })
+        elif isinstance(frame, codec.FwuStatusFrame):
+            state.info["fwu"] = frame
+            state.mark_seen()
+        else:
+            state.counters.responses += 1
+            state.update_registers(frame.space, frame.address, [frame.value])
+            future = self._waiting.pop((frame.space, frame.address), None)
+            if future is not None and not future.done():
+                future.set_result(frame.value)
+
+    def owns_frame(self, arbitration_id: int, is_extended: bool, data: bytes) -> bool:
+        """Bus monitor filter: frames from this lock and requests addressed to it (or broadcast)."""
+        if (is_extended, arbitration_id) == (self.device_id.extended, self.device_id.value):
+            return True
+        if is_extended or arbitration_id not in codec.CAN_REQUEST_IDS or len(data) < 4:
+            return False
+        target = codec.DeviceId.from_u32(int.from_bytes(data[0:4], "little"))
+        return target == self.device_id or target == codec.BROADCAST_ID
+
+    def _send(self, frame: codec.CanFrame) -> None:
+        if not self.bus.send(frame.arbitration_id, frame.data, frame.is_extended_id):
+            raise CommandError(f"CAN bus {self.bus.name} did not take the frame: {self.bus.state.last_error or 'bus not open'}")
+
+    async def _request(self, frame: codec.CanFrame, expect: list[tuple[str, int]]) -> dict[tuple[str, int], int]:
+        """Send a request and wait for one answer frame per expected register."""
+        loop = asyncio.get_running_loop()
+        futures = {}
+        for key in expect:
+            old = self._waiting.get(key)
+            futures[key] = old if old is not None and not old.done() else loop.create_future()
+            self._waiting[key] = futures[key]
+        self.state.counters.requests += 1
+        try:
+            self._send(frame)
+            wire = len(expect) * CAN_FRAME_BITS / self.bus.options.get("bitrate", 250_000)
+            done, pending = await asyncio.wait(futures.values(), timeout=self.timeout + 2 * wire)
+        finally:
+            for key in expect:
+                if self._waiting.get(key) is futures[key] and not futures[key].done():
+                    self._waiting.pop(key, None)
+        missing = [key for key, f in futures.items() if not f.done()]
+        if missing:
+            self.state.counters.timeouts += 1
+            raise CommandError(
+                f"lock {self.device_id} did not answer {len(missing)} of {len(expect)} registers "
+                f"within {self.timeout + 2 * wire:.2f} s (first missing: {missing[0][0]} {missing[0][1]})"
+            )
+        return {key: f.result() for key, f in futures.items()}
+
+    # -- polling ---------------------------------------------------------------------------
+    async def poll(self) -> None:
+        """Read every register (one answer frame each); status frames arrive on their own."""
+        try:
+            for space in (INPUT, HOLDING):
+                for start, count in self.blocks[space]:
+                    await self._request(
+                        codec.encode_read(self.device_id, space, start, count),
+                        [(space, a) for a in range(start, start + count)],
+                    )
+        except CommandError as exc:
+            if self.state.age is None or self.state.age > self.state.stale_after:
+                self.state.mark_offline(str(exc))
+            else:
+                self.state.error(str(exc), log=False)
+
+    # -- writes ----------------------------------------------------------------------------
+    async def write_param(self, param: Param, value, *, confirmed: bool = False) -> int:
+        """Validate, write through 0x704 and check the echoed value (section 6.6.5)."""
+        if param not in PARAMS.params:
+            raise CommandError(f"{param.name} is not an HD-Lock parameter")
+        try:
+            raw = param.validate(value)
+        except ParamError as exc:
+            raise CommandError(str(exc)) from None
+        warning = param.needs_confirmation(raw)
+        if warning and not confirmed:
+            raise CommandError(f"needs confirmation: {warning}")
+        back = await self._write_register(param.address, raw)
+        if back != raw:
+            self.state.counters.write_errors += 1
+            raise CommandError(
+                f"{param.name}: the lock answered {param.display(back)} instead of {param.display(raw)} "
+                "(refused by the firmware: protected register or value not accepted)"
+            )
+        self.state.unsaved.add(param.key)
+        self.state.event("info", f"{param.label or param.name} = {param.display(raw)} written, echo checked")
+        return raw
+
+    async def _write_register(self, address: int, raw: int) -> int:
+        try:
+            answer = await self._request(codec.encode_write(self.device_id, address, raw), [(HOLDING, address)])
+        except CommandError:
+            self.state.counters.write_errors += 1
+            raise
+        return answer[(HOLDING, address)]
+
+    async def _system_command(self, command: codec.SystemCommand) -> None:
+        for register, value in codec.encode_system_command(command).writes:
+            await self._write_register(register, value)
+
+    async def save_settings(self) -> None:
+        before = (await self._request(codec.encode_read(self.device_id, INPUT, 101), [(INPUT, 101)]))[(INPUT, 101)]
+        await self._system_command(codec.SystemCommand.SAVE_SETTINGS)
+        after = (await self._request(codec.encode_read(self.device_id, INPUT, 101), [(INPUT, 101)]))[(INPUT, 101)]
+        if after == before:
+            raise CommandError("Save-Settings sent, but SavedSettings (input 101) did not count up: check the lock")
+        self.state.unsaved.clear()
+        self.state.event("info", f"settings saved (SavedSettings = {after})")
+
+    async def restore_settings(self) -> None:
+        await self._system_command(codec.SystemCommand.RESTORE_SETTINGS)
+        self.state.unsaved.clear()
+        await self.poll()
+        self.state.event("info", "saved settings restored; unsaved changes discarded")
+
+    # -- CAN commands (section 6.6.1, 6.6.2) ------------------------------------------------
+    def _target(self, broadcast: bool) -> codec.DeviceId:
+        return codec.BROADCAST_ID if broadcast else self.device_id
+
+    async def set_lock_request_source(self, value: int, broadcast: bool = False) -> None:
+        """cmdSetLockRequestSource; verified by reading LockRequestSource (holding 1002) back."""
+        try:
+            frame = codec.encode_can_command(self._target(broadcast), codec.CanCommand.SET_LOCK_REQUEST_SOURCE, value)
+        except codec.CodecError as exc:
+            raise CommandError(str(exc)) from None
+        self._send(frame)
+        who = "all locks (broadcast)" if broadcast else f"lock {self.device_id}"
+        if broadcast:
+            self.state.event("warning", f"LockRequestSource 0x{value:02X} sent to {who}")
+            return
+        await asyncio.sleep(0.05)
+        back = (await self._request(codec.encode_read(self.device_id, HOLDING, 1002), [(HOLDING, 1002)]))[(HOLDING, 1002)]
+        if back != value:
+            raise CommandError(f"LockRequestSource reads 0x{back:02X} after the command, not 0x{value:02X}")
+        self.state.event("info", f"LockRequestSource 0x{value:02X} set on {who}")
+
+    async def set_can_bitrate(self, code: int, broadcast: bool = False) -> None:
+        """cmdSetCANbaudrate: the lock leaves this bus until the bus runs at the new rate too."""
+        try:
+            frame = codec.encode_can_command(self._target(broadcast), codec.CanCommand.SET_CAN_BAUDRATE, code)
+        except codec.CodecError as exc:
+            raise CommandError(str(exc)) from None
+        self._send(frame)
+        rate = codec.CAN_BITRATES[code][0]
+        who = "all locks (broadcast)" if broadcast else f"lock {self.device_id}"
+        self.state.event("warning", f"CAN bit rate {rate} bit/s sent to {who}: switch the bus to {rate} bit/s to reach it again")
+
+    async def set_device_address(self, new_value: int, extended: bool | None = None) -> bool:
+        """Set Device Address (0x701); True when the lock's status arrives under the new ID."""
+        try:
+            new = codec.DeviceId.make(new_value, extended)
+            frame = codec.encode_set_device_address(self.device_id, new)
+        except codec.CodecError as exc:
+            raise CommandError(str(exc)) from None
+        old = self.device_id
+        heard = asyncio.Event()
+
+        def on_new(msg) -> None:
+            heard.set()
+
+        self.bus.subscribe(new.extended, new.value, on_new)
+        try:
+            self._send(frame)
+            try:
+                await asyncio.wait_for(heard.wait(), timeout=2.5)  # the status comes every 1000 ms
+            except asyncio.TimeoutError:
+                self.state.event("warning", f"no frame under the new ID {new} within 2.5 s: the lock kept {old}?")
+                return False
+        finally:
+            self.bus.unsubscribe(new.extended, new.value, on_new)
+        self.bus.unsubscribe(old.extended, old.value, self.on_frame)
+        self.device_id = new
+        self._subscribe()
+        self.state.event("warning", f"device ID changed {old} -> {new}: change device_id in the plant file")
+        return True

@@ -39,6 +39,7 @@ REG_PARAM0 = 2000
 REG_PARAM1 = 2001
 REG_PARAM2 = 2002
 REG_COMMAND = 2003
+REG_FW_UPDATE = 32770  # FwUpdateCommandRegister: never written by this tool
 
 
 class SystemCommand(IntEnum):
@@ -105,3 +106,302 @@ def encode_system_command(command: SystemCommand, p0: int = 0, p1: int = 0, p2: 
     if command is SystemCommand.SET_MODBUS_ADDRESS and not MODBUS_ADDRESS_MIN <= p0 <= MODBUS_ADDRESS_MAX:
         raise CodecError(f"new Modbus address {p0} is outside {MODBUS_ADDRESS_MIN}..{MODBUS_ADDRESS_MAX}")
     return CommandWrites(((REG_PARAM0, p0), (REG_PARAM1, p1), (REG_PARAM2, p2), (REG_COMMAND, int(command))))
+
+
+# -- CAN protocol (section 6) -------------------------------------------------------------
+
+CAN_COMMAND = 0x700
+CAN_SET_DEVICE_ADDRESS = 0x701
+CAN_READ_INPUT = 0x702
+CAN_READ_HOLDING = 0x703
+CAN_WRITE_HOLDING = 0x704
+CAN_SILENT_WRITE_HOLDING = 0x705
+CAN_FWU_ERASE = 0x706  # never sent by this tool
+CAN_FWU_WRITE = 0x707  # never sent by this tool
+CAN_REQUEST_IDS = range(0x700, 0x708)
+CAN_REQUEST_NAMES = {
+    CAN_COMMAND: "Command",
+    CAN_SET_DEVICE_ADDRESS: "Set Device Address",
+    CAN_READ_INPUT: "Read Input-Register",
+    CAN_READ_HOLDING: "Read Holding-Register",
+    CAN_WRITE_HOLDING: "Write Holding-Register",
+    CAN_SILENT_WRITE_HOLDING: "Silent Write Holding-Register",
+    CAN_FWU_ERASE: "FWU erase sector",
+    CAN_FWU_WRITE: "FWU write flash",
+}
+EXTENDED_FLAG = 0x80000000  # section 6.3: MSB marks an extended device ID
+CAN_BROADCAST = 0  # section 6.4: standard format, target 0
+STD_ID_MAX = 0x7FF
+EXT_ID_MAX = 0x1FFFFFFF
+
+
+class CanCommand(IntEnum):
+    """Byte 4-5 of a 0x700 Command frame (section 6.6.1)."""
+
+    SET_LOCK_REQUEST_SOURCE = 0
+    SET_CAN_BAUDRATE = 1
+    FIRMWARE_UPDATE_ENTER = 2  # never sent by this tool
+    BOOTLOADER_UPDATE_ENTER = 3  # never sent by this tool
+    UPDATE_LEAVE = 4  # never sent by this tool
+
+
+SENDABLE_COMMANDS = {CanCommand.SET_LOCK_REQUEST_SOURCE, CanCommand.SET_CAN_BAUDRATE}
+
+# section 6.6.1.2: value -> (bit/s, max. line length)
+CAN_BITRATES: dict[int, tuple[int, str]] = {
+    0: (5_000, "10,000 m"),
+    1: (10_000, "5,000 m"),
+    2: (20_000, "2,500 m"),
+    3: (33_300, ""),
+    4: (50_000, "1,000 m"),
+    5: (83_300, ""),
+    6: (100_000, ""),
+    7: (125_000, "500 m"),
+    8: (250_000, "250 m (default)"),
+    9: (500_000, "100 m"),
+    10: (800_000, ""),
+    11: (1_000_000, "25 m"),
+}
+CAN_DEFAULT_BITRATE = 250_000
+
+
+@dataclass(frozen=True)
+class CanFrame:
+    """A CAN frame as the codec sees it (no python-can types here)."""
+
+    arbitration_id: int
+    data: bytes
+    is_extended_id: bool = False
+
+
+@dataclass(frozen=True)
+class DeviceId:
+    """A lock's device ID; the CAN ID it answers under (section 6.3)."""
+
+    value: int
+    extended: bool
+
+    @classmethod
+    def make(cls, value: int, extended: bool | None = None) -> DeviceId:
+        """IDs above 0x7FF are extended automatically (section 6.6.2)."""
+        if not 0 <= value <= EXT_ID_MAX:
+            raise CodecError(f"device ID {value:#x} does not fit 29 bits")
+        ext = value > STD_ID_MAX if extended is None else extended or value > STD_ID_MAX
+        return cls(value, ext)
+
+    @classmethod
+    def from_u32(cls, raw: int) -> DeviceId:
+        """Bytes 0-3 of a request: bit 31 set = extended (section 6.3)."""
+        value = raw & ~EXTENDED_FLAG & 0xFFFFFFFF
+        return cls.make(value, bool(raw & EXTENDED_FLAG))
+
+    def to_u32(self) -> int:
+        return self.value | (EXTENDED_FLAG if self.extended else 0)
+
+    def __str__(self) -> str:
+        return f"{self.value} ({'ext' if self.extended else 'std'} 0x{self.value:X})"
+
+
+BROADCAST_ID = DeviceId(CAN_BROADCAST, False)
+
+
+def _request(can_id: int, target: DeviceId, payload: bytes) -> CanFrame:
+    return CanFrame(can_id, target.to_u32().to_bytes(4, "little") + payload, False)
+
+
+def encode_can_command(target: DeviceId, command: CanCommand, value: int) -> CanFrame:
+    """0x700 Command: bytes 4-5 command, 6-7 parameter, little-endian (section 6.6.1)."""
+    if command not in SENDABLE_COMMANDS:
+        raise CodecError(f"{command.name} is a firmware-update command and is never sent")
+    if command is CanCommand.SET_CAN_BAUDRATE and value not in CAN_BITRATES:
+        raise CodecError(f"bit-rate value {value} is not in the table of section 6.6.1.2 (0..11)")
+    if not 0 <= value <= 0xFFFF:
+        raise CodecError(f"command parameter {value} is not a 16-bit value")
+    return _request(CAN_COMMAND, target, int(command).to_bytes(2, "little") + value.to_bytes(2, "little"))
+
+
+def encode_set_device_address(target: DeviceId, new: DeviceId) -> CanFrame:
+    """0x701 Set Device Address: bytes 4-7 the new ID with the extended flag (section 6.6.2)."""
+    if new.value == CAN_BROADCAST:
+        raise CodecError("device ID 0 is the broadcast address")
+    return _request(CAN_SET_DEVICE_ADDRESS, target, new.to_u32().to_bytes(4, "little"))
+
+
+def encode_read(target: DeviceId, space: str, address: int, count: int = 1) -> CanFrame:
+    """0x702 / 0x703: read ``count`` registers from ``address``; one answer frame each."""
+    if not 0 <= address <= 0xFFFF or not 1 <= count <= 0xFFFF:
+        raise CodecError(f"register range {address}+{count} is not valid")
+    can_id = CAN_READ_INPUT if space == "input" else CAN_READ_HOLDING
+    return _request(can_id, target, address.to_bytes(2, "little") + count.to_bytes(2, "little"))
+
+
+def encode_write(target: DeviceId, address: int, value: int, silent: bool = False) -> CanFrame:
+    """0x704 / 0x705: bytes 6-7 carry the value (one register per frame, SPEC-NOTES)."""
+    if not 0 <= address <= 0xFFFF or not 0 <= value <= 0xFFFF:
+        raise CodecError(f"write {address}={value} is not a 16-bit register write")
+    if address == REG_FW_UPDATE:
+        raise CodecError("FwUpdateCommandRegister (32770) is never written")
+    can_id = CAN_SILENT_WRITE_HOLDING if silent else CAN_WRITE_HOLDING
+    return _request(can_id, target, address.to_bytes(2, "little") + value.to_bytes(2, "little"))
+
+
+
+@dataclass(frozen=True)
+class CanRequest:
+    """A decoded request frame 0x700-0x707 (for the twin and the bus monitor)."""
+
+    kind: int
+    target: DeviceId
+    a: int  # address / command / new ID low word
+    b: int  # count / value / parameter / new ID high word
+
+    @property
+    def new_id(self) -> DeviceId:
+        return DeviceId.from_u32(self.a | self.b << 16)
+
+
+def decode_request(frame: CanFrame) -> CanRequest:
+    if frame.is_extended_id or frame.arbitration_id not in CAN_REQUEST_IDS:
+        raise CodecError(f"0x{frame.arbitration_id:X} is not an HD-Lock request ID")
+    if len(frame.data) < 6:
+        raise CodecError(f"request 0x{frame.arbitration_id:X} too short ({len(frame.data)} bytes)")
+    data = frame.data + bytes(8 - len(frame.data))
+    target = DeviceId.from_u32(int.from_bytes(data[0:4], "little"))
+    return CanRequest(frame.arbitration_id, target, int.from_bytes(data[4:6], "little"), int.from_bytes(data[6:8], "little"))
+
+
+@dataclass(frozen=True)
+class StatusFrame:
+    """Periodic status (section 6.5.1); proximity/source split per SPEC-NOTES."""
+
+    status: int
+    motor_pos: int
+    proximity: int
+    lock_request_source: int
+
+    @property
+    def bits(self) -> dict[str, bool]:
+        return lock_status_bits(self.status)
+
+
+@dataclass(frozen=True)
+class FwuStatusFrame:
+    """Firmware-update status (section 6.5.2)."""
+
+    flashing: bool
+    application: bool  # True: firmware is updated, False: boot loader
+
+
+@dataclass(frozen=True)
+class RegisterAnswer:
+    """One register in answer to a read or write (sections 6.5.3, 6.5.4)."""
+
+    space: str
+    address: int
+    value: int
+
+
+LockFrame = StatusFrame | FwuStatusFrame | RegisterAnswer
+
+
+def decode_lock_frame(data: bytes) -> LockFrame:
+    """A frame sent by a lock under its device ID, identified by bytes 0-1."""
+    if len(data) < 2:
+        raise CodecError(f"lock frame too short ({len(data)} bytes)")
+    kind = (data[0], data[1])
+    if kind == (0, 0):
+        if len(data) < 8:
+            raise CodecError(f"status frame needs 8 bytes, got {len(data)}")
+        status, pos, word = (int.from_bytes(data[i:i + 2], "little") for i in (2, 4, 6))
+        return StatusFrame(status, pos, word >> 6, word & 0x3F)
+    if kind == (1, 0):
+        if len(data) < 6:
+            raise CodecError(f"FWU status frame needs 6 bytes, got {len(data)}")
+        return FwuStatusFrame(bool(int.from_bytes(data[2:4], "little")), bool(int.from_bytes(data[4:6], "little")))
+    if data[1] == 1 and data[0] in (0, 1):
+        if len(data) < 6:
+            raise CodecError(f"register answer needs 6 bytes, got {len(data)}")
+        return RegisterAnswer(
+            "input" if data[0] == 0 else "holding",
+            int.from_bytes(data[2:4], "little"),
+            int.from_bytes(data[4:6], "little"),
+        )
+    raise CodecError(f"unknown lock frame type {data[0]:02X} {data[1]:02X}")
+
+
+def encode_status(frame: StatusFrame) -> bytes:
+    word = ((frame.proximity << 6) + (frame.lock_request_source & 0x3F)) & 0xFFFF
+    return bytes([0, 0]) + b"".join(v.to_bytes(2, "little") for v in (frame.status & 0xFFFF, frame.motor_pos & 0xFFFF, word))
+
+
+def encode_fwu_status(frame: FwuStatusFrame) -> bytes:
+    return bytes([1, 0]) + int(frame.flashing).to_bytes(2, "little") + int(frame.application).to_bytes(2, "little")
+
+
+def encode_register_answer(answer: RegisterAnswer) -> bytes:
+    return bytes([0 if answer.space == "input" else 1, 1]) + answer.address.to_bytes(2, "little") + answer.value.to_bytes(2, "little")
+
+
+def looks_like_status(data: bytes) -> bool:
+    """True for an 8-byte frame starting 00 00: a lock's periodic status (discovery)."""
+    return len(data) == 8 and data[0] == 0 and data[1] == 0
+
+
+def describe_request(frame: CanFrame) -> str:
+    """Human text of a request frame for the bus monitor."""
+    try:
+        req = decode_request(frame)
+    except CodecError as exc:
+        return f"HD-Lock request, malformed: {exc}"
+    target = "broadcast" if req.target.value == CAN_BROADCAST else f"lock {req.target}"
+    name = CAN_REQUEST_NAMES[req.kind]
+    if req.kind == CAN_COMMAND:
+        try:
+            command = CanCommand(req.a).name
+        except ValueError:
+            command = f"command {req.a}"
+        detail = f"{command} value {req.b}"
+        if req.a == CanCommand.SET_CAN_BAUDRATE and req.b in CAN_BITRATES:
+            detail += f" ({CAN_BITRATES[req.b][0] // 1000} kbit/s)"
+    elif req.kind == CAN_SET_DEVICE_ADDRESS:
+        detail = f"new ID {req.new_id}"
+    elif req.kind in (CAN_READ_INPUT, CAN_READ_HOLDING):
+        detail = f"{req.a} count {req.b}"
+    elif req.kind in (CAN_WRITE_HOLDING, CAN_SILENT_WRITE_HOLDING):
+        detail = f"{req.a} = {req.b}"
+    else:
+        detail = "firmware update"
+    return f"{name} -> {target}: {detail}"
+
+
+def describe_lock_frame(data: bytes) -> str:
+    try:
+        frame = decode_lock_frame(data)
+    except CodecError as exc:
+        return f"HD-Lock frame, malformed: {exc}"
+    if isinstance(frame, StatusFrame):
+        active = [name for name, on in frame.bits.items() if on]
+        return (
+            f"Status 0x{frame.status:04X} [{', '.join(active) or '-'}] motorPos {frame.motor_pos} "
+            f"proximity {frame.proximity} source {frame.lock_request_source}"
+        )
+    if isinstance(frame, FwuStatusFrame):
+        return f"FWU status: {'flashing' if frame.flashing else 'idle'}, {'application' if frame.application else 'boot loader'}"
+    return f"{frame.space.title()} register {frame.address} = {frame.value} (0x{frame.value:04X})"
+
+
+def describe_frame(arbitration_id: int, is_extended: bool, data: bytes, lock_ids: set[tuple[bool, int]]) -> str | None:
+    """Bus monitor: the meaning of a frame this device type owns, else None."""
+    if not is_extended and arbitration_id in CAN_REQUEST_IDS:
+        return "HD-Lock " + describe_request(CanFrame(arbitration_id, data, False))
+    if (is_extended, arbitration_id) in lock_ids:
+        return "HD-Lock " + describe_lock_frame(data)
+    return None
+
+
+def discovered(arbitration_id: int, is_extended: bool, data: bytes) -> dict | None:
+    """A frame of an unknown ID that is a lock's periodic status: a lock to adopt."""
+    if not looks_like_status(data) or (not is_extended and arbitration_id in CAN_REQUEST_IDS):
+        return None
+    status = decode_lock_frame(data)
+    return {"type": "hdlock", "device_id": arbitration_id, "extended": is_extended, "summary": describe_lock_frame(data), "status": status}

@@ -346,3 +346,114 @@ class HdLockSim:
         if self.server:
             await self.server.shutdown()
             self.server = None
+
+
+# -- CAN twin (section 6) ------------------------------------------------------------------
+
+STATUS_PERIOD_S = 1.0
+
+
+class HdLockCanSim:
+    """Simulated locks on one CAN bus: status every 1000 ms, register answers, commands.
+
+    The twins use their own python-can bus instance on the plant bus's interface and
+    channel (``virtual`` in one process, ``udp_multicast`` across processes), through the
+    same :class:`app.can_bus.CanBus` the worker uses.
+    """
+
+    def __init__(self, bus, devices):
+        from app.can_bus import CanBus, CanBusState
+
+        self.bus_config = bus
+        self.bitrate = bus.options.get("bitrate", codec.CAN_DEFAULT_BITRATE)
+        self.twins: dict[str, HdLockTwin] = {}
+        for n, dev in enumerate(devices):
+            device_id = codec.DeviceId.make(dev.options["device_id"], dev.options.get("extended"))
+            serial = dev.options.get("serial") or (device_id.value if device_id.extended else 0x000A0000 + device_id.value)
+            twin = HdLockTwin(address=1, serial=serial, door_closed=dev.options.get("door", "open") == "closed", name=dev.name)
+            twin.device_id = device_id
+            twin.can_bitrate = self.bitrate  # cmdSetCANbaudrate changes it: the lock then leaves this bus
+            twin.fwu_mode = False  # firmware-update mode: FWU status instead of status
+            twin.status_phase = n * 0.137  # the locks' status frames do not all come at once
+            self.twins[dev.name] = twin
+        options = {k: v for k, v in bus.options.items() if k != "simulate"}
+        self.can = CanBus(f"{bus.name} (simulated locks)", options, CanBusState(bus.name, "can", ""))
+        for request_id in codec.CAN_REQUEST_IDS:
+            self.can.subscribe(False, request_id, self.on_request)
+        self._task: asyncio.Task | None = None
+
+    def on_bus(self, twin: HdLockTwin) -> bool:
+        return twin.can_bitrate == self.bitrate and not twin.silent
+
+    def _send(self, twin: HdLockTwin, data: bytes) -> None:
+        self.can.send(twin.device_id.value, data, twin.device_id.extended)
+
+    def on_request(self, msg) -> None:
+        try:
+            req = codec.decode_request(codec.CanFrame(msg.arbitration_id, bytes(msg.data), msg.is_extended_id))
+        except codec.CodecError:
+            return  # a lock ignores what it cannot parse
+        broadcast = req.target.value == codec.CAN_BROADCAST and not req.target.extended
+        for twin in self.twins.values():
+            if not self.on_bus(twin) or not (broadcast or req.target == twin.device_id):
+                continue
+            self._handle(twin, req, broadcast)
+
+    def _handle(self, twin: HdLockTwin, req: codec.CanRequest, broadcast: bool) -> None:
+        if req.kind == codec.CAN_COMMAND:
+            if req.a == codec.CanCommand.SET_LOCK_REQUEST_SOURCE:
+                twin.write(1002, req.b)
+            elif req.a == codec.CanCommand.SET_CAN_BAUDRATE and req.b in codec.CAN_BITRATES:
+                twin.can_bitrate = codec.CAN_BITRATES[req.b][0]
+            elif req.a in (codec.CanCommand.FIRMWARE_UPDATE_ENTER, codec.CanCommand.BOOTLOADER_UPDATE_ENTER):
+                twin.fwu_mode = True
+            elif req.a == codec.CanCommand.UPDATE_LEAVE:
+                twin.fwu_mode = False
+        elif req.kind == codec.CAN_SET_DEVICE_ADDRESS and not broadcast:
+            twin.device_id = req.new_id
+        elif req.kind in (codec.CAN_READ_INPUT, codec.CAN_READ_HOLDING) and not twin.fwu_mode:
+            space = INPUT if req.kind == codec.CAN_READ_INPUT else HOLDING
+            store = twin.input if space == INPUT else twin.holding
+            for address in range(req.a, min(req.a + req.b, 0x10000)):
+                if address in store:
+                    self._send(twin, codec.encode_register_answer(codec.RegisterAnswer(space, address, store[address])))
+        elif req.kind in (codec.CAN_WRITE_HOLDING, codec.CAN_SILENT_WRITE_HOLDING) and not twin.fwu_mode:
+            if req.a not in twin.holding:
+                return
+            twin.write(req.a, req.b)  # protected registers keep their value: the echo shows it
+            if req.kind == codec.CAN_WRITE_HOLDING:
+                value = twin.holding[req.a]
+                self._send(twin, codec.encode_register_answer(codec.RegisterAnswer(HOLDING, req.a, value)))
+
+    def status_data(self, twin: HdLockTwin) -> bytes:
+        if twin.fwu_mode:
+            return codec.encode_fwu_status(codec.FwuStatusFrame(flashing=False, application=True))
+        return codec.encode_status(codec.StatusFrame(
+            status=twin.holding[1000], motor_pos=twin.holding[1001],
+            proximity=twin.input[7], lock_request_source=twin.holding[1002],
+        ))
+
+    async def start(self) -> None:
+        await self.can.start()
+        self._task = asyncio.create_task(self._run(), name=f"sim {self.bus_config.name}")
+
+    async def _run(self) -> None:
+        last = time.monotonic()
+        start = last
+        sent: dict[str, int] = {}
+        while True:
+            await asyncio.sleep(TICK_S)
+            now = time.monotonic()
+            for name, twin in self.twins.items():
+                twin.step(now - last)
+                slot = int((now - start - twin.status_phase) / STATUS_PERIOD_S)
+                if slot > sent.get(name, -1) and self.on_bus(twin):
+                    sent[name] = slot
+                    self._send(twin, self.status_data(twin))
+            last = now
+
+    async def stop(self) -> None:
+        if self._task:
+            self._task.cancel()
+            self._task = None
+        await self.can.stop()

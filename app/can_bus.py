@@ -1,0 +1,314 @@
+"""One CAN bus of the plant, shared by every device adapter on it.
+
+A python-can bus (any interface: socketcan, pcan, kvaser, slcan, gs_usb, virtual,
+udp_multicast, ...) is read by one reader thread that hands frames to the event loop
+in batches (one wake-up per batch, never one per frame). The loop dispatches each
+frame to the handlers subscribed to its ID, feeds the monitor's bounded buffers and
+offers frames of unknown IDs to discovery listeners. A bus that fails to open, dies
+or goes bus-off is reopened with backoff.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import can
+
+from app.state import BusState
+
+log = logging.getLogger(__name__)
+
+Key = tuple[bool, int]  # (is_extended_id, arbitration_id)
+Handler = Callable[[can.Message], None]
+
+MONITOR_FRAMES = 20_000
+DRAIN_BATCH = 4096
+BUS_STATE_NAMES = {
+    can.BusState.ACTIVE: "error-active",
+    can.BusState.PASSIVE: "error-passive",
+    can.BusState.ERROR: "bus-off",
+}
+
+
+@dataclass(slots=True)
+class FrameRecord:
+    """One frame as the monitor keeps it."""
+
+    time: float
+    arbitration_id: int
+    is_extended_id: bool
+    dlc: int
+    data: bytes
+    direction: str  # "rx" or "tx"
+    is_error_frame: bool = False
+    is_remote_frame: bool = False
+
+
+@dataclass(slots=True)
+class IdStats:
+    """Overwrite view: one row per ID."""
+
+    count: int = 0
+    last_time: float = 0.0
+    period: float | None = None
+    data: bytes = b""
+    changed: int = 0  # bit n set: byte n differs from the previous frame
+    direction: str = "rx"
+
+
+@dataclass
+class CanBusState(BusState):
+    """Bus state plus what the monitor shows."""
+
+    bus_state: str = "unknown"
+    rx_frames: int = 0
+    tx_frames: int = 0
+    error_frames: int = 0
+    tx_errors: int = 0
+    dropped: int = 0
+    frames: deque = field(default_factory=lambda: deque(maxlen=MONITOR_FRAMES))
+    ids: dict[Key, IdStats] = field(default_factory=dict)
+    recorder: Any = None  # a python-can writer while recording
+
+
+class CanBus:
+    """A python-can bus owned by the worker.
+
+    :param options: plant-file options: ``interface``, ``channel``, ``bitrate`` and any
+        further keys, which are passed to :class:`can.Bus` unchanged.
+    """
+
+    def __init__(self, name: str, options: dict[str, Any], state: CanBusState):
+        self.name = name
+        self.options = options
+        self.state = state
+        self.bus: can.BusABC | None = None
+        self.handlers: dict[Key, list[Handler]] = {}
+        self.listeners: list[Handler] = []  # every received frame whose ID has no handler
+        self._inbox: deque[can.Message] = deque()
+        self._scheduled = False
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._failure: str = ""
+        self._backoff = 0.5
+        self._task: asyncio.Task | None = None
+        interface = options.get("interface")
+        self.filter_own = options.get("filter_own", interface == "udp_multicast")
+        # frames this instance sent, by content, with send times: udp_multicast hands them back
+        self._own: dict[tuple[bool, int, bytes], deque[float]] = {}
+
+    # -- subscriptions ---------------------------------------------------------------
+    def subscribe(self, is_extended: bool, arbitration_id: int, handler: Handler) -> None:
+        self.handlers.setdefault((is_extended, arbitration_id), []).append(handler)
+
+    def unsubscribe(self, is_extended: bool, arbitration_id: int, handler: Handler) -> None:
+        handlers = self.handlers.get((is_extended, arbitration_id), [])
+        if handler in handlers:
+            handlers.remove(handler)
+        if not handlers:
+            self.handlers.pop((is_extended, arbitration_id), None)
+
+    # -- life cycle ------------------------------------------------------------------
+    def _bus_kwargs(self) -> dict[str, Any]:
+        skip = {"simulate", "poll_period", "filter_own", "timeout"}
+        return {k: v for k, v in self.options.items() if k not in skip}
+
+    def _open(self) -> can.BusABC:
+        return can.Bus(**self._bus_kwargs())
+
+    async def start(self) -> None:
+        self._loop = asyncio.get_running_loop()
+        self._task = asyncio.create_task(self._supervise(), name=f"can {self.name}")
+
+    async def stop(self) -> None:
+        if self._task:
+            self._task.cancel()
+            try:
+                await self._task
+            except asyncio.CancelledError:
+                pass
+            self._task = None
+        await asyncio.get_running_loop().run_in_executor(None, self._close)
+
+    def _close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2)
+            self._thread = None
+        if self.bus is not None:
+            try:
+                self.bus.shutdown()
+            except Exception as exc:  # a dying interface may fail to shut down; it is gone anyway
+                log.debug("shutdown of %s failed: %s", self.name, exc)
+            self.bus = None
+        self.state.connected = False
+
+    async def _supervise(self) -> None:
+        """Open the bus, watch the reader and the bus state, reopen with backoff."""
+        loop = asyncio.get_running_loop()
+        while True:
+            if self.bus is None:
+                try:
+                    self.bus = await loop.run_in_executor(None, self._open)
+                except Exception as exc:  # CanInterfaceNotImplementedError, CanInitializationError, OSError ...
+                    self.state.connected = False
+                    self.state.last_error = f"cannot open {self.options.get('interface')} {self.options.get('channel')}: {exc}"
+                    log.warning("%s: %s", self.name, self.state.last_error)
+                    await asyncio.sleep(self._backoff)
+                    self._backoff = min(self._backoff * 2, 10.0)
+                    continue
+                self._failure = ""
+                self._stop.clear()
+                self._thread = threading.Thread(target=self._read, name=f"can-rx {self.name}", daemon=True)
+                self._thread.start()
+                self.state.connected = True
+                self.state.reconnects += 1
+                self.state.last_error = ""
+                self._backoff = 0.5
+            await asyncio.sleep(0.5)
+            self._expire_own()
+            bus_state = self._bus_state()
+            if bus_state:
+                self.state.bus_state = bus_state
+            if self._failure or bus_state == "bus-off":
+                reason = self._failure or "bus-off"
+                self.state.last_error = f"{reason}: reopening"
+                log.warning("%s: %s", self.name, self.state.last_error)
+                await loop.run_in_executor(None, self._close)
+                await asyncio.sleep(self._backoff)
+                self._backoff = min(self._backoff * 2, 10.0)
+
+    def _expire_own(self) -> None:
+        """Forget sent frames whose echo did not come back within a second."""
+        limit = time.monotonic() - 1.0
+        for key in list(self._own):
+            pending = self._own[key]
+            while pending and pending[0] < limit:
+                pending.popleft()
+            if not pending:
+                del self._own[key]
+
+    def _bus_state(self) -> str:
+        if self.bus is None:
+            return ""
+        try:
+            return BUS_STATE_NAMES.get(self.bus.state, "unknown")
+        except (NotImplementedError, can.CanError, AttributeError):
+            return "error-active" if self.state.connected else ""
+
+    # -- receive path ------------------------------------------------------------------
+    def _read(self) -> None:
+        """Reader thread: recv() with a timeout, batch frames into the loop."""
+        bus, loop = self.bus, self._loop
+        assert bus is not None and loop is not None
+        inbox = self._inbox
+        while not self._stop.is_set():
+            try:
+                msg = bus.recv(0.1)
+            except Exception as exc:  # CanOperationError when the interface goes away
+                self._failure = f"receive failed: {exc}"
+                return
+            if msg is None:
+                continue
+            inbox.append(msg)
+            if not self._scheduled:
+                self._scheduled = True
+                try:
+                    loop.call_soon_threadsafe(self._drain)
+                except RuntimeError:  # loop closed while stopping
+                    return
+
+    def _drain(self) -> None:
+        """In the loop: handle the frames buffered by the reader thread."""
+        self._scheduled = False
+        inbox = self._inbox
+        for _ in range(min(len(inbox), DRAIN_BATCH)):
+            self.dispatch(inbox.popleft())
+        if inbox and not self._scheduled:
+            self._scheduled = True
+            asyncio.get_running_loop().call_soon(self._drain)
+
+    def dispatch(self, msg: can.Message) -> None:
+        """Monitor, echo filter, then the handlers of the frame's ID (or the listeners)."""
+        key = (msg.is_extended_id, msg.arbitration_id)
+        if self.filter_own and self._own:
+            own = (key[0], key[1], bytes(msg.data))
+            pending = self._own.get(own)
+            if pending:
+                pending.popleft()
+                if not pending:
+                    del self._own[own]
+                return
+        state = self.state
+        if msg.is_error_frame:
+            state.error_frames += 1
+        state.rx_frames += 1
+        self._record(msg, "rx")
+        handlers = self.handlers.get(key)
+        try:
+            if handlers:
+                for handler in handlers:
+                    handler(msg)
+            else:
+                for listener in self.listeners:
+                    listener(msg)
+        except Exception as exc:  # a bad frame must never stop the bus
+            log.debug("%s: handler failed for %s: %s", self.name, msg, exc)
+            state.dropped += 1
+
+    def _record(self, msg: can.Message, direction: str) -> None:
+        state = self.state
+        now = time.time()
+        data = bytes(msg.data)
+        state.frames.append(
+            FrameRecord(now, msg.arbitration_id, msg.is_extended_id, msg.dlc, data, direction, msg.is_error_frame, msg.is_remote_frame)
+        )
+        key = (msg.is_extended_id, msg.arbitration_id)
+        stats = state.ids.get(key)
+        if stats is None:
+            stats = state.ids[key] = IdStats()
+        elif stats.count:
+            stats.period = now - stats.last_time
+            old = stats.data
+            changed = 0
+            for i in range(max(len(old), len(data))):
+                if i >= len(old) or i >= len(data) or old[i] != data[i]:
+                    changed |= 1 << i
+            stats.changed = changed
+        stats.count += 1
+        stats.last_time = now
+        stats.data = data
+        stats.direction = direction
+        if state.recorder is not None:
+            try:
+                state.recorder.on_message_received(msg)
+            except Exception as exc:  # disk full or closed file: stop recording, keep the bus
+                state.recorder = None
+                state.last_error = f"recording stopped: {exc}"
+
+    # -- transmit path ----------------------------------------------------------------
+    def send(self, arbitration_id: int, data: bytes, is_extended_id: bool = False) -> bool:
+        """Send one frame; False (and counted) when the bus is not open or refuses it."""
+        if self.bus is None:
+            self.state.tx_errors += 1
+            return False
+        msg = can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=is_extended_id, timestamp=time.time())
+        try:
+            self.bus.send(msg, timeout=0.1)
+        except can.CanError as exc:
+            self.state.tx_errors += 1
+            self.state.last_error = f"send failed: {exc}"
+            return False
+        if self.filter_own:
+            self._own.setdefault((is_extended_id, arbitration_id, bytes(data)), deque()).append(time.monotonic())
+        self.state.tx_frames += 1
+        self._record(msg, "tx")
+        return True

@@ -1,0 +1,479 @@
+"""CAN bus recordings and the pure helpers of the bus monitor.
+
+A recording is a python-can writer (candump ``.log``, Vector ``.asc``, ``.blf``,
+``.csv``) attached to :attr:`app.can_bus.CanBusState.recorder`; the bus feeds it every
+frame it records (received and sent). Starting and stopping happen in the event loop,
+the same thread that feeds the writer, so no frame reaches a closed file. Recorded files
+are read back with :class:`can.LogReader` into :class:`~app.can_bus.FrameRecord` rows.
+
+Decoding and filtering are plain functions of ``(arbitration_id, is_extended, data)``
+that ask the device codecs (``describe_frame``) and the device adapters
+(``owns_frame``). No UI here.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import re
+import time
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import can
+from can.io.asc import ASCWriter
+from can.io.blf import BLFWriter
+from can.io.canutils import CanutilsLogWriter
+from can.io.csv import CSVWriter
+
+from app.can_bus import CanBusState, FrameRecord
+from devices.registry import DEVICE_TYPES
+
+# suffix -> (writer class, what the engineer sees in the format select)
+WRITERS: dict[str, tuple[type[can.io.generic.MessageWriter], str]] = {
+    ".log": (CanutilsLogWriter, "candump .log"),
+    ".asc": (ASCWriter, "Vector .asc"),
+    ".blf": (BLFWriter, "Vector .blf"),
+    ".csv": (CSVWriter, "python-can .csv"),
+}
+READ_SUFFIXES = (".log", ".asc", ".blf", ".csv", ".trc")  # what can.LogReader reads without extras
+MAX_FILE_FRAMES = 200_000  # frames kept of an opened file (memory bound)
+MAX_CACHE = 20_000  # decoded texts kept per decoder
+DIR_ENV = "COMMISSION_RECORDINGS_DIR"
+UNKNOWN = "unknown"
+
+Key = tuple[bool, int]
+
+
+class RecordingError(Exception):
+    """A recording that cannot be started, or a file that cannot be read; the message says why."""
+
+
+# -- recording the bus ----------------------------------------------------------------------------
+
+
+def recordings_dir(directory: str | Path | None = None) -> Path:
+    """Where recordings go: ``directory``, else ``$COMMISSION_RECORDINGS_DIR``, else ``./recordings``."""
+    if directory is not None:
+        return Path(directory)
+    return Path(os.environ.get(DIR_ENV) or Path.cwd() / "recordings")
+
+
+class Recording(can.Listener):
+    """A python-can writer that counts the frames it was given.
+
+    Set as ``CanBusState.recorder``; :class:`app.can_bus.CanBus` calls
+    :meth:`on_message_received` for every frame in the event loop.
+    """
+
+    def __init__(self, bus: str, path: Path, writer: can.io.generic.MessageWriter, fix_channel: bool = False):
+        self.bus = bus
+        self.path = path
+        self.suffix = path.suffix
+        self.writer = writer
+        self.started = time.time()
+        self.stopped: float | None = None
+        self.frames = 0
+        self.error = ""
+        self._fix_channel = fix_channel
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if self.stopped is not None:
+            return
+        if self._fix_channel and isinstance(msg.channel, str) and (not msg.channel or any(c.isspace() for c in msg.channel)):
+            # candump lines are split on white space: a channel name with blanks would break them
+            msg = can.Message(
+                timestamp=msg.timestamp, arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id,
+                is_remote_frame=msg.is_remote_frame, is_error_frame=msg.is_error_frame, dlc=msg.dlc,
+                data=msg.data, is_rx=msg.is_rx, channel=None, check=False,
+            )
+        try:
+            self.writer.on_message_received(msg)
+        except Exception as exc:  # disk full, file gone: close what can be closed, let the bus report it
+            self.error = str(exc)
+            self.close()
+            raise
+        self.frames += 1
+
+    @property
+    def active(self) -> bool:
+        return self.stopped is None
+
+    @property
+    def elapsed(self) -> float:
+        return (self.stopped or time.time()) - self.started
+
+    @property
+    def size(self) -> int:
+        try:
+            return self.path.stat().st_size
+        except OSError:
+            return 0
+
+    def close(self) -> None:
+        """Flush and close the file (idempotent)."""
+        if self.stopped is not None:
+            return
+        self.stopped = time.time()
+        try:
+            self.writer.stop()
+        except Exception as exc:  # a failing close must not hide that the recording ended
+            self.error = self.error or f"closing {self.path.name} failed: {exc}"
+
+    def stop(self) -> None:  # can.Listener API
+        self.close()
+
+
+def _safe_name(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("._") or "bus"
+
+
+def _writer_channel(options: dict[str, Any] | None) -> str:
+    channel = str((options or {}).get("channel", "can0"))
+    return channel if channel and not any(c.isspace() for c in channel) else "can0"
+
+
+def active_recording(state: CanBusState) -> Recording | None:
+    recorder = state.recorder
+    return recorder if isinstance(recorder, Recording) and recorder.active else None
+
+
+def start_recording(
+    state: CanBusState,
+    suffix: str,
+    directory: str | Path | None = None,
+    bus_options: dict[str, Any] | None = None,
+) -> Recording:
+    """Open a new file ``<bus>-<date>-<time>.<suffix>`` and attach it to the bus.
+
+    Call from the event loop that runs the bus.
+
+    :param suffix: ``.log``, ``.asc``, ``.blf`` or ``.csv``
+    :param bus_options: the bus's plant options; its channel names frames without one in ``.log``
+    :raises RecordingError: unknown format, a recording already running, or the file cannot be created
+    """
+    suffix = suffix if suffix.startswith(".") else f".{suffix}"
+    suffix = suffix.lower()
+    if suffix not in WRITERS:
+        raise RecordingError(f"cannot record to {suffix!r}: choose one of {', '.join(WRITERS)}")
+    if active_recording(state) is not None:
+        raise RecordingError(f"{state.name} is being recorded already ({state.recorder.path.name})")
+    folder = recordings_dir(directory)
+    stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"{_safe_name(state.name)}-{stamp}{suffix}"
+        n = 1
+        while path.exists():
+            n += 1
+            path = folder / f"{_safe_name(state.name)}-{stamp}-{n}{suffix}"
+        writer_class = WRITERS[suffix][0]
+        if writer_class is CanutilsLogWriter:
+            writer = writer_class(path, channel=_writer_channel(bus_options))
+        else:
+            writer = writer_class(path)
+    except OSError as exc:
+        raise RecordingError(f"cannot create a recording in {folder}: {exc.strerror or exc}") from None
+    recording = Recording(state.name, path, writer, fix_channel=writer_class is CanutilsLogWriter)
+    state.recorder = recording
+    return recording
+
+
+def stop_recording(state: CanBusState) -> Recording | None:
+    """Detach the recording from the bus, then flush and close its file; None if none ran.
+
+    Call from the event loop that runs the bus.
+    """
+    recorder = state.recorder
+    state.recorder = None
+    if isinstance(recorder, Recording):
+        recorder.close()
+        return recorder
+    if recorder is not None:  # some other python-can listener: stop it all the same
+        try:
+            recorder.stop()
+        except Exception:  # noqa: BLE001 - not ours; it is detached either way
+            pass
+    return None
+
+
+@dataclass(frozen=True)
+class RecordingFile:
+    name: str
+    path: Path
+    size: int
+    mtime: float
+
+
+def list_recordings(directory: str | Path | None = None) -> list[RecordingFile]:
+    """Files of a readable format in the recordings folder, newest first."""
+    folder = recordings_dir(directory)
+    found = []
+    try:
+        entries = list(folder.iterdir())
+    except OSError:
+        return []
+    for path in entries:
+        if path.suffix.lower() not in READ_SUFFIXES or not path.is_file():
+            continue
+        try:
+            st = path.stat()
+        except OSError:
+            continue
+        found.append(RecordingFile(path.name, path, st.st_size, st.st_mtime))
+    return sorted(found, key=lambda f: (f.mtime, f.name), reverse=True)
+
+
+def recording_path(name: str, directory: str | Path | None = None) -> Path:
+    """The file ``name`` in the recordings folder (no path tricks)."""
+    folder = recordings_dir(directory).resolve()
+    path = (folder / name).resolve()
+    if path.parent != folder or not path.is_file():
+        raise RecordingError(f"no recording named {name!r} in {folder}")
+    return path
+
+
+# -- reading a recorded file ------------------------------------------------------------------------
+
+
+@dataclass
+class LoadedLog:
+    """Frames of a recorded file (at most ``MAX_FILE_FRAMES``)."""
+
+    name: str
+    frames: list[FrameRecord] = field(default_factory=list)
+    truncated: bool = False
+
+    @property
+    def duration(self) -> float:
+        return self.frames[-1].time - self.frames[0].time if len(self.frames) > 1 else 0.0
+
+    @property
+    def error_frames(self) -> int:
+        return sum(1 for f in self.frames if f.is_error_frame)
+
+
+def read_log(path: str | Path, name: str | None = None, limit: int = MAX_FILE_FRAMES) -> LoadedLog:
+    """Read a ``.log``/``.asc``/``.blf``/``.csv``/``.trc`` file with :class:`can.LogReader`.
+
+    Blocking: run it in a thread (``run.io_bound``) from the loop.
+
+    :raises RecordingError: unsupported suffix, unreadable or malformed file
+    """
+    path = Path(path)
+    name = name or path.name
+    suffix = path.suffix.lower()
+    if suffix not in READ_SUFFIXES:
+        raise RecordingError(f"{name}: unsupported file type {suffix or '(none)'}; readable are {', '.join(READ_SUFFIXES)}")
+    log = LoadedLog(name)
+    try:
+        reader = can.LogReader(path)
+    except Exception as exc:  # ValueError, OSError, BLFParseError ... from the python-can readers
+        raise RecordingError(f"{name}: cannot open as {suffix} file: {exc}") from None
+    try:
+        for msg in reader:
+            if len(log.frames) >= limit:
+                log.truncated = True
+                break
+            log.frames.append(
+                FrameRecord(
+                    float(msg.timestamp), int(msg.arbitration_id), bool(msg.is_extended_id), int(msg.dlc),
+                    bytes(msg.data), "rx" if msg.is_rx else "tx", bool(msg.is_error_frame), bool(msg.is_remote_frame),
+                )
+            )
+    except Exception as exc:  # a malformed line/object: say where it stopped
+        raise RecordingError(f"{name}: not a valid {suffix} file (after {len(log.frames)} frames): {exc}") from None
+    finally:
+        try:
+            reader.stop()
+        except Exception:  # noqa: BLE001 - closing a reader of a broken file may fail too
+            pass
+    if not log.frames:
+        raise RecordingError(f"{name}: no CAN frames found in this {suffix} file")
+    return log
+
+
+# -- decoding -------------------------------------------------------------------------------------------
+
+
+def can_codecs() -> list[ModuleType]:
+    """The codec modules of every device type that speaks CAN."""
+    return [
+        importlib.import_module(dt.can_codec)
+        for dt in DEVICE_TYPES.values()
+        if dt.can_codec and "can" in dt.bus_types
+    ]
+
+
+def describe(arbitration_id: int, is_extended: bool, data: bytes, known_ids: set[Key], codecs: Iterable[ModuleType] | None = None) -> str:
+    """The first device codec's meaning of a frame, else ``"unknown"``."""
+    for codec in can_codecs() if codecs is None else codecs:
+        try:
+            text = codec.describe_frame(arbitration_id, is_extended, data, known_ids)
+        except Exception as exc:  # a codec bug must not take the monitor down
+            return f"decode failed: {exc}"
+        if text is not None:
+            return text
+    return UNKNOWN
+
+
+class FrameDecoder:
+    """:func:`describe` with the codecs resolved once and a bounded cache of texts."""
+
+    def __init__(self, known_ids: set[Key] | None = None, codecs: Iterable[ModuleType] | None = None):
+        self.known_ids: set[Key] = set(known_ids or ())
+        self.codecs = list(can_codecs() if codecs is None else codecs)
+        self._cache: dict[tuple[bool, int, bytes], str] = {}
+
+    def set_known_ids(self, known_ids: set[Key]) -> None:
+        if known_ids != self.known_ids:
+            self.known_ids = set(known_ids)
+            self._cache.clear()
+
+    def __call__(self, arbitration_id: int, is_extended: bool, data: bytes) -> str:
+        key = (is_extended, arbitration_id, data)
+        text = self._cache.get(key)
+        if text is None:
+            if len(self._cache) >= MAX_CACHE:
+                self._cache.clear()
+            text = self._cache[key] = describe(arbitration_id, is_extended, data, self.known_ids, self.codecs)
+        return text
+
+    def record(self, rec: FrameRecord) -> str:
+        if rec.is_error_frame:
+            return "error frame"
+        if rec.is_remote_frame:
+            meaning = self(rec.arbitration_id, rec.is_extended_id, b"")
+            return "remote request" + ("" if meaning == UNKNOWN else f" ({meaning})")
+        return self(rec.arbitration_id, rec.is_extended_id, rec.data)
+
+
+def ids_of_devices(frames: Iterable[FrameRecord], codecs: Iterable[ModuleType] | None = None) -> set[Key]:
+    """IDs in a recorded file that some codec recognises as a device (its ``discovered`` hook)."""
+    codecs = list(can_codecs() if codecs is None else codecs)
+    hooks = [c.discovered for c in codecs if callable(getattr(c, "discovered", None))]
+    found: set[Key] = set()
+    for rec in frames:
+        key = (rec.is_extended_id, rec.arbitration_id)
+        if key in found or rec.is_error_frame or rec.is_remote_frame:
+            continue
+        for hook in hooks:
+            try:
+                if hook(rec.arbitration_id, rec.is_extended_id, rec.data):
+                    found.add(key)
+                    break
+            except Exception:  # noqa: BLE001 - a frame a hook cannot parse is simply not a device
+                continue
+    return found
+
+
+# -- filters and formatting ---------------------------------------------------------------------------
+
+
+def parse_id(text: str | None) -> int | None:
+    """A CAN ID typed as hex (``704``, ``0x704``, ``A1284``); None for empty.
+
+    :raises ValueError: not a hex number or above 0x1FFFFFFF
+    """
+    text = (text or "").strip().replace("_", "")
+    if not text:
+        return None
+    value = int(text, 16)
+    if not 0 <= value <= 0x1FFFFFFF:
+        raise ValueError(f"{text} is not a CAN ID (0..1FFFFFFF)")
+    return value
+
+
+Owner = Callable[[int, bool, bytes], bool]
+
+
+def owner_of(adapter: Any) -> Owner:
+    """``adapter.owns_frame``, or a filter that matches nothing for adapters without it."""
+    owns = getattr(adapter, "owns_frame", None)
+    if owns is None:
+        return lambda _id, _ext, _data: False
+
+    def safe(arbitration_id: int, is_extended: bool, data: bytes) -> bool:
+        try:
+            return bool(owns(arbitration_id, is_extended, data))
+        except Exception:  # noqa: BLE001 - a frame the adapter cannot parse is not its frame
+            return False
+
+    return safe
+
+
+@dataclass
+class FrameFilter:
+    """ID range (inclusive, either end open) and/or a device's frames, or only error frames."""
+
+    id_min: int | None = None
+    id_max: int | None = None
+    owner: Owner | None = None
+    errors_only: bool = False
+
+    @property
+    def active(self) -> bool:
+        return self.id_min is not None or self.id_max is not None or self.owner is not None or self.errors_only
+
+    def matches(self, arbitration_id: int, is_extended: bool, data: bytes, is_error_frame: bool = False) -> bool:
+        if self.errors_only and not is_error_frame:
+            return False
+        if self.id_min is not None and arbitration_id < self.id_min:
+            return False
+        if self.id_max is not None and arbitration_id > self.id_max:
+            return False
+        if self.owner is not None and (is_error_frame or not self.owner(arbitration_id, is_extended, data)):
+            return False
+        return True
+
+    def matches_record(self, rec: FrameRecord) -> bool:
+        return self.matches(rec.arbitration_id, rec.is_extended_id, rec.data, rec.is_error_frame)
+
+
+def newest(frames: Iterable[FrameRecord], flt: FrameFilter, limit: int) -> list[FrameRecord]:
+    """The newest ``limit`` frames that match, newest first (frames in arrival order).
+
+    Walks from the end, so the cost is bounded by the buffer, not by the traffic.
+    """
+    result: list[FrameRecord] = []
+    source: Iterator[FrameRecord] = reversed(frames) if hasattr(frames, "__reversed__") else reversed(list(frames))
+    if not flt.active:
+        for rec in source:
+            result.append(rec)
+            if len(result) >= limit:
+                break
+        return result
+    for rec in source:
+        if flt.matches_record(rec):
+            result.append(rec)
+            if len(result) >= limit:
+                break
+    return result
+
+
+def format_id(arbitration_id: int, is_extended: bool) -> str:
+    """``0x704`` (standard) or ``0x000A1284 (ext)``."""
+    return f"0x{arbitration_id:08X} (ext)" if is_extended else f"0x{arbitration_id:03X}"
+
+
+def format_data(data: bytes) -> str:
+    return data.hex(" ").upper()
+
+
+def format_time(t: float, relative_to: float | None = None) -> str:
+    """Clock time with milliseconds, or seconds since ``relative_to``."""
+    if relative_to is not None:
+        return f"{t - relative_to:.3f}"
+    try:
+        return datetime.fromtimestamp(t).strftime("%H:%M:%S.%f")[:-3]
+    except (OverflowError, OSError, ValueError):
+        return f"{t:.3f}"
+
+
+def changed_bytes(data: bytes, changed: int) -> list[tuple[str, bool]]:
+    """Each byte as hex with whether it changed since the previous frame of its ID."""
+    return [(f"{b:02X}", bool(changed >> i & 1)) for i, b in enumerate(data)]

@@ -1,0 +1,417 @@
+"""Bus monitor: decoding, filters, recordings in four formats, and the page with a simulated user.
+
+Every CAN test uses its own python-can ``virtual`` channel and closes every bus it opens.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import importlib
+import logging
+import os
+import uuid
+from collections.abc import AsyncIterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import can
+import httpx
+import pytest
+from conftest import free_port
+from nicegui import core, ui
+from nicegui.elements.upload_files import SmallFileUpload
+from nicegui.functions.download import download
+from nicegui.functions.navigate import Navigate
+from nicegui.functions.notify import notify
+from nicegui.testing import User
+from nicegui.testing.general import nicegui_reset_globals, prepare_simulation
+from webutil import demo_plant_text, eventually
+
+from app import recording as rec
+from app import runtime as rt
+from app.can_bus import CanBus, CanBusState, FrameRecord
+from app.plant import parse_plant
+from app.runtime import Runtime
+from app.worker import Worker
+from devices.hdlock import codec
+
+COMMAND_EXAMPLE = bytes.fromhex("4F 01 00 80 00 00 81 00")  # section 6.6.1.1: extended lock 335, source 0x81
+GATE1 = 660100  # demo plant: gate-1, extended
+GATE2 = 11  # demo plant: gate-2, standard
+
+
+def unique_channel() -> str:
+    return f"monitor-test-{uuid.uuid4().hex[:10]}"
+
+
+def demo_plant(channel: str | None = None, line_port: int | None = None):
+    text = demo_plant_text(line_port or free_port()).replace('channel = "demo-can1"', f'channel = "{channel or unique_channel()}"')
+    return parse_plant(text)
+
+
+def status_data(status: int = 0x0200, motor_pos: int = 0, proximity: int = 100, source: int = 4) -> bytes:
+    return codec.encode_status(codec.StatusFrame(status, motor_pos, proximity, source))
+
+
+@pytest.fixture
+def worker() -> Worker:
+    """The demo plant's worker, not started: adapters subscribed, no bus opened."""
+    return Worker(demo_plant())
+
+
+# -- decoding -----------------------------------------------------------------------------------------
+
+
+def test_command_example_decodes(worker: Worker):
+    text = rec.describe(0x700, False, COMMAND_EXAMPLE, worker.known_ids("can1"))
+    assert text.startswith("HD-Lock Command")
+    assert "335" in text and "ext" in text
+    assert "IrsAlways" in text or "value 129" in text, text
+
+
+def test_status_of_known_lock_decodes(worker: Worker):
+    known = worker.known_ids("can1")
+    assert (True, GATE1) in known and (False, GATE2) in known
+    text = rec.describe(GATE1, True, status_data(0x0117, 115), known)
+    assert text.startswith("HD-Lock Status 0x0117"), text
+    assert "BoltLocked" in text and "motorPos 115" in text
+    answer = codec.encode_register_answer(codec.RegisterAnswer("holding", 3000, 200))
+    assert rec.describe(GATE2, False, answer, known) == "HD-Lock Holding register 3000 = 200 (0x00C8)"
+
+
+def test_unknown_id_is_unknown(worker: Worker):
+    known = worker.known_ids("can1")
+    assert rec.describe(0x123, False, b"\x01\x02", known) == "unknown"
+    assert rec.describe(GATE1, False, status_data(), known) == "unknown"  # same number, standard: another ID
+    decoder = rec.FrameDecoder(known)
+    assert decoder.record(FrameRecord(0, 0, False, 0, b"", "rx", is_error_frame=True)) == "error frame"
+    assert decoder(0x7FF, False, b"") == "unknown"
+
+
+def test_ids_of_devices_in_a_file():
+    frames = [
+        FrameRecord(0.0, 0x1234, True, 8, status_data(), "rx"),
+        FrameRecord(0.1, 0x700, False, 8, COMMAND_EXAMPLE, "tx"),
+        FrameRecord(0.2, 0x321, False, 2, b"\x01\x02", "rx"),
+    ]
+    assert rec.ids_of_devices(frames) == {(True, 0x1234)}
+    decoder = rec.FrameDecoder(rec.ids_of_devices(frames))
+    assert decoder.record(frames[0]).startswith("HD-Lock Status")
+    assert decoder.record(frames[2]) == "unknown"
+
+
+def test_formatting():
+    assert rec.format_id(0x704, False) == "0x704"
+    assert rec.format_id(0x000A1234, True) == "0x000A1234 (ext)"
+    assert rec.format_data(b"\x4f\x01\x00") == "4F 01 00"
+    assert rec.changed_bytes(b"\x00\x11\x22", 0b101) == [("00", True), ("11", False), ("22", True)]
+
+
+# -- filters ------------------------------------------------------------------------------------------
+
+
+def test_parse_id():
+    assert rec.parse_id("") is None and rec.parse_id(None) is None and rec.parse_id("  ") is None
+    assert rec.parse_id("704") == 0x704
+    assert rec.parse_id("0x000A1284") == GATE1
+    for bad in ("xyz", "0x", "20000000", "-1"):
+        with pytest.raises(ValueError):
+            rec.parse_id(bad)
+
+
+def test_filter_by_id_range():
+    flt = rec.FrameFilter(id_min=0x700, id_max=0x707)
+    assert flt.active
+    assert flt.matches(0x700, False, b"") and flt.matches(0x707, False, b"")
+    assert not flt.matches(0x6FF, False, b"") and not flt.matches(0x708, False, b"")
+    assert rec.FrameFilter(id_min=0x100).matches(GATE1, True, b"")
+    assert not rec.FrameFilter(id_max=0x7FF).matches(GATE1, True, b"")
+    assert not rec.FrameFilter().active and rec.FrameFilter().matches(1, False, b"")
+    errors = rec.FrameFilter(errors_only=True)
+    assert errors.matches(0, False, b"", is_error_frame=True) and not errors.matches(0x700, False, b"")
+
+
+def test_filter_by_device(worker: Worker):
+    gate1 = rec.FrameFilter(owner=rec.owner_of(worker.adapters["gate-1"]))
+    gate2 = rec.FrameFilter(owner=rec.owner_of(worker.adapters["gate-2"]))
+    to_gate1 = codec.encode_read(codec.DeviceId.make(GATE1), "holding", 3000, 2)
+    to_gate2 = codec.encode_read(codec.DeviceId.make(GATE2), "holding", 3000, 2)
+    broadcast = codec.encode_can_command(codec.BROADCAST_ID, codec.CanCommand.SET_LOCK_REQUEST_SOURCE, 4)
+    assert gate1.matches(GATE1, True, status_data()) and not gate2.matches(GATE1, True, status_data())
+    assert gate2.matches(GATE2, False, status_data()) and not gate1.matches(GATE2, False, status_data())
+    assert gate1.matches(to_gate1.arbitration_id, False, to_gate1.data) and not gate2.matches(to_gate1.arbitration_id, False, to_gate1.data)
+    assert gate2.matches(to_gate2.arbitration_id, False, to_gate2.data) and not gate1.matches(to_gate2.arbitration_id, False, to_gate2.data)
+    assert gate1.matches(0x700, False, broadcast.data) and gate2.matches(0x700, False, broadcast.data)
+    assert not gate1.matches(0x123, False, b"\x00")
+    assert not gate1.matches(GATE1, True, b"", is_error_frame=True)
+
+    class NoOwner:
+        pass
+
+    nothing = rec.FrameFilter(owner=rec.owner_of(NoOwner()))
+    assert not nothing.matches(GATE1, True, status_data()) and not nothing.matches(0x700, False, broadcast.data)
+    # both filters at once
+    both = rec.FrameFilter(id_min=0x700, id_max=0x7FF, owner=rec.owner_of(worker.adapters["gate-1"]))
+    assert both.matches(to_gate1.arbitration_id, False, to_gate1.data) and not both.matches(GATE1, True, status_data())
+
+
+def test_newest_is_bounded_and_newest_first(worker: Worker):
+    frames = [FrameRecord(float(i), 0x100 + i % 16, False, 1, bytes([i % 256]), "rx") for i in range(1000)]
+    shown = rec.newest(frames, rec.FrameFilter(), 200)
+    assert len(shown) == 200 and shown[0] is frames[-1] and shown[-1] is frames[800]
+    only = rec.newest(frames, rec.FrameFilter(id_min=0x105, id_max=0x105), 10)
+    assert [f.time for f in only] == [float(i) for i in range(997, 830, -16)][:10]
+    assert all(f.arbitration_id == 0x105 for f in only)
+
+
+# -- recording ----------------------------------------------------------------------------------------
+
+SENT = [
+    (0x700, False, COMMAND_EXAMPLE),
+    (GATE1, True, status_data(0x0117, 115)),
+    (0x123, False, b""),
+    (0x1ABCDEF0, True, b"\x01\x02\x03"),
+    (0x7FF, False, b"\xff" * 8),
+    (0x0, True, b"\x00"),
+]
+
+
+async def _started_bus(channel: str) -> CanBus:
+    bus = CanBus("rec", {"interface": "virtual", "channel": channel, "bitrate": 250000}, CanBusState("rec", "can", channel))
+    await bus.start()
+    assert await _until(lambda: bus.state.connected, 3), bus.state.last_error
+    return bus
+
+
+async def _until(predicate, timeout: float) -> bool:
+    loop = asyncio.get_running_loop()
+    end = loop.time() + timeout
+    while loop.time() < end:
+        if predicate():
+            return True
+        await asyncio.sleep(0.02)
+    return bool(predicate())
+
+
+@pytest.mark.timeout(20)
+@pytest.mark.parametrize("suffix", [".log", ".asc", ".blf", ".csv"])
+async def test_recording_round_trip(tmp_path: Path, suffix: str):
+    channel = unique_channel()
+    bus = await _started_bus(channel)
+    sender = can.Bus(interface="virtual", channel=channel)
+    try:
+        recording = rec.start_recording(bus.state, suffix, tmp_path, bus.options)
+        assert rec.active_recording(bus.state) is recording and recording.path.parent == tmp_path
+        assert recording.path.suffix == suffix and recording.path.name.startswith("rec-")
+        with pytest.raises(rec.RecordingError, match="already"):
+            rec.start_recording(bus.state, suffix, tmp_path)
+        for can_id, ext, data in SENT:
+            sender.send(can.Message(arbitration_id=can_id, is_extended_id=ext, data=data))
+        assert await _until(lambda: bus.state.rx_frames == len(SENT), 5), f"received {bus.state.rx_frames}"
+        assert bus.send(0x703, b"\x0b\x00\x00\x00\xb8\x0b\x02\x00")  # sent by us: recorded as well
+        assert recording.frames == len(SENT) + 1
+        stopped = rec.stop_recording(bus.state)
+        assert stopped is recording and not recording.active and recording.error == ""
+        assert bus.state.recorder is None and rec.stop_recording(bus.state) is None
+        # frames after the stop do not reach the closed file
+        sender.send(can.Message(arbitration_id=0x555, data=b"\x01"))
+        assert await _until(lambda: bus.state.rx_frames == len(SENT) + 1, 5)
+    finally:
+        sender.shutdown()
+        await bus.stop()
+        rec.stop_recording(bus.state)
+
+    expected = [(i, e, d, len(d)) for i, e, d in SENT] + [(0x703, False, b"\x0b\x00\x00\x00\xb8\x0b\x02\x00", 8)]
+    reader = can.LogReader(recording.path)
+    try:
+        read = [(m.arbitration_id, m.is_extended_id, bytes(m.data), m.dlc) for m in reader]
+    finally:
+        reader.stop()
+    assert read == expected
+    loaded = rec.read_log(recording.path)
+    assert [(f.arbitration_id, f.is_extended_id, f.data, f.dlc) for f in loaded.frames] == expected
+    assert loaded.frames[0].time <= loaded.frames[-1].time
+    assert [f.name for f in rec.list_recordings(tmp_path)] == [recording.path.name]
+    assert rec.recording_path(recording.path.name, tmp_path) == recording.path.resolve()
+    with pytest.raises(rec.RecordingError):
+        rec.recording_path("../" + recording.path.name, tmp_path / "sub")
+
+
+def test_recording_refuses_unknown_format(tmp_path: Path):
+    state = CanBusState("x", "can", "")
+    with pytest.raises(rec.RecordingError, match="choose one of"):
+        rec.start_recording(state, ".mf4", tmp_path)
+    assert state.recorder is None
+
+
+def test_recordings_dir_from_environment(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
+    monkeypatch.setenv(rec.DIR_ENV, str(tmp_path / "rec"))
+    assert rec.recordings_dir() == tmp_path / "rec"
+    monkeypatch.delenv(rec.DIR_ENV)
+    assert rec.recordings_dir() == Path.cwd() / "recordings"
+    assert rec.list_recordings(tmp_path / "missing") == []
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "message"),
+    [
+        ("bad.blf", b"garbage" * 50, "cannot open as .blf"),
+        ("bad.csv", b"a,b,c\n1,2,3\n", "not a valid .csv"),
+        ("bad.log", b"(abc) can0 123#00\n", "not a valid .log"),
+        ("empty.asc", b"hello\n", "no CAN frames"),
+        ("binary.asc", b"\xff\xfe\x00\x81", "not a valid .asc"),
+        ("notes.txt", b"hello", "unsupported file type .txt"),
+    ],
+)
+def test_malformed_files_give_a_clear_error(tmp_path: Path, name: str, content: bytes, message: str):
+    path = tmp_path / name
+    path.write_bytes(content)
+    with pytest.raises(rec.RecordingError, match=message) as info:
+        rec.read_log(path)
+    assert name in str(info.value)
+
+
+def test_read_log_is_bounded(tmp_path: Path):
+    path = tmp_path / "many.log"
+    path.write_text("".join(f"({i / 1000:.6f}) can0 {0x100 + i % 5:03X}#{i % 256:02X}\n" for i in range(50)))
+    loaded = rec.read_log(path, limit=20)
+    assert len(loaded.frames) == 20 and loaded.truncated
+    assert rec.read_log(path).truncated is False
+
+
+# -- the page, with NiceGUI's simulated user ------------------------------------------------------------
+
+
+@dataclass
+class Env:
+    user: User
+    runtime: Runtime
+
+
+@pytest.fixture
+async def env(caplog: pytest.LogCaptureFixture, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> AsyncIterator[Env]:
+    """The demo plant (Modbus line on a free port, CAN bus on its own virtual channel), simulated."""
+    monkeypatch.setenv(rec.DIR_ENV, str(tmp_path / "recordings"))
+    plant = demo_plant()
+    with nicegui_reset_globals():
+        os.environ["NICEGUI_USER_SIMULATION"] = "true"
+        try:
+            prepare_simulation()
+            runtime = Runtime(plant, simulate=True)
+            importlib.import_module("app.web").register(runtime)
+            ui.run(storage_secret="test secret")
+            async with core.app.router.lifespan_context(core.app):
+                async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:
+                    yield Env(User(client), runtime)
+        finally:
+            rec.stop_recording(runtime.store.buses["can1"])
+            os.environ.pop("NICEGUI_USER_SIMULATION", None)
+            ui.navigate = Navigate()
+            ui.notify = notify
+            ui.download = download
+            rt.set_current(None)
+    errors = [r for r in caplog.get_records("call") if r.levelno >= logging.ERROR]
+    assert not errors, "unexpected ERROR logs: " + "; ".join(r.getMessage() for r in errors)
+
+
+def one(user: User, marker: str):
+    elements = user.find(marker=marker).elements
+    assert len(elements) == 1, f"{len(elements)} elements marked {marker!r}"
+    return next(iter(elements))
+
+
+@pytest.mark.timeout(60)
+async def test_can_monitor_page(env: Env, tmp_path: Path):
+    user = env.user
+    await user.open("/monitor/can1")
+    await user.should_see("Bus monitor can1")
+    frames, overwrite = one(user, "frames"), one(user, "overwrite")
+
+    def status_rows() -> None:
+        decoded = [r["decoded"] for r in frames.rows]
+        assert any(d.startswith("HD-Lock Status") for d in decoded), decoded[:5]
+        ids = {r["id"] for r in overwrite.rows}
+        assert {"0x000A1284 (ext)", "0x00B"} <= ids, ids
+
+    await eventually(status_rows, timeout=10)
+    assert len(frames.rows) <= 200
+    await user.should_see("error-active")
+    await user.should_see(kind=ui.label, content="error frames 0")
+    row = next(r for r in overwrite.rows if r["id"] == "0x000A1284 (ext)")
+    first_count = row["count"]
+    await eventually(lambda: next(r for r in overwrite.rows if r["id"] == "0x000A1284 (ext)")["count"] > first_count, timeout=5)
+
+    # ID range: only the request IDs
+    user.find(marker="id-from").type("700")
+    user.find(marker="id-to").type("7FF")
+    await eventually(lambda: frames.rows and all(0x700 <= int(r["id"], 16) <= 0x7FF for r in frames.rows), timeout=5)
+    assert all(r["id"] in ("0x00B",) or 0x700 <= int(r["id"].split()[0], 16) <= 0x7FF for r in overwrite.rows)
+    user.find(marker="id-from").clear()
+    user.find(marker="id-to").clear()
+    # device: only gate-1's frames and the requests to it
+    one(user, "device").set_value("gate-1")
+    gate1 = rec.owner_of(env.runtime.worker.adapters["gate-1"])
+
+    def only_gate1() -> None:
+        assert frames.rows
+        ids = {r["id"] for r in frames.rows}
+        assert "0x00B" not in ids and "0x000A1286 (ext)" not in ids, ids
+        assert all(r["id"] == "0x000A1284 (ext)" or r["id"].startswith("0x70") for r in frames.rows)
+        assert {r["id"] for r in overwrite.rows} <= {"0x000A1284 (ext)", "0x700", "0x701", "0x702", "0x703", "0x704", "0x705"}
+
+    await eventually(only_gate1, timeout=5)
+    assert gate1(GATE1, True, b"")
+    one(user, "device").set_value("")
+
+    # pause: the list stops moving
+    user.find(marker="pause").click()
+    await asyncio.sleep(0.4)
+    frozen = list(frames.rows)
+    await asyncio.sleep(1.5)
+    assert frames.rows == frozen
+    user.find(marker="pause").click()
+    await eventually(lambda: frames.rows != frozen, timeout=5)
+
+    # record a few status frames in .asc, then open the file in the "recorded file" tab
+    one(user, "format").set_value(".asc")
+    user.find(marker="record").click()
+    await user.should_see(kind=ui.label, content="recording can1-")
+    state = env.runtime.store.buses["can1"]
+    recording = rec.active_recording(state)
+    assert recording is not None and recording.path.suffix == ".asc"
+    await eventually(lambda: recording.frames >= 4, timeout=6)
+    user.find(marker="stop").click()
+    assert rec.active_recording(state) is None and not recording.active
+    await user.should_see(f"Saved {recording.frames} frames")
+    assert recording.path.parent == tmp_path / "recordings"
+    user.find(marker="download").click()
+    assert user.download.http_responses[-1].content == recording.path.read_bytes()
+
+    upload = one(user, "upload")
+    await upload.handle_uploads([SmallFileUpload(recording.path.name, "text/plain", recording.path.read_bytes())])
+    await user.should_see(f"Opened {recording.path.name}")
+    file_rows = one(user, "file-frames").rows
+    assert len(file_rows) == min(200, recording.frames)
+    assert any(r["decoded"].startswith("HD-Lock Status") for r in file_rows)
+    assert file_rows[0]["time"] == "0.000"
+    # the filters apply to the file too
+    user.find(marker="id-from").type("B")
+    user.find(marker="id-to").type("B")
+    await eventually(lambda: one(user, "file-frames").rows and all(r["id"] == "0x00B" for r in one(user, "file-frames").rows), timeout=3)
+
+    # malformed and unsupported files: a message, no crash
+    await upload.handle_uploads([SmallFileUpload("broken.blf", "application/octet-stream", b"not a blf file" * 10)])
+    await user.should_see("broken.blf: cannot open as .blf file")
+    await upload.handle_uploads([SmallFileUpload("notes.txt", "text/plain", b"hello")])
+    await user.should_see("notes.txt: unsupported file type .txt")
+    await user.should_see(f"Opened {recording.path.name}")  # the last good file stays
+
+
+@pytest.mark.timeout(30)
+async def test_modbus_monitor_page(env: Env):
+    user = env.user
+    await user.open("/monitor/line1")
+    await user.should_see("Bus monitor line1")
+    table = one(user, "transactions")
+    await eventually(lambda: any(r["request"].startswith("read") and r["rx"] for r in table.rows), timeout=10)
+    await user.should_see(kind=ui.label, content="transactions buffered")
