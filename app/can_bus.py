@@ -165,6 +165,7 @@ class CanBus:
                     await asyncio.sleep(self._backoff)
                     self._backoff = min(self._backoff * 2, 10.0)
                     continue
+            if self._thread is None:
                 self._failure = ""
                 self._stop.clear()
                 self._thread = threading.Thread(target=self._read, name=f"can-rx {self.name}", daemon=True)

@@ -1,0 +1,293 @@
+"""HD-Lock over CAN: codec golden vectors (section 6) and the adapter against twins on a virtual bus."""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import subprocess
+import sys
+
+import can
+import pytest
+from conftest import wait_for
+
+from app.plant import DeviceConfig, parse_plant
+from app.runtime import Runtime
+from devices.hdlock import codec
+from devices.hdlock.adapter import CommandError
+from devices.hdlock.params import PARAMS
+
+# -- codec -------------------------------------------------------------------------------------
+
+
+def test_set_lock_request_source_example():
+    """Section 6.6.1.1: 0x700 4F 01 00 80 00 00 81 00 = extended device 335, IrsAlways."""
+    frame = codec.encode_can_command(codec.DeviceId.make(335, True), codec.CanCommand.SET_LOCK_REQUEST_SOURCE, 0x81)
+    assert (frame.arbitration_id, frame.is_extended_id) == (0x700, False)
+    assert frame.data == bytes.fromhex("4F 01 00 80 00 00 81 00")
+    req = codec.decode_request(frame)
+    assert req.target == codec.DeviceId(335, True) and req.a == 0 and req.b == 0x81
+    assert "SET_LOCK_REQUEST_SOURCE value 129" in codec.describe_request(frame)
+
+
+def test_set_device_address_example():
+    """Section 6.6.2: old extended 154 -> new standard 11: 0x701 9A 00 00 80 0B 00 00 00."""
+    frame = codec.encode_set_device_address(codec.DeviceId.make(154, True), codec.DeviceId.make(11))
+    assert frame.arbitration_id == 0x701
+    assert frame.data == bytes.fromhex("9A 00 00 80 0B 00 00 00")
+    req = codec.decode_request(frame)
+    assert req.new_id == codec.DeviceId(11, False)
+
+
+@pytest.mark.parametrize(
+    ("value", "extended", "u32"),
+    [
+        (335, True, 0x8000014F),  # extended below 0x7FF needs the flag
+        (11, None, 0x0000000B),  # standard
+        (0x800, None, 0x80000800),  # above 0x7FF: extended automatically
+        (660020, None, 0x800A1234),  # factory default: the serial number, extended
+    ],
+)
+def test_extended_rule(value, extended, u32):
+    device = codec.DeviceId.make(value, extended)
+    assert device.to_u32() == u32
+    assert codec.DeviceId.from_u32(u32) == device
+
+
+def test_broadcast_is_standard_zero():
+    frame = codec.encode_can_command(codec.BROADCAST_ID, codec.CanCommand.SET_CAN_BAUDRATE, 9)
+    assert frame.data == bytes.fromhex("00 00 00 00 01 00 09 00")
+
+
+def test_status_frame_decoding():
+    # status 0x0117, motorPos 115, proximity 3 << 6 + source 4
+    data = bytes.fromhex("00 00 17 01 73 00 C4 00")
+    frame = codec.decode_lock_frame(data)
+    assert frame == codec.StatusFrame(0x0117, 115, 3, 4)
+    assert frame.bits["BoltLocked"] and frame.bits["DoorInPosition"] and not frame.bits["BoltUnlocked"]
+    assert codec.encode_status(frame) == data
+    # SPEC-NOTES: 0x81 does not fit 6 bits: the low 6 bits arrive
+    assert codec.decode_lock_frame(codec.encode_status(codec.StatusFrame(0, 0, 0, 0x81))).lock_request_source == 0x01
+
+
+def test_register_answers():
+    assert codec.decode_lock_frame(bytes.fromhex("00 01 68 00 0A 00")) == codec.RegisterAnswer("input", 104, 10)
+    assert codec.decode_lock_frame(bytes.fromhex("01 01 BC 0B E2 FF")) == codec.RegisterAnswer("holding", 3004, 65506)
+    answer = codec.RegisterAnswer("holding", 1002, 0x81)
+    assert codec.decode_lock_frame(codec.encode_register_answer(answer)) == answer
+
+
+def test_fwu_status():
+    frame = codec.decode_lock_frame(bytes.fromhex("01 00 01 00 00 00"))
+    assert frame == codec.FwuStatusFrame(flashing=True, application=False)
+    assert "boot loader" in codec.describe_lock_frame(bytes.fromhex("01 00 01 00 00 00"))
+
+
+@pytest.mark.parametrize("data", ["00", "00 00 01 02", "00 01 02", "07 07 00 00 00 00"])
+def test_malformed_lock_frames(data):
+    with pytest.raises(codec.CodecError):
+        codec.decode_lock_frame(bytes.fromhex(data))
+
+
+def test_firmware_update_is_never_encoded():
+    for command in (codec.CanCommand.FIRMWARE_UPDATE_ENTER, codec.CanCommand.BOOTLOADER_UPDATE_ENTER, codec.CanCommand.UPDATE_LEAVE):
+        with pytest.raises(codec.CodecError):
+            codec.encode_can_command(codec.DeviceId.make(1), command, 0)
+    with pytest.raises(codec.CodecError):
+        codec.encode_write(codec.DeviceId.make(1), 32770, 1)
+    with pytest.raises(codec.CodecError):
+        codec.encode_can_command(codec.DeviceId.make(1), codec.CanCommand.SET_CAN_BAUDRATE, 12)
+
+
+def test_read_and_write_requests():
+    target = codec.DeviceId.make(11)
+    assert codec.encode_read(target, "input", 50, 14).data == bytes.fromhex("0B 00 00 00 32 00 0E 00")
+    assert codec.encode_read(target, "holding", 1000, 11).arbitration_id == 0x703
+    write = codec.encode_write(target, 3004, 65506)
+    assert (write.arbitration_id, write.data) == (0x704, bytes.fromhex("0B 00 00 00 BC 0B E2 FF"))
+    assert codec.encode_write(target, 3000, 200, silent=True).arbitration_id == 0x705
+
+
+def test_monitor_descriptions():
+    locks = {(True, 660100)}
+    assert codec.describe_frame(0x703, False, codec.encode_read(codec.DeviceId.make(11), "holding", 1000, 11).data, locks).startswith(
+        "HD-Lock Read Holding-Register -> lock 11"
+    )
+    assert "Status 0x0117" in codec.describe_frame(660100, True, bytes.fromhex("00 00 17 01 73 00 C4 00"), locks)
+    assert codec.describe_frame(0x123, False, b"\x00", locks) is None
+
+
+# -- adapter against the twins on a virtual bus ---------------------------------------------------
+
+_channels = itertools.count()
+
+
+def can_plant(interface: str = "virtual", channel: str | None = None, extra: str = "") -> str:
+    channel = channel or f"test-can-{next(_channels)}-{id(object())}"
+    return (
+        f'[[bus]]\nname = "can1"\ntype = "can"\ninterface = "{interface}"\nchannel = "{channel}"\n'
+        f"bitrate = 250000\npoll_period = 0.5\ntimeout = 0.3\nsimulate = true\n{extra}"
+        '[[device]]\nname = "gate-1"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 660100\n'
+        '[[device]]\nname = "gate-2"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 11\nserial = 660101\n'
+        '[[sim_device]]\nname = "spare"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 660102\n'
+    )
+
+
+@pytest.fixture
+async def running():
+    runtime = Runtime(parse_plant(can_plant()), simulate=True)
+    await runtime.start()
+    try:
+        yield runtime
+    finally:
+        await asyncio.wait_for(runtime.stop(), 5)
+
+
+async def online(runtime, name="gate-1"):
+    state = runtime.store.devices[name]
+    assert await wait_for(
+        lambda: state.status == "online" and None not in (state.value("SerialNumber"), state.value("SettingsProximityOffsetRight")),
+        timeout=6,
+    )
+    return state
+
+
+async def test_status_and_registers_over_can(running):
+    state = await online(running)
+    assert state.value("SerialNumber") == 660100
+    assert state.info["can_status"].status == state.value("LockStatus")
+    assert state.value("SettingsProximityThresholdUnlock") == -30
+    gate2 = await online(running, "gate-2")
+    assert gate2.value("SerialNumber") == 660101
+    assert state.counters.timeouts == 0 and state.counters.malformed == 0
+
+
+async def test_door_closing_seen_in_status_frames(running):
+    state = await online(running)
+    running.twins["gate-1"].close_door()
+    assert await wait_for(lambda: state.info["can_status"].bits["BoltLocked"], timeout=6)
+    assert state.info["can_status"].motor_pos >= 100
+    assert state.info["can_status"].proximity < 30
+
+
+async def test_unknown_lock_is_discovered_and_adopted(running):
+    await online(running)
+    assert await wait_for(lambda: (True, 660102) in running.worker.discovered["can1"], timeout=3)
+    entry = running.worker.discovered["can1"][(True, 660102)]
+    assert entry["type"] == "hdlock" and entry["extended"]
+    running.worker.adopt(DeviceConfig("spare", "hdlock", "can1", {"device_id": 660102, "extended": True}))
+    assert (True, 660102) not in running.worker.discovered["can1"]
+    state = await online(running, "spare")
+    assert state.value("SerialNumber") == 660102
+
+
+async def test_write_with_echo_and_save(running):
+    state = await online(running)
+    adapter = running.worker.adapters["gate-1"]
+    twin = running.twins["gate-1"]
+    assert await adapter.write_param(PARAMS.by_name["SettingsProximityThresholdLock"], -55) == 65481
+    assert twin.holding[3006] == 65481 and PARAMS.by_name["SettingsProximityThresholdLock"].key in state.unsaved
+    await adapter.save_settings()
+    assert twin.input[101] == 1 and not state.unsaved
+
+
+async def test_protected_register_echo_is_reported(running):
+    await online(running)
+    adapter = running.worker.adapters["gate-1"]
+    running.twins["gate-1"].writable.discard(3000)
+    with pytest.raises(CommandError, match="refused by the firmware"):
+        await adapter.write_param(PARAMS.by_name["LockRequestDelay"], 500)
+
+
+async def test_set_lock_request_source_command(running):
+    await online(running)
+    adapter = running.worker.adapters["gate-1"]
+    await adapter.set_lock_request_source(0x81)
+    assert running.twins["gate-1"].holding[1002] == 0x81
+    assert running.twins["gate-2"].holding[1002] == 4  # only the target
+
+
+async def test_broadcast_reaches_every_lock(running):
+    await online(running)
+    await running.worker.adapters["gate-1"].set_lock_request_source(0x01, broadcast=True)
+    assert await wait_for(lambda: all(t.holding[1002] == 0x01 for t in running.twins.values()), timeout=2)
+
+
+async def test_set_device_address_then_answers_under_new_id(running):
+    state = await online(running)
+    adapter = running.worker.adapters["gate-1"]
+    assert await adapter.set_device_address(12) is True
+    assert running.twins["gate-1"].device_id == codec.DeviceId(12, False)
+    assert adapter.device_id == codec.DeviceId(12, False)
+    before = state.counters.responses
+    assert await wait_for(lambda: state.counters.responses > before + 20, timeout=4)
+
+
+async def test_set_bitrate_leaves_the_bus(running):
+    state = await online(running, "gate-2")
+    await running.worker.adapters["gate-2"].set_can_bitrate(9)  # 500 kbit/s
+    assert await wait_for(lambda: running.twins["gate-2"].can_bitrate == 500_000, timeout=2)
+    assert await wait_for(lambda: state.status in ("stale", "offline"), timeout=6)
+    assert running.store.devices["gate-1"].status == "online"
+
+
+async def test_fwu_status_is_shown(running):
+    state = await online(running)
+    running.twins["gate-1"].fwu_mode = True
+    assert await wait_for(lambda: state.info.get("fwu") is not None, timeout=3)
+    assert not state.info["fwu"].flashing
+
+
+async def test_malformed_frame_is_counted_not_fatal(running):
+    state = await online(running)
+    with can.Bus(interface="virtual", channel=running.plant.buses["can1"].options["channel"]) as other:
+        other.send(can.Message(arbitration_id=660100, is_extended_id=True, data=bytes.fromhex("05 05 01")))
+    assert await wait_for(lambda: state.counters.malformed == 1, timeout=2)
+    assert "malformed" in state.last_error
+    assert await wait_for(lambda: state.status == "online", timeout=2)
+
+
+async def test_interface_that_cannot_open_is_reported():
+    plant = parse_plant(
+        '[[bus]]\nname = "c"\ntype = "can"\ninterface = "socketcan"\nchannel = "nocan7"\n'
+        '[[device]]\nname = "g"\ntype = "hdlock"\nbus = "c"\ndevice_id = 5\n'
+    )
+    runtime = Runtime(plant, simulate=False)
+    await runtime.start()
+    try:
+        bus = runtime.store.buses["c"]
+        assert await wait_for(lambda: bus.last_error.startswith("cannot open socketcan nocan7"), timeout=3)
+        assert await wait_for(lambda: runtime.store.devices["g"].status == "offline", timeout=3)
+    finally:
+        await runtime.stop()
+
+
+async def test_across_processes_on_udp_multicast(tmp_path):
+    """`commission sim` serves the twins on udp_multicast; this process is the GUI side."""
+    port = 43000 + (id(tmp_path) % 2000)
+    text = can_plant("udp_multicast", "239.74.163.2", extra=f"port = {port}\n")
+    path = tmp_path / "plant.toml"
+    path.write_text(text)
+    proc = subprocess.Popen([sys.executable, "-m", "app.cli", "sim", "--plant", str(path)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert "simulating can1" in proc.stdout.readline()
+        runtime = Runtime(parse_plant(text), simulate=False)
+        await runtime.start()
+        try:
+            state = runtime.store.devices["gate-2"]
+            assert await wait_for(lambda: state.value("SerialNumber") == 660101, timeout=10)
+            await runtime.worker.adapters["gate-2"].write_param(PARAMS.by_name["LockRequestDelay"], 250)
+            assert state.value("LockRequestDelay") == 250
+            # our own requests come back on udp_multicast and are filtered, not decoded as frames
+            assert runtime.store.buses["can1"].rx_frames > 0
+            assert all(r.direction == "tx" for r in runtime.store.buses["can1"].frames if r.arbitration_id in range(0x700, 0x708))
+            assert await wait_for(lambda: (True, 660102) in runtime.worker.discovered["can1"], timeout=3)
+        finally:
+            await runtime.stop()
+    finally:
+        proc.terminate()
+        try:
+            assert proc.wait(timeout=10) == 0
+        finally:
+            if proc.poll() is None:
+                proc.kill()
