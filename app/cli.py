@@ -78,8 +78,15 @@ def run_sim(args) -> int:
             raise SystemExit(1)
         for bus in plant.buses.values():
             if bus.simulated or args.all:
-                names = ", ".join(d.name for d in plant.devices_on(bus.name))
+                devices = plant.devices_on(bus.name) + [d for d in plant.sim_devices.values() if d.bus == bus.name]
+                names = ", ".join(d.name for d in devices)
                 print(f"simulating {bus.name} ({bus.type}) on {bus.endpoint}: {names}", flush=True)
+                if bus.options.get("interface") == "virtual":
+                    print(
+                        f"  note: {bus.name} uses the virtual CAN interface, which other processes cannot reach; "
+                        'use interface = "udp_multicast" (channel "239.74.163.2") to share it across processes',
+                        file=sys.stderr, flush=True,
+                    )
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGINT, signal.SIGTERM):

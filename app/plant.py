@@ -59,7 +59,9 @@ class BusConfig:
 
     @property
     def endpoint(self) -> str:
-        return str(self.options.get("port") or self.options.get("channel") or "")
+        if self.type == "can":
+            return f"{self.options.get('interface')} {self.options.get('channel')}"
+        return str(self.options.get("port") or "")
 
 
 @dataclass
