@@ -100,6 +100,7 @@ class CanBus:
         self._failure: str = ""
         self._backoff = 0.5
         self._task: asyncio.Task | None = None
+        self._cyclic: dict[str, asyncio.Task] = {}
         interface = options.get("interface")
         self.filter_own = options.get("filter_own", interface == "udp_multicast")
         # frames this instance sent, by content, with send times: udp_multicast hands them back
@@ -129,6 +130,8 @@ class CanBus:
         self._task = asyncio.create_task(self._supervise(), name=f"can {self.name}")
 
     async def stop(self) -> None:
+        for key in list(self._cyclic):
+            self.stop_cyclic(key)
         if self._task:
             self._task.cancel()
             try:
@@ -294,6 +297,35 @@ class CanBus:
             except Exception as exc:  # disk full or closed file: stop recording, keep the bus
                 state.recorder = None
                 state.last_error = f"recording stopped: {exc}"
+
+    # -- cyclic transmissions ------------------------------------------------------------
+    def start_cyclic(self, key: str, period_s: float, make: Callable[[], tuple[int, bytes, bool] | None]) -> None:
+        """Send ``make()`` every ``period_s`` (absolute schedule, no drift) until stopped."""
+        self.stop_cyclic(key)
+        self._cyclic[key] = asyncio.get_running_loop().create_task(self._cyclic_task(period_s, make), name=f"cyclic {key}")
+
+    def stop_cyclic(self, key: str) -> None:
+        task = self._cyclic.pop(key, None)
+        if task is not None:
+            task.cancel()
+
+    def cyclic_running(self, key: str) -> bool:
+        task = self._cyclic.get(key)
+        return task is not None and not task.done()
+
+    async def _cyclic_task(self, period_s: float, make) -> None:
+        loop = asyncio.get_running_loop()
+        due = loop.time()
+        while True:
+            frame = make()
+            if frame is not None:
+                self.send(*frame)
+            due += period_s
+            delay = due - loop.time()
+            if delay < 0:  # late (loop busy): do not send a burst to catch up
+                due = loop.time()
+                delay = 0
+            await asyncio.sleep(delay)
 
     # -- transmit path ----------------------------------------------------------------
     def send(self, arbitration_id: int, data: bytes, is_extended_id: bool = False) -> bool:

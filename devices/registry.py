@@ -37,6 +37,7 @@ class DeviceType:
     bus_identity: Callable[[dict[str, Any], str], Any] = lambda options, bus_type: None
     can_codec: str = ""
     key_values: tuple[str, ...] = ()  # parameter names shown on tiles
+    summary: Callable[[Any], list[str]] | None = None  # state -> tile lines, where key_values do not fit
     extra: dict[str, Any] = field(default_factory=dict)
 
     def adapter_class(self, bus_type: str) -> Callable[..., Any]:

@@ -37,10 +37,19 @@ class DeviceTile:
         s = self.state
         set_status_badge(self.badge, s.status, s.age)
         self.seen.set_text(f"last seen: {fmt_age(s.age)}")
-        values = s.values()
-        for key, label in self.value_labels.items():
-            entry = values.get(key)
-            label.set_text(f"{key}: {entry['text'] if entry else '-'}")
+        if self.device_type.summary is not None:
+            lines = self.device_type.summary(s)
+            if len(lines) != len(self.value_labels):
+                self.values.clear()
+                with self.values:
+                    self.value_labels = {str(i): ui.label().classes("text-body2") for i in range(len(lines))}
+            for label, line in zip(self.value_labels.values(), lines):
+                label.set_text(line)
+        else:
+            values = s.values()
+            for key, label in self.value_labels.items():
+                entry = values.get(key)
+                label.set_text(f"{key}: {entry['text'] if entry else '-'}")
         if s.status in ("stale", "offline"):
             self.values.classes(add="stale")
         else:

@@ -1,0 +1,55 @@
+"""Thomson Electrak HD linear actuators with the SY2 CAN option (a network of 1..n actuators)."""
+
+from typing import Any
+
+from devices.electrak import codec
+from devices.electrak.params import PARAMS
+from devices.registry import DeviceType
+
+
+def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str]]:
+    errors = []
+    actuators = options.get("actuators")
+    if not isinstance(actuators, list) or not actuators:
+        return [("actuators", 'actuators = [{ model = "HD24", gearing = "B026", stroke_mm = 300 }, ...] is required, one entry per networked actuator')]
+    for n, a in enumerate(actuators, 1):
+        if not isinstance(a, dict):
+            errors.append(("actuators", f"actuator {n}: expected a table with model, gearing, stroke_mm"))
+            continue
+        if a.get("model") not in codec.CURRENT_LIMIT_A:
+            errors.append(("actuators", f"actuator {n}: model {a.get('model')!r} is not one of {', '.join(codec.CURRENT_LIMIT_A)}"))
+        if a.get("gearing") not in codec.SPEED_RANGE_MM_S:
+            errors.append(("actuators", f"actuator {n}: gearing {a.get('gearing')!r} is not one of {', '.join(codec.SPEED_RANGE_MM_S)}"))
+        stroke = a.get("stroke_mm")
+        if not isinstance(stroke, int | float) or isinstance(stroke, bool) or not 0 < stroke <= 6553.5:
+            errors.append(("actuators", f"actuator {n}: stroke_mm must be the ordered stroke in mm (0 < stroke <= 6553.5)"))
+        for key in sorted(set(a) - {"model", "gearing", "stroke_mm"}):
+            errors.append(("actuators", f"actuator {n}: unknown key '{key}'"))
+    for key in sorted(set(options) - {"actuators"}):
+        errors.append((key, f"unknown key '{key}' for an Electrak network; known: actuators"))
+    return errors
+
+
+def _summary(state) -> list[str]:
+    info = state.info
+    recent = info.get("status") or []
+    lines = [f"actuators heard: {info.get('heard', 0)} of {info.get('configured', 0)}"]
+    if recent:
+        lines.append("position: " + ", ".join(f"{f.position_mm:.1f} mm" for f in recent))
+    errors = [codec.ERROR_FLAGS[b][0] for b in range(8) if info.get("errors", 0) >> b & 1]
+    lines.append("faults: " + (", ".join(errors) if errors else "none"))
+    return lines
+
+
+DEVICE_TYPE = DeviceType(
+    name="electrak",
+    title="Electrak HD network",
+    bus_types=("can",),
+    params=PARAMS,
+    adapters={"can": "devices.electrak.adapter:ElectrakAdapter"},
+    sims={"can": "devices.electrak.sim:ElectrakSim"},
+    check_config=_check_config,
+    bus_identity=lambda options, bus_type: "electrak network",  # one network per bus: the IDs 0x06/0x07 are fixed
+    can_codec="devices.electrak.codec",
+    summary=_summary,
+)

@@ -1,0 +1,292 @@
+"""Electrak HD network page: live charts, flags, control with keep-alive, service parameters."""
+
+from __future__ import annotations
+
+import csv
+import io
+from datetime import datetime
+
+from nicegui import ui
+
+from app import runtime as rt
+from devices.electrak import codec
+from devices.electrak.adapter import SERIES
+from devices.electrak.params import PARAMS, password_of
+from devices.params import ParamError
+from pages.frame import fmt_age, fmt_time, frame, set_status_badge
+from pages.widgets import HistoryChart, Lamp, confirm, run_command
+
+WINDOW_S = 60
+
+
+def content(name: str) -> None:
+    runtime = rt.current()
+    state = runtime.store.devices[name]
+    adapter = runtime.worker.adapters[name]
+    twin = runtime.twins.get(name)
+    client = ui.context.client
+    session = client.id
+
+    async def act(describe: str, fn, success: str = "", write: bool = True):
+        async def action(a):
+            return fn(a)
+
+        return await run_command(name, action, describe, success=success, write=write)
+
+    def release_on_disconnect() -> None:
+        adapter.release_control(session, "released: the controlling browser disconnected")
+
+    client.on_disconnect(release_on_disconnect)
+    client.on_delete(release_on_disconnect)
+
+    with frame(f"Electrak HD network {name}"):
+        with ui.card().classes("w-full"):
+            with ui.row().classes("items-center gap-6 w-full"):
+                badge = ui.badge("waiting", color="grey").classes("text-body2")
+                heard = ui.label().classes("text-body2")
+                seen = ui.label().classes("text-body2")
+                counters = ui.label().classes("text-caption mono text-grey-8")
+            heard_warning = ui.label().classes("text-warning text-body2")
+            limits = adapter.limits
+            ui.label(
+                "actuators: " + "; ".join(f"{a.model} {a.gearing} {a.stroke_mm:g} mm stroke" for a in adapter.actuators)
+                + f" · accepted: 0..{limits.stroke_mm:g} mm, {limits.speed_min:g}..{limits.speed_max:g} mm/s, "
+                f"0..{limits.current_a:g} A (0 = calibrated limit)"
+            ).classes("text-caption text-grey-8")
+
+        with ui.card().classes("w-full"):
+            with ui.row().classes("gap-10 items-start"):
+                with ui.column():
+                    ui.label("Motion").classes("text-subtitle2")
+                    motion_lamps = {bit: Lamp(n, "ok", text) for bit, (n, text) in codec.MOTION_FLAGS.items()}
+                with ui.column():
+                    ui.label("Faults").classes("text-subtitle2")
+                    with ui.grid(columns=4).classes("gap-x-6 gap-y-1"):
+                        error_lamps = {
+                            bit: Lamp(n, "alarm", f"{text}. Clears: {clears}.") for bit, (n, text, clears) in codec.ERROR_FLAGS.items()
+                        }
+            fault_text = ui.column().classes("gap-0")
+
+        with ui.row().classes("w-full no-wrap items-start gap-4"):
+            with ui.card().classes("col-8"):
+                with ui.row().classes("items-center w-full"):
+                    ui.label(f"Position, current and speed (last {WINDOW_S} s, 100 ms frames)").classes("text-subtitle1")
+                    ui.space()
+                    ui.button("CSV", icon="download", on_click=lambda: _export_csv(state, name)).props("flat dense")
+                    ui.button("PNG", icon="image", on_click=lambda: _export_png(charts, name)).props("flat dense")
+                charts = [
+                    HistoryChart(state, ["Position [mm]", "Target [mm]"], window_s=WINDOW_S, height=220),
+                    HistoryChart(state, ["Current [A]"], window_s=WINDOW_S, height=160),
+                    HistoryChart(state, ["Speed [mm/s]"], window_s=WINDOW_S, height=160),
+                ]
+                target_trace = charts[0].figure["data"][1]
+                target_trace["line"] = {"dash": "dash", "color": "#c10015"}
+                target_trace["mode"] = "lines"
+            with ui.column().classes("col gap-4"):
+                controls = _control_card(adapter, session, act)
+                if twin is not None:
+                    _sim_card(twin)
+
+        service_refresh = _service_card(name, state, adapter)
+
+        with ui.expansion("Events", icon="list").classes("w-full"):
+            events = ui.log(max_lines=200).classes("w-full h-40")
+        shown = [0.0]
+
+    with ui.page_sticky(position="bottom-right", x_offset=24, y_offset=24):
+        ui.button("STOP", icon="stop_circle", color="negative", on_click=lambda: act("stop", lambda a: a.stop(session), write=False)).props(
+            "size=xl push data-testid=big-stop"
+        ).classes("text-h6")
+
+    def update() -> None:
+        set_status_badge(badge, state.status, state.age)
+        info = state.info
+        heard.set_text(f"actuators heard per 100 ms: {info.get('heard', 0)} of {info.get('configured')} configured")
+        differs = state.status == "online" and info.get("heard") != info.get("configured")
+        heard_warning.set_text(
+            f"The network answers with {info.get('heard')} status telegrams per 100 ms, but {info.get('configured')} actuators are configured: "
+            "check wiring and power, or the plant file." if differs else ""
+        )
+        seen.set_text(f"last status {fmt_age(state.age)}")
+        c = state.counters
+        counters.set_text(f"status frames {c.responses} · service requests {c.requests} · timeouts {c.timeouts} · "
+                          f"error answers {c.exceptions} · malformed {c.malformed}")
+        online = state.status == "online"
+        for bit, lamp in motion_lamps.items():
+            lamp.set(bool(info.get("motion", 0) >> bit & 1) if online else None)
+        for bit, lamp in error_lamps.items():
+            lamp.set(bool(info.get("errors", 0) >> bit & 1) if online else None)
+        fault_text.clear()
+        with fault_text:
+            for bit, (fault, _text, clears) in codec.ERROR_FLAGS.items():
+                if online and info.get("errors", 0) >> bit & 1:
+                    ui.label(f"{fault}: clears: {clears}").classes("text-negative text-body2")
+        controls()
+        service_refresh()
+        for event in state.events:
+            if event.time > shown[0]:
+                events.push(f"{fmt_time(event.time)} {event.level.upper()}: {event.text}")
+                shown[0] = event.time
+
+    def update_charts() -> None:
+        for chart in charts:
+            chart.update()
+
+    update()
+    ui.timer(0.5, update)
+    ui.timer(0.5, update_charts)
+
+
+def _control_card(adapter, session: str, act):
+    limits = adapter.limits
+    with ui.card().classes("w-full"):
+        ui.label("Drive the network").classes("text-subtitle1")
+        holder = ui.label().classes("text-body2")
+        with ui.row():
+            take = ui.button("Take control", icon="sports_esports",
+                             on_click=lambda: act("take control", lambda a: a.take_control(session, "local engineer"))).props("data-testid=take-control")
+            release = ui.button("Release", icon="logout",
+                                on_click=lambda: act("release control", lambda a: a.release_control(session), write=False)).props("outline")
+        position = ui.number(f"Target position [mm] 0..{limits.stroke_mm:g}", value=0.0, min=0, max=limits.stroke_mm, step=0.1, format="%.1f").props("dense outlined data-testid=target").classes("w-full")
+        speed = ui.number(f"Speed [mm/s] {limits.speed_min:g}..{limits.speed_max:g}", value=limits.speed_max, min=limits.speed_min, max=limits.speed_max, step=0.1, format="%.1f").props("dense outlined").classes("w-full")
+        current = ui.number(f"Current limit [A] 0..{limits.current_a:g} (0 = calibrated)", value=0.0, min=0, max=limits.current_a, step=0.1, format="%.1f").props("dense outlined").classes("w-full")
+
+        async def apply() -> bool:
+            values = (position.value, speed.value, current.value)
+            if None in values:
+                ui.notify("Fill in target, speed and current limit", type="warning")
+                return False
+            ok, _ = await act("set target", lambda a: a.set_command(session, float(values[0]), float(values[1]), float(values[2])))
+            return ok
+
+        async def go() -> None:
+            if await apply():
+                await act("go", lambda a: a.go(session))
+
+        with ui.row():
+            ui.button("Apply", on_click=apply).props("outline")
+            go_button = ui.button("Go", icon="play_arrow", color="positive", on_click=go).props("data-testid=go")
+            ui.button("Stop", icon="stop", color="negative", on_click=lambda: act("stop", lambda a: a.stop(session), write=False))
+        ui.label("Jog (hold to run, stops when released)").classes("text-caption text-grey-8")
+        with ui.row():
+            jog_in = ui.button("In", icon="keyboard_double_arrow_left").props("outline data-testid=jog-in")
+            jog_out = ui.button("Out", icon="keyboard_double_arrow_right").props("outline data-testid=jog-out")
+            reset = ui.button("Override/reset").props("flat")
+        def jog_start(direction: int):
+            return lambda: act("jog", lambda a: a.jog(session, direction, speed.value))
+
+        def jog_stop(a) -> None:
+            if a.controller is not None and a.controller.session == session and a.command.enable:
+                a.jog(session, 0)
+
+        for button, direction in ((jog_in, -1), (jog_out, 1)):
+            for event in ("mousedown", "touchstart"):
+                button.on(event, jog_start(direction))
+            for event in ("mouseup", "mouseleave", "touchend", "touchcancel"):
+                button.on(event, lambda: act("jog stop", jog_stop, write=False))
+        reset.on("mousedown", lambda: act("override", lambda a: a.override(session, True)))
+        reset.on("mouseup", lambda: act("override", lambda a: a.override(session, False)))
+        sent = ui.label().classes("text-caption mono text-grey-8")
+
+    def refresh() -> None:
+        c = adapter.controller
+        mine = c is not None and c.session == session
+        if c is None:
+            holder.set_text("nobody controls the network: control telegrams are off")
+        elif mine:
+            holder.set_text(f"you hold control since {datetime.fromtimestamp(c.since):%H:%M:%S}; control telegram every 100 ms")
+        else:
+            holder.set_text(f"{c.user} holds control (another browser) since {datetime.fromtimestamp(c.since):%H:%M:%S}")
+        take.set_enabled(c is None)
+        release.set_enabled(mine)
+        for element in (go_button, jog_in, jog_out, reset):
+            element.set_enabled(mine)
+        cmd = adapter.command
+        sent.set_text(f"0x006: {cmd.encode().hex(' ').upper()} (target {cmd.position_mm:g} mm, {cmd.speed_mm_s:g} mm/s, "
+                      f"{cmd.current_a:g} A, {'enable' if cmd.enable else 'no enable'}{', override' if cmd.override else ''})")
+
+    return refresh
+
+
+def _sim_card(twin) -> None:
+    with ui.card().classes("w-full bg-purple-1"):
+        ui.label("Simulated actuators (demo)").classes("text-subtitle1")
+        ui.label("Extra load current [A]").classes("text-caption")
+        ui.slider(min=0, max=25, step=0.5, value=0, on_change=lambda e: twin.set_load(e.value)).props("label-always")
+        with ui.row():
+            for i in range(len(twin.actuators)):
+                ui.switch(f"actuator {i + 1} connected", value=True,
+                          on_change=lambda e, i=i: twin.restore(i) if e.value else twin.remove(i))
+        ui.switch("Supply voltage fault", on_change=lambda e: [setattr(a, "voltage_fault", e.value) for a in twin.actuators])
+
+
+def _service_card(name: str, state, adapter):
+    rows = {}
+    with ui.card().classes("w-full"):
+        with ui.row().classes("items-center w-full"):
+            ui.label("Service parameters (0x0A / 0x0B)").classes("text-subtitle1")
+            unsaved = ui.badge("", color="orange")
+            ui.space()
+            ui.button("Read all", icon="refresh", on_click=lambda: run_command(name, lambda a: a.read_all(), "read service parameters", write=False)).props("outline")
+            ui.button("Save parameters (0xF0)", icon="save", on_click=lambda: run_command(name, lambda a: a.save_parameters(), "save parameters", success="parameters saved"))
+        ui.label("The right password is written to 0xFF before each read or write. Changes hold until power-off unless saved.").classes("text-caption text-grey-8")
+        with ui.grid(columns=5).classes("w-full items-center gap-x-4 gap-y-1"):
+            for h in ("Specifier", "Parameter", "Value", "New value", ""):
+                ui.label(h).classes("text-caption text-grey-8")
+            for p in PARAMS:
+                ui.label(f"0x{p.address:02X} (password 0x{password_of(p):08X})").classes("mono text-caption")
+                with ui.row().classes("items-center gap-1"):
+                    ui.label(p.name).tooltip(p.description)
+                    mark = ui.badge("unsaved", color="orange")
+                value = ui.label("not read").classes("mono")
+                if p.enum is not None:
+                    entry = ui.select(dict(p.enum), value=None).props("dense outlined options-dense").classes("w-40")
+                else:
+                    low, high = p.limits()
+                    entry = ui.input(placeholder=f"{low:g} .. {high:g} {p.unit}").props("dense outlined").classes("w-40")
+                ui.button("Write", on_click=lambda p=p, entry=entry: _write_service(name, p, entry.value)).props("dense")
+                rows[p.key] = (p, value, mark)
+
+    def refresh() -> None:
+        for key, (p, value, mark) in rows.items():
+            raw = state.raw(p)
+            value.set_text("not read" if raw is None else p.display(raw))
+            mark.set_visibility(key in state.unsaved)
+        unsaved.set_text(f"{len(state.unsaved)} unsaved")
+        unsaved.set_visibility(bool(state.unsaved))
+
+    return refresh
+
+
+async def _write_service(name: str, param, value) -> None:
+    if value in (None, ""):
+        ui.notify(f"{param.name}: enter a value first", type="warning")
+        return
+    try:
+        raw = param.validate(value)
+    except ParamError as exc:
+        ui.notify(str(exc), type="negative")
+        return
+    warning = param.needs_confirmation(raw)
+    if warning and not await confirm(f"Set {param.name} to {param.display(raw)}?", warning, ok="Change bit rate"):
+        return
+    await run_command(name, lambda a: a.write_param(param, param.decode(raw), confirmed=bool(warning)),
+                      f"write {param.name}", success=f"{param.name} = {param.display(raw)} written and read back")
+
+
+def _export_csv(state, name: str) -> None:
+    out = io.StringIO()
+    writer = csv.writer(out)
+    writer.writerow(["time", *SERIES])
+    for t, sample in state.history:
+        writer.writerow([datetime.fromtimestamp(t).isoformat(timespec="milliseconds"), *(sample.get(s) for s in SERIES)])
+    ui.download(out.getvalue().encode(), f"{name}-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
+
+
+def _export_png(charts, name: str) -> None:
+    stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
+    for chart, part in zip(charts, ("position", "current", "speed")):
+        ui.run_javascript(
+            f"Plotly.downloadImage(getElement({chart.plot.id}).$el.querySelector('.js-plotly-plot') || getElement({chart.plot.id}).$el,"
+            f" {{format: 'png', filename: '{name}-{part}-{stamp}', width: 1200, height: 400}})"
+        )

@@ -1,0 +1,241 @@
+"""Electrak HD (SY2): codec golden vectors and the adapter against its twin on a virtual CAN bus."""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+
+import pytest
+from conftest import wait_for
+
+from app.plant import PlantError, parse_plant
+from app.runtime import Runtime
+from app.worker import PermissionDenied
+from devices.electrak import codec
+from devices.electrak.adapter import CommandError, ControlBusy
+from devices.electrak.params import PARAMS
+
+# -- codec -------------------------------------------------------------------------------------
+
+
+def test_control_example():
+    """E8 03 41 00 BE 03 00 01: 100.0 mm, 6.5 A, enable (0x03BE = 95.8 mm/s, see SPEC-NOTES)."""
+    data = bytes.fromhex("E8 03 41 00 BE 03 00 01")
+    frame = codec.ControlFrame.decode(data)
+    assert frame.position_mm == 100.0 and frame.current_a == 6.5 and frame.enable and not frame.override
+    assert frame.speed_mm_s == 95.8
+    assert frame.encode() == data
+
+
+def test_control_bits_and_range():
+    assert codec.ControlFrame(0, 0, 1, enable=False, override=True).encode()[7] == 0x02
+    with pytest.raises(codec.CodecError):
+        codec.ControlFrame(7000, 0, 1).encode()
+
+
+@pytest.mark.parametrize(
+    ("message", "data"),
+    [
+        (codec.password_request(0xE5F6A7B8), "01 FF 04 00 B8 A7 F6 E5"),  # unlock soft start
+        (codec.write_request(0x01, 2, 500), "01 01 02 00 F4 01 00 00"),  # soft start 500 ms
+        (codec.save_request(), "01 F0 01 00 00 00 00 00"),  # save: example's 0x02 sent as 0x01 (SPEC-NOTES)
+    ],
+)
+def test_service_examples(message, data):
+    assert message.encode() == bytes.fromhex(data)
+    assert codec.ServiceMessage.decode(bytes.fromhex(data)) == message
+
+
+@pytest.mark.parametrize(("code", "name"), [(0xFF01, "OBJECT_NOT_FOUND/INCORRECT_PASSWORD"), (0xFF02, "WRONG_SIZE"),
+                                           (0xFF04, "INCORRECT_PERMISSION"), (0xFF08, "WRONG_ID")])
+def test_error_responses(code, name):
+    answer = codec.ServiceMessage.decode(bytes([0x13, 0x01, 0x02, 0]) + code.to_bytes(4, "little"))
+    assert answer.error_code == code and answer.error_name == name
+
+
+def test_status_flags():
+    frame = codec.StatusFrame.decode(bytes.fromhex("F4 01 0F 00 C8 00 05 22"))
+    assert (frame.position_mm, frame.current_a, frame.speed_mm_s) == (50.0, 1.5, 20.0)
+    assert frame.motion_names == ["Extending", "Saturated"]
+    assert frame.error_names == ["Current overload", "Message timeout"]
+    assert codec.StatusFrame.decode(frame.encode()) == frame
+
+
+def test_limits_by_model_and_gearing():
+    limits = codec.Limits.of([codec.Actuator("MD12", "B017", 300), codec.Actuator("HD48", "B026", 200)])
+    assert (limits.stroke_mm, limits.current_a, limits.speed_min, limits.speed_max) == (200, 6.5, 11, 32)
+    assert limits.check(100, 0, 20) == []
+    assert len(limits.check(250, 7, 5)) == 3
+
+
+def test_plant_validation():
+    with pytest.raises(PlantError, match="gearing 'B999'"):
+        parse_plant(plant_text(actuators='[{ model = "HD24", gearing = "B999", stroke_mm = 300 }]'))
+
+
+# -- adapter + twin ------------------------------------------------------------------------------
+
+_n = itertools.count()
+
+
+def plant_text(actuators: str = '[{ model = "HD24", gearing = "B026", stroke_mm = 300 }, { model = "HD24", gearing = "B026", stroke_mm = 300 }]'):
+    return (
+        f'[[bus]]\nname = "can2"\ntype = "can"\ninterface = "virtual"\nchannel = "el-{next(_n)}-{id(object())}"\n'
+        f'bitrate = 500000\nsimulate = true\n[[device]]\nname = "lift"\ntype = "electrak"\nbus = "can2"\nactuators = {actuators}\n'
+    )
+
+
+@pytest.fixture
+async def lift():
+    runtime = Runtime(parse_plant(plant_text()), simulate=True)
+    await runtime.start()
+    adapter = runtime.worker.adapters["lift"]
+    state = runtime.store.devices["lift"]
+    assert await wait_for(lambda: state.status == "online" and state.info["heard"] == 2, timeout=4)
+    try:
+        yield runtime, adapter, state, runtime.twins["lift"]
+    finally:
+        await asyncio.wait_for(runtime.stop(), 5)
+
+
+async def test_move_to_target_and_arrive(lift):
+    _runtime, adapter, state, twin = lift
+    adapter.take_control("s1", "engineer")
+    adapter.set_command("s1", 30.0, 32.0, 0)
+    adapter.go("s1")
+    assert await wait_for(lambda: state.info["motion"] & 1, timeout=2)  # extending
+    assert await wait_for(lambda: abs((adapter.position_mm() or 0) - 30.0) < 0.2 and state.info["motion"] == 0, timeout=6)
+    assert all(abs(a.position_mm - 30.0) < 0.2 for a in twin.actuators)
+    assert state.info["errors"] == 0
+    positions = [s["Position [mm]"] for _, s in state.history]
+    assert positions[0] < 1 and max(positions) >= 29.8
+
+
+async def test_overload_trips_and_clears(lift):
+    _runtime, adapter, state, twin = lift
+    adapter.take_control("s1", "engineer")
+    adapter.set_command("s1", 200.0, 32.0, 3.0)
+    adapter.go("s1")
+    await asyncio.sleep(0.5)
+    twin.set_load(4.0)  # 0.8 A no-load + 4 A > 3 A limit
+    assert await wait_for(lambda: state.info["errors"] & 0x02, timeout=2)
+    stopped = adapter.position_mm()
+    await asyncio.sleep(0.3)
+    assert abs(adapter.position_mm() - stopped) < 0.3  # no motion while set
+    twin.set_load(0.0)
+    adapter.stop("s1")  # dropping the enable bit clears it
+    assert await wait_for(lambda: not state.info["errors"] & 0x02, timeout=2)
+
+
+async def test_overload_cleared_by_moving_back(lift):
+    _runtime, adapter, state, twin = lift
+    adapter.take_control("s1", "engineer")
+    adapter.set_command("s1", 200.0, 32.0, 3.0)
+    adapter.go("s1")
+    await asyncio.sleep(0.4)
+    twin.set_load(4.0)
+    assert await wait_for(lambda: state.info["errors"] & 0x02, timeout=2)
+    twin.set_load(0.0)
+    adapter.set_command("s1", 0.0, 32.0, 3.0)
+    assert await wait_for(lambda: not state.info["errors"] & 0x02 and state.info["motion"] & 2, timeout=2)
+
+
+async def test_timeout_flag_when_control_stops(lift):
+    runtime, adapter, state, twin = lift
+    adapter.take_control("s1", "engineer")
+    assert await wait_for(lambda: not state.info["errors"] & 0x20, timeout=2)
+    adapter.set_command("s1", 250.0, 20.0, 0)
+    adapter.go("s1")
+    await asyncio.sleep(0.4)
+    runtime.worker.can_buses["can2"].stop_cyclic(adapter.key)  # the keep-alive dies
+    assert await wait_for(lambda: state.info["errors"] & 0x20, timeout=1)
+    moving_at = adapter.position_mm()
+    await asyncio.sleep(0.4)
+    assert abs(adapter.position_mm() - moving_at) < 0.5  # motion stopped
+
+
+async def test_release_sends_enable_cleared_and_stops_keepalive(lift):
+    runtime, adapter, state, twin = lift
+    adapter.take_control("browser-1", "engineer")
+    adapter.set_command("browser-1", 250.0, 20.0, 0)
+    adapter.go("browser-1")
+    await asyncio.sleep(0.3)
+    assert adapter.release_control("browser-1", "released: the controlling browser disconnected")
+    assert not runtime.worker.can_buses["can2"].cyclic_running(adapter.key)
+    assert await wait_for(lambda: twin.control is not None and not twin.control.enable, timeout=1)
+    assert await wait_for(lambda: state.info["motion"] == 0, timeout=1)
+    assert any("disconnected" in e.text for e in state.events)
+
+
+async def test_only_one_session_controls(lift):
+    _runtime, adapter, _state, _twin = lift
+    adapter.take_control("a", "alice")
+    with pytest.raises(ControlBusy, match="alice"):
+        adapter.take_control("b", "bob")
+    with pytest.raises(ControlBusy):
+        adapter.go("b")
+    adapter.release_control("a")
+    adapter.take_control("b", "bob")
+
+
+async def test_parameter_flag_for_bad_values(lift):
+    runtime, adapter, state, _twin = lift
+    adapter.take_control("s1", "engineer")
+    with pytest.raises(CommandError, match="outside"):
+        adapter.set_command("s1", 400.0, 20.0, 0)  # refused before it reaches the bus
+    adapter.release_control("s1")
+    bus = runtime.worker.can_buses["can2"]
+    for _ in range(5):  # another master on the bus sends 99 mm/s, outside B026's 6..32 mm/s
+        bus.send(codec.CONTROL_ID, codec.ControlFrame(100, 0, 99, enable=True).encode())
+        await asyncio.sleep(0.05)
+    assert await wait_for(lambda: state.info["errors"] & 0x01, timeout=1)
+
+
+async def test_too_few_devices_and_override(lift):
+    _runtime, adapter, state, twin = lift
+    adapter.take_control("s1", "engineer")
+    twin.remove(1)
+    assert await wait_for(lambda: state.info["heard"] == 1 and state.info["errors"] & 0x80, timeout=2)
+    adapter.override("s1", True)
+    assert await wait_for(lambda: not state.info["errors"] & 0x80, timeout=1)
+
+
+async def test_service_password_write_readback_save(lift):
+    _runtime, adapter, state, twin = lift
+    soft_start = PARAMS.by_name["Soft start time"]
+    assert await adapter.read_param(soft_start) == 300
+    assert await adapter.write_param(soft_start, 500) == 500
+    assert twin.service.values[0x01] == 500 and soft_start.key in state.unsaved
+    await adapter.save_parameters()
+    assert twin.service.saved[0x01] == 500 and not state.unsaved
+    assert state.info["service_answers"] == 2  # both actuators answered
+
+
+async def test_service_errors_by_name(lift):
+    _runtime, adapter, _state, twin = lift
+    with pytest.raises(CommandError, match="INCORRECT_PERMISSION"):
+        await adapter._service(codec.read_request(0x06, 2))  # no password written
+    await adapter._service(codec.password_request(0x9A8B7C6D))
+    with pytest.raises(CommandError, match="WRONG_SIZE"):
+        await adapter._service(codec.read_request(0x06, 4))
+    with pytest.raises(CommandError, match="OBJECT_NOT_FOUND/INCORRECT_PASSWORD"):
+        await adapter._service(codec.password_request(0x12345678))
+    with pytest.raises(CommandError, match="WRONG_ID"):
+        await adapter._service(codec.ServiceMessage(0x05, 0x01, 2, 0))
+
+
+async def test_bitrate_needs_confirmation(lift):
+    _runtime, adapter, _state, _twin = lift
+    with pytest.raises(CommandError, match="needs confirmation"):
+        await adapter.write_param(PARAMS.by_name["Bit rate"], 3)
+
+
+async def test_viewer_cannot_drive(lift):
+    runtime, _adapter, _state, _twin = lift
+
+    async def take(a):
+        a.take_control("v", "viewer")
+
+    with pytest.raises(PermissionDenied):
+        await runtime.worker.command("lift", take, role="viewer")
+    assert runtime.worker.adapters["lift"].controller is None
