@@ -112,13 +112,17 @@ class Worker:
             self.tasks.append(asyncio.create_task(self._poll_bus(name), name=f"bus {name}"))
 
     async def stop(self) -> None:
-        for task in self.tasks:
-            task.cancel()
-        for task in self.tasks:
-            try:
-                await task
-            except (asyncio.CancelledError, Exception):
-                pass
+        # A cancellation can be swallowed when pymodbus's wait_for gets its answer in the same
+        # loop iteration: cancel again until every task has really ended (bounded).
+        pending = set(self.tasks)
+        loop = asyncio.get_running_loop()
+        end = loop.time() + 5.0
+        while pending and loop.time() < end:
+            for task in pending:
+                task.cancel()
+            _done, pending = await asyncio.wait(pending, timeout=0.2)
+        for task in pending:
+            log.error("bus task %s did not end", task.get_name())
         self.tasks.clear()
         for line in self.lines.values():
             line.close()

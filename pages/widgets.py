@@ -101,6 +101,7 @@ class HistoryChart:
                 "height": height,
                 "xaxis": {"type": "date"},
                 "legend": {"orientation": "h", "y": -0.2},
+                "showlegend": True,
                 "uirevision": "keep",
             },
             "config": {"displaylogo": False, "responsive": True},
@@ -133,10 +134,15 @@ async def confirm(title: str, text: str, ok: str = "Continue", danger: bool = Tr
     return bool(result)
 
 
-async def run_command(device: str, action: Callable[[object], Awaitable[object]], describe: str, success: str = "") -> tuple[bool, object]:
-    """Submit a command to the worker and report the outcome as a notification."""
+async def run_command(
+    device: str, action: Callable[[object], Awaitable[object]], describe: str, success: str = "", write: bool = True,
+) -> tuple[bool, object]:
+    """Submit a command to the worker and report the outcome as a notification.
+
+    ``write=False`` for reads and for actions that only make a device safer (stop, release).
+    """
     try:
-        result = await rt.current().worker.command(device, action, role=session_role(), describe=describe)
+        result = await rt.current().worker.command(device, action, role=session_role(), describe=describe, write=write)
     except PermissionDenied as exc:
         ui.notify(str(exc), type="negative")
         return False, None

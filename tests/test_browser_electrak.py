@@ -1,0 +1,96 @@
+"""Real browser on the Electrak page: take control, set a target, press Go, see the position chart rise."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from webutil import free_port, start_app, stop_app, wait_http
+
+CHROMIUM = Path("/usr/bin/chromium")
+SHOTS = Path("/tmp/commission-shots")
+
+pytestmark = pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed")
+
+PLANT = """
+name = "electrak-test"
+[[bus]]
+name = "can2"
+type = "can"
+interface = "virtual"
+channel = "browser-electrak"
+bitrate = 500000
+simulate = true
+
+[[device]]
+name = "lift"
+type = "electrak"
+bus = "can2"
+actuators = [
+    { model = "HD24", gearing = "B026", stroke_mm = 300 },
+    { model = "HD24", gearing = "B026", stroke_mm = 300 },
+]
+"""
+
+
+@pytest.fixture
+def app_url(tmp_path):
+    plant = tmp_path / "plant.toml"
+    plant.write_text(PLANT)
+    port = free_port()
+    proc = start_app(plant, port, tmp_path / "app.log")
+    try:
+        wait_http(f"http://127.0.0.1:{port}/", proc)
+        yield f"http://127.0.0.1:{port}"
+    finally:
+        stop_app(proc)
+
+
+def last_position(page) -> float:
+    return page.evaluate(
+        """() => {
+            const plot = document.querySelector('.js-plotly-plot');
+            const ys = plot && plot.data && plot.data[0].y;
+            return ys && ys.length ? ys[ys.length - 1] : -1;
+        }"""
+    )
+
+
+def test_go_moves_the_position_chart_toward_the_target(app_url):
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(
+            executable_path=str(CHROMIUM), args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+        )
+        try:
+            page = browser.new_page(viewport={"width": 1400, "height": 1100})
+            page.goto(f"{app_url}/device/lift")
+            page.get_by_text("actuators heard per 100 ms: 2 of 2 configured").wait_for(timeout=10_000)
+            page.get_by_test_id("take-control").click()
+            page.get_by_text("you hold control").wait_for(timeout=5_000)
+            target = page.get_by_label("Target position [mm]", exact=False)
+            target.fill("40")
+            page.get_by_test_id("go").click()
+            page.get_by_text("Extending").first.wait_for(timeout=5_000)
+            page.wait_for_function(
+                """() => { const p = document.querySelector('.js-plotly-plot');
+                           const ys = p && p.data && p.data[0].y; return ys && ys.length && ys[ys.length - 1] > 10; }""",
+                timeout=10_000,
+            )
+            first = last_position(page)
+            page.wait_for_function(
+                """() => { const p = document.querySelector('.js-plotly-plot');
+                           const ys = p && p.data && p.data[0].y; return ys && ys.length && ys[ys.length - 1] > 39.5; }""",
+                timeout=15_000,
+            )
+            assert last_position(page) <= 40.2 and last_position(page) > first
+            target_line = page.evaluate("() => document.querySelector('.js-plotly-plot').data[1].y.slice(-1)[0]")
+            assert target_line == 40
+            SHOTS.mkdir(parents=True, exist_ok=True)
+            page.screenshot(path=str(SHOTS / "electrak.png"), full_page=True)
+            # the big stop is always there
+            page.get_by_test_id("big-stop").click()
+            page.get_by_text("no enable").first.wait_for(timeout=5_000)
+        finally:
+            browser.close()
