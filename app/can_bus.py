@@ -29,6 +29,7 @@ Key = tuple[bool, int]  # (is_extended_id, arbitration_id)
 Handler = Callable[[can.Message], None]
 
 MONITOR_FRAMES = 20_000
+MAX_IDS = 4096  # rows of the overwrite view
 DRAIN_BATCH = 4096
 BUS_STATE_NAMES = {
     can.BusState.ACTIVE: "error-active",
@@ -278,6 +279,8 @@ class CanBus:
         key = (msg.is_extended_id, msg.arbitration_id)
         stats = state.ids.get(key)
         if stats is None:
+            if len(state.ids) >= MAX_IDS:  # a flood of random IDs must not grow memory without bound
+                state.ids.pop(min(state.ids, key=lambda k: state.ids[k].last_time))
             stats = state.ids[key] = IdStats()
         elif stats.count:
             stats.period = now - stats.last_time
@@ -333,7 +336,7 @@ class CanBus:
         if self.bus is None:
             self.state.tx_errors += 1
             return False
-        msg = can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=is_extended_id, timestamp=time.time())
+        msg = can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=is_extended_id, timestamp=time.time(), is_rx=False)
         try:
             self.bus.send(msg, timeout=0.1)
         except can.CanError as exc:

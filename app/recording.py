@@ -14,9 +14,11 @@ that ask the device codecs (``describe_frame``) and the device adapters
 from __future__ import annotations
 
 import importlib
+import logging
 import os
 import re
 import time
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -29,6 +31,7 @@ from can.io.asc import ASCWriter
 from can.io.blf import BLFWriter
 from can.io.canutils import CanutilsLogWriter
 from can.io.csv import CSVWriter
+from can.util import channel2int
 
 from app.can_bus import CanBusState, FrameRecord
 from devices.registry import DEVICE_TYPES
@@ -45,6 +48,8 @@ MAX_FILE_FRAMES = 200_000  # frames kept of an opened file (memory bound)
 MAX_CACHE = 20_000  # decoded texts kept per decoder
 DIR_ENV = "COMMISSION_RECORDINGS_DIR"
 UNKNOWN = "unknown"
+
+logger = logging.getLogger(__name__)
 
 Key = tuple[bool, int]
 
@@ -70,8 +75,9 @@ class Recording(can.Listener):
     :meth:`on_message_received` for every frame in the event loop.
     """
 
-    def __init__(self, bus: str, path: Path, writer: can.io.generic.MessageWriter, fix_channel: bool = False):
+    def __init__(self, bus: str, path: Path, writer: can.io.generic.MessageWriter, frames: deque | None = None):
         self.bus = bus
+        self._frames = frames  # the bus's monitor buffer: says whether a frame was sent or received
         self.path = path
         self.suffix = path.suffix
         self.writer = writer
@@ -79,17 +85,40 @@ class Recording(can.Listener):
         self.stopped: float | None = None
         self.frames = 0
         self.error = ""
-        self._fix_channel = fix_channel
+        self._channel_ok: dict[Any, bool] = {}  # msg.channel -> the writer can take it as it is
+
+    def _usable_channel(self, channel: Any) -> bool:
+        """Whether the writer can store ``channel``; others are replaced by the writer's default.
+
+        candump lines are split on white space, so a channel name with blanks breaks them;
+        ASC/BLF take the number at the end of a channel name ("can1", "PCAN_USBBUS1"), and a
+        long number there (a virtual channel "test-20240101") does not fit their channel field.
+        """
+        ok = self._channel_ok.get(channel)
+        if ok is None:
+            if channel is None:
+                ok = True
+            elif self.suffix == ".log":
+                ok = isinstance(channel, int) or (isinstance(channel, str) and bool(channel) and not any(c.isspace() for c in channel))
+            elif self.suffix in (".asc", ".blf"):
+                number = channel2int(channel)
+                ok = number is None or 0 <= number < 255
+            else:
+                ok = True
+            if len(self._channel_ok) < 64:
+                self._channel_ok[channel] = ok
+        return ok
 
     def on_message_received(self, msg: can.Message) -> None:
         if self.stopped is not None:
             return
-        if self._fix_channel and isinstance(msg.channel, str) and (not msg.channel or any(c.isspace() for c in msg.channel)):
-            # candump lines are split on white space: a channel name with blanks would break them
+        channel_ok = self._usable_channel(msg.channel)
+        is_rx = msg.is_rx and not self._sent(msg)
+        if not channel_ok or is_rx != msg.is_rx:
             msg = can.Message(
                 timestamp=msg.timestamp, arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id,
                 is_remote_frame=msg.is_remote_frame, is_error_frame=msg.is_error_frame, dlc=msg.dlc,
-                data=msg.data, is_rx=msg.is_rx, channel=None, check=False,
+                data=msg.data, is_rx=is_rx, channel=msg.channel if channel_ok else None, check=False,
             )
         try:
             self.writer.on_message_received(msg)
@@ -98,6 +127,17 @@ class Recording(can.Listener):
             self.close()
             raise
         self.frames += 1
+
+    def _sent(self, msg: can.Message) -> bool:
+        """Whether ``msg`` was sent by this bus: the bus records a frame in its buffer, then here.
+
+        ``CanBus.send`` builds its messages with python-can's default ``is_rx=True``; without
+        this, ASC/BLF files would show the tool's own requests as received.
+        """
+        if not self._frames:
+            return False
+        last = self._frames[-1]
+        return last.direction == "tx" and last.arbitration_id == msg.arbitration_id and last.is_extended_id == msg.is_extended_id
 
     @property
     def active(self) -> bool:
@@ -121,7 +161,7 @@ class Recording(can.Listener):
         self.stopped = time.time()
         try:
             self.writer.stop()
-        except Exception as exc:  # a failing close must not hide that the recording ended
+        except Exception as exc:  # noqa: BLE001 - a failing close must not hide that the recording ended
             self.error = self.error or f"closing {self.path.name} failed: {exc}"
 
     def stop(self) -> None:  # can.Listener API
@@ -178,7 +218,7 @@ def start_recording(
             writer = writer_class(path)
     except OSError as exc:
         raise RecordingError(f"cannot create a recording in {folder}: {exc.strerror or exc}") from None
-    recording = Recording(state.name, path, writer, fix_channel=writer_class is CanutilsLogWriter)
+    recording = Recording(state.name, path, writer, state.frames)
     state.recorder = recording
     return recording
 
@@ -196,8 +236,8 @@ def stop_recording(state: CanBusState) -> Recording | None:
     if recorder is not None:  # some other python-can listener: stop it all the same
         try:
             recorder.stop()
-        except Exception:  # noqa: BLE001 - not ours; it is detached either way
-            pass
+        except Exception as exc:  # noqa: BLE001 - not ours; it is detached either way
+            logger.debug("%s: stopping recorder %r failed: %s", state.name, recorder, exc)
     return None
 
 
@@ -269,44 +309,74 @@ def read_log(path: str | Path, name: str | None = None, limit: int = MAX_FILE_FR
     suffix = path.suffix.lower()
     if suffix not in READ_SUFFIXES:
         raise RecordingError(f"{name}: unsupported file type {suffix or '(none)'}; readable are {', '.join(READ_SUFFIXES)}")
-    log = LoadedLog(name)
+    loaded = LoadedLog(name)
     try:
         reader = can.LogReader(path)
-    except Exception as exc:  # ValueError, OSError, BLFParseError ... from the python-can readers
+    except Exception as exc:  # noqa: BLE001 - ValueError, OSError, BLFParseError ... from the readers
         raise RecordingError(f"{name}: cannot open as {suffix} file: {exc}") from None
     try:
         for msg in reader:
-            if len(log.frames) >= limit:
-                log.truncated = True
+            if len(loaded.frames) >= limit:
+                loaded.truncated = True
                 break
-            log.frames.append(
+            loaded.frames.append(
                 FrameRecord(
                     float(msg.timestamp), int(msg.arbitration_id), bool(msg.is_extended_id), int(msg.dlc),
                     bytes(msg.data), "rx" if msg.is_rx else "tx", bool(msg.is_error_frame), bool(msg.is_remote_frame),
                 )
             )
-    except Exception as exc:  # a malformed line/object: say where it stopped
-        raise RecordingError(f"{name}: not a valid {suffix} file (after {len(log.frames)} frames): {exc}") from None
+    except Exception as exc:  # noqa: BLE001 - a malformed line/object: say where it stopped
+        raise RecordingError(f"{name}: not a valid {suffix} file (after {len(loaded.frames)} frames): {exc}") from None
     finally:
         try:
             reader.stop()
-        except Exception:  # noqa: BLE001 - closing a reader of a broken file may fail too
-            pass
-    if not log.frames:
+        except Exception as exc:  # noqa: BLE001 - closing a reader of a broken file may fail too
+            logger.debug("closing the reader of %s failed: %s", name, exc)
+    if not loaded.frames:
         raise RecordingError(f"{name}: no CAN frames found in this {suffix} file")
-    return log
+    return loaded
 
 
 # -- decoding -------------------------------------------------------------------------------------------
 
 
-def can_codecs() -> list[ModuleType]:
-    """The codec modules of every device type that speaks CAN."""
-    return [
-        importlib.import_module(dt.can_codec)
-        for dt in DEVICE_TYPES.values()
-        if dt.can_codec and "can" in dt.bus_types
+def can_codecs(prefer: Iterable[str] = ()) -> list[ModuleType]:
+    """The codec modules of every device type that speaks CAN, those named in ``prefer`` first.
+
+    Device types reuse small standard IDs (an Electrak's service response 0x0B is an
+    HD-Lock's device ID 11), so the types present on a bus are asked before the others.
+    """
+    prefer = set(prefer)
+    types = [dt for dt in DEVICE_TYPES.values() if dt.can_codec and "can" in dt.bus_types]
+    types.sort(key=lambda dt: dt.name not in prefer)  # stable: registry order otherwise
+    return [importlib.import_module(dt.can_codec) for dt in types]
+
+
+class AdapterDescriber:
+    """A device adapter whose frame IDs follow from its configuration (e.g. an M3IO's SW1),
+    asked like a codec module."""
+
+    def __init__(self, adapter: Any):
+        self.adapter = adapter
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, AdapterDescriber) and other.adapter is self.adapter
+
+    def __hash__(self) -> int:
+        return id(self.adapter)
+
+    def describe_frame(self, arbitration_id: int, is_extended: bool, data: bytes, known_ids: set[Key]) -> str | None:
+        return self.adapter.describe_frame(arbitration_id, is_extended, data)
+
+
+def describers(worker: Any, bus: str, types_on_bus: Iterable[str]) -> list[Any]:
+    """What decodes frames on a bus: adapters that know their own IDs, then the device codecs."""
+    adapters = [
+        AdapterDescriber(worker.adapters[d.name])
+        for d in worker.plant.devices_on(bus)
+        if callable(getattr(worker.adapters.get(d.name), "describe_frame", None))
     ]
+    return adapters + can_codecs(types_on_bus)
 
 
 def describe(arbitration_id: int, is_extended: bool, data: bytes, known_ids: set[Key], codecs: Iterable[ModuleType] | None = None) -> str:
@@ -314,7 +384,7 @@ def describe(arbitration_id: int, is_extended: bool, data: bytes, known_ids: set
     for codec in can_codecs() if codecs is None else codecs:
         try:
             text = codec.describe_frame(arbitration_id, is_extended, data, known_ids)
-        except Exception as exc:  # a codec bug must not take the monitor down
+        except Exception as exc:  # noqa: BLE001 - a codec bug must not take the monitor down
             return f"decode failed: {exc}"
         if text is not None:
             return text
@@ -328,6 +398,12 @@ class FrameDecoder:
         self.known_ids: set[Key] = set(known_ids or ())
         self.codecs = list(can_codecs() if codecs is None else codecs)
         self._cache: dict[tuple[bool, int, bytes], str] = {}
+
+    def set_codecs(self, codecs: Iterable[ModuleType]) -> None:
+        codecs = list(codecs)
+        if codecs != self.codecs:
+            self.codecs = codecs
+            self._cache.clear()
 
     def set_known_ids(self, known_ids: set[Key]) -> None:
         if known_ids != self.known_ids:
@@ -366,7 +442,7 @@ def ids_of_devices(frames: Iterable[FrameRecord], codecs: Iterable[ModuleType] |
                 if hook(rec.arbitration_id, rec.is_extended_id, rec.data):
                     found.add(key)
                     break
-            except Exception:  # noqa: BLE001 - a frame a hook cannot parse is simply not a device
+            except Exception:  # noqa: BLE001, S112 - a frame a hook cannot parse is simply not a device
                 continue
     return found
 
@@ -415,6 +491,17 @@ class FrameFilter:
     owner: Owner | None = None
     errors_only: bool = False
 
+    def _sent(self, msg: can.Message) -> bool:
+        """Whether ``msg`` was sent by this bus: the bus records a frame in its buffer, then here.
+
+        ``CanBus.send`` builds its messages with python-can's default ``is_rx=True``; without
+        this, ASC/BLF files would show the tool's own requests as received.
+        """
+        if not self._frames:
+            return False
+        last = self._frames[-1]
+        return last.direction == "tx" and last.arbitration_id == msg.arbitration_id and last.is_extended_id == msg.is_extended_id
+
     @property
     def active(self) -> bool:
         return self.id_min is not None or self.id_max is not None or self.owner is not None or self.errors_only
@@ -426,9 +513,7 @@ class FrameFilter:
             return False
         if self.id_max is not None and arbitration_id > self.id_max:
             return False
-        if self.owner is not None and (is_error_frame or not self.owner(arbitration_id, is_extended, data)):
-            return False
-        return True
+        return self.owner is None or (not is_error_frame and self.owner(arbitration_id, is_extended, data))
 
     def matches_record(self, rec: FrameRecord) -> bool:
         return self.matches(rec.arbitration_id, rec.is_extended_id, rec.data, rec.is_error_frame)

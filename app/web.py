@@ -11,11 +11,18 @@ from app import runtime as rt
 from app.runtime import Runtime
 
 
+def session_role_of(client) -> str:
+    """Served on loopback without login: every browser is an engineer."""
+    return "engineer"
+
+
 def register(runtime: Runtime) -> None:
     """Register every route for ``runtime`` and start/stop it with the app."""
     rt.set_current(runtime)
     app.on_startup(runtime.start)
     app.on_shutdown(runtime.stop)
+    app.on_connect(lambda client: runtime.worker.session_opened(client.id, session_role_of(client)))
+    app.on_disconnect(lambda client: runtime.worker.session_closed(client.id))
 
     @ui.page("/")
     def overview_page() -> None:

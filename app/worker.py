@@ -38,7 +38,8 @@ class Worker:
         self.lines: dict[str, ModbusLine] = {}
         self.adapters: dict[str, Any] = {}
         self.tasks: list[asyncio.Task] = []
-        self.paused: set[str] = set()  # buses whose polling is held (e.g. during a scan)
+        self.paused: set[str] = set()
+        self.sessions: dict[str, str] = {}  # connected browser sessions -> role  # buses whose polling is held (e.g. during a scan)
         self.can_buses: dict[str, CanBus] = {}
         for bus in plant.buses.values():
             if bus.type == "can":
@@ -85,6 +86,23 @@ class Worker:
                 self.discovered[bus][key] = entry
                 log.info("%s: discovered %s at %s", bus, entry["type"], key)
                 return
+
+    # -- browser sessions -------------------------------------------------------------------
+    def session_opened(self, session: str, role: str = "engineer") -> None:
+        self.sessions[session] = role
+
+    def session_closed(self, session: str) -> None:
+        """A browser went away: release what it controlled; outputs off when no engineer is left."""
+        self.sessions.pop(session, None)
+        for adapter in self.adapters.values():
+            release = getattr(adapter, "release_control", None)
+            if release is not None:
+                release(session, "released: the controlling browser disconnected")
+        if not any(role in WRITE_ROLES for role in self.sessions.values()):
+            for adapter in self.adapters.values():
+                hook = getattr(adapter, "on_no_sessions", None)
+                if hook is not None:
+                    hook()
 
     def known_ids(self, bus: str) -> set[tuple[bool, int]]:
         """IDs of devices on a CAN bus (in the plant or discovered): for decoding in the monitor."""

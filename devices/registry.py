@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -66,7 +66,28 @@ def _discover() -> dict[str, DeviceType]:
     return found
 
 
-DEVICE_TYPES: dict[str, DeviceType] = _discover()
+class _DeviceTypes(Mapping[str, DeviceType]):
+    """Found on first use, so a device package may import this module while it loads."""
+
+    def __init__(self) -> None:
+        self._types: dict[str, DeviceType] | None = None
+
+    def _all(self) -> dict[str, DeviceType]:
+        if self._types is None:
+            self._types = _discover()
+        return self._types
+
+    def __getitem__(self, name: str) -> DeviceType:
+        return self._all()[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._all())
+
+    def __len__(self) -> int:
+        return len(self._all())
+
+
+DEVICE_TYPES: Mapping[str, DeviceType] = _DeviceTypes()
 
 
 def iter_types() -> Iterator[DeviceType]:

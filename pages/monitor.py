@@ -11,6 +11,7 @@ show at most ``SHOWN`` frames and ``SHOWN_IDS`` IDs.
 
 from __future__ import annotations
 
+import heapq
 import tempfile
 import time
 from datetime import datetime
@@ -133,10 +134,11 @@ def _frame_table(mark: str, time_label: str = "Time") -> ui.table:
     columns = [dict(c) for c in FRAME_COLUMNS]
     columns[0]["label"] = time_label
     table = ui.table(columns=columns, rows=[], row_key="k", pagination=0).classes("w-full can-table")
-    table.props("dense flat bordered")
+    table.props("dense flat bordered hide-bottom")
     table.props(f'{ROW_CLASS_FN}="row => row.err ? \'row-error\' : \'\'"')
     table.add_slot("body-cell-decoded", DECODED_SLOT)
     table.mark(mark)
+    table.props(f"data-monitor={mark}")
     return table
 
 
@@ -163,10 +165,11 @@ class CanMonitor:
         runtime = rt.current()
         self.bus = bus
         self.worker = runtime.worker
+        self.plant = runtime.plant
         self.can_bus = runtime.worker.can_buses[bus]
         self.state: CanBusState = self.can_bus.state
         self.devices = [d.name for d in runtime.plant.devices_on(bus)]
-        self.decoder = rec.FrameDecoder(self.worker.known_ids(bus))
+        self.decoder = rec.FrameDecoder(self.worker.known_ids(bus), rec.describers(self.worker, bus, self._types_on_bus()))
         self.filter = rec.FrameFilter()
         self.filter_version = 0
         self._frames_signature: tuple | None = None
@@ -213,8 +216,9 @@ class CanMonitor:
                 self.record_button.mark("record")
                 self.stop_button = ui.button("Stop", icon="stop", on_click=self.stop_recording).mark("stop")
                 self.record_status = ui.label().classes("text-body2").mark("record-status")
+                self.record_status.props("data-monitor=record-status")
                 self.download_button = ui.button("Download", icon="download", on_click=self.download_last).props("flat").mark("download")
-            with ui.expansion("Recordings", icon="folder").classes("w-full").props("dense") as self.recordings_panel:
+            with ui.expansion("Recordings", icon="folder", on_value_change=lambda e: e.value and self.refresh_recordings()).classes("w-full").props("dense") as self.recordings_panel:
                 self.recordings_box = ui.column().classes("w-full gap-0")
 
         with ui.tabs(value="live").classes("w-full").props("dense align=left") as self.tabs:
@@ -222,12 +226,15 @@ class CanMonitor:
             self.file_tab = ui.tab("file", "Recorded file")
         with ui.tab_panels(self.tabs, value=self.live_tab).classes("w-full").props("keep-alive"):
             with ui.tab_panel(self.live_tab).classes("q-pa-none gap-2"):
-                ui.label("Overwrite view: one row per ID").classes("text-subtitle2")
+                with ui.row().classes("items-center gap-2"):
+                    ui.label("Overwrite view: one row per ID").classes("text-subtitle2")
+                    self.ids_info = ui.label().classes("text-caption text-grey-8")
                 self.id_table = ui.table(columns=ID_COLUMNS, rows=[], row_key="k", pagination=0).classes("w-full can-table")
                 self.id_table.props("dense flat bordered")
                 self.id_table.add_slot("body-cell-data", BYTES_SLOT)
                 self.id_table.add_slot("body-cell-decoded", DECODED_SLOT)
                 self.id_table.mark("overwrite")
+                self.id_table.props("data-monitor=overwrite hide-bottom")
                 with ui.row().classes("items-center gap-2"):
                     ui.label("Frames, newest first").classes("text-subtitle2")
                     self.frames_info = ui.label().classes("text-caption text-grey-8")
@@ -240,12 +247,14 @@ class CanMonitor:
                         max_file_size=MAX_UPLOAD_BYTES,
                         on_upload=self.on_upload,
                         on_rejected=lambda: notify_error(f"The file was refused: files up to {MAX_UPLOAD_BYTES // 2**20} MB can be opened."),
-                    ).props("accept=" + ",".join(rec.READ_SUFFIXES) + " flat bordered").classes("w-96")
+                    ).props("accept=" + ",".join(rec.READ_SUFFIXES) + " flat bordered").classes("w-96").style("max-height: 100px")
                     self.upload.mark("upload")
+                    self.upload.props("data-monitor=upload")
                     with ui.column().classes("gap-1"):
                         self.file_info = ui.label("No file opened.").classes("text-body2").mark("file-info")
                         self.file_pages = ui.pagination(1, 1, direction_links=True, on_change=self._show_file_page).props("dense max-pages=9 boundary-numbers")
                         self.file_pages.mark("file-pages")
+                        self.file_pages.props("data-monitor=file-pages")
                 self.file_table = _frame_table("file-frames", time_label="Time s")
 
     # -- filters ---------------------------------------------------------------------------------------
@@ -278,8 +287,15 @@ class CanMonitor:
         if self._tab() != "live" and not force:
             return
         self.decoder.set_known_ids(self.worker.known_ids(self.bus))
+        self.decoder.set_codecs(rec.describers(self.worker, self.bus, self._types_on_bus()))
         self._refresh_frames()
         self._refresh_ids()
+
+    def _types_on_bus(self) -> list[str]:
+        """Device types in the plant on this bus and discovered on it: their codecs decode first."""
+        types = [d.type for d in self.plant.devices_on(self.bus)]
+        types += [entry.get("type", "") for entry in self.worker.discovered.get(self.bus, {}).values()]
+        return types
 
     def _tab(self) -> str:
         value = self.tabs.value
@@ -331,10 +347,11 @@ class CanMonitor:
     def _refresh_ids(self) -> None:
         now = time.time()
         flt = self.filter
+        items = self.state.ids.items()
+        if flt.active:
+            items = [(key, stats) for key, stats in items if flt.matches(key[1], key[0], stats.data)]
         rows = []
-        for (ext, can_id), stats in sorted(self.state.ids.items(), key=lambda item: (item[0][1], item[0][0])):
-            if flt.active and not flt.matches(can_id, ext, stats.data):
-                continue
+        for (ext, can_id), stats in heapq.nsmallest(SHOWN_IDS, items, key=lambda item: (item[0][1], item[0][0])):
             rows.append({
                 "k": f"{int(ext)}:{can_id}",
                 "id": rec.format_id(can_id, ext),
@@ -347,8 +364,10 @@ class CanMonitor:
                 "age": fmt_age(now - stats.last_time),
                 "err": False,
             })
-            if len(rows) >= SHOWN_IDS:
-                break
+        total = len(self.state.ids)
+        matching = len(items) if flt.active else total
+        shown = f"first {len(rows)} of " if len(rows) < matching else ""
+        self.ids_info.set_text(f"{shown}{matching} ID{'' if matching == 1 else 's'}" + (f" (of {total})" if flt.active else ""))
         if rows != self.id_table.rows:
             self.id_table.rows = rows
             self.id_table.update()
@@ -389,7 +408,7 @@ class CanMonitor:
 
     def refresh_recordings(self) -> None:
         files = rec.list_recordings()
-        self.recordings_panel.props(f'label="Recordings ({len(files)}) in {rec.recordings_dir()}"')
+        self.recordings_panel.set_text(f"Recordings ({len(files)}) in {rec.recordings_dir()}")
         self.recordings_box.clear()
         with self.recordings_box:
             if not files:
@@ -415,7 +434,7 @@ class CanMonitor:
         except rec.RecordingError as exc:
             notify_error(str(exc))
             return
-        except Exception as exc:  # a failing save/temp dir: still a message, never a crash
+        except Exception as exc:  # noqa: BLE001 - a failing save/temp dir: still a message, never a crash
             notify_error(f"{name}: cannot open: {exc}")
             return
         finally:
@@ -436,7 +455,7 @@ class CanMonitor:
     async def _show_loaded(self, loaded: rec.LoadedLog) -> None:
         self.loaded = loaded
         known = await run.io_bound(rec.ids_of_devices, loaded.frames)
-        self.file_decoder = rec.FrameDecoder(self.worker.known_ids(self.bus) | known)
+        self.file_decoder = rec.FrameDecoder(self.worker.known_ids(self.bus) | known, rec.describers(self.worker, self.bus, self._types_on_bus()))
         self.tabs.set_value("file")
         self.filter_file()
         ui.notify(f"Opened {loaded.name}: {len(loaded.frames)} frames", type="positive")

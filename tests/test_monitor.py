@@ -41,12 +41,21 @@ GATE2 = 11  # demo plant: gate-2, standard
 
 
 def unique_channel() -> str:
-    return f"monitor-test-{uuid.uuid4().hex[:10]}"
+    """A channel of its own; the long number at the end is what ASC/BLF writers cannot store as is."""
+    return f"monitor-test-{uuid.uuid4().hex[:10]}-{os.getpid()}{uuid.uuid4().int % 10**9:09d}"
 
 
 def demo_plant(channel: str | None = None, line_port: int | None = None):
+    """The demo plant with every CAN bus on a virtual channel of its own (can1 on ``channel``)."""
     text = demo_plant_text(line_port or free_port()).replace('channel = "demo-can1"', f'channel = "{channel or unique_channel()}"')
+    for n in range(2, 10):
+        text = text.replace(f'channel = "demo-can{n}"', f'channel = "{unique_channel()}"')
     return parse_plant(text)
+
+
+def can1_codecs(worker: Worker) -> list:
+    """The codecs in the order the monitor of can1 asks them: the bus's device types first."""
+    return rec.can_codecs(d.type for d in worker.plant.devices_on("can1"))
 
 
 def status_data(status: int = 0x0200, motor_pos: int = 0, proximity: int = 100, source: int = 4) -> bytes:
@@ -63,7 +72,7 @@ def worker() -> Worker:
 
 
 def test_command_example_decodes(worker: Worker):
-    text = rec.describe(0x700, False, COMMAND_EXAMPLE, worker.known_ids("can1"))
+    text = rec.describe(0x700, False, COMMAND_EXAMPLE, worker.known_ids("can1"), can1_codecs(worker))
     assert text.startswith("HD-Lock Command")
     assert "335" in text and "ext" in text
     assert "IrsAlways" in text or "value 129" in text, text
@@ -72,20 +81,33 @@ def test_command_example_decodes(worker: Worker):
 def test_status_of_known_lock_decodes(worker: Worker):
     known = worker.known_ids("can1")
     assert (True, GATE1) in known and (False, GATE2) in known
-    text = rec.describe(GATE1, True, status_data(0x0117, 115), known)
+    text = rec.describe(GATE1, True, status_data(0x0117, 115), known, can1_codecs(worker))
     assert text.startswith("HD-Lock Status 0x0117"), text
     assert "BoltLocked" in text and "motorPos 115" in text
     answer = codec.encode_register_answer(codec.RegisterAnswer("holding", 3000, 200))
-    assert rec.describe(GATE2, False, answer, known) == "HD-Lock Holding register 3000 = 200 (0x00C8)"
+    assert rec.describe(GATE2, False, answer, known, can1_codecs(worker)) == "HD-Lock Holding register 3000 = 200 (0x00C8)"
 
 
 def test_unknown_id_is_unknown(worker: Worker):
     known = worker.known_ids("can1")
-    assert rec.describe(0x123, False, b"\x01\x02", known) == "unknown"
-    assert rec.describe(GATE1, False, status_data(), known) == "unknown"  # same number, standard: another ID
-    decoder = rec.FrameDecoder(known)
+    codecs = can1_codecs(worker)
+    assert rec.describe(0x123, False, b"\x01\x02", known, codecs) == "unknown"
+    assert rec.describe(GATE1, False, status_data(), known, codecs) == "unknown"  # same number, standard: another ID
+    decoder = rec.FrameDecoder(known, codecs)
     assert decoder.record(FrameRecord(0, 0, False, 0, b"", "rx", is_error_frame=True)) == "error frame"
     assert decoder(0x7FF, False, b"") == "unknown"
+
+
+def test_device_types_of_the_bus_decode_first(worker: Worker):
+    """0x00B is HD-Lock gate-2 on can1, but an Electrak service response where Electraks are."""
+    known = worker.known_ids("can1")
+    answer = codec.encode_register_answer(codec.RegisterAnswer("holding", 3000, 200))
+    assert rec.describe(GATE2, False, answer, known, rec.can_codecs(["hdlock"])).startswith("HD-Lock Holding register 3000")
+    names = [m.__name__ for m in rec.can_codecs(["hdlock"])]
+    assert names[0] == "devices.hdlock.codec"
+    if "devices.electrak.codec" in names:
+        assert rec.can_codecs(["electrak"])[0].__name__ == "devices.electrak.codec"
+        assert not rec.describe(GATE2, False, answer, set(), rec.can_codecs(["electrak"])).startswith("HD-Lock")
 
 
 def test_ids_of_devices_in_a_file():
@@ -95,7 +117,7 @@ def test_ids_of_devices_in_a_file():
         FrameRecord(0.2, 0x321, False, 2, b"\x01\x02", "rx"),
     ]
     assert rec.ids_of_devices(frames) == {(True, 0x1234)}
-    decoder = rec.FrameDecoder(rec.ids_of_devices(frames))
+    decoder = rec.FrameDecoder(rec.ids_of_devices(frames), rec.can_codecs(["hdlock"]))
     assert decoder.record(frames[0]).startswith("HD-Lock Status")
     assert decoder.record(frames[2]) == "unknown"
 
@@ -228,13 +250,35 @@ async def test_recording_round_trip(tmp_path: Path, suffix: str):
     finally:
         reader.stop()
     assert read == expected
+    if suffix in (".asc", ".blf", ".log"):  # python-can's CSV format has no direction
+        reader = can.LogReader(recording.path)
+        try:
+            directions = [m.is_rx for m in reader]
+        finally:
+            reader.stop()
+        assert directions == [True] * len(SENT) + [False]
     loaded = rec.read_log(recording.path)
     assert [(f.arbitration_id, f.is_extended_id, f.data, f.dlc) for f in loaded.frames] == expected
+    if suffix != ".csv":
+        assert [f.direction for f in loaded.frames] == ["rx"] * len(SENT) + ["tx"]
     assert loaded.frames[0].time <= loaded.frames[-1].time
     assert [f.name for f in rec.list_recordings(tmp_path)] == [recording.path.name]
     assert rec.recording_path(recording.path.name, tmp_path) == recording.path.resolve()
     with pytest.raises(rec.RecordingError):
         rec.recording_path("../" + recording.path.name, tmp_path / "sub")
+
+
+def test_write_error_ends_the_recording_not_the_bus(tmp_path: Path):
+    state = CanBusState("w", "can", "")
+    bus = CanBus("w", {"interface": "virtual", "channel": unique_channel()}, state)  # never opened: dispatch only
+    recording = rec.start_recording(state, ".log", tmp_path)
+    bus.dispatch(can.Message(arbitration_id=0x100, data=b"\x01"))
+    assert recording.frames == 1
+    recording.writer.file.close()  # the disk is gone
+    bus.dispatch(can.Message(arbitration_id=0x101, data=b"\x02"))
+    assert state.recorder is None and "recording stopped" in state.last_error
+    assert not recording.active and recording.error and recording.frames == 1
+    assert state.rx_frames == 2 and len(state.frames) == 2  # the monitor keeps going
 
 
 def test_recording_refuses_unknown_format(tmp_path: Path):
@@ -300,9 +344,11 @@ async def env(caplog: pytest.LogCaptureFixture, tmp_path: Path, monkeypatch: pyt
             runtime = Runtime(plant, simulate=True)
             importlib.import_module("app.web").register(runtime)
             ui.run(storage_secret="test secret")
-            async with core.app.router.lifespan_context(core.app):
-                async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:
-                    yield Env(User(client), runtime)
+            async with (
+                core.app.router.lifespan_context(core.app),
+                httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client,
+            ):
+                yield Env(User(client), runtime)
         finally:
             rec.stop_recording(runtime.store.buses["can1"])
             os.environ.pop("NICEGUI_USER_SIMULATION", None)
@@ -312,6 +358,10 @@ async def env(caplog: pytest.LogCaptureFixture, tmp_path: Path, monkeypatch: pyt
             rt.set_current(None)
     errors = [r for r in caplog.get_records("call") if r.levelno >= logging.ERROR]
     assert not errors, "unexpected ERROR logs: " + "; ".join(r.getMessage() for r in errors)
+
+
+def id_of(row: dict) -> int:
+    return int(row["id"].split()[0], 16)
 
 
 def one(user: User, marker: str):
@@ -335,17 +385,34 @@ async def test_can_monitor_page(env: Env, tmp_path: Path):
 
     await eventually(status_rows, timeout=10)
     assert len(frames.rows) <= 200
-    await user.should_see("error-active")
+    await user.should_see("error-active", retries=30)
     await user.should_see(kind=ui.label, content="error frames 0")
     row = next(r for r in overwrite.rows if r["id"] == "0x000A1284 (ext)")
     first_count = row["count"]
     await eventually(lambda: next(r for r in overwrite.rows if r["id"] == "0x000A1284 (ext)")["count"] > first_count, timeout=5)
 
+    # an error frame on the bus: counted, listed, and the only row with "Error frames only"
+    channel = env.runtime.plant.buses["can1"].options["channel"]
+    sender = can.Bus(interface="virtual", channel=channel)
+    try:
+        sender.send(can.Message(arbitration_id=0x20000004, is_extended_id=True, is_error_frame=True, data=bytes(8)))
+    finally:
+        sender.shutdown()
+    await user.should_see(kind=ui.label, content="error frames 1", retries=30)
+    user.find(kind=ui.switch, content="Error frames only").click()
+    await eventually(lambda: len(frames.rows) == 1 and frames.rows[0]["err"] and frames.rows[0]["decoded"] == "error frame", timeout=3)
+    assert frames.rows[0]["id"] == "error frame"
+    user.find(kind=ui.switch, content="Error frames only").click()
+    await eventually(lambda: len(frames.rows) > 1, timeout=3)
+
     # ID range: only the request IDs
     user.find(marker="id-from").type("700")
     user.find(marker="id-to").type("7FF")
-    await eventually(lambda: frames.rows and all(0x700 <= int(r["id"], 16) <= 0x7FF for r in frames.rows), timeout=5)
-    assert all(r["id"] in ("0x00B",) or 0x700 <= int(r["id"].split()[0], 16) <= 0x7FF for r in overwrite.rows)
+    def in_range(rows: list[dict]) -> bool:
+        return bool(rows) and all(0x700 <= id_of(r) <= 0x7FF for r in rows)
+
+    await eventually(lambda: in_range(frames.rows) and in_range(overwrite.rows), timeout=5)
+    assert all(not r["id"].endswith("(ext)") for r in frames.rows)
     user.find(marker="id-from").clear()
     user.find(marker="id-to").clear()
     # device: only gate-1's frames and the requests to it
@@ -379,21 +446,29 @@ async def test_can_monitor_page(env: Env, tmp_path: Path):
     state = env.runtime.store.buses["can1"]
     recording = rec.active_recording(state)
     assert recording is not None and recording.path.suffix == ".asc"
-    await eventually(lambda: recording.frames >= 4, timeout=6)
+    await eventually(lambda: recording.frames >= 4 and recording.elapsed > 1.3, timeout=6)  # status every 1 s
     user.find(marker="stop").click()
     assert rec.active_recording(state) is None and not recording.active
     await user.should_see(f"Saved {recording.frames} frames")
     assert recording.path.parent == tmp_path / "recordings"
+    await user.should_see(kind=ui.label, content=recording.path.name)  # in the list of recordings
     user.find(marker="download").click()
-    assert user.download.http_responses[-1].content == recording.path.read_bytes()
+    response = await user.download.next()
+    assert recording.path.name in str(response.request.url)
 
     upload = one(user, "upload")
     await upload.handle_uploads([SmallFileUpload(recording.path.name, "text/plain", recording.path.read_bytes())])
     await user.should_see(f"Opened {recording.path.name}")
-    file_rows = one(user, "file-frames").rows
-    assert len(file_rows) == min(200, recording.frames)
-    assert any(r["decoded"].startswith("HD-Lock Status") for r in file_rows)
-    assert file_rows[0]["time"] == "0.000"
+    file_table, pages = one(user, "file-frames"), one(user, "file-pages")
+    assert len(file_table.rows) == min(200, recording.frames)
+    assert file_table.rows[0]["time"] == "0.000"
+    assert pages.max == -(-recording.frames // 200)
+    statuses = 0
+    for number in range(1, pages.max + 1):  # a register read burst can fill a page
+        pages.set_value(number)
+        assert all(r["decoded"].startswith("HD-Lock") for r in file_table.rows)
+        statuses += sum(r["decoded"].startswith("HD-Lock Status") for r in file_table.rows)
+    assert statuses >= 1
     # the filters apply to the file too
     user.find(marker="id-from").type("B")
     user.find(marker="id-to").type("B")

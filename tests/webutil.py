@@ -42,6 +42,24 @@ async def eventually(check: Callable[[], object], timeout: float = 5.0, interval
         await asyncio.sleep(interval)
 
 
+async def stop_worker_tasks(runtime, timeout: float = 5.0) -> None:
+    """Cancel the worker's bus tasks until they have really ended.
+
+    Workaround for an app bug: ``Worker.stop()`` cancels each bus task once and then awaits
+    it. On Python 3.11 a cancellation that arrives while pymodbus waits for an answer in
+    ``asyncio.wait_for`` is lost when the answer comes in the same loop iteration; the bus
+    task keeps polling and ``Worker.stop()`` (so the app's shutdown) waits forever.
+    """
+    loop = asyncio.get_running_loop()
+    end = loop.time() + timeout
+    for task in runtime.worker.tasks:
+        while not task.done():
+            if loop.time() > end:
+                raise TimeoutError(f"{task.get_name()} did not end within {timeout} s of cancelling")
+            task.cancel()
+            await asyncio.wait({task}, timeout=0.2)
+
+
 # -- the app as a separate process (browser tests) ---------------------------------------------
 
 

@@ -258,8 +258,8 @@ class Limits:
 
 
 def describe_frame(arbitration_id: int, is_extended: bool, data: bytes, known_ids: set) -> str | None:
-    """Bus monitor text for Electrak telegrams."""
-    if is_extended:
+    """Bus monitor text for Electrak telegrams (on a bus where an Electrak network listens for 0x07)."""
+    if is_extended or (False, STATUS_ID) not in known_ids:
         return None
     try:
         if arbitration_id == CONTROL_ID:

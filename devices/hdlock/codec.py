@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import IntEnum
 
+from devices.hdlock.params import LOCK_REQUEST_SOURCE
+
 # LockStatus bits (holding 1000, section 3.2.1; bit 4 repeats "LockRequest", see SPEC-NOTES)
 LOCK_REQUEST = 1 << 0
 PROXIMITY_IN_PLACE = 1 << 1
@@ -361,6 +363,8 @@ def describe_request(frame: CanFrame) -> str:
         except ValueError:
             command = f"command {req.a}"
         detail = f"{command} value {req.b}"
+        if req.a == CanCommand.SET_LOCK_REQUEST_SOURCE:
+            detail += f" ({LOCK_REQUEST_SOURCE.get(req.b, 'undefined')})"
         if req.a == CanCommand.SET_CAN_BAUDRATE and req.b in CAN_BITRATES:
             detail += f" ({CAN_BITRATES[req.b][0] // 1000} kbit/s)"
     elif req.kind == CAN_SET_DEVICE_ADDRESS:

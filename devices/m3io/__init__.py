@@ -1,0 +1,51 @@
+"""CAN-M3IO I/O module, variants KM, HM and HMR."""
+
+from typing import Any
+
+from devices.m3io import codec
+from devices.registry import DeviceType
+
+
+def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str]]:
+    errors = []
+    if options.get("variant") not in {v.value for v in codec.Variant}:
+        errors.append(("variant", 'variant must be "KM", "HM" or "HMR"'))
+    sw1 = options.get("sw1")
+    if not isinstance(sw1, int) or isinstance(sw1, bool) or not 0 <= sw1 <= 255:
+        errors.append(("sw1", "sw1 (the DIP switch SW1, 0..255, e.g. 0x1A) is required"))
+    serial = options.get("serial", 0)
+    if not isinstance(serial, int) or not 0 <= serial <= 99_999_999:
+        errors.append(("serial", "serial (simulated twin) must have at most 8 digits"))
+    for key in sorted(set(options) - {"variant", "sw1", "serial"}):
+        errors.append((key, f"unknown key '{key}' for an M3IO; known: variant, sw1, serial (simulated twin)"))
+    return errors
+
+
+def _identity(options: dict[str, Any], bus_type: str):
+    sw1 = options.get("sw1")
+    return f"DigOut 0x{codec.derive_ids(sw1).dig_out:03X}" if isinstance(sw1, int) and 0 <= sw1 <= 255 else None
+
+
+def _summary(state) -> list[str]:
+    adapter_info = state.info
+    lines = [f"SW1 0x{adapter_info.get('sw1', 0):02X} · {adapter_info['variant'].value}"]
+    if adapter_info.get("bitrate_mismatch"):
+        lines.append(f"bit rate mismatch: module {adapter_info['ids'].bitrate // 1000} kbit/s, bus {adapter_info['bus_bitrate'] // 1000} kbit/s")
+    outputs = adapter_info.get("outputs_on")
+    lines.append("outputs on: " + (", ".join(outputs) if outputs else "none"))
+    faults = adapter_info.get("faults") or []
+    lines.append("faults: " + (", ".join(faults) if faults else "none"))
+    return lines
+
+
+DEVICE_TYPE = DeviceType(
+    name="m3io",
+    title="CAN-M3IO",
+    bus_types=("can",),
+    params=None,
+    adapters={"can": "devices.m3io.adapter:M3ioAdapter"},
+    sims={"can": "devices.m3io.sim:M3ioSim"},
+    check_config=_check_config,
+    bus_identity=_identity,
+    summary=_summary,
+)

@@ -1,0 +1,260 @@
+"""A CAN-M3IO module on a shared CAN bus: watchdog keep-alive, outputs, inputs, temperatures,
+SSR status evaluation, SYNC cfg and addressed data."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+from app.state import DeviceState
+from devices.m3io import codec
+from devices.m3io.codec import Variant
+
+MDATA_TIMEOUT_S = 0.5
+OFFLINE_AFTER_S = 2.5
+
+
+class CommandError(Exception):
+    """A command that did not take effect; the message says what to do."""
+
+
+class M3ioAdapter:
+    params = None
+    transport = "can"
+
+    def __init__(self, config, state: DeviceState, bus):
+        self.config = config
+        self.state = state
+        self.bus = bus
+        self.variant = Variant(config.options["variant"])
+        self.sw1 = config.options["sw1"]
+        self.ids = codec.derive_ids(self.sw1)
+        self.outputs = {name: False for name in codec.OUTPUT_BITS[self.variant]}
+        self.two_phase = False
+        self.channels = {i: codec.ChannelMonitor() for i in range(1, 7)}
+        self.inputs: dict[str, bool] | None = None
+        self.temps: dict[int, codec.TempWord] = {}
+        self.last_answer: float | None = None
+        self.last_temps: float | None = None
+        self.served = False
+        self.info: dict = {}
+        self._mdata: dict[tuple[int, int], asyncio.Future] = {}
+        self._silent_since: float | None = None
+        self._lock = asyncio.Lock()
+        state.stale_after = 1.5
+        bus_rate = bus.options.get("bitrate")
+        state.info.update(ids=self.ids, variant=self.variant, sw1=self.sw1,
+                          bitrate_mismatch=bus_rate != self.ids.bitrate, bus_bitrate=bus_rate)
+        if bus_rate != self.ids.bitrate:
+            state.event("warning", f"SW1 0x{self.sw1:02X} sets {self.ids.bitrate // 1000} kbit/s but bus {bus.name} runs at {bus_rate // 1000} kbit/s")
+        bus.subscribe(False, self.ids.dig_in, self.on_dig_in)
+        if self.variant is not Variant.KM:
+            bus.subscribe(False, self.ids.temp14, self.on_temps)
+            bus.subscribe(False, self.ids.temp56, self.on_temps)
+        if self.ids.mdata is not None:
+            bus.subscribe(False, self.ids.mdata, self.on_mdata)
+        self.key = f"m3io digout {config.name}"
+        self._started = False
+
+    # -- keep-alive (section 7.1) -------------------------------------------------------------
+    def _dig_out(self):
+        return self.ids.dig_out, codec.encode_dig_out(self.variant, self.outputs), False
+
+    async def poll(self) -> None:
+        """Start the DigOut keep-alive once the bus is up; watch for silence and resets."""
+        if not self._started:
+            self._started = True
+            self.served = True
+            self.bus.start_cyclic(self.key, codec.DIGOUT_PERIOD_S, self._dig_out)
+            self.state.event("info", f"serving the watchdog: DigOut 0x{self.ids.dig_out:03X} every 500 ms")
+        now = time.time()
+        if self.last_answer is None or now - self.last_answer > OFFLINE_AFTER_S:
+            if self.state.online is not False and self.last_answer is not None:
+                self.state.mark_offline(f"no DigIn/temperatures for {OFFLINE_AFTER_S} s: check 24 V, CAN wiring, SW1 0x{self.sw1:02X}")
+            self._silent_since = self._silent_since or now
+        elif self._silent_since is not None:
+            # the module is back (e.g. after a reset): cfg is not stored, send it again (7.2.4)
+            self._silent_since = None
+            if self.two_phase:
+                self._send_cfg()
+                self.state.event("info", "module answers again: P2 (two-phase load) sent again")
+
+    # -- frames ------------------------------------------------------------------------------
+    def _seen(self) -> None:
+        self.last_answer = time.time()
+        self.state.mark_seen(self.last_answer)
+
+    def on_dig_in(self, msg) -> None:
+        try:
+            self.inputs = codec.decode_dig_in(bytes(msg.data))
+        except codec.CodecError as exc:
+            self.state.counters.malformed += 1
+            self.state.error(f"malformed DigIn: {exc}", log=False)
+            return
+        self.state.counters.responses += 1
+        self._seen()
+
+    def on_temps(self, msg) -> None:
+        first = 1 if msg.arbitration_id == self.ids.temp14 else 5
+        try:
+            words = codec.decode_temps(bytes(msg.data), 4 if first == 1 else 2)
+        except codec.CodecError as exc:
+            self.state.counters.malformed += 1
+            self.state.error(f"malformed temperature frame: {exc}", log=False)
+            return
+        self.state.counters.responses += 1
+        self._seen()
+        self.last_temps = self.last_answer
+        for offset, word in enumerate(words):
+            channel = first + offset
+            self.temps[channel] = word
+            self.channels[channel].update(word, self.channel_on(channel))
+        self._publish()
+        if first == 5 or self.variant is Variant.HMR:
+            sample = {}
+            for channel in self.temp_channels():
+                word = self.temps.get(channel)
+                sample[self.temp_label(channel)] = word.celsius if word is not None and word.in_range else None
+            self.state.add_history(sample)
+
+    def on_mdata(self, msg) -> None:
+        try:
+            answer = codec.MData.decode(bytes(msg.data))
+        except codec.CodecError as exc:
+            self.state.counters.malformed += 1
+            self.state.error(f"malformed MData: {exc}", log=False)
+            return
+        self._seen()
+        future = self._mdata.get((answer.area, answer.index))
+        if future is not None and not future.done():
+            future.set_result(answer)
+
+    def _publish(self) -> None:
+        """Facts for tiles and the plant view."""
+        faults = []
+        for channel, monitor in self.channels.items():
+            if monitor.fuse == "blown":
+                faults.append(f"SSR{channel} fuse blown")
+            if monitor.triac == "defective":
+                faults.append(f"SSR{channel} triac defective")
+        self.state.info["faults"] = faults
+        self.state.info["outputs_on"] = [name for name, on in self.outputs.items() if on]
+
+    # -- what the page shows ------------------------------------------------------------------
+    def temp_channels(self) -> list[int]:
+        if self.variant is Variant.KM:
+            return []
+        return [1, 4, 5, 6] if self.variant is Variant.HMR else [1, 2, 3, 4, 5, 6]
+
+    def temp_label(self, channel: int) -> str:
+        return f"TEMP{channel} [°C]"
+
+    def channel_on(self, channel: int) -> bool:
+        if self.variant is Variant.HMR and channel <= 3:
+            return self.outputs["SSR1-3"]
+        return self.outputs.get(f"SSR{channel}", False)
+
+    def describe_frame(self, arbitration_id: int, is_extended: bool, data: bytes) -> str | None:
+        return None if is_extended else codec.describe_frame_for(self.ids, self.variant, arbitration_id, data)
+
+    def owns_frame(self, arbitration_id: int, is_extended: bool, data: bytes) -> bool:
+        return not is_extended and arbitration_id in self.ids.by_name().values()
+
+    # -- outputs ------------------------------------------------------------------------------
+    def set_output(self, name: str, on: bool) -> None:
+        if name not in self.outputs:
+            raise CommandError(f"{self.variant.value} has no output {name}")
+        self.outputs[name] = on
+        self.bus.send(*self._dig_out())  # at once, not only at the next cycle
+        self._publish()
+        self.state.event("info", f"{name} {'on' if on else 'off'}")
+
+    def all_off(self, reason: str = "all off") -> None:
+        for name in self.outputs:
+            self.outputs[name] = False
+        self.bus.send(*self._dig_out())
+        self._publish()
+        self.state.event("warning", f"every output switched off: {reason}")
+
+    def on_no_sessions(self) -> None:
+        """The last engineer session went away: outputs off, the keep-alive goes on (inputs and temperatures keep coming)."""
+        if any(self.outputs.values()):
+            self.all_off("no engineer session is connected any more")
+
+    # -- SYNC cfg (7.2.4) ----------------------------------------------------------------------
+    def _send_cfg(self) -> None:
+        self.bus.send(self.ids.sync, codec.encode_sync_cfg(self.two_phase), False)
+
+    def set_two_phase(self, on: bool) -> None:
+        if self.variant is not Variant.HMR:
+            raise CommandError("P2 (two-phase load) exists on the HMR only")
+        self.two_phase = on
+        self._send_cfg()
+        self.state.event("info", f"P2 {'on: three-phase output loaded on two phases' if on else 'off: three phases'}")
+
+    # -- addressed data (7.2.4.2) ---------------------------------------------------------------
+    async def _request(self, area: int, index: int, payload: bytes = b"") -> codec.MData:
+        if not self.ids.addressed:
+            raise CommandError(f"addressed data needs SW1 switch 8 on (SW1 is 0x{self.sw1:02X})")
+        async with self._lock:
+            future = asyncio.get_running_loop().create_future()
+            self._mdata[(area, index)] = future
+            self.state.counters.requests += 1
+            try:
+                self.bus.send(self.ids.sync, codec.encode_sync_request(area, index, payload), False)
+                return await asyncio.wait_for(future, MDATA_TIMEOUT_S)
+            except asyncio.TimeoutError:
+                self.state.counters.timeouts += 1
+                raise CommandError(f"no MData for area {area} index {index} within {MDATA_TIMEOUT_S} s") from None
+            finally:
+                self._mdata.pop((area, index), None)
+
+    async def read_identity(self) -> dict:
+        serial = await self._request(codec.AREA_READ_CONFIG, codec.CONFIG_SERIAL)
+        product = await self._request(codec.AREA_READ_CONFIG, codec.CONFIG_PRODUCT)
+        version = await self._request(codec.AREA_READ_CONFIG, codec.CONFIG_VERSION)
+        config = await self._request(codec.AREA_READ_CONFIG, codec.CONFIG_DYNAMIC)
+        code = int.from_bytes(product.payload[:2], "little")
+        raw_version = int.from_bytes(version.payload[:2], "little")
+        info = {
+            "serial": codec.decode_serial(serial.payload),
+            "product_code": code,
+            "product": codec.product_name(code),
+            "version": f"{raw_version >> 8}.{raw_version & 0xFF}",
+            "config": config.payload[0],
+        }
+        self.info.update(info)
+        self.state.info["identity"] = info
+        return info
+
+    async def read_customer(self, index: int) -> bytes:
+        if index not in codec.CUSTOMER_RECORDS:
+            raise CommandError(f"customer record {index} is outside 1..15")
+        answer = await self._request(codec.AREA_READ_CUSTOMER, index)
+        self.state.info.setdefault("customer", {})[index] = answer.payload
+        return answer.payload
+
+    async def write_customer(self, index: int, payload: bytes) -> bytes:
+        """Write and verify: the answer is what the module stored (7.2.4.2.4)."""
+        if index not in codec.CUSTOMER_RECORDS:
+            raise CommandError(f"customer record {index} is outside 1..15")
+        if len(payload) > 6:
+            raise CommandError(f"a customer record holds 6 bytes, got {len(payload)}")
+        answer = await self._request(codec.AREA_WRITE_CUSTOMER, index, payload)
+        self.state.info.setdefault("customer", {})[index] = answer.payload
+        if answer.payload != codec.pad6(payload):
+            self.state.counters.write_errors += 1
+            raise CommandError(
+                f"customer record {index}: the module stored {answer.payload.hex(' ')} instead of "
+                f"{codec.pad6(payload).hex(' ')}: write it again"
+            )
+        self.state.event("info", f"customer record {index} = {answer.payload.hex(' ')} written and verified")
+        return answer.payload
+
+    async def read_load_data(self) -> dict[int, codec.TempWord]:
+        result = {}
+        for index in range(1, 7):
+            answer = await self._request(codec.AREA_LOAD_DATA, index)
+            result[index] = codec.TempWord(int.from_bytes(answer.payload[:2], "little"))
+        self.state.info["load_data"] = result
+        return result

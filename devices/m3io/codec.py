@@ -1,0 +1,309 @@
+"""CAN-M3IO I/O module (KM, HM, HMR): IDs from SW1, DigOut/DigIn, temperatures with SSR
+status bits, SYNC and addressed data. Pure: no I/O. Sections refer to the M3IO document.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+
+class CodecError(ValueError):
+    """A frame or value that cannot be encoded or decoded."""
+
+
+class Variant(str, Enum):
+    KM = "KM"  # no power part: no SSR, no Pt100 (section 4.1)
+    HM = "HM"  # six single SSR outputs (4.2)
+    HMR = "HMR"  # SSR1-3 one three-phase output (4.3)
+
+
+WATCHDOG_S = 2.0  # section 7.1
+DIGOUT_PERIOD_S = 0.5  # SPEC-NOTES: the worker sends DigOut every 500 ms
+TEMP_PERIOD_S = 0.5  # section 7.2.2
+DIGIN_MIN_INTERVAL_S = 0.010  # section 7.2.1
+
+
+# -- identifiers (section 5.8) ----------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CanIds:
+    dig_out: int
+    dig_in: int
+    temp14: int
+    temp56: int
+    sync: int
+    mdata: int | None  # addressed mode only
+    bitrate: int
+    addressed: bool
+
+    def by_name(self) -> dict[str, int]:
+        names = {"DigOut": self.dig_out, "DigIn": self.dig_in, "Temp1-4": self.temp14, "Temp5-6": self.temp56, "Sync": self.sync}
+        if self.mdata is not None:
+            names["MData"] = self.mdata
+        return names
+
+
+# section 5.8.2: function IDs by S7 (ON, OFF)
+FUNCTION_IDS = {
+    True: {"dig_out": 0x200, "dig_in": 0x180, "temp14": 0x380, "temp56": 0x480, "sync": 0x240, "mdata": 0x1C0},
+    False: {"dig_out": 0x180, "dig_in": 0x200, "temp14": 0x380, "temp56": 0x400, "sync": 0x680, "mdata": 0x700},
+}
+
+
+def derive_ids(sw1: int) -> CanIds:
+    """CAN IDs and bit rate from DIP switch SW1 (S8 = bit 7 ... S1 = bit 0)."""
+    if not 0 <= sw1 <= 0xFF:
+        raise CodecError(f"SW1 {sw1} is not an 8-bit switch value")
+    if not sw1 & 0x80:  # 5.8.1: 500 kbit/s, base 0x3A0 + 5 * (S7..S1)
+        base = 0x3A0 + 5 * (sw1 & 0x7F)
+        return CanIds(base, base + 1, base + 2, base + 3, base + 4, None, 500_000, False)
+    table = FUNCTION_IDS[bool(sw1 & 0x40)]  # S7
+    address = sw1 & 0x0F  # S4..S1
+    bitrate = 1_000_000 if sw1 & 0x20 else 500_000  # S6
+    return CanIds(*(table[k] + address for k in ("dig_out", "dig_in", "temp14", "temp56", "sync", "mdata")), bitrate, True)
+
+
+# -- outputs (section 7.2.1) -------------------------------------------------------------------
+
+REQ = 0x80  # obsolete DigIn request bit (since V16.0 DigIn always answers)
+OUTPUT_BITS: dict[Variant, dict[str, int]] = {
+    Variant.HM: {"LED": 0, "SSR1": 1, "SSR2": 2, "SSR3": 3, "SSR4": 4, "SSR5": 5, "SSR6": 6},
+    Variant.HMR: {"LED": 0, "SSR1-3": 1, "SSR4": 2, "SSR5": 3, "SSR6": 4},
+    Variant.KM: {"LED": 0},
+}
+
+
+def encode_dig_out(variant: Variant, outputs: dict[str, bool]) -> bytes:
+    bits = OUTPUT_BITS[variant]
+    unknown = set(outputs) - set(bits)
+    if unknown:
+        raise CodecError(f"{variant.value} has no output {', '.join(sorted(unknown))}")
+    value = 0
+    for name, on in outputs.items():
+        if on:
+            value |= 1 << bits[name]
+    return bytes([value])
+
+
+def decode_dig_out(variant: Variant, data: bytes) -> dict[str, bool]:
+    if len(data) != 1:
+        raise CodecError(f"DigOut has 1 byte, got {len(data)}")
+    return {name: bool(data[0] >> bit & 1) for name, bit in OUTPUT_BITS[variant].items()}
+
+
+def decode_dig_in(data: bytes) -> dict[str, bool]:
+    """E1..E6 in bits 0-5 (bits 6-7 read 1)."""
+    if len(data) != 1:
+        raise CodecError(f"DigIn has 1 byte, got {len(data)}")
+    return {f"E{i + 1}": bool(data[0] >> i & 1) for i in range(6)}
+
+
+def encode_dig_in(inputs: dict[str, bool]) -> bytes:
+    return bytes([0xC0 | sum(1 << i for i in range(6) if inputs.get(f"E{i + 1}"))])
+
+
+# -- temperatures and SSR status (sections 7.2.2, 7.2.3) ---------------------------------------
+
+TEMP_MIN_RAW, TEMP_MAX_RAW = 0, 2000
+
+
+@dataclass(frozen=True)
+class TempWord:
+    """One temperature word: 12-bit two's complement value (bits 0-11, bit 11 = vz), sb, Last, Triac, Si."""
+
+    raw: int
+
+    @property
+    def value_raw(self) -> int:
+        v = self.raw & 0x0FFF
+        return v - 0x1000 if v & 0x0800 else v
+
+    @property
+    def celsius(self) -> float:
+        return self.value_raw / 10
+
+    @property
+    def in_range(self) -> bool:
+        """Readings below 0 or above 200.0 C mean "out of measuring range" (7.2.2)."""
+        return TEMP_MIN_RAW <= self.value_raw <= TEMP_MAX_RAW
+
+    @property
+    def vz(self) -> bool:
+        return bool(self.raw & 0x0800)
+
+    @property
+    def sb(self) -> bool:
+        return bool(self.raw & 0x1000)
+
+    @property
+    def load(self) -> bool:
+        return bool(self.raw & 0x2000)
+
+    @property
+    def triac(self) -> bool:
+        return bool(self.raw & 0x4000)
+
+    @property
+    def fuse(self) -> bool:
+        return bool(self.raw & 0x8000)
+
+    @classmethod
+    def make(cls, tenths: int, load: bool, triac: bool, fuse: bool, addressed: bool) -> TempWord:
+        if not -0x800 <= tenths <= 0x7FF:
+            raise CodecError(f"temperature {tenths / 10} C does not fit 12 bits")
+        value = tenths & 0x0FFF
+        vz = bool(value & 0x0800)
+        sb = True if addressed else vz  # 7.2.3: sb = 1 in addressed mode, = vz otherwise
+        return cls(value | sb << 12 | load << 13 | triac << 14 | fuse << 15)
+
+    def text(self) -> str:
+        return f"{self.celsius:.1f} °C" if self.in_range else f"out of range ({self.celsius:.1f})"
+
+
+def decode_temps(data: bytes, expected: int) -> list[TempWord]:
+    if len(data) != 2 * expected:
+        raise CodecError(f"temperature frame needs {2 * expected} bytes, got {len(data)}")
+    return [TempWord(int.from_bytes(data[i:i + 2], "little")) for i in range(0, len(data), 2)]
+
+
+def encode_temps(words: list[TempWord]) -> bytes:
+    return b"".join(w.raw.to_bytes(2, "little") for w in words)
+
+
+# section 5.5: channel -> (fuse, rating HMR, rating HM)
+FUSES = {1: ("SI3", "16 A", "10 A"), 2: ("SI4", "16 A", "10 A"), 3: ("SI5", "16 A", "10 A"),
+         4: ("SI6", "10 A", "10 A"), 5: ("SI7", "10 A", "10 A"), 6: ("SI8", "10 A", "10 A")}
+
+
+def fuse_advice(variant: Variant, channel: int) -> str:
+    fuse, hmr, hm = FUSES[channel]
+    return f"replace fuse {fuse} ({hmr if variant is Variant.HMR else hm}, fast-acting 5x20 mm)"
+
+
+@dataclass
+class ChannelMonitor:
+    """Evaluation of Last/Si/Triac of one SSR as section 7.2.3 asks.
+
+    With no load (Last = 0) fuse and triac say nothing ("unknown"). After the first
+    switch-on all three bits read 1: remember it, since a blown fuse can take Last to 0
+    too. A blown fuse (Si = 0) stays until the 24 V are cut.
+    """
+
+    seen_ok: bool = False
+    fuse_blown: bool = False
+    load: str = "unknown"
+    fuse: str = "unknown"
+    triac: str = "unknown"
+    history: list[str] = field(default_factory=list)
+
+    def update(self, word: TempWord, switched_on: bool) -> None:
+        if switched_on and word.load and word.fuse and word.triac:
+            self.seen_ok = True
+        if not word.fuse and (word.load or self.seen_ok):
+            self.fuse_blown = True  # latched: the module keeps Si = 0 until 24 V are cut
+        self.load = "present" if word.load else "none (no load or no supply)"
+        if self.fuse_blown:
+            self.fuse = "blown"
+        elif word.load:
+            self.fuse = "ok"
+        else:
+            self.fuse = "unknown"
+        if not word.load or self.fuse_blown:
+            self.triac = "unknown"
+        elif switched_on:
+            self.triac = "ok" if word.triac else "defective"
+        else:
+            self.triac = "not checked (off)"
+
+    def reset(self) -> None:
+        """After the module's 24 V were cut."""
+        self.seen_ok = self.fuse_blown = False
+
+
+# -- SYNC and addressed data (section 7.2.4) ------------------------------------------------------
+
+P2 = 0x80  # cfg bit 7: HMR three-phase output loaded on two phases only
+
+
+def encode_sync_cfg(two_phase: bool) -> bytes:
+    return bytes([P2 if two_phase else 0])
+
+
+AREA_WRITE_CONFIG, AREA_READ_CONFIG, AREA_READ_CUSTOMER, AREA_WRITE_CUSTOMER, AREA_LOAD_DATA = 1, 2, 3, 4, 5
+CONFIG_SERIAL, CONFIG_PRODUCT, CONFIG_VERSION, CONFIG_DYNAMIC = 1, 2, 3, 15
+CUSTOMER_RECORDS = range(1, 16)
+PRODUCT_CODES = {
+    0x0000: "MIO", 0x1000: "New KKD01", 0x2000: "KKD01", 0x2001: "KKD02", 0x2002: "ABB KKD01", 0x2003: "ABB KKD02",
+    0x3000: "HM01", 0x3001: "KM01 (until 07.11.2013)", 0x3002: "HMR01 (until 07.11.2013)",
+    0x3009: "KM01 (from 08.11.2013)", 0x300A: "HMR01 (from 08.11.2013)",
+}
+
+
+def encode_sync_request(area: int, index: int, payload: bytes = b"") -> bytes:
+    if len(payload) > 6:
+        raise CodecError(f"addressed data carries up to 6 bytes, got {len(payload)}")
+    return bytes([area, index]) + payload
+
+
+def pad6(payload: bytes) -> bytes:
+    """MData and stored records are 0xFF-padded to 6 bytes (7.2.4.2)."""
+    return (payload + b"\xff" * 6)[:6]
+
+
+@dataclass(frozen=True)
+class MData:
+    area: int
+    index: int
+    payload: bytes  # always 6 bytes
+
+    @classmethod
+    def decode(cls, data: bytes) -> MData:
+        if len(data) != 8:
+            raise CodecError(f"MData has 8 bytes, got {len(data)}")
+        return cls(data[0], data[1], bytes(data[2:8]))
+
+    def encode(self) -> bytes:
+        return bytes([self.area, self.index]) + pad6(self.payload)
+
+
+def encode_serial(serial: int) -> bytes:
+    """Serial number as uint32 LE: 00033852 -> 0x843C (7.2.4.2.2)."""
+    if not 0 <= serial <= 99_999_999:
+        raise CodecError(f"serial number {serial} has more than 8 digits")
+    return serial.to_bytes(4, "little")
+
+
+def decode_serial(payload: bytes) -> str:
+    return f"{int.from_bytes(payload[:4], 'little'):08d}"
+
+
+def product_name(code: int) -> str:
+    return PRODUCT_CODES.get(code, f"unknown product 0x{code:04X}")
+
+
+def describe_frame_for(ids: CanIds, variant: Variant, arbitration_id: int, data: bytes) -> str | None:
+    try:
+        if arbitration_id == ids.dig_out:
+            on = [k for k, v in decode_dig_out(variant, data).items() if v]
+            return f"M3IO DigOut: {', '.join(on) or 'all off'}"
+        if arbitration_id == ids.dig_in:
+            on = [k for k, v in decode_dig_in(data).items() if v]
+            return f"M3IO DigIn: {', '.join(on) or 'no input'}"
+        if arbitration_id in (ids.temp14, ids.temp56):
+            words = decode_temps(data, 4 if arbitration_id == ids.temp14 else 2)
+            first = 1 if arbitration_id == ids.temp14 else 5
+            return "M3IO " + ", ".join(
+                f"T{first + i} {w.text()} L{int(w.load)} T{int(w.triac)} S{int(w.fuse)}" for i, w in enumerate(words)
+            )
+        if arbitration_id == ids.sync:
+            if len(data) <= 1:
+                return f"M3IO Sync cfg 0x{data[0]:02X}" if data else "M3IO Sync"
+            return f"M3IO Sync area {data[0]} index {data[1]} data {bytes(data[2:]).hex(' ')}"
+        if ids.mdata is not None and arbitration_id == ids.mdata:
+            m = MData.decode(data)
+            return f"M3IO MData area {m.area} index {m.index}: {m.payload.hex(' ')}"
+    except CodecError as exc:
+        return f"M3IO, malformed: {exc}"
+    return None

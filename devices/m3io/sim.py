@@ -1,0 +1,229 @@
+"""CAN-M3IO twin (KM, HM, HMR) on a CAN bus, following the document.
+
+Silent until the first master telegram; DigIn on change (at most every 10 ms) and in
+answer to DigOut; temperatures every 500 ms while the watchdog runs; outputs off and
+temperatures stopped after 2 s without DigOut; the Si/Triac/Last bits per SSR with
+fault injection (remove a load, blow a fuse, break a triac); both ID schemes; the SYNC
+cfg byte (not stored: lost at reset); addressed data with customer-data storage.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from dataclasses import dataclass
+
+from devices.m3io import codec
+from devices.m3io.codec import Variant
+
+TICK_S = 0.01
+STORE_S = 0.03  # a customer record takes this long to store (7.2.4.2.4)
+
+
+@dataclass
+class SsrTwin:
+    load: bool = True  # a heater is connected and the mains supply is there
+    fuse_ok: bool = True
+    triac_ok: bool = True
+    on: bool = False  # what the module switches (after its own checks)
+    commanded: bool = False
+
+
+class M3ioTwin:
+    """One module: its switches, inputs, temperatures and stored data."""
+
+    def __init__(self, variant: Variant, sw1: int, serial: int = 33852, name: str = "m3io"):
+        self.name = name
+        self.variant = variant
+        self.sw1 = sw1
+        self.ids = codec.derive_ids(sw1)
+        self.serial = serial
+        self.product = {Variant.HM: 0x3000, Variant.KM: 0x3009, Variant.HMR: 0x300A}[variant]
+        self.version = 0x1201  # firmware 18.1
+        self.inputs = {f"E{i}": False for i in range(1, 7)}
+        self.temps_tenths = [215 + 10 * i for i in range(6)]  # Pt100 readings, 0.1 C
+        self.ssr = {i: SsrTwin() for i in range(1, 7)}
+        self.led = False
+        self.cfg = 0
+        self.customer: dict[int, bytes] = {}
+        self.last_digout: float | None = None  # None: no master telegram yet (silent)
+        self.powered = True
+        self.storing_until = 0.0
+        self.store_fails = False  # fault injection: the next customer-data write does not stick
+        self.resets = 0
+
+    # -- controls of the simulated plant ----------------------------------------------------
+    def toggle_input(self, name: str) -> None:
+        self.inputs[name] = not self.inputs[name]
+
+    def set_temperature(self, channel: int, celsius: float) -> None:
+        self.temps_tenths[channel - 1] = round(celsius * 10)
+
+    def power_cycle(self) -> None:
+        """Cut the 24 V: blown fuses are forgotten by the module, cfg is lost, silence until the master talks."""
+        self.cfg = 0
+        self.last_digout = None
+        for s in self.ssr.values():
+            s.on = s.commanded = False
+        self.resets += 1
+
+    @property
+    def watchdog_alive(self) -> bool:
+        return self.last_digout is not None and time.monotonic() - self.last_digout <= codec.WATCHDOG_S
+
+    # -- protocol --------------------------------------------------------------------------
+    def on_dig_out(self, data: bytes) -> None:
+        outputs = codec.decode_dig_out(self.variant, data)
+        self.last_digout = time.monotonic()
+        self.led = outputs.get("LED", False)
+        if self.variant is Variant.HM:
+            for i in range(1, 7):
+                self.ssr[i].commanded = outputs[f"SSR{i}"]
+        elif self.variant is Variant.HMR:
+            for i in (1, 2, 3):
+                self.ssr[i].commanded = outputs["SSR1-3"]
+            for i in (4, 5, 6):
+                self.ssr[i].commanded = outputs[f"SSR{i}"]
+        self.apply()
+
+    def apply(self) -> None:
+        """Switch only when all is well; HMR: a fault on SSR1-3 switches all three off (7.2.3)."""
+        alive = self.watchdog_alive
+        for i, s in self.ssr.items():
+            s.on = alive and s.commanded and s.fuse_ok
+        if self.variant is Variant.HMR and not all(self.ssr[i].fuse_ok and self.ssr[i].triac_ok for i in (1, 2, 3)):
+            for i in (1, 2, 3):
+                self.ssr[i].on = False
+        if self.variant is Variant.KM:
+            for s in self.ssr.values():
+                s.on = False
+
+    def word(self, channel: int) -> codec.TempWord:
+        """Temperature word of a channel with the status of its SSR."""
+        s = self.ssr[channel]
+        sensor = 1 if self.variant is Variant.HMR and channel <= 3 else channel  # HMR: t1-t3 carry TEMP1
+        load = s.load and s.fuse_ok  # a blown fuse takes Last to 0 too (7.2.3)
+        triac = s.triac_ok if s.on else True
+        return codec.TempWord.make(self.temps_tenths[sensor - 1], load=load, triac=triac, fuse=s.fuse_ok, addressed=self.ids.addressed)
+
+    def temp_frames(self) -> list[tuple[int, bytes]]:
+        words = [self.word(i) for i in range(1, 7)]
+        return [(self.ids.temp14, codec.encode_temps(words[:4])), (self.ids.temp56, codec.encode_temps(words[4:]))]
+
+    def dig_in(self) -> bytes:
+        return codec.encode_dig_in(self.inputs)
+
+    def on_sync(self, data: bytes) -> bytes | None:
+        """SYNC: cfg byte (length 1) or addressed request (length >= 2, addressed mode). Returns MData."""
+        if len(data) <= 1:
+            if data:
+                self.cfg = data[0]
+            return None
+        if not self.ids.addressed:
+            return None
+        area, index, payload = data[0], data[1], bytes(data[2:8])
+        now = time.monotonic()
+        if area == codec.AREA_WRITE_CONFIG and index == codec.CONFIG_DYNAMIC:
+            self.cfg = payload[0] if payload else self.cfg
+            return codec.MData(area, index, bytes([self.cfg])).encode()
+        if area == codec.AREA_READ_CONFIG:
+            values = {
+                codec.CONFIG_SERIAL: codec.encode_serial(self.serial),
+                codec.CONFIG_PRODUCT: self.product.to_bytes(2, "little"),
+                codec.CONFIG_VERSION: self.version.to_bytes(2, "little"),
+                codec.CONFIG_DYNAMIC: bytes([self.cfg]),
+            }
+            return codec.MData(area, index, values[index]).encode() if index in values else None
+        if area == codec.AREA_READ_CUSTOMER and index in codec.CUSTOMER_RECORDS:
+            return codec.MData(area, index, self.customer.get(index, b"\xff" * 6)).encode()
+        if area == codec.AREA_WRITE_CUSTOMER and index in codec.CUSTOMER_RECORDS:
+            record = codec.pad6(payload)
+            if self.store_fails:
+                self.store_fails = False
+                record = bytes(b ^ 0x01 for b in record)  # a failed write: what is stored differs
+            self.customer[index] = record
+            self.storing_until = now + STORE_S  # deaf while storing; answers when done
+            return codec.MData(area, index, record).encode()
+        if area == codec.AREA_LOAD_DATA and 1 <= index <= 6:
+            return codec.MData(area, index, self.word(index).raw.to_bytes(2, "little") + b"\x00\x00\x00\x00").encode()
+        return None  # undefined addresses are ignored
+
+
+class M3ioSim:
+    """All simulated M3IO modules of one CAN bus."""
+
+    def __init__(self, bus, devices):
+        from app.can_bus import CanBus, CanBusState
+
+        self.bus_config = bus
+        self.bitrate = bus.options.get("bitrate", 500_000)
+        self.twins: dict[str, M3ioTwin] = {}
+        options = {k: v for k, v in bus.options.items() if k != "simulate"}
+        self.can = CanBus(f"{bus.name} (simulated M3IO)", options, CanBusState(bus.name, "can", ""))
+        for dev in devices:
+            twin = M3ioTwin(Variant(dev.options["variant"]), dev.options["sw1"], dev.options.get("serial", 33852), dev.name)
+            self.twins[dev.name] = twin
+            self.can.subscribe(False, twin.ids.dig_out, lambda msg, t=twin: self.on_dig_out(t, msg))
+            self.can.subscribe(False, twin.ids.sync, lambda msg, t=twin: self.on_sync(t, msg))
+        self._task: asyncio.Task | None = None
+        self._inputs_sent: dict[str, tuple[bytes, float]] = {}
+
+    def _on_bus(self, twin: M3ioTwin) -> bool:
+        return twin.powered and twin.ids.bitrate == self.bitrate and time.monotonic() >= twin.storing_until
+
+    def on_dig_out(self, twin: M3ioTwin, msg) -> None:
+        if not self._on_bus(twin):
+            return
+        try:
+            twin.on_dig_out(bytes(msg.data))
+        except codec.CodecError:
+            return
+        self._send_inputs(twin, force=True)  # DigIn answers every DigOut (since V16.0)
+
+    def on_sync(self, twin: M3ioTwin, msg) -> None:
+        if not self._on_bus(twin):
+            return
+        answer = twin.on_sync(bytes(msg.data))
+        if answer is not None and twin.ids.mdata is not None:
+            delay = max(0.0, twin.storing_until - time.monotonic())
+            if delay:  # after storing a record: the answer comes when the module is done
+                asyncio.get_running_loop().call_later(delay, self.can.send, twin.ids.mdata, answer)
+            else:
+                self.can.send(twin.ids.mdata, answer)
+        if len(msg.data) <= 1:
+            self._send_inputs(twin, force=True)
+
+    def _send_inputs(self, twin: M3ioTwin, force: bool = False) -> None:
+        data = twin.dig_in()
+        last = self._inputs_sent.get(twin.name)
+        now = time.monotonic()
+        if not force:
+            if twin.last_digout is None or (last and last[0] == data) or (last and now - last[1] < codec.DIGIN_MIN_INTERVAL_S):
+                return
+        self._inputs_sent[twin.name] = (data, now)
+        self.can.send(twin.ids.dig_in, data)
+
+    async def start(self) -> None:
+        await self.can.start()
+        self._task = asyncio.create_task(self._run(), name=f"sim {self.bus_config.name} m3io")
+
+    async def _run(self) -> None:
+        next_temp: dict[str, float] = {}
+        while True:
+            await asyncio.sleep(TICK_S)
+            now = time.monotonic()
+            for name, twin in self.twins.items():
+                twin.apply()  # the watchdog switches outputs off after 2 s without DigOut
+                if not self._on_bus(twin) or twin.last_digout is None:
+                    continue
+                self._send_inputs(twin)  # on change, not more often than every 10 ms
+                if twin.variant is not Variant.KM and twin.watchdog_alive and now >= next_temp.get(name, 0):
+                    next_temp[name] = now + codec.TEMP_PERIOD_S
+                    for can_id, data in twin.temp_frames():
+                        self.can.send(can_id, data)
+
+    async def stop(self) -> None:
+        if self._task:
+            self._task.cancel()
+            self._task = None
+        await self.can.stop()

@@ -1,0 +1,262 @@
+"""CAN-M3IO page: inputs, SSR channels with fuse/triac/load, temperatures, watchdog, addressed data."""
+
+from __future__ import annotations
+
+from datetime import datetime
+
+from nicegui import ui
+
+from app import runtime as rt
+from devices.m3io import codec
+from devices.m3io.codec import Variant
+from pages.frame import fmt_age, fmt_time, frame, set_status_badge
+from pages.widgets import HistoryChart, Lamp, confirm, run_command
+
+STATE_COLOR = {"ok": "positive", "present": "positive", "blown": "negative", "defective": "negative"}
+
+
+def content(name: str) -> None:
+    runtime = rt.current()
+    state = runtime.store.devices[name]
+    adapter = runtime.worker.adapters[name]
+    twin = runtime.twins.get(name)
+    ids = adapter.ids
+
+    async def act(describe: str, fn, success: str = "", write: bool = True):
+        async def action(a):
+            return fn(a)
+
+        return await run_command(name, action, describe, success=success, write=write)
+
+    with frame(f"CAN-M3IO {name} ({adapter.variant.value})"):
+        with ui.card().classes("w-full"):
+            with ui.row().classes("items-center gap-6 w-full"):
+                badge = ui.badge("waiting", color="grey").classes("text-body2")
+                watchdog = ui.label().classes("text-body2")
+                counters = ui.label().classes("text-caption mono text-grey-8")
+            ui.label(
+                f"SW1 0x{adapter.sw1:02X} ({adapter.sw1:08b}): "
+                + ("addressed mode (S8 on), " if ids.addressed else "S8 off, ")
+                + f"{ids.bitrate // 1000} kbit/s · "
+                + " · ".join(f"{k} 0x{v:03X}" for k, v in ids.by_name().items())
+            ).classes("text-body2 mono")
+            if state.info.get("bitrate_mismatch"):
+                ui.label(
+                    f"SW1 sets {ids.bitrate // 1000} kbit/s, but the bus runs at {state.info['bus_bitrate'] // 1000} kbit/s: "
+                    "the module cannot be reached. Fix SW1 or the bus bit rate in the plant file."
+                ).classes("text-negative text-body1")
+
+        with ui.row().classes("w-full no-wrap items-start gap-4"):
+            with ui.card().classes("col"):
+                ui.label("Digital inputs").classes("text-subtitle1")
+                with ui.row().classes("gap-5"):
+                    input_lamps = {f"E{i}": Lamp(f"E{i}") for i in range(1, 7)}
+                ui.separator()
+                with ui.row().classes("items-center w-full"):
+                    ui.label("Outputs").classes("text-subtitle1")
+                    ui.space()
+                    ui.button("All off", icon="power_off", color="negative",
+                              on_click=lambda: act("all off", lambda a: a.all_off("all off pressed"), write=False)).props("data-testid=all-off")
+                ui.label("Outputs stay on only while an engineer's browser is connected; the worker keeps the 2 s watchdog served.").classes(
+                    "text-caption text-grey-8"
+                )
+                led = ui.switch("LED (Bereit)", on_change=lambda e: _switch(act, adapter, "LED", e, mains=False))
+                channel_rows = _channels(adapter, act) if adapter.variant is not Variant.KM else {}
+                if adapter.variant is Variant.HMR:
+                    with ui.row().classes("items-center"):
+                        p2 = ui.switch("Three-phase output loaded on two phases only (P2)",
+                                       on_change=lambda e: act("P2", lambda a: a.set_two_phase(e.value)))
+                        ui.label("not stored in the module: sent again after a reset").classes("text-caption text-grey-8")
+            if adapter.variant is not Variant.KM:
+                with ui.card().classes("col"):
+                    ui.label("Pt100 temperatures (0.1 °C)").classes("text-subtitle1")
+                    temp_labels = {}
+                    with ui.row().classes("gap-6"):
+                        for channel in adapter.temp_channels():
+                            with ui.column().classes("gap-0"):
+                                ui.label(f"TEMP{channel}" + (" (SSR1-3)" if adapter.variant is Variant.HMR and channel == 1 else "")).classes(
+                                    "text-caption text-grey-8"
+                                )
+                                temp_labels[channel] = ui.label("-").classes("text-h6")
+                    chart = HistoryChart(state, [adapter.temp_label(c) for c in adapter.temp_channels()], window_s=600, height=260)
+            else:
+                temp_labels, chart = {}, None
+
+        if twin is not None:
+            _sim_card(twin, adapter)
+        if ids.addressed:
+            _addressed_card(name, state, adapter)
+
+        with ui.expansion("Events", icon="list").classes("w-full"):
+            events = ui.log(max_lines=200).classes("w-full h-40")
+        shown = [0.0]
+
+    def update() -> None:
+        set_status_badge(badge, state.status, state.age)
+        served = adapter.bus.cyclic_running(adapter.key)
+        last = adapter.last_answer
+        watchdog.set_text(
+            ("watchdog served: DigOut every 500 ms" if served else "watchdog NOT served: outputs are off in the module")
+            + f" · last answer {fmt_age(None if last is None else datetime.now().timestamp() - last)}"
+        )
+        watchdog.classes(replace="text-body2 " + ("text-positive" if served else "text-negative"))
+        c = state.counters
+        counters.set_text(f"frames in {c.responses} · requests {c.requests} · timeouts {c.timeouts} · malformed {c.malformed} · write errors {c.write_errors}")
+        for key, lamp in input_lamps.items():
+            lamp.set(None if adapter.inputs is None or state.status == "offline" else adapter.inputs[key])
+        led.set_value(adapter.outputs["LED"])
+        for refresh in channel_rows.values():
+            refresh()
+        if adapter.variant is Variant.HMR:
+            p2.set_value(adapter.two_phase)
+        for channel, label in temp_labels.items():
+            word = adapter.temps.get(channel)
+            label.set_text("-" if word is None else word.text())
+            label.classes(replace="text-h6 " + ("" if word is None or word.in_range else "text-warning"))
+        for event in state.events:
+            if event.time > shown[0]:
+                events.push(f"{fmt_time(event.time)} {event.level.upper()}: {event.text}")
+                shown[0] = event.time
+
+    update()
+    ui.timer(0.5, update)
+    if chart is not None:
+        ui.timer(1.0, chart.update)
+
+
+async def _switch(act, adapter, output: str, event, mains: bool = True) -> None:
+    value = event.value
+    if value == adapter.outputs[output]:
+        return
+    if value and mains:
+        three = output == "SSR1-3"
+        ok = await confirm(
+            f"Switch {output} on?",
+            ("The three-phase output (400 V) " if three else "This output switches mains voltage (230/400 V) ")
+            + "to the connected load. Make sure nobody works on it.",
+            ok="Switch on",
+        )
+        if not ok:
+            event.sender.set_value(False)
+            return
+    await act(f"{output} {'on' if value else 'off'}", lambda a: a.set_output(output, value))
+
+
+def _channels(adapter, act) -> dict:
+    """One row per SSR channel (HMR: SSR1-3 as one three-phase channel)."""
+    rows = {}
+    groups = [("SSR1-3", [1, 2, 3])] + [(f"SSR{i}", [i]) for i in (4, 5, 6)] if adapter.variant is Variant.HMR else [
+        (f"SSR{i}", [i]) for i in range(1, 7)
+    ]
+    with ui.column().classes("w-full gap-1"):
+        for output, channels in groups:
+            with ui.row().classes("items-center w-full gap-3 no-wrap") as row:
+                row.props(f'data-channel="{output}"')
+                switch = ui.switch(output, on_change=lambda e, o=output: _switch(act, adapter, o, e)).classes("w-32")
+                details = ui.column().classes("gap-0")
+            if output == "SSR1-3":
+                ui.label("Three-phase output: a fault on one of SSR1, SSR2, SSR3 switches all three off.").classes("text-caption text-grey-8")
+
+            def refresh(switch=switch, details=details, output=output, channels=channels) -> None:
+                switch.set_value(adapter.outputs[output])
+                details.clear()
+                with details:
+                    for channel in channels:
+                        m = adapter.channels[channel]
+                        word = adapter.temps.get(channel)
+                        with ui.row().classes("items-center gap-2 no-wrap"):
+                            if len(channels) > 1:
+                                ui.label(f"SSR{channel}").classes("text-caption mono")
+                            for title, value in (("load", m.load), ("fuse", m.fuse), ("triac", m.triac)):
+                                color = STATE_COLOR.get(value, "grey")
+                                ui.badge(f"{title}: {value}", color=color).props(f'data-{title}="{value}" outline={color == "grey"}')
+                            if m.fuse == "blown":
+                                ui.label(codec.fuse_advice(adapter.variant, channel)).classes("text-negative text-body2")
+                            if m.triac == "defective":
+                                ui.label("triac defective: it does not conduct while switched on").classes("text-negative text-body2")
+                            if word is None:
+                                ui.label("no status yet").classes("text-caption text-grey-8")
+
+            rows[output] = refresh
+    return rows
+
+
+def _sim_card(twin, adapter) -> None:
+    with ui.card().classes("w-full bg-purple-1"):
+        ui.label("Simulated module (demo)").classes("text-subtitle1")
+        with ui.row().classes("items-center"):
+            for i in range(1, 7):
+                ui.button(f"E{i}", on_click=lambda i=i: twin.toggle_input(f"E{i}")).props("outline dense")
+            ui.label("toggle inputs").classes("text-caption")
+        if adapter.variant is not Variant.KM:
+            with ui.row().classes("items-center gap-2"):
+                channel = ui.select({i: f"SSR{i}" for i in range(1, 7)}, value=1, label="Channel").props("dense outlined").classes("w-28")
+                ui.button("Remove load", on_click=lambda: setattr(twin.ssr[channel.value], "load", False)).props("outline dense")
+                ui.button("Connect load", on_click=lambda: setattr(twin.ssr[channel.value], "load", True)).props("outline dense")
+                ui.button("Blow fuse", on_click=lambda: setattr(twin.ssr[channel.value], "fuse_ok", False)).props(
+                    "outline dense color=negative data-testid=sim-blow-fuse"
+                )
+                ui.button("Break triac", on_click=lambda: setattr(twin.ssr[channel.value], "triac_ok", False)).props("outline dense color=negative")
+                ui.button("Repair", on_click=lambda: (setattr(twin.ssr[channel.value], "fuse_ok", True), setattr(twin.ssr[channel.value], "triac_ok", True))).props("outline dense")
+            with ui.row().classes("items-center gap-2"):
+                temp = ui.number("Temperature °C", value=25.0, step=0.5).props("dense outlined").classes("w-40")
+                ui.button("Set", on_click=lambda: twin.set_temperature(channel.value, float(temp.value or 0))).props("outline dense")
+                ui.button("Cut 24 V (reset)", on_click=lambda: _power_cycle(twin, adapter)).props("outline dense")
+
+
+def _power_cycle(twin, adapter) -> None:
+    twin.power_cycle()
+    for monitor in adapter.channels.values():
+        monitor.reset()
+
+
+def _addressed_card(name: str, state, adapter) -> None:
+    with ui.card().classes("w-full"):
+        ui.label("Addressed data (SW1 switch 8 on)").classes("text-subtitle1")
+        identity = ui.label("not read").classes("text-body2")
+
+        async def read_identity() -> None:
+            ok, info = await run_command(name, lambda a: a.read_identity(), "read identity", write=False)
+            if ok:
+                identity.set_text(
+                    f"serial {info['serial']} · product 0x{info['product_code']:04X} {info['product']} · "
+                    f"software {info['version']} · configuration 0x{info['config']:02X}"
+                )
+
+        ui.button("Read identity", icon="badge", on_click=read_identity).props("outline dense")
+        ui.separator()
+        ui.label("Customer data (15 records of 6 bytes)").classes("text-body2 text-weight-medium")
+        with ui.row().classes("items-center"):
+            index = ui.number("Record", value=1, min=1, max=15, format="%d").props("dense outlined").classes("w-24")
+            data = ui.input("Bytes (hex, up to 6)", placeholder="01 02 03").props("dense outlined").classes("w-56 mono")
+            record = ui.label().classes("mono")
+
+            async def read_record() -> None:
+                ok, payload = await run_command(name, lambda a: a.read_customer(int(index.value or 1)), "read customer data", write=False)
+                if ok:
+                    record.set_text(f"record {int(index.value)}: {payload.hex(' ')}")
+
+            async def write_record() -> None:
+                try:
+                    payload = bytes.fromhex(data.value or "")
+                except ValueError:
+                    ui.notify("Enter bytes as hex, e.g. 01 02 0A", type="warning")
+                    return
+                ok, stored = await run_command(name, lambda a: a.write_customer(int(index.value or 1), payload), "write customer data",
+                                               success="written and verified")
+                if ok:
+                    record.set_text(f"record {int(index.value)}: {stored.hex(' ')} (verified)")
+
+            ui.button("Read", on_click=read_record).props("outline dense")
+            ui.button("Write", on_click=write_record).props("dense")
+        ui.separator()
+        loads = ui.label().classes("text-body2 mono")
+
+        async def read_loads() -> None:
+            ok, result = await run_command(name, lambda a: a.read_load_data(), "read load data", write=False)
+            if ok:
+                loads.set_text(" · ".join(
+                    f"SSR{i}: {w.text()} load {int(w.load)} triac {int(w.triac)} fuse {int(w.fuse)}" for i, w in result.items()
+                ))
+
+        ui.button("Read actual load data SSR1-6", on_click=read_loads).props("outline dense")

@@ -1,0 +1,180 @@
+"""The bus monitor in a real browser (Debian's chromium through playwright) on the app as a subprocess.
+
+The app runs the demo plant with its Modbus line on a free port and its CAN bus on a
+virtual channel of its own; recordings go to the test's temporary folder.
+Screenshots land in ``/tmp/commission-shots``.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import can
+import pytest
+from webutil import demo_plant_text, free_port, start_app, stop_app, wait_http
+
+pytest.importorskip("playwright")
+from playwright.sync_api import Browser, Page, expect, sync_playwright
+
+CHROMIUM = Path("/usr/bin/chromium")
+SHOTS = Path("/tmp/commission-shots")
+GATE1 = "0x000A1284 (ext)"  # demo plant gate-1: extended device ID 660100
+GATE2 = "0x00B"  # demo plant gate-2: standard device ID 11
+
+pytestmark = [
+    pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium at /usr/bin/chromium"),
+    pytest.mark.timeout(120),
+]
+
+
+@pytest.fixture
+def app_url(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
+    """``python -m app.cli`` on the demo plant, moved to a free port and a virtual channel of its own."""
+    channel = f"browser-monitor-{uuid.uuid4().hex[:12]}"
+    text = demo_plant_text(free_port())
+    assert 'channel = "demo-can1"' in text
+    plant = tmp_path / "plant.toml"
+    text = text.replace('channel = "demo-can1"', f'channel = "{channel}"')
+    for n in range(2, 10):  # further CAN buses of the demo: channels of their own as well
+        text = text.replace(f'channel = "demo-can{n}"', f'channel = "{channel}-{n}"')
+    plant.write_text(text)
+    monkeypatch.setenv("COMMISSION_RECORDINGS_DIR", str(tmp_path / "recordings"))
+    port = free_port()
+    log = tmp_path / "app.log"
+    proc = start_app(plant, port, log)
+    try:
+        wait_http(f"http://127.0.0.1:{port}/", proc, timeout=30)
+        yield f"http://127.0.0.1:{port}"
+    finally:
+        stop_app(proc)
+        print(log.read_text(errors="replace")[-3000:])
+
+
+@pytest.fixture
+def browser() -> Iterator[Browser]:
+    with sync_playwright() as p:
+        browser = p.chromium.launch(
+            executable_path=str(CHROMIUM), args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+        )
+        try:
+            yield browser
+        finally:
+            browser.close()
+
+
+def count_of(page: Page, can_id: str) -> int:
+    row = page.locator("[data-monitor=overwrite] tbody tr").filter(has=page.locator("td", has_text=re.compile(rf"^{re.escape(can_id)}$")))
+    return int(row.locator("td").nth(2).inner_text().strip())
+
+
+def test_can_monitor_in_browser(app_url: str, browser: Browser, tmp_path: Path):
+    page = browser.new_page(viewport={"width": 1500, "height": 1150}, accept_downloads=True)
+    page.set_default_timeout(15_000)
+    page.goto(f"{app_url}/monitor/can1")
+    expect(page.get_by_text("Bus monitor can1")).to_be_visible()
+
+    # live frames, decoded
+    frames = page.locator("[data-monitor=frames] tbody tr")
+    expect(frames.filter(has_text="HD-Lock Status").first).to_be_visible()
+    assert frames.count() <= 200
+    expect(page.get_by_text("error-active")).to_be_visible()
+    expect(page.get_by_text(re.compile(r"rx \d+ · tx \d+ · error frames 0"))).to_be_visible()
+
+    # overwrite view: one row per lock ID, counts growing with the status every second
+    overwrite = page.locator("[data-monitor=overwrite] tbody tr")
+    expect(overwrite.filter(has_text=GATE1).first).to_be_visible()
+    expect(overwrite.filter(has_text=GATE2).first).to_be_visible()
+    first = count_of(page, GATE1)
+    deadline = time.monotonic() + 6
+    while count_of(page, GATE1) <= first and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert count_of(page, GATE1) > first
+    assert overwrite.filter(has_text=GATE1).first.locator(".byte").count() in (6, 8)  # status or register answer
+
+    # ID range filter: only gate-2 (0x00B)
+    page.get_by_label("ID from (hex)").fill("B")
+    page.get_by_label("ID to (hex)").fill("B")
+    expect(frames.first).to_contain_text(GATE2)
+    time.sleep(0.8)
+    ids = frames.locator("td:nth-child(3)").all_inner_texts()
+    assert ids and set(ids) == {GATE2}, set(ids)
+    page.get_by_label("ID from (hex)").fill("")
+    page.get_by_label("ID to (hex)").fill("")
+    expect(frames.filter(has_text=GATE1).first).to_be_visible()
+    time.sleep(1.0)
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=str(SHOTS / "monitor.png"))
+
+    # record in .blf for a few seconds, download it
+    page.get_by_label("Format").click()
+    page.get_by_role("option", name="Vector .blf").click()
+    page.get_by_role("button", name="Record", exact=True).click()
+    status = page.locator("[data-monitor=record-status]")
+    expect(status).to_contain_text(re.compile(r"recording can1-.*\.blf: .* s, \d+ frames"))
+    time.sleep(2.5)
+    page.get_by_role("button", name="Stop", exact=True).click()
+    expect(page.get_by_text(re.compile(r"Saved \d+ frames to can1-.*\.blf"))).to_be_visible()
+    recordings = sorted((tmp_path / "recordings").glob("can1-*.blf"))
+    assert len(recordings) == 1
+    recorded = recordings[0]
+    reader = can.LogReader(recorded)
+    try:
+        messages = list(reader)
+    finally:
+        reader.stop()
+    assert len(messages) >= 3 and any(m.is_extended_id and m.arbitration_id == 660100 for m in messages)
+    with page.expect_download() as info:
+        page.get_by_role("button", name="Download", exact=True).click()
+    downloaded = tmp_path / "downloaded.blf"
+    info.value.save_as(downloaded)
+    assert downloaded.read_bytes() == recorded.read_bytes()
+
+    # open the recorded file: same decoding, relative time
+    page.get_by_role("tab", name="Recorded file").click()
+    upload_input = page.locator("[data-monitor=upload] input[type=file]")
+    upload_input.set_input_files(str(recorded))
+    expect(page.get_by_text(f"Opened {recorded.name}")).to_be_visible()
+    file_rows = page.locator("[data-monitor=file-frames] tbody tr")
+    expect(file_rows.first.locator("td").first).to_have_text("0.000")
+    assert file_rows.count() == min(200, len(messages))
+    decoded = file_rows.locator("td:nth-child(6)").all_inner_texts()
+    assert decoded and all(d.startswith("HD-Lock") for d in decoded), [d for d in decoded if not d.startswith("HD-Lock")][:3]
+    # a register read burst can fill a page: look for the locks' status page by page
+    pages = -(-len(messages) // 200)
+    for number in range(2, pages + 1):
+        if file_rows.filter(has_text="HD-Lock Status").count():
+            break
+        page.locator("[data-monitor=file-pages] button", has_text=re.compile(rf"^{number}$")).click()
+        expect(file_rows.first.locator("td").first).not_to_have_text("0.000")
+    expect(file_rows.filter(has_text="HD-Lock Status").first).to_be_visible()
+    page.screenshot(path=str(SHOTS / "monitor-file.png"))
+
+    # a broken file: a message, and the page still works
+    broken = tmp_path / "broken.blf"
+    broken.write_bytes(b"this is not a BLF file" * 20)
+    upload_input.set_input_files(str(broken))
+    expect(page.get_by_text("broken.blf: cannot open as .blf file")).to_be_visible()
+    page.get_by_role("tab", name="Live").click()
+    before = count_of(page, GATE2)
+    deadline = time.monotonic() + 6
+    while count_of(page, GATE2) <= before and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert count_of(page, GATE2) > before
+    page.close()
+
+
+def test_modbus_monitor_in_browser(app_url: str, browser: Browser):
+    page = browser.new_page(viewport={"width": 1500, "height": 900})
+    page.set_default_timeout(15_000)
+    page.goto(f"{app_url}/monitor/line1")
+    expect(page.get_by_text("Bus monitor line1")).to_be_visible()
+    rows = page.locator(".q-table tbody tr")
+    expect(rows.filter(has_text="read ").first).to_be_visible()
+    expect(page.get_by_text(re.compile(r"\d+ transactions buffered"))).to_be_visible()
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=str(SHOTS / "monitor-line1.png"))
+    page.close()
