@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import json
 import sys
 import threading
 import time
@@ -52,12 +53,30 @@ def frames(n: int) -> list[can.Message]:
     return out
 
 
-def monitor_refresh(state, worker) -> int:
-    """What the monitor page does per refresh: decode and format the newest rows."""
-    from pages.monitor_rows import frame_rows, id_rows  # the page's own row builders
+class MonitorRefresh:
+    """What the monitor page does per refresh (pages/monitor.py): pick the newest 200 frames,
+    decode and format them, build the overwrite view's rows, and serialise both tables as
+    NiceGUI sends them to the browser."""
 
-    rows = frame_rows(list(state.frames)[-200:], worker.known_ids("can1"), "can1")
-    return len(rows) + len(id_rows(state.ids, worker.known_ids("can1"), "can1"))
+    def __init__(self, worker, bus: str):
+        from app import recording as rec
+        from pages.monitor import _frame_rows  # imports nicegui: done before measuring
+
+        self.rec = rec
+        self.frame_rows = _frame_rows
+        self.state = worker.store.buses[bus]
+        self.decoder = rec.FrameDecoder(worker.known_ids(bus), rec.describers(worker, bus, ["hdlock"]))
+        self.filter = rec.FrameFilter()
+
+    def __call__(self) -> int:
+        rec = self.rec
+        rows = self.frame_rows(rec.newest(self.state.frames, self.filter, 200), self.decoder)
+        ids = [
+            {"id": rec.format_id(k[1], k[0]), "count": s.count, "data": rec.format_data(s.data),
+             "bytes": rec.changed_bytes(s.data, s.changed), "decoded": self.decoder(k[1], k[0], s.data)}
+            for k, s in list(self.state.ids.items())[:300]
+        ]
+        return len(json.dumps(rows)) + len(json.dumps(ids))
 
 
 async def ingest(count: int) -> tuple[float, int, int]:
@@ -104,11 +123,12 @@ async def monitor_share(rate: int, seconds: float, with_monitor: bool) -> tuple[
     thread = threading.Thread(target=send, daemon=True)
     thread.start()
     refreshes = 0
+    refresh = MonitorRefresh(worker, "can1") if with_monitor else None
     cpu0, t0 = time.process_time(), time.perf_counter()
     while time.perf_counter() - t0 < seconds:
-        await asyncio.sleep(0.25)  # the monitor page's refresh period
+        await asyncio.sleep(0.3)  # the monitor page's refresh period
         if with_monitor:
-            monitor_refresh(worker.store.buses["can1"], worker)
+            refresh()
             refreshes += 1
     cpu = (time.process_time() - cpu0) / (time.perf_counter() - t0)
     stop.set()
@@ -128,7 +148,7 @@ async def run(count: int, rate: int, seconds: float) -> None:
         with_mon, refreshes = await monitor_share(rate, seconds, with_monitor=True)
         print(f"CPU at {rate} frames/s (sender thread included): {base * 100:.1f} % without the monitor, "
               f"{with_mon * 100:.1f} % with it ({refreshes} refreshes); the monitor adds {(with_mon - base) * 100:.1f} % of one core")
-    except ImportError as exc:
+    except ImportError as exc:  # the page module needs nicegui
         print(f"monitor share not measured: {exc}")
     print(f"ingest_ratio: {fps / REFERENCE_FPS:.2f}")
 

@@ -45,7 +45,7 @@ def frame(title: str):
         ui.link("commission", "/").classes("text-h6 text-white no-underline")
         ui.label(f"plant: {runtime.plant.name}").classes("text-caption text-grey-4")
         if runtime.sim is not None:
-            ui.badge("simulated devices", color="purple").props("outline").classes("text-white")
+            ui.badge("simulated devices", color="purple-3").classes("text-black")
         ui.space()
         with ui.row().classes("items-center gap-2") as buses:
             pass

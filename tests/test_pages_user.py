@@ -361,3 +361,4 @@ async def test_worker_refuses_writes_for_viewer(env: Env):
     # the engineer may
     await env.runtime.worker.command("door-1", lambda a: a.write_param(DELAY, 999), role="engineer")
     assert twin.holding[3000] == 999
+    assert writes == [(3000, 999)]  # the spy sees writes that do happen

@@ -49,6 +49,8 @@ async def stop_worker_tasks(runtime, timeout: float = 5.0) -> None:
     it. On Python 3.11 a cancellation that arrives while pymodbus waits for an answer in
     ``asyncio.wait_for`` is lost when the answer comes in the same loop iteration; the bus
     task keeps polling and ``Worker.stop()`` (so the app's shutdown) waits forever.
+    A fix that re-cancels until the tasks end is under way in app/worker.py; once it is in,
+    this returns at once (the tasks are already done) and can be dropped.
     """
     loop = asyncio.get_running_loop()
     end = loop.time() + timeout
