@@ -3,7 +3,12 @@
 from __future__ import annotations
 
 import logging
+import tempfile
+from pathlib import Path
 from typing import Any
+
+from app.audit import AuditLog
+from app.users import UserStore
 
 from app.plant import Plant
 from app.state import StateStore
@@ -51,13 +56,27 @@ class SimulatedPlant:
 
 
 class Runtime:
-    """Everything one ``commission`` process runs for one plant."""
+    """Everything one ``commission`` process runs for one plant.
 
-    def __init__(self, plant: Plant, simulate: bool = True):
+    :param data_dir: accounts, the audit database and backups (default: a temporary
+        folder, so tests and throw-away runs leave nothing behind; the CLI passes the
+        user's data folder)
+    :param auth_required: sessions must log in (the GUI listens beyond the loopback address)
+    """
+
+    def __init__(self, plant: Plant, simulate: bool = True, data_dir: str | Path | None = None, auth_required: bool = False):
         self.plant = plant
+        if data_dir is None:
+            self._tmp = tempfile.TemporaryDirectory(prefix="commission-")
+            data_dir = self._tmp.name
+        self.data_dir = Path(data_dir)
+        self.audit = AuditLog(self.data_dir / "audit.sqlite")
+        self.users = UserStore(self.data_dir / "users.toml")
+        self.backups_dir = self.data_dir / "backups"
+        self.auth_required = auth_required
         self.store = StateStore()
         self.sim = SimulatedPlant(plant) if simulate else None
-        self.worker = Worker(plant, self.store)
+        self.worker = Worker(plant, self.store, audit=self.audit)
 
     @property
     def twins(self) -> dict[str, Any]:

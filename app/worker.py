@@ -14,6 +14,7 @@ import time
 from collections.abc import Awaitable, Callable
 from typing import Any
 
+from app.audit import AuditLog
 from app.can_bus import CanBus, CanBusState
 from app.modbus_line import ModbusLine
 from app.plant import DeviceConfig, Plant
@@ -32,8 +33,9 @@ class PermissionDenied(Exception):
 class Worker:
     """Runs one polling task per bus; every adapter is reached through it."""
 
-    def __init__(self, plant: Plant, store: StateStore | None = None):
+    def __init__(self, plant: Plant, store: StateStore | None = None, audit: AuditLog | None = None):
         self.plant = plant
+        self.audit = audit
         self.store = store or StateStore()
         self.lines: dict[str, ModbusLine] = {}
         self.adapters: dict[str, Any] = {}
@@ -179,18 +181,36 @@ class Worker:
         user: str = "local",
         describe: str = "",
         write: bool = True,
+        record: bool = True,
+        parameter: str = "",
+        old: Any = "",
+        new: Any = "",
     ) -> Any:
         """Run ``action(adapter)`` for ``device`` on behalf of a session.
 
-        Writes need the engineer role; the check is here, not only in the page.
+        Writes need the engineer role; the check is here, not only in the page. Every
+        write and command (``record``) lands in the audit log with its outcome.
         """
         if device not in self.adapters:
             raise KeyError(f"no device named {device!r} in this plant")
         state = self.store.devices[device]
+
+        def audit(result: str) -> None:
+            if record and self.audit is not None:
+                self.audit.record(user=user, role=role, device=device, action=describe or "command",
+                                  parameter=parameter, old=old, new=new, result=result)
+
         if write and role not in WRITE_ROLES:
             state.event("warning", f"refused for {user} ({role}): {describe or 'write'}")
+            audit(f"refused: the {role} role may not write")
             raise PermissionDenied(f"{user} has the {role} role and may not write ({describe or 'write'})")
-        return await action(self.adapters[device])
+        try:
+            result = await action(self.adapters[device])
+        except Exception as exc:
+            audit(f"failed: {exc}")
+            raise
+        audit("ok")
+        return result
 
     async def discover(self, bus: str, first: int, last: int, progress=None) -> list[dict]:
         """Find devices on a Modbus line (broadcast, then a scan), with polling held meanwhile."""

@@ -227,3 +227,18 @@ class ParamMap:
             else:
                 blocks.append((a, 1))
         return blocks
+
+
+def backup_entry(param: Param, raw: int) -> dict:
+    """One parameter as a backup file lists it."""
+    return {
+        "key": param.key,
+        "name": param.label or param.name,
+        "space": param.space,
+        "address": param.address,
+        "raw": raw,
+        "value": param.decode(raw),
+        "text": param.display(raw),
+        "unit": param.unit,
+        "writable": param.writable,
+    }

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from app.state import DeviceState
 from devices.electrak import codec
 from devices.electrak.params import PARAMS, SERVICE, length_of, password_of
-from devices.params import Param, ParamError
+from devices.params import Param, ParamError, backup_entry
 
 SERVICE_TIMEOUT_S = 0.3
 SERIES = ("Position [mm]", "Current [A]", "Speed [mm/s]", "Target [mm]")
@@ -251,6 +251,28 @@ class ElectrakAdapter:
         self.state.unsaved.add(param.key)
         self.state.event("info", f"{param.name} = {param.display(raw)} written and read back (not yet saved)")
         return raw
+
+    # -- backup and restore (app/backup.py) --------------------------------------------------
+    async def backup_read(self, progress=None) -> list[dict]:
+        entries = []
+        for n, param in enumerate(PARAMS, 1):
+            entries.append(backup_entry(param, await self.read_param(param)))
+            if progress:
+                progress(n / len(PARAMS.params))
+        return entries
+
+    def backup_identity(self) -> dict:
+        return {"actuators": [f"{a.model} {a.gearing} {a.stroke_mm:g} mm" for a in self.actuators]}
+
+    async def restore_entry(self, key: str, raw: int) -> int:
+        param = PARAMS.by_key.get(key)
+        if param is None:
+            raise CommandError(f"{key} is not an Electrak service parameter")
+        return await self.write_param(param, param.decode(int(raw)), confirmed=True)
+
+    async def save_step(self) -> str:
+        await self.save_parameters()
+        return "save parameters (0xF0)"
 
     async def save_parameters(self) -> None:
         async with self._service_lock:

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import asyncio
+import time
 
 from app.modbus_line import LineError, ModbusLine
 from app.state import DeviceState
 from devices.hdlock import codec
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
-from devices.params import Param, ParamError
+from devices.params import Param, ParamError, backup_entry
 
 CHART_SERIES = {  # chart label -> parameter name
     "BoltPosition [Inc]": "BoltPosition",
@@ -21,7 +22,38 @@ class CommandError(Exception):
     """A command or write that did not take effect; the message says what to do."""
 
 
-class HdLockAdapter:
+class HdLockBackup:
+    """Backup and restore (see app/backup.py), shared by the Modbus and the CAN adapter."""
+
+    async def backup_read(self, progress=None) -> list[dict]:
+        started = time.time()
+        await self.poll()
+        missing = [p.label or p.name for p in PARAMS if (self.state.read_time(p) or 0) < started]
+        if missing:
+            raise CommandError(f"could not read {len(missing)} parameters (first: {missing[0]}): {self.state.last_error}")
+        if progress:
+            progress(1.0)
+        return [backup_entry(p, self.state.raw(p)) for p in PARAMS]
+
+    def backup_identity(self) -> dict:
+        values = self.state.values()
+        identity = {key: values[key]["value"] for key in ("SerialNumber", "FirmwareVersion", "HardwareVersion") if key in values}
+        if "SerialNumber" in identity:
+            identity["serial"] = identity.pop("SerialNumber")
+        return identity
+
+    async def restore_entry(self, key: str, raw: int) -> int:
+        param = PARAMS.by_key.get(key)
+        if param is None:
+            raise CommandError(f"{key} is not an HD-Lock parameter")
+        return await self.write_param(param, param.decode(int(raw)), confirmed=True)
+
+    async def save_step(self) -> str:
+        await self.save_settings()
+        return "Save-Settings"
+
+
+class HdLockAdapter(HdLockBackup):
     """One lock at one Modbus address on a :class:`ModbusLine`."""
 
     params = PARAMS
@@ -196,7 +228,7 @@ async def discover(line: ModbusLine, first: int = 1, last: int = 247, progress=N
 CAN_FRAME_BITS = 135  # an extended 6-byte answer with stuffing, roughly
 
 
-class HdLockCanAdapter:
+class HdLockCanAdapter(HdLockBackup):
     """One lock on a shared :class:`app.can_bus.CanBus`, addressed by its device ID (section 6)."""
 
     params = PARAMS

@@ -258,3 +258,41 @@ class M3ioAdapter:
             result[index] = codec.TempWord(int.from_bytes(answer.payload[:2], "little"))
         self.state.info["load_data"] = result
         return result
+
+    # -- backup and restore (app/backup.py) ------------------------------------------------------
+    async def backup_read(self, progress=None) -> list[dict]:
+        """Identity (for reference) and the 15 customer-data records (writable)."""
+        if not self.ids.addressed:
+            raise CommandError(f"nothing to back up: customer data needs addressed mode (SW1 switch 8 on; SW1 is 0x{self.sw1:02X})")
+        info = await self.read_identity()
+        entries = [
+            {"key": f"config:{k}", "name": name, "space": "config", "address": index, "raw": info[k], "value": info[k],
+             "text": str(info[k]), "unit": "", "writable": False}
+            for k, name, index in (("serial", "Serial number", 1), ("product_code", "Product code", 2),
+                                   ("version", "Software version", 3), ("config", "Dynamic configuration", 15))
+        ]
+        for index in codec.CUSTOMER_RECORDS:
+            payload = await self.read_customer(index)
+            entries.append({"key": f"customer:{index}", "name": f"Customer data {index}", "space": "customer", "address": index,
+                            "raw": payload.hex(" "), "value": payload.hex(" "), "text": payload.hex(" "), "unit": "", "writable": True})
+            if progress:
+                progress(index / 15)
+        return entries
+
+    def backup_identity(self) -> dict:
+        identity = self.state.info.get("identity") or {}
+        return {"serial": identity.get("serial"), "product": identity.get("product"), "version": identity.get("version"),
+                "variant": self.variant.value, "sw1": self.sw1}
+
+    async def restore_entry(self, key: str, raw: str) -> str:
+        space, _, index = key.partition(":")
+        if space != "customer":
+            raise CommandError(f"{key} is not writable")
+        try:
+            payload = bytes.fromhex(str(raw))
+        except ValueError:
+            raise CommandError(f"{key}: {raw!r} is not hex bytes") from None
+        return (await self.write_customer(int(index), payload)).hex(" ")
+
+    async def save_step(self) -> None:
+        return None  # every customer record is stored when written

@@ -1,0 +1,255 @@
+"""Parameter backup and restore, for every device type that offers it.
+
+A device adapter takes part by providing:
+
+- ``async backup_read(progress) -> list[dict]``: every parameter freshly read, each
+  ``{key, name, space, address, raw, value, unit, writable}``;
+- ``backup_identity() -> dict``: serial number, firmware and the like;
+- ``async restore_entry(key, raw) -> raw``: write one writable parameter with
+  validation and return the value read back (raises when it did not take);
+- ``async save_step() -> str | None``: make the written values permanent (the name
+  of the step), or None when the device stores every write by itself.
+
+Files: one JSON document per device (schema ``commission-backup`` version 1), written
+atomically; a whole plant downloads as one zip archive.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+import zipfile
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+SCHEMA = "commission-backup"
+VERSION = 1
+
+
+class BackupError(ValueError):
+    """A backup that cannot be made, read or restored; the message says which and why."""
+
+
+def tool_version() -> str:
+    try:
+        return metadata.version("commission")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def supports_backup(adapter: Any) -> bool:
+    return all(callable(getattr(adapter, name, None)) for name in ("backup_read", "backup_identity", "restore_entry", "save_step"))
+
+
+def make_document(plant: str, device: str, device_type: str, bus: str, identity: dict, entries: list[dict], now: float | None = None) -> dict:
+    when = datetime.fromtimestamp(now or time.time(), tz=timezone.utc)
+    return {
+        "schema": SCHEMA,
+        "version": VERSION,
+        "device": {"name": device, "type": device_type, "bus": bus},
+        "identity": identity,
+        "plant": plant,
+        "time": when.isoformat(timespec="seconds"),
+        "tool": {"name": "commission", "version": tool_version()},
+        "parameters": entries,
+    }
+
+
+def file_name(device: str, now: float | None = None) -> str:
+    return f"{device}-{datetime.fromtimestamp(now or time.time()):%Y%m%d-%H%M%S}.json"
+
+
+def write_atomic(path: Path, text: str) -> Path:
+    """Write to a temporary file in the same folder, flush it to disk, then rename.
+
+    A crash or error part-way leaves at most a temporary file, never a partial file
+    under the final name.
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    return path
+
+
+async def backup_device(runtime, name: str, out_dir: Path | None = None, progress=None) -> Path:
+    """Read every parameter of one device and write its backup file; returns the path."""
+    adapter = runtime.worker.adapters[name]
+    if not supports_backup(adapter):
+        raise BackupError(f"{name}: this device type has no parameters to back up")
+    state = runtime.store.devices[name]
+    entries = await adapter.backup_read(progress)
+    document = make_document(runtime.plant.name, name, state.type, state.bus, adapter.backup_identity(), entries)
+    path = (out_dir or runtime.backups_dir) / file_name(name)
+    write_atomic(path, json.dumps(document, indent=2, ensure_ascii=False))
+    runtime.audit.record(user="backup", role="engineer", device=name, action="backup", result=f"ok: {path.name}")
+    return path
+
+
+def zip_files(paths: list[Path], target: Path) -> Path:
+    """One archive of several backup files (whole-plant download)."""
+    def build(tmp: Path) -> None:
+        with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as archive:
+            for path in paths:
+                archive.write(path, path.name)
+
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
+    os.close(fd)
+    try:
+        build(Path(tmp))
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return target
+
+
+def load_document(text: str | bytes, source: str = "backup") -> dict:
+    """Parse and check a backup file; a corrupt, foreign or future file is refused by name."""
+    try:
+        data = json.loads(text)
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise BackupError(f"{source}: not a readable backup (truncated or not JSON: {exc})") from None
+    if not isinstance(data, dict) or data.get("schema") != SCHEMA:
+        raise BackupError(f"{source}: not a commission backup file (schema {data.get('schema') if isinstance(data, dict) else None!r})")
+    if data.get("version") != VERSION:
+        raise BackupError(f"{source}: backup schema version {data.get('version')!r} is not supported (this tool reads version {VERSION})")
+    device = data.get("device")
+    params = data.get("parameters")
+    if not isinstance(device, dict) or not isinstance(params, list):
+        raise BackupError(f"{source}: the backup lacks its device or parameter list (damaged file)")
+    for entry in params:
+        if not isinstance(entry, dict) or not {"key", "name", "raw", "writable"} <= set(entry):
+            raise BackupError(f"{source}: a parameter entry is incomplete (damaged file)")
+    return data
+
+
+@dataclass
+class DiffRow:
+    key: str
+    name: str
+    unit: str
+    current_raw: Any
+    current_value: Any
+    backup_raw: Any
+    backup_value: Any
+
+    @property
+    def changed(self) -> bool:
+        return self.current_raw != self.backup_raw
+
+
+@dataclass
+class RestorePlan:
+    device: str
+    document: dict
+    rows: list[DiffRow]
+    warnings: list[str] = field(default_factory=list)
+
+
+async def plan_restore(runtime, name: str, document: dict, progress=None) -> RestorePlan:
+    """Check type and identity, read the device now, diff the writable parameters."""
+    adapter = runtime.worker.adapters[name]
+    state = runtime.store.devices[name]
+    backup_type = document["device"].get("type")
+    if backup_type != state.type:
+        raise BackupError(f"the backup is of a {backup_type!r}, but {name} is a {state.type!r}: refused")
+    if not supports_backup(adapter):
+        raise BackupError(f"{name}: this device type cannot be restored")
+    current = {e["key"]: e for e in await adapter.backup_read(progress)}
+    warnings = []
+    ident_now, ident_then = adapter.backup_identity(), document.get("identity") or {}
+    for key in ("serial",):
+        if key in ident_then and key in ident_now and str(ident_then[key]) != str(ident_now[key]):
+            warnings.append(
+                f"the backup was taken from serial number {ident_then[key]}, this device is {ident_now[key]} "
+                "(a replaced device?): check before restoring"
+            )
+    if document["device"].get("name") != name:
+        warnings.append(f"the backup was taken from device '{document['device'].get('name')}' of plant '{document.get('plant')}'")
+    rows = []
+    for entry in document["parameters"]:
+        if not entry.get("writable"):
+            continue  # read-only parameters are kept for reference, never written
+        now = current.get(entry["key"])
+        if now is None or not now.get("writable"):
+            warnings.append(f"{entry['name']} is not writable on this device: skipped")
+            continue
+        rows.append(DiffRow(entry["key"], entry["name"], entry.get("unit", ""), now["raw"], now.get("value"), entry["raw"], entry.get("value")))
+    return RestorePlan(name, document, rows, warnings)
+
+
+@dataclass
+class RestoreReport:
+    written: list[str] = field(default_factory=list)
+    unchanged: list[str] = field(default_factory=list)
+    failed: list[tuple[str, str]] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    saved: str | None = None
+    save_error: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return not self.failed and not self.save_error
+
+    def summary(self) -> str:
+        text = (f"{len(self.written)} written, {len(self.unchanged)} unchanged, {len(self.failed)} failed, "
+                f"{len(self.skipped)} skipped")
+        if self.saved:
+            text += f"; {self.saved} done"
+        elif self.written and self.failed:
+            text += "; not saved because a write failed"
+        if self.save_error:
+            text += f"; saving failed: {self.save_error}"
+        return text
+
+
+async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, user: str = "local", role: str = "engineer", progress=None) -> RestoreReport:
+    """Write the selected changed parameters through the worker (role checked, audited),
+    read each back, and run the save step only when every write verified."""
+    report = RestoreReport()
+    rows = plan.rows
+    total = max(1, len(rows))
+    for n, row in enumerate(rows, 1):
+        if row.key not in selected:
+            report.skipped.append(row.name)
+        elif not row.changed:
+            report.unchanged.append(row.name)
+        else:
+            try:
+                await runtime.worker.command(
+                    plan.device, lambda a, row=row: a.restore_entry(row.key, row.backup_raw), role=role, user=user,
+                    describe="restore", parameter=row.name, old=row.current_value, new=row.backup_value,
+                )
+                report.written.append(row.name)
+            except Exception as exc:  # noqa: BLE001 - every failure is reported per parameter
+                report.failed.append((row.name, str(exc)))
+                if exc.__class__.__name__ == "PermissionDenied":
+                    break
+        if progress:
+            progress(n / total)
+    if report.written and not report.failed:
+        try:
+            report.saved = await runtime.worker.command(
+                plan.device, lambda a: a.save_step(), role=role, user=user, describe="restore: save step",
+            )
+        except Exception as exc:  # noqa: BLE001
+            report.save_error = str(exc)
+    runtime.audit.record(user=user, role=role, device=plan.device, action="restore", result=report.summary())
+    return report

@@ -1,0 +1,105 @@
+"""User accounts with roles, stored with salted argon2 hashes in ``users.toml`` in the data folder."""
+
+from __future__ import annotations
+
+import os
+import re
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from argon2 import PasswordHasher
+from argon2.exceptions import InvalidHashError, VerificationError
+
+ROLES = ("engineer", "viewer")  # engineer: may write, drive, restore; viewer: reads only
+LOOPBACK_HOSTS = {"127.0.0.1", "localhost", "::1"}
+_hasher = PasswordHasher()
+
+
+class UserError(ValueError):
+    """A user name, role or password that cannot be used."""
+
+
+def default_data_dir() -> Path:
+    """Where accounts, the audit log and backups live unless ``--data-dir`` says otherwise."""
+    base = os.environ.get("COMMISSION_DATA_DIR")
+    if base:
+        return Path(base)
+    xdg = os.environ.get("XDG_DATA_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".local" / "share") / "commission"
+
+
+@dataclass(frozen=True)
+class User:
+    name: str
+    role: str
+    password_hash: str
+
+
+class UserStore:
+    """The accounts file; written atomically, read on every change."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self.users: dict[str, User] = {}
+        self.load()
+
+    def load(self) -> None:
+        self.users = {}
+        if not self.path.exists():
+            return
+        try:
+            data = tomllib.loads(self.path.read_text(encoding="utf-8"))
+        except (OSError, tomllib.TOMLDecodeError) as exc:
+            raise UserError(f"{self.path}: cannot read the accounts file: {exc}") from None
+        for entry in data.get("user", []):
+            user = User(str(entry["name"]), str(entry["role"]), str(entry["hash"]))
+            if user.role in ROLES:
+                self.users[user.name] = user
+
+    def save(self) -> None:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        lines = ["# commission accounts: manage with `commission user add NAME --role engineer|viewer`", ""]
+        for user in sorted(self.users.values(), key=lambda u: u.name):
+            lines += ["[[user]]", f'name = "{user.name}"', f'role = "{user.role}"', f'hash = "{user.password_hash}"', ""]
+        tmp = self.path.with_suffix(".tmp")
+        tmp.write_text("\n".join(lines), encoding="utf-8")
+        os.chmod(tmp, 0o600)
+        tmp.replace(self.path)
+
+    def add(self, name: str, role: str, password: str) -> User:
+        if not re.fullmatch(r"[A-Za-z0-9_.@-]{1,64}", name):
+            raise UserError("user names may contain letters, digits and _ . @ - (up to 64)")
+        if role not in ROLES:
+            raise UserError(f"role must be one of {', '.join(ROLES)}")
+        if len(password) < 8:
+            raise UserError("the password needs at least 8 characters")
+        user = User(name, role, _hasher.hash(password))
+        self.users[name] = user
+        self.save()
+        return user
+
+    def remove(self, name: str) -> bool:
+        if self.users.pop(name, None) is None:
+            return False
+        self.save()
+        return True
+
+    def verify(self, name: str, password: str) -> User | None:
+        """The user when the password matches, else None (timing of a miss stays the same)."""
+        user = self.users.get(name)
+        try:
+            _hasher.verify(user.password_hash if user else _DUMMY, password)
+        except (VerificationError, InvalidHashError):
+            return None
+        return user
+
+    def has_engineer(self) -> bool:
+        return any(u.role == "engineer" for u in self.users.values())
+
+
+_DUMMY = _hasher.hash("not a password of anyone")
+
+
+def is_loopback(host: str) -> bool:
+    return host in LOOPBACK_HOSTS or host.startswith("127.")
