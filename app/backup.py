@@ -43,7 +43,9 @@ def tool_version() -> str:
 
 
 def supports_backup(adapter: Any) -> bool:
-    return all(callable(getattr(adapter, name, None)) for name in ("backup_read", "backup_identity", "restore_entry", "save_step"))
+    """The adapter takes part, and (``backup_available``) this device has something to back up."""
+    methods = all(callable(getattr(adapter, name, None)) for name in ("backup_read", "backup_identity", "restore_entry", "save_step"))
+    return methods and bool(getattr(adapter, "backup_available", True))
 
 
 def make_document(plant: str, device: str, device_type: str, bus: str, identity: dict, entries: list[dict], now: float | None = None) -> dict:

@@ -39,10 +39,38 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--no-sim", action="store_true", help="do not start simulated devices, even for buses with simulate = true")
     parser.add_argument("--show", action="store_true", help="open a browser window")
     parser.add_argument("-v", "--verbose", action="store_true", help="log more")
+    parser.add_argument("--data-dir", type=Path, default=None,
+                        help="accounts, audit database and backups (default: ~/.local/share/commission)")
     sub = parser.add_subparsers(dest="command")
     sim = sub.add_parser("sim", help="run only the simulated devices of a plant file")
     sim.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
     sim.add_argument("--all", action="store_true", help="simulate every bus, not only those with simulate = true")
+
+    backup = sub.add_parser("backup", help="back up the parameters of one device or the whole plant, headless")
+    backup.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
+    backup.add_argument("--device", action="append", default=[], help="device name (repeatable; default: every device)")
+    backup.add_argument("--out", type=Path, required=True, help="folder for the backup files")
+    backup.add_argument("--no-sim", action="store_true", help="do not start simulated devices")
+
+    restore = sub.add_parser("restore", help="restore one device from a backup file, headless")
+    restore.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
+    restore.add_argument("--device", required=True, help="device name")
+    restore.add_argument("file", type=Path, help="backup file (JSON)")
+    restore.add_argument("--yes", action="store_true", help="write without asking (the diff is printed anyway)")
+    restore.add_argument("--no-sim", action="store_true", help="do not start simulated devices")
+
+    user = sub.add_parser("user", help="manage accounts (needed to serve beyond the loopback address)")
+    user_sub = user.add_subparsers(dest="user_command", required=True)
+    add = user_sub.add_parser("add", help="add or replace an account")
+    add.add_argument("name")
+    add.add_argument("--role", choices=["engineer", "viewer"], required=True)
+    add.add_argument("--password-stdin", action="store_true", help="read the password from standard input")
+    remove = user_sub.add_parser("remove", help="remove an account")
+    remove.add_argument("name")
+    user_sub.add_parser("list", help="list accounts")
+
+    for command in (sim, backup, restore, user):
+        command.add_argument("--data-dir", type=Path, default=None, help=argparse.SUPPRESS)
     return parser
 
 
@@ -98,11 +126,148 @@ def run_sim(args) -> int:
     return 0
 
 
+def run_user(args) -> int:
+    import getpass
+
+    from app.users import UserError, UserStore, default_data_dir
+
+    store = UserStore((args.data_dir or default_data_dir()) / "users.toml")
+    if args.user_command == "list":
+        for user in sorted(store.users.values(), key=lambda u: u.name):
+            print(f"{user.name}\t{user.role}")
+        return 0
+    if args.user_command == "remove":
+        if not store.remove(args.name):
+            print(f"commission user: no account named {args.name}", file=sys.stderr)
+            return 2
+        print(f"removed {args.name}")
+        return 0
+    if args.password_stdin or not sys.stdin.isatty():
+        password = sys.stdin.readline().rstrip("\n")
+    else:
+        password = getpass.getpass(f"password for {args.name}: ")
+        if getpass.getpass("again: ") != password:
+            print("commission user: the passwords differ", file=sys.stderr)
+            return 2
+    try:
+        store.add(args.name, args.role, password)
+    except UserError as exc:
+        print(f"commission user: {exc}", file=sys.stderr)
+        return 2
+    print(f"{args.name} ({args.role}) saved in {store.path}")
+    return 0
+
+
+async def _headless(args, work) -> int:
+    """Start the plant without GUI, wait until its devices answer, run ``work(runtime)``."""
+    from app.runtime import Runtime
+    from app.users import default_data_dir
+
+    plant = _load(args.plant)
+    runtime = Runtime(plant, simulate=not args.no_sim, data_dir=args.data_dir or default_data_dir())
+    await runtime.start()
+    try:
+        names = getattr(args, "device", None)
+        names = [names] if isinstance(names, str) else (names or list(plant.devices))
+        for name in names:
+            if name not in plant.devices:
+                print(f"commission: the plant has no device named {name!r} (devices: {', '.join(plant.devices)})", file=sys.stderr)
+                return 2
+        loop = asyncio.get_running_loop()
+        end = loop.time() + 15
+        while loop.time() < end and any(runtime.store.devices[n].status != "online" for n in names):
+            await asyncio.sleep(0.2)
+        return await work(runtime, names)
+    finally:
+        await runtime.stop()
+
+
+def run_backup(args) -> int:
+    from app import backup
+
+    async def work(runtime, names) -> int:
+        failures = 0
+        for name in names:
+            state = runtime.store.devices[name]
+            if state.status != "online":
+                print(f"{name}: not answering ({state.last_error or 'no answer'}): skipped", file=sys.stderr)
+                failures += 1
+                continue
+            try:
+                path = await backup.backup_device(runtime, name, args.out)
+            except Exception as exc:  # noqa: BLE001 - one device's failure must not stop the others
+                print(f"{name}: backup failed: {exc}", file=sys.stderr)
+                failures += 1
+                continue
+            print(f"{name}: {path}")
+        return 1 if failures else 0
+
+    return asyncio.run(_headless(args, work))
+
+
+def run_restore(args) -> int:
+    from app import backup
+
+    try:
+        document = backup.load_document(args.file.read_bytes(), str(args.file))
+    except (OSError, backup.BackupError) as exc:
+        print(f"commission restore: {exc}", file=sys.stderr)
+        return 2
+
+    async def work(runtime, names) -> int:
+        name = names[0]
+        if runtime.store.devices[name].status != "online":
+            print(f"{name}: not answering: {runtime.store.devices[name].last_error}", file=sys.stderr)
+            return 1
+        try:
+            plan = await backup.plan_restore(runtime, name, document)
+        except Exception as exc:  # noqa: BLE001
+            print(f"commission restore: {exc}", file=sys.stderr)
+            return 2
+        for warning in plan.warnings:
+            print(f"warning: {warning}")
+        changed = [r for r in plan.rows if r.changed]
+        for row in changed:
+            print(f"  {row.name}: {row.current_value} -> {row.backup_value} {row.unit}".rstrip())
+        if not changed:
+            print("nothing to write: the device already holds the backed-up values")
+            return 0
+        if not args.yes:
+            if not sys.stdin.isatty():
+                print("commission restore: add --yes to write without a terminal to confirm", file=sys.stderr)
+                return 2
+            if input(f"write {len(changed)} parameters to {name}? [y/N] ").strip().lower() != "y":
+                print("nothing written")
+                return 1
+        report = await backup.execute_restore(runtime, plan, {r.key for r in plan.rows}, user="cli")
+        for parameter, error in report.failed:
+            print(f"  failed: {parameter}: {error}", file=sys.stderr)
+        print(report.summary())
+        return 0 if report.ok else 1
+
+    return asyncio.run(_headless(args, work))
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     _quiet_libraries(args.verbose)
-    if args.command == "sim":
-        return run_sim(args)
+    commands = {"sim": run_sim, "backup": run_backup, "restore": run_restore, "user": run_user}
+    if args.command in commands:
+        return commands[args.command](args)
+
+    from app.users import UserStore, default_data_dir, is_loopback
+
+    data_dir = args.data_dir or default_data_dir()
+    auth_required = not is_loopback(args.host)
+    if auth_required and not UserStore(data_dir / "users.toml").has_engineer():
+        print(
+            f"commission: refusing to listen on {args.host}: beyond the loopback address every browser must log in, "
+            "and there is no engineer account yet. Add one with\n"
+            f"  commission user add NAME --role engineer{'' if args.data_dir is None else f' --data-dir {args.data_dir}'}\n"
+            "or serve on 127.0.0.1 only (the default).",
+            file=sys.stderr,
+        )
+        return 2
 
     from nicegui import ui
 
@@ -110,7 +275,7 @@ def main(argv: list[str] | None = None) -> int:
     from app.runtime import Runtime
 
     plant = _load(args.plant)
-    runtime = Runtime(plant, simulate=not args.no_sim)
+    runtime = Runtime(plant, simulate=not args.no_sim, data_dir=data_dir, auth_required=auth_required)
     web.register(runtime)
     print(f"commission: plant '{plant.name}' ({len(plant.devices)} devices) at http://{args.host}:{args.port}/", flush=True)
     ui.run(
@@ -121,6 +286,7 @@ def main(argv: list[str] | None = None) -> int:
         reload=False,
         show_welcome_message=False,
         favicon="🔧",
+        storage_secret=web.storage_secret(data_dir),
     )
     return 0
 

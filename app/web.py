@@ -3,17 +3,47 @@
 from __future__ import annotations
 
 import importlib
+import secrets
+from pathlib import Path
 
-from fastapi import HTTPException
+from fastapi import HTTPException, Request
+from fastapi.responses import RedirectResponse
 from nicegui import app, ui
+from starlette.middleware.base import BaseHTTPMiddleware
 
 from app import runtime as rt
 from app.runtime import Runtime
 
 
-def session_role_of(client) -> str:
-    """Served on loopback without login: every browser is an engineer."""
-    return "engineer"
+OPEN_PATHS = {"/login"}
+
+
+def storage_secret(data_dir: Path) -> str:
+    """A per-installation secret for the session cookies, made once and kept in the data folder."""
+    path = Path(data_dir) / "session-secret"
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(secrets.token_urlsafe(32))
+        path.chmod(0o600)
+    return path.read_text().strip()
+
+
+class AuthMiddleware(BaseHTTPMiddleware):
+    """Beyond the loopback address every page and API call needs a logged-in session."""
+
+    def __init__(self, asgi_app, runtime: Runtime):
+        super().__init__(asgi_app)
+        self.runtime = runtime
+
+    async def dispatch(self, request: Request, call_next):
+        path = request.url.path
+        if self.runtime.auth_required and not path.startswith("/_nicegui") and path not in OPEN_PATHS:
+            public_plant_view = path == "/plant" and self.runtime.plant.plant_view.public
+            if not public_plant_view and not app.storage.user.get("authenticated", False):
+                if path.startswith("/api/"):
+                    raise HTTPException(status_code=401, detail="log in first")
+                return RedirectResponse(f"/login?redirect_to={path}")
+        return await call_next(request)
 
 
 def register(runtime: Runtime) -> None:
@@ -21,8 +51,32 @@ def register(runtime: Runtime) -> None:
     rt.set_current(runtime)
     app.on_startup(runtime.start)
     app.on_shutdown(runtime.stop)
-    app.on_connect(lambda client: runtime.worker.session_opened(client.id, session_role_of(client)))
     app.on_disconnect(lambda client: runtime.worker.session_closed(client.id))
+    app.add_middleware(AuthMiddleware, runtime=runtime)
+
+    @ui.page("/login")
+    def login_page(redirect_to: str = "/") -> None:
+        from pages import login
+
+        login.content(redirect_to)
+
+    @ui.page("/plant")
+    def plant_page() -> None:
+        from pages import plant_view
+
+        plant_view.content()
+
+    @ui.page("/backup")
+    def backup_page() -> None:
+        from pages import backup
+
+        backup.content()
+
+    @ui.page("/audit")
+    def audit_page() -> None:
+        from pages import audit
+
+        audit.content()
 
     @ui.page("/")
     def overview_page() -> None:

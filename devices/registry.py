@@ -38,6 +38,8 @@ class DeviceType:
     can_codec: str = ""
     key_values: tuple[str, ...] = ()  # parameter names shown on tiles
     summary: Callable[[Any], list[str]] | None = None  # state -> tile lines, where key_values do not fit
+    # state -> {"lines": [...], "alarms": [...], "bar": (fraction, label) | None, "icon": str} for /plant
+    plant_tile: Callable[[Any], dict] | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     def adapter_class(self, bus_type: str) -> Callable[..., Any]:

@@ -270,8 +270,10 @@ async def _write_service(name: str, param, value) -> None:
     warning = param.needs_confirmation(raw)
     if warning and not await confirm(f"Set {param.name} to {param.display(raw)}?", warning, ok="Change bit rate"):
         return
+    before = rt.current().store.devices[name].raw(param)
     await run_command(name, lambda a: a.write_param(param, param.decode(raw), confirmed=bool(warning)),
-                      f"write {param.name}", success=f"{param.name} = {param.display(raw)} written and read back")
+                      f"write {param.name}", success=f"{param.name} = {param.display(raw)} written and read back",
+                      parameter=param.name, old="" if before is None else param.display(before), new=param.display(raw))
 
 
 def _export_csv(state, name: str) -> None:

@@ -10,6 +10,7 @@ from pathlib import Path
 from nicegui import ui
 
 from app import runtime as rt
+from pages.session import current_user
 
 CSS = (Path(__file__).resolve().parent.parent / "static" / "commission.css").read_text()
 STATUS_ICON = {"online": "check_circle", "stale": "schedule", "offline": "error", "unknown": "help"}
@@ -31,6 +32,13 @@ def fmt_time(t: float | None) -> str:
     return "-" if t is None else datetime.fromtimestamp(t).strftime("%H:%M:%S")
 
 
+def _logout() -> None:
+    from nicegui import app
+
+    app.storage.user.clear()
+    ui.navigate.to("/login")
+
+
 def notify_error(message: str) -> None:
     ui.notify(message, type="negative", multi_line=True, close_button="OK", timeout=0)
 
@@ -50,6 +58,19 @@ def frame(title: str):
         with ui.row().classes("items-center gap-2") as buses:
             pass
         ui.link("Overview", "/").classes("text-white")
+        ui.link("Plant view", "/plant").classes("text-white")
+        ui.link("Backup", "/backup").classes("text-white")
+        ui.link("Audit", "/audit").classes("text-white")
+        user, role = current_user()
+        if runtime.auth_required:
+            ui.label(f"{user} ({role})").classes("text-caption text-grey-4")
+            ui.button("Log out", on_click=_logout).props("flat dense color=white")
+        elif role:
+            ui.label("local engineer").classes("text-caption text-grey-4").tooltip(
+                "Served on the loopback address only: no login, full rights"
+            )
+    client = ui.context.client
+    runtime.worker.session_opened(client.id, role or "none")
 
     def refresh_buses() -> None:
         buses.clear()

@@ -188,11 +188,14 @@ async def _write(name: str, param: Param, value) -> None:
     warning = param.needs_confirmation(raw)
     if warning and not await confirm(f"Write {param.name} = {param.display(raw)}?", warning, ok="Write anyway"):
         return
+    state = rt.current().store.devices[name]
+    before = state.raw(param)
     await run_command(
         name,
         lambda a: a.write_param(param, param.decode(raw), confirmed=bool(warning)),
         f"write {param.name}",
         success=f"{param.name} = {param.display(raw)} written and read back (not yet saved)",
+        parameter=param.label or param.name, old="" if before is None else param.display(before), new=param.display(raw),
     )
 
 

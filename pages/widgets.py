@@ -16,8 +16,10 @@ CHART_WINDOW_S = 300
 
 
 def session_role() -> str:
-    """Role of the browser session. Served on loopback, ``commission`` needs no login."""
-    return "engineer"
+    """Role of the browser session (engineer on loopback, else the account's role)."""
+    from pages.session import current_user
+
+    return current_user()[1]
 
 
 class Lamp:
@@ -136,13 +138,20 @@ async def confirm(title: str, text: str, ok: str = "Continue", danger: bool = Tr
 
 async def run_command(
     device: str, action: Callable[[object], Awaitable[object]], describe: str, success: str = "", write: bool = True,
+    parameter: str = "", old: object = "", new: object = "",
 ) -> tuple[bool, object]:
     """Submit a command to the worker and report the outcome as a notification.
 
     ``write=False`` for reads and for actions that only make a device safer (stop, release).
     """
+    from pages.session import current_user
+
+    user, role = current_user()
     try:
-        result = await rt.current().worker.command(device, action, role=session_role(), describe=describe, write=write)
+        result = await rt.current().worker.command(
+            device, action, role=role, user=user or "anonymous", describe=describe, write=write,
+            record=write or not describe.startswith("read"), parameter=parameter, old=old, new=new,
+        )
     except PermissionDenied as exc:
         ui.notify(str(exc), type="negative")
         return False, None

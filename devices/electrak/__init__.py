@@ -41,6 +41,18 @@ def _summary(state) -> list[str]:
     return lines
 
 
+def _plant_tile(state) -> dict:
+    info = state.info
+    recent = info.get("status") or []
+    limits = info.get("limits")
+    position = sum(f.position_mm for f in recent) / len(recent) if recent else None
+    faults = [codec.ERROR_FLAGS[b][0] for b in range(8) if info.get("errors", 0) >> b & 1]
+    moving = [codec.MOTION_FLAGS[b][0] for b in range(2) if info.get("motion", 0) >> b & 1]
+    lines = [("moving: " + ", ".join(moving)) if moving else "standing", f"actuators {info.get('heard', 0)} of {info.get('configured', 0)}"]
+    bar = None if position is None or limits is None else (min(1.0, position / limits.stroke_mm), f"{position:.1f} of {limits.stroke_mm:g} mm")
+    return {"lines": lines, "alarms": faults, "bar": bar, "icon": "height"}
+
+
 DEVICE_TYPE = DeviceType(
     name="electrak",
     title="Electrak HD network",
@@ -52,4 +64,5 @@ DEVICE_TYPE = DeviceType(
     bus_identity=lambda options, bus_type: "electrak network",  # one network per bus: the IDs 0x06/0x07 are fixed
     can_codec="devices.electrak.codec",
     summary=_summary,
+    plant_tile=_plant_tile,
 )

@@ -45,6 +45,29 @@ def _identity(options: dict[str, Any], bus_type: str):
     return str(codec.DeviceId.make(device_id, options.get("extended")))
 
 
+def _plant_tile(state) -> dict:
+    values = state.values()
+    status = values.get("LockStatus", {}).get("fields") or {}
+    door = values.get("DoorState", {}).get("name") or "door: unknown"
+    if status.get("BoltLocked"):
+        bolt, icon = "bolt locked", "lock"
+    elif status.get("BoltUnlocked"):
+        bolt, icon = "bolt unlocked", "lock_open"
+    elif status.get("BoltMovingOut") or status.get("BoltMovingIn"):
+        bolt, icon = "bolt moving", "sync"
+    else:
+        bolt, icon = "bolt: unknown", "help"
+    alarms = []
+    state_machine = values.get("StateMachineState", {}).get("name") or ""
+    if state_machine.startswith("Error"):
+        alarms.append(state_machine)
+    if status.get("ProximityOverrange"):
+        alarms.append("hall sensors overdriven (magnet)")
+    position = values.get("BoltPosition", {}).get("value")
+    bar = None if position is None else (min(1.0, position / 115), f"bolt {position} Inc")
+    return {"lines": [door, bolt], "alarms": alarms, "bar": bar, "icon": icon}
+
+
 DEVICE_TYPE = DeviceType(
     name="hdlock",
     title="HD-Lock",
@@ -56,4 +79,5 @@ DEVICE_TYPE = DeviceType(
     bus_identity=_identity,
     can_codec="devices.hdlock.codec",
     key_values=("DoorState", "LockStatus", "BoltPosition"),
+    plant_tile=_plant_tile,
 )

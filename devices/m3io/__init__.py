@@ -38,6 +38,16 @@ def _summary(state) -> list[str]:
     return lines
 
 
+def _plant_tile(state) -> dict:
+    info = state.info
+    outputs = info.get("outputs_on") or []
+    lines = ["outputs on: " + (", ".join(outputs) if outputs else "none")]
+    alarms = list(info.get("faults") or [])
+    if info.get("bitrate_mismatch"):
+        alarms.append("bit rate mismatch")
+    return {"lines": lines, "alarms": alarms, "bar": None, "icon": "electrical_services"}
+
+
 DEVICE_TYPE = DeviceType(
     name="m3io",
     title="CAN-M3IO",
@@ -48,4 +58,5 @@ DEVICE_TYPE = DeviceType(
     check_config=_check_config,
     bus_identity=_identity,
     summary=_summary,
+    plant_tile=_plant_tile,
 )

@@ -260,6 +260,11 @@ class M3ioAdapter:
         return result
 
     # -- backup and restore (app/backup.py) ------------------------------------------------------
+    @property
+    def backup_available(self) -> bool:
+        """Only the addressed mode has stored data (customer records) to back up."""
+        return self.ids.addressed
+
     async def backup_read(self, progress=None) -> list[dict]:
         """Identity (for reference) and the 15 customer-data records (writable)."""
         if not self.ids.addressed:

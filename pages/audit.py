@@ -1,0 +1,63 @@
+"""Audit log page: every write, command and restore, with filters and CSV export."""
+
+from __future__ import annotations
+
+from datetime import datetime
+
+from nicegui import ui
+
+from app import runtime as rt
+from app.audit import to_csv
+from pages.frame import frame
+
+COLUMNS = [
+    {"name": "time", "label": "Time", "field": "time", "align": "left", "sortable": True},
+    {"name": "user", "label": "User", "field": "user", "align": "left"},
+    {"name": "role", "label": "Role", "field": "role", "align": "left"},
+    {"name": "device", "label": "Device", "field": "device", "align": "left"},
+    {"name": "action", "label": "Action", "field": "action", "align": "left"},
+    {"name": "parameter", "label": "Parameter", "field": "parameter", "align": "left"},
+    {"name": "old", "label": "Old", "field": "old", "align": "left"},
+    {"name": "new", "label": "New", "field": "new", "align": "left"},
+    {"name": "result", "label": "Result", "field": "result", "align": "left"},
+]
+
+
+def content() -> None:
+    runtime = rt.current()
+    audit = runtime.audit
+    with frame("Audit log"):
+        ui.label(f"Stored in {audit.path}; survives restarts.").classes("text-caption text-grey-8")
+        with ui.row().classes("items-end gap-3"):
+            device = ui.select([""] + sorted(set(runtime.plant.devices) | set(audit.devices())), value="", label="Device").props(
+                "dense outlined clearable"
+            ).classes("w-48")
+            user = ui.input("User").props("dense outlined clearable").classes("w-36")
+            text = ui.input("Text (action, parameter, result)").props("dense outlined clearable").classes("w-64")
+            result = ui.select({"": "any result", "ok": "ok", "failed": "failed", "refused": "refused"}, value="", label="Result").props(
+                "dense outlined"
+            ).classes("w-36")
+            ui.button("CSV", icon="download", on_click=lambda: ui.download(to_csv(entries()).encode(), f"audit-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")).props("outline")
+        count = ui.label().classes("text-caption")
+        table = ui.table(columns=COLUMNS, rows=[], row_key="id", pagination=50).classes("w-full reg-table")
+        table.props("dense flat bordered")
+
+    def entries():
+        return audit.query(device=device.value or "", user=user.value or "", text=text.value or "", result=result.value or "", limit=5000)
+
+    def refresh() -> None:
+        found = entries()
+        rows = [
+            {"id": e.id, "time": datetime.fromtimestamp(e.time).strftime("%Y-%m-%d %H:%M:%S"), "user": e.user, "role": e.role,
+             "device": e.device, "action": e.action, "parameter": e.parameter, "old": e.old, "new": e.new, "result": e.result}
+            for e in found
+        ]
+        count.set_text(f"{len(rows)} entries" + (" (newest 5000)" if len(rows) == 5000 else ""))
+        if rows != table.rows:
+            table.rows = rows
+            table.update()
+
+    for element in (device, user, text, result):
+        element.on_value_change(refresh)
+    refresh()
+    ui.timer(2.0, refresh)

@@ -1,0 +1,229 @@
+"""Backup and restore page: back up devices with progress, list and download backups,
+restore one with a diff of the writable parameters and a report."""
+
+from __future__ import annotations
+
+import json
+from datetime import datetime
+from pathlib import Path
+
+from nicegui import events, ui
+
+from app import backup
+from app import runtime as rt
+from pages.frame import frame, notify_error
+from pages.session import can_write, current_user
+
+DIFF_COLUMNS = [
+    {"name": "name", "label": "Parameter", "field": "name", "align": "left"},
+    {"name": "current", "label": "Device now", "field": "current", "align": "left"},
+    {"name": "backup", "label": "In the backup", "field": "backup", "align": "left"},
+    {"name": "state", "label": "", "field": "state", "align": "left"},
+]
+
+
+def _files(directory: Path) -> list[dict]:
+    rows = []
+    for path in sorted(directory.glob("*.json"), key=lambda p: p.stat().st_mtime, reverse=True):
+        try:
+            doc = backup.load_document(path.read_bytes(), path.name)
+            device, dtype, when = doc["device"].get("name", "?"), doc["device"].get("type", "?"), doc.get("time", "")
+        except backup.BackupError as exc:
+            device, dtype, when = "-", "unreadable", str(exc)[:60]
+        rows.append({"name": path.name, "device": device, "type": dtype, "time": when, "size": f"{path.stat().st_size / 1024:.1f} kB"})
+    return rows
+
+
+def content() -> None:
+    runtime = rt.current()
+    directory = runtime.backups_dir
+    directory.mkdir(parents=True, exist_ok=True)
+    devices = [name for name, a in runtime.worker.adapters.items() if backup.supports_backup(a)]
+    with frame("Backup and restore"):
+        ui.label(f"Backups are written to {directory}").classes("text-caption text-grey-8")
+        with ui.card().classes("w-full"):
+            ui.label("Back up").classes("text-subtitle1")
+            with ui.row().classes("gap-4"):
+                boxes = {name: ui.checkbox(f"{name} ({runtime.store.devices[name].type})", value=True) for name in devices}
+            with ui.row().classes("items-center"):
+                start = ui.button("Back up selected", icon="save_alt").props("data-testid=backup-start")
+                archive = ui.button("Download as one archive", icon="folder_zip").props("outline")
+                archive.set_visibility(False)
+            progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
+            status = ui.label().classes("text-body2")
+            made: list[Path] = []
+
+        with ui.card().classes("w-full"):
+            with ui.row().classes("items-center w-full"):
+                ui.label("Backups in the folder").classes("text-subtitle1")
+                ui.space()
+                ui.upload(label="Restore from a file", auto_upload=True, max_file_size=5_000_000,
+                          on_upload=lambda e: _uploaded(e)).props("accept=.json flat bordered").classes("w-64")
+            table = ui.table(
+                columns=[{"name": k, "label": k.title(), "field": k, "align": "left"} for k in ("name", "device", "type", "time", "size")]
+                + [{"name": "actions", "label": "", "field": "name"}],
+                rows=_files(directory), row_key="name", pagination=20,
+            ).classes("w-full reg-table").props("dense flat bordered")
+            table.add_slot("body-cell-actions", """
+                <q-td :props="props">
+                  <q-btn flat dense icon="download" @click="$parent.$emit('download', props.row.name)" />
+                  <q-btn flat dense icon="settings_backup_restore" label="Restore" @click="$parent.$emit('restore', props.row.name)" />
+                </q-td>""")
+        restore_box = ui.column().classes("w-full")
+
+    def refresh_files() -> None:
+        table.rows = _files(directory)
+        table.update()
+
+    async def run_backup() -> None:
+        chosen = [name for name, box in boxes.items() if box.value]
+        if not chosen:
+            ui.notify("Select at least one device", type="warning")
+            return
+        start.disable()
+        made.clear()
+        failures = []
+        for n, name in enumerate(chosen):
+            status.set_text(f"reading {name} ({n + 1} of {len(chosen)}) ...")
+
+            def step(fraction: float, n=n) -> None:
+                progress.set_value((n + fraction) / len(chosen))
+
+            try:
+                made.append(await backup.backup_device(runtime, name, directory, step))
+            except Exception as exc:  # noqa: BLE001 - one device's failure must not stop the others
+                failures.append(f"{name}: {exc}")
+            progress.set_value((n + 1) / len(chosen))
+        start.enable()
+        status.set_text(f"{len(made)} backup file(s) written" + (f"; failed: {'; '.join(failures)}" if failures else ""))
+        status.classes(replace="text-body2 " + ("text-negative" if failures else "text-positive"))
+        archive.set_visibility(len(made) > 1)
+        if len(made) == 1:
+            ui.download(made[0])
+        refresh_files()
+
+    def download_archive() -> None:
+        target = directory / f"plant-{runtime.plant.name}-{datetime.now():%Y%m%d-%H%M%S}.zip"
+        ui.download(backup.zip_files(made, target))
+
+    start.on_click(run_backup)
+    archive.on_click(download_archive)
+    table.on("download", lambda e: ui.download(directory / Path(e.args).name))
+    table.on("restore", lambda e: _open_restore((directory / Path(e.args).name).read_bytes(), Path(e.args).name))
+
+    async def _uploaded(event: events.UploadEventArguments) -> None:
+        _open_restore(await event.file.read(), event.file.name)
+
+    def _open_restore(data: bytes, source: str) -> None:
+        restore_box.clear()
+        try:
+            document = backup.load_document(data, source)
+        except backup.BackupError as exc:
+            notify_error(str(exc))
+            return
+        with restore_box:
+            RestoreFlow(document, source)
+
+
+class RestoreFlow:
+    """Pick the device, see the diff, deselect rows, write, read back, save, report."""
+
+    def __init__(self, document: dict, source: str):
+        runtime = rt.current()
+        self.runtime = runtime
+        self.document = document
+        self.plan: backup.RestorePlan | None = None
+        dtype = document["device"].get("type")
+        candidates = [n for n, s in runtime.store.devices.items() if s.type == dtype and backup.supports_backup(runtime.worker.adapters[n])]
+        default = document["device"].get("name") if document["device"].get("name") in candidates else (candidates[0] if candidates else None)
+        with ui.card().classes("w-full") as self.card:
+            ui.label(f"Restore from {source}").classes("text-subtitle1")
+            ui.label(
+                f"{dtype} '{document['device'].get('name')}' of plant '{document.get('plant')}', taken {document.get('time')} "
+                f"with commission {document.get('tool', {}).get('version', '?')}; identity {json.dumps(document.get('identity'))}"
+            ).classes("text-caption text-grey-8")
+            if not candidates:
+                ui.label(f"This plant has no {dtype!r}: the backup cannot be restored here.").classes("text-negative")
+                return
+            with ui.row().classes("items-center"):
+                self.device = ui.select(candidates, value=default, label="Restore to").props("dense outlined").classes("w-56")
+                ui.button("Compare with the device", icon="compare_arrows", on_click=self.compare).props("data-testid=restore-compare")
+            self.progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
+            self.warnings = ui.column().classes("gap-0")
+            self.table = ui.table(columns=DIFF_COLUMNS, rows=[], row_key="key", selection="multiple", pagination=0).classes(
+                "w-full reg-table"
+            ).props("dense flat bordered")
+            self.table.set_visibility(False)
+            with ui.row().classes("items-center"):
+                self.write = ui.button("Write selected", icon="upload", color="negative", on_click=self.execute).props("data-testid=restore-write")
+                self.write.set_visibility(False)
+                self.summary = ui.label().classes("text-body2")
+            self.report = ui.column().classes("gap-0")
+
+    async def compare(self) -> None:
+        self.warnings.clear()
+        self.report.clear()
+        self.progress.set_value(0)
+        try:
+            self.plan = await backup.plan_restore(self.runtime, self.device.value, self.document, self.progress.set_value)
+        except Exception as exc:  # noqa: BLE001 - type mismatch, unreadable device ...
+            notify_error(f"Cannot restore: {exc}")
+            return
+        self.progress.set_value(1)
+        with self.warnings:
+            for warning in self.plan.warnings:
+                ui.label(f"⚠ {warning}").classes("text-warning text-body1")
+        rows = [
+            {"key": r.key, "name": r.name, "current": f"{r.current_value} {r.unit}".strip(),
+             "backup": f"{r.backup_value} {r.unit}".strip(), "state": "differs" if r.changed else "same"}
+            for r in self.plan.rows
+        ]
+        self.table.rows = rows
+        self.table.selected = [row for row in rows if row["state"] == "differs"]
+        self.table.set_visibility(True)
+        self.table.update()
+        changed = sum(1 for r in self.plan.rows if r.changed)
+        self.summary.set_text(f"{changed} of {len(rows)} writable parameters differ; read-only ones are never written")
+        self.write.set_visibility(changed > 0)
+        self.write.set_enabled(can_write())
+
+    async def execute(self) -> None:
+        if self.plan is None:
+            return
+        from pages.widgets import confirm
+
+        selected = {row["key"] for row in self.table.selected}
+        to_write = [r for r in self.plan.rows if r.key in selected and r.changed]
+        if not to_write:
+            ui.notify("No differing parameter is selected", type="warning")
+            return
+        if not await confirm(f"Write {len(to_write)} parameters to {self.plan.device}?",
+                             "Each value is written, read back and, when all took, saved in the device.", ok="Write"):
+            return
+        user, role = current_user()
+        self.write.disable()
+        report = await backup.execute_restore(self.runtime, self.plan, selected, user=user, role=role, progress=self.progress.set_value)
+        self.write.enable()
+        self.report.clear()
+        with self.report:
+            ui.label(report.summary()).classes("text-body1 " + ("text-positive" if report.ok else "text-negative")).props(
+                "data-testid=restore-report"
+            )
+            for name, error in report.failed:
+                ui.label(f"failed: {name}: {error}").classes("text-negative")
+            if report.written:
+                ui.label("written: " + ", ".join(report.written)).classes("text-caption")
+        await self.compare_quietly()
+
+    async def compare_quietly(self) -> None:
+        try:
+            self.plan = await backup.plan_restore(self.runtime, self.plan.device, self.document)
+        except Exception:  # noqa: BLE001 - the report above already says what happened
+            return
+        rows = {r.key: r for r in self.plan.rows}
+        for row in self.table.rows:
+            r = rows.get(row["key"])
+            if r is not None:
+                row["current"] = f"{r.current_value} {r.unit}".strip()
+                row["state"] = "differs" if r.changed else "same"
+        self.table.update()
