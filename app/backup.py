@@ -229,10 +229,10 @@ async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, use
     rows = plan.rows
     total = max(1, len(rows))
     for n, row in enumerate(rows, 1):
-        if row.key not in selected:
-            report.skipped.append(row.name)
-        elif not row.changed:
+        if not row.changed:
             report.unchanged.append(row.name)
+        elif row.key not in selected:
+            report.skipped.append(row.name)
         else:
             try:
                 await runtime.worker.command(

@@ -67,10 +67,12 @@ def build_parser() -> argparse.ArgumentParser:
     add.add_argument("--password-stdin", action="store_true", help="read the password from standard input")
     remove = user_sub.add_parser("remove", help="remove an account")
     remove.add_argument("name")
-    user_sub.add_parser("list", help="list accounts")
+    listing = user_sub.add_parser("list", help="list accounts")
 
-    for command in (sim, backup, restore, user):
-        command.add_argument("--data-dir", type=Path, default=None, help=argparse.SUPPRESS)
+    for command in (sim, backup, restore, user, add, remove, listing):
+        # SUPPRESS: a subcommand's default must not overwrite a --data-dir given before it
+        command.add_argument("--data-dir", type=Path, default=argparse.SUPPRESS,
+                             help="accounts, audit database and backups (default: ~/.local/share/commission)")
     return parser
 
 

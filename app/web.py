@@ -7,7 +7,7 @@ import secrets
 from pathlib import Path
 
 from fastapi import HTTPException, Request
-from fastapi.responses import RedirectResponse
+from fastapi.responses import JSONResponse, RedirectResponse
 from nicegui import app, ui
 from starlette.middleware.base import BaseHTTPMiddleware
 
@@ -41,7 +41,7 @@ class AuthMiddleware(BaseHTTPMiddleware):
             public_plant_view = path == "/plant" and self.runtime.plant.plant_view.public
             if not public_plant_view and not app.storage.user.get("authenticated", False):
                 if path.startswith("/api/"):
-                    raise HTTPException(status_code=401, detail="log in first")
+                    return JSONResponse({"detail": "log in first"}, status_code=401)
                 return RedirectResponse(f"/login?redirect_to={path}")
         return await call_next(request)
 

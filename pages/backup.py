@@ -226,4 +226,8 @@ class RestoreFlow:
             if r is not None:
                 row["current"] = f"{r.current_value} {r.unit}".strip()
                 row["state"] = "differs" if r.changed else "same"
+        self.table.selected = [row for row in self.table.rows if row["state"] == "differs"]
         self.table.update()
+        changed = sum(1 for r in self.plan.rows if r.changed)
+        self.summary.set_text(f"{changed} of {len(self.plan.rows)} writable parameters differ" + ("" if changed else ": the device matches the backup"))
+        self.write.set_visibility(changed > 0)

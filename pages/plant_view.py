@@ -9,7 +9,7 @@ from nicegui import ui
 
 from app import runtime as rt
 from devices.registry import DEVICE_TYPES
-from pages.frame import CSS, fmt_age
+from pages.frame import CSS, STATUS_COLOR, fmt_age
 
 TILE_CSS = """
 .plant-grid { display: grid; grid-template-columns: repeat(auto-fill, minmax(300px, 1fr)); gap: 16px; width: 100%; }
@@ -32,12 +32,12 @@ class PlantTile:
                 self.icon = ui.icon("help", size="40px")
                 with ui.column().classes("gap-0"):
                     ui.label(name).classes("name")
-                    ui.label(f"{self.device_type.title} · {self.state.bus}").classes("text-caption text-grey-8")
+                    ui.label(f"{self.device_type.title} · {self.state.bus}").classes("text-body2 text-grey-8")
                 ui.space()
-                self.status = ui.label().classes("text-body2")
+                self.status = ui.badge().classes("text-body1")
             self.lines = ui.column().classes("gap-0")
             self.bar = ui.linear_progress(value=0, show_value=False, size="18px").classes("q-mt-sm")
-            self.bar_label = ui.label().classes("text-body2")
+            self.bar_label = ui.label().classes("text-body1")
             self.alarms = ui.column().classes("gap-0")
         self.update()
 
@@ -47,6 +47,7 @@ class PlantTile:
         status = s.status
         self.status.set_text({"online": "live", "stale": f"stale: {fmt_age(s.age)}", "offline": f"offline: last {fmt_age(s.age)}",
                               "unknown": "waiting"}[status])
+        self.status.props(f"color={STATUS_COLOR[status]}")
         self.icon.name = tile["icon"]
         self.icon.update()
         self.lines.clear()

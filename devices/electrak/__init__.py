@@ -46,9 +46,14 @@ def _plant_tile(state) -> dict:
     recent = info.get("status") or []
     limits = info.get("limits")
     position = sum(f.position_mm for f in recent) / len(recent) if recent else None
-    faults = [codec.ERROR_FLAGS[b][0] for b in range(8) if info.get("errors", 0) >> b & 1]
+    errors = info.get("errors", 0)
+    idle = not info.get("controlled_by")
+    if idle:
+        errors &= ~(1 << 5)  # nobody sends control telegrams: the timeout flag is the normal idle state
+    faults = [codec.ERROR_FLAGS[b][0] for b in range(8) if errors >> b & 1]
     moving = [codec.MOTION_FLAGS[b][0] for b in range(2) if info.get("motion", 0) >> b & 1]
-    lines = [("moving: " + ", ".join(moving)) if moving else "standing", f"actuators {info.get('heard', 0)} of {info.get('configured', 0)}"]
+    lines = [("moving: " + ", ".join(moving)) if moving else ("idle (no controller)" if idle else "standing"),
+             f"actuators {info.get('heard', 0)} of {info.get('configured', 0)}"]
     bar = None if position is None or limits is None else (min(1.0, position / limits.stroke_mm), f"{position:.1f} of {limits.stroke_mm:g} mm")
     return {"lines": lines, "alarms": faults, "bar": bar, "icon": "height"}
 

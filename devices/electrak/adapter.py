@@ -103,6 +103,7 @@ class ElectrakAdapter:
             raise ControlBusy(f"{self.controller.user} holds control since {time.strftime('%H:%M:%S', time.localtime(self.controller.since))}")
         if self.controller is None:
             self.controller = Controller(session, user, time.time())
+            self.state.info["controlled_by"] = user
             self.command = codec.ControlFrame(self.command.position_mm, self.command.current_a, self.command.speed_mm_s, enable=False)
             self.bus.start_cyclic(self.key, codec.CONTROL_PERIOD_S, self._control_frame)
             self.state.event("info", f"{user} took control; control telegrams every 100 ms")
@@ -116,6 +117,7 @@ class ElectrakAdapter:
         self.bus.stop_cyclic(self.key)
         self.bus.send(*self._control_frame())
         self.controller = None
+        self.state.info["controlled_by"] = None
         self.state.event("warning", f"control {reason} ({user}): enable cleared, control telegrams stopped")
         return True
 

@@ -1,0 +1,174 @@
+"""Users and roles: accounts with argon2 hashes, the start-up refusal, login, and a viewer who cannot write."""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import io
+import os
+from collections.abc import AsyncIterator
+
+import httpx
+import pytest
+from conftest import modbus_plant, wait_for
+from nicegui import core, ui
+from nicegui.functions.navigate import Navigate
+from nicegui.functions.notify import notify
+from nicegui.testing import User
+from nicegui.testing.general import nicegui_reset_globals, prepare_simulation
+from webutil import stop_worker_tasks
+
+from app import runtime as rt
+from app.cli import main
+from app.runtime import Runtime
+from app.users import UserError, UserStore, is_loopback
+
+pytestmark = pytest.mark.timeout(40)
+
+
+def test_accounts_store_salted_hashes(tmp_path):
+    store = UserStore(tmp_path / "users.toml")
+    store.add("anna", "engineer", "correct horse")
+    store.add("tablet", "viewer", "battery staple")
+    text = (tmp_path / "users.toml").read_text()
+    assert "correct horse" not in text and "$argon2id$" in text
+    again = UserStore(tmp_path / "users.toml")
+    assert again.verify("anna", "correct horse").role == "engineer"
+    assert again.verify("anna", "wrong") is None and again.verify("nobody", "x" * 8) is None
+    assert again.has_engineer()
+    again.add("anna2", "engineer", "correct horse")
+    first, second = again.users["anna"].password_hash, again.users["anna2"].password_hash
+    assert first != second  # salted
+    with pytest.raises(UserError):
+        again.add("bad name!", "engineer", "long enough")
+    with pytest.raises(UserError):
+        again.add("x", "admin", "long enough")
+    with pytest.raises(UserError):
+        again.add("x", "viewer", "short")
+
+
+def test_loopback():
+    assert is_loopback("127.0.0.1") and is_loopback("localhost") and is_loopback("::1")
+    assert not is_loopback("0.0.0.0") and not is_loopback("192.0.2.7")
+
+
+def test_user_add_command(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr("sys.stdin", io.StringIO("s3cret-pass\n"))
+    assert main(["user", "add", "anna", "--role", "engineer", "--password-stdin", "--data-dir", str(tmp_path)]) == 0
+    assert UserStore(tmp_path / "users.toml").verify("anna", "s3cret-pass")
+    assert main(["user", "list", "--data-dir", str(tmp_path)]) == 0
+    assert "anna\tengineer" in capsys.readouterr().out
+
+
+def test_refuses_to_listen_beyond_loopback_without_engineer(tmp_path, capsys):
+    assert main(["--host", "0.0.0.0", "--data-dir", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "refusing to listen on 0.0.0.0" in err and "commission user add NAME --role engineer" in err
+    store = UserStore(tmp_path / "users.toml")
+    store.add("tablet", "viewer", "battery staple")  # a viewer alone is not enough
+    assert main(["--host", "0.0.0.0", "--data-dir", str(tmp_path)]) == 2
+
+
+@contextlib.asynccontextmanager
+async def secured_app(tmp_path, public_plant_view: bool = False) -> AsyncIterator[tuple[User, Runtime]]:
+    """The app as served beyond loopback: login required; accounts anna (engineer), tablet (viewer)."""
+    plant = modbus_plant(locks=(("door-1", 1),))
+    plant.plant_view.public = public_plant_view
+    store = UserStore(tmp_path / "users.toml")
+    store.add("anna", "engineer", "correct horse")
+    store.add("tablet", "viewer", "battery staple")
+    with nicegui_reset_globals():
+        os.environ["NICEGUI_USER_SIMULATION"] = "true"
+        try:
+            prepare_simulation()
+            runtime = Runtime(plant, simulate=True, data_dir=tmp_path, auth_required=True)
+            importlib.import_module("app.web").register(runtime)
+            ui.run(storage_secret="test secret")
+            async with core.app.router.lifespan_context(core.app):
+                async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:
+                    try:
+                        yield User(client), runtime
+                    finally:
+                        await stop_worker_tasks(runtime)
+        finally:
+            os.environ.pop("NICEGUI_USER_SIMULATION", None)
+            ui.navigate = Navigate()
+            ui.notify = notify
+            rt.set_current(None)
+
+
+@pytest.fixture
+async def secured(tmp_path) -> AsyncIterator[tuple[User, Runtime]]:
+    async with secured_app(tmp_path) as app_:
+        yield app_
+
+
+async def login(user: User, name: str, password: str, succeeds: bool = True) -> None:
+    await user.open("/login")
+    user.find("User").type(name)
+    user.find("Password").type(password)
+    user.find("Log in").click()
+    if succeeds:
+        await user.should_see("Overview")  # the login page sends the browser on to /
+
+
+async def test_pages_need_login(secured):
+    user, _runtime = secured
+    response = await user.http_client.get("/", follow_redirects=False)
+    assert response.status_code in (302, 307) and "/login" in response.headers["location"]
+    assert (await user.http_client.get("/api/devices")).status_code == 401
+
+
+async def test_wrong_password(secured):
+    user, _runtime = secured
+    await login(user, "anna", "nope nope", succeeds=False)
+    await user.should_see("Wrong user name or password")
+
+
+async def test_viewer_reads_but_cannot_write(secured):
+    user, runtime = secured
+    await login(user, "tablet", "battery staple")
+    await user.open("/device/door-1")
+    await user.should_see("HD-Lock door-1")
+    await user.should_see("tablet (viewer)")
+    state = runtime.store.devices["door-1"]
+    assert await wait_for(lambda: state.value("LockRequestDelay") is not None, timeout=5)
+    delay = next(e for e in user.find(ui.number).elements if e.props.get("data-param") == "LockRequestDelay")
+    delay.set_value(300)
+    write = next(e for e in user.find(ui.button).elements if e.props.get("data-write") == "LockRequestDelay")
+    write.props  # noqa: B018 - the button is there (a viewer sees it), the worker refuses
+    from nicegui.testing.user_interaction import UserInteraction
+
+    UserInteraction(user, {write}, None).click()
+    await user.should_see("viewer role and may not write")
+    assert runtime.twins["door-1"].holding[3000] == 200
+    entry = runtime.audit.query(device="door-1")[0]
+    assert entry.user == "tablet" and entry.role == "viewer" and entry.result.startswith("refused")
+
+
+async def test_engineer_can_write(secured):
+    user, runtime = secured
+    await login(user, "anna", "correct horse")
+    await user.open("/device/door-1")
+    await user.should_see("anna (engineer)")
+    state = runtime.store.devices["door-1"]
+    assert await wait_for(lambda: state.value("LockRequestDelay") is not None, timeout=5)
+    delay = next(e for e in user.find(ui.number).elements if e.props.get("data-param") == "LockRequestDelay")
+    delay.set_value(300)
+    write = next(e for e in user.find(ui.button).elements if e.props.get("data-write") == "LockRequestDelay")
+    from nicegui.testing.user_interaction import UserInteraction
+
+    UserInteraction(user, {write}, None).click()
+    await user.should_see("written and read back")
+    assert runtime.twins["door-1"].holding[3000] == 300
+    entry = runtime.audit.query(device="door-1")[0]
+    assert (entry.user, entry.parameter, entry.old, entry.new, entry.result) == ("anna", "LockRequestDelay", "200 ms", "300 ms", "ok")
+
+
+async def test_public_plant_view(tmp_path):
+    async with secured_app(tmp_path, public_plant_view=True) as (user, _runtime):
+        await user.open("/plant")
+        await user.should_see("door-1")
+        await user.should_not_see(kind=ui.button)  # read-only by construction
+        response = await user.http_client.get("/", follow_redirects=False)
+        assert "/login" in response.headers["location"]

@@ -1,0 +1,209 @@
+"""Backup and restore on every device twin, file checks, atomic writes, audit and roles."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+
+import pytest
+from conftest import free_port, wait_for
+
+from app import backup
+from app.audit import AuditLog
+from app.plant import DEMO_PLANT, load_plant
+from app.runtime import Runtime
+from app.worker import PermissionDenied
+
+DEVICES = ("door-1", "gate-1", "lift", "heater-hmr")
+
+
+@pytest.fixture
+async def plant_runtime(tmp_path):
+    plant = load_plant(DEMO_PLANT)
+    plant.buses["line1"].options["port"] = f"socket://127.0.0.1:{free_port()}"
+    for bus in plant.buses.values():  # private virtual channels per test
+        if bus.type == "can":
+            bus.options["channel"] = f"{bus.options['channel']}-{tmp_path.name}"
+    runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
+    await runtime.start()
+    for name in DEVICES:
+        assert await wait_for(lambda n=name: runtime.store.devices[n].status == "online", timeout=8), name
+    try:
+        yield runtime
+    finally:
+        await asyncio.wait_for(runtime.stop(), 5)
+
+
+async def change_every_writable(runtime, name: str, entries: list[dict]) -> int:
+    """Write a different value to every writable parameter, straight through the adapter."""
+    adapter = runtime.worker.adapters[name]
+    changed = 0
+    for entry in entries:
+        if not entry["writable"]:
+            continue
+        if name == "heater-hmr":
+            new = "0a 0b 0c 0d 0e 0f"
+        elif entry["key"] == "service:4":  # the bit rate: changing it takes the actuators off the bus
+            continue
+        elif entry["key"] in ("holding:4", "holding:1002"):
+            new = 0x81 if entry["raw"] != 0x81 else 0x01
+        elif entry["key"] == "holding:3001" or entry["key"] == "holding:3002":
+            new = 7
+        elif entry["key"] == "holding:3003":
+            new = 1
+        elif entry["key"] == "holding:3005":
+            continue  # stays 0: 1 is a security risk, covered by its own test
+        else:
+            new = int(entry["raw"]) + 7
+        await adapter.restore_entry(entry["key"], new)
+        changed += 1
+    return changed
+
+
+@pytest.mark.parametrize("name", DEVICES)
+async def test_backup_change_restore_round_trip(plant_runtime, name, tmp_path):
+    runtime = plant_runtime
+    path = await backup.backup_device(runtime, name, tmp_path / "out")
+    document = backup.load_document(path.read_bytes())
+    assert document["device"] == {"name": name, "type": runtime.store.devices[name].type, "bus": runtime.store.devices[name].bus}
+    assert document["plant"] == "demo" and document["tool"]["name"] == "commission" and document["version"] == 1
+    assert all({"key", "name", "raw", "value", "writable"} <= set(e) for e in document["parameters"])
+    changed = await change_every_writable(runtime, name, document["parameters"])
+    assert changed > 0
+    plan = await backup.plan_restore(runtime, name, document)
+    assert not plan.warnings
+    assert sum(r.changed for r in plan.rows) == changed
+    writes = []
+    adapter = runtime.worker.adapters[name]
+    original = adapter.restore_entry
+
+    async def spy(key, raw):
+        writes.append(key)
+        return await original(key, raw)
+
+    adapter.restore_entry = spy
+    report = await backup.execute_restore(runtime, plan, {r.key for r in plan.rows})
+    assert report.ok and len(report.written) == changed and not report.failed
+    read_only = {e["key"] for e in document["parameters"] if not e["writable"]}
+    assert not read_only & set(writes)  # read-only parameters are never written
+    after = await backup.plan_restore(runtime, name, document)
+    assert not any(r.changed for r in after.rows)  # every writable parameter is back
+    if name in ("door-1", "gate-1"):
+        assert report.saved == "Save-Settings" and runtime.twins[name].flash[3000] == document_value(document, "holding:3000")
+    if name == "lift":
+        assert report.saved.startswith("save parameters") and runtime.twins["lift"].service.saves >= 1
+
+
+def document_value(document: dict, key: str):
+    return next(e["raw"] for e in document["parameters"] if e["key"] == key)
+
+
+async def test_restore_refuses_another_device_type(plant_runtime, tmp_path):
+    path = await backup.backup_device(plant_runtime, "lift", tmp_path)
+    document = backup.load_document(path.read_bytes())
+    with pytest.raises(backup.BackupError, match="is a 'hdlock'"):
+        await backup.plan_restore(plant_runtime, "door-1", document)
+
+
+async def test_restore_warns_on_another_serial_number(plant_runtime, tmp_path):
+    path = await backup.backup_device(plant_runtime, "door-1", tmp_path)
+    document = backup.load_document(path.read_bytes())
+    plan = await backup.plan_restore(plant_runtime, "door-2", document)  # same type, other lock
+    assert any("serial number 660020" in w and "replaced device" in w for w in plan.warnings)
+
+
+async def test_deselected_rows_are_skipped(plant_runtime, tmp_path):
+    runtime = plant_runtime
+    path = await backup.backup_device(runtime, "door-1", tmp_path)
+    document = backup.load_document(path.read_bytes())
+    adapter = runtime.worker.adapters["door-1"]
+    await adapter.restore_entry("holding:3000", 444)
+    await adapter.restore_entry("holding:3004", 65500)
+    plan = await backup.plan_restore(runtime, "door-1", document)
+    report = await backup.execute_restore(runtime, plan, {"holding:3004"})
+    assert report.written == ["SettingsProximityThresholdUnlock"] and "LockRequestDelay" in report.skipped
+    assert runtime.twins["door-1"].holding[3000] == 444
+
+
+async def test_failed_write_skips_the_save_step(plant_runtime, tmp_path):
+    runtime = plant_runtime
+    path = await backup.backup_device(runtime, "door-1", tmp_path)
+    document = backup.load_document(path.read_bytes())
+    twin = runtime.twins["door-1"]
+    await runtime.worker.adapters["door-1"].restore_entry("holding:3000", 444)
+    twin.writable.discard(3000)  # the firmware now refuses it
+    saves = twin.input[101]
+    plan = await backup.plan_restore(runtime, "door-1", document)
+    report = await backup.execute_restore(runtime, plan, {r.key for r in plan.rows})
+    assert report.failed and report.saved is None and twin.input[101] == saves
+    assert "not saved because a write failed" in report.summary() or not report.written
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        ('{"schema": "commission-backup", "version": 1, "device": {"type": "hdl', "truncated or not JSON"),
+        ('{"schema": "commission-backup", "version": 7, "device": {}, "parameters": []}', "version 7 is not supported"),
+        ('{"schema": "something-else", "version": 1}', "not a commission backup"),
+        ('{"schema": "commission-backup", "version": 1, "device": {"type": "hdlock"}}', "damaged file"),
+    ],
+)
+def test_bad_files_are_rejected_by_name(text, words):
+    with pytest.raises(backup.BackupError, match=words):
+        backup.load_document(text)
+
+
+def test_interrupted_write_leaves_no_partial_file(tmp_path, monkeypatch):
+    target = tmp_path / "door-1.json"
+
+    def broken_fsync(fd):
+        raise OSError("disk removed")
+
+    monkeypatch.setattr(backup.os, "fsync", broken_fsync)
+    with pytest.raises(OSError):
+        backup.write_atomic(target, json.dumps({"x": 1}) * 1000)
+    assert not target.exists()
+    assert list(tmp_path.iterdir()) == []  # the temporary file is gone too
+
+
+def test_whole_plant_archive(tmp_path):
+    files = [backup.write_atomic(tmp_path / f"d{i}.json", json.dumps({"i": i})) for i in range(3)]
+    archive = backup.zip_files(files, tmp_path / "plant.zip")
+    import zipfile
+
+    with zipfile.ZipFile(archive) as z:
+        assert sorted(z.namelist()) == ["d0.json", "d1.json", "d2.json"]
+
+
+async def test_viewer_write_refused_and_audited(plant_runtime):
+    runtime = plant_runtime
+    with pytest.raises(PermissionDenied):
+        await runtime.worker.command(
+            "door-1", lambda a: a.restore_entry("holding:3000", 300), role="viewer", user="tablet", describe="write LockRequestDelay",
+        )
+    assert runtime.twins["door-1"].holding[3000] == 200
+    entry = runtime.audit.query(device="door-1")[0]
+    assert (entry.user, entry.role, entry.result) == ("tablet", "viewer", "refused: the viewer role may not write")
+
+
+async def test_viewer_restore_is_refused(plant_runtime, tmp_path):
+    runtime = plant_runtime
+    path = await backup.backup_device(runtime, "door-1", tmp_path)
+    document = backup.load_document(path.read_bytes())
+    await runtime.worker.adapters["door-1"].restore_entry("holding:3000", 444)
+    plan = await backup.plan_restore(runtime, "door-1", document)
+    report = await backup.execute_restore(runtime, plan, {r.key for r in plan.rows}, user="tablet", role="viewer")
+    assert report.failed and not report.written
+    assert runtime.twins["door-1"].holding[3000] == 444
+
+
+def test_audit_survives_a_restart(tmp_path):
+    log = AuditLog(tmp_path / "audit.sqlite")
+    log.record(user="anna", role="engineer", device="door-1", action="write LockRequestDelay", parameter="LockRequestDelay",
+               old="200 ms", new="300 ms", result="ok")
+    log.close()
+    again = AuditLog(tmp_path / "audit.sqlite")
+    entries = again.query(device="door-1")
+    assert len(entries) == 1 and entries[0].new == "300 ms" and entries[0].user == "anna"
+    assert again.query(user="bob") == []
+    assert "LockRequestDelay" in __import__("app.audit", fromlist=["to_csv"]).to_csv(entries)
