@@ -21,6 +21,12 @@ examples:
                                       for a GUI or another Modbus master in another process
   commission --plant site.toml --no-sim
                                       GUI only, talking to devices simulated elsewhere
+  commission backup --plant site.toml [--device NAME] --out DIR
+                                      read every parameter into one JSON file per device
+  commission restore --plant site.toml --device NAME FILE [--yes]
+                                      show the diff, write, read back, save
+  commission user add NAME --role engineer|viewer
+                                      accounts; needed for --host beyond 127.0.0.1
 
 The plant file (TOML) lists [[bus]] and [[device]] tables; see README.md.
 """

@@ -8,10 +8,9 @@ from pathlib import Path
 from typing import Any
 
 from app.audit import AuditLog
-from app.users import UserStore
-
 from app.plant import Plant
 from app.state import StateStore
+from app.users import UserStore
 from app.worker import Worker
 from devices.registry import DEVICE_TYPES
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import os
 import re
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
+import tomllib
 from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError
 

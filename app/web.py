@@ -14,7 +14,6 @@ from starlette.middleware.base import BaseHTTPMiddleware
 from app import runtime as rt
 from app.runtime import Runtime
 
-
 OPEN_PATHS = {"/login"}
 
 

@@ -89,7 +89,7 @@ class M3ioTwin:
     def apply(self) -> None:
         """Switch only when all is well; HMR: a fault on SSR1-3 switches all three off (7.2.3)."""
         alive = self.watchdog_alive
-        for i, s in self.ssr.items():
+        for s in self.ssr.values():
             s.on = alive and s.commanded and s.fuse_ok
         if self.variant is Variant.HMR and not all(self.ssr[i].fuse_ok and self.ssr[i].triac_ok for i in (1, 2, 3)):
             for i in (1, 2, 3):
