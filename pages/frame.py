@@ -86,6 +86,10 @@ def frame(title: str):
     ui.timer(2.0, refresh_buses)
     with ui.column().classes("w-full q-pa-md gap-4"):
         ui.label(title).classes("text-h5")
+        if role == "viewer":
+            with ui.row().classes("w-full bg-amber-1 q-pa-sm items-center"):
+                ui.icon("visibility")
+                ui.label("Read-only session (viewer): writes, commands and restores are refused. Log in as an engineer to change anything.")
         yield
 
 

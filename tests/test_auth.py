@@ -131,6 +131,7 @@ async def test_viewer_reads_but_cannot_write(secured):
     await user.open("/device/door-1")
     await user.should_see("HD-Lock door-1")
     await user.should_see("tablet (viewer)")
+    await user.should_see("Read-only session (viewer)")
     state = runtime.store.devices["door-1"]
     assert await wait_for(lambda: state.value("LockRequestDelay") is not None, timeout=5)
     delay = next(e for e in user.find(ui.number).elements if e.props.get("data-param") == "LockRequestDelay")
