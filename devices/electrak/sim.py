@@ -164,9 +164,7 @@ class ElectrakNetworkTwin:
                 a.errors &= ~(1 << 1 | 1 << 6)  # moving the other way clears them
                 blocking = any(x.errors & 0b1110_0011 for x in self.present)
         if not enabled or blocking or direction == 0 or c is None:
-            a.speed_mm_s = max(0.0, a.speed_mm_s - 400 * dt) if not blocking else 0.0
-            if direction == 0 or blocking or not enabled:
-                a.speed_mm_s = 0.0
+            a.speed_mm_s = 0.0  # dynamic braking: the actuators stop at once
             a.moving_since = None
             a.over_since = None
             a.motion = 0
