@@ -9,7 +9,7 @@ import pytest
 from conftest import free_port, wait_for
 
 from app import backup
-from app.audit import AuditLog
+from app.audit import AuditLog, to_csv
 from app.plant import DEMO_PLANT, load_plant
 from app.runtime import Runtime
 from app.worker import PermissionDenied
@@ -206,4 +206,4 @@ def test_audit_survives_a_restart(tmp_path):
     entries = again.query(device="door-1")
     assert len(entries) == 1 and entries[0].new == "300 ms" and entries[0].user == "anna"
     assert again.query(user="bob") == []
-    assert "LockRequestDelay" in __import__("app.audit", fromlist=["to_csv"]).to_csv(entries)
+    assert "LockRequestDelay" in to_csv(entries)
