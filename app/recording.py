@@ -18,7 +18,6 @@ import logging
 import os
 import re
 import time
-from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -75,9 +74,8 @@ class Recording(can.Listener):
     :meth:`on_message_received` for every frame in the event loop.
     """
 
-    def __init__(self, bus: str, path: Path, writer: can.io.generic.MessageWriter, frames: deque | None = None):
+    def __init__(self, bus: str, path: Path, writer: can.io.generic.MessageWriter):
         self.bus = bus
-        self._frames = frames  # the bus's monitor buffer: says whether a frame was sent or received
         self.path = path
         self.suffix = path.suffix
         self.writer = writer
@@ -113,12 +111,11 @@ class Recording(can.Listener):
         if self.stopped is not None:
             return
         channel_ok = self._usable_channel(msg.channel)
-        is_rx = msg.is_rx and not self._sent(msg)
-        if not channel_ok or is_rx != msg.is_rx:
+        if not channel_ok:
             msg = can.Message(
                 timestamp=msg.timestamp, arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id,
                 is_remote_frame=msg.is_remote_frame, is_error_frame=msg.is_error_frame, dlc=msg.dlc,
-                data=msg.data, is_rx=is_rx, channel=msg.channel if channel_ok else None, check=False,
+                data=msg.data, is_rx=msg.is_rx, channel=None, check=False,
             )
         try:
             self.writer.on_message_received(msg)
@@ -127,17 +124,6 @@ class Recording(can.Listener):
             self.close()
             raise
         self.frames += 1
-
-    def _sent(self, msg: can.Message) -> bool:
-        """Whether ``msg`` was sent by this bus: the bus records a frame in its buffer, then here.
-
-        ``CanBus.send`` builds its messages with python-can's default ``is_rx=True``; without
-        this, ASC/BLF files would show the tool's own requests as received.
-        """
-        if not self._frames:
-            return False
-        last = self._frames[-1]
-        return last.direction == "tx" and last.arbitration_id == msg.arbitration_id and last.is_extended_id == msg.is_extended_id
 
     @property
     def active(self) -> bool:
@@ -218,7 +204,7 @@ def start_recording(
             writer = writer_class(path)
     except OSError as exc:
         raise RecordingError(f"cannot create a recording in {folder}: {exc.strerror or exc}") from None
-    recording = Recording(state.name, path, writer, state.frames)
+    recording = Recording(state.name, path, writer)
     state.recorder = recording
     return recording
 
@@ -490,17 +476,6 @@ class FrameFilter:
     id_max: int | None = None
     owner: Owner | None = None
     errors_only: bool = False
-
-    def _sent(self, msg: can.Message) -> bool:
-        """Whether ``msg`` was sent by this bus: the bus records a frame in its buffer, then here.
-
-        ``CanBus.send`` builds its messages with python-can's default ``is_rx=True``; without
-        this, ASC/BLF files would show the tool's own requests as received.
-        """
-        if not self._frames:
-            return False
-        last = self._frames[-1]
-        return last.direction == "tx" and last.arbitration_id == msg.arbitration_id and last.is_extended_id == msg.is_extended_id
 
     @property
     def active(self) -> bool:
