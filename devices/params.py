@@ -176,6 +176,14 @@ class Param:
             raise ParamError(f"{self.name}: {value} is not one of: {allowed}")
         return self.encode(value)
 
+    def prepare_write(self, value: int | float | str, *, confirmed: bool = False) -> int:
+        """:meth:`validate`, then refuse a value that needs a confirmation nobody gave."""
+        raw = self.validate(value)
+        warning = self.needs_confirmation(raw)
+        if warning and not confirmed:
+            raise ParamError(f"needs confirmation: {warning}")
+        return raw
+
     def limits(self) -> tuple[float, float]:
         """Range accepted on write: the declared range, else the register's range."""
         if self.signed:

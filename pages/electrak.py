@@ -12,9 +12,8 @@ from app import runtime as rt
 from devices.electrak import codec
 from devices.electrak.adapter import SERIES
 from devices.electrak.params import PARAMS, password_of
-from devices.params import ParamError
 from pages.frame import fmt_age, fmt_time, frame, set_status_badge
-from pages.widgets import HistoryChart, Lamp, confirm, run_command
+from pages.widgets import HistoryChart, Lamp, run_command, write_from_page
 
 WINDOW_S = 60
 
@@ -259,21 +258,8 @@ def _service_card(name: str, state, adapter):
 
 
 async def _write_service(name: str, param, value) -> None:
-    if value in (None, ""):
-        ui.notify(f"{param.name}: enter a value first", type="warning")
-        return
-    try:
-        raw = param.validate(value)
-    except ParamError as exc:
-        ui.notify(str(exc), type="negative")
-        return
-    warning = param.needs_confirmation(raw)
-    if warning and not await confirm(f"Set {param.name} to {param.display(raw)}?", warning, ok="Change bit rate"):
-        return
-    before = rt.current().store.devices[name].raw(param)
-    await run_command(name, lambda a: a.write_param(param, param.decode(raw), confirmed=bool(warning)),
-                      f"write {param.name}", success=f"{param.name} = {param.display(raw)} written and read back",
-                      parameter=param.name, old="" if before is None else param.display(before), new=param.display(raw))
+    await write_from_page(name, param, value, success="{name} = {value} written and read back",
+                          title="Set {name} to {value}?", ok="Change bit rate")
 
 
 def _export_csv(state, name: str) -> None:

@@ -8,9 +8,16 @@ from app import runtime as rt
 from devices.hdlock import codec
 from devices.hdlock.adapter import CHART_SERIES
 from devices.hdlock.params import HOLDING, INPUT, LOCK_STATUS_BITS, PARAMS
-from devices.params import Param, ParamError
+from devices.params import Param
 from pages.frame import fmt_age, fmt_time, frame, set_status_badge
-from pages.widgets import HistoryChart, Lamp, RegisterTable, confirm, run_command
+from pages.widgets import (
+    HistoryChart,
+    Lamp,
+    RegisterTable,
+    confirm,
+    run_command,
+    write_from_page,
+)
 
 DEVICE_TYPE = "hdlock"
 
@@ -177,26 +184,7 @@ def _parameter_card(name: str, state):
 
 
 async def _write(name: str, param: Param, value) -> None:
-    if value is None or value == "":
-        ui.notify(f"{param.name}: enter a value first", type="warning")
-        return
-    try:
-        raw = param.validate(value)
-    except ParamError as exc:
-        ui.notify(str(exc), type="negative")
-        return
-    warning = param.needs_confirmation(raw)
-    if warning and not await confirm(f"Write {param.name} = {param.display(raw)}?", warning, ok="Write anyway"):
-        return
-    state = rt.current().store.devices[name]
-    before = state.raw(param)
-    await run_command(
-        name,
-        lambda a: a.write_param(param, param.decode(raw), confirmed=bool(warning)),
-        f"write {param.name}",
-        success=f"{param.name} = {param.display(raw)} written and read back (not yet saved)",
-        parameter=param.label or param.name, old="" if before is None else param.display(before), new=param.display(raw),
-    )
+    await write_from_page(name, param, value, success="{name} = {value} written and read back (not yet saved)")
 
 
 async def _save(name: str) -> None:

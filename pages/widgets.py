@@ -10,7 +10,7 @@ from nicegui import ui
 from app import runtime as rt
 from app.state import DeviceState
 from app.worker import PermissionDenied
-from devices.params import Param
+from devices.params import Param, ParamError
 
 CHART_WINDOW_S = 300
 
@@ -161,3 +161,28 @@ async def run_command(
     if success:
         ui.notify(success, type="positive")
     return True, result
+
+
+async def write_from_page(device: str, param: Param, value, *, success: str, title: str = "", ok: str = "Write anyway") -> None:
+    """An engineer's entry for one parameter: check it, ask when the parameter wants a
+    confirmation, then write through the worker with old and new value for the audit log."""
+    if value is None or value == "":
+        ui.notify(f"{param.name}: enter a value first", type="warning")
+        return
+    try:
+        raw = param.validate(value)
+    except ParamError as exc:
+        ui.notify(str(exc), type="negative")
+        return
+    warning = param.needs_confirmation(raw)
+    title = (title or "Write {name} = {value}?").format(name=param.name, value=param.display(raw))
+    if warning and not await confirm(title, warning, ok=ok):
+        return
+    before = rt.current().store.devices[device].raw(param)
+    await run_command(
+        device,
+        lambda a: a.write_param(param, param.decode(raw), confirmed=bool(warning)),
+        f"write {param.name}",
+        success=success.format(name=param.name, value=param.display(raw)),
+        parameter=param.label or param.name, old="" if before is None else param.display(before), new=param.display(raw),
+    )

@@ -231,12 +231,9 @@ class ElectrakAdapter:
     async def write_param(self, param: Param, value, *, confirmed: bool = False) -> int:
         """Password, write, read back (document "Passwort", "Beispiel einer Parameter-Änderung")."""
         try:
-            raw = param.validate(value)
+            raw = param.prepare_write(value, confirmed=confirmed)
         except ParamError as exc:
             raise CommandError(str(exc)) from None
-        warning = param.needs_confirmation(raw)
-        if warning and not confirmed:
-            raise CommandError(f"needs confirmation: {warning}")
         async with self._service_lock:
             await self._unlock(param)
             await self._service(codec.write_request(param.address, length_of(param), raw))

@@ -23,7 +23,16 @@ class CommandError(Exception):
 
 
 class HdLockBackup:
-    """Backup and restore (see app/backup.py), shared by the Modbus and the CAN adapter."""
+    """Write checks and backup/restore (see app/backup.py), shared by the Modbus and the CAN adapter."""
+
+    def _prepare(self, param: Param, value, confirmed: bool) -> int:
+        """The raw value to write, after range, type, access and confirmation checks."""
+        if param not in PARAMS.params:
+            raise CommandError(f"{param.name} is not an HD-Lock parameter")
+        try:
+            return param.prepare_write(value, confirmed=confirmed)
+        except ParamError as exc:
+            raise CommandError(str(exc)) from None
 
     async def backup_read(self, progress=None) -> list[dict]:
         started = time.time()
@@ -94,15 +103,7 @@ class HdLockAdapter(HdLockBackup):
     # -- writes -------------------------------------------------------------------------
     async def write_param(self, param: Param, value, *, confirmed: bool = False) -> int:
         """Validate, write with FC 0x06 and read back; returns the new raw value."""
-        if param not in PARAMS.params:
-            raise CommandError(f"{param.name} is not an HD-Lock parameter")
-        try:
-            raw = param.validate(value)
-        except ParamError as exc:
-            raise CommandError(str(exc)) from None
-        warning = param.needs_confirmation(raw)
-        if warning and not confirmed:
-            raise CommandError(f"needs confirmation: {warning}")
+        raw = self._prepare(param, value, confirmed)
         try:
             await self.line.write_register(self.address, param.address, raw, self.state.counters)
             back = (await self.line.read_holding(self.address, param.address, 1, self.state.counters))[0]
@@ -340,15 +341,7 @@ class HdLockCanAdapter(HdLockBackup):
     # -- writes ----------------------------------------------------------------------------
     async def write_param(self, param: Param, value, *, confirmed: bool = False) -> int:
         """Validate, write through 0x704 and check the echoed value (section 6.6.5)."""
-        if param not in PARAMS.params:
-            raise CommandError(f"{param.name} is not an HD-Lock parameter")
-        try:
-            raw = param.validate(value)
-        except ParamError as exc:
-            raise CommandError(str(exc)) from None
-        warning = param.needs_confirmation(raw)
-        if warning and not confirmed:
-            raise CommandError(f"needs confirmation: {warning}")
+        raw = self._prepare(param, value, confirmed)
         back = await self._write_register(param.address, raw)
         if back != raw:
             self.state.counters.write_errors += 1
