@@ -3,7 +3,12 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import socket
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
@@ -47,3 +52,21 @@ async def wait_for(predicate, timeout: float = 5.0, interval: float = 0.05) -> b
 @pytest.fixture
 def plant() -> Plant:
     return modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
+
+
+@contextlib.contextmanager
+def sim_process(plant_file: Path) -> Iterator[tuple[subprocess.Popen, str]]:
+    """`commission sim --plant FILE` in its own process; yields it and its first line of output.
+
+    On leaving, it is stopped with SIGTERM and must exit cleanly (0) within 10 s.
+    """
+    proc = subprocess.Popen([sys.executable, "-m", "app.cli", "sim", "--plant", str(plant_file)], stdout=subprocess.PIPE, text=True)
+    try:
+        yield proc, proc.stdout.readline()
+    finally:
+        proc.terminate()
+        try:
+            assert proc.wait(timeout=10) == 0
+        finally:
+            if proc.poll() is None:
+                proc.kill()

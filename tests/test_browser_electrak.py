@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from webutil import free_port, start_app, stop_app, wait_http
+from webutil import running_app
 
 CHROMIUM = Path("/usr/bin/chromium")
 SHOTS = Path("/tmp/commission-shots")
@@ -35,15 +35,8 @@ actuators = [
 
 @pytest.fixture
 def app_url(tmp_path):
-    plant = tmp_path / "plant.toml"
-    plant.write_text(PLANT)
-    port = free_port()
-    proc = start_app(plant, port, tmp_path / "app.log")
-    try:
-        wait_http(f"http://127.0.0.1:{port}/", proc)
-        yield f"http://127.0.0.1:{port}"
-    finally:
-        stop_app(proc)
+    with running_app(PLANT, tmp_path) as url:
+        yield url
 
 
 def last_position(page) -> float:

@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import pytest
-from conftest import free_port, wait_for
+from conftest import free_port, sim_process, wait_for
 
 from app.cli import main
 from app.plant import parse_plant
@@ -65,9 +62,7 @@ async def test_gui_worker_talks_to_commission_sim_in_another_process(tmp_path):
     )
     path = tmp_path / "plant.toml"
     path.write_text(text)
-    proc = subprocess.Popen([sys.executable, "-m", "app.cli", "sim", "--plant", str(path)], stdout=subprocess.PIPE, text=True)
-    try:
-        line = proc.stdout.readline()
+    with sim_process(path) as (_proc, line):
         assert "simulating line1" in line and "door-1" in line
         runtime = Runtime(parse_plant(text), simulate=False)  # the GUI side: no twins of its own
         await runtime.start()
@@ -81,13 +76,6 @@ async def test_gui_worker_talks_to_commission_sim_in_another_process(tmp_path):
             assert state.value("LockRequestDelay") == 250
         finally:
             await runtime.stop()
-    finally:
-        proc.terminate()
-        try:
-            assert proc.wait(timeout=10) == 0
-        finally:
-            if proc.poll() is None:
-                proc.kill()
 
 
 def test_headless_backup_and_restore(tmp_path, capsys):

@@ -4,12 +4,10 @@ from __future__ import annotations
 
 import asyncio
 import itertools
-import subprocess
-import sys
 
 import can
 import pytest
-from conftest import wait_for
+from conftest import sim_process, wait_for
 
 from app.plant import DeviceConfig, parse_plant
 from app.runtime import Runtime
@@ -268,9 +266,8 @@ async def test_across_processes_on_udp_multicast(tmp_path):
     text = can_plant("udp_multicast", "239.74.163.2", extra=f"port = {port}\n")
     path = tmp_path / "plant.toml"
     path.write_text(text)
-    proc = subprocess.Popen([sys.executable, "-m", "app.cli", "sim", "--plant", str(path)], stdout=subprocess.PIPE, text=True)
-    try:
-        assert "simulating can1" in proc.stdout.readline()
+    with sim_process(path) as (_proc, line):
+        assert "simulating can1" in line
         runtime = Runtime(parse_plant(text), simulate=False)
         await runtime.start()
         try:
@@ -284,10 +281,3 @@ async def test_across_processes_on_udp_multicast(tmp_path):
             assert await wait_for(lambda: (True, 660102) in runtime.worker.discovered["can1"], timeout=3)
         finally:
             await runtime.stop()
-    finally:
-        proc.terminate()
-        try:
-            assert proc.wait(timeout=10) == 0
-        finally:
-            if proc.poll() is None:
-                proc.kill()
