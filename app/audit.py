@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import asyncio
 import csv
 import io
+import logging
+import os
 import sqlite3
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,6 +30,9 @@ CREATE TABLE IF NOT EXISTS audit (
 CREATE INDEX IF NOT EXISTS audit_time ON audit (time);
 CREATE INDEX IF NOT EXISTS audit_device ON audit (device);
 """
+log = logging.getLogger(__name__)
+BUSY_TIMEOUT_MS = 2000  # a locked database is waited for this long (in the audit thread), then the write is refused
+
 COLUMNS = ("id", "time", "user", "role", "device", "action", "parameter", "old", "new", "result")
 
 
@@ -44,26 +51,102 @@ class AuditEntry:
 
 
 class AuditLog:
-    """A small, thread-safe SQLite store; each record is committed at once."""
+    """A small, thread-safe SQLite store; each record is committed at once.
+
+    The ``a...`` methods run in one thread of their own, in order, so a locked or slow
+    database never blocks the event loop that carries the keep-alives. ``healthy`` and
+    ``problem`` say whether the last write went through (shown in the header).
+    """
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.problem = ""
         self._lock = threading.Lock()
-        self._db = sqlite3.connect(str(self.path), check_same_thread=False, isolation_level=None)
-        self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.executescript(SCHEMA)
+        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="audit")
+        self._db: sqlite3.Connection | None = None
+        try:
+            self._open()
+        except (OSError, sqlite3.Error) as exc:
+            self.problem = f"cannot open {self.path}: {exc}"
+            log.error("audit log: %s: every write will be refused until it can be written", self.problem)
+
+    def _open(self) -> None:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o600)
+        os.close(fd)
+        os.chmod(self.path, 0o600)  # who changed what on which machine is nobody else's business
+        db = sqlite3.connect(str(self.path), check_same_thread=False, isolation_level=None, timeout=BUSY_TIMEOUT_MS / 1000)
+        db.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
+        db.execute("PRAGMA journal_mode=WAL")
+        db.executescript(SCHEMA)
+        for suffix in ("-wal", "-shm"):
+            side = self.path.with_name(self.path.name + suffix)
+            if side.exists():
+                os.chmod(side, 0o600)
+        self._db = db
+
+    @property
+    def healthy(self) -> bool:
+        return not self.problem
+
+    def _execute(self, sql: str, args: tuple | list = ()) -> sqlite3.Cursor:
+        with self._lock:
+            if self._db is None:
+                self._open()
+            try:
+                cursor = self._db.execute(sql, args)
+            except sqlite3.Error as exc:
+                self.problem = f"{self.path}: {exc}"
+                raise
+            if sql.startswith(("INSERT", "UPDATE")):
+                self.problem = ""
+            return cursor
+
+    def check_writable(self) -> str:
+        """"" when a row can be written now, else why not (a write is tried and rolled back)."""
+        try:
+            with self._lock:
+                if self._db is None:
+                    self._open()
+                self._db.execute("BEGIN IMMEDIATE")
+                self._db.execute("ROLLBACK")
+            self.problem = ""
+        except (OSError, sqlite3.Error) as exc:
+            self.problem = f"{self.path}: {exc}"
+        return self.problem
 
     def record(
         self, *, user: str, role: str, device: str, action: str, result: str,
         parameter: str = "", old: object = "", new: object = "", when: float | None = None,
     ) -> int:
-        with self._lock:
-            cursor = self._db.execute(
-                "INSERT INTO audit (time, user, role, device, action, parameter, old, new, result) VALUES (?,?,?,?,?,?,?,?,?)",
-                (when or time.time(), user, role, device, action, parameter, _text(old), _text(new), result),
-            )
-            return int(cursor.lastrowid)
+        cursor = self._execute(
+            "INSERT INTO audit (time, user, role, device, action, parameter, old, new, result) VALUES (?,?,?,?,?,?,?,?,?)",
+            (when or time.time(), user, role, device, action, parameter, _text(old), _text(new), result),
+        )
+        return int(cursor.lastrowid)
+
+    def finish(self, row: int, result: str) -> None:
+        self._execute("UPDATE audit SET result = ? WHERE id = ?", (result, row))
+
+    async def _run(self, fn, *args, **kwargs):
+        return await asyncio.get_running_loop().run_in_executor(self._executor, lambda: fn(*args, **kwargs))
+
+    async def arecord(self, **kwargs) -> int:
+        """:meth:`record` off the event loop; raises when the row cannot be written."""
+        return await self._run(self.record, **kwargs)
+
+    async def afinish(self, row: int, result: str) -> None:
+        """Put the outcome into a row written before the action; a failure here is logged and shown."""
+        try:
+            await self._run(self.finish, row, result)
+        except Exception as exc:  # noqa: BLE001 - the action has happened; say that its outcome is not in the log
+            log.error("audit log: the outcome %r of row %s could not be written: %s", result, row, exc)
+
+    async def aquery(self, **kwargs) -> list["AuditEntry"]:
+        return await self._run(self.query, **kwargs)
+
+    async def adevices(self) -> list[str]:
+        return await self._run(self.devices)
 
     def query(
         self, *, device: str = "", user: str = "", text: str = "", since: float | None = None,
@@ -91,17 +174,18 @@ class AuditLog:
             sql += " WHERE " + " AND ".join(where)
         sql += " ORDER BY time DESC, id DESC LIMIT ?"
         args.append(limit)
-        with self._lock:
-            rows = self._db.execute(sql, args).fetchall()
+        rows = self._execute(sql, args).fetchall()
         return [AuditEntry(*row) for row in rows]
 
     def devices(self) -> list[str]:
-        with self._lock:
-            return [r[0] for r in self._db.execute("SELECT DISTINCT device FROM audit ORDER BY device")]
+        return [r[0] for r in self._execute("SELECT DISTINCT device FROM audit ORDER BY device")]
 
     def close(self) -> None:
         with self._lock:
-            self._db.close()
+            if self._db is not None:
+                self._db.close()
+                self._db = None
+        self._executor.shutdown(wait=False)
 
 
 def to_csv(entries: list[AuditEntry]) -> str:

@@ -42,6 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
     parser.add_argument("--host", default="127.0.0.1", help="address to serve the GUI on (default: 127.0.0.1, loopback only)")
     parser.add_argument("--port", type=int, default=8080, help="HTTP port of the GUI (default: 8080)")
+    parser.add_argument("--allowed-host", action="append", default=[], metavar="NAME",
+                        help="a further host name or address browsers use to reach the GUI (repeatable); "
+                             "requests for any other name are refused (DNS rebinding)")
     parser.add_argument("--no-sim", action="store_true", help="do not start simulated devices, even for buses with simulate = true")
     parser.add_argument("--show", action="store_true", help="open a browser window")
     parser.add_argument("-v", "--verbose", action="store_true", help="log more")
@@ -277,6 +280,15 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 2
 
+    import os
+
+    from app.runtime import secure_data_dir
+
+    os.umask(0o077)  # sessions, accounts, audit, backups and recordings: owner only
+    secure_data_dir(data_dir)
+    # NiceGUI keeps its per-browser storage here instead of the working folder
+    os.environ.setdefault("NICEGUI_STORAGE_PATH", str(data_dir / "nicegui"))
+
     from nicegui import ui
 
     from app import web
@@ -284,7 +296,7 @@ def main(argv: list[str] | None = None) -> int:
 
     plant = _load(args.plant)
     runtime = Runtime(plant, simulate=not args.no_sim, data_dir=data_dir, auth_required=auth_required)
-    web.register(runtime)
+    web.register(runtime, host=args.host, allowed_hosts=args.allowed_host)
     print(f"commission: plant '{plant.name}' ({len(plant.devices)} devices) at http://{args.host}:{args.port}/", flush=True)
     ui.run(
         host=args.host,

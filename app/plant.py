@@ -133,7 +133,16 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
         raise fail(1, f"unknown section(s) {', '.join(sorted(unknown_top))}; expected [[bus]], [[device]], [[sim_device]], [plant_view]")
     plant = Plant(name=str(data.get("name") or (path.stem if path else "plant")), path=path)
     pv = data.get("plant_view", {})
-    plant.plant_view = PlantViewConfig(public=bool(pv.get("public", False)))
+    pv_line = next((i + 1 for i, line in enumerate(text.splitlines()) if re.match(r"^\s*\[\s*plant_view\s*\]", line)), 1)
+    if not isinstance(pv, dict):
+        raise fail(pv_line, "[plant_view] must be a table, e.g. [plant_view] public = true")
+    for key in sorted(set(pv) - {"public"}):
+        raise fail(_key_line(text, pv_line, key), f"[plant_view]: unknown key '{key}'; known: public (true or false)")
+    public = pv.get("public", False)
+    if not isinstance(public, bool):
+        # a string such as "false" would be true in Python: only a real boolean opens the view
+        raise fail(_key_line(text, pv_line, "public"), f"[plant_view] public must be true or false (without quotes), not {public!r}")
+    plant.plant_view = PlantViewConfig(public=public)
 
     bus_lines = _header_lines(text, "bus")
     for index, raw in enumerate(data.get("bus", [])):

@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import asyncio
+import json
 import logging
+import os
 import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
 from app.audit import AuditLog
+from app.auth import AuthSessions, LoginThrottle
+from app.backup import write_atomic
 from app.plant import Plant
 from app.state import StateStore
 from app.users import UserStore
@@ -54,6 +60,34 @@ class SimulatedPlant:
             await server.stop()
 
 
+STALE_PART_S = 60.0  # a temporary file older than this at start-up belongs to an interrupted write
+UNSAVED_FILE = "unsaved.json"
+
+
+def secure_data_dir(path: Path) -> None:
+    """The data folder holds accounts, the audit log, sessions and backups: owner only."""
+    path.mkdir(parents=True, exist_ok=True, mode=0o700)
+    os.chmod(path, 0o700)
+
+
+def remove_stale_parts(folder: Path, older_than_s: float = STALE_PART_S) -> list[Path]:
+    """Delete the hidden ``.*.part`` files that interrupted atomic writes left behind."""
+    removed = []
+    if not folder.is_dir():
+        return removed
+    limit = time.time() - older_than_s
+    for path in folder.rglob(".*.part"):
+        try:
+            if path.is_file() and path.stat().st_mtime < limit:
+                path.unlink()
+                removed.append(path)
+        except OSError as exc:
+            log.warning("cannot remove the stale temporary file %s: %s", path, exc)
+    for path in removed:
+        log.info("removed %s, left by an interrupted write", path)
+    return removed
+
+
 class Runtime:
     """Everything one ``commission`` process runs for one plant.
 
@@ -69,19 +103,86 @@ class Runtime:
             self._tmp = tempfile.TemporaryDirectory(prefix="commission-")
             data_dir = self._tmp.name
         self.data_dir = Path(data_dir)
+        secure_data_dir(self.data_dir)
+        remove_stale_parts(self.data_dir)
         self.audit = AuditLog(self.data_dir / "audit.sqlite")
         self.users = UserStore(self.data_dir / "users.toml")
+        self.sessions = AuthSessions()
+        self.login_throttle = LoginThrottle()
         self.backups_dir = self.data_dir / "backups"
         self.auth_required = auth_required
         self.store = StateStore()
         self.sim = SimulatedPlant(plant) if simulate else None
         self.worker = Worker(plant, self.store, audit=self.audit)
+        self._unsaved_path = self.data_dir / UNSAVED_FILE
+        self._unsaved_written = self._load_unsaved()
+        self._tasks: list[asyncio.Task] = []
+
+    def session_user(self, token: str | None):
+        """The account a session token stands for, as the account store says now (or None)."""
+        name = self.sessions.user_of(token)
+        return None if name is None else self.users.users.get(name)
 
     @property
     def twins(self) -> dict[str, Any]:
         return self.sim.twins if self.sim else {}
 
+    # -- unsaved changes survive a restart (volatile device settings) -----------------------
+    def _unsaved_now(self) -> dict[str, list[str]]:
+        return {name: sorted(state.unsaved) for name, state in self.store.devices.items() if state.unsaved}
+
+    def _load_unsaved(self) -> dict[str, list[str]]:
+        try:
+            data = json.loads(self._unsaved_path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            return {}
+        except (OSError, ValueError) as exc:
+            log.warning("%s cannot be read (%s): unsaved-change reminders of the last run are lost", self._unsaved_path, exc)
+            return {}
+        plant_data = data.get(self.plant.name, {}) if isinstance(data, dict) else {}
+        for name, keys in plant_data.items():
+            state = self.store.devices.get(name)
+            if state is not None and isinstance(keys, list):
+                state.unsaved.update(str(k) for k in keys)
+                state.event("warning", f"{len(keys)} parameter(s) written in an earlier session are not saved in the device yet")
+        return self._unsaved_now()
+
+    async def _keep_unsaved(self) -> None:
+        """Write the unsaved-change reminders to the data folder whenever they change (in a thread)."""
+        while True:
+            await asyncio.sleep(1.0)
+            now = self._unsaved_now()
+            if now == self._unsaved_written:
+                continue
+            try:
+                await asyncio.to_thread(self._write_unsaved, now)
+                self._unsaved_written = now
+            except OSError as exc:
+                log.error("cannot keep the unsaved-change reminders in %s: %s", self._unsaved_path, exc)
+
+    def _write_unsaved(self, now: dict[str, list[str]]) -> None:
+        try:
+            data = json.loads(self._unsaved_path.read_text(encoding="utf-8"))
+            if not isinstance(data, dict):
+                data = {}
+        except (OSError, ValueError):
+            data = {}
+        data[self.plant.name] = now  # other plants' reminders in the same data folder stay
+        write_atomic(self._unsaved_path, json.dumps(data, indent=1))
+
+    async def _watch_accounts(self) -> None:
+        """Removed accounts and changed roles take effect at once, not at the next restart."""
+        while True:
+            await asyncio.sleep(1.0)
+            try:
+                await asyncio.to_thread(self.users.reload_if_changed)
+            except Exception as exc:  # noqa: BLE001 - a broken file keeps the last good accounts
+                log.error("accounts: %s", exc)
+
     async def start(self) -> None:
+        problem = await asyncio.to_thread(self.audit.check_writable)
+        if problem:
+            log.error("the audit log cannot be written (%s): every write will be refused until it can", problem)
         if self.sim:
             for error in await self.sim.start():
                 log.error("%s", error)
@@ -89,8 +190,20 @@ class Runtime:
                     if bus.name in error:
                         bus.last_error = error
         await self.worker.start()
+        self._tasks = [asyncio.create_task(self._keep_unsaved(), name="unsaved reminders"),
+                       asyncio.create_task(self._watch_accounts(), name="accounts")]
 
     async def stop(self) -> None:
+        for task in self._tasks:
+            task.cancel()
+        await asyncio.gather(*self._tasks, return_exceptions=True)
+        self._tasks = []
+        now = self._unsaved_now()
+        if now != self._unsaved_written:
+            try:
+                await asyncio.to_thread(self._write_unsaved, now)
+            except OSError as exc:
+                log.error("cannot keep the unsaved-change reminders: %s", exc)
         await self.worker.stop()
         if self.sim:
             await self.sim.stop()

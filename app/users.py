@@ -42,20 +42,37 @@ class UserStore:
     def __init__(self, path: str | Path):
         self.path = Path(path)
         self.users: dict[str, User] = {}
+        self._stamp: tuple[int, int] | None = None
         self.load()
 
-    def load(self) -> None:
-        self.users = {}
-        if not self.path.exists():
-            return
+    def _file_stamp(self) -> tuple[int, int] | None:
         try:
-            data = tomllib.loads(self.path.read_text(encoding="utf-8"))
-        except (OSError, tomllib.TOMLDecodeError) as exc:
-            raise UserError(f"{self.path}: cannot read the accounts file: {exc}") from None
-        for entry in data.get("user", []):
-            user = User(str(entry["name"]), str(entry["role"]), str(entry["hash"]))
-            if user.role in ROLES:
-                self.users[user.name] = user
+            st = self.path.stat()
+        except FileNotFoundError:
+            return None
+        return (st.st_mtime_ns, st.st_size)
+
+    def load(self) -> None:
+        stamp = self._file_stamp()
+        users: dict[str, User] = {}
+        if stamp is not None:
+            try:
+                data = tomllib.loads(self.path.read_text(encoding="utf-8"))
+            except (OSError, tomllib.TOMLDecodeError) as exc:
+                raise UserError(f"{self.path}: cannot read the accounts file: {exc}") from None
+            for entry in data.get("user", []):
+                user = User(str(entry["name"]), str(entry["role"]), str(entry["hash"]))
+                if user.role in ROLES:
+                    users[user.name] = user
+        self.users = users  # replaced whole: readers never see a half-read store
+        self._stamp = stamp
+
+    def reload_if_changed(self) -> bool:
+        """Read the file again when another process (``commission user ...``) changed it."""
+        if self._file_stamp() == self._stamp:
+            return False
+        self.load()
+        return True
 
     def save(self) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -66,6 +83,7 @@ class UserStore:
         tmp.write_text("\n".join(lines), encoding="utf-8")
         os.chmod(tmp, 0o600)
         tmp.replace(self.path)
+        self._stamp = self._file_stamp()
 
     def add(self, name: str, role: str, password: str) -> User:
         if not re.fullmatch(r"[A-Za-z0-9_.@-]{1,64}", name):

@@ -3,18 +3,28 @@
 from __future__ import annotations
 
 import importlib
+import ipaddress
+import logging
 import secrets
+import socket
+import uuid
 from pathlib import Path
+from urllib.parse import quote, urlsplit
 
 from fastapi import HTTPException, Request
-from fastapi.responses import JSONResponse, RedirectResponse
-from nicegui import app, ui
+from fastapi.responses import JSONResponse, PlainTextResponse, RedirectResponse
+from nicegui import app, core, ui
 from starlette.middleware.base import BaseHTTPMiddleware
 
 from app import runtime as rt
 from app.runtime import Runtime
 
-OPEN_PATHS = {"/login"}
+log = logging.getLogger(__name__)
+
+OPEN_PATHS = {"/login", "/login/complete", "/logout"}
+LOOPBACK_NAMES = ("127.0.0.1", "localhost", "::1")
+WILDCARD_HOSTS = ("0.0.0.0", "::", "")
+BEAT_EVENT = "commission_beat"
 
 
 def storage_secret(data_dir: Path) -> str:
@@ -23,8 +33,86 @@ def storage_secret(data_dir: Path) -> str:
     if not path.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(secrets.token_urlsafe(32))
-        path.chmod(0o600)
+    path.chmod(0o600)
     return path.read_text().strip()
+
+
+def allowed_host_names(host: str, extra: tuple[str, ...] | list[str] = ()) -> tuple[set[str], bool]:
+    """Host names the server answers to, and whether any IP address literal is accepted.
+
+    Loopback names always; the ``--host`` address and every ``--allowed-host``. Served on a
+    wildcard address, any IP literal and this machine's name are accepted too: a page on a
+    foreign site that rebinds its DNS name to this machine still sends its own name as Host.
+    """
+    names = {n.lower() for n in LOOPBACK_NAMES}
+    names |= {normalise_host(h) for h in extra if h}
+    any_ip = host in WILDCARD_HOSTS
+    if any_ip:
+        machine = socket.gethostname().lower()
+        names |= {machine, f"{machine}.local"}
+    else:
+        names.add(normalise_host(host))
+    return names, any_ip
+
+
+def normalise_host(value: str) -> str:
+    """``Host`` header or name -> lower-case name without port or IPv6 brackets."""
+    value = value.strip().lower()
+    if value.startswith("["):
+        return value[1:value.find("]")] if "]" in value else value
+    if value.count(":") == 1:
+        return value.split(":", 1)[0]
+    return value
+
+
+class HostOriginGuard:
+    """Refuse requests for foreign Host names (DNS rebinding) and cross-origin requests,
+    HTTP and websocket alike (socket.io would otherwise answer any Origin)."""
+
+    def __init__(self, asgi_app, names: set[str], any_ip: bool):
+        self.app = asgi_app
+        self.names = names
+        self.any_ip = any_ip
+
+    def host_ok(self, host: str) -> bool:
+        name = normalise_host(host)
+        if name in self.names:
+            return True
+        if self.any_ip:
+            try:
+                ipaddress.ip_address(name)
+                return True
+            except ValueError:
+                return False
+        return False
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] not in ("http", "websocket"):
+            return await self.app(scope, receive, send)
+        headers = {k.lower(): v for k, v in scope.get("headers", [])}
+        host = headers.get(b"host", b"").decode("latin-1")
+        why = ""
+        if not self.host_ok(host):
+            why = f"host {host!r} is not served here (start with --allowed-host NAME to add a name)"
+        else:
+            origin = headers.get(b"origin")
+            if origin is not None:
+                parts = urlsplit(origin.decode("latin-1"))
+                if parts.scheme not in ("http", "https") or parts.netloc.lower() != host.lower():
+                    why = "cross-origin request refused"
+        if not why:
+            return await self.app(scope, receive, send)
+        log.warning("refused %s %s: %s", scope["type"], scope.get("path", ""), why)
+        if scope["type"] == "websocket":
+            await send({"type": "websocket.close", "code": 1008})
+            return None
+        return await PlainTextResponse(why, status_code=403)(scope, receive, send)
+
+
+def session_token(request: Request | None) -> str | None:
+    if request is None or "session" not in request.scope:
+        return None
+    return request.session.get("auth")
 
 
 class AuthMiddleware(BaseHTTPMiddleware):
@@ -38,26 +126,62 @@ class AuthMiddleware(BaseHTTPMiddleware):
         path = request.url.path
         if self.runtime.auth_required and not path.startswith("/_nicegui") and path not in OPEN_PATHS:
             public_plant_view = path == "/plant" and self.runtime.plant.plant_view.public
-            if not public_plant_view and not app.storage.user.get("authenticated", False):
+            if not public_plant_view and self.runtime.session_user(session_token(request)) is None:
                 if path.startswith("/api/"):
                     return JSONResponse({"detail": "log in first"}, status_code=401)
-                return RedirectResponse(f"/login?redirect_to={path}")
+                return RedirectResponse(f"/login?redirect_to={quote(path)}")
         return await call_next(request)
 
 
-def register(runtime: Runtime) -> None:
-    """Register every route for ``runtime`` and start/stop it with the app."""
+def safe_redirect(target: str) -> str:
+    return target if target.startswith("/") and not target.startswith("//") and "\\" not in target else "/"
+
+
+def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[str, ...] | list[str] = ()) -> None:
+    """Register every route for ``runtime`` and start/stop it with the app.
+
+    :param host: the address the server listens on (its name is accepted as Host)
+    :param allowed_hosts: further names or addresses browsers use to reach it
+    """
     rt.set_current(runtime)
     app.on_startup(runtime.start)
     app.on_shutdown(runtime.stop)
     app.on_disconnect(lambda client: runtime.worker.session_closed(client.id))
     app.add_middleware(AuthMiddleware, runtime=runtime)
+    names, any_ip = allowed_host_names(host, allowed_hosts)
+    app.add_middleware(HostOriginGuard, names=names, any_ip=any_ip)
+
+    def on_beat(sid: str, msg: dict) -> None:
+        """A page's sign of life (dead-man rule); only counted from the socket of that page."""
+        client_id = msg.get("client_id") if isinstance(msg, dict) else None
+        if isinstance(client_id, str) and client_id in core.sio.rooms(sid):
+            runtime.worker.heartbeat(client_id)
+
+    core.sio.on(BEAT_EVENT, on_beat)
+
+    @app.get("/login/complete")
+    def login_complete(request: Request, ticket: str = "", redirect_to: str = "/"):
+        """Turn a checked login into a new session: a new cookie id and a new token (no fixation)."""
+        token = runtime.sessions.redeem(ticket, request.session.get("id", ""))
+        if token is None:
+            return RedirectResponse("/login?expired=1", status_code=303)
+        request.session.clear()
+        request.session["id"] = str(uuid.uuid4())
+        request.session["auth"] = token
+        return RedirectResponse(safe_redirect(redirect_to), status_code=303)
+
+    @app.get("/logout")
+    def logout(request: Request):
+        runtime.sessions.logout(session_token(request))
+        request.session.clear()
+        request.session["id"] = str(uuid.uuid4())
+        return RedirectResponse("/login", status_code=303)
 
     @ui.page("/login")
-    def login_page(redirect_to: str = "/") -> None:
+    def login_page(redirect_to: str = "/", expired: str = "") -> None:
         from pages import login
 
-        login.content(redirect_to)
+        login.content(redirect_to, expired)
 
     @ui.page("/plant")
     def plant_page() -> None:

@@ -11,7 +11,9 @@ import asyncio
 import importlib
 import logging
 import time
+from collections import deque
 from collections.abc import Awaitable, Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 from app.audit import AuditLog
@@ -25,9 +27,53 @@ log = logging.getLogger(__name__)
 
 WRITE_ROLES = {"engineer"}
 
+# Dead-man rule (ARCHITECTURE rule 6): every page confirms it is alive about ten times a
+# second; motion and mains outputs of a session that stopped confirming (closed, disconnected,
+# frozen, network lost) are stopped within DEADMAN_BOUND_S of its last confirmation.
+BEAT_PERIOD_S = 0.1
+DEADMAN_TIMEOUT_S = 0.3
+SUPERVISE_PERIOD_S = 0.05
+DEADMAN_BOUND_S = 0.5  # the stated bound: timeout + one supervision period + sending, with margin
+STALL_S = 0.1  # an event-loop stall longer than this is logged and shown
+LAG_WINDOW = 1200  # supervision ticks kept for the loop-lag figures (one minute)
+
 
 class PermissionDenied(Exception):
     """A session without the engineer role asked for a write."""
+
+
+class AuditUnavailable(Exception):
+    """The audit log cannot be written: the write is refused (fail closed)."""
+
+
+@dataclass
+class LoopHealth:
+    """How late the event loop runs the 50 ms supervision tick (it carries every keep-alive)."""
+
+    lags_ms: deque = field(default_factory=lambda: deque(maxlen=LAG_WINDOW))
+    stalls: int = 0
+    worst_ms: float = 0.0
+    last_stall: float | None = None
+
+    def add(self, lag_s: float, now: float) -> None:
+        lag_ms = max(0.0, lag_s * 1000)
+        self.lags_ms.append(lag_ms)
+        self.worst_ms = max(self.worst_ms, lag_ms)
+        if lag_s > STALL_S:
+            self.stalls += 1
+            self.last_stall = now
+            log.warning("event loop stalled for %.0f ms: keep-alives were late", lag_ms)
+
+    def p99_ms(self) -> float:
+        if not self.lags_ms:
+            return 0.0
+        ordered = sorted(self.lags_ms)
+        return ordered[min(len(ordered) - 1, int(0.99 * len(ordered)))]
+
+    def summary(self) -> dict:
+        recent = self.lags_ms[-1] if self.lags_ms else 0.0
+        return {"lag_ms": round(recent, 1), "p99_ms": round(self.p99_ms(), 1), "worst_ms": round(self.worst_ms, 1),
+                "stalls": self.stalls, "last_stall": self.last_stall}
 
 
 class Worker:
@@ -41,7 +87,11 @@ class Worker:
         self.adapters: dict[str, Any] = {}
         self.tasks: list[asyncio.Task] = []
         self.paused: set[str] = set()
-        self.sessions: dict[str, str] = {}  # connected browser sessions -> role  # buses whose polling is held (e.g. during a scan)
+        self.sessions: dict[str, str] = {}  # connected browser sessions -> role
+        self.beats: dict[str, float] = {}  # session -> monotonic time of its last sign of life
+        self._holding_since: dict[str, float] = {}  # holders that never sent a beat
+        self.trips: deque[dict] = deque(maxlen=100)  # dead-man trips, newest last
+        self.loop_health = LoopHealth()
         self.can_buses: dict[str, CanBus] = {}
         for bus in plant.buses.values():
             if bus.type == "can":
@@ -94,17 +144,62 @@ class Worker:
         self.sessions[session] = role
 
     def session_closed(self, session: str) -> None:
-        """A browser went away: release what it controlled; outputs off when no engineer is left."""
+        """A browser went away: stop and release everything it drove or switched."""
         self.sessions.pop(session, None)
+        self.beats.pop(session, None)
+        self._holding_since.pop(session, None)
+        self._session_lost(session, "the controlling browser disconnected")
+
+    def heartbeat(self, session: str) -> None:
+        """A page confirms it is alive (about every :data:`BEAT_PERIOD_S`)."""
+        self.beats[session] = time.monotonic()
+
+    def _session_lost(self, session: str, reason: str) -> None:
+        for name, adapter in self.adapters.items():
+            lost = getattr(adapter, "session_lost", None)
+            if lost is None:
+                continue
+            try:
+                lost(session, reason)
+            except Exception:  # one adapter's failure must not keep the others running
+                log.exception("%s: stopping for a lost session failed", name)
+
+    def _supervise_deadman(self, now: float) -> None:
+        """Stop what a session keeps running once it has not confirmed it is alive for DEADMAN_TIMEOUT_S."""
+        holding: set[str] = set()
         for adapter in self.adapters.values():
-            release = getattr(adapter, "release_control", None)
-            if release is not None:
-                release(session, "released: the controlling browser disconnected")
-        if not any(role in WRITE_ROLES for role in self.sessions.values()):
-            for adapter in self.adapters.values():
-                hook = getattr(adapter, "on_no_sessions", None)
-                if hook is not None:
-                    hook()
+            holders = getattr(adapter, "holders", None)
+            if holders is not None:
+                holding |= holders()
+        for session in list(self._holding_since):
+            if session not in holding:
+                del self._holding_since[session]
+        for session in holding:
+            last = self.beats.get(session)
+            if last is None:
+                last = self._holding_since.setdefault(session, now)
+            silent = now - last
+            if silent > DEADMAN_TIMEOUT_S:
+                reason = (f"dead-man: the controlling browser has not confirmed it is alive for {silent * 1000:.0f} ms "
+                          "(frozen, asleep or network lost)")
+                log.warning("session %s: %s", session, reason)
+                self._session_lost(session, reason)
+                self._holding_since.pop(session, None)
+                self.trips.append({"session": session, "time": time.time(), "silent_ms": round(silent * 1000)})
+
+    async def _supervise(self) -> None:
+        """Every 50 ms: measure how late the loop runs, and apply the dead-man rule."""
+        loop = asyncio.get_running_loop()
+        expected = loop.time() + SUPERVISE_PERIOD_S
+        while True:
+            await asyncio.sleep(max(0.0, expected - loop.time()))
+            now = loop.time()
+            self.loop_health.add(now - expected, time.time())
+            expected = now + SUPERVISE_PERIOD_S
+            try:
+                self._supervise_deadman(time.monotonic())
+            except Exception:  # the supervisor itself must never end
+                log.exception("dead-man supervision failed")
 
     def known_ids(self, bus: str) -> set[tuple[bool, int]]:
         """IDs of devices on a CAN bus (in the plant or discovered): for decoding in the monitor."""
@@ -130,6 +225,7 @@ class Worker:
             await can_bus.start()
         for name in self.plant.buses:
             self.tasks.append(asyncio.create_task(self._poll_bus(name), name=f"bus {name}"))
+        self.tasks.append(asyncio.create_task(self._supervise(), name="supervisor"))
 
     async def stop(self) -> None:
         # A cancellation can be swallowed when pymodbus's wait_for gets its answer in the same
@@ -193,23 +289,58 @@ class Worker:
         """
         if device not in self.adapters:
             raise KeyError(f"no device named {device!r} in this plant")
-        state = self.store.devices[device]
+        adapter = self.adapters[device]
+        return await self.checked(
+            lambda: action(adapter), device=device, role=role, user=user, describe=describe, write=write,
+            record=record, parameter=parameter, old=old, new=new,
+        )
 
-        def audit(result: str) -> None:
-            if record and self.audit is not None:
-                self.audit.record(user=user, role=role, device=device, action=describe or "command",
-                                  parameter=parameter, old=old, new=new, result=result)
+    async def engineer_action(
+        self, action: Callable[[], Awaitable[Any]], *, user: str, role: str, describe: str, target: str = "",
+        parameter: str = "", new: Any = "",
+    ) -> Any:
+        """Anything that changes the plant, the plant file, a device or files on disk
+        (adopting a device, recordings, line scans, backups): engineer only, audited."""
+        return await self.checked(action, device=target, role=role, user=user, describe=describe, parameter=parameter, new=new)
 
+    async def checked(
+        self, action: Callable[[], Awaitable[Any]], *, device: str, role: str, user: str, describe: str,
+        write: bool = True, record: bool = True, parameter: str = "", old: Any = "", new: Any = "",
+    ) -> Any:
+        """The one place where a change is checked (role) and audited (fail closed) before it runs."""
+        what = describe or "command"
+        state = self.store.devices.get(device)
         if write and role not in WRITE_ROLES:
-            state.event("warning", f"refused for {user} ({role}): {describe or 'write'}")
-            audit(f"refused: the {role} role may not write")
-            raise PermissionDenied(f"{user} has the {role} role and may not write ({describe or 'write'})")
+            if state is not None:
+                state.event("warning", f"refused for {user} ({role}): {what}")
+            if record and self.audit is not None:
+                try:
+                    await self.audit.arecord(user=user, role=role, device=device, action=what, parameter=parameter,
+                                             old=old, new=new, result=f"refused: the {role or 'anonymous'} role may not write")
+                except Exception as exc:  # noqa: BLE001 - refused anyway; the audit state shows the failure
+                    log.error("audit: %s", exc)
+            raise PermissionDenied(f"{user or 'anonymous'} has the {role or 'no'} role and may not write ({what})")
+        row = None
+        if record and self.audit is not None:
+            try:
+                row = await self.audit.arecord(user=user, role=role, device=device, action=what, parameter=parameter,
+                                               old=old, new=new, result="started")
+            except Exception as exc:  # noqa: BLE001 - fail closed: no audit row, no write
+                if state is not None:
+                    state.event("error", f"{what} refused: the audit log cannot be written ({exc})")
+                if write:
+                    raise AuditUnavailable(
+                        f"{what} refused: the audit log cannot be written ({exc}). Nothing was sent. "
+                        f"Free or repair {self.audit.path} (locked by another program, read-only or disk full) and try again."
+                    ) from None
         try:
-            result = await action(self.adapters[device])
+            result = await action()
         except Exception as exc:
-            audit(f"failed: {exc}")
+            if row is not None:
+                await self.audit.afinish(row, f"failed: {exc}")
             raise
-        audit("ok")
+        if row is not None:
+            await self.audit.afinish(row, "ok")
         return result
 
     async def discover(self, bus: str, first: int, last: int, progress=None) -> list[dict]:

@@ -29,7 +29,7 @@ def content() -> None:
     with frame("Audit log"):
         ui.label(f"Stored in {audit.path}; survives restarts.").classes("text-caption text-grey-8")
         with ui.row().classes("items-end gap-3"):
-            device = ui.select([""] + sorted(set(runtime.plant.devices) | set(audit.devices())), value="", label="Device").props(
+            device = ui.select([""] + sorted(runtime.plant.devices), value="", label="Device").props(
                 "dense outlined clearable"
             ).classes("w-48")
             user = ui.input("User").props("dense outlined clearable").classes("w-36")
@@ -37,16 +37,29 @@ def content() -> None:
             result = ui.select({"": "any result", "ok": "ok", "failed": "failed", "refused": "refused"}, value="", label="Result").props(
                 "dense outlined"
             ).classes("w-36")
-            ui.button("CSV", icon="download", on_click=lambda: ui.download(to_csv(entries()).encode(), f"audit-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")).props("outline")
+            ui.button("CSV", icon="download", on_click=lambda: download()).props("outline")
         count = ui.label().classes("text-caption")
+        problem = ui.label().classes("text-negative text-body2")
         table = ui.table(columns=COLUMNS, rows=[], row_key="id", pagination=50).classes("w-full reg-table")
         table.props("dense flat bordered")
 
-    def entries():
-        return audit.query(device=device.value or "", user=user.value or "", text=text.value or "", result=result.value or "", limit=5000)
+    async def entries():
+        return await audit.aquery(device=device.value or "", user=user.value or "", text=text.value or "",
+                                  result=result.value or "", limit=5000)
 
-    def refresh() -> None:
-        found = entries()
+    async def download() -> None:
+        ui.download(to_csv(await entries()).encode(), f"audit-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
+
+    async def refresh() -> None:
+        try:
+            found = await entries()
+            known = sorted(set(runtime.plant.devices) | set(await audit.adevices()))
+        except Exception as exc:  # noqa: BLE001 - a locked database is shown, not raised
+            problem.set_text(f"The audit log cannot be read: {exc}")
+            return
+        problem.set_text("")
+        if [""] + known != device.options:
+            device.set_options([""] + known, value=device.value if device.value in known else "")
         rows = [
             {"id": e.id, "time": datetime.fromtimestamp(e.time).strftime("%Y-%m-%d %H:%M:%S"), "user": e.user, "role": e.role,
              "device": e.device, "action": e.action, "parameter": e.parameter, "old": e.old, "new": e.new, "result": e.result}
@@ -59,5 +72,5 @@ def content() -> None:
 
     for element in (device, user, text, result):
         element.on_value_change(refresh)
-    refresh()
+    ui.timer(0, refresh, once=True)
     ui.timer(2.0, refresh)

@@ -33,10 +33,30 @@ def fmt_time(t: float | None) -> str:
 
 
 def _logout() -> None:
-    from nicegui import app
+    from app.web import session_token
 
-    app.storage.user.clear()
-    ui.navigate.to("/login")
+    rt.current().sessions.logout(session_token(ui.context.client.request))  # every tab of it loses its rights now
+    ui.navigate.to("/logout")  # and the browser gets a new session cookie
+
+
+# A Web Worker ticks (timers of hidden tabs are throttled to 1 Hz, a worker's are not); the page
+# sends each tick to the server. A frozen, asleep or cut-off browser stops sending: the worker
+# stops its motion and mains outputs (app.worker, dead-man rule).
+BEAT_JS = """
+<script>
+(function () {
+  if (window.commissionBeat) return;
+  const tick = new Worker(URL.createObjectURL(new Blob(
+    ["setInterval(function () { postMessage(0); }, %d);"], {type: "text/javascript"})));
+  tick.onmessage = function () {
+    if (window.socket && window.did_handshake && window.socket.connected) {
+      window.socket.emit("%s", {client_id: window.clientId});
+    }
+  };
+  window.commissionBeat = tick;
+})();
+</script>
+"""
 
 
 def notify_error(message: str) -> None:
@@ -55,6 +75,8 @@ def frame(title: str):
         if runtime.sim is not None:
             ui.badge("simulated devices", color="purple-3").classes("text-black")
         ui.space()
+        with ui.row().classes("items-center gap-2") as health:
+            pass
         with ui.row().classes("items-center gap-2") as buses:
             pass
         ui.link("Overview", "/").classes("text-white")
@@ -71,8 +93,30 @@ def frame(title: str):
             )
     client = ui.context.client
     runtime.worker.session_opened(client.id, role or "none")
+    from app.web import BEAT_EVENT
+    from app.worker import BEAT_PERIOD_S
+
+    ui.add_body_html(BEAT_JS % (round(BEAT_PERIOD_S * 1000), BEAT_EVENT))
 
     def refresh_buses() -> None:
+        if runtime.auth_required and user and current_user()[0] != user:
+            ui.navigate.to("/login")  # logged out elsewhere, or the account was removed
+            return
+        health.clear()
+        with health:
+            problem = runtime.audit.problem
+            if problem:
+                with ui.row().classes("items-center gap-1 no-wrap bg-negative q-px-sm rounded-borders").props("data-testid=audit-state"):
+                    ui.icon("report", color="white")
+                    ui.label("audit log not writable: writes refused").classes("text-white text-caption")
+                    ui.tooltip(f"{problem}. Free or repair the database; writes resume by themselves.")
+            loop = runtime.worker.loop_health.summary()
+            stalled = loop["last_stall"] is not None and time.time() - loop["last_stall"] < 60
+            chip = ui.label(f"loop {loop['p99_ms']:.0f} ms").classes(
+                "text-caption " + ("text-orange-4" if stalled else "text-grey-5")).props("data-testid=loop-lag")
+            with chip:
+                ui.tooltip(f"Event-loop lag (it carries every keep-alive): p99 {loop['p99_ms']} ms over the last minute, "
+                           f"worst {loop['worst_ms']} ms, {loop['stalls']} stalls over 100 ms since start")
         buses.clear()
         with buses:
             for bus in runtime.store.buses.values():

@@ -2,27 +2,53 @@
 
 from __future__ import annotations
 
-from nicegui import app, ui
+import asyncio
+from urllib.parse import quote
+
+from nicegui import context, ui
 
 from app import runtime as rt
+from app.web import safe_redirect
+from pages.session import client_address
 
 
-def content(redirect_to: str = "/") -> None:
+def content(redirect_to: str = "/", expired: str = "") -> None:
     runtime = rt.current()
-    if not redirect_to.startswith("/") or redirect_to.startswith("//"):
-        redirect_to = "/"
+    redirect_to = safe_redirect(redirect_to)
     if not runtime.auth_required:
         ui.navigate.to(redirect_to)
         return
+    request = context.client.request
+    browser = request.session.get("id", "") if request is not None and "session" in request.scope else ""
+    address = client_address() or "unknown address"
 
-    def attempt() -> None:
-        user = runtime.users.verify(name.value or "", password.value or "")
+    async def attempt() -> None:
+        account = (name.value or "").strip()
+        keys = (f"user:{account}", f"client:{address}")
+        wait = runtime.login_throttle.wait_s(*keys)
+        if wait > 0:
+            message.set_text(f"Too many wrong passwords: try again in {wait:.0f} s.")
+            await runtime.audit.arecord(user=account or "?", role="", device="", action="login",
+                                        result=f"refused: throttled ({wait:.0f} s) from {address}")
+            return
+        button.disable()
+        try:
+            # argon2 takes tens of milliseconds on purpose: never on the event loop
+            user = await asyncio.to_thread(runtime.users.verify, account, password.value or "")
+        finally:
+            button.enable()
         if user is None:
+            failures = runtime.login_throttle.failed(*keys)
+            await runtime.audit.arecord(user=account or "?", role="", device="", action="login",
+                                        result=f"failed: wrong user name or password from {address} ({failures} in a row)")
+            message.set_text("Wrong user name or password")
             ui.notify("Wrong user name or password", type="negative")
             password.set_value("")
             return
-        app.storage.user.update({"authenticated": True, "user": user.name, "role": user.role})
-        ui.navigate.to(redirect_to)
+        runtime.login_throttle.succeeded(*keys)
+        await runtime.audit.arecord(user=user.name, role=user.role, device="", action="login", result=f"ok from {address}")
+        ticket = runtime.sessions.issue_ticket(user.name, browser)
+        ui.navigate.to(f"/login/complete?ticket={ticket}&redirect_to={quote(redirect_to)}")
 
     ui.page_title("Log in - commission")
     with ui.card().classes("absolute-center w-80"):
@@ -32,4 +58,5 @@ def content(redirect_to: str = "/") -> None:
         password = ui.input("Password", password=True, password_toggle_button=True).props("outlined").classes("w-full").on(
             "keydown.enter", attempt
         )
-        ui.button("Log in", on_click=attempt).classes("w-full")
+        button = ui.button("Log in", on_click=attempt).classes("w-full")
+        message = ui.label("The login took too long: log in again." if expired else "").classes("text-negative text-body2")

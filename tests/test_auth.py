@@ -82,7 +82,7 @@ async def secured_app(tmp_path, public_plant_view: bool = False) -> AsyncIterato
         try:
             prepare_simulation()
             runtime = Runtime(plant, simulate=True, data_dir=tmp_path, auth_required=True)
-            importlib.import_module("app.web").register(runtime)
+            importlib.import_module("app.web").register(runtime, allowed_hosts=("test",))  # the simulated user's host name
             ui.run(storage_secret="test secret")
             async with core.app.router.lifespan_context(core.app):
                 async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:

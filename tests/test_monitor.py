@@ -342,7 +342,7 @@ async def env(caplog: pytest.LogCaptureFixture, tmp_path: Path, monkeypatch: pyt
         try:
             prepare_simulation()
             runtime = Runtime(plant, simulate=True)
-            importlib.import_module("app.web").register(runtime)
+            importlib.import_module("app.web").register(runtime, allowed_hosts=("test",))  # the simulated user's host name
             ui.run(storage_secret="test secret")
             async with (
                 core.app.router.lifespan_context(core.app),

@@ -59,7 +59,7 @@ async def env(caplog: pytest.LogCaptureFixture) -> AsyncIterator[Env]:
             runtime = Runtime(plant, simulate=True)
             # nicegui_reset_globals drops the module of every page function (app.web) at the end,
             # so import it afresh for each app.
-            importlib.import_module("app.web").register(runtime)
+            importlib.import_module("app.web").register(runtime, allowed_hosts=("test",))  # the simulated user's host name
             ui.run(storage_secret="test secret")
             async with core.app.router.lifespan_context(core.app):
                 async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:

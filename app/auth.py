@@ -1,0 +1,117 @@
+"""Logged-in sessions, one-time login tickets and the login throttle (no UI imports).
+
+A browser is logged in when its signed session cookie carries a token this process
+issued at login. The token is made new at every login (a cookie planted before the
+login is worth nothing afterwards) and dropped at logout. The account behind a token is
+looked up in the account store on every use, so a removed or downgraded account loses
+its rights at once.
+"""
+
+from __future__ import annotations
+
+import secrets
+import time
+from collections import OrderedDict
+from dataclasses import dataclass
+
+SESSION_LIFETIME_S = 12 * 3600  # a shift
+TICKET_LIFETIME_S = 30.0
+MAX_SESSIONS = 1000  # bounded: the oldest sessions go first
+FREE_FAILURES = 3  # wrong passwords before the throttle starts
+MAX_DELAY_S = 60.0
+THROTTLE_ENTRIES = 4096  # bounded: accounts and client addresses tracked
+
+
+@dataclass
+class _Session:
+    user: str
+    created: float
+
+
+class AuthSessions:
+    """Tokens of logged-in browsers, and the tickets that turn a login into a fresh session."""
+
+    def __init__(self) -> None:
+        self._sessions: OrderedDict[str, _Session] = OrderedDict()
+        self._tickets: dict[str, tuple[str, str, float]] = {}
+
+    def issue_ticket(self, user: str, browser: str) -> str:
+        """A one-time ticket for ``user``, usable only by the browser (session cookie id) that logged in."""
+        now = time.time()
+        self._tickets = {k: v for k, v in self._tickets.items() if v[2] > now}
+        ticket = secrets.token_urlsafe(24)
+        self._tickets[ticket] = (user, browser, now + TICKET_LIFETIME_S)
+        return ticket
+
+    def redeem(self, ticket: str, browser: str) -> str | None:
+        """The new session token for a valid ticket of this browser (the ticket is used up), else None."""
+        entry = self._tickets.pop(ticket, None)
+        if entry is None:
+            return None
+        user, owner, until = entry
+        if owner != browser or until < time.time():
+            return None
+        token = secrets.token_urlsafe(32)
+        self._sessions[token] = _Session(user, time.time())
+        while len(self._sessions) > MAX_SESSIONS:
+            self._sessions.popitem(last=False)
+        return token
+
+    def user_of(self, token: str | None) -> str | None:
+        if not token:
+            return None
+        session = self._sessions.get(token)
+        if session is None:
+            return None
+        if time.time() - session.created > SESSION_LIFETIME_S:
+            del self._sessions[token]
+            return None
+        return session.user
+
+    def logout(self, token: str | None) -> None:
+        if token:
+            self._sessions.pop(token, None)
+
+    def drop_user(self, user: str) -> int:
+        """End every session of ``user`` (account removed); returns how many."""
+        tokens = [t for t, s in self._sessions.items() if s.user == user]
+        for token in tokens:
+            del self._sessions[token]
+        return len(tokens)
+
+
+class LoginThrottle:
+    """Slows down repeated wrong passwords, per account and per client address.
+
+    After :data:`FREE_FAILURES` failures a key must wait 1, 2, 4 ... up to
+    :data:`MAX_DELAY_S` seconds after its last failure before its next attempt is checked.
+    """
+
+    def __init__(self) -> None:
+        self._failures: OrderedDict[str, tuple[int, float]] = OrderedDict()
+
+    def wait_s(self, *keys: str, now: float | None = None) -> float:
+        """Seconds until an attempt for these keys will be checked (0: now)."""
+        now = time.time() if now is None else now
+        wait = 0.0
+        for key in keys:
+            count, last = self._failures.get(key, (0, 0.0))
+            if count >= FREE_FAILURES:
+                delay = min(MAX_DELAY_S, 2.0 ** (count - FREE_FAILURES))
+                wait = max(wait, last + delay - now)
+        return max(0.0, wait)
+
+    def failed(self, *keys: str, now: float | None = None) -> int:
+        now = time.time() if now is None else now
+        worst = 0
+        for key in keys:
+            count = self._failures.pop(key, (0, 0.0))[0] + 1
+            self._failures[key] = (count, now)
+            worst = max(worst, count)
+        while len(self._failures) > THROTTLE_ENTRIES:
+            self._failures.popitem(last=False)
+        return worst
+
+    def succeeded(self, *keys: str) -> None:
+        for key in keys:
+            self._failures.pop(key, None)
