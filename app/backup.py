@@ -5,8 +5,10 @@ A device adapter takes part by providing:
 - ``async backup_read(progress) -> list[dict]``: every parameter freshly read, each
   ``{key, name, space, address, raw, value, unit, writable}``;
 - ``backup_identity() -> dict``: serial number, firmware and the like;
-- ``async restore_entry(key, raw) -> raw``: write one writable parameter with
-  validation and return the value read back (raises when it did not take);
+- ``async write_param(param, value, *, confirmed)`` where the device has a parameter
+  model (``state.params``): restore writes through the same checked path as a manual
+  entry; else ``async restore_entry(key, value) -> value``: write one writable entry
+  with validation and return what was read back (raises when it did not take);
 - ``async save_step() -> str | None``: make the written values permanent (the name
   of the step), or None when the device stores every write by itself.
 
@@ -16,6 +18,7 @@ atomically; a whole plant downloads as one zip archive.
 
 from __future__ import annotations
 
+import asyncio
 import json
 import os
 import tempfile
@@ -89,18 +92,23 @@ def write_atomic(path: Path, text: str) -> Path:
     return path
 
 
-async def backup_device(runtime, name: str, out_dir: Path | None = None, progress=None) -> Path:
-    """Read every parameter of one device and write its backup file; returns the path."""
+async def backup_device(runtime, name: str, out_dir: Path | None = None, progress=None, *,
+                        user: str = "local", role: str = "engineer") -> Path:
+    """Read every parameter of one device and write its backup file (an engineer action,
+    audited with the real user); returns the path."""
     adapter = runtime.worker.adapters[name]
     if not supports_backup(adapter):
         raise BackupError(f"{name}: this device type has no parameters to back up")
     state = runtime.store.devices[name]
-    entries = await adapter.backup_read(progress)
-    document = make_document(runtime.plant.name, name, state.type, state.bus, adapter.backup_identity(), entries)
     path = (out_dir or runtime.backups_dir) / file_name(name)
-    write_atomic(path, json.dumps(document, indent=2, ensure_ascii=False))
-    runtime.audit.record(user="backup", role="engineer", device=name, action="backup", result=f"ok: {path.name}")
-    return path
+
+    async def work() -> Path:
+        entries = await adapter.backup_read(progress)
+        document = make_document(runtime.plant.name, name, state.type, state.bus, adapter.backup_identity(), entries)
+        await asyncio.to_thread(write_atomic, path, json.dumps(document, indent=2, ensure_ascii=False))
+        return path
+
+    return await runtime.worker.engineer_action(work, user=user, role=role, describe="backup", target=name, new=path.name)
 
 
 def zip_files(paths: list[Path], target: Path) -> Path:
@@ -144,17 +152,28 @@ def load_document(text: str | bytes, source: str = "backup") -> dict:
 
 @dataclass
 class DiffRow:
+    """One writable parameter: the device now against the backup.
+
+    What is written is derived from the entry's ``value`` alone, checked through the
+    parameter model like a manual entry; ``backup_text`` shows exactly that value.
+    """
+
     key: str
     name: str
     unit: str
     current_raw: Any
     current_value: Any
-    backup_raw: Any
-    backup_value: Any
+    backup_raw: Any  # what would be written (raw), derived from the entry's value
+    backup_value: Any  # the entry's value as the file holds it
+    current_text: str = ""
+    backup_text: str = ""
+    error: str = ""  # why the entry cannot be written (invalid in the file): never written
+    risk: str = ""  # the confirmation a manual write of this value asks for
+    param: Any = None
 
     @property
     def changed(self) -> bool:
-        return self.current_raw != self.backup_raw
+        return not self.error and self.current_raw != self.backup_raw
 
 
 @dataclass
@@ -163,6 +182,51 @@ class RestorePlan:
     document: dict
     rows: list[DiffRow]
     warnings: list[str] = field(default_factory=list)
+
+    @property
+    def invalid(self) -> list[DiffRow]:
+        return [r for r in self.rows if r.error]
+
+    def risky(self, selected: set[str]) -> list[DiffRow]:
+        """Selected changes that need a confirmation (the same as a manual write would)."""
+        return [r for r in self.rows if r.changed and r.risk and r.key in selected]
+
+
+def _file_number(value: Any) -> int | float:
+    """The entry's value as the file holds it, accepted only as a JSON number."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise BackupError(f"{value!r} in the file is not a number")
+    return value
+
+
+def _plan_row(params, entry: dict, now: dict) -> DiffRow:
+    key, name = entry["key"], entry["name"]
+    value = entry.get("value")
+    row = DiffRow(key, name, entry.get("unit", ""), now["raw"], now.get("value"), None, value,
+                  current_text=str(now.get("text", now.get("value"))), backup_text=str(value))
+    param = params.by_key.get(key) if params is not None else None
+    if params is None:
+        # no parameter model (e.g. M3IO customer records): the adapter checks the value on write
+        row.backup_raw = value
+        return row
+    if param is None:
+        row.error = "not a parameter of this device type"
+        return row
+    row.param = param
+    row.current_text = param.display(int(now["raw"]))
+    try:
+        raw = param.validate(_file_number(value))
+    except (BackupError, ValueError) as exc:
+        row.error = f"invalid in the file: {exc}"
+        return row
+    row.backup_raw = raw
+    row.backup_text = param.display(raw)
+    if "raw" in entry and entry["raw"] != raw:
+        row.error = (f"the file's raw {entry['raw']!r} and value {value!r} disagree (edited or damaged file): "
+                     "not written")
+        return row
+    row.risk = param.needs_confirmation(raw)
+    return row
 
 
 async def plan_restore(runtime, name: str, document: dict, progress=None) -> RestorePlan:
@@ -193,7 +257,10 @@ async def plan_restore(runtime, name: str, document: dict, progress=None) -> Res
         if now is None or not now.get("writable"):
             warnings.append(f"{entry['name']} is not writable on this device: skipped")
             continue
-        rows.append(DiffRow(entry["key"], entry["name"], entry.get("unit", ""), now["raw"], now.get("value"), entry["raw"], entry.get("value")))
+        rows.append(_plan_row(state.params, entry, now))
+    for row in rows:
+        if row.error:
+            warnings.append(f"{row.name}: {row.error}")
     return RestorePlan(name, document, rows, warnings)
 
 
@@ -203,55 +270,74 @@ class RestoreReport:
     unchanged: list[str] = field(default_factory=list)
     failed: list[tuple[str, str]] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
+    refused: list[tuple[str, str]] = field(default_factory=list)  # invalid in the file, or risky and not confirmed
     saved: str | None = None
     save_error: str = ""
 
     @property
     def ok(self) -> bool:
-        return not self.failed and not self.save_error
+        return not self.failed and not self.save_error and not self.refused
 
     def summary(self) -> str:
         text = (f"{len(self.written)} written, {len(self.unchanged)} unchanged, {len(self.failed)} failed, "
                 f"{len(self.skipped)} skipped")
+        if self.refused:
+            text += f", {len(self.refused)} refused"
         if self.saved:
             text += f"; {self.saved} done"
-        elif self.written and self.failed:
-            text += "; not saved because a write failed"
+        elif self.written and (self.failed or self.refused):
+            text += "; not saved because a write failed or was refused"
         if self.save_error:
             text += f"; saving failed: {self.save_error}"
         return text
 
 
-async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, user: str = "local", role: str = "engineer", progress=None) -> RestoreReport:
-    """Write the selected changed parameters through the worker (role checked, audited),
-    read each back, and run the save step only when every write verified."""
+async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, user: str = "local", role: str = "engineer",
+                          confirmed: set[str] = frozenset(), progress=None) -> RestoreReport:
+    """Write the selected changed parameters through the worker (role checked, audited) and
+    the parameter model's checks (range, type, confirmation: ``confirmed`` holds the keys of
+    risky values the user confirmed), read each back, and run the save step only when every
+    write verified."""
     report = RestoreReport()
     rows = plan.rows
     total = max(1, len(rows))
     for n, row in enumerate(rows, 1):
-        if not row.changed:
+        if row.error:
+            report.refused.append((row.name, row.error))
+        elif not row.changed:
             report.unchanged.append(row.name)
         elif row.key not in selected:
             report.skipped.append(row.name)
+        elif row.risk and row.key not in confirmed:
+            report.refused.append((row.name, f"{row.backup_text} needs a confirmation: {row.risk}"))
         else:
+            if row.param is not None:
+                def action(a, row=row):
+                    return a.write_param(row.param, row.param.decode(row.backup_raw), confirmed=row.key in confirmed)
+            else:
+                def action(a, row=row):
+                    return a.restore_entry(row.key, row.backup_raw)
             try:
                 await runtime.worker.command(
-                    plan.device, lambda a, row=row: a.restore_entry(row.key, row.backup_raw), role=role, user=user,
-                    describe="restore", parameter=row.name, old=row.current_value, new=row.backup_value,
+                    plan.device, action, role=role, user=user,
+                    describe="restore", parameter=row.name, old=row.current_text, new=row.backup_text,
                 )
                 report.written.append(row.name)
             except Exception as exc:  # noqa: BLE001 - every failure is reported per parameter
                 report.failed.append((row.name, str(exc)))
-                if exc.__class__.__name__ == "PermissionDenied":
+                if exc.__class__.__name__ in ("PermissionDenied", "AuditUnavailable"):
                     break
         if progress:
             progress(n / total)
-    if report.written and not report.failed:
+    if report.written and not report.failed and not report.refused:
         try:
             report.saved = await runtime.worker.command(
                 plan.device, lambda a: a.save_step(), role=role, user=user, describe="restore: save step",
             )
         except Exception as exc:  # noqa: BLE001
             report.save_error = str(exc)
-    runtime.audit.record(user=user, role=role, device=plan.device, action="restore", result=report.summary())
+    try:
+        await runtime.audit.arecord(user=user, role=role, device=plan.device, action="restore", result=report.summary())
+    except Exception:  # noqa: BLE001 - every write above has its own row; the header shows the audit state
+        pass
     return report

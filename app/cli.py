@@ -65,7 +65,10 @@ def build_parser() -> argparse.ArgumentParser:
     restore.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
     restore.add_argument("--device", required=True, help="device name")
     restore.add_argument("file", type=Path, help="backup file (JSON)")
-    restore.add_argument("--yes", action="store_true", help="write without asking (the diff is printed anyway)")
+    restore.add_argument("--yes", action="store_true", help="write without asking (the diff is printed anyway); "
+                         "values that need a confirmation are still refused unless named with --accept-risk")
+    restore.add_argument("--accept-risk", action="append", default=[], metavar="NAME",
+                         help="confirm a risky value of parameter NAME (repeatable), as the GUI's confirmation does")
     restore.add_argument("--no-sim", action="store_true", help="do not start simulated devices")
 
     user = sub.add_parser("user", help="manage accounts (needed to serve beyond the loopback address)")
@@ -193,6 +196,16 @@ async def _headless(args, work) -> int:
         await runtime.stop()
 
 
+def _cli_user() -> str:
+    """Who ran a headless backup or restore, for the audit log."""
+    import getpass
+
+    try:
+        return f"cli:{getpass.getuser()}"
+    except (KeyError, OSError):
+        return "cli"
+
+
 def run_backup(args) -> int:
     from app import backup
 
@@ -205,7 +218,7 @@ def run_backup(args) -> int:
                 failures += 1
                 continue
             try:
-                path = await backup.backup_device(runtime, name, args.out)
+                path = await backup.backup_device(runtime, name, args.out, user=_cli_user(), role="engineer")
             except Exception as exc:  # noqa: BLE001 - one device's failure must not stop the others
                 print(f"{name}: backup failed: {exc}", file=sys.stderr)
                 failures += 1
@@ -239,10 +252,16 @@ def run_restore(args) -> int:
             print(f"warning: {warning}")
         changed = [r for r in plan.rows if r.changed]
         for row in changed:
-            print(f"  {row.name}: {row.current_value} -> {row.backup_value} {row.unit}".rstrip())
+            mark = f"   [needs confirmation: {row.risk}]" if row.risk else ""
+            print(f"  {row.name}: {row.current_text} -> {row.backup_text}{mark}")
         if not changed:
-            print("nothing to write: the device already holds the backed-up values")
-            return 0
+            print("nothing to write: the device already holds the backed-up values"
+                  + (" (invalid entries of the file are listed above)" if plan.invalid else ""))
+            return 1 if plan.invalid else 0
+        selected = {r.key for r in changed}
+        risky = plan.risky(selected)
+        accepted = {n.lower() for n in args.accept_risk}
+        confirmed = {r.key for r in risky if r.name.lower() in accepted}
         if not args.yes:
             if not sys.stdin.isatty():
                 print("commission restore: add --yes to write without a terminal to confirm", file=sys.stderr)
@@ -250,8 +269,18 @@ def run_restore(args) -> int:
             if input(f"write {len(changed)} parameters to {name}? [y/N] ").strip().lower() != "y":
                 print("nothing written")
                 return 1
-        report = await backup.execute_restore(runtime, plan, {r.key for r in plan.rows}, user="cli")
-        for parameter, error in report.failed:
+            for row in risky:
+                if row.key not in confirmed and input(f"{row.name} = {row.backup_text}: {row.risk} Write it? [y/N] ").strip().lower() == "y":
+                    confirmed.add(row.key)
+        unconfirmed = [r for r in risky if r.key not in confirmed]
+        if unconfirmed:
+            for row in unconfirmed:
+                print(f"commission restore: {row.name} = {row.backup_text} needs a confirmation ({row.risk}); "
+                      f"name it with --accept-risk {row.name} to write it", file=sys.stderr)
+            print("nothing written", file=sys.stderr)
+            return 2
+        report = await backup.execute_restore(runtime, plan, selected, user=_cli_user(), confirmed=confirmed)
+        for parameter, error in report.failed + report.refused:
             print(f"  failed: {parameter}: {error}", file=sys.stderr)
         print(report.summary())
         return 0 if report.ok else 1

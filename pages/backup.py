@@ -3,6 +3,7 @@ restore one with a diff of the writable parameters and a report."""
 
 from __future__ import annotations
 
+import asyncio
 import json
 from datetime import datetime
 from pathlib import Path
@@ -37,7 +38,6 @@ def _files(directory: Path) -> list[dict]:
 def content() -> None:
     runtime = rt.current()
     directory = runtime.backups_dir
-    directory.mkdir(parents=True, exist_ok=True)
     devices = [name for name, a in runtime.worker.adapters.items() if backup.supports_backup(a)]
     with frame("Backup and restore"):
         ui.label(f"Backups are written to {directory}").classes("text-caption text-grey-8")
@@ -62,7 +62,7 @@ def content() -> None:
             table = ui.table(
                 columns=[{"name": k, "label": k.title(), "field": k, "align": "left"} for k in ("name", "device", "type", "time", "size")]
                 + [{"name": "actions", "label": "", "field": "name"}],
-                rows=_files(directory), row_key="name", pagination=20,
+                rows=[], row_key="name", pagination=20,
             ).classes("w-full reg-table").props("dense flat bordered")
             table.add_slot("body-cell-actions", """
                 <q-td :props="props">
@@ -71,15 +71,18 @@ def content() -> None:
                 </q-td>""")
         restore_box = ui.column().classes("w-full")
 
-    def refresh_files() -> None:
-        table.rows = _files(directory)
+    async def refresh_files() -> None:
+        table.rows = await asyncio.to_thread(_files, directory) if directory.is_dir() else []
         table.update()
+
+    ui.timer(0, refresh_files, once=True)
 
     async def run_backup() -> None:
         chosen = [name for name, box in boxes.items() if box.value]
         if not chosen:
             ui.notify("Select at least one device", type="warning")
             return
+        user, role = current_user()
         start.disable()
         made.clear()
         failures = []
@@ -90,7 +93,7 @@ def content() -> None:
                 progress.set_value((n + fraction) / len(chosen))
 
             try:
-                made.append(await backup.backup_device(runtime, name, directory, step))
+                made.append(await backup.backup_device(runtime, name, directory, step, user=user, role=role))
             except Exception as exc:  # noqa: BLE001 - one device's failure must not stop the others
                 failures.append(f"{name}: {exc}")
             progress.set_value((n + 1) / len(chosen))
@@ -100,16 +103,19 @@ def content() -> None:
         archive.set_visibility(len(made) > 1)
         if len(made) == 1:
             ui.download(made[0])
-        refresh_files()
+        await refresh_files()
 
-    def download_archive() -> None:
+    async def download_archive() -> None:
         target = directory / f"plant-{runtime.plant.name}-{datetime.now():%Y%m%d-%H%M%S}.zip"
-        ui.download(backup.zip_files(made, target))
+        ui.download(await asyncio.to_thread(backup.zip_files, made, target))
 
     start.on_click(run_backup)
     archive.on_click(download_archive)
     table.on("download", lambda e: ui.download(directory / Path(e.args).name))
-    table.on("restore", lambda e: _open_restore((directory / Path(e.args).name).read_bytes(), Path(e.args).name))
+    async def _restore_file(name: str) -> None:
+        _open_restore(await asyncio.to_thread((directory / Path(name).name).read_bytes), Path(name).name)
+
+    table.on("restore", lambda e: _restore_file(e.args))
 
     async def _uploaded(event: events.UploadEventArguments) -> None:
         _open_restore(await event.file.read(), event.file.name)
@@ -174,12 +180,11 @@ class RestoreFlow:
             for warning in self.plan.warnings:
                 ui.label(f"⚠ {warning}").classes("text-warning text-body1")
         rows = [
-            {"key": r.key, "name": r.name, "current": f"{r.current_value} {r.unit}".strip(),
-             "backup": f"{r.backup_value} {r.unit}".strip(), "state": "differs" if r.changed else "same"}
+            {"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": _row_state(r)}
             for r in self.plan.rows
         ]
         self.table.rows = rows
-        self.table.selected = [row for row in rows if row["state"] == "differs"]
+        self.table.selected = [row for row in rows if row["state"].startswith("differs")]
         self.table.set_visibility(True)
         self.table.update()
         changed = sum(1 for r in self.plan.rows if r.changed)
@@ -198,11 +203,19 @@ class RestoreFlow:
             ui.notify("No differing parameter is selected", type="warning")
             return
         if not await confirm(f"Write {len(to_write)} parameters to {self.plan.device}?",
-                             "Each value is written, read back and, when all took, saved in the device.", ok="Write"):
+                             "Each value is written, read back and, when all took, saved in the device:\n"
+                             + "; ".join(f"{r.name} {r.current_text} -> {r.backup_text}" for r in to_write), ok="Write", danger=False):
             return
+        confirmed: set[str] = set()
+        for row in self.plan.risky(selected):  # the same confirmation a manual write of the value asks for
+            if not await confirm(f"Restore {row.name} = {row.backup_text}?", row.risk, ok="Write anyway"):
+                ui.notify(f"{row.name} not confirmed: deselect it to restore the others", type="warning")
+                return
+            confirmed.add(row.key)
         user, role = current_user()
         self.write.disable()
-        report = await backup.execute_restore(self.runtime, self.plan, selected, user=user, role=role, progress=self.progress.set_value)
+        report = await backup.execute_restore(self.runtime, self.plan, selected, user=user, role=role, confirmed=confirmed,
+                                              progress=self.progress.set_value)
         self.write.enable()
         self.report.clear()
         with self.report:
@@ -211,6 +224,8 @@ class RestoreFlow:
             )
             for name, error in report.failed:
                 ui.label(f"failed: {name}: {error}").classes("text-negative")
+            for name, error in report.refused:
+                ui.label(f"refused: {name}: {error}").classes("text-negative")
             if report.written:
                 ui.label("written: " + ", ".join(report.written)).classes("text-caption")
         await self.compare_quietly()
@@ -224,10 +239,18 @@ class RestoreFlow:
         for row in self.table.rows:
             r = rows.get(row["key"])
             if r is not None:
-                row["current"] = f"{r.current_value} {r.unit}".strip()
-                row["state"] = "differs" if r.changed else "same"
-        self.table.selected = [row for row in self.table.rows if row["state"] == "differs"]
+                row["current"] = r.current_text
+                row["state"] = _row_state(r)
+        self.table.selected = [row for row in self.table.rows if row["state"].startswith("differs")]
         self.table.update()
         changed = sum(1 for r in self.plan.rows if r.changed)
         self.summary.set_text(f"{changed} of {len(self.plan.rows)} writable parameters differ" + ("" if changed else ": the device matches the backup"))
         self.write.set_visibility(changed > 0)
+
+
+def _row_state(row: backup.DiffRow) -> str:
+    if row.error:
+        return f"not written: {row.error}"
+    if not row.changed:
+        return "same"
+    return f"differs; needs confirmation: {row.risk}" if row.risk else "differs"

@@ -77,15 +77,23 @@ async def test_backup_change_restore_round_trip(plant_runtime, name, tmp_path):
     adapter = runtime.worker.adapters[name]
     original = adapter.restore_entry
 
+    original_write = getattr(adapter, "write_param", None)
+
     async def spy(key, raw):
         writes.append(key)
         return await original(key, raw)
 
+    async def spy_write(param, value, *, confirmed=False):
+        writes.append(param.key)
+        return await original_write(param, value, confirmed=confirmed)
+
     adapter.restore_entry = spy
+    if original_write is not None:
+        adapter.write_param = spy_write
     report = await backup.execute_restore(runtime, plan, {r.key for r in plan.rows})
     assert report.ok and len(report.written) == changed and not report.failed
     read_only = {e["key"] for e in document["parameters"] if not e["writable"]}
-    assert not read_only & set(writes)  # read-only parameters are never written
+    assert len(writes) == changed and not read_only & set(writes)  # read-only parameters are never written
     after = await backup.plan_restore(runtime, name, document)
     assert not any(r.changed for r in after.rows)  # every writable parameter is back
     if name in ("door-1", "gate-1"):
@@ -207,3 +215,76 @@ def test_audit_survives_a_restart(tmp_path):
     assert len(entries) == 1 and entries[0].new == "300 ms" and entries[0].user == "anna"
     assert again.query(user="bob") == []
     assert "LockRequestDelay" in to_csv(entries)
+
+
+# -- restore writes what it shows, checked like a manual entry (issue: restore of edited files) ----
+
+
+def edited(document: dict, key: str, **fields) -> dict:
+    """The document with one parameter entry changed (as a hand-edited or damaged file would be)."""
+    copy = json.loads(json.dumps(document))
+    entry = next(e for e in copy["parameters"] if e["key"] == key)
+    entry.update(fields)
+    return copy
+
+
+async def test_restore_writes_what_the_diff_shows_never_a_disagreeing_raw(plant_runtime, tmp_path):
+    runtime = plant_runtime
+    document = backup.load_document((await backup.backup_device(runtime, "door-1", tmp_path)).read_bytes())
+    # raw 1 (magnet removal: a security risk) behind a shown value of 0
+    plan = await backup.plan_restore(runtime, "door-1", edited(document, "holding:3005", raw=1, value=0))
+    row = next(r for r in plan.rows if r.key == "holding:3005")
+    assert row.error and "disagree" in row.error and not row.changed
+    report = await backup.execute_restore(runtime, plan, {r.key for r in plan.rows})
+    assert ("SettingsRemoveMagnet", row.error) in report.refused and not report.ok
+    assert runtime.twins["door-1"].holding[3005] == 0 and runtime.twins["door-1"].flash[3005] == 0
+
+
+@pytest.mark.parametrize("value, words", [
+    (250.9, "not a whole number"), ("300", "not a number"), (True, "not a number"), (70000, "outside"),
+])
+async def test_restore_validates_each_value_like_a_manual_entry(plant_runtime, tmp_path, value, words):
+    runtime = plant_runtime
+    document = backup.load_document((await backup.backup_device(runtime, "door-1", tmp_path)).read_bytes())
+    changed = edited(document, "holding:3000", value=value)
+    del next(e for e in changed["parameters"] if e["key"] == "holding:3000")["raw"]
+    plan = await backup.plan_restore(runtime, "door-1", changed)
+    row = next(r for r in plan.rows if r.key == "holding:3000")
+    assert words in row.error
+    report = await backup.execute_restore(runtime, plan, {r.key for r in plan.rows})
+    assert report.refused and runtime.twins["door-1"].holding[3000] == 200
+
+
+async def test_restore_shows_and_writes_the_value_field(plant_runtime, tmp_path):
+    runtime = plant_runtime
+    document = backup.load_document((await backup.backup_device(runtime, "door-1", tmp_path)).read_bytes())
+    plan = await backup.plan_restore(runtime, "door-1", edited(document, "holding:3000", raw=250, value=250))
+    row = next(r for r in plan.rows if r.key == "holding:3000")
+    assert (row.current_text, row.backup_text, row.changed) == ("200 ms", "250 ms", True)
+    report = await backup.execute_restore(runtime, plan, {"holding:3000"})
+    assert report.written == ["LockRequestDelay"] and runtime.twins["door-1"].holding[3000] == 250
+    entry = next(e for e in runtime.audit.query(device="door-1") if e.action == "restore" and e.parameter)
+    assert (entry.old, entry.new, entry.result) == ("200 ms", "250 ms", "ok")
+
+
+async def test_restore_asks_the_same_confirmation_as_a_manual_write(plant_runtime, tmp_path):
+    runtime = plant_runtime
+    document = backup.load_document((await backup.backup_device(runtime, "door-1", tmp_path)).read_bytes())
+    risky = edited(document, "holding:3005", raw=1, value=1)
+    plan = await backup.plan_restore(runtime, "door-1", risky)
+    row = next(r for r in plan.rows if r.key == "holding:3005")
+    assert row.risk and plan.risky({row.key}) == [row]
+    report = await backup.execute_restore(runtime, plan, {row.key})  # nobody confirmed
+    assert report.refused and "needs a confirmation" in report.refused[0][1]
+    assert runtime.twins["door-1"].holding[3005] == 0
+    report = await backup.execute_restore(runtime, plan, {row.key}, confirmed={row.key})
+    assert report.written == ["SettingsRemoveMagnet"] and runtime.twins["door-1"].holding[3005] == 1
+
+
+async def test_electrak_restore_writes_the_shown_bit_rate(plant_runtime, tmp_path):
+    runtime = plant_runtime
+    document = backup.load_document((await backup.backup_device(runtime, "lift", tmp_path)).read_bytes())
+    entry = next(e for e in document["parameters"] if e["key"] == "service:4")
+    plan = await backup.plan_restore(runtime, "lift", edited(document, "service:4", raw=entry["raw"] + 1))
+    row = next(r for r in plan.rows if r.key == "service:4")
+    assert "disagree" in row.error and not row.changed  # shown 2 -> 2 but raw 3: never written

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import pytest
 from conftest import free_port, sim_process, wait_for
 
@@ -96,3 +98,27 @@ def test_headless_backup_and_restore(tmp_path, capsys):
     broken.write_text(files[0].read_text()[:100])
     assert main(["restore", "--plant", str(plant), "--device", "door-1", str(broken), "--yes", *data]) == 2
     assert "truncated or not JSON" in capsys.readouterr().err
+
+
+def test_restore_yes_refuses_risky_values_unless_named(tmp_path, capsys):
+    port = free_port()
+    plant = tmp_path / "plant.toml"
+    plant.write_text(
+        f'[[bus]]\nname = "line1"\ntype = "modbus-rtu"\nport = "socket://127.0.0.1:{port}"\nsimulate = true\ntimeout = 0.3\n'
+        'poll_period = 0.1\n[[device]]\nname = "door-1"\ntype = "hdlock"\nbus = "line1"\naddress = 1\n'
+    )
+    data = ["--data-dir", str(tmp_path / "data")]
+    assert main(["backup", "--plant", str(plant), "--out", str(tmp_path / "out"), *data]) == 0
+    path = next((tmp_path / "out").glob("door-1-*.json"))
+    document = json.loads(path.read_text())
+    entry = next(e for e in document["parameters"] if e["key"] == "holding:3005")
+    entry.update(raw=1, value=1)
+    path.write_text(json.dumps(document))
+    capsys.readouterr()
+    assert main(["restore", "--plant", str(plant), "--device", "door-1", str(path), "--yes", *data]) == 2
+    out = capsys.readouterr()
+    assert "SettingsRemoveMagnet" in out.out and "needs confirmation" in out.out
+    assert "--accept-risk SettingsRemoveMagnet" in out.err and "nothing written" in out.err
+    assert main(["restore", "--plant", str(plant), "--device", "door-1", str(path), "--yes",
+                 "--accept-risk", "SettingsRemoveMagnet", *data]) == 0
+    assert "1 written" in capsys.readouterr().out
