@@ -6,6 +6,7 @@ No I/O here. Section numbers refer to the HD-Lock document
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -42,6 +43,8 @@ REG_PARAM1 = 2001
 REG_PARAM2 = 2002
 REG_COMMAND = 2003
 REG_FW_UPDATE = 32770  # FwUpdateCommandRegister: never written by this tool
+REG_DEVICE_ADDRESS = 103  # DeviceAddress, changed only by command 3 (sections 3.2, 4.3)
+REG_LOCK_REQUEST_SOURCE = 4  # section 6.5.1: the source the lock uses is holding 4; 1002 is a register of its own
 
 
 class SystemCommand(IntEnum):
@@ -53,8 +56,11 @@ class SystemCommand(IntEnum):
 
 
 MODBUS_BROADCAST = 0  # section 5.6: the lock answers address 0 (one lock on the line)
+MODBUS_BROADCAST_SET_ADDRESS = 255  # section 4.3: Set Modbus Address to every lock on the line at once, no answer
 MODBUS_ADDRESS_MIN = 1
 MODBUS_ADDRESS_MAX = 254  # section 5.2: 248..254 supported besides the standard 1..247
+ADDRESS_COMMAND_ANSWERED = False  # section 4.3 does not say the lock answers the write of 2003 at its old address
+BROADCAST_TURNAROUND_S = 0.1  # Modbus over Serial Line 2.4.1: after a broadcast the master waits 100-200 ms
 
 
 class CodecError(ValueError):
@@ -93,6 +99,17 @@ def set_address_accepted(mask: int, expected: int, lock_status: int) -> bool:
     return set_address_condition(mask, expected, lock_status) == 0
 
 
+def broadcast_takers(mask: int, expected: int, statuses: Mapping[str, int | None]) -> tuple[list[str], list[str]]:
+    """Known locks that would take a broadcast address by their last LockStatus (section 4.3).
+
+    :param statuses: lock name -> last LockStatus read, or None when not known
+    :returns: (names whose status meets the condition, names whose status is unknown)
+    """
+    takers = [name for name, status in statuses.items() if status is not None and set_address_accepted(mask, expected, status)]
+    unknown = [name for name, status in statuses.items() if status is None]
+    return takers, unknown
+
+
 @dataclass(frozen=True)
 class CommandWrites:
     """The register writes of one system command, in the order they must be sent."""
@@ -111,6 +128,19 @@ def encode_system_command(command: SystemCommand, p0: int = 0, p1: int = 0, p2: 
 
 
 # -- CAN protocol (section 6) -------------------------------------------------------------
+
+
+def pack_le(value: int, length: int) -> bytes:
+    """An unsigned value as ``length`` bytes, least significant first (section 6.2)."""
+    if not 0 <= value < 1 << (8 * length):
+        raise CodecError(f"{value} does not fit {length} unsigned byte{'s' if length != 1 else ''}")
+    return value.to_bytes(length, "little")
+
+
+def unpack_le(data: bytes) -> int:
+    """Bytes least significant first -> unsigned value (section 6.2)."""
+    return int.from_bytes(data, "little")
+
 
 CAN_COMMAND = 0x700
 CAN_SET_DEVICE_ADDRESS = 0x701
@@ -208,7 +238,7 @@ BROADCAST_ID = DeviceId(CAN_BROADCAST, False)
 
 
 def _request(can_id: int, target: DeviceId, payload: bytes) -> CanFrame:
-    return CanFrame(can_id, target.to_u32().to_bytes(4, "little") + payload, False)
+    return CanFrame(can_id, pack_le(target.to_u32(), 4) + payload, False)
 
 
 def encode_can_command(target: DeviceId, command: CanCommand, value: int) -> CanFrame:
@@ -219,14 +249,14 @@ def encode_can_command(target: DeviceId, command: CanCommand, value: int) -> Can
         raise CodecError(f"bit-rate value {value} is not in the table of section 6.6.1.2 (0..11)")
     if not 0 <= value <= 0xFFFF:
         raise CodecError(f"command parameter {value} is not a 16-bit value")
-    return _request(CAN_COMMAND, target, int(command).to_bytes(2, "little") + value.to_bytes(2, "little"))
+    return _request(CAN_COMMAND, target, pack_le(int(command), 2) + pack_le(value, 2))
 
 
 def encode_set_device_address(target: DeviceId, new: DeviceId) -> CanFrame:
     """0x701 Set Device Address: bytes 4-7 the new ID with the extended flag (section 6.6.2)."""
     if new.value == CAN_BROADCAST:
         raise CodecError("device ID 0 is the broadcast address")
-    return _request(CAN_SET_DEVICE_ADDRESS, target, new.to_u32().to_bytes(4, "little"))
+    return _request(CAN_SET_DEVICE_ADDRESS, target, pack_le(new.to_u32(), 4))
 
 
 def encode_read(target: DeviceId, space: str, address: int, count: int = 1) -> CanFrame:
@@ -234,7 +264,7 @@ def encode_read(target: DeviceId, space: str, address: int, count: int = 1) -> C
     if not 0 <= address <= 0xFFFF or not 1 <= count <= 0xFFFF:
         raise CodecError(f"register range {address}+{count} is not valid")
     can_id = CAN_READ_INPUT if space == "input" else CAN_READ_HOLDING
-    return _request(can_id, target, address.to_bytes(2, "little") + count.to_bytes(2, "little"))
+    return _request(can_id, target, pack_le(address, 2) + pack_le(count, 2))
 
 
 def encode_write(target: DeviceId, address: int, value: int, silent: bool = False) -> CanFrame:
@@ -244,7 +274,7 @@ def encode_write(target: DeviceId, address: int, value: int, silent: bool = Fals
     if address == REG_FW_UPDATE:
         raise CodecError("FwUpdateCommandRegister (32770) is never written")
     can_id = CAN_SILENT_WRITE_HOLDING if silent else CAN_WRITE_HOLDING
-    return _request(can_id, target, address.to_bytes(2, "little") + value.to_bytes(2, "little"))
+    return _request(can_id, target, pack_le(address, 2) + pack_le(value, 2))
 
 
 
@@ -268,8 +298,8 @@ def decode_request(frame: CanFrame) -> CanRequest:
     if len(frame.data) < 6:
         raise CodecError(f"request 0x{frame.arbitration_id:X} too short ({len(frame.data)} bytes)")
     data = frame.data + bytes(8 - len(frame.data))
-    target = DeviceId.from_u32(int.from_bytes(data[0:4], "little"))
-    return CanRequest(frame.arbitration_id, target, int.from_bytes(data[4:6], "little"), int.from_bytes(data[6:8], "little"))
+    target = DeviceId.from_u32(unpack_le(data[0:4]))
+    return CanRequest(frame.arbitration_id, target, unpack_le(data[4:6]), unpack_le(data[6:8]))
 
 
 @dataclass(frozen=True)
@@ -314,34 +344,34 @@ def decode_lock_frame(data: bytes) -> LockFrame:
     if kind == (0, 0):
         if len(data) < 8:
             raise CodecError(f"status frame needs 8 bytes, got {len(data)}")
-        status, pos, word = (int.from_bytes(data[i:i + 2], "little") for i in (2, 4, 6))
+        status, pos, word = (unpack_le(data[i:i + 2]) for i in (2, 4, 6))
         return StatusFrame(status, pos, word >> 6, word & 0x3F)
     if kind == (1, 0):
         if len(data) < 6:
             raise CodecError(f"FWU status frame needs 6 bytes, got {len(data)}")
-        return FwuStatusFrame(bool(int.from_bytes(data[2:4], "little")), bool(int.from_bytes(data[4:6], "little")))
+        return FwuStatusFrame(bool(unpack_le(data[2:4])), bool(unpack_le(data[4:6])))
     if data[1] == 1 and data[0] in (0, 1):
         if len(data) < 6:
             raise CodecError(f"register answer needs 6 bytes, got {len(data)}")
         return RegisterAnswer(
             "input" if data[0] == 0 else "holding",
-            int.from_bytes(data[2:4], "little"),
-            int.from_bytes(data[4:6], "little"),
+            unpack_le(data[2:4]),
+            unpack_le(data[4:6]),
         )
     raise CodecError(f"unknown lock frame type {data[0]:02X} {data[1]:02X}")
 
 
 def encode_status(frame: StatusFrame) -> bytes:
     word = ((frame.proximity << 6) + (frame.lock_request_source & 0x3F)) & 0xFFFF
-    return bytes([0, 0]) + b"".join(v.to_bytes(2, "little") for v in (frame.status & 0xFFFF, frame.motor_pos & 0xFFFF, word))
+    return bytes([0, 0]) + b"".join(pack_le(v, 2) for v in (frame.status & 0xFFFF, frame.motor_pos & 0xFFFF, word))
 
 
 def encode_fwu_status(frame: FwuStatusFrame) -> bytes:
-    return bytes([1, 0]) + int(frame.flashing).to_bytes(2, "little") + int(frame.application).to_bytes(2, "little")
+    return bytes([1, 0]) + pack_le(int(frame.flashing), 2) + pack_le(int(frame.application), 2)
 
 
 def encode_register_answer(answer: RegisterAnswer) -> bytes:
-    return bytes([0 if answer.space == "input" else 1, 1]) + answer.address.to_bytes(2, "little") + answer.value.to_bytes(2, "little")
+    return bytes([0 if answer.space == "input" else 1, 1]) + pack_le(answer.address, 2) + pack_le(answer.value, 2)
 
 
 def looks_like_status(data: bytes) -> bool:
