@@ -21,7 +21,8 @@ from pages.widgets import (
 
 DEVICE_TYPE = "hdlock"
 
-ENUM_VALUES = ("DoorState", "StateMachineState", "MotorState", "MotorState (IR53)", "MotorResult", "LockRequestSource")
+# the LockRequestSource shown is holding 4, the one the lock uses (section 6.5.1)
+ENUM_VALUES = ("DoorState", "StateMachineState", "MotorState", "MotorState (IR53)", "MotorResult", "LockRequestSource (HR4)")
 LAMP_KIND = {"ProximityOverrange": "warn", "ForceActive": "warn"}
 
 
@@ -66,6 +67,7 @@ def content(name: str) -> None:
                 else:
                     can_status = None
                     _set_address_card(name, state)
+                    _broadcast_address_card(name, state)
 
         # -- writable parameters -----------------------------------------------------------
         param_rows = _parameter_card(name, state)
@@ -133,6 +135,11 @@ def _sim_controls(twin, is_can: bool) -> None:
             ui.switch("LOCK-REQUEST input active", value=twin.line_input, on_change=lambda e: twin.set_line_input(e.value))
             ui.switch("Strong magnet", value=twin.strong_magnet, on_change=lambda e: setattr(twin, "strong_magnet", e.value))
             ui.switch("Stop answering", value=twin.silent, on_change=lambda e: setattr(twin, "silent", e.value))
+            if not is_can:
+                ui.switch(
+                    "Answer Set Modbus Address at the old address", value=twin.answers_address_command,
+                    on_change=lambda e: setattr(twin, "answers_address_command", e.value),
+                ).tooltip("Section 4.3 does not say whether the lock answers the command write; off = it stays silent")
             if is_can:
                 ui.switch("Firmware-update mode", value=twin.fwu_mode, on_change=lambda e: setattr(twin, "fwu_mode", e.value))
                 ui.button("Back to the bus bit rate", on_click=lambda: setattr(twin, "can_bitrate", _bus_bitrate(twin))).props("flat dense")
@@ -196,6 +203,29 @@ async def _restore(name: str) -> None:
         await run_command(name, lambda a: a.restore_settings(), "Restore-Settings", success="Saved settings restored")
 
 
+def _parse_word(text) -> int | None:
+    """A 16-bit mask typed as decimal or 0x hex, else None."""
+    try:
+        value = int(str(text).strip(), 0)
+    except ValueError:
+        return None
+    return value if 0 <= value <= 0xFFFF else None
+
+
+def _bit_names(mask: int) -> str:
+    return ", ".join(f.name for f in LOCK_STATUS_BITS if mask >> f.shift & 1) or "no bits"
+
+
+def _condition_text(m: int, e: int) -> str:
+    return f"checks: {_bit_names(m)}; must be set: {_bit_names(e & m) if e & m else 'none'}"
+
+
+def _mask_inputs(prefix: str):
+    p1 = ui.input("P1 mask (hex)", value="0x0000").props(f"dense outlined data-testid={prefix}-p1").classes("w-32 mono")
+    p2 = ui.input("P2 expected (hex)", value="0x0000").props(f"dense outlined data-testid={prefix}-p2").classes("w-32 mono")
+    return p1, p2
+
+
 def _set_address_card(name: str, state) -> None:
     """Set Modbus Address (command 3) with its two condition masks and a live preview."""
     with ui.card().classes("w-full"):
@@ -203,29 +233,18 @@ def _set_address_card(name: str, state) -> None:
         ui.label("Taken only if (P1 & LockStatus) ^ P2 == 0 (section 4.3).").classes("text-caption text-grey-8")
         with ui.row().classes("items-center"):
             new = ui.number("New address", value=None, min=1, max=254, format="%d").props("dense outlined").classes("w-32")
-            p1 = ui.input("P1 mask (hex)", value="0x0000").props("dense outlined").classes("w-32 mono")
-            p2 = ui.input("P2 expected (hex)", value="0x0000").props("dense outlined").classes("w-32 mono")
+            p1, p2 = _mask_inputs("sa")
         bits = ui.label().classes("text-caption")
         preview = ui.label().classes("text-body2")
         button = ui.button("Send Set Modbus Address", icon="pin")
 
-    def parse(text: str) -> int | None:
-        try:
-            value = int(str(text).strip(), 0)
-        except ValueError:
-            return None
-        return value if 0 <= value <= 0xFFFF else None
-
-    def names(mask: int) -> str:
-        return ", ".join(f.name for f in LOCK_STATUS_BITS if mask >> f.shift & 1) or "no bits"
-
     def update_preview() -> None:
-        m, e = parse(p1.value), parse(p2.value)
+        m, e = _parse_word(p1.value), _parse_word(p2.value)
         if m is None or e is None:
             preview.set_text("P1 and P2 must be 16-bit numbers, e.g. 0x010C")
             preview.classes(replace="text-body2 text-negative")
             return
-        bits.set_text(f"checks: {names(m)}; must be set: {names(e & m) if e & m else 'none'}")
+        bits.set_text(_condition_text(m, e))
         status = state.value("LockStatus")
         if status is None:
             preview.set_text("LockStatus not read yet")
@@ -239,7 +258,7 @@ def _set_address_card(name: str, state) -> None:
         preview.classes(replace="text-body2 " + ("text-positive" if ok else "text-negative"))
 
     async def send() -> None:
-        m, e = parse(p1.value), parse(p2.value)
+        m, e = _parse_word(p1.value), _parse_word(p2.value)
         if new.value is None or not 1 <= int(new.value) <= 254:
             ui.notify("Enter a new address 1..254", type="warning")
             return
@@ -254,12 +273,114 @@ def _set_address_card(name: str, state) -> None:
             ok="Send",
         ):
             return
-        ok, accepted = await run_command(name, lambda a: a.set_address(target, m, e), "Set Modbus Address")
+        ok, outcome = await run_command(
+            name, lambda a: a.set_address(target, m, e), f"Set Modbus Address {target}",
+            parameter="DeviceAddress", old=state.info.get("address", ""), new=target,
+        )
         if ok:
-            if accepted:
-                ui.notify(f"The lock answers at address {target} now. Save-Settings keeps it.", type="positive")
-            else:
-                ui.notify("The lock refused the new address: the condition did not hold", type="warning")
+            ui.notify(outcome.text, type="positive" if outcome.taken else "warning", multi_line=True, close_button="OK", timeout=15000)
+
+    for element in (p1, p2):
+        element.on_value_change(update_preview)
+    button.on_click(send)
+    update_preview()
+    ui.timer(1.0, update_preview)
+
+
+def _line_locks(name: str, state) -> tuple[dict[int, str], dict[str, int | None], int, int]:
+    """Locks known on this lock's line: address -> name, name -> last LockStatus, and how many
+    are in the plant file and how many only in scans of the line."""
+    runtime = rt.current()
+    known: dict[int, str] = {}
+    statuses: dict[str, int | None] = {}
+    for dev in runtime.plant.devices_on(state.bus):
+        if dev.type != DEVICE_TYPE:
+            continue
+        address = runtime.store.devices[dev.name].info.get("address", dev.options.get("address"))
+        known[address] = dev.name
+        status = runtime.store.devices[dev.name].value("LockStatus")
+        statuses[dev.name] = None if status is None else int(status)
+    in_plant = len(known)
+    for entry in state.info.get("line_discovered", []):
+        if entry["address"] not in known:
+            label = f"address {entry['address']}" + (f" (serial {entry['serial']})" if entry.get("serial") is not None else "")
+            known[entry["address"]] = label
+            statuses[label] = None
+    return known, statuses, in_plant, len(known) - in_plant
+
+
+def _broadcast_address_card(name: str, state) -> None:
+    """Set Modbus Address to broadcast address 255 (section 4.3): every lock on the line at once."""
+    with ui.card().classes("w-full"):
+        ui.label(f"Set Modbus Address on every lock of {state.bus} (broadcast 255)").classes("text-subtitle1")
+        ui.label(
+            "Every lock on the line gets the command and none answers; each lock whose LockStatus meets "
+            "(P1 & LockStatus) ^ P2 == 0 takes the new address (section 4.3)."
+        ).classes("text-caption text-grey-8")
+        with ui.row().classes("items-center"):
+            new = ui.number("New address", value=None, min=1, max=254, format="%d").props(
+                "dense outlined data-testid=bc-address").classes("w-32")
+            p1, p2 = _mask_inputs("bc")
+        bits = ui.label().classes("text-caption")
+        known_label = ui.label().classes("text-body2").props("data-testid=bc-known")
+        button = ui.button("Send to all locks (255)", icon="campaign").props("color=negative data-testid=bc-send")
+
+    def update_preview() -> None:
+        m, e = _parse_word(p1.value), _parse_word(p2.value)
+        known, statuses, in_plant, scanned = _line_locks(name, state)
+        listed = ", ".join(f"{label} @{address}" if not label.startswith("address") else label for address, label in sorted(known.items()))
+        text = f"{len(known)} lock{'s' if len(known) != 1 else ''} known on {state.bus} ({in_plant} in the plant, {scanned} found by a scan): {listed}"
+        if m is None or e is None:
+            bits.set_text("P1 and P2 must be 16-bit numbers, e.g. 0x010C")
+        else:
+            bits.set_text(_condition_text(m, e))
+            takers, unknown = codec.broadcast_takers(m, e, statuses)
+            text += f". By the last LockStatus read: {', '.join(takers) or 'none'} would take it"
+            if unknown:
+                text += f"; unknown for {', '.join(unknown)}"
+        known_label.set_text(text)
+
+    async def send() -> None:
+        m, e = _parse_word(p1.value), _parse_word(p2.value)
+        if new.value is None or not 1 <= int(new.value) <= 254:
+            ui.notify("Enter a new address 1..254", type="warning")
+            return
+        if m is None or e is None:
+            ui.notify("P1 and P2 must be 16-bit numbers", type="warning")
+            return
+        target = int(new.value)
+        known, statuses, in_plant, scanned = _line_locks(name, state)
+        if target in known:
+            ui.notify(f"Address {target} is {known[target]}: choose an address no lock uses", type="warning")
+            return
+        takers, unknown = codec.broadcast_takers(m, e, statuses)
+        if len(takers) > 1:
+            ui.notify(
+                f"{' and '.join(takers)} would all take address {target} and then answer together: "
+                "narrow the condition (P1/P2) so that only one lock meets it", type="warning", multi_line=True,
+            )
+            return
+        count = len(known)
+        if not await confirm(
+            f"Up to {count} lock{'s' if count != 1 else ''} on {state.bus} may take address {target}",
+            f"{count} lock{'s' if count != 1 else ''} known on {state.bus} may be affected ({in_plant} in the plant, "
+            f"{scanned} found by a scan): {', '.join(sorted(known.values()))}. Every lock whose LockStatus meets the "
+            f"condition ({_condition_text(m, e)}) takes address {target} at once; by the last status read "
+            f"{', '.join(takers) or 'none of them'} would"
+            + (f", unknown for {', '.join(unknown)}" if unknown else "")
+            + ". Locks on the line that are not known here take it too if they meet the condition. "
+            f"Afterwards send Save-Settings at address {target} and change the plant file.",
+            ok=f"Send to all ({count})",
+        ):
+            return
+        ok, outcome = await run_command(
+            name, lambda a: a.broadcast_set_address(target, m, e, known),
+            f"Broadcast Set Modbus Address (255) P1 0x{m:04X} P2 0x{e:04X}, {count} known locks",
+            parameter="DeviceAddress", new=target,
+        )
+        if ok:
+            ui.notify(outcome.text, type="positive" if outcome.taken else "warning", multi_line=True, close_button="OK", timeout=20000)
+        update_preview()
 
     for element in (p1, p2):
         element.on_value_change(update_preview)
@@ -335,7 +456,7 @@ async def _send_source(name: str, value, broadcast: bool) -> None:
     if broadcast and not await confirm("Broadcast to every lock?", f"Every lock on this bus gets LockRequestSource {label} (0x{value:02X}).", ok="Send to all"):
         return
     await run_command(name, lambda a: a.set_lock_request_source(value, broadcast=broadcast), "cmdSetLockRequestSource",
-                      success=f"LockRequestSource {label} sent" + (" to all locks" if broadcast else " and read back"))
+                      success=f"LockRequestSource {label} sent" + (" to all locks" if broadcast else " and read back from holding 4"))
 
 
 async def _send_bitrate(name: str, code, broadcast: bool) -> None:

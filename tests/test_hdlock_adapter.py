@@ -109,28 +109,191 @@ async def test_invalid_entries_never_reach_the_bus(running):
     assert running.store.devices["door-1"].counters.requests >= requests
 
 
-async def test_set_address_accepted(running):
+# Section 4.3 does not say whether the lock answers the write of 2003 at its old address:
+# every Set-Address test runs against a twin that stays silent and one that answers.
+ANSWER_MODES = pytest.mark.parametrize("answers", [False, True], ids=["silent-at-old-address", "answers-at-old-address"])
+
+
+async def closed_and_locked(running, name: str):
+    state = running.store.devices[name]
+    running.twins[name].close_door()
+    assert await wait_for(lambda: (state.value("LockStatus") or 0) & 0x0104 == 0x0104, timeout=5)
+    return state
+
+
+@ANSWER_MODES
+async def test_set_address_accepted(running, answers):
     state = await online(running)
     twin = running.twins["door-1"]
-    twin.close_door()
-    assert await wait_for(lambda: (state.value("LockStatus") or 0) & 0x0104 == 0x0104, timeout=5)
+    twin.answers_address_command = answers
+    await closed_and_locked(running, "door-1")
     adapter = running.worker.adapters["door-1"]
     assert adapter.set_address_preview(0x010C, 0x0104)[0]
-    assert await adapter.set_address(8, 0x010C, 0x0104) is True
+    outcome = await adapter.set_address(8, 0x010C, 0x0104)
+    assert outcome.taken is True
+    assert outcome.answered_old is answers
+    assert "answers at address 8" in outcome.text
     assert twin.address == 8 and adapter.address == 8
+    assert state.info["address"] == 8
+    assert PARAMS.get("holding", 103).key in state.unsaved
+    assert state.counters.timeouts == 0  # the expected silence is no fault of the lock
     state.online = None
     assert await online(running)
+    assert state.value("DeviceAddress") == 8
 
 
-async def test_set_address_refused(running):
+@ANSWER_MODES
+async def test_set_address_refused(running, answers):
     state = await online(running)
     adapter = running.worker.adapters["door-1"]
+    running.twins["door-1"].answers_address_command = answers
     # BoltLocked must be set, but the door is open and the bolt in
     accepted, result, _status = adapter.set_address_preview(0x0100, 0x0100)
     assert not accepted and result == 0x0100
-    assert await adapter.set_address(16, 0x0100, 0x0100) is False
+    outcome = await adapter.set_address(16, 0x0100, 0x0100)
+    assert outcome.taken is False
+    assert "still answers at address 1" in outcome.text
     assert running.twins["door-1"].address == 1 and adapter.address == 1
     assert any("refused" in e.text for e in state.events)
+
+
+async def test_set_address_lost_lock_is_reported(running):
+    """No answer at the new address nor at the old one: say so, do not guess."""
+    await online(running)
+    adapter = running.worker.adapters["door-1"]
+    twin = running.twins["door-1"]
+    original = twin.write
+
+    def write_then_vanish(address, value):
+        result = original(address, value)
+        if address == 2003:
+            twin.silent = True  # e.g. the lock lost power right after the command
+        return result
+
+    twin.write = write_then_vanish
+    with pytest.raises(CommandError, match="no answer at the new address 9 nor at the old address 1"):
+        await adapter.set_address(9, 0, 0)
+    assert adapter.address == 1
+
+
+async def test_set_address_to_an_address_in_use_is_refused(running):
+    """Section 2.2: every lock needs an address of its own; nothing is written."""
+    await online(running)
+    adapter = running.worker.adapters["door-1"]
+    writes = spy_writes(running.twins["door-1"])
+    with pytest.raises(CommandError, match="address 2 is already in use"):
+        await adapter.set_address(2, 0, 0)
+    with pytest.raises(CommandError, match="has address 1 already"):
+        await adapter.set_address(1, 0, 0)
+    assert writes == []
+
+
+@ANSWER_MODES
+async def test_twin_answers_the_address_command_only_when_switched_on(running, answers):
+    await online(running)
+    line = running.worker.lines["line1"]
+    twin = running.twins["door-2"]
+    twin.answers_address_command = answers
+    for register, value in ((2000, 12), (2001, 0), (2002, 0)):
+        await line.write_register(2, register, value)
+    if answers:
+        await line.write_register(2, 2003, 3)
+    else:
+        with pytest.raises(LineTimeout):
+            await line.write_register(2, 2003, 3)
+    assert twin.address == 12 and twin.holding[103] == 12
+
+
+# -- broadcast address change (section 4.3, address 255) -----------------------------------------
+
+
+def spy_writes(twin) -> list[tuple[int, int]]:
+    writes: list[tuple[int, int]] = []
+    original = twin.write
+
+    def recording(address: int, value: int):
+        writes.append((address, value))
+        return original(address, value)
+
+    twin.write = recording
+    return writes
+
+
+KNOWN = {1: "door-1", 2: "door-2"}
+
+
+async def test_broadcast_set_address_taken_by_the_lock_that_meets_the_condition(running):
+    await online(running, "door-1")
+    await online(running, "door-2")
+    await closed_and_locked(running, "door-2")  # door-1 stays open: its bolt is in
+    one, two = running.twins["door-1"], running.twins["door-2"]
+    writes_1, writes_2 = spy_writes(one), spy_writes(two)
+    adapter = running.worker.adapters["door-2"]
+    outcome = await running.worker.command(
+        "door-2", lambda a: a.broadcast_set_address(9, 0x010C, 0x0104, KNOWN), describe="Broadcast Set Modbus Address (255)",
+    )
+    assert outcome.taken and not outcome.collision
+    assert (two.address, one.address) == (9, 1)
+    assert adapter.address == 9  # the lock of this page moved: its adapter follows it
+    assert outcome.moved == ["door-2"]
+    assert f"serial {two.serial} answers at address 9" in outcome.text and "door-2" in outcome.text
+    # both locks got the same four writes (parameters first, the command last), none answered
+    assert writes_1 == writes_2 == [(2000, 9), (2001, 0x010C), (2002, 0x0104), (2003, 3)]
+    assert any(t.unit == 255 and not t.error for t in running.store.buses["line1"].transactions)
+    entries = running.audit.query(device="door-2", text="Broadcast")
+    assert entries and entries[0].result == "ok"
+
+
+async def test_broadcast_set_address_other_lock_moves(running):
+    await online(running, "door-1")
+    await online(running, "door-2")
+    await closed_and_locked(running, "door-2")
+    outcome = await running.worker.adapters["door-1"].broadcast_set_address(9, 0x010C, 0x0104, KNOWN)
+    assert outcome.taken and outcome.moved == ["door-2"]
+    assert running.worker.adapters["door-1"].address == 1  # door-1 did not move
+    assert "door-2" in outcome.text and "plant file" in outcome.text
+
+
+async def test_broadcast_set_address_collision_is_reported(running):
+    await online(running, "door-1")
+    await online(running, "door-2")
+    # no condition: every lock takes address 9, and then they answer together
+    outcome = await running.worker.adapters["door-1"].broadcast_set_address(9, 0, 0, KNOWN)
+    assert outcome.collision and not outcome.taken
+    assert sorted(outcome.moved) == ["door-1", "door-2"]
+    assert "more than one lock" in outcome.text
+    assert running.twins["door-1"].address == running.twins["door-2"].address == 9
+
+
+async def test_broadcast_set_address_nobody_meets_the_condition(running):
+    await online(running, "door-1")
+    await online(running, "door-2")
+    # BoltMovingIn must be set: neither lock is moving
+    outcome = await running.worker.adapters["door-1"].broadcast_set_address(9, 0x0800, 0x0800, KNOWN)
+    assert not outcome.taken and not outcome.collision and outcome.moved == []
+    assert "no lock answers at address 9" in outcome.text
+    assert running.twins["door-1"].address == 1 and running.twins["door-2"].address == 2
+
+
+async def test_broadcast_set_address_to_a_known_or_used_address_is_refused(running):
+    await online(running, "door-1")
+    await online(running, "door-2")
+    writes = spy_writes(running.twins["door-1"])
+    adapter = running.worker.adapters["door-1"]
+    with pytest.raises(CommandError, match="address 2 is door-2"):
+        await adapter.broadcast_set_address(2, 0, 0, KNOWN)
+    with pytest.raises(CommandError, match="address 2 is already in use"):
+        await adapter.broadcast_set_address(2, 0, 0, {})  # not known, but it answers
+    with pytest.raises(CommandError, match="outside 1..254"):
+        await adapter.broadcast_set_address(255, 0, 0, KNOWN)
+    assert writes == []
+
+
+async def test_scan_results_reach_the_state_store(running):
+    """Locks found by a scan of the line are listed on every lock of that line (for the broadcast count)."""
+    state = await online(running)
+    await running.worker.discover("line1", 1, 3)
+    assert await wait_for(lambda: [d["address"] for d in state.info.get("line_discovered", [])] == [1, 2], timeout=3)
 
 
 async def test_timeout_when_twin_silent_and_recovery(running):

@@ -198,17 +198,75 @@ async def test_protected_register_echo_is_reported(running):
 
 
 async def test_set_lock_request_source_command(running):
+    """cmdSetLockRequestSource is verified against holding 4, the source the lock uses (section 6.5.1)."""
+    state = await online(running)
+    adapter = running.worker.adapters["gate-1"]
+    twin = running.twins["gate-1"]
+    await adapter.set_lock_request_source(0x81)
+    assert twin.holding[4] == 0x81
+    assert twin.holding[1002] == 4  # its own register: the command does not write it
+    assert running.twins["gate-2"].holding[4] == 4  # only the target
+    assert state.value("LockRequestSource (HR4)") == 0x81
+    assert PARAMS.get("holding", 4).key in state.unsaved  # volatile until Save-Settings (section 3)
+    # the status frame reports holding 4 (low 6 bits, SPEC-NOTES), and the bolt follows it
+    twin.set_line_input(False)  # IrsAlways does not need the input, nor the door (0x80)
+    assert await wait_for(lambda: state.info["can_status"].lock_request_source == 0x01, timeout=3)
+    assert await wait_for(lambda: state.info["can_status"].bits["BoltLocked"], timeout=4)
+
+
+async def test_set_lock_request_source_refused_is_reported(running):
+    """A lock that keeps its source (holding 4) makes the command fail, even if 1002 holds the value."""
     await online(running)
     adapter = running.worker.adapters["gate-1"]
-    await adapter.set_lock_request_source(0x81)
-    assert running.twins["gate-1"].holding[1002] == 0x81
-    assert running.twins["gate-2"].holding[1002] == 4  # only the target
+    twin = running.twins["gate-1"]
+    twin.holding[1002] = 0x81  # 1002 already says 0x81 ...
+    twin.writable.discard(4)  # ... but this lock does not take the command
+    with pytest.raises(CommandError, match="reads 0x04 after the command, not 0x81"):
+        await adapter.set_lock_request_source(0x81)
+    assert twin.holding[4] == 4
 
 
 async def test_broadcast_reaches_every_lock(running):
     await online(running)
     await running.worker.adapters["gate-1"].set_lock_request_source(0x01, broadcast=True)
-    assert await wait_for(lambda: all(t.holding[1002] == 0x01 for t in running.twins.values()), timeout=2)
+    assert await wait_for(lambda: all(t.holding[4] == 0x01 for t in running.twins.values()), timeout=2)
+    assert all(t.holding[1002] == 4 for t in running.twins.values())
+
+
+def test_twin_keeps_holding_4_and_1002_apart():
+    """Section 3.2 lists 4 and 1002 as two RW registers; 6.5.1 names 4 as the one in use."""
+    from devices.hdlock.sim import HdLockTwin
+
+    twin = HdLockTwin(door_closed=False)
+    assert twin.holding[4] == twin.holding[1002] == 4  # factory 0x04 IrsNotLine
+    twin.write(1002, 0x81)
+    for _ in range(20):
+        twin.step(0.05)
+    assert twin.holding[1002] == 0x81 and twin.holding[4] == 4
+    assert twin.bolt == 0  # the door is open and the source in use (4) still wants it closed
+    twin.write(4, 0x01)
+    twin.step(0.05)
+    assert twin.holding[4] == 0x01 and twin.holding[1002] == 0x81
+
+
+def test_twin_command_keeps_only_the_low_byte_over_a_reset():
+    """Section 6.6.1.1: only the LSB is stored for good; the MSB is 0 after a reset.
+
+    Section 3: a holding-register change is volatile until Save-Settings, this one too.
+    """
+    from devices.hdlock.sim import HdLockTwin
+
+    twin = HdLockTwin()
+    twin.set_lock_request_source(0x0181)
+    assert twin.holding[4] == 0x0181
+    twin.reset()
+    assert twin.holding[4] == 0x04  # not saved: the saved value comes back
+    twin.set_lock_request_source(0x0181)
+    twin.write(codec.REG_COMMAND, codec.SystemCommand.SAVE_SETTINGS)
+    twin.reset()
+    assert twin.holding[4] == 0x81
+    twin.set_lock_request_source(0x08)  # not in the table of section 6.6.1.1: refused
+    assert twin.holding[4] == 0x81
 
 
 async def test_set_device_address_then_answers_under_new_id(running):

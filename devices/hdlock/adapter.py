@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import asyncio
 import time
+import weakref
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
-from app.modbus_line import LineError, ModbusLine
+from app.modbus_line import LineCrcError, LineError, LineException, LineTimeout, ModbusLine
 from app.state import DeviceState
 from devices.hdlock import codec
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
@@ -22,8 +25,37 @@ class CommandError(Exception):
     """A command or write that did not take effect; the message says what to do."""
 
 
+@dataclass
+class AddressChange:
+    """Outcome of Set Modbus Address (section 4.3), told from what answers afterwards."""
+
+    new_address: int
+    taken: bool  # one lock answers cleanly at the new address
+    text: str
+    answered_old: bool | None = None  # the write of 2003 at the old address: answered, silent, or garbled (None)
+    collision: bool = False  # a garbled answer at the new address: more than one lock took it
+    serial: int | None = None  # serial number of the lock that answers at the new address
+    moved: list[str] = field(default_factory=list)  # known locks no longer answering at their old address
+
+
+# Locks found by scans of a Modbus line (discover()), by address; shown on every lock of that line.
+_LINE_SCANS: weakref.WeakKeyDictionary[ModbusLine, dict[int, dict]] = weakref.WeakKeyDictionary()
+
+
 class HdLockBackup:
-    """Write checks and backup/restore (see app/backup.py), shared by the Modbus and the CAN adapter."""
+    """Write checks, backup/restore (see app/backup.py) and the worker's session hooks,
+    shared by the Modbus and the CAN adapter."""
+
+    def holders(self) -> set[str]:
+        """Sessions that keep motion or mains outputs running here: none.
+
+        Every HD-Lock command is a single write the lock keeps by itself; nothing is kept
+        alive on behalf of a browser, so the dead-man rule has nothing to stop.
+        """
+        return set()
+
+    def session_lost(self, session: str, reason: str) -> None:
+        """Nothing runs on behalf of a session (see :meth:`holders`): nothing to stop."""
 
     def _prepare(self, param: Param, value, confirmed: bool) -> int:
         """The raw value to write, after range, type, access and confirmation checks."""
@@ -76,13 +108,19 @@ class HdLockAdapter(HdLockBackup):
         self.state.params = PARAMS
         self.state.info["address"] = self.address
         self._fails = 0
+        self._changing_address = False  # polling waits while the address is being changed
 
     # -- polling ------------------------------------------------------------------------
     async def poll(self) -> None:
         """Read every register block once; one failed block marks the cycle failed."""
+        scans = _LINE_SCANS.get(self.line)
+        if scans is not None:
+            self.state.info["line_discovered"] = [dict(entry) for _address, entry in sorted(scans.items())]
         try:
             for space in (INPUT, HOLDING):
                 for start, count in self.blocks[space]:
+                    if self._changing_address:
+                        return
                     if space == INPUT:
                         values = await self.line.read_input(self.address, start, count, self.state.counters)
                     else:
@@ -159,29 +197,159 @@ class HdLockAdapter(HdLockBackup):
         result = codec.set_address_condition(mask, expected, int(status))
         return result == 0, result, int(status)
 
-    async def set_address(self, new_address: int, mask: int, expected: int) -> bool:
-        """Command 3 (section 4.3). Returns True when the lock answers at the new address."""
-        if not codec.MODBUS_ADDRESS_MIN <= new_address <= codec.MODBUS_ADDRESS_MAX:
-            raise CommandError(f"new address {new_address} is outside 1..254")
+    async def set_address(self, new_address: int, mask: int, expected: int) -> AddressChange:
+        """Command 3 (section 4.3) at this lock's address; the outcome is read at the new address.
+
+        The write of 2003 may go unanswered at the old address (the document does not say
+        that the lock answers it); the lock is then looked for at the new address, and
+        when it is not there, at the old one.
+        """
+        _check_address(new_address)
         old = self.address
-        await self._command(codec.SystemCommand.SET_MODBUS_ADDRESS, new_address, mask, expected)
-        await asyncio.sleep(0.05)
+        if new_address == old:
+            raise CommandError(f"the lock has address {old} already")
+        await self._address_free(new_address)
         try:
-            now = (await self.line.read_holding(new_address, 103, 1, self.state.counters))[0]
-        except LineError:
-            now = None
-        if now == new_address and new_address != old:
-            self.address = new_address
-            self.state.info["address"] = new_address
-            self.state.unsaved.add(PARAMS.get(HOLDING, 103).key)
-            self.state.event(
-                "warning",
-                f"address changed {old} -> {new_address}: send Save-Settings to keep it and change "
-                f"address = {new_address} in the plant file",
+            writes = codec.encode_system_command(codec.SystemCommand.SET_MODBUS_ADDRESS, new_address, mask, expected).writes
+        except codec.CodecError as exc:
+            raise CommandError(str(exc)) from None
+        self._changing_address = True
+        try:
+            try:
+                for register, value in writes[:-1]:
+                    await self.line.write_register(old, register, value, self.state.counters)
+            except LineError as exc:
+                self.state.counters.write_errors += 1
+                raise CommandError(f"Set Modbus Address: writing the parameters failed: {exc}") from None
+            answered = await self._write_command(old, *writes[-1])
+            await asyncio.sleep(codec.BROADCAST_TURNAROUND_S)
+            found = await self._probe(new_address)
+            serial = self.state.value("SerialNumber")
+            how = _command_answer_text(answered, old)
+            if isinstance(found, int) and serial is not None and found != serial:
+                raise CommandError(f"a lock with serial {found} answers at address {new_address}, not this one ({serial}); {how}")
+            if found == "garbled":
+                raise CommandError(f"garbled answer at address {new_address}: two locks may answer there now; {how}")
+            if found is not None:
+                self._moved_to(old, new_address)
+                text = (f"the lock answers at address {new_address} now ({how}): send Save-Settings to keep it "
+                        f"and change address = {new_address} in the plant file")
+                self.state.event("warning", f"address changed {old} -> {new_address}: {text}")
+                return AddressChange(new_address, True, text, answered_old=answered, serial=serial)
+            if await self._probe(old) is not None:
+                text = f"no answer at address {new_address}; the lock still answers at address {old} ({how}): the condition did not hold"
+                self.state.event("warning", f"address change to {new_address} refused: {text}")
+                return AddressChange(new_address, False, text, answered_old=answered)
+            raise CommandError(
+                f"no answer at the new address {new_address} nor at the old address {old} ({how}): "
+                "the outcome is unknown; check the lock's power and cabling, then run Discover on the line"
             )
-            return True
-        self.state.event("warning", f"address change to {new_address} refused: condition not met")
-        return False
+        finally:
+            self._changing_address = False
+
+    async def broadcast_set_address(self, new_address: int, mask: int, expected: int, known: Mapping[int, str]) -> AddressChange:
+        """Set Modbus Address to broadcast address 255 (section 4.3): every lock on the line
+        whose LockStatus meets the condition takes ``new_address``; none answers.
+
+        :param known: address -> name of the locks known on this line (plant file and scans);
+            each is looked for at its old address afterwards, to tell which ones moved.
+        """
+        _check_address(new_address)
+        if new_address in known:
+            raise CommandError(f"address {new_address} is {known[new_address]}: choose an address no lock uses")
+        await self._address_free(new_address)
+        try:
+            writes = codec.encode_system_command(codec.SystemCommand.SET_MODBUS_ADDRESS, new_address, mask, expected).writes
+        except codec.CodecError as exc:
+            raise CommandError(str(exc)) from None
+        unit = codec.MODBUS_BROADCAST_SET_ADDRESS
+        self._changing_address = True
+        try:
+            try:
+                for register, value in writes:
+                    await self.line.transact(
+                        unit, f"broadcast write holding {register}={value}", self.state.counters,
+                        lambda c, r=register, v=value: c.write_register(r, v, device_id=unit, no_response_expected=True),
+                        retries=0,
+                    )
+                    await asyncio.sleep(codec.BROADCAST_TURNAROUND_S)
+            except LineError as exc:
+                self.state.counters.write_errors += 1
+                raise CommandError(f"broadcast Set Modbus Address failed: {exc}") from None
+            found = await self._probe(new_address)
+            moved = [name for address, name in sorted(known.items()) if await self._probe(address) is None]
+            serial = self.state.value("SerialNumber")
+            if isinstance(found, int) and serial is not None and found == serial:
+                self._moved_to(self.address, new_address)
+        finally:
+            self._changing_address = False
+        gone = f"; no longer answering at their old address: {', '.join(moved)}" if moved else ""
+        if found == "garbled":
+            text = (f"garbled answers at address {new_address}: more than one lock took it and they now answer together"
+                    f"{gone}. Give each its own address again (Set Modbus Address at {new_address} with a condition only "
+                    "one of them meets), then change the plant file")
+            result = AddressChange(new_address, False, text, collision=True, moved=moved)
+        elif found is None:
+            text = f"no lock answers at address {new_address}: no lock met the condition{gone}"
+            result = AddressChange(new_address, False, text, moved=moved)
+        else:
+            text = (f"lock serial {found} answers at address {new_address}{gone}. Send Save-Settings to it at {new_address} "
+                    "to keep the address, and change the plant file")
+            result = AddressChange(new_address, True, text, serial=found, moved=moved)
+        scans = _LINE_SCANS.setdefault(self.line, {})
+        for address, name in known.items():
+            if name in moved:
+                scans.pop(address, None)
+        if result.taken:
+            scans[new_address] = {"address": new_address, "serial": found, "via": "broadcast address change"}
+        self.state.event("warning", f"broadcast Set Modbus Address {new_address} (P1 0x{mask:04X}, P2 0x{expected:04X}): {text}")
+        return result
+
+    # -- address change helpers ------------------------------------------------------------
+    async def _write_command(self, unit: int, register: int, value: int) -> bool | None:
+        """The write of 2003: True answered, False silent (expected, see codec), None garbled."""
+        self.state.counters.requests += 1
+        try:
+            await self.line.write_register(unit, register, value)
+        except LineTimeout:
+            if codec.ADDRESS_COMMAND_ANSWERED:
+                self.state.counters.timeouts += 1
+            return False
+        except LineCrcError:
+            return None
+        except LineException as exc:
+            self.state.counters.write_errors += 1
+            raise CommandError(f"the lock refused Set Modbus Address: {exc}") from None
+        except LineError as exc:
+            self.state.counters.write_errors += 1
+            raise CommandError(f"Set Modbus Address failed: {exc}") from None
+        self.state.counters.responses += 1
+        return True
+
+    async def _probe(self, unit: int) -> int | str | None:
+        """Who answers at ``unit``: its serial number, "garbled" (several at once), or None."""
+        try:
+            await self.line.read_holding(unit, codec.REG_DEVICE_ADDRESS, 1)
+            high, low = await self.line.read_input(unit, 104, 2)
+        except LineCrcError:
+            return "garbled"
+        except LineError:
+            return None
+        return codec.serial_number(high, low)
+
+    async def _address_free(self, address: int) -> None:
+        """Section 2.2: every lock needs an address of its own."""
+        found = await self._probe(address)
+        if found is not None:
+            who = "several locks" if found == "garbled" else f"the lock with serial {found}"
+            raise CommandError(f"address {address} is already in use ({who} answers there): choose a free address")
+
+    def _moved_to(self, old: int, new: int) -> None:
+        self.address = new
+        self.state.info["address"] = new
+        self.state.update_registers(HOLDING, codec.REG_DEVICE_ADDRESS, [new])
+        self.state.unsaved.add(PARAMS.get(HOLDING, codec.REG_DEVICE_ADDRESS).key)
+        self._fails = 0
 
     async def _read_one(self, space: str, address: int) -> int:
         try:
@@ -195,12 +363,26 @@ class HdLockAdapter(HdLockBackup):
         return value
 
 
+def _check_address(address: int) -> None:
+    if not codec.MODBUS_ADDRESS_MIN <= address <= codec.MODBUS_ADDRESS_MAX:
+        raise CommandError(f"new address {address} is outside {codec.MODBUS_ADDRESS_MIN}..{codec.MODBUS_ADDRESS_MAX}")
+
+
+def _command_answer_text(answered: bool | None, old: int) -> str:
+    if answered is None:
+        return f"the write of the command at address {old} got a garbled answer"
+    if answered:
+        return f"the lock answered the command at address {old}"
+    return f"no answer to the command at address {old}" + ("" if codec.ADDRESS_COMMAND_ANSWERED else ", as expected")
+
+
 async def discover(line: ModbusLine, first: int = 1, last: int = 247, progress=None) -> list[dict]:
     """Find locks on a line.
 
     Broadcast first (address 0: a single lock answers with its DeviceAddress, section 5.6),
     then a scan of ``first..last`` reading DeviceAddress (holding 103) and the serial
     number (input 104/105). ``progress(done, total)`` is called after each address.
+    The locks found are remembered for the line (``line_discovered`` on each lock of it).
     """
     found: dict[int, dict] = {}
     try:
@@ -221,6 +403,11 @@ async def discover(line: ModbusLine, first: int = 1, last: int = 247, progress=N
             pass
         if progress:
             progress(n, total)
+    scans = _LINE_SCANS.setdefault(line, {})
+    for unit in range(first, last + 1):  # a lock no longer found in the scanned range is forgotten
+        if unit not in found:
+            scans.pop(unit, None)
+    scans.update({entry["address"]: entry for entry in found.values()})
     return sorted(found.values(), key=lambda d: d["address"])
 
 
@@ -385,7 +572,7 @@ class HdLockCanAdapter(HdLockBackup):
         return codec.BROADCAST_ID if broadcast else self.device_id
 
     async def set_lock_request_source(self, value: int, broadcast: bool = False) -> None:
-        """cmdSetLockRequestSource; verified by reading LockRequestSource (holding 1002) back."""
+        """cmdSetLockRequestSource; verified by reading back holding 4, the source the lock uses."""
         try:
             frame = codec.encode_can_command(self._target(broadcast), codec.CanCommand.SET_LOCK_REQUEST_SOURCE, value)
         except codec.CodecError as exc:
@@ -396,10 +583,12 @@ class HdLockCanAdapter(HdLockBackup):
             self.state.event("warning", f"LockRequestSource 0x{value:02X} sent to {who}")
             return
         await asyncio.sleep(0.05)
-        back = (await self._request(codec.encode_read(self.device_id, HOLDING, 1002), [(HOLDING, 1002)]))[(HOLDING, 1002)]
+        key = (HOLDING, codec.REG_LOCK_REQUEST_SOURCE)
+        back = (await self._request(codec.encode_read(self.device_id, *key), [key]))[key]
         if back != value:
-            raise CommandError(f"LockRequestSource reads 0x{back:02X} after the command, not 0x{value:02X}")
-        self.state.event("info", f"LockRequestSource 0x{value:02X} set on {who}")
+            raise CommandError(f"LockRequestSource (holding 4) reads 0x{back:02X} after the command, not 0x{value:02X}")
+        self.state.unsaved.add(PARAMS.get(*key).key)  # volatile until Save-Settings (section 3)
+        self.state.event("info", f"LockRequestSource 0x{value:02X} set on {who}, read back from holding 4")
 
     async def set_can_bitrate(self, code: int, broadcast: bool = False) -> None:
         """cmdSetCANbaudrate: the lock leaves this bus until the bus runs at the new rate too."""

@@ -414,9 +414,10 @@ _HOLDINGS: list[Param] = [
         label="LockRequestSource (HR4)",
         enum=LOCK_REQUEST_SOURCE,
         default=4,
-        description="Selects what controls the lock, same values as holding 1002: "
-        "0x00-0x07 lock when the condition AND the door is closed, 0x80-0x87 the same "
-        "condition with the door ignored. Factory 0x04 IrsNotLine. (section 3.2.2)",
+        description="The source the lock uses for the bolt (reported in the CAN status "
+        "frame, section 6.5.1; set by cmdSetLockRequestSource, 6.6.1.1). Values as holding "
+        "1002: 0x00-0x07 lock when the condition AND the door is closed, 0x80-0x87 the same "
+        "condition with the door ignored. Factory 0x04 IrsNotLine. (sections 3.2, 3.2.2)",
     ),
     Param(
         "LockTargetPosition", HOLDING, 10, Access.MFR, unit="Inc",
@@ -585,7 +586,8 @@ _HOLDINGS: list[Param] = [
         "never, IrsAlways always, IrsOverrange hall sensors overdriven, IrsLine input "
         "inactive (<4 V), IrsNotLine input active (>10 V, factory 0x04), "
         "IrsToggleOnLineEdge/PEdge/NEdge any/positive/negative edge on the LOCK-REQUEST "
-        "input. (section 3.2.2)",
+        "input. A register of its own: the source the lock reports as in use is holding 4. "
+        "(sections 3.2.2, 6.5.1)",
     ),
     Param(
         "MaximumTimeUnlock", HOLDING, 1003, Access.RW, unit="ms",

@@ -3,8 +3,9 @@
 The line is a TCP port carrying RTU frames (a pyserial ``socket://`` URL on the
 master side), served by pymodbus. Behaviour follows the document: factory
 defaults, volatile holding registers with Save/Restore to a simulated flash,
-Set-Address with its condition, firmware-protected registers, answers to
-broadcast address 0, and a door/bolt model with motor current.
+Set-Address with its condition (also by broadcast to address 255), firmware-protected
+registers, answers to broadcast address 0, garbled answers when two locks share an
+address, and a door/bolt model with motor current.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from pymodbus.framer import FramerType
 from pymodbus.server import ModbusTcpServer
 
 from devices.hdlock import codec
-from devices.hdlock.params import HOLDING, INPUT, PARAMS
+from devices.hdlock.params import HOLDING, INPUT, LOCK_REQUEST_SOURCE, PARAMS
 from devices.params import Access
 
 log = logging.getLogger(__name__)
@@ -73,6 +74,9 @@ class HdLockTwin:
         self.toggle = False
         self._last_line = self.line_input
         self.silent = False  # fault injection: stops answering
+        # Section 4.3 does not say whether the lock answers the write of 2003 (Set Modbus Address)
+        # at its old address: False stays silent, True answers there. Tests run both.
+        self.answers_address_command = False
         self.max_time = {"lock": 0, "unlock": 0}
         self._move_start: float | None = None
         self.step(0.0)
@@ -98,9 +102,7 @@ class HdLockTwin:
         param = PARAMS.get(HOLDING, address)
         if param is not None and param.enum is not None and param.decode(value) not in param.enum:
             return None  # refused by the firmware; the old value stays
-        self.holding[address] = value & 0xFFFF
-        if address in (4, 1002):  # the two LockRequestSource registers mirror each other
-            self.holding[4] = self.holding[1002] = value & 0xFFFF
+        self.holding[address] = value & 0xFFFF  # 4 and 1002 are two registers (section 3.2), not mirrors
         if address == codec.REG_COMMAND and value:
             self._command(value)
         if address == 32770 and value == 1:
@@ -111,6 +113,8 @@ class HdLockTwin:
         p0, p1, p2 = (self.holding[a] for a in (codec.REG_PARAM0, codec.REG_PARAM1, codec.REG_PARAM2))
         if command == codec.SystemCommand.SAVE_SETTINGS:
             self.flash = self._settings()
+            # section 6.6.1.1: of LockRequestSource only the low byte is stored; the high byte is 0 after a reset
+            self.flash[codec.REG_LOCK_REQUEST_SOURCE] &= 0xFF
             self.input[101] = (self.input[101] + 1) & 0xFFFF
             self.holding[0] = (self.holding[0] + 1) & 0xFFFF
         elif command == codec.SystemCommand.RESTORE_SETTINGS:
@@ -124,6 +128,16 @@ class HdLockTwin:
     def reset(self) -> None:
         """Power cycle: unsaved holding registers are lost."""
         self.holding.update(self.flash)
+
+    def set_lock_request_source(self, value: int) -> None:
+        """cmdSetLockRequestSource (CAN 0x700, section 6.6.1.1): sets holding 4, the source in use.
+
+        A value whose low byte is not in the table is refused (the old source stays); the
+        change is volatile like every holding-register change until Save-Settings (section 3).
+        """
+        if value & 0xFF not in LOCK_REQUEST_SOURCE or codec.REG_LOCK_REQUEST_SOURCE not in self.writable:
+            return
+        self.holding[codec.REG_LOCK_REQUEST_SOURCE] = value & 0xFFFF
 
     @property
     def serial(self) -> int:
@@ -160,8 +174,8 @@ class HdLockTwin:
         if not in_place:
             self.in_place_since = None
         door_in_position = in_place and (now - self.in_place_since) * 1000 >= h[3000]
-        # lock request (section 3.2.2)
-        source = h[1002]
+        # lock request (section 3.2.2) by the source in use, holding 4 (section 6.5.1)
+        source = h[codec.REG_LOCK_REQUEST_SOURCE]
         line = self.line_input
         if line != self._last_line:
             kind = source & 0x7F
@@ -228,11 +242,14 @@ class HdLockTwin:
             2: bolt, 1000: status, 1001: bolt, 1005: proximity, 1006: hall1 << 8 | hall2,
             1007: 31, 1008: 24100, 1009: current, 1010: max(h.get(1010, 0), current),
         })
-        h[4] = h[1002]
 
 
 class HdLockContext(ModbusServerContext):
-    """pymodbus datastore that routes each request to the twin with that address."""
+    """pymodbus datastore that routes each request to the twin(s) with that address.
+
+    Two locks at one address both take a write and answer together: the answer is
+    garbled on the wire (``garble_next``, applied by :class:`HdLockSim`).
+    """
 
     def __init__(self, twins: Sequence[HdLockTwin], wire_delay: float = 0.0):
         # not calling super().__init__: this context answers by itself
@@ -241,20 +258,21 @@ class HdLockContext(ModbusServerContext):
         self.simdevices = []
         self._echo_twin = self.twins[0]
         self.wire_delay = wire_delay  # seconds per character (11 bits / baud), 0 = none
+        self.garble_next = False
 
     def device_ids(self) -> list[int]:
         return [t.address for t in self.twins]
 
-    def _twin(self, device_id: int) -> HdLockTwin:
-        if device_id == codec.MODBUS_BROADCAST:
+    def _answering(self, device_id: int) -> list[HdLockTwin]:
+        """The twins that take a request to ``device_id``; more than one answer together."""
+        if device_id == codec.MODBUS_BROADCAST:  # section 5.6: every lock answers the broadcast
             answering = [t for t in self.twins if not t.silent]
-            if len(answering) == 1:  # section 5.6: a single lock answers the broadcast
-                return answering[0]
-            raise NoSuchIdException("broadcast with several locks: the answers collide")
-        for twin in self.twins:
-            if twin.address == device_id and not twin.silent:
-                return twin
-        raise NoSuchIdException(f"no lock at {device_id}")
+        else:
+            answering = [t for t in self.twins if t.address == device_id and not t.silent]
+        if not answering:
+            raise NoSuchIdException(f"no lock at {device_id}")
+        self.garble_next = len(answering) > 1
+        return answering
 
     async def _line_time(self, request_chars: int, response_chars: int) -> None:
         if self.wire_delay:
@@ -264,7 +282,7 @@ class HdLockContext(ModbusServerContext):
     async def async_getValues(self, device_id, func_code, address, count=1):
         if func_code == 6:  # the echo after a write, from the lock written (its address may just have changed)
             return [self._echo_twin.holding.get(address, 0)]
-        twin = self._twin(device_id)
+        twin = self._answering(device_id)[0]
         space = INPUT if func_code == 4 else HOLDING
         await self._line_time(8, 5 + 2 * count)
         return twin.read(space, address, count)
@@ -272,14 +290,20 @@ class HdLockContext(ModbusServerContext):
     async def async_setValues(self, device_id, func_code, address, values):
         if func_code != 6:
             return ExcCodes.ILLEGAL_FUNCTION  # SPEC-NOTES: only 0x03, 0x04, 0x06 are used
-        if device_id == 255:  # section 4.3: broadcast address change to all locks
+        if device_id == codec.MODBUS_BROADCAST_SET_ADDRESS:  # section 4.3: every lock takes it, none answers
             for twin in self.twins:
-                twin.write(address, values[0])
+                if not twin.silent:
+                    twin.write(address, values[0])
             raise NoSuchIdException("broadcast 255: no answer")
-        twin = self._twin(device_id)
+        twins = self._answering(device_id)
         await self._line_time(8, 8)
-        self._echo_twin = twin
-        return twin.write(address, values[0])
+        results = [twin.write(address, values[0]) for twin in twins]
+        self._echo_twin = twins[0]
+        address_command = address == codec.REG_COMMAND and values[0] == codec.SystemCommand.SET_MODBUS_ADDRESS
+        if address_command and not all(t.answers_address_command for t in twins):
+            self.garble_next = False
+            raise NoSuchIdException("Set Modbus Address: this lock does not answer the command write")
+        return results[0]
 
 
 def _host_port(url: str) -> tuple[str, int]:
@@ -309,7 +333,12 @@ class HdLockSim:
         self.corrupt_next = 0  # fault injection: damage the CRC of the next n answers
 
     def _trace(self, sending: bool, data: bytes) -> bytes:
-        if sending and self.corrupt_next > 0 and data:
+        if not sending or not data:
+            return data
+        if self.context.garble_next:  # several locks answered at once
+            self.context.garble_next = False
+            return bytes(b ^ 0x5A for b in data)
+        if self.corrupt_next > 0:
             self.corrupt_next -= 1
             return data[:-1] + bytes([data[-1] ^ 0xFF])
         return data
@@ -402,7 +431,7 @@ class HdLockCanSim:
     def _handle(self, twin: HdLockTwin, req: codec.CanRequest, broadcast: bool) -> None:
         if req.kind == codec.CAN_COMMAND:
             if req.a == codec.CanCommand.SET_LOCK_REQUEST_SOURCE:
-                twin.write(1002, req.b)
+                twin.set_lock_request_source(req.b)
             elif req.a == codec.CanCommand.SET_CAN_BAUDRATE and req.b in codec.CAN_BITRATES:
                 twin.can_bitrate = codec.CAN_BITRATES[req.b][0]
             elif req.a in (codec.CanCommand.FIRMWARE_UPDATE_ENTER, codec.CanCommand.BOOTLOADER_UPDATE_ENTER):
@@ -430,7 +459,7 @@ class HdLockCanSim:
             return codec.encode_fwu_status(codec.FwuStatusFrame(flashing=False, application=True))
         return codec.encode_status(codec.StatusFrame(
             status=twin.holding[1000], motor_pos=twin.holding[1001],
-            proximity=twin.input[7], lock_request_source=twin.holding[1002],
+            proximity=twin.input[7], lock_request_source=twin.holding[codec.REG_LOCK_REQUEST_SOURCE],
         ))
 
     async def start(self) -> None:

@@ -1,0 +1,134 @@
+"""HD-Lock page with NiceGUI's simulated user: the address changes of section 4.3.
+
+A two-lock plant (door-1 at 1, door-2 at 2) on a free localhost port, polled over real
+Modbus RTU frames, with the app registered as in production (``app.web.register``).
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import os
+from collections.abc import AsyncIterator
+from dataclasses import dataclass
+
+import httpx
+import pytest
+from conftest import modbus_plant
+from nicegui import core, ui
+from nicegui.functions.download import download
+from nicegui.functions.navigate import Navigate
+from nicegui.functions.notify import notify
+from nicegui.testing import User
+from nicegui.testing.general import nicegui_reset_globals, prepare_simulation
+from nicegui.testing.user_interaction import UserInteraction
+from webutil import eventually, stop_worker_tasks
+
+from app import runtime as rt
+from app.runtime import Runtime
+
+pytestmark = pytest.mark.timeout(30)
+
+
+@dataclass
+class Env:
+    user: User
+    runtime: Runtime
+
+    def twin(self, name: str):
+        return self.runtime.twins[name]
+
+    def state(self, name: str):
+        return self.runtime.store.devices[name]
+
+
+@pytest.fixture
+async def env(caplog: pytest.LogCaptureFixture) -> AsyncIterator[Env]:
+    plant = modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
+    with nicegui_reset_globals():
+        os.environ["NICEGUI_USER_SIMULATION"] = "true"
+        try:
+            prepare_simulation()
+            runtime = Runtime(plant, simulate=True)
+            importlib.import_module("app.web").register(runtime, allowed_hosts=("test",))  # the simulated user's host name
+            ui.run(storage_secret="test secret")
+            async with core.app.router.lifespan_context(core.app):
+                async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:
+                    yield Env(User(client), runtime)
+                    await stop_worker_tasks(runtime)
+        finally:
+            os.environ.pop("NICEGUI_USER_SIMULATION", None)
+            ui.navigate = Navigate()
+            ui.notify = notify
+            ui.download = download
+            rt.set_current(None)
+    errors = [r for r in caplog.get_records("call") if r.levelno >= logging.ERROR and not r.name.startswith("pymodbus")]
+    assert not errors, "unexpected ERROR logs: " + "; ".join(r.getMessage() for r in errors)
+
+
+async def online(env: Env, *names: str) -> None:
+    def check() -> None:
+        for name in names:
+            state = env.state(name)
+            assert state.status == "online", f"{name} is {state.status}: {state.last_error}"
+            assert state.value("LockStatus") is not None, f"{name}: LockStatus not read yet"
+
+    await eventually(check, timeout=10)
+
+
+def by_testid(user: User, testid: str) -> UserInteraction:
+    assert user.client is not None
+    found = {e for e in user.client.elements.values() if e.props.get("data-testid") == testid and e.visible}
+    assert len(found) == 1, f"expected one element with data-testid={testid!r}, found {len(found)}"
+    return UserInteraction(user, found, None)
+
+
+def fill(user: User, testid: str, value) -> None:
+    (element,) = by_testid(user, testid).elements
+    element.value = value
+
+
+async def test_broadcast_address_change_names_the_known_locks_and_moves_the_one_that_meets_it(env: Env):
+    user = env.user
+    await online(env, "door-1", "door-2")
+    env.twin("door-2").close_door()  # door-2 locks; door-1 stays open
+    await eventually(lambda: (env.state("door-2").value("LockStatus") or 0) & 0x0104 == 0x0104, timeout=5)
+    await user.open("/device/door-1")
+    await user.should_see("HD-Lock door-1")
+
+    fill(user, "bc-address", 9)
+    fill(user, "bc-p1", "0x010C")  # DoorInPosition, ProximityOverrange, BoltLocked (section 4.3, example 1)
+    fill(user, "bc-p2", "0x0104")
+    await user.should_see("2 locks known on line1 (2 in the plant, 0 found by a scan)", retries=20)
+    await user.should_see("By the last LockStatus read: door-2 would take it", retries=20)
+    by_testid(user, "bc-send").click()
+
+    await user.should_see("Up to 2 locks on line1 may take address 9", retries=10)
+    await user.should_see(kind=ui.label, content="may be affected (2 in the plant, 0 found by a scan): door-1, door-2")
+    user.find(kind=ui.button, content="Send to all (2)").click()
+
+    await eventually(lambda: env.twin("door-2").address == 9, timeout=5, what="door-2 took address 9")
+    await user.should_see(f"lock serial {env.twin('door-2').serial} answers at address 9", retries=40)
+    assert env.twin("door-1").address == 1
+    entries = env.runtime.audit.query(device="door-1", text="Broadcast Set Modbus Address")
+    assert len(entries) == 1 and entries[0].result == "ok" and entries[0].new == "9"
+    assert "2 known locks" in entries[0].action
+
+
+async def test_broadcast_refused_when_two_known_locks_would_take_it(env: Env):
+    user = env.user
+    await online(env, "door-1", "door-2")
+    await user.open("/device/door-1")
+    await user.should_see("HD-Lock door-1")
+    writes: list[tuple[int, int]] = []
+    for name in ("door-1", "door-2"):
+        original = env.twin(name).write
+        env.twin(name).write = lambda a, v, original=original: (writes.append((a, v)), original(a, v))[1]
+
+    fill(user, "bc-address", 9)  # P1 = P2 = 0: no condition, every lock would take it
+    by_testid(user, "bc-send").click()
+
+    await user.should_see("door-1 and door-2 would all take address 9", retries=10)
+    await user.should_not_see("Up to 2 locks on line1 may take address 9")
+    assert writes == []
+    assert (env.twin("door-1").address, env.twin("door-2").address) == (1, 2)
