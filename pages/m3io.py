@@ -7,12 +7,19 @@ from datetime import datetime
 from nicegui import ui
 
 from app import runtime as rt
+from app.worker import DEADMAN_BOUND_S
 from devices.m3io import codec
 from devices.m3io.codec import Variant
 from pages.frame import fmt_age, fmt_time, frame, set_status_badge
 from pages.widgets import HistoryChart, Lamp, confirm, run_command
 
 STATE_COLOR = {"ok": "positive", "present": "positive", "blown": "negative", "defective": "negative"}
+VARIANT_COLOR = {"ok": "text-positive", "mismatch": "text-negative text-weight-medium", "unchecked": "text-grey-8", "not possible": "text-warning"}
+STOP_RULE = (
+    "Outputs belong to the page that switched them on: they go off at once when that page is closed or reloaded, "
+    f"or within {DEADMAN_BOUND_S:g} s when it stops confirming that it is alive (frozen tab, sleeping laptop, lost network). "
+    "Another open tab does not keep them on. Meanwhile the worker keeps the module's 2 s watchdog served."
+)
 
 
 def content(name: str) -> None:
@@ -21,6 +28,7 @@ def content(name: str) -> None:
     adapter = runtime.worker.adapters[name]
     twin = runtime.twins.get(name)
     ids = adapter.ids
+    session = ui.context.client.id  # outputs switched on here belong to this page session
 
     async def act(describe: str, fn, success: str = "", write: bool = True):
         async def action(a):
@@ -40,6 +48,7 @@ def content(name: str) -> None:
                 + f"{ids.bitrate // 1000} kbit/s · "
                 + " · ".join(f"{k} 0x{v:03X}" for k, v in ids.by_name().items())
             ).classes("text-body2 mono")
+            variant_line = ui.label().classes("text-body2").props("data-testid=variant-check")
             if state.info.get("bitrate_mismatch"):
                 ui.label(
                     f"SW1 sets {ids.bitrate // 1000} kbit/s, but the bus runs at {state.info['bus_bitrate'] // 1000} kbit/s: "
@@ -57,16 +66,19 @@ def content(name: str) -> None:
                     ui.space()
                     ui.button("All off", icon="power_off", color="negative",
                               on_click=lambda: act("all off", lambda a: a.all_off("all off pressed"), write=False)).props("data-testid=all-off")
-                ui.label("Outputs stay on only while an engineer's browser is connected; the worker keeps the 2 s watchdog served.").classes(
-                    "text-caption text-grey-8"
-                )
-                led = ui.switch("LED (Bereit)", on_change=lambda e: _switch(act, adapter, "LED", e, mains=False))
-                channel_rows = _channels(adapter, act) if adapter.variant is not Variant.KM else {}
+                with ui.row().classes("items-start gap-1 no-wrap").props("data-testid=stop-rule"):
+                    ui.icon("front_hand", size="xs").classes("text-grey-8 q-mt-xs")
+                    ui.label(STOP_RULE).classes("text-caption text-grey-8")
+                refused = ui.label().classes("text-negative text-body2")
+                led = ui.switch("LED (Bereit)", on_change=lambda e: _switch(act, adapter, session, "LED", e, mains=False))
+                channel_rows = _channels(adapter, act, session) if adapter.variant is not Variant.KM else {}
                 if adapter.variant is Variant.HMR:
                     with ui.row().classes("items-center"):
                         p2 = ui.switch("Three-phase output loaded on two phases only (P2)",
                                        on_change=lambda e: act("P2", lambda a: a.set_two_phase(e.value)))
-                        ui.label("not stored in the module: sent again after a reset").classes("text-caption text-grey-8")
+                        ui.label("not stored in the module: sent with every DigOut, so a reset cannot lose it").classes(
+                            "text-caption text-grey-8"
+                        )
             if adapter.variant is not Variant.KM:
                 with ui.card().classes("col"):
                     ui.label("Pt100 temperatures (0.1 °C)").classes("text-subtitle1")
@@ -100,6 +112,11 @@ def content(name: str) -> None:
             + f" · last answer {fmt_age(None if last is None else datetime.now().timestamp() - last)}"
         )
         watchdog.classes(replace="text-body2 " + ("text-positive" if served else "text-negative"))
+        check = adapter.variant_check
+        variant_line.set_text(f"Variant {adapter.variant.value}: {check.text}")
+        variant_line.classes(replace="text-body2 " + VARIANT_COLOR[check.state])
+        refused.set_text("" if check.may_switch else f"Switching on is refused: {check.text}")
+        refused.set_visibility(not check.may_switch)
         c = state.counters
         counters.set_text(f"frames in {c.responses} · requests {c.requests} · timeouts {c.timeouts} · malformed {c.malformed} · write errors {c.write_errors}")
         for key, lamp in input_lamps.items():
@@ -124,7 +141,7 @@ def content(name: str) -> None:
         ui.timer(1.0, chart.update)
 
 
-async def _switch(act, adapter, output: str, event, mains: bool = True) -> None:
+async def _switch(act, adapter, session: str, output: str, event, mains: bool = True) -> None:
     value = event.value
     if value == adapter.outputs[output]:
         return
@@ -139,10 +156,12 @@ async def _switch(act, adapter, output: str, event, mains: bool = True) -> None:
         if not ok:
             event.sender.set_value(False)
             return
-    await act(f"{output} {'on' if value else 'off'}", lambda a: a.set_output(output, value))
+    ok, _ = await act(f"{output} {'on' if value else 'off'}", lambda a: a.set_output(session, output, value), write=value)
+    if not ok:
+        event.sender.set_value(adapter.outputs[output])
 
 
-def _channels(adapter, act) -> dict:
+def _channels(adapter, act, session: str) -> dict:
     """One row per SSR channel (HMR: SSR1-3 as one three-phase channel)."""
     rows = {}
     groups = [("SSR1-3", [1, 2, 3])] + [(f"SSR{i}", [i]) for i in (4, 5, 6)] if adapter.variant is Variant.HMR else [
@@ -152,30 +171,44 @@ def _channels(adapter, act) -> dict:
         for output, channels in groups:
             with ui.row().classes("items-center w-full gap-3 no-wrap") as row:
                 row.props(f'data-channel="{output}"')
-                switch = ui.switch(output, on_change=lambda e, o=output: _switch(act, adapter, o, e)).classes("w-32")
-                details = ui.column().classes("gap-0")
+                switch = ui.switch(output, on_change=lambda e, o=output: _switch(act, adapter, session, o, e)).classes("w-32")
+                details = ui.column().classes("gap-1 col")
             if output == "SSR1-3":
                 ui.label("Three-phase output: a fault on one of SSR1, SSR2, SSR3 switches all three off.").classes("text-caption text-grey-8")
 
-            def refresh(switch=switch, details=details, output=output, channels=channels) -> None:
+            shown: list = [None]
+
+            def refresh(switch=switch, details=details, output=output, channels=channels, shown=shown) -> None:
                 switch.set_value(adapter.outputs[output])
+                owner = adapter.owners.get(output)
+                foreign = adapter.outputs[output] and owner is not None and owner != session
+                group_fault = adapter.group_load_fault() if output == "SSR1-3" else None
+                view = (foreign, group_fault, tuple(
+                    (adapter.channels[c].load, adapter.channels[c].fuse, adapter.channels[c].triac, c in adapter.temps) for c in channels
+                ))
+                if view == shown[0]:
+                    return  # rebuild only what changed
+                shown[0] = view
                 details.clear()
                 with details:
+                    if foreign:
+                        ui.label("switched on from another page: it goes off when that page goes away").classes("text-caption text-warning")
+                    if group_fault:
+                        ui.label(group_fault).classes("text-negative text-body2")
                     for channel in channels:
                         m = adapter.channels[channel]
-                        word = adapter.temps.get(channel)
-                        with ui.row().classes("items-center gap-2 no-wrap"):
+                        with ui.row().classes("items-center gap-2"):
                             if len(channels) > 1:
                                 ui.label(f"SSR{channel}").classes("text-caption mono")
                             for title, value in (("load", m.load), ("fuse", m.fuse), ("triac", m.triac)):
                                 color = STATE_COLOR.get(value, "grey")
-                                ui.badge(f"{title}: {value}", color=color).props(f'data-{title}="{value}" outline={color == "grey"}')
-                            if m.fuse == "blown":
-                                ui.label(codec.fuse_advice(adapter.variant, channel)).classes("text-negative text-body2")
-                            if m.triac == "defective":
-                                ui.label("triac defective: it does not conduct while switched on").classes("text-negative text-body2")
-                            if word is None:
+                                ui.badge(f"{title}: {value}", color=color).props(f'data-{title}="{value}" outline={color == "grey"} multi-line')
+                            if channel not in adapter.temps:
                                 ui.label("no status yet").classes("text-caption text-grey-8")
+                        if m.fuse == "blown":
+                            ui.label(codec.fuse_advice(adapter.variant, channel)).classes("text-negative text-body2")
+                        if m.triac == "defective":
+                            ui.label("triac defective: it does not conduct while switched on").classes("text-negative text-body2")
 
             rows[output] = refresh
     return rows
@@ -197,17 +230,18 @@ def _sim_card(twin, adapter) -> None:
                     "outline dense color=negative data-testid=sim-blow-fuse"
                 )
                 ui.button("Break triac", on_click=lambda: setattr(twin.ssr[channel.value], "triac_ok", False)).props("outline dense color=negative")
-                ui.button("Repair", on_click=lambda: (setattr(twin.ssr[channel.value], "fuse_ok", True), setattr(twin.ssr[channel.value], "triac_ok", True))).props("outline dense")
+                ui.button("Short triac", on_click=lambda: setattr(twin.ssr[channel.value], "triac_shorted", True)).props("outline dense color=negative")
+                ui.button("Repair", on_click=lambda: _repair(twin.ssr[channel.value])).props("outline dense")
             with ui.row().classes("items-center gap-2"):
                 temp = ui.number("Temperature °C", value=25.0, step=0.5).props("dense outlined").classes("w-40")
                 ui.button("Set", on_click=lambda: twin.set_temperature(channel.value, float(temp.value or 0))).props("outline dense")
-                ui.button("Cut 24 V (reset)", on_click=lambda: _power_cycle(twin, adapter)).props("outline dense")
+                ui.button("Cut 24 V (reset)", on_click=twin.power_cycle).props("outline dense data-testid=sim-power-cycle")
+                ui.label("The module reports a blown fuse until its 24 V are cut, even after repair.").classes("text-caption")
 
 
-def _power_cycle(twin, adapter) -> None:
-    twin.power_cycle()
-    for monitor in adapter.channels.values():
-        monitor.reset()
+def _repair(ssr) -> None:
+    ssr.fuse_ok = ssr.triac_ok = True
+    ssr.triac_shorted = False
 
 
 def _addressed_card(name: str, state, adapter) -> None:

@@ -1,5 +1,10 @@
 """A CAN-M3IO module on a shared CAN bus: watchdog keep-alive, outputs, inputs, temperatures,
-SSR status evaluation, SYNC cfg and addressed data."""
+SSR status evaluation, SYNC cfg and addressed data.
+
+Outputs belong to the page session that switched them on: :meth:`M3ioAdapter.holders` names
+those sessions for the worker's dead-man rule, and :meth:`M3ioAdapter.session_lost` switches a
+session's outputs off at once.
+"""
 
 from __future__ import annotations
 
@@ -12,6 +17,7 @@ from devices.m3io.codec import Variant
 
 MDATA_TIMEOUT_S = 0.5
 OFFLINE_AFTER_S = 2.5
+VERIFY_RETRY_S = 2.0  # product code not answered: ask again after this long
 
 
 class CommandError(Exception):
@@ -30,6 +36,10 @@ class M3ioAdapter:
         self.sw1 = config.options["sw1"]
         self.ids = codec.derive_ids(self.sw1)
         self.outputs = {name: False for name in codec.OUTPUT_BITS[self.variant]}
+        self.owners: dict[str, str] = {}  # output that is on -> page session (NiceGUI client id) that switched it on
+        self.product_code: int | None = None
+        self.variant_check = codec.check_variant(self.variant, self.ids.addressed, None)
+        self._verify_after = 0.0
         self.two_phase = False
         self.channels = {i: codec.ChannelMonitor() for i in range(1, 7)}
         self.inputs: dict[str, bool] | None = None
@@ -39,7 +49,7 @@ class M3ioAdapter:
         self.served = False
         self.info: dict = {}
         self._mdata: dict[tuple[int, int], asyncio.Future] = {}
-        self._silent_since: float | None = None
+        self._gone_since: float | None = None  # last answer before a silence
         self._lock = asyncio.Lock()
         state.stale_after = 1.5
         bus_rate = bus.options.get("bitrate")
@@ -47,6 +57,7 @@ class M3ioAdapter:
                           bitrate_mismatch=bus_rate != self.ids.bitrate, bus_bitrate=bus_rate)
         if bus_rate != self.ids.bitrate:
             state.event("warning", f"SW1 0x{self.sw1:02X} sets {self.ids.bitrate // 1000} kbit/s but bus {bus.name} runs at {bus_rate // 1000} kbit/s")
+        self._publish()
         bus.subscribe(False, self.ids.dig_in, self.on_dig_in)
         if self.variant is not Variant.KM:
             bus.subscribe(False, self.ids.temp14, self.on_temps)
@@ -58,10 +69,19 @@ class M3ioAdapter:
 
     # -- keep-alive (section 7.1) -------------------------------------------------------------
     def _dig_out(self):
-        return self.ids.dig_out, codec.encode_dig_out(self.variant, self.outputs), False
+        """The cyclic DigOut, preceded by the Sync cfg when P2 is set (codec.cfg_with_dig_out)."""
+        cfg = codec.cfg_with_dig_out(self.two_phase)
+        if cfg is not None:
+            self.bus.send(self.ids.sync, cfg, False)
+        sent = self.outputs if self.variant_check.may_switch else {}  # nothing on before the variant matched
+        return self.ids.dig_out, codec.encode_dig_out(self.variant, sent), False
+
+    def _send_now(self) -> None:
+        """cfg and DigOut at once, not only at the next cycle."""
+        self.bus.send(*self._dig_out())
 
     async def poll(self) -> None:
-        """Start the DigOut keep-alive once the bus is up; watch for silence and resets."""
+        """Start the DigOut keep-alive once the bus is up; watch for silence; check the variant."""
         if not self._started:
             self._started = True
             self.served = True
@@ -69,15 +89,44 @@ class M3ioAdapter:
             self.state.event("info", f"serving the watchdog: DigOut 0x{self.ids.dig_out:03X} every 500 ms")
         now = time.time()
         if self.last_answer is None or now - self.last_answer > OFFLINE_AFTER_S:
-            if self.state.online is not False and self.last_answer is not None:
-                self.state.mark_offline(f"no DigIn/temperatures for {OFFLINE_AFTER_S} s: check 24 V, CAN wiring, SW1 0x{self.sw1:02X}")
-            self._silent_since = self._silent_since or now
-        elif self._silent_since is not None:
-            # the module is back (e.g. after a reset): cfg is not stored, send it again (7.2.4)
-            self._silent_since = None
-            if self.two_phase:
-                self._send_cfg()
-                self.state.event("info", "module answers again: P2 (two-phase load) sent again")
+            if self.last_answer is not None and self._gone_since is None:
+                self._gone_since = self.last_answer
+                if self.state.online is not False:
+                    self.state.mark_offline(f"no DigIn/temperatures for {OFFLINE_AFTER_S} s: check 24 V, CAN wiring, SW1 0x{self.sw1:02X}")
+            return
+        if self._gone_since is not None:
+            self.state.event("info", f"the module answers again after {self.last_answer - self._gone_since:.1f} s of silence")
+            self._gone_since = None
+            if self.ids.addressed:
+                self._set_product(None)  # it may have been exchanged meanwhile: check its variant again
+        if self.ids.addressed and self.product_code is None and now >= self._verify_after:
+            await self._verify_variant()
+
+    async def _verify_variant(self) -> None:
+        try:
+            answer = await self._request(codec.AREA_READ_CONFIG, codec.CONFIG_PRODUCT)
+        except CommandError as exc:
+            self._verify_after = time.time() + VERIFY_RETRY_S
+            self.state.error(f"product code not read: {exc}", log=False)
+            return
+        self._set_product(codec.decode_u16(answer.payload))
+
+    def _set_product(self, code: int | None) -> None:
+        """Compare the module's product code with the plant file's variant (7.2.4.2.2)."""
+        self.product_code = code
+        check = codec.check_variant(self.variant, self.ids.addressed, code)
+        changed = check != self.variant_check
+        self.variant_check = check
+        if check.state == "mismatch":
+            if any(self.outputs.values()):
+                self.all_off("the module is not the variant the plant file names")
+            if changed:
+                self.state.event("error", check.text)
+        elif check.state == "ok" and changed:
+            self.state.event("info", check.text)
+            if any(self.outputs.values()):
+                self._send_now()
+        self._publish()
 
     # -- frames ------------------------------------------------------------------------------
     def _seen(self) -> None:
@@ -108,7 +157,10 @@ class M3ioAdapter:
         for offset, word in enumerate(words):
             channel = first + offset
             self.temps[channel] = word
-            self.channels[channel].update(word, self.channel_on(channel))
+            monitor = self.channels[channel]
+            monitor.update(word, self.channel_on(channel))
+            if monitor.cleared:
+                self.state.event("info", f"SSR{channel} fuse fault cleared: {monitor.cleared}")
         self._publish()
         if first == 5 or self.variant is Variant.HMR:
             sample = {}
@@ -132,13 +184,29 @@ class M3ioAdapter:
     def _publish(self) -> None:
         """Facts for tiles and the plant view."""
         faults = []
+        if self.variant_check.state == "mismatch":
+            faults.append(f"variant mismatch: {codec.product_name(self.product_code)} on the bus, {self.variant.value} in the plant file")
         for channel, monitor in self.channels.items():
             if monitor.fuse == "blown":
                 faults.append(f"SSR{channel} fuse blown")
             if monitor.triac == "defective":
                 faults.append(f"SSR{channel} triac defective")
+        group = self.group_load_fault()
+        if group:
+            faults.append(group)
         self.state.info["faults"] = faults
         self.state.info["outputs_on"] = [name for name, on in self.outputs.items() if on]
+        self.state.info["variant_check"] = {"state": self.variant_check.state, "text": self.variant_check.text}
+
+    def group_load_fault(self) -> str | None:
+        """HMR, SSR1-3 switched on: three phases must report a load, exactly two with P2 (4.3)."""
+        if self.variant is not Variant.HMR or not self.outputs["SSR1-3"] or not all(i in self.temps for i in (1, 2, 3)):
+            return None
+        loaded = sum(self.temps[i].load for i in (1, 2, 3))
+        expected = 2 if self.two_phase else 3
+        if loaded == expected:
+            return None
+        return f"SSR1-3 load fault: {loaded} of 3 phases report a load, {'P2 (two-phase load)' if self.two_phase else 'a three-phase load'} needs {expected}"
 
     # -- what the page shows ------------------------------------------------------------------
     def temp_channels(self) -> list[int]:
@@ -161,35 +229,54 @@ class M3ioAdapter:
         return not is_extended and arbitration_id in self.ids.by_name().values()
 
     # -- outputs ------------------------------------------------------------------------------
-    def set_output(self, name: str, on: bool) -> None:
+    def set_output(self, session: str, name: str, on: bool) -> None:
+        """Switch an output for the page session ``session``, which then owns it until it is switched
+        off or the session is lost. Switching off is never refused, whoever switched it on."""
         if name not in self.outputs:
             raise CommandError(f"{self.variant.value} has no output {name}")
+        if on and not self.variant_check.may_switch:
+            raise CommandError(self.variant_check.text)
+        if on and not self.outputs[name]:
+            self.owners[name] = session
+        elif not on:
+            self.owners.pop(name, None)
         self.outputs[name] = on
-        self.bus.send(*self._dig_out())  # at once, not only at the next cycle
+        self._send_now()
         self._publish()
         self.state.event("info", f"{name} {'on' if on else 'off'}")
 
     def all_off(self, reason: str = "all off") -> None:
         for name in self.outputs:
             self.outputs[name] = False
-        self.bus.send(*self._dig_out())
+        self.owners.clear()
+        self._send_now()
         self._publish()
         self.state.event("warning", f"every output switched off: {reason}")
 
-    def on_no_sessions(self) -> None:
-        """The last engineer session went away: outputs off, the keep-alive goes on (inputs and temperatures keep coming)."""
-        if any(self.outputs.values()):
-            self.all_off("no engineer session is connected any more")
+    def holders(self) -> set[str]:
+        """The page sessions that keep outputs on through this adapter (for the worker's dead-man rule)."""
+        return {session for name, session in self.owners.items() if self.outputs[name]}
+
+    def session_lost(self, session: str, reason: str) -> None:
+        """``session`` closed or stopped confirming it is alive: its outputs off at once; the keep-alive goes on."""
+        names = [name for name, owner in self.owners.items() if owner == session and self.outputs[name]]
+        for name in [name for name, owner in self.owners.items() if owner == session]:
+            del self.owners[name]
+        if not names:
+            return
+        for name in names:
+            self.outputs[name] = False
+        self._send_now()
+        self._publish()
+        self.state.event("warning", f"{', '.join(names)} off: {reason}")
 
     # -- SYNC cfg (7.2.4) ----------------------------------------------------------------------
-    def _send_cfg(self) -> None:
-        self.bus.send(self.ids.sync, codec.encode_sync_cfg(self.two_phase), False)
-
     def set_two_phase(self, on: bool) -> None:
         if self.variant is not Variant.HMR:
             raise CommandError("P2 (two-phase load) exists on the HMR only")
         self.two_phase = on
-        self._send_cfg()
+        self.bus.send(self.ids.sync, codec.encode_sync_cfg(on), False)
+        self._publish()
         self.state.event("info", f"P2 {'on: three-phase output loaded on two phases' if on else 'off: three phases'}")
 
     # -- addressed data (7.2.4.2) ---------------------------------------------------------------
@@ -214,8 +301,8 @@ class M3ioAdapter:
         product = await self._request(codec.AREA_READ_CONFIG, codec.CONFIG_PRODUCT)
         version = await self._request(codec.AREA_READ_CONFIG, codec.CONFIG_VERSION)
         config = await self._request(codec.AREA_READ_CONFIG, codec.CONFIG_DYNAMIC)
-        code = int.from_bytes(product.payload[:2], "little")
-        raw_version = int.from_bytes(version.payload[:2], "little")
+        code = codec.decode_u16(product.payload)
+        raw_version = codec.decode_u16(version.payload)
         info = {
             "serial": codec.decode_serial(serial.payload),
             "product_code": code,
@@ -225,6 +312,7 @@ class M3ioAdapter:
         }
         self.info.update(info)
         self.state.info["identity"] = info
+        self._set_product(code)
         return info
 
     async def read_customer(self, index: int) -> bytes:
@@ -255,7 +343,7 @@ class M3ioAdapter:
         result = {}
         for index in range(1, 7):
             answer = await self._request(codec.AREA_LOAD_DATA, index)
-            result[index] = codec.TempWord(int.from_bytes(answer.payload[:2], "little"))
+            result[index] = codec.TempWord(codec.decode_u16(answer.payload))
         self.state.info["load_data"] = result
         return result
 

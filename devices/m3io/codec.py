@@ -4,7 +4,7 @@ status bits, SYNC and addressed data. Pure: no I/O. Sections refer to the M3IO d
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import Enum
 
 
@@ -182,13 +182,18 @@ def fuse_advice(variant: Variant, channel: int) -> str:
     return f"replace fuse {fuse} ({hmr if variant is Variant.HMR else hm}, fast-acting 5x20 mm)"
 
 
+NO_LOAD_TEXT = "none (no load, no supply, or a triac with a permanent short circuit)"  # Last = 0 (7.2.3)
+
+
 @dataclass
 class ChannelMonitor:
     """Evaluation of Last/Si/Triac of one SSR as section 7.2.3 asks.
 
     With no load (Last = 0) fuse and triac say nothing ("unknown"). After the first
     switch-on all three bits read 1: remember it, since a blown fuse can take Last to 0
-    too. A blown fuse (Si = 0) stays until the 24 V are cut.
+    too. A blown fuse (Si = 0) stays in the module until its 24 V are cut, so the module
+    reporting Si = 1 with a load again means it was reset: the fault is cleared then, and
+    :attr:`cleared` says so for the one update that cleared it.
     """
 
     seen_ok: bool = False
@@ -196,14 +201,19 @@ class ChannelMonitor:
     load: str = "unknown"
     fuse: str = "unknown"
     triac: str = "unknown"
-    history: list[str] = field(default_factory=list)
+    cleared: str | None = None
 
     def update(self, word: TempWord, switched_on: bool) -> None:
+        self.cleared = None
+        if self.fuse_blown and word.fuse and word.load:
+            # 7.2.3: only cutting the 24 V resets Si = 0 in the module, so it was reset: follow it
+            self.fuse_blown = self.seen_ok = False
+            self.cleared = "the module was reset (24 V cut) and reports its fuse ok with a load again (Si = 1, Last = 1)"
         if switched_on and word.load and word.fuse and word.triac:
             self.seen_ok = True
         if not word.fuse and (word.load or self.seen_ok):
-            self.fuse_blown = True  # latched: the module keeps Si = 0 until 24 V are cut
-        self.load = "present" if word.load else "none (no load or no supply)"
+            self.fuse_blown = True  # latched as in the module, which keeps Si = 0 until 24 V are cut
+        self.load = "present" if word.load else NO_LOAD_TEXT
         if self.fuse_blown:
             self.fuse = "blown"
         elif word.load:
@@ -217,10 +227,6 @@ class ChannelMonitor:
         else:
             self.triac = "not checked (off)"
 
-    def reset(self) -> None:
-        """After the module's 24 V were cut."""
-        self.seen_ok = self.fuse_blown = False
-
 
 # -- SYNC and addressed data (section 7.2.4) ------------------------------------------------------
 
@@ -231,6 +237,15 @@ def encode_sync_cfg(two_phase: bool) -> bytes:
     return bytes([P2 if two_phase else 0])
 
 
+def cfg_with_dig_out(two_phase: bool) -> bytes | None:
+    """The Sync cfg to send (before) every DigOut, or None when the default (0) will do.
+
+    7.2.4: cfg is not stored and is lost at any reset; a reset shorter than one DigOut period
+    shows nothing on the bus, so P2 is repeated every DigOut period rather than after a silence.
+    """
+    return encode_sync_cfg(True) if two_phase else None
+
+
 AREA_WRITE_CONFIG, AREA_READ_CONFIG, AREA_READ_CUSTOMER, AREA_WRITE_CUSTOMER, AREA_LOAD_DATA = 1, 2, 3, 4, 5
 CONFIG_SERIAL, CONFIG_PRODUCT, CONFIG_VERSION, CONFIG_DYNAMIC = 1, 2, 3, 15
 CUSTOMER_RECORDS = range(1, 16)
@@ -239,6 +254,23 @@ PRODUCT_CODES = {
     0x3000: "HM01", 0x3001: "KM01 (until 07.11.2013)", 0x3002: "HMR01 (until 07.11.2013)",
     0x3009: "KM01 (from 08.11.2013)", 0x300A: "HMR01 (from 08.11.2013)",
 }
+
+
+# 7.2.4.2.2 and 5.6: the product codes that are CAN-M3IO variants (the others are other modules)
+PRODUCT_VARIANTS = {0x3000: Variant.HM, 0x3001: Variant.KM, 0x3002: Variant.HMR, 0x3009: Variant.KM, 0x300A: Variant.HMR}
+
+
+def encode_u16(value: int) -> bytes:
+    """A 2-byte value in a payload, low byte first: 0x1234 -> 34 12 (7.2.4.2)."""
+    if not 0 <= value <= 0xFFFF:
+        raise CodecError(f"{value} does not fit 16 bits")
+    return value.to_bytes(2, "little")
+
+
+def decode_u16(payload: bytes) -> int:
+    if len(payload) < 2:
+        raise CodecError(f"a 16-bit value needs 2 bytes, got {len(payload)}")
+    return int.from_bytes(payload[:2], "little")
 
 
 def encode_sync_request(area: int, index: int, payload: bytes = b"") -> bytes:
@@ -281,6 +313,51 @@ def decode_serial(payload: bytes) -> str:
 
 def product_name(code: int) -> str:
     return PRODUCT_CODES.get(code, f"unknown product 0x{code:04X}")
+
+
+def product_variant(code: int) -> Variant | None:
+    return PRODUCT_VARIANTS.get(code)
+
+
+@dataclass(frozen=True)
+class VariantCheck:
+    """The plant file's variant against the module's product code."""
+
+    state: str  # "ok", "mismatch", "unchecked" (not read yet), "not possible" (simple mode)
+    text: str
+    may_switch: bool  # outputs may be switched on
+
+
+def check_variant(variant: Variant, addressed: bool, code: int | None) -> VariantCheck:
+    """HM and HMR put different SSRs on the same DigOut bits (7.2.1): in addressed mode, outputs
+    are switched on only once the product code (7.2.4.2.2) matched the plant file's variant."""
+    if not addressed:
+        return VariantCheck(
+            "not possible",
+            "The variant cannot be checked: with SW1 switch 8 off the module does not report its product code. "
+            f'Make sure the module is the variant the plant file names (variant = "{variant.value}"): '
+            "HM and HMR switch different SSRs with the same DigOut bits.",
+            True,
+        )
+    if code is None:
+        return VariantCheck("unchecked", "The product code has not been read yet: outputs stay off until it matches the plant file.", False)
+    reported = product_variant(code)
+    name = f"0x{code:04X} {product_name(code)}"
+    if reported is variant:
+        return VariantCheck("ok", f"The module reports {name}: variant {variant.value} as in the plant file.", True)
+    if reported is None:
+        return VariantCheck(
+            "mismatch",
+            f'The module reports {name}, which is no CAN-M3IO (KM, HM, HMR), but the plant file says variant = "{variant.value}": '
+            "check that SW1 addresses the right module; outputs are refused.",
+            False,
+        )
+    return VariantCheck(
+        "mismatch",
+        f'The module reports {name}, i.e. variant {reported.value}, but the plant file says variant = "{variant.value}": '
+        f'change it to variant = "{reported.value}" in the plant file (or fit the right module); outputs are refused.',
+        False,
+    )
 
 
 def describe_frame_for(ids: CanIds, variant: Variant, arbitration_id: int, data: bytes) -> str | None:

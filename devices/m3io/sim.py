@@ -3,8 +3,10 @@
 Silent until the first master telegram; DigIn on change (at most every 10 ms) and in
 answer to DigOut; temperatures every 500 ms while the watchdog runs; outputs off and
 temperatures stopped after 2 s without DigOut; the Si/Triac/Last bits per SSR with
-fault injection (remove a load, blow a fuse, break a triac); both ID schemes; the SYNC
-cfg byte (not stored: lost at reset); addressed data with customer-data storage.
+fault injection (remove a load, blow a fuse, break or short a triac); Si = 0 latched
+until the 24 V are cut; the HMR load check of the three-phase output (three phases, or
+exactly two with P2); both ID schemes; the SYNC cfg byte (not stored: lost at any
+reset); addressed data with customer-data storage.
 """
 
 from __future__ import annotations
@@ -25,8 +27,15 @@ class SsrTwin:
     load: bool = True  # a heater is connected and the mains supply is there
     fuse_ok: bool = True
     triac_ok: bool = True
+    triac_shorted: bool = False  # a triac with a permanent short circuit
+    si_blown: bool = False  # the module's latch: Si = 0 until the 24 V are cut (7.2.3)
     on: bool = False  # what the module switches (after its own checks)
     commanded: bool = False
+
+    @property
+    def last(self) -> bool:
+        """Last: supply and a load; a blown fuse or a shorted triac read 0 too (7.2.3)."""
+        return self.load and self.fuse_ok and not self.triac_shorted
 
 
 class M3ioTwin:
@@ -63,8 +72,9 @@ class M3ioTwin:
         """Cut the 24 V: blown fuses are forgotten by the module, cfg is lost, silence until the master talks."""
         self.cfg = 0
         self.last_digout = None
+        self.led = False
         for s in self.ssr.values():
-            s.on = s.commanded = False
+            s.on = s.commanded = s.si_blown = False
         self.resets += 1
 
     @property
@@ -86,12 +96,21 @@ class M3ioTwin:
                 self.ssr[i].commanded = outputs[f"SSR{i}"]
         self.apply()
 
+    def load_fault(self) -> bool:
+        """HMR three-phase output: without P2 all three phases must report a load, with P2 exactly two (4.3)."""
+        loaded = sum(self.ssr[i].last for i in (1, 2, 3))
+        return loaded != (2 if self.cfg & codec.P2 else 3)
+
     def apply(self) -> None:
-        """Switch only when all is well; HMR: a fault on SSR1-3 switches all three off (7.2.3)."""
-        alive = self.watchdog_alive
+        """Switch only when all is well (7.2.3); HMR: a fault on SSR1-3 switches all three off (4.3)."""
+        alive = self.watchdog_alive and self.powered
         for s in self.ssr.values():
-            s.on = alive and s.commanded and s.fuse_ok
-        if self.variant is Variant.HMR and not all(self.ssr[i].fuse_ok and self.ssr[i].triac_ok for i in (1, 2, 3)):
+            if self.powered and not s.fuse_ok and s.load:
+                s.si_blown = True  # found blown: the module keeps Si = 0 until the 24 V are cut
+            s.on = alive and s.commanded and not s.si_blown
+        if self.variant is Variant.HMR and (
+            any(self.ssr[i].si_blown or not self.ssr[i].triac_ok for i in (1, 2, 3)) or self.load_fault()
+        ):
             for i in (1, 2, 3):
                 self.ssr[i].on = False
         if self.variant is Variant.KM:
@@ -102,9 +121,8 @@ class M3ioTwin:
         """Temperature word of a channel with the status of its SSR."""
         s = self.ssr[channel]
         sensor = 1 if self.variant is Variant.HMR and channel <= 3 else channel  # HMR: t1-t3 carry TEMP1
-        load = s.load and s.fuse_ok  # a blown fuse takes Last to 0 too (7.2.3)
-        triac = s.triac_ok if s.on else True
-        return codec.TempWord.make(self.temps_tenths[sensor - 1], load=load, triac=triac, fuse=s.fuse_ok, addressed=self.ids.addressed)
+        triac = s.triac_ok if s.commanded else True  # conduction is watched while switched on
+        return codec.TempWord.make(self.temps_tenths[sensor - 1], load=s.last, triac=triac, fuse=not s.si_blown, addressed=self.ids.addressed)
 
     def temp_frames(self) -> list[tuple[int, bytes]]:
         words = [self.word(i) for i in range(1, 7)]
@@ -118,6 +136,7 @@ class M3ioTwin:
         if len(data) <= 1:
             if data:
                 self.cfg = data[0]
+                self.apply()
             return None
         if not self.ids.addressed:
             return None
@@ -125,12 +144,13 @@ class M3ioTwin:
         now = time.monotonic()
         if area == codec.AREA_WRITE_CONFIG and index == codec.CONFIG_DYNAMIC:
             self.cfg = payload[0] if payload else self.cfg
+            self.apply()
             return codec.MData(area, index, bytes([self.cfg])).encode()
         if area == codec.AREA_READ_CONFIG:
             values = {
                 codec.CONFIG_SERIAL: codec.encode_serial(self.serial),
-                codec.CONFIG_PRODUCT: self.product.to_bytes(2, "little"),
-                codec.CONFIG_VERSION: self.version.to_bytes(2, "little"),
+                codec.CONFIG_PRODUCT: codec.encode_u16(self.product),
+                codec.CONFIG_VERSION: codec.encode_u16(self.version),
                 codec.CONFIG_DYNAMIC: bytes([self.cfg]),
             }
             return codec.MData(area, index, values[index]).encode() if index in values else None
