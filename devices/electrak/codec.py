@@ -18,6 +18,13 @@ CONTROL_PERIOD_S = 0.1
 STATUS_PERIOD_S = 0.1
 DEFAULT_TIMEOUT_MS = 250  # message-timeout flag after 250 ms without a control telegram
 DEFAULT_BITRATE = 500_000
+# "CAN-Steuerung": another master (a PLC, or an actuator whose control line is active, "Das Netzwerk
+# im Überblick") repeats 0x06 every 100 ms; three periods without one mean there is none.
+LISTEN_S = 0.3
+# "Bewegungs-Flags" bit 2: Saturated must not stay set when driven over CAN; "stays" = 10 status periods.
+SATURATED_WARN_S = 1.0
+# "Fehler-Flags" bits 2 and 3: a motion already running goes on for 10 s after a voltage or temperature fault.
+ENV_FAULT_RUN_ON_S = 10.0
 
 
 class CodecError(ValueError):
@@ -86,7 +93,7 @@ ERROR_FLAGS = {
     3: ("Temperature", "the temperature is outside the operating range; a running motion goes on for 10 s, no new motion",
         "let the actuators return to the operating temperature"),
     4: ("Backdrive", "the rod moved without a command (high static load or strong vibration)",
-        "check the load; clears with the next commanded motion"),
+        "check the load. Assumption (the document does not say how it clears): with the next commanded motion"),
     5: ("Message timeout", "no control telegram within the timeout (250 ms by default); no actuator moves while set",
         "send control telegrams every 100 ms"),
     6: ("Severe fault", "no motion detected while driving the motor, or the position changed in the wrong direction; "
@@ -202,10 +209,57 @@ def password_request(password: int) -> ServiceMessage:
     return write_request(PASSWORD_SPECIFIER, 4, password)
 
 
-def save_request() -> ServiceMessage:
-    """Save all changed parameters. The document's example starts with 0x02, no defined
-    type; SPEC-NOTES: send 0x01 (write) to 0xF0, the rest as in the example."""
-    return ServiceMessage(ServiceType.WRITE_REQUEST, SAVE_SPECIFIER, 1, 0)
+# "Parameter speichern": the table gives length 4, the example "02 F0 01 ..." length 1 (and type
+# 0x02, none defined: SPEC-NOTES sends 0x01). Send the table's form; on WRONG_SIZE retry once with
+# the example's, and report which one the network accepted.
+SAVE_LENGTHS = (4, 1)
+SAVE_FORMS = {4: "4-byte form (parameter table)", 1: "1-byte form (document example)"}
+
+
+def save_request(length: int = SAVE_LENGTHS[0]) -> ServiceMessage:
+    """Save all changed parameters ("any value" written to 0xF0)."""
+    return ServiceMessage(ServiceType.WRITE_REQUEST, SAVE_SPECIFIER, length, 0)
+
+
+ANSWER_TYPE = {ServiceType.READ_REQUEST: ServiceType.READ_RESPONSE, ServiceType.WRITE_REQUEST: ServiceType.WRITE_CONFIRMATION}
+
+
+def belongs_to(request: ServiceMessage, answer: ServiceMessage) -> bool:
+    """Is ``answer`` an actuator's answer to ``request``? An error answer is taken whatever its
+    specifier: the document does not say that it repeats the request's."""
+    return answer.type == ServiceType.ERROR_RESPONSE or (answer.specifier == request.specifier and answer.type == ANSWER_TYPE.get(request.type))
+
+
+def describe_answer(answer: ServiceMessage) -> str:
+    if answer.type == ServiceType.ERROR_RESPONSE:
+        return f"error {answer.error_name}"
+    if answer.type == ServiceType.WRITE_CONFIRMATION:
+        return "confirmed"
+    if answer.type == ServiceType.READ_RESPONSE:
+        return f"value {answer.value}"
+    return f"type 0x{answer.type:02X}"
+
+
+def answer_problems(request: ServiceMessage, answers: list[ServiceMessage], expected: int) -> list[str]:
+    """What is wrong with the answers of a network of ``expected`` actuators, in words; empty when
+    every actuator answered as asked and (reads) every one reports the same value.
+
+    Every networked device answers a service request ("Gerätekonfiguration"), and the answers
+    cannot be told apart: they are numbered in the order they came.
+    """
+    problems = []
+    wanted = ANSWER_TYPE.get(request.type)
+    for n, answer in enumerate(answers, 1):
+        if answer.type != wanted:
+            problems.append(f"answer {n}: {describe_answer(answer)}")
+    if len(answers) < expected:
+        problems.append(f"{expected - len(answers)} of {expected} actuators did not answer")
+    elif len(answers) > expected:
+        problems.append(f"{len(answers)} answers, but {expected} actuators are configured")
+    values = [a.value for a in answers if a.type == ServiceType.READ_RESPONSE]
+    if len(set(values)) > 1:
+        problems.append("the actuators disagree: " + ", ".join(f"answer {n}: {v}" for n, v in enumerate(values, 1)))
+    return problems
 
 
 # -- model ranges (document "Strombegrenzung", "Sollgeschwindigkeit") -------------------------
@@ -219,7 +273,15 @@ SPEED_RANGE_MM_S = {
     "B100": (2.0, 9.0),
     "B160": (1.0, 5.0),
 }
-BITRATES = {0: 1_000_000, 2: 500_000, 3: 250_000, 4: 125_000}
+BITRATES = {0: 1_000_000, 2: 500_000, 3: 250_000, 4: 125_000}  # "Wert / Baudrate" table; 1 is not defined
+
+
+def bitrate_code(bitrate: int) -> int:
+    """The bit-rate parameter's value for a bus bit rate in bit/s."""
+    for code, rate in BITRATES.items():
+        if rate == bitrate:
+            return code
+    raise CodecError(f"{bitrate} bit/s is not one of the actuators' bit rates ({', '.join(f'{r:,}' for r in BITRATES.values())})")
 
 
 @dataclass(frozen=True)
@@ -244,6 +306,11 @@ class Limits:
             raise CodecError("a network needs at least one actuator")
         lows, highs = zip(*(SPEED_RANGE_MM_S[a.gearing] for a in actuators))
         return cls(min(a.stroke_mm for a in actuators), min(CURRENT_LIMIT_A[a.model] for a in actuators), max(lows), min(highs))
+
+    @classmethod
+    def of_one(cls, actuator: Actuator) -> Limits:
+        """The ranges of one model, gearing and stroke (each device checks its own: "Parameterfehler")."""
+        return cls.of([actuator])
 
     def check(self, position_mm: float, current_a: float, speed_mm_s: float) -> list[str]:
         """Problems with a control telegram's values, in words; empty when it is fine."""

@@ -7,18 +7,35 @@ its size in bytes.
 
 from __future__ import annotations
 
+from devices.electrak import codec
 from devices.params import Access, Param, ParamMap
 
 SERVICE = "service"
 
-BITRATE_NAMES = {0: "1 Mbit/s", 2: "500 kbit/s", 3: "250 kbit/s", 4: "125 kbit/s"}
+BITRATE_NAMES = {code: f"{rate // 1_000_000} Mbit/s" if rate >= 1_000_000 else f"{rate // 1000} kbit/s" for code, rate in codec.BITRATES.items()}
 PASSWORD_A = 0xE5F6A7B8  # soft start, soft stop
 PASSWORD_B = 0x9A8B7C6D  # bit rate, timeout
 PASSWORD_C = 0x6B7C8D9A  # speed
+BITRATE_SPECIFIER = 0x04
+TIMEOUT_SPECIFIER = 0x06
+
+# Assumption: "Baudrate" does not say when a new bit rate takes effect; like every parameter it
+# is lost at power-off unless saved ("Parameter speichern"), so it is read back and saved on the
+# old bit rate and takes effect when the actuators are powered up again.
+BITRATE_AT_POWER_UP = True
 
 BITRATE_WARNING = (
-    "After the change the actuators leave this bus: they answer only once the bus itself runs at the new bit rate "
-    "(change bitrate in the plant file and restart). Every actuator of the network must be switched alike."
+    "The actuators keep the old bit rate until they are powered up again: write it, read it back from every actuator, "
+    "save it (0xF0), then set the bus's bitrate in the plant file, restart commission and power-cycle the actuators. "
+    "Every device on this bus must be switched alike, or it leaves the bus."
+)
+
+# "CAN-Steuerung": the control telegram comes every 100 ms, so a timeout below that keeps the
+# message-timeout flag ("Fehler-Flags" bit 5) set and no actuator moves.
+TIMEOUT_MIN_MS = 100
+TIMEOUT_REFUSAL = (
+    f"below the control period of {TIMEOUT_MIN_MS} ms: the control telegram comes every {TIMEOUT_MIN_MS} ms, "
+    "so the message-timeout flag would stay set and no actuator would move"
 )
 
 
@@ -34,10 +51,11 @@ PARAMS = ParamMap([
            description="Time in milliseconds the actuator takes to reach full speed: adjusts the soft start."),
     _param("Soft stop distance", 0x02, PASSWORD_A, 2, "mm", 0.1, minimum=0, maximum=6553.5,
            description="Distance to the target (0.1 mm units) from which the actuator starts to slow down: adjusts the soft stop."),
-    _param("Bit rate", 0x04, PASSWORD_B, 1, enum=BITRATE_NAMES, confirm=BITRATE_WARNING,
+    _param("Bit rate", BITRATE_SPECIFIER, PASSWORD_B, 1, enum=BITRATE_NAMES, confirm=BITRATE_WARNING,
            description="CAN bit rate of the actuator (default 500 kbit/s)."),
-    _param("Timeout", 0x06, PASSWORD_B, 2, "ms", minimum=1, maximum=65535,
-           description="Time in milliseconds without a control telegram after which the actuator sets the message-timeout flag."),
+    _param("Timeout", TIMEOUT_SPECIFIER, PASSWORD_B, 2, "ms", minimum=TIMEOUT_MIN_MS, maximum=65535,
+           description="Time in milliseconds without a control telegram after which the actuator sets the message-timeout flag "
+                       f"(default 250 ms; not below the {TIMEOUT_MIN_MS} ms control period)."),
     _param("Speed", 0x08, PASSWORD_C, 2, "mm/s", 0.1, minimum=0, maximum=6553.5,
            description="Target speed of the device in 0.1 mm/s units; lowers the speed when driven through the manual lines."),
 ])
@@ -49,3 +67,14 @@ def password_of(param: Param) -> int:
 
 def length_of(param: Param) -> int:
     return int(param.extra["length"])
+
+
+def refusal(param: Param, value) -> str:
+    """Why ``value`` must not be written to ``param`` beyond its range, or ``""``."""
+    if param.address != TIMEOUT_SPECIFIER:
+        return ""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return ""
+    return f"{param.name} {number:g} ms is {TIMEOUT_REFUSAL}" if number < TIMEOUT_MIN_MS else ""
