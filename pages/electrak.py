@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import csv
+import inspect
 import io
+import time
 from datetime import datetime
 
 from nicegui import ui
 
 from app import runtime as rt
+from app import worker as worker_module
 from devices.electrak import codec
-from devices.electrak.adapter import SERIES
-from devices.electrak.params import PARAMS, password_of
+from devices.electrak.adapter import FOREIGN_SENDER, SERIES
+from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, password_of, refusal
 from pages.frame import fmt_age, fmt_time, frame, set_status_badge
 from pages.widgets import HistoryChart, Lamp, run_command, write_from_page
 
@@ -28,12 +31,13 @@ def content(name: str) -> None:
 
     async def act(describe: str, fn, success: str = "", write: bool = True):
         async def action(a):
-            return fn(a)
+            result = fn(a)
+            return await result if inspect.isawaitable(result) else result
 
         return await run_command(name, action, describe, success=success, write=write)
 
-    def release_on_disconnect() -> None:
-        adapter.release_control(session, "released: the controlling browser disconnected")
+    def release_on_disconnect() -> None:  # second line of defence; the worker's dead-man rule is the first
+        adapter.session_lost(session, "the controlling browser disconnected")
 
     client.on_disconnect(release_on_disconnect)
     client.on_delete(release_on_disconnect)
@@ -46,6 +50,7 @@ def content(name: str) -> None:
                 seen = ui.label().classes("text-body2")
                 counters = ui.label().classes("text-caption mono text-grey-8")
             heard_warning = ui.label().classes("text-warning text-body2")
+            saturated_warning = ui.label().classes("text-warning text-body2").props("data-testid=saturated-warning")
             limits = adapter.limits
             ui.label(
                 "actuators: " + "; ".join(f"{a.model} {a.gearing} {a.stroke_mm:g} mm stroke" for a in adapter.actuators)
@@ -87,6 +92,7 @@ def content(name: str) -> None:
                     _sim_card(twin)
 
         service_refresh = _service_card(name, state, adapter)
+        bitrate_refresh = _bitrate_card(name, state, adapter, runtime)
 
         with ui.expansion("Events", icon="list").classes("w-full"):
             events = ui.log(max_lines=200).classes("w-full h-40")
@@ -97,6 +103,9 @@ def content(name: str) -> None:
             "size=xl push data-testid=big-stop"
         ).classes("text-h6")
 
+    def online_now() -> bool:
+        return state.status == "online"
+
     def update() -> None:
         set_status_badge(badge, state.status, state.age)
         info = state.info
@@ -106,6 +115,7 @@ def content(name: str) -> None:
             f"The network answers with {info.get('heard')} status telegrams per 100 ms, but {info.get('configured')} actuators are configured: "
             "check wiring and power, or the plant file." if differs else ""
         )
+        saturated_warning.set_text(info.get("saturated_warning", "") if online_now() else "")
         seen.set_text(f"last status {fmt_age(state.age)}")
         c = state.counters
         counters.set_text(f"status frames {c.responses} · service requests {c.requests} · timeouts {c.timeouts} · "
@@ -122,6 +132,7 @@ def content(name: str) -> None:
                     ui.label(f"{fault}: clears: {clears}").classes("text-negative text-body2")
         controls()
         service_refresh()
+        bitrate_refresh()
         for event in state.events:
             if event.time > shown[0]:
                 events.push(f"{fmt_time(event.time)} {event.level.upper()}: {event.text}")
@@ -136,14 +147,24 @@ def content(name: str) -> None:
     ui.timer(0.5, update_charts)
 
 
+def _stop_rule() -> str:
+    return (
+        f"Stop rule: motion stops when a jog button is released, on Stop, and within {worker_module.DEADMAN_BOUND_S:g} s of this browser going away "
+        "(closed, disconnected or frozen): enable is cleared and sent at once. Without control telegrams the actuators "
+        "stop by themselves after their Timeout (250 ms by default)."
+    )
+
+
 def _control_card(adapter, session: str, act):
     limits = adapter.limits
     with ui.card().classes("w-full"):
         ui.label("Drive the network").classes("text-subtitle1")
         holder = ui.label().classes("text-body2")
+        foreign = ui.label().classes("text-negative text-body2").props("data-testid=foreign-control")
         with ui.row():
             take = ui.button("Take control", icon="sports_esports",
                              on_click=lambda: act("take control", lambda a: a.take_control(session, "local engineer"))).props("data-testid=take-control")
+            take.tooltip(f"Listens {codec.LISTEN_S:g} s for another sender of 0x06 first ({FOREIGN_SENDER}); refused if there is one")
             release = ui.button("Release", icon="logout",
                                 on_click=lambda: act("release control", lambda a: a.release_control(session), write=False)).props("outline")
         position = ui.number(f"Target position [mm] 0..{limits.stroke_mm:g}", value=0.0, min=0, max=limits.stroke_mm, step=0.1, format="%.1f").props("dense outlined data-testid=target").classes("w-full")
@@ -171,6 +192,7 @@ def _control_card(adapter, session: str, act):
             jog_in = ui.button("In", icon="keyboard_double_arrow_left").props("outline data-testid=jog-in")
             jog_out = ui.button("Out", icon="keyboard_double_arrow_right").props("outline data-testid=jog-out")
             reset = ui.button("Override/reset").props("flat")
+
         def jog_start(direction: int):
             return lambda: act("jog", lambda a: a.jog(session, direction, speed.value))
 
@@ -185,6 +207,9 @@ def _control_card(adapter, session: str, act):
                 button.on(event, lambda: act("jog stop", jog_stop, write=False))
         reset.on("mousedown", lambda: act("override", lambda a: a.override(session, True)))
         reset.on("mouseup", lambda: act("override", lambda a: a.override(session, False)))
+        with ui.row().classes("items-start no-wrap gap-1 bg-blue-grey-1 q-pa-xs rounded-borders"):
+            ui.icon("timer_off", size="xs").classes("q-mt-xs")
+            ui.label(_stop_rule()).classes("text-caption").props("data-testid=stop-rule")
         sent = ui.label().classes("text-caption mono text-grey-8")
 
     def refresh() -> None:
@@ -196,6 +221,12 @@ def _control_card(adapter, session: str, act):
             holder.set_text(f"you hold control since {datetime.fromtimestamp(c.since):%H:%M:%S}; control telegram every 100 ms")
         else:
             holder.set_text(f"{c.user} holds control (another browser) since {datetime.fromtimestamp(c.since):%H:%M:%S}")
+        other = adapter.state.info.get("foreign_control")
+        if other and adapter.foreign_sender(time.monotonic() - 2.0 + codec.LISTEN_S):  # shown for 2 s after the last one
+            foreign.set_text(f"Another sender of the control telegram 0x06 is on the bus ({FOREIGN_SENDER}): "
+                             f"{other['text']} · {other['frames']} frames. Take control is refused while it sends.")
+        else:
+            foreign.set_text("")
         take.set_enabled(c is None)
         release.set_enabled(mine)
         for element in (go_button, jog_in, jog_out, reset):
@@ -212,11 +243,38 @@ def _sim_card(twin) -> None:
         ui.label("Simulated actuators (demo)").classes("text-subtitle1")
         ui.label("Extra load current [A]").classes("text-caption")
         ui.slider(min=0, max=25, step=0.5, value=0, on_change=lambda e: twin.set_load(e.value)).props("label-always")
+        ui.label("Static load on a standing rod [mm/s, - pushes in]").classes("text-caption")
+        ui.slider(min=-5, max=5, step=0.5, value=0, on_change=lambda e: twin.set_backdrive(e.value)).props("label-always")
         with ui.row():
             for i in range(len(twin.actuators)):
                 ui.switch(f"actuator {i + 1} connected", value=True,
                           on_change=lambda e, i=i: twin.restore(i) if e.value else twin.remove(i))
-        ui.switch("Supply voltage fault", on_change=lambda e: [setattr(a, "voltage_fault", e.value) for a in twin.actuators])
+        with ui.row():
+            ui.switch("Supply voltage fault", on_change=lambda e: [setattr(a, "voltage_fault", e.value) for a in twin.actuators])
+            ui.switch("Temperature fault", on_change=lambda e: [setattr(a, "temperature_fault", e.value) for a in twin.actuators[:1]])
+        with ui.row().classes("items-center"):
+            ui.select({0: "off", 1: "out", -1: "in"}, value=0, label="Manual control line",
+                      on_change=lambda e: twin.set_manual_line(e.value)).props("dense outlined options-dense").classes("w-40")
+            if len(twin.actuators) > 1:
+                ui.switch("last actuator disagrees", on_change=lambda e: _disagree(twin, e.value)).tooltip(
+                    "its soft start time differs: reads of it fail, as they should")
+        ui.button("Power-cycle actuators", icon="power_settings_new", on_click=twin.power_cycle).props("outline dense")
+
+
+def _disagree(twin, on: bool) -> None:
+    values = twin.actuators[-1].service.values
+    values[0x01] = twin.actuators[0].service.values[0x01] + (100 if on else 0)
+
+
+def _answers_text(report: dict | None) -> tuple[str, str]:
+    """Short text and tooltip of the last exchange of one parameter with every actuator."""
+    if not report:
+        return "", ""
+    answers = report["answers"]
+    tip = "; ".join(f"answer {n}: {a}" for n, a in enumerate(answers, 1)) or "no answer"
+    if report["ok"]:
+        return f"{len(answers)} of {report['expected']} agree", tip
+    return "; ".join(report["problems"]), tip
 
 
 def _service_card(name: str, state, adapter):
@@ -227,39 +285,142 @@ def _service_card(name: str, state, adapter):
             unsaved = ui.badge("", color="orange")
             ui.space()
             ui.button("Read all", icon="refresh", on_click=lambda: run_command(name, lambda a: a.read_all(), "read service parameters", write=False)).props("outline")
-            ui.button("Save parameters (0xF0)", icon="save", on_click=lambda: run_command(name, lambda a: a.save_parameters(), "save parameters", success="parameters saved"))
-        ui.label("The right password is written to 0xFF before each read or write. Changes hold until power-off unless saved.").classes("text-caption text-grey-8")
+            ui.button("Save parameters (0xF0)", icon="save", on_click=lambda: _save(name)).props("data-testid=save-params")
+        ui.label(f"The right password is written to 0xFF before each read or write. Each of the {len(adapter.actuators)} actuators answers "
+                 "for itself: a read or write fails unless every one answers alike. Changes hold until power-off unless saved.").classes("text-caption text-grey-8")
         with ui.grid(columns=5).classes("w-full items-center gap-x-4 gap-y-1"):
-            for h in ("Specifier", "Parameter", "Value", "New value", ""):
+            for h in ("Specifier", "Parameter", "Value (every actuator)", "New value", ""):
                 ui.label(h).classes("text-caption text-grey-8")
             for p in PARAMS:
                 ui.label(f"0x{p.address:02X} (password 0x{password_of(p):08X})").classes("mono text-caption")
                 with ui.row().classes("items-center gap-1"):
                     ui.label(p.name).tooltip(p.description)
                     mark = ui.badge("unsaved", color="orange")
-                value = ui.label("not read").classes("mono")
-                if p.enum is not None:
-                    entry = ui.select(dict(p.enum), value=None).props("dense outlined options-dense").classes("w-40")
+                with ui.column().classes("gap-0"):
+                    value = ui.label("not read").classes("mono")
+                    with ui.label().classes("text-caption") as answers:
+                        answers_tip = ui.tooltip("")
+                if p.address == BITRATE_SPECIFIER:
+                    ui.label("change it step by step below").classes("text-caption text-grey-8")
+                    ui.element("span")
                 else:
                     low, high = p.limits()
                     entry = ui.input(placeholder=f"{low:g} .. {high:g} {p.unit}").props("dense outlined").classes("w-40")
-                ui.button("Write", on_click=lambda p=p, entry=entry: _write_service(name, p, entry.value)).props("dense")
-                rows[p.key] = (p, value, mark)
+                    ui.button("Write", on_click=lambda p=p, entry=entry: _write_service(name, p, entry.value)).props("dense")
+                rows[p.key] = (p, value, mark, answers, answers_tip)
+        last = ui.label().classes("text-caption mono text-grey-8")
+        form = ui.label().classes("text-caption text-grey-8")
 
     def refresh() -> None:
-        for key, (p, value, mark) in rows.items():
+        reports = state.info.get("service_reports", {})
+        for key, (p, value, mark, answers, answers_tip) in rows.items():
             raw = state.raw(p)
-            value.set_text("not read" if raw is None else p.display(raw))
+            report = reports.get(key)
+            value.set_text(("not read" if not report or report["ok"] else "no common value") if raw is None else p.display(raw))
+            text, tip = _answers_text(report)
+            answers.set_text(text)
+            answers.classes(replace="text-caption " + ("text-grey-8" if not report or report["ok"] else "text-negative"))
+            answers_tip.set_text(tip)
             mark.set_visibility(key in state.unsaved)
         unsaved.set_text(f"{len(state.unsaved)} unsaved")
         unsaved.set_visibility(bool(state.unsaved))
+        report = state.info.get("service_last")
+        last.set_text("" if not report else f"last service telegram: {report['what']} at {fmt_time(report['time'])}: "
+                      + ("; ".join(f"answer {n}: {a}" for n, a in enumerate(report["answers"], 1)) or "no answer")
+                      + ("" if report["ok"] else " - " + "; ".join(report["problems"])))
+        form.set_text(f"last save: the network accepted the {state.info['save_form']}" if state.info.get("save_form") else
+                      f"Save sends the {codec.SAVE_FORMS[codec.SAVE_LENGTHS[0]]} and, on WRONG_SIZE, once the {codec.SAVE_FORMS[codec.SAVE_LENGTHS[1]]}.")
 
     return refresh
 
 
+async def _save(name: str) -> None:
+    ok, form = await run_command(name, lambda a: a.save_parameters(), "save parameters")
+    if ok:
+        ui.notify(f"parameters saved: the network accepted the {form}", type="positive")
+
+
 async def _write_service(name: str, param, value) -> None:
-    await write_from_page(name, param, value, success="{name} = {value} written and read back",
+    reason = refusal(param, value)
+    if reason:
+        ui.notify(reason, type="negative", multi_line=True, close_button="OK", timeout=15000)
+        return
+    await write_from_page(name, param, value, success="{name} = {value} written and read back from every actuator",
                           title="Set {name} to {value}?", ok="Change bit rate")
+
+
+def _bitrate_card(name: str, state, adapter, runtime):
+    """Write, save, switch the bus, restart: the bit rate changes only when all four are done."""
+    param = PARAMS.get("service", BITRATE_SPECIFIER)
+    bus = adapter.bus
+    bus_rate = bus.options.get("bitrate", codec.DEFAULT_BITRATE)
+    others = [d.name for d in runtime.plant.devices_on(state.bus) if d.name != name]
+    with ui.card().classes("w-full").props("data-testid=bitrate-card"):
+        ui.label("Change the bit rate").classes("text-subtitle1")
+        ui.label(f"Bus {state.bus} runs at {bus_rate // 1000} kbit/s"
+                 + (f"; on it also: {', '.join(others)} (switch them alike, or they leave the bus)." if others else ".")
+                 + (" Assumption (the document does not say): the actuators take a new bit rate when powered up again."
+                    if BITRATE_AT_POWER_UP else "")).classes("text-caption text-grey-8")
+        steps = []
+        with ui.column().classes("gap-1 w-full"):
+            with ui.row().classes("items-center gap-2") as row:
+                icon = ui.icon("radio_button_unchecked")
+                ui.label("1. Write the new bit rate and read it back from every actuator").classes("text-body2")
+                choice = ui.select({k: v for k, v in BITRATE_NAMES.items() if codec.BITRATES[k] != bus_rate}, value=None,
+                                   label="new bit rate").props("dense outlined options-dense data-testid=new-bitrate").classes("w-36")
+                ui.button("Write", on_click=lambda: _write_bitrate(name, param, choice.value)).props("dense")
+            steps.append((icon, row))
+            with ui.row().classes("items-center gap-2") as row:
+                icon = ui.icon("radio_button_unchecked")
+                ui.label("2. Save it (0xF0) on every actuator, or it is lost at power-off").classes("text-body2")
+                ui.button("Save", icon="save", on_click=lambda: _save(name)).props("dense outline")
+            steps.append((icon, row))
+            with ui.row().classes("items-center gap-2") as row:
+                icon = ui.icon("radio_button_unchecked")
+                switch_text = ui.label().classes("text-body2")
+            steps.append((icon, row))
+            with ui.row().classes("items-center gap-2") as row:
+                icon = ui.icon("radio_button_unchecked")
+                ui.label("4. Restart commission with the changed plant file, then power-cycle the actuators; they come back "
+                         "at the new bit rate").classes("text-body2")
+            steps.append((icon, row))
+        status = ui.label().classes("text-body2").props("data-testid=bitrate-status")
+
+    def refresh() -> None:
+        raw = state.raw(param)
+        change = state.info.get("bitrate_change")
+        pending = raw if raw is not None and codec.BITRATES.get(raw) != bus_rate else (change or {}).get("raw")
+        target = codec.BITRATES.get(pending) if pending is not None else None
+        heard_all = state.status == "online" and state.info.get("heard") == state.info.get("configured")
+        written = target is not None
+        saved = written and param.key not in state.unsaved and bool(change is None or change.get("saved"))
+        done = [written, saved, False, False]
+        switch_text.set_text("3. Switch the bus: in the plant file set bitrate = "
+                             + (f"{target}" if target else "<new rate>") + f" for [[bus]] name = \"{state.bus}\"")
+        for (icon, _row), ok in zip(steps, done):
+            icon.name = "check_circle" if ok else "radio_button_unchecked"
+            icon.props(f"color={'positive' if ok else 'grey'}")
+            icon.update()
+        if not written:
+            status.set_text(f"The actuators run at the bus's {bus_rate // 1000} kbit/s." if raw is not None and heard_all
+                            else "Read the bit rate (Read all) to see what the actuators hold.")
+        elif not saved:
+            status.set_text(f"{BITRATE_NAMES.get(pending)} written and read back, NOT saved: save it (step 2), or power-cycling "
+                            "the actuators brings back the old bit rate.")
+        else:
+            status.set_text(f"{BITRATE_NAMES.get(pending)} saved. The actuators switch at their next power-up: do steps 3 and 4 "
+                            "now, or they are lost to this bus after a power cut.")
+        status.classes(replace="text-body2 " + ("text-warning" if written else "text-grey-8"))
+
+    return refresh
+
+
+async def _write_bitrate(name: str, param, code) -> None:
+    if code is None:
+        ui.notify("Choose the new bit rate first", type="warning")
+        return
+    await write_from_page(name, param, int(code), success="{name} {value} written and read back from every actuator: now save it",
+                          title="Set the actuators' bit rate to {value}?", ok="Write bit rate")
 
 
 def _export_csv(state, name: str) -> None:

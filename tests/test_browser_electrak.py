@@ -1,4 +1,5 @@
-"""Real browser on the Electrak page: take control, set a target, press Go, see the position chart rise."""
+"""Real browser on the Electrak page: take control, set a target, press Go, see the position chart rise;
+the stop rule is stated; the bit rate changes step by step (write, read back, save)."""
 
 from __future__ import annotations
 
@@ -60,6 +61,7 @@ def test_go_moves_the_position_chart_toward_the_target(app_url):
             page = browser.new_page(viewport={"width": 1400, "height": 1100})
             page.goto(f"{app_url}/device/lift")
             page.get_by_text("actuators heard per 100 ms: 2 of 2 configured").wait_for(timeout=10_000)
+            assert "within 0.5 s of this browser going away" in page.get_by_test_id("stop-rule").inner_text()
             page.get_by_test_id("take-control").click()
             page.get_by_text("you hold control").wait_for(timeout=5_000)
             target = page.get_by_label("Target position [mm]", exact=False)
@@ -85,5 +87,18 @@ def test_go_moves_the_position_chart_toward_the_target(app_url):
             # the big stop is always there
             page.get_by_test_id("big-stop").click()
             page.get_by_text("no enable").first.wait_for(timeout=5_000)
+            # the bit rate, step by step: write and read back, then save
+            page.get_by_test_id("new-bitrate").click()
+            page.get_by_role("option", name="250 kbit/s").click()
+            page.get_by_test_id("bitrate-card").get_by_role("button", name="Write").click()
+            page.get_by_role("button", name="Write bit rate").click()  # the confirmation names the whole sequence
+            status = page.get_by_test_id("bitrate-status")
+            status.get_by_text("NOT saved").wait_for(timeout=5_000)
+            page.get_by_test_id("bitrate-card").get_by_role("button", name="Save").click()
+            status.get_by_text("250 kbit/s saved").wait_for(timeout=5_000)
+            assert "2 of 2 agree" in page.get_by_text("2 of 2 agree").first.inner_text()
+            for width, height in ((1440, 900), (1024, 768)):
+                page.set_viewport_size({"width": width, "height": height})
+                page.screenshot(path=str(SHOTS / f"electrak-{width}x{height}.png"), full_page=True)
         finally:
             browser.close()

@@ -38,7 +38,7 @@ def test_control_bits_and_range():
     [
         (codec.password_request(0xE5F6A7B8), "01 FF 04 00 B8 A7 F6 E5"),  # unlock soft start
         (codec.write_request(0x01, 2, 500), "01 01 02 00 F4 01 00 00"),  # soft start 500 ms
-        (codec.save_request(), "01 F0 01 00 00 00 00 00"),  # save: example's 0x02 sent as 0x01 (SPEC-NOTES)
+        (codec.save_request(), "01 F0 04 00 00 00 00 00"),  # save in the table's form (length 4); example's: test_electrak_service
     ],
 )
 def test_service_examples(message, data):
@@ -85,22 +85,41 @@ def plant_text(actuators: str = '[{ model = "HD24", gearing = "B026", stroke_mm 
     )
 
 
-@pytest.fixture
-async def lift():
-    runtime = Runtime(parse_plant(plant_text()), simulate=True)
+BEATING = ("s1", "a", "b", "browser-1")  # sessions whose browser stays alive (the dead-man rule)
+
+
+async def beat(runtime, sessions=BEATING) -> None:
+    """What a live page does: confirm several times a second that the browser is alive."""
+    while True:
+        for session in sessions:
+            runtime.worker.heartbeat(session)
+        await asyncio.sleep(0.1)
+
+
+async def start_lift(text: str | None = None):
+    runtime = Runtime(parse_plant(text or plant_text()), simulate=True)
     await runtime.start()
     adapter = runtime.worker.adapters["lift"]
     state = runtime.store.devices["lift"]
-    assert await wait_for(lambda: state.status == "online" and state.info["heard"] == 2, timeout=4)
+    configured = len(adapter.actuators)
+    assert await wait_for(lambda: state.status == "online" and state.info["heard"] == configured, timeout=4)
+    return runtime, adapter, state, runtime.twins["lift"]
+
+
+@pytest.fixture
+async def lift():
+    runtime, adapter, state, twin = await start_lift()
+    beating = asyncio.create_task(beat(runtime))
     try:
-        yield runtime, adapter, state, runtime.twins["lift"]
+        yield runtime, adapter, state, twin
     finally:
+        beating.cancel()
         await asyncio.wait_for(runtime.stop(), 5)
 
 
 async def test_move_to_target_and_arrive(lift):
     _runtime, adapter, state, twin = lift
-    adapter.take_control("s1", "engineer")
+    await adapter.take_control("s1", "engineer")
     adapter.set_command("s1", 30.0, 32.0, 0)
     adapter.go("s1")
     assert await wait_for(lambda: state.info["motion"] & 1, timeout=2)  # extending
@@ -113,7 +132,7 @@ async def test_move_to_target_and_arrive(lift):
 
 async def test_overload_trips_and_clears(lift):
     _runtime, adapter, state, twin = lift
-    adapter.take_control("s1", "engineer")
+    await adapter.take_control("s1", "engineer")
     adapter.set_command("s1", 200.0, 32.0, 3.0)
     adapter.go("s1")
     await asyncio.sleep(0.5)
@@ -129,7 +148,7 @@ async def test_overload_trips_and_clears(lift):
 
 async def test_overload_cleared_by_moving_back(lift):
     _runtime, adapter, state, twin = lift
-    adapter.take_control("s1", "engineer")
+    await adapter.take_control("s1", "engineer")
     adapter.set_command("s1", 200.0, 32.0, 3.0)
     adapter.go("s1")
     await asyncio.sleep(0.4)
@@ -142,7 +161,7 @@ async def test_overload_cleared_by_moving_back(lift):
 
 async def test_timeout_flag_when_control_stops(lift):
     runtime, adapter, state, twin = lift
-    adapter.take_control("s1", "engineer")
+    await adapter.take_control("s1", "engineer")
     assert await wait_for(lambda: not state.info["errors"] & 0x20, timeout=2)
     adapter.set_command("s1", 250.0, 20.0, 0)
     adapter.go("s1")
@@ -156,7 +175,7 @@ async def test_timeout_flag_when_control_stops(lift):
 
 async def test_release_sends_enable_cleared_and_stops_keepalive(lift):
     runtime, adapter, state, twin = lift
-    adapter.take_control("browser-1", "engineer")
+    await adapter.take_control("browser-1", "engineer")
     adapter.set_command("browser-1", 250.0, 20.0, 0)
     adapter.go("browser-1")
     await asyncio.sleep(0.3)
@@ -169,18 +188,18 @@ async def test_release_sends_enable_cleared_and_stops_keepalive(lift):
 
 async def test_only_one_session_controls(lift):
     _runtime, adapter, _state, _twin = lift
-    adapter.take_control("a", "alice")
+    await adapter.take_control("a", "alice")
     with pytest.raises(ControlBusy, match="alice"):
-        adapter.take_control("b", "bob")
+        await adapter.take_control("b", "bob")
     with pytest.raises(ControlBusy):
         adapter.go("b")
     adapter.release_control("a")
-    adapter.take_control("b", "bob")
+    await adapter.take_control("b", "bob")
 
 
 async def test_parameter_flag_for_bad_values(lift):
     runtime, adapter, state, _twin = lift
-    adapter.take_control("s1", "engineer")
+    await adapter.take_control("s1", "engineer")
     with pytest.raises(CommandError, match="outside"):
         adapter.set_command("s1", 400.0, 20.0, 0)  # refused before it reaches the bus
     adapter.release_control("s1")
@@ -193,7 +212,7 @@ async def test_parameter_flag_for_bad_values(lift):
 
 async def test_too_few_devices_and_override(lift):
     _runtime, adapter, state, twin = lift
-    adapter.take_control("s1", "engineer")
+    await adapter.take_control("s1", "engineer")
     twin.remove(1)
     assert await wait_for(lambda: state.info["heard"] == 1 and state.info["errors"] & 0x80, timeout=2)
     adapter.override("s1", True)
@@ -234,7 +253,7 @@ async def test_viewer_cannot_drive(lift):
     runtime, _adapter, _state, _twin = lift
 
     async def take(a):
-        a.take_control("v", "viewer")
+        await a.take_control("v", "viewer")
 
     with pytest.raises(PermissionDenied):
         await runtime.worker.command("lift", take, role="viewer")

@@ -9,10 +9,11 @@ from dataclasses import dataclass
 
 from app.state import DeviceState
 from devices.electrak import codec
-from devices.electrak.params import PARAMS, SERVICE, length_of, password_of
+from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, SERVICE, length_of, password_of, refusal
 from devices.params import Param, ParamError, backup_entry
 
-SERVICE_TIMEOUT_S = 0.3
+SERVICE_TIMEOUT_S = 0.3  # bound for the answers of every actuator to one service telegram
+EXTRA_ANSWER_S = 0.02  # after the last expected answer: does an unexpected one follow?
 SERIES = ("Position [mm]", "Current [A]", "Speed [mm/s]", "Target [mm]")
 
 
@@ -22,6 +23,13 @@ class CommandError(Exception):
 
 class ControlBusy(CommandError):
     """Another session holds control."""
+
+
+class ForeignControl(CommandError):
+    """Another node of the bus sends the control telegram 0x06."""
+
+
+FOREIGN_SENDER = "a PLC, or an actuator whose manual control line is active"
 
 
 @dataclass
@@ -50,11 +58,18 @@ class ElectrakAdapter:
         self.controller: Controller | None = None
         self.frames: deque[tuple[float, codec.StatusFrame]] = deque(maxlen=200)
         self._last_sample = 0.0
-        self._service_waiters: dict[int, asyncio.Future] = {}
-        self._service_answers: dict[int, int] = {}
+        self._pending: codec.ServiceMessage | None = None  # the service request whose answers are collected
+        self._answers: list[codec.ServiceMessage] = []
+        self._all_answered: asyncio.Event | None = None
         self._service_lock = asyncio.Lock()
+        self._listening_since = time.monotonic()  # since when 0x06 frames would have been heard
+        self._listening_reconnects = -1  # the bus's open count that _listening_since belongs to
+        self._foreign_at: float | None = None  # monotonic time of the last 0x06 frame from another node
+        self._saturated_since: float | None = None
+        self.state.info.update(service_reports={}, foreign_control=None, saturated_warning="")
         bus.subscribe(False, codec.STATUS_ID, self.on_status)
         bus.subscribe(False, codec.SERVICE_RESPONSE_ID, self.on_service)
+        bus.subscribe(False, codec.CONTROL_ID, self.on_control)
         self.key = f"electrak control {config.name}"
 
     # -- status ----------------------------------------------------------------------------
@@ -80,6 +95,7 @@ class ElectrakAdapter:
         for f in recent:
             info["motion"] |= f.motion
             info["errors"] |= f.errors
+        self._watch_saturated(info["motion"] & 0x04, time.monotonic())
         if now - self._last_sample >= 0.09 and recent:
             self._last_sample = now
             self.state.add_history({
@@ -88,6 +104,22 @@ class ElectrakAdapter:
                 "Speed [mm/s]": round(sum(f.speed_mm_s for f in recent) / len(recent), 1),
                 "Target [mm]": self.command.position_mm,
             }, now)
+
+    def _watch_saturated(self, saturated: int, now: float) -> None:
+        """The document asks that Saturated does not stay set when driven over CAN ("Bewegungs-Flags")."""
+        info = self.state.info
+        if not saturated:
+            self._saturated_since = None
+            info["saturated_warning"] = ""
+            return
+        if self._saturated_since is None:
+            self._saturated_since = now
+        if now - self._saturated_since >= codec.SATURATED_WARN_S and not info["saturated_warning"]:
+            info["saturated_warning"] = (
+                f"Saturated has stayed on for more than {codec.SATURATED_WARN_S:g} s: an actuator runs at the highest speed "
+                "its supply and load allow and the network cannot keep synchronised. Lower the speed (or the load)."
+            )
+            self.state.event("warning", info["saturated_warning"])
 
     async def poll(self) -> None:
         """Service parameters are read on demand; the status arrives by itself."""
@@ -98,28 +130,84 @@ class ElectrakAdapter:
     def _control_frame(self):
         return codec.CONTROL_ID, self.command.encode(), False
 
-    def take_control(self, session: str, user: str) -> None:
+    def on_control(self, msg) -> None:
+        """A control telegram 0x06 from another node: a PLC, or an actuator with an active control line."""
+        if getattr(msg, "is_rx", True) is False:  # our own frame, handed back by the interface
+            return
+        now = time.monotonic()
+        self._foreign_at = now
+        foreign = self.state.info.get("foreign_control") or {"frames": 0}
+        try:
+            text = codec.describe_frame(codec.CONTROL_ID, False, bytes(msg.data), {(False, codec.STATUS_ID)})
+        except Exception:  # describe_frame reports malformed frames itself; never let a frame stop the bus
+            text = bytes(msg.data).hex(" ")
+        self.state.info["foreign_control"] = {"frames": foreign["frames"] + 1, "time": time.time(), "text": text}
+        if self.controller is not None:
+            self._release(f"lost: another sender of the control telegram 0x06 is on the bus ({FOREIGN_SENDER}); "
+                          "this tool stopped sending so as not to fight it", level="error")
+
+    def foreign_sender(self, now: float | None = None) -> bool:
+        """Was a control telegram from another node heard within the listening window?"""
+        now = time.monotonic() if now is None else now
+        return self._foreign_at is not None and now - self._foreign_at <= codec.LISTEN_S
+
+    async def take_control(self, session: str, user: str) -> None:
+        """Listen for another sender of 0x06 first; then send the control telegram every 100 ms (enable cleared)."""
         if self.controller is not None and self.controller.session != session:
             raise ControlBusy(f"{self.controller.user} holds control since {time.strftime('%H:%M:%S', time.localtime(self.controller.since))}")
-        if self.controller is None:
-            self.controller = Controller(session, user, time.time())
-            self.state.info["controlled_by"] = user
-            self.command = codec.ControlFrame(self.command.position_mm, self.command.current_a, self.command.speed_mm_s, enable=False)
-            self.bus.start_cyclic(self.key, codec.CONTROL_PERIOD_S, self._control_frame)
-            self.state.event("info", f"{user} took control; control telegrams every 100 ms")
+        if self.controller is not None:
+            return
+        if not self.bus.state.connected:
+            raise CommandError(f"CAN bus {self.bus.name} is not open: {self.bus.state.last_error or 'not connected'}")
+        if self._listening_reconnects != self.bus.state.reconnects:  # (re)opened since: listen from now on
+            self._listening_reconnects, self._listening_since = self.bus.state.reconnects, time.monotonic()
+        heard_for = time.monotonic() - self._listening_since
+        if heard_for < codec.LISTEN_S:
+            await asyncio.sleep(codec.LISTEN_S - heard_for)
+        if self.foreign_sender():
+            raise ForeignControl(
+                f"control telegrams 0x06 from another sender are on the bus ({FOREIGN_SENDER}): taking control would fight it. "
+                "Stop that sender (or release the control line) and try again."
+            )
+        if self.controller is not None:  # taken while this session listened
+            if self.controller.session == session:
+                return
+            raise ControlBusy(f"{self.controller.user} took control meanwhile")
+        self.controller = Controller(session, user, time.time())
+        self.state.info["controlled_by"] = user
+        self.command = codec.ControlFrame(self.command.position_mm, self.command.current_a, self.command.speed_mm_s, enable=False)
+        self.bus.start_cyclic(self.key, codec.CONTROL_PERIOD_S, self._control_frame)
+        self.state.event("info", f"{user} took control (no other sender of 0x06 heard for {codec.LISTEN_S:g} s); "
+                                 "control telegrams every 100 ms")
+
+    def _release(self, reason: str, level: str = "warning") -> None:
+        """Clear enable and override, send that at once, stop the keep-alive."""
+        user = self.controller.user if self.controller else "nobody"
+        c = self.command
+        self.command = codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=False)
+        self.bus.stop_cyclic(self.key)
+        self.bus.send(*self._control_frame())
+        self.controller = None
+        self.state.info["controlled_by"] = None
+        self.state.event(level, f"control {reason} ({user}): enable cleared, control telegrams stopped")
 
     def release_control(self, session: str, reason: str = "released") -> bool:
         """Drop the enable bit, send it once more and stop the keep-alive."""
         if self.controller is None or (session and self.controller.session != session):
             return False
-        user = self.controller.user
-        self.command = codec.ControlFrame(self.command.position_mm, self.command.current_a, self.command.speed_mm_s, enable=False)
-        self.bus.stop_cyclic(self.key)
-        self.bus.send(*self._control_frame())
-        self.controller = None
-        self.state.info["controlled_by"] = None
-        self.state.event("warning", f"control {reason} ({user}): enable cleared, control telegrams stopped")
+        self._release(reason)
         return True
+
+    # -- the dead-man rule (app.worker) -------------------------------------------------------
+    def holders(self) -> set[str]:
+        """The session that keeps motion running: control held and enable (or override) set."""
+        c = self.controller
+        return {c.session} if c is not None and (self.command.enable or self.command.override) else set()
+
+    def session_lost(self, session: str, reason: str) -> None:
+        """The browser of ``session`` went away or froze: stop at once and release its control."""
+        if self.controller is not None and self.controller.session == session:
+            self._release(f"released: {reason}")
 
     def _check_holder(self, session: str) -> None:
         if self.controller is None:
@@ -186,69 +274,112 @@ class ElectrakAdapter:
             self.state.counters.malformed += 1
             self.state.error(f"malformed service answer: {exc}", log=False)
             return
-        self._service_answers[answer.specifier] = self._service_answers.get(answer.specifier, 0) + 1
-        future = self._service_waiters.get(answer.specifier)
-        if future is not None and not future.done():
-            future.set_result(answer)
+        request = self._pending
+        if request is None or not codec.belongs_to(request, answer):
+            return  # late, or not ours: the next exchange must not take it
+        self._answers.append(answer)
+        if len(self._answers) >= len(self.actuators) and self._all_answered is not None:
+            self._all_answered.set()
 
-    async def _service(self, request: codec.ServiceMessage) -> codec.ServiceMessage:
-        loop = asyncio.get_running_loop()
-        future = loop.create_future()
-        self._service_waiters[request.specifier] = future
-        self._service_answers[request.specifier] = 0
+    async def _exchange(self, request: codec.ServiceMessage) -> list[codec.ServiceMessage]:
+        """Send one service telegram and collect the answers of every actuator (bounded)."""
+        self._pending, self._answers, self._all_answered = request, [], asyncio.Event()
         self.state.counters.requests += 1
         try:
             if not self.bus.send(codec.SERVICE_REQUEST_ID, request.encode(), False):
                 raise CommandError(f"CAN bus {self.bus.name} did not take the frame: {self.bus.state.last_error or 'bus not open'}")
             try:
-                answer = await asyncio.wait_for(future, SERVICE_TIMEOUT_S)
+                await asyncio.wait_for(self._all_answered.wait(), SERVICE_TIMEOUT_S)
+                await asyncio.sleep(EXTRA_ANSWER_S)  # one more than configured?
             except asyncio.TimeoutError:
                 self.state.counters.timeouts += 1
-                raise CommandError(f"no service answer to 0x{request.specifier:02X} within {SERVICE_TIMEOUT_S} s") from None
-            await asyncio.sleep(0.02)  # the other actuators' answers
+            return list(self._answers)
         finally:
-            self._service_waiters.pop(request.specifier, None)
-        count = self._service_answers.get(request.specifier, 0)
-        self.state.info["service_answers"] = count
-        if answer.type == codec.ServiceType.ERROR_RESPONSE:
-            self.state.counters.exceptions += 1
-            raise CommandError(f"0x{request.specifier:02X}: {answer.error_name}")
-        return answer
+            self._pending, self._all_answered = None, None
+
+    async def _service(self, request: codec.ServiceMessage, what: str = "", key: str | None = None) -> list[codec.ServiceMessage]:
+        """One service telegram that every configured actuator must answer as asked (reads: alike)."""
+        return self._check(request, await self._exchange(request), what, key)
+
+    def _check(self, request, answers: list[codec.ServiceMessage], what: str, key: str | None) -> list[codec.ServiceMessage]:
+        problems = codec.answer_problems(request, answers, len(self.actuators))
+        self._report(request, answers, problems, what, key)
+        if problems:
+            if any(a.type == codec.ServiceType.ERROR_RESPONSE for a in answers):
+                self.state.counters.exceptions += 1
+            raise CommandError(f"{what or f'0x{request.specifier:02X}'}: " + "; ".join(problems))
+        return answers
+
+    def _report(self, request, answers, problems, what: str, key: str | None) -> None:
+        kind = {codec.ServiceType.READ_REQUEST: "read", codec.ServiceType.WRITE_REQUEST: "write"}.get(request.type, f"type 0x{request.type:02X}")
+        report = {
+            "what": f"{kind} 0x{request.specifier:02X}" + (f" ({what})" if what else ""),
+            "time": time.time(),
+            "answers": [codec.describe_answer(a) for a in answers],
+            "expected": len(self.actuators),
+            "problems": problems,
+            "ok": not problems,
+        }
+        self.state.info["service_answers"] = len(answers)
+        self.state.info["service_last"] = report
+        if key is not None:
+            self.state.info["service_reports"][key] = report
 
     async def _unlock(self, param: Param) -> None:
-        await self._service(codec.password_request(password_of(param)))
+        await self._service(codec.password_request(password_of(param)), f"password for {param.name}")
+
+    async def _read(self, param: Param) -> int:
+        answers = await self._service(codec.read_request(param.address, length_of(param)), param.name, param.key)
+        return answers[0].value
 
     async def read_param(self, param: Param) -> int:
+        """Every actuator's value; fails unless all answer and agree."""
         async with self._service_lock:
             await self._unlock(param)
-            answer = await self._service(codec.read_request(param.address, length_of(param)))
-        self.state.update_registers(SERVICE, param.address, [answer.value])
-        return answer.value
+            try:
+                value = await self._read(param)
+            except CommandError:
+                self.state.registers.pop((SERVICE, param.address), None)  # no single value to show
+                raise
+        self.state.update_registers(SERVICE, param.address, [value])
+        return value
 
     async def read_all(self) -> dict[str, int]:
         return {p.name: await self.read_param(p) for p in PARAMS}
 
     async def write_param(self, param: Param, value, *, confirmed: bool = False) -> int:
-        """Password, write, read back (document "Passwort", "Beispiel einer Parameter-Änderung")."""
+        """Password, write, read back from every actuator (document "Passwort", "Beispiel einer Parameter-Änderung")."""
+        reason = refusal(param, value)
+        if reason:
+            raise CommandError(reason)
         try:
             raw = param.prepare_write(value, confirmed=confirmed)
         except ParamError as exc:
             raise CommandError(str(exc)) from None
         async with self._service_lock:
             await self._unlock(param)
-            await self._service(codec.write_request(param.address, length_of(param), raw))
-            if param.address == 0x04:  # the actuators left this bus: nothing to read back
-                self.state.update_registers(SERVICE, param.address, [raw])
-                self.state.unsaved.add(param.key)
-                self.state.event("warning", f"bit rate set to {param.display(raw)}: switch the bus too")
-                return raw
-            back = (await self._service(codec.read_request(param.address, length_of(param)))).value
+            request = codec.write_request(param.address, length_of(param), raw)
+            answers = await self._exchange(request)
+            if any(a.type == codec.ServiceType.WRITE_CONFIRMATION for a in answers):
+                self.state.unsaved.add(param.key)  # at least one actuator took it: lost at power-off unless saved
+            self._check(request, answers, param.name, param.key)
+            try:
+                back = await self._read(param)
+            except CommandError as exc:
+                self.state.registers.pop((SERVICE, param.address), None)
+                self.state.counters.write_errors += 1
+                raise CommandError(f"{param.name}: read back after writing {param.display(raw)} failed: {exc}") from None
         self.state.update_registers(SERVICE, param.address, [back])
         if back != raw:
             self.state.counters.write_errors += 1
             raise CommandError(f"{param.name}: read back {param.display(back)} instead of {param.display(raw)}")
-        self.state.unsaved.add(param.key)
-        self.state.event("info", f"{param.name} = {param.display(raw)} written and read back (not yet saved)")
+        if param.address == BITRATE_SPECIFIER:
+            self.state.info["bitrate_change"] = {"raw": raw, "written": time.time(), "saved": None}
+            self.state.event("warning", f"bit rate {param.display(raw)} written and read back from every actuator: "
+                                        "save it, switch the bus, restart the actuators")
+        else:
+            self.state.event("info", f"{param.name} = {param.display(raw)} written and read back from "
+                                     f"{len(self.actuators)} actuator(s) (not yet saved)")
         return raw
 
     # -- backup and restore (app/backup.py) --------------------------------------------------
@@ -270,11 +401,47 @@ class ElectrakAdapter:
         return await self.write_param(param, param.decode(int(raw)), confirmed=True)
 
     async def save_step(self) -> str:
-        await self.save_parameters()
-        return "save parameters (0xF0)"
+        return f"save parameters (0xF0), {await self.save_parameters()}"
 
-    async def save_parameters(self) -> None:
+    async def save_parameters(self) -> str:
+        """Save (0xF0) in the table's form, once more in the example's on WRONG_SIZE (codec.SAVE_LENGTHS);
+        returns the form the network accepted."""
+        first, second = codec.SAVE_LENGTHS
+        expected = len(self.actuators)
         async with self._service_lock:
-            await self._service(codec.save_request())
+            request = codec.save_request(first)
+            answers = await self._exchange(request)
+            refused = sum(1 for a in answers if a.error_code == codec.ERROR_WRONG_SIZE)
+            accepted = {first: expected - refused}
+            if refused and len(answers) == expected and all(
+                a.type == codec.ServiceType.WRITE_CONFIRMATION or a.error_code == codec.ERROR_WRONG_SIZE for a in answers
+            ):
+                self._report(request, answers, [], f"save, {codec.SAVE_FORMS[first]}: {refused} WRONG_SIZE", None)
+                request = codec.save_request(second)
+                answers = await self._exchange(request)
+                taken = sum(1 for a in answers if a.type == codec.ServiceType.WRITE_CONFIRMATION)
+                accepted[second] = taken
+                # those that saved in the first form may refuse the second; the others must all take it
+                fits = taken == refused and len(answers) == expected and all(
+                    a.type == codec.ServiceType.WRITE_CONFIRMATION or a.error_code == codec.ERROR_WRONG_SIZE for a in answers
+                )
+                problems = [] if fits else codec.answer_problems(request, answers, expected) + [
+                    f"{taken} of the {refused} actuators that refused the {codec.SAVE_FORMS[first]} took the {codec.SAVE_FORMS[second]}"
+                ]
+            else:
+                problems = codec.answer_problems(request, answers, expected)
+            self._report(request, answers, problems, f"save, {codec.SAVE_FORMS[request.length]}", None)
+            if problems:
+                raise CommandError("save parameters (0xF0): " + "; ".join(problems) + ". The changes may not be saved on every actuator: save again.")
+        forms = {length: n for length, n in accepted.items() if n}
+        if len(forms) == 1:
+            form = codec.SAVE_FORMS[next(iter(forms))]
+        else:
+            form = " and ".join(f"{codec.SAVE_FORMS[length]} by {n} actuator{'s' if n > 1 else ''}" for length, n in forms.items())
+        self.state.info["save_form"] = form
+        change = self.state.info.get("bitrate_change")
+        if change and PARAMS.get(SERVICE, BITRATE_SPECIFIER).key in self.state.unsaved:
+            change["saved"] = time.time()
         self.state.unsaved.clear()
-        self.state.event("info", "parameters saved (0xF0)")
+        self.state.event("info", f"parameters saved (0xF0); the network accepted the {form}")
+        return form
