@@ -159,7 +159,8 @@ def _parameter_card(name: str, state):
         ui.label(
             "Writes are volatile until Save-Settings; Restore-Settings reloads the saved values and discards unsaved changes."
         ).classes("text-caption text-grey-8")
-        with ui.grid(columns=5).classes("w-full items-center gap-x-4 gap-y-1"):
+        # register, name, current, entry, button: the name column gives way on narrow screens
+        with ui.grid(columns="auto minmax(8rem, 1fr) minmax(6rem, 1fr) auto auto").classes("w-full items-center gap-x-4 gap-y-1"):
             for h in ("Register", "Name", "Current", "New value", ""):
                 ui.label(h).classes("text-caption text-grey-8")
             for p in writable:
@@ -221,8 +222,8 @@ def _condition_text(m: int, e: int) -> str:
 
 
 def _mask_inputs(prefix: str):
-    p1 = ui.input("P1 mask (hex)", value="0x0000").props(f"dense outlined data-testid={prefix}-p1").classes("w-32 mono")
-    p2 = ui.input("P2 expected (hex)", value="0x0000").props(f"dense outlined data-testid={prefix}-p2").classes("w-32 mono")
+    p1 = ui.input("P1 mask (hex)", value="0x0000").props(f"dense outlined data-testid={prefix}-p1").classes("w-36 mono")
+    p2 = ui.input("P2 expected (hex)", value="0x0000").props(f"dense outlined data-testid={prefix}-p2").classes("w-36 mono")
     return p1, p2
 
 

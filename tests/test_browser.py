@@ -159,3 +159,45 @@ def test_overview_tiles_online_and_open_device(app_url: str, page: Page, tmp_pat
     expect(page.get_by_text("HD-Lock door-2", exact=True).first).to_be_visible()
     # door-2 starts with its door closed: its bolt is out
     expect(lamp(page, "BoltLocked")).to_have_attribute("data-on", "1")
+
+
+def _field(page: Page, testid: str):
+    """The text input inside the NiceGUI input/number with ``data-testid``."""
+    element = page.locator(f'[data-testid="{testid}"]')
+    inner = element.locator("input")
+    return inner if inner.count() else element
+
+
+@pytest.mark.parametrize(("width", "height"), [(1440, 900), (1024, 768)])
+def test_broadcast_address_change_asks_with_the_number_of_locks(app_url: str, browser: Browser, tmp_path: Path, width: int, height: int):
+    """Section 4.3, address 255: the confirmation names how many locks of the line may take the address."""
+    context = browser.new_context(viewport={"width": width, "height": height})
+    page = context.new_page()
+    page.set_default_timeout(STEP_MS)
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    try:
+        page.goto(app_url + "/device/door-1")
+        expect(page.get_by_text("HD-Lock door-1", exact=True).first).to_be_visible()
+        card = page.get_by_text("Set Modbus Address on every lock of line1 (broadcast 255)")
+        card.scroll_into_view_if_needed()
+        expect(page.locator('[data-testid="bc-known"]')).to_contain_text("2 locks known on line1 (2 in the plant")
+        _field(page, "bc-address").fill("9")
+        # BoltMovingIn must be set: no lock meets it, whatever the earlier tests did to the doors
+        _field(page, "bc-p1").fill("0x0800")
+        _field(page, "bc-p2").fill("0x0800")
+        expect(page.locator('[data-testid="bc-known"]')).to_contain_text("none would take it")
+        save_shot(page, tmp_path, f"device-door-1-{width}x{height}.png")
+        page.locator('[data-testid="bc-send"]').click()
+        dialog = page.locator(".q-dialog")
+        expect(dialog).to_contain_text("Up to 2 locks on line1 may take address 9")
+        expect(dialog).to_contain_text("door-1, door-2")
+        page.wait_for_timeout(400)  # the dialog fades in
+        page.screenshot(path=str(tmp_path / "dialog.png"))
+        SHOTS.mkdir(parents=True, exist_ok=True)
+        shutil.copy(tmp_path / "dialog.png", SHOTS / f"broadcast-confirm-{width}x{height}.png")
+        dialog.get_by_role("button", name="Cancel").click()
+        expect(dialog).to_have_count(0)
+    finally:
+        context.close()
+    assert not errors, f"JavaScript errors on the page: {errors}"
