@@ -268,11 +268,15 @@ async def test_broadcast_set_address_collision_is_reported(running):
 async def test_broadcast_set_address_nobody_meets_the_condition(running):
     await online(running, "door-1")
     await online(running, "door-2")
+    counters = running.store.devices["door-2"].counters
+    timeouts, requests = counters.timeouts, counters.requests
     # BoltMovingIn must be set: neither lock is moving
     outcome = await running.worker.adapters["door-1"].broadcast_set_address(9, 0x0800, 0x0800, KNOWN)
     assert not outcome.taken and not outcome.collision and outcome.moved == []
     assert "no lock answers at address 9" in outcome.text
     assert running.twins["door-1"].address == 1 and running.twins["door-2"].address == 2
+    # door-2 was polled meanwhile, and never right after a broadcast frame (turnaround delay)
+    assert counters.requests > requests and counters.timeouts == timeouts
 
 
 async def test_broadcast_set_address_to_a_known_or_used_address_is_refused(running):

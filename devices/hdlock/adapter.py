@@ -222,7 +222,7 @@ class HdLockAdapter(HdLockBackup):
                 self.state.counters.write_errors += 1
                 raise CommandError(f"Set Modbus Address: writing the parameters failed: {exc}") from None
             answered = await self._write_command(old, *writes[-1])
-            await asyncio.sleep(codec.BROADCAST_TURNAROUND_S)
+            await asyncio.sleep(codec.ADDRESS_SETTLE_S)
             found = await self._probe(new_address)
             serial = self.state.value("SerialNumber")
             how = _command_answer_text(answered, old)
@@ -263,19 +263,23 @@ class HdLockAdapter(HdLockBackup):
         except codec.CodecError as exc:
             raise CommandError(str(exc)) from None
         unit = codec.MODBUS_BROADCAST_SET_ADDRESS
+
+        async def send_quietly(client, register: int, value: int) -> None:
+            await client.write_register(register, value, device_id=unit, no_response_expected=True)
+            await asyncio.sleep(codec.BROADCAST_TURNAROUND_S)  # still holding the line: nobody talks meanwhile
+
         self._changing_address = True
         try:
             try:
                 for register, value in writes:
                     await self.line.transact(
                         unit, f"broadcast write holding {register}={value}", self.state.counters,
-                        lambda c, r=register, v=value: c.write_register(r, v, device_id=unit, no_response_expected=True),
-                        retries=0,
+                        lambda c, r=register, v=value: send_quietly(c, r, v), retries=0,
                     )
-                    await asyncio.sleep(codec.BROADCAST_TURNAROUND_S)
             except LineError as exc:
                 self.state.counters.write_errors += 1
                 raise CommandError(f"broadcast Set Modbus Address failed: {exc}") from None
+            await asyncio.sleep(max(0.0, codec.ADDRESS_SETTLE_S - codec.BROADCAST_TURNAROUND_S))
             found = await self._probe(new_address)
             moved = [name for address, name in sorted(known.items()) if await self._probe(address) is None]
             serial = self.state.value("SerialNumber")

@@ -61,6 +61,7 @@ MODBUS_ADDRESS_MIN = 1
 MODBUS_ADDRESS_MAX = 254  # section 5.2: 248..254 supported besides the standard 1..247
 ADDRESS_COMMAND_ANSWERED = False  # section 4.3 does not say the lock answers the write of 2003 at its old address
 BROADCAST_TURNAROUND_S = 0.1  # Modbus over Serial Line 2.4.1: after a broadcast the master waits 100-200 ms
+ADDRESS_SETTLE_S = 0.1  # section 4.3 gives no time for taking a new address: wait this long before looking for it
 
 
 class CodecError(ValueError):
