@@ -93,9 +93,9 @@ def test_go_moves_the_position_chart_toward_the_target(app_url):
             page.get_by_test_id("bitrate-card").get_by_role("button", name="Write").click()
             page.get_by_role("button", name="Write bit rate").click()  # the confirmation names the whole sequence
             status = page.get_by_test_id("bitrate-status")
-            status.get_by_text("NOT saved").wait_for(timeout=5_000)
+            status.get_by_text("NOT saved").wait_for(timeout=10_000)
             page.get_by_test_id("bitrate-card").get_by_role("button", name="Save").click()
-            status.get_by_text("250 kbit/s saved").wait_for(timeout=5_000)
+            status.get_by_text("250 kbit/s saved").wait_for(timeout=10_000)
             assert "2 of 2 agree" in page.get_by_text("2 of 2 agree").first.inner_text()
             for width, height in ((1440, 900), (1024, 768)):
                 page.set_viewport_size({"width": width, "height": height})
