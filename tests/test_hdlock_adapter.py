@@ -371,3 +371,16 @@ async def test_discover_scan_several_locks(running):
     found = await running.worker.discover("line1", 1, 4)
     assert [f["address"] for f in found] == [1, 2]
     assert found[0]["serial"] == running.twins["door-1"].serial
+
+
+async def test_nothing_is_held_for_a_browser_session(running):
+    """The dead-man rule: HD-Lock commands are single writes; no session keeps anything running here."""
+    await online(running)
+    adapter = running.worker.adapters["door-1"]
+    requests = running.store.devices["door-1"].counters.requests
+    await adapter.write_param(PARAMS.by_name["LockRequestDelay"], 300)
+    assert adapter.holders() == set()
+    adapter.session_lost("session-1", "the controlling browser disconnected")
+    assert running.twins["door-1"].holding[3000] == 300  # nothing was undone or sent
+    assert not [e for e in running.store.devices["door-1"].events if "session-1" in e.text]
+    assert running.store.devices["door-1"].counters.requests >= requests

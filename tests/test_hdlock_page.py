@@ -132,3 +132,26 @@ async def test_broadcast_refused_when_two_known_locks_would_take_it(env: Env):
     await user.should_not_see("Up to 2 locks on line1 may take address 9")
     assert writes == []
     assert (env.twin("door-1").address, env.twin("door-2").address) == (1, 2)
+
+
+async def test_set_address_from_the_page_reports_the_outcome_from_the_new_address(env: Env):
+    """The lock stays silent on the command write (the twin's default): the page says so and reports success."""
+    user = env.user
+    await online(env, "door-1")
+    assert env.twin("door-1").answers_address_command is False
+    await user.open("/device/door-1")
+    await user.should_see("HD-Lock door-1")
+
+    number = next(e for e in user.client.elements.values() if isinstance(e, ui.number) and e.props.get("label") == "New address"
+                  and "data-testid" not in e.props)
+    number.value = 8  # P1 = P2 = 0: no condition
+    user.find(kind=ui.button, content="Send Set Modbus Address").click()
+    await user.should_see("Change the Modbus address to 8?", retries=10)
+    dialog_send = {e for e in user.client.elements.values() if isinstance(e, ui.button) and e.props.get("label") == "Send"}
+    UserInteraction(user, dialog_send, None).click()
+
+    await user.should_see("the lock answers at address 8 now (no answer to the command at address 1, as expected)", retries=60)
+    assert env.twin("door-1").address == 8
+    assert env.state("door-1").info["address"] == 8
+    entries = env.runtime.audit.query(device="door-1", text="Set Modbus Address 8")
+    assert entries and entries[0].result == "ok" and entries[0].old == "1" and entries[0].new == "8"
