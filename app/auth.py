@@ -83,7 +83,7 @@ class AuthSessions:
 class LoginThrottle:
     """Slows down repeated wrong passwords, per account and per client address.
 
-    After :data:`FREE_FAILURES` failures a key must wait 1, 2, 4 ... up to
+    After :data:`FREE_FAILURES` failures a key must wait 2, 4, 8 ... up to
     :data:`MAX_DELAY_S` seconds after its last failure before its next attempt is checked.
     """
 
@@ -97,7 +97,7 @@ class LoginThrottle:
         for key in keys:
             count, last = self._failures.get(key, (0, 0.0))
             if count >= FREE_FAILURES:
-                delay = min(MAX_DELAY_S, 2.0 ** (count - FREE_FAILURES))
+                delay = min(MAX_DELAY_S, 2.0 ** (count - FREE_FAILURES + 1))
                 wait = max(wait, last + delay - now)
         return max(0.0, wait)
 

@@ -16,7 +16,9 @@ from __future__ import annotations
 import importlib
 import logging
 import os
+import queue
 import re
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
@@ -67,11 +69,16 @@ def recordings_dir(directory: str | Path | None = None) -> Path:
     return Path(os.environ.get(DIR_ENV) or Path.cwd() / "recordings")
 
 
+RECORD_QUEUE = 200_000  # frames waiting for the disk (about 20 s of a full 1 Mbit/s bus)
+
+
 class Recording(can.Listener):
-    """A python-can writer that counts the frames it was given.
+    """A python-can writer fed through a queue and written by a thread of its own.
 
     Set as ``CanBusState.recorder``; :class:`app.can_bus.CanBus` calls
-    :meth:`on_message_received` for every frame in the event loop.
+    :meth:`on_message_received` for every frame in the event loop, which only queues the
+    frame: a slow or full disk never holds up the loop (and with it every keep-alive).
+    Frames that do not fit the queue are counted in ``dropped``.
     """
 
     def __init__(self, bus: str, path: Path, writer: can.io.generic.MessageWriter):
@@ -82,8 +89,12 @@ class Recording(can.Listener):
         self.started = time.time()
         self.stopped: float | None = None
         self.frames = 0
+        self.dropped = 0
         self.error = ""
         self._channel_ok: dict[Any, bool] = {}  # msg.channel -> the writer can take it as it is
+        self._queue: queue.Queue = queue.Queue(maxsize=RECORD_QUEUE)
+        self._thread = threading.Thread(target=self._write_loop, name=f"recording {bus}", daemon=True)
+        self._thread.start()
 
     def _usable_channel(self, channel: Any) -> bool:
         """Whether the writer can store ``channel``; others are replaced by the writer's default.
@@ -108,22 +119,40 @@ class Recording(can.Listener):
         return ok
 
     def on_message_received(self, msg: can.Message) -> None:
+        """Queue one frame (event loop; O(1), never blocks); raises once the file has failed."""
+        if self.error:
+            raise RecordingError(f"{self.path.name}: {self.error}")
         if self.stopped is not None:
             return
-        channel_ok = self._usable_channel(msg.channel)
-        if not channel_ok:
-            msg = can.Message(
-                timestamp=msg.timestamp, arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id,
-                is_remote_frame=msg.is_remote_frame, is_error_frame=msg.is_error_frame, dlc=msg.dlc,
-                data=msg.data, is_rx=msg.is_rx, channel=None, check=False,
-            )
         try:
-            self.writer.on_message_received(msg)
-        except Exception as exc:  # disk full, file gone: close what can be closed, let the bus report it
-            self.error = str(exc)
-            self.close()
-            raise
-        self.frames += 1
+            self._queue.put_nowait(msg)
+        except queue.Full:
+            self.dropped += 1
+
+    def _write_loop(self) -> None:
+        while True:
+            msg = self._queue.get()
+            if msg is None:
+                break
+            if self.error:
+                continue  # the file failed: drain the queue, write nothing more
+            if not self._usable_channel(msg.channel):
+                msg = can.Message(
+                    timestamp=msg.timestamp, arbitration_id=msg.arbitration_id, is_extended_id=msg.is_extended_id,
+                    is_remote_frame=msg.is_remote_frame, is_error_frame=msg.is_error_frame, dlc=msg.dlc,
+                    data=msg.data, is_rx=msg.is_rx, channel=None, check=False,
+                )
+            try:
+                self.writer.on_message_received(msg)
+            except Exception as exc:  # noqa: BLE001 - disk full, file gone: the recording ends and says why
+                self.error = str(exc) or exc.__class__.__name__
+                self.stopped = self.stopped or time.time()
+                continue
+            self.frames += 1
+        try:
+            self.writer.stop()
+        except Exception as exc:  # noqa: BLE001 - a failing close must not hide that the recording ended
+            self.error = self.error or f"closing {self.path.name} failed: {exc}"
 
     @property
     def active(self) -> bool:
@@ -140,15 +169,14 @@ class Recording(can.Listener):
         except OSError:
             return 0
 
-    def close(self) -> None:
-        """Flush and close the file (idempotent)."""
-        if self.stopped is not None:
-            return
-        self.stopped = time.time()
-        try:
-            self.writer.stop()
-        except Exception as exc:  # noqa: BLE001 - a failing close must not hide that the recording ended
-            self.error = self.error or f"closing {self.path.name} failed: {exc}"
+    def close(self, timeout: float = 30.0) -> None:
+        """Write what is queued, flush and close the file (idempotent; waits for the writer
+        thread, so call it through a thread from the event loop)."""
+        if self.stopped is None:
+            self.stopped = time.time()
+        if self._thread.is_alive():
+            self._queue.put(None)
+            self._thread.join(timeout)
 
     def stop(self) -> None:  # can.Listener API
         self.close()
@@ -176,7 +204,7 @@ def start_recording(
 ) -> Recording:
     """Open a new file ``<bus>-<date>-<time>.<suffix>`` and attach it to the bus.
 
-    Call from the event loop that runs the bus.
+    Creates a file: from the event loop, call it through a thread.
 
     :param suffix: ``.log``, ``.asc``, ``.blf`` or ``.csv``
     :param bus_options: the bus's plant options; its channel names frames without one in ``.log``
@@ -212,7 +240,7 @@ def start_recording(
 def stop_recording(state: CanBusState) -> Recording | None:
     """Detach the recording from the bus, then flush and close its file; None if none ran.
 
-    Call from the event loop that runs the bus.
+    Waits until the file is complete: from the event loop, call it through a thread.
     """
     recorder = state.recorder
     state.recorder = None

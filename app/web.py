@@ -98,7 +98,8 @@ class HostOriginGuard:
             origin = headers.get(b"origin")
             if origin is not None:
                 parts = urlsplit(origin.decode("latin-1"))
-                if parts.scheme not in ("http", "https") or parts.netloc.lower() != host.lower():
+                scheme = "https" if scope.get("scheme") in ("https", "wss") else "http"
+                if parts.scheme != scheme or parts.netloc.lower() != host.lower():
                     why = "cross-origin request refused"
         if not why:
             return await self.app(scope, receive, send)

@@ -340,7 +340,8 @@ class Worker:
                 await self.audit.afinish(row, f"failed: {exc}")
             raise
         if row is not None:
-            await self.audit.afinish(row, "ok")
+            # an outcome in words (e.g. which lock took a broadcast address) goes into the row too
+            await self.audit.afinish(row, f"ok: {result}"[:500] if isinstance(result, str) and result else "ok")
         return result
 
     async def discover(self, bus: str, first: int, last: int, progress=None) -> list[dict]:

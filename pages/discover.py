@@ -5,6 +5,7 @@ from __future__ import annotations
 from nicegui import ui
 
 from app import runtime as rt
+from pages.session import current_user
 
 
 def open_discover_dialog(bus: str) -> None:
@@ -38,8 +39,12 @@ def open_discover_dialog(bus: str) -> None:
         start.disable()
         results.clear()
         status.set_text("reading broadcast address 0 ...")
+        user, role = current_user()
         try:
-            found = await runtime.worker.discover(bus, a, b, on_progress)
+            # a scan holds the line's polling and talks to every address: an engineer action, audited
+            found = await runtime.worker.engineer_action(
+                lambda: runtime.worker.discover(bus, a, b, on_progress), user=user, role=role,
+                describe=f"scan line {bus} addresses {a}..{b}", target=bus)
         except Exception as exc:
             ui.notify(f"discover failed: {exc}", type="negative")
             found = []

@@ -31,6 +31,8 @@ def content(redirect_to: str = "/", expired: str = "") -> None:
             await runtime.audit.arecord(user=account or "?", role="", device="", action="login",
                                         result=f"refused: throttled ({wait:.0f} s) from {address}")
             return
+        # counted as a failure before the check: an attempt cut off half-way still counts
+        failures = runtime.login_throttle.failed(*keys)
         button.disable()
         try:
             # argon2 takes tens of milliseconds on purpose: never on the event loop
@@ -38,14 +40,13 @@ def content(redirect_to: str = "/", expired: str = "") -> None:
         finally:
             button.enable()
         if user is None:
-            failures = runtime.login_throttle.failed(*keys)
             await runtime.audit.arecord(user=account or "?", role="", device="", action="login",
                                         result=f"failed: wrong user name or password from {address} ({failures} in a row)")
             message.set_text("Wrong user name or password")
             ui.notify("Wrong user name or password", type="negative")
             password.set_value("")
             return
-        runtime.login_throttle.succeeded(*keys)
+        runtime.login_throttle.succeeded(*keys)  # this one was right after all
         await runtime.audit.arecord(user=user.name, role=user.role, device="", action="login", result=f"ok from {address}")
         ticket = runtime.sessions.issue_ticket(user.name, browser)
         ui.navigate.to(f"/login/complete?ticket={ticket}&redirect_to={quote(redirect_to)}")

@@ -11,6 +11,7 @@ show at most ``SHOWN`` frames and ``SHOWN_IDS`` IDs.
 
 from __future__ import annotations
 
+import asyncio
 import heapq
 import tempfile
 import time
@@ -22,7 +23,9 @@ from nicegui import events, run, ui
 from app import recording as rec
 from app import runtime as rt
 from app.can_bus import MONITOR_FRAMES, CanBusState, FrameRecord
+from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import fmt_age, frame, notify_error
+from pages.session import current_user
 
 # -- Modbus / serial lines: transaction log ----------------------------------------------------------
 
@@ -373,17 +376,33 @@ class CanMonitor:
             self.id_table.update()
 
     # -- recording ---------------------------------------------------------------------------------------
-    def start_recording(self) -> None:
+    async def start_recording(self) -> None:
+        """An engineer action (it writes files on disk): checked and audited in the worker; the file
+        is created in a thread."""
+        user, role = current_user()
+        suffix = self.format.value or ".log"
+
+        async def start():
+            return await asyncio.to_thread(rec.start_recording, self.state, suffix, None, self.can_bus.options)
+
         try:
-            self.last_recording = rec.start_recording(self.state, self.format.value or ".log", bus_options=self.can_bus.options)
-        except rec.RecordingError as exc:
+            self.last_recording = await self.worker.engineer_action(
+                start, user=user, role=role, describe=f"start recording {self.bus} ({suffix})", target=self.bus)
+        except (rec.RecordingError, PermissionDenied, AuditUnavailable) as exc:
             notify_error(str(exc))
             return
         ui.notify(f"Recording {self.bus} to {self.last_recording.path}", type="info")
         self._refresh_status()
 
-    def stop_recording(self) -> None:
-        stopped = rec.stop_recording(self.state)
+    async def stop_recording(self) -> None:
+        user, role = current_user()
+
+        async def stop():
+            return await asyncio.to_thread(rec.stop_recording, self.state)  # writes what is queued, then closes
+
+        # stopping only ends a file: allowed for everyone, audited
+        stopped = await self.worker.checked(stop, device=self.bus, role=role, user=user, describe=f"stop recording {self.bus}",
+                                            write=False)
         if stopped is None:
             ui.notify("Nothing was being recorded.", type="warning")
             return

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import os
 import time
 
@@ -9,8 +10,10 @@ from nicegui import ui
 
 from app import runtime as rt
 from app.plant import DEMO_PLANT, DeviceConfig, append_device, device_toml
+from app.worker import AuditUnavailable, PermissionDenied
 from devices.registry import DEVICE_TYPES
 from pages.frame import fmt_age, frame, set_status_badge
+from pages.session import current_user
 
 
 class DeviceTile:
@@ -154,13 +157,21 @@ def _adopt_dialog(bus: str, entry: dict, tile_row, tiles: list) -> None:
         note = f"Write appends them to {path}." if writable else "The plant file cannot be written here (built-in or read-only): copy the lines."
         ui.label(note).classes("text-caption")
 
-        def take(write: bool) -> None:
+        async def take(write: bool) -> None:
             dev = config(name.value or suggested)
-            try:
+            user, role = current_user()
+
+            async def adopt() -> None:
                 if write:
-                    append_device(path, dev)
+                    await asyncio.to_thread(append_device, path, dev)
                 runtime.worker.adopt(dev)
-            except (ValueError, OSError) as exc:
+
+            try:
+                # it changes the running plant (and the plant file): an engineer action, audited
+                await runtime.worker.engineer_action(
+                    adopt, user=user, role=role, target=dev.name, new=device_toml(dev).strip(),
+                    describe="adopt discovered device" + (f" and append it to {path.name}" if write else ""))
+            except (ValueError, OSError, PermissionDenied, AuditUnavailable) as exc:
                 ui.notify(f"Cannot adopt: {exc}", type="negative", multi_line=True)
                 return
             with tile_row:

@@ -6,6 +6,7 @@ Every CAN test uses its own python-can ``virtual`` channel and closes every bus 
 from __future__ import annotations
 
 import asyncio
+import time
 import importlib
 import logging
 import os
@@ -231,7 +232,7 @@ async def test_recording_round_trip(tmp_path: Path, suffix: str):
             sender.send(can.Message(arbitration_id=can_id, is_extended_id=ext, data=data))
         assert await _until(lambda: bus.state.rx_frames == len(SENT), 5), f"received {bus.state.rx_frames}"
         assert bus.send(0x703, b"\x0b\x00\x00\x00\xb8\x0b\x02\x00")  # sent by us: recorded as well
-        assert recording.frames == len(SENT) + 1
+        assert await _until(lambda: recording.frames == len(SENT) + 1, 5)  # the writer thread has them all
         stopped = rec.stop_recording(bus.state)
         assert stopped is recording and not recording.active and recording.error == ""
         assert bus.state.recorder is None and rec.stop_recording(bus.state) is None
@@ -273,12 +274,23 @@ def test_write_error_ends_the_recording_not_the_bus(tmp_path: Path):
     bus = CanBus("w", {"interface": "virtual", "channel": unique_channel()}, state)  # never opened: dispatch only
     recording = rec.start_recording(state, ".log", tmp_path)
     bus.dispatch(can.Message(arbitration_id=0x100, data=b"\x01"))
-    assert recording.frames == 1
+    assert wait_until(lambda: recording.frames == 1)  # written by the recording's own thread
     recording.writer.file.close()  # the disk is gone
     bus.dispatch(can.Message(arbitration_id=0x101, data=b"\x02"))
+    assert wait_until(lambda: recording.error)  # the writer thread ends the recording and says why
+    bus.dispatch(can.Message(arbitration_id=0x102, data=b"\x03"))
     assert state.recorder is None and "recording stopped" in state.last_error
     assert not recording.active and recording.error and recording.frames == 1
-    assert state.rx_frames == 2 and len(state.frames) == 2  # the monitor keeps going
+    assert state.rx_frames == 3 and len(state.frames) == 3  # the monitor keeps going
+
+
+def wait_until(check, timeout: float = 5.0) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if check():
+            return True
+        time.sleep(0.01)
+    return bool(check())
 
 
 def test_recording_refuses_unknown_format(tmp_path: Path):
