@@ -1,0 +1,181 @@
+"""The dead-man bound with a real, frozen browser.
+
+Chromium drives an Electrak jog (hold-to-run, the mouse button stays down) and switches an
+M3IO mains output on; then the whole browser is frozen with SIGSTOP (as a hung tab, a closed
+laptop lid or a lost network leave it: no close, no disconnect). The test listens on the same
+CAN buses from its own process (python-can udp_multicast) and measures how long after the
+freeze the stopping telegrams go out: the control telegram with enable cleared, the DigOut
+with the output off. The stated bound is app.worker.DEADMAN_BOUND_S (0.5 s) from the last
+sign of life; the freeze comes after that sign, so freeze -> stop must be below it too.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import threading
+import time
+import urllib.request
+from pathlib import Path
+
+import can
+import pytest
+from conftest import free_port
+from webutil import running_app
+
+from app.worker import DEADMAN_BOUND_S, DEADMAN_TIMEOUT_S
+
+CHROMIUM = Path("/usr/bin/chromium")
+SHOTS = Path("/tmp/commission-shots")
+pytestmark = [pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed"), pytest.mark.timeout(120)]
+
+GROUP = "239.74.163.9"
+CONTROL_ID, DIGOUT_ID = 0x006, 0x422  # Electrak control; M3IO DigOut of SW1 0x1A (0x3A0 + 5 * 0x1A)
+
+
+def plant_text(port_lift: int, port_heater: int) -> str:
+    return f"""
+name = "deadman"
+[[bus]]
+name = "can2"
+type = "can"
+interface = "udp_multicast"
+channel = "{GROUP}"
+port = {port_lift}
+bitrate = 500000
+simulate = true
+
+[[device]]
+name = "lift"
+type = "electrak"
+bus = "can2"
+actuators = [{{ model = "HD24", gearing = "B026", stroke_mm = 300 }}]
+
+[[bus]]
+name = "can3"
+type = "can"
+interface = "udp_multicast"
+channel = "{GROUP}"
+port = {port_heater}
+bitrate = 500000
+simulate = true
+
+[[device]]
+name = "heater-hm"
+type = "m3io"
+bus = "can3"
+variant = "HM"
+sw1 = 0x1A
+"""
+
+
+class Listener:
+    """Every frame of one udp_multicast bus with the time it arrived here."""
+
+    def __init__(self, port: int):
+        self.bus = can.Bus(interface="udp_multicast", channel=GROUP, port=port, receive_own_messages=False)
+        self.frames: list[tuple[float, int, bytes]] = []
+        self._run = True
+        self._thread = threading.Thread(target=self._loop, daemon=True)
+        self._thread.start()
+
+    def _loop(self) -> None:
+        while self._run:
+            msg = self.bus.recv(0.05)
+            if msg is not None:
+                self.frames.append((time.monotonic(), msg.arbitration_id, bytes(msg.data)))
+
+    def first(self, can_id: int, test, since: float = 0.0, timeout: float = 5.0) -> float | None:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            for t, i, data in list(self.frames):
+                if t >= since and i == can_id and test(data):
+                    return t
+            time.sleep(0.01)
+        return None
+
+    def close(self) -> None:
+        self._run = False
+        self._thread.join(2)
+        self.bus.shutdown()
+
+
+def start_chromium(folder: Path) -> tuple[subprocess.Popen, int]:
+    port = free_port()
+    proc = subprocess.Popen(
+        [str(CHROMIUM), "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+         f"--remote-debugging-port={port}", f"--user-data-dir={folder / 'profile'}", "--window-size=1440,900", "about:blank"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+    )
+    end = time.monotonic() + 20
+    while time.monotonic() < end:
+        try:
+            urllib.request.urlopen(f"http://127.0.0.1:{port}/json/version", timeout=1).read()
+            return proc, port
+        except OSError:
+            time.sleep(0.1)
+    proc.kill()
+    raise TimeoutError("chromium did not open its debugging port")
+
+
+def test_frozen_browser_stops_motion_and_mains_outputs_within_the_bound(tmp_path):
+    from playwright.sync_api import sync_playwright
+
+    port_lift, port_heater = free_port(), free_port()
+    lift_bus, heater_bus = Listener(port_lift), Listener(port_heater)
+    chromium, debug_port = start_chromium(tmp_path)
+    frozen = False
+    try:
+        with running_app(plant_text(port_lift, port_heater), tmp_path) as url, sync_playwright() as p:
+            browser = p.chromium.connect_over_cdp(f"http://127.0.0.1:{debug_port}")
+            context = browser.contexts[0]
+
+            heater = context.new_page()
+            heater.goto(f"{url}/device/heater-hm")
+            heater.get_by_text("belong to the page").first.wait_for(timeout=10_000)  # the stop rule is stated
+            row = heater.locator('[data-channel="SSR1"]')
+            row.get_by_text("load: present").first.wait_for(timeout=10_000)
+            row.locator(".q-toggle").click()
+            heater.get_by_role("button", name="Switch on").click()
+            assert heater_bus.first(DIGOUT_ID, lambda d: d[0] & 0x02, timeout=5), "SSR1 was not switched on"
+
+            lift = context.new_page()
+            lift.goto(f"{url}/device/lift")
+            lift.get_by_text(re.compile(r"[Mm]otion stops")).first.wait_for(timeout=10_000)  # the stop rule is stated
+            lift.get_by_test_id("take-control").click()
+            lift.get_by_text("you hold control").wait_for(timeout=10_000)
+            lift.get_by_test_id("jog-out").scroll_into_view_if_needed()
+            box = lift.get_by_test_id("jog-out").bounding_box()
+            lift.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+            lift.mouse.down()  # hold-to-run: held, never released
+            assert lift_bus.first(CONTROL_ID, lambda d: d[7] & 0x01, timeout=5), "the jog did not start"
+            time.sleep(0.5)  # moving, beats arriving
+            SHOTS.mkdir(exist_ok=True)
+            lift.screenshot(path=str(SHOTS / "deadman-lift-jogging.png"))
+
+            os.killpg(chromium.pid, signal.SIGSTOP)  # the whole browser freezes: no mouseup, no close
+            frozen = True
+            freeze = time.monotonic()
+            lift_stop = lift_bus.first(CONTROL_ID, lambda d: not d[7] & 0x01, since=freeze, timeout=5)
+            heater_stop = heater_bus.first(DIGOUT_ID, lambda d: not d[0] & 0x02, since=freeze, timeout=5)
+            assert lift_stop is not None, "the Electrak kept its enable bit after the browser froze"
+            assert heater_stop is not None, "SSR1 stayed on after the browser froze"
+            lift_ms, heater_ms = (lift_stop - freeze) * 1000, (heater_stop - freeze) * 1000
+            print(f"frozen browser -> enable cleared {lift_ms:.0f} ms, SSR1 off {heater_ms:.0f} ms "
+                  f"(timeout {DEADMAN_TIMEOUT_S * 1000:.0f} ms, bound {DEADMAN_BOUND_S * 1000:.0f} ms)")
+            assert lift_ms < DEADMAN_BOUND_S * 1000 and heater_ms < DEADMAN_BOUND_S * 1000
+            # nothing enables the actuators again while the browser stays frozen
+            time.sleep(0.5)
+            assert not [f for f in lift_bus.frames if f[0] > lift_stop and f[1] == CONTROL_ID and f[2][7] & 0x01]
+            log = (tmp_path / "app.log").read_text()
+            silent = [int(m) for m in re.findall(r"not confirmed it is alive for (\d+) ms", log)]
+            assert silent and max(silent) < DEADMAN_BOUND_S * 1000  # stop sent within the bound of the last beat
+    finally:
+        if frozen:
+            os.killpg(chromium.pid, signal.SIGCONT)
+        os.killpg(chromium.pid, signal.SIGKILL)
+        chromium.wait(10)
+        lift_bus.close()
+        heater_bus.close()
