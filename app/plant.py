@@ -9,7 +9,7 @@ from typing import Any
 
 import tomllib
 
-from devices.registry import DEVICE_TYPES
+from devices.registry import DEVICE_TYPES, format_can_ids
 
 PLANTS_DIR = Path(__file__).resolve().parent.parent / "plants"
 DEMO_PLANT = PLANTS_DIR / "demo.toml"
@@ -194,7 +194,44 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
                 raise fail(dev.line, f"device '{dev.name}': address {ident} is already used by '{seen[ident]}' on bus '{bus.name}'")
             if ident is not None:
                 seen[ident] = dev.name
+        conflict = can_id_conflict(plant.devices_on(bus.name) + [d for d in plant.sim_devices.values() if d.bus == bus.name], bus)
+        if conflict is not None:
+            raise fail(conflict[0].line, conflict[1])
     return plant
+
+
+def can_id_conflict(devices: list[DeviceConfig], bus: BusConfig) -> tuple[DeviceConfig, str] | None:
+    """The first CAN ID that two devices on ``bus`` (or one device twice) would both use.
+
+    Each device type declares the IDs it sends and receives (``DeviceType.can_id_uses``).
+    Returns ``(the later device, message naming both devices, the ID and its use in each)``.
+    """
+    if bus.type != "can":
+        return None
+    # HD-Lock document 6.2 b: "jede CAN-ID [darf] jeweils nur von einem Busteilnehmer verwendet werden"
+    rule = "A CAN ID may carry one sender's messages only: change an address or use separate buses."
+    earlier = []
+    for dev in devices:
+        device_type = DEVICE_TYPES[dev.type]
+        uses = device_type.can_id_uses(dev.options, bus.type)
+        for i, a in enumerate(uses):
+            for b in uses[i + 1:]:
+                span = None if a.shared and b.shared else a.overlap(b)
+                if span:
+                    ids = ("CAN ID " if span[0] == span[1] else "CAN IDs ") + format_can_ids(*span, a.extended)
+                    return dev, (f"device '{dev.name}': {ids} is used twice by this {device_type.title} on bus '{bus.name}', "
+                                 f"as {a.use} and as {b.use}. {rule}")
+        for other, other_type, other_uses in earlier:
+            same_type = other.type == dev.type
+            for a in uses:
+                for b in other_uses:
+                    span = None if same_type and a.shared and b.shared else a.overlap(b)
+                    if span:
+                        ids = ("CAN ID " if span[0] == span[1] else "CAN IDs ") + format_can_ids(*span, a.extended)
+                        return dev, (f"device '{dev.name}': {ids} is used twice on bus '{bus.name}': by '{dev.name}' "
+                                     f"({device_type.title}) as {a.use}, and by '{other.name}' ({other_type.title}) as {b.use}. {rule}")
+        earlier.append((dev, device_type, uses))
+    return None
 
 
 def _parse_devices(text, data, plant, table, target, fail) -> None:

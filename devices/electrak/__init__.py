@@ -4,7 +4,7 @@ from typing import Any
 
 from devices.electrak import codec
 from devices.electrak.params import PARAMS
-from devices.registry import DeviceType
+from devices.registry import CanIdUse, DeviceType
 
 
 def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str]]:
@@ -28,6 +28,16 @@ def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str
     for key in sorted(set(options) - {"actuators"}):
         errors.append((key, f"unknown key '{key}' for an Electrak network; known: actuators"))
     return errors
+
+
+# document, "Das Netzwerk im Überblick": fixed standard IDs of every SY2 network, whatever its configuration
+CAN_FIXED_IDS = (
+    CanIdUse.one(codec.CONTROL_ID, "Electrak control telegram", "master", shared=True),
+    CanIdUse.one(codec.STATUS_ID, "Electrak status telegram (every actuator, every 100 ms)", "device", shared=True),
+    CanIdUse.one(codec.SERVICE_REQUEST_ID, "Electrak service request", "master", shared=True),
+    CanIdUse.one(codec.SERVICE_RESPONSE_ID, "Electrak service answer", "device", shared=True),
+    CanIdUse(codec.INTERNAL_IDS.start, codec.INTERNAL_IDS.stop - 1, "Electrak internal traffic between the actuators (0x600-0x6FF)", "device", shared=True),
+)
 
 
 def _summary(state) -> list[str]:
@@ -68,6 +78,7 @@ DEVICE_TYPE = DeviceType(
     check_config=_check_config,
     bus_identity=lambda options, bus_type: "electrak network",  # one network per bus: the IDs 0x06/0x07 are fixed
     can_codec="devices.electrak.codec",
+    can_fixed_ids=CAN_FIXED_IDS,
     summary=_summary,
     plant_tile=_plant_tile,
 )

@@ -4,7 +4,7 @@ from typing import Any
 
 from devices.hdlock import codec
 from devices.hdlock.params import PARAMS
-from devices.registry import DeviceType
+from devices.registry import CanIdUse, DeviceType
 
 SIM_KEYS = {"serial": "simulated twin: serial number", "door": 'simulated twin: "open" or "closed"'}
 
@@ -34,6 +34,25 @@ def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str
         allowed = ", ".join(sorted(known | set(SIM_KEYS)))
         errors.append((key, f"unknown key '{key}' for an HD-Lock on a {bus_type} bus; known: {allowed}"))
     return errors
+
+
+# section 6.6: every lock listens to the contiguous standard-ID block 0x700-0x707, one ID per request
+CAN_FIXED_IDS = tuple(
+    CanIdUse.one(can_id, f"{name} request (HD-Lock request block 0x700-0x707)", "master", shared=True)
+    for can_id, name in codec.CAN_REQUEST_NAMES.items()
+)
+
+
+def _can_ids(options: dict[str, Any], bus_type: str) -> tuple[CanIdUse, ...]:
+    """Section 6.3/6.5: a lock sends its status and answers under its device ID as CAN ID."""
+    device_id = options.get("device_id")
+    if bus_type != "can" or not isinstance(device_id, int) or isinstance(device_id, bool):
+        return ()
+    try:
+        ident = codec.DeviceId.make(device_id, options.get("extended"))
+    except codec.CodecError:
+        return ()
+    return (CanIdUse.one(ident.value, f"HD-Lock device ID {ident.value} (status every 1 s, register answers)", "device", ident.extended),)
 
 
 def _identity(options: dict[str, Any], bus_type: str):
@@ -78,6 +97,8 @@ DEVICE_TYPE = DeviceType(
     check_config=_check_config,
     bus_identity=_identity,
     can_codec="devices.hdlock.codec",
+    can_fixed_ids=CAN_FIXED_IDS,
+    can_ids=_can_ids,
     key_values=("DoorState", "LockStatus", "BoltPosition"),
     plant_tile=_plant_tile,
 )

@@ -3,7 +3,7 @@
 from typing import Any
 
 from devices.m3io import codec
-from devices.registry import DeviceType
+from devices.registry import CanIdUse, DeviceType
 
 
 def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str]]:
@@ -24,6 +24,28 @@ def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str
 def _identity(options: dict[str, Any], bus_type: str):
     sw1 = options.get("sw1")
     return f"DigOut 0x{codec.derive_ids(sw1).dig_out:03X}" if isinstance(sw1, int) and 0 <= sw1 <= 255 else None
+
+
+# section 5.8 (function table) and 7.2: what each of the module's IDs carries, and who sends it
+_ID_USES = {
+    "DigOut": ("set the digital outputs", "master"),
+    "DigIn": ("digital inputs", "device"),
+    "Temp1-4": ("temperatures 1-4", "device"),
+    "Temp5-6": ("temperatures 5-6", "device"),
+    "Sync": ("SYNC / addressed data request", "master"),
+    "MData": ("addressed data answer", "device"),
+}
+
+
+def _can_ids(options: dict[str, Any], bus_type: str) -> tuple[CanIdUse, ...]:
+    """The five (S8 off) or six (S8 on) standard IDs that SW1 gives the module (section 5.8)."""
+    sw1 = options.get("sw1")
+    if bus_type != "can" or not isinstance(sw1, int) or isinstance(sw1, bool) or not 0 <= sw1 <= 0xFF:
+        return ()
+    return tuple(
+        CanIdUse.one(can_id, f"CAN-M3IO {name} ({_ID_USES[name][0]}) with SW1 0x{sw1:02X}", _ID_USES[name][1])
+        for name, can_id in codec.derive_ids(sw1).by_name().items()
+    )
 
 
 def _summary(state) -> list[str]:
@@ -57,6 +79,7 @@ DEVICE_TYPE = DeviceType(
     sims={"can": "devices.m3io.sim:M3ioSim"},
     check_config=_check_config,
     bus_identity=_identity,
+    can_ids=_can_ids,
     summary=_summary,
     plant_tile=_plant_tile,
 )
