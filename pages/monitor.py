@@ -184,7 +184,7 @@ class CanMonitor:
             ui.add_css(CSS)
             self._build()
         self.refresh()
-        self.refresh_recordings()
+        ui.timer(0, self.refresh_recordings, once=True)
         ui.timer(REFRESH_S, self.refresh)
 
     # -- layout ---------------------------------------------------------------------------------------
@@ -412,21 +412,21 @@ class CanMonitor:
         else:
             ui.notify(f"Saved {stopped.frames} frames to {stopped.path.name}", type="positive")
         self._refresh_status()
-        self.refresh_recordings()
+        await self.refresh_recordings()
 
-    def download_last(self) -> None:
+    async def download_last(self) -> None:
         if self.last_recording is not None:
-            self._download(self.last_recording.path)
+            await self._download(self.last_recording.path)
 
-    def _download(self, path: Path) -> None:
+    async def _download(self, path: Path) -> None:
         if not path.is_file():
             notify_error(f"{path.name} is gone from {path.parent}")
-            self.refresh_recordings()
+            await self.refresh_recordings()
             return
         ui.download.file(path, path.name)
 
-    def refresh_recordings(self) -> None:
-        files = rec.list_recordings()
+    async def refresh_recordings(self) -> None:
+        files = await asyncio.to_thread(rec.list_recordings)  # a folder listing: not on the event loop
         self.recordings_panel.set_text(f"Recordings ({len(files)}) in {rec.recordings_dir()}")
         self.recordings_box.clear()
         with self.recordings_box:
