@@ -11,7 +11,7 @@ import asyncio
 import importlib
 import logging
 import time
-from collections import deque
+from collections import OrderedDict, deque
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -19,9 +19,9 @@ from typing import Any
 from app.audit import AuditLog
 from app.can_bus import CanBus, CanBusState
 from app.modbus_line import ModbusLine
-from app.plant import DeviceConfig, Plant
+from app.plant import DeviceConfig, Plant, can_id_conflict
 from app.state import BusState, DeviceState, StateStore
-from devices.registry import DEVICE_TYPES
+from devices.registry import DEVICE_TYPES, CanIdUse, fixed_can_id_uses
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +76,89 @@ class LoopHealth:
                 "stalls": self.stalls, "last_stall": self.last_stall}
 
 
+MAX_CANDIDATES = 512  # unknown CAN IDs watched per bus while they show evidence; beyond, new ones are dropped and counted
+MAX_DISCOVERED = 128  # devices listed as discovered per bus
+CANDIDATE_STALE_PERIODS = 2.5  # a candidate silent for this many of its periods gives its place to a new one
+
+
+@dataclass(slots=True)
+class _Candidate:
+    """An unknown ID whose frames have the form of a device's: the evidence so far."""
+
+    entry: dict  # the codec's ``discovered()`` answer for the last fitting frame
+    heard: float  # time of the last frame (the frame's own time stamp)
+    first_seen: float  # wall clock
+    frames: int = 1
+    streak: int = 1  # fitting frames in a row at the expected period
+    last_fit: float | None = None  # time of the last fitting frame
+    intervals: deque = field(default_factory=lambda: deque(maxlen=4))
+
+    def __post_init__(self) -> None:
+        self.last_fit = self.heard
+
+    @property
+    def period_s(self) -> float:
+        return (self.entry.get("evidence") or {}).get("period_s", 1.0)
+
+    def add(self, entry: dict | None, heard: float) -> None:
+        self.frames += 1
+        self.heard = heard
+        if entry is None or entry.get("type") != self.entry.get("type"):
+            self.streak, self.last_fit = 0, None  # a frame of another form on this ID: start over
+            return
+        evidence = entry.get("evidence") or {}
+        period, tolerance = evidence.get("period_s"), evidence.get("tolerance", 0.0)
+        if self.last_fit is None or period is None:
+            self.streak = 1
+        else:
+            interval = heard - self.last_fit
+            self.intervals.append(interval)
+            # too fast (another sender, a flood) or a gap (lost frames): the count starts over
+            self.streak = self.streak + 1 if abs(interval - period) <= tolerance * period else 1
+        self.last_fit = heard
+        self.entry = entry
+
+    def convinced(self) -> bool:
+        return self.streak >= (self.entry.get("evidence") or {}).get("frames", 1)
+
+    def evidence_text(self) -> str:
+        if not self.intervals:
+            return f"{self.frames} frame{'s' if self.frames != 1 else ''}"
+        shown = ", ".join(f"{i:.2f}" for i in list(self.intervals)[-(self.streak - 1):])
+        return f"{self.streak} frames in a row, {shown} s apart"
+
+
+@dataclass
+class CanDiscovery:
+    """Discovery on one CAN bus: bounded candidates, the refused IDs and what was left out."""
+
+    refused: dict[tuple[bool, int], str] = field(default_factory=dict)  # ID -> its use by a device type
+    refused_ranges: list[tuple[CanIdUse, str]] = field(default_factory=list)
+    candidates: OrderedDict = field(default_factory=OrderedDict)  # key -> _Candidate, least recently heard first
+    dropped: int = 0  # new candidates not watched: the table was full of live ones
+    evicted: int = 0  # candidates that went silent and gave their place
+    refused_frames: int = 0  # frames on IDs that a device type occupies
+    listed_dropped: int = 0  # devices not listed: the list was full
+
+    def refused_reason(self, key: tuple[bool, int]) -> str | None:
+        reason = self.refused.get(key)
+        if reason is None and self.refused_ranges:
+            reason = next((r for use, r in self.refused_ranges if use.covers(*key)), None)
+        return reason
+
+    def make_room(self, now: float) -> bool:
+        """Forget up to two silent candidates (oldest first); True when a new one fits."""
+        for _ in range(2):
+            if not self.candidates:
+                break
+            oldest = next(iter(self.candidates.values()))
+            if now - oldest.heard <= CANDIDATE_STALE_PERIODS * oldest.period_s:
+                break
+            self.candidates.popitem(last=False)
+            self.evicted += 1
+        return len(self.candidates) < MAX_CANDIDATES
+
+
 class Worker:
     """Runs one polling task per bus; every adapter is reached through it."""
 
@@ -102,11 +185,17 @@ class Worker:
                 bus_state = BusState(bus.name, bus.type, bus.endpoint)
                 self.store.buses[bus.name] = bus_state
                 self.lines[bus.name] = ModbusLine(bus.name, bus.options, bus_state)
-        self.discovered: dict[str, dict[tuple[bool, int], dict]] = {name: {} for name in self.can_buses}
+        self.discovered: dict[str, dict[tuple[bool, int], dict]] = {name: {} for name in self.can_buses}  # listed devices
+        self._discovery_codecs = {
+            t.name: importlib.import_module(t.can_codec) for t in DEVICE_TYPES.values() if t.can_codec and "can" in t.bus_types
+        }
+        self.discovery: dict[str, CanDiscovery] = {name: CanDiscovery() for name in self.can_buses}
         for name, can_bus in self.can_buses.items():
             can_bus.listeners.append(lambda msg, bus=name: self._discover_frame(bus, msg))
         for dev in plant.devices.values():
             self._add_adapter(dev)
+        for name in self.can_buses:
+            self._refuse_ids(name)
 
     def _add_adapter(self, dev: DeviceConfig) -> None:
         device_type = DEVICE_TYPES[dev.type]
@@ -121,23 +210,95 @@ class Worker:
         self.adapters[dev.name] = device_type.adapter_class(bus.type)(dev, state, transport)
 
     # -- CAN discovery -----------------------------------------------------------------------
-    def _discover_frame(self, bus: str, msg) -> None:
-        """A frame whose ID no adapter owns: does some device type recognise it?"""
-        key = (msg.is_extended_id, msg.arbitration_id)
-        known = self.discovered[bus].get(key)
-        if known is not None:
-            known["last_seen"] = time.time()
-            known["frames"] += 1
-            return
-        for device_type in DEVICE_TYPES.values():
-            if not device_type.can_codec or "can" not in device_type.bus_types:
-                continue
-            entry = importlib.import_module(device_type.can_codec).discovered(msg.arbitration_id, msg.is_extended_id, bytes(msg.data))
+    def _refuse_ids(self, bus: str) -> None:
+        """IDs never listed as a discovered device on ``bus``: every type's fixed IDs, and the
+        IDs of the devices configured there (``DeviceType.can_fixed_ids`` / ``can_ids``)."""
+        table = self.discovery[bus]
+        table.refused.clear()
+        table.refused_ranges.clear()
+        uses = [(t, use) for t, use in fixed_can_id_uses()]
+        for dev in self.plant.devices_on(bus):
+            device_type = DEVICE_TYPES[dev.type]
+            uses += [(device_type, use) for use in device_type.can_ids(dev.options, "can")]
+        for device_type, use in uses:
+            reason = f"{use.use} ({device_type.title})"
+            if use.last - use.first < 4096:
+                for can_id in range(use.first, use.last + 1):
+                    table.refused.setdefault((use.extended, can_id), reason)
+            else:  # a wide range is checked as a range: the per-frame cost stays bounded
+                table.refused_ranges.append((use, reason))
+        for key in [k for k in table.candidates if table.refused_reason(k)]:
+            del table.candidates[key]
+        for key in [k for k in self.discovered[bus] if table.refused_reason(k)]:
+            del self.discovered[bus][key]
+
+    def _recognise(self, msg, data: bytes) -> dict | None:
+        for codec in self._discovery_codecs.values():
+            try:
+                entry = codec.discovered(msg.arbitration_id, msg.is_extended_id, data)
+            except Exception:  # noqa: BLE001 - a frame a codec cannot parse is simply not its device
+                entry = None
             if entry:
-                entry.update(first_seen=time.time(), last_seen=time.time(), frames=1, bus=bus)
-                self.discovered[bus][key] = entry
-                log.info("%s: discovered %s at %s", bus, entry["type"], key)
+                return entry
+        return None
+
+    def _discover_frame(self, bus: str, msg) -> None:
+        """A frame whose ID no adapter owns: a piece of evidence for a device to list.
+
+        O(1) per frame: dictionary look-ups and one codec call per device type. A device is
+        listed only after the evidence its codec asks for (e.g. an HD-Lock: three status
+        frames about 1 s apart) on an ID that no device type occupies; until then it is a
+        candidate in a bounded table (a flood of new IDs is dropped and counted).
+        """
+        key = (msg.is_extended_id, msg.arbitration_id)
+        listed = self.discovered[bus].get(key)
+        if listed is not None:
+            listed["last_seen"] = time.time()
+            listed["frames"] += 1
+            return
+        table = self.discovery[bus]
+        if table.refused_reason(key):
+            table.refused_frames += 1
+            return
+        data = bytes(msg.data)
+        heard = msg.timestamp if msg.timestamp and msg.timestamp > 0 else time.time()
+        candidate = table.candidates.get(key)
+        if candidate is None:
+            entry = self._recognise(msg, data)
+            if entry is None:
                 return
+            if not table.make_room(heard):
+                table.dropped += 1
+                return
+            candidate = table.candidates[key] = _Candidate(entry, heard, time.time())
+        else:
+            table.candidates.move_to_end(key)
+            codec = self._discovery_codecs.get(candidate.entry["type"])
+            try:
+                entry = codec.discovered(msg.arbitration_id, msg.is_extended_id, data) if codec else None
+            except Exception:  # noqa: BLE001 - not the device's frame
+                entry = None
+            candidate.add(entry, heard)
+        if candidate.convinced():
+            del table.candidates[key]
+            if len(self.discovered[bus]) >= MAX_DISCOVERED:
+                table.listed_dropped += 1
+                return
+            now = time.time()
+            listed = dict(candidate.entry)
+            listed.pop("evidence", None)
+            listed.update(first_seen=candidate.first_seen, last_seen=now, frames=candidate.frames, bus=bus,
+                          evidence=candidate.evidence_text())
+            self.discovered[bus][key] = listed
+            log.info("%s: discovered %s at %s (%s)", bus, listed["type"], key, listed["evidence"])
+
+    def discovery_summary(self, bus: str) -> dict:
+        """What the overview shows under the discovered devices of a CAN bus."""
+        table = self.discovery.get(bus)
+        if table is None:
+            return {}
+        return {"candidates": len(table.candidates), "dropped": table.dropped, "refused_frames": table.refused_frames,
+                "listed_dropped": table.listed_dropped}
 
     # -- browser sessions -------------------------------------------------------------------
     def session_opened(self, session: str, role: str = "engineer") -> None:
@@ -209,9 +370,18 @@ class Worker:
         return set(can_bus.handlers) | set(self.discovered.get(bus, {}))
 
     def adopt(self, dev: DeviceConfig) -> None:
-        """Take a discovered device into the running plant (the plant file is the caller's business)."""
+        """Take a discovered device into the running plant (the plant file is the caller's business).
+
+        :raises ValueError: the name exists, or the device would share a CAN ID with a device of the bus
+        """
         if dev.name in self.plant.devices:
             raise ValueError(f"a device named {dev.name!r} exists already")
+        bus = self.plant.buses.get(dev.bus)
+        if bus is None:
+            raise ValueError(f"no bus named {dev.bus!r} in this plant")
+        conflict = can_id_conflict(self.plant.devices_on(dev.bus) + [dev], bus)
+        if conflict is not None:
+            raise ValueError(conflict[1])
         self.plant.devices[dev.name] = dev
         self._add_adapter(dev)
         for key, entry in list(self.discovered.get(dev.bus, {}).items()):
@@ -219,6 +389,8 @@ class Worker:
                 {"device_id": entry["device_id"], "extended": entry["extended"]}, "can"
             ):
                 del self.discovered[dev.bus][key]
+        if dev.bus in self.discovery:
+            self._refuse_ids(dev.bus)
 
     async def start(self) -> None:
         for can_bus in self.can_buses.values():

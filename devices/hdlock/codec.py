@@ -434,9 +434,24 @@ def describe_frame(arbitration_id: int, is_extended: bool, data: bytes, lock_ids
     return None
 
 
+STATUS_PERIOD_S = 1.0  # section 6.5: a lock sends its status "alle 1000 ms"
+STATUS_PERIOD_TOLERANCE = 0.3  # section 6.5 gives no tolerance: 0.7-1.3 s between two status frames counts as "about 1 s"
+DISCOVERY_FRAMES = 3  # section 6.5.1 (status repeated every 1 s): three in a row at that period before a lock is listed
+
+
 def discovered(arbitration_id: int, is_extended: bool, data: bytes) -> dict | None:
-    """A frame of an unknown ID that is a lock's periodic status: a lock to adopt."""
+    """One frame of an unknown ID that has the form of a lock's periodic status (section 6.5.1).
+
+    One frame is not enough: the entry carries the evidence a lock must show before it is
+    listed (``DISCOVERY_FRAMES`` such frames ``STATUS_PERIOD_S`` apart); which IDs other device
+    types occupy is the worker's business (``DeviceType.can_fixed_ids``).
+    """
     if not looks_like_status(data) or (not is_extended and arbitration_id in CAN_REQUEST_IDS):
         return None
+    if arbitration_id == CAN_BROADCAST or arbitration_id > (EXT_ID_MAX if is_extended else STD_ID_MAX):
+        return None  # section 6.4: device ID 0 is the broadcast target, never a lock's own ID
     status = decode_lock_frame(data)
-    return {"type": "hdlock", "device_id": arbitration_id, "extended": is_extended, "summary": describe_lock_frame(data), "status": status}
+    return {
+        "type": "hdlock", "device_id": arbitration_id, "extended": is_extended, "summary": describe_lock_frame(data), "status": status,
+        "evidence": {"period_s": STATUS_PERIOD_S, "tolerance": STATUS_PERIOD_TOLERANCE, "frames": DISCOVERY_FRAMES},
+    }

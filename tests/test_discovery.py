@@ -1,0 +1,231 @@
+"""CAN discovery needs evidence (issue 10, item 4): a lock is listed only after its status frame
+came repeatedly at about 1 s (HD-Lock document 6.5) on an ID that no device type occupies.
+
+Golden checks: an Electrak control frame (ID 0x06) and frames 0x600-0x6FF are never discovered
+as locks; a flood of 100,000 new IDs starting 00 00 keeps the tables bounded and is counted.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import time
+
+import can
+import pytest
+from conftest import wait_for
+
+from app.plant import DeviceConfig, parse_plant
+from app.worker import Worker
+from devices.hdlock import codec
+
+_channels = itertools.count()
+STATUS = codec.encode_status(codec.StatusFrame(0x0200, 0, 100, 4))  # bolt in, door open
+ELECTRAK_CONTROL_AT_ZERO = bytes.fromhex("00 00 00 00 BE 03 00 01")  # target 0 mm, default current limit
+
+
+def plant_text(extra: str = "", channel: str | None = None) -> str:
+    channel = channel or f"discovery-{next(_channels)}-{id(object())}"
+    return (f'[[bus]]\nname = "can1"\ntype = "can"\ninterface = "virtual"\nchannel = "{channel}"\n'
+            '[[device]]\nname = "gate"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 660100\n' + extra)
+
+
+ELECTRAK = '[[device]]\nname = "lift"\ntype = "electrak"\nbus = "can1"\nactuators = [{ model = "HD24", gearing = "B026", stroke_mm = 300 }]\n'
+
+
+def worker(extra: str = "") -> Worker:
+    """A worker that is not started: frames are handed to discovery directly."""
+    return Worker(parse_plant(plant_text(extra)))
+
+
+def feed(w: Worker, can_id: int, times, data: bytes = STATUS, extended: bool = False) -> None:
+    for t in times:
+        w._discover_frame("can1", can.Message(arbitration_id=can_id, data=data, is_extended_id=extended, timestamp=t))
+
+
+def listed(w: Worker) -> set[tuple[bool, int]]:
+    return set(w.discovered["can1"])
+
+
+T0 = 1_700_000_000.0
+
+
+# -- evidence ------------------------------------------------------------------------------------------
+
+
+def test_one_status_frame_is_not_a_lock():
+    w = worker()
+    feed(w, 660102, [T0], extended=True)
+    assert listed(w) == set()
+    assert w.discovery_summary("can1")["candidates"] == 1
+
+
+def test_status_at_about_one_second_lists_the_lock():
+    w = worker()
+    feed(w, 660102, [T0, T0 + 1.0], extended=True)
+    assert listed(w) == set()
+    feed(w, 660102, [T0 + 2.05], extended=True)
+    assert listed(w) == {(True, 660102)}
+    entry = w.discovered["can1"][(True, 660102)]
+    assert entry["type"] == "hdlock" and entry["device_id"] == 660102 and entry["extended"]
+    assert entry["frames"] == 3 and "3 frames in a row" in entry["evidence"]
+    assert w.discovery_summary("can1")["candidates"] == 0
+
+
+def test_standard_id_lock_is_listed_too():
+    w = worker()
+    feed(w, 0x0C, [T0, T0 + 0.98, T0 + 1.99])
+    assert listed(w) == {(False, 0x0C)}
+
+
+@pytest.mark.parametrize("period_s", [0.1, 0.5, 2.0])
+def test_a_frame_at_another_period_is_not_a_lock(period_s):
+    w = worker()
+    feed(w, 0x123, [T0 + n * period_s for n in range(30)])
+    assert listed(w) == set()
+
+
+def test_a_gap_or_another_frame_starts_the_count_again():
+    w = worker()
+    feed(w, 0x124, [T0, T0 + 1.0, T0 + 4.0, T0 + 5.0])  # a 3 s gap between 2 and 3
+    assert listed(w) == set()
+    feed(w, 0x125, [T0, T0 + 1.0])
+    feed(w, 0x125, [T0 + 1.5], data=bytes.fromhex("05 00 00 00 00 00 00 00"))  # not a status frame
+    feed(w, 0x125, [T0 + 2.0])
+    assert listed(w) == set()
+    feed(w, 0x125, [T0 + 3.0, T0 + 4.0])
+    assert listed(w) == {(False, 0x125)}
+
+
+def test_electrak_control_and_internal_frames_are_never_locks():
+    """Even at a lock's period and with a lock's form, on a bus without an Electrak in the plant."""
+    w = worker()
+    times = [T0 + n for n in range(6)]
+    feed(w, 0x06, times, data=ELECTRAK_CONTROL_AT_ZERO)
+    for can_id in (0x07, 0x0A, 0x0B, 0x600, 0x650, 0x6FF):
+        feed(w, can_id, times)
+    for can_id in range(0x700, 0x708):  # the HD-Lock request block itself
+        feed(w, can_id, times)
+    assert listed(w) == set()
+    assert w.discovery_summary("can1")["candidates"] == 0
+    assert w.discovery_summary("can1")["refused_frames"] == 6 * 15
+    feed(w, 0x5FF, times)  # next to the range: a lock may sit there
+    assert listed(w) == {(False, 0x5FF)}
+
+
+def test_ids_of_configured_devices_are_refused():
+    """An M3IO with SW1 0x1A (0x422-0x426): its Sync 0x426, sent by the master, is no lock."""
+    w = worker('[[device]]\nname = "io"\ntype = "m3io"\nbus = "can1"\nvariant = "KM"\nsw1 = 0x1A\n')
+    feed(w, 0x426, [T0 + n for n in range(5)])
+    feed(w, 0x424, [T0 + n for n in range(5)])
+    assert listed(w) == set()
+    w_electrak = worker(ELECTRAK)
+    feed(w_electrak, 0x0A, [T0 + n for n in range(5)])
+    assert listed(w_electrak) == set()
+
+
+# -- bounds -----------------------------------------------------------------------------------------------
+
+
+def test_a_flood_of_new_ids_is_bounded_and_counted():
+    from app.worker import MAX_CANDIDATES
+
+    w = worker()
+    feed(w, 0x0D, [T0])  # a real lock, heard before the flood
+    flood = 100_000
+    started = time.perf_counter()
+    for n in range(flood):
+        w._discover_frame("can1", can.Message(arbitration_id=0x10000 + n, data=STATUS, is_extended_id=True, timestamp=T0 + n * 1e-5))
+    elapsed = time.perf_counter() - started
+    summary = w.discovery_summary("can1")
+    assert summary["candidates"] <= MAX_CANDIDATES
+    assert summary["dropped"] == flood - (MAX_CANDIDATES - 1)
+    assert listed(w) == set()
+    # the lock keeps its place: it is heard again within its period
+    feed(w, 0x0D, [T0 + 1.0, T0 + 2.0])
+    assert listed(w) == {(False, 0x0D)}
+    print(f"flood of {flood} new IDs: {elapsed:.2f} s, {elapsed / flood * 1e6:.1f} us per frame")
+    assert elapsed < 20  # O(1) per frame: about 10 us each on a quiet machine
+
+
+def test_silent_candidates_make_room():
+    from app.worker import MAX_CANDIDATES
+
+    w = worker()
+    for n in range(MAX_CANDIDATES):
+        w._discover_frame("can1", can.Message(arbitration_id=0x20000 + n, data=STATUS, is_extended_id=True, timestamp=T0))
+    feed(w, 0x0E, [T0 + 0.5])
+    assert w.discovery_summary("can1")["dropped"] == 1
+    feed(w, 0x0E, [T0 + 5.0, T0 + 6.0, T0 + 7.0])  # the flood went silent 5 s ago: its entries give way
+    assert listed(w) == {(False, 0x0E)}
+
+
+def test_the_list_is_bounded():
+    from app.worker import MAX_DISCOVERED
+
+    w = worker()
+    for n in range(MAX_DISCOVERED + 5):
+        feed(w, 0x30000 + n, [T0, T0 + 1, T0 + 2], extended=True)
+    assert len(w.discovered["can1"]) == MAX_DISCOVERED
+    assert w.discovery_summary("can1")["listed_dropped"] == 5
+
+
+# -- adopting ---------------------------------------------------------------------------------------------
+
+
+def test_adopt_refuses_an_overlap():
+    w = worker(ELECTRAK)
+    with pytest.raises(ValueError, match=r"0x0B.*'spare'.*HD-Lock device ID 11.*'lift'.*Electrak service answer"):
+        w.adopt(DeviceConfig("spare", "hdlock", "can1", {"device_id": 11, "extended": False}))
+    assert "spare" not in w.plant.devices and "spare" not in w.adapters
+
+
+def test_adopted_lock_leaves_the_list_and_its_ids_are_refused():
+    w = worker()
+    feed(w, 0x0F, [T0, T0 + 1, T0 + 2])
+    assert listed(w) == {(False, 0x0F)}
+    w.adopt(DeviceConfig("spare", "hdlock", "can1", {"device_id": 0x0F, "extended": False}))
+    assert listed(w) == set() and "spare" in w.adapters
+    assert (False, 0x0F) in w.known_ids("can1")
+
+
+# -- on a real (virtual) bus ---------------------------------------------------------------------------
+
+
+async def test_on_the_bus_only_the_lock_is_listed():
+    """Frames through python-can and the worker's CanBus, with the senders' time stamps kept."""
+    channel = f"discovery-bus-{next(_channels)}-{id(object())}"
+    w = Worker(parse_plant(plant_text(channel=channel)))
+    await w.start()
+    assert await wait_for(lambda: w.store.buses["can1"].connected, timeout=5)
+    sender = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+    try:
+        t0 = time.time() - 10
+        for n in range(5):
+            t = t0 + n
+            sender.send(can.Message(arbitration_id=0x06, data=ELECTRAK_CONTROL_AT_ZERO, is_extended_id=False, timestamp=t))
+            sender.send(can.Message(arbitration_id=0x650, data=STATUS, is_extended_id=False, timestamp=t + 0.01))
+            sender.send(can.Message(arbitration_id=660102, data=STATUS, is_extended_id=True, timestamp=t + 0.02))
+            for k in range(10):  # a node that sends a status-like frame every 100 ms
+                sender.send(can.Message(arbitration_id=0x321, data=STATUS, is_extended_id=False, timestamp=t + 0.1 * k))
+        assert await wait_for(lambda: (True, 660102) in w.discovered["can1"], timeout=5)
+        await asyncio.sleep(0.2)
+        assert listed(w) == {(True, 660102)}
+        assert w.discovery_summary("can1")["refused_frames"] == 10
+    finally:
+        sender.shutdown()
+        await w.stop()
+
+
+# -- the codec's part -------------------------------------------------------------------------------------
+
+
+def test_codec_asks_for_three_status_frames_one_second_apart():
+    """Section 6.5: status "alle 1000 ms", 8 bytes, bytes 0-1 = 0."""
+    entry = codec.discovered(660102, True, bytes.fromhex("00 00 17 01 73 00 C4 00"))
+    assert entry["evidence"] == {"period_s": 1.0, "tolerance": codec.STATUS_PERIOD_TOLERANCE, "frames": 3}
+    assert entry["status"] == codec.StatusFrame(0x0117, 0x73, 3, 4)
+    assert codec.discovered(0x703, False, STATUS) is None  # the request block
+    assert codec.discovered(0, False, STATUS) is None  # section 6.4: 0 is the broadcast target
+    assert codec.discovered(0x123, False, codec.encode_fwu_status(codec.FwuStatusFrame(False, True))) is None
+    assert codec.discovered(0x123, False, STATUS[:6]) is None
