@@ -297,8 +297,14 @@ class Worker:
         table = self.discovery.get(bus)
         if table is None:
             return {}
+        rules = []
+        for type_name, codec in self._discovery_codecs.items():
+            evidence = getattr(codec, "DISCOVERY_EVIDENCE", None)
+            if evidence:
+                rules.append(f"{DEVICE_TYPES[type_name].title}: {evidence['frames']} {evidence.get('text', 'frames')} "
+                             f"about {evidence['period_s']:g} s apart")
         return {"candidates": len(table.candidates), "dropped": table.dropped, "refused_frames": table.refused_frames,
-                "listed_dropped": table.listed_dropped}
+                "listed_dropped": table.listed_dropped, "rules": rules}
 
     # -- browser sessions -------------------------------------------------------------------
     def session_opened(self, session: str, role: str = "engineer") -> None:

@@ -9,9 +9,9 @@ import time
 from nicegui import ui
 
 from app import runtime as rt
-from app.plant import DEMO_PLANT, DeviceConfig, append_device, device_toml
+from app.plant import DEMO_PLANT, DeviceConfig, append_device, can_id_conflict, device_toml
 from app.worker import AuditUnavailable, PermissionDenied
-from devices.registry import DEVICE_TYPES
+from devices.registry import DEVICE_TYPES, format_can_ids
 from pages.frame import fmt_age, frame, set_status_badge
 from pages.session import current_user
 
@@ -108,32 +108,49 @@ def content() -> None:
 
 
 def _discovered_section(bus: str, tile_row, tiles: list) -> None:
-    """Devices heard on a CAN bus that the plant does not list yet, with Adopt."""
+    """Devices heard on a CAN bus that the plant does not list yet, with Adopt.
+
+    Only devices that showed the evidence their type needs are listed; unknown IDs still
+    being watched, and what was left out, are counted below the list.
+    """
     runtime = rt.current()
-    box = ui.column().classes("gap-1")
+    box = ui.column().classes("gap-1").props(f'data-discovered="{bus}"')
     shown: list = [None]
 
     def refresh() -> None:
         entries = list(runtime.worker.discovered.get(bus, {}).items())
-        signature = [(k, round(e["last_seen"] / 5)) for k, e in entries]
+        summary = runtime.worker.discovery_summary(bus)
+        watching = summary.get("candidates", 0)
+        left_out = summary.get("dropped", 0) + summary.get("listed_dropped", 0)
+        signature = ([(k, round(e["last_seen"] / 5)) for k, e in entries], watching, left_out)
         if signature == shown[0]:
             return
         shown[0] = signature
         box.clear()
-        if not entries:
+        if not entries and not watching and not left_out:
             return
         with box:
-            ui.label(f"Discovered on {bus}, not in the plant file").classes("text-subtitle2")
+            if entries:
+                ui.label(f"Discovered on {bus}, not in the plant file").classes("text-subtitle2")
             for _key, entry in entries:
                 with ui.row().classes("items-center gap-3"):
                     ui.icon("fiber_new", color="orange")
                     ident = f"{entry['device_id']} ({'ext' if entry['extended'] else 'std'} 0x{entry['device_id']:X})"
                     title = DEVICE_TYPES[entry["type"]].title
                     ui.label(f"{title} with device ID {ident}").classes("text-body2")
-                    ui.label(f"{entry['frames']} frames, last {fmt_age(time.time() - entry['last_seen'])}").classes("text-caption text-grey-8")
+                    ui.label(f"{entry.get('evidence') or ''} · {entry['frames']} frames, last {fmt_age(time.time() - entry['last_seen'])}").classes(
+                        "text-caption text-grey-8")
                     ui.button("Adopt", icon="add", on_click=lambda e=entry: _adopt_dialog(bus, e, tile_row, tiles)).props("dense outline").props(
                         f'data-adopt="{entry["device_id"]}"'
                     )
+            notes = []
+            if watching:
+                rules = "; ".join(summary.get("rules") or [])
+                notes.append(f"watching {watching} unknown ID{'s' if watching != 1 else ''}" + (f" (listed after {rules})" if rules else ""))
+            if left_out:
+                notes.append(f"{left_out} left out: too many unknown IDs at once")
+            if notes:
+                ui.label("Discovery on " + bus + ": " + "; ".join(notes)).classes("text-caption text-grey-8").props("data-discovery-note")
 
     refresh()
     ui.timer(2.0, refresh)
@@ -143,19 +160,30 @@ def _adopt_dialog(bus: str, entry: dict, tile_row, tiles: list) -> None:
     runtime = rt.current()
     suggested = f"{entry['type']}-{entry['device_id']}"
     path = runtime.plant.path
+    bus_config = runtime.plant.buses[bus]
+    device_type = DEVICE_TYPES[entry["type"]]
 
     def config(name: str) -> DeviceConfig:
         return DeviceConfig(name, entry["type"], bus, {"device_id": entry["device_id"], "extended": entry["extended"]})
 
-    with ui.dialog() as dialog, ui.card().classes("w-[34rem]"):
+    # the same check as the plant loader and the worker: one CAN ID, one sender (HD-Lock document 6.2 b)
+    conflict = can_id_conflict(runtime.plant.devices_on(bus) + [config(suggested)], bus_config)
+
+    with ui.dialog() as dialog, ui.card().classes("w-[34rem] max-w-full"):
         ui.label("Adopt a discovered device").classes("text-h6")
         name = ui.input("Name in the plant", value=suggested).props("outlined dense")
+        own = [u for u in device_type.can_id_uses(config(suggested).options, "can") if not u.shared]
+        if own:
+            ui.label("CAN IDs it uses: " + "; ".join(f"{format_can_ids(u.first, u.last, u.extended)} {u.use}" for u in own)).classes(
+                "text-caption")
         ui.label("Lines for the plant file:").classes("text-caption text-grey-8")
         lines = ui.code(device_toml(config(suggested)), language="toml").classes("w-full")
         name.on_value_change(lambda e: lines.set_content(device_toml(config(e.value or suggested))))
         writable = path is not None and path.exists() and os.access(path, os.W_OK) and path.resolve() != DEMO_PLANT.resolve()
         note = f"Write appends them to {path}." if writable else "The plant file cannot be written here (built-in or read-only): copy the lines."
         ui.label(note).classes("text-caption")
+        if conflict is not None:
+            ui.label("Cannot be adopted: " + conflict[1].split(": ", 1)[-1]).classes("text-body2 text-negative").props("data-adopt-conflict")
 
         async def take(write: bool) -> None:
             dev = config(name.value or suggested)
@@ -181,8 +209,10 @@ def _adopt_dialog(bus: str, entry: dict, tile_row, tiles: list) -> None:
 
         with ui.row().classes("justify-end w-full"):
             ui.button("Cancel", on_click=dialog.close).props("flat")
-            ui.button("Add to the running plant", on_click=lambda: take(False)).props("outline")
+            add_button = ui.button("Add to the running plant", on_click=lambda: take(False)).props("outline")
             write_button = ui.button("Add and write to the plant file", on_click=lambda: take(True))
-            if not writable:
+            if not writable or conflict is not None:
                 write_button.disable()
+            if conflict is not None:
+                add_button.disable()
     dialog.open()

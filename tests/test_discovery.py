@@ -223,9 +223,60 @@ async def test_on_the_bus_only_the_lock_is_listed():
 def test_codec_asks_for_three_status_frames_one_second_apart():
     """Section 6.5: status "alle 1000 ms", 8 bytes, bytes 0-1 = 0."""
     entry = codec.discovered(660102, True, bytes.fromhex("00 00 17 01 73 00 C4 00"))
-    assert entry["evidence"] == {"period_s": 1.0, "tolerance": codec.STATUS_PERIOD_TOLERANCE, "frames": 3}
+    assert entry["evidence"]["period_s"] == 1.0 and entry["evidence"]["frames"] == 3
+    assert 0 < entry["evidence"]["tolerance"] < 0.5
     assert entry["status"] == codec.StatusFrame(0x0117, 0x73, 3, 4)
     assert codec.discovered(0x703, False, STATUS) is None  # the request block
     assert codec.discovered(0, False, STATUS) is None  # section 6.4: 0 is the broadcast target
     assert codec.discovered(0x123, False, codec.encode_fwu_status(codec.FwuStatusFrame(False, True))) is None
     assert codec.discovered(0x123, False, STATUS[:6]) is None
+
+
+# -- the overview in a real browser --------------------------------------------------------------------
+
+
+def test_overview_lists_the_spare_lock_with_its_evidence_and_adopts_it(tmp_path):
+    """The demo plant's spare lock (a simulated lock not in the plant) at 1440x900 and 1024x768."""
+    from pathlib import Path
+
+    from webutil import demo_plant_text, free_port, running_app
+
+    chromium = Path("/usr/bin/chromium")
+    if not chromium.exists():
+        pytest.skip(f"{chromium} is not installed")
+    from playwright.sync_api import expect, sync_playwright
+
+    shots = Path("/tmp/commission-shots")
+    shots.mkdir(parents=True, exist_ok=True)
+    with running_app(demo_plant_text(free_port()), tmp_path) as url, sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=str(chromium), args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"])
+        try:
+            for width, height in ((1440, 900), (1024, 768)):
+                context = browser.new_context(viewport={"width": width, "height": height})
+                page = context.new_page()
+                page.set_default_timeout(10_000)
+                errors: list[str] = []
+                page.on("pageerror", lambda exc, errors=errors: errors.append(str(exc)))
+                page.goto(url + "/")
+                adopt = page.locator('[data-adopt="660102"]')
+                expect(adopt).to_be_visible()
+                listing = page.locator('[data-discovered="can1"]')
+                expect(listing).to_contain_text("HD-Lock with device ID 660102 (ext 0xA1286)")
+                expect(listing).to_contain_text("3 frames in a row")
+                adopt.scroll_into_view_if_needed()
+                page.screenshot(path=str(shots / f"overview-discovered-{width}.png"))
+                adopt.click()
+                dialog = page.locator(".q-dialog .q-card")
+                expect(dialog).to_contain_text("CAN IDs it uses: 0x000A1286 (ext) HD-Lock device ID 660102")
+                page.wait_for_timeout(400)  # the dialog's opening animation, for the screenshot
+                box = dialog.bounding_box()
+                assert box is not None and box["x"] >= 0 and box["x"] + box["width"] <= width
+                page.screenshot(path=str(shots / f"overview-adopt-{width}.png"))
+                if width == 1024:
+                    page.get_by_role("button", name="Add to the running plant").click()
+                    expect(page.locator('[data-device="hdlock-660102"]')).to_be_visible()
+                    expect(page.locator('[data-adopt="660102"]')).to_have_count(0, timeout=5_000)
+                context.close()
+                assert not errors, f"JavaScript errors on the page: {errors}"
+        finally:
+            browser.close()

@@ -437,6 +437,8 @@ def describe_frame(arbitration_id: int, is_extended: bool, data: bytes, lock_ids
 STATUS_PERIOD_S = 1.0  # section 6.5: a lock sends its status "alle 1000 ms"
 STATUS_PERIOD_TOLERANCE = 0.3  # section 6.5 gives no tolerance: 0.7-1.3 s between two status frames counts as "about 1 s"
 DISCOVERY_FRAMES = 3  # section 6.5.1 (status repeated every 1 s): three in a row at that period before a lock is listed
+DISCOVERY_EVIDENCE = {"period_s": STATUS_PERIOD_S, "tolerance": STATUS_PERIOD_TOLERANCE, "frames": DISCOVERY_FRAMES,
+                      "text": "status frames"}
 
 
 def discovered(arbitration_id: int, is_extended: bool, data: bytes) -> dict | None:
@@ -453,5 +455,5 @@ def discovered(arbitration_id: int, is_extended: bool, data: bytes) -> dict | No
     status = decode_lock_frame(data)
     return {
         "type": "hdlock", "device_id": arbitration_id, "extended": is_extended, "summary": describe_lock_frame(data), "status": status,
-        "evidence": {"period_s": STATUS_PERIOD_S, "tolerance": STATUS_PERIOD_TOLERANCE, "frames": DISCOVERY_FRAMES},
+        "evidence": DISCOVERY_EVIDENCE,
     }
