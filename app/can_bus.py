@@ -14,7 +14,7 @@ import asyncio
 import logging
 import threading
 import time
-from collections import deque
+from collections import OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -75,7 +75,7 @@ class CanBusState(BusState):
     tx_errors: int = 0
     dropped: int = 0
     frames: deque = field(default_factory=lambda: deque(maxlen=MONITOR_FRAMES))
-    ids: dict[Key, IdStats] = field(default_factory=dict)
+    ids: OrderedDict[Key, IdStats] = field(default_factory=OrderedDict)  # least recently heard first
     recorder: Any = None  # a python-can writer while recording
 
 
@@ -279,10 +279,12 @@ class CanBus:
         key = (msg.is_extended_id, msg.arbitration_id)
         stats = state.ids.get(key)
         if stats is None:
-            if len(state.ids) >= MAX_IDS:  # a flood of random IDs must not grow memory without bound
-                state.ids.pop(min(state.ids, key=lambda k: state.ids[k].last_time))
+            if len(state.ids) >= MAX_IDS:  # a flood of random IDs must not grow memory without bound:
+                state.ids.popitem(last=False)  # the ID heard least recently goes, in O(1)
             stats = state.ids[key] = IdStats()
-        elif stats.count:
+        else:
+            state.ids.move_to_end(key)
+        if stats.count:
             stats.period = now - stats.last_time
             old = stats.data
             changed = 0
