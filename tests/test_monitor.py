@@ -460,7 +460,7 @@ async def test_can_monitor_page(env: Env, tmp_path: Path):
     assert recording is not None and recording.path.suffix == ".asc"
     await eventually(lambda: recording.frames >= 4 and recording.elapsed > 1.3, timeout=6)  # status every 1 s
     user.find(marker="stop").click()
-    assert rec.active_recording(state) is None and not recording.active
+    await eventually(lambda: rec.active_recording(state) is None and not recording.active, timeout=5)  # closed in a thread
     await user.should_see(f"Saved {recording.frames} frames")
     assert recording.path.parent == tmp_path / "recordings"
     await user.should_see(kind=ui.label, content=recording.path.name)  # in the list of recordings
