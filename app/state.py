@@ -1,4 +1,4 @@
-"""Live state of every device: register values with timestamps, counters, history, events.
+"""Live state of every device: register values and live points with timestamps, counters, history, events.
 
 Written only by the bus worker; read by pages and the API. No UI imports.
 """
@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from devices.params import Param, ParamMap
+
+_now = time.time
 
 HISTORY_SECONDS = 600  # charts show "the last minutes"
 EVENT_LIMIT = 200
@@ -49,6 +51,25 @@ class Event:
     text: str
 
 
+QUALITIES = ("good", "stale", "offline", "unknown")
+
+
+@dataclass
+class Point:
+    """One live value as the adapter decoded it (value, unit, time heard, raw word, text or enum name).
+
+    ``periodic`` points arrive by themselves and age; the others (service parameters, identity)
+    are read on demand and stay good while the device is online.
+    """
+
+    value: Any
+    unit: str = ""
+    time: float | None = None
+    raw: Any = None
+    text: str | None = None
+    periodic: bool = True
+
+
 @dataclass
 class DeviceState:
     name: str
@@ -66,6 +87,8 @@ class DeviceState:
     events: deque = field(default_factory=lambda: deque(maxlen=EVENT_LIMIT))
     unsaved: set[str] = field(default_factory=set)  # parameter keys written since Save-Settings
     info: dict[str, Any] = field(default_factory=dict)  # adapter-specific live facts
+    points: dict[str, Point] = field(default_factory=dict)  # live points by the document's names
+    registers_periodic: bool = True  # False: register values are read on demand (they do not age)
 
     # -- written by adapters -------------------------------------------------------
     def update_registers(self, space: str, start: int, values: list[int], now: float | None = None) -> None:
@@ -73,6 +96,11 @@ class DeviceState:
         for offset, value in enumerate(values):
             self.registers[(space, start + offset)] = (int(value) & 0xFFFF, now)
         self.mark_seen(now)
+
+    def publish(self, name: str, value: Any, unit: str = "", *, raw: Any = None, text: str | None = None,
+                time: float | None = None, periodic: bool = True) -> None:
+        """Record the live point ``name`` (O(1); one record per name, replaced on every update)."""
+        self.points[name] = Point(value, unit, _now() if time is None else time, raw, text, periodic)
 
     def mark_seen(self, now: float | None = None) -> None:
         self.online = True
@@ -108,6 +136,25 @@ class DeviceState:
             return "stale"
         return "online"
 
+    def quality(self, read_time: float | None, periodic: bool = True, now: float | None = None) -> str:
+        """The one place quality is derived: "good", "stale", "offline" or "unknown"."""
+        if self.online is None or read_time is None:
+            return "unknown"
+        if not self.online:
+            return "offline"
+        if periodic and (_now() if now is None else now) - read_time > self.stale_after:
+            return "stale"
+        return "good"
+
+    def point(self, name: str) -> dict[str, Any] | None:
+        """One live point as the API shows it (with its quality), or None if never published."""
+        p = self.points.get(name)
+        return None if p is None else self._point_entry(p, _now())
+
+    def _point_entry(self, p: Point, now: float) -> dict[str, Any]:
+        return {"value": p.value, "unit": p.unit, "time": p.time, "quality": self.quality(p.time, p.periodic, now),
+                "raw": p.raw, "text": p.text}
+
     @property
     def age(self) -> float | None:
         return None if self.last_seen is None else max(0.0, time.time() - self.last_seen)
@@ -134,11 +181,10 @@ class DeviceState:
         return None if raw is None else param.decode(raw)
 
     def values(self) -> dict[str, dict[str, Any]]:
-        """Every known parameter by name: decoded value, raw, unit, text, read time."""
+        """Every known parameter and live point by name: decoded value, raw, unit, text, read time, quality."""
         result: dict[str, dict[str, Any]] = {}
-        if self.params is None:
-            return result
-        for param in self.params:
+        now = _now()
+        for param in self.params if self.params is not None else ():
             raw = self.raw(param)
             if raw is None:
                 continue
@@ -152,12 +198,26 @@ class DeviceState:
                 "access": param.access.value,
                 "time": self.read_time(param),
             }
+            entry["quality"] = self.quality(entry["time"], self.registers_periodic, now)
             if param.enum is not None:
                 entry["name"] = param.enum_name(raw)
             if param.fields:
                 entry["fields"] = param.field_values(raw)
             result[param.label or param.name] = entry
+        for name, p in self.points.items():
+            result[name] = self._point_entry(p, now)
         return result
+
+    def history_since(self, seconds: float, now: float | None = None) -> list[tuple[float, dict[str, Any]]]:
+        """The recorded samples of the last ``seconds`` (the charts' data), oldest first; O(returned)."""
+        cutoff = (_now() if now is None else now) - seconds
+        newest: list[tuple[float, dict[str, Any]]] = []
+        for sample in reversed(self.history):
+            if sample[0] < cutoff:
+                break
+            newest.append(sample)
+        newest.reverse()
+        return newest
 
     def summary(self) -> dict[str, Any]:
         return {

@@ -2,22 +2,27 @@
 
 from __future__ import annotations
 
+import csv
 import importlib
+import io
 import ipaddress
 import logging
 import secrets
 import socket
 import uuid
 from pathlib import Path
+from typing import Any, Literal
 from urllib.parse import quote, urlsplit
 
-from fastapi import HTTPException, Request
-from fastapi.responses import JSONResponse, PlainTextResponse, RedirectResponse
+from fastapi import HTTPException, Query, Request
+from fastapi.responses import JSONResponse, PlainTextResponse, RedirectResponse, Response
 from nicegui import app, core, ui
+from pydantic import BaseModel, Field
 from starlette.middleware.base import BaseHTTPMiddleware
 
 from app import runtime as rt
 from app.runtime import Runtime
+from app.state import HISTORY_SECONDS
 
 log = logging.getLogger(__name__)
 
@@ -231,16 +236,108 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
             return
         monitor.content(bus)
 
-    @app.get("/api/devices")
+    # the JSON API is described at /docs (Swagger UI), /redoc and /openapi.json, behind the same login
+    app.docs_url, app.redoc_url, app.openapi_url = "/docs", "/redoc", "/openapi.json"
+    app.setup()
+
+    @app.get("/api/devices", response_model=list[DeviceSummary])
     def api_devices() -> list[dict]:
+        """Every device of the plant: status and counters, without values."""
         return [_summary(s) for s in runtime.store.devices.values()]
 
-    @app.get("/api/devices/{name}")
+    @app.get("/api/devices/{name}", response_model=DeviceDetail)
     def api_device(name: str) -> dict:
-        state = runtime.store.devices.get(name)
-        if state is None:
-            raise HTTPException(status_code=404, detail=f"no device named {name!r}")
+        """One device with every known value, keyed by the device document's names."""
+        state = _device(runtime, name)
         return {**_summary(state), "values": state.values()}
+
+    @app.get(
+        "/api/devices/{name}/history",
+        response_model=History,
+        responses={200: {"content": {"text/csv": {"schema": {"type": "string"}}},
+                         "description": "the samples as JSON, or as CSV with ?format=csv (one column per series)"}},
+    )
+    def api_history(name: str, seconds: float = Query(60.0, gt=0, le=HISTORY_SECONDS),
+                    format: str = Query("json", pattern="^(json|csv)$")):
+        """The recorded time series of the last ``seconds`` (the data the device page's charts show)."""
+        state = _device(runtime, name)
+        samples = state.history_since(seconds)
+        series = _series(samples)
+        if format == "csv":
+            return Response(_history_csv(series, samples), media_type="text/csv",
+                            headers={"Content-Disposition": f'attachment; filename="{name}-history.csv"'})
+        return {"name": name, "seconds": seconds, "series": series,
+                "samples": [{"time": t, "values": values} for t, values in samples]}
+
+
+# -- JSON API response models (documented at /docs) ---------------------------------------------
+
+
+class DeviceSummary(BaseModel):
+    name: str
+    type: str
+    bus: str
+    online: bool
+    status: str = Field(description='"online", "stale", "offline" or "unknown" (never asked)')
+    last_seen: float | None = Field(description="Unix time of the last answer or frame")
+    counters: dict[str, int]
+    last_error: str
+
+
+class Value(BaseModel):
+    """One value: a live point or a register parameter."""
+
+    value: Any = Field(description="decoded: signed, scaled; null while not measurable (see text)")
+    unit: str = ""
+    time: float | None = Field(None, description="Unix time it was read or heard")
+    quality: Literal["good", "stale", "offline", "unknown"]
+    raw: Any = Field(None, description="the word(s) on the wire, where the device has one")
+    text: str | None = Field(None, description="as shown on the device page (enum name, state, 'out of range')")
+    name: str | None = Field(None, description="enum name (register parameters)")
+    fields: dict[str, int] | None = Field(None, description="bit fields (register parameters)")
+    address: int | None = None
+    space: str | None = None
+    access: str | None = None
+
+
+class DeviceDetail(DeviceSummary):
+    values: dict[str, Value]
+
+
+class Sample(BaseModel):
+    time: float
+    values: dict[str, float | int | bool | None]
+
+
+class History(BaseModel):
+    name: str
+    seconds: float
+    series: list[str] = Field(description="every series name that occurs, in order of first appearance")
+    samples: list[Sample]
+
+
+def _device(runtime: Runtime, name: str):
+    state = runtime.store.devices.get(name)
+    if state is None:
+        raise HTTPException(status_code=404, detail=f"no device named {name!r}")
+    return state
+
+
+def _series(samples: list[tuple[float, dict]]) -> list[str]:
+    names: dict[str, None] = {}
+    for _t, values in samples:
+        for key in values:
+            names.setdefault(key)
+    return list(names)
+
+
+def _history_csv(series: list[str], samples: list[tuple[float, dict]]) -> str:
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["time", *series])
+    for t, values in samples:
+        writer.writerow([f"{t:.3f}", *("" if values.get(k) is None else values[k] for k in series)])
+    return out.getvalue()
 
 
 def _summary(state) -> dict:

@@ -45,6 +45,16 @@ class ElectrakAdapter:
     params = PARAMS
     transport = "can"
 
+    @property
+    def command(self) -> codec.ControlFrame:
+        return self._command
+
+    @command.setter
+    def command(self, frame: codec.ControlFrame) -> None:
+        self._command = frame
+        if hasattr(self, "key"):  # after __init__: every change of the control telegram is a new point
+            self._publish_command()
+
     def __init__(self, config, state: DeviceState, bus):
         self.config = config
         self.state = state
@@ -71,6 +81,9 @@ class ElectrakAdapter:
         bus.subscribe(False, codec.SERVICE_RESPONSE_ID, self.on_service)
         bus.subscribe(False, codec.CONTROL_ID, self.on_control)
         self.key = f"electrak control {config.name}"
+        self.state.registers_periodic = False  # service parameters are read on demand
+        self.state.publish("Devices configured", len(self.actuators), periodic=False)
+        self._publish_command()
 
     # -- status ----------------------------------------------------------------------------
     def on_status(self, msg) -> None:
@@ -96,6 +109,7 @@ class ElectrakAdapter:
             info["motion"] |= f.motion
             info["errors"] |= f.errors
         self._watch_saturated(info["motion"] & 0x04, time.monotonic())
+        self._publish_status(recent, info["motion"], info["errors"], now)
         if now - self._last_sample >= 0.09 and recent:
             self._last_sample = now
             self.state.add_history({
@@ -104,6 +118,38 @@ class ElectrakAdapter:
                 "Speed [mm/s]": round(sum(f.speed_mm_s for f in recent) / len(recent), 1),
                 "Target [mm]": self.command.position_mm,
             }, now)
+
+    def _publish_status(self, recent: list[codec.StatusFrame], motion: int, errors: int, now: float) -> None:
+        """Live points of the network: averages (the frames cannot be told apart), raw words per frame, flags by name."""
+        publish = self.state.publish
+        if recent:
+            n = len(recent)
+            publish("Position", round(sum(f.position_mm for f in recent) / n, 1), "mm", time=now,
+                    raw=[round(f.position_mm * 10) for f in recent], text="mean of the actuators heard")
+            publish("Current", max(f.current_a for f in recent), "A", time=now,
+                    raw=[round(f.current_a * 10) for f in recent], text="highest of the actuators heard")
+            publish("Speed", round(sum(f.speed_mm_s for f in recent) / n, 1), "mm/s", time=now,
+                    raw=[round(f.speed_mm_s * 10) for f in recent], text="mean of the actuators heard")
+        publish("Motion flags", motion, time=now, raw=motion,
+                text=", ".join(name for bit, (name, _) in codec.MOTION_FLAGS.items() if motion >> bit & 1) or "none")
+        publish("Error flags", errors, time=now, raw=errors,
+                text=", ".join(name for bit, (name, _, _) in codec.ERROR_FLAGS.items() if errors >> bit & 1) or "none")
+        for bit, (name, _) in codec.MOTION_FLAGS.items():
+            publish(name, bool(motion >> bit & 1), time=now, raw=motion >> bit & 1)
+        for bit, (name, *_) in codec.ERROR_FLAGS.items():
+            publish(name, bool(errors >> bit & 1), time=now, raw=errors >> bit & 1)
+        publish("Devices heard", self.state.info["heard"], time=now, text=f"status telegrams per 100 ms, {len(self.actuators)} configured")
+
+    def _publish_command(self) -> None:
+        """What this tool sends in the control telegram 0x06 (commanded, so it does not age)."""
+        c, publish = self.command, self.state.publish
+        publish("Target position", c.position_mm, "mm", periodic=False)
+        publish("Target speed", c.speed_mm_s, "mm/s", periodic=False)
+        publish("Current limit", c.current_a, "A", periodic=False, text="calibrated default" if not c.current_a else None)
+        publish("Enable", c.enable, periodic=False)
+        publish("Override", c.override, periodic=False)
+        publish("Controlled by", self.controller.user if self.controller else None, periodic=False,
+                text=None if self.controller else "nobody")
 
     def _watch_saturated(self, saturated: int, now: float) -> None:
         """The document asks that Saturated does not stay set when driven over CAN ("Bewegungs-Flags")."""
@@ -175,6 +221,7 @@ class ElectrakAdapter:
             raise ControlBusy(f"{self.controller.user} took control meanwhile")
         self.controller = Controller(session, user, time.time())
         self.state.info["controlled_by"] = user
+        self._publish_command()
         self.command = codec.ControlFrame(self.command.position_mm, self.command.current_a, self.command.speed_mm_s, enable=False)
         self.bus.start_cyclic(self.key, codec.CONTROL_PERIOD_S, self._control_frame)
         self.state.event("info", f"{user} took control (no other sender of 0x06 heard for {codec.LISTEN_S:g} s); "
@@ -189,6 +236,7 @@ class ElectrakAdapter:
         self.bus.send(*self._control_frame())
         self.controller = None
         self.state.info["controlled_by"] = None
+        self._publish_command()
         self.state.event(level, f"control {reason} ({user}): enable cleared, control telegrams stopped")
 
     def release_control(self, session: str, reason: str = "released") -> bool:

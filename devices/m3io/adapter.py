@@ -87,6 +87,7 @@ class M3ioAdapter:
             self.served = True
             self.bus.start_cyclic(self.key, codec.DIGOUT_PERIOD_S, self._dig_out)
             self.state.event("info", f"serving the watchdog: DigOut 0x{self.ids.dig_out:03X} every 500 ms")
+            self._publish()
         now = time.time()
         if self.last_answer is None or now - self.last_answer > OFFLINE_AFTER_S:
             if self.last_answer is not None and self._gone_since is None:
@@ -142,6 +143,9 @@ class M3ioAdapter:
             return
         self.state.counters.responses += 1
         self._seen()
+        raw = bytes(msg.data)[0]
+        for name, on in self.inputs.items():
+            self.state.publish(name, on, raw=raw, time=self.last_answer)
 
     def on_temps(self, msg) -> None:
         first = 1 if msg.arbitration_id == self.ids.temp14 else 5
@@ -161,6 +165,7 @@ class M3ioAdapter:
             monitor.update(word, self.channel_on(channel))
             if monitor.cleared:
                 self.state.event("info", f"SSR{channel} fuse fault cleared: {monitor.cleared}")
+            self._publish_channel(channel, word, self.last_answer)
         self._publish()
         if first == 5 or self.variant is Variant.HMR:
             sample = {}
@@ -181,8 +186,17 @@ class M3ioAdapter:
         if future is not None and not future.done():
             future.set_result(answer)
 
+    def _publish_channel(self, channel: int, word: codec.TempWord, now: float) -> None:
+        """Live points of one temperature word: TEMPx (not on HMR t2/t3, which carry TEMP1) and SSRx Last/Si/Triac (7.2.2, 7.2.3)."""
+        publish, monitor = self.state.publish, self.channels[channel]
+        if channel in self.temp_channels():
+            publish(f"TEMP{channel}", word.celsius if word.in_range else None, "°C", raw=word.raw, text=word.text(), time=now)
+        publish(f"SSR{channel} Last", word.load, raw=int(word.load), text=monitor.load, time=now)
+        publish(f"SSR{channel} Si", monitor.fuse, raw=int(word.fuse), text=f"fuse {monitor.fuse}", time=now)
+        publish(f"SSR{channel} Triac", monitor.triac, raw=int(word.triac), text=f"triac {monitor.triac}", time=now)
+
     def _publish(self) -> None:
-        """Facts for tiles and the plant view."""
+        """Facts for tiles and the plant view, and the commanded state as live points."""
         faults = []
         if self.variant_check.state == "mismatch":
             faults.append(f"variant mismatch: {codec.product_name(self.product_code)} on the bus, {self.variant.value} in the plant file")
@@ -197,6 +211,15 @@ class M3ioAdapter:
         self.state.info["faults"] = faults
         self.state.info["outputs_on"] = [name for name, on in self.outputs.items() if on]
         self.state.info["variant_check"] = {"state": self.variant_check.state, "text": self.variant_check.text}
+        publish = self.state.publish  # what this tool commands does not age while the module is online
+        for name, on in self.outputs.items():
+            publish(name, on, periodic=False, text="on" if on else "off")
+        publish("Watchdog", self.served, periodic=False,
+                text="served: DigOut every 500 ms" if self.served else "not served: outputs are off in the module")
+        publish("Variant check", self.variant_check.state, periodic=False, text=self.variant_check.text)
+        if self.variant is Variant.HMR:
+            publish("P2", self.two_phase, periodic=False, text="two-phase load" if self.two_phase else "three-phase load")
+        publish("Faults", len(faults), periodic=False, text="; ".join(faults) or "none")
 
     def group_load_fault(self) -> str | None:
         """HMR, SSR1-3 switched on: three phases must report a load, exactly two with P2 (4.3)."""
@@ -312,6 +335,11 @@ class M3ioAdapter:
         }
         self.info.update(info)
         self.state.info["identity"] = info
+        publish = self.state.publish  # read on demand: does not age while online
+        publish("Serial number", info["serial"], raw=serial.payload.hex(" "), periodic=False)
+        publish("Product code", code, raw=code, text=info["product"], periodic=False)
+        publish("Software version", info["version"], raw=raw_version, periodic=False)
+        publish("Configuration", info["config"], raw=info["config"], text=f"0x{info['config']:02X}", periodic=False)
         self._set_product(code)
         return info
 
@@ -320,6 +348,7 @@ class M3ioAdapter:
             raise CommandError(f"customer record {index} is outside 1..15")
         answer = await self._request(codec.AREA_READ_CUSTOMER, index)
         self.state.info.setdefault("customer", {})[index] = answer.payload
+        self._publish_customer(index, answer.payload)
         return answer.payload
 
     async def write_customer(self, index: int, payload: bytes) -> bytes:
@@ -330,6 +359,7 @@ class M3ioAdapter:
             raise CommandError(f"a customer record holds 6 bytes, got {len(payload)}")
         answer = await self._request(codec.AREA_WRITE_CUSTOMER, index, payload)
         self.state.info.setdefault("customer", {})[index] = answer.payload
+        self._publish_customer(index, answer.payload)
         if answer.payload != codec.pad6(payload):
             self.state.counters.write_errors += 1
             raise CommandError(
@@ -345,7 +375,13 @@ class M3ioAdapter:
             answer = await self._request(codec.AREA_LOAD_DATA, index)
             result[index] = codec.TempWord(codec.decode_u16(answer.payload))
         self.state.info["load_data"] = result
+        for index, word in result.items():  # area 5: actual load data of SSR 1-6 (7.2.4.2)
+            self.state.publish(f"SSR{index} load data", word.load, raw=word.raw,
+                               text=f"Last {int(word.load)}, Triac {int(word.triac)}, Si {int(word.fuse)}", periodic=False)
         return result
+
+    def _publish_customer(self, index: int, payload: bytes) -> None:
+        self.state.publish(f"Customer data {index}", payload.hex(" "), raw=list(payload), periodic=False)
 
     # -- backup and restore (app/backup.py) ------------------------------------------------------
     @property
