@@ -12,6 +12,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 
+from devices import values
+
 
 class Access(str, Enum):
     """Access classes as printed in the device documents."""
@@ -94,6 +96,25 @@ class Param:
     @property
     def bits(self) -> int:
         return 16 * self.words
+
+    @property
+    def value_type(self) -> values.ValueType:
+        """This parameter as a typed value of :mod:`devices.values` (decodes the same numbers).
+
+        The bytes are those of a Modbus register: ``words`` 16-bit words, high word first,
+        each big-endian (see :func:`devices.values.words_to_bytes`). Bit fields give
+        :class:`~devices.values.Bits`, an enum :class:`~devices.values.Enum`, a scale
+        :class:`~devices.values.Scaled`.
+        """
+        if self.fields:
+            bits = tuple(values.BitField(f.name, f.shift, f.width, description=f.description) for f in self.fields)
+            return values.Bits(values.register_type(self.words, signed=False), bits)
+        base = values.register_type(self.words, self.signed)
+        if self.scale != 1:
+            return values.Scaled(base, self.scale, self.unit)
+        if self.enum is not None:
+            return values.Enum(base, self.enum)
+        return base
 
     # -- conversions -----------------------------------------------------------------
     def combine(self, words: list[int]) -> int:
