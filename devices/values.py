@@ -84,6 +84,9 @@ class EnumValue(int):
         obj.name = name
         return obj
 
+    def __getnewargs__(self):  # copy, deepcopy and pickle
+        return int(self), self.name
+
     def __repr__(self) -> str:
         return f"{int(self)} ({self.name or 'undefined'})"
 
@@ -100,6 +103,9 @@ class FlagsValue(int):
 
     def __getitem__(self, name: str):
         return self.fields[name]
+
+    def __getnewargs__(self):  # copy, deepcopy and pickle
+        return int(self), self.fields
 
     @property
     def active(self) -> list[str]:

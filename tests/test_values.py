@@ -8,8 +8,11 @@ directory (document 002, section 4.3 and 7) and the MO 64 telegram fields
 
 from __future__ import annotations
 
+import copy
 import dataclasses
+import json
 import math
+import pickle
 
 import pytest
 
@@ -416,3 +419,13 @@ def test_value_type_is_no_field_of_param():
     assert "value_type" not in {f.name for f in dataclasses.fields(Param)}
     p = Param("X", "holding", 1, scale=0.5, unit="V")
     assert p.value_type == v.Scaled(v.U16BE, 0.5, "V") and p.value_type.decode(h("00 03")) == p.decode(3)
+
+
+def test_decoded_values_copy_pickle_and_serialise_as_numbers():
+    status = BARRIER_STATUS.decode(h("02 02 08 81 20 AA"))
+    state = GATE_STATE.decode(h("05"))
+    for clone in (copy.deepcopy((status, state)), pickle.loads(pickle.dumps((status, state)))):
+        assert clone == (status, state)
+        assert clone[0]["status"].active == status["status"].active and clone[1].name == "closed"
+    assert json.loads(json.dumps({"gate": state, "status": status["status"]})) == {
+        "gate": 5, "status": int(status["status"])}
