@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import re
 import time
 from dataclasses import dataclass
 
@@ -62,6 +63,13 @@ class LineClosed(LineError):
 
 @dataclass
 class Transaction:
+    """One request on the line as the bus monitor lists it.
+
+    ``space``, ``address`` and ``values`` carry what the monitor decodes through the device's
+    parameter model: the register space and first address asked, and the register values of
+    the answer (for a write without one, the value written).
+    """
+
     time: float
     unit: int
     request: str
@@ -70,6 +78,21 @@ class Transaction:
     decoded: str
     rtt_ms: float | None
     error: str
+    space: str = ""
+    address: int | None = None
+    values: tuple[int, ...] = ()
+
+
+# "read holding 3000+12", "write holding 3006=65476", "scan holding 103", "broadcast write holding 2000=8"
+_TARGET = re.compile(r"\b(holding|input) (\d+)(?:\+\d+|=(\d+))?")
+
+
+def request_target(what: str) -> tuple[str, int | None, int | None]:
+    """``(space, address, value written)`` named by a request text, or ``("", None, None)``."""
+    m = _TARGET.search(what)
+    if m is None:
+        return "", None, None
+    return m.group(1), int(m.group(2)), None if m.group(3) is None else int(m.group(3))
 
 
 class ModbusLine:
@@ -209,6 +232,13 @@ class ModbusLine:
                     counters.responses += 1
             elif response is not None and counters:
                 counters.responses += 1
+            space, address, written = request_target(what)
+            answered = response is not None and not error
+            registers = getattr(response, "registers", None) if answered else None
+            if registers is not None:
+                values = tuple(int(v) for v in registers)
+            else:
+                values = (written,) if written is not None and not error else ()
             self.state.transactions.append(
                 Transaction(
                     time=time.time(),
@@ -216,9 +246,12 @@ class ModbusLine:
                     request=what,
                     request_hex=" ".join(b.hex(" ") for b in self._tx),
                     response_hex=" ".join(b.hex(" ") for b in self._rx),
-                    decoded=_describe(response) if response is not None and not error else "",
+                    decoded=_describe(response) if answered else "",
                     rtt_ms=round(rtt, 2) if response is not None else None,
                     error=error,
+                    space=space,
+                    address=address,
+                    values=values,
                 )
             )
             if error:

@@ -8,7 +8,9 @@ are read back with :class:`can.LogReader` into :class:`~app.can_bus.FrameRecord`
 
 Decoding and filtering are plain functions of ``(arbitration_id, is_extended, data)``
 that ask the device codecs (``describe_frame``) and the device adapters
-(``owns_frame``). No UI here.
+(``owns_frame``), which also name the device that sent or answered a frame. Modbus
+transactions are decoded through the parameter model of the device at their unit
+(:class:`TransactionDecoder`). No UI here.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from can.io.csv import CSVWriter
 from can.util import channel2int
 
 from app.can_bus import CanBusState, FrameRecord
+from devices.params import ParamMap
 from devices.registry import DEVICE_TYPES
 
 # suffix -> (writer class, what the engineer sees in the format select)
@@ -406,12 +409,37 @@ def describe(arbitration_id: int, is_extended: bool, data: bytes, known_ids: set
 
 
 class FrameDecoder:
-    """:func:`describe` with the codecs resolved once and a bounded cache of texts."""
+    """:func:`describe` with the codecs resolved once and a bounded cache of texts; with
+    ``owners`` (:func:`device_owners`) it also names the device of a frame (:meth:`device`)."""
 
-    def __init__(self, known_ids: set[Key] | None = None, codecs: Iterable[ModuleType] | None = None):
+    def __init__(self, known_ids: set[Key] | None = None, codecs: Iterable[ModuleType] | None = None,
+                 owners: Iterable[tuple[str, Owner]] = ()):
         self.known_ids: set[Key] = set(known_ids or ())
         self.codecs = list(can_codecs() if codecs is None else codecs)
+        self.owners: list[tuple[str, Owner]] = list(owners)
         self._cache: dict[tuple[bool, int, bytes], str] = {}
+        self._devices: dict[tuple[bool, int, bytes], str] = {}
+
+    def set_owners(self, owners: Iterable[tuple[str, Owner]]) -> None:
+        owners = list(owners)
+        if [name for name, _ in owners] != [name for name, _ in self.owners]:
+            self._devices.clear()
+        self.owners = owners
+
+    def device(self, arbitration_id: int, is_extended: bool, data: bytes) -> str:
+        """The plant name(s) of the device(s) a frame comes from or is addressed to, else ``""``."""
+        key = (is_extended, arbitration_id, data)
+        name = self._devices.get(key)
+        if name is None:
+            if len(self._devices) >= MAX_CACHE:
+                self._devices.clear()
+            name = self._devices[key] = device_of(self.owners, arbitration_id, is_extended, data)
+        return name
+
+    def record_device(self, rec: FrameRecord) -> str:
+        if rec.is_error_frame:
+            return ""
+        return self.device(rec.arbitration_id, rec.is_extended_id, b"" if rec.is_remote_frame else rec.data)
 
     def set_codecs(self, codecs: Iterable[ModuleType]) -> None:
         codecs = list(codecs)
@@ -423,6 +451,7 @@ class FrameDecoder:
         if known_ids != self.known_ids:
             self.known_ids = set(known_ids)
             self._cache.clear()
+            self._devices.clear()  # a device ID changed (Set Device Address) or a device was adopted
 
     def __call__(self, arbitration_id: int, is_extended: bool, data: bytes) -> str:
         key = (is_extended, arbitration_id, data)
@@ -494,6 +523,133 @@ def owner_of(adapter: Any) -> Owner:
             return False
 
     return safe
+
+
+MAX_DEVICE_NAMES = 3  # a broadcast request names at most this many devices, then counts the rest
+
+
+def device_owners(worker: Any, bus: str) -> list[tuple[str, Owner]]:
+    """``(plant name, owner)`` for every device on a CAN bus.
+
+    The owner is the adapter's ``owns_frame`` (frames it sends and requests addressed to it),
+    else the CAN IDs its device type declares for it (``DeviceType.can_id_uses``).
+    """
+    owners: list[tuple[str, Owner]] = []
+    for dev in worker.plant.devices_on(bus):
+        adapter = worker.adapters.get(dev.name)
+        if callable(getattr(adapter, "owns_frame", None)):
+            owners.append((dev.name, owner_of(adapter)))
+            continue
+        device_type = DEVICE_TYPES.get(dev.type)
+        uses = device_type.can_id_uses(dev.options, "can") if device_type is not None else ()
+        if uses:
+            owners.append((dev.name, lambda can_id, ext, _data, uses=uses: any(u.covers(ext, can_id) for u in uses)))
+    return owners
+
+
+def device_of(owners: Iterable[tuple[str, Owner]], arbitration_id: int, is_extended: bool, data: bytes) -> str:
+    """The names of the devices that own a frame (one, or several for a broadcast), else ``""``."""
+    names = [name for name, owns in owners if owns(arbitration_id, is_extended, data)]
+    if len(names) > MAX_DEVICE_NAMES:
+        return ", ".join(names[:MAX_DEVICE_NAMES]) + f" +{len(names) - MAX_DEVICE_NAMES}"
+    return ", ".join(names)
+
+
+# -- Modbus transactions ------------------------------------------------------------------------------
+
+MAX_DECODED_REGISTERS = 16  # registers named in one transaction's text; the rest are counted
+
+
+def describe_registers(params: ParamMap, space: str, address: int, values: Iterable[int]) -> str:
+    """Registers from ``address`` on as ``Name = value`` through the parameter model (signed, scaled,
+    enum and bit names, unit); a value of several words is joined; unlisted registers by number."""
+    values = [int(v) & 0xFFFF for v in values]
+    parts: list[str] = []
+    i = 0
+    while i < len(values) and len(parts) < MAX_DECODED_REGISTERS:
+        addr = address + i
+        param = params.get(space, addr)
+        if param is not None and param.words > 1 and i + param.words <= len(values):
+            raw = param.combine(values[i:i + param.words])
+            parts.append(f"{param.label or param.name} = {param.display(raw)}")
+            i += param.words
+            continue
+        if param is not None and param.words == 1:
+            parts.append(f"{param.label or param.name} = {param.display(values[i])}")
+        elif param is not None:
+            parts.append(f"{param.label or param.name} (first word) = {values[i]}")
+        else:
+            whole = next((p for p in params.space(space) if addr in p.addresses), None)
+            parts.append(f"{whole.label or whole.name} (word {addr - whole.address + 1} of {whole.words}) = {values[i]}"
+                         if whole is not None else f"{space} {addr} = {values[i]}")
+        i += 1
+    if i < len(values):
+        parts.append(f"... {len(values) - i} more")
+    return "; ".join(parts)
+
+
+class TransactionDecoder:
+    """Names the device at a Modbus unit and decodes a transaction through its parameter model.
+
+    The unit of a device is its adapter's current ``address`` (it follows a Set Modbus Address),
+    else its type's ``bus_identity``. A unit no configured device has (a line scan) is decoded with
+    the parameter model of the line's device type when the line carries one type only.
+    """
+
+    def __init__(self, worker: Any, bus: str):
+        self.worker = worker
+        self.bus = bus
+        self.units: dict[int, tuple[str, ParamMap | None]] = {}
+        self.line_params: ParamMap | None = None
+        self._cache: dict[tuple, str] = {}
+        self.refresh()
+
+    def refresh(self) -> None:
+        """Read the units again (an address may have changed)."""
+        bus_config = self.worker.plant.buses.get(self.bus)
+        bus_type = bus_config.type if bus_config is not None else "modbus-rtu"
+        units: dict[int, tuple[str, ParamMap | None]] = {}
+        types: set[str] = set()
+        for dev in self.worker.plant.devices_on(self.bus):
+            device_type = DEVICE_TYPES.get(dev.type)
+            types.add(dev.type)
+            unit = getattr(self.worker.adapters.get(dev.name), "address", None)
+            if not isinstance(unit, int) and device_type is not None:
+                unit = device_type.bus_identity(dev.options, bus_type)
+            if isinstance(unit, int):
+                units[unit] = (dev.name, device_type.params if device_type is not None else None)
+        line_params = DEVICE_TYPES[next(iter(types))].params if len(types) == 1 and next(iter(types)) in DEVICE_TYPES else None
+        if units != self.units or line_params is not self.line_params:
+            self.units, self.line_params = units, line_params
+            self._cache.clear()
+
+    def device(self, unit: int) -> str:
+        """``door-1 (unit 1)``; ``broadcast (unit 0)``; ``unit 7`` for an address no device has."""
+        if unit in self.units:
+            return f"{self.units[unit][0]} (unit {unit})"
+        if unit in (0, 255):  # Modbus broadcast 0; 255 broadcast of the HD-Lock's Set Modbus Address (section 4.3)
+            return f"broadcast (unit {unit})"
+        return f"unit {unit}"
+
+    def decoded(self, t: Any) -> str:
+        """The transaction's registers by name and value, else the line's own text."""
+        if getattr(t, "error", "") or not getattr(t, "space", "") or getattr(t, "address", None) is None or not t.values:
+            return t.decoded
+        params = self.units[t.unit][1] if t.unit in self.units else self.line_params
+        if params is None:
+            return t.decoded
+        write = "write" in t.request.split()
+        key = (t.unit, t.space, t.address, t.values, write)
+        text = self._cache.get(key)
+        if text is None:
+            if len(self._cache) >= MAX_CACHE:
+                self._cache.clear()
+            try:
+                body = describe_registers(params, t.space, t.address, t.values)
+            except Exception as exc:  # noqa: BLE001 - a model bug must not take the monitor down
+                body = f"decode failed: {exc}"
+            text = self._cache[key] = ("wrote " if write else "") + body
+        return text
 
 
 @dataclass

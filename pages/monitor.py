@@ -4,6 +4,9 @@ CAN buses: live frame list and overwrite view (one row per ID) from the bus's bo
 buffers, decoded by the device codecs, with ID-range/device filters, pause, error frames
 and bus state; recording to candump/ASC/BLF/CSV files and browsing recorded files.
 Modbus/serial lines: the transaction log of the worker (bounded ring buffer).
+Decoded columns name parameters and show decoded values (signed, scaled, enum names, units)
+through the device codecs and parameter models; a Device column names the plant device
+that sent or answered each frame or transaction.
 
 The tables are refreshed by one timer a few times a second, never once per frame, and
 show at most ``SHOWN`` frames and ``SHOWN_IDS`` IDs.
@@ -31,7 +34,7 @@ from pages.session import current_user
 
 COLUMNS = [
     {"name": "time", "label": "Time", "field": "time", "align": "left"},
-    {"name": "unit", "label": "Unit", "field": "unit", "align": "right"},
+    {"name": "device", "label": "Device", "field": "device", "align": "left"},
     {"name": "request", "label": "Request", "field": "request", "align": "left"},
     {"name": "tx", "label": "Request hex", "field": "tx", "align": "left", "classes": "mono"},
     {"name": "rx", "label": "Response hex", "field": "rx", "align": "left", "classes": "mono"},
@@ -73,6 +76,7 @@ def modbus_content(bus: str) -> None:
         table = ui.table(columns=COLUMNS, rows=[], row_key="id", pagination=0).classes("w-full reg-table")
         table.props("dense flat bordered")
         table.mark("transactions")
+        decoder = rec.TransactionDecoder(runtime.worker, bus)
 
         def update() -> None:
             log = list(bus_state.transactions)
@@ -80,16 +84,18 @@ def modbus_content(bus: str) -> None:
             summary.set_text(f"{len(log)} transactions buffered, {errors} with errors")
             if paused.value:
                 return
+            decoder.refresh()
             selected = [t for t in log if t.error] if errors_only.value else log
             table.rows = [
                 {
                     "id": i,
                     "time": datetime.fromtimestamp(t.time).strftime("%H:%M:%S.%f")[:-3],
                     "unit": t.unit,
+                    "device": decoder.device(t.unit),
                     "request": t.request,
                     "tx": t.request_hex,
                     "rx": t.response_hex,
-                    "decoded": t.decoded,
+                    "decoded": decoder.decoded(t),
                     "rtt": "-" if t.rtt_ms is None else f"{t.rtt_ms:.1f}",
                     "error": t.error,
                 }
@@ -107,6 +113,7 @@ FRAME_COLUMNS = [
     {"name": "time", "label": "Time", "field": "time", "align": "left", "classes": "mono"},
     {"name": "dir", "label": "Dir", "field": "dir", "align": "center"},
     {"name": "id", "label": "ID", "field": "id", "align": "left", "classes": "mono"},
+    {"name": "device", "label": "Device", "field": "device", "align": "left"},
     {"name": "dlc", "label": "DLC", "field": "dlc", "align": "right"},
     {"name": "data", "label": "Data", "field": "data", "align": "left", "classes": "mono"},
     {"name": "decoded", "label": "Decoded", "field": "decoded", "align": "left"},
@@ -114,6 +121,7 @@ FRAME_COLUMNS = [
 ID_COLUMNS = [
     {"name": "id", "label": "ID", "field": "id", "align": "left", "classes": "mono"},
     {"name": "dir", "label": "Dir", "field": "dir", "align": "center"},
+    {"name": "device", "label": "Device", "field": "device", "align": "left"},
     {"name": "count", "label": "Count", "field": "count", "align": "right"},
     {"name": "period", "label": "Period ms", "field": "period", "align": "right"},
     {"name": "data", "label": "Data (changed bytes marked)", "field": "data", "align": "left"},
@@ -153,6 +161,7 @@ def _frame_rows(frames: list[FrameRecord], decoder: rec.FrameDecoder, relative_t
             "time": rec.format_time(f.time, relative_to),
             "dir": f.direction,
             "id": "error frame" if f.is_error_frame else rec.format_id(f.arbitration_id, f.is_extended_id),
+            "device": decoder.record_device(f),
             "dlc": f.dlc,
             "data": "remote" if f.is_remote_frame else rec.format_data(f.data),
             "decoded": decoder.record(f),
@@ -172,7 +181,8 @@ class CanMonitor:
         self.can_bus = runtime.worker.can_buses[bus]
         self.state: CanBusState = self.can_bus.state
         self.devices = [d.name for d in runtime.plant.devices_on(bus)]
-        self.decoder = rec.FrameDecoder(self.worker.known_ids(bus), rec.describers(self.worker, bus, self._types_on_bus()))
+        self.decoder = rec.FrameDecoder(self.worker.known_ids(bus), rec.describers(self.worker, bus, self._types_on_bus()),
+                                        rec.device_owners(self.worker, bus))
         self.filter = rec.FrameFilter()
         self.filter_version = 0
         self._frames_signature: tuple | None = None
@@ -273,8 +283,8 @@ class CanMonitor:
                 problems.append(f"'{field_input.value}' is not a hex CAN ID")
                 field_input.props("error")
         owner = None
-        if self.device.value:
-            owner = rec.owner_of(self.worker.adapters.get(self.device.value))
+        if self.device.value:  # the same ownership as the Device column (adapter, else the type's CAN IDs)
+            owner = dict(rec.device_owners(self.worker, self.bus)).get(self.device.value) or rec.owner_of(None)
         self.filter = rec.FrameFilter(bounds[0], bounds[1], owner, bool(self.errors_only.value))
         self.filter_version += 1
         self.filter_info.set_text("; ".join(problems))
@@ -291,6 +301,7 @@ class CanMonitor:
             return
         self.decoder.set_known_ids(self.worker.known_ids(self.bus))
         self.decoder.set_codecs(rec.describers(self.worker, self.bus, self._types_on_bus()))
+        self.decoder.set_owners(rec.device_owners(self.worker, self.bus))
         self._refresh_frames()
         self._refresh_ids()
 
@@ -359,6 +370,7 @@ class CanMonitor:
                 "k": f"{int(ext)}:{can_id}",
                 "id": rec.format_id(can_id, ext),
                 "dir": stats.direction,
+                "device": self.decoder.device(can_id, ext, stats.data),
                 "count": stats.count,
                 "period": "-" if stats.period is None else f"{stats.period * 1000:.0f}",
                 "data": rec.format_data(stats.data),
@@ -474,7 +486,8 @@ class CanMonitor:
     async def _show_loaded(self, loaded: rec.LoadedLog) -> None:
         self.loaded = loaded
         known = await run.io_bound(rec.ids_of_devices, loaded.frames)
-        self.file_decoder = rec.FrameDecoder(self.worker.known_ids(self.bus) | known, rec.describers(self.worker, self.bus, self._types_on_bus()))
+        self.file_decoder = rec.FrameDecoder(self.worker.known_ids(self.bus) | known, rec.describers(self.worker, self.bus, self._types_on_bus()),
+                                             rec.device_owners(self.worker, self.bus))
         self.tabs.set_value("file")
         self.filter_file()
         ui.notify(f"Opened {loaded.name}: {len(loaded.frames)} frames", type="positive")

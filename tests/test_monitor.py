@@ -31,10 +31,12 @@ from webutil import demo_plant_text, eventually
 from app import recording as rec
 from app import runtime as rt
 from app.can_bus import CanBus, CanBusState, FrameRecord
+from app.modbus_line import Transaction, request_target
 from app.plant import parse_plant
 from app.runtime import Runtime
 from app.worker import Worker
 from devices.hdlock import codec
+from devices.m3io import codec as m3io_codec
 
 COMMAND_EXAMPLE = bytes.fromhex("4F 01 00 80 00 00 81 00")  # section 6.6.1.1: extended lock 335, source 0x81
 GATE1 = 660100  # demo plant: gate-1, extended
@@ -86,7 +88,7 @@ def test_status_of_known_lock_decodes(worker: Worker):
     assert text.startswith("HD-Lock Status 0x0117"), text
     assert "BoltLocked" in text and "motorPos 115" in text
     answer = codec.encode_register_answer(codec.RegisterAnswer("holding", 3000, 200))
-    assert rec.describe(GATE2, False, answer, known, can1_codecs(worker)) == "HD-Lock Holding register 3000 = 200 (0x00C8)"
+    assert rec.describe(GATE2, False, answer, known, can1_codecs(worker)) == "HD-Lock Holding register 3000 LockRequestDelay = 200 ms (0x00C8)"
 
 
 def test_unknown_id_is_unknown(worker: Worker):
@@ -338,6 +340,105 @@ def test_read_log_is_bounded(tmp_path: Path):
 # -- the page, with NiceGUI's simulated user ------------------------------------------------------------
 
 
+# -- decoding through the parameter model, and the device of a frame -----------------------------------------
+
+THRESHOLD_LOCK = 65476  # holding 3006 SettingsProximityThresholdLock, factory -60 (section 3.2.7), as the bus carries it
+
+
+def test_hdlock_register_answer_over_can_is_named_and_signed(worker: Worker):
+    """Section 6.5.4: a holding-register answer; 3006 is int16 (3.2.7): -60, not 65476."""
+    answer = codec.encode_register_answer(codec.RegisterAnswer("holding", 3006, THRESHOLD_LOCK))
+    assert answer == bytes.fromhex("01 01 BE 0B C4 FF")  # [1, 1, addrLo, addrHi, valLo, valHi], little-endian (6.2)
+    text = rec.describe(GATE2, False, answer, worker.known_ids("can1"), can1_codecs(worker))
+    assert "SettingsProximityThresholdLock = -60" in text, text
+    assert "65476" not in text
+    unlock = codec.encode_register_answer(codec.RegisterAnswer("holding", 3004, 65506))  # factory -30
+    assert "SettingsProximityThresholdUnlock = -30" in rec.describe(GATE2, False, unlock, worker.known_ids("can1"), can1_codecs(worker))
+    status = codec.encode_register_answer(codec.RegisterAnswer("holding", 1000, 0x0117))  # section 4.3 example status
+    assert "LockStatus = LockRequest, ProximityInPlace, DoorInPosition, LockRequest (bit 4), BoltLocked" in rec.describe(
+        GATE2, False, status, worker.known_ids("can1"), can1_codecs(worker))
+    direction = codec.encode_register_answer(codec.RegisterAnswer("input", 11, 0xFFFF))  # input 11: -1 = always right-hinged
+    assert "Direction = Always right-hinged (-1)" in rec.describe(GATE2, False, direction, worker.known_ids("can1"), can1_codecs(worker))
+
+
+def test_hdlock_requests_over_can_are_named_and_signed(worker: Worker):
+    write = codec.encode_write(codec.DeviceId.make(GATE2), 3006, THRESHOLD_LOCK)
+    assert write.data == bytes.fromhex("0B 00 00 00 BE 0B C4 FF")
+    text = rec.describe(0x704, False, write.data, worker.known_ids("can1"), can1_codecs(worker))
+    assert text.startswith("HD-Lock Write Holding-Register -> lock 11") and "SettingsProximityThresholdLock = -60" in text, text
+    read = codec.encode_read(codec.DeviceId.make(GATE2), "input", 104, 2)
+    assert "104 SerialNumber count 2" in rec.describe(0x702, False, read.data, worker.known_ids("can1"), can1_codecs(worker))
+    status = rec.describe(GATE1, True, status_data(0x0117, 115, 3, 4), worker.known_ids("can1"), can1_codecs(worker))
+    assert "source 4 IrsNotLine" in status, status
+
+
+def test_hdlock_register_answer_over_modbus_is_named_and_signed(worker: Worker):
+    """The transaction log carries space, address and values; the monitor decodes them with the
+    parameter model of the device at that unit and names the device."""
+    assert request_target("read holding 3004+5") == ("holding", 3004, None)
+    assert request_target("write holding 3006=65476") == ("holding", 3006, 65476)
+    assert request_target("broadcast write holding 2000=8") == ("holding", 2000, 8)
+    decoder = rec.TransactionDecoder(worker, "line1")
+    read = Transaction(0, 1, "read holding 3004+5", "", "", "ReadHoldingRegisters: [65506, 0, 65476, 0, 0]", 3.0, "",
+                       space="holding", address=3004, values=(65506, 0, THRESHOLD_LOCK, 0, 0))
+    text = decoder.decoded(read)
+    assert "SettingsProximityThresholdUnlock = -30" in text and "SettingsProximityThresholdLock = -60" in text, text
+    assert "65476" not in text
+    assert decoder.device(1) == "door-1 (unit 1)" and decoder.device(2) == "door-2 (unit 2)"
+    assert decoder.device(0) == "broadcast (unit 0)" and decoder.device(7) == "unit 7"
+    serial = Transaction(0, 2, "read input 104+2", "", "", "", 3.0, "", space="input", address=104, values=(0x000A, 0x1234))
+    assert decoder.decoded(serial) == "SerialNumber = 660020"  # section 3.1 example: 0x000A1234
+    write = Transaction(0, 1, "write holding 3006=65476", "", "", "", 3.0, "", space="holding", address=3006, values=(THRESHOLD_LOCK,))
+    assert decoder.decoded(write) == "wrote SettingsProximityThresholdLock = -60"
+    failed = Transaction(0, 1, "read holding 3006+1", "", "", "", None, "no answer within 0.5 s", space="holding", address=3006)
+    assert decoder.decoded(failed) == ""
+
+
+def test_m3io_temperature_frame_is_named_with_out_of_range(worker: Worker):
+    """Section 7.2.2/7.2.3: TEMPx in 0.1 C, 12-bit two's complement; below 0 or above 200.0 C is
+    "out of range"; Last/Si/Triac per SSR, fuse and triac unknown without a load; HMR t1-t3 carry TEMP1."""
+    hm = m3io_codec.derive_ids(0x1A)
+    words = [
+        m3io_codec.TempWord.make(215, load=True, triac=True, fuse=True, addressed=False),
+        m3io_codec.TempWord.make(-5, load=False, triac=False, fuse=False, addressed=False),
+        m3io_codec.TempWord.make(2010, load=True, triac=True, fuse=False, addressed=False),
+        m3io_codec.TempWord.make(2000, load=True, triac=False, fuse=True, addressed=False),
+    ]
+    data = m3io_codec.encode_temps(words)
+    assert data[:4] == bytes.fromhex("D7 E0 FB 1F")  # 215 | Last | Triac | Si; -5 as 12-bit 0xFFB, sb = vz = 1 (simple mode)
+    codecs = rec.describers(worker, "can3", ["m3io"])
+    text = rec.describe(hm.temp14, False, data, worker.known_ids("can3"), codecs)
+    assert text.startswith("M3IO TEMP1 21.5 °C · SSR1 load, fuse ok, triac ok"), text
+    assert "TEMP2 out of range (-0.5 °C) · SSR2 no load: fuse, triac unknown" in text
+    assert "TEMP3 out of range (201.0 °C) · SSR3 load, fuse blown" in text
+    assert "TEMP4 200.0 °C · SSR4 load, fuse ok, triac not conducting" in text
+    hmr = m3io_codec.derive_ids(0xCA)
+    text = rec.describe(hmr.temp14, False, data, worker.known_ids("can3"), codecs)
+    assert [part.split(" ")[0] for part in text.removeprefix("M3IO ").split("; ")] == ["TEMP1", "TEMP1", "TEMP1", "TEMP4"], text
+    product = m3io_codec.MData(2, 2, m3io_codec.pad6(m3io_codec.encode_u16(0x300A))).encode()
+    assert rec.describe(hmr.mdata, False, product, set(), codecs) == "M3IO MData read config product code: 0x300A HMR01 (from 08.11.2013)"
+    serial = m3io_codec.MData(2, 1, m3io_codec.pad6(m3io_codec.encode_serial(33852))).encode()
+    assert serial[2:6] == bytes.fromhex("3C 84 00 00")  # 7.2.4.2.2: 00033852 is sent as 0x843C, low byte first
+    assert rec.describe(hmr.mdata, False, serial, set(), codecs).endswith("serial number: 00033852")
+
+
+def test_device_column_names_the_sender_or_the_addressed_device(worker: Worker):
+    decoder = rec.FrameDecoder(worker.known_ids("can1"), can1_codecs(worker), rec.device_owners(worker, "can1"))
+    assert decoder.device(GATE1, True, status_data()) == "gate-1"
+    assert decoder.device(GATE2, False, status_data()) == "gate-2"
+    assert decoder.device(0x703, False, codec.encode_read(codec.DeviceId.make(GATE2), "holding", 3006).data) == "gate-2"
+    assert decoder.device(0x700, False, COMMAND_EXAMPLE) == ""  # lock 335 (ext) is not in the plant
+    broadcast = codec.encode_can_command(codec.BROADCAST_ID, codec.CanCommand.SET_LOCK_REQUEST_SOURCE, 4)
+    assert decoder.device(0x700, False, broadcast.data) == "gate-1, gate-2"
+    assert decoder.device(0x123, False, b"") == ""
+    assert decoder.record_device(FrameRecord(0, 0, False, 0, b"", "rx", is_error_frame=True)) == ""
+    m3io = rec.FrameDecoder(set(), [], rec.device_owners(worker, "can3"))
+    assert m3io.device(m3io_codec.derive_ids(0x1A).temp14, False, bytes(8)) == "heater-hm"
+    assert m3io.device(m3io_codec.derive_ids(0xCA).dig_out, False, b"\x00") == "heater-hmr"
+    electrak = rec.FrameDecoder(set(), [], rec.device_owners(worker, "can2"))
+    assert electrak.device(0x07, False, bytes(8)) == "lift"  # the network's status frames: the system, not one actuator
+
+
 @dataclass
 class Env:
     user: User
@@ -394,9 +495,19 @@ async def test_can_monitor_page(env: Env, tmp_path: Path):
         assert any(d.startswith("HD-Lock Status") for d in decoded), decoded[:5]
         ids = {r["id"] for r in overwrite.rows}
         assert {"0x000A1284 (ext)", "0x00B"} <= ids, ids
+        devices = {r["id"]: r["device"] for r in overwrite.rows}
+        assert devices["0x000A1284 (ext)"] == "gate-1" and devices["0x00B"] == "gate-2", devices
+        assert all(r["device"] == "gate-1" for r in frames.rows if r["id"] == "0x000A1284 (ext)")
 
     await eventually(status_rows, timeout=10)
     assert len(frames.rows) <= 200
+
+    def threshold_answer() -> None:  # a lock's answer to the register poll, by name and signed (3.2.7)
+        rows = [r for r in frames.rows if "SettingsProximityThresholdLock = " in r["decoded"] and r["dir"] == "rx"]
+        assert rows and all(r["device"] in ("gate-1", "gate-2") for r in rows)
+        assert "SettingsProximityThresholdLock = -60" in rows[0]["decoded"], rows[0]["decoded"]
+
+    await eventually(threshold_answer, timeout=10)
     await user.should_see("error-active", retries=30)
     await user.should_see(kind=ui.label, content="error frames 0")
     row = next(r for r in overwrite.rows if r["id"] == "0x000A1284 (ext)")
@@ -502,6 +613,15 @@ async def test_modbus_monitor_page(env: Env):
     table = one(user, "transactions")
     await eventually(lambda: any(r["request"].startswith("read") and r["rx"] for r in table.rows), timeout=10)
     await user.should_see(kind=ui.label, content="transactions buffered")
+
+    def thresholds_decoded() -> None:  # the twin keeps the factory thresholds -30 / -60 (section 3.2.7)
+        rows = [r for r in table.rows if r["request"].startswith("read holding 300") and r["device"] == "door-1 (unit 1)"]
+        assert rows, [(r["device"], r["request"]) for r in table.rows[:5]]
+        assert "SettingsProximityThresholdLock = -60" in rows[0]["decoded"], rows[0]["decoded"]
+        assert "SettingsProximityThresholdUnlock = -30" in rows[0]["decoded"]
+
+    await eventually(thresholds_decoded, timeout=10)
+    assert {r["device"] for r in table.rows} <= {"door-1 (unit 1)", "door-2 (unit 2)", "broadcast (unit 0)"}
 
 
 def test_id_table_evicts_the_least_recently_heard_id_in_constant_time():

@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum
 
-from devices.hdlock.params import LOCK_REQUEST_SOURCE
+from devices.hdlock.params import LOCK_REQUEST_SOURCE, PARAMS
 
 # LockStatus bits (holding 1000, section 3.2.1; bit 4 repeats "LockRequest", see SPEC-NOTES)
 LOCK_REQUEST = 1 << 0
@@ -401,9 +401,10 @@ def describe_request(frame: CanFrame) -> str:
     elif req.kind == CAN_SET_DEVICE_ADDRESS:
         detail = f"new ID {req.new_id}"
     elif req.kind in (CAN_READ_INPUT, CAN_READ_HOLDING):
-        detail = f"{req.a} count {req.b}"
+        param = PARAMS.get("input" if req.kind == CAN_READ_INPUT else "holding", req.a)
+        detail = f"{req.a}{' ' + (param.label or param.name) if param else ''} count {req.b}"
     elif req.kind in (CAN_WRITE_HOLDING, CAN_SILENT_WRITE_HOLDING):
-        detail = f"{req.a} = {req.b}"
+        detail = f"register {req.a} {describe_register('holding', req.a, req.b)} (0x{req.b & 0xFFFF:04X})"
     else:
         detail = "firmware update"
     return f"{name} -> {target}: {detail}"
@@ -416,13 +417,33 @@ def describe_lock_frame(data: bytes) -> str:
         return f"HD-Lock frame, malformed: {exc}"
     if isinstance(frame, StatusFrame):
         active = [name for name, on in frame.bits.items() if on]
+        source = LOCK_REQUEST_SOURCE.get(frame.lock_request_source)  # 6 bits: 0x0n and 0x8n share a name (SPEC-NOTES)
         return (
             f"Status 0x{frame.status:04X} [{', '.join(active) or '-'}] motorPos {frame.motor_pos} "
-            f"proximity {frame.proximity} source {frame.lock_request_source}"
+            f"proximity {frame.proximity} source {frame.lock_request_source}{' ' + source if source else ''}"
         )
     if isinstance(frame, FwuStatusFrame):
         return f"FWU status: {'flashing' if frame.flashing else 'idle'}, {'application' if frame.application else 'boot loader'}"
-    return f"{frame.space.title()} register {frame.address} = {frame.value} (0x{frame.value:04X})"
+    return f"{frame.space.title()} register {frame.address} {describe_register(frame.space, frame.address, frame.value)} (0x{frame.value:04X})"
+
+
+def describe_register(space: str, address: int, raw: int) -> str:
+    """One register as ``Name = value`` through the register map: signed, scaled, enum and bit names.
+
+    Words of a multi-word value (input 104/105, section 3.1) are named as such; a register the map
+    does not list is shown as its number.
+    """
+    param = PARAMS.get(space, address)
+    if param is None:
+        owner = next((p for p in PARAMS.space(space) if address in p.addresses), None)
+        if owner is None:
+            return f"(not in the register map) = {raw & 0xFFFF}"
+        word = "high word" if address == owner.address else "low word"  # SPEC-NOTES: 104 high, 105 low
+        return f"{owner.label or owner.name} ({word}) = {raw & 0xFFFF}"
+    name = param.label or param.name
+    if param.words > 1:
+        return f"{name} (high word) = {raw & 0xFFFF}"
+    return f"{name} = {param.display(raw & 0xFFFF)}"
 
 
 def describe_frame(arbitration_id: int, is_extended: bool, data: bytes, lock_ids: set[tuple[bool, int]]) -> str | None:

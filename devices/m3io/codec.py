@@ -360,7 +360,66 @@ def check_variant(variant: Variant, addressed: bool, code: int | None) -> Varian
     )
 
 
+def temp_input(variant: Variant, word_number: int) -> int:
+    """The Pt100 input a temperature word carries: HMR t1-t3 all carry TEMP1 (7.2.2), else TEMP<n>."""
+    return 1 if variant is Variant.HMR and word_number <= 3 else word_number
+
+
+def describe_temp(variant: Variant, word_number: int, word: TempWord) -> str:
+    """One temperature word for the bus monitor: the reading (or "out of range", 7.2.2) and the
+    status bits of SSR<n> named as section 7.2.3 names them; with Last = 0, Si and Triac mean nothing."""
+    temp = f"TEMP{temp_input(variant, word_number)}"
+    reading = f"{temp} {word.celsius:.1f} °C" if word.in_range else f"{temp} out of range ({word.celsius:.1f} °C)"
+    if not word.load:
+        status = "no load: fuse, triac unknown"
+    else:
+        status = f"load, fuse {'ok' if word.fuse else 'blown'}, triac {'ok' if word.triac else 'not conducting'}"
+    return f"{reading} · SSR{word_number} {status}"
+
+
+SYNC_AREAS = {
+    AREA_WRITE_CONFIG: "write config", AREA_READ_CONFIG: "read config", AREA_READ_CUSTOMER: "read customer data",
+    AREA_WRITE_CUSTOMER: "write customer data", AREA_LOAD_DATA: "load data",
+}
+CONFIG_NAMES = {CONFIG_SERIAL: "serial number", CONFIG_PRODUCT: "product code", CONFIG_VERSION: "SW version",
+                CONFIG_DYNAMIC: "dyn. configuration"}
+
+
+def _record_name(area: int, index: int) -> str:
+    """``read config serial number``, ``load data SSR3``, ``write customer data 7`` (7.2.4.2)."""
+    name = SYNC_AREAS.get(area, f"area {area}")
+    if area in (AREA_WRITE_CONFIG, AREA_READ_CONFIG):
+        return f"{name} {CONFIG_NAMES.get(index, f'index {index}')}"
+    if area == AREA_LOAD_DATA:
+        return f"{name} SSR{index}"
+    return f"{name} {index}"
+
+
+def _describe_cfg(cfg: int) -> str:
+    return f"cfg 0x{cfg:02X} (P2 {int(bool(cfg & P2))}: {'two-phase' if cfg & P2 else 'three-phase'} load)"
+
+
+def describe_mdata(variant: Variant, m: MData) -> str:
+    """An addressed-data answer with its value decoded (7.2.4.2.x), else its bytes."""
+    name = _record_name(m.area, m.index)
+    if m.area == AREA_READ_CONFIG and m.index == CONFIG_SERIAL:
+        value = decode_serial(m.payload)
+    elif m.area == AREA_READ_CONFIG and m.index == CONFIG_PRODUCT:
+        code = decode_u16(m.payload)
+        value = f"0x{code:04X} {product_name(code)}"
+    elif m.area == AREA_READ_CONFIG and m.index == CONFIG_VERSION:
+        value = str(decode_u16(m.payload))
+    elif m.area in (AREA_WRITE_CONFIG, AREA_READ_CONFIG) and m.index == CONFIG_DYNAMIC:
+        value = _describe_cfg(m.payload[0])
+    elif m.area == AREA_LOAD_DATA and 1 <= m.index <= 6:
+        value = describe_temp(variant, m.index, TempWord(decode_u16(m.payload)))
+    else:
+        value = m.payload.hex(" ")
+    return f"{name}: {value}"
+
+
 def describe_frame_for(ids: CanIds, variant: Variant, arbitration_id: int, data: bytes) -> str | None:
+    """Bus monitor: the meaning of a frame on one module's IDs, with the document's names, else None."""
     try:
         if arbitration_id == ids.dig_out:
             on = [k for k, v in decode_dig_out(variant, data).items() if v]
@@ -371,16 +430,16 @@ def describe_frame_for(ids: CanIds, variant: Variant, arbitration_id: int, data:
         if arbitration_id in (ids.temp14, ids.temp56):
             words = decode_temps(data, 4 if arbitration_id == ids.temp14 else 2)
             first = 1 if arbitration_id == ids.temp14 else 5
-            return "M3IO " + ", ".join(
-                f"T{first + i} {w.text()} L{int(w.load)} T{int(w.triac)} S{int(w.fuse)}" for i, w in enumerate(words)
-            )
+            return "M3IO " + "; ".join(describe_temp(variant, first + i, w) for i, w in enumerate(words))
         if arbitration_id == ids.sync:
             if len(data) <= 1:
-                return f"M3IO Sync cfg 0x{data[0]:02X}" if data else "M3IO Sync"
-            return f"M3IO Sync area {data[0]} index {data[1]} data {bytes(data[2:]).hex(' ')}"
+                return f"M3IO Sync {_describe_cfg(data[0])}" if data else "M3IO Sync"
+            if ids.addressed:
+                payload = f" data {bytes(data[2:]).hex(' ')}" if len(data) > 2 else ""
+                return f"M3IO Sync {_record_name(data[0], data[1])}{payload}"
+            return f"M3IO Sync {bytes(data).hex(' ')}"
         if ids.mdata is not None and arbitration_id == ids.mdata:
-            m = MData.decode(data)
-            return f"M3IO MData area {m.area} index {m.index}: {m.payload.hex(' ')}"
+            return f"M3IO MData {describe_mdata(variant, MData.decode(data))}"
     except CodecError as exc:
         return f"M3IO, malformed: {exc}"
     return None
