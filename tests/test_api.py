@@ -118,6 +118,10 @@ async def test_hdlock_values_with_quality_then_offline(api: Api, name: str):
     assert threshold["value"] == -60 and threshold["raw"] == 65476  # signed (3.2.7)
     assert values["LockStatus"]["fields"]["BoltUnlocked"] == 1
     assert isinstance(values["LockStatus"]["time"], float)
+    if name == "gate-1":  # the status frame's third word (section 6.5)
+        proximity = values["Proximity (status frame)"]
+        assert proximity["unit"] == "Inc" and proximity["raw"] >> 6 == proximity["value"]
+        assert "LockRequestSource (status frame, low 6 bits)" in values
     api.runtime.twins[name].silent = True
     values = await api.until(name, lambda v: v["BoltPosition"]["quality"] == "offline", "offline", timeout=10)
     assert all_offline(values)

@@ -459,6 +459,11 @@ class HdLockCanAdapter(HdLockBackup):
             state.update_registers(HOLDING, 1001, [frame.motor_pos])
             state.info["proximity"] = frame.proximity
             state.info["lock_request_source_low6"] = frame.lock_request_source
+            # the third status word (section 6.5; SPEC-NOTES: proximity = word >> 6, source = word & 0x3F)
+            word = frame.proximity << 6 | frame.lock_request_source
+            state.publish("Proximity (status frame)", frame.proximity, "Inc", raw=word)
+            state.publish("LockRequestSource (status frame, low 6 bits)", frame.lock_request_source, raw=word,
+                          text="read LockRequestSource (HR4) for the full value")
             state.add_history({
                 "BoltPosition [Inc]": frame.motor_pos,
                 "MotorCurrent [mA]": state.value("MotorCurrent"),
