@@ -248,3 +248,5 @@ async def test_openapi_documents_every_endpoint_with_its_model(api: Api):
     schemas = spec["components"]["schemas"]
     assert {"value", "unit", "time", "quality", "raw", "text"} <= set(schemas["Value"]["properties"])
     assert "text/csv" in paths["/api/devices/{name}/history"]["get"]["responses"]["200"]["content"]
+    docs = await api.client.get("/docs")
+    assert docs.status_code == 200 and "swagger" in docs.text.lower()
