@@ -36,9 +36,9 @@ COLUMNS = [
     {"name": "time", "label": "Time", "field": "time", "align": "left"},
     {"name": "device", "label": "Device", "field": "device", "align": "left"},
     {"name": "request", "label": "Request", "field": "request", "align": "left"},
-    {"name": "tx", "label": "Request hex", "field": "tx", "align": "left", "classes": "mono"},
-    {"name": "rx", "label": "Response hex", "field": "rx", "align": "left", "classes": "mono"},
-    {"name": "decoded", "label": "Decoded", "field": "decoded", "align": "left"},
+    {"name": "tx", "label": "Request hex", "field": "tx", "align": "left", "classes": "mono hex"},
+    {"name": "rx", "label": "Response hex", "field": "rx", "align": "left", "classes": "mono hex"},
+    {"name": "decoded", "label": "Decoded", "field": "decoded", "align": "left", "classes": "decoded"},
     {"name": "rtt", "label": "RTT ms", "field": "rtt", "align": "right"},
     {"name": "error", "label": "Error", "field": "error", "align": "left", "classes": "text-negative"},
 ]
@@ -53,6 +53,8 @@ CSS = """
 .byte { margin-right: 0.45em; }
 .byte-changed { color: #e65100; font-weight: 700; background: #fff3e0; border-radius: 2px; }
 .row-error td { background: #fde8ea; }
+.can-table .q-table td.decoded, .reg-table .q-table td.decoded { white-space: normal; min-width: 320px; }
+.reg-table .q-table td.hex { white-space: normal; min-width: 140px; max-width: 230px; }
 """
 
 
@@ -68,6 +70,7 @@ def modbus_content(bus: str) -> None:
     runtime = rt.current()
     bus_state = runtime.store.buses[bus]
     with frame(f"Bus monitor {bus}"):
+        ui.add_css(CSS)
         ui.label(f"{bus_state.type} · {bus_state.endpoint}").classes("text-caption text-grey-8")
         with ui.row().classes("items-center"):
             paused = ui.switch("Pause")
@@ -129,7 +132,7 @@ ID_COLUMNS = [
     {"name": "age", "label": "Last", "field": "age", "align": "right"},
 ]
 DECODED_SLOT = (
-    '<q-td :props="props" :class="props.row.err ? \'text-negative text-weight-bold\' : '
+    '<q-td :props="props" class="decoded" :class="props.row.err ? \'text-negative text-weight-bold\' : '
     "(props.value === 'unknown' ? 'text-grey-6' : '')\">{{ props.value }}</q-td>"
 )
 BYTES_SLOT = (

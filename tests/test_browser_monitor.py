@@ -68,7 +68,7 @@ def browser() -> Iterator[Browser]:
 
 def count_of(page: Page, can_id: str) -> int:
     row = page.locator("[data-monitor=overwrite] tbody tr").filter(has=page.locator("td", has_text=re.compile(rf"^{re.escape(can_id)}$")))
-    return int(row.locator("td").nth(2).inner_text().strip())
+    return int(row.locator("td").nth(3).inner_text().strip())  # ID, Dir, Device, Count
 
 
 def test_can_monitor_in_browser(app_url: str, browser: Browser, tmp_path: Path):
@@ -141,7 +141,7 @@ def test_can_monitor_in_browser(app_url: str, browser: Browser, tmp_path: Path):
     file_rows = page.locator("[data-monitor=file-frames] tbody tr")
     expect(file_rows.first.locator("td").first).to_have_text("0.000")
     assert file_rows.count() == min(200, len(messages))
-    decoded = file_rows.locator("td:nth-child(6)").all_inner_texts()
+    decoded = file_rows.locator("td:nth-child(7)").all_inner_texts()  # Time, Dir, ID, Device, DLC, Data, Decoded
     assert decoded and all(d.startswith("HD-Lock") for d in decoded), [d for d in decoded if not d.startswith("HD-Lock")][:3]
     # a register read burst can fill a page: look for the locks' status page by page
     pages = -(-len(messages) // 200)
@@ -177,4 +177,37 @@ def test_modbus_monitor_in_browser(app_url: str, browser: Browser):
     expect(page.get_by_text(re.compile(r"\d+ transactions buffered"))).to_be_visible()
     SHOTS.mkdir(parents=True, exist_ok=True)
     page.screenshot(path=str(SHOTS / "monitor-line1.png"))
+    page.close()
+
+
+def test_monitor_names_devices_and_decodes_values_in_browser(app_url: str, browser: Browser):
+    """Decoded columns by name with signed values, and the Device column, on a CAN bus with locks,
+    a CAN bus with M3IO modules and the Modbus line; screenshots at 1440x900 and 1024x768."""
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    page = browser.new_page(viewport={"width": 1440, "height": 900})
+    page.set_default_timeout(15_000)
+    page.goto(f"{app_url}/monitor/can1")
+    frames = page.locator("[data-monitor=frames] tbody tr")
+    answer = frames.filter(has_text="SettingsProximityThresholdLock = -60").first
+    expect(answer).to_be_visible()
+    assert answer.locator("td").nth(3).inner_text().strip() in ("gate-1", "gate-2")
+    gate1 = page.locator("[data-monitor=overwrite] tbody tr").filter(has_text=GATE1).first
+    expect(gate1.locator("td").nth(2)).to_have_text("gate-1")
+    page.screenshot(path=str(SHOTS / "monitor-names-1440.png"))
+    page.set_viewport_size({"width": 1024, "height": 768})
+    page.screenshot(path=str(SHOTS / "monitor-names-1024.png"))
+
+    page.set_viewport_size({"width": 1440, "height": 900})
+    page.goto(f"{app_url}/monitor/can3")
+    temps = page.locator("[data-monitor=frames] tbody tr").filter(has_text=re.compile(r"M3IO TEMP1 \d+\.\d °C · SSR1"))
+    expect(temps.first).to_be_visible()
+    assert {temps.nth(i).locator("td").nth(3).inner_text().strip() for i in range(min(4, temps.count()))} <= {"heater-hm", "heater-hmr"}
+    page.screenshot(path=str(SHOTS / "monitor-m3io-1440.png"))
+
+    page.goto(f"{app_url}/monitor/line1")
+    rows = page.locator(".q-table tbody tr")
+    expect(rows.filter(has_text="door-1 (unit 1)").filter(has_text="SettingsProximityThresholdLock = -60").first).to_be_visible()
+    page.screenshot(path=str(SHOTS / "monitor-line1-1440.png"))
+    page.set_viewport_size({"width": 1024, "height": 768})
+    page.screenshot(path=str(SHOTS / "monitor-line1-1024.png"))
     page.close()
