@@ -392,6 +392,11 @@ def test_hdlock_register_answer_over_modbus_is_named_and_signed(worker: Worker):
     assert decoder.decoded(write) == "wrote SettingsProximityThresholdLock = -60"
     failed = Transaction(0, 1, "read holding 3006+1", "", "", "", None, "no answer within 0.5 s", space="holding", address=3006)
     assert decoder.decoded(failed) == ""
+    # a line scan or a broadcast: no configured device at that unit, decoded with the line's (only) device type
+    scan = Transaction(0, 7, "scan holding 103", "", "", "", 3.0, "", space="holding", address=103, values=(7,))
+    assert decoder.decoded(scan) == "DeviceAddress = 7"
+    broadcast = Transaction(0, 255, "broadcast write holding 2000=8", "", "", "", None, "", space="holding", address=2000, values=(8,))
+    assert decoder.device(255) == "broadcast (unit 255)" and decoder.decoded(broadcast) == "wrote Parameter 0 = 8"
 
 
 def test_m3io_temperature_frame_is_named_with_out_of_range(worker: Worker):
