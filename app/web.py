@@ -165,7 +165,7 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
 
     core.sio.on(BEAT_EVENT, on_beat)
 
-    @app.get("/login/complete")
+    @app.get("/login/complete", include_in_schema=False)
     def login_complete(request: Request, ticket: str = "", redirect_to: str = "/"):
         """Turn a checked login into a new session: a new cookie id and a new token (no fixation)."""
         token = runtime.sessions.redeem(ticket, request.session.get("id", ""))
@@ -176,7 +176,7 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
         request.session["auth"] = token
         return RedirectResponse(safe_redirect(redirect_to), status_code=303)
 
-    @app.get("/logout")
+    @app.get("/logout", include_in_schema=False)
     def logout(request: Request):
         runtime.sessions.logout(session_token(request))
         request.session.clear()
