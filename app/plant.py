@@ -36,6 +36,13 @@ BUS_KEYS: dict[str, dict[str, tuple[type | tuple[type, ...], Any]]] = {
         "poll_period": ((int, float), 2.0),
         "simulate": (bool, False),
     },
+    "serial": {  # point-to-point RS232 (Ewellix SCU): a device path or pyserial URL, 8N1, DTR and RTS held on
+        "port": (str, None),
+        "baudrate": (int, 38400),  # 9600 and 19200 on custom units
+        "timeout": ((int, float), 0.3),  # seconds for a complete answer
+        "poll_period": ((int, float), 0.2),  # the keep-alive and live-data cycle
+        "simulate": (bool, False),
+    },
 }
 PASSTHROUGH_BUS_TYPES = {"can"}  # further keys go to the bus library unchanged
 COMMON_BUS_KEYS = {"name", "type", "description"}
@@ -179,6 +186,8 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
                 raise fail(_key_line(text, line, "parity"), f"bus '{name}': parity must be \"N\", \"E\" or \"O\"")
         if options["timeout"] <= 0:
             raise fail(_key_line(text, line, "timeout"), f"bus '{name}': timeout must be > 0 s")
+        if btype == "serial" and options["baudrate"] not in (9600, 19200, 38400):
+            raise fail(_key_line(text, line, "baudrate"), f"bus '{name}': baudrate {options['baudrate']} is not one of 9600, 19200, 38400")
         if btype == "can" and not 5000 <= options["bitrate"] <= 1_000_000:
             raise fail(_key_line(text, line, "bitrate"), f"bus '{name}': bitrate {options['bitrate']} is outside 5000..1000000 bit/s")
         plant.buses[name] = BusConfig(name, btype, options, line)

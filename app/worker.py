@@ -19,6 +19,7 @@ from typing import Any
 from app.audit import AuditLog
 from app.can_bus import CanBus, CanBusState
 from app.modbus_line import ModbusLine
+from app.serial_line import SerialLine
 from app.plant import DeviceConfig, Plant, can_id_conflict
 from app.state import BusState, DeviceState, StateStore
 from devices.registry import DEVICE_TYPES, CanIdUse, fixed_can_id_uses
@@ -166,7 +167,7 @@ class Worker:
         self.plant = plant
         self.audit = audit
         self.store = store or StateStore()
-        self.lines: dict[str, ModbusLine] = {}
+        self.lines: dict[str, ModbusLine | SerialLine] = {}
         self.adapters: dict[str, Any] = {}
         self.tasks: list[asyncio.Task] = []
         self.paused: set[str] = set()
@@ -184,7 +185,8 @@ class Worker:
             else:
                 bus_state = BusState(bus.name, bus.type, bus.endpoint)
                 self.store.buses[bus.name] = bus_state
-                self.lines[bus.name] = ModbusLine(bus.name, bus.options, bus_state)
+                line_class = SerialLine if bus.type == "serial" else ModbusLine
+                self.lines[bus.name] = line_class(bus.name, bus.options, bus_state)
         self.discovered: dict[str, dict[tuple[bool, int], dict]] = {name: {} for name in self.can_buses}  # listed devices
         self._discovery_codecs = {
             t.name: importlib.import_module(t.can_codec) for t in DEVICE_TYPES.values() if t.can_codec and "can" in t.bus_types
@@ -524,7 +526,7 @@ class Worker:
 
     async def discover(self, bus: str, first: int, last: int, progress=None) -> list[dict]:
         """Find devices on a Modbus line (broadcast, then a scan), with polling held meanwhile."""
-        if bus not in self.lines:
+        if not isinstance(self.lines.get(bus), ModbusLine):
             raise KeyError(f"{bus} is not a Modbus RTU line")
         by_type = {d.type for d in self.plant.devices_on(bus)} or {"hdlock"}
         found: list[dict] = []

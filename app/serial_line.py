@@ -1,0 +1,188 @@
+"""One point-to-point serial line (RS232: a device path or a pyserial URL) owned by the bus worker.
+
+Every request of the device on the line goes through :meth:`SerialLine.transact`, which
+serialises access, writes the request, reads until the device's codec says the answer is
+complete (or the timeout passes), counts the outcome and keeps a bounded transaction log for
+the bus monitor. pyserial is blocking: the port is opened, written and read in a thread, so
+the event loop (and every keep-alive on it) never waits for the wire.
+
+DTR and RTS are switched on before the port opens and kept on: some units (the Ewellix SCU)
+take the power of their RS232 converter from them.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import serial
+
+from app.state import BusState
+
+log = logging.getLogger(__name__)
+
+BAUDRATES = (9600, 19200, 38400)
+REOPEN_BACKOFF_S = (0.5, 1.0, 2.0, 5.0)
+
+
+class SerialLineError(Exception):
+    """A request that did not give a usable answer."""
+
+    kind = "error"
+
+
+class SerialTimeout(SerialLineError):
+    kind = "timeout"
+
+
+class SerialClosed(SerialLineError):
+    kind = "closed"
+
+
+@dataclass
+class SerialTransaction:
+    """One request on the line as the bus monitor lists it."""
+
+    time: float
+    request: str
+    request_hex: str
+    response_hex: str
+    decoded: str
+    rtt_ms: float | None
+    error: str
+    unit: int = 0
+
+
+# ``complete(buffer)`` -> total length of the answer once it can be told, else None (read more)
+Completion = Callable[[bytes], int | None]
+
+
+class SerialLine:
+    """The worker's handle on one serial port (``type = "serial"`` in the plant file)."""
+
+    def __init__(self, name: str, options: dict, state: BusState):
+        self.name = name
+        self.options = options
+        self.state = state
+        self.port: serial.SerialBase | None = None
+        self._lock = asyncio.Lock()
+        self._failures = 0
+        self._next_open = 0.0
+
+    # -- the port -----------------------------------------------------------------------
+    def _open_blocking(self) -> serial.SerialBase:
+        o = self.options
+        port = serial.serial_for_url(o["port"], do_not_open=True, baudrate=o["baudrate"], bytesize=8,
+                                     parity=serial.PARITY_NONE, stopbits=1, timeout=0.05, write_timeout=1.0)
+        port.dtr = True  # the unit's RS232 converter is powered from DTR and RTS
+        port.rts = True
+        port.open()
+        port.dtr = True
+        port.rts = True
+        port.reset_input_buffer()
+        return port
+
+    async def connect(self) -> bool:
+        """Open the port unless it is open (with backoff after failures); True when open."""
+        if self.port is not None:
+            return True
+        now = time.monotonic()
+        if now < self._next_open:
+            return False
+        try:
+            self.port = await asyncio.to_thread(self._open_blocking)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            self._failures += 1
+            self._next_open = now + REOPEN_BACKOFF_S[min(self._failures - 1, len(REOPEN_BACKOFF_S) - 1)]
+            self.state.connected = False
+            self.state.last_error = (f"cannot open {self.options['port']}: {exc}. Check the cable, the port name, "
+                                     "and that nothing else holds the port")
+            return False
+        if self._failures:
+            self.state.reconnects += 1
+        self._failures = 0
+        self.state.connected = True
+        self.state.last_error = ""
+        log.info("%s: %s open at %d baud, 8N1, DTR and RTS on", self.name, self.options["port"], self.options["baudrate"])
+        return True
+
+    def close(self) -> None:
+        port, self.port = self.port, None
+        if port is not None:
+            try:
+                port.close()
+            except (serial.SerialException, OSError):
+                pass
+        self.state.connected = False
+
+    def _lost(self, exc: Exception) -> None:
+        self.state.last_error = f"{self.options['port']} lost: {exc}"
+        self.close()
+        self._failures = 1
+        self._next_open = time.monotonic() + REOPEN_BACKOFF_S[0]
+
+    # -- requests -----------------------------------------------------------------------
+    def _exchange_blocking(self, port: serial.SerialBase, request: bytes, complete: Completion, timeout: float) -> bytes:
+        stale = port.read(port.in_waiting or 0) if port.in_waiting else b""
+        if stale:
+            log.debug("%s: %d stale bytes dropped before a request", self.name, len(stale))
+        port.write(request)
+        port.flush()
+        end = time.monotonic() + timeout
+        buffer = b""
+        while True:
+            need = complete(buffer)
+            if need is not None and len(buffer) >= need:
+                return buffer
+            remaining = end - time.monotonic()
+            if remaining <= 0:
+                return buffer  # short: the caller names the timeout
+            port.timeout = min(remaining, 0.05)
+            want = max(1, (need - len(buffer)) if need is not None else 1)
+            buffer += port.read(want)
+
+    async def transact(self, request: bytes, complete: Completion, *, timeout: float | None = None,
+                       describe: str = "", decode: Callable[[bytes], str] | None = None) -> bytes:
+        """Send ``request`` and return the complete answer.
+
+        :param complete: the codec's length rule for an answer (see :data:`Completion`)
+        :param timeout: seconds to wait for the whole answer (default: the bus's ``timeout``)
+        :param describe: the request in words, for the monitor's log
+        :param decode: answer -> text for the monitor's log
+        :raises SerialTimeout: no complete answer in time
+        :raises SerialClosed: the port is not open (cannot be opened, unplugged)
+        """
+        timeout = self.options["timeout"] if timeout is None else timeout
+        async with self._lock:
+            if not await self.connect():
+                raise SerialClosed(f"line {self.name}: {self.state.last_error}")
+            port = self.port
+            started = time.monotonic()
+            error = ""
+            answer = b""
+            try:
+                answer = await asyncio.to_thread(self._exchange_blocking, port, request, complete, timeout)
+            except (serial.SerialException, OSError) as exc:
+                self._lost(exc)
+                error = f"port lost: {exc}"
+                raise SerialClosed(f"line {self.name}: {self.state.last_error}") from None
+            finally:
+                rtt = (time.monotonic() - started) * 1000
+                need = complete(answer) if answer or not error else None
+                if not error and (need is None or len(answer) < need):
+                    error = f"no complete answer within {timeout:g} s ({len(answer)} bytes)"
+                text = ""
+                if not error and decode is not None:
+                    try:
+                        text = decode(answer[:need])
+                    except Exception as exc:  # noqa: BLE001 - the log shows what could not be decoded
+                        text = f"cannot decode: {exc}"
+                self.state.transactions.append(SerialTransaction(
+                    time.time(), describe or request[:2].decode("ascii", "replace"), request.hex(" ").upper(),
+                    answer.hex(" ").upper(), text, None if error else round(rtt, 2), error))
+            if error:
+                raise SerialTimeout(f"line {self.name}: {error}")
+            return answer[:need]
