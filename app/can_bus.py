@@ -80,7 +80,7 @@ class CanBusState(BusState):
 
 
 class CanBus:
-    """A python-can bus owned by the worker.
+    """A python-can bus owned by the worker; implements :class:`devices.transport.CanTransport`.
 
     :param options: plant-file options: ``interface``, ``channel``, ``bitrate`` and any
         further keys, which are passed to :class:`can.Bus` unchanged.

@@ -18,6 +18,10 @@ from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOEx
 from pymodbus.framer import FramerType
 
 from app.state import BusState, Counters
+from devices.transport import LineClosed, LineCrcError, LineError, LineException, LineTimeout
+
+__all__ = ["LineClosed", "LineCrcError", "LineError", "LineException", "LineTimeout", "ModbusLine", "Transaction",
+           "request_target"]
 
 log = logging.getLogger(__name__)
 
@@ -31,34 +35,6 @@ EXCEPTION_NAMES = {
     10: "gateway path unavailable",
     11: "gateway target did not respond",
 }
-
-
-class LineError(Exception):
-    """A transaction that did not give a usable answer."""
-
-    kind = "error"
-
-
-class LineTimeout(LineError):
-    kind = "timeout"
-
-
-class LineCrcError(LineError):
-    kind = "crc"
-
-
-class LineException(LineError):
-    """The device answered with a Modbus exception."""
-
-    kind = "exception"
-
-    def __init__(self, message: str, code: int):
-        super().__init__(message)
-        self.code = code
-
-
-class LineClosed(LineError):
-    kind = "closed"
 
 
 @dataclass
@@ -96,7 +72,7 @@ def request_target(what: str) -> tuple[str, int | None, int | None]:
 
 
 class ModbusLine:
-    """A pymodbus async RTU client on one serial line.
+    """A pymodbus async RTU client on one serial line; implements :class:`devices.transport.ModbusTransport`.
 
     :param options: the bus options of the plant file (port, baudrate, parity, ...)
     """

@@ -7,10 +7,11 @@ import time
 from collections import deque
 from dataclasses import dataclass
 
-from app.state import DeviceState
 from devices.electrak import codec
 from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, SERVICE, length_of, password_of, refusal
+from devices.live import DeviceState
 from devices.params import Param, ParamError, backup_entry
+from devices.transport import CanTransport
 
 SERVICE_TIMEOUT_S = 0.3  # bound for the answers of every actuator to one service telegram
 EXTRA_ANSWER_S = 0.02  # after the last expected answer: does an unexpected one follow?
@@ -55,7 +56,7 @@ class ElectrakAdapter:
         if hasattr(self, "key"):  # after __init__: every change of the control telegram is a new point
             self._publish_command()
 
-    def __init__(self, config, state: DeviceState, bus):
+    def __init__(self, config, state: DeviceState, bus: CanTransport):
         self.config = config
         self.state = state
         self.bus = bus
@@ -83,6 +84,7 @@ class ElectrakAdapter:
         self.key = f"electrak control {config.name}"
         self.state.registers_periodic = False  # service parameters are read on demand
         self.state.publish("Devices configured", len(self.actuators), periodic=False)
+        self.state.publish("Stroke", self.limits.stroke_mm, "mm", periodic=False, text="shortest configured stroke")
         self._publish_command()
 
     # -- status ----------------------------------------------------------------------------

@@ -8,11 +8,11 @@ import weakref
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from app.modbus_line import LineCrcError, LineError, LineException, LineTimeout, ModbusLine
-from app.state import DeviceState
 from devices.hdlock import codec
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
+from devices.live import DeviceState
 from devices.params import Param, ParamError, backup_entry
+from devices.transport import CanTransport, LineCrcError, LineError, LineException, LineTimeout, ModbusTransport
 
 CHART_SERIES = {  # chart label -> parameter name
     "BoltPosition [Inc]": "BoltPosition",
@@ -39,7 +39,7 @@ class AddressChange:
 
 
 # Locks found by scans of a Modbus line (discover()), by address; shown on every lock of that line.
-_LINE_SCANS: weakref.WeakKeyDictionary[ModbusLine, dict[int, dict]] = weakref.WeakKeyDictionary()
+_LINE_SCANS: weakref.WeakKeyDictionary[ModbusTransport, dict[int, dict]] = weakref.WeakKeyDictionary()
 
 
 class HdLockBackup:
@@ -95,11 +95,11 @@ class HdLockBackup:
 
 
 class HdLockAdapter(HdLockBackup):
-    """One lock at one Modbus address on a :class:`ModbusLine`."""
+    """One lock at one Modbus address on a :class:`ModbusTransport`."""
 
     params = PARAMS
 
-    def __init__(self, config, state: DeviceState, line: ModbusLine):
+    def __init__(self, config, state: DeviceState, line: ModbusTransport):
         self.config = config
         self.state = state
         self.line = line
@@ -380,7 +380,7 @@ def _command_answer_text(answered: bool | None, old: int) -> str:
     return f"no answer to the command at address {old}" + ("" if codec.ADDRESS_COMMAND_ANSWERED else ", as expected")
 
 
-async def discover(line: ModbusLine, first: int = 1, last: int = 247, progress=None) -> list[dict]:
+async def discover(line: ModbusTransport, first: int = 1, last: int = 247, progress=None) -> list[dict]:
     """Find locks on a line.
 
     Broadcast first (address 0: a single lock answers with its DeviceAddress, section 5.6),
@@ -421,12 +421,12 @@ CAN_FRAME_BITS = 135  # an extended 6-byte answer with stuffing, roughly
 
 
 class HdLockCanAdapter(HdLockBackup):
-    """One lock on a shared :class:`app.can_bus.CanBus`, addressed by its device ID (section 6)."""
+    """One lock on a shared :class:`~devices.transport.CanTransport`, addressed by its device ID (section 6)."""
 
     params = PARAMS
     transport = "can"
 
-    def __init__(self, config, state: DeviceState, bus):
+    def __init__(self, config, state: DeviceState, bus: CanTransport):
         self.config = config
         self.state = state
         self.bus = bus

@@ -11,9 +11,10 @@ from __future__ import annotations
 import asyncio
 import time
 
-from app.state import DeviceState
+from devices.live import DeviceState
 from devices.m3io import codec
 from devices.m3io.codec import Variant
+from devices.transport import CanTransport
 
 MDATA_TIMEOUT_S = 0.5
 OFFLINE_AFTER_S = 2.5
@@ -28,7 +29,7 @@ class M3ioAdapter:
     params = None
     transport = "can"
 
-    def __init__(self, config, state: DeviceState, bus):
+    def __init__(self, config, state: DeviceState, bus: CanTransport):
         self.config = config
         self.state = state
         self.bus = bus
@@ -220,6 +221,12 @@ class M3ioAdapter:
         if self.variant is Variant.HMR:
             publish("P2", self.two_phase, periodic=False, text="two-phase load" if self.two_phase else "three-phase load")
         publish("Faults", len(faults), periodic=False, text="; ".join(faults) or "none")
+        rate, bus_rate = self.ids.bitrate, self.state.info.get("bus_bitrate")
+        publish("Bit rate check", "mismatch" if self.state.info.get("bitrate_mismatch") else "ok", periodic=False,
+                text=f"bit rate mismatch: module {rate // 1000} kbit/s, bus {(bus_rate or 0) // 1000} kbit/s"
+                if self.state.info.get("bitrate_mismatch") else f"{rate // 1000} kbit/s")
+        if self.variant is Variant.HMR:
+            publish("SSR1-3 load check", "fault" if group else "ok", periodic=False, text=group or "ok")
 
     def group_load_fault(self) -> str | None:
         """HMR, SSR1-3 switched on: three phases must report a load, exactly two with P2 (4.3)."""

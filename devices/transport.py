@@ -1,0 +1,118 @@
+"""What an adapter may call on a transport, and the errors a transport raises.
+
+The bus worker (``app/``) owns every transport: ``app.modbus_line.ModbusLine`` implements
+:class:`ModbusTransport` and raises the :class:`LineError` family below, ``app.can_bus.CanBus``
+implements :class:`CanTransport`. Adapters are handed their transport (pass the bus in) and
+type against these protocols, so ``devices/`` never imports ``app/``. Pure declarations: no I/O.
+
+A point-to-point serial transport (SCU) gets its protocol here when its adapter is written.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Awaitable, Callable, Mapping
+from typing import Any, Protocol, runtime_checkable
+
+from devices.live import Counters
+
+# -- Modbus RTU line ------------------------------------------------------------------------
+
+
+class LineError(Exception):
+    """A transaction that did not give a usable answer."""
+
+    kind = "error"
+
+
+class LineTimeout(LineError):
+    kind = "timeout"
+
+
+class LineCrcError(LineError):
+    kind = "crc"
+
+
+class LineException(LineError):
+    """The device answered with a Modbus exception."""
+
+    kind = "exception"
+
+    def __init__(self, message: str, code: int):
+        super().__init__(message)
+        self.code = code
+
+
+class LineClosed(LineError):
+    """The port could not be opened or was lost."""
+
+    kind = "closed"
+
+
+@runtime_checkable
+class ModbusTransport(Protocol):
+    """One Modbus RTU line shared by the devices on it; every call raises a :class:`LineError` on failure.
+
+    Register values are unsigned 16-bit words; ``counters`` (the device's) are counted by the line.
+    """
+
+    name: str
+
+    async def read_holding(self, unit: int, address: int, count: int, counters: Counters | None = None) -> list[int]: ...
+
+    async def read_input(self, unit: int, address: int, count: int, counters: Counters | None = None) -> list[int]: ...
+
+    async def write_register(self, unit: int, address: int, value: int, counters: Counters | None = None) -> None: ...
+
+    async def transact(self, unit: int, what: str, counters: Counters | None,
+                       call: Callable[[Any], Awaitable[Any]], *, retries: int | None = None) -> Any:
+        """Run ``call(client)`` on the line's Modbus client, holding the line; ``what`` names it in the monitor
+        (``"read holding 3000+12"``, ``"broadcast write holding 2000=8"``)."""
+        ...
+
+
+# -- CAN bus --------------------------------------------------------------------------------
+
+
+class CanFrame(Protocol):
+    """A received frame as handlers get it (a ``can.Message``)."""
+
+    arbitration_id: int
+    is_extended_id: bool
+    data: bytearray
+    timestamp: float
+
+
+class TransportStatus(Protocol):
+    """What an adapter may read of a transport's state (to say why a command cannot go out)."""
+
+    connected: bool
+    last_error: str
+    reconnects: int
+
+
+FrameHandler = Callable[[Any], None]  # called on the event loop with a CanFrame
+
+
+@runtime_checkable
+class CanTransport(Protocol):
+    """One CAN bus shared by every adapter on it. Handlers run on the event loop and must not block."""
+
+    name: str
+    options: Mapping[str, Any]  # the plant file's bus options (bitrate, timeout, ...)
+    state: TransportStatus
+
+    def subscribe(self, is_extended: bool, arbitration_id: int, handler: FrameHandler) -> None: ...
+
+    def unsubscribe(self, is_extended: bool, arbitration_id: int, handler: FrameHandler) -> None: ...
+
+    def send(self, arbitration_id: int, data: bytes, is_extended_id: bool = False) -> bool:
+        """Send one frame; False when the bus is not open or refused it."""
+        ...
+
+    def start_cyclic(self, key: str, period_s: float, make: Callable[[], tuple[int, bytes, bool] | None]) -> None:
+        """Send ``make()`` every ``period_s`` until :meth:`stop_cyclic` (``None``: skip this period)."""
+        ...
+
+    def stop_cyclic(self, key: str) -> None: ...
+
+    def cyclic_running(self, key: str) -> bool: ...
