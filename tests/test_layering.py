@@ -1,0 +1,149 @@
+"""Imports run one way: pages -> app -> devices (ARCHITECTURE.md, "Data flows one way").
+
+Every module's imports are read with ``ast`` (module level and inside functions), so a
+lazy import counts as much as a top-level one. The only exceptions are listed below, each
+with the reason it is allowed.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+LAYERS = ("pages", "app", "devices")  # top to bottom; a layer may import only the layers below it
+
+# app/web.py builds the NiceGUI routes; each route function imports its page module when the
+# route is first served (lazily, inside the function), so importing app/ never loads pages/.
+LAZY_ROUTE_IMPORTS = {"app/web.py"}
+
+# Known imports that still point upwards, each to be removed (then delete its line here).
+# The simulators build their own CAN bus: they should be handed one (pass the bus in) by
+# app/runtime.py's SimulatedPlant instead of importing app.can_bus.
+PENDING = {
+    ("devices/hdlock/sim.py", "app.can_bus"),
+    ("devices/electrak/sim.py", "app.can_bus"),
+    ("devices/m3io/sim.py", "app.can_bus"),
+}
+
+
+def imports_of(source: str, module: str) -> list[tuple[str, bool]]:
+    """``(imported module, inside a function)`` for every import statement of ``source``.
+
+    :param module: the dotted name of the module the source belongs to (resolves relative imports)
+    """
+    tree = ast.parse(source)
+    package = module.split(".")[:-1]
+    found: list[tuple[str, bool]] = []
+
+    def visit(node: ast.AST, in_function: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            nested = in_function or isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda)
+            if isinstance(child, ast.Import):
+                found.extend((alias.name, in_function) for alias in child.names)
+            elif isinstance(child, ast.ImportFrom):
+                if child.level:
+                    base = package[: len(package) - child.level + 1]
+                    target = ".".join(base + ([child.module] if child.module else []))
+                else:
+                    target = child.module or ""
+                found.append((target, in_function))
+                if not child.module:  # "from . import x": x is a module of that package
+                    found.extend((f"{target}.{alias.name}", in_function) for alias in child.names)
+            visit(child, nested)
+
+    visit(tree, False)
+    return found
+
+
+def layer_of(name: str) -> str | None:
+    top = name.split(".")[0]
+    return top if top in LAYERS else None
+
+
+def violations(files: list[Path], root: Path = ROOT) -> list[tuple[str, str, bool]]:
+    """``(file, imported module, lazy)`` for every import from a lower layer into a higher one."""
+    bad = []
+    for path in files:
+        rel = path.relative_to(root).as_posix()
+        module = rel[: -len(".py")].replace("/", ".").removesuffix(".__init__")
+        own = layer_of(module)
+        for target, lazy in imports_of(path.read_text(encoding="utf-8"), module):
+            other = layer_of(target)
+            if own is None or other is None:
+                continue
+            if LAYERS.index(other) < LAYERS.index(own):  # importing a layer above
+                bad.append((rel, target, lazy))
+    return bad
+
+
+def project_files() -> list[Path]:
+    return sorted(p for layer in LAYERS for p in (ROOT / layer).rglob("*.py"))
+
+
+def allowed(rel: str, target: str, lazy: bool) -> bool:
+    if rel in LAZY_ROUTE_IMPORTS and lazy and layer_of(target) == "pages":
+        return True
+    return any(rel == f and (target == t or target.startswith(t + ".")) for f, t in PENDING)
+
+
+def test_no_module_imports_a_layer_above_it():
+    bad = [v for v in violations(project_files()) if not allowed(*v)]
+    assert not bad, "imports against pages -> app -> devices:\n" + "\n".join(
+        f"  {f} imports {t}{' (inside a function)' if lazy else ''}" for f, t, lazy in bad)
+
+
+def test_adapters_params_and_codecs_import_nothing_of_app():
+    """The adapters reach the store's device record and the transports through devices/ only."""
+    bad = [v for v in violations(project_files()) if v[0].startswith("devices/") and not v[0].endswith("/sim.py")]
+    assert not bad
+
+
+def test_every_listed_exception_is_still_needed():
+    found = violations(project_files())
+    for file, target in PENDING:
+        assert any(f == file and (t == target or t.startswith(target + ".")) for f, t, _ in found), (
+            f"{file} no longer imports {target}: remove it from PENDING")
+    web = [v for v in found if v[0] in LAZY_ROUTE_IMPORTS]
+    assert all(lazy for _, _, lazy in web), "app/web.py may import pages only inside route functions"
+
+
+@pytest.mark.parametrize(("source", "module", "expected"), [
+    ("from app.state import DeviceState", "devices.x.adapter", [("app.state", False)]),
+    ("import app.modbus_line as m", "devices.x.adapter", [("app.modbus_line", False)]),
+    ("def f():\n    from pages import login", "app.web", [("pages", True)]),
+    ("from ..live import DeviceState", "devices.x.adapter", [("devices.live", False)]),
+    ("from .. import app", "devices.x.adapter", [("devices", False), ("devices.app", False)]),
+    ("class A:\n    async def run(self):\n        import app.can_bus", "devices.x.sim", [("app.can_bus", True)]),
+])
+def test_import_reader(source, module, expected):
+    assert imports_of(source, module) == expected
+
+
+def test_old_adapter_imports_are_violations(tmp_path):
+    """An adapter importing app.state or app.modbus_line (as all three did) and app importing pages at load time."""
+    (tmp_path / "devices" / "x").mkdir(parents=True)
+    (tmp_path / "app").mkdir()
+    adapter = tmp_path / "devices" / "x" / "adapter.py"
+    adapter.write_text("from app.state import DeviceState\nfrom app.modbus_line import LineError\n")
+    web = tmp_path / "app" / "web.py"
+    web.write_text("from pages import overview\n")
+    found = violations([adapter, web], tmp_path)
+    assert found == [("devices/x/adapter.py", "app.state", False), ("devices/x/adapter.py", "app.modbus_line", False),
+                     ("app/web.py", "pages", False)]
+    assert not any(allowed(*v) for v in found)
+
+
+def test_devices_transport_protocols_describe_the_app_transports():
+    from app.can_bus import CanBus, CanBusState
+    from app.modbus_line import LineTimeout, ModbusLine
+    from app.state import BusState, DeviceState
+    from devices import live, transport
+
+    assert DeviceState is live.DeviceState and LineTimeout is transport.LineTimeout
+    can_bus = CanBus("probe", {"interface": "virtual", "channel": "layering"}, CanBusState("probe", "can", ""))
+    assert isinstance(can_bus, transport.CanTransport)
+    line = ModbusLine("probe", {"port": "loop://"}, BusState("probe", "modbus-rtu", "loop://"))
+    assert isinstance(line, transport.ModbusTransport)
