@@ -5,7 +5,8 @@ The bus worker (``app/``) owns every transport: ``app.modbus_line.ModbusLine`` i
 implements :class:`CanTransport`. Adapters are handed their transport (pass the bus in) and
 type against these protocols, so ``devices/`` never imports ``app/``. Pure declarations: no I/O.
 
-A point-to-point serial transport (SCU) gets its protocol here when its adapter is written.
+``app.serial_line.SerialLine`` (point-to-point RS232, SCU) is described by :class:`SerialTransport`;
+its errors are declared here for it to raise (see the Serial errors below).
 """
 
 from __future__ import annotations
@@ -116,3 +117,40 @@ class CanTransport(Protocol):
     def stop_cyclic(self, key: str) -> None: ...
 
     def cyclic_running(self, key: str) -> bool: ...
+
+
+# -- point-to-point serial line -------------------------------------------------------------
+
+
+class SerialLineError(Exception):
+    """A serial request that did not give a usable answer."""
+
+    kind = "error"
+
+
+class SerialTimeout(SerialLineError):
+    kind = "timeout"
+
+
+class SerialClosed(SerialLineError):
+    """The port is not open (cannot be opened, unplugged)."""
+
+    kind = "closed"
+
+
+# ``complete(buffer)`` -> total length of the answer once it can be told, else None (read more)
+Completion = Callable[[bytes], "int | None"]
+
+
+@runtime_checkable
+class SerialTransport(Protocol):
+    """One serial port owned by the worker; one request and its answer at a time."""
+
+    name: str
+    options: Mapping[str, Any]
+    state: TransportStatus
+
+    async def transact(self, request: bytes, complete: Completion, *, timeout: float | None = None,
+                       describe: str = "", decode: Callable[[bytes], str] | None = None) -> bytes:
+        """Send ``request`` and return the complete answer; raises a :class:`SerialLineError` on failure."""
+        ...

@@ -8,6 +8,7 @@ with the reason it is allowed.
 from __future__ import annotations
 
 import ast
+import importlib
 from pathlib import Path
 
 import pytest
@@ -147,3 +148,6 @@ def test_devices_transport_protocols_describe_the_app_transports():
     assert isinstance(can_bus, transport.CanTransport)
     line = ModbusLine("probe", {"port": "loop://"}, BusState("probe", "modbus-rtu", "loop://"))
     assert isinstance(line, transport.ModbusTransport)
+    serial_line = importlib.import_module("app.serial_line")
+    port = serial_line.SerialLine("probe", {"port": "loop://", "timeout": 0.1}, BusState("probe", "serial", "loop://"))
+    assert isinstance(port, transport.SerialTransport)
