@@ -61,6 +61,42 @@ def test_save_example_is_no_defined_type():
     assert codec.SAVE_LENGTHS == (4, 1)  # the table's length first, the example's on WRONG_SIZE
 
 
+# -- the parameters' own value type: 1 or 2 bytes, little-endian, in the payload ("Service-Telegramm") ------
+@pytest.mark.parametrize(("name", "value", "data"), [
+    ("Soft start time", 500, "F4 01"),  # the document's example: 0x01 0x01 0x02 0x00 0xF4 0x01 0x00 0x00
+    ("Soft start time", 65535, "FF FF"),
+    ("Soft stop distance", 12.3, "7B 00"),  # 0.1 mm units
+    ("Soft stop distance", 25.6, "00 01"),
+    ("Bit rate", 2, "02"),  # 500 kbit/s ("Wert / Baudrate")
+    ("Bit rate", 4, "04"),
+    ("Timeout", 250, "FA 00"),
+    ("Timeout", 0x0102, "02 01"),
+    ("Speed", 6553.5, "FF FF"),  # 0.1 mm/s units
+    ("Speed", 1.1, "0B 00"),
+])
+def test_service_param_value_type_byte_table(name, value, data):
+    param = PARAMS.by_name[name]
+    vtype, wire = param.value_type, bytes.fromhex(data)
+    assert vtype.size == int(param.extra["length"])
+    assert vtype.decode(wire) == value
+    assert vtype.encode(value) == wire
+    assert vtype.encode(vtype.decode(wire)) == wire
+    if param.enum is not None:
+        assert vtype.decode(wire).name == param.enum[value]
+    # the payload of a write request carries the same bytes from byte 4 on, zero-padded to 4 bytes
+    raw = param.encode(value)
+    assert codec.write_request(param.address, len(wire), raw).encode()[4:4 + len(wire)] == wire
+    assert vtype.decode(codec.write_request(param.address, len(wire), raw).encode()[4:8], allow_excess=True) == value
+
+
+def test_service_param_value_type_refuses_what_does_not_fit():
+    with pytest.raises(ValueError, match="outside"):
+        PARAMS.by_name["Timeout"].value_type.encode(65536)
+    with pytest.raises(ValueError, match="not one of"):
+        BIT_RATE.value_type.encode(1)  # no value 1 in the bit-rate table
+    assert BIT_RATE.value_type.encode("250 kbit/s") == b"\x03"
+
+
 def test_answer_problems_in_words():
     read = codec.read_request(0x01, 2)
     ok = codec.ServiceMessage(codec.ServiceType.READ_RESPONSE, 0x01, 2, 300)

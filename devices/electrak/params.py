@@ -7,6 +7,9 @@ its size in bytes.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+from devices import values
 from devices.electrak import codec
 from devices.params import Access, Param, ParamMap
 
@@ -39,8 +42,23 @@ TIMEOUT_REFUSAL = (
 )
 
 
+@dataclass(frozen=True)
+class ServiceParam(Param):
+    """A service parameter: ``extra["length"]`` bytes in the telegram's payload, not a Modbus register."""
+
+    @property
+    def value_type(self) -> values.ValueType:
+        # "Service-Telegramm": payload bytes 4 (LSB) .. 7 (MSB), the parameter's "Länge" bytes of it
+        base = values.Int(8 * length_of(self), False, values.LITTLE)
+        if self.scale != 1:
+            return values.Scaled(base, self.scale, self.unit)
+        if self.enum is not None:
+            return values.Enum(base, self.enum)
+        return base
+
+
 def _param(name, specifier, password, length, unit="", scale=1.0, description="", **kw) -> Param:
-    return Param(
+    return ServiceParam(
         name, SERVICE, specifier, Access.RW, unit=unit, scale=scale, description=description,
         extra={"password": f"0x{password:08X}", "length": str(length)}, **kw,
     )
