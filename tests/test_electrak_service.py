@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+from types import SimpleNamespace
 
 import pytest
 from conftest import wait_for
@@ -95,6 +96,38 @@ def test_service_param_value_type_refuses_what_does_not_fit():
     with pytest.raises(ValueError, match="not one of"):
         BIT_RATE.value_type.encode(1)  # no value 1 in the bit-rate table
     assert BIT_RATE.value_type.encode("250 kbit/s") == b"\x03"
+
+
+# -- owns_frame: the bus monitor's device column and filter ("Das Netzwerk im Überblick") ---------------
+class _QuietBus:
+    """A CAN transport that records subscriptions and sends nothing."""
+
+    name, options = "can-test", {"bitrate": 500_000}
+    state = SimpleNamespace(connected=True, last_error="", reconnects=0)
+
+    def subscribe(self, is_extended, arbitration_id, handler): ...
+    def unsubscribe(self, is_extended, arbitration_id, handler): ...
+    def send(self, arbitration_id, data, is_extended_id=False): return True
+    def start_cyclic(self, key, period_s, make): ...
+    def stop_cyclic(self, key): ...
+    def cyclic_running(self, key): return False
+
+
+@pytest.mark.parametrize(("arbitration_id", "is_extended", "owned"), [
+    (codec.CONTROL_ID, False, True), (codec.STATUS_ID, False, True),
+    (codec.SERVICE_REQUEST_ID, False, True), (codec.SERVICE_RESPONSE_ID, False, True),
+    (0x600, False, True), (0x6FF, False, True),  # the actuators' internal traffic is the network's too
+    (0x06, True, False), (0x07, True, False), (0x0A, True, False),  # extended IDs: not the SY2 protocol
+    (0x05, False, False), (0x08, False, False), (0x0C, False, False), (0x5FF, False, False), (0x700, False, False),
+])
+def test_owns_frame(arbitration_id, is_extended, owned):
+    from devices.electrak.adapter import ElectrakAdapter
+    from devices.live import DeviceState
+
+    config = SimpleNamespace(name="lift", options={"actuators": [{"model": "HD24", "gearing": "B026", "stroke_mm": 150}]})
+    adapter = ElectrakAdapter(config, DeviceState("lift", "electrak", "can-test"), _QuietBus())
+    assert adapter.owns_frame(arbitration_id, is_extended, bytes(8)) is owned
+    assert adapter.owns_frame(arbitration_id, is_extended, b"") is owned  # the ID decides, not the payload
 
 
 def test_answer_problems_in_words():

@@ -13,6 +13,7 @@ from devices.live import DeviceState
 from devices.params import Param, ParamError, backup_entry
 from devices.transport import CanTransport
 
+NETWORK_IDS = frozenset((codec.CONTROL_ID, codec.STATUS_ID, codec.SERVICE_REQUEST_ID, codec.SERVICE_RESPONSE_ID))
 SERVICE_TIMEOUT_S = 0.3  # bound for the answers of every actuator to one service telegram
 EXTRA_ANSWER_S = 0.02  # after the last expected answer: does an unexpected one follow?
 SERIES = ("Position [mm]", "Current [A]", "Speed [mm/s]", "Target [mm]")
@@ -86,6 +87,12 @@ class ElectrakAdapter:
         self.state.publish("Devices configured", len(self.actuators), periodic=False)
         self.state.publish("Stroke", self.limits.stroke_mm, "mm", periodic=False, text="shortest configured stroke")
         self._publish_command()
+
+    # -- bus monitor ---------------------------------------------------------------------------
+    def owns_frame(self, arbitration_id: int, is_extended: bool, data: bytes) -> bool:
+        """Bus monitor: every frame of the network (control 0x06, status 0x07, service 0x0A/0x0B, internal
+        0x600-0x6FF; standard IDs, "Das Netzwerk im Überblick"). Frames cannot be told apart by actuator."""
+        return not is_extended and (arbitration_id in NETWORK_IDS or arbitration_id in codec.INTERNAL_IDS)
 
     # -- status ----------------------------------------------------------------------------
     def on_status(self, msg) -> None:
