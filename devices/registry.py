@@ -46,6 +46,139 @@ class CanIdUse:
         return (first, last) if first <= last else None
 
 
+QUALITY_RANK = {"good": 0, "unknown": 1, "stale": 2, "offline": 3}  # worst quality wins on a tile
+
+
+@dataclass(frozen=True)
+class When:
+    """A condition on one live point: its ``value`` (or one bit ``field``, or its enum ``name`` / ``text``)
+    is one of ``values``, or starts with ``prefix``; ``negate`` inverts it."""
+
+    point: str
+    values: tuple[Any, ...] = ()
+    field: str = ""
+    of: str = "value"  # "value", "name" or "text"
+    prefix: str = ""
+    negate: bool = False
+
+    def holds(self, entry: dict[str, Any] | None) -> bool:
+        if entry is None:
+            return False
+        if self.field:
+            subject = (entry.get("fields") or {}).get(self.field)
+        else:
+            subject = entry.get(self.of)
+        if self.prefix:
+            hit = isinstance(subject, str) and subject.startswith(self.prefix)
+        else:
+            hit = subject in self.values
+        return hit != self.negate
+
+
+@dataclass(frozen=True)
+class TileLine:
+    """One line of a tile: ``template`` filled with the point's ``value``, ``text``, ``name``, ``unit``;
+    a ``cases`` line shows the first case that holds (text, and the tile's icon if one is given)."""
+
+    point: str = ""
+    template: str = "{text}"
+    missing: str = ""
+    cases: tuple[tuple[When, str, str], ...] = ()  # (condition, text, icon or "")
+    points: tuple[str, ...] = ()  # a list line: the names of these points whose value is true
+    unless: When | None = None  # hide the line while this holds
+
+
+@dataclass(frozen=True)
+class TileAlarm:
+    """An alarm text shown while ``when`` holds (``{text}``/``{name}``/``{value}`` of the point), except while ``unless`` holds."""
+
+    when: When
+    text: str
+    unless: When | None = None
+
+
+@dataclass(frozen=True)
+class TileBar:
+    """A bar of ``point`` against a full scale: the constant ``full_scale`` or the value of ``full_scale_point``."""
+
+    point: str
+    label: str  # format with {value}, {full}, {unit}
+    full_scale: float | None = None
+    full_scale_point: str = ""
+
+
+@dataclass(frozen=True)
+class TileSpec:
+    """What a device's tile shows, declared as data; pages evaluate it against the live points."""
+
+    lines: tuple[TileLine, ...] = ()
+    alarms: tuple[TileAlarm, ...] = ()
+    bar: TileBar | None = None
+    icon: str = "memory"
+
+    def point_names(self) -> set[str]:
+        names = set()
+        for line in self.lines:
+            names.update(n for n in (line.point, *line.points) if n)
+            names.update(case[0].point for case in line.cases)
+        names.update(a.when.point for a in self.alarms)
+        if self.bar is not None:
+            names.add(self.bar.point)
+        return names
+
+    def evaluate(self, point: Callable[[str], dict[str, Any] | None], now: float) -> dict[str, Any]:
+        """``{"lines", "alarms", "bar": (fraction, label) | None, "icon", "quality", "age"}`` from the points.
+
+        ``quality`` is the worst quality of the points the tile shows, ``age`` the age of the oldest of them.
+        """
+        entries = {name: point(name) for name in self.point_names()}
+        icon = self.icon
+        lines = []
+        for line in self.lines:
+            if line.unless is not None and line.unless.holds(entries.get(line.unless.point) or point(line.unless.point)):
+                continue
+            if line.cases:
+                chosen = next(((text, case_icon) for when, text, case_icon in line.cases if when.holds(entries.get(when.point))), None)
+                if chosen is None:
+                    lines.append(line.missing)
+                    continue
+                lines.append(chosen[0])
+                icon = chosen[1] or icon
+            elif line.points:
+                on = [n for n in line.points if (entries.get(n) or {}).get("value")]
+                lines.append(line.template.format(list=", ".join(on) if on else line.missing))
+            else:
+                entry = entries.get(line.point)
+                lines.append(line.missing if entry is None else line.template.format(**_fill(entry)))
+        alarms = []
+        for alarm in self.alarms:
+            entry = entries.get(alarm.when.point)
+            if alarm.when.holds(entry) and not (alarm.unless is not None and alarm.unless.holds(point(alarm.unless.point))):
+                alarms.append(alarm.text.format(**_fill(entry)))
+        bar = None
+        if self.bar is not None:
+            entry = entries.get(self.bar.point)
+            full = self.bar.full_scale
+            if self.bar.full_scale_point:
+                full_entry = point(self.bar.full_scale_point)
+                full = None if full_entry is None else full_entry.get("value")
+            if entry is not None and isinstance(entry.get("value"), int | float) and full:
+                value = entry["value"]
+                bar = (max(0.0, min(1.0, value / full)), self.bar.label.format(value=value, full=full, unit=entry.get("unit", "")))
+        shown = [e for e in entries.values() if e is not None]
+        quality = max((e["quality"] for e in shown), key=QUALITY_RANK.__getitem__, default="unknown")
+        times = [e["time"] for e in shown if e.get("time") is not None]
+        age = max(0.0, now - min(times)) if times else None
+        return {"lines": lines, "alarms": alarms, "bar": bar, "icon": icon, "quality": quality, "age": age}
+
+
+def _fill(entry: dict[str, Any]) -> dict[str, Any]:
+    text = entry.get("text")
+    value = entry.get("value")
+    return {"value": value, "unit": entry.get("unit", ""), "name": entry.get("name") or text or value,
+            "text": text if text is not None else (f"{value} {entry.get('unit', '')}".strip() if value is not None else "-")}
+
+
 def format_can_ids(first: int, last: int, extended: bool) -> str:
     """``0x705``, ``0x600-0x6FF``, ``0x000A1234 (ext)``."""
     width = 8 if extended else 2
@@ -82,10 +215,7 @@ class DeviceType:
     can_codec: str = ""
     can_fixed_ids: tuple[CanIdUse, ...] = ()
     can_ids: Callable[[dict[str, Any], str], Sequence[CanIdUse]] = lambda options, bus_type: ()
-    key_values: tuple[str, ...] = ()  # parameter names shown on tiles
-    summary: Callable[[Any], list[str]] | None = None  # state -> tile lines, where key_values do not fit
-    # state -> {"lines": [...], "alarms": [...], "bar": (fraction, label) | None, "icon": str} for /plant
-    plant_tile: Callable[[Any], dict] | None = None
+    tile: TileSpec = field(default_factory=TileSpec)  # the overview tile and the /plant tile, declared
     extra: dict[str, Any] = field(default_factory=dict)
 
     def can_id_uses(self, options: dict[str, Any], bus_type: str) -> tuple[CanIdUse, ...]:

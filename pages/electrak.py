@@ -16,7 +16,7 @@ from devices.electrak import codec
 from devices.electrak.adapter import FOREIGN_SENDER, SERIES
 from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, password_of, refusal
 from pages.frame import fmt_age, fmt_time, frame, set_status_badge
-from pages.widgets import HistoryChart, Lamp, run_command, write_from_page
+from pages.widgets import HistoryChart, Lamp, LiveValue, run_command, write_from_page
 
 WINDOW_S = 60
 
@@ -49,6 +49,11 @@ def content(name: str) -> None:
                 heard = ui.label().classes("text-body2")
                 seen = ui.label().classes("text-body2")
                 counters = ui.label().classes("text-caption mono text-grey-8")
+            with ui.row().classes("items-baseline gap-6"):
+                live_values = [
+                    LiveValue(state, point, lambda e, title=title: f"{title} {e['value']:g} {e['unit']} ({e['text']})")
+                    for point, title in (("Position", "position"), ("Current", "current"), ("Speed", "speed"))
+                ]
             heard_warning = ui.label().classes("text-warning text-body2")
             saturated_warning = ui.label().classes("text-warning text-body2").props("data-testid=saturated-warning")
             limits = adapter.limits
@@ -122,9 +127,11 @@ def content(name: str) -> None:
                           f"error answers {c.exceptions} · malformed {c.malformed}")
         online = state.status == "online"
         for bit, lamp in motion_lamps.items():
-            lamp.set(bool(info.get("motion", 0) >> bit & 1) if online else None)
+            lamp.show(state.point(codec.MOTION_FLAGS[bit][0]))
         for bit, lamp in error_lamps.items():
-            lamp.set(bool(info.get("errors", 0) >> bit & 1) if online else None)
+            lamp.show(state.point(codec.ERROR_FLAGS[bit][0]))
+        for live in live_values:
+            live.update()
         fault_text.clear()
         with fault_text:
             for bit, (fault, _text, clears) in codec.ERROR_FLAGS.items():

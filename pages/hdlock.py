@@ -15,6 +15,9 @@ from pages.widgets import (
     Lamp,
     RegisterTable,
     confirm,
+    entry_age,
+    mark_quality,
+    quality_note,
     run_command,
     write_from_page,
 )
@@ -43,16 +46,19 @@ def content(name: str) -> None:
 
         # -- status lamps ---------------------------------------------------------------
         with ui.card().classes("w-full"):
-            ui.label("LockStatus (holding 1000)").classes("text-subtitle1")
+            with ui.row().classes("items-baseline gap-2"):
+                ui.label("LockStatus (holding 1000)").classes("text-subtitle1")
+                lamps_note = ui.label().classes("q-age").props("data-testid=lockstatus-quality")
             with ui.row().classes("gap-5"):
                 lamps = {f.name: Lamp(f.name, LAMP_KIND.get(f.name, "ok"), f.description) for f in LOCK_STATUS_BITS}
             with ui.row().classes("gap-8 q-mt-sm"):
-                enum_labels = {}
+                enum_labels, enum_notes = {}, {}
                 for key in ENUM_VALUES:
                     with ui.column().classes("gap-0"):
                         ui.label(key).classes("text-caption text-grey-8")
                         enum_labels[key] = ui.label("-").classes("text-body1 text-weight-medium")
                         enum_labels[key].props(f'data-value="{key}"')
+                        enum_notes[key] = ui.label().classes("q-age q-ml-none")
 
         with ui.row().classes("w-full no-wrap items-start gap-4"):
             with ui.card().classes("col-7"):
@@ -105,10 +111,13 @@ def content(name: str) -> None:
             error.set_text(state.last_error if state.status != "online" else "")
             status = values.get("LockStatus")
             for field_name, lamp in lamps.items():
-                lamp.set(None if status is None else bool(status["fields"][field_name]))
+                lamp.show(status, None if status is None else status["fields"][field_name])
+            lamps_note.set_text(_note(status))
             for key, label in enum_labels.items():
                 entry = values.get(key)
                 label.set_text(entry["name"] or f"undefined ({entry['value']})" if entry else "-")
+                mark_quality(label, entry["quality"] if entry else "unknown")
+                enum_notes[key].set_text(_note(entry))
             param_rows()
             input_table.update()
             holding_table.update()
@@ -120,6 +129,13 @@ def content(name: str) -> None:
         update()
         ui.timer(0.5, update)
         ui.timer(1.0, chart.update)
+
+
+def _note(entry: dict | None) -> str:
+    """``stale 4 s`` / ``offline, last 1 min`` under a value that is not good."""
+    if entry is None or entry["quality"] not in ("stale", "offline"):
+        return ""
+    return quality_note(entry["quality"], entry_age(entry))
 
 
 def _sim_controls(twin, is_can: bool) -> None:

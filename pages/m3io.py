@@ -11,7 +11,7 @@ from app.worker import DEADMAN_BOUND_S
 from devices.m3io import codec
 from devices.m3io.codec import Variant
 from pages.frame import fmt_age, fmt_time, frame, set_status_badge
-from pages.widgets import HistoryChart, Lamp, confirm, run_command
+from pages.widgets import HistoryChart, Lamp, confirm, entry_age, mark_quality, quality_note, run_command
 
 STATE_COLOR = {"ok": "positive", "present": "positive", "blown": "negative", "defective": "negative"}
 VARIANT_COLOR = {"ok": "text-positive", "mismatch": "text-negative text-weight-medium", "unchecked": "text-grey-8", "not possible": "text-warning"}
@@ -20,6 +20,11 @@ STOP_RULE = (
     f"or within {DEADMAN_BOUND_S:g} s when it stops confirming that it is alive (frozen tab, sleeping laptop, lost network). "
     "Another open tab does not keep them on. Meanwhile the worker keeps the module's 2 s watchdog served."
 )
+
+
+def temp_text(variant: Variant, channel: int, word: codec.TempWord) -> str:
+    """``21.5 °C`` or ``out of range (-5.0 °C)``: the reading in the bus monitor's words (codec.describe_temp, 7.2.2)."""
+    return codec.describe_temp(variant, channel, word).split(" · ", 1)[0].split(" ", 1)[1]
 
 
 def content(name: str) -> None:
@@ -82,14 +87,15 @@ def content(name: str) -> None:
             if adapter.variant is not Variant.KM:
                 with ui.card().classes("col"):
                     ui.label("Pt100 temperatures (0.1 °C)").classes("text-subtitle1")
-                    temp_labels = {}
+                    temp_labels, temp_notes = {}, {}
                     with ui.row().classes("gap-6"):
                         for channel in adapter.temp_channels():
                             with ui.column().classes("gap-0"):
                                 ui.label(f"TEMP{channel}" + (" (SSR1-3)" if adapter.variant is Variant.HMR and channel == 1 else "")).classes(
                                     "text-caption text-grey-8"
                                 )
-                                temp_labels[channel] = ui.label("-").classes("text-h6")
+                                temp_labels[channel] = ui.label("-").classes("text-h6").props(f'data-temp="{channel}"')
+                                temp_notes[channel] = ui.label().classes("q-age q-ml-none")
                     chart = HistoryChart(state, [adapter.temp_label(c) for c in adapter.temp_channels()], window_s=600, height=260)
             else:
                 temp_labels, chart = {}, None
@@ -120,7 +126,7 @@ def content(name: str) -> None:
         c = state.counters
         counters.set_text(f"frames in {c.responses} · requests {c.requests} · timeouts {c.timeouts} · malformed {c.malformed} · write errors {c.write_errors}")
         for key, lamp in input_lamps.items():
-            lamp.set(None if adapter.inputs is None or state.status == "offline" else adapter.inputs[key])
+            lamp.show(state.point(key))
         led.set_value(adapter.outputs["LED"])
         for refresh in channel_rows.values():
             refresh()
@@ -128,8 +134,12 @@ def content(name: str) -> None:
             p2.set_value(adapter.two_phase)
         for channel, label in temp_labels.items():
             word = adapter.temps.get(channel)
-            label.set_text("-" if word is None else word.text())
+            label.set_text("-" if word is None else temp_text(adapter.variant, channel, word))
             label.classes(replace="text-h6 " + ("" if word is None or word.in_range else "text-warning"))
+            entry = state.point(f"TEMP{channel}")
+            quality = "unknown" if entry is None else entry["quality"]
+            mark_quality(label, quality)
+            temp_notes[channel].set_text(quality_note(quality, entry_age(entry)) if quality in ("stale", "offline") else "")
         for event in state.events:
             if event.time > shown[0]:
                 events.push(f"{fmt_time(event.time)} {event.level.upper()}: {event.text}")
@@ -186,6 +196,8 @@ def _channels(adapter, act, session: str) -> dict:
                 view = (foreign, group_fault, tuple(
                     (adapter.channels[c].load, adapter.channels[c].fuse, adapter.channels[c].triac, c in adapter.temps) for c in channels
                 ))
+                entry = adapter.state.point(f"SSR{channels[0]} Last")
+                mark_quality(details, "unknown" if entry is None else entry["quality"])
                 if view == shown[0]:
                     return  # rebuild only what changed
                 shown[0] = view

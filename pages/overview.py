@@ -13,6 +13,8 @@ from app.plant import DEMO_PLANT, DeviceConfig, append_device, can_id_conflict, 
 from app.worker import AuditUnavailable, PermissionDenied
 from devices.registry import DEVICE_TYPES, format_can_ids
 from pages.frame import fmt_age, frame, set_status_badge
+from pages.plant_view import evaluate_tile
+from pages.widgets import mark_quality, quality_note
 from pages.session import current_user
 
 
@@ -29,9 +31,9 @@ class DeviceTile:
                 self.badge = ui.badge("waiting", color="grey")
             ui.label(f"{self.device_type.title} on {self.state.bus}").classes("text-caption text-grey-8")
             self.seen = ui.label().classes("text-caption")
-            self.values = ui.column().classes("gap-0")
-            with self.values:
-                self.value_labels = {key: ui.label().classes("text-body2") for key in self.device_type.key_values}
+            self.values = ui.column().classes("gap-0").props("data-tile-values")
+            self.quality_note = ui.label().classes("q-age")
+            self.shown: list[str] | None = None
             self.counters = ui.label().classes("text-caption mono text-grey-8")
             self.error = ui.label().classes("text-caption text-negative")
         self.update()
@@ -40,23 +42,21 @@ class DeviceTile:
         s = self.state
         set_status_badge(self.badge, s.status, s.age)
         self.seen.set_text(f"last seen: {fmt_age(s.age)}")
-        if self.device_type.summary is not None:
-            lines = self.device_type.summary(s)
-            if len(lines) != len(self.value_labels):
-                self.values.clear()
-                with self.values:
-                    self.value_labels = {str(i): ui.label().classes("text-body2") for i in range(len(lines))}
-            for label, line in zip(self.value_labels.values(), lines):
-                label.set_text(line)
-        else:
-            values = s.values()
-            for key, label in self.value_labels.items():
-                entry = values.get(key)
-                label.set_text(f"{key}: {entry['text'] if entry else '-'}")
-        if s.status in ("stale", "offline"):
-            self.values.classes(add="stale")
-        else:
-            self.values.classes(remove="stale")
+        tile = evaluate_tile(s)  # the device type's declared tile: the same lines and alarms as the plant view
+        quality = tile["quality"]
+        lines = list(tile["lines"]) + ([tile["bar"][1]] if tile["bar"] else [])
+        alarms = tile["alarms"] if quality in ("good", "unknown") else []
+        shown = lines + [f"⚠ {a}" for a in alarms]
+        if shown != self.shown:
+            self.shown = shown
+            self.values.clear()
+            with self.values:
+                for line in lines:
+                    ui.label(line).classes("text-body2")
+                for alarm in alarms:
+                    ui.label(f"⚠ {alarm}").classes("text-body2 text-negative text-weight-medium")
+        mark_quality(self.values, quality if quality in ("stale", "offline") else "good")
+        self.quality_note.set_text(quality_note(quality, tile["age"]) if quality in ("stale", "offline") else "")
         c = s.counters.as_dict()
         names = {"requests": "req", "timeouts": "timeouts", "crc_errors": "CRC", "exceptions": "exc",
                  "write_errors": "write err", "malformed": "malformed"}

@@ -9,13 +9,25 @@ from nicegui import ui
 
 from app import runtime as rt
 from devices.registry import DEVICE_TYPES
-from pages.frame import CSS, STATUS_COLOR, fmt_age
+from pages.frame import CSS, fmt_age
+from pages.widgets import mark_quality
+
+BADGE = {"good": ("live", "positive"), "stale": ("stale: {age}", "warning"), "offline": ("offline: last {age}", "negative"),
+         "unknown": ("waiting", "grey")}
+
+
+def evaluate_tile(state) -> dict:
+    """The device type's declared tile, evaluated against the device's live points (quality and age included)."""
+    import time
+
+    values = state.values()  # registers and published points alike, each with its quality
+    return DEVICE_TYPES[state.type].tile.evaluate(values.get, time.time())
 
 TILE_CSS = """
 .plant-grid { display: grid; grid-template-columns: repeat(auto-fill, minmax(300px, 1fr)); gap: 16px; width: 100%; }
 .plant-tile { min-height: 170px; border-left: 10px solid #21ba45; font-size: 18px; }
 .plant-tile.alarm { border-left-color: #c10015; background: #fff0f0; }
-.plant-tile.stale, .plant-tile.offline { border-left-color: #9e9e9e; filter: grayscale(1); opacity: 0.6; }
+.plant-tile.q-stale, .plant-tile.q-offline { border-left-color: #9e9e9e; text-decoration: none; }
 .plant-tile .name { font-size: 22px; font-weight: 600; }
 .plant-tile .alarm-text { color: #c10015; font-weight: 600; }
 """
@@ -42,33 +54,35 @@ class PlantTile:
         self.update()
 
     def update(self) -> None:
-        s = self.state
-        tile = self.device_type.plant_tile(s) if self.device_type.plant_tile else {"lines": [], "alarms": [], "bar": None, "icon": "memory"}
-        status = s.status
-        self.status.set_text({"online": "live", "stale": f"stale: {fmt_age(s.age)}", "offline": f"offline: last {fmt_age(s.age)}",
-                              "unknown": "waiting"}[status])
-        self.status.props(f"color={STATUS_COLOR[status]}")
+        tile = evaluate_tile(self.state)
+        quality = tile["quality"]
+        text, color = BADGE[quality]
+        self.status.set_text(text.format(age=fmt_age(tile["age"])))
+        self.status.props(f"color={color}")
         self.icon.name = tile["icon"]
         self.icon.update()
-        self.lines.clear()
-        with self.lines:
-            for line in tile["lines"]:
-                ui.label(line)
+        if tile["lines"] != getattr(self, "_lines", None):
+            self._lines = tile["lines"]
+            self.lines.clear()
+            with self.lines:
+                for line in tile["lines"]:
+                    ui.label(line)
         bar = tile["bar"]
         self.bar.set_visibility(bar is not None)
         self.bar_label.set_visibility(bar is not None)
         if bar is not None:
             self.bar.set_value(bar[0])
             self.bar_label.set_text(bar[1])
-        self.alarms.clear()
-        alarms = tile["alarms"] if status == "online" else []
-        with self.alarms:
-            for alarm in alarms:
-                ui.label(f"⚠ {alarm}").classes("alarm-text")
-        self.card.classes(remove="alarm stale offline")
-        if status in ("stale", "offline"):
-            self.card.classes(add=status)
-        elif alarms:
+        alarms = tile["alarms"] if quality in ("good", "unknown") else []  # old data raises no alarms
+        if alarms != getattr(self, "_alarms", None):
+            self._alarms = alarms
+            self.alarms.clear()
+            with self.alarms:
+                for alarm in alarms:
+                    ui.label(f"⚠ {alarm}").classes("alarm-text")
+        mark_quality(self.card, quality if quality in ("stale", "offline") else "good")
+        self.card.classes(remove="alarm")
+        if alarms:
             self.card.classes(add="alarm")
 
 

@@ -42,6 +42,69 @@ class Lamp:
             self.dot.classes(add="on")
         self.row.props(f'data-on="{"unknown" if on is None else int(bool(on))}"')
 
+    def show(self, entry: dict | None, value=None) -> None:
+        """Show a live point (its value, or ``value`` taken from it) with its quality: offline shows unknown."""
+        quality = "unknown" if entry is None else entry["quality"]
+        self.set(None if entry is None or quality == "offline" else bool(entry["value"] if value is None else value))
+        mark_quality(self.row, quality)
+
+
+QUALITY_CLASSES = "q-stale q-offline q-unknown"
+
+
+def entry_age(entry: dict | None) -> float | None:
+    import time
+
+    return None if entry is None or entry.get("time") is None else max(0.0, time.time() - entry["time"])
+
+
+def quality_note(quality: str, age: float | None) -> str:
+    """The words shown next to a value that is not good: ``stale 12 s``, ``offline, last 2 min``."""
+    from pages.frame import fmt_age
+
+    if quality == "stale":
+        return f"stale {fmt_age(age)}"
+    if quality == "offline":
+        return f"offline, last {fmt_age(age)}" if age is not None else "offline"
+    if quality == "unknown":
+        return "not read"
+    return ""
+
+
+def mark_quality(element: ui.element, quality: str) -> None:
+    """Grey an element by the quality of the value it shows (classes q-stale, q-offline, q-unknown)."""
+    element.classes(remove=QUALITY_CLASSES)
+    if quality in ("stale", "offline", "unknown"):
+        element.classes(add=f"q-{quality}")
+    element.props(f'data-quality="{quality}"')
+
+
+class LiveValue:
+    """A label showing one live point of the store with its quality (greyed, with its age, when not good)."""
+
+    def __init__(self, state: DeviceState, point: str, fmt=None, classes: str = "text-body1"):
+        self.state, self.point, self.fmt = state, point, fmt
+        with ui.row().classes("items-baseline gap-0 no-wrap") as self.row:
+            self.label = ui.label("-").classes(classes)
+            self.age = ui.label().classes("q-age")
+        self.row.props(f'data-point="{point}"')
+        self.update()
+
+    def update(self) -> None:
+        import time
+
+        entry = self.state.point(self.point)
+        if entry is None:
+            self.label.set_text("-")
+            quality, age = "unknown", None
+        else:
+            self.label.set_text(self.fmt(entry) if self.fmt else (entry["text"] if entry["text"] is not None else
+                                                                   f"{entry['value']} {entry['unit']}".strip()))
+            quality = entry["quality"]
+            age = None if entry["time"] is None else max(0.0, time.time() - entry["time"])
+        mark_quality(self.row, quality)
+        self.age.set_text(quality_note(quality, age) if quality in ("stale", "offline") else "")
+
 
 REGISTER_COLUMNS = [
     {"name": "address", "label": "Addr", "field": "address", "align": "right", "sortable": True},
@@ -50,6 +113,7 @@ REGISTER_COLUMNS = [
     {"name": "raw", "label": "Raw", "field": "raw", "align": "left", "classes": "mono"},
     {"name": "access", "label": "Access", "field": "access", "align": "center"},
     {"name": "age", "label": "Read", "field": "age", "align": "right"},
+    {"name": "quality", "label": "Quality", "field": "quality", "align": "left"},
 ]
 
 
@@ -66,13 +130,18 @@ class RegisterTable:
             '<q-td :props="props" :title="props.row.description" style="cursor: help">'
             '{{ props.value }}<q-badge v-if="props.row.unsaved" color="orange" class="q-ml-xs">unsaved</q-badge></q-td>',
         )
+        self.table.props(':table-row-class-fn="row => row.quality_class"')
         self.update()
 
     def update(self) -> None:
+        import time
+
         rows = []
+        now = time.time()
         for p in self.params:
             raw = self.state.raw(p)
             read = self.state.read_time(p)
+            quality = self.state.quality(read, self.state.registers_periodic, now)
             rows.append({
                 "key": p.key,
                 "address": p.address if p.words == 1 else f"{p.address}-{p.address + p.words - 1}",
@@ -83,6 +152,8 @@ class RegisterTable:
                 "age": "-" if read is None else datetime.fromtimestamp(read).strftime("%H:%M:%S"),
                 "description": p.description,
                 "unsaved": p.key in self.state.unsaved,
+                "quality": "good" if quality == "good" else quality_note(quality, None if read is None else now - read),
+                "quality_class": f"q-{quality}" if quality in ("stale", "offline") else "",
             })
         if rows != self.table.rows:
             self.table.rows = rows

@@ -157,8 +157,10 @@ async def test_overview_lists_both_locks_online(env: Env):
         words = text.split()
         assert words[0] == "req" and int(words[1]) > 0, f"no requests counted: {text}"
         assert "timeouts 0" in text, text
-    await user.should_see(kind=ui.label, content="BoltPosition: ")
-    await user.should_see(kind=ui.label, content="DoorState: ")
+    # the declared tile (devices/hdlock TileSpec): door, bolt, bolt position
+    await user.should_see(kind=ui.label, content="Door open")
+    await user.should_see(kind=ui.label, content="bolt unlocked")
+    await user.should_see(kind=ui.label, content=" Inc")
     await eventually(
         lambda: any(e.text == "connected" for e in user.find(kind=ui.label, content="connected").elements),
         what="line1 shown as connected",

@@ -4,7 +4,7 @@ from typing import Any
 
 from devices.electrak import codec
 from devices.electrak.params import PARAMS
-from devices.registry import CanIdUse, DeviceType
+from devices.registry import CanIdUse, DeviceType, TileAlarm, TileBar, TileLine, TileSpec, When
 
 
 def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str]]:
@@ -40,32 +40,26 @@ CAN_FIXED_IDS = (
 )
 
 
-def _summary(state) -> list[str]:
-    info = state.info
-    recent = info.get("status") or []
-    lines = [f"actuators heard: {info.get('heard', 0)} of {info.get('configured', 0)}"]
-    if recent:
-        lines.append("position: " + ", ".join(f"{f.position_mm:.1f} mm" for f in recent))
-    errors = [codec.ERROR_FLAGS[b][0] for b in range(8) if info.get("errors", 0) >> b & 1]
-    lines.append("faults: " + (", ".join(errors) if errors else "none"))
-    return lines
-
-
-def _plant_tile(state) -> dict:
-    info = state.info
-    recent = info.get("status") or []
-    limits = info.get("limits")
-    position = sum(f.position_mm for f in recent) / len(recent) if recent else None
-    errors = info.get("errors", 0)
-    idle = not info.get("controlled_by")
-    if idle:
-        errors &= ~(1 << 5)  # nobody sends control telegrams: the timeout flag is the normal idle state
-    faults = [codec.ERROR_FLAGS[b][0] for b in range(8) if errors >> b & 1]
-    moving = [codec.MOTION_FLAGS[b][0] for b in range(2) if info.get("motion", 0) >> b & 1]
-    lines = [("moving: " + ", ".join(moving)) if moving else ("idle (no controller)" if idle else "standing"),
-             f"actuators {info.get('heard', 0)} of {info.get('configured', 0)}"]
-    bar = None if position is None or limits is None else (min(1.0, position / limits.stroke_mm), f"{position:.1f} of {limits.stroke_mm:g} mm")
-    return {"lines": lines, "alarms": faults, "bar": bar, "icon": "height"}
+_IDLE = When("Controlled by", (None,))  # nobody sends control telegrams
+TILE = TileSpec(
+    lines=(
+        TileLine(cases=(
+            (When("Extending", (True,)), "moving: extending", ""),
+            (When("Retracting", (True,)), "moving: retracting", ""),
+            (_IDLE, "idle (no controller)", ""),
+            (When("Controlled by", (None,), negate=True), "standing", ""),
+        ), missing="waiting for status telegrams"),
+        TileLine("Devices heard", "actuators heard: {value}", missing="actuators heard: 0"),
+        TileLine("Devices configured", "actuators configured: {value}"),
+    ),
+    alarms=tuple(
+        # "Message timeout" is the normal state while no control telegrams are sent (document, Fehler-Flags)
+        TileAlarm(When(name, (True,)), name, unless=_IDLE if bit == 5 else None)
+        for bit, (name, *_) in codec.ERROR_FLAGS.items()
+    ),
+    bar=TileBar("Position", "{value:.1f} of {full:g} mm", full_scale_point="Stroke"),
+    icon="height",
+)
 
 
 DEVICE_TYPE = DeviceType(
@@ -79,6 +73,5 @@ DEVICE_TYPE = DeviceType(
     bus_identity=lambda options, bus_type: "electrak network",  # one network per bus: the IDs 0x06/0x07 are fixed
     can_codec="devices.electrak.codec",
     can_fixed_ids=CAN_FIXED_IDS,
-    summary=_summary,
-    plant_tile=_plant_tile,
+    tile=TILE,
 )

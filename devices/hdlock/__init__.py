@@ -4,7 +4,7 @@ from typing import Any
 
 from devices.hdlock import codec
 from devices.hdlock.params import PARAMS
-from devices.registry import CanIdUse, DeviceType
+from devices.registry import CanIdUse, DeviceType, TileAlarm, TileBar, TileLine, TileSpec, When
 
 SIM_KEYS = {"serial": "simulated twin: serial number", "door": 'simulated twin: "open" or "closed"'}
 
@@ -64,27 +64,24 @@ def _identity(options: dict[str, Any], bus_type: str):
     return str(codec.DeviceId.make(device_id, options.get("extended")))
 
 
-def _plant_tile(state) -> dict:
-    values = state.values()
-    status = values.get("LockStatus", {}).get("fields") or {}
-    door = values.get("DoorState", {}).get("name") or "door: unknown"
-    if status.get("BoltLocked"):
-        bolt, icon = "bolt locked", "lock"
-    elif status.get("BoltUnlocked"):
-        bolt, icon = "bolt unlocked", "lock_open"
-    elif status.get("BoltMovingOut") or status.get("BoltMovingIn"):
-        bolt, icon = "bolt moving", "sync"
-    else:
-        bolt, icon = "bolt: unknown", "help"
-    alarms = []
-    state_machine = values.get("StateMachineState", {}).get("name") or ""
-    if state_machine.startswith("Error"):
-        alarms.append(state_machine)
-    if status.get("ProximityOverrange"):
-        alarms.append("hall sensors overdriven (magnet)")
-    position = values.get("BoltPosition", {}).get("value")
-    bar = None if position is None else (min(1.0, position / 115), f"bolt {position} Inc")
-    return {"lines": [door, bolt], "alarms": alarms, "bar": bar, "icon": icon}
+_LOCK = "LockStatus"
+TILE = TileSpec(
+    lines=(
+        TileLine("DoorState", "{name}", missing="door: unknown"),
+        TileLine(cases=(
+            (When(_LOCK, (1,), field="BoltLocked"), "bolt locked", "lock"),
+            (When(_LOCK, (1,), field="BoltUnlocked"), "bolt unlocked", "lock_open"),
+            (When(_LOCK, (1,), field="BoltMovingOut"), "bolt moving", "sync"),
+            (When(_LOCK, (1,), field="BoltMovingIn"), "bolt moving", "sync"),
+        ), missing="bolt: unknown"),
+    ),
+    alarms=(
+        TileAlarm(When("StateMachineState", of="name", prefix="Error"), "{name}"),
+        TileAlarm(When(_LOCK, (1,), field="ProximityOverrange"), "hall sensors overdriven (magnet)"),
+    ),
+    bar=TileBar("BoltPosition", "bolt {value} Inc", full_scale=115),  # input register 2: 0 retracted, about 115 extended
+    icon="help",
+)
 
 
 DEVICE_TYPE = DeviceType(
@@ -99,6 +96,5 @@ DEVICE_TYPE = DeviceType(
     can_codec="devices.hdlock.codec",
     can_fixed_ids=CAN_FIXED_IDS,
     can_ids=_can_ids,
-    key_values=("DoorState", "LockStatus", "BoltPosition"),
-    plant_tile=_plant_tile,
+    tile=TILE,
 )

@@ -3,7 +3,7 @@
 from typing import Any
 
 from devices.m3io import codec
-from devices.registry import CanIdUse, DeviceType
+from devices.registry import CanIdUse, DeviceType, TileAlarm, TileLine, TileSpec, When
 
 
 def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str]]:
@@ -48,26 +48,21 @@ def _can_ids(options: dict[str, Any], bus_type: str) -> tuple[CanIdUse, ...]:
     )
 
 
-def _summary(state) -> list[str]:
-    adapter_info = state.info
-    lines = [f"SW1 0x{adapter_info.get('sw1', 0):02X} · {adapter_info['variant'].value}"]
-    if adapter_info.get("bitrate_mismatch"):
-        lines.append(f"bit rate mismatch: module {adapter_info['ids'].bitrate // 1000} kbit/s, bus {adapter_info['bus_bitrate'] // 1000} kbit/s")
-    outputs = adapter_info.get("outputs_on")
-    lines.append("outputs on: " + (", ".join(outputs) if outputs else "none"))
-    faults = adapter_info.get("faults") or []
-    lines.append("faults: " + (", ".join(faults) if faults else "none"))
-    return lines
-
-
-def _plant_tile(state) -> dict:
-    info = state.info
-    outputs = info.get("outputs_on") or []
-    lines = ["outputs on: " + (", ".join(outputs) if outputs else "none")]
-    alarms = list(info.get("faults") or [])
-    if info.get("bitrate_mismatch"):
-        alarms.append("bit rate mismatch")
-    return {"lines": lines, "alarms": alarms, "bar": None, "icon": "electrical_services"}
+# outputs of every variant (KM: LED only; HM: SSR1..6; HMR: SSR1-3 three-phase and SSR4..6, section 4)
+_OUTPUTS = ("LED", "SSR1-3", *(f"SSR{i}" for i in range(1, 7)))
+TILE = TileSpec(
+    lines=(
+        TileLine(points=_OUTPUTS, template="outputs on: {list}", missing="none"),
+    ),
+    alarms=(
+        TileAlarm(When("Variant check", ("mismatch",)), "{text}"),
+        TileAlarm(When("Bit rate check", ("mismatch",)), "{text}"),
+        *(TileAlarm(When(f"SSR{i} Si", ("blown",)), f"SSR{i} fuse blown") for i in range(1, 7)),
+        *(TileAlarm(When(f"SSR{i} Triac", ("defective",)), f"SSR{i} triac defective") for i in range(1, 7)),
+        TileAlarm(When("SSR1-3 load check", ("ok", None), negate=True), "{text}"),
+    ),
+    icon="electrical_services",
+)
 
 
 DEVICE_TYPE = DeviceType(
@@ -80,6 +75,5 @@ DEVICE_TYPE = DeviceType(
     check_config=_check_config,
     bus_identity=_identity,
     can_ids=_can_ids,
-    summary=_summary,
-    plant_tile=_plant_tile,
+    tile=TILE,
 )
