@@ -21,25 +21,12 @@ from dataclasses import dataclass
 import serial
 
 from app.state import BusState
+from devices.transport import SerialClosed, SerialLineError, SerialTimeout  # noqa: F401 - raised here, caught by adapters
 
 log = logging.getLogger(__name__)
 
 BAUDRATES = (9600, 19200, 38400)
 REOPEN_BACKOFF_S = (0.5, 1.0, 2.0, 5.0)
-
-
-class SerialLineError(Exception):
-    """A request that did not give a usable answer."""
-
-    kind = "error"
-
-
-class SerialTimeout(SerialLineError):
-    kind = "timeout"
-
-
-class SerialClosed(SerialLineError):
-    kind = "closed"
 
 
 @dataclass
@@ -61,7 +48,8 @@ Completion = Callable[[bytes], int | None]
 
 
 class SerialLine:
-    """The worker's handle on one serial port (``type = "serial"`` in the plant file)."""
+    """The worker's handle on one serial port (``type = "serial"`` in the plant file); implements
+    :class:`devices.transport.SerialTransport`."""
 
     def __init__(self, name: str, options: dict, state: BusState):
         self.name = name
