@@ -248,8 +248,9 @@ class CommandRefused(CodecError):
     def __init__(self, command: bytes, code: int):
         self.command = command
         self.code = code
-        self.info = STATUS_INFO.get(code) or StatusInfo(f"0x{code:02X}", "Unknown status", "an undocumented answer code",
-                                                        "note the code and the command and ask the vendor")
+        self.info = STATUS_INFO.get(code) or StatusInfo(
+            f"0x{code:02X}", "Unknown status", "an undocumented answer code",
+            "note the code and the command and ask the vendor")
         super().__init__(f"{command.decode('ascii', 'replace')}: {self.info.name} ({self.info.title}): "
                          f"{self.info.meaning}; {self.info.remedy}".rstrip("; "))
 
@@ -525,7 +526,9 @@ class Request:
     para: tuple[int, ...] = field(default_factory=tuple)
 
 
-_REQUEST_PARAMS = {RO: (1, 2), RA: (0,), RG: (2,), RE: (3,), RS: (2,)}  # fixed lengths; RC, RT carry ctp
+# Parameter bytes per request (table 3); RC and RT carry ctp. RO is read in both forms: the Safety_ID
+# alone (section 5 example, what encode_ro sends) and with the para_ID[0] that table 3 lists.
+_REQUEST_PARAMS = {RO: (1, 2), RA: (0,), RG: (2,), RE: (3,), RS: (2,)}
 
 
 def decode_request(frame: bytes) -> Request:
