@@ -28,7 +28,9 @@ TILE_CSS = """
 .plant-tile { min-height: 170px; border-left: 10px solid #21ba45; font-size: 18px; }
 .plant-tile.alarm { border-left-color: #c10015; background: #fff0f0; }
 .plant-tile.q-stale, .plant-tile.q-offline { border-left-color: #9e9e9e; text-decoration: none; }
-.plant-tile .name { font-size: 22px; font-weight: 600; }
+.plant-tile .name { font-size: 22px; font-weight: 600; white-space: nowrap; }
+.plant-tile .head { min-width: 0; flex: 1 1 auto; }
+.plant-tile .q-badge { flex: 0 1 auto; max-width: 45%; white-space: normal; text-align: right; }
 .plant-tile .alarm-text { color: #c10015; font-weight: 600; }
 """
 
@@ -42,7 +44,7 @@ class PlantTile:
             self.card.props(f'data-plant-tile="{name}"')
             with ui.row().classes("items-center w-full no-wrap"):
                 self.icon = ui.icon("help", size="40px")
-                with ui.column().classes("gap-0"):
+                with ui.column().classes("gap-0 head"):
                     ui.label(name).classes("name")
                     ui.label(f"{self.device_type.title} · {self.state.bus}").classes("text-body2 text-grey-8")
                 ui.space()

@@ -152,7 +152,7 @@ class RegisterTable:
                 "age": "-" if read is None else datetime.fromtimestamp(read).strftime("%H:%M:%S"),
                 "description": p.description,
                 "unsaved": p.key in self.state.unsaved,
-                "quality": "good" if quality == "good" else quality_note(quality, None if read is None else now - read),
+                "quality": quality if raw is not None else "-",  # the Read column gives its age; the row stays put between reads
                 "quality_class": f"q-{quality}" if quality in ("stale", "offline") else "",
             })
         if rows != self.table.rows:

@@ -252,3 +252,49 @@ def test_restore_through_the_diff(app_url: str, browser: Browser):
     finally:
         page.context.close()
     assert not errors, f"JavaScript errors on the page: {errors}"
+
+
+# -- 3. stale and offline data marked alike on the device page, the overview and the plant view -
+
+
+def test_stopped_lock_is_marked_everywhere(app_url: str, browser: Browser):
+    errors: list[str] = []
+    page = _new_page(browser, 1440, 900, errors)
+    stop = page.locator('[data-testid="sim-silent"], .q-toggle:has-text("Stop answering")').first
+    try:
+        page.goto(app_url + "/device/door-2")
+        expect(page.locator('[data-lamp="BoltLocked"]')).to_have_attribute("data-quality", "good")
+        stop.click()
+        # the lamps, the enum values and the register rows go grey with their age
+        expect(page.locator('[data-lamp="BoltLocked"]')).to_have_attribute("data-quality", re.compile("stale|offline"))
+        expect(page.locator('[data-value="DoorState"]')).to_have_class(re.compile(r"q-(stale|offline)"))
+        expect(page.locator(".reg-table tbody tr.q-offline").first).to_be_visible()
+        expect(page.get_by_test_id("lockstatus-quality")).to_contain_text("offline, last")
+        page.evaluate("window.scrollTo(0, 0)")
+        _save_shot(page, "stale-device-1440x900.png", full_page=False)
+        page.locator(".reg-table").first.scroll_into_view_if_needed()
+        _save_shot(page, "stale-device-table-1440x900.png", full_page=False)
+        page.set_viewport_size({"width": 1024, "height": 768})
+        page.evaluate("window.scrollTo(0, 0)")
+        _save_shot(page, "stale-device-1024x768.png", full_page=False)
+        for width, height in ((1440, 900), (1024, 768), (768, 1024)):
+            page.set_viewport_size({"width": width, "height": height})
+            page.goto(app_url + "/")
+            tile = page.locator('[data-device="door-2"] [data-tile-values]')
+            expect(tile).to_have_attribute("data-quality", "offline")
+            expect(page.locator('[data-device="door-1"] [data-tile-values]')).to_have_attribute("data-quality", "good")
+            _save_shot(page, f"overview-{width}x{height}.png", full_page=False)
+            page.goto(app_url + "/plant")
+            expect(page.locator('[data-plant-tile="door-2"]')).to_have_attribute("data-quality", "offline")
+            expect(page.locator('[data-plant-tile="door-2"]')).to_contain_text("offline: last")
+            expect(page.locator('[data-plant-tile="door-1"]')).to_contain_text("live")
+            _save_shot(page, f"plant-offline-{width}x{height}.png", full_page=False)
+    finally:
+        try:  # the lock answers again for the other tests
+            page.set_viewport_size({"width": 1440, "height": 900})
+            page.goto(app_url + "/device/door-2")
+            if stop.get_attribute("aria-checked") == "true":
+                stop.click()
+        finally:
+            page.context.close()
+    assert not errors, f"JavaScript errors on the page: {errors}"
