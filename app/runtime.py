@@ -14,6 +14,7 @@ from typing import Any
 from app.audit import AuditLog
 from app.auth import AuthSessions, LoginThrottle
 from app.backup import write_atomic
+from app.can_bus import CanBus, CanBusState
 from app.plant import Plant
 from app.state import StateStore
 from app.users import UserStore
@@ -21,6 +22,10 @@ from app.worker import Worker
 from devices.registry import DEVICE_TYPES
 
 log = logging.getLogger(__name__)
+
+
+def _open_can(name: str, options: dict[str, Any]) -> CanBus:
+    return CanBus(name, options, CanBusState(name, "can", ""))
 
 
 class SimulatedPlant:
@@ -41,7 +46,9 @@ class SimulatedPlant:
                 sim_class = DEVICE_TYPES[type_name].sim_class(bus.type)
                 if sim_class is None:
                     continue
-                server = sim_class(bus, devs)
+                # the twins of a CAN bus get their own bus object of the kind the worker uses (passed in:
+                # devices/ imports nothing of app/)
+                server = sim_class(bus, devs, open_can=_open_can) if bus.type == "can" else sim_class(bus, devs)
                 self.servers.append(server)
                 self.twins.update(server.twins)
 

@@ -21,13 +21,7 @@ LAYERS = ("pages", "app", "devices")  # top to bottom; a layer may import only t
 LAZY_ROUTE_IMPORTS = {"app/web.py"}
 
 # Known imports that still point upwards, each to be removed (then delete its line here).
-# The simulators build their own CAN bus: they should be handed one (pass the bus in) by
-# app/runtime.py's SimulatedPlant instead of importing app.can_bus.
-PENDING = {
-    ("devices/hdlock/sim.py", "app.can_bus"),
-    ("devices/electrak/sim.py", "app.can_bus"),
-    ("devices/m3io/sim.py", "app.can_bus"),
-}
+PENDING: set[tuple[str, str]] = set()
 
 
 def imports_of(source: str, module: str) -> list[tuple[str, bool]]:

@@ -322,9 +322,7 @@ class ElectrakNetworkTwin:
 class ElectrakSim:
     """The twins of every Electrak network (one per plant device) of one CAN bus."""
 
-    def __init__(self, bus, devices):
-        from app.can_bus import CanBus, CanBusState
-
+    def __init__(self, bus, devices, open_can):
         self.bus_config = bus
         self.bitrate = bus.options.get("bitrate", codec.DEFAULT_BITRATE)
         self.twins: dict[str, ElectrakNetworkTwin] = {}
@@ -332,7 +330,7 @@ class ElectrakSim:
             actuators = [codec.Actuator(a["model"], a["gearing"], float(a["stroke_mm"])) for a in dev.options["actuators"]]
             self.twins[dev.name] = ElectrakNetworkTwin(actuators, dev.name, bus_bitrate=self.bitrate)
         options = {k: v for k, v in bus.options.items() if k != "simulate"}
-        self.can = CanBus(f"{bus.name} (simulated actuators)", options, CanBusState(bus.name, "can", ""))
+        self.can = open_can(f"{bus.name} (simulated actuators)", options)
         self.can.subscribe(False, codec.CONTROL_ID, self.on_control)
         self.can.subscribe(False, codec.SERVICE_REQUEST_ID, self.on_service)
         self._task: asyncio.Task | None = None

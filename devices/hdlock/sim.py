@@ -387,12 +387,11 @@ class HdLockCanSim:
 
     The twins use their own python-can bus instance on the plant bus's interface and
     channel (``virtual`` in one process, ``udp_multicast`` across processes), through the
-    same :class:`app.can_bus.CanBus` the worker uses.
+    same kind of CAN bus the worker uses: ``open_can(name, options)`` is handed in by the
+    simulated plant (app/runtime.py), so this package imports nothing of app/.
     """
 
-    def __init__(self, bus, devices):
-        from app.can_bus import CanBus, CanBusState
-
+    def __init__(self, bus, devices, open_can):
         self.bus_config = bus
         self.bitrate = bus.options.get("bitrate", codec.CAN_DEFAULT_BITRATE)
         self.twins: dict[str, HdLockTwin] = {}
@@ -406,7 +405,7 @@ class HdLockCanSim:
             twin.status_phase = n * 0.137  # the locks' status frames do not all come at once
             self.twins[dev.name] = twin
         options = {k: v for k, v in bus.options.items() if k != "simulate"}
-        self.can = CanBus(f"{bus.name} (simulated locks)", options, CanBusState(bus.name, "can", ""))
+        self.can = open_can(f"{bus.name} (simulated locks)", options)
         for request_id in codec.CAN_REQUEST_IDS:
             self.can.subscribe(False, request_id, self.on_request)
         self._task: asyncio.Task | None = None

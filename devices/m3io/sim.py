@@ -172,14 +172,12 @@ class M3ioTwin:
 class M3ioSim:
     """All simulated M3IO modules of one CAN bus."""
 
-    def __init__(self, bus, devices):
-        from app.can_bus import CanBus, CanBusState
-
+    def __init__(self, bus, devices, open_can):
         self.bus_config = bus
         self.bitrate = bus.options.get("bitrate", 500_000)
         self.twins: dict[str, M3ioTwin] = {}
         options = {k: v for k, v in bus.options.items() if k != "simulate"}
-        self.can = CanBus(f"{bus.name} (simulated M3IO)", options, CanBusState(bus.name, "can", ""))
+        self.can = open_can(f"{bus.name} (simulated M3IO)", options)
         for dev in devices:
             twin = M3ioTwin(Variant(dev.options["variant"]), dev.options["sw1"], dev.options.get("serial", 33852), dev.name)
             self.twins[dev.name] = twin
