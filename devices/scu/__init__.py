@@ -1,3 +1,83 @@
 """Ewellix (Schaeffler) SCU actuator control unit on RS232 (document 002): remote session,
-data directory, functions. ``codec`` (telegrams, CRC, stream splitter, directories) and
-``params`` (the data directory with typed values) are pure; no device type is registered yet."""
+data directory, functions, positions of up to six actuators."""
+
+from typing import Any
+
+from devices.registry import DeviceType, TileAlarm, TileBar, TileLine, TileSpec, When
+from devices.scu import codec
+
+_ACTUATOR_KEYS = {"counts_per_mm", "stroke_mm", "in_counts", "out_counts"}
+_KEYS = {"actuators", "safety_id"}
+
+
+def _number(x: Any) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool)
+
+
+def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str]]:
+    errors = []
+    actuators = options.get("actuators", 1)
+    if isinstance(actuators, bool) or not isinstance(actuators, int | list):
+        errors.append(("actuators", "actuators = 2 (a number 1..6) or a list of tables "
+                                    "[{ counts_per_mm = 12.5 }, { stroke_mm = 300 }, ...]"))
+    elif isinstance(actuators, int):
+        if not 1 <= actuators <= 6:
+            errors.append(("actuators", f"actuators = {actuators}: an SCU drives 1 to 6 actuators (section 4.6)"))
+    elif not 1 <= len(actuators) <= 6:
+        errors.append(("actuators", f"{len(actuators)} actuator tables: an SCU drives 1 to 6 actuators (section 4.6)"))
+    else:
+        for n, a in enumerate(actuators, 1):
+            if not isinstance(a, dict):
+                errors.append(("actuators", f"actuator {n}: expected a table ({{}} for counts only)"))
+                continue
+            for key in sorted(set(a) - _ACTUATOR_KEYS):
+                errors.append(("actuators", f"actuator {n}: unknown key '{key}'; known: {', '.join(sorted(_ACTUATOR_KEYS))}"))
+            if "counts_per_mm" in a and "stroke_mm" in a:
+                errors.append(("actuators", f"actuator {n}: give counts_per_mm or stroke_mm, not both"))
+            for key in ("counts_per_mm", "stroke_mm"):
+                if key in a and (not _number(a[key]) or a[key] <= 0):
+                    errors.append(("actuators", f"actuator {n}: {key} must be a number above 0"))
+            ends = [k for k in ("in_counts", "out_counts") if k in a]
+            if ends and "stroke_mm" not in a:
+                errors.append(("actuators", f"actuator {n}: in_counts/out_counts belong to stroke_mm"))
+            if len(ends) == 1:
+                errors.append(("actuators", f"actuator {n}: give both in_counts and out_counts (or neither: "
+                                            "then the unit's virtual limits of UserPositionData are used)"))
+            for k in ends:
+                if isinstance(a[k], bool) or not isinstance(a[k], int):
+                    errors.append(("actuators", f"actuator {n}: {k} must be a whole number of counts"))
+            if len(ends) == 2 and a["in_counts"] == a["out_counts"]:
+                errors.append(("actuators", f"actuator {n}: in_counts and out_counts must differ"))
+    safety = options.get("safety_id", int(codec.DEFAULT_SAFETY_ID))
+    if isinstance(safety, bool) or safety not in tuple(codec.SafetyId):
+        errors.append(("safety_id", "safety_id must be 0, 1 or 2 (RO, section 4.1; default 1)"))
+    for key in sorted(set(options) - _KEYS):
+        errors.append((key, f"unknown key '{key}' for an SCU; known: {', '.join(sorted(_KEYS))}"))
+    return errors
+
+
+TILE = TileSpec(
+    lines=(
+        TileLine("Session", "remote session: {text}", missing="remote session: closed"),
+        TileLine("A1 position", "A1 {text}", missing="A1: no position yet"),
+        TileLine("Battery Mains", "supply: {text}", missing=""),
+    ),
+    alarms=(
+        TileAlarm(When("Error code", (0, None), negate=True), "error: {text}"),
+        TileAlarm(When("Session", ("lost",)), "{text}"),
+    ),
+    bar=TileBar("A1 position", "A1 {value} of {full} counts", full_scale_point="A1 out end"),
+    icon="open_in_full",
+)
+
+DEVICE_TYPE = DeviceType(
+    name="scu",
+    title="Ewellix SCU",
+    bus_types=("serial",),
+    params=None,
+    adapters={"serial": "devices.scu.adapter:ScuAdapter"},
+    sims={"serial": "devices.scu.sim:ScuSim"},
+    check_config=_check_config,
+    bus_identity=lambda options, bus_type: "scu",  # point-to-point: one SCU per serial line (section 3)
+    tile=TILE,
+)

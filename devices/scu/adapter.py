@@ -1,0 +1,690 @@
+"""An Ewellix SCU on a point-to-point RS232 line: remote session, live data, functions, data directory.
+
+Document 002, sections 4 to 7. The worker calls :meth:`ScuAdapter.poll` every ``poll_period``
+(200 ms): it opens the remote session (RO with the Safety_ID, then RC), defines a cyclic object
+(RT of 0x3001) so that each RC keep-alive brings positions and status back in one transaction,
+and falls back to RG reads when the unit refuses the definition. Commands from the page (RE, RS,
+RT with RG read-back, RA, RG of any data ID) go through the same line; every RE is followed by
+its RS (section 4.6), also under the worker's dead-man rule (:meth:`holders`,
+:meth:`session_lost`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+from devices import values as v
+from devices.live import DeviceState
+from devices.scu import codec
+from devices.scu import params as p
+from devices.transport import SerialClosed, SerialLineError, SerialTimeout
+
+REOPEN_BACKOFF_S = (0.2, 0.5, 1.0, 2.0, 5.0)
+CRC_RETRIES = 2  # an answer with a bad CRC is counted and the request sent again
+# Live data the cyclic object brings with every RC (at most 6 read IDs, table 7); the rest is read
+# with one RG per poll in turn.
+CYCLIC_READ_IDS = (0x0010, 0x0170, 0x00E0, 0x00A0, 0x00D1, 0x0100)
+ROTATING_IDS = (0x00F0, 0x0164, 0x0020, 0x0110, 0x0120, 0x0130, 0x0140, 0x0150, 0x0162, 0x0165, 0x0166,
+                0x0030, 0x00D2, 0x00D3, 0x00D4, 0x00D5)
+CYCLIC_INDEX = 0  # RC index 0 = CyclicObj 1 (0x3001)
+# Emergency stop (function 19) is not released by the dead-man rule: RS would end the emergency stop,
+# the unsafe direction. It is released only by an explicit "release emergency stop" (section 4.4, F20).
+NOT_HELD = frozenset({codec.Function.EMERGENCY_STOP})
+RESTORE_REFUSED = ("the SCU accepts writes only to its volatile remote data 0x3xxx, which is lost at reset "
+                   "(document section 4.3, table 7): its configuration cannot be written back over RS232; "
+                   "the snapshot is a record for the commissioning file")
+ERROR_BIT_GROUPS = ((0x00D1, "Error code"), (0x00D2, "Error history 1"), (0x00D3, "Error history 2"),
+                    (0x00D4, "Error history 3"), (0x00D5, "Error history 4"))
+SERVICE_IDS = (0x0001, 0x0002, 0x0060, 0x0070, 0x0080, 0x0090, 0x00B0, 0x00C0, 0x00C1, 0x1010)
+
+
+class CommandError(Exception):
+    """A command that did not take effect; the message says what to do."""
+
+
+class ControlBusy(CommandError):
+    """Another session holds control."""
+
+
+@dataclass(frozen=True)
+class ActuatorScale:
+    """Counts -> mm of one actuator: ``counts_per_mm``, or ``stroke_mm`` between the in/out end positions."""
+
+    number: int
+    counts_per_mm: float | None = None
+    stroke_mm: float | None = None
+    in_counts: int | None = None
+    out_counts: int | None = None
+
+    def with_ends(self, in_counts: int | None, out_counts: int | None) -> ActuatorScale:
+        return ActuatorScale(self.number, self.counts_per_mm, self.stroke_mm,
+                             self.in_counts if self.in_counts is not None else in_counts,
+                             self.out_counts if self.out_counts is not None else out_counts)
+
+    @property
+    def has_mm(self) -> bool:
+        if self.counts_per_mm:
+            return True
+        return bool(self.stroke_mm) and self.in_counts is not None and self.out_counts not in (None, self.in_counts)
+
+    def mm(self, counts: int) -> float | None:
+        if self.counts_per_mm:
+            return round(counts / self.counts_per_mm, 2)
+        if self.has_mm:
+            return round((counts - self.in_counts) / (self.out_counts - self.in_counts) * self.stroke_mm, 2)
+        return None
+
+    def counts(self, mm: float) -> int:
+        if self.counts_per_mm:
+            return round(mm * self.counts_per_mm)
+        if self.has_mm:
+            return round(self.in_counts + mm / self.stroke_mm * (self.out_counts - self.in_counts))
+        raise CommandError(f"actuator {self.number} has no conversion to mm: give counts_per_mm or stroke_mm in the plant file")
+
+
+def actuator_scales(options: dict) -> list[ActuatorScale]:
+    actuators = options.get("actuators", 1)
+    if isinstance(actuators, int):
+        return [ActuatorScale(n) for n in range(1, actuators + 1)]
+    return [ActuatorScale(n, a.get("counts_per_mm"), a.get("stroke_mm"), a.get("in_counts"), a.get("out_counts"))
+            for n, a in enumerate(actuators, 1)]
+
+
+def answer_length(buffer: bytes) -> int | None:
+    """The line's completion rule for an SCU answer (section 3, table 4): total length once it can be told."""
+    if len(buffer) < 3:
+        return None
+    if bytes(buffer[:2]) not in codec.COMMANDS:
+        return max(5, len(buffer))  # garbage: decode_answer names it
+    if buffer[2] != codec.ACK or bytes(buffer[:2]) not in codec.ANSWERS_WITH_DATA:
+        return 5
+    if len(buffer) < 5:
+        return None
+    ctp = int.from_bytes(buffer[3:5], "little")
+    if codec.crc16(buffer[:3]) == ctp:
+        return 5  # a bare ACK: its CRC sits where ctp would be (codec.FrameSplitter)
+    return 7 + ctp if ctp <= codec.MAX_CTP else 5
+
+
+def _describe_answer(raw: bytes) -> str:
+    try:
+        a = codec.decode_answer(raw)
+    except codec.FrameError as exc:
+        return str(exc)
+    return f"{a.status_name}" + (f", {len(a.data)} data bytes" if a.has_ctp else "")
+
+
+def value_text(data_id: int, value: Any) -> str:
+    """A decoded value in words for tables and the data browser."""
+    if isinstance(value, dict):
+        return "; ".join(f"0x{k:04X}: {value_text(k, x)}" if isinstance(k, int) else f"{k}: {x}" for k, x in value.items())
+    if isinstance(value, v.FlagsValue) or hasattr(value, "fields"):
+        on = [k for k, x in value.fields.items() if x is True or (not isinstance(x, bool) and x)]
+        if data_id in p.DIRECTORY and p.DIRECTORY[data_id].vtype is p.ACTUATOR_ERRORS:
+            return ", ".join(f"{k} {x}" for k, x in value.fields.items())
+        return f"0x{int(value):X}: " + (", ".join(on) if on else "none")
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
+
+
+@dataclass
+class Controller:
+    session: str
+    user: str
+    since: float
+
+
+class ScuAdapter:
+    """One SCU on a serial line (``type = "scu"`` on a ``type = "serial"`` bus)."""
+
+    params = None
+    transport = "serial"
+    backup_available = True
+    restore_refused = RESTORE_REFUSED
+
+    def __init__(self, config, state: DeviceState, line):
+        self.config = config
+        self.state = state
+        self.line = line
+        options = config.options
+        self.safety_id = codec.SafetyId(options.get("safety_id", codec.DEFAULT_SAFETY_ID))
+        self.scales = actuator_scales(options)
+        self.baudrate = line.options.get("baudrate", codec.DEFAULT_BAUDRATE) if line is not None else codec.DEFAULT_BAUDRATE
+        self.port = line.options.get("port", "") if line is not None else ""
+        self.session = "closed"  # closed, opening, open, lost, released
+        self.session_reason = ""
+        self.controller: Controller | None = None
+        self.running: dict[int, str] = {}  # fnc_ID -> session that sent its RE (RS not yet sent)
+        self.started: set[int] = set()  # functions run since the session opened (Stop sends RS to them)
+        self.cyclic: p.CyclicDefinition | None = None
+        self.cyclic_note = ""
+        self.rc_times: deque[float] = deque(maxlen=50)
+        self.crc_retries = 0
+        self._failures = 0
+        self._next_open = 0.0
+        self._last_answer: float | None = None
+        self._silent_since: float | None = None
+        self._rotate = 0
+        self._remote_timeout_seen = False
+        self._stop_tasks: set[asyncio.Task] = set()
+        state.stale_after = 2.0
+        state.registers_periodic = False
+        state.info.update(session="closed", session_reason="", cyclic="", rc_period_ms=None, rc_max_gap_ms=None,
+                          safety_id=int(self.safety_id), controlled_by=None, running=[], last_refusal=None,
+                          crc_retries=0, actuators=len(self.scales))
+        self.series = [f"A{s.number} [{'mm' if s.counts_per_mm or s.stroke_mm else 'counts'}]" for s in self.scales]
+        self._publish_session()
+        state.publish("Actuators", len(self.scales), periodic=False)
+        state.publish("Safety_ID", int(self.safety_id), periodic=False, text=codec.SAFETY_MODES[self.safety_id])
+
+    # -- the line -------------------------------------------------------------------------------
+    async def _request(self, frame: bytes, describe: str, *, keepalive: bool = True) -> codec.Answer:
+        """One request and its answer; bad CRC retried; error codes raise CommandRefused (counted)."""
+        if keepalive and frame[:2] != codec.RC and self.session == "open" and self._rc_due():
+            await self._rc()  # only RC feeds the unit's 500 ms watchdog (section 5): long operations interleave it
+        expected = bytes(frame[:2])
+        for attempt in range(CRC_RETRIES + 1):
+            self.state.counters.requests += 1
+            try:
+                raw = await self.line.transact(frame, answer_length, describe=describe, decode=_describe_answer)
+            except SerialTimeout:
+                self.state.counters.timeouts += 1
+                self._no_answer()
+                raise
+            except SerialClosed:
+                self._no_answer()
+                raise
+            try:
+                answer = codec.decode_answer(raw, expected)
+            except codec.ChecksumError:
+                self.state.counters.crc_errors += 1
+                self.crc_retries += 1
+                self.state.info["crc_retries"] = self.crc_retries
+                if attempt < CRC_RETRIES:
+                    continue
+                raise
+            except codec.FrameError as exc:
+                self.state.counters.malformed += 1
+                self.state.error(f"{describe}: {exc}", log=False)
+                if attempt < CRC_RETRIES:
+                    continue
+                raise
+            self._answered()
+            if frame[:2] == codec.RC:
+                self.rc_times.append(time.monotonic())
+            if not answer.ok:
+                self._refused(describe, answer)
+            self.state.counters.responses += 1
+            return answer
+        raise AssertionError("unreachable")
+
+    def _rc_due(self) -> bool:
+        return not self.rc_times or time.monotonic() - self.rc_times[-1] >= codec.KEEP_ALIVE_PERIOD_S
+
+    def _answered(self) -> None:
+        self._last_answer = time.monotonic()
+        self._silent_since = None
+        self.state.mark_seen()
+
+    def _no_answer(self) -> None:
+        now = time.monotonic()
+        if self._silent_since is None:
+            self._silent_since = self._last_answer if self._last_answer is not None else now
+        silent = now - self._silent_since
+        if self.session == "open" and silent > codec.WATCHDOG_S:
+            self._lost("no answer for more than 500 ms: the unit has dropped remote mode (watchdog)")
+        if silent >= codec.MAX_ANSWER_DELAY_S or self._last_answer is None and self._failures >= 1:
+            self.state.mark_offline(self.offline_message())
+
+    def offline_message(self) -> str:
+        return (f"no answer from the SCU within {codec.MAX_ANSWER_DELAY_S:g} s on {self.port}: check the RS232 cable "
+                "(9-pin Sub-D, RxD/TxD/GND), that DTR and RTS are on (they power the unit's RS232 converter; or a "
+                f"separate 5.5-15 V supply on pin 4 or 7), and the baud rate ({self.baudrate}; standard units 38400, "
+                "custom 9600 or 19200)")
+
+    def _refused(self, describe: str, answer: codec.Answer) -> None:
+        exc = codec.CommandRefused(answer.command, answer.status)
+        self.state.counters.exceptions += 1
+        info = exc.info
+        self.state.info["last_refusal"] = {"command": describe, "name": info.name, "title": info.title,
+                                           "meaning": info.meaning, "remedy": info.remedy, "time": time.time()}
+        self.state.error(f"{describe}: {info.name} ({info.title}): {info.meaning}. {info.remedy}")
+        if answer.status == codec.Status.PE and answer.command != codec.RO and self.session == "open":
+            self._lost(f"PE (permission error) to {describe}: the unit is no longer in remote mode")
+        raise exc
+
+    # -- the session -------------------------------------------------------------------------------
+    def _publish_session(self) -> None:
+        self.state.info["session"] = self.session
+        self.state.info["session_reason"] = self.session_reason
+        self.state.publish("Session", self.session, periodic=False,
+                           text=self.session + (f": {self.session_reason}" if self.session_reason else ""))
+
+    def _set_session(self, session: str, reason: str = "") -> None:
+        self.session, self.session_reason = session, reason
+        self._publish_session()
+
+    def _lost(self, reason: str) -> None:
+        if self.session != "open":
+            return
+        self._set_session("lost", reason)
+        self.state.event("error", f"remote session lost: {reason}; reopening with backoff")
+        self._schedule_reopen()
+
+    def _schedule_reopen(self) -> None:
+        self._failures += 1
+        self._next_open = time.monotonic() + REOPEN_BACKOFF_S[min(self._failures - 1, len(REOPEN_BACKOFF_S) - 1)]
+
+    async def _rc(self) -> codec.Answer:
+        if self.cyclic is not None:
+            answer = await self._request(codec.encode_rc(CYCLIC_INDEX), "RC keep-alive with CyclicObj 1", keepalive=False)
+            if answer.has_ctp:
+                self._publish_ids(self.cyclic.decode_read(answer.data))
+            return answer
+        return await self._request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)
+
+    async def open_session(self) -> None:
+        """RO with the Safety_ID, RC, the cyclic object definition (or the RG fallback), the end positions."""
+        self._set_session("opening")
+        self.cyclic = None
+        self.rc_times.clear()
+        try:
+            await self._request(codec.encode_ro(self.safety_id), f"RO Safety_ID {int(self.safety_id)}", keepalive=False)
+            await self._request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)  # section 5: RC before any other command
+        except (SerialLineError, codec.CodecError) as exc:
+            self._set_session("lost" if self._last_answer else "closed", str(exc))
+            self._schedule_reopen()
+            return
+        self._set_session("open")
+        self._failures = 0
+        definition = p.CyclicDefinition(read_ids=CYCLIC_READ_IDS)
+        try:
+            await self._request(p.rt_frame(0x3001, definition.encode()), "RT CyclicObj 1 definition")
+            self.cyclic = definition
+            self.cyclic_note = "cyclic object 0x3001: positions, status 1 and 2, currents, error code, mains/battery with every RC"
+        except codec.CommandRefused as exc:
+            self.cyclic_note = (f"the unit refused the cyclic object definition ({exc.info.name}: {exc.info.title}); "
+                                "live data is read with RG requests instead")
+            self.state.event("warning", self.cyclic_note)
+        except (SerialLineError, codec.CodecError):
+            return
+        self.state.info["cyclic"] = self.cyclic_note
+        self.state.event("info", f"remote session open (Safety_ID {int(self.safety_id)}); {self.cyclic_note}")
+        # after a lost session the unit has stopped; the RS of every RE still follows (section 4.6)
+        for fn in list(self.running):
+            await self._send_rs(fn, "after the lost session")
+        try:
+            await self._read_end_positions()
+        except (SerialLineError, codec.CodecError):
+            pass
+
+    async def _read_end_positions(self) -> None:
+        """Position_Virtual_Limit_In/Out of UserPositionData (section 7) as the end positions of the bars and mm."""
+        for i, scale in enumerate(self.scales):
+            answer = await self._request(codec.encode_rg(0x2000 + scale.number), f"RG 0x{0x2000 + scale.number:04X}")
+            value = p.rg_value(0x2000 + scale.number, answer)
+            lo, hi = value["Position_Virtual_Limit_In"], value["Position_Virtual_Limit_Out"]
+            self.scales[i] = scale.with_ends(lo, hi)
+            s = self.scales[i]
+            self.state.publish(f"A{s.number} in end", s.in_counts, "counts", periodic=False)
+            self.state.publish(f"A{s.number} out end", s.out_counts, "counts", periodic=False)
+
+    async def poll(self) -> None:
+        """One cycle: open the session if needed (with backoff), else RC (with the cyclic data) and one RG in turn."""
+        if self.session == "released":
+            return
+        if self.session != "open":
+            if time.monotonic() < self._next_open:
+                return
+            await self.open_session()
+            return
+        try:
+            await self._rc()
+            if self.cyclic is None:
+                for data_id in CYCLIC_READ_IDS:
+                    await self._read_live(data_id)
+            await self._read_live(ROTATING_IDS[self._rotate % len(ROTATING_IDS)])
+            self._rotate += 1
+        except codec.CommandRefused:
+            pass  # named in state and the event log; PE marks the session lost
+        except (SerialLineError, codec.CodecError, v.DecodeError) as exc:
+            self.state.error(f"poll: {exc}", log=False)
+        self._publish_period()
+
+    async def _read_live(self, data_id: int) -> None:
+        answer = await self._request(codec.encode_rg(data_id), f"RG 0x{data_id:04X}")
+        self._publish_ids({data_id: p.rg_value(data_id, answer)})
+
+    def _publish_period(self) -> None:
+        times = list(self.rc_times)
+        if len(times) >= 2:
+            gaps = [b - a for a, b in zip(times, times[1:])]
+            self.state.info["rc_period_ms"] = round(sum(gaps) / len(gaps) * 1000, 1)
+            self.state.info["rc_max_gap_ms"] = round(max(gaps) * 1000, 1)
+            self.state.publish("RC period", self.state.info["rc_period_ms"], "ms",
+                               text=f"mean {self.state.info['rc_period_ms']:g} ms, longest gap {self.state.info['rc_max_gap_ms']:g} ms")
+
+    # -- live points ----------------------------------------------------------------------------------
+    def _publish_ids(self, values: dict[int, Any]) -> None:
+        now = time.time()
+        for data_id, value in values.items():
+            members = value if isinstance(value, dict) else {data_id: value}
+            for member, x in members.items():
+                self._publish_one(member, x, now)
+        if 0x0010 in values or any(0x0011 <= i <= 0x0016 for i in values):
+            sample = {}
+            for s, name in zip(self.scales, self.series):
+                point = self.state.points.get(f"A{s.number} position mm" if name.endswith("[mm]") else f"A{s.number} position")
+                if point is not None and point.value is not None:
+                    sample[name] = point.value
+            if sample:
+                self.state.add_history(sample, now)
+
+    def _publish_one(self, data_id: int, x: Any, now: float) -> None:
+        pub = self.state.publish
+        entry = p.DIRECTORY.get(data_id)
+        if entry is None:
+            return
+        n = entry.actuator
+        if n is not None and n > len(self.scales):
+            return
+        group = entry.group
+        if group == 0x0010:
+            scale = self.scales[n - 1]
+            mm = scale.mm(x)
+            pub(f"A{n} position", x, "counts", raw=x, time=now, text=f"{x} counts" + (f" = {mm:g} mm" if mm is not None else ""))
+            if mm is not None:
+                pub(f"A{n} position mm", mm, "mm", raw=x, time=now)
+        elif group in (0x0170, 0x00E0):
+            label = "status 1" if group == 0x0170 else "status 2"
+            pub(f"A{n} {label}", int(x), raw=int(x), time=now, text=value_text(data_id, x))
+            for key, bit in x.fields.items():
+                pub(f"A{n} {key}", bool(bit), raw=int(bool(bit)), time=now)
+        elif group == 0x00A0:
+            pub(f"A{n} current", round(x, 1), "A", raw=round(x * 10), time=now)
+        elif group == 0x00F0:
+            pub(f"A{n} speed", x, "% or counts/s", raw=x, time=now)
+        elif group == 0x0030:
+            pub(f"Analogue input {data_id - 0x0030}", round(x, 2), "V", time=now)
+        elif data_id in dict(ERROR_BIT_GROUPS):
+            title = dict(ERROR_BIT_GROUPS)[data_id]
+            bits = codec.error_bits(int(x))
+            unknown = codec.unknown_error_bits(int(x))
+            text = ", ".join(f"bit {b.bit} {b.cause}" for b in bits) + (f", undocumented bits {unknown}" if unknown else "")
+            pub(title, int(x), raw=int(x), time=now, text=text or "none")
+            if data_id == 0x00D1:
+                for b in codec.ERROR_BITS.values():
+                    pub(f"Error bit {b.bit}", bool(int(x) & b.mask), time=now, text=b.cause)
+                timeout = bool(int(x) & codec.REMOTE_TIMEOUT_MASK)
+                if timeout and not self._remote_timeout_seen and self.session == "open" and self.rc_times and len(self.rc_times) > 2:
+                    self._lost("error bit 22 (remote communication timeout) is set")
+                self._remote_timeout_seen = timeout
+        elif data_id == 0x0164:
+            pub("Battery voltage", round(x, 1), "V", raw=round(x * 10), time=now)
+        elif data_id in (0x0100, 0x0020, 0x0110, 0x0120, 0x0130, 0x0140, 0x0150, 0x0162):
+            pub(entry.name, int(x), raw=int(x), time=now, text=value_text(data_id, x))
+            if data_id in (0x0100, 0x0110, 0x0140, 0x0150):
+                for key, bit in x.fields.items():
+                    pub(key.replace("_", " ").capitalize(), bool(bit), time=now)
+        elif data_id in (0x0001, 0x0002):
+            pub(entry.name, str(x), periodic=False)
+        elif data_id in (0x0165, 0x0166):
+            pub(entry.name, int(x), time=now)
+
+    # -- control ------------------------------------------------------------------------------------
+    def take_control(self, session: str, user: str) -> None:
+        """One browser session at a time drives the unit."""
+        if self.controller is not None and self.controller.session != session:
+            raise ControlBusy(f"{self.controller.user} holds control since "
+                              f"{time.strftime('%H:%M:%S', time.localtime(self.controller.since))}")
+        if self.controller is None:
+            self.controller = Controller(session, user, time.time())
+            self.state.info["controlled_by"] = user
+            self.state.publish("Controlled by", user, periodic=False)
+            self.state.event("info", f"{user} took control")
+
+    def _check_holder(self, session: str) -> None:
+        if self.controller is None:
+            raise CommandError("take control first")
+        if self.controller.session != session:
+            raise ControlBusy(f"{self.controller.user} holds control")
+
+    def _check_open(self) -> None:
+        if self.session != "open":
+            raise CommandError(f"the remote session is {self.session}"
+                               + (f" ({self.session_reason})" if self.session_reason else "")
+                               + ": everything except RO/RA needs remote mode (section 4.1)")
+
+    async def release_control(self, session: str, reason: str = "released") -> bool:
+        if self.controller is None or (session and self.controller.session != session):
+            return False
+        await self._stop_held(self.controller.session, reason)
+        user = self.controller.user
+        self.controller = None
+        self.state.info["controlled_by"] = None
+        self.state.publish("Controlled by", None, periodic=False, text="nobody")
+        self.state.event("info", f"control {reason} ({user})")
+        return True
+
+    def holders(self) -> set[str]:
+        """Sessions whose RE (motion, buzzer, outputs, LEDs) has not yet been followed by its RS."""
+        return {s for fn, s in self.running.items() if fn not in NOT_HELD}
+
+    def session_lost(self, session: str, reason: str) -> None:
+        """The browser of ``session`` went away or froze: RS at once for everything it runs, release control."""
+        held = [fn for fn, s in self.running.items() if s == session and fn not in NOT_HELD]
+        if held:
+            self.state.event("warning", f"dead-man: {reason}; RS to " + ", ".join(codec.FUNCTIONS[codec.Function(f)].label for f in held))
+            task = asyncio.get_running_loop().create_task(self._stop_functions(held, f"dead-man: {reason}"))
+            self._stop_tasks.add(task)
+            task.add_done_callback(self._stop_tasks.discard)
+        if self.controller is not None and self.controller.session == session:
+            user = self.controller.user
+            self.controller = None
+            self.state.info["controlled_by"] = None
+            self.state.publish("Controlled by", None, periodic=False, text="nobody")
+            self.state.event("warning", f"control released ({user}): {reason}")
+
+    async def stopped(self) -> None:
+        """Wait for the RS frames that :meth:`session_lost` has sent off (tests, shutdown)."""
+        while self._stop_tasks:
+            await asyncio.gather(*list(self._stop_tasks), return_exceptions=True)
+
+    async def _stop_functions(self, functions: list[int], why: str) -> None:
+        for fn in functions:
+            await self._send_rs(fn, why)
+
+    async def _send_rs(self, fn: int, why: str) -> None:
+        label = codec.FUNCTIONS[codec.Function(fn)].label
+        try:
+            await self._request(codec.encode_rs(fn), f"RS {label} ({why})", keepalive=False)
+            self.running.pop(fn, None)
+        except codec.CommandRefused as exc:
+            if exc.code != codec.Status.PE:  # PE: remote mode gone, the unit has stopped; RS again on reopening
+                self.running.pop(fn, None)
+        except (SerialLineError, codec.CodecError) as exc:
+            self.state.error(f"RS {label} ({why}) not answered: {exc}; sent again when the session is back")
+        finally:
+            self.state.info["running"] = sorted(self.running)
+
+    async def _stop_held(self, session: str, why: str) -> None:
+        await self._stop_functions([fn for fn, s in self.running.items() if s == session and fn not in NOT_HELD], why)
+
+    async def run_function(self, session: str, function: int, motion: int = -1, ramp: int = -1) -> str:
+        """RE of a function (F1..F10 with motion and ramp; buzzer, outputs, LEDs with -1, -1)."""
+        self._check_holder(session)
+        self._check_open()
+        fn = codec.Function(function)
+        if fn == codec.Function.EMERGENCY_STOP:
+            return await self.emergency_stop(session)
+        frame = codec.encode_re(fn, motion, ramp) if fn in codec.MOTION_FUNCTIONS else codec.encode_re(fn)
+        label = codec.FUNCTIONS[fn].label
+        words = (f"{label} {codec.MOTION_LABELS[codec.Motion(motion)]}, ramp {codec.Ramp(ramp & 0xFF).name.lower()}"
+                 if fn in codec.MOTION_FUNCTIONS else f"{label} {codec.FUNCTIONS[fn].description}")
+        self.running[int(fn)] = session  # before the request: a lost answer must still be followed by RS
+        self.state.info["running"] = sorted(self.running)
+        try:
+            await self._request(frame, f"RE {words}")
+        except BaseException:
+            await self._send_rs(int(fn), "RE not confirmed")
+            raise
+        self.started.add(int(fn))
+        self.state.event("info", f"RE {words}")
+        return words
+
+    async def stop(self, session: str | None = None, function: int | None = None) -> list[str]:
+        """RS to ``function``, or to every function run (anyone may stop)."""
+        if self.session != "open":
+            return [f"nothing sent: the session is {self.session}; without RC the unit has stopped remote motion"]
+        targets = [function] if function is not None else sorted(
+            {fn for fn in self.running if fn not in NOT_HELD} | {fn for fn in self.started if fn not in NOT_HELD}
+            or {int(codec.Function.F1)})
+        for fn in targets:
+            await self._send_rs(fn, "stop")
+        return [codec.FUNCTIONS[codec.Function(f)].label for f in targets]
+
+    async def jog(self, session: str, function: int, direction: int, ramp: int = -1) -> str:
+        """Hold-to-run: +1 out, -1 in while held; 0 (release) sends RS."""
+        if direction == 0:
+            await self._send_rs(int(function), "jog released")
+            return "stopped"
+        return await self.run_function(session, function, codec.Motion.OUT if direction > 0 else codec.Motion.IN, ramp)
+
+    async def emergency_stop(self, session: str | None = None) -> str:
+        """RE of function 19 (no confirmation, no control needed); every other running function gets RS."""
+        self._check_open()
+        await self._request(codec.encode_re(codec.Function.EMERGENCY_STOP), "RE F20 emergency stop", keepalive=False)
+        self.running[int(codec.Function.EMERGENCY_STOP)] = session or ""
+        self.state.event("warning", "emergency stop (function 19)")
+        for fn in [f for f in self.running if f not in NOT_HELD]:
+            await self._send_rs(fn, "emergency stop")
+        return "emergency stop active"
+
+    async def release_emergency_stop(self, session: str) -> str:
+        self._check_holder(session)
+        self._check_open()
+        await self._send_rs(int(codec.Function.EMERGENCY_STOP), "emergency stop released")
+        return "emergency stop released"
+
+    async def _write_read_back(self, data_id: int, value: Any, what: str) -> Any:
+        await self._request(p.rt_frame(data_id, value), f"RT 0x{data_id:04X} {what} = {value}")
+        answer = await self._request(codec.encode_rg(data_id), f"RG 0x{data_id:04X} {what} (read-back)")
+        back = p.rg_value(data_id, answer)
+        self._publish_remote(data_id, back)
+        if back != value:
+            self.state.counters.write_errors += 1
+            raise CommandError(f"{what}: wrote {value}, read back {back}")
+        return back
+
+    def _publish_remote(self, data_id: int, value: Any) -> None:
+        entry = p.item(data_id)
+        if entry.function is not None:
+            self.state.publish(f"F{entry.function} remote speed", value, "% or counts/s", periodic=False)
+        elif entry.actuator is not None:
+            mm = self.scales[entry.actuator - 1].mm(value) if entry.actuator <= len(self.scales) else None
+            self.state.publish(f"A{entry.actuator} remote position", value, "counts", periodic=False,
+                               text=f"{value} counts" + (f" = {mm:g} mm" if mm is not None else ""))
+
+    async def set_remote_speed(self, session: str, function: int, speed: int) -> int:
+        """RT 0x3011.. (F1..F10) and RG read-back; % or counts/s per the unit's configuration (table 7)."""
+        self._check_holder(session)
+        self._check_open()
+        if isinstance(speed, bool) or not isinstance(speed, int) or not 0 <= speed <= 1000:
+            raise CommandError("remote speed: 0..100 % (relative) or 0..1000 counts/s (absolute), a whole number")
+        return await self._write_read_back(p.speed_id(function), speed, f"remote speed F{function}")
+
+    async def set_remote_position(self, session: str, actuator: int, *, counts: int | None = None,
+                                  mm: float | None = None) -> int:
+        """RT 0x3021.. in counts (or mm through the actuator's conversion) and RG read-back."""
+        self._check_holder(session)
+        self._check_open()
+        if not 1 <= actuator <= len(self.scales):
+            raise CommandError(f"actuator {actuator} is not configured (1..{len(self.scales)})")
+        if counts is None:
+            if mm is None:
+                raise CommandError("give the remote position in counts or mm")
+            counts = self.scales[actuator - 1].counts(float(mm))
+        if not -(2 ** 31) <= int(counts) < 2 ** 31:
+            raise CommandError("remote position must fit INT32")
+        return await self._write_read_back(p.remote_position_id(actuator), int(counts), f"remote position A{actuator}")
+
+    async def release_scu(self, session: str | None = None) -> str:
+        """RS to every running function, then RA: the hand switch has the unit back; no reopening until asked."""
+        for fn in [f for f in self.running if f not in NOT_HELD]:
+            await self._send_rs(fn, "release of the SCU")
+        try:
+            await self._request(codec.encode_ra(), "RA release the SCU", keepalive=False)
+        finally:
+            self.cyclic = None
+            self._set_session("released", "released to the hand switch (RA); open the session again to drive it")
+            self.state.event("info", "SCU released (RA): normal mode, the hand switch has the unit")
+        return "released"
+
+    async def reopen(self, session: str | None = None) -> str:
+        """Open the remote session again after a release."""
+        self._set_session("closed")
+        self._next_open = 0.0
+        await self.open_session()
+        return self.session
+
+    # -- data directory -------------------------------------------------------------------------------
+    async def read_data(self, data_id: int) -> dict:
+        """RG of one data ID or group ID: decoded value, text and the raw bytes."""
+        self._check_open()
+        entry = p.item(data_id)
+        answer = await self._request(codec.encode_rg(data_id), f"RG 0x{data_id:04X} {entry.name}")
+        result = {"data_id": data_id, "key": entry.key, "name": entry.name, "type": entry.type_name, "unit": entry.unit,
+                  "comment": entry.comment, "raw": answer.data.hex(" ").upper(), "value": None, "text": "", "error": ""}
+        try:
+            value = p.decode_data(data_id, answer.data)
+        except (v.DecodeError, ValueError) as exc:
+            result["error"] = f"cannot decode {len(answer.data)} bytes as {entry.type_name}: {exc}"
+            return result
+        result["value"] = value
+        result["text"] = value_text(data_id, value)
+        self._publish_ids({data_id: value})
+        return result
+
+    # -- backup (a snapshot for the record; no restore) -----------------------------------------------
+    async def backup_read(self, progress=None) -> list[dict]:
+        ids = list(SERVICE_IDS) + [0x2000 + s.number for s in self.scales] + [0x00D0]
+        entries = []
+        for k, data_id in enumerate(ids, 1):
+            result = await self.read_data(data_id)
+            value = result["value"]
+            entries.append({"key": result["key"], "name": result["name"], "value": _jsonable(value),
+                            "text": result["text"], "unit": result["unit"], "raw": result["raw"], "writable": False})
+            if progress:
+                progress(k / len(ids))
+        return entries
+
+    def backup_identity(self) -> dict:
+        pts = self.state.points
+        return {"firmware": getattr(pts.get("Firmware info"), "value", None),
+                "configuration": getattr(pts.get("Configuration info"), "value", None),
+                "actuators": len(self.scales), "port": self.port, "baudrate": self.baudrate}
+
+    async def restore_entry(self, key: str, raw: Any) -> None:
+        raise CommandError(f"no restore: {RESTORE_REFUSED}")
+
+    async def save_step(self) -> str:
+        raise CommandError(f"no save step: {RESTORE_REFUSED}")
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {(f"0x{k:04X}" if isinstance(k, int) else k): _jsonable(x) for k, x in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(x) for x in value]
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, int):
+        return int(value)
+    if isinstance(value, float):
+        return value
+    return str(value)
