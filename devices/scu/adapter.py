@@ -146,6 +146,7 @@ class ScuAdapter:
     transport = "serial"
     backup_available = True
     restore_refused = RESTORE_REFUSED
+    keepalive_period_s = codec.KEEP_ALIVE_PERIOD_S  # RC interleaved into long operations after this gap
 
     def __init__(self, config, state: DeviceState, line):
         self.config = config
@@ -224,7 +225,7 @@ class ScuAdapter:
         raise AssertionError("unreachable")
 
     def _rc_due(self) -> bool:
-        return not self.rc_times or time.monotonic() - self.rc_times[-1] >= codec.KEEP_ALIVE_PERIOD_S
+        return not self.rc_times or time.monotonic() - self.rc_times[-1] >= self.keepalive_period_s
 
     def _answered(self) -> None:
         self._last_answer = time.monotonic()
@@ -304,7 +305,7 @@ class ScuAdapter:
         self._failures = 0
         definition = p.CyclicDefinition(read_ids=CYCLIC_READ_IDS)
         try:
-            await self._request(p.rt_frame(0x3001, definition.encode()), "RT CyclicObj 1 definition")
+            await self._request(codec.encode_rt(0x3001, definition.encode()), "RT CyclicObj 1 definition")
             self.cyclic = definition
             self.cyclic_note = "cyclic object 0x3001: positions, status 1 and 2, currents, error code, mains/battery with every RC"
         except codec.CommandRefused as exc:
