@@ -340,6 +340,26 @@ async def test_demo_controls_load_battery_and_outputs(unit):
             assert await line.talk(cmd("RS", f"{fn} FF")) == ack("RS")
         assert await line.talk(cmd("RG", "10 01")) == ack("RG", b"\x00")
     twin.drop_line()
-    assert await line.talk(RC, timeout=0.4) is None  # a dropped line stays silent
+    assert await line.talk(RC, timeout=0.7) is None  # a dropped line stays silent
     twin.drop_line(False)
     assert await line.talk(RC) == err("RC", PE)  # meanwhile the watchdog ended remote mode
+
+
+async def test_a_telegram_cut_short_gets_no_answer_and_the_next_one_does(unit):
+    sim, twin, line = unit
+    assert await line.talk(RO[:3], timeout=1.2) is None  # inter-byte limit 1000 ms (section 3): dropped, silent
+    assert await line.talk(RO) == ack("RO")
+
+
+def test_one_unit_per_line_and_actuator_tables():
+    bus = SimpleNamespace(name="rs", type="serial", options={"port": "socket://127.0.0.1:1"})
+    dev = SimpleNamespace(name="a", type="scu", bus="rs",
+                          options={"actuators": [{"counts_per_mm": 10}, {"stroke_mm": 300, "in_counts": 100,
+                                                                         "out_counts": 3100}]})
+    with pytest.raises(ValueError, match="point to point"):
+        ScuSim(bus, [dev, SimpleNamespace(**{**vars(dev), "name": "b"})])
+    twin = ScuSim(bus, [dev]).twins["a"]
+    first, second = twin.actuators
+    assert (first.in_counts, first.out_counts, first.counts_per_mm) == (0, 3000, 10)
+    assert (second.in_counts, second.out_counts, second.counts_per_mm) == (100, 3100, 10)
+    assert second.position == 100 and len(twin.actuators) == 2
