@@ -182,30 +182,43 @@ class DeviceState:
         raw = self.raw(param)
         return None if raw is None else param.decode(raw)
 
+    def _param_entry(self, param: Param, raw: int, now: float) -> dict[str, Any]:
+        entry: dict[str, Any] = {
+            "value": param.decode(raw),
+            "raw": raw,
+            "unit": param.unit,
+            "text": param.display(raw),
+            "address": param.address,
+            "space": param.space,
+            "access": param.access.value,
+            "time": self.read_time(param),
+        }
+        entry["quality"] = self.quality(entry["time"], self.registers_periodic, now)
+        if param.enum is not None:
+            entry["name"] = param.enum_name(raw)
+        if param.fields:
+            entry["fields"] = param.field_values(raw)
+        return entry
+
+    def entry(self, name: str, now: float | None = None) -> dict[str, Any] | None:
+        """One value by name, a register parameter or a published point alike, as :meth:`values`
+        lists it (with its quality); None until it was read or heard. O(1) for a point."""
+        now = _now() if now is None else now
+        p = self.points.get(name)
+        if p is not None:
+            return self._point_entry(p, now)
+        param = self.params.by_name.get(name) if self.params is not None else None
+        raw = None if param is None else self.raw(param)
+        return None if raw is None else self._param_entry(param, raw, now)
+
     def values(self) -> dict[str, dict[str, Any]]:
         """Every known parameter and live point by name: decoded value, raw, unit, text, read time, quality."""
         result: dict[str, dict[str, Any]] = {}
         now = _now()
         for param in self.params if self.params is not None else ():
             raw = self.raw(param)
-            if raw is None:
-                continue
-            entry: dict[str, Any] = {
-                "value": param.decode(raw),
-                "raw": raw,
-                "unit": param.unit,
-                "text": param.display(raw),
-                "address": param.address,
-                "space": param.space,
-                "access": param.access.value,
-                "time": self.read_time(param),
-            }
-            entry["quality"] = self.quality(entry["time"], self.registers_periodic, now)
-            if param.enum is not None:
-                entry["name"] = param.enum_name(raw)
-            if param.fields:
-                entry["fields"] = param.field_values(raw)
-            result[param.label or param.name] = entry
+            if raw is not None:
+                result[param.label or param.name] = self._param_entry(param, raw, now)
         for name, p in self.points.items():
             result[name] = self._point_entry(p, now)
         return result

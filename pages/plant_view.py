@@ -20,8 +20,9 @@ def evaluate_tile(state) -> dict:
     """The device type's declared tile, evaluated against the device's live points (quality and age included)."""
     import time
 
-    values = state.values()  # registers and published points alike, each with its quality
-    return DEVICE_TYPES[state.type].tile.evaluate(values.get, time.time())
+    now = time.time()
+    # only the values the tile declares: registers and published points alike, each with its quality
+    return DEVICE_TYPES[state.type].tile.evaluate(lambda name: state.entry(name, now), now)
 
 TILE_CSS = """
 .plant-grid { display: grid; grid-template-columns: repeat(auto-fill, minmax(300px, 1fr)); gap: 16px; width: 100%; }

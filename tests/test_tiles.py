@@ -226,6 +226,7 @@ async def test_overview_tiles_and_device_pages_mark_stale_values(env: Env):
     await user.should_see("Overview")
     await eventually(lambda: "bolt locked" in texts(user, "data-device", "door-2") and
                      "idle (no controller)" in texts(user, "data-device", "lift"), timeout=15, what="overview tile lines")
+    await eventually(lambda: env.runtime.store.devices["heater-hmr"].status == "online", timeout=15, what="heater-hmr online")
     env.runtime.twins["heater-hmr"].powered = False
 
     def heater_marked() -> None:
