@@ -42,6 +42,7 @@ BUS_KEYS: dict[str, dict[str, tuple[type | tuple[type, ...], Any]]] = {
         "timeout": ((int, float), 0.3),  # seconds for a complete answer
         "poll_period": ((int, float), 0.2),  # the keep-alive and live-data cycle
         "simulate": (bool, False),
+        "wire_delay": (bool, False),  # simulated unit: answer after the 8N1 wire time (benchmarks)
     },
 }
 PASSTHROUGH_BUS_TYPES = {"can"}  # further keys go to the bus library unchanged

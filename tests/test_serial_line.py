@@ -105,6 +105,6 @@ async def test_unplugged_port_says_what_to_check_and_reopens_with_backoff():
 def test_plant_serial_bus_defaults_and_baudrates():
     plant = parse_plant('[[bus]]\nname = "rs1"\ntype = "serial"\nport = "socket://127.0.0.1:5030"\n')
     assert plant.buses["rs1"].options == {"port": "socket://127.0.0.1:5030", "baudrate": 38400, "timeout": 0.3,
-                                          "poll_period": 0.2, "simulate": False}
+                                          "poll_period": 0.2, "simulate": False, "wire_delay": False}
     with pytest.raises(PlantError, match="baudrate 57600 is not one of 9600, 19200, 38400"):
         parse_plant('[[bus]]\nname = "rs1"\ntype = "serial"\nport = "/dev/ttyUSB0"\nbaudrate = 57600\n')
