@@ -1,0 +1,330 @@
+"""Ewellix SCU page: live positions and status, remote session, drive by function, data directory, service table."""
+
+from __future__ import annotations
+
+import inspect
+from datetime import datetime
+
+from nicegui import ui
+
+from app import runtime as rt
+from app import worker as worker_module
+from devices.scu import codec
+from devices.scu import params as p
+from devices.scu.adapter import SERVICE_IDS
+from pages.frame import fmt_age, frame, set_status_badge
+from pages.widgets import HistoryChart, Lamp, run_command, session_role
+
+STATUS_1 = ("present", "limit_in_out", "switch_1", "switch_2", "motion", "in_position", "out_position", "stroke_recorded")
+STATUS_2 = ("initialised", "enable_in", "enable_out")
+SWITCHES = ((codec.Function.BUZZER, "Buzzer"), (codec.Function.BINARY_OUTPUT_1, "Binary output 1"),
+            (codec.Function.BINARY_OUTPUT_2, "Binary output 2"), (codec.Function.LED_1, "Operating unit LED1"),
+            (codec.Function.LED_2, "Operating unit LED2"))
+
+
+def _stop_rule() -> str:
+    return (f"Every RE (Go, jog, function on) is followed by its RS: on Stop, on release of a jog button, on release "
+            f"of control, and within {worker_module.DEADMAN_BOUND_S:g} s when this browser closes, disconnects or "
+            "freezes (dead-man rule), and after a lost session, even when the actuator stopped at its end position "
+            "(section 4.6). Without RC for 500 ms the unit itself stops and leaves remote mode.")
+
+
+def content(name: str) -> None:
+    runtime = rt.current()
+    state = runtime.store.devices[name]
+    adapter = runtime.worker.adapters[name]
+    client = ui.context.client
+    session = client.id
+    viewer = session_role() == "viewer"
+    n_act = len(adapter.scales)
+
+    async def act(describe: str, fn, success: str = "", write: bool = True):
+        async def action(a):
+            result = fn(a)
+            return await result if inspect.isawaitable(result) else result
+
+        return await run_command(name, action, describe, success=success, write=write)
+
+    def on_gone() -> None:  # second line of defence; the worker's dead-man rule is the first
+        adapter.session_lost(session, "the controlling browser disconnected")
+
+    client.on_disconnect(on_gone)
+    client.on_delete(on_gone)
+
+    with frame(f"Ewellix SCU {name}"):
+        # -- the large STOP, always visible ------------------------------------------------------
+        with ui.page_sticky(position="bottom-right", x_offset=24, y_offset=24):
+            ui.button("STOP", icon="stop", color="negative",
+                      on_click=lambda: act("stop (RS)", lambda a: a.stop(session), write=False)) \
+                .props("size=xl data-testid=big-stop").classes("text-h5")
+
+        with ui.card().classes("w-full"):
+            with ui.row().classes("items-center gap-6 w-full"):
+                badge = ui.badge("waiting", color="grey").classes("text-body2")
+                session_label = ui.label().classes("text-body1").props("data-testid=session")
+                period = ui.label().classes("text-body2").props("data-testid=rc-period")
+                counters = ui.label().classes("text-caption mono text-grey-8")
+            cyclic = ui.label().classes("text-caption")
+            refusal = ui.label().classes("text-warning text-body2").props("data-testid=refusal")
+            error_line = ui.label().classes("text-negative text-body2")
+            ui.label(f"Line {adapter.port} at {adapter.baudrate} baud 8N1. DTR and RTS are switched on when the port "
+                     "opens and kept on: they power the unit's RS232 converter (section 3).").classes("text-caption text-grey-8")
+            with ui.expansion(f"Safety_ID {int(adapter.safety_id)} (RO): what the unit does on a communication timeout") \
+                    .classes("w-full text-caption"):
+                for sid, text in codec.SAFETY_MODES.items():
+                    ui.label(f"{int(sid)}: {text}" + ("  ← this plant" if sid == adapter.safety_id else "")) \
+                        .classes("text-caption" + (" text-weight-bold" if sid == adapter.safety_id else ""))
+            with ui.row():
+                release_scu = ui.button("Release the SCU (RA)", icon="pan_tool",
+                                        on_click=lambda: act("release the SCU (RA)", lambda a: a.release_scu(session),
+                                                             success="released: the hand switch has the unit", write=False)) \
+                    .props("outline data-testid=release-scu")
+                reopen = ui.button("Open the remote session", icon="link",
+                                   on_click=lambda: act("open remote session", lambda a: a.reopen(session))).props("outline")
+
+        # -- positions --------------------------------------------------------------------------
+        with ui.card().classes("w-full"):
+            ui.label("Positions").classes("text-subtitle1")
+            pos_rows = []
+            with ui.grid(columns=3).classes("w-full gap-x-4 gap-y-1 items-center").style("grid-template-columns: 60px 1fr 280px"):
+                for s in adapter.scales:
+                    ui.label(f"A{s.number}").classes("text-body1")
+                    bar = ui.linear_progress(value=0, show_value=False).props("size=14px rounded")
+                    text = ui.label("-").classes("mono").props(f"data-testid=pos-A{s.number}")
+                    pos_rows.append((s.number, bar, text))
+            chart = HistoryChart(state, adapter.series, window_s=60, height=260)
+
+        # -- status per actuator ------------------------------------------------------------------
+        with ui.card().classes("w-full"):
+            ui.label("Actuator status 1 (0x0171..) and 2 (0x00E1..), current (0x00A1..), speed (0x00F1..)").classes("text-subtitle1")
+            lamps: dict[str, Lamp] = {}
+            values: dict[str, ui.label] = {}
+            with ui.row().classes("gap-8 items-start"):
+                for n in range(1, n_act + 1):
+                    with ui.column().classes("gap-0"):
+                        ui.label(f"A{n}").classes("text-subtitle2")
+                        for key in STATUS_1 + STATUS_2:
+                            lamps[f"A{n} {key}"] = Lamp(f"A{n} {key}", "ok")
+                        values[f"A{n} current"] = ui.label().classes("mono text-body2")
+                        values[f"A{n} speed"] = ui.label().classes("mono text-body2")
+
+        # -- supply, I/O -----------------------------------------------------------------------------
+        with ui.card().classes("w-full"):
+            ui.label("Supply and I/O").classes("text-subtitle1")
+            with ui.row().classes("gap-6"):
+                for key in ("Mains", "Battery", "Charger on", "Charging", "Output 1", "Output 2", "Buzzer", "Sensor supply"):
+                    lamps[key] = Lamp(key, "ok")
+            io_label = ui.column().classes("gap-0 mono text-body2")
+
+        # -- errors -----------------------------------------------------------------------------------
+        with ui.card().classes("w-full"):
+            ui.label("Error code (0x00D1) and history (0x00D2..0x00D5), bit n = mask 1 << (n-1)").classes("text-subtitle1")
+            errors = ui.column().classes("gap-1").props("data-testid=errors")
+
+        # -- drive --------------------------------------------------------------------------------------
+        with ui.card().classes("w-full"):
+            ui.label("Drive").classes("text-subtitle1")
+            with ui.row().classes("items-center gap-4"):
+                take = ui.button("Take control", icon="sports_esports",
+                                 on_click=lambda: act("take control", lambda a: a.take_control(session, client_user()))) \
+                    .props("data-testid=take-control")
+                release = ui.button("Release control", icon="logout",
+                                    on_click=lambda: act("release control", lambda a: a.release_control(session), write=False)) \
+                    .props("outline")
+                holder = ui.label().classes("text-body2")
+            with ui.row().classes("items-end gap-4"):
+                fn_select = ui.select({int(f): codec.FUNCTIONS[f].label for f in codec.MOTION_FUNCTIONS}, value=0,
+                                      label="Function").classes("w-24")
+                motion = ui.select({int(m): codec.MOTION_LABELS[m] for m in codec.Motion}, value=int(codec.Motion.REMOTE_POSITION),
+                                   label="Motion (para_ID[0])").classes("w-72")
+                ramp = ui.select({1: "soft start/stop", 0: "fast start/stop", 255: "as configured (-1)"}, value=1,
+                                 label="Ramp (para_ID[1])").classes("w-48")
+                speed = ui.number("Remote speed (% or counts/s)", value=50, min=0, max=1000, step=1, format="%d").classes("w-48")
+                set_speed = ui.button("Set speed (RT)", on_click=lambda: act(
+                    "set remote speed", lambda a: a.set_remote_speed(session, fn_select.value + 1, int(speed.value or 0)),
+                    success="remote speed written and read back")).props("outline")
+            pos_inputs = []
+            with ui.row().classes("items-end gap-4"):
+                for s in adapter.scales:
+                    unit = "mm" if s.counts_per_mm or s.stroke_mm else "counts"
+                    field = ui.number(f"A{s.number} remote position [{unit}]", value=0).classes("w-48") \
+                        .props(f"data-testid=remote-pos-A{s.number}")
+                    btn = ui.button("Set (RT)", on_click=lambda s=s, field=field, unit=unit: act(
+                        f"set remote position A{s.number}",
+                        lambda a: a.set_remote_position(session, s.number, **({"mm": float(field.value or 0)} if unit == "mm"
+                                                                              else {"counts": int(field.value or 0)})),
+                        success="remote position written and read back")).props(f"outline data-testid=set-pos-A{s.number}")
+                    pos_inputs.append(btn)
+            with ui.row().classes("items-center gap-4"):
+                go = ui.button("Go (RE)", icon="play_arrow", color="positive", on_click=lambda: act(
+                    "go (RE)", lambda a: a.run_function(session, fn_select.value, motion.value, ramp.value if ramp.value != 255 else -1))) \
+                    .props("data-testid=go")
+                ui.button("Stop (RS)", icon="stop", color="negative",
+                          on_click=lambda: act("stop (RS)", lambda a: a.stop(session), write=False)).props("data-testid=stop")
+                ui.label("Jog (hold to run):").classes("text-caption")
+                jog_in = ui.button("In", icon="keyboard_double_arrow_left").props("outline data-testid=jog-in")
+                jog_out = ui.button("Out", icon="keyboard_double_arrow_right").props("outline data-testid=jog-out")
+
+            def jog(direction: int):
+                return lambda: act("jog", lambda a: a.jog(session, fn_select.value, direction, ramp.value if ramp.value != 255 else -1))
+
+            def jog_stop(a):
+                if fn_select.value in a.running and a.running[fn_select.value] == session:
+                    return a.jog(session, fn_select.value, 0)
+                return None
+
+            for button, direction in ((jog_in, -1), (jog_out, 1)):
+                for event in ("mousedown", "touchstart"):
+                    button.on(event, jog(direction))
+                for event in ("mouseup", "mouseleave", "touchend", "touchcancel"):
+                    button.on(event, lambda: act("jog stop (RS)", jog_stop, write=False))
+            with ui.row().classes("items-start no-wrap gap-1 bg-blue-grey-1 q-pa-xs rounded-borders"):
+                ui.icon("timer_off", size="xs").classes("q-mt-xs")
+                ui.label(_stop_rule()).classes("text-caption").props("data-testid=stop-rule")
+            running = ui.label().classes("text-caption mono")
+
+        # -- functions ----------------------------------------------------------------------------------
+        with ui.card().classes("w-full"):
+            ui.label("Functions (firmware V2B1 and later)").classes("text-subtitle1")
+            switches = []
+            with ui.row().classes("items-center gap-4"):
+                for fn, label in SWITCHES:
+                    with ui.button_group():
+                        b_on = ui.button(f"{label} on", on_click=lambda fn=fn: act(
+                            f"{codec.FUNCTIONS[fn].label} on (RE)", lambda a: a.run_function(session, fn))).props("outline")
+                        b_off = ui.button("off", on_click=lambda fn=fn: act(
+                            f"{codec.FUNCTIONS[fn].label} off (RS)", lambda a: a.stop(session, int(fn)), write=False)).props("outline")
+                    switches += [b_on, b_off]
+            with ui.row().classes("items-center gap-4"):
+                ui.button("Emergency stop (F20)", icon="emergency", color="negative",
+                          on_click=lambda: act("emergency stop (RE 19)", lambda a: a.emergency_stop(session), write=False)) \
+                    .props("data-testid=emergency-stop")
+                release_estop = ui.button("Release emergency stop (RS 19)", on_click=lambda: act(
+                    "release emergency stop", lambda a: a.release_emergency_stop(session))).props("outline")
+                ui.label("Emergency stop acts at once, without confirmation.").classes("text-caption")
+
+        # -- data directory -----------------------------------------------------------------------------
+        with ui.card().classes("w-full"):
+            ui.label("Data directory (section 4.3): read any data ID or group ID").classes("text-subtitle1")
+            rows = [{"id": e.key, "name": e.name, "type": e.type_name, "unit": e.unit, "access": e.access.value,
+                     "comment": e.comment} for e in p.DIRECTORY.values()]
+            table = ui.table(columns=[{"name": k, "label": k.capitalize(), "field": k, "align": "left"}
+                                      for k in ("id", "name", "type", "unit", "access", "comment")],
+                             rows=rows, row_key="id", selection="single", pagination=10).classes("w-full text-caption")
+            table.props("dense wrap-cells")
+            with ui.row().classes("items-center gap-4"):
+                pick = ui.select({e.data_id: f"{e.key} {e.name}" for e in p.DIRECTORY.values()}, value=0x0010,
+                                 label="Data ID", with_input=True).classes("w-96").props("data-testid=data-id")
+                table.on("selection", lambda e: pick.set_value(int(e.args["rows"][0]["id"], 16)) if e.args.get("rows") else None)
+
+                async def read_one() -> None:
+                    ok, result = await act(f"read 0x{pick.value:04X}", lambda a: a.read_data(pick.value), write=False)
+                    if ok:
+                        shown.set_text(f"{result['key']} {result['name']} ({result['type']}): "
+                                       f"{result['text'] or result['error']}")
+                        raw.set_text(f"raw: {result['raw'] or '(no data)'}")
+
+                ui.button("Read (RG)", on_click=read_one).props("data-testid=read-data")
+            shown = ui.label().classes("mono text-body2").props("data-testid=data-value")
+            raw = ui.label().classes("mono text-caption text-grey-8").props("data-testid=data-raw")
+
+        # -- service table -----------------------------------------------------------------------------
+        with ui.card().classes("w-full"):
+            ui.label("Service table").classes("text-subtitle1")
+            service = ui.table(columns=[{"name": k, "label": k.capitalize(), "field": k, "align": "left"}
+                                        for k in ("id", "name", "value")], rows=[], row_key="id").classes("w-full text-caption")
+            service.props("dense wrap-cells")
+
+            async def read_service() -> None:
+                ids = list(SERVICE_IDS) + [0x2000 + s.number for s in adapter.scales]
+                out = []
+                for data_id in ids:
+                    ok, result = await act(f"read 0x{data_id:04X}", lambda a, d=data_id: a.read_data(d), write=False)
+                    if not ok:
+                        break
+                    out.append({"id": result["key"], "name": result["name"], "value": result["text"] or result["error"]})
+                service.rows = out
+                service.update()
+
+            ui.button("Read service data (RG)", on_click=read_service).props("outline data-testid=read-service")
+            ui.label("Backup: the Backup page writes a snapshot of identity, counters, conversion factors and user "
+                     f"position data. There is no restore: {adapter.restore_refused}.").classes("text-caption text-grey-8")
+
+    controls = [take, release, set_speed, go, jog_in, jog_out, release_estop, reopen, release_scu, *pos_inputs, *switches]
+
+    def client_user() -> str:
+        from pages.session import current_user
+
+        return current_user()[0] or "anonymous"
+
+    def point(key: str):
+        return state.point(key)
+
+    def refresh() -> None:
+        info = state.info
+        set_status_badge(badge, state.status, state.age)
+        sess = info.get("session", "closed")
+        session_label.set_text(f"remote session: {sess}" + (f" ({info['session_reason']})" if info.get("session_reason") else ""))
+        period.set_text(f"RC period {info['rc_period_ms']:g} ms, longest gap {info['rc_max_gap_ms']:g} ms"
+                        if info.get("rc_period_ms") is not None else "RC period: -")
+        c = state.counters
+        counters.set_text(f"requests {c.requests} · answers {c.responses} · timeouts {c.timeouts} · bad CRC {c.crc_errors} "
+                          f"(retried) · error answers {c.exceptions} · seen {fmt_age(state.age)}")
+        cyclic.set_text(info.get("cyclic") or "")
+        r = info.get("last_refusal")
+        refusal.set_text(f"last error answer: {r['name']} ({r['title']}) to {r['command']}: {r['meaning']}. What to do: {r['remedy']}"
+                         if r else "")
+        error_line.set_text(state.last_error if state.online is False else "")
+        for number, bar, text in pos_rows:
+            e = point(f"A{number} position")
+            lo, hi = point(f"A{number} in end"), point(f"A{number} out end")
+            if e is None:
+                text.set_text("-")
+                continue
+            text.set_text(e["text"] or str(e["value"]))
+            if lo and hi and hi["value"] != lo["value"]:
+                bar.set_value(max(0.0, min(1.0, (e["value"] - lo["value"]) / (hi["value"] - lo["value"]))))
+        chart.update()
+        for key, lamp in lamps.items():
+            lamp.show(point(key))
+        for key, label in values.items():
+            e = point(key)
+            label.set_text(f"{key.split()[1]}: " + ("-" if e is None else f"{e['value']:g} {e['unit']}"))
+        io_label.clear()
+        with io_label:
+            for key in ("Battery voltage", "Actual_State_Binary Inputs 1 ... 4", "Analogue input 1", "Analogue input 2",
+                        "Analogue input 3", "Analogue input 4", "Binary Output Status", "LED HS", "LED LB",
+                        "Lock Status", "Locking Box detected", "Benutzer"):
+                e = point(key)
+                if e is not None:
+                    ui.label(f"{key}: {e['text'] or e['value']} {e['unit']}".strip())
+        errors.clear()
+        with errors:
+            for key in ("Error code", "Error history 1", "Error history 2", "Error history 3", "Error history 4"):
+                e = point(key)
+                if e is None:
+                    continue
+                ui.label(f"{key}: 0x{e['value']:08X}").classes("text-body2 text-weight-medium")
+                for b in codec.error_bits(int(e["value"])):
+                    ui.label(f"bit {b.bit}: {b.cause}" + (f" — condition: {b.condition}" if b.condition else "")
+                             + f" — behaviour: {b.behaviour}").classes("text-caption text-negative" if key == "Error code" else "text-caption")
+        ctrl = adapter.controller
+        mine = ctrl is not None and ctrl.session == session
+        if ctrl is None:
+            holder.set_text("nobody holds control")
+        elif mine:
+            holder.set_text(f"you hold control since {datetime.fromtimestamp(ctrl.since):%H:%M:%S}")
+        else:
+            holder.set_text(f"{ctrl.user} holds control (another browser) since {datetime.fromtimestamp(ctrl.since):%H:%M:%S}")
+        run = [codec.FUNCTIONS[codec.Function(f)].label for f in sorted(adapter.running)]
+        running.set_text("RE sent, RS pending: " + (", ".join(run) if run else "none"))
+        for element in controls:
+            element.set_enabled(not viewer)
+        if not viewer:
+            take.set_enabled(ctrl is None)
+            release.set_enabled(mine)
+            for element in (set_speed, go, jog_in, jog_out, release_estop, *pos_inputs, *switches):
+                element.set_enabled(mine)
+
+    refresh()
+    ui.timer(0.25, refresh)

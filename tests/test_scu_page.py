@@ -1,0 +1,111 @@
+"""SCU page with NiceGUI's simulated user, against the SCU twin on a socket:// line."""
+
+from __future__ import annotations
+
+import asyncio
+import importlib
+import os
+from collections.abc import AsyncIterator
+
+import httpx
+import pytest
+from conftest import free_port
+from nicegui import core, ui
+from nicegui.functions.download import download
+from nicegui.functions.navigate import Navigate
+from nicegui.functions.notify import notify
+from nicegui.testing import User
+from nicegui.testing.general import nicegui_reset_globals, prepare_simulation
+from nicegui.testing.user_interaction import UserInteraction
+from webutil import eventually, stop_worker_tasks
+
+from app import runtime as rt
+from app.plant import parse_plant
+from app.runtime import Runtime
+
+pytestmark = pytest.mark.timeout(40)
+
+
+def scu_plant(port: int):
+    return parse_plant(f"""
+name = "t"
+[[bus]]
+name = "rs1"
+type = "serial"
+port = "socket://127.0.0.1:{port}"
+timeout = 0.3
+poll_period = 0.2
+simulate = true
+[[device]]
+name = "lift"
+type = "scu"
+bus = "rs1"
+actuators = [{{ counts_per_mm = 10 }}, {{ stroke_mm = 300 }}]
+""")
+
+
+@pytest.fixture
+async def env() -> AsyncIterator[tuple[User, Runtime]]:
+    with nicegui_reset_globals():
+        os.environ["NICEGUI_USER_SIMULATION"] = "true"
+        try:
+            prepare_simulation()
+            runtime = Runtime(scu_plant(free_port()), simulate=True)
+            importlib.import_module("app.web").register(runtime, allowed_hosts=("test",))
+            ui.run(storage_secret="test secret")
+            async with core.app.router.lifespan_context(core.app):
+                async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:
+                    yield User(client), runtime
+                    await stop_worker_tasks(runtime)
+        finally:
+            os.environ.pop("NICEGUI_USER_SIMULATION", None)
+            ui.navigate = Navigate()
+            ui.notify = notify
+            ui.download = download
+            rt.set_current(None)
+
+
+def by_testid(user: User, testid: str):
+    found = [e for e in user.client.elements.values() if e.props.get("data-testid") == testid]
+    assert len(found) == 1, f"{testid}: {len(found)} elements"
+    return found[0]
+
+
+async def test_scu_page_shows_session_positions_and_drives_with_re_rs(env):
+    user, runtime = env
+    adapter = runtime.worker.adapters["lift"]
+    await eventually(lambda: adapter.session == "open" and "A1 position" in adapter.state.points, timeout=10)
+    await user.open("/device/lift")
+    await user.should_see("remote session: open")
+    await user.should_see("DTR and RTS are switched on")
+    await user.should_see("Release the SCU (RA)")
+    await user.should_see("STOP")
+    await eventually(lambda: "counts" in by_testid(user, "pos-A1").text, timeout=3)
+    user.find("Take control").click()
+    await eventually(lambda: adapter.controller is not None and adapter.controller.session == user.client.id, timeout=3)
+    await eventually(lambda: by_testid(user, "set-pos-A1").enabled, timeout=2)  # enabled for the holder only
+    by_testid(user, "remote-pos-A1").set_value(50)
+    UserInteraction(user, {by_testid(user, "set-pos-A1")}, None).click()
+    await eventually(lambda: (adapter.state.point("A1 remote position") or {}).get("value") == 500, timeout=3, what=str(user.notify.messages))
+    user.find("Go (RE)").click()
+    await eventually(lambda: adapter.holders() == {user.client.id}, timeout=3)
+    user.find("Stop (RS)").click()
+    await eventually(lambda: adapter.holders() == set(), timeout=3)
+    # the data directory browser reads a group ID and shows value and raw bytes
+    user.find("Read (RG)").click()
+    await eventually(lambda: "0x0010" in by_testid(user, "data-value").text, timeout=3)
+    assert "raw:" in by_testid(user, "data-raw").text
+
+
+async def test_scu_dead_man_sends_rs_when_the_session_goes_away(env):
+    user, runtime = env
+    adapter = runtime.worker.adapters["lift"]
+    await eventually(lambda: adapter.session == "open", timeout=10)
+    adapter.take_control("browser-x", "anna")
+    await runtime.worker.command("lift", lambda a: a.run_function("browser-x", 0, 2, 1))
+    assert adapter.holders() == {"browser-x"}
+    # the session never sends a heartbeat: the worker trips it 0.3 s after it holds something
+    await eventually(lambda: adapter.holders() == set(), timeout=1.0)
+    await asyncio.sleep(0.05)
+    assert adapter.controller is None
+    assert any("dead-man" in e.text for e in adapter.state.events)
