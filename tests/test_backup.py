@@ -6,7 +6,8 @@ import asyncio
 import json
 
 import pytest
-from conftest import free_port, wait_for
+from conftest import wait_for
+from webutil import private_endpoints
 
 from app import backup
 from app.audit import AuditLog, to_csv
@@ -19,11 +20,7 @@ DEVICES = ("door-1", "gate-1", "lift", "heater-hmr")
 
 @pytest.fixture
 async def plant_runtime(tmp_path):
-    plant = load_plant(DEMO_PLANT)
-    plant.buses["line1"].options["port"] = f"socket://127.0.0.1:{free_port()}"
-    for bus in plant.buses.values():  # private virtual channels per test
-        if bus.type == "can":
-            bus.options["channel"] = f"{bus.options['channel']}-{tmp_path.name}"
+    plant = private_endpoints(load_plant(DEMO_PLANT), tmp_path.name)  # own ports and CAN channels
     runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
     await runtime.start()
     for name in DEVICES:

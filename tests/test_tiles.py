@@ -20,7 +20,7 @@ from nicegui.functions.navigate import Navigate
 from nicegui.functions.notify import notify
 from nicegui.testing import User
 from nicegui.testing.general import nicegui_reset_globals, prepare_simulation
-from webutil import eventually, free_port, stop_worker_tasks
+from webutil import eventually, private_endpoints, stop_worker_tasks
 
 from app import runtime as rt
 from app.plant import DEMO_PLANT, load_plant
@@ -128,11 +128,8 @@ class Env:
 
 @pytest.fixture
 async def env(tmp_path) -> AsyncIterator[Env]:
-    plant = load_plant(DEMO_PLANT)
-    plant.buses["line1"].options.update(port=f"socket://127.0.0.1:{free_port()}", timeout=0.2, poll_period=0.2)
-    for bus in plant.buses.values():  # private virtual channels per test
-        if bus.type == "can":
-            bus.options["channel"] = f"{bus.options['channel']}-tiles-{tmp_path.name}"
+    plant = private_endpoints(load_plant(DEMO_PLANT), f"tiles-{tmp_path.name}")  # own ports and CAN channels
+    plant.buses["line1"].options.update(timeout=0.2, poll_period=0.2)
     with nicegui_reset_globals():
         os.environ["NICEGUI_USER_SIMULATION"] = "true"
         try:

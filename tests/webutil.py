@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -52,10 +53,24 @@ async def stop_worker_tasks(runtime, timeout: float = 5.0) -> None:
 
 
 def demo_plant_text(bus_port: int) -> str:
-    """The demo plant file with the simulated line moved to ``bus_port``."""
+    """The demo plant file with the simulated RS485 line moved to ``bus_port`` and every other
+    simulated TCP endpoint (the SCU's serial line) to a free port of its own."""
     text = DEMO_PLANT.read_text()
     assert 'port = "socket://127.0.0.1:5020"' in text, "demo plant no longer names socket://127.0.0.1:5020"
-    return text.replace("socket://127.0.0.1:5020", f"socket://127.0.0.1:{bus_port}")
+    text = text.replace("socket://127.0.0.1:5020", f"socket://127.0.0.1:{bus_port}")
+    return re.sub(r"socket://127\.0\.0\.1:(?!%d\b)\d+" % bus_port, lambda m: f"socket://127.0.0.1:{free_port()}", text)
+
+
+def private_endpoints(plant, tag: str):
+    """A loaded plant with every simulated endpoint made private to one test: each
+    ``socket://127.0.0.1:PORT`` on a free port, each CAN channel suffixed with ``tag``."""
+    for bus in plant.buses.values():
+        port = bus.options.get("port")
+        if isinstance(port, str) and port.startswith("socket://127.0.0.1:"):
+            bus.options["port"] = f"socket://127.0.0.1:{free_port()}"
+        if bus.type == "can":
+            bus.options["channel"] = f"{bus.options['channel']}-{tag}"
+    return plant
 
 
 def wait_http(url: str, proc: subprocess.Popen | None = None, timeout: float = 20.0) -> None:
