@@ -53,8 +53,8 @@ def content(name: str) -> None:
 
     with frame(f"Ewellix SCU {name}"):
         # -- the large STOP, always visible ------------------------------------------------------
-        with ui.page_sticky(position="bottom-right", x_offset=24, y_offset=24):
-            ui.button("STOP", icon="stop", color="negative",
+        with ui.page_sticky(position="bottom-right", x_offset=24, y_offset=24).classes("z-top"):  # above every card
+            ui.button("STOP", icon="stop_circle", color="negative",
                       on_click=lambda: act("stop (RS)", lambda a: a.stop(session), write=False)) \
                 .props("size=xl data-testid=big-stop").classes("text-h5")
 
@@ -196,7 +196,7 @@ def content(name: str) -> None:
                             f"{codec.FUNCTIONS[fn].label} off (RS)", lambda a: a.stop(session, int(fn)), write=False)).props("outline")
                     switches += [b_on, b_off]
             with ui.row().classes("items-center gap-4"):
-                ui.button("Emergency stop (F20)", icon="emergency", color="negative",
+                ui.button("Emergency stop (function 19)", icon="emergency", color="negative",
                           on_click=lambda: act("emergency stop (RE 19)", lambda a: a.emergency_stop(session), write=False)) \
                     .props("data-testid=emergency-stop")
                 release_estop = ui.button("Release emergency stop (RS 19)", on_click=lambda: act(
