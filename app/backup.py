@@ -238,6 +238,8 @@ async def plan_restore(runtime, name: str, document: dict, progress=None) -> Res
         raise BackupError(f"the backup is of a {backup_type!r}, but {name} is a {state.type!r}: refused")
     if not supports_backup(adapter):
         raise BackupError(f"{name}: this device type cannot be restored")
+    if getattr(adapter, "restore_refused", ""):
+        raise BackupError(f"{name}: {adapter.restore_refused}")
     current = {e["key"]: e for e in await adapter.backup_read(progress)}
     warnings = []
     ident_now, ident_then = adapter.backup_identity(), document.get("identity") or {}

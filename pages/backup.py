@@ -151,6 +151,10 @@ class RestoreFlow:
             if not candidates:
                 ui.label(f"This plant has no {dtype!r}: the backup cannot be restored here.").classes("text-negative")
                 return
+            refused = getattr(runtime.worker.adapters[candidates[0]], "restore_refused", "")
+            if refused:  # the device type keeps a snapshot for the record, but takes nothing back
+                ui.label(f"A {dtype} backup is a record, not restorable: {refused}").classes("text-body1 text-grey-9")
+                return
             with ui.row().classes("items-center"):
                 self.device = ui.select(candidates, value=default, label="Restore to").props("dense outlined").classes("w-56")
                 ui.button("Compare with the device", icon="compare_arrows", on_click=self.compare).props("data-testid=restore-compare")
