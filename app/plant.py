@@ -201,7 +201,8 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
         for dev in plant.devices_on(bus.name) + [d for d in plant.sim_devices.values() if d.bus == bus.name]:
             ident = DEVICE_TYPES[dev.type].bus_identity(dev.options, bus.type)
             if ident is not None and ident in seen:
-                raise fail(dev.line, f"device '{dev.name}': address {ident} is already used by '{seen[ident]}' on bus '{bus.name}'")
+                what = f"address {ident}" if isinstance(ident, int) else str(ident)  # a type may name its own identity
+                raise fail(dev.line, f"device '{dev.name}': {what} is already used by '{seen[ident]}' on bus '{bus.name}'")
             if ident is not None:
                 seen[ident] = dev.name
         conflict = can_id_conflict(plant.devices_on(bus.name) + [d for d in plant.sim_devices.values() if d.bus == bus.name], bus)

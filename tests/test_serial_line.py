@@ -108,3 +108,11 @@ def test_plant_serial_bus_defaults_and_baudrates():
                                           "poll_period": 0.2, "simulate": False, "wire_delay": False}
     with pytest.raises(PlantError, match="baudrate 57600 is not one of 9600, 19200, 38400"):
         parse_plant('[[bus]]\nname = "rs1"\ntype = "serial"\nport = "/dev/ttyUSB0"\nbaudrate = 57600\n')
+
+
+def test_one_scu_per_serial_line():
+    text = ('[[bus]]\nname = "rs1"\ntype = "serial"\nport = "socket://127.0.0.1:5031"\n'
+            '[[device]]\nname = "a"\ntype = "scu"\nbus = "rs1"\nactuators = 1\n'
+            '[[device]]\nname = "b"\ntype = "scu"\nbus = "rs1"\nactuators = 1\n')
+    with pytest.raises(PlantError, match=r"<plant>:10: device 'b': the point-to-point line \(one SCU per RS232 line"):
+        parse_plant(text)

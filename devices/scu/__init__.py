@@ -78,6 +78,6 @@ DEVICE_TYPE = DeviceType(
     adapters={"serial": "devices.scu.adapter:ScuAdapter"},
     sims={"serial": "devices.scu.sim:ScuSim"},
     check_config=_check_config,
-    bus_identity=lambda options, bus_type: "scu",  # point-to-point: one SCU per serial line (section 3)
+    bus_identity=lambda options, bus_type: "the point-to-point line (one SCU per RS232 line, section 3)",
     tile=TILE,
 )
