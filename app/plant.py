@@ -44,6 +44,13 @@ BUS_KEYS: dict[str, dict[str, tuple[type | tuple[type, ...], Any]]] = {
         "simulate": (bool, False),
         "wire_delay": (bool, False),  # simulated unit: answer after the 8N1 wire time (benchmarks)
     },
+    "logited-tcp": {  # Bauer MO 64 over TCP/IP: the barrier is the server and takes one client at a time
+        "host": (str, None),
+        "port": (int, 52719),
+        "timeout": ((int, float), 1.0),  # seconds for an answer
+        "poll_period": ((int, float), 1.0),  # seconds between polls (slower while change monitoring reports)
+        "simulate": (bool, False),
+    },
 }
 PASSTHROUGH_BUS_TYPES = {"can"}  # further keys go to the bus library unchanged
 COMMON_BUS_KEYS = {"name", "type", "description"}
@@ -69,6 +76,8 @@ class BusConfig:
     def endpoint(self) -> str:
         if self.type == "can":
             return f"{self.options.get('interface')} {self.options.get('channel')}"
+        if self.type == "logited-tcp":
+            return f"{self.options.get('host')}:{self.options.get('port')}"
         return str(self.options.get("port") or "")
 
 

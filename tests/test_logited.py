@@ -1,0 +1,128 @@
+"""The LogiTed TCP transport against a barrier served on a local TCP port: one client at a time,
+answers matched by the adapter's rule, unsolicited telegrams between a request and its answer,
+refusal, release and reconnect."""
+
+from __future__ import annotations
+
+import asyncio
+
+import pytest
+from conftest import free_port
+
+from app.logited import LogitedTcp, telegram_length
+from app.plant import parse_plant
+from app.state import BusState
+from devices.transport import SerialClosed, SerialTimeout
+
+pytestmark = pytest.mark.timeout(30)
+
+STATUS = bytes.fromhex("55 06 07 01 02 03 04 05 AA BB")  # type 0x07 with 5 status bytes (CRC not checked here)
+ACK = bytes.fromhex("55 01 01 11 22")
+GATE = bytes.fromhex("55 02 0C 04 33 44")
+
+
+def tcp(port: int, **options) -> LogitedTcp:
+    opts = {"host": "127.0.0.1", "port": port, "timeout": 0.5, **options}
+    return LogitedTcp("gate", opts, BusState("gate", "logited-tcp", f"127.0.0.1:{port}"))
+
+
+async def barrier(port: int, handler) -> asyncio.AbstractServer:
+    clients = []
+
+    async def serve(reader, writer):
+        if clients:  # one client at a time: a second one is turned away
+            writer.close()
+            return
+        clients.append(writer)
+        try:
+            while data := await reader.read(64):
+                for piece in handler(data):
+                    writer.write(piece)
+                    await writer.drain()
+                    await asyncio.sleep(0.01)
+        except ConnectionError:
+            pass
+        finally:
+            clients.remove(writer)
+            writer.close()
+
+    return await asyncio.start_server(serve, "127.0.0.1", port)
+
+
+def test_telegram_length_from_the_length_byte():
+    assert telegram_length(b"\x55") is None
+    assert telegram_length(bytes.fromhex("55 02 02 00 45 BC")) == 6  # query index 0 (SPEC-NOTES vector)
+    assert telegram_length(bytes.fromhex("55 03 01 01 00 B8 B4")) == 7  # open pulse
+
+
+async def test_unsolicited_telegram_between_request_and_answer():
+    port = free_port()
+    server = await barrier(port, lambda data: [STATUS[:3], STATUS[3:] + b"\x00", ACK])  # garbage byte, then the answer
+    line = tcp(port)
+    heard = []
+    line.listeners.append(heard.append)
+    try:
+        answer = await line.transact(bytes.fromhex("55 03 01 01 00 B8 B4"), lambda t: t[2] in (1, 2, 3, 4), describe="open pulse")
+        assert answer == ACK and heard == [STATUS] and line.garbage == 1
+        log = list(line.state.transactions)
+        assert [t.request for t in log] == ["unsolicited", "received", "open pulse"]
+        assert log[-1].response_hex == ACK.hex(" ").upper() and log[-1].rtt_ms is not None
+    finally:
+        line.close()
+        server.close()
+        await server.wait_closed()
+
+
+async def test_no_answer_is_a_named_timeout():
+    port = free_port()
+    server = await barrier(port, lambda data: [GATE])  # answers, but not what was asked
+    line = tcp(port, timeout=0.3)
+    try:
+        with pytest.raises(SerialTimeout, match="no answer within 0.3 s"):
+            await line.transact(b"\x55\x02\x02\x02\x65\xfe", lambda t: t[2] == 0x07)
+    finally:
+        line.close()
+        server.close()
+        await server.wait_closed()
+
+
+async def test_refused_then_taken_back_and_released_on_request():
+    port = free_port()
+    line = tcp(port)
+    with pytest.raises(SerialClosed, match="did not take the connection.*one client at a time"):
+        await line.transact(b"\x55\x02\x02\x00\x45\xbc", lambda t: True)
+    server = await barrier(port, lambda data: [GATE])
+    other = tcp(port)
+    try:
+        loop = asyncio.get_running_loop()
+        end = loop.time() + 5
+        while not line.connected and loop.time() < end:  # reconnects with backoff
+            await asyncio.sleep(0.1)
+            await line.connect()
+        assert await line.transact(b"\x55\x02\x02\x07\x35\x5b", lambda t: t[2] == 0x0C) == GATE
+        line.release()  # another client may take the barrier now
+        assert not line.connected and "released" in line.state.last_error
+        await asyncio.sleep(0.3)  # the barrier notices the closed connection
+        assert await other.transact(b"\x55\x02\x02\x07\x35\x5b", lambda t: t[2] == 0x0C) == GATE
+        with pytest.raises(SerialClosed, match="released"):
+            await line.transact(b"\x55\x02\x02\x07\x35\x5b", lambda t: True)
+        other.close()
+        line.resume()
+        end = loop.time() + 5
+        while loop.time() < end:
+            try:
+                assert await line.transact(b"\x55\x02\x02\x07\x35\x5b", lambda t: t[2] == 0x0C) == GATE
+                break
+            except SerialClosed:
+                await asyncio.sleep(0.2)
+        assert line.connected
+    finally:
+        line.close()
+        other.close()
+        server.close()
+        await server.wait_closed()
+
+
+def test_plant_logited_tcp_bus():
+    plant = parse_plant('[[bus]]\nname = "gate"\ntype = "logited-tcp"\nhost = "10.0.0.5"\n')
+    assert plant.buses["gate"].options["port"] == 52719 and plant.buses["gate"].endpoint == "10.0.0.5:52719"
