@@ -1,0 +1,873 @@
+"""Bauer MO 64 motor control, LogiTed bus: frames, telegrams, answer decoders, settings.
+
+Pure: no I/O. Document 003 ("Motorsteuerung MO 64, Protokollbeschreibung", page summaries
+only), chapters 2 to 5; what a public client adds and what is still unknown follow
+SPEC-NOTES.md ("Bauer MO 64"), each decision cited once where taken.
+
+Frames::
+
+    TCP    55 LE type payload... CSH CSL           LE counts type .. payload
+    RS485  55 LE DA SA type payload... CSH CSL     ASSUMED (see RS485 below)
+
+CSH CSL is the CRC-16/CCITT-FALSE (poly 0x1021, preset 0xFFFF, chapter 2.3) over SD, LE and
+the data, high byte first. Every value inside a telegram is little-endian (the document names
+the fields ``_lo`` before ``_hi``).
+
+The same type byte means different telegrams in each direction (0x01 is ack from the MO 64
+and an operating command to it), so a frame is decoded by direction: :func:`decode_answer`
+(what the MO 64 sends, chapter 5.1) and :func:`decode_request` (what it receives, 5.2).
+
+Public API:
+
+* requests: :func:`encode_query` (refuses the indexes the document forbids),
+  :func:`encode_command` (:class:`Command`, :class:`Function`), :func:`encode_short_command`,
+  :func:`encode_setting` with the directory :data:`SETTINGS` (:class:`Setting`);
+* answers: :func:`decode_answer` -> :class:`Answer` with a typed ``value``;
+  a twin's side: :func:`encode_answer`, :func:`decode_request` -> :class:`Request`;
+* frames: :func:`encode_frame` / :func:`decode_frame` for :data:`TCP` and :class:`Rs485`
+  framing, the token telegram (:func:`encode_token`), and :class:`FrameSplitter`, which
+  cuts a byte stream into :class:`Frame` values and named :class:`FrameError` values;
+* :data:`ASSUMPTIONS`: every reading beyond the document, as sentences for the page.
+"""
+
+from __future__ import annotations
+
+import binascii
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from enum import IntEnum
+from typing import Any
+
+from devices import values as v
+
+# -- line and connection (chapters 2.1, 3) ----------------------------------------------------------
+SD = 0x55  # chapter 2.2: "Das Startbyte hat immer den Wert 0x55"
+RS485_BAUDRATE = 38400  # chapter 2.1: 38,4 kBaud, 1 start bit, 8 data bits, 1 stop bit
+TCP_PORT = 52719  # SPEC-NOTES "Bauer MO 64": the public client's port
+TOKEN_PASS_LIMIT_S = 0.2  # chapter 2.6.1: "Der Token muss nach spätestens 200ms weitergegeben werden"
+MAX_LE = 255  # chapter 2.1: 6 to 259 characters, i.e. LE at most 255 (one byte)
+CRC_PRESET = 0xFFFF  # chapter 2.3: the CRC register is loaded with 0xFFFF
+
+
+class CodecError(ValueError):
+    """A telegram that cannot be encoded or decoded."""
+
+
+# -- assumptions beyond the document: all in this one block ------------------------------------------
+@dataclass(frozen=True)
+class Rs485Layout:
+    """The RS485 address fields and token telegram, which the page summaries do not print.
+
+    Every field is an assumption (SPEC-NOTES "Bauer MO 64", "Still unknown").
+    """
+
+    master_address: int = 0x00  # SPEC-NOTES: "the master at 0x00" (chapter 2.6 example: "Master 0x00")
+    le_counts_from_da: bool = True  # SPEC-NOTES: LE counts DA to the end of the payload
+    # chapter 2.1 "6 bis 259 Zeichen": the shortest telegram, SD LE DA SA CSH CSL, is taken as the token
+    token_le: int = 2
+
+
+RS485_LAYOUT = Rs485Layout()
+# SPEC-NOTES "Still unknown": the short commands' codes (0x03); one command byte assumed.
+SHORT_COMMAND_BYTES = 1
+# SPEC-NOTES "Still unknown": how a level of the error memory is chosen; an index byte after the
+# query index is assumed (the answer 0x17 starts with "index", chapter 5.1.23).
+ERROR_MEMORY_QUERY_HAS_LEVEL = True
+# SPEC-NOTES "Still unknown": the layouts of settings 0x05-0x08 beyond those the document names;
+# each assumed selector is marked in SETTINGS with its reason.
+
+ASSUMPTIONS: tuple[str, ...] = (
+    "RS485 telegrams are assumed to be 55 LE DA SA type data CSH CSL, with LE counting DA to the "
+    "end of the data and this tool's master address 0x00 by default (the manual's summary does not "
+    "print the address fields).",
+    "The RS485 token telegram is assumed to be the shortest telegram of the manual (6 characters): "
+    "55 02 DA SA CSH CSL, sent by the master that holds the token to the next master DA.",
+    "TCP port 52719, the frame 55 LE type data CSH CSL and the reply types ack 0x01, nak 0x02, "
+    "busy 0x03, syn 0x04 come from a public client, not from the manual.",
+    "Short commands (0x03) are sent as one command byte; the manual's summary names their effects "
+    "(e.g. clearing a loop-adjust counter) but not their codes.",
+    "The error memory level is chosen by an index byte after the query index; each answer carries "
+    "index, error flags and time stamp.",
+    "Setting selectors 0x04 0x01 (pre-warning before opening) and 0x04 0x02 (pre-warning before "
+    "closing) follow the order of the answer telegrams 0x0D-0x0F; the manual's summary names only "
+    "0x04 0x00 (open time) and 0x04 0x04 (change monitoring).",
+    "The vehicle counter (0x05 0x00) and the maintenance interval (0x05 0x01, u32) selectors are "
+    "assumed; the manual's summary names the 32-bit vehicle counter setting but not its selector.",
+    "The layouts of the counting function (0x11), loop periods (0x1B) and the fields of induction "
+    "loops, direction logics, configuration flags and multi relays that the summary does not number "
+    "are shown as raw values.",
+)
+
+
+# -- CRC (chapter 2.3) ------------------------------------------------------------------------------
+def crc16(data: bytes | bytearray) -> int:
+    """CRC-16/CCITT-FALSE of ``data`` (x^16 + x^12 + x^5 + 1, preset 0xFFFF, chapter 2.3)."""
+    return binascii.crc_hqx(bytes(data), CRC_PRESET)
+
+
+def _seal(body: bytes) -> bytes:
+    return body + crc16(body).to_bytes(2, "big")  # CSH before CSL (chapter 2.1)
+
+
+# -- framing ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Framing:
+    """How a transport wraps the telegram: ``addressed`` adds DA SA (RS485)."""
+
+    name: str
+    addressed: bool
+
+    @property
+    def min_le(self) -> int:
+        """Smallest LE the framing allows (TCP: the type byte; RS485: the token's DA SA)."""
+        return RS485_LAYOUT.token_le if self.addressed else 1
+
+
+TCP = Framing("tcp", False)
+RS485 = Framing("rs485", True)
+TOKEN = -1  # Frame.type of a token telegram (it has no type byte)
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One telegram off the wire: ``type`` and ``payload``; ``da``/``sa`` only on RS485.
+
+    ``type`` is :data:`TOKEN` for a token telegram. ``raw`` holds the bytes as received.
+    """
+
+    type: int
+    payload: bytes = b""
+    da: int | None = None
+    sa: int | None = None
+    raw: bytes = b""
+
+    @property
+    def is_token(self) -> bool:
+        return self.type == TOKEN
+
+
+def _address(value: int, what: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 0xFF:
+        raise CodecError(f"{what} {value!r} is not a bus address 0 .. 255")
+    return value
+
+
+def encode_frame(telegram: bytes, framing: Framing = TCP, *, da: int | None = None,
+                 sa: int | None = None) -> bytes:
+    """Wrap ``telegram`` (type + payload) in SD, LE and the checksum.
+
+    :param framing: :data:`TCP` or :data:`RS485` (then ``da`` is required; ``sa`` defaults to
+        the assumed master address)
+    :raises CodecError: empty telegram, too long, or bad addresses
+    """
+    telegram = bytes(telegram)
+    if not telegram:
+        raise CodecError("a telegram needs at least its type byte")
+    if framing.addressed:
+        if da is None:
+            raise CodecError("an RS485 telegram needs a destination address")
+        sa = RS485_LAYOUT.master_address if sa is None else sa
+        telegram = bytes((_address(da, "DA"), _address(sa, "SA"))) + telegram
+    if len(telegram) > MAX_LE:
+        raise CodecError(f"{len(telegram)} bytes exceed LE {MAX_LE}")
+    return _seal(bytes((SD, len(telegram))) + telegram)
+
+
+def encode_token(da: int, sa: int | None = None) -> bytes:
+    """The RS485 token telegram passing the token to master ``da`` (ASSUMED layout, see above)."""
+    sa = RS485_LAYOUT.master_address if sa is None else sa
+    return _seal(bytes((SD, RS485_LAYOUT.token_le, _address(da, "DA"), _address(sa, "SA"))))
+
+
+def decode_frame(raw: bytes, framing: Framing = TCP) -> Frame:
+    """One complete frame, checked (SD, LE, CRC).
+
+    :raises FrameError: the named error of the splitter
+    """
+    raw = bytes(raw)
+    if len(raw) < 2 or raw[0] != SD:
+        raise GarbageError(raw)
+    le = raw[1]
+    if le < framing.min_le:
+        raise FrameLengthError(f"LE {le} is below {framing.min_le} ({framing.name})", raw)
+    if len(raw) < le + 4:
+        raise TruncatedFrameError(raw)
+    if len(raw) > le + 4:
+        raise FrameLengthError(f"{len(raw)} bytes for LE {le} (expected {le + 4})", raw)
+    if crc16(raw[:-2]) != int.from_bytes(raw[-2:], "big"):
+        raise ChecksumError(raw)
+    data = raw[2:-2]
+    if not framing.addressed:
+        return Frame(data[0], data[1:], raw=raw)
+    if le == RS485_LAYOUT.token_le:
+        return Frame(TOKEN, b"", da=data[0], sa=data[1], raw=raw)
+    return Frame(data[2], data[3:], da=data[0], sa=data[1], raw=raw)
+
+
+# -- named stream errors ---------------------------------------------------------------------------
+class FrameError(CodecError):
+    """Bad wire data; ``raw`` holds the bytes concerned. The splitter returns these as values."""
+
+    def __init__(self, message: str, raw: bytes = b""):
+        self.raw = bytes(raw)
+        super().__init__(message)
+
+
+class GarbageError(FrameError):
+    """Bytes that start no telegram (no SD); they were skipped."""
+
+    def __init__(self, raw: bytes):
+        super().__init__(f"{len(raw)} byte(s) that start no telegram: {bytes(raw).hex(' ')}", raw)
+
+
+class ChecksumError(FrameError):
+    """A telegram whose CSH CSL do not match its CRC."""
+
+    def __init__(self, raw: bytes):
+        raw = bytes(raw)
+        self.expected = crc16(raw[:-2]) if len(raw) >= 2 else 0
+        self.received = int.from_bytes(raw[-2:], "big") if len(raw) >= 2 else 0
+        super().__init__(f"CRC 0x{self.received:04X} received, 0x{self.expected:04X} computed: {raw.hex(' ')}", raw)
+
+
+class FrameLengthError(FrameError):
+    """A telegram whose LE is impossible for the framing."""
+
+
+class TruncatedFrameError(FrameError):
+    """A telegram cut off before its end (the stream went silent or closed)."""
+
+    def __init__(self, raw: bytes):
+        super().__init__(f"telegram incomplete after {len(raw)} byte(s): {bytes(raw).hex(' ')}", raw)
+
+
+class FrameSplitter:
+    """Cuts a byte stream (TCP or RS485) into :class:`Frame` values and :class:`FrameError` values.
+
+    ``feed(data)`` returns them in stream order; nothing is raised. A frame cut short stays
+    pending until more bytes come or :meth:`expire` is called (the stream went silent or closed).
+    A checksum failure or an impossible LE resynchronises on the next SD that starts a valid
+    frame, so a stray 0x55 does not swallow the telegram after it.
+
+    :param framing: :data:`TCP` or :data:`RS485`
+    """
+
+    def __init__(self, framing: Framing = TCP):
+        self.framing = framing
+        self._buf = bytearray()
+        self.frames = 0
+        self.errors = 0
+
+    @property
+    def pending(self) -> bytes:
+        """Bytes received that do not yet form a frame."""
+        return bytes(self._buf)
+
+    def reset(self) -> None:
+        self._buf.clear()
+
+    def expire(self) -> list[FrameError]:
+        """Drop an incomplete frame; returns its error, or nothing if idle."""
+        if not self._buf:
+            return []
+        raw = bytes(self._buf)
+        self._buf.clear()
+        self.errors += 1
+        return [TruncatedFrameError(raw) if raw[0] == SD else GarbageError(raw)]
+
+    def feed(self, data: bytes | bytearray | Iterable[int]) -> list:
+        self._buf += bytes(data)
+        out: list = []
+        while self._buf:
+            item, used = self._one()
+            if item is None:
+                break
+            del self._buf[:used]
+            if isinstance(item, FrameError):
+                self.errors += 1
+            else:
+                self.frames += 1
+            out.append(item)
+        return out
+
+    def _length_at(self, i: int) -> int | None:
+        """Frame length starting at ``i``: None if more bytes are needed, 0 if impossible."""
+        buf = self._buf
+        if i + 1 >= len(buf):
+            return None
+        le = buf[i + 1]
+        return le + 4 if le >= self.framing.min_le else 0
+
+    def _valid_at(self, i: int) -> bool:
+        """A complete frame with a good CRC starts at ``i``."""
+        n = self._length_at(i)
+        if not n or i + n > len(self._buf):
+            return False
+        chunk = bytes(self._buf[i:i + n])
+        return crc16(chunk[:-2]) == int.from_bytes(chunk[-2:], "big")
+
+    def _next_valid(self, start: int, stop: int) -> int | None:
+        for j in range(start, min(stop, len(self._buf))):
+            if self._buf[j] == SD and self._valid_at(j):
+                return j
+        return None
+
+    def _one(self) -> tuple[Any, int]:
+        buf = self._buf
+        if buf[0] != SD:
+            end = buf.find(bytes((SD,)))
+            end = len(buf) if end < 0 else end
+            return GarbageError(bytes(buf[:end])), end
+        n = self._length_at(0)
+        if n is None:
+            return None, 0
+        if n == 0:
+            return FrameLengthError(f"LE {buf[1]} is below {self.framing.min_le} ({self.framing.name})",
+                                    bytes(buf[:2])), 1
+        if len(buf) < n:
+            later = self._next_valid(1, len(buf))  # a stray SD announcing a long frame
+            if later is not None:
+                return GarbageError(bytes(buf[:later])), later
+            return None, 0
+        try:
+            return decode_frame(bytes(buf[:n]), self.framing), n
+        except ChecksumError as exc:
+            later = self._next_valid(1, n)
+            if later is not None:
+                return GarbageError(bytes(buf[:later])), later
+            return exc, n
+
+
+# -- telegram types (chapter 5, SPEC-NOTES "Replies") ----------------------------------------------
+class Reply(IntEnum):
+    """The MO 64's short replies (chapter 5.1.1-5.1.4; type numbers from SPEC-NOTES)."""
+
+    ACK = 0x01
+    NAK = 0x02
+    BUSY = 0x03  # the motor runs: a setting is refused (chapter 5.2.4)
+    SYN = 0x04  # a setting is being written to the EEPROM; ack follows
+
+
+REPLY_TYPES = frozenset(int(r) for r in Reply)
+
+
+class RequestType(IntEnum):
+    """What the MO 64 receives (chapter 5.2)."""
+
+    COMMAND = 0x01  # 5.2.1 Bedientelegramme
+    QUERY = 0x02  # 5.2.2 Abfragetelegramme
+    SHORT_COMMAND = 0x03  # 5.2.3 Kurze Befehlstelegramme
+    SETTING_16 = 0x04  # 5.2.4
+    SETTING_32 = 0x05  # 5.2.5
+    SETTING_40 = 0x06  # 5.2.6
+    SETTING_48 = 0x07  # 5.2.7
+    SETTING_64 = 0x08  # 5.2.8
+
+
+SETTING_VALUE_BYTES = {0x04: 2, 0x05: 4, 0x06: 5, 0x07: 6, 0x08: 8}  # chapter 5.2.4-5.2.8
+
+# answer telegram type -> name (chapter 5.1.5-5.1.31; a query index n is answered by type n + 5)
+TELEGRAMS: dict[int, str] = {
+    0x05: "device", 0x06: "program version", 0x07: "barrier status", 0x08: "status mask",
+    0x09: "change monitoring", 0x0A: "service counter", 0x0B: "maintenance counter",
+    0x0C: "gate state", 0x0D: "open time", 0x0E: "pre-warning before opening",
+    0x0F: "pre-warning before closing", 0x10: "dec_bt", 0x11: "counting function",
+    0x12: "induction loops", 0x13: "direction logics", 0x14: "serial number", 0x15: "MAC address",
+    0x16: "operating hours", 0x17: "error memory", 0x18: "configuration flags", 0x19: "multi relays",
+    0x1A: "maintenance interval", 0x1B: "loop periods", 0x1C: "vehicle counter",
+    0x1D: "barrier position", 0x1E: "password", 0x1F: "loop-adjust counters",
+}
+QUERY_ANSWER_OFFSET = 5  # SPEC-NOTES "Replies": query index n is answered by telegram type n + 5
+QUERY_INDEXES = range(0x00, 0x1B)  # chapter 5.2.2, table 21: 0x00 .. 0x1A
+FORBIDDEN_QUERIES = frozenset(range(0x1B, 0x1F))  # table 21: 0x1B-0x1E "Nicht verwenden!"
+ERROR_MEMORY_LEVELS = 10  # chapter 5.1.23: "10 Ebenen (0...9)"
+
+
+def query_index(answer_type: int) -> int:
+    """The query index whose answer is telegram ``answer_type``."""
+    index = answer_type - QUERY_ANSWER_OFFSET
+    if index not in QUERY_INDEXES:
+        raise CodecError(f"no query is answered by telegram 0x{answer_type:02X}")
+    return index
+
+
+# query indexes by name, for the adapter
+Q_DEVICE, Q_PROGRAM_VERSION, Q_BARRIER_STATUS, Q_STATUS_MASK, Q_CHANGE_MONITORING = 0x00, 0x01, 0x02, 0x03, 0x04
+Q_SERVICE_COUNTER, Q_MAINTENANCE_COUNTER, Q_GATE_STATE = 0x05, 0x06, 0x07
+Q_T_OPEN, Q_T_PREWARN_OPEN, Q_T_PREWARN_CLOSE, Q_DEC_BT, Q_COUNTING = 0x08, 0x09, 0x0A, 0x0B, 0x0C
+Q_INDUCTION_LOOPS, Q_DIRECTION_LOGICS, Q_SERIAL_NUMBER, Q_MAC, Q_OPERATING_HOURS = 0x0D, 0x0E, 0x0F, 0x10, 0x11
+Q_ERROR_MEMORY, Q_CONFIG_FLAGS, Q_MULTI_RELAYS, Q_MAINTENANCE_INTERVAL = 0x12, 0x13, 0x14, 0x15
+Q_LOOP_PERIODS, Q_VEHICLE_COUNTER, Q_BARRIER_POSITION, Q_PASSWORD, Q_LOOP_ADJUST = 0x16, 0x17, 0x18, 0x19, 0x1A
+
+
+class Command(IntEnum):
+    """Operating command (chapter 5.2.1; numbers from SPEC-NOTES "Operating commands")."""
+
+    REVERSE = 0x00
+    OPEN = 0x01  # BT
+    CLOSE = 0x02  # BZ
+
+
+class Function(IntEnum):
+    """How an operating command acts (chapter 5.2.1, table 19: all other functions are invalid)."""
+
+    PULSE = 0x00
+    ACTIVATE = 0x01  # level on: stays until deactivated
+    DEACTIVATE = 0x02  # level off
+
+
+def encode_query(index: int, level: int | None = None) -> bytes:
+    """A query telegram (type + payload), framed by :func:`encode_frame`.
+
+    :param index: 0x00 .. 0x1A (table 21)
+    :param level: error memory level 0..9, only for :data:`Q_ERROR_MEMORY` (ASSUMED byte)
+    :raises CodecError: a forbidden ("Nicht verwenden!") or invalid index
+    """
+    if isinstance(index, bool) or not isinstance(index, int):
+        raise CodecError(f"query index {index!r} is not a number")
+    if index in FORBIDDEN_QUERIES:
+        raise CodecError(f"query index 0x{index:02X} is marked 'Nicht verwenden!' (table 21): never sent")
+    if index not in QUERY_INDEXES:
+        raise CodecError(f"query index 0x{index:02X} is not in table 21 (0x00 .. 0x1A)")
+    if level is None:
+        return bytes((RequestType.QUERY, index))
+    if index != Q_ERROR_MEMORY or not ERROR_MEMORY_QUERY_HAS_LEVEL:
+        raise CodecError("only the error memory query takes a level")
+    if isinstance(level, bool) or not isinstance(level, int) or not 0 <= level < ERROR_MEMORY_LEVELS:
+        raise CodecError(f"error memory level {level!r} is not 0 .. {ERROR_MEMORY_LEVELS - 1}")
+    return bytes((RequestType.QUERY, index, level))
+
+
+def encode_command(command: Command | int, function: Function | int = Function.PULSE) -> bytes:
+    """An operating telegram ``01 command function`` (chapter 5.2.1).
+
+    :raises CodecError: an unknown command or function (the MO 64 would answer nak)
+    """
+    try:
+        command, function = Command(command), Function(function)
+    except ValueError as exc:
+        raise CodecError(f"invalid operating command: {exc}") from None
+    return bytes((RequestType.COMMAND, command, function))
+
+
+def encode_short_command(code: int) -> bytes:
+    """A short command ``03 code`` (chapter 5.2.3; one code byte ASSUMED, codes not named)."""
+    if isinstance(code, bool) or not isinstance(code, int) or not 0 <= code <= 0xFF:
+        raise CodecError(f"short command {code!r} is not one byte")
+    return bytes((RequestType.SHORT_COMMAND, code))
+
+
+# -- value types of the answer telegrams -----------------------------------------------------------
+DEVICE_CODES = {5: "MO 64-V4 (Stand 19.07.2011)"}  # chapter 5.1.5 (0x0001..0x0004 printed "xxx")
+DEVICE_CODE = v.Enum(v.U16LE, DEVICE_CODES)  # Kennung_lo Kennung_hi
+PROGRAM_VERSION = v.U16LE  # SPEC-NOTES: program version u16
+
+STATUS_BIT_NAMES: tuple[tuple[str, ...], ...] = (  # chapter 5.1.7, bit names per SPEC-NOTES
+    ("Funk", "BT", "BTA1", "BTA2", "BTA3", "BTZ1A", "BTZ1B", "BTZ2"),
+    ("BTS", "Baum ab", "LS", "SLZ", "F_ereignis", "SERVICE", "mains monitoring"),
+    ("adjusting loop A", "adjusting loop B", "adjusting loop C",
+     "loop A occupied", "loop B occupied", "loop C occupied", "loop EXT"),
+    tuple(f"multi relay {n}" for n in range(1, 9)),
+    tuple(f"multi relay {n}" for n in range(9, 15)),
+)
+STATUS_GROUPS: dict[str, tuple[str, ...]] = {  # how the page groups the 40 bits (issue 13)
+    "inputs": ("Funk", "BT", "BTA1", "BTA2", "BTA3", "BTZ1A", "BTZ1B", "BTZ2", "BTS", "SLZ"),
+    "safety": ("LS", "Baum ab", "F_ereignis"),
+    "loops": ("adjusting loop A", "adjusting loop B", "adjusting loop C",
+              "loop A occupied", "loop B occupied", "loop C occupied", "loop EXT"),
+    "multi relays": tuple(f"multi relay {n}" for n in range(1, 15)),
+    "service": ("SERVICE", "mains monitoring"),
+}
+STATUS_BITS = v.Bits(v.Int(40), tuple(  # Status0 .. Status4, Status0 first (low byte first)
+    v.BitField(name, 8 * byte + bit) for byte, names in enumerate(STATUS_BIT_NAMES) for bit, name in enumerate(names)
+))
+# SPEC-NOTES: some firmware sends more status bytes: decode the first five, keep the rest raw
+BARRIER_STATUS = v.Struct("barrier_status", (("status", STATUS_BITS), ("more", v.Bytes(None))))
+STATUS_MASK = v.Struct("status_mask", (("mask", STATUS_BITS), ("more", v.Bytes(None))))  # 5.1.8, Maske0..4
+
+CHANGE_MONITORING = v.Bits(v.U16LE, tuple(v.BitField(name, bit) for bit, name in enumerate((
+    "barrier status", "service counter", "maintenance counter", "gate state", "error memory",
+    "vehicle counter", "barrier position", "motor status", "loop debug",
+))))  # chapter 5.1.9, Flaggen_lo Flaggen_hi; bit names from SPEC-NOTES "Change monitoring"
+
+
+class GateState(IntEnum):
+    """Gate state, telegram 0x0C (chapter 5.1.12; numbers from SPEC-NOTES)."""
+
+    OPENING = 0
+    CLOSING = 1
+    PREWARN_OPEN = 2
+    PREWARN_CLOSE = 3
+    OPEN = 4
+    CLOSED = 5
+    INTERMEDIATE = 6
+
+
+GATE_STATE_NAMES = {
+    0: "opening", 1: "closing", 2: "pre-warning before opening", 3: "pre-warning before closing",
+    4: "open", 5: "closed", 6: "intermediate position",
+}
+GATE_STATE = v.Enum(v.U8, GATE_STATE_NAMES)
+COUNTER = v.U32LE  # service / maintenance counter (SPEC-NOTES: u32)
+TIME_10MS = v.U16LE  # t_offen_lo t_offen_hi, in multiples of 10 ms (chapter 5.1.13)
+TIME_STEP_S = 0.01  # chapter 5.1.13: "in Vielfachen von 10ms"
+TIME_MAX = 65500  # chapter 5.2.4.1: "Erlaubter Zahlenbereich: 0 bis 65500"
+# chapter 5.1.16: A9..A1 take bits 17..0 (2 bits each), bit 31 = a radio code is stored
+DEC_BT = v.Bits(v.U32LE, tuple(v.BitField(f"A{n}", 2 * (n - 1), 2) for n in range(1, 10))
+                + (v.BitField("code stored", 31),))
+INDUCTION_LOOPS = v.Array(v.U16LE, 3)  # chapter 5.1.18: one 16-bit mode register per loop A, B, C
+# chapter 5.1.19, table 11: one 32-bit register per direction logic; only the fields numbered there
+DIRECTION_LOGIC = v.Bits(v.U32LE, (
+    v.BitField("input selection", 0, 3),
+    v.BitField("presence right", 18, 2),
+    v.BitField("reserve", 20, 12),
+))
+DIRECTION_LOGICS = v.Array(DIRECTION_LOGIC, 2)
+SERIAL_NUMBER = v.U32LE  # snr_lo0 _lo1 _hi0 _hi1 (chapter 5.1.20)
+MAC_ADDRESS = v.Bytes(6)  # chapter 5.1.21: six bytes, shown in the order received
+OPERATING_HOURS = v.U32LE  # SPEC-NOTES: operating hours u32
+ERROR_LEVEL = v.Struct("error_level", (("flags", v.U32LE), ("timestamp_h", v.U32LE)))  # chapter 5.1.23
+ERROR_ENTRY = v.Struct("error_entry", (("index", v.U8), ("flags", v.U32LE), ("timestamp_h", v.U32LE)))
+ERROR_MEMORY = v.Array(ERROR_LEVEL, ERROR_MEMORY_LEVELS)
+# chapter 5.1.24, tables 13-16: four 16-bit words; only the 2-bit fields whose bits are printed
+CONFIG_FIELDS: tuple[tuple[v.BitField, ...], ...] = (
+    (v.BitField("RtApl blink in end position", 0, 2), v.BitField("RtApl blink at pre-warning open", 2, 2)),
+    (v.BitField("GnApl blink at pre-warning open", 0, 2), v.BitField("GnApl blink at pre-warning close", 2, 2),
+     v.BitField("GnApl blink while opening", 4, 2), v.BitField("GnApl blink while closing", 6, 2),
+     v.BitField("GnApl blink at intermediate stop", 8, 2)),
+    (v.BitField("warning light blink in end position open", 8, 2),),
+    (),
+)
+CONFIG_FLAGS = v.Struct("config_flags", tuple(
+    (f"konfig{i}", v.Bits(v.U16LE, fields)) for i, fields in enumerate(CONFIG_FIELDS)
+))
+MULTI_RELAYS = v.Array(v.U8, 6)  # chapter 5.1.25: multi1 .. multi6, one mode byte each
+MAINTENANCE_INTERVAL = v.U32LE  # ASSUMED width (see ASSUMPTIONS): like the maintenance counter
+VEHICLE_COUNTER = v.I32LE  # chapter 5.2.5: signed 32 bit, RAM only, 0 after power-up
+BARRIER_POSITION = v.I8  # chapter 5.1.29: percent, -1 while unknown
+POSITION_UNKNOWN = -1
+PASSWORD = v.U16LE  # chapter 5.1.30: passwort_lo passwort_hi
+LOOP_ADJUST_COUNTERS = v.Array(v.U16LE, 3)  # chapter 5.1.31: schleife_a/b/c _lo _hi
+RAW = v.Bytes(None)  # a layout the document does not name: kept raw
+
+ANSWER_TYPES: dict[int, v.ValueType] = {
+    0x05: DEVICE_CODE, 0x06: PROGRAM_VERSION, 0x07: BARRIER_STATUS, 0x08: STATUS_MASK,
+    0x09: CHANGE_MONITORING, 0x0A: COUNTER, 0x0B: COUNTER, 0x0C: GATE_STATE,
+    0x0D: TIME_10MS, 0x0E: TIME_10MS, 0x0F: TIME_10MS, 0x10: DEC_BT,
+    0x11: RAW,  # counting function: layout not in the summary
+    0x12: INDUCTION_LOOPS, 0x13: DIRECTION_LOGICS, 0x14: SERIAL_NUMBER, 0x15: MAC_ADDRESS,
+    0x16: OPERATING_HOURS, 0x17: ERROR_ENTRY,  # or ERROR_MEMORY, by length (see decode_value)
+    0x18: CONFIG_FLAGS, 0x19: MULTI_RELAYS, 0x1A: MAINTENANCE_INTERVAL,
+    0x1B: RAW,  # loop periods: layout not in the summary
+    0x1C: VEHICLE_COUNTER, 0x1D: BARRIER_POSITION, 0x1E: PASSWORD, 0x1F: LOOP_ADJUST_COUNTERS,
+}
+
+
+def answer_value_type(answer_type: int, payload_len: int | None = None) -> v.ValueType:
+    """The value type of answer telegram ``answer_type`` (the error memory by its length)."""
+    if answer_type == 0x17 and payload_len == ERROR_MEMORY.size:
+        return ERROR_MEMORY
+    try:
+        return ANSWER_TYPES[answer_type]
+    except KeyError:
+        raise CodecError(f"telegram type 0x{answer_type:02X} is not an answer of chapter 5.1") from None
+
+
+def format_mac(mac: bytes) -> str:
+    return ":".join(f"{b:02X}" for b in mac)
+
+
+def time_s(ticks: int) -> float:
+    """A time register (10 ms units) in seconds."""
+    return round(ticks * TIME_STEP_S, 2)
+
+
+# -- answers (MO 64 -> master) ---------------------------------------------------------------------
+@dataclass(frozen=True)
+class Answer:
+    """A decoded telegram from the MO 64.
+
+    :param type: the telegram type; ``reply`` is set for 0x01-0x04
+    :param value: the typed value (None for replies and for undecodable data)
+    :param error: why ``value`` could not be decoded (the raw payload is still there)
+    """
+
+    type: int
+    payload: bytes
+    reply: Reply | None = None
+    value: Any = None
+    error: str | None = None
+    frame: Frame | None = None
+
+    @property
+    def name(self) -> str:
+        if self.reply is not None:
+            return self.reply.name.lower()
+        return TELEGRAMS.get(self.type, f"unknown telegram 0x{self.type:02X}")
+
+    @property
+    def query(self) -> int | None:
+        """The query index this telegram answers (None for replies and unknown types)."""
+        index = self.type - QUERY_ANSWER_OFFSET
+        return index if index in QUERY_INDEXES else None
+
+
+def decode_value(answer_type: int, payload: bytes) -> Any:
+    """Decode the payload of answer telegram 0x05..0x1F.
+
+    :raises devices.values.DecodeError: short or excess data
+    :raises CodecError: not an answer type
+    """
+    return answer_value_type(answer_type, len(payload)).decode(payload)
+
+
+def decode_answer(frame: Frame | bytes, framing: Framing = TCP) -> Answer:
+    """A telegram the MO 64 sent (chapter 5.1). Undecodable data is kept raw with ``error`` set.
+
+    :param frame: a :class:`Frame`, or the raw bytes of one
+    :raises FrameError: raw bytes that are no valid frame
+    """
+    if not isinstance(frame, Frame):
+        frame = decode_frame(frame, framing)
+    if frame.is_token:
+        raise CodecError("a token telegram is no answer")
+    if frame.type in REPLY_TYPES:
+        reply = Reply(frame.type)
+        error = f"unexpected data after {reply.name.lower()}" if frame.payload else None
+        return Answer(frame.type, frame.payload, reply=reply, error=error, frame=frame)
+    if frame.type not in ANSWER_TYPES:
+        return Answer(frame.type, frame.payload, error=f"unknown telegram type 0x{frame.type:02X}", frame=frame)
+    try:
+        value = decode_value(frame.type, frame.payload)
+    except v.ValueCodecError as exc:
+        return Answer(frame.type, frame.payload, error=str(exc), frame=frame)
+    return Answer(frame.type, frame.payload, value=value, frame=frame)
+
+
+def encode_answer(answer_type: int, value: Any = None) -> bytes:
+    """A twin's telegram (type + payload): a reply (``value`` None) or answer 0x05..0x1F."""
+    if answer_type in REPLY_TYPES:
+        if value not in (None, b""):
+            raise CodecError("a reply carries no data")
+        return bytes((answer_type,))
+    if isinstance(value, (bytes, bytearray)) and ANSWER_TYPES.get(answer_type) is RAW:
+        return bytes((answer_type,)) + bytes(value)
+    vtype = ERROR_MEMORY if answer_type == 0x17 and isinstance(value, (list, tuple)) else answer_value_type(answer_type)
+    try:
+        return bytes((answer_type,)) + vtype.encode(value)
+    except v.EncodeError as exc:
+        raise CodecError(f"{TELEGRAMS[answer_type]}: {exc}") from None
+
+
+# -- settings (chapter 5.2.4-5.2.8) ----------------------------------------------------------------
+@dataclass(frozen=True)
+class Setting:
+    """One setting telegram of the directory.
+
+    :param telegram: setting type 0x04..0x08 (the value width)
+    :param selector: the "Auswahl" byte
+    :param vtype: the value's type on the wire
+    :param unit: unit of the raw value ("10 ms" for times)
+    :param query: the query index that reads it back
+    :param backup: backed up and restored (False: RAM only)
+    :param eeprom: a write wears the EEPROM (chapter 4: "Schreibzugriff auf das EEPROM")
+    :param limits: allowed raw range for integers (None: the type's own)
+    :param assumed: why the selector or layout is an assumption; None if the document names it
+    """
+
+    key: str
+    name: str
+    telegram: int
+    selector: int
+    vtype: v.ValueType
+    query: int
+    unit: str = ""
+    backup: bool = True
+    eeprom: bool = True
+    limits: tuple[int, int] | None = None
+    assumed: str | None = None
+    doc: str = ""
+
+    def check(self, value: Any) -> bytes:
+        """The value bytes, range-checked.
+
+        :raises CodecError: out of range or not of the type
+        """
+        if self.limits is not None:
+            low, high = self.limits
+            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+                raise CodecError(f"{self.name}: {value!r} is outside {low} .. {high} {self.unit}".rstrip())
+        try:
+            data = self.vtype.encode(value)
+        except v.EncodeError as exc:
+            raise CodecError(f"{self.name}: {exc}") from None
+        if len(data) != SETTING_VALUE_BYTES[self.telegram]:
+            raise CodecError(f"{self.name}: {len(data)} bytes, setting 0x{self.telegram:02X} takes "
+                             f"{SETTING_VALUE_BYTES[self.telegram]}")
+        return data
+
+
+_MASK_40 = v.Bits(v.Int(40), STATUS_BITS.fields)  # setting 0x06 0x00 takes exactly Maske0..Maske4
+
+SETTINGS: dict[str, Setting] = {s.key: s for s in (
+    Setting("t_open", "open time", 0x04, 0x00, TIME_10MS, Q_T_OPEN, "10 ms", limits=(0, TIME_MAX),
+            doc="0 switches automatic closing off (chapter 5.2.4.1)"),
+    Setting("t_prewarn_open", "pre-warning before opening", 0x04, 0x01, TIME_10MS, Q_T_PREWARN_OPEN, "10 ms",
+            limits=(0, TIME_MAX), assumed="selector 0x01 follows the order of answers 0x0D-0x0F"),
+    Setting("t_prewarn_close", "pre-warning before closing", 0x04, 0x02, TIME_10MS, Q_T_PREWARN_CLOSE, "10 ms",
+            limits=(0, TIME_MAX), assumed="selector 0x02 follows the order of answers 0x0D-0x0F"),
+    Setting("change_monitoring", "change monitoring", 0x04, 0x04, CHANGE_MONITORING, Q_CHANGE_MONITORING,
+            doc="unsolicited telegrams over TCP (chapter 5.2.4.5)"),
+    Setting("vehicle_counter", "vehicle counter", 0x05, 0x00, VEHICLE_COUNTER, Q_VEHICLE_COUNTER,
+            backup=False, eeprom=False, assumed="selector 0x00 not in the summary (chapter 5.2.5)",
+            doc="RAM only, 0 after power-up; answered ack (chapter 5.2.5)"),
+    Setting("maintenance_interval", "maintenance interval", 0x05, 0x01, MAINTENANCE_INTERVAL,
+            Q_MAINTENANCE_INTERVAL, assumed="selector 0x01 and u32 width not in the summary"),
+    Setting("status_mask", "status mask", 0x06, 0x00, _MASK_40, Q_STATUS_MASK,
+            doc="status bits watched for change (chapter 5.2.6.1)"),
+    Setting("multi_relays", "multi-relay modes", 0x07, 0x00, MULTI_RELAYS, Q_MULTI_RELAYS,
+            doc="multi1 .. multi6 (chapter 5.2.7.1)"),
+    Setting("config_flags", "configuration flags", 0x08, 0x00, CONFIG_FLAGS, Q_CONFIG_FLAGS,
+            doc="konfig0 .. konfig3 (chapter 5.2.8.1)"),
+)}
+
+
+def setting_by_selector(telegram: int, selector: int) -> Setting | None:
+    return next((s for s in SETTINGS.values() if s.telegram == telegram and s.selector == selector), None)
+
+
+def encode_setting(key: str, value: Any) -> bytes:
+    """A setting telegram ``type selector value...`` (chapter 5.2.4-5.2.8), range-checked.
+
+    :param key: a key of :data:`SETTINGS`
+    :raises CodecError: unknown setting or value out of range
+    """
+    try:
+        setting = SETTINGS[key]
+    except KeyError:
+        raise CodecError(f"no setting {key!r}") from None
+    return bytes((setting.telegram, setting.selector)) + setting.check(value)
+
+
+def setting_value(key: str, answer: Answer) -> Any:
+    """The value of setting ``key`` from its read-back answer (for a restore's comparison)."""
+    setting = SETTINGS[key]
+    if answer.query != setting.query:
+        raise CodecError(f"{answer.name} is not the read-back of {setting.name}")
+    if answer.error is not None:
+        raise CodecError(f"{setting.name}: {answer.error}")
+    return setting.vtype.decode(setting.vtype.encode(_strip_extra(answer.value)))
+
+
+def _strip_extra(value: Any) -> Any:
+    if isinstance(value, Mapping) and set(value) == {"mask", "more"}:
+        return value["mask"]
+    return value
+
+
+# -- requests (master -> MO 64), for the twin ------------------------------------------------------
+@dataclass(frozen=True)
+class Request:
+    """A decoded telegram to the MO 64 (chapter 5.2).
+
+    :param kind: the :class:`RequestType`
+    :param query: the query index (queries); ``level`` the ASSUMED error memory level
+    :param command, function: operating commands
+    :param setting: the :class:`Setting` (None for a selector the directory does not know)
+    :param value: the decoded setting value
+    """
+
+    kind: RequestType
+    payload: bytes
+    query: int | None = None
+    level: int | None = None
+    command: Command | None = None
+    function: Function | None = None
+    code: int | None = None
+    selector: int | None = None
+    setting: Setting | None = None
+    value: Any = None
+    frame: Frame | None = None
+
+
+class InvalidRequest(CodecError):
+    """A request the MO 64 answers with nak (unknown type, forbidden index, bad length)."""
+
+    def __init__(self, message: str, frame: Frame | None = None):
+        self.frame = frame
+        super().__init__(message)
+
+
+def decode_request(frame: Frame | bytes, framing: Framing = TCP) -> Request:
+    """A telegram to the MO 64 (chapter 5.2).
+
+    :raises InvalidRequest: what the MO 64 answers with nak
+    :raises FrameError: raw bytes that are no valid frame
+    """
+    if not isinstance(frame, Frame):
+        frame = decode_frame(frame, framing)
+    if frame.is_token:
+        raise InvalidRequest("a token telegram is no request (the MO 64 ignores it)", frame)
+    try:
+        kind = RequestType(frame.type)
+    except ValueError:
+        raise InvalidRequest(f"unknown telegram type 0x{frame.type:02X}", frame) from None
+    p = frame.payload
+    if kind is RequestType.QUERY:
+        if len(p) not in (1, 2) or (len(p) == 2 and p[0] != Q_ERROR_MEMORY):
+            raise InvalidRequest(f"query with {len(p)} data bytes", frame)
+        if p[0] in FORBIDDEN_QUERIES or p[0] not in QUERY_INDEXES:
+            raise InvalidRequest(f"query index 0x{p[0]:02X} is invalid (table 21)", frame)
+        level = p[1] if len(p) == 2 else None
+        if level is not None and level >= ERROR_MEMORY_LEVELS:
+            raise InvalidRequest(f"error memory level {level} is not 0 .. 9", frame)
+        return Request(kind, p, query=p[0], level=level, frame=frame)
+    if kind is RequestType.COMMAND:
+        if len(p) != 2:
+            raise InvalidRequest(f"operating command with {len(p)} data bytes", frame)
+        try:
+            return Request(kind, p, command=Command(p[0]), function=Function(p[1]), frame=frame)
+        except ValueError:
+            raise InvalidRequest(f"invalid command {p[0]:02X} / function {p[1]:02X} (table 19)", frame) from None
+    if kind is RequestType.SHORT_COMMAND:
+        if len(p) != SHORT_COMMAND_BYTES:
+            raise InvalidRequest(f"short command with {len(p)} data bytes", frame)
+        return Request(kind, p, code=p[0], frame=frame)
+    if len(p) != 1 + SETTING_VALUE_BYTES[kind]:
+        raise InvalidRequest(f"setting 0x{kind:02X} with {len(p)} data bytes "
+                             f"(takes 1 + {SETTING_VALUE_BYTES[kind]})", frame)
+    setting = setting_by_selector(kind, p[0])
+    if setting is None:
+        return Request(kind, p, selector=p[0], value=p[1:], frame=frame)
+    value = setting.vtype.decode(p[1:])
+    if setting.limits is not None and not setting.limits[0] <= value <= setting.limits[1]:
+        raise InvalidRequest(f"{setting.name} {value} is outside {setting.limits[0]} .. {setting.limits[1]}", frame)
+    return Request(kind, p, selector=p[0], setting=setting, value=value, frame=frame)
+
+
+def describe(frame: Frame, to_device: bool) -> str:
+    """One line for the bus monitor: what the frame is, decoded as far as possible."""
+    where = f"{frame.sa:02X}->{frame.da:02X} " if frame.da is not None else ""
+    if frame.is_token:
+        return f"{where}token"
+    try:
+        if to_device:
+            r = decode_request(frame)
+            if r.kind is RequestType.QUERY:
+                return f"{where}query 0x{r.query:02X} ({TELEGRAMS[r.query + QUERY_ANSWER_OFFSET]})"
+            if r.kind is RequestType.COMMAND:
+                return f"{where}{r.command.name.lower()} {r.function.name.lower()}"
+            if r.kind is RequestType.SHORT_COMMAND:
+                return f"{where}short command 0x{r.code:02X}"
+            name = r.setting.name if r.setting else f"setting 0x{r.kind:02X}/0x{r.selector:02X}"
+            return f"{where}set {name} = {r.value!r}"
+        a = decode_answer(frame)
+    except CodecError as exc:
+        return f"{where}{exc}"
+    if a.error:
+        return f"{where}{a.name}: {a.error} ({a.payload.hex(' ')})"
+    return f"{where}{a.name}" + ("" if a.reply is not None else f" = {a.value!r}")
+
+
+__all__ = [name for name in dir() if not name.startswith("_") and name not in {
+    "annotations", "binascii", "Iterable", "Mapping", "dataclass", "IntEnum", "Any", "v"}]
