@@ -323,7 +323,7 @@ class FrameSplitter:
             return None, 0
         if n == 0:
             return FrameLengthError(f"LE {buf[1]} is below {self.framing.min_le} ({self.framing.name})",
-                                    bytes(buf[:2])), 1
+                                    bytes(buf[:2])), 2  # an LE below the minimum is never SD
         if len(buf) < n:
             later = self._next_valid(1, len(buf))  # a stray SD announcing a long frame
             if later is not None:
