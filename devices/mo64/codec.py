@@ -62,7 +62,7 @@ class Rs485Layout:
     """
 
     master_address: int = 0x00  # SPEC-NOTES: "the master at 0x00" (chapter 2.6 example: "Master 0x00")
-    le_counts_from_da: bool = True  # SPEC-NOTES: LE counts DA to the end of the payload
+    # SPEC-NOTES: DA SA follow LE and LE counts DA to the end of the payload (see encode_frame)
     # chapter 2.1 "6 bis 259 Zeichen": the shortest telegram, SD LE DA SA CSH CSL, is taken as the token
     token_le: int = 2
 
