@@ -222,3 +222,251 @@ class LogitedTcp:
                 self._waiter = None
             self._log(describe, request, answer, "", round((time.monotonic() - started) * 1000, 2))
             return answer
+
+
+class LogitedRs485:
+    """The worker's RS485 line to several MO 64 (``type = "logited-rs485"``), 38400 8N1.
+
+    Frames carry destination and source addresses and a token telegram passes the right to
+    send between masters (both layouts are assumptions of the codec: devices/mo64/codec.py,
+    ``RS485_LAYOUT``). With ``shared = false`` this tool is the only master and sends at will.
+    With ``shared = true`` it ignores token telegrams addressed elsewhere, sends only while it
+    holds the token, and passes it to ``next_master`` within 200 ms of receiving it (chapter
+    2.6.1): at once when nothing waits, else when the requests waiting are done, and at the
+    latest when the hold budget runs out. Telegrams for this master that answer no request go to
+    ``listeners``; every telegram on the line is logged for the bus monitor.
+
+    pyserial is blocking: a reader thread hands the bytes to the event loop, writes run in a thread.
+    """
+
+    HOLD_BUDGET_S = 0.15  # pass the token this long after receiving it at the latest (limit 0.2 s)
+
+    def __init__(self, name: str, options: dict, state: BusState):
+        from devices.mo64 import codec  # the bus protocol's framing and token (LogiTed is that family's bus)
+
+        self.codec = codec
+        self.name = name
+        self.options = options
+        self.state = state
+        self.master = options["master_address"]
+        self.shared = options["shared"]
+        self.next_master = options["next_master"]
+        self.port = None
+        self.listeners: list[Callable[[bytes], None]] = []
+        self.describe: Callable[[bytes], str] | None = None
+        self._splitter = codec.FrameSplitter(codec.RS485)
+        self._lock = asyncio.Lock()
+        self._waiter: tuple[Callable[[bytes], bool], asyncio.Future] | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread = None
+        self._run = False
+        self._failures = 0
+        self._next_open = 0.0
+        self._pending = 0
+        self._token = asyncio.Event()
+        self._token_since: float | None = None
+        self._pass_timer: asyncio.TimerHandle | None = None
+        self.token_holds_ms: list[float] = []  # how long this tool held the token, most recent last (bounded)
+        self.garbage = 0
+
+    # -- the port -----------------------------------------------------------------------
+    def _open_blocking(self):
+        import serial
+
+        o = self.options
+        port = serial.serial_for_url(o["port"], do_not_open=True, baudrate=o["baudrate"], bytesize=8,
+                                     parity=serial.PARITY_NONE, stopbits=1, timeout=0.05, write_timeout=1.0)
+        port.open()
+        port.reset_input_buffer()
+        return port
+
+    async def connect(self) -> bool:
+        if self.port is not None:
+            return True
+        if time.monotonic() < self._next_open:
+            return False
+        import serial
+
+        try:
+            self.port = await asyncio.to_thread(self._open_blocking)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            self._failures += 1
+            self._next_open = time.monotonic() + BACKOFF_S[min(self._failures - 1, len(BACKOFF_S) - 1)]
+            self.state.connected = False
+            self.state.last_error = (f"cannot open {self.options['port']}: {exc}. Check the RS485 adapter, "
+                                     "the port name and that nothing else holds the port")
+            return False
+        import threading
+
+        self._failures = 0
+        self._loop = asyncio.get_running_loop()
+        self._run = True
+        self._thread = threading.Thread(target=self._read_thread, args=(self.port,), name=f"rs485 {self.name}", daemon=True)
+        self._thread.start()
+        self.state.connected = True
+        self.state.last_error = ""
+        return True
+
+    def _read_thread(self, port) -> None:
+        while self._run:
+            try:
+                data = port.read(port.in_waiting or 1)
+            except Exception as exc:  # noqa: BLE001 - unplugged: the loop reopens with backoff
+                self._loop.call_soon_threadsafe(self._lost, str(exc))
+                return
+            if data:
+                self._loop.call_soon_threadsafe(self._on_bytes, data)
+
+    def _lost(self, why: str) -> None:
+        self.close()
+        self.state.last_error = f"{self.options['port']} lost: {why}"
+        self._failures = 1
+        self._next_open = time.monotonic() + BACKOFF_S[0]
+        if self._waiter is not None and not self._waiter[1].done():
+            self._waiter[1].set_exception(SerialClosed(f"{self.name}: {self.state.last_error}"))
+
+    def close(self) -> None:
+        self._run = False
+        port, self.port = self.port, None
+        if port is not None:
+            try:
+                port.close()
+            except Exception:  # noqa: BLE001
+                pass
+        self.state.connected = False
+        self._token.clear()
+        self._token_since = None
+
+    # -- telegrams ------------------------------------------------------------------------
+    def _on_bytes(self, data: bytes) -> None:
+        for item in self._splitter.feed(data):
+            if isinstance(item, self.codec.FrameError):
+                self.garbage += len(item.raw or b"")
+                self._log("received", b"", item.raw or b"", f"{item.__class__.__name__}: {item}")
+                continue
+            self._on_frame(item)
+
+    def _on_frame(self, frame) -> None:
+        codec = self.codec
+        if frame.type == codec.TOKEN:
+            if frame.da == self.master and self.shared:
+                self._got_token()
+            return  # token telegrams addressed elsewhere are ignored
+        if frame.da != self.master:
+            self._log("between others", b"", frame.raw, "")
+            return
+        waiter = self._waiter
+        if waiter is not None and not waiter[1].done():
+            try:
+                answers = waiter[0](frame.raw)
+            except Exception:  # noqa: BLE001
+                answers = False
+            if answers:
+                waiter[1].set_result(frame.raw)
+                return
+        self._log("unsolicited", b"", frame.raw, "")
+        for listener in self.listeners:
+            try:
+                listener(frame.raw)
+            except Exception:
+                log.exception("%s: listener failed for %s", self.name, frame.raw.hex(" "))
+
+    def _got_token(self) -> None:
+        self._token_since = time.monotonic()
+        self._token.set()
+        if self._pending == 0:
+            self._pass_token()  # nothing to send: hand it on at once
+        else:
+            self._pass_timer = self._loop.call_later(self.HOLD_BUDGET_S, self._pass_if_idle)
+
+    def _pass_if_idle(self) -> None:
+        if self._token.is_set() and (self._waiter is None or self._waiter[1].done()):
+            self._pass_token()
+
+    def _pass_token(self) -> None:
+        if not self._token.is_set() or self.port is None:
+            return
+        if self._pass_timer is not None:
+            self._pass_timer.cancel()
+            self._pass_timer = None
+        held = (time.monotonic() - self._token_since) * 1000 if self._token_since else 0.0
+        self._token.clear()
+        self._token_since = None
+        self.token_holds_ms.append(round(held, 2))
+        del self.token_holds_ms[:-100]
+        token = self.codec.encode_token(self.next_master, self.master)
+        try:
+            self.port.write(token)  # a few bytes into the driver's buffer: does not wait for the wire
+        except Exception as exc:  # noqa: BLE001
+            self._lost(str(exc))
+
+    def _text(self, telegram: bytes) -> str:
+        if not telegram or self.describe is None:
+            return ""
+        try:
+            return self.describe(telegram)
+        except Exception as exc:  # noqa: BLE001
+            return f"cannot decode: {exc}"
+
+    def _log(self, what: str, request: bytes, answer: bytes, error: str, rtt_ms: float | None = None) -> None:
+        self.state.transactions.append(LogitedTransaction(
+            time.time(), what, request.hex(" ").upper(), answer.hex(" ").upper(),
+            self._text(answer) if answer and not error else "", rtt_ms, error))
+
+    async def transact(self, request: bytes, answers: Callable[[bytes], bool], *, timeout: float | None = None,
+                       describe: str = "") -> bytes:
+        """Send ``request`` (an addressed RS485 frame) and return the first telegram ``answers`` accepts.
+
+        :raises SerialClosed: the port is not open
+        :raises SerialTimeout: no token (shared line) or no answer in time
+        """
+        timeout = self.options["timeout"] if timeout is None else timeout
+        self._pending += 1
+        try:
+            async with self._lock:
+                if not await self.connect():
+                    raise SerialClosed(f"{self.name}: {self.state.last_error}")
+                if self.shared:
+                    await self._hold_token(timeout)
+                    left = self.HOLD_BUDGET_S - (time.monotonic() - self._token_since)
+                    timeout = max(0.02, min(timeout, left))  # answered within the hold, or given up
+                future = self._loop.create_future()
+                self._waiter = (answers, future)
+                started = time.monotonic()
+                try:
+                    await asyncio.to_thread(self.port.write, request)
+                    answer = await asyncio.wait_for(future, timeout)
+                except asyncio.TimeoutError:
+                    self._log(describe, request, b"", f"no answer within {timeout:g} s")
+                    raise SerialTimeout(f"{self.name}: no answer within {timeout:g} s") from None
+                except SerialClosed as exc:
+                    self._log(describe, request, b"", str(exc))
+                    raise
+                except Exception as exc:  # noqa: BLE001 - a write to a lost port
+                    self._lost(str(exc))
+                    raise SerialClosed(f"{self.name}: {self.state.last_error}") from None
+                finally:
+                    self._waiter = None
+                self._log(describe, request, answer, "", round((time.monotonic() - started) * 1000, 2))
+                return answer
+        finally:
+            self._pending -= 1
+            if self.shared and self._token.is_set() and self._pending == 0:
+                self._pass_token()  # done: hand the token on now
+
+    async def _hold_token(self, timeout: float) -> None:
+        """Wait until this master holds the token with enough of its hold budget left."""
+        end = time.monotonic() + max(timeout, 1.0) + 1.0
+        while True:
+            if self._token.is_set() and time.monotonic() - self._token_since < self.HOLD_BUDGET_S - 0.05:
+                return
+            if self._token.is_set():
+                self._pass_token()  # too little of the budget left for a request and its answer
+            remaining = end - time.monotonic()
+            if remaining <= 0:
+                raise SerialTimeout(f"{self.name}: the token did not come to master 0x{self.master:02X} "
+                                    f"(is another master on the line passing it? next master 0x{self.next_master:02X})")
+            try:
+                await asyncio.wait_for(self._token.wait(), remaining)
+            except asyncio.TimeoutError:
+                continue

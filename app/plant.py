@@ -51,6 +51,16 @@ BUS_KEYS: dict[str, dict[str, tuple[type | tuple[type, ...], Any]]] = {
         "poll_period": ((int, float), 1.0),  # seconds between polls (slower while change monitoring reports)
         "simulate": (bool, False),
     },
+    "logited-rs485": {  # Bauer MO 64 on RS485 (38400 8N1), several barriers by bus address, multi-master
+        "port": (str, None),
+        "baudrate": (int, 38400),
+        "master_address": (int, 0),  # this tool's address as a master
+        "shared": (bool, False),  # other masters on the line: take part in token passing
+        "next_master": (int, 1),  # the master the token is passed to (shared lines)
+        "timeout": ((int, float), 0.5),
+        "poll_period": ((int, float), 1.0),
+        "simulate": (bool, False),
+    },
 }
 PASSTHROUGH_BUS_TYPES = {"can"}  # further keys go to the bus library unchanged
 COMMON_BUS_KEYS = {"name", "type", "description"}
@@ -196,6 +206,13 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
                 raise fail(_key_line(text, line, "parity"), f"bus '{name}': parity must be \"N\", \"E\" or \"O\"")
         if options["timeout"] <= 0:
             raise fail(_key_line(text, line, "timeout"), f"bus '{name}': timeout must be > 0 s")
+        if btype == "logited-rs485":
+            for key in ("master_address", "next_master"):
+                if not 0 <= options[key] <= 255:
+                    raise fail(_key_line(text, line, key), f"bus '{name}': {key} {options[key]} is outside 0..255")
+            if options["shared"] and options["next_master"] == options["master_address"]:
+                raise fail(_key_line(text, line, "next_master"),
+                           f"bus '{name}': next_master must be another master than this tool ({options['master_address']})")
         if btype == "serial" and options["baudrate"] not in (9600, 19200, 38400):
             raise fail(_key_line(text, line, "baudrate"), f"bus '{name}': baudrate {options['baudrate']} is not one of 9600, 19200, 38400")
         if btype == "can" and not 5000 <= options["bitrate"] <= 1_000_000:

@@ -19,7 +19,7 @@ from typing import Any
 from app.audit import AuditLog
 from app.can_bus import CanBus, CanBusState
 from app.modbus_line import ModbusLine
-from app.logited import LogitedTcp
+from app.logited import LogitedRs485, LogitedTcp
 from app.serial_line import SerialLine
 from app.plant import DeviceConfig, Plant, can_id_conflict
 from app.state import BusState, DeviceState, StateStore
@@ -168,7 +168,7 @@ class Worker:
         self.plant = plant
         self.audit = audit
         self.store = store or StateStore()
-        self.lines: dict[str, ModbusLine | SerialLine | LogitedTcp] = {}
+        self.lines: dict[str, ModbusLine | SerialLine | LogitedTcp | LogitedRs485] = {}
         self.adapters: dict[str, Any] = {}
         self.tasks: list[asyncio.Task] = []
         self.paused: set[str] = set()
@@ -186,7 +186,7 @@ class Worker:
             else:
                 bus_state = BusState(bus.name, bus.type, bus.endpoint)
                 self.store.buses[bus.name] = bus_state
-                line_class = {"serial": SerialLine, "logited-tcp": LogitedTcp}.get(bus.type, ModbusLine)
+                line_class = {"serial": SerialLine, "logited-tcp": LogitedTcp, "logited-rs485": LogitedRs485}.get(bus.type, ModbusLine)
                 self.lines[bus.name] = line_class(bus.name, bus.options, bus_state)
         self.discovered: dict[str, dict[tuple[bool, int], dict]] = {name: {} for name in self.can_buses}  # listed devices
         self._discovery_codecs = {

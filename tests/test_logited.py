@@ -126,3 +126,96 @@ async def test_refused_then_taken_back_and_released_on_request():
 def test_plant_logited_tcp_bus():
     plant = parse_plant('[[bus]]\nname = "gate"\ntype = "logited-tcp"\nhost = "10.0.0.5"\n')
     assert plant.buses["gate"].options["port"] == 52719 and plant.buses["gate"].endpoint == "10.0.0.5:52719"
+
+
+# -- RS485 with token passing ------------------------------------------------------------------
+
+from devices.mo64 import codec  # noqa: E402
+
+
+def rs485(port: int, **options):
+    from app.logited import LogitedRs485
+
+    opts = {"port": f"socket://127.0.0.1:{port}", "baudrate": 38400, "master_address": 0, "shared": True,
+            "next_master": 1, "timeout": 0.3, **options}
+    return LogitedRs485("rs485", opts, BusState("rs485", "logited-rs485", opts["port"]))
+
+
+async def line_with_second_master(port: int, holds: list, requests: list):
+    """A line where master 0x01 holds the token first and barrier 0x05 answers queries for itself."""
+
+    async def serve(reader, writer):
+        splitter = codec.FrameSplitter(codec.RS485)
+        loop = asyncio.get_running_loop()
+        given = loop.time()
+        writer.write(codec.encode_token(0x00, 0x01))  # to this tool
+        try:
+            while data := await reader.read(256):
+                for frame in splitter.feed(data):
+                    if frame.type == codec.TOKEN and frame.da == 0x01:
+                        holds.append(loop.time() - given)
+                        await asyncio.sleep(0.05)  # the other master's own turn
+                        given = loop.time()
+                        writer.write(codec.encode_token(0x00, 0x01))
+                    elif frame.da == 0x05:
+                        requests.append(frame)
+                        gate = codec.encode_frame(bytes((0x0C, 0x04)), codec.RS485, da=frame.sa, sa=0x05)
+                        writer.write(gate)
+                    await writer.drain()
+        except ConnectionError:
+            pass
+        finally:
+            writer.close()
+
+    return await asyncio.start_server(serve, "127.0.0.1", port)
+
+
+async def test_rs485_sends_only_with_the_token_and_passes_it_within_200_ms():
+    port = free_port()
+    holds: list[float] = []
+    requests: list = []
+    server = await line_with_second_master(port, holds, requests)
+    line = rs485(port)
+    try:
+        query = codec.encode_frame(codec.encode_query(7), codec.RS485, da=0x05, sa=0x00)
+        for _ in range(5):
+            answer = await line.transact(query, lambda t: codec.decode_frame(t, codec.RS485).sa == 0x05, describe="gate state")
+            assert codec.decode_frame(answer, codec.RS485).payload == b"\x04"
+        loop = asyncio.get_running_loop()
+        end = loop.time() + 2
+        while len(holds) < 8 and loop.time() < end:  # idle: the token keeps going round
+            await asyncio.sleep(0.05)
+        assert len(requests) == 5 and len(holds) >= 8
+        print(f"token held by this tool: max {max(holds) * 1000:.1f} ms over {len(holds)} turns (limit 200 ms)")
+        assert max(holds) < codec.TOKEN_PASS_LIMIT_S
+        assert max(line.token_holds_ms) < 200
+    finally:
+        line.close()
+        server.close()
+        await server.wait_closed()
+
+
+async def test_rs485_without_the_token_sends_nothing():
+    port = free_port()
+    got = []
+
+    async def silent_master(reader, writer):  # never passes the token to this tool
+        while data := await reader.read(64):
+            got.append(data)
+
+    server = await asyncio.start_server(silent_master, "127.0.0.1", port)
+    line = rs485(port, timeout=0.2)
+    try:
+        with pytest.raises(SerialTimeout, match="the token did not come to master 0x00"):
+            await line.transact(codec.encode_frame(codec.encode_query(7), codec.RS485, da=0x05), lambda t: True)
+        assert got == []
+    finally:
+        line.close()
+        server.close()
+        await server.wait_closed()
+
+
+def test_plant_logited_rs485_bus():
+    plant = parse_plant('[[bus]]\nname = "gates"\ntype = "logited-rs485"\nport = "/dev/ttyUSB2"\nshared = true\n')
+    options = plant.buses["gates"].options
+    assert (options["baudrate"], options["master_address"], options["next_master"]) == (38400, 0, 1)
