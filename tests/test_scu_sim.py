@@ -249,7 +249,8 @@ async def test_move_to_remote_position_rises_and_stops_at_the_target(unit):
             if not await line.status_1() & 1 << 4:
                 break
             await asyncio.sleep(0.05)
-        assert seen == sorted(seen) and seen[-1] == 800 and await line.position() == 800
+        # the last sample may be taken just before the motion ends; the position then is the target
+        assert seen == sorted(seen) and seen[-1] <= 800 and await line.position() == 800
         assert 0 < min(s for s in speeds if s) < 60 and max(speeds) >= 90  # soft start: ramps up to 100 %
         assert seen[0] < 100
         assert await line.talk(cmd("RS", "00 FF")) == ack("RS")
