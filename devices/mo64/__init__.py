@@ -1,5 +1,59 @@
 """Bauer MO 64 barrier motor control, LogiTed bus over TCP/IP and RS485 (document 003).
 
-So far only the pure codec (:mod:`devices.mo64.codec`): frames, telegram types, answer decoders
-and the setting directory. The adapter, twin and page build on it.
+Codec (:mod:`devices.mo64.codec`), adapter (:mod:`devices.mo64.adapter`), twin
+(:mod:`devices.mo64.sim`) and page (:mod:`pages.mo64`).
 """
+
+from typing import Any
+
+from devices.registry import DeviceType, TileAlarm, TileBar, TileLine, TileSpec, When
+
+_KEYS = {"address"}
+
+
+def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str]]:
+    errors = []
+    address = options.get("address")
+    if bus_type == "logited-rs485":
+        if address is None:
+            errors.append(("address", "an MO 64 on RS485 needs its bus address: address = 1 .. 254"))
+        elif isinstance(address, bool) or not isinstance(address, int) or not 1 <= address <= 254:
+            errors.append(("address", f"address = {address!r}: an MO 64 bus address is 1 .. 254"))
+    elif address is not None:
+        errors.append(("address", "an MO 64 on TCP has no bus address: the connection names it (remove address)"))
+    for key in sorted(set(options) - _KEYS):
+        errors.append((key, f"unknown key '{key}' for an MO 64; known: {', '.join(sorted(_KEYS))}"))
+    return errors
+
+
+def _bus_identity(options: dict[str, Any], bus_type: str) -> Any:
+    if bus_type == "logited-rs485":
+        return options.get("address")
+    return "the TCP connection (the MO 64 serves one client at a time, chapter 3)"
+
+
+TILE = TileSpec(
+    lines=(
+        TileLine("Gate state", "gate: {text}", missing="gate state: not read yet"),
+        TileLine("Position", "position: {text}", missing=""),
+    ),
+    alarms=(
+        TileAlarm(When("F_ereignis", (True,)), "fault event (F_ereignis)"),
+        TileAlarm(When("LS", (True,)), "light barrier interrupted"),
+        TileAlarm(When("Baum ab", (True,)), "boom off (Baum ab)"),
+    ),
+    bar=TileBar("Position", "{value} % open", full_scale=100),
+    icon="fence",
+)
+
+DEVICE_TYPE = DeviceType(
+    name="mo64",
+    title="Bauer MO 64",
+    bus_types=("logited-tcp", "logited-rs485"),
+    params=None,
+    adapters={"logited-tcp": "devices.mo64.adapter:Mo64Adapter", "logited-rs485": "devices.mo64.adapter:Mo64Adapter"},
+    sims={"logited-tcp": "devices.mo64.sim:Mo64TcpSim", "logited-rs485": "devices.mo64.sim:Mo64Rs485Sim"},
+    check_config=_check_config,
+    bus_identity=_bus_identity,
+    tile=TILE,
+)

@@ -1,0 +1,549 @@
+"""A Bauer MO 64 barrier on a LogiTed line (``type = "mo64"`` on ``logited-tcp`` or ``logited-rs485``).
+
+Document 003, chapters 2 to 5, with the readings of SPEC-NOTES "Bauer MO 64" (all in
+:mod:`devices.mo64.codec`). The worker calls :meth:`Mo64Adapter.poll` every ``poll_period``:
+gate state, barrier status and position every cycle (every :data:`MONITORED_POLL_EVERY`-th
+cycle while change monitoring delivers them unsolicited), one counter in turn, identity and
+settings once and after writes. Unsolicited telegrams (chapter 3: the barrier sends on change
+once configured) arrive through ``line.listeners`` and are published at once with an event.
+
+Commands (chapter 5.2.1): open / close / reverse as a pulse, or as a level (activate, which
+stays in the barrier until deactivated). Settings (chapter 5.2.4-5.2.8): busy, syn then ack,
+nak handled; every write is read back and counted per session (EEPROM wear, chapter 4).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Mapping
+from typing import Any
+
+from devices import values as v
+from devices.live import DeviceState
+from devices.mo64 import codec
+from devices.transport import SerialClosed, SerialLineError, SerialTimeout
+
+SYN_ACK_TIMEOUT_S = 5.0  # after syn the EEPROM write ends with ack or nak (chapter 5.2.4); bound of the wait
+MONITORED_POLL_EVERY = 5  # while change monitoring delivers, the live queries run only every 5th cycle
+MONITOR_FRESH_S = 30.0  # change monitoring counts as delivering this long after its last telegram
+MONITOR_FLAGS = ("barrier status", "gate state", "service counter", "maintenance counter", "vehicle counter",
+                 "error memory", "barrier position")  # issue 13 item 6: what the tool switches on
+BUSY_TEXT = "the motor runs, try again when it stands"
+# A level that keeps the boom moving towards a person is released by the dead-man rule: the close and
+# reverse levels. The open level is NOT released: deactivating it lets an unattended boom close
+# (chapter 5.2.1, page 33: the level prevents closing until deactivated), the unsafe direction.
+HELD_LEVELS = frozenset({codec.Command.CLOSE, codec.Command.REVERSE})
+COMMAND_NAMES = {codec.Command.OPEN: "open", codec.Command.CLOSE: "close", codec.Command.REVERSE: "reverse"}
+LIVE_QUERIES = (codec.Q_GATE_STATE, codec.Q_BARRIER_STATUS, codec.Q_BARRIER_POSITION)
+ROTATING_QUERIES = (codec.Q_SERVICE_COUNTER, codec.Q_MAINTENANCE_COUNTER, codec.Q_VEHICLE_COUNTER,
+                    codec.Q_LOOP_ADJUST, codec.Q_OPERATING_HOURS)
+IDENTITY_QUERIES = (codec.Q_DEVICE, codec.Q_PROGRAM_VERSION, codec.Q_SERIAL_NUMBER, codec.Q_MAC,
+                    codec.Q_OPERATING_HOURS)
+SETTING_QUERIES = tuple(dict.fromkeys([s.query for s in codec.SETTINGS.values()]
+                                      + [codec.Q_INDUCTION_LOOPS, codec.Q_DIRECTION_LOGICS]))
+READ_ONLY_BACKUP = ((codec.Q_INDUCTION_LOOPS, "induction_loops", "induction-loop modes"),
+                    (codec.Q_DIRECTION_LOGICS, "direction_logics", "direction logics"))
+NAMES = {  # answer type -> live point name
+    0x05: "Device code", 0x06: "Program version", 0x07: "Barrier status", 0x08: "Status mask",
+    0x09: "Change monitoring", 0x0A: "Service counter", 0x0B: "Maintenance counter", 0x0C: "Gate state",
+    0x0D: "Open time", 0x0E: "Pre-warning before opening", 0x0F: "Pre-warning before closing",
+    0x10: "Radio code (dec_bt)", 0x11: "Counting function", 0x12: "Induction-loop modes",
+    0x13: "Direction logics", 0x14: "Serial number", 0x15: "MAC address", 0x16: "Operating hours",
+    0x18: "Configuration flags", 0x19: "Multi-relay modes", 0x1A: "Maintenance interval",
+    0x1B: "Loop periods", 0x1C: "Vehicle counter", 0x1D: "Position", 0x1E: "Password",
+}
+MULTI_MODE_NAMES = {0: "off", 1: "fault"}  # chapter 5.1.25: the summary names these modes by number only so far
+
+
+class CommandError(Exception):
+    """A command or write that did not take effect; the message says why."""
+
+
+class NeedsConfirmation(CommandError):
+    """The first motion of a session needs its confirmation."""
+
+
+def to_json(value: Any) -> Any:
+    """A decoded setting value in the backup file's form (numbers and lists of numbers)."""
+    if isinstance(value, Mapping):
+        if set(value) == {"mask", "more"}:
+            return to_json(value["mask"])
+        return [to_json(x) for x in value.values()]
+    if isinstance(value, (list, tuple)):
+        return [to_json(x) for x in value]
+    if isinstance(value, (bytes, bytearray)):
+        return bytes(value).hex(" ")
+    if isinstance(value, bool) or value is None:
+        return value
+    if isinstance(value, int):
+        return int(value)
+    return value
+
+
+def from_json(setting: codec.Setting, raw: Any) -> Any:
+    """The file's form of a setting back to what :func:`codec.encode_setting` takes."""
+    if isinstance(setting.vtype, v.Struct):
+        names = [name for name, _ in setting.vtype.members]
+        if not isinstance(raw, list) or len(raw) != len(names):
+            raise CommandError(f"{setting.name}: {raw!r} is not a list of {len(names)} numbers")
+        return dict(zip(names, raw))
+    if isinstance(setting.vtype, v.Array):
+        return list(raw) if isinstance(raw, list) else raw
+    return raw
+
+
+def value_text(answer_type: int, value: Any) -> str:
+    """A decoded answer in words for tables."""
+    if answer_type in (0x0D, 0x0E, 0x0F):
+        return f"{codec.time_s(int(value)):g} s ({int(value)} x 10 ms)"
+    if answer_type == 0x15:
+        return codec.format_mac(value)
+    if answer_type == 0x05:
+        return f"{int(value)}" + (f" ({value.name})" if getattr(value, "name", None) else "")
+    if answer_type == 0x1D:
+        return "unknown" if int(value) == codec.POSITION_UNKNOWN else f"{int(value)} %"
+    if answer_type == 0x19:
+        return ", ".join(f"multi{n}: {MULTI_MODE_NAMES.get(m, f'mode {m}')}" for n, m in enumerate(value, 1))
+    if answer_type == 0x12:
+        return ", ".join(f"loop {c}: 0x{int(m):04X}" for c, m in zip("ABC", value))
+    if answer_type == 0x13:
+        return "; ".join(f"logic {n}: 0x{int(x):08X} " + ", ".join(f"{k} {f}" for k, f in x.fields.items())
+                         for n, x in enumerate(value, 1))
+    if answer_type == 0x18:
+        return "; ".join(f"{k}: 0x{int(x):04X}" + ("".join(f", {n} {f}" for n, f in x.fields.items()))
+                         for k, x in value.items())
+    if answer_type in (0x07, 0x08):
+        bits = value["status"] if "status" in value else value["mask"]
+        on = bits.active
+        return f"0x{int(bits):010X}: " + (", ".join(on) if on else "none") + (
+            f" (+ raw {value['more'].hex(' ')})" if value.get("more") else "")
+    if answer_type == 0x09:
+        on = value.active
+        return f"0x{int(value):04X}: " + (", ".join(on) if on else "off")
+    if isinstance(value, (bytes, bytearray)):
+        return f"raw {bytes(value).hex(' ')}" if value else "raw (empty)"
+    return str(to_json(value))
+
+
+class Mo64Adapter:
+    """One MO 64 barrier on a LogiTed TCP or RS485 line."""
+
+    params = None
+    backup_available = True
+
+    def __init__(self, config, state: DeviceState, line):
+        self.config = config
+        self.state = state
+        self.line = line
+        line_options = getattr(line, "options", {}) or {}
+        self.rs485 = "address" in config.options or "master_address" in line_options or "baudrate" in line_options
+        self.framing = codec.RS485 if self.rs485 else codec.TCP
+        self.transport = "logited-rs485" if self.rs485 else "logited-tcp"
+        self.address = config.options.get("address")
+        self.master = int(line_options.get("master_address", codec.RS485_LAYOUT.master_address))
+        self.levels: dict[codec.Command, str] = {}  # levels this tool activated -> session that did
+        self.motion_confirmed: set[str] = set()
+        self.eeprom_writes: dict[str, int] = {}
+        self.eeprom_writes_total = 0
+        self.last_reply = ""
+        self.error_memory: list[dict] = []
+        self.settings: dict[str, Any] = {}
+        self._have_identity = False
+        self._have_settings = False
+        self._have_errors = False
+        self._cycle = 0
+        self._rotate = 0
+        self._monitor_last: float | None = None
+        self._late: asyncio.Queue | None = None
+        self._stop_tasks: set[asyncio.Task] = set()
+        state.stale_after = 5.0
+        state.info.update(transport=self.transport, levels=[], eeprom_writes_total=0, monitoring="unknown",
+                          error_memory=[], last_reply="", assumptions=list(codec.ASSUMPTIONS))
+        if line is not None:
+            if hasattr(line, "listeners"):
+                line.listeners.append(self._unsolicited)
+            if hasattr(line, "describe"):
+                line.describe = self.describe_telegram
+
+    # -- the line -----------------------------------------------------------------------------------
+    def _frame(self, telegram: bytes) -> bytes:
+        if self.rs485:
+            return codec.encode_frame(telegram, codec.RS485, da=self.address, sa=self.master)
+        return codec.encode_frame(telegram, codec.TCP)
+
+    def _decode(self, telegram: bytes) -> codec.Frame | None:
+        try:
+            frame = codec.decode_frame(telegram, self.framing)
+        except codec.CodecError:
+            return None
+        if self.rs485 and (frame.is_token or frame.da != self.master or frame.sa != self.address):
+            return None
+        return frame
+
+    def describe_telegram(self, telegram: bytes) -> str:
+        """The bus monitor's decoding of a telegram the barrier sent (undecodable ones say why)."""
+        try:
+            return codec.describe(codec.decode_frame(telegram, self.framing), False)
+        except codec.CodecError as exc:
+            return f"cannot decode: {exc}"
+
+    def _matcher(self, types: set[int]):
+        def answers(telegram: bytes) -> bool:
+            frame = self._decode(telegram)
+            return frame is not None and frame.type in types
+        return answers
+
+    async def _transact(self, telegram: bytes, types: set[int], describe: str) -> codec.Answer:
+        self.state.counters.requests += 1
+        try:
+            raw = await self.line.transact(self._frame(telegram), self._matcher(types), describe=describe)
+        except SerialTimeout:
+            self.state.counters.timeouts += 1
+            raise
+        except SerialClosed as exc:
+            self.state.mark_offline(str(exc))
+            raise
+        frame = self._decode(raw)
+        answer = codec.decode_answer(frame)
+        self.state.counters.responses += 1
+        self.state.mark_seen()
+        if answer.error and answer.reply is None:
+            self.state.counters.malformed += 1
+        return answer
+
+    async def query(self, index: int, level: int | None = None) -> codec.Answer:
+        """One query (table 21) and its answer telegram, published; nak raises :class:`CommandError`."""
+        telegram = codec.encode_query(index, level)
+        answer_type = index + codec.QUERY_ANSWER_OFFSET
+        what = codec.TELEGRAMS[answer_type] + (f" level {level}" if level is not None else "")
+        answer = await self._transact(telegram, {answer_type, codec.Reply.NAK}, f"query {what}")
+        if answer.reply is codec.Reply.NAK:
+            self._reply(f"query {what}: nak")
+            raise CommandError(f"the barrier answered the query for {what} with nak")
+        self._publish(answer)
+        return answer
+
+    def _reply(self, text: str) -> None:
+        self.last_reply = text
+        self.state.info["last_reply"] = text
+
+    # -- unsolicited telegrams (chapter 3, change monitoring) ------------------------------------------
+    def _unsolicited(self, telegram: bytes) -> None:
+        frame = self._decode(telegram)
+        if frame is None:
+            if not self.rs485:
+                self.state.counters.malformed += 1
+            return
+        try:
+            answer = codec.decode_answer(frame)
+        except codec.CodecError:
+            self.state.counters.malformed += 1
+            return
+        if answer.reply is not None:
+            if self._late is not None:
+                self._late.put_nowait(answer)
+            return
+        self._monitor_last = time.monotonic()
+        self.state.mark_seen()
+        before = self.state.points.get(NAMES.get(answer.type, ""))
+        self._publish(answer)
+        after = self.state.points.get(NAMES.get(answer.type, ""))
+        text = after.text if after is not None and after.text is not None else answer.name
+        if answer.error:
+            self.state.event("warning", f"change reported: {answer.name}: {answer.error}")
+        elif before is None or before.raw != after.raw:
+            self.state.event("info", f"change reported: {answer.name} = {text}")
+
+    # -- publishing -------------------------------------------------------------------------------------
+    def _publish(self, answer: codec.Answer) -> None:
+        pub = self.state.publish
+        now = time.time()
+        t, x = answer.type, answer.value
+        name = NAMES.get(t, answer.name)
+        if answer.error:
+            pub(name, None, raw=answer.payload.hex(" "), text=f"raw {answer.payload.hex(' ')} ({answer.error})", time=now)
+            return
+        if t == 0x0C:
+            pub("Gate state", int(x), raw=int(x), text=x.name or f"undefined state {int(x)}", time=now)
+        elif t == 0x1D:
+            pos = int(x)
+            pub("Position", None if pos == codec.POSITION_UNKNOWN else pos, "%", raw=pos,
+                text="unknown" if pos == codec.POSITION_UNKNOWN else f"{pos} %", time=now)
+        elif t == 0x07:
+            bits = x["status"]
+            pub("Barrier status", int(bits), raw=int(bits), text=value_text(t, x), time=now)
+            for key, bit in bits.fields.items():
+                pub(key, bool(bit), raw=int(bool(bit)), time=now)
+        elif t == 0x1F:
+            for loop, count in zip("ABC", x):
+                pub(f"Loop-adjust counter {loop}", int(count), raw=int(count), time=now)
+        elif t == 0x17:
+            self._error_entry(x)
+        elif t == 0x1C:
+            pub("Vehicle counter", int(x), raw=int(x), text=f"{int(x)} (RAM only: 0 after power-up)", time=now)
+        elif t in (0x0A, 0x0B, 0x14, 0x16, 0x06, 0x1A):
+            unit = "h" if t == 0x16 else ""
+            pub(name, int(x), unit, raw=int(x), time=now, periodic=t not in (0x14, 0x06))
+        else:
+            periodic = t not in (0x05, 0x15)
+            pub(name, to_json(x), raw=to_json(x), text=value_text(t, x), time=now, periodic=periodic)
+        setting = next((s for s in codec.SETTINGS.values() if s.query + codec.QUERY_ANSWER_OFFSET == t), None)
+        if setting is not None:
+            self.settings[setting.key] = to_json(x)
+        if t == 0x09:
+            self.state.info["monitoring"] = "on" if int(x) else "off"
+
+    def _error_entry(self, x: Any) -> None:
+        if isinstance(x, (list, tuple)):
+            entries = [{"level": n, "flags": int(e["flags"]), "timestamp_h": int(e["timestamp_h"])} for n, e in enumerate(x)]
+        else:
+            entries = [e for e in self.error_memory if e["level"] != int(x["index"])]
+            entries.append({"level": int(x["index"]), "flags": int(x["flags"]), "timestamp_h": int(x["timestamp_h"])})
+        entries.sort(key=lambda e: e["level"])  # level 0 holds the newest (chapter 5.1.23)
+        self.error_memory = entries
+        self.state.info["error_memory"] = list(entries)
+        newest = entries[0] if entries else None
+        self.state.publish("Error memory", None if newest is None else newest["flags"],
+                           raw=None if newest is None else newest["flags"],
+                           text="empty" if newest is None else
+                           f"newest: flags 0x{newest['flags']:08X} at {newest['timestamp_h']} h")
+
+    # -- polling -----------------------------------------------------------------------------------------
+    @property
+    def monitoring_active(self) -> bool:
+        return self._monitor_last is not None and time.monotonic() - self._monitor_last < MONITOR_FRESH_S
+
+    async def poll(self) -> None:
+        """One cycle; faults are named in the state, never raised."""
+        if getattr(self.line, "released", False):
+            self.state.info["connection"] = "released"
+            return
+        try:
+            if not self._have_identity:
+                for index in IDENTITY_QUERIES:
+                    await self.query(index)
+                self._have_identity = True
+            if not self._have_settings:
+                await self.read_settings()
+            if not self._have_errors:
+                await self.read_error_memory()
+            if not self.monitoring_active or self._cycle % MONITORED_POLL_EVERY == 0:
+                for index in LIVE_QUERIES:
+                    await self.query(index)
+            await self.query(ROTATING_QUERIES[self._rotate % len(ROTATING_QUERIES)])
+            self._rotate += 1
+        except CommandError as exc:
+            self.state.error(f"poll: {exc}", log=False)
+        except (SerialLineError, codec.CodecError) as exc:
+            self.state.error(f"poll: {exc}", log=False)
+        finally:
+            self._cycle += 1
+            self.state.info["connection"] = "connected" if getattr(self.line, "connected", True) else "not connected"
+            self.state.info["polling"] = "slow (changes are reported)" if self.monitoring_active else "every cycle"
+
+    async def read_settings(self) -> dict[str, Any]:
+        for index in SETTING_QUERIES:
+            await self.query(index)
+        self._have_settings = True
+        return dict(self.settings)
+
+    async def read_error_memory(self) -> list[dict]:
+        """The 10 levels (chapter 5.1.23), newest first; the level byte of the query is an assumption."""
+        for level in range(codec.ERROR_MEMORY_LEVELS):
+            await self.query(codec.Q_ERROR_MEMORY, level)
+        self._have_errors = True
+        return list(self.error_memory)
+
+    # -- commands (chapter 5.2.1) -------------------------------------------------------------------------
+    def confirm_motion(self, session: str) -> None:
+        """The session confirmed that nobody stands under the boom (asked once per session)."""
+        self.motion_confirmed.add(session)
+
+    async def command(self, session: str, command: int, function: int = codec.Function.PULSE,
+                      confirmed: bool = False) -> str:
+        """Open, close or reverse as a pulse or a level; the answer ack or nak is returned and shown."""
+        cmd, fn = codec.Command(command), codec.Function(function)
+        if confirmed:
+            self.motion_confirmed.add(session)
+        if session not in self.motion_confirmed:
+            raise NeedsConfirmation("the boom moves: check that nobody stands under it, then confirm")
+        words = f"{COMMAND_NAMES[cmd]} {fn.name.lower()}"
+        if fn is codec.Function.ACTIVATE:
+            self._hold(cmd, session)  # before sending: a lost answer must still be followed by deactivate
+        answer = await self._transact(codec.encode_command(cmd, fn), {codec.Reply.ACK, codec.Reply.NAK}, words)
+        result = answer.reply.name.lower() if answer.reply is not None else answer.name
+        self._reply(f"{words}: {result}")
+        if answer.reply is not codec.Reply.ACK:
+            if fn is codec.Function.ACTIVATE:
+                self._drop_level(cmd)
+            self.state.event("warning", f"{words}: {result}")
+            raise CommandError(f"{words}: the barrier answered {result}")
+        if fn is codec.Function.DEACTIVATE:
+            self._drop_level(cmd)
+        self.state.event("info", f"{words}: ack")
+        return "ack"
+
+    def _hold(self, cmd: codec.Command, session: str) -> None:
+        self.levels[cmd] = session
+        self.state.info["levels"] = sorted(COMMAND_NAMES[c] for c in self.levels)
+
+    def _drop_level(self, cmd: codec.Command) -> None:
+        self.levels.pop(cmd, None)
+        self.state.info["levels"] = sorted(COMMAND_NAMES[c] for c in self.levels)
+
+    async def clear_levels(self, session: str | None = None) -> list[str]:
+        """Deactivate every level this tool set (any session may clear them)."""
+        cleared = []
+        for cmd in list(self.levels):
+            await self._deactivate(cmd, "clear levels")
+            cleared.append(COMMAND_NAMES[cmd])
+        return cleared
+
+    async def _deactivate(self, cmd: codec.Command, why: str) -> None:
+        words = f"{COMMAND_NAMES[cmd]} deactivate ({why})"
+        try:
+            answer = await self._transact(codec.encode_command(cmd, codec.Function.DEACTIVATE),
+                                          {codec.Reply.ACK, codec.Reply.NAK}, words)
+        except (SerialLineError, codec.CodecError) as exc:
+            self.state.error(f"{words} not answered: {exc}")
+            return
+        self._reply(f"{words}: {answer.name}")
+        if answer.reply is codec.Reply.ACK:
+            self._drop_level(cmd)
+        else:
+            self.state.event("warning", f"{words}: {answer.name}")
+
+    def holders(self) -> set[str]:
+        """Sessions whose close or reverse level is still active in the barrier (see HELD_LEVELS)."""
+        return {s for cmd, s in self.levels.items() if cmd in HELD_LEVELS}
+
+    def session_lost(self, session: str, reason: str) -> None:
+        """Deactivate at once the close and reverse levels ``session`` set; forget its confirmation."""
+        self.motion_confirmed.discard(session)
+        held = [cmd for cmd, s in self.levels.items() if s == session and cmd in HELD_LEVELS]
+        if not held:
+            return
+        self.state.event("warning", f"dead-man: {reason}; deactivating " + ", ".join(COMMAND_NAMES[c] for c in held))
+        for cmd in held:
+            task = asyncio.get_running_loop().create_task(self._deactivate(cmd, f"dead-man: {reason}"))
+            self._stop_tasks.add(task)
+            task.add_done_callback(self._stop_tasks.discard)
+
+    async def stopped(self) -> None:
+        """Wait for the deactivations :meth:`session_lost` has sent off (tests, shutdown)."""
+        while self._stop_tasks:
+            await asyncio.gather(*list(self._stop_tasks), return_exceptions=True)
+
+    # -- settings (chapter 5.2.4-5.2.8) --------------------------------------------------------------------
+    async def write_setting(self, session: str, key: str, value: Any) -> Any:
+        """Write one setting, handle busy / syn / ack / nak, read it back; returns the read-back value."""
+        setting = codec.SETTINGS.get(key)
+        if setting is None:
+            raise CommandError(f"no setting {key!r}")
+        try:
+            telegram = codec.encode_setting(key, value)
+        except codec.CodecError as exc:
+            raise CommandError(str(exc)) from None
+        replies = {codec.Reply.ACK, codec.Reply.NAK, codec.Reply.BUSY, codec.Reply.SYN}
+        self._late = asyncio.Queue()
+        try:
+            answer = await self._transact(telegram, replies, f"set {setting.name}")
+            if answer.reply is codec.Reply.SYN:
+                if setting.eeprom:
+                    self._count_write(session)
+                try:
+                    answer = await asyncio.wait_for(self._late.get(), SYN_ACK_TIMEOUT_S)
+                except asyncio.TimeoutError:
+                    self.state.counters.timeouts += 1
+                    raise CommandError(f"{setting.name}: syn, but no ack or nak within {SYN_ACK_TIMEOUT_S:g} s") from None
+        finally:
+            self._late = None
+        result = answer.name
+        self._reply(f"set {setting.name}: {result}")
+        if answer.reply is codec.Reply.BUSY:
+            raise CommandError(f"{setting.name}: busy: {BUSY_TEXT}")
+        if answer.reply is not codec.Reply.ACK:
+            self.state.counters.write_errors += 1
+            raise CommandError(f"{setting.name}: the barrier answered {result}")
+        back_answer = await self.query(setting.query)
+        back = codec.setting_value(key, back_answer)
+        if to_json(back) != to_json(_normal(setting, value)):
+            self.state.counters.write_errors += 1
+            raise CommandError(f"{setting.name}: wrote {to_json(value)}, read back {to_json(back)}")
+        self.state.event("info", f"set {setting.name} = {value_text(back_answer.type, back_answer.value)} (read back)")
+        return back
+
+    def _count_write(self, session: str) -> None:
+        self.eeprom_writes[session] = self.eeprom_writes.get(session, 0) + 1
+        self.eeprom_writes_total += 1
+        self.state.info["eeprom_writes_total"] = self.eeprom_writes_total
+
+    async def set_change_monitoring(self, session: str, on: bool) -> str:
+        """Switch the unsolicited telegrams of :data:`MONITOR_FLAGS` on, or all off (one EEPROM write)."""
+        value = {name: int(bool(on)) for name in MONITOR_FLAGS}
+        await self.write_setting(session, "change_monitoring", value)
+        if not on:
+            self._monitor_last = None
+        return "on" if on else "off"
+
+    # -- the TCP connection --------------------------------------------------------------------------------
+    def release(self, session: str | None = None) -> str:
+        if self.rs485:
+            raise CommandError("an RS485 line is not released: the token passing shares it")
+        self.line.release()
+        self.state.event("info", "connection released: another client may connect to the barrier")
+        self.state.info["connection"] = "released"
+        return "released"
+
+    def resume(self, session: str | None = None) -> str:
+        if self.rs485:
+            return "connected"
+        self.line.resume()
+        self.state.event("info", "connection taken back")
+        self.state.info["connection"] = "reconnecting"
+        return "reconnecting"
+
+    # -- backup and restore --------------------------------------------------------------------------------
+    async def backup_read(self, progress=None) -> list[dict]:
+        """Every backed-up setting (codec ``backup``) and the read-only loop modes and direction logics."""
+        items = [s for s in codec.SETTINGS.values() if s.backup]
+        total = len(items) + len(READ_ONLY_BACKUP)
+        entries = []
+        for n, setting in enumerate(items, 1):
+            answer = await self.query(setting.query)
+            value = to_json(codec.setting_value(setting.key, answer))
+            entries.append({"key": setting.key, "name": setting.name, "value": value, "raw": value,
+                            "text": value_text(answer.type, answer.value), "unit": setting.unit, "writable": True})
+            if progress:
+                progress(n / total)
+        for n, (index, key, name) in enumerate(READ_ONLY_BACKUP, len(items) + 1):
+            answer = await self.query(index)
+            value = to_json(answer.value)
+            entries.append({"key": key, "name": name, "value": value, "raw": value,
+                            "text": value_text(answer.type, answer.value), "unit": "",
+                            "writable": False})  # no setting telegram is named for them (chapter 5.2)
+            if progress:
+                progress(n / total)
+        return entries
+
+    def backup_identity(self) -> dict:
+        pts = self.state.points
+        get = lambda name: getattr(pts.get(name), "value", None)  # noqa: E731
+        return {"serial": get("Serial number"), "device code": get("Device code"),
+                "program version": get("Program version"), "mac": get("MAC address"),
+                "transport": self.transport, "address": self.address}
+
+    async def restore_entry(self, key: str, raw: Any, session: str = "restore") -> None:
+        setting = codec.SETTINGS.get(key)
+        if setting is None or not setting.backup:
+            raise CommandError(f"{key} is not restored (read-only, or RAM only like the vehicle counter)")
+        await self.write_setting(session, key, from_json(setting, raw))
+
+    async def save_step(self) -> str:
+        return "no save step: the MO 64 stores every setting in its EEPROM as it is written (chapter 4)"
+
+
+def _normal(setting: codec.Setting, value: Any) -> Any:
+    """``value`` as the read-back decodes it (a mapping of bits becomes its number)."""
+    return setting.vtype.decode(setting.vtype.encode(value))
