@@ -1,0 +1,256 @@
+"""MO 64 adapter: scripted conversations on a LogiTed TCP line (expected requests in order, each
+answered with scripted telegrams, as python-canopen's test_sdo), and the dead-man rule."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from types import SimpleNamespace
+
+import pytest
+from conftest import free_port
+
+from app.logited import LogitedTcp
+from app.state import BusState
+from devices.live import DeviceState
+from devices.mo64 import codec
+from devices.mo64.adapter import BUSY_TEXT, CommandError, Mo64Adapter, NeedsConfirmation
+
+pytestmark = pytest.mark.timeout(30)
+
+TX, RX, PAUSE = "TX", "RX", "PAUSE"
+
+
+def tcp(telegram: bytes) -> bytes:
+    return codec.encode_frame(telegram, codec.TCP)
+
+
+def answer(answer_type: int, value=None) -> bytes:
+    return tcp(codec.encode_answer(answer_type, value))
+
+
+ACK, NAK, BUSY, SYN = (answer(r) for r in (codec.Reply.ACK, codec.Reply.NAK, codec.Reply.BUSY, codec.Reply.SYN))
+
+
+def query(index: int, level: int | None = None) -> bytes:
+    return tcp(codec.encode_query(index, level))
+
+
+class Script:
+    """A TCP peer that expects the adapter's requests in order and answers each with the scripted bytes."""
+
+    def __init__(self, steps: list[tuple[str, object]]):
+        self.steps = list(steps)
+        self.seen: list[bytes] = []
+        self.problems: list[str] = []
+        self.port = free_port()
+        self.server = None
+
+    async def __aenter__(self) -> Script:
+        self.server = await asyncio.start_server(self._handle, "127.0.0.1", self.port)
+        return self
+
+    async def __aexit__(self, *exc) -> None:
+        self.server.close()
+        await self.server.wait_closed()
+
+    async def _handle(self, reader, writer) -> None:
+        splitter = codec.FrameSplitter(codec.TCP)
+        try:
+            while True:
+                data = await reader.read(4096)
+                if not data:
+                    return
+                for item in splitter.feed(data):
+                    raw = getattr(item, "raw", b"")
+                    self.seen.append(raw)
+                    if not self.steps or self.steps[0][0] != TX:
+                        self.problems.append(f"unexpected request {raw.hex(' ')}")
+                        continue
+                    _, expected = self.steps.pop(0)
+                    if raw != expected:
+                        self.problems.append(f"expected {expected.hex(' ')}, got {raw.hex(' ')}")
+                    while self.steps and self.steps[0][0] in (RX, PAUSE):
+                        kind, what = self.steps.pop(0)
+                        if kind == PAUSE:
+                            await writer.drain()
+                            await asyncio.sleep(what)
+                        else:
+                            writer.write(what)
+                    await writer.drain()
+        except (ConnectionError, asyncio.CancelledError):
+            pass
+        finally:
+            writer.close()
+
+    def done(self) -> None:
+        assert not self.problems, self.problems
+        assert not self.steps, f"not reached: {self.steps[:2]}"
+
+
+_made: list[Mo64Adapter] = []
+
+
+@pytest.fixture(autouse=True)
+async def close_lines():
+    yield
+    while _made:
+        _made.pop().line.close()
+    await asyncio.sleep(0)
+
+
+def make_adapter(port: int) -> Mo64Adapter:
+    opts = {"host": "127.0.0.1", "port": port, "timeout": 0.5, "poll_period": 1.0, "simulate": False}
+    line = LogitedTcp("gate-bus", opts, BusState("gate-bus", "logited-tcp", f"127.0.0.1:{port}"))
+    config = SimpleNamespace(name="gate-1", type="mo64", bus="gate-bus", options={})
+    adapter = Mo64Adapter(config, DeviceState("gate-1", "mo64", "gate-bus"), line)
+    _made.append(adapter)
+    return adapter
+
+
+async def test_setting_write_busy_then_syn_ack_and_read_back():
+    set_t_open = tcp(codec.encode_setting("t_open", 1500))
+    async with Script([
+        (TX, set_t_open), (RX, BUSY),
+        (TX, set_t_open), (RX, SYN), (PAUSE, 0.05), (RX, ACK),
+        (TX, query(codec.Q_T_OPEN)), (RX, answer(0x0D, 1500)),
+    ]) as script:
+        adapter = make_adapter(script.port)
+        with pytest.raises(CommandError, match=BUSY_TEXT):
+            await adapter.write_setting("s1", "t_open", 1500)
+        assert adapter.eeprom_writes.get("s1", 0) == 0  # busy: nothing written
+        assert await adapter.write_setting("s1", "t_open", 1500) == 1500
+        script.done()
+    assert adapter.eeprom_writes["s1"] == 1
+    assert adapter.state.points["Open time"].text.startswith("15 s")
+    assert adapter.last_reply == "set open time: ack"
+
+
+async def test_syn_and_ack_in_one_segment_are_both_taken():
+    set_mask = tcp(codec.encode_setting("maintenance_interval", 5000))
+    async with Script([
+        (TX, set_mask), (RX, SYN + ACK),
+        (TX, query(codec.Q_MAINTENANCE_INTERVAL)), (RX, answer(0x1A, 5000)),
+    ]) as script:
+        adapter = make_adapter(script.port)
+        assert await adapter.write_setting("s1", "maintenance_interval", 5000) == 5000
+        script.done()
+
+
+async def test_setting_nak_is_a_failed_write():
+    async with Script([(TX, tcp(codec.encode_setting("t_open", 10))), (RX, SYN), (RX, NAK)]) as script:
+        adapter = make_adapter(script.port)
+        with pytest.raises(CommandError, match="nak"):
+            await adapter.write_setting("s1", "t_open", 10)
+        script.done()
+    assert adapter.state.counters.write_errors == 1
+
+
+async def test_query_answered_with_nak():
+    async with Script([(TX, query(codec.Q_GATE_STATE)), (RX, NAK)]) as script:
+        adapter = make_adapter(script.port)
+        with pytest.raises(CommandError, match="gate state with nak"):
+            await adapter.query(codec.Q_GATE_STATE)
+        script.done()
+    assert "Gate state" not in adapter.state.points
+
+
+async def test_unsolicited_telegram_between_request_and_answer_is_published_with_an_event():
+    async with Script([
+        (TX, query(codec.Q_GATE_STATE)), (RX, answer(0x1D, 42)), (RX, answer(0x0C, codec.GateState.OPENING)),
+    ]) as script:
+        adapter = make_adapter(script.port)
+        got = await adapter.query(codec.Q_GATE_STATE)
+        script.done()
+    assert got.type == 0x0C
+    assert adapter.state.points["Gate state"].text == "opening"
+    assert adapter.state.points["Position"].value == 42
+    assert any("change reported: barrier position" in e.text for e in adapter.state.events)
+    assert adapter.monitoring_active
+
+
+async def test_position_unknown_for_minus_one():
+    async with Script([(TX, query(codec.Q_BARRIER_POSITION)), (RX, answer(0x1D, -1))]) as script:
+        adapter = make_adapter(script.port)
+        await adapter.query(codec.Q_BARRIER_POSITION)
+        script.done()
+    point = adapter.state.points["Position"]
+    assert point.value is None and point.text == "unknown"
+
+
+async def test_motion_needs_confirmation_once_per_session_and_pulse_is_no_holder():
+    open_pulse = bytes.fromhex("55 03 01 01 00 B8 B4")  # SPEC-NOTES golden vector
+    async with Script([(TX, open_pulse), (RX, ACK), (TX, open_pulse), (RX, NAK)]) as script:
+        adapter = make_adapter(script.port)
+        with pytest.raises(NeedsConfirmation):
+            await adapter.command("s1", codec.Command.OPEN)
+        assert await adapter.command("s1", codec.Command.OPEN, confirmed=True) == "ack"
+        assert adapter.holders() == set()
+        with pytest.raises(CommandError, match="nak"):
+            await adapter.command("s1", codec.Command.OPEN)
+        script.done()
+    assert adapter.last_reply == "open pulse: nak"
+
+
+async def test_session_lost_deactivates_its_close_level_at_once():
+    activate = tcp(codec.encode_command(codec.Command.CLOSE, codec.Function.ACTIVATE))
+    deactivate = tcp(codec.encode_command(codec.Command.CLOSE, codec.Function.DEACTIVATE))
+    async with Script([(TX, activate), (RX, ACK), (TX, deactivate), (RX, ACK)]) as script:
+        adapter = make_adapter(script.port)
+        await adapter.command("s1", codec.Command.CLOSE, codec.Function.ACTIVATE, confirmed=True)
+        assert adapter.holders() == {"s1"}
+        assert adapter.state.info["levels"] == ["close"]
+        started = time.monotonic()
+        adapter.session_lost("s1", "the controlling browser disconnected")
+        await asyncio.wait_for(adapter.stopped(), 1.0)
+        assert time.monotonic() - started < 0.5  # app.worker.DEADMAN_BOUND_S
+        script.done()
+    assert adapter.holders() == set() and adapter.levels == {}
+    assert any("dead-man" in e.text for e in adapter.state.events)
+
+
+async def test_open_level_is_shown_but_not_released_by_the_dead_man_and_cleared_on_request():
+    activate = tcp(codec.encode_command(codec.Command.OPEN, codec.Function.ACTIVATE))
+    deactivate = tcp(codec.encode_command(codec.Command.OPEN, codec.Function.DEACTIVATE))
+    async with Script([(TX, activate), (RX, ACK), (TX, deactivate), (RX, ACK)]) as script:
+        adapter = make_adapter(script.port)
+        await adapter.command("s1", codec.Command.OPEN, codec.Function.ACTIVATE, confirmed=True)
+        assert adapter.holders() == set()
+        adapter.session_lost("s1", "gone")
+        await adapter.stopped()
+        assert adapter.state.info["levels"] == ["open"]
+        assert await adapter.clear_levels("s2") == ["open"]
+        script.done()
+    assert adapter.levels == {}
+
+
+async def test_backup_reads_the_settings_and_restore_writes_one():
+    steps = []
+    values = {"t_open": 1000, "t_prewarn_open": 100, "t_prewarn_close": 200, "change_monitoring": 0,
+              "maintenance_interval": 50000, "status_mask": 0, "multi_relays": [1, 0, 0, 0, 0, 2],
+              "config_flags": [0, 1, 0, 0]}
+    for key, setting in codec.SETTINGS.items():
+        if not setting.backup:
+            continue
+        value = values[key]
+        if key == "config_flags":
+            value = dict(zip(("konfig0", "konfig1", "konfig2", "konfig3"), value))
+        if key == "status_mask":
+            value = {"mask": 0, "more": b""}
+        steps += [(TX, query(setting.query)), (RX, answer(setting.query + 5, value))]
+    steps += [(TX, query(codec.Q_INDUCTION_LOOPS)), (RX, answer(0x12, [1, 2, 3])),
+              (TX, query(codec.Q_DIRECTION_LOGICS)), (RX, answer(0x13, [5, 6]))]
+    steps += [(TX, tcp(codec.encode_setting("multi_relays", [1, 0, 0, 0, 0, 3]))), (RX, SYN), (RX, ACK),
+              (TX, query(codec.Q_MULTI_RELAYS)), (RX, answer(0x19, [1, 0, 0, 0, 0, 3]))]
+    async with Script(steps) as script:
+        adapter = make_adapter(script.port)
+        entries = await adapter.backup_read()
+        by_key = {e["key"]: e for e in entries}
+        assert "vehicle_counter" not in by_key  # RAM only (chapter 5.2.5)
+        assert by_key["config_flags"]["value"] == [0, 1, 0, 0]
+        assert by_key["multi_relays"]["raw"] == [1, 0, 0, 0, 0, 2]
+        assert not by_key["induction_loops"]["writable"]
+        await adapter.restore_entry("multi_relays", [1, 0, 0, 0, 0, 3])
+        with pytest.raises(CommandError, match="not restored"):
+            await adapter.restore_entry("vehicle_counter", 5)
+        script.done()
