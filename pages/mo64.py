@@ -1,0 +1,283 @@
+"""Bauer MO 64 page: gate state with a picture of the boom, position, the 40 status bits, identity,
+counters, error memory, modes; commands, settings, change monitoring and the TCP connection."""
+
+from __future__ import annotations
+
+import inspect
+
+from nicegui import ui
+
+from app import runtime as rt
+from devices.mo64 import codec
+from devices.mo64.adapter import COMMAND_NAMES, HELD_LEVELS, NeedsConfirmation
+from pages.frame import frame, set_status_badge
+from pages.widgets import Lamp, confirm, run_command
+
+MOTION_WARNING = "the boom moves: check that nobody stands under it"
+EEPROM_WARNING = ("Every setting write wears the barrier's EEPROM (chapter 4: the number of writes is limited). "
+                  "Write only what must change.")
+ALARM_BITS = {"LS", "Baum ab", "F_ereignis"}
+TIME_KEYS = ("t_open", "t_prewarn_open", "t_prewarn_close")
+INT_KEYS = ("maintenance_interval", "vehicle_counter")
+SETTING_POINTS = {"t_open": "Open time", "t_prewarn_open": "Pre-warning before opening",
+                  "t_prewarn_close": "Pre-warning before closing", "change_monitoring": "Change monitoring",
+                  "status_mask": "Status mask", "multi_relays": "Multi-relay modes",
+                  "config_flags": "Configuration flags", "maintenance_interval": "Maintenance interval",
+                  "vehicle_counter": "Vehicle counter"}
+IDENTITY_POINTS = ("Device code", "Program version", "Serial number", "MAC address", "Operating hours")
+COUNTER_POINTS = ("Service counter", "Maintenance counter", "Maintenance interval", "Vehicle counter",
+                  "Loop-adjust counter A", "Loop-adjust counter B", "Loop-adjust counter C")
+MODE_POINTS = ("Induction-loop modes", "Direction logics", "Configuration flags", "Multi-relay modes",
+               "Status mask", "Counting function")
+
+
+def boom_svg(position: int | None) -> str:
+    """A barrier post with its boom raised by ``position`` % (0 closed, horizontal; 100 open, upright)."""
+    angle = 0 if position is None else -90 * max(0, min(100, position)) / 100
+    colour = "#9e9e9e" if position is None else "#c62828"
+    return (f'<svg width="220" height="130" viewBox="0 0 220 130" role="img" aria-label="boom">'
+            f'<rect x="10" y="60" width="26" height="66" fill="#455a64"/>'
+            f'<g transform="rotate({angle:.1f} 23 64)">'
+            f'<rect x="23" y="58" width="190" height="12" rx="3" fill="#fff" stroke="{colour}" stroke-width="3"/>'
+            + "".join(f'<rect x="{40 + 40 * i}" y="59" width="18" height="10" fill="{colour}"/>' for i in range(4))
+            + '</g><circle cx="23" cy="64" r="6" fill="#263238"/></svg>')
+
+
+def content(name: str) -> None:
+    runtime = rt.current()
+    state = runtime.store.devices[name]
+    adapter = runtime.worker.adapters[name]
+    client = ui.context.client
+    session = client.id
+
+    async def act(describe: str, fn, success: str = "", write: bool = True):
+        async def action(a):
+            result = fn(a)
+            return await result if inspect.isawaitable(result) else result
+
+        return await run_command(name, action, describe, success=success, write=write)
+
+    async def move(cmd: codec.Command, fn: codec.Function) -> None:
+        words = f"{COMMAND_NAMES[cmd]} {fn.name.lower()}"
+        confirmed = session in adapter.motion_confirmed
+        if not confirmed:
+            if not await confirm("Move the barrier", f"{MOTION_WARNING}.", ok="The area is clear: move"):
+                return
+            confirmed = True
+        await act(words, lambda a: a.command(session, cmd, fn, confirmed=confirmed), success=f"{words}: ack")
+
+    async def write(key: str, value) -> None:
+        setting = codec.SETTINGS[key]
+        if setting.eeprom and not await confirm(
+                f"Write {setting.name}", f"{EEPROM_WARNING} Writes this session: {adapter.eeprom_writes.get(session, 0)}.",
+                ok="Write"):
+            return
+        await act(f"set {setting.name}", lambda a: a.write_setting(session, key, value),
+                  success=f"{setting.name} written and read back")
+
+    async def monitoring(on: bool) -> None:
+        if not await confirm("Change monitoring", f"{EEPROM_WARNING} Writes this session: "
+                             f"{adapter.eeprom_writes.get(session, 0)}.", ok="Write"):
+            return
+        await act("change monitoring " + ("on" if on else "off"), lambda a: a.set_change_monitoring(session, on),
+                  success="change monitoring " + ("on" if on else "off"))
+
+    with frame(f"Bauer MO 64 {name}"):
+        # -- gate ----------------------------------------------------------------------------------
+        with ui.card().classes("w-full"):
+            with ui.row().classes("items-center gap-6 w-full no-wrap"):
+                picture = ui.html(boom_svg(None)).props("data-testid=boom")
+                with ui.column().classes("gap-1"):
+                    with ui.row().classes("items-center gap-4"):
+                        badge = ui.badge("waiting", color="grey").classes("text-body2")
+                        gate = ui.label("gate state: -").classes("text-h6").props("data-testid=gate-state")
+                    position = ui.label("position: -").classes("text-h6").props("data-testid=position")
+                    bar = ui.linear_progress(value=0, show_value=False).props("size=14px rounded").classes("w-72")
+                    alarms = ui.label().classes("text-negative text-body1").props("data-testid=alarms")
+                    link = ui.label().classes("text-body2").props("data-testid=connection")
+                    error_line = ui.label().classes("text-negative text-caption")
+                    counters = ui.label().classes("text-caption mono text-grey-8")
+            if adapter.rs485:
+                ui.label(f"RS485 bus address {adapter.address}, this tool is master {adapter.master}.") \
+                    .classes("text-caption text-grey-8")
+            else:
+                with ui.row().classes("items-center gap-2"):
+                    ui.label("The MO 64 serves one TCP client at a time (chapter 3).").classes("text-caption text-grey-8")
+                    ui.button("Release the connection", icon="link_off", on_click=lambda: act(
+                        "release the connection", lambda a: a.release(session), write=False,
+                        success="released: another client may connect")).props("outline dense data-testid=release")
+                    ui.button("Take it back", icon="link", on_click=lambda: act(
+                        "take the connection back", lambda a: a.resume(session), write=False)) \
+                        .props("outline dense data-testid=resume")
+
+        # -- commands ------------------------------------------------------------------------------
+        with ui.card().classes("w-full"):
+            ui.label("Commands (chapter 5.2.1)").classes("text-subtitle1")
+            with ui.row().classes("items-center gap-3"):
+                ui.label("Pulse:").classes("text-body2")
+                for cmd, icon in ((codec.Command.OPEN, "arrow_upward"), (codec.Command.CLOSE, "arrow_downward"),
+                                  (codec.Command.REVERSE, "swap_vert")):
+                    ui.button(COMMAND_NAMES[cmd].capitalize(), icon=icon,
+                              on_click=lambda cmd=cmd: move(cmd, codec.Function.PULSE)) \
+                        .props(f"data-testid=pulse-{COMMAND_NAMES[cmd]}")
+            with ui.row().classes("items-center gap-3"):
+                ui.label("Level:").classes("text-body2")
+                for cmd in (codec.Command.OPEN, codec.Command.CLOSE, codec.Command.REVERSE):
+                    with ui.button_group():
+                        ui.button(f"{COMMAND_NAMES[cmd]} activate", on_click=lambda cmd=cmd: move(cmd, codec.Function.ACTIVATE)) \
+                            .props(f"outline data-testid=activate-{COMMAND_NAMES[cmd]}")
+                        ui.button("deactivate", on_click=lambda cmd=cmd: move(cmd, codec.Function.DEACTIVATE)) \
+                            .props(f"outline data-testid=deactivate-{COMMAND_NAMES[cmd]}")
+                ui.button("Clear my levels", icon="layers_clear", on_click=lambda: act(
+                    "clear levels", lambda a: a.clear_levels(session), write=False, success="levels deactivated")) \
+                    .props("data-testid=clear-levels")
+            levels = ui.label().classes("text-body2").props("data-testid=levels")
+            reply = ui.label().classes("text-body2 mono").props("data-testid=reply")
+            ui.label("A level stays active in the barrier until it is deactivated. Close and reverse levels are "
+                     "deactivated when this browser closes or freezes (dead-man rule); an open level is not, since "
+                     "deactivating it would let an unattended boom close. The first motion of a session asks for "
+                     f"a confirmation ({MOTION_WARNING}).").classes("text-caption text-grey-8")
+
+        # -- status bits ---------------------------------------------------------------------------
+        with ui.card().classes("w-full"):
+            ui.label("Barrier status (40 bits, chapter 5.1.7)").classes("text-subtitle1")
+            lamps: dict[str, Lamp] = {}
+            with ui.row().classes("gap-8 items-start"):
+                for group, names in codec.STATUS_GROUPS.items():
+                    with ui.column().classes("gap-0"):
+                        ui.label(group).classes("text-subtitle2")
+                        for bit in names:
+                            lamps[bit] = Lamp(bit, "alarm" if bit in ALARM_BITS else "ok")
+
+        # -- identity, counters --------------------------------------------------------------------
+        with ui.row().classes("w-full gap-4 items-stretch"):
+            with ui.card().classes("col"):
+                ui.label("Identity").classes("text-subtitle1")
+                with ui.column().classes("gap-0 mono text-body2").props("data-testid=identity"):
+                    identity = {pt: ui.label() for pt in IDENTITY_POINTS}
+            with ui.card().classes("col"):
+                ui.label("Counters").classes("text-subtitle1")
+                with ui.column().classes("gap-0 mono text-body2").props("data-testid=counters"):
+                    counts = {pt: ui.label() for pt in COUNTER_POINTS}
+                ui.label("The vehicle counter lives in RAM only: it is 0 after power-up (chapter 5.2.5).") \
+                    .classes("text-caption text-grey-8")
+
+        # -- error memory ---------------------------------------------------------------------------
+        with ui.card().classes("w-full"):
+            with ui.row().classes("items-center gap-4"):
+                ui.label("Error memory (10 levels, newest first, chapter 5.1.23)").classes("text-subtitle1")
+                ui.button("Read again", on_click=lambda: act("read error memory", lambda a: a.read_error_memory(),
+                                                            write=False)).props("outline dense")
+            errors = ui.table(columns=[{"name": k, "label": label, "field": k, "align": "left"} for k, label in
+                                       (("level", "Level"), ("flags", "Error flags"), ("time", "Operating hours"))],
+                              rows=[], row_key="level").classes("w-full text-caption").props("dense flat")
+
+        # -- modes ------------------------------------------------------------------------------------
+        with ui.card().classes("w-full"):
+            ui.label("Modes (decoded as far as the document names the fields, raw otherwise)").classes("text-subtitle1")
+            with ui.column().classes("gap-0 text-body2").props("data-testid=modes"):
+                modes = {pt: ui.label() for pt in MODE_POINTS}
+
+        # -- settings ---------------------------------------------------------------------------------
+        with ui.card().classes("w-full"):
+            with ui.row().classes("items-center gap-4"):
+                ui.label("Settings (chapter 5.2.4-5.2.8)").classes("text-subtitle1")
+                writes = ui.label().classes("text-body2").props("data-testid=eeprom-writes")
+            ui.label(EEPROM_WARNING + " Busy means the motor runs: try again when it stands.").classes("text-caption text-warning")
+            with ui.row().classes("items-center gap-2"):
+                ui.label("Change monitoring (TCP: changes are sent by the barrier, polling slows down):").classes("text-body2")
+                ui.button("On", on_click=lambda: monitoring(True)).props("outline dense data-testid=monitoring-on")
+                ui.button("Off", on_click=lambda: monitoring(False)).props("outline dense data-testid=monitoring-off")
+                mon = ui.label().classes("text-body2").props("data-testid=monitoring")
+            setting_values: dict[str, ui.label] = {}
+            with ui.grid(columns=3).classes("w-full gap-x-4 gap-y-1 items-center") \
+                    .style("grid-template-columns: 220px 1fr 260px"):
+                for key, setting in codec.SETTINGS.items():
+                    if key == "change_monitoring":
+                        continue
+                    ui.label(setting.name).classes("text-body2")
+                    setting_values[key] = ui.label("-").classes("mono text-body2")
+                    with ui.row().classes("items-center gap-1 no-wrap"):
+                        if key in TIME_KEYS:
+                            field = ui.number("seconds", min=0, max=codec.TIME_MAX * codec.TIME_STEP_S, step=0.01) \
+                                .classes("w-32").props("dense")
+                            value_of = (lambda f: lambda: round(float(f.value or 0) / codec.TIME_STEP_S))(field)
+                        elif key in INT_KEYS:
+                            field = ui.number("value", step=1, format="%d").classes("w-32").props("dense")
+                            value_of = (lambda f: lambda: int(f.value or 0))(field)
+                        else:
+                            field = ui.input("raw (as shown, e.g. 0x0 or 1,0,0,0,0,0)").classes("w-48").props("dense")
+                            value_of = (lambda f, k=key: lambda: _parse(k, f.value))(field)
+                        ui.button("Write", on_click=lambda k=key, get=value_of: write(k, get())) \
+                            .props(f"outline dense data-testid=write-{key}")
+
+        with ui.expansion("Assumptions beyond the manual (shown as such)").classes("w-full") \
+                .props("data-testid=assumptions"):
+            for text in codec.ASSUMPTIONS:
+                ui.label(f"Assumption: {text}").classes("text-caption")
+
+    def point_text(point: str, missing: str = "-") -> str:
+        entry = state.point(point)
+        if entry is None:
+            return missing
+        return entry["text"] if entry["text"] is not None else f"{entry['value']} {entry['unit']}".strip()
+
+    last_position: list = [object()]
+
+    def refresh() -> None:
+        set_status_badge(badge, state.status, state.age)
+        gate.set_text(f"gate state: {point_text('Gate state')}")
+        pos = state.point("Position")
+        value = None if pos is None else pos["value"]
+        position.set_text(f"position: {point_text('Position')}")
+        bar.set_value(0 if value is None else value / 100)
+        if value != last_position[0]:
+            last_position[0] = value
+            picture.set_content(boom_svg(value))
+        on = [b for b in ALARM_BITS if (state.point(b) or {}).get("value")]
+        alarms.set_text(", ".join({"LS": "light barrier interrupted", "Baum ab": "boom off",
+                                   "F_ereignis": "fault event"}[b] for b in sorted(on)))
+        info = state.info
+        bus = runtime.store.buses.get(state.bus)
+        conn = info.get("connection", "-")
+        link.set_text(f"connection: {conn}" + (f" ({bus.last_error})" if bus is not None and bus.last_error else "")
+                      + f"; polling {info.get('polling', '-')}")
+        error_line.set_text(state.last_error)
+        c = state.counters
+        counters.set_text(f"requests {c.requests}  answers {c.responses}  timeouts {c.timeouts}  malformed {c.malformed}")
+        for bit, lamp in lamps.items():
+            lamp.show(state.point(bit))
+        mine = sorted(COMMAND_NAMES[cmd] + (" (dead-man)" if cmd in HELD_LEVELS else "")
+                      for cmd in adapter.levels)
+        levels.set_text("levels this tool set: " + (", ".join(mine) if mine else "none"))
+        reply.set_text(f"last answer: {info.get('last_reply') or '-'}")
+        for labels in (identity, counts, modes):
+            for point, label in labels.items():
+                label.set_text(f"{point}: {point_text(point)}")
+        rows = [{"level": e["level"], "flags": f"0x{e['flags']:08X}", "time": f"{e['timestamp_h']} h"}
+                for e in info.get("error_memory", [])]
+        if rows != errors.rows:
+            errors.rows = rows
+            errors.update()
+        for key, label in setting_values.items():
+            label.set_text(point_text(SETTING_POINTS[key]))
+        writes.set_text(f"EEPROM writes this session: {adapter.eeprom_writes.get(session, 0)} "
+                        f"(all sessions: {adapter.eeprom_writes_total})")
+        mon.set_text(f"{point_text('Change monitoring')}; {info.get('monitoring', '-')}")
+
+    refresh()
+    ui.timer(0.25, refresh)
+
+
+def _parse(key: str, text: str | None):
+    """A raw entry: a number (0x.. allowed) or a comma-separated list for relay modes and configuration flags."""
+    text = (text or "").strip()
+    if key in ("multi_relays", "config_flags"):
+        numbers = [int(x.strip(), 0) for x in text.split(",") if x.strip()]
+        if key == "config_flags":
+            return dict(zip(("konfig0", "konfig1", "konfig2", "konfig3"), numbers))
+        return numbers
+    return int(text, 0) if text else 0
+
+
+__all__ = ["content", "boom_svg", "NeedsConfirmation"]
