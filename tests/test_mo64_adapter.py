@@ -254,3 +254,66 @@ async def test_backup_reads_the_settings_and_restore_writes_one():
         with pytest.raises(CommandError, match="not restored"):
             await adapter.restore_entry("vehicle_counter", 5)
         script.done()
+
+
+# -- against the twin (devices/mo64/sim.py) ----------------------------------------------------------
+def twin_bus(port: int):
+    bus = SimpleNamespace(name="gate-bus", type="logited-tcp",
+                          options={"host": "127.0.0.1", "port": port, "timeout": 0.5, "poll_period": 0.2})
+    dev = SimpleNamespace(name="gate-1", type="mo64", bus="gate-bus", options={"travel_s": 0.6})
+    return bus, dev
+
+
+async def test_twin_tcp_open_pulse_goes_opening_then_open_at_100_percent():
+    from devices.mo64.sim import Mo64TcpSim
+
+    port = free_port()
+    bus, dev = twin_bus(port)
+    sim = Mo64TcpSim(bus, [dev])
+    await sim.start()
+    try:
+        adapter = make_adapter(port)
+        await adapter.poll()
+        assert adapter.state.points["Gate state"].text == "closed"
+        assert await adapter.command("s1", codec.Command.OPEN, confirmed=True) == "ack"
+        seen = []
+        end = time.monotonic() + 5
+        while time.monotonic() < end:
+            await adapter.query(codec.Q_GATE_STATE)
+            seen.append(adapter.state.points["Gate state"].text)
+            if seen[-1] == "open":
+                break
+            await asyncio.sleep(0.05)
+        await adapter.query(codec.Q_BARRIER_POSITION)
+        assert "opening" in seen and seen[-1] == "open", seen
+        assert adapter.state.points["Position"].value == 100
+    finally:
+        adapter.line.close()
+        await sim.stop()
+
+
+async def test_twin_backup_and_restore_writes_only_the_changed_setting():
+    from devices.mo64.sim import Mo64TcpSim
+
+    port = free_port()
+    bus, dev = twin_bus(port)
+    sim = Mo64TcpSim(bus, [dev])
+    await sim.start()
+    try:
+        adapter = make_adapter(port)
+        before = {e["key"]: e for e in await adapter.backup_read()}
+        await adapter.write_setting("s1", "t_open", 700)
+        await adapter.write_setting("s1", "multi_relays", [2, 0, 0, 0, 0, 0])
+        sim.twin.setting_writes.clear()
+        now = {e["key"]: e for e in await adapter.backup_read()}
+        changed = [k for k, e in before.items() if e["writable"] and now[k]["raw"] != e["raw"]]
+        assert sorted(changed) == ["multi_relays", "t_open"]
+        for key in changed:
+            await adapter.restore_entry(key, before[key]["value"])
+        assert sim.twin.setting_writes == {"t_open": 1, "multi_relays": 1}
+        after = {e["key"]: e["raw"] for e in await adapter.backup_read()}
+        assert after == {k: e["raw"] for k, e in before.items()}
+        assert adapter.eeprom_writes["s1"] == 2 and adapter.eeprom_writes["restore"] == 2
+    finally:
+        adapter.line.close()
+        await sim.stop()

@@ -8,7 +8,7 @@ from typing import Any
 
 from devices.registry import DeviceType, TileAlarm, TileBar, TileLine, TileSpec, When
 
-_KEYS = {"address"}
+_KEYS = {"address", "serial_number", "travel_s"}  # the last two set up the simulated barrier (devices/mo64/sim.py)
 
 
 def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str]]:
