@@ -1,0 +1,691 @@
+"""MO 64 twin: simulated Bauer barrier controls on LogiTed TCP and on an RS485 line.
+
+Written from document 003 (page summaries) and SPEC-NOTES "Bauer MO 64"; the wire format is the
+codec's (devices/mo64/codec.py), the behaviour is the document's, as strict as the barrier could be:
+
+* operating commands (chapter 5.2.1): open, close, reverse as a pulse; activate / deactivate set
+  and clear a level register. Activating gives an edge only when the level was 0; an active open
+  level (BUS_BA = 1, page 33) prevents closing until it is deactivated; an active close level
+  prevents opening by command (safety reversal still opens). ack for a valid command and function,
+  nak otherwise;
+* gate motion with the pre-warning times (0x0E, 0x0F) before opening and closing, a travel time,
+  the open time (0x0D; 0 = automatic closing off, chapter 5.2.4.1), position in % (-1 while unknown
+  after power-up, chapter 5.1.29), gate state 0x0C;
+* safety: an interrupted light barrier (LS) or an occupied loop reverses a closing boom and holds
+  it open; a fault (F_ereignis) stops the motor where it is;
+* settings (chapter 5.2.4-5.2.8): busy while the motor runs, else syn, the EEPROM write, then ack;
+  nak for an unknown selector or a value out of range; every EEPROM write is counted per setting
+  (chapter 4: "Schreibzugriff auf das EEPROM"). The vehicle counter is RAM only and answered ack;
+* queries (table 21): 0x00-0x1A answered with telegram type index + 5, nak for 0x1B-0x1E and
+  anything else; the error memory by level (ASSUMED index byte, see codec) or all ten levels;
+* change monitoring (chapter 5.1.9, 5.2.4.5): over TCP only, telegrams sent unsolicited when a
+  watched value changes (the barrier status only for the bits set in the status mask, 5.2.6.1);
+* error memory (chapter 5.1.23): every change of the error flags is stored with the operating hours
+  in level 0, older levels shift down;
+* short commands (0x03) are answered nak: their codes are not in the summary (codec ASSUMPTIONS).
+
+Demo controls on :class:`Mo64Twin`: :meth:`~Mo64Twin.drive_vehicle`, :meth:`~Mo64Twin.break_light_barrier`,
+:meth:`~Mo64Twin.raise_fault`, :meth:`~Mo64Twin.clear_fault`, :meth:`~Mo64Twin.power_up`;
+:attr:`~Mo64Twin.setting_writes` counts EEPROM writes per setting.
+
+Servers: :class:`Mo64TcpSim` (one barrier, one client at a time, chapter 3) and :class:`Mo64Rs485Sim`
+(several barriers by bus address, and with ``shared = true`` a second master passing the token,
+chapter 2.6, which records how long the tool held it).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+from urllib.parse import urlparse
+
+from devices.mo64 import codec
+from devices.mo64.codec import Command, Function, GateState, Reply, RequestType
+
+log = logging.getLogger(__name__)
+
+TICK_S = 0.02
+TRAVEL_S = 2.5  # closed -> open; a twin value, the document names no travel time
+EEPROM_WRITE_S = 0.05  # between syn and ack
+DEFAULT_T_OPEN = 1000  # 10 ms units: 10 s
+DEFAULT_T_PREWARN = 50  # 10 ms units: 0.5 s
+DEFAULT_MAINTENANCE_INTERVAL = 100_000
+START_OPERATING_HOURS = 1234
+PROGRAM_VERSION = 0x0412
+DEVICE_CODE = 5  # chapter 5.1.5: 0x0005 = MO 64-V4
+VEHICLE_WAIT_OPEN_S = 15.0
+TOKEN_HOLD_S = 0.05  # how long the second master keeps the token each round
+TOKEN_LOST_S = 1.0  # the second master takes the token back when the tool did not pass it by then
+
+_STATUS = {f.name: f.shift for f in codec.STATUS_BITS.fields}
+_MOTOR_RUNS = (GateState.OPENING, GateState.CLOSING)
+# change-monitoring bit (chapter 5.1.9, SPEC-NOTES) -> telegram type sent on change
+_MONITORED = {0: 0x07, 1: 0x0A, 2: 0x0B, 3: 0x0C, 4: 0x17, 5: 0x1C, 6: 0x1D}  # 7, 8: layouts unknown
+
+
+class Mo64Twin:
+    """One barrier: gate, loops, light barrier, settings, counters, error memory.
+
+    :meth:`handle` takes one decoded request frame and returns the telegrams (type + payload) to
+    send, each with the delay before it; :meth:`step` advances the gate and sends change telegrams
+    to :attr:`listeners` (the TCP server subscribes; a slave on RS485 never sends on its own).
+    """
+
+    def __init__(self, name: str = "mo64", address: int | None = None, serial_number: int = 6400001,
+                 travel_s: float = TRAVEL_S, position_known: bool = True):
+        self.name = name
+        self.address = address
+        self.travel_s = float(travel_s)
+        self.clock = 0.0
+        # identity (chapter 5.1.5, 5.1.6, 5.1.20, 5.1.21)
+        self.device_code = DEVICE_CODE
+        self.program_version = PROGRAM_VERSION
+        self.serial_number = serial_number
+        self.mac = bytes((0x00, 0x0A, 0x64, (serial_number >> 16) & 0xFF, (serial_number >> 8) & 0xFF,
+                          serial_number & 0xFF))
+        self.operating_hours_start = START_OPERATING_HOURS
+        # settings (EEPROM): factory values; status mask 0 (page 18: "Maske0 bis Maske7 = 0")
+        self.settings: dict[str, Any] = {
+            "t_open": DEFAULT_T_OPEN, "t_prewarn_open": DEFAULT_T_PREWARN, "t_prewarn_close": DEFAULT_T_PREWARN,
+            "change_monitoring": 0, "maintenance_interval": DEFAULT_MAINTENANCE_INTERVAL, "status_mask": 0,
+            "multi_relays": (1, 0, 0, 0, 0, 0),
+            "config_flags": {"konfig0": 0, "konfig1": 0, "konfig2": 0, "konfig3": 0},
+        }
+        self.induction_loops = (0x0001, 0x0001, 0x0000)
+        self.direction_logics = (0, 0)
+        self.dec_bt = 0
+        self.password = 0
+        self.loop_adjust = [3, 3, 0]
+        # counters
+        self.service_counter = 0
+        self.maintenance_counter = 0
+        self.vehicle_counter = 0  # RAM only (chapter 5.2.5)
+        # gate
+        self.gate = GateState.CLOSED
+        self.position = 0.0 if position_known else None
+        self._timer = 0.0  # time left in a pre-warning, or of the open time
+        self.levels = {c: False for c in Command}
+        # inputs, safety, faults
+        self.light_barrier = False
+        self.loops = {"A": False, "B": False, "C": False}
+        self.error_flags = 0
+        self.error_memory: list[tuple[int, int]] = [(0, 0)] * codec.ERROR_MEMORY_LEVELS
+        self._vehicle: list[tuple[str, float]] | None = None
+        self._vehicle_wait = 0.0
+        # bookkeeping for tests and the demo
+        self.setting_writes: dict[str, int] = {}
+        self.requests = 0
+        self.naks = 0
+        self.busy_answers = 0
+        self.commands: list[tuple[str, str]] = []
+        self.listeners: list[Callable[[bytes], None]] = []
+        self.sent_unsolicited = 0
+        self._last_seen: dict[int, bytes] = {}
+        self._last_status = self.status_word()
+
+    # -- derived values ------------------------------------------------------------------------------
+    @property
+    def eeprom_writes(self) -> int:
+        return sum(self.setting_writes.values())
+
+    @property
+    def motor_runs(self) -> bool:
+        return self.gate in _MOTOR_RUNS
+
+    @property
+    def operating_hours(self) -> int:
+        return self.operating_hours_start + int(self.clock // 3600)
+
+    @property
+    def position_pct(self) -> int:
+        return codec.POSITION_UNKNOWN if self.position is None else int(round(self.position))
+
+    @property
+    def obstructed(self) -> bool:
+        return self.light_barrier or any(self.loops.values())
+
+    def status_word(self) -> int:
+        """The 40 status bits (chapter 5.1.7), Status0 in the low byte."""
+        bits = {"LS": self.light_barrier, "F_ereignis": bool(self.error_flags),
+                "loop A occupied": self.loops["A"], "loop B occupied": self.loops["B"],
+                "loop C occupied": self.loops["C"],
+                "SERVICE": 0 < self.settings["maintenance_interval"] <= self.maintenance_counter}
+        word = sum(1 << _STATUS[name] for name, on in bits.items() if on)
+        for n, mode in enumerate(self.settings["multi_relays"], 1):
+            if mode == 1 and self.error_flags:  # chapter 5.1.25: "Störung": on while an error flag is set
+                word |= 1 << _STATUS[f"multi relay {n}"]
+        return word
+
+    # -- demo controls -------------------------------------------------------------------------------
+    def drive_vehicle(self) -> None:
+        """A vehicle drives onto loop A (presence opens the barrier), passes the light barrier and
+        loop B, and leaves; the vehicle counter counts it."""
+        self._vehicle = [("arrive", 0.0), ("wait open", VEHICLE_WAIT_OPEN_S), ("under boom", 0.4),
+                         ("on loop B", 0.6), ("gone", 0.0)]
+        self._vehicle_wait = 0.0
+        self.loops["A"] = True
+        self._edge(Command.OPEN, internal=True)
+
+    def break_light_barrier(self, broken: bool = True) -> None:
+        self.light_barrier = broken
+
+    def raise_fault(self, flags: int = 0x0001) -> None:
+        """Set error flags (chapter 5.1.23): the motor stops where it is, the error memory records it."""
+        self._set_error_flags(self.error_flags | flags)
+        if self.motor_runs:
+            self.gate = GateState.INTERMEDIATE
+
+    def clear_fault(self, flags: int = 0xFFFFFFFF) -> None:
+        self._set_error_flags(self.error_flags & ~flags)
+
+    def power_up(self) -> None:
+        """Mains back: position unknown (-1, chapter 5.1.29) until an end position, vehicle counter 0."""
+        self.position = None
+        self.vehicle_counter = 0
+        self.gate = GateState.INTERMEDIATE
+        self.levels = {c: False for c in Command}
+
+    def _set_error_flags(self, flags: int) -> None:
+        if flags == self.error_flags:
+            return
+        self.error_flags = flags
+        self.error_memory = [(flags, self.operating_hours), *self.error_memory[:-1]]  # newest in level 0
+
+    # -- gate ----------------------------------------------------------------------------------------
+    def _start_open(self) -> None:
+        if self.gate in (GateState.OPEN, GateState.OPENING, GateState.PREWARN_OPEN):
+            if self.gate == GateState.OPEN:
+                self._timer = self._t_open_s()
+            return
+        if self.error_flags:
+            return
+        if self.gate == GateState.CLOSING:
+            self.gate = GateState.OPENING  # a closing boom reverses at once
+            return
+        self.gate = GateState.PREWARN_OPEN
+        self._timer = self.settings["t_prewarn_open"] * codec.TIME_STEP_S
+
+    def _start_close(self) -> None:
+        if self.gate in (GateState.CLOSED, GateState.CLOSING, GateState.PREWARN_CLOSE):
+            return
+        if self.error_flags or self.levels[Command.OPEN] or self.obstructed:
+            return  # an active open level prevents closing (page 33); nothing closes onto a vehicle
+        self.gate = GateState.PREWARN_CLOSE
+        self._timer = self.settings["t_prewarn_close"] * codec.TIME_STEP_S
+
+    def _edge(self, command: Command, internal: bool = False) -> None:
+        if command == Command.OPEN:
+            if not internal and self.levels[Command.CLOSE] and not self.levels[Command.OPEN]:
+                return  # an active close level prevents opening by command
+            self._start_open()
+        elif command == Command.CLOSE:
+            self._start_close()
+        elif self.gate in (GateState.OPENING, GateState.PREWARN_OPEN, GateState.OPEN):
+            self._start_close()
+        else:
+            self._start_open()
+
+    def _t_open_s(self) -> float:
+        return self.settings["t_open"] * codec.TIME_STEP_S
+
+    def step(self, dt: float) -> None:
+        """Advance by ``dt`` seconds and send what changed to the listeners."""
+        self.clock += dt
+        self._step_vehicle(dt)
+        if self.gate in (GateState.CLOSING, GateState.PREWARN_CLOSE) and self.obstructed:
+            self.gate = GateState.OPENING if self.gate == GateState.CLOSING else GateState.OPEN
+            self._timer = self._t_open_s()  # light barrier or loop: reverse and hold open
+        speed = 100.0 / self.travel_s
+        if self.gate in (GateState.PREWARN_OPEN, GateState.PREWARN_CLOSE):
+            self._timer -= dt
+            if self._timer <= 0:
+                self.gate = GateState.OPENING if self.gate == GateState.PREWARN_OPEN else GateState.CLOSING
+        elif self.gate == GateState.OPENING:
+            self.position = min(100.0, (50.0 if self.position is None else self.position) + speed * dt)
+            if self.position >= 100.0:
+                self.gate = GateState.OPEN
+                self._timer = self._t_open_s()
+                self.service_counter += 1
+                self.maintenance_counter += 1
+        elif self.gate == GateState.CLOSING:
+            self.position = max(0.0, (50.0 if self.position is None else self.position) - speed * dt)
+            if self.position <= 0.0:
+                self.gate = GateState.CLOSED
+        elif self.gate == GateState.OPEN:
+            if self.obstructed or self.levels[Command.OPEN]:
+                self._timer = self._t_open_s()
+            elif self.levels[Command.CLOSE]:
+                self._start_close()
+            elif self.settings["t_open"]:
+                self._timer -= dt
+                if self._timer <= 0:
+                    self._start_close()
+        self._notify()
+
+    def _step_vehicle(self, dt: float) -> None:
+        if not self._vehicle:
+            return
+        phase, left = self._vehicle[0]
+        if phase == "arrive":
+            self._vehicle.pop(0)
+        elif phase == "wait open":
+            self._vehicle_wait += dt
+            if self.gate == GateState.OPEN:
+                self._vehicle.pop(0)
+                self.light_barrier = self.loops["B"] = True
+            elif self._vehicle_wait > left:
+                self.loops["A"] = False  # the driver gave up
+                self._vehicle = None
+        elif left > dt:
+            self._vehicle[0] = (phase, left - dt)
+        else:
+            self._vehicle.pop(0)
+            if phase == "under boom":
+                self.loops["A"] = self.light_barrier = False
+            elif phase == "on loop B":
+                self.loops["B"] = False
+                self.vehicle_counter += 1
+                self._vehicle = None
+
+    # -- change monitoring ---------------------------------------------------------------------------
+    def _notify(self) -> None:
+        status = self.status_word()
+        changed_status = (status ^ self._last_status) & int(self.settings["status_mask"])
+        self._last_status = status
+        flags = int(self.settings["change_monitoring"])
+        for bit, answer_type in _MONITORED.items():
+            payload = self.answer_payload(answer_type)
+            before = self._last_seen.get(answer_type)
+            self._last_seen[answer_type] = payload
+            if not flags >> bit & 1 or not self.listeners:
+                continue
+            if answer_type == 0x07:
+                if not changed_status:
+                    continue
+            elif before is None or before == payload:
+                continue
+            self._send_unsolicited(bytes((answer_type,)) + payload)
+
+    def _send_unsolicited(self, telegram: bytes) -> None:
+        self.sent_unsolicited += 1
+        for listener in list(self.listeners):
+            try:
+                listener(telegram)
+            except Exception:  # noqa: BLE001 - a closed connection must not stop the twin
+                log.exception("%s: change telegram not sent", self.name)
+
+    # -- answers -------------------------------------------------------------------------------------
+    def answer_payload(self, answer_type: int, level: int | None = None) -> bytes:
+        return self.answer(answer_type, level)[1:]
+
+    def answer(self, answer_type: int, level: int | None = None) -> bytes:
+        """Telegram ``answer_type`` (0x05..0x1F) with the current value."""
+        s = self.settings
+        if answer_type == 0x17:
+            if level is not None:
+                flags, hours = self.error_memory[level]
+                return codec.encode_answer(0x17, {"index": level, "flags": flags, "timestamp_h": hours})
+        values = {
+            0x05: self.device_code, 0x06: self.program_version,
+            0x07: {"status": self.status_word(), "more": b""},
+            0x08: {"mask": int(s["status_mask"]), "more": b""},
+            0x09: int(s["change_monitoring"]), 0x0A: self.service_counter, 0x0B: self.maintenance_counter,
+            0x0C: int(self.gate), 0x0D: s["t_open"], 0x0E: s["t_prewarn_open"], 0x0F: s["t_prewarn_close"],
+            0x10: self.dec_bt, 0x11: bytes(2), 0x12: self.induction_loops, 0x13: self.direction_logics,
+            0x14: self.serial_number, 0x15: self.mac, 0x16: self.operating_hours,
+            0x17: tuple({"flags": f, "timestamp_h": t} for f, t in self.error_memory),
+            0x18: s["config_flags"], 0x19: tuple(s["multi_relays"]), 0x1A: s["maintenance_interval"],
+            0x1B: bytes(6), 0x1C: self.vehicle_counter, 0x1D: self.position_pct, 0x1E: self.password,
+            0x1F: tuple(self.loop_adjust),
+        }
+        return codec.encode_answer(answer_type, values[answer_type])
+
+    def handle(self, frame: codec.Frame) -> list[tuple[float, bytes]]:
+        """The telegrams (type + payload) answering one request frame, each after its delay in s."""
+        self.requests += 1
+        try:
+            request = codec.decode_request(frame)
+        except codec.InvalidRequest as exc:
+            return self._nak(str(exc))
+        except codec.CodecError as exc:
+            return self._nak(str(exc))
+        if request.kind is RequestType.QUERY:
+            return [(0.0, self.answer(request.query + codec.QUERY_ANSWER_OFFSET, request.level))]
+        if request.kind is RequestType.COMMAND:
+            return [(0.0, self._command(request.command, request.function))]
+        if request.kind is RequestType.SHORT_COMMAND:
+            return self._nak(f"short command 0x{request.code:02X}: no code is known")
+        return self._setting(request)
+
+    def _nak(self, why: str) -> list[tuple[float, bytes]]:
+        self.naks += 1
+        log.debug("%s: nak (%s)", self.name, why)
+        return [(0.0, bytes((Reply.NAK,)))]
+
+    def _command(self, command: Command, function: Function) -> bytes:
+        self.commands.append((command.name.lower(), function.name.lower()))
+        if function == Function.PULSE:
+            self._edge(command)
+        elif function == Function.ACTIVATE:
+            was = self.levels[command]
+            self.levels[command] = True
+            if not was:
+                self._edge(command)  # table 19: an edge only when the level register was 0
+        else:
+            self.levels[command] = False
+            if command == Command.OPEN and self.gate == GateState.OPEN:
+                self._timer = self._t_open_s()
+        return bytes((Reply.ACK,))
+
+    def _setting(self, request: codec.Request) -> list[tuple[float, bytes]]:
+        setting = request.setting
+        if setting is None:
+            return self._nak(f"setting 0x{request.kind:02X} selector 0x{request.selector:02X} unknown")
+        if not setting.eeprom:  # the vehicle counter: RAM only, answered ack (chapter 5.2.5)
+            self.vehicle_counter = int(request.value)
+            return [(0.0, bytes((Reply.ACK,)))]
+        if self.motor_runs:
+            self.busy_answers += 1
+            return [(0.0, bytes((Reply.BUSY,)))]  # chapter 5.2.4: "tele_busy, wenn der Motor läuft"
+        value = request.value
+        if setting.key == "status_mask":
+            value = int(value)
+        elif setting.key == "change_monitoring":
+            value = int(value)
+        elif setting.key == "config_flags":
+            value = {k: int(w) for k, w in value.items()}
+        elif setting.key == "multi_relays":
+            value = tuple(value)
+        self.settings[setting.key] = value
+        self.setting_writes[setting.key] = self.setting_writes.get(setting.key, 0) + 1
+        return [(0.0, bytes((Reply.SYN,))), (EEPROM_WRITE_S, bytes((Reply.ACK,)))]
+
+
+# -- servers -----------------------------------------------------------------------------------------
+def _host_port(url: str) -> tuple[str, int]:
+    parsed = urlparse(url)
+    if parsed.scheme != "socket" or not parsed.port:
+        raise ValueError(f"a simulated RS485 line needs a socket://host:port URL, not {url!r}")
+    return parsed.hostname or "127.0.0.1", parsed.port
+
+
+def _twin_for(dev: Any, address: int | None = None) -> Mo64Twin:
+    opts = dev.options
+    return Mo64Twin(dev.name, address, int(opts.get("serial_number", 6400000 + (address or 1))),
+                    float(opts.get("travel_s", TRAVEL_S)))
+
+
+class _Ticker:
+    def __init__(self, twins: list[Mo64Twin]):
+        self.twins = twins
+        self.task: asyncio.Task | None = None
+
+    def start(self, name: str) -> None:
+        self.task = asyncio.create_task(self._run(), name=name)
+
+    async def _run(self) -> None:
+        last = time.monotonic()
+        while True:
+            await asyncio.sleep(TICK_S)
+            now = time.monotonic()
+            for twin in self.twins:
+                twin.step(now - last)
+            last = now
+
+    def stop(self) -> None:
+        if self.task:
+            self.task.cancel()
+            self.task = None
+
+
+class Mo64TcpSim:
+    """One MO 64 with the TCP module on the bus's host and port (chapter 3).
+
+    The barrier serves one client at a time: a second client is closed at once while the first is
+    connected (counted in :attr:`refused`).
+    """
+
+    def __init__(self, bus, devices):
+        if len(devices) != 1:
+            raise ValueError(f"LogiTed TCP bus {bus.name}: one MO 64 per connection ({len(devices)} configured)")
+        dev = devices[0]
+        self.bus = bus
+        self.twin = _twin_for(dev)
+        self.twins: dict[str, Mo64Twin] = {dev.name: self.twin}
+        self.host = bus.options.get("host", "127.0.0.1")
+        self.port = int(bus.options.get("port", codec.TCP_PORT))
+        self.server: asyncio.base_events.Server | None = None
+        self._ticker = _Ticker([self.twin])
+        self._writer: asyncio.StreamWriter | None = None
+        self.connections = 0
+        self.refused = 0
+        self.garbage = 0
+
+    async def start(self) -> None:
+        try:
+            self.server = await asyncio.start_server(self._serve, self.host, self.port)
+        except OSError as exc:
+            raise OSError(f"cannot listen on {self.host}:{self.port} for the simulated MO 64 "
+                          f"{self.bus.name}: {exc}") from None
+        self._ticker.start(f"sim {self.bus.name}")
+
+    def _push(self, telegram: bytes) -> None:
+        writer = self._writer
+        if writer is not None and not writer.is_closing():
+            writer.write(codec.encode_frame(telegram))
+
+    async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        if self._writer is not None:
+            self.refused += 1  # chapter 3: the next client connects after the first one closed
+            writer.close()
+            return
+        self._writer = writer
+        self.connections += 1
+        self.twin.listeners.append(self._push)
+        splitter = codec.FrameSplitter(codec.TCP)
+        try:
+            while True:
+                data = await reader.read(4096)
+                if not data:
+                    break
+                for item in splitter.feed(data):
+                    if isinstance(item, codec.FrameError):
+                        self.garbage += 1
+                        continue  # a telegram with a bad checksum is not answered
+                    for delay, telegram in self.twin.handle(item):
+                        if delay:
+                            await asyncio.sleep(delay)
+                        writer.write(codec.encode_frame(telegram))
+                        await writer.drain()
+        except (ConnectionError, asyncio.CancelledError):
+            pass
+        finally:
+            if self._push in self.twin.listeners:
+                self.twin.listeners.remove(self._push)
+            if self._writer is writer:
+                self._writer = None
+            writer.close()
+
+    async def stop(self) -> None:
+        self._ticker.stop()
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+        if self.server:
+            self.server.close()
+            await self.server.wait_closed()
+            self.server = None
+
+
+@dataclass
+class TokenHold:
+    """One time the tool held the token: from the token to it until its token onward."""
+
+    given: float
+    passed: float | None = None
+
+    @property
+    def held_s(self) -> float | None:
+        return None if self.passed is None else self.passed - self.given
+
+
+class Mo64Rs485Sim:
+    """An RS485 line (38400 8N1) served on the TCP port of the bus's ``socket://`` URL.
+
+    Several barriers, each answering only telegrams addressed to it (device option ``address``) and
+    never a token telegram (chapter 2.6). Every frame on the line reaches every connected client
+    (a bus). With ``shared = true`` a second master at ``next_master`` holds the token at start,
+    passes it to the tool's ``master_address``, sometimes queries a barrier itself while it holds
+    the token, and records each of the tool's holds in :attr:`holds` (the limit is 200 ms,
+    chapter 2.6.1); telegrams the tool sends while it does not hold the token are counted in
+    :attr:`sent_without_token`.
+    """
+
+    def __init__(self, bus, devices):
+        self.bus = bus
+        opts = bus.options
+        self.master_address = int(opts.get("master_address", codec.RS485_LAYOUT.master_address))
+        self.shared = bool(opts.get("shared", False))
+        self.next_master = int(opts.get("next_master", self.master_address + 1))
+        self.by_address: dict[int, Mo64Twin] = {}
+        self.twins: dict[str, Mo64Twin] = {}
+        for n, dev in enumerate(devices):
+            address = int(dev.options.get("address", 0x10 + n))
+            if address in self.by_address or address in (self.master_address, self.next_master):
+                raise ValueError(f"RS485 bus {bus.name}: address {address} of {dev.name} is taken")
+            twin = _twin_for(dev, address)
+            self.by_address[address] = twin
+            self.twins[dev.name] = twin
+        self.server: asyncio.base_events.Server | None = None
+        self._ticker = _Ticker(list(self.by_address.values()))
+        self._writers: list[asyncio.StreamWriter] = []
+        self._master_task: asyncio.Task | None = None
+        self.tool_has_token = not self.shared
+        self.holds: list[TokenHold] = []
+        self.token_lost = 0
+        self.sent_without_token = 0
+        self.own_queries = 0
+        self.own_answers: list[bytes] = []
+        self.unaddressed = 0
+        self.garbage = 0
+        self._token_back = asyncio.Event()
+
+    async def start(self) -> None:
+        host, port = _host_port(self.bus.options["port"])
+        try:
+            self.server = await asyncio.start_server(self._serve, host, port)
+        except OSError as exc:
+            raise OSError(f"cannot listen on {host}:{port} for the simulated RS485 line {self.bus.name}: {exc}") from None
+        self._ticker.start(f"sim {self.bus.name}")
+        if self.shared:
+            self._master_task = asyncio.create_task(self._second_master(), name=f"sim {self.bus.name} master")
+
+    async def _put(self, raw: bytes, source: asyncio.StreamWriter | None = None) -> None:
+        """Bytes on the line: every client but the one that sent them hears them."""
+        for writer in list(self._writers):
+            if writer is source or writer.is_closing():
+                continue
+            writer.write(raw)
+            try:
+                await writer.drain()
+            except ConnectionError:
+                pass
+
+    async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        self._writers.append(writer)
+        splitter = codec.FrameSplitter(codec.RS485)
+        try:
+            while True:
+                data = await reader.read(4096)
+                if not data:
+                    break
+                for item in splitter.feed(data):
+                    if isinstance(item, codec.FrameError):
+                        self.garbage += 1
+                        continue
+                    await self._put(item.raw, writer)
+                    await self._frame_from_client(item)
+        except (ConnectionError, asyncio.CancelledError):
+            pass
+        finally:
+            if writer in self._writers:
+                self._writers.remove(writer)
+            writer.close()
+
+    async def _frame_from_client(self, frame: codec.Frame) -> None:
+        if frame.is_token:
+            if self.shared and frame.da == self.next_master and self.tool_has_token:
+                self.tool_has_token = False
+                if self.holds and self.holds[-1].passed is None:
+                    self.holds[-1].passed = time.monotonic()
+                self._token_back.set()
+            return  # a slave ignores token telegrams (chapter 2.6)
+        if not self.tool_has_token:
+            self.sent_without_token += 1
+        await self._to_barrier(frame)
+
+    async def _to_barrier(self, frame: codec.Frame) -> None:
+        twin = self.by_address.get(frame.da)
+        if twin is None:
+            self.unaddressed += 1
+            return  # nobody answers a telegram addressed to nobody
+        for delay, telegram in twin.handle(frame):
+            await asyncio.sleep(delay or 0.002)
+            await self._put(codec.encode_frame(telegram, codec.RS485, da=frame.sa, sa=twin.address))
+
+    async def _second_master(self) -> None:
+        rounds = 0
+        try:
+            while True:
+                await asyncio.sleep(TOKEN_HOLD_S)
+                rounds += 1
+                if rounds % 3 == 0 and self.by_address and self._writers:
+                    address = sorted(self.by_address)[(rounds // 3) % len(self.by_address)]
+                    request = codec.encode_frame(codec.encode_query(codec.Q_GATE_STATE), codec.RS485,
+                                                 da=address, sa=self.next_master)
+                    self.own_queries += 1
+                    await self._put(request)
+                    answers = self.by_address[address].handle(codec.decode_frame(request, codec.RS485))
+                    for delay, telegram in answers:
+                        await asyncio.sleep(delay or 0.002)
+                        raw = codec.encode_frame(telegram, codec.RS485, da=self.next_master, sa=address)
+                        self.own_answers.append(raw)
+                        await self._put(raw)
+                if not self._writers:
+                    continue  # nobody to pass the token to
+                self._token_back.clear()
+                self.tool_has_token = True
+                self.holds.append(TokenHold(time.monotonic()))
+                await self._put(codec.encode_token(self.master_address, sa=self.next_master))
+                try:
+                    await asyncio.wait_for(self._token_back.wait(), TOKEN_LOST_S)
+                except TimeoutError:
+                    self.token_lost += 1  # the token is regenerated by the second master
+                    self.tool_has_token = False
+        except asyncio.CancelledError:
+            pass
+
+    @property
+    def hold_times_s(self) -> list[float]:
+        """How long the tool held the token each time it passed it on."""
+        return [h.held_s for h in self.holds if h.held_s is not None]
+
+    async def stop(self) -> None:
+        self._ticker.stop()
+        if self._master_task:
+            self._master_task.cancel()
+            self._master_task = None
+        for writer in self._writers:
+            writer.close()
+        self._writers.clear()
+        if self.server:
+            self.server.close()
+            await self.server.wait_closed()
+            self.server = None
+
+
+__all__ = ["Mo64Twin", "Mo64TcpSim", "Mo64Rs485Sim", "TokenHold"]
