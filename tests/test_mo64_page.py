@@ -1,0 +1,112 @@
+"""MO 64 page with NiceGUI's simulated user, against the MO 64 twin on a LogiTed TCP port."""
+
+from __future__ import annotations
+
+import asyncio
+import importlib
+import os
+from collections.abc import AsyncIterator
+
+import httpx
+import pytest
+from conftest import free_port
+from nicegui import core, ui
+from nicegui.functions.download import download
+from nicegui.functions.navigate import Navigate
+from nicegui.functions.notify import notify
+from nicegui.testing import User
+from nicegui.testing.general import nicegui_reset_globals, prepare_simulation
+from nicegui.testing.user_interaction import UserInteraction
+from webutil import eventually, stop_worker_tasks
+
+from app import runtime as rt
+from app.plant import parse_plant
+from app.runtime import Runtime
+
+pytestmark = pytest.mark.timeout(40)
+
+
+def mo64_plant(port: int):
+    return parse_plant(f"""
+name = "t"
+[[bus]]
+name = "gate-bus"
+type = "logited-tcp"
+host = "127.0.0.1"
+port = {port}
+timeout = 0.5
+poll_period = 0.2
+simulate = true
+[[device]]
+name = "gate"
+type = "mo64"
+bus = "gate-bus"
+travel_s = 0.6
+""")
+
+
+@pytest.fixture
+async def env() -> AsyncIterator[tuple[User, Runtime]]:
+    with nicegui_reset_globals():
+        os.environ["NICEGUI_USER_SIMULATION"] = "true"
+        try:
+            prepare_simulation()
+            runtime = Runtime(mo64_plant(free_port()), simulate=True)
+            importlib.import_module("app.web").register(runtime, allowed_hosts=("test",))
+            ui.run(storage_secret="test secret")
+            async with core.app.router.lifespan_context(core.app):
+                async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:
+                    yield User(client), runtime
+                    await stop_worker_tasks(runtime)
+        finally:
+            os.environ.pop("NICEGUI_USER_SIMULATION", None)
+            ui.navigate = Navigate()
+            ui.notify = notify
+            ui.download = download
+            rt.set_current(None)
+
+
+def by_testid(user: User, testid: str):
+    found = [e for e in user.client.elements.values() if e.props.get("data-testid") == testid]
+    assert len(found) == 1, f"{testid}: {len(found)} elements"
+    return found[0]
+
+
+def twin(runtime):
+    return next(t for sim in runtime.sims for t in getattr(sim, "twins", {}).values())
+
+
+async def test_mo64_page_shows_the_gate_and_opens_after_the_confirmation(env):
+    user, runtime = env
+    adapter = runtime.worker.adapters["gate"]
+    await eventually(lambda: "Gate state" in adapter.state.points and "Serial number" in adapter.state.points, timeout=10)
+    await user.open("/device/gate")
+    await user.should_see("gate state: closed")
+    await user.should_see("RAM only")
+    await user.should_see("Assumptions beyond the manual")
+    await user.should_see("loop A occupied")
+    await eventually(lambda: "6400001" in by_testid(user, "identity").text if hasattr(by_testid(user, "identity"), "text")
+                     else True, timeout=2)
+    UserInteraction(user, {by_testid(user, "pulse-open")}, None).click()
+    await eventually(lambda: user.find("The area is clear: move"), timeout=3)
+    user.find("The area is clear: move").click()
+    await eventually(lambda: "open pulse: ack" in by_testid(user, "reply").text, timeout=3, what=str(user.notify.messages))
+    await eventually(lambda: "gate state: open" == by_testid(user, "gate-state").text, timeout=6)
+    await eventually(lambda: by_testid(user, "position").text == "position: 100 %", timeout=3)
+    # the second motion of the session asks no more
+    UserInteraction(user, {by_testid(user, "activate-close")}, None).click()
+    await eventually(lambda: adapter.holders() == {user.client.id}, timeout=3, what=str(user.notify.messages))
+    await eventually(lambda: "close (dead-man)" in by_testid(user, "levels").text, timeout=2)
+    UserInteraction(user, {by_testid(user, "clear-levels")}, None).click()
+    await eventually(lambda: adapter.holders() == set(), timeout=3)
+
+
+async def test_mo64_dead_man_deactivates_the_close_level_of_a_silent_session(env):
+    user, runtime = env
+    adapter = runtime.worker.adapters["gate"]
+    await eventually(lambda: "Gate state" in adapter.state.points, timeout=10)
+    await runtime.worker.command("gate", lambda a: a.command("browser-x", 2, 1, confirmed=True))
+    assert adapter.holders() == {"browser-x"}
+    # the session never sends a heartbeat: the worker trips it 0.3 s after it holds something
+    await eventually(lambda: adapter.holders() == set(), timeout=1.0)
+    assert any("dead-man" in e.text for e in adapter.state.events)
