@@ -338,3 +338,34 @@ async def test_rs485_second_master_passes_token_and_measures_hold():
     finally:
         writer.close()
         await sim.stop()
+
+
+# -- the twin on its own (simulated time) ---------------------------------------------------------------
+def run(twin, seconds: float, dt: float = 0.02) -> None:
+    for _ in range(round(seconds / dt)):
+        twin.step(dt)
+
+
+def test_twin_vehicle_fault_error_memory_and_power_up():
+    from devices.mo64.sim import Mo64Twin
+    twin = Mo64Twin("gate", travel_s=1.0)
+    twin.settings["t_open"] = 50  # 0.5 s
+    twin.drive_vehicle()
+    assert twin.loops["A"] and twin.gate == codec.GateState.PREWARN_OPEN  # presence on loop A opens
+    run(twin, 1.6)
+    assert twin.gate == codec.GateState.OPEN
+    run(twin, 1.0)
+    assert twin.vehicle_counter == 1 and not any(twin.loops.values()) and not twin.light_barrier
+    run(twin, 0.4)
+    assert twin.gate in (codec.GateState.PREWARN_CLOSE, codec.GateState.CLOSING)  # t_open after the vehicle left
+    run(twin, 0.6)
+    twin.raise_fault(0x04)  # a fault stops the boom where it is
+    assert twin.gate == codec.GateState.INTERMEDIATE and 0 < twin.position_pct < 100
+    twin.clock += 7200  # two operating hours later
+    twin.clear_fault()
+    assert twin.error_memory[:3] == [(0, twin.operating_hours), (0x04, twin.operating_hours - 2), (0, 0)]
+    status = codec.decode_answer(codec.encode_frame(twin.answer(0x07))).value["status"]
+    assert status["F_ereignis"] is False
+    twin.power_up()
+    assert twin.answer(0x1D) == h("1D FF") and twin.answer(0x1C) == h("1C 00 00 00 00")  # -1 %, counter 0
+    assert twin.service_counter == 1 and twin.setting_writes == {}
