@@ -41,7 +41,7 @@ ROTATING_QUERIES = (codec.Q_SERVICE_COUNTER, codec.Q_MAINTENANCE_COUNTER, codec.
 IDENTITY_QUERIES = (codec.Q_DEVICE, codec.Q_PROGRAM_VERSION, codec.Q_SERIAL_NUMBER, codec.Q_MAC,
                     codec.Q_OPERATING_HOURS)
 SETTING_QUERIES = tuple(dict.fromkeys([s.query for s in codec.SETTINGS.values()]
-                                      + [codec.Q_INDUCTION_LOOPS, codec.Q_DIRECTION_LOGICS]))
+                                      + [codec.Q_INDUCTION_LOOPS, codec.Q_DIRECTION_LOGICS, codec.Q_COUNTING]))
 READ_ONLY_BACKUP = ((codec.Q_INDUCTION_LOOPS, "induction_loops", "induction-loop modes"),
                     (codec.Q_DIRECTION_LOGICS, "direction_logics", "direction logics"))
 NAMES = {  # answer type -> live point name
