@@ -47,7 +47,8 @@ def tool_version() -> str:
 
 def supports_backup(adapter: Any) -> bool:
     """The adapter takes part, and (``backup_available``) this device has something to back up."""
-    methods = all(callable(getattr(adapter, name, None)) for name in ("backup_read", "backup_identity", "restore_entry", "save_step"))
+    methods = all(callable(getattr(adapter, name, None)) for name in ("backup_read", "backup_identity", "save_step"))
+    methods = methods and any(callable(getattr(adapter, name, None)) for name in ("write_param", "restore_entry"))
     return methods and bool(getattr(adapter, "backup_available", True))
 
 

@@ -451,12 +451,6 @@ class ElectrakAdapter:
     def backup_identity(self) -> dict:
         return {"actuators": [f"{a.model} {a.gearing} {a.stroke_mm:g} mm" for a in self.actuators]}
 
-    async def restore_entry(self, key: str, raw: int) -> int:
-        param = PARAMS.by_key.get(key)
-        if param is None:
-            raise CommandError(f"{key} is not an Electrak service parameter")
-        return await self.write_param(param, param.decode(int(raw)), confirmed=True)
-
     async def save_step(self) -> str:
         return f"save parameters (0xF0), {await self.save_parameters()}"
 

@@ -83,12 +83,6 @@ class HdLockBackup:
             identity["serial"] = identity.pop("SerialNumber")
         return identity
 
-    async def restore_entry(self, key: str, raw: int) -> int:
-        param = PARAMS.by_key.get(key)
-        if param is None:
-            raise CommandError(f"{key} is not an HD-Lock parameter")
-        return await self.write_param(param, param.decode(int(raw)), confirmed=True)
-
     async def save_step(self) -> str:
         await self.save_settings()
         return "Save-Settings"
