@@ -14,7 +14,7 @@ def device(name="door-1", address=1, bus="line1", dtype="hdlock"):
 def test_shipped_plants_load():
     demo = load_plant(DEMO_PLANT)
     assert demo.buses["line1"].simulated
-    assert {d.type for d in demo.devices.values()} == {"hdlock", "electrak", "m3io", "scu"}
+    assert {d.type for d in demo.devices.values()} == {"hdlock", "electrak", "m3io", "scu", "mo64"}
     assert demo.sim_devices["spare-lock"].bus == "can1"
     example = load_plant(PLANTS_DIR / "example.toml")
     assert example.buses["rs485-doors"].options["port"] == "/dev/ttyUSB0"

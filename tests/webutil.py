@@ -58,7 +58,9 @@ def demo_plant_text(bus_port: int) -> str:
     text = DEMO_PLANT.read_text()
     assert 'port = "socket://127.0.0.1:5020"' in text, "demo plant no longer names socket://127.0.0.1:5020"
     text = text.replace("socket://127.0.0.1:5020", f"socket://127.0.0.1:{bus_port}")
-    return re.sub(r"socket://127\.0\.0\.1:(?!%d\b)\d+" % bus_port, lambda m: f"socket://127.0.0.1:{free_port()}", text)
+    text = re.sub(r"socket://127\.0\.0\.1:(?!%d\b)\d+" % bus_port, lambda m: f"socket://127.0.0.1:{free_port()}", text)
+    # the simulated MO 64 on TCP: a host and a port of its own
+    return re.sub(r'(type = "logited-tcp"\nhost = "127\.0\.0\.1"\nport = )\d+', lambda m: f"{m.group(1)}{free_port()}", text)
 
 
 def private_endpoints(plant, tag: str):
@@ -68,6 +70,8 @@ def private_endpoints(plant, tag: str):
         port = bus.options.get("port")
         if isinstance(port, str) and port.startswith("socket://127.0.0.1:"):
             bus.options["port"] = f"socket://127.0.0.1:{free_port()}"
+        if bus.type == "logited-tcp" and bus.options.get("host") == "127.0.0.1":
+            bus.options["port"] = free_port()
         if bus.type == "can":
             bus.options["channel"] = f"{bus.options['channel']}-{tag}"
     return plant
