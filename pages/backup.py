@@ -206,9 +206,12 @@ class RestoreFlow:
         if not to_write:
             ui.notify("No differing parameter is selected", type="warning")
             return
+        wear = getattr(self.runtime.worker.adapters[self.plan.device], "restore_wear", "")
+        wear_text = f" Note: {wear}: this restore makes {len(to_write)} such write(s)." if wear else ""
         if not await confirm(f"Write {len(to_write)} parameters to {self.plan.device}?",
                              "Each value is written, read back and, when all took, saved in the device:\n"
-                             + "; ".join(f"{r.name} {r.current_text} -> {r.backup_text}" for r in to_write), ok="Write", danger=False):
+                             + "; ".join(f"{r.name} {r.current_text} -> {r.backup_text}" for r in to_write) + "." + wear_text,
+                             ok="Write", danger=bool(wear)):
             return
         confirmed: set[str] = set()
         for row in self.plan.risky(selected):  # the same confirmation a manual write of the value asks for

@@ -144,6 +144,8 @@ class Mo64Adapter:
         self.master = int(line_options.get("master_address", codec.RS485_LAYOUT.master_address))
         self.levels: dict[codec.Command, str] = {}  # levels this tool activated -> session that did
         self.motion_confirmed: set[str] = set()
+        # each setting write wears the barrier's EEPROM (document: "EEPROM"): restore says how many
+        self.restore_wear = "each written setting wears the barrier's EEPROM"
         self.eeprom_writes: dict[str, int] = {}
         self.eeprom_writes_total = 0
         self.last_reply = ""
