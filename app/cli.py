@@ -259,6 +259,9 @@ def run_restore(args) -> int:
                   + (" (invalid entries of the file are listed above)" if plan.invalid else ""))
             return 1 if plan.invalid else 0
         selected = {r.key for r in changed}
+        wear = getattr(runtime.worker.adapters[name], "restore_wear", "")
+        if wear:
+            print(f"note: {wear}: this restore makes {len(changed)} such write(s)")
         risky = plan.risky(selected)
         accepted = {n.lower() for n in args.accept_risk}
         confirmed = {r.key for r in risky if r.name.lower() in accepted}
