@@ -411,7 +411,15 @@ class LogitedRs485:
     def _log(self, what: str, request: bytes, answer: bytes, error: str, rtt_ms: float | None = None) -> None:
         self.state.transactions.append(LogitedTransaction(
             time.time(), what, request.hex(" ").upper(), answer.hex(" ").upper(),
-            self._text(answer) if answer and not error else "", rtt_ms, error))
+            self._text(answer) if answer and not error else "", rtt_ms, error, unit=self._barrier(request, answer)))
+
+    def _barrier(self, request: bytes, answer: bytes) -> int:
+        """The bus address of the barrier a log line concerns (not a master), or 0."""
+        masters = {self.master, self.next_master}
+        for raw, field in ((request, 2), (answer, 3), (answer, 2)):  # the request's DA, the answer's SA, else its DA
+            if len(raw) > field and raw[field] not in masters:
+                return raw[field]
+        return 0
 
     async def transact(self, request: bytes, answers: Callable[[bytes], bool], *, timeout: float | None = None,
                        describe: str = "") -> bytes:

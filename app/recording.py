@@ -619,12 +619,23 @@ class TransactionDecoder:
             if isinstance(unit, int):
                 units[unit] = (dev.name, device_type.params if device_type is not None else None)
         line_params = DEVICE_TYPES[next(iter(types))].params if len(types) == 1 and next(iter(types)) in DEVICE_TYPES else None
+        self.modbus = bus_type == "modbus-rtu"
+        names = [dev.name for dev in self.worker.plant.devices_on(self.bus)]
+        self.only = names[0] if len(names) == 1 and not self.modbus else ""  # a point-to-point line or a TCP link
         if units != self.units or line_params is not self.line_params:
             self.units, self.line_params = units, line_params
             self._cache.clear()
 
     def device(self, unit: int) -> str:
-        """``door-1 (unit 1)``; ``broadcast (unit 0)``; ``unit 7`` for an address no device has."""
+        """``door-1 (unit 1)``; ``broadcast (unit 0)``; ``unit 7`` for an address no device has.
+
+        Other lines name their device by its bus address (``barrier-out-1 (address 16)``), or name
+        the one device of a point-to-point line or TCP link.
+        """
+        if self.only:
+            return self.only
+        if not self.modbus:
+            return f"{self.units[unit][0]} (address {unit})" if unit in self.units else (f"address {unit}" if unit else "")
         if unit in self.units:
             return f"{self.units[unit][0]} (unit {unit})"
         if unit in (0, 255):  # Modbus broadcast 0; 255 broadcast of the HD-Lock's Set Modbus Address (section 4.3)

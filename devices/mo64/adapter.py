@@ -142,6 +142,7 @@ class Mo64Adapter:
         self.transport = "logited-rs485" if self.rs485 else "logited-tcp"
         self.address = config.options.get("address")
         self.master = int(line_options.get("master_address", codec.RS485_LAYOUT.master_address))
+        self.masters = {self.master, int(line_options.get("next_master", self.master + 1))}  # the masters of a shared line
         self.levels: dict[codec.Command, str] = {}  # levels this tool activated -> session that did
         self.motion_confirmed: set[str] = set()
         # each setting write wears the barrier's EEPROM (document: "EEPROM"): restore says how many
@@ -184,9 +185,12 @@ class Mo64Adapter:
         return frame
 
     def describe_telegram(self, telegram: bytes) -> str:
-        """The bus monitor's decoding of a telegram the barrier sent (undecodable ones say why)."""
+        """The bus monitor's decoding of a telegram on the line (undecodable ones say why): on a shared
+        RS485 line a telegram to a barrier (not to a master) is another master's request."""
         try:
-            return codec.describe(codec.decode_frame(telegram, self.framing), False)
+            frame = codec.decode_frame(telegram, self.framing)
+            to_device = self.rs485 and frame.da is not None and frame.da not in self.masters
+            return codec.describe(frame, to_device)
         except codec.CodecError as exc:
             return f"cannot decode: {exc}"
 

@@ -866,7 +866,23 @@ def describe(frame: Frame, to_device: bool) -> str:
         return f"{where}{exc}"
     if a.error:
         return f"{where}{a.name}: {a.error} ({a.payload.hex(' ')})"
-    return f"{where}{a.name}" + ("" if a.reply is not None else f" = {a.value!r}")
+    return f"{where}{a.name}" + ("" if a.reply is not None else f" = {_short(a.value)}")
+
+
+def _short(value: Any) -> str:
+    """A decoded value in few words for the monitor: the bits that are set, not all 40 of them."""
+    if isinstance(value, v.FlagsValue):
+        return ", ".join(value.active) or "none set"
+    if isinstance(value, v.EnumValue):
+        return f"{value.name or 'undefined'} ({int(value)})"
+    if isinstance(value, dict):
+        parts = [f"{k}: {_short(x)}" for k, x in value.items() if not (isinstance(x, bytes | bytearray) and not x)]
+        return "; ".join(parts) if len(parts) > 1 else (parts[0].split(": ", 1)[1] if parts else "")
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_short(x) for x in value) + "]"
+    if isinstance(value, bytes | bytearray):
+        return value.hex(" ")
+    return repr(value)
 
 
 __all__ = [name for name in dir() if not name.startswith("_") and name not in {
