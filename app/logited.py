@@ -276,8 +276,7 @@ class LogitedRs485:
         o = self.options
         port = serial.serial_for_url(o["port"], do_not_open=True, baudrate=o["baudrate"], bytesize=8,
                                      parity=serial.PARITY_NONE, stopbits=1, timeout=0.05, write_timeout=1.0)
-        port.open()
-        port.reset_input_buffer()
+        port.open()  # no input flush: on a live line it could drop the token meant for this master
         return port
 
     async def connect(self) -> bool:

@@ -149,6 +149,16 @@ async def line_with_second_master(port: int, holds: list, requests: list):
         loop = asyncio.get_running_loop()
         given = loop.time()
         writer.write(codec.encode_token(0x00, 0x01))  # to this tool
+
+        async def regenerate():  # a token lost (e.g. while the port was opened) is given again, as masters do
+            nonlocal given
+            while True:
+                await asyncio.sleep(0.5)
+                if loop.time() - given > 0.5:
+                    given = loop.time()
+                    writer.write(codec.encode_token(0x00, 0x01))
+
+        keeper = asyncio.create_task(regenerate())
         try:
             while data := await reader.read(256):
                 for frame in splitter.feed(data):
@@ -165,6 +175,7 @@ async def line_with_second_master(port: int, holds: list, requests: list):
         except ConnectionError:
             pass
         finally:
+            keeper.cancel()
             writer.close()
 
     return await asyncio.start_server(serve, "127.0.0.1", port)
