@@ -33,6 +33,8 @@ BUSY_TEXT = "the motor runs, try again when it stands"
 # A level that keeps the boom moving towards a person is released by the dead-man rule: the close and
 # reverse levels. The open level is NOT released: deactivating it lets an unattended boom close
 # (chapter 5.2.1, page 33: the level prevents closing until deactivated), the unsafe direction.
+# the dead-man rule clears close and reverse levels of a lost session; an open level stays, since
+# clearing it would let an unattended boom close (page 33: the level holds the barrier open)
 HELD_LEVELS = frozenset({codec.Command.CLOSE, codec.Command.REVERSE})
 COMMAND_NAMES = {codec.Command.OPEN: "open", codec.Command.CLOSE: "close", codec.Command.REVERSE: "reverse"}
 LIVE_QUERIES = (codec.Q_GATE_STATE, codec.Q_BARRIER_STATUS, codec.Q_BARRIER_POSITION)
@@ -53,7 +55,6 @@ NAMES = {  # answer type -> live point name
     0x18: "Configuration flags", 0x19: "Multi-relay modes", 0x1A: "Maintenance interval",
     0x1B: "Loop periods", 0x1C: "Vehicle counter", 0x1D: "Position", 0x1E: "Password",
 }
-MULTI_MODE_NAMES = {0: "off", 1: "fault"}  # chapter 5.1.25: the summary names these modes by number only so far
 
 
 class CommandError(Exception):
@@ -104,7 +105,7 @@ def value_text(answer_type: int, value: Any) -> str:
     if answer_type == 0x1D:
         return "unknown" if int(value) == codec.POSITION_UNKNOWN else f"{int(value)} %"
     if answer_type == 0x19:
-        return ", ".join(f"multi{n}: {MULTI_MODE_NAMES.get(m, f'mode {m}')}" for n, m in enumerate(value, 1))
+        return ", ".join(f"multi{n}: {codec.MULTI_MODE_NAMES.get(m, f'mode {m}')}" for n, m in enumerate(value, 1))
     if answer_type == 0x12:
         return ", ".join(f"loop {c}: 0x{int(m):04X}" for c, m in zip("ABC", value))
     if answer_type == 0x13:

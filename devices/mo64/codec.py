@@ -542,6 +542,7 @@ CONFIG_FLAGS = v.Struct("config_flags", tuple(
     (f"konfig{i}", v.Bits(v.U16LE, fields)) for i, fields in enumerate(CONFIG_FIELDS)
 ))
 MULTI_RELAYS = v.Array(v.U8, 6)  # chapter 5.1.25: multi1 .. multi6, one mode byte each
+MULTI_MODE_NAMES = {0: "off", 1: "fault"}  # chapter 5.1.25: the summary names these modes by number only so far
 MAINTENANCE_INTERVAL = v.U32LE  # ASSUMED width (see ASSUMPTIONS): like the maintenance counter
 VEHICLE_COUNTER = v.I32LE  # chapter 5.2.5: signed 32 bit, RAM only, 0 after power-up
 BARRIER_POSITION = v.I8  # chapter 5.1.29: percent, -1 while unknown
