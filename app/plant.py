@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import difflib
+import math
 import re
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -35,6 +38,8 @@ BUS_KEYS: dict[str, dict[str, tuple[type | tuple[type, ...], Any]]] = {
         "timeout": ((int, float), 0.5),
         "poll_period": ((int, float), 2.0),
         "simulate": (bool, False),
+        "port": (int, 0),  # udp_multicast only: its UDP port (0 = python-can's default, or a port of its own when simulated)
+        "filter_own": (bool, False),  # drop the frames this instance sent when the interface hands them back
     },
     "serial": {  # point-to-point RS232 (Ewellix SCU): a device path or pyserial URL, 8N1, DTR and RTS held on
         "port": (str, None),
@@ -62,8 +67,14 @@ BUS_KEYS: dict[str, dict[str, tuple[type | tuple[type, ...], Any]]] = {
         "simulate": (bool, False),
     },
 }
-PASSTHROUGH_BUS_TYPES = {"can"}  # further keys go to the bus library unchanged
+CAN_OPTIONS_TABLE = "can_options"  # [bus.can_options]: further python-can keys, passed on unchecked
 COMMON_BUS_KEYS = {"name", "type", "description"}
+UDP_MULTICAST_DEFAULT_PORT = 43113  # python-can's UdpMulticastBus default
+SIM_UDP_PORTS = (43114, 2000)  # first port and span of the ports derived for simulated udp_multicast buses
+STANDARD_BAUDRATES = (1200, 2400, 4800, 9600, 14400, 19200, 38400, 57600, 115200)
+SERIAL_SIM_TYPES = {"modbus-rtu", "serial", "logited-rs485"}  # their twins serve a TCP port (socket://host:port)
+CAN_SIM_INTERFACES = ("virtual", "udp_multicast")  # python-can interfaces the twins can sit on
+TYPE_WORDS = {bool: "true or false (without quotes)", int: "a whole number (without quotes)", str: "a text in quotes"}
 COMMON_DEVICE_KEYS = {"name", "type", "bus", "description"}
 
 
@@ -136,6 +147,170 @@ def _key_line(text: str, start: int, key: str) -> int:
     return start
 
 
+TOP_LEVEL = ("name", "bus", "device", "sim_device", "plant_view")
+
+
+def _section(key: str) -> str:
+    return "name" if key == "name" else f"[{key}]" if key == "plant_view" else f"[[{key}]]"
+
+
+def _section_line(text: str, key: str) -> int:
+    """Line of a top-level ``[key]``, ``[[key]]`` or ``key =`` (1 when not found)."""
+    pattern = re.compile(rf"^\s*(\[\[?\s*{re.escape(key)}\s*[\].]|{re.escape(key)}\s*=)")
+    return next((i + 1 for i, line in enumerate(text.splitlines()) if pattern.match(line)), 1)
+
+
+def _did_you_mean(key: str, known) -> str | None:
+    found = difflib.get_close_matches(key, list(known), n=1, cutoff=0.6)
+    return found[0] if found else None
+
+
+def _unknown_key(owner: str, key: str, known) -> str:
+    guess = _did_you_mean(key, known)
+    return f"{owner}: unknown key '{key}'; " + (f"did you mean '{guess}'? " if guess else "") + f"known: {', '.join(known)}"
+
+
+def _wrong_type(owner: str, key: str, value: Any, typ) -> str:
+    if typ == (int, float):
+        want = "a number (without quotes)"
+    else:
+        want = TYPE_WORDS.get(typ, "a " + " or ".join(t.__name__ for t in typ) if isinstance(typ, tuple) else typ.__name__)
+    if isinstance(typ, tuple) and str in typ:
+        want = "a text in quotes or a whole number"
+    return f"{owner}: {key} must be {want}, not {value!r}"
+
+
+def _sub_table_line(text: str, start: int, table: str) -> int:
+    """Line of the ``[bus.<table>]`` header that belongs to the bus at ``start``."""
+    lines = text.splitlines()
+    pattern = re.compile(rf"^\s*\[\s*bus\s*\.\s*{re.escape(table)}\s*\]")
+    for i in range(start, len(lines)):
+        if pattern.match(lines[i]):
+            return i + 1
+        if re.match(r"^\s*\[\[", lines[i]):
+            break
+    return start
+
+
+def _seconds(value: Any) -> bool:
+    return not isinstance(value, bool) and isinstance(value, int | float) and math.isfinite(value) and value > 0
+
+
+def _parse_bus(text: str, raw: dict[str, Any], line: int, plant: Plant, fail) -> BusConfig:
+    name = raw.get("name")
+    if not isinstance(name, str) or not name:
+        raise fail(line, "bus without a name (add name = \"...\")")
+    if name in plant.buses:
+        raise fail(line, f"duplicate bus name '{name}' (first at line {plant.buses[name].line})")
+    btype = raw.get("type")
+    if btype not in BUS_KEYS:
+        guess = _did_you_mean(str(btype), BUS_KEYS)
+        raise fail(_key_line(text, line, "type"), f"bus '{name}': unknown type {btype!r}; "
+                   + (f"did you mean '{guess}'? " if guess else "") + f"known: {', '.join(BUS_KEYS)}")
+    spec = BUS_KEYS[btype]
+    owner = f"bus '{name}'"
+    at = lambda key: _key_line(text, line, key)  # noqa: E731
+    options: dict[str, Any] = {}
+    extra: dict[str, Any] = {}
+    for key, value in raw.items():
+        if key in COMMON_BUS_KEYS:
+            continue
+        if key == CAN_OPTIONS_TABLE and btype == "can":
+            sub_line = _sub_table_line(text, line, key)
+            if not isinstance(value, dict):
+                raise fail(at(key), f"{owner}: {key} must be a table: [bus.{key}] with one python-can key per line")
+            for sub_key in value:
+                if sub_key in spec or sub_key in COMMON_BUS_KEYS:
+                    raise fail(_key_line(text, sub_line, sub_key),
+                               f"{owner}: {sub_key} belongs in the [[bus]] table, not in [bus.{key}] (which is for further python-can keys)")
+            extra = dict(value)
+            continue
+        if key not in spec:
+            message = _unknown_key(owner, key, spec)
+            if btype == "can":
+                message += f"; keys of a python-can interface go in a [bus.{CAN_OPTIONS_TABLE}] table below this one"
+            raise fail(at(key), message)
+        typ = spec[key][0]
+        if isinstance(value, bool) and typ is not bool or not isinstance(value, typ):
+            raise fail(at(key), _wrong_type(owner, key, value, typ))
+        options[key] = value
+    for key, (_typ, default) in spec.items():
+        if key not in options:
+            if default is None:
+                raise fail(line, f"{owner}: '{key}' is required (add {key} = ...)")
+            options[key] = default
+    for key in ("timeout", "poll_period"):
+        if not _seconds(options[key]):
+            raise fail(at(key), f"{owner}: {key} must be a number of seconds above 0, not {options[key]!r}")
+    if btype == "modbus-rtu":
+        if options["parity"] not in ("N", "E", "O"):
+            raise fail(at("parity"), f"{owner}: parity must be \"N\", \"E\" or \"O\", not {options['parity']!r}")
+        if options["stopbits"] not in (1, 2):
+            raise fail(at("stopbits"), f"{owner}: stopbits must be 1 or 2, not {options['stopbits']}")
+        if options["bytesize"] not in (7, 8):
+            raise fail(at("bytesize"), f"{owner}: bytesize must be 7 or 8, not {options['bytesize']}")
+        if not 0 <= options["retries"] <= 10:
+            raise fail(at("retries"), f"{owner}: retries {options['retries']} is outside 0..10")
+    if btype in ("modbus-rtu", "logited-rs485") and options["baudrate"] not in STANDARD_BAUDRATES:
+        raise fail(at("baudrate"), f"{owner}: baudrate {options['baudrate']} is not one of {', '.join(map(str, STANDARD_BAUDRATES))}")
+    if btype == "logited-rs485":
+        for key in ("master_address", "next_master"):
+            if not 0 <= options[key] <= 255:
+                raise fail(at(key), f"{owner}: {key} {options[key]} is outside 0..255")
+        if options["shared"] and options["next_master"] == options["master_address"]:
+            raise fail(at("next_master"), f"{owner}: next_master must be another master than this tool ({options['master_address']})")
+    if btype == "serial" and options["baudrate"] not in (9600, 19200, 38400):
+        raise fail(at("baudrate"), f"{owner}: baudrate {options['baudrate']} is not one of 9600, 19200, 38400")
+    if btype == "logited-tcp" and not 1 <= options["port"] <= 65535:
+        raise fail(at("port"), f"{owner}: port {options['port']} is outside 1..65535")
+    if btype == "can":
+        if not 5000 <= options["bitrate"] <= 1_000_000:
+            raise fail(at("bitrate"), f"{owner}: bitrate {options['bitrate']} is outside 5000..1000000 bit/s")
+        udp = options["interface"] == "udp_multicast"
+        if "port" in raw and not udp:
+            raise fail(at("port"), f"{owner}: port is the UDP port of interface \"udp_multicast\"; "
+                       f"keys of interface {options['interface']!r} go in [bus.{CAN_OPTIONS_TABLE}]")
+        if udp and "port" in raw and not 1024 <= options["port"] <= 65535:
+            raise fail(at("port"), f"{owner}: port {options['port']} is outside 1024..65535")
+        if not udp:
+            del options["port"]
+        elif "port" not in raw:
+            options["port"] = _udp_port(options) if options["simulate"] else UDP_MULTICAST_DEFAULT_PORT
+        if "filter_own" not in raw:
+            del options["filter_own"]  # the CAN bus picks its own default per interface
+        if options["simulate"] and options["interface"] not in CAN_SIM_INTERFACES:
+            raise fail(at("simulate"), f"{owner}: simulate = true needs interface \"virtual\" (one process) or \"udp_multicast\" "
+                       f"(across processes), not {options['interface']!r}; remove simulate for a real bus")
+        options.update(extra)  # the CAN bus passes them to python-can
+    if btype in SERIAL_SIM_TYPES and options["simulate"] and not re.fullmatch(r"socket://[^/:]*:\d+", options["port"]):
+        raise fail(at("simulate"), f"{owner}: simulate = true needs a port of the form \"socket://127.0.0.1:PORT\" "
+                   f"(the simulated devices serve a TCP port), not {options['port']!r}; remove simulate for a real line")
+    return BusConfig(name, btype, options, line)
+
+
+def _udp_port(options: dict[str, Any]) -> int:
+    """A UDP port of its own for a simulated udp_multicast bus, the same in every process that loads the file.
+
+    python-can binds every group to one port, so groups on one port hear each other (issue 14, item 2).
+    """
+    first, span = SIM_UDP_PORTS
+    return first + zlib.crc32(f"{options['channel']}".encode()) % span
+
+
+def _check_udp_ports(text: str, plant: Plant, fail) -> None:
+    seen: dict[int, BusConfig] = {}
+    for bus in plant.buses.values():
+        if bus.type != "can" or bus.options.get("interface") != "udp_multicast":
+            continue
+        port = bus.options["port"]
+        if port in seen:
+            other = seen[port]
+            raise fail(_key_line(text, bus.line, "port") if _key_line(text, bus.line, "port") != bus.line else bus.line,
+                       f"bus '{bus.name}': udp_multicast port {port} is already used by bus '{other.name}' (line {other.line}); "
+                       "udp_multicast groups on one port receive each other's frames: give this bus port = <another port>")
+        seen[port] = bus
+
+
 def load_plant(path: str | Path) -> Plant:
     path = Path(path)
     try:
@@ -155,16 +330,24 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
     def fail(line: int, message: str) -> PlantError:
         return PlantError(f"{where}:{line}: {message}")
 
-    unknown_top = set(data) - {"name", "bus", "device", "sim_device", "plant_view"}
-    if unknown_top:
-        raise fail(1, f"unknown section(s) {', '.join(sorted(unknown_top))}; expected [[bus]], [[device]], [[sim_device]], [plant_view]")
+    for key in data:
+        if key not in TOP_LEVEL:
+            guess = _did_you_mean(key, TOP_LEVEL)
+            hint = f"did you mean {_section(guess)}? " if guess else ""
+            raise fail(_section_line(text, key), f"unknown section {_section(key)}; {hint}known: [[bus]], [[device]], [[sim_device]], [plant_view], name")
+    for key in ("bus", "device", "sim_device"):
+        if key in data and not (isinstance(data[key], list) and all(isinstance(t, dict) for t in data[key])):
+            raise fail(_section_line(text, key), f"[{key}] is one table; write [[{key}]] (double brackets): one [[{key}]] table per {key.replace('sim_', 'simulated ')}")
+    if "name" in data and not isinstance(data["name"], str):
+        raise fail(_section_line(text, "name"), f"name must be a text in quotes, e.g. name = \"hall-3\", not {data['name']!r}")
     plant = Plant(name=str(data.get("name") or (path.stem if path else "plant")), path=path)
     pv = data.get("plant_view", {})
-    pv_line = next((i + 1 for i, line in enumerate(text.splitlines()) if re.match(r"^\s*\[\s*plant_view\s*\]", line)), 1)
+    pv_line = _section_line(text, "plant_view")
     if not isinstance(pv, dict):
         raise fail(pv_line, "[plant_view] must be a table, e.g. [plant_view] public = true")
     for key in sorted(set(pv) - {"public"}):
-        raise fail(_key_line(text, pv_line, key), f"[plant_view]: unknown key '{key}'; known: public (true or false)")
+        guess = _did_you_mean(key, ["public"])
+        raise fail(_key_line(text, pv_line, key), f"[plant_view]: unknown key '{key}'; {f'did you mean {guess!r}? ' if guess else ''}known: public (true or false)")
     public = pv.get("public", False)
     if not isinstance(public, bool):
         # a string such as "false" would be true in Python: only a real boolean opens the view
@@ -174,50 +357,9 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
     bus_lines = _header_lines(text, "bus")
     for index, raw in enumerate(data.get("bus", [])):
         line = bus_lines[index] if index < len(bus_lines) else 1
-        name = raw.get("name")
-        if not isinstance(name, str) or not name:
-            raise fail(line, "bus without a name (add name = \"...\")")
-        if name in plant.buses:
-            raise fail(line, f"duplicate bus name '{name}' (first at line {plant.buses[name].line})")
-        btype = raw.get("type")
-        if btype not in BUS_KEYS:
-            raise fail(_key_line(text, line, "type"), f"bus '{name}': unknown type {btype!r}; known: {', '.join(BUS_KEYS)}")
-        spec = BUS_KEYS[btype]
-        options: dict[str, Any] = {}
-        for key, value in raw.items():
-            if key in COMMON_BUS_KEYS:
-                continue
-            if key not in spec and btype in PASSTHROUGH_BUS_TYPES:
-                options[key] = value
-                continue
-            if key not in spec:
-                raise fail(_key_line(text, line, key), f"bus '{name}': unknown key '{key}'; known: {', '.join(spec)}")
-            typ = spec[key][0]
-            if isinstance(value, bool) and typ is not bool or not isinstance(value, typ):
-                raise fail(_key_line(text, line, key), f"bus '{name}': '{key}' has the wrong type ({value!r})")
-            options[key] = value
-        for key, (_typ, default) in spec.items():
-            if key not in options:
-                if default is None:
-                    raise fail(line, f"bus '{name}': '{key}' is required")
-                options[key] = default
-        if btype == "modbus-rtu":
-            if options["parity"] not in ("N", "E", "O"):
-                raise fail(_key_line(text, line, "parity"), f"bus '{name}': parity must be \"N\", \"E\" or \"O\"")
-        if options["timeout"] <= 0:
-            raise fail(_key_line(text, line, "timeout"), f"bus '{name}': timeout must be > 0 s")
-        if btype == "logited-rs485":
-            for key in ("master_address", "next_master"):
-                if not 0 <= options[key] <= 255:
-                    raise fail(_key_line(text, line, key), f"bus '{name}': {key} {options[key]} is outside 0..255")
-            if options["shared"] and options["next_master"] == options["master_address"]:
-                raise fail(_key_line(text, line, "next_master"),
-                           f"bus '{name}': next_master must be another master than this tool ({options['master_address']})")
-        if btype == "serial" and options["baudrate"] not in (9600, 19200, 38400):
-            raise fail(_key_line(text, line, "baudrate"), f"bus '{name}': baudrate {options['baudrate']} is not one of 9600, 19200, 38400")
-        if btype == "can" and not 5000 <= options["bitrate"] <= 1_000_000:
-            raise fail(_key_line(text, line, "bitrate"), f"bus '{name}': bitrate {options['bitrate']} is outside 5000..1000000 bit/s")
-        plant.buses[name] = BusConfig(name, btype, options, line)
+        bus = _parse_bus(text, raw, line, plant, fail)
+        plant.buses[bus.name] = bus
+    _check_udp_ports(text, plant, fail)
 
     _parse_devices(text, data, plant, "device", plant.devices, fail)
     _parse_devices(text, data, plant, "sim_device", plant.sim_devices, fail)
@@ -295,8 +437,23 @@ def _parse_devices(text, data, plant, table, target, fail) -> None:
             raise fail(_key_line(text, line, "bus"), f"device '{name}': a {dtype} cannot sit on a {plant.buses[bus].type} bus")
         options = {k: v for k, v in raw.items() if k not in COMMON_DEVICE_KEYS}
         for key, message in device_type.check_config(options, plant.buses[bus].type):
-            raise fail(_key_line(text, line, key), f"device '{name}': {message}")
+            raise fail(*_device_problem(text, line, name, options, key, message))
         target[name] = DeviceConfig(name, dtype, bus, options, line)
+
+
+def _device_problem(text: str, line: int, name: str, options: dict[str, Any], key: str, message: str) -> tuple[int, str]:
+    """The line and message of a device-type check, naming a misspelt or mistyped key where that is the cause."""
+    owner = f"device '{name}'"
+    if key not in options and "required" in message:
+        guess = _did_you_mean(key, [k for k in options if isinstance(k, str)])
+        if guess is not None:
+            return _key_line(text, line, guess), f"{owner}: unknown key '{guess}'; did you mean '{key}'? ({message})"
+    elif key in options and "required" in message:
+        value = options[key]
+        if isinstance(value, str) and re.fullmatch(r"\s*[-+]?(0x)?[0-9a-fA-F_.]+\s*", value):
+            return _key_line(text, line, key), f"{owner}: {key} must be a number (without quotes), not {value!r}; write {key} = {value.strip()}"
+        return _key_line(text, line, key), f"{owner}: {key} = {value!r} has the wrong kind of value: {message}"
+    return _key_line(text, line, key), f"{owner}: {message}"
 
 
 def device_toml(dev: DeviceConfig) -> str:
