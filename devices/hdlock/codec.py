@@ -298,6 +298,8 @@ def decode_request(frame: CanFrame) -> CanRequest:
         raise CodecError(f"0x{frame.arbitration_id:X} is not an HD-Lock request ID")
     if len(frame.data) < 6:
         raise CodecError(f"request 0x{frame.arbitration_id:X} too short ({len(frame.data)} bytes)")
+    if len(frame.data) > 8:  # section 6.2: a CAN frame carries [1...8] data bytes
+        raise CodecError(f"request 0x{frame.arbitration_id:X} has {len(frame.data)} bytes, a CAN frame at most 8")
     data = frame.data + bytes(8 - len(frame.data))
     target = DeviceId.from_u32(unpack_le(data[0:4]))
     return CanRequest(frame.arbitration_id, target, unpack_le(data[4:6]), unpack_le(data[6:8]))
