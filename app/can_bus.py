@@ -6,6 +6,12 @@ in batches (one wake-up per batch, never one per frame). The loop dispatches eac
 frame to the handlers subscribed to its ID, feeds the monitor's bounded buffers and
 offers frames of unknown IDs to discovery listeners. A bus that fails to open, dies
 or goes bus-off is reopened with backoff.
+
+A flood never stalls the loop: the hand-over holds at most ``INBOX_FRAMES`` frames per
+kind (frames of subscribed IDs, and all others), the oldest are shed and counted in
+``CanBusState.shed`` when the loop falls behind, frames of subscribed IDs go first, and
+the loop drains for at most ``DRAIN_BUDGET_S`` at a time before it runs anything else
+(the keep-alives of every bus among it).
 """
 
 from __future__ import annotations
@@ -30,7 +36,10 @@ Handler = Callable[[can.Message], None]
 
 MONITOR_FRAMES = 20_000
 MAX_IDS = 4096  # rows of the overwrite view
-DRAIN_BATCH = 4096
+INBOX_FRAMES = 4096  # per kind waiting for the loop: about 0.45 s of a full 1 Mbit/s bus; beyond, the oldest are shed
+DRAIN_BUDGET_S = 0.004  # the loop drains one bus this long at most, then runs timers and other tasks
+DRAIN_CHECK = 4  # frames between two looks at the clock
+SHED_WARN_S = 10.0  # at most one log line per bus this often while frames are shed
 BUS_STATE_NAMES = {
     can.BusState.ACTIVE: "error-active",
     can.BusState.PASSIVE: "error-passive",
@@ -73,10 +82,26 @@ class CanBusState(BusState):
     tx_frames: int = 0
     error_frames: int = 0
     tx_errors: int = 0
-    dropped: int = 0
+    dropped: int = 0  # frames not handled: shed at the hand-over, or a handler failed on them
+    shed: int = 0  # of those, frames the reader dropped because the loop was behind (a flood)
     frames: deque = field(default_factory=lambda: deque(maxlen=MONITOR_FRAMES))
     ids: OrderedDict[Key, IdStats] = field(default_factory=OrderedDict)  # least recently heard first
     recorder: Any = None  # a python-can writer while recording
+
+
+SOCKETCAN_ERRNOS = {97, 19, 100}  # EAFNOSUPPORT (no SocketCAN: not Linux, no can module), ENODEV, ENETDOWN
+
+
+def open_error(options: dict[str, Any], exc: Exception) -> str:
+    """What the bus page says when python-can cannot open the bus; for SocketCAN, what it needs and how."""
+    interface, channel = options.get("interface"), options.get("channel")
+    text = f"cannot open {interface} {channel}: {exc}"
+    code = getattr(exc, "errno", None) or getattr(exc, "error_code", None)
+    if interface == "socketcan" and code in SOCKETCAN_ERRNOS:
+        bitrate = options.get("bitrate") or 500000
+        text += (f" - SocketCAN needs Linux (with the can modules) and the interface up: "
+                 f"`sudo ip link set {channel or 'can0'} up type can bitrate {bitrate}`")
+    return text
 
 
 class CanBus:
@@ -93,7 +118,11 @@ class CanBus:
         self.bus: can.BusABC | None = None
         self.handlers: dict[Key, list[Handler]] = {}
         self.listeners: list[Handler] = []  # every received frame whose ID has no handler
-        self._inbox: deque[can.Message] = deque()
+        self._inbox: deque[can.Message] = deque()  # frames of subscribed IDs: handled first
+        self._inbox_other: deque[can.Message] = deque()  # the rest: monitor and discovery only
+        self._shed = 0  # written by the reader thread only
+        self._shed_seen = 0
+        self._shed_warned = 0.0
         self._scheduled = False
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
@@ -164,7 +193,7 @@ class CanBus:
                     self.bus = await loop.run_in_executor(None, self._open)
                 except Exception as exc:  # CanInterfaceNotImplementedError, CanInitializationError, OSError ...
                     self.state.connected = False
-                    self.state.last_error = f"cannot open {self.options.get('interface')} {self.options.get('channel')}: {exc}"
+                    self.state.last_error = open_error(self.options, exc)
                     log.warning("%s: %s", self.name, self.state.last_error)
                     await asyncio.sleep(self._backoff)
                     self._backoff = min(self._backoff * 2, 10.0)
@@ -211,10 +240,10 @@ class CanBus:
 
     # -- receive path ------------------------------------------------------------------
     def _read(self) -> None:
-        """Reader thread: recv() with a timeout, batch frames into the loop."""
+        """Reader thread: recv() with a timeout, batch frames into the loop, shed the oldest when it is behind."""
         bus, loop = self.bus, self._loop
         assert bus is not None and loop is not None
-        inbox = self._inbox
+        handlers, known, other = self.handlers, self._inbox, self._inbox_other
         while not self._stop.is_set():
             try:
                 msg = bus.recv(0.1)
@@ -223,6 +252,13 @@ class CanBus:
                 return
             if msg is None:
                 continue
+            inbox = known if (msg.is_extended_id, msg.arbitration_id) in handlers else other
+            if len(inbox) >= INBOX_FRAMES:
+                try:
+                    inbox.popleft()
+                    self._shed += 1
+                except IndexError:  # the loop emptied it meanwhile
+                    pass
             inbox.append(msg)
             if not self._scheduled:
                 self._scheduled = True
@@ -232,14 +268,35 @@ class CanBus:
                     return
 
     def _drain(self) -> None:
-        """In the loop: handle the frames buffered by the reader thread."""
+        """In the loop: handle buffered frames, subscribed IDs first, for at most ``DRAIN_BUDGET_S``."""
         self._scheduled = False
-        inbox = self._inbox
-        for _ in range(min(len(inbox), DRAIN_BATCH)):
-            self.dispatch(inbox.popleft())
-        if inbox and not self._scheduled:
+        self._count_shed()
+        deadline = time.perf_counter() + DRAIN_BUDGET_S
+        done = False
+        for inbox in (self._inbox, self._inbox_other):
+            while inbox and not done:
+                for _ in range(min(len(inbox), DRAIN_CHECK)):
+                    try:
+                        msg = inbox.popleft()
+                    except IndexError:  # shed by the reader meanwhile
+                        break
+                    self.dispatch(msg)
+                done = time.perf_counter() >= deadline
+        if (self._inbox or self._inbox_other) and not self._scheduled:
             self._scheduled = True
             asyncio.get_running_loop().call_soon(self._drain)
+
+    def _count_shed(self) -> None:
+        shed = self._shed
+        if shed == self._shed_seen:
+            return
+        new, self._shed_seen = shed - self._shed_seen, shed
+        self.state.shed += new
+        self.state.dropped += new
+        now = time.monotonic()
+        if now - self._shed_warned >= SHED_WARN_S:
+            self._shed_warned = now
+            log.warning("%s: the program cannot keep up with the bus: %d frames shed so far", self.name, self.state.shed)
 
     def dispatch(self, msg: can.Message) -> None:
         """Monitor, echo filter, then the handlers of the frame's ID (or the listeners)."""
