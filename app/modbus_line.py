@@ -2,7 +2,8 @@
 
 Every transaction of every device on the line goes through :meth:`ModbusLine.transact`,
 which serialises access, counts results per device, classifies failures (timeout,
-CRC/framing, Modbus exception, port lost) and keeps a bounded transaction log.
+CRC/framing, an answer from another unit address, Modbus exception, port lost) and keeps a
+bounded transaction log.
 """
 
 from __future__ import annotations
@@ -11,11 +12,12 @@ import asyncio
 import logging
 import re
 import time
+from collections import Counter
 from dataclasses import dataclass
 
 from pymodbus.client import AsyncModbusSerialClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
-from pymodbus.framer import FramerType
+from pymodbus.framer import FramerRTU, FramerType
 
 from app.state import BusState, Counters
 from devices.transport import LineClosed, LineCrcError, LineError, LineException, LineTimeout
@@ -71,6 +73,37 @@ def request_target(what: str) -> tuple[str, int | None, int | None]:
     return m.group(1), int(m.group(2)), None if m.group(3) is None else int(m.group(3))
 
 
+# pymodbus skips an RTU answer whose unit differs from the request ("... but got id=N, Skipping") and
+# then times out, or raises ModbusIOException "... but received N"; either way the answer was sound.
+_RECEIVED_UNIT = re.compile(r"(?:but received|but got id=)\s*(\d+)")
+
+
+def _rtu_frame_length(data: bytes) -> int | None:
+    """Length of the RTU answer starting at ``data[0]`` from its function code, or None if unknown."""
+    if len(data) < 2:
+        return None
+    function = data[1]
+    if function & 0x80:
+        return 5  # unit, function | 0x80, exception code, CRC
+    if function in (1, 2, 3, 4):
+        return 5 + data[2] if len(data) > 2 else None  # unit, function, byte count, data, CRC
+    if function in (5, 6, 15, 16):
+        return 8  # unit, function, address, value/count, CRC
+    return None
+
+
+def foreign_unit(received: bytes, unit: int) -> int | None:
+    """The unit address of a well-formed (CRC-correct) answer in ``received`` that is not ``unit``."""
+    for start in range(len(received)):
+        length = _rtu_frame_length(received[start:])
+        if length is None or start + length > len(received):
+            continue
+        frame = received[start:start + length]
+        if FramerRTU.check_CRC(frame[:-2], frame[-2] << 8 | frame[-1]) and frame[0] != unit:
+            return frame[0]
+    return None
+
+
 class ModbusLine:
     """A pymodbus async RTU client on one serial line; implements :class:`devices.transport.ModbusTransport`.
 
@@ -87,6 +120,7 @@ class ModbusLine:
         self._rx: list[bytes] = []
         self._backoff = 0.5
         self._next_connect = 0.0
+        self.address_conflicts: Counter[tuple[int, int]] = Counter()  # (unit asked, unit that answered) -> count
 
     # -- connection ----------------------------------------------------------------
     def _trace(self, sending: bool, data: bytes) -> bytes:
@@ -182,7 +216,13 @@ class ModbusLine:
                 self.state.last_error = error
                 failure: LineError = LineClosed(f"line {self.name}: {error}")
             except (ModbusIOException, asyncio.TimeoutError) as exc:
-                if self._rx:
+                found = _RECEIVED_UNIT.search(str(exc))
+                other = int(found.group(1)) if found else foreign_unit(b"".join(self._rx), unit)
+                if other is not None and other != unit:
+                    error = f"answer from unit {other}: address conflict on the line?"
+                    failure = LineError(f"unit {unit}: {error}")
+                    self.address_conflicts[(unit, other)] += 1
+                elif self._rx:
                     error = "CRC or framing error in the answer"
                     failure = LineCrcError(f"unit {unit}: {error}")
                     if counters:

@@ -384,3 +384,46 @@ async def test_nothing_is_held_for_a_browser_session(running):
     assert running.twins["door-1"].holding[3000] == 300  # nothing was undone or sent
     assert not [e for e in running.store.devices["door-1"].events if "session-1" in e.text]
     assert running.store.devices["door-1"].counters.requests >= requests
+
+
+def _rtu(body: bytes) -> bytes:
+    crc = 0xFFFF
+    for byte in body:
+        crc ^= byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+    return body + crc.to_bytes(2, "little")
+
+
+async def test_answer_from_another_unit_is_an_address_conflict_not_a_crc_error():
+    """A well-formed answer under another unit address: a second device on the line shares the address."""
+    from app.modbus_line import ModbusLine
+    from app.state import BusState
+    from devices.live import Counters
+
+    async def impostor(reader, writer):  # every read is answered, correctly sealed, by unit 9
+        try:
+            while request := await reader.read(8):
+                count = int.from_bytes(request[4:6], "big")
+                writer.write(_rtu(bytes([9, request[1], 2 * count]) + bytes(2 * count)))
+                await writer.drain()
+        except (ConnectionError, asyncio.CancelledError):
+            pass
+
+    server = await asyncio.start_server(impostor, "127.0.0.1", 0)
+    port = server.sockets[0].getsockname()[1]
+    state = BusState("line1", "modbus-rtu", f"socket://127.0.0.1:{port}")
+    line = ModbusLine("line1", {"port": state.endpoint, "baudrate": 19200, "parity": "E", "stopbits": 1,
+                                "timeout": 0.2, "retries": 0}, state)
+    counters = Counters()
+    try:
+        with pytest.raises(Exception, match="answer from unit 9: address conflict on the line?") as caught:
+            await line.read_holding(1, 103, 1, counters)
+        assert not isinstance(caught.value, LineTimeout)
+        assert counters.crc_errors == 0 and counters.timeouts == 0
+        assert line.address_conflicts == {(1, 9): 1}
+        assert "answer from unit 9" in state.transactions[-1].error
+    finally:
+        line.close()
+        server.close()
+        await server.wait_closed()
