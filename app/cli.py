@@ -6,8 +6,10 @@ import argparse
 import asyncio
 import logging
 import signal
+import socket
 import sys
 from pathlib import Path
+from urllib.parse import urlparse
 
 from app.plant import DEMO_PLANT, PlantError, load_plant
 
@@ -96,6 +98,46 @@ def _load(path: Path | None):
         raise SystemExit(2) from None
 
 
+def _bindable(host: str, port: int) -> bool:
+    """Whether a TCP server could listen on ``host:port`` now (SO_REUSEADDR, as asyncio and uvicorn bind)."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind((host, port))
+        except OSError:
+            return False
+    return True
+
+
+def _simulated_endpoints(plant, every: bool = False) -> list[tuple[str, str, int]]:
+    """``(bus, host, port)`` of each TCP port the simulated devices of ``plant`` listen on."""
+    endpoints = []
+    for bus in plant.buses.values():
+        if not (bus.simulated or every):
+            continue
+        if bus.type == "logited-tcp":
+            endpoints.append((bus.name, bus.options["host"], bus.options["port"]))
+        elif isinstance(bus.options.get("port"), str) and bus.options["port"].startswith("socket://"):
+            url = urlparse(bus.options["port"])
+            if url.port:
+                endpoints.append((bus.name, url.hostname or "127.0.0.1", url.port))
+    return endpoints
+
+
+def _refuse_taken_ports(plant, program: str = "commission", every: bool = False) -> bool:
+    """Say which simulated ports are taken (another copy of the plant?); True when the start must stop.
+
+    Polling whatever owns such a port as if it were this plant's twin would be worse than not starting.
+    """
+    taken = [(bus, host, port) for bus, host, port in _simulated_endpoints(plant, every) if not _bindable(host, port)]
+    for bus, host, port in taken:
+        print(f"{program}: the simulated bus '{bus}' cannot listen on {host}:{port}: the port is taken "
+              "(another copy of this plant or another program); stop it, or give the bus another port in the plant file",
+              file=sys.stderr)
+    return bool(taken)
+
+
 def _quiet_libraries(verbose: bool) -> None:
     logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     logging.getLogger("pymodbus").setLevel(logging.DEBUG if verbose else logging.CRITICAL)
@@ -109,6 +151,8 @@ def run_sim(args) -> int:
     sim = SimulatedPlant(plant, only_flagged=not args.all)
     if not sim.servers:
         print("commission sim: the plant file has no bus with simulate = true (use --all to simulate every bus)", file=sys.stderr)
+        return 2
+    if _refuse_taken_ports(plant, "commission sim", every=args.all):
         return 2
 
     async def main() -> None:
@@ -178,15 +222,18 @@ async def _headless(args, work) -> int:
     from app.users import default_data_dir
 
     plant = _load(args.plant)
+    if not args.no_sim and _refuse_taken_ports(plant):
+        return 2
+    names = getattr(args, "device", None)
+    names = [names] if isinstance(names, str) else (names or list(plant.devices))
+    for name in names:
+        if name not in plant.devices:
+            print(f"commission: the plant has no device named {name!r} (devices: {', '.join(plant.devices)})", file=sys.stderr)
+            return 2
     runtime = Runtime(plant, simulate=not args.no_sim, data_dir=args.data_dir or default_data_dir())
     await runtime.start()
     try:
-        names = getattr(args, "device", None)
-        names = [names] if isinstance(names, str) else (names or list(plant.devices))
-        for name in names:
-            if name not in plant.devices:
-                print(f"commission: the plant has no device named {name!r} (devices: {', '.join(plant.devices)})", file=sys.stderr)
-                return 2
+        print(f"waiting up to 15 s for {len(names)} device(s) to answer ...", flush=True)
         loop = asyncio.get_running_loop()
         end = loop.time() + 15
         while loop.time() < end and any(runtime.store.devices[n].status != "online" for n in names):
@@ -206,6 +253,19 @@ def _cli_user() -> str:
         return "cli"
 
 
+async def _nothing_to_back_up(adapter, backup) -> str:
+    """Why a device has nothing to back up ("" when it has): a skip with its reason, not a failure."""
+    if backup.supports_backup(adapter):
+        return ""
+    if getattr(adapter, "backup_available", True) is False and callable(getattr(adapter, "backup_read", None)):
+        try:  # an adapter without backup data names the reason when asked for it, without bus traffic
+            await asyncio.wait_for(adapter.backup_read(), timeout=2)
+        except Exception as exc:  # noqa: BLE001 - the reason is the message
+            return str(exc) or "nothing to back up in this configuration"
+        return "nothing to back up in this configuration"
+    return "this device type has no parameters to back up"
+
+
 def run_backup(args) -> int:
     from app import backup
 
@@ -213,6 +273,10 @@ def run_backup(args) -> int:
         failures = 0
         for name in names:
             state = runtime.store.devices[name]
+            reason = await _nothing_to_back_up(runtime.worker.adapters[name], backup)
+            if reason:
+                print(f"{name}: skipped: {reason}", flush=True)
+                continue
             if state.status != "online":
                 print(f"{name}: not answering ({state.last_error or 'no answer'}): skipped", file=sys.stderr)
                 failures += 1
@@ -292,6 +356,14 @@ def run_restore(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        print("commission: stopped (Ctrl-C)", file=sys.stderr, flush=True)
+        return 130
+
+
+def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     _quiet_libraries(args.verbose)
     commands = {"sim": run_sim, "backup": run_backup, "restore": run_restore, "user": run_user}
@@ -327,9 +399,47 @@ def main(argv: list[str] | None = None) -> int:
     from app.runtime import Runtime
 
     plant = _load(args.plant)
+    if not _bindable(args.host, args.port):
+        print(f"commission: port {args.port} on {args.host} is taken (another commission or another program); "
+              f"choose another with --port", file=sys.stderr)
+        return 2
+    if not args.no_sim and _refuse_taken_ports(plant):
+        return 2
     runtime = Runtime(plant, simulate=not args.no_sim, data_dir=data_dir, auth_required=auth_required)
     web.register(runtime, host=args.host, allowed_hosts=args.allowed_host)
-    print(f"commission: plant '{plant.name}' ({len(plant.devices)} devices) at http://{args.host}:{args.port}/", flush=True)
+    url = f"http://{args.host}:{args.port}/"
+    announce_task: list[asyncio.Task] = []
+
+    async def announce() -> None:
+        """Print the URL once the server accepts connections (uvicorn binds after the startup handlers)."""
+        probe = "127.0.0.1" if args.host in ("0.0.0.0", "") else "::1" if args.host == "::" else args.host
+        loop = asyncio.get_running_loop()
+        end = loop.time() + 30
+        while loop.time() < end:
+            try:
+                _reader, writer = await asyncio.open_connection(probe, args.port)
+            except OSError:
+                await asyncio.sleep(0.1)
+                continue
+            writer.close()
+            print(f"commission: plant '{plant.name}' ({len(plant.devices)} devices) at {url}", flush=True)
+            return
+        print(f"commission: the GUI did not start listening on {args.host}:{args.port}", file=sys.stderr, flush=True)
+
+    from nicegui import app as gui_app
+
+    gui_app.on_startup(lambda: announce_task.append(asyncio.create_task(announce(), name="announce")))
+    interrupted: list[int] = []
+
+    def on_interrupt(signum, frame) -> None:
+        """While it serves, uvicorn takes Ctrl-C itself, stops the server and then raises the signal again:
+        once serving has begun (``announce_task``) it is only noted, since a KeyboardInterrupt then cuts the
+        server's clean-up short with a traceback."""
+        if not announce_task:
+            raise KeyboardInterrupt
+        interrupted.append(signum)
+
+    signal.signal(signal.SIGINT, on_interrupt)
     ui.run(
         host=args.host,
         port=args.port,
@@ -340,6 +450,8 @@ def main(argv: list[str] | None = None) -> int:
         favicon="🔧",
         storage_secret=web.storage_secret(data_dir),
     )
+    if signal.SIGINT in interrupted:
+        raise KeyboardInterrupt  # the one-line message of main()
     return 0
 
 

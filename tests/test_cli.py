@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+from pathlib import Path
 
 import pytest
 from conftest import free_port, sim_process, wait_for
@@ -10,6 +12,8 @@ from conftest import free_port, sim_process, wait_for
 from app.cli import main
 from app.plant import parse_plant
 from app.runtime import Runtime
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_help_documents_everything(capsys):
@@ -122,3 +126,97 @@ def test_restore_yes_refuses_risky_values_unless_named(tmp_path, capsys):
     assert main(["restore", "--plant", str(plant), "--device", "door-1", str(path), "--yes",
                  "--accept-risk", "SettingsRemoveMagnet", *data]) == 0
     assert "1 written" in capsys.readouterr().out
+
+
+def _listener():
+    import socket
+
+    sock = socket.socket()
+    sock.bind(("127.0.0.1", 0))
+    sock.listen()
+    return sock, sock.getsockname()[1]
+
+
+def _sim_plant(tmp_path, port):
+    plant = tmp_path / "plant.toml"
+    plant.write_text(
+        f'[[bus]]\nname = "line1"\ntype = "modbus-rtu"\nport = "socket://127.0.0.1:{port}"\nsimulate = true\ntimeout = 0.3\n'
+        'poll_period = 0.1\n[[device]]\nname = "door-1"\ntype = "hdlock"\nbus = "line1"\naddress = 1\n'
+    )
+    return plant
+
+
+def test_gui_port_in_use_is_named_and_no_url_printed(tmp_path, capsys):
+    sock, port = _listener()
+    with sock:
+        assert main(["--plant", str(_sim_plant(tmp_path, free_port())), "--port", str(port), "--data-dir", str(tmp_path / "d")]) == 2
+    out = capsys.readouterr()
+    assert "http://" not in out.out
+    assert f"port {port}" in out.err and "--port" in out.err
+
+
+@pytest.mark.parametrize("command", [[], ["backup", "--out", "OUT"]])
+def test_simulated_port_taken_refuses_to_start(tmp_path, capsys, command):
+    """A second copy of a simulated plant must not poll the first copy's twins as its own."""
+    sock, port = _listener()
+    args = [a.replace("OUT", str(tmp_path / "out")) for a in command]
+    with sock:
+        code = main([*args[:1], "--plant", str(_sim_plant(tmp_path, port)), *args[1:], "--data-dir", str(tmp_path / "d")]
+                    + ([] if command else ["--port", str(free_port())]))
+    assert code == 2
+    err = capsys.readouterr().err
+    assert f"127.0.0.1:{port}" in err and "line1" in err and "taken" in err
+
+
+def test_backup_skips_a_device_with_nothing_to_back_up(tmp_path, capsys):
+    """An M3IO in simple mode (SW1 switch 8 off) has no stored data: skipped with the reason, the run succeeds."""
+    plant = tmp_path / "plant.toml"
+    plant.write_text(
+        f'[[bus]]\nname = "can3"\ntype = "can"\ninterface = "virtual"\nchannel = "cli-{id(tmp_path)}"\nbitrate = 500000\n'
+        'simulate = true\n[[device]]\nname = "heater"\ntype = "m3io"\nbus = "can3"\nvariant = "HM"\nsw1 = 0x1A\n'
+    )
+    assert main(["backup", "--plant", str(plant), "--out", str(tmp_path / "out"), "--data-dir", str(tmp_path / "d")]) == 0
+    out = capsys.readouterr()
+    assert "heater: skipped" in out.out and "addressed mode" in out.out
+    assert not list((tmp_path / "out").glob("heater-*.json"))
+
+
+def _interrupted(args, ready: str, tmp_path) -> subprocess.CompletedProcess:
+    import os
+    import signal
+    import sys
+    import time
+
+    env = {k: v for k, v in os.environ.items() if k != "PYTEST_CURRENT_TEST"}  # NiceGUI would take it for its own test mode
+    proc = subprocess.Popen([sys.executable, "-m", "app.cli", *args, "--data-dir", str(tmp_path / "d")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT, env=env)
+    try:
+        end = time.monotonic() + 20
+        seen = ""
+        while ready not in seen and time.monotonic() < end and proc.poll() is None:
+            seen += proc.stdout.readline()
+        assert ready in seen, seen + (proc.stderr.read() if proc.poll() is not None else "")
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=15)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    return subprocess.CompletedProcess(args, proc.returncode, seen + out, err)
+
+
+def test_ctrl_c_stops_the_gui_with_one_line(tmp_path):
+    port = free_port()
+    done = _interrupted(["--plant", str(_sim_plant(tmp_path, free_port())), "--port", str(port)], f"http://127.0.0.1:{port}/", tmp_path)
+    assert "Traceback" not in done.stderr and "KeyboardInterrupt" not in done.stderr
+    assert "commission: stopped (Ctrl-C)" in done.stderr
+    assert done.returncode == 130
+
+
+def test_ctrl_c_stops_a_backup_with_one_line(tmp_path):
+    plant = tmp_path / "plant.toml"
+    plant.write_text('[[bus]]\nname = "l"\ntype = "modbus-rtu"\nport = "/dev/ttyNOPE"\ntimeout = 0.1\npoll_period = 0.1\n'
+                     '[[device]]\nname = "d"\ntype = "hdlock"\nbus = "l"\naddress = 1\n')
+    done = _interrupted(["backup", "--plant", str(plant), "--out", str(tmp_path / "out")], "waiting", tmp_path)
+    assert "Traceback" not in done.stderr and "KeyboardInterrupt" not in done.stderr
+    assert "commission: stopped (Ctrl-C)" in done.stderr
+    assert done.returncode == 130
