@@ -105,6 +105,10 @@ class DeviceState:
         self.points[name] = Point(value, unit, _now() if time is None else time, raw, text, periodic)
 
     def mark_seen(self, now: float | None = None) -> None:
+        if self.online is False and self.last_error:  # recovered: the old error stays in the event log only
+            self.event("info", f"back online (last error: {self.last_error})")
+            self.last_error = ""
+            self.last_error_time = None
         self.online = True
         self.last_seen = time.time() if now is None else now
 
