@@ -293,7 +293,8 @@ class Worker:
             listed.update(first_seen=candidate.first_seen, last_seen=now, frames=candidate.frames, bus=bus,
                           evidence=candidate.evidence_text())
             self.discovered[bus][key] = listed
-            log.info("%s: discovered %s at %s (%s)", bus, listed["type"], key, listed["evidence"])
+            log.info("%s: discovered %s at CAN ID 0x%X (%s-bit): %s", bus, listed["type"], key[1], "29" if key[0] else "11",
+                     listed["evidence"])
 
     def discovery_summary(self, bus: str) -> dict:
         """What the overview shows under the discovered devices of a CAN bus."""
