@@ -72,7 +72,7 @@ def frame(title: str):
     with ui.header().classes("items-center bg-blue-grey-9 q-py-xs"):
         ui.link("commission", "/").classes("text-h6 text-white no-underline")
         ui.label(f"plant: {runtime.plant.name}").classes("text-caption text-grey-4")
-        if runtime.sim is not None:
+        if runtime.sim is not None and runtime.sim.servers:  # only when some bus of the plant is simulated
             ui.badge("simulated devices", color="purple-3").classes("text-black")
         ui.space()
         with ui.row().classes("items-center gap-2") as health:
