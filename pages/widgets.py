@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Awaitable, Callable
 from datetime import datetime
 
@@ -163,6 +164,10 @@ class RegisterTable:
 class HistoryChart:
     """Rolling plotly time chart of the device history samples."""
 
+    @staticmethod
+    def _iso(t: float) -> str:
+        return datetime.fromtimestamp(t).isoformat(timespec="milliseconds")
+
     def __init__(self, state: DeviceState, series: list[str], window_s: int = CHART_WINDOW_S, height: int = 320):
         self.state = state
         self.series = series
@@ -183,11 +188,21 @@ class HistoryChart:
         self.update()
 
     def update(self) -> None:
+        layout = self.figure["layout"]
         if not self.state.history:
+            if not layout.get("annotations"):  # nothing read yet: the last window up to now, not an axis at 1970/2000
+                now = time.time()
+                layout["xaxis"].update(autorange=False, range=[self._iso(now - self.window_s), self._iso(now)])
+                layout["annotations"] = [{"text": "no data yet", "xref": "paper", "yref": "paper", "x": 0.5, "y": 0.5,
+                                          "showarrow": False, "font": {"size": 16, "color": "#757575"}}]
+                self.plot.update()
             return
+        if layout.pop("annotations", None) is not None:
+            layout["xaxis"].pop("range", None)
+            layout["xaxis"]["autorange"] = True
         last = self.state.history[-1][0]
         samples = [(t, s) for t, s in self.state.history if t >= last - self.window_s]
-        xs = [datetime.fromtimestamp(t).isoformat(timespec="milliseconds") for t, _ in samples]
+        xs = [self._iso(t) for t, _ in samples]
         for trace, name in zip(self.figure["data"], self.series):
             trace["x"] = xs
             trace["y"] = [s.get(name) for _, s in samples]
