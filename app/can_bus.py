@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import sys
 import threading
 import time
 from collections import OrderedDict, deque
@@ -39,6 +40,7 @@ MAX_IDS = 4096  # rows of the overwrite view
 INBOX_FRAMES = 4096  # per kind waiting for the loop: about 0.45 s of a full 1 Mbit/s bus; beyond, the oldest are shed
 DRAIN_BUDGET_S = 0.004  # the loop drains one bus this long at most, then runs timers and other tasks
 DRAIN_CHECK = 4  # frames between two looks at the clock
+GIL_SWITCH_S = 0.001  # a busy reader thread holds the GIL at most this long while the loop owes a keep-alive (5 ms by default)
 SHED_WARN_S = 10.0  # at most one log line per bus this often while frames are shed
 BUS_STATE_NAMES = {
     can.BusState.ACTIVE: "error-active",
@@ -157,6 +159,8 @@ class CanBus:
 
     async def start(self) -> None:
         self._loop = asyncio.get_running_loop()
+        if sys.getswitchinterval() > GIL_SWITCH_S:  # measured by bench/can_flood.py: worst control gap 226 -> 121 ms at 6x
+            sys.setswitchinterval(GIL_SWITCH_S)
         self._task = asyncio.create_task(self._supervise(), name=f"can {self.name}")
 
     async def stop(self) -> None:

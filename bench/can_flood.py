@@ -1,0 +1,163 @@
+"""A flooded CAN bus must not stall the others (issue 14, item 1).
+
+The plant: ``can1`` (1 Mbit/s, an HD-Lock and its twin) and ``can2`` (500 kbit/s, an
+Electrak and its twin), both python-can ``virtual`` buses in this process, run by the
+worker exactly as in the GUI. The Electrak is under control (its control telegram is
+due every 100 ms; the actuators raise the message-timeout flag after 250 ms without
+one). A sender thread floods ``can1`` for ``--seconds`` per phase at 1x and 2x the
+frame limit of a 1 Mbit/s bus (9,009 8-byte standard frames/s), first with unknown
+IDs (extended, data starting ``00 00``: the worst case for discovery), then with the
+lock's own status ID (every frame decoded by its adapter).
+
+Per phase: frames sent and handled per second, frames shed at the hand-over, loop lag
+p99 and worst (a 20 ms probe), RSS growth, the largest gap between two control
+telegrams on ``can2`` (send times, as a third node on that bus sees them), whether the
+message-timeout flag rose and whether the lock stayed online.
+
+The sender shares this process (and the GIL) with the receive path, and the lock's twin
+receives the flood too: the figures are pessimistic against a real interface, whose
+frames come from the kernel.
+
+Last line: ``worst_keepalive_gap_ms: X`` over all phases (target below 150).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import sys
+import threading
+import time
+import uuid
+from pathlib import Path
+
+import can
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from app.plant import parse_plant  # noqa: E402
+from app.runtime import Runtime  # noqa: E402
+from devices.electrak import codec as electrak  # noqa: E402
+from devices.hdlock import codec as hdlock  # noqa: E402
+
+BUS_LIMIT_FPS = 1_000_000 // 111  # 8-byte standard frames, 111 bits each, no stuffing
+LOCK_ID = 660100
+MESSAGE_TIMEOUT = 1 << 5  # Electrak status error bit 5
+
+
+def plant(flooded: str, lift: str):
+    return parse_plant(
+        f'[[bus]]\nname = "can1"\ntype = "can"\ninterface = "virtual"\nchannel = "{flooded}"\nbitrate = 1000000\nsimulate = true\n'
+        f'[[bus]]\nname = "can2"\ntype = "can"\ninterface = "virtual"\nchannel = "{lift}"\nbitrate = 500000\nsimulate = true\n'
+        f'[[device]]\nname = "gate-1"\ntype = "hdlock"\nbus = "can1"\ndevice_id = {LOCK_ID}\n'
+        '[[device]]\nname = "lift"\ntype = "electrak"\nbus = "can2"\n'
+        'actuators = [{ model = "HD24", gearing = "B026", stroke_mm = 300 }, { model = "HD24", gearing = "B026", stroke_mm = 300 }]\n'
+    )
+
+
+def flood_frames(kind: str, n: int) -> list[can.Message]:
+    if kind == "unknown":
+        return [can.Message(arbitration_id=0x1000000 + i * 7919 % 0xFFFFFF, is_extended_id=True,
+                            data=bytes([0, 0, i & 0xFF, i >> 8 & 0xFF, 0, 0, 0, 0])) for i in range(n)]
+    status = [hdlock.encode_status(hdlock.StatusFrame(0x0200, i % 116, i % 100, 4)) for i in range(n)]
+    return [can.Message(arbitration_id=LOCK_ID, is_extended_id=True, data=data) for data in status]
+
+
+def sender(channel: str, frames: list[can.Message], rate: int, stop: threading.Event, sent: list[int]) -> None:
+    """``rate`` frames/s in 10 ms slices, cycling through ``frames``."""
+    per_slice = max(1, rate // 100)
+    with can.Bus(interface="virtual", channel=channel) as bus:
+        i, due = 0, time.perf_counter()
+        while not stop.is_set():
+            for _ in range(per_slice):
+                bus.send(frames[i])
+                i = (i + 1) % len(frames)
+            sent[0] += per_slice
+            due += 0.01
+            time.sleep(max(0.0, due - time.perf_counter()))
+
+
+def control_listener(channel: str, stop: threading.Event, times: list[float]) -> None:
+    with can.Bus(interface="virtual", channel=channel) as bus:
+        while not stop.is_set():
+            msg = bus.recv(0.05)
+            if msg is not None and msg.arbitration_id == electrak.CONTROL_ID and not msg.is_extended_id:
+                times.append(msg.timestamp)
+
+
+def rss_mb() -> float:
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return 0.0
+
+
+async def phase(runtime: Runtime, channel: str, kind: str, frames: list[can.Message], factor: int, seconds: float,
+                times: list[float]) -> float:
+    loop = asyncio.get_running_loop()
+    state = runtime.store.buses["can1"]
+    lift, lock = runtime.store.devices["lift"], runtime.store.devices["gate-1"]
+    rate = BUS_LIMIT_FPS * factor
+    stop, sent = threading.Event(), [0]
+    thread = threading.Thread(target=sender, args=(channel, frames, rate, stop, sent), daemon=True)
+    rx0, shed0, rss0, first = state.rx_frames, state.shed, rss_mb(), len(times)
+    rss_peak, lags, timeout_flag, lock_offline = rss0, [], False, False
+    thread.start()
+    start = loop.time()
+    while loop.time() - start < seconds:
+        t = loop.time()
+        await asyncio.sleep(0.02)
+        lags.append((loop.time() - t - 0.02) * 1000)
+        timeout_flag |= bool(lift.info.get("errors", 0) & MESSAGE_TIMEOUT)
+        lock_offline |= lock.status != "online"
+        rss_peak = max(rss_peak, rss_mb())
+    elapsed = loop.time() - start
+    stop.set()
+    thread.join()
+    handled, shed = state.rx_frames - rx0, state.shed - shed0
+    stamps = times[first:]
+    gap_ms = max((b - a for a, b in zip(stamps, stamps[1:], strict=False)), default=float("inf")) * 1000
+    lags.sort()
+    p99 = lags[min(len(lags) - 1, int(0.99 * len(lags)))]
+    print(f"{kind:>7} IDs at {factor}x ({rate:,} frames/s asked, {sent[0] / elapsed:,.0f} sent): "
+          f"handled {handled / elapsed:,.0f} frames/s, shed {shed:,}, loop lag p99 {p99:.0f} ms (worst {lags[-1]:.0f}), "
+          f"RSS {rss0:.0f} -> peak {rss_peak:.0f} MB (+{rss_peak - rss0:.0f}), "
+          f"control telegrams {len(stamps)} in {elapsed:.1f} s, largest gap {gap_ms:.0f} ms, "
+          f"message-timeout flag {'ROSE' if timeout_flag else 'never'}, lock {'went OFFLINE' if lock_offline else 'online'}")
+    await asyncio.sleep(1.0)  # let the hand-over drain before the next phase
+    return gap_ms
+
+
+async def run(seconds: float, factors: list[int]) -> None:
+    floods = {kind: flood_frames(kind, 50_000) for kind in ("unknown", "known")}  # built before the loop runs
+    flooded, lift_channel = f"flood-{uuid.uuid4().hex}", f"lift-{uuid.uuid4().hex}"
+    runtime = Runtime(plant(flooded, lift_channel), simulate=True)
+    await runtime.start()
+    stop, times = threading.Event(), []
+    listener = threading.Thread(target=control_listener, args=(lift_channel, stop, times), daemon=True)
+    worst = 0.0
+    try:
+        lift, lock = runtime.store.devices["lift"], runtime.store.devices["gate-1"]
+        end = time.monotonic() + 10
+        while (lift.status != "online" or lock.status != "online") and time.monotonic() < end:
+            await asyncio.sleep(0.05)
+        listener.start()
+        await runtime.worker.adapters["lift"].take_control("bench", "engineer")
+        await asyncio.sleep(0.5)
+        print(f"1 Mbit/s bus limit: {BUS_LIMIT_FPS:,} frames/s; Electrak control every {electrak.CONTROL_PERIOD_S * 1000:.0f} ms, "
+              f"timeout {electrak.DEFAULT_TIMEOUT_MS} ms; {seconds:.0f} s per phase")
+        for kind, frames in floods.items():
+            for factor in factors:
+                worst = max(worst, await phase(runtime, flooded, kind, frames, factor, seconds, times))
+    finally:
+        stop.set()
+        await runtime.stop()
+    print(f"worst_keepalive_gap_ms: {worst:.0f}")
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=10.0, help="flood duration per phase")
+    parser.add_argument("--factors", default="1,2", help="flood rates as multiples of the bus limit, e.g. 1,2,8 (beyond 2 it is overload: frames are shed)")
+    args = parser.parse_args()
+    asyncio.run(run(args.seconds, [int(f) for f in args.factors.split(",")]))
