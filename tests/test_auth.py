@@ -84,12 +84,17 @@ async def secured_app(tmp_path, public_plant_view: bool = False) -> AsyncIterato
             runtime = Runtime(plant, simulate=True, data_dir=tmp_path, auth_required=True)
             importlib.import_module("app.web").register(runtime, allowed_hosts=("test",))  # the simulated user's host name
             ui.run(storage_secret="test secret")
+            failure: BaseException | None = None
             async with core.app.router.lifespan_context(core.app):
                 async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:
                     try:
                         yield User(client), runtime
+                    except BaseException as exc:  # noqa: BLE001 - re-raised below, after the app has shut down
+                        failure = exc  # a failing test must not skip the shutdown (the next app could not start)
                     finally:
                         await stop_worker_tasks(runtime)
+            if failure is not None:
+                raise failure
         finally:
             os.environ.pop("NICEGUI_USER_SIMULATION", None)
             ui.navigate = Navigate()
@@ -109,7 +114,7 @@ async def login(user: User, name: str, password: str, succeeds: bool = True) -> 
     user.find("Password").type(password)
     user.find("Log in").click()
     if succeeds:
-        await user.should_see("Overview")  # the login page sends the browser on to /
+        await user.should_see("Overview", retries=50)  # the login page sends the browser on to / (argon2 takes a while)
 
 
 async def test_pages_need_login(secured):
