@@ -83,6 +83,14 @@ def _mo64_feed(framing: mo64.Framing):
     return feed
 
 
+def _mo64_describe(raw: bytes, framing: mo64.Framing, to_device: bool) -> None:
+    try:
+        frame = mo64.decode_frame(raw, framing)
+    except mo64.FrameError:
+        return  # decode_frame has its own target; describe takes frames that passed it
+    mo64.describe(frame, to_device)
+
+
 def _scu_feed(direction: str):
     def feed(chunks: list[bytes]) -> None:
         splitter = scu.FrameSplitter(direction)
@@ -136,6 +144,8 @@ TARGETS: list[Target] = [
            lambda a: mo64.decode_request(*a), (mo64.CodecError,)),
     Target("mo64.decode_value", st.tuples(st.integers(0, 0x25), _wire(40)), lambda a: mo64.decode_value(*a),
            (mo64.CodecError, v.DecodeError)),  # docstring: DecodeError for short/excess data, CodecError for a non-answer
+    Target("mo64.describe", st.tuples(_mo64_frame(mo64.TCP), _MO64_FRAMING, st.booleans()),
+           lambda a: _mo64_describe(*a), NEVER),
     Target("mo64.FrameSplitter.feed(tcp)", _CHUNKS, _mo64_feed(mo64.TCP), NEVER),
     Target("mo64.FrameSplitter.feed(rs485)", _CHUNKS, _mo64_feed(mo64.RS485), NEVER),
     # Ewellix SCU (serial)
