@@ -34,3 +34,8 @@ def test_hdlock_request_longer_than_a_can_frame_is_a_codec_error(length):
     with pytest.raises(hdlock.CodecError, match="8"):
         hdlock.decode_request(frame)
     assert "malformed" in hdlock.describe_request(frame)
+
+
+def test_hdlock_set_address_request_with_an_impossible_new_id_is_described_not_raised():
+    frame = hdlock.CanFrame(0x701, bytes.fromhex("ef4aa582 e3ce 1520"))  # new ID 0x2015CEE3: over 29 bits
+    assert "malformed" in hdlock.describe_request(frame)

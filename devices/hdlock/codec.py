@@ -401,7 +401,10 @@ def describe_request(frame: CanFrame) -> str:
         if req.a == CanCommand.SET_CAN_BAUDRATE and req.b in CAN_BITRATES:
             detail += f" ({CAN_BITRATES[req.b][0] // 1000} kbit/s)"
     elif req.kind == CAN_SET_DEVICE_ADDRESS:
-        detail = f"new ID {req.new_id}"
+        try:
+            detail = f"new ID {req.new_id}"
+        except CodecError as exc:  # section 6.4: a device ID has at most 29 bits
+            return f"HD-Lock request, malformed: {exc}"
     elif req.kind in (CAN_READ_INPUT, CAN_READ_HOLDING):
         param = PARAMS.get("input" if req.kind == CAN_READ_INPUT else "holding", req.a)
         detail = f"{req.a}{' ' + (param.label or param.name) if param else ''} count {req.b}"
