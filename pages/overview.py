@@ -117,29 +117,37 @@ def _discovered_section(bus: str, tile_row, tiles: list) -> None:
     box = ui.column().classes("gap-1").props(f'data-discovered="{bus}"')
     shown: list = [None]
 
+    ages: dict = {}  # key -> the label with evidence and age, updated in place (the Adopt button stays put)
+
+    def age_text(entry: dict) -> str:
+        return f"{entry.get('evidence') or ''} · {entry['frames']} frames, last {fmt_age(time.time() - entry['last_seen'])}"
+
     def refresh() -> None:
         entries = list(runtime.worker.discovered.get(bus, {}).items())
         summary = runtime.worker.discovery_summary(bus)
         watching = summary.get("candidates", 0)
         left_out = summary.get("dropped", 0) + summary.get("listed_dropped", 0)
-        signature = ([(k, round(e["last_seen"] / 5)) for k, e in entries], watching, left_out)
+        signature = ([k for k, _e in entries], watching, left_out)
         if signature == shown[0]:
+            for key, entry in entries:  # only the texts change: rows and buttons are not rebuilt under the mouse
+                if key in ages:
+                    ages[key].set_text(age_text(entry))
             return
         shown[0] = signature
         box.clear()
+        ages.clear()
         if not entries and not watching and not left_out:
             return
         with box:
             if entries:
                 ui.label(f"Discovered on {bus}, not in the plant file").classes("text-subtitle2")
-            for _key, entry in entries:
+            for key, entry in entries:
                 with ui.row().classes("items-center gap-3"):
                     ui.icon("fiber_new", color="orange")
                     ident = f"{entry['device_id']} ({'ext' if entry['extended'] else 'std'} 0x{entry['device_id']:X})"
                     title = DEVICE_TYPES[entry["type"]].title
                     ui.label(f"{title} with device ID {ident}").classes("text-body2")
-                    ui.label(f"{entry.get('evidence') or ''} · {entry['frames']} frames, last {fmt_age(time.time() - entry['last_seen'])}").classes(
-                        "text-caption text-grey-8")
+                    ages[key] = ui.label(age_text(entry)).classes("text-caption text-grey-8")
                     ui.button("Adopt", icon="add", on_click=lambda e=entry: _adopt_dialog(bus, e, tile_row, tiles)).props("dense outline").props(
                         f'data-adopt="{entry["device_id"]}"'
                     )
