@@ -327,7 +327,7 @@ class CanMonitor:
         self.connected_badge.props(f"color={'positive' if s.connected else 'negative'} outline")
         self.counts.set_text(
             f"rx {s.rx_frames} · tx {s.tx_frames} · error frames {s.error_frames} · "
-            f"tx errors {s.tx_errors} · dropped {s.dropped} · buffered {len(s.frames)}/{MONITOR_FRAMES}"
+            f"tx errors {s.tx_errors} · dropped {s.dropped} (shed under load {s.shed}) · buffered {len(s.frames)}/{MONITOR_FRAMES}"
         )
         self.error_label.set_text(s.last_error)
         active = rec.active_recording(s)

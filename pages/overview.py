@@ -87,8 +87,12 @@ def content() -> None:
                 text = "connected" if state.connected else f"not connected: {state.last_error or 'opening...'}"
                 if state.connected and hasattr(state, "bus_state"):
                     text += f" · {state.bus_state} · {state.rx_frames} frames in, {state.error_frames} error frames"
+                shed = getattr(state, "shed", 0)
+                if shed:  # the program could not keep up with this bus: say so rather than lag
+                    text += f" · {shed} frames shed: more traffic than this program can handle"
                 label.set_text(text)
-                label.classes(replace="text-caption " + ("text-positive" if state.connected and getattr(state, "bus_state", "") != "bus-off" else "text-negative"))
+                ok = state.connected and getattr(state, "bus_state", "") != "bus-off"
+                label.classes(replace="text-caption " + (("text-warning" if shed else "text-positive") if ok else "text-negative"))
 
             show_conn()
             ui.timer(1.0, show_conn)

@@ -266,3 +266,10 @@ def test_temperature_text_has_the_unit_in_the_monitor_wording():
     assert temp_text(hm, 4, below) == "out of range (-5.0 °C)"
     assert f"TEMP4 {temp_text(hm, 4, below)}" in m3io_codec.describe_temp(hm, 4, below)  # the monitor's words
     assert temp_text(hmr, 1, m3io_codec.TempWord.make(215, True, True, True, False)) == "21.5 °C"
+
+
+async def test_overview_says_when_a_bus_sheds_frames(env: Env):
+    user = env.user
+    env.runtime.store.buses["can1"].shed = 42  # the reader had to drop frames under a flood
+    await user.open("/")
+    await user.should_see("42 frames shed: more traffic than this program can handle", retries=30)
