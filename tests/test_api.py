@@ -8,22 +8,14 @@ Each test gets its own NiceGUI app (reset globals) and the demo plant on private
 from __future__ import annotations
 
 import csv
-import importlib
 import io
-import os
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
 
 import httpx
 import pytest
-from nicegui import core, ui
-from nicegui.functions.download import download
-from nicegui.functions.navigate import Navigate
-from nicegui.functions.notify import notify
-from nicegui.testing.general import nicegui_reset_globals, prepare_simulation
-from webutil import eventually, private_endpoints, stop_worker_tasks
+from webutil import eventually, private_endpoints, simulated_user
 
-from app import runtime as rt
 from app.plant import DEMO_PLANT, load_plant
 from app.runtime import Runtime
 from devices.electrak.params import PARAMS as ELECTRAK_PARAMS
@@ -70,23 +62,9 @@ async def eventually_async(probe, timeout: float, what: str) -> None:
 async def api(tmp_path) -> AsyncIterator[Api]:
     plant = private_endpoints(load_plant(DEMO_PLANT), f"api-{tmp_path.name}")  # own ports and CAN channels
     plant.buses["line1"].options.update(timeout=0.2, poll_period=0.2)
-    with nicegui_reset_globals():
-        os.environ["NICEGUI_USER_SIMULATION"] = "true"
-        try:
-            prepare_simulation()
-            runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
-            importlib.import_module("app.web").register(runtime, allowed_hosts=("test",))
-            ui.run(storage_secret="test secret")
-            async with core.app.router.lifespan_context(core.app):
-                async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:
-                    yield Api(client, runtime)
-                    await stop_worker_tasks(runtime)
-        finally:
-            os.environ.pop("NICEGUI_USER_SIMULATION", None)
-            ui.navigate = Navigate()
-            ui.notify = notify
-            ui.download = download
-            rt.set_current(None)
+    runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
+    async with simulated_user(runtime) as user:
+        yield Api(user.http_client, runtime)
 
 
 def good(values: dict, *names: str) -> bool:

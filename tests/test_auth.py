@@ -3,22 +3,15 @@
 from __future__ import annotations
 
 import contextlib
-import importlib
 import io
-import os
 from collections.abc import AsyncIterator
 
-import httpx
 import pytest
 from conftest import modbus_plant, wait_for
-from nicegui import core, ui
-from nicegui.functions.navigate import Navigate
-from nicegui.functions.notify import notify
+from nicegui import ui
 from nicegui.testing import User
-from nicegui.testing.general import nicegui_reset_globals, prepare_simulation
-from webutil import stop_worker_tasks
+from webutil import simulated_user
 
-from app import runtime as rt
 from app.cli import main
 from app.runtime import Runtime
 from app.users import UserError, UserStore, is_loopback
@@ -77,29 +70,9 @@ async def secured_app(tmp_path, public_plant_view: bool = False) -> AsyncIterato
     store = UserStore(tmp_path / "users.toml")
     store.add("anna", "engineer", "correct horse")
     store.add("tablet", "viewer", "battery staple")
-    with nicegui_reset_globals():
-        os.environ["NICEGUI_USER_SIMULATION"] = "true"
-        try:
-            prepare_simulation()
-            runtime = Runtime(plant, simulate=True, data_dir=tmp_path, auth_required=True)
-            importlib.import_module("app.web").register(runtime, allowed_hosts=("test",))  # the simulated user's host name
-            ui.run(storage_secret="test secret")
-            failure: BaseException | None = None
-            async with core.app.router.lifespan_context(core.app):
-                async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:
-                    try:
-                        yield User(client), runtime
-                    except BaseException as exc:  # noqa: BLE001 - re-raised below, after the app has shut down
-                        failure = exc  # a failing test must not skip the shutdown (the next app could not start)
-                    finally:
-                        await stop_worker_tasks(runtime)
-            if failure is not None:
-                raise failure
-        finally:
-            os.environ.pop("NICEGUI_USER_SIMULATION", None)
-            ui.navigate = Navigate()
-            ui.notify = notify
-            rt.set_current(None)
+    runtime = Runtime(plant, simulate=True, data_dir=tmp_path, auth_required=True)
+    async with simulated_user(runtime) as user:
+        yield user, runtime
 
 
 @pytest.fixture

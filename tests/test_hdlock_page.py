@@ -6,25 +6,17 @@ Modbus RTU frames, with the app registered as in production (``app.web.register`
 
 from __future__ import annotations
 
-import importlib
 import logging
-import os
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
 
-import httpx
 import pytest
 from conftest import modbus_plant
-from nicegui import core, ui
-from nicegui.functions.download import download
-from nicegui.functions.navigate import Navigate
-from nicegui.functions.notify import notify
+from nicegui import ui
 from nicegui.testing import User
-from nicegui.testing.general import nicegui_reset_globals, prepare_simulation
 from nicegui.testing.user_interaction import UserInteraction
-from webutil import eventually, stop_worker_tasks
+from webutil import eventually, simulated_user
 
-from app import runtime as rt
 from app.runtime import Runtime
 
 pytestmark = pytest.mark.timeout(30)
@@ -45,23 +37,9 @@ class Env:
 @pytest.fixture
 async def env(caplog: pytest.LogCaptureFixture) -> AsyncIterator[Env]:
     plant = modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
-    with nicegui_reset_globals():
-        os.environ["NICEGUI_USER_SIMULATION"] = "true"
-        try:
-            prepare_simulation()
-            runtime = Runtime(plant, simulate=True)
-            importlib.import_module("app.web").register(runtime, allowed_hosts=("test",))  # the simulated user's host name
-            ui.run(storage_secret="test secret")
-            async with core.app.router.lifespan_context(core.app):
-                async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:
-                    yield Env(User(client), runtime)
-                    await stop_worker_tasks(runtime)
-        finally:
-            os.environ.pop("NICEGUI_USER_SIMULATION", None)
-            ui.navigate = Navigate()
-            ui.notify = notify
-            ui.download = download
-            rt.set_current(None)
+    runtime = Runtime(plant, simulate=True)
+    async with simulated_user(runtime) as user:
+        yield Env(user, runtime)
     errors = [r for r in caplog.get_records("call") if r.levelno >= logging.ERROR and not r.name.startswith("pymodbus")]
     assert not errors, "unexpected ERROR logs: " + "; ".join(r.getMessage() for r in errors)
 

@@ -2,24 +2,15 @@
 
 from __future__ import annotations
 
-import asyncio
-import importlib
-import os
 from collections.abc import AsyncIterator
 
-import httpx
 import pytest
 from conftest import free_port
-from nicegui import core, ui
-from nicegui.functions.download import download
-from nicegui.functions.navigate import Navigate
 from nicegui.functions.notify import notify
 from nicegui.testing import User
-from nicegui.testing.general import nicegui_reset_globals, prepare_simulation
 from nicegui.testing.user_interaction import UserInteraction
-from webutil import eventually, stop_worker_tasks
+from webutil import eventually, simulated_user
 
-from app import runtime as rt
 from app.plant import parse_plant
 from app.runtime import Runtime
 
@@ -47,23 +38,9 @@ travel_s = 0.6
 
 @pytest.fixture
 async def env() -> AsyncIterator[tuple[User, Runtime]]:
-    with nicegui_reset_globals():
-        os.environ["NICEGUI_USER_SIMULATION"] = "true"
-        try:
-            prepare_simulation()
-            runtime = Runtime(mo64_plant(free_port()), simulate=True)
-            importlib.import_module("app.web").register(runtime, allowed_hosts=("test",))
-            ui.run(storage_secret="test secret")
-            async with core.app.router.lifespan_context(core.app):
-                async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:
-                    yield User(client), runtime
-                    await stop_worker_tasks(runtime)
-        finally:
-            os.environ.pop("NICEGUI_USER_SIMULATION", None)
-            ui.navigate = Navigate()
-            ui.notify = notify
-            ui.download = download
-            rt.set_current(None)
+    runtime = Runtime(mo64_plant(free_port()), simulate=True)
+    async with simulated_user(runtime) as user:
+        yield user, runtime
 
 
 def by_testid(user: User, testid: str):

@@ -7,22 +7,14 @@ user against the demo plant's twins, and stops twins to see the marking turn sta
 
 from __future__ import annotations
 
-import importlib
-import os
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
 
-import httpx
 import pytest
-from nicegui import core, ui
-from nicegui.functions.download import download
-from nicegui.functions.navigate import Navigate
-from nicegui.functions.notify import notify
+from nicegui import ui
 from nicegui.testing import User
-from nicegui.testing.general import nicegui_reset_globals, prepare_simulation
-from webutil import eventually, private_endpoints, stop_worker_tasks
+from webutil import eventually, private_endpoints, simulated_user
 
-from app import runtime as rt
 from app.plant import DEMO_PLANT, load_plant
 from app.runtime import Runtime
 from devices.m3io import codec as m3io_codec
@@ -130,23 +122,9 @@ class Env:
 async def env(tmp_path) -> AsyncIterator[Env]:
     plant = private_endpoints(load_plant(DEMO_PLANT), f"tiles-{tmp_path.name}")  # own ports and CAN channels
     plant.buses["line1"].options.update(timeout=0.2, poll_period=0.2)
-    with nicegui_reset_globals():
-        os.environ["NICEGUI_USER_SIMULATION"] = "true"
-        try:
-            prepare_simulation()
-            runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
-            importlib.import_module("app.web").register(runtime, allowed_hosts=("test",))
-            ui.run(storage_secret="test secret")
-            async with core.app.router.lifespan_context(core.app):
-                async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:
-                    yield Env(User(client), runtime)
-                    await stop_worker_tasks(runtime)
-        finally:
-            os.environ.pop("NICEGUI_USER_SIMULATION", None)
-            ui.navigate = Navigate()
-            ui.notify = notify
-            ui.download = download
-            rt.set_current(None)
+    runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
+    async with simulated_user(runtime) as user:
+        yield Env(user, runtime)
 
 
 def texts(user: User, prop: str, value: str) -> list[str]:

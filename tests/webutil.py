@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import importlib
 import os
 import re
 import socket
@@ -47,6 +48,50 @@ async def eventually(check: Callable[[], object], timeout: float = 5.0, interval
 async def stop_worker_tasks(runtime, timeout: float = 5.0) -> None:
     """End the worker's bus tasks before the app's shutdown, bounded, so a test's teardown cannot hang."""
     await asyncio.wait_for(runtime.worker.stop(), timeout + 1)
+
+
+@contextlib.asynccontextmanager
+async def simulated_user(runtime):
+    """NiceGUI's simulated user on the app of ``runtime``, with NiceGUI's globals of its own.
+
+    The app is registered (``app.web.register``: the simulated user's host name is "test"), its
+    lifespan started, and on leaving the worker stopped (bounded) and the app shut down, also when
+    the test failed inside, so that the next app can start.
+    """
+    import httpx
+    from nicegui import core, ui
+    from nicegui.functions.download import download
+    from nicegui.functions.navigate import Navigate
+    from nicegui.functions.notify import notify
+    from nicegui.testing import User
+    from nicegui.testing.general import nicegui_reset_globals, prepare_simulation
+
+    from app import runtime as rt
+
+    with nicegui_reset_globals():
+        os.environ["NICEGUI_USER_SIMULATION"] = "true"
+        try:
+            prepare_simulation()
+            # nicegui_reset_globals drops the module of every page function (app.web): import it afresh
+            importlib.import_module("app.web").register(runtime, allowed_hosts=("test",))
+            ui.run(storage_secret="test secret")
+            failure: BaseException | None = None
+            async with core.app.router.lifespan_context(core.app):
+                async with httpx.AsyncClient(transport=httpx.ASGITransport(core.app), base_url="http://test") as client:
+                    try:
+                        yield User(client)
+                    except BaseException as exc:  # noqa: BLE001 - re-raised below, after the app has shut down
+                        failure = exc
+                    finally:
+                        await stop_worker_tasks(runtime)  # Worker.stop() can hang in the lifespan's shutdown
+            if failure is not None:
+                raise failure
+        finally:
+            os.environ.pop("NICEGUI_USER_SIMULATION", None)
+            ui.navigate = Navigate()
+            ui.notify = notify
+            ui.download = download
+            rt.set_current(None)
 
 
 # -- the app as a separate process (browser tests) ---------------------------------------------
