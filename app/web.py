@@ -32,6 +32,10 @@ WILDCARD_HOSTS = ("0.0.0.0", "::", "")
 BEAT_EVENT = "commission_beat"
 
 
+
+
+BUS_TOOLS = ("transmit", "poll", "replay")  # pages/bus_<tool>.py, linked from the bus monitor
+
 def storage_secret(data_dir: Path) -> str:
     """A per-installation secret for the session cookies, made once and kept in the data folder."""
     path = Path(data_dir) / "session-secret"
@@ -235,6 +239,18 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
                 ui.label(f"The plant has no bus named '{bus}'.")
             return
         monitor.content(bus)
+
+    @ui.page("/monitor/{bus}/{tool}")
+    def bus_tool_page(bus: str, tool: str) -> None:
+        """An engineer's bus tool (transmit list, Modbus poll, replay): ``pages.bus_<tool>.content(bus)``."""
+        from pages.frame import frame
+
+        if bus not in runtime.store.buses or tool not in BUS_TOOLS:
+            with frame("Unknown page"):
+                ui.label(f"There is no tool '{tool}' for a bus named '{bus}'.")
+                ui.link("Back to the overview", "/")
+            return
+        importlib.import_module(f"pages.bus_{tool}").content(bus)
 
     # the JSON API is described at /docs (Swagger UI), /redoc and /openapi.json, behind the same login
     app.docs_url, app.redoc_url, app.openapi_url = "/docs", "/redoc", "/openapi.json"
