@@ -32,9 +32,8 @@ WILDCARD_HOSTS = ("0.0.0.0", "::", "")
 BEAT_EVENT = "commission_beat"
 
 
-
-
 BUS_TOOLS = ("transmit", "poll", "replay")  # pages/bus_<tool>.py, linked from the bus monitor
+
 
 def storage_secret(data_dir: Path) -> str:
     """A per-installation secret for the session cookies, made once and kept in the data folder."""
