@@ -176,6 +176,7 @@ class Worker:
         self.beats: dict[str, float] = {}  # session -> monotonic time of its last sign of life
         self._holding_since: dict[str, float] = {}  # holders that never sent a beat
         self.trips: deque[dict] = deque(maxlen=100)  # dead-man trips, newest last
+        self.extra_holders: dict[str, Any] = {}  # transmit lists, replays: under the dead-man rule like adapters
         self.loop_health = LoopHealth()
         self.can_buses: dict[str, CanBus] = {}
         for bus in plant.buses.values():
@@ -325,8 +326,19 @@ class Worker:
         """A page confirms it is alive (about every :data:`BEAT_PERIOD_S`)."""
         self.beats[session] = time.monotonic()
 
+    def add_holder(self, name: str, holder: Any) -> None:
+        """Put something that is not a device adapter (an engineer's cyclic transmit list, a replay)
+        under the dead-man rule: it offers ``holders()`` and ``session_lost(session, reason)`` like an adapter."""
+        self.extra_holders[name] = holder
+
+    def remove_holder(self, name: str) -> None:
+        self.extra_holders.pop(name, None)
+
+    def _holder_items(self) -> list[tuple[str, Any]]:
+        return [*self.adapters.items(), *self.extra_holders.items()]
+
     def _session_lost(self, session: str, reason: str) -> None:
-        for name, adapter in self.adapters.items():
+        for name, adapter in self._holder_items():
             lost = getattr(adapter, "session_lost", None)
             if lost is None:
                 continue
@@ -338,7 +350,7 @@ class Worker:
     def _supervise_deadman(self, now: float) -> None:
         """Stop what a session keeps running once it has not confirmed it is alive for DEADMAN_TIMEOUT_S."""
         holding: set[str] = set()
-        for adapter in self.adapters.values():
+        for _name, adapter in self._holder_items():
             holders = getattr(adapter, "holders", None)
             if holders is not None:
                 holding |= holders()
@@ -525,6 +537,21 @@ class Worker:
             # an outcome in words (e.g. which lock took a broadcast address) goes into the row too
             await self.audit.afinish(row, f"ok: {result}"[:500] if isinstance(result, str) and result else "ok")
         return result
+
+    async def refused(
+        self, *, device: str, user: str, role: str, describe: str, reason: str, parameter: str = "", new: Any = "",
+    ) -> None:
+        """An entry or a request refused before anything was sent (out of range, not confirmed, forbidden by
+        the device document): logged on the device and in the audit log with the reason."""
+        state = self.store.devices.get(device)
+        if state is not None:
+            state.event("warning", f"refused for {user or 'anonymous'}: {describe or 'entry'}: {reason}")
+        if self.audit is not None:
+            try:
+                await self.audit.arecord(user=user, role=role, device=device, action=describe or "entry",
+                                         parameter=parameter, new=new, result=f"refused: {reason}"[:500])
+            except Exception as exc:  # noqa: BLE001 - nothing was sent anyway; the audit state shows the failure
+                log.error("audit: %s", exc)
 
     async def discover(self, bus: str, first: int, last: int, progress=None) -> list[dict]:
         """Find devices on a Modbus line (broadcast, then a scan), with polling held meanwhile."""
