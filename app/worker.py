@@ -420,6 +420,7 @@ class Worker:
         for name in self.plant.buses:
             self.tasks.append(asyncio.create_task(self._poll_bus(name), name=f"bus {name}"))
         self.tasks.append(asyncio.create_task(self._supervise(), name="supervisor"))
+        self.store.ensure_running()  # the one producer that pushes changes to pages and publishers
 
     async def stop(self) -> None:
         # A cancellation can be swallowed when pymodbus's wait_for gets its answer in the same
@@ -438,6 +439,7 @@ class Worker:
             line.close()
         for can_bus in self.can_buses.values():
             await can_bus.stop()
+        await self.store.stop()
 
     async def _poll_bus(self, bus_name: str) -> None:
         """Round-robin polling of every device on the bus, at the configured period."""

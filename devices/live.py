@@ -91,6 +91,11 @@ class DeviceState:
     info: dict[str, Any] = field(default_factory=dict)  # adapter-specific live facts
     points: dict[str, Point] = field(default_factory=dict)  # live points by the document's names
     registers_periodic: bool = True  # False: register values are read on demand (they do not age)
+    version: int = 0  # bumped by every write below: readers follow changes by comparing it (O(1))
+
+    def touch(self) -> None:
+        """Say that something changed that the writers below do not cover (an adapter's ``info``)."""
+        self.version += 1
 
     # -- written by adapters -------------------------------------------------------
     def update_registers(self, space: str, start: int, values: list[int], now: float | None = None) -> None:
@@ -103,6 +108,7 @@ class DeviceState:
                 time: float | None = None, periodic: bool = True) -> None:
         """Record the live point ``name`` (O(1); one record per name, replaced on every update)."""
         self.points[name] = Point(value, unit, _now() if time is None else time, raw, text, periodic)
+        self.version += 1
 
     def mark_seen(self, now: float | None = None) -> None:
         if self.online is False and self.last_error:  # recovered: the old error stays in the event log only
@@ -111,6 +117,7 @@ class DeviceState:
             self.last_error_time = None
         self.online = True
         self.last_seen = time.time() if now is None else now
+        self.version += 1
 
     def mark_offline(self, message: str) -> None:
         if self.online is not False:
@@ -121,14 +128,17 @@ class DeviceState:
     def error(self, message: str, log: bool = True) -> None:
         self.last_error = message
         self.last_error_time = time.time()
+        self.version += 1
         if log:
             self.event("error", message)
 
     def event(self, level: str, text: str) -> None:
         self.events.append(Event(time.time(), level, text))
+        self.version += 1
 
     def add_history(self, sample: dict[str, float], now: float | None = None) -> None:
         self.history.append((time.time() if now is None else now, sample))
+        self.version += 1
 
     # -- read by pages -------------------------------------------------------------
     @property

@@ -1,0 +1,97 @@
+"""The store's one producer: watchers follow changes (at most 10/s), faults go to the event log."""
+
+from __future__ import annotations
+
+import asyncio
+
+from app.state import AGE_PERIOD_S, DeviceState, StateStore
+
+
+def _store() -> tuple[StateStore, DeviceState]:
+    store = StateStore()
+    state = DeviceState("io-1", "m3io", "can0")
+    store.devices["io-1"] = state
+    return store, state
+
+
+def test_watchers_run_on_change_and_once_a_second_otherwise():
+    store, state = _store()
+    calls = []
+    store.watch("io-1", lambda: calls.append(state.version))
+    assert store.push(now=100.0) == 1  # first round: everything is new
+    assert store.push(now=100.1) == 0  # nothing changed, no age round yet
+    state.publish("SSR1", True)
+    assert store.push(now=100.2) == 1
+    assert store.push(now=100.3) == 0
+    assert store.push(now=100.0 + AGE_PERIOD_S + 0.01) == 1  # ages move on even without a change
+    assert calls == sorted(calls)
+
+
+def test_many_changes_between_rounds_are_one_call():
+    store, state = _store()
+    calls = []
+    store.watch("io-1", lambda: calls.append(1))
+    store.push(now=0.0)
+    for i in range(500):
+        state.publish("Temp", float(i), "°C")
+    assert store.push(now=0.1) == 1
+    assert len(calls) == 2
+
+
+def test_cancelled_and_failing_watchers_stop_being_called():
+    store, state = _store()
+    calls = []
+    w = store.watch("io-1", lambda: calls.append("a"))
+
+    def broken() -> None:
+        raise RuntimeError("page gone")
+
+    store.watch("io-1", broken)
+    store.push(now=0.0)
+    assert store.push_errors == 1
+    w.cancel()
+    state.publish("SSR1", True)
+    store.push(now=0.1)
+    assert calls == ["a"]
+    assert store._watches["io-1"] == []
+
+
+def test_fault_rising_and_clearing_is_in_the_event_log():
+    store, state = _store()
+    state.mark_seen()
+    state.publish("SSR2 Si", "ok")
+    store.push(now=0.0)
+    assert not [e for e in state.events if "fuse" in e.text]
+    state.publish("SSR2 Si", "blown")
+    store.push(now=0.1)
+    state.publish("SSR2 Si", "blown")  # still blown: no second event
+    store.push(now=0.2)
+    state.publish("SSR2 Si", "ok")
+    store.push(now=0.3)
+    texts = [(e.level, e.text) for e in state.events if "fuse" in e.text]
+    assert texts == [("warning", "fault: SSR2 fuse blown"), ("info", "cleared: SSR2 fuse blown")]
+
+
+def test_going_offline_and_back_is_in_the_event_log():
+    _store_, state = _store()
+    state.mark_seen()
+    state.mark_offline("no answer to 3 requests")
+    state.mark_seen()
+    texts = [e.text for e in state.events]
+    assert texts[0] == "no answer to 3 requests"
+    assert texts[1].startswith("back online")
+
+
+def test_the_producer_runs_on_the_loop_and_stops():
+    async def main() -> list[int]:
+        store, state = _store()
+        seen: list[int] = []
+        store.watch("io-1", lambda: seen.append(state.version))
+        for i in range(5):
+            state.publish("Temp", float(i))
+            await asyncio.sleep(0.15)
+        await store.stop()
+        return seen
+
+    seen = asyncio.run(main())
+    assert 3 <= len(seen) <= 8  # followed the changes, about one call per round
