@@ -1,0 +1,397 @@
+"""The engineer's CAN transmit list of one bus: rows sent once or cyclically through the bus owner.
+
+Rows are entered as bytes or built by name through the device codecs (an M3IO DigOut with its
+bits, an HD-Lock register read or write). Every send and every cyclic start/stop goes through
+the worker (:meth:`app.worker.Worker.engineer_action` / ``refused``): engineer role, audit row.
+Frames that a device document forbids are refused by name before anything is sent
+(:func:`forbidden_reason`). Cyclic rows belong to the browser session that started them and stop
+under the worker's dead-man rule (``holders`` / ``session_lost``). The list is saved per bus as
+JSON in the data folder, written in a thread.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+import secrets
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from app.backup import write_atomic
+from devices.electrak import codec as electrak_codec
+from devices.hdlock import codec as hdlock_codec
+from devices.hdlock.params import PARAMS as HDLOCK_PARAMS
+from devices.m3io import codec as m3io_codec
+
+log = logging.getLogger(__name__)
+
+STD_ID_MAX = 0x7FF
+EXT_ID_MAX = 0x1FFFFFFF
+PERIOD_MIN_MS = 10
+PERIOD_MAX_MS = 10_000
+MAX_ROWS = 64  # rows per bus: the list, its file and the page stay small
+FILE_PREFIX = "transmit-"
+
+
+class TransmitError(ValueError):
+    """An entry or a request that is refused (out of range, forbidden by a device document)."""
+
+
+@dataclass
+class TxRow:
+    """One row: a frame, sent once (``period_ms`` None) or every ``period_ms``."""
+
+    can_id: int
+    extended: bool
+    data: bytes
+    period_ms: int | None = None
+    label: str = ""  # how it was built, e.g. "M3IO heater DigOut: LED SSR1"
+    key: str = field(default_factory=lambda: secrets.token_hex(4))
+
+    @property
+    def dlc(self) -> int:
+        return len(self.data)
+
+    def id_text(self) -> str:
+        return f"0x{self.can_id:08X} ext" if self.extended else f"0x{self.can_id:03X}"
+
+    def describe(self) -> str:
+        data = self.data.hex(" ").upper() or "(no data)"
+        text = f"{self.id_text()} [{self.dlc}] {data}"
+        return f"{text} ({self.label})" if self.label else text
+
+    def as_json(self) -> dict:
+        d = asdict(self)
+        d["data"] = self.data.hex()
+        return d
+
+    @classmethod
+    def from_json(cls, d: dict) -> TxRow:
+        return make_row(int(d["can_id"]), bool(d["extended"]), bytes.fromhex(d["data"]), d.get("period_ms"),
+                        str(d.get("label", "")), key=str(d.get("key") or secrets.token_hex(4)))
+
+
+def parse_bytes(text: str) -> bytes:
+    """``"01 02 ff"``, ``"0102FF"`` or ``"01,02,FF"`` -> bytes (0..8)."""
+    cleaned = text.replace(",", " ").replace("0x", " ").replace("0X", " ").split()
+    if len(cleaned) == 1 and len(cleaned[0]) > 2:
+        cleaned = [cleaned[0][i:i + 2] for i in range(0, len(cleaned[0]), 2)]
+    try:
+        data = bytes(int(b, 16) for b in cleaned)
+    except ValueError:
+        raise TransmitError(f"'{text}' is not a list of hex bytes (e.g. 01 02 FF)") from None
+    if len(data) > 8:
+        raise TransmitError(f"{len(data)} data bytes: a classic CAN frame carries 0..8")
+    return data
+
+
+def make_row(can_id: int, extended: bool, data: bytes, period_ms: int | None = None, label: str = "", *,
+             dlc: int | None = None, key: str | None = None) -> TxRow:
+    """A checked row: ID range by format, DLC 0..8 matching the data, period 10 ms .. 10 s."""
+    limit = EXT_ID_MAX if extended else STD_ID_MAX
+    if not 0 <= can_id <= limit:
+        raise TransmitError(f"ID 0x{can_id:X} does not fit a {'29' if extended else '11'}-bit ID (0..0x{limit:X})")
+    if dlc is not None and dlc != len(data):
+        raise TransmitError(f"DLC {dlc} but {len(data)} data bytes")
+    if len(data) > 8:
+        raise TransmitError(f"{len(data)} data bytes: a classic CAN frame carries 0..8")
+    if period_ms is not None and not PERIOD_MIN_MS <= int(period_ms) <= PERIOD_MAX_MS:
+        raise TransmitError(f"cycle time {period_ms} ms is outside {PERIOD_MIN_MS} ms .. {PERIOD_MAX_MS // 1000} s")
+    row = TxRow(can_id, extended, bytes(data), None if period_ms is None else int(period_ms), label)
+    if key:
+        row.key = key
+    return row
+
+
+# -- frames the device documents forbid -------------------------------------------------------------
+
+
+def forbidden_reason(can_id: int, extended: bool, data: bytes, bus_devices: list[tuple[str, dict]] = ()) -> str | None:
+    """Why a frame is never sent by this tool, named after the document; None when it may be sent.
+
+    :param bus_devices: ``(type, options)`` of the plant's devices on the bus
+    """
+    if not extended and can_id in hdlock_codec.CAN_REQUEST_IDS:
+        name = hdlock_codec.CAN_REQUEST_NAMES[can_id]
+        if can_id in (hdlock_codec.CAN_FWU_ERASE, hdlock_codec.CAN_FWU_WRITE):
+            return f"HD-Lock '{name}' (0x{can_id:03X}) is a firmware-update request (HD-Lock document 6.6.7): never sent"
+        if can_id == hdlock_codec.CAN_COMMAND and len(data) >= 5:
+            command = data[4]  # section 6.6.1: "Byte 4 legt fest, welches Kommando ... ausgeführt wird"
+            if command in (hdlock_codec.CanCommand.FIRMWARE_UPDATE_ENTER, hdlock_codec.CanCommand.BOOTLOADER_UPDATE_ENTER,
+                           hdlock_codec.CanCommand.UPDATE_LEAVE):
+                cmd_name = hdlock_codec.CanCommand(command).name
+                return (f"HD-Lock Command {command} ({cmd_name}) is a firmware-update command "
+                        "(HD-Lock document 6.6.1.3): never sent")
+        if can_id in (hdlock_codec.CAN_WRITE_HOLDING, hdlock_codec.CAN_SILENT_WRITE_HOLDING) and len(data) >= 6:
+            address = hdlock_codec.unpack_le(data[4:6])
+            if address == hdlock_codec.REG_FW_UPDATE:
+                return f"HD-Lock '{name}' of FwUpdateCommandRegister (32770) starts a firmware update: never written"
+            param = HDLOCK_PARAMS.get("holding", address)
+            if param is not None and not param.writable:
+                what = "never written by this tool" if param.never_write else f"access {param.access.value}: not writable"
+                return f"HD-Lock '{name}' of {param.label or param.name} (holding {address}): {what}"
+    if not extended and can_id == electrak_codec.CONTROL_ID and len(data) >= 8 and data[7] & electrak_codec.ENABLE:
+        if any(t == "electrak" for t, _ in bus_devices):
+            return ("Electrak control telegram with enable set drives the actuators: use the Electrak page "
+                    "(hold-to-run, a visible stop) instead")
+    return None
+
+
+# -- rows built from device messages ----------------------------------------------------------------
+
+
+def m3io_dig_out(device: str, options: dict, outputs: dict[str, bool]) -> TxRow:
+    """An M3IO DigOut frame (section 7.2.1) for the device's SW1 and variant."""
+    ids = m3io_codec.derive_ids(int(options["sw1"]))
+    variant = m3io_codec.Variant(options.get("variant", "HM"))
+    data = m3io_codec.encode_dig_out(variant, outputs)
+    on = " ".join(name for name, value in outputs.items() if value) or "all off"
+    return make_row(ids.dig_out, False, data, label=f"M3IO {device} DigOut: {on}")
+
+
+def m3io_output_names(options: dict) -> list[str]:
+    return list(m3io_codec.OUTPUT_BITS[m3io_codec.Variant(options.get("variant", "HM"))])
+
+
+def hdlock_target(options: dict) -> hdlock_codec.DeviceId:
+    return hdlock_codec.DeviceId.make(int(options["device_id"]), options.get("extended"))
+
+
+def hdlock_read(device: str, options: dict, space: str, address: int, count: int = 1) -> TxRow:
+    """An HD-Lock Read Input/Holding-Register request (section 6.6.3/6.6.4)."""
+    try:
+        frame = hdlock_codec.encode_read(hdlock_target(options), space, address, count)
+    except hdlock_codec.CodecError as exc:
+        raise TransmitError(str(exc)) from None
+    param = HDLOCK_PARAMS.get(space, address)
+    name = f" {param.label or param.name}" if param else ""
+    return make_row(frame.arbitration_id, frame.is_extended_id, frame.data,
+                    label=f"HD-Lock {device} read {space} {address}+{count}{name}")
+
+
+def hdlock_write(device: str, options: dict, address: int, value: int) -> TxRow:
+    """An HD-Lock Write Holding-Register request (section 6.6.5), only for writable registers."""
+    try:
+        frame = hdlock_codec.encode_write(hdlock_target(options), address, value)
+    except hdlock_codec.CodecError as exc:
+        raise TransmitError(str(exc)) from None
+    param = HDLOCK_PARAMS.get("holding", address)
+    name = f" {param.label or param.name}" if param else ""
+    return make_row(frame.arbitration_id, frame.is_extended_id, frame.data,
+                    label=f"HD-Lock {device} write holding {address}{name}={value}")
+
+
+# -- the list ------------------------------------------------------------------------------------
+
+
+class TransmitList:
+    """The transmit list of one CAN bus, registered with the worker as a dead-man holder."""
+
+    def __init__(self, worker, bus: str, folder: Path | None):
+        self.worker = worker
+        self.bus = bus
+        self.path = None if folder is None else Path(folder) / f"{FILE_PREFIX}{bus}.json"
+        self.rows: list[TxRow] = []
+        self.running: dict[str, tuple[str, str]] = {}  # row key -> (session, user) of a cyclic row
+        self.sent: dict[str, int] = {}  # row key -> frames sent (once or cyclic)
+        self.loaded = asyncio.Event()
+        self.load_error = ""
+        self.version = 0  # changes whenever rows or their state change (pages redraw on it)
+
+    # -- dead-man rule -------------------------------------------------------------------
+    def holders(self) -> set[str]:
+        return {session for session, _user in self.running.values()}
+
+    def session_lost(self, session: str, reason: str) -> None:
+        """Stop at once every cyclic row the session started; audit afterwards (off the stop path)."""
+        stopped = [key for key, (s, _u) in self.running.items() if s == session]
+        for key in stopped:
+            _s, user = self.running.pop(key)
+            self._can().stop_cyclic(self._cyclic_key(key))
+            row = self.row(key)
+            if row is not None:
+                asyncio.get_running_loop().create_task(self._audit_stop(row, user, reason))
+        if stopped:
+            self.version += 1
+
+    async def _audit_stop(self, row: TxRow, user: str, reason: str) -> None:
+        try:
+            await self.worker.checked(self._nothing, device=self.bus, role="engineer", user=user, write=False,
+                                      describe=f"transmit: cyclic {row.describe()} stopped: {reason}")
+        except Exception as exc:  # noqa: BLE001 - stopped anyway; the audit state shows the failure
+            log.error("audit: %s", exc)
+
+    @staticmethod
+    async def _nothing() -> None:
+        return None
+
+    # -- persistence -----------------------------------------------------------------------
+    async def load(self) -> None:
+        """Read the saved list (in a thread); a damaged file is reported and kept aside, not used."""
+        try:
+            if self.path is not None:
+                rows = await asyncio.to_thread(self._read)
+                self.rows = rows[:MAX_ROWS]
+        except Exception as exc:  # noqa: BLE001 - shown on the page
+            self.load_error = f"the saved list {self.path} could not be read: {exc}"
+            log.warning("%s", self.load_error)
+        finally:
+            self.version += 1
+            self.loaded.set()
+
+    def _read(self) -> list[TxRow]:
+        if self.path is None or not self.path.exists():
+            return []
+        doc = json.loads(self.path.read_text(encoding="utf-8"))
+        rows = []
+        for entry in doc.get("rows", []):
+            try:
+                rows.append(TxRow.from_json(entry))
+            except (KeyError, ValueError, TypeError) as exc:
+                log.warning("%s: a row of %s is skipped: %s", self.bus, self.path, exc)
+        return rows
+
+    async def save(self) -> None:
+        if self.path is None:
+            return
+        text = json.dumps({"schema": "commission-transmit", "version": 1, "bus": self.bus,
+                           "rows": [r.as_json() for r in self.rows]}, indent=1)
+        await asyncio.to_thread(write_atomic, self.path, text)
+
+    # -- helpers ---------------------------------------------------------------------------
+    def _can(self):
+        return self.worker.can_buses[self.bus]
+
+    def _cyclic_key(self, key: str) -> str:
+        return f"transmit {self.bus} {key}"
+
+    def row(self, key: str) -> TxRow | None:
+        return next((r for r in self.rows if r.key == key), None)
+
+    def bus_devices(self) -> list[tuple[str, dict]]:
+        return [(d.type, d.options) for d in self.worker.plant.devices_on(self.bus)]
+
+    def is_running(self, key: str) -> bool:
+        return key in self.running and self._can().cyclic_running(self._cyclic_key(key))
+
+    async def _refuse_if_forbidden(self, row: TxRow, *, user: str, role: str, describe: str) -> None:
+        reason = forbidden_reason(row.can_id, row.extended, row.data, self.bus_devices())
+        if reason is not None:
+            await self.worker.refused(device=self.bus, user=user, role=role, describe=describe, reason=reason,
+                                      parameter=row.id_text(), new=row.data.hex(" "))
+            raise TransmitError(reason)
+
+    # -- edits (engineer only, audited) -------------------------------------------------------
+    async def add(self, row: TxRow, *, user: str, role: str) -> TxRow:
+        describe = f"transmit list {self.bus}: add {row.describe()}"
+        await self._refuse_if_forbidden(row, user=user, role=role, describe=describe)
+        if len(self.rows) >= MAX_ROWS:
+            await self.worker.refused(device=self.bus, user=user, role=role, describe=describe,
+                                      reason=f"the list holds at most {MAX_ROWS} rows")
+            raise TransmitError(f"the list holds at most {MAX_ROWS} rows")
+
+        async def do() -> str:
+            self.rows.append(row)
+            self.version += 1
+            await self.save()
+            return ""
+
+        await self.worker.engineer_action(do, user=user, role=role, describe=describe, target=self.bus,
+                                          parameter=row.id_text(), new=row.data.hex(" "))
+        return row
+
+    async def remove(self, key: str, *, user: str, role: str, session: str = "") -> None:
+        row = self.row(key)
+        if row is None:
+            raise TransmitError("no such row")
+        if key in self.running:
+            await self.stop(key, user=user, role=role)
+
+        async def do() -> str:
+            self.rows = [r for r in self.rows if r.key != key]
+            self.sent.pop(key, None)
+            self.version += 1
+            await self.save()
+            return ""
+
+        await self.worker.engineer_action(do, user=user, role=role, describe=f"transmit list {self.bus}: remove {row.describe()}",
+                                          target=self.bus, parameter=row.id_text())
+
+    # -- sending ---------------------------------------------------------------------------------
+    async def send_once(self, key: str, *, user: str, role: str) -> None:
+        row = self.row(key)
+        if row is None:
+            raise TransmitError("no such row")
+        describe = f"transmit once on {self.bus}: {row.describe()}"
+        await self._refuse_if_forbidden(row, user=user, role=role, describe=describe)
+
+        async def do() -> str:
+            if not self._can().send(row.can_id, row.data, row.extended):
+                raise TransmitError(f"bus {self.bus} did not take the frame: {self._can().state.last_error or 'not open'}")
+            self.sent[key] = self.sent.get(key, 0) + 1
+            self.version += 1
+            return ""
+
+        await self.worker.engineer_action(do, user=user, role=role, describe=describe, target=self.bus,
+                                          parameter=row.id_text(), new=row.data.hex(" "))
+
+    async def start(self, key: str, *, user: str, role: str, session: str) -> None:
+        """Start a cyclic row for ``session`` (its browser keeps it alive under the dead-man rule)."""
+        row = self.row(key)
+        if row is None:
+            raise TransmitError("no such row")
+        if row.period_ms is None:
+            raise TransmitError("this row is sent once: give it a cycle time to send it cyclically")
+        describe = f"transmit cyclic every {row.period_ms} ms on {self.bus}: start {row.describe()}"
+        await self._refuse_if_forbidden(row, user=user, role=role, describe=describe)
+        if not session:
+            raise TransmitError("a cyclic row needs a browser session to keep it alive")
+
+        def make() -> tuple[int, bytes, bool]:
+            self.sent[key] = self.sent.get(key, 0) + 1
+            return row.can_id, row.data, row.extended
+
+        async def do() -> str:
+            self.running[key] = (session, user)
+            self._can().start_cyclic(self._cyclic_key(key), row.period_ms / 1000, make)
+            self.version += 1
+            return ""
+
+        await self.worker.engineer_action(do, user=user, role=role, describe=describe, target=self.bus,
+                                          parameter=row.id_text(), new=row.data.hex(" "))
+
+    async def stop(self, key: str, *, user: str, role: str) -> None:
+        """Stop a cyclic row: never refused (any role), stopped first, audited after."""
+        self.running.pop(key, None)
+        self._can().stop_cyclic(self._cyclic_key(key))
+        self.version += 1
+        row = self.row(key)
+        what = row.describe() if row else key
+        await self.worker.checked(self._nothing, device=self.bus, role=role, user=user, write=False,
+                                  describe=f"transmit cyclic on {self.bus}: stop {what}")
+
+    def stop_all(self) -> None:
+        for key in list(self.running):
+            self.running.pop(key, None)
+            self._can().stop_cyclic(self._cyclic_key(key))
+        self.version += 1
+
+
+def holder_name(bus: str) -> str:
+    return f"transmit:{bus}"
+
+
+def transmit_list(worker, bus: str, folder: Path | None) -> TransmitList:
+    """The bus's list, created (and registered under the dead-man rule) on first use; load it with ``load()``."""
+    name = holder_name(bus)
+    existing = worker.extra_holders.get(name)
+    if isinstance(existing, TransmitList):
+        return existing
+    if bus not in worker.can_buses:
+        raise KeyError(f"{bus} is not a CAN bus")
+    tl = TransmitList(worker, bus, folder)
+    worker.add_holder(name, tl)
+    return tl
+

@@ -1,0 +1,235 @@
+"""The engineer's CAN transmit list: once and cyclic on a virtual bus, refusals by name, dead-man stop, saved list."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import itertools
+import sqlite3
+import time
+
+import can
+import pytest
+
+from app.plant import parse_plant
+from app.runtime import Runtime
+from app.transmit import (
+    TransmitError,
+    forbidden_reason,
+    hdlock_read,
+    hdlock_write,
+    m3io_dig_out,
+    make_row,
+    parse_bytes,
+    transmit_list,
+)
+from app.worker import DEADMAN_BOUND_S, PermissionDenied
+from tests.conftest import wait_for
+
+_n = itertools.count()
+SESSION = "tx-tab"
+LOCK = {"device_id": 335, "extended": True}
+
+
+def plant_text(channel: str) -> str:
+    return (
+        f'[[bus]]\nname = "can1"\ntype = "can"\ninterface = "virtual"\nchannel = "{channel}"\n'
+        'bitrate = 500000\npoll_period = 2.0\n'
+        '[[device]]\nname = "heater"\ntype = "m3io"\nbus = "can1"\nvariant = "HM"\nsw1 = 0x1A\n'
+        '[[device]]\nname = "lock"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 335\nextended = true\n'
+    )
+
+
+@pytest.fixture
+async def rig(tmp_path):
+    channel = f"tx-{next(_n)}-{id(object())}"
+    runtime = Runtime(parse_plant(plant_text(channel)), simulate=False, data_dir=tmp_path)
+    await runtime.start()
+    listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    try:
+        yield runtime, listener
+    finally:
+        listener.shutdown()
+        await asyncio.wait_for(runtime.stop(), 5)
+
+
+async def _frames(listener: can.BusABC, can_id: int, seconds: float) -> list[can.Message]:
+    got, end = [], time.monotonic() + seconds
+    while time.monotonic() < end:
+        msg = listener.recv(0)
+        if msg is None:
+            await asyncio.sleep(0.002)
+        elif msg.arbitration_id == can_id:
+            got.append(msg)
+    return got
+
+
+def _audit(runtime) -> list[tuple[str, str, str]]:
+    with contextlib.closing(sqlite3.connect(runtime.audit.path)) as db:
+        return db.execute("select user, action, result from audit order by id").fetchall()
+
+
+# -- pure rules ----------------------------------------------------------------------------------
+
+
+def test_rows_are_checked():
+    assert parse_bytes("01 02 ff") == b"\x01\x02\xff" == parse_bytes("0102FF")
+    with pytest.raises(TransmitError):
+        parse_bytes("01 02 03 04 05 06 07 08 09")
+    with pytest.raises(TransmitError, match="11-bit"):
+        make_row(0x800, False, b"")
+    make_row(0x1FFFFFFF, True, b"")
+    with pytest.raises(TransmitError, match="DLC"):
+        make_row(0x100, False, b"\x01", dlc=2)
+    with pytest.raises(TransmitError, match="cycle time"):
+        make_row(0x100, False, b"", period_ms=5)
+    with pytest.raises(TransmitError, match="cycle time"):
+        make_row(0x100, False, b"", period_ms=10_001)
+
+
+@pytest.mark.parametrize(
+    ("can_id", "data", "name"),
+    [
+        (0x706, b"\x4f\x01\x00\x80\x00\x00", "FWU erase sector"),
+        (0x707, b"\x4f\x01\x00\x80\x00\x00\x00\x00", "FWU write flash"),
+        (0x700, b"\x00\x00\x00\x00\x02", "FIRMWARE_UPDATE_ENTER"),
+        (0x700, b"\x4f\x01\x00\x80\x03\x00\x00\x00", "BOOTLOADER_UPDATE_ENTER"),
+        (0x700, b"\x4f\x01\x00\x80\x04\x00", "UPDATE_LEAVE"),
+        (0x704, b"\x4f\x01\x00\x80\x02\x80\x01\x00", "FwUpdateCommandRegister"),
+        (0x705, b"\x4f\x01\x00\x80\x00\x00\x01\x00", "SettingsRevision"),
+    ],
+)
+def test_forbidden_frames_are_named(can_id, data, name):
+    assert name in forbidden_reason(can_id, False, data)
+
+
+def test_allowed_frames_pass():
+    # section 6.6.1 example: cmdSetLockRequestSource IrsAlways to extended device 335
+    assert forbidden_reason(0x700, False, bytes.fromhex("4F 01 00 80 00 00 81 00")) is None
+    assert forbidden_reason(0x706, True, b"") is None  # an extended 0x706 is not the lock's request block
+    row = hdlock_read("lock", LOCK, "holding", 1000)
+    assert (row.can_id, row.extended, row.data.hex(" ")) == (0x703, False, "4f 01 00 80 e8 03 01 00")
+    assert "LockStatus" in row.label
+    with pytest.raises(TransmitError):
+        hdlock_write("lock", LOCK, 32770, 1)
+    dig = m3io_dig_out("heater", {"sw1": 0x1A, "variant": "HM"}, {"LED": True, "SSR1": True})
+    assert (dig.can_id, dig.data) == (0x422, b"\x03")
+
+
+# -- against the bus ---------------------------------------------------------------------------------
+
+
+async def test_send_once_and_audit(rig):
+    runtime, listener = rig
+    tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
+    await tl.load()
+    row = await tl.add(hdlock_read("lock", LOCK, "input", 104, 2), user="anna", role="engineer")
+    await tl.send_once(row.key, user="anna", role="engineer")
+    got = await _frames(listener, 0x702, 0.3)
+    assert [bytes(m.data) for m in got] == [bytes.fromhex("4F 01 00 80 68 00 02 00")]
+    actions = [a for _u, a, r in _audit(runtime) if r == "ok"]
+    assert any(a.startswith("transmit once on can1: 0x702") for a in actions)
+
+
+async def test_cyclic_row_keeps_its_period_and_stops(rig):
+    runtime, listener = rig
+    tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
+    await tl.load()
+    row = await tl.add(make_row(0x321, False, b"\xaa\x55", period_ms=20), user="anna", role="engineer")
+    beat = asyncio.create_task(_beat(runtime.worker, SESSION))
+    try:
+        await tl.start(row.key, user="anna", role="engineer", session=SESSION)
+        got = await _frames(listener, 0x321, 1.0)
+        assert 35 <= len(got) <= 65  # about 50 frames in 1 s at 20 ms
+        gaps = [b.timestamp - a.timestamp for a, b in itertools.pairwise(got)]
+        assert sorted(gaps)[len(gaps) // 2] == pytest.approx(0.020, abs=0.008)
+        await tl.stop(row.key, user="anna", role="engineer")
+        await _frames(listener, 0x321, 0.05)
+        assert await _frames(listener, 0x321, 0.2) == []
+    finally:
+        beat.cancel()
+    actions = [a for _u, a, _r in _audit(runtime)]
+    assert any("start 0x321" in a for a in actions) and any("stop 0x321" in a for a in actions)
+
+
+@pytest.mark.parametrize(("can_id", "data"), [(0x706, b"\x00" * 6), (0x700, b"\x00\x00\x00\x00\x02")])
+async def test_forbidden_refused_by_name_and_audited(rig, can_id, data):
+    runtime, listener = rig
+    tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
+    await tl.load()
+    with pytest.raises(TransmitError, match="firmware-update"):
+        await tl.add(make_row(can_id, False, data), user="anna", role="engineer")
+    # a list edited on disk is checked again when sending
+    row = make_row(can_id, False, data)
+    tl.rows.append(row)
+    with pytest.raises(TransmitError, match="firmware-update"):
+        await tl.send_once(row.key, user="anna", role="engineer")
+    assert await _frames(listener, can_id, 0.2) == []
+    refused = [(a, r) for _u, a, r in _audit(runtime) if r.startswith("refused")]
+    assert len(refused) == 2 and all("firmware-update" in r for _a, r in refused)
+
+
+async def test_viewer_refused(rig):
+    runtime, listener = rig
+    tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
+    await tl.load()
+    row = await tl.add(make_row(0x123, False, b"\x01", period_ms=50), user="anna", role="engineer")
+    with pytest.raises(PermissionDenied):
+        await tl.send_once(row.key, user="tablet", role="viewer")
+    with pytest.raises(PermissionDenied):
+        await tl.start(row.key, user="tablet", role="viewer", session=SESSION)
+    with pytest.raises(PermissionDenied):
+        await tl.add(make_row(0x124, False, b""), user="tablet", role="viewer")
+    assert await _frames(listener, 0x123, 0.2) == []
+    assert not tl.running
+    assert sum(1 for u, _a, r in _audit(runtime) if u == "tablet" and r.startswith("refused")) == 3
+
+
+async def _beat(worker, session: str) -> None:
+    while True:
+        worker.heartbeat(session)
+        await asyncio.sleep(0.1)
+
+
+async def test_cyclic_rows_stop_when_the_session_is_lost(rig):
+    runtime, listener = rig
+    tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
+    await tl.load()
+    row = await tl.add(make_row(0x222, False, b"\x01", period_ms=10), user="anna", role="engineer")
+    beat = asyncio.create_task(_beat(runtime.worker, SESSION))
+    await tl.start(row.key, user="anna", role="engineer", session=SESSION)
+    assert len(await _frames(listener, 0x222, 0.5)) > 20  # kept alive by the heartbeat
+    beat.cancel()
+    frozen = time.monotonic()  # the browser stops confirming
+    assert await wait_for(lambda: not tl.running, timeout=2)
+    stopped_after = time.monotonic() - frozen
+    await _frames(listener, 0x222, 0.05)
+    assert await _frames(listener, 0x222, 0.2) == []
+    assert stopped_after <= DEADMAN_BOUND_S
+    assert await wait_for(lambda: any("stopped: dead-man" in a for _u, a, _r in _audit(runtime)), timeout=2)
+
+
+async def test_closed_session_stops_its_rows(rig):
+    runtime, _listener = rig
+    tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
+    await tl.load()
+    row = await tl.add(make_row(0x223, False, b"", period_ms=100), user="anna", role="engineer")
+    runtime.worker.heartbeat("other")
+    await tl.start(row.key, user="anna", role="engineer", session="other")
+    runtime.worker.session_closed("other")
+    assert not tl.running and not runtime.worker.can_buses["can1"].cyclic_running(f"transmit can1 {row.key}")
+
+
+async def test_list_saved_per_bus_and_restored(rig):
+    runtime, _listener = rig
+    tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
+    await tl.load()
+    await tl.add(make_row(0x1ABCDEF, True, b"\x01\x02", period_ms=250, label="x"), user="anna", role="engineer")
+    await tl.add(m3io_dig_out("heater", {"sw1": 0x1A, "variant": "HM"}, {"LED": True}), user="anna", role="engineer")
+    assert (runtime.data_dir / "transmit-can1.json").exists()
+    runtime.worker.remove_holder("transmit:can1")
+    again = transmit_list(runtime.worker, "can1", runtime.data_dir)
+    assert again is not tl
+    await again.load()
+    assert [(r.can_id, r.extended, r.data, r.period_ms) for r in again.rows] == [
+        (0x1ABCDEF, True, b"\x01\x02", 250), (0x422, False, b"\x01", None)]
