@@ -1,10 +1,14 @@
 """CAN bus recordings and the pure helpers of the bus monitor.
 
 A recording is a python-can writer (candump ``.log``, Vector ``.asc``, ``.blf``,
-``.csv``) attached to :attr:`app.can_bus.CanBusState.recorder`; the bus feeds it every
+``.csv``, PEAK ``.trc``) attached to :attr:`app.can_bus.CanBusState.recorder`; the bus feeds it every
 frame it records (received and sent). Starting and stopping happen in the event loop,
 the same thread that feeds the writer, so no frame reaches a closed file. Recorded files
-are read back with :class:`can.LogReader` into :class:`~app.can_bus.FrameRecord` rows.
+are read back with python-can's readers into :class:`~app.can_bus.FrameRecord` rows; the
+format is taken from the file's content (:func:`detect_format`), the suffix only when the
+content does not tell, and a file that cannot be read names the line (text formats) or
+byte offset (BLF) where reading stopped. Recordings live in the data folder, beside the
+backups and the audit log (:func:`recordings_dir`).
 
 Decoding and filtering are plain functions of ``(arbitration_id, is_extended, data)``
 that ask the device codecs (``describe_frame``) and the device adapters
@@ -15,7 +19,10 @@ transactions are decoded through the parameter model of the device at their unit
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import importlib
+import io
 import logging
 import os
 import queue
@@ -30,10 +37,11 @@ from types import ModuleType
 from typing import Any
 
 import can
-from can.io.asc import ASCWriter
-from can.io.blf import BLFWriter
-from can.io.canutils import CanutilsLogWriter
-from can.io.csv import CSVWriter
+from can.io.asc import ASCReader, ASCWriter
+from can.io.blf import BLFReader, BLFWriter
+from can.io.canutils import CanutilsLogReader, CanutilsLogWriter
+from can.io.csv import CSVReader, CSVWriter
+from can.io.trc import TRCReader, TRCWriter
 from can.util import channel2int
 
 from app.can_bus import CanBusState, FrameRecord
@@ -46,8 +54,14 @@ WRITERS: dict[str, tuple[type[can.io.generic.MessageWriter], str]] = {
     ".asc": (ASCWriter, "Vector .asc"),
     ".blf": (BLFWriter, "Vector .blf"),
     ".csv": (CSVWriter, "python-can .csv"),
+    ".trc": (TRCWriter, "PEAK .trc"),
 }
-READ_SUFFIXES = (".log", ".asc", ".blf", ".csv", ".trc")  # what can.LogReader reads without extras
+READERS: dict[str, type[can.io.generic.MessageReader]] = {
+    ".log": CanutilsLogReader, ".asc": ASCReader, ".blf": BLFReader, ".csv": CSVReader, ".trc": TRCReader,
+}
+READ_SUFFIXES = tuple(READERS)  # what python-can reads without extras
+SNIFF_BYTES = 4096  # the head of a file looked at to tell its format
+PROGRESS_FRAMES = 5_000  # frames between two progress reports while reading a file
 MAX_FILE_FRAMES = 200_000  # frames kept of an opened file (memory bound)
 MAX_CACHE = 20_000  # decoded texts kept per decoder
 DIR_ENV = "COMMISSION_RECORDINGS_DIR"
@@ -65,11 +79,25 @@ class RecordingError(Exception):
 # -- recording the bus ----------------------------------------------------------------------------
 
 
+RECORDINGS_SUBDIR = "recordings"
+
+
 def recordings_dir(directory: str | Path | None = None) -> Path:
-    """Where recordings go: ``directory``, else ``$COMMISSION_RECORDINGS_DIR``, else ``./recordings``."""
+    """Where recordings go: ``directory``, else ``$COMMISSION_RECORDINGS_DIR``, else the folder
+    ``recordings`` in the data folder of the running plant (beside ``backups`` and the audit log),
+    else in the user's data folder; never the current working directory."""
     if directory is not None:
         return Path(directory)
-    return Path(os.environ.get(DIR_ENV) or Path.cwd() / "recordings")
+    if os.environ.get(DIR_ENV):
+        return Path(os.environ[DIR_ENV])
+    from app import runtime  # noqa: PLC0415 - the running plant's data folder; runtime imports much of app/
+    from app.users import default_data_dir  # noqa: PLC0415
+
+    try:
+        base = runtime.current().data_dir
+    except RuntimeError:  # no plant is running (a command-line tool)
+        base = default_data_dir()
+    return Path(base) / RECORDINGS_SUBDIR
 
 
 RECORD_QUEUE = 200_000  # frames waiting for the disk (about 20 s of a full 1 Mbit/s bus)
@@ -112,7 +140,7 @@ class Recording(can.Listener):
                 ok = True
             elif self.suffix == ".log":
                 ok = isinstance(channel, int) or (isinstance(channel, str) and bool(channel) and not any(c.isspace() for c in channel))
-            elif self.suffix in (".asc", ".blf"):
+            elif self.suffix in (".asc", ".blf", ".trc"):
                 number = channel2int(channel)
                 ok = number is None or 0 <= number < 255
             else:
@@ -209,7 +237,8 @@ def start_recording(
 
     Creates a file: from the event loop, call it through a thread.
 
-    :param suffix: ``.log``, ``.asc``, ``.blf`` or ``.csv``
+    :param suffix: ``.log``, ``.asc``, ``.blf``, ``.csv`` or ``.trc``
+    :param directory: the folder; default :func:`recordings_dir` (the data folder's ``recordings``)
     :param bus_options: the bus's plant options; its channel names frames without one in ``.log``
     :raises RecordingError: unknown format, a recording already running, or the file cannot be created
     """
@@ -304,6 +333,14 @@ class LoadedLog:
     name: str
     frames: list[FrameRecord] = field(default_factory=list)
     truncated: bool = False
+    format: str = ""  # the format it was read as (from its content): ".log", ".trc", ...
+
+    def page(self, number: int, size: int = 200) -> list[FrameRecord]:
+        """Frames of page ``number`` (0-based) of ``size`` frames, in file order."""
+        return self.frames[number * size:(number + 1) * size] if number >= 0 and size > 0 else []
+
+    def pages(self, size: int = 200) -> int:
+        return -(-len(self.frames) // size) if size > 0 else 0
 
     @property
     def duration(self) -> float:
@@ -314,44 +351,255 @@ class LoadedLog:
         return sum(1 for f in self.frames if f.is_error_frame)
 
 
-def read_log(path: str | Path, name: str | None = None, limit: int = MAX_FILE_FRAMES) -> LoadedLog:
-    """Read a ``.log``/``.asc``/``.blf``/``.csv``/``.trc`` file with :class:`can.LogReader`.
+_CANDUMP_LINE = re.compile(r"^\(\d+(\.\d+)?\)\s+\S+\s+[0-9A-Fa-f]{1,8}#")
 
-    Blocking: run it in a thread (``run.io_bound``) from the loop.
 
-    :raises RecordingError: unsupported suffix, unreadable or malformed file
+def detect_format(head: bytes) -> str | None:
+    """The recording format of a file from its first bytes (``.blf``, ``.trc``, ``.asc``, ``.csv``,
+    ``.log``), or None when the content does not tell."""
+    if head.startswith(b"LOGG"):  # BLF file signature
+        return ".blf"
+    text = head.decode("utf-8", errors="replace").lstrip("\ufeff")
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    if not lines:
+        return None
+    first = lines[0]
+    if first.startswith(";"):  # PEAK trace files start with ;$FILEVERSION or a ;### comment block
+        return ".trc"
+    if first.lower().startswith("timestamp,arbitration_id"):
+        return ".csv"
+    if _CANDUMP_LINE.match(first):
+        return ".log"
+    lower = [line.lower() for line in lines[:8]]
+    if any(line.startswith(("date ", "base hex", "base dec", "begin triggerblock")) for line in lower):
+        return ".asc"
+    return None
+
+
+class _CountingText(io.TextIOBase):
+    """A text file handed to a python-can reader, counting the lines and characters it took."""
+
+    def __init__(self, file: io.TextIOBase):
+        self._file = file
+        self.line = 0
+        self.chars = 0
+
+    def __iter__(self):
+        return self
+
+    def __next__(self) -> str:
+        line = next(self._file)
+        self.line += 1
+        self.chars += len(line)
+        return line
+
+    def readline(self, size: int = -1) -> str:
+        line = self._file.readline(size)
+        if line:
+            self.line += 1
+            self.chars += len(line)
+        return line
+
+    def read(self, size: int | None = -1) -> str:
+        text = self._file.read(size)
+        self.chars += len(text)
+        self.line += text.count("\n")
+        return text
+
+    def readable(self) -> bool:
+        return True
+
+    @property
+    def name(self) -> str:
+        return getattr(self._file, "name", "")
+
+    def close(self) -> None:
+        self._file.close()
+        super().close()
+
+    def where(self) -> str:
+        return f"line {self.line}"
+
+    @property
+    def done(self) -> int:
+        return self.chars
+
+
+class _CountingBinary(io.RawIOBase):
+    """A binary file handed to python-can's BLF reader, counting the bytes it took."""
+
+    def __init__(self, file: io.BufferedIOBase):
+        self._file = file
+        self.offset = 0
+
+    def read(self, size: int = -1) -> bytes:
+        data = self._file.read(size)
+        self.offset += len(data)
+        return data
+
+    def readable(self) -> bool:
+        return True
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        self.offset = self._file.seek(offset, whence)
+        return self.offset
+
+    def tell(self) -> int:
+        return self.offset
+
+    @property
+    def name(self) -> str:
+        return getattr(self._file, "name", "")
+
+    def close(self) -> None:
+        self._file.close()
+        super().close()
+
+    def where(self) -> str:
+        return f"byte offset {self.offset}"
+
+    @property
+    def done(self) -> int:
+        return self.offset
+
+
+Progress = Callable[[int, float], None]  # (frames read so far, fraction of the file read 0..1)
+
+
+def _record_of(msg: can.Message) -> FrameRecord:
+    return FrameRecord(
+        float(msg.timestamp), int(msg.arbitration_id), bool(msg.is_extended_id), int(msg.dlc),
+        bytes(msg.data), "rx" if msg.is_rx else "tx", bool(msg.is_error_frame), bool(msg.is_remote_frame),
+    )
+
+
+def file_format(path: str | Path, name: str | None = None) -> str:
+    """The format to read ``path`` as: from its content, else from its suffix.
+
+    :raises RecordingError: neither tells, or the file cannot be opened
     """
     path = Path(path)
     name = name or path.name
+    try:
+        with path.open("rb") as file:
+            head = file.read(SNIFF_BYTES)
+    except OSError as exc:
+        raise RecordingError(f"{name}: cannot open: {exc.strerror or exc}") from None
+    found = detect_format(head)
+    if found is not None:
+        return found
     suffix = path.suffix.lower()
-    if suffix not in READ_SUFFIXES:
-        raise RecordingError(f"{name}: unsupported file type {suffix or '(none)'}; readable are {', '.join(READ_SUFFIXES)}")
-    loaded = LoadedLog(name)
+    if suffix in READERS:
+        return suffix
+    raise RecordingError(f"{name}: unsupported file type {suffix or '(none)'} and the content is not a recording "
+                         f"python-can reads; readable are {', '.join(READ_SUFFIXES)}")
+
+
+def iter_log(
+    path: str | Path, name: str | None = None, chunk_frames: int = PROGRESS_FRAMES, progress: Progress | None = None,
+    cancel: threading.Event | None = None,
+) -> Iterator[list[FrameRecord]]:
+    """The frames of a recorded file in chunks of at most ``chunk_frames`` (blocking: run it off the loop).
+
+    The format comes from the content (:func:`file_format`). ``progress(frames, fraction)`` is
+    called after every chunk, in the reading thread; ``cancel`` set ends the reading early.
+
+    :raises RecordingError: unknown format, or a malformed file, naming the line (text formats) or the
+        byte offset (BLF) where reading stopped and why
+    """
+    path = Path(path)
+    name = name or path.name
+    fmt = file_format(path, name)
     try:
-        reader = can.LogReader(path)
-    except Exception as exc:  # noqa: BLE001 - ValueError, OSError, BLFParseError ... from the readers
-        raise RecordingError(f"{name}: cannot open as {suffix} file: {exc}") from None
+        total = max(1, path.stat().st_size)
+        raw = path.open("rb") if fmt == ".blf" else path.open("r", encoding="utf-8", newline=None)
+    except OSError as exc:
+        raise RecordingError(f"{name}: cannot open: {exc.strerror or exc}") from None
+    counted: _CountingText | _CountingBinary = _CountingBinary(raw) if fmt == ".blf" else _CountingText(raw)
+    frames = 0
     try:
-        for msg in reader:
-            if len(loaded.frames) >= limit:
-                loaded.truncated = True
-                break
-            loaded.frames.append(
-                FrameRecord(
-                    float(msg.timestamp), int(msg.arbitration_id), bool(msg.is_extended_id), int(msg.dlc),
-                    bytes(msg.data), "rx" if msg.is_rx else "tx", bool(msg.is_error_frame), bool(msg.is_remote_frame),
-                )
-            )
-    except Exception as exc:  # noqa: BLE001 - a malformed line/object: say where it stopped
-        raise RecordingError(f"{name}: not a valid {suffix} file (after {len(loaded.frames)} frames): {exc}") from None
+        try:
+            reader = READERS[fmt](counted)
+        except Exception as exc:  # noqa: BLE001 - ValueError, BLFParseError, UnicodeDecodeError ... from the readers
+            raise RecordingError(f"{name}: cannot open as {fmt} file ({counted.where()}): {exc}") from None
+        chunk: list[FrameRecord] = []
+        try:
+            for msg in reader:
+                chunk.append(_record_of(msg))
+                if len(chunk) >= chunk_frames:
+                    frames += len(chunk)
+                    if progress is not None:
+                        progress(frames, min(1.0, counted.done / total))
+                    yield chunk
+                    chunk = []
+                    if cancel is not None and cancel.is_set():
+                        return
+        except RecordingError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - a malformed line/object: say where it stopped and why
+            raise RecordingError(
+                f"{name}: not a valid {fmt} file at {counted.where()} (after {frames + len(chunk)} frames): "
+                f"{exc or exc.__class__.__name__}") from None
+        if chunk:
+            frames += len(chunk)
+            yield chunk
+        if progress is not None:
+            progress(frames, 1.0)
     finally:
         try:
-            reader.stop()
-        except Exception as exc:  # noqa: BLE001 - closing a reader of a broken file may fail too
-            logger.debug("closing the reader of %s failed: %s", name, exc)
+            counted.close()
+        except Exception as exc:  # noqa: BLE001 - closing a broken file may fail too
+            logger.debug("closing %s failed: %s", name, exc)
+
+
+def read_log(
+    path: str | Path, name: str | None = None, limit: int = MAX_FILE_FRAMES, progress: Progress | None = None,
+    cancel: threading.Event | None = None,
+) -> LoadedLog:
+    """Read a recorded ``.log``/``.asc``/``.blf``/``.csv``/``.trc`` file (the format from its content).
+
+    Blocking: run it in a thread (``run.io_bound``, or :func:`load_log` from the loop).
+
+    :param progress: ``progress(frames, fraction)`` every :data:`PROGRESS_FRAMES` frames (reading thread)
+    :param cancel: set to stop early (the frames read so far are returned, ``truncated``)
+    :raises RecordingError: unsupported or malformed file, saying where and why; or no frames in it
+    """
+    path = Path(path)
+    name = name or path.name
+    loaded = LoadedLog(name)
+    fmt = file_format(path, name)
+    loaded.format = fmt
+    with contextlib.closing(iter_log(path, name, PROGRESS_FRAMES, progress, cancel)) as chunks:
+        for chunk in chunks:
+            room = limit - len(loaded.frames)
+            if len(chunk) > room:  # (a chunk after the limit was reached has room 0)
+                loaded.frames.extend(chunk[:room])
+                loaded.truncated = True
+                break
+            loaded.frames.extend(chunk)
+        else:
+            loaded.truncated = cancel is not None and cancel.is_set()
     if not loaded.frames:
-        raise RecordingError(f"{name}: no CAN frames found in this {suffix} file")
+        raise RecordingError(f"{name}: no CAN frames found in this {fmt} file")
     return loaded
+
+
+async def load_log(
+    path: str | Path, name: str | None = None, limit: int = MAX_FILE_FRAMES,
+    progress: Progress | None = None, cancel: threading.Event | None = None,
+) -> LoadedLog:
+    """:func:`read_log` in a thread; ``progress(frames, fraction)`` is called on the event loop.
+
+    For the monitor: show the fraction while a large file loads, then page through
+    :meth:`LoadedLog.page`. Set ``cancel`` (e.g. when the page closes) to stop reading.
+    """
+    loop = asyncio.get_running_loop()
+
+    def report(frames: int, fraction: float) -> None:
+        if progress is not None:
+            loop.call_soon_threadsafe(progress, frames, fraction)
+
+    return await asyncio.to_thread(read_log, path, name, limit, report if progress else None, cancel)
 
 
 # -- decoding -------------------------------------------------------------------------------------------
