@@ -12,12 +12,23 @@ kind (frames of subscribed IDs, and all others), the oldest are shed and counted
 ``CanBusState.shed`` when the loop falls behind, frames of subscribed IDs go first, and
 the loop drains for at most ``DRAIN_BUDGET_S`` at a time before it runs anything else
 (the keep-alives of every bus among it).
+
+No loss is silent: where the interface can say how many frames it lost before they reached
+the reader (the kernel's drop counter of a ``udp_multicast`` socket, a SocketCAN driver's
+overrun counters), ``CanBusState.interface_dropped`` counts them; a ``udp_multicast``
+socket gets a receive buffer of ``UDP_RCVBUF`` bytes so the reader can wait for the
+interpreter lock without losing frames. Unknown IDs are offered to discovery once per
+``NO_DISCOVERY_S`` when no device type recognises their frames (a bounded table).
 """
 
 from __future__ import annotations
 
 import asyncio
+import importlib
 import logging
+import os
+import socket
+import statistics
 import sys
 import threading
 import time
@@ -42,6 +53,13 @@ DRAIN_BUDGET_S = 0.004  # the loop drains one bus this long at most, then runs t
 DRAIN_CHECK = 4  # frames between two looks at the clock
 GIL_SWITCH_S = 0.001  # a busy reader thread holds the GIL at most this long while the loop owes a keep-alive (5 ms by default)
 SHED_WARN_S = 10.0  # at most one log line per bus this often while frames are shed
+CYCLE_GAPS = 16  # gaps kept per ID and frame length for the cycle time (median; O(1) per frame)
+CYCLE_STREAMS = 4  # frame lengths told apart per ID (a lock's status, 8 bytes, and its answers, 6 bytes); more share one
+BURST_GAP_S = 0.010  # frames of one ID and length closer than this are one burst (the fastest documented cycle is 100 ms)
+UDP_RCVBUF = 4 * 2**20  # receive buffer of a udp_multicast socket: about 0.4 s of a full 1 Mbit/s bus (capped by net.core.rmem_max)
+NO_DISCOVERY_S = 10.0  # an unknown ID whose frames no device type recognises is offered to discovery again after this
+NO_DISCOVERY_IDS = 4096  # negative results remembered per bus (least recently heard goes first)
+LOAD_PERIOD_S = 0.5  # bus load and frames/s are taken over this window
 BUS_STATE_NAMES = {
     can.BusState.ACTIVE: "error-active",
     can.BusState.PASSIVE: "error-passive",
@@ -61,6 +79,57 @@ class FrameRecord:
     direction: str  # "rx" or "tx"
     is_error_frame: bool = False
     is_remote_frame: bool = False
+    dt: float | None = None  # seconds since the previous frame of the same ID (None: the first one heard)
+
+
+def frame_bits(dlc: int, is_extended: bool) -> int:
+    """Bits of a classic CAN data frame on the wire without stuff bits: SOF, arbitration, control,
+    data, CRC, ACK, EOF and the 3-bit interframe space (47 + 8n standard, 67 + 8n extended)."""
+    return (67 if is_extended else 47) + 8 * min(dlc, 8)
+
+
+@dataclass(slots=True)
+class CycleStream:
+    """Gaps of one ID's frames of one length: the cycle time is the median of recent gaps.
+
+    Frames closer than ``BURST_GAP_S`` form a burst (a register read answered frame by frame);
+    the gaps between burst starts are kept apart, so an ID that carries bursts shows the burst
+    period and its size instead of the gaps inside a burst.
+    """
+
+    count: int = 0
+    last: float = 0.0
+    burst_start: float = 0.0
+    burst_frames: int = 0
+    gaps: deque = field(default_factory=lambda: deque(maxlen=CYCLE_GAPS))  # every gap
+    burst_gaps: deque = field(default_factory=lambda: deque(maxlen=CYCLE_GAPS))  # from burst start to burst start
+    burst_sizes: deque = field(default_factory=lambda: deque(maxlen=CYCLE_GAPS))
+
+    def add(self, t: float) -> float | None:
+        """One frame at ``t`` (interface time, seconds); the gap to the previous one."""
+        gap = None
+        if self.count:
+            gap = t - self.last
+            self.gaps.append(gap)
+            if gap >= BURST_GAP_S:
+                self.burst_gaps.append(t - self.burst_start)
+                self.burst_sizes.append(self.burst_frames)
+                self.burst_start, self.burst_frames = t, 0
+        else:
+            self.burst_start = t
+        self.burst_frames += 1
+        self.count += 1
+        self.last = t
+        return gap
+
+    def cycle(self) -> tuple[float | None, float]:
+        """(cycle time in s or None before two frames, mean frames per burst); O(CYCLE_GAPS)."""
+        if not self.gaps:
+            return None, 1.0
+        median = statistics.median(self.gaps)
+        if median >= BURST_GAP_S or not self.burst_gaps:
+            return median, 1.0
+        return statistics.median(self.burst_gaps), sum(self.burst_sizes) / len(self.burst_sizes)
 
 
 @dataclass(slots=True)
@@ -69,10 +138,33 @@ class IdStats:
 
     count: int = 0
     last_time: float = 0.0
-    period: float | None = None
+    period: float | None = None  # the last gap
     data: bytes = b""
     changed: int = 0  # bit n set: byte n differs from the previous frame
     direction: str = "rx"
+    last_ts: float = 0.0  # the interface's time stamp of the last frame
+    streams: dict = field(default_factory=dict)  # frame length -> CycleStream (at most CYCLE_STREAMS)
+
+    def add_time(self, t: float, length: int) -> None:
+        streams = self.streams
+        stream = streams.get(length)
+        if stream is None:
+            if len(streams) >= CYCLE_STREAMS - 1:
+                length = -1  # further lengths share the last stream
+                stream = streams.get(length)
+            if stream is None:
+                stream = streams[length] = CycleStream()
+        stream.add(t)
+
+    def cycles(self) -> list[tuple[int, int, float, float]]:
+        """(frame length, frames, cycle time s, frames per burst) per length heard twice, most frequent first."""
+        out = []
+        for length, stream in self.streams.items():
+            cycle, burst = stream.cycle()
+            if cycle is not None:
+                out.append((length, stream.count, cycle, burst))
+        out.sort(key=lambda c: -c[1])
+        return out
 
 
 @dataclass
@@ -86,6 +178,12 @@ class CanBusState(BusState):
     tx_errors: int = 0
     dropped: int = 0  # frames not handled: shed at the hand-over, or a handler failed on them
     shed: int = 0  # of those, frames the reader dropped because the loop was behind (a flood)
+    interface_dropped: int | None = None  # frames the interface lost before the reader saw them; None: it does not say
+    drop_source: str = ""  # where interface_dropped comes from
+    bits: int = 0  # bits on the wire of every frame heard or sent (no stuff bits)
+    frames_per_s: float = 0.0  # over the last LOAD_PERIOD_S
+    load_pct: float | None = None  # bits per second in % of the bit rate; None without a bit rate
+    rcvbuf: int | None = None  # the receive buffer granted to a socket interface, bytes
     frames: deque = field(default_factory=lambda: deque(maxlen=MONITOR_FRAMES))
     ids: OrderedDict[Key, IdStats] = field(default_factory=OrderedDict)  # least recently heard first
     recorder: Any = None  # a python-can writer while recording
@@ -104,6 +202,77 @@ def open_error(options: dict[str, Any], exc: Exception) -> str:
         text += (f" - SocketCAN needs Linux (with the can modules) and the interface up: "
                  f"`sudo ip link set {channel or 'can0'} up type can bitrate {bitrate}`")
     return text
+
+
+def _udp_socket(bus: can.BusABC) -> socket.socket | None:
+    """The datagram socket of a python-can ``udp_multicast`` bus, else None."""
+    multicast = getattr(bus, "_multicast", None)
+    sock = getattr(multicast, "_socket", None)
+    return sock if isinstance(sock, socket.socket) else None
+
+
+def _proc_udp_drops(inode: int) -> int | None:
+    """The kernel's drop counter of the UDP socket with ``inode`` (last column of /proc/net/udp[6])."""
+    for table in ("/proc/net/udp", "/proc/net/udp6"):
+        try:
+            with open(table) as f:
+                next(f, None)
+                for line in f:
+                    parts = line.split()
+                    if len(parts) >= 13 and parts[9] == str(inode):
+                        return int(parts[12])
+        except OSError:
+            continue
+    return None
+
+
+def interface_drops(bus: can.BusABC, options: dict[str, Any]) -> tuple[int, str] | None:
+    """``(frames lost by the interface, where the figure comes from)``, or None where it does not say.
+
+    udp_multicast: the socket's kernel drop counter (receive buffer full). SocketCAN: the
+    driver's ``rx_dropped + rx_over_errors + rx_fifo_errors`` of the network interface.
+    Blocking (reads /proc or /sys): call it in a thread.
+    """
+    sock = _udp_socket(bus)
+    if sock is not None:
+        drops = _proc_udp_drops(os.fstat(sock.fileno()).st_ino)
+        return None if drops is None else (drops, "kernel socket drops")
+    if options.get("interface") == "socketcan" and isinstance(options.get("channel"), str):
+        folder = f"/sys/class/net/{os.path.basename(options['channel'])}/statistics"
+        total = 0
+        try:
+            for name in ("rx_dropped", "rx_over_errors", "rx_fifo_errors"):
+                with open(f"{folder}/{name}") as f:
+                    total += int(f.read().strip() or 0)
+        except (OSError, ValueError):
+            return None
+        return total, "driver overruns"
+    return None
+
+
+_RECOGNISERS: list[Callable[[int, bool, bytes], Any]] | None = None
+
+
+def recognised_by_a_device_type(arbitration_id: int, is_extended: bool, data: bytes) -> bool:
+    """Whether some device type's codec takes the frame for one of its devices (``discovered``)."""
+    global _RECOGNISERS
+    if _RECOGNISERS is None:
+        from devices.registry import DEVICE_TYPES
+
+        hooks = []
+        for t in DEVICE_TYPES.values():
+            if t.can_codec and "can" in t.bus_types:
+                hook = getattr(importlib.import_module(t.can_codec), "discovered", None)
+                if callable(hook):
+                    hooks.append(hook)
+        _RECOGNISERS = hooks
+    for hook in _RECOGNISERS:
+        try:
+            if hook(arbitration_id, is_extended, data):
+                return True
+        except Exception:  # noqa: BLE001, S112 - a frame a codec cannot parse is not its device's
+            continue
+    return False
 
 
 class CanBus:
@@ -137,6 +306,12 @@ class CanBus:
         self.filter_own = options.get("filter_own", interface == "udp_multicast")
         # frames this instance sent, by content, with send times: udp_multicast hands them back
         self._own: dict[tuple[bool, int, bytes], deque[float]] = {}
+        # discovery: (ext, id, length) -> monotonic time until which its frames are not offered
+        self._no_discovery: OrderedDict[tuple[bool, int, int], float] = OrderedDict()
+        self.no_discovery_skipped = 0
+        self.recognise: Callable[[int, bool, bytes], bool] | None = recognised_by_a_device_type
+        self._drop_base: int | None = None  # the interface's drop counter when the bus was opened
+        self._load_mark = (time.monotonic(), 0, 0)  # (time, frames, bits) at the last load figure
 
     # -- subscriptions ---------------------------------------------------------------
     def subscribe(self, is_extended: bool, arbitration_id: int, handler: Handler) -> None:
@@ -151,11 +326,20 @@ class CanBus:
 
     # -- life cycle ------------------------------------------------------------------
     def _bus_kwargs(self) -> dict[str, Any]:
-        skip = {"simulate", "poll_period", "filter_own", "timeout"}
+        skip = {"simulate", "poll_period", "filter_own", "timeout", "rcvbuf"}
         return {k: v for k, v in self.options.items() if k not in skip}
 
     def _open(self) -> can.BusABC:
-        return can.Bus(**self._bus_kwargs())
+        bus = can.Bus(**self._bus_kwargs())
+        sock = _udp_socket(bus)
+        if sock is not None:
+            try:
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, int(self.options.get("rcvbuf", UDP_RCVBUF)))
+                self.state.rcvbuf = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+            except OSError as exc:
+                log.warning("%s: cannot enlarge the socket's receive buffer: %s", self.name, exc)
+        self._drop_base = None
+        return bus
 
     async def start(self) -> None:
         self._loop = asyncio.get_running_loop()
@@ -211,8 +395,10 @@ class CanBus:
                 self.state.reconnects += 1
                 self.state.last_error = ""
                 self._backoff = 0.5
-            await asyncio.sleep(0.5)
+            await asyncio.sleep(LOAD_PERIOD_S)
             self._expire_own()
+            self._measure_load()
+            await self._count_interface_drops(loop)
             bus_state = self._bus_state()
             if bus_state:
                 self.state.bus_state = bus_state
@@ -223,6 +409,37 @@ class CanBus:
                 await loop.run_in_executor(None, self._close)
                 await asyncio.sleep(self._backoff)
                 self._backoff = min(self._backoff * 2, 10.0)
+
+    def _measure_load(self) -> None:
+        """Frames/s and bus load (bits on the wire per second in % of the bit rate) since the last call."""
+        state = self.state
+        now = time.monotonic()
+        then, frames, bits = self._load_mark
+        total = state.rx_frames + state.tx_frames
+        elapsed = now - then
+        if elapsed <= 0:
+            return
+        state.frames_per_s = (total - frames) / elapsed
+        bitrate = self.options.get("bitrate")
+        state.load_pct = (state.bits - bits) / elapsed / bitrate * 100 if isinstance(bitrate, (int, float)) and bitrate > 0 else None
+        self._load_mark = (now, total, state.bits)
+
+    async def _count_interface_drops(self, loop: asyncio.AbstractEventLoop) -> None:
+        """The interface's own count of lost frames since the bus was opened (read in a thread: /proc, /sys)."""
+        if self.bus is None:
+            return
+        try:
+            found = await loop.run_in_executor(None, interface_drops, self.bus, self.options)
+        except Exception as exc:  # noqa: BLE001 - a counter that cannot be read is "not reported", never a failure
+            log.debug("%s: drop counter unreadable: %s", self.name, exc)
+            found = None
+        if found is None:
+            return
+        count, source = found
+        if self._drop_base is None:  # socketcan counters run since the interface came up: count from our start
+            self._drop_base = count if source.startswith("driver") else 0
+        self.state.interface_dropped = max(0, count - self._drop_base)
+        self.state.drop_source = source
 
     def _expire_own(self) -> None:
         """Forget sent frames whose echo did not come back within a second."""
@@ -323,38 +540,65 @@ class CanBus:
             if handlers:
                 for handler in handlers:
                     handler(msg)
-            else:
+            elif self.listeners and self._offer(key, msg):
                 for listener in self.listeners:
                     listener(msg)
         except Exception as exc:  # a bad frame must never stop the bus
             log.debug("%s: handler failed for %s: %s", self.name, msg, exc)
             state.dropped += 1
 
+    def _offer(self, key: Key, msg: can.Message) -> bool:
+        """Whether discovery hears this frame: not when no device type recognised a frame of this ID and
+        length within ``NO_DISCOVERY_S`` (a remembered negative result: one check per ID, not per frame)."""
+        shape = (key[0], key[1], len(msg.data))
+        refused = self._no_discovery
+        until = refused.get(shape)
+        now = time.monotonic()
+        if until is not None:
+            if now < until:
+                refused.move_to_end(shape)
+                self.no_discovery_skipped += 1
+                return False
+            del refused[shape]
+        if self.recognise is None or self.recognise(msg.arbitration_id, msg.is_extended_id, bytes(msg.data)):
+            return True
+        if len(refused) >= NO_DISCOVERY_IDS:
+            refused.popitem(last=False)
+        refused[shape] = now + NO_DISCOVERY_S
+        return True  # this frame still goes to the listeners: what they do with it is unchanged
+
     def _record(self, msg: can.Message, direction: str) -> None:
         state = self.state
         now = time.time()
+        ts = msg.timestamp or now  # the interface's time: frames handed over in a batch keep their own gaps
         data = bytes(msg.data)
-        state.frames.append(
-            FrameRecord(now, msg.arbitration_id, msg.is_extended_id, msg.dlc, data, direction, msg.is_error_frame, msg.is_remote_frame)
-        )
         key = (msg.is_extended_id, msg.arbitration_id)
         stats = state.ids.get(key)
         if stats is None:
             if len(state.ids) >= MAX_IDS:  # a flood of random IDs must not grow memory without bound:
                 state.ids.popitem(last=False)  # the ID heard least recently goes, in O(1)
             stats = state.ids[key] = IdStats()
+            dt = None
         else:
             state.ids.move_to_end(key)
+            dt = ts - stats.last_ts
+        state.frames.append(
+            FrameRecord(now, msg.arbitration_id, msg.is_extended_id, msg.dlc, data, direction, msg.is_error_frame, msg.is_remote_frame, dt)
+        )
+        if not msg.is_error_frame:
+            state.bits += frame_bits(msg.dlc, msg.is_extended_id)
         if stats.count:
-            stats.period = now - stats.last_time
+            stats.period = dt
             old = stats.data
             changed = 0
             for i in range(max(len(old), len(data))):
                 if i >= len(old) or i >= len(data) or old[i] != data[i]:
                     changed |= 1 << i
             stats.changed = changed
+        stats.add_time(ts, len(data))
         stats.count += 1
         stats.last_time = now
+        stats.last_ts = ts
         stats.data = data
         stats.direction = direction
         if state.recorder is not None:
