@@ -115,7 +115,8 @@ async def test_viewer_reads_but_cannot_write(secured):
     delay = next(e for e in user.find(ui.number).elements if e.props.get("data-param") == "LockRequestDelay")
     delay.set_value(300)
     write = next(e for e in user.find(ui.button).elements if e.props.get("data-write") == "LockRequestDelay")
-    write.props  # noqa: B018 - the button is there (a viewer sees it), the worker refuses
+    # the button is there and live for a viewer: the refusal below comes from the worker, not from the page
+    assert write.visible and write.enabled and not write.props.get("disable")
     from nicegui.testing.user_interaction import UserInteraction
 
     UserInteraction(user, {write}, None).click()
