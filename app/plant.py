@@ -116,6 +116,29 @@ class PlantViewConfig:
     public: bool = False
 
 
+MQTT_SCHEMES = {"mqtt": 1883, "mqtts": 8883}  # mqtts: TLS, the broker checked against the system's or ca_file's CAs
+MQTT_KEYS = ("url", "site", "instance", "username", "password_env", "password_file", "ca_file", "rate", "heartbeat", "buffer")
+
+
+@dataclass
+class MqttConfig:
+    """``[mqtt]``: publish the plant's live data to a broker (docs/mqtt.md). Never carries a password itself."""
+
+    url: str
+    host: str
+    port: int
+    tls: bool
+    site: str
+    instance: str
+    username: str | None = None
+    password_env: str | None = None  # the name of an environment variable holding the password
+    password_file: Path | None = None  # a file holding the password (relative paths: to the plant file)
+    ca_file: Path | None = None  # mqtts: the CA certificate(s) that signed the broker's certificate
+    rate: float = 2.0  # messages per second and device at most (changes only)
+    heartbeat: float = 10.0  # seconds: an unchanged device is re-sent this often, so subscribers can tell stale data
+    buffer: int = 1000  # alarm events kept while the broker is away (states keep only their newest message)
+
+
 @dataclass
 class Plant:
     name: str
@@ -124,6 +147,7 @@ class Plant:
     devices: dict[str, DeviceConfig] = field(default_factory=dict)
     sim_devices: dict[str, DeviceConfig] = field(default_factory=dict)  # simulated, not (yet) in the plant
     plant_view: PlantViewConfig = field(default_factory=PlantViewConfig)
+    mqtt: MqttConfig | None = None
 
     def devices_on(self, bus: str) -> list[DeviceConfig]:
         return [d for d in self.devices.values() if d.bus == bus]
@@ -147,11 +171,11 @@ def _key_line(text: str, start: int, key: str) -> int:
     return start
 
 
-TOP_LEVEL = ("name", "bus", "device", "sim_device", "plant_view")
+TOP_LEVEL = ("name", "bus", "device", "sim_device", "plant_view", "mqtt")
 
 
 def _section(key: str) -> str:
-    return "name" if key == "name" else f"[{key}]" if key == "plant_view" else f"[[{key}]]"
+    return "name" if key == "name" else f"[{key}]" if key in ("plant_view", "mqtt") else f"[[{key}]]"
 
 
 def _section_line(text: str, key: str) -> int:
@@ -334,7 +358,7 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
         if key not in TOP_LEVEL:
             guess = _did_you_mean(key, TOP_LEVEL)
             hint = f"did you mean {_section(guess)}? " if guess else ""
-            raise fail(_section_line(text, key), f"unknown section {_section(key)}; {hint}known: [[bus]], [[device]], [[sim_device]], [plant_view], name")
+            raise fail(_section_line(text, key), f"unknown section {_section(key)}; {hint}known: [[bus]], [[device]], [[sim_device]], [plant_view], [mqtt], name")
     for key in ("bus", "device", "sim_device"):
         if key in data and not (isinstance(data[key], list) and all(isinstance(t, dict) for t in data[key])):
             raise fail(_section_line(text, key), f"[{key}] is one table; write [[{key}]] (double brackets): one [[{key}]] table per {key.replace('sim_', 'simulated ')}")
@@ -353,6 +377,8 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
         # a string such as "false" would be true in Python: only a real boolean opens the view
         raise fail(_key_line(text, pv_line, "public"), f"[plant_view] public must be true or false (without quotes), not {public!r}")
     plant.plant_view = PlantViewConfig(public=public)
+    if "mqtt" in data:
+        plant.mqtt = parse_mqtt(text, data["mqtt"], plant.name, path, fail)
 
     bus_lines = _header_lines(text, "bus")
     for index, raw in enumerate(data.get("bus", [])):
@@ -377,6 +403,82 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
         if conflict is not None:
             raise fail(conflict[0].line, conflict[1])
     return plant
+
+
+TOPIC_PART = re.compile(r"[A-Za-z0-9_.-]+")  # a topic level: no '/', '+', '#' or '$' (docs/mqtt.md)
+
+
+def parse_mqtt_url(url: str) -> tuple[str, int, bool]:
+    """``mqtt://host[:port]`` or ``mqtts://host[:port]`` -> (host, port, tls); ValueError says what is wrong."""
+    from urllib.parse import urlsplit
+
+    try:
+        parts = urlsplit(url)
+        port = parts.port
+    except ValueError as exc:
+        raise ValueError(f"{url!r} is not a broker URL ({exc})") from None
+    if parts.scheme not in MQTT_SCHEMES:
+        raise ValueError(f"{url!r} must start with mqtt:// or mqtts:// (TLS)")
+    if not parts.hostname:
+        raise ValueError(f"{url!r} names no broker host, e.g. mqtt://broker.local:1883")
+    if parts.username or parts.password:
+        raise ValueError(f"{url!r} carries a user or password; use username = ... and password_env or password_file")
+    if parts.path not in ("", "/") or parts.query or parts.fragment:
+        raise ValueError(f"{url!r}: a broker URL has no path or query, e.g. mqtt://broker.local:1883")
+    return parts.hostname, port or MQTT_SCHEMES[parts.scheme], parts.scheme == "mqtts"
+
+
+def parse_mqtt(text: str, raw: Any, plant_name: str, path: Path | None, fail) -> MqttConfig:
+    """The ``[mqtt]`` table: every key checked, errors as ``file:line: what is wrong``."""
+    line = _section_line(text, "mqtt")
+    if not isinstance(raw, dict):
+        raise fail(line, '[mqtt] must be a table, e.g. [mqtt] url = "mqtt://broker.local:1883"')
+    at = lambda key: _key_line(text, line, key)  # noqa: E731
+    for key in raw:
+        if key == "password":
+            raise fail(at(key), "[mqtt]: a password never goes in the plant file; name an environment variable "
+                       "(password_env = \"MQTT_PASSWORD\") or a file (password_file = \"mqtt-password.txt\") that holds it")
+        if key not in MQTT_KEYS:
+            raise fail(at(key), _unknown_key("[mqtt]", key, MQTT_KEYS))
+    for key in ("url", "site", "instance", "username", "password_env", "password_file", "ca_file"):
+        if key in raw and not isinstance(raw[key], str):
+            raise fail(at(key), _wrong_type("[mqtt]", key, raw[key], str))
+    if "url" not in raw:
+        raise fail(line, '[mqtt]: \'url\' is required (add url = "mqtt://broker.local:1883")')
+    try:
+        host, port, tls = parse_mqtt_url(raw["url"])
+    except ValueError as exc:
+        raise fail(at("url"), f"[mqtt]: url {exc}") from None
+    site = raw.get("site", plant_name)
+    instance = raw.get("instance", plant_name)
+    for key, value in (("site", site), ("instance", instance)):
+        if not TOPIC_PART.fullmatch(value):
+            where = at(key) if key in raw else line
+            raise fail(where, f"[mqtt]: {key} {value!r} becomes a topic level: use letters, digits, '_', '.', '-' only"
+                       + ("" if key in raw else f" (it defaults to the plant name; set {key} = \"...\")"))
+    if "password_env" in raw and "password_file" in raw:
+        raise fail(at("password_file"), "[mqtt]: give password_env or password_file, not both")
+    if "password_env" in raw and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", raw["password_env"]):
+        raise fail(at("password_env"), f"[mqtt]: password_env names an environment variable (e.g. \"MQTT_PASSWORD\"), not {raw['password_env']!r}")
+    if ("password_env" in raw or "password_file" in raw) and "username" not in raw:
+        raise fail(at("password_env" if "password_env" in raw else "password_file"), "[mqtt]: a password needs username = \"...\"")
+    if "ca_file" in raw and not tls:
+        raise fail(at("ca_file"), "[mqtt]: ca_file is for TLS: write the url as mqtts://...")
+    base = path.parent if path else Path.cwd()
+    files = {key: (base / raw[key]) if key in raw else None for key in ("password_file", "ca_file")}
+    for key in ("rate", "heartbeat"):
+        if key in raw and not (_seconds(raw[key]) and raw[key] <= 3600):
+            raise fail(at(key), f"[mqtt]: {key} must be a number above 0 (and at most 3600), not {raw[key]!r}")
+    rate = float(raw.get("rate", 2.0))
+    if rate > 50:
+        raise fail(at("rate"), f"[mqtt]: rate {rate:g} messages/s per device is more than any subscriber needs; at most 50")
+    buffer = raw.get("buffer", 1000)
+    if isinstance(buffer, bool) or not isinstance(buffer, int) or not 10 <= buffer <= 100_000:
+        raise fail(at("buffer"), f"[mqtt]: buffer must be a whole number of messages in 10..100000, not {buffer!r}")
+    return MqttConfig(url=raw["url"], host=host, port=port, tls=tls, site=site, instance=instance,
+                      username=raw.get("username"), password_env=raw.get("password_env"),
+                      password_file=files["password_file"], ca_file=files["ca_file"], rate=rate,
+                      heartbeat=float(raw.get("heartbeat", 10.0)), buffer=buffer)
 
 
 def can_id_conflict(devices: list[DeviceConfig], bus: BusConfig) -> tuple[DeviceConfig, str] | None:

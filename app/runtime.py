@@ -124,6 +124,11 @@ class Runtime:
         self._unsaved_path = self.data_dir / UNSAVED_FILE
         self._unsaved_written = self._load_unsaved()
         self._tasks: list[asyncio.Task] = []
+        self.mqtt = None  # the broker publisher, when the plant file has an [mqtt] table (docs/mqtt.md)
+        if plant.mqtt is not None:
+            from app.mqtt import MqttPublisher
+
+            self.mqtt = MqttPublisher(plant.mqtt, self.store, plant.name)
 
     def session_user(self, token: str | None):
         """The account a session token stands for, as the account store says now (or None)."""
@@ -199,8 +204,12 @@ class Runtime:
         await self.worker.start()
         self._tasks = [asyncio.create_task(self._keep_unsaved(), name="unsaved reminders"),
                        asyncio.create_task(self._watch_accounts(), name="accounts")]
+        if self.mqtt is not None:
+            await self.mqtt.start()  # its own tasks: a broker that is away never holds up the buses
 
     async def stop(self) -> None:
+        if self.mqtt is not None:
+            await self.mqtt.stop()  # bounded; says "offline, stopped" to the broker while the store still holds the devices
         for task in self._tasks:
             task.cancel()
         await asyncio.gather(*self._tasks, return_exceptions=True)

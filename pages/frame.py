@@ -110,6 +110,14 @@ def frame(title: str):
                     ui.icon("report", color="white")
                     ui.label("audit log not writable: writes refused").classes("text-white text-caption")
                     ui.tooltip(f"{problem}. Free or repair the database; writes resume by themselves.")
+            mqtt = getattr(runtime, "mqtt", None)
+            if mqtt is not None:  # only with an [mqtt] table: the broker's state (publishing never holds up the buses)
+                broker = mqtt.summary()
+                with ui.badge(f"broker {broker['state']}", color="green-3" if broker["connected"] else "orange-4").classes(
+                        "text-black").props("data-testid=broker-state"):
+                    ui.tooltip(f"MQTT {broker['url']}: {broker['state']}"
+                               + (f" ({broker['last_error']})" if broker["last_error"] and not broker["connected"] else "")
+                               + f"; {broker['sent']} sent, {broker['queued']} waiting, {broker['dropped']} alarm events dropped")
             loop = runtime.worker.loop_health.summary()
             stalled = loop["last_stall"] is not None and time.time() - loop["last_stall"] < 60
             chip = ui.label(f"loop {loop['p99_ms']:.0f} ms").classes(

@@ -1,0 +1,337 @@
+"""Publish the plant's live data to an MQTT broker (``[mqtt]`` in the plant file), read-only.
+
+Topic tree and payloads: docs/mqtt.md. Everything is read from the state store
+(``DeviceState.values()`` / ``summary()``); nothing here talks to a bus, and nothing is ever
+subscribed to: MQTT carries no commands.
+
+Two asyncio tasks of their own: the *sampler* looks at every device at most ``rate`` times a
+second and queues what changed (latest message per topic, so a broker that is away costs a
+bounded amount of memory); the *sender* holds the broker connection, publishes the queue and
+reconnects with backoff. Neither ever waits for the other, and the bus worker waits for neither.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+import os
+import ssl
+import time
+from collections import OrderedDict, deque
+from pathlib import Path
+from typing import Any
+
+from app.plant import MqttConfig
+from devices.registry import DEVICE_TYPES
+
+log = logging.getLogger(__name__)
+
+SCHEMA_VERSION = 1  # docs/mqtt.md "Stability": fields are only ever added within one version
+TOPIC_ROOT = "commission"
+INSTANCES = "$instances"  # a topic level no device name can take ('$' is not allowed in names)
+BACKOFF_FIRST_S = 0.5
+BACKOFF_MAX_S = 5.0
+CONNECT_TIMEOUT_S = 10.0
+PUBLISH_TIMEOUT_S = 5.0
+
+
+def device_topic(site: str, device: str, leaf: str) -> str:
+    return f"{TOPIC_ROOT}/{site}/{device}/{leaf}"
+
+
+def instance_topic(site: str, instance: str) -> str:
+    return f"{TOPIC_ROOT}/{site}/{INSTANCES}/{instance}"
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, bytes | bytearray):
+        return value.hex(" ")
+    if isinstance(value, set | frozenset):
+        return sorted(value)
+    return str(value)
+
+
+def dumps(payload: dict[str, Any]) -> bytes:
+    return json.dumps(payload, separators=(",", ":"), default=_jsonable, allow_nan=False).encode()
+
+
+def _finite(value: Any) -> Any:
+    """NaN and infinities are not JSON: published as null."""
+    if isinstance(value, float) and value != value or value in (float("inf"), float("-inf")):
+        return None
+    return value
+
+
+def state_payload(state, instance: str, now: float) -> dict[str, Any]:
+    """``commission/<site>/<device>/state``: every live value with unit, quality and time (retained)."""
+    values = {}
+    for name, entry in state.values().items():
+        item = {"value": _finite(entry.get("value")), "unit": entry.get("unit", ""), "quality": entry.get("quality"),
+                "time": entry.get("time"), "text": entry.get("text")}
+        if entry.get("raw") is not None:
+            item["raw"] = entry["raw"]
+        for key in ("name", "fields"):
+            if entry.get(key) is not None:
+                item[key] = entry[key]
+        values[name] = item
+    return {"schema": "commission-state", "version": SCHEMA_VERSION, "instance": instance, "device": state.name,
+            "type": state.type, "bus": state.bus, "status": state.status, "time": now, "values": values}
+
+
+def status_payload(state, instance: str, now: float) -> dict[str, Any]:
+    """``commission/<site>/<device>/status``: online state, last error and counters (retained)."""
+    s = state.summary()
+    return {"schema": "commission-status", "version": SCHEMA_VERSION, "instance": instance, "device": state.name,
+            "type": state.type, "bus": state.bus, "status": s["status"], "online": s["online"], "last_seen": s["last_seen"],
+            "last_error": s["last_error"], "counters": s["counters"], "time": now}
+
+
+def active_alarms(state, now: float) -> list[str]:
+    """The alarms the device's tile declares (devices/registry.py), as the plant view shows them: only on good data."""
+    device_type = DEVICE_TYPES.get(state.type)
+    if device_type is None:
+        return []
+    tile = device_type.tile.evaluate(lambda name: state.entry(name, now), now)
+    return list(tile["alarms"]) if tile["quality"] in ("good", "unknown") else []
+
+
+def instance_payload(config: MqttConfig, plant_name: str, devices: list[str], state: str, now: float,
+                     reason: str = "") -> dict[str, Any]:
+    """``commission/<site>/$instances/<instance>``: birth (``online``), death (``offline``) and the last will."""
+    payload = {"schema": "commission-instance", "version": SCHEMA_VERSION, "instance": config.instance, "site": config.site,
+               "plant": plant_name, "state": state, "devices": devices, "time": now, "heartbeat": config.heartbeat}
+    if reason:
+        payload["reason"] = reason
+    return payload
+
+
+def _fingerprint(payload: dict[str, Any]) -> bytes:
+    """What counts as a change: everything but the publish time and the values' read times."""
+    values = {k: {f: v for f, v in item.items() if f != "time"} for k, item in payload.get("values", {}).items()}
+    return dumps({**payload, "time": None, "last_seen": None, "values": values})
+
+
+class MqttPublisher:
+    """The instance's broker connection: birth/death, device state, status and alarms (docs/mqtt.md)."""
+
+    def __init__(self, config: MqttConfig, store, plant_name: str):
+        self.config = config
+        self.store = store
+        self.plant_name = plant_name
+        self.state = "starting"  # "connecting", "connected", "down"
+        self.last_error = ""
+        self.since = time.time()
+        self.sent = 0
+        self.dropped = 0  # alarm events dropped from a full buffer
+        self.reconnects = 0
+        self._pending: OrderedDict[str, tuple[bytes, bool]] = OrderedDict()  # topic -> newest retained message
+        self._events: deque[tuple[str, bytes]] = deque(maxlen=config.buffer)  # alarm rise/clear, not retained
+        self._wake = asyncio.Event()
+        self._last: dict[str, tuple[bytes, float]] = {}  # topic -> (fingerprint, time sent to the queue)
+        self._alarms: dict[str, set[str]] = {}
+        self._tasks: list[asyncio.Task] = []
+        self._client = None
+        self._password: str | None = None
+
+    # -- what the header shows -----------------------------------------------------------------
+    @property
+    def connected(self) -> bool:
+        return self.state == "connected"
+
+    def summary(self) -> dict[str, Any]:
+        return {"url": self.config.url, "state": self.state, "connected": self.connected, "last_error": self.last_error,
+                "since": self.since, "sent": self.sent, "queued": len(self._pending) + len(self._events),
+                "dropped": self.dropped, "reconnects": self.reconnects}
+
+    def _set_state(self, state: str, error: str = "") -> None:
+        if state != self.state or error != self.last_error:
+            self.since = time.time()
+        self.state, self.last_error = state, error
+
+    # -- life cycle ------------------------------------------------------------------------------
+    async def start(self) -> None:
+        self._tasks = [asyncio.create_task(self._sample_loop(), name="mqtt sampler"),
+                       asyncio.create_task(self._send_loop(), name="mqtt sender")]
+
+    async def stop(self) -> None:
+        """Say goodbye (retained ``offline``, reason ``stopped``) if connected, then end both tasks (bounded)."""
+        client = self._client if self.connected else None
+        for task in self._tasks:
+            task.cancel()
+        await asyncio.gather(*self._tasks, return_exceptions=True)
+        self._tasks = []
+        if client is not None:
+            try:
+                payload = instance_payload(self.config, self.plant_name, list(self.store.devices), "offline", time.time(), "stopped")
+                await asyncio.wait_for(client.publish(self._instance_topic, dumps(payload), qos=1, retain=True), 2.0)
+                await asyncio.wait_for(client.__aexit__(None, None, None), 2.0)
+            except Exception as exc:  # noqa: BLE001 - the last will says the same when this fails
+                log.info("mqtt: goodbye not sent (%s); the broker sends the last will", exc)
+        self._client = None
+        self._set_state("stopped")
+
+    @property
+    def _instance_topic(self) -> str:
+        return instance_topic(self.config.site, self.config.instance)
+
+    # -- sampler: store -> queue, rate-limited, changes only -------------------------------------
+    def _queue(self, topic: str, payload: dict[str, Any], now: float, force: bool = False) -> None:
+        mark = _fingerprint(payload)
+        last = self._last.get(topic)
+        if not force and last is not None and last[0] == mark and now - last[1] < self.config.heartbeat:
+            return
+        self._last[topic] = (mark, now)
+        self._pending[topic] = (dumps(payload), True)
+        self._pending.move_to_end(topic)
+        self._wake.set()
+
+    def _event(self, topic: str, payload: dict[str, Any]) -> None:
+        if len(self._events) == self._events.maxlen:
+            self.dropped += 1
+        self._events.append((topic, dumps(payload)))
+        self._wake.set()
+
+    def sample(self, now: float | None = None) -> None:
+        """One look at every device: queue each topic whose content changed (or whose heartbeat is due)."""
+        now = time.time() if now is None else now
+        site, instance = self.config.site, self.config.instance
+        for name, state in self.store.devices.items():
+            self.sample_device(state, site, instance, now)
+
+    def sample_device(self, state, site: str, instance: str, now: float) -> None:
+        name = state.name
+        self._queue(device_topic(site, name, "state"), state_payload(state, instance, now), now)
+        self._queue(device_topic(site, name, "status"), status_payload(state, instance, now), now)
+        alarms = set(active_alarms(state, now))
+        before = self._alarms.get(name, set())
+        if alarms != before or device_topic(site, name, "alarms") not in self._last:
+            for text in sorted(alarms - before):
+                self._event(device_topic(site, name, "alarm"), {"schema": "commission-alarm", "version": SCHEMA_VERSION,
+                            "instance": instance, "device": name, "alarm": text, "state": "raised", "time": now})
+            for text in sorted(before - alarms):
+                self._event(device_topic(site, name, "alarm"), {"schema": "commission-alarm", "version": SCHEMA_VERSION,
+                            "instance": instance, "device": name, "alarm": text, "state": "cleared", "time": now})
+            self._alarms[name] = alarms
+        self._queue(device_topic(site, name, "alarms"), {"schema": "commission-alarms", "version": SCHEMA_VERSION,
+                    "instance": instance, "device": name, "active": sorted(alarms), "time": now}, now)
+
+    async def _sample_loop(self) -> None:
+        period = 1.0 / self.config.rate
+        site, instance = self.config.site, self.config.instance
+        while True:
+            started = time.monotonic()
+            for state in list(self.store.devices.values()):
+                try:
+                    self.sample_device(state, site, instance, time.time())
+                except Exception:  # noqa: BLE001 - one device's odd value must not stop the others
+                    log.exception("mqtt: cannot build the messages of %s", state.name)
+                await asyncio.sleep(0)  # a large plant is sampled in slices: the loop carries keep-alives
+            await asyncio.sleep(max(0.0, period - (time.monotonic() - started)))
+
+    # -- sender: queue -> broker, reconnect with backoff -------------------------------------------
+    async def _read_password(self) -> str | None:
+        if self.config.password_env:
+            value = os.environ.get(self.config.password_env)
+            if value is None:
+                raise OSError(f"the environment variable {self.config.password_env} (password_env) is not set")
+            return value
+        if self.config.password_file:
+            path: Path = self.config.password_file
+            text = await asyncio.to_thread(path.read_text, encoding="utf-8")
+            return text.strip()
+        return None
+
+    async def _tls_context(self) -> ssl.SSLContext | None:
+        if not self.config.tls:
+            return None
+        ca = str(self.config.ca_file) if self.config.ca_file else None
+        return await asyncio.to_thread(ssl.create_default_context, cafile=ca)  # reads the CA file off the loop
+
+    async def _connect(self):
+        import aiomqtt
+
+        will_payload = dumps(instance_payload(self.config, self.plant_name, list(self.store.devices), "offline",
+                                              time.time(), "lost (last will)"))
+        client = aiomqtt.Client(
+            self.config.host, self.config.port, username=self.config.username, password=self._password,
+            identifier=f"commission-{self.config.site}-{self.config.instance}"[:64],
+            will=aiomqtt.Will(self._instance_topic, will_payload, qos=1, retain=True),
+            keepalive=max(5, int(self.config.heartbeat)), tls_context=await self._tls_context(), timeout=PUBLISH_TIMEOUT_S,
+        )
+        await asyncio.wait_for(client.__aenter__(), CONNECT_TIMEOUT_S)  # connects in a thread (DNS, TCP, TLS)
+        return client
+
+    async def _send_loop(self) -> None:
+        backoff = BACKOFF_FIRST_S
+        while True:
+            self._set_state("connecting", self.last_error)
+            try:
+                self._password = await self._read_password()
+                self._client = await self._connect()
+            except asyncio.CancelledError:
+                raise
+            except Exception as exc:  # noqa: BLE001 - refused, unreachable, bad TLS, no password: a state, not a crash
+                why = _why(exc)
+                if why != self.last_error:  # logged once per reason, not once per try
+                    log.warning("mqtt: broker %s: %s; trying again every %.0f s at most", self.config.url, why, BACKOFF_MAX_S)
+                self._set_state("down", why)
+                await asyncio.sleep(backoff)
+                backoff = min(BACKOFF_MAX_S, backoff * 2)
+                continue
+            backoff = BACKOFF_FIRST_S
+            self._set_state("connected")
+            log.info("mqtt: connected to %s as %s/%s", self.config.url, self.config.site, self.config.instance)
+            try:
+                await self._publish_session(self._client)
+            except asyncio.CancelledError:
+                raise
+            except Exception as exc:  # noqa: BLE001 - the broker went away or stalled
+                self._set_state("down", _why(exc))
+                log.warning("mqtt: lost the broker %s: %s", self.config.url, self.last_error)
+                self.reconnects += 1
+                client, self._client = self._client, None
+                try:
+                    await asyncio.wait_for(client.__aexit__(None, None, None), 1.0)
+                except Exception:  # noqa: BLE001 - already gone
+                    pass
+                self._last.clear()  # a broker without persistence lost every retained message: send all again
+                await asyncio.sleep(backoff)
+
+    async def _publish_session(self, client) -> None:
+        birth = instance_payload(self.config, self.plant_name, list(self.store.devices), "online", time.time())
+        await client.publish(self._instance_topic, dumps(birth), qos=1, retain=True)
+        self.sent += 1
+        self._last.clear()  # the first look after a (re)connect sends everything
+        next_birth = time.monotonic() + self.config.heartbeat
+        while True:
+            if time.monotonic() >= next_birth:  # the instance's heartbeat: subscribers tell a stalled one
+                birth["time"] = time.time()
+                await client.publish(self._instance_topic, dumps(birth), qos=1, retain=True)
+                self.sent += 1
+                next_birth = time.monotonic() + self.config.heartbeat
+            if self._events:
+                topic, payload = self._events[0]
+                await client.publish(topic, payload, qos=1, retain=False)
+                self._events.popleft()  # only once the broker has it
+                self.sent += 1
+                continue
+            if self._pending:
+                topic, (payload, retain) = next(iter(self._pending.items()))
+                await client.publish(topic, payload, qos=1, retain=retain)
+                if self._pending.get(topic, (None,))[0] is payload:  # not replaced by a newer one meanwhile
+                    del self._pending[topic]
+                self.sent += 1
+                continue
+            self._wake.clear()
+            try:
+                await asyncio.wait_for(self._wake.wait(), max(0.05, next_birth - time.monotonic()))
+            except TimeoutError:
+                pass
+
+
+def _why(exc: BaseException) -> str:
+    text = str(exc) or type(exc).__name__
+    if isinstance(exc, TimeoutError | asyncio.TimeoutError):
+        text = "no answer from the broker (timeout)"
+    return text
