@@ -11,19 +11,20 @@ from __future__ import annotations
 import asyncio
 import logging
 import re
+import statistics
 import time
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass
 
 from pymodbus.client import AsyncModbusSerialClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 from pymodbus.framer import FramerRTU, FramerType
 
-from app.state import BusState, Counters
+from app.state import BusState, Counters, DeviceState
 from devices.transport import LineClosed, LineCrcError, LineError, LineException, LineTimeout
 
 __all__ = ["LineClosed", "LineCrcError", "LineError", "LineException", "LineTimeout", "ModbusLine", "Transaction",
-           "request_target"]
+           "request_target", "stale_threshold"]
 
 log = logging.getLogger(__name__)
 
@@ -59,6 +60,19 @@ class Transaction:
     space: str = ""
     address: int | None = None
     values: tuple[int, ...] = ()
+
+
+# Issue 16 item 5: a device is stale only when it missed more than two of the line's measured
+# cycles (16 locks at 19200 baud take over 4 s per cycle), and never sooner than 3 s.
+STALE_MIN_S = 3.0
+STALE_CYCLES = 2.5
+CYCLE_SAMPLES = 8  # intervals per unit the cycle time is the median of
+CYCLE_FORGET_S = 60.0  # a unit not polled for this long no longer counts for the line's cycle
+
+
+def stale_threshold(cycle_s: float | None) -> float:
+    """Seconds without an answer after which a device on a line with this cycle time is stale."""
+    return STALE_MIN_S if cycle_s is None else max(STALE_MIN_S, STALE_CYCLES * cycle_s)
 
 
 # "read holding 3000+12", "write holding 3006=65476", "scan holding 103", "broadcast write holding 2000=8"
@@ -121,6 +135,16 @@ class ModbusLine:
         self._backoff = 0.5
         self._next_connect = 0.0
         self.address_conflicts: Counter[tuple[int, int]] = Counter()  # (unit asked, unit that answered) -> count
+        self.conflicts_by_unit: Counter[int] = Counter()  # unit asked -> answers from another unit (per device)
+        self._last_request: dict[tuple[int, str], float] = {}  # (unit, request) of a device's poll -> when last asked
+        self._intervals: dict[int, deque] = {}  # unit -> recent intervals between repeats of its requests
+        self._unit_seen: dict[int, float] = {}
+        self.cycle_s: float | None = None  # measured time for one poll of every device on the line
+        self.devices: dict[int, tuple[DeviceState, float]] = {}  # unit -> (state, its configured threshold)
+        self._tool = asyncio.Lock()  # one request of an engineer's tool (generic poll) at a time
+        self.tool_requests = 0
+        self.state.cycle_s = None  # shown by the overview and the monitor (see _measure_cycle)
+        self.state.address_conflicts = 0
 
     # -- connection ----------------------------------------------------------------
     def _trace(self, sending: bool, data: bytes) -> bytes:
@@ -222,6 +246,10 @@ class ModbusLine:
                     error = f"answer from unit {other}: address conflict on the line?"
                     failure = LineError(f"unit {unit}: {error}")
                     self.address_conflicts[(unit, other)] += 1
+                    self.conflicts_by_unit[unit] += 1
+                    self.state.address_conflicts = sum(self.conflicts_by_unit.values())
+                    if counters is not None and hasattr(counters, "address_conflicts"):
+                        counters.address_conflicts += 1
                 elif self._rx:
                     error = "CRC or framing error in the answer"
                     failure = LineCrcError(f"unit {unit}: {error}")
@@ -270,9 +298,64 @@ class ModbusLine:
                     values=values,
                 )
             )
+            if counters is not None:
+                self._measure_cycle(unit, what)
             if error:
                 raise failure
             return response
+
+    # -- cycle time and stale thresholds (issue 16 item 5) ------------------------------------
+    def attach_device(self, unit: int, state: DeviceState) -> None:
+        """Let the stale threshold of the device at ``unit`` follow the line's measured cycle time
+        (never below the threshold it has from its poll period and timeout)."""
+        self.devices[unit] = (state, state.stale_after)
+        self._apply_thresholds(time.monotonic())
+
+    def _measure_cycle(self, unit: int, what: str) -> None:
+        """A device's poll asks the same requests once per cycle: the interval between two of them is a cycle."""
+        now = time.monotonic()
+        key = (unit, what)
+        last = self._last_request.get(key)
+        self._last_request[key] = now
+        if len(self._last_request) > 4096:  # bounded: drop the oldest requests
+            for old in list(self._last_request)[:1024]:
+                del self._last_request[old]
+        self._unit_seen[unit] = now
+        for old in [u for u, seen in self._unit_seen.items() if now - seen > CYCLE_FORGET_S]:
+            self._unit_seen.pop(old, None)
+            self._intervals.pop(old, None)
+        if last is not None and now - last <= CYCLE_FORGET_S:
+            self._intervals.setdefault(unit, deque(maxlen=CYCLE_SAMPLES)).append(now - last)
+            self.cycle_s = round(max(statistics.median(s) for s in self._intervals.values() if s), 3)
+            self.state.cycle_s = self.cycle_s
+        self._apply_thresholds(now)
+
+    def cycle_lower_bound(self, now: float | None = None) -> float:
+        """The cycle in progress is at least as long as the time since the least recently asked device
+        was asked (this covers the first cycle, before any interval was measured)."""
+        now = time.monotonic() if now is None else now
+        return max((now - seen for seen in self._unit_seen.values()), default=0.0)
+
+    def _apply_thresholds(self, now: float) -> None:
+        cycle = max(self.cycle_s or 0.0, self.cycle_lower_bound(now)) or None
+        for state, floor in self.devices.values():
+            state.stale_after = max(floor, stale_threshold(cycle))
+
+    def conflicts(self, unit: int) -> int:
+        """Answers from another unit address while ``unit`` was asked (an address conflict on the line?)."""
+        return self.conflicts_by_unit[unit]
+
+    # -- an engineer's tool (generic Modbus poll) ---------------------------------------------------
+    async def tool_request(self, unit: int, what: str, call):
+        """Run one request of an engineer's tool in the line's own queue, between the devices' polls.
+
+        At most one tool request waits for the line at a time, and the line's lock hands the line over
+        in arrival order, so a device transaction that waits runs before the tool's next request: the
+        devices' polls are never starved. Not repeated on failure (a write is never repeated blindly).
+        """
+        async with self._tool:
+            self.tool_requests += 1
+            return await self.transact(unit, what, None, call, retries=0)
 
     async def read_holding(self, unit: int, address: int, count: int, counters: Counters | None = None) -> list[int]:
         rr = await self.transact(
