@@ -52,7 +52,26 @@ def supports_backup(adapter: Any) -> bool:
     return methods and bool(getattr(adapter, "backup_available", True))
 
 
-def make_document(plant: str, device: str, device_type: str, bus: str, identity: dict, entries: list[dict], now: float | None = None) -> dict:
+async def nothing_to_back_up(adapter: Any) -> str:
+    """Why a device has nothing to back up, in words ("" when it has something).
+
+    An adapter that takes part but has no data in this configuration (``backup_available``
+    False, e.g. an M3IO in unaddressed mode) names the reason when asked to read, without bus
+    traffic; the question is bounded in time.
+    """
+    if supports_backup(adapter):
+        return ""
+    if getattr(adapter, "backup_available", True) is False and callable(getattr(adapter, "backup_read", None)):
+        try:
+            await asyncio.wait_for(adapter.backup_read(), timeout=2)
+        except Exception as exc:  # noqa: BLE001 - the reason is the message
+            return str(exc) or "nothing to back up in this configuration"
+        return "nothing to back up in this configuration"
+    return "this device type has no parameters to back up"
+
+
+def make_document(plant: str, device: str, device_type: str, bus: str, identity: dict, entries: list[dict], now: float | None = None,
+                  *, user: str = "", role: str = "") -> dict:
     when = datetime.fromtimestamp(now or time.time(), tz=timezone.utc)
     return {
         "schema": SCHEMA,
@@ -61,13 +80,43 @@ def make_document(plant: str, device: str, device_type: str, bus: str, identity:
         "identity": identity,
         "plant": plant,
         "time": when.isoformat(timespec="seconds"),
+        "taken_by": {"user": user, "role": role},  # who started the backup (the audit log has the same row)
         "tool": {"name": "commission", "version": tool_version()},
         "parameters": entries,
     }
 
 
+def local_time(stamp: str) -> str:
+    """A backup's time (ISO 8601, UTC in the file) in the local time of this machine, with its zone."""
+    try:
+        when = datetime.fromisoformat(stamp)
+    except (TypeError, ValueError):
+        return str(stamp or "?")
+    if when.tzinfo is None:  # a file without a zone: written in UTC by this tool
+        when = when.replace(tzinfo=timezone.utc)
+    return when.astimezone().strftime("%Y-%m-%d %H:%M:%S %Z").strip()
+
+
+def taken_by(document: dict) -> str:
+    """Who started the backup ("" for files from before the name was kept)."""
+    by = document.get("taken_by")
+    if not isinstance(by, dict) or not by.get("user"):
+        return ""
+    return f"{by['user']} ({by['role']})" if by.get("role") else str(by["user"])
+
+
 def file_name(device: str, now: float | None = None) -> str:
     return f"{device}-{datetime.fromtimestamp(now or time.time()):%Y%m%d-%H%M%S}.json"
+
+
+def unused_path(path: Path) -> Path:
+    """``path``, or with "-2", "-3", ... before the suffix when a file of that name exists
+    (two backups of one device within a second must not replace each other)."""
+    candidate, n = path, 1
+    while candidate.exists():
+        n += 1
+        candidate = path.with_name(f"{path.stem}-{n}{path.suffix}")
+    return candidate
 
 
 def write_atomic(path: Path, text: str) -> Path:
@@ -101,11 +150,12 @@ async def backup_device(runtime, name: str, out_dir: Path | None = None, progres
     if not supports_backup(adapter):
         raise BackupError(f"{name}: this device type has no parameters to back up")
     state = runtime.store.devices[name]
-    path = (out_dir or runtime.backups_dir) / file_name(name)
+    path = await asyncio.to_thread(unused_path, (out_dir or runtime.backups_dir) / file_name(name))
 
     async def work() -> Path:
         entries = await adapter.backup_read(progress)
-        document = make_document(runtime.plant.name, name, state.type, state.bus, adapter.backup_identity(), entries)
+        document = make_document(runtime.plant.name, name, state.type, state.bus, adapter.backup_identity(), entries,
+                                 user=user, role=role)
         await asyncio.to_thread(write_atomic, path, json.dumps(document, indent=2, ensure_ascii=False))
         return path
 
@@ -200,15 +250,41 @@ def _file_number(value: Any) -> int | float:
     return value
 
 
-def _plan_row(params, entry: dict, now: dict) -> DiffRow:
+def value_with_unit(value: Any, unit: str) -> str:
+    """A value as a restore row shows it when no parameter model names it: with its unit
+    ("1000 × 10 ms" where the unit is a step of its own)."""
+    if not unit:
+        return str(value)
+    return f"{value} × {unit}" if unit[:1].isdigit() else f"{value} {unit}"
+
+
+def _entry_text(adapter: Any, entry: dict, value: Any, now: dict) -> str:
+    """The words for a value of a device without a parameter model: the adapter's own
+    (``restore_text(key, value)``, names and units as its page shows them), the device's text
+    when the value is the one it holds now, else the value with its unit. Never the file's
+    ``text``: an edited file could name one value and hold another."""
+    describe = getattr(adapter, "restore_text", None)
+    if callable(describe):
+        try:
+            return str(describe(entry["key"], value))
+        except Exception:  # noqa: BLE001 - a value the adapter cannot describe is shown as it is
+            pass
+    if value == now.get("value") and now.get("text"):
+        return str(now["text"])
+    return value_with_unit(value, entry.get("unit", ""))
+
+
+def _plan_row(params, entry: dict, now: dict, adapter: Any = None) -> DiffRow:
     key, name = entry["key"], entry["name"]
     value = entry.get("value")
-    row = DiffRow(key, name, entry.get("unit", ""), now["raw"], now.get("value"), None, value,
-                  current_text=str(now.get("text", now.get("value"))), backup_text=str(value))
+    unit = entry.get("unit", "")
+    row = DiffRow(key, name, unit, now["raw"], now.get("value"), None, value,
+                  current_text=str(now.get("text") or value_with_unit(now.get("value"), unit)), backup_text=str(value))
     param = params.by_key.get(key) if params is not None else None
     if params is None:
         # no parameter model (e.g. M3IO customer records): the adapter checks the value on write
         row.backup_raw = value
+        row.backup_text = _entry_text(adapter, entry, value, now)
         return row
     if param is None:
         row.error = "not a parameter of this device type"
@@ -260,7 +336,7 @@ async def plan_restore(runtime, name: str, document: dict, progress=None) -> Res
         if now is None or not now.get("writable"):
             warnings.append(f"{entry['name']} is not writable on this device: skipped")
             continue
-        rows.append(_plan_row(state.params, entry, now))
+        rows.append(_plan_row(state.params, entry, now, adapter))
     for row in rows:
         if row.error:
             warnings.append(f"{row.name}: {row.error}")

@@ -15,12 +15,36 @@ from app import runtime as rt
 from pages.frame import frame, notify_error
 from pages.session import can_write, current_user
 
+WRAP = "white-space: normal; overflow-wrap: anywhere"  # long texts wrap inside the screen, never cut off
 DIFF_COLUMNS = [
     {"name": "name", "label": "Parameter", "field": "name", "align": "left"},
-    {"name": "current", "label": "Device now", "field": "current", "align": "left"},
-    {"name": "backup", "label": "In the backup", "field": "backup", "align": "left"},
-    {"name": "state", "label": "", "field": "state", "align": "left"},
+    {"name": "current", "label": "Device now", "field": "current", "align": "left", "style": WRAP},
+    {"name": "backup", "label": "In the backup", "field": "backup", "align": "left", "style": WRAP},
+    {"name": "state", "label": "", "field": "state", "align": "left", "style": WRAP + "; min-width: 16rem"},
 ]
+FILE_COLUMNS = [
+    {"name": "name", "label": "File", "field": "name", "align": "left", "style": WRAP},
+    {"name": "device", "label": "Device", "field": "device", "align": "left"},
+    {"name": "type", "label": "Type", "field": "type", "align": "left"},
+    {"name": "time", "label": "Taken (local time)", "field": "time", "align": "left"},
+    {"name": "by", "label": "By", "field": "by", "align": "left"},
+    {"name": "size", "label": "Size", "field": "size", "align": "left"},
+    {"name": "actions", "label": "", "field": "name"},
+]
+# the risk of a restored value (Param.needs_confirmation) is shown in red with a warning sign
+STATE_SLOT = """
+    <q-td :props="props" :style="props.col.style">
+      <span v-if="props.row.risk" class="text-negative text-weight-medium" data-testid="restore-risk">
+        <q-icon name="warning" size="xs" class="q-mr-xs" />{{ props.row.state }}</span>
+      <span v-else>{{ props.row.state }}</span>
+    </q-td>"""
+# the uploader's own header shows "0.0B / 0.00%" before any file: a plain pick button instead
+UPLOAD_HEADER = """
+    <div class="row no-wrap items-center q-pa-xs">
+      <q-btn v-if="scope.canAddFiles" flat dense no-caps icon="upload_file" label="Restore from a file"
+             @click="scope.pickFiles" data-testid="restore-upload"><q-uploader-add-trigger /></q-btn>
+      <q-spinner v-if="scope.isUploading" size="sm" class="q-ml-sm" />
+    </div>"""
 
 
 def _files(directory: Path) -> list[dict]:
@@ -29,9 +53,11 @@ def _files(directory: Path) -> list[dict]:
         try:
             doc = backup.load_document(path.read_bytes(), path.name)
             device, dtype, when = doc["device"].get("name", "?"), doc["device"].get("type", "?"), doc.get("time", "")
+            when, by = backup.local_time(when), backup.taken_by(doc)
         except backup.BackupError as exc:
-            device, dtype, when = "-", "unreadable", str(exc)[:60]
-        rows.append({"name": path.name, "device": device, "type": dtype, "time": when, "size": f"{path.stat().st_size / 1024:.1f} kB"})
+            device, dtype, when, by = "-", "unreadable", str(exc)[:60], ""
+        rows.append({"name": path.name, "device": device, "type": dtype, "time": when, "by": by,
+                     "size": f"{path.stat().st_size / 1024:.1f} kB"})
     return rows
 
 
@@ -39,12 +65,14 @@ def content() -> None:
     runtime = rt.current()
     directory = runtime.backups_dir
     devices = [name for name, a in runtime.worker.adapters.items() if backup.supports_backup(a)]
+    without = [name for name in runtime.worker.adapters if name not in devices]
     with frame("Backup and restore"):
         ui.label(f"Backups are written to {directory}").classes("text-caption text-grey-8")
         with ui.card().classes("w-full"):
             ui.label("Back up").classes("text-subtitle1")
             with ui.row().classes("gap-4"):
                 boxes = {name: ui.checkbox(f"{name} ({runtime.store.devices[name].type})", value=True) for name in devices}
+            reasons = ui.column().classes("gap-0").props("data-testid=backup-nothing")  # devices left out, each with why
             with ui.row().classes("items-center"):
                 start = ui.button("Back up selected", icon="save_alt").props("data-testid=backup-start")
                 archive = ui.button("Download as one archive", icon="folder_zip").props("outline")
@@ -57,13 +85,11 @@ def content() -> None:
             with ui.row().classes("items-center w-full"):
                 ui.label("Backups in the folder").classes("text-subtitle1")
                 ui.space()
-                ui.upload(label="Restore from a file", auto_upload=True, max_file_size=5_000_000,
-                          on_upload=lambda e: _uploaded(e)).props("accept=.json flat bordered").classes("w-64")
-            table = ui.table(
-                columns=[{"name": k, "label": k.title(), "field": k, "align": "left"} for k in ("name", "device", "type", "time", "size")]
-                + [{"name": "actions", "label": "", "field": "name"}],
-                rows=[], row_key="name", pagination=20,
-            ).classes("w-full reg-table").props("dense flat bordered")
+                upload = ui.upload(auto_upload=True, max_file_size=5_000_000,
+                                   on_upload=lambda e: _uploaded(e)).props("accept=.json flat bordered hide-upload-btn").classes("w-64")
+                upload.add_slot("header", UPLOAD_HEADER)
+            table = ui.table(columns=FILE_COLUMNS, rows=[], row_key="name", pagination=20).classes(
+                "w-full reg-table").props("dense flat bordered")
             table.add_slot("body-cell-actions", """
                 <q-td :props="props">
                   <q-btn flat dense icon="download" @click="$parent.$emit('download', props.row.name)" />
@@ -76,6 +102,16 @@ def content() -> None:
         table.update()
 
     ui.timer(0, refresh_files, once=True)
+
+    async def explain_left_out() -> None:
+        for name in without:
+            reason = await backup.nothing_to_back_up(runtime.worker.adapters[name])
+            with reasons:
+                ui.label(f"{name} ({runtime.store.devices[name].type}): nothing to back up: {reason}").classes(
+                    "text-body2 text-grey-8")
+
+    if without:
+        ui.timer(0, explain_left_out, once=True)
 
     async def run_backup() -> None:
         chosen = [name for name, box in boxes.items() if box.value]
@@ -145,8 +181,10 @@ class RestoreFlow:
         with ui.card().classes("w-full") as self.card:
             ui.label(f"Restore from {source}").classes("text-subtitle1")
             ui.label(
-                f"{dtype} '{document['device'].get('name')}' of plant '{document.get('plant')}', taken {document.get('time')} "
-                f"with commission {document.get('tool', {}).get('version', '?')}; identity {json.dumps(document.get('identity'))}"
+                f"{dtype} '{document['device'].get('name')}' of plant '{document.get('plant')}', taken "
+                f"{backup.local_time(document.get('time'))}"
+                + (f" by {backup.taken_by(document)}" if backup.taken_by(document) else "")
+                + f" with commission {document.get('tool', {}).get('version', '?')}; identity {json.dumps(document.get('identity'))}"
             ).classes("text-caption text-grey-8")
             if not candidates:
                 ui.label(f"This plant has no {dtype!r}: the backup cannot be restored here.").classes("text-negative")
@@ -163,6 +201,7 @@ class RestoreFlow:
             self.table = ui.table(columns=DIFF_COLUMNS, rows=[], row_key="key", selection="multiple", pagination=0).classes(
                 "w-full reg-table"
             ).props("dense flat bordered")
+            self.table.add_slot("body-cell-state", STATE_SLOT)
             self.table.set_visibility(False)
             with ui.row().classes("items-center"):
                 self.write = ui.button("Write selected", icon="upload", color="negative", on_click=self.execute).props("data-testid=restore-write")
@@ -184,7 +223,8 @@ class RestoreFlow:
             for warning in self.plan.warnings:
                 ui.label(f"⚠ {warning}").classes("text-warning text-body1")
         rows = [
-            {"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": _row_state(r)}
+            {"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": _row_state(r),
+             "risk": bool(r.changed and r.risk)}
             for r in self.plan.rows
         ]
         self.table.rows = rows
@@ -248,6 +288,7 @@ class RestoreFlow:
             if r is not None:
                 row["current"] = r.current_text
                 row["state"] = _row_state(r)
+                row["risk"] = bool(r.changed and r.risk)
         self.table.selected = [row for row in self.table.rows if row["state"].startswith("differs")]
         self.table.update()
         changed = sum(1 for r in self.plan.rows if r.changed)
@@ -260,4 +301,4 @@ def _row_state(row: backup.DiffRow) -> str:
         return f"not written: {row.error}"
     if not row.changed:
         return "same"
-    return f"differs; needs confirmation: {row.risk}" if row.risk else "differs"
+    return f"differs; risk, needs confirmation: {row.risk}" if row.risk else "differs"
