@@ -29,6 +29,10 @@ examples:
                                       show the diff, write, read back, save
   commission user add NAME --role engineer|viewer
                                       accounts; needed for --host beyond 127.0.0.1
+  commission view --broker mqtt://broker.local:1883
+                                      read-only plant-wide view of every instance publishing
+                                      to that broker (plant files with an [mqtt] table); no
+                                      plant file, no buses, nothing written anywhere
 
 The plant file (TOML) lists [[bus]] and [[device]] tables; see README.md.
 """
@@ -82,6 +86,19 @@ def build_parser() -> argparse.ArgumentParser:
     remove = user_sub.add_parser("remove", help="remove an account")
     remove.add_argument("name")
     listing = user_sub.add_parser("list", help="list accounts")
+
+    view = sub.add_parser("view", help="read-only plant-wide view of every site publishing to an MQTT broker")
+    view.add_argument("--broker", required=True, metavar="URL", help="mqtt://host[:1883] or mqtts://host[:8883]")
+    view.add_argument("--username", default=None, help="broker user name")
+    view.add_argument("--password-env", default=None, metavar="VAR", help="environment variable holding the broker password")
+    view.add_argument("--password-file", type=Path, default=None, metavar="FILE", help="file holding the broker password")
+    view.add_argument("--ca-file", type=Path, default=None, help="mqtts: CA certificate(s) of the broker")
+    view.add_argument("--host", default="127.0.0.1", help="address to serve the view on (default: 127.0.0.1)")
+    view.add_argument("--port", type=int, default=8090, help="HTTP port of the view (default: 8090)")
+    view.add_argument("--allowed-host", action="append", default=[], metavar="NAME",
+                      help="a further host name browsers use to reach the view (repeatable)")
+    view.add_argument("--public", action="store_true",
+                      help="allow --host beyond the loopback address: the view has no login and shows every published value")
 
     for command in (sim, backup, restore, user, add, remove, listing):
         # SUPPRESS: a subcommand's default must not overwrite a --data-dir given before it
@@ -355,6 +372,54 @@ def run_restore(args) -> int:
     return asyncio.run(_headless(args, work))
 
 
+def run_view(args) -> int:
+    """``commission view``: subscribe to the broker and serve the read-only plant-wide view."""
+    import os
+
+    from app.plant import parse_mqtt_url
+    from app.site_view import SiteStore
+    from app.users import is_loopback
+
+    try:
+        parse_mqtt_url(args.broker)
+    except ValueError as exc:
+        print(f"commission view: --broker {exc}", file=sys.stderr)
+        return 2
+    if args.ca_file and not args.broker.startswith("mqtts://"):
+        print("commission view: --ca-file is for TLS: give the broker as mqtts://...", file=sys.stderr)
+        return 2
+    password = None
+    if args.password_env:
+        password = os.environ.get(args.password_env)
+        if password is None:
+            print(f"commission view: the environment variable {args.password_env} is not set", file=sys.stderr)
+            return 2
+    elif args.password_file:
+        try:
+            password = args.password_file.read_text(encoding="utf-8").strip()
+        except OSError as exc:
+            print(f"commission view: cannot read {args.password_file}: {exc.strerror or exc}", file=sys.stderr)
+            return 2
+    if not is_loopback(args.host) and not args.public:
+        print(f"commission view: refusing to listen on {args.host}: the view has no login and shows every value published "
+              "to the broker; add --public if everyone who can reach this address may see them", file=sys.stderr)
+        return 2
+    if not _bindable(args.host, args.port):
+        print(f"commission view: port {args.port} on {args.host} is taken; choose another with --port", file=sys.stderr)
+        return 2
+    store = SiteStore(args.broker, args.username, password, str(args.ca_file) if args.ca_file else None)
+
+    from nicegui import ui
+
+    from app import web
+
+    web.register_view(store, host=args.host, allowed_hosts=args.allowed_host)
+    print(f"commission view: {args.broker} at http://{args.host}:{args.port}/ (read-only)", flush=True)
+    ui.run(host=args.host, port=args.port, title="commission view", reload=False, show=False,
+           show_welcome_message=False, favicon="🔧")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
         return _main(argv)
@@ -366,7 +431,7 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     _quiet_libraries(args.verbose)
-    commands = {"sim": run_sim, "backup": run_backup, "restore": run_restore, "user": run_user}
+    commands = {"sim": run_sim, "backup": run_backup, "restore": run_restore, "user": run_user, "view": run_view}
     if args.command in commands:
         return commands[args.command](args)
 

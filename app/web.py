@@ -285,6 +285,32 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
                 "samples": [{"time": t, "values": values} for t, values in samples]}
 
 
+def register_view(store, *, host: str = "127.0.0.1", allowed_hosts: tuple[str, ...] | list[str] = ()) -> None:
+    """``commission view``: the plant-wide read-only view of ``store`` (an app.site_view.SiteStore).
+
+    No plant, no buses, no worker: nothing on these routes can write, and MQTT carries no commands.
+    """
+    app.on_startup(store.start)
+    app.on_shutdown(store.stop)
+    names, any_ip = allowed_host_names(host, allowed_hosts)
+    app.add_middleware(HostOriginGuard, names=names, any_ip=any_ip)
+
+    @ui.page("/")
+    def site_page() -> None:
+        from pages import site_view
+
+        site_view.content(store)
+
+    app.docs_url, app.redoc_url, app.openapi_url = "/docs", "/redoc", "/openapi.json"
+    app.setup()
+
+    @app.get("/api/site")
+    def api_site() -> dict:
+        """Every site, instance and device heard on the broker, with live values and the view's status
+        (``view_status``: the device's own status, or ``stale``, ``stopped``, ``vanished``)."""
+        return store.snapshot()
+
+
 # -- JSON API response models (documented at /docs) ---------------------------------------------
 
 
