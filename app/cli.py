@@ -408,6 +408,10 @@ def run_view(args) -> int:
         print(f"commission view: port {args.port} on {args.host} is taken; choose another with --port", file=sys.stderr)
         return 2
     store = SiteStore(args.broker, args.username, password, str(args.ca_file) if args.ca_file else None)
+    import tempfile
+
+    # the view keeps nothing per browser; NiceGUI's storage folder goes to a temporary place, not the working folder
+    os.environ.setdefault("NICEGUI_STORAGE_PATH", tempfile.mkdtemp(prefix="commission-view-"))
 
     from nicegui import ui
 
