@@ -1,0 +1,237 @@
+"""Replay of a recorded file onto a CAN bus (issue 17 item 5).
+
+The frames go through the bus owner's send path (:meth:`app.can_bus.CanBus.send`), so the bus
+monitor shows them and a running recording records them as sent. A replay keeps the recorded
+gaps (scaled by ``speed``), can be stopped at any time, is refused on a bus where a device is
+under control (an adapter's ``holders()`` is not empty) and stops by itself when a device comes
+under control meanwhile. It is under the dead-man rule: registered with ``worker.add_holder``, it
+ends when the engineer's browser goes away. Starting is checked and audited through
+``worker.engineer_action``.
+
+Error frames and remote frames of the file are not sent (the send path carries data frames);
+they are counted in ``skipped``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from app.can_bus import FrameRecord
+
+log = logging.getLogger(__name__)
+
+SPEED_MIN, SPEED_MAX = 0.01, 100.0  # replay speed factors offered (x recorded speed)
+MAX_GAP_S = 60.0  # a recorded pause longer than this (after scaling) is shortened to it
+BURST_FRAMES = 64  # frames sent in one go when late, before the loop runs anything else
+CONTROL_CHECK_S = 0.2  # how often a running replay looks whether a device came under control
+
+
+class ReplayError(Exception):
+    """A replay that cannot start; the message says why."""
+
+
+def holder_name(bus: str) -> str:
+    return f"replay {bus}"
+
+
+def controlled_devices(worker: Any, bus: str) -> list[str]:
+    """Devices on ``bus`` under control now (their adapter has holders)."""
+    names = []
+    for dev in worker.plant.devices_on(bus):
+        holders = getattr(worker.adapters.get(dev.name), "holders", None)
+        try:
+            if holders is not None and holders():
+                names.append(dev.name)
+        except Exception:  # noqa: BLE001 - an adapter that cannot say counts as under control
+            names.append(dev.name)
+    return names
+
+
+def refusal(worker: Any, bus: str) -> str | None:
+    """Why a replay cannot start on ``bus`` now, else None."""
+    if bus not in worker.can_buses:
+        return f"{bus} is not a CAN bus of this plant: only CAN recordings can be replayed"
+    controlled = controlled_devices(worker, bus)
+    if controlled:
+        return (f"{', '.join(controlled)} on {bus} {'is' if len(controlled) == 1 else 'are'} under control: "
+                "release the control first (a replay would interfere with it)")
+    running = worker.extra_holders.get(holder_name(bus))
+    if isinstance(running, Replay) and running.running:
+        return f"a replay of {running.name} runs on {bus} already"
+    return None
+
+
+@dataclass
+class Replay:
+    """One replay: its progress for the page, and the dead-man hooks for the worker."""
+
+    worker: Any
+    bus: str
+    frames: Sequence[FrameRecord]
+    name: str = "recording"
+    speed: float = 1.0
+    session: str = ""
+    user: str = "local"
+    sent: int = 0
+    skipped: int = 0
+    failed: int = 0
+    state: str = "ready"  # ready, running, done, stopped, failed
+    reason: str = ""
+    started: float = 0.0
+    ended: float = 0.0
+    send_times: list[float] = field(default_factory=list)  # loop time of each send, when measuring (bench)
+    measure: bool = False
+    _task: asyncio.Task | None = None
+    _stop: asyncio.Event = field(default_factory=asyncio.Event)
+
+    @property
+    def running(self) -> bool:
+        return self.state == "running"
+
+    @property
+    def total(self) -> int:
+        return len(self.frames)
+
+    @property
+    def position(self) -> int:
+        return self.sent + self.skipped + self.failed
+
+    @property
+    def fraction(self) -> float:
+        return self.position / self.total if self.total else 1.0
+
+    @property
+    def duration_s(self) -> float:
+        """Recorded duration at the chosen speed."""
+        return (self.frames[-1].time - self.frames[0].time) / self.speed if len(self.frames) > 1 else 0.0
+
+    def summary(self) -> str:
+        text = f"{self.state}: {self.sent} of {self.total} frames sent"
+        if self.skipped:
+            text += f", {self.skipped} error/remote frames skipped"
+        if self.failed:
+            text += f", {self.failed} refused by the bus"
+        return text + (f" ({self.reason})" if self.reason else "")
+
+    # -- dead-man hooks (worker.add_holder) --------------------------------------------------------------
+    def holders(self) -> set[str]:
+        return {self.session} if self.running and self.session else set()
+
+    def session_lost(self, session: str, reason: str) -> None:
+        if session == self.session and self.running:
+            self.stop(reason)
+
+    # -- control ---------------------------------------------------------------------------------------
+    def stop(self, reason: str = "stopped by the engineer") -> None:
+        """Stop at once (no frame is sent after this returns)."""
+        if self.running:
+            self.state = "stopped"
+            self.reason = reason
+            self._stop.set()
+            self._finish()
+
+    def _finish(self) -> None:
+        self.ended = time.time()
+        if self.worker.extra_holders.get(holder_name(self.bus)) is self:
+            self.worker.remove_holder(holder_name(self.bus))
+
+    def start(self) -> None:
+        self.state = "running"
+        self.started = time.time()
+        self.worker.add_holder(holder_name(self.bus), self)
+        self._task = asyncio.get_running_loop().create_task(self._run(), name=holder_name(self.bus))
+
+    async def wait(self) -> None:
+        if self._task is not None:
+            await asyncio.shield(self._task)
+
+    async def _run(self) -> None:
+        can_bus = self.worker.can_buses[self.bus]
+        loop = asyncio.get_running_loop()
+        start = loop.time()
+        first = self.frames[0].time if self.frames else 0.0
+        shift = 0.0  # time taken out of long pauses
+        next_check = start + CONTROL_CHECK_S
+        burst = 0
+        try:
+            for rec in self.frames:
+                due = start + (rec.time - first) / self.speed - shift
+                now = loop.time()
+                if due - now > MAX_GAP_S:
+                    shift += due - now - MAX_GAP_S
+                    due = now + MAX_GAP_S
+                if due > now or burst >= BURST_FRAMES:
+                    burst = 0
+                    try:
+                        await asyncio.wait_for(self._stop.wait(), max(0.0, due - loop.time()))
+                    except TimeoutError:
+                        pass
+                else:
+                    burst += 1
+                if not self.running:
+                    return
+                if loop.time() >= next_check:
+                    next_check = loop.time() + CONTROL_CHECK_S
+                    controlled = controlled_devices(self.worker, self.bus)
+                    if controlled:
+                        self.stop(f"{', '.join(controlled)} came under control")
+                        return
+                if rec.is_error_frame or rec.is_remote_frame:
+                    self.skipped += 1
+                    continue
+                if can_bus.send(rec.arbitration_id, rec.data, rec.is_extended_id):
+                    self.sent += 1
+                    if self.measure:
+                        self.send_times.append(loop.time())
+                else:
+                    self.failed += 1
+            if self.running:
+                self.state = "done"
+                self._finish()
+        except Exception as exc:
+            log.exception("replay on %s failed", self.bus)
+            if self.running:
+                self.state = "failed"
+                self.reason = str(exc) or exc.__class__.__name__
+                self._finish()
+
+
+async def start_replay(
+    worker: Any, bus: str, frames: Sequence[FrameRecord], *, name: str = "recording", speed: float = 1.0,
+    session: str = "", user: str = "local", role: str = "engineer",
+) -> Replay:
+    """Check, audit and start a replay of ``frames`` onto CAN bus ``bus``.
+
+    :param speed: factor on the recorded speed (:data:`SPEED_MIN` .. :data:`SPEED_MAX`)
+    :param session: the browser session that runs it (dead-man rule)
+    :raises PermissionDenied: not an engineer; :raises ReplayError: refused (see :func:`refusal`),
+        no frames, or a speed out of range
+    """
+
+    async def action() -> str:
+        if not SPEED_MIN <= speed <= SPEED_MAX:
+            raise ReplayError(f"speed {speed:g} is outside {SPEED_MIN:g}..{SPEED_MAX:g} x")
+        if not frames:
+            raise ReplayError(f"{name} has no frames to replay")
+        problem = refusal(worker, bus)
+        if problem:
+            raise ReplayError(problem)
+        replay = Replay(worker, bus, frames, name=name, speed=speed, session=session, user=user)
+        replay.start()
+        holder.append(replay)
+        return f"{len(frames)} frames, {replay.duration_s:.1f} s at {speed:g} x"
+
+    holder: list[Replay] = []
+    await worker.engineer_action(action, user=user, role=role, target=bus,
+                                 describe=f"replay {name} onto {bus} at {speed:g} x")
+    return holder[0]
+
+
+def running_replay(worker: Any, bus: str) -> Replay | None:
+    replay = worker.extra_holders.get(holder_name(bus))
+    return replay if isinstance(replay, Replay) else None
