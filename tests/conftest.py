@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 import socket
 import subprocess
 import sys
-from collections.abc import Iterator
+import time
+import urllib.request
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import pytest
@@ -18,6 +21,13 @@ from app.plant import Plant, parse_plant
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def free_udp_port() -> int:
+    """A UDP port nobody on this machine uses now (for a udp_multicast bus of one test)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("", 0))
         return s.getsockname()[1]
 
 
@@ -70,3 +80,64 @@ def sim_process(plant_file: Path) -> Iterator[tuple[subprocess.Popen, str]]:
         finally:
             if proc.poll() is None:
                 proc.kill()
+
+
+# -- browser tests ----------------------------------------------------------------------------
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+
+
+@pytest.fixture(scope="module")
+def chromium():
+    """Debian's chromium through playwright, launched once per test module.
+
+    Not per session: playwright's sync API holds its event loop as the running one for as long as
+    it is open, and the asyncio tests of the other modules could not run meanwhile.
+    """
+    if not CHROMIUM.exists():
+        pytest.skip(f"{CHROMIUM} is not installed")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        try:
+            yield browser
+        finally:
+            browser.close()
+
+
+def wait_devices_online(url: str, names: Iterable[str] | None = None, proc: subprocess.Popen | None = None,
+                        timeout: float = 20.0) -> dict[str, str]:
+    """Wait until ``/api/devices`` of the app at ``url`` lists ``names`` (every device when None) online.
+
+    Returns the status of every device; raises TimeoutError naming the devices that are not online,
+    or RuntimeError when ``proc`` (the app) exits meanwhile.
+    """
+    wanted = None if names is None else set(names)
+    end = time.monotonic() + timeout
+    status: dict[str, str] = {}
+    while True:
+        if proc is not None and proc.poll() is not None:
+            raise RuntimeError(f"the app exited with {proc.returncode} while waiting for its devices")
+        try:
+            with urllib.request.urlopen(url + "/api/devices", timeout=2) as response:
+                status = {d["name"]: d["status"] for d in json.load(response)}
+        except OSError as exc:
+            status = {"(no answer)": str(exc)}
+        names_now = set(status) if wanted is None else wanted
+        if names_now and all(status.get(n) == "online" for n in names_now):
+            return status
+        if time.monotonic() >= end:
+            raise TimeoutError(f"devices not online within {timeout} s: {status}")
+        time.sleep(0.1)  # polling an HTTP endpoint from a synchronous test: the condition is checked each round
+
+
+def inside_viewport(page, locator) -> None:
+    """Assert that the element of ``locator`` is visible and lies wholly inside the page's viewport."""
+    box = locator.bounding_box()
+    assert box is not None, f"{locator} is not rendered"
+    size = page.viewport_size
+    assert box["x"] >= 0 and box["y"] >= 0, f"{locator} starts outside the viewport: {box}"
+    assert box["x"] + box["width"] <= size["width"] + 0.5, f"{locator} sticks out right of {size['width']} px: {box}"
+    assert box["y"] + box["height"] <= size["height"] + 0.5, f"{locator} sticks out below {size['height']} px: {box}"

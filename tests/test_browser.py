@@ -6,25 +6,20 @@ listens on a free port; the HD-Lock twins are polled over real Modbus RTU frames
 
 from __future__ import annotations
 
-import json
 import re
-import shutil
-import time
-import urllib.request
 from pathlib import Path
 
 import pytest
+from conftest import CHROMIUM, inside_viewport, wait_devices_online
 from webutil import demo_plant_text, free_port, start_app, stop_app, wait_http
 
-CHROMIUM = Path("/usr/bin/chromium")
 if not CHROMIUM.exists():
     pytest.skip(f"{CHROMIUM} is not installed", allow_module_level=True)
 
-from playwright.sync_api import Browser, Page, expect, sync_playwright  # noqa: E402
+from playwright.sync_api import Browser, Page, expect  # noqa: E402
 
 pytestmark = pytest.mark.timeout(60)  # includes starting the app for the first test
 
-SHOTS = Path("/tmp/commission-shots")
 STEP_MS = 10_000  # longest wait for one visible step (page timers tick every 0.5-1 s)
 
 
@@ -40,7 +35,7 @@ def app_url(tmp_path_factory: pytest.TempPathFactory):
     url = f"http://127.0.0.1:{port}"
     try:
         wait_http(url + "/api/devices", proc, timeout=30)
-        _wait_online(url, ("door-1", "door-2"), proc, timeout=15)
+        wait_devices_online(url, ("door-1", "door-2"), proc, timeout=15)
         yield url
     except BaseException:
         print(log.read_text(errors="replace")[-4000:])
@@ -49,35 +44,9 @@ def app_url(tmp_path_factory: pytest.TempPathFactory):
         stop_app(proc)
 
 
-def _wait_online(url: str, names: tuple[str, ...], proc, timeout: float) -> None:
-    end = time.monotonic() + timeout
-    status: dict[str, str] = {}
-    while time.monotonic() < end:
-        assert proc.poll() is None, "the app exited"
-        with urllib.request.urlopen(url + "/api/devices", timeout=2) as response:
-            status = {d["name"]: d["status"] for d in json.load(response)}
-        if all(status.get(n) == "online" for n in names):
-            return
-        time.sleep(0.2)
-    raise TimeoutError(f"devices not online within {timeout} s: {status}")
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with sync_playwright() as p:
-        browser = p.chromium.launch(
-            executable_path=str(CHROMIUM),
-            args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"],
-        )
-        try:
-            yield browser
-        finally:
-            browser.close()
-
-
 @pytest.fixture
-def page(browser: Browser):
-    context = browser.new_context(viewport={"width": 1400, "height": 1800})
+def page(chromium: Browser):
+    context = chromium.new_context(viewport={"width": 1400, "height": 1800})
     page = context.new_page()
     page.set_default_timeout(STEP_MS)
     errors: list[str] = []
@@ -107,12 +76,14 @@ def bolt_position(page: Page) -> int:
     return int(match.group(1))
 
 
-def save_shot(page: Page, tmp_path: Path, name: str) -> Path:
+def save_shot(page: Page, tmp_path: Path, name: str, full_page: bool = True) -> Path:
+    """A screenshot for a person to look at, under the test's own temporary folder."""
     path = tmp_path / name
-    page.screenshot(path=str(path), full_page=True)
-    SHOTS.mkdir(parents=True, exist_ok=True)
-    shutil.copy(path, SHOTS / name)
+    page.screenshot(path=str(path), full_page=full_page)
     return path
+
+
+BOLT_OUT = re.compile(r"^\s*(10[1-9]|1[1-9]\d|[2-9]\d\d|\d{4,}) Inc\s*$")  # more than 100 Inc
 
 
 def test_closing_the_door_locks_the_bolt(app_url: str, page: Page, tmp_path: Path):
@@ -132,15 +103,19 @@ def test_closing_the_door_locks_the_bolt(app_url: str, page: Page, tmp_path: Pat
     expect(lamp(page, "DoorInPosition")).to_have_attribute("data-on", "1")
     expect(lamp(page, "BoltLocked")).to_have_attribute("data-on", "1")
     expect(lamp(page, "BoltUnlocked")).to_have_attribute("data-on", "0")
-    end = time.monotonic() + STEP_MS / 1000
-    while (position := bolt_position(page)) <= 100 and time.monotonic() < end:
-        page.wait_for_timeout(200)
-    assert position > 100, f"BoltPosition stayed at {position} Inc"
+    bolt_row = page.locator(".q-tab-panel:visible tr", has=page.locator("td", has_text=re.compile(r"^\s*BoltPosition\s*$")))
+    expect(bolt_row.locator("td").nth(2)).to_have_text(BOLT_OUT)
+    assert bolt_position(page) > 100
     expect(page.locator('[data-value="StateMachineState"]')).not_to_have_text("-")
 
-    page.wait_for_timeout(1500)  # let the live chart collect a few samples of the stroke
-    shot = save_shot(page, tmp_path, "device-door-1-locked.png")
-    assert shot.stat().st_size > 10_000
+    # the live chart shows the stroke: a trace with several samples, the last one out (> 100 Inc)
+    page.wait_for_function(
+        """() => [...document.querySelectorAll('.js-plotly-plot')].some(p => (p.data || []).some(
+               t => t.y && t.y.length >= 3 && Math.max(...t.y.filter(v => v !== null)) > 100))""",
+        timeout=STEP_MS,
+    )
+    inside_viewport(page, lamp(page, "BoltLocked"))
+    save_shot(page, tmp_path, "device-door-1-locked.png")
 
 
 def test_overview_tiles_online_and_open_device(app_url: str, page: Page, tmp_path: Path):
@@ -152,6 +127,7 @@ def test_overview_tiles_online_and_open_device(app_url: str, page: Page, tmp_pat
         expect(tile).to_contain_text("HD-Lock on line1")
         expect(tile.locator(".q-badge")).to_have_text(re.compile(r"^\s*online\s*$"))
         expect(tile).to_contain_text(re.compile(r"req \d+"))
+        inside_viewport(page, tile)
     save_shot(page, tmp_path, "overview.png")
 
     page.locator('[data-device="door-2"]').click()
@@ -169,9 +145,9 @@ def _field(page: Page, testid: str):
 
 
 @pytest.mark.parametrize(("width", "height"), [(1440, 900), (1024, 768)])
-def test_broadcast_address_change_asks_with_the_number_of_locks(app_url: str, browser: Browser, tmp_path: Path, width: int, height: int):
+def test_broadcast_address_change_asks_with_the_number_of_locks(app_url: str, chromium: Browser, tmp_path: Path, width: int, height: int):
     """Section 4.3, address 255: the confirmation names how many locks of the line may take the address."""
-    context = browser.new_context(viewport={"width": width, "height": height})
+    context = chromium.new_context(viewport={"width": width, "height": height})
     page = context.new_page()
     page.set_default_timeout(STEP_MS)
     errors: list[str] = []
@@ -187,16 +163,22 @@ def test_broadcast_address_change_asks_with_the_number_of_locks(app_url: str, br
         _field(page, "bc-p1").fill("0x0800")
         _field(page, "bc-p2").fill("0x0800")
         expect(page.locator('[data-testid="bc-known"]')).to_contain_text("none would take it")
-        save_shot(page, tmp_path, f"device-door-1-{width}x{height}.png")
-        page.locator('[data-testid="bc-send"]').click()
+        send = page.locator('[data-testid="bc-send"]')
+        send.scroll_into_view_if_needed()
+        inside_viewport(page, send)
+        save_shot(page, tmp_path, f"device-door-1-{width}x{height}.png", full_page=False)
+        send.click()
         dialog = page.locator(".q-dialog")
         expect(dialog).to_contain_text("Up to 2 locks on line1 may take address 9")
         expect(dialog).to_contain_text("door-1, door-2")
-        page.wait_for_timeout(400)  # the dialog fades in
-        page.screenshot(path=str(tmp_path / "dialog.png"))
-        SHOTS.mkdir(parents=True, exist_ok=True)
-        shutil.copy(tmp_path / "dialog.png", SHOTS / f"broadcast-confirm-{width}x{height}.png")
-        dialog.get_by_role("button", name="Cancel").click()
+        cancel = dialog.get_by_role("button", name="Cancel")
+        expect(cancel).to_be_visible()
+        expect(dialog.get_by_role("button", name="Send to all (2)")).to_be_visible()
+        page.wait_for_function("() => !document.querySelector('.q-dialog .q-transition--scale-enter-active, "
+                               ".q-dialog .q-transition--fade-enter-active')")  # the dialog has faded in
+        inside_viewport(page, dialog.locator(".q-card").first)
+        save_shot(page, tmp_path, f"broadcast-confirm-{width}x{height}.png", full_page=False)
+        cancel.click()
         expect(dialog).to_have_count(0)
     finally:
         context.close()
