@@ -1,0 +1,345 @@
+"""A generic Modbus poll on one RTU line, in the manner of Modbus Poll.
+
+Unit address, function 01/02/03/04, start address, count and period; the answer shown as
+unsigned, signed, hex, binary and, over two registers, 32-bit integers and floats in both word
+orders. Requests run through the line owner (:meth:`app.modbus_line.ModbusLine.tool_request`),
+between the devices' polls. Writes (06 single, 16 multiple) are engineer only, audited through
+the worker, refused for a known device's registers that are not writable (RO, MFR, never
+written, not in its register map) and confirmed when they hit a known device's register.
+
+Addresses here are protocol addresses (0-based, as sent on the wire); the page shows them
+0- or 1-based as the engineer chooses and says which.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import struct
+import time
+from dataclasses import dataclass, field
+
+from app.modbus_line import LineError, ModbusLine
+from devices.params import Param
+from devices.registry import DEVICE_TYPES
+
+log = logging.getLogger(__name__)
+
+FUNCTIONS = {1: "01 Read Coils", 2: "02 Read Discrete Inputs", 3: "03 Read Holding Registers", 4: "04 Read Input Registers"}
+SPACES = {3: "holding", 4: "input"}  # the register spaces of the parameter models
+MAX_REGISTERS = 125  # Modbus application protocol 6.3/6.4: 1..125 registers per read
+MAX_BITS = 2000  # 6.1/6.2: 1..2000 coils or inputs per read
+MAX_WRITE_REGISTERS = 123  # 6.12: 1..123 registers per Write Multiple Registers
+PERIOD_MIN_S = 0.2  # the line is shared with the devices' polls
+PERIOD_MAX_S = 60.0
+UNIT_MIN, UNIT_MAX = 0, 254  # 0: broadcast read (an HD-Lock answers it, SPEC-NOTES); writes need 1..254
+FORMATS = ("unsigned", "signed", "hex", "binary")
+WORD_ORDERS = {"ABCD": "high word first", "CDAB": "low word first"}
+
+
+class PollError(ValueError):
+    """An entry that cannot be polled or written, or a write refused before anything was sent."""
+
+
+class NeedsConfirmation(PollError):
+    """A write to a known device's register: ask the engineer first."""
+
+
+@dataclass(frozen=True)
+class PollSpec:
+    unit: int
+    function: int
+    address: int  # protocol address (0-based)
+    count: int
+    period_s: float = 1.0
+
+    def check(self) -> PollSpec:
+        if not UNIT_MIN <= self.unit <= UNIT_MAX:
+            raise PollError(f"unit address {self.unit} is outside {UNIT_MIN}..{UNIT_MAX}")
+        if self.function not in FUNCTIONS:
+            raise PollError(f"function {self.function:02d} is not one of 01, 02, 03, 04")
+        limit = MAX_BITS if self.function in (1, 2) else MAX_REGISTERS
+        if not 1 <= self.count <= limit:
+            raise PollError(f"count {self.count} is outside 1..{limit} for function {self.function:02d}")
+        if not 0 <= self.address <= 0xFFFF or self.address + self.count > 0x10000:
+            raise PollError(f"addresses {self.address}..{self.address + self.count - 1} do not fit 0..65535")
+        if not PERIOD_MIN_S <= self.period_s <= PERIOD_MAX_S:
+            raise PollError(f"poll period {self.period_s} s is outside {PERIOD_MIN_S}..{PERIOD_MAX_S:g} s")
+        return self
+
+
+# -- formats ----------------------------------------------------------------------------------
+
+
+def to_signed(raw: int) -> int:
+    return raw - 0x10000 if raw & 0x8000 else raw
+
+
+def pair_u32(first: int, second: int, order: str) -> int:
+    """Two registers (``first`` at the lower address) as uint32; ABCD = high word first."""
+    high, low = (first, second) if order == "ABCD" else (second, first)
+    return (high & 0xFFFF) << 16 | (low & 0xFFFF)
+
+
+def pair_i32(first: int, second: int, order: str) -> int:
+    value = pair_u32(first, second, order)
+    return value - (1 << 32) if value & 0x80000000 else value
+
+
+def pair_f32(first: int, second: int, order: str) -> float:
+    return struct.unpack(">f", pair_u32(first, second, order).to_bytes(4, "big"))[0]
+
+
+def format_register(raw: int, fmt: str) -> str:
+    raw &= 0xFFFF
+    if fmt == "unsigned":
+        return str(raw)
+    if fmt == "signed":
+        return str(to_signed(raw))
+    if fmt == "hex":
+        return f"0x{raw:04X}"
+    if fmt == "binary":
+        return f"{raw >> 8:08b} {raw & 0xFF:08b}"
+    raise ValueError(fmt)
+
+
+def format_float(value: float) -> str:
+    return f"{value:.7g}"
+
+
+@dataclass
+class Row:
+    """One register (or coil) of the answer as the page shows it."""
+
+    address: int
+    raw: int
+    name: str = ""
+    cells: dict[str, str] = field(default_factory=dict)
+
+
+def rows_for(spec: PollSpec, values: list[int], names: dict[int, str] | None = None) -> list[Row]:
+    """Every format of every value; the 32-bit columns on the first register of each pair (offset 0, 2, ...)."""
+    names = names or {}
+    rows = []
+    for offset, raw in enumerate(values):
+        address = spec.address + offset
+        row = Row(address, int(raw), names.get(address, ""))
+        if spec.function in (1, 2):
+            row.cells = {"unsigned": str(int(bool(raw)))}
+        else:
+            row.cells = {fmt: format_register(raw, fmt) for fmt in FORMATS}
+            if offset % 2 == 0 and offset + 1 < len(values):
+                nxt = values[offset + 1]
+                for order in WORD_ORDERS:
+                    row.cells[f"u32 {order}"] = str(pair_u32(raw, nxt, order))
+                    row.cells[f"i32 {order}"] = str(pair_i32(raw, nxt, order))
+                    row.cells[f"f32 {order}"] = format_float(pair_f32(raw, nxt, order))
+        rows.append(row)
+    return rows
+
+
+# -- known devices ---------------------------------------------------------------------------------
+
+
+def known_device(plant, bus: str, unit: int):
+    """The plant's device at ``unit`` on the line, or None."""
+    return next((d for d in plant.devices_on(bus) if d.options.get("address") == unit), None)
+
+
+def _param_at(params, space: str, address: int) -> tuple[Param | None, int]:
+    """The parameter covering ``address`` and the word index within it."""
+    param = params.get(space, address)
+    if param is not None:
+        return param, 0
+    for p in params.space(space):
+        if address in p.addresses:
+            return p, address - p.address
+    return None, 0
+
+
+def register_names(plant, bus: str, unit: int, function: int, address: int, count: int) -> dict[int, str]:
+    """Names from the parameter model of the known device at ``unit`` (registers only)."""
+    dev = known_device(plant, bus, unit)
+    space = SPACES.get(function)
+    if dev is None or space is None:
+        return {}
+    params = DEVICE_TYPES[dev.type].params
+    if params is None:
+        return {}
+    names = {}
+    for a in range(address, address + count):
+        p, word = _param_at(params, space, a)
+        if p is not None:
+            name = p.label or p.name
+            names[a] = f"{dev.name}: {name}" + (f" (word {word + 1} of {p.words})" if p.words > 1 else "")
+    return names
+
+
+def check_write(plant, bus: str, unit: int, address: int, values: list[int]) -> str:
+    """Refuse (raise :class:`PollError`) or return the confirmation text a write needs ("" if none).
+
+    A known device's register that is not writable for an engineer (RO, MFR, never written, or not
+    in its register map) is refused by name (HD-Lock document 3.2.x access classes, SPEC-NOTES).
+    """
+    if not 1 <= unit <= UNIT_MAX:
+        raise PollError(f"writes go to one unit (1..{UNIT_MAX}), not {unit}")
+    if not 1 <= len(values) <= MAX_WRITE_REGISTERS:
+        raise PollError(f"1..{MAX_WRITE_REGISTERS} registers per write, not {len(values)}")
+    if not 0 <= address <= 0xFFFF or address + len(values) > 0x10000:
+        raise PollError(f"addresses {address}..{address + len(values) - 1} do not fit 0..65535")
+    for v in values:
+        if not -0x8000 <= v <= 0xFFFF:
+            raise PollError(f"{v} does not fit a 16-bit register (-32768..65535)")
+    dev = known_device(plant, bus, unit)
+    if dev is None:
+        return ""
+    params = DEVICE_TYPES[dev.type].params
+    if params is None:
+        return f"unit {unit} is {dev.name} ({dev.type}): write to it anyway?"
+    warnings = []
+    for offset, value in enumerate(values):
+        a = address + offset
+        p, _word = _param_at(params, "holding", a)
+        if p is None:
+            raise PollError(f"holding {a} is not in the register map of {dev.name} ({dev.type}): not written")
+        name = p.label or p.name
+        if p.never_write:
+            raise PollError(f"{dev.name} {name} (holding {a}) is never written by this tool")
+        if not p.writable:
+            raise PollError(f"{dev.name} {name} (holding {a}) is {p.access.value}: not writable")
+        raw = value & 0xFFFF
+        decoded = p.decode(raw)
+        low, high = p.limits()
+        if not low <= decoded <= high:
+            raise PollError(f"{dev.name} {name}: {decoded} is outside {low:g} .. {high:g} {p.unit}".rstrip())
+        warnings.append(f"{name} (holding {a}) = {p.display(raw)}")
+        extra = p.needs_confirmation(raw)
+        if extra:
+            warnings.append(extra)
+    return f"This writes registers of {dev.name} ({dev.type}): " + "; ".join(warnings) + ". Write?"
+
+
+# -- the poll ----------------------------------------------------------------------------------------
+
+
+@dataclass
+class PollResult:
+    time: float
+    values: list[int]
+    error: str = ""
+    rtt_ms: float | None = None
+
+
+async def read_once(line: ModbusLine, spec: PollSpec) -> list[int]:
+    """One read through the line owner; raises :class:`LineError` on failure."""
+    spec.check()
+    unit, a, n = spec.unit, spec.address, spec.count
+    calls = {
+        1: ("coils", lambda c: c.read_coils(a, count=n, device_id=unit)),
+        2: ("discrete inputs", lambda c: c.read_discrete_inputs(a, count=n, device_id=unit)),
+        3: ("holding", lambda c: c.read_holding_registers(a, count=n, device_id=unit)),
+        4: ("input", lambda c: c.read_input_registers(a, count=n, device_id=unit)),
+    }
+    what, call = calls[spec.function]
+    response = await line.tool_request(unit, f"poll {what} {a}+{n}", call)
+    if spec.function in (1, 2):
+        return [int(bool(b)) for b in list(response.bits)[:n]]
+    return [int(v) & 0xFFFF for v in response.registers]
+
+
+class ModbusPoll:
+    """A running poll of one browser page: the last answer, counts, and the loop task."""
+
+    def __init__(self, worker, bus: str):
+        line = worker.lines.get(bus)
+        if not isinstance(line, ModbusLine):
+            raise KeyError(f"{bus} is not a Modbus RTU line")
+        self.worker = worker
+        self.bus = bus
+        self.line = line
+        self.spec: PollSpec | None = None
+        self.last: PollResult | None = None
+        self.polls = 0
+        self.errors = 0
+        self._task: asyncio.Task | None = None
+
+    @property
+    def running(self) -> bool:
+        return self._task is not None and not self._task.done()
+
+    def start(self, spec: PollSpec) -> None:
+        """Poll ``spec`` every ``period_s`` (reads change nothing: any role may poll)."""
+        self.stop()
+        self.spec = spec.check()
+        self.polls = self.errors = 0
+        self.last = None
+        self._task = asyncio.get_running_loop().create_task(self._run(self.spec), name=f"modbus poll {self.bus}")
+
+    def stop(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            self._task = None
+
+    async def _run(self, spec: PollSpec) -> None:
+        loop = asyncio.get_running_loop()
+        while True:
+            started = loop.time()
+            await self.poll_once(spec)
+            await asyncio.sleep(max(0.0, spec.period_s - (loop.time() - started)))
+
+    async def poll_once(self, spec: PollSpec) -> PollResult:
+        start = time.perf_counter()
+        try:
+            values = await read_once(self.line, spec)
+            result = PollResult(time.time(), values, rtt_ms=round((time.perf_counter() - start) * 1000, 1))
+        except LineError as exc:
+            self.errors += 1
+            result = PollResult(time.time(), self.last.values if self.last else [], error=str(exc))
+        except Exception as exc:  # noqa: BLE001 - a bad answer is shown, never ends the page
+            self.errors += 1
+            log.debug("%s poll: %s", self.bus, exc)
+            result = PollResult(time.time(), self.last.values if self.last else [], error=f"{type(exc).__name__}: {exc}")
+        self.polls += 1
+        self.last = result
+        return result
+
+    def rows(self) -> list[Row]:
+        if self.spec is None or self.last is None:
+            return []
+        names = register_names(self.worker.plant, self.bus, self.spec.unit, self.spec.function, self.spec.address,
+                               len(self.last.values))
+        return rows_for(self.spec, self.last.values, names)
+
+    async def write(self, unit: int, address: int, values: list[int], *, user: str, role: str,
+                    confirmed: bool = False, multiple: bool | None = None) -> str:
+        """Function 06 (one register) or 16 (several, or ``multiple``): checked, confirmed, audited.
+
+        :raises NeedsConfirmation: a known device's register and ``confirmed`` is False
+        """
+        raws = [v & 0xFFFF for v in values]
+        fc = 16 if (multiple if multiple is not None else len(values) > 1) else 6
+        describe = (f"Modbus poll {self.bus}: write unit {unit} holding {address}"
+                    + (f"+{len(values)}" if fc == 16 else "") + f" = {raws} (function {fc:02d})")
+        try:
+            confirm = check_write(self.worker.plant, self.bus, unit, address, values)
+        except PollError as exc:
+            await self.worker.refused(device=self.bus, user=user, role=role, describe=describe, reason=str(exc),
+                                      parameter=f"unit {unit} holding {address}", new=raws)
+            raise
+        if confirm and not confirmed:
+            raise NeedsConfirmation(confirm)
+        dev = known_device(self.worker.plant, self.bus, unit)
+
+        async def do() -> str:
+            if fc == 6:
+                await self.line.tool_request(unit, f"write holding {address}={raws[0]}",
+                                             lambda c: c.write_register(address, raws[0], device_id=unit))
+            else:
+                await self.line.tool_request(unit, f"write holding {address}+{len(raws)}",
+                                             lambda c: c.write_registers(address, raws, device_id=unit))
+            return ""
+
+        await self.worker.engineer_action(do, user=user, role=role, describe=describe,
+                                          target=dev.name if dev else self.bus,
+                                          parameter=f"unit {unit} holding {address}", new=raws)
+        return describe
