@@ -1,0 +1,146 @@
+"""Replay a recorded file onto a CAN bus (``/monitor/BUS/replay``): engineers only.
+
+Pick a recording of the data folder or upload one, choose the speed, start; the bus monitor shows
+the frames as sent. Progress is shown; Stop ends it at once; leaving the page ends it too (dead-man).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import tempfile
+from pathlib import Path
+
+from nicegui import ui
+
+from app import recording as rec
+from app import replay as rp
+from app import runtime as rt
+from app.worker import AuditUnavailable, PermissionDenied
+from pages.frame import frame, notify_error
+from pages.session import current_user
+
+REFRESH_S = 0.25
+SPEEDS = {0.1: "0.1 x", 0.5: "0.5 x", 1.0: "1 x (as recorded)", 2.0: "2 x", 5.0: "5 x", 10.0: "10 x"}
+
+
+def content(bus: str) -> None:
+    runtime = rt.current()
+    worker = runtime.worker
+    with frame(f"Replay onto {bus}"):
+        user, role = current_user()
+        ui.link(f"Back to the monitor of {bus}", f"/monitor/{bus}")
+        if role != "engineer":
+            ui.label("Replaying a recording sends frames onto the bus: engineers only. "
+                     "This read-only session can watch the bus on its monitor page.").props("data-testid=replay-readonly")
+            return
+        if bus not in worker.can_buses:
+            ui.label(f"{bus} is not a CAN bus: only CAN recordings can be replayed.")
+            return
+        session = ui.context.client.id
+        loaded: dict[str, rec.LoadedLog] = {}
+
+        with ui.card().classes("w-full"):
+            ui.label("Recording").classes("text-subtitle1")
+            files = {f.name: f"{f.name} ({f.size // 1024} KiB)" for f in rec.list_recordings()}
+            choice = ui.select(files, label="Recordings in the data folder", with_input=True).classes("w-full").props("outlined dense")
+            ui.upload(label="or open a file (" + " ".join(rec.READ_SUFFIXES) + ")", auto_upload=True,
+                      on_upload=lambda e: handle_upload(e)).props("flat bordered").classes("w-96")
+            file_status = ui.label("no file loaded").props("data-testid=replay-file")
+            load_bar = ui.linear_progress(value=0, show_value=False).classes("w-full")
+            load_bar.set_visibility(False)
+
+        with ui.card().classes("w-full"):
+            ui.label("Replay").classes("text-subtitle1")
+            with ui.row().classes("items-center gap-4"):
+                speed = ui.select(SPEEDS, value=1.0, label="Speed").props("outlined dense").classes("w-48")
+                start_button = ui.button("Start replay", icon="play_arrow", on_click=lambda: start()).props("data-testid=replay-start")
+                stop_button = ui.button("Stop", icon="stop", color="negative", on_click=lambda: stop()).props("data-testid=replay-stop")
+            progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
+            status = ui.label("").props("data-testid=replay-status")
+            ui.label("Refused while a device on this bus is under control; it stops by itself when one is taken "
+                     "under control, and when this page closes.").classes("text-caption text-grey-7")
+
+        async def load(path: Path, name: str) -> None:
+            load_bar.set_visibility(True)
+            load_bar.set_value(0)
+            file_status.set_text(f"reading {name} ...")
+
+            def report(frames: int, fraction: float) -> None:
+                load_bar.set_value(fraction)
+                file_status.set_text(f"reading {name}: {frames} frames")
+
+            try:
+                log = await rec.load_log(path, name, progress=report)
+            except rec.RecordingError as exc:
+                file_status.set_text(str(exc))
+                load_bar.set_visibility(False)
+                return
+            loaded["file"] = log
+            load_bar.set_visibility(False)
+            file_status.set_text(f"{name}: {len(log.frames)} frames, {log.duration:.1f} s ({log.format})"
+                                 + (" - only the first frames (file too long)" if log.truncated else ""))
+
+        async def on_choice() -> None:
+            if choice.value:
+                try:
+                    path = await asyncio.to_thread(rec.recording_path, choice.value)
+                except rec.RecordingError as exc:
+                    file_status.set_text(str(exc))
+                    return
+                await load(path, choice.value)
+
+        choice.on_value_change(on_choice)
+
+        async def handle_upload(event) -> None:
+            name = Path(event.file.name).name if hasattr(event, "file") else Path(event.name).name
+            data = await event.file.read() if hasattr(event, "file") else event.content.read()
+            folder = Path(tempfile.mkdtemp(prefix="replay-"))
+            path = folder / name
+            await asyncio.to_thread(path.write_bytes, data)
+            await load(path, name)
+
+        async def start() -> None:
+            log = loaded.get("file")
+            if log is None:
+                notify_error("Choose a recording first.")
+                return
+            try:
+                await rp.start_replay(worker, bus, log.frames, name=log.name, speed=float(speed.value or 1.0),
+                                      session=session, user=user, role=role)
+            except (rp.ReplayError, PermissionDenied, AuditUnavailable) as exc:
+                status.set_text(f"refused: {exc}")
+            refresh()
+
+        async def stop() -> None:
+            replay = rp.running_replay(worker, bus)
+            if replay is not None and replay.running:
+                replay.stop(f"stopped by {user}")  # at once, whatever the audit log says
+
+                async def stopped() -> str:
+                    return f"after {replay.sent} of {replay.total} frames"
+
+                try:  # a stop is recorded, but never refused (write=False)
+                    await worker.checked(stopped, device=bus, role=role, user=user, write=False,
+                                         describe=f"stop replay {replay.name} onto {bus}")
+                except AuditUnavailable:
+                    pass
+            refresh()
+
+        last: dict[str, rp.Replay | None] = {"replay": None}
+
+        def refresh() -> None:
+            replay = rp.running_replay(worker, bus) or last["replay"]
+            if replay is not None and replay.session == session:
+                last["replay"] = replay
+            if replay is None:
+                status.set_text(status.text or "no replay yet")
+                progress.set_value(0)
+            else:
+                progress.set_value(replay.fraction)
+                status.set_text(f"{replay.name}: {replay.summary()}")
+            running = replay is not None and replay.running
+            start_button.set_enabled(not running)
+            stop_button.set_enabled(running)
+
+        refresh()
+        ui.timer(REFRESH_S, refresh)

@@ -1,0 +1,38 @@
+"""The replay page (/monitor/BUS/replay) with NiceGUI's simulated user: choose a recording of the data
+folder, replay it, progress and the end state shown."""
+
+from __future__ import annotations
+
+import time
+
+import can
+from nicegui import ui
+
+from app import recording as rec
+from app.plant import parse_plant
+from app.runtime import Runtime
+from tests.webutil import eventually, simulated_user
+
+PLANT = 'name = "t"\n[[bus]]\nname = "can9"\ntype = "can"\ninterface = "virtual"\nchannel = "replay-page-%s"\nbitrate = 500000\n'
+
+
+async def test_replay_page_replays_a_recording(tmp_path):
+    runtime = Runtime(parse_plant(PLANT % time.monotonic_ns()), simulate=False, data_dir=tmp_path / "data")
+    folder = runtime.data_dir / "recordings"
+    folder.mkdir(parents=True)
+    writer = rec.WRITERS[".log"][0](folder / "can9-test.log")
+    for i in range(20):
+        writer.on_message_received(can.Message(timestamp=100 + i * 0.01, arbitration_id=0x300 + i, data=bytes([i])))
+    writer.stop()
+    async with simulated_user(runtime) as user:
+        await user.open("/monitor/can9/replay")
+        await user.should_see("Replay onto can9")
+        select = user.find(kind=ui.select).elements
+        choice = next(e for e in select if e.props.get("label") == "Recordings in the data folder")
+        choice.set_value("can9-test.log")
+        await user.should_see("can9-test.log: 20 frames")
+        user.find("Start replay").click()
+        await eventually(lambda: any(f.direction == "tx" for f in runtime.worker.can_buses["can9"].state.frames), timeout=5)
+        await user.should_see("done: 20 of 20 frames sent", retries=50)
+        sent = [f.arbitration_id for f in runtime.worker.can_buses["can9"].state.frames if f.direction == "tx"]
+        assert sent == [0x300 + i for i in range(20)]
