@@ -137,7 +137,7 @@ def inside_viewport(page, locator) -> None:
     """Assert that the element of ``locator`` is visible and lies wholly inside the page's viewport."""
     box = locator.bounding_box()
     assert box is not None, f"{locator} is not rendered"
-    size = page.viewport_size
+    size = page.viewport_size or page.evaluate("({width: window.innerWidth, height: window.innerHeight})")
     assert box["x"] >= 0 and box["y"] >= 0, f"{locator} starts outside the viewport: {box}"
     assert box["x"] + box["width"] <= size["width"] + 0.5, f"{locator} sticks out right of {size['width']} px: {box}"
     assert box["y"] + box["height"] <= size["height"] + 0.5, f"{locator} sticks out below {size['height']} px: {box}"

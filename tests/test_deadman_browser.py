@@ -22,13 +22,11 @@ from pathlib import Path
 
 import can
 import pytest
-from conftest import free_port
+from conftest import CHROMIUM, free_port, free_udp_port, inside_viewport
 from webutil import running_app
 
 from app.worker import DEADMAN_BOUND_S, DEADMAN_TIMEOUT_S
 
-CHROMIUM = Path("/usr/bin/chromium")
-SHOTS = Path("/tmp/commission-shots")
 pytestmark = [pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed"), pytest.mark.timeout(120)]
 
 GROUP = "239.74.163.9"
@@ -103,6 +101,8 @@ class Listener:
 
 
 def start_chromium(folder: Path) -> tuple[subprocess.Popen, int]:
+    """Chromium as a process of its own (not conftest's ``chromium`` fixture): the test freezes
+    that very process with SIGSTOP, which a browser launched inside playwright's driver does not allow."""
     port = free_port()
     proc = subprocess.Popen(
         [str(CHROMIUM), "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
@@ -123,7 +123,7 @@ def start_chromium(folder: Path) -> tuple[subprocess.Popen, int]:
 def test_frozen_browser_stops_motion_and_mains_outputs_within_the_bound(tmp_path):
     from playwright.sync_api import sync_playwright
 
-    port_lift, port_heater = free_port(), free_port()
+    port_lift, port_heater = free_udp_port(), free_udp_port()
     lift_bus, heater_bus = Listener(port_lift), Listener(port_heater)
     chromium, debug_port = start_chromium(tmp_path)
     frozen = False
@@ -151,9 +151,11 @@ def test_frozen_browser_stops_motion_and_mains_outputs_within_the_bound(tmp_path
             lift.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
             lift.mouse.down()  # hold-to-run: held, never released
             assert lift_bus.first(CONTROL_ID, lambda d: d[7] & 0x01, timeout=5), "the jog did not start"
-            time.sleep(0.5)  # moving, beats arriving
-            SHOTS.mkdir(exist_ok=True)
-            lift.screenshot(path=str(SHOTS / "deadman-lift-jogging.png"))
+            jog_started = time.monotonic()
+            # moving: the worker keeps sending enabled control telegrams while the browser's beats arrive
+            assert lift_bus.first(CONTROL_ID, lambda d: d[7] & 0x01, since=jog_started + 0.3, timeout=5), "the jog stopped by itself"
+            inside_viewport(lift, lift.get_by_test_id("jog-out"))
+            lift.screenshot(path=str(tmp_path / "deadman-lift-jogging.png"))
 
             os.killpg(chromium.pid, signal.SIGSTOP)  # the whole browser freezes: no mouseup, no close
             frozen = True

@@ -7,7 +7,7 @@ import itertools
 
 import can
 import pytest
-from conftest import sim_process, wait_for
+from conftest import free_udp_port, sim_process, wait_for
 
 from app.plant import DeviceConfig, parse_plant
 from app.runtime import Runtime
@@ -320,7 +320,7 @@ async def test_interface_that_cannot_open_is_reported():
 
 async def test_across_processes_on_udp_multicast(tmp_path):
     """`commission sim` serves the twins on udp_multicast; this process is the GUI side."""
-    port = 43000 + (id(tmp_path) % 2000)
+    port = free_udp_port()  # found at run time: another bus or test on this machine cannot share it
     text = can_plant("udp_multicast", "239.74.163.2", extra=f"port = {port}\n")
     path = tmp_path / "plant.toml"
     path.write_text(text)
