@@ -16,33 +16,38 @@ from __future__ import annotations
 
 import asyncio
 import heapq
+import re
 import tempfile
 import time
 from datetime import datetime
 from pathlib import Path
 
-from nicegui import events, run, ui
+from nicegui import background_tasks, events, run, ui
 
 from app import recording as rec
 from app import runtime as rt
 from app.can_bus import MONITOR_FRAMES, CanBusState, FrameRecord
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import fmt_age, frame, notify_error
-from pages.session import current_user
+from pages.session import can_write, current_user
 
 # -- Modbus / serial lines: transaction log ----------------------------------------------------------
 
-COLUMNS = [
-    {"name": "time", "label": "Time", "field": "time", "align": "left"},
-    {"name": "device", "label": "Device", "field": "device", "align": "left"},
-    {"name": "request", "label": "Request", "field": "request", "align": "left"},
-    {"name": "tx", "label": "Request hex", "field": "tx", "align": "left", "classes": "mono hex"},
-    {"name": "rx", "label": "Response hex", "field": "rx", "align": "left", "classes": "mono hex"},
-    {"name": "decoded", "label": "Decoded", "field": "decoded", "align": "left", "classes": "decoded"},
-    {"name": "rtt", "label": "RTT ms", "field": "rtt", "align": "right"},
-    {"name": "error", "label": "Error", "field": "error", "align": "left", "classes": "text-negative"},
+COLUMNS = [  # widths in % of a fixed-layout table: it fits the screen, hex is cut with the full text on hover
+    {"name": "time", "label": "Time", "field": "time", "align": "left", "headerStyle": "width: 8%"},
+    {"name": "device", "label": "Device", "field": "device", "align": "left", "headerStyle": "width: 10%"},
+    {"name": "request", "label": "Request", "field": "request", "align": "left", "headerStyle": "width: 13%"},
+    {"name": "tx", "label": "Request hex", "field": "tx", "align": "left", "headerStyle": "width: 11%"},
+    {"name": "rx", "label": "Response hex", "field": "rx", "align": "left", "headerStyle": "width: 11%"},
+    {"name": "decoded", "label": "Decoded", "field": "decoded", "align": "left", "headerStyle": "width: 30%"},
+    {"name": "rtt", "label": "RTT ms", "field": "rtt", "align": "right", "headerStyle": "width: 6%"},
+    {"name": "error", "label": "Error", "field": "error", "align": "left", "headerStyle": "width: 11%"},
 ]
-SHOWN = 200  # rows of a frame/transaction list
+CUT_SLOT = '<q-td :props="props" :class="\'cut \' + (props.col.name === \'error\' ? \'text-negative\' : \'\')" :title="props.value">{{ props.value }}</q-td>'
+HEX_SLOT = '<q-td :props="props" class="mono cut" :title="props.value">{{ props.value }}</q-td>'
+WRAP_SLOT = '<q-td :props="props" class="wrap" :title="props.value">{{ props.value }}</q-td>'
+SHOWN = 200  # rows of a frame/transaction list (one page while paused)
+SCROLL_HEIGHT = "max-height: 56vh; overflow-y: auto"  # each table scrolls inside its box: the page height stays bounded
 SHOWN_IDS = 300  # rows of the overwrite view
 REFRESH_S = 0.3
 MAX_UPLOAD_BYTES = 200 * 1024 * 1024
@@ -53,9 +58,26 @@ CSS = """
 .byte { margin-right: 0.45em; }
 .byte-changed { color: #e65100; font-weight: 700; background: #fff3e0; border-radius: 2px; }
 .row-error td { background: #fde8ea; }
-.can-table .q-table td.decoded, .reg-table .q-table td.decoded { white-space: normal; min-width: 320px; }
-.reg-table .q-table td.hex { white-space: normal; min-width: 140px; max-width: 230px; }
+.can-table .q-table td.decoded { white-space: normal; min-width: 200px; overflow-wrap: anywhere; }
+.reg-table .q-table { table-layout: fixed; width: 100%; }
+.reg-table .q-table td, .reg-table .q-table th { padding: 2px 6px; font-size: 13px; }
+.reg-table .q-table td.cut { white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }
+.reg-table .q-table td.wrap { white-space: normal; overflow-wrap: anywhere; }
+.monitor-scroll thead tr th { position: sticky; top: 0; z-index: 1; background: white; }
+.can-table .q-table td.nowrap, .can-table .q-table th.nowrap { white-space: nowrap; }
+.can-table .q-table td.cycle { white-space: normal; min-width: 90px; max-width: 150px; }
+.can-table tbody tr { cursor: pointer; }
 """
+
+
+def _tool_links(bus: str, tools: list[tuple[str, str, str]]) -> None:
+    """The engineer's bus tools (pages of their own), linked for engineers only."""
+    if not can_write():
+        return
+    with ui.row().classes("items-center gap-2").mark("bus-tools"):
+        for label, tool, icon in tools:
+            ui.button(label, icon=icon, on_click=lambda t=tool: ui.navigate.to(f"/monitor/{bus}/{t}")).props(
+                f"flat dense no-caps data-monitor=tool-{tool}")
 
 
 def content(bus: str) -> None:
@@ -71,13 +93,22 @@ def modbus_content(bus: str) -> None:
     bus_state = runtime.store.buses[bus]
     with frame(f"Bus monitor {bus}"):
         ui.add_css(CSS)
-        ui.label(f"{bus_state.type} · {bus_state.endpoint}").classes("text-caption text-grey-8")
+        with ui.row().classes("items-center gap-3 w-full"):
+            ui.label(f"{bus_state.type} · {bus_state.endpoint}").classes("text-caption text-grey-8")
+            if bus_state.type == "modbus-rtu":
+                _tool_links(bus, [("Modbus poll", "poll", "table_rows")])
         with ui.row().classes("items-center"):
             paused = ui.switch("Pause")
             errors_only = ui.switch("Errors only")
             summary = ui.label().classes("text-body2")
-        table = ui.table(columns=COLUMNS, rows=[], row_key="id", pagination=0).classes("w-full reg-table")
-        table.props("dense flat bordered")
+        with ui.element("div").classes("w-full monitor-scroll").style(SCROLL_HEIGHT).props("data-monitor=transactions-box"):
+            table = ui.table(columns=COLUMNS, rows=[], row_key="id", pagination=0).classes("w-full reg-table")
+        table.props("dense flat bordered hide-bottom data-monitor=transactions")
+        for name in ("time", "device", "request", "rtt", "error"):
+            table.add_slot(f"body-cell-{name}", CUT_SLOT)
+        table.add_slot("body-cell-tx", HEX_SLOT)
+        table.add_slot("body-cell-rx", HEX_SLOT)
+        table.add_slot("body-cell-decoded", WRAP_SLOT)
         table.mark("transactions")
         decoder = rec.TransactionDecoder(runtime.worker, bus)
 
@@ -93,7 +124,6 @@ def modbus_content(bus: str) -> None:
                 {
                     "id": i,
                     "time": datetime.fromtimestamp(t.time).strftime("%H:%M:%S.%f")[:-3],
-                    "unit": t.unit,
                     "device": decoder.device(t.unit),
                     "request": t.request,
                     "tx": t.request_hex,
@@ -117,6 +147,7 @@ FRAME_COLUMNS = [
     {"name": "dir", "label": "Dir", "field": "dir", "align": "center"},
     {"name": "id", "label": "ID", "field": "id", "align": "left", "classes": "mono"},
     {"name": "device", "label": "Device", "field": "device", "align": "left"},
+    {"name": "dt", "label": "Δt ms", "field": "dt", "align": "right", "classes": "mono nowrap"},
     {"name": "dlc", "label": "DLC", "field": "dlc", "align": "right"},
     {"name": "data", "label": "Data", "field": "data", "align": "left", "classes": "mono"},
     {"name": "decoded", "label": "Decoded", "field": "decoded", "align": "left"},
@@ -126,10 +157,10 @@ ID_COLUMNS = [
     {"name": "dir", "label": "Dir", "field": "dir", "align": "center"},
     {"name": "device", "label": "Device", "field": "device", "align": "left"},
     {"name": "count", "label": "Count", "field": "count", "align": "right"},
-    {"name": "period", "label": "Period ms", "field": "period", "align": "right"},
+    {"name": "cycle", "label": "Cycle ms", "field": "cycle", "align": "right", "classes": "cycle"},
     {"name": "data", "label": "Data (changed bytes marked)", "field": "data", "align": "left"},
     {"name": "decoded", "label": "Decoded", "field": "decoded", "align": "left"},
-    {"name": "age", "label": "Last", "field": "age", "align": "right"},
+    {"name": "age", "label": "Last", "field": "age", "align": "right", "classes": "nowrap", "headerClasses": "nowrap"},
 ]
 DECODED_SLOT = (
     '<q-td :props="props" class="decoded" :class="props.row.err ? \'text-negative text-weight-bold\' : '
@@ -165,12 +196,42 @@ def _frame_rows(frames: list[FrameRecord], decoder: rec.FrameDecoder, relative_t
             "dir": f.direction,
             "id": "error frame" if f.is_error_frame else rec.format_id(f.arbitration_id, f.is_extended_id),
             "device": decoder.record_device(f),
+            "dt": _ms(f.dt),
             "dlc": f.dlc,
             "data": "remote" if f.is_remote_frame else rec.format_data(f.data),
             "decoded": decoder.record(f),
             "err": f.is_error_frame,
         })
     return rows
+
+
+def _ms(seconds: float | None) -> str:
+    return "-" if seconds is None else f"{seconds * 1000:.1f}"
+
+
+def cycle_text(cycles: list[tuple[int, int, float, float]]) -> str:
+    """The cycle time of an ID: ``1000``; bursts as ``2000 (bursts of 12)``; several frame lengths
+    on one ID each with its length, most frequent first: ``1000 (8 B) · 2000 (6 B, bursts of 12)``."""
+    if not cycles:
+        return "-"
+    parts = []
+    for length, _count, cycle, burst in cycles[:3]:
+        notes = [] if len(cycles) == 1 else [f"{length} B" if length >= 0 else "other lengths"]
+        if burst >= 1.5:
+            notes.append(f"bursts of {burst:.0f}")
+        parts.append(f"{cycle * 1000:.0f}" + (f" ({', '.join(notes)})" if notes else ""))
+    return " · ".join(parts)
+
+
+_FIELD_SPLIT = re.compile(r";\s+|,\s+(?![^\[]*\])")
+
+
+def decoded_fields(text: str) -> tuple[str, list[str]]:
+    """The message name and its fields from a decoded text (``name: field, field; field``)."""
+    head, sep, rest = text.partition(": ")
+    if not sep:
+        return text, []
+    return head, [part for part in _FIELD_SPLIT.split(rest) if part]
 
 
 class CanMonitor:
@@ -193,6 +254,10 @@ class CanMonitor:
         self.loaded: rec.LoadedLog | None = None
         self.file_decoder = rec.FrameDecoder()
         self.file_matches: list[FrameRecord] = []
+        self.snapshot: list[FrameRecord] = []  # the whole buffer (matching the filters), newest first, while paused
+        self.shown: dict[int, FrameRecord] = {}  # row key -> frame of the rows on screen
+        self.file_shown: dict[int, FrameRecord] = {}
+        self._loading = False
         with frame(f"Bus monitor {bus}"):
             ui.add_css(CSS)
             self._build()
@@ -207,8 +272,12 @@ class CanMonitor:
             ui.label(f"CAN · {state.endpoint} · {self.can_bus.options.get('bitrate', '?')} bit/s").classes("text-caption text-grey-8")
             self.state_badge = ui.badge("unknown").mark("bus-state")
             self.connected_badge = ui.badge("").mark("connected")
+            self.load = ui.label().classes("text-body2 mono").mark("load")
+            self.load.props("data-monitor=load")
             self.counts = ui.label().classes("text-body2 mono").mark("counters")
+            self.counts.props("data-monitor=counters")
             self.error_label = ui.label().classes("text-body2 text-negative")
+            _tool_links(self.bus, [("Transmit", "transmit", "send"), ("Replay", "replay", "replay")])
 
         with ui.row().classes("items-end gap-3 w-full"):
             self.id_from = ui.input("ID from (hex)", on_change=self._filters_changed).props("dense outlined clearable").classes("w-36 mono")
@@ -219,7 +288,8 @@ class CanMonitor:
             self.device = ui.select(options, value="", label="Device", on_change=self._filters_changed).props("dense outlined").classes("w-44")
             self.device.mark("device")
             self.errors_only = ui.switch("Error frames only", on_change=self._filters_changed)
-            self.paused = ui.switch("Pause").mark("pause")
+            self.paused = ui.switch("Pause", on_change=self._pause_changed).mark("pause")
+            self.paused.props("data-monitor=pause")
             self.filter_info = ui.label().classes("text-caption text-grey-8")
 
         with ui.card().classes("w-full q-pa-sm"):
@@ -245,7 +315,8 @@ class CanMonitor:
                 with ui.row().classes("items-center gap-2"):
                     ui.label("Overwrite view: one row per ID").classes("text-subtitle2")
                     self.ids_info = ui.label().classes("text-caption text-grey-8")
-                self.id_table = ui.table(columns=ID_COLUMNS, rows=[], row_key="k", pagination=0).classes("w-full can-table")
+                with ui.element("div").classes("w-full monitor-scroll").style("max-height: 34vh; overflow-y: auto").props("data-monitor=overwrite-box"):
+                    self.id_table = ui.table(columns=ID_COLUMNS, rows=[], row_key="k", pagination=0).classes("w-full can-table")
                 self.id_table.props("dense flat bordered")
                 self.id_table.add_slot("body-cell-data", BYTES_SLOT)
                 self.id_table.add_slot("body-cell-decoded", DECODED_SLOT)
@@ -254,7 +325,14 @@ class CanMonitor:
                 with ui.row().classes("items-center gap-2"):
                     ui.label("Frames, newest first").classes("text-subtitle2")
                     self.frames_info = ui.label().classes("text-caption text-grey-8")
-                self.frames_table = _frame_table("frames")
+                    self.frames_info.props("data-monitor=frames-info")
+                    self.live_pages = ui.pagination(1, 1, direction_links=True, on_change=self._show_paused_page).props(
+                        "dense max-pages=7 boundary-numbers data-monitor=live-pages")
+                    self.live_pages.set_visibility(False)
+                    ui.label("click a frame for its full decoding").classes("text-caption text-grey-6")
+                with ui.element("div").classes("w-full monitor-scroll").style(SCROLL_HEIGHT):
+                    self.frames_table = _frame_table("frames")
+                self.frames_table.on("rowClick", lambda e: self._show_details(e.args[1] if len(e.args) > 1 else {}, live=True))
             with ui.tab_panel(self.file_tab).classes("q-pa-none gap-2"):
                 with ui.row().classes("items-center gap-4 w-full"):
                     self.upload = ui.upload(
@@ -268,10 +346,15 @@ class CanMonitor:
                     self.upload.props("data-monitor=upload")
                     with ui.column().classes("gap-1"):
                         self.file_info = ui.label("No file opened.").classes("text-body2").mark("file-info")
+                        self.file_info.props("data-monitor=file-info")
+                        self.file_progress = ui.linear_progress(0, show_value=False).classes("w-96").props("data-monitor=file-progress")
+                        self.file_progress.set_visibility(False)
                         self.file_pages = ui.pagination(1, 1, direction_links=True, on_change=self._show_file_page).props("dense max-pages=9 boundary-numbers")
                         self.file_pages.mark("file-pages")
                         self.file_pages.props("data-monitor=file-pages")
-                self.file_table = _frame_table("file-frames", time_label="Time s")
+                with ui.element("div").classes("w-full monitor-scroll").style(SCROLL_HEIGHT):
+                    self.file_table = _frame_table("file-frames", time_label="Time s")
+                self.file_table.on("rowClick", lambda e: self._show_details(e.args[1] if len(e.args) > 1 else {}, live=False))
 
     # -- filters ---------------------------------------------------------------------------------------
     def _filters_changed(self) -> None:
@@ -292,8 +375,12 @@ class CanMonitor:
         self.filter_version += 1
         self.filter_info.set_text("; ".join(problems))
         self.filter_info.classes(replace="text-caption " + ("text-negative" if problems else "text-grey-8"))
-        self.refresh(force=True)
-        self.filter_file()
+        if self.paused.value:
+            self._take_snapshot()
+        else:
+            self.refresh(force=True)
+        if self.loaded is not None:
+            background_tasks.create(self.filter_file(), name="monitor filter file")
 
     # -- live ----------------------------------------------------------------------------------------------
     def refresh(self, force: bool = False) -> None:
@@ -307,6 +394,76 @@ class CanMonitor:
         self.decoder.set_owners(rec.device_owners(self.worker, self.bus))
         self._refresh_frames()
         self._refresh_ids()
+
+    # -- paused: the whole buffer in pages, and a frame's full decoding ------------------------------
+    def _pause_changed(self) -> None:
+        if self.paused.value:
+            self._take_snapshot()
+        else:
+            self.snapshot = []
+            self.live_pages.set_visibility(False)
+            self._frames_signature = None
+            self.refresh(force=True)
+
+    def _take_snapshot(self) -> None:
+        """The buffer as it is now (at most MONITOR_FRAMES references, newest first), paged by SHOWN."""
+        self.snapshot = rec.newest(self.state.frames, self.filter, MONITOR_FRAMES)
+        self.live_pages.max = max(1, -(-len(self.snapshot) // SHOWN))
+        self.live_pages.value = 1
+        self.live_pages.set_visibility(True)
+        self.live_pages.update()
+        self._show_paused_page()
+
+    def _show_paused_page(self) -> None:
+        if not self.paused.value:
+            return
+        page = max(1, int(self.live_pages.value or 1))
+        first = (page - 1) * SHOWN
+        shown = self.snapshot[first:first + SHOWN]
+        self.shown = {first + i: f for i, f in enumerate(shown)}
+        what = "matching " if self.filter.active else ""
+        self.frames_info.set_text(f"paused: frames {first + 1 if shown else 0}-{first + len(shown)} of {len(self.snapshot)} {what}buffered, "
+                                  f"page {page} of {self.live_pages.max}")
+        self.frames_table.rows = _frame_rows(shown, self.decoder, first_key=first)
+        self.frames_table.update()
+
+    def _show_details(self, row: dict, live: bool) -> None:
+        key = row.get("k") if isinstance(row, dict) else None
+        frames = self.shown if live else self.file_shown
+        f = frames.get(key) if isinstance(key, int) else None
+        if f is None:
+            return
+        decoder = self.decoder if live else self.file_decoder
+        text = decoder.record(f)
+        name, fields = decoded_fields(text)
+        with ui.dialog() as dialog, ui.card().classes("q-pa-md").style("min-width: 520px; max-width: 90vw") as card:
+            card.props("data-monitor=frame-details")
+            ui.label(f"{'error frame' if f.is_error_frame else rec.format_id(f.arbitration_id, f.is_extended_id)} · "
+                     f"{f.direction} · {rec.format_time(f.time, None if live or self.loaded is None else self.loaded.frames[0].time)}").classes("text-h6 mono")
+            facts = [
+                ("Device", decoder.record_device(f) or "not a device of this bus"),
+                ("Message", name),
+                ("DLC", str(f.dlc)),
+                ("Data", "remote frame" if f.is_remote_frame else (rec.format_data(f.data) or "(none)")),
+                ("Δt to the previous frame of this ID", "first heard" if f.dt is None else f"{f.dt * 1000:.1f} ms"),
+            ]
+            with ui.grid(columns="auto 1fr").classes("gap-x-4 gap-y-1"):
+                for label, value in facts:
+                    ui.label(label).classes("text-grey-8")
+                    ui.label(value).classes("mono" if label == "Data" else "")
+            if fields:
+                ui.label("Fields").classes("text-subtitle2 q-mt-sm")
+                with ui.column().classes("gap-0").props("data-monitor=frame-fields"):
+                    for item in fields:
+                        ui.label(item).classes("text-body2")
+            if f.data and not f.is_remote_frame:
+                ui.label("Bytes").classes("text-subtitle2 q-mt-sm")
+                ui.table(columns=[{"name": c, "label": c.capitalize(), "field": c, "align": "left"} for c in ("byte", "hex", "dec", "bin")],
+                         rows=[{"byte": i, "hex": f"{b:02X}", "dec": b, "bin": f"{b:08b}"} for i, b in enumerate(f.data)],
+                         row_key="byte").props("dense flat bordered hide-bottom").classes("mono")
+            ui.button("Close", on_click=dialog.close).props("flat")
+        dialog.on("hide", dialog.delete)
+        dialog.open()
 
     def _types_on_bus(self) -> list[str]:
         """Device types in the plant on this bus and discovered on it: their codecs decode first."""
@@ -327,8 +484,14 @@ class CanMonitor:
         self.connected_badge.props(f"color={'positive' if s.connected else 'negative'} outline")
         self.counts.set_text(
             f"rx {s.rx_frames} · tx {s.tx_frames} · error frames {s.error_frames} · "
-            f"tx errors {s.tx_errors} · dropped {s.dropped} (shed under load {s.shed}) · buffered {len(s.frames)}/{MONITOR_FRAMES}"
+            f"tx errors {s.tx_errors} · dropped {s.dropped} (shed under load {s.shed}) · "
+            + (f"interface drops {s.interface_dropped} ({s.drop_source})" if s.interface_dropped is not None
+               else f"interface drops: not reported by {self.can_bus.options.get('interface', '?')}")
+            + f" · buffered {len(s.frames)}/{MONITOR_FRAMES}"
         )
+        bitrate = self.can_bus.options.get("bitrate")
+        load = f"load {s.load_pct:.1f} % of {bitrate / 1000:g} kbit/s" if s.load_pct is not None else "load: bit rate unknown"
+        self.load.set_text(f"{load} · {s.frames_per_s:.0f} frames/s")
         self.error_label.set_text(s.last_error)
         active = rec.active_recording(s)
         if active is not None:
@@ -354,6 +517,7 @@ class CanMonitor:
             return
         self._frames_signature = signature
         shown = rec.newest(s.frames, self.filter, SHOWN)
+        self.shown = dict(enumerate(shown))
         rows = _frame_rows(shown, self.decoder)
         what = "matching " if self.filter.active else ""
         self.frames_info.set_text(f"newest {len(rows)} {what}of {len(s.frames)} buffered frames")
@@ -375,7 +539,7 @@ class CanMonitor:
                 "dir": stats.direction,
                 "device": self.decoder.device(can_id, ext, stats.data),
                 "count": stats.count,
-                "period": "-" if stats.period is None else f"{stats.period * 1000:.0f}",
+                "cycle": cycle_text(stats.cycles()),
                 "data": rec.format_data(stats.data),
                 "bytes": rec.changed_bytes(stats.data, stats.changed),
                 "decoded": self.decoder(can_id, ext, stats.data),
@@ -457,34 +621,55 @@ class CanMonitor:
     # -- recorded files ------------------------------------------------------------------------------
     async def on_upload(self, e: events.UploadEventArguments) -> None:
         name = Path(e.file.name).name
-        suffix = Path(name).suffix.lower()
+        suffix = Path(name).suffix.lower()  # only a hint: the format is taken from the content
         try:
-            if suffix not in rec.READ_SUFFIXES:
-                raise rec.RecordingError(f"{name}: unsupported file type {suffix or '(none)'}; readable are {', '.join(rec.READ_SUFFIXES)}")
             with tempfile.TemporaryDirectory(prefix="commission-") as tmp:
-                path = Path(tmp) / f"upload{suffix}"
+                path = Path(tmp) / f"upload{suffix if suffix in rec.READ_SUFFIXES else ''}"
                 await e.file.save(path)
-                loaded = await run.io_bound(rec.read_log, path, name)
-        except rec.RecordingError as exc:
-            notify_error(str(exc))
-            return
-        except Exception as exc:  # noqa: BLE001 - a failing save/temp dir: still a message, never a crash
-            notify_error(f"{name}: cannot open: {exc}")
-            return
+                loaded = await self._load(path, name)
         finally:
             self.upload.reset()
-        await self._show_loaded(loaded)
+        if loaded is not None:
+            await self._show_loaded(loaded)
 
     async def open_recording(self, path: Path) -> None:
         if rec.active_recording(self.state) is not None and rec.active_recording(self.state).path == path:
             notify_error(f"{path.name} is still being recorded; stop the recording first.")
             return
+        loaded = await self._load(path, path.name)
+        if loaded is not None:
+            await self._show_loaded(loaded)
+
+    async def _load(self, path: Path, name: str) -> rec.LoadedLog | None:
+        """Read a file in a thread with its progress on the page; a file that cannot be read is named
+        with where and why (on the page and in a message)."""
+        if self._loading:
+            notify_error("A file is being opened already; wait until it is loaded.")
+            return None
+        self._loading = True
+        self.tabs.set_value("file")
+        self.file_progress.set_value(0)
+        self.file_progress.set_visibility(True)
+        self.file_info.set_text(f"opening {name} ...")
+
+        def progress(frames: int, fraction: float) -> None:
+            self.file_progress.set_value(fraction)
+            self.file_info.set_text(f"opening {name}: {frames:,} frames read ({fraction * 100:.0f} %)")
+
         try:
-            loaded = await run.io_bound(rec.read_log, path)
+            loaded = await rec.load_log(path, name, progress=progress)
+            await run.io_bound(_set_deltas, loaded.frames)  # O(n) once, off the event loop
+            return loaded
         except rec.RecordingError as exc:
+            self.file_info.set_text(f"cannot open: {exc}")
             notify_error(str(exc))
-            return
-        await self._show_loaded(loaded)
+        except Exception as exc:  # noqa: BLE001 - a failing save/temp dir: still a message, never a crash
+            self.file_info.set_text(f"{name}: cannot open: {exc}")
+            notify_error(f"{name}: cannot open: {exc}")
+        finally:
+            self._loading = False
+            self.file_progress.set_visibility(False)
+        return None
 
     async def _show_loaded(self, loaded: rec.LoadedLog) -> None:
         self.loaded = loaded
@@ -492,23 +677,27 @@ class CanMonitor:
         self.file_decoder = rec.FrameDecoder(self.worker.known_ids(self.bus) | known, rec.describers(self.worker, self.bus, self._types_on_bus()),
                                              rec.device_owners(self.worker, self.bus))
         self.tabs.set_value("file")
-        self.filter_file()
+        await self.filter_file()
         ui.notify(f"Opened {loaded.name}: {len(loaded.frames)} frames", type="positive")
 
-    def filter_file(self) -> None:
+    async def filter_file(self) -> None:
         loaded = self.loaded
         if loaded is None:
             return
         flt = self.filter
-        self.file_matches = [f for f in loaded.frames if flt.matches_record(f)] if flt.active else loaded.frames
+        if flt.active:  # up to MAX_FILE_FRAMES frames: filtered in a thread, not on the event loop
+            self.file_matches = await run.io_bound(lambda: [f for f in loaded.frames if flt.matches_record(f)])
+        else:
+            self.file_matches = loaded.frames
         pages = max(1, -(-len(self.file_matches) // SHOWN))
         self.file_pages.max = pages
         self.file_pages.value = 1
         self.file_pages.update()
         first = loaded.frames[0].time
         start = f", starts {datetime.fromtimestamp(first):%Y-%m-%d %H:%M:%S}" if first > 1e8 else ""
+        fmt = f" ({loaded.format} file)" if getattr(loaded, "format", "") else ""
         self.file_info.set_text(
-            f"{loaded.name}: {len(loaded.frames)} frames{' (file truncated)' if loaded.truncated else ''}, "
+            f"{loaded.name}{fmt}: {len(loaded.frames)} frames{' (file truncated)' if loaded.truncated else ''}, "
             f"{loaded.duration:.1f} s{start}, {loaded.error_frames} error frames; "
             f"{len(self.file_matches)} match the filters; {SHOWN} per page"
         )
@@ -520,8 +709,19 @@ class CanMonitor:
         page = max(1, int(self.file_pages.value or 1))
         first = (page - 1) * SHOWN
         shown = self.file_matches[first:first + SHOWN]
+        self.file_shown = {first + i: f for i, f in enumerate(shown)}
         self.file_table.rows = _frame_rows(shown, self.file_decoder, relative_to=self.loaded.frames[0].time, first_key=first)
         self.file_table.update()
+
+
+def _set_deltas(frames: list[FrameRecord]) -> None:
+    """Each frame's time since the previous frame of its ID (a recorded file's Δt column)."""
+    last: dict[tuple[bool, int], float] = {}
+    for f in frames:
+        key = (f.is_extended_id, f.arbitration_id)
+        previous = last.get(key)
+        f.dt = None if previous is None else f.time - previous
+        last[key] = f.time
 
 
 def _size(n: int) -> str:
