@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Awaitable, Callable
 from datetime import datetime
 
-from nicegui import ui
+from nicegui import context, ui
 
 from app import runtime as rt
 from app.state import DeviceState
@@ -90,6 +91,7 @@ class LiveValue:
             self.age = ui.label().classes("q-age")
         self.row.props(f'data-point="{point}"')
         self.update()
+        follow(state, self.update)
 
     def update(self) -> None:
         import time
@@ -133,6 +135,7 @@ class RegisterTable:
         )
         self.table.props(':table-row-class-fn="row => row.quality_class"')
         self.update()
+        follow(state, self.update)
 
     def update(self) -> None:
         import time
@@ -153,7 +156,8 @@ class RegisterTable:
                 "age": "-" if read is None else datetime.fromtimestamp(read).strftime("%H:%M:%S"),
                 "description": p.description,
                 "unsaved": p.key in self.state.unsaved,
-                "quality": quality if raw is not None else "-",  # the Read column gives its age; the row stays put between reads
+                # good: the Read column gives the time; stale or offline: how old the value is
+                "quality": "-" if raw is None else (quality_note(quality, None if read is None else now - read) or quality),
                 "quality_class": f"q-{quality}" if quality in ("stale", "offline") else "",
             })
         if rows != self.table.rows:
@@ -161,35 +165,124 @@ class RegisterTable:
             self.table.update()
 
 
+def follow(state: DeviceState, callback: Callable[[], object]) -> None:
+    """Keep part of a page up to date with one device: ``callback`` runs when the device changed
+    (pushed by the store at most 10 times a second) and once a second for ages; it ends with the page."""
+    from nicegui import context
+
+    watch = rt.current().store.watch(state.name, callback)
+    context.client.on_delete(watch.cancel)
+
+
+# extendTraces in order, once plotly is loaded and the chart drawn (calls that come earlier wait, up to 10 s)
+EXTEND_JS = """<script>
+window.commissionExtend = function (id, update, idx, max) {
+  const q = (window.__cx = window.__cx || {});
+  (q[id] = q[id] || []).push([update, idx, max]);
+  window.__cxFlush(id, 0);
+};
+window.__cxFlush = function (id, tries) {
+  const q = (window.__cx || {})[id] || [];
+  if (!q.length) return;
+  const vm = getElement(id);
+  if (!(vm && vm.Plotly && vm.$el && vm.$el.data)) {
+    if (tries < 100) setTimeout(() => window.__cxFlush(id, tries + 1), 100); else delete window.__cx[id];
+    return;
+  }
+  while (q.length) { const [u, i, m] = q.shift(); vm.Plotly.extendTraces(vm.$el, u, i, m); }
+};
+</script>"""
+
+
 class HistoryChart:
-    """Rolling plotly time chart of the device history samples."""
+    """Rolling plotly time chart of the device history samples.
+
+    The browser keeps the window: after the first drawing only new samples are sent (plotly
+    ``extendTraces``, bounded by ``maxPoints``); a long window is thinned to at most
+    :data:`MAX_POINTS` points. ``axes`` puts series on a second y axis (``{"Current [mA]": "y2"}``);
+    ``windows`` offers window lengths to choose from (seconds, e.g. ``(30, 300)``).
+    """
+
+    MAX_POINTS = 1500
 
     @staticmethod
     def _iso(t: float) -> str:
         return datetime.fromtimestamp(t).isoformat(timespec="milliseconds")
 
-    def __init__(self, state: DeviceState, series: list[str], window_s: int = CHART_WINDOW_S, height: int = 320):
+    def __init__(self, state: DeviceState, series: list[str], window_s: int = CHART_WINDOW_S, height: int = 320,
+                 axes: dict[str, str] | None = None, windows: tuple[int, ...] = ()):
         self.state = state
         self.series = series
         self.window_s = window_s
+        self.axes = axes or {}
+        self.sent_t: float | None = None  # time of the newest sample in the browser
+        self.sent_points = 0  # samples sent since the last full drawing (for tests and measurements)
+        layout: dict = {
+            "margin": {"l": 55, "r": 55 if self.axes else 10, "t": 10, "b": 30},
+            "height": height,
+            "xaxis": {"type": "date", "automargin": True},
+            "yaxis": {"automargin": True},
+            "legend": {"orientation": "h", "y": 1.02, "yanchor": "bottom", "x": 0},
+            "showlegend": True,
+            "uirevision": "keep",
+        }
+        if self.axes:
+            title = ", ".join(s for s in series if self.axes.get(s) == "y2")
+            layout["yaxis2"] = {"overlaying": "y", "side": "right", "title": {"text": title}, "automargin": True,
+                                "showgrid": False}
+            layout["yaxis"]["title"] = {"text": ", ".join(s for s in series if self.axes.get(s) != "y2")}
         self.figure = {
-            "data": [{"type": "scatter", "mode": "lines", "name": s, "x": [], "y": []} for s in series],
-            "layout": {
-                "margin": {"l": 50, "r": 10, "t": 10, "b": 40},
-                "height": height,
-                "xaxis": {"type": "date"},
-                "legend": {"orientation": "h", "y": -0.2},
-                "showlegend": True,
-                "uirevision": "keep",
-            },
+            "data": [{"type": "scatter", "mode": "lines", "name": s, "x": [], "y": [], "yaxis": self.axes.get(s, "y")}
+                     for s in series],
+            "layout": layout,
             "config": {"displaylogo": False, "responsive": True},
         }
+        if windows:
+            options = {w: (f"{w // 60} min" if w >= 60 and w % 60 == 0 else f"{w} s") for w in windows}
+            ui.toggle(options, value=window_s, on_change=lambda e: self.set_window(int(e.value))) \
+                .props("dense size=sm no-caps").classes("self-end").props('data-chart-window')
+        client = context.client
+        if not getattr(client, "commission_extend_js", False):
+            ui.add_head_html(EXTEND_JS)
+            client.commission_extend_js = True
         self.plot = ui.plotly(self.figure).classes("w-full")
+        self.max_points = self.MAX_POINTS
+        self.update()
+        follow(state, self.update)
+
+    @property
+    def step_s(self) -> float:
+        """Shortest gap between two drawn samples: long windows are thinned to MAX_POINTS."""
+        return self.window_s / self.MAX_POINTS
+
+    def set_window(self, window_s: int) -> None:
+        self.window_s = window_s
+        self.sent_t = None  # draw the new window whole once
         self.update()
 
+    def _thin(self, samples: list[tuple[float, dict]], after: float | None) -> list[tuple[float, dict]]:
+        kept, last = [], after
+        for t, sample in samples:
+            if last is None or t - last >= self.step_s:
+                kept.append((t, sample))
+                last = t
+        return kept
+
+    def _columns(self, samples: list[tuple[float, dict]]) -> tuple[list[str], list[list]]:
+        xs = [self._iso(t) for t, _ in samples]
+        return xs, [[s.get(name) for _, s in samples] for name in self.series]
+
+    def _max_points(self, samples: list[tuple[float, dict]]) -> int:
+        """Points that fill the window at the rate seen (the browser drops older ones)."""
+        if len(samples) < 2:
+            return self.MAX_POINTS
+        gap = max(self.step_s, (samples[-1][0] - samples[0][0]) / (len(samples) - 1))
+        return max(10, min(self.MAX_POINTS, int(self.window_s / gap) + 1))
+
     def update(self) -> None:
+        history = self.state.history
         layout = self.figure["layout"]
-        if not self.state.history:
+        if not history:
             if not layout.get("annotations"):  # nothing read yet: the last window up to now, not an axis at 1970/2000
                 now = time.time()
                 layout["xaxis"].update(autorange=False, range=[self._iso(now - self.window_s), self._iso(now)])
@@ -197,16 +290,41 @@ class HistoryChart:
                                           "showarrow": False, "font": {"size": 16, "color": "#757575"}}]
                 self.plot.update()
             return
+        newest = history[-1][0]
+        if self.sent_t is not None and newest <= self.sent_t:
+            return
+        if self.sent_t is None or newest - self.sent_t > self.window_s:
+            self._redraw(newest)
+            return
+        fresh = []
+        for sample in reversed(history):  # O(new samples), not a scan of the whole history
+            if sample[0] <= self.sent_t:
+                break
+            fresh.append(sample)
+        fresh.reverse()
+        fresh = self._thin(fresh, self.sent_t)
+        if not fresh:
+            return
+        xs, ys = self._columns(fresh)
+        self.plot.client.run_javascript(
+            f"window.commissionExtend({self.plot.id}, {json.dumps({'x': [xs] * len(self.series), 'y': ys})}, "
+            f"{list(range(len(self.series)))}, {self.max_points})")
+        self.sent_t = fresh[-1][0]
+        self.sent_points += len(fresh)
+
+    def _redraw(self, newest: float) -> None:
+        layout = self.figure["layout"]
         if layout.pop("annotations", None) is not None:
             layout["xaxis"].pop("range", None)
             layout["xaxis"]["autorange"] = True
-        last = self.state.history[-1][0]
-        samples = [(t, s) for t, s in self.state.history if t >= last - self.window_s]
-        xs = [self._iso(t) for t, _ in samples]
-        for trace, name in zip(self.figure["data"], self.series):
-            trace["x"] = xs
-            trace["y"] = [s.get(name) for _, s in samples]
-        self.plot.update()
+        samples = self._thin(self.state.history_since(self.window_s, now=newest), None)
+        self.max_points = self._max_points(samples)
+        xs, ys = self._columns(samples)
+        for trace, column in zip(self.figure["data"], ys):
+            trace["x"], trace["y"] = xs, column
+        self.plot.update()  # (the figure keeps this drawing for a reconnecting browser; new samples only go out)
+        self.sent_t = samples[-1][0] if samples else newest
+        self.sent_points = len(samples)
 
 
 async def confirm(title: str, text: str, ok: str = "Continue", danger: bool = True) -> bool:
@@ -249,20 +367,114 @@ async def run_command(
     return True, result
 
 
-async def write_from_page(device: str, param: Param, value, *, success: str, title: str = "", ok: str = "Write anyway") -> None:
+def range_text(low: float, high: float, unit: str = "") -> str:
+    return f"allowed {low:g} .. {high:g} {unit}".strip()
+
+
+def range_number(label: str, low: float, high: float, *, unit: str = "", integer: bool = False, value=None,
+                 step: float | None = None, fmt: str | None = None) -> ui.number:
+    """A number entry with its allowed range shown under it. What was typed stays as typed: an entry
+    outside the range (or a fraction where a whole number is needed) is marked invalid with the
+    range, never clamped; :func:`checked_value` refuses it before anything is sent."""
+    rule = range_text(low, high, unit)
+
+    def check(v) -> str | None:
+        if v is None:
+            return None
+        if integer and float(v) != int(float(v)):
+            return f"whole numbers only, {rule}"
+        if not low <= float(v) <= high:
+            return f"out of range: {rule}"
+        return None
+
+    field = ui.number(label, value=value, step=step, format=fmt or ("%d" if integer else None), validation=check)
+    field.props(f'hint="{rule}" dense outlined')
+    field.rule = rule  # type: ignore[attr-defined]
+    return field
+
+
+async def refuse(device: str, describe: str, reason: str, parameter: str = "", new: object = "") -> None:
+    """An entry refused before anything was sent: in the device's event log and the audit log."""
+    from pages.session import current_user
+
+    user, role = current_user()
+    await rt.current().worker.refused(device=device, user=user or "anonymous", role=role, describe=describe,
+                                      reason=reason, parameter=parameter, new=new)
+
+
+async def checked_value(field: ui.number, device: str, describe: str, parameter: str = "") -> float | None:
+    """The value of a :func:`range_number` entry, or None (field marked, refusal audited, nothing sent)."""
+    if field.value is None:
+        field.error = f"enter a value first ({getattr(field, 'rule', '')})".replace(" ()", "")
+        return None
+    if not field.validate():
+        await refuse(device, describe, f"{field.value:g}: {field.error}", parameter=parameter, new=field.value)
+        return None
+    return field.value
+
+
+class WriteGuard:
+    """Disables a device's write controls, with the reason, while the device does not answer."""
+
+    def __init__(self, state: DeviceState, *controls: ui.element):
+        self.state = state
+        self.controls: list[ui.element] = list(controls)
+        self.reason = ""
+        follow(state, self.update)
+        self.update()
+
+    def add(self, *controls: ui.element) -> None:
+        self.controls.extend(controls)
+        self.update(force=True)
+
+    def update(self, force: bool = False) -> None:
+        status = self.state.status
+        if status in ("offline", "unknown"):
+            reason = ("the device does not answer" + (f": {self.state.last_error}" if self.state.last_error else "")
+                      if status == "offline" else "waiting for the device's first answer")
+        else:
+            reason = ""
+        if reason == self.reason and not force:
+            return
+        self.reason = reason
+        for control in self.controls:
+            control.set_enabled(not reason)
+            if reason:
+                text = reason.replace('"', "'")
+                control.props(f'title="{text}" data-disabled-reason="{text}"')
+            else:
+                control.props(remove="title data-disabled-reason")
+
+
+async def write_from_page(device: str, param: Param, value, *, success: str, title: str = "", ok: str = "Write anyway",
+                          field: ui.element | None = None) -> None:
     """An engineer's entry for one parameter: check it, ask when the parameter wants a
-    confirmation, then write through the worker with old and new value for the audit log."""
+    confirmation, then write through the worker with old and new value for the audit log.
+
+    A refused entry stays in ``field`` as typed, marked with the reason (no toast over the page),
+    and is recorded in the audit log; nothing is sent."""
     if value is None or value == "":
-        ui.notify(f"{param.name}: enter a value first", type="warning")
+        if field is not None:
+            field.error = "enter a value first"
+        else:
+            ui.notify(f"{param.name}: enter a value first", type="warning")
         return
     try:
         raw = param.validate(value)
     except ParamError as exc:
-        ui.notify(str(exc), type="negative")
+        if field is not None:
+            field.error = str(exc)
+        else:
+            ui.notify(str(exc), type="negative")
+        await refuse(device, f"write {param.name}", str(exc), parameter=param.label or param.name, new=value)
         return
+    if field is not None:
+        field.error = None
     warning = param.needs_confirmation(raw)
     title = (title or "Write {name} = {value}?").format(name=param.name, value=param.display(raw))
     if warning and not await confirm(title, warning, ok=ok):
+        await refuse(device, f"write {param.name}", "not confirmed", parameter=param.label or param.name,
+                     new=param.display(raw))
         return
     before = rt.current().store.devices[device].raw(param)
     await run_command(

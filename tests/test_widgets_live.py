@@ -1,0 +1,106 @@
+"""Shared live widgets: charts send only new samples and thin long windows; entries keep what was typed."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+from nicegui import ui
+from webutil import simulated_user
+
+from app.plant import parse_plant
+from app.runtime import Runtime
+
+pytestmark = pytest.mark.timeout(40)
+
+PLANT = """
+name = "w"
+[[bus]]
+name = "can9"
+type = "can"
+interface = "virtual"
+channel = "widgets-live"
+[[device]]
+name = "io"
+type = "m3io"
+bus = "can9"
+variant = "HM"
+sw1 = 0x1A
+"""
+
+
+@pytest.fixture
+async def user_runtime():
+    runtime = Runtime(parse_plant(PLANT), simulate=False)
+    async with simulated_user(runtime) as user:
+        yield user, runtime
+
+
+async def test_chart_sends_only_new_samples_and_thins_long_windows(user_runtime):
+    from pages.widgets import HistoryChart
+
+    user, runtime = user_runtime
+    state = runtime.store.devices["io"]
+    now = time.time()
+    for i in range(6000):  # ten minutes at 10 samples/s
+        state.add_history({"T": float(i)}, now=now - 600 + i * 0.1)
+    charts: list[HistoryChart] = []
+
+    @ui.page("/chart-test")
+    def page() -> None:
+        charts.append(HistoryChart(state, ["T"], window_s=300, windows=(30, 300)))
+
+    await user.open("/chart-test")
+    chart = charts[0]
+    drawn = chart.figure["data"][0]["x"]
+    assert 0 < len(drawn) <= HistoryChart.MAX_POINTS  # 3000 samples in the window, thinned
+    assert chart.sent_points == len(drawn)
+    for i in range(5):
+        state.add_history({"T": 1.0}, now=now + 0.5 + i * 0.5)
+    chart.update()
+    assert chart.sent_points == len(drawn) + 5  # the new samples only, not the window again
+    chart.update()
+    assert chart.sent_points == len(drawn) + 5  # nothing new, nothing sent
+    chart.set_window(30)
+    assert chart.sent_points <= 301 and chart.window_s == 30
+
+
+async def test_empty_chart_says_no_data_yet(user_runtime):
+    from pages.widgets import HistoryChart
+
+    user, runtime = user_runtime
+    state = runtime.store.devices["io"]
+    charts: list[HistoryChart] = []
+
+    @ui.page("/chart-empty")
+    def page() -> None:
+        charts.append(HistoryChart(state, ["T"]))
+
+    await user.open("/chart-empty")
+    layout = charts[0].figure["layout"]
+    assert layout["annotations"][0]["text"] == "no data yet"
+    assert layout["xaxis"]["range"][0] > "2026"  # the last minutes, not an axis at 1970 or 2000
+
+
+async def test_range_entry_keeps_what_was_typed_and_refuses_with_the_range(user_runtime):
+    from pages.widgets import checked_value, range_number
+
+    user, runtime = user_runtime
+    fields = []
+
+    @ui.page("/entry-test")
+    def page() -> None:
+        fields.append(range_number("Address", 1, 254, integer=True))
+
+    await user.open("/entry-test")
+    field = fields[0]
+    field.value = 300
+    with user.client:
+        assert await checked_value(field, "io", "set address") is None
+    assert field.value == 300  # not clamped to 254
+    assert "1 .. 254" in field.error
+    rows = await runtime.audit.aquery()
+    assert any(r.result.startswith("refused: 300") and "1 .. 254" in r.result for r in rows)
+    field.value = 12
+    with user.client:
+        assert await checked_value(field, "io", "set address") == 12
