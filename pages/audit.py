@@ -19,8 +19,13 @@ COLUMNS = [
     {"name": "parameter", "label": "Parameter", "field": "parameter", "align": "left"},
     {"name": "old", "label": "Old", "field": "old", "align": "left"},
     {"name": "new", "label": "New", "field": "new", "align": "left"},
-    {"name": "result", "label": "Result", "field": "result", "align": "left"},
+    # the whole result, wrapped inside the screen (a refusal's reason is the point of the row)
+    {"name": "result", "label": "Result", "field": "result", "align": "left",
+     "style": "white-space: normal; overflow-wrap: anywhere; min-width: 14rem", "classes": "audit-result"},
 ]
+for _column in COLUMNS:  # old and new values (a restored setting's text) wrap too
+    if _column["name"] in ("action", "parameter", "old", "new"):
+        _column["style"] = "white-space: normal; overflow-wrap: anywhere"
 
 
 def content() -> None:
@@ -29,8 +34,9 @@ def content() -> None:
     with frame("Audit log"):
         ui.label(f"Stored in {audit.path}; survives restarts.").classes("text-caption text-grey-8")
         with ui.row().classes("items-end gap-3"):
-            device = ui.select([""] + sorted(runtime.plant.devices), value="", label="Device").props(
-                "dense outlined clearable"
+            # every device, no blank entry: "any device" is the cleared field
+            device = ui.select(sorted(runtime.plant.devices), value=None, label="Device").props(
+                'dense outlined clearable placeholder="any device"'
             ).classes("w-48")
             user = ui.input("User").props("dense outlined clearable").classes("w-36")
             text = ui.input("Text (action, parameter, result)").props("dense outlined clearable").classes("w-64")
@@ -58,8 +64,9 @@ def content() -> None:
             problem.set_text(f"The audit log cannot be read: {exc}")
             return
         problem.set_text("")
-        if [""] + known != device.options:
-            device.set_options([""] + known, value=device.value if device.value in known else "")
+        known = [name for name in known if name]  # plant-wide rows (accounts, files) have no device
+        if known != device.options:
+            device.set_options(known, value=device.value if device.value in known else None)
         rows = [
             {"id": e.id, "time": datetime.fromtimestamp(e.time).strftime("%Y-%m-%d %H:%M:%S"), "user": e.user, "role": e.role,
              "device": e.device, "action": e.action, "parameter": e.parameter, "old": e.old, "new": e.new, "result": e.result}

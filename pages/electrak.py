@@ -183,12 +183,14 @@ def _control_card(adapter, session: str, act):
             if None in values:
                 ui.notify("Fill in target, speed and current limit", type="warning")
                 return False
-            ok, _ = await act("set target", lambda a: a.set_command(session, float(values[0]), float(values[1]), float(values[2])))
+            ok, _ = await act(f"set target: position {values[0]:g} mm, speed {values[1]:g} mm/s, current limit {values[2]:g} A"
+                              + (" (calibrated)" if not values[2] else ""), lambda a: a.set_command(session, float(values[0]), float(values[1]), float(values[2])))
             return ok
 
         async def go() -> None:
             if await apply():
-                await act("go", lambda a: a.go(session))
+                await act(f"go: target {adapter.command.position_mm:g} mm, speed {adapter.command.speed_mm_s:g} mm/s, "
+                          f"current limit {adapter.command.current_a:g} A", lambda a: a.go(session))
 
         with ui.row():
             ui.button("Apply", on_click=apply).props("outline")
@@ -201,7 +203,8 @@ def _control_card(adapter, session: str, act):
             reset = ui.button("Override/reset").props("flat")
 
         def jog_start(direction: int):
-            return lambda: act("jog", lambda a: a.jog(session, direction, speed.value))
+            return lambda: act(f"jog {'out' if direction > 0 else 'in'}: speed {speed.value} mm/s, "
+                           f"current limit {adapter.command.current_a:g} A", lambda a: a.jog(session, direction, speed.value))
 
         def jog_stop(a) -> None:
             if a.controller is not None and a.controller.session == session and a.command.enable:

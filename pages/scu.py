@@ -141,7 +141,7 @@ def content(name: str) -> None:
                                  label="Ramp (para_ID[1])").classes("w-48")
                 speed = ui.number("Remote speed (% or counts/s)", value=50, min=0, max=1000, step=1, format="%d").classes("w-48")
                 set_speed = ui.button("Set speed (RT)", on_click=lambda: act(
-                    "set remote speed", lambda a: a.set_remote_speed(session, fn_select.value + 1, int(speed.value or 0)),
+                    f"set remote speed F{fn_select.value + 1} = {int(speed.value or 0)} (% or counts/s)", lambda a: a.set_remote_speed(session, fn_select.value + 1, int(speed.value or 0)),
                     success="remote speed written and read back")).props("outline")
             pos_inputs = []
             with ui.row().classes("items-end gap-4"):
@@ -150,14 +150,20 @@ def content(name: str) -> None:
                     field = ui.number(f"A{s.number} remote position [{unit}]", value=0).classes("w-48") \
                         .props(f"data-testid=remote-pos-A{s.number}")
                     btn = ui.button("Set (RT)", on_click=lambda s=s, field=field, unit=unit: act(
-                        f"set remote position A{s.number}",
+                        f"set remote position A{s.number} = {field.value or 0:g} {unit}",
                         lambda a: a.set_remote_position(session, s.number, **({"mm": float(field.value or 0)} if unit == "mm"
                                                                               else {"counts": int(field.value or 0)})),
                         success="remote position written and read back")).props(f"outline data-testid=set-pos-A{s.number}")
                     pos_inputs.append(btn)
             with ui.row().classes("items-center gap-4"):
                 go = ui.button("Go (RE)", icon="play_arrow", color="positive", on_click=lambda: act(
-                    "go (RE)", lambda a: a.run_function(session, fn_select.value, motion.value, ramp.value if ramp.value != 255 else -1))) \
+                    f"go (RE) {codec.FUNCTIONS[fn_select.value].label}: {codec.MOTION_LABELS[motion.value]}, "
+                    f"ramp {ramp.options[ramp.value]}; written remote speed "
+                    + str(getattr(adapter.state.points.get(f"F{fn_select.value + 1} remote speed"), "value", "none"))
+                    + "".join(f", A{s.number} remote position "
+                              + (getattr(adapter.state.points.get(f"A{s.number} remote position"), "text", None) or "none")
+                              for s in adapter.scales),
+                    lambda a: a.run_function(session, fn_select.value, motion.value, ramp.value if ramp.value != 255 else -1))) \
                     .props("data-testid=go")
                 ui.button("Stop (RS)", icon="stop", color="negative",
                           on_click=lambda: act("stop (RS)", lambda a: a.stop(session), write=False)).props("data-testid=stop")
@@ -166,7 +172,8 @@ def content(name: str) -> None:
                 jog_out = ui.button("Out", icon="keyboard_double_arrow_right").props("outline data-testid=jog-out")
 
             def jog(direction: int):
-                return lambda: act("jog", lambda a: a.jog(session, fn_select.value, direction, ramp.value if ramp.value != 255 else -1))
+                return lambda: act(f"jog {'out' if direction > 0 else 'in'} {codec.FUNCTIONS[fn_select.value].label}, "
+                               f"ramp {ramp.options[ramp.value]}", lambda a: a.jog(session, fn_select.value, direction, ramp.value if ramp.value != 255 else -1))
 
             def jog_stop(a):
                 if fn_select.value in a.running and a.running[fn_select.value] == session:
