@@ -3,13 +3,9 @@ the stop rule is stated; the bit rate changes step by step (write, read back, sa
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
+from conftest import CHROMIUM, inside_viewport
 from webutil import running_app
-
-CHROMIUM = Path("/usr/bin/chromium")
-SHOTS = Path("/tmp/commission-shots")
 
 pytestmark = pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed")
 
@@ -50,55 +46,51 @@ def last_position(page) -> float:
     )
 
 
-def test_go_moves_the_position_chart_toward_the_target(app_url):
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        browser = p.chromium.launch(
-            executable_path=str(CHROMIUM), args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+def test_go_moves_the_position_chart_toward_the_target(app_url, chromium, tmp_path):
+    page = chromium.new_page(viewport={"width": 1400, "height": 1100})
+    try:
+        page.goto(f"{app_url}/device/lift")
+        page.get_by_text("actuators heard per 100 ms: 2 of 2 configured").wait_for(timeout=10_000)
+        assert "within 0.5 s of this browser going away" in page.get_by_test_id("stop-rule").inner_text()
+        page.get_by_test_id("take-control").click()
+        page.get_by_text("you hold control").wait_for(timeout=5_000)
+        target = page.get_by_label("Target position [mm]", exact=False)
+        target.fill("40")
+        page.get_by_test_id("go").click()
+        page.get_by_text("Extending").first.wait_for(timeout=5_000)
+        page.wait_for_function(
+            """() => { const p = document.querySelector('.js-plotly-plot');
+                       const ys = p && p.data && p.data[0].y; return ys && ys.length && ys[ys.length - 1] > 10; }""",
+            timeout=10_000,
         )
-        try:
-            page = browser.new_page(viewport={"width": 1400, "height": 1100})
-            page.goto(f"{app_url}/device/lift")
-            page.get_by_text("actuators heard per 100 ms: 2 of 2 configured").wait_for(timeout=10_000)
-            assert "within 0.5 s of this browser going away" in page.get_by_test_id("stop-rule").inner_text()
-            page.get_by_test_id("take-control").click()
-            page.get_by_text("you hold control").wait_for(timeout=5_000)
-            target = page.get_by_label("Target position [mm]", exact=False)
-            target.fill("40")
-            page.get_by_test_id("go").click()
-            page.get_by_text("Extending").first.wait_for(timeout=5_000)
-            page.wait_for_function(
-                """() => { const p = document.querySelector('.js-plotly-plot');
-                           const ys = p && p.data && p.data[0].y; return ys && ys.length && ys[ys.length - 1] > 10; }""",
-                timeout=10_000,
-            )
-            first = last_position(page)
-            page.wait_for_function(
-                """() => { const p = document.querySelector('.js-plotly-plot');
-                           const ys = p && p.data && p.data[0].y; return ys && ys.length && ys[ys.length - 1] > 39.5; }""",
-                timeout=15_000,
-            )
-            assert last_position(page) <= 40.2 and last_position(page) > first
-            target_line = page.evaluate("() => document.querySelector('.js-plotly-plot').data[1].y.slice(-1)[0]")
-            assert target_line == 40
-            SHOTS.mkdir(parents=True, exist_ok=True)
-            page.screenshot(path=str(SHOTS / "electrak.png"), full_page=True)
-            # the big stop is always there
-            page.get_by_test_id("big-stop").click()
-            page.get_by_text("no enable").first.wait_for(timeout=5_000)
-            # the bit rate, step by step: write and read back, then save
-            page.get_by_test_id("new-bitrate").click()
-            page.get_by_role("option", name="250 kbit/s").click()
-            page.get_by_test_id("bitrate-card").get_by_role("button", name="Write").click()
-            page.get_by_role("button", name="Write bit rate").click()  # the confirmation names the whole sequence
-            status = page.get_by_test_id("bitrate-status")
-            status.get_by_text("NOT saved").wait_for(timeout=10_000)
-            page.get_by_test_id("bitrate-card").get_by_role("button", name="Save").click()
-            status.get_by_text("250 kbit/s saved").wait_for(timeout=10_000)
-            assert "2 of 2 agree" in page.get_by_text("2 of 2 agree").first.inner_text()
-            for width, height in ((1440, 900), (1024, 768)):
-                page.set_viewport_size({"width": width, "height": height})
-                page.screenshot(path=str(SHOTS / f"electrak-{width}x{height}.png"), full_page=True)
-        finally:
-            browser.close()
+        first = last_position(page)
+        page.wait_for_function(
+            """() => { const p = document.querySelector('.js-plotly-plot');
+                       const ys = p && p.data && p.data[0].y; return ys && ys.length && ys[ys.length - 1] > 39.5; }""",
+            timeout=15_000,
+        )
+        assert last_position(page) <= 40.2 and last_position(page) > first
+        target_line = page.evaluate("() => document.querySelector('.js-plotly-plot').data[1].y.slice(-1)[0]")
+        assert target_line == 40
+        page.screenshot(path=str(tmp_path / "electrak.png"), full_page=True)
+        # the big stop is always there
+        page.get_by_test_id("big-stop").click()
+        page.get_by_text("no enable").first.wait_for(timeout=5_000)
+        # the bit rate, step by step: write and read back, then save
+        page.get_by_test_id("new-bitrate").click()
+        page.get_by_role("option", name="250 kbit/s").click()
+        page.get_by_test_id("bitrate-card").get_by_role("button", name="Write").click()
+        page.get_by_role("button", name="Write bit rate").click()  # the confirmation names the whole sequence
+        status = page.get_by_test_id("bitrate-status")
+        status.get_by_text("NOT saved").wait_for(timeout=10_000)
+        page.get_by_test_id("bitrate-card").get_by_role("button", name="Save").click()
+        status.get_by_text("250 kbit/s saved").wait_for(timeout=10_000)
+        assert "2 of 2 agree" in page.get_by_text("2 of 2 agree").first.inner_text()
+        for width, height in ((1440, 900), (1024, 768)):
+            page.set_viewport_size({"width": width, "height": height})
+            page.evaluate("window.scrollTo(0, 0)")
+            inside_viewport(page, page.get_by_test_id("big-stop"))  # the stop is in sight without scrolling
+            assert page.evaluate("document.documentElement.scrollWidth") <= width  # nothing sticks out sideways
+            page.screenshot(path=str(tmp_path / f"electrak-{width}x{height}.png"), full_page=True)
+    finally:
+        page.close()
