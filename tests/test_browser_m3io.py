@@ -3,14 +3,9 @@ rule of the outputs; outputs off when their page closes although another tab sta
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
+from conftest import CHROMIUM, inside_viewport
 from webutil import running_app
-
-CHROMIUM = Path("/usr/bin/chromium")
-SHOTS = Path("/tmp/commission-shots")
-ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
 
 pytestmark = pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed")
 
@@ -46,18 +41,6 @@ def app_url(tmp_path_factory):
         yield url
 
 
-@pytest.fixture(scope="module")
-def browser():
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
-        try:
-            yield browser
-        finally:
-            browser.close()
-
-
 def _switch_on(page, output: str) -> None:
     row = page.locator(f'[data-channel="{output}"]')
     row.get_by_text("load: present").first.wait_for(timeout=5_000)
@@ -65,21 +48,21 @@ def _switch_on(page, output: str) -> None:
     page.get_by_role("button", name="Switch on").click()
 
 
-def _shot_1024(browser, url: str, name: str, wait_text: str) -> None:
+def _shot_1024(browser, url: str, path, wait_text: str) -> None:
     page = browser.new_page(viewport={"width": 1024, "height": 768})
     try:
         page.goto(url)
         page.get_by_text(wait_text).first.wait_for(timeout=10_000)
         page.locator(".js-plotly-plot .main-svg").first.wait_for(timeout=5_000)
         assert page.evaluate("document.documentElement.scrollWidth") <= 1024  # nothing sticks out sideways
-        page.screenshot(path=str(SHOTS / name), full_page=True)
+        inside_viewport(page, page.get_by_test_id("all-off"))  # the way out is in sight without scrolling
+        page.screenshot(path=str(path), full_page=True)
     finally:
         page.close()
 
 
-def test_blown_fuse_shown_and_cleared_after_reset(app_url, browser):
-    SHOTS.mkdir(parents=True, exist_ok=True)
-    page = browser.new_page(viewport={"width": 1440, "height": 900})
+def test_blown_fuse_shown_and_cleared_after_reset(app_url, chromium, tmp_path):
+    page = chromium.new_page(viewport={"width": 1440, "height": 900})
     try:
         page.goto(f"{app_url}/device/heater-hm")
         page.get_by_text("watchdog served: DigOut every 500 ms").wait_for(timeout=10_000)
@@ -91,8 +74,9 @@ def test_blown_fuse_shown_and_cleared_after_reset(app_url, browser):
         page.get_by_test_id("sim-blow-fuse").click()
         ssr1.get_by_text("fuse: blown").wait_for(timeout=5_000)
         ssr1.get_by_text("replace fuse SI3 (10 A").wait_for(timeout=2_000)
-        page.screenshot(path=str(SHOTS / "m3io-1440.png"), full_page=True)
-        _shot_1024(browser, f"{app_url}/device/heater-hm", "m3io-1024.png", "fuse: blown")
+        inside_viewport(page, page.get_by_test_id("all-off"))
+        page.screenshot(path=str(tmp_path / "m3io-1440.png"), full_page=True)
+        _shot_1024(chromium, f"{app_url}/device/heater-hm", tmp_path / "m3io-1024.png", "fuse: blown")
         page.get_by_role("button", name="Repair").click()
         page.wait_for_timeout(1_200)
         assert ssr1.get_by_text("fuse: blown").is_visible()  # the module keeps Si = 0 until its 24 V are cut
@@ -104,9 +88,9 @@ def test_blown_fuse_shown_and_cleared_after_reset(app_url, browser):
         page.close()
 
 
-def test_outputs_off_when_their_page_closes_with_another_tab_open(app_url, browser):
+def test_outputs_off_when_their_page_closes_with_another_tab_open(app_url, chromium):
     """Issue 9.2: the overview in another tab of the same browser does not keep the output on."""
-    context = browser.new_context(viewport={"width": 1440, "height": 900})
+    context = chromium.new_context(viewport={"width": 1440, "height": 900})
     try:
         overview = context.new_page()
         overview.goto(app_url)
@@ -122,13 +106,14 @@ def test_outputs_off_when_their_page_closes_with_another_tab_open(app_url, brows
         context.close()
 
 
-def test_hmr_variant_checked_in_addressed_mode(app_url, browser):
-    page = browser.new_page(viewport={"width": 1440, "height": 900})
+def test_hmr_variant_checked_in_addressed_mode(app_url, chromium, tmp_path):
+    page = chromium.new_page(viewport={"width": 1440, "height": 900})
     try:
         page.goto(f"{app_url}/device/heater-hmr")
         page.get_by_test_id("variant-check").get_by_text("HMR01 (from 08.11.2013): variant HMR as in the plant file").wait_for(timeout=10_000)
         page.locator('[data-channel="SSR1-3"]').get_by_text("load: present").first.wait_for(timeout=5_000)
-        page.screenshot(path=str(SHOTS / "m3io-hmr-1440.png"), full_page=True)
-        _shot_1024(browser, f"{app_url}/device/heater-hmr", "m3io-hmr-1024.png", "variant HMR as in the plant file")
+        inside_viewport(page, page.get_by_test_id("variant-check"))
+        page.screenshot(path=str(tmp_path / "m3io-hmr-1440.png"), full_page=True)
+        _shot_1024(chromium, f"{app_url}/device/heater-hmr", tmp_path / "m3io-hmr-1024.png", "variant HMR as in the plant file")
     finally:
         page.close()
