@@ -1,0 +1,189 @@
+"""A generic Modbus poll on an RTU line (/monitor/<bus>/poll), in the manner of Modbus Poll.
+
+Reads change nothing and are open to every role; writes are engineer only and go through
+:class:`app.modbus_poll.ModbusPoll.write` (checked against the known devices' parameter models,
+confirmed, audited). Requests share the line with the devices' polls.
+"""
+
+from __future__ import annotations
+
+from nicegui import ui
+
+from app import modbus_poll as mp
+from app import runtime as rt
+from app.modbus_line import ModbusLine
+from app.worker import AuditUnavailable, PermissionDenied
+from pages.frame import fmt_time, frame, notify_error
+from pages.session import current_user
+
+REFRESH_S = 0.25
+PAIR_COLUMNS = [f"{kind} {order}" for kind in ("u32", "i32", "f32") for order in mp.WORD_ORDERS]
+
+
+def _columns(base: int, function: int) -> list[dict]:
+    cols = [
+        {"name": "address", "label": f"Address ({base}-based)", "field": "address", "align": "right"},
+        {"name": "name", "label": "Known register", "field": "name", "align": "left"},
+    ]
+    if function in (1, 2):
+        return cols + [{"name": "unsigned", "label": "Value", "field": "unsigned", "align": "right"}]
+    cols += [{"name": f, "label": f.capitalize(), "field": f, "align": "right", "classes": "mono"} for f in mp.FORMATS]
+    cols += [{"name": c, "label": c.replace("u32", "uint32").replace("i32", "int32").replace("f32", "float32"),
+              "field": c, "align": "right", "classes": "mono"} for c in PAIR_COLUMNS]
+    return cols
+
+
+def content(bus: str) -> None:
+    runtime = rt.current()
+    with frame(f"Modbus poll · {bus}"):
+        ui.link(f"← bus monitor {bus}", f"/monitor/{bus}")
+        if not isinstance(runtime.worker.lines.get(bus), ModbusLine):
+            ui.label(f"{bus} is not a Modbus RTU line: the poll is for Modbus lines.")
+            return
+        _view(runtime, bus)
+
+
+def _view(runtime, bus: str) -> None:
+    poll = mp.ModbusPoll(runtime.worker, bus)
+    client = ui.context.client
+    client.on_disconnect(poll.stop)
+    user, role = current_user()
+    known = {d.options.get("address"): d.name for d in runtime.plant.devices_on(bus)}
+    line = runtime.worker.lines[bus]
+
+    ui.label(
+        "Requests share the line with the devices' polls (one request of this window between theirs). "
+        f"Addresses are protocol addresses; choose how they are counted. Devices on this line: "
+        + (", ".join(f"{name} at {a}" for a, name in sorted(known.items())) or "none")
+        + (f". Line cycle {line.cycle_s:.2f} s." if line.cycle_s else ".")
+    ).classes("text-caption text-grey-8")
+
+    with ui.card().classes("w-full"):
+        with ui.row().classes("items-end gap-3 flex-wrap"):
+            unit = ui.number("Unit", value=min(known) if known else 1, min=0, max=254, format="%d").props(
+                "dense outlined").classes("w-20")
+            function = ui.select({k: v for k, v in mp.FUNCTIONS.items()}, value=3, label="Function").props(
+                "dense outlined").classes("w-60")
+            base = ui.select({0: "0-based (protocol)", 1: "1-based (register 1 = address 0)"}, value=0,
+                             label="Addresses").props("dense outlined").classes("w-64")
+            start = ui.number("Start address", value=1000, min=0, max=65536, format="%d").props("dense outlined").classes("w-32")
+            count = ui.number("Count", value=10, min=1, max=2000, format="%d").props("dense outlined").classes("w-24")
+            period = ui.number("Period s", value=1.0, min=mp.PERIOD_MIN_S, max=mp.PERIOD_MAX_S, step=0.1).props(
+                "dense outlined").classes("w-24")
+            run_button = ui.button("Poll", icon="play_arrow").props("data-testid=poll-start")
+            ui.button("Stop", icon="stop", on_click=lambda: (poll.stop(), status.refresh())).props("flat")
+
+    def current_spec() -> mp.PollSpec:
+        shown_start = int(start.value or 0)
+        protocol = shown_start - int(base.value or 0)
+        return mp.PollSpec(int(unit.value or 0), int(function.value), protocol, int(count.value or 1),
+                           float(period.value or 1.0)).check()
+
+    def run() -> None:
+        try:
+            poll.start(current_spec())
+        except mp.PollError as exc:
+            notify_error(str(exc))
+            return
+        shown["polls"] = -1
+
+    run_button.on_click(run)
+
+    shown = {"polls": -1}
+
+    @ui.refreshable
+    def status() -> None:
+        last = poll.last
+        text = "stopped" if not poll.running else "polling"
+        if poll.spec is not None:
+            text += f" · unit {poll.spec.unit} · {mp.FUNCTIONS[poll.spec.function]} · {poll.polls} polls, {poll.errors} errors"
+        if last is not None:
+            text += f" · last {fmt_time(last.time)}" + (f" · {last.rtt_ms} ms" if last.rtt_ms is not None else "")
+        ui.label(text).props("data-testid=poll-status")
+        if last is not None and last.error:
+            ui.label(last.error).classes("text-negative").props("data-testid=poll-error")
+        if line.cycle_s:
+            ui.label(f"line cycle {line.cycle_s:.2f} s · devices stale after "
+                     f"{max((s.stale_after for s in runtime.store.devices.values() if s.bus == bus), default=0):.1f} s").classes(
+                "text-caption text-grey-7")
+
+    @ui.refreshable
+    def table() -> None:
+        spec = poll.spec
+        if spec is None:
+            ui.label("Set unit, function, start and count, then Poll.").classes("text-grey-7")
+            return
+        offset = int(base.value or 0)
+        rows = []
+        for r in poll.rows():
+            row = {"address": r.address + offset, "name": r.name, **{c: "" for c in (*mp.FORMATS, *PAIR_COLUMNS)}}
+            row.update(r.cells)
+            rows.append(row)
+        ui.table(columns=_columns(offset, spec.function), rows=rows, row_key="address").props(
+            "dense flat bordered data-testid=poll-table").classes("w-full reg-table")
+        ui.label("32-bit columns: the register with the next one; ABCD = high word first, CDAB = low word first.").classes(
+            "text-caption text-grey-7")
+
+    status()
+    table()
+
+    def tick() -> None:
+        if poll.polls != shown["polls"]:
+            shown["polls"] = poll.polls
+            status.refresh()
+            table.refresh()
+
+    ui.timer(REFRESH_S, tick)
+
+    # -- writes (engineer only) ---------------------------------------------------------
+    with ui.card().classes("w-full"):
+        ui.label("Write holding registers").classes("text-subtitle1")
+        if role != "engineer":
+            ui.label("Writes are for engineers (this session may read only).").classes("text-grey-7").props(
+                "data-testid=poll-write-note")
+            return
+        with ui.row().classes("items-end gap-3 flex-wrap"):
+            w_unit = ui.number("Unit", value=min(known) if known else 1, min=1, max=254, format="%d").props(
+                "dense outlined").classes("w-20")
+            w_address = ui.number("Address", value=3000, min=0, max=65536, format="%d").props("dense outlined").classes("w-28")
+            w_values = ui.input("Value(s)", value="200", placeholder="e.g. 200 or 1, 2, -30").props("dense outlined").classes("w-56")
+            w_multi = ui.checkbox("function 16 (multiple)")
+            w_button = ui.button("Write", icon="edit")
+        ui.label("Addresses as chosen above. A known device's register asks for a confirmation; its read-only, MFR and "
+                 "never-written registers are refused.").classes("text-caption text-grey-7")
+
+    async def write(confirmed: bool = False) -> None:
+        try:
+            values = [int(v, 0) for v in str(w_values.value or "").replace(",", " ").split()]
+        except ValueError:
+            notify_error(f"'{w_values.value}' is not a list of whole numbers")
+            return
+        if not values:
+            notify_error("enter at least one value")
+            return
+        address = int(w_address.value or 0) - int(base.value or 0)
+        try:
+            await poll.write(int(w_unit.value or 0), address, values, user=user, role=role, confirmed=confirmed,
+                             multiple=bool(w_multi.value) or len(values) > 1)
+        except mp.NeedsConfirmation as exc:
+            with ui.dialog() as dialog, ui.card().classes("w-[32rem]"):
+                ui.label(str(exc)).classes("text-body1")
+                with ui.row().classes("justify-end w-full"):
+                    ui.button("Cancel", on_click=dialog.close).props("flat")
+
+                    async def go() -> None:
+                        dialog.close()
+                        await write(confirmed=True)
+
+                    ui.button("Write", color="warning", on_click=go).props("data-testid=poll-confirm")
+            dialog.open()
+            return
+        except (mp.PollError, PermissionDenied, AuditUnavailable) as exc:
+            notify_error(str(exc))
+            return
+        except Exception as exc:  # noqa: BLE001 - the line's error, shown
+            notify_error(f"write failed: {exc}")
+            return
+        ui.notify("written", type="positive")
+
+    w_button.on_click(lambda: write())

@@ -1,0 +1,201 @@
+"""The engineer's transmit list of a CAN bus (/monitor/<bus>/transmit).
+
+Rows of ID, DLC and data, sent once or cyclically; frames entered as bytes or built by name
+through the device codecs. Every action goes through :mod:`app.transmit` (checked, audited);
+cyclic rows stop when this browser stops confirming it is alive. Viewers never see the list.
+"""
+
+from __future__ import annotations
+
+from nicegui import background_tasks, ui
+
+from app import runtime as rt
+from app import transmit as tx
+from app.worker import AuditUnavailable, PermissionDenied
+from pages.frame import frame, notify_error
+from pages.session import current_user
+
+REFRESH_S = 0.5
+COLUMNS = [
+    {"name": "id", "label": "ID", "field": "id", "align": "left", "classes": "mono"},
+    {"name": "dlc", "label": "DLC", "field": "dlc", "align": "right"},
+    {"name": "data", "label": "Data", "field": "data", "align": "left", "classes": "mono"},
+    {"name": "label", "label": "Message", "field": "label", "align": "left"},
+    {"name": "mode", "label": "Send", "field": "mode", "align": "left"},
+    {"name": "sent", "label": "Sent", "field": "sent", "align": "right"},
+    {"name": "actions", "label": "", "field": "key", "align": "right"},
+]
+
+
+def _parse_int(text: str | float | None, what: str) -> int:
+    if text is None or str(text).strip() == "":
+        raise tx.TransmitError(f"{what} is missing")
+    try:
+        return int(text) if isinstance(text, (int, float)) else int(str(text).strip(), 0 if str(text).strip().lower().startswith("0x") else 16)
+    except ValueError:
+        raise tx.TransmitError(f"{what} '{text}' is not a number") from None
+
+
+def content(bus: str) -> None:
+    runtime = rt.current()
+    with frame(f"Transmit list · {bus}"):
+        ui.link(f"← bus monitor {bus}", f"/monitor/{bus}")
+        if bus not in runtime.worker.can_buses:
+            ui.label(f"{bus} is not a CAN bus: transmit lists are for CAN buses.")
+            return
+        user, role = current_user()
+        if role != "engineer":
+            with ui.row().classes("bg-amber-1 q-pa-sm items-center").props("data-testid=transmit-viewer-note"):
+                ui.icon("lock")
+                ui.label("The transmit list is for engineers: a viewer session does not see or send it.")
+            return
+        _engineer_view(runtime, bus, user, role)
+
+
+def _engineer_view(runtime, bus: str, user: str, role: str) -> None:
+    tl = tx.transmit_list(runtime.worker, bus, runtime.data_dir)
+    if not tl.loaded.is_set() and not getattr(tl, "_loading", False):
+        tl._loading = True
+        background_tasks.create(tl.load(), name=f"load transmit list {bus}")
+    session = ui.context.client.id
+    devices = runtime.plant.devices_on(bus)
+
+    ui.label(
+        "Rows are sent once or cyclically (10 ms .. 10 s). Cyclic rows stop within 0.5 s when this browser closes, "
+        "freezes or loses the network. Every send, start and stop is recorded in the audit log. Frames the device "
+        "documents forbid (HD-Lock firmware-update requests 0x706/0x707, commands 2-4, FwUpdateCommandRegister) "
+        "are refused."
+    ).classes("text-caption text-grey-8")
+
+    async def guarded(action, ok: str = "") -> bool:
+        try:
+            await action()
+        except (tx.TransmitError, PermissionDenied, AuditUnavailable, KeyError) as exc:
+            notify_error(str(exc))
+            return False
+        except Exception as exc:  # noqa: BLE001 - shown, never ends the page
+            notify_error(f"{type(exc).__name__}: {exc}")
+            return False
+        if ok:
+            ui.notify(ok, type="positive")
+        table.refresh()
+        return True
+
+    # -- raw entry -------------------------------------------------------------------
+    with ui.card().classes("w-full"):
+        ui.label("Frame as bytes").classes("text-subtitle1")
+        with ui.row().classes("items-end gap-3 flex-wrap"):
+            can_id = ui.input("ID (hex)", value="123").props("dense outlined").classes("w-28 mono")
+            extended = ui.checkbox("extended (29-bit)")
+            dlc = ui.number("DLC", value=2, min=0, max=8, format="%d").props("dense outlined").classes("w-20")
+            data = ui.input("Data (hex bytes)", value="01 02").props("dense outlined").classes("w-56 mono")
+            mode = ui.select({"once": "once", "cyclic": "cyclic"}, value="once", label="Send").props("dense outlined").classes("w-28")
+            period = ui.number("Cycle ms", value=100, min=tx.PERIOD_MIN_MS, max=tx.PERIOD_MAX_MS, format="%d").props(
+                "dense outlined").classes("w-28")
+            period.bind_visibility_from(mode, "value", value="cyclic")
+
+            async def add_raw() -> None:
+                async def do() -> None:
+                    payload = tx.parse_bytes(data.value or "")
+                    row = tx.make_row(_parse_int(can_id.value, "ID"), bool(extended.value), payload,
+                                      int(period.value) if mode.value == "cyclic" else None,
+                                      dlc=int(dlc.value) if dlc.value is not None else None)
+                    await tl.add(row, user=user, role=role)
+
+                await guarded(do)
+
+            ui.button("Add", icon="add", on_click=add_raw).props("data-testid=transmit-add")
+
+    # -- device messages by name --------------------------------------------------------
+    m3ios = [d for d in devices if d.type == "m3io"]
+    locks = [d for d in devices if d.type == "hdlock"]
+    if m3ios or locks:
+        with ui.card().classes("w-full"):
+            ui.label("Device message by name").classes("text-subtitle1")
+            for dev in m3ios:
+                with ui.row().classes("items-center gap-2 flex-wrap"):
+                    ui.label(f"M3IO {dev.name} DigOut").classes("w-48")
+                    boxes = {name: ui.checkbox(name) for name in tx.m3io_output_names(dev.options)}
+
+                    async def add_digout(dev=dev, boxes=boxes) -> None:
+                        await guarded(lambda: tl.add(tx.m3io_dig_out(dev.name, dev.options,
+                                                                     {n: bool(b.value) for n, b in boxes.items()}),
+                                                     user=user, role=role))
+
+                    ui.button("Add", icon="add", on_click=add_digout).props("flat dense")
+            for dev in locks:
+                with ui.row().classes("items-center gap-2 flex-wrap"):
+                    ui.label(f"HD-Lock {dev.name}").classes("w-48")
+                    space = ui.select({"holding": "read holding", "input": "read input", "write": "write holding"},
+                                      value="holding").props("dense outlined").classes("w-36")
+                    address = ui.number("Register", value=1000, min=0, max=65535, format="%d").props("dense outlined").classes("w-28")
+                    count = ui.number("Count / value", value=1, min=0, max=65535, format="%d").props("dense outlined").classes("w-32")
+
+                    async def add_lock(dev=dev, space=space, address=address, count=count) -> None:
+                        async def do() -> None:
+                            a, n = int(address.value or 0), int(count.value or 0)
+                            if space.value == "write":
+                                row = tx.hdlock_write(dev.name, dev.options, a, n)
+                            else:
+                                row = tx.hdlock_read(dev.name, dev.options, space.value, a, max(1, n))
+                            await tl.add(row, user=user, role=role)
+
+                        await guarded(do)
+
+                    ui.button("Add", icon="add", on_click=add_lock).props("flat dense")
+
+    # -- the list -------------------------------------------------------------------------
+    shown = {"version": -1, "sent": -1}
+
+    @ui.refreshable
+    def table() -> None:
+        if tl.load_error:
+            ui.label(tl.load_error).classes("text-negative")
+        if not tl.loaded.is_set():
+            ui.label("loading the saved list ...").classes("text-grey-7")
+            return
+        rows = [{
+            "key": r.key, "id": r.id_text(), "dlc": r.dlc, "data": r.data.hex(" ").upper(), "label": r.label,
+            "mode": "once" if r.period_ms is None else f"every {r.period_ms} ms" + (" · running" if tl.is_running(r.key) else ""),
+            "running": tl.is_running(r.key), "cyclic": r.period_ms is not None, "sent": tl.sent.get(r.key, 0),
+        } for r in tl.rows]
+        t = ui.table(columns=COLUMNS, rows=rows, row_key="key").props("dense flat bordered").classes("w-full can-table")
+        t.props("data-testid=transmit-table")
+        t.add_slot("body-cell-actions", r"""
+            <q-td :props="props">
+              <q-btn v-if="!props.row.cyclic" dense flat icon="send" label="Send" @click="$parent.$emit('send', props.row.key)" />
+              <q-btn v-if="props.row.cyclic && !props.row.running" dense flat color="positive" icon="play_arrow" label="Start"
+                     @click="$parent.$emit('start', props.row.key)" />
+              <q-btn v-if="props.row.running" dense flat color="negative" icon="stop" label="Stop"
+                     @click="$parent.$emit('stop', props.row.key)" />
+              <q-btn dense flat icon="delete" @click="$parent.$emit('remove', props.row.key)" />
+            </q-td>
+        """)
+        t.on("send", lambda e: guarded(lambda: tl.send_once(e.args, user=user, role=role)))
+        t.on("start", lambda e: guarded(lambda: tl.start(e.args, user=user, role=role, session=session)))
+        t.on("stop", lambda e: guarded(lambda: tl.stop(e.args, user=user, role=role)))
+        t.on("remove", lambda e: guarded(lambda: tl.remove(e.args, user=user, role=role)))
+        if not rows:
+            ui.label("No rows yet: add a frame above.").classes("text-grey-7")
+        shown["version"] = tl.version
+        shown["sent"] = sum(tl.sent.values())
+
+    with ui.row().classes("items-center gap-2"):
+        ui.label("Rows").classes("text-subtitle1")
+        ui.button("Stop all", icon="stop", color="negative",
+                  on_click=lambda: guarded(_stop_all(tl, user, role))).props("dense")
+    table()
+
+    def tick() -> None:  # O(1) unless something changed; at most 64 rows redrawn
+        if tl.version != shown["version"] or (tl.running and sum(tl.sent.values()) != shown["sent"]):
+            table.refresh()
+
+    ui.timer(REFRESH_S, tick)
+
+
+def _stop_all(tl: tx.TransmitList, user: str, role: str):
+    async def do() -> None:
+        for key in list(tl.running):
+            await tl.stop(key, user=user, role=role)
+
+    return do

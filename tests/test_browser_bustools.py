@@ -1,0 +1,124 @@
+"""The engineer's bus tools in a real browser (Debian's chromium through playwright): transmit list, Modbus poll.
+
+The app runs the demo plant as a subprocess, on free ports and CAN channels of its own, with a
+data folder of the test's own. Screenshots at 1440x900 and 1024x768 land in /tmp/commission-shots.
+"""
+
+from __future__ import annotations
+
+import re
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from webutil import demo_plant_text, free_port, start_app, stop_app, wait_http
+
+pytest.importorskip("playwright")
+from playwright.sync_api import Browser, Page, expect, sync_playwright
+
+CHROMIUM = Path("/usr/bin/chromium")
+SHOTS = Path("/tmp/commission-shots")
+
+pytestmark = [
+    pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium at /usr/bin/chromium"),
+    pytest.mark.timeout(120),
+]
+
+
+@pytest.fixture(scope="module")
+def app_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    folder = tmp_path_factory.mktemp("bustools")
+    channel = f"bustools-{uuid.uuid4().hex[:12]}"
+    text = demo_plant_text(free_port())
+    for n in range(1, 10):
+        text = text.replace(f'channel = "demo-can{n}"', f'channel = "{channel}-{n}"')
+    plant = folder / "plant.toml"
+    plant.write_text(text)
+    port = free_port()
+    log = folder / "app.log"
+    mp = pytest.MonkeyPatch()
+    mp.setenv("COMMISSION_DATA_DIR", str(folder / "data"))
+    proc = start_app(plant, port, log)
+    mp.undo()
+    try:
+        wait_http(f"http://127.0.0.1:{port}/", proc, timeout=30)
+        yield f"http://127.0.0.1:{port}"
+    finally:
+        stop_app(proc)
+        print(log.read_text(errors="replace")[-3000:])
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Browser]:
+    with sync_playwright() as p:
+        browser = p.chromium.launch(
+            executable_path=str(CHROMIUM), args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+        )
+        try:
+            yield browser
+        finally:
+            browser.close()
+
+
+def shoot(page: Page, name: str) -> None:
+    SHOTS.mkdir(exist_ok=True)
+    for width, height in ((1440, 900), (1024, 768)):
+        page.set_viewport_size({"width": width, "height": height})
+        page.screenshot(path=str(SHOTS / f"{name}-{width}x{height}.png"), full_page=True)
+
+
+def test_transmit_list(app_url: str, browser: Browser):
+    page = browser.new_page(viewport={"width": 1440, "height": 900})
+    page.set_default_timeout(15_000)
+    page.goto(f"{app_url}/monitor/can1/transmit")
+    expect(page.get_by_text("Transmit list · can1")).to_be_visible()
+    page.get_by_label("ID (hex)").fill("321")
+    page.get_by_label("Data (hex bytes)").fill("AA 55")
+    page.get_by_label("Send").click()
+    page.get_by_role("option", name="cyclic").click()
+    page.get_by_label("Cycle ms").fill("50")
+    page.get_by_test_id("transmit-add").click()
+    table = page.get_by_test_id("transmit-table")
+    row = table.locator("tbody tr").filter(has_text="0x321")
+    expect(row).to_contain_text("every 50 ms")
+    row.get_by_role("button", name="Start").click()
+    expect(row).to_contain_text("running")
+    expect(row.locator("td").nth(5)).to_have_text(re.compile(r"^[1-9]\d+$"))  # frames sent, counting
+    # a forbidden frame is refused by name
+    page.get_by_label("ID (hex)").fill("706")
+    page.get_by_label("Data (hex bytes)").fill("00 00 00 00 00 00")
+    page.get_by_label("DLC").fill("6")
+    page.get_by_label("Send").click()
+    page.get_by_role("option", name="once").click()
+    page.get_by_test_id("transmit-add").click()
+    expect(page.get_by_text(re.compile("FWU erase sector.*firmware-update"))).to_be_visible()
+    page.get_by_role("button", name="OK").click()
+    shoot(page, "transmit")
+    row.get_by_role("button", name="Stop").click()
+    expect(row).not_to_contain_text("running")
+    page.close()
+
+
+def test_modbus_poll(app_url: str, browser: Browser):
+    page = browser.new_page(viewport={"width": 1440, "height": 900})
+    page.set_default_timeout(15_000)
+    page.goto(f"{app_url}/monitor/line1/poll")
+    expect(page.get_by_text("Modbus poll · line1")).to_be_visible()
+    page.get_by_label("Function").click()
+    page.get_by_role("option", name="04 Read Input Registers").click()
+    page.get_by_label("Start address").fill("104")
+    page.get_by_label("Count").fill("2")
+    page.get_by_label("Period s").fill("0.5")
+    page.get_by_test_id("poll-start").click()
+    table = page.get_by_test_id("poll-table")
+    first = table.locator("tbody tr").first
+    expect(first).to_contain_text("SerialNumber")
+    expect(page.get_by_test_id("poll-status")).to_contain_text(re.compile(r"[2-9] polls|\d\d+ polls"))
+    shoot(page, "modbus-poll")
+    # a protected register is refused
+    page.get_by_label("Address", exact=True).fill("10")
+    page.get_by_label("Value(s)").fill("1")
+    page.get_by_role("button", name="Write").click()
+    expect(page.get_by_text(re.compile(r"MFR: not writable"))).to_be_visible()
+    page.close()
