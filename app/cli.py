@@ -87,6 +87,10 @@ def build_parser() -> argparse.ArgumentParser:
     remove.add_argument("name")
     listing = user_sub.add_parser("list", help="list accounts")
 
+    from app import dbc
+
+    dbc.add_parser(sub)
+
     view = sub.add_parser("view", help="read-only plant-wide view of every site publishing to an MQTT broker")
     view.add_argument("--broker", required=True, metavar="URL", help="mqtt://host[:1883] or mqtts://host[:8883]")
     view.add_argument("--username", default=None, help="broker user name")
@@ -438,6 +442,8 @@ def _main(argv: list[str] | None) -> int:
     commands = {"sim": run_sim, "backup": run_backup, "restore": run_restore, "user": run_user, "view": run_view}
     if args.command in commands:
         return commands[args.command](args)
+    if getattr(args, "func", None) is not None:  # subcommands that bring their own runner (dbc)
+        return args.func(args)
 
     from app.users import UserStore, default_data_dir, is_loopback
 
