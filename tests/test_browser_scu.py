@@ -4,16 +4,11 @@ position rise on the chart, stop, release."""
 from __future__ import annotations
 
 import re
-import time
-from pathlib import Path
 
 import pytest
-from conftest import free_port
+from conftest import CHROMIUM, free_port, inside_viewport
 from webutil import running_app
 
-CHROMIUM = Path("/usr/bin/chromium")
-SHOTS = Path("/tmp/commission-shots")
-ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
 pytestmark = [pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed"), pytest.mark.timeout(90)]
 
 
@@ -41,13 +36,16 @@ def counts(page) -> int:
     return int(match.group(1))
 
 
-def test_move_actuator_1_to_a_remote_position_and_stop(tmp_path):
-    from playwright.sync_api import expect, sync_playwright
+COUNTS_JS = """() => { const m = /(-?\\d+) counts/.exec(document.querySelector('[data-testid="pos-A1"]').innerText);
+                         return m ? parseInt(m[1]) : null; }"""
 
-    with running_app(plant_text(free_port()), tmp_path) as url, sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
+
+def test_move_actuator_1_to_a_remote_position_and_stop(tmp_path, chromium):
+    from playwright.sync_api import expect
+
+    with running_app(plant_text(free_port()), tmp_path) as url:
+        page = chromium.new_page(viewport={"width": 1440, "height": 900})
         try:
-            page = browser.new_page(viewport={"width": 1440, "height": 900})
             page.goto(f"{url}/device/lift-1")
             expect(page.get_by_test_id("session")).to_contain_text("open", timeout=15_000)
             start = counts(page)
@@ -59,21 +57,22 @@ def test_move_actuator_1_to_a_remote_position_and_stop(tmp_path):
             page.get_by_test_id("set-pos-A1").click()
             expect(page.get_by_text("remote position written and read back")).to_be_visible(timeout=10_000)
             page.get_by_test_id("go").click()
-            end = time.monotonic() + 15
-            while counts(page) < start + 100 and time.monotonic() < end:  # the position rises
-                time.sleep(0.2)
-            risen = counts(page)
-            assert risen >= start + 100, f"actuator 1 did not move: {start} -> {risen}"
+            # the position rises
+            page.wait_for_function(f"() => ({COUNTS_JS})() >= {start + 100}", timeout=15_000)
             page.get_by_test_id("stop").click()
-            time.sleep(1.0)
-            stopped = counts(page)
-            time.sleep(1.0)
-            assert abs(counts(page) - stopped) <= 20, "actuator 1 kept moving after Stop (RS)"
             expect(page.get_by_text("RS pending: none")).to_be_visible(timeout=5_000)
-            SHOTS.mkdir(exist_ok=True)
+            # standing still: the shown position stops changing (two equal readings 1.5 s apart, longer than the page refresh)
+            page.wait_for_function(
+                f"""() => new Promise(done => {{ const a = ({COUNTS_JS})();
+                        setTimeout(() => done(a !== null && ({COUNTS_JS})() === a), 1500); }})""",
+                timeout=8_000, polling=100,
+            )
+            stopped = counts(page)
+            assert stopped < 1200, f"actuator 1 reached its target {stopped} counts: Stop (RS) did nothing"
             page.get_by_test_id("pos-A1").scroll_into_view_if_needed()
-            page.screenshot(path=str(SHOTS / "scu-moved.png"))
+            inside_viewport(page, page.get_by_test_id("pos-A1"))
+            page.screenshot(path=str(tmp_path / "scu-moved.png"))
             page.get_by_role("button", name="Release control").click()
             expect(page.get_by_text("nobody holds control")).to_be_visible(timeout=10_000)
         finally:
-            browser.close()
+            page.close()
