@@ -21,11 +21,11 @@ COLUMNS = [
     {"name": "new", "label": "New", "field": "new", "align": "left"},
     # the whole result, wrapped inside the screen (a refusal's reason is the point of the row)
     {"name": "result", "label": "Result", "field": "result", "align": "left",
-     "style": "white-space: normal; overflow-wrap: anywhere; min-width: 14rem", "classes": "audit-result"},
+     "style": "white-space: normal; overflow-wrap: break-word; min-width: 14rem", "classes": "audit-result"},
 ]
 for _column in COLUMNS:  # old and new values (a restored setting's text) wrap too
     if _column["name"] in ("action", "parameter", "old", "new"):
-        _column["style"] = "white-space: normal; overflow-wrap: anywhere"
+        _column["style"] = "white-space: normal; overflow-wrap: break-word"
 
 
 def content() -> None:

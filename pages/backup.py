@@ -15,7 +15,7 @@ from app import runtime as rt
 from pages.frame import frame, notify_error
 from pages.session import can_write, current_user
 
-WRAP = "white-space: normal; overflow-wrap: anywhere"  # long texts wrap inside the screen, never cut off
+WRAP = "white-space: normal; overflow-wrap: break-word"  # long texts wrap inside the screen, never cut off
 DIFF_COLUMNS = [
     {"name": "name", "label": "Parameter", "field": "name", "align": "left"},
     {"name": "current", "label": "Device now", "field": "current", "align": "left", "style": WRAP},
@@ -41,9 +41,9 @@ STATE_SLOT = """
 # the uploader's own header shows "0.0B / 0.00%" before any file: a plain pick button instead
 UPLOAD_HEADER = """
     <div class="row no-wrap items-center q-pa-xs">
-      <q-btn v-if="scope.canAddFiles" flat dense no-caps icon="upload_file" label="Restore from a file"
-             @click="scope.pickFiles" data-testid="restore-upload"><q-uploader-add-trigger /></q-btn>
-      <q-spinner v-if="scope.isUploading" size="sm" class="q-ml-sm" />
+      <q-btn v-if="props.canAddFiles" flat dense no-caps icon="upload_file" label="Restore from a file"
+             @click="props.pickFiles" data-testid="restore-upload"><q-uploader-add-trigger /></q-btn>
+      <q-spinner v-if="props.isUploading" size="sm" class="q-ml-sm" />
     </div>"""
 
 
@@ -105,7 +105,7 @@ def content() -> None:
 
     async def explain_left_out() -> None:
         for name in without:
-            reason = await backup.nothing_to_back_up(runtime.worker.adapters[name])
+            reason = (await backup.nothing_to_back_up(runtime.worker.adapters[name])).removeprefix("nothing to back up: ")
             with reasons:
                 ui.label(f"{name} ({runtime.store.devices[name].type}): nothing to back up: {reason}").classes(
                     "text-body2 text-grey-8")
