@@ -233,3 +233,10 @@ async def test_list_saved_per_bus_and_restored(rig):
     await again.load()
     assert [(r.can_id, r.extended, r.data, r.period_ms) for r in again.rows] == [
         (0x1ABCDEF, True, b"\x01\x02", 250), (0x422, False, b"\x01", None)]
+
+
+def test_electrak_enable_refused_only_where_an_electrak_is():
+    control = bytes.fromhex("E8 03 41 00 BE 03 00 01")  # enable set (section example)
+    assert "Electrak" in forbidden_reason(0x06, False, control, [("electrak", {})])
+    assert forbidden_reason(0x06, False, control, [("m3io", {})]) is None
+    assert forbidden_reason(0x06, False, control[:7] + b"\x00", [("electrak", {})]) is None  # enable clear: stops
