@@ -303,7 +303,11 @@ def test_recordings_dir_from_environment(tmp_path: Path, monkeypatch: pytest.Mon
     monkeypatch.setenv(rec.DIR_ENV, str(tmp_path / "rec"))
     assert rec.recordings_dir() == tmp_path / "rec"
     monkeypatch.delenv(rec.DIR_ENV)
-    assert rec.recordings_dir() == Path.cwd() / "recordings"
+    # without the variable and without a running plant: the user's data folder, never the working directory
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("COMMISSION_DATA_DIR", str(tmp_path / "userdata"))
+    assert rec.recordings_dir() == tmp_path / "userdata" / "recordings"
+    assert rec.recordings_dir() != Path.cwd() / "recordings"
     assert rec.list_recordings(tmp_path / "missing") == []
 
 
