@@ -7,7 +7,6 @@ as locks; a flood of 100,000 new IDs starting 00 00 keeps the tables bounded and
 
 from __future__ import annotations
 
-import asyncio
 import itertools
 import time
 
@@ -209,7 +208,8 @@ async def test_on_the_bus_only_the_lock_is_listed():
             for k in range(10):  # a node that sends a status-like frame every 100 ms
                 sender.send(can.Message(arbitration_id=0x321, data=STATUS, is_extended_id=False, timestamp=t + 0.1 * k))
         assert await wait_for(lambda: (True, 660102) in w.discovered["can1"], timeout=5)
-        await asyncio.sleep(0.2)
+        # every frame sent has been through discovery (dispatch counts a frame before its listeners run)
+        assert await wait_for(lambda: w.store.buses["can1"].rx_frames >= 5 * 13, timeout=5), w.store.buses["can1"].rx_frames
         assert listed(w) == {(True, 660102)}
         assert w.discovery_summary("can1")["refused_frames"] == 10
     finally:
@@ -235,24 +235,25 @@ def test_codec_asks_for_three_status_frames_one_second_apart():
 # -- the overview in a real browser --------------------------------------------------------------------
 
 
-def test_overview_lists_the_spare_lock_with_its_evidence_and_adopts_it(tmp_path):
+# Vue marks an entering element with "...-enter-from/-active/-to" classes until its transition has ended
+DIALOG_OPEN_JS = """() => { const d = document.querySelector('.q-dialog');
+    if (!d) return false;
+    const parts = [d, ...d.querySelectorAll('*')];
+    return !parts.some(e => typeof e.className === 'string' && /-enter-/.test(e.className))
+        && d.getAnimations({subtree: true}).length === 0
+        && getComputedStyle(d.querySelector('.q-dialog__inner')).opacity === '1'; }"""
+
+
+def test_overview_lists_the_spare_lock_with_its_evidence_and_adopts_it(tmp_path, chromium):
     """The demo plant's spare lock (a simulated lock not in the plant) at 1440x900 and 1024x768."""
-    from pathlib import Path
+    from conftest import free_port, inside_viewport
+    from playwright.sync_api import expect
+    from webutil import demo_plant_text, running_app
 
-    from webutil import demo_plant_text, free_port, running_app
-
-    chromium = Path("/usr/bin/chromium")
-    if not chromium.exists():
-        pytest.skip(f"{chromium} is not installed")
-    from playwright.sync_api import expect, sync_playwright
-
-    shots = Path("/tmp/commission-shots")
-    shots.mkdir(parents=True, exist_ok=True)
-    with running_app(demo_plant_text(free_port()), tmp_path) as url, sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(chromium), args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"])
-        try:
-            for width, height in ((1440, 900), (1024, 768)):
-                context = browser.new_context(viewport={"width": width, "height": height})
+    with running_app(demo_plant_text(free_port()), tmp_path) as url:
+        for width, height in ((1440, 900), (1024, 768)):
+            context = chromium.new_context(viewport={"width": width, "height": height})
+            try:
                 page = context.new_page()
                 page.set_default_timeout(10_000)
                 errors: list[str] = []
@@ -264,19 +265,20 @@ def test_overview_lists_the_spare_lock_with_its_evidence_and_adopts_it(tmp_path)
                 expect(listing).to_contain_text("HD-Lock with device ID 660102 (ext 0xA1286)")
                 expect(listing).to_contain_text("3 frames in a row")
                 adopt.scroll_into_view_if_needed()
-                page.screenshot(path=str(shots / f"overview-discovered-{width}.png"))
+                inside_viewport(page, adopt)
+                page.screenshot(path=str(tmp_path / f"overview-discovered-{width}.png"))
                 adopt.click()
                 dialog = page.locator(".q-dialog .q-card")
                 expect(dialog).to_contain_text("CAN IDs it uses: 0x000A1286 (ext) HD-Lock device ID 660102")
-                page.wait_for_timeout(400)  # the dialog's opening animation, for the screenshot
-                box = dialog.bounding_box()
-                assert box is not None and box["x"] >= 0 and box["x"] + box["width"] <= width
-                page.screenshot(path=str(shots / f"overview-adopt-{width}.png"))
+                # the dialog's opening transition has ended: nothing in it is animated any more
+                page.wait_for_function(DIALOG_OPEN_JS)
+                inside_viewport(page, dialog)
+                expect(dialog.get_by_role("button", name="Add to the running plant")).to_be_visible()
+                page.screenshot(path=str(tmp_path / f"overview-adopt-{width}.png"))
                 if width == 1024:
                     page.get_by_role("button", name="Add to the running plant").click()
                     expect(page.locator('[data-device="hdlock-660102"]')).to_be_visible()
                     expect(page.locator('[data-adopt="660102"]')).to_have_count(0, timeout=5_000)
+            finally:
                 context.close()
-                assert not errors, f"JavaScript errors on the page: {errors}"
-        finally:
-            browser.close()
+            assert not errors, f"JavaScript errors on the page: {errors}"
