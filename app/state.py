@@ -30,6 +30,8 @@ class BusState:
     last_error: str = ""
     reconnects: int = 0
     transactions: deque = field(default_factory=lambda: deque(maxlen=2000))  # monitor ring buffer
+    cycle_s: float | None = None  # Modbus: measured time to poll every device once
+    address_conflicts: int = 0  # Modbus: answers from another unit than the one asked
 
 
 log = logging.getLogger(__name__)

@@ -212,6 +212,9 @@ class Worker:
         self.store.devices[dev.name] = state
         transport = self.lines.get(dev.bus) or self.can_buses.get(dev.bus)
         self.adapters[dev.name] = device_type.adapter_class(bus.type)(dev, state, transport)
+        attach = getattr(transport, "attach_device", None)
+        if attach is not None and isinstance(dev.options.get("address"), int):
+            attach(dev.options["address"], state)  # its stale threshold follows the line's measured cycle
 
     # -- CAN discovery -----------------------------------------------------------------------
     def _refuse_ids(self, bus: str) -> None:

@@ -29,6 +29,7 @@ class Counters:
     exceptions: int = 0
     write_errors: int = 0
     malformed: int = 0  # frames that could not be decoded
+    address_conflicts: int = 0  # answers to this device's requests from another unit address
 
     @property
     def errors(self) -> int:
@@ -43,6 +44,7 @@ class Counters:
             "exceptions": self.exceptions,
             "write_errors": self.write_errors,
             "malformed": self.malformed,
+            "address_conflicts": self.address_conflicts,
         }
 
 
