@@ -10,23 +10,24 @@ from __future__ import annotations
 
 import json
 import re
-import time
 import urllib.request
 from pathlib import Path
 
 import pytest
+from conftest import CHROMIUM, wait_devices_online
 from webutil import demo_plant_text, free_port, start_app, stop_app, wait_http
 
-CHROMIUM = Path("/usr/bin/chromium")
 if not CHROMIUM.exists():
     pytest.skip(f"{CHROMIUM} is not installed", allow_module_level=True)
 
-from playwright.sync_api import Browser, Page, expect, sync_playwright  # noqa: E402
+from playwright.sync_api import Browser, Locator, Page, expect  # noqa: E402
 
 pytestmark = pytest.mark.timeout(90)  # the first test also waits for the app to start
 
-SHOTS = Path("/tmp/commission-shots")
 STEP_MS = 10_000  # longest wait for one visible step
+# no CSS transition or animation runs in the progress bars (Quasar's q-linear-progress glides to its value)
+PROGRESS_SETTLED_JS = """() => [...document.querySelectorAll('.q-linear-progress')]
+    .every(p => p.getAnimations({subtree: true}).length === 0)"""
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +45,7 @@ def app_url(tmp_path_factory: pytest.TempPathFactory):
         proc = start_app(plant, port, log)
     try:
         wait_http(url + "/api/devices", proc, timeout=30)
-        _wait_all_online(url, proc, timeout=20)
+        wait_devices_online(url, proc=proc, timeout=20)
         assert (data_dir / "session-secret").exists(), "the app ignored COMMISSION_DATA_DIR"
         yield url
     except BaseException:
@@ -59,31 +60,6 @@ def _get_json(url: str):
         return json.load(response)
 
 
-def _wait_all_online(url: str, proc, timeout: float) -> None:
-    end = time.monotonic() + timeout
-    status: dict[str, str] = {}
-    while time.monotonic() < end:
-        assert proc.poll() is None, "the app exited"
-        status = {d["name"]: d["status"] for d in _get_json(url + "/api/devices")}
-        if status and all(s == "online" for s in status.values()):
-            return
-        time.sleep(0.2)
-    raise TimeoutError(f"devices not online within {timeout} s: {status}")
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with sync_playwright() as p:
-        browser = p.chromium.launch(
-            executable_path=str(CHROMIUM),
-            args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"],
-        )
-        try:
-            yield browser
-        finally:
-            browser.close()
-
-
 def _new_page(browser: Browser, width: int, height: int, errors: list[str]) -> Page:
     context = browser.new_context(viewport={"width": width, "height": height}, accept_downloads=True)
     page = context.new_page()
@@ -92,11 +68,13 @@ def _new_page(browser: Browser, width: int, height: int, errors: list[str]) -> P
     return page
 
 
-def _save_shot(page: Page, name: str, full_page: bool = True) -> Path:
-    SHOTS.mkdir(parents=True, exist_ok=True)
-    path = SHOTS / name
+def _save_shot(page: Page, folder: Path, name: str, shows: Locator, full_page: bool = True) -> Path:
+    """A screenshot in the test's folder, taken once ``shows`` is visible (in the viewport unless ``full_page``)."""
+    expect(shows).to_be_visible()
+    if not full_page:
+        expect(shows).to_be_in_viewport()
+    path = folder / name
     page.screenshot(path=str(path), full_page=full_page)
-    assert path.stat().st_size > 10_000, f"{path} looks empty"
     return path
 
 
@@ -104,11 +82,11 @@ def _save_shot(page: Page, name: str, full_page: bool = True) -> Path:
 
 
 @pytest.mark.parametrize("width,height", [(1024, 768), (768, 1024)], ids=["landscape", "portrait"])
-def test_plant_view_on_a_tablet(app_url: str, browser: Browser, width: int, height: int):
+def test_plant_view_on_a_tablet(app_url: str, chromium: Browser, tmp_path: Path, width: int, height: int):
     devices = [d["name"] for d in _get_json(app_url + "/api/devices")]
     assert {"door-1", "door-2", "gate-1", "gate-2", "lift", "heater-hm", "heater-hmr"} <= set(devices)
     errors: list[str] = []
-    page = _new_page(browser, width, height, errors)
+    page = _new_page(chromium, width, height, errors)
     try:
         page.goto(app_url + "/plant")
         expect(page.get_by_text("Plant demo", exact=True)).to_be_visible()
@@ -147,8 +125,9 @@ def test_plant_view_on_a_tablet(app_url: str, browser: Browser, width: int, heig
             "before => document.querySelector('.q-header .text-h6').textContent.trim() !== before", arg=before, timeout=2500
         )
 
-        _save_shot(page, f"plant-{width}x{height}.png", full_page=False)
-        _save_shot(page, f"plant-{width}x{height}-full.png", full_page=True)
+        first_tile = page.locator(f'[data-plant-tile="{devices[0]}"]')
+        _save_shot(page, tmp_path, f"plant-{width}x{height}.png", first_tile, full_page=False)
+        _save_shot(page, tmp_path, f"plant-{width}x{height}-full.png", page.locator(f'[data-plant-tile="{devices[-1]}"]'))
     finally:
         page.context.close()
     assert not errors, f"JavaScript errors on the page: {errors}"
@@ -163,9 +142,9 @@ def _diff_row(page: Page, parameter: str):
     return diff.locator("tbody tr", has=page.locator("td", has_text=re.compile(rf"^\s*{parameter}\s*$")))
 
 
-def test_restore_through_the_diff(app_url: str, browser: Browser):
+def test_restore_through_the_diff(app_url: str, chromium: Browser, tmp_path: Path):
     errors: list[str] = []
-    page = _new_page(browser, 1280, 1000, errors)
+    page = _new_page(chromium, 1280, 1000, errors)
     try:
         # back up door-1 only
         page.goto(app_url + "/backup")
@@ -215,10 +194,10 @@ def test_restore_through_the_diff(app_url: str, browser: Browser):
         assert other.count() > 1
         expect(other.filter(has_text="differs")).to_have_count(1)
         expect(page.get_by_text(re.compile(r"^1 of \d+ writable parameters differ"))).to_be_visible()
-        page.wait_for_timeout(2300)  # the progress bar glides to its value (Quasar's animation-speed: 2.1 s)
+        page.wait_for_function(PROGRESS_SETTLED_JS)
         page.mouse.move(0, 0)
         page.evaluate("window.scrollTo(0, 0)")  # a full-page shot draws the fixed header where the page is scrolled to
-        _save_shot(page, "restore-diff.png")
+        _save_shot(page, tmp_path, "restore-diff.png", row)
 
         # write the selection, confirm, read the report
         page.get_by_test_id("restore-write").click()
@@ -231,15 +210,16 @@ def test_restore_through_the_diff(app_url: str, browser: Browser):
         expect(report).to_contain_text("0 failed")
         expect(cells.nth(2)).to_have_text(re.compile(r"^\s*200 ms\s*$"))  # compared again after writing
         expect(cells.nth(4)).to_have_text(re.compile(r"^\s*same\s*$"))
-        page.wait_for_timeout(2300)
+        page.wait_for_function(PROGRESS_SETTLED_JS)
         page.evaluate("window.scrollTo(0, 0)")
-        _save_shot(page, "restore-report.png")
+        _save_shot(page, tmp_path, "restore-report.png", report)
 
         # the device has the backed-up value again
-        end = time.monotonic() + 5
-        while (value := _get_json(app_url + "/api/devices/door-1")["values"]["LockRequestDelay"]["value"]) != 200:
-            assert time.monotonic() < end, f"LockRequestDelay is {value}, not 200"
-            time.sleep(0.2)
+        page.wait_for_function(
+            """async () => (await (await fetch('/api/devices/door-1')).json()).values.LockRequestDelay.value === 200""",
+            polling=200, timeout=5_000,
+        )
+        assert _get_json(app_url + "/api/devices/door-1")["values"]["LockRequestDelay"]["value"] == 200
 
         # and the audit log names the restore
         page.goto(app_url + "/audit")
@@ -257,9 +237,9 @@ def test_restore_through_the_diff(app_url: str, browser: Browser):
 # -- 3. stale and offline data marked alike on the device page, the overview and the plant view -
 
 
-def test_stopped_lock_is_marked_everywhere(app_url: str, browser: Browser):
+def test_stopped_lock_is_marked_everywhere(app_url: str, chromium: Browser, tmp_path: Path):
     errors: list[str] = []
-    page = _new_page(browser, 1440, 900, errors)
+    page = _new_page(chromium, 1440, 900, errors)
     stop = page.locator('[data-testid="sim-silent"], .q-toggle:has-text("Stop answering")').first
     try:
         page.goto(app_url + "/device/door-2")
@@ -271,24 +251,27 @@ def test_stopped_lock_is_marked_everywhere(app_url: str, browser: Browser):
         expect(page.locator(".reg-table tbody tr.q-offline").first).to_be_visible()
         expect(page.get_by_test_id("lockstatus-quality")).to_contain_text("offline, last")
         page.evaluate("window.scrollTo(0, 0)")
-        _save_shot(page, "stale-device-1440x900.png", full_page=False)
+        lamp = page.locator('[data-lamp="BoltLocked"]')
+        _save_shot(page, tmp_path, "stale-device-1440x900.png", lamp, full_page=False)
         page.locator(".reg-table").first.scroll_into_view_if_needed()
-        _save_shot(page, "stale-device-table-1440x900.png", full_page=False)
+        _save_shot(page, tmp_path, "stale-device-table-1440x900.png", page.locator(".reg-table tbody tr.q-offline").first,
+                   full_page=False)
         page.set_viewport_size({"width": 1024, "height": 768})
         page.evaluate("window.scrollTo(0, 0)")
-        _save_shot(page, "stale-device-1024x768.png", full_page=False)
+        _save_shot(page, tmp_path, "stale-device-1024x768.png", lamp, full_page=False)
         for width, height in ((1440, 900), (1024, 768), (768, 1024)):
             page.set_viewport_size({"width": width, "height": height})
             page.goto(app_url + "/")
             tile = page.locator('[data-device="door-2"] [data-tile-values]')
             expect(tile).to_have_attribute("data-quality", "offline")
             expect(page.locator('[data-device="door-1"] [data-tile-values]')).to_have_attribute("data-quality", "good")
-            _save_shot(page, f"overview-{width}x{height}.png", full_page=False)
+            _save_shot(page, tmp_path, f"overview-{width}x{height}.png", page.locator('[data-device="door-2"]'), full_page=False)
             page.goto(app_url + "/plant")
             expect(page.locator('[data-plant-tile="door-2"]')).to_have_attribute("data-quality", "offline")
             expect(page.locator('[data-plant-tile="door-2"]')).to_contain_text("offline: last")
             expect(page.locator('[data-plant-tile="door-1"]')).to_contain_text("live")
-            _save_shot(page, f"plant-offline-{width}x{height}.png", full_page=False)
+            _save_shot(page, tmp_path, f"plant-offline-{width}x{height}.png", page.locator('[data-plant-tile="door-2"]'),
+                       full_page=False)
     finally:
         try:  # the lock answers again for the other tests
             page.set_viewport_size({"width": 1440, "height": 900})
