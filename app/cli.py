@@ -274,19 +274,6 @@ def _cli_user() -> str:
         return "cli"
 
 
-async def _nothing_to_back_up(adapter, backup) -> str:
-    """Why a device has nothing to back up ("" when it has): a skip with its reason, not a failure."""
-    if backup.supports_backup(adapter):
-        return ""
-    if getattr(adapter, "backup_available", True) is False and callable(getattr(adapter, "backup_read", None)):
-        try:  # an adapter without backup data names the reason when asked for it, without bus traffic
-            await asyncio.wait_for(adapter.backup_read(), timeout=2)
-        except Exception as exc:  # noqa: BLE001 - the reason is the message
-            return str(exc) or "nothing to back up in this configuration"
-        return "nothing to back up in this configuration"
-    return "this device type has no parameters to back up"
-
-
 def run_backup(args) -> int:
     from app import backup
 
@@ -294,7 +281,7 @@ def run_backup(args) -> int:
         failures = 0
         for name in names:
             state = runtime.store.devices[name]
-            reason = await _nothing_to_back_up(runtime.worker.adapters[name], backup)
+            reason = await backup.nothing_to_back_up(runtime.worker.adapters[name])
             if reason:
                 print(f"{name}: skipped: {reason}", flush=True)
                 continue

@@ -541,6 +541,13 @@ class Mo64Adapter:
                 "program version": get("Program version"), "mac": get("MAC address"),
                 "transport": self.transport, "address": self.address}
 
+    def restore_text(self, key: str, value: Any) -> str:
+        """A backed-up value in the words its table shows (relay modes and flags by name, times in s)."""
+        setting = codec.SETTINGS[key]
+        answer_type = setting.query + codec.QUERY_ANSWER_OFFSET  # SPEC-NOTES "Replies": index n answered by type n + 5
+        wire = codec.ANSWER_TYPES[answer_type]
+        return value_text(answer_type, wire.decode(setting.vtype.encode(from_json(setting, value))))
+
     async def restore_entry(self, key: str, raw: Any, session: str = "restore") -> None:
         setting = codec.SETTINGS.get(key)
         if setting is None or not setting.backup:
