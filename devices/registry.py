@@ -86,6 +86,8 @@ class TileLine:
     cases: tuple[tuple[When, str, str], ...] = ()  # (condition, text, icon or "")
     points: tuple[str, ...] = ()  # a list line: the names of these points whose value is true
     unless: When | None = None  # hide the line while this holds
+    values: tuple[tuple[str, str], ...] = ()  # a values line: (point, label) of each point heard, ``item`` each, in ``{list}``
+    item: str = "{label} {text}"
 
 
 @dataclass(frozen=True)
@@ -105,6 +107,10 @@ class TileBar:
     label: str  # format with {value}, {full}, {unit}
     full_scale: float | None = None
     full_scale_point: str = ""
+    fresher: tuple[str, ...] = ()  # other points of the same quantity: the most recently heard of all is shown
+
+    def sources(self) -> tuple[str, ...]:
+        return (self.point, *self.fresher)
 
 
 @dataclass(frozen=True)
@@ -119,11 +125,11 @@ class TileSpec:
     def point_names(self) -> set[str]:
         names = set()
         for line in self.lines:
-            names.update(n for n in (line.point, *line.points) if n)
+            names.update(n for n in (line.point, *line.points, *(v[0] for v in line.values)) if n)
             names.update(case[0].point for case in line.cases)
         names.update(a.when.point for a in self.alarms)
         if self.bar is not None:
-            names.add(self.bar.point)
+            names.update(self.bar.sources())
         return names
 
     def evaluate(self, point: Callable[[str], dict[str, Any] | None], now: float) -> dict[str, Any]:
@@ -147,6 +153,12 @@ class TileSpec:
             elif line.points:
                 on = [n for n in line.points if (entries.get(n) or {}).get("value")]
                 lines.append(line.template.format(list=", ".join(on) if on else line.missing))
+            elif line.values:
+                # no-break spaces inside an item: a wrapped line breaks between items only
+                items = [line.item.format(label=label, **_fill(entry)).replace(" ", "\u00a0") for name, label in line.values
+                         if (entry := entries.get(name)) is not None]
+                if items or line.missing:  # a values line with nothing heard and no ``missing`` text is left out
+                    lines.append(line.template.format(list=" · ".join(items)) if items else line.missing)
             else:
                 entry = entries.get(line.point)
                 lines.append(line.missing if entry is None else line.template.format(**_fill(entry)))
@@ -157,7 +169,8 @@ class TileSpec:
                 alarms.append(alarm.text.format(**_fill(entry)))
         bar = None
         if self.bar is not None:
-            entry = entries.get(self.bar.point)
+            heard = [e for name in self.bar.sources() if (e := entries.get(name)) is not None]
+            entry = max(heard, key=lambda e: e.get("time") or 0.0, default=None)  # the freshest source wins
             full = self.bar.full_scale
             if self.bar.full_scale_point:
                 full_entry = point(self.bar.full_scale_point)

@@ -12,63 +12,89 @@ from app import runtime as rt
 from app.plant import DEMO_PLANT, DeviceConfig, append_device, can_id_conflict, device_toml
 from app.worker import AuditUnavailable, PermissionDenied
 from devices.registry import DEVICE_TYPES, format_can_ids
-from pages.frame import fmt_age, frame, set_status_badge
-from pages.plant_view import evaluate_tile
-from pages.widgets import mark_quality, quality_note
+from pages.frame import fmt_age, frame, set_status_badge, status_text
+from pages.plant_view import TextPool, evaluate_tile
+from pages.widgets import follow, mark_quality, quality_note
 from pages.session import current_user
 
 
+TILE_CSS = """
+.tile-grid { display: grid; grid-template-columns: repeat(auto-fill, minmax(250px, 1fr)); gap: 16px; width: 100%; }
+.tile-grid > .tile { min-width: 0; cursor: pointer; }
+.tile .tile-name { min-width: 0; flex: 1 1 auto; white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }
+.tile .q-badge { flex: none; white-space: nowrap; }
+.tile .tile-counters { overflow-wrap: anywhere; }
+.tile .q-age:empty { display: none; }
+"""
+
+# what a device's counters mean on its bus: CAN devices are heard (periodic frames), the others answer requests
+CAN_COUNTERS = (("responses", "frames heard", True), ("malformed", "malformed", True), ("timeouts", "timeouts", False))
+REQUEST_COUNTERS = (("requests", "req", True), ("timeouts", "timeouts", True), ("crc_errors", "CRC", True),
+                    ("exceptions", "exc", False), ("malformed", "malformed", False))
+
+
+def counters_text(counters: dict[str, int], bus_type: str, age: float | None) -> str:
+    """The tile's counter line for a device on a ``bus_type`` bus; a counter marked False only when not 0."""
+    chosen = CAN_COUNTERS if bus_type == "can" else REQUEST_COUNTERS
+    parts = [f"{label} {counters.get(key, 0)}" for key, label, always in chosen if always or counters.get(key)]
+    if counters.get("write_errors"):
+        parts.append(f"write err {counters['write_errors']}")
+    return " · ".join(parts + [f"last {'frame' if bus_type == 'can' else 'answer'} {fmt_age(age)}"])
+
+
 class DeviceTile:
+    """One device of the overview, following the live store: each push sets only what changed."""
+
     def __init__(self, name: str):
         runtime = rt.current()
         self.state = runtime.store.devices[name]
         self.device_type = DEVICE_TYPES[self.state.type]
+        self.bus_type = runtime.plant.buses[self.state.bus].type
+        self._shown: dict[str, object] = {}
         with ui.card().classes("tile").on("click", lambda: ui.navigate.to(f"/device/{name}")) as self.card:
             self.card.props(f'data-device="{name}"')
-            with ui.row().classes("items-center w-full"):
-                ui.label(name).classes("text-subtitle1 text-weight-bold")
-                ui.space()
+            with ui.row().classes("items-center w-full no-wrap"):
+                ui.label(name).classes("text-subtitle1 text-weight-bold tile-name").props(f'title="{name}"')
                 self.badge = ui.badge("waiting", color="grey")
             ui.label(f"{self.device_type.title} on {self.state.bus}").classes("text-caption text-grey-8")
-            self.seen = ui.label().classes("text-caption")
-            self.values = ui.column().classes("gap-0").props("data-tile-values")
+            self.values = ui.column().classes("gap-0 w-full").props("data-tile-values")
+            with self.values:
+                self.lines = TextPool("text-body2")
+                self.alarms = TextPool("text-body2 text-negative text-weight-medium")
             self.quality_note = ui.label().classes("q-age")
-            self.shown: list[str] | None = None
-            self.counters = ui.label().classes("text-caption mono text-grey-8")
+            self.counters = ui.label().classes("text-caption mono text-grey-8 tile-counters").props("data-tile-counters")
             self.error = ui.label().classes("text-caption text-negative")
         self.update()
+        follow(self.state, self.update)
+
+    def _changed(self, key: str, value: object) -> bool:
+        if self._shown.get(key, self) == value:
+            return False
+        self._shown[key] = value
+        return True
 
     def update(self) -> None:
         s = self.state
-        set_status_badge(self.badge, s.status, s.age)
-        self.seen.set_text(f"last seen: {fmt_age(s.age)}")
+        status, age = s.status, s.age
+        if self._changed("badge", (status, status_text(status, age))):
+            set_status_badge(self.badge, status, age)
         tile = evaluate_tile(s)  # the device type's declared tile: the same lines and alarms as the plant view
         quality = tile["quality"]
-        lines = list(tile["lines"]) + ([tile["bar"][1]] if tile["bar"] else [])
+        self.lines.show(list(tile["lines"]) + ([tile["bar"][1]] if tile["bar"] else []))
         alarms = tile["alarms"] if quality in ("good", "unknown") else []
-        shown = lines + [f"⚠ {a}" for a in alarms]
-        if shown != self.shown:
-            self.shown = shown
-            self.values.clear()
-            with self.values:
-                for line in lines:
-                    ui.label(line).classes("text-body2")
-                for alarm in alarms:
-                    ui.label(f"⚠ {alarm}").classes("text-body2 text-negative text-weight-medium")
-        mark_quality(self.values, quality if quality in ("stale", "offline") else "good")
-        self.quality_note.set_text(quality_note(quality, tile["age"]) if quality in ("stale", "offline") else "")
-        c = s.counters.as_dict()
-        names = {"requests": "req", "timeouts": "timeouts", "crc_errors": "CRC", "exceptions": "exc",
-                 "write_errors": "write err", "malformed": "malformed"}
-        self.counters.set_text("  ".join(
-            f"{names[k]} {v}" for k, v in c.items() if k in names and (v or k in ("requests", "timeouts"))
-        ))
-        self.error.set_text(s.last_error if s.status != "online" else "")
+        self.alarms.show([f"⚠ {a}" for a in alarms])
+        marked = quality if quality in ("stale", "offline") else "good"
+        if self._changed("quality", marked):
+            mark_quality(self.values, marked)
+        self.quality_note.set_text(quality_note(quality, tile["age"]) if marked != "good" else "")
+        self.counters.set_text(counters_text(s.counters.as_dict(), self.bus_type, age))
+        self.error.set_text(s.last_error if status != "online" else "")
 
 
 def content() -> None:
     runtime = rt.current()
     with frame("Overview"):
+        ui.add_css(TILE_CSS)
         tiles: list[DeviceTile] = []
         for bus in runtime.plant.buses.values():
             bus_state = runtime.store.buses[bus.name]
@@ -96,19 +122,13 @@ def content() -> None:
 
             show_conn()
             ui.timer(1.0, show_conn)
-            with ui.row().classes("gap-4") as row:
+            with ui.element("div").classes("tile-grid") as row:
                 for dev in runtime.plant.devices_on(bus.name):
                     tiles.append(DeviceTile(dev.name))
             if bus.type == "can":
                 _discovered_section(bus.name, row, tiles)
         if not runtime.plant.devices:
             ui.label("This plant file lists no devices.").classes("text-grey-8")
-
-        def update() -> None:
-            for tile in tiles:
-                tile.update()
-
-        ui.timer(1.0, update)
 
 
 def _discovered_section(bus: str, tile_row, tiles: list) -> None:

@@ -65,6 +65,7 @@ def _identity(options: dict[str, Any], bus_type: str):
 
 
 _LOCK = "LockStatus"
+STATUS_FRAME_BOLT = "BoltPosition (status frame)"  # published by the CAN adapter from every status frame
 TILE = TileSpec(
     lines=(
         TileLine("DoorState", "{name}", missing="door: unknown"),
@@ -79,7 +80,8 @@ TILE = TileSpec(
         TileAlarm(When("StateMachineState", of="name", prefix="Error"), "{name}"),
         TileAlarm(When(_LOCK, (1,), field="ProximityOverrange"), "hall sensors overdriven (magnet)"),
     ),
-    bar=TileBar("BoltPosition", "bolt {value} Inc", full_scale=115),  # input register 2: 0 retracted, about 115 extended
+    # input register 2 (0 retracted, about 115 extended); on CAN the 1 s status frame's motorPos is fresher (section 6.5.1)
+    bar=TileBar("BoltPosition", "bolt {value} Inc", full_scale=115, fresher=(STATUS_FRAME_BOLT,)),
     icon="help",
 )
 

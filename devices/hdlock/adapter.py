@@ -8,7 +8,7 @@ import weakref
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from devices.hdlock import codec
+from devices.hdlock import STATUS_FRAME_BOLT, codec
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
 from devices.live import DeviceState
 from devices.params import Param, ParamError, backup_entry
@@ -19,6 +19,13 @@ CHART_SERIES = {  # chart label -> parameter name
     "MotorCurrent [mA]": "MotorCurrent",
     "Proximity [Inc]": "Calculated proxi (normalized)",
 }
+
+
+def _arrival(msg) -> float:
+    """The frame's receive time from the interface, or now when it has none or one from another clock."""
+    now = time.time()
+    stamp = getattr(msg, "timestamp", None)
+    return stamp if isinstance(stamp, int | float) and 0 <= now - stamp < 5.0 else now
 
 
 class CommandError(Exception):
@@ -456,6 +463,9 @@ class HdLockCanAdapter(HdLockBackup):
             # the third status word (section 6.5; SPEC-NOTES: proximity = word >> 6, source = word & 0x3F)
             word = frame.proximity << 6 | frame.lock_request_source
             state.publish("Proximity (status frame)", frame.proximity, "Inc", raw=word)
+            # motorPos (section 6.5.1), with the time the frame arrived: tiles show it rather than the slower register poll
+            state.publish(STATUS_FRAME_BOLT, frame.motor_pos, "Inc", raw=frame.motor_pos, time=_arrival(msg))
+            state.counters.responses += 1  # a frame heard, as the other CAN devices count them
             state.publish("LockRequestSource (status frame, low 6 bits)", frame.lock_request_source, raw=word,
                           text="read LockRequestSource (HR4) for the full value")
             state.add_history({

@@ -53,6 +53,8 @@ _OUTPUTS = ("LED", "SSR1-3", *(f"SSR{i}" for i in range(1, 7)))
 TILE = TileSpec(
     lines=(
         TileLine(points=_OUTPUTS, template="outputs on: {list}", missing="none"),
+        # TEMPx as heard, "out of range" included (section 7.2.2); HMR has no TEMP2/TEMP3, KM none: left out
+        TileLine(values=tuple((f"TEMP{i}", f"T{i}") for i in range(1, 7)), template="{list}"),
     ),
     alarms=(
         TileAlarm(When("Variant check", ("mismatch",)), "{text}"),
