@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 from nicegui import ui
 
 from app import runtime as rt
@@ -14,10 +16,15 @@ from pages.widgets import (
     HistoryChart,
     Lamp,
     RegisterTable,
+    WriteGuard,
+    checked_value,
     confirm,
     entry_age,
+    follow,
     mark_quality,
     quality_note,
+    range_number,
+    refuse,
     run_command,
     write_from_page,
 )
@@ -27,6 +34,10 @@ DEVICE_TYPE = "hdlock"
 # the LockRequestSource shown is holding 4, the one the lock uses (section 6.5.1)
 ENUM_VALUES = ("DoorState", "StateMachineState", "MotorState", "MotorState (IR53)", "MotorResult", "LockRequestSource (HR4)")
 LAMP_KIND = {"ProximityOverrange": "warn", "ForceActive": "warn"}
+CHART_AXES = {"MotorCurrent [mA]": "y2"}  # increments on the left axis, mA on the right
+CHART_WINDOWS = (30, 300)  # the bolt moves in about half a second: 30 s by default, 5 min on demand
+# cards beside each other as the width allows, each as tall as its row (no blank area under a short one)
+CARD_GRID = "display: grid; grid-template-columns: repeat(auto-fit, minmax(420px, 1fr)); gap: 16px; width: 100%"
 
 
 def content(name: str) -> None:
@@ -35,6 +46,7 @@ def content(name: str) -> None:
     twin = runtime.twins.get(name)
     is_can = getattr(runtime.worker.adapters[name], "transport", "") == "can"
     with frame(f"HD-Lock {name}"):
+        guard = WriteGuard(state)  # every write and command button of the page, disabled with the reason while silent
         # -- identity and health --------------------------------------------------------
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-6 w-full"):
@@ -60,23 +72,22 @@ def content(name: str) -> None:
                         enum_labels[key].props(f'data-value="{key}"')
                         enum_notes[key] = ui.label().classes("q-age q-ml-none")
 
-        with ui.row().classes("w-full no-wrap items-start gap-4"):
-            with ui.card().classes("col-7"):
-                ui.label("Bolt, motor current and proximity (last 5 minutes)").classes("text-subtitle1")
-                chart = HistoryChart(state, list(CHART_SERIES))
-            with ui.column().classes("col gap-4"):
-                if twin is not None:
-                    _sim_controls(twin, is_can)
-                if is_can:
-                    can_status = _can_status_card(state)
-                    _can_commands_card(name, state)
-                else:
-                    can_status = None
-                    _set_address_card(name, state)
-                    _broadcast_address_card(name, state)
+        with ui.card().classes("w-full gap-1"):
+            ui.label("Bolt, motor current and proximity").classes("text-subtitle1")
+            HistoryChart(state, list(CHART_SERIES), window_s=CHART_WINDOWS[0], axes=CHART_AXES, windows=CHART_WINDOWS)
+        with ui.element("div").style(CARD_GRID).props("data-testid=hdlock-cards"):
+            if twin is not None:
+                _sim_controls(state, twin, is_can)
+            if is_can:
+                can_status = _can_status_card(state)
+                _can_commands_card(name, state, guard)
+            else:
+                can_status = None
+                _set_address_card(name, state, guard)
+                _broadcast_address_card(name, state, guard)
 
         # -- writable parameters -----------------------------------------------------------
-        param_rows = _parameter_card(name, state)
+        param_rows = _parameter_card(name, state, guard)
 
         with ui.card().classes("w-full"):
             with ui.tabs() as tabs:
@@ -84,19 +95,16 @@ def content(name: str) -> None:
                 t_hold = ui.tab("Holding registers")
             with ui.tab_panels(tabs, value=t_in).classes("w-full"):
                 with ui.tab_panel(t_in):
-                    input_table = RegisterTable(state, PARAMS.space(INPUT))
+                    RegisterTable(state, PARAMS.space(INPUT))  # follows the store itself: values, ages, greyed rows
                 with ui.tab_panel(t_hold):
-                    holding_table = RegisterTable(state, PARAMS.space(HOLDING))
+                    RegisterTable(state, PARAMS.space(HOLDING))
 
-        with ui.expansion("Events", icon="list").classes("w-full"):
-            events = ui.log(max_lines=200).classes("w-full h-40")
-        shown_events = [0]
+        with ui.expansion("Events", icon="list", value=True).classes("w-full"):
+            event_log(state)
 
         def update() -> None:
             set_status_badge(badge, state.status, state.age)
-            values = state.values()
-            serial = values.get("SerialNumber", {}).get("value")
-            fw = values.get("FirmwareVersion", {}).get("value")
+            serial, fw = state.value("SerialNumber"), state.value("FirmwareVersion")
             where = f"CAN device ID {state.info.get('device_id')}" if is_can else f"Modbus address {state.info.get('address')}"
             ident.set_text(
                 f"{where} · serial {serial if serial is not None else '-'} · firmware V{fw if fw is not None else '-'}"
@@ -109,26 +117,55 @@ def content(name: str) -> None:
                 f"requests {c.requests} · timeouts {c.timeouts} · CRC {c.crc_errors} · exceptions {c.exceptions} · write errors {c.write_errors}"
             )
             error.set_text(state.last_error if state.status != "online" else "")
-            status = values.get("LockStatus")
+            status = state.entry("LockStatus")
             for field_name, lamp in lamps.items():
                 lamp.show(status, None if status is None else status["fields"][field_name])
             lamps_note.set_text(_note(status))
             for key, label in enum_labels.items():
-                entry = values.get(key)
+                entry = state.entry(key)
                 label.set_text(entry["name"] or f"undefined ({entry['value']})" if entry else "-")
                 mark_quality(label, entry["quality"] if entry else "unknown")
                 enum_notes[key].set_text(_note(entry))
             param_rows()
-            input_table.update()
-            holding_table.update()
-            for event in state.events:
-                if event.time > shown_events[0]:
-                    events.push(f"{fmt_time(event.time)} {event.level.upper()}: {event.text}")
-                    shown_events[0] = event.time
 
         update()
-        ui.timer(0.5, update)
-        ui.timer(1.0, chart.update)
+        follow(state, update)  # on every change the store pushes (at most 10/s) and once a second for the ages
+
+
+EVENT_COLUMNS = [
+    {"name": "time", "label": "Time", "field": "time", "align": "left", "classes": "mono", "headerClasses": "w-24"},
+    {"name": "level", "label": "Level", "field": "level", "align": "left"},
+    {"name": "text", "label": "Event", "field": "text", "align": "left", "classes": "ev-text"},
+]
+
+
+def event_log(state) -> ui.table:
+    """The device's events newest first (state changes, faults rising and clearing, offline and back,
+    commands and refusals), updated in place when one is added; as bounded as the store's list."""
+    table = ui.table(columns=EVENT_COLUMNS, rows=[], row_key="id", pagination=0).classes("w-full")
+    table.props("dense flat virtual-scroll hide-bottom data-testid=events").style("max-height: 16rem")
+    table.add_slot("body-cell-text", '<q-td :props="props" style="white-space: normal">{{ props.value }}</q-td>')
+    table.add_slot(
+        "body-cell-level",
+        '<q-td :props="props"><q-badge :color="props.value == \'error\' ? \'negative\' : props.value == \'warning\' '
+        '? \'warning\' : \'grey-6\'">{{ props.value }}</q-badge></q-td>',
+    )
+    shown: list = [None, -1]  # newest event and count last shown: O(1) when nothing was added
+
+    def update() -> None:
+        events = state.events
+        newest = events[-1] if events else None
+        if newest is shown[0] and len(events) == shown[1]:
+            return
+        shown[0], shown[1] = newest, len(events)
+        count = len(events)
+        table.rows = [{"id": count - i, "time": fmt_time(e.time), "level": e.level, "text": e.text}
+                      for i, e in enumerate(reversed(events))]
+        table.update()
+
+    update()
+    follow(state, update)
+    return table
 
 
 def _note(entry: dict | None) -> str:
@@ -138,19 +175,25 @@ def _note(entry: dict | None) -> str:
     return quality_note(entry["quality"], entry_age(entry))
 
 
-def _sim_controls(twin, is_can: bool) -> None:
+def _sim_controls(state, twin, is_can: bool) -> None:
     with ui.card().classes("w-full bg-purple-1"):
         ui.label("Simulated lock (demo)").classes("text-subtitle1")
         if is_can:
             rate = ui.label().classes("text-caption")
-            ui.timer(1.0, lambda: rate.set_text(f"simulated lock runs at {twin.can_bitrate} bit/s, device ID {twin.device_id}"))
+
+            def show_rate() -> None:
+                rate.set_text(f"simulated lock runs at {twin.can_bitrate} bit/s, device ID {twin.device_id}")
+
+            show_rate()
+            follow(state, show_rate)
         with ui.row():
             ui.button("Close door", icon="door_front", on_click=twin.close_door).props("data-testid=sim-close")
             ui.button("Open door", icon="meeting_room", on_click=twin.open_door).props("outline data-testid=sim-open")
         with ui.row():
             ui.switch("LOCK-REQUEST input active", value=twin.line_input, on_change=lambda e: twin.set_line_input(e.value))
             ui.switch("Strong magnet", value=twin.strong_magnet, on_change=lambda e: setattr(twin, "strong_magnet", e.value))
-            ui.switch("Stop answering", value=twin.silent, on_change=lambda e: setattr(twin, "silent", e.value))
+            ui.switch("Stop answering", value=twin.silent, on_change=lambda e: setattr(twin, "silent", e.value)).props(
+                "data-testid=sim-silent")
             if not is_can:
                 ui.switch(
                     "Answer Set Modbus Address at the old address", value=twin.answers_address_command,
@@ -161,7 +204,7 @@ def _sim_controls(twin, is_can: bool) -> None:
                 ui.button("Back to the bus bit rate", on_click=lambda: setattr(twin, "can_bitrate", _bus_bitrate(twin))).props("flat dense")
 
 
-def _parameter_card(name: str, state):
+def _parameter_card(name: str, state, guard: WriteGuard):
     """Editable RW holding registers with validation, unsaved marks, Save/Restore-Settings."""
     writable = [p for p in PARAMS.space(HOLDING) if p.writable]
     rows: dict[str, tuple] = {}
@@ -170,8 +213,10 @@ def _parameter_card(name: str, state):
             ui.label("Parameters (RW holding registers)").classes("text-subtitle1")
             unsaved_label = ui.badge("", color="orange")
             ui.space()
-            save = ui.button("Save-Settings", icon="save", on_click=lambda: _save(name)).props("data-testid=save-settings")
-            ui.button("Restore-Settings", icon="restore", on_click=lambda: _restore(name)).props("outline")
+            save = ui.button("Save-Settings", icon="save", on_click=lambda: _save(name, state)).props("data-testid=save-settings")
+            restore = ui.button("Restore-Settings", icon="restore", on_click=lambda: _restore(name)).props(
+                "outline data-testid=restore-settings")
+            guard.add(save, restore)
         ui.label(
             "Writes are volatile until Save-Settings; Restore-Settings reloads the saved values and discards unsaved changes."
         ).classes("text-caption text-grey-8")
@@ -184,20 +229,28 @@ def _parameter_card(name: str, state):
                 with ui.row().classes("items-center gap-1"):
                     ui.label(p.label or p.name).tooltip(p.description)
                     mark = ui.badge("unsaved", color="orange")
-                current = ui.label("-").classes("mono")
+                with ui.row().classes("items-baseline gap-0 no-wrap") as cell:
+                    current = ui.label("-").classes("mono")
+                    age = ui.label().classes("q-age")
                 if p.enum is not None:
                     entry = ui.select({k: f"{v} ({k})" for k, v in p.enum.items()}, value=None).props("dense outlined options-dense").classes("w-64")
                 else:
                     low, high = p.limits()
-                    entry = ui.number(placeholder=f"{low:g} .. {high:g} {p.unit}".strip(), format="%d").props("dense outlined").classes("w-48")
+                    entry = range_number("", low, high, unit=p.unit, integer=p.scale == 1).classes("w-48")
                 entry.props(f'data-param="{p.name}"')
-                ui.button("Write", on_click=lambda p=p, entry=entry: _write(name, p, entry.value)).props(f'dense data-write="{p.name}"')
-                rows[p.key] = (p, current, mark)
+                button = ui.button("Write", on_click=lambda p=p, entry=entry: _write(name, p, entry)).props(f'dense data-write="{p.name}"')
+                guard.add(button)
+                rows[p.key] = (p, cell, current, age, mark)
 
     def refresh() -> None:
-        for key, (p, current, mark) in rows.items():
+        now = time.time()
+        for key, (p, cell, current, age, mark) in rows.items():
             raw = state.raw(p)
             current.set_text("-" if raw is None else p.display(raw))
+            read = state.read_time(p)
+            quality = state.quality(read, state.registers_periodic, now)
+            mark_quality(cell, quality)  # greyed with the age of its value while stale or offline
+            age.set_text(quality_note(quality, None if read is None else now - read) if quality in ("stale", "offline") else "")
             mark.set_visibility(key in state.unsaved)
         count = len(state.unsaved)
         unsaved_label.set_text(f"{count} unsaved change{'s' if count != 1 else ''}")
@@ -207,12 +260,49 @@ def _parameter_card(name: str, state):
     return refresh
 
 
-async def _write(name: str, param: Param, value) -> None:
-    await write_from_page(name, param, value, success="{name} = {value} written and read back (not yet saved)")
+async def _write(name: str, param: Param, entry) -> None:
+    await write_from_page(name, param, entry.value, success="{name} = {value} written and read back (not yet saved)",
+                          field=entry)
 
 
-async def _save(name: str) -> None:
-    await run_command(name, lambda a: a.save_settings(), "Save-Settings", success="Settings saved to the lock's flash")
+def unsaved_changes(state) -> list[str]:
+    """The parameters written since the last Save-Settings, with the value each has now."""
+    lines = []
+    for key in sorted(state.unsaved, key=lambda k: (PARAMS.by_key[k].address if k in PARAMS.by_key else 1 << 20, k)):
+        p = PARAMS.by_key.get(key)
+        if p is None:
+            lines.append(key)
+            continue
+        raw = state.raw(p)
+        lines.append(f"{p.label or p.name} (holding {p.address}) = {'not read' if raw is None else p.display(raw)}")
+    return lines
+
+
+async def _save(name: str, state) -> None:
+    """Save-Settings writes the lock's flash (section 4.1): ask first, naming what becomes permanent."""
+    changes = unsaved_changes(state)
+    with ui.dialog() as dialog, ui.card().classes("max-w-lg").props("data-testid=save-dialog"):
+        ui.label("Save-Settings: write the settings to the lock's flash?").classes("text-h6")
+        if changes:
+            ui.label(f"{len(changes)} unsaved change{'s' if len(changes) != 1 else ''} become{'s' if len(changes) == 1 else ''} "
+                     "permanent (kept after a reset):").classes("text-body1")
+            with ui.column().classes("gap-0 q-pl-md").props("data-testid=save-changes"):
+                for line in changes:
+                    ui.label(line).classes("text-body2 mono")
+        else:
+            ui.label("No unsaved changes are known here: the lock's current settings are written to its flash again.").classes(
+                "text-body1")
+        ui.label("Each save is counted in SavedSettings (input 101).").classes("text-caption text-grey-8")
+        with ui.row().classes("justify-end w-full"):
+            ui.button("Cancel", on_click=lambda: dialog.submit(False)).props("flat")
+            ui.button("Save to flash", icon="save", on_click=lambda: dialog.submit(True)).props("data-testid=save-confirm")
+    confirmed = await dialog
+    dialog.delete()
+    if not confirmed:
+        await refuse(name, "Save-Settings", "not confirmed", parameter="Save-Settings", new="; ".join(changes))
+        return
+    await run_command(name, lambda a: a.save_settings(), "Save-Settings", success="Settings saved to the lock's flash",
+                      parameter="Save-Settings", new="; ".join(changes) or "no unsaved changes")
 
 
 async def _restore(name: str) -> None:
@@ -237,23 +327,45 @@ def _condition_text(m: int, e: int) -> str:
     return f"checks: {_bit_names(m)}; must be set: {_bit_names(e & m) if e & m else 'none'}"
 
 
+MASK_RULE = "16-bit number, e.g. 0x010C"
+
+
+def _mask_check(text) -> str | None:
+    return None if _parse_word(text) is not None else MASK_RULE
+
+
 def _mask_inputs(prefix: str):
-    p1 = ui.input("P1 mask (hex)", value="0x0000").props(f"dense outlined data-testid={prefix}-p1").classes("w-36 mono")
-    p2 = ui.input("P2 expected (hex)", value="0x0000").props(f"dense outlined data-testid={prefix}-p2").classes("w-36 mono")
+    """P1 and P2 of section 4.3; a wrong entry stays as typed, marked with what is allowed."""
+    p1 = ui.input("P1 mask (hex)", value="0x0000", validation=_mask_check).props(
+        f"dense outlined data-testid={prefix}-p1").classes("w-44 mono")
+    p2 = ui.input("P2 expected (hex)", value="0x0000", validation=_mask_check).props(
+        f"dense outlined data-testid={prefix}-p2").classes("w-44 mono")
     return p1, p2
 
 
-def _set_address_card(name: str, state) -> None:
+async def _checked_masks(name: str, describe: str, p1, p2) -> tuple[int, int] | None:
+    """P1 and P2 as numbers, or None with the wrong field marked and the refusal audited (nothing sent)."""
+    bad = [(label, field) for label, field in (("P1", p1), ("P2", p2)) if _parse_word(field.value) is None]
+    for _, field in bad:
+        field.validate()
+    if bad:
+        await refuse(name, describe, "; ".join(f"{label} {field.value!r}: {MASK_RULE}" for label, field in bad))
+        return None
+    return _parse_word(p1.value), _parse_word(p2.value)
+
+
+def _set_address_card(name: str, state, guard: WriteGuard) -> None:
     """Set Modbus Address (command 3) with its two condition masks and a live preview."""
     with ui.card().classes("w-full"):
         ui.label("Set Modbus Address (command 3)").classes("text-subtitle1")
         ui.label("Taken only if (P1 & LockStatus) ^ P2 == 0 (section 4.3).").classes("text-caption text-grey-8")
         with ui.row().classes("items-center"):
-            new = ui.number("New address", value=None, min=1, max=254, format="%d").props("dense outlined").classes("w-32")
+            new = range_number("New address", 1, 254, integer=True).classes("w-40").props("data-testid=sa-address")
             p1, p2 = _mask_inputs("sa")
         bits = ui.label().classes("text-caption")
         preview = ui.label().classes("text-body2")
-        button = ui.button("Send Set Modbus Address", icon="pin")
+        button = ui.button("Send Set Modbus Address", icon="pin").props("data-testid=sa-send")
+        guard.add(button)
 
     def update_preview() -> None:
         m, e = _parse_word(p1.value), _parse_word(p2.value)
@@ -275,14 +387,12 @@ def _set_address_card(name: str, state) -> None:
         preview.classes(replace="text-body2 " + ("text-positive" if ok else "text-negative"))
 
     async def send() -> None:
-        m, e = _parse_word(p1.value), _parse_word(p2.value)
-        if new.value is None or not 1 <= int(new.value) <= 254:
-            ui.notify("Enter a new address 1..254", type="warning")
+        value = await checked_value(new, name, "Set Modbus Address", parameter="DeviceAddress")
+        masks = await _checked_masks(name, "Set Modbus Address", p1, p2)
+        if value is None or masks is None:
             return
-        if m is None or e is None:
-            ui.notify("P1 and P2 must be 16-bit numbers", type="warning")
-            return
-        target = int(new.value)
+        m, e = masks
+        target = int(value)
         if not await confirm(
             f"Change the Modbus address to {target}?",
             "If the condition holds the lock answers only at the new address from now on. "
@@ -301,7 +411,7 @@ def _set_address_card(name: str, state) -> None:
         element.on_value_change(update_preview)
     button.on_click(send)
     update_preview()
-    ui.timer(1.0, update_preview)
+    follow(state, update_preview)
 
 
 def _line_locks(name: str, state) -> tuple[dict[int, str], dict[str, int | None], int, int]:
@@ -326,7 +436,7 @@ def _line_locks(name: str, state) -> tuple[dict[int, str], dict[str, int | None]
     return known, statuses, in_plant, len(known) - in_plant
 
 
-def _broadcast_address_card(name: str, state) -> None:
+def _broadcast_address_card(name: str, state, guard: WriteGuard) -> None:
     """Set Modbus Address to broadcast address 255 (section 4.3): every lock on the line at once."""
     with ui.card().classes("w-full"):
         ui.label(f"Set Modbus Address on every lock of {state.bus} (broadcast 255)").classes("text-subtitle1")
@@ -335,12 +445,12 @@ def _broadcast_address_card(name: str, state) -> None:
             "(P1 & LockStatus) ^ P2 == 0 takes the new address (section 4.3)."
         ).classes("text-caption text-grey-8")
         with ui.row().classes("items-center"):
-            new = ui.number("New address", value=None, min=1, max=254, format="%d").props(
-                "dense outlined data-testid=bc-address").classes("w-32")
+            new = range_number("New address", 1, 254, integer=True).props("data-testid=bc-address").classes("w-40")
             p1, p2 = _mask_inputs("bc")
         bits = ui.label().classes("text-caption")
         known_label = ui.label().classes("text-body2").props("data-testid=bc-known")
         button = ui.button("Send to all locks (255)", icon="campaign").props("color=negative data-testid=bc-send")
+        guard.add(button)
 
     def update_preview() -> None:
         m, e = _parse_word(p1.value), _parse_word(p2.value)
@@ -358,17 +468,17 @@ def _broadcast_address_card(name: str, state) -> None:
         known_label.set_text(text)
 
     async def send() -> None:
-        m, e = _parse_word(p1.value), _parse_word(p2.value)
-        if new.value is None or not 1 <= int(new.value) <= 254:
-            ui.notify("Enter a new address 1..254", type="warning")
+        describe = "Broadcast Set Modbus Address (255)"
+        value = await checked_value(new, name, describe, parameter="DeviceAddress")
+        masks = await _checked_masks(name, describe, p1, p2)
+        if value is None or masks is None:
             return
-        if m is None or e is None:
-            ui.notify("P1 and P2 must be 16-bit numbers", type="warning")
-            return
-        target = int(new.value)
+        m, e = masks
+        target = int(value)
         known, statuses, in_plant, scanned = _line_locks(name, state)
         if target in known:
-            ui.notify(f"Address {target} is {known[target]}: choose an address no lock uses", type="warning")
+            new.error = f"address {target} is {known[target]}: choose an address no lock uses"
+            await refuse(name, describe, new.error, parameter="DeviceAddress", new=target)
             return
         takers, unknown = codec.broadcast_takers(m, e, statuses)
         if len(takers) > 1:
@@ -403,7 +513,7 @@ def _broadcast_address_card(name: str, state) -> None:
         element.on_value_change(update_preview)
     button.on_click(send)
     update_preview()
-    ui.timer(1.0, update_preview)
+    follow(state, update_preview)
 
 
 def _bus_bitrate(twin) -> int:
@@ -438,7 +548,7 @@ def _can_status_card(state):
     return refresh
 
 
-def _can_commands_card(name: str, state) -> None:
+def _can_commands_card(name: str, state, guard: WriteGuard) -> None:
     """Commands through 0x700 and Set Device Address through 0x701 (section 6.6)."""
     sources = PARAMS.by_name["LockRequestSource"].enum
     with ui.card().classes("w-full"):
@@ -446,13 +556,13 @@ def _can_commands_card(name: str, state) -> None:
         broadcast = ui.checkbox("Send to all locks on this bus (broadcast, device ID 0)")
         with ui.row().classes("items-center"):
             source = ui.select({k: f"{v} (0x{k:02X})" for k, v in sources.items()}, label="LockRequestSource").props("dense outlined options-dense").classes("w-72")
-            ui.button("Set", on_click=lambda: _send_source(name, source.value, broadcast.value)).props("dense")
+            guard.add(ui.button("Set", on_click=lambda: _send_source(name, source, broadcast.value)).props("dense"))
         with ui.row().classes("items-center"):
             rate = ui.select(
                 {k: f"{r // 1000 if r % 1000 == 0 else r / 1000:g} kbit/s" + (f" ({length})" if length else "") for k, (r, length) in codec.CAN_BITRATES.items()},
                 label="CAN bit rate",
             ).props("dense outlined options-dense").classes("w-72")
-            ui.button("Set", on_click=lambda: _send_bitrate(name, rate.value, broadcast.value)).props("dense color=negative")
+            guard.add(ui.button("Set", on_click=lambda: _send_bitrate(name, rate, broadcast.value)).props("dense color=negative"))
         ui.separator()
         ui.label("Set Device Address (0x701)").classes("text-body2 text-weight-medium")
         ui.label(
@@ -462,13 +572,15 @@ def _can_commands_card(name: str, state) -> None:
         with ui.row().classes("items-center"):
             new_id = ui.input("New device ID (dec or 0x hex)").props("dense outlined").classes("w-56")
             extended = ui.checkbox("Extended")
-            ui.button("Send", on_click=lambda: _send_device_id(name, new_id.value, extended.value)).props("dense")
+            guard.add(ui.button("Send", on_click=lambda: _send_device_id(name, new_id, extended.value)).props("dense"))
 
 
-async def _send_source(name: str, value, broadcast: bool) -> None:
+async def _send_source(name: str, field, broadcast: bool) -> None:
+    value = field.value
     if value is None:
-        ui.notify("Choose a LockRequestSource first", type="warning")
+        field.error = "choose a LockRequestSource first"
         return
+    field.error = None
     label = PARAMS.by_name["LockRequestSource"].enum[value]
     if broadcast and not await confirm("Broadcast to every lock?", f"Every lock on this bus gets LockRequestSource {label} (0x{value:02X}).", ok="Send to all"):
         return
@@ -476,10 +588,12 @@ async def _send_source(name: str, value, broadcast: bool) -> None:
                       success=f"LockRequestSource {label} sent" + (" to all locks" if broadcast else " and read back from holding 4"))
 
 
-async def _send_bitrate(name: str, code, broadcast: bool) -> None:
+async def _send_bitrate(name: str, field, broadcast: bool) -> None:
+    code = field.value
     if code is None:
-        ui.notify("Choose a bit rate first", type="warning")
+        field.error = "choose a bit rate first"
         return
+    field.error = None
     rate = codec.CAN_BITRATES[code][0]
     who = "Every lock on this bus" if broadcast else "The lock"
     if not await confirm(
@@ -492,15 +606,18 @@ async def _send_bitrate(name: str, code, broadcast: bool) -> None:
     await run_command(name, lambda a: a.set_can_bitrate(code, broadcast=broadcast), "cmdSetCANbaudrate", success=f"bit rate {rate} bit/s sent")
 
 
-async def _send_device_id(name: str, text: str, extended: bool) -> None:
+async def _send_device_id(name: str, field, extended: bool) -> None:
+    """Set Device Address (section 6.6): a wrong entry stays in the field, marked, and is audited; nothing is sent."""
+    text = field.value
     try:
         value = int(str(text).strip(), 0)
         new = codec.DeviceId.make(value, extended or None)
+        reason = "0 is the broadcast address" if value == 0 else None
     except (ValueError, codec.CodecError) as exc:
-        ui.notify(f"New device ID: {exc}" if isinstance(exc, codec.CodecError) else "Enter the new device ID as a number, e.g. 11 or 0x1A2B", type="warning")
-        return
-    if value == 0:
-        ui.notify("0 is the broadcast address", type="warning")
+        reason = str(exc) if isinstance(exc, codec.CodecError) else "a number, e.g. 11 or 0x1A2B"
+    field.error = reason
+    if reason is not None:
+        await refuse(name, "Set Device Address", f"{text!r}: {reason}", parameter="DeviceId", new=text)
         return
     if not await confirm(f"Change the device ID to {new}?", "The lock answers only under the new ID from now on. Change device_id in the plant file too.", ok="Send"):
         return

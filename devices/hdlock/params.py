@@ -10,6 +10,19 @@ from __future__ import annotations
 
 from devices.params import Access, Field, Param, ParamMap
 
+# Section 3.1 prints no unit for inputs 10, 60, 61 (elapsed times); every other time of the map is in ms (3.2): ms taken.
+ELAPSED_UNIT = "ms"
+ELAPSED_TOP = 0xFFFF  # section 3.1 does not say whether the count stops or wraps at the register's top: named, not a time
+
+
+class ElapsedParam(Param):
+    """An elapsed time of section 3.1: ms, and the register's top value named as such."""
+
+    def display(self, raw: int) -> str:
+        if raw == ELAPSED_TOP:
+            return f"{ELAPSED_TOP} {ELAPSED_UNIT} (at its top: 65.5 s or more)"
+        return super().display(raw)
+
 INPUT = "input"
 HOLDING = "holding"
 
@@ -257,10 +270,10 @@ _INPUTS: list[Param] = [
         "7 = error locking, 8 = error locking pause short, 9 = error locking pause long, "
         "10 = error locking waiting, 11 = error unlocked, 12 = error unlocking. (section 3.1)",
     ),
-    Param(
-        "StateMachineElapsed", INPUT, 10, Access.R,
+    ElapsedParam(
+        "StateMachineElapsed", INPUT, 10, Access.R, unit=ELAPSED_UNIT,
         description="Time elapsed since the last change of StateMachineState (input 9); "
-        "no unit printed. (section 3.1)",
+        "no unit printed, ms taken like the other times; 65535 = the register's top. (section 3.1)",
     ),
     Param(
         "Direction", INPUT, 11, Access.R,
@@ -344,13 +357,13 @@ _INPUTS: list[Param] = [
         "ErrVsum", INPUT, 59, Access.R,
         description="Integral part of the speed controller. (section 3.1)",
     ),
-    Param(
-        "Time since last change", INPUT, 60, Access.R,
-        description="Time elapsed since the motor state last changed; no unit printed. "
-        "(section 3.1)",
+    ElapsedParam(
+        "Time since last change", INPUT, 60, Access.R, unit=ELAPSED_UNIT,
+        description="Time elapsed since the motor state last changed; no unit printed, ms "
+        "taken like the other times; 65535 = the register's top. (section 3.1)",
     ),
-    Param(
-        "Last time since last change", INPUT, 61, Access.R,
+    ElapsedParam(
+        "Last time since last change", INPUT, 61, Access.R, unit=ELAPSED_UNIT,
         description="Previous value of 'Time since last change' (input 60; the document "
         "says 'holding register 60'). (section 3.1)",
     ),
