@@ -10,8 +10,22 @@ from app import runtime as rt
 from app.worker import DEADMAN_BOUND_S
 from devices.m3io import codec
 from devices.m3io.codec import Variant
-from pages.frame import fmt_age, fmt_time, frame, set_status_badge
-from pages.widgets import HistoryChart, Lamp, confirm, entry_age, mark_quality, quality_note, run_command
+from pages.frame import fmt_age, frame, set_status_badge
+from pages.hdlock import event_log
+from pages.widgets import (
+    HistoryChart,
+    Lamp,
+    WriteGuard,
+    checked_value,
+    confirm,
+    entry_age,
+    follow,
+    mark_quality,
+    quality_note,
+    range_number,
+    refuse,
+    run_command,
+)
 
 STATE_COLOR = {"ok": "positive", "present": "positive", "blown": "negative", "defective": "negative"}
 VARIANT_COLOR = {"ok": "text-positive", "mismatch": "text-negative text-weight-medium", "unchecked": "text-grey-8", "not possible": "text-warning"}
@@ -42,6 +56,7 @@ def content(name: str) -> None:
         return await run_command(name, action, describe, success=success, write=write)
 
     with frame(f"CAN-M3IO {name} ({adapter.variant.value})"):
+        guard = WriteGuard(state)  # switches and commands, disabled with the reason while the module does not answer
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-6 w-full"):
                 badge = ui.badge("waiting", color="grey").classes("text-body2")
@@ -76,11 +91,14 @@ def content(name: str) -> None:
                     ui.label(STOP_RULE).classes("text-caption text-grey-8")
                 refused = ui.label().classes("text-negative text-body2")
                 led = ui.switch("LED (Bereit)", on_change=lambda e: _switch(act, adapter, session, "LED", e, mains=False))
-                channel_rows = _channels(adapter, act, session) if adapter.variant is not Variant.KM else {}
+                led.props("data-output=LED")
+                guard.add(led)
+                channel_rows = _channels(adapter, act, session, guard) if adapter.variant is not Variant.KM else {}
                 if adapter.variant is Variant.HMR:
                     with ui.row().classes("items-center"):
                         p2 = ui.switch("Three-phase output loaded on two phases only (P2)",
                                        on_change=lambda e: act("P2", lambda a: a.set_two_phase(e.value)))
+                        guard.add(p2)
                         ui.label("not stored in the module: sent with every DigOut, so a reset cannot lose it").classes(
                             "text-caption text-grey-8"
                         )
@@ -103,11 +121,10 @@ def content(name: str) -> None:
         if twin is not None:
             _sim_card(twin, adapter)
         if ids.addressed:
-            _addressed_card(name, state, adapter)
+            _addressed_card(name, state, adapter, guard)
 
-        with ui.expansion("Events", icon="list").classes("w-full"):
-            events = ui.log(max_lines=200).classes("w-full h-40")
-        shown = [0.0]
+        with ui.expansion("Events", icon="list", value=True).classes("w-full"):
+            event_log(state)
 
     def update() -> None:
         set_status_badge(badge, state.status, state.age)
@@ -140,15 +157,9 @@ def content(name: str) -> None:
             quality = "unknown" if entry is None else entry["quality"]
             mark_quality(label, quality)
             temp_notes[channel].set_text(quality_note(quality, entry_age(entry)) if quality in ("stale", "offline") else "")
-        for event in state.events:
-            if event.time > shown[0]:
-                events.push(f"{fmt_time(event.time)} {event.level.upper()}: {event.text}")
-                shown[0] = event.time
 
     update()
-    ui.timer(0.5, update)
-    if chart is not None:
-        ui.timer(1.0, chart.update)
+    follow(state, update)  # on every change the store pushes (at most 10/s) and once a second for the ages
 
 
 async def _switch(act, adapter, session: str, output: str, event, mains: bool = True) -> None:
@@ -171,7 +182,7 @@ async def _switch(act, adapter, session: str, output: str, event, mains: bool = 
         event.sender.set_value(adapter.outputs[output])
 
 
-def _channels(adapter, act, session: str) -> dict:
+def _channels(adapter, act, session: str, guard: WriteGuard) -> dict:
     """One row per SSR channel (HMR: SSR1-3 as one three-phase channel)."""
     rows = {}
     groups = [("SSR1-3", [1, 2, 3])] + [(f"SSR{i}", [i]) for i in (4, 5, 6)] if adapter.variant is Variant.HMR else [
@@ -182,13 +193,16 @@ def _channels(adapter, act, session: str) -> dict:
             with ui.row().classes("items-center w-full gap-3 no-wrap") as row:
                 row.props(f'data-channel="{output}"')
                 switch = ui.switch(output, on_change=lambda e, o=output: _switch(act, adapter, session, o, e)).classes("w-32")
+                switch.props(f'data-output="{output}"')
+                guard.add(switch)
                 details = ui.column().classes("gap-1 col")
+                age = ui.label().classes("q-age")
             if output == "SSR1-3":
                 ui.label("Three-phase output: a fault on one of SSR1, SSR2, SSR3 switches all three off.").classes("text-caption text-grey-8")
 
             shown: list = [None]
 
-            def refresh(switch=switch, details=details, output=output, channels=channels, shown=shown) -> None:
+            def refresh(switch=switch, details=details, age=age, output=output, channels=channels, shown=shown) -> None:
                 switch.set_value(adapter.outputs[output])
                 owner = adapter.owners.get(output)
                 foreign = adapter.outputs[output] and owner is not None and owner != session
@@ -197,7 +211,9 @@ def _channels(adapter, act, session: str) -> dict:
                     (adapter.channels[c].load, adapter.channels[c].fuse, adapter.channels[c].triac, c in adapter.temps) for c in channels
                 ))
                 entry = adapter.state.point(f"SSR{channels[0]} Last")
-                mark_quality(details, "unknown" if entry is None else entry["quality"])
+                quality = "unknown" if entry is None else entry["quality"]
+                mark_quality(details, quality)  # greyed, with the age of its status, while stale or offline
+                age.set_text(quality_note(quality, entry_age(entry)) if quality in ("stale", "offline") else "")
                 if view == shown[0]:
                     return  # rebuild only what changed
                 shown[0] = view
@@ -256,7 +272,7 @@ def _repair(ssr) -> None:
     ssr.triac_shorted = False
 
 
-def _addressed_card(name: str, state, adapter) -> None:
+def _addressed_card(name: str, state, adapter, guard: WriteGuard) -> None:
     with ui.card().classes("w-full"):
         ui.label("Addressed data (SW1 switch 8 on)").classes("text-subtitle1")
         identity = ui.label("not read").classes("text-body2")
@@ -269,32 +285,41 @@ def _addressed_card(name: str, state, adapter) -> None:
                     f"software {info['version']} · configuration 0x{info['config']:02X}"
                 )
 
-        ui.button("Read identity", icon="badge", on_click=read_identity).props("outline dense")
+        guard.add(ui.button("Read identity", icon="badge", on_click=read_identity).props("outline dense"))
         ui.separator()
         ui.label("Customer data (15 records of 6 bytes)").classes("text-body2 text-weight-medium")
         with ui.row().classes("items-center"):
-            index = ui.number("Record", value=1, min=1, max=15, format="%d").props("dense outlined").classes("w-24")
-            data = ui.input("Bytes (hex, up to 6)", placeholder="01 02 03").props("dense outlined").classes("w-56 mono")
+            # records 1-15 of 6 bytes (section 7.2.4.2, areas 3 and 4)
+            index = range_number("Record", 1, 15, integer=True, value=1).classes("w-32").props("data-testid=record")
+            data = ui.input("Bytes (hex, up to 6)", placeholder="01 02 03", validation=_bytes_check).props(
+                "dense outlined data-testid=record-bytes").classes("w-56 mono")
             record = ui.label().classes("mono")
 
             async def read_record() -> None:
-                ok, payload = await run_command(name, lambda a: a.read_customer(int(index.value or 1)), "read customer data", write=False)
+                number = await checked_value(index, name, "read customer data", parameter="Customer data")
+                if number is None:
+                    return
+                ok, payload = await run_command(name, lambda a: a.read_customer(int(number)), "read customer data", write=False)
                 if ok:
-                    record.set_text(f"record {int(index.value)}: {payload.hex(' ')}")
+                    record.set_text(f"record {int(number)}: {payload.hex(' ')}")
 
             async def write_record() -> None:
-                try:
-                    payload = bytes.fromhex(data.value or "")
-                except ValueError:
-                    ui.notify("Enter bytes as hex, e.g. 01 02 0A", type="warning")
+                number = await checked_value(index, name, "write customer data", parameter="Customer data")
+                reason = _bytes_check(data.value)
+                if reason is not None:
+                    data.validate()
+                    await refuse(name, "write customer data", f"{data.value!r}: {reason}", parameter="Customer data", new=data.value)
+                if number is None or reason is not None:
                     return
-                ok, stored = await run_command(name, lambda a: a.write_customer(int(index.value or 1), payload), "write customer data",
-                                               success="written and verified")
+                payload = bytes.fromhex(data.value or "")
+                ok, stored = await run_command(name, lambda a: a.write_customer(int(number), payload), "write customer data",
+                                               success="written and verified", parameter=f"Customer data {int(number)}",
+                                               new=payload.hex(" "))
                 if ok:
-                    record.set_text(f"record {int(index.value)}: {stored.hex(' ')} (verified)")
+                    record.set_text(f"record {int(number)}: {stored.hex(' ')} (verified)")
 
-            ui.button("Read", on_click=read_record).props("outline dense")
-            ui.button("Write", on_click=write_record).props("dense")
+            guard.add(ui.button("Read", on_click=read_record).props("outline dense"),
+                      ui.button("Write", on_click=write_record).props("dense data-testid=record-write"))
         ui.separator()
         loads = ui.label().classes("text-body2 mono")
 
@@ -305,4 +330,13 @@ def _addressed_card(name: str, state, adapter) -> None:
                     f"SSR{i}: {w.text()} load {int(w.load)} triac {int(w.triac)} fuse {int(w.fuse)}" for i, w in result.items()
                 ))
 
-        ui.button("Read actual load data SSR1-6", on_click=read_loads).props("outline dense")
+        guard.add(ui.button("Read actual load data SSR1-6", on_click=read_loads).props("outline dense"))
+
+
+def _bytes_check(text) -> str | None:
+    """Customer data: up to 6 bytes as hex (section 7.2.4.2: 6 data bytes per record)."""
+    try:
+        payload = bytes.fromhex(text or "")
+    except ValueError:
+        return "bytes as hex, e.g. 01 02 0A"
+    return None if len(payload) <= 6 else f"at most 6 bytes ({len(payload)} entered)"
