@@ -1,27 +1,23 @@
 """The bus monitor in a real browser (Debian's chromium through playwright) on the app as a subprocess.
 
 The app runs the demo plant with its Modbus line on a free port and its CAN bus on a
-virtual channel of its own; recordings go to the test's temporary folder.
-Screenshots land in ``/tmp/commission-shots``.
+virtual channel of its own; recordings and screenshots go to the test's temporary folder.
 """
 
 from __future__ import annotations
 
 import re
-import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 import can
 import pytest
+from conftest import CHROMIUM, inside_viewport
 from webutil import demo_plant_text, free_port, start_app, stop_app, wait_http
 
 pytest.importorskip("playwright")
-from playwright.sync_api import Browser, Page, expect, sync_playwright
-
-CHROMIUM = Path("/usr/bin/chromium")
-SHOTS = Path("/tmp/commission-shots")
+from playwright.sync_api import Browser, Page, expect
 GATE1 = "0x000A1284 (ext)"  # demo plant gate-1: extended device ID 660100
 GATE2 = "0x00B"  # demo plant gate-2: standard device ID 11
 
@@ -54,25 +50,32 @@ def app_url(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
         print(log.read_text(errors="replace")[-3000:])
 
 
-@pytest.fixture
-def browser() -> Iterator[Browser]:
-    with sync_playwright() as p:
-        browser = p.chromium.launch(
-            executable_path=str(CHROMIUM), args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
-        )
-        try:
-            yield browser
-        finally:
-            browser.close()
+def count_cell(page: Page, can_id: str):
+    row = page.locator("[data-monitor=overwrite] tbody tr").filter(has=page.locator("td", has_text=re.compile(rf"^{re.escape(can_id)}$")))
+    return row.locator("td").nth(3)  # ID, Dir, Device, Count
 
 
 def count_of(page: Page, can_id: str) -> int:
-    row = page.locator("[data-monitor=overwrite] tbody tr").filter(has=page.locator("td", has_text=re.compile(rf"^{re.escape(can_id)}$")))
-    return int(row.locator("td").nth(3).inner_text().strip())  # ID, Dir, Device, Count
+    return int(count_cell(page, can_id).inner_text().strip())
 
 
-def test_can_monitor_in_browser(app_url: str, browser: Browser, tmp_path: Path):
-    page = browser.new_page(viewport={"width": 1500, "height": 1150}, accept_downloads=True)
+def wait_count_grows(page: Page, can_id: str) -> None:
+    """Wait until the overwrite view's count of ``can_id`` is above what it shows now."""
+    before = count_of(page, can_id)
+    expect(count_cell(page, can_id)).not_to_have_text(re.compile(rf"^\s*{before}\s*$"), timeout=6_000)
+    assert count_of(page, can_id) > before
+
+
+# the live frame table shows only rows whose ID cell (Time, Dir, ID, ...) is the argument, and at least one
+ONLY_ID_JS = r"""id => { const cells = [...document.querySelectorAll('[data-monitor=frames] tbody tr td:nth-child(3)')];
+    return cells.length > 0 && cells.every(c => c.innerText.trim() === id); }"""
+# the record status: recording for at least 2 s (two status frames of each lock, section "alle 1000 ms") and 3 frames
+RECORDED_JS = r"""() => { const m = /: (\d+\.\d) s, (\d+) frames/.exec(document.querySelector('[data-monitor=record-status]').innerText);
+    return m !== null && parseFloat(m[1]) >= 2.0 && parseInt(m[2]) >= 3; }"""
+
+
+def test_can_monitor_in_browser(app_url: str, chromium: Browser, tmp_path: Path):
+    page = chromium.new_page(viewport={"width": 1500, "height": 1150}, accept_downloads=True)
     page.set_default_timeout(15_000)
     page.goto(f"{app_url}/monitor/can1")
     expect(page.get_by_text("Bus monitor can1")).to_be_visible()
@@ -88,26 +91,21 @@ def test_can_monitor_in_browser(app_url: str, browser: Browser, tmp_path: Path):
     overwrite = page.locator("[data-monitor=overwrite] tbody tr")
     expect(overwrite.filter(has_text=GATE1).first).to_be_visible()
     expect(overwrite.filter(has_text=GATE2).first).to_be_visible()
-    first = count_of(page, GATE1)
-    deadline = time.monotonic() + 6
-    while count_of(page, GATE1) <= first and time.monotonic() < deadline:
-        time.sleep(0.2)
-    assert count_of(page, GATE1) > first
+    wait_count_grows(page, GATE1)
     assert overwrite.filter(has_text=GATE1).first.locator(".byte").count() in (6, 8)  # status or register answer
 
     # ID range filter: only gate-2 (0x00B)
     page.get_by_label("ID from (hex)").fill("B")
     page.get_by_label("ID to (hex)").fill("B")
     expect(frames.first).to_contain_text(GATE2)
-    time.sleep(0.8)
+    page.wait_for_function(ONLY_ID_JS, arg=GATE2)
     ids = frames.locator("td:nth-child(3)").all_inner_texts()
     assert ids and set(ids) == {GATE2}, set(ids)
     page.get_by_label("ID from (hex)").fill("")
     page.get_by_label("ID to (hex)").fill("")
     expect(frames.filter(has_text=GATE1).first).to_be_visible()
-    time.sleep(1.0)
-    SHOTS.mkdir(parents=True, exist_ok=True)
-    page.screenshot(path=str(SHOTS / "monitor.png"))
+    expect(frames.filter(has_text=GATE2).first).to_be_visible()
+    page.screenshot(path=str(tmp_path / "monitor.png"))
 
     # record in .blf for a few seconds, download it
     page.get_by_label("Format").click()
@@ -115,7 +113,7 @@ def test_can_monitor_in_browser(app_url: str, browser: Browser, tmp_path: Path):
     page.get_by_role("button", name="Record", exact=True).click()
     status = page.locator("[data-monitor=record-status]")
     expect(status).to_contain_text(re.compile(r"recording can1-.*\.blf: .* s, \d+ frames"))
-    time.sleep(2.5)
+    page.wait_for_function(RECORDED_JS)
     page.get_by_role("button", name="Stop", exact=True).click()
     expect(page.get_by_text(re.compile(r"Saved \d+ frames to can1-.*\.blf"))).to_be_visible()
     recordings = sorted((tmp_path / "recordings").glob("can1-*.blf"))
@@ -141,7 +139,8 @@ def test_can_monitor_in_browser(app_url: str, browser: Browser, tmp_path: Path):
     file_rows = page.locator("[data-monitor=file-frames] tbody tr")
     expect(file_rows.first.locator("td").first).to_have_text("0.000")
     assert file_rows.count() == min(200, len(messages))
-    decoded = file_rows.locator("td:nth-child(7)").all_inner_texts()  # Time, Dir, ID, Device, DLC, Data, Decoded
+    headers = [h.strip() for h in page.locator("[data-monitor=file-frames] thead th").all_inner_texts()]
+    decoded = file_rows.locator(f"td:nth-child({headers.index('Decoded') + 1})").all_inner_texts()
     assert decoded and all(d.startswith("HD-Lock") for d in decoded), [d for d in decoded if not d.startswith("HD-Lock")][:3]
     # a register read burst can fill a page: look for the locks' status page by page
     pages = -(-len(messages) // 200)
@@ -151,40 +150,34 @@ def test_can_monitor_in_browser(app_url: str, browser: Browser, tmp_path: Path):
         page.locator("[data-monitor=file-pages] button", has_text=re.compile(rf"^{number}$")).click()
         expect(file_rows.first.locator("td").first).not_to_have_text("0.000")
     expect(file_rows.filter(has_text="HD-Lock Status").first).to_be_visible()
-    page.screenshot(path=str(SHOTS / "monitor-file.png"))
+    page.screenshot(path=str(tmp_path / "monitor-file.png"))
 
     # a broken file: a message, and the page still works
     broken = tmp_path / "broken.blf"
     broken.write_bytes(b"this is not a BLF file" * 20)
     upload_input.set_input_files(str(broken))
-    expect(page.get_by_text("broken.blf: cannot open as .blf file")).to_be_visible()
+    expect(page.locator("[data-monitor=file-info]")).to_contain_text("broken.blf: cannot open as .blf file")
     page.get_by_role("tab", name="Live").click()
-    before = count_of(page, GATE2)
-    deadline = time.monotonic() + 6
-    while count_of(page, GATE2) <= before and time.monotonic() < deadline:
-        time.sleep(0.2)
-    assert count_of(page, GATE2) > before
+    wait_count_grows(page, GATE2)
     page.close()
 
 
-def test_modbus_monitor_in_browser(app_url: str, browser: Browser):
-    page = browser.new_page(viewport={"width": 1500, "height": 900})
+def test_modbus_monitor_in_browser(app_url: str, chromium: Browser, tmp_path: Path):
+    page = chromium.new_page(viewport={"width": 1500, "height": 900})
     page.set_default_timeout(15_000)
     page.goto(f"{app_url}/monitor/line1")
     expect(page.get_by_text("Bus monitor line1")).to_be_visible()
     rows = page.locator(".q-table tbody tr")
     expect(rows.filter(has_text="read ").first).to_be_visible()
     expect(page.get_by_text(re.compile(r"\d+ transactions buffered"))).to_be_visible()
-    SHOTS.mkdir(parents=True, exist_ok=True)
-    page.screenshot(path=str(SHOTS / "monitor-line1.png"))
+    page.screenshot(path=str(tmp_path / "monitor-line1.png"))
     page.close()
 
 
-def test_monitor_names_devices_and_decodes_values_in_browser(app_url: str, browser: Browser):
+def test_monitor_names_devices_and_decodes_values_in_browser(app_url: str, chromium: Browser, tmp_path: Path):
     """Decoded columns by name with signed values, and the Device column, on a CAN bus with locks,
     a CAN bus with M3IO modules and the Modbus line; screenshots at 1440x900 and 1024x768."""
-    SHOTS.mkdir(parents=True, exist_ok=True)
-    page = browser.new_page(viewport={"width": 1440, "height": 900})
+    page = chromium.new_page(viewport={"width": 1440, "height": 900})
     page.set_default_timeout(15_000)
     page.goto(f"{app_url}/monitor/can1")
     frames = page.locator("[data-monitor=frames] tbody tr")
@@ -193,21 +186,25 @@ def test_monitor_names_devices_and_decodes_values_in_browser(app_url: str, brows
     assert answer.locator("td").nth(3).inner_text().strip() in ("gate-1", "gate-2")
     gate1 = page.locator("[data-monitor=overwrite] tbody tr").filter(has_text=GATE1).first
     expect(gate1.locator("td").nth(2)).to_have_text("gate-1")
-    page.screenshot(path=str(SHOTS / "monitor-names-1440.png"))
+    page.screenshot(path=str(tmp_path / "monitor-names-1440.png"))
     page.set_viewport_size({"width": 1024, "height": 768})
-    page.screenshot(path=str(SHOTS / "monitor-names-1024.png"))
+    answer.scroll_into_view_if_needed()
+    inside_viewport(page, answer.locator("td").nth(3))  # the Device column is on screen at 1024 px
+    page.screenshot(path=str(tmp_path / "monitor-names-1024.png"))
 
     page.set_viewport_size({"width": 1440, "height": 900})
     page.goto(f"{app_url}/monitor/can3")
     temps = page.locator("[data-monitor=frames] tbody tr").filter(has_text=re.compile(r"M3IO TEMP1 \d+\.\d °C · SSR1"))
     expect(temps.first).to_be_visible()
     assert {temps.nth(i).locator("td").nth(3).inner_text().strip() for i in range(min(4, temps.count()))} <= {"heater-hm", "heater-hmr"}
-    page.screenshot(path=str(SHOTS / "monitor-m3io-1440.png"))
+    page.screenshot(path=str(tmp_path / "monitor-m3io-1440.png"))
 
     page.goto(f"{app_url}/monitor/line1")
     rows = page.locator(".q-table tbody tr")
-    expect(rows.filter(has_text="door-1 (unit 1)").filter(has_text="SettingsProximityThresholdLock = -60").first).to_be_visible()
-    page.screenshot(path=str(SHOTS / "monitor-line1-1440.png"))
+    named = rows.filter(has_text="door-1 (unit 1)").filter(has_text="SettingsProximityThresholdLock = -60").first
+    expect(named).to_be_visible()
+    page.screenshot(path=str(tmp_path / "monitor-line1-1440.png"))
     page.set_viewport_size({"width": 1024, "height": 768})
-    page.screenshot(path=str(SHOTS / "monitor-line1-1024.png"))
+    expect(named).to_be_visible()
+    page.screenshot(path=str(tmp_path / "monitor-line1-1024.png"))
     page.close()
