@@ -135,11 +135,11 @@ async def test_overload_trips_and_clears(lift):
     await adapter.take_control("s1", "engineer")
     adapter.set_command("s1", 200.0, 32.0, 3.0)
     adapter.go("s1")
-    await asyncio.sleep(0.5)
+    assert await wait_for(lambda: state.info["motion"] & 1 and (adapter.position_mm() or 0) > 1.0, timeout=3)  # extending
     twin.set_load(4.0)  # 0.8 A no-load + 4 A > 3 A limit
     assert await wait_for(lambda: state.info["errors"] & 0x02, timeout=2)
     stopped = adapter.position_mm()
-    await asyncio.sleep(0.3)
+    await asyncio.sleep(0.3)  # three status periods (0x07 every 100 ms) with the overload flag set
     assert abs(adapter.position_mm() - stopped) < 0.3  # no motion while set
     twin.set_load(0.0)
     adapter.stop("s1")  # dropping the enable bit clears it
@@ -151,7 +151,7 @@ async def test_overload_cleared_by_moving_back(lift):
     await adapter.take_control("s1", "engineer")
     adapter.set_command("s1", 200.0, 32.0, 3.0)
     adapter.go("s1")
-    await asyncio.sleep(0.4)
+    assert await wait_for(lambda: state.info["motion"] & 1 and (adapter.position_mm() or 0) > 1.0, timeout=3)  # extending
     twin.set_load(4.0)
     assert await wait_for(lambda: state.info["errors"] & 0x02, timeout=2)
     twin.set_load(0.0)
@@ -165,11 +165,11 @@ async def test_timeout_flag_when_control_stops(lift):
     assert await wait_for(lambda: not state.info["errors"] & 0x20, timeout=2)
     adapter.set_command("s1", 250.0, 20.0, 0)
     adapter.go("s1")
-    await asyncio.sleep(0.4)
+    assert await wait_for(lambda: state.info["motion"] & 1, timeout=2)  # extending
     runtime.worker.can_buses["can2"].stop_cyclic(adapter.key)  # the keep-alive dies
     assert await wait_for(lambda: state.info["errors"] & 0x20, timeout=1)
     moving_at = adapter.position_mm()
-    await asyncio.sleep(0.4)
+    await asyncio.sleep(0.4)  # four status periods (0x07 every 100 ms) after the 250 ms message timeout
     assert abs(adapter.position_mm() - moving_at) < 0.5  # motion stopped
 
 
@@ -178,7 +178,7 @@ async def test_release_sends_enable_cleared_and_stops_keepalive(lift):
     await adapter.take_control("browser-1", "engineer")
     adapter.set_command("browser-1", 250.0, 20.0, 0)
     adapter.go("browser-1")
-    await asyncio.sleep(0.3)
+    assert await wait_for(lambda: state.info["motion"] & 1, timeout=2)  # extending
     assert adapter.release_control("browser-1", "released: the controlling browser disconnected")
     assert not runtime.worker.can_buses["can2"].cyclic_running(adapter.key)
     assert await wait_for(lambda: twin.control is not None and not twin.control.enable, timeout=1)
@@ -206,7 +206,7 @@ async def test_parameter_flag_for_bad_values(lift):
     bus = runtime.worker.can_buses["can2"]
     for _ in range(5):  # another master on the bus sends 99 mm/s, outside B026's 6..32 mm/s
         bus.send(codec.CONTROL_ID, codec.ControlFrame(100, 0, 99, enable=True).encode())
-        await asyncio.sleep(0.05)
+        await asyncio.sleep(0.05)  # a master repeating its control telegram (the document: every 100 ms)
     assert await wait_for(lambda: state.info["errors"] & 0x01, timeout=1)
 
 
