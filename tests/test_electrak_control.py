@@ -37,7 +37,7 @@ async def test_take_control_is_refused_while_a_manual_line_sends(lift):  # noqa:
         await adapter.take_control("s1", "engineer")
     assert adapter.controller is None
     twin.set_manual_line(0)
-    await asyncio.sleep(codec.LISTEN_S + 0.1)
+    await asyncio.sleep(codec.LISTEN_S + 0.1)  # "CAN-Steuerung": three 100 ms control periods without 0x06 mean no other master
     await adapter.take_control("s1", "engineer")
     assert adapter.controller is not None
 
@@ -45,7 +45,7 @@ async def test_take_control_is_refused_while_a_manual_line_sends(lift):  # noqa:
 async def test_take_control_is_refused_while_a_plc_sends(lift):  # noqa: F811
     runtime, adapter, _state, _twin = lift
     task = asyncio.create_task(plc(runtime, codec.ControlFrame(10, 0, 20), 1.0))
-    await asyncio.sleep(0.05)  # a PLC that has just started: one frame so far
+    await asyncio.sleep(0.05)  # a PLC that has just started: one frame so far, half of its 100 ms control period
     try:
         with pytest.raises(ForeignControl, match="PLC"):
             await adapter.take_control("s1", "engineer")
@@ -102,7 +102,7 @@ async def test_session_lost_stops_at_once(lift):  # noqa: F811
     assert await wait_for(lambda: twin.control is not None and not twin.control.enable, timeout=0.5)
     assert loop.time() - lost < 0.2  # sent at once, not at the next cycle
     stopped = [a.position_mm for a in twin.actuators]
-    await asyncio.sleep(0.3)
+    await asyncio.sleep(0.3)  # three status periods (0x07 every 100 ms): standing still
     assert [a.position_mm for a in twin.actuators] == stopped
     assert any("stopped confirming" in e.text for e in state.events)
 
@@ -113,7 +113,7 @@ async def test_worker_trips_a_silent_session_within_the_bound():
     try:
         await adapter.take_control("alive", "engineer")
         adapter.jog("alive", +1)
-        await asyncio.sleep(0.6)  # the beating session keeps its jog
+        await asyncio.sleep(0.6)  # the beating session keeps its jog longer than app.worker.DEADMAN_BOUND_S (0.5 s)
         assert adapter.command.enable and adapter.controller is not None
         beating.cancel()  # the browser freezes
         loop = asyncio.get_running_loop()

@@ -248,7 +248,7 @@ async def test_bitrate_is_read_back_and_saved_then_applies_at_power_up(lift):  #
     assert await adapter.write_param(BIT_RATE, 3, confirmed=True) == 3
     assert [f for f in sent_service(runtime) if f.startswith("00 04")] == ["00 04 01 00 00 00 00 00"]  # read back
     assert BIT_RATE.key in state.unsaved and state.info["bitrate_change"]["raw"] == 3
-    await asyncio.sleep(0.3)
+    await asyncio.sleep(0.3)  # three status periods (0x07 every 100 ms) at the old bit rate
     assert state.info["heard"] == 2  # still on this bus until they are powered up again
     await adapter.save_parameters()
     assert not state.unsaved and state.info["bitrate_change"]["saved"]
@@ -262,7 +262,7 @@ async def test_unsaved_bitrate_is_lost_at_power_up(lift):  # noqa: F811
     _runtime, adapter, state, twin = lift
     await adapter.write_param(BIT_RATE, 4, confirmed=True)
     twin.power_cycle()
-    await asyncio.sleep(0.3)
+    await asyncio.sleep(0.3)  # three status periods (0x07 every 100 ms) after the power-up: both still heard
     assert state.info["heard"] == 2 and all(a.bitrate == 500_000 for a in twin.actuators)
 
 
