@@ -23,7 +23,10 @@ def evaluate_tile(state) -> dict:
     """The device type's declared tile, evaluated against the device's live points (quality and age included)."""
     now = time.time()
     # only the values the tile declares: registers and published points alike, each with its quality
-    return DEVICE_TYPES[state.type].tile.evaluate(lambda name: state.entry(name, now), now)
+    tile = DEVICE_TYPES[state.type].tile.evaluate(lambda name: state.entry(name, now), now)
+    if tile["quality"] == "unknown" and state.online is False:  # never heard and given up on: offline, not "waiting"
+        tile["quality"] = "offline"
+    return tile
 
 
 # Tiles of equal width; four columns on a 1024 px wide tablet, three on 768 px: the demo plant's ten tiles fit 1024x768.
@@ -47,7 +50,7 @@ TILE_CSS = """
 # when the tiles do not fit the screen, say so (the page scrolls; the note names how many are below); runs in the browser
 MORE_JS = """<script>
 (() => { const mark = () => { const more = document.querySelector('.plant-more'); if (!more) return;
-  const below = [...document.querySelectorAll('[data-plant-tile]')].filter(t => t.getBoundingClientRect().top > window.innerHeight - 20).length;
+  const below = [...document.querySelectorAll('[data-plant-tile]')].filter(t => t.getBoundingClientRect().bottom > window.innerHeight + 1).length;
   more.textContent = below ? `${below} more below: scroll down` : ''; more.style.display = below ? '' : 'none'; };
   window.addEventListener('resize', mark); window.addEventListener('scroll', mark); setInterval(mark, 2000); })();
 </script>"""
@@ -115,7 +118,9 @@ class PlantTile:
         if self._changed("badge", quality):
             self.status.set_text(text)
             self.status.props(f"color={color}")
-        self.age_note.set_text(AGE_NOTE[quality].format(age=fmt_age(tile["age"])) if quality in AGE_NOTE else "")
+        age = tile["age"]
+        note = "" if quality not in AGE_NOTE else f"{quality}: never heard" if age is None else AGE_NOTE[quality].format(age=fmt_age(age))
+        self.age_note.set_text(note)
         if self._changed("icon", tile["icon"]):
             self.icon.name = tile["icon"]
             self.icon.update()
