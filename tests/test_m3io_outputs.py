@@ -98,7 +98,8 @@ async def test_worker_switches_off_when_the_owner_stops_confirming(module):
     beats = {s: asyncio.create_task(_beat(worker, s, last)) for s in (TAB_A, TAB_B)}
     try:
         adapter.set_output(TAB_A, "SSR1", True)
-        await asyncio.sleep(1.0)  # confirmed alive: stays on
+        assert await wait_for(lambda: twin.ssr[1].on, timeout=2)
+        await asyncio.sleep(1.0)  # confirmed alive: stays on for twice app.worker.DEADMAN_BOUND_S (0.5 s)
         assert twin.ssr[1].on and adapter.outputs["SSR1"]
         beats.pop(TAB_A).cancel()  # the tab freezes
         assert await wait_for(lambda: not twin.ssr[1].on, timeout=2, interval=0.005)
