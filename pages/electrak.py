@@ -16,7 +16,21 @@ from devices.electrak import codec
 from devices.electrak.adapter import FOREIGN_SENDER, SERIES
 from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, password_of, refusal
 from pages.frame import fmt_age, fmt_time, frame, set_status_badge
-from pages.widgets import HistoryChart, Lamp, LiveValue, run_command, write_from_page
+from pages.hdlock import event_log
+from pages.widgets import (
+    HistoryChart,
+    Lamp,
+    LiveValue,
+    WriteGuard,
+    checked_value,
+    follow,
+    mark_quality,
+    quality_note,
+    range_number,
+    refuse,
+    run_command,
+    write_from_page,
+)
 
 WINDOW_S = 60
 
@@ -34,7 +48,15 @@ def content(name: str) -> None:
             result = fn(a)
             return await result if inspect.isawaitable(result) else result
 
-        return await run_command(name, action, describe, success=success, write=write)
+        result = await run_command(name, action, describe, success=success, write=write)
+        refresh_now()  # what the command changed (control, enable) is shown at once, not at the next push
+        return result
+
+    def refresh_now() -> None:
+        if updater:
+            updater[0]()
+
+    updater: list = []
 
     def release_on_disconnect() -> None:  # second line of defence; the worker's dead-man rule is the first
         adapter.session_lost(session, "the controlling browser disconnected")
@@ -43,17 +65,14 @@ def content(name: str) -> None:
     client.on_delete(release_on_disconnect)
 
     with frame(f"Electrak HD network {name}"):
+        guard = WriteGuard(state)  # write and motion-start controls, disabled with the reason while the network is silent
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-6 w-full"):
                 badge = ui.badge("waiting", color="grey").classes("text-body2")
                 heard = ui.label().classes("text-body2")
                 seen = ui.label().classes("text-body2")
                 counters = ui.label().classes("text-caption mono text-grey-8")
-            with ui.row().classes("items-baseline gap-6"):
-                live_values = [
-                    LiveValue(state, point, lambda e, title=title: f"{title} {e['value']:g} {e['unit']} ({e['text']})")
-                    for point, title in (("Position", "position"), ("Current", "current"), ("Speed", "speed"))
-                ]
+            _numbers_grid(state, len(adapter.actuators))
             heard_warning = ui.label().classes("text-warning text-body2")
             saturated_warning = ui.label().classes("text-warning text-body2").props("data-testid=saturated-warning")
             limits = adapter.limits
@@ -91,21 +110,25 @@ def content(name: str) -> None:
                 target_trace = charts[0].figure["data"][1]
                 target_trace["line"] = {"dash": "dash", "color": "#c10015"}
                 target_trace["mode"] = "lines"
+                for chart in charts:  # room under the time axis for its date line ("Nov 22, 2026"), never clipped
+                    chart.figure["layout"]["margin"]["b"] = 48
+                    chart.plot.update()
             with ui.column().classes("col gap-4"):
-                controls = _control_card(adapter, session, act)
+                controls = _control_card(name, adapter, session, act, guard)
                 if twin is not None:
                     _sim_card(twin)
 
-        service_refresh = _service_card(name, state, adapter)
-        bitrate_refresh = _bitrate_card(name, state, adapter, runtime)
+        service_refresh = _service_card(name, state, adapter, guard)
+        bitrate_refresh = _bitrate_card(name, state, adapter, runtime, guard)
 
-        with ui.expansion("Events", icon="list").classes("w-full"):
-            events = ui.log(max_lines=200).classes("w-full h-40")
-        shown = [0.0]
+        with ui.expansion("Events", icon="list", value=True).classes("w-full"):
+            event_log(state)  # state changes, faults rising and clearing, offline and back, commands; newest first
 
-    with ui.page_sticky(position="bottom-right", x_offset=24, y_offset=24):
+    # the big STOP in a bar of its own: the page reserves its height, so it never covers a button of the page
+    with ui.footer().classes("bg-grey-2 q-py-xs q-px-md items-center justify-end gap-4").props("bordered data-testid=stop-bar"):
+        ui.label("Clears enable at once; anyone may stop, also without control.").classes("text-caption text-grey-8")
         ui.button("STOP", icon="stop_circle", color="negative", on_click=lambda: act("stop", lambda a: a.stop(session), write=False)).props(
-            "size=xl push data-testid=big-stop"
+            "size=lg push data-testid=big-stop"
         ).classes("text-h6")
 
     def online_now() -> bool:
@@ -130,28 +153,23 @@ def content(name: str) -> None:
             lamp.show(state.point(codec.MOTION_FLAGS[bit][0]))
         for bit, lamp in error_lamps.items():
             lamp.show(state.point(codec.ERROR_FLAGS[bit][0]))
-        for live in live_values:
-            live.update()
-        fault_text.clear()
-        with fault_text:
-            for bit, (fault, _text, clears) in codec.ERROR_FLAGS.items():
-                if online and info.get("errors", 0) >> bit & 1:
+        faults = tuple(bit for bit in codec.ERROR_FLAGS if online and info.get("errors", 0) >> bit & 1)
+        if faults != shown_faults[0]:  # rebuilt only when the faults change
+            shown_faults[0] = faults
+            fault_text.clear()
+            with fault_text:
+                for bit in faults:
+                    fault, _text, clears = codec.ERROR_FLAGS[bit]
                     ui.label(f"{fault}: clears: {clears}").classes("text-negative text-body2")
+        guard.update()
         controls()
         service_refresh()
         bitrate_refresh()
-        for event in state.events:
-            if event.time > shown[0]:
-                events.push(f"{fmt_time(event.time)} {event.level.upper()}: {event.text}")
-                shown[0] = event.time
 
-    def update_charts() -> None:
-        for chart in charts:
-            chart.update()
-
+    shown_faults: list = [None]
+    updater.append(update)
     update()
-    ui.timer(0.5, update)
-    ui.timer(0.5, update_charts)
+    follow(state, update)  # on every change the store pushes (at most 10/s) and once a second for the ages
 
 
 def _stop_rule() -> str:
@@ -162,7 +180,7 @@ def _stop_rule() -> str:
     )
 
 
-def _control_card(adapter, session: str, act):
+def _control_card(name: str, adapter, session: str, act, guard: WriteGuard):
     limits = adapter.limits
     with ui.card().classes("w-full"):
         ui.label("Drive the network").classes("text-subtitle1")
@@ -174,17 +192,26 @@ def _control_card(adapter, session: str, act):
             take.tooltip(f"Listens {codec.LISTEN_S:g} s for another sender of 0x06 first ({FOREIGN_SENDER}); refused if there is one")
             release = ui.button("Release", icon="logout",
                                 on_click=lambda: act("release control", lambda a: a.release_control(session), write=False)).props("outline")
-        position = ui.number(f"Target position [mm] 0..{limits.stroke_mm:g}", value=0.0, min=0, max=limits.stroke_mm, step=0.1, format="%.1f").props("dense outlined data-testid=target").classes("w-full")
-        speed = ui.number(f"Speed [mm/s] {limits.speed_min:g}..{limits.speed_max:g}", value=limits.speed_max, min=limits.speed_min, max=limits.speed_max, step=0.1, format="%.1f").props("dense outlined").classes("w-full")
-        current = ui.number(f"Current limit [A] 0..{limits.current_a:g} (0 = calibrated)", value=0.0, min=0, max=limits.current_a, step=0.1, format="%.1f").props("dense outlined").classes("w-full")
+        # the ranges every actuator of the network accepts (codec.Limits: model, gearing, stroke): kept as typed, never clamped
+        position = range_number("Target position [mm]", 0, limits.stroke_mm, unit="mm", value=0.0, step=0.1, fmt="%.1f") \
+            .props("data-testid=target").classes("w-full")
+        speed = range_number("Speed [mm/s]", limits.speed_min, limits.speed_max, unit="mm/s", value=limits.speed_max, step=0.1,
+                             fmt="%.1f").props("data-testid=speed").classes("w-full")
+        current = range_number("Current limit [A] (0 = calibrated)", 0, limits.current_a, unit="A", value=0.0, step=0.1,
+                               fmt="%.1f").props("data-testid=current-limit").classes("w-full")
+
+        async def entries(describe: str) -> tuple[float, float, float] | None:
+            """Target, speed and limit as typed, or None: each bad one marked with its range, refused in the audit log."""
+            values = [await checked_value(field, name, describe, parameter=parameter) for field, parameter in
+                      ((position, "Target position"), (speed, "Target speed"), (current, "Current limit"))]
+            return None if None in values else (float(values[0]), float(values[1]), float(values[2]))
 
         async def apply() -> bool:
-            values = (position.value, speed.value, current.value)
-            if None in values:
-                ui.notify("Fill in target, speed and current limit", type="warning")
+            values = await entries("set target")
+            if values is None:
                 return False
             ok, _ = await act(f"set target: position {values[0]:g} mm, speed {values[1]:g} mm/s, current limit {values[2]:g} A"
-                              + (" (calibrated)" if not values[2] else ""), lambda a: a.set_command(session, float(values[0]), float(values[1]), float(values[2])))
+                              + (" (calibrated)" if not values[2] else ""), lambda a: a.set_command(session, *values))
             return ok
 
         async def go() -> None:
@@ -193,9 +220,10 @@ def _control_card(adapter, session: str, act):
                           f"current limit {adapter.command.current_a:g} A", lambda a: a.go(session))
 
         with ui.row():
-            ui.button("Apply", on_click=apply).props("outline")
+            apply_button = ui.button("Apply", on_click=apply).props("outline data-testid=apply")
             go_button = ui.button("Go", icon="play_arrow", color="positive", on_click=go).props("data-testid=go")
-            ui.button("Stop", icon="stop", color="negative", on_click=lambda: act("stop", lambda a: a.stop(session), write=False))
+            ui.button("Stop", icon="stop", color="negative", on_click=lambda: act("stop", lambda a: a.stop(session), write=False)) \
+                .props("data-testid=stop")
         ui.label("Jog (hold to run, stops when released)").classes("text-caption text-grey-8")
         with ui.row():
             jog_in = ui.button("In", icon="keyboard_double_arrow_left").props("outline data-testid=jog-in")
@@ -203,8 +231,14 @@ def _control_card(adapter, session: str, act):
             reset = ui.button("Override/reset").props("flat")
 
         def jog_start(direction: int):
-            return lambda: act(f"jog {'out' if direction > 0 else 'in'}: speed {speed.value} mm/s, "
-                           f"current limit {adapter.command.current_a:g} A", lambda a: a.jog(session, direction, speed.value))
+            async def start() -> None:
+                describe = f"jog {'out' if direction > 0 else 'in'}"
+                value = await checked_value(speed, name, describe, parameter="Target speed")
+                if value is None:
+                    return
+                await act(f"{describe}: speed {value:g} mm/s, current limit {adapter.command.current_a:g} A",
+                          lambda a: a.jog(session, direction, float(value)))
+            return start
 
         def jog_stop(a) -> None:
             if a.controller is not None and a.controller.session == session and a.command.enable:
@@ -237,10 +271,11 @@ def _control_card(adapter, session: str, act):
                              f"{other['text']} · {other['frames']} frames. Take control is refused while it sends.")
         else:
             foreign.set_text("")
-        take.set_enabled(c is None)
-        release.set_enabled(mine)
-        for element in (go_button, jog_in, jog_out, reset):
-            element.set_enabled(mine)
+        offline = guard.reason  # motion and writes wait for a network that answers; the stops never do
+        gate(take, offline or ("" if c is None else "you hold control" if mine else "another browser holds control"))
+        gate(release, "" if mine else "you do not hold control")
+        for element in (apply_button, go_button, jog_in, jog_out, reset):
+            gate(element, offline or ("" if mine else "take control first"))
         cmd = adapter.command
         sent.set_text(f"0x006: {cmd.encode().hex(' ').upper()} (target {cmd.position_mm:g} mm, {cmd.speed_mm_s:g} mm/s, "
                       f"{cmd.current_a:g} A, {'enable' if cmd.enable else 'no enable'}{', override' if cmd.override else ''})")
@@ -248,13 +283,53 @@ def _control_card(adapter, session: str, act):
     return refresh
 
 
+def gate(control: ui.element, reason: str) -> None:
+    """Enable ``control``, or disable it with ``reason`` as its tooltip (changed only when the reason changes)."""
+    if getattr(control, "gate_reason", None) == reason:
+        return
+    control.gate_reason = reason  # type: ignore[attr-defined]
+    control.set_enabled(not reason)
+    if reason:
+        text = reason.replace('"', "'")
+        control.props(f'title="{text}" data-disabled-reason="{text}"')
+    else:
+        control.props(remove="title data-disabled-reason")
+
+
+def _numbers_grid(state, configured: int) -> None:
+    """Position, current and speed as numbers: the network's (mean, highest, mean) and each status telegram's."""
+
+    def word(i: int, scale: float, unit: str):
+        def fmt(entry: dict) -> str:
+            raw = entry.get("raw") or []
+            return f"{raw[i] * scale:.1f} {unit}" if i < len(raw) else "not heard"
+        return fmt
+
+    with ui.grid(columns=configured + 2).classes("items-baseline gap-x-6 gap-y-0").props("data-testid=numbers"):
+        ui.label("")
+        ui.label("network").classes("text-caption text-grey-8")
+        for i in range(configured):
+            ui.label(f"actuator {i + 1}").classes("text-caption text-grey-8").tooltip(
+                "The n-th status telegram 0x07 of each 100 ms: the telegrams carry no actuator number (document, "
+                "status telegram), so the columns follow the order heard.")
+        for point, unit in (("Position", "mm"), ("Current", "A"), ("Speed", "mm/s")):
+            ui.label(point).classes("text-body2 text-weight-medium")
+            LiveValue(state, point, lambda e: f"{e['value']:.1f} {e['unit']} ({(e['text'] or '').split(' of ')[0]})",
+                      classes="text-body1 mono").row.props(f"data-testid=network-{point.lower()}")
+            for i in range(configured):
+                LiveValue(state, point, word(i, 0.1, unit), classes="text-body1 mono") \
+                    .row.props(f"data-testid=actuator-{i + 1}-{point.lower()}")  # words in 0.1 mm, 0.1 A, 0.1 mm/s
+
+
 def _sim_card(twin) -> None:
     with ui.card().classes("w-full bg-purple-1"):
         ui.label("Simulated actuators (demo)").classes("text-subtitle1")
         ui.label("Extra load current [A]").classes("text-caption")
-        ui.slider(min=0, max=25, step=0.5, value=0, on_change=lambda e: twin.set_load(e.value)).props("label-always")
+        ui.slider(min=0, max=25, step=0.5, value=0, on_change=lambda e: twin.set_load(e.value)).props("label-always") \
+            .classes("q-mt-lg")  # the value bubble stands above the track: room so it does not cover the label
         ui.label("Static load on a standing rod [mm/s, - pushes in]").classes("text-caption")
-        ui.slider(min=-5, max=5, step=0.5, value=0, on_change=lambda e: twin.set_backdrive(e.value)).props("label-always")
+        ui.slider(min=-5, max=5, step=0.5, value=0, on_change=lambda e: twin.set_backdrive(e.value)).props("label-always") \
+            .classes("q-mt-lg")
         with ui.row():
             for i in range(len(twin.actuators)):
                 ui.switch(f"actuator {i + 1} connected", value=True,
@@ -287,15 +362,17 @@ def _answers_text(report: dict | None) -> tuple[str, str]:
     return "; ".join(report["problems"]), tip
 
 
-def _service_card(name: str, state, adapter):
+def _service_card(name: str, state, adapter, guard: WriteGuard):
     rows = {}
     with ui.card().classes("w-full"):
         with ui.row().classes("items-center w-full"):
             ui.label("Service parameters (0x0A / 0x0B)").classes("text-subtitle1")
             unsaved = ui.badge("", color="orange")
             ui.space()
-            ui.button("Read all", icon="refresh", on_click=lambda: run_command(name, lambda a: a.read_all(), "read service parameters", write=False)).props("outline")
-            ui.button("Save parameters (0xF0)", icon="save", on_click=lambda: _save(name)).props("data-testid=save-params")
+            guard.add(
+                ui.button("Read all", icon="refresh", on_click=lambda: run_command(name, lambda a: a.read_all(), "read service parameters", write=False)).props("outline"),
+                ui.button("Save parameters (0xF0)", icon="save", on_click=lambda: _save(name)).props("data-testid=save-params"),
+            )
         ui.label(f"The right password is written to 0xFF before each read or write. Each of the {len(adapter.actuators)} actuators answers "
                  "for itself: a read or write fails unless every one answers alike. Changes hold until power-off unless saved.").classes("text-caption text-grey-8")
         with ui.grid(columns=5).classes("w-full items-center gap-x-4 gap-y-1"):
@@ -306,8 +383,10 @@ def _service_card(name: str, state, adapter):
                 with ui.row().classes("items-center gap-1"):
                     ui.label(p.name).tooltip(p.description)
                     mark = ui.badge("unsaved", color="orange")
-                with ui.column().classes("gap-0"):
-                    value = ui.label("not read").classes("mono")
+                with ui.column().classes("gap-0") as cell:
+                    with ui.row().classes("items-baseline gap-0 no-wrap"):
+                        value = ui.label("not read").classes("mono")
+                        age = ui.label().classes("q-age").props(f"data-testid=age-{p.address:02X}")
                     with ui.label().classes("text-caption") as answers:
                         answers_tip = ui.tooltip("")
                 if p.address == BITRATE_SPECIFIER:
@@ -315,18 +394,26 @@ def _service_card(name: str, state, adapter):
                     ui.element("span")
                 else:
                     low, high = p.limits()
-                    entry = ui.input(placeholder=f"{low:g} .. {high:g} {p.unit}").props("dense outlined").classes("w-40")
-                    ui.button("Write", on_click=lambda p=p, entry=entry: _write_service(name, p, entry.value)).props("dense")
-                rows[p.key] = (p, value, mark, answers, answers_tip)
+                    entry = range_number("", low, high, unit=p.unit, integer=p.scale == 1).classes("w-48") \
+                        .props(f"data-testid=entry-{p.address:02X}")
+                    guard.add(ui.button("Write", on_click=lambda p=p, entry=entry: _write_service(name, p, entry))
+                              .props(f"dense data-testid=write-{p.address:02X}"))
+                rows[p.key] = (p, value, mark, answers, answers_tip, cell, age)
         last = ui.label().classes("text-caption mono text-grey-8")
         form = ui.label().classes("text-caption text-grey-8")
 
     def refresh() -> None:
         reports = state.info.get("service_reports", {})
-        for key, (p, value, mark, answers, answers_tip) in rows.items():
+        now = time.time()
+        for key, (p, value, mark, answers, answers_tip, cell, age) in rows.items():
             raw = state.raw(p)
             report = reports.get(key)
             value.set_text(("not read" if not report or report["ok"] else "no common value") if raw is None else p.display(raw))
+            read = state.read_time(p)
+            quality = state.quality(read, False, now)  # read on demand: good while the network answers
+            mark_quality(cell, quality if raw is not None else "unknown")
+            note = quality_note(quality, None if read is None else now - read) if quality in ("stale", "offline") else ""
+            age.set_text(note or (f"read {fmt_time(read)}" if read is not None and raw is not None else ""))
             text, tip = _answers_text(report)
             answers.set_text(text)
             answers.classes(replace="text-caption " + ("text-grey-8" if not report or report["ok"] else "text-negative"))
@@ -350,16 +437,20 @@ async def _save(name: str) -> None:
         ui.notify(f"parameters saved: the network accepted the {form}", type="positive")
 
 
-async def _write_service(name: str, param, value) -> None:
-    reason = refusal(param, value)
+async def _write_service(name: str, param, entry) -> None:
+    value = await checked_value(entry, name, f"write {param.name}", parameter=param.name)
+    if value is None:
+        return
+    reason = refusal(param, value)  # beyond the range: the document's own refusals (params.refusal)
     if reason:
-        ui.notify(reason, type="negative", multi_line=True, close_button="OK", timeout=15000)
+        entry.error = reason
+        await refuse(name, f"write {param.name}", reason, parameter=param.name, new=value)
         return
     await write_from_page(name, param, value, success="{name} = {value} written and read back from every actuator",
-                          title="Set {name} to {value}?", ok="Change bit rate")
+                          title="Set {name} to {value}?", ok="Change bit rate", field=entry)
 
 
-def _bitrate_card(name: str, state, adapter, runtime):
+def _bitrate_card(name: str, state, adapter, runtime, guard: WriteGuard):
     """Write, save, switch the bus, restart: the bit rate changes only when all four are done."""
     param = PARAMS.get("service", BITRATE_SPECIFIER)
     bus = adapter.bus
@@ -378,12 +469,12 @@ def _bitrate_card(name: str, state, adapter, runtime):
                 ui.label("1. Write the new bit rate and read it back from every actuator").classes("text-body2")
                 choice = ui.select({k: v for k, v in BITRATE_NAMES.items() if codec.BITRATES[k] != bus_rate}, value=None,
                                    label="new bit rate").props("dense outlined options-dense data-testid=new-bitrate").classes("w-36")
-                ui.button("Write", on_click=lambda: _write_bitrate(name, param, choice.value)).props("dense")
+                guard.add(ui.button("Write", on_click=lambda: _write_bitrate(name, param, choice.value)).props("dense"))
             steps.append((icon, row))
             with ui.row().classes("items-center gap-2") as row:
                 icon = ui.icon("radio_button_unchecked")
                 ui.label("2. Save it (0xF0) on every actuator, or it is lost at power-off").classes("text-body2")
-                ui.button("Save", icon="save", on_click=lambda: _save(name)).props("dense outline")
+                guard.add(ui.button("Save", icon="save", on_click=lambda: _save(name)).props("dense outline"))
             steps.append((icon, row))
             with ui.row().classes("items-center gap-2") as row:
                 icon = ui.icon("radio_button_unchecked")

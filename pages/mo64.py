@@ -10,8 +10,22 @@ from nicegui import ui
 from app import runtime as rt
 from devices.mo64 import codec
 from devices.mo64.adapter import COMMAND_NAMES, HELD_LEVELS, NeedsConfirmation
+from pages.electrak import gate
 from pages.frame import frame, set_status_badge
-from pages.widgets import Lamp, confirm, run_command
+from pages.hdlock import event_log
+from pages.widgets import (
+    Lamp,
+    WriteGuard,
+    checked_value,
+    confirm,
+    entry_age,
+    follow,
+    mark_quality,
+    quality_note,
+    range_number,
+    refuse,
+    run_command,
+)
 
 MOTION_WARNING = "the boom moves: check that nobody stands under it"
 EEPROM_WARNING = ("Every setting write wears the barrier's EEPROM (chapter 4: the number of writes is limited). "
@@ -55,7 +69,12 @@ def content(name: str) -> None:
             result = fn(a)
             return await result if inspect.isawaitable(result) else result
 
-        return await run_command(name, action, describe, success=success, write=write)
+        result = await run_command(name, action, describe, success=success, write=write)
+        if updater:
+            updater[0]()  # the reply and the levels are shown at once
+        return result
+
+    updater: list = []
 
     async def move(cmd: codec.Command, fn: codec.Function) -> None:
         words = f"{COMMAND_NAMES[cmd]} {fn.name.lower()}"
@@ -66,8 +85,11 @@ def content(name: str) -> None:
             confirmed = True
         await act(words, lambda a: a.command(session, cmd, fn, confirmed=confirmed), success=f"{words}: ack")
 
-    async def write(key: str, value) -> None:
+    async def write(key: str, field) -> None:
         setting = codec.SETTINGS[key]
+        value = await _entry_value(name, key, field)
+        if value is None:
+            return
         if setting.eeprom and not await confirm(
                 f"Write {setting.name}", f"{EEPROM_WARNING} Writes this session: {adapter.eeprom_writes.get(session, 0)}.",
                 ok="Write"):
@@ -83,6 +105,7 @@ def content(name: str) -> None:
                   success="change monitoring " + ("on" if on else "off"))
 
     with frame(f"Bauer MO 64 {name}"):
+        guard = WriteGuard(state)  # commands and settings, disabled with the reason while the barrier does not answer
         # -- gate ----------------------------------------------------------------------------------
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-6 w-full no-wrap"):
@@ -117,15 +140,16 @@ def content(name: str) -> None:
                 ui.label("Pulse:").classes("text-body2")
                 for cmd, icon in ((codec.Command.OPEN, "arrow_upward"), (codec.Command.CLOSE, "arrow_downward"),
                                   (codec.Command.REVERSE, "swap_vert")):
-                    ui.button(COMMAND_NAMES[cmd].capitalize(), icon=icon,
-                              on_click=lambda cmd=cmd: move(cmd, codec.Function.PULSE)) \
-                        .props(f"data-testid=pulse-{COMMAND_NAMES[cmd]}")
+                    guard.add(ui.button(COMMAND_NAMES[cmd].capitalize(), icon=icon,
+                                        on_click=lambda cmd=cmd: move(cmd, codec.Function.PULSE))
+                              .props(f"data-testid=pulse-{COMMAND_NAMES[cmd]}"))
             with ui.row().classes("items-center gap-3"):
                 ui.label("Level:").classes("text-body2")
                 for cmd in (codec.Command.OPEN, codec.Command.CLOSE, codec.Command.REVERSE):
                     with ui.button_group():
-                        ui.button(f"{COMMAND_NAMES[cmd]} activate", on_click=lambda cmd=cmd: move(cmd, codec.Function.ACTIVATE)) \
-                            .props(f"outline data-testid=activate-{COMMAND_NAMES[cmd]}")
+                        guard.add(ui.button(f"{COMMAND_NAMES[cmd]} activate",
+                                            on_click=lambda cmd=cmd: move(cmd, codec.Function.ACTIVATE))
+                                  .props(f"outline data-testid=activate-{COMMAND_NAMES[cmd]}"))
                         ui.button("deactivate", on_click=lambda cmd=cmd: move(cmd, codec.Function.DEACTIVATE)) \
                             .props(f"outline data-testid=deactivate-{COMMAND_NAMES[cmd]}")
                 ui.button("Clear my levels", icon="layers_clear", on_click=lambda: act(
@@ -154,11 +178,11 @@ def content(name: str) -> None:
             with ui.card().classes("col"):
                 ui.label("Identity").classes("text-subtitle1")
                 with ui.column().classes("gap-0 mono text-body2").props("data-testid=identity"):
-                    identity = {pt: ui.label() for pt in IDENTITY_POINTS}
+                    identity = {pt: _value_line() for pt in IDENTITY_POINTS}
             with ui.card().classes("col"):
                 ui.label("Counters").classes("text-subtitle1")
                 with ui.column().classes("gap-0 mono text-body2").props("data-testid=counters"):
-                    counts = {pt: ui.label() for pt in COUNTER_POINTS}
+                    counts = {pt: _value_line() for pt in COUNTER_POINTS}
                 ui.label("The vehicle counter lives in RAM only: it is 0 after power-up (chapter 5.2.5).") \
                     .classes("text-caption text-grey-8")
 
@@ -166,8 +190,9 @@ def content(name: str) -> None:
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-4"):
                 ui.label("Error memory (10 levels, newest first, chapter 5.1.23)").classes("text-subtitle1")
-                ui.button("Read again", on_click=lambda: act("read error memory", lambda a: a.read_error_memory(),
-                                                            write=False)).props("outline dense")
+                guard.add(ui.button("Read again", on_click=lambda: act("read error memory", lambda a: a.read_error_memory(),
+                                                                      write=False)).props("outline dense"))
+                memory_age = ui.label().classes("q-age").props("data-testid=error-memory-age")
             errors = ui.table(columns=[{"name": k, "label": label, "field": k, "align": "left"} for k, label in
                                        (("level", "Level"), ("flags", "Error flags"), ("time", "Operating hours"))],
                               rows=[], row_key="level").classes("w-full text-caption").props("dense flat")
@@ -176,7 +201,7 @@ def content(name: str) -> None:
         with ui.card().classes("w-full"):
             ui.label("Modes (decoded as far as the document names the fields, raw otherwise)").classes("text-subtitle1")
             with ui.column().classes("gap-0 text-body2").props("data-testid=modes"):
-                modes = {pt: ui.label() for pt in MODE_POINTS}
+                modes = {pt: _value_line() for pt in MODE_POINTS}
 
         # -- settings ---------------------------------------------------------------------------------
         with ui.card().classes("w-full"):
@@ -186,8 +211,8 @@ def content(name: str) -> None:
             ui.label(EEPROM_WARNING + " Busy means the motor runs: try again when it stands.").classes("text-caption text-warning")
             with ui.row().classes("items-center gap-2"):
                 ui.label("Change monitoring (TCP: changes are sent by the barrier, polling slows down):").classes("text-body2")
-                ui.button("On", on_click=lambda: monitoring(True)).props("outline dense data-testid=monitoring-on")
-                ui.button("Off", on_click=lambda: monitoring(False)).props("outline dense data-testid=monitoring-off")
+                guard.add(ui.button("On", on_click=lambda: monitoring(True)).props("outline dense data-testid=monitoring-on"),
+                          ui.button("Off", on_click=lambda: monitoring(False)).props("outline dense data-testid=monitoring-off"))
                 mon = ui.label().classes("text-body2").props("data-testid=monitoring")
             setting_values: dict[str, ui.label] = {}
             with ui.grid(columns=3).classes("w-full gap-x-4 gap-y-1 items-center") \
@@ -196,25 +221,30 @@ def content(name: str) -> None:
                     if key == "change_monitoring":
                         continue
                     ui.label(setting.name).classes("text-body2")
-                    setting_values[key] = ui.label("-").classes("mono text-body2")
+                    setting_values[key] = _value_line("mono text-body2")
                     with ui.row().classes("items-center gap-1 no-wrap"):
                         if key in TIME_KEYS:
-                            field = ui.number("seconds", min=0, max=codec.TIME_MAX * codec.TIME_STEP_S, step=0.01) \
-                                .classes("w-32").props("dense")
-                            value_of = (lambda f: lambda: round(float(f.value or 0) / codec.TIME_STEP_S))(field)
+                            low, high = _limits(key)
+                            field = range_number("seconds", low * codec.TIME_STEP_S, high * codec.TIME_STEP_S, unit="s",
+                                                 step=0.01).classes("w-40")
                         elif key in INT_KEYS:
-                            field = ui.number("value", step=1, format="%d").classes("w-32").props("dense")
-                            value_of = (lambda f: lambda: int(f.value or 0))(field)
+                            low, high = _limits(key)
+                            field = range_number("value", low, high, integer=True, step=1).classes("w-40")
                         else:
-                            field = ui.input("raw (as shown, e.g. 0x0 or 1,0,0,0,0,0)").classes("w-48").props("dense")
-                            value_of = (lambda f, k=key: lambda: _parse(k, f.value))(field)
-                        ui.button("Write", on_click=lambda k=key, get=value_of: write(k, get())) \
-                            .props(f"outline dense data-testid=write-{key}")
+                            field = ui.input("raw (as shown, e.g. 0x0 or 1,0,0,0,0,0)",
+                                             validation=lambda text, k=key: _raw_problem(k, text)).classes("w-48") \
+                                .props("dense outlined")
+                        field.props(f"data-testid=entry-{key}")
+                        guard.add(ui.button("Write", on_click=lambda k=key, f=field: write(k, f))
+                                  .props(f"outline dense data-testid=write-{key}"))
 
         with ui.expansion("Assumptions beyond the manual (shown as such)").classes("w-full") \
                 .props("data-testid=assumptions"):
             for text in codec.ASSUMPTIONS:
                 ui.label(f"Assumption: {text}").classes("text-caption")
+
+        with ui.expansion("Events", icon="list", value=True).classes("w-full"):
+            event_log(state)  # gate and status changes, faults rising and clearing, offline and back, commands; newest first
 
     def point_text(point: str, missing: str = "-") -> str:
         entry = state.point(point)
@@ -252,21 +282,77 @@ def content(name: str) -> None:
         levels.set_text("levels this tool set: " + (", ".join(mine) if mine else "none"))
         reply.set_text(f"last answer: {info.get('last_reply') or '-'}")
         for labels in (identity, counts, modes):
-            for point, label in labels.items():
-                label.set_text(f"{point}: {point_text(point)}")
+            for point, line in labels.items():
+                _show_line(line, f"{point}: {point_text(point)}", state.point(point))
         rows = [{"level": e["level"], "flags": f"0x{e['flags']:08X}", "time": f"{e['timestamp_h']} h"}
                 for e in info.get("error_memory", [])]
         if rows != errors.rows:
             errors.rows = rows
             errors.update()
-        for key, label in setting_values.items():
-            label.set_text(point_text(SETTING_POINTS[key]))
+        status = state.status
+        mark_quality(errors, "offline" if status == "offline" and rows else "good")
+        memory_age.set_text(quality_note("offline", state.age) if status == "offline" and rows else "")
+        for key, line in setting_values.items():
+            _show_line(line, point_text(SETTING_POINTS[key]), state.point(SETTING_POINTS[key]))
         writes.set_text(f"EEPROM writes this session: {adapter.eeprom_writes.get(session, 0)} "
                         f"(all sessions: {adapter.eeprom_writes_total})")
         mon.set_text(f"{point_text('Change monitoring')}; {info.get('monitoring', '-')}")
 
+    updater.append(refresh)
     refresh()
-    ui.timer(0.25, refresh)
+    follow(state, refresh)  # on every change the store pushes (at most 10/s) and once a second for the ages
+
+
+def _value_line(classes: str = "") -> tuple[ui.row, ui.label, ui.label]:
+    """A value with its age next to it (shown while the value is stale or offline)."""
+    with ui.row().classes("items-baseline gap-0 no-wrap") as row:
+        text = ui.label("-").classes(classes)
+        age = ui.label().classes("q-age")
+    return row, text, age
+
+
+def _show_line(line: tuple, text: str, entry: dict | None) -> None:
+    row, label, age = line
+    quality = "unknown" if entry is None else entry["quality"]
+    label.set_text(text)
+    mark_quality(row, quality)  # greyed while stale or offline
+    age.set_text(quality_note(quality, entry_age(entry)) if quality in ("stale", "offline") else "")
+
+
+def _limits(key: str) -> tuple[int, int]:
+    """The raw range a setting accepts: its document limits, else its wire type's (codec.SETTINGS)."""
+    setting = codec.SETTINGS[key]
+    return setting.limits if setting.limits is not None else setting.vtype.limits
+
+
+def _raw_problem(key: str, text: str | None) -> str | None:
+    """Why a raw entry cannot be written (the codec's own check), or None."""
+    if not (text or "").strip():
+        return None
+    try:
+        codec.encode_setting(key, _parse(key, text))
+    except (ValueError, codec.CodecError) as exc:
+        return str(exc) or "not a number"
+    return None
+
+
+async def _entry_value(device: str, key: str, field):
+    """The raw value of a setting's entry, or None: the entry keeps what was typed, marked with the reason, and
+    the refusal is audited; nothing is sent."""
+    setting = codec.SETTINGS[key]
+    if key in TIME_KEYS or key in INT_KEYS:
+        value = await checked_value(field, device, f"set {setting.name}", parameter=setting.name)
+        if value is None:
+            return None
+        return round(float(value) / codec.TIME_STEP_S) if key in TIME_KEYS else int(value)
+    text = field.value
+    problem = "enter a value first" if not (text or "").strip() else _raw_problem(key, text)
+    if problem:
+        field.error = problem
+        await refuse(device, f"set {setting.name}", f"{text!r}: {problem}", parameter=setting.name, new=text or "")
+        return None
+    field.error = None
+    return _parse(key, text)
 
 
 def _parse(key: str, text: str | None):

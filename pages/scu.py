@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import inspect
+import time
 from datetime import datetime
 
 from nicegui import ui
@@ -12,8 +13,23 @@ from app import worker as worker_module
 from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.adapter import SERVICE_IDS
-from pages.frame import fmt_age, frame, set_status_badge
-from pages.widgets import HistoryChart, Lamp, run_command, session_role
+from pages.electrak import gate
+from pages.frame import fmt_age, fmt_time, frame, set_status_badge
+from pages.hdlock import event_log
+from pages.widgets import (
+    HistoryChart,
+    Lamp,
+    LiveValue,
+    WriteGuard,
+    checked_value,
+    entry_age,
+    follow,
+    mark_quality,
+    quality_note,
+    range_number,
+    run_command,
+    session_role,
+)
 
 STATUS_1 = ("present", "limit_in_out", "switch_1", "switch_2", "motion", "in_position", "out_position", "stroke_recorded")
 STATUS_2 = ("initialised", "enable_in", "enable_out")
@@ -43,7 +59,12 @@ def content(name: str) -> None:
             result = fn(a)
             return await result if inspect.isawaitable(result) else result
 
-        return await run_command(name, action, describe, success=success, write=write)
+        result = await run_command(name, action, describe, success=success, write=write)
+        if updater:
+            updater[0]()  # what the command changed (control, RE/RS pending) is shown at once
+        return result
+
+    updater: list = []
 
     def on_gone() -> None:  # second line of defence; the worker's dead-man rule is the first
         adapter.session_lost(session, "the controlling browser disconnected")
@@ -52,12 +73,7 @@ def content(name: str) -> None:
     client.on_delete(on_gone)
 
     with frame(f"Ewellix SCU {name}"):
-        # -- the large STOP, always visible ------------------------------------------------------
-        with ui.page_sticky(position="bottom-right", x_offset=24, y_offset=24).classes("z-top"):  # above every card
-            ui.button("STOP", icon="stop_circle", color="negative",
-                      on_click=lambda: act("stop (RS)", lambda a: a.stop(session), write=False)) \
-                .props("size=xl data-testid=big-stop").classes("text-h5")
-
+        guard = WriteGuard(state)  # the reason write and motion-start controls are off while the unit does not answer
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-6 w-full"):
                 badge = ui.badge("waiting", color="grey").classes("text-body2")
@@ -90,23 +106,25 @@ def content(name: str) -> None:
                 for s in adapter.scales:
                     ui.label(f"A{s.number}").classes("text-body1")
                     bar = ui.linear_progress(value=0, show_value=False).props("size=14px rounded")
-                    text = ui.label("-").classes("mono").props(f"data-testid=pos-A{s.number}")
-                    pos_rows.append((s.number, bar, text))
+                    with ui.row().classes("items-baseline gap-0 no-wrap") as cell:
+                        text = ui.label("-").classes("mono").props(f"data-testid=pos-A{s.number}")
+                        age = ui.label().classes("q-age")
+                    pos_rows.append((s.number, bar, text, cell, age))
             chart = HistoryChart(state, adapter.series, window_s=60, height=260)
 
         # -- status per actuator ------------------------------------------------------------------
         with ui.card().classes("w-full"):
             ui.label("Actuator status 1 (0x0171..) and 2 (0x00E1..), current (0x00A1..), speed (0x00F1..)").classes("text-subtitle1")
             lamps: dict[str, Lamp] = {}
-            values: dict[str, ui.label] = {}
             with ui.row().classes("gap-8 items-start"):
                 for n in range(1, n_act + 1):
                     with ui.column().classes("gap-0"):
                         ui.label(f"A{n}").classes("text-subtitle2")
                         for key in STATUS_1 + STATUS_2:
                             lamps[f"A{n} {key}"] = Lamp(f"A{n} {key}", "ok")
-                        values[f"A{n} current"] = ui.label().classes("mono text-body2")
-                        values[f"A{n} speed"] = ui.label().classes("mono text-body2")
+                        for what in ("current", "speed"):
+                            LiveValue(state, f"A{n} {what}", lambda e, what=what: f"{what}: {e['value']:g} {e['unit']}".strip(),
+                                      classes="mono text-body2").row.props(f"data-testid={what}-A{n}")
 
         # -- supply, I/O -----------------------------------------------------------------------------
         with ui.card().classes("w-full"):
@@ -139,21 +157,38 @@ def content(name: str) -> None:
                                    label="Motion (para_ID[0])").classes("w-72")
                 ramp = ui.select({1: "soft start/stop", 0: "fast start/stop", 255: "as configured (-1)"}, value=1,
                                  label="Ramp (para_ID[1])").classes("w-48")
-                speed = ui.number("Remote speed (% or counts/s)", value=50, min=0, max=1000, step=1, format="%d").classes("w-48")
-                set_speed = ui.button("Set speed (RT)", on_click=lambda: act(
-                    f"set remote speed F{fn_select.value + 1} = {int(speed.value or 0)} (% or counts/s)", lambda a: a.set_remote_speed(session, fn_select.value + 1, int(speed.value or 0)),
-                    success="remote speed written and read back")).props("outline")
+                # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s (the adapter's check, set_remote_speed)
+                speed = range_number("Remote speed (% or counts/s)", 0, 1000, integer=True, value=50, step=1) \
+                    .classes("w-56").props("data-testid=remote-speed")
+
+                async def write_speed() -> None:
+                    function = fn_select.value + 1
+                    value = await checked_value(speed, name, f"set remote speed F{function}", parameter=f"Remote Speed F{function}")
+                    if value is not None:
+                        await act(f"set remote speed F{function} = {int(value)} (% or counts/s)",
+                                  lambda a: a.set_remote_speed(session, function, int(value)),
+                                  success="remote speed written and read back")
+
+                set_speed = ui.button("Set speed (RT)", on_click=write_speed).props("outline data-testid=set-speed")
             pos_inputs = []
             with ui.row().classes("items-end gap-4"):
                 for s in adapter.scales:
                     unit = "mm" if s.counts_per_mm or s.stroke_mm else "counts"
-                    field = ui.number(f"A{s.number} remote position [{unit}]", value=0).classes("w-48") \
-                        .props(f"data-testid=remote-pos-A{s.number}")
-                    btn = ui.button("Set (RT)", on_click=lambda s=s, field=field, unit=unit: act(
-                        f"set remote position A{s.number} = {field.value or 0:g} {unit}",
-                        lambda a: a.set_remote_position(session, s.number, **({"mm": float(field.value or 0)} if unit == "mm"
-                                                                              else {"counts": int(field.value or 0)})),
-                        success="remote position written and read back")).props(f"outline data-testid=set-pos-A{s.number}")
+                    low, high = _position_range(s)
+                    field = range_number(f"A{s.number} remote position [{unit}]", low, high, unit=unit, value=0,
+                                         integer=unit == "counts").classes("w-56").props(f"data-testid=remote-pos-A{s.number}")
+
+                    async def write_position(s=s, field=field, unit=unit) -> None:
+                        value = await checked_value(field, name, f"set remote position A{s.number}",
+                                                    parameter=f"Remote Position A{s.number}")
+                        if value is None:
+                            return
+                        await act(f"set remote position A{s.number} = {value:g} {unit}",
+                                  lambda a: a.set_remote_position(session, s.number, **({"mm": float(value)} if unit == "mm"
+                                                                                        else {"counts": int(value)})),
+                                  success="remote position written and read back")
+
+                    btn = ui.button("Set (RT)", on_click=write_position).props(f"outline data-testid=set-pos-A{s.number}")
                     pos_inputs.append(btn)
             with ui.row().classes("items-center gap-4"):
                 go = ui.button("Go (RE)", icon="play_arrow", color="positive", on_click=lambda: act(
@@ -193,7 +228,7 @@ def content(name: str) -> None:
         # -- functions ----------------------------------------------------------------------------------
         with ui.card().classes("w-full"):
             ui.label("Functions (firmware V2B1 and later)").classes("text-subtitle1")
-            switches = []
+            switches, switches_off = [], []
             with ui.row().classes("items-center gap-4"):
                 for fn, label in SWITCHES:
                     with ui.button_group():
@@ -201,7 +236,8 @@ def content(name: str) -> None:
                             f"{codec.FUNCTIONS[fn].label} on (RE)", lambda a: a.run_function(session, fn))).props("outline")
                         b_off = ui.button("off", on_click=lambda fn=fn: act(
                             f"{codec.FUNCTIONS[fn].label} off (RS)", lambda a: a.stop(session, int(fn)), write=False)).props("outline")
-                    switches += [b_on, b_off]
+                    switches.append(b_on)
+                    switches_off.append(b_off)
             with ui.row().classes("items-center gap-4"):
                 ui.button("Emergency stop (function 19)", icon="emergency", color="negative",
                           on_click=lambda: act("emergency stop (RE 19)", lambda a: a.emergency_stop(session), write=False)) \
@@ -231,7 +267,7 @@ def content(name: str) -> None:
                                        f"{result['text'] or result['error']}")
                         raw.set_text(f"raw: {result['raw'] or '(no data)'}")
 
-                ui.button("Read (RG)", on_click=read_one).props("data-testid=read-data")
+                read_button = ui.button("Read (RG)", on_click=read_one).props("data-testid=read-data")
             shown = ui.label().classes("mono text-body2").props("data-testid=data-value")
             raw = ui.label().classes("mono text-caption text-grey-8").props("data-testid=data-raw")
 
@@ -239,8 +275,8 @@ def content(name: str) -> None:
         with ui.card().classes("w-full"):
             ui.label("Service table").classes("text-subtitle1")
             service = ui.table(columns=[{"name": k, "label": k.capitalize(), "field": k, "align": "left"}
-                                        for k in ("id", "name", "value")], rows=[], row_key="id").classes("w-full text-caption")
-            service.props("dense wrap-cells")
+                                        for k in ("id", "name", "value", "read")], rows=[], row_key="id").classes("w-full text-caption")
+            service.props('dense wrap-cells data-testid=service-table :table-row-class-fn="row => row.quality_class"')
 
             async def read_service() -> None:
                 ids = list(SERVICE_IDS) + [0x2000 + s.number for s in adapter.scales]
@@ -249,15 +285,25 @@ def content(name: str) -> None:
                     ok, result = await act(f"read 0x{data_id:04X}", lambda a, d=data_id: a.read_data(d), write=False)
                     if not ok:
                         break
-                    out.append({"id": result["key"], "name": result["name"], "value": result["text"] or result["error"]})
+                    out.append({"id": result["key"], "name": result["name"], "value": result["text"] or result["error"],
+                                "time": time.time(), "read": "", "quality_class": ""})
                 service.rows = out
-                service.update()
+                service_ages()
 
-            ui.button("Read service data (RG)", on_click=read_service).props("outline data-testid=read-service")
+            read_service_button = ui.button("Read service data (RG)", on_click=read_service) \
+                .props("outline data-testid=read-service")
             ui.label("Backup: the Backup page writes a snapshot of identity, counters, conversion factors and user "
                      f"position data. There is no restore: {adapter.restore_refused}.").classes("text-caption text-grey-8")
 
-    controls = [take, release, set_speed, go, jog_in, jog_out, release_estop, reopen, release_scu, *pos_inputs, *switches]
+        with ui.expansion("Events", icon="list", value=True).classes("w-full"):
+            event_log(state)  # session changes, error answers, offline and back, commands; newest first
+
+    # the big STOP in a bar of its own: the page reserves its height, so it never covers a button of the page
+    with ui.footer().classes("bg-grey-2 q-py-xs q-px-md items-center justify-end gap-4").props("bordered data-testid=stop-bar"):
+        ui.label("RS to every running function; anyone may stop, also without control.").classes("text-caption text-grey-8")
+        ui.button("STOP", icon="stop_circle", color="negative",
+                  on_click=lambda: act("stop (RS)", lambda a: a.stop(session), write=False)) \
+            .props("size=lg push data-testid=big-stop").classes("text-h6")
 
     def client_user() -> str:
         from pages.session import current_user
@@ -266,6 +312,24 @@ def content(name: str) -> None:
 
     def point(key: str):
         return state.point(key)
+
+    def service_ages() -> None:
+        """The service table's rows with the time of their reading; greyed with their age while the unit does not answer."""
+        quality = "offline" if state.status == "offline" else "good"
+        now = time.time()
+        rows = [{**row, "read": quality_note(quality, now - row["time"]) if quality == "offline" else fmt_time(row["time"]),
+                 "quality_class": "q-offline" if quality == "offline" else ""} for row in service.rows]
+        if rows != service.rows:
+            service.rows = rows
+            service.update()
+
+    shown: dict = {}
+
+    def changed(key: str, value) -> bool:
+        if shown.get(key) == value:
+            return False
+        shown[key] = value
+        return True
 
     def refresh() -> None:
         info = state.info
@@ -282,39 +346,37 @@ def content(name: str) -> None:
         refusal.set_text(f"last error answer: {r['name']} ({r['title']}) to {r['command']}: {r['meaning']}. What to do: {r['remedy']}"
                          if r else "")
         error_line.set_text(state.last_error if state.online is False else "")
-        for number, bar, text in pos_rows:
+        for number, bar, text, cell, age in pos_rows:
             e = point(f"A{number} position")
             lo, hi = point(f"A{number} in end"), point(f"A{number} out end")
+            quality = "unknown" if e is None else e["quality"]
+            mark_quality(cell, quality)  # greyed, with its age, while stale or offline
+            mark_quality(bar, quality)
+            age.set_text(quality_note(quality, entry_age(e)) if quality in ("stale", "offline") else "")
             if e is None:
                 text.set_text("-")
                 continue
             text.set_text(e["text"] or str(e["value"]))
             if lo and hi and hi["value"] != lo["value"]:
                 bar.set_value(max(0.0, min(1.0, (e["value"] - lo["value"]) / (hi["value"] - lo["value"]))))
-        chart.update()
         for key, lamp in lamps.items():
             lamp.show(point(key))
-        for key, label in values.items():
-            e = point(key)
-            label.set_text(f"{key.split()[1]}: " + ("-" if e is None else f"{e['value']:g} {e['unit']}"))
-        io_label.clear()
-        with io_label:
-            for key in ("Battery voltage", "Actual_State_Binary Inputs 1 ... 4", "Analogue input 1", "Analogue input 2",
-                        "Analogue input 3", "Analogue input 4", "Binary Output Status", "LED HS", "LED LB",
-                        "Lock Status", "Locking Box detected", "Benutzer"):
-                e = point(key)
-                if e is not None:
-                    ui.label(f"{key}: {e['text'] or e['value']} {e['unit']}".strip())
-        errors.clear()
-        with errors:
-            for key in ("Error code", "Error history 1", "Error history 2", "Error history 3", "Error history 4"):
-                e = point(key)
-                if e is None:
-                    continue
-                ui.label(f"{key}: 0x{e['value']:08X}").classes("text-body2 text-weight-medium")
-                for b in codec.error_bits(int(e["value"])):
-                    ui.label(f"bit {b.bit}: {b.cause}" + (f" — condition: {b.condition}" if b.condition else "")
-                             + f" — behaviour: {b.behaviour}").classes("text-caption text-negative" if key == "Error code" else "text-caption")
+        io_entries = [(key, point(key)) for key in IO_POINTS]
+        io_view = [(key, e["text"] or e["value"], e["unit"], e["quality"]) for key, e in io_entries if e is not None]
+        if changed("io", io_view):  # rebuilt only when a value or its quality changes
+            io_label.clear()
+            with io_label:
+                for key, value, unit, quality in io_view:
+                    mark_quality(ui.label(f"{key}: {value} {unit}".strip()), quality)
+        error_view = [(key, int(e["value"]), e["quality"]) for key in ERROR_POINTS if (e := point(key)) is not None]
+        if changed("errors", error_view):
+            errors.clear()
+            with errors:
+                for key, value, quality in error_view:
+                    mark_quality(ui.label(f"{key}: 0x{value:08X}").classes("text-body2 text-weight-medium"), quality)
+                    for b in codec.error_bits(value):
+                        ui.label(f"bit {b.bit}: {b.cause}" + (f" — condition: {b.condition}" if b.condition else "")
+                                 + f" — behaviour: {b.behaviour}").classes("text-caption text-negative" if key == "Error code" else "text-caption")
         ctrl = adapter.controller
         mine = ctrl is not None and ctrl.session == session
         if ctrl is None:
@@ -325,13 +387,38 @@ def content(name: str) -> None:
             holder.set_text(f"{ctrl.user} holds control (another browser) since {datetime.fromtimestamp(ctrl.since):%H:%M:%S}")
         run = [codec.FUNCTIONS[codec.Function(f)].label for f in sorted(adapter.running)]
         running.set_text("RE sent, RS pending: " + (", ".join(run) if run else "none"))
-        for element in controls:
-            element.set_enabled(not viewer)
-        if not viewer:
-            take.set_enabled(ctrl is None)
-            release.set_enabled(mine)
-            for element in (set_speed, go, jog_in, jog_out, release_estop, *pos_inputs, *switches):
-                element.set_enabled(mine)
+        guard.update()
+        offline = guard.reason  # writes and motion wait for a unit that answers; the stops never do
+        role = "a viewer cannot change anything" if viewer else ""
+        gate(take, role or offline or ("" if ctrl is None else "you hold control" if mine else "another browser holds control"))
+        gate(release, role or ("" if mine else "you do not hold control"))
+        for element in (set_speed, go, jog_in, jog_out, release_estop, *pos_inputs, *switches):
+            gate(element, role or offline or ("" if mine else "take control first"))
+        for element in switches_off:
+            gate(element, role or ("" if mine else "take control first"))
+        for element in (read_button, read_service_button):
+            gate(element, role or offline)
+        for element in (reopen, release_scu):  # opening again is how a session recovers; RA hands the unit back
+            gate(element, role)
+        service_ages()
 
+    updater.append(refresh)
     refresh()
-    ui.timer(0.25, refresh)
+    follow(state, refresh)  # on every change the store pushes (at most 10/s) and once a second for the ages
+
+
+IO_POINTS = ("Battery voltage", "Actual_State_Binary Inputs 1 ... 4", "Analogue input 1", "Analogue input 2",
+             "Analogue input 3", "Analogue input 4", "Binary Output Status", "LED HS", "LED LB",
+             "Lock Status", "Locking Box detected", "Benutzer")
+ERROR_POINTS = ("Error code", "Error history 1", "Error history 2", "Error history 3", "Error history 4")
+
+
+def _position_range(scale) -> tuple[float, float]:
+    """What a remote position entry accepts: INT32 counts (table 7), in mm through the actuator's conversion
+    (0 .. stroke when the stroke is known)."""
+    low, high = -(2 ** 31), 2 ** 31 - 1
+    if scale.stroke_mm:
+        return 0.0, float(scale.stroke_mm)
+    if scale.counts_per_mm:
+        return round(low / scale.counts_per_mm, 1), round(high / scale.counts_per_mm, 1)
+    return low, high
