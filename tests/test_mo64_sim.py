@@ -14,6 +14,9 @@ from types import SimpleNamespace
 
 import pytest
 
+from conftest import wait_for
+from webutil import eventually
+
 from devices.mo64 import codec
 from devices.mo64.sim import EEPROM_WRITE_S, Mo64Rs485Sim, Mo64TcpSim
 
@@ -98,6 +101,14 @@ async def barrier():
         await sim.stop()
 
 
+async def _is(value, *expected) -> bool:
+    return await value in expected
+
+
+async def _below(value, limit) -> bool:
+    return await value < limit
+
+
 # -- golden queries --------------------------------------------------------------------------------------
 async def test_golden_queries_answered(barrier):
     sim, twin, client = barrier
@@ -142,7 +153,7 @@ async def test_open_pulse_opening_then_open_at_100(barrier):
         seen.append(int(state))
         if state == codec.GateState.OPEN:
             break
-        await asyncio.sleep(0.05)
+        await asyncio.sleep(0.05)  # the next sample of the gate state
     assert seen[-1] == codec.GateState.OPEN
     order = [s for i, s in enumerate(seen) if i == 0 or seen[i - 1] != s]
     assert order == [codec.GateState.PREWARN_OPEN, codec.GateState.OPENING, codec.GateState.OPEN]
@@ -155,14 +166,19 @@ async def test_light_barrier_reverses_close(barrier):
     sim, twin, client = barrier
     twin.gate, twin.position = codec.GateState.OPEN, 100.0
     assert await client.talk(CLOSE) == ACK
-    for _ in range(100):
-        if (await client.query(codec.Q_GATE_STATE)).value == codec.GateState.CLOSING:
-            break
-        await asyncio.sleep(0.02)
-    await asyncio.sleep(0.2)
+
+    async def gate_state():
+        return (await client.query(codec.Q_GATE_STATE)).value
+
+    async def position():
+        return (await client.query(codec.Q_BARRIER_POSITION)).value
+
+    await eventually(lambda: _is(gate_state(), codec.GateState.CLOSING), timeout=3, what="closing")
+    await eventually(lambda: _below(position(), 100), timeout=3, what="the boom left the open position")
     twin.break_light_barrier()
-    await asyncio.sleep(0.1)
-    assert (await client.query(codec.Q_GATE_STATE)).value in (codec.GateState.OPENING, codec.GateState.OPEN)
+    await eventually(lambda: _is(gate_state(), codec.GateState.OPENING, codec.GateState.OPEN), timeout=3,
+                     what="reversed by the light barrier")
+    assert await position() > 0  # reversed on the way down, never closed
     status = (await client.query(codec.Q_BARRIER_STATUS)).value["status"]
     assert status["LS"] is True
     twin.break_light_barrier(False)
@@ -172,15 +188,17 @@ async def test_open_level_holds_until_deactivated(barrier):
     sim, twin, client = barrier
     twin.settings["t_open"] = 10  # 0.1 s
     assert await client.talk(seal("55 03 01 01 01")) == ACK  # activate BT
-    await asyncio.sleep(1.8)
-    assert (await client.query(codec.Q_GATE_STATE)).value == codec.GateState.OPEN
+
+    async def gate_state():
+        return (await client.query(codec.Q_GATE_STATE)).value
+
+    await eventually(lambda: _is(gate_state(), codec.GateState.OPEN), timeout=4, what="open")
     assert await client.talk(CLOSE) == ACK
-    await asyncio.sleep(0.3)
-    assert (await client.query(codec.Q_GATE_STATE)).value == codec.GateState.OPEN  # page 33: closing prevented
+    await asyncio.sleep(0.3)  # three times t_open (0.1 s, 16-bit setting 0x00, chapter 5.2.4): the open level holds it
+    assert await gate_state() == codec.GateState.OPEN  # page 33: closing prevented
     assert await client.talk(seal("55 03 01 01 02")) == ACK  # deactivate
-    await asyncio.sleep(0.9)
-    assert (await client.query(codec.Q_GATE_STATE)).value in (codec.GateState.PREWARN_CLOSE, codec.GateState.CLOSING,
-                                                              codec.GateState.CLOSED)
+    await eventually(lambda: _is(gate_state(), codec.GateState.PREWARN_CLOSE, codec.GateState.CLOSING,
+                                 codec.GateState.CLOSED), timeout=3, what="closing after the level was deactivated")
 
 
 # -- settings ----------------------------------------------------------------------------------------------
@@ -189,16 +207,10 @@ async def test_setting_busy_while_moving_then_syn_ack(barrier):
     write = codec.encode_frame(codec.encode_setting("t_open", 500))
     assert write == seal("55 04 04 00 F4 01")
     assert await client.talk(OPEN) == ACK
-    for _ in range(100):
-        if twin.motor_runs:
-            break
-        await asyncio.sleep(0.02)
+    assert await wait_for(lambda: twin.motor_runs, timeout=3)
     assert await client.talk(write) == BUSY  # "tele_busy, wenn der Motor läuft" (chapter 5.2.4)
     assert twin.setting_writes == {}
-    for _ in range(200):
-        if not twin.motor_runs:
-            break
-        await asyncio.sleep(0.02)
+    assert await wait_for(lambda: not twin.motor_runs, timeout=5)
     await client.send(write)
     started = time.monotonic()
     assert (await client.frame(1.0, lambda f: f.type in codec.REPLY_TYPES)).raw == SYN
@@ -227,7 +239,7 @@ async def test_one_client_at_a_time(barrier):
     assert sim.refused == 1
     assert await client.talk(Q_GATE) == seal("55 02 0C 05")  # the first client is still served
     client.writer.close()
-    await asyncio.sleep(0.1)
+    assert await wait_for(lambda: not twin.listeners, timeout=2)  # the barrier saw the first client go
     reader3, writer3 = await asyncio.open_connection("127.0.0.1", port)
     try:
         assert await Client(reader3, writer3).talk(Q_GATE) == seal("55 02 0C 05")
@@ -237,8 +249,11 @@ async def test_one_client_at_a_time(barrier):
 
 async def test_change_monitoring_sends_unsolicited(barrier):
     sim, twin, client = barrier
-    await asyncio.sleep(0.2)
-    assert await client.frame(0.2) is None  # nothing is sent unasked by default
+    assert await wait_for(lambda: twin.listeners and twin.clock > 0, timeout=2)  # it serves this client and runs
+    twin.vehicle_counter = 5  # a change (its telegram 0x1C is monitored with bit 5)
+    assert await client.frame(0.2) is None  # nothing is sent unasked by default (change monitoring 0, SPEC-NOTES)
+    twin.vehicle_counter, clock = 0, twin.clock
+    assert await wait_for(lambda: twin.clock > clock, timeout=2)  # the twin has seen the counter back at 0
     flags = (1 << 3) | (1 << 6) | (1 << 5)  # gate state, barrier position, vehicle counter
     await client.send(codec.encode_frame(codec.encode_setting("change_monitoring", flags)))
     assert (await client.frame(1.0)).raw == SYN
@@ -326,15 +341,15 @@ async def test_rs485_second_master_passes_token_and_measures_hold():
             await client.send(codec.encode_token(1, sa=0))
             assert time.monotonic() - given < codec.TOKEN_PASS_LIMIT_S
         await client.send(q485(2, 0x10))  # at once after passing the token on: a violation, counted
-        await asyncio.sleep(0.03)
+        assert await wait_for(lambda: sim.sent_without_token, timeout=2)
         assert sim.sent_without_token == 1
         assert len(sim.hold_times_s) >= 4
         assert all(0 < held < codec.TOKEN_PASS_LIMIT_S for held in sim.hold_times_s)
         assert sim.token_lost == 0
         assert sim.own_queries >= 1  # the other master queried a barrier while it held the token
         assert sim.own_answers[0][2] == 0x01  # and the barrier answered master 1, not this tool
-        await asyncio.sleep(1.3)  # the token is not passed back: the other master takes it back
-        assert sim.token_lost >= 1
+        # the token is not passed back within 200 ms (chapter 2.6.1): the other master takes it back
+        assert await wait_for(lambda: sim.token_lost >= 1, timeout=3)
     finally:
         writer.close()
         await sim.stop()
