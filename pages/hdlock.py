@@ -143,7 +143,7 @@ def event_log(state) -> ui.table:
     """The device's events newest first (state changes, faults rising and clearing, offline and back,
     commands and refusals), updated in place when one is added; as bounded as the store's list."""
     table = ui.table(columns=EVENT_COLUMNS, rows=[], row_key="id", pagination=0).classes("w-full")
-    table.props("dense flat virtual-scroll hide-bottom data-testid=events").style("max-height: 16rem")
+    table.props("dense flat hide-bottom data-testid=events").style("max-height: 16rem")
     table.add_slot("body-cell-text", '<q-td :props="props" style="white-space: normal">{{ props.value }}</q-td>')
     table.add_slot(
         "body-cell-level",

@@ -1,0 +1,132 @@
+"""HD-Lock and M3IO pages in chromium at 1440x900 and 1024x768: what is visible (issue 15 items 4, 6, 7, 10)."""
+
+from __future__ import annotations
+
+import json
+import re
+import urllib.request
+from pathlib import Path
+
+import pytest
+from conftest import CHROMIUM, inside_viewport, wait_devices_online
+from webutil import demo_plant_text, free_port, running_app
+
+if not CHROMIUM.exists():
+    pytest.skip(f"{CHROMIUM} is not installed", allow_module_level=True)
+
+from playwright.sync_api import Browser, Page, expect  # noqa: E402
+
+pytestmark = pytest.mark.timeout(90)
+STEP_MS = 10_000
+SIZES = [(1440, 900), (1024, 768)]
+
+
+@pytest.fixture(scope="module")
+def app_url(tmp_path_factory: pytest.TempPathFactory):
+    with running_app(demo_plant_text(free_port()), tmp_path_factory.mktemp("device-pages")) as url:
+        wait_devices_online(url, ("door-1", "heater-hm"), timeout=30)
+        yield url
+
+
+def open_page(chromium: Browser, url: str, size: tuple[int, int]) -> Page:
+    page = chromium.new_context(viewport={"width": size[0], "height": size[1]}).new_page()
+    page.set_default_timeout(STEP_MS)
+    page.goto(url)
+    return page
+
+
+def field(page: Page, testid: str):
+    return page.locator(f'input[data-testid="{testid}"], [data-testid="{testid}"] input')
+
+
+def lock_values(url: str) -> dict:
+    with urllib.request.urlopen(url + "/api/devices/door-1", timeout=5) as response:
+        return json.load(response)["values"]
+
+
+@pytest.mark.parametrize("size", SIZES, ids=["1440x900", "1024x768"])
+def test_hdlock_entry_save_dialog_and_chart(app_url: str, chromium: Browser, tmp_path: Path, size):
+    page = open_page(chromium, app_url + "/device/door-1", size)
+    try:
+        expect(page.get_by_text("Modbus address 1 ·")).to_be_visible()
+        # the chart: increments on the left axis, mA on a right one, the last 30 s chosen
+        page.wait_for_function("() => [...document.querySelectorAll('.js-plotly-plot')].some(p => p.layout && "
+                               "p.layout.yaxis2 && p.layout.yaxis2.overlaying === 'y' && p.layout.yaxis2.side === 'right')")
+        expect(page.locator("[data-chart-window] button[aria-pressed=true]")).to_have_text(re.compile(r"30 s"))
+        expect(page.locator(".js-plotly-plot .y2title")).to_contain_text("MotorCurrent [mA]")
+        page.screenshot(path=str(tmp_path / f"door-1-top-{size[0]}.png"))
+
+        # address 300: kept as typed, marked with the range, nothing sent (no confirmation, the lock keeps address 1)
+        address = field(page, "sa-address")
+        address.scroll_into_view_if_needed()
+        address.fill("300")
+        address.press("Tab")  # the entry is taken on change, as a person leaves the field
+        page.locator('[data-testid="sa-send"]').click()
+        card = page.locator(".q-card", has=field(page, "sa-address"))
+        expect(card).to_contain_text("out of range: allowed 1 .. 254")
+        expect(address).to_have_value("300")
+        expect(page.locator(".q-dialog")).to_have_count(0)
+        expect(page.get_by_text("Modbus address 1 ·")).to_be_visible()
+        inside_viewport(page, page.locator('[data-testid="sa-send"]'))
+        page.screenshot(path=str(tmp_path / f"door-1-address-{size[0]}.png"))
+
+        # a written parameter is listed by the Save-Settings confirmation
+        delay = page.locator('input[data-param="LockRequestDelay"], [data-param="LockRequestDelay"] input')
+        delay.scroll_into_view_if_needed()
+        delay.fill("350" if size[0] == 1440 else "360")
+        delay.press("Tab")
+        page.locator('[data-write="LockRequestDelay"]').click()
+        expect(page.get_by_text("unsaved change").first).to_be_visible()
+        page.locator('[data-testid="save-settings"]').click()
+        dialog = page.locator('[data-testid="save-dialog"]')
+        expect(dialog).to_contain_text(f"LockRequestDelay (holding 3000) = {delay.input_value()} ms")
+        inside_viewport(page, dialog)
+        page.screenshot(path=str(tmp_path / f"door-1-save-{size[0]}.png"))
+        dialog.get_by_role("button", name="Cancel").click()
+        expect(dialog).to_have_count(0)
+        assert lock_values(app_url)["SavedSettings"]["value"] == 0  # cancelled: the flash was not written
+    finally:
+        page.context.close()
+
+
+def test_hdlock_silent_lock_greys_lamps_ages_rows_and_disables_writes(app_url: str, chromium: Browser, tmp_path: Path):
+    page = open_page(chromium, app_url + "/device/door-1", SIZES[0])
+    try:
+        expect(page.locator('[data-lamp="BoltUnlocked"]')).to_have_attribute("data-quality", "good")
+        page.locator('[data-testid="sim-silent"]').click()
+        lamp = page.locator('[data-lamp="BoltUnlocked"]')
+        expect(lamp).to_have_attribute("data-quality", re.compile("stale|offline"), timeout=15_000)
+        expect(lamp).to_have_css("filter", "grayscale(1)")
+        expect(page.locator('[data-write="LockRequestDelay"]')).to_be_disabled(timeout=15_000)
+        expect(page.locator('[data-write="LockRequestDelay"]')).to_have_attribute("title", re.compile("the device does not answer"))
+        expect(page.locator('[data-testid="save-settings"]')).to_be_disabled()
+        rows = page.locator(".q-tab-panel:visible tr.q-offline")
+        expect(rows.first).to_contain_text(re.compile(r"offline, last \d+ s ago"))
+        page.screenshot(path=str(tmp_path / "door-1-offline-1440.png"), full_page=True)
+        page.locator('[data-testid="sim-silent"]').click()
+        expect(page.locator('[data-write="LockRequestDelay"]')).to_be_enabled(timeout=15_000)
+        expect(page.locator('[data-testid="events"] tbody tr').first).to_contain_text(re.compile("back online|answering again"))
+    finally:
+        page.context.close()
+
+
+@pytest.mark.parametrize("size", SIZES, ids=["1440x900", "1024x768"])
+def test_m3io_page_record_entry_keeps_what_was_typed(app_url: str, chromium: Browser, tmp_path: Path, size):
+    page = open_page(chromium, app_url + "/device/heater-hmr", size)
+    try:
+        expect(page.get_by_text("CAN-M3IO heater-hmr (HMR)")).to_be_visible()
+        page.wait_for_function("() => [...document.querySelectorAll('.js-plotly-plot')].some("
+                               "p => (p.data || []).some(t => t.y && t.y.length >= 2))")
+        record = field(page, "record")
+        record.scroll_into_view_if_needed()
+        record.fill("20")
+        record.press("Tab")
+        field(page, "record-bytes").fill("01 02")
+        page.locator('[data-testid="record-write"]').click()
+        card = page.locator(".q-card", has=field(page, "record"))
+        expect(card).to_contain_text("out of range: allowed 1 .. 15")
+        expect(record).to_have_value("20")
+        expect(page.locator('[data-testid="events"] tbody tr').first).to_contain_text("refused")
+        page.screenshot(path=str(tmp_path / f"heater-hmr-{size[0]}.png"), full_page=True)
+    finally:
+        page.context.close()
