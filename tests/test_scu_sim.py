@@ -14,6 +14,8 @@ import time
 from types import SimpleNamespace
 
 import pytest
+from conftest import wait_for
+from webutil import eventually
 
 from devices.scu import codec
 from devices.scu.sim import ScuSim
@@ -123,7 +125,7 @@ class KeepAlive:
     async def _run(self):
         while True:
             self.answers.append(await self.line.talk(self.request))
-            await asyncio.sleep(0.1)
+            await asyncio.sleep(0.1)  # RC every 100 ms, well within the 500 ms watchdog (section 4.1)
 
     async def __aenter__(self):
         self.task = asyncio.create_task(self._run())
@@ -146,7 +148,7 @@ async def test_section_5_conversation_byte_for_byte(unit):
     assert twin.remote_speed[0] == 1
     assert await line.talk(seal("52 54 06 00 21 30 20 03 00 00")) == h("52 54 06 13 92")  # RT 0x3021 = 800
     assert await line.talk(h("52 45 00 09 FF 00 27")) == h("52 45 06 51 A2")  # RE 00 09 FF
-    await asyncio.sleep(0.1)
+    assert await wait_for(lambda: twin.actuators[0].moving, timeout=2)
     answer = await line.talk(h("52 47 71 01 27 2B"))  # RG 0x0171: status 1 of actuator 1
     assert answer[:5] == h("52 47 06 01 00") and answer[5] & 1 << 4, answer.hex(" ")  # bit 4: motion active
     assert answer == seal(answer[:-2])
@@ -206,16 +208,15 @@ async def test_watchdog_drops_remote_mode_and_stops_motion_after_500_ms_without_
     await open_session(line)
     async with KeepAlive(line):
         assert await line.talk(cmd("RE", "00 02 01")) == ack("RE")  # F1 out, soft
-        await asyncio.sleep(0.5)
+        await asyncio.sleep(0.5)  # a whole 500 ms watchdog period (section 4.1), RC every 100 ms: still moving
         assert twin.actuators[0].moving
     last_rc = time.monotonic()
-    while twin.remote:
-        await asyncio.sleep(0.01)
+    assert await wait_for(lambda: not twin.remote, timeout=2, interval=0.01)
     gap = time.monotonic() - last_rc
     assert 0.35 <= gap <= 0.65, gap  # 500 ms after the last RC (plus the tick)
     assert not twin.actuators[0].moving and twin.error_code & codec.REMOTE_TIMEOUT_MASK  # error bit 22
     stopped_at = twin.actuators[0].position
-    await asyncio.sleep(0.2)
+    await asyncio.sleep(0.2)  # ten 20 ms steps of the twin (sim.TICK_S): the stop of the watchdog (section 4.1) holds
     assert twin.actuators[0].position == stopped_at
     assert twin.re_without_rs == 1  # the RE was never stopped with RS
     assert await line.talk(RC) == err("RC", PE)
@@ -228,7 +229,7 @@ async def test_rc_within_500_ms_keeps_remote_mode(unit):
     sim, twin, line = unit
     await open_session(line)
     for _ in range(8):
-        await asyncio.sleep(0.3)
+        await asyncio.sleep(0.3)  # RC every 300 ms, inside the 500 ms watchdog (section 4.1)
         assert await line.talk(RC) == ack("RC", b"")
     assert twin.remote and not twin.error_code
 
@@ -248,7 +249,7 @@ async def test_move_to_remote_position_rises_and_stops_at_the_target(unit):
             speeds.append(int.from_bytes(speed[5:7], "little"))
             if not await line.status_1() & 1 << 4:
                 break
-            await asyncio.sleep(0.05)
+            await asyncio.sleep(0.05)  # the next sample
         # the last sample may be taken just before the motion ends; the position then is the target
         assert seen == sorted(seen) and seen[-1] <= 800 and await line.position() == 800
         assert 0 < min(s for s in speeds if s) < 60 and max(speeds) >= 90  # soft start: ramps up to 100 %
@@ -266,9 +267,12 @@ async def test_actuator_stops_at_its_end_position(unit):
     await open_session(line)
     async with KeepAlive(line):
         assert await line.talk(cmd("RE", "01 02 00")) == ack("RE")  # F2 out, fast start/stop
-        await asyncio.sleep(0.1)
-        assert await line.status_1(2) & 1 << 4
-        await asyncio.sleep(0.5)
+        assert await line.status_1(2) & 1 << 4  # motion active
+
+        async def at_the_end():
+            return await line.position(2) == act.out_counts
+
+        await eventually(at_the_end, timeout=3, what="F2 at its out position")
         status = await line.status_1(2)
         assert await line.position(2) == act.out_counts
         assert status & 1 << 6 and status & 1 << 1 and not status & 1 << 4  # out position, limit, no motion
@@ -324,11 +328,14 @@ async def test_demo_controls_load_battery_and_outputs(unit):
     async with KeepAlive(line):
         twin.add_load(1, 4.0)
         assert await line.talk(cmd("RE", "00 02 00")) == ack("RE")
-        await asyncio.sleep(0.2)
-        current = await line.talk(cmd("RG", "A1 00"))
-        assert int.from_bytes(current[5:7], "little") >= 40  # 0.1 A units, the load adds 4 A
+
+        async def loaded():
+            current = await line.talk(cmd("RG", "A1 00"))
+            return int.from_bytes(current[5:7], "little") >= 40  # 0.1 A units, the load adds 4 A
+
+        await eventually(loaded, timeout=3, what="A1 current with the 4 A load")
         twin.add_load(1, 20.0)  # beyond the peak current: the actuator trips
-        await asyncio.sleep(0.1)
+        assert await wait_for(lambda: not twin.actuators[0].moving, timeout=2)
         assert not twin.actuators[0].moving and twin.error_code & 1 << 14
         assert await line.talk(cmd("RS", "00 FF")) == ack("RS")
         assert await line.talk(cmd("RE", "10 FF FF")) == ack("RE")  # binary output 1
