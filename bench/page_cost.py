@@ -1,0 +1,97 @@
+"""Cost per browser page: the app's CPU and RSS with 0, 5, 10 and 20 pages open, and how long a
+new page takes to show its first value with 20 open.
+
+The app runs the demo plant in its own process; chromium opens a mix of the overview, the plant
+view and device pages (HD-Lock on Modbus and CAN, Electrak, M3IO, SCU, MO 64). CPU is the app
+process's user+system time over ``--seconds`` (from /proc), in % of one core.
+
+Last line: ``cpu_per_page_pct: X`` = (CPU with 20 pages - CPU with 0) / 20.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))
+
+MIX = ["/", "/plant", "/device/door-1", "/device/gate-1", "/device/lift", "/device/heater-hm", "/device/lift-1",
+       "/device/barrier-in", "/", "/plant"]
+FIRST_VALUE = {"/plant": '[data-plant-tile="door-2"] >> text=bolt locked', "/": '[data-device="door-2"] >> text=bolt locked'}
+
+
+def app_pid(port: int) -> int:
+    """The process listening on ``port`` (the app started by running_app)."""
+    import subprocess
+
+    out = subprocess.run(["ss", "-ltnpH", f"sport = :{port}"], capture_output=True, text=True).stdout
+    return int(out.split("pid=")[1].split(",")[0])
+
+
+def cpu_s(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def rss_mb(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return 0.0
+
+
+def measure(pid: int, seconds: float, page) -> float:
+    start_cpu, start = cpu_s(pid), time.monotonic()
+    page.wait_for_timeout(seconds * 1000)
+    return 100 * (cpu_s(pid) - start_cpu) / (time.monotonic() - start)
+
+
+def main() -> None:
+    from conftest import CHROMIUM_ARGS, wait_devices_online
+    from playwright.sync_api import sync_playwright
+    from webutil import demo_plant_text, free_port, running_app
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seconds", type=float, default=20.0, help="measuring time per step")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as folder, running_app(demo_plant_text(free_port()), Path(folder)) as url:
+        wait_devices_online(url, timeout=60)
+        pid = app_pid(int(url.rsplit(":", 1)[1]))
+        results = {}
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)
+            idle = browser.new_page()  # a blank page: the playwright loop's clock, not an app page
+            pages = []
+            for count in (0, 5, 10, 20):
+                while len(pages) < count:
+                    page = browser.new_page(viewport={"width": 1280, "height": 800})
+                    page.goto(url + MIX[len(pages) % len(MIX)])
+                    pages.append(page)
+                idle.wait_for_timeout(3000)  # settle
+                results[count] = (measure(pid, args.seconds, idle), rss_mb(pid))
+                print(f"{count:2d} pages: app CPU {results[count][0]:5.1f} % of a core, RSS {results[count][1]:.0f} MB", flush=True)
+            firsts = []
+            for path in ("/plant", "/"):
+                page = browser.new_page(viewport={"width": 1280, "height": 800})
+                start = time.monotonic()
+                page.goto(url + path, wait_until="commit")
+                answered = time.monotonic() - start  # the app's answer, before chromium's own work on the page
+                page.locator(FIRST_VALUE[path]).wait_for(timeout=30_000)
+                firsts.append((path, time.monotonic() - start, answered))
+                page.close()
+            browser.close()
+    for path, seconds, answered in firsts:
+        print(f"first value on a new {path} page with 20 open: {seconds * 1000:.0f} ms (app answered after {answered * 1000:.0f} ms)")
+    per_page = (results[20][0] - results[0][0]) / 20
+    print(f"RSS growth 0 -> 20 pages: {results[20][1] - results[0][1]:.0f} MB")
+    print(f"cpu_per_page_pct: {per_page:.2f}")
+
+
+if __name__ == "__main__":
+    main()
