@@ -8,7 +8,7 @@ import time
 from types import SimpleNamespace
 
 import pytest
-from conftest import free_port
+from conftest import free_port, wait_for
 
 from app.serial_line import SerialLine
 from app.state import BusState
@@ -229,7 +229,7 @@ async def test_no_answer_marks_offline_naming_cable_dtr_rts_and_baud_rate():
         adapter = make_adapter(script.port)
         for _ in range(3):
             await adapter.poll()
-            await asyncio.sleep(0.25)
+            await asyncio.sleep(0.25)  # the next poll, spaced as the worker polls
         assert adapter.state.online is False
         text = adapter.state.last_error
         assert "cable" in text and "DTR and RTS" in text and "38400" in text
@@ -275,23 +275,19 @@ async def test_adapter_against_the_twin_keeps_rc_gaps_below_500_ms_moves_and_sto
         while time.monotonic() < stop_at:
             t = time.monotonic()
             await adapter.poll()
-            await asyncio.sleep(max(0.02, 0.2 - (time.monotonic() - t)))
+            await asyncio.sleep(max(0.02, 0.2 - (time.monotonic() - t)))  # a poll every 200 ms, as the worker
 
     try:
         loop_task = asyncio.create_task(worker_loop(time.monotonic() + 10.0))
-        for _ in range(50):
-            if adapter.session == "open" and "A1 position" in adapter.state.points:
-                break
-            await asyncio.sleep(0.1)
-        assert adapter.session == "open", adapter.session_reason
+        await wait_for(lambda: adapter.session == "open" and "A1 position" in adapter.state.points, timeout=5)
+        assert adapter.session == "open" and "A1 position" in adapter.state.points, adapter.session_reason
         twin.add_load(1, 3.0)
         adapter.take_control("s1", "anna")
         await adapter.set_remote_speed("s1", 1, 100)
         await adapter.set_remote_position("s1", 1, counts=1500)
         start = adapter.state.points["A1 position"].value
         await adapter.run_function("s1", 0, codec.Motion.REMOTE_POSITION, codec.Ramp.SOFT)
-        await asyncio.sleep(1.5)
-        assert adapter.state.points["A1 position"].value != start
+        assert await wait_for(lambda: adapter.state.points["A1 position"].value > start, timeout=5)  # towards 1500
         adapter.session_lost("s1", "dead-man test")
         await adapter.stopped()
         assert adapter.holders() == set()
