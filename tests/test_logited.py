@@ -7,7 +7,8 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from conftest import free_port
+from conftest import free_port, wait_for
+from webutil import eventually
 
 from app.logited import LogitedTcp, telegram_length
 from app.plant import parse_plant
@@ -26,8 +27,9 @@ def tcp(port: int, **options) -> LogitedTcp:
     return LogitedTcp("gate", opts, BusState("gate", "logited-tcp", f"127.0.0.1:{port}"))
 
 
-async def barrier(port: int, handler) -> asyncio.AbstractServer:
-    clients = []
+async def barrier(port: int, handler, clients: list | None = None) -> asyncio.AbstractServer:
+    """A barrier serving one client at a time; ``clients`` holds the connection it serves now."""
+    clients = [] if clients is None else clients
 
     async def serve(reader, writer):
         if clients:  # one client at a time: a second one is turned away
@@ -39,7 +41,7 @@ async def barrier(port: int, handler) -> asyncio.AbstractServer:
                 for piece in handler(data):
                     writer.write(piece)
                     await writer.drain()
-                    await asyncio.sleep(0.01)
+                    await asyncio.sleep(0.01)  # the pieces arrive apart
         except ConnectionError:
             pass
         finally:
@@ -91,30 +93,29 @@ async def test_refused_then_taken_back_and_released_on_request():
     line = tcp(port)
     with pytest.raises(SerialClosed, match="did not take the connection.*one client at a time"):
         await line.transact(b"\x55\x02\x02\x00\x45\xbc", lambda t: True)
-    server = await barrier(port, lambda data: [GATE])
+    served: list = []
+    server = await barrier(port, lambda data: [GATE], served)
     other = tcp(port)
     try:
-        loop = asyncio.get_running_loop()
-        end = loop.time() + 5
-        while not line.connected and loop.time() < end:  # reconnects with backoff
-            await asyncio.sleep(0.1)
-            await line.connect()
+        await eventually(line.connect, timeout=5, interval=0.1, what="reconnected after the backoff")
+        assert line.connected
         assert await line.transact(b"\x55\x02\x02\x07\x35\x5b", lambda t: t[2] == 0x0C) == GATE
         line.release()  # another client may take the barrier now
         assert not line.connected and "released" in line.state.last_error
-        await asyncio.sleep(0.3)  # the barrier notices the closed connection
+        assert await wait_for(lambda: not served, timeout=2)  # the barrier saw the connection closed
         assert await other.transact(b"\x55\x02\x02\x07\x35\x5b", lambda t: t[2] == 0x0C) == GATE
         with pytest.raises(SerialClosed, match="released"):
             await line.transact(b"\x55\x02\x02\x07\x35\x5b", lambda t: True)
         other.close()
         line.resume()
-        end = loop.time() + 5
-        while loop.time() < end:
+
+        async def answered() -> bool:
             try:
-                assert await line.transact(b"\x55\x02\x02\x07\x35\x5b", lambda t: t[2] == 0x0C) == GATE
-                break
+                return await line.transact(b"\x55\x02\x02\x07\x35\x5b", lambda t: t[2] == 0x0C) == GATE
             except SerialClosed:
-                await asyncio.sleep(0.2)
+                return False  # the barrier has not noticed the other client leave yet
+
+        await eventually(answered, timeout=5, interval=0.2, what="the resumed line answers")
         assert line.connected
     finally:
         line.close()
@@ -153,7 +154,7 @@ async def line_with_second_master(port: int, holds: list, requests: list):
         async def regenerate():  # a token lost (e.g. while the port was opened) is given again, as masters do
             nonlocal given
             while True:
-                await asyncio.sleep(0.5)
+                await asyncio.sleep(0.5)  # over twice the 200 ms token limit (chapter 2.6.1): a token not back is lost
                 if loop.time() - given > 0.5:
                     given = loop.time()
                     writer.write(codec.encode_token(0x00, 0x01))
@@ -164,7 +165,7 @@ async def line_with_second_master(port: int, holds: list, requests: list):
                 for frame in splitter.feed(data):
                     if frame.type == codec.TOKEN and frame.da == 0x01:
                         holds.append(loop.time() - given)
-                        await asyncio.sleep(0.05)  # the other master's own turn
+                        await asyncio.sleep(0.05)  # the other master's own turn, within 200 ms (chapter 2.6.1)
                         given = loop.time()
                         writer.write(codec.encode_token(0x00, 0x01))
                     elif frame.da == 0x05:
@@ -192,10 +193,7 @@ async def test_rs485_sends_only_with_the_token_and_passes_it_within_200_ms():
         for _ in range(5):
             answer = await line.transact(query, lambda t: codec.decode_frame(t, codec.RS485).sa == 0x05, describe="gate state")
             assert codec.decode_frame(answer, codec.RS485).payload == b"\x04"
-        loop = asyncio.get_running_loop()
-        end = loop.time() + 2
-        while len(holds) < 8 and loop.time() < end:  # idle: the token keeps going round
-            await asyncio.sleep(0.05)
+        assert await wait_for(lambda: len(holds) >= 8, timeout=2)  # idle: the token keeps going round
         assert len(requests) == 5 and len(holds) >= 8
         print(f"token held by this tool: max {max(holds) * 1000:.1f} ms over {len(holds)} turns (limit 200 ms)")
         assert max(holds) < codec.TOKEN_PASS_LIMIT_S
