@@ -360,7 +360,7 @@ def _set_address_card(name: str, state, guard: WriteGuard) -> None:
         ui.label("Set Modbus Address (command 3)").classes("text-subtitle1")
         ui.label("Taken only if (P1 & LockStatus) ^ P2 == 0 (section 4.3).").classes("text-caption text-grey-8")
         with ui.row().classes("items-center"):
-            new = range_number("New address", 1, 254, integer=True).classes("w-56").props("data-testid=sa-address")
+            new = range_number("New address", 1, 254, integer=True).classes("w-56")
             p1, p2 = _mask_inputs("sa")
         bits = ui.label().classes("text-caption")
         preview = ui.label().classes("text-body2")

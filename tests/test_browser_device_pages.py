@@ -57,12 +57,12 @@ def test_hdlock_entry_save_dialog_and_chart(app_url: str, chromium: Browser, tmp
         page.screenshot(path=str(tmp_path / f"door-1-top-{size[0]}.png"))
 
         # address 300: kept as typed, marked with the range, nothing sent (no confirmation, the lock keeps address 1)
-        address = field(page, "sa-address")
+        card = page.locator(".q-card", has_text="Set Modbus Address (command 3)")
+        address = card.get_by_label("New address")
         address.scroll_into_view_if_needed()
         address.fill("300")
         address.press("Tab")  # the entry is taken on change, as a person leaves the field
         page.locator('[data-testid="sa-send"]').click()
-        card = page.locator(".q-card", has=field(page, "sa-address"))
         expect(card).to_contain_text("out of range: allowed 1 .. 254")
         expect(address).to_have_value("300")
         expect(page.locator(".q-dialog")).to_have_count(0)
