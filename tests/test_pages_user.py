@@ -196,6 +196,10 @@ async def test_write_parameter_then_save_settings(env: Env):
     assert twin.flash[3000] == 200, "a write must stay volatile until Save-Settings"
 
     user.find(kind=ui.button, content="Save-Settings").click()
+    # writing the lock's flash asks first, listing the unsaved change with its value
+    await user.should_see("LockRequestDelay (holding 3000) = 500 ms", retries=20)
+    assert twin.input[101] == saved_before, "nothing saved before the confirmation"
+    user.find(kind=ui.button, content="Save to flash").click()
 
     await eventually(lambda: twin.input[101] == saved_before + 1, what="SavedSettings counted up")
     await user.should_see("Settings saved to the lock's flash", retries=20)
@@ -215,7 +219,9 @@ async def test_out_of_range_value_is_refused_without_writing(env: Env):
     entry(user, "LockRequestDelay").type("70000")
     write_button(user, "LockRequestDelay").click()
 
-    await user.should_see("LockRequestDelay: 70000 is outside 0 .. 65535 ms", retries=10)
+    # the field keeps what was typed and says why (no toast over the page)
+    await eventually(lambda: "70000 is outside 0 .. 65535 ms" in (entry_element(user, "LockRequestDelay").error or ""))
+    assert entry_element(user, "LockRequestDelay").value in (70000, "70000")
     await eventually(lambda: env.state().counters.requests > requests)  # polling goes on ...
     assert writes == []  # ... but nothing was written
     assert twin.holding[3000] == 200
@@ -228,8 +234,13 @@ async def test_empty_entry_asks_for_a_value(env: Env):
     await user.open("/device/door-1")
     writes = spy_writes(twin)
     write_button(user, "LockRequestDelay").click()
-    await user.should_see("LockRequestDelay: enter a value first")
+    await eventually(lambda: entry_element(user, "LockRequestDelay").error == "enter a value first")
     assert writes == []
+
+
+def entry_element(user: User, param: str):
+    (element,) = entry(user, param).elements
+    return element
 
 
 def choose(user: User, param: str, value: int, options: dict[int, str]) -> None:
