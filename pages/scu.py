@@ -323,12 +323,12 @@ def content(name: str) -> None:
             service.rows = rows
             service.update()
 
-    shown: dict = {}
+    last_view: dict = {}
 
     def changed(key: str, value) -> bool:
-        if shown.get(key) == value:
+        if last_view.get(key) == value:
             return False
-        shown[key] = value
+        last_view[key] = value
         return True
 
     def refresh() -> None:
