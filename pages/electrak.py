@@ -16,13 +16,13 @@ from devices.electrak import codec
 from devices.electrak.adapter import FOREIGN_SENDER, SERIES
 from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, password_of, refusal
 from pages.frame import fmt_age, fmt_time, frame, set_status_badge
-from pages.hdlock import event_log
 from pages.widgets import (
     HistoryChart,
     Lamp,
     LiveValue,
     WriteGuard,
     checked_value,
+    event_log,
     follow,
     mark_quality,
     quality_note,

@@ -11,7 +11,7 @@ from devices.hdlock import codec
 from devices.hdlock.adapter import CHART_SERIES
 from devices.hdlock.params import HOLDING, INPUT, LOCK_STATUS_BITS, PARAMS
 from devices.params import Param
-from pages.frame import fmt_age, fmt_time, frame, set_status_badge
+from pages.frame import fmt_age, frame, set_status_badge
 from pages.widgets import (
     HistoryChart,
     Lamp,
@@ -20,6 +20,7 @@ from pages.widgets import (
     checked_value,
     confirm,
     entry_age,
+    event_log,
     follow,
     mark_quality,
     quality_note,
@@ -130,42 +131,6 @@ def content(name: str) -> None:
 
         update()
         follow(state, update)  # on every change the store pushes (at most 10/s) and once a second for the ages
-
-
-EVENT_COLUMNS = [
-    {"name": "time", "label": "Time", "field": "time", "align": "left", "classes": "mono", "headerClasses": "w-24"},
-    {"name": "level", "label": "Level", "field": "level", "align": "left"},
-    {"name": "text", "label": "Event", "field": "text", "align": "left", "classes": "ev-text"},
-]
-
-
-def event_log(state) -> ui.table:
-    """The device's events newest first (state changes, faults rising and clearing, offline and back,
-    commands and refusals), updated in place when one is added; as bounded as the store's list."""
-    table = ui.table(columns=EVENT_COLUMNS, rows=[], row_key="id", pagination=0).classes("w-full")
-    table.props("dense flat hide-bottom data-testid=events").style("max-height: 16rem")
-    table.add_slot("body-cell-text", '<q-td :props="props" style="white-space: normal">{{ props.value }}</q-td>')
-    table.add_slot(
-        "body-cell-level",
-        '<q-td :props="props"><q-badge :color="props.value == \'error\' ? \'negative\' : props.value == \'warning\' '
-        '? \'warning\' : \'grey-6\'">{{ props.value }}</q-badge></q-td>',
-    )
-    shown: list = [None, -1]  # newest event and count last shown: O(1) when nothing was added
-
-    def update() -> None:
-        events = state.events
-        newest = events[-1] if events else None
-        if newest is shown[0] and len(events) == shown[1]:
-            return
-        shown[0], shown[1] = newest, len(events)
-        count = len(events)
-        table.rows = [{"id": count - i, "time": fmt_time(e.time), "level": e.level, "text": e.text}
-                      for i, e in enumerate(reversed(events))]
-        table.update()
-
-    update()
-    follow(state, update)
-    return table
 
 
 def _note(entry: dict | None) -> str:

@@ -11,7 +11,6 @@ from app.worker import DEADMAN_BOUND_S
 from devices.m3io import codec
 from devices.m3io.codec import Variant
 from pages.frame import fmt_age, frame, set_status_badge
-from pages.hdlock import event_log
 from pages.widgets import (
     HistoryChart,
     Lamp,
@@ -19,6 +18,7 @@ from pages.widgets import (
     checked_value,
     confirm,
     entry_age,
+    event_log,
     follow,
     mark_quality,
     quality_note,

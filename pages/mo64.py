@@ -12,13 +12,13 @@ from devices.mo64 import codec
 from devices.mo64.adapter import COMMAND_NAMES, HELD_LEVELS, NeedsConfirmation
 from pages.electrak import gate
 from pages.frame import frame, set_status_badge
-from pages.hdlock import event_log
 from pages.widgets import (
     Lamp,
     WriteGuard,
     checked_value,
     confirm,
     entry_age,
+    event_log,
     follow,
     mark_quality,
     quality_note,

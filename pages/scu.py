@@ -15,7 +15,6 @@ from devices.scu import params as p
 from devices.scu.adapter import SERVICE_IDS
 from pages.electrak import gate
 from pages.frame import fmt_age, fmt_time, frame, set_status_badge
-from pages.hdlock import event_log
 from pages.widgets import (
     HistoryChart,
     Lamp,
@@ -23,6 +22,7 @@ from pages.widgets import (
     WriteGuard,
     checked_value,
     entry_age,
+    event_log,
     follow,
     mark_quality,
     quality_note,
