@@ -499,9 +499,11 @@ def _bitrate_card(name: str, state, adapter, runtime, guard: WriteGuard):
         switch_text.set_text("3. Switch the bus: in the plant file set bitrate = "
                              + (f"{target}" if target else "<new rate>") + f" for [[bus]] name = \"{state.bus}\"")
         for (icon, _row), ok in zip(steps, done):
-            icon.name = "check_circle" if ok else "radio_button_unchecked"
-            icon.props(f"color={'positive' if ok else 'grey'}")
-            icon.update()
+            color = "positive" if ok else "grey"
+            if icon.props.get("color") != color:  # runs on every push: nothing to send when unchanged
+                icon.name = "check_circle" if ok else "radio_button_unchecked"
+                icon.props(f"color={color}")
+                icon.update()
         if not written:
             status.set_text(f"The actuators run at the bus's {bus_rate // 1000} kbit/s." if raw is not None and heard_all
                             else "Read the bit rate (Read all) to see what the actuators hold.")

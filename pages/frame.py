@@ -102,24 +102,30 @@ def frame(title: str):
         if runtime.auth_required and user and current_user()[0] != user:
             ui.navigate.to("/login")  # logged out elsewhere, or the account was removed
             return
+        problem = runtime.audit.problem
+        mqtt = getattr(runtime, "mqtt", None)
+        broker = mqtt.summary() if mqtt is not None else None
+        loop = runtime.worker.loop_health.summary()
+        stalled = loop["last_stall"] is not None and time.time() - loop["last_stall"] < 60
+        bus_view = tuple((b.name, b.connected, b.last_error) for b in runtime.store.buses.values())
+        broker_view = None if broker is None else tuple(sorted((k, str(v)) for k, v in broker.items()))
+        signature = (problem, broker_view, stalled, round(loop["p99_ms"]), loop["stalls"], bus_view)
+        if signature == shown[0]:
+            return  # nothing new: the header is not rebuilt (it runs on every page)
+        shown[0] = signature
         health.clear()
         with health:
-            problem = runtime.audit.problem
             if problem:
                 with ui.row().classes("items-center gap-1 no-wrap bg-negative q-px-sm rounded-borders").props("data-testid=audit-state"):
                     ui.icon("report", color="white")
                     ui.label("audit log not writable: writes refused").classes("text-white text-caption")
                     ui.tooltip(f"{problem}. Free or repair the database; writes resume by themselves.")
-            mqtt = getattr(runtime, "mqtt", None)
-            if mqtt is not None:  # only with an [mqtt] table: the broker's state (publishing never holds up the buses)
-                broker = mqtt.summary()
+            if broker is not None:  # only with an [mqtt] table: the broker's state (publishing never holds up the buses)
                 with ui.badge(f"broker {broker['state']}", color="green-3" if broker["connected"] else "orange-4").classes(
                         "text-black").props("data-testid=broker-state"):
                     ui.tooltip(f"MQTT {broker['url']}: {broker['state']}"
                                + (f" ({broker['last_error']})" if broker["last_error"] and not broker["connected"] else "")
                                + f"; {broker['sent']} sent, {broker['queued']} waiting, {broker['dropped']} alarm events dropped")
-            loop = runtime.worker.loop_health.summary()
-            stalled = loop["last_stall"] is not None and time.time() - loop["last_stall"] < 60
             chip = ui.label(f"loop {loop['p99_ms']:.0f} ms").classes(
                 "text-caption " + ("text-orange-4" if stalled else "text-grey-5")).props("data-testid=loop-lag")
             with chip:
@@ -134,6 +140,7 @@ def frame(title: str):
                     ui.icon("lan" if bus.connected else "link_off", color=color).classes("q-ml-xs")
                     ui.tooltip(f"{bus.type} {bus.endpoint}: " + ("connected" if bus.connected else bus.last_error or "not connected"))
 
+    shown: list = [None]
     refresh_buses()
     ui.timer(2.0, refresh_buses)
     with ui.column().classes("w-full q-pa-md gap-4"):
@@ -154,7 +161,8 @@ def status_text(status: str, age: float | None) -> str:
 
 def set_status_badge(badge: ui.badge, status: str, age: float | None) -> None:
     badge.set_text(status_text(status, age))
-    badge.props(f"color={STATUS_COLOR[status]}")
+    if badge.props.get("color") != STATUS_COLOR[status]:  # runs on every push: no props parsing when unchanged
+        badge.props(f"color={STATUS_COLOR[status]}")
 
 
 def now() -> float:

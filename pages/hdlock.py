@@ -220,7 +220,8 @@ def _parameter_card(name: str, state, guard: WriteGuard):
         count = len(state.unsaved)
         unsaved_label.set_text(f"{count} unsaved change{'s' if count != 1 else ''}")
         unsaved_label.set_visibility(count > 0)
-        save.props(f"color={'orange' if count else 'primary'}")
+        if save.props.get("color") != ("orange" if count else "primary"):
+            save.props(f"color={'orange' if count else 'primary'}")
 
     return refresh
 

@@ -37,6 +37,9 @@ class Lamp:
         self.kind = kind
 
     def set(self, on: bool | None) -> None:
+        if getattr(self, "_on", "never") == on:
+            return  # unchanged: no class or prop work (this runs on every push)
+        self._on = on
         self.dot.classes(remove="on unknown")
         if on is None:
             self.dot.classes(add="unknown")
@@ -75,6 +78,8 @@ def quality_note(quality: str, age: float | None) -> str:
 
 def mark_quality(element: ui.element, quality: str) -> None:
     """Grey an element by the quality of the value it shows (classes q-stale, q-offline, q-unknown)."""
+    if element.props.get("data-quality") == quality:
+        return  # unchanged: parsing props and sending the element again costs more than this look-up
     element.classes(remove=QUALITY_CLASSES)
     if quality in ("stale", "offline", "unknown"):
         element.classes(add=f"q-{quality}")
@@ -246,6 +251,7 @@ class HistoryChart:
     """
 
     MAX_POINTS = 1500
+    MIN_PERIOD_S = 0.5  # new samples go to the browser at most twice a second (values show at once elsewhere)
 
     @staticmethod
     def _iso(t: float) -> str:
@@ -258,6 +264,7 @@ class HistoryChart:
         self.window_s = window_s
         self.axes = axes or {}
         self.sent_t: float | None = None  # time of the newest sample in the browser
+        self.sent_at = 0.0  # monotonic time of the last sending
         self.sent_points = 0  # samples sent since the last full drawing (for tests and measurements)
         layout: dict = {
             "margin": {"l": 55, "r": 55 if self.axes else 10, "t": 10, "b": 30},
@@ -335,6 +342,9 @@ class HistoryChart:
         newest = history[-1][0]
         if self.sent_t is not None and newest <= self.sent_t:
             return
+        if self.sent_t is not None and time.monotonic() - self.sent_at < self.MIN_PERIOD_S:
+            return  # the next push or the once-a-second round sends what came meanwhile
+        self.sent_at = time.monotonic()
         if self.sent_t is None or newest - self.sent_t > self.window_s:
             self._redraw(newest)
             return

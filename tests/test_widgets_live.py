@@ -58,7 +58,11 @@ async def test_chart_sends_only_new_samples_and_thins_long_windows(user_runtime)
     for i in range(5):
         state.add_history({"T": 1.0}, now=now + 0.5 + i * 0.5)
     chart.update()
+    assert chart.sent_points == len(drawn)  # within MIN_PERIOD_S of the drawing: kept for the next round
+    chart.sent_at -= HistoryChart.MIN_PERIOD_S
+    chart.update()
     assert chart.sent_points == len(drawn) + 5  # the new samples only, not the window again
+    chart.sent_at -= HistoryChart.MIN_PERIOD_S
     chart.update()
     assert chart.sent_points == len(drawn) + 5  # nothing new, nothing sent
     chart.set_window(30)
