@@ -14,6 +14,7 @@ from app import backup
 from app import runtime as rt
 from pages.frame import frame, notify_error
 from pages.session import can_write, current_user
+from pages.widgets import upload_button
 
 WRAP = "white-space: normal; overflow-wrap: break-word"  # long texts wrap inside the screen, never cut off
 DIFF_COLUMNS = [
@@ -39,14 +40,6 @@ STATE_SLOT = """
       <span v-else>{{ props.row.state }}</span>
     </q-td>"""
 # the uploader's own header shows "0.0B / 0.00%" before any file: a plain pick button instead
-UPLOAD_HEADER = """
-    <div class="row no-wrap items-center q-pa-xs">
-      <q-btn v-if="props.canAddFiles" flat dense no-caps icon="upload_file" label="Restore from a file"
-             @click="props.pickFiles" data-testid="restore-upload"><q-uploader-add-trigger /></q-btn>
-      <q-spinner v-if="props.isUploading" size="sm" class="q-ml-sm" />
-    </div>"""
-
-
 def _files(directory: Path) -> list[dict]:
     rows = []
     for path in sorted(directory.glob("*.json"), key=lambda p: p.stat().st_mtime, reverse=True):
@@ -87,7 +80,7 @@ def content() -> None:
                 ui.space()
                 upload = ui.upload(auto_upload=True, max_file_size=5_000_000,
                                    on_upload=lambda e: _uploaded(e)).props("accept=.json flat bordered hide-upload-btn").classes("w-64")
-                upload.add_slot("header", UPLOAD_HEADER)
+                upload.add_slot("header", upload_button("Restore from a file", "restore-upload"))
             table = ui.table(columns=FILE_COLUMNS, rows=[], row_key="name", pagination=20).classes(
                 "w-full reg-table").props("dense flat bordered")
             table.add_slot("body-cell-actions", """

@@ -18,6 +18,7 @@ from app import runtime as rt
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import frame, notify_error
 from pages.session import current_user
+from pages.widgets import upload_button
 
 REFRESH_S = 0.25
 SPEEDS = {0.1: "0.1 x", 0.5: "0.5 x", 1.0: "1 x (as recorded)", 2.0: "2 x", 5.0: "5 x", 10.0: "10 x"}
@@ -43,8 +44,9 @@ def content(bus: str) -> None:
             ui.label("Recording").classes("text-subtitle1")
             files = {f.name: f"{f.name} ({f.size // 1024} KiB)" for f in rec.list_recordings()}
             choice = ui.select(files, label="Recordings in the data folder", with_input=True).classes("w-full").props("outlined dense")
-            ui.upload(label="or open a file (" + " ".join(rec.READ_SUFFIXES) + ")", auto_upload=True,
-                      on_upload=lambda e: handle_upload(e)).props("flat bordered").classes("w-96")
+            ui.upload(auto_upload=True, on_upload=lambda e: handle_upload(e)).props(
+                "flat bordered accept=" + ",".join(rec.READ_SUFFIXES)).classes("w-96").add_slot(
+                "header", upload_button("or open a file (" + " ".join(rec.READ_SUFFIXES) + ")", "replay-upload"))
             file_status = ui.label("no file loaded").props("data-testid=replay-file")
             load_bar = ui.linear_progress(value=0, show_value=False).classes("w-full")
             load_bar.set_visibility(False)

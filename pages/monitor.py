@@ -30,6 +30,7 @@ from app.can_bus import MONITOR_FRAMES, CanBusState, FrameRecord
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import fmt_age, frame, notify_error
 from pages.session import can_write, current_user
+from pages.widgets import upload_button
 
 # -- Modbus / serial lines: transaction log ----------------------------------------------------------
 
@@ -342,6 +343,8 @@ class CanMonitor:
                         on_upload=self.on_upload,
                         on_rejected=lambda: notify_error(f"The file was refused: files up to {MAX_UPLOAD_BYTES // 2**20} MB can be opened."),
                     ).props("accept=" + ",".join(rec.READ_SUFFIXES) + " flat bordered").classes("w-96").style("max-height: 100px")
+                    self.upload.add_slot("header", upload_button(
+                        "Open a recorded file (" + " ".join(rec.READ_SUFFIXES) + ")", "monitor-upload"))
                     self.upload.mark("upload")
                     self.upload.props("data-monitor=upload")
                     with ui.column().classes("gap-1"):
@@ -624,7 +627,8 @@ class CanMonitor:
         suffix = Path(name).suffix.lower()  # only a hint: the format is taken from the content
         try:
             with tempfile.TemporaryDirectory(prefix="commission-") as tmp:
-                path = Path(tmp) / f"upload{suffix if suffix in rec.READ_SUFFIXES else ''}"
+                # the file's own suffix (letters and digits only) so a message can name it; the content decides
+                path = Path(tmp) / f"upload{suffix if suffix[1:].isalnum() else ''}"
                 await e.file.save(path)
                 loaded = await self._load(path, name)
         finally:

@@ -170,6 +170,17 @@ class RegisterTable:
             self.table.update()
 
 
+def upload_button(label: str, testid: str) -> str:
+    """A header slot for ``ui.upload``: one button that picks the file (with a spinner while it
+    uploads), instead of Quasar's header with its "0.0B / 0.00%" placeholder."""
+    return f"""
+    <div class="row no-wrap items-center q-pa-xs">
+      <q-btn v-if="props.canAddFiles" flat dense no-caps icon="upload_file" label="{label}"
+             @click="props.pickFiles" data-testid="{testid}"><q-uploader-add-trigger /></q-btn>
+      <q-spinner v-if="props.isUploading" size="sm" class="q-ml-sm" />
+    </div>"""
+
+
 def follow(state: DeviceState, callback: Callable[[], object]) -> None:
     """Keep part of a page up to date with one device: ``callback`` runs when the device changed
     (pushed by the store at most 10 times a second) and once a second for ages; it ends with the page."""
