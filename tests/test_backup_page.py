@@ -184,7 +184,7 @@ async def test_rows_of_a_device_without_a_parameter_model_carry_names_and_units(
     plan = await backup.plan_restore(env.runtime, "barrier-in", document)
     rows = {r.key: r for r in plan.rows}
     t_open = rows["t_open"]
-    assert t_open.changed and t_open.backup_text.endswith("× 10 ms"), t_open.backup_text  # value and unit
+    assert t_open.changed and t_open.backup_text == "11 s (1100 x 10 ms)", t_open.backup_text  # in seconds, as the device page shows it
     assert t_open.current_text.endswith("x 10 ms)"), t_open.current_text
     relays = rows["multi_relays"]
     assert not relays.changed and relays.backup_text == relays.current_text and "multi1:" in relays.backup_text
