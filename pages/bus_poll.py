@@ -15,6 +15,7 @@ from app.modbus_line import ModbusLine
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import fmt_time, frame, notify_error
 from pages.session import current_user
+from pages.widgets import all_valid, checked_value, range_number
 
 REFRESH_S = 0.25
 PAIR_COLUMNS = [f"{kind} {order}" for kind in ("u32", "i32", "f32") for order in mp.WORD_ORDERS]
@@ -60,16 +61,14 @@ def _view(runtime, bus: str) -> None:
 
     with ui.card().classes("w-full"):
         with ui.row().classes("items-end gap-3 flex-wrap"):
-            unit = ui.number("Unit", value=min(known) if known else 1, min=0, max=254, format="%d").props(
-                "dense outlined").classes("w-20")
+            unit = range_number("Unit", 0, 254, integer=True, value=min(known) if known else 1).classes("w-24")
             function = ui.select({k: v for k, v in mp.FUNCTIONS.items()}, value=3, label="Function").props(
                 "dense outlined").classes("w-60")
             base = ui.select({0: "0-based (protocol)", 1: "1-based (register 1 = address 0)"}, value=0,
                              label="Addresses").props("dense outlined").classes("w-64")
-            start = ui.number("Start address", value=1000, min=0, max=65536, format="%d").props("dense outlined").classes("w-32")
-            count = ui.number("Count", value=10, min=1, max=2000, format="%d").props("dense outlined").classes("w-24")
-            period = ui.number("Period s", value=1.0, min=mp.PERIOD_MIN_S, max=mp.PERIOD_MAX_S, step=0.1).props(
-                "dense outlined").classes("w-24")
+            start = range_number("Start address", 0, 65536, integer=True, value=1000).classes("w-36")
+            count = range_number("Count", 1, 2000, integer=True, value=10).classes("w-32")
+            period = range_number("Period", mp.PERIOD_MIN_S, mp.PERIOD_MAX_S, unit="s", value=1.0, step=0.1).classes("w-32")
             run_button = ui.button("Poll", icon="play_arrow").props("data-testid=poll-start")
             ui.button("Stop", icon="stop", on_click=lambda: (poll.stop(), status.refresh())).props("flat")
 
@@ -80,6 +79,8 @@ def _view(runtime, bus: str) -> None:
                            float(period.value or 1.0)).check()
 
     def run() -> None:
+        if not all_valid(unit, start, count, period):  # each field says what it allows; nothing is polled
+            return
         try:
             poll.start(current_spec())
         except mp.PollError as exc:
@@ -143,9 +144,8 @@ def _view(runtime, bus: str) -> None:
                 "data-testid=poll-write-note")
             return
         with ui.row().classes("items-end gap-3 flex-wrap"):
-            w_unit = ui.number("Unit", value=min(known) if known else 1, min=1, max=254, format="%d").props(
-                "dense outlined").classes("w-20")
-            w_address = ui.number("Address", value=3000, min=0, max=65536, format="%d").props("dense outlined").classes("w-28")
+            w_unit = range_number("Unit", 1, 254, integer=True, value=min(known) if known else 1).classes("w-24")
+            w_address = range_number("Address", 0, 65536, integer=True, value=3000).classes("w-32")
             w_values = ui.input("Value(s)", value="200", placeholder="e.g. 200 or 1, 2, -30").props("dense outlined").classes("w-56")
             w_multi = ui.checkbox("function 16 (multiple)")
             w_button = ui.button("Write", icon="edit")
@@ -153,6 +153,10 @@ def _view(runtime, bus: str) -> None:
                  "never-written registers are refused.").classes("text-caption text-grey-7")
 
     async def write(confirmed: bool = False) -> None:
+        target = await checked_value(w_unit, "", f"Modbus poll write on {bus}", parameter="unit")
+        where = await checked_value(w_address, "", f"Modbus poll write on {bus}", parameter="address")
+        if target is None or where is None:
+            return  # the field says what it allows; the refusal is in the audit log
         try:
             values = [int(v, 0) for v in str(w_values.value or "").replace(",", " ").split()]
         except ValueError:

@@ -14,6 +14,7 @@ from app import transmit as tx
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import frame, notify_error
 from pages.session import current_user
+from pages.widgets import all_valid, range_number
 
 REFRESH_S = 0.5
 COLUMNS = [
@@ -87,14 +88,16 @@ def _engineer_view(runtime, bus: str, user: str, role: str) -> None:
         with ui.row().classes("items-end gap-3 flex-wrap"):
             can_id = ui.input("ID (hex)", value="123").props("dense outlined").classes("w-28 mono")
             extended = ui.checkbox("extended (29-bit)")
-            dlc = ui.number("DLC", value=2, min=0, max=8, format="%d").props("dense outlined").classes("w-20")
+            dlc = range_number("DLC", 0, 8, integer=True, value=2).classes("w-24")
             data = ui.input("Data (hex bytes)", value="01 02").props("dense outlined").classes("w-56 mono")
             mode = ui.select({"once": "once", "cyclic": "cyclic"}, value="once", label="Send").props("dense outlined").classes("w-28")
-            period = ui.number("Cycle ms", value=100, min=tx.PERIOD_MIN_MS, max=tx.PERIOD_MAX_MS, format="%d").props(
-                "dense outlined").classes("w-28")
+            period = range_number("Cycle", tx.PERIOD_MIN_MS, tx.PERIOD_MAX_MS, unit="ms", integer=True, value=100).classes("w-36")
             period.bind_visibility_from(mode, "value", value="cyclic")
 
             async def add_raw() -> None:
+                if not all_valid(dlc, *([period] if mode.value == "cyclic" else [])):
+                    return  # the field says what it allows; nothing is added
+
                 async def do() -> None:
                     payload = tx.parse_bytes(data.value or "")
                     row = tx.make_row(_parse_int(can_id.value, "ID"), bool(extended.value), payload,
@@ -128,10 +131,13 @@ def _engineer_view(runtime, bus: str, user: str, role: str) -> None:
                     ui.label(f"HD-Lock {dev.name}").classes("w-48")
                     space = ui.select({"holding": "read holding", "input": "read input", "write": "write holding"},
                                       value="holding").props("dense outlined").classes("w-36")
-                    address = ui.number("Register", value=1000, min=0, max=65535, format="%d").props("dense outlined").classes("w-28")
-                    count = ui.number("Count / value", value=1, min=0, max=65535, format="%d").props("dense outlined").classes("w-32")
+                    address = range_number("Register", 0, 65535, integer=True, value=1000).classes("w-32")
+                    count = range_number("Count / value", 0, 65535, integer=True, value=1).classes("w-36")
 
                     async def add_lock(dev=dev, space=space, address=address, count=count) -> None:
+                        if not all_valid(address, count):
+                            return
+
                         async def do() -> None:
                             a, n = int(address.value or 0), int(count.value or 0)
                             if space.value == "write":

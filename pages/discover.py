@@ -6,6 +6,7 @@ from nicegui import ui
 
 from app import runtime as rt
 from pages.session import current_user
+from pages.widgets import all_valid, range_number
 
 
 def open_discover_dialog(bus: str) -> None:
@@ -18,8 +19,8 @@ def open_discover_dialog(bus: str) -> None:
             "of the address range. Polling on this line pauses meanwhile. Each silent address costs one timeout."
         ).classes("text-caption text-grey-8")
         with ui.row():
-            first = ui.number("From", value=1, min=1, max=254, format="%d").props("dense outlined").classes("w-24")
-            last = ui.number("To", value=16, min=1, max=254, format="%d").props("dense outlined").classes("w-24")
+            first = range_number("From", 1, 254, integer=True, value=1).classes("w-32")
+            last = range_number("To", 1, 254, integer=True, value=16).classes("w-32")
         progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
         status = ui.label().classes("text-body2")
         results = ui.column().classes("gap-1")
@@ -32,9 +33,11 @@ def open_discover_dialog(bus: str) -> None:
         status.set_text(f"scanned {done} of {total} addresses")
 
     async def run() -> None:
-        a, b = int(first.value or 1), int(last.value or 1)
-        if not 1 <= a <= b <= 254:
-            ui.notify("Enter a range within 1..254, From <= To", type="warning")
+        if not all_valid(first, last):
+            return  # each field says what it allows; nothing is scanned
+        a, b = int(first.value), int(last.value)
+        if a > b:
+            last.error = f"To must not be below From ({a})"
             return
         start.disable()
         results.clear()

@@ -465,6 +465,18 @@ async def refuse(device: str, describe: str, reason: str, parameter: str = "", n
                                       reason=reason, parameter=parameter, new=new)
 
 
+def all_valid(*fields: ui.number) -> bool:
+    """Check every :func:`range_number` entry (each marks its own error); True when all hold a valid value."""
+    ok = True
+    for field in fields:
+        if field.value is None:
+            field.error = f"enter a value first ({getattr(field, 'rule', '')})".replace(" ()", "")
+            ok = False
+        elif not field.validate():
+            ok = False
+    return ok
+
+
 async def checked_value(field: ui.number, device: str, describe: str, parameter: str = "") -> float | None:
     """The value of a :func:`range_number` entry, or None (field marked, refusal audited, nothing sent)."""
     if field.value is None:
