@@ -299,6 +299,8 @@ def content(name: str) -> None:
             event_log(state)  # session changes, error answers, offline and back, commands; newest first
 
     # the big STOP in a bar of its own: the page reserves its height, so it never covers a button of the page
+    # the STOP bar stays at the bottom: a control scrolled into view stops above it, never under it
+    ui.add_css("html { scroll-padding-bottom: 88px; }")
     with ui.footer().classes("bg-grey-2 q-py-xs q-px-md items-center justify-end gap-4").props("bordered data-testid=stop-bar"):
         ui.label("RS to every running function; anyone may stop, also without control.").classes("text-caption text-grey-8")
         ui.button("STOP", icon="stop_circle", color="negative",
