@@ -68,7 +68,7 @@ def _view(runtime, bus: str) -> None:
                              label="Addresses").props("dense outlined").classes("w-64")
             start = range_number("Start address", 0, 65536, integer=True, value=1000).classes("w-36")
             count = range_number("Count", 1, 2000, integer=True, value=10).classes("w-32")
-            period = range_number("Period", mp.PERIOD_MIN_S, mp.PERIOD_MAX_S, unit="s", value=1.0, step=0.1).classes("w-32")
+            period = range_number("Period s", mp.PERIOD_MIN_S, mp.PERIOD_MAX_S, unit="s", value=1.0, step=0.1).classes("w-32")
             run_button = ui.button("Poll", icon="play_arrow").props("data-testid=poll-start")
             ui.button("Stop", icon="stop", on_click=lambda: (poll.stop(), status.refresh())).props("flat")
 

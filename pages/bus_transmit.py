@@ -91,7 +91,7 @@ def _engineer_view(runtime, bus: str, user: str, role: str) -> None:
             dlc = range_number("DLC", 0, 8, integer=True, value=2).classes("w-24")
             data = ui.input("Data (hex bytes)", value="01 02").props("dense outlined").classes("w-56 mono")
             mode = ui.select({"once": "once", "cyclic": "cyclic"}, value="once", label="Send").props("dense outlined").classes("w-28")
-            period = range_number("Cycle", tx.PERIOD_MIN_MS, tx.PERIOD_MAX_MS, unit="ms", integer=True, value=100).classes("w-36")
+            period = range_number("Cycle ms", tx.PERIOD_MIN_MS, tx.PERIOD_MAX_MS, unit="ms", integer=True, value=100).classes("w-36")
             period.bind_visibility_from(mode, "value", value="cyclic")
 
             async def add_raw() -> None:
