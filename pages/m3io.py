@@ -84,8 +84,7 @@ def content(name: str) -> None:
                 with ui.row().classes("items-center w-full"):
                     ui.label("Outputs").classes("text-subtitle1")
                     ui.space()
-                    ui.button("All off", icon="power_off", color="negative",
-                              on_click=lambda: act("all off", lambda a: a.all_off("all off pressed"), write=False)).props("data-testid=all-off")
+                    ui.label("All off: in the bar at the bottom, always in sight").classes("text-caption text-grey-8")
                 with ui.row().classes("items-start gap-1 no-wrap").props("data-testid=stop-rule"):
                     ui.icon("front_hand", size="xs").classes("text-grey-8 q-mt-xs")
                     ui.label(STOP_RULE).classes("text-caption text-grey-8")
@@ -125,6 +124,15 @@ def content(name: str) -> None:
 
         with ui.expansion("Events", icon="list", value=True).classes("w-full"):
             event_log(state)
+
+    # the way out stays in sight wherever the page is scrolled (a bar at the bottom, as on the lift page)
+    ui.add_css("html { scroll-padding-bottom: 88px; }")
+    with ui.footer().classes("bg-grey-2 q-py-xs q-px-md items-center justify-end gap-4").props("bordered data-testid=off-bar"):
+        ui.label("Switches every output off at once; anyone may, also without writing rights.").classes(
+            "text-caption text-grey-8")
+        ui.button("All off", icon="power_off", color="negative",
+                  on_click=lambda: act("all off", lambda a: a.all_off("all off pressed"), write=False)).props(
+            "size=lg push data-testid=all-off")
 
     def update() -> None:
         set_status_badge(badge, state.status, state.age)
