@@ -287,10 +287,14 @@ class HistoryChart:
             "uirevision": "keep",
         }
         if self.axes:
-            title = ", ".join(s for s in series if self.axes.get(s) == "y2")
-            layout["yaxis2"] = {"overlaying": "y", "side": "right", "title": {"text": title}, "automargin": True,
+            def units(on_y2: bool) -> str:  # the axis titles name the units; the legend names the series
+                found = [s[s.rfind("[") + 1:-1] if s.endswith("]") and "[" in s else s
+                         for s in series if (self.axes.get(s) == "y2") == on_y2]
+                return ", ".join(dict.fromkeys(found))
+
+            layout["yaxis2"] = {"overlaying": "y", "side": "right", "title": {"text": units(True)}, "automargin": True,
                                 "showgrid": False}
-            layout["yaxis"]["title"] = {"text": ", ".join(s for s in series if self.axes.get(s) != "y2")}
+            layout["yaxis"]["title"] = {"text": units(False)}
         self.figure = {
             "data": [{"type": "scatter", "mode": "lines", "name": s, "x": [], "y": [], "yaxis": self.axes.get(s, "y")}
                      for s in series],
