@@ -267,6 +267,16 @@ class CanMonitor:
         ui.timer(REFRESH_S, self.refresh)
 
     # -- layout ---------------------------------------------------------------------------------------
+    def download_dbc(self) -> None:
+        from app import dbc
+
+        try:
+            text = dbc.dbc_text(self.worker, self.bus)
+        except dbc.DbcError as exc:
+            notify_error(f"No DBC for {self.bus}: {exc}")
+            return
+        ui.download.content(text.encode(), f"{self.bus}.dbc", "application/octet-stream")
+
     def _build(self) -> None:
         state = self.state
         with ui.row().classes("items-center gap-3 w-full"):
@@ -279,6 +289,9 @@ class CanMonitor:
             self.counts.props("data-monitor=counters")
             self.error_label = ui.label().classes("text-body2 text-negative")
             _tool_links(self.bus, [("Transmit", "transmit", "send"), ("Replay", "replay", "replay")])
+            ui.button("DBC", icon="download", on_click=self.download_dbc).props(
+                "flat dense no-caps data-monitor=dbc").tooltip(
+                "A DBC of this bus's devices (cantools), so other tools decode recordings with names")
 
         with ui.row().classes("items-end gap-3 w-full"):
             self.id_from = ui.input("ID from (hex)", on_change=self._filters_changed).props("dense outlined clearable").classes("w-36 mono")
