@@ -53,7 +53,9 @@ def test_hdlock_entry_save_dialog_and_chart(app_url: str, chromium: Browser, tmp
         page.wait_for_function("() => [...document.querySelectorAll('.js-plotly-plot')].some(p => p.layout && "
                                "p.layout.yaxis2 && p.layout.yaxis2.overlaying === 'y' && p.layout.yaxis2.side === 'right')")
         expect(page.locator("[data-chart-window] button[aria-pressed=true]")).to_have_text(re.compile(r"30 s"))
-        expect(page.locator(".js-plotly-plot .y2title")).to_contain_text("MotorCurrent [mA]")
+        expect(page.locator(".js-plotly-plot .y2title")).to_have_text("mA")  # each axis titled with its unit
+        expect(page.locator(".js-plotly-plot .ytitle")).to_have_text("Inc")
+        assert page.locator(".js-plotly-plot .ytitle").bounding_box()["x"] >= 0  # not clipped at the left edge
         page.screenshot(path=str(tmp_path / f"door-1-top-{size[0]}.png"))
 
         # address 300: kept as typed, marked with the range, nothing sent (no confirmation, the lock keeps address 1)
