@@ -18,6 +18,18 @@ import pytest
 from app.plant import Plant, parse_plant
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """Every runtime the tests start (in this process and in app subprocesses, which inherit the
+    environment) keeps its audit log, backups and sessions in a data folder of this test run,
+    never in the user's own folder and never shared with a run beside it. Tests that need a
+    folder of their own still set ``COMMISSION_DATA_DIR`` themselves."""
+    import os
+    import tempfile
+
+    if "COMMISSION_DATA_DIR" not in os.environ:
+        os.environ["COMMISSION_DATA_DIR"] = tempfile.mkdtemp(prefix="commission-tests-")
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
