@@ -116,7 +116,12 @@ def modbus_content(bus: str) -> None:
         def update() -> None:
             log = list(bus_state.transactions)
             errors = sum(1 for t in log if t.error)
-            summary.set_text(f"{len(log)} transactions buffered, {errors} with errors")
+            cycle = getattr(bus_state, "cycle_s", None)
+            conflicts = getattr(bus_state, "address_conflicts", 0)
+            summary.set_text(
+                f"{len(log)} transactions buffered, {errors} with errors"
+                + (f" · line cycle {cycle:.2f} s (every device polled once)" if cycle else "")
+                + (f" · {conflicts} answers from another unit: address conflict on the line?" if conflicts else ""))
             if paused.value:
                 return
             decoder.refresh()

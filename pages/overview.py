@@ -113,6 +113,10 @@ def content() -> None:
                 text = "connected" if state.connected else f"not connected: {state.last_error or 'opening...'}"
                 if state.connected and hasattr(state, "bus_state"):
                     text += f" · {state.bus_state} · {state.rx_frames} frames in, {state.error_frames} error frames"
+                if getattr(state, "cycle_s", None):  # Modbus: the measured time to poll every device once
+                    text += f" · cycle {state.cycle_s:.2f} s"
+                if getattr(state, "address_conflicts", 0):
+                    text += f" · {state.address_conflicts} answers from another unit: address conflict on the line?"
                 shed = getattr(state, "shed", 0)
                 if shed:  # the program could not keep up with this bus: say so rather than lag
                     text += f" · {shed} frames shed: more traffic than this program can handle"

@@ -8,6 +8,7 @@ app's lifespan starts (which starts the twins and the worker through ``app.on_st
 from __future__ import annotations
 
 import logging
+import re
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
 
@@ -105,6 +106,21 @@ def spy_writes(twin) -> list[tuple[int, int]]:
 
 
 # -- overview and device page -------------------------------------------------------------------
+
+
+async def test_line_cycle_time_is_shown_on_the_overview_and_the_monitor(env: Env):
+    user = env.user
+    await online(env)
+    line = env.runtime.store.buses["line1"]
+    await eventually(lambda: line.cycle_s, timeout=10, what="the line measured a cycle")
+    await user.open("/")
+    await user.should_see(" · cycle ", retries=30)
+    texts = [e.text for e in user.find(" · cycle ").elements]
+    assert any(re.search(r"connected · cycle \d+\.\d\d s", t) for t in texts), texts
+    await user.open("/monitor/line1")
+    await user.should_see("(every device polled once)", retries=30)
+    texts = [e.text for e in user.find("(every device polled once)").elements]
+    assert any(re.search(r"line cycle \d+\.\d\d s \(every device polled once\)", t) for t in texts), texts
 
 
 async def test_overview_lists_both_locks_online(env: Env):
