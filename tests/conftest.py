@@ -26,8 +26,22 @@ def pytest_configure(config: pytest.Config) -> None:
     import os
     import tempfile
 
+    global _RUN_DATA_DIR
     if "COMMISSION_DATA_DIR" not in os.environ:
-        os.environ["COMMISSION_DATA_DIR"] = tempfile.mkdtemp(prefix="commission-tests-")
+        _RUN_DATA_DIR = os.environ["COMMISSION_DATA_DIR"] = tempfile.mkdtemp(prefix="commission-tests-")
+
+
+_RUN_DATA_DIR: str | None = None
+
+
+@pytest.fixture(autouse=True)
+def _own_data_dir(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each test its own data folder (its own audit log: no test waits on another's database lock),
+    unless a module fixture already chose one for the app it runs."""
+    import os
+
+    if _RUN_DATA_DIR is not None and os.environ.get("COMMISSION_DATA_DIR") == _RUN_DATA_DIR:
+        monkeypatch.setenv("COMMISSION_DATA_DIR", str(request.getfixturevalue("tmp_path") / "data"))
 
 
 def free_port() -> int:

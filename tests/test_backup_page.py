@@ -154,13 +154,14 @@ def test_backup_times_are_shown_in_local_time(monkeypatch: pytest.MonkeyPatch):
 async def test_restore_rows_name_enums_units_and_the_risk(env: Env):
     directory = env.runtime.backups_dir
     directory.mkdir(parents=True, exist_ok=True)
-    (directory / "door-1-magnet.json").write_text(json.dumps(_magnet_document()))
+    document = _magnet_document()
+    (directory / "door-1-magnet.json").write_text(json.dumps(document))
     await env.user.open("/backup")
     files = next(t for t in _elements(env.user, ui.table) if any(c["name"] == "by" for c in t.columns))
     await eventually(lambda: [r["name"] for r in files.rows] == ["door-1-magnet.json"], what="the file listed")
     row = files.rows[0]
     assert row["by"] == "anna (engineer)"
-    assert row["time"] == backup.local_time(_magnet_document()["time"])
+    assert row["time"] == backup.local_time(document["time"])
     emit(files, "restore", "door-1-magnet.json")  # the row's Restore button
     await env.user.should_see("Restore from door-1-magnet.json")
     await env.user.should_see("by anna (engineer)")
