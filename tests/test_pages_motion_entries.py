@@ -105,6 +105,8 @@ async def test_lift_speed_50_is_kept_marked_with_the_range_and_not_sent(env):
     before = adapter.command
     speed = by_testid(user, "speed")
     speed.value = 50
+    apply_button = by_testid(user, "apply")
+    await eventually(lambda: apply_button.enabled, timeout=10, what="Apply enabled (the network answers)")
     user.find(kind=ui.button, content="Apply").click()
     await eventually(lambda: speed.error, timeout=3, what="speed marked invalid")
     assert speed.value == 50  # kept as typed, not clamped to 32

@@ -152,7 +152,8 @@ async def test_overview_lists_both_locks_online(env: Env):
     await user.should_see(kind=ui.label, content="bolt unlocked")
     await user.should_see(kind=ui.label, content=" Inc")
     await eventually(
-        lambda: any(e.text == "connected" for e in user.find(kind=ui.label, content="connected").elements),
+        lambda: any(e.text == "connected" or e.text.startswith("connected · ")
+                    for e in user.find(kind=ui.label, content="connected").elements),
         what="line1 shown as connected",
     )
 
