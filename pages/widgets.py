@@ -483,11 +483,9 @@ def all_valid(*fields: ui.number) -> bool:
 
 async def checked_value(field: ui.number, device: str, describe: str, parameter: str = "") -> float | None:
     """The value of a :func:`range_number` entry, or None (field marked, refusal audited, nothing sent)."""
-    if field.value is None:
-        field.error = f"enter a value first ({getattr(field, 'rule', '')})".replace(" ()", "")
-        return None
-    if not field.validate():
-        await refuse(device, describe, f"{field.value:g}: {field.error}", parameter=parameter, new=field.value)
+    if not all_valid(field):
+        if field.value is not None:  # an empty field only asks for a value; a bad one is a refusal
+            await refuse(device, describe, f"{field.value:g}: {field.error}", parameter=parameter, new=field.value)
         return None
     return field.value
 
