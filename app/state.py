@@ -44,10 +44,11 @@ class Watch:
     """One reader following one device: ``callback()`` runs after the device changed (at most every
     :data:`PUSH_PERIOD_S`) and at least every :data:`AGE_PERIOD_S`. ``cancel()`` ends it."""
 
-    __slots__ = ("store", "device", "callback", "alive")
+    __slots__ = ("store", "device", "callback", "alive", "slow")
 
-    def __init__(self, store: "StateStore", device: str, callback: Callable[[], object]):
+    def __init__(self, store: "StateStore", device: str, callback: Callable[[], object], slow: bool = False):
         self.store, self.device, self.callback, self.alive = store, device, callback, True
+        self.slow = slow  # called only once a second (counters, ages): a page that shows them changes once a second
 
     def cancel(self) -> None:
         if self.alive:
@@ -80,9 +81,10 @@ class StateStore:
         return self.devices[name]
 
     # -- following changes ---------------------------------------------------------
-    def watch(self, device: str, callback: Callable[[], object]) -> Watch:
-        """Call ``callback`` whenever ``device`` changed (at most 10 times a second) and once a second."""
-        w = Watch(self, device, callback)
+    def watch(self, device: str, callback: Callable[[], object], slow: bool = False) -> Watch:
+        """Call ``callback`` whenever ``device`` changed (at most 10 times a second) and once a second;
+        ``slow``: only once a second (for what moves with every frame, such as counters)."""
+        w = Watch(self, device, callback, slow)
         self._watches.setdefault(device, []).append(w)
         self.ensure_running()
         return w
@@ -130,6 +132,8 @@ class StateStore:
             if not (changed or age_round):
                 continue
             for w in list(self._watches.get(name, ())):
+                if w.slow and not age_round:
+                    continue
                 try:
                     w.callback()
                     calls += 1

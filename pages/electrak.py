@@ -22,6 +22,7 @@ from pages.widgets import (
     LiveValue,
     WriteGuard,
     checked_value,
+    counter_line,
     event_log,
     follow,
     mark_quality,
@@ -71,7 +72,8 @@ def content(name: str) -> None:
                 badge = ui.badge("waiting", color="grey").classes("text-body2")
                 heard = ui.label().classes("text-body2")
                 seen = ui.label().classes("text-body2")
-                counters = ui.label().classes("text-caption mono text-grey-8")
+                counter_line(state, lambda c: f"status frames {c.responses} · service requests {c.requests} · timeouts {c.timeouts} · "
+                             f"error answers {c.exceptions} · malformed {c.malformed}")
             _numbers_grid(state, len(adapter.actuators))
             heard_warning = ui.label().classes("text-warning text-body2")
             saturated_warning = ui.label().classes("text-warning text-body2").props("data-testid=saturated-warning")
@@ -147,9 +149,6 @@ def content(name: str) -> None:
         )
         saturated_warning.set_text(info.get("saturated_warning", "") if online_now() else "")
         seen.set_text(f"last status {fmt_age(state.age)}")
-        c = state.counters
-        counters.set_text(f"status frames {c.responses} · service requests {c.requests} · timeouts {c.timeouts} · "
-                          f"error answers {c.exceptions} · malformed {c.malformed}")
         online = state.status == "online"
         for bit, lamp in motion_lamps.items():
             lamp.show(state.point(codec.MOTION_FLAGS[bit][0]))

@@ -98,49 +98,54 @@ def frame(title: str):
 
     ui.add_body_html(BEAT_JS % (round(BEAT_PERIOD_S * 1000), BEAT_EVENT))
 
+    # the header runs on every page: built once, then only changed texts and colours go to the browser
+    with health:
+        problem_box = ui.row().classes("items-center gap-1 no-wrap bg-negative q-px-sm rounded-borders") \
+            .props("data-testid=audit-state")
+        with problem_box:
+            ui.icon("report", color="white")
+            ui.label("audit log not writable: writes refused").classes("text-white text-caption")
+            problem_tip = ui.tooltip("")
+        problem_box.set_visibility(False)
+        broker_badge = broker_tip = None
+        if getattr(runtime, "mqtt", None) is not None:  # only with an [mqtt] table: the broker's state
+            with ui.badge("broker", color="orange-4").classes("text-black").props("data-testid=broker-state") as broker_badge:
+                broker_tip = ui.tooltip("")
+        with ui.label().classes("text-caption text-grey-5").props("data-testid=loop-lag") as loop_chip:
+            loop_tip = ui.tooltip("")
+    bus_chips = {}
+    with buses:
+        for bus in runtime.store.buses.values():
+            with ui.link(f"{bus.name}", f"/monitor/{bus.name}").classes("text-white no-underline"):
+                bus_chips[bus.name] = (ui.icon("link_off", color="red").classes("q-ml-xs"), ui.tooltip(""))
+
     def refresh_buses() -> None:
         if runtime.auth_required and user and current_user()[0] != user:
             ui.navigate.to("/login")  # logged out elsewhere, or the account was removed
             return
         problem = runtime.audit.problem
-        mqtt = getattr(runtime, "mqtt", None)
-        broker = mqtt.summary() if mqtt is not None else None
+        problem_box.set_visibility(bool(problem))
+        if problem:
+            problem_tip.set_text(f"{problem}. Free or repair the database; writes resume by themselves.")
+        if broker_badge is not None:  # publishing never holds up the buses
+            broker = runtime.mqtt.summary()
+            broker_badge.set_text(f"broker {broker['state']}")
+            broker_badge.set_background_color("green-3" if broker["connected"] else "orange-4")
+            broker_tip.set_text(f"MQTT {broker['url']}: {broker['state']}"
+                                + (f" ({broker['last_error']})" if broker["last_error"] and not broker["connected"] else "")
+                                + f"; {broker['sent']} sent, {broker['queued']} waiting, {broker['dropped']} alarm events dropped")
         loop = runtime.worker.loop_health.summary()
         stalled = loop["last_stall"] is not None and time.time() - loop["last_stall"] < 60
-        bus_view = tuple((b.name, b.connected, b.last_error) for b in runtime.store.buses.values())
-        broker_view = None if broker is None else tuple(sorted((k, str(v)) for k, v in broker.items()))
-        signature = (problem, broker_view, stalled, round(loop["p99_ms"]), loop["stalls"], bus_view)
-        if signature == shown[0]:
-            return  # nothing new: the header is not rebuilt (it runs on every page)
-        shown[0] = signature
-        health.clear()
-        with health:
-            if problem:
-                with ui.row().classes("items-center gap-1 no-wrap bg-negative q-px-sm rounded-borders").props("data-testid=audit-state"):
-                    ui.icon("report", color="white")
-                    ui.label("audit log not writable: writes refused").classes("text-white text-caption")
-                    ui.tooltip(f"{problem}. Free or repair the database; writes resume by themselves.")
-            if broker is not None:  # only with an [mqtt] table: the broker's state (publishing never holds up the buses)
-                with ui.badge(f"broker {broker['state']}", color="green-3" if broker["connected"] else "orange-4").classes(
-                        "text-black").props("data-testid=broker-state"):
-                    ui.tooltip(f"MQTT {broker['url']}: {broker['state']}"
-                               + (f" ({broker['last_error']})" if broker["last_error"] and not broker["connected"] else "")
-                               + f"; {broker['sent']} sent, {broker['queued']} waiting, {broker['dropped']} alarm events dropped")
-            chip = ui.label(f"loop {loop['p99_ms']:.0f} ms").classes(
-                "text-caption " + ("text-orange-4" if stalled else "text-grey-5")).props("data-testid=loop-lag")
-            with chip:
-                ui.tooltip(f"Event-loop lag (it carries every keep-alive): p99 {loop['p99_ms']} ms over the last minute, "
-                           f"worst {loop['worst_ms']} ms, {loop['stalls']} stalls over 100 ms since start")
-        buses.clear()
-        with buses:
-            for bus in runtime.store.buses.values():
-                color = "green" if bus.connected else "red"
-                chip = ui.link(f"{bus.name}", f"/monitor/{bus.name}").classes("text-white no-underline")
-                with chip:
-                    ui.icon("lan" if bus.connected else "link_off", color=color).classes("q-ml-xs")
-                    ui.tooltip(f"{bus.type} {bus.endpoint}: " + ("connected" if bus.connected else bus.last_error or "not connected"))
+        loop_chip.set_text(f"loop {loop['p99_ms']:.0f} ms")
+        loop_chip.classes(replace="text-caption " + ("text-orange-4" if stalled else "text-grey-5"))
+        loop_tip.set_text(f"Event-loop lag (it carries every keep-alive): p99 {loop['p99_ms']} ms over the last minute, "
+                          f"worst {loop['worst_ms']} ms, {loop['stalls']} stalls over 100 ms since start")
+        for bus in runtime.store.buses.values():
+            icon, tip = bus_chips[bus.name]
+            icon.set_name("lan" if bus.connected else "link_off")
+            icon.set_text_color("green" if bus.connected else "red")
+            tip.set_text(f"{bus.type} {bus.endpoint}: " + ("connected" if bus.connected else bus.last_error or "not connected"))
 
-    shown: list = [None]
     refresh_buses()
     ui.timer(2.0, refresh_buses)
     with ui.column().classes("w-full q-pa-md gap-4"):

@@ -19,6 +19,7 @@ from pages.widgets import (
     WriteGuard,
     checked_value,
     confirm,
+    counter_line,
     entry_age,
     event_log,
     follow,
@@ -54,7 +55,8 @@ def content(name: str) -> None:
                 badge = ui.badge("waiting", color="grey").classes("text-body2")
                 ident = ui.label().classes("text-body2")
                 seen = ui.label().classes("text-body2")
-                counters = ui.label().classes("text-caption mono text-grey-8")
+                counter_line(state, lambda c: f"requests {c.requests} · timeouts {c.timeouts} · CRC {c.crc_errors} · "
+                             f"exceptions {c.exceptions} · write errors {c.write_errors}")
             error = ui.label().classes("text-negative text-body2")
 
         # -- status lamps ---------------------------------------------------------------
@@ -113,10 +115,6 @@ def content(name: str) -> None:
             if can_status is not None:
                 can_status()
             seen.set_text(f"last seen {fmt_age(state.age)}")
-            c = state.counters
-            counters.set_text(
-                f"requests {c.requests} · timeouts {c.timeouts} · CRC {c.crc_errors} · exceptions {c.exceptions} · write errors {c.write_errors}"
-            )
             error.set_text(state.last_error if state.status != "online" else "")
             status = state.entry("LockStatus")
             for field_name, lamp in lamps.items():

@@ -17,6 +17,7 @@ from pages.widgets import (
     WriteGuard,
     checked_value,
     confirm,
+    counter_line,
     entry_age,
     event_log,
     follow,
@@ -61,7 +62,8 @@ def content(name: str) -> None:
             with ui.row().classes("items-center gap-6 w-full"):
                 badge = ui.badge("waiting", color="grey").classes("text-body2")
                 watchdog = ui.label().classes("text-body2")
-                counters = ui.label().classes("text-caption mono text-grey-8")
+                counter_line(state, lambda c: f"frames in {c.responses} · requests {c.requests} · timeouts {c.timeouts} · "
+                             f"malformed {c.malformed} · write errors {c.write_errors}")
             ui.label(
                 f"SW1 0x{adapter.sw1:02X} ({adapter.sw1:08b}): "
                 + ("addressed mode (S8 on), " if ids.addressed else "S8 off, ")
@@ -148,8 +150,6 @@ def content(name: str) -> None:
         variant_line.classes(replace="text-body2 " + VARIANT_COLOR[check.state])
         refused.set_text("" if check.may_switch else f"Switching on is refused: {check.text}")
         refused.set_visibility(not check.may_switch)
-        c = state.counters
-        counters.set_text(f"frames in {c.responses} · requests {c.requests} · timeouts {c.timeouts} · malformed {c.malformed} · write errors {c.write_errors}")
         for key, lamp in input_lamps.items():
             lamp.show(state.point(key))
         led.set_value(adapter.outputs["LED"])

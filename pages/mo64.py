@@ -17,6 +17,7 @@ from pages.widgets import (
     WriteGuard,
     checked_value,
     confirm,
+    counter_line,
     entry_age,
     event_log,
     follow,
@@ -119,7 +120,7 @@ def content(name: str) -> None:
                     alarms = ui.label().classes("text-negative text-body1").props("data-testid=alarms")
                     link = ui.label().classes("text-body2").props("data-testid=connection")
                     error_line = ui.label().classes("text-negative text-caption")
-                    counters = ui.label().classes("text-caption mono text-grey-8")
+                    counter_line(state, lambda c: f"requests {c.requests}  answers {c.responses}  timeouts {c.timeouts}  malformed {c.malformed}")
             if adapter.rs485:
                 ui.label(f"RS485 bus address {adapter.address}, this tool is master {adapter.master}.") \
                     .classes("text-caption text-grey-8")
@@ -273,8 +274,6 @@ def content(name: str) -> None:
         link.set_text(f"connection: {conn}" + (f" ({bus.last_error})" if bus is not None and bus.last_error else "")
                       + f"; polling {info.get('polling', '-')}")
         error_line.set_text(state.last_error)
-        c = state.counters
-        counters.set_text(f"requests {c.requests}  answers {c.responses}  timeouts {c.timeouts}  malformed {c.malformed}")
         for bit, lamp in lamps.items():
             lamp.show(state.point(bit))
         mine = sorted(COMMAND_NAMES[cmd] + (" (dead-man)" if cmd in HELD_LEVELS else "")

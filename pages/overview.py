@@ -65,13 +65,18 @@ class DeviceTile:
             self.counters = ui.label().classes("text-caption mono text-grey-8 tile-counters").props("data-tile-counters")
             self.error = ui.label().classes("text-caption text-negative")
         self.update()
+        self.update_counters()
         follow(self.state, self.update)
+        follow(self.state, self.update_counters, slow=True)  # they move with every frame: redrawn once a second
 
     def _changed(self, key: str, value: object) -> bool:
         if self._shown.get(key, self) == value:
             return False
         self._shown[key] = value
         return True
+
+    def update_counters(self) -> None:
+        self.counters.set_text(counters_text(self.state.counters.as_dict(), self.bus_type, self.state.age))
 
     def update(self) -> None:
         s = self.state
@@ -87,7 +92,6 @@ class DeviceTile:
         if self._changed("quality", marked):
             mark_quality(self.values, marked)
         self.quality_note.set_text(quality_note(quality, tile["age"]) if marked != "good" else "")
-        self.counters.set_text(counters_text(s.counters.as_dict(), self.bus_type, age))
         self.error.set_text(s.last_error if status != "online" else "")
 
 

@@ -141,8 +141,11 @@ class RegisterTable:
         self.table.props(':table-row-class-fn="row => row.quality_class"')
         self.update()
         follow(state, self.update)
+        follow(state, lambda: self.update(times=True), slow=True)
 
-    def update(self) -> None:
+    def update(self, times: bool = False) -> None:
+        """New values, qualities and unsaved marks at once; a new read time alone (every poll) once a
+        second, with ``times``: the whole table goes to the browser on each change."""
         import time
 
         rows = []
@@ -165,9 +168,13 @@ class RegisterTable:
                 "quality": "-" if raw is None else (quality_note(quality, None if read is None else now - read) or quality),
                 "quality_class": f"q-{quality}" if quality in ("stale", "offline") else "",
             })
-        if rows != self.table.rows:
-            self.table.rows = rows
-            self.table.update()
+        if rows == self.table.rows:
+            return
+        if not times and len(rows) == len(self.table.rows) and all(
+                {**new, "age": None} == {**old, "age": None} for new, old in zip(rows, self.table.rows)):
+            return
+        self.table.rows = rows
+        self.table.update()
 
 
 def upload_button(label: str, testid: str) -> str:
@@ -181,13 +188,30 @@ def upload_button(label: str, testid: str) -> str:
     </div>"""
 
 
-def follow(state: DeviceState, callback: Callable[[], object]) -> None:
+def follow(state: DeviceState, callback: Callable[[], object], slow: bool = False) -> None:
     """Keep part of a page up to date with one device: ``callback`` runs when the device changed
-    (pushed by the store at most 10 times a second) and once a second for ages; it ends with the page."""
+    (pushed by the store at most 10 times a second) and once a second for ages; it ends with the page.
+
+    ``slow=True`` for what changes with every frame but is read as a statistic (counters): it is
+    redrawn once a second, so the browser does not lay the page out again ten times a second for it.
+    """
     from nicegui import context
 
-    watch = rt.current().store.watch(state.name, callback)
+    watch = rt.current().store.watch(state.name, callback, slow)
     context.client.on_delete(watch.cancel)
+
+
+def counter_line(state: DeviceState, text: Callable[[object], str]) -> ui.label:
+    """A device's counters as one caption line (``text(state.counters)``), redrawn once a second:
+    they move with every frame, and a statistic does not need ten layouts a second in every browser."""
+    label = ui.label().classes("text-caption mono text-grey-8").props("data-counters")
+
+    def update() -> None:
+        label.set_text(text(state.counters))
+
+    update()
+    follow(state, update, slow=True)
+    return label
 
 
 EVENT_COLUMNS = [
@@ -232,23 +256,41 @@ def _fmt_time(t: float) -> str:
     return fmt_time(t)
 
 
-# extendTraces in order, once plotly is loaded and the chart drawn (calls that come earlier wait, up to 10 s)
+# New samples for a chart, drawn with one extendTraces once plotly is loaded and the chart drawn (calls
+# that come earlier wait, up to 10 s). While the page is hidden (another tab, a minimised window) nothing
+# is drawn: samples that arrive meanwhile are merged, at most ``max`` per trace, and drawn in one go
+# when the page is shown again. A whole new drawing of the chart drops what was waiting.
 EXTEND_JS = """<script>
 window.commissionExtend = function (id, update, idx, max) {
   const q = (window.__cx = window.__cx || {});
-  (q[id] = q[id] || []).push([update, idx, max]);
+  const waiting = q[id];
+  if (waiting) {
+    for (let t = 0; t < update.x.length; t++) {
+      waiting.u.x[t] = waiting.u.x[t].concat(update.x[t]).slice(-max);
+      waiting.u.y[t] = waiting.u.y[t].concat(update.y[t]).slice(-max);
+    }
+    waiting.m = max;
+  } else {
+    q[id] = {u: update, i: idx, m: max};
+  }
   window.__cxFlush(id, 0);
 };
+window.commissionRedrawn = function (id) { delete (window.__cx || {})[id]; };
 window.__cxFlush = function (id, tries) {
-  const q = (window.__cx || {})[id] || [];
-  if (!q.length) return;
+  const q = window.__cx || {};
+  const waiting = q[id];
+  if (!waiting || document.hidden) return;
   const vm = getElement(id);
   if (!(vm && vm.Plotly && vm.$el && vm.$el.data)) {
-    if (tries < 100) setTimeout(() => window.__cxFlush(id, tries + 1), 100); else delete window.__cx[id];
+    if (tries < 100) setTimeout(() => window.__cxFlush(id, tries + 1), 100); else delete q[id];
     return;
   }
-  while (q.length) { const [u, i, m] = q.shift(); vm.Plotly.extendTraces(vm.$el, u, i, m); }
+  delete q[id];
+  vm.Plotly.extendTraces(vm.$el, waiting.u, waiting.i, waiting.m);
 };
+document.addEventListener("visibilitychange", () => {
+  if (!document.hidden) for (const id of Object.keys(window.__cx || {})) window.__cxFlush(id, 0);
+});
 </script>"""
 
 
@@ -262,7 +304,8 @@ class HistoryChart:
     """
 
     MAX_POINTS = 1500
-    MIN_PERIOD_S = 0.5  # new samples go to the browser at most twice a second (values show at once elsewhere)
+    MIN_PERIOD_S = 1.0  # new samples go to the browser once a second (values show at once elsewhere): a drawing costs
+    # the browser as much as the rest of a device page
 
     @staticmethod
     def _iso(t: float) -> str:
@@ -277,11 +320,13 @@ class HistoryChart:
         self.sent_t: float | None = None  # time of the newest sample in the browser
         self.sent_at = 0.0  # monotonic time of the last sending
         self.sent_points = 0  # samples sent since the last full drawing (for tests and measurements)
+        self.drawn = False
         layout: dict = {
-            "margin": {"l": 55, "r": 55 if self.axes else 10, "t": 10, "b": 30},
+            "margin": {"l": 65, "r": 65 if self.axes else 30, "t": 10, "b": 40},  # room for ticks and titles
             "height": height,
-            "xaxis": {"type": "date", "automargin": True},
-            "yaxis": {"automargin": True},
+            # fixed margins, tick labels not measured for overflow: each new drawing lays the chart out once
+            "xaxis": {"type": "date", "automargin": False, "ticklabeloverflow": "allow"},
+            "yaxis": {"automargin": False, "ticklabeloverflow": "allow"},
             "legend": {"orientation": "h", "y": 1.02, "yanchor": "bottom", "x": 0},
             "showlegend": True,
             "uirevision": "keep",
@@ -292,8 +337,8 @@ class HistoryChart:
                          for s in series if (self.axes.get(s) == "y2") == on_y2]
                 return ", ".join(dict.fromkeys(found))
 
-            layout["yaxis2"] = {"overlaying": "y", "side": "right", "title": {"text": units(True)}, "automargin": True,
-                                "showgrid": False}
+            layout["yaxis2"] = {"overlaying": "y", "side": "right", "title": {"text": units(True)}, "automargin": False,
+                                "ticklabeloverflow": "allow", "showgrid": False}
             layout["yaxis"]["title"] = {"text": units(False)}
         self.figure = {
             "data": [{"type": "scatter", "mode": "lines", "name": s, "x": [], "y": [], "yaxis": self.axes.get(s, "y")}
@@ -390,6 +435,9 @@ class HistoryChart:
         for trace, column in zip(self.figure["data"], ys):
             trace["x"], trace["y"] = xs, column
         self.plot.update()  # (the figure keeps this drawing for a reconnecting browser; new samples only go out)
+        if self.drawn:  # samples still waiting in a hidden page belong to the old drawing
+            self.plot.client.run_javascript(f"window.commissionRedrawn && window.commissionRedrawn({self.plot.id})")
+        self.drawn = True
         self.sent_t = samples[-1][0] if samples else newest
         self.sent_points = len(samples)
 

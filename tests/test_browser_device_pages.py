@@ -133,3 +133,31 @@ def test_m3io_page_record_entry_keeps_what_was_typed(app_url: str, chromium: Bro
         page.screenshot(path=str(tmp_path / f"heater-hmr-{size[0]}.png"), full_page=True)
     finally:
         page.context.close()
+
+
+def test_chart_in_a_hidden_page_draws_nothing_until_shown(app_url: str, chromium: Browser):
+    """A page in a background tab or minimised window spends nothing on drawing: the samples wait,
+    merged into one update per chart, and are drawn in one go when the page is shown again."""
+    page = open_page(chromium, app_url + "/device/heater-hm", (1440, 900))
+    try:
+        count = "() => document.querySelector('.js-plotly-plot').data[0].x.length"
+        page.wait_for_function(f"() => document.querySelector('.js-plotly-plot')?.data && ({count})() > 0")
+        page.evaluate("""() => {
+            window.__draws = 0;
+            document.querySelectorAll('.js-plotly-plot').forEach(p => p.on('plotly_afterplot', () => window.__draws++));
+            Object.defineProperty(document, 'hidden', {configurable: true, get: () => window.__hidden === true});
+            window.__hidden = true;
+            document.dispatchEvent(new Event('visibilitychange'));
+        }""")
+        before = page.evaluate(count)
+        page.wait_for_function("() => Object.keys(window.__cx || {}).length > 0")  # new samples arrived meanwhile
+        page.evaluate("window.__draws = 0")  # (a drawing begun before the page was hidden may end just after)
+        page.wait_for_timeout(2500)  # two more of the chart's sendings (one a second)
+        assert page.evaluate("window.__draws") == 0
+        assert page.evaluate("Object.keys(window.__cx).length") == 1  # merged: one waiting update for the one chart
+        page.evaluate("() => { window.__hidden = false; document.dispatchEvent(new Event('visibilitychange')); }")
+        page.wait_for_function("() => window.__draws > 0")
+        assert page.evaluate(count) > before
+        assert page.evaluate("Object.keys(window.__cx).length") == 0
+    finally:
+        page.context.close()

@@ -27,6 +27,21 @@ def test_watchers_run_on_change_and_once_a_second_otherwise():
     assert calls == sorted(calls)
 
 
+def test_slow_watchers_run_once_a_second_only():
+    store, state = _store()
+    fast, slow = [], []
+    store.watch("io-1", lambda: fast.append(1))
+    store.watch("io-1", lambda: slow.append(1), slow=True)
+    store.push(now=100.0)  # first round is an age round: both draw
+    for i in range(1, 10):  # a frame every round for most of a second
+        state.publish("Temp", float(i), "°C")
+        store.push(now=100.0 + i * 0.1)
+    assert (len(fast), len(slow)) == (10, 1)
+    state.publish("Temp", 99.0, "°C")
+    store.push(now=100.0 + AGE_PERIOD_S + 0.01)
+    assert (len(fast), len(slow)) == (11, 2)
+
+
 def test_many_changes_between_rounds_are_one_call():
     store, state = _store()
     calls = []
