@@ -18,6 +18,7 @@ _now = time.time
 
 HISTORY_SECONDS = 600  # charts show "the last minutes"
 EVENT_LIMIT = 200
+STALE_READINGS = 2.5  # a point read in turn is stale once this many of its own periods passed without it
 
 
 @dataclass
@@ -63,7 +64,9 @@ class Point:
     """One live value as the adapter decoded it (value, unit, time heard, raw word, text or enum name).
 
     ``periodic`` points arrive by themselves and age; the others (service parameters, identity)
-    are read on demand and stay good while the device is online.
+    are read on demand and stay good while the device is online. ``every``: the measured time
+    between two readings of a point read in turn with others (slower than the device's own
+    cycle); such a point is stale after :data:`STALE_READINGS` of its own periods, not the device's.
     """
 
     value: Any
@@ -72,6 +75,7 @@ class Point:
     raw: Any = None
     text: str | None = None
     periodic: bool = True
+    every: float | None = None
 
 
 @dataclass
@@ -107,9 +111,9 @@ class DeviceState:
         self.mark_seen(now)
 
     def publish(self, name: str, value: Any, unit: str = "", *, raw: Any = None, text: str | None = None,
-                time: float | None = None, periodic: bool = True) -> None:
+                time: float | None = None, periodic: bool = True, every: float | None = None) -> None:
         """Record the live point ``name`` (O(1); one record per name, replaced on every update)."""
-        self.points[name] = Point(value, unit, _now() if time is None else time, raw, text, periodic)
+        self.points[name] = Point(value, unit, _now() if time is None else time, raw, text, periodic, every)
         self.version += 1
 
     def mark_seen(self, now: float | None = None) -> None:
@@ -154,13 +158,15 @@ class DeviceState:
             return "stale"
         return "online"
 
-    def quality(self, read_time: float | None, periodic: bool = True, now: float | None = None) -> str:
+    def quality(self, read_time: float | None, periodic: bool = True, now: float | None = None,
+                every: float | None = None) -> str:
         """The one place quality is derived: "good", "stale", "offline" or "unknown"."""
         if self.online is None or read_time is None:
             return "unknown"
         if not self.online:
             return "offline"
-        if periodic and (_now() if now is None else now) - read_time > self.stale_after:
+        limit = self.stale_after if every is None else max(self.stale_after, STALE_READINGS * every)
+        if periodic and (_now() if now is None else now) - read_time > limit:
             return "stale"
         return "good"
 
@@ -170,7 +176,7 @@ class DeviceState:
         return None if p is None else self._point_entry(p, _now())
 
     def _point_entry(self, p: Point, now: float) -> dict[str, Any]:
-        return {"value": p.value, "unit": p.unit, "time": p.time, "quality": self.quality(p.time, p.periodic, now),
+        return {"value": p.value, "unit": p.unit, "time": p.time, "quality": self.quality(p.time, p.periodic, now, p.every),
                 "raw": p.raw, "text": p.text}
 
     @property

@@ -21,6 +21,7 @@ from pages.widgets import (
     LiveValue,
     WriteGuard,
     checked_value,
+    counter_line,
     entry_age,
     event_log,
     follow,
@@ -79,7 +80,8 @@ def content(name: str) -> None:
                 badge = ui.badge("waiting", color="grey").classes("text-body2")
                 session_label = ui.label().classes("text-body1").props("data-testid=session")
                 period = ui.label().classes("text-body2").props("data-testid=rc-period")
-                counters = ui.label().classes("text-caption mono text-grey-8")
+                counter_line(state, lambda c: f"requests {c.requests} · answers {c.responses} · timeouts {c.timeouts} · bad CRC "
+                             f"{c.crc_errors} (retried) · error answers {c.exceptions} · seen {fmt_age(state.age)}")
             cyclic = ui.label().classes("text-caption")
             refusal = ui.label().classes("text-warning text-body2").props("data-testid=refusal")
             error_line = ui.label().classes("text-negative text-body2")
@@ -132,12 +134,17 @@ def content(name: str) -> None:
             with ui.row().classes("gap-6"):
                 for key in ("Mains", "Battery", "Charger on", "Charging", "Output 1", "Output 2", "Buzzer", "Sensor supply"):
                     lamps[key] = Lamp(key, "ok")
-            io_label = ui.column().classes("gap-0 mono text-body2")
+            with ui.column().classes("gap-0 mono text-body2"):  # one line per point, changed in place
+                io_lines = {key: ui.label() for key in IO_POINTS}
 
         # -- errors -----------------------------------------------------------------------------------
         with ui.card().classes("w-full"):
             ui.label("Error code (0x00D1) and history (0x00D2..0x00D5), bit n = mask 1 << (n-1)").classes("text-subtitle1")
-            errors = ui.column().classes("gap-1").props("data-testid=errors")
+            error_rows = {}  # per register: its line, and its bits (rebuilt only when the value changes)
+            with ui.column().classes("gap-1").props("data-testid=errors"):
+                for key in ERROR_POINTS:
+                    with ui.column().classes("gap-1") as box:
+                        error_rows[key] = (box, ui.label().classes("text-body2 text-weight-medium"), ui.column().classes("gap-1"))
 
         # -- drive --------------------------------------------------------------------------------------
         with ui.card().classes("w-full"):
@@ -338,11 +345,6 @@ def content(name: str) -> None:
         set_status_badge(badge, state.status, state.age)
         sess = info.get("session", "closed")
         session_label.set_text(f"remote session: {sess}" + (f" ({info['session_reason']})" if info.get("session_reason") else ""))
-        period.set_text(f"RC period {info['rc_period_ms']:g} ms, longest gap {info['rc_max_gap_ms']:g} ms"
-                        if info.get("rc_period_ms") is not None else "RC period: -")
-        c = state.counters
-        counters.set_text(f"requests {c.requests} · answers {c.responses} · timeouts {c.timeouts} · bad CRC {c.crc_errors} "
-                          f"(retried) · error answers {c.exceptions} · seen {fmt_age(state.age)}")
         cyclic.set_text(info.get("cyclic") or "")
         r = info.get("last_refusal")
         refusal.set_text(f"last error answer: {r['name']} ({r['title']}) to {r['command']}: {r['meaning']}. What to do: {r['remedy']}"
@@ -363,19 +365,24 @@ def content(name: str) -> None:
                 bar.set_value(max(0.0, min(1.0, (e["value"] - lo["value"]) / (hi["value"] - lo["value"]))))
         for key, lamp in lamps.items():
             lamp.show(point(key))
-        io_entries = [(key, point(key)) for key in IO_POINTS]
-        io_view = [(key, e["text"] or e["value"], e["unit"], e["quality"]) for key, e in io_entries if e is not None]
-        if changed("io", io_view):  # rebuilt only when a value or its quality changes
-            io_label.clear()
-            with io_label:
-                for key, value, unit, quality in io_view:
-                    mark_quality(ui.label(f"{key}: {value} {unit}".strip()), quality)
-        error_view = [(key, int(e["value"]), e["quality"]) for key in ERROR_POINTS if (e := point(key)) is not None]
-        if changed("errors", error_view):
-            errors.clear()
-            with errors:
-                for key, value, quality in error_view:
-                    mark_quality(ui.label(f"{key}: 0x{value:08X}").classes("text-body2 text-weight-medium"), quality)
+        for key, line in io_lines.items():
+            e = point(key)
+            line.set_visibility(e is not None)
+            if e is not None:
+                line.set_text(f"{key}: {e['text'] or e['value']} {e['unit']}".strip())
+                mark_quality(line, e["quality"])
+        for key, (box, line, bits) in error_rows.items():
+            e = point(key)
+            box.set_visibility(e is not None)
+            if e is None:
+                continue
+            value = int(e["value"])
+            line.set_text(f"{key}: 0x{value:08X}")
+            mark_quality(line, e["quality"])
+            mark_quality(bits, e["quality"])
+            if changed(key, value):
+                bits.clear()
+                with bits:
                     for b in codec.error_bits(value):
                         ui.label(f"bit {b.bit}: {b.cause}" + (f" — condition: {b.condition}" if b.condition else "")
                                  + f" — behaviour: {b.behaviour}").classes("text-caption text-negative" if key == "Error code" else "text-caption")
@@ -404,9 +411,16 @@ def content(name: str) -> None:
             gate(element, role)
         service_ages()
 
+    def show_period() -> None:  # a statistic of every RC: once a second
+        info = state.info
+        period.set_text(f"RC period {info['rc_period_ms']:g} ms, longest gap {info['rc_max_gap_ms']:g} ms"
+                        if info.get("rc_period_ms") is not None else "RC period: -")
+
     updater.append(refresh)
     refresh()
+    show_period()
     follow(state, refresh)  # on every change the store pushes (at most 10/s) and once a second for the ages
+    follow(state, show_period, slow=True)
 
 
 IO_POINTS = ("Battery voltage", "Actual_State_Binary Inputs 1 ... 4", "Analogue input 1", "Analogue input 2",

@@ -277,8 +277,19 @@ async def test_adapter_against_the_twin_keeps_rc_gaps_below_500_ms_moves_and_sto
             await adapter.poll()
             await asyncio.sleep(max(0.02, 0.2 - (time.monotonic() - t)))  # a poll every 200 ms, as the worker
 
+    stale: set[str] = set()
+
+    async def watch_quality(start_at: float, stop_at: float):  # as a page sees the points, ten times a second
+        await asyncio.sleep(start_at - time.monotonic())
+        while time.monotonic() < stop_at:
+            stale.update(name for name in list(adapter.state.points) if adapter.state.point(name)["quality"] == "stale")
+            await asyncio.sleep(0.1)
+
     try:
-        loop_task = asyncio.create_task(worker_loop(time.monotonic() + 10.0))
+        begin = time.monotonic()
+        loop_task = asyncio.create_task(worker_loop(begin + 10.0))
+        # every point read in turn (16 data IDs, one per poll) has been read twice after 7 s
+        quality_task = asyncio.create_task(watch_quality(begin + 7.0, begin + 10.0))
         await wait_for(lambda: adapter.session == "open" and "A1 position" in adapter.state.points, timeout=5)
         assert adapter.session == "open" and "A1 position" in adapter.state.points, adapter.session_reason
         twin.add_load(1, 3.0)
@@ -292,6 +303,8 @@ async def test_adapter_against_the_twin_keeps_rc_gaps_below_500_ms_moves_and_sto
         await adapter.stopped()
         assert adapter.holders() == set()
         await loop_task
+        await quality_task
+        assert not stale, f"points marked stale while read in turn: {sorted(stale)}"
         times = list(adapter.rc_times)
         gaps = [b - a for a, b in zip(times, times[1:])]
         assert gaps and max(gaps) < 0.5, max(gaps)

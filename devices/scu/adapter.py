@@ -12,6 +12,7 @@ its RS (section 4.6), also under the worker's dead-man rule (:meth:`holders`,
 from __future__ import annotations
 
 import asyncio
+import functools
 import time
 from collections import deque
 from dataclasses import dataclass
@@ -171,6 +172,7 @@ class ScuAdapter:
         self._last_answer: float | None = None
         self._silent_since: float | None = None
         self._rotate = 0
+        self._read_at: dict[int, float] = {}  # RG data ID -> when it was last read (one entry per ID read)
         self._remote_timeout_seen = False
         self._stop_tasks: set[asyncio.Task] = set()
         state.stale_after = 2.0
@@ -359,7 +361,10 @@ class ScuAdapter:
 
     async def _read_live(self, data_id: int) -> None:
         answer = await self._request(codec.encode_rg(data_id), f"RG 0x{data_id:04X}")
-        self._publish_ids({data_id: p.rg_value(data_id, answer)})
+        now = time.monotonic()
+        last = self._read_at.get(data_id)  # read in turn with the others: it ages by its own period
+        self._read_at[data_id] = now
+        self._publish_ids({data_id: p.rg_value(data_id, answer)}, every=None if last is None else now - last)
 
     def _publish_period(self) -> None:
         times = list(self.rc_times)
@@ -371,12 +376,12 @@ class ScuAdapter:
                                text=f"mean {self.state.info['rc_period_ms']:g} ms, longest gap {self.state.info['rc_max_gap_ms']:g} ms")
 
     # -- live points ----------------------------------------------------------------------------------
-    def _publish_ids(self, values: dict[int, Any]) -> None:
+    def _publish_ids(self, values: dict[int, Any], every: float | None = None) -> None:
         now = time.time()
         for data_id, value in values.items():
             members = value if isinstance(value, dict) else {data_id: value}
             for member, x in members.items():
-                self._publish_one(member, x, now)
+                self._publish_one(member, x, now, every)
         if 0x0010 in values or any(0x0011 <= i <= 0x0016 for i in values):
             sample = {}
             for s, name in zip(self.scales, self.series):
@@ -386,8 +391,8 @@ class ScuAdapter:
             if sample:
                 self.state.add_history(sample, now)
 
-    def _publish_one(self, data_id: int, x: Any, now: float) -> None:
-        pub = self.state.publish
+    def _publish_one(self, data_id: int, x: Any, now: float, every: float | None = None) -> None:
+        pub = self.state.publish if every is None else functools.partial(self.state.publish, every=every)
         entry = p.DIRECTORY.get(data_id)
         if entry is None:
             return
