@@ -1,7 +1,9 @@
-"""Shared live widgets: charts send only new samples and thin long windows; entries keep what was typed."""
+"""Shared live widgets: charts send only new samples and thin long windows; entries keep what was typed;
+the header is built once and changed in place; counters go out once a second."""
 
 from __future__ import annotations
 
+import asyncio
 import time
 
 import pytest
@@ -108,3 +110,44 @@ async def test_range_entry_keeps_what_was_typed_and_refuses_with_the_range(user_
     field.value = 12
     with user.client:
         assert await checked_value(field, "io", "set address") == 12
+
+
+def _ids(user) -> set[int]:
+    return set(user.client.elements)
+
+
+async def test_header_changes_in_place_audit_problem_and_bus_state(user_runtime):
+    user, runtime = user_runtime
+    await user.open("/backup")  # any page with the header
+    await user.should_not_see("audit log not writable")
+    bus = runtime.store.buses["can9"]
+    icon_names = lambda: {e.props.get("name") for e in user.find(ui.icon).elements}  # noqa: E731
+    await asyncio.sleep(2.2)  # one header round (every 2 s) with the bus as the worker left it
+    before = _ids(user)
+    runtime.audit.problem = "audit.sqlite: disk I/O error"
+    bus.connected, bus.last_error = False, "unplugged"
+    await user.should_see("audit log not writable", retries=40)
+    assert "link_off" in icon_names()
+    bus.connected, bus.last_error = True, ""
+    runtime.audit.problem = ""
+    await user.should_not_see("audit log not writable", retries=40)
+    assert "lan" in icon_names() and "link_off" not in icon_names()
+    assert _ids(user) == before  # nothing was built again: only texts, colours and visibility changed
+
+
+async def test_tile_counters_move_once_a_second(user_runtime):
+    user, runtime = user_runtime
+    await user.open("/")
+    state = runtime.store.devices["io"]
+    tile_label = next(e for e in user.client.elements.values() if "data-tile-counters" in e.props)
+    store = runtime.store
+    store._aged = time.monotonic() + 1e9  # no once-a-second round from the producer for now
+    shown = tile_label.text
+    for _ in range(5):
+        state.counters.responses += 1
+        state.version += 1
+        await asyncio.sleep(0.15)  # a push round each time: the device changed
+    assert tile_label.text == shown  # not redrawn ten times a second
+    store._aged = 0.0  # the next round is the once-a-second round
+    await asyncio.sleep(0.3)
+    assert tile_label.text != shown and f"frames heard {state.counters.responses}" in tile_label.text
