@@ -159,7 +159,7 @@ async def test_open_pulse_opening_then_open_at_100(barrier):
     assert order == [codec.GateState.PREWARN_OPEN, codec.GateState.OPENING, codec.GateState.OPEN]
     assert await client.talk(Q_POSITION) == seal("55 02 1D 64")  # 100 %
     assert (await client.query(codec.Q_SERVICE_COUNTER)).value == 1
-    assert twin.commands == [("open", "pulse")]
+    assert list(twin.commands) == [("open", "pulse")]
 
 
 async def test_light_barrier_reverses_close(barrier):
@@ -320,7 +320,7 @@ async def test_rs485_answers_only_its_address():
         assert await client.talk(seal("55 04 10 00 02 1B")) == seal("55 03 00 10 02")  # nak
         open_ = codec.encode_frame(codec.encode_command(codec.Command.OPEN), codec.RS485, da=0x11)
         assert await client.talk(open_) == seal("55 03 00 11 01")
-        assert sim.twins["gate10"].commands == [] and sim.unaddressed == 1
+        assert not sim.twins["gate10"].commands and sim.unaddressed == 1
     finally:
         writer.close()
         await sim.stop()

@@ -38,6 +38,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -49,6 +50,7 @@ from devices.mo64.codec import Command, Function, GateState, Reply, RequestType
 log = logging.getLogger(__name__)
 
 TICK_S = 0.02
+SIM_LOG_LIMIT = 1000  # what the twin keeps of its own traffic for the tests (it runs for hours in the demo)
 TRAVEL_S = 2.5  # closed -> open; a twin value, the document names no travel time
 EEPROM_WRITE_S = 0.05  # between syn and ack
 DEFAULT_T_OPEN = 1000  # 10 ms units: 10 s
@@ -121,7 +123,7 @@ class Mo64Twin:
         self.requests = 0
         self.naks = 0
         self.busy_answers = 0
-        self.commands: list[tuple[str, str]] = []
+        self.commands: deque[tuple[str, str]] = deque(maxlen=SIM_LOG_LIMIT)
         self.listeners: list[Callable[[bytes], None]] = []
         self.sent_unsolicited = 0
         self._last_seen: dict[int, bytes] = {}
@@ -565,11 +567,11 @@ class Mo64Rs485Sim:
         self._writers: list[asyncio.StreamWriter] = []
         self._master_task: asyncio.Task | None = None
         self.tool_has_token = not self.shared
-        self.holds: list[TokenHold] = []
+        self.holds: deque[TokenHold] = deque(maxlen=SIM_LOG_LIMIT)  # the demo plant runs for hours: bounded
         self.token_lost = 0
         self.sent_without_token = 0
         self.own_queries = 0
-        self.own_answers: list[bytes] = []
+        self.own_answers: deque[bytes] = deque(maxlen=SIM_LOG_LIMIT)
         self.unaddressed = 0
         self.garbage = 0
         self._token_back = asyncio.Event()
