@@ -38,6 +38,7 @@ log = logging.getLogger(__name__)
 
 PUSH_PERIOD_S = 0.1  # changes reach the pages at most 10 times a second
 AGE_PERIOD_S = 1.0  # watchers are called at least this often, so ages and stale marks move on
+AGE_PHASES = 10  # the devices' once-a-second rounds fall into this many push rounds, not all into one
 
 
 class Watch:
@@ -72,7 +73,9 @@ class StateStore:
         self.buses: dict[str, BusState] = {}
         self._watches: dict[str, list[Watch]] = {}
         self._pushed: dict[str, int] = {}  # device -> version last pushed
-        self._aged = 0.0
+        # device -> time of its last once-a-second round. The devices' rounds are spread over the
+        # second (AGE_PHASES phases), so that no push calls every watcher of every page at once
+        self._aged: dict[str, float] = {}
         self.alarms: dict[str, tuple[str, ...]] = {}  # device -> its tile's alarms as last seen
         self._task: asyncio.Task | None = None
         self.push_errors = 0
@@ -120,15 +123,20 @@ class StateStore:
     def push(self, now: float | None = None) -> int:
         """One round: alarms of changed devices, then their watchers; returns the number of calls."""
         now = time.monotonic() if now is None else now
-        age_round = now - self._aged >= AGE_PERIOD_S
-        if age_round:
-            self._aged = now
         calls = 0
-        for name, state in self.devices.items():
+        for index, (name, state) in enumerate(self.devices.items()):
             changed = self._pushed.get(name) != state.version
             if changed:
                 self._pushed[name] = state.version
                 self._note_alarms(name, state)
+            aged = self._aged.get(name)
+            if aged is None:  # first seen: its once-a-second rounds get a phase of their own (see below)
+                age_round = True
+                self._aged[name] = now - (index % AGE_PHASES) * AGE_PERIOD_S / AGE_PHASES
+            else:
+                age_round = now - aged >= AGE_PERIOD_S
+                if age_round:
+                    self._aged[name] = aged + AGE_PERIOD_S if now - aged < 2 * AGE_PERIOD_S else now
             if not (changed or age_round):
                 continue
             for w in list(self._watches.get(name, ())):

@@ -42,6 +42,20 @@ def test_slow_watchers_run_once_a_second_only():
     assert (len(fast), len(slow)) == (11, 2)
 
 
+def test_once_a_second_rounds_of_many_devices_are_spread_over_the_second():
+    store = StateStore()
+    calls: list[str] = []
+    for i in range(20):  # 20 devices, each shown on a page
+        store.devices[f"d{i}"] = DeviceState(f"d{i}", "m3io", "can0")
+        store.watch(f"d{i}", lambda i=i: calls.append(f"d{i}"))
+    assert store.push(now=100.0) == 20  # first round: everything is new
+    per_round = []
+    for k in range(1, 31):  # three seconds without a change
+        per_round.append(store.push(now=100.0 + k * 0.1 + 0.001))
+    assert sum(per_round) == 60  # every device once a second
+    assert max(per_round) <= 2  # and never all of them in one round
+
+
 def test_many_changes_between_rounds_are_one_call():
     store, state = _store()
     calls = []

@@ -141,13 +141,13 @@ async def test_tile_counters_move_once_a_second(user_runtime):
     state = runtime.store.devices["io"]
     tile_label = next(e for e in user.client.elements.values() if "data-tile-counters" in e.props)
     store = runtime.store
-    store._aged = time.monotonic() + 1e9  # no once-a-second round from the producer for now
+    store._aged = {name: time.monotonic() + 1e9 for name in store.devices}  # no once-a-second round for now
     shown = tile_label.text
     for _ in range(5):
         state.counters.responses += 1
         state.version += 1
         await asyncio.sleep(0.15)  # a push round each time: the device changed
     assert tile_label.text == shown  # not redrawn ten times a second
-    store._aged = 0.0  # the next round is the once-a-second round
+    store._aged = {name: 0.0 for name in store.devices}  # the next round is the once-a-second round
     await asyncio.sleep(0.3)
     assert tile_label.text != shown and f"frames heard {state.counters.responses}" in tile_label.text
