@@ -26,7 +26,7 @@ M3IO = ["/device/heater-hm", "/device/heater-hmr", "/device/heater-hm", "/device
 
 def main() -> None:
     from conftest import CHROMIUM_ARGS, wait_devices_online
-    from page_cost import app_pid, measure, rss_mb
+    from browser_load import app_pid, measure, rss_mb
     from playwright.sync_api import sync_playwright
     from webutil import demo_plant_text, free_port, running_app
 

@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
-from bench.page_cost import app_pid, cpu_s, rss_mb  # noqa: E402
+from bench.browser_load import app_pid, cpu_s, rss_mb  # noqa: E402
 
 PAGES = ["/", "/plant", "/device/door-1", "/device/lift", "/device/heater-hm", "/device/gate-1", "/device/lift-1"]
 

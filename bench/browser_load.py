@@ -12,7 +12,7 @@ pages open it is timed twice: with their browser at the same priority as everyth
 (SCHED_IDLE), which stands for the usual case of the pages being on other devices: the app still
 serves all 20, but their drawing no longer takes the cores from the app and the new page.
 
-Last line: ``cpu_per_page_pct: X`` = (CPU with 20 pages - CPU with 0) / 20.
+Last line: ``app_cpu_per_page_pct: X`` = (CPU with 20 pages - CPU with 0) / 20.
 """
 
 from __future__ import annotations
@@ -155,7 +155,7 @@ def main() -> None:
             browser.close()
     per_page = (results[20][0] - results[0][0]) / 20
     print(f"RSS growth 0 -> 20 pages: {results[20][1] - results[0][1]:.0f} MB")
-    print(f"cpu_per_page_pct: {per_page:.2f}")
+    print(f"app_cpu_per_page_pct: {per_page:.2f}")
 
 
 def chromium_root() -> int:
