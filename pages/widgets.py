@@ -324,19 +324,23 @@ class HistoryChart:
         layout: dict = {
             "margin": {"l": 65, "r": 65 if self.axes else 30, "t": 10, "b": 40},  # room for ticks and titles
             "height": height,
-            # fixed margins, tick labels not measured for overflow: each new drawing lays the chart out once
-            "xaxis": {"type": "date", "automargin": False, "ticklabeloverflow": "allow"},
+            # fixed margins, tick labels not measured for overflow: each new drawing lays the chart out once;
+            # time labels level (a narrow chart gets fewer, none cut off at the bottom)
+            "xaxis": {"type": "date", "automargin": False, "ticklabeloverflow": "allow", "tickangle": 0},
             "yaxis": {"automargin": False, "ticklabeloverflow": "allow"},
             "legend": {"orientation": "h", "y": 1.02, "yanchor": "bottom", "x": 0},
             "showlegend": True,
             "uirevision": "keep",
         }
-        if self.axes:
-            def units(on_y2: bool) -> str:  # the axis titles name the units; the legend names the series
-                found = [s[s.rfind("[") + 1:-1] if s.endswith("]") and "[" in s else s
-                         for s in series if (self.axes.get(s) == "y2") == on_y2]
-                return ", ".join(dict.fromkeys(found))
 
+        def units(on_y2: bool) -> str:  # the axis titles name the units; the legend names the series
+            found = [s[s.rfind("[") + 1:-1] if s.endswith("]") and "[" in s else s
+                     for s in series if (self.axes.get(s) == "y2") == on_y2]
+            return ", ".join(dict.fromkeys(found))
+
+        if not self.axes and all(s.endswith("]") and "[" in s for s in series):
+            layout["yaxis"]["title"] = {"text": units(False)}  # one axis: titled with its unit(s) too
+        if self.axes:
             layout["yaxis2"] = {"overlaying": "y", "side": "right", "title": {"text": units(True)}, "automargin": False,
                                 "ticklabeloverflow": "allow", "showgrid": False}
             layout["yaxis"]["title"] = {"text": units(False)}

@@ -151,3 +151,23 @@ async def test_tile_counters_move_once_a_second(user_runtime):
     store._aged = {name: 0.0 for name in store.devices}  # the next round is the once-a-second round
     await asyncio.sleep(0.3)
     assert tile_label.text != shown and f"frames heard {state.counters.responses}" in tile_label.text
+
+
+async def test_every_chart_axis_is_titled_with_its_unit(user_runtime):
+    from pages.widgets import HistoryChart
+
+    user, runtime = user_runtime
+    state = runtime.store.devices["io"]
+    charts: list[HistoryChart] = []
+
+    @ui.page("/chart-units")
+    def page() -> None:
+        charts.append(HistoryChart(state, ["TEMP1 [°C]", "TEMP2 [°C]"]))
+        charts.append(HistoryChart(state, ["Position [mm]", "Current [mA]"], axes={"Current [mA]": "y2"}))
+        charts.append(HistoryChart(state, ["Position [mm]", "state"]))
+
+    await user.open("/chart-units")
+    one, two, mixed = (c.figure["layout"] for c in charts)
+    assert one["yaxis"]["title"]["text"] == "°C"
+    assert (two["yaxis"]["title"]["text"], two["yaxis2"]["title"]["text"]) == ("mm", "mA")
+    assert "title" not in mixed["yaxis"]  # a series without a unit: no title that would leave it out
