@@ -65,7 +65,12 @@ def browser() -> Iterator[Browser]:
 
 
 def inside_viewport(page: Page, locator, width: int) -> None:
-    box = locator.bounding_box()
+    box = None
+    for _ in range(20):  # a row of the live log can be between two refreshes (replaced) when measured
+        box = locator.bounding_box()
+        if box is not None:
+            break
+        page.wait_for_timeout(100)
     assert box is not None, "not rendered"
     assert box["x"] >= 0 and box["x"] + box["width"] <= width + 1, f"{box} is outside a {width} px wide window"
 
