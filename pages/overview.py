@@ -14,7 +14,7 @@ from app.worker import AuditUnavailable, PermissionDenied
 from devices.registry import DEVICE_TYPES, format_can_ids
 from pages.frame import fmt_age, frame, set_status_badge, status_text
 from pages.plant_view import TextPool, evaluate_tile
-from pages.widgets import follow, mark_quality, quality_note
+from pages.widgets import counter_line, follow, mark_quality, quality_note
 from pages.session import current_user
 
 
@@ -62,21 +62,18 @@ class DeviceTile:
                 self.lines = TextPool("text-body2")
                 self.alarms = TextPool("text-body2 text-negative text-weight-medium")
             self.quality_note = ui.label().classes("q-age")
-            self.counters = ui.label().classes("text-caption mono text-grey-8 tile-counters").props("data-tile-counters")
+            # they move with every frame: redrawn once a second
+            self.counters = counter_line(self.state, lambda c: counters_text(c.as_dict(), self.bus_type, self.state.age)) \
+                .classes("tile-counters").props("data-tile-counters")
             self.error = ui.label().classes("text-caption text-negative")
         self.update()
-        self.update_counters()
         follow(self.state, self.update)
-        follow(self.state, self.update_counters, slow=True)  # they move with every frame: redrawn once a second
 
     def _changed(self, key: str, value: object) -> bool:
         if self._shown.get(key, self) == value:
             return False
         self._shown[key] = value
         return True
-
-    def update_counters(self) -> None:
-        self.counters.set_text(counters_text(self.state.counters.as_dict(), self.bus_type, self.state.age))
 
     def update(self) -> None:
         s = self.state
