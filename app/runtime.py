@@ -13,6 +13,7 @@ from typing import Any
 
 from app.audit import AuditLog
 from app.auth import AuthSessions, LoginThrottle
+from app import memory
 from app.backup import write_atomic
 from app.can_bus import CanBus, CanBusState
 from app.plant import Plant
@@ -203,7 +204,8 @@ class Runtime:
                         bus.last_error = error
         await self.worker.start()
         self._tasks = [asyncio.create_task(self._keep_unsaved(), name="unsaved reminders"),
-                       asyncio.create_task(self._watch_accounts(), name="accounts")]
+                       asyncio.create_task(self._watch_accounts(), name="accounts"),
+                       asyncio.create_task(memory.keep_trimmed(), name="heap trim")]
         if self.mqtt is not None:
             await self.mqtt.start()  # its own tasks: a broker that is away never holds up the buses
 
