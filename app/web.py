@@ -16,11 +16,12 @@ from urllib.parse import quote, urlsplit
 
 from fastapi import HTTPException, Query, Request
 from fastapi.responses import JSONResponse, PlainTextResponse, RedirectResponse, Response
-from nicegui import app, core, ui
+from nicegui import Client, app, core, ui
 from pydantic import BaseModel, Field
 from starlette.middleware.base import BaseHTTPMiddleware
 
 from app import runtime as rt
+from app.assets import AssetCache, preload_links
 from app.runtime import Runtime
 from app.state import HISTORY_SECONDS
 
@@ -146,6 +147,15 @@ def safe_redirect(target: str) -> str:
     return target if target.startswith("/") and not target.startswith("//") and "\\" not in target else "/"
 
 
+def serve_assets_from_memory() -> None:
+    """NiceGUI's files from memory (app/assets.py), inside the host guard; every page preloads
+    what it would otherwise ask for late."""
+    app.add_middleware(AssetCache)
+    links = preload_links()
+    if links not in Client.shared_head_html:
+        ui.add_head_html(links, shared=True)
+
+
 def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[str, ...] | list[str] = ()) -> None:
     """Register every route for ``runtime`` and start/stop it with the app.
 
@@ -157,6 +167,7 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
     app.on_shutdown(runtime.stop)
     app.on_disconnect(lambda client: runtime.worker.session_closed(client.id))
     app.add_middleware(AuthMiddleware, runtime=runtime)
+    serve_assets_from_memory()
     names, any_ip = allowed_host_names(host, allowed_hosts)
     app.add_middleware(HostOriginGuard, names=names, any_ip=any_ip)
 
@@ -292,6 +303,7 @@ def register_view(store, *, host: str = "127.0.0.1", allowed_hosts: tuple[str, .
     """
     app.on_startup(store.start)
     app.on_shutdown(store.stop)
+    serve_assets_from_memory()
     names, any_ip = allowed_host_names(host, allowed_hosts)
     app.add_middleware(HostOriginGuard, names=names, any_ip=any_ip)
 

@@ -74,6 +74,25 @@ def test_foreign_host_is_refused(served):
         assert client.get(f"{base}/api/devices", headers={"Host": f"attacker.example:{port}"}).status_code == 403
 
 
+def test_files_from_memory_still_pass_the_host_guard(served):
+    """NiceGUI's files are answered from memory (app/assets.py), compressed, and only to hosts served here."""
+    from app.assets import PREFIX
+
+    port, _folder = served
+    base = f"http://127.0.0.1:{port}"
+    script = f"{base}{PREFIX}static/quasar.umd.prod.js"
+    with httpx.Client() as client:
+        page = client.get(f"{base}/plant").text
+        assert f'<link rel="modulepreload" href="{PREFIX}static/dompurify.mjs">' in page
+        assert 'rel="preload" as="font"' in page
+        for _ in range(2):  # the first fills the cache, the second is answered from it
+            answer = client.get(script, headers={"accept-encoding": "gzip"})
+            assert answer.status_code == 200 and answer.headers["content-encoding"] == "gzip"
+            assert b"Quasar" in answer.content[:2000]
+        refused = client.get(script, headers={"Host": f"attacker.example:{port}"})
+        assert refused.status_code == 403 and "not served here" in refused.text
+
+
 def test_cross_origin_http_and_socketio_polling_are_refused(served):
     port, _folder = served
     base = f"http://127.0.0.1:{port}"
