@@ -79,6 +79,9 @@ class StateStore:
         self.alarms: dict[str, tuple[str, ...]] = {}  # device -> its tile's alarms as last seen
         self._task: asyncio.Task | None = None
         self.push_errors = 0
+        # while watchers run: whether this call is their device's once-a-second round (a watcher
+        # that draws read times or ages as well as values then draws both in one go)
+        self.age_round = False
 
     def device(self, name: str) -> DeviceState:
         return self.devices[name]
@@ -139,16 +142,20 @@ class StateStore:
                     self._aged[name] = aged + AGE_PERIOD_S if now - aged < 2 * AGE_PERIOD_S else now
             if not (changed or age_round):
                 continue
-            for w in list(self._watches.get(name, ())):
-                if w.slow and not age_round:
-                    continue
-                try:
-                    w.callback()
-                    calls += 1
-                except Exception:  # one reader's failure does not stop the others
-                    self.push_errors += 1
-                    log.exception("a watcher of %s failed; it is removed", name)
-                    w.cancel()
+            self.age_round = age_round
+            try:
+                for w in list(self._watches.get(name, ())):
+                    if w.slow and not age_round:
+                        continue
+                    try:
+                        w.callback()
+                        calls += 1
+                    except Exception:  # one reader's failure does not stop the others
+                        self.push_errors += 1
+                        log.exception("a watcher of %s failed; it is removed", name)
+                        w.cancel()
+            finally:
+                self.age_round = False
         return calls
 
     def _note_alarms(self, name: str, state: DeviceState) -> None:

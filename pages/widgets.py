@@ -140,12 +140,13 @@ class RegisterTable:
         )
         self.table.props(':table-row-class-fn="row => row.quality_class"')
         self.update()
-        follow(state, self.update)
-        follow(state, lambda: self.update(times=True), slow=True)
+        store = rt.current().store
+        follow(state, lambda: self.update(times=store.age_round))  # one build per round, read times or not
 
     def update(self, times: bool = False) -> None:
         """New values, qualities and unsaved marks at once; a new read time alone (every poll) once a
-        second, with ``times``: the whole table goes to the browser on each change."""
+        second, with ``times`` (the device's once-a-second round): the whole table goes to the browser
+        on each change."""
         import time
 
         rows = []

@@ -124,3 +124,16 @@ def test_the_producer_runs_on_the_loop_and_stops():
 
     seen = asyncio.run(main())
     assert 3 <= len(seen) <= 8  # followed the changes, about one call per round
+
+
+def test_watchers_are_told_which_call_is_the_once_a_second_round():
+    store, state = _store()
+    rounds = []
+    store.watch("io-1", lambda: rounds.append(store.age_round))
+    store.push(now=100.0)  # first seen: an age round
+    for i in range(1, 10):
+        state.publish("Temp", float(i), "°C")
+        store.push(now=100.0 + i * 0.1)
+    store.push(now=100.0 + AGE_PERIOD_S + 0.01)  # no change, the age round only
+    assert rounds == [True] + [False] * 9 + [True]
+    assert store.age_round is False  # only while watchers run

@@ -171,3 +171,33 @@ async def test_every_chart_axis_is_titled_with_its_unit(user_runtime):
     assert one["yaxis"]["title"]["text"] == "°C"
     assert (two["yaxis"]["title"]["text"], two["yaxis2"]["title"]["text"]) == ("mm", "mA")
     assert "title" not in mixed["yaxis"]  # a series without a unit: no title that would leave it out
+
+
+async def test_register_table_is_built_once_in_the_once_a_second_round(user_runtime):
+    from devices.hdlock.params import INPUT, PARAMS
+    from pages.widgets import RegisterTable
+
+    user, runtime = user_runtime
+    state = runtime.store.devices["io"]
+    builds: list[bool] = []
+
+    class Counted(RegisterTable):
+        def update(self, times: bool = False) -> None:
+            builds.append(times)
+            super().update(times)
+
+    @ui.page("/table-rounds")
+    def page() -> None:
+        Counted(state, PARAMS.space(INPUT))
+
+    await user.open("/table-rounds")
+    store = runtime.store
+    store._aged = {name: time.monotonic() + 1e9 for name in store.devices}  # no once-a-second round for now
+    builds.clear()
+    state.version += 1
+    await asyncio.sleep(0.3)
+    assert builds == [False]  # a change: values only
+    store._aged = {name: 0.0 for name in store.devices}  # the next round is the once-a-second round
+    state.version += 1
+    await asyncio.sleep(0.15)
+    assert builds == [False, True]  # a change in the once-a-second round: one build with the read times
