@@ -18,7 +18,6 @@ from fastapi import HTTPException, Query, Request
 from fastapi.responses import JSONResponse, PlainTextResponse, RedirectResponse, Response
 from nicegui import Client, app, core, ui
 from pydantic import BaseModel, Field
-from starlette.middleware.base import BaseHTTPMiddleware
 
 from app import runtime as rt
 from app.assets import AssetCache, preload_links
@@ -125,22 +124,31 @@ def session_token(request: Request | None) -> str | None:
     return request.session.get("auth")
 
 
-class AuthMiddleware(BaseHTTPMiddleware):
-    """Beyond the loopback address every page and API call needs a logged-in session."""
+class AuthMiddleware:
+    """Beyond the loopback address every page and API call needs a logged-in session.
+
+    Plain ASGI (not Starlette's BaseHTTPMiddleware, which runs every request in a task of its own
+    and passes the answer through a stream): on the loopback address it costs nothing at all.
+    """
 
     def __init__(self, asgi_app, runtime: Runtime):
-        super().__init__(asgi_app)
+        self.app = asgi_app
         self.runtime = runtime
 
-    async def dispatch(self, request: Request, call_next):
+    async def __call__(self, scope, receive, send):
+        if scope["type"] != "http" or not self.runtime.auth_required:
+            return await self.app(scope, receive, send)
+        request = Request(scope)
         path = request.url.path
-        if self.runtime.auth_required and not path.startswith("/_nicegui") and path not in OPEN_PATHS:
+        if not path.startswith("/_nicegui") and path not in OPEN_PATHS:
             public_plant_view = path == "/plant" and self.runtime.plant.plant_view.public
             if not public_plant_view and self.runtime.session_user(session_token(request)) is None:
                 if path.startswith("/api/"):
-                    return JSONResponse({"detail": "log in first"}, status_code=401)
-                return RedirectResponse(f"/login?redirect_to={quote(path)}")
-        return await call_next(request)
+                    refusal = JSONResponse({"detail": "log in first"}, status_code=401)
+                else:
+                    refusal = RedirectResponse(f"/login?redirect_to={quote(path)}")
+                return await refusal(scope, receive, send)
+        return await self.app(scope, receive, send)
 
 
 def safe_redirect(target: str) -> str:
