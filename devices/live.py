@@ -143,7 +143,13 @@ class DeviceState:
         self.version += 1
 
     def add_history(self, sample: dict[str, float], now: float | None = None) -> None:
-        self.history.append((time.time() if now is None else now, sample))
+        """One chart sample; the history keeps HISTORY_SECONDS of them (and at most 10 a second):
+        a device sampled slowly (a lock polled every 2 s) must not keep hours of them."""
+        now = time.time() if now is None else now
+        history = self.history
+        history.append((now, sample))
+        while history[0][0] < now - HISTORY_SECONDS:
+            history.popleft()
         self.version += 1
 
     # -- read by pages -------------------------------------------------------------

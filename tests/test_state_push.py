@@ -137,3 +137,17 @@ def test_watchers_are_told_which_call_is_the_once_a_second_round():
     store.push(now=100.0 + AGE_PERIOD_S + 0.01)  # no change, the age round only
     assert rounds == [True] + [False] * 9 + [True]
     assert store.age_round is False  # only while watchers run
+
+
+def test_history_keeps_its_minutes_however_slowly_a_device_is_sampled():
+    from app.state import HISTORY_SECONDS
+
+    store, state = _store()
+    for i in range(3600):  # two hours of a lock polled every 2 s
+        state.add_history({"bolt": float(i % 2)}, now=1000.0 + 2 * i)
+    newest = 1000.0 + 2 * 3599
+    assert state.history[0][0] >= newest - HISTORY_SECONDS  # ten minutes, not the last 6,000 samples (3.3 hours)
+    assert len(state.history) == HISTORY_SECONDS // 2 + 1
+    for i in range(20_000):  # and a fast device still at most 10 samples a second
+        state.add_history({"bolt": 0.0}, now=newest + 1 + i * 0.01)
+    assert len(state.history) == state.history.maxlen == HISTORY_SECONDS * 10
