@@ -19,6 +19,7 @@ import asyncio
 import gzip
 import logging
 from dataclasses import dataclass
+from pathlib import Path
 
 from nicegui import __version__ as NICEGUI_VERSION
 
@@ -35,7 +36,6 @@ GZIP_LEVEL = 9  # once per file, in a thread: the smallest transfer costs nothin
 def _text_font() -> str | None:
     """The file of NiceGUI's Roboto for Latin text (the one every label is drawn in), from its fonts.css."""
     import re
-    from pathlib import Path
 
     import nicegui
 
@@ -49,6 +49,20 @@ def _text_font() -> str | None:
             if found:
                 return found.group(1)
     return None
+
+
+TAILWIND_CSS = Path(__file__).resolve().parent.parent / "static" / "tailwind.css"
+
+
+def tailwind_style() -> str:
+    """The Tailwind rules of the pages' classes, compiled beforehand (pages/stylesheet.py) instead
+    of in every browser: the app runs NiceGUI with ``tailwind=False``."""
+    try:
+        return f"<style>{TAILWIND_CSS.read_text(encoding='utf-8')}</style>"
+    except OSError as exc:
+        log.error("the pages' stylesheet is missing (%s): layouts will look wrong; "
+                  "run `python -m pages.stylesheet` in the source folder", exc)
+        return ""
 
 
 def preload_links() -> str:

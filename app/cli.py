@@ -411,7 +411,7 @@ def run_view(args) -> int:
     web.register_view(store, host=args.host, allowed_hosts=args.allowed_host)
     print(f"commission view: {args.broker} at http://{args.host}:{args.port}/ (read-only)", flush=True)
     ui.run(host=args.host, port=args.port, title="commission view", reload=False, show=False,
-           show_welcome_message=False, favicon="🔧")
+           show_welcome_message=False, favicon="🔧", tailwind=False)  # rules compiled beforehand: app/assets.py
     return 0
 
 
@@ -514,6 +514,7 @@ def _main(argv: list[str] | None) -> int:
         # pages get many small updates: compressing each one cost the event loop more than all the rest of
         # sending it (with 20 pages open, a third of the loop's time); the messages are small JSON
         ws_per_message_deflate=False,
+        tailwind=False,  # the pages' Tailwind rules are compiled beforehand, not in every browser (app/assets.py)
     )
     if signal.SIGINT in interrupted:
         raise KeyboardInterrupt  # the one-line message of main()

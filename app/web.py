@@ -20,7 +20,7 @@ from nicegui import Client, app, core, ui
 from pydantic import BaseModel, Field
 
 from app import runtime as rt
-from app.assets import AssetCache, preload_links
+from app.assets import AssetCache, preload_links, tailwind_style
 from app.runtime import Runtime
 from app.state import HISTORY_SECONDS
 
@@ -157,11 +157,11 @@ def safe_redirect(target: str) -> str:
 
 def serve_assets_from_memory() -> None:
     """NiceGUI's files from memory (app/assets.py), inside the host guard; every page preloads
-    what it would otherwise ask for late."""
+    what it would otherwise ask for late and carries the pages' Tailwind rules, compiled beforehand."""
     app.add_middleware(AssetCache)
-    links = preload_links()
-    if links not in Client.shared_head_html:
-        ui.add_head_html(links, shared=True)
+    head = preload_links() + "\n" + tailwind_style()
+    if head not in Client.shared_head_html:
+        ui.add_head_html(head, shared=True)
 
 
 def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[str, ...] | list[str] = ()) -> None:
