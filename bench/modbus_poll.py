@@ -3,8 +3,12 @@
 Polls every register block of the lock (the worker's own adapter and line code) from
 the twin, first with the twin emulating the wire time of 19200 baud 8E1 (11 bits per
 character, 3.5-character gap after each frame), then with no emulated delay to show
-the pure software time per transaction. Last line: ``overhead_ratio: X`` =
-measured time per full poll cycle / pure wire time of the same frames.
+the pure software time per transaction.
+
+The emulated wire delay uses the same formula as the wire time it is compared with, so the
+ratio of the two cannot fall below 1.0 and says little; it is printed for reference. The
+figure that measures this program is the software time per transaction, with no wire delay.
+Last line: ``software_ms_per_transaction: X``.
 """
 
 from __future__ import annotations
@@ -80,9 +84,10 @@ async def run(cycles: int) -> None:
     print(f"register blocks per full poll: {transactions} transactions")
     print(f"pure wire time per poll at {BAUD} baud 8E1: {wire * 1000:.1f} ms")
     print(f"measured per poll, wire delay emulated: {cycle * 1000:.1f} ms")
-    print(f"software time per transaction (no wire delay): {soft_cycle / transactions * 1000:.3f} ms")
-    print(f"software time per poll (no wire delay): {soft_cycle * 1000:.2f} ms")
-    print(f"overhead_ratio: {cycle / wire:.3f}")
+    print(f"measured / wire time: {cycle / wire:.3f} (by construction at least 1.0: the emulated delay is the wire time)")
+    print(f"software time per poll (no wire delay): {soft_cycle * 1000:.2f} ms, "
+          f"{100 * soft_cycle / wire:.1f} % of the poll's wire time")
+    print(f"software_ms_per_transaction: {soft_cycle / transactions * 1000:.3f}")
 
 
 if __name__ == "__main__":
