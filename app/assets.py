@@ -18,9 +18,11 @@ from __future__ import annotations
 import asyncio
 import gzip
 import logging
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
+import nicegui
 from nicegui import __version__ as NICEGUI_VERSION
 
 log = logging.getLogger(__name__)
@@ -32,13 +34,8 @@ LIMIT_BYTES = 32 * 1024 * 1024  # NiceGUI's files with the plot library take abo
 GZIP_LEVEL = 9  # once per file, in a thread: the smallest transfer costs nothing later
 
 
-
 def _text_font() -> str | None:
     """The file of NiceGUI's Roboto for Latin text (the one every label is drawn in), from its fonts.css."""
-    import re
-
-    import nicegui
-
     try:
         css = (Path(nicegui.__file__).parent / "static" / "fonts.css").read_text(encoding="utf-8")
     except OSError:
@@ -110,13 +107,13 @@ class AssetCache:
         path = scope.get("path", "")
         if scope["type"] != "http" or scope.get("method") not in ("GET", "HEAD") or not path.startswith(self.prefix):
             return False
-        if path[len(self.prefix):].startswith(UNCACHED):
-            return False
-        headers = dict(scope.get("headers", []))
-        return b"range" not in headers  # a part of a file: the app answers it
+        return not path[len(self.prefix):].startswith(UNCACHED)
 
     async def __call__(self, scope, receive, send):
         if not self._cacheable(scope):
+            return await self.app(scope, receive, send)
+        headers = dict(scope.get("headers", []))
+        if b"range" in headers:  # a part of a file: the app answers it
             return await self.app(scope, receive, send)
         key = scope["path"] + ("?" + scope["query_string"].decode("latin-1") if scope.get("query_string") else "")
         entry = self.entries.get(key)
@@ -126,7 +123,6 @@ class AssetCache:
             entry = await self._load(key, scope, receive, send)
             if entry is None:
                 return None  # already answered by the app
-        headers = dict(scope.get("headers", []))
         if entry.gzipped and b"gzip" not in headers.get(b"accept-encoding", b""):
             return await self.app(scope, receive, send)  # a client without gzip: rare, served from disk
         self.hits += 1

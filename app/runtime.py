@@ -11,9 +11,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+from app import memory
 from app.audit import AuditLog
 from app.auth import AuthSessions, LoginThrottle
-from app import memory
 from app.backup import write_atomic
 from app.can_bus import CanBus, CanBusState
 from app.plant import Plant

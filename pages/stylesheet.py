@@ -99,9 +99,10 @@ def build(browser=None) -> str:
 
 
 def main() -> int:
-    css = build()
+    tokens = class_tokens()
+    css = compile_css(tokens)
     STYLESHEET.write_text(css, encoding="utf-8")
-    print(f"{STYLESHEET.relative_to(ROOT)}: {len(css):,} bytes for {len(class_tokens()):,} words of the source")
+    print(f"{STYLESHEET.relative_to(ROOT)}: {len(css):,} bytes for {len(tokens):,} words of the source")
     return 0
 
 

@@ -92,7 +92,7 @@ async def test_missing_files_ranges_and_generated_answers_go_to_the_app(served) 
     assert len(calls) == 5 and cache.entries == {}
 
 
-async def test_the_cache_is_bounded(served, tmp_path) -> None:
+async def test_the_cache_is_bounded(served) -> None:
     cache, client, calls = served
     cache.limit_bytes = 100  # less than either file, compressed
     async with client:
