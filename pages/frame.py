@@ -69,7 +69,7 @@ def frame(title: str):
     runtime = rt.current()
     ui.add_css(CSS)
     ui.page_title(f"{title} - commission")
-    with ui.header().classes("items-center bg-blue-grey-9 q-py-xs"):
+    with ui.header().classes("items-center justify-end bg-blue-grey-9 q-py-xs"):
         ui.link("commission", "/").classes("text-h6 text-white no-underline")
         ui.label(f"plant: {runtime.plant.name}").classes("text-caption text-grey-4")
         if runtime.sim is not None and runtime.sim.servers:  # only when some bus of the plant is simulated
@@ -79,18 +79,20 @@ def frame(title: str):
             pass
         with ui.row().classes("items-center gap-2") as buses:
             pass
-        ui.link("Overview", "/").classes("text-white")
-        ui.link("Plant view", "/plant").classes("text-white")
-        ui.link("Backup", "/backup").classes("text-white")
-        ui.link("Audit", "/audit").classes("text-white")
-        user, role = current_user()
-        if runtime.auth_required:
-            ui.label(f"{user} ({role})").classes("text-caption text-grey-4")
-            ui.button("Log out", on_click=_logout).props("flat dense color=white")
-        elif role:
-            ui.label("local engineer").classes("text-caption text-grey-4").tooltip(
-                "Served on the loopback address only: no login, full rights"
-            )
+        # the pages and the account move to a second line together when the window is narrow, never split
+        with ui.row().classes("items-center gap-4 no-wrap").props("data-testid=nav"):
+            ui.link("Overview", "/").classes("text-white")
+            ui.link("Plant view", "/plant").classes("text-white")
+            ui.link("Backup", "/backup").classes("text-white")
+            ui.link("Audit", "/audit").classes("text-white")
+            user, role = current_user()
+            if runtime.auth_required:
+                ui.label(f"{user} ({role})").classes("text-caption text-grey-4")
+                ui.button("Log out", on_click=_logout).props("flat dense color=white")
+            elif role:
+                ui.label("local engineer").classes("text-caption text-grey-4").tooltip(
+                    "Served on the loopback address only: no login, full rights"
+                )
     client = ui.context.client
     runtime.worker.session_opened(client.id, role or "none")
     from app.web import BEAT_EVENT

@@ -137,6 +137,25 @@ def test_overview_tiles_online_and_open_device(app_url: str, page: Page, tmp_pat
     expect(lamp(page, "BoltLocked")).to_have_attribute("data-on", "1")
 
 
+@pytest.mark.parametrize(("width", "height"), [(1024, 768), (768, 1024)])
+def test_header_pages_on_one_line_in_a_narrow_window(app_url: str, chromium: Browser, tmp_path: Path, width: int, height: int):
+    """A narrow window wraps the header, but the links to the pages and the account move to the next
+    line together: no page link is left alone on the line above the others, none is cut off."""
+    context = chromium.new_context(viewport={"width": width, "height": height})
+    try:
+        page = context.new_page()
+        page.goto(app_url + "/device/door-1")
+        links = [page.locator("header a", has_text=re.compile(f"^{name}$")) for name in ("Overview", "Plant view", "Backup", "Audit")]
+        expect(links[0]).to_be_visible()
+        tops = {round(link.bounding_box()["y"]) for link in links}
+        assert len(tops) == 1, f"the page links are on {len(tops)} lines at {width} px"
+        for link in links:
+            inside_viewport(page, link)
+        save_shot(page, tmp_path, f"header-{width}.png", full_page=False)
+    finally:
+        context.close()
+
+
 def _field(page: Page, testid: str):
     """The text input inside the NiceGUI input/number with ``data-testid``."""
     element = page.locator(f'[data-testid="{testid}"]')
