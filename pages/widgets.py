@@ -117,7 +117,8 @@ class LiveValue:
 REGISTER_COLUMNS = [
     {"name": "address", "label": "Addr", "field": "address", "align": "right", "sortable": True},
     {"name": "name", "label": "Name", "field": "name", "align": "left"},
-    {"name": "value", "label": "Value", "field": "value", "align": "left"},
+    # a long value (a register of flags) wraps: every column, Quality too, stays in sight at 1024 px
+    {"name": "value", "label": "Value", "field": "value", "align": "left", "style": "white-space: normal; min-width: 8rem"},
     {"name": "raw", "label": "Raw", "field": "raw", "align": "left", "classes": "mono"},
     {"name": "access", "label": "Access", "field": "access", "align": "center"},
     {"name": "age", "label": "Read", "field": "age", "align": "right"},
@@ -135,7 +136,7 @@ class RegisterTable:
         self.table.props("dense flat bordered")
         self.table.add_slot(
             "body-cell-name",
-            '<q-td :props="props" :title="props.row.description" style="cursor: help">'
+            '<q-td :props="props" :title="props.row.description" style="cursor: help; white-space: normal">'
             '{{ props.value }}<q-badge v-if="props.row.unsaved" color="orange" class="q-ml-xs">unsaved</q-badge></q-td>',
         )
         self.table.props(':table-row-class-fn="row => row.quality_class"')

@@ -88,6 +88,16 @@ def test_hdlock_entry_save_dialog_and_chart(app_url: str, chromium: Browser, tmp
         dialog.get_by_role("button", name="Cancel").click()
         expect(dialog).to_have_count(0)
         assert lock_values(app_url)["SavedSettings"]["value"] == 0  # cancelled: the flash was not written
+
+        # the register table shows every column, its Quality too, without scrolling sideways
+        table = page.locator(".q-tab-panel .reg-table .q-table__middle").first
+        table.scroll_into_view_if_needed()
+        expect(table).to_contain_text("SystemCoreClock-Config")  # the longest value of the lock's input registers
+        widths = [size[0]] + ([768] if size[0] == 1024 else [])  # and on a tablet held upright
+        for width in widths:
+            page.set_viewport_size({"width": width, "height": 1024 if width == 768 else size[1]})
+            overflow = table.evaluate("e => e.scrollWidth - e.clientWidth")
+            assert overflow <= 1, f"the register table is {overflow} px wider than its box at {width} px"
     finally:
         page.context.close()
 
