@@ -77,8 +77,9 @@ def content(name: str) -> None:
                     "the module cannot be reached. Fix SW1 or the bus bit rate in the plant file."
                 ).classes("text-negative text-body1")
 
-        with ui.row().classes("w-full no-wrap items-start gap-4"):
-            with ui.card().classes("col"):
+        # side by side from 1024 px; one above the other on a tablet, where the chart would get a third of the width
+        with ui.row().classes("w-full items-start gap-4"):
+            with ui.card().classes("col-xs-12 col-md"):
                 ui.label("Digital inputs").classes("text-subtitle1")
                 with ui.row().classes("gap-5"):
                     input_lamps = {f"E{i}": Lamp(f"E{i}") for i in range(1, 7)}
@@ -104,7 +105,7 @@ def content(name: str) -> None:
                             "text-caption text-grey-8"
                         )
             if adapter.variant is not Variant.KM:
-                with ui.card().classes("col"):
+                with ui.card().classes("col-xs-12 col-md"):
                     ui.label("Pt100 temperatures (0.1 °C)").classes("text-subtitle1")
                     temp_labels, temp_notes = {}, {}
                     with ui.row().classes("gap-6"):

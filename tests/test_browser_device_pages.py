@@ -141,6 +141,14 @@ def test_m3io_page_record_entry_keeps_what_was_typed(app_url: str, chromium: Bro
         expect(record).to_have_value("20")
         expect(page.locator('[data-testid="events"] tbody tr').first).to_contain_text("refused")
         page.screenshot(path=str(tmp_path / f"heater-hmr-{size[0]}.png"), full_page=True)
+        chart = page.locator(".js-plotly-plot").first
+        assert chart.bounding_box()["width"] < size[0] / 2  # beside the outputs from 1024 px
+        if size[0] == 1024:  # an upright tablet: the temperatures below the outputs, the chart as wide as the page
+            page.set_viewport_size({"width": 768, "height": 1024})
+            expect(chart).to_be_visible()
+            width = chart.bounding_box()["width"]
+            assert width > 0.75 * 768, f"the temperature chart is {width:.0f} px wide on a 768 px tablet"
+            page.screenshot(path=str(tmp_path / "heater-hmr-768.png"), full_page=True)
     finally:
         page.context.close()
 
