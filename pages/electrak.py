@@ -103,18 +103,16 @@ def content(name: str) -> None:
                     ui.label(f"Position, current and speed (last {WINDOW_S} s, 100 ms frames)").classes("text-subtitle1")
                     ui.space()
                     ui.button("CSV", icon="download", on_click=lambda: _export_csv(state, name)).props("flat dense")
-                    ui.button("PNG", icon="image", on_click=lambda: _export_png(charts, name)).props("flat dense")
-                charts = [
-                    HistoryChart(state, ["Position [mm]", "Target [mm]"], window_s=WINDOW_S, height=220),
-                    HistoryChart(state, ["Current [A]"], window_s=WINDOW_S, height=160),
-                    HistoryChart(state, ["Speed [mm/s]"], window_s=WINDOW_S, height=160),
-                ]
-                target_trace = charts[0].figure["data"][1]
+                    ui.button("PNG", icon="image", on_click=lambda: _export_png(chart, name)).props("flat dense")
+                # one figure, three rows over one time axis: one drawing a second for all of them
+                chart = HistoryChart(state, rows=[["Position [mm]", "Target [mm]"], ["Current [A]"], ["Speed [mm/s]"]],
+                                     row_heights=(1.6, 1, 1), window_s=WINDOW_S, height=520)
+                target_trace = chart.figure["data"][1]
                 target_trace["line"] = {"dash": "dash", "color": "#c10015"}
                 target_trace["mode"] = "lines"
-                for chart in charts:  # room under the time axis for its date line ("Nov 22, 2026"), never clipped
-                    chart.figure["layout"]["margin"]["b"] = 48
-                    chart.plot.update()
+                chart.figure["data"][3]["line"] = {"color": "#6a1b9a"}  # speed: not a second red beside the target
+                chart.figure["layout"]["margin"]["b"] = 48  # room under the time axis for its date line, never clipped
+                chart.plot.update()
             with ui.column().classes("col gap-4"):
                 controls = _control_card(name, adapter, session, act, guard)
                 if twin is not None:
@@ -536,10 +534,10 @@ def _export_csv(state, name: str) -> None:
     ui.download(out.getvalue().encode(), f"{name}-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
 
 
-def _export_png(charts, name: str) -> None:
+def _export_png(chart, name: str) -> None:
+    """The chart as drawn (position, current and speed), 1200x800 px."""
     stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
-    for chart, part in zip(charts, ("position", "current", "speed")):
-        ui.run_javascript(
-            f"Plotly.downloadImage(getElement({chart.plot.id}).$el.querySelector('.js-plotly-plot') || getElement({chart.plot.id}).$el,"
-            f" {{format: 'png', filename: '{name}-{part}-{stamp}', width: 1200, height: 400}})"
-        )
+    ui.run_javascript(
+        f"Plotly.downloadImage(getElement({chart.plot.id}).$el,"
+        f" {{format: 'png', filename: '{name}-{stamp}', width: 1200, height: 800}})"
+    )

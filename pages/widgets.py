@@ -302,7 +302,10 @@ class HistoryChart:
     The browser keeps the window: after the first drawing only new samples are sent (plotly
     ``extendTraces``, bounded by ``maxPoints``); a long window is thinned to at most
     :data:`MAX_POINTS` points. ``axes`` puts series on a second y axis (``{"Current [mA]": "y2"}``);
-    ``windows`` offers window lengths to choose from (seconds, e.g. ``(30, 300)``).
+    ``rows`` stacks groups of series one above the other, each on its own y axis, over one time axis
+    (``[["Position [mm]"], ["Current [A]"]]``, heights in the ratio of ``row_heights``): one figure
+    and one drawing for all of them. ``windows`` offers window lengths to choose from (seconds, e.g.
+    ``(30, 300)``).
     """
 
     MAX_POINTS = 1500
@@ -313,10 +316,19 @@ class HistoryChart:
     def _iso(t: float) -> str:
         return datetime.fromtimestamp(t).isoformat(timespec="milliseconds")
 
-    def __init__(self, state: DeviceState, series: list[str], window_s: int = CHART_WINDOW_S, height: int = 320,
-                 axes: dict[str, str] | None = None, windows: tuple[int, ...] = ()):
+    ROW_GAP = 0.08  # between stacked rows, as a share of the plotting height
+
+    def __init__(self, state: DeviceState, series: list[str] | None = None, window_s: int = CHART_WINDOW_S,
+                 height: int = 320, axes: dict[str, str] | None = None, windows: tuple[int, ...] = (),
+                 rows: list[list[str]] | None = None, row_heights: tuple[float, ...] = ()):
+        if (series is None) == (rows is None):
+            raise ValueError("a chart takes either series or rows of series")
+        if rows is not None:
+            axes = {name: ("y" if i == 0 else f"y{i + 1}") for i, row in enumerate(rows) for name in row}
+            series = [name for row in rows for name in row]
         self.state = state
         self.series = series
+        self.rows = rows
         self.window_s = window_s
         self.axes = axes or {}
         self.sent_t: float | None = None  # time of the newest sample in the browser
@@ -324,7 +336,7 @@ class HistoryChart:
         self.sent_points = 0  # samples sent since the last full drawing (for tests and measurements)
         self.drawn = False
         layout: dict = {
-            "margin": {"l": 65, "r": 65 if self.axes else 30, "t": 10, "b": 40},  # room for ticks and titles
+            "margin": {"l": 65, "r": 65 if self.axes and not rows else 30, "t": 10, "b": 40},  # room for ticks and titles
             "height": height,
             # fixed margins, tick labels not measured for overflow: each new drawing lays the chart out once;
             # time labels level (a narrow chart gets fewer, none cut off at the bottom)
@@ -335,17 +347,29 @@ class HistoryChart:
             "uirevision": "keep",
         }
 
-        def units(on_y2: bool) -> str:  # the axis titles name the units; the legend names the series
-            found = [s[s.rfind("[") + 1:-1] if s.endswith("]") and "[" in s else s
-                     for s in series if (self.axes.get(s) == "y2") == on_y2]
+        def units(names: list[str]) -> str:  # the axis titles name the units; the legend names the series
+            found = [s[s.rfind("[") + 1:-1] if s.endswith("]") and "[" in s else s for s in names]
             return ", ".join(dict.fromkeys(found))
 
-        if not self.axes and all(s.endswith("]") and "[" in s for s in series):
-            layout["yaxis"]["title"] = {"text": units(False)}  # one axis: titled with its unit(s) too
-        if self.axes:
-            layout["yaxis2"] = {"overlaying": "y", "side": "right", "title": {"text": units(True)}, "automargin": False,
+        def on(axis: str) -> list[str]:
+            return [s for s in series if self.axes.get(s, "y") == axis]
+
+        if rows:  # stacked, the first row on top; the time axis under the lowest
+            weights = list(row_heights) or [1.0] * len(rows)
+            share, top = (1.0 - self.ROW_GAP * (len(rows) - 1)) / sum(weights), 1.0
+            for i, weight in enumerate(weights):
+                key = "yaxis" if i == 0 else f"yaxis{i + 1}"
+                axis = layout.setdefault(key, {"automargin": False, "ticklabeloverflow": "allow"})
+                axis.update(domain=[max(0.0, top - weight * share), top], anchor="x")
+                axis["title"] = {"text": units(on("y" if i == 0 else f"y{i + 1}"))}
+                top -= weight * share + self.ROW_GAP
+            layout["xaxis"]["anchor"] = "y" if len(rows) == 1 else f"y{len(rows)}"
+        elif not self.axes and all(s.endswith("]") and "[" in s for s in series):
+            layout["yaxis"]["title"] = {"text": units(series)}  # one axis: titled with its unit(s) too
+        elif self.axes:
+            layout["yaxis2"] = {"overlaying": "y", "side": "right", "title": {"text": units(on("y2"))}, "automargin": False,
                                 "ticklabeloverflow": "allow", "showgrid": False}
-            layout["yaxis"]["title"] = {"text": units(False)}
+            layout["yaxis"]["title"] = {"text": units(on("y"))}
         self.figure = {
             "data": [{"type": "scatter", "mode": "lines", "name": s, "x": [], "y": [], "yaxis": self.axes.get(s, "y")}
                      for s in series],

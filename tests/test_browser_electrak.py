@@ -3,6 +3,8 @@ the stop rule is stated; the bit rate changes step by step (write, read back, sa
 
 from __future__ import annotations
 
+import re
+
 import pytest
 from conftest import CHROMIUM, inside_viewport
 from webutil import running_app
@@ -72,6 +74,12 @@ def test_go_moves_the_position_chart_toward_the_target(app_url, chromium, tmp_pa
         assert last_position(page) <= 40.2 and last_position(page) > first
         target_line = page.evaluate("() => document.querySelector('.js-plotly-plot').data[1].y.slice(-1)[0]")
         assert target_line == 40
+        # position, current and speed: one figure in rows over one time axis, one drawing for all of them
+        assert page.evaluate("document.querySelectorAll('.js-plotly-plot').length") == 1
+        assert page.evaluate("document.querySelector('.js-plotly-plot').data.map(t => t.yaxis)") == ["y", "y", "y2", "y3"]
+        with page.expect_download() as download:
+            page.get_by_role("button", name="PNG", exact=True).click()
+        assert re.fullmatch(r"lift-\d{8}-\d{6}\.png", download.value.suggested_filename)
         page.screenshot(path=str(tmp_path / "electrak.png"), full_page=True)
         # the big stop is always there
         page.get_by_test_id("big-stop").click()

@@ -173,6 +173,36 @@ async def test_every_chart_axis_is_titled_with_its_unit(user_runtime):
     assert "title" not in mixed["yaxis"]  # a series without a unit: no title that would leave it out
 
 
+async def test_stacked_rows_share_one_time_axis_each_titled_with_its_unit(user_runtime):
+    """Rows of series one above the other in one figure (one drawing for all), each on its own y axis."""
+    from pages.widgets import HistoryChart
+
+    user, runtime = user_runtime
+    state = runtime.store.devices["io"]
+    charts: list[HistoryChart] = []
+
+    @ui.page("/chart-rows")
+    def page() -> None:
+        charts.append(HistoryChart(state, rows=[["Position [mm]", "Target [mm]"], ["Current [A]"], ["Speed [mm/s]"]],
+                                   row_heights=(2, 1, 1)))
+
+    await user.open("/chart-rows")
+    figure = charts[0].figure
+    layout = figure["layout"]
+    assert [t["yaxis"] for t in figure["data"]] == ["y", "y", "y2", "y3"]
+    axes = [layout["yaxis"], layout["yaxis2"], layout["yaxis3"]]
+    assert [a["title"]["text"] for a in axes] == ["mm", "A", "mm/s"]
+    domains = [a["domain"] for a in axes]
+    assert domains[0][1] == 1.0 and domains[-1][0] >= 0.0
+    assert all(upper[0] > lower[1] for upper, lower in zip(domains, domains[1:]))  # top to bottom, apart
+    heights = [d[1] - d[0] for d in domains]
+    assert abs(heights[0] - 2 * heights[1]) < 1e-9 and abs(heights[1] - heights[2]) < 1e-9
+    assert all("overlaying" not in a for a in axes)
+    assert layout["xaxis"]["anchor"] == "y3"  # the time axis under the lowest row
+    with pytest.raises(ValueError):
+        HistoryChart(state, ["T"], rows=[["T"]])
+
+
 async def test_register_table_is_built_once_in_the_once_a_second_round(user_runtime):
     from devices.hdlock.params import INPUT, PARAMS
     from pages.widgets import RegisterTable
