@@ -12,7 +12,7 @@ from app import runtime as rt
 from app import worker as worker_module
 from devices.scu import codec
 from devices.scu import params as p
-from devices.scu.adapter import SERVICE_IDS
+from devices.scu.adapter import REMOTE_SPEED_MAX, SERVICE_IDS
 from pages.electrak import gate
 from pages.frame import fmt_age, fmt_time, frame, set_status_badge
 from pages.widgets import (
@@ -164,8 +164,8 @@ def content(name: str) -> None:
                                    label="Motion (para_ID[0])").classes("w-72")
                 ramp = ui.select({1: "soft start/stop", 0: "fast start/stop", 255: "as configured (-1)"}, value=1,
                                  label="Ramp (para_ID[1])").classes("w-48")
-                # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s (the adapter's check, set_remote_speed)
-                speed = range_number("Remote speed (% or counts/s)", 0, 1000, integer=True, value=50, step=1) \
+                # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s (the adapter's own bound)
+                speed = range_number("Remote speed (% or counts/s)", 0, REMOTE_SPEED_MAX, integer=True, value=50, step=1) \
                     .classes("w-56").props("data-testid=remote-speed")
 
                 async def write_speed() -> None:

@@ -40,6 +40,7 @@ RESTORE_REFUSED = ("the SCU accepts writes only to its volatile remote data 0x3x
                    "the snapshot is a record for the commissioning file")
 ERROR_BIT_GROUPS = ((0x00D1, "Error code"), (0x00D2, "Error history 1"), (0x00D3, "Error history 2"),
                     (0x00D4, "Error history 3"), (0x00D5, "Error history 4"))
+REMOTE_SPEED_MAX = 1000  # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s
 SERVICE_IDS = (0x0001, 0x0002, 0x0060, 0x0070, 0x0080, 0x0090, 0x00B0, 0x00C0, 0x00C1, 0x1010)
 
 
@@ -600,8 +601,8 @@ class ScuAdapter:
         """RT 0x3011.. (F1..F10) and RG read-back; % or counts/s per the unit's configuration (table 7)."""
         self._check_holder(session)
         self._check_open()
-        if isinstance(speed, bool) or not isinstance(speed, int) or not 0 <= speed <= 1000:
-            raise CommandError("remote speed: 0..100 % (relative) or 0..1000 counts/s (absolute), a whole number")
+        if isinstance(speed, bool) or not isinstance(speed, int) or not 0 <= speed <= REMOTE_SPEED_MAX:
+            raise CommandError(f"remote speed: 0..100 % (relative) or 0..{REMOTE_SPEED_MAX} counts/s (absolute), a whole number")
         return await self._write_read_back(p.speed_id(function), speed, f"remote speed F{function}")
 
     async def set_remote_position(self, session: str, actuator: int, *, counts: int | None = None,
