@@ -30,6 +30,7 @@ from pages.widgets import (
     range_number,
     refuse,
     run_command,
+    stop_bar,
     write_from_page,
 )
 
@@ -124,14 +125,8 @@ def content(name: str) -> None:
         with ui.expansion("Events", icon="list", value=True).classes("w-full"):
             event_log(state)  # state changes, faults rising and clearing, offline and back, commands; newest first
 
-    # the big STOP in a bar of its own: the page reserves its height, so it never covers a button of the page
-    # the STOP bar stays at the bottom: a control scrolled into view stops above it, never under it
-    ui.add_css("html { scroll-padding-bottom: 88px; }")
-    with ui.footer().classes("bg-grey-2 q-py-xs q-px-md items-center justify-end gap-4").props("bordered data-testid=stop-bar"):
-        ui.label("Clears enable at once; anyone may stop, also without control.").classes("text-caption text-grey-8")
-        ui.button("STOP", icon="stop_circle", color="negative", on_click=lambda: act("stop", lambda a: a.stop(session), write=False)).props(
-            "size=lg push data-testid=big-stop"
-        ).classes("text-h6")
+    stop_bar("Clears enable at once; anyone may stop, also without control.", "STOP", "stop_circle",
+             lambda: act("stop", lambda a: a.stop(session), write=False), "stop-bar", "big-stop").classes("text-h6")
 
     def online_now() -> bool:
         return state.status == "online"

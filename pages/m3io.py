@@ -26,6 +26,7 @@ from pages.widgets import (
     range_number,
     refuse,
     run_command,
+    stop_bar,
 )
 
 STATE_COLOR = {"ok": "positive", "present": "positive", "blown": "negative", "defective": "negative"}
@@ -128,14 +129,8 @@ def content(name: str) -> None:
         with ui.expansion("Events", icon="list", value=True).classes("w-full"):
             event_log(state)
 
-    # the way out stays in sight wherever the page is scrolled (a bar at the bottom, as on the lift page)
-    ui.add_css("html { scroll-padding-bottom: 88px; }")
-    with ui.footer().classes("bg-grey-2 q-py-xs q-px-md items-center justify-end gap-4").props("bordered data-testid=off-bar"):
-        ui.label("Switches every output off at once; anyone may, also without writing rights.").classes(
-            "text-caption text-grey-8")
-        ui.button("All off", icon="power_off", color="negative",
-                  on_click=lambda: act("all off", lambda a: a.all_off("all off pressed"), write=False)).props(
-            "size=lg push data-testid=all-off")
+    stop_bar("Switches every output off at once; anyone may, also without writing rights.", "All off", "power_off",
+             lambda: act("all off", lambda a: a.all_off("all off pressed"), write=False), "off-bar", "all-off")
 
     def update() -> None:
         set_status_badge(badge, state.status, state.age)

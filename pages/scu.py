@@ -30,6 +30,7 @@ from pages.widgets import (
     range_number,
     run_command,
     session_role,
+    stop_bar,
 )
 
 STATUS_1 = ("present", "limit_in_out", "switch_1", "switch_2", "motion", "in_position", "out_position", "stroke_recorded")
@@ -305,14 +306,8 @@ def content(name: str) -> None:
         with ui.expansion("Events", icon="list", value=True).classes("w-full"):
             event_log(state)  # session changes, error answers, offline and back, commands; newest first
 
-    # the big STOP in a bar of its own: the page reserves its height, so it never covers a button of the page
-    # the STOP bar stays at the bottom: a control scrolled into view stops above it, never under it
-    ui.add_css("html { scroll-padding-bottom: 88px; }")
-    with ui.footer().classes("bg-grey-2 q-py-xs q-px-md items-center justify-end gap-4").props("bordered data-testid=stop-bar"):
-        ui.label("RS to every running function; anyone may stop, also without control.").classes("text-caption text-grey-8")
-        ui.button("STOP", icon="stop_circle", color="negative",
-                  on_click=lambda: act("stop (RS)", lambda a: a.stop(session), write=False)) \
-            .props("size=lg push data-testid=big-stop").classes("text-h6")
+    stop_bar("RS to every running function; anyone may stop, also without control.", "STOP", "stop_circle",
+             lambda: act("stop (RS)", lambda a: a.stop(session), write=False), "stop-bar", "big-stop").classes("text-h6")
 
     def client_user() -> str:
         from pages.session import current_user

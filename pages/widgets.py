@@ -472,6 +472,17 @@ class HistoryChart:
         self.sent_points = len(samples)
 
 
+def stop_bar(note: str, label: str, icon: str, on_click: Callable[[], object], bar_id: str, button_id: str) -> ui.button:
+    """The way out (STOP, All off) in a bar of its own at the bottom, in sight wherever the page is
+    scrolled. The page reserves the bar's height, so it never covers a button of the page, and a
+    control scrolled into view stops above it, never under it. ``note`` says what the button does and
+    who may press it."""
+    ui.add_css("html { scroll-padding-bottom: 88px; }")
+    with ui.footer().classes("bg-grey-2 q-py-xs q-px-md items-center justify-end gap-4").props(f"bordered data-testid={bar_id}"):
+        ui.label(note).classes("text-caption text-grey-8")
+        return ui.button(label, icon=icon, color="negative", on_click=on_click).props(f"size=lg push data-testid={button_id}")
+
+
 async def confirm(title: str, text: str, ok: str = "Continue", danger: bool = True) -> bool:
     """Modal confirmation; resolves True only when the engineer presses ``ok``."""
     with ui.dialog() as dialog, ui.card().classes("max-w-lg"):
