@@ -18,10 +18,14 @@ from pages.session import current_user
 from pages.widgets import all_valid, checked_value, range_number
 
 REFRESH_S = 0.25
-PAIR_COLUMNS = [f"{kind} {order}" for kind in ("u32", "i32", "f32") for order in mp.WORD_ORDERS]
+WIDE_KINDS = {"u32": "uint32", "i32": "int32", "f32": "float32"}
+PAIR_COLUMNS = [f"{kind} {order}" for kind in WIDE_KINDS for order in mp.WORD_ORDERS]
+# which 32-bit columns are shown (a display choice, as Modbus Poll's format): all three need about 1250 px,
+# one kind fits a 1024 px window
+WIDE_CHOICES = {"all": "uint32, int32, float32", **WIDE_KINDS, "none": "none"}
 
 
-def _columns(base: int, function: int) -> list[dict]:
+def _columns(base: int, function: int, wide: str = "all") -> list[dict]:
     cols = [
         {"name": "address", "label": f"Address ({base}-based)", "field": "address", "align": "right"},
         {"name": "name", "label": "Known register", "field": "name", "align": "left"},
@@ -29,8 +33,9 @@ def _columns(base: int, function: int) -> list[dict]:
     if function in (1, 2):
         return cols + [{"name": "unsigned", "label": "Value", "field": "unsigned", "align": "right"}]
     cols += [{"name": f, "label": f.capitalize(), "field": f, "align": "right", "classes": "mono"} for f in mp.FORMATS]
-    cols += [{"name": c, "label": c.replace("u32", "uint32").replace("i32", "int32").replace("f32", "float32"),
-              "field": c, "align": "right", "classes": "mono"} for c in PAIR_COLUMNS]
+    kinds = list(WIDE_KINDS) if wide == "all" else [k for k in WIDE_KINDS if k == wide]
+    cols += [{"name": f"{kind} {order}", "label": f"{WIDE_KINDS[kind]} {order}", "field": f"{kind} {order}",
+              "align": "right", "classes": "mono"} for kind in kinds for order in mp.WORD_ORDERS]
     return cols
 
 
@@ -120,12 +125,17 @@ def _view(runtime, bus: str) -> None:
             row = {"address": r.address + offset, "name": r.name, **{c: "" for c in (*mp.FORMATS, *PAIR_COLUMNS)}}
             row.update(r.cells)
             rows.append(row)
-        ui.table(columns=_columns(offset, spec.function), rows=rows, row_key="address").props(
+        ui.table(columns=_columns(offset, spec.function, wide.value), rows=rows, row_key="address").props(
             "dense flat bordered data-testid=poll-table").classes("w-full reg-table")
-        ui.label("32-bit columns: the register with the next one; ABCD = high word first, CDAB = low word first.").classes(
-            "text-caption text-grey-7")
+        if spec.function not in (1, 2) and wide.value != "none":
+            ui.label("32-bit columns: the register with the next one; ABCD = high word first, CDAB = low word first.").classes(
+                "text-caption text-grey-7")
 
-    status()
+    with ui.row().classes("w-full items-start no-wrap"):
+        with ui.column().classes("col gap-1"):
+            status()
+        wide = ui.select(WIDE_CHOICES, value="all", label="32-bit values", on_change=lambda: table.refresh()).props(
+            "dense outlined data-testid=poll-wide").classes("w-56")
     table()
 
     def tick() -> None:

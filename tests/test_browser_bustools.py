@@ -116,6 +116,20 @@ def test_modbus_poll(app_url: str, browser: Browser):
     expect(first).to_contain_text("SerialNumber")
     expect(page.get_by_test_id("poll-status")).to_contain_text(re.compile(r"[2-9] polls|\d\d+ polls"))
     shoot(page, "modbus-poll")
+    header = table.locator("thead")
+    expect(header).to_contain_text("uint32 ABCD")
+    expect(header).to_contain_text("float32 CDAB")
+    # in a 1024 px window one kind of 32-bit value fits: every column in sight, none scrolled off
+    page.set_viewport_size({"width": 1024, "height": 768})
+    page.get_by_label("32-bit values").click()
+    page.get_by_role("option", name="float32", exact=True).click()
+    expect(header).not_to_contain_text("uint32")
+    expect(header).to_contain_text("float32 ABCD")
+    expect(table.locator("tbody tr").first).to_contain_text("SerialNumber")
+    overflow = table.locator(".q-table__middle").evaluate("e => e.scrollWidth - e.clientWidth")
+    assert overflow <= 1, f"the poll table is {overflow} px wider than its box at 1024 px"
+    shoot(page, "modbus-poll-float32")
+    page.set_viewport_size({"width": 1440, "height": 900})
     # a protected register is refused
     page.get_by_label("Address", exact=True).fill("10")
     page.get_by_label("Value(s)").fill("1")
