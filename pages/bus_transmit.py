@@ -79,7 +79,7 @@ def _engineer_view(runtime, bus: str, user: str, role: str) -> None:
             return False
         if ok:
             ui.notify(ok, type="positive")
-        table.refresh()
+        update()
         return True
 
     # -- raw entry -------------------------------------------------------------------
@@ -153,48 +153,54 @@ def _engineer_view(runtime, bus: str, user: str, role: str) -> None:
     # -- the list -------------------------------------------------------------------------
     shown = {"version": -1, "sent": -1}
 
-    @ui.refreshable
-    def table() -> None:
-        if tl.load_error:
-            ui.label(tl.load_error).classes("text-negative")
-        if not tl.loaded.is_set():
-            ui.label("loading the saved list ...").classes("text-grey-7")
-            return
-        rows = [{
-            "key": r.key, "id": r.id_text(), "dlc": r.dlc, "data": r.data.hex(" ").upper(), "label": r.label,
-            "mode": "once" if r.period_ms is None else f"every {r.period_ms} ms" + (" · running" if tl.is_running(r.key) else ""),
-            "running": tl.is_running(r.key), "cyclic": r.period_ms is not None, "sent": tl.sent.get(r.key, 0),
-        } for r in tl.rows]
-        t = ui.table(columns=COLUMNS, rows=rows, row_key="key").props("dense flat bordered").classes("w-full can-table")
-        t.props("data-testid=transmit-table")
-        t.add_slot("body-cell-actions", r"""
-            <q-td :props="props">
-              <q-btn v-if="!props.row.cyclic" dense flat icon="send" label="Send" @click="$parent.$emit('send', props.row.key)" />
-              <q-btn v-if="props.row.cyclic && !props.row.running" dense flat color="positive" icon="play_arrow" label="Start"
-                     @click="$parent.$emit('start', props.row.key)" />
-              <q-btn v-if="props.row.running" dense flat color="negative" icon="stop" label="Stop"
-                     @click="$parent.$emit('stop', props.row.key)" />
-              <q-btn dense flat icon="delete" @click="$parent.$emit('remove', props.row.key)" />
-            </q-td>
-        """)
-        t.on("send", lambda e: guarded(lambda: tl.send_once(e.args, user=user, role=role)))
-        t.on("start", lambda e: guarded(lambda: tl.start(e.args, user=user, role=role, session=session)))
-        t.on("stop", lambda e: guarded(lambda: tl.stop(e.args, user=user, role=role)))
-        t.on("remove", lambda e: guarded(lambda: tl.remove(e.args, user=user, role=role)))
-        if not rows:
-            ui.label("No rows yet: add a frame above.").classes("text-grey-7")
-        shown["version"] = tl.version
-        shown["sent"] = sum(tl.sent.values())
-
+    # one table, its rows replaced in place: a new table on every count would throw away the one whose Stop
+    # button the engineer is about to press, and the press would be lost
     with ui.row().classes("items-center gap-2"):
         ui.label("Rows").classes("text-subtitle1")
         ui.button("Stop all", icon="stop", color="negative",
                   on_click=lambda: guarded(_stop_all(tl, user, role))).props("dense")
-    table()
+    note = ui.label().classes("text-grey-7")
+    error = ui.label().classes("text-negative")
+    t = ui.table(columns=COLUMNS, rows=[], row_key="key").props("dense flat bordered").classes("w-full can-table")
+    t.props("data-testid=transmit-table")
+    t.add_slot("body-cell-actions", r"""
+        <q-td :props="props">
+          <q-btn v-if="!props.row.cyclic" dense flat icon="send" label="Send" @click="$parent.$emit('send', props.row.key)" />
+          <q-btn v-if="props.row.cyclic && !props.row.running" dense flat color="positive" icon="play_arrow" label="Start"
+                 @click="$parent.$emit('start', props.row.key)" />
+          <q-btn v-if="props.row.running" dense flat color="negative" icon="stop" label="Stop"
+                 @click="$parent.$emit('stop', props.row.key)" />
+          <q-btn dense flat icon="delete" @click="$parent.$emit('remove', props.row.key)" />
+        </q-td>
+    """)
+    t.on("send", lambda e: guarded(lambda: tl.send_once(e.args, user=user, role=role)))
+    t.on("start", lambda e: guarded(lambda: tl.start(e.args, user=user, role=role, session=session)))
+    t.on("stop", lambda e: guarded(lambda: tl.stop(e.args, user=user, role=role)))
+    t.on("remove", lambda e: guarded(lambda: tl.remove(e.args, user=user, role=role)))
 
-    def tick() -> None:  # O(1) unless something changed; at most 64 rows redrawn
+    def update() -> None:
+        error.set_text(tl.load_error or "")
+        error.set_visibility(bool(tl.load_error))
+        loaded = tl.loaded.is_set()
+        rows = [{
+            "key": r.key, "id": r.id_text(), "dlc": r.dlc, "data": r.data.hex(" ").upper(), "label": r.label,
+            "mode": "once" if r.period_ms is None else f"every {r.period_ms} ms" + (" · running" if tl.is_running(r.key) else ""),
+            "running": tl.is_running(r.key), "cyclic": r.period_ms is not None, "sent": tl.sent.get(r.key, 0),
+        } for r in tl.rows] if loaded else []
+        note.set_text("loading the saved list ..." if not loaded else "" if rows else "No rows yet: add a frame above.")
+        note.set_visibility(not loaded or not rows)
+        t.set_visibility(loaded)
+        if rows != t.rows:
+            t.rows = rows
+            t.update()
+        shown["version"] = tl.version
+        shown["sent"] = sum(tl.sent.values())
+
+    update()
+
+    def tick() -> None:  # O(1) unless something changed; at most 64 rows sent
         if tl.version != shown["version"] or (tl.running and sum(tl.sent.values()) != shown["sent"]):
-            table.refresh()
+            update()
 
     ui.timer(REFRESH_S, tick)
 

@@ -85,6 +85,14 @@ def test_transmit_list(app_url: str, browser: Browser):
     row.get_by_role("button", name="Start").click()
     expect(row).to_contain_text("running")
     expect(row.locator("td").nth(5)).to_have_text(re.compile(r"^[1-9]\d+$"))  # frames sent, counting
+    # the count moves in place: the table (and its Stop button) is never replaced by a new one, so a
+    # click on Stop cannot land on a table the page has just thrown away, and be lost
+    element = table.get_attribute("id")
+    sent = int(row.locator("td").nth(5).inner_text())
+    expect(row.locator("td").nth(5)).not_to_have_text(str(sent))
+    sent = int(row.locator("td").nth(5).inner_text())
+    expect(row.locator("td").nth(5)).not_to_have_text(str(sent))
+    assert table.get_attribute("id") == element
     # a forbidden frame is refused by name
     page.get_by_label("ID (hex)").fill("706")
     page.get_by_label("Data (hex bytes)").fill("00 00 00 00 00 00")
