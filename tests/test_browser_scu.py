@@ -41,6 +41,7 @@ COUNTS_JS = """() => { const m = /(-?\\d+) counts/.exec(document.querySelector('
 
 
 def test_move_actuator_1_to_a_remote_position_and_stop(tmp_path, chromium):
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
     from playwright.sync_api import expect
 
     with running_app(plant_text(free_port()), tmp_path) as url:
@@ -58,7 +59,11 @@ def test_move_actuator_1_to_a_remote_position_and_stop(tmp_path, chromium):
             expect(page.get_by_text("remote position written and read back")).to_be_visible(timeout=10_000)
             page.get_by_test_id("go").click()
             # the position rises
-            page.wait_for_function(f"() => ({COUNTS_JS})() >= {start + 100}", timeout=15_000)
+            try:
+                page.wait_for_function(f"() => ({COUNTS_JS})() >= {start + 100}", timeout=15_000)
+            except PlaywrightTimeout:  # say what the page showed: the events, the drive card, the position
+                raise AssertionError(f"A1 did not rise from {start} counts: it shows {counts(page)}; events: "
+                                     f"{page.get_by_test_id('events').inner_text()[:1500]}") from None
             page.get_by_test_id("stop").click()
             expect(page.get_by_text("RS pending: none")).to_be_visible(timeout=5_000)
             # standing still: the shown position stops changing (two equal readings 1.5 s apart, longer than the page refresh)
