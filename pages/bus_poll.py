@@ -95,7 +95,7 @@ def _view(runtime, bus: str) -> None:
 
     run_button.on_click(run)
 
-    shown = {"polls": -1}
+    shown: dict = {"polls": -1, "columns": None}
 
     @ui.refreshable
     def status() -> None:
@@ -113,11 +113,24 @@ def _view(runtime, bus: str) -> None:
                      f"{max((s.stale_after for s in runtime.store.devices.values() if s.bus == bus), default=0):.1f} s").classes(
                 "text-caption text-grey-7")
 
-    @ui.refreshable
-    def table() -> None:
+    with ui.row().classes("w-full items-start no-wrap"):
+        with ui.column().classes("col gap-1"):
+            status()
+        wide = ui.select(WIDE_CHOICES, value="all", label="32-bit values", on_change=lambda: update_table()).props(
+            "dense outlined data-testid=poll-wide").classes("w-56")
+    # one table, its rows and columns changed in place on every poll (not a new table each time)
+    hint = ui.label("Set unit, function, start and count, then Poll.").classes("text-grey-7")
+    grid = ui.table(columns=_columns(0, 3), rows=[], row_key="address").props(
+        "dense flat bordered data-testid=poll-table").classes("w-full reg-table")
+    pairs = ui.label("32-bit columns: the register with the next one; ABCD = high word first, CDAB = low word first.").classes(
+        "text-caption text-grey-7")
+
+    def update_table() -> None:
         spec = poll.spec
+        hint.set_visibility(spec is None)
+        grid.set_visibility(spec is not None)
+        pairs.set_visibility(spec is not None and spec.function not in (1, 2) and wide.value != "none")
         if spec is None:
-            ui.label("Set unit, function, start and count, then Poll.").classes("text-grey-7")
             return
         offset = int(base.value or 0)
         rows = []
@@ -125,24 +138,21 @@ def _view(runtime, bus: str) -> None:
             row = {"address": r.address + offset, "name": r.name, **{c: "" for c in (*mp.FORMATS, *PAIR_COLUMNS)}}
             row.update(r.cells)
             rows.append(row)
-        ui.table(columns=_columns(offset, spec.function, wide.value), rows=rows, row_key="address").props(
-            "dense flat bordered data-testid=poll-table").classes("w-full reg-table")
-        if spec.function not in (1, 2) and wide.value != "none":
-            ui.label("32-bit columns: the register with the next one; ABCD = high word first, CDAB = low word first.").classes(
-                "text-caption text-grey-7")
+        columns = _columns(offset, spec.function, wide.value)
+        if columns != shown["columns"]:
+            grid.columns = shown["columns"] = columns
+        elif rows == grid.rows:
+            return
+        grid.rows = rows
+        grid.update()
 
-    with ui.row().classes("w-full items-start no-wrap"):
-        with ui.column().classes("col gap-1"):
-            status()
-        wide = ui.select(WIDE_CHOICES, value="all", label="32-bit values", on_change=lambda: table.refresh()).props(
-            "dense outlined data-testid=poll-wide").classes("w-56")
-    table()
+    update_table()
 
     def tick() -> None:
         if poll.polls != shown["polls"]:
             shown["polls"] = poll.polls
             status.refresh()
-            table.refresh()
+            update_table()
 
     ui.timer(REFRESH_S, tick)
 

@@ -124,6 +124,10 @@ def test_modbus_poll(app_url: str, browser: Browser):
     expect(first).to_contain_text("SerialNumber")
     expect(page.get_by_test_id("poll-status")).to_contain_text(re.compile(r"[2-9] polls|\d\d+ polls"))
     shoot(page, "modbus-poll")
+    # every poll changes the rows in place: the table stays the same element
+    element = table.get_attribute("id")
+    expect(page.get_by_test_id("poll-status")).to_contain_text(re.compile(r"([4-9]|\d\d+) polls"))
+    assert table.get_attribute("id") == element
     header = table.locator("thead")
     expect(header).to_contain_text("uint32 ABCD")
     expect(header).to_contain_text("float32 CDAB")
