@@ -188,9 +188,14 @@ def test_monitor_names_devices_and_decodes_values_in_browser(app_url: str, chrom
     expect(gate1.locator("td").nth(2)).to_have_text("gate-1")
     page.screenshot(path=str(tmp_path / "monitor-names-1440.png"))
     page.set_viewport_size({"width": 1024, "height": 768})
-    answer.scroll_into_view_if_needed()
-    # the Device column is on screen at 1024 px: across (the live list may have moved the row down meanwhile)
-    device = answer.locator("td").nth(3).bounding_box()
+    # the Device column is on screen at 1024 px: measured across only, and without scrolling to the row,
+    # which the live list moves down with every new frame (it is never still long enough to scroll to)
+    device = None
+    for _ in range(20):
+        device = answer.locator("td").nth(3).bounding_box()
+        if device is not None:
+            break
+        page.wait_for_timeout(100)
     assert device is not None and 0 <= device["x"] and device["x"] + device["width"] <= 1024, device
     page.screenshot(path=str(tmp_path / "monitor-names-1024.png"))
 
