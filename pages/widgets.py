@@ -323,12 +323,12 @@ class HistoryChart:
                  rows: list[list[str]] | None = None, row_heights: tuple[float, ...] = ()):
         if (series is None) == (rows is None):
             raise ValueError("a chart takes either series or rows of series")
+        row_axes = ["y" if i == 0 else f"y{i + 1}" for i in range(len(rows or ()))]  # top row first
         if rows is not None:
-            axes = {name: ("y" if i == 0 else f"y{i + 1}") for i, row in enumerate(rows) for name in row}
+            axes = {name: axis for axis, row in zip(row_axes, rows) for name in row}
             series = [name for row in rows for name in row]
         self.state = state
         self.series = series
-        self.rows = rows
         self.window_s = window_s
         self.axes = axes or {}
         self.sent_t: float | None = None  # time of the newest sample in the browser
@@ -357,13 +357,12 @@ class HistoryChart:
         if rows:  # stacked, the first row on top; the time axis under the lowest
             weights = list(row_heights) or [1.0] * len(rows)
             share, top = (1.0 - self.ROW_GAP * (len(rows) - 1)) / sum(weights), 1.0
-            for i, weight in enumerate(weights):
-                key = "yaxis" if i == 0 else f"yaxis{i + 1}"
-                axis = layout.setdefault(key, {"automargin": False, "ticklabeloverflow": "allow"})
+            for name, weight in zip(row_axes, weights):
+                axis = layout.setdefault(name.replace("y", "yaxis"), {"automargin": False, "ticklabeloverflow": "allow"})
                 axis.update(domain=[max(0.0, top - weight * share), top], anchor="x")
-                axis["title"] = {"text": units(on("y" if i == 0 else f"y{i + 1}"))}
+                axis["title"] = {"text": units(on(name))}
                 top -= weight * share + self.ROW_GAP
-            layout["xaxis"]["anchor"] = "y" if len(rows) == 1 else f"y{len(rows)}"
+            layout["xaxis"]["anchor"] = row_axes[-1]
         elif not self.axes and all(s.endswith("]") and "[" in s for s in series):
             layout["yaxis"]["title"] = {"text": units(series)}  # one axis: titled with its unit(s) too
         elif self.axes:
