@@ -33,9 +33,8 @@ def _columns(base: int, function: int, wide: str = "all") -> list[dict]:
     if function in (1, 2):
         return cols + [{"name": "unsigned", "label": "Value", "field": "unsigned", "align": "right"}]
     cols += [{"name": f, "label": f.capitalize(), "field": f, "align": "right", "classes": "mono"} for f in mp.FORMATS]
-    kinds = list(WIDE_KINDS) if wide == "all" else [k for k in WIDE_KINDS if k == wide]
-    cols += [{"name": f"{kind} {order}", "label": f"{WIDE_KINDS[kind]} {order}", "field": f"{kind} {order}",
-              "align": "right", "classes": "mono"} for kind in kinds for order in mp.WORD_ORDERS]
+    cols += [{"name": c, "label": f"{WIDE_KINDS[kind]} {order}", "field": c, "align": "right", "classes": "mono"}
+             for c in PAIR_COLUMNS for kind, order in [c.split()] if wide in ("all", kind)]
     return cols
 
 
