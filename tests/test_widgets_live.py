@@ -38,6 +38,18 @@ async def user_runtime():
         yield user, runtime
 
 
+async def charts_on_page(user, path: str, *makes) -> list:
+    """Open a page at ``path`` that builds one chart per callable in ``makes``; the charts, in order."""
+    charts: list = []
+
+    @ui.page(path)
+    def page() -> None:
+        charts.extend(make() for make in makes)
+
+    await user.open(path)
+    return charts
+
+
 async def test_chart_sends_only_new_samples_and_thins_long_windows(user_runtime):
     from pages.widgets import HistoryChart
 
@@ -46,14 +58,7 @@ async def test_chart_sends_only_new_samples_and_thins_long_windows(user_runtime)
     now = time.time()
     for i in range(6000):  # ten minutes at 10 samples/s
         state.add_history({"T": float(i)}, now=now - 600 + i * 0.1)
-    charts: list[HistoryChart] = []
-
-    @ui.page("/chart-test")
-    def page() -> None:
-        charts.append(HistoryChart(state, ["T"], window_s=300, windows=(30, 300)))
-
-    await user.open("/chart-test")
-    chart = charts[0]
+    chart, = await charts_on_page(user, "/chart-test", lambda: HistoryChart(state, ["T"], window_s=300, windows=(30, 300)))
     drawn = chart.figure["data"][0]["x"]
     assert 0 < len(drawn) <= HistoryChart.MAX_POINTS  # 3000 samples in the window, thinned
     assert chart.sent_points == len(drawn)
@@ -76,14 +81,8 @@ async def test_empty_chart_says_no_data_yet(user_runtime):
 
     user, runtime = user_runtime
     state = runtime.store.devices["io"]
-    charts: list[HistoryChart] = []
-
-    @ui.page("/chart-empty")
-    def page() -> None:
-        charts.append(HistoryChart(state, ["T"]))
-
-    await user.open("/chart-empty")
-    layout = charts[0].figure["layout"]
+    chart, = await charts_on_page(user, "/chart-empty", lambda: HistoryChart(state, ["T"]))
+    layout = chart.figure["layout"]
     assert layout["annotations"][0]["text"] == "no data yet"
     assert layout["xaxis"]["range"][0] > "2026"  # the last minutes, not an axis at 1970 or 2000
 
@@ -158,15 +157,12 @@ async def test_every_chart_axis_is_titled_with_its_unit(user_runtime):
 
     user, runtime = user_runtime
     state = runtime.store.devices["io"]
-    charts: list[HistoryChart] = []
-
-    @ui.page("/chart-units")
-    def page() -> None:
-        charts.append(HistoryChart(state, ["TEMP1 [°C]", "TEMP2 [°C]"]))
-        charts.append(HistoryChart(state, ["Position [mm]", "Current [mA]"], axes={"Current [mA]": "y2"}))
-        charts.append(HistoryChart(state, ["Position [mm]", "state"]))
-
-    await user.open("/chart-units")
+    charts = await charts_on_page(
+        user, "/chart-units",
+        lambda: HistoryChart(state, ["TEMP1 [°C]", "TEMP2 [°C]"]),
+        lambda: HistoryChart(state, ["Position [mm]", "Current [mA]"], axes={"Current [mA]": "y2"}),
+        lambda: HistoryChart(state, ["Position [mm]", "state"]),
+    )
     one, two, mixed = (c.figure["layout"] for c in charts)
     assert one["yaxis"]["title"]["text"] == "°C"
     assert (two["yaxis"]["title"]["text"], two["yaxis2"]["title"]["text"]) == ("mm", "mA")
@@ -179,15 +175,9 @@ async def test_stacked_rows_share_one_time_axis_each_titled_with_its_unit(user_r
 
     user, runtime = user_runtime
     state = runtime.store.devices["io"]
-    charts: list[HistoryChart] = []
-
-    @ui.page("/chart-rows")
-    def page() -> None:
-        charts.append(HistoryChart(state, rows=[["Position [mm]", "Target [mm]"], ["Current [A]"], ["Speed [mm/s]"]],
-                                   row_heights=(2, 1, 1)))
-
-    await user.open("/chart-rows")
-    figure = charts[0].figure
+    chart, = await charts_on_page(user, "/chart-rows", lambda: HistoryChart(
+        state, rows=[["Position [mm]", "Target [mm]"], ["Current [A]"], ["Speed [mm/s]"]], row_heights=(2, 1, 1)))
+    figure = chart.figure
     layout = figure["layout"]
     assert [t["yaxis"] for t in figure["data"]] == ["y", "y", "y2", "y3"]
     axes = [layout["yaxis"], layout["yaxis2"], layout["yaxis3"]]
