@@ -161,8 +161,9 @@ class AuditLog:
             where.append("result LIKE ?")
             args.append(f"{result}%")
         if text:
-            where.append("(action LIKE ? OR parameter LIKE ? OR result LIKE ?)")
-            args += [f"%{text}%"] * 3
+            # old and new too: a Save-Settings row names the changes it made permanent in its new value
+            where.append("(action LIKE ? OR parameter LIKE ? OR old LIKE ? OR new LIKE ? OR result LIKE ?)")
+            args += [f"%{text}%"] * 5
         if since is not None:
             where.append("time >= ?")
             args.append(since)

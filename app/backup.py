@@ -343,6 +343,26 @@ async def plan_restore(runtime, name: str, document: dict, progress=None) -> Res
     return RestorePlan(name, document, rows, warnings)
 
 
+def unsaved_lines(state, skip: set[str] = frozenset()) -> list[str]:
+    """The device's changes written earlier and not saved yet (``state.unsaved``), each with the value it
+    has now: a restore's save step makes them permanent along with the restored values."""
+    params = state.params
+    lines = []
+    for key in sorted(state.unsaved - set(skip),
+                      key=lambda k: (params.by_key[k].address if params is not None and k in params.by_key else 1 << 20, k)):
+        p = params.by_key.get(key) if params is not None else None
+        if p is None:
+            lines.append(key)
+            continue
+        try:
+            raw = state.raw(p)
+            value = "not read" if raw is None else p.display(raw)
+        except Exception:  # noqa: BLE001 - a value the model cannot show is named without it
+            value = "not read"
+        lines.append(f"{p.label or p.name} ({p.space} {p.address}) = {value}")
+    return lines
+
+
 @dataclass
 class RestoreReport:
     written: list[str] = field(default_factory=list)
@@ -409,9 +429,11 @@ async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, use
         if progress:
             progress(n / total)
     if report.written and not report.failed and not report.refused:
+        permanent = "; ".join(unsaved_lines(runtime.store.devices[plan.device]))  # restored and earlier changes alike
         try:
             report.saved = await runtime.worker.command(
                 plan.device, lambda a: a.save_step(), role=role, user=user, describe="restore: save step",
+                new=permanent or "no unsaved changes",
             )
         except Exception as exc:  # noqa: BLE001
             report.save_error = str(exc)

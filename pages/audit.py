@@ -39,7 +39,7 @@ def content() -> None:
                 'dense outlined clearable placeholder="any device"'
             ).classes("w-48")
             user = ui.input("User").props("dense outlined clearable").classes("w-36")
-            text = ui.input("Text (action, parameter, result)").props("dense outlined clearable").classes("w-64")
+            text = ui.input("Text (action, parameter, values, result)").props("dense outlined clearable").classes("w-64")
             result = ui.select({"": "any result", "ok": "ok", "failed": "failed", "refused": "refused"}, value="", label="Result").props(
                 "dense outlined"
             ).classes("w-36")

@@ -14,7 +14,7 @@ from app import backup
 from app import runtime as rt
 from pages.frame import frame, notify_error
 from pages.session import can_write, current_user
-from pages.widgets import upload_button
+from pages.widgets import confirm, upload_button
 
 WRAP = "white-space: normal; overflow-wrap: break-word"  # long texts wrap inside the screen, never cut off
 DIFF_COLUMNS = [
@@ -157,7 +157,12 @@ def content() -> None:
             notify_error(str(exc))
             return
         with restore_box:
-            RestoreFlow(document, source)
+            flow = RestoreFlow(document, source)
+        restore_box.style("min-height: calc(100vh - 96px)")  # room below, so the restore can come up to the top
+        # the restore opens below the file list: bring it into sight (below the fixed header)
+        ui.run_javascript(
+            f"(function show(n) {{ const e = getHtmlElement({flow.card.id});"
+            " if (e) e.scrollIntoView({behavior: 'smooth', block: 'start'}); else if (n) setTimeout(() => show(n - 1), 50); })(40)")
 
 
 class RestoreFlow:
@@ -171,7 +176,7 @@ class RestoreFlow:
         dtype = document["device"].get("type")
         candidates = [n for n, s in runtime.store.devices.items() if s.type == dtype and backup.supports_backup(runtime.worker.adapters[n])]
         default = document["device"].get("name") if document["device"].get("name") in candidates else (candidates[0] if candidates else None)
-        with ui.card().classes("w-full") as self.card:
+        with ui.card().classes("w-full").style("scroll-margin-top: 72px").props("data-testid=restore-card") as self.card:
             ui.label(f"Restore from {source}").classes("text-subtitle1")
             ui.label(
                 f"{dtype} '{document['device'].get('name')}' of plant '{document.get('plant')}', taken "
@@ -195,6 +200,9 @@ class RestoreFlow:
                 "w-full reg-table"
             ).props("dense flat bordered")
             self.table.add_slot("body-cell-state", STATE_SLOT)
+            # differing rows stand out (what a write changes), unwritable ones in red
+            self.table.props(':table-row-class-fn="row => row.state.startsWith(\'differs\') ? \'restore-differs\''
+                             ' : (row.state.startsWith(\'not written\') ? \'restore-invalid\' : \'\')"')
             self.table.set_visibility(False)
             with ui.row().classes("items-center"):
                 self.write = ui.button("Write selected", icon="upload", color="negative", on_click=self.execute).props("data-testid=restore-write")
@@ -225,14 +233,14 @@ class RestoreFlow:
         self.table.set_visibility(True)
         self.table.update()
         changed = sum(1 for r in self.plan.rows if r.changed)
-        self.summary.set_text(f"{changed} of {len(rows)} writable parameters differ; read-only ones are never written")
+        self.summary.set_text(f"{changed} of {_count(len(rows), 'writable parameter')} "
+                              f"{'differs' if changed == 1 else 'differ'}; read-only ones are never written")
         self.write.set_visibility(changed > 0)
         self.write.set_enabled(can_write())
 
     async def execute(self) -> None:
         if self.plan is None:
             return
-        from pages.widgets import confirm
 
         selected = {row["key"] for row in self.table.selected}
         to_write = [r for r in self.plan.rows if r.key in selected and r.changed]
@@ -240,11 +248,10 @@ class RestoreFlow:
             ui.notify("No differing parameter is selected", type="warning")
             return
         wear = getattr(self.runtime.worker.adapters[self.plan.device], "restore_wear", "")
-        wear_text = f" Note: {wear}: this restore makes {len(to_write)} such write(s)." if wear else ""
-        if not await confirm(f"Write {len(to_write)} parameters to {self.plan.device}?",
-                             "Each value is written, read back and, when all took, saved in the device:\n"
-                             + "; ".join(f"{r.name} {r.current_text} -> {r.backup_text}" for r in to_write) + "." + wear_text,
-                             ok="Write", danger=bool(wear)):
+        wear_text = f"Note: {wear}: this restore makes {_count(len(to_write), 'such write')}." if wear else ""
+        state = self.runtime.store.devices[self.plan.device]
+        others = backup.unsaved_lines(state, skip={r.key for r in to_write})
+        if not await _confirm_restore(self.plan.device, to_write, others, wear_text):
             return
         confirmed: set[str] = set()
         for row in self.plan.risky(selected):  # the same confirmation a manual write of the value asks for
@@ -285,8 +292,43 @@ class RestoreFlow:
         self.table.selected = [row for row in self.table.rows if row["state"].startswith("differs")]
         self.table.update()
         changed = sum(1 for r in self.plan.rows if r.changed)
-        self.summary.set_text(f"{changed} of {len(self.plan.rows)} writable parameters differ" + ("" if changed else ": the device matches the backup"))
+        self.summary.set_text(f"{changed} of {_count(len(self.plan.rows), 'writable parameter')} "
+                              f"{'differs' if changed == 1 else 'differ'}" + ("" if changed else ": the device matches the backup"))
         self.write.set_visibility(changed > 0)
+
+
+def _count(n: int, noun: str) -> str:
+    """"1 parameter", "2 parameters"."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+async def _confirm_restore(device: str, to_write: list, others: list[str], wear_text: str) -> bool:
+    """Ask before a restore writes, naming every value the device's save step makes permanent: the
+    restored ones and every earlier change not saved yet (as the device page's Save dialog does)."""
+    with ui.dialog() as dialog, ui.card().classes("max-w-xl").props("data-testid=restore-confirm"):
+        ui.label(f"Write {_count(len(to_write), 'parameter')} to {device}?").classes("text-h6")
+        ui.label("Each value is written, read back and, when all took, saved in the device:").classes("text-body1")
+        with ui.column().classes("gap-0 q-pl-md").props("data-testid=restore-confirm-writes"):
+            for r in to_write:
+                ui.label(f"{r.name} {r.current_text} -> {r.backup_text}").classes("text-body2 mono")
+        if others:
+            ui.label(f"The save also makes {_count(len(others), 'earlier change')} permanent that "
+                     f"{'is' if len(others) == 1 else 'are'} not saved yet (not part of this restore):").classes(
+                "text-body1 text-negative text-weight-medium")
+            with ui.column().classes("gap-0 q-pl-md").props("data-testid=restore-confirm-unsaved"):
+                for line in others:
+                    ui.label(line).classes("text-body2 mono")
+            ui.label("To keep them out of the device's permanent settings, cancel and discard them on the device's "
+                     "page first (Restore-Settings).").classes("text-caption text-grey-8")
+        if wear_text:
+            ui.label(wear_text).classes("text-body2 text-negative")
+        with ui.row().classes("justify-end w-full"):
+            ui.button("Cancel", on_click=lambda: dialog.submit(False)).props("flat")
+            ui.button("Write", color="negative", on_click=lambda: dialog.submit(True)).props("data-testid=restore-confirm-ok").mark(
+                "restore-confirm-ok")
+    result = await dialog
+    dialog.delete()
+    return bool(result)
 
 
 def _row_state(row: backup.DiffRow) -> str:

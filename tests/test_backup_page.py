@@ -209,3 +209,44 @@ async def _wait_table(user: User) -> ui.table:
     await eventually(check, timeout=10, what="the restore diff")
     return found[0]
 
+
+
+async def test_the_restore_confirmation_names_every_unsaved_change_the_save_makes_permanent(env: Env):
+    """Issue 32 items 4 and 13: a value written earlier and not saved (MaximumTimeUnlock = 1234),
+    deselected in the diff, is made permanent by the restore's Save-Settings: the confirmation names
+    it beside the restored row, and counts in words ("1 parameter", not "1 parameters")."""
+    unlock = PARAMS.by_name["MaximumTimeUnlock"]
+    await env.runtime.worker.command("door-1", lambda a: a.write_param(unlock, 1234), describe="write")
+    assert unlock.key in env.runtime.store.devices["door-1"].unsaved
+    entries = []
+    for p in PARAMS:
+        raw = p.default if p.default is not None else 0
+        raw = 250 if p.name == "LockRequestDelay" else raw
+        entries.append(backup_entry(p, raw))
+    document = backup.make_document("bp", "door-1", "hdlock", "line1", {}, entries)
+    directory = env.runtime.backups_dir
+    directory.mkdir(parents=True, exist_ok=True)
+    (directory / "door-1-delay.json").write_text(json.dumps(document))
+    await env.user.open("/backup")
+    files = next(t for t in _elements(env.user, ui.table) if any(c["name"] == "by" for c in t.columns))
+    await eventually(lambda: [r["name"] for r in files.rows] == ["door-1-delay.json"], what="the file listed")
+    emit(files, "restore", "door-1-delay.json")
+    await env.user.should_see("Restore from door-1-delay.json")
+    env.user.find("Compare with the device").click()
+    table = await _wait_table(env.user)
+    names = {r["name"] for r in table.selected}
+    assert {"LockRequestDelay", "MaximumTimeUnlock"} <= names, names
+    table.selected = [r for r in table.rows if r["name"] == "LockRequestDelay"]  # MaximumTimeUnlock deselected
+    env.user.find("Write selected").click()
+    await env.user.should_see("Write 1 parameter to door-1?")
+    await env.user.should_see("LockRequestDelay 200 ms -> 250 ms")
+    await env.user.should_see("MaximumTimeUnlock (holding 1003) = 1234 ms")  # the unrelated unsaved change, named
+    await env.user.should_not_see("Write 1 parameters")
+    env.user.find(marker="restore-confirm-ok").click()
+    await env.user.should_see("1 written", retries=100)
+
+    def save_row():
+        rows = env.runtime.audit.query(device="door-1", text="MaximumTimeUnlock")
+        assert any(e.action == "restore: save step" for e in rows), rows  # what the save made permanent is searchable
+
+    await eventually(save_row, what="the save step's audit row naming MaximumTimeUnlock")

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import time
 import urllib.request
 from pathlib import Path
@@ -117,6 +118,12 @@ def test_backup_and_audit_pages_show_everything(tmp_path: Path):
                     row = page.locator("tbody tr", has_text="door-1-magnet.json")
                     expect(row).to_contain_text("anna (engineer)")
                     row.get_by_role("button", name="Restore").click()
+                    # the restore opens below the file list: it is brought into sight by itself (issue 32.13)
+                    card = page.get_by_test_id("restore-card")
+                    page.wait_for_function(
+                        "() => { const e = document.querySelector('[data-testid=restore-card]'); if (!e) return false;"
+                        " const r = e.getBoundingClientRect(); return r.top >= 0 && r.top < window.innerHeight / 3; }")
+                    expect(page.get_by_test_id("restore-compare")).to_be_in_viewport()
                     page.get_by_test_id("restore-compare").click()
                     risk = page.get_by_test_id("restore-risk")
                     expect(risk).to_have_count(1)
@@ -124,6 +131,12 @@ def test_backup_and_audit_pages_show_everything(tmp_path: Path):
                     risk.scroll_into_view_if_needed()
                     expect(risk).to_be_visible()
                     _inside(page, risk)
+                    # differing rows are coloured, the same ones not (issue 32.13)
+                    differs = card.locator("tbody tr", has_text="SettingsRemoveMagnet")
+                    expect(differs).to_have_class(re.compile("restore-differs"))
+                    colour = differs.locator("td").nth(1).evaluate("e => getComputedStyle(e).backgroundColor")
+                    same = card.locator("tbody tr").filter(has_not_text="differs").first
+                    assert colour != same.locator("td").nth(1).evaluate("e => getComputedStyle(e).backgroundColor")
                     page.wait_for_timeout(2300)  # the progress bar glides to its value before the picture
                     page.evaluate("window.scrollTo(0, 0)")  # a full-page shot draws the fixed header where the page is
                     page.screenshot(path=str(SHOTS / f"backup-{width}x{height}.png"), full_page=True)
