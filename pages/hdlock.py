@@ -171,6 +171,7 @@ def _parameter_card(name: str, state, guard: WriteGuard):
     """Editable RW holding registers with validation, unsaved marks, Save/Restore-Settings."""
     writable = [p for p in PARAMS.space(HOLDING) if p.writable]
     rows: dict[str, tuple] = {}
+    entries: dict[str, ui.element] = {}
     with ui.card().classes("w-full"):
         with ui.row().classes("items-center w-full"):
             ui.label("Parameters (RW holding registers)").classes("text-subtitle1")
@@ -201,15 +202,30 @@ def _parameter_card(name: str, state, guard: WriteGuard):
                     low, high = p.limits()
                     entry = range_number("", low, high, unit=p.unit, integer=p.scale == 1).classes("w-48")
                 entry.props(f'data-param="{p.name}"')
+                entry.on("keydown.enter", lambda p=p, entry=entry: _write(name, p, entry))  # Enter writes, as the button does
                 button = ui.button("Write", on_click=lambda p=p, entry=entry: _write(name, p, entry)).props(f'dense data-write="{p.name}"')
                 guard.add(button)
                 rows[p.key] = (p, cell, current, age, mark)
+                entries[p.key] = entry
+    shown: dict[str, object] = {}  # the device value each field was last given
+
+    def follow_entry(key: str, p: Param, raw: int | None) -> None:
+        """A field shows the device's value until the engineer types; after a write, the value read back."""
+        if raw is None:
+            return
+        value = p.decode(raw)
+        entry = entries[key]
+        if entry.value is None or entry.value == shown.get(key) or entry.value == value:
+            if entry.value != value:
+                entry.value = value
+            shown[key] = value
 
     def refresh() -> None:
         now = time.time()
         for key, (p, cell, current, age, mark) in rows.items():
             raw = state.raw(p)
             current.set_text("-" if raw is None else p.display(raw))
+            follow_entry(key, p, raw)
             read = state.read_time(p)
             quality = state.quality(read, state.registers_periodic, now)
             mark_quality(cell, quality)  # greyed with the age of its value while stale or offline

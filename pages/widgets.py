@@ -542,7 +542,8 @@ def range_number(label: str, low: float, high: float, *, unit: str = "", integer
             return f"out of range: {rule}"
         return None
 
-    field = ui.number(label, value=value, step=step, format=fmt or ("%d" if integer else None), validation=check)
+    # no "%d" format for whole numbers: it rounded a typed 12.5 to 12 on leaving the field
+    field = ui.number(label, value=value, step=step, format=fmt, validation=check)
     field.props(f'hint="{rule}" dense outlined')
     field.rule = rule  # type: ignore[attr-defined]
     return field
