@@ -84,7 +84,8 @@ def status_payload(state, instance: str, now: float) -> dict[str, Any]:
     s = state.summary()
     return {"schema": "commission-status", "version": SCHEMA_VERSION, "instance": instance, "device": state.name,
             "type": state.type, "bus": state.bus, "status": s["status"], "online": s["online"], "last_seen": s["last_seen"],
-            "last_error": s["last_error"], "counters": s["counters"], "time": now}
+            "last_error": s["last_error"], "counters": s["counters"], "time": now,
+            "drift": getattr(state, "drift", None)}
 
 
 def active_alarms(state, now: float) -> list[str]:

@@ -125,6 +125,9 @@ class Runtime:
         self._unsaved_path = self.data_dir / UNSAVED_FILE
         self._unsaved_written = self._load_unsaved()
         self._tasks: list[asyncio.Task] = []
+        from app.record import RecordService
+
+        self.record = RecordService(self)  # approved sets, snapshots, checkouts, sign-offs (record.sqlite)
         self.mqtt = None  # the broker publisher, when the plant file has an [mqtt] table (docs/mqtt.md)
         if plant.mqtt is not None:
             from app.mqtt import MqttPublisher
@@ -203,6 +206,7 @@ class Runtime:
                     if bus.name in error:
                         bus.last_error = error
         await self.worker.start()
+        await self.record.start()
         self._tasks = [asyncio.create_task(self._keep_unsaved(), name="unsaved reminders"),
                        asyncio.create_task(self._watch_accounts(), name="accounts"),
                        asyncio.create_task(memory.keep_trimmed(), name="heap trim")]
@@ -222,6 +226,7 @@ class Runtime:
                 await asyncio.to_thread(self._write_unsaved, now)
             except OSError as exc:
                 log.error("cannot keep the unsaved-change reminders: %s", exc)
+        await self.record.stop()
         await self.worker.stop()
         if self.sim:
             await self.sim.stop()

@@ -343,6 +343,7 @@ class DeviceSummary(BaseModel):
     last_seen: float | None = Field(description="Unix time of the last answer or frame")
     counters: dict[str, int]
     last_error: str
+    drift: dict | None = Field(None, description='parameters changed since the approved set: {"approved": bool, "changed": [...]}')
 
 
 class Value(BaseModel):
@@ -412,4 +413,5 @@ def _summary(state) -> dict:
         "last_seen": s["last_seen"],
         "counters": s["counters"],
         "last_error": s["last_error"],
+        "drift": getattr(state, "drift", None),  # the commissioning record: changed since approved (app/record.py)
     }
