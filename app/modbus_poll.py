@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from app.modbus_line import LineError, ModbusLine
 from devices.params import Param
 from devices.registry import DEVICE_TYPES
+from devices.sendpolicy import ModbusMessage, Verdict, check_modbus
 
 log = logging.getLogger(__name__)
 
@@ -175,11 +176,10 @@ def register_names(plant, bus: str, unit: int, function: int, address: int, coun
     return names
 
 
-def check_write(plant, bus: str, unit: int, address: int, values: list[int]) -> str:
-    """Refuse (raise :class:`PollError`) or return the confirmation text a write needs ("" if none).
+def write_verdict(plant, bus: str, unit: int, address: int, values: list[int], function: int = 6) -> Verdict:
+    """The send policy's verdict on a write (:func:`devices.sendpolicy.check_modbus`), after the protocol's limits.
 
-    A known device's register that is not writable for an engineer (RO, MFR, never written, or not
-    in its register map) is refused by name (HD-Lock document 3.2.x access classes, SPEC-NOTES).
+    :raises PollError: outside what Modbus allows (unit, count, addresses, 16-bit values)
     """
     if not 1 <= unit <= UNIT_MAX:
         raise PollError(f"writes go to one unit (1..{UNIT_MAX}), not {unit}")
@@ -190,33 +190,25 @@ def check_write(plant, bus: str, unit: int, address: int, values: list[int]) -> 
     for v in values:
         if not -0x8000 <= v <= 0xFFFF:
             raise PollError(f"{v} does not fit a 16-bit register (-32768..65535)")
+    return check_modbus(plant.devices_on(bus), ModbusMessage(unit, function, address, tuple(v & 0xFFFF for v in values)))
+
+
+def check_write(plant, bus: str, unit: int, address: int, values: list[int], function: int = 6) -> str:
+    """Refuse (raise :class:`PollError`) or return the confirmation text a write needs ("" if none).
+
+    What a unit's device type never takes (RO, MFR, never written, not in its register map, firmware
+    update, factory reset) is refused by name; a unit that is not in the plant file is checked by the
+    type of the line's devices, and a unit of no known type asks before every write (the send policy).
+    """
+    verdict = write_verdict(plant, bus, unit, address, values, function)
+    if verdict.refused:
+        raise PollError(f"unit {unit}: {verdict.refused}")
     dev = known_device(plant, bus, unit)
-    if dev is None:
+    if dev is None and not verdict.confirm:
         return ""
-    params = DEVICE_TYPES[dev.type].params
-    if params is None:
-        return f"unit {unit} is {dev.name} ({dev.type}): write to it anyway?"
-    warnings = []
-    for offset, value in enumerate(values):
-        a = address + offset
-        p, _word = _param_at(params, "holding", a)
-        if p is None:
-            raise PollError(f"holding {a} is not in the register map of {dev.name} ({dev.type}): not written")
-        name = p.label or p.name
-        if p.never_write:
-            raise PollError(f"{dev.name} {name} (holding {a}) is never written by this tool")
-        if not p.writable:
-            raise PollError(f"{dev.name} {name} (holding {a}) is {p.access.value}: not writable")
-        raw = value & 0xFFFF
-        decoded = p.decode(raw)
-        low, high = p.limits()
-        if not low <= decoded <= high:
-            raise PollError(f"{dev.name} {name}: {decoded} is outside {low:g} .. {high:g} {p.unit}".rstrip())
-        warnings.append(f"{name} (holding {a}) = {p.display(raw)}")
-        extra = p.needs_confirmation(raw)
-        if extra:
-            warnings.append(extra)
-    return f"This writes registers of {dev.name} ({dev.type}): " + "; ".join(warnings) + ". Write?"
+    head = f"This writes {verdict.name or f'unit {unit} holding {address}'}"
+    head += f" of {dev.name} ({dev.type})" if dev is not None and dev.name not in verdict.name else ""
+    return f"{head}. " + (" ".join(dict.fromkeys(verdict.confirm)) + " " if verdict.confirm else "") + "Write?"
 
 
 # -- the poll ----------------------------------------------------------------------------------------
@@ -321,10 +313,15 @@ class ModbusPoll:
         describe = (f"Modbus poll {self.bus}: write unit {unit} holding {address}"
                     + (f"+{len(values)}" if fc == 16 else "") + f" = {raws} (function {fc:02d})")
         try:
-            confirm = check_write(self.worker.plant, self.bus, unit, address, values)
+            named = write_verdict(self.worker.plant, self.bus, unit, address, values, fc).name
+        except PollError:
+            named = ""
+        parameter = named or f"unit {unit} holding {address}"  # the parameter by name where the unit's type knows it
+        try:
+            confirm = check_write(self.worker.plant, self.bus, unit, address, values, fc)
         except PollError as exc:
             await self.worker.refused(device=self.bus, user=user, role=role, describe=describe, reason=str(exc),
-                                      parameter=f"unit {unit} holding {address}", new=raws)
+                                      parameter=parameter, new=raws)
             raise
         if confirm and not confirmed:
             raise NeedsConfirmation(confirm)
@@ -340,6 +337,5 @@ class ModbusPoll:
             return ""
 
         await self.worker.engineer_action(do, user=user, role=role, describe=describe,
-                                          target=dev.name if dev else self.bus,
-                                          parameter=f"unit {unit} holding {address}", new=raws)
+                                          target=dev.name if dev else self.bus, parameter=parameter, new=raws)
         return describe

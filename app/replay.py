@@ -9,7 +9,11 @@ ends when the engineer's browser goes away. Starting is checked and audited thro
 ``worker.engineer_action``.
 
 Error frames and remote frames of the file are not sent (the send path carries data frames);
-they are counted in ``skipped``.
+they are counted in ``skipped``. Nor is any frame the device types' send policy forbids (firmware
+update, a factory reset, a register that is not writable) or would ask a confirmation for (motion:
+an Electrak control telegram with enable; mains: an M3IO DigOut with an SSR on; a risky value):
+nobody confirms frames of a file one by one, so they are filtered, counted by reason, and shown
+before the replay starts (:func:`screen`).
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from app.can_bus import FrameRecord
+from devices.sendpolicy import check_can
 
 log = logging.getLogger(__name__)
 
@@ -67,6 +72,44 @@ def refusal(worker: Any, bus: str) -> str | None:
 
 
 @dataclass
+class Screening:
+    """What the send policy lets through of a recording: the frames filtered, by reason."""
+
+    blocked: frozenset[int] = frozenset()  # indexes of the frames not sent
+    reasons: dict[str, int] = field(default_factory=dict)  # reason -> frames
+
+    def text(self) -> str:
+        if not self.blocked:
+            return ""
+        return (f"{len(self.blocked)} frame(s) will not be sent: "
+                + "; ".join(f"{n} x {reason}" for reason, n in sorted(self.reasons.items(), key=lambda i: -i[1])))
+
+
+def screen(worker: Any, bus: str, frames: Sequence[FrameRecord]) -> Screening:
+    """Ask the send policy about every frame (O(frames); run it in a thread for a long file).
+
+    A frame the policy refuses, or would ask a confirmation for, is filtered: its reason is counted.
+    """
+    devices = list(worker.plant.devices_on(bus))
+    blocked, reasons, cache = set(), {}, {}
+    for i, rec in enumerate(frames):
+        if rec.is_error_frame or rec.is_remote_frame:
+            continue
+        key = (rec.arbitration_id, rec.is_extended_id, bytes(rec.data))
+        reason = cache.get(key)
+        if reason is None:
+            verdict = check_can(devices, *key)
+            reason = verdict.refused or (f"{verdict.kind}: {verdict.name or 'needs a confirmation'} (confirmed frame by "
+                                         "frame only, never from a file)" if verdict.confirm else "")
+            if len(cache) < 65536:
+                cache[key] = reason
+        if reason:
+            blocked.add(i)
+            reasons[reason] = reasons.get(reason, 0) + 1
+    return Screening(frozenset(blocked), reasons)
+
+
+@dataclass
 class Replay:
     """One replay: its progress for the page, and the dead-man hooks for the worker."""
 
@@ -80,6 +123,8 @@ class Replay:
     sent: int = 0
     skipped: int = 0
     failed: int = 0
+    screening: Screening = field(default_factory=Screening)
+    filtered: int = 0  # frames the send policy kept off the bus
     state: str = "ready"  # ready, running, done, stopped, failed
     reason: str = ""
     started: float = 0.0
@@ -99,7 +144,7 @@ class Replay:
 
     @property
     def position(self) -> int:
-        return self.sent + self.skipped + self.failed
+        return self.sent + self.skipped + self.failed + self.filtered
 
     @property
     def fraction(self) -> float:
@@ -114,6 +159,8 @@ class Replay:
         text = f"{self.state}: {self.sent} of {self.total} frames sent"
         if self.skipped:
             text += f", {self.skipped} error/remote frames skipped"
+        if self.filtered:
+            text += f", {self.filtered} kept off the bus by the device policies"
         if self.failed:
             text += f", {self.failed} refused by the bus"
         return text + (f" ({self.reason})" if self.reason else "")
@@ -159,7 +206,8 @@ class Replay:
         next_check = start + CONTROL_CHECK_S
         burst = 0
         try:
-            for rec in self.frames:
+            blocked = self.screening.blocked
+            for index, rec in enumerate(self.frames):
                 due = start + (rec.time - first) / self.speed - shift
                 now = loop.time()
                 if due - now > MAX_GAP_S:
@@ -183,6 +231,9 @@ class Replay:
                         return
                 if rec.is_error_frame or rec.is_remote_frame:
                     self.skipped += 1
+                    continue
+                if index in blocked:
+                    self.filtered += 1
                     continue
                 if can_bus.send(rec.arbitration_id, rec.data, rec.is_extended_id):
                     self.sent += 1
@@ -214,6 +265,7 @@ async def start_replay(
     """
 
     async def action() -> str:
+        screening = await asyncio.to_thread(screen, worker, bus, frames)
         if not SPEED_MIN <= speed <= SPEED_MAX:
             raise ReplayError(f"speed {speed:g} is outside {SPEED_MIN:g}..{SPEED_MAX:g} x")
         if not frames:
@@ -221,10 +273,11 @@ async def start_replay(
         problem = refusal(worker, bus)
         if problem:
             raise ReplayError(problem)
-        replay = Replay(worker, bus, frames, name=name, speed=speed, session=session, user=user)
+        replay = Replay(worker, bus, frames, name=name, speed=speed, session=session, user=user, screening=screening)
         replay.start()
         holder.append(replay)
-        return f"{len(frames)} frames, {replay.duration_s:.1f} s at {speed:g} x"
+        kept_off = f"; {screening.text()}" if screening.blocked else ""
+        return f"{len(frames)} frames, {replay.duration_s:.1f} s at {speed:g} x{kept_off}"
 
     holder: list[Replay] = []
     await worker.engineer_action(action, user=user, role=role, target=bus,

@@ -122,6 +122,7 @@ class Runtime:
         self.store = StateStore()
         self.sim = SimulatedPlant(plant) if simulate else None
         self.worker = Worker(plant, self.store, audit=self.audit)
+        self.worker.role_of = self.role_of  # the gate asks the account store at every action
         self._unsaved_path = self.data_dir / UNSAVED_FILE
         self._unsaved_written = self._load_unsaved()
         self._tasks: list[asyncio.Task] = []
@@ -138,6 +139,14 @@ class Runtime:
         """The account a session token stands for, as the account store says now (or None)."""
         name = self.sessions.user_of(token)
         return None if name is None else self.users.users.get(name)
+
+    def role_of(self, user: str) -> str | None:
+        """The role of ``user`` now: None on loopback without accounts (the caller's role stands, every
+        browser is the local engineer), else the account's role, "" for an account that is gone."""
+        if not self.auth_required:
+            return None
+        account = self.users.users.get(user)
+        return "" if account is None else account.role
 
     @property
     def twins(self) -> dict[str, Any]:

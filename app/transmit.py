@@ -20,10 +20,10 @@ from pathlib import Path
 from typing import Any
 
 from app.backup import write_atomic
-from devices.electrak import codec as electrak_codec
 from devices.hdlock import codec as hdlock_codec
 from devices.hdlock.params import PARAMS as HDLOCK_PARAMS
 from devices.m3io import codec as m3io_codec
+from devices.sendpolicy import BusDevice, Verdict, check_can
 
 log = logging.getLogger(__name__)
 
@@ -105,38 +105,34 @@ def make_row(can_id: int, extended: bool, data: bytes, period_ms: int | None = N
     return row
 
 
-# -- frames the device documents forbid -------------------------------------------------------------
+# -- what the device policies say --------------------------------------------------------------------
 
 
-def forbidden_reason(can_id: int, extended: bool, data: bytes, bus_devices: list[tuple[str, dict]] = ()) -> str | None:
-    """Why a frame is never sent by this tool, named after the document; None when it may be sent.
+class NeedsConfirmation(TransmitError):
+    """The frame may be sent once the engineer confirmed the risks named in the message."""
 
-    :param bus_devices: ``(type, options)`` of the plant's devices on the bus
-    """
-    if not extended and can_id in hdlock_codec.CAN_REQUEST_IDS:
-        name = hdlock_codec.CAN_REQUEST_NAMES[can_id]
-        if can_id in (hdlock_codec.CAN_FWU_ERASE, hdlock_codec.CAN_FWU_WRITE):
-            return f"HD-Lock '{name}' (0x{can_id:03X}) is a firmware-update request (HD-Lock document 6.6.7): never sent"
-        if can_id == hdlock_codec.CAN_COMMAND and len(data) >= 5:
-            command = data[4]  # section 6.6.1: "Byte 4 legt fest, welches Kommando ... ausgeführt wird"
-            if command in (hdlock_codec.CanCommand.FIRMWARE_UPDATE_ENTER, hdlock_codec.CanCommand.BOOTLOADER_UPDATE_ENTER,
-                           hdlock_codec.CanCommand.UPDATE_LEAVE):
-                cmd_name = hdlock_codec.CanCommand(command).name
-                return (f"HD-Lock Command {command} ({cmd_name}) is a firmware-update command "
-                        "(HD-Lock document 6.6.1.3): never sent")
-        if can_id in (hdlock_codec.CAN_WRITE_HOLDING, hdlock_codec.CAN_SILENT_WRITE_HOLDING) and len(data) >= 6:
-            address = hdlock_codec.unpack_le(data[4:6])
-            if address == hdlock_codec.REG_FW_UPDATE:
-                return f"HD-Lock '{name}' of FwUpdateCommandRegister (32770) starts a firmware update: never written"
-            param = HDLOCK_PARAMS.get("holding", address)
-            if param is not None and not param.writable:
-                what = "never written by this tool" if param.never_write else f"access {param.access.value}: not writable"
-                return f"HD-Lock '{name}' of {param.label or param.name} (holding {address}): {what}"
-    if not extended and can_id == electrak_codec.CONTROL_ID and len(data) >= 8 and data[7] & electrak_codec.ENABLE:
-        if any(t == "electrak" for t, _ in bus_devices):
-            return ("Electrak control telegram with enable set drives the actuators: use the Electrak page "
-                    "(hold-to-run, a visible stop) instead")
-    return None
+
+def _bus_devices(bus_devices) -> list:
+    """The devices of the bus as :class:`devices.sendpolicy.BusDevice` (``(type, options)`` pairs accepted)."""
+    out = []
+    for i, d in enumerate(bus_devices):
+        if isinstance(d, tuple):
+            out.append(BusDevice(f"{d[0]}-{i + 1}", d[0], dict(d[1])))
+        else:
+            out.append(d)
+    return out
+
+
+def verdict(row_or_id, extended: bool = False, data: bytes = b"", bus_devices=()) -> Verdict:
+    """The device policies' verdict on a frame (:func:`devices.sendpolicy.check_can`)."""
+    if isinstance(row_or_id, TxRow):
+        return check_can(_bus_devices(bus_devices), row_or_id.can_id, row_or_id.extended, row_or_id.data)
+    return check_can(_bus_devices(bus_devices), row_or_id, extended, data)
+
+
+def forbidden_reason(can_id: int, extended: bool, data: bytes, bus_devices=()) -> str | None:
+    """Why a frame is never sent by this tool, named after the document; None when it may be sent."""
+    return verdict(can_id, extended, data, bus_devices).refused or None
 
 
 # -- rows built from device messages ----------------------------------------------------------------
@@ -270,18 +266,23 @@ class TransmitList:
     def row(self, key: str) -> TxRow | None:
         return next((r for r in self.rows if r.key == key), None)
 
-    def bus_devices(self) -> list[tuple[str, dict]]:
-        return [(d.type, d.options) for d in self.worker.plant.devices_on(self.bus)]
+    def bus_devices(self) -> list:
+        return list(self.worker.plant.devices_on(self.bus))
 
     def is_running(self, key: str) -> bool:
         return key in self.running and self._can().cyclic_running(self._cyclic_key(key))
 
-    async def _refuse_if_forbidden(self, row: TxRow, *, user: str, role: str, describe: str) -> None:
-        reason = forbidden_reason(row.can_id, row.extended, row.data, self.bus_devices())
-        if reason is not None:
-            await self.worker.refused(device=self.bus, user=user, role=role, describe=describe, reason=reason,
-                                      parameter=row.id_text(), new=row.data.hex(" "))
-            raise TransmitError(reason)
+    async def _refuse_if_forbidden(self, row: TxRow, *, user: str, role: str, describe: str,
+                                   confirmed: bool | None = None) -> Verdict:
+        """Refuse (audited) what the device policies forbid; with ``confirmed`` False, ask for their risks first."""
+        found = verdict(row, bus_devices=self.bus_devices())
+        if found.refused:
+            await self.worker.refused(device=self.bus, user=user, role=role, describe=describe, reason=found.refused,
+                                      parameter=found.name or row.id_text(), new=row.data.hex(" "))
+            raise TransmitError(found.refused)
+        if confirmed is False and found.confirm:
+            raise NeedsConfirmation(found.question)
+        return found
 
     # -- edits (engineer only, audited) -------------------------------------------------------
     async def add(self, row: TxRow, *, user: str, role: str) -> TxRow:
@@ -320,12 +321,13 @@ class TransmitList:
                                           target=self.bus, parameter=row.id_text())
 
     # -- sending ---------------------------------------------------------------------------------
-    async def send_once(self, key: str, *, user: str, role: str) -> None:
+    async def send_once(self, key: str, *, user: str, role: str, confirmed: bool = False) -> None:
+        """Send a row once. :raises NeedsConfirmation: its device policy names a risk and ``confirmed`` is False"""
         row = self.row(key)
         if row is None:
             raise TransmitError("no such row")
         describe = f"transmit once on {self.bus}: {row.describe()}"
-        await self._refuse_if_forbidden(row, user=user, role=role, describe=describe)
+        found = await self._refuse_if_forbidden(row, user=user, role=role, describe=describe, confirmed=confirmed)
 
         async def do() -> str:
             if not self._can().send(row.can_id, row.data, row.extended):
@@ -335,9 +337,9 @@ class TransmitList:
             return ""
 
         await self.worker.engineer_action(do, user=user, role=role, describe=describe, target=self.bus,
-                                          parameter=row.id_text(), new=row.data.hex(" "))
+                                          parameter=found.name or row.id_text(), new=row.data.hex(" "))
 
-    async def start(self, key: str, *, user: str, role: str, session: str) -> None:
+    async def start(self, key: str, *, user: str, role: str, session: str, confirmed: bool = False) -> None:
         """Start a cyclic row for ``session`` (its browser keeps it alive under the dead-man rule)."""
         row = self.row(key)
         if row is None:
@@ -345,7 +347,7 @@ class TransmitList:
         if row.period_ms is None:
             raise TransmitError("this row is sent once: give it a cycle time to send it cyclically")
         describe = f"transmit cyclic every {row.period_ms} ms on {self.bus}: start {row.describe()}"
-        await self._refuse_if_forbidden(row, user=user, role=role, describe=describe)
+        found = await self._refuse_if_forbidden(row, user=user, role=role, describe=describe, confirmed=confirmed)
         if not session:
             raise TransmitError("a cyclic row needs a browser session to keep it alive")
 
@@ -360,7 +362,7 @@ class TransmitList:
             return ""
 
         await self.worker.engineer_action(do, user=user, role=role, describe=describe, target=self.bus,
-                                          parameter=row.id_text(), new=row.data.hex(" "))
+                                          parameter=found.name or row.id_text(), new=row.data.hex(" "))
 
     async def stop(self, key: str, *, user: str, role: str) -> None:
         """Stop a cyclic row: never refused (any role), stopped first, audited after."""

@@ -16,6 +16,7 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from app import gate
 from app.audit import AuditLog
 from app.can_bus import CanBus, CanBusState
 from app.modbus_line import ModbusLine
@@ -481,18 +482,24 @@ class Worker:
         old: Any = "",
         new: Any = "",
     ) -> Any:
-        """Run ``action(adapter)`` for ``device`` on behalf of a session.
+        """Run ``action(adapter)`` for ``device`` on behalf of a session (the older way; see :meth:`invoke`).
 
-        Writes need the engineer role; the check is here, not only in the page. Every
-        write and command (``record``) lands in the audit log with its outcome.
+        The kind comes from the device type's declared command named ``describe`` when there is one
+        (:func:`app.gate.kind_for`); ``write`` counts only for pages not yet moved to declared commands.
         """
         if device not in self.adapters:
             raise KeyError(f"no device named {device!r} in this plant")
         adapter = self.adapters[device]
+        kind = gate.kind_for(self, device, describe, write, record)
         return await self.checked(
-            lambda: action(adapter), device=device, role=role, user=user, describe=describe, write=write,
-            record=record, parameter=parameter, old=old, new=new,
+            lambda: action(adapter), device=device, role=role, user=user, describe=describe, kind=kind,
+            record=record or kind != "read", parameter=parameter, old=old, new=new,
         )
+
+    async def invoke(self, device: str, name: str, args: dict | None = None, *, user: str, role: str,
+                     session: str = "", confirmed: bool = False) -> Any:
+        """Run the declared command ``name`` of ``device`` (:func:`app.gate.invoke`)."""
+        return await gate.invoke(self, device, name, args, user=user, role=role, session=session, confirmed=confirmed)
 
     async def engineer_action(
         self, action: Callable[[], Awaitable[Any]], *, user: str, role: str, describe: str, target: str = "",
@@ -505,11 +512,21 @@ class Worker:
     async def checked(
         self, action: Callable[[], Awaitable[Any]], *, device: str, role: str, user: str, describe: str,
         write: bool = True, record: bool = True, parameter: str = "", old: Any = "", new: Any = "",
+        kind: str | None = None,
     ) -> Any:
-        """The one place where a change is checked (role) and audited (fail closed) before it runs."""
+        """The one place where a change is checked (role) and audited (fail closed) before it runs.
+
+        The role is the account store's at this moment (:func:`app.gate.role_now`). A ``stop`` runs for
+        every role, first, and is audited afterwards from a queue; a ``read`` for every role, unaudited.
+        """
         what = describe or "command"
+        kind = kind or ("write" if write else ("stop" if record else "read"))
+        role = gate.role_now(self, user, role)
         state = self.store.devices.get(device)
-        if write and role not in WRITE_ROLES:
+        if kind == "stop":
+            return await gate.run_stop(self, action, device=device, user=user, role=role, describe=what,
+                                       parameter=parameter, old=old, new=new)
+        if not gate.may_run(kind, role):
             if state is not None:
                 state.event("warning", f"refused for {user} ({role}): {what}")
             if record and self.audit is not None:
@@ -520,18 +537,17 @@ class Worker:
                     log.error("audit: %s", exc)
             raise PermissionDenied(f"{user or 'anonymous'} has the {role or 'no'} role and may not write ({what})")
         row = None
-        if record and self.audit is not None:
+        if record and kind != "read" and self.audit is not None:
             try:
                 row = await self.audit.arecord(user=user, role=role, device=device, action=what, parameter=parameter,
                                                old=old, new=new, result="started")
             except Exception as exc:  # noqa: BLE001 - fail closed: no audit row, no write
                 if state is not None:
                     state.event("error", f"{what} refused: the audit log cannot be written ({exc})")
-                if write:
-                    raise AuditUnavailable(
-                        f"{what} refused: the audit log cannot be written ({exc}). Nothing was sent. "
-                        f"Free or repair {self.audit.path} (locked by another program, read-only or disk full) and try again."
-                    ) from None
+                raise AuditUnavailable(
+                    f"{what} refused: the audit log cannot be written ({exc}). Nothing was sent. "
+                    f"Free or repair {self.audit.path} (locked by another program, read-only or disk full) and try again."
+                ) from None
         try:
             result = await action()
         except Exception as exc:

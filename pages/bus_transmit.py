@@ -14,7 +14,7 @@ from app import transmit as tx
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import frame, notify_error
 from pages.session import current_user
-from pages.widgets import all_valid, range_number
+from pages.widgets import all_valid, confirm, range_number, refuse
 
 REFRESH_S = 0.5
 COLUMNS = [
@@ -50,10 +50,16 @@ def content(bus: str) -> None:
                 ui.icon("lock")
                 ui.label("The transmit list is for engineers: a viewer session does not see or send it.")
             return
-        _engineer_view(runtime, bus, user, role)
+        _engineer_view(runtime, bus)
 
 
-def _engineer_view(runtime, bus: str, user: str, role: str) -> None:
+def _who() -> dict:
+    """The session's user and role as the account store says now (looked up at every action, never kept)."""
+    user, role = current_user()
+    return {"user": user or "anonymous", "role": role}
+
+
+def _engineer_view(runtime, bus: str) -> None:
     tl = tx.transmit_list(runtime.worker, bus, runtime.data_dir)
     if not tl.loaded.is_set() and not getattr(tl, "_loading", False):
         tl._loading = True
@@ -71,6 +77,9 @@ def _engineer_view(runtime, bus: str, user: str, role: str) -> None:
     async def guarded(action, ok: str = "") -> bool:
         try:
             await action()
+        except tx.NeedsConfirmation as exc:
+            notify_error(str(exc))
+            return False
         except (tx.TransmitError, PermissionDenied, AuditUnavailable, KeyError) as exc:
             notify_error(str(exc))
             return False
@@ -103,7 +112,7 @@ def _engineer_view(runtime, bus: str, user: str, role: str) -> None:
                     row = tx.make_row(_parse_int(can_id.value, "ID"), bool(extended.value), payload,
                                       int(period.value) if mode.value == "cyclic" else None,
                                       dlc=int(dlc.value) if dlc.value is not None else None)
-                    await tl.add(row, user=user, role=role)
+                    await tl.add(row, **_who())
 
                 await guarded(do)
 
@@ -114,16 +123,34 @@ def _engineer_view(runtime, bus: str, user: str, role: str) -> None:
     locks = [d for d in devices if d.type == "hdlock"]
     if m3ios or locks:
         with ui.card().classes("w-full"):
-            ui.label("Device message by name").classes("text-subtitle1")
+            with ui.row().classes("items-end gap-3"):
+                ui.label("Device message by name").classes("text-subtitle1")
+                # a row built by name is sent once or cyclically like a raw one
+                named_mode = ui.select({"once": "once", "cyclic": "cyclic"}, value="once", label="Send").props(
+                    "dense outlined data-testid=named-mode").classes("w-28")
+                named_period = range_number("Cycle ms", tx.PERIOD_MIN_MS, tx.PERIOD_MAX_MS, unit="ms", integer=True,
+                                            value=500).classes("w-36")
+                named_period.bind_visibility_from(named_mode, "value", value="cyclic")
+
+            async def add_named(build) -> None:
+                if named_mode.value == "cyclic" and not all_valid(named_period):
+                    return
+
+                async def do() -> None:
+                    row = build()
+                    if named_mode.value == "cyclic":
+                        row = tx.make_row(row.can_id, row.extended, row.data, int(named_period.value), row.label)
+                    await tl.add(row, **_who())
+
+                await guarded(do)
             for dev in m3ios:
                 with ui.row().classes("items-center gap-2 flex-wrap"):
                     ui.label(f"M3IO {dev.name} DigOut").classes("w-48")
                     boxes = {name: ui.checkbox(name) for name in tx.m3io_output_names(dev.options)}
 
                     async def add_digout(dev=dev, boxes=boxes) -> None:
-                        await guarded(lambda: tl.add(tx.m3io_dig_out(dev.name, dev.options,
-                                                                     {n: bool(b.value) for n, b in boxes.items()}),
-                                                     user=user, role=role))
+                        await add_named(lambda: tx.m3io_dig_out(dev.name, dev.options,
+                                                                {n: bool(b.value) for n, b in boxes.items()}))
 
                     ui.button("Add", icon="add", on_click=add_digout).props("flat dense")
             for dev in locks:
@@ -138,15 +165,13 @@ def _engineer_view(runtime, bus: str, user: str, role: str) -> None:
                         if not all_valid(address, count):
                             return
 
-                        async def do() -> None:
+                        def build():
                             a, n = int(address.value or 0), int(count.value or 0)
                             if space.value == "write":
-                                row = tx.hdlock_write(dev.name, dev.options, a, n)
-                            else:
-                                row = tx.hdlock_read(dev.name, dev.options, space.value, a, max(1, n))
-                            await tl.add(row, user=user, role=role)
+                                return tx.hdlock_write(dev.name, dev.options, a, n)
+                            return tx.hdlock_read(dev.name, dev.options, space.value, a, max(1, n))
 
-                        await guarded(do)
+                        await add_named(build)
 
                     ui.button("Add", icon="add", on_click=add_lock).props("flat dense")
 
@@ -158,7 +183,7 @@ def _engineer_view(runtime, bus: str, user: str, role: str) -> None:
     with ui.row().classes("items-center gap-2"):
         ui.label("Rows").classes("text-subtitle1")
         ui.button("Stop all", icon="stop", color="negative",
-                  on_click=lambda: guarded(_stop_all(tl, user, role))).props("dense")
+                  on_click=lambda: guarded(_stop_all(tl))).props("dense")
     note = ui.label().classes("text-grey-7")
     error = ui.label().classes("text-negative")
     t = ui.table(columns=COLUMNS, rows=[], row_key="key").props("dense flat bordered").classes("w-full can-table")
@@ -173,10 +198,30 @@ def _engineer_view(runtime, bus: str, user: str, role: str) -> None:
           <q-btn dense flat icon="delete" @click="$parent.$emit('remove', props.row.key)" />
         </q-td>
     """)
-    t.on("send", lambda e: guarded(lambda: tl.send_once(e.args, user=user, role=role)))
-    t.on("start", lambda e: guarded(lambda: tl.start(e.args, user=user, role=role, session=session)))
-    t.on("stop", lambda e: guarded(lambda: tl.stop(e.args, user=user, role=role)))
-    t.on("remove", lambda e: guarded(lambda: tl.remove(e.args, user=user, role=role)))
+
+    async def confirmed_send(key: str, start: bool) -> None:
+        """Send or start a row; a risk its device policy names is asked first (and a "no" is audited)."""
+        async def go(confirmed: bool) -> None:
+            if start:
+                await tl.start(key, session=session, confirmed=confirmed, **_who())
+            else:
+                await tl.send_once(key, confirmed=confirmed, **_who())
+
+        try:
+            await go(False)
+        except tx.NeedsConfirmation as exc:
+            row = tl.row(key)
+            what = row.describe() if row else key
+            if not await confirm(f"Send {what}?", str(exc), ok="Send"):
+                await refuse(bus, f"transmit on {bus}: {what}", "not confirmed", parameter=row.id_text() if row else "")
+                return
+            await go(True)
+        update()
+
+    t.on("send", lambda e: guarded(lambda: confirmed_send(e.args, False)))
+    t.on("start", lambda e: guarded(lambda: confirmed_send(e.args, True)))
+    t.on("stop", lambda e: guarded(lambda: tl.stop(e.args, **_who())))
+    t.on("remove", lambda e: guarded(lambda: tl.remove(e.args, **_who())))
 
     def update() -> None:
         error.set_text(tl.load_error or "")
@@ -205,9 +250,9 @@ def _engineer_view(runtime, bus: str, user: str, role: str) -> None:
     ui.timer(REFRESH_S, tick)
 
 
-def _stop_all(tl: tx.TransmitList, user: str, role: str):
+def _stop_all(tl: tx.TransmitList):
     async def do() -> None:
         for key in list(tl.running):
-            await tl.stop(key, user=user, role=role)
+            await tl.stop(key, **_who())
 
     return do

@@ -235,8 +235,10 @@ async def test_list_saved_per_bus_and_restored(rig):
         (0x1ABCDEF, True, b"\x01\x02", 250), (0x422, False, b"\x01", None)]
 
 
-def test_electrak_enable_refused_only_where_an_electrak_is():
+def test_electrak_enable_refused_on_every_can_bus():
+    # 0x06 is an ID the Electrak reserves on every CAN bus (its fixed IDs): a replayed or typed control
+    # telegram with enable drives any network that listens, configured in the plant or not
     control = bytes.fromhex("E8 03 41 00 BE 03 00 01")  # enable set (section example)
     assert "Electrak" in forbidden_reason(0x06, False, control, [("electrak", {})])
-    assert forbidden_reason(0x06, False, control, [("m3io", {})]) is None
+    assert "Electrak" in forbidden_reason(0x06, False, control, [("m3io", {})])
     assert forbidden_reason(0x06, False, control[:7] + b"\x00", [("electrak", {})]) is None  # enable clear: stops

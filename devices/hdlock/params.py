@@ -206,6 +206,12 @@ SYSTEM_CORE_CLOCK_CONFIG_FIELDS: tuple[Field, ...] = (
     Field("SysClkSource", 4, 2, description="System clock source: 0 = HSI, 1 = HSE, 2 = PLL."),
 )
 
+# section 3.2.2: with 0x80-0x87 condition 2 (door closed) is always met: the bolt moves by condition 1 alone
+DOOR_IGNORED_SOURCES = tuple(range(0x80, 0x88))
+DOOR_IGNORED_WARNING = (
+    "With LockRequestSource 0x80-0x87 the lock ignores the door (section 3.2.2, condition 2 always met): "
+    "the bolt extends by its condition alone, also while the door is open, and can strike the door or its frame."
+)
 REMOVE_MAGNET_WARNING = (
     "Security risk: with SettingsRemoveMagnet = 1 the bolt retracts as soon as the magnetic "
     "field of the strike plate weakens, even while locking is requested. The lock can then be "
@@ -427,6 +433,8 @@ _HOLDINGS: list[Param] = [
         label="LockRequestSource (HR4)",
         enum=LOCK_REQUEST_SOURCE,
         default=4,
+        confirm=DOOR_IGNORED_WARNING,
+        confirm_values=DOOR_IGNORED_SOURCES,
         description="The source the lock uses for the bolt (reported in the CAN status "
         "frame, section 6.5.1; set by cmdSetLockRequestSource, 6.6.1.1). Values as holding "
         "1002: 0x00-0x07 lock when the condition AND the door is closed, 0x80-0x87 the same "
@@ -594,6 +602,8 @@ _HOLDINGS: list[Param] = [
         "LockRequestSource", HOLDING, 1002, Access.RW,
         enum=LOCK_REQUEST_SOURCE,
         default=4,
+        confirm=DOOR_IGNORED_WARNING,
+        confirm_values=DOOR_IGNORED_SOURCES,
         description="Conditions under which the bolt extends. 0x00-0x07: condition 1 AND "
         "door closed; 0x80-0x87: condition 1 only (door ignored). Condition 1: IrsNever "
         "never, IrsAlways always, IrsOverrange hall sensors overdriven, IrsLine input "

@@ -1,0 +1,161 @@
+"""The worker's command gate: the one place where something to be sent is checked and audited.
+
+Everything it decides on comes from declarations, never from the caller: the kind of a command
+from its declaration (:mod:`devices.commands`), the role from the account store at the moment
+of the action (a downgraded or removed account loses its rights at once, whatever an open page
+was told when it was built), what bytes may go to a bus from the device types' send policies
+(:mod:`devices.sendpolicy`).
+
+Order of work: role, arguments and confirmation are checked; the audit row is written first
+(fail closed: no row, nothing sent) and the command runs. Stops are the exception: never
+refused, sent first, and audited afterwards from a queue, whatever the audit log's state.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import inspect
+import logging
+from collections.abc import Awaitable, Callable, Mapping
+from typing import Any
+
+from devices.commands import Command, CommandError, find
+from devices.commands import OPEN_KINDS as OPEN_KINDS
+
+log = logging.getLogger(__name__)
+
+WRITE_ROLES = {"engineer"}
+
+
+class NeedsConfirmation(Exception):
+    """The command names a risk and the caller has not confirmed it: ask, then invoke again with ``confirmed``."""
+
+    def __init__(self, command: str, question: str):
+        super().__init__(question)
+        self.command = command
+        self.question = question
+
+
+def role_now(worker: Any, user: str, claimed: str) -> str:
+    """The role of ``user`` as the account store says now; ``claimed`` where no accounts are in use
+    (loopback: every browser is the local engineer) or for the worker's own callers (no look-up set)."""
+    lookup = getattr(worker, "role_of", None)
+    if lookup is None:
+        return claimed
+    role = lookup(user)
+    return claimed if role is None else role
+
+
+def may_run(kind: str, role: str) -> bool:
+    return kind in OPEN_KINDS or role in WRITE_ROLES
+
+
+def kind_for(worker: Any, device: str, describe: str, write: bool, record: bool) -> str:
+    """The kind of an action submitted the older way (an adapter callable and its wording): the
+    declaration of the device type's command by that name decides; a caller's ``write`` flag counts
+    only where the type declares nothing of that name (pages still to migrate)."""
+    command = declared(worker, device, describe)
+    if command is not None:
+        return command.kind
+    if write:
+        return "write"
+    return "stop" if record else "read"
+
+
+def declared(worker: Any, device: str, name: str) -> Command | None:
+    config = worker.plant.devices.get(device) if hasattr(worker, "plant") else None
+    if config is None or not name:
+        return None
+    return find(config.type, name)
+
+
+# -- stops: bus first, audit after (queued) ------------------------------------------------------------------
+
+_pending: set[asyncio.Task] = set()
+
+
+def audit_later(worker: Any, **row: Any) -> asyncio.Task | None:
+    """Write an audit row from a task of its own: the caller (a stop) never waits for the database."""
+    audit = getattr(worker, "audit", None)
+    if audit is None:
+        return None
+
+    async def write() -> None:
+        try:
+            await audit.arecord(**row)
+        except Exception as exc:  # noqa: BLE001 - the stop ran; the header shows the audit state
+            log.error("audit of a stop (%s) failed: %s", row.get("action", ""), exc)
+
+    task = asyncio.get_running_loop().create_task(write(), name="audit of a stop")
+    _pending.add(task)
+    task.add_done_callback(_pending.discard)
+    return task
+
+
+async def run_stop(worker: Any, action: Callable[[], Awaitable[Any]], *, device: str, user: str, role: str,
+                   describe: str, parameter: str = "", old: Any = "", new: Any = "") -> Any:
+    """A stop: runs at once for any role; the audit row (with the outcome) is queued afterwards."""
+    try:
+        result = await action()
+    except Exception as exc:
+        audit_later(worker, user=user, role=role, device=device, action=describe, parameter=parameter, old=old,
+                    new=new, result=f"failed: {exc}"[:500])
+        raise
+    audit_later(worker, user=user, role=role, device=device, action=describe, parameter=parameter, old=old, new=new,
+                result=f"ok: {result}"[:500] if isinstance(result, str) and result else "ok")
+    return result
+
+
+# -- declared commands -----------------------------------------------------------------------------------------------
+
+
+async def invoke(worker: Any, device: str, name: str, args: Mapping[str, Any] | None = None, *, user: str,
+                 role: str, session: str = "", confirmed: bool = False) -> Any:
+    """Run the declared command ``name`` of ``device`` with ``args``.
+
+    :raises KeyError: no such device; :raises CommandError: not declared, or an argument out of range
+        (audited as a refusal); :raises PermissionDenied: the role may not (audited);
+        :raises NeedsConfirmation: it names a risk and ``confirmed`` is False (nothing audited: a question)
+    """
+    from app.worker import PermissionDenied
+
+    if device not in worker.adapters:
+        raise KeyError(f"no device named {device!r} in this plant")
+    command = declared(worker, device, name)
+    role = role_now(worker, user, role)
+    if command is None:
+        reason = f"{name!r} is not a command of {device}"
+        await worker.refused(device=device, user=user, role=role, describe=name, reason=reason)
+        raise CommandError(reason)
+    values = dict(args or {})
+    if not may_run(command.kind, role):
+        await worker.refused(device=device, user=user, role=role, describe=command.name, new=_shown(values),
+                             reason=f"the {role or 'anonymous'} role may not run a {command.kind} command")
+        raise PermissionDenied(f"{user or 'anonymous'} has the {role or 'no'} role and may not write ({command.name})")
+    try:
+        values = command.checked_args(values)
+    except CommandError as exc:
+        await worker.refused(device=device, user=user, role=role, describe=command.name, reason=str(exc),
+                             new=_shown(values))
+        raise
+    adapter = worker.adapters[device]
+    if command.needs_control and command.kind not in OPEN_KINDS:
+        holders = getattr(adapter, "holders", None)
+        if holders is None or session not in holders():
+            reason = "take control of the device first"
+            await worker.refused(device=device, user=user, role=role, describe=command.name, reason=reason, new=_shown(values))
+            raise CommandError(reason)
+    risk = command.risk_text(values)
+    if risk and not confirmed:
+        raise NeedsConfirmation(command.name, risk)
+
+    async def run() -> Any:
+        result = command.call(adapter, session, values)
+        return await result if inspect.isawaitable(result) else result
+
+    return await worker.checked(run, device=device, role=role, user=user, describe=command.name, kind=command.kind,
+                                record=command.kind != "read", new=_shown(values))
+
+
+def _shown(values: Mapping[str, Any]) -> str:
+    return ", ".join(f"{k}={v}" for k, v in values.items())

@@ -1,0 +1,121 @@
+"""What this tool never sends to an HD-Lock, and what it confirms first (the HD-Lock document).
+
+Pure data and checks over it, asked through :mod:`devices.sendpolicy` by every path that sends
+bytes (transmit list, replay, Modbus poll window, restore, the lock's own commands).
+"""
+
+from __future__ import annotations
+
+from devices.hdlock import codec
+from devices.hdlock.params import DOOR_IGNORED_SOURCES, DOOR_IGNORED_WARNING, PARAMS
+from devices.sendpolicy import Verdict
+
+TITLE = "HD-Lock"
+
+# -- never sent ---------------------------------------------------------------------------------------------
+NEVER_CAN_IDS = {
+    codec.CAN_FWU_ERASE: "a firmware-update request (section 6.6.7, not for users)",
+    codec.CAN_FWU_WRITE: "a firmware-update request (section 6.6.7, not for users)",
+}
+NEVER_CAN_COMMANDS = {  # byte 4 of a Command (0x700), section 6.6.1.3
+    codec.CanCommand.FIRMWARE_UPDATE_ENTER: "cmdFirmwareUpdateEnter is a firmware-update command (section 6.6.1.3)",
+    codec.CanCommand.BOOTLOADER_UPDATE_ENTER: "cmdBootloaderUpdateEnter is a firmware-update command (boot loader, section 6.6.1.3)",
+    codec.CanCommand.UPDATE_LEAVE: "cmdUpdateLeave is a firmware-update command (section 6.6.1.3)",
+}
+NEVER_REGISTERS = {  # holding registers, whatever the access class says
+    0: "SettingsRevision (holding 0): a decrement restores the factory settings, an increment saves (section 3.2)",
+    codec.REG_FW_UPDATE: "FwUpdateCommandRegister (holding 32770) restarts the lock for a firmware update (section 3.2)",
+    codec.REG_COMMAND: "the system-command register (holding 2003): system commands go through the lock's page",
+}
+
+# -- confirmed first ------------------------------------------------------------------------------------------
+BROADCAST_RISK = "Sent to broadcast: every HD-Lock on this bus takes it."
+BITRATE_RISK = ("cmdSetCANbaudrate: the lock changes its CAN bit rate and drops off this bus until the bus runs at "
+                "the new rate (section 6.6.1.2).")
+DEVICE_ID_RISK = ("Set Device Address: the lock answers only under its new device ID (section 6.6.2); each CAN ID may "
+                  "belong to one participant only (section 6.2 b).")
+SOURCE_RISK = DOOR_IGNORED_WARNING  # cmdSetLockRequestSource 0x80-0x87, holding 4 and 1002
+
+
+def register_verdict(address: int, value: int) -> Verdict:
+    """A write of ``value`` (a 16-bit word, two's complement for signed registers) to holding ``address``."""
+    if address in NEVER_REGISTERS:
+        return Verdict(refused=f"{NEVER_REGISTERS[address]}: never written", name=f"holding {address}")
+    param = PARAMS.get("holding", address)
+    if param is None:
+        covering = next((p for p in PARAMS.space("holding") if address in p.addresses), None)
+        if covering is None:
+            return Verdict(refused=f"holding {address} is not in the register map of the HD-Lock: not written",
+                           name=f"holding {address}")
+        param = covering
+    label = param.label or param.name
+    name = f"{label} (holding {address})"
+    if param.never_write:
+        return Verdict(refused=f"{name} is never written by this tool", name=name)
+    if not param.writable:
+        return Verdict(refused=f"{name} is {param.access.value}: not writable", name=name)
+    raw = value & 0xFFFF
+    decoded = param.decode(raw)
+    low, high = param.limits()
+    if not low <= decoded <= high:
+        return Verdict(refused=f"{label}: {decoded} is outside {low:g} .. {high:g} {param.unit}".rstrip(), name=name)
+    risk = param.needs_confirmation(raw)
+    return Verdict(confirm=(risk,) if risk else (), name=f"{name} = {param.display(raw)}", kind="write")
+
+
+def check_modbus(function: int, address: int, values: list[int], device) -> Verdict:
+    """A Modbus write to a lock: registers one by one (section 5.3: 06; 16 only as several 06)."""
+    from devices.sendpolicy import combine
+
+    if function in (5, 15):
+        return Verdict(refused="the HD-Lock has no coils (section 5: holding and input registers only)",
+                       name=f"coil {address}")
+    if not values:
+        return Verdict(refused="no value to write")
+    owner = f"{device.name} " if device is not None else ""
+    verdicts = [register_verdict(address + i, v) for i, v in enumerate(values)]
+    merged = combine(verdicts)
+    names = ", ".join(v.name for v in verdicts if v.name)
+    return Verdict(merged.refused, merged.confirm, f"{owner}{names}".strip(), merged.kind)
+
+
+def check_can(can_id: int, extended: bool, data: bytes, devices) -> Verdict | None:
+    """A frame on the HD-Lock request block 0x700-0x707 (section 6.6); other IDs are not the lock's requests."""
+    if extended or can_id not in codec.CAN_REQUEST_IDS:
+        return None
+    name = codec.CAN_REQUEST_NAMES[can_id]
+    if can_id in NEVER_CAN_IDS:
+        return Verdict(refused=f"HD-Lock '{name}' (0x{can_id:03X}) is {NEVER_CAN_IDS[can_id]}: never sent",
+                       name=f"HD-Lock {name}", kind="system")
+    if len(data) < 4:
+        return Verdict(refused=f"HD-Lock '{name}' (0x{can_id:03X}) needs the target address in bytes 0-3", name=name)
+    target = int.from_bytes(data[0:4], "little")
+    broadcast = (BROADCAST_RISK,) if target == codec.CAN_BROADCAST else ()
+    if can_id in (codec.CAN_READ_INPUT, codec.CAN_READ_HOLDING):
+        return Verdict(name=f"HD-Lock {name}", kind="read")
+    if can_id == codec.CAN_COMMAND:
+        if len(data) < 5:
+            return Verdict(refused=f"HD-Lock Command (0x700) without a command byte (section 6.6.1)", name=name)
+        command = data[4]
+        if command in NEVER_CAN_COMMANDS:
+            cmd_name = codec.CanCommand(command).name
+            return Verdict(refused=f"HD-Lock Command {command} ({cmd_name}): {NEVER_CAN_COMMANDS[command]}: never sent",
+                           name=f"HD-Lock Command {command}", kind="system")
+        value = int.from_bytes(data[6:8], "little") if len(data) >= 8 else None
+        if command == codec.CanCommand.SET_LOCK_REQUEST_SOURCE:
+            risks = (SOURCE_RISK,) if value in DOOR_IGNORED_SOURCES else ()
+            return Verdict(confirm=risks + broadcast, name=f"HD-Lock cmdSetLockRequestSource = {value}", kind="write")
+        if command == codec.CanCommand.SET_CAN_BAUDRATE:
+            return Verdict(confirm=(BITRATE_RISK,) + broadcast, name=f"HD-Lock cmdSetCANbaudrate = {value}", kind="system")
+        return Verdict(refused=f"HD-Lock Command {command} is not in the document (section 6.6.1): not sent",
+                       name=f"HD-Lock Command {command}")
+    if can_id == codec.CAN_SET_DEVICE_ADDRESS:
+        return Verdict(confirm=(DEVICE_ID_RISK,) + broadcast, name="HD-Lock Set Device Address", kind="system")
+    # Write / Silent Write Holding-Register: bytes 4-5 address, 6-7 the value (SPEC-NOTES)
+    if len(data) < 8:
+        return Verdict(refused=f"HD-Lock '{name}' needs address and value (8 bytes, section 6.6.5)", name=name)
+    address = int.from_bytes(data[4:6], "little")
+    value = int.from_bytes(data[6:8], "little")
+    verdict = register_verdict(address, value)
+    return Verdict(verdict.refused and f"HD-Lock '{name}' of {verdict.refused}", verdict.confirm + broadcast,
+                   f"HD-Lock {name} {verdict.name}", verdict.kind)

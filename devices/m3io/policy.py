@@ -1,0 +1,46 @@
+"""What this tool confirms before it sends raw bytes to a CAN-M3IO module (the M3IO document).
+
+DigOut with an SSR bit switches mains voltage onto a load (section 7.2.1): confirmed in the
+transmit list, never replayed. Sync frames that write the configuration or customer data
+(section 7.2.4, areas 1 and 4) are confirmed. Asked through :mod:`devices.sendpolicy`.
+"""
+
+from __future__ import annotations
+
+from devices.m3io import codec
+from devices.sendpolicy import Verdict
+
+TITLE = "CAN-M3IO"
+
+MAINS_RISK = "{device}: DigOut switches {outputs} on: mains voltage on the load(s) (section 7.2.1)."
+CONFIG_RISK = "{device}: Sync {what} writes the module's {target} (section 7.2.4)."
+
+
+def check_can(can_id: int, extended: bool, data: bytes, devices) -> Verdict | None:
+    if extended:
+        return None
+    for dev in devices:
+        try:
+            ids = codec.derive_ids(int(dev.options["sw1"]))
+            variant = codec.Variant(dev.options.get("variant", "HM"))
+        except (KeyError, TypeError, ValueError, codec.CodecError):
+            continue
+        if can_id == ids.dig_out:
+            if len(data) != 1:
+                return Verdict(refused=f"{dev.name}: DigOut has 1 byte (section 7.2.1), not {len(data)}", name=f"{dev.name} DigOut")
+            outputs = codec.decode_dig_out(variant, data)
+            mains = [n for n, on in outputs.items() if on and n != "LED"]
+            on = " ".join(n for n, v in outputs.items() if v) or "all off"
+            if mains:
+                return Verdict(confirm=(MAINS_RISK.format(device=dev.name, outputs=", ".join(mains)),),
+                               name=f"{dev.name} DigOut: {on}", kind="mains")
+            return Verdict(name=f"{dev.name} DigOut: {on}", kind="stop" if not any(outputs.values()) else "write")
+        if can_id == ids.sync and data:
+            if data[0] == codec.AREA_WRITE_CONFIG:
+                return Verdict(confirm=(CONFIG_RISK.format(device=dev.name, what="area 1", target="configuration"),),
+                               name=f"{dev.name} write config", kind="write")
+            if data[0] == codec.AREA_WRITE_CUSTOMER:
+                return Verdict(confirm=(CONFIG_RISK.format(device=dev.name, what="area 4", target="customer data"),),
+                               name=f"{dev.name} write customer data", kind="write")
+            return Verdict(name=f"{dev.name} Sync", kind="read")
+    return None
