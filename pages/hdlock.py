@@ -215,7 +215,7 @@ def _parameter_card(name: str, state, guard: WriteGuard):
             return
         value = p.decode(raw)
         entry = entries[key]
-        if entry.value is None or entry.value == shown.get(key) or entry.value == value:
+        if (entry.value is None and key not in shown) or entry.value in (shown.get(key), value):  # untouched
             if entry.value != value:
                 entry.value = value
             shown[key] = value

@@ -202,6 +202,7 @@ async def test_write_parameter_then_save_settings(env: Env):
     assert twin.holding[3000] == 200
     saved_before = twin.input[101]
 
+    entry_element(user, "LockRequestDelay").value = None  # the field holds the current value: cleared, then typed
     entry(user, "LockRequestDelay").type("500")
     write_button(user, "LockRequestDelay").click()
 
@@ -233,6 +234,7 @@ async def test_out_of_range_value_is_refused_without_writing(env: Env):
     writes = spy_writes(twin)
     requests = env.state().counters.requests
 
+    entry_element(user, "LockRequestDelay").value = None
     entry(user, "LockRequestDelay").type("70000")
     write_button(user, "LockRequestDelay").click()
 
@@ -250,6 +252,7 @@ async def test_empty_entry_asks_for_a_value(env: Env):
     await online(env, "door-1")
     await user.open("/device/door-1")
     writes = spy_writes(twin)
+    entry_element(user, "LockRequestDelay").value = None  # the field starts with the current value: cleared
     write_button(user, "LockRequestDelay").click()
     await eventually(lambda: entry_element(user, "LockRequestDelay").error == "enter a value first")
     assert writes == []
