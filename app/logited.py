@@ -44,6 +44,47 @@ class LogitedTransaction:
     unit: int = 0
 
 
+class _Waiter:
+    """The telegrams a request waits for: every one ``answers`` accepts, in order (a syn and its ack may
+    arrive in one segment), or the error that ended the wait."""
+
+    def __init__(self, answers: Callable[[bytes], bool]):
+        self.answers = answers
+        self.queue: asyncio.Queue = asyncio.Queue()
+        self.waiting = True  # False once the final answer is in: what follows answers nothing
+
+    def offer(self, telegram: bytes) -> bool:
+        if not self.waiting:
+            return False
+        try:
+            accepted = self.answers(telegram)
+        except Exception:  # noqa: BLE001 - a telegram the codec cannot read answers nothing
+            accepted = False
+        if accepted:
+            self.queue.put_nowait(telegram)
+        return accepted
+
+    def fail(self, exc: Exception) -> None:
+        if self.waiting:
+            self.queue.put_nowait(exc)
+
+    async def get(self, timeout: float) -> bytes:
+        item = await asyncio.wait_for(self.queue.get(), timeout)
+        if isinstance(item, Exception):
+            raise item
+        return item
+
+
+def _closing_frames(hooks: list[Callable[[], list[bytes]]], name: str) -> list[bytes]:
+    frames: list[bytes] = []
+    for hook in hooks:
+        try:
+            frames += hook()
+        except Exception:  # noqa: BLE001 - one adapter's failure must not keep the others' frames back
+            log.exception("%s: closing frames", name)
+    return frames
+
+
 def telegram_length(buffer: bytes | bytearray) -> int | None:
     """Total length of the telegram at the start of ``buffer`` (SD, LE, LE bytes, CSH, CSL), once known."""
     if len(buffer) < 2:
@@ -62,8 +103,11 @@ class LogitedTcp:
         self.writer: asyncio.StreamWriter | None = None
         self._reader_task: asyncio.Task | None = None
         self._lock = asyncio.Lock()
-        self._waiter: tuple[Callable[[bytes], bool], asyncio.Future] | None = None
+        self._waiter: _Waiter | None = None
         self.listeners: list[Callable[[bytes], None]] = []
+        # called as the line closes for good (the tool stops): frames to send first (an adapter's
+        # deactivations of levels it set)
+        self.closing: list[Callable[[], list[bytes]]] = []
         self.describe: Callable[[bytes], str] | None = None  # the adapter's decoding for the log
         self.released = False
         self.garbage = 0
@@ -109,13 +153,17 @@ class LogitedTcp:
         task, self._reader_task = self._reader_task, None
         if task is not None and task is not asyncio.current_task():
             task.cancel()
-        if self._waiter is not None and not self._waiter[1].done():
-            self._waiter[1].set_exception(SerialClosed(f"{self.name}: {message}"))
+        if self._waiter is not None:
+            self._waiter.fail(SerialClosed(f"{self.name}: {message}"))
         self.state.connected = False
         if message:
             self._failed(message)
 
     def close(self) -> None:
+        if self.connected:
+            for frame in _closing_frames(self.closing, self.name):
+                self.writer.write(frame)  # flushed by the transport before it closes
+                self._log("on close", frame, b"", "")
         self._drop("")
         self.state.connected = False
 
@@ -161,15 +209,8 @@ class LogitedTcp:
             self._drop(f"connection lost: {exc}")
 
     def _deliver(self, telegram: bytes) -> None:
-        waiter = self._waiter
-        if waiter is not None and not waiter[1].done():
-            try:
-                answers = waiter[0](telegram)
-            except Exception:  # noqa: BLE001 - a telegram the codec cannot read answers nothing
-                answers = False
-            if answers:
-                waiter[1].set_result(telegram)
-                return
+        if self._waiter is not None and self._waiter.offer(telegram):
+            return
         self._log("unsolicited", b"", telegram, "")
         for listener in self.listeners:
             try:
@@ -191,9 +232,13 @@ class LogitedTcp:
             self._text(answer) if answer and not error else "", rtt_ms, error))
 
     async def transact(self, request: bytes, answers: Callable[[bytes], bool], *, timeout: float | None = None,
-                       describe: str = "") -> bytes:
+                       describe: str = "", interim: Callable[[bytes], bool] | None = None,
+                       interim_timeout: float = 5.0) -> bytes:
         """Send ``request`` and return the first telegram ``answers`` accepts.
 
+        :param interim: says of an accepted telegram that it is not the final answer (a setting's syn,
+            after which ack or nak follows, chapter 5.2.4); the final answer is then awaited for up
+            to ``interim_timeout`` within the same exchange, and returned
         :raises SerialClosed: not connected (refused, another client, released)
         :raises SerialTimeout: no answer in time
         """
@@ -201,13 +246,16 @@ class LogitedTcp:
         async with self._lock:
             if not await self.connect():
                 raise SerialClosed(f"{self.name}: {self.state.last_error}")
-            future = asyncio.get_running_loop().create_future()
-            self._waiter = (answers, future)
+            waiter = self._waiter = _Waiter(answers)
             started = time.monotonic()
             try:
                 self.writer.write(request)
                 await self.writer.drain()
-                answer = await asyncio.wait_for(future, timeout)
+                answer = await waiter.get(timeout)
+                while interim is not None and interim(answer):
+                    self._log(describe, request, answer, "", round((time.monotonic() - started) * 1000, 2))
+                    timeout = interim_timeout
+                    answer = await waiter.get(timeout)
             except asyncio.TimeoutError:
                 self._log(describe, request, b"", f"no answer within {timeout:g} s")
                 raise SerialTimeout(f"{self.name}: no answer within {timeout:g} s") from None
@@ -219,6 +267,7 @@ class LogitedTcp:
                 self._log(describe, request, b"", str(exc))
                 raise
             finally:
+                waiter.waiting = False
                 self._waiter = None
             self._log(describe, request, answer, "", round((time.monotonic() - started) * 1000, 2))
             return answer
@@ -240,6 +289,9 @@ class LogitedRs485:
     """
 
     HOLD_BUDGET_S = 0.15  # pass the token this long after receiving it at the latest (limit 0.2 s)
+    TOKEN_LIMIT_S = 0.2  # chapter 2.6.1: "Der Token muss nach spätestens 200ms weitergegeben werden"
+    LIMIT_MARGIN_S = 0.015  # the token telegram itself, and the loop's own delays
+    FRESH_TOKEN_S = 0.03  # a setting write starts only this soon after the token came (syn, then ack in this turn)
 
     def __init__(self, name: str, options: dict, state: BusState):
         from devices.mo64 import codec  # the bus protocol's framing and token (LogiTed is that family's bus)
@@ -253,10 +305,11 @@ class LogitedRs485:
         self.next_master = options["next_master"]
         self.port = None
         self.listeners: list[Callable[[bytes], None]] = []
+        self.closing: list[Callable[[], list[bytes]]] = []  # frames to send as the line closes (see LogitedTcp)
         self.describe: Callable[[bytes], str] | None = None
         self._splitter = codec.FrameSplitter(codec.RS485)
         self._lock = asyncio.Lock()
-        self._waiter: tuple[Callable[[bytes], bool], asyncio.Future] | None = None
+        self._waiter: _Waiter | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread = None
         self._run = False
@@ -317,16 +370,29 @@ class LogitedRs485:
                 self._loop.call_soon_threadsafe(self._on_bytes, data)
 
     def _lost(self, why: str) -> None:
-        self.close()
+        self._shut(final=False)
         self.state.last_error = f"{self.options['port']} lost: {why}"
         self._failures = 1
         self._next_open = time.monotonic() + BACKOFF_S[0]
-        if self._waiter is not None and not self._waiter[1].done():
-            self._waiter[1].set_exception(SerialClosed(f"{self.name}: {self.state.last_error}"))
+        if self._waiter is not None:
+            self._waiter.fail(SerialClosed(f"{self.name}: {self.state.last_error}"))
 
     def close(self) -> None:
+        self._shut(final=True)
+
+    def _shut(self, final: bool) -> None:
         self._run = False
         port, self.port = self.port, None
+        if port is not None and final and self.closing:
+            frames = _closing_frames(self.closing, self.name)
+            try:
+                for frame in frames:  # out of turn if the token is elsewhere: the tool is going away
+                    port.write(frame)
+                    self._log("on close", frame, b"", "")
+                if frames:
+                    port.flush()
+            except Exception as exc:  # noqa: BLE001 - a lost port: nothing more can be sent
+                log.warning("%s: closing frames not sent: %s", self.name, exc)
         if port is not None:
             try:
                 port.close()
@@ -354,15 +420,8 @@ class LogitedRs485:
         if frame.da != self.master:
             self._log("between others", b"", frame.raw, "")
             return
-        waiter = self._waiter
-        if waiter is not None and not waiter[1].done():
-            try:
-                answers = waiter[0](frame.raw)
-            except Exception:  # noqa: BLE001
-                answers = False
-            if answers:
-                waiter[1].set_result(frame.raw)
-                return
+        if self._waiter is not None and self._waiter.offer(frame.raw):
+            return
         self._log("unsolicited", b"", frame.raw, "")
         for listener in self.listeners:
             try:
@@ -379,7 +438,7 @@ class LogitedRs485:
             self._pass_timer = self._loop.call_later(self.HOLD_BUDGET_S, self._pass_if_idle)
 
     def _pass_if_idle(self) -> None:
-        if self._token.is_set() and (self._waiter is None or self._waiter[1].done()):
+        if self._token.is_set() and self._waiter is None:
             self._pass_token()
 
     def _pass_token(self) -> None:
@@ -421,9 +480,15 @@ class LogitedRs485:
         return 0
 
     async def transact(self, request: bytes, answers: Callable[[bytes], bool], *, timeout: float | None = None,
-                       describe: str = "") -> bytes:
+                       describe: str = "", interim: Callable[[bytes], bool] | None = None,
+                       interim_timeout: float = 5.0) -> bytes:
         """Send ``request`` (an addressed RS485 frame) and return the first telegram ``answers`` accepts.
 
+        :param interim: says of an accepted telegram that it is not the final answer: a setting's syn,
+            then ack or nak (chapter 5.2.4, "sonst tele_syn, dann tele_ack"). On a shared line the
+            token is held until the final answer (the barrier's ack must not land in another
+            master's turn), so such a request waits for a fresh token, and the final answer is
+            awaited at most until the 200 ms of chapter 2.6.1 run out
         :raises SerialClosed: the port is not open
         :raises SerialTimeout: no token (shared line) or no answer in time
         """
@@ -434,15 +499,22 @@ class LogitedRs485:
                 if not await self.connect():
                     raise SerialClosed(f"{self.name}: {self.state.last_error}")
                 if self.shared:
-                    await self._hold_token(timeout)
+                    await self._hold_token(timeout, fresh=interim is not None)
                     left = self.HOLD_BUDGET_S - (time.monotonic() - self._token_since)
                     timeout = max(0.02, min(timeout, left))  # answered within the hold, or given up
-                future = self._loop.create_future()
-                self._waiter = (answers, future)
+                waiter = self._waiter = _Waiter(answers)
                 started = time.monotonic()
                 try:
                     await asyncio.to_thread(self.port.write, request)
-                    answer = await asyncio.wait_for(future, timeout)
+                    answer = await waiter.get(timeout)
+                    while interim is not None and interim(answer):
+                        self._log(describe, request, answer, "", round((time.monotonic() - started) * 1000, 2))
+                        timeout = interim_timeout
+                        if self.shared and self._token_since is not None:
+                            # the final answer within this turn: the token is passed before the limit
+                            timeout = max(0.0, min(timeout, self.TOKEN_LIMIT_S - self.LIMIT_MARGIN_S
+                                                   - (time.monotonic() - self._token_since)))
+                        answer = await waiter.get(timeout)
                 except asyncio.TimeoutError:
                     self._log(describe, request, b"", f"no answer within {timeout:g} s")
                     raise SerialTimeout(f"{self.name}: no answer within {timeout:g} s") from None
@@ -453,6 +525,7 @@ class LogitedRs485:
                     self._lost(str(exc))
                     raise SerialClosed(f"{self.name}: {self.state.last_error}") from None
                 finally:
+                    waiter.waiting = False
                     self._waiter = None
                 self._log(describe, request, answer, "", round((time.monotonic() - started) * 1000, 2))
                 return answer
@@ -461,11 +534,13 @@ class LogitedRs485:
             if self.shared and self._token.is_set() and self._pending == 0:
                 self._pass_token()  # done: hand the token on now
 
-    async def _hold_token(self, timeout: float) -> None:
-        """Wait until this master holds the token with enough of its hold budget left."""
+    async def _hold_token(self, timeout: float, fresh: bool = False) -> None:
+        """Wait until this master holds the token with enough of its hold budget left (``fresh``: nearly
+        all of it, for a request answered by syn and later ack)."""
         end = time.monotonic() + max(timeout, 1.0) + 1.0
+        need = self.FRESH_TOKEN_S if fresh else self.HOLD_BUDGET_S - 0.05
         while True:
-            if self._token.is_set() and time.monotonic() - self._token_since < self.HOLD_BUDGET_S - 0.05:
+            if self._token.is_set() and time.monotonic() - self._token_since < need:
                 return
             if self._token.is_set():
                 self._pass_token()  # too little of the budget left for a request and its answer

@@ -99,11 +99,12 @@ async def close_lines():
     await asyncio.sleep(0)
 
 
-def make_adapter(port: int) -> Mo64Adapter:
+def make_adapter(port: int, query_form: str | None = "short") -> Mo64Adapter:
     opts = {"host": "127.0.0.1", "port": port, "timeout": 0.5, "poll_period": 1.0, "simulate": False}
     line = LogitedTcp("gate-bus", opts, BusState("gate-bus", "logited-tcp", f"127.0.0.1:{port}"))
     config = SimpleNamespace(name="gate-1", type="mo64", bus="gate-bus", options={})
     adapter = Mo64Adapter(config, DeviceState("gate-1", "mo64", "gate-bus"), line)
+    adapter.query_form = query_form  # the scripts speak the short form; None: the adapter finds it out
     _made.append(adapter)
     return adapter
 
@@ -133,7 +134,7 @@ async def test_syn_and_ack_in_one_segment_are_both_taken():
         (TX, query(codec.Q_MAINTENANCE_INTERVAL)), (RX, answer(0x1A, 5000)),
     ]) as script:
         adapter = make_adapter(script.port)
-        assert await adapter.write_setting("s1", "maintenance_interval", 5000) == 5000
+        assert await adapter.write_setting("s1", "maintenance_interval", 5000, selector_verified=True) == 5000
         script.done()
 
 
@@ -166,7 +167,8 @@ async def test_unsolicited_telegram_between_request_and_answer_is_published_with
     assert adapter.state.points["Gate state"].text == "opening"
     assert adapter.state.points["Position"].value == 42
     assert any("change reported: barrier position" in e.text for e in adapter.state.events)
-    assert adapter.monitoring_active
+    # change monitoring was never armed (its flags not read, factory 0): this is no monitoring telegram
+    assert not adapter.monitoring_active and adapter.unexpected_telegrams == 1
 
 
 async def test_position_unknown_for_minus_one():
@@ -219,7 +221,9 @@ async def test_open_level_is_shown_but_not_released_by_the_dead_man_and_cleared_
         adapter.session_lost("s1", "gone")
         await adapter.stopped()
         assert adapter.state.info["levels"] == ["open"]
-        assert await adapter.clear_levels("s2") == ["open"]
+        with pytest.raises(NeedsConfirmation):
+            await adapter.clear_levels("s2")  # asks first: the boom may close
+        assert await adapter.clear_levels("s2", confirmed=True) == ["open"]
         script.done()
     assert adapter.levels == {}
 
@@ -239,7 +243,9 @@ async def test_backup_reads_the_settings_and_restore_writes_one():
             value = {"mask": 0, "more": b""}
         steps += [(TX, query(setting.query)), (RX, answer(setting.query + 5, value))]
     steps += [(TX, query(codec.Q_INDUCTION_LOOPS)), (RX, answer(0x12, [1, 2, 3])),
-              (TX, query(codec.Q_DIRECTION_LOGICS)), (RX, answer(0x13, [5, 6]))]
+              (TX, query(codec.Q_DIRECTION_LOGICS)), (RX, answer(0x13, [5, 6])),
+              (TX, query(codec.Q_DEC_BT)), (RX, answer(0x10, (1 << 31) | 0b100110)),
+              (TX, query(codec.Q_LOOP_PERIODS)), (RX, answer(0x1B, bytes.fromhex("10 27 20 4e 00 00")))]
     steps += [(TX, tcp(codec.encode_setting("multi_relays", [1, 0, 0, 0, 0, 3]))), (RX, SYN), (RX, ACK),
               (TX, query(codec.Q_MULTI_RELAYS)), (RX, answer(0x19, [1, 0, 0, 0, 0, 3]))]
     async with Script(steps) as script:
@@ -250,6 +256,8 @@ async def test_backup_reads_the_settings_and_restore_writes_one():
         assert by_key["config_flags"]["value"] == [0, 1, 0, 0]
         assert by_key["multi_relays"]["raw"] == [1, 0, 0, 0, 0, 2]
         assert not by_key["induction_loops"]["writable"]
+        assert by_key["dec_bt"]["value"] == (1 << 31) | 0b100110 and not by_key["dec_bt"]["writable"]
+        assert by_key["loop_periods"]["value"] == "10 27 20 4e 00 00"  # layout not in the summary: raw
         await adapter.restore_entry("multi_relays", [1, 0, 0, 0, 0, 3])
         with pytest.raises(CommandError, match="not restored"):
             await adapter.restore_entry("vehicle_counter", 5)

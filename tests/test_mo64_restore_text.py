@@ -16,7 +16,9 @@ async def test_restore_text_matches_the_backup_text_of_every_setting():
         if setting.backup:
             steps += [(TX, query(setting.query)), (RX, answer(setting.query + 5, values[key]))]
     steps += [(TX, query(codec.Q_INDUCTION_LOOPS)), (RX, answer(0x12, [1, 2, 3])),
-              (TX, query(codec.Q_DIRECTION_LOGICS)), (RX, answer(0x13, [5, 6]))]
+              (TX, query(codec.Q_DIRECTION_LOGICS)), (RX, answer(0x13, [5, 6])),
+              (TX, query(codec.Q_DEC_BT)), (RX, answer(0x10, 0)),
+              (TX, query(codec.Q_LOOP_PERIODS)), (RX, answer(0x1B, bytes(6)))]
     async with Script(steps) as script:
         adapter = make_adapter(script.port)
         entries = await adapter.backup_read()

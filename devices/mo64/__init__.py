@@ -8,7 +8,8 @@ from typing import Any
 
 from devices.registry import DeviceType, TileAlarm, TileBar, TileLine, TileSpec, When
 
-_KEYS = {"address", "serial_number", "travel_s"}  # the last two set up the simulated barrier (devices/mo64/sim.py)
+# all but the address set up the simulated barrier (devices/mo64/sim.py): its strict modes among them
+_KEYS = {"address", "serial_number", "travel_s", "refuse_queries", "query_form"}
 
 
 def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str]]:

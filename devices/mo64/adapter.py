@@ -25,8 +25,15 @@ from devices.mo64 import codec
 from devices.transport import SerialClosed, SerialLineError, SerialTimeout
 
 SYN_ACK_TIMEOUT_S = 5.0  # after syn the EEPROM write ends with ack or nak (chapter 5.2.4); bound of the wait
-MONITORED_POLL_EVERY = 5  # while change monitoring delivers, the live queries run only every 5th cycle
+MONITORED_POLL_EVERY = 5  # gate state and position, while change monitoring delivers them, every 5th cycle
 MONITOR_FRESH_S = 30.0  # change monitoring counts as delivering this long after its last telegram
+LATE_WINDOW_S = 30.0  # a telegram of the type of a query that timed out this recently is its late answer
+OPTIONAL_RETRY_S = (10.0, 30.0, 60.0, 300.0)  # a start-up read that was refused or unanswered is tried again
+STARTUP_READS_PER_CYCLE = 3  # start-up reads after the live queries, a few per cycle: live values come first
+UNAVAILABLE = "not available on this unit"
+# chapter 5.1.9 (SPEC-NOTES "Change monitoring"): the flag that makes the barrier send telegram type t
+MONITOR_BITS = {0x07: 0, 0x0A: 1, 0x0B: 2, 0x0C: 3, 0x17: 4, 0x1C: 5, 0x1D: 6}
+SAFETY_BITS = ("LS", "Baum ab", "F_ereignis")  # read every cycle, whatever change monitoring does
 MONITOR_FLAGS = ("barrier status", "gate state", "service counter", "maintenance counter", "vehicle counter",
                  "error memory", "barrier position")  # issue 13 item 6: what the tool switches on
 BUSY_TEXT = "the motor runs, try again when it stands"
@@ -43,9 +50,14 @@ ROTATING_QUERIES = (codec.Q_SERVICE_COUNTER, codec.Q_MAINTENANCE_COUNTER, codec.
 IDENTITY_QUERIES = (codec.Q_DEVICE, codec.Q_PROGRAM_VERSION, codec.Q_SERIAL_NUMBER, codec.Q_MAC,
                     codec.Q_OPERATING_HOURS)
 SETTING_QUERIES = tuple(dict.fromkeys([s.query for s in codec.SETTINGS.values()]
-                                      + [codec.Q_INDUCTION_LOOPS, codec.Q_DIRECTION_LOGICS, codec.Q_COUNTING]))
+                                      + [codec.Q_INDUCTION_LOOPS, codec.Q_DIRECTION_LOGICS, codec.Q_COUNTING,
+                                         codec.Q_DEC_BT, codec.Q_LOOP_PERIODS]))
 READ_ONLY_BACKUP = ((codec.Q_INDUCTION_LOOPS, "induction_loops", "induction-loop modes"),
-                    (codec.Q_DIRECTION_LOGICS, "direction_logics", "direction logics"))
+                    (codec.Q_DIRECTION_LOGICS, "direction_logics", "direction logics"),
+                    (codec.Q_DEC_BT, "dec_bt", "radio code (dec_bt)"),
+                    # query index 0x16 is answered by 0x1B tele_induktionsschleifenperioden; "Nicht verwenden!"
+                    # in table 21 concerns the query indexes 0x1B-0x1E, not this telegram (SPEC-NOTES)
+                    (codec.Q_LOOP_PERIODS, "loop_periods", "induction-loop periods"))
 NAMES = {  # answer type -> live point name
     0x05: "Device code", 0x06: "Program version", 0x07: "Barrier status", 0x08: "Status mask",
     0x09: "Change monitoring", 0x0A: "Service counter", 0x0B: "Maintenance counter", 0x0C: "Gate state",
@@ -153,20 +165,32 @@ class Mo64Adapter:
         self.last_reply = ""
         self.error_memory: list[dict] = []
         self.settings: dict[str, Any] = {}
-        self._have_identity = False
-        self._have_settings = False
-        self._have_errors = False
+        # start-up reads (identity, settings, modes, error memory levels): each optional, retried with backoff
+        self._reads: dict[tuple, dict] = {}
+        for index in IDENTITY_QUERIES + SETTING_QUERIES:
+            self._reads.setdefault(("query", index), {"state": "pending", "failures": 0, "next": 0.0})
+        for level in range(codec.ERROR_MEMORY_LEVELS):
+            self._reads[("error memory", level)] = {"state": "pending", "failures": 0, "next": 0.0}
+        self._optional_live: dict[int, dict] = {}  # rotating counters the unit refused: index -> backoff
+        self.query_form: str | None = None  # "document" or "short", once the unit answered one (SPEC-NOTES)
+        self.verified_selectors: set[str] = set()  # assumed selectors an engineer confirmed for this unit
+        self.late_answers = 0
+        self.unexpected_telegrams = 0
+        self._timed_out: dict[int, float] = {}  # answer type -> when its query timed out
         self._cycle = 0
         self._rotate = 0
         self._monitor_last: float | None = None
-        self._late: asyncio.Queue | None = None
         self._stop_tasks: set[asyncio.Task] = set()
+        self.poll_period = float(line_options.get("poll_period", 0.5) or 0.5)
         state.stale_after = 5.0
         state.info.update(transport=self.transport, levels=[], eeprom_writes_total=0, monitoring="unknown",
-                          error_memory=[], last_reply="", assumptions=list(codec.ASSUMPTIONS))
+                          error_memory=[], last_reply="", assumptions=list(codec.ASSUMPTIONS),
+                          unavailable=[], query_form="not known yet", late_answers=0, error_memory_unavailable=[])
         if line is not None:
             if hasattr(line, "listeners"):
                 line.listeners.append(self._unsolicited)
+            if hasattr(line, "closing"):
+                line.closing.append(self.closing_frames)
             if hasattr(line, "describe"):
                 line.describe = self.describe_telegram
 
@@ -201,10 +225,10 @@ class Mo64Adapter:
             return frame is not None and frame.type in types
         return answers
 
-    async def _transact(self, telegram: bytes, types: set[int], describe: str) -> codec.Answer:
+    async def _transact(self, telegram: bytes, types: set[int], describe: str, **options) -> codec.Answer:
         self.state.counters.requests += 1
         try:
-            raw = await self.line.transact(self._frame(telegram), self._matcher(types), describe=describe)
+            raw = await self.line.transact(self._frame(telegram), self._matcher(types), describe=describe, **options)
         except SerialTimeout:
             self.state.counters.timeouts += 1
             raise
@@ -220,11 +244,34 @@ class Mo64Adapter:
         return answer
 
     async def query(self, index: int, level: int | None = None) -> codec.Answer:
-        """One query (table 21) and its answer telegram, published; nak raises :class:`CommandError`."""
-        telegram = codec.encode_query(index, level)
+        """One query (table 21) and its answer telegram, published; nak raises :class:`CommandError`.
+
+        Until the unit has answered one, the document's form ``02 Auswahl index`` (page 33) is tried
+        first and the short form ``02 Auswahl`` after a nak or no answer; the form the unit took is
+        kept (``query_form``, shown on the page). SPEC-NOTES "Query form".
+        """
         answer_type = index + codec.QUERY_ANSWER_OFFSET
         what = codec.TELEGRAMS[answer_type] + (f" level {level}" if level is not None else "")
-        answer = await self._transact(telegram, {answer_type, codec.Reply.NAK}, f"query {what}")
+        forms = [self.query_form] if self.query_form else list(codec.QUERY_FORMS)
+        telegrams = list(dict.fromkeys(codec.encode_query(index, level, form) for form in forms))
+        answer = None
+        for n, telegram in enumerate(telegrams):
+            last = n == len(telegrams) - 1
+            try:
+                answer = await self._transact(telegram, {answer_type, codec.Reply.NAK}, f"query {what}")
+            except SerialTimeout:
+                self._timed_out[answer_type] = time.monotonic()
+                if last:
+                    raise
+                continue
+            if answer.reply is not codec.Reply.NAK:
+                if self.query_form is None and len(telegrams) > 1:
+                    self.query_form = forms[n]
+                    self.state.info["query_form"] = self.query_form
+                    self.state.event("info", "queries: the unit takes the " + (
+                        "document's form 02 Auswahl index (page 33)" if forms[n] == "document"
+                        else "short form 02 Auswahl (the document's form was refused)"))
+                break
         if answer.reply is codec.Reply.NAK:
             self._reply(f"query {what}: nak")
             raise CommandError(f"the barrier answered the query for {what} with nak")
@@ -236,6 +283,20 @@ class Mo64Adapter:
         self.state.info["last_reply"] = text
 
     # -- unsolicited telegrams (chapter 3, change monitoring) ------------------------------------------
+    def armed(self, answer_type: int) -> bool:
+        """Whether the barrier was told to send telegram ``answer_type`` on change (chapter 5.1.9): its flag
+        in the change monitoring read from the unit, and for the barrier status a status mask that is
+        not 0 (page 18: factory mask 0 watches nothing). Over TCP only (chapter 3)."""
+        if self.rs485 or answer_type not in MONITOR_BITS:
+            return False
+        flags = self.settings.get("change_monitoring")
+        if not isinstance(flags, int) or not flags >> MONITOR_BITS[answer_type] & 1:
+            return False
+        if answer_type == 0x07:
+            mask = self.settings.get("status_mask")
+            return isinstance(mask, int) and mask != 0
+        return True
+
     def _unsolicited(self, telegram: bytes) -> None:
         frame = self._decode(telegram)
         if frame is None:
@@ -247,11 +308,18 @@ class Mo64Adapter:
         except codec.CodecError:
             self.state.counters.malformed += 1
             return
+        now = time.monotonic()
         if answer.reply is not None:
-            if self._late is not None:
-                self._late.put_nowait(answer)
+            self._count_late(f"{answer.name} that answers no request")
             return
-        self._monitor_last = time.monotonic()
+        asked = self._timed_out.pop(answer.type, None)
+        if asked is not None and now - asked < LATE_WINDOW_S:
+            self._count_late(f"{answer.name} after its query timed out")  # not change monitoring
+        elif self.armed(answer.type):
+            self._monitor_last = now
+        else:
+            self.unexpected_telegrams += 1
+            self.state.info["unexpected_telegrams"] = self.unexpected_telegrams
         self.state.mark_seen()
         before = self.state.points.get(NAMES.get(answer.type, ""))
         self._publish(answer)
@@ -284,22 +352,28 @@ class Mo64Adapter:
                 pub(key, bool(bit), raw=int(bool(bit)), time=now)
         elif t == 0x1F:
             for loop, count in zip("ABC", x):
-                pub(f"Loop-adjust counter {loop}", int(count), raw=int(count), time=now)
+                pub(f"Loop-adjust counter {loop}", int(count), raw=int(count), time=now, every=self._rotation_s)
         elif t == 0x17:
             self._error_entry(x)
         elif t == 0x1C:
-            pub("Vehicle counter", int(x), raw=int(x), text=f"{int(x)} (RAM only: 0 after power-up)", time=now)
-        elif t in (0x0A, 0x0B, 0x14, 0x16, 0x06, 0x1A):
-            unit = "h" if t == 0x16 else ""
-            pub(name, int(x), unit, raw=int(x), time=now, periodic=t not in (0x14, 0x06))
-        else:
-            periodic = t not in (0x05, 0x15)
-            pub(name, to_json(x), raw=to_json(x), text=value_text(t, x), time=now, periodic=periodic)
+            pub("Vehicle counter", int(x), raw=int(x), text=f"{int(x)} (RAM only: 0 after power-up)", time=now,
+                every=self._rotation_s)
+        elif t in (0x0A, 0x0B, 0x16):  # counters read in turn: stale after a few of their own rounds
+            pub(name, int(x), "h" if t == 0x16 else "", raw=int(x), time=now, every=self._rotation_s)
+        elif t in (0x14, 0x06, 0x1A):
+            pub(name, int(x), raw=int(x), time=now, periodic=False)
+        else:  # identity, settings and modes: read at start-up and after writes, they do not age
+            pub(name, to_json(x), raw=to_json(x), text=value_text(t, x), time=now, periodic=False)
         setting = next((s for s in codec.SETTINGS.values() if s.query + codec.QUERY_ANSWER_OFFSET == t), None)
         if setting is not None:
             self.settings[setting.key] = to_json(x)
         if t == 0x09:
             self.state.info["monitoring"] = "on" if int(x) else "off"
+
+    @property
+    def _rotation_s(self) -> float:
+        """How often one counter read in turn comes round (one per cycle)."""
+        return len(ROTATING_QUERIES) * self.poll_period
 
     def _error_entry(self, x: Any) -> None:
         if isinstance(x, (list, tuple)):
@@ -312,54 +386,102 @@ class Mo64Adapter:
         self.state.info["error_memory"] = list(entries)
         newest = entries[0] if entries else None
         self.state.publish("Error memory", None if newest is None else newest["flags"],
-                           raw=None if newest is None else newest["flags"],
+                           raw=None if newest is None else newest["flags"], periodic=False,
                            text="empty" if newest is None else
                            f"newest: flags 0x{newest['flags']:08X} at {newest['timestamp_h']} h")
 
     # -- polling -----------------------------------------------------------------------------------------
+    def _count_late(self, what: str) -> None:
+        self.late_answers += 1
+        self.state.info["late_answers"] = self.late_answers
+        self.state.event("warning", f"late answer: {what}")
+
     @property
     def monitoring_active(self) -> bool:
         return self._monitor_last is not None and time.monotonic() - self._monitor_last < MONITOR_FRESH_S
 
+    def _slowed(self, index: int) -> bool:
+        """Gate state and position are asked only every few cycles while the barrier reports their changes;
+        the barrier status never is (its safety bits show within one poll period)."""
+        if index == codec.Q_BARRIER_STATUS or not self.monitoring_active:
+            return False
+        return self.armed(index + codec.QUERY_ANSWER_OFFSET) and self._cycle % MONITORED_POLL_EVERY != 0
+
     async def poll(self) -> None:
-        """One cycle; faults are named in the state, never raised."""
+        """One cycle: the live queries first, each on its own (a nak or no answer of one never holds up
+        the others), one counter in turn, then a few of the start-up reads that are still due. Faults are
+        named in the state, never raised."""
         if getattr(self.line, "released", False):
             self.state.info["connection"] = "released"
             return
+        problems: list[str] = []
         try:
-            if not self._have_identity:
-                for index in IDENTITY_QUERIES:
+            for index in LIVE_QUERIES:
+                if self._slowed(index):
+                    continue
+                try:
                     await self.query(index)
-                self._have_identity = True
-            if not self._have_settings:
-                await self.read_settings()
-            if not self._have_errors:
-                await self.read_error_memory()
-            if not self.monitoring_active or self._cycle % MONITORED_POLL_EVERY == 0:
-                for index in LIVE_QUERIES:
-                    await self.query(index)
-            await self.query(ROTATING_QUERIES[self._rotate % len(ROTATING_QUERIES)])
+                except (CommandError, SerialTimeout, codec.CodecError) as exc:
+                    problems.append(str(exc))
+            index = ROTATING_QUERIES[self._rotate % len(ROTATING_QUERIES)]
             self._rotate += 1
-        except CommandError as exc:
-            self.state.error(f"poll: {exc}", log=False)
+            await self._optional(self._optional_live.setdefault(index, {"state": "pending", "failures": 0, "next": 0.0}),
+                                 index, NAMES.get(index + codec.QUERY_ANSWER_OFFSET))
+            due = [key for key, read in self._reads.items() if read["state"] != "done" and read["next"] <= time.monotonic()]
+            for kind, n in due[:STARTUP_READS_PER_CYCLE]:
+                if kind == "query":
+                    await self._optional(self._reads[(kind, n)], n, NAMES.get(n + codec.QUERY_ANSWER_OFFSET))
+                else:
+                    await self._optional(self._reads[(kind, n)], codec.Q_ERROR_MEMORY, None, level=n)
+            if problems:
+                self.state.error(f"poll: {'; '.join(problems)}", log=False)
         except (SerialLineError, codec.CodecError) as exc:
             self.state.error(f"poll: {exc}", log=False)
         finally:
             self._cycle += 1
+            self._show_reads()
             self.state.info["connection"] = "connected" if getattr(self.line, "connected", True) else "not connected"
-            self.state.info["polling"] = "slow (changes are reported)" if self.monitoring_active else "every cycle"
+            self.state.info["polling"] = ("gate state and position slower (changes are reported); status every cycle"
+                                          if self.monitoring_active else "every cycle")
+
+    async def _optional(self, read: dict, index: int, point: str | None, level: int | None = None) -> bool:
+        """One optional read: a nak marks it not available on this unit, no answer as not answered; either is
+        tried again later with backoff (:data:`OPTIONAL_RETRY_S`). A closed line ends the cycle (raised)."""
+        try:
+            await self.query(index, level)
+        except (CommandError, SerialTimeout) as exc:
+            read["failures"] += 1
+            read["state"] = UNAVAILABLE if isinstance(exc, CommandError) else "no answer"
+            read["next"] = time.monotonic() + OPTIONAL_RETRY_S[min(read["failures"], len(OPTIONAL_RETRY_S)) - 1]
+            if point is not None and isinstance(exc, CommandError):
+                entry = self.state.points.get(point)
+                if entry is None or entry.value is None:
+                    self.state.publish(point, None, text=UNAVAILABLE, periodic=False)
+            return False
+        read["state"] = "done"
+        read["failures"] = 0
+        return True
+
+    def _show_reads(self) -> None:
+        names = [NAMES.get(key[1] + codec.QUERY_ANSWER_OFFSET, f"query 0x{key[1]:02X}")
+                 for key, read in [*self._reads.items(), *((("query", i), r) for i, r in self._optional_live.items())]
+                 if key[0] == "query" and read["state"] == UNAVAILABLE]
+        self.state.info["unavailable"] = sorted(set(names))
+        self.state.info["error_memory_unavailable"] = [
+            level for (kind, level), read in self._reads.items() if kind == "error memory" and read["state"] == UNAVAILABLE]
 
     async def read_settings(self) -> dict[str, Any]:
         for index in SETTING_QUERIES:
-            await self.query(index)
-        self._have_settings = True
+            await self._optional(self._reads[("query", index)], index, NAMES.get(index + codec.QUERY_ANSWER_OFFSET))
+        self._show_reads()
         return dict(self.settings)
 
     async def read_error_memory(self) -> list[dict]:
-        """The 10 levels (chapter 5.1.23), newest first; the level byte of the query is an assumption."""
+        """The 10 levels (chapter 5.1.23), newest first; the level byte of the query is an assumption. A level
+        the unit refuses is shown as not available; the others are read."""
         for level in range(codec.ERROR_MEMORY_LEVELS):
-            await self.query(codec.Q_ERROR_MEMORY, level)
-        self._have_errors = True
+            await self._optional(self._reads[("error memory", level)], codec.Q_ERROR_MEMORY, None, level=level)
+        self._show_reads()
         return list(self.error_memory)
 
     # -- commands (chapter 5.2.1) -------------------------------------------------------------------------
@@ -399,27 +521,48 @@ class Mo64Adapter:
         self.levels.pop(cmd, None)
         self.state.info["levels"] = sorted(COMMAND_NAMES[c] for c in self.levels)
 
-    async def clear_levels(self, session: str | None = None) -> list[str]:
-        """Deactivate every level this tool set (any session may clear them)."""
-        cleared = []
+    async def clear_levels(self, session: str | None = None, confirmed: bool = False) -> list[str]:
+        """Deactivate the levels this tool set (and only those: a level set by another master or at the
+        barrier is not touched). An engineer command (the worker checks the role); it asks first
+        (``confirmed``), since deactivating an open level lets the boom close (page 33)."""
+        if not confirmed:
+            raise NeedsConfirmation("clearing the levels may move the boom (an open level released lets it "
+                                    "close): check that nobody stands under it, then confirm")
+        cleared, failed = [], []
         for cmd in list(self.levels):
-            await self._deactivate(cmd, "clear levels")
-            cleared.append(COMMAND_NAMES[cmd])
+            if await self._deactivate(cmd, "clear levels"):
+                cleared.append(COMMAND_NAMES[cmd])
+            else:
+                failed.append(COMMAND_NAMES[cmd])
+        if failed:
+            raise CommandError(f"not deactivated (still active in the barrier): {', '.join(failed)}"
+                               + (f"; deactivated: {', '.join(cleared)}" if cleared else ""))
         return cleared
 
-    async def _deactivate(self, cmd: codec.Command, why: str) -> None:
+    def closing_frames(self) -> list[bytes]:
+        """The deactivations of the close and reverse levels this tool set, sent by the line as it closes
+        (the tool stops): a level the dead-man rule would release is not left behind in the barrier."""
+        frames = []
+        for cmd in [c for c in self.levels if c in HELD_LEVELS]:
+            frames.append(self._frame(codec.encode_command(cmd, codec.Function.DEACTIVATE)))
+            self.state.event("warning", f"the tool stops: {COMMAND_NAMES[cmd]} deactivate sent")
+            self._drop_level(cmd)
+        return frames
+
+    async def _deactivate(self, cmd: codec.Command, why: str) -> bool:
         words = f"{COMMAND_NAMES[cmd]} deactivate ({why})"
         try:
             answer = await self._transact(codec.encode_command(cmd, codec.Function.DEACTIVATE),
                                           {codec.Reply.ACK, codec.Reply.NAK}, words)
         except (SerialLineError, codec.CodecError) as exc:
             self.state.error(f"{words} not answered: {exc}")
-            return
+            return False
         self._reply(f"{words}: {answer.name}")
         if answer.reply is codec.Reply.ACK:
             self._drop_level(cmd)
-        else:
-            self.state.event("warning", f"{words}: {answer.name}")
+            return True
+        self.state.event("warning", f"{words}: {answer.name}")
+        return False
 
     def holders(self) -> set[str]:
         """Sessions whose close or reverse level is still active in the barrier (see HELD_LEVELS)."""
@@ -443,29 +586,47 @@ class Mo64Adapter:
             await asyncio.gather(*list(self._stop_tasks), return_exceptions=True)
 
     # -- settings (chapter 5.2.4-5.2.8) --------------------------------------------------------------------
-    async def write_setting(self, session: str, key: str, value: Any) -> Any:
-        """Write one setting, handle busy / syn / ack / nak, read it back; returns the read-back value."""
+    async def write_setting(self, session: str, key: str, value: Any, selector_verified: bool = False) -> Any:
+        """Write one setting, handle busy / syn / ack / nak, read it back; returns the read-back value.
+
+        A setting whose selector is an assumption (codec ``Setting.assumed``) is refused unless the
+        engineer confirms (``selector_verified``, kept for this unit) that the selector is verified on
+        this unit: a wrong selector would write another EEPROM setting.
+        """
         setting = codec.SETTINGS.get(key)
         if setting is None:
             raise CommandError(f"no setting {key!r}")
+        if setting.assumed and not (selector_verified or key in self.verified_selectors):
+            raise CommandError(f"{setting.name}: not written: the selector 0x{setting.telegram:02X} "
+                               f"0x{setting.selector:02X} is an assumption ({setting.assumed}); write it only after "
+                               "confirming that the selector is verified on this unit")
         try:
             telegram = codec.encode_setting(key, value)
         except codec.CodecError as exc:
             raise CommandError(str(exc)) from None
+        if setting.assumed:
+            self.verified_selectors.add(key)
+            self.state.info["verified_selectors"] = sorted(self.verified_selectors)
         replies = {codec.Reply.ACK, codec.Reply.NAK, codec.Reply.BUSY, codec.Reply.SYN}
-        self._late = asyncio.Queue()
+        syn: list[bool] = []
+
+        def interim(raw: bytes) -> bool:  # syn, then ack or nak within the same exchange (chapter 5.2.4)
+            frame = self._decode(raw)
+            if frame is not None and frame.type == codec.Reply.SYN:
+                syn.append(True)
+                return True
+            return False
+
         try:
-            answer = await self._transact(telegram, replies, f"set {setting.name}")
-            if answer.reply is codec.Reply.SYN:
-                if setting.eeprom:
-                    self._count_write(session)
-                try:
-                    answer = await asyncio.wait_for(self._late.get(), SYN_ACK_TIMEOUT_S)
-                except asyncio.TimeoutError:
-                    self.state.counters.timeouts += 1
-                    raise CommandError(f"{setting.name}: syn, but no ack or nak within {SYN_ACK_TIMEOUT_S:g} s") from None
+            answer = await self._transact(telegram, replies, f"set {setting.name}", interim=interim,
+                                          interim_timeout=SYN_ACK_TIMEOUT_S)
+        except SerialTimeout:
+            if not syn:
+                raise
+            raise CommandError(f"{setting.name}: syn, but no ack or nak in time") from None
         finally:
-            self._late = None
+            if syn and setting.eeprom:
+                self._count_write(session)
         result = answer.name
         self._reply(f"set {setting.name}: {result}")
         if answer.reply is codec.Reply.BUSY:
@@ -549,6 +710,8 @@ class Mo64Adapter:
         return value_text(answer_type, wire.decode(setting.vtype.encode(from_json(setting, value))))
 
     async def restore_entry(self, key: str, raw: Any, session: str = "restore") -> None:
+        """Write one backed-up setting; one on an assumed selector only once an engineer confirmed on the
+        device page that the selector is verified on this unit (else refused, nothing sent)."""
         setting = codec.SETTINGS.get(key)
         if setting is None or not setting.backup:
             raise CommandError(f"{key} is not restored (read-only, or RAM only like the vehicle counter)")

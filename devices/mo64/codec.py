@@ -416,13 +416,22 @@ class Function(IntEnum):
     DEACTIVATE = 0x02  # level off
 
 
-def encode_query(index: int, level: int | None = None) -> bytes:
+QUERY_FORMS = ("document", "short")  # SPEC-NOTES "Query form": the document's 02 Auswahl index, else 02 Auswahl
+
+
+def encode_query(index: int, level: int | None = None, form: str = "short") -> bytes:
     """A query telegram (type + payload), framed by :func:`encode_frame`.
 
     :param index: 0x00 .. 0x1A (table 21)
     :param level: error memory level 0..9, only for :data:`Q_ERROR_MEMORY` (ASSUMED byte)
+    :param form: "short" ``02 Auswahl`` (the public client's golden vectors) or "document"
+        ``02 Auswahl index`` (page 33), whose index byte is the level for the error memory, else 0
     :raises CodecError: a forbidden ("Nicht verwenden!") or invalid index
     """
+    if form not in QUERY_FORMS:
+        raise CodecError(f"query form {form!r} is not one of {', '.join(QUERY_FORMS)}")
+    if form == "document" and level is None and index != Q_ERROR_MEMORY:
+        return encode_query(index, None, "short") + b"\x00"
     if isinstance(index, bool) or not isinstance(index, int):
         raise CodecError(f"query index {index!r} is not a number")
     if index in FORBIDDEN_QUERIES:
@@ -815,12 +824,12 @@ def decode_request(frame: Frame | bytes, framing: Framing = TCP) -> Request:
         raise InvalidRequest(f"unknown telegram type 0x{frame.type:02X}", frame) from None
     p = frame.payload
     if kind is RequestType.QUERY:
-        if len(p) not in (1, 2) or (len(p) == 2 and p[0] != Q_ERROR_MEMORY):
+        if len(p) not in (1, 2):  # 02 Auswahl (short form) or 02 Auswahl index (the document's, p. 33)
             raise InvalidRequest(f"query with {len(p)} data bytes", frame)
         if p[0] in FORBIDDEN_QUERIES or p[0] not in QUERY_INDEXES:
             raise InvalidRequest(f"query index 0x{p[0]:02X} is invalid (table 21)", frame)
         level = p[1] if len(p) == 2 else None
-        if level is not None and level >= ERROR_MEMORY_LEVELS:
+        if level is not None and p[0] == Q_ERROR_MEMORY and level >= ERROR_MEMORY_LEVELS:
             raise InvalidRequest(f"error memory level {level} is not 0 .. 9", frame)
         return Request(kind, p, query=p[0], level=level, frame=frame)
     if kind is RequestType.COMMAND:

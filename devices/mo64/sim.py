@@ -39,7 +39,7 @@ import asyncio
 import logging
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 from urllib.parse import urlparse
@@ -52,7 +52,7 @@ log = logging.getLogger(__name__)
 TICK_S = 0.02
 SIM_LOG_LIMIT = 1000  # what the twin keeps of its own traffic for the tests (it runs for hours in the demo)
 TRAVEL_S = 2.5  # closed -> open; a twin value, the document names no travel time
-EEPROM_WRITE_S = 0.05  # between syn and ack
+EEPROM_WRITE_S = 0.08  # between syn and ack (a twin value: long enough that an ack outlives a token passed at syn)
 DEFAULT_T_OPEN = 1000  # 10 ms units: 10 s
 DEFAULT_T_PREWARN = 50  # 10 ms units: 0.5 s
 DEFAULT_MAINTENANCE_INTERVAL = 100_000
@@ -78,11 +78,22 @@ class Mo64Twin:
     """
 
     def __init__(self, name: str = "mo64", address: int | None = None, serial_number: int = 6400001,
-                 travel_s: float = TRAVEL_S, position_known: bool = True):
+                 travel_s: float = TRAVEL_S, position_known: bool = True, refuse_queries: Iterable[int] = (),
+                 query_form: str = "both", late: Mapping[int, float] | None = None):
         self.name = name
         self.address = address
         self.travel_s = float(travel_s)
         self.clock = 0.0
+        # strict modes a real unit may have: optional queries it naks (an RS485-only unit has no MAC,
+        # 0x10; a unit may refuse error-memory levels, 0x12), the query form it takes (table 21 prints
+        # "0x02 Auswahl index": "document" takes only that three-byte form, "short" only 02 Auswahl,
+        # "both" either), and queries it answers late (index -> delay in s)
+        self.refuse_queries = set(refuse_queries)
+        if query_form not in ("both", "document", "short"):
+            raise ValueError(f"query_form {query_form!r}: both, document or short")
+        self.query_form = query_form
+        self.late = dict(late or {})
+        self.eeprom_write_s = EEPROM_WRITE_S
         # identity (chapter 5.1.5, 5.1.6, 5.1.20, 5.1.21)
         self.device_code = DEVICE_CODE
         self.program_version = PROGRAM_VERSION
@@ -356,7 +367,14 @@ class Mo64Twin:
         except codec.CodecError as exc:
             return self._nak(str(exc))
         if request.kind is RequestType.QUERY:
-            return [(0.0, self.answer(request.query + codec.QUERY_ANSWER_OFFSET, request.level))]
+            three = len(request.payload) == 2
+            if (self.query_form == "document" and not three) or (
+                    self.query_form == "short" and three and request.query != codec.Q_ERROR_MEMORY):
+                return self._nak(f"query form {request.payload.hex(' ')} not taken by this unit ({self.query_form})")
+            if request.query in self.refuse_queries:
+                return self._nak(f"query 0x{request.query:02X} not available on this unit")
+            level = request.level if request.query == codec.Q_ERROR_MEMORY else None
+            return [(self.late.get(request.query, 0.0), self.answer(request.query + codec.QUERY_ANSWER_OFFSET, level))]
         if request.kind is RequestType.COMMAND:
             return [(0.0, self._command(request.command, request.function))]
         if request.kind is RequestType.SHORT_COMMAND:
@@ -404,7 +422,7 @@ class Mo64Twin:
             value = tuple(value)
         self.settings[setting.key] = value
         self.setting_writes[setting.key] = self.setting_writes.get(setting.key, 0) + 1
-        return [(0.0, bytes((Reply.SYN,))), (EEPROM_WRITE_S, bytes((Reply.ACK,)))]
+        return [(0.0, bytes((Reply.SYN,))), (self.eeprom_write_s, bytes((Reply.ACK,)))]
 
 
 # -- servers -----------------------------------------------------------------------------------------
@@ -418,7 +436,8 @@ def _host_port(url: str) -> tuple[str, int]:
 def _twin_for(dev: Any, address: int | None = None) -> Mo64Twin:
     opts = dev.options
     return Mo64Twin(dev.name, address, int(opts.get("serial_number", 6400000 + (address or 1))),
-                    float(opts.get("travel_s", TRAVEL_S)))
+                    float(opts.get("travel_s", TRAVEL_S)), refuse_queries=opts.get("refuse_queries", ()),
+                    query_form=opts.get("query_form", "both"))
 
 
 class _Ticker:
@@ -574,6 +593,8 @@ class Mo64Rs485Sim:
         self.own_answers: deque[bytes] = deque(maxlen=SIM_LOG_LIMIT)
         self.unaddressed = 0
         self.garbage = 0
+        self.collisions = 0  # answers a barrier sent in another master's turn (see _answer)
+        self._answering: set[asyncio.Task] = set()
         self._token_back = asyncio.Event()
 
     async def start(self) -> None:
@@ -635,9 +656,21 @@ class Mo64Rs485Sim:
         if twin is None:
             self.unaddressed += 1
             return  # nobody answers a telegram addressed to nobody
-        for delay, telegram in twin.handle(frame):
+        # the barrier answers on its own time while the line goes on (a token passed meanwhile is heard)
+        task = asyncio.create_task(self._answer(twin, frame, twin.handle(frame)))
+        self._answering.add(task)
+        task.add_done_callback(self._answering.discard)
+
+    async def _answer(self, twin: Mo64Twin, frame: codec.Frame, answers: list[tuple[float, bytes]]) -> None:
+        for delay, telegram in answers:
             await asyncio.sleep(delay or 0.002)
-            await self._put(codec.encode_frame(telegram, codec.RS485, da=frame.sa, sa=twin.address))
+            raw = codec.encode_frame(telegram, codec.RS485, da=frame.sa, sa=twin.address)
+            if self.shared and frame.sa == self.master_address and not self.tool_has_token:
+                # the other master holds the token and may send at any moment of its turn: a slave's
+                # answer in that turn collides with it (two stations at once); everyone hears garbage
+                self.collisions += 1
+                raw = raw[:-2] + bytes((raw[-2] ^ 0xFF, raw[-1] ^ 0xFF))
+            await self._put(raw)
 
     async def _second_master(self) -> None:
         rounds = 0
@@ -678,6 +711,8 @@ class Mo64Rs485Sim:
 
     async def stop(self) -> None:
         self._ticker.stop()
+        for task in list(self._answering):
+            task.cancel()
         if self._master_task:
             self._master_task.cancel()
             self._master_task = None
