@@ -324,6 +324,7 @@ class CheckoutContext:
         self.session = run.session
         self.user = run.user
         self.settings = run.settings
+        self.adapter = runtime.worker.adapters[run.device]  # to ask what it offers; commands go through command()
 
     @property
     def step(self) -> StepResult:

@@ -1,0 +1,85 @@
+"""CAN-M3IO checkout: each SSR output switched on, then off, with its load, fuse and triac states.
+
+Declared here, run by the generic runner (``app/record.py``). Section 7.2.3: with the output on,
+Last = 1 (a load and supply), Si = 1 (fuse intact) and Triac = 1 (conducting) are expected; on the
+HMR, SSR1-3 is one three-phase output whose three phases must all report a load (two with P2,
+section 4.3). Every output is switched off again in the cleanup, also after a failure or an abort.
+"""
+
+from __future__ import annotations
+
+from devices.m3io import codec
+
+TITLE = "SSR outputs on and off"
+SETTINGS = {"settle_s": 3.0}  # the module reports the load state in its next temperature frames
+
+
+def _channels(output: str) -> list[int]:
+    return [1, 2, 3] if output == "SSR1-3" else [int(output[3:])]
+
+
+def outputs(options: dict) -> list[str]:
+    variant = codec.Variant(options.get("variant", "HM"))
+    return [name for name in codec.OUTPUT_BITS[variant] if name.startswith("SSR")]
+
+
+def steps(options: dict, settings: dict) -> list[dict]:
+    listed = [{"name": "Loads connected, area safe (asked)", "limits": "the engineer confirms", "run": _ask}]
+    for output in outputs(options):
+        listed.append({"name": f"{output} on then off",
+                       "limits": f"on: Last, Si and Triac ok within {settings['settle_s']:g} s; off: output off",
+                       "run": lambda ctx, o=output: _cycle(ctx, o)})
+    return listed
+
+
+async def _ask(ctx) -> None:
+    await ctx.ask("Are the loads connected and supplied, and is it safe to switch the mains outputs?")
+    await _take(ctx)
+
+
+async def _take(ctx) -> None:
+    """Control of the module for the run's session, where the adapter asks for it (take_control)."""
+    if callable(getattr(ctx.adapter, "take_control", None)):
+        await ctx.command("take control", lambda a: a.take_control(ctx.session, ctx.user))
+
+
+def _point(ctx, name: str):
+    return ctx.value(name)
+
+
+def _healthy(ctx, channels: list[int]) -> bool:
+    return all(_point(ctx, f"SSR{c} Last") is True and _point(ctx, f"SSR{c} Si") == "ok" and _point(ctx, f"SSR{c} Triac") == "ok"
+               for c in channels)
+
+
+async def _cycle(ctx, output: str) -> None:
+    settle = ctx.settings["settle_s"]
+    channels = _channels(output)
+    await ctx.command(f"{output} on", lambda a: a.set_output(ctx.session, output, True))
+    healthy = await ctx.wait(lambda: _healthy(ctx, channels) and ctx.value(output) is True, settle)
+    for c in channels:
+        ctx.measure(f"SSR{c} Last (load)", _point(ctx, f"SSR{c} Last"), expect=True, fail=False)
+        ctx.measure(f"SSR{c} Si (fuse)", _point(ctx, f"SSR{c} Si"), expect="ok", fail=False)
+        ctx.measure(f"SSR{c} Triac", _point(ctx, f"SSR{c} Triac"), expect="ok", fail=False)
+    temp = ctx.value(f"TEMP{channels[0]}")
+    if temp is not None:
+        ctx.measure(f"TEMP{channels[0]}", temp, "°C", fail=False)
+    faults = ctx.state.info.get("faults") or []
+    await ctx.command(f"{output} off", lambda a: a.set_output(ctx.session, output, False), write=False)
+    off = await ctx.wait(lambda: ctx.value(output) is False, 1.0)
+    ctx.measure(f"{output} off again", ctx.value(output), expect=False)
+    if not healthy:
+        bad = [v for v in ctx.step.values if not v["ok"]]
+        why = "; ".join(f"{v['name']} {v['value']}" for v in bad) or "no answer"
+        ctx.fail(f"{output}: {why}" + (f" (module reports: {'; '.join(faults)})" if faults else ""))
+    if not off:
+        ctx.fail(f"{output} did not switch off")
+
+
+async def cleanup(ctx, settings: dict) -> None:
+    """Every output off (never refused)."""
+    for output in outputs(ctx.options):
+        if ctx.value(output):
+            await ctx.command(f"{output} off", lambda a, o=output: a.set_output(ctx.session, o, False), write=False)
+    if callable(getattr(ctx.adapter, "release_control", None)):
+        await ctx.command("release control", lambda a: a.release_control(ctx.session, "checkout finished"), write=False)
