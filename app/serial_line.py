@@ -112,6 +112,46 @@ class SerialLine:
         self._failures = 1
         self._next_open = time.monotonic() + REOPEN_BACKOFF_S[0]
 
+    # -- resynchronising, waking -----------------------------------------------------------
+    def _flush_blocking(self, port: serial.SerialBase, quiet_s: float, limit_s: float) -> int:
+        """Read and drop bytes until the line has been quiet for ``quiet_s`` (at most ``limit_s``)."""
+        dropped = 0
+        end = time.monotonic() + limit_s
+        port.timeout = quiet_s
+        while time.monotonic() < end:
+            chunk = port.read(max(1, port.in_waiting or 0))
+            if not chunk:
+                break
+            dropped += len(chunk)
+        return dropped
+
+    async def flush_input(self, quiet_s: float = 0.03, limit_s: float = 0.3) -> int:
+        """Drop whatever is still arriving (the tail of a shifted or late answer) so that the next answer
+        starts at its first byte; the number of bytes dropped."""
+        async with self._lock:
+            if self.port is None:
+                return 0
+            try:
+                dropped = await asyncio.to_thread(self._flush_blocking, self.port, quiet_s, limit_s)
+            except (serial.SerialException, OSError) as exc:
+                self._lost(exc)
+                raise SerialClosed(f"line {self.name}: {self.state.last_error}") from None
+        if dropped:
+            log.info("%s: %d byte(s) dropped to resynchronise", self.name, dropped)
+        return dropped
+
+    async def wake(self, duration_s: float = 0.15) -> None:
+        """Hold TxD (the unit's RxD) at space for ``duration_s``: a break, which wakes a unit in low power
+        (Ewellix SCU, section 3: at least 100 ms, firmware V2B1). URL ports without a break (socket://) ignore it."""
+        async with self._lock:
+            if not await self.connect():
+                raise SerialClosed(f"line {self.name}: {self.state.last_error}")
+            try:
+                await asyncio.to_thread(self.port.send_break, duration_s)
+            except (serial.SerialException, OSError) as exc:
+                self._lost(exc)
+                raise SerialClosed(f"line {self.name}: {self.state.last_error}") from None
+
     # -- requests -----------------------------------------------------------------------
     def _exchange_blocking(self, port: serial.SerialBase, request: bytes, complete: Completion, timeout: float) -> bytes:
         stale = port.read(port.in_waiting or 0) if port.in_waiting else b""

@@ -108,13 +108,29 @@ def make_adapter(port: int, keepalive: float = 60.0, **options) -> ScuAdapter:
 
 
 CYCLIC = p.CyclicDefinition(read_ids=CYCLIC_READ_IDS)
-OPENING = [
-    (TX, codec.encode_ro(1)), (RX, ok(codec.RO)),
-    (TX, codec.KEEP_ALIVE), (RX, ok(codec.RC)),
-    (TX, codec.encode_rt(0x3001, CYCLIC.encode())), (RX, ok(codec.RT)),
-    (TX, codec.encode_rg(0x2001)), (RX, ok(codec.RG, positions())),
-    (TX, codec.encode_rg(0x2002)), (RX, ok(codec.RG, positions(ends=(100, 5100)))),
-]
+# Section 4.1: RG only in remote mode. The first RG outside a session is refused with PE: the unit is
+# then watched through a session opened for reading.
+PROBE = [(TX, codec.encode_rg(0x0011)), (RX, refused(codec.RG, codec.Status.PE))]
+FACTOR_UNSET = ok(codec.RG, bytes(4))  # conversion factor 0.0: no mm from it
+
+
+def opening(factor_1: bool = True, factor_2: bool = True) -> list:
+    """Probe, RO, RC, the cyclic definition, the end positions and, for an actuator without a scale in the
+    plant file, its conversion factor (0x1011..)."""
+    steps = PROBE + [
+        (TX, codec.encode_ro(1)), (RX, ok(codec.RO)),
+        (TX, codec.KEEP_ALIVE), (RX, ok(codec.RC)),
+        (TX, codec.encode_rt(0x3001, CYCLIC.encode())), (RX, ok(codec.RT)),
+        (TX, codec.encode_rg(0x2001)), (RX, ok(codec.RG, positions()))]
+    if factor_1:
+        steps += [(TX, codec.encode_rg(0x1011)), (RX, FACTOR_UNSET)]
+    steps += [(TX, codec.encode_rg(0x2002)), (RX, ok(codec.RG, positions(ends=(100, 5100))))]
+    if factor_2:
+        steps += [(TX, codec.encode_rg(0x1012)), (RX, FACTOR_UNSET)]
+    return steps
+
+
+OPENING = opening()
 
 
 def cyclic_answer(pos1: int = 1500, status1: int = 0x11, error: int = 0) -> bytes:
@@ -130,7 +146,7 @@ def cyclic_answer(pos1: int = 1500, status1: int = 0x11, error: int = 0) -> byte
 
 
 async def test_opening_the_session_defines_the_cyclic_object_and_brings_live_data_with_rc():
-    async with Script(OPENING) as script:
+    async with Script(opening(False, False)) as script:
         adapter = make_adapter(script.port, actuators=[{"counts_per_mm": 10}, {"stroke_mm": 250}])
         await adapter.poll()
         assert adapter.session == "open" and adapter.cyclic == CYCLIC
@@ -149,7 +165,7 @@ async def test_opening_the_session_defines_the_cyclic_object_and_brings_live_dat
 
 
 async def test_refused_cyclic_definition_falls_back_to_rg_and_says_so():
-    steps = OPENING[:5] + [(RX, refused(codec.RT, codec.Status.PDE))] + OPENING[6:]  # PDE to the definition
+    steps = OPENING[:7] + [(RX, refused(codec.RT, codec.Status.PDE))] + OPENING[8:]  # PDE to the definition
     async with Script(steps) as script:
         adapter = make_adapter(script.port)
         await adapter.poll()
@@ -168,7 +184,7 @@ async def test_refused_cyclic_definition_falls_back_to_rg_and_says_so():
 
 
 async def test_move_to_a_remote_position_is_followed_by_its_rs():
-    async with Script(OPENING) as script:
+    async with Script(opening(False, True)) as script:
         adapter = make_adapter(script.port, actuators=[{"counts_per_mm": 10}, {}])
         await adapter.poll()
         adapter.take_control("s1", "anna")
@@ -209,12 +225,14 @@ async def test_dead_man_sends_rs_at_once_and_releases_control():
 async def test_bad_crc_is_counted_and_retried_and_error_answers_are_named():
     bad = bytearray(ok(codec.RO))
     bad[-1] ^= 0xFF
-    steps = [(TX, codec.encode_ro(1)), (RX, bytes(bad)), (TX, codec.encode_ro(1)), (RX, ok(codec.RO))] + OPENING[2:]
+    steps = PROBE + [(TX, codec.encode_ro(1)), (RX, bytes(bad)), (TX, codec.encode_ro(1)), (RX, ok(codec.RO))] + OPENING[4:]
     async with Script(steps) as script:
         adapter = make_adapter(script.port)
         await adapter.poll()
         assert adapter.session == "open" and adapter.state.counters.crc_errors == 1 and adapter.crc_retries == 1
-        script.add((TX, codec.encode_rg(0x0001)), (RX, refused(codec.RG, codec.Status.PE)))
+        # a PE alone may be the unit's state (an emergency stop): an RC refused too shows remote mode is gone
+        script.add((TX, codec.encode_rg(0x0001)), (RX, refused(codec.RG, codec.Status.PE)),
+                   (TX, codec.KEEP_ALIVE), (RX, refused(codec.RC, codec.Status.PE)))
         with pytest.raises(codec.CommandRefused):
             await adapter.read_data(0x0001)
         script.done()

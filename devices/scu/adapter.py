@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import functools
+import math
 import time
 from collections import deque
 from dataclasses import dataclass
@@ -26,6 +27,15 @@ from devices.transport import SerialClosed, SerialLineError, SerialTimeout
 
 REOPEN_BACKOFF_S = (0.2, 0.5, 1.0, 2.0, 5.0)
 CRC_RETRIES = 2  # an answer with a bad CRC is counted and the request sent again
+# RS refused with CSE ("the unit did not execute the telegram", section 4.2) or unanswered is sent again, at
+# most this many times in all; the function stays held (RS pending, retried every poll) until an RS is acknowledged.
+RS_ATTEMPTS = 3
+# How the unit is watched while nobody holds control (section 4.1 lists RG among the remote-only commands;
+# a unit that answers RG outside remote mode is watched without a session, so its own watchdog is never
+# kept alive for nobody).
+WATCH_RG = "rg"  # RG outside a remote session: no RO/RC until someone takes control
+WATCH_SESSION = "session"  # the unit refuses RG outside remote mode: the session is open for reading only
+PROBE_ID = 0x0011  # a single data ID every unit answers (section 5 example reads it)
 # Live data the cyclic object brings with every RC (at most 6 read IDs, table 7); the rest is read
 # with one RG per poll in turn.
 CYCLIC_READ_IDS = (0x0010, 0x0170, 0x00E0, 0x00A0, 0x00D1, 0x0100)
@@ -96,25 +106,43 @@ def actuator_scales(options: dict) -> list[ActuatorScale]:
             for n, a in enumerate(actuators, 1)]
 
 
-def answer_length(buffer: bytes) -> int | None:
-    """The line's completion rule for an SCU answer (section 3, table 4): total length once it can be told."""
-    if len(buffer) < 3:
+_STATUS_CODES = frozenset(int(x) for x in codec.Status)
+
+
+def header_offset(buffer: bytes, expected: bytes | None = None) -> int | None:
+    """Where the answer starts: the first ``X Y`` (the command sent, or any command) followed by a status code.
+    Bytes before it are a stray byte or the tail of an earlier answer (resynchronisation, issue 32)."""
+    for i in range(len(buffer) - 1):
+        head = bytes(buffer[i:i + 2])
+        if (head == expected if expected is not None else head in codec.COMMANDS) and (
+                len(buffer) <= i + 2 or buffer[i + 2] in _STATUS_CODES):
+            return i
+    return None
+
+
+def answer_length(buffer: bytes, expected: bytes | None = None) -> int | None:
+    """The line's completion rule for an SCU answer (section 3, table 4): total length (with any bytes before
+    the answer's header) once it can be told, else None (read more)."""
+    start = header_offset(buffer, expected)
+    if start is None:
         return None
-    if bytes(buffer[:2]) not in codec.COMMANDS:
-        return max(5, len(buffer))  # garbage: decode_answer names it
-    if buffer[2] != codec.ACK or bytes(buffer[:2]) not in codec.ANSWERS_WITH_DATA:
-        return 5
-    if len(buffer) < 5:
+    frame = bytes(buffer[start:])
+    if len(frame) < 3:
         return None
-    ctp = int.from_bytes(buffer[3:5], "little")
-    if codec.crc16(buffer[:3]) == ctp:
-        return 5  # a bare ACK: its CRC sits where ctp would be (codec.FrameSplitter)
-    return 7 + ctp if ctp <= codec.MAX_CTP else 5
+    if frame[2] != codec.ACK or frame[:2] not in codec.ANSWERS_WITH_DATA:
+        return start + 5
+    if len(frame) < 5:
+        return None
+    ctp = int.from_bytes(frame[3:5], "little")
+    if codec.crc16(frame[:3]) == ctp:
+        return start + 5  # a bare ACK: its CRC sits where ctp would be (codec.FrameSplitter)
+    return start + (7 + ctp if ctp <= codec.MAX_CTP else 5)
 
 
 def _describe_answer(raw: bytes) -> str:
+    start = header_offset(raw) or 0
     try:
-        a = codec.decode_answer(raw)
+        a = codec.decode_answer(raw[start:])
     except codec.FrameError as exc:
         return str(exc)
     return f"{a.status_name}" + (f", {len(a.data)} data bytes" if a.has_ctp else "")
@@ -176,6 +204,16 @@ class ScuAdapter:
         self._read_at: dict[int, float] = {}  # RG data ID -> when it was last read (one entry per ID read)
         self._remote_timeout_seen = False
         self._stop_tasks: set[asyncio.Task] = set()
+        self.watch: str | None = None  # WATCH_RG or WATCH_SESSION once the first RG outside a session told
+        self.single_ids: set[int] = set()  # groups this unit refused: read member by member (remembered)
+        self.cyclic_refused = False  # the unit refused the cyclic object (definition or RC with it)
+        self.rs_pending: dict[int, str] = {}  # functions whose RS was not acknowledged: held, sent again
+        self.estop = False  # function 19 on (RE 19 acknowledged, RS 19 not yet)
+        self.resyncs = 0
+        self.skipped_bytes = 0
+        self._fn_locks: dict[int, asyncio.Lock] = {}
+        self._stop_marks: dict[int, float] = {}  # fnc_ID -> when a stop of it was asked
+        self._stop_all_at = 0.0  # when a stop of everything was asked
         state.stale_after = 2.0
         state.registers_periodic = False
         state.info.update(session="closed", session_reason="", cyclic="", rc_period_ms=None, rc_max_gap_ms=None,
@@ -187,15 +225,20 @@ class ScuAdapter:
         state.publish("Safety_ID", int(self.safety_id), periodic=False, text=codec.SAFETY_MODES[self.safety_id])
 
     # -- the line -------------------------------------------------------------------------------
-    async def _request(self, frame: bytes, describe: str, *, keepalive: bool = True) -> codec.Answer:
-        """One request and its answer; bad CRC retried; error codes raise CommandRefused (counted)."""
+    async def _request(self, frame: bytes, describe: str, *, keepalive: bool = True,
+                       quiet: bool = False) -> codec.Answer:
+        """One request and its answer; bad CRC retried; error codes raise CommandRefused (counted).
+
+        :param quiet: a refusal is expected (a probe): not shown as the last error answer
+        """
         if keepalive and frame[:2] != codec.RC and self.session == "open" and self._rc_due():
             await self._rc()  # only RC feeds the unit's 500 ms watchdog (section 5): long operations interleave it
         expected = bytes(frame[:2])
         for attempt in range(CRC_RETRIES + 1):
             self.state.counters.requests += 1
             try:
-                raw = await self.line.transact(frame, answer_length, describe=describe, decode=_describe_answer)
+                raw = await self.line.transact(frame, functools.partial(answer_length, expected=expected),
+                                               describe=describe, decode=_describe_answer)
             except SerialTimeout:
                 self.state.counters.timeouts += 1
                 self._no_answer()
@@ -203,29 +246,47 @@ class ScuAdapter:
             except SerialClosed:
                 self._no_answer()
                 raise
+            start = header_offset(raw, expected) or 0
+            if start:
+                self.skipped_bytes += start  # a stray byte or an old answer's tail before this answer: skipped
+                self.state.info["skipped_bytes"] = self.skipped_bytes
+                raw = raw[start:]
             try:
                 answer = codec.decode_answer(raw, expected)
-            except codec.ChecksumError:
-                self.state.counters.crc_errors += 1
-                self.crc_retries += 1
-                self.state.info["crc_retries"] = self.crc_retries
-                if attempt < CRC_RETRIES:
-                    continue
-                raise
             except codec.FrameError as exc:
-                self.state.counters.malformed += 1
-                self.state.error(f"{describe}: {exc}", log=False)
+                if isinstance(exc, codec.ChecksumError):
+                    self.state.counters.crc_errors += 1
+                    self.crc_retries += 1
+                    self.state.info["crc_retries"] = self.crc_retries
+                else:
+                    self.state.counters.malformed += 1
+                    self.state.error(f"{describe}: {exc}", log=False)
+                # The reader may have lost its place in the byte stream (a stray byte, an answer split or
+                # late): drop everything still arriving before the request is sent again (resynchronise).
+                await self._resync()
                 if attempt < CRC_RETRIES:
                     continue
                 raise
             self._answered()
-            if frame[:2] == codec.RC:
+            if frame[:2] == codec.RC and answer.ok:
                 self.rc_times.append(time.monotonic())
             if not answer.ok:
-                self._refused(describe, answer)
+                await self._refused(describe, answer, quiet=quiet)
             self.state.counters.responses += 1
             return answer
         raise AssertionError("unreachable")
+
+    async def _resync(self) -> None:
+        """Flush what the line still holds (the rest of a shifted answer) so the next answer starts clean."""
+        flush = getattr(self.line, "flush_input", None)
+        if flush is not None:
+            try:
+                dropped = await flush()
+            except SerialLineError:
+                return
+            if dropped:
+                self.resyncs += 1
+                self.state.info["resyncs"] = self.resyncs
 
     def _rc_due(self) -> bool:
         return not self.rc_times or time.monotonic() - self.rc_times[-1] >= self.keepalive_period_s
@@ -249,25 +310,46 @@ class ScuAdapter:
         return (f"no answer from the SCU within {codec.MAX_ANSWER_DELAY_S:g} s on {self.port}: check the RS232 cable "
                 "(9-pin Sub-D, RxD/TxD/GND), that DTR and RTS are on (they power the unit's RS232 converter; or a "
                 f"separate 5.5-15 V supply on pin 4 or 7), and the baud rate ({self.baudrate}; standard units 38400, "
-                "custom 9600 or 19200)")
+                "custom 9600 or 19200); a unit on battery with Low Power enabled is woken by RxD at space for "
+                "100 ms (firmware V2B1), which is sent before every reopening")
 
-    def _refused(self, describe: str, answer: codec.Answer) -> None:
+    async def _refused(self, describe: str, answer: codec.Answer, *, quiet: bool = False) -> None:
         exc = codec.CommandRefused(answer.command, answer.status)
         self.state.counters.exceptions += 1
         info = exc.info
-        self.state.info["last_refusal"] = {"command": describe, "name": info.name, "title": info.title,
-                                           "meaning": info.meaning, "remedy": info.remedy, "time": time.time()}
-        self.state.error(f"{describe}: {info.name} ({info.title}): {info.meaning}. {info.remedy}")
-        if answer.status == codec.Status.PE and answer.command != codec.RO and self.session == "open":
-            self._lost(f"PE (permission error) to {describe}: the unit is no longer in remote mode")
+        if not quiet:
+            self.state.info["last_refusal"] = {"command": describe, "name": info.name, "title": info.title,
+                                               "meaning": info.meaning, "remedy": info.remedy, "time": time.time()}
+            self.state.error(f"{describe}: {info.name} ({info.title}): {info.meaning}. {info.remedy}")
+        if answer.status == codec.Status.PE and self.session == "open":
+            if answer.command == codec.RC:
+                self._lost(f"PE (permission error) to {describe}: the unit is no longer in remote mode")
+            elif answer.command not in (codec.RO, codec.RA):
+                # PE also means "not possible in the unit's current state" (an emergency stop, a locked
+                # function): only an RC refused as well shows that remote mode is gone (section 4.2).
+                try:
+                    await self._request(codec.KEEP_ALIVE, "RC (is remote mode still open after a PE?)",
+                                        keepalive=False, quiet=True)
+                except (codec.CommandRefused, SerialLineError, codec.CodecError):
+                    pass
         raise exc
 
     # -- the session -------------------------------------------------------------------------------
     def _publish_session(self) -> None:
         self.state.info["session"] = self.session
         self.state.info["session_reason"] = self.session_reason
+        self.state.info["watch"] = self.watch_text()
         self.state.publish("Session", self.session, periodic=False,
                            text=self.session + (f": {self.session_reason}" if self.session_reason else ""))
+
+    def watch_text(self) -> str:
+        if self.watch == WATCH_RG:
+            return ("watching with RG outside a remote session: the unit answers RG without remote mode; the "
+                    "session (RO, RC) is opened only while someone holds control or a function runs")
+        if self.watch == WATCH_SESSION:
+            return ("the remote session is open for reading only: the unit refuses RG outside remote mode "
+                    "(section 4.1); no RE is sent unless a page holds control")
+        return "not known yet: the first RG outside a session tells"
 
     def _set_session(self, session: str, reason: str = "") -> None:
         self.session, self.session_reason = session, reason
@@ -286,17 +368,62 @@ class ScuAdapter:
 
     async def _rc(self) -> codec.Answer:
         if self.cyclic is not None:
-            answer = await self._request(codec.encode_rc(CYCLIC_INDEX), "RC keep-alive with CyclicObj 1", keepalive=False)
+            try:
+                answer = await self._request(codec.encode_rc(CYCLIC_INDEX), "RC keep-alive with CyclicObj 1",
+                                             keepalive=False)
+            except codec.CommandRefused as exc:
+                if exc.code == codec.Status.PE:
+                    raise
+                # The definition was taken but RC with it is refused: RC without data from now on, RG for the rest.
+                self.cyclic = None
+                self.cyclic_refused = True
+                self.cyclic_note = (f"the unit refused RC with the cyclic object ({exc.info.name}: {exc.info.title}); "
+                                    "RC without data keeps the session, live data is read with RG")
+                self.state.info["cyclic"] = self.cyclic_note
+                self.state.event("warning", self.cyclic_note)
+                return await self._request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)
             if answer.has_ctp:
-                self._publish_ids(self.cyclic.decode_read(answer.data))
+                try:
+                    self._publish_ids(self.cyclic.decode_read(answer.data))
+                except (v.DecodeError, ValueError) as exc:
+                    self.state.error(f"RC cyclic data: {exc}", log=False)
             return answer
         return await self._request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)
+
+    async def _wake(self) -> None:
+        """Low-power wake-up (section 3, V2B1): RxD held at space for at least 100 ms."""
+        wake = getattr(self.line, "wake", None)
+        if wake is not None:
+            try:
+                await wake(0.15)
+            except SerialLineError:
+                pass
+
+    async def _probe(self) -> None:
+        """Does the unit answer RG outside remote mode? Decides how it is watched (remembered for this unit)."""
+        try:
+            answer = await self._request(codec.encode_rg(PROBE_ID), "RG 0x0011 outside a session (probe)",
+                                         keepalive=False, quiet=True)
+        except codec.CommandRefused:
+            self.watch = WATCH_SESSION
+        else:
+            self.watch = WATCH_RG
+            self._publish_ids({PROBE_ID: p.rg_value(PROBE_ID, answer)})
+        self.state.event("info", self.watch_text())
+        self._publish_session()
+
+    def _needs_session(self) -> bool:
+        """A remote session is needed: the unit refuses RG without one, someone drives, or a stop is owed."""
+        return (self.watch == WATCH_SESSION or self.controller is not None or bool(self.running)
+                or bool(self.rs_pending) or self.estop)
 
     async def open_session(self) -> None:
         """RO with the Safety_ID, RC, the cyclic object definition (or the RG fallback), the end positions."""
         self._set_session("opening")
         self.cyclic = None
         self.rc_times.clear()
+        if self._failures:
+            await self._wake()
         try:
             await self._request(codec.encode_ro(self.safety_id), f"RO Safety_ID {int(self.safety_id)}", keepalive=False)
             await self._request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)  # section 5: RC before any other command
@@ -306,66 +433,158 @@ class ScuAdapter:
             return
         self._set_session("open")
         self._failures = 0
-        definition = p.CyclicDefinition(read_ids=CYCLIC_READ_IDS)
-        try:
-            await self._request(codec.encode_rt(0x3001, definition.encode()), "RT CyclicObj 1 definition")
-            self.cyclic = definition
-            self.cyclic_note = "cyclic object 0x3001: positions, status 1 and 2, currents, error code, mains/battery with every RC"
-        except codec.CommandRefused as exc:
-            self.cyclic_note = (f"the unit refused the cyclic object definition ({exc.info.name}: {exc.info.title}); "
-                                "live data is read with RG requests instead")
-            self.state.event("warning", self.cyclic_note)
-        except (SerialLineError, codec.CodecError):
-            return
+        if self.cyclic_refused:
+            self.cyclic_note = "RC without data (the unit refused the cyclic object); live data is read with RG"
+        else:
+            definition = p.CyclicDefinition(read_ids=self._cyclic_ids())
+            try:
+                await self._request(codec.encode_rt(0x3001, definition.encode()), "RT CyclicObj 1 definition")
+                self.cyclic = definition
+                self.cyclic_note = ("cyclic object 0x3001: positions, status 1 and 2, currents, error code, "
+                                    "mains/battery with every RC")
+            except codec.CommandRefused as exc:
+                if exc.code == codec.Status.PE:
+                    return
+                self.cyclic_refused = True
+                self.cyclic_note = (f"the unit refused the cyclic object definition ({exc.info.name}: {exc.info.title}); "
+                                    "live data is read with RG requests instead")
+                self.state.event("warning", self.cyclic_note)
+            except (SerialLineError, codec.CodecError):
+                return
         self.state.info["cyclic"] = self.cyclic_note
         self.state.event("info", f"remote session open (Safety_ID {int(self.safety_id)}); {self.cyclic_note}")
+        if self.estop:
+            # The emergency stop is released only by the person who asks for it: after a lost session it is
+            # switched on again (RE 19, the safe direction), never released (table 8: RS 19 switches it off).
+            try:
+                await self._request(codec.encode_re(codec.Function.EMERGENCY_STOP),
+                                    "RE F20 emergency stop (kept on after reopening)")
+            except (SerialLineError, codec.CodecError) as exc:
+                self.state.event("error", f"emergency stop could not be confirmed after reopening: {exc}")
         # after a lost session the unit has stopped; the RS of every RE still follows (section 4.6)
-        for fn in list(self.running):
-            await self._send_rs(fn, "after the lost session")
+        for fn in sorted(set(self.running) | set(self.rs_pending)):
+            if fn not in NOT_HELD:
+                await self._send_rs(fn, "after the lost session")
         try:
             await self._read_end_positions()
-        except (SerialLineError, codec.CodecError):
+        except (SerialLineError, codec.CodecError, v.DecodeError):
             pass
 
+    def _cyclic_ids(self) -> tuple[int, ...]:
+        """The cyclic object's read IDs: the groups, or for a unit that refuses groups its single IDs (at most 6)."""
+        if not self.single_ids:
+            return CYCLIC_READ_IDS
+        ids: list[int] = []
+        for group in CYCLIC_READ_IDS:
+            ids.extend(self._ids_of(group))
+        return tuple(ids[:6])
+
+    def _ids_of(self, group: int) -> list[int]:
+        """What to read for ``group``: the group ID, or its members for the configured actuators once refused."""
+        entry = p.DIRECTORY.get(group)
+        if group not in self.single_ids or entry is None or not entry.is_group:
+            return [group]
+        return [m for m in entry.members
+                if p.DIRECTORY[m].actuator is None or p.DIRECTORY[m].actuator <= len(self.scales)]
+
     async def _read_end_positions(self) -> None:
-        """Position_Virtual_Limit_In/Out of UserPositionData (section 7) as the end positions of the bars and mm."""
+        """Position_Virtual_Limit_In/Out of UserPositionData (section 7) as the end positions of the bars and mm;
+        the conversion factors 0x1011.. (counts per mm) where the plant file gives no scale."""
         for i, scale in enumerate(self.scales):
-            answer = await self._request(codec.encode_rg(0x2000 + scale.number), f"RG 0x{0x2000 + scale.number:04X}")
-            value = p.rg_value(0x2000 + scale.number, answer)
-            lo, hi = value["Position_Virtual_Limit_In"], value["Position_Virtual_Limit_Out"]
-            self.scales[i] = scale.with_ends(lo, hi)
+            try:
+                answer = await self._request(codec.encode_rg(0x2000 + scale.number), f"RG 0x{0x2000 + scale.number:04X}")
+                value = p.rg_value(0x2000 + scale.number, answer)
+            except codec.CommandRefused:
+                value = None
+            if value is not None:
+                lo, hi = value["Position_Virtual_Limit_In"], value["Position_Virtual_Limit_Out"]
+                self.scales[i] = scale.with_ends(lo, hi)
             s = self.scales[i]
             self.state.publish(f"A{s.number} in end", s.in_counts, "counts", periodic=False)
             self.state.publish(f"A{s.number} out end", s.out_counts, "counts", periodic=False)
+            if not s.has_mm:
+                try:
+                    factor = p.rg_value(0x1010 + s.number, await self._request(
+                        codec.encode_rg(0x1010 + s.number), f"RG 0x{0x1010 + s.number:04X} conversion factor"))
+                except codec.CommandRefused:
+                    continue
+                self.state.publish(f"A{s.number} conversion factor", factor, "counts/mm", periodic=False)
+                if isinstance(factor, float) and math.isfinite(factor) and factor > 0:
+                    self.scales[i] = ActuatorScale(s.number, factor, None, s.in_counts, s.out_counts)
 
     async def poll(self) -> None:
-        """One cycle: open the session if needed (with backoff), else RC (with the cyclic data) and one RG in turn."""
+        """One cycle: learn how the unit is watched; open the session when needed (with backoff), close it when
+        nobody needs it (watching with RG); RC (with the cyclic data) and the live reads."""
         if self.session == "released":
             return
-        if self.session != "open":
+        if self.watch is None:
+            if time.monotonic() < self._next_open:
+                return
+            try:
+                await self._probe()
+            except (SerialLineError, codec.CodecError, v.DecodeError):
+                self._schedule_reopen()
+                return
+        if self._needs_session() and self.session != "open":
             if time.monotonic() < self._next_open:
                 return
             await self.open_session()
             return
+        if not self._needs_session() and self.session == "open" and self.watch == WATCH_RG:
+            await self._end_session("nobody holds control: watching with RG outside a remote session")
         try:
-            await self._rc()
-            if self.cyclic is None:
-                for data_id in CYCLIC_READ_IDS:
-                    await self._read_live(data_id)
-            await self._read_live(ROTATING_IDS[self._rotate % len(ROTATING_IDS)])
+            if self.session == "open":
+                await self._rc()
+                for fn in sorted(self.rs_pending):
+                    await self._send_rs(fn, self.rs_pending[fn])
+            live = [] if self.cyclic is not None else list(CYCLIC_READ_IDS)
+            live.append(ROTATING_IDS[self._rotate % len(ROTATING_IDS)])
             self._rotate += 1
-        except codec.CommandRefused:
-            pass  # named in state and the event log; PE marks the session lost
+            for data_id in live:
+                await self._read_live(data_id)
+        except codec.CommandRefused as exc:
+            if exc.code == codec.Status.PE and self.session != "open" and self.watch == WATCH_RG:
+                self.watch = WATCH_SESSION  # it answered RG once (perhaps still in an old remote mode): no more
+                self._publish_session()
         except (SerialLineError, codec.CodecError, v.DecodeError) as exc:
             self.state.error(f"poll: {exc}", log=False)
         self._publish_period()
 
+    async def _end_session(self, reason: str) -> None:
+        try:
+            await self._request(codec.encode_ra(), "RA (nobody in control)", keepalive=False)
+        except (SerialLineError, codec.CodecError):
+            pass
+        self.cyclic = None
+        self._set_session("closed", reason)
+
     async def _read_live(self, data_id: int) -> None:
-        answer = await self._request(codec.encode_rg(data_id), f"RG 0x{data_id:04X}")
-        now = time.monotonic()
-        last = self._read_at.get(data_id)  # read in turn with the others: it ages by its own period
-        self._read_at[data_id] = now
-        self._publish_ids({data_id: p.rg_value(data_id, answer)}, every=None if last is None else now - last)
+        """RG of a data ID, or of the members of a group the unit refused; one refused read never ends the poll."""
+        for read_id in self._ids_of(data_id):
+            try:
+                answer = await self._request(codec.encode_rg(read_id), f"RG 0x{read_id:04X}",
+                                             quiet=read_id == data_id and p.DIRECTORY.get(read_id) is not None
+                                             and p.DIRECTORY[read_id].is_group)
+            except codec.CommandRefused as exc:
+                if exc.code == codec.Status.PE:
+                    raise
+                entry = p.DIRECTORY.get(read_id)
+                if read_id == data_id and entry is not None and entry.is_group and data_id not in self.single_ids:
+                    self.single_ids.add(data_id)  # remembered for this unit: its members one by one from now on
+                    self.state.info["single_ids"] = sorted(f"0x{g:04X}" for g in self.single_ids)
+                    self.state.event("warning", f"the unit refused the group read 0x{data_id:04X} ({exc.info.name}): "
+                                                "its data IDs are read one by one")
+                    await self._read_live(data_id)
+                continue
+            now = time.monotonic()
+            last = self._read_at.get(read_id)  # read in turn with the others: it ages by its own period
+            self._read_at[read_id] = now
+            try:
+                value = p.rg_value(read_id, answer)
+            except (v.DecodeError, ValueError) as exc:
+                self.state.error(f"RG 0x{read_id:04X}: {exc}", log=False)
+                continue
+            self._publish_ids({read_id: value}, every=None if last is None else now - last)
 
     def _publish_period(self) -> None:
         times = list(self.rc_times)
@@ -445,7 +664,7 @@ class ScuAdapter:
 
     # -- control ------------------------------------------------------------------------------------
     def take_control(self, session: str, user: str) -> None:
-        """One browser session at a time drives the unit."""
+        """One browser session at a time drives the unit (the remote session is opened for it by the next poll)."""
         if self.controller is not None and self.controller.session != session:
             raise ControlBusy(f"{self.controller.user} holds control since "
                               f"{time.strftime('%H:%M:%S', time.localtime(self.controller.since))}")
@@ -467,6 +686,13 @@ class ScuAdapter:
                                + (f" ({self.session_reason})" if self.session_reason else "")
                                + ": everything except RO/RA needs remote mode (section 4.1)")
 
+    async def _ensure_open(self) -> None:
+        """Open the remote session now when it is needed and closed (watching with RG, or lost with backoff past)."""
+        if self.session == "open" or self.session == "released":
+            return
+        if self.session in ("closed", "lost") and time.monotonic() >= self._next_open:
+            await self.open_session()
+
     async def release_control(self, session: str, reason: str = "released") -> bool:
         if self.controller is None or (session and self.controller.session != session):
             return False
@@ -479,12 +705,15 @@ class ScuAdapter:
         return True
 
     def holders(self) -> set[str]:
-        """Sessions whose RE (motion, buzzer, outputs, LEDs) has not yet been followed by its RS."""
+        """Sessions whose RE (motion, buzzer, outputs, LEDs) has not yet been followed by an acknowledged RS."""
         return {s for fn, s in self.running.items() if fn not in NOT_HELD}
 
     def session_lost(self, session: str, reason: str) -> None:
         """The browser of ``session`` went away or froze: RS at once for everything it runs, release control."""
         held = [fn for fn, s in self.running.items() if s == session and fn not in NOT_HELD]
+        now = time.monotonic()
+        for fn in held:
+            self._stop_marks[fn] = now
         if held:
             self.state.event("warning", f"dead-man: {reason}; RS to " + ", ".join(codec.FUNCTIONS[codec.Function(f)].label for f in held))
             task = asyncio.get_running_loop().create_task(self._stop_functions(held, f"dead-man: {reason}"))
@@ -502,80 +731,166 @@ class ScuAdapter:
         while self._stop_tasks:
             await asyncio.gather(*list(self._stop_tasks), return_exceptions=True)
 
-    async def _stop_functions(self, functions: list[int], why: str) -> None:
-        for fn in functions:
-            await self._send_rs(fn, why)
+    async def _stop_functions(self, functions: list[int], why: str) -> list[int]:
+        """RS to each function; the functions whose RS was not acknowledged."""
+        return [fn for fn in functions if not await self._send_rs(fn, why)]
 
-    async def _send_rs(self, fn: int, why: str) -> None:
+    def _fn_lock(self, fn: int) -> asyncio.Lock:
+        lock = self._fn_locks.get(fn)
+        if lock is None:
+            lock = self._fn_locks[fn] = asyncio.Lock()
+        return lock
+
+    async def _send_rs(self, fn: int, why: str) -> bool:
+        """RS of ``fn`` after any RE of it still on the line (never before it); True once acknowledged."""
+        async with self._fn_lock(fn):
+            return await self._rs(fn, why)
+
+    async def _rs(self, fn: int, why: str) -> bool:
         label = codec.FUNCTIONS[codec.Function(fn)].label
-        try:
-            await self._request(codec.encode_rs(fn), f"RS {label} ({why})", keepalive=False)
+        problem = ""
+        for attempt in range(1, RS_ATTEMPTS + 1):
+            try:
+                await self._request(codec.encode_rs(fn), f"RS {label} ({why})" + (f", attempt {attempt}" if attempt > 1 else ""),
+                                    keepalive=False)
+            except codec.CommandRefused as exc:
+                problem = f"{exc.info.name} ({exc.info.title})"
+                if exc.code == codec.Status.PE:
+                    break  # remote mode gone: the unit has stopped remote motion (section 5); RS again on reopening
+                continue  # CSE: "not executed" (section 4.2): sent again
+            except (SerialLineError, codec.CodecError) as exc:
+                problem = f"not answered ({exc})"
+                if self.session != "open":
+                    break
+                continue
             self.running.pop(fn, None)
-        except codec.CommandRefused as exc:
-            if exc.code != codec.Status.PE:  # PE: remote mode gone, the unit has stopped; RS again on reopening
-                self.running.pop(fn, None)
-        except (SerialLineError, codec.CodecError) as exc:
-            self.state.error(f"RS {label} ({why}) not answered: {exc}; sent again when the session is back")
-        finally:
+            self.rs_pending.pop(fn, None)
+            if fn == codec.Function.EMERGENCY_STOP:
+                self.estop = False
+                self._publish_estop()
             self.state.info["running"] = sorted(self.running)
+            self.state.info["rs_pending"] = sorted(self.rs_pending)
+            return True
+        if fn != codec.Function.EMERGENCY_STOP:
+            self.rs_pending[fn] = why
+            self.running.setdefault(fn, self.running.get(fn, ""))
+        self.state.info["running"] = sorted(self.running)
+        self.state.info["rs_pending"] = sorted(self.rs_pending)
+        self.state.error(f"STOP FAILED: RS {label} ({why}) was not acknowledged: {problem}. {label} stays held; "
+                         "RS is sent again on every poll and when the session reopens. Use the hand switch or cut "
+                         "the supply if the actuator moves")
+        self.state.event("error", f"STOP FAILED: RS {label} ({why}): {problem}")
+        return False
 
     async def _stop_held(self, session: str, why: str) -> None:
         await self._stop_functions([fn for fn, s in self.running.items() if s == session and fn not in NOT_HELD], why)
 
-    async def run_function(self, session: str, function: int, motion: int = -1, ramp: int = -1) -> str:
-        """RE of a function (F1..F10 with motion and ramp; buzzer, outputs, LEDs with -1, -1)."""
+    def _stopped_since(self, fn: int, since: float) -> bool:
+        return max(self._stop_all_at, self._stop_marks.get(fn, 0.0)) > since
+
+    async def run_function(self, session: str, function: int, motion: int = -1, ramp: int = -1,
+                           requested_at: float | None = None) -> str:
+        """RE of a function (F1..F10 with motion and ramp; buzzer, outputs, LEDs with -1, -1).
+
+        RC (when due) and the RE go out back to back under the function's lock, so an RS of the same
+        function (Stop, jog release, dead-man) is never sent before the RE; a stop requested after
+        ``requested_at`` (the moment the page saw the press) cancels the RE, or is followed by RS right after it.
+        """
+        requested_at = time.monotonic() if requested_at is None else requested_at
         self._check_holder(session)
-        self._check_open()
         fn = codec.Function(function)
         if fn == codec.Function.EMERGENCY_STOP:
             return await self.emergency_stop(session)
+        if self.estop and fn in codec.MOTION_FUNCTIONS:
+            raise CommandError("the emergency stop (function 19) is on: release it first (RS 19, by the person who set it)")
+        if int(fn) in self.rs_pending:
+            raise CommandError(f"the RS of {codec.FUNCTIONS[fn].label} is not acknowledged yet: no new RE until it is")
+        await self._ensure_open()
+        self._check_open()
         frame = codec.encode_re(fn, motion, ramp) if fn in codec.MOTION_FUNCTIONS else codec.encode_re(fn)
         label = codec.FUNCTIONS[fn].label
         words = (f"{label} {codec.MOTION_LABELS[codec.Motion(motion)]}, ramp {codec.Ramp(ramp & 0xFF).name.lower()}"
                  if fn in codec.MOTION_FUNCTIONS else f"{label} {codec.FUNCTIONS[fn].description}")
-        self.running[int(fn)] = session  # before the request: a lost answer must still be followed by RS
-        self.state.info["running"] = sorted(self.running)
-        try:
-            await self._request(frame, f"RE {words}")
-        except BaseException:
-            await self._send_rs(int(fn), "RE not confirmed")
-            raise
+        async with self._fn_lock(int(fn)):
+            if self._stopped_since(int(fn), requested_at):
+                raise CommandError(f"{label}: a stop came after this request: no RE sent")
+            if self._rc_due():
+                await self._rc()
+            if self._stopped_since(int(fn), requested_at):
+                raise CommandError(f"{label}: a stop came after this request: no RE sent")
+            self.running[int(fn)] = session  # before the request: a lost answer must still be followed by RS
+            self.state.info["running"] = sorted(self.running)
+            try:
+                await self._request(frame, f"RE {words}", keepalive=False)
+            except BaseException:
+                await self._rs(int(fn), "RE not confirmed")
+                raise
+            if self._stopped_since(int(fn), requested_at):
+                await self._rs(int(fn), "stop requested while the RE was on the line")
+                raise CommandError(f"{label}: stopped right after its RE (a stop came while the RE was on the line)")
         self.started.add(int(fn))
         self.state.event("info", f"RE {words}")
         return words
 
     async def stop(self, session: str | None = None, function: int | None = None) -> list[str]:
-        """RS to ``function``, or to every function run (anyone may stop)."""
-        if self.session != "open":
+        """RS to ``function``, or to every function run (anyone may stop); raises when an RS is not acknowledged."""
+        now = time.monotonic()
+        if function is None:
+            self._stop_all_at = now
+        else:
+            self._stop_marks[int(function)] = now
+        if self.session != "open" and not self.running and not self.rs_pending:
             return [f"nothing sent: the session is {self.session}; without RC the unit has stopped remote motion"]
+        await self._ensure_open()
         targets = [function] if function is not None else sorted(
             {fn for fn in self.running if fn not in NOT_HELD} | {fn for fn in self.started if fn not in NOT_HELD}
-            or {int(codec.Function.F1)})
-        for fn in targets:
-            await self._send_rs(fn, "stop")
+            | set(self.rs_pending) or {int(codec.Function.F1)})
+        failed = await self._stop_functions(targets, "stop")
+        if failed:
+            raise CommandError("STOP FAILED: no acknowledged RS for "
+                               + ", ".join(codec.FUNCTIONS[codec.Function(f)].label for f in failed)
+                               + f" ({self.state.last_error}); RS is sent again on every poll")
         return [codec.FUNCTIONS[codec.Function(f)].label for f in targets]
 
-    async def jog(self, session: str, function: int, direction: int, ramp: int = -1) -> str:
-        """Hold-to-run: +1 out, -1 in while held; 0 (release) sends RS."""
+    async def jog(self, session: str, function: int, direction: int, ramp: int = -1,
+                  requested_at: float | None = None) -> str:
+        """Hold-to-run: +1 out, -1 in while held; 0 (release) sends RS, after the press's RE if that is on the line."""
         if direction == 0:
-            await self._send_rs(int(function), "jog released")
+            fn = int(function)
+            self._stop_marks[fn] = time.monotonic()  # a press whose RE has not gone out yet sends none
+            lock = self._fn_locks.get(fn)
+            if self.running.get(fn) == session or (lock is not None and lock.locked()) or fn in self.rs_pending:
+                if not await self._send_rs(fn, "jog released"):
+                    raise CommandError(f"STOP FAILED: RS {codec.FUNCTIONS[codec.Function(fn)].label} not acknowledged")
             return "stopped"
-        return await self.run_function(session, function, codec.Motion.OUT if direction > 0 else codec.Motion.IN, ramp)
+        return await self.run_function(session, function, codec.Motion.OUT if direction > 0 else codec.Motion.IN, ramp,
+                                       requested_at=requested_at)
+
+    def _publish_estop(self) -> None:
+        self.state.info["emergency_stop"] = self.estop
+        self.state.publish("Emergency stop", self.estop, periodic=False,
+                           text="on (function 19): released only by its explicit release" if self.estop else "off")
 
     async def emergency_stop(self, session: str | None = None) -> str:
         """RE of function 19 (no confirmation, no control needed); every other running function gets RS."""
+        self._stop_all_at = time.monotonic()
+        await self._ensure_open()
         self._check_open()
         await self._request(codec.encode_re(codec.Function.EMERGENCY_STOP), "RE F20 emergency stop", keepalive=False)
         self.running[int(codec.Function.EMERGENCY_STOP)] = session or ""
+        self.estop = True
+        self._publish_estop()
         self.state.event("warning", "emergency stop (function 19)")
-        for fn in [f for f in self.running if f not in NOT_HELD]:
-            await self._send_rs(fn, "emergency stop")
+        await self._stop_functions([f for f in self.running if f not in NOT_HELD], "emergency stop")
         return "emergency stop active"
 
     async def release_emergency_stop(self, session: str) -> str:
+        """RS 19: the only way the emergency stop is released (never by a stop, a reopening or the dead-man rule)."""
         self._check_holder(session)
+        await self._ensure_open()
         self._check_open()
-        await self._send_rs(int(codec.Function.EMERGENCY_STOP), "emergency stop released")
+        if not await self._send_rs(int(codec.Function.EMERGENCY_STOP), "emergency stop released"):
+            raise CommandError("RS 19 not acknowledged: the emergency stop is still on")
         return "emergency stop released"
 
     async def _write_read_back(self, data_id: int, value: Any, what: str) -> Any:
@@ -600,6 +915,7 @@ class ScuAdapter:
     async def set_remote_speed(self, session: str, function: int, speed: int) -> int:
         """RT 0x3011.. (F1..F10) and RG read-back; % or counts/s per the unit's configuration (table 7)."""
         self._check_holder(session)
+        await self._ensure_open()
         self._check_open()
         if isinstance(speed, bool) or not isinstance(speed, int) or not 0 <= speed <= REMOTE_SPEED_MAX:
             raise CommandError(f"remote speed: 0..100 % (relative) or 0..{REMOTE_SPEED_MAX} counts/s (absolute), a whole number")
@@ -609,6 +925,7 @@ class ScuAdapter:
                                   mm: float | None = None) -> int:
         """RT 0x3021.. in counts (or mm through the actuator's conversion) and RG read-back."""
         self._check_holder(session)
+        await self._ensure_open()
         self._check_open()
         if not 1 <= actuator <= len(self.scales):
             raise CommandError(f"actuator {actuator} is not configured (1..{len(self.scales)})")
@@ -633,7 +950,8 @@ class ScuAdapter:
         return "released"
 
     async def reopen(self, session: str | None = None) -> str:
-        """Open the remote session again after a release."""
+        """Open the remote session again (after a release, or by hand after a loss): the line is resynchronised first."""
+        await self._resync()
         self._set_session("closed")
         self._next_open = 0.0
         await self.open_session()
@@ -642,7 +960,9 @@ class ScuAdapter:
     # -- data directory -------------------------------------------------------------------------------
     async def read_data(self, data_id: int) -> dict:
         """RG of one data ID or group ID: decoded value, text and the raw bytes."""
-        self._check_open()
+        if self.watch != WATCH_RG:
+            await self._ensure_open()
+            self._check_open()
         entry = p.item(data_id)
         answer = await self._request(codec.encode_rg(data_id), f"RG 0x{data_id:04X} {entry.name}")
         result = {"data_id": data_id, "key": entry.key, "name": entry.name, "type": entry.type_name, "unit": entry.unit,

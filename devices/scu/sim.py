@@ -188,6 +188,16 @@ class ScuTwin:
         self.max_total_current_a = 0.0
         self.max_temp_adc = 96
         self.over_temp_count = 0
+        # strict modes a real unit may have (document 002 allows each), off by default
+        self.single_ids_only = False  # groups refused with PDE (the document describes only 0x0010, section 4.6)
+        self.refuse_cyclic_rc = False  # the definition of 0x3001 is taken, RC with index 0..4 answers PDE
+        self.rg_outside_session = False  # True: RG answered without remote mode (section 4.1 says it is not)
+        self.cse_on_rs = 0  # the next N RS answer CSE and are not executed (-1: every RS)
+        self.answer_delay_s = 0.0  # each answer this late (section 3 allows up to 2000 ms)
+        self.stray_bytes = 0  # the next N answers come with a stray byte in front (a noisy line)
+        self.split_answers = False  # answers come in two pieces with a pause between (inter-byte gap)
+        self.keys = 0  # Actual_State_Keys (0x0040)
+        self.function_log: list[tuple[str, int]] = []  # (RE/RS, fnc_ID) in the order executed
         # fault injection and counters
         self.line_dropped = False
         self.open_re: dict[int, float] = {}  # fnc_ID -> time of an RE not yet stopped with RS
@@ -379,7 +389,7 @@ class ScuTwin:
             return [self.error_code, *self.history][data_id - 0x00D1]
         battery_mains = int(self.mains) | 1 << 1 | int(self.mains) << 2 | int(self.mains and self.battery_v < 27.0) << 3
         fixed = {
-            0x0001: FIRMWARE_INFO, 0x0002: CONFIGURATION_INFO, 0x0020: self.binary_inputs, 0x0040: 0,
+            0x0001: FIRMWARE_INFO, 0x0002: CONFIGURATION_INFO, 0x0020: self.binary_inputs, 0x0040: self.keys,
             0x008F: self.total_over_current, 0x00BF: round(self.max_total_current_a, 1), 0x00C0: self.max_temp_adc,
             0x00C1: self.over_temp_count, 0x0100: battery_mains, 0x0110: self.binary_outputs, 0x0120: self.led_hs,
             0x0130: self.led_lb, 0x0140: int(self.buzzer), 0x0150: int(self.sensor_supply),
@@ -400,9 +410,11 @@ class ScuTwin:
         value = entry.vtype.decode(data)
         if 0x3001 <= data_id <= 0x3005:
             try:
-                params.CyclicDefinition.decode(data)
+                definition = params.CyclicDefinition.decode(data)
             except (ValueError, KeyError):
                 return Status.PDE  # an unknown data ID, or a write slot outside 0x3xxx (table 7)
+            if self.single_ids_only and any(params.item(i).is_group for i in definition.read_ids):
+                return Status.PDE
             self.cyclic[data_id - 0x3001] = tuple(value)
         elif entry.function is not None:
             if value > 100:
@@ -444,6 +456,8 @@ class ScuTwin:
 
     def _request(self, req: codec.Request, now: float) -> bytes:
         cmd = req.command
+        if cmd == codec.RG and not self.remote and self.rg_outside_session:
+            return self._rg(req)
         if cmd == codec.RO:
             self.remote, self.safety_id, self.rc_seen, self.last_rc = True, req.safety_id, False, now
             return _answer(cmd, Status.ACK)
@@ -458,16 +472,23 @@ class ScuTwin:
         if not self.rc_seen:
             return _answer(cmd, Status.PE)  # section 5: an RC must come before the first command
         if cmd == codec.RG:
-            if req.data_id not in params.DIRECTORY:
-                return _answer(cmd, Status.PDE)
-            return codec.encode_answer(cmd, Status.ACK, self.read(req.data_id))
+            return self._rg(req)
         if cmd == codec.RT:
             return _answer(cmd, self.write(req.data_id, req.data))
         if cmd == codec.RE:
             return _answer(cmd, self._execute(req.function, req.para, now))
         if cmd == codec.RS:
+            if self.cse_on_rs:
+                self.cse_on_rs -= 1 if self.cse_on_rs > 0 else 0
+                return _answer(cmd, Status.CSE)  # "Fehler in der Telegramm-Checksumme": not executed (section 4.2)
             return _answer(cmd, self._stop(req.function))
         return _answer(cmd, Status.ICE)
+
+    def _rg(self, req: codec.Request) -> bytes:
+        entry = params.DIRECTORY.get(req.data_id)
+        if entry is None or (self.single_ids_only and entry.is_group):
+            return _answer(codec.RG, Status.PDE)
+        return codec.encode_answer(codec.RG, Status.ACK, self.read(req.data_id))
 
     def _rc(self, req: codec.Request, now: float) -> bytes:
         if req.index == -1:
@@ -475,6 +496,8 @@ class ScuTwin:
                 return _answer(codec.RC, Status.PCE)
             status, read = Status.ACK, b""
         else:
+            if self.refuse_cyclic_rc:
+                return _answer(codec.RC, Status.PDE)
             definition = params.CyclicDefinition.decode(params.CYCLIC_OBJECT.encode(self.cyclic[req.index]))
             if len(req.data) != definition.write_size:
                 return _answer(codec.RC, Status.PCE)  # the watchdog is not fed by a refused RC
@@ -490,6 +513,7 @@ class ScuTwin:
         return codec.encode_answer(codec.RC, Status.ACK, read)
 
     def _execute(self, function: int, para: tuple[int, ...], now: float) -> int:
+        self.function_log.append(("RE", function))
         fn = Function(function)
         if fn in codec.MOTION_FUNCTIONS:
             status = self._start(function, Motion(para[0]), para[1])
@@ -508,6 +532,7 @@ class ScuTwin:
         return status
 
     def _stop(self, function: int) -> int:
+        self.function_log.append(("RS", function))
         fn = Function(function)
         if fn in codec.MOTION_FUNCTIONS:
             for act in self.actuators:
@@ -611,6 +636,18 @@ class ScuSim:
                     if self.wire_delay:
                         raw = getattr(item, "raw", b"")
                         await asyncio.sleep(codec.wire_time_s(len(raw) + len(answer), self.baudrate))
+                    twin = self.twin
+                    if twin.answer_delay_s:
+                        await asyncio.sleep(twin.answer_delay_s)
+                    if twin.stray_bytes:
+                        twin.stray_bytes -= 1
+                        answer = b"\x00" + answer  # noise on the line: one byte that starts no telegram
+                    if twin.split_answers:
+                        cut = max(1, len(answer) // 2)
+                        writer.write(answer[:cut])
+                        await writer.drain()
+                        await asyncio.sleep(0.05)  # well inside the 1000 ms inter-byte limit (section 3)
+                        answer = answer[cut:]
                     writer.write(answer)
                     await writer.drain()
         except (ConnectionError, asyncio.CancelledError):
