@@ -4,20 +4,24 @@ from __future__ import annotations
 
 import csv
 import importlib
+import inspect
 import io
 import ipaddress
+import json
 import logging
 import secrets
 import socket
+import time
 import uuid
 from pathlib import Path
 from typing import Any, Literal
-from urllib.parse import quote, urlsplit
+from urllib.parse import parse_qs, quote, urlsplit
 
 from fastapi import HTTPException, Query, Request
 from fastapi.responses import JSONResponse, PlainTextResponse, RedirectResponse, Response
 from nicegui import Client, app, core, ui
 from pydantic import BaseModel, Field
+from socketio import exceptions as socketio_exceptions
 
 from app import runtime as rt
 from app.assets import AssetCache, preload_links, tailwind_style
@@ -151,6 +155,154 @@ class AuthMiddleware:
         return await self.app(scope, receive, send)
 
 
+# -- socket events: only from a socket admitted to the client they name ----------------------------
+
+SOCKET_EVENTS = ("handshake", "event", "javascript_response", "ack", "log")
+LOG_LEVELS = ("debug", "info", "warning", "error")
+REFUSAL_LOG_PERIOD_S = 10.0  # refused or malformed socket events: one warning per period, the rest counted
+
+
+class SocketEventGuard:
+    """NiceGUI hands a socket event to whichever client its message names (``client_id``), and
+    the page code runs as the browser that built that client. Here an event reaches a client only
+    from a socket its handshake admitted (the socket is in the client's room), a handshake is
+    admitted only from the browser whose cookie built the page, and a malformed message is
+    refused and counted instead of raising in the handler.
+    """
+
+    def __init__(self) -> None:
+        self.refused = 0  # events naming a client their socket does not belong to
+        self.malformed = 0  # messages of the wrong form
+        self._logged_at: dict[str, float] = {}  # kind of refusal -> when it was last logged
+        self._unlogged: dict[str, int] = {}
+
+    def install(self) -> None:
+        handlers = core.sio.handlers.setdefault("/", {})
+        for name in SOCKET_EVENTS:
+            inner = handlers.get(name)
+            if inner is None or getattr(inner, "commission_guard", False):
+                continue
+            core.sio.on(name, self._wrap(name, inner))
+        connect = handlers.get("connect")
+        if connect is not None and not getattr(connect, "commission_guard", False):
+            core.sio.on("connect", self._wrap_connect(connect))
+
+    def _wrap_connect(self, inner):
+        """The implicit handshake (client id and tab id in the socket's query) passes the same check."""
+        async def handler(sid: str, environ: dict, *rest):
+            query = parse_qs((environ or {}).get("QUERY_STRING", ""))
+            client_id = (query.get("client_id") or [""])[0]
+            if (query.get("implicit_handshake") or [""])[0] == "true" and client_id and not _same_browser(environ, client_id):
+                self.refused += 1
+                self._note("handshake", "another browser's", sid, "connect")
+                raise socketio_exceptions.ConnectionRefusedError("not this browser's page")
+            result = inner(sid, environ, *rest)
+            if inspect.isawaitable(result):
+                result = await result
+            return result
+
+        handler.commission_guard = True
+        return handler
+
+    def _note(self, kind: str, what: str, sid: str, name: str) -> None:
+        """One warning per kind of refusal and period; the ones between are counted in the next."""
+        now = time.monotonic()
+        if now - self._logged_at.get(kind, -REFUSAL_LOG_PERIOD_S) < REFUSAL_LOG_PERIOD_S:
+            self._unlogged[kind] = self._unlogged.get(kind, 0) + 1
+            return
+        more = self._unlogged.pop(kind, 0)
+        log.warning("socket %s: %s %r event refused%s", sid, what, name, f" ({more} more since the last warning)" if more else "")
+        self._logged_at[kind] = now
+
+    def _wrap(self, name: str, inner):
+        async def handler(sid: str, *args):
+            msg = args[0] if len(args) == 1 else None
+            problem = _malformed(name, msg)
+            if problem:
+                self.malformed += 1
+                self._note("malformed", f"malformed ({problem})", sid, name)
+                return False if name == "handshake" else None
+            if name == "handshake":
+                if not sid.startswith("test-") and not _same_browser(_environ(sid), msg["client_id"]):
+                    self.refused += 1
+                    self._note("handshake", "another browser's", sid, name)
+                    return False
+            elif not sid.startswith("test-") and msg["client_id"] not in core.sio.rooms(sid):
+                self.refused += 1
+                self._note("foreign", "foreign client id in a", sid, name)
+                return None
+            result = inner(sid, msg)
+            if inspect.isawaitable(result):
+                result = await result
+            return result
+
+        handler.commission_guard = True
+        return handler
+
+
+def _malformed(name: str, msg: Any) -> str:
+    """Why a socket message cannot be handled ("" when it can)."""
+    if not isinstance(msg, dict) or not isinstance(msg.get("client_id"), str):
+        return "no client id"
+    if name == "handshake":
+        if not all(isinstance(msg.get(k), str) for k in ("tab_id", "document_id")):
+            return "no tab or document id"
+        if msg.get("old_tab_id") is not None and not isinstance(msg["old_tab_id"], str):
+            return "bad old tab id"
+        if msg.get("next_message_id") is not None and not isinstance(msg["next_message_id"], int):
+            return "bad message id"
+    elif name == "event":
+        args = msg.get("args", [])
+        if not isinstance(msg.get("id"), int) or not isinstance(msg.get("listener_id"), str) or not isinstance(args, list):
+            return "no element, listener or arguments"
+        for arg in args:
+            if arg is not None:
+                if not isinstance(arg, str):
+                    return "arguments not JSON text"
+                try:
+                    json.loads(arg)
+                except ValueError:
+                    return "arguments not JSON"
+        client = Client.instances.get(msg["client_id"])
+        element = client.elements.get(msg["id"]) if client is not None else None
+        if element is not None and msg["listener_id"] not in element._event_listeners:  # noqa: SLF001
+            return "unknown listener"
+    elif name == "javascript_response":
+        if not isinstance(msg.get("request_id"), str):
+            return "no request id"
+    elif name == "ack":
+        if not isinstance(msg.get("next_message_id"), int):
+            return "no message id"
+    elif name == "log":
+        if msg.get("level") not in LOG_LEVELS or not isinstance(msg.get("message"), str):
+            return "no level or message"
+    return ""
+
+
+def _environ(sid: str) -> dict:
+    try:
+        return core.sio.get_environ(sid) or {}
+    except (KeyError, ValueError):
+        return {}
+
+
+def _same_browser(environ: dict, client_id: str) -> bool:
+    """Whether a socket (its ``environ``) comes from the browser (session cookie) whose request built the client."""
+    client = Client.instances.get(client_id)
+    if client is None:
+        return True  # NiceGUI refuses an unknown client itself
+    request = client.request
+    if request is None or "session" not in request.scope:
+        return True  # no session cookies on this app (the read-only site view)
+    page_browser = request.session.get("id")
+    scope = environ.get("asgi.scope") or {}
+    socket_browser = (scope.get("session") or {}).get("id")
+    return bool(page_browser) and socket_browser == page_browser
+
+
+SOCKET_GUARD = SocketEventGuard()
+
+
 def safe_redirect(target: str) -> str:
     return target if target.startswith("/") and not target.startswith("//") and "\\" not in target else "/"
 
@@ -179,13 +331,15 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
     names, any_ip = allowed_host_names(host, allowed_hosts)
     app.add_middleware(HostOriginGuard, names=names, any_ip=any_ip)
 
-    def on_beat(sid: str, msg: dict) -> None:
+    def on_beat(sid: str, *args) -> None:
         """A page's sign of life (dead-man rule); only counted from the socket of that page."""
+        msg = args[0] if len(args) == 1 else None
         client_id = msg.get("client_id") if isinstance(msg, dict) else None
         if isinstance(client_id, str) and client_id in core.sio.rooms(sid):
-            runtime.worker.heartbeat(client_id)
+            runtime.worker.heartbeat(client_id, msg.get("t"))  # the browser's own time of the beat
 
     core.sio.on(BEAT_EVENT, on_beat)
+    SOCKET_GUARD.install()
 
     @app.get("/login/complete", include_in_schema=False)
     def login_complete(request: Request, ticket: str = "", redirect_to: str = "/"):

@@ -1,0 +1,145 @@
+"""Socket events as an attacker sends them (issue 33, items 4 and 9): an event naming another
+browser's client id, a handshake into another browser's page, and malformed messages.
+
+The GUI runs in its own process beyond loopback (``--host 0.0.0.0``, accounts anna engineer and
+tablet viewer); the "browsers" are an HTTP client and a socket.io client each (tests/socket_browser.py).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import sqlite3
+import subprocess
+import sys
+
+import pytest
+from conftest import free_port
+from socket_browser import SocketBrowser
+from webutil import wait_http
+
+from app.users import UserStore
+
+pytestmark = pytest.mark.timeout(120)
+
+PLANT = """
+[[bus]]
+name = "line1"
+type = "modbus-rtu"
+port = "socket://127.0.0.1:{bus_port}"
+timeout = 0.2
+poll_period = 0.2
+simulate = true
+
+[[device]]
+name = "door-1"
+type = "hdlock"
+bus = "line1"
+address = 1
+"""
+
+
+@pytest.fixture(scope="module")
+def beyond_loopback(tmp_path_factory):
+    """The GUI on 0.0.0.0 (every browser logs in) on one simulated HD-Lock; yields (base URL, data folder, log)."""
+    folder = tmp_path_factory.mktemp("sockets")
+    data = folder / "data"
+    store = UserStore(data / "users.toml")
+    store.add("anna", "engineer", "correct horse")
+    store.add("tablet", "viewer", "battery staple")
+    (folder / "plant.toml").write_text(PLANT.format(bus_port=free_port()))
+    port = free_port()
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    for key in ("NICEGUI_USER_SIMULATION", "PYTEST_CURRENT_TEST", "NICEGUI_STORAGE_PATH"):
+        env.pop(key, None)
+    log = folder / "app.log"
+    with open(log, "wb") as out:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "app.cli", "--plant", str(folder / "plant.toml"), "--host", "0.0.0.0", "--port", str(port),
+             "--data-dir", str(data)], cwd=folder, env=env, stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
+        )
+    try:
+        wait_http(f"http://127.0.0.1:{port}/login", proc, timeout=40)
+        yield f"http://127.0.0.1:{port}", data, log
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+def audit_rows(data, parameter: str) -> list[tuple[str, str, str, str]]:
+    with sqlite3.connect(data / "audit.sqlite") as db:
+        return db.execute("SELECT user, role, new, result FROM audit WHERE parameter = ? ORDER BY id", (parameter,)).fetchall()
+
+
+async def wait_until(check, timeout: float = 20.0, what: str = "") -> None:
+    loop = asyncio.get_running_loop()
+    end = loop.time() + timeout
+    while not check():
+        assert loop.time() < end, f"not within {timeout} s: {what}"
+        await asyncio.sleep(0.1)
+
+
+async def test_an_event_naming_another_browsers_client_does_not_run_as_that_user(beyond_loopback):
+    base, data, _log = beyond_loopback
+    engineer, viewer = SocketBrowser(base), SocketBrowser(base)
+    try:
+        await engineer.login("anna", "correct horse")
+        await viewer.login("tablet", "battery staple")
+        victim = await engineer.open("/device/door-1")
+        await viewer.open("/device/door-1")
+        field, write = victim.find(**{"data-param": "LockRequestDelay"}), victim.find(**{"data-write": "LockRequestDelay"})
+
+        # the viewer cannot take over the engineer's page by a handshake of its own ...
+        intruder = SocketBrowser(base)
+        intruder.http.cookies = viewer.http.cookies
+        try:
+            assert not await intruder.connect(victim.client_id)
+            assert not await intruder.connect(victim.client_id, implicit=True)
+        finally:
+            await intruder.aclose()
+        # ... nor send events in its name over the viewer's own socket
+        await viewer.set_value(field, 175, page=victim)
+        await viewer.emit_event(write, "click", [], page=victim)
+
+        # the engineer's own events still work: a write of 180 lands, the forged 175 never did
+        await engineer.set_value(field, 180)
+        await engineer.emit_event(write, "click", [])
+        await wait_until(lambda: any(row[2].startswith("180") for row in audit_rows(data, "LockRequestDelay")),
+                         what="the engineer's own write of 180")
+        rows = audit_rows(data, "LockRequestDelay")
+        assert not [row for row in rows if row[2].startswith("175")], rows
+        assert all(row[:2] == ("anna", "engineer") for row in rows), rows
+    finally:
+        await engineer.aclose()
+        await viewer.aclose()
+
+
+async def test_junk_socket_events_are_refused_without_a_traceback(beyond_loopback):
+    base, _data, log = beyond_loopback
+    browser = SocketBrowser(base)
+    try:
+        await browser.login("tablet", "battery staple")
+        page = await browser.open("/device/door-1")
+        before = log.read_text(errors="replace").count("Traceback")
+        junk = [
+            ("event", {}), ("event", {"client_id": page.client_id}), ("event", "text"), ("event", [1, 2]),
+            ("event", {"client_id": page.client_id, "id": 1, "listener_id": "nope", "args": ["{"]}),
+            ("event", {"client_id": page.client_id, "id": 99999, "listener_id": 5, "args": 7}),
+            ("handshake", {"client_id": page.client_id}), ("handshake", None),
+            ("javascript_response", {"client_id": page.client_id}), ("ack", {"client_id": page.client_id}),
+            ("log", {"client_id": page.client_id, "level": "critical", "message": "x"}), ("log", {}),
+            ("commission_beat", "x"),
+        ]
+        for name, msg in junk:
+            await browser.sio.emit(name, msg)
+        await browser.sio.emit("event", ({"client_id": page.client_id}, "extra"))  # two arguments (a tuple is spread)
+        # the socket still works after the junk: a real handshake-bound event is answered
+        alive = await browser.sio.call("ack", {"client_id": page.client_id, "next_message_id": 0}, timeout=10)
+        assert alive is None
+        assert log.read_text(errors="replace").count("Traceback") == before, log.read_text(errors="replace")[-3000:]
+        assert "malformed" in log.read_text(errors="replace")
+    finally:
+        await browser.aclose()
