@@ -116,7 +116,7 @@ def _fingerprint(payload: dict[str, Any]) -> bytes:
 class MqttPublisher:
     """The instance's broker connection: birth/death, device state, status and alarms (docs/mqtt.md)."""
 
-    def __init__(self, config: MqttConfig, store, plant_name: str):
+    def __init__(self, config: MqttConfig, store, plant_name: str, audit=None):
         self.config = config
         self.store = store
         self.plant_name = plant_name
@@ -134,6 +134,11 @@ class MqttPublisher:
         self._tasks: list[asyncio.Task] = []
         self._client = None
         self._password: str | None = None
+        self.sparkplug = None  # the Sparkplug B edge node beside the JSON topics (``sparkplug = true``)
+        if config.sparkplug:
+            from app.sparkplug import SparkplugNode
+
+            self.sparkplug = SparkplugNode(config, store, plant_name, audit=audit, password=self._read_password)
 
     # -- what the header shows -----------------------------------------------------------------
     @property
@@ -143,7 +148,8 @@ class MqttPublisher:
     def summary(self) -> dict[str, Any]:
         return {"url": self.config.url, "state": self.state, "connected": self.connected, "last_error": self.last_error,
                 "since": self.since, "sent": self.sent, "queued": len(self._pending) + len(self._events),
-                "dropped": self.dropped, "reconnects": self.reconnects}
+                "dropped": self.dropped, "reconnects": self.reconnects,
+                **({"sparkplug": self.sparkplug.summary()} if self.sparkplug is not None else {})}
 
     def _set_state(self, state: str, error: str = "") -> None:
         if state != self.state or error != self.last_error:
@@ -154,9 +160,13 @@ class MqttPublisher:
     async def start(self) -> None:
         self._tasks = [asyncio.create_task(self._sample_loop(), name="mqtt sampler"),
                        asyncio.create_task(self._send_loop(), name="mqtt sender")]
+        if self.sparkplug is not None:
+            await self.sparkplug.start()
 
     async def stop(self) -> None:
         """Say goodbye (retained ``offline``, reason ``stopped``) if connected, then end both tasks (bounded)."""
+        if self.sparkplug is not None:
+            await self.sparkplug.stop()  # its NDEATH first, while the store still holds the devices
         client = self._client if self.connected else None
         for task in self._tasks:
             task.cancel()

@@ -117,7 +117,8 @@ class PlantViewConfig:
 
 
 MQTT_SCHEMES = {"mqtt": 1883, "mqtts": 8883}  # mqtts: TLS, the broker checked against the system's or ca_file's CAs
-MQTT_KEYS = ("url", "site", "instance", "username", "password_env", "password_file", "ca_file", "rate", "heartbeat", "buffer")
+MQTT_KEYS = ("url", "site", "instance", "username", "password_env", "password_file", "ca_file", "rate", "heartbeat", "buffer",
+             "sparkplug", "primary_host")
 
 
 @dataclass
@@ -137,6 +138,18 @@ class MqttConfig:
     rate: float = 2.0  # messages per second and device at most (changes only)
     heartbeat: float = 10.0  # seconds: an unchanged device is re-sent this often, so subscribers can tell stale data
     buffer: int = 1000  # alarm events kept while the broker is away (states keep only their newest message)
+    sparkplug: bool = False  # also publish Sparkplug B (app/sparkplug.py): group id = site, edge node id = instance
+    primary_host: str | None = None  # Sparkplug: publish only while this host application's STATE is online
+
+
+@dataclass
+class OpcuaConfig:
+    """``[opcua]``: the read-only OPC UA server (app/opcua_server.py)."""
+
+    endpoint: str = "opc.tcp://127.0.0.1:4840"
+    anonymous: bool = True  # False: sessions log in with an account of the accounts file
+    certificate: Path | None = None  # with private_key: Basic256Sha256 SignAndEncrypt is offered beside None
+    private_key: Path | None = None
 
 
 @dataclass
@@ -148,6 +161,7 @@ class Plant:
     sim_devices: dict[str, DeviceConfig] = field(default_factory=dict)  # simulated, not (yet) in the plant
     plant_view: PlantViewConfig = field(default_factory=PlantViewConfig)
     mqtt: MqttConfig | None = None
+    opcua: OpcuaConfig | None = None
 
     def devices_on(self, bus: str) -> list[DeviceConfig]:
         return [d for d in self.devices.values() if d.bus == bus]
@@ -171,11 +185,11 @@ def _key_line(text: str, start: int, key: str) -> int:
     return start
 
 
-TOP_LEVEL = ("name", "bus", "device", "sim_device", "plant_view", "mqtt")
+TOP_LEVEL = ("name", "bus", "device", "sim_device", "plant_view", "mqtt", "opcua")
 
 
 def _section(key: str) -> str:
-    return "name" if key == "name" else f"[{key}]" if key in ("plant_view", "mqtt") else f"[[{key}]]"
+    return "name" if key == "name" else f"[{key}]" if key in ("plant_view", "mqtt", "opcua") else f"[[{key}]]"
 
 
 def _section_line(text: str, key: str) -> int:
@@ -358,7 +372,7 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
         if key not in TOP_LEVEL:
             guess = _did_you_mean(key, TOP_LEVEL)
             hint = f"did you mean {_section(guess)}? " if guess else ""
-            raise fail(_section_line(text, key), f"unknown section {_section(key)}; {hint}known: [[bus]], [[device]], [[sim_device]], [plant_view], [mqtt], name")
+            raise fail(_section_line(text, key), f"unknown section {_section(key)}; {hint}known: [[bus]], [[device]], [[sim_device]], [plant_view], [mqtt], [opcua], name")
     for key in ("bus", "device", "sim_device"):
         if key in data and not (isinstance(data[key], list) and all(isinstance(t, dict) for t in data[key])):
             raise fail(_section_line(text, key), f"[{key}] is one table; write [[{key}]] (double brackets): one [[{key}]] table per {key.replace('sim_', 'simulated ')}")
@@ -379,6 +393,8 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
     plant.plant_view = PlantViewConfig(public=public)
     if "mqtt" in data:
         plant.mqtt = parse_mqtt(text, data["mqtt"], plant.name, path, fail)
+    if "opcua" in data:
+        plant.opcua = parse_opcua(text, data["opcua"], path, fail)
 
     bus_lines = _header_lines(text, "bus")
     for index, raw in enumerate(data.get("bus", [])):
@@ -475,10 +491,44 @@ def parse_mqtt(text: str, raw: Any, plant_name: str, path: Path | None, fail) ->
     buffer = raw.get("buffer", 1000)
     if isinstance(buffer, bool) or not isinstance(buffer, int) or not 10 <= buffer <= 100_000:
         raise fail(at("buffer"), f"[mqtt]: buffer must be a whole number of messages in 10..100000, not {buffer!r}")
+    if "sparkplug" in raw and not isinstance(raw["sparkplug"], bool):
+        raise fail(at("sparkplug"), f"[mqtt]: sparkplug must be true or false (without quotes), not {raw['sparkplug']!r}")
+    if "primary_host" in raw and not TOPIC_PART.fullmatch(raw["primary_host"]):
+        raise fail(at("primary_host"), f"[mqtt]: primary_host {raw['primary_host']!r} becomes a topic level: use letters, digits, '_', '.', '-' only")
+    if "primary_host" in raw and not raw.get("sparkplug"):
+        raise fail(at("primary_host"), "[mqtt]: primary_host is a Sparkplug setting: add sparkplug = true")
     return MqttConfig(url=raw["url"], host=host, port=port, tls=tls, site=site, instance=instance,
                       username=raw.get("username"), password_env=raw.get("password_env"),
                       password_file=files["password_file"], ca_file=files["ca_file"], rate=rate,
-                      heartbeat=float(raw.get("heartbeat", 10.0)), buffer=buffer)
+                      heartbeat=float(raw.get("heartbeat", 10.0)), buffer=buffer,
+                      sparkplug=raw.get("sparkplug", False), primary_host=raw.get("primary_host"))
+
+
+OPCUA_KEYS = ("endpoint", "anonymous", "certificate", "private_key")
+
+
+def parse_opcua(text: str, raw: Any, path: Path | None, fail) -> OpcuaConfig:
+    """The ``[opcua]`` table (the read-only OPC UA server; off without it)."""
+    line = _section_line(text, "opcua")
+    if not isinstance(raw, dict):
+        raise fail(line, '[opcua] must be a table, e.g. [opcua] endpoint = "opc.tcp://127.0.0.1:4840"')
+    at = lambda key: _key_line(text, line, key)  # noqa: E731
+    for key in raw:
+        if key not in OPCUA_KEYS:
+            raise fail(at(key), _unknown_key("[opcua]", key, OPCUA_KEYS))
+    for key in ("endpoint", "certificate", "private_key"):
+        if key in raw and not isinstance(raw[key], str):
+            raise fail(at(key), _wrong_type("[opcua]", key, raw[key], str))
+    endpoint = raw.get("endpoint", OpcuaConfig.endpoint)
+    if not re.fullmatch(r"opc\.tcp://[^/:]+(:\d{1,5})?(/.*)?", endpoint):
+        raise fail(at("endpoint"), f"[opcua]: endpoint must look like opc.tcp://127.0.0.1:4840, not {endpoint!r}")
+    if "anonymous" in raw and not isinstance(raw["anonymous"], bool):
+        raise fail(at("anonymous"), f"[opcua]: anonymous must be true or false (without quotes), not {raw['anonymous']!r}")
+    if ("certificate" in raw) != ("private_key" in raw):
+        raise fail(at("certificate" if "certificate" in raw else "private_key"), "[opcua]: encryption needs both certificate and private_key")
+    base = path.parent if path else Path.cwd()
+    files = {key: (base / raw[key]) if key in raw else None for key in ("certificate", "private_key")}
+    return OpcuaConfig(endpoint=endpoint, anonymous=raw.get("anonymous", True), **files)
 
 
 def can_id_conflict(devices: list[DeviceConfig], bus: BusConfig) -> tuple[DeviceConfig, str] | None:

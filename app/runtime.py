@@ -133,7 +133,12 @@ class Runtime:
         if plant.mqtt is not None:
             from app.mqtt import MqttPublisher
 
-            self.mqtt = MqttPublisher(plant.mqtt, self.store, plant.name)
+            self.mqtt = MqttPublisher(plant.mqtt, self.store, plant.name, audit=self.audit)
+        self.opcua = None  # the read-only OPC UA server, when the plant file has an [opcua] table
+        if plant.opcua is not None:
+            from app.opcua_server import OpcuaServer
+
+            self.opcua = OpcuaServer(plant.opcua, self.store, plant, worker=self.worker, users=self.users, audit=self.audit)
 
     def session_user(self, token: str | None):
         """The account a session token stands for, as the account store says now (or None)."""
@@ -221,8 +226,12 @@ class Runtime:
                        asyncio.create_task(memory.keep_trimmed(), name="heap trim")]
         if self.mqtt is not None:
             await self.mqtt.start()  # its own tasks: a broker that is away never holds up the buses
+        if self.opcua is not None:
+            await self.opcua.start()
 
     async def stop(self) -> None:
+        if self.opcua is not None:
+            await self.opcua.stop()
         if self.mqtt is not None:
             await self.mqtt.stop()  # bounded; says "offline, stopped" to the broker while the store still holds the devices
         for task in self._tasks:

@@ -1,0 +1,357 @@
+"""A read-only OPC UA server (asyncua) with the Devices (DI) information model: ``[opcua]`` in the plant file.
+
+asyncua ships no DI nodeset, so the part of OPC 10000-100 (DI) this server uses is modelled here in the DI
+namespace ``http://opcfoundation.org/UA/DI/`` with the DI node ids: ``TopologyElementType`` (i=1001) ->
+``ComponentType`` (i=15063) -> ``DeviceType`` (i=1002) with the mandatory identification properties
+Manufacturer, Model, SerialNumber, SoftwareRevision, HardwareRevision, DeviceRevision, RevisionCounter and
+the ``DeviceHealth`` variable of ``DeviceHealthEnumeration`` (i=6244: NORMAL, FAILURE, CHECK_FUNCTION,
+OFF_SPEC, MAINTENANCE_REQUIRED, NAMUR NE 107), the ``ParameterSet`` component, and ``DeviceSet`` (i=5001)
+under Objects. One ``DeviceType`` object per device of the plant.
+
+Live values come from the state store only (``DeviceState.values()``), as variables of the device's
+``ParameterSet`` with their engineering unit (``EngineeringUnits``) and a status code: Good, Uncertain
+(``UncertainLastUsableValue``) for stale, Bad (``BadNotConnected``) for offline or never heard.
+
+Read-only for everyone: the server's own permission rules (:class:`ReadOnlyRules`) refuse Write, Call,
+HistoryUpdate and every node-management service for every session, whoever logged in; the variables
+are also declared CurrentRead only. Anonymous sessions can be turned off (``anonymous = false``): then a
+session logs in with an account of the accounts file (any role: it only reads). With ``certificate``
+and ``private_key``, Basic256Sha256 SignAndEncrypt is offered beside None.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+import time
+from datetime import datetime, timezone
+from typing import Any
+
+from asyncua import Server, ua
+from asyncua.crypto.permission_rules import PermissionRuleset, User, UserRole
+
+from devices.registry import DEVICE_TYPES
+
+log = logging.getLogger(__name__)
+
+DI_URI = "http://opcfoundation.org/UA/DI/"
+DEVICE_HEALTH = ("NORMAL", "FAILURE", "CHECK_FUNCTION", "OFF_SPEC", "MAINTENANCE_REQUIRED")
+IDENTITY = ("Manufacturer", "Model", "SerialNumber", "SoftwareRevision", "HardwareRevision", "DeviceRevision")
+MANUFACTURERS = {"hdlock": "BSS", "electrak": "Thomson", "scu": "Ewellix", "mo64": "Bauer"}
+UPDATE_PERIOD_S = 0.1  # live values reach the address space at most 10 times a second
+REVISION_PERIOD_S = 5.0  # the revision counters are counted again from the audit log this often
+
+REFUSED_SERVICES = {ua.NodeId(i) for i in (
+    ua.ObjectIds.WriteRequest_Encoding_DefaultBinary, ua.ObjectIds.CallRequest_Encoding_DefaultBinary,
+    ua.ObjectIds.HistoryUpdateRequest_Encoding_DefaultBinary, ua.ObjectIds.AddNodesRequest_Encoding_DefaultBinary,
+    ua.ObjectIds.DeleteNodesRequest_Encoding_DefaultBinary, ua.ObjectIds.AddReferencesRequest_Encoding_DefaultBinary,
+    ua.ObjectIds.DeleteReferencesRequest_Encoding_DefaultBinary, ua.ObjectIds.RegisterServerRequest_Encoding_DefaultBinary,
+    ua.ObjectIds.RegisterServer2Request_Encoding_DefaultBinary,
+)}
+
+
+class ReadOnlyRules(PermissionRuleset):
+    """Every session may browse, read and subscribe; none may write, call or change the address space."""
+
+    refused = 0
+
+    def check_validity(self, user, action_type, body) -> bool:
+        if action_type in REFUSED_SERVICES:
+            ReadOnlyRules.refused += 1
+            log.info("opcua: %s refused for %s (the server is read-only)", action_type, getattr(user, "name", None) or "anonymous")
+            return False
+        return True
+
+
+class AccountUsers:
+    """Sessions log in with an account of the accounts file (app/users.py); anonymous only if allowed."""
+
+    def __init__(self, users, anonymous: bool):
+        self.users, self.anonymous = users, anonymous
+
+    def get_user(self, iserver, username=None, password=None, certificate=None):
+        if username is None:
+            return User(role=UserRole.Anonymous) if self.anonymous else None
+        account = self.users.verify(username, password or "") if self.users is not None else None
+        return None if account is None else User(role=UserRole.User, name=username)
+
+
+def health_of(state, controlled: bool, alarms: list[str]) -> int:
+    """NAMUR NE 107 from the device's state: FAILURE offline, CHECK_FUNCTION while an engineer controls it,
+    OFF_SPEC with an active alarm of its tile, MAINTENANCE_REQUIRED with stale values or parameters
+    written but not saved in the device, else NORMAL."""
+    status = state.status
+    if status == "offline":
+        return DEVICE_HEALTH.index("FAILURE")
+    if controlled:
+        return DEVICE_HEALTH.index("CHECK_FUNCTION")
+    if alarms:
+        return DEVICE_HEALTH.index("OFF_SPEC")
+    if status == "stale" or state.unsaved:
+        return DEVICE_HEALTH.index("MAINTENANCE_REQUIRED")
+    return DEVICE_HEALTH.index("NORMAL")
+
+
+def identity_of(state, device_type: str, options: dict[str, Any]) -> dict[str, str]:
+    """The DI identification of one device, from its live values (as its backup identity reads them)."""
+    values = state.values()
+    info = state.info.get("identity") if isinstance(state.info.get("identity"), dict) else {}
+
+    def first(*names: str) -> str:
+        for name in names:
+            entry = values.get(name)
+            if entry is not None and entry.get("value") not in (None, ""):
+                return str(entry["value"])
+            if info.get(name) not in (None, ""):
+                return str(info[name])
+        return ""
+
+    title = DEVICE_TYPES[device_type].title if device_type in DEVICE_TYPES else device_type
+    model = title
+    if options.get("variant"):
+        model = f"{title} {options['variant']}"
+    elif options.get("actuators") and isinstance(options["actuators"], list):
+        models = sorted({str(a.get("model", "")) for a in options["actuators"] if isinstance(a, dict) and a.get("model")})
+        model = f"{title} ({', '.join(models)})" if models else title
+    return {
+        "Manufacturer": MANUFACTURERS.get(device_type, title),
+        "Model": model,
+        "SerialNumber": first("SerialNumber", "Serial number", "serial") or str(options.get("serial", "")),
+        "SoftwareRevision": first("FirmwareVersion", "Program version", "Firmware info", "version", "Software version"),
+        "HardwareRevision": first("HardwareVersion", "Hardware version", "product"),
+        "DeviceRevision": first("Device code", "DeviceRevision", "Configuration info"),
+    }
+
+
+def status_of(quality: str | None) -> ua.StatusCode:
+    if quality == "good":
+        return ua.StatusCode(ua.StatusCodes.Good)
+    if quality == "stale":
+        return ua.StatusCode(ua.StatusCodes.UncertainLastUsableValue)
+    return ua.StatusCode(ua.StatusCodes.BadNotConnected)
+
+
+def variant_of(value: Any) -> ua.Variant:
+    if isinstance(value, bool):
+        return ua.Variant(value, ua.VariantType.Boolean)
+    if isinstance(value, int):
+        return ua.Variant(value, ua.VariantType.Int64) if -(1 << 63) <= value < 1 << 63 else ua.Variant(str(value), ua.VariantType.String)
+    if isinstance(value, float):
+        return ua.Variant(value, ua.VariantType.Double)
+    if isinstance(value, bytes | bytearray):
+        return ua.Variant(bytes(value), ua.VariantType.ByteString)
+    return ua.Variant("" if value is None else str(value), ua.VariantType.String)
+
+
+def _coerce(value: Any, vtype: ua.VariantType) -> ua.Variant | None:
+    """``value`` in the variable's type (fixed when the variable was made), or None."""
+    try:
+        if value is None:
+            return None
+        if vtype == ua.VariantType.Boolean:
+            return ua.Variant(bool(value), vtype)
+        if vtype == ua.VariantType.Int64:
+            if isinstance(value, float) and not value.is_integer():
+                return None
+            return ua.Variant(int(value), vtype)
+        if vtype == ua.VariantType.Double:
+            number = float(value)
+            return ua.Variant(number, vtype) if math.isfinite(number) else None
+        if vtype == ua.VariantType.ByteString:
+            return ua.Variant(bytes(value), vtype)
+        return ua.Variant(str(value), vtype)
+    except (TypeError, ValueError, OverflowError):
+        return None
+
+
+class OpcuaServer:
+    """The plant as DI devices, read-only. Started and stopped with the runtime.
+
+    :param worker: the bus worker, asked only whether an engineer controls a device (CHECK_FUNCTION)
+    :param audit: the audit log, counted for the revision counters
+    """
+
+    def __init__(self, config, store, plant, worker=None, users=None, audit=None):
+        self.config, self.store, self.plant = config, store, plant
+        self.worker, self.users, self.audit = worker, users, audit
+        self.server: Server | None = None
+        self.ns = self.di = 0
+        self._devices: dict[str, dict[str, Any]] = {}  # device -> node ids and what was last written
+        self._task: asyncio.Task | None = None
+        self.updates = 0
+        self.started = False
+
+    async def start(self) -> None:
+        server = Server(user_manager=AccountUsers(self.users, self.config.anonymous))
+        await server.init()
+        server.set_endpoint(self.config.endpoint)
+        server.set_server_name(f"commission {self.plant.name}")
+        await server.set_application_uri(f"urn:commission:{self.plant.name}")
+        policies = [ua.SecurityPolicyType.NoSecurity]
+        if self.config.certificate and self.config.private_key:
+            await server.load_certificate(str(self.config.certificate))
+            await server.load_private_key(str(self.config.private_key))
+            policies.append(ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt)
+        server.set_security_policy(policies, permission_ruleset=ReadOnlyRules())
+        tokens = [ua.UserNameIdentityToken] + ([ua.AnonymousIdentityToken] if self.config.anonymous else [])
+        server.set_identity_tokens(tokens)
+        self.server = server
+        self.di = await server.register_namespace(DI_URI)
+        self.ns = await server.register_namespace(f"urn:commission:{self.plant.name}")
+        device_type, device_set = await self._di_model()
+        for name, state in self.store.devices.items():
+            await self._add_device(device_set, device_type, name, state)
+        await server.start()
+        self.started = True
+        self._task = asyncio.create_task(self._update_loop(), name="opcua values")
+        log.info("opcua: read-only server on %s (%d devices)", self.config.endpoint, len(self._devices))
+
+    async def stop(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            await asyncio.gather(self._task, return_exceptions=True)
+            self._task = None
+        if self.server is not None and self.started:
+            await self.server.stop()
+        self.started = False
+
+    # -- the DI model ----------------------------------------------------------------------------------
+    async def _di_model(self):
+        server, di = self.server, self.di
+        health_enum = await server.nodes.enum_data_type.add_data_type(ua.NodeId(6244, di), ua.QualifiedName("DeviceHealthEnumeration", di))
+        definition = ua.EnumDefinition()
+        for index, text in enumerate(DEVICE_HEALTH):
+            definition.Fields.append(ua.EnumField(Name=text, Value=index, DisplayName=ua.LocalizedText(text)))
+        await health_enum.write_data_type_definition(definition)
+        await health_enum.add_property(0, "EnumStrings", ua.Variant([ua.LocalizedText(t) for t in DEVICE_HEALTH]))
+        topology = await server.nodes.base_object_type.add_object_type(ua.NodeId(1001, di), ua.QualifiedName("TopologyElementType", di))
+        component = await topology.add_object_type(ua.NodeId(15063, di), ua.QualifiedName("ComponentType", di))
+        device_type = await component.add_object_type(ua.NodeId(1002, di), ua.QualifiedName("DeviceType", di))
+        for prop in IDENTITY:
+            node = await device_type.add_property(di, prop, "", varianttype=ua.VariantType.String)
+            await node.set_modelling_rule(True)
+        node = await device_type.add_property(di, "RevisionCounter", -1, varianttype=ua.VariantType.Int32)
+        await node.set_modelling_rule(True)
+        health = await device_type.add_variable(di, "DeviceHealth", 0, varianttype=ua.VariantType.Int32, datatype=health_enum.nodeid)
+        await health.set_modelling_rule(True)
+        params = await device_type.add_object(di, "ParameterSet")
+        await params.set_modelling_rule(True)
+        device_set = await server.nodes.objects.add_object(ua.NodeId(5001, di), ua.QualifiedName("DeviceSet", di))
+        return device_type, device_set
+
+    async def _add_device(self, device_set, device_type, name: str, state) -> None:
+        config = self.plant.devices.get(name)
+        obj = await device_set.add_object(ua.NodeId(name, self.ns), ua.QualifiedName(name, self.ns), objecttype=device_type.nodeid)
+        children = {}
+        for child in await obj.get_children():
+            children[(await child.read_browse_name()).Name] = child
+        ident = identity_of(state, state.type, config.options if config else {})
+        for prop, text in ident.items():
+            await children[prop].write_value(ua.Variant(text, ua.VariantType.String))
+        await children["RevisionCounter"].write_value(ua.Variant(0, ua.VariantType.Int32))
+        for node in children.values():  # whatever a client is allowed in principle: reading only
+            await node.write_attribute(ua.AttributeIds.UserAccessLevel, ua.DataValue(ua.Variant(1, ua.VariantType.Byte)))
+        await obj.add_property(self.ns, "Bus", state.bus)
+        await obj.add_property(self.ns, "DeviceKind", state.type)
+        self._devices[name] = {"node": obj, "params": children["ParameterSet"], "health": children["DeviceHealth"].nodeid,
+                               "revision": children["RevisionCounter"].nodeid, "identity": ident,
+                               "ident_nodes": {k: children[k].nodeid for k in IDENTITY},
+                               "points": {}, "version": None, "written": {}, "last_health": None}
+
+    async def _add_point(self, dev: dict, device: str, point: str, entry: dict[str, Any]):
+        variant = variant_of(entry.get("value"))
+        var = await dev["params"].add_variable(ua.NodeId(f"{device}/{point}", self.ns), ua.QualifiedName(point, self.ns),
+                                               variant.Value, varianttype=variant.VariantType)
+        unit = entry.get("unit") or ""
+        eu = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=-1,
+                              DisplayName=ua.LocalizedText(unit), Description=ua.LocalizedText(unit))
+        await var.add_property(0, "EngineeringUnits", ua.Variant(eu, ua.VariantType.ExtensionObject))
+        dev["points"][point] = (var.nodeid, variant.VariantType)
+        return dev["points"][point]
+
+    # -- live values -------------------------------------------------------------------------------------
+    def _controlled(self, name: str) -> bool:
+        adapter = self.worker.adapters.get(name) if self.worker is not None else None
+        return getattr(adapter, "controller", None) is not None
+
+    async def _update_loop(self) -> None:
+        next_revision = 0.0
+        while True:
+            started = time.monotonic()
+            try:
+                if started >= next_revision and self.audit is not None:
+                    next_revision = started + REVISION_PERIOD_S
+                    await self._update_revisions()
+                await self.update()
+            except asyncio.CancelledError:
+                raise
+            except Exception:  # noqa: BLE001 - a bad value must not end the server's updates
+                log.exception("opcua: updating the values failed")
+            await asyncio.sleep(max(0.0, UPDATE_PERIOD_S - (time.monotonic() - started)))
+
+    async def update(self) -> int:
+        """Write every changed value, status, health and identity into the address space; returns the writes."""
+        from app.mqtt import active_alarms
+
+        writes = 0
+        now = time.time()
+        for name, dev in self._devices.items():
+            state = self.store.devices.get(name)
+            if state is None:
+                continue
+            health = health_of(state, self._controlled(name), active_alarms(state, now) if state.status != "offline" else [])
+            if health != dev["last_health"]:
+                dev["last_health"] = health
+                await self.server.write_attribute_value(dev["health"], ua.DataValue(ua.Variant(health, ua.VariantType.Int32)))
+                writes += 1
+            if dev["version"] == state.version and state.status == dev.get("status"):
+                continue
+            dev["version"], dev["status"] = state.version, state.status
+            config = self.plant.devices.get(name)
+            ident = identity_of(state, state.type, config.options if config else {})
+            for key, text in ident.items():
+                if text != dev["identity"].get(key):
+                    dev["identity"][key] = text
+                    await self.server.write_attribute_value(dev["ident_nodes"][key], ua.DataValue(ua.Variant(text, ua.VariantType.String)))
+            for point, entry in state.values().items():
+                known = dev["points"].get(point) or await self._add_point(dev, name, point, entry)
+                nodeid, vtype = known
+                quality = entry.get("quality") if state.status != "offline" else "offline"
+                mark = (entry.get("value"), quality, entry.get("time"))
+                if dev["written"].get(point) == mark:
+                    continue
+                dev["written"][point] = mark
+                variant = _coerce(entry.get("value"), vtype)
+                status = status_of(quality)
+                if variant is None:
+                    variant, status = ua.Variant(None, vtype), ua.StatusCode(ua.StatusCodes.BadNoData)
+                stamp = entry.get("time")
+                source = datetime.fromtimestamp(stamp, timezone.utc) if isinstance(stamp, int | float) else None
+                await self.server.write_attribute_value(nodeid, ua.DataValue(variant, StatusCode_=status, SourceTimestamp=source,
+                                                                             ServerTimestamp=datetime.now(timezone.utc)))
+                writes += 1
+        self.updates += writes
+        return writes
+
+    async def _update_revisions(self) -> None:
+        """RevisionCounter: the device's parameter changes that went through since its last approval."""
+        counts = await asyncio.to_thread(self._count_revisions)
+        for name, count in counts.items():
+            dev = self._devices.get(name)
+            if dev is not None and dev.get("revision_count") != count:
+                dev["revision_count"] = count
+                await self.server.write_attribute_value(dev["revision"], ua.DataValue(ua.Variant(count, ua.VariantType.Int32)))
+
+    def _count_revisions(self) -> dict[str, int]:
+        counts: dict[str, int] = {}
+        for name in self._devices:
+            rows = self.audit.query(device=name, limit=10_000)  # newest first
+            count = 0
+            for row in rows:
+                if "approv" in row.action.lower():
+                    break
+                if row.parameter and row.result.startswith("ok"):
+                    count += 1
+            counts[name] = count
+        return counts
