@@ -32,6 +32,30 @@ MOTION_WARNING = "the boom moves: check that nobody stands under it"
 EEPROM_WARNING = ("Every setting write wears the barrier's EEPROM (chapter 4: the number of writes is limited). "
                   "Write only what must change.")
 ALARM_BITS = {"LS", "Baum ab", "F_ereignis"}
+# what the status bits mean (chapter 5.1.7, pages 16-17; SPEC-NOTES "Barrier status"); a bit the summary
+# names without its function says so
+BIT_MEANINGS = {
+    "Funk": "radio (Funk): the learned radio code is being received (page 16)",
+    "BT": "BT: the open command input (BT = open, BZ = close, chapter 5.2.1)",
+    "BTS": "BTS: command input named in chapter 5.1.7; its function is not in the summary",
+    "SLZ": "SLZ: input named in chapter 5.1.7; its function is not in the summary",
+    "LS": "LS: the light barrier is interrupted (safety: a closing boom reverses)",
+    "Baum ab": "Baum ab: boom off - the boom is broken away or removed (safety)",
+    "F_ereignis": "F_ereignis: fault event - an error flag is set; see the error memory (safety)",
+    "SERVICE": "SERVICE: maintenance is due (maintenance counter reached the interval)",
+    "mains monitoring": "mains monitoring: the mains supply monitor reports",
+}
+for _name in ("BTA1", "BTA2", "BTA3", "BTZ1A", "BTZ1B", "BTZ2"):
+    BIT_MEANINGS[_name] = f"{_name}: command input named in chapter 5.1.7; its function is not in the summary"
+for _loop in "ABC":
+    BIT_MEANINGS[f"adjusting loop {_loop}"] = f"loop {_loop} is being adjusted (Abgleich Schleife {_loop}, page 17)"
+    BIT_MEANINGS[f"loop {_loop} occupied"] = f"a vehicle is on loop {_loop}"
+BIT_MEANINGS["loop EXT"] = "the external loop detector reports"
+for _n in range(1, 7):
+    BIT_MEANINGS[f"multi relay {_n}"] = f"multi relay {_n} is switched on (Multi{_n}, page 17)"
+LEGEND = ("Funk = radio code received; BT = open input; LS = light barrier interrupted; Baum ab = boom off "
+          "(broken away or removed); F_ereignis = fault event (see the error memory); SERVICE = maintenance due. "
+          "Hover a lamp for its meaning.")
 TIME_KEYS = ("t_open", "t_prewarn_open", "t_prewarn_close")
 INT_KEYS = ("maintenance_interval", "vehicle_counter")
 SETTING_POINTS = {"t_open": "Open time", "t_prewarn_open": "Pre-warning before opening",
@@ -43,7 +67,8 @@ IDENTITY_POINTS = ("Device code", "Program version", "Serial number", "MAC addre
 COUNTER_POINTS = ("Service counter", "Maintenance counter", "Maintenance interval", "Vehicle counter",
                   "Loop-adjust counter A", "Loop-adjust counter B", "Loop-adjust counter C")
 MODE_POINTS = ("Induction-loop modes", "Direction logics", "Configuration flags", "Multi-relay modes",
-               "Status mask", "Counting function")
+               "Status mask", "Counting function", "Radio code (dec_bt)", "Loop periods")
+HIDDEN_BITS = frozenset(f"multi relay {n}" for n in range(7, 15))  # an MO 64 has six (5.1.25): SPEC-NOTES
 
 
 def boom_svg(position: int | None) -> str:
@@ -65,12 +90,12 @@ def content(name: str) -> None:
     client = ui.context.client
     session = client.id
 
-    async def act(describe: str, fn, success: str = "", write: bool = True):
+    async def act(describe: str, fn, success: str = "", write: bool = True, **audit):
         async def action(a):
             result = fn(a)
             return await result if inspect.isawaitable(result) else result
 
-        result = await run_command(name, action, describe, success=success, write=write)
+        result = await run_command(name, action, describe, success=success, write=write, **audit)
         if updater:
             updater[0]()  # the reply and the levels are shown at once
         return result
@@ -86,24 +111,49 @@ def content(name: str) -> None:
             confirmed = True
         await act(words, lambda a: a.command(session, cmd, fn, confirmed=confirmed), success=f"{words}: ack")
 
+    async def clear_levels() -> None:
+        mine = sorted(COMMAND_NAMES[c] for c in adapter.levels)
+        if not mine:
+            ui.notify("no level set by this tool is active")
+            return
+        warn = (" Deactivating the open level lets the boom close." if codec.Command.OPEN in adapter.levels else "")
+        if not await confirm("Clear the levels this tool set",
+                             f"Deactivates: {', '.join(mine)}.{warn} {MOTION_WARNING}.", ok="The area is clear: clear"):
+            return
+        await act("clear levels", lambda a: a.clear_levels(session, confirmed=True), success="levels deactivated",
+                  parameter="levels", old=", ".join(mine), new="none")
+
     async def write(key: str, field) -> None:
         setting = codec.SETTINGS[key]
         value = await _entry_value(name, key, field)
         if value is None:
             return
+        verified = key in adapter.verified_selectors
+        if setting.assumed and not verified:
+            if not await confirm(
+                    f"{setting.name}: assumed selector",
+                    f"The selector 0x{setting.telegram:02X} 0x{setting.selector:02X} is an assumption "
+                    f"({setting.assumed}); the manual's summary does not name it. A wrong selector writes another "
+                    f"EEPROM setting. Confirm only if you verified on this unit that it is {setting.name}.",
+                    ok="Verified on this unit"):
+                return
+            verified = True
         if setting.eeprom and not await confirm(
                 f"Write {setting.name}", f"{EEPROM_WARNING} Writes this session: {adapter.eeprom_writes.get(session, 0)}.",
                 ok="Write"):
             return
-        await act(f"set {setting.name}", lambda a: a.write_setting(session, key, value),
-                  success=f"{setting.name} written and read back")
+        old = point_text(SETTING_POINTS[key], "not read")
+        await act(f"set {setting.name}", lambda a: a.write_setting(session, key, value, selector_verified=verified),
+                  success=f"{setting.name} written and read back", parameter=setting.name, old=old,
+                  new=_value_words(key, value))
 
     async def monitoring(on: bool) -> None:
         if not await confirm("Change monitoring", f"{EEPROM_WARNING} Writes this session: "
                              f"{adapter.eeprom_writes.get(session, 0)}.", ok="Write"):
             return
         await act("change monitoring " + ("on" if on else "off"), lambda a: a.set_change_monitoring(session, on),
-                  success="change monitoring " + ("on" if on else "off"))
+                  success="change monitoring " + ("on" if on else "off"), parameter="change monitoring",
+                  old=point_text("Change monitoring", "not read"), new="on" if on else "off")
 
     with frame(f"Bauer MO 64 {name}"):
         guard = WriteGuard(state)  # commands and settings, disabled with the reason while the barrier does not answer
@@ -120,6 +170,7 @@ def content(name: str) -> None:
                     alarms = ui.label().classes("text-negative text-body1").props("data-testid=alarms")
                     link = ui.label().classes("text-body2").props("data-testid=connection")
                     error_line = ui.label().classes("text-negative text-caption")
+                    unavailable = ui.label().classes("text-caption text-grey-8").props("data-testid=unavailable")
                     counter_line(state, lambda c: f"requests {c.requests}  answers {c.responses}  timeouts {c.timeouts}  malformed {c.malformed}")
             if adapter.rs485:
                 ui.label(f"RS485 bus address {adapter.address}, this tool is master {adapter.master}.") \
@@ -128,10 +179,10 @@ def content(name: str) -> None:
                 with ui.row().classes("items-center gap-2"):
                     ui.label("The MO 64 serves one TCP client at a time (chapter 3).").classes("text-caption text-grey-8")
                     ui.button("Release the connection", icon="link_off", on_click=lambda: act(
-                        "release the connection", lambda a: a.release(session), write=False,
+                        "release the connection", lambda a: a.release(session),
                         success="released: another client may connect")).props("outline dense data-testid=release")
                     ui.button("Take it back", icon="link", on_click=lambda: act(
-                        "take the connection back", lambda a: a.resume(session), write=False)) \
+                        "take the connection back", lambda a: a.resume(session))) \
                         .props("outline dense data-testid=resume")
 
         # -- commands ------------------------------------------------------------------------------
@@ -153,8 +204,7 @@ def content(name: str) -> None:
                                   .props(f"outline data-testid=activate-{COMMAND_NAMES[cmd]}"))
                         ui.button("deactivate", on_click=lambda cmd=cmd: move(cmd, codec.Function.DEACTIVATE)) \
                             .props(f"outline data-testid=deactivate-{COMMAND_NAMES[cmd]}")
-                ui.button("Clear my levels", icon="layers_clear", on_click=lambda: act(
-                    "clear levels", lambda a: a.clear_levels(session), write=False, success="levels deactivated")) \
+                ui.button("Clear my levels", icon="layers_clear", on_click=clear_levels) \
                     .props("data-testid=clear-levels")
             levels = ui.label().classes("text-body2").props("data-testid=levels")
             reply = ui.label().classes("text-body2 mono").props("data-testid=reply")
@@ -172,7 +222,11 @@ def content(name: str) -> None:
                     with ui.column().classes("gap-0"):
                         ui.label(group).classes("text-subtitle2")
                         for bit in names:
-                            lamps[bit] = Lamp(bit, "alarm" if bit in ALARM_BITS else "ok")
+                            if bit in HIDDEN_BITS:
+                                continue
+                            lamps[bit] = Lamp(bit, "alarm" if bit in ALARM_BITS else "ok",
+                                              tooltip=BIT_MEANINGS.get(bit, f"{bit}: named in chapter 5.1.7"))
+            ui.label(LEGEND).classes("text-caption text-grey-8").props("data-testid=status-legend")
 
         # -- identity, counters --------------------------------------------------------------------
         with ui.row().classes("w-full gap-4 items-stretch"):
@@ -216,12 +270,12 @@ def content(name: str) -> None:
                           ui.button("Off", on_click=lambda: monitoring(False)).props("outline dense data-testid=monitoring-off"))
                 mon = ui.label().classes("text-body2").props("data-testid=monitoring")
             setting_values: dict[str, ui.label] = {}
-            with ui.grid(columns=3).classes("w-full gap-x-4 gap-y-1 items-center") \
-                    .style("grid-template-columns: 220px 1fr 260px"):
+            with ui.grid(columns=3).classes("w-full gap-x-4 items-center") \
+                    .style("grid-template-columns: 220px 1fr 300px; row-gap: 28px"):  # room for each entry's range
                 for key, setting in codec.SETTINGS.items():
                     if key == "change_monitoring":
                         continue
-                    ui.label(setting.name).classes("text-body2")
+                    ui.label(setting.name + (" (assumed selector)" if setting.assumed else "")).classes("text-body2")
                     setting_values[key] = _value_line("mono text-body2")
                     with ui.row().classes("items-center gap-1 no-wrap"):
                         if key in TIME_KEYS:
@@ -230,7 +284,7 @@ def content(name: str) -> None:
                                                  step=0.01).classes("w-40")
                         elif key in INT_KEYS:
                             low, high = _limits(key)
-                            field = range_number("value", low, high, integer=True, step=1).classes("w-40")
+                            field = _whole_number("value", low, high).classes("w-48")
                         else:
                             field = ui.input("raw (as shown, e.g. 0x0 or 1,0,0,0,0,0)",
                                              validation=lambda text, k=key: _raw_problem(k, text)).classes("w-48") \
@@ -272,7 +326,14 @@ def content(name: str) -> None:
         bus = runtime.store.buses.get(state.bus)
         conn = info.get("connection", "-")
         link.set_text(f"connection: {conn}" + (f" ({bus.last_error})" if bus is not None and bus.last_error else "")
-                      + f"; polling {info.get('polling', '-')}")
+                      + f"; polling {info.get('polling', '-')}; query form: {_form_words(info.get('query_form'))}"
+                      + (f"; late answers {info['late_answers']}" if info.get("late_answers") else ""))
+        missing = info.get("unavailable") or []
+        levels_missing = info.get("error_memory_unavailable") or []
+        unavailable.set_text(("not available on this unit: " + ", ".join(missing) if missing else "")
+                             + ("; " if missing and levels_missing else "")
+                             + (f"error memory levels {', '.join(map(str, levels_missing))} not available on this unit"
+                                if levels_missing else ""))
         error_line.set_text(state.last_error)
         for bit, lamp in lamps.items():
             lamp.show(state.point(bit))
@@ -316,6 +377,37 @@ def _show_line(line: tuple, text: str, entry: dict | None) -> None:
     label.set_text(text)
     mark_quality(row, quality)  # greyed while stale or offline
     age.set_text(quality_note(quality, entry_age(entry)) if quality in ("stale", "offline") else "")
+
+
+def _form_words(form: str | None) -> str:
+    return {"document": "02 Auswahl index (the document's, page 33)",
+            "short": "02 Auswahl (the document's form refused)"}.get(form or "", "not known yet")
+
+
+def _value_words(key: str, value) -> str:
+    """A value about to be written, in the words of its table (for the audit row)."""
+    if key in TIME_KEYS:
+        return f"{codec.time_s(int(value)):g} s ({int(value)} x 10 ms)"
+    return str(value)
+
+
+def _whole_number(label: str, low: int, high: int) -> ui.number:
+    """A whole-number entry whose range reads as whole numbers (not 2.14748e+09)."""
+    rule = f"allowed {low:,} .. {high:,}".replace(",", "\u2009")
+
+    def check(v) -> str | None:
+        if v is None:
+            return None
+        if float(v) != int(float(v)):
+            return f"whole numbers only, {rule}"
+        if not low <= float(v) <= high:
+            return f"out of range: {rule}"
+        return None
+
+    field = ui.number(label, step=1, format="%d", validation=check)
+    field.props(f'hint="{rule}" dense outlined')
+    field.rule = rule  # type: ignore[attr-defined]
+    return field
 
 
 def _limits(key: str) -> tuple[int, int]:

@@ -50,7 +50,7 @@ def by_testid(user: User, testid: str):
 
 
 def twin(runtime):
-    return next(t for sim in runtime.sims for t in getattr(sim, "twins", {}).values())
+    return runtime.twins["gate"]
 
 
 async def test_mo64_page_shows_the_gate_and_opens_after_the_confirmation(env):
@@ -62,8 +62,8 @@ async def test_mo64_page_shows_the_gate_and_opens_after_the_confirmation(env):
     await user.should_see("RAM only")
     await user.should_see("Assumptions beyond the manual")
     await user.should_see("loop A occupied")
-    await eventually(lambda: "6400001" in by_testid(user, "identity").text if hasattr(by_testid(user, "identity"), "text")
-                     else True, timeout=2)
+    await user.should_see("Serial number: 6400001")  # the twin's serial number, as the identity card shows it
+    await user.should_see("Baum ab = boom off")  # the status bits are explained
     UserInteraction(user, {by_testid(user, "pulse-open")}, None).click()
     await eventually(lambda: user.find("The area is clear: move"), timeout=3)
     user.find("The area is clear: move").click()
@@ -75,7 +75,31 @@ async def test_mo64_page_shows_the_gate_and_opens_after_the_confirmation(env):
     await eventually(lambda: adapter.holders() == {user.client.id}, timeout=3, what=str(user.notify.messages))
     await eventually(lambda: "close (dead-man)" in by_testid(user, "levels").text, timeout=2)
     UserInteraction(user, {by_testid(user, "clear-levels")}, None).click()
+    await eventually(lambda: user.find("The area is clear: clear"), timeout=3)  # asks first
+    assert adapter.holders() == {user.client.id}
+    user.find("The area is clear: clear").click()
     await eventually(lambda: adapter.holders() == set(), timeout=3)
+    assert not twin(runtime).levels[2]  # the close level is off in the barrier
+
+
+async def test_a_viewer_cannot_clear_levels_or_release_the_connection(env, monkeypatch):
+    user, runtime = env
+    adapter = runtime.worker.adapters["gate"]
+    await eventually(lambda: "Gate state" in adapter.state.points, timeout=10)
+    await runtime.worker.command("gate", lambda a: a.command("engineer-1", 2, 1, confirmed=True))
+    runtime.worker.beats["engineer-1"] = 1e12  # the engineer's browser stays alive for this test
+    await user.open("/device/gate")
+    monkeypatch.setattr("pages.session.current_user", lambda: ("tablet", "viewer"))
+    UserInteraction(user, {by_testid(user, "clear-levels")}, None).click()
+    await eventually(lambda: user.find("The area is clear: clear"), timeout=3)
+    user.find("The area is clear: clear").click()
+    await eventually(lambda: any("refused for tablet (viewer): clear levels" in e.text for e in adapter.state.events),
+                     timeout=3)
+    assert adapter.holders() == {"engineer-1"} and twin(runtime).levels[2]  # still active in the barrier
+    UserInteraction(user, {by_testid(user, "release")}, None).click()
+    await eventually(lambda: any("refused for tablet (viewer): release" in e.text for e in adapter.state.events),
+                     timeout=3)
+    assert not runtime.worker.lines["gate-bus"].released
 
 
 async def test_mo64_dead_man_deactivates_the_close_level_of_a_silent_session(env):

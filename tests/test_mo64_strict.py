@@ -255,3 +255,23 @@ async def test_twin_garbles_an_answer_sent_in_another_masters_turn():
         assert await wait_for(lambda: sim.collisions > before, timeout=3)
     finally:
         await asyncio.wait_for(runtime.stop(), 10)
+
+
+async def test_when_the_tool_stops_it_deactivates_the_close_level_it_set():
+    runtime = Runtime(parse_plant(tcp_plant(free_port())), simulate=True)
+    await runtime.start()
+    stopped = False
+    try:
+        assert await wait_for(lambda: runtime.store.devices["gate"].status == "online", timeout=10)
+        twin = runtime.twins["gate"]
+        await runtime.worker.command("gate", lambda a: a.command("s1", codec.Command.OPEN, confirmed=True))
+        await runtime.worker.command("gate", lambda a: a.command("s1", codec.Command.CLOSE, codec.Function.ACTIVATE))
+        runtime.worker.beats["s1"] = 1e12  # the browser stays alive: only the stop may release it
+        assert twin.levels[codec.Command.CLOSE]
+        await runtime.worker.stop()
+        stopped = True
+        assert await wait_for(lambda: not twin.levels[codec.Command.CLOSE], timeout=3)
+    finally:
+        if not stopped:
+            await runtime.worker.stop()
+        await asyncio.wait_for(runtime.sim.stop(), 10)

@@ -112,6 +112,12 @@ def value_text(answer_type: int, value: Any) -> str:
         return f"{codec.time_s(int(value)):g} s ({int(value)} x 10 ms)"
     if answer_type == 0x15:
         return codec.format_mac(value)
+    if answer_type == 0x10:  # chapter 5.1.16: bit 31 says whether a radio code is stored, A9..A1 in bits 17..0
+        fields = value.fields
+        if not fields.get("code stored"):
+            return f"0x{int(value):08X}: no radio code stored"
+        return f"0x{int(value):08X}: radio code stored; switches " + " ".join(
+            f"A{n}={int(fields[f'A{n}'])}" for n in range(1, 10))
     if answer_type == 0x05:
         return f"{int(value)}" + (f" ({value.name})" if getattr(value, "name", None) else "")
     if answer_type == 0x1D:
