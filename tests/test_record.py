@@ -1,0 +1,78 @@
+"""The commissioning record: append-only storage, approved set, drift in the API, automatic
+snapshot after Save-Settings, the as-left report (HTML, PDF, archive) and the sign-off."""
+
+from __future__ import annotations
+
+import io
+import sqlite3
+import stat
+import zipfile
+
+import pytest
+from webutil import simulated_user
+
+from app.record import RecordStore
+from app.report import plant_content, plant_html, write_plant
+from devices.hdlock.params import PARAMS
+from tests.conftest import wait_for
+from tests.recordutil import demo_plant
+
+pytestmark = pytest.mark.timeout(90)
+
+
+def test_records_are_append_only_and_owner_only(tmp_path):
+    store = RecordStore(tmp_path / "record.sqlite")
+    first = store.add(plant="p", device="d", kind="signoff", user="anna", role="engineer", data={"name": "Anna"})
+    second = store.add(plant="p", device="d", kind="signoff", user="anna", role="engineer", data={"name": "Anna"}, supersedes=first)
+    with pytest.raises(sqlite3.DatabaseError, match="append-only"):
+        store._open().execute("UPDATE record SET data = '{}' WHERE id = ?", (first,))
+    with pytest.raises(sqlite3.DatabaseError, match="append-only"):
+        store._open().execute("DELETE FROM record")
+    assert store.latest("p", "d", "signoff").id == second and store.get(second).supersedes == first
+    assert stat.S_IMODE((tmp_path / "record.sqlite").stat().st_mode) == 0o600
+    store.close()
+
+
+async def test_drift_in_the_api_snapshot_after_save_and_the_signed_report(tmp_path):
+    from app.runtime import Runtime
+
+    runtime = Runtime(demo_plant(("door-1",)), simulate=True, data_dir=tmp_path / "data")
+    async with simulated_user(runtime) as user:
+        client = user.http_client
+        state = runtime.store.devices["door-1"]
+        assert await wait_for(lambda: state.status == "online" and state.value("LockRequestDelay") is not None, 15)
+        await runtime.record.approve("door-1", user="anna", role="engineer")
+        assert (await client.get("/api/devices")).json()[0]["drift"] == {"approved": True, "changed": []}
+
+        param = PARAMS.get("holding", 3000)
+        await runtime.worker.command("door-1", lambda a: a.write_param(param, 350), user="anna", describe="write")
+
+        async def drifted() -> dict:
+            return (await client.get("/api/devices")).json()[0]["drift"]
+        assert await wait_for(lambda: state.drift["changed"], 5)
+        drift = await drifted()
+        assert drift["changed"] == [{"key": "holding:3000", "name": "LockRequestDelay", "approved": "200 ms", "now": "350 ms"}]
+        assert "changed since approved" in state.entry("Changed since approved")["text"]
+
+        await runtime.worker.command("door-1", lambda a: a.save_settings(), user="anna", describe="Save-Settings")
+        assert await wait_for(lambda: runtime.record.snapshots.get("door-1", {}).get("holding:3000", {}).get("raw") == 350, 10)
+        timeline = await runtime.record.timeline("door-1")
+        assert [e.kind for e in timeline][:2] == ["snapshot", "approved"] and timeline[0].title == "after Save-Settings"
+
+        with pytest.raises(PermissionError):
+            await runtime.record.approve("door-1", user="tablet", role="viewer")
+
+        content = await plant_content(runtime, user="anna")
+        await runtime.record.sign("", user="anna", role="engineer", name="Anna Berg", signer_role="commissioning engineer",
+                                  comment="door-1 delay raised on site", content=content)
+        paths = await write_plant(runtime, tmp_path / "out")
+        html = paths["html"].read_text()
+        assert "LockRequestDelay" in html and "350 ms" in html and "changed" in html and "Anna Berg" in html
+
+        from pypdf import PdfReader
+
+        text = "\n".join(page.extract_text() for page in PdfReader(paths["pdf"]).pages)
+        assert "door-1" in text and "LockRequestDelay" in text and "350 ms" in text and "Anna Berg" in text
+        names = zipfile.ZipFile(io.BytesIO(paths["zip"].read_bytes())).namelist()
+        assert {"demo-as-left.html", "demo-as-left.pdf", "backups/door-1-approved.json", "backups/door-1-snapshot.json"} <= set(names)
+        assert "Changed since approved" in plant_html(await plant_content(runtime, read=False))
