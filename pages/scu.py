@@ -12,7 +12,7 @@ from app import runtime as rt
 from app import worker as worker_module
 from devices.scu import codec
 from devices.scu import params as p
-from devices.scu.adapter import REMOTE_SPEED_MAX, SERVICE_IDS
+from devices.scu.adapter import SERVICE_IDS
 from pages.electrak import gate
 from pages.frame import fmt_age, fmt_time, frame, set_status_badge
 from pages.widgets import (
@@ -28,6 +28,7 @@ from pages.widgets import (
     mark_quality,
     quality_note,
     range_number,
+    confirm,
     run_command,
     session_role,
     stop_bar,
@@ -159,25 +160,31 @@ def content(name: str) -> None:
                     .props("outline")
                 holder = ui.label().classes("text-body2")
             with ui.row().classes("items-end gap-4"):
-                fn_select = ui.select({int(f): codec.FUNCTIONS[f].label for f in codec.MOTION_FUNCTIONS}, value=0,
-                                      label="Function").classes("w-24")
+                fn_select = ui.select({int(f): f"{codec.FUNCTIONS[f].label} → "
+                                       + (", ".join(f"A{a}" for a in adapter.actuators_of(f)) or "none")
+                                       for f in codec.MOTION_FUNCTIONS}, value=0,
+                                      label="Function → actuators").classes("w-40").props("data-testid=function")
                 motion = ui.select({int(m): codec.MOTION_LABELS[m] for m in codec.Motion}, value=int(codec.Motion.REMOTE_POSITION),
                                    label="Motion (para_ID[0])").classes("w-72")
                 ramp = ui.select({1: "soft start/stop", 0: "fast start/stop", 255: "as configured (-1)"}, value=1,
                                  label="Ramp (para_ID[1])").classes("w-48")
-                # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s (the adapter's own bound)
-                speed = range_number("Remote speed (% or counts/s)", 0, REMOTE_SPEED_MAX, integer=True, value=50, step=1) \
+                # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s, as the unit is parametrised (plant file)
+                speed = range_number(f"Remote speed [{adapter.speed_unit}]", 0, adapter.speed_max, integer=True,
+                                     value=50, step=1) \
                     .classes("w-56").props("data-testid=remote-speed")
 
                 async def write_speed() -> None:
                     function = fn_select.value + 1
                     value = await checked_value(speed, name, f"set remote speed F{function}", parameter=f"Remote Speed F{function}")
                     if value is not None:
-                        await act(f"set remote speed F{function} = {int(value)} (% or counts/s)",
+                        await act(f"set remote speed F{function} = {int(value)} {adapter.speed_unit}",
                                   lambda a: a.set_remote_speed(session, function, int(value)),
                                   success="remote speed written and read back")
 
                 set_speed = ui.button("Set speed (RT)", on_click=write_speed).props("outline data-testid=set-speed")
+            drives = ui.label().classes("text-body2").props("data-testid=function-actuators")
+            target_warning = ui.label().classes("text-warning text-body2").props("data-testid=target-warning")
+            edited: list[int] = []  # the actuator whose remote position was set last on this page
             pos_inputs = []
             with ui.row().classes("items-end gap-4"):
                 for s in adapter.scales:
@@ -191,22 +198,18 @@ def content(name: str) -> None:
                                                     parameter=f"Remote Position A{s.number}")
                         if value is None:
                             return
-                        await act(f"set remote position A{s.number} = {value:g} {unit}",
-                                  lambda a: a.set_remote_position(session, s.number, **({"mm": float(value)} if unit == "mm"
-                                                                                        else {"counts": int(value)})),
-                                  success="remote position written and read back")
+                        ok, _ = await act(f"set remote position A{s.number} = {value:g} {unit}",
+                                          lambda a: a.set_remote_position(session, s.number, **({"mm": float(value)} if unit == "mm"
+                                                                                                else {"counts": int(value)})),
+                                          success="remote position written and read back")
+                        if ok:
+                            edited[:] = [s.number]
+                            show_targets()
 
                     btn = ui.button("Set (RT)", on_click=write_position).props(f"outline data-testid=set-pos-A{s.number}")
                     pos_inputs.append(btn)
             with ui.row().classes("items-center gap-4"):
-                go = ui.button("Go (RE)", icon="play_arrow", color="positive", on_click=lambda: act(
-                    f"go (RE) {codec.FUNCTIONS[fn_select.value].label}: {codec.MOTION_LABELS[motion.value]}, "
-                    f"ramp {ramp.options[ramp.value]}; written remote speed "
-                    + str(getattr(adapter.state.points.get(f"F{fn_select.value + 1} remote speed"), "value", "none"))
-                    + "".join(f", A{s.number} remote position "
-                              + (getattr(adapter.state.points.get(f"A{s.number} remote position"), "text", None) or "none")
-                              for s in adapter.scales),
-                    lambda a: a.run_function(session, fn_select.value, motion.value, ramp.value if ramp.value != 255 else -1))) \
+                go = ui.button("Go (RE)", icon="play_arrow", color="positive", on_click=lambda: go_pressed()) \
                     .props("data-testid=go")
                 ui.button("Stop (RS)", icon="stop", color="negative",
                           on_click=lambda: act("stop (RS)", lambda a: a.stop(session), write=False)).props("data-testid=stop")
@@ -214,24 +217,64 @@ def content(name: str) -> None:
                 jog_in = ui.button("In", icon="keyboard_double_arrow_left").props("outline data-testid=jog-in")
                 jog_out = ui.button("Out", icon="keyboard_double_arrow_right").props("outline data-testid=jog-out")
 
-            def jog(direction: int):
-                return lambda: act(f"jog {'out' if direction > 0 else 'in'} {codec.FUNCTIONS[fn_select.value].label}, "
-                               f"ramp {ramp.options[ramp.value]}", lambda a: a.jog(session, fn_select.value, direction, ramp.value if ramp.value != 255 else -1))
+            def ramp_value() -> int:
+                return ramp.value if ramp.value != 255 else -1
 
-            def jog_stop(a):
-                if fn_select.value in a.running and a.running[fn_select.value] == session:
-                    return a.jog(session, fn_select.value, 0)
-                return None
+            async def go_pressed() -> None:
+                pressed = time.monotonic()  # a Stop after this moment cancels the RE, or follows it at once
+                fn = fn_select.value
+                acts = adapter.actuators_of(fn)
+                warning = target_mismatch()
+                if not await confirm(
+                        "Start the motion",
+                        f"{codec.FUNCTIONS[fn].label} drives {adapter.functions_text(fn)}: "
+                        f"{codec.MOTION_LABELS[motion.value]}. Check that the area is clear: nobody and nothing in "
+                        "the stroke of " + (", ".join(f"A{a}" for a in acts) or "its actuators") + "."
+                        + (f" {warning}" if warning else ""), ok="The area is clear: Go"):
+                    return
+                await act(
+                    f"go (RE) {codec.FUNCTIONS[fn].label} ({adapter.functions_text(fn)}): "
+                    f"{codec.MOTION_LABELS[motion.value]}, ramp {ramp.options[ramp.value]}; written remote speed "
+                    + str(getattr(adapter.state.points.get(f"F{fn + 1} remote speed"), "value", "none"))
+                    + "".join(f", A{a} remote position "
+                              + (getattr(adapter.state.points.get(f"A{a} remote position"), "text", None) or "none")
+                              for a in acts),
+                    lambda a: a.run_function(session, fn, motion.value, ramp_value(), requested_at=pressed))
+
+            jog_held: dict[int, bool] = {}
+
+            def jog(direction: int):
+                def press():
+                    pressed = time.monotonic()  # before any await: a release after it cancels or follows the RE
+                    fn = fn_select.value
+                    jog_held[fn] = True
+                    return act(f"jog {'out' if direction > 0 else 'in'} {codec.FUNCTIONS[fn].label} "
+                               f"({adapter.functions_text(fn)}), ramp {ramp.options[ramp.value]}",
+                               lambda a: a.jog(session, fn, direction, ramp_value(), requested_at=pressed))
+                return press
+
+            def jog_release():
+                held = [fn for fn, on in jog_held.items() if on]
+                jog_held.clear()
+                if not held:
+                    return None  # a mouse passing over the button: nothing was pressed
+                return act("jog stop (RS)", lambda a: _release_all(a, held), write=False)
+
+            async def _release_all(a, held):
+                for fn in held:
+                    await a.jog(session, fn, 0)
+                return "stopped"
 
             for button, direction in ((jog_in, -1), (jog_out, 1)):
                 for event in ("mousedown", "touchstart"):
                     button.on(event, jog(direction))
                 for event in ("mouseup", "mouseleave", "touchend", "touchcancel"):
-                    button.on(event, lambda: act("jog stop (RS)", jog_stop, write=False))
+                    button.on(event, jog_release)
             with ui.row().classes("items-start no-wrap gap-1 bg-blue-grey-1 q-pa-xs rounded-borders"):
                 ui.icon("timer_off", size="xs").classes("q-mt-xs")
                 ui.label(_stop_rule()).classes("text-caption").props("data-testid=stop-rule")
             running = ui.label().classes("text-caption mono")
+            drive_off = ui.label().classes("text-negative text-body2").props("data-testid=drive-off")
 
         # -- functions ----------------------------------------------------------------------------------
         with ui.card().classes("w-full"):
@@ -340,7 +383,7 @@ def content(name: str) -> None:
         set_status_badge(badge, state.status, state.age)
         sess = info.get("session", "closed")
         session_label.set_text(f"remote session: {sess}" + (f" ({info['session_reason']})" if info.get("session_reason") else ""))
-        cyclic.set_text(info.get("cyclic") or "")
+        cyclic.set_text(" · ".join(x for x in (info.get("watch") or "", info.get("cyclic") or "") if x))
         r = info.get("last_refusal")
         refusal.set_text(f"last error answer: {r['name']} ({r['title']}) to {r['command']}: {r['meaning']}. What to do: {r['remedy']}"
                          if r else "")
@@ -390,18 +433,29 @@ def content(name: str) -> None:
         else:
             holder.set_text(f"{ctrl.user} holds control (another browser) since {datetime.fromtimestamp(ctrl.since):%H:%M:%S}")
         run = [codec.FUNCTIONS[codec.Function(f)].label for f in sorted(adapter.running)]
-        running.set_text("RE sent, RS pending: " + (", ".join(run) if run else "none"))
+        failed = [codec.FUNCTIONS[codec.Function(f)].label for f in sorted(adapter.rs_pending)]
+        running.set_text("RE sent, RS pending: " + (", ".join(run) if run else "none")
+                         + (f" · STOP FAILED, RS not acknowledged (sent again every poll): {', '.join(failed)}" if failed else ""))
         guard.update()
         offline = guard.reason  # writes and motion wait for a unit that answers; the stops never do
+        lost = ""  # a lost or released session: nothing reaches the unit until it is open again
+        if sess in ("lost", "released"):
+            lost = (f"the remote session is {sess}" + (f" ({info['session_reason']})" if info.get("session_reason") else "")
+                    + ("; it is reopened with backoff, or press \"Open the remote session\"" if sess == "lost"
+                       else "; press \"Open the remote session\" to drive again"))
+        estop = "the emergency stop (function 19) is on: release it first" if info.get("emergency_stop") else ""
+        drive_off.set_text(f"Drive off: {lost or offline or estop}" if (offline or lost or estop) and mine else "")
+        show_targets()
         role = "a viewer cannot change anything" if viewer else ""
         gate(take, role or offline or ("" if ctrl is None else "you hold control" if mine else "another browser holds control"))
         gate(release, role or ("" if mine else "you do not hold control"))
-        for element in (set_speed, go, jog_in, jog_out, release_estop, *pos_inputs, *switches):
-            gate(element, role or offline or ("" if mine else "take control first"))
+        for element in (set_speed, go, jog_in, jog_out, *pos_inputs, *switches):
+            gate(element, role or lost or offline or estop or ("" if mine else "take control first"))
+        gate(release_estop, role or lost or offline or ("" if mine else "take control first"))
         for element in switches_off:
             gate(element, role or ("" if mine else "take control first"))
         for element in (read_button, read_service_button):
-            gate(element, role or offline)
+            gate(element, role or offline or (lost if adapter.watch != "rg" else ""))
         for element in (reopen, release_scu):  # opening again is how a session recovers; RA hands the unit back
             gate(element, role)
         service_ages()
@@ -411,6 +465,21 @@ def content(name: str) -> None:
         period.set_text(f"RC period {info['rc_period_ms']:g} ms, longest gap {info['rc_max_gap_ms']:g} ms"
                         if info.get("rc_period_ms") is not None else "RC period: -")
 
+    def target_mismatch() -> str:
+        fn = fn_select.value
+        acts = adapter.actuators_of(fn)
+        if motion.value == int(codec.Motion.REMOTE_POSITION) and edited and edited[0] not in acts:
+            return (f"The remote position you set last is A{edited[0]}'s, but {codec.FUNCTIONS[fn].label} drives "
+                    + (", ".join(f"A{a}" for a in acts) or "no actuator") + f": A{edited[0]} will not move.")
+        return ""
+
+    def show_targets() -> None:
+        fn = fn_select.value
+        drives.set_text(f"{codec.FUNCTIONS[fn].label} drives {adapter.functions_text(fn)}")
+        target_warning.set_text(target_mismatch())
+
+    fn_select.on_value_change(lambda _: show_targets())
+    motion.on_value_change(lambda _: show_targets())
     updater.append(refresh)
     refresh()
     show_period()

@@ -58,6 +58,7 @@ def test_move_actuator_1_to_a_remote_position_and_stop(tmp_path, chromium):
             page.get_by_test_id("set-pos-A1").click()
             expect(page.get_by_text("remote position written and read back")).to_be_visible(timeout=10_000)
             page.get_by_test_id("go").click()
+            page.get_by_role("button", name="The area is clear: Go").click()  # Go asks first (issue 25.4)
             # the position rises
             try:
                 page.wait_for_function(f"() => ({COUNTS_JS})() >= {start + 100}", timeout=15_000)

@@ -66,6 +66,9 @@ async def test_scu_page_shows_session_positions_and_drives_with_re_rs(env):
     UserInteraction(user, {by_testid(user, "set-pos-A1")}, None).click()
     await eventually(lambda: (adapter.state.point("A1 remote position") or {}).get("value") == 500, timeout=3, what=str(user.notify.messages))
     user.find("Go (RE)").click()
+    await user.should_see("Check that the area is clear")  # Go starts motion only after the area-clear question
+    await user.should_see("F1 drives A1")
+    user.find("The area is clear: Go").click()
     await eventually(lambda: adapter.holders() == {user.client.id}, timeout=3)
     user.find("Stop (RS)").click()
     await eventually(lambda: adapter.holders() == set(), timeout=3)
@@ -87,3 +90,62 @@ async def test_scu_dead_man_sends_rs_when_the_session_goes_away(env):
     await asyncio.sleep(0.05)
     assert adapter.controller is None
     assert any("dead-man" in e.text for e in adapter.state.events)
+
+
+async def test_go_asks_area_clear_and_cancel_sends_no_re(env):
+    user, runtime = env
+    adapter = runtime.worker.adapters["lift"]
+    twin = runtime.twins["lift"]
+    await eventually(lambda: adapter.session == "open", timeout=10)
+    await user.open("/device/lift")
+    user.find("Take control").click()
+    await eventually(lambda: by_testid(user, "go").enabled, timeout=3)
+    user.find("Go (RE)").click()
+    await user.should_see("The area is clear: Go")
+    user.find("Cancel").click()
+    await asyncio.sleep(0.3)
+    assert not any(cmd == "RE" for cmd, _ in twin.function_log) and adapter.holders() == set()
+
+
+async def test_a_target_of_another_actuator_is_warned_about(env):
+    """Issue 32.5: A2's remote position set, F1 selected (drives A1 only): the page says A2 will not move."""
+    user, runtime = env
+    adapter = runtime.worker.adapters["lift"]
+    await eventually(lambda: adapter.session == "open", timeout=10)
+    await user.open("/device/lift")
+    await user.should_see("F1 drives A1")
+    user.find("Take control").click()
+    await eventually(lambda: by_testid(user, "set-pos-A2").enabled, timeout=3)
+    by_testid(user, "remote-pos-A2").set_value(150)
+    UserInteraction(user, {by_testid(user, "set-pos-A2")}, None).click()
+    await eventually(lambda: "A2 will not move" in by_testid(user, "target-warning").text, timeout=3,
+                     what=str(user.notify.messages))
+    user.find("Go (RE)").click()
+    await user.should_see("The area is clear: Go")
+    await user.should_see("Check that the area is clear")
+    assert any("A2 will not move" in (getattr(e, "text", "") or "") and "area is clear" in e.text
+               for e in user.client.elements.values())  # the confirmation repeats it
+    user.find("Cancel").click()
+    by_testid(user, "function").set_value(1)  # F2 drives A2: no warning
+    await eventually(lambda: by_testid(user, "target-warning").text == "", timeout=3)
+
+
+async def test_drive_controls_are_off_with_the_reason_while_the_session_is_lost(env):
+    """Issue 32.1: a lost session disables Go, jog and the writes, saying why; stops stay on."""
+    user, runtime = env
+    adapter = runtime.worker.adapters["lift"]
+    twin = runtime.twins["lift"]
+    await eventually(lambda: adapter.session == "open", timeout=10)
+    await user.open("/device/lift")
+    user.find("Take control").click()
+    await eventually(lambda: by_testid(user, "go").enabled, timeout=3)
+    twin.drop_line(True)
+    await eventually(lambda: adapter.session != "open", timeout=5)
+    await eventually(lambda: not by_testid(user, "go").enabled, timeout=3)
+    reason = by_testid(user, "go").props.get("data-disabled-reason", "")
+    assert "remote session is lost" in reason, reason
+    assert not by_testid(user, "jog-out").enabled
+    assert by_testid(user, "stop").enabled and by_testid(user, "big-stop").enabled
+    twin.drop_line(False)
+    await eventually(lambda: adapter.session == "open", timeout=10)
+    await eventually(lambda: by_testid(user, "go").enabled, timeout=5)

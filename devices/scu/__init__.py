@@ -7,7 +7,7 @@ from devices.registry import DeviceType, TileAlarm, TileBar, TileLine, TileSpec,
 from devices.scu import codec
 
 _ACTUATOR_KEYS = {"counts_per_mm", "stroke_mm", "in_counts", "out_counts"}
-_KEYS = {"actuators", "safety_id"}
+_KEYS = {"actuators", "safety_id", "functions", "speed_select"}
 
 
 def _number(x: Any) -> bool:
@@ -48,6 +48,21 @@ def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str
                     errors.append(("actuators", f"actuator {n}: {k} must be a whole number of counts"))
             if len(ends) == 2 and a["in_counts"] == a["out_counts"]:
                 errors.append(("actuators", f"actuator {n}: in_counts and out_counts must differ"))
+    n_act = actuators if isinstance(actuators, int) else len(actuators) if isinstance(actuators, list) else 6
+    functions = options.get("functions")
+    if functions is not None:
+        if not isinstance(functions, dict) or not functions:
+            errors.append(("functions", "functions = { F1 = [1], F2 = [2, 3] }: the actuators each function drives"))
+        else:
+            for key, acts in functions.items():
+                if not (isinstance(key, str) and key[:1] in "Ff" and key[1:].isdigit() and 1 <= int(key[1:]) <= 10):
+                    errors.append(("functions", f"functions: '{key}' is not F1 .. F10"))
+                if not isinstance(acts, list) or not acts or any(
+                        isinstance(a, bool) or not isinstance(a, int) or not 1 <= a <= n_act for a in acts):
+                    errors.append(("functions", f"functions.{key}: a list of 1 to 6 actuator numbers 1..{n_act}"))
+    if options.get("speed_select", "relative") not in ("relative", "absolute"):
+        errors.append(("speed_select", "speed_select = \"relative\" (%, 0..100, the standard) or \"absolute\" "
+                                       "(counts/s, 0..1000), as the unit is parametrised (table 7)"))
     safety = options.get("safety_id", int(codec.DEFAULT_SAFETY_ID))
     if isinstance(safety, bool) or safety not in tuple(codec.SafetyId):
         errors.append(("safety_id", "safety_id must be 0, 1 or 2 (RO, section 4.1; default 1)"))

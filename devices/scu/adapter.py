@@ -39,7 +39,7 @@ PROBE_ID = 0x0011  # a single data ID every unit answers (section 5 example read
 # Live data the cyclic object brings with every RC (at most 6 read IDs, table 7); the rest is read
 # with one RG per poll in turn.
 CYCLIC_READ_IDS = (0x0010, 0x0170, 0x00E0, 0x00A0, 0x00D1, 0x0100)
-ROTATING_IDS = (0x00F0, 0x0164, 0x0020, 0x0110, 0x0120, 0x0130, 0x0140, 0x0150, 0x0162, 0x0165, 0x0166,
+ROTATING_IDS = (0x00F0, 0x0164, 0x0040, 0x0020, 0x0110, 0x0120, 0x0130, 0x0140, 0x0150, 0x0162, 0x0165, 0x0166,
                 0x0030, 0x00D2, 0x00D3, 0x00D4, 0x00D5)
 CYCLIC_INDEX = 0  # RC index 0 = CyclicObj 1 (0x3001)
 # Emergency stop (function 19) is not released by the dead-man rule: RS would end the emergency stop,
@@ -51,6 +51,9 @@ RESTORE_REFUSED = ("the SCU accepts writes only to its volatile remote data 0x3x
 ERROR_BIT_GROUPS = ((0x00D1, "Error code"), (0x00D2, "Error history 1"), (0x00D3, "Error history 2"),
                     (0x00D4, "Error history 3"), (0x00D5, "Error history 4"))
 REMOTE_SPEED_MAX = 1000  # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s
+# Table 7 / section 4.6: the remote speed is in % (0 .. 100) with "speed select relative", the standard
+# parametrisation, or in counts/s (0 .. 1000) with "speed select absolute"; the plant file says which.
+SPEED_LIMITS = {"relative": (100, "%"), "absolute": (REMOTE_SPEED_MAX, "counts/s")}
 SERVICE_IDS = (0x0001, 0x0002, 0x0060, 0x0070, 0x0080, 0x0090, 0x00B0, 0x00C0, 0x00C1, 0x1010)
 
 
@@ -185,6 +188,16 @@ class ScuAdapter:
         options = config.options
         self.safety_id = codec.SafetyId(options.get("safety_id", codec.DEFAULT_SAFETY_ID))
         self.scales = actuator_scales(options)
+        self.speed_select = options.get("speed_select", "relative")
+        self.speed_max, self.speed_unit = SPEED_LIMITS[self.speed_select]
+        # Which actuators each function F1..F10 drives: the unit's parametrisation (section 4.4), which the
+        # RS232 interface cannot read. The plant file names it (functions = { F1 = [1, 2] }); without it the
+        # SCP11 assignment of section 5 (F(n) drives actuator n) is assumed and said to be assumed.
+        configured = options.get("functions")
+        self.functions_assumed = not configured
+        self.function_actuators: dict[int, list[int]] = (
+            {int(k.lstrip("Ff")) - 1: list(x) for k, x in configured.items()} if configured
+            else {n - 1: [n] for n in range(1, len(self.scales) + 1)})
         self.baudrate = line.options.get("baudrate", codec.DEFAULT_BAUDRATE) if line is not None else codec.DEFAULT_BAUDRATE
         self.port = line.options.get("port", "") if line is not None else ""
         self.session = "closed"  # closed, opening, open, lost, released
@@ -659,6 +672,9 @@ class ScuAdapter:
                     pub(key.replace("_", " ").capitalize(), bool(bit), time=now)
         elif data_id in (0x0001, 0x0002):
             pub(entry.name, str(x), periodic=False)
+        elif data_id == 0x0040:
+            pub("Keys", int(x), raw=int(x), time=now, text=f"0x{int(x):08X}" + (
+                " (keys pressed: bits " + ", ".join(str(b) for b in range(32) if int(x) >> b & 1) + ")" if x else " (none)"))
         elif data_id in (0x0165, 0x0166):
             pub(entry.name, int(x), time=now)
 
@@ -866,6 +882,15 @@ class ScuAdapter:
         return await self.run_function(session, function, codec.Motion.OUT if direction > 0 else codec.Motion.IN, ramp,
                                        requested_at=requested_at)
 
+    def actuators_of(self, function: int) -> list[int]:
+        """The actuators function ``function`` (fnc_ID 0..9) drives, as configured (or assumed, SCP11)."""
+        return list(self.function_actuators.get(int(function), []))
+
+    def functions_text(self, function: int) -> str:
+        acts = self.actuators_of(function)
+        return (", ".join(f"A{a}" for a in acts) if acts else "no actuator") + (
+            " (assumed: SCP11, section 5; set functions in the plant file)" if self.functions_assumed else "")
+
     def _publish_estop(self) -> None:
         self.state.info["emergency_stop"] = self.estop
         self.state.publish("Emergency stop", self.estop, periodic=False,
@@ -917,8 +942,9 @@ class ScuAdapter:
         self._check_holder(session)
         await self._ensure_open()
         self._check_open()
-        if isinstance(speed, bool) or not isinstance(speed, int) or not 0 <= speed <= REMOTE_SPEED_MAX:
-            raise CommandError(f"remote speed: 0..100 % (relative) or 0..{REMOTE_SPEED_MAX} counts/s (absolute), a whole number")
+        if isinstance(speed, bool) or not isinstance(speed, int) or not 0 <= speed <= self.speed_max:
+            raise CommandError(f"remote speed: 0..{self.speed_max} {self.speed_unit} (the unit's speed select is "
+                               f"{self.speed_select}, table 7), a whole number")
         return await self._write_read_back(p.speed_id(function), speed, f"remote speed F{function}")
 
     async def set_remote_position(self, session: str, actuator: int, *, counts: int | None = None,
