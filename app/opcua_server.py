@@ -251,7 +251,8 @@ class OpcuaServer:
             await children[prop].write_value(ua.Variant(text, ua.VariantType.String))
         await children["RevisionCounter"].write_value(ua.Variant(0, ua.VariantType.Int32))
         for node in children.values():  # whatever a client is allowed in principle: reading only
-            await node.write_attribute(ua.AttributeIds.UserAccessLevel, ua.DataValue(ua.Variant(1, ua.VariantType.Byte)))
+            if await node.read_node_class() == ua.NodeClass.Variable:
+                await node.write_attribute(ua.AttributeIds.UserAccessLevel, ua.DataValue(ua.Variant(1, ua.VariantType.Byte)))
         await obj.add_property(self.ns, "Bus", state.bus)
         await obj.add_property(self.ns, "DeviceKind", state.type)
         self._devices[name] = {"node": obj, "params": children["ParameterSet"], "health": children["DeviceHealth"].nodeid,
@@ -328,7 +329,7 @@ class OpcuaServer:
                     variant, status = ua.Variant(None, vtype), ua.StatusCode(ua.StatusCodes.BadNoData)
                 stamp = entry.get("time")
                 source = datetime.fromtimestamp(stamp, timezone.utc) if isinstance(stamp, int | float) else None
-                await self.server.write_attribute_value(nodeid, ua.DataValue(variant, StatusCode_=status, SourceTimestamp=source,
+                await self.server.write_attribute_value(nodeid, ua.DataValue(variant, StatusCode=status, SourceTimestamp=source,
                                                                              ServerTimestamp=datetime.now(timezone.utc)))
                 writes += 1
         self.updates += writes

@@ -219,6 +219,8 @@ class Runtime:
                 for bus in self.store.buses.values():
                     if bus.name in error:
                         bus.last_error = error
+        if self.opcua is not None:
+            await self.opcua.start()  # before the buses: building its address space takes the loop for a moment
         await self.worker.start()
         await self.record.start()
         self._tasks = [asyncio.create_task(self._keep_unsaved(), name="unsaved reminders"),
@@ -226,8 +228,6 @@ class Runtime:
                        asyncio.create_task(memory.keep_trimmed(), name="heap trim")]
         if self.mqtt is not None:
             await self.mqtt.start()  # its own tasks: a broker that is away never holds up the buses
-        if self.opcua is not None:
-            await self.opcua.start()
 
     async def stop(self) -> None:
         if self.opcua is not None:
