@@ -9,6 +9,7 @@ import io
 import ipaddress
 import json
 import logging
+import re
 import secrets
 import socket
 import time
@@ -303,6 +304,84 @@ def _same_browser(environ: dict, client_id: str) -> bool:
 SOCKET_GUARD = SocketEventGuard()
 
 
+# -- uploads ------------------------------------------------------------------------------------
+
+UPLOAD_PATH = re.compile(r"^/_nicegui/client/([^/]+)/upload/(\d+)$")  # NiceGUI's route of each ui.upload
+UPLOAD_MAX_BYTES = 32 * 1024 * 1024  # an upload whose element names no max-file-size (a recording to replay)
+UPLOAD_FORM_OVERHEAD = 64 * 1024  # multipart headers around the file
+
+
+def upload_limit(element: Any) -> int:
+    """Bytes an upload to ``element`` may carry: the size its page states (``max_file_size``), else
+    :data:`UPLOAD_MAX_BYTES`; either with the form's overhead."""
+    stated = element._props.get("max-file-size") if element is not None else None  # noqa: SLF001
+    limit = int(stated) if isinstance(stated, int | float) and stated > 0 else UPLOAD_MAX_BYTES
+    return min(limit, UPLOAD_MAX_BYTES) + UPLOAD_FORM_OVERHEAD
+
+
+class UploadGuard:
+    """Every upload route (``/_nicegui/client/ID/upload/N``, one per ui.upload of every page) takes
+    a file only from the browser whose request built the page, logged in where logging in is
+    needed, and no larger than the page says: the length is checked before a byte of the body is
+    read, and the body is counted while it is read (a request that lies about it is cut off).
+    """
+
+    def __init__(self, asgi_app, runtime: Runtime):
+        self.app = asgi_app
+        self.runtime = runtime
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] != "http" or not scope.get("path", "").startswith("/_nicegui/client/"):
+            return await self.app(scope, receive, send)
+        match = UPLOAD_PATH.match(scope["path"])
+        if match is None:
+            return await self.app(scope, receive, send)
+        client = Client.instances.get(match.group(1))
+        element = client.elements.get(int(match.group(2))) if client is not None else None
+        why, status = self.refusal(scope, client, element)
+        if not why:
+            headers = {k.lower(): v for k, v in scope.get("headers", [])}
+            limit = upload_limit(element)
+            try:
+                length = int(headers.get(b"content-length", b"-1"))
+            except ValueError:
+                length = -1
+            if length < 0:
+                why, status = "an upload must state its length", 411
+            elif length > limit:
+                why, status = f"the file is too large: at most {(limit - UPLOAD_FORM_OVERHEAD) / 1e6:.1f} MB", 413
+        if why:
+            log.warning("upload to %s refused: %s", scope["path"], why)
+            return await PlainTextResponse(why, status_code=status)(scope, receive, send)  # the body is never read
+        received = 0
+
+        async def counted():
+            nonlocal received
+            message = await receive()
+            if message["type"] == "http.request":
+                received += len(message.get("body", b""))
+                if received > limit:
+                    log.warning("upload to %s cut off: more than its stated length", scope["path"])
+                    return {"type": "http.disconnect"}
+            return message
+
+        return await self.app(scope, counted, send)
+
+    def refusal(self, scope, client, element) -> tuple[str, int]:
+        if client is None or element is None:
+            return "no such upload", 404
+        request = client.request
+        session = scope.get("session")
+        if self.runtime.auth_required:
+            token = (session or {}).get("auth")
+            if self.runtime.session_user(token) is None:
+                return "log in first", 401
+        if request is not None and "session" in request.scope and session is not None:
+            if not request.session.get("id") or session.get("id") != request.session.get("id"):
+                return "this upload belongs to another browser's page", 403
+        return "", 200
+
+
 def safe_redirect(target: str) -> str:
     return target if target.startswith("/") and not target.startswith("//") and "\\" not in target else "/"
 
@@ -327,6 +406,7 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
     app.on_shutdown(runtime.stop)
     app.on_disconnect(lambda client: runtime.worker.session_closed(client.id))
     app.add_middleware(AuthMiddleware, runtime=runtime)
+    app.add_middleware(UploadGuard, runtime=runtime)
     serve_assets_from_memory()
     names, any_ip = allowed_host_names(host, allowed_hosts)
     app.add_middleware(HostOriginGuard, names=names, any_ip=any_ip)
@@ -376,6 +456,13 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
         from pages import backup
 
         backup.content()
+
+    @ui.page("/record")
+    @ui.page("/record/{name}")
+    def record_page(name: str = "") -> None:
+        from pages import record
+
+        record.content(name or None)
 
     @ui.page("/audit")
     def audit_page() -> None:

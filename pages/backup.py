@@ -142,17 +142,17 @@ def content() -> None:
     archive.on_click(download_archive)
     table.on("download", lambda e: ui.download(directory / Path(e.args).name))
     async def _restore_file(name: str) -> None:
-        _open_restore(await asyncio.to_thread((directory / Path(name).name).read_bytes), Path(name).name)
+        await _open_restore(await asyncio.to_thread((directory / Path(name).name).read_bytes), Path(name).name)
 
     table.on("restore", lambda e: _restore_file(e.args))
 
     async def _uploaded(event: events.UploadEventArguments) -> None:
-        _open_restore(await event.file.read(), event.file.name)
+        await _open_restore(await event.file.read(), event.file.name)
 
-    def _open_restore(data: bytes, source: str) -> None:
+    async def _open_restore(data: bytes, source: str) -> None:
         restore_box.clear()
         try:
-            document = backup.load_document(data, source)
+            document = await asyncio.to_thread(backup.load_document, data, source)  # off the event loop
         except backup.BackupError as exc:
             notify_error(str(exc))
             return

@@ -1,5 +1,6 @@
-"""Socket events as an attacker sends them (issue 33, items 4 and 9): an event naming another
-browser's client id, a handshake into another browser's page, and malformed messages.
+"""Probes as an attacker sends them (issue 33): socket events naming another browser's client id,
+handshakes into another browser's page and malformed messages (items 4 and 9); uploads without a
+session, from another browser or larger than the page allows (item 6).
 
 The GUI runs in its own process beyond loopback (``--host 0.0.0.0``, accounts anna engineer and
 tablet viewer); the "browsers" are an HTTP client and a socket.io client each (tests/socket_browser.py).
@@ -143,3 +144,58 @@ async def test_junk_socket_events_are_refused_without_a_traceback(beyond_loopbac
         assert "malformed" in log.read_text(errors="replace")
     finally:
         await browser.aclose()
+
+
+# -- uploads (item 6) ----------------------------------------------------------------------------
+
+
+def upload_route(page) -> str:
+    element = next(i for i, e in page.elements.items() if "max-file-size" in e.get("props", {}))  # the restore upload
+    return f"/_nicegui/client/{page.client_id}/upload/{element}"
+
+
+async def raw_post(base: str, path: str, length: int, body: bytes, cookie: str = "") -> int:
+    """POST with a stated ``Content-Length`` but only ``body`` sent: the status the server answers."""
+    host, port = base.removeprefix("http://").split(":")
+    reader, writer = await asyncio.open_connection(host, int(port))
+    try:
+        head = (f"POST {path} HTTP/1.1\r\nHost: {host}:{port}\r\nContent-Type: multipart/form-data; boundary=b\r\n"
+                f"Content-Length: {length}\r\n" + (f"Cookie: {cookie}\r\n" if cookie else "") + "\r\n")
+        writer.write(head.encode() + body)
+        await writer.drain()
+        status_line = await asyncio.wait_for(reader.readline(), 20)
+        return int(status_line.split()[1])
+    finally:
+        writer.close()
+
+
+def multipart(name: str, data: bytes) -> bytes:
+    return (f'--b\r\nContent-Disposition: form-data; name="file"; filename="{name}"\r\n'
+            "Content-Type: application/json\r\n\r\n").encode() + data + b"\r\n--b--\r\n"
+
+
+async def test_uploads_need_the_pages_own_session_and_stay_within_the_stated_size(beyond_loopback):
+    base, _data, _log = beyond_loopback
+    viewer, engineer = SocketBrowser(base), SocketBrowser(base)
+    try:
+        await viewer.login("tablet", "battery staple")
+        await engineer.login("anna", "correct horse")
+        page = await viewer.open("/backup")
+        route = upload_route(page)
+        cookie = "; ".join(f"{k}={v}" for k, v in viewer.http.cookies.items())
+        small = multipart("x.json", b'{"schema": "commission-backup"}')
+        # no cookie at all: refused before the body is read
+        assert await raw_post(base, route, len(small), small) == 401
+        # 60 MB announced on the page that says 5 MB: refused before the body is read
+        assert await raw_post(base, route, 60_000_000, small[:100], cookie) == 413
+        # another browser's session (the engineer's) on the viewer's page
+        answer = await engineer.http.post(route, files={"file": ("x.json", b"{}", "application/json")})
+        assert answer.status_code == 403
+        # the page's own browser, within the size: taken
+        answer = await viewer.http.post(route, files={"file": ("x.json", b"{}", "application/json")})
+        assert answer.status_code == 200, answer.text
+        too_big = await viewer.http.post(route, files={"file": ("x.json", b" " * 6_000_000, "application/json")})
+        assert too_big.status_code == 413
+    finally:
+        await viewer.aclose()
+        await engineer.aclose()
