@@ -19,13 +19,30 @@ from pages.session import current_user
 
 
 TILE_CSS = """
-.tile-grid { display: grid; grid-template-columns: repeat(auto-fill, minmax(250px, 1fr)); gap: 16px; width: 100%; }
-.tile-grid > .tile { min-width: 0; cursor: pointer; }
+.overview-layout { display: grid; grid-template-columns: minmax(280px, 340px) minmax(0, 1fr); gap: 16px; width: 100%;
+                   align-items: start; }
+.overview-layout > .glance { position: sticky; top: 64px; }
+@media (max-width: 899px) { .overview-layout { grid-template-columns: minmax(0, 1fr); }
+                             .overview-layout > .glance { position: static; } }
+.bus-sections { display: flex; flex-wrap: wrap; gap: 12px 24px; align-items: flex-start; width: 100%; }
+.bus-section { max-width: 100%; min-width: 0; }
+.tile-grid { display: grid; grid-template-columns: repeat(auto-fill, 240px); gap: 12px; width: 100%; }
+a.tile-link { color: inherit; text-decoration: none; display: block; min-width: 0; }
+a.tile-link > .tile { min-width: 0; height: 100%; cursor: pointer; }
 .tile .tile-name { min-width: 0; flex: 1 1 auto; white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }
 .tile .q-badge { flex: none; white-space: nowrap; }
 .tile .tile-counters { overflow-wrap: anywhere; }
 .tile .q-age:empty { display: none; }
+table.glance-table { border-collapse: collapse; width: 100%; font-size: 13px; }
+table.glance-table th { text-align: left; font-weight: 500; color: #666; padding: 2px 6px; border-bottom: 1px solid #ddd; }
+table.glance-table td { padding: 3px 6px; border-bottom: 1px solid #eee; vertical-align: top; }
+table.glance-table td a { color: #1565c0; text-decoration: none; font-weight: 500; }
+table.glance-table td.alarms { color: #c10015; font-weight: 500; overflow-wrap: anywhere; }
+table.glance-table td.age { white-space: nowrap; color: #666; }
+table.glance-table tr.glance-offline td { background: #fdeaea; }
+table.glance-table tr.glance-stale td { background: #fff4d6; }
 """
+TILE_WIDTH_PX, TILE_GAP_PX = 240, 12
 
 # what a device's counters mean on its bus: CAN devices are heard (periodic frames), the others answer requests
 CAN_COUNTERS = (("responses", "frames heard", True), ("malformed", "malformed", True), ("timeouts", "timeouts", False))
@@ -51,7 +68,9 @@ class DeviceTile:
         self.device_type = DEVICE_TYPES[self.state.type]
         self.bus_type = runtime.plant.buses[self.state.bus].type
         self._shown: dict[str, object] = {}
-        with ui.card().classes("tile").on("click", lambda: ui.navigate.to(f"/device/{name}")) as self.card:
+        # a real link: a click opens the device page, a middle click or the context menu a new tab
+        with ui.link(target=f"/device/{name}").classes("tile-link").props(f'data-device-link="{name}"') as self.link, \
+                ui.card().classes("tile") as self.card:
             self.card.props(f'data-device="{name}"')
             with ui.row().classes("items-center w-full no-wrap"):
                 ui.label(name).classes("text-subtitle1 text-weight-bold tile-name").props(f'title="{name}"')
@@ -92,48 +111,107 @@ class DeviceTile:
         self.error.set_text(s.last_error if status != "online" else "")
 
 
+class GlanceRow:
+    """One device in the at-a-glance table: state, alarms and age, set in place on each push."""
+
+    def __init__(self, name: str):
+        self.state = rt.current().store.devices[name]
+        self._shown: tuple = ()
+        with ui.element("tr").props(f'data-glance="{name}"') as self.row:
+            with ui.element("td"):
+                ui.link(name, f"/device/{name}")
+            with ui.element("td"):
+                self.status = ui.label()
+            with ui.element("td").classes("alarms"):
+                self.alarms = ui.label()
+            with ui.element("td").classes("age"):
+                self.age = ui.label()
+        self.update()
+        follow(self.state, self.update)
+
+    def update(self) -> None:
+        s = self.state
+        status, age = s.status, s.age
+        tile = evaluate_tile(s)
+        alarms = tile["alarms"] if tile["quality"] in ("good", "unknown") else []
+        shown = (status, "; ".join(alarms), fmt_age(age) if age is not None else "never")
+        if shown == self._shown:
+            return
+        self._shown = shown
+        self.status.set_text(status_text(status, None) if status != "stale" else "stale")
+        self.status.classes(replace=f"status-{status}")
+        self.alarms.set_text(shown[1])
+        self.age.set_text(shown[2])
+        self.row.classes(replace=f"glance-{status}")
+
+
+def _glance_table(runtime) -> None:
+    """Every device in one dense table (state, alarms, age of its last value): the plant at a glance."""
+    with ui.card().classes("glance q-pa-sm").props("data-testid=glance"):
+        ui.label(f"All devices ({len(runtime.plant.devices)})").classes("text-subtitle2")
+        with ui.element("table").classes("glance-table"):
+            with ui.element("thead"), ui.element("tr"):
+                for head in ("Device", "State", "Alarms", "Last value"):
+                    with ui.element("th"):
+                        ui.label(head)
+            with ui.element("tbody"):
+                for dev in runtime.plant.devices.values():
+                    GlanceRow(dev.name)
+
+
 def content() -> None:
     runtime = rt.current()
     with frame("Overview"):
         ui.add_css(TILE_CSS)
         tiles: list[DeviceTile] = []
-        for bus in runtime.plant.buses.values():
-            bus_state = runtime.store.buses[bus.name]
-            with ui.row().classes("items-center gap-2"):
-                ui.icon("cable")
-                ui.label(f"{bus.name}").classes("text-h6")
-                ui.label(f"{bus.type} · {bus.endpoint}").classes("text-caption text-grey-8")
-                conn = ui.label().classes("text-caption")
-                ui.button("Bus monitor", icon="monitor_heart", on_click=lambda b=bus.name: ui.navigate.to(f"/monitor/{b}")).props("flat dense")
-                if bus.type == "modbus-rtu":
-                    from pages.discover import open_discover_dialog
-
-                    ui.button("Discover locks", icon="search", on_click=lambda b=bus.name: open_discover_dialog(b)).props("flat dense")
-
-            def show_conn(label=conn, state=bus_state) -> None:
-                text = "connected" if state.connected else f"not connected: {state.last_error or 'opening...'}"
-                if state.connected and hasattr(state, "bus_state"):
-                    text += f" · {state.bus_state} · {state.rx_frames} frames in, {state.error_frames} error frames"
-                if getattr(state, "cycle_s", None):  # Modbus: the measured time to poll every device once
-                    text += f" · cycle {state.cycle_s:.2f} s"
-                if getattr(state, "address_conflicts", 0):
-                    text += f" · {state.address_conflicts} answers from another unit: address conflict on the line?"
-                shed = getattr(state, "shed", 0)
-                if shed:  # the program could not keep up with this bus: say so rather than lag
-                    text += f" · {shed} frames shed: more traffic than this program can handle"
-                label.set_text(text)
-                ok = state.connected and getattr(state, "bus_state", "") != "bus-off"
-                label.classes(replace="text-caption " + (("text-warning" if shed else "text-positive") if ok else "text-negative"))
-
-            show_conn()
-            ui.timer(1.0, show_conn)
-            with ui.element("div").classes("tile-grid") as row:
-                for dev in runtime.plant.devices_on(bus.name):
-                    tiles.append(DeviceTile(dev.name))
-            if bus.type == "can":
-                _discovered_section(bus.name, row, tiles)
+        with ui.element("div").classes("overview-layout"):
+            if runtime.plant.devices:
+                _glance_table(runtime)
+            with ui.element("div").classes("bus-sections"):
+                for bus in runtime.plant.buses.values():
+                    count = max(1, len(runtime.plant.devices_on(bus.name)))
+                    width = count * TILE_WIDTH_PX + (count - 1) * TILE_GAP_PX
+                    with ui.column().classes("bus-section gap-1").style(f"width: max({width}px, 30rem)"):
+                        _bus_section(runtime, bus, tiles)
         if not runtime.plant.devices:
             ui.label("This plant file lists no devices.").classes("text-grey-8")
+
+
+def _bus_section(runtime, bus, tiles: list) -> None:
+    bus_state = runtime.store.buses[bus.name]
+    with ui.row().classes("items-center gap-x-2 gap-y-0"):
+        ui.icon("cable")
+        ui.label(f"{bus.name}").classes("text-h6")
+        ui.label(f"{bus.type} · {bus.endpoint}").classes("text-caption text-grey-8")
+        ui.button("Bus monitor", icon="monitor_heart", on_click=lambda b=bus.name: ui.navigate.to(f"/monitor/{b}")).props("flat dense")
+        if bus.type == "modbus-rtu":
+            from pages.discover import open_discover_dialog
+
+            ui.button("Discover locks", icon="search", on_click=lambda b=bus.name: open_discover_dialog(b)).props("flat dense")
+    conn = ui.label().classes("text-caption")
+
+    def show_conn(label=conn, state=bus_state) -> None:
+        text = "connected" if state.connected else f"not connected: {state.last_error or 'opening...'}"
+        if state.connected and hasattr(state, "bus_state"):
+            text += f" · {state.bus_state} · {state.rx_frames} frames in, {state.error_frames} error frames"
+        if getattr(state, "cycle_s", None):  # Modbus: the measured time to poll every device once
+            text += f" · cycle {state.cycle_s:.2f} s"
+        if getattr(state, "address_conflicts", 0):
+            text += f" · {state.address_conflicts} answers from another unit: address conflict on the line?"
+        shed = getattr(state, "shed", 0)
+        if shed:  # the program could not keep up with this bus: say so rather than lag
+            text += f" · {shed} frames shed: more traffic than this program can handle"
+        label.set_text(text)
+        ok = state.connected and getattr(state, "bus_state", "") != "bus-off"
+        label.classes(replace="text-caption " + (("text-warning" if shed else "text-positive") if ok else "text-negative"))
+
+    show_conn()
+    ui.timer(1.0, show_conn)
+    with ui.element("div").classes("tile-grid") as row:
+        for dev in runtime.plant.devices_on(bus.name):
+            tiles.append(DeviceTile(dev.name))
+    if bus.type == "can":
+        _discovered_section(bus.name, row, tiles)
 
 
 def _discovered_section(bus: str, tile_row, tiles: list) -> None:

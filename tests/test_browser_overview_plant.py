@@ -111,6 +111,22 @@ def test_tiles_equal_named_on_one_line_and_plant_fits(app, chromium, tmp_path: P
             assert "frames heard" in counters and "req" not in counters, (name, counters)
         assert "req " in page.locator('[data-device="door-1"] [data-tile-counters]').inner_text()
         assert "T1" in page.locator('[data-device="heater-hm"]').inner_text()
+        # issue 32.7: every device at a glance in one dense table in sight without scrolling, tiles are links
+        # (open in a new tab), and the tiles use the width instead of one short row per bus
+        with urllib.request.urlopen(url + "/api/devices", timeout=5) as response:
+            names = {d["name"] for d in json.load(response)}
+        page.locator('[data-glance="door-22"]').get_by_text("offline").wait_for(timeout=10_000)
+        rows = page.evaluate("""() => [...document.querySelectorAll('[data-glance]')].map(r => ({
+                                   name: r.getAttribute('data-glance'), bottom: r.getBoundingClientRect().bottom}))""")
+        assert {r["name"] for r in rows} == names
+        assert [r["name"] for r in rows if r["bottom"] > height + 0.5] == [], f"table rows below the screen: {rows}"
+        for name in ("gate-1", "door-1"):
+            assert page.locator(f'a[href="/device/{name}"] [data-device="{name}"]').count() == 1, f"{name}'s tile is no link"
+        if width >= 1440:
+            glance = page.get_by_test_id("glance").bounding_box()
+            rights = [t["left"] + t["width"] for t in tiles]
+            assert glance["x"] + glance["width"] <= min(t["left"] for t in tiles), "the table is not beside the tiles"
+            assert max(rights) > 0.8 * width, f"tiles end at {max(rights):.0f} px of {width}"
         # one wording for an Electrak network nobody controls, on both pages
         assert "idle (no controller)" in page.locator('[data-device="lift"]').inner_text()
         page.goto(url + "/plant")

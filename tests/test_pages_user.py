@@ -162,7 +162,7 @@ async def test_tile_click_opens_device_page(env: Env):
     user = env.user
     await user.open("/")
     await user.should_see("door-2")
-    tile = by_prop(user, "data-device", "door-2", ui.card)
+    tile = by_prop(user, "data-device-link", "door-2", ui.link)  # a link: opens in a new tab too
     tile.click()
     await user.should_see("HD-Lock door-2", retries=20)
 
