@@ -40,6 +40,7 @@ from typing import Any
 import can
 
 from app.state import BusState
+from devices.lease import Lease
 
 log = logging.getLogger(__name__)
 
@@ -302,6 +303,8 @@ class CanBus:
         self._backoff = 0.5
         self._task: asyncio.Task | None = None
         self._cyclic: dict[str, asyncio.Task] = {}
+        self._periodic: dict[str, _Periodic] = {}  # keep-alives on python-can's cyclic tasks (their own clock)
+        self._thread_sent: deque[can.Message] = deque(maxlen=4096)  # sent by those tasks, not yet in the monitor
         interface = options.get("interface")
         self.filter_own = options.get("filter_own", interface == "udp_multicast")
         # frames this instance sent, by content, with send times: udp_multicast hands them back
@@ -393,6 +396,7 @@ class CanBus:
                 self._thread.start()
                 self.state.connected = True
                 self.state.reconnects += 1
+                self._restart_periodic()
                 self.state.last_error = ""
                 self._backoff = 0.5
             await asyncio.sleep(LOAD_PERIOD_S)
@@ -491,6 +495,8 @@ class CanBus:
     def _drain(self) -> None:
         """In the loop: handle buffered frames, subscribed IDs first, for at most ``DRAIN_BUDGET_S``."""
         self._scheduled = False
+        if self._thread_sent:
+            self._take_thread_sent()
         self._count_shed()
         deadline = time.perf_counter() + DRAIN_BUDGET_S
         done = False
@@ -610,7 +616,11 @@ class CanBus:
 
     # -- cyclic transmissions ------------------------------------------------------------
     def start_cyclic(self, key: str, period_s: float, make: Callable[[], tuple[int, bytes, bool] | None]) -> None:
-        """Send ``make()`` every ``period_s`` (absolute schedule, no drift) until stopped."""
+        """Send ``make()`` every ``period_s`` (absolute schedule, no drift) until stopped.
+
+        A loop task: for telegrams that keep nothing running (an engineer's transmit list).
+        Keep-alives of watchdogs use :meth:`start_periodic`, whose clock does not depend on the loop.
+        """
         self.stop_cyclic(key)
         self._cyclic[key] = asyncio.get_running_loop().create_task(self._cyclic_task(period_s, make), name=f"cyclic {key}")
 
@@ -618,8 +628,14 @@ class CanBus:
         task = self._cyclic.pop(key, None)
         if task is not None:
             task.cancel()
+        periodic = self._periodic.pop(key, None)
+        if periodic is not None:
+            periodic.stop()
 
     def cyclic_running(self, key: str) -> bool:
+        periodic = self._periodic.get(key)
+        if periodic is not None:
+            return periodic.running()
         task = self._cyclic.get(key)
         return task is not None and not task.done()
 
@@ -637,6 +653,64 @@ class CanBus:
                 delay = 0
             await asyncio.sleep(delay)
 
+    def start_periodic(
+        self, key: str, period_s: float, arbitration_id: int, data: bytes, is_extended_id: bool = False, *,
+        lease: Lease | None = None, stop_form: Callable[[bytes], bytes] | None = None,
+        on_lapse: Callable[[float], None] | None = None,
+    ) -> None:
+        """Send ``data`` every ``period_s`` on a clock of its own (python-can's ``send_periodic``: a
+        thread, or the interface's own scheduler), whatever the event loop does, until :meth:`stop_cyclic`.
+
+        With a ``lease``, the sender checks it before every period: while it is not valid (not granted,
+        or lapsed because the loop stopped renewing it) only ``stop_form(data)`` leaves, and
+        ``on_lapse(lapsed_at)`` is called in the loop once per lapse. New contents: :meth:`modify_periodic`.
+        """
+        self.stop_cyclic(key)
+        periodic = _Periodic(self, key, period_s, arbitration_id, bytes(data), is_extended_id, lease, stop_form, on_lapse)
+        self._periodic[key] = periodic
+        if self.bus is not None:
+            periodic.start(self.bus)
+
+    def modify_periodic(self, key: str, data: bytes, *, send_now: bool = False) -> bool:
+        """New contents for a periodic telegram from the next period on (python-can's ``modify_data``);
+        ``send_now``: also send it once at once (a stop does not wait for the next period)."""
+        periodic = self._periodic.get(key)
+        if periodic is None:
+            return False
+        periodic.modify(bytes(data))
+        if send_now:
+            return self.send(periodic.arbitration_id, periodic.stop_checked(bytes(data)), periodic.is_extended_id)
+        return True
+
+    def _restart_periodic(self) -> None:
+        """The bus was (re)opened: its periodic telegrams start again on the new bus object."""
+        for periodic in self._periodic.values():
+            if self.bus is not None:
+                periodic.start(self.bus)
+
+    def _note_thread_send(self, msg: can.Message) -> None:
+        """From a cyclic task's thread, just before it sends: hand the frame to the loop (monitor, echo filter)."""
+        self._thread_sent.append(msg)
+        if not self._scheduled and self._loop is not None:
+            self._scheduled = True
+            try:
+                self._loop.call_soon_threadsafe(self._drain)
+            except RuntimeError:  # the loop is closed: nothing to record any more
+                pass
+
+    def _take_thread_sent(self) -> None:
+        """In the loop: frames the cyclic threads sent, into the echo filter and the monitor."""
+        sent = self._thread_sent
+        while sent:
+            try:
+                msg = sent.popleft()
+            except IndexError:
+                break
+            if self.filter_own:
+                self._own.setdefault((msg.is_extended_id, msg.arbitration_id, bytes(msg.data)), deque()).append(time.monotonic())
+            self.state.tx_frames += 1
+            self._record(msg, "tx")
+
     # -- transmit path ----------------------------------------------------------------
     def send(self, arbitration_id: int, data: bytes, is_extended_id: bool = False) -> bool:
         """Send one frame; False (and counted) when the bus is not open or refuses it."""
@@ -644,8 +718,13 @@ class CanBus:
             self.state.tx_errors += 1
             return False
         msg = can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=is_extended_id, timestamp=time.time(), is_rx=False)
+        lock = getattr(self.bus, "_lock_send_periodic", None)  # python-can's cyclic threads send under it
         try:
-            self.bus.send(msg, timeout=0.1)
+            if lock is not None:
+                with lock:
+                    self.bus.send(msg, timeout=0.1)
+            else:
+                self.bus.send(msg, timeout=0.1)
         except can.CanError as exc:
             self.state.tx_errors += 1
             self.state.last_error = f"send failed: {exc}"
@@ -655,3 +734,80 @@ class CanBus:
         self.state.tx_frames += 1
         self._record(msg, "tx")
         return True
+
+
+class _Periodic:
+    """One keep-alive on python-can's cyclic send task, with the lease check before every period."""
+
+    def __init__(self, owner: CanBus, key: str, period_s: float, arbitration_id: int, data: bytes, is_extended_id: bool,
+                 lease: Lease | None, stop_form: Callable[[bytes], bytes] | None, on_lapse: Callable[[float], None] | None):
+        self.owner, self.key, self.period_s = owner, key, period_s
+        self.arbitration_id, self.is_extended_id = arbitration_id, is_extended_id
+        self.data = data  # the newest contents (replaced whole by the loop; read by the cyclic thread)
+        self.lease, self.stop_form, self.on_lapse = lease, stop_form, on_lapse
+        self.task: Any = None
+        self.errors = 0
+        self.last_error = ""
+        self._reported_lapse: float | None = None
+
+    def _message(self, data: bytes) -> can.Message:
+        return can.Message(arbitration_id=self.arbitration_id, data=data, is_extended_id=self.is_extended_id, is_rx=False)
+
+    def start(self, bus: can.BusABC) -> None:
+        self.stop()
+        self.task = bus.send_periodic(self._message(self.stop_checked(self.data)), self.period_s, modifier_callback=self._before_send)
+        if hasattr(self.task, "on_error"):  # python-can's thread ends at the first error unless told otherwise
+            self.task.on_error = self._on_error
+
+    def stop(self) -> None:
+        task, self.task = self.task, None
+        if task is not None:
+            try:
+                task.stop()
+            except Exception as exc:  # noqa: BLE001 - a closed interface has stopped it already
+                log.debug("%s: stopping %s: %s", self.owner.name, self.key, exc)
+
+    def running(self) -> bool:
+        task = self.task
+        if task is None:
+            return False
+        thread = getattr(task, "thread", None)
+        return not getattr(task, "stopped", False) and (thread is None or thread.is_alive())
+
+    def modify(self, data: bytes) -> None:
+        self.data = data
+        task = self.task
+        if task is not None and hasattr(task, "modify_data"):
+            try:
+                task.modify_data(self._message(self.stop_checked(data)))
+            except Exception as exc:  # noqa: BLE001 - the callback below sends the new contents anyway
+                log.debug("%s: modify_data for %s: %s", self.owner.name, self.key, exc)
+
+    def stop_checked(self, data: bytes) -> bytes:
+        """``data`` while the lease holds (or there is none), else its stop form."""
+        if self.lease is None or self.stop_form is None or self.lease.valid():
+            return data
+        return self.stop_form(data)
+
+    def _on_error(self, exc: Exception) -> bool:
+        self.errors += 1
+        self.last_error = str(exc)
+        return True  # keep trying every period: the stop form must get out once the bus takes frames again
+
+    def _before_send(self, msg: can.Message) -> None:
+        """In the cyclic task's thread, before every period: the newest contents, or the stop form once the lease lapsed."""
+        data = self.stop_checked(self.data)
+        if msg.data != data:
+            msg.data = bytearray(data)
+            msg.dlc = len(data)
+        lapsed = self.lease.lapsed_at if self.lease is not None else None
+        loop = self.owner._loop
+        if lapsed is not None and lapsed != self._reported_lapse and self.on_lapse is not None and loop is not None:
+            self._reported_lapse = lapsed
+            try:
+                loop.call_soon_threadsafe(self.on_lapse, lapsed)
+            except RuntimeError:  # the loop is closed
+                pass
+        msg.timestamp = time.time()
+        self.owner._note_thread_send(can.Message(arbitration_id=msg.arbitration_id, data=bytes(data), is_extended_id=msg.is_extended_id,
+                                                 timestamp=msg.timestamp, is_rx=False))

@@ -38,6 +38,10 @@ DEADMAN_TIMEOUT_S = 0.3
 SUPERVISE_PERIOD_S = 0.05
 DEADMAN_BOUND_S = 0.5  # the stated bound: timeout + one supervision period + sending, with margin
 STALL_S = 0.1  # an event-loop stall longer than this is logged and shown
+# Silence is counted on a clock that runs only while this program runs on time: a supervision tick
+# credits at most LIVE_CREDIT_S however late it comes, so beats that waited in the socket because the
+# server was busy are not mistaken for a dead browser (a stalled loop is covered by the leases instead).
+LIVE_CREDIT_S = 2 * SUPERVISE_PERIOD_S
 LAG_WINDOW = 1200  # supervision ticks kept for the loop-lag figures (one minute)
 
 
@@ -175,7 +179,12 @@ class Worker:
         self.paused: set[str] = set()
         self.sessions: dict[str, str] = {}  # connected browser sessions -> role
         self.beats: dict[str, float] = {}  # session -> monotonic time of its last sign of life
-        self._holding_since: dict[str, float] = {}  # holders that never sent a beat
+        self._beats_live: dict[str, float] = {}  # session -> the live clock (LIVE_CREDIT_S) at its last sign of life
+        self._browser_sent: dict[str, float] = {}  # session -> the browser's own time of its last beat (ms)
+        self.late_beats = 0  # beats that came late because this program was busy, not because the browser was silent
+        self._live = 0.0  # seconds this program ran on time (advanced by the supervision tick)
+        self._live_at: float | None = None  # monotonic time of the last advance
+        self._holding_since: dict[str, float] = {}  # holders that never sent a beat (live clock)
         self.trips: deque[dict] = deque(maxlen=100)  # dead-man trips, newest last
         self.extra_holders: dict[str, Any] = {}  # transmit lists, replays: under the dead-man rule like adapters
         self.loop_health = LoopHealth()
@@ -323,12 +332,36 @@ class Worker:
         """A browser went away: stop and release everything it drove or switched."""
         self.sessions.pop(session, None)
         self.beats.pop(session, None)
+        self._beats_live.pop(session, None)
+        self._browser_sent.pop(session, None)
         self._holding_since.pop(session, None)
         self._session_lost(session, "the controlling browser disconnected")
 
-    def heartbeat(self, session: str) -> None:
-        """A page confirms it is alive (about every :data:`BEAT_PERIOD_S`)."""
-        self.beats[session] = time.monotonic()
+    def _live_clock(self, now: float) -> float:
+        """Seconds this program ran on time up to ``now`` (a stall counts as at most LIVE_CREDIT_S)."""
+        if self._live_at is None:
+            return self._live
+        return self._live + min(max(0.0, now - self._live_at), LIVE_CREDIT_S)
+
+    def heartbeat(self, session: str, sent_ms: float | None = None) -> None:
+        """A page confirms it is alive (about every :data:`BEAT_PERIOD_S`).
+
+        :param sent_ms: the browser's own clock when it sent the beat (``performance.now()`` of its tick
+            worker), to tell a beat that came late because this program was busy from a browser that was silent
+        """
+        now = time.monotonic()
+        last = self.beats.get(session)
+        self.beats[session] = now
+        self._beats_live[session] = self._live_clock(now)
+        if isinstance(sent_ms, int | float) and not isinstance(sent_ms, bool) and sent_ms == sent_ms:
+            before = self._browser_sent.get(session)
+            self._browser_sent[session] = float(sent_ms)
+            if last is not None and before is not None and now - last > DEADMAN_TIMEOUT_S:
+                browser_gap_s = (float(sent_ms) - before) / 1000
+                if browser_gap_s < DEADMAN_TIMEOUT_S:  # sent on time, received late: this program (or the network) was slow
+                    self.late_beats += 1
+                    log.info("session %s: a beat came %.0f ms after the one before, but the browser sent them %.0f ms apart: "
+                             "this program was busy, the browser is alive", session, (now - last) * 1000, browser_gap_s * 1000)
 
     def add_holder(self, name: str, holder: Any) -> None:
         """Put something that is not a device adapter (an engineer's cyclic transmit list, a replay)
@@ -352,7 +385,8 @@ class Worker:
                 log.exception("%s: stopping for a lost session failed", name)
 
     def _supervise_deadman(self, now: float) -> None:
-        """Stop what a session keeps running once it has not confirmed it is alive for DEADMAN_TIMEOUT_S."""
+        """Stop what a session keeps running once it has not confirmed it is alive for DEADMAN_TIMEOUT_S
+        of this program's running time; renew the leases of the sessions that did (devices/lease.py)."""
         holding: set[str] = set()
         for _name, adapter in self._holder_items():
             holders = getattr(adapter, "holders", None)
@@ -361,30 +395,53 @@ class Worker:
         for session in list(self._holding_since):
             if session not in holding:
                 del self._holding_since[session]
+        live_now = self._live_clock(now)
+        alive: set[str] = set()
         for session in holding:
-            last = self.beats.get(session)
+            last = self._beats_live.get(session)
             if last is None:
-                last = self._holding_since.setdefault(session, now)
-            silent = now - last
-            if silent > DEADMAN_TIMEOUT_S:
-                reason = (f"dead-man: the controlling browser has not confirmed it is alive for {silent * 1000:.0f} ms "
-                          "(frozen, asleep or network lost)")
-                log.warning("session %s: %s", session, reason)
-                self._session_lost(session, reason)
-                self._holding_since.pop(session, None)
-                self.trips.append({"session": session, "time": time.time(), "silent_ms": round(silent * 1000)})
+                last = self._holding_since.setdefault(session, live_now)
+            silent = live_now - last
+            if silent <= DEADMAN_TIMEOUT_S:
+                alive.add(session)
+                continue
+            heard = self.beats.get(session)
+            waited = now - heard if heard is not None else silent
+            busy = max(0.0, waited - silent)
+            reason = (f"dead-man: the controlling browser has not confirmed it is alive for {silent * 1000:.0f} ms "
+                      "while this program ran on time (the browser is frozen, asleep or its network is lost)")
+            if busy > SUPERVISE_PERIOD_S:
+                reason += f"; besides, this program was busy for {busy * 1000:.0f} ms of the {waited * 1000:.0f} ms since its last beat"
+            log.warning("session %s: %s", session, reason)
+            self._session_lost(session, reason)
+            self._holding_since.pop(session, None)
+            self.trips.append({"session": session, "time": time.time(), "silent_ms": round(silent * 1000),
+                               "busy_ms": round(busy * 1000)})
+        if alive:
+            for name, adapter in self._holder_items():
+                renew = getattr(adapter, "renew_leases", None)
+                if renew is None:
+                    continue
+                try:
+                    renew(alive)
+                except Exception:  # one adapter's failure must not keep the others' leases from renewing
+                    log.exception("%s: renewing its lease failed", name)
 
     async def _supervise(self) -> None:
         """Every 50 ms: measure how late the loop runs, and apply the dead-man rule."""
         loop = asyncio.get_running_loop()
         expected = loop.time() + SUPERVISE_PERIOD_S
+        self._live_at = time.monotonic()
         while True:
             await asyncio.sleep(max(0.0, expected - loop.time()))
             now = loop.time()
             self.loop_health.add(now - expected, time.time())
             expected = now + SUPERVISE_PERIOD_S
+            mono = time.monotonic()
+            self._live = self._live_clock(mono)
+            self._live_at = mono
             try:
-                self._supervise_deadman(time.monotonic())
+                self._supervise_deadman(mono)
             except Exception:  # the supervisor itself must never end
                 log.exception("dead-man supervision failed")
 

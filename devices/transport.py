@@ -114,6 +114,17 @@ class CanTransport(Protocol):
         """Send ``make()`` every ``period_s`` until :meth:`stop_cyclic` (``None``: skip this period)."""
         ...
 
+    def start_periodic(self, key: str, period_s: float, arbitration_id: int, data: bytes, is_extended_id: bool = False, *,
+                       lease: Any = None, stop_form: Callable[[bytes], bytes] | None = None,
+                       on_lapse: Callable[[float], None] | None = None) -> None:
+        """Send ``data`` every ``period_s`` on a clock that does not depend on the event loop; while
+        ``lease`` (devices/lease.py) is not valid only ``stop_form(data)`` leaves."""
+        ...
+
+    def modify_periodic(self, key: str, data: bytes, *, send_now: bool = False) -> bool:
+        """New contents from the next period on; ``send_now``: also once at once."""
+        ...
+
     def stop_cyclic(self, key: str) -> None: ...
 
     def cyclic_running(self, key: str) -> bool: ...

@@ -47,8 +47,8 @@ BEAT_JS = """
 (function () {
   if (window.commissionBeat) return;
   const tick = new Worker(URL.createObjectURL(new Blob(
-    ["setInterval(function () { postMessage(0); }, %d);"], {type: "text/javascript"})));
-  tick.onmessage = function () {
+    ["setInterval(function () { postMessage(performance.now()); }, %d);"], {type: "text/javascript"})));
+  tick.onmessage = function (e) {
     if (window.socket && window.did_handshake && window.socket.connected) {
       window.socket.emit("%s", {client_id: window.clientId});
     }

@@ -41,6 +41,12 @@ def app_url(tmp_path_factory):
         yield url
 
 
+def _take_control(page) -> None:
+    """The module answers only while a master serves its watchdog: this tool does once the engineer takes control."""
+    page.get_by_test_id("take-control").click()
+    page.get_by_test_id("controller").get_by_text("you control the module").wait_for(timeout=10_000)
+
+
 def _switch_on(page, output: str) -> None:
     row = page.locator(f'[data-channel="{output}"]')
     row.get_by_text("load: present").first.wait_for(timeout=5_000)
@@ -65,7 +71,9 @@ def test_blown_fuse_shown_and_cleared_after_reset(app_url, chromium, tmp_path):
     page = chromium.new_page(viewport={"width": 1440, "height": 900})
     try:
         page.goto(f"{app_url}/device/heater-hm")
-        page.get_by_text("watchdog served: DigOut every 500 ms").wait_for(timeout=10_000)
+        page.get_by_text("watchdog not served").wait_for(timeout=10_000)  # nobody controls it: this tool sends nothing
+        _take_control(page)
+        page.get_by_text("watchdog served: DigOut every 100 ms").wait_for(timeout=10_000)
         page.get_by_test_id("stop-rule").get_by_text("Another open tab does not keep them on").wait_for(timeout=2_000)
         page.get_by_test_id("variant-check").get_by_text("cannot be checked").wait_for(timeout=2_000)
         ssr1 = page.locator('[data-channel="SSR1"]')
@@ -98,6 +106,7 @@ def test_outputs_off_when_their_page_closes_with_another_tab_open(app_url, chrom
         tile.get_by_text("outputs on: none").wait_for(timeout=10_000)
         page = context.new_page()
         page.goto(f"{app_url}/device/heater-hm")
+        _take_control(page)
         _switch_on(page, "SSR2")
         tile.get_by_text("outputs on: SSR2").wait_for(timeout=5_000)
         page.close()
@@ -110,6 +119,7 @@ def test_hmr_variant_checked_in_addressed_mode(app_url, chromium, tmp_path):
     page = chromium.new_page(viewport={"width": 1440, "height": 900})
     try:
         page.goto(f"{app_url}/device/heater-hmr")
+        _take_control(page)
         page.get_by_test_id("variant-check").get_by_text("HMR01 (from 08.11.2013): variant HMR as in the plant file").wait_for(timeout=10_000)
         page.locator('[data-channel="SSR1-3"]').get_by_text("load: present").first.wait_for(timeout=5_000)
         inside_viewport(page, page.get_by_test_id("variant-check"))

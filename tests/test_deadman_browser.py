@@ -135,6 +135,8 @@ def test_frozen_browser_stops_motion_and_mains_outputs_within_the_bound(tmp_path
             heater = context.new_page()
             heater.goto(f"{url}/device/heater-hm")
             heater.get_by_text("belong to the page").first.wait_for(timeout=10_000)  # the stop rule is stated
+            heater.get_by_test_id("take-control").click()  # this tool serves the module's watchdog only then
+            heater.get_by_test_id("controller").get_by_text("you control the module").wait_for(timeout=10_000)
             row = heater.locator('[data-channel="SSR1"]')
             row.get_by_text("load: present").first.wait_for(timeout=10_000)
             row.locator(".q-toggle").click()

@@ -17,6 +17,7 @@ from conftest import wait_for
 from app.plant import parse_plant
 from app.runtime import Runtime
 from app.worker import DEADMAN_BOUND_S
+from devices.m3io.adapter import ControlBusy
 
 TAB_A, TAB_B = "client-a", "client-b"  # NiceGUI client ids of two page sessions
 _n = itertools.count()
@@ -34,47 +35,58 @@ def plant_text() -> str:
 async def module():
     runtime = Runtime(parse_plant(plant_text()), simulate=True)
     await runtime.start()
-    assert await wait_for(lambda: runtime.store.devices["hm"].status == "online", timeout=4)
     try:
         yield runtime
     finally:
         await asyncio.wait_for(runtime.stop(), 5)
 
 
+async def control(runtime, session: str = TAB_A) -> None:
+    """Take control for ``session`` (this tool serves the watchdog only then) and wait for the module's answers."""
+    await runtime.worker.adapters["hm"].take_control(session, "engineer")
+    assert await wait_for(lambda: runtime.store.devices["hm"].status == "online", timeout=4)
+
+
 async def test_outputs_belong_to_the_session_that_switched_them(module):
+    await control(module, TAB_A)
     adapter = module.worker.adapters["hm"]
     twin = module.twins["hm"]
     state = module.store.devices["hm"]
     bus_state = module.worker.can_buses["can3"].state
     assert adapter.holders() == set()
     adapter.set_output(TAB_A, "SSR2", True)
-    adapter.set_output(TAB_B, "SSR3", True)
+    adapter.set_output(TAB_A, "SSR3", True)
+    with pytest.raises(ControlBusy):  # another tab switches nothing on while this one controls the module
+        adapter.set_output(TAB_B, "SSR4", True)
     assert await wait_for(lambda: twin.ssr[2].on and twin.ssr[3].on, timeout=1)
-    assert adapter.holders() == {TAB_A, TAB_B}
+    assert adapter.holders() == {TAB_A}
+    adapter.session_lost(TAB_B, "the other tab stopped answering")  # not its business
+    assert adapter.outputs["SSR2"] and adapter.controller is not None
     sent = bus_state.tx_frames
     started = time.monotonic()
     adapter.session_lost(TAB_A, "the browser tab stopped answering")
-    assert bus_state.tx_frames > sent  # DigOut sent at once, not at the next 500 ms cycle
-    assert not adapter.outputs["SSR2"] and adapter.outputs["SSR3"]
-    assert await wait_for(lambda: not twin.ssr[2].on, timeout=DEADMAN_BOUND_S, interval=0.005)
+    assert bus_state.tx_frames > sent  # DigOut sent at once, not at the next period
+    assert not adapter.outputs["SSR2"] and not adapter.outputs["SSR3"]
+    assert await wait_for(lambda: not twin.ssr[2].on and not twin.ssr[3].on, timeout=DEADMAN_BOUND_S, interval=0.005)
     print(f"SSR2 off in the module {1000 * (time.monotonic() - started):.1f} ms after session_lost")
-    assert twin.ssr[3].on and adapter.holders() == {TAB_B}
+    assert adapter.holders() == set() and adapter.controller is None  # its control ended with it
     assert any("SSR2" in e.text and "the browser tab stopped answering" in e.text for e in state.events)
-    assert module.worker.can_buses["can3"].cyclic_running(adapter.key)  # DigOut goes on: inputs keep coming
+    assert not module.worker.can_buses["can3"].cyclic_running(adapter.key)  # no DigOut without an engineer
 
 
 async def test_switching_off_and_all_off_release_the_outputs(module):
+    await control(module, TAB_A)
     adapter = module.worker.adapters["hm"]
     state = module.store.devices["hm"]
     adapter.set_output(TAB_A, "SSR1", True)
     adapter.set_output(TAB_A, "LED", True)
     adapter.set_output(TAB_B, "SSR1", False)  # any session may switch off
     assert adapter.holders() == {TAB_A}  # still holds the LED
-    adapter.set_output(TAB_B, "SSR4", True)
+    adapter.set_output(TAB_A, "SSR4", True)
     adapter.all_off("all off pressed")
     assert adapter.holders() == set() and not any(adapter.outputs.values())
     events = len(state.events)
-    adapter.session_lost(TAB_A, "disconnected")  # owns nothing any more: nothing to do
+    adapter.session_lost(TAB_B, "disconnected")  # owns nothing, controls nothing: nothing to do
     assert len(state.events) == events
     assert state.info["outputs_on"] == []
 
@@ -97,6 +109,7 @@ async def test_worker_switches_off_when_the_owner_stops_confirming(module):
     last: dict[str, float] = {}
     beats = {s: asyncio.create_task(_beat(worker, s, last)) for s in (TAB_A, TAB_B)}
     try:
+        await control(module, TAB_A)
         adapter.set_output(TAB_A, "SSR1", True)
         assert await wait_for(lambda: twin.ssr[1].on, timeout=2)
         await asyncio.sleep(1.0)  # confirmed alive: stays on for twice app.worker.DEADMAN_BOUND_S (0.5 s)
@@ -123,6 +136,8 @@ async def test_closing_the_page_switches_off_although_another_tab_is_open(module
     worker.session_opened(TAB_B)
     beat = asyncio.create_task(_beat(worker, TAB_B))
     try:
+        worker.heartbeat(TAB_A)
+        await control(module, TAB_A)
         worker.heartbeat(TAB_A)
         adapter.set_output(TAB_A, "SSR5", True)
         assert await wait_for(lambda: twin.ssr[5].on, timeout=1)

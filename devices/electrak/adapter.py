@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 from devices.electrak import codec
 from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, SERVICE, length_of, password_of, refusal
+from devices.lease import Lease
 from devices.live import DeviceState
 from devices.params import Param, ParamError, backup_entry
 from devices.transport import CanTransport
@@ -17,6 +18,11 @@ NETWORK_IDS = frozenset((codec.CONTROL_ID, codec.STATUS_ID, codec.SERVICE_REQUES
 SERVICE_TIMEOUT_S = 0.3  # bound for the answers of every actuator to one service telegram
 EXTRA_ANSWER_S = 0.02  # after the last expected answer: does an unexpected one follow?
 SERIES = ("Position [mm]", "Current [A]", "Speed [mm/s]", "Target [mm]")
+
+
+def stop_form(data: bytes) -> bytes:
+    """The control telegram 0x06 with enable and override cleared (byte 7 bits 0 and 1), the rest kept."""
+    return bytes(data[:7]) + bytes([data[7] & ~0x03]) if len(data) == 8 else bytes(data)
 
 
 class CommandError(Exception):
@@ -55,6 +61,12 @@ class ElectrakAdapter:
     def command(self, frame: codec.ControlFrame) -> None:
         self._command = frame
         if hasattr(self, "key"):  # after __init__: every change of the control telegram is a new point
+            if frame.enable or frame.override:
+                self.lease.grant()  # a new command of the controlling session: it is alive now
+            else:
+                self.lease.revoke()
+            if self.controller is not None:  # the keep-alive carries it from the next period; and it leaves at once
+                self.bus.modify_periodic(self.key, frame.encode(), send_now=True)
             self._publish_command()
 
     def __init__(self, config, state: DeviceState, bus: CanTransport):
@@ -66,8 +78,9 @@ class ElectrakAdapter:
         self.state.params = PARAMS
         self.state.stale_after = 1.0  # status every 100 ms
         self.state.info.update(configured=len(self.actuators), heard=0, actuators=self.actuators, limits=self.limits)
-        self.command = codec.ControlFrame(0.0, 0.0, self.limits.speed_min, enable=False)
         self.controller: Controller | None = None
+        self.lease = Lease()  # renewed by the worker's dead-man supervisor while motion runs (devices/lease.py)
+        self.command = codec.ControlFrame(0.0, 0.0, self.limits.speed_min, enable=False)
         self.frames: deque[tuple[float, codec.StatusFrame]] = deque(maxlen=200)
         self._last_sample = 0.0
         self._pending: codec.ServiceMessage | None = None  # the service request whose answers are collected
@@ -232,7 +245,10 @@ class ElectrakAdapter:
         self.state.info["controlled_by"] = user
         self._publish_command()
         self.command = codec.ControlFrame(self.command.position_mm, self.command.current_a, self.command.speed_mm_s, enable=False)
-        self.bus.start_cyclic(self.key, codec.CONTROL_PERIOD_S, self._control_frame)
+        # on python-can's cyclic task: its clock does not depend on the event loop; without a valid
+        # lease only the stop form leaves (enable and override cleared)
+        self.bus.start_periodic(self.key, codec.CONTROL_PERIOD_S, codec.CONTROL_ID, self.command.encode(), False,
+                                lease=self.lease, stop_form=stop_form, on_lapse=self._lapsed)
         self.state.event("info", f"{user} took control (no other sender of 0x06 heard for {codec.LISTEN_S:g} s); "
                                  "control telegrams every 100 ms")
 
@@ -240,10 +256,10 @@ class ElectrakAdapter:
         """Clear enable and override, send that at once, stop the keep-alive."""
         user = self.controller.user if self.controller else "nobody"
         c = self.command
-        self.command = codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=False)
         self.bus.stop_cyclic(self.key)
-        self.bus.send(*self._control_frame())
         self.controller = None
+        self.command = codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=False)
+        self.bus.send(*self._control_frame())
         self.state.info["controlled_by"] = None
         self._publish_command()
         self.state.event(level, f"control {reason} ({user}): enable cleared, control telegrams stopped")
@@ -256,6 +272,26 @@ class ElectrakAdapter:
         return True
 
     # -- the dead-man rule (app.worker) -------------------------------------------------------
+    def renew_leases(self, alive: set[str]) -> None:
+        """The worker's supervisor, every 50 ms: the controlling session is alive, motion may go on."""
+        c = self.controller
+        if c is None or c.session not in alive or not (self.command.enable or self.command.override):
+            return
+        if not self.lease.renew() and self.lease.lapsed_at is not None:
+            self._lapsed(self.lease.lapsed_at)
+
+    def _lapsed(self, lapsed_at: float) -> None:
+        """The lease ran out (the program stalled): the sender has sent the stop form by itself since."""
+        if self.lease.lapsed_at != lapsed_at or not (self.command.enable or self.command.override):
+            return
+        renewed = self.lease.renewed_at
+        stalled_ms = (time.monotonic() - renewed) * 1000 if renewed is not None else 0.0
+        c = self.command
+        self.command = codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=False)
+        self.state.event("error", f"motion stopped: this program stalled ({stalled_ms:.0f} ms without renewing the motion's lease, "
+                                  f"limit {self.lease.valid_s * 1000:.0f} ms); the control telegram's sender cleared enable by itself. "
+                                  "The browser was not at fault: press again to move")
+
     def holders(self) -> set[str]:
         """The session that keeps motion running: control held and enable (or override) set."""
         c = self.controller
@@ -290,10 +326,10 @@ class ElectrakAdapter:
         self.state.event("info", f"go: target {c.position_mm:g} mm at {c.speed_mm_s:g} mm/s, limit {c.current_a:g} A")
 
     def stop(self, session: str | None = None) -> None:
-        """Clear the enable bit (anyone may stop)."""
+        """Clear the enable bit (anyone may stop); the telegram leaves at once, not at the next period."""
         c = self.command
         self.command = codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=False)
-        if self.controller is None:
+        if self.controller is None:  # no keep-alive running: send it once
             self.bus.send(*self._control_frame())
         self.state.event("info", "stop: enable cleared")
 

@@ -1,16 +1,23 @@
 """A CAN-M3IO module on a shared CAN bus: watchdog keep-alive, outputs, inputs, temperatures,
 SSR status evaluation, SYNC cfg and addressed data.
 
-Outputs belong to the page session that switched them on: :meth:`M3ioAdapter.holders` names
-those sessions for the worker's dead-man rule, and :meth:`M3ioAdapter.session_lost` switches a
-session's outputs off at once.
+The module is a slave that waits for a master's DigOut and keeps its outputs on only while
+DigOut frames keep coming (7, 7.1). This tool is that master only while an engineer controls
+the module (:meth:`M3ioAdapter.take_control`): it listens first and refuses while another node
+(a PLC) sends DigOut, and stops sending as soon as one appears. Outputs belong to the page
+session that switched them on: :meth:`M3ioAdapter.holders` names those sessions for the worker's
+dead-man rule, :meth:`M3ioAdapter.session_lost` switches a session's outputs off at once, and the
+DigOut keep-alive runs on python-can's cyclic task under a lease (devices/lease.py): a program
+that stalls sends the outputs-off form by itself.
 """
 
 from __future__ import annotations
 
 import asyncio
 import time
+from dataclasses import dataclass
 
+from devices.lease import Lease
 from devices.live import DeviceState
 from devices.m3io import codec
 from devices.m3io.codec import Variant
@@ -18,11 +25,35 @@ from devices.transport import CanTransport
 
 MDATA_TIMEOUT_S = 0.5
 OFFLINE_AFTER_S = 2.5
+TEMP_SLACK_S = 0.6  # after the watchdog ran out, a temperature telegram already under way may still come
 VERIFY_RETRY_S = 2.0  # product code not answered: ask again after this long
+LISTEN_S = 0.6  # listened this long since the bus opened before taking control: longer than the 500 ms temperature period (7.2.2)
+FOREIGN_WINDOW_S = codec.WATCHDOG_S  # a master must send DigOut within 2 s (7.1): one heard within this window is active
+FOREIGN_MASTER = "a PLC or another master"
 
 
 class CommandError(Exception):
     """A command that did not take effect; the message says what to do."""
+
+
+class ControlBusy(CommandError):
+    """Another session controls the module."""
+
+
+class ForeignMaster(CommandError):
+    """Another node of the bus serves the module (sends DigOut)."""
+
+
+@dataclass
+class Controller:
+    session: str
+    user: str
+    since: float
+
+
+def stop_form(data: bytes) -> bytes:
+    """DigOut with every SSR off (bits 1-6 cleared); the LED (bit 0) is no mains output and stays."""
+    return bytes([data[0] & 0x01]) + bytes(data[1:]) if data else bytes(data)
 
 
 class M3ioAdapter:
@@ -38,6 +69,7 @@ class M3ioAdapter:
         self.ids = codec.derive_ids(self.sw1)
         self.outputs = {name: False for name in codec.OUTPUT_BITS[self.variant]}
         self.owners: dict[str, str] = {}  # output that is on -> page session (NiceGUI client id) that switched it on
+        self.controller: Controller | None = None  # the engineer whose session this tool serves the watchdog for
         self.product_code: int | None = None
         self.variant_check = codec.check_variant(self.variant, self.ids.addressed, None)
         self._verify_after = 0.0
@@ -66,35 +98,156 @@ class M3ioAdapter:
         if self.ids.mdata is not None:
             bus.subscribe(False, self.ids.mdata, self.on_mdata)
         self.key = f"m3io digout {config.name}"
-        self._started = False
+        self.cfg_key = f"m3io cfg {config.name}"
+        self.lease = Lease()  # renewed by the worker's dead-man supervisor while a mains output is on
+        self._listening_since = time.monotonic()  # since when another master's DigOut would have been heard
+        self._listening_reconnects = -1
+        self._foreign_at: float | None = None  # monotonic time of the last sign of another master
+        self._served_until = 0.0  # monotonic: the module may still answer our last DigOut until then
+        state.info.update(foreign_master=None, controlled_by=None)
+        bus.subscribe(False, self.ids.dig_out, self.on_foreign_dig_out)
 
-    # -- keep-alive (section 7.1) -------------------------------------------------------------
-    def _dig_out(self):
-        """The cyclic DigOut, preceded by the Sync cfg when P2 is set (codec.cfg_with_dig_out)."""
-        cfg = codec.cfg_with_dig_out(self.two_phase)
-        if cfg is not None:
-            self.bus.send(self.ids.sync, cfg, False)
+    # -- keep-alive (section 7.1), only while an engineer controls the module ----------------------
+    def _dig_out_data(self) -> bytes:
         sent = self.outputs if self.variant_check.may_switch else {}  # nothing on before the variant matched
-        return self.ids.dig_out, codec.encode_dig_out(self.variant, sent), False
+        return codec.encode_dig_out(self.variant, sent)
 
     def _send_now(self) -> None:
-        """cfg and DigOut at once, not only at the next cycle."""
-        self.bus.send(*self._dig_out())
+        """The new DigOut at once (not only at the next period) and as the keep-alive's contents from now on."""
+        if self.controller is None:  # nobody controls the module: this tool sends nothing
+            return
+        if any(on for name, on in self.outputs.items() if name != "LED"):
+            self.lease.grant()  # the controlling session acted just now
+        else:
+            self.lease.revoke()
+        self.bus.modify_periodic(self.key, self._dig_out_data(), send_now=True)
+
+    def _start_cfg(self) -> None:
+        """P2 is not stored (7.2.4): while set, the Sync cfg goes out with the DigOut period, so a reset cannot lose it."""
+        cfg = codec.cfg_with_dig_out(self.two_phase)
+        if cfg is not None and self.controller is not None:
+            self.bus.send(self.ids.sync, cfg, False)
+            self.bus.start_periodic(self.cfg_key, codec.DIGOUT_PERIOD_S, self.ids.sync, cfg, False)
+        else:
+            self.bus.stop_cyclic(self.cfg_key)
+
+    def on_foreign_dig_out(self, msg) -> None:
+        """A DigOut from another node: a PLC serves the module. Never fight it."""
+        if getattr(msg, "is_rx", True) is False:  # our own frame, handed back by the interface
+            return
+        self._foreign_at = time.monotonic()
+        foreign = self.state.info.get("foreign_master") or {"frames": 0}
+        self.state.info["foreign_master"] = {"frames": foreign["frames"] + 1, "time": time.time(), "text": bytes(msg.data).hex(" ")}
+        if self.controller is not None:
+            self._release(f"lost: another master sends DigOut 0x{self.ids.dig_out:03X} ({FOREIGN_MASTER}); "
+                          "this tool stopped sending so as not to fight it", level="error")
+
+    def foreign_master(self, now: float | None = None) -> bool:
+        """Was another master heard within the last 2 s (its DigOut, or the module answering while this tool did not serve it)?"""
+        now = time.monotonic() if now is None else now
+        return self._foreign_at is not None and now - self._foreign_at <= FOREIGN_WINDOW_S
+
+    async def take_control(self, session: str, user: str) -> None:
+        """Listen for another master first; then serve the watchdog: DigOut every 100 ms, outputs off."""
+        if self.controller is not None and self.controller.session != session:
+            raise ControlBusy(f"{self.controller.user} controls the module since "
+                              f"{time.strftime('%H:%M:%S', time.localtime(self.controller.since))}")
+        if self.controller is not None:
+            return
+        if not self.bus.state.connected:
+            raise CommandError(f"CAN bus {self.bus.name} is not open: {self.bus.state.last_error or 'not connected'}")
+        if self._listening_reconnects != self.bus.state.reconnects:  # (re)opened since: listen from now on
+            self._listening_reconnects, self._listening_since = self.bus.state.reconnects, time.monotonic()
+        heard_for = time.monotonic() - self._listening_since
+        if heard_for < LISTEN_S:
+            await asyncio.sleep(LISTEN_S - heard_for)
+        if self.foreign_master():
+            raise ForeignMaster(
+                f"another master serves this module ({FOREIGN_MASTER}: DigOut 0x{self.ids.dig_out:03X} or the module's "
+                f"answers heard within {FOREIGN_WINDOW_S:g} s): taking control would fight it. Stop that master and try again."
+            )
+        if self.controller is not None:  # taken while this session listened
+            if self.controller.session == session:
+                return
+            raise ControlBusy(f"{self.controller.user} took control meanwhile")
+        for name in self.outputs:
+            self.outputs[name] = False
+        self.owners.clear()
+        self.lease.revoke()
+        self.controller = Controller(session, user, time.time())
+        self.served = True
+        # python-can's cyclic task: its clock does not depend on the event loop; without a valid lease
+        # (a mains output on and the worker renewing it) only the outputs-off form leaves
+        self.bus.start_periodic(self.key, codec.DIGOUT_PERIOD_S, self.ids.dig_out, self._dig_out_data(), False,
+                                lease=self.lease, stop_form=stop_form, on_lapse=self._lapsed)
+        self._start_cfg()
+        self.state.info["controlled_by"] = user
+        self._publish()
+        self.state.event("info", f"{user} took control (no other master heard): DigOut 0x{self.ids.dig_out:03X} "
+                                 f"every {codec.DIGOUT_PERIOD_S * 1000:.0f} ms serves the 2 s watchdog")
+
+    def _release(self, reason: str, level: str = "warning") -> None:
+        """Every output off (sent at once), then the keep-alive stops: the module's watchdog runs out in 2 s."""
+        user = self.controller.user if self.controller else "nobody"
+        on = [name for name, value in self.outputs.items() if value]
+        for name in self.outputs:
+            self.outputs[name] = False
+        self.owners.clear()
+        self.lease.revoke()
+        if self.controller is not None:
+            self.bus.modify_periodic(self.key, self._dig_out_data(), send_now=True)
+        self.bus.stop_cyclic(self.key)
+        self.bus.stop_cyclic(self.cfg_key)
+        self.controller = None
+        self.served = False
+        self._served_until = time.monotonic() + codec.WATCHDOG_S + TEMP_SLACK_S
+        self.state.info["controlled_by"] = None
+        self._publish()
+        self.state.event(level, f"control {reason} ({user})" + (f": {', '.join(on)} off" if on else "") + "; DigOut stopped")
+
+    def release_control(self, session: str, reason: str = "released") -> bool:
+        if self.controller is None or (session and self.controller.session != session):
+            return False
+        self._release(reason)
+        return True
+
+    def renew_leases(self, alive: set[str]) -> None:
+        """The worker's supervisor, every 50 ms: the session that switched the outputs on is alive."""
+        if self.controller is None or not any(self.owners.get(n) in alive for n, on in self.outputs.items() if on):
+            return
+        if not self.lease.renew() and self.lease.lapsed_at is not None:
+            self._lapsed(self.lease.lapsed_at)
+
+    def _lapsed(self, lapsed_at: float) -> None:
+        """The lease ran out (this program stalled): the keep-alive has sent every output off by itself since."""
+        if self.lease.lapsed_at != lapsed_at:
+            return
+        names = [name for name, on in self.outputs.items() if on and name != "LED"]
+        if not names:
+            return
+        renewed = self.lease.renewed_at
+        stalled_ms = (time.monotonic() - renewed) * 1000 if renewed is not None else 0.0
+        for name in names:
+            self.outputs[name] = False
+            self.owners.pop(name, None)
+        self._send_now()
+        self._publish()
+        self.state.event("error", f"{', '.join(names)} off: this program stalled ({stalled_ms:.0f} ms without renewing the "
+                                  f"outputs' lease, limit {self.lease.valid_s * 1000:.0f} ms) and the DigOut keep-alive "
+                                  "switched them off by itself. The browser was not at fault: switch on again")
 
     async def poll(self) -> None:
-        """Start the DigOut keep-alive once the bus is up; watch for silence; check the variant."""
-        if not self._started:
-            self._started = True
-            self.served = True
-            self.bus.start_cyclic(self.key, codec.DIGOUT_PERIOD_S, self._dig_out)
-            self.state.event("info", f"serving the watchdog: DigOut 0x{self.ids.dig_out:03X} every 500 ms")
-            self._publish()
+        """Watch for silence; check the variant."""
         now = time.time()
         if self.last_answer is None or now - self.last_answer > OFFLINE_AFTER_S:
             if self.last_answer is not None and self._gone_since is None:
                 self._gone_since = self.last_answer
                 if self.state.online is not False:
-                    self.state.mark_offline(f"no DigIn/temperatures for {OFFLINE_AFTER_S} s: check 24 V, CAN wiring, SW1 0x{self.sw1:02X}")
+                    if self.controller is None and not self.foreign_master():
+                        self.state.mark_offline("silent: the module answers only while a master serves its 2 s watchdog "
+                                                "(7.1); take control to serve it")
+                    else:
+                        self.state.mark_offline(f"no DigIn/temperatures for {OFFLINE_AFTER_S} s: check 24 V, CAN wiring, SW1 0x{self.sw1:02X}")
             return
         if self._gone_since is not None:
             self.state.event("info", f"the module answers again after {self.last_answer - self._gone_since:.1f} s of silence")
@@ -134,6 +287,8 @@ class M3ioAdapter:
     def _seen(self) -> None:
         self.last_answer = time.time()
         self.state.mark_seen(self.last_answer)
+        if self.controller is None and time.monotonic() > self._served_until:
+            self._foreign_at = time.monotonic()  # the module answers although this tool does not serve it: another master does
 
     def on_dig_in(self, msg) -> None:
         try:
@@ -216,7 +371,10 @@ class M3ioAdapter:
         for name, on in self.outputs.items():
             publish(name, on, periodic=False, text="on" if on else "off")
         publish("Watchdog", self.served, periodic=False,
-                text="served: DigOut every 500 ms" if self.served else "not served: outputs are off in the module")
+                text=f"served: DigOut every {codec.DIGOUT_PERIOD_S * 1000:.0f} ms" if self.served
+                else "not served by this tool: outputs are off in the module unless another master serves it")
+        publish("Controlled by", self.controller.user if self.controller else None, periodic=False,
+                text=None if self.controller else "nobody")
         publish("Variant check", self.variant_check.state, periodic=False, text=self.variant_check.text)
         if self.variant is Variant.HMR:
             publish("P2", self.two_phase, periodic=False, text="two-phase load" if self.two_phase else "three-phase load")
@@ -260,12 +418,17 @@ class M3ioAdapter:
 
     # -- outputs ------------------------------------------------------------------------------
     def set_output(self, session: str, name: str, on: bool) -> None:
-        """Switch an output for the page session ``session``, which then owns it until it is switched
-        off or the session is lost. Switching off is never refused, whoever switched it on."""
+        """Switch an output for the page session ``session``, which must control the module and then owns
+        the output until it is switched off or the session is lost. Switching off is never refused."""
         if name not in self.outputs:
             raise CommandError(f"{self.variant.value} has no output {name}")
-        if on and not self.variant_check.may_switch:
-            raise CommandError(self.variant_check.text)
+        if on:
+            if self.controller is None:
+                raise CommandError("take control of the module first: this tool serves its watchdog only while you control it")
+            if self.controller.session != session:
+                raise ControlBusy(f"{self.controller.user} controls the module")
+            if not self.variant_check.may_switch:
+                raise CommandError(self.variant_check.text)
         if on and not self.outputs[name]:
             self.owners[name] = session
         elif not on:
@@ -288,26 +451,30 @@ class M3ioAdapter:
         return {session for name, session in self.owners.items() if self.outputs[name]}
 
     def session_lost(self, session: str, reason: str) -> None:
-        """``session`` closed or stopped confirming it is alive: its outputs off at once; the keep-alive goes on."""
+        """``session`` closed or stopped confirming it is alive: its outputs off at once, and its control released."""
         names = [name for name, owner in self.owners.items() if owner == session and self.outputs[name]]
         for name in [name for name, owner in self.owners.items() if owner == session]:
             del self.owners[name]
-        if not names:
-            return
-        for name in names:
-            self.outputs[name] = False
-        self._send_now()
-        self._publish()
-        self.state.event("warning", f"{', '.join(names)} off: {reason}")
+        if names:
+            for name in names:
+                self.outputs[name] = False
+            self._send_now()
+            self._publish()
+            self.state.event("warning", f"{', '.join(names)} off: {reason}")
+        if self.controller is not None and self.controller.session == session:
+            self._release(f"released: {reason}")
 
     # -- SYNC cfg (7.2.4) ----------------------------------------------------------------------
     def set_two_phase(self, on: bool) -> None:
         if self.variant is not Variant.HMR:
             raise CommandError("P2 (two-phase load) exists on the HMR only")
         self.two_phase = on
-        self.bus.send(self.ids.sync, codec.encode_sync_cfg(on), False)
+        if self.controller is not None:
+            self.bus.send(self.ids.sync, codec.encode_sync_cfg(on), False)
+        self._start_cfg()
         self._publish()
-        self.state.event("info", f"P2 {'on: three-phase output loaded on two phases' if on else 'off: three phases'}")
+        self.state.event("info", f"P2 {'on: three-phase output loaded on two phases' if on else 'off: three phases'}"
+                         + ("" if self.controller is not None else " (sent once this tool controls the module)"))
 
     # -- addressed data (7.2.4.2) ---------------------------------------------------------------
     async def _request(self, area: int, index: int, payload: bytes = b"") -> codec.MData:

@@ -19,7 +19,7 @@ class Variant(str, Enum):
 
 
 WATCHDOG_S = 2.0  # section 7.1
-DIGOUT_PERIOD_S = 0.5  # SPEC-NOTES: the worker sends DigOut every 500 ms
+DIGOUT_PERIOD_S = 0.1  # while controlled: the 2 s watchdog (7.1) with room, and a lapsed lease stops outputs within 0.5 s
 TEMP_PERIOD_S = 0.5  # section 7.2.2
 DIGIN_MIN_INTERVAL_S = 0.010  # section 7.2.1
 
