@@ -40,8 +40,9 @@ def _logout() -> None:
 
 
 # A Web Worker ticks (timers of hidden tabs are throttled to 1 Hz, a worker's are not); the page
-# sends each tick to the server. A frozen, asleep or cut-off browser stops sending: the worker
-# stops its motion and mains outputs (app.worker, dead-man rule).
+# sends each tick to the server with the tick's own time (the browser's clock), so the server tells a
+# beat that waited because the server was busy from a browser that was silent. A frozen, asleep or
+# cut-off browser stops sending: the worker stops its motion and mains outputs (app.worker, dead-man rule).
 BEAT_JS = """
 <script>
 (function () {
@@ -50,7 +51,7 @@ BEAT_JS = """
     ["setInterval(function () { postMessage(performance.now()); }, %d);"], {type: "text/javascript"})));
   tick.onmessage = function (e) {
     if (window.socket && window.did_handshake && window.socket.connected) {
-      window.socket.emit("%s", {client_id: window.clientId});
+      window.socket.emit("%s", {client_id: window.clientId, t: e.data});
     }
   };
   window.commissionBeat = tick;
