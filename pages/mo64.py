@@ -271,7 +271,7 @@ def content(name: str) -> None:
                 mon = ui.label().classes("text-body2").props("data-testid=monitoring")
             setting_values: dict[str, ui.label] = {}
             with ui.grid(columns=3).classes("w-full gap-x-4 items-center") \
-                    .style("grid-template-columns: 220px 1fr 300px; row-gap: 28px"):  # room for each entry's range
+                    .style("grid-template-columns: minmax(120px, 220px) minmax(0, 1fr) 300px; row-gap: 28px"):  # room for each entry's range
                 for key, setting in codec.SETTINGS.items():
                     if key == "change_monitoring":
                         continue

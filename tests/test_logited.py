@@ -142,8 +142,11 @@ def rs485(port: int, **options):
     return LogitedRs485("rs485", opts, BusState("rs485", "logited-rs485", opts["port"]))
 
 
-async def line_with_second_master(port: int, holds: list, requests: list):
-    """A line where master 0x01 holds the token first and barrier 0x05 answers queries for itself."""
+async def line_with_second_master(port: int, holds: list, requests: list, events: list | None = None):
+    """A line where master 0x01 holds the token first and barrier 0x05 answers queries for itself
+    (30 ms late, while the line goes on); ``events`` gets "request", "answer" and "token" in line order."""
+    events = [] if events is None else events
+    answering: list = []
 
     async def serve(reader, writer):
         splitter = codec.FrameSplitter(codec.RS485)
@@ -164,14 +167,21 @@ async def line_with_second_master(port: int, holds: list, requests: list):
             while data := await reader.read(256):
                 for frame in splitter.feed(data):
                     if frame.type == codec.TOKEN and frame.da == 0x01:
+                        events.append("token")
                         holds.append(loop.time() - given)
                         await asyncio.sleep(0.05)  # the other master's own turn, within 200 ms (chapter 2.6.1)
                         given = loop.time()
                         writer.write(codec.encode_token(0x00, 0x01))
                     elif frame.da == 0x05:
                         requests.append(frame)
-                        gate = codec.encode_frame(bytes((0x0C, 0x04)), codec.RS485, da=frame.sa, sa=0x05)
-                        writer.write(gate)
+                        events.append("request")
+
+                        async def answer_later(sa=frame.sa):  # the barrier answers 30 ms later; the line reads on
+                            await asyncio.sleep(0.03)
+                            events.append("answer")
+                            writer.write(codec.encode_frame(bytes((0x0C, 0x04)), codec.RS485, da=sa, sa=0x05))
+
+                        answering.append(asyncio.create_task(answer_later()))
                     await writer.drain()
         except ConnectionError:
             pass
@@ -186,7 +196,8 @@ async def test_rs485_sends_only_with_the_token_and_passes_it_within_200_ms():
     port = free_port()
     holds: list[float] = []
     requests: list = []
-    server = await line_with_second_master(port, holds, requests)
+    events: list[str] = []
+    server = await line_with_second_master(port, holds, requests, events)
     line = rs485(port)
     try:
         query = codec.encode_frame(codec.encode_query(7), codec.RS485, da=0x05, sa=0x00)
@@ -198,6 +209,10 @@ async def test_rs485_sends_only_with_the_token_and_passes_it_within_200_ms():
         print(f"token held by this tool: max {max(holds) * 1000:.1f} ms over {len(holds)} turns (limit 200 ms)")
         assert max(holds) < codec.TOKEN_PASS_LIMIT_S
         assert max(line.token_holds_ms) < 200
+        # the tool's own behaviour: after each request its answer comes before the token goes on
+        for n, event in enumerate(events):
+            if event == "request":
+                assert events[n + 1] == "answer", events
     finally:
         line.close()
         server.close()

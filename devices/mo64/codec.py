@@ -88,6 +88,10 @@ ASSUMPTIONS: tuple[str, ...] = (
     "(e.g. clearing a loop-adjust counter) but not their codes.",
     "The error memory level is chosen by an index byte after the query index; each answer carries "
     "index, error flags and time stamp.",
+    "Queries: the manual prints 02 Auswahl index (page 33), the public client sends 02 Auswahl; the "
+    "manual's form is tried first and the unit's answer decides (shown as the query form).",
+    "Status bits: positions as the public client has them; the manual lists Multi3-6 before the loop "
+    "adjustment bits and the MO 64 has six multi relays, so relays 7-14 are not shown.",
     "Setting selectors 0x04 0x01 (pre-warning before opening) and 0x04 0x02 (pre-warning before "
     "closing) follow the order of the answer telegrams 0x0D-0x0F; the manual's summary names only "
     "0x04 0x00 (open time) and 0x04 0x04 (change monitoring).",
