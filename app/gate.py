@@ -139,6 +139,13 @@ async def invoke(worker: Any, device: str, name: str, args: Mapping[str, Any] | 
                              new=_shown(values))
         raise
     adapter = worker.adapters[device]
+    if command.refuse_if is not None:
+        config = worker.plant.devices[device]
+        reason = command.refuse_if(values, worker.plant.devices_on(config.bus), device)
+        if reason:
+            await worker.refused(device=device, user=user, role=role, describe=command.name, reason=reason,
+                                 new=_shown(values))
+            raise CommandError(reason)
     if command.needs_control and command.kind not in OPEN_KINDS:
         holders = getattr(adapter, "holders", None)
         if holders is None or session not in holders():

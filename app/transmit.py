@@ -214,7 +214,7 @@ class TransmitList:
 
     async def _audit_stop(self, row: TxRow, user: str, reason: str) -> None:
         try:
-            await self.worker.checked(self._nothing, device=self.bus, role="engineer", user=user, write=False,
+            await self.worker.checked(self._nothing, device=self.bus, role="engineer", user=user, kind="stop",
                                       describe=f"transmit: cyclic {row.describe()} stopped: {reason}")
         except Exception as exc:  # noqa: BLE001 - stopped anyway; the audit state shows the failure
             log.error("audit: %s", exc)
@@ -371,7 +371,7 @@ class TransmitList:
         self.version += 1
         row = self.row(key)
         what = row.describe() if row else key
-        await self.worker.checked(self._nothing, device=self.bus, role=role, user=user, write=False,
+        await self.worker.checked(self._nothing, device=self.bus, role=role, user=user, kind="stop",
                                   describe=f"transmit cyclic on {self.bus}: stop {what}")
 
     def stop_all(self) -> None:

@@ -62,6 +62,8 @@ class Command:
     :param needs_control: the session must control the device (its adapter's ``holders()``)
     :param session: the method takes the browser session as its first argument
     :param prefix: the command also answers to names that start with ``name`` (an older caller's wording)
+    :param refuse_if: ``(args, bus_devices, device) -> reason`` from the device type's send policy
+        (e.g. an ID another participant of the bus uses); "" lets it run
     """
 
     name: str
@@ -73,6 +75,7 @@ class Command:
     needs_control: bool = False
     session: bool = False
     prefix: bool = False
+    refuse_if: Callable[[Mapping[str, Any], Any, str], str] | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:

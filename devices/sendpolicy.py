@@ -8,8 +8,8 @@ restore, device commands) calls :func:`check_send` (or one of its two halves) an
 
 A policy module may define:
 
-- ``check_can(can_id, extended, data, devices) -> Verdict | None``: ``devices`` are the plant's
-  devices of the type on the bus (``.name``, ``.options``); called for every frame on a CAN bus
+- ``check_can(can_id, extended, data, devices, bus) -> Verdict | None``: ``devices`` are the plant's
+  devices of the type on the bus (``.name``, ``.options``), ``bus`` all devices of the bus; called for every frame on a CAN bus
   where the type is configured or whose fixed IDs it reserves on every CAN bus;
 - ``check_modbus(function, address, values, device) -> Verdict``: a write to a unit of the type
   (``device`` None for a unit that is not in the plant, on a line of that type).
@@ -128,7 +128,7 @@ def check_can(bus_devices: Sequence[Any], can_id: int, extended: bool, data: byt
         check = getattr(policy, "check_can", None)
         if check is None:
             continue
-        verdicts.append(check(can_id, extended, data, [d for d in bus_devices if d.type == type_name]))
+        verdicts.append(check(can_id, extended, data, [d for d in bus_devices if d.type == type_name], bus_devices))
     return combine(verdicts)
 
 
@@ -169,3 +169,20 @@ def check_send(bus_devices: Sequence[Any], message: CanMessage | ModbusMessage) 
     if isinstance(message, CanMessage):
         return check_can(bus_devices, message.can_id, message.extended, message.data)
     return check_modbus(bus_devices, message)
+
+
+def can_id_owner(bus_devices: Sequence[Any], can_id: int, extended: bool, *, exclude: str = "") -> str:
+    """Who uses ``can_id`` on a bus already: any device type's fixed IDs, or a device of the bus (but
+    ``exclude``); "" when nobody does (section 6.2 b of the HD-Lock document: one participant per ID)."""
+    from devices.registry import DEVICE_TYPES, fixed_can_id_uses
+
+    for device_type, use in fixed_can_id_uses():
+        if use.covers(extended, can_id):
+            return f"{use.use} ({device_type.title})"
+    for dev in bus_devices:
+        if dev.name == exclude or dev.type not in DEVICE_TYPES:
+            continue
+        for use in DEVICE_TYPES[dev.type].can_ids(dev.options, "can"):
+            if use.covers(extended, can_id):
+                return f"{dev.name}: {use.use}"
+    return ""

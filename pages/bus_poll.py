@@ -52,7 +52,7 @@ def _view(runtime, bus: str) -> None:
     poll = mp.ModbusPoll(runtime.worker, bus)
     client = ui.context.client
     client.on_disconnect(poll.stop)
-    user, role = current_user()
+    role = current_user()[1]  # what the page shows; every write asks again (the gate decides)
     known = {d.options.get("address"): d.name for d in runtime.plant.devices_on(bus)}
     line = runtime.worker.lines[bus]
 
@@ -185,8 +185,9 @@ def _view(runtime, bus: str) -> None:
             notify_error("enter at least one value")
             return
         address = int(w_address.value or 0) - int(base.value or 0)
+        user, role = current_user()  # the account store's answer now, not the page's when it was built
         try:
-            await poll.write(int(w_unit.value or 0), address, values, user=user, role=role, confirmed=confirmed,
+            await poll.write(int(w_unit.value or 0), address, values, user=user or "anonymous", role=role, confirmed=confirmed,
                              multiple=bool(w_multi.value) or len(values) > 1)
         except mp.NeedsConfirmation as exc:
             with ui.dialog() as dialog, ui.card().classes("w-[32rem]"):

@@ -78,9 +78,11 @@ def content(bus: str) -> None:
                 load_bar.set_visibility(False)
                 return
             loaded["file"] = log
+            screening = await asyncio.to_thread(rp.screen, worker, bus, log.frames)
             load_bar.set_visibility(False)
             file_status.set_text(f"{name}: {len(log.frames)} frames, {log.duration:.1f} s ({log.format})"
-                                 + (" - only the first frames (file too long)" if log.truncated else ""))
+                                 + (" - only the first frames (file too long)" if log.truncated else "")
+                                 + (f". {screening.text()}" if screening.blocked else ""))
 
         async def on_choice() -> None:
             if choice.value:
@@ -106,23 +108,25 @@ def content(bus: str) -> None:
             if log is None:
                 notify_error("Choose a recording first.")
                 return
+            user, role = current_user()  # the account store's answer now, not the page's when it was built
             try:
                 await rp.start_replay(worker, bus, log.frames, name=log.name, speed=float(speed.value or 1.0),
-                                      session=session, user=user, role=role)
+                                      session=session, user=user or "anonymous", role=role)
             except (rp.ReplayError, PermissionDenied, AuditUnavailable) as exc:
                 status.set_text(f"refused: {exc}")
             refresh()
 
         async def stop() -> None:
             replay = rp.running_replay(worker, bus)
+            user, role = current_user()
             if replay is not None and replay.running:
-                replay.stop(f"stopped by {user}")  # at once, whatever the audit log says
+                replay.stop(f"stopped by {user or 'anonymous'}")  # at once, whatever the audit log says
 
                 async def stopped() -> str:
                     return f"after {replay.sent} of {replay.total} frames"
 
-                try:  # a stop is recorded, but never refused (write=False)
-                    await worker.checked(stopped, device=bus, role=role, user=user, write=False,
+                try:  # a stop is recorded afterwards, never refused
+                    await worker.checked(stopped, device=bus, role=role, user=user or "anonymous", kind="stop",
                                          describe=f"stop replay {replay.name} onto {bus}")
                 except AuditUnavailable:
                     pass

@@ -17,6 +17,7 @@ from devices.electrak.adapter import FOREIGN_SENDER, SERIES
 from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, password_of, refusal
 from pages.frame import fmt_age, fmt_time, frame, set_status_badge
 from pages.widgets import (
+    sim_card_allowed,
     HistoryChart,
     Lamp,
     LiveValue,
@@ -318,6 +319,8 @@ def _numbers_grid(state, configured: int) -> None:
 def _sim_card(twin) -> None:
     with ui.card().classes("w-full bg-purple-1"):
         ui.label("Simulated actuators (demo)").classes("text-subtitle1")
+        if not sim_card_allowed():  # a viewer changes nothing, the simulated plant included
+            return
         ui.label("Extra load current [A]").classes("text-caption")
         ui.slider(min=0, max=25, step=0.5, value=0, on_change=lambda e: twin.set_load(e.value)).props("label-always") \
             .classes("q-mt-lg")  # the value bubble stands above the track: room so it does not cover the label

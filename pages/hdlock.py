@@ -28,6 +28,8 @@ from pages.widgets import (
     range_number,
     refuse,
     run_command,
+    sim_action,
+    sim_card_allowed,
     write_from_page,
 )
 
@@ -139,8 +141,16 @@ def _note(entry: dict | None) -> str:
 
 
 def _sim_controls(state, twin, is_can: bool) -> None:
+    """The twin's controls: engineers only, each action through the worker's gate and in the audit log."""
+    name = state.name
+
+    def toggled(describe: str, apply):
+        return lambda e: sim_action(name, f"{describe} {'on' if e.value else 'off'}", lambda: apply(e.value))()
+
     with ui.card().classes("w-full bg-purple-1"):
         ui.label("Simulated lock (demo)").classes("text-subtitle1")
+        if not sim_card_allowed():
+            return
         if is_can:
             rate = ui.label().classes("text-caption")
 
@@ -150,21 +160,27 @@ def _sim_controls(state, twin, is_can: bool) -> None:
             show_rate()
             follow(state, show_rate)
         with ui.row():
-            ui.button("Close door", icon="door_front", on_click=twin.close_door).props("data-testid=sim-close")
-            ui.button("Open door", icon="meeting_room", on_click=twin.open_door).props("outline data-testid=sim-open")
+            ui.button("Close door", icon="door_front", on_click=sim_action(name, "close door", twin.close_door)).props(
+                "data-testid=sim-close")
+            ui.button("Open door", icon="meeting_room", on_click=sim_action(name, "open door", twin.open_door)).props(
+                "outline data-testid=sim-open")
         with ui.row():
-            ui.switch("LOCK-REQUEST input active", value=twin.line_input, on_change=lambda e: twin.set_line_input(e.value))
-            ui.switch("Strong magnet", value=twin.strong_magnet, on_change=lambda e: setattr(twin, "strong_magnet", e.value))
-            ui.switch("Stop answering", value=twin.silent, on_change=lambda e: setattr(twin, "silent", e.value)).props(
-                "data-testid=sim-silent")
+            ui.switch("LOCK-REQUEST input active", value=twin.line_input,
+                      on_change=toggled("LOCK-REQUEST input", twin.set_line_input))
+            ui.switch("Strong magnet", value=twin.strong_magnet,
+                      on_change=toggled("strong magnet", lambda v: setattr(twin, "strong_magnet", v)))
+            ui.switch("Stop answering", value=twin.silent,
+                      on_change=toggled("stop answering", lambda v: setattr(twin, "silent", v))).props("data-testid=sim-silent")
             if not is_can:
                 ui.switch(
                     "Answer Set Modbus Address at the old address", value=twin.answers_address_command,
-                    on_change=lambda e: setattr(twin, "answers_address_command", e.value),
+                    on_change=toggled("answer Set Modbus Address", lambda v: setattr(twin, "answers_address_command", v)),
                 ).tooltip("Section 4.3 does not say whether the lock answers the command write; off = it stays silent")
             if is_can:
-                ui.switch("Firmware-update mode", value=twin.fwu_mode, on_change=lambda e: setattr(twin, "fwu_mode", e.value))
-                ui.button("Back to the bus bit rate", on_click=lambda: setattr(twin, "can_bitrate", _bus_bitrate(twin))).props("flat dense")
+                ui.switch("Firmware-update mode", value=twin.fwu_mode,
+                          on_change=toggled("firmware-update mode", lambda v: setattr(twin, "fwu_mode", v)))
+                ui.button("Back to the bus bit rate", on_click=sim_action(
+                    name, "back to the bus bit rate", lambda: setattr(twin, "can_bitrate", _bus_bitrate(twin)))).props("flat dense")
 
 
 def _parameter_card(name: str, state, guard: WriteGuard):
@@ -286,8 +302,8 @@ async def _save(name: str, state) -> None:
 
 
 async def _restore(name: str) -> None:
-    if await confirm("Restore-Settings?", "All changes not yet saved are discarded and the saved values reloaded.", ok="Restore"):
-        await run_command(name, lambda a: a.restore_settings(), "Restore-Settings", success="Saved settings restored")
+    # the declared command names its risk (all unsaved changes are lost): run_command asks it
+    await run_command(name, "Restore-Settings", success="Saved settings restored")
 
 
 def _parse_word(text) -> int | None:
@@ -562,9 +578,8 @@ async def _send_source(name: str, field, broadcast: bool) -> None:
         return
     field.error = None
     label = PARAMS.by_name["LockRequestSource"].enum[value]
-    if broadcast and not await confirm("Broadcast to every lock?", f"Every lock on this bus gets LockRequestSource {label} (0x{value:02X}).", ok="Send to all"):
-        return
-    await run_command(name, lambda a: a.set_lock_request_source(value, broadcast=broadcast), "cmdSetLockRequestSource",
+    # 0x80-0x87 (the door ignored) and a broadcast are risks the HD-Lock policy names: the gate asks them
+    await run_command(name, "cmdSetLockRequestSource", args={"value": value, "broadcast": broadcast},
                       success=f"LockRequestSource {label} sent" + (" to all locks" if broadcast else " and read back from holding 4"))
 
 
@@ -583,7 +598,8 @@ async def _send_bitrate(name: str, field, broadcast: bool) -> None:
         ok="Switch bit rate",
     ):
         return
-    await run_command(name, lambda a: a.set_can_bitrate(code, broadcast=broadcast), "cmdSetCANbaudrate", success=f"bit rate {rate} bit/s sent")
+    await run_command(name, "cmdSetCANbaudrate", args={"code": code, "broadcast": broadcast}, confirmed=True,
+                      success=f"bit rate {rate} bit/s sent")  # the question above names the risk
 
 
 async def _send_device_id(name: str, field, extended: bool) -> None:
@@ -599,9 +615,8 @@ async def _send_device_id(name: str, field, extended: bool) -> None:
     if reason is not None:
         await refuse(name, "Set Device Address", f"{text!r}: {reason}", parameter="DeviceId", new=text)
         return
-    if not await confirm(f"Change the device ID to {new}?", "The lock answers only under the new ID from now on. Change device_id in the plant file too.", ok="Send"):
-        return
-    ok, heard = await run_command(name, lambda a: a.set_device_address(new.value, new.extended), "Set Device Address")
+    # refused when another participant uses the ID (section 6.2 b), asked first otherwise: the HD-Lock policy
+    ok, heard = await run_command(name, "Set Device Address", args={"new_value": new.value, "extended": new.extended})
     if ok:
         if heard:
             ui.notify(f"The lock answers under {new} now", type="positive")

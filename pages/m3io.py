@@ -12,6 +12,7 @@ from devices.m3io import codec
 from devices.m3io.codec import Variant
 from pages.frame import fmt_age, frame, set_status_badge
 from pages.widgets import (
+    sim_card_allowed,
     HistoryChart,
     Lamp,
     WriteGuard,
@@ -249,6 +250,8 @@ def _channels(adapter, act, session: str, guard: WriteGuard) -> dict:
 def _sim_card(twin, adapter) -> None:
     with ui.card().classes("w-full bg-purple-1"):
         ui.label("Simulated module (demo)").classes("text-subtitle1")
+        if not sim_card_allowed():  # a viewer changes nothing, the simulated plant included
+            return
         with ui.row().classes("items-center"):
             for i in range(1, 7):
                 ui.button(f"E{i}", on_click=lambda i=i: twin.toggle_input(f"E{i}")).props("outline dense")

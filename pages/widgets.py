@@ -496,26 +496,51 @@ async def confirm(title: str, text: str, ok: str = "Continue", danger: bool = Tr
 
 
 async def run_command(
-    device: str, action: Callable[[object], Awaitable[object]], describe: str, success: str = "", write: bool = True,
-    parameter: str = "", old: object = "", new: object = "",
+    device: str, action: str | Callable[[object], Awaitable[object]], describe: str = "", success: str = "",
+    write: bool = True, parameter: str = "", old: object = "", new: object = "", *, args: dict | None = None,
+    session: str = "", confirmed: bool = False,
 ) -> tuple[bool, object]:
-    """Submit a command to the worker and report the outcome as a notification.
+    """Submit a command to the worker's gate and report the outcome as a notification.
 
-    ``write=False`` for reads and for actions that only make a device safer (stop, release).
+    ``action`` is the name of a command the device type declares (``devices/<type>/policy.py``), run
+    with ``args``: the gate takes its kind, ranges, risk and the role (as the account store says now)
+    from the declaration; a risk it names is asked here and the command invoked again, confirmed. The
+    older form (a callable on the adapter, ``describe``, ``write``) stays for pages not yet moved:
+    the gate still takes the kind from a declared command of that wording where there is one.
+    ``confirmed``: the page has asked its own question naming the same risk.
     """
+    from app.gate import NeedsConfirmation
+    from devices.commands import CommandError
     from pages.session import current_user
 
+    worker = rt.current().worker
     user, role = current_user()
     try:
-        result = await rt.current().worker.command(
-            device, action, role=role, user=user or "anonymous", describe=describe, write=write,
-            record=write or not describe.startswith("read"), parameter=parameter, old=old, new=new,
-        )
+        if isinstance(action, str):
+            try:
+                result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
+                                             confirmed=confirmed)
+            except NeedsConfirmation as question:
+                if not await confirm(f"{action}?", question.question, ok="Send"):
+                    await refuse(device, action, "not confirmed", new=", ".join(f"{k}={v}" for k, v in (args or {}).items()))
+                    return False, None
+                user, role = current_user()  # looked up again: the answer may come much later
+                result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
+                                             confirmed=True)
+        else:
+            result = await worker.command(
+                device, action, role=role, user=user or "anonymous", describe=describe, write=write,
+                record=write or not describe.startswith("read"), parameter=parameter, old=old, new=new,
+            )
     except PermissionDenied as exc:
         ui.notify(str(exc), type="negative")
         return False, None
+    except CommandError as exc:
+        ui.notify(f"{action if isinstance(action, str) else describe}: {exc}", type="negative", multi_line=True)
+        return False, None
     except Exception as exc:  # every adapter error carries a message for the engineer
-        ui.notify(f"{describe}: {exc}", type="negative", multi_line=True, close_button="OK", timeout=15000)
+        ui.notify(f"{action if isinstance(action, str) else describe}: {exc}", type="negative", multi_line=True,
+                  close_button="OK", timeout=15000)
         return False, None
     if success:
         ui.notify(success, type="positive")
@@ -579,13 +604,25 @@ async def checked_value(field: ui.number, device: str, describe: str, parameter:
     return field.value
 
 
+VIEWER_REASON = "read-only session: only an engineer account may change the device"
+
+
+def viewer_reason() -> str:
+    """Why this session's write controls are disabled ("" for an engineer). Display only: the gate decides."""
+    from pages.session import can_write
+
+    return "" if can_write() else VIEWER_REASON
+
+
 class WriteGuard:
-    """Disables a device's write controls, with the reason, while the device does not answer."""
+    """Disables a device's write controls, with the reason, while the device does not answer or the
+    session may not write (a viewer sees them disabled with the reason; the gate refuses them anyway)."""
 
     def __init__(self, state: DeviceState, *controls: ui.element):
         self.state = state
         self.controls: list[ui.element] = list(controls)
         self.reason = ""
+        self.read_only = viewer_reason()
         follow(state, self.update)
         self.update()
 
@@ -595,7 +632,9 @@ class WriteGuard:
 
     def update(self, force: bool = False) -> None:
         status = self.state.status
-        if status in ("offline", "unknown"):
+        if self.read_only:
+            reason = self.read_only
+        elif status in ("offline", "unknown"):
             reason = ("the device does not answer" + (f": {self.state.last_error}" if self.state.last_error else "")
                       if status == "offline" else "waiting for the device's first answer")
         else:
@@ -650,3 +689,35 @@ async def write_from_page(device: str, param: Param, value, *, success: str, tit
         success=success.format(name=param.name, value=param.display(raw)),
         parameter=param.label or param.name, old="" if before is None else param.display(before), new=param.display(raw),
     )
+
+
+def sim_card_allowed(note_testid: str = "sim-readonly") -> bool:
+    """Whether this session may act on the twins; a viewer gets a note in place of the card's controls."""
+    reason = viewer_reason()
+    if reason:
+        ui.label("Simulation controls change the simulated plant: engineers only.").classes("text-caption text-grey-8").props(
+            f"data-testid={note_testid}")
+    return not reason
+
+
+def sim_action(device: str, describe: str, fn: Callable[[], object]) -> Callable[[], Awaitable[None]]:
+    """A simulation-card action through the worker's gate: engineers only, audited ("simulation: ...")."""
+
+    async def run() -> None:
+        from pages.session import current_user
+
+        user, role = current_user()
+
+        async def act() -> str:
+            result = fn()
+            if hasattr(result, "__await__"):
+                await result
+            return ""
+
+        try:
+            await rt.current().worker.checked(act, device=device, role=role, user=user or "anonymous",
+                                              describe=f"simulation: {describe}", kind="system")
+        except Exception as exc:  # noqa: BLE001 - refused or failed: said on the page
+            ui.notify(str(exc), type="negative")
+
+    return run

@@ -8,6 +8,7 @@ a visible stop, the dead-man rule); without enable it stops them.
 from __future__ import annotations
 
 from devices.electrak import codec
+from devices.commands import Command
 from devices.sendpolicy import Verdict
 
 TITLE = "Electrak HD"
@@ -19,7 +20,7 @@ SERVICE_WRITE_RISK = ("Electrak service write: changes a parameter of the actuat
 SAVE_RISK = "Electrak save (specifier 0xF0): writes the service parameters to the actuators' non-volatile memory."
 
 
-def check_can(can_id: int, extended: bool, data: bytes, devices) -> Verdict | None:
+def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verdict | None:
     if extended:
         return None
     if can_id == codec.CONTROL_ID:
@@ -33,3 +34,11 @@ def check_can(can_id: int, extended: bool, data: bytes, devices) -> Verdict | No
             return Verdict(confirm=(SAVE_RISK,), name="Electrak service save", kind="system")
         return Verdict(confirm=(SERVICE_WRITE_RISK,), name=f"Electrak service write 0x{data[1]:02X}", kind="write")
     return None
+
+
+COMMANDS = (
+    Command("stop", "stop", method="stop", session=True),
+    Command("jog stop", "stop"),
+    Command("release control", "stop", method="release_control", session=True),
+    Command("read service parameters", "read", method="read_all"),
+)

@@ -615,7 +615,8 @@ class HdLockCanAdapter(HdLockBackup):
         self.state.event("warning", f"CAN bit rate {rate} bit/s sent to {who}: switch the bus to {rate} bit/s to reach it again")
 
     async def set_device_address(self, new_value: int, extended: bool | None = None) -> bool:
-        """Set Device Address (0x701); True when the lock's status arrives under the new ID."""
+        """Set Device Address (0x701); True when the lock's own status frame (section 6.5.1: bytes 0-1
+        are 0) arrives under the new ID - any other frame there is someone else's, not the proof."""
         try:
             new = codec.DeviceId.make(new_value, extended)
             frame = codec.encode_set_device_address(self.device_id, new)
@@ -625,7 +626,8 @@ class HdLockCanAdapter(HdLockBackup):
         heard = asyncio.Event()
 
         def on_new(msg) -> None:
-            heard.set()
+            if codec.looks_like_status(bytes(msg.data)):
+                heard.set()
 
         self.bus.subscribe(new.extended, new.value, on_new)
         try:

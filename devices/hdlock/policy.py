@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from devices.hdlock import codec
 from devices.hdlock.params import DOOR_IGNORED_SOURCES, DOOR_IGNORED_WARNING, PARAMS
-from devices.sendpolicy import Verdict
+from devices.commands import Arg, Command
+from devices.sendpolicy import Verdict, can_id_owner
 
 TITLE = "HD-Lock"
 
@@ -34,6 +35,7 @@ BITRATE_RISK = ("cmdSetCANbaudrate: the lock changes its CAN bit rate and drops 
                 "the new rate (section 6.6.1.2).")
 DEVICE_ID_RISK = ("Set Device Address: the lock answers only under its new device ID (section 6.6.2); each CAN ID may "
                   "belong to one participant only (section 6.2 b).")
+RESERVED_STD_FIRST = 0x7F0  # CAN 2.0A: identifiers 0x7F0-0x7FF (seven recessive MSBs) are not allowed
 SOURCE_RISK = DOOR_IGNORED_WARNING  # cmdSetLockRequestSource 0x80-0x87, holding 4 and 1002
 
 
@@ -79,7 +81,7 @@ def check_modbus(function: int, address: int, values: list[int], device) -> Verd
     return Verdict(merged.refused, merged.confirm, f"{owner}{names}".strip(), merged.kind)
 
 
-def check_can(can_id: int, extended: bool, data: bytes, devices) -> Verdict | None:
+def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verdict | None:
     """A frame on the HD-Lock request block 0x700-0x707 (section 6.6); other IDs are not the lock's requests."""
     if extended or can_id not in codec.CAN_REQUEST_IDS:
         return None
@@ -110,7 +112,19 @@ def check_can(can_id: int, extended: bool, data: bytes, devices) -> Verdict | No
         return Verdict(refused=f"HD-Lock Command {command} is not in the document (section 6.6.1): not sent",
                        name=f"HD-Lock Command {command}")
     if can_id == codec.CAN_SET_DEVICE_ADDRESS:
-        return Verdict(confirm=(DEVICE_ID_RISK,) + broadcast, name="HD-Lock Set Device Address", kind="system")
+        if len(data) < 8:
+            return Verdict(refused="HD-Lock Set Device Address needs the new ID in bytes 4-7 (section 6.6.2)", name=name)
+        new = codec.DeviceId.from_u32(int.from_bytes(data[4:8], "little"))
+        owner = can_id_owner(bus, new.value, new.extended, exclude=_target_name(devices, target))
+        if new.value == codec.CAN_BROADCAST:
+            return Verdict(refused="device ID 0 is the broadcast address (section 6.4)", name=name, kind="system")
+        if not new.extended and new.value >= RESERVED_STD_FIRST:
+            return Verdict(refused=f"CAN ID {new}: standard IDs 0x7F0-0x7FF are not allowed (CAN 2.0A: the seven most "
+                                   "significant identifier bits must not all be recessive)", name=name, kind="system")
+        if owner:
+            return Verdict(refused=f"CAN ID {new} is used by {owner}: each CAN ID belongs to one participant only "
+                                   "(section 6.2 b)", name=name, kind="system")
+        return Verdict(confirm=(DEVICE_ID_RISK,) + broadcast, name=f"HD-Lock Set Device Address {new}", kind="system")
     # Write / Silent Write Holding-Register: bytes 4-5 address, 6-7 the value (SPEC-NOTES)
     if len(data) < 8:
         return Verdict(refused=f"HD-Lock '{name}' needs address and value (8 bytes, section 6.6.5)", name=name)
@@ -119,3 +133,60 @@ def check_can(can_id: int, extended: bool, data: bytes, devices) -> Verdict | No
     verdict = register_verdict(address, value)
     return Verdict(verdict.refused and f"HD-Lock '{name}' of {verdict.refused}", verdict.confirm + broadcast,
                    f"HD-Lock {name} {verdict.name}", verdict.kind)
+
+
+def _device_id(dev) -> tuple[bool, int] | None:
+    try:
+        ident = codec.DeviceId.make(int(dev.options["device_id"]), dev.options.get("extended"))
+    except (KeyError, TypeError, ValueError, codec.CodecError):
+        return None
+    return ident.extended, ident.value
+
+
+def _target_name(devices, target: int) -> str:
+    """The plant's lock a request addresses (bytes 0-3), so its own ID does not count as taken."""
+    ident = codec.DeviceId.from_u32(target)
+    return next((d.name for d in devices if _device_id(d) == (ident.extended, ident.value)), "")
+
+
+# -- declared commands (devices/commands.py): what the lock's page, the API and restore invoke by name ----------
+
+
+def _source_risk(args) -> str:
+    risks = [SOURCE_RISK] if args.get("value") in DOOR_IGNORED_SOURCES else []
+    return " ".join(risks + ([BROADCAST_RISK] if args.get("broadcast") else []))
+
+
+def _bitrate_risk(args) -> str:
+    return BITRATE_RISK + (" " + BROADCAST_RISK if args.get("broadcast") else "")
+
+
+def _device_id_refusal(args, bus, device: str) -> str:
+    """Set Device Address through the one policy: the frame the lock would get, judged like any other."""
+    from devices.sendpolicy import check_can
+
+    try:
+        new = codec.DeviceId.make(int(args["new_value"]), args.get("extended") or None)
+    except codec.CodecError as exc:
+        return str(exc)
+    this = next((d for d in bus if d.name == device), None)
+    target = codec.DeviceId.make(int(this.options["device_id"]), this.options.get("extended")) if this else codec.BROADCAST_ID
+    frame = codec.encode_set_device_address(target, new)
+    return check_can(bus, frame.arbitration_id, frame.is_extended_id, frame.data).refused
+
+
+RESTORE_RISK = "All changes not yet saved are discarded and the saved values reloaded (section 4.2)."
+
+COMMANDS = (
+    Command("Save-Settings", "system", method="save_settings"),
+    Command("Restore-Settings", "system", method="restore_settings", risk=RESTORE_RISK),
+    Command("cmdSetLockRequestSource", "write", method="set_lock_request_source",
+            args=(Arg("value", 0, 0x87),), flags=("broadcast",), risk=_source_risk),
+    Command("cmdSetCANbaudrate", "system", method="set_can_bitrate", args=(Arg("code", 0, 255),), flags=("broadcast",),
+            risk=_bitrate_risk),
+    Command("Set Device Address", "system", method="set_device_address", args=(Arg("new_value", 1, codec.EXT_ID_MAX),),
+            flags=("extended",), risk=DEVICE_ID_RISK, refuse_if=_device_id_refusal),
+    Command("Set Modbus Address", "system", method="set_address", prefix=True,
+            args=(Arg("new_address", codec.MODBUS_ADDRESS_MIN, codec.MODBUS_ADDRESS_MAX), Arg("mask", 0, 0xFFFF),
+                  Arg("expected", 0, 0xFFFF))),
+)

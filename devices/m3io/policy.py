@@ -8,6 +8,7 @@ transmit list, never replayed. Sync frames that write the configuration or custo
 from __future__ import annotations
 
 from devices.m3io import codec
+from devices.commands import Command
 from devices.sendpolicy import Verdict
 
 TITLE = "CAN-M3IO"
@@ -16,7 +17,7 @@ MAINS_RISK = "{device}: DigOut switches {outputs} on: mains voltage on the load(
 CONFIG_RISK = "{device}: Sync {what} writes the module's {target} (section 7.2.4)."
 
 
-def check_can(can_id: int, extended: bool, data: bytes, devices) -> Verdict | None:
+def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verdict | None:
     if extended:
         return None
     for dev in devices:
@@ -44,3 +45,11 @@ def check_can(can_id: int, extended: bool, data: bytes, devices) -> Verdict | No
                                name=f"{dev.name} write customer data", kind="write")
             return Verdict(name=f"{dev.name} Sync", kind="read")
     return None
+
+
+COMMANDS = (
+    Command("all off", "stop"),
+    Command("read identity", "read", method="read_identity"),
+    Command("read customer data", "read"),
+    Command("read load data", "read", method="read_load_data"),
+)

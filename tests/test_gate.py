@@ -1,0 +1,186 @@
+"""The worker's command gate (issues 26 and 33): the role at the moment of the action, stops first and
+audited afterwards, kinds from the declarations, and a viewer whose every non-stop action changes nothing."""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import time
+from pathlib import Path
+
+import can
+import pytest
+
+from app import gate
+from app import replay as rp
+from app import transmit as tx
+from app.can_bus import FrameRecord
+from app.modbus_poll import ModbusPoll
+from app.plant import load_plant, parse_plant
+from app.runtime import Runtime
+from app.worker import PermissionDenied, Worker
+from devices.commands import KINDS, commands_of
+from devices.registry import DEVICE_TYPES
+from tests.conftest import wait_for
+
+DEMO = Path(__file__).resolve().parent.parent / "plants" / "demo.toml"
+_n = itertools.count()
+
+
+class SlowAudit:
+    """An audit log that holds every row until released (a database locked by another program)."""
+
+    path = "locked.sqlite"
+
+    def __init__(self):
+        self.rows: list[dict] = []
+        self.release = asyncio.Event()
+
+    async def arecord(self, **row):
+        await self.release.wait()
+        self.rows.append(dict(row))
+        return len(self.rows) - 1
+
+    async def afinish(self, row, result):
+        self.rows[row]["result"] = result
+
+
+def _can_plant(channel: str) -> str:
+    return (f'[[bus]]\nname = "can1"\ntype = "can"\ninterface = "virtual"\nchannel = "{channel}"\nbitrate = 500000\n'
+            'poll_period = 2.0\n[[device]]\nname = "lock"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 335\nextended = true\n')
+
+
+# -- 33.2: a stop goes to the bus first, audited afterwards ------------------------------------------------
+
+
+async def test_stop_runs_before_its_audit_row_and_never_waits_for_it():
+    worker = Worker(parse_plant(_can_plant(f"gate-{next(_n)}")), audit=SlowAudit())
+    ran: list[float] = []
+
+    async def stop() -> str:
+        ran.append(time.monotonic())
+        return "stopped"
+
+    # the audit holds every row: the stop must not wait for it
+    result = await asyncio.wait_for(worker.checked(stop, device="lock", role="viewer", user="tablet",
+                                                   describe="stop", kind="stop"), timeout=1.0)
+    assert result == "stopped" and ran and worker.audit.rows == []
+    worker.audit.release.set()
+    assert await wait_for(lambda: worker.audit.rows, timeout=2)
+    assert worker.audit.rows[0]["action"] == "stop" and worker.audit.rows[0]["result"].startswith("ok")
+
+
+async def test_older_stop_wording_is_a_stop_too():
+    """A page that still submits a callable with ``write=False`` and the wording "stop" gets the declared kind."""
+    worker = Worker(parse_plant(_can_plant(f"gate-{next(_n)}")), audit=SlowAudit())
+    assert gate.kind_for(worker, "lock", "Save-Settings", write=False, record=True) == "system"
+    assert gate.kind_for(worker, "lock", "read something", write=False, record=False) == "read"
+
+
+# -- 33.1: the role is the account store's at the moment of the action --------------------------------------
+
+
+@pytest.fixture
+async def accounts(tmp_path):
+    channel = f"gate-{next(_n)}-{time.monotonic_ns()}"
+    runtime = Runtime(parse_plant(_can_plant(channel)), simulate=False, data_dir=tmp_path, auth_required=True)
+    runtime.users.add("anna", "engineer", "correct horse")
+    await runtime.start()
+    listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    try:
+        yield runtime, listener
+    finally:
+        listener.shutdown()
+        await asyncio.wait_for(runtime.stop(), 5)
+
+
+def _drain(listener) -> list[can.Message]:
+    got = []
+    while (msg := listener.recv(0)) is not None:
+        got.append(msg)
+    return got
+
+
+async def test_downgraded_or_removed_account_loses_its_rights_on_an_open_page(accounts):
+    runtime, listener = accounts
+    tl = tx.transmit_list(runtime.worker, "can1", runtime.data_dir)
+    await tl.load()
+    # the page was built while anna was an engineer: it still says so when it calls
+    row = await tl.add(tx.make_row(0x123, False, b"\x01"), user="anna", role="engineer")
+    await tl.send_once(row.key, user="anna", role="engineer")
+    assert await wait_for(lambda: any(m.arbitration_id == 0x123 for m in _drain(listener)), timeout=2)
+    runtime.users.add("anna", "viewer", "correct horse")  # `commission user add anna --role viewer`
+    with pytest.raises(PermissionDenied):
+        await tl.send_once(row.key, user="anna", role="engineer")
+    runtime.users.remove("anna")  # `commission user remove anna`
+    with pytest.raises(PermissionDenied):
+        await tl.send_once(row.key, user="anna", role="engineer")
+    with pytest.raises(PermissionDenied):
+        await runtime.worker.engineer_action(lambda: asyncio.sleep(0), user="anna", role="engineer", describe="x")
+    assert await wait_for(lambda: False, timeout=0.1) is False
+    assert not [m for m in _drain(listener) if m.arbitration_id == 0x123]
+
+
+# -- 33.3, 26: every declared command and every send path with a viewer ------------------------------------------
+
+
+class Spy:
+    """Counts what reached a transport: CAN frames sent and Modbus tool requests (the real objects, wrapped)."""
+
+    def __init__(self, worker: Worker):
+        self.calls: list[str] = []
+        for name, can_bus in worker.can_buses.items():
+            real = can_bus.send
+            can_bus.send = lambda *a, _r=real, _n=name, **k: (self.calls.append(f"{_n} send"), _r(*a, **k))[1]
+        for name, line in worker.lines.items():
+            real = getattr(line, "tool_request", None)
+            if real is not None:
+                async def request(*a, _r=real, _n=name, **k):
+                    self.calls.append(f"{_n} tool request")
+                    return await _r(*a, **k)
+
+                line.tool_request = request
+
+
+async def test_a_viewer_reaches_no_bus_through_any_declared_command_or_send_path(tmp_path):
+    plant = load_plant(DEMO)
+    runtime = Runtime(plant, simulate=False, data_dir=tmp_path)
+    worker = runtime.worker
+    spy = Spy(worker)
+    ran: list[str] = []
+    walked = 0
+    for dev in plant.devices.values():
+        adapter = worker.adapters[dev.name]
+        for command in commands_of(dev.type).values():
+            assert command.kind in KINDS
+            if command.open:
+                continue
+            if command.method:
+                setattr(adapter, command.method, lambda *a, _c=command.name, **k: ran.append(_c))
+            args = {a.name: a.low for a in command.args}
+            with pytest.raises(PermissionDenied):
+                await worker.invoke(dev.name, command.name, args, user="tablet", role="viewer", session="v")
+            # the older way, with the caller claiming the action only makes things safer
+            with pytest.raises(PermissionDenied):
+                await worker.command(dev.name, lambda a, _c=command.name: ran.append(_c), describe=command.name,
+                                     write=False, user="tablet", role="viewer")
+            walked += 1
+    assert walked >= 10 and ran == []
+    assert {t for t in DEVICE_TYPES if commands_of(t)} >= {"hdlock", "mo64", "electrak", "m3io", "scu"}
+    # the raw send paths
+    for bus in worker.can_buses:
+        tl = tx.transmit_list(worker, bus, None)
+        row = tx.make_row(0x123, False, b"\x01", 100)
+        tl.rows.append(row)
+        with pytest.raises(PermissionDenied):
+            await tl.send_once(row.key, user="tablet", role="viewer", confirmed=True)
+        with pytest.raises(PermissionDenied):
+            await tl.start(row.key, user="tablet", role="viewer", session="v", confirmed=True)
+        with pytest.raises(PermissionDenied):
+            await rp.start_replay(worker, bus, [FrameRecord(1.0, 0x123, False, 1, b"\x01", "rx")], user="tablet",
+                                  role="viewer", session="v")
+    for bus in [b for b, line in worker.lines.items() if type(line).__name__ == "ModbusLine"]:
+        with pytest.raises(PermissionDenied):
+            await ModbusPoll(worker, bus).write(1, 3000, [200], user="tablet", role="viewer", confirmed=True)
+    assert spy.calls == []
+    await asyncio.sleep(0)
