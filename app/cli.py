@@ -95,6 +95,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     report.add_parser(sub)  # commission report --plant P --out DIR: the as-left report without a browser
 
+    from app import mcap_export
+
+    mcap_export.add_parser(sub)  # commission export --format mcap: a recording or the live data for Foxglove, PlotJuggler
+
     view = sub.add_parser("view", help="read-only plant-wide view of every site publishing to an MQTT broker")
     view.add_argument("--broker", required=True, metavar="URL", help="mqtt://host[:1883] or mqtts://host[:8883]")
     view.add_argument("--username", default=None, help="broker user name")
