@@ -476,8 +476,10 @@ def stop_bar(note: str, label: str, icon: str, on_click: Callable[[], object], b
     scrolled. The page reserves the bar's height, so it never covers a button of the page, and a
     control scrolled into view stops above it, never under it. ``note`` says what the button does and
     who may press it."""
-    ui.add_css("html { scroll-padding-bottom: 88px; }")
-    with ui.footer().classes("bg-grey-2 q-py-xs q-px-md items-center justify-end gap-4").props(f"bordered data-testid={bar_id}"):
+    # above every dialog and its backdrop (Quasar's dialogs sit at z-index 6000): the way out stays pressable
+    # while a confirmation is open; a press outside a dialog also cancels the dialog
+    ui.add_css("html { scroll-padding-bottom: 88px; } .stop-bar { z-index: 6100 !important; }")
+    with ui.footer().classes("stop-bar bg-grey-2 q-py-xs q-px-md items-center justify-end gap-4").props(f"bordered data-testid={bar_id}"):
         ui.label(note).classes("text-caption text-grey-8")
         return ui.button(label, icon=icon, color="negative", on_click=on_click).props(f"size=lg push data-testid={button_id}")
 

@@ -202,3 +202,30 @@ def test_broadcast_address_change_asks_with_the_number_of_locks(app_url: str, ch
     finally:
         context.close()
     assert not errors, f"JavaScript errors on the page: {errors}"
+
+
+def test_the_stop_bar_stays_pressable_above_a_confirmation(app_url: str, chromium: Browser, tmp_path: Path):
+    """Issue 32.11: a confirmation's backdrop must not cover the STOP bar. The SCU's Go asks first; with
+    its dialog open, STOP is still the element a click there lands on, and pressing it answers."""
+    wait_devices_online(app_url, ("lift-1",), timeout=30)
+    context = chromium.new_context(viewport={"width": 1440, "height": 900})
+    page = context.new_page()
+    page.set_default_timeout(STEP_MS)
+    try:
+        page.goto(app_url + "/device/lift-1")
+        page.get_by_test_id("take-control").click()
+        go = page.get_by_test_id("go")
+        expect(go).to_be_enabled()
+        go.click()
+        dialog = page.locator(".q-dialog")
+        expect(dialog).to_contain_text("Check that the area is clear")
+        stop = page.get_by_test_id("big-stop")
+        box = stop.bounding_box()
+        on_top = page.evaluate("([x, y]) => !!document.elementFromPoint(x, y)?.closest('[data-testid=big-stop]')",
+                               [box["x"] + box["width"] / 2, box["y"] + box["height"] / 2])
+        save_shot(page, tmp_path, "stop-above-dialog.png", full_page=False)
+        assert on_top, "the dialog's backdrop covers the STOP button"
+        stop.click()
+        expect(page.get_by_text("stop (RS)", exact=False).first).to_be_visible()
+    finally:
+        context.close()
