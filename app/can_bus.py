@@ -61,6 +61,8 @@ UDP_RCVBUF = 4 * 2**20  # receive buffer of a udp_multicast socket: about 0.4 s 
 NO_DISCOVERY_S = 10.0  # an unknown ID whose frames no device type recognises is offered to discovery again after this
 NO_DISCOVERY_IDS = 4096  # negative results remembered per bus (least recently heard goes first)
 LOAD_PERIOD_S = 0.5  # bus load and frames/s are taken over this window
+LOAD_AVERAGE_S = 5.0  # the steady figure: frames reach the loop in batches, so one window jumps (0 %, then 18 %)
+LOAD_PEAK_S, LOAD_PEAK_WINDOW_S = 10.0, 1.0  # the peak: the highest load of any 1 s within the last 10 s
 BUS_STATE_NAMES = {
     can.BusState.ACTIVE: "error-active",
     can.BusState.PASSIVE: "error-passive",
@@ -184,6 +186,8 @@ class CanBusState(BusState):
     bits: int = 0  # bits on the wire of every frame heard or sent (no stuff bits)
     frames_per_s: float = 0.0  # over the last LOAD_PERIOD_S
     load_pct: float | None = None  # bits per second in % of the bit rate; None without a bit rate
+    load_avg_pct: float | None = None  # the same over LOAD_AVERAGE_S
+    load_peak_pct: float | None = None  # the highest over LOAD_PEAK_WINDOW_S within LOAD_PEAK_S
     rcvbuf: int | None = None  # the receive buffer granted to a socket interface, bytes
     frames: deque = field(default_factory=lambda: deque(maxlen=MONITOR_FRAMES))
     ids: OrderedDict[Key, IdStats] = field(default_factory=OrderedDict)  # least recently heard first
@@ -315,6 +319,7 @@ class CanBus:
         self.recognise: Callable[[int, bool, bytes], bool] | None = recognised_by_a_device_type
         self._drop_base: int | None = None  # the interface's drop counter when the bus was opened
         self._load_mark = (time.monotonic(), 0, 0)  # (time, frames, bits) at the last load figure
+        self._load_marks: deque[tuple[float, int]] = deque()  # (time, bits) of the load figures of the last LOAD_PEAK_S
 
     # -- subscriptions ---------------------------------------------------------------
     def subscribe(self, is_extended: bool, arbitration_id: int, handler: Handler) -> None:
@@ -414,10 +419,11 @@ class CanBus:
                 await asyncio.sleep(self._backoff)
                 self._backoff = min(self._backoff * 2, 10.0)
 
-    def _measure_load(self) -> None:
-        """Frames/s and bus load (bits on the wire per second in % of the bit rate) since the last call."""
+    def _measure_load(self, now: float | None = None) -> None:
+        """Frames/s and bus load (bits on the wire per second in % of the bit rate) since the last call, the
+        load's average over :data:`LOAD_AVERAGE_S` and its peak (see :data:`LOAD_PEAK_S`)."""
         state = self.state
-        now = time.monotonic()
+        now = time.monotonic() if now is None else now
         then, frames, bits = self._load_mark
         total = state.rx_frames + state.tx_frames
         elapsed = now - then
@@ -427,6 +433,24 @@ class CanBus:
         bitrate = self.options.get("bitrate")
         state.load_pct = (state.bits - bits) / elapsed / bitrate * 100 if isinstance(bitrate, (int, float)) and bitrate > 0 else None
         self._load_mark = (now, total, state.bits)
+        marks = self._load_marks
+        if not marks:
+            marks.append((then, bits))
+        marks.append((now, state.bits))
+        while len(marks) > 2 and now - marks[1][0] >= LOAD_PEAK_S:
+            marks.popleft()
+        if state.load_pct is None:
+            state.load_avg_pct = state.load_peak_pct = None
+            return
+        start = next((m for m in marks if now - m[0] <= LOAD_AVERAGE_S + 1e-6), marks[-2])
+        state.load_avg_pct = (state.bits - start[1]) / (now - start[0]) / bitrate * 100
+        spans = []
+        listed = list(marks)
+        for i, (t0, b0) in enumerate(listed):  # each figure to the first one at least 1 s later
+            later = next(((t1, b1) for t1, b1 in listed[i + 1:] if t1 - t0 >= LOAD_PEAK_WINDOW_S - 1e-6), None)
+            if later is not None:
+                spans.append((later[1] - b0) / (later[0] - t0) / bitrate * 100)
+        state.load_peak_pct = max(spans) if spans else state.load_pct
 
     async def _count_interface_drops(self, loop: asyncio.AbstractEventLoop) -> None:
         """The interface's own count of lost frames since the bus was opened (read in a thread: /proc, /sys)."""

@@ -24,6 +24,7 @@ from pathlib import Path
 
 from nicegui import background_tasks, events, run, ui
 
+from app import can_bus as cb
 from app import recording as rec
 from app import runtime as rt
 from app.can_bus import MONITOR_FRAMES, CanBusState, FrameRecord
@@ -511,7 +512,13 @@ class CanMonitor:
             + f" · buffered {len(s.frames)}/{MONITOR_FRAMES}"
         )
         bitrate = self.can_bus.options.get("bitrate")
-        load = f"load {s.load_pct:.1f} % of {bitrate / 1000:g} kbit/s" if s.load_pct is not None else "load: bit rate unknown"
+        if s.load_pct is None:
+            load = "load: bit rate unknown"
+        else:  # the average is the steady figure (frames reach the program in batches); the peak is the worst second
+            average = s.load_avg_pct if s.load_avg_pct is not None else s.load_pct
+            peak = s.load_peak_pct if s.load_peak_pct is not None else s.load_pct
+            load = (f"load {average:.1f} % of {bitrate / 1000:g} kbit/s ({cb.LOAD_AVERAGE_S:g} s average), "
+                    f"peak {peak:.1f} % (highest second of the last {cb.LOAD_PEAK_S:g} s)")
         self.load.set_text(f"{load} · {s.frames_per_s:.0f} frames/s")
         self.error_label.set_text(s.last_error)
         active = rec.active_recording(s)

@@ -122,7 +122,8 @@ def test_can_cycle_times_paging_and_details(app_url: str, browser: Browser):
             break
         page.wait_for_timeout(100)
     assert 900 <= status_cycle() <= 1100, gate1.inner_text()  # the document's 1 s status period, not 0-2 ms
-    expect(page.locator("[data-monitor=load]")).to_contain_text(re.compile(r"load \d+\.\d % of 250 kbit/s · \d+ frames/s"))
+    expect(page.locator("[data-monitor=load]")).to_contain_text(
+        re.compile(r"load \d+\.\d % of 250 kbit/s \(5 s average\), peak \d+\.\d % \(highest second of the last 10 s\) · \d+ frames/s"))
     expect(page.locator("[data-monitor=counters]")).to_contain_text("interface drops")
     for width, height in SIZES:
         page.set_viewport_size({"width": width, "height": height})

@@ -636,3 +636,28 @@ def test_id_table_evicts_the_least_recently_heard_id_in_constant_time():
     assert (False, 0x123) in state.ids and (True, 0x10000) not in state.ids
     print(f"new-ID frame through dispatch with a full table: {per_frame_us:.1f} us")
     assert per_frame_us < 250  # was a scan of 4096 IDs per frame (about 300 us) before
+
+
+def test_bus_load_is_averaged_and_its_peak_kept_when_frames_arrive_in_batches():
+    """Issue 32.8: 200 frames/s, handed to the loop in batches (all of one second's frames in one half
+    second, none in the next): the half-second figure jumps between 0 and twice the load, the average
+    and the peak stay at the steady load."""
+    import can
+
+    from app import can_bus as cb
+
+    state = cb.CanBusState("load-test", "can", "")
+    bus = cb.CanBus("load-test", {"interface": "virtual", "channel": "load-test", "bitrate": 250_000}, state)  # never opened
+    steady = 200 * cb.frame_bits(8, False) / 250_000 * 100  # 8.9 %
+    t = 1000.0
+    bus._load_mark = (t, 0, 0)
+    seen = []
+    for step in range(1, 41):  # 20 s in half-second windows
+        if step % 2:
+            for i in range(200):
+                bus.dispatch(can.Message(arbitration_id=0x7, is_extended_id=False, data=bytes(8), timestamp=t + i * 0.005))
+        bus._measure_load(now=t + step * cb.LOAD_PERIOD_S)
+        seen.append(state.load_pct)
+    assert max(seen) > 1.5 * steady and min(seen) == 0  # what the half-second figure does
+    assert state.load_avg_pct == pytest.approx(steady, rel=0.15)
+    assert state.load_peak_pct == pytest.approx(steady, rel=0.15)
