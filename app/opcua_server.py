@@ -39,7 +39,6 @@ DI_URI = "http://opcfoundation.org/UA/DI/"
 DEVICE_HEALTH = ("NORMAL", "FAILURE", "CHECK_FUNCTION", "OFF_SPEC", "MAINTENANCE_REQUIRED")
 IDENTITY = ("Manufacturer", "Model", "SerialNumber", "SoftwareRevision", "HardwareRevision", "DeviceRevision")
 MANUFACTURERS = {"hdlock": "BSS", "electrak": "Thomson", "scu": "Ewellix", "mo64": "Bauer"}
-UPDATE_PERIOD_S = 0.1  # live values reach the address space at most 10 times a second
 REVISION_PERIOD_S = 5.0  # the revision counters are counted again from the audit log this often
 
 REFUSED_SERVICES = {ua.NodeId(i) for i in (
@@ -289,7 +288,7 @@ class OpcuaServer:
                 raise
             except Exception:  # noqa: BLE001 - a bad value must not end the server's updates
                 log.exception("opcua: updating the values failed")
-            await asyncio.sleep(max(0.0, UPDATE_PERIOD_S - (time.monotonic() - started)))
+            await asyncio.sleep(max(0.0, 1.0 / self.config.rate - (time.monotonic() - started)))
 
     async def update(self) -> int:
         """Write every changed value, status, health and identity into the address space; returns the writes."""

@@ -150,6 +150,7 @@ class OpcuaConfig:
     anonymous: bool = True  # False: sessions log in with an account of the accounts file
     certificate: Path | None = None  # with private_key: Basic256Sha256 SignAndEncrypt is offered beside None
     private_key: Path | None = None
+    rate: float = 10.0  # live values written into the address space at most this often a second
 
 
 @dataclass
@@ -504,7 +505,7 @@ def parse_mqtt(text: str, raw: Any, plant_name: str, path: Path | None, fail) ->
                       sparkplug=raw.get("sparkplug", False), primary_host=raw.get("primary_host"))
 
 
-OPCUA_KEYS = ("endpoint", "anonymous", "certificate", "private_key")
+OPCUA_KEYS = ("endpoint", "anonymous", "certificate", "private_key", "rate")
 
 
 def parse_opcua(text: str, raw: Any, path: Path | None, fail) -> OpcuaConfig:
@@ -526,9 +527,11 @@ def parse_opcua(text: str, raw: Any, path: Path | None, fail) -> OpcuaConfig:
         raise fail(at("anonymous"), f"[opcua]: anonymous must be true or false (without quotes), not {raw['anonymous']!r}")
     if ("certificate" in raw) != ("private_key" in raw):
         raise fail(at("certificate" if "certificate" in raw else "private_key"), "[opcua]: encryption needs both certificate and private_key")
+    if "rate" in raw and not (_seconds(raw["rate"]) and raw["rate"] <= 100):
+        raise fail(at("rate"), f"[opcua]: rate must be a number above 0 and at most 100 (updates a second), not {raw['rate']!r}")
     base = path.parent if path else Path.cwd()
     files = {key: (base / raw[key]) if key in raw else None for key in ("certificate", "private_key")}
-    return OpcuaConfig(endpoint=endpoint, anonymous=raw.get("anonymous", True), **files)
+    return OpcuaConfig(endpoint=endpoint, anonymous=raw.get("anonymous", True), rate=float(raw.get("rate", 10.0)), **files)
 
 
 def can_id_conflict(devices: list[DeviceConfig], bus: BusConfig) -> tuple[DeviceConfig, str] | None:
