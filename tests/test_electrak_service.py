@@ -281,5 +281,19 @@ async def test_adapter_refuses_a_timeout_below_100_ms(lift):  # noqa: F811
     with pytest.raises(CommandError, match="control period of 100 ms"):
         await adapter.write_param(TIMEOUT, 50)
     assert not [f for f in sent_service(runtime) if f.startswith("01 06")]  # nothing reached the bus
-    assert await adapter.write_param(TIMEOUT, 150) == 150
-    assert all(a.service.values[0x06] == 150 for a in twin.actuators)
+    assert await adapter.write_param(TIMEOUT, 220) == 220  # above the floor (twice the period), below the default
+    assert all(a.service.values[0x06] == 220 for a in twin.actuators)
+
+
+def test_timeout_bounded_above_the_control_period_and_confirmed_above_the_default():
+    """Issue 26.5: 100 ms (the tool's own period) is refused; 65535 ms is refused; above 250 ms asks first."""
+    from devices.electrak.params import TIMEOUT_DEFAULT_MS, TIMEOUT_MAX_MS
+
+    assert refusal(TIMEOUT, 100)  # the control period itself: the flag would be set between telegrams
+    with pytest.raises(ValueError):
+        TIMEOUT.validate(100)
+    with pytest.raises(ValueError):
+        TIMEOUT.validate(65535)
+    assert TIMEOUT.validate(TIMEOUT_MAX_MS) == TIMEOUT_MAX_MS
+    assert TIMEOUT.needs_confirmation(TIMEOUT_DEFAULT_MS) == ""
+    assert "keep moving" in TIMEOUT.needs_confirmation(TIMEOUT_DEFAULT_MS + 1)
