@@ -141,7 +141,8 @@ def test_frozen_browser_stops_motion_and_mains_outputs_within_the_bound(tmp_path
             row.get_by_text("load: present").first.wait_for(timeout=10_000)
             row.locator(".q-toggle").click()
             heater.get_by_role("button", name="Switch on").click()
-            assert heater_bus.first(DIGOUT_ID, lambda d: d[0] & 0x02, timeout=5), "SSR1 was not switched on"
+            switched_on = heater_bus.first(DIGOUT_ID, lambda d: d[0] & 0x02, timeout=5)
+            assert switched_on, "SSR1 was not switched on"
 
             lift = context.new_page()
             lift.goto(f"{url}/device/lift")
@@ -159,6 +160,15 @@ def test_frozen_browser_stops_motion_and_mains_outputs_within_the_bound(tmp_path
             inside_viewport(lift, lift.get_by_test_id("jog-out"))
             lift.screenshot(path=str(tmp_path / "deadman-lift-jogging.png"))
 
+            # both are still running at the moment of the freeze (not stopped earlier by a false trip):
+            # the newest DigOut (every 100 ms) has SSR1 on, the newest control telegram has enable set
+            before = time.monotonic()
+            last_digout = [f for f in heater_bus.frames if f[1] == DIGOUT_ID][-1]
+            last_control = [f for f in lift_bus.frames if f[1] == CONTROL_ID][-1]
+            assert last_digout[2][0] & 0x02 and before - last_digout[0] < 0.3, "SSR1 was off before the freeze"
+            assert last_control[2][7] & 0x01 and before - last_control[0] < 0.3, "the jog had stopped before the freeze"
+            assert not [f for f in heater_bus.frames if f[1] == DIGOUT_ID and f[0] > switched_on and not f[2][0] & 0x02], \
+                "SSR1 went off while its page was alive (opening the second page tripped it)"
             os.killpg(chromium.pid, signal.SIGSTOP)  # the whole browser freezes: no mouseup, no close
             frozen = True
             freeze = time.monotonic()

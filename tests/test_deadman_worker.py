@@ -1,0 +1,95 @@
+"""The dead-man rule measures silence while this program runs on time (issue 32 item 2, issue 33 item 7).
+
+A browser's beats that waited because the server's loop was busy are not a dead browser; a browser
+that stays silent while the loop runs on time is. The supervisor is driven by hand with explicit
+monotonic times, as its 50 ms tick does (app.worker._supervise).
+"""
+
+from __future__ import annotations
+
+import time
+
+from app.plant import parse_plant
+from app.worker import DEADMAN_BOUND_S, DEADMAN_TIMEOUT_S, SUPERVISE_PERIOD_S, Worker
+
+
+class Holder:
+    """Something a session keeps running (an M3IO output, a jog), under the dead-man rule."""
+
+    def __init__(self, session: str):
+        self.session = session
+        self.lost: list[str] = []
+        self.renewed = 0
+
+    def holders(self) -> set[str]:
+        return set() if self.lost else {self.session}
+
+    def session_lost(self, session: str, reason: str) -> None:
+        if session == self.session:
+            self.lost.append(reason)
+
+    def renew_leases(self, alive: set[str]) -> None:
+        if self.session in alive:
+            self.renewed += 1
+
+
+def worker_at(t0: float) -> Worker:
+    worker = Worker(parse_plant('name = "empty"\n'))
+    worker._live, worker._live_at = 0.0, t0
+    return worker
+
+
+def tick(worker: Worker, now: float) -> None:
+    """One supervision tick at monotonic time ``now`` (what _supervise does every 50 ms)."""
+    worker._live = worker._live_clock(now)
+    worker._live_at = now
+    worker._supervise_deadman(now)
+
+
+def test_a_busy_server_is_not_a_dead_browser():
+    t0 = time.monotonic()
+    worker = worker_at(t0)
+    holder = Holder("tab")
+    worker.add_holder("output", holder)
+    worker.heartbeat("tab", 1000.0)
+    # the loop stalls for 0.6 s (a page built, a plot serialised): the browser's beats wait in the socket
+    tick(worker, t0 + 0.6)
+    assert holder.lost == [], "a server stall was taken for a dead browser"
+    worker.heartbeat("tab", 1100.0)  # the waiting beats arrive right after the stall
+    for n in range(1, 5):
+        tick(worker, t0 + 0.6 + n * SUPERVISE_PERIOD_S)
+        worker.heartbeat("tab", 1100.0 + n * 100)
+    assert holder.lost == [] and holder.renewed >= 4
+
+
+def test_a_silent_browser_trips_while_the_server_runs_on_time():
+    t0 = time.monotonic()
+    worker = worker_at(t0)
+    holder = Holder("tab")
+    worker.add_holder("output", holder)
+    worker.heartbeat("tab", 1000.0)
+    last = time.monotonic()
+    n = 0
+    while not holder.lost and n < 40:
+        n += 1
+        tick(worker, last + n * SUPERVISE_PERIOD_S)
+    silent = n * SUPERVISE_PERIOD_S
+    assert holder.lost, "a silent browser was never stopped"
+    assert DEADMAN_TIMEOUT_S - 0.01 <= silent <= DEADMAN_BOUND_S
+    assert "while this program ran on time" in holder.lost[0] and "not confirmed it is alive" in holder.lost[0]
+
+
+def test_a_trip_after_a_stall_says_how_long_the_server_was_busy():
+    t0 = time.monotonic()
+    worker = worker_at(t0)
+    holder = Holder("tab")
+    worker.add_holder("output", holder)
+    worker.heartbeat("tab", 1000.0)
+    last = time.monotonic()
+    tick(worker, last + 1.0)  # a 1 s stall, and the browser never beats again
+    n = 0
+    while not holder.lost and n < 40:
+        n += 1
+        tick(worker, last + 1.0 + n * SUPERVISE_PERIOD_S)
+    assert holder.lost
+    assert "this program was busy for" in holder.lost[0]
