@@ -13,6 +13,7 @@ from app import runtime as rt
 from pages.session import current_user
 
 CSS = (Path(__file__).resolve().parent.parent / "static" / "commission.css").read_text()
+LOOP_ORANGE_MS, LOOP_RED_MS = 100, 250  # loop lag p99 worth a look; one that endangers a 250 ms keep-alive
 STATUS_ICON = {"online": "check_circle", "stale": "schedule", "offline": "error", "unknown": "help"}
 
 
@@ -138,9 +139,12 @@ def frame(title: str):
                                 + (f" ({broker['last_error']})" if broker["last_error"] and not broker["connected"] else "")
                                 + f"; {broker['sent']} sent, {broker['queued']} waiting, {broker['dropped']} alarm events dropped")
         loop = runtime.worker.loop_health.summary()
-        stalled = loop["last_stall"] is not None and time.time() - loop["last_stall"] < 60
-        loop_chip.set_text(f"loop {loop['p99_ms']:.0f} ms")
-        loop_chip.classes(replace="text-caption " + ("text-orange-4" if stalled else "text-grey-5"))
+        # coloured by the p99 itself: on a busy machine some stall falls into every minute, and a colour that
+        # is always on says nothing (the stalls are in the tooltip)
+        p99 = loop["p99_ms"]
+        loop_chip.set_text(f"loop {p99:.0f} ms")
+        loop_chip.classes(replace="text-caption " + ("text-red-4" if p99 >= LOOP_RED_MS else "text-orange-4"
+                                                     if p99 >= LOOP_ORANGE_MS else "text-grey-5"))
         loop_tip.set_text(f"Event-loop lag (it carries every keep-alive): p99 {loop['p99_ms']} ms over the last minute, "
                           f"worst {loop['worst_ms']} ms, {loop['stalls']} stalls over 100 ms since start")
         for bus in runtime.store.buses.values():

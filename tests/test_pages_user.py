@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import re
+import time
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
 
@@ -370,3 +371,19 @@ async def test_worker_refuses_writes_for_viewer(env: Env):
     await env.runtime.worker.command("door-1", lambda a: a.write_param(DELAY, 999), role="engineer")
     assert twin.holding[3000] == 999
     assert writes == [(3000, 999)]  # the spy sees writes that do happen
+
+
+async def test_loop_lag_is_coloured_by_its_value_not_by_any_stall(env: Env):
+    """Issue 32.16: a stall in the last minute on a busy machine made "loop NN ms" orange all the time;
+    the colour follows the p99 (grey below 100 ms, orange from 100 ms, red from 250 ms)."""
+    health = env.runtime.worker.loop_health
+    figures = {"p99_ms": 20.0, "worst_ms": 180.0, "stalls": 3, "last_stall": time.time() - 5}
+    health.summary = lambda: dict(figures)
+    await env.user.open("/")
+    (chip,) = [e for e in env.user.client.elements.values() if e.props.get("data-testid") == "loop-lag"]
+    await eventually(lambda: chip.text == "loop 20 ms", what="the loop chip")
+    assert "text-orange-4" not in chip.classes and "text-grey-5" in chip.classes, chip.classes
+    figures["p99_ms"] = 140.0
+    await eventually(lambda: "text-orange-4" in chip.classes, timeout=5, what="orange at 140 ms")
+    figures["p99_ms"] = 300.0
+    await eventually(lambda: "text-red-4" in chip.classes, timeout=5, what="red at 300 ms")
