@@ -7,6 +7,7 @@ import csv
 import io
 import logging
 import os
+import re
 import sqlite3
 import threading
 import time
@@ -189,14 +190,26 @@ class AuditLog:
         self._executor.shutdown(wait=False)
 
 
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")  # what a spreadsheet reads as the start of a formula
+PLAIN_NUMBER = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?")
+
+
+def csv_cell(text: str) -> str:
+    """A cell a spreadsheet shows as text, never runs: one starting like a formula (a typed user
+    name "=HYPERLINK(...)") gets a leading apostrophe; a plain number ("-30") stays as it is."""
+    if text.startswith(FORMULA_STARTS) and not PLAIN_NUMBER.fullmatch(text):
+        return "'" + text
+    return text
+
+
 def to_csv(entries: list[AuditEntry]) -> str:
     out = io.StringIO()
     writer = csv.writer(out)
     writer.writerow(["time", "user", "role", "device", "action", "parameter", "old", "new", "result"])
     for e in entries:
         writer.writerow([
-            time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(e.time)), e.user, e.role, e.device, e.action,
-            e.parameter, e.old, e.new, e.result,
+            time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(e.time)),
+            *(csv_cell(str(v)) for v in (e.user, e.role, e.device, e.action, e.parameter, e.old, e.new, e.result)),
         ])
     return out.getvalue()
 

@@ -20,6 +20,11 @@ MAX_SESSIONS = 1000  # bounded: the oldest sessions go first
 FREE_FAILURES = 3  # wrong passwords before the throttle starts
 MAX_DELAY_S = 60.0
 THROTTLE_ENTRIES = 4096  # bounded: accounts and client addresses tracked
+LOGIN_NAME_MAX = 64  # longer typed names are no account (app/users.py): kept to this length in the throttle and the audit
+LOGIN_PASSWORD_MAX = 1024  # longer passwords are refused without hashing them
+REFUSAL_WINDOW_S = 60.0
+REFUSAL_ROWS_PER_CLIENT = 5  # audit rows of refused logins per client address and window; the rest are counted
+REFUSAL_ROWS_TOTAL = 60  # and of all addresses together
 
 
 @dataclass
@@ -80,15 +85,56 @@ class AuthSessions:
         return len(tokens)
 
 
+def shown_name(typed: str) -> str:
+    """A typed user name as the throttle and the audit log keep it: at most :data:`LOGIN_NAME_MAX`
+    characters, a longer one cut with its length noted (no account has such a name)."""
+    if len(typed) <= LOGIN_NAME_MAX:
+        return typed
+    return f"{typed[:LOGIN_NAME_MAX]}... ({len(typed)} characters)"
+
+
+class RefusalRows:
+    """How many audit rows refused logins may write: :data:`REFUSAL_ROWS_PER_CLIENT` per client
+    address and :data:`REFUSAL_ROWS_TOTAL` in all per :data:`REFUSAL_WINDOW_S`; the refusals
+    beyond are counted, and the next row of that address says how many there were."""
+
+    def __init__(self, window_s: float = REFUSAL_WINDOW_S) -> None:
+        self.window_s = window_s
+        self._clients: OrderedDict[str, list] = OrderedDict()  # address -> [window start, rows, not written]
+        self._total = [0.0, 0]  # window start, rows of all addresses
+
+    def take(self, client: str, now: float | None = None) -> int | None:
+        """None: write no row for this refusal (it is counted); else write one, which also
+        accounts for the returned number of refusals of this address not written before it."""
+        now = time.monotonic() if now is None else now
+        entry = self._clients.pop(client, None) or [now, 0, 0]
+        self._clients[client] = entry
+        while len(self._clients) > THROTTLE_ENTRIES:
+            self._clients.popitem(last=False)
+        if now - entry[0] >= self.window_s:
+            entry[0], entry[1] = now, 0
+        if now - self._total[0] >= self.window_s:
+            self._total = [now, 0]
+        if entry[1] >= REFUSAL_ROWS_PER_CLIENT or self._total[1] >= REFUSAL_ROWS_TOTAL:
+            entry[2] += 1
+            return None
+        entry[1] += 1
+        self._total[1] += 1
+        skipped, entry[2] = entry[2], 0
+        return skipped
+
+
 class LoginThrottle:
     """Slows down repeated wrong passwords, per account and per client address.
 
     After :data:`FREE_FAILURES` failures a key must wait 2, 4, 8 ... up to
     :data:`MAX_DELAY_S` seconds after its last failure before its next attempt is checked.
+    ``rows`` bounds the audit rows the refusals write.
     """
 
     def __init__(self) -> None:
         self._failures: OrderedDict[str, tuple[int, float]] = OrderedDict()
+        self.rows = RefusalRows()
 
     def wait_s(self, *keys: str, now: float | None = None) -> float:
         """Seconds until an attempt for these keys will be checked (0: now)."""

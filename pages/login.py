@@ -8,6 +8,7 @@ from urllib.parse import quote
 from nicegui import context, ui
 
 from app import runtime as rt
+from app.auth import LOGIN_PASSWORD_MAX, shown_name
 from app.web import safe_redirect
 from pages.session import client_address
 
@@ -22,26 +23,37 @@ def content(redirect_to: str = "/", expired: str = "") -> None:
     browser = request.session.get("id", "") if request is not None and "session" in request.scope else ""
     address = client_address() or "unknown address"
 
+    async def refused(account: str, result: str) -> None:
+        """An audit row for a refused login, within the rows allowed per client (the rest are counted)."""
+        skipped = runtime.login_throttle.rows.take(address)
+        if skipped is None:
+            return
+        if skipped:
+            result += f"; {skipped} more refused from this address not written one by one"
+        await runtime.audit.arecord(user=account or "?", role="", device="", action="login", result=result)
+
     async def attempt() -> None:
-        account = (name.value or "").strip()
+        typed = (name.value or "").strip()
+        account = shown_name(typed)  # a 64 KiB name is no account: kept short in the throttle and the audit
         keys = (f"user:{account}", f"client:{address}")
         wait = runtime.login_throttle.wait_s(*keys)
         if wait > 0:
             message.set_text(f"Too many wrong passwords: try again in {wait:.0f} s.")
-            await runtime.audit.arecord(user=account or "?", role="", device="", action="login",
-                                        result=f"refused: throttled ({wait:.0f} s) from {address}")
+            await refused(account, f"refused: throttled ({wait:.0f} s) from {address}")
             return
         # counted as a failure before the check: an attempt cut off half-way still counts
         failures = runtime.login_throttle.failed(*keys)
-        button.disable()
-        try:
-            # argon2 takes tens of milliseconds on purpose: never on the event loop
-            user = await asyncio.to_thread(runtime.users.verify, account, password.value or "")
-        finally:
-            button.enable()
+        secret = password.value or ""
+        user = None
+        if account == typed and len(secret) <= LOGIN_PASSWORD_MAX:
+            button.disable()
+            try:
+                # argon2 takes tens of milliseconds on purpose: never on the event loop
+                user = await asyncio.to_thread(runtime.users.verify, typed, secret)
+            finally:
+                button.enable()
         if user is None:
-            await runtime.audit.arecord(user=account or "?", role="", device="", action="login",
-                                        result=f"failed: wrong user name or password from {address} ({failures} in a row)")
+            await refused(account, f"failed: wrong user name or password from {address} ({failures} in a row)")
             message.set_text("Wrong user name or password")
             ui.notify("Wrong user name or password", type="negative")
             password.set_value("")
@@ -55,7 +67,7 @@ def content(redirect_to: str = "/", expired: str = "") -> None:
     with ui.card().classes("absolute-center w-80"):
         ui.label("commission").classes("text-h5")
         ui.label(f"plant {runtime.plant.name}").classes("text-caption text-grey-8")
-        name = ui.input("User").props("outlined autofocus").classes("w-full").on("keydown.enter", attempt)
+        name = ui.input("User").props("outlined autofocus maxlength=64").classes("w-full").on("keydown.enter", attempt)
         password = ui.input("Password", password=True, password_toggle_button=True).props("outlined").classes("w-full").on(
             "keydown.enter", attempt
         )

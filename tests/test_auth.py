@@ -100,7 +100,7 @@ async def test_pages_need_login(secured):
 async def test_wrong_password(secured):
     user, _runtime = secured
     await login(user, "anna", "nope nope", succeeds=False)
-    await user.should_see("Wrong user name or password")
+    await user.should_see("Wrong user name or password", retries=50)  # argon2 on a loaded machine
 
 
 async def test_viewer_reads_but_cannot_write(secured):
