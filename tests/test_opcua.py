@@ -169,3 +169,20 @@ def test_health_and_status_in_namur_terms():
     state.mark_offline("no answer")
     assert DEVICE_HEALTH[health_of(state, controlled=True, alarms=[])] == "FAILURE"
     assert status_of("good").is_good() and status_of("stale").is_uncertain() and status_of("offline").is_bad()
+
+
+@pytest.mark.parametrize("table, words", [
+    ('[opcua]\nendpoint = "http://x:4840"\n', "opc.tcp://"),
+    ('[opcua]\nanonymous = "no"\n', "true or false"),
+    ('[opcua]\ncertificate = "c.der"\n', "both certificate and private_key"),
+    ('[opcua]\nendpont = "opc.tcp://a:1"\n', "did you mean 'endpoint'"),
+    ('[opcua]\nrate = 0\n', "rate must be a number above 0"),
+])
+def test_opcua_table_errors(table, words):
+    from app.plant import PlantError, parse_plant
+
+    with pytest.raises(PlantError) as err:
+        parse_plant('name = "p"\n' + table)
+    assert words in str(err.value)
+    assert parse_plant('name = "p"\n').opcua is None  # off by default
+    assert parse_plant('name = "p"\n[opcua]\n').opcua.endpoint == "opc.tcp://127.0.0.1:4840"

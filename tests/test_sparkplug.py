@@ -333,3 +333,17 @@ async def test_primary_host_state_is_honoured(tmp_path):
                 assert metrics(host.of("DBIRTH", "cab-c", "pump", since=mark)[0])["Speed"]["value"] == 3.5
             finally:
                 await node.stop()
+
+
+def test_mqtt_table_sparkplug_keys():
+    from app.plant import PlantError, parse_plant
+
+    base = 'name = "p"\n[mqtt]\nurl = "mqtt://b"\n'
+    assert parse_plant(base).mqtt.sparkplug is False
+    cfg = parse_plant(base + 'sparkplug = true\nprimary_host = "ignition"\n').mqtt
+    assert cfg.sparkplug is True and cfg.primary_host == "ignition"
+    for extra, words in (('sparkplug = "yes"\n', "true or false"), ('primary_host = "scada"\n', "add sparkplug = true"),
+                         ('sparkplug = true\nprimary_host = "a/b"\n', "topic level")):
+        with pytest.raises(PlantError) as err:
+            parse_plant(base + extra)
+        assert words in str(err.value)
