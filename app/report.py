@@ -89,7 +89,8 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
 
 
 async def plant_content(runtime, *, read: bool = True, user: str = "local", role: str = "engineer") -> dict:
-    devices = [await device_content(runtime, name, read=read, user=user, role=role) for name in runtime.plant.devices]
+    devices = list(await asyncio.gather(*(device_content(runtime, name, read=read, user=user, role=role)
+                                          for name in runtime.plant.devices)))  # buses read side by side
     signoff = await runtime.record.store.run(runtime.record.store.latest, runtime.record.plant, "", "signoff")
     return {"plant": runtime.plant.name, "generated": time.time(), "devices": devices,
             "signoff": None if signoff is None else {"id": signoff.id, **{k: signoff.data[k] for k in ("name", "role", "comment", "time", "sha256")}}}

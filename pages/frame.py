@@ -87,6 +87,7 @@ def frame(title: str):
             ui.link("Plant view", "/plant").classes("text-white")
             ui.link("Backup", "/backup").classes("text-white")
             ui.link("Audit", "/audit").classes("text-white")
+            ui.link("Record", "/record").classes("text-white")
             user, role = current_user()
             if runtime.auth_required:
                 ui.label(f"{user} ({role})").classes("text-caption text-grey-4")

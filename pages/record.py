@@ -1,0 +1,250 @@
+"""The commissioning record page: checkouts with progress and abort, the approved set and its
+drift, the timeline with a diff of any two entries, sign-off and the as-left report downloads.
+
+Every action goes through ``runtime.record`` (app/record.py), which checks the role: a viewer
+reads the record and downloads reports, never runs a checkout, approves or signs.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import tempfile
+from pathlib import Path
+
+from nicegui import ui
+
+from app import runtime as rt
+from app.record import checkout_module, diff_sets
+from app.report import device_content, device_html, plant_content, write_plant
+from pages.frame import fmt_time, frame
+from pages.session import current_user
+
+STATUS_COLOUR = {"passed": "positive", "failed": "negative", "aborted": "negative", "running": "primary", "pending": "grey",
+                 "skipped": "grey", "error": "negative"}
+
+
+def content(name: str | None = None) -> None:
+    runtime = rt.current()
+    devices = list(runtime.plant.devices)
+    name = name if name in devices else (devices[0] if devices else None)
+    user, role = current_user()
+    engineer = role == "engineer"
+    with frame("Commissioning record"):
+        with ui.row().classes("items-center gap-3 w-full"):
+            ui.select(devices, value=name, label="Device",
+                      on_change=lambda e: ui.navigate.to(f"/record/{e.value}")).props("dense outlined").classes("w-56").mark("record-device")
+            ui.space()
+            _downloads(runtime, user, role)
+        if name is None:
+            ui.label("The plant has no devices.")
+            return
+        state = runtime.store.devices[name]
+        drift = ui.label().classes("text-body1").mark("record-drift")
+
+        def show_drift() -> None:
+            d = getattr(state, "drift", None) or {}
+            if not d.get("approved"):
+                drift.text, cls = "No approved set for this device yet.", "text-grey-8"
+            elif d["changed"]:
+                drift.text = "Changed since approved: " + ", ".join(f"{r['name']} {r['approved']} → {r['now']}" for r in d["changed"])
+                cls = "text-negative"
+            else:
+                drift.text, cls = "Equal to the approved set.", "text-positive"
+            drift.classes(replace=f"text-body1 {cls}")
+
+        show_drift()
+        watch = runtime.store.watch(name, show_drift, slow=True)
+        ui.context.client.on_disconnect(watch.cancel)
+        with ui.row().classes("w-full gap-4 items-start"):
+            with ui.card().classes("flex-1 min-w-[320px]"):
+                _checkout_card(runtime, name, user, role, engineer)
+            with ui.card().classes("flex-1 min-w-[320px]"):
+                timeline = _timeline_card(runtime, name, user, role, engineer)
+        with ui.card().classes("w-full"):
+            _signoff_card(runtime, name, user, role, engineer, timeline)
+
+
+def _downloads(runtime, user: str, role: str) -> None:
+    async def download(kind: str) -> None:
+        folder = Path(tempfile.mkdtemp(prefix="commission-report-"))
+        try:
+            paths = await write_plant(runtime, folder, user=user or "viewer", role=role)
+        except Exception as exc:  # noqa: BLE001 - said to the engineer
+            ui.notify(f"report: {exc}", type="negative", multi_line=True)
+            return
+        ui.download(paths[kind].read_bytes(), paths[kind].name)
+
+    for kind, label in (("html", "HTML"), ("pdf", "PDF"), ("zip", "Archive")):
+        ui.button(label, icon="download", on_click=lambda k=kind: download(k)).props("outline dense").mark(f"record-download-{kind}")
+
+
+def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool) -> None:
+    module = checkout_module(runtime.store.devices[name].type)
+    ui.label("Checkout" + (f": {module.TITLE}" if module else "")).classes("text-h6")
+    if module is None:
+        ui.label("This device type declares no checkout yet.").classes("text-grey-8")
+        return
+    progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
+    status = ui.label("Not run in this session.").mark("checkout-status")
+    steps = ui.column().classes("w-full gap-1")
+    with ui.row():
+        start = ui.button("Run checkout", icon="play_arrow").mark("checkout-run")
+        abort = ui.button("Abort", icon="stop", color="negative").mark("checkout-abort")
+    abort.set_visibility(False)
+    if not engineer:
+        start.disable()
+        ui.label("Viewers read the record; checkouts are run by an engineer.").classes("text-caption")
+
+    def draw(run) -> None:
+        progress.value = run.progress
+        status.text = f"{run.status}" + (f": {run.as_dict()['reason']}" if run.status in ("failed", "aborted") else "")
+        abort.set_visibility(run.status == "running")
+        start.set_enabled(engineer and run.status != "running")
+        steps.clear()
+        with steps:
+            for r in run.results:
+                with ui.row().classes("items-center gap-2 no-wrap"):
+                    ui.badge(r.status, color=STATUS_COLOUR.get(r.status, "grey"))
+                    ui.label(r.name).classes("font-medium")
+                    if r.reason:
+                        ui.label(r.reason).classes("text-negative text-caption")
+                    elif r.values:
+                        ui.label("; ".join(f"{v['name']} {v['value']} {v['unit']}".strip() for v in r.values[:3])).classes("text-caption")
+
+    async def ask(question: str) -> bool:
+        with ui.dialog().props("persistent") as dialog, ui.card():
+            ui.label(question).classes("text-body1")
+            ui.label(f"Your answer is recorded with your name ({user}).").classes("text-caption")
+            with ui.row():
+                ui.button("Yes", on_click=lambda: dialog.submit(True)).mark("checkout-yes")
+                ui.button("No", color="negative", on_click=lambda: dialog.submit(False)).mark("checkout-no")
+        return bool(await dialog)
+
+    async def run_it() -> None:
+        try:
+            run = runtime.record.new_run(name, user=user, role=role, ask=ask, session=_session_id())
+        except Exception as exc:  # noqa: BLE001
+            ui.notify(str(exc), type="negative")
+            return
+        run.listeners.append(lambda: draw(run))
+        abort.on_click(lambda: run.abort(f"aborted by {user}"))
+        try:
+            result = await run.run()
+        except PermissionError as exc:
+            ui.notify(str(exc), type="negative")
+            return
+        ui.notify(f"checkout {result['status']}" + (f": {result['reason']}" if result["reason"] else ""),
+                  type="positive" if result["status"] == "passed" else "negative", multi_line=True)
+
+    start.on_click(run_it)
+    last = runtime.record.runs.get(name)
+    if last is not None:
+        last.listeners.append(lambda: draw(last))
+        draw(last)
+
+
+def _session_id() -> str:
+    """The page's session, which confirms it is alive: what the checkout switches on or drives is
+    under the dead-man rule of this page (as on the device pages)."""
+    return ui.context.client.id
+
+
+def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool):
+    ui.label("Timeline").classes("text-h6")
+    with ui.row():
+        approve = ui.button("Approve current set", icon="verified").props("outline dense").mark("record-approve")
+        snap = ui.button("Snapshot now", icon="photo_camera").props("outline dense").mark("record-snapshot")
+    for b in (approve, snap):
+        b.set_enabled(engineer)
+    columns = [{"name": "id", "label": "#", "field": "id"}, {"name": "time", "label": "Time", "field": "time", "align": "left"},
+               {"name": "kind", "label": "Kind", "field": "kind", "align": "left"},
+               {"name": "title", "label": "What", "field": "title", "align": "left"},
+               {"name": "user", "label": "By", "field": "user", "align": "left"}]
+    table = ui.table(columns=columns, rows=[], row_key="id", selection="multiple",
+                     pagination=8).props("dense flat").classes("w-full").mark("record-timeline")
+    diff_box = ui.column().classes("w-full").mark("record-diff")
+
+    async def refresh() -> None:
+        entries = await runtime.record.timeline(name)
+        table.rows = [{"id": e.id, "time": fmt_time(e.time), "kind": e.kind, "title": e.title, "user": e.user} for e in entries]
+        table.update()
+
+    async def show_diff() -> None:
+        diff_box.clear()
+        chosen = sorted(r["id"] for r in table.selected)
+        if len(chosen) != 2:
+            return
+        a, b = [await runtime.record.get(i) for i in chosen]
+        sets = []
+        for e in (a, b):
+            params = e.data.get("parameters")
+            if params is None and e.kind == "checkout":
+                params = {f"{s['name']}/{v['name']}": {"name": f"{s['name']}: {v['name']}", "raw": v["value"], "text": f"{v['value']} {v['unit']}".strip()}
+                          for s in e.data["steps"] for v in s["values"]}
+            sets.append(params or {})
+        rows = diff_sets(*sets)
+        with diff_box:
+            ui.label(f"#{a.id} {a.kind} → #{b.id} {b.kind}: {len(rows)} difference(s)").classes("font-medium")
+            if rows:
+                ui.table(columns=[{"name": k, "label": k.title(), "field": k, "align": "left"} for k in ("name", "old", "new")],
+                         rows=rows, row_key="name").props("dense flat").classes("w-full")
+
+    table.on("selection", lambda _e: show_diff())
+
+    async def act(what: str) -> None:
+        try:
+            if what == "approve":
+                await runtime.record.approve(name, user=user, role=role)
+                ui.notify("approved set stored", type="positive")
+            else:
+                await runtime.record.snapshot(name, user=user, role=role)
+                ui.notify("snapshot stored", type="positive")
+        except Exception as exc:  # noqa: BLE001 - said to the engineer
+            ui.notify(f"{what}: {exc}", type="negative", multi_line=True)
+        await refresh()
+
+    approve.on_click(lambda: act("approve"))
+    snap.on_click(lambda: act("snapshot"))
+    ui.timer(0.1, refresh, once=True)
+    return refresh
+
+
+def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refresh_timeline) -> None:
+    ui.label("As-left report and sign-off").classes("text-h6")
+    preview = ui.html("").classes("w-full").mark("record-report")
+    with ui.row().classes("items-end gap-3 w-full"):
+        signer = ui.input("Name", value=user if user != "local" else "").props("dense outlined").mark("sign-name")
+        signer_role = ui.input("Role", value="commissioning engineer").props("dense outlined").mark("sign-role")
+        comment = ui.input("Comment").props("dense outlined").classes("flex-1").mark("sign-comment")
+    with ui.row():
+        sign_device = ui.button(f"Sign {name}", icon="draw").mark("sign-device")
+        sign_plant = ui.button(f"Sign plant {runtime.plant.name}", icon="draw").props("outline").mark("sign-plant")
+    for b in (sign_device, sign_plant):
+        b.set_enabled(engineer)
+
+    async def show() -> None:
+        content = await device_content(runtime, name, read=False)
+        preview.content = ("<style>.record-preview h2{font-size:20px;line-height:1.3;margin:4px 0}.record-preview h3{font-size:16px;"
+                           "line-height:1.3;margin:12px 0 4px}.record-preview table{border-collapse:collapse;font-size:12px}"
+                           ".record-preview td,.record-preview th{border:1px solid #ccc;padding:1px 6px;text-align:left}</style>"
+                           f"<div class='record-preview'>{device_html(content)}</div>")
+
+    async def sign(plant: bool) -> None:
+        if not signer.value.strip():
+            ui.notify("a sign-off needs a name", type="warning")
+            return
+        try:
+            content = await (plant_content(runtime, user=user, role=role) if plant else device_content(runtime, name, user=user, role=role))
+            await runtime.record.sign("" if plant else name, user=user, role=role, name=signer.value.strip(),
+                                      signer_role=signer_role.value.strip(), comment=comment.value, content=content)
+        except Exception as exc:  # noqa: BLE001
+            ui.notify(f"sign-off: {exc}", type="negative", multi_line=True)
+            return
+        ui.notify("signed: the record is frozen; a later sign-off supersedes it", type="positive")
+        await show()
+        await refresh_timeline()
+
+    sign_device.on_click(lambda: sign(False))
+    sign_plant.on_click(lambda: sign(True))
+    ui.timer(0.2, show, once=True)
+    ui.timer(5.0, show)  # checkouts, approvals and snapshots of this page or another one show up
