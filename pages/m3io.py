@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 from datetime import datetime
 
 from nicegui import ui
@@ -11,6 +12,7 @@ from app.worker import DEADMAN_BOUND_S
 from devices.m3io import codec
 from devices.m3io.codec import Variant
 from pages.frame import fmt_age, frame, set_status_badge
+from pages.session import current_user
 from pages.widgets import (
     sim_card_allowed,
     HistoryChart,
@@ -35,7 +37,8 @@ VARIANT_COLOR = {"ok": "text-positive", "mismatch": "text-negative text-weight-m
 STOP_RULE = (
     "Outputs belong to the page that switched them on: they go off at once when that page is closed or reloaded, "
     f"or within {DEADMAN_BOUND_S:g} s when it stops confirming that it is alive (frozen tab, sleeping laptop, lost network). "
-    "Another open tab does not keep them on. Meanwhile the worker keeps the module's 2 s watchdog served."
+    "Another open tab does not keep them on. While you control the module this tool serves its 2 s watchdog, "
+    "and it switches the outputs off by itself if the program stalls."
 )
 
 
@@ -54,7 +57,8 @@ def content(name: str) -> None:
 
     async def act(describe: str, fn, success: str = "", write: bool = True):
         async def action(a):
-            return fn(a)
+            result = fn(a)
+            return await result if inspect.isawaitable(result) else result
 
         return await run_command(name, action, describe, success=success, write=write)
 
@@ -73,6 +77,15 @@ def content(name: str) -> None:
                 + " · ".join(f"{k} 0x{v:03X}" for k, v in ids.by_name().items())
             ).classes("text-body2 mono")
             variant_line = ui.label().classes("text-body2").props("data-testid=variant-check")
+            # the module is a slave: this tool serves its watchdog (DigOut) only while an engineer controls it
+            with ui.row().classes("items-center gap-3"):
+                take = ui.button("Take control", icon="sports_esports", on_click=lambda: act(
+                    "take control", lambda a: a.take_control(session, current_user()[0] or "local engineer"),
+                    success="you control the module: DigOut serves its watchdog")).props("data-testid=take-control")
+                take.tooltip(f"Listens for another master (a PLC sending DigOut 0x{ids.dig_out:03X}) first; refused if there is one")
+                ui.button("Release", icon="logout", on_click=lambda: act(
+                    "release control", lambda a: a.release_control(session), write=False)).props("outline data-testid=release-control")
+                holder = ui.label().classes("text-body2").props("data-testid=controller")
             if state.info.get("bitrate_mismatch"):
                 ui.label(
                     f"SW1 sets {ids.bitrate // 1000} kbit/s, but the bus runs at {state.info['bus_bitrate'] // 1000} kbit/s: "
@@ -137,11 +150,17 @@ def content(name: str) -> None:
         set_status_badge(badge, state.status, state.age)
         served = adapter.bus.cyclic_running(adapter.key)
         last = adapter.last_answer
+        foreign = adapter.foreign_master()
         watchdog.set_text(
-            ("watchdog served: DigOut every 500 ms" if served else "watchdog NOT served: outputs are off in the module")
+            (f"watchdog served: DigOut every {codec.DIGOUT_PERIOD_S * 1000:.0f} ms" if served
+             else "watchdog served by another master (a PLC): this tool only listens" if foreign
+             else "watchdog not served: outputs are off in the module; take control to serve it")
             + f" · last answer {fmt_age(None if last is None else datetime.now().timestamp() - last)}"
         )
-        watchdog.classes(replace="text-body2 " + ("text-positive" if served else "text-negative"))
+        watchdog.classes(replace="text-body2 " + ("text-positive" if served else "text-warning" if foreign else "text-grey-8"))
+        controller = adapter.controller
+        holder.set_text(("you control the module" if controller.session == session else f"{controller.user} controls the module")
+                        if controller else "nobody controls the module")
         check = adapter.variant_check
         variant_line.set_text(f"Variant {adapter.variant.value}: {check.text}")
         variant_line.classes(replace="text-body2 " + VARIANT_COLOR[check.state])
