@@ -209,6 +209,13 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool):
     return refresh
 
 
+def _small_headings(text: str) -> str:
+    """The report's headings at the size of the page's cards (Quasar styles h2/h3 as display titles)."""
+    for tag, cls in (("h2", "text-h6"), ("h3", "text-subtitle1 text-weight-medium")):
+        text = text.replace(f"<{tag}", f"<div class='{cls}'").replace(f"</{tag}>", "</div>")
+    return text
+
+
 def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refresh_timeline) -> None:
     ui.label("As-left report and sign-off").classes("text-h6")
     preview = ui.html("").classes("w-full").mark("record-report")
@@ -227,7 +234,7 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
         preview.content = ("<style>.record-preview h2{font-size:20px;line-height:1.3;margin:4px 0}.record-preview h3{font-size:16px;"
                            "line-height:1.3;margin:12px 0 4px}.record-preview table{border-collapse:collapse;font-size:12px}"
                            ".record-preview td,.record-preview th{border:1px solid #ccc;padding:1px 6px;text-align:left}</style>"
-                           f"<div class='record-preview'>{device_html(content)}</div>")
+                           "<div class='record-preview'>" + _small_headings(device_html(content)) + "</div>")
 
     async def sign(plant: bool) -> None:
         if not signer.value.strip():
