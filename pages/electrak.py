@@ -38,6 +38,9 @@ from pages.widgets import (
 WINDOW_S = 60
 
 
+TIMEOUT_BIT = 5  # error flags bit 5: Message timeout ("Fehler-Flags")
+
+
 def content(name: str) -> None:
     runtime = rt.current()
     state = runtime.store.devices[name]
@@ -98,6 +101,7 @@ def content(name: str) -> None:
                             bit: Lamp(n, "alarm", f"{text}. Clears: {clears}.") for bit, (n, text, clears) in codec.ERROR_FLAGS.items()
                         }
             fault_text = ui.column().classes("gap-0")
+            idle_note = ui.label().classes("text-caption text-grey-8").props("data-testid=idle-note")
 
         with ui.row().classes("w-full no-wrap items-start gap-4"):
             with ui.card().classes("col-8"):
@@ -148,7 +152,21 @@ def content(name: str) -> None:
             lamp.show(state.point(codec.MOTION_FLAGS[bit][0]))
         for bit, lamp in error_lamps.items():
             lamp.show(state.point(codec.ERROR_FLAGS[bit][0]))
-        faults = tuple(bit for bit in codec.ERROR_FLAGS if online and info.get("errors", 0) >> bit & 1)
+        # Message timeout while nobody sends 0x06 is the network's idle state: grey and explained, not a red fault
+        idle = adapter.idle()
+        if idle != idle_shown[0]:
+            idle_shown[0] = idle
+            timeout_lamp = error_lamps[TIMEOUT_BIT]
+            if idle:
+                timeout_lamp.dot.classes(remove="alarm").style("background: #9e9e9e; box-shadow: none")
+            else:
+                timeout_lamp.dot.classes(add="alarm").style(remove="background: #9e9e9e; box-shadow: none")
+            timeout_lamp.row.props(f'data-idle="{int(idle)}"')
+        idle_note.set_text("Message timeout is expected while idle: nobody sends the control telegram 0x06. "
+                           "It clears with the first telegrams when you take control."
+                           if idle and online and info.get("errors", 0) >> TIMEOUT_BIT & 1 else "")
+        faults = tuple(bit for bit in codec.ERROR_FLAGS if online and info.get("errors", 0) >> bit & 1
+                       and not (idle and bit == TIMEOUT_BIT))
         if faults != shown_faults[0]:  # rebuilt only when the faults change
             shown_faults[0] = faults
             fault_text.clear()
@@ -162,6 +180,7 @@ def content(name: str) -> None:
         bitrate_refresh()
 
     shown_faults: list = [None]
+    idle_shown: list = [None]
     updater.append(update)
     update()
     follow(state, update)  # on every change the store pushes (at most 10/s) and once a second for the ages

@@ -102,3 +102,33 @@ def test_go_moves_the_position_chart_toward_the_target(app_url, chromium, tmp_pa
             page.screenshot(path=str(tmp_path / f"electrak-{width}x{height}.png"), full_page=True)
     finally:
         page.close()
+
+
+def test_message_timeout_while_idle_is_not_a_red_fault(app_url, chromium):
+    """Issue 32 item 16: nobody sends the control telegram, so the actuators report Message timeout:
+    that is their idle state, shown grey and explained; once this tool sends 0x06 it clears."""
+    for width, height in ((1440, 900), (768, 1024)):
+        page = chromium.new_page(viewport={"width": width, "height": height})
+        try:
+            page.goto(f"{app_url}/device/lift")
+            page.get_by_text("actuators heard per 100 ms: 2 of 2 configured").wait_for(timeout=10_000)
+            lamp = page.locator('[data-lamp="Message timeout"]')
+            page.wait_for_function("() => document.querySelector('[data-lamp=\"Message timeout\"]').dataset.on === '1'", timeout=5_000)
+            assert lamp.get_attribute("data-idle") == "1"
+            assert "alarm" not in lamp.locator(".lamp").get_attribute("class")  # not red
+            page.get_by_test_id("idle-note").get_by_text("expected while idle").wait_for(timeout=5_000)
+            assert page.get_by_text("Message timeout: clears").count() == 0  # not listed among the faults
+            page.screenshot(path=f"/tmp/shots/electrak-idle-{width}.png")
+        finally:
+            page.close()
+    page = chromium.new_page(viewport={"width": 1440, "height": 900})
+    try:
+        page.goto(f"{app_url}/device/lift")
+        page.get_by_test_id("take-control").click()
+        page.get_by_text("you hold control").wait_for(timeout=5_000)
+        page.wait_for_function("() => document.querySelector('[data-lamp=\"Message timeout\"]').dataset.on === '0'", timeout=5_000)
+        assert page.locator('[data-lamp="Message timeout"]').get_attribute("data-idle") == "0"
+        assert page.get_by_test_id("idle-note").inner_text() == ""
+        page.screenshot(path="/tmp/shots/electrak-control-1440.png")
+    finally:
+        page.close()

@@ -258,3 +258,31 @@ async def test_viewer_cannot_drive(lift):
     with pytest.raises(PermissionDenied):
         await runtime.worker.command("lift", take, role="viewer")
     assert runtime.worker.adapters["lift"].controller is None
+
+
+async def test_chart_target_only_while_the_actuators_are_driven_to_it(lift):
+    """Issue 32 item 16: the chart showed a target the actuators were not going to (idle, enable cleared)."""
+    _runtime, adapter, state, twin = lift
+
+    def targets(since: float) -> list:
+        return [values.get("Target [mm]") for t, values in state.history_since(60) if t > since]
+
+    import time
+
+    start = time.time()
+    await asyncio.sleep(0.3)
+    assert targets(start) and all(t is None for t in targets(start))  # idle: no target drawn
+    assert adapter.idle() and "expected while idle" in state.point("Error flags")["text"]
+    await adapter.take_control("s1", "engineer")
+    assert not adapter.idle()
+    adapter.set_command("s1", 120.0, 20.0, 0)
+    mark = time.time()
+    await asyncio.sleep(0.3)
+    assert all(t is None for t in targets(mark))  # set but not enabled: nothing goes there
+    adapter.go("s1")
+    mark = time.time()
+    assert await wait_for(lambda: 120.0 in targets(mark), timeout=1)
+    adapter.stop("s1")
+    mark = time.time()
+    await asyncio.sleep(0.3)
+    assert targets(mark) and all(t is None for t in targets(mark))

@@ -38,6 +38,7 @@ class ForeignControl(CommandError):
 
 
 FOREIGN_SENDER = "a PLC, or an actuator whose manual control line is active"
+TIMEOUT_FLAG = 1 << 5  # error flags byte 7 bit 5: Message timeout
 
 
 @dataclass
@@ -138,7 +139,7 @@ class ElectrakAdapter:
                 "Position [mm]": round(sum(f.position_mm for f in recent) / len(recent), 1),
                 "Current [A]": max(f.current_a for f in recent),
                 "Speed [mm/s]": round(sum(f.speed_mm_s for f in recent) / len(recent), 1),
-                "Target [mm]": self.command.position_mm,
+                "Target [mm]": self.target_mm(),
             }, now)
 
     def _publish_status(self, recent: list[codec.StatusFrame], motion: int, errors: int, now: float) -> None:
@@ -154,13 +155,26 @@ class ElectrakAdapter:
                     raw=[round(f.speed_mm_s * 10) for f in recent], text="mean of the actuators heard")
         publish("Motion flags", motion, time=now, raw=motion,
                 text=", ".join(name for bit, (name, _) in codec.MOTION_FLAGS.items() if motion >> bit & 1) or "none")
-        publish("Error flags", errors, time=now, raw=errors,
-                text=", ".join(name for bit, (name, _, _) in codec.ERROR_FLAGS.items() if errors >> bit & 1) or "none")
+        text = ", ".join(name for bit, (name, _, _) in codec.ERROR_FLAGS.items() if errors >> bit & 1) or "none"
+        if errors & TIMEOUT_FLAG and self.idle():
+            text += " (expected while idle: nobody sends the control telegram 0x06)"
+        publish("Error flags", errors, time=now, raw=errors, text=text)
         for bit, (name, _) in codec.MOTION_FLAGS.items():
             publish(name, bool(motion >> bit & 1), time=now, raw=motion >> bit & 1)
         for bit, (name, *_) in codec.ERROR_FLAGS.items():
             publish(name, bool(errors >> bit & 1), time=now, raw=errors >> bit & 1)
         publish("Devices heard", self.state.info["heard"], time=now, text=f"status telegrams per 100 ms, {len(self.actuators)} configured")
+
+    def idle(self) -> bool:
+        """Nobody sends the control telegram 0x06 (this tool holds no control, no other sender heard):
+        the actuators' Message timeout is then their normal idle state, not a fault."""
+        return self.controller is None and not self.foreign_sender()
+
+    def target_mm(self) -> float | None:
+        """The position the actuators are driven to: only while this tool sends enable (None otherwise,
+        a gap in the chart, not a target nobody is going to)."""
+        c = self.command
+        return c.position_mm if self.controller is not None and c.enable and not c.override else None
 
     def _publish_command(self) -> None:
         """What this tool sends in the control telegram 0x06 (commanded, so it does not age)."""
