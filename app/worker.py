@@ -86,6 +86,11 @@ class LoopHealth:
 MAX_CANDIDATES = 512  # unknown CAN IDs watched per bus while they show evidence; beyond, new ones are dropped and counted
 MAX_DISCOVERED = 128  # devices listed as discovered per bus
 CANDIDATE_STALE_PERIODS = 2.5  # a candidate silent for this many of its periods gives its place to a new one
+# A flood: more new IDs of a device's form within one second than a plant ever powers up at once. Discovery
+# then lists nothing (a flood cycling through IDs at a device's period would look like a crowd of devices),
+# watches nothing, and says so; it resumes once FLOOD_QUIET_S passed without such a second.
+FLOOD_NEW_IDS_PER_S = 64
+FLOOD_QUIET_S = 10.0
 
 
 @dataclass(slots=True)
@@ -146,6 +151,45 @@ class CanDiscovery:
     evicted: int = 0  # candidates that went silent and gave their place
     refused_frames: int = 0  # frames on IDs that a device type occupies
     listed_dropped: int = 0  # devices not listed: the list was full
+    window_start: float = 0.0  # frame time of the current one-second window
+    window_ids: set = field(default_factory=set)  # new IDs of a device's form heard in it (at most FLOOD_NEW_IDS_PER_S + 1)
+    flood_until: float = 0.0  # frame time until which discovery is paused (0: no flood)
+    flood_since: float | None = None  # wall clock: when the flood was seen
+    flood_end: float = 0.0  # wall clock: when discovery resumes unless the flood goes on
+    floods: int = 0
+    flood_frames: int = 0  # frames of unknown IDs that arrived during floods
+
+    def roll_window(self, heard: float) -> None:
+        """Start a new one-second window when ``heard`` is past the current one."""
+        if heard - self.window_start >= 1.0 or heard < self.window_start:
+            self.window_start = heard
+            self.window_ids.clear()
+
+    def flooded(self, key: tuple[bool, int], heard: float, recognised: bool) -> bool:
+        """Count a frame of an unknown ID in the one-second window; True while the bus is flooded
+        (nothing is watched or listed then)."""
+        if recognised and len(self.window_ids) <= FLOOD_NEW_IDS_PER_S:
+            self.window_ids.add(key)
+            if len(self.window_ids) > FLOOD_NEW_IDS_PER_S:
+                self._flood(heard)
+        if self.flood_until and heard >= self.flood_until:
+            self.flood_until = 0.0  # quiet for FLOOD_QUIET_S: discovery resumes
+            self.flood_since = None
+            log.info("discovery resumes: no flood of new CAN IDs for %.0f s", FLOOD_QUIET_S)
+        if self.flood_until:
+            self.flood_frames += 1
+            return True
+        return False
+
+    def _flood(self, heard: float) -> None:
+        if not self.flood_until:
+            self.floods += 1
+            self.flood_since = time.time()
+            log.warning("CAN discovery: a flood of new IDs (over %d a second): nothing is listed until it has been quiet "
+                        "for %.0f s; %d watched IDs forgotten", FLOOD_NEW_IDS_PER_S, FLOOD_QUIET_S, len(self.candidates))
+            self.candidates.clear()  # flood-born: none of them is evidence of a device
+        self.flood_until = heard + FLOOD_QUIET_S
+        self.flood_end = time.time() + FLOOD_QUIET_S
 
     def refused_reason(self, key: tuple[bool, int]) -> str | None:
         reason = self.refused.get(key)
@@ -281,8 +325,12 @@ class Worker:
         heard = msg.timestamp if msg.timestamp and msg.timestamp > 0 else time.time()
         candidate = table.candidates.get(key)
         if candidate is None:
-            entry = self._recognise(msg, data)
-            if entry is None:
+            table.roll_window(heard)
+            if key in table.window_ids:  # heard in this second already: no codec call (a flood repeats itself)
+                entry = None
+            else:
+                entry = self._recognise(msg, data)
+            if table.flooded(key, heard, entry is not None) or entry is None:
                 return
             if not table.make_room(heard):
                 table.dropped += 1
@@ -321,8 +369,13 @@ class Worker:
             if evidence:
                 rules.append(f"{DEVICE_TYPES[type_name].title}: {evidence['frames']} {evidence.get('text', 'frames')} "
                              f"about {evidence['period_s']:g} s apart")
+        flood = ""
+        if table.flood_until and time.time() < table.flood_end:
+            flood = (f"flood of new CAN IDs since {time.strftime('%H:%M:%S', time.localtime(table.flood_since))} "
+                     f"(over {FLOOD_NEW_IDS_PER_S} new IDs a second; {table.flood_frames} frames): "
+                     f"nothing is listed until it has been quiet for {FLOOD_QUIET_S:.0f} s")
         return {"candidates": len(table.candidates), "dropped": table.dropped, "refused_frames": table.refused_frames,
-                "listed_dropped": table.listed_dropped, "rules": rules}
+                "listed_dropped": table.listed_dropped, "rules": rules, "flood": flood, "floods": table.floods}
 
     # -- browser sessions -------------------------------------------------------------------
     def session_opened(self, session: str, role: str = "engineer") -> None:

@@ -234,7 +234,8 @@ def _discovered_section(bus: str, tile_row, tiles: list) -> None:
         summary = runtime.worker.discovery_summary(bus)
         watching = summary.get("candidates", 0)
         left_out = summary.get("dropped", 0) + summary.get("listed_dropped", 0)
-        signature = ([k for k, _e in entries], watching, left_out)
+        flood = summary.get("flood", "")
+        signature = ([k for k, _e in entries], watching, left_out, bool(flood))
         if signature == shown[0]:
             for key, entry in entries:  # only the texts change: rows and buttons are not rebuilt under the mouse
                 if key in ages:
@@ -243,7 +244,7 @@ def _discovered_section(bus: str, tile_row, tiles: list) -> None:
         shown[0] = signature
         box.clear()
         ages.clear()
-        if not entries and not watching and not left_out:
+        if not entries and not watching and not left_out and not flood:
             return
         with box:
             if entries:
@@ -258,6 +259,8 @@ def _discovered_section(bus: str, tile_row, tiles: list) -> None:
                     ui.button("Adopt", icon="add", on_click=lambda e=entry: _adopt_dialog(bus, e, tile_row, tiles)).props("dense outline").props(
                         f'data-adopt="{entry["device_id"]}"'
                     )
+            if flood:  # a flood is shown as a flood, never as devices
+                ui.label(f"Discovery on {bus}: {flood}").classes("text-body2 text-negative").props("data-discovery-flood")
             notes = []
             if watching:
                 rules = "; ".join(summary.get("rules") or [])
