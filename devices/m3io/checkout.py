@@ -41,6 +41,10 @@ async def _take(ctx) -> None:
     """Control of the module for the run's session, where the adapter asks for it (take_control)."""
     if callable(getattr(ctx.adapter, "take_control", None)):
         await ctx.command("take control", lambda a: a.take_control(ctx.session, ctx.user))
+    # addressed mode: outputs switch only once the product code matched the plant's variant (7.2.4.2.2)
+    await ctx.wait(lambda: ctx.value("Variant check") in ("ok", "not possible", "mismatch"), ctx.settings["settle_s"] + 2)
+    if ctx.value("Variant check") == "mismatch":
+        ctx.fail(ctx.entry("Variant check")["text"])
 
 
 def _point(ctx, name: str):
