@@ -52,6 +52,7 @@ MAX_IDS = 4096  # rows of the overwrite view
 INBOX_FRAMES = 4096  # per kind waiting for the loop: about 0.45 s of a full 1 Mbit/s bus; beyond, the oldest are shed
 DRAIN_BUDGET_S = 0.004  # the loop drains one bus this long at most, then runs timers and other tasks
 DRAIN_CHECK = 4  # frames between two looks at the clock
+READER_BACKOFF_S = 0.001  # the reader pauses this long when the hand-over is full (bench/can_ingest.py: 7.7x -> 12x)
 GIL_SWITCH_S = 0.001  # a busy reader thread holds the GIL at most this long while the loop owes a keep-alive (5 ms by default)
 SHED_WARN_S = 10.0  # at most one log line per bus this often while frames are shed
 CYCLE_GAPS = 16  # gaps kept per ID and frame length for the cycle time (median; O(1) per frame)
@@ -143,10 +144,23 @@ class IdStats:
     last_time: float = 0.0
     period: float | None = None  # the last gap
     data: bytes = b""
-    changed: int = 0  # bit n set: byte n differs from the previous frame
+    prev: bytes | None = None  # the frame before (None: only one heard); ``changed`` is worked out when asked
     direction: str = "rx"
     last_ts: float = 0.0  # the interface's time stamp of the last frame
     streams: dict = field(default_factory=dict)  # frame length -> CycleStream (at most CYCLE_STREAMS)
+
+    @property
+    def changed(self) -> int:
+        """Bit n set: byte n differs from the previous frame (read by the monitor a few times a second,
+        so it is not worked out for every frame)."""
+        old, data = self.prev, self.data
+        if old is None or old == data:
+            return 0
+        changed = 0
+        for i in range(max(len(old), len(data))):
+            if i >= len(old) or i >= len(data) or old[i] != data[i]:
+                changed |= 1 << i
+        return changed
 
     def add_time(self, t: float, length: int) -> None:
         streams = self.streams
@@ -503,6 +517,10 @@ class CanBus:
                 continue
             inbox = known if (msg.is_extended_id, msg.arbitration_id) in handlers else other
             if len(inbox) >= INBOX_FRAMES:
+                # the loop is behind: give it the interpreter for a moment instead of reading and shedding
+                # at full speed (frames wait in the interface's buffer meanwhile); then shed the oldest
+                self._stop.wait(READER_BACKOFF_S)
+            if len(inbox) >= INBOX_FRAMES:
                 try:
                     inbox.popleft()
                     self._shed += 1
@@ -598,33 +616,31 @@ class CanBus:
         return True  # this frame still goes to the listeners: what they do with it is unchanged
 
     def _record(self, msg: can.Message, direction: str) -> None:
+        """Monitor ring buffer, overwrite view, bits on the wire and the recorder: O(1) per frame."""
         state = self.state
         now = time.time()
         ts = msg.timestamp or now  # the interface's time: frames handed over in a batch keep their own gaps
         data = bytes(msg.data)
-        key = (msg.is_extended_id, msg.arbitration_id)
-        stats = state.ids.get(key)
+        ext = msg.is_extended_id
+        key = (ext, msg.arbitration_id)
+        ids = state.ids
+        stats = ids.get(key)
         if stats is None:
-            if len(state.ids) >= MAX_IDS:  # a flood of random IDs must not grow memory without bound:
-                state.ids.popitem(last=False)  # the ID heard least recently goes, in O(1)
-            stats = state.ids[key] = IdStats()
+            if len(ids) >= MAX_IDS:  # a flood of random IDs must not grow memory without bound:
+                ids.popitem(last=False)  # the ID heard least recently goes, in O(1)
+            stats = ids[key] = IdStats()
             dt = None
         else:
-            state.ids.move_to_end(key)
+            ids.move_to_end(key)
             dt = ts - stats.last_ts
-        state.frames.append(
-            FrameRecord(now, msg.arbitration_id, msg.is_extended_id, msg.dlc, data, direction, msg.is_error_frame, msg.is_remote_frame, dt)
-        )
-        if not msg.is_error_frame:
-            state.bits += frame_bits(msg.dlc, msg.is_extended_id)
+        dlc = msg.dlc
+        error = msg.is_error_frame
+        state.frames.append(FrameRecord(now, key[1], ext, dlc, data, direction, error, msg.is_remote_frame, dt))
+        if not error:
+            state.bits += (67 if ext else 47) + 8 * (dlc if dlc < 8 else 8)  # frame_bits(), inlined: this runs per frame
         if stats.count:
             stats.period = dt
-            old = stats.data
-            changed = 0
-            for i in range(max(len(old), len(data))):
-                if i >= len(old) or i >= len(data) or old[i] != data[i]:
-                    changed |= 1 << i
-            stats.changed = changed
+            stats.prev = stats.data
         stats.add_time(ts, len(data))
         stats.count += 1
         stats.last_time = now

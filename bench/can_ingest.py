@@ -100,8 +100,8 @@ async def ingest(count: int) -> tuple[float, int, int]:
     device = worker.store.devices["gate-1"]
     start = time.perf_counter()
     await can_bus.start()
-    # the reader thread drains the queue far faster than a bus delivers, so the hand-over sheds the
-    # oldest while the loop is behind: done when every frame was handled or shed
+    # the reader thread drains the queue far faster than a bus delivers: while the hand-over is full it
+    # pauses (app.can_bus.READER_BACKOFF_S), then sheds the oldest; done when every frame was handled or shed
     while state.rx_frames + state.shed < count and time.perf_counter() - start < 60:
         await asyncio.sleep(0.001)
     elapsed = time.perf_counter() - start
@@ -152,7 +152,7 @@ async def run(count: int, rate: int, seconds: float) -> None:
     elapsed, handled, lost = await ingest(count)
     fps = handled / elapsed
     print(f"frames queued: {count}, handled: {handled}, shed at the hand-over: {lost} "
-          f"(the queue is drained at memory speed, faster than any bus delivers)")
+          f"(the queue is drained at memory speed, faster than any bus delivers; the reader pauses while the hand-over is full)")
     print(f"receive path: {fps:,.0f} frames/s ({elapsed * 1e6 / max(handled, 1):.1f} us per frame)")
     print(f"1 Mbit/s bus limit: {BUS_LIMIT_FPS:,.0f} frames/s (8-byte extended frames, {FRAME_BITS} bits)")
     print("not timed here: the interface's receive cost, making each can.Message, discovery of unknown IDs; "
