@@ -6,6 +6,11 @@ complete (or the timeout passes), counts the outcome and keeps a bounded transac
 the bus monitor. pyserial is blocking: the port is opened, written and read in a thread, so
 the event loop (and every keep-alive on it) never waits for the wire.
 
+A keep-alive the device needs on time whatever the event loop does (the SCU's RC within 500 ms)
+runs in the line's own thread (:meth:`SerialLine.start_cyclic`): the thread calls the device's
+``tick(exchange)``, which exchanges requests through the same port under the same lock and says
+when it wants to run next. It never waits for the loop, so a stalled loop cannot delay it.
+
 DTR and RTS are switched on before the port opens and kept on: some units (the Ewellix SCU)
 take the power of their RS232 converter from them.
 """
@@ -14,6 +19,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -45,6 +51,33 @@ class SerialTransaction:
 
 # ``complete(buffer)`` -> total length of the answer once it can be told, else None (read more)
 Completion = Callable[[bytes], int | None]
+# What a cyclic tick gets: ``exchange(request, complete, describe=..., decode=..., timeout=...)`` -> the answer,
+# blocking, on the line's thread (raises SerialTimeout / SerialClosed like transact)
+Exchange = Callable[..., bytes]
+# ``tick(exchange)`` -> seconds until the thread should call it again
+Tick = Callable[[Exchange], float]
+
+
+class _LineThread:
+    """One cyclic sender of a line: a daemon thread calling ``tick`` on a clock of its own."""
+
+    def __init__(self, line: SerialLine, key: str, tick: Tick):
+        self.line = line
+        self.key = key
+        self.tick = tick
+        self.stop_event = threading.Event()
+        self.errors = 0
+        self.thread = threading.Thread(target=self._run, name=f"{line.name} {key}", daemon=True)
+
+    def _run(self) -> None:
+        while not self.stop_event.is_set():
+            try:
+                delay = self.tick(self.line.exchange_blocking)
+            except Exception:  # noqa: BLE001 - the thread must go on: a failed tick is logged and counted
+                self.errors += 1
+                log.exception("%s: cyclic %s failed", self.line.name, self.key)
+                delay = 0.05
+            self.stop_event.wait(max(0.001, min(float(delay), 1.0)))
 
 
 class SerialLine:
@@ -59,6 +92,8 @@ class SerialLine:
         self._lock = asyncio.Lock()
         self._failures = 0
         self._next_open = 0.0
+        self._port_lock = threading.Lock()  # the port itself: the loop's requests (in threads) and the line's own thread
+        self._cyclic: dict[str, _LineThread] = {}
 
     # -- the port -----------------------------------------------------------------------
     def _open_blocking(self) -> serial.SerialBase:
@@ -98,6 +133,9 @@ class SerialLine:
         return True
 
     def close(self) -> None:
+        """Close the port; the line's own threads end (a closed line sends nothing)."""
+        for key in list(self._cyclic):
+            self.stop_cyclic(key)
         port, self.port = self.port, None
         if port is not None:
             try:
@@ -115,6 +153,10 @@ class SerialLine:
     # -- resynchronising, waking -----------------------------------------------------------
     def _flush_blocking(self, port: serial.SerialBase, quiet_s: float, limit_s: float) -> int:
         """Read and drop bytes until the line has been quiet for ``quiet_s`` (at most ``limit_s``)."""
+        with self._port_lock:
+            return self._flush_locked(port, quiet_s, limit_s)
+
+    def _flush_locked(self, port: serial.SerialBase, quiet_s: float, limit_s: float) -> int:
         dropped = 0
         end = time.monotonic() + limit_s
         port.timeout = quiet_s
@@ -147,13 +189,21 @@ class SerialLine:
             if not await self.connect():
                 raise SerialClosed(f"line {self.name}: {self.state.last_error}")
             try:
-                await asyncio.to_thread(self.port.send_break, duration_s)
+                await asyncio.to_thread(self._break_blocking, self.port, duration_s)
             except (serial.SerialException, OSError) as exc:
                 self._lost(exc)
                 raise SerialClosed(f"line {self.name}: {self.state.last_error}") from None
 
+    def _break_blocking(self, port: serial.SerialBase, duration_s: float) -> None:
+        with self._port_lock:
+            port.send_break(duration_s)
+
     # -- requests -----------------------------------------------------------------------
     def _exchange_blocking(self, port: serial.SerialBase, request: bytes, complete: Completion, timeout: float) -> bytes:
+        with self._port_lock:
+            return self._exchange_locked(port, request, complete, timeout)
+
+    def _exchange_locked(self, port: serial.SerialBase, request: bytes, complete: Completion, timeout: float) -> bytes:
         stale = port.read(port.in_waiting or 0) if port.in_waiting else b""
         if stale:
             log.debug("%s: %d stale bytes dropped before a request", self.name, len(stale))
@@ -189,28 +239,73 @@ class SerialLine:
                 raise SerialClosed(f"line {self.name}: {self.state.last_error}")
             port = self.port
             started = time.monotonic()
-            error = ""
             answer = b""
             try:
                 answer = await asyncio.to_thread(self._exchange_blocking, port, request, complete, timeout)
             except (serial.SerialException, OSError) as exc:
                 self._lost(exc)
-                error = f"port lost: {exc}"
+                self._log(request, b"", complete, started, timeout, describe, decode, f"port lost: {exc}")
                 raise SerialClosed(f"line {self.name}: {self.state.last_error}") from None
-            finally:
-                rtt = (time.monotonic() - started) * 1000
-                need = complete(answer) if answer or not error else None
-                if not error and (need is None or len(answer) < need):
-                    error = f"no complete answer within {timeout:g} s ({len(answer)} bytes)"
-                text = ""
-                if not error and decode is not None:
-                    try:
-                        text = decode(answer[:need])
-                    except Exception as exc:  # noqa: BLE001 - the log shows what could not be decoded
-                        text = f"cannot decode: {exc}"
-                self.state.transactions.append(SerialTransaction(
-                    time.time(), describe or request[:2].decode("ascii", "replace"), request.hex(" ").upper(),
-                    answer.hex(" ").upper(), text, None if error else round(rtt, 2), error))
-            if error:
-                raise SerialTimeout(f"line {self.name}: {error}")
-            return answer[:need]
+            return self._finish(request, answer, complete, started, timeout, describe, decode)
+
+    def _finish(self, request: bytes, answer: bytes, complete: Completion, started: float, timeout: float,
+                describe: str, decode: Callable[[bytes], str] | None) -> bytes:
+        need = self._log(request, answer, complete, started, timeout, describe, decode, "")
+        if need is None or len(answer) < need:
+            raise SerialTimeout(f"line {self.name}: no complete answer within {timeout:g} s ({len(answer)} bytes)")
+        return answer[:need]
+
+    def _log(self, request: bytes, answer: bytes, complete: Completion, started: float, timeout: float,
+             describe: str, decode: Callable[[bytes], str] | None, error: str) -> int | None:
+        """One line of the monitor's transaction log (thread-safe: a deque append); the answer's length."""
+        rtt = (time.monotonic() - started) * 1000
+        need = complete(answer) if answer or not error else None
+        if not error and (need is None or len(answer) < need):
+            error = f"no complete answer within {timeout:g} s ({len(answer)} bytes)"
+        text = ""
+        if not error and decode is not None:
+            try:
+                text = decode(answer[:need])
+            except Exception as exc:  # noqa: BLE001 - the log shows what could not be decoded
+                text = f"cannot decode: {exc}"
+        self.state.transactions.append(SerialTransaction(
+            time.time(), describe or request[:2].decode("ascii", "replace"), request.hex(" ").upper(),
+            answer.hex(" ").upper(), text, None if error else round(rtt, 2), error))
+        return None if error else need
+
+    # -- the line's own thread ------------------------------------------------------------------------
+    def exchange_blocking(self, request: bytes, complete: Completion, *, timeout: float | None = None,
+                          describe: str = "", decode: Callable[[bytes], str] | None = None) -> bytes:
+        """:meth:`transact` for the line's own thread: blocking, never waits for the event loop; the port
+        is not opened here (the loop opens it).
+
+        :raises SerialTimeout: no complete answer in time
+        :raises SerialClosed: the port is not open
+        """
+        timeout = self.options["timeout"] if timeout is None else timeout
+        port = self.port
+        if port is None:
+            raise SerialClosed(f"line {self.name}: not open")
+        started = time.monotonic()
+        try:
+            answer = self._exchange_blocking(port, request, complete, timeout)
+        except (serial.SerialException, OSError, AttributeError, TypeError) as exc:  # closed under it by the loop
+            self._log(request, b"", complete, started, timeout, describe, decode, f"port lost: {exc}")
+            raise SerialClosed(f"line {self.name}: {exc}") from None
+        return self._finish(request, answer, complete, started, timeout, describe, decode)
+
+    def start_cyclic(self, key: str, tick: Tick) -> None:
+        """Run ``tick(exchange)`` in a thread of this line until :meth:`stop_cyclic`; ``tick`` returns the
+        seconds until its next call. The clock does not depend on the event loop."""
+        self.stop_cyclic(key)
+        runner = self._cyclic[key] = _LineThread(self, key, tick)
+        runner.thread.start()
+
+    def stop_cyclic(self, key: str) -> None:
+        runner = self._cyclic.pop(key, None)
+        if runner is not None:
+            runner.stop_event.set()  # not joined: a tick in progress ends by itself (the loop never waits for it)
+
+    def cyclic_running(self, key: str) -> bool:
+        runner = self._cyclic.get(key)
+        return runner is not None and runner.thread.is_alive()

@@ -51,13 +51,19 @@ async def unit(actuators=2, timeout=0.3, **strict):
             await adapter.poll()
             await asyncio.sleep(max(0.02, 0.2 - (time.monotonic() - started)))
 
-    task = asyncio.create_task(loop())
+    async def supervise():  # the worker's dead-man supervisor: the pages of s1 and s2 are alive
+        while True:
+            adapter.renew_leases({"s1", "s2"})
+            await asyncio.sleep(0.05)
+
+    tasks = [asyncio.create_task(loop()), asyncio.create_task(supervise())]
     try:
         yield adapter, twin
     finally:
-        task.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await task
+        for task in tasks:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
         await adapter.stopped()
         await sim.stop()
         line.close()

@@ -7,6 +7,13 @@ and falls back to RG reads when the unit refuses the definition. Commands from t
 RT with RG read-back, RA, RG of any data ID) go through the same line; every RE is followed by
 its RS (section 4.6), also under the worker's dead-man rule (:meth:`holders`,
 :meth:`session_lost`).
+
+The RC keep-alive leaves from the serial line's own thread (:meth:`ScuAdapter._rc_tick`), on a
+clock no page work can delay, under a lease (devices/lease.py) the worker's dead-man supervisor
+renews while a function runs. Once that lease has lapsed (the event loop stalled, or the
+controlling browser is gone) the thread sends RS to every running function by itself (never RS 19:
+the emergency stop stays on) and then withholds RC, so the unit's own watchdog ends remote mode and
+stops every drive (section 5) even if an RS was lost.
 """
 
 from __future__ import annotations
@@ -14,12 +21,14 @@ from __future__ import annotations
 import asyncio
 import functools
 import math
+import threading
 import time
 from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
 from devices import values as v
+from devices.lease import Lease
 from devices.live import DeviceState
 from devices.scu import codec
 from devices.scu import params as p
@@ -54,6 +63,9 @@ REMOTE_SPEED_MAX = 1000  # table 7: relative 0 .. 100 %, absolute 0 .. 1000 coun
 # Table 7 / section 4.6: the remote speed is in % (0 .. 100) with "speed select relative", the standard
 # parametrisation, or in counts/s (0 .. 1000) with "speed select absolute"; the plant file says which.
 SPEED_LIMITS = {"relative": (100, "%"), "absolute": (REMOTE_SPEED_MAX, "counts/s")}
+RC_KEY = "scu rc"  # the RC keep-alive in the serial line's own thread (SerialLine.start_cyclic)
+RC_RETRY_S = 0.05  # an RC not answered is sent again this soon (the watchdog allows 500 ms)
+LEASE_CHECK_S = 0.02  # while a function runs the line's thread looks at the lease this often
 SERVICE_IDS = (0x0001, 0x0002, 0x0060, 0x0070, 0x0080, 0x0090, 0x00B0, 0x00C0, 0x00C1, 0x1010)
 
 
@@ -227,6 +239,19 @@ class ScuAdapter:
         self._fn_locks: dict[int, asyncio.Lock] = {}
         self._stop_marks: dict[int, float] = {}  # fnc_ID -> when a stop of it was asked
         self._stop_all_at = 0.0  # when a stop of everything was asked
+        # The RC keep-alive on the line's own thread, under a lease (issue 28). ``_guard`` makes the set of
+        # held functions and the lease one state for the thread: no RS and no withheld RC for a stop the
+        # loop has just made.
+        self.rc_on_line_thread = True  # False: RC from the poll on the loop (a line without a thread of its own)
+        self.lease = Lease()
+        self._guard = threading.Lock()
+        self._held: frozenset[int] = frozenset()  # running functions the lease covers (never 19)
+        self._rc_armed = False
+        self._rc_withheld = False  # the lease lapsed: RC is withheld until the session is opened again
+        self._rc_plain = False  # the unit refused RC with the cyclic object: the thread sends RC without data
+        self._rc_last = 0.0  # monotonic time the last acknowledged RC was sent (any sender)
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self.lapses = 0
         state.stale_after = 2.0
         state.registers_periodic = False
         state.info.update(session="closed", session_reason="", cyclic="", rc_period_ms=None, rc_max_gap_ms=None,
@@ -244,11 +269,13 @@ class ScuAdapter:
 
         :param quiet: a refusal is expected (a probe): not shown as the last error answer
         """
-        if keepalive and frame[:2] != codec.RC and self.session == "open" and self._rc_due():
+        if (keepalive and frame[:2] != codec.RC and self.session == "open" and not self._rc_threaded()
+                and self._rc_due()):
             await self._rc()  # only RC feeds the unit's 500 ms watchdog (section 5): long operations interleave it
         expected = bytes(frame[:2])
         for attempt in range(CRC_RETRIES + 1):
             self.state.counters.requests += 1
+            sent_at = time.monotonic()
             try:
                 raw = await self.line.transact(frame, functools.partial(answer_length, expected=expected),
                                                describe=describe, decode=_describe_answer)
@@ -282,7 +309,7 @@ class ScuAdapter:
                 raise
             self._answered()
             if frame[:2] == codec.RC and answer.ok:
-                self.rc_times.append(time.monotonic())
+                self._note_rc(sent_at)
             if not answer.ok:
                 await self._refused(describe, answer, quiet=quiet)
             self.state.counters.responses += 1
@@ -302,7 +329,18 @@ class ScuAdapter:
                 self.state.info["resyncs"] = self.resyncs
 
     def _rc_due(self) -> bool:
-        return not self.rc_times or time.monotonic() - self.rc_times[-1] >= self.keepalive_period_s
+        return time.monotonic() - self._rc_last >= self.keepalive_period_s
+
+    def _note_rc(self, sent_at: float) -> None:
+        with self._guard:
+            self._rc_last = max(self._rc_last, sent_at)
+            self.rc_times.append(time.monotonic())
+
+    def rc_gaps(self) -> list[float]:
+        """Seconds between the acknowledged RCs kept (the last 50)."""
+        with self._guard:
+            times = list(self.rc_times)
+        return [b - a for a, b in zip(times, times[1:])]
 
     def _answered(self) -> None:
         self._last_answer = time.monotonic()
@@ -367,6 +405,199 @@ class ScuAdapter:
     def _set_session(self, session: str, reason: str = "") -> None:
         self.session, self.session_reason = session, reason
         self._publish_session()
+        if session == "open":
+            self._arm_rc()
+        else:
+            self._disarm_rc()
+
+    # -- the RC keep-alive on the line's own thread, under a lease (issue 28) ------------------------------
+    def _rc_threaded(self) -> bool:
+        return self.rc_on_line_thread and hasattr(self.line, "start_cyclic")
+
+    def _arm_rc(self) -> None:
+        """The session is open: RC every ``keepalive_period_s`` from the line's thread from now on."""
+        if not self._rc_threaded():
+            return
+        self._loop = asyncio.get_running_loop()
+        with self._guard:
+            self._rc_armed = True
+            self._rc_withheld = False
+            self._rc_plain = False
+        if not self.line.cyclic_running(RC_KEY):
+            self.line.start_cyclic(RC_KEY, self._rc_tick)
+
+    def _disarm_rc(self) -> None:
+        with self._guard:
+            self._rc_armed = False
+        if self._rc_threaded():
+            self.line.stop_cyclic(RC_KEY)
+
+    def _sync_held(self) -> None:
+        """The functions the lease covers follow ``running``; nothing held: the lease ends without a lapse."""
+        with self._guard:
+            self._held = frozenset(fn for fn in self.running if fn not in NOT_HELD)
+            if not self._held:
+                self.lease.revoke()
+        self.state.info["running"] = sorted(self.running)
+
+    def renew_leases(self, alive: set[str]) -> None:
+        """The worker's supervisor, every 50 ms: a session that runs a function is alive, it may go on."""
+        with self._guard:
+            held = self._held
+        if held and {s for fn, s in list(self.running.items()) if fn in held} & alive:
+            self.lease.renew()
+
+    def _call_loop(self, callback, *args) -> None:
+        loop = self._loop
+        if loop is None:
+            return
+        try:
+            loop.call_soon_threadsafe(callback, *args)
+        except RuntimeError:  # the loop is closed: nothing to report to any more
+            pass
+
+    def _thread_request(self, exchange, frame: bytes, describe: str) -> codec.Answer:
+        """One request from the line's thread (blocking); raises SerialLineError or codec.FrameError."""
+        expected = bytes(frame[:2])
+        raw = exchange(frame, functools.partial(answer_length, expected=expected), describe=describe,
+                       decode=_describe_answer)
+        start = header_offset(raw, expected) or 0
+        return codec.decode_answer(raw[start:], expected)
+
+    def _thread_rs(self, exchange, fn: int, why: str) -> bool:
+        """RS of ``fn`` from the line's thread, sent again on CSE or no answer (RS_ATTEMPTS); True once acknowledged."""
+        if fn in NOT_HELD:
+            return False  # never RS 19: it would end the emergency stop
+        label = codec.FUNCTIONS[codec.Function(fn)].label
+        for attempt in range(1, RS_ATTEMPTS + 1):
+            try:
+                answer = self._thread_request(exchange, codec.encode_rs(fn), f"RS {label} ({why})"
+                                              + (f", attempt {attempt}" if attempt > 1 else ""))
+            except (SerialLineError, codec.CodecError):
+                continue
+            if answer.ok:
+                return True
+            if answer.status == codec.Status.PE:
+                return False  # remote mode gone: the unit has stopped remote motion (section 5)
+        return False
+
+    def _rc_tick(self, exchange) -> float:
+        """On the serial line's own thread: RC when due; after a lapse of the lease RS and no more RC.
+
+        Reads only what the loop sets atomically (``_guard``); reports to the loop with ``call_soon_threadsafe``.
+        Returns the seconds until it wants to run again.
+        """
+        period = self.keepalive_period_s
+        with self._guard:
+            if not self._rc_armed:
+                return period
+            held = self._held
+            lapsed = bool(held) and not self.lease.valid()
+            first = lapsed and not self._rc_withheld
+            if first:
+                self._rc_withheld = True
+            withheld = self._rc_withheld
+            lapsed_at = self.lease.lapsed_at
+        if first:
+            why = "lease lapsed: this program stalled or the controlling browser is gone"
+            results = {fn: self._thread_rs(exchange, fn, why) for fn in sorted(held)}
+            self._call_loop(self._lapsed, lapsed_at, results)
+        if withheld and not self.estop:
+            # The unit's own watchdog now ends remote mode and stops every drive (section 5), also one whose RS
+            # was lost. With the emergency stop on, RC goes on: nothing moves, and remote mode keeps F20 in force.
+            return period
+        check = LEASE_CHECK_S if held and not withheld else period  # a lapse is noticed within 20 ms
+        now = time.monotonic()
+        due = self._rc_last + period
+        if now < due:
+            return min(due - now, check)
+        cyclic = self.cyclic
+        frame = codec.encode_rc(CYCLIC_INDEX) if cyclic is not None and not self._rc_plain else codec.KEEP_ALIVE
+        sent_at = time.monotonic()
+        try:
+            answer = self._thread_request(exchange, frame, "RC keep-alive" + (" with CyclicObj 1" if frame != codec.KEEP_ALIVE else ""))
+        except SerialLineError as exc:
+            self._call_loop(self._thread_rc_failed, exc)
+            return RC_RETRY_S
+        except codec.FrameError as exc:
+            self._call_loop(self._thread_rc_failed, exc)
+            return 0.0  # a bad CRC or a shifted answer: at once again
+        if answer.ok:
+            self._note_rc(sent_at)
+            self._call_loop(self._thread_rc_answer, answer, cyclic if frame != codec.KEEP_ALIVE else None)
+            return min(period, check)
+        self._call_loop(self._thread_rc_refused, answer)
+        if answer.status == codec.Status.PE:
+            with self._guard:
+                self._rc_armed = False  # remote mode is gone: the loop reopens the session
+            return period
+        self._rc_plain = True  # RC with the cyclic object refused: RC without data, at once
+        return 0.0
+
+    def _thread_rc_answer(self, answer: codec.Answer, cyclic: p.CyclicDefinition | None) -> None:
+        """In the loop: an RC the line's thread sent was acknowledged; its cyclic data published."""
+        self.state.counters.requests += 1
+        self.state.counters.responses += 1
+        self._answered()
+        if cyclic is not None and answer.has_ctp and cyclic is self.cyclic:
+            try:
+                self._publish_ids(cyclic.decode_read(answer.data))
+            except (v.DecodeError, ValueError) as exc:
+                self.state.error(f"RC cyclic data: {exc}", log=False)
+
+    def _thread_rc_failed(self, exc: Exception) -> None:
+        self.state.counters.requests += 1
+        if isinstance(exc, SerialTimeout):
+            self.state.counters.timeouts += 1
+        elif isinstance(exc, codec.ChecksumError):
+            self.state.counters.crc_errors += 1
+        elif isinstance(exc, codec.FrameError):
+            self.state.counters.malformed += 1
+        self._no_answer()
+
+    def _thread_rc_refused(self, answer: codec.Answer) -> None:
+        self.state.counters.requests += 1
+        self.state.counters.exceptions += 1
+        info = codec.CommandRefused(answer.command, answer.status).info
+        if answer.status == codec.Status.PE:
+            self._lost(f"PE (permission error) to the RC keep-alive: the unit is no longer in remote mode")
+            return
+        if self.cyclic is not None:
+            self.cyclic = None
+            self.cyclic_refused = True
+            self.cyclic_note = (f"the unit refused RC with the cyclic object ({info.name}: {info.title}); "
+                                "RC without data keeps the session, live data is read with RG")
+            self.state.info["cyclic"] = self.cyclic_note
+            self.state.event("warning", self.cyclic_note)
+
+    def _lapsed(self, lapsed_at: float, results: dict[int, bool]) -> None:
+        """In the loop: the lease lapsed and the line's thread has sent RS by itself and withholds RC."""
+        self.lapses += 1
+        renewed = self.lease.renewed_at
+        late_ms = (lapsed_at - renewed) * 1000 if renewed is not None else self.lease.valid_s * 1000
+        stopped = [fn for fn, ok in results.items() if ok]
+        for fn in stopped:
+            self.running.pop(fn, None)
+            self.rs_pending.pop(fn, None)
+        for fn, ok in results.items():
+            if not ok and fn in self.running:
+                self.rs_pending[fn] = "lease lapsed"
+        self._sync_held()
+        self.state.info["rs_pending"] = sorted(self.rs_pending)
+        names = lambda fns: ", ".join(codec.FUNCTIONS[codec.Function(f)].label for f in fns)  # noqa: E731
+        text = (f"motion stopped: the lease of the running functions lapsed (not renewed for {late_ms:.0f} ms: this "
+                "program stalled, or the controlling browser stopped confirming it is alive); the serial line's own "
+                f"thread sent RS to {names(results) or 'nothing'} by itself")
+        if [fn for fn, ok in results.items() if not ok]:
+            text += f" (not acknowledged: {names([f for f, ok in results.items() if not ok])}; RS is sent again)"
+        text += (" and kept RC going: the emergency stop is on" if self.estop else
+                 " and withheld RC, so the unit's watchdog ends remote mode and stops every drive (section 5)")
+        self.state.event("error", text + ". Press again to move")
+        if self.estop:
+            with self._guard:
+                self._rc_withheld = False  # RC went on; a function still held after a failed RS gets RS again
+        else:
+            self._lost("RC withheld after the motion's lease lapsed: the unit's watchdog ends remote mode")
 
     def _lost(self, reason: str) -> None:
         if self.session != "open":
@@ -434,7 +665,8 @@ class ScuAdapter:
         """RO with the Safety_ID, RC, the cyclic object definition (or the RG fallback), the end positions."""
         self._set_session("opening")
         self.cyclic = None
-        self.rc_times.clear()
+        with self._guard:
+            self.rc_times.clear()
         if self._failures:
             await self._wake()
         try:
@@ -547,7 +779,8 @@ class ScuAdapter:
             await self._end_session("nobody holds control: watching with RG outside a remote session")
         try:
             if self.session == "open":
-                await self._rc()
+                if not self._rc_threaded():
+                    await self._rc()  # else the line's own thread sends it (_rc_tick)
                 for fn in sorted(self.rs_pending):
                     await self._send_rs(fn, self.rs_pending[fn])
             live = [] if self.cyclic is not None else list(CYCLIC_READ_IDS)
@@ -600,9 +833,8 @@ class ScuAdapter:
             self._publish_ids({read_id: value}, every=None if last is None else now - last)
 
     def _publish_period(self) -> None:
-        times = list(self.rc_times)
-        if len(times) >= 2:
-            gaps = [b - a for a, b in zip(times, times[1:])]
+        gaps = self.rc_gaps()
+        if gaps:
             self.state.info["rc_period_ms"] = round(sum(gaps) / len(gaps) * 1000, 1)
             self.state.info["rc_max_gap_ms"] = round(max(gaps) * 1000, 1)
             self.state.publish("RC period", self.state.info["rc_period_ms"], "ms",
@@ -784,13 +1016,13 @@ class ScuAdapter:
             if fn == codec.Function.EMERGENCY_STOP:
                 self.estop = False
                 self._publish_estop()
-            self.state.info["running"] = sorted(self.running)
+            self._sync_held()
             self.state.info["rs_pending"] = sorted(self.rs_pending)
             return True
         if fn != codec.Function.EMERGENCY_STOP:
             self.rs_pending[fn] = why
             self.running.setdefault(fn, self.running.get(fn, ""))
-        self.state.info["running"] = sorted(self.running)
+        self._sync_held()
         self.state.info["rs_pending"] = sorted(self.rs_pending)
         self.state.error(f"STOP FAILED: RS {label} ({why}) was not acknowledged: {problem}. {label} stays held; "
                          "RS is sent again on every poll and when the session reopens. Use the hand switch or cut "
@@ -834,8 +1066,10 @@ class ScuAdapter:
                 await self._rc()
             if self._stopped_since(int(fn), requested_at):
                 raise CommandError(f"{label}: a stop came after this request: no RE sent")
+            if fn not in NOT_HELD:
+                self.lease.grant()  # the controlling session pressed just now: alive; the supervisor renews it
             self.running[int(fn)] = session  # before the request: a lost answer must still be followed by RS
-            self.state.info["running"] = sorted(self.running)
+            self._sync_held()
             try:
                 await self._request(frame, f"RE {words}", keepalive=False)
             except BaseException:
@@ -904,6 +1138,7 @@ class ScuAdapter:
         await self._request(codec.encode_re(codec.Function.EMERGENCY_STOP), "RE F20 emergency stop", keepalive=False)
         self.running[int(codec.Function.EMERGENCY_STOP)] = session or ""
         self.estop = True
+        self._sync_held()
         self._publish_estop()
         self.state.event("warning", "emergency stop (function 19)")
         await self._stop_functions([f for f in self.running if f not in NOT_HELD], "emergency stop")

@@ -27,6 +27,7 @@ import asyncio
 import logging
 import math
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import urlparse
@@ -198,6 +199,9 @@ class ScuTwin:
         self.split_answers = False  # answers come in two pieces with a pause between (inter-byte gap)
         self.keys = 0  # Actual_State_Keys (0x0040)
         self.function_log: list[tuple[str, int]] = []  # (RE/RS, fnc_ID) in the order executed
+        self.function_times: list[float] = []  # monotonic time of each function_log entry
+        self.watchdog_trips: list[float] = []
+        self.rc_received: deque[float] = deque(maxlen=5000)  # monotonic times of the RCs that fed the watchdog  # monotonic times the RC watchdog ended remote mode
         # fault injection and counters
         self.line_dropped = False
         self.open_re: dict[int, float] = {}  # fnc_ID -> time of an RE not yet stopped with RS
@@ -259,6 +263,7 @@ class ScuTwin:
         """Drop remote mode when RC did not come for 500 ms (section 4.1, table 3); True if it tripped."""
         if self.remote and now - self.last_rc > codec.WATCHDOG_S:
             self.session_lost_count += 1
+            self.watchdog_trips.append(now)
             self.raise_error(codec.REMOTE_TIMEOUT_MASK)
             self._end_session(now, "no RC for 500 ms")
             return True
@@ -510,10 +515,12 @@ class ScuTwin:
                 at += size
             read = b"".join(self.read(i) for i in definition.read_ids)
         self.last_rc, self.rc_seen = now, True
+        self.rc_received.append(now)
         return codec.encode_answer(codec.RC, Status.ACK, read)
 
     def _execute(self, function: int, para: tuple[int, ...], now: float) -> int:
         self.function_log.append(("RE", function))
+        self.function_times.append(now)
         fn = Function(function)
         if fn in codec.MOTION_FUNCTIONS:
             status = self._start(function, Motion(para[0]), para[1])
@@ -533,6 +540,7 @@ class ScuTwin:
 
     def _stop(self, function: int) -> int:
         self.function_log.append(("RS", function))
+        self.function_times.append(time.monotonic())
         fn = Function(function)
         if fn in codec.MOTION_FUNCTIONS:
             for act in self.actuators:
