@@ -3,20 +3,18 @@ counters, error memory, modes; commands, settings, change monitoring and the TCP
 
 from __future__ import annotations
 
-import inspect
-
 from nicegui import ui
 
 from app import runtime as rt
 from devices.mo64 import codec
-from devices.mo64.adapter import COMMAND_NAMES, HELD_LEVELS, NeedsConfirmation
+from devices.mo64.adapter import COMMAND_NAMES, HELD_LEVELS
+from devices.mo64.policy import EEPROM_RISK, operation_name, setting_name
 from pages.electrak import gate
 from pages.frame import frame, set_status_badge
 from pages.widgets import (
     Lamp,
     WriteGuard,
     checked_value,
-    confirm,
     counter_line,
     entry_age,
     event_log,
@@ -29,8 +27,7 @@ from pages.widgets import (
 )
 
 MOTION_WARNING = "the boom moves: check that nobody stands under it"
-EEPROM_WARNING = ("Every setting write wears the barrier's EEPROM (chapter 4: the number of writes is limited). "
-                  "Write only what must change.")
+EEPROM_WARNING = EEPROM_RISK  # the declared risk of every setting write (devices/mo64/policy.py)
 ALARM_BITS = {"LS", "Baum ab", "F_ereignis"}
 # what the status bits mean (chapter 5.1.7, pages 16-17; SPEC-NOTES "Barrier status"); a bit the summary
 # names without its function says so
@@ -90,12 +87,10 @@ def content(name: str) -> None:
     client = ui.context.client
     session = client.id
 
-    async def act(describe: str, fn, success: str = "", write: bool = True, **audit):
-        async def action(a):
-            result = fn(a)
-            return await result if inspect.isawaitable(result) else result
-
-        result = await run_command(name, action, describe, success=success, write=write, **audit)
+    async def act(command: str, args: dict | None = None, success: str = "", confirmed: bool = False):
+        """Invoke a declared command of the MO 64 (devices/mo64/policy.py) by name: the gate decides on its
+        kind and the role, and asks its declared risk here (run_command) unless ``confirmed``."""
+        result = await run_command(name, command, args=args, session=session, success=success, confirmed=confirmed)
         if updater:
             updater[0]()  # the reply and the levels are shown at once
         return result
@@ -103,57 +98,30 @@ def content(name: str) -> None:
     updater: list = []
 
     async def move(cmd: codec.Command, fn: codec.Function) -> None:
-        words = f"{COMMAND_NAMES[cmd]} {fn.name.lower()}"
-        confirmed = session in adapter.motion_confirmed
-        if not confirmed:
-            if not await confirm("Move the barrier", f"{MOTION_WARNING}.", ok="The area is clear: move"):
-                return
-            confirmed = True
-        await act(words, lambda a: a.command(session, cmd, fn, confirmed=confirmed), success=f"{words}: ack")
+        words = operation_name(cmd, fn)
+        # the declared risk ("the area is clear") is asked once per session: a session that confirmed it
+        # (the adapter keeps that) is not asked again
+        await act(words, success=f"{words}: ack", confirmed=session in adapter.motion_confirmed)
 
     async def clear_levels() -> None:
-        mine = sorted(COMMAND_NAMES[c] for c in adapter.levels)
-        if not mine:
+        if not adapter.levels:
             ui.notify("no level set by this tool is active")
             return
-        warn = (" Deactivating the open level lets the boom close." if codec.Command.OPEN in adapter.levels else "")
-        if not await confirm("Clear the levels this tool set",
-                             f"Deactivates: {', '.join(mine)}.{warn} {MOTION_WARNING}.", ok="The area is clear: clear"):
-            return
-        await act("clear levels", lambda a: a.clear_levels(session, confirmed=True), success="levels deactivated",
-                  parameter="levels", old=", ".join(mine), new="none")
+        await act("clear levels", success="levels deactivated")  # the gate asks the declared risk
 
     async def write(key: str, field) -> None:
         setting = codec.SETTINGS[key]
         value = await _entry_value(name, key, field)
         if value is None:
             return
-        verified = key in adapter.verified_selectors
-        if setting.assumed and not verified:
-            if not await confirm(
-                    f"{setting.name}: assumed selector",
-                    f"The selector 0x{setting.telegram:02X} 0x{setting.selector:02X} is an assumption "
-                    f"({setting.assumed}); the manual's summary does not name it. A wrong selector writes another "
-                    f"EEPROM setting. Confirm only if you verified on this unit that it is {setting.name}.",
-                    ok="Verified on this unit"):
-                return
-            verified = True
-        if setting.eeprom and not await confirm(
-                f"Write {setting.name}", f"{EEPROM_WARNING} Writes this session: {adapter.eeprom_writes.get(session, 0)}.",
-                ok="Write"):
-            return
-        old = point_text(SETTING_POINTS[key], "not read")
-        await act(f"set {setting.name}", lambda a: a.write_setting(session, key, value, selector_verified=verified),
-                  success=f"{setting.name} written and read back", parameter=setting.name, old=old,
-                  new=_value_words(key, value))
+        args: dict = codec.setting_to_fields(key, value)
+        if setting.assumed and key not in adapter.verified_selectors:
+            # the engineer states it by confirming the declared risk, which says so
+            args["selector_verified"] = True
+        await act(setting_name(key), args, success=f"{setting.name} written and read back")
 
     async def monitoring(on: bool) -> None:
-        if not await confirm("Change monitoring", f"{EEPROM_WARNING} Writes this session: "
-                             f"{adapter.eeprom_writes.get(session, 0)}.", ok="Write"):
-            return
-        await act("change monitoring " + ("on" if on else "off"), lambda a: a.set_change_monitoring(session, on),
-                  success="change monitoring " + ("on" if on else "off"), parameter="change monitoring",
-                  old=point_text("Change monitoring", "not read"), new="on" if on else "off")
+        await act("change monitoring", {"on": int(on)}, success="change monitoring " + ("on" if on else "off"))
 
     with frame(f"Bauer MO 64 {name}"):
         guard = WriteGuard(state)  # commands and settings, disabled with the reason while the barrier does not answer
@@ -179,10 +147,9 @@ def content(name: str) -> None:
                 with ui.row().classes("items-center gap-2"):
                     ui.label("The MO 64 serves one TCP client at a time (chapter 3).").classes("text-caption text-grey-8")
                     ui.button("Release the connection", icon="link_off", on_click=lambda: act(
-                        "release the connection", lambda a: a.release(session),
-                        success="released: another client may connect")).props("outline dense data-testid=release")
-                    ui.button("Take it back", icon="link", on_click=lambda: act(
-                        "take the connection back", lambda a: a.resume(session))) \
+                        "release the connection", success="released: another client may connect")) \
+                        .props("outline dense data-testid=release")
+                    ui.button("Take it back", icon="link", on_click=lambda: act("take the connection back")) \
                         .props("outline dense data-testid=resume")
 
         # -- commands ------------------------------------------------------------------------------
@@ -245,8 +212,7 @@ def content(name: str) -> None:
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-4"):
                 ui.label("Error memory (10 levels, newest first, chapter 5.1.23)").classes("text-subtitle1")
-                guard.add(ui.button("Read again", on_click=lambda: act("read error memory", lambda a: a.read_error_memory(),
-                                                                      write=False)).props("outline dense"))
+                guard.add(ui.button("Read again", on_click=lambda: act("read error memory")).props("outline dense"))
                 memory_age = ui.label().classes("q-age").props("data-testid=error-memory-age")
             errors = ui.table(columns=[{"name": k, "label": label, "field": k, "align": "left"} for k, label in
                                        (("level", "Level"), ("flags", "Error flags"), ("time", "Operating hours"))],
@@ -384,13 +350,6 @@ def _form_words(form: str | None) -> str:
             "short": "02 Auswahl (the document's form refused)"}.get(form or "", "not known yet")
 
 
-def _value_words(key: str, value) -> str:
-    """A value about to be written, in the words of its table (for the audit row)."""
-    if key in TIME_KEYS:
-        return f"{codec.time_s(int(value)):g} s ({int(value)} x 10 ms)"
-    return str(value)
-
-
 def _whole_number(label: str, low: int, high: int) -> ui.number:
     """A whole-number entry whose range reads as whole numbers (not 2.14748e+09)."""
     rule = f"allowed {low:,} .. {high:,}".replace(",", "\u2009")
@@ -457,4 +416,4 @@ def _parse(key: str, text: str | None):
     return int(text, 0) if text else 0
 
 
-__all__ = ["content", "boom_svg", "NeedsConfirmation"]
+__all__ = ["content", "boom_svg"]

@@ -40,7 +40,7 @@ def test_open_the_barrier_and_see_it_open(tmp_path, chromium):
             gate = page.get_by_test_id("gate-state")
             expect(gate).to_have_text("gate state: closed", timeout=15_000)
             page.get_by_test_id("pulse-open").click()
-            page.get_by_role("button", name="The area is clear: move").click()  # the first motion of the session
+            page.get_by_role("button", name="Send").click()  # the declared risk, asked at the first motion of the session
             # it goes through opening (or the pre-warning before it), then stands open
             expect(gate).to_have_text(re.compile(r"gate state: (opening|pre-warning before opening)"), timeout=10_000)
             expect(gate).to_have_text("gate state: open", timeout=20_000)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 from collections.abc import AsyncIterator
 
 import pytest
@@ -49,6 +51,22 @@ def by_testid(user: User, testid: str):
     return found[0]
 
 
+@contextlib.asynccontextmanager
+async def alive(worker, session: str):
+    """A browser session that keeps confirming it is alive (as a page's worker does, every 0.1 s)."""
+    async def beat():
+        while True:
+            worker.heartbeat(session)
+            await asyncio.sleep(0.05)
+
+    task = asyncio.create_task(beat())
+    worker.heartbeat(session)
+    try:
+        yield
+    finally:
+        task.cancel()
+
+
 def twin(runtime):
     return runtime.twins["gate"]
 
@@ -65,8 +83,9 @@ async def test_mo64_page_shows_the_gate_and_opens_after_the_confirmation(env):
     await user.should_see("Serial number: 6400001")  # the twin's serial number, as the identity card shows it
     await user.should_see("Baum ab = boom off")  # the status bits are explained
     UserInteraction(user, {by_testid(user, "pulse-open")}, None).click()
-    await eventually(lambda: user.find("The area is clear: move"), timeout=3)
-    user.find("The area is clear: move").click()
+    await user.should_see("nobody stands under it (the area is clear)")  # the declared risk, asked by the gate
+    assert twin(runtime).position_pct == 0  # nothing sent before the answer
+    user.find("Send").click()
     await eventually(lambda: "open pulse: ack" in by_testid(user, "reply").text, timeout=3, what=str(user.notify.messages))
     await eventually(lambda: "gate state: open" == by_testid(user, "gate-state").text, timeout=6)
     await eventually(lambda: by_testid(user, "position").text == "position: 100 %", timeout=3)
@@ -75,9 +94,9 @@ async def test_mo64_page_shows_the_gate_and_opens_after_the_confirmation(env):
     await eventually(lambda: adapter.holders() == {user.client.id}, timeout=3, what=str(user.notify.messages))
     await eventually(lambda: "close (dead-man)" in by_testid(user, "levels").text, timeout=2)
     UserInteraction(user, {by_testid(user, "clear-levels")}, None).click()
-    await eventually(lambda: user.find("The area is clear: clear"), timeout=3)  # asks first
+    await user.should_see("An open level released lets the boom close")  # asks the declared risk first, once
     assert adapter.holders() == {user.client.id}
-    user.find("The area is clear: clear").click()
+    user.find("Send").click()
     await eventually(lambda: adapter.holders() == set(), timeout=3)
     assert not twin(runtime).levels[2]  # the close level is off in the barrier
 
@@ -86,20 +105,19 @@ async def test_a_viewer_cannot_clear_levels_or_release_the_connection(env, monke
     user, runtime = env
     adapter = runtime.worker.adapters["gate"]
     await eventually(lambda: "Gate state" in adapter.state.points, timeout=10)
-    await runtime.worker.command("gate", lambda a: a.command("engineer-1", 2, 1, confirmed=True))
-    runtime.worker.beats["engineer-1"] = 1e12  # the engineer's browser stays alive for this test
-    await user.open("/device/gate")
-    monkeypatch.setattr("pages.session.current_user", lambda: ("tablet", "viewer"))
-    UserInteraction(user, {by_testid(user, "clear-levels")}, None).click()
-    await eventually(lambda: user.find("The area is clear: clear"), timeout=3)
-    user.find("The area is clear: clear").click()
-    await eventually(lambda: any("refused for tablet (viewer): clear levels" in e.text for e in adapter.state.events),
-                     timeout=3)
-    assert adapter.holders() == {"engineer-1"} and twin(runtime).levels[2]  # still active in the barrier
-    UserInteraction(user, {by_testid(user, "release")}, None).click()
-    await eventually(lambda: any("refused for tablet (viewer): release" in e.text for e in adapter.state.events),
-                     timeout=3)
-    assert not runtime.worker.lines["gate-bus"].released
+    async with alive(runtime.worker, "engineer-1"):  # the engineer's browser stays alive for this test
+        await runtime.worker.invoke("gate", "close activate", user="anna", role="engineer", session="engineer-1",
+                                    confirmed=True)
+        await user.open("/device/gate")
+        monkeypatch.setattr("pages.session.current_user", lambda: ("tablet", "viewer"))
+        UserInteraction(user, {by_testid(user, "clear-levels")}, None).click()  # refused by the gate before any question
+        await eventually(lambda: any("refused for tablet: clear levels: the viewer role may not" in e.text for e in adapter.state.events),
+                         timeout=3)
+        assert adapter.holders() == {"engineer-1"} and twin(runtime).levels[2]  # still active in the barrier
+        UserInteraction(user, {by_testid(user, "release")}, None).click()
+        await eventually(lambda: any("refused for tablet: release the connection: the viewer role may not" in e.text for e in adapter.state.events),
+                         timeout=3)
+        assert not runtime.worker.lines["gate-bus"].released
 
 
 async def test_mo64_dead_man_deactivates_the_close_level_of_a_silent_session(env):

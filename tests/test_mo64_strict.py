@@ -11,7 +11,7 @@ import time
 import httpx
 import pytest
 from conftest import free_port, wait_for
-from test_mo64_adapter import RX, TX, Script, answer, make_adapter, query
+from test_mo64_adapter import RX, TX, Script, answer, close_lines, make_adapter, query  # noqa: F401 - close_lines: autouse, closes the adapters made here
 from webutil import simulated_user
 
 from app.plant import parse_plant

@@ -499,9 +499,11 @@ class Mo64Adapter:
                       confirmed: bool = False) -> str:
         """Open, close or reverse as a pulse or a level; the answer ack or nak is returned and shown."""
         cmd, fn = codec.Command(command), codec.Function(function)
-        if confirmed:
+        # releasing a close or reverse level moves nothing towards a person (the dead-man rule does the same)
+        safe = fn is codec.Function.DEACTIVATE and cmd in HELD_LEVELS
+        if confirmed and not safe:
             self.motion_confirmed.add(session)
-        if session not in self.motion_confirmed:
+        if not safe and session not in self.motion_confirmed:
             raise NeedsConfirmation("the boom moves: check that nobody stands under it, then confirm")
         words = f"{COMMAND_NAMES[cmd]} {fn.name.lower()}"
         if fn is codec.Function.ACTIVATE:
@@ -544,6 +546,25 @@ class Mo64Adapter:
             raise CommandError(f"not deactivated (still active in the barrier): {', '.join(failed)}"
                                + (f"; deactivated: {', '.join(cleared)}" if cleared else ""))
         return cleared
+
+    async def clear_levels_asked(self, session: str | None = None) -> str:
+        """The declared command "clear levels" (devices/mo64/policy.py): the gate has asked its risk
+        (:data:`CLEAR_LEVELS_RISK`) before it runs this, so it is not asked again."""
+        cleared = await self.clear_levels(session, confirmed=True)
+        return "deactivated: " + (", ".join(cleared) if cleared else "none (no level of this tool was active)")
+
+    async def shutdown(self) -> list[str]:
+        """The tool stops: deactivate the close and reverse levels this tool set, each awaited to its ack
+        (on RS485 in this tool's turn, the token taken like for any request). The worker awaits this,
+        bounded, before it closes the lines; a level not acknowledged by then is sent once more,
+        unacknowledged, as the line closes (:meth:`closing_frames`). Returns the levels acknowledged."""
+        await self.stopped()  # dead-man deactivations already on their way
+        done = []
+        for cmd in [c for c in self.levels if c in HELD_LEVELS]:
+            if await self._deactivate(cmd, "the tool stops"):
+                done.append(COMMAND_NAMES[cmd])
+                self.state.event("info", f"the tool stops: {COMMAND_NAMES[cmd]} deactivated (ack)")
+        return done
 
     def closing_frames(self) -> list[bytes]:
         """The deactivations of the close and reverse levels this tool set, sent by the line as it closes
@@ -648,6 +669,18 @@ class Mo64Adapter:
         self.state.event("info", f"set {setting.name} = {value_text(back_answer.type, back_answer.value)} (read back)")
         return back
 
+    async def write_declared(self, session: str, key: str, numbers: list[int], selector_verified: bool = False) -> str:
+        """A declared "set ..." command (devices/mo64/policy.py): the setting from its numbers
+        (:func:`codec.setting_fields`), written and read back; the outcome with the value before, for
+        the audit row."""
+        setting = codec.SETTINGS[key]
+        before = self.settings.get(key)
+        answer_type = setting.query + codec.QUERY_ANSWER_OFFSET
+        back = await self.write_setting(session, key, codec.setting_from_fields(key, numbers),
+                                        selector_verified=selector_verified)
+        was = "not read" if before is None else self.restore_text(key, before)
+        return f"{setting.name}: {was} -> {value_text(answer_type, back)} (read back)"
+
     def _count_write(self, session: str) -> None:
         self.eeprom_writes[session] = self.eeprom_writes.get(session, 0) + 1
         self.eeprom_writes_total += 1
@@ -725,6 +758,46 @@ class Mo64Adapter:
 
     async def save_step(self) -> str:
         return "no save step: the MO 64 stores every setting in its EEPROM as it is written (chapter 4)"
+
+
+# -- the adapter methods the declared commands name (devices/mo64/policy.py) -------------------------------
+def operation_method(cmd: codec.Command, fn: codec.Function) -> str:
+    """The adapter method of operating command ``cmd`` with function ``fn``, e.g. ``open_pulse``."""
+    return f"{COMMAND_NAMES[cmd]}_{fn.name.lower()}"
+
+
+def setting_method(key: str) -> str:
+    """The adapter method of the declared "set ..." command of setting ``key``, e.g. ``write_t_open``."""
+    return f"write_{key}"
+
+
+def _operation(cmd: codec.Command, fn: codec.Function):
+    async def run(self: Mo64Adapter, session: str) -> str:
+        # reached through the gate only after the declared risk ("the area is clear") was confirmed
+        return await self.command(session, cmd, fn, confirmed=True)
+
+    run.__name__ = operation_method(cmd, fn)
+    run.__doc__ = f"{COMMAND_NAMES[cmd]} {fn.name.lower()} (chapter 5.2.1), as the declared command of that name."
+    return run
+
+
+def _setting(key: str):
+    async def run(self: Mo64Adapter, session: str, *numbers: int, selector_verified: bool = False) -> str:
+        return await self.write_declared(session, key, list(numbers), selector_verified=selector_verified)
+
+    run.__name__ = setting_method(key)
+    run.__doc__ = f"set {codec.SETTINGS[key].name}, as the declared command of that name."
+    return run
+
+
+for _cmd in codec.Command:
+    for _fn in codec.Function:
+        assert not hasattr(Mo64Adapter, operation_method(_cmd, _fn)), operation_method(_cmd, _fn)
+        setattr(Mo64Adapter, operation_method(_cmd, _fn), _operation(_cmd, _fn))
+for _key in codec.SETTINGS:
+    if _key != "change_monitoring":  # declared as "change monitoring" (on/off), see set_change_monitoring
+        assert not hasattr(Mo64Adapter, setting_method(_key)), setting_method(_key)
+        setattr(Mo64Adapter, setting_method(_key), _setting(_key))
 
 
 def _normal(setting: codec.Setting, value: Any) -> Any:

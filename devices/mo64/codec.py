@@ -763,6 +763,43 @@ def encode_setting(key: str, value: Any) -> bytes:
     return bytes((setting.telegram, setting.selector)) + setting.check(value)
 
 
+def _type_limits(vtype: v.ValueType) -> tuple[int, int]:
+    return vtype.base.limits if isinstance(vtype, v.Bits) else vtype.limits
+
+
+def setting_fields(key: str) -> tuple[tuple[str, int, int], ...]:
+    """The whole numbers a setting is entered and invoked as, ``(name, low, high)``: one ``value``, or one
+    per member named as the document names them (multi1 .. multi6, 5.2.7.1; konfig0 .. konfig3, 5.2.8.1)."""
+    setting = SETTINGS[key]
+    vtype = setting.vtype
+    if isinstance(vtype, v.Struct):
+        return tuple((name, *_type_limits(t)) for name, t in vtype.members)
+    if isinstance(vtype, v.Array):
+        return tuple((f"multi{n}", *_type_limits(vtype.item)) for n in range(1, vtype.count + 1))
+    return (("value", *(setting.limits or _type_limits(vtype))),)
+
+
+def setting_from_fields(key: str, numbers: Iterable[int]) -> Any:
+    """The value :func:`encode_setting` takes, from the numbers of :func:`setting_fields` (in order)."""
+    numbers = list(numbers)
+    vtype = SETTINGS[key].vtype
+    if isinstance(vtype, v.Struct):
+        return dict(zip((name for name, _ in vtype.members), numbers))
+    if isinstance(vtype, v.Array):
+        return numbers
+    return numbers[0]
+
+
+def setting_to_fields(key: str, value: Any) -> dict[str, int]:
+    """The numbers of :func:`setting_fields` for ``value`` (the inverse of :func:`setting_from_fields`)."""
+    names = [name for name, _, _ in setting_fields(key)]
+    if isinstance(value, Mapping):
+        return {name: int(value[name]) for name in names}
+    if isinstance(value, (list, tuple)):
+        return dict(zip(names, (int(x) for x in value)))
+    return {names[0]: int(value)}
+
+
 def setting_value(key: str, answer: Answer) -> Any:
     """The value of setting ``key`` from its read-back answer (for a restore's comparison)."""
     setting = SETTINGS[key]
