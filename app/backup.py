@@ -30,6 +30,10 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from app import gate
+from devices.commands import WRITE_PARAMETER
+from devices.commands import find as find_command
+
 SCHEMA = "commission-backup"
 VERSION = 1
 
@@ -181,23 +185,49 @@ def zip_files(paths: list[Path], target: Path) -> Path:
     return target
 
 
+MAX_BACKUP_BYTES = 5_000_000  # a backup of the largest register map is a few hundred kB (the Backup page says 5 MB)
+
+
 def load_document(text: str | bytes, source: str = "backup") -> dict:
-    """Parse and check a backup file; a corrupt, foreign or future file is refused by name."""
+    """Parse and check a backup file; a corrupt, foreign, future or malicious file is refused by name
+    (never with a traceback): too large, not UTF-8, not JSON, nested too deep, numbers too long,
+    or fields of the wrong kind."""
+    if len(text) > MAX_BACKUP_BYTES:
+        raise BackupError(f"{source}: {len(text) / 1e6:.1f} MB is too large for a backup (at most {MAX_BACKUP_BYTES / 1e6:.0f} MB)")
     try:
         data = json.loads(text)
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise BackupError(f"{source}: not a readable backup (truncated or not JSON: {exc})") from None
+    except RecursionError:  # the decoder counts its depth: 200,000 nested brackets end here, not in a crash
+        raise BackupError(f"{source}: not a backup: nested too deep") from None
+    except ValueError as exc:  # e.g. a number of more than 4300 digits
+        raise BackupError(f"{source}: not a readable backup: {str(exc).split(';')[0]}") from None
     if not isinstance(data, dict) or data.get("schema") != SCHEMA:
-        raise BackupError(f"{source}: not a commission backup file (schema {data.get('schema') if isinstance(data, dict) else None!r})")
+        schema = data.get("schema") if isinstance(data, dict) else None
+        raise BackupError(f"{source}: not a commission backup file (schema {str(schema)[:40]!r})")
     if data.get("version") != VERSION:
-        raise BackupError(f"{source}: backup schema version {data.get('version')!r} is not supported (this tool reads version {VERSION})")
+        raise BackupError(f"{source}: backup schema version {str(data.get('version'))[:20]!r} is not supported "
+                          f"(this tool reads version {VERSION})")
     device = data.get("device")
     params = data.get("parameters")
     if not isinstance(device, dict) or not isinstance(params, list):
         raise BackupError(f"{source}: the backup lacks its device or parameter list (damaged file)")
+    for key in ("name", "type", "bus"):
+        if key in device and not isinstance(device[key], str):
+            raise BackupError(f"{source}: the device's {key} is not a text (damaged file)")
+    for key in ("identity", "tool", "taken_by"):
+        if data.get(key) is not None and not isinstance(data[key], dict):
+            raise BackupError(f"{source}: \"{key}\" is not an object (damaged or edited file)")
+    for key in ("plant", "time"):
+        if data.get(key) is not None and not isinstance(data[key], str):
+            raise BackupError(f"{source}: \"{key}\" is not a text (damaged or edited file)")
     for entry in params:
         if not isinstance(entry, dict) or not {"key", "name", "raw", "writable"} <= set(entry):
             raise BackupError(f"{source}: a parameter entry is incomplete (damaged file)")
+        if not isinstance(entry["key"], str) or not isinstance(entry["name"], str) or not isinstance(entry["writable"], bool):
+            raise BackupError(f"{source}: a parameter entry's key, name or writable flag is of the wrong kind (damaged file)")
+        if "unit" in entry and not isinstance(entry["unit"], str):
+            raise BackupError(f"{source}: parameter {entry['name'][:40]!r}: its unit is not a text (damaged file)")
     return data
 
 
@@ -338,6 +368,7 @@ async def plan_restore(runtime, name: str, document: dict, progress=None) -> Res
             continue
         rows.append(_plan_row(state.params, entry, now, adapter))
     for row in rows:
+        row.risk = _declared_risk(runtime, name, row)
         if row.error:
             warnings.append(f"{row.name}: {row.error}")
     return RestorePlan(name, document, rows, warnings)
@@ -391,6 +422,24 @@ class RestoreReport:
         return text
 
 
+def _declares_write(runtime, device: str) -> bool:
+    config = runtime.plant.devices.get(device)
+    return config is not None and find_command(config.type, WRITE_PARAMETER) is not None
+
+
+def _declared_risk(runtime, device: str, row: DiffRow) -> str:
+    """The confirmation the device type's declared write asks for this value (its send policy), as the
+    device's page asks it; the parameter's own where the type declares no write."""
+    if row.param is None or row.error or not _declares_write(runtime, device):
+        return row.risk
+    try:
+        return gate.question(runtime.worker, device, WRITE_PARAMETER,
+                             {"param": row.param, "value": row.param.decode(row.backup_raw)})
+    except ValueError as exc:  # refused by the declaration: never written
+        row.error = str(exc)
+        return ""
+
+
 async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, user: str = "local", role: str = "engineer",
                           confirmed: set[str] = frozenset(), progress=None) -> RestoreReport:
     """Write the selected changed parameters through the worker (role checked, audited) and
@@ -410,18 +459,26 @@ async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, use
         elif row.risk and row.key not in confirmed:
             report.refused.append((row.name, f"{row.backup_text} needs a confirmation: {row.risk}"))
         else:
-            if row.param is not None:
-                def action(a, row=row):
-                    return a.write_param(row.param, row.param.decode(row.backup_raw), confirmed=row.key in confirmed)
-            else:
-                def action(a, row=row):
-                    return a.restore_entry(row.key, row.backup_raw)
             try:
-                await runtime.worker.command(
-                    plan.device, action, role=role, user=user,
-                    describe="restore", parameter=row.name, old=row.current_text, new=row.backup_text,
-                )
+                if row.param is not None and _declares_write(runtime, plan.device):
+                    # the device type's declared write: range, send policy and confirmation as on its page
+                    await gate.invoke(runtime.worker, plan.device, WRITE_PARAMETER,
+                                      {"param": row.param, "value": row.param.decode(row.backup_raw)}, user=user,
+                                      role=role, confirmed=row.key in confirmed, action="restore")
+                else:
+                    if row.param is not None:
+                        def action(a, row=row):
+                            return a.write_param(row.param, row.param.decode(row.backup_raw), confirmed=row.key in confirmed)
+                    else:
+                        def action(a, row=row):
+                            return a.restore_entry(row.key, row.backup_raw)
+                    await runtime.worker.command(
+                        plan.device, action, role=role, user=user,
+                        describe="restore", parameter=row.name, old=row.current_text, new=row.backup_text,
+                    )
                 report.written.append(row.name)
+            except gate.NeedsConfirmation as question:
+                report.refused.append((row.name, f"{row.backup_text} needs a confirmation: {question.question}"))
             except Exception as exc:  # noqa: BLE001 - every failure is reported per parameter
                 report.failed.append((row.name, str(exc)))
                 if exc.__class__.__name__ in ("PermissionDenied", "AuditUnavailable"):

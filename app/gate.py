@@ -110,8 +110,10 @@ async def run_stop(worker: Any, action: Callable[[], Awaitable[Any]], *, device:
 
 
 async def invoke(worker: Any, device: str, name: str, args: Mapping[str, Any] | None = None, *, user: str,
-                 role: str, session: str = "", confirmed: bool = False) -> Any:
+                 role: str, session: str = "", confirmed: bool = False, action: str = "") -> Any:
     """Run the declared command ``name`` of ``device`` with ``args``.
+
+    ``action`` names the workflow in the audit row (e.g. "restore") in place of the command's own wording.
 
     :raises KeyError: no such device; :raises CommandError: not declared, or an argument out of range
         (audited as a refusal); :raises PermissionDenied: the role may not (audited);
@@ -141,7 +143,10 @@ async def invoke(worker: Any, device: str, name: str, args: Mapping[str, Any] | 
     adapter = worker.adapters[device]
     if command.refuse_if is not None:
         config = worker.plant.devices[device]
-        reason = command.refuse_if(values, worker.plant.devices_on(config.bus), device)
+        try:
+            reason = command.refuse_if(values, worker.plant.devices_on(config.bus), device)
+        except Exception as exc:  # noqa: BLE001 - a policy that cannot judge the request refuses it
+            reason = f"the send policy could not check it: {exc}"
         if reason:
             await worker.refused(device=device, user=user, role=role, describe=command.name, reason=reason,
                                  new=_shown(values))
@@ -157,12 +162,33 @@ async def invoke(worker: Any, device: str, name: str, args: Mapping[str, Any] | 
         raise NeedsConfirmation(command.name, risk)
 
     async def run() -> Any:
-        result = command.call(adapter, session, values)
+        result = command.call(adapter, session, values, confirmed=bool(risk))
         return await result if inspect.isawaitable(result) else result
 
-    return await worker.checked(run, device=device, role=role, user=user, describe=command.name, kind=command.kind,
-                                record=command.kind != "read", new=_shown(values))
+    row = {"action": command.name, "parameter": "", "old": "", "new": _shown(values)}
+    if command.audit is not None:
+        row.update(command.audit(values, adapter))
+    if action:
+        row["action"] = action
+    return await worker.checked(run, device=device, role=role, user=user, describe=row["action"], kind=command.kind,
+                                record=command.kind != "read", parameter=row["parameter"], old=row["old"], new=row["new"])
+
+
+def question(worker: Any, device: str, name: str, args: Mapping[str, Any] | None = None) -> str:
+    """The confirmation the declared command ``name`` asks with ``args`` ("" for none): what a restore
+    shows beside a value before anything is sent. :raises CommandError: not declared, out of range, or
+    refused by the device type's send policy."""
+    command = declared(worker, device, name)
+    if command is None:
+        raise CommandError(f"{name!r} is not a command of {device}")
+    values = command.checked_args(dict(args or {}))
+    if command.refuse_if is not None:
+        config = worker.plant.devices[device]
+        reason = command.refuse_if(values, worker.plant.devices_on(config.bus), device)
+        if reason:
+            raise CommandError(reason)
+    return command.risk_text(values)
 
 
 def _shown(values: Mapping[str, Any]) -> str:
-    return ", ".join(f"{k}={v}" for k, v in values.items())
+    return ", ".join(f"{k}={getattr(v, 'name', v)}" for k, v in values.items())

@@ -46,6 +46,41 @@ class Arg:
         return int(value) if self.integer else float(value)
 
 
+@dataclass(frozen=True)
+class ParamArg:
+    """An argument naming a writable parameter of the device type's model (by key, name or the
+    :class:`~devices.params.Param` itself); it becomes the parameter."""
+
+    name: str
+    params: Any  # the type's ParamMap
+
+    def check(self, value: Any) -> Any:
+        model = self.params
+        if any(value is p for p in model.params):
+            param = value
+        elif isinstance(value, str):
+            param = model.by_key.get(value) or model.by_name.get(value)
+        else:
+            param = None
+        if param is None:
+            raise CommandError(f"{self.name}: {value!r} is not a parameter of this device type")
+        if not param.writable or getattr(param, "never_write", False):
+            raise CommandError(f"{param.label or param.name} is {param.access.value}: not writable")
+        return param
+
+
+@dataclass(frozen=True)
+class ValueArg:
+    """A value checked by a :class:`ParamArg` of the same command (a number, or an enum name)."""
+
+    name: str
+
+    def check(self, value: Any) -> Any:
+        if isinstance(value, bool) or not isinstance(value, int | float | str):
+            raise CommandError(f"{self.name}: {value!r} is not a value")
+        return value
+
+
 Risk = str | Callable[[Mapping[str, Any]], str]
 
 
@@ -64,6 +99,13 @@ class Command:
     :param prefix: the command also answers to names that start with ``name`` (an older caller's wording)
     :param refuse_if: ``(args, bus_devices, device) -> reason`` from the device type's send policy
         (e.g. an ID another participant of the bus uses); "" lets it run
+    :param extras: further keyword arguments passed through unchecked: context the method reports with
+        (e.g. the locks known on a line), never what is sent
+    :param prepare: ``args -> args`` after each argument's own check: checks across arguments (a value
+        against its parameter), raising :class:`CommandError`
+    :param confirmation: the method takes ``confirmed=`` (True when the declared risk was confirmed)
+    :param audit: ``(args, adapter) -> {action, parameter, old, new}`` for the audit row (old read before
+        the command runs); the command's name and its arguments where not given
     """
 
     name: str
@@ -76,6 +118,10 @@ class Command:
     session: bool = False
     prefix: bool = False
     refuse_if: Callable[[Mapping[str, Any], Any, str], str] | None = None
+    extras: tuple[str, ...] = ()
+    prepare: Callable[[dict[str, Any]], dict[str, Any]] | None = None
+    confirmation: bool = False
+    audit: Callable[[Mapping[str, Any], Any], Mapping[str, Any]] | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -88,7 +134,7 @@ class Command:
 
     def checked_args(self, values: Mapping[str, Any]) -> dict[str, Any]:
         """The arguments checked against their ranges (:raises CommandError: missing, unknown or out of range)."""
-        known = {a.name for a in self.args} | set(self.flags)
+        known = {a.name for a in self.args} | set(self.flags) | set(self.extras)
         unknown = set(values) - known
         if unknown:
             raise CommandError(f"{self.name} has no argument {', '.join(sorted(unknown))}")
@@ -100,18 +146,56 @@ class Command:
         for flag in self.flags:
             if flag in values:
                 out[flag] = bool(values[flag])
-        return out
+        for extra in self.extras:
+            if extra in values:
+                out[extra] = values[extra]
+        return self.prepare(out) if self.prepare is not None else out
 
     def risk_text(self, values: Mapping[str, Any]) -> str:
         return self.risk(values) if callable(self.risk) else self.risk
 
-    def call(self, adapter: Any, session: str, values: Mapping[str, Any]):
+    def call(self, adapter: Any, session: str, values: Mapping[str, Any], confirmed: bool = False):
         """Run the adapter method (returns its awaitable or result)."""
         method = getattr(adapter, self.method)
         positional = [session] if self.session else []
         positional += [values[a.name] for a in self.args]
-        options = {f: values[f] for f in self.flags if f in values}
+        options = {f: values[f] for f in (*self.flags, *self.extras) if f in values}
+        if self.confirmation:
+            options["confirmed"] = confirmed
         return method(*positional, **options)
+
+
+WRITE_PARAMETER = "write parameter"
+
+
+def param_write(params: Any, verdict: Callable[[Any, int], tuple[str, str]] | None = None) -> Command:
+    """The declared write of one parameter of ``params`` (the page's entry, the API, restore): the value
+    is checked by the parameter (type, range, access); ``verdict(param, raw) -> (refused, risk)`` is the
+    type's send policy for that write (default: the parameter's own confirmation). The adapter method is
+    ``write_param(param, value, confirmed=)``."""
+
+    def judged(values: Mapping[str, Any]) -> tuple[str, str]:
+        param, raw = values["param"], values["raw"]
+        return verdict(param, raw) if verdict is not None else ("", param.needs_confirmation(raw))
+
+    def prepare(values: dict[str, Any]) -> dict[str, Any]:
+        param = values["param"]
+        try:
+            raw = param.validate(values["value"])
+        except ValueError as exc:
+            raise CommandError(str(exc)) from None
+        return {**values, "value": param.decode(raw), "raw": raw}
+
+    def audit(values: Mapping[str, Any], adapter: Any) -> dict[str, Any]:
+        param = values["param"]
+        state = getattr(adapter, "state", None)
+        before = state.raw(param) if state is not None else None
+        return {"action": f"write {param.name}", "parameter": param.label or param.name,
+                "old": "" if before is None else param.display(before), "new": param.display(values["raw"])}
+
+    return Command(WRITE_PARAMETER, "write", method="write_param", args=(ParamArg("param", params), ValueArg("value")),
+                   prepare=prepare, confirmation=True, audit=audit,
+                   risk=lambda values: judged(values)[1], refuse_if=lambda values, bus, device: judged(values)[0])
 
 
 def commands_of(type_name: str) -> dict[str, Command]:

@@ -10,6 +10,7 @@ from app import runtime as rt
 from devices.hdlock import codec
 from devices.hdlock.adapter import CHART_SERIES
 from devices.hdlock.params import HOLDING, INPUT, LOCK_STATUS_BITS, PARAMS
+from devices.hdlock.policy import unsaved_changes
 from devices.params import Param
 from pages.frame import fmt_age, frame, set_status_badge
 from pages.widgets import (
@@ -261,19 +262,6 @@ async def _write(name: str, param: Param, entry) -> None:
                           field=entry)
 
 
-def unsaved_changes(state) -> list[str]:
-    """The parameters written since the last Save-Settings, with the value each has now."""
-    lines = []
-    for key in sorted(state.unsaved, key=lambda k: (PARAMS.by_key[k].address if k in PARAMS.by_key else 1 << 20, k)):
-        p = PARAMS.by_key.get(key)
-        if p is None:
-            lines.append(key)
-            continue
-        raw = state.raw(p)
-        lines.append(f"{p.label or p.name} (holding {p.address}) = {'not read' if raw is None else p.display(raw)}")
-    return lines
-
-
 async def _save(name: str, state) -> None:
     """Save-Settings writes the lock's flash (section 4.1): ask first, naming what becomes permanent."""
     changes = unsaved_changes(state)
@@ -297,8 +285,8 @@ async def _save(name: str, state) -> None:
     if not confirmed:
         await refuse(name, "Save-Settings", "not confirmed", parameter="Save-Settings", new="; ".join(changes))
         return
-    await run_command(name, lambda a: a.save_settings(), "Save-Settings", success="Settings saved to the lock's flash",
-                      parameter="Save-Settings", new="; ".join(changes) or "no unsaved changes")
+    # the declaration's audit row lists what became permanent, as read when the command runs
+    await run_command(name, "Save-Settings", success="Settings saved to the lock's flash")
 
 
 async def _restore(name: str) -> None:
@@ -389,17 +377,9 @@ def _set_address_card(name: str, state, guard: WriteGuard) -> None:
             return
         m, e = masks
         target = int(value)
-        if not await confirm(
-            f"Change the Modbus address to {target}?",
-            "If the condition holds the lock answers only at the new address from now on. "
-            "Send Save-Settings afterwards to keep it, and change the address in the plant file.",
-            ok="Send",
-        ):
-            return
-        ok, outcome = await run_command(
-            name, lambda a: a.set_address(target, m, e), f"Set Modbus Address {target}",
-            parameter="DeviceAddress", old=state.info.get("address", ""), new=target,
-        )
+        # the declared risk (the lock answers only at the new address) is asked by run_command
+        ok, outcome = await run_command(name, "Set Modbus Address", args={"new_address": target, "mask": m, "expected": e},
+                                        title=f"Change the Modbus address to {target}?")
         if ok:
             ui.notify(outcome.text, type="positive" if outcome.taken else "warning", multi_line=True, close_button="OK", timeout=15000)
 
@@ -496,11 +476,9 @@ def _broadcast_address_card(name: str, state, guard: WriteGuard) -> None:
             ok=f"Send to all ({count})",
         ):
             return
-        ok, outcome = await run_command(
-            name, lambda a: a.broadcast_set_address(target, m, e, known),
-            f"Broadcast Set Modbus Address (255) P1 0x{m:04X} P2 0x{e:04X}, {count} known locks",
-            parameter="DeviceAddress", new=target,
-        )
+        # the question above names the declared risk, with the locks known here
+        ok, outcome = await run_command(name, "Broadcast Set Modbus Address (255)", confirmed=True,
+                                        args={"new_address": target, "mask": m, "expected": e, "known": known})
         if ok:
             ui.notify(outcome.text, type="positive" if outcome.taken else "warning", multi_line=True, close_button="OK", timeout=20000)
         update_preview()

@@ -12,6 +12,7 @@ from nicegui import context, ui
 from app import runtime as rt
 from app.state import DeviceState
 from app.worker import PermissionDenied
+from devices.commands import WRITE_PARAMETER
 from devices.params import Param, ParamError
 
 CHART_WINDOW_S = 300
@@ -500,7 +501,7 @@ async def confirm(title: str, text: str, ok: str = "Continue", danger: bool = Tr
 async def run_command(
     device: str, action: str | Callable[[object], Awaitable[object]], describe: str = "", success: str = "",
     write: bool = True, parameter: str = "", old: object = "", new: object = "", *, args: dict | None = None,
-    session: str = "", confirmed: bool = False,
+    session: str = "", confirmed: bool = False, title: str = "", ok: str = "Send",
 ) -> tuple[bool, object]:
     """Submit a command to the worker's gate and report the outcome as a notification.
 
@@ -509,7 +510,8 @@ async def run_command(
     from the declaration; a risk it names is asked here and the command invoked again, confirmed. The
     older form (a callable on the adapter, ``describe``, ``write``) stays for pages not yet moved:
     the gate still takes the kind from a declared command of that wording where there is one.
-    ``confirmed``: the page has asked its own question naming the same risk.
+    ``confirmed``: the page has asked its own question naming the same risk. ``title`` and ``ok`` word
+    the dialog that asks the declared risk.
     """
     from app.gate import NeedsConfirmation
     from devices.commands import CommandError
@@ -523,8 +525,9 @@ async def run_command(
                 result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
                                              confirmed=confirmed)
             except NeedsConfirmation as question:
-                if not await confirm(f"{action}?", question.question, ok="Send"):
-                    await refuse(device, action, "not confirmed", new=", ".join(f"{k}={v}" for k, v in (args or {}).items()))
+                if not await confirm(title or f"{action}?", question.question, ok=ok):
+                    await refuse(device, action, "not confirmed",
+                                 new=", ".join(f"{k}={getattr(v, 'name', v)}" for k, v in (args or {}).items() if k != "known"))
                     return False, None
                 user, role = current_user()  # looked up again: the answer may come much later
                 result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
@@ -677,6 +680,13 @@ async def write_from_page(device: str, param: Param, value, *, success: str, tit
         return
     if field is not None:
         field.error = None
+    if declares(device, WRITE_PARAMETER):
+        # the device type's declared write: the gate checks the value, asks what its send policy names
+        # (the same question as a restore or the API), audits parameter, old and new
+        await run_command(device, WRITE_PARAMETER, args={"param": param.key, "value": param.decode(raw)},
+                          title=(title or "Write {name} = {value}?").format(name=param.name, value=param.display(raw)),
+                          ok=ok, success=success.format(name=param.name, value=param.display(raw)))
+        return
     warning = param.needs_confirmation(raw)
     title = (title or "Write {name} = {value}?").format(name=param.name, value=param.display(raw))
     if warning and not await confirm(title, warning, ok=ok):
@@ -691,6 +701,14 @@ async def write_from_page(device: str, param: Param, value, *, success: str, tit
         success=success.format(name=param.name, value=param.display(raw)),
         parameter=param.label or param.name, old="" if before is None else param.display(before), new=param.display(raw),
     )
+
+
+def declares(device: str, name: str) -> bool:
+    """Whether the device's type declares the command ``name`` (pages still moving fall back to the older way)."""
+    from devices.commands import find
+
+    config = rt.current().plant.devices.get(device)
+    return config is not None and find(config.type, name) is not None
 
 
 def sim_card_allowed(note_testid: str = "sim-readonly") -> bool:

@@ -8,7 +8,8 @@ a visible stop, the dead-man rule); without enable it stops them.
 from __future__ import annotations
 
 from devices.electrak import codec
-from devices.commands import Command
+from devices.commands import Command, param_write
+from devices.electrak.params import PARAMS
 from devices.sendpolicy import Verdict
 
 TITLE = "Electrak HD"
@@ -41,4 +42,5 @@ COMMANDS = (
     Command("jog stop", "stop"),
     Command("release control", "stop", method="release_control", session=True),
     Command("read service parameters", "read", method="read_all"),
+    param_write(PARAMS),  # the parameter's own confirmation (e.g. a Timeout above the default)
 )

@@ -248,7 +248,8 @@ class HdLockAdapter(HdLockBackup):
         finally:
             self._changing_address = False
 
-    async def broadcast_set_address(self, new_address: int, mask: int, expected: int, known: Mapping[int, str]) -> AddressChange:
+    async def broadcast_set_address(self, new_address: int, mask: int, expected: int,
+                                    known: Mapping[int, str] | None = None) -> AddressChange:
         """Set Modbus Address to broadcast address 255 (section 4.3): every lock on the line
         whose LockStatus meets the condition takes ``new_address``; none answers.
 
@@ -256,6 +257,7 @@ class HdLockAdapter(HdLockBackup):
             each is looked for at its old address afterwards, to tell which ones moved.
         """
         _check_address(new_address)
+        known = dict(known or {})
         if new_address in known:
             raise CommandError(f"address {new_address} is {known[new_address]}: choose an address no lock uses")
         await self._address_free(new_address)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from devices.hdlock import codec
 from devices.hdlock.params import DOOR_IGNORED_SOURCES, DOOR_IGNORED_WARNING, PARAMS
-from devices.commands import Arg, Command
+from devices.commands import Arg, Command, param_write
 from devices.sendpolicy import Verdict, can_id_owner
 
 TITLE = "HD-Lock"
@@ -176,9 +176,58 @@ def _device_id_refusal(args, bus, device: str) -> str:
 
 
 RESTORE_RISK = "All changes not yet saved are discarded and the saved values reloaded (section 4.2)."
+BROADCAST_ADDRESS_RISK = ("Set Modbus Address to broadcast address 255 (section 4.3): every lock on the line whose "
+                          "LockStatus meets (P1 & LockStatus) ^ P2 == 0 takes the new address at once, and none answers.")
+ADDRESS_RISK = ("Set Modbus Address (section 4.3): if the condition holds the lock answers only at the new address "
+                "from now on; send Save-Settings afterwards to keep it, and change the address in the plant file.")
+
+
+def unsaved_changes(state) -> list[str]:
+    """The parameters written since the last Save-Settings, with the value each has now (what a save makes permanent)."""
+    lines = []
+    for key in sorted(state.unsaved, key=lambda k: (PARAMS.by_key[k].address if k in PARAMS.by_key else 1 << 20, k)):
+        p = PARAMS.by_key.get(key)
+        if p is None:
+            lines.append(key)
+            continue
+        raw = state.raw(p)
+        lines.append(f"{p.label or p.name} (holding {p.address}) = {'not read' if raw is None else p.display(raw)}")
+    return lines
+
+
+def _write_verdict(param, raw: int) -> tuple[str, str]:
+    """A parameter write judged as the lock's Modbus or CAN write of that register (one policy for every path)."""
+    verdict = register_verdict(param.address, raw)
+    return verdict.refused, verdict.question
+
+
+def _save_audit(args, adapter) -> dict:
+    changes = unsaved_changes(adapter.state)
+    return {"parameter": "Save-Settings", "new": "; ".join(changes) or "no unsaved changes"}
+
+
+def _address_audit(args, adapter) -> dict:
+    return {"action": f"Set Modbus Address {args['new_address']}", "parameter": "DeviceAddress",
+            "old": adapter.state.info.get("address", ""), "new": args["new_address"]}
+
+
+def _broadcast_audit(args, adapter) -> dict:
+    known = args.get("known") or {}
+    return {"action": f"Broadcast Set Modbus Address (255) P1 0x{args['mask']:04X} P2 0x{args['expected']:04X}, "
+                      f"{len(known)} known locks", "parameter": "DeviceAddress", "new": args["new_address"]}
+
+
+def _broadcast_refusal(args, bus, device: str) -> str:
+    known = args.get("known") or {}
+    target = args["new_address"]
+    return f"address {target} is {known[target]}: choose an address no lock uses" if target in known else ""
+
+
+_ADDRESS_ARGS = (Arg("new_address", codec.MODBUS_ADDRESS_MIN, codec.MODBUS_ADDRESS_MAX), Arg("mask", 0, 0xFFFF),
+                 Arg("expected", 0, 0xFFFF))
 
 COMMANDS = (
-    Command("Save-Settings", "system", method="save_settings"),
+    Command("Save-Settings", "system", method="save_settings", audit=_save_audit),
     Command("Restore-Settings", "system", method="restore_settings", risk=RESTORE_RISK),
     Command("cmdSetLockRequestSource", "write", method="set_lock_request_source",
             args=(Arg("value", 0, 0x87),), flags=("broadcast",), risk=_source_risk),
@@ -186,7 +235,10 @@ COMMANDS = (
             risk=_bitrate_risk),
     Command("Set Device Address", "system", method="set_device_address", args=(Arg("new_value", 1, codec.EXT_ID_MAX),),
             flags=("extended",), risk=DEVICE_ID_RISK, refuse_if=_device_id_refusal),
-    Command("Set Modbus Address", "system", method="set_address", prefix=True,
-            args=(Arg("new_address", codec.MODBUS_ADDRESS_MIN, codec.MODBUS_ADDRESS_MAX), Arg("mask", 0, 0xFFFF),
-                  Arg("expected", 0, 0xFFFF))),
+    # broadcast first: "Set Modbus Address" answers to names it starts (an older caller's wording)
+    Command("Broadcast Set Modbus Address (255)", "system", method="broadcast_set_address", args=_ADDRESS_ARGS,
+            extras=("known",), risk=BROADCAST_ADDRESS_RISK, refuse_if=_broadcast_refusal, audit=_broadcast_audit),
+    Command("Set Modbus Address", "system", method="set_address", prefix=True, args=_ADDRESS_ARGS, risk=ADDRESS_RISK,
+            audit=_address_audit),
+    param_write(PARAMS, _write_verdict),
 )
