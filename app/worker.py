@@ -550,6 +550,13 @@ class Worker:
         for task in pending:
             log.error("bus task %s did not end", task.get_name())
         self.tasks.clear()
+        # an adapter's last words on its still open line, answered (e.g. MO 64 levels deactivated and acknowledged)
+        last = [a.shutdown() for a in self.adapters.values() if hasattr(a, "shutdown")]
+        if last:
+            try:
+                await asyncio.wait_for(asyncio.gather(*last, return_exceptions=True), 5.0)
+            except asyncio.TimeoutError:
+                log.error("the adapters' shutdown steps did not end within 5 s")
         for line in self.lines.values():
             line.close()
         for can_bus in self.can_buses.values():

@@ -257,21 +257,40 @@ async def test_twin_garbles_an_answer_sent_in_another_masters_turn():
         await asyncio.wait_for(runtime.stop(), 10)
 
 
-async def test_when_the_tool_stops_it_deactivates_the_close_level_it_set():
-    runtime = Runtime(parse_plant(tcp_plant(free_port())), simulate=True)
+@pytest.mark.parametrize("line", ["tcp", "rs485"])
+async def test_when_the_tool_stops_its_close_level_is_deactivated_and_acknowledged(line):
+    """Issue 25.11: the worker's stop awaits the adapter's shutdown before it closes the line: the close
+    level this tool set is deactivated in the barrier and the barrier's ack is received (on RS485 in the
+    tool's own turn), not merely thrown at a closing line."""
+    from test_mo64_page import alive
+
+    text = tcp_plant(free_port()) if line == "tcp" else rs485_plant(free_port())
+    name = "gate" if line == "tcp" else "out-1"
+    runtime = Runtime(parse_plant(text), simulate=True)
     await runtime.start()
     stopped = False
     try:
-        assert await wait_for(lambda: runtime.store.devices["gate"].status == "online", timeout=10)
-        twin = runtime.twins["gate"]
-        await runtime.worker.command("gate", lambda a: a.command("s1", codec.Command.OPEN, confirmed=True))
-        await runtime.worker.command("gate", lambda a: a.command("s1", codec.Command.CLOSE, codec.Function.ACTIVATE))
-        runtime.worker.beats["s1"] = 1e12  # the browser stays alive: only the stop may release it
-        assert twin.levels[codec.Command.CLOSE]
-        await runtime.worker.stop()
-        stopped = True
-        assert await wait_for(lambda: not twin.levels[codec.Command.CLOSE], timeout=3)
+        worker = runtime.worker
+        assert await wait_for(lambda: runtime.store.devices[name].status == "online", timeout=10)
+        twin = runtime.twins[name]
+        async with alive(worker, "s1"):  # the browser stays alive: only the stop may release the level
+            await worker.invoke(name, "close activate", user="anna", role="engineer", session="s1", confirmed=True)
+            assert twin.levels[codec.Command.CLOSE] and worker.adapters[name].holders() == {"s1"}
+            await asyncio.wait_for(worker.stop(), 15)
+            stopped = True
+        assert not twin.levels[codec.Command.CLOSE]
+        bus = runtime.store.buses[runtime.plant.devices[name].bus]
+        deactivate = [t for t in bus.transactions if "the tool stops" in t.request]
+        assert deactivate, [t.request for t in bus.transactions][-5:]
+        framing = codec.TCP if line == "tcp" else codec.RS485
+        assert codec.decode_answer(codec.decode_frame(bytes.fromhex(deactivate[-1].response_hex), framing),
+                                   framing).reply is codec.Reply.ACK  # acknowledged by the barrier
+        assert not [t for t in bus.transactions if t.request == "on close"]  # nothing left for the closing line
+        assert any("deactivated (ack)" in e.text for e in runtime.store.devices[name].events)
+        if line == "rs485":
+            sim = next(s for s in runtime.sim.servers if hasattr(s, "collisions"))
+            assert sim.sent_without_token == 0 and sim.collisions == 0  # sent and answered in the tool's turn
     finally:
         if not stopped:
-            await runtime.worker.stop()
+            await asyncio.wait_for(runtime.worker.stop(), 15)
         await asyncio.wait_for(runtime.sim.stop(), 10)
