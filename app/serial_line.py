@@ -33,6 +33,7 @@ log = logging.getLogger(__name__)
 
 BAUDRATES = (9600, 19200, 38400)
 REOPEN_BACKOFF_S = (0.5, 1.0, 2.0, 5.0)
+RESERVE_WINDOW_S = 0.06  # a request of the loop that would start this close before a reserved cyclic one waits for it
 
 
 @dataclass
@@ -94,6 +95,7 @@ class SerialLine:
         self._next_open = 0.0
         self._port_lock = threading.Lock()  # the port itself: the loop's requests (in threads) and the line's own thread
         self._cyclic: dict[str, _LineThread] = {}
+        self._reserved_at: float | None = None  # when the line's thread wants the port next (reserve)
 
     # -- the port -----------------------------------------------------------------------
     def _open_blocking(self) -> serial.SerialBase:
@@ -200,8 +202,21 @@ class SerialLine:
 
     # -- requests -----------------------------------------------------------------------
     def _exchange_blocking(self, port: serial.SerialBase, request: bytes, complete: Completion, timeout: float) -> bytes:
+        self._yield_to_cyclic()
         with self._port_lock:
             return self._exchange_locked(port, request, complete, timeout)
+
+    def _yield_to_cyclic(self) -> None:
+        """A request of the loop (in a worker thread) that would start just before the line's thread sends its
+        cyclic request waits until that has the port: the keep-alive keeps its period."""
+        at = self._reserved_at
+        if at is None:
+            return
+        now = time.monotonic()
+        if not now < at + 0.02 or at - now > RESERVE_WINDOW_S:
+            return
+        while self._reserved_at == at and time.monotonic() < at + 0.02:
+            time.sleep(0.001)
 
     def _exchange_locked(self, port: serial.SerialBase, request: bytes, complete: Completion, timeout: float) -> bytes:
         stale = port.read(port.in_waiting or 0) if port.in_waiting else b""
@@ -288,11 +303,18 @@ class SerialLine:
             raise SerialClosed(f"line {self.name}: not open")
         started = time.monotonic()
         try:
-            answer = self._exchange_blocking(port, request, complete, timeout)
+            with self._port_lock:
+                self._reserved_at = None
+                answer = self._exchange_locked(port, request, complete, timeout)
         except (serial.SerialException, OSError, AttributeError, TypeError) as exc:  # closed under it by the loop
             self._log(request, b"", complete, started, timeout, describe, decode, f"port lost: {exc}")
             raise SerialClosed(f"line {self.name}: {exc}") from None
         return self._finish(request, answer, complete, started, timeout, describe, decode)
+
+    def reserve(self, at: float) -> None:
+        """The line's thread will want the port at ``at`` (monotonic): the loop's requests do not start
+        within :data:`RESERVE_WINDOW_S` before it."""
+        self._reserved_at = at
 
     def start_cyclic(self, key: str, tick: Tick) -> None:
         """Run ``tick(exchange)`` in a thread of this line until :meth:`stop_cyclic`; ``tick`` returns the

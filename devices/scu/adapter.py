@@ -251,6 +251,7 @@ class ScuAdapter:
         self._rc_plain = False  # the unit refused RC with the cyclic object: the thread sends RC without data
         self._rc_last = 0.0  # monotonic time the last acknowledged RC was sent (any sender)
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._stopped_by_thread: set[int] = set()  # RS acknowledged by the line's thread, not yet seen by the loop
         self.lapses = 0
         state.stale_after = 2.0
         state.registers_periodic = False
@@ -501,6 +502,8 @@ class ScuAdapter:
         if first:
             why = "lease lapsed: this program stalled or the controlling browser is gone"
             results = {fn: self._thread_rs(exchange, fn, why) for fn in sorted(held)}
+            with self._guard:
+                self._stopped_by_thread |= {fn for fn, ok in results.items() if ok}
             self._call_loop(self._lapsed, lapsed_at, results)
         if withheld and not self.estop:
             # The unit's own watchdog now ends remote mode and stops every drive (section 5), also one whose RS
@@ -510,6 +513,9 @@ class ScuAdapter:
         now = time.monotonic()
         due = self._rc_last + period
         if now < due:
+            reserve = getattr(self.line, "reserve", None)
+            if reserve is not None:
+                reserve(due)  # the poll's requests give way to the RC due then
             return min(due - now, check)
         cyclic = self.cyclic
         frame = codec.encode_rc(CYCLIC_INDEX) if cyclic is not None and not self._rc_plain else codec.KEEP_ALIVE
@@ -525,7 +531,7 @@ class ScuAdapter:
         if answer.ok:
             self._note_rc(sent_at)
             self._call_loop(self._thread_rc_answer, answer, cyclic if frame != codec.KEEP_ALIVE else None)
-            return min(period, check)
+            return min(max(0.0, sent_at + period - time.monotonic()), check)  # on the clock: period from send to send
         self._call_loop(self._thread_rc_refused, answer)
         if answer.status == codec.Status.PE:
             with self._guard:
@@ -576,6 +582,8 @@ class ScuAdapter:
         renewed = self.lease.renewed_at
         late_ms = (lapsed_at - renewed) * 1000 if renewed is not None else self.lease.valid_s * 1000
         stopped = [fn for fn, ok in results.items() if ok]
+        with self._guard:
+            self._stopped_by_thread -= set(stopped)
         for fn in stopped:
             self.running.pop(fn, None)
             self.rs_pending.pop(fn, None)
@@ -992,6 +1000,14 @@ class ScuAdapter:
     async def _send_rs(self, fn: int, why: str) -> bool:
         """RS of ``fn`` after any RE of it still on the line (never before it); True once acknowledged."""
         async with self._fn_lock(fn):
+            with self._guard:
+                by_thread = fn in self._stopped_by_thread
+                self._stopped_by_thread.discard(fn)
+            if by_thread and fn in self.running:  # the line's thread got its RS acknowledged after a lapse
+                self.running.pop(fn, None)
+                self.rs_pending.pop(fn, None)
+                self._sync_held()
+                return True
             return await self._rs(fn, why)
 
     async def _rs(self, fn: int, why: str) -> bool:
