@@ -278,11 +278,27 @@ class StepFailed(Exception):
     """A step's check failed; the message is the reason the report shows."""
 
 
+class NotAvailable(Exception):
+    """A step this device (or its adapter) cannot do; the message says why. It does not fail the
+    checkout: the report lists the step as "not available" with the reason."""
+
+
+NOT_AVAILABLE = "not available"
+NOT_FAILING = ("passed", NOT_AVAILABLE, "skipped")  # step results that let a checkout pass
+
+
+class Skipped(NotAvailable):
+    """A step the person running the checkout chose to leave out (e.g. no test input wired); the
+    message says who and why."""
+
+    status = "skipped"
+
+
 @dataclass
 class StepResult:
     name: str
     limits: str = ""
-    status: str = "pending"  # pending, running, passed, failed, aborted, error
+    status: str = "pending"  # pending, running, passed, failed, aborted, error, skipped, not available
     reason: str = ""
     values: list[dict] = field(default_factory=list)
     answers: list[dict] = field(default_factory=list)
@@ -346,6 +362,28 @@ class CheckoutContext:
         return await runtime.worker.command(self.device, call, role=self._run.role, user=self.user,
                                             describe=f"checkout: {describe}", write=write, record=True)
 
+    async def invoke(self, name: str, args: dict | None = None) -> Any:
+        """Run the device type's declared command ``name`` through the worker's gate, for the run's
+        session. A command that names a risk is run confirmed only when the person running the checkout
+        answered that risk's question yes in this run (asked here if not yet; the answer is recorded)."""
+        from app.gate import NeedsConfirmation
+
+        self.check_abort()
+        worker = self._run.runtime.worker
+        confirmed = False
+        while True:
+            try:
+                return await worker.invoke(self.device, name, args, user=self.user, role=self._run.role,
+                                           session=self.session, confirmed=confirmed)
+            except NeedsConfirmation as exc:
+                if confirmed:
+                    raise
+                if exc.question not in self._run.confirmed:
+                    await self.ask(exc.question)
+                else:
+                    self.note(f"{name}: {exc.question!r} answered yes earlier in this run")
+                confirmed = True
+
     async def wait(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
         """True once ``predicate()`` holds, False after ``timeout_s``; an abort ends the wait at once."""
         loop = asyncio.get_running_loop()
@@ -402,6 +440,14 @@ class CheckoutContext:
     def fail(self, reason: str) -> None:
         raise StepFailed(reason)
 
+    def not_available(self, reason: str) -> None:
+        """End the step as "not available" (it does not fail the checkout) with ``reason``."""
+        raise NotAvailable(reason)
+
+    def skip(self, reason: str) -> None:
+        """End the step as "skipped" by the person running it (it does not fail the checkout)."""
+        raise Skipped(reason)
+
     async def ask(self, question: str) -> bool:
         """Ask the person running the checkout; the answer and who gave it are recorded. "No" fails the step."""
         self.check_abort()
@@ -410,7 +456,19 @@ class CheckoutContext:
                                   "role": self._run.role, "time": time.time()})
         if not answer:
             raise StepFailed(f"{question} - answered no by {self.user}")
+        self._run.confirmed.add(question)
         return True
+
+    async def choose(self, question: str, no_means: str) -> bool:
+        """Ask a question whose "no" is an answer, not a failure (e.g. "is a test input wired to E1?");
+        the answer and who gave it are recorded; ``no_means`` says in the step's notes what "no" did."""
+        self.check_abort()
+        answer = await self._run.ask(question)
+        self.step.answers.append({"question": question, "answer": "yes" if answer else "no", "by": self.user,
+                                  "role": self._run.role, "time": time.time()})
+        if not answer:
+            self.note(f"answered no by {self.user}: {no_means}")
+        return bool(answer)
 
 
 class CheckoutRun:
@@ -443,6 +501,7 @@ class CheckoutRun:
         self.listeners: list[Callable[[], None]] = []
         self._tap = TrafficTap(runtime.store.buses[state.bus])
         self.record_id: int | None = None
+        self.confirmed: set[str] = set()  # questions answered yes in this run (a declared risk is asked once)
 
     @property
     def progress(self) -> float:
@@ -494,6 +553,8 @@ class CheckoutRun:
                     result.status = "passed"
                 except StepFailed as exc:
                     result.status, result.reason = "failed", str(exc)
+                except NotAvailable as exc:
+                    result.status, result.reason = getattr(exc, "status", NOT_AVAILABLE), str(exc)
                 except Aborted as exc:
                     result.status, result.reason = "aborted", str(exc)
                 except Exception as exc:  # noqa: BLE001 - a refused or failed command is the step's reason
@@ -501,7 +562,7 @@ class CheckoutRun:
                 result.ended = time.time()
                 result.evidence = self._tap.take()
                 self._changed()
-                if result.status != "passed":
+                if result.status not in NOT_FAILING:
                     break
             for result in self.results:
                 if result.status == "pending":
@@ -520,7 +581,7 @@ class CheckoutRun:
         self.ended = time.time()
         if any(r.status == "aborted" for r in self.results):
             self.status = "aborted"
-        elif all(r.status == "passed" for r in self.results):
+        elif all(r.status in NOT_FAILING for r in self.results):
             self.status = "passed"
         else:
             self.status = "failed"
