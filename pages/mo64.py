@@ -176,7 +176,8 @@ def content(name: str) -> None:
             levels = ui.label().classes("text-body2").props("data-testid=levels")
             reply = ui.label().classes("text-body2 mono").props("data-testid=reply")
             ui.label("A level stays active in the barrier until it is deactivated. Close and reverse levels are "
-                     "deactivated when this browser closes or freezes (dead-man rule); an open level is not, since "
+                     "deactivated when this browser closes or freezes (dead-man rule) and when the tool stops (each "
+                     "acknowledged by the barrier); an open level is not, since "
                      "deactivating it would let an unattended boom close. The first motion of a session asks for "
                      f"a confirmation ({MOTION_WARNING}).").classes("text-caption text-grey-8")
 

@@ -79,14 +79,26 @@ def test_every_valid_query_is_answered_by_index_plus_5():
     assert set(c.TELEGRAMS) == set(range(0x05, 0x20))
 
 
-def test_error_memory_query_level_assumed():
-    assert c.encode_query(c.Q_ERROR_MEMORY, level=3) == h("02 12 03")
-    assert c.decode_request(c.encode_frame(h("02 12 03"))).level == 3
-    for bad in (10, -1):
+@pytest.mark.parametrize("level", range(10))
+def test_error_memory_query_in_the_documents_form(level):
+    # page 33 prints the query as "0x02 Auswahl index"; tele_fehlerspeicher is telegram 0x17 (5.1.23), the answer
+    # to query index 0x17 - 5 like every answer (SPEC-NOTES "Replies"); "10 Ebenen (0...9)" (5.1.23)
+    wire = c.encode_frame(c.encode_query(0x17 - 5, level=level, form="document"))
+    assert wire[2:-2] == bytes((0x02, 0x17 - 5, level))  # type, Auswahl, index
+    assert len(wire) == 7 and int.from_bytes(wire[-2:], "big") == binascii.crc_hqx(wire[:-2], 0xFFFF)  # 2.1, 2.3
+    # 5.1.23: the answer carries "index fehlerflaggen_lo0 _lo1 _hi0 _hi1 zeitstempel_lo0 _lo1 _hi0 _hi1"
+    answer = c.decode_answer(c.encode_frame(bytes((0x17, level)) + h("04 03 02 01 E8 03 00 00")))
+    assert answer.value == {"index": level, "flags": 0x01020304, "timestamp_h": 1000}
+
+
+def test_error_memory_levels_beyond_the_document_are_not_asked():
+    for bad in (10, -1):  # "10 Ebenen (0...9)" (5.1.23)
         with pytest.raises(c.CodecError):
-            c.encode_query(c.Q_ERROR_MEMORY, level=bad)
-    with pytest.raises(c.CodecError):
+            c.encode_query(c.Q_ERROR_MEMORY, level=bad, form="document")
+    with pytest.raises(c.CodecError):  # a level only where the document's answer has an index
         c.encode_query(c.Q_GATE_STATE, level=0)
+    # that the index byte chooses the level is the reading the page lists among its assumptions
+    assert c.ASSUMED_ERROR_MEMORY_LEVEL in c.ASSUMPTIONS
 
 
 # -- operating commands ----------------------------------------------------------------------------
@@ -115,11 +127,13 @@ def test_invalid_operating_commands(command, function):
         c.decode_request(c.encode_frame(bytes((0x01, command, function))))
 
 
-def test_short_command_one_byte_assumed():
-    assert c.encode_short_command(0x05) == h("03 05")
-    assert c.decode_request(c.encode_frame(h("03 05"))).code == 5
-    with pytest.raises(c.CodecError):
-        c.encode_short_command(256)
+def test_short_command_what_the_document_fixes():
+    # 5.2.3 "Kurze Befehlstelegramme 0x03": the type byte; 2.1: 6 to 259 characters; 2.3: CRC preset 0xFFFF, CSH CSL
+    wire = c.encode_frame(c.encode_short_command(0x05))
+    assert wire[0] == 0x55 and wire[2] == 0x03 and 6 <= len(wire) <= 259 and wire[1] == len(wire) - 4
+    assert int.from_bytes(wire[-2:], "big") == binascii.crc_hqx(wire[:-2], 0xFFFF)
+    # the number of code bytes and the codes are not in the summary: one sentence of the assumptions the page shows
+    assert c.ASSUMED_SHORT_COMMAND in c.ASSUMPTIONS
 
 
 # -- replies ---------------------------------------------------------------------------------------

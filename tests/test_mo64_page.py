@@ -8,6 +8,7 @@ from collections.abc import AsyncIterator
 
 import pytest
 from conftest import free_port
+from nicegui import ui
 from nicegui.functions.notify import notify
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
@@ -118,6 +119,18 @@ async def test_a_viewer_cannot_clear_levels_or_release_the_connection(env, monke
         await eventually(lambda: any("refused for tablet: release the connection: the viewer role may not" in e.text for e in adapter.state.events),
                          timeout=3)
         assert not runtime.worker.lines["gate-bus"].released
+
+
+async def test_every_reading_beyond_the_manual_is_shown_as_an_assumption(env):
+    from devices.mo64 import codec
+
+    user, runtime = env
+    await user.open("/device/gate")
+    shown = [e.text for e in user.find(kind=ui.label).elements if e.text.startswith("Assumption: ")]
+    for text in codec.ASSUMPTIONS:  # among them the short commands' one byte and the error memory's level byte
+        assert f"Assumption: {text}" in shown
+    assert f"Assumption: {codec.ASSUMED_SHORT_COMMAND}" in shown
+    assert f"Assumption: {codec.ASSUMED_ERROR_MEMORY_LEVEL}" in shown
 
 
 async def test_mo64_dead_man_deactivates_the_close_level_of_a_silent_session(env):

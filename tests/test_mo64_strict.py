@@ -138,6 +138,29 @@ async def test_twin_that_takes_one_query_form_only(form):
         await sim.stop()
 
 
+async def test_error_memory_level_0_holds_the_newest_entry_read_from_the_twin():
+    """5.1.23: "Bei jeder Veränderung der Fehlerflaggen ... Dabei wird der aktuelle Wert in den Fehlerspeicher[0]
+    geschrieben": read through the queries the adapter sends, level 0 shows the latest change, level 1 the one before."""
+    from types import SimpleNamespace
+
+    from devices.mo64.sim import Mo64TcpSim
+
+    port = free_port()
+    bus = SimpleNamespace(name="gate-bus", type="logited-tcp", options={"host": "127.0.0.1", "port": port})
+    sim = Mo64TcpSim(bus, [SimpleNamespace(name="gate-1", options={"query_form": "document"})])
+    await sim.start()
+    try:
+        sim.twin.raise_fault(0x0001)
+        sim.twin.raise_fault(0x0004)
+        adapter = make_adapter(port, query_form=None)
+        entries = await adapter.read_error_memory()
+        assert [e["level"] for e in entries] == list(range(codec.ERROR_MEMORY_LEVELS))
+        assert entries[0]["flags"] == 0x0005 and entries[1]["flags"] == 0x0001
+    finally:
+        adapter.line.close()
+        await sim.stop()
+
+
 async def test_a_late_answer_is_counted_late_not_as_change_monitoring():
     async with Script([
         (TX, query(codec.Q_GATE_STATE)),  # no answer in time ...

@@ -76,6 +76,12 @@ ERROR_MEMORY_QUERY_HAS_LEVEL = True
 # SPEC-NOTES "Still unknown": the layouts of settings 0x05-0x08 beyond those the document names;
 # each assumed selector is marked in SETTINGS with its reason.
 
+# the two readings above, in the words the page shows (each tested as shown there, not as a fact)
+ASSUMED_SHORT_COMMAND = ("Short commands (0x03) are sent as one command byte; the manual's summary names their effects "
+                         "(e.g. clearing a loop-adjust counter) but not their codes.")
+ASSUMED_ERROR_MEMORY_LEVEL = ("The error memory level is chosen by an index byte after the query index; each answer "
+                              "carries index, error flags and time stamp.")
+
 ASSUMPTIONS: tuple[str, ...] = (
     "RS485 telegrams are assumed to be 55 LE DA SA type data CSH CSL, with LE counting DA to the "
     "end of the data and this tool's master address 0x00 by default (the manual's summary does not "
@@ -84,10 +90,8 @@ ASSUMPTIONS: tuple[str, ...] = (
     "55 02 DA SA CSH CSL, sent by the master that holds the token to the next master DA.",
     "TCP port 52719, the frame 55 LE type data CSH CSL and the reply types ack 0x01, nak 0x02, "
     "busy 0x03, syn 0x04 come from a public client, not from the manual.",
-    "Short commands (0x03) are sent as one command byte; the manual's summary names their effects "
-    "(e.g. clearing a loop-adjust counter) but not their codes.",
-    "The error memory level is chosen by an index byte after the query index; each answer carries "
-    "index, error flags and time stamp.",
+    ASSUMED_SHORT_COMMAND,
+    ASSUMED_ERROR_MEMORY_LEVEL,
     "Queries: the manual prints 02 Auswahl index (page 33), the public client sends 02 Auswahl; the "
     "manual's form is tried first and the unit's answer decides (shown as the query form).",
     "Status bits: positions as the public client has them; the manual lists Multi3-6 before the loop "
