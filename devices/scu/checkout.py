@@ -1,0 +1,174 @@
+"""Ewellix SCU checkout: each actuator moved a given distance and back (positions, currents, no
+error bits), and the watchdog trip test where the adapter offers one.
+
+Declared here, run by the generic runner (``app/record.py``). Control is taken for the run's
+session (one session drives the unit; its RE are under the dead-man rule and the RC lease); each
+move writes the remote position (RT 0x3021.., table 7) and starts the function that drives the
+actuator with "to the remote position" (RE Fn 09, table 9), and ends with its RS (section 4.6:
+every RE is followed by an RS, also when the actuator stopped at its target). The stop is the
+declared command "stop (RS)"; the cleanup stops and releases control, also after an abort.
+
+Watchdog trip (section 5: RC at least every 500 ms, "Die Kommunikation mit RC arbeitet als
+Watchdog"): RC must be withheld while a function runs and the drive seen to stop within 500 ms.
+It runs where the adapter offers a way to withhold RC (``withhold_rc``); otherwise the step is
+recorded as not available, with the reason.
+"""
+
+from __future__ import annotations
+
+import time
+
+from devices.scu import codec
+
+TITLE = "Actuators out and back"
+SETTINGS = {
+    "distance_mm": 10.0,  # where the actuator converts counts to mm (plant file: counts_per_mm or stroke_mm)
+    "distance_counts": 150,  # otherwise
+    "tolerance_counts": 10,
+    "current_max_a": 8.0,
+    "move_timeout_s": 8.0,
+    "watchdog_stop_max_s": 0.5,  # section 5
+}
+
+
+def actuators(options: dict) -> list[int]:
+    listed = options.get("actuators", 1)
+    return list(range(1, (listed if isinstance(listed, int) else len(listed)) + 1))
+
+
+def steps(options: dict, settings: dict) -> list[dict]:
+    limits = (f"{settings['distance_mm']:g} mm (or {settings['distance_counts']} counts) and back, position within "
+              f"±{settings['tolerance_counts']} counts, current <= {settings['current_max_a']:g} A, no error bits")
+    listed = [
+        {"name": "Area clear (asked)", "limits": "the engineer confirms", "run": _ask},
+        {"name": "Take control, no error bits", "limits": "remote session open; Error code 0", "run": _take},
+    ]
+    for n in actuators(options):
+        listed.append({"name": f"A{n} out and back", "limits": limits, "run": lambda ctx, n=n: _out_and_back(ctx, n)})
+    listed.append({"name": "Watchdog trip (RC withheld)",
+                   "limits": f"motion stops within {settings['watchdog_stop_max_s'] * 1000:.0f} ms", "run": _watchdog})
+    return listed
+
+
+async def _ask(ctx) -> None:
+    await ctx.ask("Is the area around the actuators clear for a short move out and back of each?")
+
+
+def _error_text(ctx) -> str:
+    e = ctx.entry("Error code") or {}
+    return e.get("text") or str(e.get("value"))
+
+
+async def _take(ctx) -> None:
+    await ctx.command("take control", lambda a: a.take_control(ctx.session, ctx.user))
+    if not await ctx.wait(lambda: ctx.adapter.session == "open", 5.0):
+        # a unit watched with RG alone opens the session for a command: the first RG of a move opens it
+        ctx.note(f"remote session {ctx.adapter.session}: opened by the first command")
+    await ctx.wait(lambda: ctx.value("Error code") is not None, 3.0)
+    code = ctx.value("Error code")
+    ctx.measure("Error code", code, expect=0, fail=False)
+    if code:
+        ctx.fail(f"error bits set before moving: {_error_text(ctx)}")
+
+
+def _function_of(ctx, n: int) -> int | None:
+    """The function (fnc_ID) that drives actuator ``n`` alone (plant file, else SCP11: F(n) drives A(n))."""
+    only = [fn for fn, acts in sorted(ctx.adapter.function_actuators.items()) if acts == [n]]
+    return only[0] if only else None
+
+
+def _position(ctx, n: int) -> int | None:
+    return ctx.value(f"A{n} position")
+
+
+async def _move(ctx, n: int, fn: int, target: int, what: str) -> None:
+    s = ctx.settings
+    watch = {"peak": 0.0, "errors": 0, "last": None, "still": 0}
+
+    def arrived() -> bool:
+        watch["peak"] = max(watch["peak"], ctx.value(f"A{n} current") or 0.0)
+        watch["errors"] |= ctx.value("Error code") or 0
+        if watch["errors"]:
+            return True
+        pos = _position(ctx, n)
+        if pos is None or abs(pos - target) > s["tolerance_counts"] or ctx.value(f"A{n} motion"):
+            watch["still"] = 0
+            return False
+        watch["still"] = watch["still"] + 1 if pos == watch["last"] else 0
+        watch["last"] = pos
+        return watch["still"] >= 2  # the same position in three looks: it stands
+
+    label = codec.FUNCTIONS[codec.Function(fn)].label
+    await ctx.command(f"A{n} remote position {target} counts", lambda a: a.set_remote_position(ctx.session, n, counts=target))
+    t0 = time.monotonic()
+    await ctx.command(f"{label} to the remote position ({what})",
+                      lambda a: a.run_function(ctx.session, fn, codec.Motion.REMOTE_POSITION, codec.Ramp.SOFT))
+    reached = await ctx.wait(arrived, s["move_timeout_s"])
+    took = round(time.monotonic() - t0, 2)
+    await ctx.invoke("stop (RS)")  # every RE is followed by its RS (section 4.6)
+    if watch["errors"]:
+        ctx.measure("Error code", watch["errors"], expect=0, fail=False)
+        ctx.measure(f"A{n} peak current", round(watch["peak"], 1), "A", fail=False)
+        ctx.fail(f"A{n} {what}: error bits during the move: {_error_text(ctx)} (peak current {watch['peak']:.1f} A, "
+                 f"at {_position(ctx, n)} counts)")
+    ctx.measure(f"A{n} position {what}", _position(ctx, n), "counts", low=target - s["tolerance_counts"],
+                high=target + s["tolerance_counts"], fail=reached)
+    if not reached:
+        ctx.fail(f"A{n} {what}: {target} counts not reached within {s['move_timeout_s']:g} s (at {_position(ctx, n)} counts)")
+    ctx.measure(f"A{n} {what}: time to standstill", took, "s", fail=False)
+    ctx.measure(f"A{n} peak current {what}", round(watch["peak"], 1), "A", high=s["current_max_a"])
+    ctx.measure("Error code", ctx.value("Error code"), expect=0)
+
+
+async def _out_and_back(ctx, n: int) -> None:
+    s = ctx.settings
+    fn = _function_of(ctx, n)
+    if fn is None:
+        ctx.not_available(f"no function drives A{n} alone (plant file 'functions'): it cannot be moved on its own")
+    if not await ctx.wait(lambda: _position(ctx, n) is not None, 3.0):
+        ctx.fail(f"no position of A{n} from the unit")
+    start = int(_position(ctx, n))
+    scale = ctx.adapter.scales[n - 1]
+    distance = scale.counts(s["distance_mm"]) - scale.counts(0) if scale.has_mm else int(s["distance_counts"])
+    top = scale.out_counts if scale.out_counts is not None else None
+    target = start + distance if top is None or start + distance <= top else start - distance
+    ctx.note(f"A{n} by {codec.FUNCTIONS[codec.Function(fn)].label} ({'assumed, SCP11' if ctx.adapter.functions_assumed else 'plant file'}): "
+             f"{start} -> {target} -> {start} counts")
+    ctx.measure(f"A{n} start position", start, "counts", fail=False)
+    await _move(ctx, n, fn, target, "out" if target > start else "in")
+    await _move(ctx, n, fn, start, "back")
+
+
+async def _watchdog(ctx) -> None:
+    withhold = getattr(ctx.adapter, "withhold_rc", None)
+    if not callable(withhold):
+        ctx.not_available(
+            "the SCU adapter offers no way to withhold RC while a function runs: its RC leaves from the serial "
+            "line's own thread under a lease, and RC is withheld only after that thread has sent RS itself (the "
+            "dead-man path), so a trip of the unit's own 500 ms watchdog with a drive still running cannot be "
+            "caused from here. Test it on the unit by pulling the RS232 cable during a jog.")
+    n = actuators(ctx.options)[0]
+    fn = _function_of(ctx, n)
+    if fn is None:
+        ctx.not_available(f"no function drives A{n} alone")
+    start = _position(ctx, n)
+    await ctx.command(f"{codec.FUNCTIONS[codec.Function(fn)].label} out (watchdog test)",
+                      lambda a: a.run_function(ctx.session, fn, codec.Motion.OUT, codec.Ramp.SOFT))
+    await ctx.wait(lambda: _position(ctx, n) != start, 2.0)
+    t0 = time.monotonic()
+    await ctx.command("withhold RC (watchdog test)", lambda a: withhold(ctx.session))
+    last = {"pos": None, "at": t0}
+
+    def stopped() -> bool:
+        pos = _position(ctx, n)
+        if pos != last["pos"]:
+            last["pos"], last["at"] = pos, time.monotonic()
+        return time.monotonic() - last["at"] > 0.3
+    await ctx.wait(stopped, 3.0)
+    ctx.measure(f"A{n} last movement after RC withheld", round(last["at"] - t0, 2), "s",
+                high=ctx.settings["watchdog_stop_max_s"])
+
+
+async def cleanup(ctx, settings: dict) -> None:
+    await ctx.invoke("stop (RS)")
+    await ctx.invoke("release control", {})
