@@ -5,22 +5,48 @@ There are no write controls on this page by construction: it only reads the stat
 
 from __future__ import annotations
 
+import re
 import time
+from dataclasses import replace
 
 from nicegui import ui
 
 from app import runtime as rt
-from devices.registry import DEVICE_TYPES
+from devices.registry import DEVICE_TYPES, TileSpec, _fill
 from pages.frame import CSS, fmt_age
-from pages.widgets import follow, mark_quality
+from pages.widgets import follow
 
+# the state of a tile in words and colour (never colour alone): what an operator reads from across the room
 BADGE = {"good": ("live", "positive"), "stale": ("stale", "warning"), "offline": ("offline", "negative"),
-         "unknown": ("waiting", "grey")}
-AGE_NOTE = {"stale": "stale: last heard {age}", "offline": "offline: last heard {age}"}  # below the name: the badge stays one word
+         "unknown": ("waiting", "grey")}  # the site view's badges
+STATE = {"good": ("live", "check_circle"), "unknown": ("waiting for values", "hourglass_empty"),
+         "stale": ("STALE", "schedule"), "offline": ("OFFLINE", "cloud_off"), "fault": ("FAULT", "warning")}
+# units of a quantity an operator reads as it is; a bar in any other unit (increments, counts) shows its share of full travel
+PHYSICAL_UNITS = {"mm", "cm", "m", "%", "V", "A", "°C", "s", "min", "h", "mm/s", "Hz", "W", "kW", "bar"}
+HEX_CODE = re.compile(r"^0x[0-9A-Fa-f]+:\s*")
+
+
+def operator_words(entry: dict | None) -> dict | None:
+    """A live entry as an operator reads it: its enum name, or its text without the code before it
+    ("0x7: mains, battery, charger_on" -> "mains, battery, charger on") and without the diagnosis after
+    a state word ("lost: CRC 0x5100 received ..." -> "lost"); the store's words only, nothing decoded here."""
+    if entry is None:
+        return None
+    name, text, value = entry.get("name"), entry.get("text"), entry.get("value")
+    words = text
+    if name:
+        words = str(name)
+    elif isinstance(text, str):
+        if isinstance(value, str) and value and text.startswith(value) and text[len(value):][:1] in (":", ""):
+            words = value  # a state word with the engineer's diagnosis after it
+        elif HEX_CODE.match(text):
+            words = HEX_CODE.sub("", text).replace("_", " ")
+    return {**entry, "text": words}
 
 
 def evaluate_tile(state) -> dict:
-    """The device type's declared tile, evaluated against the device's live points (quality and age included)."""
+    """The device type's declared tile, evaluated against the device's live points (quality and age included),
+    as the overview shows it (an engineer's words)."""
     now = time.time()
     # only the values the tile declares: registers and published points alike, each with its quality
     tile = DEVICE_TYPES[state.type].tile.evaluate(lambda name: state.entry(name, now), now)
@@ -29,21 +55,85 @@ def evaluate_tile(state) -> dict:
     return tile
 
 
-# Tiles of equal width; four columns on a 1024 px wide tablet, three on 768 px: the demo plant's ten tiles fit 1024x768.
+def plant_tile(state) -> dict:
+    """The declared tile in an operator's words: each value once (a line of the bar's quantity is left out
+    while the bar shows it, a bar in increments or counts shows its share of full travel), texts without
+    codes and diagnoses, an alarm that is a bare state word named by its point."""
+    now = time.time()
+    spec = DEVICE_TYPES[state.type].tile
+
+    def entry(name: str) -> dict | None:
+        return operator_words(state.entry(name, now))
+
+    # only the values the tile declares: registers and published points alike, each with its quality
+    tile = _without_bar_lines(spec).evaluate(entry, now)
+    if tile["bar"] is None:  # no bar to show the quantity: its line after all
+        tile = spec.evaluate(entry, now)
+    elif (bar_entry := _bar_entry(spec, entry)) is not None and bar_entry.get("unit") not in PHYSICAL_UNITS:
+        prefix = spec.bar.label.split("{value", 1)[0].strip()
+        tile["bar"] = (tile["bar"][0], f"{prefix} {tile['bar'][0] * 100:.0f} % out".strip())
+    alarms = []
+    for alarm in spec.alarms:
+        point = entry(alarm.when.point)
+        if alarm.when.holds(point) and not (alarm.unless is not None and alarm.unless.holds(entry(alarm.unless.point))):
+            text = alarm.text.format(**_fill(point))
+            if point is not None and isinstance(point.get("value"), str) and text == point["value"]:
+                text = f"{alarm.when.point}: {text}"
+            alarms.append(text)
+    tile["alarms"] = alarms
+    if tile["quality"] == "unknown" and state.online is False:  # never heard and given up on: offline, not "waiting"
+        tile["quality"] = "offline"
+    return tile
+
+
+_REDUCED: dict[int, TileSpec] = {}
+
+
+def _without_bar_lines(spec: TileSpec) -> TileSpec:
+    """``spec`` without the lines that show the bar's own quantity (the bar says it once)."""
+    key = id(spec)
+    if key not in _REDUCED:
+        sources = set(spec.bar.sources()) if spec.bar is not None else set()
+        _REDUCED[key] = replace(spec, lines=tuple(line for line in spec.lines if not line.point or line.point not in sources))
+    return _REDUCED[key]
+
+
+def _bar_entry(spec: TileSpec, entry) -> dict | None:
+    heard = [e for name in spec.bar.sources() if (e := entry(name)) is not None]
+    return max(heard, key=lambda e: e.get("time") or 0.0, default=None)
+
+
+# Tiles of equal width; four columns on a 1024 px wide tablet, three on 768 px: the demo plant's tiles fit 1024x768.
+# Names and subtitles wrap rather than being cut; values are large enough to read at arm's length on a tablet.
+# A tile that is offline or stale keeps its colour and says so in a band of its own: its old values are greyed,
+# the band is not. Faults: red band, red border, the alarm texts in bold.
 TILE_CSS = """
 .plant-grid { display: grid; grid-template-columns: repeat(auto-fill, minmax(232px, 1fr)); gap: 10px; width: 100%; }
-.plant-tile { min-width: 0; border-left: 10px solid #21ba45; font-size: 16px; line-height: 1.35; }
-.plant-tile.q-card { padding: 8px 10px; gap: 4px; }
-.plant-tile .age-note:empty, .plant-tile .q-age:empty { display: none; }
+.plant-tile { min-width: 0; border-left: 10px solid #21ba45; font-size: 20px; line-height: 1.3; }
+.plant-tile.q-card { padding: 6px 10px 8px; gap: 3px; }
+.plant-tile .head { min-width: 0; flex: 1 1 auto; }
+.plant-tile .name { font-size: 22px; font-weight: 700; line-height: 1.2; overflow-wrap: anywhere; }
+.plant-tile .kind { font-size: 14px; color: #555; line-height: 1.25; overflow-wrap: anywhere; }
+.plant-tile .state-band { border-radius: 4px; padding: 1px 8px; font-size: 16px; font-weight: 700; line-height: 1.5;
+                          color: #1b5e20; flex-wrap: wrap; column-gap: 6px; row-gap: 0; }
+.plant-tile .state-band .age { font-weight: 500; }
+.plant-tile .state-band .age:empty { display: none; }
+.plant-tile .value-line { font-weight: 500; }
+.plant-tile .bar-label { font-size: 18px; white-space: nowrap; }
+.plant-tile .alarm-text { color: #b00012; font-weight: 700; font-size: 18px; }
+.plant-tile.state-unknown { border-left-color: #9e9e9e; }
+.plant-tile.state-unknown .state-band { color: #555; }
+.plant-tile.state-stale { border-left-color: #f2a100; background: #fff8e6; }
+.plant-tile.state-stale .state-band { background: #f2a100; color: #000; }
+.plant-tile.state-offline { border-left-color: #b00012; background: repeating-linear-gradient(135deg, #fff, #fff 12px, #f6e3e5 12px, #f6e3e5 24px); }
+.plant-tile.state-offline .state-band { background: #b00012; color: #fff; }
+.plant-tile.state-fault { border-left-color: #b00012; background: #ffecee; }
+.plant-tile.state-fault .state-band { background: #b00012; color: #fff; }
+.plant-tile.state-stale .values, .plant-tile.state-offline .values { color: #666; }
+/* the site view's tiles (pages/site_view.py) */
 .plant-tile.alarm { border-left-color: #c10015; background: #fff0f0; }
 .plant-tile.q-stale, .plant-tile.q-offline { border-left-color: #9e9e9e; text-decoration: none; }
-.plant-tile .head { min-width: 0; flex: 1 1 auto; overflow: hidden; }
-.plant-tile .head > * { max-width: 100%; }
-.plant-tile .name, .plant-tile .kind { white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }
-.plant-tile .name { font-size: 20px; font-weight: 600; }
 .plant-tile .q-badge { flex: none; white-space: nowrap; }
-.plant-tile .alarm-text { color: #c10015; font-weight: 600; }
-.plant-tile .age-note { font-size: 14px; color: #555; }
 .plant-more { position: fixed; bottom: 6px; right: 12px; background: #37474f; color: white; padding: 2px 10px; border-radius: 10px; }
 """
 
@@ -80,6 +170,17 @@ class TextPool:
         self.texts = list(texts)
 
 
+def state_words(quality: str, alarms: list[str], age: float | None) -> tuple[str, str, str]:
+    """``(state, word, age text)`` of a tile: offline and stale first (old data raises no alarms), then faults."""
+    if quality == "offline":
+        return "offline", STATE["offline"][0], "never heard" if age is None else f"no answer, last heard {fmt_age(age)}"
+    if quality == "stale":
+        return "stale", STATE["stale"][0], "no fresh values" if age is None else f"last heard {fmt_age(age)}"
+    if alarms:
+        return "fault", STATE["fault"][0], ""
+    return quality, STATE[quality][0], ""
+
+
 class PlantTile:
     """One large tile, following the live store: each push sets only what changed."""
 
@@ -93,14 +194,17 @@ class PlantTile:
             with ui.row().classes("items-center w-full no-wrap gap-2"):
                 self.icon = ui.icon("help", size="32px")
                 with ui.column().classes("gap-0 head"):
-                    ui.label(name).classes("name").props(f'title="{name}"')
-                    kind = f"{self.device_type.title} · {self.state.bus}"
-                    ui.label(kind).classes("text-body2 text-grey-8 kind").props(f'title="{kind}"')
-                self.status = ui.badge().classes("text-body2")
-            self.age_note = ui.label().classes("age-note")
-            self.lines = TextPool("")
-            self.bar = ui.linear_progress(value=0, show_value=False, size="12px").classes("q-mt-xs")
-            self.bar_label = ui.label().classes("text-body2")
+                    ui.label(name).classes("name")
+                    ui.label(f"{self.device_type.title} · {self.state.bus}").classes("kind")
+            with ui.row().classes("state-band items-center w-full no-wrap").props("data-plant-state") as self.band:
+                self.state_icon = ui.icon("hourglass_empty", size="20px")
+                self.state_word = ui.label().classes("word")
+                self.age_note = ui.label().classes("age")
+            with ui.column().classes("values gap-0 w-full"):
+                self.lines = TextPool("value-line")
+                with ui.row().classes("items-center w-full no-wrap gap-2") as self.bar_row:
+                    self.bar = ui.linear_progress(value=0, show_value=False, size="14px").classes("col")
+                    self.bar_label = ui.label().classes("bar-label")
             self.alarms = TextPool("alarm-text")
         self.update()
         follow(self.state, self.update)
@@ -112,37 +216,28 @@ class PlantTile:
         return True
 
     def update(self) -> None:
-        tile = evaluate_tile(self.state)
+        tile = plant_tile(self.state)
         quality = tile["quality"]
-        text, color = BADGE[quality]
-        if self._changed("badge", quality):
-            self.status.set_text(text)
-            self.status.props(f"color={color}")
-        age = tile["age"]
-        note = "" if quality not in AGE_NOTE else f"{quality}: never heard" if age is None else AGE_NOTE[quality].format(age=fmt_age(age))
-        self.age_note.set_text(note)
+        alarms = tile["alarms"] if quality in ("good", "unknown") else []  # old data raises no alarms
+        state, word, age_text = state_words(quality, alarms, tile["age"])
+        if self._changed("state", state):
+            self.card.classes(remove=" ".join(f"state-{s}" for s in STATE), add=f"state-{state}")
+            self.band.props(f'data-plant-state="{state}"')
+            self.state_icon.set_name(STATE[state][1])
+            self.state_word.set_text(word)
+        self.age_note.set_text(age_text)
         if self._changed("icon", tile["icon"]):
             self.icon.name = tile["icon"]
             self.icon.update()
         self.lines.show([line for line in tile["lines"] if line])
         bar = tile["bar"]
         if self._changed("bar-shown", bar is not None):
-            self.bar.set_visibility(bar is not None)
-            self.bar_label.set_visibility(bar is not None)
+            self.bar_row.set_visibility(bar is not None)
         if bar is not None:
             if self._changed("bar", bar[0]):
                 self.bar.set_value(bar[0])
             self.bar_label.set_text(bar[1])
-        alarms = tile["alarms"] if quality in ("good", "unknown") else []  # old data raises no alarms
         self.alarms.show([f"⚠ {alarm}" for alarm in alarms])
-        marked = quality if quality in ("stale", "offline") else "good"
-        if self._changed("quality", marked):
-            mark_quality(self.card, marked)
-        if self._changed("alarm", bool(alarms)):
-            if alarms:
-                self.card.classes(add="alarm")
-            else:
-                self.card.classes(remove="alarm")
 
 
 def content() -> None:
