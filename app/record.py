@@ -188,8 +188,10 @@ def compare_with_approved(current: dict[str, dict], approved: dict[str, dict] | 
         ref = None if approved is None else approved.get(key)
         if ref is None:
             verdict = "not approved"
+        elif ref.get("raw") == now.get("raw"):
+            verdict = "equal"
         else:
-            verdict = "equal" if ref.get("raw") == now.get("raw") else "changed"
+            verdict = "updated by the device" if now.get("device_updates") else "changed"
         rows.append({"key": key, "name": now["name"], "value": now["text"], "unit": now.get("unit", ""),
                      "approved": None if ref is None else ref["text"], "verdict": verdict, "writable": now.get("writable")})
     return rows
@@ -213,14 +215,23 @@ def live_set(state, approved: dict[str, dict]) -> dict[str, dict]:
     return current
 
 
+def device_updated(state, key: str) -> bool:
+    """The parameter model marks ``key`` as changed by the device itself (``Param.device_updates``:
+    a measured maximum, a counter): never drift."""
+    params = getattr(state, "params", None)
+    param = params.by_key.get(key) if params is not None else None
+    return bool(getattr(param, "device_updates", False))
+
+
 def drift_of(state, approved: dict[str, dict], snapshot: dict[str, dict] | None = None) -> list[dict]:
-    """The writable approved parameters whose value now differs (live store first, else the last snapshot)."""
+    """The writable approved parameters whose value now differs (live store first, else the last
+    snapshot); parameters the device changes itself are left out."""
     current = dict(snapshot or {})
     current.update(live_set(state, approved))
     rows = []
     for key, ref in approved.items():
         now = current.get(key)
-        if not ref.get("writable") or now is None or _same(now.get("raw"), ref.get("raw")):
+        if not ref.get("writable") or now is None or _same(now.get("raw"), ref.get("raw")) or device_updated(state, key):
             continue
         rows.append({"key": key, "name": ref["name"], "approved": ref["text"], "now": now["text"]})
     return rows
@@ -502,6 +513,7 @@ class CheckoutRun:
         self._tap = TrafficTap(runtime.store.buses[state.bus])
         self.record_id: int | None = None
         self.confirmed: set[str] = set()  # questions answered yes in this run (a declared risk is asked once)
+        self.drift_before: set[str] = set()  # keys drifting before the run (set by RecordService.new_run)
 
     @property
     def progress(self) -> float:
@@ -588,6 +600,7 @@ class CheckoutRun:
         data = self.as_dict()
         service = getattr(self.runtime, "record", None)
         if service is not None:
+            service.check_drift(self.device)  # what the checkout changed and restored is no longer held back
             self.record_id = await service.add(self.device, "checkout", user=self.user, role=self.role, data=data,
                                                title=f"{self.module.TITLE}: {self.status}")
             data["record_id"] = self.record_id
@@ -665,15 +678,27 @@ class RecordService:
 
     # -- drift ------------------------------------------------------------------------------
     def check_drift(self, device: str) -> list[dict]:
+        """Drift of ``device``; while a checkout runs on it, what changed since the run started (the
+        checkout's own writes, e.g. the HD-Lock's LockRequestSource) is listed as "checkout running",
+        not as drift; the run checks again when it ends (its cleanup restores what it changed)."""
         state = self.runtime.store.devices[device]
         approved = self.approved.get(device)
         rows = [] if approved is None else drift_of(state, approved, self.snapshots.get(device))
+        run = self.runs.get(device)
+        during: list[dict] = []
+        if run is not None and run.status == "running":
+            during = [r for r in rows if r["key"] not in run.drift_before]
+            rows = [r for r in rows if r["key"] in run.drift_before]
         drift = {"approved": approved is not None, "changed": rows}
+        if during:
+            drift["checkout"] = during
         if getattr(state, "drift", None) != drift:
             state.drift = drift
             text = ("no approved set" if approved is None else
                     "equal to the approved set" if not rows else
                     "changed since approved: " + ", ".join(f"{r['name']} {r['approved']} -> {r['now']}" for r in rows))
+            if during:
+                text += "; checkout running: " + ", ".join(f"{r['name']} {r['now']}" for r in during)
             state.publish(DRIFT_POINT, len(rows) if approved is not None else None, periodic=False, text=text)
         return rows
 
@@ -742,6 +767,8 @@ class RecordService:
         if current is not None and current.status == "running":
             raise RecordError(f"{device}: a checkout is running already")
         run = CheckoutRun(self.runtime, device, **kwargs)
+        drift = getattr(self.runtime.store.devices[device], "drift", None) or {}
+        run.drift_before = {r["key"] for r in drift.get("changed", [])}  # drift that was there before the run
         self.runs[device] = run
         return run
 

@@ -20,7 +20,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from app.record import compare_with_approved, param_set
+from app.record import compare_with_approved, device_updated, param_set
 
 AUDIT_ROWS = 200
 
@@ -59,6 +59,8 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
             current, source = snap.data["parameters"], f"last snapshot of {_when(snap.time)} ({source})"
     approved_entry = await record.store.run(record.store.latest, record.plant, device, "approved")
     approved = approved_entry.data["parameters"] if approved_entry else None
+    state = runtime.store.devices[device]
+    current = {k: {**v, "device_updates": device_updated(state, k)} for k, v in current.items()}
     rows = compare_with_approved(current, approved)
     checkouts = await record.timeline(device, ("checkout",))
     latest_checkouts: dict[str, Any] = {}
@@ -76,7 +78,7 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
         "approved": None if approved_entry is None else {"id": approved_entry.id, "time": approved_entry.time,
                                                           "by": approved_entry.user, "title": approved_entry.title},
         "parameters": rows,
-        "counts": {v: sum(r["verdict"] == v for r in rows) for v in ("equal", "changed", "not approved")},
+        "counts": {v: sum(r["verdict"] == v for r in rows) for v in ("equal", "changed", "not approved", "updated by the device")},
         "drift": (getattr(state, "drift", None) or {}).get("changed", []),
         "checkouts": [{"id": e.id, "time": e.time, **{k: e.data[k] for k in ("title", "status", "reason", "user", "duration_s", "steps")}}
                       for e in latest_checkouts.values()],
@@ -103,7 +105,7 @@ h1{font-size:22px}h2{font-size:18px;border-bottom:2px solid #444;margin-top:32px
 table{border-collapse:collapse;margin:6px 0 12px;font-size:12px;width:100%}
 td,th{border:1px solid #bbb;padding:2px 6px;text-align:left;vertical-align:top}th{background:#eee}
 .equal{color:#1b5e20}.changed,.failed,.aborted{color:#b71c1c;font-weight:600}.passed{color:#1b5e20;font-weight:600}
-.notapproved,.skipped{color:#8d6e00}.sig{border:2px solid #1b5e20;padding:8px;margin:8px 0}.unsigned{border-color:#b71c1c}
+.notapproved,.skipped{color:#8d6e00}.notavailable,.updatedbythedevice{color:#555}.sig{border:2px solid #1b5e20;padding:8px;margin:8px 0}.unsigned{border-color:#b71c1c}
 """
 
 
@@ -138,7 +140,7 @@ def device_html(d: dict) -> str:
     if not d["checkouts"]:
         out.append("<p>No checkout run.</p>")
     for c in d["checkouts"]:
-        out.append(f'<p><b>{_e(c["title"])}</b>: <span class="{c["status"]}">{_e(c["status"])}</span> '
+        out.append(f'<p><b>{_e(c["title"])}</b>: <span class="{c["status"].replace(" ", "")}">{_e(c["status"])}</span> '
                    f'{_e(c["reason"])} — {_e(c["user"])}, {_when(c["time"])}, {c["duration_s"]} s (record #{c["id"]})</p>')
         rows = []
         for s in c["steps"]:
@@ -147,7 +149,7 @@ def device_html(d: dict) -> str:
             answers = "; ".join(f'{a["question"]} {a["answer"]} ({a["by"]})' for a in s["answers"])
             ev = s.get("evidence") or {}
             n = len(ev.get("frames") or ev.get("transactions") or [])
-            rows.append(f'<tr><td>{_e(s["name"])}</td><td class="{s["status"]}">{_e(s["status"])}</td><td>{_e(s["limits"])}</td>'
+            rows.append(f'<tr><td>{_e(s["name"])}</td><td class="{s["status"].replace(" ", "")}">{_e(s["status"])}</td><td>{_e(s["limits"])}</td>'
                         f'<td>{_e(values)}{"<br>" if values and answers else ""}{_e(answers)}{"<br>" + _e(s["reason"]) if s["reason"] else ""}</td>'
                         f'<td>{n} {"frames" if ev.get("kind") == "can" else "transactions"}</td></tr>')
         out.append("<table><tr><th>Step</th><th>Result</th><th>Limits</th><th>Measured, answers</th><th>Evidence</th></tr>"

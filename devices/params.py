@@ -56,6 +56,8 @@ class Param:
     :param maximum: largest decoded value accepted on write
     :param confirm: text shown before writing the value(s) in ``confirm_values``
     :param never_write: the GUI never offers to write it, whatever its access class
+    :param device_updates: the device changes the value itself (a measured maximum, a counter): a
+        difference from the approved set is not drift
     """
 
     name: str
@@ -75,6 +77,7 @@ class Param:
     confirm: str = ""
     confirm_values: tuple[int, ...] = ()
     never_write: bool = False
+    device_updates: bool = False
     label: str = ""  # display name where the document's name is not unique
     extra: Mapping[str, str] = field(default_factory=dict)
 

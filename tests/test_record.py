@@ -76,3 +76,48 @@ async def test_drift_in_the_api_snapshot_after_save_and_the_signed_report(tmp_pa
         names = zipfile.ZipFile(io.BytesIO(paths["zip"].read_bytes())).namelist()
         assert {"demo-as-left.html", "demo-as-left.pdf", "backups/door-1-approved.json", "backups/door-1-snapshot.json"} <= set(names)
         assert "Changed since approved" in plant_html(await plant_content(runtime, read=False))
+
+
+async def test_values_the_lock_measures_itself_and_a_running_checkout_are_not_drift(tmp_path):
+    import asyncio
+
+    from tests.recordutil import demo_runtime, run_checkout
+
+    async with demo_runtime(tmp_path, ("door-2",)) as runtime:
+        twin, state = runtime.twins["door-2"], runtime.store.devices["door-2"]
+        twin.holding[1003] = twin.holding[1004] = 0  # no cycle measured yet: the checkout's cycle sets both
+        maxima = (PARAMS.get("holding", 1003), PARAMS.get("holding", 1004))
+        assert await wait_for(lambda: all(state.raw(p) == 0 for p in maxima), 15)
+        await runtime.record.approve("door-2", user="anna", role="engineer")
+        assert state.drift == {"approved": True, "changed": []}
+
+        seen: list[dict] = []
+
+        async def watch() -> None:
+            while True:
+                runtime.record.check_drift("door-2")
+                seen.append(state.drift)
+                await asyncio.sleep(0.1)
+
+        watcher = asyncio.create_task(watch())
+        try:
+            result = await run_checkout(runtime, "door-2")
+        finally:
+            watcher.cancel()
+        assert result["status"] == "passed", [(s["name"], s["reason"]) for s in result["steps"]]
+        assert any(r["key"] == "holding:4" for d in seen for r in d.get("checkout", [])), "the checkout's own write was seen"
+        assert not any(r["key"] == "holding:4" for d in seen for r in d["changed"]), "and never shown as drift"
+
+        assert await wait_for(lambda: all(state.raw(p) for p in maxima), 10), "the lock measured its cycle"
+        assert runtime.record.check_drift("door-2") == [] and state.drift == {"approved": True, "changed": []}
+        assert state.entry("Changed since approved")["value"] == 0
+        from app.report import device_content
+
+        content = await device_content(runtime, "door-2", user="anna", role="engineer")
+        verdicts = {r["key"]: r["verdict"] for r in content["parameters"]}
+        assert verdicts["holding:1004"] == "updated by the device" and verdicts["holding:4"] == "equal"
+
+        # a real change is still drift
+        await runtime.worker.command("door-2", lambda a: a.write_param(PARAMS.get("holding", 3000), 350), user="anna",
+                                     describe="write")
+        assert await wait_for(lambda: [r["key"] for r in state.drift["changed"]] == ["holding:3000"], 10)

@@ -614,13 +614,13 @@ _HOLDINGS: list[Param] = [
     ),
     Param(
         "MaximumTimeUnlock", HOLDING, 1003, Access.RW, unit="ms",
-        minimum=0, maximum=65535,
+        minimum=0, maximum=65535, device_updates=True,  # the lock measures it at every cycle
         description="Longest time measured so far that the bolt needed to unlock. "
         "(section 3.2)",
     ),
     Param(
         "MaximumTimeLock", HOLDING, 1004, Access.RW, unit="ms",
-        minimum=0, maximum=65535,
+        minimum=0, maximum=65535, device_updates=True,  # the lock measures it at every cycle
         description="Longest time measured so far that the bolt needed to lock. (section 3.2)",
     ),
     Param(
