@@ -41,11 +41,16 @@ def test_ids_and_extended_flags(plant):
     can3 = _db(plant, "can3")
     for name, sw1 in (("heater_hm", 0x1A), ("heater_hmr", 0xCA)):
         ids = m3io.derive_ids(sw1)
-        assert {m.name: m.frame_id for m in can3.messages if m.name.rsplit("_", 2)[0] == name or m.name.rsplit("_", 1)[0] == name} == {
-            f"{name}_DigOut": ids.dig_out, f"{name}_DigIn": ids.dig_in, f"{name}_Temp1_4": ids.temp14, f"{name}_Temp5_6": ids.temp56}
+        want = {f"{name}_DigOut": ids.dig_out, f"{name}_DigIn": ids.dig_in, f"{name}_Temp1_4": ids.temp14,
+                f"{name}_Temp5_6": ids.temp56, f"{name}_Sync": ids.sync}
+        if ids.mdata is not None:
+            want[f"{name}_MData"] = ids.mdata  # addressed mode (S8 on) only
+        assert {m.name: m.frame_id for m in can3.messages if m.name.rsplit("_", 2)[0] == name or m.name.rsplit("_", 1)[0] == name} == want
         assert not any(m.is_extended_frame for m in can3.messages)
     assert can3.get_message_by_name("heater_hm_DigOut").frame_id == 0x422  # SPEC-NOTES check values
     assert can3.get_message_by_name("heater_hmr_DigOut").frame_id == 0x20A
+    assert {m.name: m.frame_id for m in can1.messages if m.name.startswith("HDLock_")} == {
+        f"HDLock_{codec_name.replace(' ', '').replace('-', '')}": can_id for can_id, codec_name in hdlock.CAN_REQUEST_NAMES.items()}
     can2 = _db(plant, "can2")
     assert {m.name: m.frame_id for m in can2.messages} == {
         "lift_Control": 0x06, "lift_Status": 0x07, "lift_ServiceRequest": 0x0A, "lift_ServiceResponse": 0x0B}
@@ -150,7 +155,42 @@ def test_command_line(tmp_path: Path, capsys: pytest.CaptureFixture):
     assert args.func is dbc.run and dbc.run(args) == 0
     assert "wrote" in capsys.readouterr().out
     db = cantools.database.load_file(out, strict=True)
-    assert len(db.messages) == 8
+    assert len(db.messages) == 11  # 2 x (DigOut, DigIn, 2 temperature frames, Sync) + the HMR's MData
     bad = parser.parse_args(["dbc", "--plant", str(DEMO), "--bus", "rs232-1", "--out", str(tmp_path / "x.dbc")])
     assert dbc.run(bad) == 2 and "CAN buses only" in capsys.readouterr().err
     assert not (tmp_path / "x.dbc").exists()
+
+
+def test_hdlock_request_frames_decode_like_the_codec(plant):
+    """26.8: the requests of section 6.6 (0x700-0x707) are in the DBC once per bus, whatever the number of locks."""
+    db = _db(plant, "can1")
+    target = hdlock.DeviceId.make(335, True)
+    write = hdlock.encode_write(target, 3000, 250)
+    got = db.decode_message(write.arbitration_id, bytes(write.data))
+    assert (got["TargetDeviceId"], got["TargetExtended"], got["RegisterAddress"], got["Value"]) == (335, 1, 3000, 250)
+    read = hdlock.encode_read(target, "holding", 1000, 3)
+    got = db.decode_message(read.arbitration_id, bytes(read.data))
+    assert (got["TargetDeviceId"], got["RegisterAddress"], got["Count"]) == (335, 1000, 3)
+    new = hdlock.encode_set_device_address(hdlock.DeviceId.make(11), hdlock.DeviceId.make(0x1A2B))
+    got = db.decode_message(new.arbitration_id, bytes(new.data))
+    assert (got["TargetDeviceId"], got["NewDeviceId"], got["NewExtended"]) == (11, 0x1A2B, 1)
+    assert sum(1 for m in db.messages if m.frame_id == hdlock.CAN_COMMAND) == 1
+
+
+def test_m3io_sync_and_mdata_frames_and_no_temperatures_for_a_km(tmp_path):
+    text = DEMO.read_text() + '\n[[device]]\nname = "relay-km"\ntype = "m3io"\nbus = "can3"\nvariant = "KM"\nsw1 = 0x1C\n'
+    path = tmp_path / "plant.toml"
+    path.write_text(text)
+    db = _db(load_plant(path), "can3")
+    names = {m.name for m in db.messages}
+    assert "relay_km_DigOut" in names and "relay_km_Sync" in names
+    assert not {"relay_km_Temp1_4", "relay_km_Temp5_6"} & names  # a KM has no Pt100 inputs (section 4.1)
+    ids = m3io.derive_ids(0xCA)
+    got = db.decode_message(ids.sync, m3io.encode_sync_request(m3io.AREA_READ_CONFIG, m3io.CONFIG_SERIAL) + bytes(6),
+                            decode_choices=False)
+    assert (got["Area"], got["Index"]) == (m3io.AREA_READ_CONFIG, m3io.CONFIG_SERIAL)
+    answer = bytes([m3io.AREA_READ_CONFIG, m3io.CONFIG_SERIAL]) + (42120023).to_bytes(4, "little") + b"\xff\xff"
+    got = db.decode_message(ids.mdata, answer, decode_choices=False)
+    assert (got["Area"], got["Index"], got["Payload"] & 0xFFFFFFFF) == (2, 1, 42120023)
+    hm = m3io.derive_ids(0x1A)
+    assert db.decode_message(hm.sync, m3io.encode_sync_cfg(True), decode_choices=False, allow_truncated=True)["P2"] == 1
