@@ -153,7 +153,8 @@ async def invoke(worker: Any, device: str, name: str, args: Mapping[str, Any] | 
             raise CommandError(reason)
     if command.needs_control and command.kind not in OPEN_KINDS:
         holders = getattr(adapter, "holders", None)
-        if holders is None or session not in holders():
+        controls = getattr(adapter, "controls", None)  # an adapter that tells control apart from running motion
+        if not (controls(session) if controls is not None else holders is not None and session in holders()):
             reason = "take control of the device first"
             await worker.refused(device=device, user=user, role=role, describe=command.name, reason=reason, new=_shown(values))
             raise CommandError(reason)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import inspect
 import time
 from datetime import datetime
 
@@ -57,12 +56,10 @@ def content(name: str) -> None:
     viewer = session_role() == "viewer"
     n_act = len(adapter.scales)
 
-    async def act(describe: str, fn, success: str = "", write: bool = True):
-        async def action(a):
-            result = fn(a)
-            return await result if inspect.isawaitable(result) else result
-
-        result = await run_command(name, action, describe, success=success, write=write)
+    async def act(command: str, args: dict | None = None, success: str = "", confirmed: bool = False, title: str = ""):
+        """Invoke the SCU's declared command ``command`` (devices/scu/policy.py) through the worker's gate."""
+        result = await run_command(name, command, args=args, session=session, success=success, confirmed=confirmed,
+                                   title=title)
         if updater:
             updater[0]()  # what the command changed (control, RE/RS pending) is shown at once
         return result
@@ -96,11 +93,10 @@ def content(name: str) -> None:
                         .classes("text-caption" + (" text-weight-bold" if sid == adapter.safety_id else ""))
             with ui.row():
                 release_scu = ui.button("Release the SCU (RA)", icon="pan_tool",
-                                        on_click=lambda: act("release the SCU (RA)", lambda a: a.release_scu(session),
-                                                             success="released: the hand switch has the unit", write=False)) \
+                                        on_click=lambda: act("release the SCU (RA)", success="released: the hand switch has the unit")) \
                     .props("outline data-testid=release-scu")
                 reopen = ui.button("Open the remote session", icon="link",
-                                   on_click=lambda: act("open remote session", lambda a: a.reopen(session))).props("outline")
+                                   on_click=lambda: act("open remote session")).props("outline")
 
         # -- positions --------------------------------------------------------------------------
         with ui.card().classes("w-full"):
@@ -153,10 +149,10 @@ def content(name: str) -> None:
             ui.label("Drive").classes("text-subtitle1")
             with ui.row().classes("items-center gap-4"):
                 take = ui.button("Take control", icon="sports_esports",
-                                 on_click=lambda: act("take control", lambda a: a.take_control(session, client_user()))) \
+                                 on_click=lambda: act("take control", {"user": client_user()})) \
                     .props("data-testid=take-control")
                 release = ui.button("Release control", icon="logout",
-                                    on_click=lambda: act("release control", lambda a: a.release_control(session), write=False)) \
+                                    on_click=lambda: act("release control")) \
                     .props("outline")
                 holder = ui.label().classes("text-body2")
             with ui.row().classes("items-end gap-4"):
@@ -177,8 +173,7 @@ def content(name: str) -> None:
                     function = fn_select.value + 1
                     value = await checked_value(speed, name, f"set remote speed F{function}", parameter=f"Remote Speed F{function}")
                     if value is not None:
-                        await act(f"set remote speed F{function} = {int(value)} {adapter.speed_unit}",
-                                  lambda a: a.set_remote_speed(session, function, int(value)),
+                        await act("set remote speed", {"function": function, "speed": int(value)},
                                   success="remote speed written and read back")
 
                 set_speed = ui.button("Set speed (RT)", on_click=write_speed).props("outline data-testid=set-speed")
@@ -198,9 +193,8 @@ def content(name: str) -> None:
                                                     parameter=f"Remote Position A{s.number}")
                         if value is None:
                             return
-                        ok, _ = await act(f"set remote position A{s.number} = {value:g} {unit}",
-                                          lambda a: a.set_remote_position(session, s.number, **({"mm": float(value)} if unit == "mm"
-                                                                                                else {"counts": int(value)})),
+                        ok, _ = await act("set remote position", {"actuator": s.number, "value": float(value),
+                                                                  "mm": unit == "mm"},
                                           success="remote position written and read back")
                         if ok:
                             edited[:] = [s.number]
@@ -212,7 +206,7 @@ def content(name: str) -> None:
                 go = ui.button("Go (RE)", icon="play_arrow", color="positive", on_click=lambda: go_pressed()) \
                     .props("data-testid=go")
                 ui.button("Stop (RS)", icon="stop", color="negative",
-                          on_click=lambda: act("stop (RS)", lambda a: a.stop(session), write=False)).props("data-testid=stop")
+                          on_click=lambda: act("stop (RS)")).props("data-testid=stop")
                 ui.label("Jog (hold to run):").classes("text-caption")
                 jog_in = ui.button("In", icon="keyboard_double_arrow_left").props("outline data-testid=jog-in")
                 jog_out = ui.button("Out", icon="keyboard_double_arrow_right").props("outline data-testid=jog-out")
@@ -232,14 +226,9 @@ def content(name: str) -> None:
                         "the stroke of " + (", ".join(f"A{a}" for a in acts) or "its actuators") + "."
                         + (f" {warning}" if warning else ""), ok="The area is clear: Go"):
                     return
-                await act(
-                    f"go (RE) {codec.FUNCTIONS[fn].label} ({adapter.functions_text(fn)}): "
-                    f"{codec.MOTION_LABELS[motion.value]}, ramp {ramp.options[ramp.value]}; written remote speed "
-                    + str(getattr(adapter.state.points.get(f"F{fn + 1} remote speed"), "value", "none"))
-                    + "".join(f", A{a} remote position "
-                              + (getattr(adapter.state.points.get(f"A{a} remote position"), "text", None) or "none")
-                              for a in acts),
-                    lambda a: a.run_function(session, fn, motion.value, ramp_value(), requested_at=pressed))
+                # the question above names the declared risk (the area is clear), with the actuators it drives
+                await act("go (RE)", {"function": fn, "motion": motion.value, "ramp": ramp_value(),
+                                      "requested_at": pressed}, confirmed=True)
 
             jog_held: dict[int, bool] = {}
 
@@ -248,9 +237,8 @@ def content(name: str) -> None:
                     pressed = time.monotonic()  # before any await: a release after it cancels or follows the RE
                     fn = fn_select.value
                     jog_held[fn] = True
-                    return act(f"jog {'out' if direction > 0 else 'in'} {codec.FUNCTIONS[fn].label} "
-                               f"({adapter.functions_text(fn)}), ramp {ramp.options[ramp.value]}",
-                               lambda a: a.jog(session, fn, direction, ramp_value(), requested_at=pressed))
+                    return act("jog (RE)", {"function": fn, "direction": direction, "ramp": ramp_value(),
+                                            "requested_at": pressed})
                 return press
 
             def jog_release():
@@ -258,12 +246,11 @@ def content(name: str) -> None:
                 jog_held.clear()
                 if not held:
                     return None  # a mouse passing over the button: nothing was pressed
-                return act("jog stop (RS)", lambda a: _release_all(a, held), write=False)
+                return _release_all(held)
 
-            async def _release_all(a, held):
+            async def _release_all(held):
                 for fn in held:
-                    await a.jog(session, fn, 0)
-                return "stopped"
+                    await act("jog stop (RS)", {"function": fn})
 
             for button, direction in ((jog_in, -1), (jog_out, 1)):
                 for event in ("mousedown", "touchstart"):
@@ -284,17 +271,17 @@ def content(name: str) -> None:
                 for fn, label in SWITCHES:
                     with ui.button_group():
                         b_on = ui.button(f"{label} on", on_click=lambda fn=fn: act(
-                            f"{codec.FUNCTIONS[fn].label} on (RE)", lambda a: a.run_function(session, fn))).props("outline")
+                            "function on (RE)", {"function": int(fn)})).props("outline")
                         b_off = ui.button("off", on_click=lambda fn=fn: act(
-                            f"{codec.FUNCTIONS[fn].label} off (RS)", lambda a: a.stop(session, int(fn)), write=False)).props("outline")
+                            "function off (RS)", {"function": int(fn)})).props("outline")
                     switches.append(b_on)
                     switches_off.append(b_off)
             with ui.row().classes("items-center gap-4"):
                 ui.button("Emergency stop (function 19)", icon="emergency", color="negative",
-                          on_click=lambda: act("emergency stop (RE 19)", lambda a: a.emergency_stop(session), write=False)) \
+                          on_click=lambda: act("emergency stop (RE 19)")) \
                     .props("data-testid=emergency-stop")
                 release_estop = ui.button("Release emergency stop (RS 19)", on_click=lambda: act(
-                    "release emergency stop", lambda a: a.release_emergency_stop(session))).props("outline")
+                    "release emergency stop (RS 19)", title="Release the emergency stop?")).props("outline")
                 ui.label("Emergency stop acts at once, without confirmation.").classes("text-caption")
 
         # -- data directory -----------------------------------------------------------------------------
@@ -312,7 +299,7 @@ def content(name: str) -> None:
                 table.on("selection", lambda e: pick.set_value(int(e.args["rows"][0]["id"], 16)) if e.args.get("rows") else None)
 
                 async def read_one() -> None:
-                    ok, result = await act(f"read 0x{pick.value:04X}", lambda a: a.read_data(pick.value), write=False)
+                    ok, result = await act("read data", {"data_id": pick.value})
                     if ok:
                         shown.set_text(f"{result['key']} {result['name']} ({result['type']}): "
                                        f"{result['text'] or result['error']}")
@@ -333,7 +320,7 @@ def content(name: str) -> None:
                 ids = list(SERVICE_IDS) + [0x2000 + s.number for s in adapter.scales]
                 out = []
                 for data_id in ids:
-                    ok, result = await act(f"read 0x{data_id:04X}", lambda a, d=data_id: a.read_data(d), write=False)
+                    ok, result = await act("read data", {"data_id": data_id})
                     if not ok:
                         break
                     out.append({"id": result["key"], "name": result["name"], "value": result["text"] or result["error"],
@@ -350,7 +337,7 @@ def content(name: str) -> None:
             event_log(state)  # session changes, error answers, offline and back, commands; newest first
 
     stop_bar("RS to every running function; anyone may stop, also without control.", "STOP", "stop_circle",
-             lambda: act("stop (RS)", lambda a: a.stop(session), write=False), "stop-bar", "big-stop").classes("text-h6")
+             lambda: act("stop (RS)"), "stop-bar", "big-stop").classes("text-h6")
 
     def client_user() -> str:
         from pages.session import current_user

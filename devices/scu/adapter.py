@@ -930,6 +930,10 @@ class ScuAdapter:
             self.state.publish("Controlled by", user, periodic=False)
             self.state.event("info", f"{user} took control")
 
+    def controls(self, session: str) -> bool:
+        """Whether ``session`` holds control of the unit (the gate's check for commands that need control)."""
+        return self.controller is not None and self.controller.session == session
+
     def _check_holder(self, session: str) -> None:
         if self.controller is None:
             raise CommandError("take control first")
@@ -1132,6 +1136,10 @@ class ScuAdapter:
         return await self.run_function(session, function, codec.Motion.OUT if direction > 0 else codec.Motion.IN, ramp,
                                        requested_at=requested_at)
 
+    async def jog_stop(self, session: str, function: int) -> str:
+        """Release of a jog button: RS after the press's RE (the declared stop ``jog stop (RS)``)."""
+        return await self.jog(session, function, 0)
+
     def actuators_of(self, function: int) -> list[int]:
         """The actuators function ``function`` (fnc_ID 0..9) drives, as configured (or assumed, SCP11)."""
         return list(self.function_actuators.get(int(function), []))
@@ -1214,17 +1222,33 @@ class ScuAdapter:
             raise CommandError("remote position must fit INT32")
         return await self._write_read_back(p.remote_position_id(actuator), int(counts), f"remote position A{actuator}")
 
+    async def set_remote_target(self, session: str, actuator: int, value: float, mm: bool = False) -> int:
+        """The declared ``set remote position``: ``value`` in mm (``mm``) or counts."""
+        if mm:
+            return await self.set_remote_position(session, actuator, mm=float(value))
+        if float(value) != int(value):
+            raise CommandError("remote position in counts: a whole number")
+        return await self.set_remote_position(session, actuator, counts=int(value))
+
     async def release_scu(self, session: str | None = None) -> str:
-        """RS to every running function, then RA: the hand switch has the unit back; no reopening until asked."""
+        """RS to every running function, then RA: the hand switch has the unit back; no reopening until asked.
+
+        An RA without an acknowledgement still releases the unit: RC stops with it, so the unit's watchdog ends
+        remote mode within 500 ms (section 5). The result says which, and the event says the same.
+        """
         for fn in [f for f in self.running if f not in NOT_HELD]:
             await self._send_rs(fn, "release of the SCU")
+        how = "released (RA acknowledged): normal mode, the hand switch has the unit"
         try:
             await self._request(codec.encode_ra(), "RA release the SCU", keepalive=False)
+        except (SerialLineError, codec.CodecError) as exc:
+            how = (f"released without an acknowledged RA ({exc}): RC has stopped, so the unit's watchdog ends remote "
+                   "mode within 500 ms (section 5) and the hand switch has the unit then")
         finally:
             self.cyclic = None
             self._set_session("released", "released to the hand switch (RA); open the session again to drive it")
-            self.state.event("info", "SCU released (RA): normal mode, the hand switch has the unit")
-        return "released"
+        self.state.event("info" if how.startswith("released (RA") else "warning", f"SCU {how}")
+        return how
 
     async def reopen(self, session: str | None = None) -> str:
         """Open the remote session again (after a release, or by hand after a loss): the line is resynchronised first."""

@@ -1,20 +1,107 @@
 """What the Ewellix SCU lets this tool do: its declared commands (see :mod:`devices.commands`).
 
 The SCU sits on a point-to-point RS232 line where no raw-byte tool of this program sends, so it
-declares no frame rules. Stops (RS, the emergency stop RE 19) are never refused; releasing control
-stops first. Wording as the SCU page submits it.
+declares no frame rules. Stops (RS, jog release, the emergency stop RE 19, releasing control) are
+never refused. Starting a function (RE) is motion and needs control of the unit; Go asks that the
+area is clear; releasing the emergency stop (RS 19, table 8) is motion too, asked and by the holder
+of control only. The page, the API and the CLI invoke these by name (pages/scu.py).
 """
 
 from __future__ import annotations
 
-from devices.commands import Command
+from collections.abc import Mapping
+from typing import Any
+
+from devices.commands import Arg, Command, CommandError
+from devices.scu import codec
 
 TITLE = "Ewellix SCU"
 
+_FUNCTION = Arg("function", 0, 9)  # fnc_ID of F1..F10 (motion functions, section 4.4)
+_RAMP = Arg("ramp", -1, 1)  # para_ID[1]: 1 soft, 0 fast, -1 as configured
+_SWITCHES = frozenset(int(f) for f in (codec.Function.BUZZER, codec.Function.BINARY_OUTPUT_1,
+                                        codec.Function.BINARY_OUTPUT_2, codec.Function.LED_1, codec.Function.LED_2))
+_STOPPABLE = frozenset(int(f) for f in codec.Function) - {int(codec.Function.EMERGENCY_STOP)}
+ESTOP_RELEASE_RISK = ("Release the emergency stop (RS 19, table 8)? Every drive may be started again. Only the person "
+                      "who set it releases it: check that the reason for it is gone and the area is clear.")
+
+
+def _go_risk(values: Mapping[str, Any]) -> str:
+    label = codec.FUNCTIONS[codec.Function(values["function"])].label
+    return (f"{label} starts motion ({codec.MOTION_LABELS.get(codec.Motion(values['motion']), values['motion'])}). "
+            "Check that the area is clear: nobody and nothing in the stroke of the actuators it drives.")
+
+
+def _motion(values: dict[str, Any]) -> dict[str, Any]:
+    try:
+        codec.Motion(values["motion"])
+    except ValueError:
+        raise CommandError(f"motion {values['motion']} is not a para_ID[0] of table 9") from None
+    return values
+
+
+def _jog(values: dict[str, Any]) -> dict[str, Any]:
+    if values["direction"] == 0:
+        raise CommandError("direction: -1 (in) or +1 (out); the release is 'jog stop (RS)'")
+    return values
+
+
+def _switch(values: dict[str, Any]) -> dict[str, Any]:
+    if values["function"] not in _SWITCHES:
+        raise CommandError(f"function {values['function']} is not the buzzer, a binary output or an LED (16, 17, 20, 21, 10)")
+    return values
+
+
+def _stoppable(values: dict[str, Any]) -> dict[str, Any]:
+    if values["function"] not in _STOPPABLE:
+        raise CommandError(f"function {values['function']}: RS only to F1..F10, the buzzer, the outputs and LEDs; "
+                           "the emergency stop is released by its own command")
+    return values
+
+
+def _speed_audit(values: Mapping[str, Any], adapter: Any) -> dict[str, Any]:
+    key = f"F{values['function']} remote speed"
+    before = adapter.state.points.get(key)
+    return {"action": f"set remote speed F{values['function']}", "parameter": f"Remote Speed F{values['function']} "
+            f"(0x{0x3010 + values['function']:04X})", "old": "" if before is None else before.value,
+            "new": f"{values['speed']} {getattr(adapter, 'speed_unit', '')}".strip()}
+
+
+def _position_audit(values: Mapping[str, Any], adapter: Any) -> dict[str, Any]:
+    n = values["actuator"]
+    before = adapter.state.points.get(f"A{n} remote position")
+    unit = "mm" if values.get("mm") else "counts"
+    return {"action": f"set remote position A{n}", "parameter": f"Remote Position A{n} (0x{0x3020 + n:04X})",
+            "old": "" if before is None else (before.text or before.value), "new": f"{values['value']:g} {unit}"}
+
+
 COMMANDS = (
+    # -- stops: every role, never refused, sent first and audited afterwards -----------------------------------------
     Command("stop (RS)", "stop", method="stop", session=True),
-    Command("jog stop (RS)", "stop"),
+    Command("function off (RS)", "stop", method="stop", session=True, args=(Arg("function", 0, 21),), prepare=_stoppable),
+    Command("jog stop (RS)", "stop", method="jog_stop", session=True, args=(_FUNCTION,)),
     Command("emergency stop (RE 19)", "stop", method="emergency_stop", session=True),
     Command("release control", "stop", method="release_control", session=True),
+    # -- motion: engineers, with control --------------------------------------------------------------------------------
+    Command("go (RE)", "motion", method="run_function", session=True, needs_control=True,
+            args=(_FUNCTION, Arg("motion", 0, 9), _RAMP), extras=("requested_at",), prepare=_motion, risk=_go_risk),
+    Command("jog (RE)", "motion", method="jog", session=True, needs_control=True,
+            args=(_FUNCTION, Arg("direction", -1, 1), _RAMP), extras=("requested_at",), prepare=_jog),
+    Command("release emergency stop (RS 19)", "motion", method="release_emergency_stop", session=True,
+            needs_control=True, risk=ESTOP_RELEASE_RISK),
+    # -- writes: the volatile remote data (table 7), read back --------------------------------------------------------
+    Command("function on (RE)", "write", method="run_function", session=True, needs_control=True,
+            args=(Arg("function", 10, 21),), prepare=_switch),
+    Command("set remote speed", "write", method="set_remote_speed", session=True, needs_control=True,
+            args=(Arg("function", 1, 10), Arg("speed", 0, 1000)), audit=_speed_audit),
+    Command("set remote position", "write", method="set_remote_target", session=True, needs_control=True,
+            args=(Arg("actuator", 1, 6), Arg("value", -(2 ** 31), 2 ** 31 - 1, integer=False)), flags=("mm",),
+            audit=_position_audit),
+    # -- the session --------------------------------------------------------------------------------------------------
+    Command("take control", "system", method="take_control", session=True, extras=("user",)),
+    Command("open remote session", "system", method="reopen", session=True),
+    Command("release the SCU (RA)", "system", method="release_scu", session=True),
+    # -- reads ---------------------------------------------------------------------------------------------------------
+    Command("read data", "read", method="read_data", args=(Arg("data_id", 0, 0xFFFF),)),
     Command("read 0x", "read", prefix=True),
 )
