@@ -41,6 +41,8 @@ table.glance-table td.alarms { color: #c10015; font-weight: 500; overflow-wrap: 
 table.glance-table td.age { white-space: nowrap; color: #666; }
 table.glance-table tr.glance-offline td { background: #fdeaea; }
 table.glance-table tr.glance-stale td { background: #fff4d6; }
+table.glance-table .glance-drift { color: #8a4b00; font-weight: 500; }
+.drift-badge { align-self: flex-start; cursor: help; }
 """
 TILE_WIDTH_PX, TILE_GAP_PX = 240, 12
 
@@ -48,6 +50,16 @@ TILE_WIDTH_PX, TILE_GAP_PX = 240, 12
 CAN_COUNTERS = (("responses", "frames heard", True), ("malformed", "malformed", True), ("timeouts", "timeouts", False))
 REQUEST_COUNTERS = (("requests", "req", True), ("timeouts", "timeouts", True), ("crc_errors", "CRC", True),
                     ("exceptions", "exc", False), ("malformed", "malformed", False))
+
+
+def drift_rows(state) -> list[dict]:
+    """The parameters of ``state`` that differ from its approved set (app/record.py), [] for none."""
+    drift = getattr(state, "drift", None) or {}
+    return list(drift.get("changed") or [])
+
+
+def drift_text(rows: list[dict]) -> str:
+    return "; ".join(f"{r['name']} {r['approved']} → {r['now']}" for r in rows)
 
 
 def counters_text(counters: dict[str, int], bus_type: str, age: float | None) -> str:
@@ -76,6 +88,10 @@ class DeviceTile:
                 ui.label(name).classes("text-subtitle1 text-weight-bold tile-name").props(f'title="{name}"')
                 self.badge = ui.badge("waiting", color="grey")
             ui.label(f"{self.device_type.title} on {self.state.bus}").classes("text-caption text-grey-8")
+            # the commissioning record: the differing parameters on hover (title) and in the record page
+            self.drift = ui.badge("changed since approved", color="orange-9").classes("drift-badge") \
+                .props(f'data-drift="{name}"')
+            self.drift.set_visibility(False)
             self.values = ui.column().classes("gap-0 w-full").props("data-tile-values")
             with self.values:
                 self.lines = TextPool("text-body2")
@@ -109,6 +125,12 @@ class DeviceTile:
             mark_quality(self.values, marked)
         self.quality_note.set_text(quality_note(quality, tile["age"]) if marked != "good" else "")
         self.error.set_text(s.last_error if status != "online" else "")
+        rows = drift_rows(s)
+        if self._changed("drift", drift_text(rows)):
+            self.drift.set_visibility(bool(rows))
+            self.drift.text = f"changed since approved ({len(rows)})" if rows else "changed since approved"
+            self.drift._props["title"] = "Changed since approved: " + drift_text(rows) if rows else ""
+            self.drift.update()
 
 
 class GlanceRow:
@@ -122,8 +144,10 @@ class GlanceRow:
                 ui.link(name, f"/device/{name}")
             with ui.element("td"):
                 self.status = ui.label()
+                self.drift = ui.label().classes("glance-drift").props(f'data-glance-drift="{name}"')
             with ui.element("td").classes("alarms"):
                 self.alarms = ui.label()
+                self.drift_rows = ui.label().classes("glance-drift")
             with ui.element("td").classes("age"):
                 self.age = ui.label()
         self.update()
@@ -134,7 +158,8 @@ class GlanceRow:
         status, age = s.status, s.age
         tile = evaluate_tile(s)
         alarms = tile["alarms"] if tile["quality"] in ("good", "unknown") else []
-        shown = (status, "; ".join(alarms), fmt_age(age) if age is not None else "never")
+        rows = drift_rows(s)
+        shown = (status, "; ".join(alarms), fmt_age(age) if age is not None else "never", drift_text(rows))
         if shown == self._shown:
             return
         self._shown = shown
@@ -142,6 +167,8 @@ class GlanceRow:
         self.status.classes(replace=f"status-{status}")
         self.alarms.set_text(shown[1])
         self.age.set_text(shown[2])
+        self.drift.set_text("changed since approved" if rows else "")
+        self.drift_rows.set_text(f"Changed since approved: {shown[3]}" if rows else "")
         self.row.classes(replace=f"glance-{status}")
 
 

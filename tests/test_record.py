@@ -121,3 +121,28 @@ async def test_values_the_lock_measures_itself_and_a_running_checkout_are_not_dr
         await runtime.worker.command("door-2", lambda a: a.write_param(PARAMS.get("holding", 3000), 350), user="anna",
                                      describe="write")
         assert await wait_for(lambda: [r["key"] for r in state.drift["changed"]] == ["holding:3000"], 10)
+
+
+async def test_overview_marks_a_device_changed_since_approved_on_its_tile_and_in_the_table(tmp_path):
+    from nicegui import ui
+
+    from app.runtime import Runtime
+
+    runtime = Runtime(demo_plant(("door-1",)), simulate=True, data_dir=tmp_path / "data")
+    async with simulated_user(runtime) as user:
+        state = runtime.store.devices["door-1"]
+        assert await wait_for(lambda: state.status == "online" and state.value("LockRequestDelay") is not None, 15)
+        await runtime.record.approve("door-1", user="anna", role="engineer")
+        await user.open("/")
+        await user.should_not_see("changed since approved")
+
+        param = PARAMS.get("holding", 3000)
+        await runtime.worker.command("door-1", lambda a: a.write_param(param, 350), user="anna", describe="write")
+        assert await wait_for(lambda: state.drift["changed"], 5)
+        await user.should_see("Changed since approved: LockRequestDelay 200 ms → 350 ms")  # the table's row
+        badge = next(iter(user.find(kind=ui.badge, content="changed since approved (1)").elements))
+        assert badge.visible and badge._props["title"] == "Changed since approved: LockRequestDelay 200 ms → 350 ms"
+
+        await runtime.worker.command("door-1", lambda a: a.write_param(param, 200), user="anna", describe="write")
+        assert await wait_for(lambda: not state.drift["changed"], 5)
+        await user.should_not_see("changed since approved")
