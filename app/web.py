@@ -404,7 +404,8 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
     rt.set_current(runtime)
     app.on_startup(runtime.start)
     app.on_shutdown(runtime.stop)
-    app.on_disconnect(lambda client: runtime.worker.session_closed(client.id))
+    app.on_disconnect(lambda client: runtime.worker.session_closed(client.id))  # stops motion and outputs at once
+    app.on_delete(lambda client: runtime.worker.session_deleted(client.id))  # releases control: the page did not come back
     app.add_middleware(AuthMiddleware, runtime=runtime)
     app.add_middleware(UploadGuard, runtime=runtime)
     serve_assets_from_memory()

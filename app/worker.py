@@ -42,6 +42,7 @@ STALL_S = 0.1  # an event-loop stall longer than this is logged and shown
 # credits at most LIVE_CREDIT_S however late it comes, so beats that waited in the socket because the
 # server was busy are not mistaken for a dead browser (a stalled loop is covered by the leases instead).
 LIVE_CREDIT_S = 2 * SUPERVISE_PERIOD_S
+SILENCE_LIMIT_S = 2.0  # however busy this program was: no sign of life for this long in real time stops the session
 LAG_WINDOW = 1200  # supervision ticks kept for the loop-lag figures (one minute)
 
 
@@ -382,13 +383,31 @@ class Worker:
         self.sessions[session] = role
 
     def session_closed(self, session: str) -> None:
-        """A browser went away: stop and release everything it drove or switched."""
+        """A page's connection dropped (closed, reloaded, or a reconnect under load): stop at once what it
+        keeps running (motion, mains outputs). Idle control, which moves nothing, stays with the page until
+        it is gone for good (:meth:`session_deleted`), so a page that reconnects keeps it."""
+        self.beats.pop(session, None)
+        self._beats_live.pop(session, None)
+        self._browser_sent.pop(session, None)
+        self._holding_since.pop(session, None)
+        reason = "the controlling browser disconnected"
+        for name, adapter in self._holder_items():
+            stop = getattr(adapter, "session_stop", None) or getattr(adapter, "session_lost", None)
+            if stop is None:
+                continue
+            try:
+                stop(session, reason)
+            except Exception:  # one adapter's failure must not keep the others running
+                log.exception("%s: stopping for a disconnected session failed", name)
+
+    def session_deleted(self, session: str) -> None:
+        """A page is gone for good (it did not reconnect): release everything it controlled."""
         self.sessions.pop(session, None)
         self.beats.pop(session, None)
         self._beats_live.pop(session, None)
         self._browser_sent.pop(session, None)
         self._holding_since.pop(session, None)
-        self._session_lost(session, "the controlling browser disconnected")
+        self._session_lost(session, "the controlling browser's page is gone")
 
     def _live_clock(self, now: float) -> float:
         """Seconds this program ran on time up to ``now`` (a stall counts as at most LIVE_CREDIT_S)."""
@@ -456,11 +475,11 @@ class Worker:
             if last is None:
                 last = self._holding_since.setdefault(session, live_now)
             silent = live_now - last
-            if silent <= DEADMAN_TIMEOUT_S:
-                alive.add(session)
-                continue
             heard = self.beats.get(session)
             waited = now - heard if heard is not None else silent
+            if silent <= DEADMAN_TIMEOUT_S and waited <= SILENCE_LIMIT_S:
+                alive.add(session)
+                continue
             busy = max(0.0, waited - silent)
             reason = (f"dead-man: the controlling browser has not confirmed it is alive for {silent * 1000:.0f} ms "
                       "while this program ran on time (the browser is frozen, asleep or its network is lost)")

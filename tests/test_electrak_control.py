@@ -141,3 +141,20 @@ async def test_saturated_that_stays_on_is_warned(lift):  # noqa: F811
     assert any("Saturated" in e.text for e in state.events if e.level == "warning")
     adapter.stop("s1")
     assert await wait_for(lambda: not state.info.get("saturated_warning"), timeout=1)
+
+
+async def test_a_dropped_connection_stops_motion_but_keeps_idle_control(lift):  # noqa: F811
+    """A page whose connection drops (a reconnect under load) must not lose its control: motion stops at
+    once, the idle keep-alive goes on (no message timeout); control goes only when the page is gone."""
+    runtime, adapter, state, twin = lift
+    await adapter.take_control("s1", "engineer")
+    adapter.jog("s1", +1)
+    assert await wait_for(lambda: state.info["motion"] & 1, timeout=2)
+    runtime.worker.session_closed("s1")  # the socket dropped; the page may reconnect
+    assert not adapter.command.enable and adapter.controller is not None
+    assert runtime.worker.can_buses["can2"].cyclic_running(adapter.key)
+    assert await wait_for(lambda: twin.control is not None and not twin.control.enable, timeout=0.5)
+    await asyncio.sleep(0.4)  # longer than the 250 ms message timeout: the keep-alive went on
+    assert not state.info["errors"] & 0x20
+    runtime.worker.session_deleted("s1")  # it did not come back
+    assert adapter.controller is None and not runtime.worker.can_buses["can2"].cyclic_running(adapter.key)

@@ -311,6 +311,16 @@ class ElectrakAdapter:
         c = self.controller
         return {c.session} if c is not None and (self.command.enable or self.command.override) else set()
 
+    def session_stop(self, session: str, reason: str) -> None:
+        """The page of ``session`` disconnected: motion stops at once (enable cleared, sent now); control, which
+        moves nothing by itself, stays until the page is gone for good (:meth:`session_lost`)."""
+        c = self.controller
+        if c is None or c.session != session or not (self.command.enable or self.command.override):
+            return
+        cmd = self.command
+        self.command = codec.ControlFrame(cmd.position_mm, cmd.current_a, cmd.speed_mm_s, enable=False)
+        self.state.event("warning", f"motion stopped: {reason} ({c.user}); enable cleared")
+
     def session_lost(self, session: str, reason: str) -> None:
         """The browser of ``session`` went away or froze: stop at once and release its control."""
         if self.controller is not None and self.controller.session == session:

@@ -451,7 +451,14 @@ class M3ioAdapter:
         return {session for name, session in self.owners.items() if self.outputs[name]}
 
     def session_lost(self, session: str, reason: str) -> None:
-        """``session`` closed or stopped confirming it is alive: its outputs off at once, and its control released."""
+        """``session`` is gone or stopped confirming it is alive: its outputs off at once, and its control released."""
+        self.session_stop(session, reason)
+        if self.controller is not None and self.controller.session == session:
+            self._release(f"released: {reason}")
+
+    def session_stop(self, session: str, reason: str) -> None:
+        """The page of ``session`` disconnected: its outputs off at once; its control (the watchdog with
+        every output off) stays until the page is gone for good (:meth:`session_lost`)."""
         names = [name for name, owner in self.owners.items() if owner == session and self.outputs[name]]
         for name in [name for name, owner in self.owners.items() if owner == session]:
             del self.owners[name]
@@ -461,8 +468,6 @@ class M3ioAdapter:
             self._send_now()
             self._publish()
             self.state.event("warning", f"{', '.join(names)} off: {reason}")
-        if self.controller is not None and self.controller.session == session:
-            self._release(f"released: {reason}")
 
     # -- SYNC cfg (7.2.4) ----------------------------------------------------------------------
     def set_two_phase(self, on: bool) -> None:
