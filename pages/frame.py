@@ -14,6 +14,7 @@ from pages.session import current_user
 
 CSS = (Path(__file__).resolve().parent.parent / "static" / "commission.css").read_text()
 LOOP_ORANGE_MS, LOOP_RED_MS = 100, 250  # loop lag p99 worth a look; one that endangers a 250 ms keep-alive
+NAV_PAGES = (("Overview", "/"), ("Plant view", "/plant"), ("Backup", "/backup"), ("Audit", "/audit"), ("Record", "/record"))
 STATUS_ICON = {"online": "check_circle", "stale": "schedule", "offline": "error", "unknown": "help"}
 
 
@@ -61,6 +62,25 @@ BEAT_JS = """
 """
 
 
+# bus names give way to their icons (state and tooltip stay) when the bus list does not fit the header
+HEADER_FIT_JS = """
+<script>
+(function () {
+  if (window.commissionHeaderFit) return;
+  const fit = function () {
+    const buses = document.querySelector('.hdr-buses');
+    if (!buses) return;
+    buses.classList.remove('hdr-icons');
+    if (buses.scrollWidth > buses.clientWidth + 1) buses.classList.add('hdr-icons');
+  };
+  window.addEventListener('resize', fit);
+  window.commissionHeaderFit = setInterval(fit, 1000);
+  setTimeout(fit, 50);
+})();
+</script>
+"""
+
+
 def notify_error(message: str) -> None:
     ui.notify(message, type="negative", multi_line=True, close_button="OK", timeout=0)
 
@@ -71,23 +91,28 @@ def frame(title: str):
     runtime = rt.current()
     ui.add_css(CSS)
     ui.page_title(f"{title} - commission")
-    with ui.header().classes("items-center justify-end bg-blue-grey-9 q-py-xs"):
-        ui.link("commission", "/").classes("text-h6 text-white no-underline")
-        ui.label(f"plant: {runtime.plant.name}").classes("text-caption text-grey-4")
+    # one line down to 1024 px: below 1360 px the page links fold into a menu and the bus names get smaller
+    # (static/commission.css, .hdr-*); the bus list gives way first, never the pages or the account
+    with ui.header().classes("items-center no-wrap bg-blue-grey-9 q-py-xs hdr").props("data-testid=header"):
+        ui.link("commission", "/").classes("text-h6 text-white no-underline hdr-keep")
+        ui.label(f"plant: {runtime.plant.name}").classes("text-caption text-grey-4 hdr-plant")
         if runtime.sim is not None and runtime.sim.servers:  # only when some bus of the plant is simulated
-            ui.badge("simulated devices", color="purple-3").classes("text-black")
+            ui.badge("simulated devices", color="purple-3").classes("text-black hdr-keep").tooltip(
+                "Some buses of this plant are simulated by this program")
         ui.space()
-        with ui.row().classes("items-center gap-2") as health:
+        with ui.row().classes("items-center gap-2 no-wrap hdr-keep") as health:
             pass
-        with ui.row().classes("items-center gap-2") as buses:
+        with ui.row().classes("items-center gap-2 no-wrap hdr-buses").props("data-testid=header-buses") as buses:
             pass
-        # the pages and the account move to a second line together when the window is narrow, never split
-        with ui.row().classes("items-center gap-4 no-wrap").props("data-testid=nav"):
-            ui.link("Overview", "/").classes("text-white")
-            ui.link("Plant view", "/plant").classes("text-white")
-            ui.link("Backup", "/backup").classes("text-white")
-            ui.link("Audit", "/audit").classes("text-white")
-            ui.link("Record", "/record").classes("text-white")
+        with ui.row().classes("items-center gap-4 no-wrap hdr-wide").props("data-testid=nav"):
+            for label, href in NAV_PAGES:
+                ui.link(label, href).classes("text-white")
+        with ui.button(icon="menu").props('flat dense color=white aria-label="Pages" data-testid=nav-menu') \
+                .classes("hdr-narrow"):
+            with ui.menu().props("data-testid=nav-menu-list"):
+                for label, href in NAV_PAGES:
+                    ui.menu_item(label).props(f'href="{href}" tag=a')
+        with ui.row().classes("items-center gap-2 no-wrap hdr-keep").props("data-testid=account"):
             user, role = current_user()
             if runtime.auth_required:
                 ui.label(f"{user} ({role})").classes("text-caption text-grey-4")
@@ -102,6 +127,7 @@ def frame(title: str):
     from app.worker import BEAT_PERIOD_S
 
     ui.add_body_html(BEAT_JS % (round(BEAT_PERIOD_S * 1000), BEAT_EVENT))
+    ui.add_body_html(HEADER_FIT_JS)
 
     # the header runs on every page: built once, then only changed texts and colours go to the browser
     with health:
@@ -121,7 +147,8 @@ def frame(title: str):
     bus_chips = {}
     with buses:
         for bus in runtime.store.buses.values():
-            with ui.link(f"{bus.name}", f"/monitor/{bus.name}").classes("text-white no-underline"):
+            with ui.link("", f"/monitor/{bus.name}").classes("text-white no-underline hdr-bus row items-center no-wrap"):
+                ui.label(bus.name).classes("hdr-bus-name")  # left out on a narrow screen: the icon and its tooltip stay
                 bus_chips[bus.name] = (ui.icon("link_off", color="red").classes("q-ml-xs"), ui.tooltip(""))
 
     def refresh_buses() -> None:
@@ -152,7 +179,7 @@ def frame(title: str):
             icon, tip = bus_chips[bus.name]
             icon.set_name("lan" if bus.connected else "link_off")
             icon.set_text_color("green" if bus.connected else "red")
-            tip.set_text(f"{bus.type} {bus.endpoint}: " + ("connected" if bus.connected else bus.last_error or "not connected"))
+            tip.set_text(f"{bus.name}: {bus.type} {bus.endpoint}: " + ("connected" if bus.connected else bus.last_error or "not connected"))
 
     refresh_buses()
     ui.timer(2.0, refresh_buses)
