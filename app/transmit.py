@@ -1,7 +1,7 @@
 """The engineer's CAN transmit list of one bus: rows sent once or cyclically through the bus owner.
 
-Rows are entered as bytes or built by name through the device codecs (an M3IO DigOut with its
-bits, an HD-Lock register read or write). Every send and every cyclic start/stop goes through
+Rows are entered as bytes or built by name from the frames each device type declares
+(``transmit_forms`` in its policy.py). Every send and every cyclic start/stop goes through
 the worker (:meth:`app.worker.Worker.engineer_action` / ``refused``): engineer role, audit row.
 Frames that a device document forbids are refused by name before anything is sent
 (:func:`forbidden_reason`). Cyclic rows belong to the browser session that started them and stop
@@ -20,9 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from app.backup import write_atomic
-from devices.hdlock import codec as hdlock_codec
-from devices.hdlock.params import PARAMS as HDLOCK_PARAMS
-from devices.m3io import codec as m3io_codec
+from devices.commands import TxForm, transmit_forms
 from devices.sendpolicy import BusDevice, Verdict, check_can
 
 log = logging.getLogger(__name__)
@@ -138,45 +136,22 @@ def forbidden_reason(can_id: int, extended: bool, data: bytes, bus_devices=()) -
 # -- rows built from device messages ----------------------------------------------------------------
 
 
-def m3io_dig_out(device: str, options: dict, outputs: dict[str, bool]) -> TxRow:
-    """An M3IO DigOut frame (section 7.2.1) for the device's SW1 and variant."""
-    ids = m3io_codec.derive_ids(int(options["sw1"]))
-    variant = m3io_codec.Variant(options.get("variant", "HM"))
-    data = m3io_codec.encode_dig_out(variant, outputs)
-    on = " ".join(name for name, value in outputs.items() if value) or "all off"
-    return make_row(ids.dig_out, False, data, label=f"M3IO {device} DigOut: {on}")
+def named_forms(type_name: str, options: dict) -> list[TxForm]:
+    """The frames a device of the plant offers to build by name (declared in its type's policy.py)."""
+    return transmit_forms(type_name, options)
 
 
-def m3io_output_names(options: dict) -> list[str]:
-    return list(m3io_codec.OUTPUT_BITS[m3io_codec.Variant(options.get("variant", "HM"))])
-
-
-def hdlock_target(options: dict) -> hdlock_codec.DeviceId:
-    return hdlock_codec.DeviceId.make(int(options["device_id"]), options.get("extended"))
-
-
-def hdlock_read(device: str, options: dict, space: str, address: int, count: int = 1) -> TxRow:
-    """An HD-Lock Read Input/Holding-Register request (section 6.6.3/6.6.4)."""
+def named_row(type_name: str, device: str, options: dict, form: str, values: dict) -> TxRow:
+    """The row of the device frame ``form`` built from ``values`` (:raises TransmitError: no such frame, or
+    values its codec refuses)."""
+    found = next((f for f in named_forms(type_name, options) if f.title == form), None)
+    if found is None:
+        raise TransmitError(f"{device} offers no frame called {form!r}")
     try:
-        frame = hdlock_codec.encode_read(hdlock_target(options), space, address, count)
-    except hdlock_codec.CodecError as exc:
-        raise TransmitError(str(exc)) from None
-    param = HDLOCK_PARAMS.get(space, address)
-    name = f" {param.label or param.name}" if param else ""
-    return make_row(frame.arbitration_id, frame.is_extended_id, frame.data,
-                    label=f"HD-Lock {device} read {space} {address}+{count}{name}")
-
-
-def hdlock_write(device: str, options: dict, address: int, value: int) -> TxRow:
-    """An HD-Lock Write Holding-Register request (section 6.6.5), only for writable registers."""
-    try:
-        frame = hdlock_codec.encode_write(hdlock_target(options), address, value)
-    except hdlock_codec.CodecError as exc:
-        raise TransmitError(str(exc)) from None
-    param = HDLOCK_PARAMS.get("holding", address)
-    name = f" {param.label or param.name}" if param else ""
-    return make_row(frame.arbitration_id, frame.is_extended_id, frame.data,
-                    label=f"HD-Lock {device} write holding {address}{name}={value}")
+        can_id, extended, data, label = found.build(device, options, values)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise TransmitError(f"{device} {form}: {exc}") from None
+    return make_row(can_id, extended, data, label=label)
 
 
 # -- the list ------------------------------------------------------------------------------------

@@ -165,6 +165,40 @@ class Command:
         return method(*positional, **options)
 
 
+# -- frames the transmit list builds by name (declared as ``transmit_forms(options)`` in policy.py) ------------
+
+
+@dataclass(frozen=True)
+class TxField:
+    """One entry of a :class:`TxForm`: ``number`` (whole, ``low`` .. ``high``), ``choice`` (of ``choices``,
+    value -> text) or ``flag`` (a tick box)."""
+
+    name: str
+    kind: str = "number"
+    low: int = 0
+    high: int = 0xFFFF
+    default: Any = None
+    choices: Mapping[Any, str] | None = None
+
+
+@dataclass(frozen=True)
+class TxForm:
+    """A device frame the transmit list builds by name: ``build(device, options, values)`` returns
+    ``(can_id, extended, data, label)`` and raises ``ValueError`` (a codec error) for values it cannot send."""
+
+    title: str
+    fields: tuple[TxField, ...]
+    build: Callable[[str, Mapping[str, Any], Mapping[str, Any]], tuple[int, bool, bytes, str]]
+
+
+def transmit_forms(type_name: str, options: Mapping[str, Any]) -> list[TxForm]:
+    """The frames a device of ``type_name`` with ``options`` offers to build by name (none when it declares none)."""
+    from devices.sendpolicy import policy_of
+
+    forms = getattr(policy_of(type_name), "transmit_forms", None)
+    return list(forms(options)) if forms is not None else []
+
+
 WRITE_PARAMETER = "write parameter"
 
 

@@ -118,10 +118,9 @@ def _engineer_view(runtime, bus: str) -> None:
 
             ui.button("Add", icon="add", on_click=add_raw).props("data-testid=transmit-add")
 
-    # -- device messages by name --------------------------------------------------------
-    m3ios = [d for d in devices if d.type == "m3io"]
-    locks = [d for d in devices if d.type == "hdlock"]
-    if m3ios or locks:
+    # -- device messages by name (the frames each device type declares) -------------------
+    offered = [(dev, form) for dev in devices for form in tx.named_forms(dev.type, dev.options)]
+    if offered:
         with ui.card().classes("w-full"):
             with ui.row().classes("items-end gap-3"):
                 ui.label("Device message by name").classes("text-subtitle1")
@@ -143,37 +142,28 @@ def _engineer_view(runtime, bus: str) -> None:
                     await tl.add(row, **_who())
 
                 await guarded(do)
-            for dev in m3ios:
+            for dev, form in offered:
                 with ui.row().classes("items-center gap-2 flex-wrap"):
-                    ui.label(f"M3IO {dev.name} DigOut").classes("w-48")
-                    boxes = {name: ui.checkbox(name) for name in tx.m3io_output_names(dev.options)}
+                    ui.label(f"{dev.name} {form.title}").classes("w-48")
+                    entries = {}
+                    for f in form.fields:
+                        if f.kind == "flag":
+                            entries[f.name] = ui.checkbox(f.name, value=bool(f.default))
+                        elif f.kind == "choice":
+                            entries[f.name] = ui.select(dict(f.choices or {}), value=f.default).props(
+                                "dense outlined").classes("w-36")
+                        else:
+                            entries[f.name] = range_number(f.name.capitalize(), f.low, f.high, integer=True,
+                                                           value=f.default).classes("w-32")
 
-                    async def add_digout(dev=dev, boxes=boxes) -> None:
-                        await add_named(lambda: tx.m3io_dig_out(dev.name, dev.options,
-                                                                {n: bool(b.value) for n, b in boxes.items()}))
-
-                    ui.button("Add", icon="add", on_click=add_digout).props("flat dense")
-            for dev in locks:
-                with ui.row().classes("items-center gap-2 flex-wrap"):
-                    ui.label(f"HD-Lock {dev.name}").classes("w-48")
-                    space = ui.select({"holding": "read holding", "input": "read input", "write": "write holding"},
-                                      value="holding").props("dense outlined").classes("w-36")
-                    address = range_number("Register", 0, 65535, integer=True, value=1000).classes("w-32")
-                    count = range_number("Count / value", 0, 65535, integer=True, value=1).classes("w-36")
-
-                    async def add_lock(dev=dev, space=space, address=address, count=count) -> None:
-                        if not all_valid(address, count):
+                    async def add_form(dev=dev, form=form, entries=entries) -> None:
+                        numbers = [e for f, e in zip(form.fields, entries.values()) if f.kind == "number"]
+                        if not all_valid(*numbers):
                             return
+                        await add_named(lambda: tx.named_row(dev.type, dev.name, dev.options, form.title,
+                                                             {n: e.value for n, e in entries.items()}))
 
-                        def build():
-                            a, n = int(address.value or 0), int(count.value or 0)
-                            if space.value == "write":
-                                return tx.hdlock_write(dev.name, dev.options, a, n)
-                            return tx.hdlock_read(dev.name, dev.options, space.value, a, max(1, n))
-
-                        await add_named(build)
-
-                    ui.button("Add", icon="add", on_click=add_lock).props("flat dense")
+                    ui.button("Add", icon="add", on_click=add_form).props("flat dense")
 
     # -- the list -------------------------------------------------------------------------
     shown = {"version": -1, "sent": -1}

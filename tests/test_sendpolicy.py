@@ -136,7 +136,7 @@ async def test_transmit_digout_with_mains_ssr_asks_first(can_rig):
     runtime, listener = can_rig
     tl = tx.transmit_list(runtime.worker, "can1", runtime.data_dir)
     await tl.load()
-    row = await tl.add(tx.m3io_dig_out("heater", {"sw1": 0x1A, "variant": "HM"}, {"SSR1": True}), user="anna", role="engineer")
+    row = await tl.add(tx.named_row("m3io", "heater", {"sw1": 0x1A, "variant": "HM"}, "DigOut", {"SSR1": True}), user="anna", role="engineer")
     _drain(listener)
     with pytest.raises(tx.NeedsConfirmation, match="mains"):
         await tl.send_once(row.key, user="anna", role="engineer")
@@ -150,7 +150,7 @@ async def test_transmit_named_rows_may_be_cyclic(can_rig):
     runtime, _listener = can_rig
     tl = tx.transmit_list(runtime.worker, "can1", runtime.data_dir)
     await tl.load()
-    built = tx.hdlock_read("lock", {"device_id": 335, "extended": True}, "holding", 1000)
+    built = tx.named_row("hdlock", "lock", {"device_id": 335, "extended": True}, "register", {"operation": "holding", "register": 1000, "count": 1})
     row = await tl.add(tx.make_row(built.can_id, built.extended, built.data, 200, built.label), user="anna", role="engineer")
     await tl.start(row.key, user="anna", role="engineer", session="tab")
     assert await wait_for(lambda: tl.sent.get(row.key, 0) >= 2, timeout=3)

@@ -16,9 +16,7 @@ from app.runtime import Runtime
 from app.transmit import (
     TransmitError,
     forbidden_reason,
-    hdlock_read,
-    hdlock_write,
-    m3io_dig_out,
+    named_row,
     make_row,
     parse_bytes,
     transmit_list,
@@ -107,12 +105,12 @@ def test_allowed_frames_pass():
     # section 6.6.1 example: cmdSetLockRequestSource IrsAlways to extended device 335
     assert forbidden_reason(0x700, False, bytes.fromhex("4F 01 00 80 00 00 81 00")) is None
     assert forbidden_reason(0x706, True, b"") is None  # an extended 0x706 is not the lock's request block
-    row = hdlock_read("lock", LOCK, "holding", 1000)
+    row = named_row("hdlock", "lock", LOCK, "register", {"operation": "holding", "register": 1000, "count": 1})
     assert (row.can_id, row.extended, row.data.hex(" ")) == (0x703, False, "4f 01 00 80 e8 03 01 00")
     assert "LockStatus" in row.label
     with pytest.raises(TransmitError):
-        hdlock_write("lock", LOCK, 32770, 1)
-    dig = m3io_dig_out("heater", {"sw1": 0x1A, "variant": "HM"}, {"LED": True, "SSR1": True})
+        named_row("hdlock", "lock", LOCK, "register", {"operation": "write", "register": 32770, "count": 1})
+    dig = named_row("m3io", "heater", {"sw1": 0x1A, "variant": "HM"}, "DigOut", {"LED": True, "SSR1": True})
     assert (dig.can_id, dig.data) == (0x422, b"\x03")
 
 
@@ -123,7 +121,7 @@ async def test_send_once_and_audit(rig):
     runtime, listener = rig
     tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
     await tl.load()
-    row = await tl.add(hdlock_read("lock", LOCK, "input", 104, 2), user="anna", role="engineer")
+    row = await tl.add(named_row("hdlock", "lock", LOCK, "register", {"operation": "input", "register": 104, "count": 2}), user="anna", role="engineer")
     await tl.send_once(row.key, user="anna", role="engineer")
     got = await _frames(listener, 0x702, 0.3)
     assert [bytes(m.data) for m in got] == [bytes.fromhex("4F 01 00 80 68 00 02 00")]
@@ -225,7 +223,7 @@ async def test_list_saved_per_bus_and_restored(rig):
     tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
     await tl.load()
     await tl.add(make_row(0x1ABCDEF, True, b"\x01\x02", period_ms=250, label="x"), user="anna", role="engineer")
-    await tl.add(m3io_dig_out("heater", {"sw1": 0x1A, "variant": "HM"}, {"LED": True}), user="anna", role="engineer")
+    await tl.add(named_row("m3io", "heater", {"sw1": 0x1A, "variant": "HM"}, "DigOut", {"LED": True}), user="anna", role="engineer")
     assert (runtime.data_dir / "transmit-can1.json").exists()
     runtime.worker.remove_holder("transmit:can1")
     again = transmit_list(runtime.worker, "can1", runtime.data_dir)

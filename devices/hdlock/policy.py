@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from devices.hdlock import codec
 from devices.hdlock.params import DOOR_IGNORED_SOURCES, DOOR_IGNORED_WARNING, PARAMS
-from devices.commands import Arg, Command, param_write
+from devices.commands import Arg, Command, TxField, TxForm, param_write
 from devices.sendpolicy import Verdict, can_id_owner
 
 TITLE = "HD-Lock"
@@ -242,3 +242,28 @@ COMMANDS = (
             audit=_address_audit),
     param_write(PARAMS, _write_verdict),
 )
+
+
+# -- frames the transmit list builds by name (app/transmit.py) -----------------------------------------------
+
+TX_OPERATIONS = {"holding": "read holding", "input": "read input", "write": "write holding"}
+
+
+def _tx_register(device: str, options, values) -> tuple[int, bool, bytes, str]:
+    """A Read Input/Holding-Register (6.6.3/6.6.4) or Write Holding-Register (6.6.5) request to the lock."""
+    target = codec.DeviceId.make(int(options["device_id"]), options.get("extended"))
+    operation, address, number = values["operation"], int(values["register"]), int(values["count"])
+    if operation == "write":
+        frame = codec.encode_write(target, address, number)
+        param = PARAMS.get("holding", address)
+        what = f"write holding {address}{' ' + (param.label or param.name) if param else ''}={number}"
+    else:
+        frame = codec.encode_read(target, operation, address, max(1, number))
+        param = PARAMS.get(operation, address)
+        what = f"read {operation} {address}+{max(1, number)}{' ' + (param.label or param.name) if param else ''}"
+    return frame.arbitration_id, frame.is_extended_id, bytes(frame.data), f"HD-Lock {device} {what}"
+
+
+def transmit_forms(options) -> list[TxForm]:
+    return [TxForm("register", (TxField("operation", "choice", default="holding", choices=TX_OPERATIONS),
+                                TxField("register", default=1000), TxField("count", default=1)), _tx_register)]

@@ -8,7 +8,7 @@ transmit list, never replayed. Sync frames that write the configuration or custo
 from __future__ import annotations
 
 from devices.m3io import codec
-from devices.commands import Command
+from devices.commands import Command, TxField, TxForm
 from devices.sendpolicy import Verdict
 
 TITLE = "CAN-M3IO"
@@ -53,3 +53,20 @@ COMMANDS = (
     Command("read customer data", "read"),
     Command("read load data", "read", method="read_load_data"),
 )
+
+
+# -- frames the transmit list builds by name (app/transmit.py) -----------------------------------------------
+
+
+def _tx_dig_out(device: str, options, values) -> tuple[int, bool, bytes, str]:
+    """A DigOut frame (section 7.2.1) for the module's SW1 and variant; the policy asks for mains bits."""
+    ids = codec.derive_ids(int(options["sw1"]))
+    variant = codec.Variant(options.get("variant", "HM"))
+    outputs = {name: bool(values.get(name)) for name in codec.OUTPUT_BITS[variant]}
+    on = " ".join(name for name, value in outputs.items() if value) or "all off"
+    return ids.dig_out, False, codec.encode_dig_out(variant, outputs), f"M3IO {device} DigOut: {on}"
+
+
+def transmit_forms(options) -> list[TxForm]:
+    variant = codec.Variant(options.get("variant", "HM"))
+    return [TxForm("DigOut", tuple(TxField(name, "flag", default=False) for name in codec.OUTPUT_BITS[variant]), _tx_dig_out)]
