@@ -48,4 +48,5 @@ def test_checkout_sign_and_drift_from_the_record_page(chromium, app):
     with urllib.request.urlopen(f"{app}/api/devices", timeout=5) as response:
         door = next(d for d in json.load(response) if d["name"] == "door-2")
     # the lock itself raises its measured maximum bolt times (RW holding 1003/1004) during the cycle
-    assert door["drift"]["approved"] and {r["name"] for r in door["drift"]["changed"]} <= {"MaximumTimeLock", "MaximumTimeUnlock"}
+    # are measured values (Param.device_updates), never drift
+    assert door["drift"]["approved"] and door["drift"]["changed"] == []
