@@ -47,6 +47,6 @@ def test_checkout_sign_and_drift_from_the_record_page(chromium, app):
         page.close()
     with urllib.request.urlopen(f"{app}/api/devices", timeout=5) as response:
         door = next(d for d in json.load(response) if d["name"] == "door-2")
-    # the lock itself raises its measured maximum bolt times (RW holding 1003/1004) during the cycle
-    # are measured values (Param.device_updates), never drift
+    # the lock raises its measured maximum bolt times (RW holding 1003/1004) during the cycle: measured
+    # values (Param.device_updates), never drift
     assert door["drift"]["approved"] and door["drift"]["changed"] == []
