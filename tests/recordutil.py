@@ -47,9 +47,12 @@ async def demo_runtime(tmp_path, devices: tuple[str, ...] | None = None, online:
         await runtime.stop()
 
 
-async def run_checkout(runtime, device: str, *, answer: bool = True, settings: dict | None = None, user: str = "anna"):
-    async def ask(question: str) -> bool:
-        return answer
+async def run_checkout(runtime, device: str, *, answer: bool = True, settings: dict | None = None, user: str = "anna",
+                       ask=None):
+    """Run ``device``'s checkout; every question answered ``answer``, or by ``ask(question)`` where given."""
+    if ask is None:
+        async def ask(question: str) -> bool:
+            return answer
 
     run = runtime.record.new_run(device, user=user, role="engineer", ask=ask, settings=settings)
     return await run.run()

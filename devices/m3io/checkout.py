@@ -4,14 +4,22 @@ Declared here, run by the generic runner (``app/record.py``). Section 7.2.3: wit
 Last = 1 (a load and supply), Si = 1 (fuse intact) and Triac = 1 (conducting) are expected; on the
 HMR, SSR1-3 is one three-phase output whose three phases must all report a load (two with P2,
 section 4.3). Every output is switched off again in the cleanup, also after a failure or an abort.
+
+Inputs E1..E6 (DigIn, bits 0-5): for each the engineer is asked whether a test input is wired
+(no: the step is skipped, recorded with who said so), then to toggle it and to toggle it back;
+each change must reach the module's DigIn within ``toggle_timeout_s``.
 """
 
 from __future__ import annotations
 
+import time
+
 from devices.m3io import codec
 
 TITLE = "SSR outputs on and off"
-SETTINGS = {"settle_s": 3.0}  # the module reports the load state in its next temperature frames
+SETTINGS = {"settle_s": 3.0,  # the module reports the load state in its next temperature frames
+            "toggle_timeout_s": 10.0}  # after the engineer was asked to toggle an input
+INPUTS = tuple(f"E{n}" for n in range(1, 7))
 
 
 def _channels(output: str) -> list[int]:
@@ -29,7 +37,32 @@ def steps(options: dict, settings: dict) -> list[dict]:
         listed.append({"name": f"{output} on then off",
                        "limits": f"on: Last, Si and Triac ok within {settings['settle_s']:g} s; off: output off",
                        "run": lambda ctx, o=output: _cycle(ctx, o)})
+    for name in INPUTS:
+        listed.append({"name": f"{name} toggled (asked)",
+                       "limits": f"where a test input is wired: each toggle seen in DigIn within {settings['toggle_timeout_s']:g} s",
+                       "run": lambda ctx, n=name: _toggle(ctx, n)})
     return listed
+
+
+def _on_off(value) -> str:
+    return "unknown" if value is None else ("on" if value else "off")
+
+
+async def _toggle(ctx, name: str) -> None:
+    if not await ctx.choose(f"Is a test input wired to {name}?", f"{name} skipped"):
+        ctx.skip(f"{name}: no test input wired (answered by {ctx.user})")
+    if not await ctx.wait(lambda: ctx.value(name) is not None, ctx.settings["settle_s"]):
+        ctx.fail(f"{name}: no DigIn from the module")
+    before = ctx.value(name)
+    for turn, expect in (("now", not before), ("back", before)):
+        t0 = time.monotonic()
+        await ctx.ask(f"Toggle {name} {turn} (it reads {_on_off(ctx.value(name))}), then answer yes")
+        seen = await ctx.wait(lambda e=expect: ctx.value(name) == e, ctx.settings["toggle_timeout_s"])
+        ctx.measure(f"{name} {_on_off(expect)}", _on_off(ctx.value(name)), expect=_on_off(expect), fail=False)
+        if not seen:
+            ctx.fail(f"{name} stayed {_on_off(ctx.value(name))} for {ctx.settings['toggle_timeout_s']:g} s after "
+                     f"'toggle {turn}': is the test input wired to {name}, is it supplied?")
+        ctx.measure(f"{name} {_on_off(expect)}: seen after the answer", round(time.monotonic() - t0, 2), "s", fail=False)
 
 
 async def _ask(ctx) -> None:
