@@ -52,6 +52,7 @@ MAX_IDS = 4096  # rows of the overwrite view
 INBOX_FRAMES = 4096  # per kind waiting for the loop: about 0.45 s of a full 1 Mbit/s bus; beyond, the oldest are shed
 DRAIN_BUDGET_S = 0.004  # the loop drains one bus this long at most, then runs timers and other tasks
 DRAIN_CHECK = 4  # frames between two looks at the clock
+KEEPALIVE_NICE = -10  # scheduling priority asked for the keep-alive threads (Linux nice value; needs the right to raise it)
 READER_BACKOFF_S = 0.001  # the reader pauses this long when the hand-over is full (bench/can_ingest.py: 7.7x -> 12x)
 GIL_SWITCH_S = 0.001  # a busy reader thread holds the GIL at most this long while the loop owes a keep-alive (5 ms by default)
 SHED_WARN_S = 10.0  # at most one log line per bus this often while frames are shed
@@ -798,6 +799,12 @@ class _Periodic:
         self.task = bus.send_periodic(self._message(self.stop_checked(self.data)), self.period_s, modifier_callback=self._before_send)
         if hasattr(self.task, "on_error"):  # python-can's thread ends at the first error unless told otherwise
             self.task.on_error = self._on_error
+        thread = getattr(self.task, "thread", None)
+        if thread is not None and thread.native_id is not None:
+            try:  # ahead of busy processes of the same machine where the system allows it (CAP_SYS_NICE); else as it is
+                os.setpriority(os.PRIO_PROCESS, thread.native_id, KEEPALIVE_NICE)
+            except (OSError, AttributeError):
+                pass
 
     def stop(self) -> None:
         task, self.task = self.task, None

@@ -1,0 +1,299 @@
+"""Keep-alive periods whatever the event loop does (issue 28).
+
+The Electrak control telegram 0x06 (every 100 ms; the actuators flag a message timeout after
+250 ms) and the M3IO DigOut (every 100 ms while an engineer controls the module; the module's
+watchdog switches its outputs off after 2 s) leave on python-can's cyclic task under a lease.
+This benchmark measures their periods as a third node of each bus hears them, in four phases:
+
+(a) idle: control held, nothing else to do;
+(b) a flood of unknown extended IDs at 2x the frame limit of a 1 Mbit/s bus on a third bus of the
+    same program (the receive path, discovery and the monitor take the CPU and the GIL);
+(c) 20 pages open in chromium (overview, plant view and device pages, a mix): the app runs in a
+    process of its own on ``udp_multicast`` buses and the keep-alives are heard from this one;
+    skipped (and said so) without Debian's chromium and playwright;
+(d) the event loop blocked for 1 s (a loop callback that sleeps) while a jog is held and a mains
+    output is on: the keep-alives go on, and the stop form (enable cleared, SSR off) must be on
+    the bus within 500 ms of the block.
+
+Per telegram and phase: frames heard, p50 / p99 / max of the period error (gap minus the nominal
+period), the worst gap over the nominal period, and whether a device's own timeout rose (the
+Electrak's message-timeout flag in its status telegrams; the M3IO's watchdog, 2 s without DigOut).
+Phases (a), (b) and (d) run the worker in this process on ``virtual`` buses, as the tests do.
+
+Last line: ``keepalive_worst_gap_ratio: X`` = the largest gap / nominal period over every phase
+and telegram (goal: <= 1.2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import re
+import statistics
+import sys
+import tempfile
+import threading
+import time
+import uuid
+from pathlib import Path
+
+import can
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from app.plant import parse_plant  # noqa: E402
+from app.runtime import Runtime  # noqa: E402
+from devices.electrak import codec as electrak  # noqa: E402
+from devices.m3io import codec as m3io  # noqa: E402
+
+BUS_LIMIT_FPS = 1_000_000 // 131  # 8-byte extended frames
+DIGOUT_ID, DIGOUT_SSR1 = 0x422, 0x02  # M3IO HM, SW1 0x1A
+TIMEOUT_BIT = 1 << 5  # Electrak status byte 7 bit 5: message timeout
+
+
+class Heard:
+    """Frames of the keep-alives (and the Electrak's status telegrams) as a third node of a bus hears them,
+    with their interface time stamps (wall clock)."""
+
+    def __init__(self, bus: can.BusABC):
+        self.bus = bus
+        self.frames: list[tuple[float, int, bytes]] = []
+        self._run = True
+        self.thread = threading.Thread(target=self._loop, daemon=True)
+        self.thread.start()
+
+    def _loop(self) -> None:
+        while self._run:
+            msg = self.bus.recv(0.05)
+            if msg is not None and not msg.is_extended_id and msg.arbitration_id in (electrak.CONTROL_ID, electrak.STATUS_ID, DIGOUT_ID):
+                # the send time (virtual: stamped in the sender's send(); udp_multicast: the kernel's receive
+                # time), not when this thread got the interpreter to look at it
+                self.frames.append((msg.timestamp, msg.arbitration_id, bytes(msg.data)))
+
+    def between(self, can_id: int, start: float, end: float) -> list[tuple[float, bytes]]:
+        return [(t, d) for t, i, d in list(self.frames) if i == can_id and start <= t <= end]
+
+    def close(self) -> None:
+        self._run = False
+        self.thread.join(2)
+        self.bus.shutdown()
+
+
+def report(phase: str, heard: dict[str, Heard], start: float, end: float) -> float:
+    """Print the figures of one phase; the worst gap ratio."""
+    worst = 0.0
+    for name, can_id, nominal in (("Electrak 0x06", electrak.CONTROL_ID, electrak.CONTROL_PERIOD_S), ("M3IO DigOut", DIGOUT_ID, m3io.DIGOUT_PERIOD_S)):
+        times = [t for t, _ in heard[name].between(can_id, start, end)]
+        gaps = [b - a for a, b in zip(times, times[1:], strict=False)]
+        if not gaps:
+            print(f"  {phase}: {name}: no telegrams heard")
+            worst = float("inf")
+            continue
+        errors = sorted(abs(g - nominal) * 1000 for g in gaps)
+        ratio = max(gaps) / nominal
+        worst = max(worst, ratio)
+        if name.startswith("Electrak"):
+            flags = [d for _, d in heard[name].between(electrak.STATUS_ID, start + 0.3, end) if len(d) == 8 and d[7] & TIMEOUT_BIT]
+            own = f"message-timeout flag {'ROSE (' + str(len(flags)) + ' status telegrams)' if flags else 'never'}"
+        else:
+            own = f"module watchdog {'RAN OUT' if max(gaps) > m3io.WATCHDOG_S else 'served'}"
+        print(f"  {phase}: {name}: {len(times)} telegrams, period error p50 {statistics.median(errors):.1f} ms, "
+              f"p99 {errors[min(len(errors) - 1, int(0.99 * len(errors)))]:.1f} ms, max {errors[-1]:.1f} ms; "
+              f"worst gap {max(gaps) * 1000:.0f} ms = {ratio:.2f} x nominal; {own}")
+    return worst
+
+
+def in_process_plant(lift: str, heater: str, flood: str):
+    return parse_plant(
+        f'[[bus]]\nname = "can1"\ntype = "can"\ninterface = "virtual"\nchannel = "{flood}"\nbitrate = 1000000\n'
+        f'[[bus]]\nname = "can2"\ntype = "can"\ninterface = "virtual"\nchannel = "{lift}"\nbitrate = 500000\nsimulate = true\n'
+        f'[[bus]]\nname = "can3"\ntype = "can"\ninterface = "virtual"\nchannel = "{heater}"\nbitrate = 500000\nsimulate = true\n'
+        '[[device]]\nname = "lift"\ntype = "electrak"\nbus = "can2"\n'
+        'actuators = [{ model = "HD24", gearing = "B026", stroke_mm = 300 }, { model = "HD24", gearing = "B026", stroke_mm = 300 }]\n'
+        '[[device]]\nname = "heater-hm"\ntype = "m3io"\nbus = "can3"\nvariant = "HM"\nsw1 = 0x1A\n'
+    )
+
+
+def flood_sender(channel: str, rate: int, stop: threading.Event) -> None:
+    frames = [can.Message(arbitration_id=0x1000000 + i * 7919 % 0xFFFFFF, is_extended_id=True,
+                          data=bytes([0, 0, i & 0xFF, i >> 8 & 0xFF, 0, 0, 0, 0])) for i in range(20_000)]
+    per_slice = max(1, rate // 100)
+    with can.Bus(interface="virtual", channel=channel) as bus:
+        i, due = 0, time.perf_counter()
+        while not stop.is_set():
+            for _ in range(per_slice):
+                bus.send(frames[i])
+                i = (i + 1) % len(frames)
+            due += 0.01
+            time.sleep(max(0.0, due - time.perf_counter()))
+
+
+async def beat(runtime: Runtime, session: str) -> None:
+    while True:
+        runtime.worker.heartbeat(session)
+        await asyncio.sleep(0.1)
+
+
+async def in_process(seconds: float) -> float:
+    lift_ch, heater_ch, flood_ch = (f"{k}-{uuid.uuid4().hex}" for k in ("lift", "heater", "flood"))
+    runtime = Runtime(in_process_plant(lift_ch, heater_ch, flood_ch), simulate=True)
+    heard = {"Electrak 0x06": Heard(can.Bus(interface="virtual", channel=lift_ch)),
+             "M3IO DigOut": Heard(can.Bus(interface="virtual", channel=heater_ch))}
+    await runtime.start()
+    beating = asyncio.create_task(beat(runtime, "bench"))
+    worst = 0.0
+    try:
+        lift, heater = runtime.worker.adapters["lift"], runtime.worker.adapters["heater-hm"]
+        await lift.take_control("bench", "engineer")
+        await heater.take_control("bench", "engineer")
+        await asyncio.sleep(1.0)
+        start = time.time()
+        await asyncio.sleep(seconds)
+        worst = max(worst, report("(a) idle", heard, start, time.time()))
+
+        stop = threading.Event()
+        sender = threading.Thread(target=flood_sender, args=(flood_ch, 2 * BUS_LIMIT_FPS, stop), daemon=True)
+        sender.start()
+        start = time.time()
+        await asyncio.sleep(seconds)
+        end = time.time()
+        stop.set()
+        sender.join()
+        shed = runtime.store.buses["can1"].shed
+        print(f"  (b) flood: {2 * BUS_LIMIT_FPS:,} unknown extended frames/s on can1, {runtime.store.buses['can1'].rx_frames:,} handled, {shed:,} shed")
+        worst = max(worst, report("(b) 2x flood", heard, start, end))
+        await asyncio.sleep(1.0)
+
+        lift.jog("bench", +1)
+        heater.set_output("bench", "SSR1", True)
+        await asyncio.sleep(0.5)
+        blocked = time.time()
+        asyncio.get_running_loop().call_soon(time.sleep, 1.0)
+        await asyncio.sleep(0)
+        end = blocked + 1.0
+        worst = max(worst, report("(d) loop blocked 1 s", heard, blocked - 0.3, end))
+        stop_lift = [t for t, d in heard["Electrak 0x06"].between(electrak.CONTROL_ID, blocked, end) if not d[7] & 0x01]
+        stop_heater = [t for t, d in heard["M3IO DigOut"].between(DIGOUT_ID, blocked, end) if not d[0] & DIGOUT_SSR1]
+        for name, found in (("Electrak enable cleared", stop_lift), ("M3IO SSR1 off", stop_heater)):
+            print(f"  (d) {name} on the bus {(found[0] - blocked) * 1000:.0f} ms after the block (bound 500 ms)" if found
+                  else f"  (d) {name}: NOT on the bus during the block")
+    finally:
+        beating.cancel()
+        await runtime.stop()
+        for h in heard.values():
+            h.close()
+    return worst
+
+
+CHROMIUM_PLANT = """
+name = "jitter"
+[[bus]]
+name = "can2"
+type = "can"
+interface = "udp_multicast"
+channel = "239.74.163.9"
+port = {lift}
+bitrate = 500000
+simulate = true
+
+[[device]]
+name = "lift"
+type = "electrak"
+bus = "can2"
+actuators = [{{ model = "HD24", gearing = "B026", stroke_mm = 300 }}]
+
+[[bus]]
+name = "can3"
+type = "can"
+interface = "udp_multicast"
+channel = "239.74.163.9"
+port = {heater}
+bitrate = 500000
+simulate = true
+
+[[device]]
+name = "heater-hm"
+type = "m3io"
+bus = "can3"
+variant = "HM"
+sw1 = 0x1A
+"""
+
+
+def with_pages(seconds: float, pages: int) -> float | None:
+    """(c): the app in a process of its own, ``pages`` chromium pages open, keep-alives heard from here."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    try:
+        from playwright.sync_api import sync_playwright
+        from webutil import free_port, running_app  # noqa: F401
+    except ImportError as exc:
+        print(f"  (c) skipped: {exc}")
+        return None
+    chromium = Path("/usr/bin/chromium")
+    if not chromium.exists():
+        print("  (c) skipped: Debian's chromium is not installed")
+        return None
+    import socket
+
+    def udp_port() -> int:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            s.bind(("", 0))
+            return s.getsockname()[1]
+
+    lift_port, heater_port = udp_port(), udp_port()
+    heard = {"Electrak 0x06": Heard(can.Bus(interface="udp_multicast", channel="239.74.163.9", port=lift_port)),
+             "M3IO DigOut": Heard(can.Bus(interface="udp_multicast", channel="239.74.163.9", port=heater_port))}
+    worst = None
+    try:
+        with tempfile.TemporaryDirectory() as folder, running_app(CHROMIUM_PLANT.format(lift=lift_port, heater=heater_port), Path(folder)) as url, \
+                sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=str(chromium), args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"])
+            context = browser.new_context(viewport={"width": 1440, "height": 900})
+            control = context.new_page()
+            control.goto(f"{url}/device/lift")
+            control.get_by_test_id("take-control").click()
+            control.get_by_text("you hold control").wait_for(timeout=15_000)
+            heater = context.new_page()
+            heater.goto(f"{url}/device/heater-hm")
+            heater.get_by_test_id("take-control").click()
+            heater.get_by_test_id("controller").get_by_text("you control the module").wait_for(timeout=15_000)
+            paths = ["/", "/plant", "/device/lift", "/device/heater-hm"]
+            opened = []
+            for i in range(pages - 2):
+                page = context.new_page()
+                page.goto(f"{url}{paths[i % len(paths)]}", wait_until="domcontentloaded")
+                opened.append(page)
+            start = time.time()
+            for page in opened:  # the pages load and draw meanwhile; a few are reloaded, as people do
+                page.wait_for_timeout(seconds * 1000 / len(opened))
+            for page in opened[:4]:
+                page.reload(wait_until="domcontentloaded")
+            end = time.time()
+            print(f"  (c) {pages} pages open in chromium ({', '.join(paths)}), 4 reloaded")
+            worst = report("(c) 20 pages", heard, start, end)
+            browser.close()
+    finally:
+        for h in heard.values():
+            h.close()
+    return worst
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=10.0, help="length of phases (a), (b) and (c)")
+    parser.add_argument("--pages", type=int, default=20)
+    parser.add_argument("--no-browser", action="store_true", help="skip phase (c)")
+    args = parser.parse_args()
+    print(f"Electrak control every {electrak.CONTROL_PERIOD_S * 1000:.0f} ms (timeout {electrak.DEFAULT_TIMEOUT_MS} ms); "
+          f"M3IO DigOut every {m3io.DIGOUT_PERIOD_S * 1000:.0f} ms (watchdog {m3io.WATCHDOG_S:g} s)")
+    worst = asyncio.run(in_process(args.seconds))
+    if not args.no_browser:
+        pages = with_pages(args.seconds, args.pages)
+        if pages is not None:
+            worst = max(worst, pages)
+    print(f"keepalive_worst_gap_ratio: {worst:.2f}")
+
+
+if __name__ == "__main__":
+    main()
