@@ -56,10 +56,11 @@ def content(name: str) -> None:
     viewer = session_role() == "viewer"
     n_act = len(adapter.scales)
 
-    async def act(command: str, args: dict | None = None, success: str = "", confirmed: bool = False, title: str = ""):
+    async def act(command: str, args: dict | None = None, success: str = "", confirmed: bool = False, title: str = "",
+                  ok: str = "Send"):
         """Invoke the SCU's declared command ``command`` (devices/scu/policy.py) through the worker's gate."""
         result = await run_command(name, command, args=args, session=session, success=success, confirmed=confirmed,
-                                   title=title)
+                                   title=title, ok=ok)
         if updater:
             updater[0]()  # what the command changed (control, RE/RS pending) is shown at once
         return result
@@ -281,7 +282,7 @@ def content(name: str) -> None:
                           on_click=lambda: act("emergency stop (RE 19)")) \
                     .props("data-testid=emergency-stop")
                 release_estop = ui.button("Release emergency stop (RS 19)", on_click=lambda: act(
-                    "release emergency stop (RS 19)", title="Release the emergency stop?")).props("outline")
+                    "release emergency stop (RS 19)", title="Release the emergency stop?", ok="Release it")).props("outline")
                 ui.label("Emergency stop acts at once, without confirmation.").classes("text-caption")
 
         # -- data directory -----------------------------------------------------------------------------

@@ -82,11 +82,14 @@ async def test_scu_dead_man_sends_rs_when_the_session_goes_away(env):
     user, runtime = env
     adapter = runtime.worker.adapters["lift"]
     await eventually(lambda: adapter.session == "open", timeout=10)
-    adapter.take_control("browser-x", "anna")
-    await runtime.worker.command("lift", lambda a: a.run_function("browser-x", 0, 2, 1))
-    assert adapter.holders() == {"browser-x"}
-    # the session never sends a heartbeat: the worker trips it 0.3 s after it holds something
+    twin = runtime.twins["lift"]
+    await runtime.worker.invoke("lift", "take control", {"user": "anna"}, user="anna", role="engineer", session="browser-x")
+    await runtime.worker.invoke("lift", "go (RE)", {"function": 0, "motion": 2, "ramp": 1}, user="anna", role="engineer",
+                                session="browser-x", confirmed=True)
+    assert adapter.holders() == {"browser-x"} and twin.actuators[0].moving
+    # the session never sends a heartbeat: the worker trips it DEADMAN_TIMEOUT_S after it holds something
     await eventually(lambda: adapter.holders() == set(), timeout=1.0)
+    assert not twin.actuators[0].moving and ("RS", 0) in twin.function_log
     await asyncio.sleep(0.05)
     assert adapter.controller is None
     assert any("dead-man" in e.text for e in adapter.state.events)

@@ -20,7 +20,7 @@ from app.serial_line import SerialLine
 from app.state import BusState
 from devices.live import DeviceState
 from devices.scu import codec
-from devices.scu.adapter import WATCH_RG, WATCH_SESSION, CommandError, ScuAdapter
+from devices.scu.adapter import WATCH_RG, WATCH_SESSION, CommandError, ControlBusy, ScuAdapter
 from devices.scu.sim import ScuSim
 
 pytestmark = pytest.mark.timeout(60)
@@ -104,7 +104,8 @@ async def test_go_while_the_emergency_stop_is_on_does_not_release_it():
         await session_open(adapter)
         adapter.take_control("s1", "anna")
         await adapter.emergency_stop("s1")
-        adapter.take_control  # a second user cannot take control; the holder presses Go
+        with pytest.raises(ControlBusy):
+            adapter.take_control("s2", "bert")  # a second user cannot take control; the holder presses Go
         with pytest.raises((CommandError, codec.CommandRefused)):
             await adapter.run_function("s1", F1, codec.Motion.OUT, codec.Ramp.SOFT)
         await asyncio.sleep(1.5)  # polls, a possible reopening
