@@ -511,7 +511,7 @@ def _can_status_card(state):
             source = PARAMS.by_name["LockRequestSource"].enum.get(frame.lock_request_source, "?")
             text.set_text(
                 f"Status 0x{frame.status:04X} · motorPos {frame.motor_pos} Inc · proximity {frame.proximity} Inc"
-                f" · LockRequestSource (low 6 bits) {frame.lock_request_source} {source}"
+                f" · LockRequestSource 0x{frame.lock_request_source:02X} {source}"
             )
         f = state.info.get("fwu")
         fwu.set_text(

@@ -64,8 +64,32 @@ def test_status_frame_decoding():
     assert frame == codec.StatusFrame(0x0117, 115, 3, 4)
     assert frame.bits["BoltLocked"] and frame.bits["DoorInPosition"] and not frame.bits["BoltUnlocked"]
     assert codec.encode_status(frame) == data
-    # SPEC-NOTES: 0x81 does not fit 6 bits: the low 6 bits arrive
-    assert codec.decode_lock_frame(codec.encode_status(codec.StatusFrame(0, 0, 0, 0x81))).lock_request_source == 0x01
+
+
+def test_status_word_with_a_source_that_ignores_the_door():
+    """26.8: the lock sends (proximity << 6) + LockRequestSource; 0x80-0x87 carry 0x80 = 2 << 6 into the
+    proximity bits. ForceActive (status bit 7) is set exactly for those sources: 0x80 is taken off (SPEC-NOTES)."""
+    word = (100 << 6) + 0x81
+    data = bytes([0, 0]) + (0x0117 | codec.FORCE_ACTIVE).to_bytes(2, "little") + (115).to_bytes(2, "little") + word.to_bytes(2, "little")
+    frame = codec.decode_lock_frame(data)
+    assert (frame.proximity, frame.lock_request_source) == (100, 0x81)
+    assert codec.encode_status(frame) == data
+    plain = codec.decode_lock_frame(codec.encode_status(codec.StatusFrame(0x0117, 115, 100, 0x04)))
+    assert (plain.proximity, plain.lock_request_source) == (100, 0x04)
+
+
+@pytest.mark.parametrize("command", [2, 3, 4])
+def test_five_byte_firmware_update_commands_are_named_not_malformed(command):
+    """Section 6.6.1: cmdFirmwareUpdateEnter, cmdBootloaderUpdateEnter and cmdUpdateLeave are 5 bytes long."""
+    frame = codec.CanFrame(codec.CAN_COMMAND, bytes([0x0B, 0, 0, 0, command]))
+    request = codec.decode_request(frame)
+    assert (request.kind, request.a, request.target.value) == (codec.CAN_COMMAND, command, 11)
+    text = codec.describe_request(frame)
+    assert codec.CanCommand(command).name in text and "malformed" not in text and "never sent" in text
+    from devices.sendpolicy import check_can
+
+    verdict = check_can([], codec.CAN_COMMAND, False, frame.data)
+    assert verdict.refused and codec.CanCommand(command).name in verdict.refused
 
 
 def test_register_answers():
@@ -208,9 +232,10 @@ async def test_set_lock_request_source_command(running):
     assert running.twins["gate-2"].holding[4] == 4  # only the target
     assert state.value("LockRequestSource (HR4)") == 0x81
     assert PARAMS.get("holding", 4).key in state.unsaved  # volatile until Save-Settings (section 3)
-    # the status frame reports holding 4 (low 6 bits, SPEC-NOTES), and the bolt follows it
+    # the status frame reports holding 4 (0x80 taken off the proximity with ForceActive, SPEC-NOTES), and the bolt follows it
     twin.set_line_input(False)  # IrsAlways does not need the input, nor the door (0x80)
-    assert await wait_for(lambda: state.info["can_status"].lock_request_source == 0x01, timeout=3)
+    assert await wait_for(lambda: state.info["can_status"].lock_request_source == 0x81, timeout=3)
+    assert state.info["can_status"].proximity == twin.input[7]
     assert await wait_for(lambda: state.info["can_status"].bits["BoltLocked"], timeout=4)
 
 

@@ -462,14 +462,15 @@ class HdLockCanAdapter(HdLockBackup):
             state.update_registers(HOLDING, 1001, [frame.motor_pos])
             state.info["proximity"] = frame.proximity
             state.info["lock_request_source_low6"] = frame.lock_request_source
-            # the third status word (section 6.5; SPEC-NOTES: proximity = word >> 6, source = word & 0x3F)
-            word = frame.proximity << 6 | frame.lock_request_source
+            # the third status word as sent: (proximity << 6) + LockRequestSource (section 6.5.1; SPEC-NOTES:
+            # a source of 0x80-0x87 comes with ForceActive and is taken off before the split)
+            word = ((frame.proximity << 6) + frame.lock_request_source) & 0xFFFF
             state.publish("Proximity (status frame)", frame.proximity, "Inc", raw=word)
             # motorPos (section 6.5.1), with the time the frame arrived: tiles show it rather than the slower register poll
             state.publish(STATUS_FRAME_BOLT, frame.motor_pos, "Inc", raw=frame.motor_pos, time=_arrival(msg))
             state.counters.responses += 1  # a frame heard, as the other CAN devices count them
             state.publish("LockRequestSource (status frame, low 6 bits)", frame.lock_request_source, raw=word,
-                          text="read LockRequestSource (HR4) for the full value")
+                          text=codec.LOCK_REQUEST_SOURCE.get(frame.lock_request_source, f"undefined ({frame.lock_request_source})"))
             state.add_history({
                 "BoltPosition [Inc]": frame.motor_pos,
                 "MotorCurrent [mA]": state.value("MotorCurrent"),

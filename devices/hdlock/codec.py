@@ -19,6 +19,7 @@ DOOR_IN_POSITION = 1 << 2
 PROXIMITY_OVERRANGE = 1 << 3
 LOCK_REQUEST_BIT4 = 1 << 4
 FORCE_ACTIVE = 1 << 7
+SOURCE_DOOR_IGNORED = 0x80  # LockRequestSource 0x80-0x87: the bolt moves whatever the door (section 3.2.2 b)
 BOLT_LOCKED = 1 << 8
 BOLT_UNLOCKED = 1 << 9
 BOLT_MOVING_OUT = 1 << 10
@@ -178,6 +179,7 @@ class CanCommand(IntEnum):
     UPDATE_LEAVE = 4  # never sent by this tool
 
 
+FIVE_BYTE_COMMANDS = {CanCommand.FIRMWARE_UPDATE_ENTER, CanCommand.BOOTLOADER_UPDATE_ENTER, CanCommand.UPDATE_LEAVE}
 SENDABLE_COMMANDS = {CanCommand.SET_LOCK_REQUEST_SOURCE, CanCommand.SET_CAN_BAUDRATE}
 
 # section 6.6.1.2: value -> (bit/s, max. line length)
@@ -296,7 +298,9 @@ class CanRequest:
 def decode_request(frame: CanFrame) -> CanRequest:
     if frame.is_extended_id or frame.arbitration_id not in CAN_REQUEST_IDS:
         raise CodecError(f"0x{frame.arbitration_id:X} is not an HD-Lock request ID")
-    if len(frame.data) < 6:
+    # 6.6.1: the firmware-update commands 2-4 are 5 bytes long (decoded to name and refuse them)
+    five_byte = frame.arbitration_id == CAN_COMMAND and len(frame.data) == 5 and frame.data[4] in FIVE_BYTE_COMMANDS
+    if len(frame.data) < 6 and not five_byte:
         raise CodecError(f"request 0x{frame.arbitration_id:X} too short ({len(frame.data)} bytes)")
     if len(frame.data) > 8:  # section 6.2: a CAN frame carries [1...8] data bytes
         raise CodecError(f"request 0x{frame.arbitration_id:X} has {len(frame.data)} bytes, a CAN frame at most 8")
@@ -348,6 +352,10 @@ def decode_lock_frame(data: bytes) -> LockFrame:
         if len(data) < 8:
             raise CodecError(f"status frame needs 8 bytes, got {len(data)}")
         status, pos, word = (unpack_le(data[i:i + 2]) for i in (2, 4, 6))
+        if status & FORCE_ACTIVE and word >= SOURCE_DOOR_IGNORED:
+            # 6.5.1 adds a source of 0x80-0x87 (ForceActive set) to proximity << 6: 0x80 is 2 << 6 (SPEC-NOTES)
+            word -= SOURCE_DOOR_IGNORED
+            return StatusFrame(status, pos, word >> 6, SOURCE_DOOR_IGNORED | word & 0x3F)
         return StatusFrame(status, pos, word >> 6, word & 0x3F)
     if kind == (1, 0):
         if len(data) < 6:
@@ -365,7 +373,8 @@ def decode_lock_frame(data: bytes) -> LockFrame:
 
 
 def encode_status(frame: StatusFrame) -> bytes:
-    word = ((frame.proximity << 6) + (frame.lock_request_source & 0x3F)) & 0xFFFF
+    # as the lock builds it (6.5.1): the whole source added, 0x80-0x87 included
+    word = ((frame.proximity << 6) + (frame.lock_request_source & 0xFF)) & 0xFFFF
     return bytes([0, 0]) + b"".join(pack_le(v, 2) for v in (frame.status & 0xFFFF, frame.motor_pos & 0xFFFF, word))
 
 
@@ -396,6 +405,8 @@ def describe_request(frame: CanFrame) -> str:
         except ValueError:
             command = f"command {req.a}"
         detail = f"{command} value {req.b}"
+        if req.a in FIVE_BYTE_COMMANDS:
+            detail = f"{command} (firmware update, section 6.6.1: never sent by this tool)"
         if req.a == CanCommand.SET_LOCK_REQUEST_SOURCE:
             detail += f" ({LOCK_REQUEST_SOURCE.get(req.b, 'undefined')})"
         if req.a == CanCommand.SET_CAN_BAUDRATE and req.b in CAN_BITRATES:

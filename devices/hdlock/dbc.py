@@ -35,7 +35,8 @@ def dbc_messages(device: str, options: dict[str, Any]) -> list[Message]:
     signals += [
         sig("MotorPos", 32, 16, multiplexer_ids=status, multiplexer_signal="FrameKind", unit="increments"),
         sig("LockRequestSource", 48, 6, multiplexer_ids=status, multiplexer_signal="FrameKind",
-             comment="low 6 bits of LockRequestSource; read holding 4 for the whole value"),
+             comment="low 6 bits of LockRequestSource; with ForceActive set the source is 0x80 + these bits and "
+                     "Proximity reads 2 too high (0x80 = 2 << 6, SPEC-NOTES)"),
         sig("Proximity", 54, 10, multiplexer_ids=status, multiplexer_signal="FrameKind"),
         sig("FwuFlashing", 16, 16, multiplexer_ids=[HDLOCK_KIND_FWU], multiplexer_signal="FrameKind"),
         sig("FwuApplication", 32, 16, multiplexer_ids=[HDLOCK_KIND_FWU], multiplexer_signal="FrameKind"),
