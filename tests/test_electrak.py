@@ -286,3 +286,14 @@ async def test_chart_target_only_while_the_actuators_are_driven_to_it(lift):
     mark = time.time()
     await asyncio.sleep(0.3)
     assert targets(mark) and all(t is None for t in targets(mark))
+
+
+def test_gearings_without_a_common_speed_are_refused():
+    """26.8: one control telegram carries one speed for every actuator; B017 (11-58 mm/s) and B160 (1-5 mm/s)
+    share none, so the network cannot be driven."""
+    with pytest.raises(codec.CodecError, match="no speed"):
+        codec.Limits.of([codec.Actuator("HD24", "B017", 300), codec.Actuator("HD24", "B160", 300)])
+    with pytest.raises(PlantError, match="no speed"):
+        parse_plant(plant_text(actuators='[{ model = "HD24", gearing = "B017", stroke_mm = 300 }, '
+                                         '{ model = "HD24", gearing = "B160", stroke_mm = 300 }]'))
+    assert codec.Limits.of([codec.Actuator("HD24", "B026", 300), codec.Actuator("HD24", "B045", 300)]).speed_max == 19

@@ -25,6 +25,11 @@ def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str
             errors.append(("actuators", f"actuator {n}: stroke_mm must be the ordered stroke in mm (0 < stroke <= 6553.5)"))
         for key in sorted(set(a) - {"model", "gearing", "stroke_mm"}):
             errors.append(("actuators", f"actuator {n}: unknown key '{key}'"))
+    if not errors:
+        try:  # one control telegram drives every actuator at one speed
+            codec.Limits.of([codec.Actuator(a["model"], a["gearing"], float(a["stroke_mm"])) for a in actuators])
+        except codec.CodecError as exc:
+            errors.append(("actuators", str(exc)))
     for key in sorted(set(options) - {"actuators"}):
         errors.append((key, f"unknown key '{key}' for an Electrak network; known: actuators"))
     return errors

@@ -305,6 +305,11 @@ class Limits:
         if not actuators:
             raise CodecError("a network needs at least one actuator")
         lows, highs = zip(*(SPEED_RANGE_MM_S[a.gearing] for a in actuators))
+        if max(lows) > min(highs):  # one control telegram, one speed for all (section "Control-Telegramm")
+            windows = ", ".join(f"{g} {SPEED_RANGE_MM_S[g][0]:g}-{SPEED_RANGE_MM_S[g][1]:g} mm/s"
+                                for g in dict.fromkeys(a.gearing for a in actuators))
+            raise CodecError(f"the gearings of this network share no speed ({windows}): one control telegram "
+                             "drives them all at one speed")
         return cls(min(a.stroke_mm for a in actuators), min(CURRENT_LIMIT_A[a.model] for a in actuators), max(lows), min(highs))
 
     @classmethod
