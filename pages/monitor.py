@@ -35,19 +35,90 @@ from pages.widgets import upload_button
 
 # -- Modbus / serial lines: transaction log ----------------------------------------------------------
 
-COLUMNS = [  # widths in % of a fixed-layout table: it fits the screen, hex is cut with the full text on hover
-    {"name": "time", "label": "Time", "field": "time", "align": "left", "headerStyle": "width: 8%"},
-    {"name": "device", "label": "Device", "field": "device", "align": "left", "headerStyle": "width: 10%"},
-    {"name": "request", "label": "Request", "field": "request", "align": "left", "headerStyle": "width: 13%"},
-    {"name": "tx", "label": "Request hex", "field": "tx", "align": "left", "headerStyle": "width: 11%"},
-    {"name": "rx", "label": "Response hex", "field": "rx", "align": "left", "headerStyle": "width: 11%"},
-    {"name": "decoded", "label": "Decoded", "field": "decoded", "align": "left", "headerStyle": "width: 30%"},
-    {"name": "rtt", "label": "RTT ms", "field": "rtt", "align": "right", "headerStyle": "width: 6%"},
-    {"name": "error", "label": "Error", "field": "error", "align": "left", "headerStyle": "width: 11%"},
+COLUMNS = [  # widths in % of a fixed-layout table: hex wraps between bytes (never cut), the decoded text shows
+    # two lines with the whole of it on hover, so a transaction takes one or two lines and a screen holds many
+    {"name": "time", "label": "Time", "field": "time", "align": "left", "headerStyle": "width: 7%"},
+    {"name": "device", "label": "Device", "field": "device", "align": "left", "headerStyle": "width: 9%"},
+    {"name": "request", "label": "Request", "field": "request", "align": "left", "headerStyle": "width: 11%"},
+    {"name": "tx", "label": "Request hex", "field": "tx", "align": "left", "headerStyle": "width: 14%"},
+    {"name": "rx", "label": "Response hex", "field": "rx", "align": "left", "headerStyle": "width: 24%"},
+    {"name": "decoded", "label": "Decoded", "field": "decoded", "align": "left", "headerStyle": "width: 22%"},
+    {"name": "rtt", "label": "RTT ms", "field": "rtt", "align": "right", "headerStyle": "width: 5%"},
+    {"name": "error", "label": "Error", "field": "error", "align": "left", "headerStyle": "width: 7%"},
 ]
 CUT_SLOT = '<q-td :props="props" :class="\'cut \' + (props.col.name === \'error\' ? \'text-negative\' : \'\')" :title="props.value">{{ props.value }}</q-td>'
-HEX_SLOT = '<q-td :props="props" class="mono cut" :title="props.value">{{ props.value }}</q-td>'
-WRAP_SLOT = '<q-td :props="props" class="wrap" :title="props.value">{{ props.value }}</q-td>'
+HEX_SLOT = '<q-td :props="props" class="mono hex">{{ props.value }}</q-td>'
+WRAP_SLOT = '<q-td :props="props" class="clamp" :title="props.value"><div>{{ props.value }}</div></q-td>'
+FIRST_SHOWN = 40  # rows in the page's first answer (more than a screen holds): the rest follow with the first refresh
+FUNCTIONS = {1: "01 read coils", 2: "02 read discrete inputs", 3: "03 read holding registers", 4: "04 read input registers",
+             5: "05 write coil", 6: "06 write register", 15: "15 write coils", 16: "16 write registers"}
+CSV_HEADER = ["time", "device", "unit", "function", "request", "request hex", "response hex", "decoded", "rtt ms", "error"]
+
+
+def transaction_function(t) -> int | None:
+    """The Modbus function code of a transaction's request (its frame's second byte), or None."""
+    parts = t.request_hex.split(maxsplit=2)
+    try:
+        return int(parts[1], 16) if len(parts) > 1 else None
+    except ValueError:
+        return None
+
+
+def parse_unit(text: str) -> int | None:
+    """A unit filter: blank for every unit, else 0 ... 247."""
+    text = (text or "").strip()
+    if not text:
+        return None
+    unit = int(text, 0)
+    if not 0 <= unit <= 247:
+        raise ValueError("a unit is 0 ... 247")
+    return unit
+
+
+def parse_address(text: str) -> tuple[int, int] | None:
+    """An address filter: blank, ``3000`` or ``3000-3010`` (first and last register, both included)."""
+    text = (text or "").strip()
+    if not text:
+        return None
+    first, _, last = text.partition("-")
+    low = int(first.strip(), 0)
+    high = int(last.strip(), 0) if last.strip() else low
+    if not 0 <= low <= high <= 0xFFFF:
+        raise ValueError("an address is 0 ... 65535, a range first-last")
+    return low, high
+
+
+def transaction_matches(t, unit: int | None, function: int | None, address: tuple[int, int] | None) -> bool:
+    """Whether a transaction passes the filters: its unit, its function, and any register it asked for in the range."""
+    if unit is not None and t.unit != unit:
+        return False
+    if function is not None and transaction_function(t) != function:
+        return False
+    if address is not None:
+        if t.address is None:
+            return False
+        first, last = t.address, t.address + max(1, len(t.values)) - 1
+        if last < address[0] or first > address[1]:
+            return False
+    return True
+
+
+def transactions_csv(rows: list[dict]) -> str:
+    """The shown rows as CSV (what a spreadsheet shows as text, never runs)."""
+    import csv
+    import io
+
+    from app.audit import csv_cell
+
+    out = io.StringIO()
+    writer = csv.writer(out)
+    writer.writerow(CSV_HEADER)
+    for r in rows:
+        writer.writerow([csv_cell(str(r[k])) for k in ("date", "device", "unit", "function", "request", "tx", "rx",
+                                                       "decoded", "rtt", "error")])
+    return out.getvalue()
+
+
 SHOWN = 200  # rows of a frame/transaction list (one page while paused)
 SCROLL_HEIGHT = "max-height: 56vh; overflow-y: auto"  # each table scrolls inside its box: the page height stays bounded
 SHOWN_IDS = 300  # rows of the overwrite view
@@ -65,6 +136,11 @@ CSS = """
 .reg-table .q-table td, .reg-table .q-table th { padding: 2px 6px; font-size: 13px; }
 .reg-table .q-table td.cut { white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }
 .reg-table .q-table td.wrap { white-space: normal; overflow-wrap: anywhere; }
+.reg-table .q-table td.hex { white-space: normal; overflow-wrap: normal; word-break: normal; font-size: 12px; line-height: 1.35; }
+.reg-table .q-table td.clamp > div { display: -webkit-box; -webkit-line-clamp: 2; -webkit-box-orient: vertical;
+                                     overflow: hidden; white-space: normal; overflow-wrap: anywhere; line-height: 1.35; }
+.reg-table .q-table tbody td { height: auto; padding-top: 2px; padding-bottom: 2px; vertical-align: top; }
+.monitor-fill { max-height: calc(100vh - 300px); min-height: 240px; overflow-y: auto; }
 .monitor-scroll thead tr th { position: sticky; top: 0; z-index: 1; background: white; }
 .can-table .q-table td.nowrap, .can-table .q-table th.nowrap { white-space: nowrap; }
 .can-table .q-table td.cycle { white-space: normal; min-width: 90px; max-width: 150px; }
@@ -99,11 +175,17 @@ def modbus_content(bus: str) -> None:
             ui.label(f"{bus_state.type} · {bus_state.endpoint}").classes("text-caption text-grey-8")
             if bus_state.type == "modbus-rtu":
                 _tool_links(bus, [("Modbus poll", "poll", "table_rows")])
-        with ui.row().classes("items-center"):
+        with ui.row().classes("items-center gap-3"):
             paused = ui.switch("Pause")
             errors_only = ui.switch("Errors only")
+            unit_filter = ui.input("Unit", placeholder="any").props("dense clearable data-monitor=filter-unit").classes("w-24")
+            function_filter = ui.select({0: "any function", **FUNCTIONS}, value=0, label="Function") \
+                .props("dense data-monitor=filter-function").classes("w-56")
+            address_filter = ui.input("Address", placeholder="3000 or 3000-3010") \
+                .props("dense clearable data-monitor=filter-address").classes("w-44")
+            export = ui.button("Export CSV", icon="download").props("flat dense no-caps data-monitor=export")
             summary = ui.label().classes("text-body2")
-        with ui.element("div").classes("w-full monitor-scroll").style(SCROLL_HEIGHT).props("data-monitor=transactions-box"):
+        with ui.element("div").classes("w-full monitor-scroll monitor-fill").props("data-monitor=transactions-box"):
             table = ui.table(columns=COLUMNS, rows=[], row_key="id", pagination=0).classes("w-full reg-table")
         table.props("dense flat bordered hide-bottom data-monitor=transactions")
         for name in ("time", "device", "request", "rtt", "error"):
@@ -113,8 +195,51 @@ def modbus_content(bus: str) -> None:
         table.add_slot("body-cell-decoded", WRAP_SLOT)
         table.mark("transactions")
         decoder = rec.TransactionDecoder(runtime.worker, bus)
+        made: dict[int, tuple[object, dict]] = {}  # id(transaction) -> (transaction, row): each decoded once
+        shown_key: list = [None]
 
-        def update() -> None:
+        def row_of(t) -> dict:
+            cached = made.get(id(t))
+            if cached is not None and cached[0] is t:
+                return cached[1]
+            function = transaction_function(t)
+            row = {
+                "id": id(t),
+                "time": datetime.fromtimestamp(t.time).strftime("%H:%M:%S.%f")[:-3],
+                "date": datetime.fromtimestamp(t.time).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3],
+                "device": decoder.device(t.unit),
+                "unit": t.unit,
+                "function": "" if function is None else FUNCTIONS.get(function, f"{function:02d}"),
+                "request": t.request,
+                "tx": t.request_hex,
+                "rx": t.response_hex,
+                "decoded": decoder.decoded(t),
+                "rtt": "-" if t.rtt_ms is None else f"{t.rtt_ms:.1f}",
+                "error": t.error,
+            }
+            if len(made) > 4 * SHOWN:  # the log's ring buffer dropped the oldest: forget rows no longer listed
+                live = {id(x) for x in bus_state.transactions}
+                for key in [k for k in made if k not in live]:
+                    del made[key]
+            made[id(t)] = (t, row)
+            return row
+
+        def filters() -> tuple[int | None, int | None, tuple[int, int] | None] | None:
+            try:
+                unit = parse_unit(unit_filter.value)
+                unit_filter.props(remove="error")
+            except ValueError:
+                unit_filter.props('error error-message="0 ... 247"')
+                return None
+            try:
+                address = parse_address(address_filter.value)
+                address_filter.props(remove="error")
+            except ValueError:
+                address_filter.props('error error-message="0 ... 65535 or first-last"')
+                return None
+            return unit, (function_filter.value or None), address
+
+        def update(limit: int = SHOWN) -> None:
             log = list(bus_state.transactions)
             errors = sum(1 for t in log if t.error)
             cycle = getattr(bus_state, "cycle_s", None)
@@ -125,25 +250,32 @@ def modbus_content(bus: str) -> None:
                 + (f" · {conflicts} answers from another unit: address conflict on the line?" if conflicts else ""))
             if paused.value:
                 return
+            chosen = filters()
+            if chosen is None:
+                return
             decoder.refresh()
-            selected = [t for t in log if t.error] if errors_only.value else log
-            table.rows = [
-                {
-                    "id": i,
-                    "time": datetime.fromtimestamp(t.time).strftime("%H:%M:%S.%f")[:-3],
-                    "device": decoder.device(t.unit),
-                    "request": t.request,
-                    "tx": t.request_hex,
-                    "rx": t.response_hex,
-                    "decoded": decoder.decoded(t),
-                    "rtt": "-" if t.rtt_ms is None else f"{t.rtt_ms:.1f}",
-                    "error": t.error,
-                }
-                for i, t in enumerate(reversed(selected[-SHOWN:]))
-            ]
+            selected = [t for t in reversed(log)
+                        if (not errors_only.value or t.error) and transaction_matches(t, *chosen)][:limit]
+            key = (tuple(id(t) for t in selected[:1]), len(selected), chosen, errors_only.value)
+            if key == shown_key[0]:
+                return  # nothing new on the line: nothing sent to the browser
+            shown_key[0] = key
+            table.rows = [row_of(t) for t in selected]
             table.update()
 
-        update()
+        def refilter() -> None:
+            shown_key[0] = None
+            update()
+
+        for control in (unit_filter, function_filter, address_filter, errors_only):
+            control.on_value_change(refilter)
+
+        def download() -> None:
+            ui.download(transactions_csv(table.rows).encode(), f"{bus}-transactions-{datetime.now():%Y%m%d-%H%M%S}.csv",
+                        "text/csv")
+
+        export.on_click(download)
+        update(FIRST_SHOWN)  # the first answer carries the newest rows, the rest come with the first refresh
         ui.timer(0.5, update)
 
 

@@ -618,6 +618,20 @@ async def test_modbus_monitor_page(env: Env):
     await eventually(thresholds_decoded, timeout=10)
     assert {r["device"] for r in table.rows} <= {"door-1 (unit 1)", "door-2 (unit 2)", "broadcast (unit 0)"}
 
+    # issue 32.14: filters by unit, function and address (the newest rows, of the buffer, that pass)
+    (unit,) = [e for e in user.client.elements.values() if e.props.get("data-monitor") == "filter-unit"]
+    (address,) = [e for e in user.client.elements.values() if e.props.get("data-monitor") == "filter-address"]
+    (function,) = [e for e in user.client.elements.values() if e.props.get("data-monitor") == "filter-function"]
+    unit.set_value("2")
+    await eventually(lambda: table.rows and {r["device"] for r in table.rows} == {"door-2 (unit 2)"}, timeout=5)
+    function.set_value(4)
+    await eventually(lambda: table.rows and all(r["request"].startswith("read input") for r in table.rows), timeout=5)
+    function.set_value(3)
+    address.set_value("3005")  # inside "read holding 3000+9"
+    await eventually(lambda: table.rows and {r["request"] for r in table.rows} == {"read holding 3000+9"}, timeout=5)
+    address.set_value("70000")
+    await eventually(lambda: "error" in address.props, timeout=5)
+
 
 def test_id_table_evicts_the_least_recently_heard_id_in_constant_time():
     from app.can_bus import MAX_IDS
@@ -661,3 +675,47 @@ def test_bus_load_is_averaged_and_its_peak_kept_when_frames_arrive_in_batches():
     assert max(seen) > 1.5 * steady and min(seen) == 0  # what the half-second figure does
     assert state.load_avg_pct == pytest.approx(steady, rel=0.15)
     assert state.load_peak_pct == pytest.approx(steady, rel=0.15)
+
+
+# -- Modbus monitor: filters and export (issue 32.14) ------------------------------------------------------------
+
+
+def _transaction(unit: int, hex_request: str, address: int | None, values: tuple[int, ...] = (), error: str = "") -> Transaction:
+    return Transaction(time=0.0, unit=unit, request="read", request_hex=hex_request, response_hex="", decoded="",
+                       rtt_ms=1.0, error=error, space="holding", address=address, values=values)
+
+
+def test_modbus_filters_by_unit_function_and_any_register_asked():
+    from pages.monitor import parse_address, parse_unit, transaction_function, transaction_matches
+
+    read = _transaction(2, "02 03 0b b8 00 09 07 fe", 3000, tuple(range(9)))
+    failed = _transaction(1, "01 04 00 64 00 06 31 e4", 100, error="timeout")
+    assert transaction_function(read) == 3 and transaction_function(failed) == 4
+    assert transaction_function(_transaction(1, "", None)) is None
+    assert parse_unit("") is None and parse_unit(" 2 ") == 2
+    assert parse_address("3000-3010") == (3000, 3010) and parse_address("0x10") == (16, 16)
+    for bad in ("248", "x"):
+        with pytest.raises(ValueError):
+            parse_unit(bad)
+    for bad in ("70000", "20-10", "a"):
+        with pytest.raises(ValueError):
+            parse_address(bad)
+    assert transaction_matches(read, 2, 3, (3008, 3008))
+    assert not transaction_matches(read, 2, 3, (3009, 3020))  # 3000 ... 3008 asked
+    assert not transaction_matches(read, 1, None, None) and not transaction_matches(read, None, 4, None)
+    assert transaction_matches(failed, None, 4, (100, 100))  # unanswered: its first register
+    assert not transaction_matches(failed, None, None, (101, 200))
+
+
+def test_modbus_export_is_csv_a_spreadsheet_does_not_run():
+    import csv
+    import io
+
+    from pages.monitor import CSV_HEADER, transactions_csv
+
+    row = {"date": "2026-11-24 10:00:00.000", "device": "=HYPERLINK(\"x\")", "unit": 1, "function": "03 read holding registers",
+           "request": "read holding 3000+9", "tx": "01 03 0b b8 00 09 07 cd", "rx": "01 03 12 00 c8", "decoded": "a = -30",
+           "rtt": "0.1", "error": ""}
+    lines = list(csv.reader(io.StringIO(transactions_csv([row]))))
+    assert lines[0] == CSV_HEADER
+    assert lines[1][1] == "'=HYPERLINK(\"x\")" and lines[1][5] == "01 03 0b b8 00 09 07 cd" and len(lines) == 2
