@@ -99,8 +99,11 @@ def test_by_name():
 
 def test_signed_registers():
     signed = {p.key for p in PARAMS if p.signed}
-    expected = {"input:11", "input:16", "input:53"} | {f"holding:{a}" for a in (3003, 3004, 3006, 3007, 3008)}
+    # 26.8: motor speeds 51/52 are negative moving in (the twin writes 0x10000 - speed), ErrVsum an integral part
+    expected = {"input:11", "input:16", "input:51", "input:52", "input:53", "input:59"} | {
+        f"holding:{a}" for a in (3003, 3004, 3006, 3007, 3008)}
     assert signed == expected
+    assert PARAMS.get("input", 51).display(0x10000 - 120) == "-120 #/s"
 
 
 @pytest.mark.parametrize(

@@ -322,10 +322,12 @@ _INPUTS: list[Param] = [
     ),
     Param(
         "ActV", INPUT, 51, Access.R, unit="#/s",
+        signed=True,  # int16: negative while the bolt moves in (issue 26.8; SPEC-NOTES signed registers)
         description="Current motor speed (set value). (section 3.1)",
     ),
     Param(
         "MeasuredV", INPUT, 52, Access.R, unit="#/s",
+        signed=True,  # int16: negative while the bolt moves in (issue 26.8; SPEC-NOTES signed registers)
         description="Measured motor speed. (section 3.1)",
     ),
     Param(
@@ -361,6 +363,7 @@ _INPUTS: list[Param] = [
     ),
     Param(
         "ErrVsum", INPUT, 59, Access.R,
+        signed=True,  # int16: the integral part of a controller swings both ways (SPEC-NOTES signed registers)
         description="Integral part of the speed controller. (section 3.1)",
     ),
     ElapsedParam(
