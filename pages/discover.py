@@ -15,7 +15,8 @@ def open_discover_dialog(bus: str) -> None:
     with ui.dialog() as dialog, ui.card().classes("w-[36rem]"):
         ui.label(f"Discover locks on {bus}").classes("text-h6")
         ui.label(
-            "First a read at broadcast address 0 (answered when a single lock is on the line), then a scan "
+            "First a read at broadcast address 0 (answered when a single lock is on the line; left out where "
+            "several devices are known on it, whose answers would collide, section 5.6), then a scan "
             "of the address range. Polling on this line pauses meanwhile. Each silent address costs one timeout."
         ).classes("text-caption text-grey-8")
         with ui.row():
@@ -41,7 +42,7 @@ def open_discover_dialog(bus: str) -> None:
             return
         start.disable()
         results.clear()
-        status.set_text("reading broadcast address 0 ...")
+        status.set_text("reading broadcast address 0 ..." if len(known) <= 1 else "scanning ...")
         user, role = current_user()
         try:
             # a scan holds the line's polling and talks to every address: an engineer action, audited

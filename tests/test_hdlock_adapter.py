@@ -432,3 +432,14 @@ async def test_answer_from_another_unit_is_an_address_conflict_not_a_crc_error()
         line.close()
         server.close()
         await server.wait_closed()
+
+
+async def test_discover_sends_no_broadcast_where_several_locks_are_known(running):
+    """26.8, section 5.6: every lock answers broadcast 0, so with two locks on the line their answers collide."""
+    await online(running)
+    await online(running, "door-2")
+    transactions = running.store.buses["line1"].transactions
+    before = len(transactions)
+    found = await running.worker.discover("line1", 1, 3)
+    assert [f["address"] for f in found] == [1, 2]
+    assert not [t for t in list(transactions)[before:] if t.unit == 0]

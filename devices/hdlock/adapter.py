@@ -47,6 +47,13 @@ class AddressChange:
 
 # Locks found by scans of a Modbus line (discover()), by address; shown on every lock of that line.
 _LINE_SCANS: weakref.WeakKeyDictionary[ModbusTransport, dict[int, dict]] = weakref.WeakKeyDictionary()
+# The plant's locks on each Modbus line (their adapters), so a scan knows how many may answer a broadcast.
+_LINE_LOCKS: weakref.WeakKeyDictionary[ModbusTransport, weakref.WeakSet] = weakref.WeakKeyDictionary()
+
+
+def known_addresses(line: ModbusTransport) -> set[int]:
+    """Addresses of the locks known on ``line``: the plant's and those found by earlier scans."""
+    return {a.address for a in _LINE_LOCKS.get(line, ())} | set(_LINE_SCANS.get(line, {}))
 
 
 class HdLockBackup:
@@ -110,6 +117,7 @@ class HdLockAdapter(HdLockBackup):
         self.state.info["address"] = self.address
         self._fails = 0
         self._changing_address = False  # polling waits while the address is being changed
+        _LINE_LOCKS.setdefault(line, weakref.WeakSet()).add(self)
 
     # -- polling ------------------------------------------------------------------------
     async def poll(self) -> None:
@@ -386,17 +394,19 @@ def _command_answer_text(answered: bool | None, old: int) -> str:
 async def discover(line: ModbusTransport, first: int = 1, last: int = 247, progress=None) -> list[dict]:
     """Find locks on a line.
 
-    Broadcast first (address 0: a single lock answers with its DeviceAddress, section 5.6),
-    then a scan of ``first..last`` reading DeviceAddress (holding 103) and the serial
+    Broadcast first (address 0: a single lock answers with its DeviceAddress, section 5.6) - only
+    where at most one lock is known on the line (the plant's and earlier scans'), since several
+    would answer together - then a scan of ``first..last`` reading DeviceAddress (holding 103) and the serial
     number (input 104/105). ``progress(done, total)`` is called after each address.
     The locks found are remembered for the line (``line_discovered`` on each lock of it).
     """
     found: dict[int, dict] = {}
-    try:
-        address = (await line.read_holding(codec.MODBUS_BROADCAST, 103, 1))[0]
-        found[address] = {"address": address, "via": "broadcast"}
-    except LineError:
-        pass
+    if len(known_addresses(line)) <= 1:  # section 5.6: with several locks on the line their answers collide
+        try:
+            address = (await line.read_holding(codec.MODBUS_BROADCAST, 103, 1))[0]
+            found[address] = {"address": address, "via": "broadcast"}
+        except LineError:
+            pass
     total = last - first + 1
     for n, unit in enumerate(range(first, last + 1), 1):
         try:
