@@ -141,6 +141,7 @@ CSS = """
                                      overflow: hidden; white-space: normal; overflow-wrap: anywhere; line-height: 1.35; }
 .reg-table .q-table tbody td { height: auto; padding-top: 2px; padding-bottom: 2px; vertical-align: top; }
 .monitor-fill { max-height: calc(100vh - 300px); min-height: 240px; overflow-y: auto; }
+@media (max-width: 1279px) { .reg-table .q-table td.cut { white-space: normal; overflow-wrap: anywhere; } }
 .monitor-scroll thead tr th { position: sticky; top: 0; z-index: 1; background: white; }
 .can-table .q-table td.nowrap, .can-table .q-table th.nowrap { white-space: nowrap; }
 .can-table .q-table td.cycle { white-space: normal; min-width: 90px; max-width: 150px; }
