@@ -129,6 +129,9 @@ class Runtime:
         from app.record import RecordService
 
         self.record = RecordService(self)  # approved sets, snapshots, checkouts, sign-offs (record.sqlite)
+        from app.replace import ReplacementWatch
+
+        self.replacements = ReplacementWatch(self)  # "replaced?": each device's identity against its known one
         self.mqtt = None  # the broker publisher, when the plant file has an [mqtt] table (docs/mqtt.md)
         if plant.mqtt is not None:
             from app.mqtt import MqttPublisher
@@ -223,6 +226,7 @@ class Runtime:
             await self.opcua.start()  # before the buses: building its address space takes the loop for a moment
         await self.worker.start()
         await self.record.start()
+        await self.replacements.start()
         self._tasks = [asyncio.create_task(self._keep_unsaved(), name="unsaved reminders"),
                        asyncio.create_task(self._watch_accounts(), name="accounts"),
                        asyncio.create_task(memory.keep_trimmed(), name="heap trim")]
@@ -244,6 +248,7 @@ class Runtime:
                 await asyncio.to_thread(self._write_unsaved, now)
             except OSError as exc:
                 log.error("cannot keep the unsaved-change reminders: %s", exc)
+        await self.replacements.stop()
         await self.record.stop()
         await self.worker.stop()
         if self.sim:

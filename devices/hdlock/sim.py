@@ -61,6 +61,8 @@ class HdLockTwin:
         self.input[104], self.input[105] = serial >> 16 & 0xFFFF, serial & 0xFFFF
         self.writable = {a for p in PARAMS.space(HOLDING) if p.access is Access.RW for a in p.addresses}
         self.flash = self._settings()
+        self.factory = dict(self.flash)  # what a new lock out of the box holds (swap_for_new)
+        self.refuse_writes = False  # fault injection: every parameter write answered with exception 04
         # physics
         self.door_target_closed = door_closed
         self.door_pos = 0.0 if door_closed else 1.0  # 0 = in place, 1 = out of range
@@ -97,6 +99,8 @@ class HdLockTwin:
     def write(self, address: int, value: int) -> ExcCodes | None:
         if address not in self.holding:
             return ExcCodes.ILLEGAL_ADDRESS
+        if self.refuse_writes and address != codec.REG_COMMAND:
+            return ExcCodes.DEVICE_FAILURE  # fault injection: the lock refuses the write (exception 04)
         if address not in self.writable:
             return None  # firmware protection: acknowledged, not taken (read-back shows it)
         param = PARAMS.get(HOLDING, address)
@@ -142,6 +146,16 @@ class HdLockTwin:
     @property
     def serial(self) -> int:
         return codec.serial_number(self.input[104], self.input[105])
+
+    def swap_for_new(self, serial: int, firmware: int | None = None) -> None:
+        """Replace this lock by a new one at the same address (a service swap): another serial number,
+        optionally another firmware version, factory settings in its registers and its flash."""
+        self.input[104], self.input[105] = serial >> 16 & 0xFFFF, serial & 0xFFFF
+        if firmware is not None:
+            self.input[100] = firmware & 0xFFFF
+        self.holding.update(self.factory)
+        self.holding[103] = self.address
+        self.flash = self._settings()
 
     # -- controls of the simulated plant -------------------------------------------------
     def close_door(self) -> None:

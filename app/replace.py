@@ -1,0 +1,325 @@
+"""Replaced devices: detection from the live identity, and the replacement assistant's steps.
+
+Detection is generic: every device whose adapter takes part in backup publishes its identity
+(``backup_identity()``, read from the live store: serial number, firmware, hardware or product).
+Each device is compared with its *known* identity, the newest of
+
+- the identity recorded with its approved set (app/record.py),
+- the identity an engineer accepted at the end of a replacement (``identities.json`` in the data
+  folder), or, when neither exists, the first identity seen (kept there too).
+
+A device answering at its address with another serial number, firmware or variant than known
+carries ``DeviceState.replaced`` (old and new identity, what differs): the overview and the
+device page say "replaced?", and the event log has a line.
+
+The assistant (pages/replace.py) checks the identity (type and variant must match; a firmware or
+hardware difference is named, with the parameters the new device lacks or adds against the
+approved set), shows the approved set against the new device as restore's diff, writes through
+restore's verified path (app/backup.py, the gate), runs the save step, and records the whole
+replacement in the device's timeline (kind ``restore``) and the audit log.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+from app import backup
+from app.record import Entry
+
+log = logging.getLogger(__name__)
+
+IDENTITY_FILE = "identities.json"
+SERIAL_KEYS = ("serial", "SerialNumber")
+FIRMWARE_KEYS = ("FirmwareVersion", "firmware", "version", "sw_version")
+HARDWARE_KEYS = ("HardwareVersion", "hardware")
+VARIANT_KEYS = ("variant", "product", "model")
+
+
+def _pick(identity: dict, keys: tuple[str, ...]) -> Any:
+    for key in keys:
+        if identity.get(key) not in (None, ""):
+            return identity[key]
+    return None
+
+
+def facets(identity: dict | None) -> dict[str, Any]:
+    """An identity's serial, firmware, hardware and variant, whatever the device type calls them."""
+    identity = identity or {}
+    return {"serial": _pick(identity, SERIAL_KEYS), "firmware": _pick(identity, FIRMWARE_KEYS),
+            "hardware": _pick(identity, HARDWARE_KEYS), "variant": _pick(identity, VARIANT_KEYS)}
+
+
+def identity_text(identity: dict | None) -> str:
+    f = facets(identity)
+    parts = [f"{k} {v}" for k, v in f.items() if v is not None]
+    return ", ".join(parts) if parts else "unknown"
+
+
+def differences(old: dict | None, new: dict | None) -> list[str]:
+    """The facets that differ between two identities (only those both name)."""
+    a, b = facets(old), facets(new)
+    return [k for k in a if a[k] is not None and b[k] is not None and str(a[k]) != str(b[k])]
+
+
+def live_identity(runtime, name: str) -> dict | None:
+    """The identity the device publishes now (None while it is not online or has not told it yet)."""
+    adapter = runtime.worker.adapters.get(name)
+    state = runtime.store.devices.get(name)
+    if adapter is None or state is None or state.online is not True or not backup.supports_backup(adapter):
+        return None
+    try:
+        identity = adapter.backup_identity()
+    except Exception:  # noqa: BLE001 - an identity not read yet is no identity
+        return None
+    if not isinstance(identity, dict) or facets(identity)["serial"] is None:
+        return None
+    return dict(identity)
+
+
+class ReplacementWatch:
+    """Follows every device's published identity against its known one (``runtime.replacements``)."""
+
+    def __init__(self, runtime):
+        self.runtime = runtime
+        self.path = runtime.data_dir / IDENTITY_FILE
+        self.known: dict[str, dict] = {}  # device -> {"identity", "time", "source"}
+        self._watches: list = []
+        self._writing: asyncio.Task | None = None
+
+    def _load(self) -> dict:
+        try:
+            data = json.loads(self.path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return {}
+        plant = data.get(self.runtime.plant.name) if isinstance(data, dict) else None
+        return plant if isinstance(plant, dict) else {}
+
+    def _save(self, known: dict) -> None:
+        try:
+            data = json.loads(self.path.read_text(encoding="utf-8"))
+            if not isinstance(data, dict):
+                data = {}
+        except (OSError, ValueError):
+            data = {}
+        data[self.runtime.plant.name] = known
+        backup.write_atomic(self.path, json.dumps(data, indent=1, default=str))
+
+    def _persist(self) -> None:
+        known = json.loads(json.dumps(self.known, default=str))
+
+        async def write() -> None:
+            try:
+                await asyncio.to_thread(self._save, known)
+            except OSError as exc:
+                log.error("cannot keep the known device identities in %s: %s", self.path, exc)
+
+        self._writing = asyncio.get_running_loop().create_task(write(), name="known identities")
+
+    async def start(self) -> None:
+        stored = await asyncio.to_thread(self._load)
+        record = self.runtime.record
+        for name in self.runtime.store.devices:
+            if not backup.supports_backup(self.runtime.worker.adapters.get(name)):
+                continue
+            ref = stored.get(name) if isinstance(stored.get(name), dict) else None
+            approved: Entry | None = await record.store.run(record.store.latest, record.plant, name, "approved")
+            if approved is not None and approved.data.get("identity") and facets(approved.data["identity"])["serial"] is not None:
+                if ref is None or float(ref.get("time") or 0) < approved.time:
+                    ref = {"identity": approved.data["identity"], "time": approved.time, "source": "approved set"}
+            if ref is not None:
+                self.known[name] = ref
+            self._watches.append(self.runtime.store.watch(name, lambda n=name: self.check(n)))
+            self.check(name)
+
+    async def stop(self) -> None:
+        for w in self._watches:
+            w.cancel()
+        if self._writing is not None:
+            await asyncio.gather(self._writing, return_exceptions=True)
+
+    def check(self, name: str) -> dict | None:
+        """Compare the published identity with the known one; sets ``state.replaced`` (or clears it)."""
+        state = self.runtime.store.devices[name]
+        now = live_identity(self.runtime, name)
+        if now is None:
+            return getattr(state, "replaced", None)
+        ref = self.known.get(name)
+        if ref is None:  # first seen: this is the device as installed
+            self.known[name] = {"identity": now, "time": time.time(), "source": "first seen"}
+            self._persist()
+            return None
+        differ = differences(ref["identity"], now)
+        replaced = {"old": ref["identity"], "new": now, "differs": differ, "source": ref.get("source", ""),
+                    "since": time.time()} if differ else None
+        before = getattr(state, "replaced", None)
+        if (before or {}).get("new") == (replaced or {}).get("new") and bool(before) == bool(replaced):
+            return before
+        version = state.version
+        state.replaced = replaced
+        if replaced:
+            state.event("warning", f"replaced? {', '.join(differ)} differ: known {identity_text(ref['identity'])} "
+                                   f"({ref.get('source', '')}), now {identity_text(now)}")
+        elif before:
+            state.event("info", f"identity as known again: {identity_text(now)}")
+        state.version = version + 1
+        return replaced
+
+    def accept(self, name: str, identity: dict, source: str) -> None:
+        """The engineer took the device as it is now (end of a replacement): its identity becomes the known one."""
+        self.known[name] = {"identity": dict(identity), "time": time.time(), "source": source}
+        self._persist()
+        self.check(name)
+
+
+def watch_of(runtime) -> ReplacementWatch | None:
+    return getattr(runtime, "replacements", None)
+
+
+# -- the assistant ---------------------------------------------------------------------------------
+
+
+@dataclass
+class IdentityCheck:
+    device: str
+    device_type: str
+    old: dict
+    new: dict
+    ok: bool
+    refusals: list[str] = field(default_factory=list)  # type or variant do not match: nothing is written
+    notes: list[str] = field(default_factory=list)  # serial, firmware, hardware differences named
+    lacks: list[str] = field(default_factory=list)  # approved parameters the new device does not have
+    adds: list[str] = field(default_factory=list)  # parameters of the new device the approved set does not name
+
+    def as_dict(self) -> dict:
+        return {"device": self.device, "type": self.device_type, "old": self.old, "new": self.new, "ok": self.ok,
+                "refusals": self.refusals, "notes": self.notes, "lacks": self.lacks, "adds": self.adds}
+
+
+async def approved_document(runtime, name: str) -> tuple[dict, str]:
+    """The device's approved set as a backup document (what the assistant restores), and its source."""
+    record = runtime.record
+    entry = await record.store.run(record.store.latest, record.plant, name, "approved")
+    source = "approved set"
+    if entry is None:
+        entry = await record.store.run(record.store.latest, record.plant, name, "snapshot")
+        source = "last snapshot (no approved set)"
+    if entry is None:
+        raise backup.BackupError(f"{name}: the record holds no approved set and no snapshot to restore from")
+    return set_document(runtime, name, entry.data.get("parameters") or {}, entry.data.get("identity") or {},
+                        f"{source} #{entry.id}"), f"{source} #{entry.id} ({entry.title})"
+
+
+def set_document(runtime, name: str, params: dict[str, dict], identity: dict, source: str) -> dict:
+    """A parameter set of the record (``{key: {name, raw, text, unit, writable}}``) as a backup document:
+    each value derived from its raw word through the device type's parameter model."""
+    state = runtime.store.devices[name]
+    model = state.params
+    entries = []
+    for key, ref in params.items():
+        param = model.by_key.get(key) if model is not None else None
+        raw = ref.get("raw")
+        value = param.decode(int(raw)) if param is not None and isinstance(raw, int) else raw
+        entries.append({"key": key, "name": ref.get("name", key), "raw": raw, "value": value, "text": ref.get("text", ""),
+                        "unit": ref.get("unit", ""), "writable": bool(ref.get("writable"))})
+    document = backup.make_document(runtime.plant.name, name, state.type, state.bus, identity, entries)
+    document["source"] = source
+    return document
+
+
+def _variant_of(runtime, name: str) -> Any:
+    config = runtime.plant.devices.get(name)
+    return None if config is None else config.options.get("variant")
+
+
+async def check_identity(runtime, name: str, document: dict, current_keys: set[str] | None = None) -> IdentityCheck:
+    """Type and variant must match; serial, firmware and hardware differences are named, with the
+    parameters the device lacks or adds against the set (``current_keys``: the device's parameter keys)."""
+    state = runtime.store.devices[name]
+    new = live_identity(runtime, name) or {}
+    old = document.get("identity") or {}
+    check = IdentityCheck(name, state.type, old, new, True)
+    doc_type = (document.get("device") or {}).get("type")
+    if doc_type != state.type:
+        check.refusals.append(f"the set is of a {doc_type!r}, the device is a {state.type!r}")
+    a, b = facets(old), facets(new)
+    variant_now = b["variant"] if b["variant"] is not None else _variant_of(runtime, name)
+    if a["variant"] is not None and variant_now is not None and str(a["variant"]) != str(variant_now):
+        check.refusals.append(f"variant {a['variant']} in the set, {variant_now} on the device")
+    if not new:
+        check.refusals.append("the device has not told its identity (not answering?)")
+    if a["serial"] is not None and b["serial"] is not None and str(a["serial"]) != str(b["serial"]):
+        check.notes.append(f"serial number {a['serial']} -> {b['serial']} (the replacement)")
+    for facet in ("firmware", "hardware"):
+        if a[facet] is not None and b[facet] is not None and str(a[facet]) != str(b[facet]):
+            check.notes.append(f"{facet} version {a[facet]} -> {b[facet]}")
+    if current_keys is not None:
+        names = {e["key"]: e["name"] for e in document.get("parameters", [])}
+        check.lacks = [names[k] for k in names if k not in current_keys]
+        model = state.params
+        check.adds = [(p.label or p.name) for p in (model or []) if p.key in current_keys and p.key not in names and p.writable]
+    if any(n.startswith("firmware") for n in check.notes):
+        if check.lacks or check.adds:
+            check.notes.append(f"with the new firmware the device lacks {len(check.lacks)} and adds {len(check.adds)} "
+                               "parameter(s) against the set (listed below)")
+        else:
+            check.notes.append("the parameter model knows no parameter that this firmware lacks or adds: "
+                               "the same parameters on both")
+    check.ok = not check.refusals
+    return check
+
+
+@dataclass
+class ReplacementPlan:
+    check: IdentityCheck
+    plan: backup.RestorePlan | None
+    source: str
+
+
+async def plan_replacement(runtime, name: str, progress=None) -> ReplacementPlan:
+    """Identity check and the approved set against the new device as restore's diff (reads only)."""
+    document, source = await approved_document(runtime, name)
+    adapter = runtime.worker.adapters[name]
+    check = await check_identity(runtime, name, document)
+    if not check.ok:
+        return ReplacementPlan(check, None, source)
+    plan = await backup.plan_restore(runtime, name, document, progress)
+    current = {e["key"] for e in await adapter.backup_read()}
+    check = await check_identity(runtime, name, document, current)
+    return ReplacementPlan(check, plan, source)
+
+
+async def execute_replacement(runtime, rp: ReplacementPlan, selected: set[str], *, user: str, role: str,
+                              confirmed: set[str] = frozenset(), progress=None) -> backup.RestoreReport:
+    """Write the selected rows through restore's verified path (gate, read-back, save step), then record
+    the replacement in the device's timeline and the audit log and take the new identity as known."""
+    if rp.plan is None or not rp.check.ok:
+        raise backup.BackupError("; ".join(rp.check.refusals) or "no plan")
+    name = rp.plan.device
+    report = await backup.execute_restore(runtime, rp.plan, selected, user=user, role=role, confirmed=confirmed,
+                                          progress=progress)
+    summary = f"replacement: {identity_text(rp.check.old)} -> {identity_text(rp.check.new)}: {report.summary()}"
+    try:
+        await runtime.audit.arecord(user=user, role=role, device=name, action="replacement",
+                                    old=identity_text(rp.check.old), new=identity_text(rp.check.new), result=summary[:500])
+    except Exception:  # noqa: BLE001 - every write has its own row; the header shows the audit state
+        pass
+    data = {"replacement": rp.check.as_dict(), "source": rp.source, "selected": sorted(selected),
+            "written": report.written, "unchanged": report.unchanged, "failed": report.failed, "skipped": report.skipped,
+            "refused": report.refused, "saved": report.saved, "save_error": report.save_error, "summary": report.summary(),
+            "identity": rp.check.new}
+    try:
+        await runtime.record.add(name, "restore", user=user, role=role, data=data,
+                                 title=f"replacement {identity_text(rp.check.old)} -> {identity_text(rp.check.new)}")
+    except Exception as exc:  # noqa: BLE001 - said in the report; the writes are in the audit log
+        report.save_error = report.save_error or ""
+        log.error("%s: the replacement could not be added to the record: %s", name, exc)
+    if report.ok:
+        watch = watch_of(runtime)
+        if watch is not None:
+            watch.accept(name, rp.check.new, f"replacement by {user}")
+    return report

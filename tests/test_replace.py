@@ -1,0 +1,100 @@
+"""Replaced devices: detected from the published identity within one poll; the assistant restores the
+approved set through restore's verified path and records the replacement."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+import pytest
+from conftest import modbus_plant, wait_for
+
+from app import replace
+from app.runtime import Runtime
+
+NEW_SERIAL = 770077
+
+
+@pytest.fixture
+async def two_locks(tmp_path):
+    plant = modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
+    runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
+    await runtime.start()
+    for name in ("door-1", "door-2"):
+        assert await wait_for(lambda n=name: replace.live_identity(runtime, n) is not None, timeout=8), name
+    try:
+        yield runtime
+    finally:
+        await asyncio.wait_for(runtime.stop(), 5)
+
+
+async def test_swap_detected_within_one_poll_and_restored_with_verified_write(two_locks):
+    runtime = two_locks
+    name = "door-1"
+    state = runtime.store.devices[name]
+    twin = runtime.twins[name]
+    old_serial = twin.serial
+    # the approved set: LockRequestDelay changed from its factory value, saved, approved
+    param = state.params.by_name["LockRequestDelay"]
+    factory = twin.factory[3000]
+    await runtime.worker.adapters[name].write_param(param, factory + 150)
+    await runtime.worker.adapters[name].save_step()
+    await runtime.record.approve(name, user="anna", role="engineer")
+    assert getattr(state, "replaced", None) is None
+
+    twin.swap_for_new(NEW_SERIAL)  # the lock is swapped for a new one at the same address
+    swapped = time.monotonic()
+    assert await wait_for(lambda: getattr(state, "replaced", None), timeout=3)
+    took = time.monotonic() - swapped
+    poll = runtime.plant.buses["line1"].options["poll_period"]
+    # one poll of the line (both locks, every block) plus the store's push round
+    assert took < max(1.0, runtime.store.buses["line1"].cycle_s or 0) + poll + 0.3, took
+    replaced = state.replaced
+    assert replaced["differs"] == ["serial"]
+    assert str(replace.facets(replaced["old"])["serial"]) == str(old_serial)
+    assert replace.facets(replaced["new"])["serial"] == NEW_SERIAL
+    assert any("replaced?" in e.text for e in state.events)
+    assert getattr(runtime.store.devices["door-2"], "replaced", None) is None
+
+    rp = await replace.plan_replacement(runtime, name)
+    assert rp.check.ok and any("serial number" in n for n in rp.check.notes)
+    changed = [r for r in rp.plan.rows if r.changed]
+    assert [r.name for r in changed] == ["LockRequestDelay"], [r.name for r in changed]
+    assert twin.holding[3000] == factory  # nothing written before the go
+
+    report = await replace.execute_replacement(runtime, rp, {r.key for r in changed}, user="anna", role="engineer")
+    assert report.ok, report.summary()
+    assert report.written == ["LockRequestDelay"] and report.saved == "Save-Settings"
+    assert twin.holding[3000] == factory + 150 and twin.flash[3000] == factory + 150  # written, read back, saved
+    assert await wait_for(lambda: getattr(state, "replaced", None) is None, timeout=2)  # the new identity is known now
+    timeline = await runtime.record.timeline(name, ("restore",))
+    assert timeline and "replacement" in timeline[0].title and timeline[0].data["written"] == ["LockRequestDelay"]
+    rows = await runtime.audit.aquery(limit=200)
+    actions = [r.action for r in rows if r.device == name]
+    assert "replacement" in actions and "restore" in actions
+
+
+async def test_type_or_variant_mismatch_refuses(two_locks):
+    runtime = two_locks
+    await runtime.record.approve("door-2", user="anna", role="engineer")
+    document, _source = await replace.approved_document(runtime, "door-2")
+    document["device"]["type"] = "m3io"
+    document["identity"]["variant"] = "HM"
+    check = await replace.check_identity(runtime, "door-2", document)
+    assert not check.ok
+    assert any("'m3io'" in r for r in check.refusals)
+    with pytest.raises(Exception):
+        await replace.execute_replacement(runtime, replace.ReplacementPlan(check, None, "x"), set(), user="a", role="engineer")
+
+
+async def test_firmware_difference_named(two_locks):
+    runtime = two_locks
+    name = "door-2"
+    await runtime.record.approve(name, user="anna", role="engineer")
+    runtime.twins[name].swap_for_new(880088, firmware=61)
+    state = runtime.store.devices[name]
+    assert await wait_for(lambda: getattr(state, "replaced", None), timeout=3)
+    assert set(state.replaced["differs"]) == {"serial", "firmware"}
+    rp = await replace.plan_replacement(runtime, name)
+    assert any(n.startswith("firmware version 57 -> 61") for n in rp.check.notes), rp.check.notes
+    assert any("lacks or adds" in n or "lacks 0" in n for n in rp.check.notes), rp.check.notes
