@@ -356,6 +356,10 @@ def load_plant(path: str | Path) -> Plant:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise PlantError(f"{path}: cannot read the plant file: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        line = path.read_bytes()[:exc.start].count(b"\n") + 1
+        raise PlantError(f"{path}:{line}: the plant file is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset "
+                         f"{exc.start}); save it as UTF-8") from None
     return parse_plant(text, path)
 
 

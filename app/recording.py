@@ -24,6 +24,7 @@ import contextlib
 import importlib
 import io
 import logging
+import math
 import os
 import queue
 import re
@@ -467,6 +468,17 @@ Progress = Callable[[int, float], None]  # (frames read so far, fraction of the 
 
 
 def _record_of(msg: can.Message) -> FrameRecord:
+    """A frame of a file, checked: a time that is a number, an ID that fits its width, at most 64 data bytes.
+
+    :raises ValueError: naming what is wrong (the reader adds where)
+    """
+    if not math.isfinite(float(msg.timestamp)):
+        raise ValueError(f"time stamp {msg.timestamp!r} is not a number")
+    limit = 0x1FFFFFFF if msg.is_extended_id else 0x7FF
+    if not 0 <= int(msg.arbitration_id) <= limit:
+        raise ValueError(f"CAN ID 0x{int(msg.arbitration_id):X} does not fit {'29' if msg.is_extended_id else '11'} bits")
+    if len(msg.data) > 64:
+        raise ValueError(f"{len(msg.data)} data bytes (a CAN FD frame holds at most 64)")
     return FrameRecord(
         float(msg.timestamp), int(msg.arbitration_id), bool(msg.is_extended_id), int(msg.dlc),
         bytes(msg.data), "rx" if msg.is_rx else "tx", bool(msg.is_error_frame), bool(msg.is_remote_frame),

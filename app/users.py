@@ -60,6 +60,9 @@ class UserStore:
                 data = tomllib.loads(self.path.read_text(encoding="utf-8"))
             except (OSError, tomllib.TOMLDecodeError) as exc:
                 raise UserError(f"{self.path}: cannot read the accounts file: {exc}") from None
+            except UnicodeDecodeError as exc:
+                raise UserError(f"{self.path}: the accounts file is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} "
+                                f"at offset {exc.start})") from None
             for entry in data.get("user", []):
                 user = User(str(entry["name"]), str(entry["role"]), str(entry["hash"]))
                 if user.role in ROLES:
