@@ -1,7 +1,7 @@
 """Publish the plant's live data to an MQTT broker (``[mqtt]`` in the plant file), read-only.
 
 Topic tree and payloads: docs/mqtt.md. Everything is read from the state store
-(``DeviceState.values()`` / ``summary()``); nothing here talks to a bus, and nothing is ever
+(``DeviceState.values_json()`` / ``summary()``); nothing here talks to a bus, and nothing is ever
 subscribed to: MQTT carries no commands.
 
 Two asyncio tasks of their own: the *sampler* looks at every device at most ``rate`` times a
@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from app.plant import MqttConfig
+from app.state import jsonable
 from devices.registry import DEVICE_TYPES
 
 log = logging.getLogger(__name__)
@@ -44,39 +45,15 @@ def instance_topic(site: str, instance: str) -> str:
     return f"{TOPIC_ROOT}/{site}/{INSTANCES}/{instance}"
 
 
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, bytes | bytearray):
-        return value.hex(" ")
-    if isinstance(value, set | frozenset):
-        return sorted(value)
-    return str(value)
-
-
 def dumps(payload: dict[str, Any]) -> bytes:
-    return json.dumps(payload, separators=(",", ":"), default=_jsonable, allow_nan=False).encode()
-
-
-def _finite(value: Any) -> Any:
-    """NaN and infinities are not JSON: published as null."""
-    if isinstance(value, float) and value != value or value in (float("inf"), float("-inf")):
-        return None
-    return value
+    return json.dumps(payload, separators=(",", ":"), default=jsonable, allow_nan=False).encode()
 
 
 def state_payload(state, instance: str, now: float) -> dict[str, Any]:
-    """``commission/<site>/<device>/state``: every live value with unit, quality and time (retained)."""
-    values = {}
-    for name, entry in state.values().items():
-        item = {"value": _finite(entry.get("value")), "unit": entry.get("unit", ""), "quality": entry.get("quality"),
-                "time": entry.get("time"), "text": entry.get("text")}
-        if entry.get("raw") is not None:
-            item["raw"] = entry["raw"]
-        for key in ("name", "fields"):
-            if entry.get(key) is not None:
-                item[key] = entry[key]
-        values[name] = item
+    """``commission/<site>/<device>/state``: every live value in the one JSON form of a live value
+    (``LiveValue.to_json``, the API's too), with unit, quality and time (retained)."""
     return {"schema": "commission-state", "version": SCHEMA_VERSION, "instance": instance, "device": state.name,
-            "type": state.type, "bus": state.bus, "status": state.status, "time": now, "values": values}
+            "type": state.type, "bus": state.bus, "status": state.status, "time": now, "values": state.values_json()}
 
 
 def status_payload(state, instance: str, now: float) -> dict[str, Any]:

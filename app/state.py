@@ -14,10 +14,22 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from devices.live import EVENT_LIMIT, HISTORY_SECONDS, QUALITIES, Counters, DeviceState, Event, Point
+from devices.live import (
+    EVENT_LIMIT,
+    HISTORY_SECONDS,
+    QUALITIES,
+    Counters,
+    DeviceState,
+    Event,
+    LiveValue,
+    Point,
+    jsonable,
+    session_tag,
+)
 
 __all__ = [
-    "EVENT_LIMIT", "HISTORY_SECONDS", "QUALITIES", "BusState", "Counters", "DeviceState", "Event", "Point", "StateStore",
+    "EVENT_LIMIT", "HISTORY_SECONDS", "QUALITIES", "BusState", "Counters", "DeviceState", "Event", "LiveValue", "Point",
+    "StateStore", "jsonable", "session_tag",
 ]
 
 

@@ -21,13 +21,14 @@ from urllib.parse import parse_qs, quote, urlsplit
 from fastapi import HTTPException, Query, Request
 from fastapi.responses import JSONResponse, PlainTextResponse, RedirectResponse, Response
 from nicegui import Client, app, core, ui
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, create_model
 from socketio import exceptions as socketio_exceptions
 
 from app import runtime as rt
 from app.assets import AssetCache, preload_links, tailwind_style
 from app.runtime import Runtime
 from app.state import HISTORY_SECONDS
+from devices.live import json_fields as live_json_fields
 
 log = logging.getLogger(__name__)
 
@@ -525,7 +526,7 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
     def api_device(name: str) -> dict:
         """One device with every known value, keyed by the device document's names."""
         state = _device(runtime, name)
-        return {**_summary(state), "values": state.values()}
+        return {**_summary(state), "values": state.values_json()}
 
     @app.get(
         "/api/devices/{name}/history",
@@ -588,20 +589,9 @@ class DeviceSummary(BaseModel):
     drift: dict | None = Field(None, description='parameters changed since the approved set: {"approved": bool, "changed": [...]}')
 
 
-class Value(BaseModel):
-    """One value: a live point or a register parameter."""
-
-    value: Any = Field(description="decoded: signed, scaled; null while not measurable (see text)")
-    unit: str = ""
-    time: float | None = Field(None, description="Unix time it was read or heard")
-    quality: Literal["good", "stale", "offline", "unknown"]
-    raw: Any = Field(None, description="the word(s) on the wire, where the device has one")
-    text: str | None = Field(None, description="as shown on the device page (enum name, state, 'out of range')")
-    name: str | None = Field(None, description="enum name (register parameters)")
-    fields: dict[str, int] | None = Field(None, description="bit fields (register parameters)")
-    address: int | None = None
-    space: str | None = None
-    access: str | None = None
+# one value, a live point or a register parameter: the JSON form of devices.live.LiveValue, declared there once
+Value = create_model("Value", __doc__="One value: a live point or a register parameter (devices.live.LiveValue).",
+                     **{key: (typ, Field(default, description=doc)) for key, typ, default, doc in live_json_fields()})
 
 
 class DeviceDetail(DeviceSummary):

@@ -3,14 +3,27 @@
 Device-facing half of the state store. Adapters (``devices/*/adapter.py``) write a
 :class:`DeviceState`; ``app.state.StateStore`` holds one per device and the pages, API and
 exporters read it. Pure data: no I/O, no ``app`` or ``pages`` imports.
+
+What readers get is one shape, :class:`LiveValue` (name, value, unit, time, quality, raw, text,
+enum name, bit fields, register address): :meth:`DeviceState.live` for one, :meth:`DeviceState.
+live_values` for all. Its JSON form is :meth:`LiveValue.to_json` (through :func:`jsonable`, the one
+function that turns a value, a typed record included, into JSON); the API and the MQTT payload
+send that form, and the API's model is made from :func:`json_fields`. A fact that is more than a
+number is a small frozen dataclass (a record) published as one point, e.g. the MO 64's error
+memory levels.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import enum
+import hashlib
+import math
 import time
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 from devices.params import Param, ParamMap
 
@@ -57,9 +70,113 @@ class Event:
 
 
 QUALITIES = ("good", "stale", "offline", "unknown")
+Quality = Literal["good", "stale", "offline", "unknown"]
 
 
-@dataclass
+def jsonable(value: Any) -> Any:
+    """``value`` in JSON's terms, the one conversion the API, MQTT, backups and exports share: a record
+    (dataclass) becomes an object of its fields, tuples and lists arrays, sets sorted arrays, bytes hex
+    text, enums their number, NaN and infinities null; anything else unknown its text."""
+    if value is None or isinstance(value, bool | str):
+        return value
+    if isinstance(value, enum.Enum):
+        return jsonable(value.value)
+    if isinstance(value, int):
+        return int(value)
+    if isinstance(value, float):
+        return float(value) if math.isfinite(value) else None
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: jsonable(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(x) for k, x in value.items()}
+    if isinstance(value, bytes | bytearray):
+        return bytes(value).hex(" ")
+    if isinstance(value, set | frozenset):
+        return sorted(jsonable(x) for x in value)
+    if isinstance(value, list | tuple):
+        return [jsonable(x) for x in value]
+    return str(value)
+
+
+def session_tag(session: str) -> str:
+    """A session as a published fact may name it: a short digest, never the page's own id (which must not
+    reach the API or a broker). A page finds its own entries by the tag of its session."""
+    return hashlib.sha256(session.encode()).hexdigest()[:12]
+
+
+def _doc(text: str, json_key: str | None = None) -> dict[str, str]:
+    return {"doc": text, **({"json": json_key} if json_key else {})}
+
+
+@dataclass(frozen=True, slots=True)
+class LiveValue:
+    """One live value with its meaning, as every reader gets it (pages, API, MQTT, history, backup).
+
+    A published point or a register parameter alike. The JSON form (:meth:`to_json`) is keyed by the
+    field names, except :attr:`enum`, sent as ``name`` (the register parameter's enum name, as the API
+    always sent it); :attr:`name` is the key of the values' object and not repeated in it.
+    """
+
+    name: str = field(metadata=_doc("the point's name (the device document's)"))
+    value: Any = field(default=None, metadata=_doc("decoded: signed, scaled; a record's fields; null while "
+                                                   "not measurable (see text)"))
+    unit: str = field(default="", metadata=_doc("unit of the value"))
+    time: float | None = field(default=None, metadata=_doc("Unix time it was read or heard"))
+    quality: Quality = field(default="unknown", metadata=_doc('"good", "stale", "offline" or "unknown"'))
+    raw: Any = field(default=None, metadata=_doc("the word(s) on the wire, where the device has one"))
+    text: str | None = field(default=None, metadata=_doc("as shown on the device page (enum name, state, "
+                                                         "'out of range')"))
+    enum: str | None = field(default=None, metadata=_doc("enum name (register parameters)", "name"))
+    fields: dict[str, int] | None = field(default=None, metadata=_doc("bit fields (register parameters)"))
+    address: int | None = field(default=None, metadata=_doc("register address (register parameters)"))
+    space: str | None = field(default=None, metadata=_doc("register space (register parameters)"))
+    access: str | None = field(default=None, metadata=_doc("access (register parameters)"))
+
+    @property
+    def shown(self) -> str:
+        """The value in words as a page shows it: its text, else value and unit, else "-"."""
+        if self.text is not None:
+            return self.text
+        return "-" if self.value is None else f"{self.value} {self.unit}".strip()
+
+    def entry(self) -> dict[str, Any]:
+        """The older dict form (``DeviceState.values()``, ``entry()``, ``point()``): the same keys as
+        :meth:`to_json`, Python values as published (no JSON conversion), register keys only where set."""
+        out: dict[str, Any] = {"value": self.value, "unit": self.unit, "time": self.time, "quality": self.quality,
+                               "raw": self.raw, "text": self.text}
+        if self.address is not None:  # a register parameter: its register keys, the enum name even when undefined
+            out.update(address=self.address, space=self.space, access=self.access, name=self.enum)
+            if self.fields is not None:
+                out["fields"] = self.fields
+        return out
+
+    def to_json(self) -> dict[str, Any]:
+        """The JSON form every reader outside the process gets (API, MQTT, exports), keyed as
+        :func:`json_fields` says: value, unit, time, quality, raw and text always; the register keys
+        (name, fields, address, space, access) where they are set."""
+        out = {f.metadata.get("json", f.name): jsonable(getattr(self, f.name)) for f in _JSON_FIELDS[:6]}
+        for f in _JSON_FIELDS[6:]:
+            x = getattr(self, f.name)
+            if x is not None:
+                out[f.metadata.get("json", f.name)] = jsonable(x)
+        return out
+
+
+_JSON_FIELDS = tuple(f for f in dataclasses.fields(LiveValue) if f.name != "name")
+assert [f.name for f in _JSON_FIELDS[:6]] == ["value", "unit", "time", "quality", "raw", "text"]
+
+
+def json_fields() -> list[tuple[str, Any, Any, str]]:
+    """The JSON form of a :class:`LiveValue`, declared once: (key, type, default, description) per field,
+    in order (the API's response model is made from this)."""
+    import typing
+
+    hints = typing.get_type_hints(LiveValue)
+    return [(f.metadata.get("json", f.name), hints[f.name],
+             ... if f.name == "quality" else f.default, f.metadata["doc"]) for f in _JSON_FIELDS]
+
+
+@dataclass(frozen=True, slots=True)
 class Point:
     """One live value as the adapter decoded it (value, unit, time heard, raw word, text or enum name).
 
@@ -94,7 +211,10 @@ class DeviceState:
     history: deque = field(default_factory=lambda: deque(maxlen=HISTORY_SECONDS * 10))
     events: deque = field(default_factory=lambda: deque(maxlen=EVENT_LIMIT))
     unsaved: set[str] = field(default_factory=set)  # parameter keys written since Save-Settings
-    info: dict[str, Any] = field(default_factory=dict)  # adapter-specific live facts
+    # adapter-specific live facts of the families not yet moved to published points (HD-Lock, Electrak,
+    # M3IO, SCU): pages of those families still read it. A moved family (MO 64) publishes every fact as a
+    # point or a record (:meth:`fact`) and writes nothing here; tests/test_layering.py lists who still reads it
+    info: dict[str, Any] = field(default_factory=dict)
     points: dict[str, Point] = field(default_factory=dict)  # live points by the document's names
     registers_periodic: bool = True  # False: register values are read on demand (they do not age)
     version: int = 0  # bumped by every write below: readers follow changes by comparing it (O(1))
@@ -115,6 +235,15 @@ class DeviceState:
         """Record the live point ``name`` (O(1); one record per name, replaced on every update)."""
         self.points[name] = Point(value, unit, _now() if time is None else time, raw, text, periodic, every)
         self.version += 1
+
+    def fact(self, name: str, value: Any, unit: str = "", *, text: str | None = None, raw: Any = None) -> None:
+        """Publish a fact that is read on demand or kept by the adapter (a setting, a count, a record: a
+        frozen dataclass or a tuple of them), only when it changed: it does not age, and its time is
+        when it last changed."""
+        old = self.points.get(name)
+        if old is not None and not old.periodic and (old.value, old.unit, old.text, old.raw) == (value, unit, text, raw):
+            return
+        self.publish(name, value, unit, raw=raw, text=text, periodic=False)
 
     def mark_seen(self, now: float | None = None) -> None:
         if self.online is False and self.last_error:  # recovered: the old error stays in the event log only
@@ -142,9 +271,19 @@ class DeviceState:
         self.events.append(Event(time.time(), level, text))
         self.version += 1
 
+    def record_history(self, names: tuple[str, ...] | list[str], now: float | None = None) -> None:
+        """One chart sample of the published points ``names``, keyed by the points' own names (so the
+        history and ``values()`` name a quantity once); a point not published yet is left out."""
+        sample = {n: self.points[n].value for n in names if n in self.points}
+        if sample:
+            self.add_history(sample, now)
+
     def add_history(self, sample: dict[str, float], now: float | None = None) -> None:
         """One chart sample; the history keeps HISTORY_SECONDS of them (and at most 10 a second):
-        a device sampled slowly (a lock polled every 2 s) must not keep hours of them."""
+        a device sampled slowly (a lock polled every 2 s) must not keep hours of them.
+
+        Families not yet moved key their samples by chart labels (HD-Lock "BoltPosition [Inc]" for the
+        point "BoltPosition"); moved ones use :meth:`record_history`, keyed by point names."""
         now = time.time() if now is None else now
         history = self.history
         history.append((now, sample))
@@ -177,13 +316,12 @@ class DeviceState:
         return "good"
 
     def point(self, name: str) -> dict[str, Any] | None:
-        """One live point as the API shows it (with its quality), or None if never published."""
+        """One live point in the dict form (:meth:`LiveValue.entry`, with its quality), or None if never published."""
         p = self.points.get(name)
-        return None if p is None else self._point_entry(p, _now())
+        return None if p is None else self._point_live(name, p, _now()).entry()
 
-    def _point_entry(self, p: Point, now: float) -> dict[str, Any]:
-        return {"value": p.value, "unit": p.unit, "time": p.time, "quality": self.quality(p.time, p.periodic, now, p.every),
-                "raw": p.raw, "text": p.text}
+    def _point_live(self, name: str, p: Point, now: float) -> LiveValue:
+        return LiveValue(name, p.value, p.unit, p.time, self.quality(p.time, p.periodic, now, p.every), p.raw, p.text)
 
     @property
     def age(self) -> float | None:
@@ -210,46 +348,50 @@ class DeviceState:
         raw = self.raw(param)
         return None if raw is None else param.decode(raw)
 
-    def _param_entry(self, param: Param, raw: int, now: float) -> dict[str, Any]:
-        entry: dict[str, Any] = {
-            "value": param.decode(raw),
-            "raw": raw,
-            "unit": param.unit,
-            "text": param.display(raw),
-            "address": param.address,
-            "space": param.space,
-            "access": param.access.value,
-            "time": self.read_time(param),
-        }
-        entry["quality"] = self.quality(entry["time"], self.registers_periodic, now)
-        if param.enum is not None:
-            entry["name"] = param.enum_name(raw)
-        if param.fields:
-            entry["fields"] = param.field_values(raw)
-        return entry
+    def _param_live(self, param: Param, raw: int, now: float) -> LiveValue:
+        read = self.read_time(param)
+        return LiveValue(param.label or param.name, param.decode(raw), param.unit, read,
+                         self.quality(read, self.registers_periodic, now), raw, param.display(raw),
+                         param.enum_name(raw) if param.enum is not None else None,
+                         param.field_values(raw) if param.fields else None,
+                         param.address, param.space, param.access.value)
 
-    def entry(self, name: str, now: float | None = None) -> dict[str, Any] | None:
-        """One value by name, a register parameter or a published point alike, as :meth:`values`
-        lists it (with its quality); None until it was read or heard. O(1) for a point."""
+    def live(self, name: str, now: float | None = None) -> LiveValue | None:
+        """One value by name, a published point or a register parameter alike, with its quality; None until
+        it was read or heard. O(1) for a point."""
         now = _now() if now is None else now
         p = self.points.get(name)
         if p is not None:
-            return self._point_entry(p, now)
+            return self._point_live(name, p, now)
         param = self.params.by_name.get(name) if self.params is not None else None
         raw = None if param is None else self.raw(param)
-        return None if raw is None else self._param_entry(param, raw, now)
+        return None if raw is None else self._param_live(param, raw, now)
 
-    def values(self) -> dict[str, dict[str, Any]]:
-        """Every known parameter and live point by name: decoded value, raw, unit, text, read time, quality."""
-        result: dict[str, dict[str, Any]] = {}
-        now = _now()
+    def live_values(self, now: float | None = None) -> dict[str, LiveValue]:
+        """Every known parameter and live point by name (a point wins over a parameter of the same name)."""
+        result: dict[str, LiveValue] = {}
+        now = _now() if now is None else now
         for param in self.params if self.params is not None else ():
             raw = self.raw(param)
             if raw is not None:
-                result[param.label or param.name] = self._param_entry(param, raw, now)
+                value = self._param_live(param, raw, now)
+                result[value.name] = value
         for name, p in self.points.items():
-            result[name] = self._point_entry(p, now)
+            result[name] = self._point_live(name, p, now)
         return result
+
+    def entry(self, name: str, now: float | None = None) -> dict[str, Any] | None:
+        """:meth:`live` in the dict form (:meth:`LiveValue.entry`), as :meth:`values` lists it."""
+        value = self.live(name, now)
+        return None if value is None else value.entry()
+
+    def values(self) -> dict[str, dict[str, Any]]:
+        """Every known parameter and live point by name in the dict form: value, raw, unit, text, read time, quality."""
+        return {name: value.entry() for name, value in self.live_values().items()}
+
+    def values_json(self, now: float | None = None) -> dict[str, dict[str, Any]]:
+        """Every value in its JSON form (:meth:`LiveValue.to_json`): what the API and the MQTT payload send."""
+        return {name: value.to_json() for name, value in self.live_values(now).items()}
 
     def history_since(self, seconds: float, now: float | None = None) -> list[tuple[float, dict[str, Any]]]:
         """The recorded samples of the last ``seconds`` (the charts' data), oldest first; O(returned)."""
