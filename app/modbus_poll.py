@@ -35,7 +35,10 @@ PERIOD_MIN_S = 0.2  # the line is shared with the devices' polls
 PERIOD_MAX_S = 60.0
 UNIT_MIN, UNIT_MAX = 0, 254  # 0: broadcast read (an HD-Lock answers it, SPEC-NOTES); writes need 1..254
 FORMATS = ("unsigned", "signed", "hex", "binary")
-WORD_ORDERS = {"ABCD": "high word first", "CDAB": "low word first"}
+WORD_ORDERS = {"ABCD": "high word first", "CDAB": "low word first", "BADC": "high word first, bytes swapped",
+               "DCBA": "low word first, bytes swapped"}
+ADDRESS_MAX = 0xFFFF  # register and coil addresses 0..65535
+MAX_WRITE_COILS = 1968  # 6.11: 1..0x7B0 coils per write multiple coils
 
 
 class PollError(ValueError):
@@ -77,9 +80,16 @@ def to_signed(raw: int) -> int:
 
 
 def pair_u32(first: int, second: int, order: str) -> int:
-    """Two registers (``first`` at the lower address) as uint32; ABCD = high word first."""
-    high, low = (first, second) if order == "ABCD" else (second, first)
+    """Two registers (``first`` at the lower address) as uint32; ABCD = high word first, CDAB = low word
+    first, BADC and DCBA the same with the bytes of each word swapped."""
+    high, low = (first, second) if order in ("ABCD", "BADC") else (second, first)
+    if order in ("BADC", "DCBA"):  # the two bytes of each word swapped
+        high, low = (_swap(high), _swap(low))
     return (high & 0xFFFF) << 16 | (low & 0xFFFF)
+
+
+def _swap(word: int) -> int:
+    return (word & 0xFF) << 8 | (word >> 8 & 0xFF)
 
 
 def pair_i32(first: int, second: int, order: str) -> int:
@@ -338,4 +348,50 @@ class ModbusPoll:
 
         await self.worker.engineer_action(do, user=user, role=role, describe=describe,
                                           target=dev.name if dev else self.bus, parameter=parameter, new=raws)
+        return describe
+
+
+    async def write_coils(self, unit: int, address: int, bits: list[bool], *, user: str, role: str,
+                          confirmed: bool = False) -> str:
+        """Function 05 (one coil) or 15 (several): through the send policy like a register write, confirmed, audited.
+
+        :raises PollError: refused by the unit's device type (e.g. a device without coils) or outside Modbus;
+        :raises NeedsConfirmation: the policy names a risk and ``confirmed`` is False
+        """
+        states = [bool(b) for b in bits]
+        fc = 5 if len(states) == 1 else 15
+        describe = (f"Modbus poll {self.bus}: write unit {unit} coil {address}"
+                    + (f"+{len(states)}" if fc == 15 else "") + f" = {[int(b) for b in states]} (function {fc:02d})")
+        try:
+            if not 1 <= unit <= UNIT_MAX:
+                raise PollError(f"writes go to one unit (1..{UNIT_MAX}), not {unit}")
+            if not 1 <= len(states) <= MAX_WRITE_COILS:
+                raise PollError(f"1..{MAX_WRITE_COILS} coils per write, not {len(states)}")
+            if not 0 <= address <= ADDRESS_MAX or address + len(states) > ADDRESS_MAX + 1:
+                raise PollError(f"coils {address}..{address + len(states) - 1} do not fit 0..{ADDRESS_MAX}")
+            verdict = check_modbus(self.worker.plant.devices_on(self.bus),
+                                   ModbusMessage(unit, fc, address, tuple(int(b) for b in states)))
+            if verdict.refused:
+                raise PollError(f"unit {unit}: {verdict.refused}")
+        except PollError as exc:
+            await self.worker.refused(device=self.bus, user=user, role=role, describe=describe, reason=str(exc),
+                                      parameter=f"unit {unit} coil {address}", new=[int(b) for b in states])
+            raise
+        if verdict.confirm and not confirmed:
+            raise NeedsConfirmation(f"This writes {verdict.name or f'unit {unit} coil {address}'}. "
+                                    + " ".join(dict.fromkeys(verdict.confirm)) + " Write?")
+        dev = known_device(self.worker.plant, self.bus, unit)
+
+        async def do() -> str:
+            if fc == 5:
+                await self.line.tool_request(unit, f"write coil {address}={int(states[0])}",
+                                             lambda c: c.write_coil(address, states[0], device_id=unit))
+            else:
+                await self.line.tool_request(unit, f"write coils {address}+{len(states)}",
+                                             lambda c: c.write_coils(address, states, device_id=unit))
+            return ""
+
+        await self.worker.engineer_action(do, user=user, role=role, describe=describe,
+                                          target=dev.name if dev else self.bus, parameter=verdict.name or f"unit {unit} coil {address}",
+                                          new=[int(b) for b in states])
         return describe

@@ -15,7 +15,7 @@ from app.modbus_line import ModbusLine
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import fmt_time, frame, notify_error
 from pages.session import current_user
-from pages.widgets import all_valid, checked_value, range_number
+from pages.widgets import all_valid, checked_value, range_number, range_text
 
 REFRESH_S = 0.25
 WIDE_KINDS = {"u32": "uint32", "i32": "int32", "f32": "float32"}
@@ -70,7 +70,7 @@ def _view(runtime, bus: str) -> None:
                 "dense outlined").classes("w-60")
             base = ui.select({0: "0-based (protocol)", 1: "1-based (register 1 = address 0)"}, value=0,
                              label="Addresses").props("dense outlined").classes("w-64")
-            start = range_number("Start address", 0, 65536, integer=True, value=1000).classes("w-36")
+            start = _address_field("Start address", 1000, base).classes("w-36")
             count = range_number("Count", 1, 2000, integer=True, value=10).classes("w-32")
             period = range_number("Period s", mp.PERIOD_MIN_S, mp.PERIOD_MAX_S, unit="s", value=1.0, step=0.1).classes("w-32")
             run_button = ui.button("Poll", icon="play_arrow").props("data-testid=poll-start")
@@ -157,19 +157,25 @@ def _view(runtime, bus: str) -> None:
 
     # -- writes (engineer only) ---------------------------------------------------------
     with ui.card().classes("w-full"):
-        ui.label("Write holding registers").classes("text-subtitle1")
+        ui.label("Write holding registers or coils").classes("text-subtitle1")
         if role != "engineer":
             ui.label("Writes are for engineers (this session may read only).").classes("text-grey-7").props(
                 "data-testid=poll-write-note")
             return
         with ui.row().classes("items-end gap-3 flex-wrap"):
             w_unit = range_number("Unit", 1, 254, integer=True, value=min(known) if known else 1).classes("w-24")
-            w_address = range_number("Address", 0, 65536, integer=True, value=3000).classes("w-32")
-            w_values = ui.input("Value(s)", value="200", placeholder="e.g. 200 or 1, 2, -30").props("dense outlined").classes("w-56")
+            w_kind = ui.select({"register": "holding register(s), 06/16", "coil": "coil(s), 05/15"}, value="register",
+                               label="Write").props("dense outlined data-testid=poll-write-kind").classes("w-56")
+            w_address = _address_field("Address", 3000, base).classes("w-32")
+            w_values = ui.input("Value(s)", value="200", placeholder="e.g. 200 or 1, 2, -30 (coils: 1 0 1)").props(
+                "dense outlined").classes("w-56")
             w_multi = ui.checkbox("function 16 (multiple)")
+            w_multi.bind_visibility_from(w_kind, "value", value="register")
             w_button = ui.button("Write", icon="edit")
-        ui.label("Addresses as chosen above. A known device's register asks for a confirmation; its read-only, MFR and "
-                 "never-written registers are refused.").classes("text-caption text-grey-7")
+        ui.label("Addresses as chosen above. Every write goes through the send policy of the unit's device type (by the "
+                 "line's type for a unit not in the plant): a known device's register asks for a confirmation; its "
+                 "read-only, MFR and never-written registers, and coils of a device without coils, are refused.").classes(
+            "text-caption text-grey-7")
 
     async def write(confirmed: bool = False) -> None:
         target = await checked_value(w_unit, "", f"Modbus poll write on {bus}", parameter="unit")
@@ -184,11 +190,19 @@ def _view(runtime, bus: str) -> None:
         if not values:
             notify_error("enter at least one value")
             return
+        coils = w_kind.value == "coil"
+        if coils and any(v not in (0, 1) for v in values):
+            notify_error(f"'{w_values.value}': a coil is 0 or 1")
+            return
         address = int(w_address.value or 0) - int(base.value or 0)
         user, role = current_user()  # the account store's answer now, not the page's when it was built
         try:
-            await poll.write(int(w_unit.value or 0), address, values, user=user or "anonymous", role=role, confirmed=confirmed,
-                             multiple=bool(w_multi.value) or len(values) > 1)
+            if coils:
+                await poll.write_coils(int(w_unit.value or 0), address, [bool(v) for v in values], user=user or "anonymous",
+                                       role=role, confirmed=confirmed)
+            else:
+                await poll.write(int(w_unit.value or 0), address, values, user=user or "anonymous", role=role,
+                                 confirmed=confirmed, multiple=bool(w_multi.value) or len(values) > 1)
         except mp.NeedsConfirmation as exc:
             with ui.dialog() as dialog, ui.card().classes("w-[32rem]"):
                 ui.label(str(exc)).classes("text-body1")
@@ -211,3 +225,32 @@ def _view(runtime, bus: str) -> None:
         ui.notify("written", type="positive")
 
     w_button.on_click(lambda: write())
+
+
+def _address_field(label: str, value: int, base) -> ui.number:
+    """An address entry whose range follows how addresses are counted: 0 .. 65535 (0-based) or 1 .. 65536
+    (1-based, register 1 = address 0); a wrong entry stays as typed, marked with the range."""
+
+    def limits() -> tuple[int, int]:
+        first = int(base.value or 0)
+        return first, mp.ADDRESS_MAX + first
+
+    def check(v) -> str | None:
+        if v is None:
+            return None
+        low, high = limits()
+        if float(v) != int(float(v)):
+            return f"whole numbers only, {range_text(low, high)}"
+        return None if low <= float(v) <= high else f"out of range: {range_text(low, high)}"
+
+    field = ui.number(label, value=value, validation=check).props("dense outlined")
+
+    def show_range() -> None:
+        field.rule = range_text(*limits())  # type: ignore[attr-defined]
+        field.props(f'hint="{field.rule}"')
+        if field.value is not None:
+            field.validate()
+
+    show_range()
+    base.on_value_change(lambda _: show_range())
+    return field

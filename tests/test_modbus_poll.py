@@ -6,6 +6,7 @@ import asyncio
 import contextlib
 import sqlite3
 import struct
+from pathlib import Path
 
 import pytest
 
@@ -160,3 +161,46 @@ async def test_multi_register_write_to_unknown_unit(line):
     # no device at unit 9: no confirmation needed; nobody answers, so the write fails with the line's error
     with pytest.raises(Exception, match="unit 9"):
         await poll.write(9, 100, [1, 2], user="anna", role="engineer")
+
+
+# -- issue 32.14 ------------------------------------------------------------------------------------------------
+
+
+def test_byte_swapped_orders():
+    """Besides ABCD and CDAB, devices send 32-bit values with the bytes of each word swapped (BADC, DCBA)."""
+    assert pair_u32(0x0201, 0x0403, "BADC") == 0x01020304
+    assert pair_u32(0x0403, 0x0201, "DCBA") == 0x01020304
+    assert pair_f32(0xC03F, 0x0000, "BADC") == 1.5 and pair_f32(0x0000, 0xC03F, "DCBA") == 1.5
+    assert pair_i32(0xFFFF, 0xFEFF, "BADC") == -2
+    row = rows_for(PollSpec(1, 3, 0, 2), [0xC03F, 0x0000])[0]
+    assert row.cells["f32 BADC"] == "1.5"
+
+
+async def test_address_fields_offer_0_to_65535_and_follow_the_counting(tmp_path):
+    """32.14: the fields said "allowed 0 .. 65536"; 0-based addresses end at 65535, 1-based ones run 1 .. 65536."""
+    from nicegui import ui
+    from webutil import simulated_user
+
+    runtime = Runtime(modbus_plant(free_port(), locks=(("door-1", 1),)), simulate=True, data_dir=tmp_path)
+    async with simulated_user(runtime) as user:
+        await user.open("/monitor/line1/poll")
+        await user.should_see("Start address")
+        start = next(e for e in user.find(ui.number).elements if e.props.get("label") == "Start address")
+        assert start.props.get("hint") == "allowed 0 .. 65535"
+        start.set_value(65536)
+        assert not start.validate()
+        base = next(e for e in user.find(ui.select).elements if e.props.get("label") == "Addresses")
+        base.set_value(1)
+        assert start.props.get("hint") == "allowed 1 .. 65536" and start.validate()
+
+
+async def test_coil_writes_go_through_the_send_policy(line):
+    runtime, poll = line
+    # unit 1 is an HD-Lock: it has no coils (section 5), refused by its policy and audited
+    with pytest.raises(PollError, match="no coils"):
+        await poll.write_coils(1, 0, [True], user="anna", role="engineer", confirmed=True)
+    # unit 9 is on an all-HD-Lock line: checked as an HD-Lock, refused too
+    with pytest.raises(PollError, match="no coils"):
+        await poll.write_coils(9, 0, [True, False], user="anna", role="engineer", confirmed=True)
+    refused = [a for _u, a, r in _audit(runtime) if r.startswith("refused") and "coil" in a]
+    assert len(refused) >= 2 and "function 05" in refused[0] and "function 15" in refused[1]
