@@ -141,7 +141,11 @@ class Recording(can.Listener):
                 ok = True
             elif self.suffix == ".log":
                 ok = isinstance(channel, int) or (isinstance(channel, str) and bool(channel) and not any(c.isspace() for c in channel))
-            elif self.suffix in (".asc", ".blf", ".trc"):
+            elif self.suffix == ".trc":
+                # one bus per file, all on bus 1: TRCWriter numbers a channel it can read from 1 up ("demo-can1"
+                # became bus 2) and a frame without one (what this tool sent) goes to bus 1
+                ok = False
+            elif self.suffix in (".asc", ".blf"):
                 number = channel2int(channel)
                 ok = number is None or 0 <= number < 255
             else:
