@@ -220,6 +220,9 @@ class PlantTile:
         quality = tile["quality"]
         alarms = tile["alarms"] if quality in ("good", "unknown") else []  # old data raises no alarms
         state, word, age_text = state_words(quality, alarms, tile["age"])
+        marked = quality if quality in ("stale", "offline") else "good"
+        if self._changed("quality", marked):  # the values' quality, as everywhere a value is shown (without fading)
+            self.card.props(f'data-quality="{marked}"')
         if self._changed("state", state):
             self.card.classes(remove=" ".join(f"state-{s}" for s in STATE), add=f"state-{state}")
             self.band.props(f'data-plant-state="{state}"')
