@@ -27,6 +27,11 @@ examples:
                                       read every parameter into one JSON file per device
   commission restore --plant site.toml --device NAME FILE [--yes]
                                       show the diff, write, read back, save
+  commission apply --plant site.toml --from FILE --devices a,b,c [--yes]
+                                      one set to several devices of one type: identity
+                                      check and diff per device, then device by device
+  commission check --plant site.toml  the plant file and each device's project, checked
+                                      by the parameter model without the devices
   commission user add NAME --role engineer|viewer
                                       accounts; needed for --host beyond 127.0.0.1
   commission view --broker mqtt://broker.local:1883
@@ -94,6 +99,11 @@ def build_parser() -> argparse.ArgumentParser:
     from app import report
 
     report.add_parser(sub)  # commission report --plant P --out DIR: the as-left report without a browser
+
+    from app import batch, project
+
+    batch.add_parser(sub)  # commission apply --plant P --from FILE --devices a,b,c: one set to several devices
+    project.add_parser(sub)  # commission check --plant P: the plant file and its devices' projects, without the devices
 
     from app import mcap_export
 

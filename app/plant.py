@@ -109,6 +109,7 @@ class DeviceConfig:
     bus: str
     options: dict[str, Any]
     line: int = 0
+    project: dict[str, Any] | str | None = None  # intended parameters: a table, or a parameter file (app/project.py)
 
 
 @dataclass
@@ -595,9 +596,13 @@ def _parse_devices(text, data, plant, table, target, fail) -> None:
         if plant.buses[bus].type not in device_type.bus_types:
             raise fail(_key_line(text, line, "bus"), f"device '{name}': a {dtype} cannot sit on a {plant.buses[bus].type} bus")
         options = {k: v for k, v in raw.items() if k not in COMMON_DEVICE_KEYS}
+        project = options.pop("project", None)  # the device's intended parameters, checked by app/project.py
+        if project is not None and not isinstance(project, dict | str):
+            raise fail(_key_line(text, line, "project"), f"device '{name}': project must be a table of parameter = value "
+                       f"or the name of a parameter file in quotes, not {project!r}")
         for key, message in device_type.check_config(options, plant.buses[bus].type):
             raise fail(*_device_problem(text, line, name, options, key, message))
-        target[name] = DeviceConfig(name, dtype, bus, options, line)
+        target[name] = DeviceConfig(name, dtype, bus, options, line, project)
 
 
 def _device_problem(text: str, line: int, name: str, options: dict[str, Any], key: str, message: str) -> tuple[int, str]:

@@ -1,0 +1,251 @@
+"""Batch apply: one parameter set to N devices of one type (and variant), device by device.
+
+Sources: a backup file, a device's approved set (``approved:NAME``), a sibling device read now
+(``device:NAME``) or each device's own project (``project``, see app/project.py). Every device
+gets its own identity check and dry-run diff first (restore's plan, app/backup.py); applying runs
+device by device through restore's verified write (the gate, read-back, save step), stops at the
+first failure and reports each device as written, unchanged, failed or skipped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from app import backup, replace
+
+WRITTEN, UNCHANGED, FAILED, SKIPPED, REFUSED = "written", "unchanged", "failed", "skipped", "refused"
+
+
+@dataclass
+class DevicePlan:
+    device: str
+    check: replace.IdentityCheck | None = None
+    plan: backup.RestorePlan | None = None
+    error: str = ""  # refused before anything is written (type, variant, unreadable device)
+
+    @property
+    def changed(self) -> list[backup.DiffRow]:
+        return [] if self.plan is None else [r for r in self.plan.rows if r.changed]
+
+
+@dataclass
+class BatchPlan:
+    source: str
+    device_type: str
+    devices: list[DevicePlan]
+    errors: list[str] = field(default_factory=list)  # the batch as a whole cannot run
+
+    @property
+    def ready(self) -> bool:
+        return not self.errors and all(not d.error for d in self.devices)
+
+
+@dataclass
+class DeviceResult:
+    device: str
+    status: str  # written, unchanged, failed, skipped, refused
+    text: str = ""
+    report: backup.RestoreReport | None = None
+
+
+async def source_document(runtime, source: str, device: str) -> dict:
+    """The backup document ``source`` names, for ``device`` (only ``project`` depends on the device)."""
+    if source == "project":
+        from app import project
+
+        return project.document(runtime, device)
+    if source.startswith("approved:"):
+        return (await replace.approved_document(runtime, source.split(":", 1)[1]))[0]
+    if source.startswith("device:"):
+        sibling = source.split(":", 1)[1]
+        if sibling not in runtime.worker.adapters:
+            raise backup.BackupError(f"no device named {sibling!r} in this plant")
+        adapter = runtime.worker.adapters[sibling]
+        if not backup.supports_backup(adapter):
+            raise backup.BackupError(f"{sibling} has no parameters to copy")
+        entries = await runtime.worker.command(sibling, lambda a: a.backup_read(), role="viewer", user="batch",
+                                               describe="read parameters for a batch", write=False, record=False)
+        state = runtime.store.devices[sibling]
+        return backup.make_document(runtime.plant.name, sibling, state.type, state.bus, adapter.backup_identity(), entries)
+    path = Path(source.removeprefix("file:"))
+    data = await asyncio.to_thread(path.read_bytes)
+    return await asyncio.to_thread(backup.load_document, data, path.name)
+
+
+def _variant(runtime, name: str) -> Any:
+    config = runtime.plant.devices.get(name)
+    return None if config is None else config.options.get("variant")
+
+
+async def plan_batch(runtime, devices: list[str], source: str, progress=None) -> BatchPlan:
+    """Identity check and dry-run diff of every device (reads only; nothing is written)."""
+    errors = []
+    unknown = [d for d in devices if d not in runtime.store.devices]
+    if unknown:
+        return BatchPlan(source, "", [], [f"no device named {', '.join(map(repr, unknown))} in this plant"])
+    if not devices:
+        return BatchPlan(source, "", [], ["choose at least one device"])
+    types = {runtime.store.devices[d].type for d in devices}
+    variants = {str(_variant(runtime, d)) for d in devices}
+    if len(types) > 1:
+        errors.append(f"the devices are of {len(types)} types ({', '.join(sorted(types))}): a batch takes one type")
+    if len(variants) > 1:
+        errors.append(f"the devices are of {len(variants)} variants ({', '.join(sorted(variants))}): a batch takes one variant")
+    if len(set(devices)) != len(devices):
+        errors.append("a device is named twice")
+    result = BatchPlan(source, next(iter(types)), [DevicePlan(d) for d in devices], errors)
+    if errors:
+        return result
+    for n, entry in enumerate(result.devices):
+        try:
+            document = await source_document(runtime, source, entry.device)
+            state = runtime.store.devices[entry.device]
+            if state.status != "online":
+                raise backup.BackupError(f"not answering ({state.last_error or 'no answer'})")
+            adapter = runtime.worker.adapters[entry.device]
+            current = {e["key"] for e in await adapter.backup_read()}
+            entry.check = await replace.check_identity(runtime, entry.device, document, current)
+            if not entry.check.ok:
+                raise backup.BackupError("; ".join(entry.check.refusals))
+            entry.plan = await backup.plan_restore(runtime, entry.device, document)
+        except Exception as exc:  # noqa: BLE001 - each device says why it cannot take part
+            entry.error = str(exc) or exc.__class__.__name__
+        if progress:
+            progress((n + 1) / len(result.devices))
+    return result
+
+
+async def apply_batch(runtime, plan: BatchPlan, *, user: str, role: str, confirmed: set[str] = frozenset(),
+                      progress=None, on_device=None) -> list[DeviceResult]:
+    """Device by device through restore's verified path; stops at the first failure, the rest skipped.
+
+    :param confirmed: names (or keys) of risky parameters the engineer confirmed, for every device
+    :param on_device: ``(DeviceResult) -> None`` after each device (the page's progress)
+    """
+    results: list[DeviceResult] = []
+    if not plan.ready:
+        return [DeviceResult(d.device, REFUSED, d.error or "; ".join(plan.errors)) for d in plan.devices]
+    stopped = ""
+    total = max(1, len(plan.devices))
+    for n, entry in enumerate(plan.devices):
+        if stopped:
+            result = DeviceResult(entry.device, SKIPPED, f"not started: {stopped}")
+        elif not entry.changed:
+            result = DeviceResult(entry.device, UNCHANGED, "already holds every value of the source")
+        else:
+            selected = {r.key for r in entry.changed}
+            keys = {r.key for r in entry.plan.risky(selected) if r.key in confirmed or r.name in confirmed}
+            report = await backup.execute_restore(runtime, entry.plan, selected, user=user, role=role, confirmed=keys,
+                                                  progress=(lambda f, n=n: progress((n + f) / total)) if progress else None)
+            if report.ok:
+                result = DeviceResult(entry.device, WRITTEN, report.summary(), report)
+            else:
+                why = "; ".join(f"{p}: {e}" for p, e in report.failed + report.refused) or report.save_error
+                result = DeviceResult(entry.device, FAILED, f"{report.summary()} ({why})", report)
+                stopped = f"the batch stopped at {entry.device}, which failed"
+        results.append(result)
+        if progress:
+            progress((n + 1) / total)
+        if on_device:
+            on_device(result)
+    summary = ", ".join(f"{r.device} {r.status}" for r in results)
+    try:
+        await runtime.audit.arecord(user=user, role=role, device=",".join(d.device for d in plan.devices), action="batch apply",
+                                    new=plan.source, result=summary[:500])
+    except Exception:  # noqa: BLE001 - each write has its own row; the header shows the audit state
+        pass
+    return results
+
+
+# -- commission apply ------------------------------------------------------------------------------
+
+
+def add_parser(sub) -> None:
+    parser = sub.add_parser("apply", help="apply one parameter set to several devices of one type, headless")
+    parser.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
+    parser.add_argument("--from", dest="source", required=True, metavar="SOURCE",
+                        help="a backup file, approved:DEVICE (its approved set), device:DEVICE (a sibling read now) "
+                             "or project (each device's project in the plant file)")
+    parser.add_argument("--devices", required=True, help="comma-separated device names, all of one type and variant")
+    parser.add_argument("--yes", action="store_true", help="write without asking (the diffs are printed anyway); "
+                        "values that need a confirmation are still refused unless named with --accept-risk")
+    parser.add_argument("--accept-risk", action="append", default=[], metavar="NAME",
+                        help="write this risky parameter's value (repeatable)")
+    parser.add_argument("--no-sim", action="store_true", help="do not start simulated devices")
+    parser.add_argument("--data-dir", type=Path, default=None, help="data folder (default: ~/.local/share/commission)")
+    parser.set_defaults(func=run_cli)
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    from app.cli import _cli_user, _headless
+
+    args.device = [d.strip() for d in args.devices.split(",") if d.strip()]
+    source = args.source
+    if source not in ("project",) and not source.startswith(("approved:", "device:")):
+        path = Path(source)
+        if not path.is_file():
+            print(f"commission apply: {source}: no such file", file=sys.stderr)
+            return 2
+        source = str(path)
+
+    async def work(runtime, names) -> int:
+        plan = await plan_batch(runtime, names, source)
+        for error in plan.errors:
+            print(f"commission apply: {error}", file=sys.stderr)
+        if plan.errors:
+            return 2
+        risky: dict[str, str] = {}
+        for entry in plan.devices:
+            print(f"{entry.device}:")
+            if entry.error:
+                print(f"  refused: {entry.error}")
+                continue
+            for note in entry.check.notes:
+                print(f"  identity: {note}")
+            for warning in entry.plan.warnings:
+                print(f"  warning: {warning}")
+            for row in entry.changed:
+                mark = f"   [needs confirmation: {row.risk}]" if row.risk else ""
+                print(f"  {row.name}: {row.current_text} -> {row.backup_text}{mark}")
+                if row.risk:
+                    risky[row.name] = row.risk
+            if not entry.changed:
+                print("  nothing to write")
+        if not plan.ready:
+            print("commission apply: nothing written: every device must pass its identity check", file=sys.stderr)
+            return 2
+        accepted = {n.lower() for n in args.accept_risk}
+        confirmed = {n for n in risky if n.lower() in accepted}
+        if not args.yes:
+            if not sys.stdin.isatty():
+                print("commission apply: add --yes to write without a terminal to confirm", file=sys.stderr)
+                return 2
+            if input(f"apply to {len(plan.devices)} device(s), one by one? [y/N] ").strip().lower() != "y":
+                print("nothing written")
+                return 1
+            for name_, risk in risky.items():
+                if name_ not in confirmed and input(f"{name_}: {risk} Write it? [y/N] ").strip().lower() == "y":
+                    confirmed.add(name_)
+        unconfirmed = [n for n in risky if n not in confirmed]
+        if unconfirmed:
+            for name_ in unconfirmed:
+                print(f"commission apply: {name_} needs a confirmation ({risky[name_]}); name it with --accept-risk "
+                      f"{name_} to write it", file=sys.stderr)
+            print("nothing written", file=sys.stderr)
+            return 2
+
+        def said(result: DeviceResult) -> None:
+            print(f"{result.device}: {result.status}: {result.text}", flush=True)
+
+        results = await apply_batch(runtime, plan, user=_cli_user(), role="engineer", confirmed=confirmed, on_device=said)
+        failed = [r for r in results if r.status in (FAILED, REFUSED)]
+        if failed:
+            print(f"commission apply: stopped at {failed[0].device}: {failed[0].text}", file=sys.stderr)
+        return 1 if failed else 0
+
+    return asyncio.run(_headless(args, work))
