@@ -165,6 +165,7 @@ WRITE_PENDING = {
     "pages/m3io.py": "output switching and control not yet declared",
     "pages/monitor.py": "bus monitor actions",
     "app/record.py": "checkout steps of the record page",
+    "app/batch.py": "batch apply's reads of each device's parameters",
     "pages/widgets.py": "run_command's older form (a callable and write=) for the pages above",
 }
 
