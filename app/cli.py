@@ -56,6 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--allowed-host", action="append", default=[], metavar="NAME",
                         help="a further host name or address browsers use to reach the GUI (repeatable); "
                              "requests for any other name are refused (DNS rebinding)")
+    parser.add_argument("--tls-cert", type=Path, default=None, metavar="FILE",
+                        help="serve HTTPS with this certificate (PEM, the chain after it); session cookies are then Secure")
+    parser.add_argument("--tls-key", type=Path, default=None, metavar="FILE", help="the certificate's private key (PEM)")
     parser.add_argument("--no-sim", action="store_true", help="do not start simulated devices, even for buses with simulate = true")
     parser.add_argument("--show", action="store_true", help="open a browser window")
     parser.add_argument("-v", "--verbose", action="store_true", help="log more")
@@ -177,6 +180,51 @@ def _refuse_taken_ports(plant, program: str = "commission", every: bool = False)
     return bool(taken)
 
 
+def reachable_urls(host: str, port: int, scheme: str = "http") -> list[str]:
+    """The addresses a browser can use for a server listening on ``host``: for a wildcard address
+    (0.0.0.0, ::) this machine's name and its outward IP addresses, loopback first; else the address."""
+    if host not in ("0.0.0.0", "::", ""):
+        name = f"[{host}]" if ":" in host else host
+        return [f"{scheme}://{name}:{port}/"]
+    names = ["127.0.0.1"]
+    machine = socket.gethostname()
+    if machine and machine != "localhost":
+        names.append(machine)
+    addresses: list[str] = []
+    try:  # the address of the interface a packet outward would leave by (nothing is sent)
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            probe.connect(("192.0.2.1", 9))
+            addresses.append(probe.getsockname()[0])
+    except OSError:
+        pass
+    try:
+        addresses += [info[4][0] for info in socket.getaddrinfo(machine, None, socket.AF_INET)]
+    except OSError:
+        pass
+    for address in addresses:
+        if not address.startswith("127.") and address not in names:
+            names.append(address)
+    return [f"{scheme}://{name}:{port}/" for name in names]
+
+
+def _tls_files(args) -> tuple[str, str] | None:
+    """``(cert, key)`` for HTTPS, None for HTTP; SystemExit(2) with the reason when they cannot be used."""
+    if not args.tls_cert and not args.tls_key:
+        return None
+    if not (args.tls_cert and args.tls_key):
+        print("commission: --tls-cert and --tls-key go together (the certificate and its private key)", file=sys.stderr)
+        raise SystemExit(2)
+    import ssl
+
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+    try:
+        context.load_cert_chain(args.tls_cert, args.tls_key)
+    except (OSError, ssl.SSLError) as exc:
+        print(f"commission: cannot use {args.tls_cert} with {args.tls_key}: {getattr(exc, 'strerror', None) or exc}", file=sys.stderr)
+        raise SystemExit(2) from None
+    return str(args.tls_cert), str(args.tls_key)
+
+
 def _quiet_libraries(verbose: bool) -> None:
     logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     logging.getLogger("pymodbus").setLevel(logging.DEBUG if verbose else logging.CRITICAL)
@@ -228,7 +276,11 @@ def run_user(args) -> int:
 
     from app.users import UserError, UserStore, default_data_dir
 
-    store = UserStore((args.data_dir or default_data_dir()) / "users.toml")
+    try:
+        store = UserStore((args.data_dir or default_data_dir()) / "users.toml")
+    except UserError as exc:
+        print(f"commission user: {exc}", file=sys.stderr)
+        return 2
     if args.user_command == "list":
         for user in sorted(store.users.values(), key=lambda u: u.name):
             print(f"{user.name}\t{user.role}")
@@ -454,6 +506,7 @@ def _main(argv: list[str] | None) -> int:
 
     data_dir = args.data_dir or default_data_dir()
     auth_required = not is_loopback(args.host)
+    tls = _tls_files(args)
     if auth_required and not UserStore(data_dir / "users.toml").has_engineer():
         print(
             f"commission: refusing to listen on {args.host}: beyond the loopback address every browser must log in, "
@@ -487,7 +540,10 @@ def _main(argv: list[str] | None) -> int:
         return 2
     runtime = Runtime(plant, simulate=not args.no_sim, data_dir=data_dir, auth_required=auth_required)
     web.register(runtime, host=args.host, allowed_hosts=args.allowed_host)
-    url = f"http://{args.host}:{args.port}/"
+    url = " and ".join(reachable_urls(args.host, args.port, "https" if tls else "http"))
+    if auth_required and tls is None:
+        print("commission: note: served beyond the loopback address without --tls-cert/--tls-key, passwords and session "
+              "cookies cross the network unencrypted", file=sys.stderr, flush=True)
     announce_task: list[asyncio.Task] = []
 
     async def announce() -> None:
@@ -529,6 +585,9 @@ def _main(argv: list[str] | None) -> int:
         show_welcome_message=False,
         favicon="🔧",
         storage_secret=web.storage_secret(data_dir),
+        # over HTTPS the session cookie is Secure: a browser never sends it over plain HTTP
+        session_middleware_kwargs={"https_only": True} if tls else None,
+        **({"ssl_certfile": tls[0], "ssl_keyfile": tls[1]} if tls else {}),
         # pages get many small updates: compressing each one cost the event loop more than all the rest of
         # sending it (with 20 pages open, a third of the loop's time); the messages are small JSON
         ws_per_message_deflate=False,

@@ -78,12 +78,16 @@ class UserStore:
         return True
 
     def save(self) -> None:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        # the data folder is owner only from its first file on (``commission user add`` before the GUI ever ran)
+        self.path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+        os.chmod(self.path.parent, 0o700)
         lines = ["# commission accounts: manage with `commission user add NAME --role engineer|viewer`", ""]
         for user in sorted(self.users.values(), key=lambda u: u.name):
             lines += ["[[user]]", f'name = "{user.name}"', f'role = "{user.role}"', f'hash = "{user.password_hash}"', ""]
         tmp = self.path.with_suffix(".tmp")
-        tmp.write_text("\n".join(lines), encoding="utf-8")
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)  # never readable by others, not even briefly
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write("\n".join(lines))
         os.chmod(tmp, 0o600)
         tmp.replace(self.path)
         self._stamp = self._file_stamp()
