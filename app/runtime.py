@@ -160,6 +160,12 @@ class Runtime:
     def twins(self) -> dict[str, Any]:
         return self.sim.twins if self.sim else {}
 
+    def sim_controls(self, device: str):
+        """The declared simulation controls of ``device``'s twin (``controls()`` in devices/<type>/sim.py,
+        a devices.simcontrols.SimControls), or None: not simulated here, or a twin that declares none yet."""
+        controls = getattr(self.twins.get(device), "controls", None)
+        return controls() if callable(controls) else None
+
     # -- unsaved changes survive a restart (volatile device settings) -----------------------
     def _unsaved_now(self) -> dict[str, list[str]]:
         return {name: sorted(state.unsaved) for name, state in self.store.devices.items() if state.unsaved}

@@ -1,16 +1,22 @@
 """Bauer MO 64 page: gate state with a picture of the boom, position, the 40 status bits, identity,
-counters, error memory, modes; commands, settings, change monitoring and the TCP connection."""
+counters, error memory, modes; commands, settings, change monitoring and the TCP connection.
+
+Reads only the live store (the points and records :mod:`devices.mo64.adapter` publishes) and invokes
+the declared commands (devices/mo64/policy.py) through the worker's gate. Each card is a small class
+with ``build()`` (in the page's layout) and ``refresh()`` (on every change the store pushes)."""
 
 from __future__ import annotations
 
 from nicegui import ui
 
 from app import runtime as rt
+from app.state import DeviceState, LiveValue, session_tag
+from devices.mo64 import adapter as facts
 from devices.mo64 import codec
-from devices.mo64.adapter import COMMAND_NAMES, HELD_LEVELS
+from devices.mo64.adapter import COMMAND_NAMES
 from devices.mo64.policy import EEPROM_RISK, operation_name, setting_name
-from pages.electrak import gate
 from pages.frame import frame, set_status_badge
+from pages.simcontrols import sim_card
 from pages.widgets import (
     Lamp,
     WriteGuard,
@@ -29,6 +35,7 @@ from pages.widgets import (
 MOTION_WARNING = "the boom moves: check that nobody stands under it"
 EEPROM_WARNING = EEPROM_RISK  # the declared risk of every setting write (devices/mo64/policy.py)
 ALARM_BITS = {"LS", "Baum ab", "F_ereignis"}
+ALARM_WORDS = {"LS": "light barrier interrupted", "Baum ab": "boom off", "F_ereignis": "fault event"}
 # what the status bits mean (chapter 5.1.7, pages 16-17; SPEC-NOTES "Barrier status"); a bit the summary
 # names without its function says so
 BIT_MEANINGS = {
@@ -80,79 +87,120 @@ def boom_svg(position: int | None) -> str:
             + '</g><circle cx="23" cy="64" r="6" fill="#263238"/></svg>')
 
 
-def content(name: str) -> None:
-    runtime = rt.current()
-    state = runtime.store.devices[name]
-    adapter = runtime.worker.adapters[name]
-    client = ui.context.client
-    session = client.id
+class Mo64View:
+    """What every card of one page shares: the device's live record and the declared commands."""
 
-    async def act(command: str, args: dict | None = None, success: str = "", confirmed: bool = False):
+    def __init__(self, name: str):
+        runtime = rt.current()
+        self.name = name
+        self.store = runtime.store
+        self.state: DeviceState = runtime.store.devices[name]
+        self.session = ui.context.client.id
+        self.cards: list = []
+
+    def live(self, point: str) -> LiveValue | None:
+        return self.state.live(point)
+
+    def fact(self, point: str, default=None):
+        value = self.state.live(point)
+        return default if value is None or value.value is None else value.value
+
+    def text(self, point: str) -> str:
+        value = self.state.live(point)
+        return "-" if value is None else value.shown
+
+    def refresh(self) -> None:
+        for card in self.cards:
+            card.refresh()
+
+    async def act(self, command: str, args: dict | None = None, success: str = "", confirmed: bool = False):
         """Invoke a declared command of the MO 64 (devices/mo64/policy.py) by name: the gate decides on its
         kind and the role, and asks its declared risk here (run_command) unless ``confirmed``."""
-        result = await run_command(name, command, args=args, session=session, success=success, confirmed=confirmed)
-        if updater:
-            updater[0]()  # the reply and the levels are shown at once
+        result = await run_command(self.name, command, args=args, session=self.session, success=success,
+                                   confirmed=confirmed)
+        self.refresh()  # the reply and the levels are shown at once
         return result
 
-    updater: list = []
-
-    async def move(cmd: codec.Command, fn: codec.Function) -> None:
+    async def move(self, cmd: codec.Command, fn: codec.Function) -> None:
         words = operation_name(cmd, fn)
         # the declared risk ("the area is clear") is asked once per session: a session that confirmed it
-        # (the adapter keeps that) is not asked again
-        await act(words, success=f"{words}: ack", confirmed=session in adapter.motion_confirmed)
+        # (the adapter publishes the tags of those sessions) is not asked again
+        confirmed = session_tag(self.session) in self.fact(facts.P_CONFIRMED, ())
+        await self.act(words, success=f"{words}: ack", confirmed=confirmed)
 
-    async def clear_levels() -> None:
-        if not adapter.levels:
-            ui.notify("no level set by this tool is active")
-            return
-        await act("clear levels", success="levels deactivated")  # the gate asks the declared risk
 
-    async def write(key: str, field) -> None:
-        setting = codec.SETTINGS[key]
-        value = await _entry_value(name, key, field)
-        if value is None:
-            return
-        args: dict = codec.setting_to_fields(key, value)
-        if setting.assumed and key not in adapter.verified_selectors:
-            # the engineer states it by confirming the declared risk, which says so
-            args["selector_verified"] = True
-        await act(setting_name(key), args, success=f"{setting.name} written and read back")
+class GateCard:
+    """Gate state, the boom, position, alarms, the connection and the line's counters."""
 
-    async def monitoring(on: bool) -> None:
-        await act("change monitoring", {"on": int(on)}, success="change monitoring " + ("on" if on else "off"))
+    def __init__(self, view: Mo64View):
+        self.view = view
+        self.last_position: object = object()
 
-    with frame(f"Bauer MO 64 {name}"):
-        guard = WriteGuard(state)  # commands and settings, disabled with the reason while the barrier does not answer
-        # -- gate ----------------------------------------------------------------------------------
+    def build(self) -> None:
+        view = self.view
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-6 w-full no-wrap"):
-                picture = ui.html(boom_svg(None)).props("data-testid=boom")
+                self.picture = ui.html(boom_svg(None)).props("data-testid=boom")
                 with ui.column().classes("gap-1"):
                     with ui.row().classes("items-center gap-4"):
-                        badge = ui.badge("waiting", color="grey").classes("text-body2")
-                        gate = ui.label("gate state: -").classes("text-h6").props("data-testid=gate-state")
-                    position = ui.label("position: -").classes("text-h6").props("data-testid=position")
-                    bar = ui.linear_progress(value=0, show_value=False).props("size=14px rounded").classes("w-72")
-                    alarms = ui.label().classes("text-negative text-body1").props("data-testid=alarms")
-                    link = ui.label().classes("text-body2").props("data-testid=connection")
-                    error_line = ui.label().classes("text-negative text-caption")
-                    unavailable = ui.label().classes("text-caption text-grey-8").props("data-testid=unavailable")
-                    counter_line(state, lambda c: f"requests {c.requests}  answers {c.responses}  timeouts {c.timeouts}  malformed {c.malformed}")
-            if adapter.rs485:
-                ui.label(f"RS485 bus address {adapter.address}, this tool is master {adapter.master}.") \
+                        self.badge = ui.badge("waiting", color="grey").classes("text-body2")
+                        self.gate = ui.label("gate state: -").classes("text-h6").props("data-testid=gate-state")
+                    self.position = ui.label("position: -").classes("text-h6").props("data-testid=position")
+                    self.bar = ui.linear_progress(value=0, show_value=False).props("size=14px rounded").classes("w-72")
+                    self.alarms = ui.label().classes("text-negative text-body1").props("data-testid=alarms")
+                    self.link = ui.label().classes("text-body2").props("data-testid=connection")
+                    self.error_line = ui.label().classes("text-negative text-caption")
+                    self.unavailable = ui.label().classes("text-caption text-grey-8").props("data-testid=unavailable")
+                    counter_line(view.state, lambda c: f"requests {c.requests}  answers {c.responses}  "
+                                                       f"timeouts {c.timeouts}  malformed {c.malformed}")
+            line = view.fact(facts.P_LINE)
+            if line is not None and line.rs485:
+                ui.label(f"RS485 bus address {line.address}, this tool is master {line.master}.") \
                     .classes("text-caption text-grey-8")
             else:
                 with ui.row().classes("items-center gap-2"):
                     ui.label("The MO 64 serves one TCP client at a time (chapter 3).").classes("text-caption text-grey-8")
-                    ui.button("Release the connection", icon="link_off", on_click=lambda: act(
+                    ui.button("Release the connection", icon="link_off", on_click=lambda: view.act(
                         "release the connection", success="released: another client may connect")) \
                         .props("outline dense data-testid=release")
-                    ui.button("Take it back", icon="link", on_click=lambda: act("take the connection back")) \
+                    ui.button("Take it back", icon="link", on_click=lambda: view.act("take the connection back")) \
                         .props("outline dense data-testid=resume")
 
-        # -- commands ------------------------------------------------------------------------------
+    def refresh(self) -> None:
+        view, state = self.view, self.view.state
+        set_status_badge(self.badge, state.status, state.age)
+        self.gate.set_text(f"gate state: {view.text('Gate state')}")
+        value = view.fact("Position")
+        self.position.set_text(f"position: {view.text('Position')}")
+        self.bar.set_value(0 if value is None else value / 100)
+        if value != self.last_position:
+            self.last_position = value
+            self.picture.set_content(boom_svg(value))
+        on = [b for b in ALARM_BITS if view.fact(b)]
+        self.alarms.set_text(", ".join(ALARM_WORDS[b] for b in sorted(on)))
+        bus = view.store.buses.get(state.bus)
+        late = view.fact(facts.P_LATE, 0)
+        self.link.set_text(f"connection: {view.text(facts.P_CONNECTION)}"
+                           + (f" ({bus.last_error})" if bus is not None and bus.last_error else "")
+                           + f"; polling {view.text(facts.P_POLLING)}; query form: {view.text(facts.P_QUERY_FORM)}"
+                           + (f"; late answers {late}" if late else ""))
+        missing = view.fact(facts.P_UNAVAILABLE, ())
+        levels_missing = view.fact(facts.P_LEVELS_UNAVAILABLE, ())
+        self.unavailable.set_text(("not available on this unit: " + ", ".join(missing) if missing else "")
+                                  + ("; " if missing and levels_missing else "")
+                                  + (f"error memory levels {', '.join(map(str, levels_missing))} not available on this unit"
+                                     if levels_missing else ""))
+        self.error_line.set_text(state.last_error)
+
+
+class CommandsCard:
+    """Pulses and levels (chapter 5.2.1), the levels this tool set, the barrier's last answer."""
+
+    def __init__(self, view: Mo64View, guard: WriteGuard):
+        self.view, self.guard = view, guard
+
+    def build(self) -> None:
+        view, guard = self.view, self.guard
         with ui.card().classes("w-full"):
             ui.label("Commands (chapter 5.2.1)").classes("text-subtitle1")
             with ui.row().classes("items-center gap-3"):
@@ -160,31 +208,50 @@ def content(name: str) -> None:
                 for cmd, icon in ((codec.Command.OPEN, "arrow_upward"), (codec.Command.CLOSE, "arrow_downward"),
                                   (codec.Command.REVERSE, "swap_vert")):
                     guard.add(ui.button(COMMAND_NAMES[cmd].capitalize(), icon=icon,
-                                        on_click=lambda cmd=cmd: move(cmd, codec.Function.PULSE))
+                                        on_click=lambda cmd=cmd: view.move(cmd, codec.Function.PULSE))
                               .props(f"data-testid=pulse-{COMMAND_NAMES[cmd]}"))
             with ui.row().classes("items-center gap-3"):
                 ui.label("Level:").classes("text-body2")
                 for cmd in (codec.Command.OPEN, codec.Command.CLOSE, codec.Command.REVERSE):
                     with ui.button_group():
                         guard.add(ui.button(f"{COMMAND_NAMES[cmd]} activate",
-                                            on_click=lambda cmd=cmd: move(cmd, codec.Function.ACTIVATE))
+                                            on_click=lambda cmd=cmd: view.move(cmd, codec.Function.ACTIVATE))
                                   .props(f"outline data-testid=activate-{COMMAND_NAMES[cmd]}"))
-                        ui.button("deactivate", on_click=lambda cmd=cmd: move(cmd, codec.Function.DEACTIVATE)) \
+                        ui.button("deactivate", on_click=lambda cmd=cmd: view.move(cmd, codec.Function.DEACTIVATE)) \
                             .props(f"outline data-testid=deactivate-{COMMAND_NAMES[cmd]}")
-                ui.button("Clear my levels", icon="layers_clear", on_click=clear_levels) \
+                ui.button("Clear my levels", icon="layers_clear", on_click=self.clear_levels) \
                     .props("data-testid=clear-levels")
-            levels = ui.label().classes("text-body2").props("data-testid=levels")
-            reply = ui.label().classes("text-body2 mono").props("data-testid=reply")
+            self.levels = ui.label().classes("text-body2").props("data-testid=levels")
+            self.reply = ui.label().classes("text-body2 mono").props("data-testid=reply")
             ui.label("A level stays active in the barrier until it is deactivated. Close and reverse levels are "
                      "deactivated when this browser closes or freezes (dead-man rule) and when the tool stops (each "
                      "acknowledged by the barrier); an open level is not, since "
                      "deactivating it would let an unattended boom close. The first motion of a session asks for "
                      f"a confirmation ({MOTION_WARNING}).").classes("text-caption text-grey-8")
 
-        # -- status bits ---------------------------------------------------------------------------
+    async def clear_levels(self) -> None:
+        if not self.view.fact(facts.P_LEVELS, ()):
+            ui.notify("no level set by this tool is active")
+            return
+        await self.view.act("clear levels", success="levels deactivated")  # the gate asks the declared risk
+
+    def refresh(self) -> None:
+        mine = sorted(level.command + (" (dead-man)" if level.dead_man else "")
+                      for level in self.view.fact(facts.P_LEVELS, ()))
+        self.levels.set_text("levels this tool set: " + (", ".join(mine) if mine else "none"))
+        self.reply.set_text(f"last answer: {self.view.text(facts.P_LAST_REPLY)}")
+
+
+class StatusCard:
+    """The 40 status bits (chapter 5.1.7) as lamps, with their meanings on hover."""
+
+    def __init__(self, view: Mo64View):
+        self.view = view
+        self.lamps: dict[str, Lamp] = {}
+
+    def build(self) -> None:
         with ui.card().classes("w-full"):
             ui.label("Barrier status (40 bits, chapter 5.1.7)").classes("text-subtitle1")
-            lamps: dict[str, Lamp] = {}
             with ui.row().classes("gap-8 items-start"):
                 for group, names in codec.STATUS_GROUPS.items():
                     with ui.column().classes("gap-0"):
@@ -192,142 +259,160 @@ def content(name: str) -> None:
                         for bit in names:
                             if bit in HIDDEN_BITS:
                                 continue
-                            lamps[bit] = Lamp(bit, "alarm" if bit in ALARM_BITS else "ok",
-                                              tooltip=BIT_MEANINGS.get(bit, f"{bit}: named in chapter 5.1.7"))
+                            self.lamps[bit] = Lamp(bit, "alarm" if bit in ALARM_BITS else "ok",
+                                                   tooltip=BIT_MEANINGS.get(bit, f"{bit}: named in chapter 5.1.7"))
             ui.label(LEGEND).classes("text-caption text-grey-8").props("data-testid=status-legend")
 
-        # -- identity, counters --------------------------------------------------------------------
-        with ui.row().classes("w-full gap-4 items-stretch"):
-            with ui.card().classes("col"):
-                ui.label("Identity").classes("text-subtitle1")
-                with ui.column().classes("gap-0 mono text-body2").props("data-testid=identity"):
-                    identity = {pt: _value_line() for pt in IDENTITY_POINTS}
-            with ui.card().classes("col"):
-                ui.label("Counters").classes("text-subtitle1")
-                with ui.column().classes("gap-0 mono text-body2").props("data-testid=counters"):
-                    counts = {pt: _value_line() for pt in COUNTER_POINTS}
-                ui.label("The vehicle counter lives in RAM only: it is 0 after power-up (chapter 5.2.5).") \
-                    .classes("text-caption text-grey-8")
+    def refresh(self) -> None:
+        for bit, lamp in self.lamps.items():
+            lamp.show(self.view.state.point(bit))
 
-        # -- error memory ---------------------------------------------------------------------------
+
+class ValuesCard:
+    """Named values, each with its age while stale or offline (identity, counters, modes)."""
+
+    def __init__(self, view: Mo64View, title: str, points: tuple[str, ...], testid: str, classes: str,
+                 note: str = "", column: str = "gap-0 mono text-body2"):
+        self.view, self.title, self.points, self.testid = view, title, points, testid
+        self.classes, self.note, self.column = classes, note, column
+        self.lines: dict[str, tuple] = {}
+
+    def build(self) -> None:
+        with ui.card().classes(self.classes):
+            ui.label(self.title).classes("text-subtitle1")
+            with ui.column().classes(self.column).props(f"data-testid={self.testid}"):
+                self.lines = {pt: _value_line() for pt in self.points}
+            if self.note:
+                ui.label(self.note).classes("text-caption text-grey-8")
+
+    def refresh(self) -> None:
+        for point, line in self.lines.items():
+            _show_line(line, f"{point}: {self.view.text(point)}", self.view.live(point))
+
+
+class ErrorMemoryCard:
+    """The 10 levels of the error memory (chapter 5.1.23), newest first, and a read again."""
+
+    def __init__(self, view: Mo64View, guard: WriteGuard):
+        self.view, self.guard = view, guard
+
+    def build(self) -> None:
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-4"):
                 ui.label("Error memory (10 levels, newest first, chapter 5.1.23)").classes("text-subtitle1")
-                guard.add(ui.button("Read again", on_click=lambda: act("read error memory")).props("outline dense"))
-                memory_age = ui.label().classes("q-age").props("data-testid=error-memory-age")
-            errors = ui.table(columns=[{"name": k, "label": label, "field": k, "align": "left"} for k, label in
-                                       (("level", "Level"), ("flags", "Error flags"), ("time", "Operating hours"))],
-                              rows=[], row_key="level").classes("w-full text-caption").props("dense flat")
+                self.guard.add(ui.button("Read again", on_click=lambda: self.view.act("read error memory"))
+                               .props("outline dense"))
+                self.age = ui.label().classes("q-age").props("data-testid=error-memory-age")
+            self.table = ui.table(columns=[{"name": k, "label": label, "field": k, "align": "left"} for k, label in
+                                           (("level", "Level"), ("flags", "Error flags"), ("time", "Operating hours"))],
+                                  rows=[], row_key="level").classes("w-full text-caption").props("dense flat")
 
-        # -- modes ------------------------------------------------------------------------------------
-        with ui.card().classes("w-full"):
-            ui.label("Modes (decoded as far as the document names the fields, raw otherwise)").classes("text-subtitle1")
-            with ui.column().classes("gap-0 text-body2").props("data-testid=modes"):
-                modes = {pt: _value_line() for pt in MODE_POINTS}
+    def refresh(self) -> None:
+        state = self.view.state
+        rows = [{"level": e.level, "flags": f"0x{e.flags:08X}", "time": f"{e.timestamp_h} h"}
+                for e in self.view.fact(facts.P_ERROR_LEVELS, ())]
+        if rows != self.table.rows:
+            self.table.rows = rows
+            self.table.update()
+        offline = state.status == "offline" and rows
+        mark_quality(self.table, "offline" if offline else "good")
+        self.age.set_text(quality_note("offline", state.age) if offline else "")
 
-        # -- settings ---------------------------------------------------------------------------------
+
+class SettingsCard:
+    """Settings (chapter 5.2.4-5.2.8): each with its value, an entry in its range and Write; change monitoring."""
+
+    def __init__(self, view: Mo64View, guard: WriteGuard):
+        self.view, self.guard = view, guard
+        self.values: dict[str, tuple] = {}
+
+    def build(self) -> None:
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-4"):
                 ui.label("Settings (chapter 5.2.4-5.2.8)").classes("text-subtitle1")
-                writes = ui.label().classes("text-body2").props("data-testid=eeprom-writes")
+                self.writes = ui.label().classes("text-body2").props("data-testid=eeprom-writes")
             ui.label(EEPROM_WARNING + " Busy means the motor runs: try again when it stands.").classes("text-caption text-warning")
             with ui.row().classes("items-center gap-2"):
                 ui.label("Change monitoring (TCP: changes are sent by the barrier, polling slows down):").classes("text-body2")
-                guard.add(ui.button("On", on_click=lambda: monitoring(True)).props("outline dense data-testid=monitoring-on"),
-                          ui.button("Off", on_click=lambda: monitoring(False)).props("outline dense data-testid=monitoring-off"))
-                mon = ui.label().classes("text-body2").props("data-testid=monitoring")
-            setting_values: dict[str, ui.label] = {}
+                self.guard.add(ui.button("On", on_click=lambda: self.monitoring(True)).props("outline dense data-testid=monitoring-on"),
+                               ui.button("Off", on_click=lambda: self.monitoring(False)).props("outline dense data-testid=monitoring-off"))
+                self.mon = ui.label().classes("text-body2").props("data-testid=monitoring")
             with ui.grid(columns=3).classes("w-full gap-x-4 items-center") \
                     .style("grid-template-columns: minmax(120px, 220px) minmax(0, 1fr) 300px; row-gap: 28px"):  # room for each entry's range
                 for key, setting in codec.SETTINGS.items():
-                    if key == "change_monitoring":
-                        continue
-                    ui.label(setting.name + (" (assumed selector)" if setting.assumed else "")).classes("text-body2")
-                    setting_values[key] = _value_line("mono text-body2")
-                    with ui.row().classes("items-center gap-1 no-wrap"):
-                        if key in TIME_KEYS:
-                            low, high = _limits(key)
-                            field = range_number("seconds", low * codec.TIME_STEP_S, high * codec.TIME_STEP_S, unit="s",
-                                                 step=0.01).classes("w-40")
-                        elif key in INT_KEYS:
-                            low, high = _limits(key)
-                            field = _whole_number("value", low, high).classes("w-48")
-                        else:
-                            field = ui.input("raw (as shown, e.g. 0x0 or 1,0,0,0,0,0)",
-                                             validation=lambda text, k=key: _raw_problem(k, text)).classes("w-48") \
-                                .props("dense outlined")
-                        field.props(f"data-testid=entry-{key}")
-                        guard.add(ui.button("Write", on_click=lambda k=key, f=field: write(k, f))
-                                  .props(f"outline dense data-testid=write-{key}"))
+                    if key != "change_monitoring":
+                        self._row(key, setting)
 
+    def _row(self, key: str, setting: codec.Setting) -> None:
+        ui.label(setting.name + (" (assumed selector)" if setting.assumed else "")).classes("text-body2")
+        self.values[key] = _value_line("mono text-body2")
+        with ui.row().classes("items-center gap-1 no-wrap"):
+            if key in TIME_KEYS:
+                low, high = _limits(key)
+                field = range_number("seconds", low * codec.TIME_STEP_S, high * codec.TIME_STEP_S, unit="s",
+                                     step=0.01).classes("w-40")
+            elif key in INT_KEYS:
+                low, high = _limits(key)
+                field = _whole_number("value", low, high).classes("w-48")
+            else:
+                field = ui.input("raw (as shown, e.g. 0x0 or 1,0,0,0,0,0)",
+                                 validation=lambda text, k=key: _raw_problem(k, text)).classes("w-48") \
+                    .props("dense outlined")
+            field.props(f"data-testid=entry-{key}")
+            self.guard.add(ui.button("Write", on_click=lambda k=key, f=field: self.write(k, f))
+                           .props(f"outline dense data-testid=write-{key}"))
+
+    async def write(self, key: str, field) -> None:
+        setting = codec.SETTINGS[key]
+        value = await _entry_value(self.view.name, key, field)
+        if value is None:
+            return
+        args: dict = codec.setting_to_fields(key, value)
+        if setting.assumed and key not in self.view.fact(facts.P_VERIFIED, ()):
+            # the engineer states it by confirming the declared risk, which says so
+            args["selector_verified"] = True
+        await self.view.act(setting_name(key), args, success=f"{setting.name} written and read back")
+
+    async def monitoring(self, on: bool) -> None:
+        await self.view.act("change monitoring", {"on": int(on)}, success="change monitoring " + ("on" if on else "off"))
+
+    def refresh(self) -> None:
+        view = self.view
+        for key, line in self.values.items():
+            _show_line(line, view.text(SETTING_POINTS[key]), view.live(SETTING_POINTS[key]))
+        writes = view.fact(facts.P_EEPROM)
+        mine, total = (0, 0) if writes is None else (writes.of(view.session), writes.total)
+        self.writes.set_text(f"EEPROM writes this session: {mine} (all sessions: {total})")
+        self.mon.set_text(f"{view.text('Change monitoring')}; {view.text(facts.P_MONITORING)}")
+
+
+def content(name: str) -> None:
+    view = Mo64View(name)
+    with frame(f"Bauer MO 64 {name}"):
+        guard = WriteGuard(view.state)  # commands and settings, disabled with the reason while the barrier does not answer
+        identity = ValuesCard(view, "Identity", IDENTITY_POINTS, "identity", "col")
+        counters = ValuesCard(view, "Counters", COUNTER_POINTS, "counters", "col",
+                              note="The vehicle counter lives in RAM only: it is 0 after power-up (chapter 5.2.5).")
+        modes = ValuesCard(view, "Modes (decoded as far as the document names the fields, raw otherwise)", MODE_POINTS,
+                           "modes", "w-full", column="gap-0 text-body2")
+        view.cards = [GateCard(view), CommandsCard(view, guard), StatusCard(view), identity, counters,
+                      ErrorMemoryCard(view, guard), modes, SettingsCard(view, guard)]
+        for card in view.cards[:3]:
+            card.build()
+        with ui.row().classes("w-full gap-4 items-stretch"):
+            identity.build()
+            counters.build()
+        for card in view.cards[5:]:
+            card.build()
         with ui.expansion("Assumptions beyond the manual (shown as such)").classes("w-full") \
                 .props("data-testid=assumptions"):
             for text in codec.ASSUMPTIONS:
                 ui.label(f"Assumption: {text}").classes("text-caption")
-
+        sim_card(name)  # the twin's declared controls, in simulation only
         with ui.expansion("Events", icon="list", value=True).classes("w-full"):
-            event_log(state)  # gate and status changes, faults rising and clearing, offline and back, commands; newest first
-
-    def point_text(point: str, missing: str = "-") -> str:
-        entry = state.point(point)
-        if entry is None:
-            return missing
-        return entry["text"] if entry["text"] is not None else f"{entry['value']} {entry['unit']}".strip()
-
-    last_position: list = [object()]
-
-    def refresh() -> None:
-        set_status_badge(badge, state.status, state.age)
-        gate.set_text(f"gate state: {point_text('Gate state')}")
-        pos = state.point("Position")
-        value = None if pos is None else pos["value"]
-        position.set_text(f"position: {point_text('Position')}")
-        bar.set_value(0 if value is None else value / 100)
-        if value != last_position[0]:
-            last_position[0] = value
-            picture.set_content(boom_svg(value))
-        on = [b for b in ALARM_BITS if (state.point(b) or {}).get("value")]
-        alarms.set_text(", ".join({"LS": "light barrier interrupted", "Baum ab": "boom off",
-                                   "F_ereignis": "fault event"}[b] for b in sorted(on)))
-        info = state.info
-        bus = runtime.store.buses.get(state.bus)
-        conn = info.get("connection", "-")
-        link.set_text(f"connection: {conn}" + (f" ({bus.last_error})" if bus is not None and bus.last_error else "")
-                      + f"; polling {info.get('polling', '-')}; query form: {_form_words(info.get('query_form'))}"
-                      + (f"; late answers {info['late_answers']}" if info.get("late_answers") else ""))
-        missing = info.get("unavailable") or []
-        levels_missing = info.get("error_memory_unavailable") or []
-        unavailable.set_text(("not available on this unit: " + ", ".join(missing) if missing else "")
-                             + ("; " if missing and levels_missing else "")
-                             + (f"error memory levels {', '.join(map(str, levels_missing))} not available on this unit"
-                                if levels_missing else ""))
-        error_line.set_text(state.last_error)
-        for bit, lamp in lamps.items():
-            lamp.show(state.point(bit))
-        mine = sorted(COMMAND_NAMES[cmd] + (" (dead-man)" if cmd in HELD_LEVELS else "")
-                      for cmd in adapter.levels)
-        levels.set_text("levels this tool set: " + (", ".join(mine) if mine else "none"))
-        reply.set_text(f"last answer: {info.get('last_reply') or '-'}")
-        for labels in (identity, counts, modes):
-            for point, line in labels.items():
-                _show_line(line, f"{point}: {point_text(point)}", state.point(point))
-        rows = [{"level": e["level"], "flags": f"0x{e['flags']:08X}", "time": f"{e['timestamp_h']} h"}
-                for e in info.get("error_memory", [])]
-        if rows != errors.rows:
-            errors.rows = rows
-            errors.update()
-        status = state.status
-        mark_quality(errors, "offline" if status == "offline" and rows else "good")
-        memory_age.set_text(quality_note("offline", state.age) if status == "offline" and rows else "")
-        for key, line in setting_values.items():
-            _show_line(line, point_text(SETTING_POINTS[key]), state.point(SETTING_POINTS[key]))
-        writes.set_text(f"EEPROM writes this session: {adapter.eeprom_writes.get(session, 0)} "
-                        f"(all sessions: {adapter.eeprom_writes_total})")
-        mon.set_text(f"{point_text('Change monitoring')}; {info.get('monitoring', '-')}")
-
-    updater.append(refresh)
-    refresh()
-    follow(state, refresh)  # on every change the store pushes (at most 10/s) and once a second for the ages
+            event_log(view.state)  # gate and status changes, faults rising and clearing, offline and back, commands; newest first
+    view.refresh()
+    follow(view.state, view.refresh)  # on every change the store pushes (at most 10/s) and once a second for the ages
 
 
 def _value_line(classes: str = "") -> tuple[ui.row, ui.label, ui.label]:
@@ -338,17 +423,12 @@ def _value_line(classes: str = "") -> tuple[ui.row, ui.label, ui.label]:
     return row, text, age
 
 
-def _show_line(line: tuple, text: str, entry: dict | None) -> None:
+def _show_line(line: tuple, text: str, value: LiveValue | None) -> None:
     row, label, age = line
-    quality = "unknown" if entry is None else entry["quality"]
+    quality = "unknown" if value is None else value.quality
     label.set_text(text)
     mark_quality(row, quality)  # greyed while stale or offline
-    age.set_text(quality_note(quality, entry_age(entry)) if quality in ("stale", "offline") else "")
-
-
-def _form_words(form: str | None) -> str:
-    return {"document": "02 Auswahl index (the document's, page 33)",
-            "short": "02 Auswahl (the document's form refused)"}.get(form or "", "not known yet")
+    age.set_text(quality_note(quality, entry_age(value and value.entry())) if quality in ("stale", "offline") else "")
 
 
 def _whole_number(label: str, low: int, high: int) -> ui.number:

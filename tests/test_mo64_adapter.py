@@ -201,7 +201,7 @@ async def test_session_lost_deactivates_its_close_level_at_once():
         adapter = make_adapter(script.port)
         await adapter.command("s1", codec.Command.CLOSE, codec.Function.ACTIVATE, confirmed=True)
         assert adapter.holders() == {"s1"}
-        assert adapter.state.info["levels"] == ["close"]
+        assert [h.command for h in adapter.state.points["Levels set by this tool"].value] == ["close"]
         started = time.monotonic()
         adapter.session_lost("s1", "the controlling browser disconnected")
         await asyncio.wait_for(adapter.stopped(), 1.0)
@@ -220,7 +220,7 @@ async def test_open_level_is_shown_but_not_released_by_the_dead_man_and_cleared_
         assert adapter.holders() == set()
         adapter.session_lost("s1", "gone")
         await adapter.stopped()
-        assert adapter.state.info["levels"] == ["open"]
+        assert [h.command for h in adapter.state.points["Levels set by this tool"].value] == ["open"]
         with pytest.raises(NeedsConfirmation):
             await adapter.clear_levels("s2")  # asks first: the boom may close
         assert await adapter.clear_levels("s2", confirmed=True) == ["open"]

@@ -67,12 +67,12 @@ async def test_a_unit_that_naks_optional_queries_shows_every_live_value_in_the_a
             await asyncio.sleep(0.2)
         print(f"every live value in /api/devices after {time.monotonic() - started:.1f} s")
         # what the unit refused is said so, and the rest of the start-up reads went on
-        assert await wait_for(lambda: "MAC address" in runtime.store.devices["gate"].info["unavailable"], timeout=5)
+        assert await wait_for(lambda: "MAC address" in runtime.store.devices["gate"].points["Not available"].value, timeout=5)
         adapter = runtime.worker.adapters["gate"]
         assert await wait_for(lambda: adapter.state.points.get("Serial number") is not None
                               and adapter.state.points["Serial number"].value == 6400001, timeout=10)
         assert adapter.state.points["MAC address"].text == UNAVAILABLE
-        assert await wait_for(lambda: len(adapter.state.info["error_memory_unavailable"]) == 10, timeout=10)
+        assert await wait_for(lambda: len(adapter.state.points["Error memory levels not available"].value) == 10, timeout=10)
         assert "Open time" in adapter.state.points  # settings read although identity and error memory naked
 
 
@@ -98,7 +98,7 @@ async def test_a_refused_startup_read_is_retried_later_with_backoff():
         await adapter.poll()
         await adapter.poll()
         script.done()
-    assert adapter.state.info["unavailable"] == ["MAC address"]
+    assert list(adapter.state.points["Not available"].value) == ["MAC address"]
     read = adapter._reads[("query", codec.Q_MAC)]
     assert read["state"] == UNAVAILABLE and read["next"] > time.monotonic() + 5  # not asked again at once
     assert adapter.state.points["Gate state"].text == "closed"
@@ -115,7 +115,7 @@ async def test_query_form_document_first_then_the_short_form_and_the_choice_is_k
         await adapter.query(codec.Q_GATE_STATE)
         await adapter.query(codec.Q_BARRIER_POSITION)
         script.done()
-    assert adapter.query_form == "short" and adapter.state.info["query_form"] == "short"
+    assert adapter.query_form == "short" and adapter.state.points["Query form"].value == "short"
 
 
 @pytest.mark.parametrize("form", ["document", "short"])

@@ -17,10 +17,11 @@ from __future__ import annotations
 import asyncio
 import time
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from devices import values as v
-from devices.live import DeviceState
+from devices.live import DeviceState, session_tag
 from devices.mo64 import codec
 from devices.transport import SerialClosed, SerialLineError, SerialTimeout
 
@@ -67,6 +68,67 @@ NAMES = {  # answer type -> live point name
     0x18: "Configuration flags", 0x19: "Multi-relay modes", 0x1A: "Maintenance interval",
     0x1B: "Loop periods", 0x1C: "Vehicle counter", 0x1D: "Position", 0x1E: "Password",
 }
+
+
+# -- the facts the adapter publishes beside the telegrams' points (what the page, the API and MQTT read) ------
+P_LINE = "Line"  # LineFacts: transport, RS485 bus address and master
+P_CONNECTION = "Connection"  # connected, not connected, released, reconnecting
+P_POLLING = "Polling"
+P_QUERY_FORM = "Query form"  # "document" or "short" once the unit answered one (text in words)
+P_LATE = "Late answers"
+P_UNEXPECTED = "Unexpected telegrams"
+P_UNAVAILABLE = "Not available"  # the queries this unit refused (point names)
+P_LEVELS_UNAVAILABLE = "Error memory levels not available"
+P_LAST_REPLY = "Last reply"
+P_ERROR_LEVELS = "Error memory levels"  # ErrorMemoryLevel records, level 0 the newest
+P_MONITORING = "Change monitoring state"  # on / off / unknown, from the change monitoring read
+P_LEVELS = "Levels set by this tool"  # HeldLevel records
+P_EEPROM = "EEPROM writes"  # EepromWrites record
+P_VERIFIED = "Verified selectors"  # assumed selectors an engineer confirmed for this unit
+P_CONFIRMED = "Motion confirmed"  # session tags (devices.live.session_tag) that confirmed the area is clear
+POLLING_SLOWER = "gate state and position slower (changes are reported); status every cycle"
+QUERY_FORM_WORDS = {None: "not known yet", "document": "02 Auswahl index (the document's, page 33)",
+                    "short": "02 Auswahl (the document's form refused)"}
+
+
+@dataclass(frozen=True, slots=True)
+class ErrorMemoryLevel:
+    """One level of the error memory (chapter 5.1.23): error flags and the operating hours they were set at."""
+
+    level: int
+    flags: int
+    timestamp_h: int
+
+
+@dataclass(frozen=True, slots=True)
+class HeldLevel:
+    """A level this tool activated and the barrier keeps until it is deactivated; ``dead_man``: released when
+    the session that set it goes away (close and reverse, :data:`HELD_LEVELS`)."""
+
+    command: str
+    dead_man: bool
+
+
+@dataclass(frozen=True, slots=True)
+class LineFacts:
+    """How the tool reaches the barrier: ``logited-tcp`` or ``logited-rs485`` with bus address and master."""
+
+    transport: str
+    rs485: bool
+    address: int | None
+    master: int
+
+
+@dataclass(frozen=True, slots=True)
+class EepromWrites:
+    """Setting writes that reached the EEPROM (chapter 4: each wears it), in all and per session tag."""
+
+    total: int
+    sessions: tuple[tuple[str, int], ...] = ()
+
+    def of(self, session: str) -> int:
+        """The writes of ``session`` (a page's own id; matched by its tag)."""
+        return dict(self.sessions).get(session_tag(session), 0)
 
 
 class CommandError(Exception):
@@ -189,9 +251,23 @@ class Mo64Adapter:
         self._stop_tasks: set[asyncio.Task] = set()
         self.poll_period = float(line_options.get("poll_period", 0.5) or 0.5)
         state.stale_after = 5.0
-        state.info.update(transport=self.transport, levels=[], eeprom_writes_total=0, monitoring="unknown",
-                          error_memory=[], last_reply="", assumptions=list(codec.ASSUMPTIONS),
-                          unavailable=[], query_form="not known yet", late_answers=0, error_memory_unavailable=[])
+        fact = state.fact
+        fact(P_LINE, LineFacts(self.transport, self.rs485, self.address, self.master),
+             text=f"RS485 bus address {self.address}, this tool is master {self.master}" if self.rs485 else "TCP")
+        fact(P_CONNECTION, "not connected")
+        fact(P_POLLING, "every cycle")
+        fact(P_QUERY_FORM, None, text=QUERY_FORM_WORDS[None])
+        fact(P_LATE, 0)
+        fact(P_UNEXPECTED, 0)
+        fact(P_UNAVAILABLE, ())
+        fact(P_LEVELS_UNAVAILABLE, ())
+        fact(P_LAST_REPLY, "", text="-")
+        fact(P_ERROR_LEVELS, ())
+        fact(P_MONITORING, "unknown")
+        self._publish_levels()
+        self._publish_writes()
+        fact(P_VERIFIED, ())
+        fact(P_CONFIRMED, ())
         if line is not None:
             if hasattr(line, "listeners"):
                 line.listeners.append(self._unsolicited)
@@ -273,7 +349,7 @@ class Mo64Adapter:
             if answer.reply is not codec.Reply.NAK:
                 if self.query_form is None and len(telegrams) > 1:
                     self.query_form = forms[n]
-                    self.state.info["query_form"] = self.query_form
+                    self.state.fact(P_QUERY_FORM, self.query_form, text=QUERY_FORM_WORDS[self.query_form])
                     self.state.event("info", "queries: the unit takes the " + (
                         "document's form 02 Auswahl index (page 33)" if forms[n] == "document"
                         else "short form 02 Auswahl (the document's form was refused)"))
@@ -286,7 +362,7 @@ class Mo64Adapter:
 
     def _reply(self, text: str) -> None:
         self.last_reply = text
-        self.state.info["last_reply"] = text
+        self.state.fact(P_LAST_REPLY, text, text=text or "-")
 
     # -- unsolicited telegrams (chapter 3, change monitoring) ------------------------------------------
     def armed(self, answer_type: int) -> bool:
@@ -325,7 +401,7 @@ class Mo64Adapter:
             self._monitor_last = now
         else:
             self.unexpected_telegrams += 1
-            self.state.info["unexpected_telegrams"] = self.unexpected_telegrams
+            self.state.fact(P_UNEXPECTED, self.unexpected_telegrams)
         self.state.mark_seen()
         before = self.state.points.get(NAMES.get(answer.type, ""))
         self._publish(answer)
@@ -374,7 +450,7 @@ class Mo64Adapter:
         if setting is not None:
             self.settings[setting.key] = to_json(x)
         if t == 0x09:
-            self.state.info["monitoring"] = "on" if int(x) else "off"
+            self.state.fact(P_MONITORING, "on" if int(x) else "off")
 
     @property
     def _rotation_s(self) -> float:
@@ -389,7 +465,7 @@ class Mo64Adapter:
             entries.append({"level": int(x["index"]), "flags": int(x["flags"]), "timestamp_h": int(x["timestamp_h"])})
         entries.sort(key=lambda e: e["level"])  # level 0 holds the newest (chapter 5.1.23)
         self.error_memory = entries
-        self.state.info["error_memory"] = list(entries)
+        self.state.fact(P_ERROR_LEVELS, tuple(ErrorMemoryLevel(e["level"], e["flags"], e["timestamp_h"]) for e in entries))
         newest = entries[0] if entries else None
         self.state.publish("Error memory", None if newest is None else newest["flags"],
                            raw=None if newest is None else newest["flags"], periodic=False,
@@ -399,7 +475,7 @@ class Mo64Adapter:
     # -- polling -----------------------------------------------------------------------------------------
     def _count_late(self, what: str) -> None:
         self.late_answers += 1
-        self.state.info["late_answers"] = self.late_answers
+        self.state.fact(P_LATE, self.late_answers)
         self.state.event("warning", f"late answer: {what}")
 
     @property
@@ -418,7 +494,7 @@ class Mo64Adapter:
         the others), one counter in turn, then a few of the start-up reads that are still due. Faults are
         named in the state, never raised."""
         if getattr(self.line, "released", False):
-            self.state.info["connection"] = "released"
+            self.state.fact(P_CONNECTION, "released")
             return
         problems: list[str] = []
         try:
@@ -446,9 +522,8 @@ class Mo64Adapter:
         finally:
             self._cycle += 1
             self._show_reads()
-            self.state.info["connection"] = "connected" if getattr(self.line, "connected", True) else "not connected"
-            self.state.info["polling"] = ("gate state and position slower (changes are reported); status every cycle"
-                                          if self.monitoring_active else "every cycle")
+            self.state.fact(P_CONNECTION, "connected" if getattr(self.line, "connected", True) else "not connected")
+            self.state.fact(P_POLLING, POLLING_SLOWER if self.monitoring_active else "every cycle")
 
     async def _optional(self, read: dict, index: int, point: str | None, level: int | None = None) -> bool:
         """One optional read: a nak marks it not available on this unit, no answer as not answered; either is
@@ -472,9 +547,9 @@ class Mo64Adapter:
         names = [NAMES.get(key[1] + codec.QUERY_ANSWER_OFFSET, f"query 0x{key[1]:02X}")
                  for key, read in [*self._reads.items(), *((("query", i), r) for i, r in self._optional_live.items())]
                  if key[0] == "query" and read["state"] == UNAVAILABLE]
-        self.state.info["unavailable"] = sorted(set(names))
-        self.state.info["error_memory_unavailable"] = [
-            level for (kind, level), read in self._reads.items() if kind == "error memory" and read["state"] == UNAVAILABLE]
+        self.state.fact(P_UNAVAILABLE, tuple(sorted(set(names))))
+        self.state.fact(P_LEVELS_UNAVAILABLE, tuple(
+            level for (kind, level), read in self._reads.items() if kind == "error memory" and read["state"] == UNAVAILABLE))
 
     async def read_settings(self) -> dict[str, Any]:
         for index in SETTING_QUERIES:
@@ -494,6 +569,7 @@ class Mo64Adapter:
     def confirm_motion(self, session: str) -> None:
         """The session confirmed that nobody stands under the boom (asked once per session)."""
         self.motion_confirmed.add(session)
+        self._publish_confirmed()
 
     async def command(self, session: str, command: int, function: int = codec.Function.PULSE,
                       confirmed: bool = False) -> str:
@@ -503,6 +579,7 @@ class Mo64Adapter:
         safe = fn is codec.Function.DEACTIVATE and cmd in HELD_LEVELS
         if confirmed and not safe:
             self.motion_confirmed.add(session)
+            self._publish_confirmed()
         if not safe and session not in self.motion_confirmed:
             raise NeedsConfirmation("the boom moves: check that nobody stands under it, then confirm")
         words = f"{COMMAND_NAMES[cmd]} {fn.name.lower()}"
@@ -523,11 +600,22 @@ class Mo64Adapter:
 
     def _hold(self, cmd: codec.Command, session: str) -> None:
         self.levels[cmd] = session
-        self.state.info["levels"] = sorted(COMMAND_NAMES[c] for c in self.levels)
+        self._publish_levels()
 
     def _drop_level(self, cmd: codec.Command) -> None:
         self.levels.pop(cmd, None)
-        self.state.info["levels"] = sorted(COMMAND_NAMES[c] for c in self.levels)
+        self._publish_levels()
+
+    def _publish_levels(self) -> None:
+        self.state.fact(P_LEVELS, tuple(sorted((HeldLevel(COMMAND_NAMES[c], c in HELD_LEVELS) for c in self.levels),
+                                               key=lambda level: level.command)))
+
+    def _publish_confirmed(self) -> None:
+        self.state.fact(P_CONFIRMED, tuple(sorted(session_tag(s) for s in self.motion_confirmed)))
+
+    def _publish_writes(self) -> None:
+        self.state.fact(P_EEPROM, EepromWrites(self.eeprom_writes_total, tuple(sorted(
+            (session_tag(s), n) for s, n in self.eeprom_writes.items()))), text=f"{self.eeprom_writes_total}")
 
     async def clear_levels(self, session: str | None = None, confirmed: bool = False) -> list[str]:
         """Deactivate the levels this tool set (and only those: a level set by another master or at the
@@ -598,6 +686,7 @@ class Mo64Adapter:
     def session_lost(self, session: str, reason: str) -> None:
         """Deactivate at once the close and reverse levels ``session`` set; forget its confirmation."""
         self.motion_confirmed.discard(session)
+        self._publish_confirmed()
         held = [cmd for cmd, s in self.levels.items() if s == session and cmd in HELD_LEVELS]
         if not held:
             return
@@ -633,7 +722,7 @@ class Mo64Adapter:
             raise CommandError(str(exc)) from None
         if setting.assumed:
             self.verified_selectors.add(key)
-            self.state.info["verified_selectors"] = sorted(self.verified_selectors)
+            self.state.fact(P_VERIFIED, tuple(sorted(self.verified_selectors)))
         replies = {codec.Reply.ACK, codec.Reply.NAK, codec.Reply.BUSY, codec.Reply.SYN}
         syn: list[bool] = []
 
@@ -684,7 +773,7 @@ class Mo64Adapter:
     def _count_write(self, session: str) -> None:
         self.eeprom_writes[session] = self.eeprom_writes.get(session, 0) + 1
         self.eeprom_writes_total += 1
-        self.state.info["eeprom_writes_total"] = self.eeprom_writes_total
+        self._publish_writes()
 
     async def set_change_monitoring(self, session: str, on: bool) -> str:
         """Switch the unsolicited telegrams of :data:`MONITOR_FLAGS` on, or all off (one EEPROM write)."""
@@ -700,7 +789,7 @@ class Mo64Adapter:
             raise CommandError("an RS485 line is not released: the token passing shares it")
         self.line.release()
         self.state.event("info", "connection released: another client may connect to the barrier")
-        self.state.info["connection"] = "released"
+        self.state.fact(P_CONNECTION, "released")
         return "released"
 
     def resume(self, session: str | None = None) -> str:
@@ -708,7 +797,7 @@ class Mo64Adapter:
             return "connected"
         self.line.resume()
         self.state.event("info", "connection taken back")
-        self.state.info["connection"] = "reconnecting"
+        self.state.fact(P_CONNECTION, "reconnecting")
         return "reconnecting"
 
     # -- backup and restore --------------------------------------------------------------------------------

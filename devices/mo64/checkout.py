@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import time
 
+from devices.mo64.adapter import P_LEVELS_UNAVAILABLE
 from devices.mo64.codec import GATE_STATE_NAMES, GateState
 from devices.mo64.policy import AREA_CLEAR_RISK
 
@@ -61,7 +62,8 @@ def _memory_rows(memory: list[dict]) -> list[tuple[int, int, int]]:
 
 async def _read_memory(ctx) -> list[tuple[int, int, int]]:
     memory = await ctx.invoke("read error memory")
-    missing = list(ctx.state.info.get("error_memory_unavailable") or [])
+    point = ctx.state.points.get(P_LEVELS_UNAVAILABLE)
+    missing = list(point.value) if point is not None and point.value else []
     if missing:
         ctx.note(f"error memory levels not available on this unit: {missing}")
     return _memory_rows(memory or [])

@@ -45,6 +45,7 @@ from typing import Any
 from urllib.parse import urlparse
 
 from devices.mo64 import codec
+from devices.simcontrols import SimAction, SimControls, SimParam
 from devices.mo64.codec import Command, Function, GateState, Reply, RequestType
 
 log = logging.getLogger(__name__)
@@ -201,6 +202,20 @@ class Mo64Twin:
         self.vehicle_counter = 0
         self.gate = GateState.INTERMEDIATE
         self.levels = {c: False for c in Command}
+
+    def controls(self) -> SimControls:
+        """What an engineer may do to this barrier in simulation (shown by pages/simcontrols.py)."""
+        return SimControls("Simulated barrier (demo)", (
+            SimAction("drive a vehicle", "Drive a vehicle through", self.drive_vehicle, icon="directions_car",
+                      testid="vehicle"),
+            SimAction("light barrier interrupted", "Light barrier interrupted", self.break_light_barrier,
+                      state=lambda: self.light_barrier, testid="light-barrier"),
+            SimAction("raise fault", "Raise fault", self.raise_fault, icon="error", testid="raise-fault",
+                      params=(SimParam("flags", "error flags", 0x0001, 1, 0xFFFFFFFF, hex=True),)),
+            SimAction("clear faults", "Clear faults", self.clear_fault, testid="clear-faults"),
+            SimAction("mains back", "Mains back (power up)", self.power_up, icon="power", testid="power-up"),
+        ), note="A vehicle opens the barrier on loop A and passes the light barrier; a fault stops the motor "
+                "and is recorded in the error memory; after mains the position is unknown until an end position.")
 
     def _set_error_flags(self, flags: int) -> None:
         if flags == self.error_flags:

@@ -1,0 +1,99 @@
+"""What a device twin lets an engineer do to it in simulation, declared once (``SimControls``).
+
+Each twin (``devices/<type>/sim.py``) returns its controls from ``controls()``: named actions, each
+with its parameters (a range for numbers) or as a switch with its current state. One shared widget
+(``pages/simcontrols.py``) shows them; every action runs through the worker's gate (engineers only,
+audited "simulation: <action>"), so pages never hold a twin or name its attributes. Pure data: no I/O,
+no ``app`` or ``pages`` imports.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, Literal
+
+
+@dataclass(frozen=True, slots=True)
+class SimParam:
+    """One parameter of an action: a whole number in ``low .. high`` (shown in hex with ``hex``)."""
+
+    name: str
+    label: str
+    default: int = 0
+    low: int = 0
+    high: int = 0xFFFFFFFF
+    hex: bool = False
+    kind: Literal["int"] = "int"
+
+    def check(self, value: Any) -> int:
+        """The value as the action takes it; :class:`ValueError` says why it is refused."""
+        if isinstance(value, str):
+            value = int(value.strip(), 0)
+        if isinstance(value, bool) or not isinstance(value, int | float) or float(value) != int(value):
+            raise ValueError(f"{self.label}: {value!r} is not a whole number")
+        if not self.low <= int(value) <= self.high:
+            shown = (lambda x: f"0x{x:X}") if self.hex else str
+            raise ValueError(f"{self.label}: {value} is outside {shown(self.low)} .. {shown(self.high)}")
+        return int(value)
+
+
+@dataclass(frozen=True, slots=True)
+class SimAction:
+    """A named action of a twin. ``state``: a switch, shown with the twin's current state and run with
+    ``on=True/False``; else a button that runs with the parameters' values."""
+
+    name: str  # the words of the audit row and of the event ("simulation: <name>")
+    label: str
+    run: Callable[..., object]
+    params: tuple[SimParam, ...] = ()
+    icon: str = ""
+    state: Callable[[], bool] | None = None
+    testid: str = ""
+
+    @property
+    def switch(self) -> bool:
+        return self.state is not None
+
+
+@dataclass(frozen=True, slots=True)
+class SimControls:
+    """The declared simulation interface of one twin."""
+
+    title: str
+    actions: tuple[SimAction, ...]
+    note: str = ""
+
+    def action(self, name: str) -> SimAction:
+        for action in self.actions:
+            if action.name == name:
+                return action
+        raise KeyError(f"no simulation action {name!r} (declared: {', '.join(a.name for a in self.actions)})")
+
+    def arguments(self, name: str, args: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """The checked arguments of action ``name`` (defaults for those not given); ValueError if refused."""
+        action, args = self.action(name), dict(args or {})
+        if action.switch:
+            if set(args) - {"on"} or not isinstance(args.get("on"), bool):
+                raise ValueError(f"{name}: a switch takes on=True or on=False")
+            return {"on": args["on"]}
+        known = {p.name: p for p in action.params}
+        unknown = set(args) - set(known)
+        if unknown:
+            raise ValueError(f"{name}: no parameter {', '.join(sorted(unknown))}")
+        return {p.name: p.check(args.get(p.name, p.default)) for p in action.params}
+
+    def describe(self, name: str, args: Mapping[str, Any] | None = None) -> str:
+        """The action in words for the audit row: ``light barrier interrupted on``, ``raise fault flags=0x1``."""
+        action, checked = self.action(name), self.arguments(name, args)
+        if action.switch:
+            return f"{name} {'on' if checked['on'] else 'off'}"
+        shown = [f"{p.name}=" + (f"0x{checked[p.name]:X}" if p.hex else str(checked[p.name])) for p in action.params]
+        return " ".join([name, *shown])
+
+    def invoke(self, name: str, args: Mapping[str, Any] | None = None) -> object:
+        """Run action ``name`` with checked arguments (the caller is the worker's gate)."""
+        action, checked = self.action(name), self.arguments(name, args)
+        if action.switch:
+            return action.run(checked["on"])
+        return action.run(**checked)
