@@ -466,6 +466,18 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
 
         record.content(name or None)
 
+    @ui.page("/replace/{name}")
+    def replace_page(name: str) -> None:
+        from pages import replace
+
+        replace.content(name)
+
+    @ui.page("/fleet")
+    def fleet_page() -> None:
+        from pages import fleet
+
+        fleet.content()
+
     @ui.page("/audit")
     def audit_page() -> None:
         from pages import audit
@@ -489,6 +501,9 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
                 ui.link("Back to the overview", "/")
             return
         importlib.import_module(f"pages.{state.type}").content(name)
+        from pages.replace import notice
+
+        notice(name)  # "replaced?" with old and new identity, whatever the device type
 
     @ui.page("/monitor/{bus}")
     def monitor_page(bus: str) -> None:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from nicegui import events, ui
 
-from app import backup
+from app import backup, project
 from app import runtime as rt
 from pages.frame import frame, notify_error
 from pages.session import can_write, current_user
@@ -88,6 +88,11 @@ def content() -> None:
                   <q-btn flat dense icon="download" @click="$parent.$emit('download', props.row.name)" />
                   <q-btn flat dense icon="settings_backup_restore" label="Restore" @click="$parent.$emit('restore', props.row.name)" />
                 </q-td>""")
+        with ui.row().classes("items-center"):
+            ui.link("Apply one set to several devices of a type", "/fleet").props("data-testid=open-fleet")
+        projects = [name for name in devices if project.has_project(runtime.plant, name)]
+        if projects:
+            ProjectCard(projects)
         restore_box = ui.column().classes("w-full")
 
     async def refresh_files() -> None:
@@ -337,3 +342,131 @@ def _row_state(row: backup.DiffRow) -> str:
     if not row.changed:
         return "same"
     return f"differs; risk, needs confirmation: {row.risk}" if row.risk else "differs"
+
+
+PROJECT_COLUMNS = [
+    {"name": "name", "label": "Parameter", "field": "name", "align": "left"},
+    {"name": "current", "label": "Device now", "field": "current", "align": "left", "style": WRAP},
+    {"name": "backup", "label": "Project", "field": "backup", "align": "left", "style": WRAP},
+    {"name": "state", "label": "", "field": "state", "align": "left", "style": WRAP},
+    {"name": "actions", "label": "Reconcile", "field": "key", "align": "left"},
+]
+PROJECT_ACTIONS = """
+    <q-td :props="props">
+      <template v-if="props.row.changed">
+        <q-btn dense flat no-caps icon="memory" label="Keep device" :data-project-keep="props.row.key"
+               @click="$parent.$emit('keep', props.row.key)" />
+        <q-btn dense flat no-caps color="negative" icon="upload" label="Apply project" :data-project-apply="props.row.key"
+               :disable="!props.row.can_write" @click="$parent.$emit('apply', props.row.key)" />
+        <q-btn dense flat no-caps icon="edit_note" label="Update project" :data-project-update="props.row.key"
+               :disable="!props.row.can_write" @click="$parent.$emit('update', props.row.key)" />
+      </template>
+    </q-td>"""
+
+
+class ProjectCard:
+    """The plant file's project of each device against the device, reconciled per row: keep the device's
+    value, apply the project's (restore's verified write through the gate), or update the project
+    (the plant file's or the parameter file's entry rewritten atomically)."""
+
+    def __init__(self, devices: list[str]):
+        self.runtime = rt.current()
+        self.plan: backup.RestorePlan | None = None
+        self.kept: set[str] = set()
+        with ui.card().classes("w-full").props("data-testid=project-card"):
+            ui.label("Project against the devices").classes("text-subtitle1")
+            where = self.runtime.plant.path.name if self.runtime.plant.path else "the plant file"
+            ui.label(f"The intended parameters {where} names for each device, checked by the parameter model. "
+                     "Nothing is written until you press Apply project on a row.").classes("text-caption text-grey-8")
+            with ui.row().classes("items-center"):
+                self.device = ui.select(devices, value=devices[0], label="Device").props(
+                    "dense outlined data-testid=project-device").classes("w-56")
+                ui.button("Compare project with the device", icon="compare_arrows", on_click=self.compare).props(
+                    "data-testid=project-compare")
+            self.problems = ui.column().classes("gap-0")
+            self.table = ui.table(columns=PROJECT_COLUMNS, rows=[], row_key="key", pagination=0).classes(
+                "w-full reg-table").props("dense flat bordered")
+            self.table.add_slot("body-cell-state", STATE_SLOT)
+            self.table.add_slot("body-cell-actions", PROJECT_ACTIONS)
+            self.table.props(':table-row-class-fn="row => row.changed ? \'restore-differs\' : \'\'"')
+            self.table.on("keep", lambda e: self.keep(e.args))
+            self.table.on("apply", lambda e: self.apply(e.args))
+            self.table.on("update", lambda e: self.update(e.args))
+            self.table.set_visibility(False)
+            self.summary = ui.label().classes("text-body2").props("data-testid=project-summary")
+
+    async def compare(self) -> None:
+        name = self.device.value
+        self.problems.clear()
+        problems = [e for e in await asyncio.to_thread(project.entries, self.runtime.plant, name) if e.error]
+        with self.problems:
+            for entry in problems:
+                ui.label(f"✖ {entry.where}: {entry.error}").classes("text-negative text-body2")
+        try:
+            self.plan = await backup.plan_restore(self.runtime, name, project.document(self.runtime, name))
+        except Exception as exc:  # noqa: BLE001 - not answering, no parameter model ...
+            notify_error(f"Cannot compare: {exc}")
+            return
+        self.kept = {k for k in self.kept if k.startswith(name + "/")}
+        self.show()
+
+    def show(self) -> None:
+        name = self.plan.device
+        rows = []
+        for r in self.plan.rows:
+            kept = f"{name}/{r.key}" in self.kept and r.changed
+            state = "differs; the device's value kept" if kept else _row_state(r)
+            rows.append({"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": state,
+                         "risk": bool(r.changed and r.risk), "changed": r.changed and not kept, "can_write": can_write()})
+        self.table.rows = rows
+        self.table.update()
+        self.table.set_visibility(True)
+        changed = sum(1 for row in rows if row["changed"])
+        self.summary.set_text(f"{name}: {changed} of {len(rows)} project {'entry' if len(rows) == 1 else 'entries'} "
+                              f"{'differs' if changed == 1 else 'differ'} from the device"
+                              + ("" if changed else ": device and project agree"))
+
+    def _row(self, key: str) -> backup.DiffRow | None:
+        return next((r for r in self.plan.rows if r.key == key), None) if self.plan else None
+
+    def keep(self, key: str) -> None:
+        if self._row(key) is not None:
+            self.kept.add(f"{self.plan.device}/{key}")
+            self.show()
+
+    async def apply(self, key: str) -> None:
+        row = self._row(key)
+        if row is None or not row.changed:
+            return
+        if not await confirm(f"Write {row.name} = {row.backup_text} to {self.plan.device}?",
+                             f"The project's value is written, read back and saved in the device (now {row.current_text}).",
+                             ok="Write"):
+            return
+        confirmed = set()
+        if row.risk:
+            if not await confirm(f"Write {row.name} = {row.backup_text}?", row.risk, ok="Write anyway"):
+                return
+            confirmed.add(key)
+        user, role = current_user()
+        report = await backup.execute_restore(self.runtime, self.plan, {key}, user=user, role=role, confirmed=confirmed)
+        ui.notify(f"{row.name}: {report.summary()}", type="positive" if report.ok else "negative", multi_line=True)
+        await self.compare()
+
+    async def update(self, key: str) -> None:
+        row = self._row(key)
+        if row is None or not row.changed:
+            return
+        device = self.plan.device
+        user, role = current_user()
+
+        async def rewrite() -> None:
+            await asyncio.to_thread(project.update_entry, self.runtime.plant, device, key, row.current_value)
+
+        try:
+            await self.runtime.worker.engineer_action(rewrite, user=user, role=role, describe="update project",
+                                                      target=device, new=f"{row.name} = {row.current_text}")
+        except Exception as exc:  # noqa: BLE001 - a file that cannot be written, a viewer ...
+            notify_error(f"Project not updated: {exc}")
+            return
+        ui.notify(f"Project of {device}: {row.name} = {row.current_text}", type="positive")
+        await self.compare()

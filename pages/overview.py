@@ -42,7 +42,8 @@ table.glance-table td.age { white-space: nowrap; color: #666; }
 table.glance-table tr.glance-offline td { background: #fdeaea; }
 table.glance-table tr.glance-stale td { background: #fff4d6; }
 table.glance-table .glance-drift { color: #8a4b00; font-weight: 500; }
-.drift-badge { align-self: flex-start; cursor: help; }
+table.glance-table td a.glance-replaced { color: #b71c1c; font-weight: 700; display: block; }
+.drift-badge { align-self: flex-start; cursor: help; white-space: normal !important; }
 """
 TILE_WIDTH_PX, TILE_GAP_PX = 240, 12
 
@@ -56,6 +57,27 @@ def drift_rows(state) -> list[dict]:
     """The parameters of ``state`` that differ from its approved set (app/record.py), [] for none."""
     drift = getattr(state, "drift", None) or {}
     return list(drift.get("changed") or [])
+
+
+def replaced_text(state) -> str:
+    """"replaced?" with the known and the new identity (app/replace.py), "" while the identity is as known."""
+    replaced = getattr(state, "replaced", None)
+    if not replaced:
+        return ""
+    from app.replace import identity_text
+
+    return f"replaced? known {identity_text(replaced['old'])}, now {identity_text(replaced['new'])}"
+
+
+def replaced_short(state) -> str:
+    """"replaced? serial 660020 → 770077": what differs, old and new."""
+    replaced = getattr(state, "replaced", None)
+    if not replaced:
+        return ""
+    from app.replace import facets
+
+    old, new = facets(replaced["old"]), facets(replaced["new"])
+    return "replaced? " + ", ".join(f"{k} {old[k]} → {new[k]}" for k in replaced["differs"])
 
 
 def drift_text(rows: list[dict]) -> str:
@@ -92,6 +114,9 @@ class DeviceTile:
             self.drift = ui.badge("changed since approved", color="orange-9").classes("drift-badge") \
                 .props(f'data-drift="{name}"')
             self.drift.set_visibility(False)
+            # another serial number (firmware, variant) than known at this address: the replacement assistant
+            self.replaced = ui.badge("replaced?", color="red-8").classes("drift-badge").props(f'data-replaced="{name}"')
+            self.replaced.set_visibility(False)
             self.values = ui.column().classes("gap-0 w-full").props("data-tile-values")
             with self.values:
                 self.lines = TextPool("text-body2")
@@ -125,6 +150,12 @@ class DeviceTile:
             mark_quality(self.values, marked)
         self.quality_note.set_text(quality_note(quality, tile["age"]) if marked != "good" else "")
         self.error.set_text(s.last_error if status != "online" else "")
+        replaced = replaced_text(s)
+        if self._changed("replaced", replaced):
+            self.replaced.set_visibility(bool(replaced))
+            self.replaced._props["title"] = replaced
+            self.replaced.text = replaced_short(s) or "replaced?"
+            self.replaced.update()
         rows = drift_rows(s)
         if self._changed("drift", drift_text(rows)):
             self.drift.set_visibility(bool(rows))
@@ -145,6 +176,9 @@ class GlanceRow:
             with ui.element("td"):
                 self.status = ui.label()
                 self.drift = ui.label().classes("glance-drift").props(f'data-glance-drift="{name}"')
+                self.replaced = ui.link("replaced?", f"/replace/{name}").classes("glance-replaced").props(
+                    f'data-glance-replaced="{name}"')
+                self.replaced.set_visibility(False)
             with ui.element("td").classes("alarms"):
                 self.alarms = ui.label()
                 self.drift_rows = ui.label().classes("glance-drift")
@@ -159,7 +193,8 @@ class GlanceRow:
         tile = evaluate_tile(s)
         alarms = tile["alarms"] if tile["quality"] in ("good", "unknown") else []
         rows = drift_rows(s)
-        shown = (status, "; ".join(alarms), fmt_age(age) if age is not None else "never", drift_text(rows))
+        replaced = replaced_text(s)
+        shown = (status, "; ".join(alarms), fmt_age(age) if age is not None else "never", drift_text(rows), replaced)
         if shown == self._shown:
             return
         self._shown = shown
@@ -169,6 +204,9 @@ class GlanceRow:
         self.age.set_text(shown[2])
         self.drift.set_text("changed since approved" if rows else "")
         self.drift_rows.set_text(f"Changed since approved: {shown[3]}" if rows else "")
+        self.replaced.set_visibility(bool(replaced))
+        self.replaced.set_text(replaced_short(s) or "replaced?")
+        self.replaced.props(f'title="{replaced}"')
         self.row.classes(replace=f"glance-{status}")
 
 

@@ -1,0 +1,214 @@
+"""Replacement assistant (/replace/<device>): identity check, the approved set against the new device
+as a diff with rows to deselect, verified write and save, the checkout offered, all recorded.
+
+Also the "replaced?" notice every device page shows (:func:`notice`)."""
+
+from __future__ import annotations
+
+from nicegui import ui
+
+from app import backup, replace
+from app import runtime as rt
+from pages.backup import DIFF_COLUMNS, STATE_SLOT, _confirm_restore, _count, _row_state
+from pages.frame import frame, notify_error
+from pages.session import can_write, current_user
+from pages.widgets import confirm, follow, sim_action, sim_card_allowed
+
+
+def notice(name: str) -> None:
+    """A "replaced?" notice on the device page, with old and new identity and the way to the assistant."""
+    runtime = rt.current()
+    state = runtime.store.devices.get(name)
+    if state is None:
+        return
+    with ui.page_sticky(position="bottom-left", x_offset=16, y_offset=16):
+        with ui.card().classes("bg-red-1 q-pa-sm").props("data-testid=replaced-notice") as card:
+            with ui.row().classes("items-center no-wrap gap-2"):
+                ui.icon("swap_horiz", color="negative")
+                text = ui.label().classes("text-body2 text-negative text-weight-medium")
+                ui.link("Replacement assistant", f"/replace/{name}").props("data-testid=replaced-open")
+
+    def update() -> None:
+        replaced = getattr(state, "replaced", None)
+        card.set_visibility(bool(replaced))
+        if replaced:
+            text.set_text(f"replaced? known {replace.identity_text(replaced['old'])}, now "
+                          f"{replace.identity_text(replaced['new'])}")
+
+    update()
+    follow(state, update)
+
+
+def content(name: str) -> None:
+    runtime = rt.current()
+    state = runtime.store.devices.get(name)
+    with frame(f"Replace {name}"):
+        if state is None or not backup.supports_backup(runtime.worker.adapters.get(name)):
+            ui.label(f"The plant has no device named '{name}' that keeps parameters.").classes("text-negative")
+            return
+        Assistant(name)
+        twin = runtime.twins.get(name)
+        if twin is not None and callable(getattr(twin, "swap_for_new", None)):
+            _sim_swap(name, twin)
+
+
+def _sim_swap(name: str, twin) -> None:
+    with ui.card().classes("w-full bg-purple-1"):
+        ui.label("Simulated device (demo)").classes("text-subtitle1")
+        if not sim_card_allowed():
+            return
+        with ui.row().classes("items-center"):
+            serial = ui.number("New serial number", value=twin.serial + 100000, format="%d", min=1, max=0xFFFFFFFF) \
+                .props("dense outlined data-testid=sim-new-serial").classes("w-48")
+
+            def swap() -> None:
+                twin.swap_for_new(int(serial.value or twin.serial + 1))
+
+            ui.button("Swap for a new device", icon="swap_horiz",
+                      on_click=lambda: sim_action(name, f"swap for a new device, serial {int(serial.value or 0)}", swap)()) \
+                .props("outline data-testid=sim-swap")
+        ui.label("Puts a factory-new unit with this serial number at the same address.").classes("text-caption text-grey-8")
+
+
+class Assistant:
+    """Identity, diff, go, verified write, save, checkout, record."""
+
+    def __init__(self, name: str):
+        self.runtime = rt.current()
+        self.name = name
+        self.state = self.runtime.store.devices[name]
+        self.rp: replace.ReplacementPlan | None = None
+        with ui.card().classes("w-full").props("data-testid=replace-identity"):
+            ui.label("1. Identity").classes("text-subtitle1")
+            self.identity = ui.label().classes("text-body1").props("data-testid=replace-state")
+            ui.label("Type and variant must match the approved set; a firmware or hardware difference is named. "
+                     "Nothing is written until you press Write.").classes("text-caption text-grey-8")
+            with ui.row().classes("items-center"):
+                ui.button("Check identity and compare", icon="compare_arrows", on_click=self.compare).props(
+                    "data-testid=replace-compare")
+            self.progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
+            self.check = ui.column().classes("gap-0").props("data-testid=replace-check")
+        with ui.card().classes("w-full") as self.diff_card:
+            ui.label("2. The approved set against the new device").classes("text-subtitle1")
+            self.source = ui.label().classes("text-caption text-grey-8")
+            self.table = ui.table(columns=DIFF_COLUMNS, rows=[], row_key="key", selection="multiple", pagination=0) \
+                .classes("w-full reg-table").props("dense flat bordered")
+            self.table.columns[2]["label"] = "Approved"
+            self.table.add_slot("body-cell-state", STATE_SLOT)
+            self.table.props(':table-row-class-fn="row => row.state.startsWith(\'differs\') ? \'restore-differs\''
+                             ' : (row.state.startsWith(\'not written\') ? \'restore-invalid\' : \'\')"')
+            with ui.row().classes("items-center"):
+                self.write = ui.button("Write selected", icon="upload", color="negative", on_click=self.execute).props(
+                    "data-testid=replace-write")
+                self.summary = ui.label().classes("text-body2")
+        self.diff_card.set_visibility(False)
+        with ui.card().classes("w-full") as self.done_card:
+            ui.label("3. Result").classes("text-subtitle1")
+            self.report = ui.column().classes("gap-0")
+            with ui.row():
+                ui.link("Run the checkout and see the timeline", f"/record/{name}").props("data-testid=replace-checkout")
+        self.done_card.set_visibility(False)
+        self.show_identity()
+        follow(self.state, self.show_identity)
+
+    def show_identity(self) -> None:
+        replaced = getattr(self.state, "replaced", None)
+        watch = replace.watch_of(self.runtime)
+        known = (watch.known.get(self.name) or {}) if watch else {}
+        now = replace.live_identity(self.runtime, self.name)
+        if replaced:
+            text = (f"replaced? known {replace.identity_text(replaced['old'])} ({replaced.get('source') or 'known'}), "
+                    f"now {replace.identity_text(replaced['new'])}")
+        else:
+            text = (f"identity as known: {replace.identity_text(now or known.get('identity'))}"
+                    + (f" ({known.get('source')})" if known.get("source") else ""))
+        if self.identity.text != text:
+            self.identity.set_text(text)
+            self.identity.classes(replace="text-body1 " + ("text-negative text-weight-medium" if replaced else ""))
+
+    async def compare(self) -> None:
+        self.check.clear()
+        self.progress.set_value(0)
+        try:
+            self.rp = await replace.plan_replacement(self.runtime, self.name, self.progress.set_value)
+        except Exception as exc:  # noqa: BLE001 - no approved set, device not answering ...
+            notify_error(f"Cannot compare: {exc}")
+            return
+        self.progress.set_value(1)
+        check = self.rp.check
+        with self.check:
+            ui.label(f"known {replace.identity_text(check.old)}; the device now {replace.identity_text(check.new)}") \
+                .classes("text-body2")
+            for refusal in check.refusals:
+                ui.label(f"✖ refused: {refusal}").classes("text-negative text-body1").props("data-testid=replace-refused")
+            for note in check.notes:
+                ui.label(f"⚠ {note}").classes("text-warning text-body1").props("data-testid=replace-note")
+            if check.lacks:
+                ui.label("the device lacks: " + ", ".join(check.lacks)).classes("text-body2")
+            if check.adds:
+                ui.label("the device adds (not in the set, left as they are): " + ", ".join(check.adds)).classes("text-body2")
+            if check.ok and not check.notes:
+                ui.label("✔ same type and identity as the approved set").classes("text-positive text-body1")
+        if self.rp.plan is None:
+            self.diff_card.set_visibility(False)
+            return
+        self.source.set_text(f"from the {self.rp.source}" + ("; " + "; ".join(self.rp.plan.warnings) if self.rp.plan.warnings else ""))
+        self._show_rows()
+        self.diff_card.set_visibility(True)
+
+    def _show_rows(self) -> None:
+        rows = [{"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": _row_state(r),
+                 "risk": bool(r.changed and r.risk)} for r in self.rp.plan.rows]
+        self.table.rows = rows
+        self.table.selected = [row for row in rows if row["state"].startswith("differs")]
+        self.table.update()
+        changed = sum(1 for r in self.rp.plan.rows if r.changed)
+        self.summary.set_text(f"{changed} of {_count(len(rows), 'writable parameter')} "
+                              f"{'differs' if changed == 1 else 'differ'} from the approved set")
+        self.write.set_visibility(changed > 0)
+        self.write.set_enabled(can_write())
+
+    async def execute(self) -> None:
+        if self.rp is None or self.rp.plan is None:
+            return
+        selected = {row["key"] for row in self.table.selected}
+        to_write = [r for r in self.rp.plan.rows if r.key in selected and r.changed]
+        if not to_write:
+            ui.notify("No differing parameter is selected", type="warning")
+            return
+        others = backup.unsaved_lines(self.state, skip={r.key for r in to_write})
+        if not await _confirm_restore(self.name, to_write, others, ""):
+            return
+        confirmed: set[str] = set()
+        for row in self.rp.plan.risky(selected):
+            if not await confirm(f"Write {row.name} = {row.backup_text}?", row.risk, ok="Write anyway"):
+                ui.notify(f"{row.name} not confirmed: deselect it to write the others", type="warning")
+                return
+            confirmed.add(row.key)
+        user, role = current_user()
+        self.write.disable()
+        try:
+            report = await replace.execute_replacement(self.runtime, self.rp, selected, user=user, role=role,
+                                                       confirmed=confirmed, progress=self.progress.set_value)
+        except Exception as exc:  # noqa: BLE001
+            notify_error(f"Not written: {exc}")
+            return
+        finally:
+            self.write.enable()
+        self.report.clear()
+        with self.report:
+            ui.label(report.summary()).classes("text-body1 " + ("text-positive" if report.ok else "text-negative")).props(
+                "data-testid=replace-report")
+            for name, error in report.failed + report.refused:
+                ui.label(f"failed: {name}: {error}").classes("text-negative")
+            if report.written:
+                ui.label("written and read back: " + ", ".join(report.written)).classes("text-caption")
+            ui.label("Recorded in the device's timeline and the audit log"
+                     + ("; the new identity is the known one now." if report.ok else ".")).classes("text-caption")
+        self.done_card.set_visibility(True)
+        try:
+            self.rp = await replace.plan_replacement(self.runtime, self.name)
+            if self.rp.plan is not None:
+                self._show_rows()
+        except Exception:  # noqa: BLE001 - the report above says what happened
+            pass
