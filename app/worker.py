@@ -373,10 +373,11 @@ class Worker:
         flood = ""
         if table.flood_until and time.time() < table.flood_end:
             flood = (f"flood of new CAN IDs since {time.strftime('%H:%M:%S', time.localtime(table.flood_since))} "
-                     f"(over {FLOOD_NEW_IDS_PER_S} new IDs a second; {table.flood_frames} frames): "
+                     f"(over {FLOOD_NEW_IDS_PER_S} new IDs a second): "
                      f"nothing is listed until it has been quiet for {FLOOD_QUIET_S:.0f} s")
         return {"candidates": len(table.candidates), "dropped": table.dropped, "refused_frames": table.refused_frames,
-                "listed_dropped": table.listed_dropped, "rules": rules, "flood": flood, "floods": table.floods}
+                "listed_dropped": table.listed_dropped, "rules": rules, "flood": flood, "floods": table.floods,
+                "flood_frames": table.flood_frames}
 
     # -- browser sessions -------------------------------------------------------------------
     def session_opened(self, session: str, role: str = "engineer") -> None:
