@@ -142,3 +142,26 @@ async def test_mo64_dead_man_deactivates_the_close_level_of_a_silent_session(env
     # the session never sends a heartbeat: the worker trips it 0.3 s after it holds something
     await eventually(lambda: adapter.holders() == set(), timeout=1.0)
     assert any("dead-man" in e.text for e in adapter.state.events)
+
+
+async def test_the_shared_sim_card_acts_on_the_twin_through_the_gate(env, monkeypatch):
+    """The twin's declared controls (Mo64Twin.controls) on the shared card: each action through the gate,
+    audited; a viewer gets the note instead of the controls."""
+    user, runtime = env
+    await user.open("/device/gate")
+    await user.should_see("Simulated barrier (demo)")
+    by_testid(user, "sim-flags").value = "0x4"
+    UserInteraction(user, {by_testid(user, "sim-raise-fault")}, None).click()
+    await eventually(lambda: twin(runtime).error_flags == 0x4, timeout=3, what=str(user.notify.messages))
+    rows = await runtime.audit.aquery(device="gate", text="simulation: raise fault flags=0x4")
+    assert rows, "the action is audited"
+    UserInteraction(user, {by_testid(user, "sim-light-barrier")}, None).click()  # the switch goes on
+    await eventually(lambda: twin(runtime).light_barrier, timeout=3)
+    await eventually(lambda: (runtime.store.devices["gate"].point("LS") or {}).get("value") is True, timeout=5)
+    by_testid(user, "sim-flags").value = "0x1FFFFFFFF"  # out of range: refused before the gate, nothing changes
+    UserInteraction(user, {by_testid(user, "sim-raise-fault")}, None).click()
+    await eventually(lambda: any("outside" in str(m) for m in user.notify.messages), timeout=3)
+    assert twin(runtime).error_flags == 0x4
+    monkeypatch.setattr("pages.widgets.viewer_reason", lambda: "the viewer role may not write")
+    await user.open("/device/gate")
+    await user.should_see("Simulation controls change the simulated plant: engineers only.")

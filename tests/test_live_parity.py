@@ -1,0 +1,100 @@
+"""Every value a device page shows reaches the JSON API and the MQTT payload (issue 27).
+
+The page is built by NiceGUI's simulated user against the device's twin; every name it reads from
+the device's live record (``live``, ``point``, ``entry``) is recorded. Pages read nothing else of a
+device (tests/test_layering.py: no adapter, no twin, no ``info``), so what the page shows is these
+values plus the summary (status, age, last error, counters). Each must be in ``/api/devices/{name}``
+and in the MQTT ``state`` and ``status`` payloads, with the same value. One device type per row: a
+family is switched on here when its page is moved to the store.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import pytest
+from conftest import free_port
+from webutil import eventually, simulated_user
+
+from app.mqtt import state_payload, status_payload
+from app.plant import parse_plant
+from app.runtime import Runtime
+
+pytestmark = pytest.mark.timeout(60)
+
+
+def mo64_plant() -> str:
+    return f"""
+name = "t"
+[[bus]]
+name = "gate-bus"
+type = "logited-tcp"
+host = "127.0.0.1"
+port = {free_port()}
+timeout = 0.5
+poll_period = 0.2
+simulate = true
+[[device]]
+name = "gate"
+type = "mo64"
+bus = "gate-bus"
+travel_s = 0.6
+"""
+
+
+NOT_MOVED = "its page still reads adapters or info (tests/test_layering.py STORE_ONLY_PENDING)"
+FAMILIES = [
+    pytest.param("mo64", "gate", mo64_plant, id="mo64"),
+    pytest.param("hdlock", None, None, id="hdlock", marks=pytest.mark.skip(reason=NOT_MOVED)),
+    pytest.param("electrak", None, None, id="electrak", marks=pytest.mark.skip(reason=NOT_MOVED)),
+    pytest.param("m3io", None, None, id="m3io", marks=pytest.mark.skip(reason=NOT_MOVED)),
+    pytest.param("scu", None, None, id="scu", marks=pytest.mark.skip(reason=NOT_MOVED)),
+]
+
+
+def record_reads(state, monkeypatch) -> set[str]:
+    """The names the page reads from ``state`` from now on."""
+    read: set[str] = set()
+    for method in ("live", "point", "entry"):
+        original = getattr(state, method)
+
+        def reading(name, *args, _original: Callable = original, **kwargs):
+            read.add(name)
+            return _original(name, *args, **kwargs)
+
+        monkeypatch.setattr(state, method, reading)
+    return read
+
+
+@pytest.mark.parametrize(("device_type", "device", "plant"), FAMILIES)
+async def test_api_and_mqtt_carry_every_value_the_page_shows(device_type, device, plant, monkeypatch):
+    runtime = Runtime(parse_plant(plant()), simulate=True)
+    async with simulated_user(runtime) as user:
+        state = runtime.store.devices[device]
+        assert state.type == device_type
+        read = record_reads(state, monkeypatch)
+        await user.open(f"/device/{device}")
+        assert read, "the page read nothing from the store"
+        # every value the page reads is published (the page shows it, not '-')
+        await eventually(lambda: all(state.points.get(n) is not None or state.live(n) is not None for n in read),
+                         timeout=20, what=f"published: {sorted(n for n in read if state.live(n) is None)}")
+        shown = sorted(read)
+        api = (await user.http_client.get(f"/api/devices/{device}")).json()
+        now = time.time()
+        mqtt = state_payload(state, "cab", now)["values"]
+        status = status_payload(state, "cab", now)
+        missing_api = [n for n in shown if n not in api["values"]]
+        missing_mqtt = [n for n in shown if n not in mqtt]
+        assert missing_api == [] and missing_mqtt == []
+        for name in shown:  # one shape: the same keys; the value of a fact read once is the same in both
+            assert set(mqtt[name]) <= set(api["values"][name]), name
+            point = state.points.get(name)
+            if point is not None and not point.periodic:
+                assert api["values"][name]["value"] == mqtt[name]["value"], name
+        for key in ("status", "last_error", "counters"):  # the page's badge, error line and counter line
+            assert key in api and key in status, key
+        assert set(api["counters"]) == set(status["counters"])
+        assert {"Error memory levels", "Levels set by this tool", "Connection", "Gate state"} <= read or device_type != "mo64"
+        levels = api["values"].get("Error memory levels") if device_type == "mo64" else None
+        assert levels is None or all(set(e) == {"level", "flags", "timestamp_h"} for e in levels["value"])
