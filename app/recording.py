@@ -23,6 +23,7 @@ import asyncio
 import contextlib
 import importlib
 import io
+import itertools
 import logging
 import math
 import os
@@ -99,6 +100,53 @@ def recordings_dir(directory: str | Path | None = None) -> Path:
     except RuntimeError:  # no plant is running (a command-line tool)
         base = default_data_dir()
     return Path(base) / RECORDINGS_SUBDIR
+
+
+UPLOADS_SUBDIR = "uploads"  # uploaded recordings, inside the recordings folder
+UPLOADS_KEPT = 3  # the newest uploaded recordings kept; older ones are deleted when another arrives
+
+
+def upload_name(name: str | None) -> str:
+    """A browser's file name made safe to create: its last path component, at most 120 characters.
+
+    :raises RecordingError: nothing usable is left (``..``, ``.``, a hidden or empty name)
+    """
+    base = re.split(r"[\\/]", name or "")[-1].strip().replace("\0", "")
+    if base in ("", ".", "..") or base.startswith("."):
+        raise RecordingError(f"{(name or '')[:60]!r} is not a file name for a recording (e.g. trace.log)")
+    return base[-120:]
+
+
+_UPLOAD_SERIAL = itertools.count(1)
+
+
+async def store_upload(upload: Any, directory: str | Path | None = None) -> Path:
+    """An uploaded recording (NiceGUI's ``FileUpload``) saved into the one uploads folder of the
+    recordings folder, streamed (never read whole into memory), under a safe unique name; only the
+    newest :data:`UPLOADS_KEPT` uploads are kept, so no folder or file is left behind per upload.
+
+    :raises RecordingError: the file name is unusable, or the file cannot be written
+    """
+    name = upload_name(getattr(upload, "name", ""))
+    folder = recordings_dir(directory) / UPLOADS_SUBDIR
+    path = folder / f"{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}-{next(_UPLOAD_SERIAL):06d}-{name}"
+    try:
+        await asyncio.to_thread(folder.mkdir, parents=True, exist_ok=True)
+        await upload.save(path)
+    except OSError as exc:
+        await asyncio.to_thread(path.unlink, missing_ok=True)
+        raise RecordingError(f"{name}: cannot store the upload: {exc.strerror or exc}") from None
+    await asyncio.to_thread(_prune_uploads, folder, keep=path)
+    return path
+
+
+def _prune_uploads(folder: Path, keep: Path) -> None:
+    files = sorted((p for p in folder.iterdir() if p.is_file()), key=lambda p: (p.stat().st_mtime_ns, p.name), reverse=True)
+    for old in [p for p in files if p != keep][UPLOADS_KEPT - 1:]:
+        try:
+            old.unlink()
+        except OSError as exc:
+            logger.warning("cannot remove the old upload %s: %s", old, exc)
 
 
 RECORD_QUEUE = 200_000  # frames waiting for the disk (about 20 s of a full 1 Mbit/s bus)

@@ -12,7 +12,7 @@ import pytest
 from app import backup
 from app.cli import main
 from app.plant import PlantError, load_plant
-from app.recording import RecordingError, read_log
+from app.recording import UPLOADS_KEPT, RecordingError, read_log, store_upload, upload_name
 from app.users import UserError, UserStore
 from webutil import DEMO_PLANT
 
@@ -93,3 +93,27 @@ def test_a_trace_with_an_impossible_frame_is_refused_where_it_is(tmp_path, suffi
     path.write_text(text)
     with pytest.raises(RecordingError, match=why):
         read_log(path)
+
+
+# -- uploaded recordings (the replay page) --------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["..", ".", "", "../", "a/..", ".hidden"])
+def test_an_upload_named_dot_or_dotdot_is_refused_by_name(name):
+    with pytest.raises(RecordingError, match="is not a file name"):
+        upload_name(name)
+
+
+async def test_uploads_are_streamed_into_one_folder_and_only_the_newest_kept(tmp_path):
+    from nicegui.elements.upload_files import LargeFileUpload, SmallFileUpload
+
+    line = "(1700000000.000000) can0 123#00\n"
+    big = tmp_path / "spooled"
+    big.write_text(line * 1000)
+    uploads = [SmallFileUpload(f"trace-{n}.log", "text/plain", line.encode()) for n in range(UPLOADS_KEPT + 2)]
+    uploads.append(LargeFileUpload("../../big.log", "text/plain", big))
+    paths = [await store_upload(u, tmp_path / "recordings") for u in uploads]
+    folder = tmp_path / "recordings" / "uploads"
+    assert all(p.parent == folder for p in paths) and paths[-1].name.endswith("-big.log")
+    assert sorted(folder.iterdir()) == sorted(paths[-UPLOADS_KEPT:])  # nothing else is left behind
+    assert read_log(paths[-1]).frames[0].arbitration_id == 0x123
