@@ -7,7 +7,6 @@ the frames as sent. Progress is shown; Stop ends it at once; leaving the page en
 from __future__ import annotations
 
 import asyncio
-import tempfile
 from pathlib import Path
 
 from nicegui import ui
@@ -96,12 +95,12 @@ def content(bus: str) -> None:
         choice.on_value_change(on_choice)
 
         async def handle_upload(event) -> None:
-            name = Path(event.file.name).name if hasattr(event, "file") else Path(event.name).name
-            data = await event.file.read() if hasattr(event, "file") else event.content.read()
-            folder = Path(tempfile.mkdtemp(prefix="replay-"))
-            path = folder / name
-            await asyncio.to_thread(path.write_bytes, data)
-            await load(path, name)
+            try:  # streamed into the one uploads folder under a safe name ('..' is refused by name)
+                path = await rec.store_upload(event.file)
+            except rec.RecordingError as exc:
+                file_status.set_text(str(exc))
+                return
+            await load(path, rec.upload_name(event.file.name))
 
         async def start() -> None:
             log = loaded.get("file")
