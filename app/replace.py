@@ -34,6 +34,7 @@ from app.record import Entry
 log = logging.getLogger(__name__)
 
 IDENTITY_FILE = "identities.json"
+CHECK_PERIOD_S = 0.25  # a device's identity is compared at most this often (well within one poll of any line)
 SERIAL_KEYS = ("serial", "SerialNumber")
 FIRMWARE_KEYS = ("FirmwareVersion", "firmware", "version", "sw_version")
 HARDWARE_KEYS = ("HardwareVersion", "hardware")
@@ -90,6 +91,7 @@ class ReplacementWatch:
         self.known: dict[str, dict] = {}  # device -> {"identity", "time", "source"}
         self._watches: list = []
         self._writing: asyncio.Task | None = None
+        self._checked: dict[str, float] = {}  # device -> monotonic time of its last comparison
 
     def _load(self) -> dict:
         try:
@@ -133,7 +135,7 @@ class ReplacementWatch:
                     ref = {"identity": approved.data["identity"], "time": approved.time, "source": "approved set"}
             if ref is not None:
                 self.known[name] = ref
-            self._watches.append(self.runtime.store.watch(name, lambda n=name: self.check(n)))
+            self._watches.append(self.runtime.store.watch(name, lambda n=name: self._maybe_check(n)))
             self.check(name)
 
     async def stop(self) -> None:
@@ -141,6 +143,13 @@ class ReplacementWatch:
             w.cancel()
         if self._writing is not None:
             await asyncio.gather(self._writing, return_exceptions=True)
+
+    def _maybe_check(self, name: str) -> None:
+        """From the store's push: the identity is read from the live values, at most every CHECK_PERIOD_S."""
+        now = time.monotonic()
+        if now - self._checked.get(name, 0.0) >= CHECK_PERIOD_S:
+            self._checked[name] = now
+            self.check(name)
 
     def check(self, name: str) -> dict | None:
         """Compare the published identity with the known one; sets ``state.replaced`` (or clears it)."""

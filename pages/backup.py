@@ -353,14 +353,14 @@ PROJECT_COLUMNS = [
 ]
 PROJECT_ACTIONS = """
     <q-td :props="props">
-      <template v-if="props.row.changed">
+      <div v-if="props.row.changed" class="column items-start">
         <q-btn dense flat no-caps icon="memory" label="Keep device" :data-project-keep="props.row.key"
                @click="$parent.$emit('keep', props.row.key)" />
         <q-btn dense flat no-caps color="negative" icon="upload" label="Apply project" :data-project-apply="props.row.key"
                :disable="!props.row.can_write" @click="$parent.$emit('apply', props.row.key)" />
         <q-btn dense flat no-caps icon="edit_note" label="Update project" :data-project-update="props.row.key"
                :disable="!props.row.can_write" @click="$parent.$emit('update', props.row.key)" />
-      </template>
+      </div>
     </q-td>"""
 
 
