@@ -34,7 +34,7 @@ from app.record import Entry
 log = logging.getLogger(__name__)
 
 IDENTITY_FILE = "identities.json"
-CHECK_PERIOD_S = 0.25  # a device's identity is compared at most this often (well within one poll of any line)
+CHECK_PERIOD_S = 0.25  # a device's identity is compared at most this often, and at most every half poll period of its bus
 SERIAL_KEYS = ("serial", "SerialNumber")
 FIRMWARE_KEYS = ("FirmwareVersion", "firmware", "version", "sw_version")
 HARDWARE_KEYS = ("HardwareVersion", "hardware")
@@ -144,10 +144,15 @@ class ReplacementWatch:
         if self._writing is not None:
             await asyncio.gather(self._writing, return_exceptions=True)
 
+    def _period(self, name: str) -> float:
+        bus = self.runtime.plant.buses.get(self.runtime.store.devices[name].bus)
+        poll = bus.options.get("poll_period") if bus is not None else None
+        return min(CHECK_PERIOD_S, poll / 2) if isinstance(poll, int | float) and poll > 0 else CHECK_PERIOD_S
+
     def _maybe_check(self, name: str) -> None:
         """From the store's push: the identity is read from the live values, at most every CHECK_PERIOD_S."""
         now = time.monotonic()
-        if now - self._checked.get(name, 0.0) >= CHECK_PERIOD_S:
+        if now - self._checked.get(name, 0.0) >= self._period(name):
             self._checked[name] = now
             self.check(name)
 
