@@ -177,7 +177,9 @@ def test_locks_powered_up_together_are_not_a_flood():
 def test_silent_candidates_make_room(monkeypatch):
     from app.worker import MAX_CANDIDATES
 
-    monkeypatch.setattr("app.worker.FLOOD_NEW_IDS_PER_S", 10 * MAX_CANDIDATES)  # the table's own bound, not the flood rule
+    # the table's own bound, not the flood rule: patched in the namespace the worker's code runs in
+    # (page tests may have imported app.worker afresh since this module imported Worker)
+    monkeypatch.setitem(Worker.__init__.__globals__, "FLOOD_NEW_IDS_PER_S", 10 * MAX_CANDIDATES)
     w = worker()
     for n in range(MAX_CANDIDATES):
         w._discover_frame("can1", can.Message(arbitration_id=0x20000 + n, data=STATUS, is_extended_id=True, timestamp=T0))
