@@ -161,6 +161,7 @@ async def test_m3io_values_then_offline(api: Api, name: str):
     # a commanded output
     adapter = api.runtime.worker.adapters[name]
     await api.until(name, lambda v: v["Variant check"]["value"] != "unchecked", "variant checked")
+    await adapter.take_control("test", "engineer")  # switching on needs control of the module
     adapter.set_output("test", outputs[-1], True)
     values = await api.values(name)
     assert values[outputs[-1]]["value"] is True

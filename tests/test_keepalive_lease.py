@@ -278,3 +278,35 @@ async def test_a_stalled_loop_switches_mains_outputs_off_by_itself(m3io_module):
     assert any("stalled" in e.text for e in state.events if e.level == "error")
     await asyncio.sleep(0.3)
     assert not twin.ssr[1].on and twin.watchdog_alive  # off, and the watchdog still served
+
+
+async def test_master_always_serves_idle_and_yields_to_a_plc():
+    """``master = "always"`` (a bench without a PLC): the watchdog is served with every output off while
+    nobody controls the module, after listening first; a PLC's DigOut ends it at once."""
+    text = m3io_plant().replace('sw1 = 0x1A\n', 'sw1 = 0x1A\nmaster = "always"\n')
+    runtime = Runtime(parse_plant(text), simulate=True)
+    listener = Listener(runtime.plant.buses["can3"].options["channel"])
+    await runtime.start()
+    try:
+        adapter, twin = runtime.worker.adapters["hm"], runtime.twins["hm"]
+        assert await wait_for(lambda: runtime.store.devices["hm"].status == "online", timeout=4)
+        sent = listener.of(adapter.ids.dig_out)
+        assert sent and all(d == b"\x00" for _, d in sent)  # every output off
+        with pytest.raises(M3ioError, match="take control"):
+            adapter.set_output("s1", "SSR1", True)  # switching on still needs an engineer in control
+        plc = m3io.encode_dig_out(adapter.variant, {"SSR2": True})
+        listener.bus.send(can.Message(arbitration_id=adapter.ids.dig_out, data=plc, is_extended_id=False))
+        assert await wait_for(lambda: not runtime.worker.can_buses["can3"].cyclic_running(adapter.key), timeout=1)
+        stopped = time.monotonic()
+        await asyncio.sleep(0.5)
+        assert [d for t, d in listener.of(adapter.ids.dig_out, since=stopped + 0.05) if d != plc] == []
+    finally:
+        await asyncio.wait_for(runtime.stop(), 5)
+        listener.close()
+
+
+def test_master_option_is_checked():
+    from app.plant import PlantError
+
+    with pytest.raises(PlantError, match="master"):
+        parse_plant(m3io_plant().replace('sw1 = 0x1A\n', 'sw1 = 0x1A\nmaster = "sometimes"\n'))

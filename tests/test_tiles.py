@@ -170,6 +170,7 @@ async def test_plant_view_tiles_from_declarations_then_offline(env: Env):
         return probe
 
     env.runtime.worker.heartbeat("test")
+    await adapter.take_control("test", "engineer")  # switching on needs control of the module
     adapter.set_output("test", "SSR2", True)
     await eventually(alive_and(lambda: adapter.channels[2].triac == "ok"), timeout=5, interval=0.05, what="SSR2 on")
     twin.ssr[2].fuse_ok = False  # the module latches Si = 0 until its 24 V are cut (7.2.3)

@@ -16,8 +16,12 @@ def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str
     serial = options.get("serial", 0)
     if not isinstance(serial, int) or not 0 <= serial <= 99_999_999:
         errors.append(("serial", "serial (simulated twin) must have at most 8 digits"))
-    for key in sorted(set(options) - {"variant", "sw1", "serial"}):
-        errors.append((key, f"unknown key '{key}' for an M3IO; known: variant, sw1, serial (simulated twin)"))
+    if options.get("master", "on-control") not in ("on-control", "always"):
+        errors.append(("master", 'master must be "on-control" (DigOut only while an engineer controls the module, the default) '
+                                 'or "always" (this tool is the module\'s only master: it serves the watchdog with every output off '
+                                 'whenever nobody controls it and no other master is heard)'))
+    for key in sorted(set(options) - {"variant", "sw1", "serial", "master"}):
+        errors.append((key, f"unknown key '{key}' for an M3IO; known: variant, sw1, master, serial (simulated twin)"))
     return errors
 
 

@@ -104,6 +104,10 @@ class M3ioAdapter:
         self._listening_reconnects = -1
         self._foreign_at: float | None = None  # monotonic time of the last sign of another master
         self._served_until = 0.0  # monotonic: the module may still answer our last DigOut until then
+        # plant file `master = "always"`: this tool is the module's only master (a bench without a PLC) and
+        # serves the watchdog with every output off while nobody controls it and no other master is heard
+        self.always_master = config.options.get("master", "on-control") == "always"
+        self._idle_serving = False
         state.info.update(foreign_master=None, controlled_by=None)
         bus.subscribe(False, self.ids.dig_out, self.on_foreign_dig_out)
 
@@ -141,6 +145,32 @@ class M3ioAdapter:
         if self.controller is not None:
             self._release(f"lost: another master sends DigOut 0x{self.ids.dig_out:03X} ({FOREIGN_MASTER}); "
                           "this tool stopped sending so as not to fight it", level="error")
+        elif self._idle_serving:
+            self._stop_idle_serving(f"another master sends DigOut 0x{self.ids.dig_out:03X} ({FOREIGN_MASTER}): this tool only listens now")
+
+    def _start_idle_serving(self) -> None:
+        """``master = "always"``: the watchdog served with every output off, nobody in control (no lease needed)."""
+        self._idle_serving = True
+        self.served = True
+        self.bus.start_periodic(self.key, codec.DIGOUT_PERIOD_S, self.ids.dig_out, codec.encode_dig_out(self.variant, {}), False)
+        self._start_cfg_idle()
+        self._publish()
+        self.state.event("info", f"serving the watchdog with every output off (master = \"always\" in the plant file): "
+                                 f"DigOut 0x{self.ids.dig_out:03X} every {codec.DIGOUT_PERIOD_S * 1000:.0f} ms")
+
+    def _start_cfg_idle(self) -> None:
+        cfg = codec.cfg_with_dig_out(self.two_phase)
+        if cfg is not None:
+            self.bus.start_periodic(self.cfg_key, codec.DIGOUT_PERIOD_S, self.ids.sync, cfg, False)
+
+    def _stop_idle_serving(self, reason: str) -> None:
+        self._idle_serving = False
+        self.served = False
+        self.bus.stop_cyclic(self.key)
+        self.bus.stop_cyclic(self.cfg_key)
+        self._served_until = time.monotonic() + codec.WATCHDOG_S + TEMP_SLACK_S
+        self._publish()
+        self.state.event("warning", f"stopped serving the watchdog: {reason}")
 
     def foreign_master(self, now: float | None = None) -> bool:
         """Was another master heard within the last 2 s (its DigOut, or the module answering while this tool did not serve it)?"""
@@ -174,6 +204,7 @@ class M3ioAdapter:
             self.outputs[name] = False
         self.owners.clear()
         self.lease.revoke()
+        self._idle_serving = False  # the controlled keep-alive below takes over
         self.controller = Controller(session, user, time.time())
         self.served = True
         # python-can's cyclic task: its clock does not depend on the event loop; without a valid lease
@@ -237,7 +268,13 @@ class M3ioAdapter:
                                   "switched them off by itself. The browser was not at fault: switch on again")
 
     async def poll(self) -> None:
-        """Watch for silence; check the variant."""
+        """Serve the watchdog idle where the plant file says so; watch for silence; check the variant."""
+        if (self.always_master and self.controller is None and not self._idle_serving and self.bus.state.connected
+                and not self.foreign_master()):
+            if self._listening_reconnects != self.bus.state.reconnects:
+                self._listening_reconnects, self._listening_since = self.bus.state.reconnects, time.monotonic()
+            if time.monotonic() - self._listening_since >= LISTEN_S:  # listened first
+                self._start_idle_serving()
         now = time.time()
         if self.last_answer is None or now - self.last_answer > OFFLINE_AFTER_S:
             if self.last_answer is not None and self._gone_since is None:
@@ -287,7 +324,7 @@ class M3ioAdapter:
     def _seen(self) -> None:
         self.last_answer = time.time()
         self.state.mark_seen(self.last_answer)
-        if self.controller is None and time.monotonic() > self._served_until:
+        if self.controller is None and not self._idle_serving and time.monotonic() > self._served_until:
             self._foreign_at = time.monotonic()  # the module answers although this tool does not serve it: another master does
 
     def on_dig_in(self, msg) -> None:
