@@ -194,7 +194,12 @@ class SocketEventGuard:
         async def handler(sid: str, environ: dict, *rest):
             query = parse_qs((environ or {}).get("QUERY_STRING", ""))
             client_id = (query.get("client_id") or [""])[0]
-            if (query.get("implicit_handshake") or [""])[0] == "true" and client_id and not _same_browser(environ, client_id):
+            implicit = (query.get("implicit_handshake") or [""])[0] == "true"
+            if implicit and not all(query.get(k) for k in ("client_id", "tab_id", "document_id")):
+                self.malformed += 1
+                self._note("malformed", "malformed (implicit handshake without its ids)", sid, "connect")
+                raise socketio_exceptions.ConnectionRefusedError("malformed handshake")
+            if implicit and not _same_browser(environ, client_id):
                 self.refused += 1
                 self._note("handshake", "another browser's", sid, "connect")
                 raise socketio_exceptions.ConnectionRefusedError("not this browser's page")

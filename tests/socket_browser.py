@@ -90,6 +90,18 @@ class SocketBrowser:
                                                    "document_id": str(uuid.uuid4()), "next_message_id": 0}, timeout=10)
         return answer is True
 
+    async def sio_connect_query(self, query: str) -> bool:
+        """Open a socket with this browser's cookie and a query of one's own; whether it was accepted."""
+        await self.close_socket()
+        self.sio = socketio.AsyncClient(reconnection=False)
+        cookie = "; ".join(f"{k}={v}" for k, v in self.http.cookies.items())
+        try:
+            await self.sio.connect(f"{self.base}/?{query}", socketio_path="/_nicegui_ws/socket.io", transports=["websocket"],
+                                   headers={"Cookie": cookie}, wait_timeout=10)
+        except socketio.exceptions.ConnectionError:
+            return False
+        return True
+
     async def emit_event(self, element: int, event: str, args: list | None = None, *, page: Page | None = None) -> None:
         """Send what a browser sends for ``event`` on ``element`` of ``page`` (default: this browser's page),
         over this browser's socket."""

@@ -137,6 +137,12 @@ async def test_junk_socket_events_are_refused_without_a_traceback(beyond_loopbac
         for name, msg in junk:
             await browser.sio.emit(name, msg)
         await browser.sio.emit("event", ({"client_id": page.client_id}, "extra"))  # two arguments (a tuple is spread)
+        stray = SocketBrowser(base)  # an implicit handshake in the query without its tab and document ids
+        stray.http.cookies = browser.http.cookies
+        try:
+            await stray.sio_connect_query(f"client_id={page.client_id}&implicit_handshake=true")
+        finally:
+            await stray.aclose()
         # the socket still works after the junk: a real handshake-bound event is answered
         alive = await browser.sio.call("ack", {"client_id": page.client_id, "next_message_id": 0}, timeout=10)
         assert alive is None
