@@ -424,6 +424,14 @@ class Worker:
         """
         now = time.monotonic()
         last = self.beats.get(session)
+        if last is None:  # its first beat, or the first since its connection dropped: what it controls is its own again
+            for name, adapter in self._holder_items():
+                back = getattr(adapter, "session_back", None)
+                if back is not None:
+                    try:
+                        back(session)
+                    except Exception:  # noqa: BLE001 - one adapter's failure must not stop the beats
+                        log.exception("%s: session_back failed", name)
         self.beats[session] = now
         self._beats_live[session] = self._live_clock(now)
         if isinstance(sent_ms, int | float) and not isinstance(sent_ms, bool) and sent_ms == sent_ms:

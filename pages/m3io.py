@@ -152,7 +152,8 @@ def content(name: str) -> None:
         last = adapter.last_answer
         foreign = adapter.foreign_master()
         watchdog.set_text(
-            (f"watchdog served: DigOut every {codec.DIGOUT_PERIOD_S * 1000:.0f} ms" if served
+            (f"watchdog served: DigOut every {codec.DIGOUT_PERIOD_S * 1000:.0f} ms"
+             + (" (every output off: nobody controls the module)" if adapter.controller is None else "") if served
              else "watchdog served by another master (a PLC): this tool only listens" if foreign
              else "watchdog not served: outputs are off in the module; take control to serve it")
             + f" · last answer {fmt_age(None if last is None else datetime.now().timestamp() - last)}"

@@ -10,7 +10,7 @@ from test_electrak import beat, lift, start_lift  # noqa: F401 (fixture)
 
 import app.worker
 from devices.electrak import codec
-from devices.electrak.adapter import ForeignControl
+from devices.electrak.adapter import ControlBusy, ForeignControl
 
 
 def plc_send(runtime, frame: codec.ControlFrame) -> None:
@@ -158,3 +158,17 @@ async def test_a_dropped_connection_stops_motion_but_keeps_idle_control(lift):  
     assert not state.info["errors"] & 0x20
     runtime.worker.session_deleted("s1")  # it did not come back
     assert adapter.controller is None and not runtime.worker.can_buses["can2"].cyclic_running(adapter.key)
+
+
+async def test_another_page_may_take_over_control_from_a_disconnected_one(lift):  # noqa: F811
+    runtime, adapter, _state, _twin = lift
+    await adapter.take_control("s1", "engineer")
+    with pytest.raises(ControlBusy):
+        await adapter.take_control("s2", "engineer")
+    runtime.worker.session_closed("s1")  # its page closed (NiceGUI deletes it only seconds later)
+    await adapter.take_control("s2", "engineer")
+    assert adapter.controller.session == "s2"
+    runtime.worker.session_closed("s2")
+    runtime.worker.heartbeat("s2")  # it reconnected: control is its own again
+    with pytest.raises(ControlBusy):
+        await adapter.take_control("s3", "engineer")

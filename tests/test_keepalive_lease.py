@@ -141,7 +141,7 @@ async def test_stop_and_jog_release_leave_at_once(lift):  # noqa: F811
     bus_state = runtime.worker.can_buses["can2"].state
     await adapter.take_control("s1", "engineer")
     adapter.jog("s1", +1)
-    assert await wait_for(lambda: state.info["motion"] & 1, timeout=2)
+    assert await wait_for(lambda: state.info["motion"] & 1 and (adapter.position_mm() or 0) > 2.0, timeout=3)
     sent = bus_state.tx_frames
     adapter.jog("s1", 0)  # released
     assert bus_state.tx_frames == sent + 1  # sent within the call

@@ -46,6 +46,7 @@ class Controller:
     session: str
     user: str
     since: float
+    disconnected: float | None = None  # monotonic time its page's connection dropped (it may reconnect)
 
 
 class ElectrakAdapter:
@@ -235,6 +236,8 @@ class ElectrakAdapter:
 
     async def take_control(self, session: str, user: str) -> None:
         """Listen for another sender of 0x06 first; then send the control telegram every 100 ms (enable cleared)."""
+        if self.controller is not None and self.controller.session != session and self.controller.disconnected is not None:
+            self._release("taken over by another page: the page that held it had disconnected")
         if self.controller is not None and self.controller.session != session:
             raise ControlBusy(f"{self.controller.user} holds control since {time.strftime('%H:%M:%S', time.localtime(self.controller.since))}")
         if self.controller is not None:
@@ -311,11 +314,19 @@ class ElectrakAdapter:
         c = self.controller
         return {c.session} if c is not None and (self.command.enable or self.command.override) else set()
 
+    def session_back(self, session: str) -> None:
+        """The page of ``session`` confirms it is alive again after its connection dropped: its control is its own again."""
+        if self.controller is not None and self.controller.session == session:
+            self.controller.disconnected = None
+
     def session_stop(self, session: str, reason: str) -> None:
         """The page of ``session`` disconnected: motion stops at once (enable cleared, sent now); control, which
         moves nothing by itself, stays until the page is gone for good (:meth:`session_lost`)."""
         c = self.controller
-        if c is None or c.session != session or not (self.command.enable or self.command.override):
+        if c is None or c.session != session:
+            return
+        c.disconnected = time.monotonic()  # another page may take control over; this one keeps it if it comes back first
+        if not (self.command.enable or self.command.override):
             return
         cmd = self.command
         self.command = codec.ControlFrame(cmd.position_mm, cmd.current_a, cmd.speed_mm_s, enable=False)

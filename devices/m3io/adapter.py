@@ -49,6 +49,7 @@ class Controller:
     session: str
     user: str
     since: float
+    disconnected: float | None = None  # monotonic time its page's connection dropped (it may reconnect)
 
 
 def stop_form(data: bytes) -> bytes:
@@ -179,6 +180,8 @@ class M3ioAdapter:
 
     async def take_control(self, session: str, user: str) -> None:
         """Listen for another master first; then serve the watchdog: DigOut every 100 ms, outputs off."""
+        if self.controller is not None and self.controller.session != session and self.controller.disconnected is not None:
+            self._release("taken over by another page: the page that held it had disconnected")
         if self.controller is not None and self.controller.session != session:
             raise ControlBusy(f"{self.controller.user} controls the module since "
                               f"{time.strftime('%H:%M:%S', time.localtime(self.controller.since))}")
@@ -493,9 +496,16 @@ class M3ioAdapter:
         if self.controller is not None and self.controller.session == session:
             self._release(f"released: {reason}")
 
+    def session_back(self, session: str) -> None:
+        """The page of ``session`` confirms it is alive again after its connection dropped: its control is its own again."""
+        if self.controller is not None and self.controller.session == session:
+            self.controller.disconnected = None
+
     def session_stop(self, session: str, reason: str) -> None:
         """The page of ``session`` disconnected: its outputs off at once; its control (the watchdog with
         every output off) stays until the page is gone for good (:meth:`session_lost`)."""
+        if self.controller is not None and self.controller.session == session:
+            self.controller.disconnected = time.monotonic()  # another page may take control over
         names = [name for name, owner in self.owners.items() if owner == session and self.outputs[name]]
         for name in [name for name, owner in self.owners.items() if owner == session]:
             del self.owners[name]
