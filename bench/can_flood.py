@@ -4,7 +4,7 @@ The plant: ``can1`` (1 Mbit/s, an HD-Lock and its twin) and ``can2`` (500 kbit/s
 Electrak and its twin), both python-can ``virtual`` buses in this process, run by the
 worker exactly as in the GUI. The Electrak is under control (its control telegram is
 due every 100 ms; the actuators raise the message-timeout flag after 250 ms without
-one). A sender thread floods ``can1`` for ``--seconds`` per phase at 1x and 2x the
+one); it leaves on python-can's cyclic task, a thread of its own, not on the event loop. A sender thread floods ``can1`` for ``--seconds`` per phase at 1x and 2x the
 frame limit of a 1 Mbit/s bus (9,009 8-byte standard frames/s), first with unknown
 IDs (extended, data starting ``00 00``: the worst case for discovery), then with the
 lock's own status ID (every frame decoded by its adapter).
