@@ -15,7 +15,7 @@ from app.state import BusState
 from devices.live import DeviceState
 from devices.scu import codec
 from devices.scu import params as p
-from devices.scu.adapter import CYCLIC_READ_IDS, ControlBusy, ScuAdapter
+from devices.scu.adapter import CYCLIC_READ_IDS, P_CYCLIC, P_REFUSAL, ControlBusy, ScuAdapter
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -151,7 +151,7 @@ async def test_opening_the_session_defines_the_cyclic_object_and_brings_live_dat
         adapter = make_adapter(script.port, actuators=[{"counts_per_mm": 10}, {"stroke_mm": 250}])
         await adapter.poll()
         assert adapter.session == "open" and adapter.cyclic == CYCLIC
-        assert "cyclic object 0x3001" in adapter.state.info["cyclic"]
+        assert "cyclic object 0x3001" in adapter.state.live(P_CYCLIC).value
         script.add((TX, codec.encode_rc(0)), (RX, cyclic_answer()),
                    (TX, codec.encode_rg(0x00F0)), (RX, ok(codec.RG, bytes(12))))
         await adapter.poll()
@@ -171,8 +171,8 @@ async def test_refused_cyclic_definition_falls_back_to_rg_and_says_so():
         adapter = make_adapter(script.port)
         await adapter.poll()
         assert adapter.session == "open" and adapter.cyclic is None
-        assert "refused the cyclic object definition (PDE" in adapter.state.info["cyclic"]
-        assert "RG requests instead" in adapter.state.info["cyclic"]
+        assert "refused the cyclic object definition (PDE" in adapter.state.live(P_CYCLIC).value
+        assert "RG requests instead" in adapter.state.live(P_CYCLIC).value
         script.add((TX, codec.KEEP_ALIVE), (RX, ok(codec.RC)))
         for data_id in CYCLIC_READ_IDS:
             size = p.item(data_id).size
@@ -237,8 +237,8 @@ async def test_bad_crc_is_counted_and_retried_and_error_answers_are_named():
         with pytest.raises(codec.CommandRefused):
             await adapter.read_data(0x0001)
         script.done()
-        refusal = adapter.state.info["last_refusal"]
-        assert refusal["name"] == "PE" and "RO" in refusal["remedy"]
+        refusal = adapter.state.live(P_REFUSAL).value
+        assert refusal.name == "PE" and "RO" in refusal.remedy
         assert adapter.session == "lost" and "PE" in adapter.session_reason
 
 

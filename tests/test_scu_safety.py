@@ -20,7 +20,7 @@ from app.serial_line import SerialLine
 from app.state import BusState
 from devices.live import DeviceState
 from devices.scu import codec
-from devices.scu.adapter import WATCH_RG, WATCH_SESSION, CommandError, ControlBusy, ScuAdapter
+from devices.scu.adapter import P_WATCH, WATCH_RG, WATCH_SESSION, CommandError, ControlBusy, ScuAdapter
 from devices.scu.sim import ScuSim
 
 pytestmark = pytest.mark.timeout(60)
@@ -194,7 +194,7 @@ async def test_a_unit_that_answers_rg_outside_remote_mode_is_watched_without_a_s
         assert await wait_for(lambda: adapter.watch == WATCH_RG and "A1 position" in adapter.state.points, 5)
         await asyncio.sleep(0.6)
         assert "RO" not in twin.requests and "RC" not in twin.requests and not twin.remote
-        assert "without" in adapter.state.info["watch"] and adapter.session != "open"
+        assert "without" in adapter.state.live(P_WATCH).text and adapter.session != "open"
         assert await wait_for(lambda: "Battery voltage" in adapter.state.points, 6)
         adapter.take_control("s1", "anna")  # control opens the session ...
         await session_open(adapter)
@@ -207,7 +207,7 @@ async def test_a_unit_that_refuses_rg_outside_remote_mode_is_read_in_a_session_a
     async with unit() as (adapter, twin):
         await session_open(adapter)
         assert adapter.watch == WATCH_SESSION
-        assert "reading only" in adapter.state.info["watch"]
+        assert "reading only" in adapter.state.live(P_WATCH).text
         with pytest.raises(CommandError, match="take control"):
             await adapter.run_function("s2", F1, codec.Motion.OUT)
         assert ("RE", F1) not in twin.function_log

@@ -29,7 +29,7 @@ from typing import Any
 
 from devices import values as v
 from devices.lease import Lease
-from devices.live import DeviceState
+from devices.live import DeviceState, session_tag
 from devices.scu import codec
 from devices.scu import params as p
 from devices.transport import SerialClosed, SerialLineError, SerialTimeout
@@ -68,6 +68,34 @@ RC_RETRY_S = 0.05  # an RC not answered is sent again this soon (the watchdog al
 LEASE_CHECK_S = 0.02  # while a function runs the line's thread looks at the lease this often
 SERVICE_IDS = (0x0001, 0x0002, 0x0060, 0x0070, 0x0080, 0x0090, 0x00B0, 0x00C0, 0x00C1, 0x1010)
 
+# -- the facts this adapter publishes besides the unit's data (DeviceState.fact): what the page, the API and
+# MQTT read. Records (frozen dataclasses below) where a fact is more than a number or a word.
+P_SESSION = "Session"  # closed, opening, open, lost, released; text with the reason
+P_SESSION_REASON = "Session reason"  # why the session is as it is ("" when open as asked)
+P_WATCH = "Watching"  # WATCH_RG, WATCH_SESSION or None (not known yet); text: what that means
+P_CYCLIC = "Cyclic object"  # how live data comes: the cyclic object with every RC, or RG reads (and why)
+P_REFUSAL = "Last error answer"  # Refusal: the last command the unit answered with an error code
+P_RC_PERIOD = "RC period"  # mean time between acknowledged RCs [ms]
+P_RC_GAP = "RC longest gap"  # longest time between two acknowledged RCs of the last 50 [ms]
+P_CONTROL = "Control"  # Holder: who drives the unit (a browser session by its tag), None: nobody
+P_CONTROLLED_BY = "Controlled by"  # the holder's user name (the tile's line)
+P_RUNNING = "Running functions"  # fnc_IDs whose RE was sent and whose RS is not yet acknowledged
+P_RS_PENDING = "RS pending"  # fnc_IDs whose RS was not acknowledged: held, sent again every poll
+P_ESTOP = "Emergency stop"  # function 19 on
+P_SINGLE_IDS = "Single-ID groups"  # group IDs this unit refused: read member by member
+P_SKIPPED = "Skipped bytes"  # stray bytes before an answer's header (resynchronisation)
+P_RESYNCS = "Resynchronisations"  # times the line's input was flushed after a shifted answer
+P_CRC_RETRIES = "CRC retries"  # answers with a bad CRC, sent again
+P_SAFETY_ID = "Safety_ID"  # what the unit does on a communication timeout (RO parameter)
+P_ACTUATORS = "Actuators"  # configured actuators
+P_SCALES = "Actuator scales"  # tuple of ActuatorScale: counts -> mm and the end positions per actuator
+P_LINE = "Line"  # SerialLine: port and baud rate
+P_SPEED = "Remote speed range"  # SpeedRange: the unit's speed select (table 7)
+P_FUNCTIONS = "Function actuators"  # FunctionMap: which actuators F1..F10 drive (plant file, or assumed)
+P_SERIAL = "Serial number"  # the plant file's serial (the RS232 interface has no data ID for it)
+P_FIRMWARE = "Firmware info"  # 0x0001 (read with the service data and the backup)
+P_CONFIGURATION = "Configuration info"  # 0x0002
+
 
 class CommandError(Exception):
     """A command that did not take effect; the message says what to do."""
@@ -77,7 +105,7 @@ class ControlBusy(CommandError):
     """Another session holds control."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class ActuatorScale:
     """Counts -> mm of one actuator: ``counts_per_mm``, or ``stroke_mm`` between the in/out end positions."""
 
@@ -119,6 +147,13 @@ def actuator_scales(options: dict) -> list[ActuatorScale]:
         return [ActuatorScale(n) for n in range(1, actuators + 1)]
     return [ActuatorScale(n, a.get("counts_per_mm"), a.get("stroke_mm"), a.get("in_counts"), a.get("out_counts"))
             for n, a in enumerate(actuators, 1)]
+
+
+def chart_points(scales) -> tuple[str, ...]:
+    """The position point of each actuator the history records (and the page charts): in mm where the actuator
+    converts counts to mm, else in counts."""
+    return tuple(f"A{s.number} position mm" if s.counts_per_mm or s.stroke_mm else f"A{s.number} position"
+                 for s in scales)
 
 
 _STATUS_CODES = frozenset(int(x) for x in codec.Status)
@@ -182,6 +217,60 @@ class Controller:
     session: str
     user: str
     since: float
+
+
+@dataclass(frozen=True, slots=True)
+class Holder:
+    """Who holds control, as published: the user, the tag of the browser session (``session_tag``), since when."""
+
+    user: str
+    session: str
+    since: float
+
+
+@dataclass(frozen=True, slots=True)
+class Refusal:
+    """An error answer of the unit (section 4.2): to which command, its code and what to do."""
+
+    command: str
+    name: str
+    title: str
+    meaning: str
+    remedy: str
+    time: float
+
+
+@dataclass(frozen=True, slots=True)
+class SerialLine:
+    """The RS232 line as configured (8N1; DTR and RTS on)."""
+
+    port: str
+    baudrate: int
+
+
+@dataclass(frozen=True, slots=True)
+class SpeedRange:
+    """The remote speed the unit takes (table 7): relative 0 .. 100 %, or absolute 0 .. 1000 counts/s."""
+
+    select: str
+    high: int
+    unit: str
+
+
+@dataclass(frozen=True, slots=True)
+class FunctionMap:
+    """Which actuators each function F1..F10 (fnc_ID 0..9) drives; ``assumed``: SCP11, not from the plant file."""
+
+    actuators: tuple[tuple[int, tuple[int, ...]], ...]
+    assumed: bool
+
+    def actuators_of(self, function: int) -> list[int]:
+        return next((list(acts) for fn, acts in self.actuators if fn == int(function)), [])
+
+    def text(self, function: int) -> str:
+        acts = self.actuators_of(function)
+        return (", ".join(f"A{a}" for a in acts) if acts else "no actuator") + (
+            " (assumed: SCP11, section 5; set functions in the plant file)" if self.assumed else "")
 
 
 class ScuAdapter:
@@ -255,13 +344,26 @@ class ScuAdapter:
         self.lapses = 0
         state.stale_after = 2.0
         state.registers_periodic = False
-        state.info.update(session="closed", session_reason="", cyclic="", rc_period_ms=None, rc_max_gap_ms=None,
-                          safety_id=int(self.safety_id), controlled_by=None, running=[], last_refusal=None,
-                          crc_retries=0, actuators=len(self.scales))
-        self.series = [f"A{s.number} [{'mm' if s.counts_per_mm or s.stroke_mm else 'counts'}]" for s in self.scales]
         self._publish_session()
-        state.publish("Actuators", len(self.scales), periodic=False)
-        state.publish("Safety_ID", int(self.safety_id), periodic=False, text=codec.SAFETY_MODES[self.safety_id])
+        state.fact(P_ACTUATORS, len(self.scales))
+        state.fact(P_SAFETY_ID, int(self.safety_id), text=codec.SAFETY_MODES[self.safety_id])
+        state.fact(P_LINE, SerialLine(self.port, self.baudrate), text=f"{self.port} at {self.baudrate} baud 8N1")
+        state.fact(P_SPEED, SpeedRange(self.speed_select, self.speed_max, self.speed_unit),
+                   text=f"0 .. {self.speed_max} {self.speed_unit} ({self.speed_select})")
+        state.fact(P_FUNCTIONS, FunctionMap(tuple((fn, tuple(acts)) for fn, acts in sorted(self.function_actuators.items())),
+                                            self.functions_assumed))
+        serial = options.get("serial")
+        state.fact(P_SERIAL, None if serial in (None, "") else str(serial),
+                   text=None if serial not in (None, "") else "not in the plant file (no data ID for it, section 4.3)")
+        state.fact(P_CONTROLLED_BY, None, text="nobody")
+        self._publish_control()
+        self._publish_scales()
+        self._sync_held()
+        self._publish_estop()
+        self._publish_counts()
+        state.fact(P_CYCLIC, self.cyclic_note)
+        state.fact(P_REFUSAL, None, text="none")
+        state.fact(P_SINGLE_IDS, ())
 
     # -- the line -------------------------------------------------------------------------------
     async def _request(self, frame: bytes, describe: str, *, keepalive: bool = True,
@@ -290,7 +392,7 @@ class ScuAdapter:
             start = header_offset(raw, expected) or 0
             if start:
                 self.skipped_bytes += start  # a stray byte or an old answer's tail before this answer: skipped
-                self.state.info["skipped_bytes"] = self.skipped_bytes
+                self._publish_counts()
                 raw = raw[start:]
             try:
                 answer = codec.decode_answer(raw, expected)
@@ -298,7 +400,7 @@ class ScuAdapter:
                 if isinstance(exc, codec.ChecksumError):
                     self.state.counters.crc_errors += 1
                     self.crc_retries += 1
-                    self.state.info["crc_retries"] = self.crc_retries
+                    self._publish_counts()
                 else:
                     self.state.counters.malformed += 1
                     self.state.error(f"{describe}: {exc}", log=False)
@@ -327,7 +429,7 @@ class ScuAdapter:
                 return
             if dropped:
                 self.resyncs += 1
-                self.state.info["resyncs"] = self.resyncs
+                self._publish_counts()
 
     def _rc_due(self) -> bool:
         return time.monotonic() - self._rc_last >= self.keepalive_period_s
@@ -370,8 +472,9 @@ class ScuAdapter:
         self.state.counters.exceptions += 1
         info = exc.info
         if not quiet:
-            self.state.info["last_refusal"] = {"command": describe, "name": info.name, "title": info.title,
-                                               "meaning": info.meaning, "remedy": info.remedy, "time": time.time()}
+            refusal = Refusal(describe, info.name, info.title, info.meaning, info.remedy, time.time())
+            self.state.fact(P_REFUSAL, refusal, text=f"{info.name} ({info.title}) to {describe}: {info.meaning}. "
+                                                     f"What to do: {info.remedy}")
             self.state.error(f"{describe}: {info.name} ({info.title}): {info.meaning}. {info.remedy}")
         if answer.status == codec.Status.PE and self.session == "open":
             if answer.command == codec.RC:
@@ -388,11 +491,26 @@ class ScuAdapter:
 
     # -- the session -------------------------------------------------------------------------------
     def _publish_session(self) -> None:
-        self.state.info["session"] = self.session
-        self.state.info["session_reason"] = self.session_reason
-        self.state.info["watch"] = self.watch_text()
-        self.state.publish("Session", self.session, periodic=False,
-                           text=self.session + (f": {self.session_reason}" if self.session_reason else ""))
+        self.state.fact(P_SESSION, self.session,
+                        text=self.session + (f": {self.session_reason}" if self.session_reason else ""))
+        self.state.fact(P_SESSION_REASON, self.session_reason)
+        self.state.fact(P_WATCH, self.watch, text=self.watch_text())
+
+    def _publish_counts(self) -> None:
+        self.state.fact(P_SKIPPED, self.skipped_bytes)
+        self.state.fact(P_RESYNCS, self.resyncs)
+        self.state.fact(P_CRC_RETRIES, self.crc_retries)
+
+    def _publish_control(self) -> None:
+        c = self.controller
+        self.state.fact(P_CONTROL, None if c is None else Holder(c.user, session_tag(c.session), c.since),
+                        text="nobody" if c is None else f"{c.user} since {time.strftime('%H:%M:%S', time.localtime(c.since))}")
+
+    def _publish_scales(self) -> None:
+        self.state.fact(P_SCALES, tuple(self.scales))
+
+    def _publish_cyclic(self) -> None:
+        self.state.fact(P_CYCLIC, self.cyclic_note)
 
     def watch_text(self) -> str:
         if self.watch == WATCH_RG:
@@ -439,7 +557,9 @@ class ScuAdapter:
             self._held = frozenset(fn for fn in self.running if fn not in NOT_HELD)
             if not self._held:
                 self.lease.revoke()
-        self.state.info["running"] = sorted(self.running)
+        names = lambda fns: ", ".join(codec.FUNCTIONS[codec.Function(f)].label for f in fns) or "none"  # noqa: E731
+        self.state.fact(P_RUNNING, tuple(sorted(self.running)), text=names(sorted(self.running)))
+        self.state.fact(P_RS_PENDING, tuple(sorted(self.rs_pending)), text=names(sorted(self.rs_pending)))
 
     def renew_leases(self, alive: set[str]) -> None:
         """The worker's supervisor, every 50 ms: a session that runs a function is alive, it may go on."""
@@ -573,7 +693,7 @@ class ScuAdapter:
             self.cyclic_refused = True
             self.cyclic_note = (f"the unit refused RC with the cyclic object ({info.name}: {info.title}); "
                                 "RC without data keeps the session, live data is read with RG")
-            self.state.info["cyclic"] = self.cyclic_note
+            self._publish_cyclic()
             self.state.event("warning", self.cyclic_note)
 
     def _lapsed(self, lapsed_at: float, results: dict[int, bool]) -> None:
@@ -591,7 +711,6 @@ class ScuAdapter:
             if not ok and fn in self.running:
                 self.rs_pending[fn] = "lease lapsed"
         self._sync_held()
-        self.state.info["rs_pending"] = sorted(self.rs_pending)
         names = lambda fns: ", ".join(codec.FUNCTIONS[codec.Function(f)].label for f in fns)  # noqa: E731
         text = (f"motion stopped: the lease of the running functions lapsed (not renewed for {late_ms:.0f} ms: this "
                 "program stalled, or the controlling browser stopped confirming it is alive); the serial line's own "
@@ -631,7 +750,7 @@ class ScuAdapter:
                 self.cyclic_refused = True
                 self.cyclic_note = (f"the unit refused RC with the cyclic object ({exc.info.name}: {exc.info.title}); "
                                     "RC without data keeps the session, live data is read with RG")
-                self.state.info["cyclic"] = self.cyclic_note
+                self._publish_cyclic()
                 self.state.event("warning", self.cyclic_note)
                 return await self._request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)
             if answer.has_ctp:
@@ -704,7 +823,7 @@ class ScuAdapter:
                 self.state.event("warning", self.cyclic_note)
             except (SerialLineError, codec.CodecError):
                 return
-        self.state.info["cyclic"] = self.cyclic_note
+        self._publish_cyclic()
         self.state.event("info", f"remote session open (Safety_ID {int(self.safety_id)}); {self.cyclic_note}")
         if self.estop:
             # The emergency stop is released only by the person who asks for it: after a lost session it is
@@ -752,6 +871,7 @@ class ScuAdapter:
             if value is not None:
                 lo, hi = value["Position_Virtual_Limit_In"], value["Position_Virtual_Limit_Out"]
                 self.scales[i] = scale.with_ends(lo, hi)
+                self._publish_scales()
             s = self.scales[i]
             self.state.publish(f"A{s.number} in end", s.in_counts, "counts", periodic=False)
             self.state.publish(f"A{s.number} out end", s.out_counts, "counts", periodic=False)
@@ -764,6 +884,7 @@ class ScuAdapter:
                 self.state.publish(f"A{s.number} conversion factor", factor, "counts/mm", periodic=False)
                 if isinstance(factor, float) and math.isfinite(factor) and factor > 0:
                     self.scales[i] = ActuatorScale(s.number, factor, None, s.in_counts, s.out_counts)
+                    self._publish_scales()
 
     async def poll(self) -> None:
         """One cycle: learn how the unit is watched; open the session when needed (with backoff), close it when
@@ -825,7 +946,7 @@ class ScuAdapter:
                 entry = p.DIRECTORY.get(read_id)
                 if read_id == data_id and entry is not None and entry.is_group and data_id not in self.single_ids:
                     self.single_ids.add(data_id)  # remembered for this unit: its members one by one from now on
-                    self.state.info["single_ids"] = sorted(f"0x{g:04X}" for g in self.single_ids)
+                    self.state.fact(P_SINGLE_IDS, tuple(sorted(f"0x{g:04X}" for g in self.single_ids)))
                     self.state.event("warning", f"the unit refused the group read 0x{data_id:04X} ({exc.info.name}): "
                                                 "its data IDs are read one by one")
                     await self._read_live(data_id)
@@ -843,10 +964,9 @@ class ScuAdapter:
     def _publish_period(self) -> None:
         gaps = self.rc_gaps()
         if gaps:
-            self.state.info["rc_period_ms"] = round(sum(gaps) / len(gaps) * 1000, 1)
-            self.state.info["rc_max_gap_ms"] = round(max(gaps) * 1000, 1)
-            self.state.publish("RC period", self.state.info["rc_period_ms"], "ms",
-                               text=f"mean {self.state.info['rc_period_ms']:g} ms, longest gap {self.state.info['rc_max_gap_ms']:g} ms")
+            mean, longest = round(sum(gaps) / len(gaps) * 1000, 1), round(max(gaps) * 1000, 1)
+            self.state.publish(P_RC_PERIOD, mean, "ms", text=f"mean {mean:g} ms, longest gap {longest:g} ms")
+            self.state.publish(P_RC_GAP, longest, "ms")
 
     # -- live points ----------------------------------------------------------------------------------
     def _publish_ids(self, values: dict[int, Any], every: float | None = None) -> None:
@@ -856,13 +976,7 @@ class ScuAdapter:
             for member, x in members.items():
                 self._publish_one(member, x, now, every)
         if 0x0010 in values or any(0x0011 <= i <= 0x0016 for i in values):
-            sample = {}
-            for s, name in zip(self.scales, self.series):
-                point = self.state.points.get(f"A{s.number} position mm" if name.endswith("[mm]") else f"A{s.number} position")
-                if point is not None and point.value is not None:
-                    sample[name] = point.value
-            if sample:
-                self.state.add_history(sample, now)
+            self.state.record_history(chart_points(self.scales), now)
 
     def _publish_one(self, data_id: int, x: Any, now: float, every: float | None = None) -> None:
         pub = self.state.publish if every is None else functools.partial(self.state.publish, every=every)
@@ -926,8 +1040,8 @@ class ScuAdapter:
                               f"{time.strftime('%H:%M:%S', time.localtime(self.controller.since))}")
         if self.controller is None:
             self.controller = Controller(session, user, time.time())
-            self.state.info["controlled_by"] = user
-            self.state.publish("Controlled by", user, periodic=False)
+            self.state.fact(P_CONTROLLED_BY, user)
+            self._publish_control()
             self.state.event("info", f"{user} took control")
 
     def controls(self, session: str) -> bool:
@@ -959,8 +1073,8 @@ class ScuAdapter:
         await self._stop_held(self.controller.session, reason)
         user = self.controller.user
         self.controller = None
-        self.state.info["controlled_by"] = None
-        self.state.publish("Controlled by", None, periodic=False, text="nobody")
+        self.state.fact(P_CONTROLLED_BY, None, text="nobody")
+        self._publish_control()
         self.state.event("info", f"control {reason} ({user})")
         return True
 
@@ -982,8 +1096,8 @@ class ScuAdapter:
         if self.controller is not None and self.controller.session == session:
             user = self.controller.user
             self.controller = None
-            self.state.info["controlled_by"] = None
-            self.state.publish("Controlled by", None, periodic=False, text="nobody")
+            self.state.fact(P_CONTROLLED_BY, None, text="nobody")
+            self._publish_control()
             self.state.event("warning", f"control released ({user}): {reason}")
 
     async def stopped(self) -> None:
@@ -1037,13 +1151,11 @@ class ScuAdapter:
                 self.estop = False
                 self._publish_estop()
             self._sync_held()
-            self.state.info["rs_pending"] = sorted(self.rs_pending)
             return True
         if fn != codec.Function.EMERGENCY_STOP:
             self.rs_pending[fn] = why
             self.running.setdefault(fn, self.running.get(fn, ""))
         self._sync_held()
-        self.state.info["rs_pending"] = sorted(self.rs_pending)
         self.state.error(f"STOP FAILED: RS {label} ({why}) was not acknowledged: {problem}. {label} stays held; "
                          "RS is sent again on every poll and when the session reopens. Use the hand switch or cut "
                          "the supply if the actuator moves")
@@ -1150,9 +1262,8 @@ class ScuAdapter:
             " (assumed: SCP11, section 5; set functions in the plant file)" if self.functions_assumed else "")
 
     def _publish_estop(self) -> None:
-        self.state.info["emergency_stop"] = self.estop
-        self.state.publish("Emergency stop", self.estop, periodic=False,
-                           text="on (function 19): released only by its explicit release" if self.estop else "off")
+        self.state.fact(P_ESTOP, self.estop,
+                        text="on (function 19): released only by its explicit release" if self.estop else "off")
 
     async def emergency_stop(self, session: str | None = None) -> str:
         """RE of function 19 (no confirmation, no control needed); every other running function gets RS."""
