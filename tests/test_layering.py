@@ -278,7 +278,6 @@ STORE_ONLY_PENDING = {
     "pages/hdlock.py": "reads info (address, fwu, identity) and the twin for its sim card",
     "pages/m3io.py": "reads info and adapter attributes (31 reads), the twin for its sim card",
     "pages/replace.py": "reads an adapter and the twins",
-    "pages/scu.py": "reads info and adapter attributes (16 reads)",
 }
 STORE_BYPASS = ("adapters", "twins", "info")
 

@@ -43,13 +43,31 @@ travel_s = 0.6
 """
 
 
+def scu_plant() -> str:
+    return f"""
+name = "t"
+[[bus]]
+name = "rs1"
+type = "serial"
+port = "socket://127.0.0.1:{free_port()}"
+timeout = 0.3
+poll_period = 0.2
+simulate = true
+[[device]]
+name = "lift"
+type = "scu"
+bus = "rs1"
+actuators = [{{ counts_per_mm = 10 }}, {{ stroke_mm = 300 }}]
+"""
+
+
 NOT_MOVED = "its page still reads adapters or info (tests/test_layering.py STORE_ONLY_PENDING)"
 FAMILIES = [
     pytest.param("mo64", "gate", mo64_plant, id="mo64"),
     pytest.param("hdlock", None, None, id="hdlock", marks=pytest.mark.skip(reason=NOT_MOVED)),
     pytest.param("electrak", None, None, id="electrak", marks=pytest.mark.skip(reason=NOT_MOVED)),
     pytest.param("m3io", None, None, id="m3io", marks=pytest.mark.skip(reason=NOT_MOVED)),
-    pytest.param("scu", None, None, id="scu", marks=pytest.mark.skip(reason=NOT_MOVED)),
+    pytest.param("scu", "lift", scu_plant, id="scu"),
 ]
 
 
