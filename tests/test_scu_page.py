@@ -152,3 +152,19 @@ async def test_drive_controls_are_off_with_the_reason_while_the_session_is_lost(
     twin.drop_line(False)
     await eventually(lambda: adapter.session == "open", timeout=10)
     await eventually(lambda: by_testid(user, "go").enabled, timeout=5)
+
+
+async def test_the_shared_sim_card_acts_on_the_scu_twin_through_the_gate(env):
+    """The twin's declared controls (ScuTwin.controls) on the shared card: an actuator error is tripped through
+    the gate and audited, and the page shows the error bit the unit then reports."""
+    user, runtime = env
+    twin = runtime.twins["lift"]
+    await user.open("/device/lift")
+    await user.should_see("Simulated SCU (demo)")
+    by_testid(user, "sim-actuator").value = "2"
+    UserInteraction(user, {by_testid(user, "sim-actuator-error")}, None).click()
+    await eventually(lambda: twin.actuators[1].errors == 1, timeout=3, what=str(user.notify.messages))
+    assert await runtime.audit.aquery(device="lift", text="simulation: actuator error actuator=2")
+    await eventually(lambda: (runtime.store.devices["lift"].point("Error code") or {}).get("value"), timeout=5)
+    UserInteraction(user, {by_testid(user, "sim-on-battery")}, None).click()  # the switch goes on
+    await eventually(lambda: not twin.mains, timeout=3)

@@ -34,6 +34,7 @@ from urllib.parse import urlparse
 
 from devices.scu import codec, params
 from devices.scu.codec import Function, Motion, Ramp, SafetyId, Status
+from devices.simcontrols import SimAction, SimControls, SimParam
 
 log = logging.getLogger(__name__)
 
@@ -210,6 +211,23 @@ class ScuTwin:
         self.requests: dict[str, int] = {}
 
     # -- demo controls ----------------------------------------------------------------------------
+    def controls(self) -> SimControls:
+        """What an engineer may do to this unit in simulation (shown by pages/simcontrols.py, through the gate)."""
+        n = len(self.actuators)
+        actuator = SimParam("actuator", "actuator", 1, 1, n)
+        return SimControls("Simulated SCU (demo)", (
+            SimAction("add load", "Add load", lambda to, amps: self.add_load(to, amps), icon="fitness_center",
+                      testid="add-load", params=(SimParam("to", "load on actuator", 1, 1, n),
+                                                 SimParam("amps", "load [A]", 3, -20, 20))),
+            SimAction("actuator error", "Trip actuator error", self.trip_actuator_error, icon="error",
+                      testid="actuator-error", params=(actuator,)),
+            SimAction("on battery", "On battery (mains off)", self.switch_to_battery, state=lambda: not self.mains,
+                      testid="on-battery"),
+            SimAction("line dropped", "Line dropped (no answers)", self.drop_line, state=lambda: self.line_dropped,
+                      testid="line-dropped"),
+        ), note="Load raises the current of a moving actuator (above 12 A it trips); an actuator error stops it fast "
+                "and sets its error bit; a dropped line ends remote mode within 500 ms.")
+
     def add_load(self, actuator: int, amps: float) -> None:
         """Add ``amps`` of load current to actuator 1..6 while it moves (negative removes load)."""
         act = self.actuators[actuator - 1]
