@@ -19,6 +19,7 @@ from __future__ import annotations
 import time
 
 from devices.scu import codec
+from devices.scu.adapter import P_FUNCTIONS, P_SCALES, P_SESSION
 
 TITLE = "Actuators out and back"
 SETTINGS = {
@@ -61,9 +62,9 @@ def _error_text(ctx) -> str:
 
 async def _take(ctx) -> None:
     await ctx.command("take control", lambda a: a.take_control(ctx.session, ctx.user))
-    if not await ctx.wait(lambda: ctx.adapter.session == "open", 5.0):
+    if not await ctx.wait(lambda: ctx.value(P_SESSION) == "open", 5.0):
         # a unit watched with RG alone opens the session for a command: the first RG of a move opens it
-        ctx.note(f"remote session {ctx.adapter.session}: opened by the first command")
+        ctx.note(f"remote session {ctx.value(P_SESSION)}: opened by the first command")
     await ctx.wait(lambda: ctx.value("Error code") is not None, 3.0)
     code = ctx.value("Error code")
     ctx.measure("Error code", code, expect=0, fail=False)
@@ -73,7 +74,7 @@ async def _take(ctx) -> None:
 
 def _function_of(ctx, n: int) -> int | None:
     """The function (fnc_ID) that drives actuator ``n`` alone (plant file, else SCP11: F(n) drives A(n))."""
-    only = [fn for fn, acts in sorted(ctx.adapter.function_actuators.items()) if acts == [n]]
+    only = [fn for fn, acts in ctx.value(P_FUNCTIONS).actuators if list(acts) == [n]]
     return only[0] if only else None
 
 
@@ -128,11 +129,11 @@ async def _out_and_back(ctx, n: int) -> None:
     if not await ctx.wait(lambda: _position(ctx, n) is not None, 3.0):
         ctx.fail(f"no position of A{n} from the unit")
     start = int(_position(ctx, n))
-    scale = ctx.adapter.scales[n - 1]
+    scale = ctx.value(P_SCALES)[n - 1]
     distance = scale.counts(s["distance_mm"]) - scale.counts(0) if scale.has_mm else int(s["distance_counts"])
     top = scale.out_counts if scale.out_counts is not None else None
     target = start + distance if top is None or start + distance <= top else start - distance
-    ctx.note(f"A{n} by {codec.FUNCTIONS[codec.Function(fn)].label} ({'assumed, SCP11' if ctx.adapter.functions_assumed else 'plant file'}): "
+    ctx.note(f"A{n} by {codec.FUNCTIONS[codec.Function(fn)].label} ({'assumed, SCP11' if ctx.value(P_FUNCTIONS).assumed else 'plant file'}): "
              f"{start} -> {target} -> {start} counts")
     ctx.measure(f"A{n} start position", start, "counts", fail=False)
     await _move(ctx, n, fn, target, "out" if target > start else "in")
