@@ -1,4 +1,9 @@
-"""HD-Lock page: status lamps, live chart, parameters, system commands, register tables."""
+"""HD-Lock page: status lamps, live chart, parameters, system commands, register tables.
+
+Reads only the live store (the registers and the facts :mod:`devices.hdlock.adapter` publishes: the
+address or device ID, the status frame, the FWU status, the locks found on the line) and invokes the
+declared commands (devices/hdlock/policy.py) through the worker's gate. Each card is a small class with
+``build()`` (in the page's layout) and ``refresh()`` (on every change the store pushes)."""
 
 from __future__ import annotations
 
@@ -7,12 +12,22 @@ import time
 from nicegui import ui
 
 from app import runtime as rt
+from app.state import DeviceState
 from devices.hdlock import codec
-from devices.hdlock.adapter import CHART_SERIES
+from devices.hdlock.adapter import (
+    HISTORY_CAN,
+    HISTORY_MODBUS,
+    P_ADDRESS,
+    P_DEVICE_ID,
+    P_FWU,
+    P_LINE_LOCKS,
+    P_STATUS_FRAME,
+)
 from devices.hdlock.params import HOLDING, INPUT, LOCK_STATUS_BITS, PARAMS
 from devices.hdlock.policy import unsaved_changes
 from devices.params import Param
 from pages.frame import fmt_age, frame, set_status_badge
+from pages.simcontrols import sim_card
 from pages.widgets import (
     HistoryChart,
     Lamp,
@@ -29,8 +44,6 @@ from pages.widgets import (
     range_number,
     refuse,
     run_command,
-    sim_action,
-    sim_card_allowed,
     write_from_page,
 )
 
@@ -39,99 +52,139 @@ DEVICE_TYPE = "hdlock"
 # the LockRequestSource shown is holding 4, the one the lock uses (section 6.5.1)
 ENUM_VALUES = ("DoorState", "StateMachineState", "MotorState", "MotorState (IR53)", "MotorResult", "LockRequestSource (HR4)")
 LAMP_KIND = {"ProximityOverrange": "warn", "ForceActive": "warn"}
-CHART_AXES = {"MotorCurrent [mA]": "y2"}  # increments on the left axis, mA on the right
+CHART_AXES = {"MotorCurrent": "y2"}  # increments on the left axis, mA on the right
 CHART_WINDOWS = (30, 300)  # the bolt moves in about half a second: 30 s by default, 5 min on demand
 # cards beside each other as the width allows, each as tall as its row (no blank area under a short one)
 CARD_GRID = "display: grid; grid-template-columns: repeat(auto-fit, minmax(420px, 1fr)); gap: 16px; width: 100%"
+# simulation actions shown elsewhere: the service swap on the replacement page, refused writes in tests
+SIM_ELSEWHERE = ("swap for a new device", "refuse writes")
+
+
+class HdLockView:
+    """What every card of one page shares: the lock's live record, its bus and the write guard."""
+
+    def __init__(self, name: str):
+        runtime = rt.current()
+        self.name = name
+        self.store = runtime.store
+        self.state: DeviceState = runtime.store.devices[name]
+        self.is_can = runtime.plant.buses[self.state.bus].type == "can"  # the plant file says how the lock is reached
+        self.guard = WriteGuard(self.state)  # every write and command button, disabled with the reason while silent
+        self.cards: list = []
+
+    def fact(self, point: str, default=None):
+        value = self.state.live(point)
+        return default if value is None or value.value is None else value.value
+
+    def add(self, card):
+        card.build()
+        if callable(getattr(card, "refresh", None)):
+            self.cards.append(card)
+        return card
+
+    def refresh(self) -> None:
+        for card in self.cards:
+            card.refresh()
 
 
 def content(name: str) -> None:
-    runtime = rt.current()
-    state = runtime.store.devices[name]
-    twin = runtime.twins.get(name)
-    is_can = getattr(runtime.worker.adapters[name], "transport", "") == "can"
+    view = HdLockView(name)
     with frame(f"HD-Lock {name}"):
-        guard = WriteGuard(state)  # every write and command button of the page, disabled with the reason while silent
-        # -- identity and health --------------------------------------------------------
-        with ui.card().classes("w-full"):
-            with ui.row().classes("items-center gap-6 w-full"):
-                badge = ui.badge("waiting", color="grey").classes("text-body2")
-                ident = ui.label().classes("text-body2")
-                seen = ui.label().classes("text-body2")
-                counter_line(state, lambda c: f"requests {c.requests} · timeouts {c.timeouts} · CRC {c.crc_errors} · "
-                             f"exceptions {c.exceptions} · write errors {c.write_errors}")
-            error = ui.label().classes("text-negative text-body2")
-
-        # -- status lamps ---------------------------------------------------------------
-        with ui.card().classes("w-full"):
-            with ui.row().classes("items-baseline gap-2"):
-                ui.label("LockStatus (holding 1000)").classes("text-subtitle1")
-                lamps_note = ui.label().classes("q-age").props("data-testid=lockstatus-quality")
-            with ui.row().classes("gap-5"):
-                lamps = {f.name: Lamp(f.name, LAMP_KIND.get(f.name, "ok"), f.description) for f in LOCK_STATUS_BITS}
-            with ui.row().classes("gap-8 q-mt-sm"):
-                enum_labels, enum_notes = {}, {}
-                for key in ENUM_VALUES:
-                    with ui.column().classes("gap-0"):
-                        ui.label(key).classes("text-caption text-grey-8")
-                        enum_labels[key] = ui.label("-").classes("text-body1 text-weight-medium")
-                        enum_labels[key].props(f'data-value="{key}"')
-                        enum_notes[key] = ui.label().classes("q-age q-ml-none")
-
+        view.add(HealthCard(view))
+        view.add(LampsCard(view))
         with ui.card().classes("w-full gap-1"):
             ui.label("Bolt, motor current and proximity").classes("text-subtitle1")
-            HistoryChart(state, list(CHART_SERIES), window_s=CHART_WINDOWS[0], axes=CHART_AXES, windows=CHART_WINDOWS)
+            HistoryChart(view.state, list(HISTORY_CAN if view.is_can else HISTORY_MODBUS), window_s=CHART_WINDOWS[0],
+                         axes=CHART_AXES, windows=CHART_WINDOWS)
         with ui.element("div").style(CARD_GRID).props("data-testid=hdlock-cards"):
-            if twin is not None:
-                _sim_controls(state, twin, is_can)
-            if is_can:
-                can_status = _can_status_card(state)
-                _can_commands_card(name, state, guard)
+            sim_card(name, skip=SIM_ELSEWHERE)
+            if view.is_can:
+                view.add(CanStatusCard(view))
+                _can_commands_card(name, view.state, view.guard)
             else:
-                can_status = None
-                _set_address_card(name, state, guard)
-                _broadcast_address_card(name, state, guard)
-
-        # -- writable parameters -----------------------------------------------------------
-        param_rows = _parameter_card(name, state, guard)
-
+                view.add(SetAddressCard(view))
+                view.add(BroadcastAddressCard(view))
+        view.add(ParameterCard(view))  # the writable parameters
         with ui.card().classes("w-full"):
             with ui.tabs() as tabs:
                 t_in = ui.tab("Input registers")
                 t_hold = ui.tab("Holding registers")
             with ui.tab_panels(tabs, value=t_in).classes("w-full"):
                 with ui.tab_panel(t_in):
-                    RegisterTable(state, PARAMS.space(INPUT))  # follows the store itself: values, ages, greyed rows
+                    RegisterTable(view.state, PARAMS.space(INPUT))  # follows the store itself: values, ages, greyed rows
                 with ui.tab_panel(t_hold):
-                    RegisterTable(state, PARAMS.space(HOLDING))
-
+                    RegisterTable(view.state, PARAMS.space(HOLDING))
         with ui.expansion("Events", icon="list", value=True).classes("w-full"):
-            event_log(state)
+            event_log(view.state)
+        view.refresh()
+        follow(view.state, view.refresh)  # on every change the store pushes (at most 10/s) and once a second for the ages
 
-        def update() -> None:
-            set_status_badge(badge, state.status, state.age)
-            serial, fw = state.value("SerialNumber"), state.value("FirmwareVersion")
-            where = f"CAN device ID {state.info.get('device_id')}" if is_can else f"Modbus address {state.info.get('address')}"
-            ident.set_text(
-                f"{where} · serial {serial if serial is not None else '-'} · firmware V{fw if fw is not None else '-'}"
-            )
-            if can_status is not None:
-                can_status()
-            seen.set_text(f"last seen {fmt_age(state.age)}")
-            error.set_text(state.last_error if state.status != "online" else "")
-            status = state.entry("LockStatus")
-            for field_name, lamp in lamps.items():
-                lamp.show(status, None if status is None else status["fields"][field_name])
-            lamps_note.set_text(_note(status))
-            for key, label in enum_labels.items():
-                entry = state.entry(key)
-                label.set_text(entry["name"] or f"undefined ({entry['value']})" if entry else "-")
-                mark_quality(label, entry["quality"] if entry else "unknown")
-                enum_notes[key].set_text(_note(entry))
-            param_rows()
 
-        update()
-        follow(state, update)  # on every change the store pushes (at most 10/s) and once a second for the ages
+class HealthCard:
+    """Address or device ID, serial, firmware, status, last seen, the line's counters and the last error."""
+
+    def __init__(self, view: HdLockView):
+        self.view = view
+
+    def build(self) -> None:
+        with ui.card().classes("w-full"):
+            with ui.row().classes("items-center gap-6 w-full"):
+                self.badge = ui.badge("waiting", color="grey").classes("text-body2")
+                self.ident = ui.label().classes("text-body2")
+                self.seen = ui.label().classes("text-body2")
+                counter_line(self.view.state, lambda c: f"requests {c.requests} · timeouts {c.timeouts} · CRC {c.crc_errors} · "
+                             f"exceptions {c.exceptions} · write errors {c.write_errors}")
+            self.error = ui.label().classes("text-negative text-body2")
+
+    def refresh(self) -> None:
+        view, state = self.view, self.view.state
+        set_status_badge(self.badge, state.status, state.age)
+        serial, fw = state.value("SerialNumber"), state.value("FirmwareVersion")
+        if view.is_can:
+            device_id = state.live(P_DEVICE_ID)
+            where = f"CAN device ID {device_id.shown if device_id is not None else None}"
+        else:
+            where = f"Modbus address {view.fact(P_ADDRESS)}"
+        self.ident.set_text(
+            f"{where} · serial {serial if serial is not None else '-'} · firmware V{fw if fw is not None else '-'}"
+        )
+        self.seen.set_text(f"last seen {fmt_age(state.age)}")
+        self.error.set_text(state.last_error if state.status != "online" else "")
+
+
+class LampsCard:
+    """LockStatus (holding 1000) as lamps, and the enumerated values with their quality."""
+
+    def __init__(self, view: HdLockView):
+        self.view = view
+
+    def build(self) -> None:
+        with ui.card().classes("w-full"):
+            with ui.row().classes("items-baseline gap-2"):
+                ui.label("LockStatus (holding 1000)").classes("text-subtitle1")
+                self.note = ui.label().classes("q-age").props("data-testid=lockstatus-quality")
+            with ui.row().classes("gap-5"):
+                self.lamps = {f.name: Lamp(f.name, LAMP_KIND.get(f.name, "ok"), f.description) for f in LOCK_STATUS_BITS}
+            with ui.row().classes("gap-8 q-mt-sm"):
+                self.labels, self.notes = {}, {}
+                for key in ENUM_VALUES:
+                    with ui.column().classes("gap-0"):
+                        ui.label(key).classes("text-caption text-grey-8")
+                        self.labels[key] = ui.label("-").classes("text-body1 text-weight-medium")
+                        self.labels[key].props(f'data-value="{key}"')
+                        self.notes[key] = ui.label().classes("q-age q-ml-none")
+
+    def refresh(self) -> None:
+        state = self.view.state
+        status = state.entry("LockStatus")
+        for field_name, lamp in self.lamps.items():
+            lamp.show(status, None if status is None else status["fields"][field_name])
+        self.note.set_text(_note(status))
+        for key, label in self.labels.items():
+            entry = state.entry(key)
+            label.set_text(entry["name"] or f"undefined ({entry['value']})" if entry else "-")
+            mark_quality(label, entry["quality"] if entry else "unknown")
+            self.notes[key].set_text(_note(entry))
 
 
 def _note(entry: dict | None) -> str:
@@ -141,120 +194,87 @@ def _note(entry: dict | None) -> str:
     return quality_note(entry["quality"], entry_age(entry))
 
 
-def _sim_controls(state, twin, is_can: bool) -> None:
-    """The twin's controls: engineers only, each action through the worker's gate and in the audit log."""
-    name = state.name
-
-    def toggled(describe: str, apply):
-        return lambda e: sim_action(name, f"{describe} {'on' if e.value else 'off'}", lambda: apply(e.value))()
-
-    with ui.card().classes("w-full bg-purple-1"):
-        ui.label("Simulated lock (demo)").classes("text-subtitle1")
-        if not sim_card_allowed():
-            return
-        if is_can:
-            rate = ui.label().classes("text-caption")
-
-            def show_rate() -> None:
-                rate.set_text(f"simulated lock runs at {twin.can_bitrate} bit/s, device ID {twin.device_id}")
-
-            show_rate()
-            follow(state, show_rate)
-        with ui.row():
-            ui.button("Close door", icon="door_front", on_click=sim_action(name, "close door", twin.close_door)).props(
-                "data-testid=sim-close")
-            ui.button("Open door", icon="meeting_room", on_click=sim_action(name, "open door", twin.open_door)).props(
-                "outline data-testid=sim-open")
-        with ui.row():
-            ui.switch("LOCK-REQUEST input active", value=twin.line_input,
-                      on_change=toggled("LOCK-REQUEST input", twin.set_line_input))
-            ui.switch("Strong magnet", value=twin.strong_magnet,
-                      on_change=toggled("strong magnet", lambda v: setattr(twin, "strong_magnet", v)))
-            ui.switch("Stop answering", value=twin.silent,
-                      on_change=toggled("stop answering", lambda v: setattr(twin, "silent", v))).props("data-testid=sim-silent")
-            if not is_can:
-                ui.switch(
-                    "Answer Set Modbus Address at the old address", value=twin.answers_address_command,
-                    on_change=toggled("answer Set Modbus Address", lambda v: setattr(twin, "answers_address_command", v)),
-                ).tooltip("Section 4.3 does not say whether the lock answers the command write; off = it stays silent")
-            if is_can:
-                ui.switch("Firmware-update mode", value=twin.fwu_mode,
-                          on_change=toggled("firmware-update mode", lambda v: setattr(twin, "fwu_mode", v)))
-                ui.button("Back to the bus bit rate", on_click=sim_action(
-                    name, "back to the bus bit rate", lambda: setattr(twin, "can_bitrate", _bus_bitrate(twin)))).props("flat dense")
-
-
-def _parameter_card(name: str, state, guard: WriteGuard):
+class ParameterCard:
     """Editable RW holding registers with validation, unsaved marks, Save/Restore-Settings."""
-    writable = [p for p in PARAMS.space(HOLDING) if p.writable]
-    rows: dict[str, tuple] = {}
-    entries: dict[str, ui.element] = {}
-    with ui.card().classes("w-full"):
-        with ui.row().classes("items-center w-full"):
-            ui.label("Parameters (RW holding registers)").classes("text-subtitle1")
-            unsaved_label = ui.badge("", color="orange")
-            ui.space()
-            save = ui.button("Save-Settings", icon="save", on_click=lambda: _save(name, state)).props("data-testid=save-settings")
-            restore = ui.button("Restore-Settings", icon="restore", on_click=lambda: _restore(name)).props(
-                "outline data-testid=restore-settings")
-            guard.add(save, restore)
-        ui.label(
-            "Writes are volatile until Save-Settings; Restore-Settings reloads the saved values and discards unsaved changes."
-        ).classes("text-caption text-grey-8")
-        # register, name, current, entry, button: the name column gives way on narrow screens
-        with ui.grid(columns="auto minmax(8rem, 1fr) minmax(6rem, 1fr) auto auto").classes("w-full items-center gap-x-4 gap-y-1"):
-            for h in ("Register", "Name", "Current", "New value", ""):
-                ui.label(h).classes("text-caption text-grey-8")
-            for p in writable:
-                ui.label(str(p.address)).classes("mono")
-                with ui.row().classes("items-center gap-1"):
-                    ui.label(p.label or p.name).tooltip(p.description)
-                    mark = ui.badge("unsaved", color="orange")
-                with ui.row().classes("items-baseline gap-0 no-wrap") as cell:
-                    current = ui.label("-").classes("mono")
-                    age = ui.label().classes("q-age")
-                if p.enum is not None:
-                    entry = ui.select({k: f"{v} ({k})" for k, v in p.enum.items()}, value=None).props("dense outlined options-dense").classes("w-64")
-                else:
-                    low, high = p.limits()
-                    entry = range_number("", low, high, unit=p.unit, integer=p.scale == 1).classes("w-48")
-                entry.props(f'data-param="{p.name}"')
-                entry.on("keydown.enter", lambda p=p, entry=entry: _write(name, p, entry))  # Enter writes, as the button does
-                button = ui.button("Write", on_click=lambda p=p, entry=entry: _write(name, p, entry)).props(f'dense data-write="{p.name}"')
-                guard.add(button)
-                rows[p.key] = (p, cell, current, age, mark)
-                entries[p.key] = entry
-    shown: dict[str, object] = {}  # the device value each field was last given
 
-    def follow_entry(key: str, p: Param, raw: int | None) -> None:
+    def __init__(self, view: HdLockView):
+        self.view = view
+        self.rows: dict[str, tuple] = {}
+        self.entries: dict[str, ui.element] = {}
+        self.shown: dict[str, object] = {}  # the device value each field was last given
+
+    def build(self) -> None:
+        name, state, guard = self.view.name, self.view.state, self.view.guard
+        with ui.card().classes("w-full"):
+            with ui.row().classes("items-center w-full"):
+                ui.label("Parameters (RW holding registers)").classes("text-subtitle1")
+                self.unsaved_label = ui.badge("", color="orange")
+                ui.space()
+                self.save = ui.button("Save-Settings", icon="save", on_click=lambda: _save(name, state)) \
+                    .props("data-testid=save-settings")
+                restore = ui.button("Restore-Settings", icon="restore", on_click=lambda: _restore(name)).props(
+                    "outline data-testid=restore-settings")
+                guard.add(self.save, restore)
+            ui.label(
+                "Writes are volatile until Save-Settings; Restore-Settings reloads the saved values and discards unsaved changes."
+            ).classes("text-caption text-grey-8")
+            # register, name, current, entry, button: the name column gives way on narrow screens
+            with ui.grid(columns="auto minmax(8rem, 1fr) minmax(6rem, 1fr) auto auto") \
+                    .classes("w-full items-center gap-x-4 gap-y-1"):
+                for h in ("Register", "Name", "Current", "New value", ""):
+                    ui.label(h).classes("text-caption text-grey-8")
+                for p in (p for p in PARAMS.space(HOLDING) if p.writable):
+                    self._row(p)
+
+    def _row(self, p: Param) -> None:
+        name = self.view.name
+        ui.label(str(p.address)).classes("mono")
+        with ui.row().classes("items-center gap-1"):
+            ui.label(p.label or p.name).tooltip(p.description)
+            mark = ui.badge("unsaved", color="orange")
+        with ui.row().classes("items-baseline gap-0 no-wrap") as cell:
+            current = ui.label("-").classes("mono")
+            age = ui.label().classes("q-age")
+        if p.enum is not None:
+            entry = ui.select({k: f"{v} ({k})" for k, v in p.enum.items()}, value=None) \
+                .props("dense outlined options-dense").classes("w-64")
+        else:
+            low, high = p.limits()
+            entry = range_number("", low, high, unit=p.unit, integer=p.scale == 1).classes("w-48")
+        entry.props(f'data-param="{p.name}"')
+        entry.on("keydown.enter", lambda p=p, entry=entry: _write(name, p, entry))  # Enter writes, as the button does
+        button = ui.button("Write", on_click=lambda p=p, entry=entry: _write(name, p, entry)).props(f'dense data-write="{p.name}"')
+        self.view.guard.add(button)
+        self.rows[p.key] = (p, cell, current, age, mark)
+        self.entries[p.key] = entry
+
+    def follow_entry(self, key: str, p: Param, raw: int | None) -> None:
         """A field shows the device's value until the engineer types; after a write, the value read back."""
         if raw is None:
             return
         value = p.decode(raw)
-        entry = entries[key]
-        if (entry.value is None and key not in shown) or entry.value in (shown.get(key), value):  # untouched
+        entry = self.entries[key]
+        if (entry.value is None and key not in self.shown) or entry.value in (self.shown.get(key), value):  # untouched
             if entry.value != value:
                 entry.value = value
-            shown[key] = value
+            self.shown[key] = value
 
-    def refresh() -> None:
-        now = time.time()
-        for key, (p, cell, current, age, mark) in rows.items():
+    def refresh(self) -> None:
+        state, now = self.view.state, time.time()
+        for key, (p, cell, current, age, mark) in self.rows.items():
             raw = state.raw(p)
             current.set_text("-" if raw is None else p.display(raw))
-            follow_entry(key, p, raw)
+            self.follow_entry(key, p, raw)
             read = state.read_time(p)
             quality = state.quality(read, state.registers_periodic, now)
             mark_quality(cell, quality)  # greyed with the age of its value while stale or offline
             age.set_text(quality_note(quality, None if read is None else now - read) if quality in ("stale", "offline") else "")
             mark.set_visibility(key in state.unsaved)
         count = len(state.unsaved)
-        unsaved_label.set_text(f"{count} unsaved change{'s' if count != 1 else ''}")
-        unsaved_label.set_visibility(count > 0)
-        if save.props.get("color") != ("orange" if count else "primary"):
-            save.props(f"color={'orange' if count else 'primary'}")
-
-    return refresh
+        self.unsaved_label.set_text(f"{count} unsaved change{'s' if count != 1 else ''}")
+        self.unsaved_label.set_visibility(count > 0)
+        if self.save.props.get("color") != ("orange" if count else "primary"):
+            self.save.props(f"color={'orange' if count else 'primary'}")
 
 
 async def _write(name: str, param: Param, entry) -> None:
@@ -338,27 +358,35 @@ async def _checked_masks(name: str, describe: str, p1, p2) -> tuple[int, int] | 
     return _parse_word(p1.value), _parse_word(p2.value)
 
 
-def _set_address_card(name: str, state, guard: WriteGuard) -> None:
+class SetAddressCard:
     """Set Modbus Address (command 3) with its two condition masks and a live preview."""
-    with ui.card().classes("w-full"):
-        ui.label("Set Modbus Address (command 3)").classes("text-subtitle1")
-        ui.label("Taken only if (P1 & LockStatus) ^ P2 == 0 (section 4.3).").classes("text-caption text-grey-8")
-        with ui.row().classes("items-center"):
-            new = range_number("New address", 1, 254, integer=True).classes("w-56")
-            p1, p2 = _mask_inputs("sa")
-        bits = ui.label().classes("text-caption")
-        preview = ui.label().classes("text-body2")
-        button = ui.button("Send Set Modbus Address", icon="pin").props("data-testid=sa-send")
-        guard.add(button)
 
-    def update_preview() -> None:
-        m, e = _parse_word(p1.value), _parse_word(p2.value)
+    def __init__(self, view: HdLockView):
+        self.view = view
+
+    def build(self) -> None:
+        with ui.card().classes("w-full"):
+            ui.label("Set Modbus Address (command 3)").classes("text-subtitle1")
+            ui.label("Taken only if (P1 & LockStatus) ^ P2 == 0 (section 4.3).").classes("text-caption text-grey-8")
+            with ui.row().classes("items-center"):
+                self.new = range_number("New address", 1, 254, integer=True).classes("w-56")
+                self.p1, self.p2 = _mask_inputs("sa")
+            self.bits = ui.label().classes("text-caption")
+            self.preview = ui.label().classes("text-body2")
+            button = ui.button("Send Set Modbus Address", icon="pin", on_click=self.send).props("data-testid=sa-send")
+            self.view.guard.add(button)
+        for element in (self.p1, self.p2):
+            element.on_value_change(self.refresh)
+
+    def refresh(self) -> None:
+        m, e = _parse_word(self.p1.value), _parse_word(self.p2.value)
+        preview = self.preview
         if m is None or e is None:
             preview.set_text("P1 and P2 must be 16-bit numbers, e.g. 0x010C")
             preview.classes(replace="text-body2 text-negative")
             return
-        bits.set_text(_condition_text(m, e))
-        status = state.value("LockStatus")
+        self.bits.set_text(_condition_text(m, e))
+        status = self.view.state.value("LockStatus")
         if status is None:
             preview.set_text("LockStatus not read yet")
             return
@@ -370,9 +398,10 @@ def _set_address_card(name: str, state, guard: WriteGuard) -> None:
         )
         preview.classes(replace="text-body2 " + ("text-positive" if ok else "text-negative"))
 
-    async def send() -> None:
-        value = await checked_value(new, name, "Set Modbus Address", parameter="DeviceAddress")
-        masks = await _checked_masks(name, "Set Modbus Address", p1, p2)
+    async def send(self) -> None:
+        name = self.view.name
+        value = await checked_value(self.new, name, "Set Modbus Address", parameter="DeviceAddress")
+        masks = await _checked_masks(name, "Set Modbus Address", self.p1, self.p2)
         if value is None or masks is None:
             return
         m, e = masks
@@ -382,12 +411,6 @@ def _set_address_card(name: str, state, guard: WriteGuard) -> None:
                                         title=f"Change the Modbus address to {target}?")
         if ok:
             ui.notify(outcome.text, type="positive" if outcome.taken else "warning", multi_line=True, close_button="OK", timeout=15000)
-
-    for element in (p1, p2):
-        element.on_value_change(update_preview)
-    button.on_click(send)
-    update_preview()
-    follow(state, update_preview)
 
 
 def _line_locks(name: str, state) -> tuple[dict[int, str], dict[str, int | None], int, int]:
@@ -399,62 +422,73 @@ def _line_locks(name: str, state) -> tuple[dict[int, str], dict[str, int | None]
     for dev in runtime.plant.devices_on(state.bus):
         if dev.type != DEVICE_TYPE:
             continue
-        address = runtime.store.devices[dev.name].info.get("address", dev.options.get("address"))
-        known[address] = dev.name
+        address = runtime.store.devices[dev.name].live(P_ADDRESS)
+        known[dev.options.get("address") if address is None else address.value] = dev.name
         status = runtime.store.devices[dev.name].value("LockStatus")
         statuses[dev.name] = None if status is None else int(status)
     in_plant = len(known)
-    for entry in state.info.get("line_discovered", []):
-        if entry["address"] not in known:
-            label = f"address {entry['address']}" + (f" (serial {entry['serial']})" if entry.get("serial") is not None else "")
-            known[entry["address"]] = label
+    found = state.live(P_LINE_LOCKS)
+    for entry in found.value if found is not None and found.value else ():
+        if entry.address not in known:
+            label = f"address {entry.address}" + (f" (serial {entry.serial})" if entry.serial is not None else "")
+            known[entry.address] = label
             statuses[label] = None
     return known, statuses, in_plant, len(known) - in_plant
 
 
-def _broadcast_address_card(name: str, state, guard: WriteGuard) -> None:
+class BroadcastAddressCard:
     """Set Modbus Address to broadcast address 255 (section 4.3): every lock on the line at once."""
-    with ui.card().classes("w-full"):
-        ui.label(f"Set Modbus Address on every lock of {state.bus} (broadcast 255)").classes("text-subtitle1")
-        ui.label(
-            "Every lock on the line gets the command and none answers; each lock whose LockStatus meets "
-            "(P1 & LockStatus) ^ P2 == 0 takes the new address (section 4.3)."
-        ).classes("text-caption text-grey-8")
-        with ui.row().classes("items-center"):
-            new = range_number("New address", 1, 254, integer=True).props("data-testid=bc-address").classes("w-56")
-            p1, p2 = _mask_inputs("bc")
-        bits = ui.label().classes("text-caption")
-        known_label = ui.label().classes("text-body2").props("data-testid=bc-known")
-        button = ui.button("Send to all locks (255)", icon="campaign").props("color=negative data-testid=bc-send")
-        guard.add(button)
 
-    def update_preview() -> None:
-        m, e = _parse_word(p1.value), _parse_word(p2.value)
-        known, statuses, in_plant, scanned = _line_locks(name, state)
+    def __init__(self, view: HdLockView):
+        self.view = view
+
+    def build(self) -> None:
+        bus = self.view.state.bus
+        with ui.card().classes("w-full"):
+            ui.label(f"Set Modbus Address on every lock of {bus} (broadcast 255)").classes("text-subtitle1")
+            ui.label(
+                "Every lock on the line gets the command and none answers; each lock whose LockStatus meets "
+                "(P1 & LockStatus) ^ P2 == 0 takes the new address (section 4.3)."
+            ).classes("text-caption text-grey-8")
+            with ui.row().classes("items-center"):
+                self.new = range_number("New address", 1, 254, integer=True).props("data-testid=bc-address").classes("w-56")
+                self.p1, self.p2 = _mask_inputs("bc")
+            self.bits = ui.label().classes("text-caption")
+            self.known = ui.label().classes("text-body2").props("data-testid=bc-known")
+            button = ui.button("Send to all locks (255)", icon="campaign", on_click=self.send) \
+                .props("color=negative data-testid=bc-send")
+            self.view.guard.add(button)
+        for element in (self.p1, self.p2):
+            element.on_value_change(self.refresh)
+
+    def refresh(self) -> None:
+        state = self.view.state
+        m, e = _parse_word(self.p1.value), _parse_word(self.p2.value)
+        known, statuses, in_plant, scanned = _line_locks(self.view.name, state)
         listed = ", ".join(f"{label} @{address}" if not label.startswith("address") else label for address, label in sorted(known.items()))
         text = f"{len(known)} lock{'s' if len(known) != 1 else ''} known on {state.bus} ({in_plant} in the plant, {scanned} found by a scan): {listed}"
         if m is None or e is None:
-            bits.set_text("P1 and P2 must be 16-bit numbers, e.g. 0x010C")
+            self.bits.set_text("P1 and P2 must be 16-bit numbers, e.g. 0x010C")
         else:
-            bits.set_text(_condition_text(m, e))
+            self.bits.set_text(_condition_text(m, e))
             takers, unknown = codec.broadcast_takers(m, e, statuses)
             text += f". By the last LockStatus read: {', '.join(takers) or 'none'} would take it"
             if unknown:
                 text += f"; unknown for {', '.join(unknown)}"
-        known_label.set_text(text)
+        self.known.set_text(text)
 
-    async def send() -> None:
-        describe = "Broadcast Set Modbus Address (255)"
-        value = await checked_value(new, name, describe, parameter="DeviceAddress")
-        masks = await _checked_masks(name, describe, p1, p2)
+    async def send(self) -> None:
+        name, bus, describe = self.view.name, self.view.state.bus, "Broadcast Set Modbus Address (255)"
+        value = await checked_value(self.new, name, describe, parameter="DeviceAddress")
+        masks = await _checked_masks(name, describe, self.p1, self.p2)
         if value is None or masks is None:
             return
         m, e = masks
         target = int(value)
-        known, statuses, in_plant, scanned = _line_locks(name, state)
+        known, statuses, in_plant, scanned = _line_locks(name, self.view.state)
         if target in known:
-            new.error = f"address {target} is {known[target]}: choose an address no lock uses"
-            await refuse(name, describe, new.error, parameter="DeviceAddress", new=target)
+            self.new.error = f"address {target} is {known[target]}: choose an address no lock uses"
+            await refuse(name, describe, self.new.error, parameter="DeviceAddress", new=target)
             return
         takers, unknown = codec.broadcast_takers(m, e, statuses)
         if len(takers) > 1:
@@ -465,8 +499,8 @@ def _broadcast_address_card(name: str, state, guard: WriteGuard) -> None:
             return
         count = len(known)
         if not await confirm(
-            f"Up to {count} lock{'s' if count != 1 else ''} on {state.bus} may take address {target}",
-            f"{count} lock{'s' if count != 1 else ''} known on {state.bus} may be affected ({in_plant} in the plant, "
+            f"Up to {count} lock{'s' if count != 1 else ''} on {bus} may take address {target}",
+            f"{count} lock{'s' if count != 1 else ''} known on {bus} may be affected ({in_plant} in the plant, "
             f"{scanned} found by a scan): {', '.join(sorted(known.values()))}. Every lock whose LockStatus meets the "
             f"condition ({_condition_text(m, e)}) takes address {target} at once; by the last status read "
             f"{', '.join(takers) or 'none of them'} would"
@@ -481,45 +515,27 @@ def _broadcast_address_card(name: str, state, guard: WriteGuard) -> None:
                                         args={"new_address": target, "mask": m, "expected": e, "known": known})
         if ok:
             ui.notify(outcome.text, type="positive" if outcome.taken else "warning", multi_line=True, close_button="OK", timeout=20000)
-        update_preview()
-
-    for element in (p1, p2):
-        element.on_value_change(update_preview)
-    button.on_click(send)
-    update_preview()
-    follow(state, update_preview)
+        self.refresh()
 
 
-def _bus_bitrate(twin) -> int:
-    runtime = rt.current()
-    for server in runtime.sim.servers if runtime.sim else []:
-        if twin in getattr(server, "twins", {}).values() and hasattr(server, "bitrate"):
-            return server.bitrate
-    return codec.CAN_DEFAULT_BITRATE
+class CanStatusCard:
+    """What the periodic status frame (section 6.5.1) and FWU status (6.5.2) say, as the adapter publishes it."""
 
+    def __init__(self, view: HdLockView):
+        self.view = view
 
-def _can_status_card(state):
-    """What the periodic status frame (section 6.5.1) and FWU status (6.5.2) say."""
-    with ui.card().classes("w-full"):
-        ui.label("CAN status frame (every 1000 ms)").classes("text-subtitle1")
-        text = ui.label("no status frame yet").classes("text-body2 mono")
-        fwu = ui.label().classes("text-body2 text-warning")
+    def build(self) -> None:
+        with ui.card().classes("w-full"):
+            ui.label("CAN status frame (every 1000 ms)").classes("text-subtitle1")
+            self.text = ui.label("no status frame yet").classes("text-body2 mono")
+            self.fwu = ui.label().classes("text-body2 text-warning")
 
-    def refresh() -> None:
-        frame = state.info.get("can_status")
-        if frame is not None:
-            source = PARAMS.by_name["LockRequestSource"].enum.get(frame.lock_request_source, "?")
-            text.set_text(
-                f"Status 0x{frame.status:04X} · motorPos {frame.motor_pos} Inc · proximity {frame.proximity} Inc"
-                f" · LockRequestSource 0x{frame.lock_request_source:02X} {source}"
-            )
-        f = state.info.get("fwu")
-        fwu.set_text(
-            "" if f is None else f"FWU status: firmware-update mode, {'flashing' if f.flashing else 'not flashing'}, "
-            f"{'application' if f.application else 'boot loader'} (no status frames meanwhile)"
-        )
-
-    return refresh
+    def refresh(self) -> None:
+        status = self.view.state.live(P_STATUS_FRAME)
+        if status is not None:
+            self.text.set_text(status.shown)
+        fwu = self.view.state.live(P_FWU)
+        self.fwu.set_text("" if fwu is None or fwu.value is None else fwu.shown)
 
 
 def _can_commands_card(name: str, state, guard: WriteGuard) -> None:

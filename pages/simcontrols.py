@@ -10,10 +10,11 @@ from devices.simcontrols import SimAction, SimControls
 from pages.widgets import sim_action, sim_card_allowed
 
 
-def sim_card(device: str) -> None:
-    """The purple "Simulated ..." card of ``device``; nothing when the device is not simulated here."""
+def sim_card(device: str, only: tuple[str, ...] = (), skip: tuple[str, ...] = ()) -> None:
+    """The purple "Simulated ..." card of ``device``; nothing when the device is not simulated here.
+    ``only``: just these actions (by name); ``skip``: all but these."""
     controls = rt.current().sim_controls(device)
-    if controls is None:
+    if controls is None or (only and not any(a.name in only for a in controls.actions)):
         return
     with ui.card().classes("w-full bg-purple-1").props("data-testid=sim-card"):
         ui.label(controls.title).classes("text-subtitle1")
@@ -23,6 +24,8 @@ def sim_card(device: str) -> None:
             return
         with ui.row().classes("items-center gap-3"):
             for action in controls.actions:
+                if (only and action.name not in only) or action.name in skip:
+                    continue
                 _control(device, controls, action)
 
 

@@ -10,7 +10,7 @@ from conftest import modbus_plant, wait_for
 from app.modbus_line import LineException, LineTimeout
 from app.runtime import Runtime
 from app.worker import PermissionDenied
-from devices.hdlock.adapter import CommandError, discover
+from devices.hdlock.adapter import P_ADDRESS, P_LINE_LOCKS, CommandError, discover
 from devices.hdlock.params import PARAMS
 
 
@@ -51,7 +51,7 @@ async def test_door_closes_and_bolt_locks(running):
     # input registers are read before holding 1000 in a poll: BoltPosition follows one poll later
     assert await wait_for(lambda: state.value("BoltPosition") >= 100, timeout=2)
     assert await wait_for(lambda: state.value("StateMachineState") == 4, timeout=3)  # Locked
-    assert any(sample["MotorCurrent [mA]"] for _, sample in state.history)
+    assert any(sample["MotorCurrent"] for _, sample in state.history)
 
 
 async def test_write_reads_back_and_marks_unsaved(running):
@@ -134,7 +134,7 @@ async def test_set_address_accepted(running, answers):
     assert outcome.answered_old is answers
     assert "answers at address 8" in outcome.text
     assert twin.address == 8 and adapter.address == 8
-    assert state.info["address"] == 8
+    assert state.live(P_ADDRESS).value == 8
     assert PARAMS.get("holding", 103).key in state.unsaved
     assert state.counters.timeouts == 0  # the expected silence is no fault of the lock
     state.online = None
@@ -297,7 +297,7 @@ async def test_scan_results_reach_the_state_store(running):
     """Locks found by a scan of the line are listed on every lock of that line (for the broadcast count)."""
     state = await online(running)
     await running.worker.discover("line1", 1, 3)
-    assert await wait_for(lambda: [d["address"] for d in state.info.get("line_discovered", [])] == [1, 2], timeout=3)
+    assert await wait_for(lambda: [d.address for d in (state.live(P_LINE_LOCKS).value if state.live(P_LINE_LOCKS) else ())] == [1, 2], timeout=3)
 
 
 async def test_timeout_when_twin_silent_and_recovery(running):

@@ -12,7 +12,7 @@ from conftest import free_udp_port, sim_process, wait_for
 from app.plant import DeviceConfig, parse_plant
 from app.runtime import Runtime
 from devices.hdlock import codec
-from devices.hdlock.adapter import CommandError
+from devices.hdlock.adapter import P_FWU, P_STATUS_FRAME, CommandError
 from devices.hdlock.params import PARAMS
 
 # -- codec -------------------------------------------------------------------------------------
@@ -177,7 +177,7 @@ async def online(runtime, name="gate-1"):
 async def test_status_and_registers_over_can(running):
     state = await online(running)
     assert state.value("SerialNumber") == 660100
-    assert state.info["can_status"].status == state.value("LockStatus")
+    assert state.live(P_STATUS_FRAME).value.status == state.value("LockStatus")
     assert state.value("SettingsProximityThresholdUnlock") == -30
     gate2 = await online(running, "gate-2")
     assert gate2.value("SerialNumber") == 660101
@@ -187,9 +187,9 @@ async def test_status_and_registers_over_can(running):
 async def test_door_closing_seen_in_status_frames(running):
     state = await online(running)
     running.twins["gate-1"].close_door()
-    assert await wait_for(lambda: state.info["can_status"].bits["BoltLocked"], timeout=6)
-    assert state.info["can_status"].motor_pos >= 100
-    assert state.info["can_status"].proximity < 30
+    assert await wait_for(lambda: state.live(P_STATUS_FRAME).value.bits["BoltLocked"], timeout=6)
+    assert state.live(P_STATUS_FRAME).value.motor_pos >= 100
+    assert state.live(P_STATUS_FRAME).value.proximity < 30
 
 
 async def test_unknown_lock_is_discovered_and_adopted(running):
@@ -234,9 +234,9 @@ async def test_set_lock_request_source_command(running):
     assert PARAMS.get("holding", 4).key in state.unsaved  # volatile until Save-Settings (section 3)
     # the status frame reports holding 4 (0x80 taken off the proximity with ForceActive, SPEC-NOTES), and the bolt follows it
     twin.set_line_input(False)  # IrsAlways does not need the input, nor the door (0x80)
-    assert await wait_for(lambda: state.info["can_status"].lock_request_source == 0x81, timeout=3)
-    assert state.info["can_status"].proximity == twin.input[7]
-    assert await wait_for(lambda: state.info["can_status"].bits["BoltLocked"], timeout=4)
+    assert await wait_for(lambda: state.live(P_STATUS_FRAME).value.lock_request_source == 0x81, timeout=3)
+    assert state.live(P_STATUS_FRAME).value.proximity == twin.input[7]
+    assert await wait_for(lambda: state.live(P_STATUS_FRAME).value.bits["BoltLocked"], timeout=4)
 
 
 async def test_set_lock_request_source_refused_is_reported(running):
@@ -315,8 +315,8 @@ async def test_set_bitrate_leaves_the_bus(running):
 async def test_fwu_status_is_shown(running):
     state = await online(running)
     running.twins["gate-1"].fwu_mode = True
-    assert await wait_for(lambda: state.info.get("fwu") is not None, timeout=3)
-    assert not state.info["fwu"].flashing
+    assert await wait_for(lambda: state.live(P_FWU) is not None and state.live(P_FWU).value is not None, timeout=3)
+    assert not state.live(P_FWU).value.flashing
 
 
 async def test_malformed_frame_is_counted_not_fatal(running):

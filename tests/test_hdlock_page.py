@@ -130,6 +130,6 @@ async def test_set_address_from_the_page_reports_the_outcome_from_the_new_addres
 
     await user.should_see("the lock answers at address 8 now (no answer to the command at address 1, as expected)", retries=60)
     assert env.twin("door-1").address == 8
-    assert env.state("door-1").info["address"] == 8
+    assert env.state("door-1").live("Modbus address").value == 8
     entries = env.runtime.audit.query(device="door-1", text="Set Modbus Address 8")
     assert entries and entries[0].result == "ok" and entries[0].old == "1" and entries[0].new == "8"

@@ -275,7 +275,6 @@ STORE_ONLY_PENDING = {
     "pages/backup.py": "probes adapters for backup and restore (issue 27: the adapter Protocols)",
     "pages/electrak.py": "reads info (errors, motion, actuators) and the twin for its sim card",
     "pages/fleet.py": "reads an adapter",
-    "pages/hdlock.py": "reads info (address, fwu, identity) and the twin for its sim card",
     "pages/m3io.py": "reads info and adapter attributes (31 reads), the twin for its sim card",
     "pages/replace.py": "reads an adapter and the twins",
 }

@@ -43,6 +43,42 @@ travel_s = 0.6
 """
 
 
+def hdlock_plant() -> str:
+    return f"""
+name = "t"
+[[bus]]
+name = "line1"
+type = "modbus-rtu"
+port = "socket://127.0.0.1:{free_port()}"
+timeout = 0.2
+retries = 0
+poll_period = 0.1
+simulate = true
+[[device]]
+name = "door-1"
+type = "hdlock"
+bus = "line1"
+address = 1
+"""
+
+
+def hdlock_can_plant() -> str:
+    return f"""
+name = "t"
+[[bus]]
+name = "can1"
+type = "can"
+interface = "virtual"
+channel = "parity-{free_port()}"
+simulate = true
+[[device]]
+name = "gate-1"
+type = "hdlock"
+bus = "can1"
+device_id = 11
+"""
+
+
 def scu_plant() -> str:
     return f"""
 name = "t"
@@ -64,7 +100,8 @@ actuators = [{{ counts_per_mm = 10 }}, {{ stroke_mm = 300 }}]
 NOT_MOVED = "its page still reads adapters or info (tests/test_layering.py STORE_ONLY_PENDING)"
 FAMILIES = [
     pytest.param("mo64", "gate", mo64_plant, id="mo64"),
-    pytest.param("hdlock", None, None, id="hdlock", marks=pytest.mark.skip(reason=NOT_MOVED)),
+    pytest.param("hdlock", "door-1", hdlock_plant, id="hdlock"),
+    pytest.param("hdlock", "gate-1", hdlock_can_plant, id="hdlock-can"),
     pytest.param("electrak", None, None, id="electrak", marks=pytest.mark.skip(reason=NOT_MOVED)),
     pytest.param("m3io", None, None, id="m3io", marks=pytest.mark.skip(reason=NOT_MOVED)),
     pytest.param("scu", "lift", scu_plant, id="scu"),

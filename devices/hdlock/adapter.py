@@ -14,11 +14,44 @@ from devices.live import DeviceState
 from devices.params import Param, ParamError, backup_entry
 from devices.transport import CanTransport, LineCrcError, LineError, LineException, LineTimeout, ModbusTransport
 
-CHART_SERIES = {  # chart label -> parameter name
-    "BoltPosition [Inc]": "BoltPosition",
-    "MotorCurrent [mA]": "MotorCurrent",
-    "Proximity [Inc]": "Calculated proxi (normalized)",
-}
+# -- published facts (DeviceState.fact): every fact the page shows besides the registers ----------------
+P_ADDRESS = "Modbus address"  # the address this tool talks to (a number; changes with Set Modbus Address)
+P_LINE_LOCKS = "Locks found on the line"  # FoundLock records of the scans of this lock's Modbus line
+P_DEVICE_ID = "CAN device ID"  # the device ID it answers under (value; text with std/ext and hex)
+P_STATUS_FRAME = "Status frame"  # the last periodic status (section 6.5.1), a codec.StatusFrame record
+P_FWU = "FWU status"  # firmware-update status (section 6.5.2): a codec.FwuStatusFrame record, or None
+P_PROXIMITY_FRAME = "Proximity (status frame)"
+P_SOURCE_FRAME = "LockRequestSource (status frame, low 6 bits)"
+
+# the chart's quantities, sampled by their own names (register parameters and points alike)
+HISTORY_MODBUS = ("BoltPosition", "MotorCurrent", "Calculated proxi (normalized)")
+HISTORY_CAN = (STATUS_FRAME_BOLT, "MotorCurrent", P_PROXIMITY_FRAME)
+
+
+@dataclass(frozen=True, slots=True)
+class FoundLock:
+    """A lock found by a scan of a Modbus line (discover()): its address, serial number and how it was found."""
+
+    address: int
+    serial: int | None = None
+    via: str = "scan"
+
+
+def _sample(state: DeviceState, names: tuple[str, ...]) -> dict:
+    """One chart sample keyed by the quantities' own names (a point's value, else the parameter's)."""
+    return {n: state.points[n].value if n in state.points else state.value(n) for n in names}
+
+
+def status_frame_text(frame: codec.StatusFrame) -> str:
+    source = PARAMS.by_name["LockRequestSource"].enum.get(frame.lock_request_source, "?")
+    return (f"Status 0x{frame.status:04X} · motorPos {frame.motor_pos} Inc · proximity {frame.proximity} Inc"
+            f" · LockRequestSource 0x{frame.lock_request_source:02X} {source}")
+
+
+def fwu_text(frame: codec.FwuStatusFrame | None) -> str:
+    return "" if frame is None else (
+        f"FWU status: firmware-update mode, {'flashing' if frame.flashing else 'not flashing'}, "
+        f"{'application' if frame.application else 'boot loader'} (no status frames meanwhile)")
 
 
 def _arrival(msg) -> float:
@@ -114,7 +147,8 @@ class HdLockAdapter(HdLockBackup):
         self.address: int = config.options["address"]
         self.blocks = {space: PARAMS.blocks(space) for space in (INPUT, HOLDING)}
         self.state.params = PARAMS
-        self.state.info["address"] = self.address
+        self.state.fact(P_ADDRESS, self.address)
+        self.state.fact(P_LINE_LOCKS, ())  # none found by a scan of the line yet
         self._fails = 0
         self._changing_address = False  # polling waits while the address is being changed
         _LINE_LOCKS.setdefault(line, weakref.WeakSet()).add(self)
@@ -124,7 +158,8 @@ class HdLockAdapter(HdLockBackup):
         """Read every register block once; one failed block marks the cycle failed."""
         scans = _LINE_SCANS.get(self.line)
         if scans is not None:
-            self.state.info["line_discovered"] = [dict(entry) for _address, entry in sorted(scans.items())]
+            self.state.fact(P_LINE_LOCKS, tuple(FoundLock(e["address"], e.get("serial"), e.get("via", "scan"))
+                                                for _address, e in sorted(scans.items())))
         try:
             for space in (INPUT, HOLDING):
                 for start, count in self.blocks[space]:
@@ -145,7 +180,7 @@ class HdLockAdapter(HdLockBackup):
         if self._fails:
             self.state.event("info", f"answering again at address {self.address}")
         self._fails = 0
-        self.state.add_history({label: self.state.value(name) for label, name in CHART_SERIES.items()})
+        self.state.add_history(_sample(self.state, HISTORY_MODBUS))
 
     # -- writes -------------------------------------------------------------------------
     async def write_param(self, param: Param, value, *, confirmed: bool = False) -> int:
@@ -361,7 +396,7 @@ class HdLockAdapter(HdLockBackup):
 
     def _moved_to(self, old: int, new: int) -> None:
         self.address = new
-        self.state.info["address"] = new
+        self.state.fact(P_ADDRESS, new)
         self.state.update_registers(HOLDING, codec.REG_DEVICE_ADDRESS, [new])
         self.state.unsaved.add(PARAMS.get(HOLDING, codec.REG_DEVICE_ADDRESS).key)
         self._fails = 0
@@ -454,7 +489,7 @@ class HdLockCanAdapter(HdLockBackup):
     # -- frames ----------------------------------------------------------------------------
     def _subscribe(self) -> None:
         self.bus.subscribe(self.device_id.extended, self.device_id.value, self.on_frame)
-        self.state.info["device_id"] = str(self.device_id)
+        self.state.fact(P_DEVICE_ID, self.device_id.value, text=str(self.device_id), raw=self.device_id.to_u32())
 
     def on_frame(self, msg) -> None:
         """Every frame under this lock's device ID (called in the event loop)."""
@@ -466,28 +501,23 @@ class HdLockCanAdapter(HdLockBackup):
             return
         state = self.state
         if isinstance(frame, codec.StatusFrame):
-            state.info["can_status"] = frame
-            state.info["fwu"] = None
+            arrival = _arrival(msg)
+            state.publish(P_STATUS_FRAME, frame, time=arrival, text=status_frame_text(frame))
+            state.fact(P_FWU, None, text="")
             state.update_registers(HOLDING, 1000, [frame.status])
             state.update_registers(HOLDING, 1001, [frame.motor_pos])
-            state.info["proximity"] = frame.proximity
-            state.info["lock_request_source_low6"] = frame.lock_request_source
             # the third status word as sent: (proximity << 6) + LockRequestSource (section 6.5.1; SPEC-NOTES:
             # a source of 0x80-0x87 comes with ForceActive and is taken off before the split)
             word = ((frame.proximity << 6) + frame.lock_request_source) & 0xFFFF
-            state.publish("Proximity (status frame)", frame.proximity, "Inc", raw=word)
+            state.publish(P_PROXIMITY_FRAME, frame.proximity, "Inc", raw=word)
             # motorPos (section 6.5.1), with the time the frame arrived: tiles show it rather than the slower register poll
-            state.publish(STATUS_FRAME_BOLT, frame.motor_pos, "Inc", raw=frame.motor_pos, time=_arrival(msg))
+            state.publish(STATUS_FRAME_BOLT, frame.motor_pos, "Inc", raw=frame.motor_pos, time=arrival)
             state.counters.responses += 1  # a frame heard, as the other CAN devices count them
-            state.publish("LockRequestSource (status frame, low 6 bits)", frame.lock_request_source, raw=word,
+            state.publish(P_SOURCE_FRAME, frame.lock_request_source, raw=word,
                           text=codec.LOCK_REQUEST_SOURCE.get(frame.lock_request_source, f"undefined ({frame.lock_request_source})"))
-            state.add_history({
-                "BoltPosition [Inc]": frame.motor_pos,
-                "MotorCurrent [mA]": state.value("MotorCurrent"),
-                "Proximity [Inc]": frame.proximity,
-            })
+            state.add_history(_sample(state, HISTORY_CAN))
         elif isinstance(frame, codec.FwuStatusFrame):
-            state.info["fwu"] = frame
+            state.fact(P_FWU, frame, text=fwu_text(frame))
             state.mark_seen()
         else:
             state.counters.responses += 1

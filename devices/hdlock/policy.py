@@ -208,7 +208,13 @@ def _save_audit(args, adapter) -> dict:
 
 def _address_audit(args, adapter) -> dict:
     return {"action": f"Set Modbus Address {args['new_address']}", "parameter": "DeviceAddress",
-            "old": adapter.state.info.get("address", ""), "new": args["new_address"]}
+            "old": _fact(adapter.state, "Modbus address", ""), "new": args["new_address"]}
+
+
+def _fact(state, point: str, default):
+    """A published fact's value (devices/hdlock/adapter.py P_ADDRESS and the like), else ``default``."""
+    value = state.points.get(point)
+    return default if value is None or value.value is None else value.value
 
 
 def _broadcast_audit(args, adapter) -> dict:

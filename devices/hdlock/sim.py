@@ -25,6 +25,7 @@ from pymodbus.server import ModbusTcpServer
 from devices.hdlock import codec
 from devices.hdlock.params import HOLDING, INPUT, LOCK_REQUEST_SOURCE, PARAMS
 from devices.params import Access
+from devices.simcontrols import SimAction, SimControls, SimParam
 
 log = logging.getLogger(__name__)
 
@@ -79,6 +80,11 @@ class HdLockTwin:
         # Section 4.3 does not say whether the lock answers the write of 2003 (Set Modbus Address)
         # at its old address: False stays silent, True answers there. Tests run both.
         self.answers_address_command = False
+        # on a CAN bus (HdLockCanSim sets them): the ID it answers under, the bit rate it runs at and the bus's
+        self.device_id: codec.DeviceId | None = None
+        self.can_bitrate: int | None = None
+        self.bus_bitrate: int | None = None
+        self.fwu_mode = False  # firmware-update mode: FWU status instead of status (CAN)
         self.max_time = {"lock": 0, "unlock": 0}
         self._move_start: float | None = None
         self.step(0.0)
@@ -166,6 +172,46 @@ class HdLockTwin:
 
     def set_line_input(self, active: bool) -> None:
         self.line_input = active
+
+    def controls(self) -> SimControls:
+        """What an engineer may do to this lock in simulation (shown by pages/simcontrols.py); the service
+        swap and the refused writes are what the replacement assistant and batch apply are tried with."""
+        can = self.device_id is not None
+
+        def switch(name: str, label: str, attribute: str, testid: str = "") -> SimAction:
+            return SimAction(name, label, lambda on: setattr(self, attribute, on),
+                             state=lambda: bool(getattr(self, attribute)), testid=testid)
+
+        actions = [
+            SimAction("close door", "Close door", self.close_door, icon="door_front", testid="close"),
+            SimAction("open door", "Open door", self.open_door, icon="meeting_room", testid="open"),
+            switch("LOCK-REQUEST input", "LOCK-REQUEST input active", "line_input", "line-input"),
+            switch("strong magnet", "Strong magnet", "strong_magnet", "strong-magnet"),
+            switch("stop answering", "Stop answering", "silent", "silent"),
+        ]
+        if can:
+            actions += [switch("firmware-update mode", "Firmware-update mode", "fwu_mode", "fwu"),
+                        SimAction("back to the bus bit rate", "Back to the bus bit rate", self.back_to_bus_bitrate,
+                                  testid="bus-bitrate")]
+        else:
+            actions.append(switch("answer Set Modbus Address", "Answer Set Modbus Address at the old address",
+                                  "answers_address_command", "answer-address"))
+        actions += [
+            switch("refuse writes", "Refuse every write (exception 04)", "refuse_writes", "refuse-writes"),
+            SimAction("swap for a new device", "Swap for a new device",
+                      lambda **args: self.swap_for_new(args["new-serial"]), icon="swap_horiz", testid="swap",
+                      params=(SimParam("new-serial", "New serial number", min(self.serial + 100000, 0xFFFFFFFF),
+                                       1, 0xFFFFFFFF),)),
+        ]
+        note = (f"simulated lock runs at {self.can_bitrate} bit/s, device ID {self.device_id}. " if can else "") + (
+            "Answer Set Modbus Address: section 4.3 does not say whether the lock answers the command write; "
+            "off = it stays silent. " if not can else "") + \
+            "Swap puts a factory-new unit with this serial number at the same address."
+        return SimControls("Simulated lock (demo)", tuple(actions), note=note)
+
+    def back_to_bus_bitrate(self) -> None:
+        """After cmdSetCANbaudrate: the lock runs at the bus's bit rate again (as if switched back by hand)."""
+        self.can_bitrate = self.bus_bitrate or codec.CAN_DEFAULT_BITRATE
 
     # -- physics -----------------------------------------------------------------------
     def step(self, dt: float) -> None:
@@ -415,7 +461,7 @@ class HdLockCanSim:
             twin = HdLockTwin(address=1, serial=serial, door_closed=dev.options.get("door", "open") == "closed", name=dev.name)
             twin.device_id = device_id
             twin.can_bitrate = self.bitrate  # cmdSetCANbaudrate changes it: the lock then leaves this bus
-            twin.fwu_mode = False  # firmware-update mode: FWU status instead of status
+            twin.bus_bitrate = self.bitrate
             twin.status_phase = n * 0.137  # the locks' status frames do not all come at once
             self.twins[dev.name] = twin
         options = {k: v for k, v in bus.options.items() if k != "simulate"}
