@@ -79,7 +79,8 @@ def test_the_scu_page_invokes_commands_by_name_without_write_flags():
     flags = [n.lineno for n in ast.walk(tree) if isinstance(n, ast.keyword) and n.arg == "write"]
     assert flags == [], f"write= flags in pages/scu.py at lines {flags}"
     declared = set(commands_of("scu"))
-    named = {n.args[0].value for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", "") == "act"
+    named = {n.args[0].value for n in ast.walk(tree) if isinstance(n, ast.Call)
+             and (getattr(n.func, "id", "") or getattr(n.func, "attr", "")) == "act"
              and n.args and isinstance(n.args[0], ast.Constant)}
     assert named and named <= declared, named - declared
 
