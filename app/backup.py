@@ -74,6 +74,32 @@ async def nothing_to_back_up(adapter: Any) -> str:
     return "this device type has no parameters to back up"
 
 
+# -- what pages ask of a device by name (they never hold an adapter: ARCHITECTURE.md rule 5) ----------------
+def device_backs_up(runtime, name: str) -> bool:
+    """Device ``name`` takes part in backup and restore and has something to back up (:func:`supports_backup`)."""
+    return supports_backup(runtime.worker.adapters.get(name))
+
+
+def backup_devices(runtime) -> list[str]:
+    """The plant's devices that take part in backup, in the plant's order."""
+    return [name for name in runtime.store.devices if device_backs_up(runtime, name)]
+
+
+async def why_nothing_to_back_up(runtime, name: str) -> str:
+    """:func:`nothing_to_back_up` of device ``name``."""
+    return await nothing_to_back_up(runtime.worker.adapters.get(name))
+
+
+def restore_refused(runtime, name: str) -> str:
+    """Why device ``name``'s type takes no restore (its backup is a record only), or ""."""
+    return getattr(runtime.worker.adapters.get(name), "restore_refused", "") or ""
+
+
+def restore_wear(runtime, name: str) -> str:
+    """What each restored write costs device ``name`` (an EEPROM's wear), or ""."""
+    return getattr(runtime.worker.adapters.get(name), "restore_wear", "") or ""
+
+
 def make_document(plant: str, device: str, device_type: str, bus: str, identity: dict, entries: list[dict], now: float | None = None,
                   *, user: str = "", role: str = "") -> dict:
     when = datetime.fromtimestamp(now or time.time(), tz=timezone.utc)

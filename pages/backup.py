@@ -57,8 +57,8 @@ def _files(directory: Path) -> list[dict]:
 def content() -> None:
     runtime = rt.current()
     directory = runtime.backups_dir
-    devices = [name for name, a in runtime.worker.adapters.items() if backup.supports_backup(a)]
-    without = [name for name in runtime.worker.adapters if name not in devices]
+    devices = backup.backup_devices(runtime)
+    without = [name for name in runtime.store.devices if name not in devices]
     with frame("Backup and restore"):
         ui.label(f"Backups are written to {directory}").classes("text-caption text-grey-8")
         with ui.card().classes("w-full"):
@@ -103,7 +103,7 @@ def content() -> None:
 
     async def explain_left_out() -> None:
         for name in without:
-            reason = (await backup.nothing_to_back_up(runtime.worker.adapters[name])).removeprefix("nothing to back up: ")
+            reason = (await backup.why_nothing_to_back_up(runtime, name)).removeprefix("nothing to back up: ")
             with reasons:
                 ui.label(f"{name} ({runtime.store.devices[name].type}): nothing to back up: {reason}").classes(
                     "text-body2 text-grey-8")
@@ -179,7 +179,7 @@ class RestoreFlow:
         self.document = document
         self.plan: backup.RestorePlan | None = None
         dtype = document["device"].get("type")
-        candidates = [n for n, s in runtime.store.devices.items() if s.type == dtype and backup.supports_backup(runtime.worker.adapters[n])]
+        candidates = [n for n, s in runtime.store.devices.items() if s.type == dtype and backup.device_backs_up(runtime, n)]
         default = document["device"].get("name") if document["device"].get("name") in candidates else (candidates[0] if candidates else None)
         with ui.card().classes("w-full").style("scroll-margin-top: 72px").props("data-testid=restore-card") as self.card:
             ui.label(f"Restore from {source}").classes("text-subtitle1")
@@ -192,7 +192,7 @@ class RestoreFlow:
             if not candidates:
                 ui.label(f"This plant has no {dtype!r}: the backup cannot be restored here.").classes("text-negative")
                 return
-            refused = getattr(runtime.worker.adapters[candidates[0]], "restore_refused", "")
+            refused = backup.restore_refused(runtime, candidates[0])
             if refused:  # the device type keeps a snapshot for the record, but takes nothing back
                 ui.label(f"A {dtype} backup is a record, not restorable: {refused}").classes("text-body1 text-grey-9")
                 return
@@ -252,7 +252,7 @@ class RestoreFlow:
         if not to_write:
             ui.notify("No differing parameter is selected", type="warning")
             return
-        wear = getattr(self.runtime.worker.adapters[self.plan.device], "restore_wear", "")
+        wear = backup.restore_wear(self.runtime, self.plan.device)
         wear_text = f"Note: {wear}: this restore makes {_count(len(to_write), 'such write')}." if wear else ""
         state = self.runtime.store.devices[self.plan.device]
         others = backup.unsaved_lines(state, skip={r.key for r in to_write})

@@ -35,7 +35,7 @@ def content() -> None:
     runtime = rt.current()
     by_type: dict[str, list[str]] = {}
     for name, state in runtime.store.devices.items():
-        if backup.supports_backup(runtime.worker.adapters.get(name)):
+        if backup.device_backs_up(runtime, name):
             by_type.setdefault(state.type, []).append(name)
     with frame("Apply to several devices"):
         ui.label("One set to several devices of one type and variant: each device is checked (type, variant, "

@@ -12,7 +12,8 @@ from app import runtime as rt
 from pages.backup import DIFF_COLUMNS, STATE_SLOT, _confirm_restore, _count, _row_state
 from pages.frame import frame, notify_error
 from pages.session import can_write, current_user
-from pages.widgets import confirm, follow, sim_action, sim_card_allowed
+from pages.simcontrols import sim_card
+from pages.widgets import confirm, follow
 
 
 def notice(name: str) -> None:
@@ -43,31 +44,11 @@ def content(name: str) -> None:
     runtime = rt.current()
     state = runtime.store.devices.get(name)
     with frame(f"Replace {name}"):
-        if state is None or not backup.supports_backup(runtime.worker.adapters.get(name)):
+        if state is None or not backup.device_backs_up(runtime, name):
             ui.label(f"The plant has no device named '{name}' that keeps parameters.").classes("text-negative")
             return
         Assistant(name)
-        twin = runtime.twins.get(name)
-        if twin is not None and callable(getattr(twin, "swap_for_new", None)):
-            _sim_swap(name, twin)
-
-
-def _sim_swap(name: str, twin) -> None:
-    with ui.card().classes("w-full bg-purple-1"):
-        ui.label("Simulated device (demo)").classes("text-subtitle1")
-        if not sim_card_allowed():
-            return
-        with ui.row().classes("items-center"):
-            serial = ui.number("New serial number", value=twin.serial + 100000, format="%d", min=1, max=0xFFFFFFFF) \
-                .props("dense outlined data-testid=sim-new-serial").classes("w-48")
-
-            def swap() -> None:
-                twin.swap_for_new(int(serial.value or twin.serial + 1))
-
-            ui.button("Swap for a new device", icon="swap_horiz",
-                      on_click=lambda: sim_action(name, f"swap for a new device, serial {int(serial.value or 0)}", swap)()) \
-                .props("outline data-testid=sim-swap")
-        ui.label("Puts a factory-new unit with this serial number at the same address.").classes("text-caption text-grey-8")
+        sim_card(name, only=("swap for a new device",))  # a simulated device: the service swap, through the gate
 
 
 class Assistant:

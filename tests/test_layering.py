@@ -272,11 +272,8 @@ def test_write_flag_reader():
 # yet moved still write). Each file below still does; delete its line when it is moved (see the MO 64: the
 # adapter publishes every fact as a point or a record, the page reads state.live(...)).
 STORE_ONLY_PENDING = {
-    "pages/backup.py": "probes adapters for backup and restore (issue 27: the adapter Protocols)",
     "pages/electrak.py": "reads info (errors, motion, actuators) and the twin for its sim card",
-    "pages/fleet.py": "reads an adapter",
     "pages/m3io.py": "reads info and adapter attributes (31 reads), the twin for its sim card",
-    "pages/replace.py": "reads an adapter and the twins",
 }
 STORE_BYPASS = ("adapters", "twins", "info")
 
