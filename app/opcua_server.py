@@ -31,6 +31,7 @@ from typing import Any
 from asyncua import Server, ua
 from asyncua.crypto.permission_rules import PermissionRuleset, User, UserRole
 
+from devices.live import jsonable
 from devices.registry import DEVICE_TYPES
 
 log = logging.getLogger(__name__)
@@ -92,10 +93,26 @@ def health_of(state, controlled: bool, alarms: list[str]) -> int:
     return DEVICE_HEALTH.index("NORMAL")
 
 
+IDENTITY_POINT = "Identity"  # a device's identity record, where its type publishes one (e.g. M3IO addressed mode)
+
+
+def published_identity(state) -> dict[str, Any]:
+    """The fields of the identity record the device publishes as the point ``Identity`` (a record or a
+    mapping, in its JSON form); a family still writing the older ``info["identity"]`` dict is read too."""
+    point = state.points.get(IDENTITY_POINT)
+    if point is not None and point.value is not None:
+        fields = jsonable(point.value)
+        if isinstance(fields, dict):
+            return fields
+    legacy = getattr(state, "info", None)  # families not yet moved to points (issue 27)
+    legacy = legacy.get("identity") if isinstance(legacy, dict) else None
+    return legacy if isinstance(legacy, dict) else {}
+
+
 def identity_of(state, device_type: str, options: dict[str, Any]) -> dict[str, str]:
     """The DI identification of one device, from its live values (as its backup identity reads them)."""
     values = state.values()
-    info = state.info.get("identity") if isinstance(state.info.get("identity"), dict) else {}
+    info = published_identity(state)
 
     def first(*names: str) -> str:
         for name in names:
