@@ -108,7 +108,8 @@ async def phase(runtime: Runtime, channel: str, kind: str, frames: list[can.Mess
         t = loop.time()
         await asyncio.sleep(0.02)
         lags.append((loop.time() - t - 0.02) * 1000)
-        timeout_flag |= bool(lift.info.get("errors", 0) & MESSAGE_TIMEOUT)
+        flags = lift.live("Error flags")
+        timeout_flag |= bool((flags.value if flags is not None else 0) & MESSAGE_TIMEOUT)
         lock_offline |= lock.status != "online"
         rss_peak = max(rss_peak, rss_mb())
     elapsed = loop.time() - start

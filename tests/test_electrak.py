@@ -102,7 +102,7 @@ async def start_lift(text: str | None = None):
     adapter = runtime.worker.adapters["lift"]
     state = runtime.store.devices["lift"]
     configured = len(adapter.actuators)
-    assert await wait_for(lambda: state.status == "online" and state.info["heard"] == configured, timeout=4)
+    assert await wait_for(lambda: state.status == "online" and state.live("Devices heard").value == configured, timeout=4)
     return runtime, adapter, state, runtime.twins["lift"]
 
 
@@ -122,11 +122,11 @@ async def test_move_to_target_and_arrive(lift):
     await adapter.take_control("s1", "engineer")
     adapter.set_command("s1", 30.0, 32.0, 0)
     adapter.go("s1")
-    assert await wait_for(lambda: state.info["motion"] & 1, timeout=2)  # extending
-    assert await wait_for(lambda: abs((adapter.position_mm() or 0) - 30.0) < 0.2 and state.info["motion"] == 0, timeout=6)
+    assert await wait_for(lambda: state.live("Motion flags").value & 1, timeout=2)  # extending
+    assert await wait_for(lambda: abs((adapter.position_mm() or 0) - 30.0) < 0.2 and state.live("Motion flags").value == 0, timeout=6)
     assert all(abs(a.position_mm - 30.0) < 0.2 for a in twin.actuators)
-    assert state.info["errors"] == 0
-    positions = [s["Position [mm]"] for _, s in state.history]
+    assert state.live("Error flags").value == 0
+    positions = [s["Position"] for _, s in state.history]
     assert positions[0] < 1 and max(positions) >= 29.8
 
 
@@ -135,15 +135,15 @@ async def test_overload_trips_and_clears(lift):
     await adapter.take_control("s1", "engineer")
     adapter.set_command("s1", 200.0, 32.0, 3.0)
     adapter.go("s1")
-    assert await wait_for(lambda: state.info["motion"] & 1 and (adapter.position_mm() or 0) > 1.0, timeout=3)  # extending
+    assert await wait_for(lambda: state.live("Motion flags").value & 1 and (adapter.position_mm() or 0) > 1.0, timeout=3)  # extending
     twin.set_load(4.0)  # 0.8 A no-load + 4 A > 3 A limit
-    assert await wait_for(lambda: state.info["errors"] & 0x02, timeout=2)
+    assert await wait_for(lambda: state.live("Error flags").value & 0x02, timeout=2)
     stopped = adapter.position_mm()
     await asyncio.sleep(0.3)  # three status periods (0x07 every 100 ms) with the overload flag set
     assert abs(adapter.position_mm() - stopped) < 0.3  # no motion while set
     twin.set_load(0.0)
     adapter.stop("s1")  # dropping the enable bit clears it
-    assert await wait_for(lambda: not state.info["errors"] & 0x02, timeout=2)
+    assert await wait_for(lambda: not state.live("Error flags").value & 0x02, timeout=2)
 
 
 async def test_overload_cleared_by_moving_back(lift):
@@ -151,23 +151,23 @@ async def test_overload_cleared_by_moving_back(lift):
     await adapter.take_control("s1", "engineer")
     adapter.set_command("s1", 200.0, 32.0, 3.0)
     adapter.go("s1")
-    assert await wait_for(lambda: state.info["motion"] & 1 and (adapter.position_mm() or 0) > 1.0, timeout=3)  # extending
+    assert await wait_for(lambda: state.live("Motion flags").value & 1 and (adapter.position_mm() or 0) > 1.0, timeout=3)  # extending
     twin.set_load(4.0)
-    assert await wait_for(lambda: state.info["errors"] & 0x02, timeout=2)
+    assert await wait_for(lambda: state.live("Error flags").value & 0x02, timeout=2)
     twin.set_load(0.0)
     adapter.set_command("s1", 0.0, 32.0, 3.0)
-    assert await wait_for(lambda: not state.info["errors"] & 0x02 and state.info["motion"] & 2, timeout=2)
+    assert await wait_for(lambda: not state.live("Error flags").value & 0x02 and state.live("Motion flags").value & 2, timeout=2)
 
 
 async def test_timeout_flag_when_control_stops(lift):
     runtime, adapter, state, twin = lift
     await adapter.take_control("s1", "engineer")
-    assert await wait_for(lambda: not state.info["errors"] & 0x20, timeout=2)
+    assert await wait_for(lambda: not state.live("Error flags").value & 0x20, timeout=2)
     adapter.set_command("s1", 250.0, 20.0, 0)
     adapter.go("s1")
-    assert await wait_for(lambda: state.info["motion"] & 1, timeout=2)  # extending
+    assert await wait_for(lambda: state.live("Motion flags").value & 1, timeout=2)  # extending
     runtime.worker.can_buses["can2"].stop_cyclic(adapter.key)  # the keep-alive dies
-    assert await wait_for(lambda: state.info["errors"] & 0x20, timeout=1)
+    assert await wait_for(lambda: state.live("Error flags").value & 0x20, timeout=1)
     moving_at = adapter.position_mm()
     await asyncio.sleep(0.4)  # four status periods (0x07 every 100 ms) after the 250 ms message timeout
     assert abs(adapter.position_mm() - moving_at) < 0.5  # motion stopped
@@ -178,11 +178,11 @@ async def test_release_sends_enable_cleared_and_stops_keepalive(lift):
     await adapter.take_control("browser-1", "engineer")
     adapter.set_command("browser-1", 250.0, 20.0, 0)
     adapter.go("browser-1")
-    assert await wait_for(lambda: state.info["motion"] & 1, timeout=2)  # extending
+    assert await wait_for(lambda: state.live("Motion flags").value & 1, timeout=2)  # extending
     assert adapter.release_control("browser-1", "released: the controlling browser disconnected")
     assert not runtime.worker.can_buses["can2"].cyclic_running(adapter.key)
     assert await wait_for(lambda: twin.control is not None and not twin.control.enable, timeout=1)
-    assert await wait_for(lambda: state.info["motion"] == 0, timeout=1)
+    assert await wait_for(lambda: state.live("Motion flags").value == 0, timeout=1)
     assert any("disconnected" in e.text for e in state.events)
 
 
@@ -207,16 +207,16 @@ async def test_parameter_flag_for_bad_values(lift):
     for _ in range(5):  # another master on the bus sends 99 mm/s, outside B026's 6..32 mm/s
         bus.send(codec.CONTROL_ID, codec.ControlFrame(100, 0, 99, enable=True).encode())
         await asyncio.sleep(0.05)  # a master repeating its control telegram (the document: every 100 ms)
-    assert await wait_for(lambda: state.info["errors"] & 0x01, timeout=1)
+    assert await wait_for(lambda: state.live("Error flags").value & 0x01, timeout=1)
 
 
 async def test_too_few_devices_and_override(lift):
     _runtime, adapter, state, twin = lift
     await adapter.take_control("s1", "engineer")
     twin.remove(1)
-    assert await wait_for(lambda: state.info["heard"] == 1 and state.info["errors"] & 0x80, timeout=2)
+    assert await wait_for(lambda: state.live("Devices heard").value == 1 and state.live("Error flags").value & 0x80, timeout=2)
     adapter.override("s1", True)
-    assert await wait_for(lambda: not state.info["errors"] & 0x80, timeout=1)
+    assert await wait_for(lambda: not state.live("Error flags").value & 0x80, timeout=1)
 
 
 async def test_service_password_write_readback_save(lift):
@@ -227,7 +227,7 @@ async def test_service_password_write_readback_save(lift):
     assert twin.service.values[0x01] == 500 and soft_start.key in state.unsaved
     await adapter.save_parameters()
     assert twin.service.saved[0x01] == 500 and not state.unsaved
-    assert state.info["service_answers"] == 2  # both actuators answered
+    assert state.live("Service answers").value == 2  # both actuators answered
 
 
 async def test_service_errors_by_name(lift):
@@ -265,7 +265,7 @@ async def test_chart_target_only_while_the_actuators_are_driven_to_it(lift):
     _runtime, adapter, state, twin = lift
 
     def targets(since: float) -> list:
-        return [values.get("Target [mm]") for t, values in state.history_since(60) if t > since]
+        return [values.get("Drive target") for t, values in state.history_since(60) if t > since]
 
     import time
 

@@ -32,7 +32,7 @@ async def plc(runtime, frame: codec.ControlFrame, seconds: float) -> None:
 async def test_take_control_is_refused_while_a_manual_line_sends(lift):  # noqa: F811
     _runtime, adapter, state, twin = lift
     twin.set_manual_line(+1)  # an actuator's control line is active: it sends 0x06 itself
-    assert await wait_for(lambda: state.info.get("foreign_control"), timeout=1)
+    assert await wait_for(lambda: state.live("Foreign control sender").value, timeout=1)
     with pytest.raises(ForeignControl, match="0x06.*(PLC|control line)"):
         await adapter.take_control("s1", "engineer")
     assert adapter.controller is None
@@ -59,12 +59,12 @@ async def test_a_foreign_control_telegram_ends_our_control(lift):  # noqa: F811
     await adapter.take_control("s1", "engineer")
     adapter.set_command("s1", 200.0, 20.0, 0)
     adapter.go("s1")
-    assert await wait_for(lambda: state.info["motion"] & 1, timeout=2)
+    assert await wait_for(lambda: state.live("Motion flags").value & 1, timeout=2)
     plc_send(runtime, codec.ControlFrame(0, 0, 20, enable=False))
     assert await wait_for(lambda: adapter.controller is None, timeout=0.5)
     assert not adapter.command.enable and not runtime.worker.can_buses["can2"].cyclic_running(adapter.key)
     assert any("another sender" in e.text and "0x06" in e.text for e in state.events if e.level == "error")
-    assert await wait_for(lambda: state.info["motion"] == 0, timeout=1)
+    assert await wait_for(lambda: state.live("Motion flags").value == 0, timeout=1)
 
 
 # -- the dead-man rule: holders() and session_lost() -------------------------------------------
@@ -91,7 +91,7 @@ async def test_session_lost_stops_at_once(lift):  # noqa: F811
     runtime, adapter, state, twin = lift
     await adapter.take_control("s1", "engineer")
     adapter.jog("s1", +1)
-    assert await wait_for(lambda: state.info["motion"] & 1, timeout=2)
+    assert await wait_for(lambda: state.live("Motion flags").value & 1, timeout=2)
     adapter.session_lost("other", "frozen")
     assert adapter.controller is not None  # not its business
     loop = asyncio.get_running_loop()
@@ -135,12 +135,12 @@ async def test_saturated_that_stays_on_is_warned(lift):  # noqa: F811
     twin.set_load(6.0)
     adapter.set_command("s1", 290.0, 32.0, 0)
     adapter.go("s1")
-    assert await wait_for(lambda: state.info["motion"] & 0x04, timeout=2)
-    assert await wait_for(lambda: state.info.get("saturated_warning"), timeout=codec.SATURATED_WARN_S + 1)
-    assert "Saturated" in state.info["saturated_warning"] and "speed" in state.info["saturated_warning"]
+    assert await wait_for(lambda: state.live("Motion flags").value & 0x04, timeout=2)
+    assert await wait_for(lambda: state.live("Saturated warning").value, timeout=codec.SATURATED_WARN_S + 1)
+    assert "Saturated" in state.live("Saturated warning").value and "speed" in state.live("Saturated warning").value
     assert any("Saturated" in e.text for e in state.events if e.level == "warning")
     adapter.stop("s1")
-    assert await wait_for(lambda: not state.info.get("saturated_warning"), timeout=1)
+    assert await wait_for(lambda: not state.live("Saturated warning").value, timeout=1)
 
 
 async def test_a_dropped_connection_stops_motion_but_keeps_idle_control(lift):  # noqa: F811
@@ -149,13 +149,13 @@ async def test_a_dropped_connection_stops_motion_but_keeps_idle_control(lift):  
     runtime, adapter, state, twin = lift
     await adapter.take_control("s1", "engineer")
     adapter.jog("s1", +1)
-    assert await wait_for(lambda: state.info["motion"] & 1, timeout=2)
+    assert await wait_for(lambda: state.live("Motion flags").value & 1, timeout=2)
     runtime.worker.session_closed("s1")  # the socket dropped; the page may reconnect
     assert not adapter.command.enable and adapter.controller is not None
     assert runtime.worker.can_buses["can2"].cyclic_running(adapter.key)
     assert await wait_for(lambda: twin.control is not None and not twin.control.enable, timeout=0.5)
     await asyncio.sleep(0.4)  # longer than the 250 ms message timeout: the keep-alive went on
-    assert not state.info["errors"] & 0x20
+    assert not state.live("Error flags").value & 0x20
     runtime.worker.session_deleted("s1")  # it did not come back
     assert adapter.controller is None and not runtime.worker.can_buses["can2"].cyclic_running(adapter.key)
 

@@ -150,8 +150,8 @@ def test_answer_problems_in_words():
 async def test_read_reports_every_actuator(lift):  # noqa: F811
     _runtime, adapter, state, _twin = lift
     assert await adapter.read_param(SOFT_START) == 300
-    report = state.info["service_reports"][SOFT_START.key]
-    assert report["ok"] and report["answers"] == ["value 300", "value 300"]
+    report = next(r for r in state.live("Service reports").value if r.key == SOFT_START.key)
+    assert report.ok and list(report.answers) == ["value 300", "value 300"]
 
 
 async def test_read_fails_when_the_actuators_disagree(lift):  # noqa: F811
@@ -159,8 +159,8 @@ async def test_read_fails_when_the_actuators_disagree(lift):  # noqa: F811
     twin.actuators[1].service.values[0x01] = 400
     with pytest.raises(CommandError, match="disagree.*300.*400"):
         await adapter.read_param(SOFT_START)
-    report = state.info["service_reports"][SOFT_START.key]
-    assert not report["ok"] and sorted(report["answers"]) == ["value 300", "value 400"]
+    report = next(r for r in state.live("Service reports").value if r.key == SOFT_START.key)
+    assert not report.ok and sorted(report.answers) == ["value 300", "value 400"]
     assert state.raw(SOFT_START) is None  # no single value to show
 
 
@@ -197,7 +197,7 @@ async def test_write_and_save_on_every_actuator(lift):  # noqa: F811
     assert await adapter.write_param(SOFT_START, 500) == 500
     assert [a.service.values[0x01] for a in twin.actuators] == [500, 500]
     form = await adapter.save_parameters()
-    assert form == codec.SAVE_FORMS[4] and state.info["save_form"] == form
+    assert form == codec.SAVE_FORMS[4] and state.live("Save form").value == form
     assert [a.service.saved[0x01] for a in twin.actuators] == [500, 500] and not state.unsaved
 
 
@@ -247,14 +247,14 @@ async def test_bitrate_is_read_back_and_saved_then_applies_at_power_up(lift):  #
     runtime, adapter, state, twin = lift
     assert await adapter.write_param(BIT_RATE, 3, confirmed=True) == 3
     assert [f for f in sent_service(runtime) if f.startswith("00 04")] == ["00 04 01 00 00 00 00 00"]  # read back
-    assert BIT_RATE.key in state.unsaved and state.info["bitrate_change"]["raw"] == 3
+    assert BIT_RATE.key in state.unsaved and state.live("Bit rate change").value.raw == 3
     await asyncio.sleep(0.3)  # three status periods (0x07 every 100 ms) at the old bit rate
-    assert state.info["heard"] == 2  # still on this bus until they are powered up again
+    assert state.live("Devices heard").value == 2  # still on this bus until they are powered up again
     await adapter.save_parameters()
-    assert not state.unsaved and state.info["bitrate_change"]["saved"]
+    assert not state.unsaved and state.live("Bit rate change").value.saved
     assert all(a.service.saved[0x04] == 3 for a in twin.actuators)
     twin.power_cycle()
-    assert await wait_for(lambda: state.info["heard"] == 0 or state.status != "online", timeout=3)
+    assert await wait_for(lambda: state.live("Devices heard").value == 0 or state.status != "online", timeout=3)
     assert all(a.bitrate == 250_000 for a in twin.actuators)
 
 
@@ -263,7 +263,7 @@ async def test_unsaved_bitrate_is_lost_at_power_up(lift):  # noqa: F811
     await adapter.write_param(BIT_RATE, 4, confirmed=True)
     twin.power_cycle()
     await asyncio.sleep(0.3)  # three status periods (0x07 every 100 ms) after the power-up: both still heard
-    assert state.info["heard"] == 2 and all(a.bitrate == 500_000 for a in twin.actuators)
+    assert state.live("Devices heard").value == 2 and all(a.bitrate == 500_000 for a in twin.actuators)
 
 
 # -- the timeout floor ------------------------------------------------------------------------------

@@ -111,7 +111,7 @@ async def test_a_stalled_loop_stops_the_jog_by_itself(lift):  # noqa: F811
     try:
         await adapter.take_control("s1", "engineer")
         adapter.jog("s1", +1)
-        assert await wait_for(lambda: state.info["motion"] & 1, timeout=2)
+        assert await wait_for(lambda: state.live("Motion flags").value & 1, timeout=2)
         await asyncio.sleep(0.4)  # enabled telegrams go on while the loop renews the lease
         assert adapter.command.enable
         blocked = block_loop(BLOCK_S)
@@ -141,12 +141,12 @@ async def test_stop_and_jog_release_leave_at_once(lift):  # noqa: F811
     bus_state = runtime.worker.can_buses["can2"].state
     await adapter.take_control("s1", "engineer")
     adapter.jog("s1", +1)
-    assert await wait_for(lambda: state.info["motion"] & 1 and (adapter.position_mm() or 0) > 2.0, timeout=3)
+    assert await wait_for(lambda: state.live("Motion flags").value & 1 and (adapter.position_mm() or 0) > 2.0, timeout=3)
     sent = bus_state.tx_frames
     adapter.jog("s1", 0)  # released
     assert bus_state.tx_frames == sent + 1  # sent within the call
     adapter.jog("s1", -1)
-    assert await wait_for(lambda: state.info["motion"] & 2, timeout=2)
+    assert await wait_for(lambda: state.live("Motion flags").value & 2, timeout=2)
     sent = bus_state.tx_frames
     adapter.stop("s1")
     assert bus_state.tx_frames == sent + 1
@@ -160,7 +160,7 @@ async def test_idle_control_is_kept_alive_during_a_stall(lift):  # noqa: F811
     listener = Listener(runtime.plant.buses["can2"].options["channel"])
     try:
         await adapter.take_control("s1", "engineer")
-        assert await wait_for(lambda: not state.info["errors"] & 0x20, timeout=2)
+        assert await wait_for(lambda: not state.live("Error flags").value & 0x20, timeout=2)
         blocked = block_loop(1.0)
         await asyncio.sleep(0)
         times = [t for t, _ in listener.of(electrak.CONTROL_ID, since=blocked - 0.2, until=blocked + 1.0)]

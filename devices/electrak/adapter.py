@@ -5,19 +5,51 @@ from __future__ import annotations
 import asyncio
 import time
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from devices.electrak import codec
 from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, SERVICE, length_of, password_of, refusal
 from devices.lease import Lease
-from devices.live import DeviceState
+from devices.live import DeviceState, session_tag
 from devices.params import Param, ParamError, backup_entry
 from devices.transport import CanTransport
 
 NETWORK_IDS = frozenset((codec.CONTROL_ID, codec.STATUS_ID, codec.SERVICE_REQUEST_ID, codec.SERVICE_RESPONSE_ID))
 SERVICE_TIMEOUT_S = 0.3  # bound for the answers of every actuator to one service telegram
 EXTRA_ANSWER_S = 0.02  # after the last expected answer: does an unexpected one follow?
-SERIES = ("Position [mm]", "Current [A]", "Speed [mm/s]", "Target [mm]")
+
+# -- the facts this adapter publishes (DeviceState.publish / fact): what the page, the API and MQTT read.
+# Records (frozen dataclasses below, and the codec's Actuator, Limits and ControlFrame) where a fact is more
+# than a number or a word.
+P_POSITION = "Position"  # mean of the actuators heard [mm]; raw: each status telegram's word (0.1 mm)
+P_CURRENT = "Current"  # highest of the actuators heard [A]; raw: each telegram's word (0.1 A)
+P_SPEED = "Speed"  # mean of the actuators heard [mm/s]; raw: each telegram's word (0.1 mm/s)
+P_MOTION = "Motion flags"  # the motion flags of every actuator heard, or-ed; each flag also by its own name
+P_ERRORS = "Error flags"  # the error flags of every actuator heard, or-ed; each flag also by its own name
+P_HEARD = "Devices heard"  # status telegrams per 100 ms
+P_CONFIGURED = "Devices configured"
+P_STROKE = "Stroke"  # shortest configured stroke [mm]
+P_ACTUATORS = "Actuators"  # tuple of codec.Actuator: model, gearing, stroke of each configured actuator
+P_LIMITS = "Limits"  # codec.Limits: what every actuator of the network accepts
+P_TARGET = "Target position"  # what this tool sends in the control telegram 0x06 (commanded: does not age)
+P_TARGET_SPEED = "Target speed"
+P_CURRENT_LIMIT = "Current limit"
+P_ENABLE = "Enable"
+P_OVERRIDE = "Override"
+P_TELEGRAM = "Control telegram"  # codec.ControlFrame this tool sends; text: the bytes and their meaning
+P_DRIVE_TARGET = "Drive target"  # the position the actuators are driven to: only while enable is sent, else None
+P_CONTROLLED_BY = "Controlled by"  # the holder's user name (the tile's line), None: nobody
+P_CONTROL = "Control"  # Holder: who sends the control telegram (a browser session by its tag), None: nobody
+P_IDLE = "Idle"  # nobody sends the control telegram 0x06: Message timeout is the actuators' normal state
+P_FOREIGN = "Foreign control sender"  # ForeignSender: the last control telegram 0x06 of another node, None: none
+P_SATURATED = "Saturated warning"  # "" or the warning: Saturated stayed on too long
+P_SERVICE_LAST = "Last service telegram"  # ServiceReport of the last service exchange
+P_SERVICE_ANSWERS = "Service answers"  # answers to the last service telegram
+P_SERVICE_REPORTS = "Service reports"  # tuple of ServiceReport: the last exchange of each parameter
+P_BITRATE_CHANGE = "Bit rate change"  # BitrateChange: a bit rate written (and saved), None: none
+P_SAVE_FORM = "Save form"  # the form of save (0xF0) the network accepted last, None: not saved yet
+P_BUS_BITRATE = "Bus bit rate"  # the bit rate of the CAN bus the network is on [bit/s]
+SERIES = (P_POSITION, P_CURRENT, P_SPEED, P_DRIVE_TARGET)  # the history (and the chart), by point name
 
 
 def stop_form(data: bytes) -> bytes:
@@ -39,6 +71,46 @@ class ForeignControl(CommandError):
 
 FOREIGN_SENDER = "a PLC, or an actuator whose manual control line is active"
 TIMEOUT_FLAG = 1 << 5  # error flags byte 7 bit 5: Message timeout
+
+
+@dataclass(frozen=True, slots=True)
+class Holder:
+    """Who holds control, as published: the user, the tag of the browser session (``session_tag``), since when."""
+
+    user: str
+    session: str
+    since: float
+
+
+@dataclass(frozen=True, slots=True)
+class ForeignSender:
+    """Control telegrams 0x06 heard from another node: how many, the last one's time and meaning."""
+
+    frames: int
+    time: float
+    text: str
+
+
+@dataclass(frozen=True, slots=True)
+class ServiceReport:
+    """One service exchange with every actuator: what was asked, each answer in words, what was wrong."""
+
+    what: str
+    time: float
+    answers: tuple[str, ...]
+    expected: int
+    problems: tuple[str, ...]
+    ok: bool
+    key: str | None = None  # the parameter's key, None for a password or save telegram
+
+
+@dataclass(frozen=True, slots=True)
+class BitrateChange:
+    """A new bit rate written and read back from every actuator; ``saved``: when it was saved (None: not yet)."""
+
+    raw: int
+    written: float
+    saved: float | None = None
 
 
 @dataclass
@@ -79,7 +151,9 @@ class ElectrakAdapter:
         self.limits = codec.Limits.of(self.actuators)
         self.state.params = PARAMS
         self.state.stale_after = 1.0  # status every 100 ms
-        self.state.info.update(configured=len(self.actuators), heard=0, actuators=self.actuators, limits=self.limits)
+        self.recent: list[codec.StatusFrame] = []  # the newest status telegram of each actuator heard
+        self.heard = 0
+        self._reports: dict[str, ServiceReport] = {}
         self.controller: Controller | None = None
         self.lease = Lease()  # renewed by the worker's dead-man supervisor while motion runs (devices/lease.py)
         self.command = codec.ControlFrame(0.0, 0.0, self.limits.speed_min, enable=False)
@@ -93,14 +167,27 @@ class ElectrakAdapter:
         self._listening_reconnects = -1  # the bus's open count that _listening_since belongs to
         self._foreign_at: float | None = None  # monotonic time of the last 0x06 frame from another node
         self._saturated_since: float | None = None
-        self.state.info.update(service_reports={}, foreign_control=None, saturated_warning="")
+        self._foreign: ForeignSender | None = None
+        self._saturated_warning = ""
         bus.subscribe(False, codec.STATUS_ID, self.on_status)
         bus.subscribe(False, codec.SERVICE_RESPONSE_ID, self.on_service)
         bus.subscribe(False, codec.CONTROL_ID, self.on_control)
         self.key = f"electrak control {config.name}"
         self.state.registers_periodic = False  # service parameters are read on demand
-        self.state.publish("Devices configured", len(self.actuators), periodic=False)
-        self.state.publish("Stroke", self.limits.stroke_mm, "mm", periodic=False, text="shortest configured stroke")
+        state.fact(P_CONFIGURED, len(self.actuators))
+        state.fact(P_STROKE, self.limits.stroke_mm, "mm", text="shortest configured stroke")
+        state.fact(P_ACTUATORS, tuple(self.actuators),
+                   text="; ".join(f"{a.model} {a.gearing} {a.stroke_mm:g} mm stroke" for a in self.actuators))
+        limits = self.limits
+        state.fact(P_LIMITS, limits, text=f"0..{limits.stroke_mm:g} mm, {limits.speed_min:g}..{limits.speed_max:g} mm/s, "
+                                          f"0..{limits.current_a:g} A (0 = calibrated limit)")
+        state.fact(P_BUS_BITRATE, int(getattr(bus, "options", {}).get("bitrate", codec.DEFAULT_BITRATE)), "bit/s")
+        state.fact(P_FOREIGN, None, text="none heard")
+        state.fact(P_SATURATED, "")
+        state.fact(P_SERVICE_LAST, None, text="none yet")
+        state.fact(P_SERVICE_REPORTS, ())
+        state.fact(P_BITRATE_CHANGE, None, text="none")
+        state.fact(P_SAVE_FORM, None, text="not saved yet")
         self._publish_command()
 
     # -- bus monitor ---------------------------------------------------------------------------
@@ -124,47 +211,41 @@ class ElectrakAdapter:
         heard = sum(1 for t, _ in self.frames if now - t <= 1.0) / 10  # frames per 100 ms = devices heard
         # the newest telegram of each device: the last `heard` frames (they cannot be told apart)
         recent = [f for _, f in list(self.frames)[-max(1, round(heard)):]]
-        info = self.state.info
-        info["heard"] = round(heard)
-        info["status"] = recent
-        info["motion"] = 0
-        info["errors"] = 0
+        self.heard = round(heard)
+        self.recent = recent
+        motion = errors = 0
         for f in recent:
-            info["motion"] |= f.motion
-            info["errors"] |= f.errors
-        self._watch_saturated(info["motion"] & 0x04, time.monotonic())
-        self._publish_status(recent, info["motion"], info["errors"], now)
+            motion |= f.motion
+            errors |= f.errors
+        self._watch_saturated(motion & 0x04, time.monotonic())
+        self._publish_status(recent, motion, errors, now)
         if now - self._last_sample >= 0.09 and recent:
             self._last_sample = now
-            self.state.add_history({
-                "Position [mm]": round(sum(f.position_mm for f in recent) / len(recent), 1),
-                "Current [A]": max(f.current_a for f in recent),
-                "Speed [mm/s]": round(sum(f.speed_mm_s for f in recent) / len(recent), 1),
-                "Target [mm]": self.target_mm(),
-            }, now)
+            self.state.record_history(SERIES, now)
 
     def _publish_status(self, recent: list[codec.StatusFrame], motion: int, errors: int, now: float) -> None:
         """Live points of the network: averages (the frames cannot be told apart), raw words per frame, flags by name."""
         publish = self.state.publish
         if recent:
             n = len(recent)
-            publish("Position", round(sum(f.position_mm for f in recent) / n, 1), "mm", time=now,
+            publish(P_POSITION, round(sum(f.position_mm for f in recent) / n, 1), "mm", time=now,
                     raw=[round(f.position_mm * 10) for f in recent], text="mean of the actuators heard")
-            publish("Current", max(f.current_a for f in recent), "A", time=now,
+            publish(P_CURRENT, max(f.current_a for f in recent), "A", time=now,
                     raw=[round(f.current_a * 10) for f in recent], text="highest of the actuators heard")
-            publish("Speed", round(sum(f.speed_mm_s for f in recent) / n, 1), "mm/s", time=now,
+            publish(P_SPEED, round(sum(f.speed_mm_s for f in recent) / n, 1), "mm/s", time=now,
                     raw=[round(f.speed_mm_s * 10) for f in recent], text="mean of the actuators heard")
-        publish("Motion flags", motion, time=now, raw=motion,
+        publish(P_MOTION, motion, time=now, raw=motion,
                 text=", ".join(name for bit, (name, _) in codec.MOTION_FLAGS.items() if motion >> bit & 1) or "none")
         text = ", ".join(name for bit, (name, _, _) in codec.ERROR_FLAGS.items() if errors >> bit & 1) or "none"
         if errors & TIMEOUT_FLAG and self.idle():
             text += " (expected while idle: nobody sends the control telegram 0x06)"
-        publish("Error flags", errors, time=now, raw=errors, text=text)
+        publish(P_ERRORS, errors, time=now, raw=errors, text=text)
         for bit, (name, _) in codec.MOTION_FLAGS.items():
             publish(name, bool(motion >> bit & 1), time=now, raw=motion >> bit & 1)
         for bit, (name, *_) in codec.ERROR_FLAGS.items():
             publish(name, bool(errors >> bit & 1), time=now, raw=errors >> bit & 1)
-        publish("Devices heard", self.state.info["heard"], time=now, text=f"status telegrams per 100 ms, {len(self.actuators)} configured")
+        publish(P_HEARD, self.heard, time=now, text=f"status telegrams per 100 ms, {len(self.actuators)} configured")
+        self.state.fact(P_IDLE, self.idle())  # a foreign sender's window ends with time: looked at with every status
 
     def idle(self) -> bool:
         """Nobody sends the control telegram 0x06 (this tool holds no control, no other sender heard):
@@ -179,30 +260,44 @@ class ElectrakAdapter:
 
     def _publish_command(self) -> None:
         """What this tool sends in the control telegram 0x06 (commanded, so it does not age)."""
-        c, publish = self.command, self.state.publish
-        publish("Target position", c.position_mm, "mm", periodic=False)
-        publish("Target speed", c.speed_mm_s, "mm/s", periodic=False)
-        publish("Current limit", c.current_a, "A", periodic=False, text="calibrated default" if not c.current_a else None)
-        publish("Enable", c.enable, periodic=False)
-        publish("Override", c.override, periodic=False)
-        publish("Controlled by", self.controller.user if self.controller else None, periodic=False,
+        c, publish, fact = self.command, self.state.publish, self.state.fact
+        publish(P_TARGET, c.position_mm, "mm", periodic=False)
+        publish(P_TARGET_SPEED, c.speed_mm_s, "mm/s", periodic=False)
+        publish(P_CURRENT_LIMIT, c.current_a, "A", periodic=False, text="calibrated default" if not c.current_a else None)
+        publish(P_ENABLE, c.enable, periodic=False)
+        publish(P_OVERRIDE, c.override, periodic=False)
+        publish(P_CONTROLLED_BY, self.controller.user if self.controller else None, periodic=False,
                 text=None if self.controller else "nobody")
+        holder = self.controller
+        fact(P_CONTROL, None if holder is None else Holder(holder.user, session_tag(holder.session), holder.since),
+             text="nobody" if holder is None else
+             f"{holder.user} since {time.strftime('%H:%M:%S', time.localtime(holder.since))}")
+        try:
+            sent = c.encode().hex(" ").upper()
+        except codec.CodecError as exc:  # never sent (the limits refuse it first): said, not raised
+            sent = f"not encodable: {exc}"
+        fact(P_TELEGRAM, c, text=f"0x006: {sent} (target {c.position_mm:g} mm, {c.speed_mm_s:g} mm/s, {c.current_a:g} A, "
+                                 f"{'enable' if c.enable else 'no enable'}{', override' if c.override else ''})")
+        target = self.target_mm()
+        fact(P_DRIVE_TARGET, target, "mm", text="not driven" if target is None else None)
+        fact(P_IDLE, self.idle())
 
     def _watch_saturated(self, saturated: int, now: float) -> None:
         """The document asks that Saturated does not stay set when driven over CAN ("Bewegungs-Flags")."""
-        info = self.state.info
         if not saturated:
             self._saturated_since = None
-            info["saturated_warning"] = ""
+            self._saturated_warning = ""
+            self.state.fact(P_SATURATED, "")
             return
         if self._saturated_since is None:
             self._saturated_since = now
-        if now - self._saturated_since >= codec.SATURATED_WARN_S and not info["saturated_warning"]:
-            info["saturated_warning"] = (
+        if now - self._saturated_since >= codec.SATURATED_WARN_S and not self._saturated_warning:
+            self._saturated_warning = (
                 f"Saturated has stayed on for more than {codec.SATURATED_WARN_S:g} s: an actuator runs at the highest speed "
                 "its supply and load allow and the network cannot keep synchronised. Lower the speed (or the load)."
             )
-            self.state.event("warning", info["saturated_warning"])
+            self.state.fact(P_SATURATED, self._saturated_warning)
+            self.state.event("warning", self._saturated_warning)
 
     async def poll(self) -> None:
         """Service parameters are read on demand; the status arrives by itself."""
@@ -219,12 +314,14 @@ class ElectrakAdapter:
             return
         now = time.monotonic()
         self._foreign_at = now
-        foreign = self.state.info.get("foreign_control") or {"frames": 0}
+        frames = self._foreign.frames if self._foreign is not None else 0
         try:
             text = codec.describe_frame(codec.CONTROL_ID, False, bytes(msg.data), {(False, codec.STATUS_ID)})
         except Exception:  # describe_frame reports malformed frames itself; never let a frame stop the bus
             text = bytes(msg.data).hex(" ")
-        self.state.info["foreign_control"] = {"frames": foreign["frames"] + 1, "time": time.time(), "text": text}
+        self._foreign = ForeignSender(frames + 1, time.time(), text or "")
+        self.state.fact(P_FOREIGN, self._foreign, text=f"{self._foreign.text} · {self._foreign.frames} frames")
+        self.state.fact(P_IDLE, self.idle())
         if self.controller is not None:
             self._release(f"lost: another sender of the control telegram 0x06 is on the bus ({FOREIGN_SENDER}); "
                           "this tool stopped sending so as not to fight it", level="error")
@@ -259,7 +356,6 @@ class ElectrakAdapter:
                 return
             raise ControlBusy(f"{self.controller.user} took control meanwhile")
         self.controller = Controller(session, user, time.time())
-        self.state.info["controlled_by"] = user
         self._publish_command()
         self.command = codec.ControlFrame(self.command.position_mm, self.command.current_a, self.command.speed_mm_s, enable=False)
         # on python-can's cyclic task: its clock does not depend on the event loop; without a valid
@@ -277,7 +373,6 @@ class ElectrakAdapter:
         self.controller = None
         self.command = codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=False)
         self.bus.send(*self._control_frame())
-        self.state.info["controlled_by"] = None
         self._publish_command()
         self.state.event(level, f"control {reason} ({user}): enable cleared, control telegrams stopped")
 
@@ -384,6 +479,12 @@ class ElectrakAdapter:
             raise CommandError("; ".join(problems))
         self.command = codec.ControlFrame(target, c.current_a, speed, enable=True)
 
+    def jog_stop(self, session: str) -> None:
+        """A jog button released: the jog of ``session`` ends where the actuators are (nothing when it does not jog)."""
+        c = self.controller
+        if c is not None and c.session == session and self.command.enable:
+            self.jog(session, 0)
+
     def override(self, session: str, active: bool) -> None:
         """Override/reset bit: holds motion and resets the expected number of devices."""
         self._check_holder(session)
@@ -391,7 +492,7 @@ class ElectrakAdapter:
         self.command = codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=False, override=active)
 
     def position_mm(self) -> float | None:
-        recent = self.state.info.get("status") or []
+        recent = self.recent
         return sum(f.position_mm for f in recent) / len(recent) if recent else None
 
     # -- service parameters ----------------------------------------------------------------------
@@ -440,18 +541,16 @@ class ElectrakAdapter:
 
     def _report(self, request, answers, problems, what: str, key: str | None) -> None:
         kind = {codec.ServiceType.READ_REQUEST: "read", codec.ServiceType.WRITE_REQUEST: "write"}.get(request.type, f"type 0x{request.type:02X}")
-        report = {
-            "what": f"{kind} 0x{request.specifier:02X}" + (f" ({what})" if what else ""),
-            "time": time.time(),
-            "answers": [codec.describe_answer(a) for a in answers],
-            "expected": len(self.actuators),
-            "problems": problems,
-            "ok": not problems,
-        }
-        self.state.info["service_answers"] = len(answers)
-        self.state.info["service_last"] = report
+        report = ServiceReport(f"{kind} 0x{request.specifier:02X}" + (f" ({what})" if what else ""), time.time(),
+                               tuple(codec.describe_answer(a) for a in answers), len(self.actuators), tuple(problems),
+                               not problems, key)
+        answered = "; ".join(f"answer {n}: {a}" for n, a in enumerate(report.answers, 1)) or "no answer"
+        self.state.fact(P_SERVICE_ANSWERS, len(answers))
+        self.state.fact(P_SERVICE_LAST, report, text=f"{report.what}: {answered}"
+                        + ("" if report.ok else " - " + "; ".join(report.problems)))
         if key is not None:
-            self.state.info["service_reports"][key] = report
+            self._reports[key] = report
+            self.state.fact(P_SERVICE_REPORTS, tuple(self._reports.values()))
 
     async def _unlock(self, param: Param) -> None:
         await self._service(codec.password_request(password_of(param)), f"password for {param.name}")
@@ -502,7 +601,7 @@ class ElectrakAdapter:
             self.state.counters.write_errors += 1
             raise CommandError(f"{param.name}: read back {param.display(back)} instead of {param.display(raw)}")
         if param.address == BITRATE_SPECIFIER:
-            self.state.info["bitrate_change"] = {"raw": raw, "written": time.time(), "saved": None}
+            self._publish_bitrate_change(BitrateChange(raw, time.time()))
             self.state.event("warning", f"bit rate {param.display(raw)} written and read back from every actuator: "
                                         "save it, switch the bus, restart the actuators")
         else:
@@ -560,10 +659,19 @@ class ElectrakAdapter:
             form = codec.SAVE_FORMS[next(iter(forms))]
         else:
             form = " and ".join(f"{codec.SAVE_FORMS[length]} by {n} actuator{'s' if n > 1 else ''}" for length, n in forms.items())
-        self.state.info["save_form"] = form
-        change = self.state.info.get("bitrate_change")
-        if change and PARAMS.get(SERVICE, BITRATE_SPECIFIER).key in self.state.unsaved:
-            change["saved"] = time.time()
+        self.state.fact(P_SAVE_FORM, form)
+        change = self.bitrate_change
+        if change is not None and PARAMS.get(SERVICE, BITRATE_SPECIFIER).key in self.state.unsaved:
+            self._publish_bitrate_change(replace(change, saved=time.time()))
         self.state.unsaved.clear()
         self.state.event("info", f"parameters saved (0xF0); the network accepted the {form}")
         return form
+
+    @property
+    def bitrate_change(self) -> BitrateChange | None:
+        point = self.state.points.get(P_BITRATE_CHANGE)
+        return None if point is None else point.value
+
+    def _publish_bitrate_change(self, change: BitrateChange) -> None:
+        name = PARAMS.get(SERVICE, BITRATE_SPECIFIER).display(change.raw)
+        self.state.fact(P_BITRATE_CHANGE, change, text=f"{name} written" + (", saved" if change.saved else ", not saved"))

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 from devices.electrak import codec
 from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, TIMEOUT_SPECIFIER, length_of, password_of
+from devices.simcontrols import SimAction, SimControls, SimParam
 
 TICK_S = 0.01
 STARTUP_S = 0.15  # the current limit does not apply while the motor starts (inrush)
@@ -182,6 +183,55 @@ class ElectrakNetworkTwin:
         speed = self.service.values[0x08] / 10 or limits.speed_max  # "Geschwindigkeit" lowers the manual speed
         target = limits.stroke_mm if self.manual_line > 0 else 0.0
         return codec.ControlFrame(target, 0.0, min(max(speed, limits.speed_min), limits.speed_max), enable=True)
+
+    def set_voltage_fault(self, on: bool) -> None:
+        """A supply voltage fault on every actuator (or its end)."""
+        for a in self.actuators:
+            a.voltage_fault = on
+
+    def set_temperature_fault(self, on: bool) -> None:
+        """A temperature fault on the first actuator (or its end)."""
+        self.actuators[0].temperature_fault = on
+
+    def disagree(self, on: bool) -> None:
+        """The last actuator's soft start time differs from the first's (reads of it fail, as they should)."""
+        self.actuators[-1].service.values[0x01] = self.actuators[0].service.values[0x01] + (100 if on else 0)
+
+    def disagrees(self) -> bool:
+        return self.actuators[-1].service.values[0x01] != self.actuators[0].service.values[0x01]
+
+    def controls(self) -> SimControls:
+        """What an engineer may do to this network in simulation (shown by pages/simcontrols.py, through the gate)."""
+
+        def connected(i: int) -> SimAction:
+            return SimAction(f"actuator {i + 1} connected", f"actuator {i + 1} connected",
+                             lambda on: self.restore(i) if on else self.remove(i),
+                             state=lambda: self.actuators[i].present, testid=f"connected-{i + 1}")
+
+        actions = [
+            SimAction("extra load", "Set load", lambda amps: self.set_load(amps), icon="fitness_center", testid="load",
+                      params=(SimParam("amps", "extra load current [A]", 0, 0, 25),)),
+            SimAction("static load", "Set static load", lambda speed: self.set_backdrive(speed), icon="south_east",
+                      testid="static-load",
+                      params=(SimParam("speed", "static load on a standing rod [mm/s, - pushes in]", 0, -5, 5),)),
+            *(connected(i) for i in range(len(self.actuators))),
+            SimAction("supply voltage fault", "Supply voltage fault", self.set_voltage_fault,
+                      state=lambda: any(a.voltage_fault for a in self.actuators), testid="voltage-fault"),
+            SimAction("temperature fault", "Temperature fault", self.set_temperature_fault,
+                      state=lambda: self.actuators[0].temperature_fault, testid="temperature-fault"),
+            SimAction("manual control line", "Set manual control line", lambda direction: self.set_manual_line(direction),
+                      icon="settings_remote", testid="manual-line",
+                      params=(SimParam("direction", "manual line (1 out, -1 in, 0 off)", 0, -1, 1),)),
+        ]
+        if len(self.actuators) > 1:
+            actions.append(SimAction("last actuator disagrees", "last actuator disagrees", self.disagree,
+                                     state=self.disagrees, testid="disagree"))
+        actions.append(SimAction("power cycle", "Power-cycle actuators", self.power_cycle, icon="power_settings_new",
+                                 testid="power-cycle"))
+        return SimControls("Simulated actuators (demo)", tuple(actions),
+                           note="Load raises the motor current (above the limit: overload); a static load moves a "
+                                "standing rod (Backdrive); an active manual control line makes the network send 0x06 "
+                                "itself; the disagreeing actuator's soft start time differs, so reads of it fail.")
 
     def remove(self, index: int) -> None:
         self.actuators[index].present = False
