@@ -1,0 +1,175 @@
+"""The app in a process of its own for the benchmarks: the demo plant on free ports, started,
+waited for and measured from /proc. Standard library only (no pytest, no test folder), so the
+benchmarks run after ``pip install -e .``; the browser benchmarks need playwright besides
+(Debian's chromium, never a downloaded one).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import re
+import socket
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+DEMO_PLANT = ROOT / "plants" / "demo.toml"
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("", 0))
+        return s.getsockname()[1]
+
+
+def demo_plant_text(bus_port: int | None = None) -> str:
+    """The demo plant file with every simulated TCP endpoint on a free port of its own (the RS485
+    line on ``bus_port`` when given), so a benchmark never meets another program's ports."""
+    text = DEMO_PLANT.read_text()
+    if bus_port is not None:
+        text = text.replace("socket://127.0.0.1:5020", f"socket://127.0.0.1:{bus_port}")
+    text = re.sub(r"socket://127\.0\.0\.1:(?!%d\b)\d+" % (bus_port or 0), lambda m: f"socket://127.0.0.1:{free_port()}", text)
+    return re.sub(r'(type = "logited-tcp"\nhost = "127\.0\.0\.1"\nport = )\d+', lambda m: f"{m.group(1)}{free_port()}", text)
+
+
+def across_processes(plant_text: str) -> str:
+    """The same plant with its ``virtual`` CAN buses (one process only) on ``udp_multicast`` groups of
+    their own, so ``commission sim`` in one process and the GUI in another share them."""
+    counter = iter(range(1, 250))
+
+    def group(match: re.Match) -> str:
+        return f'interface = "udp_multicast"\nchannel = "239.74.{os.getpid() % 250}.{next(counter)}"\nport = {free_udp_port()}'
+
+    return re.sub(r'interface = "virtual"\nchannel = "[^"]*"', group, plant_text)
+
+
+def wait_http(url: str, proc: subprocess.Popen | None = None, timeout: float = 30.0) -> None:
+    """Wait until ``url`` answers 200 (raise if ``proc`` dies or ``timeout`` passes)."""
+    end = time.monotonic() + timeout
+    last: object = None
+    while time.monotonic() < end:
+        if proc is not None and proc.poll() is not None:
+            log = getattr(proc, "log_file", None)
+            tail = "\n".join(Path(log).read_text(errors="replace").splitlines()[-15:]) if log else ""
+            raise RuntimeError(f"the app exited with {proc.returncode} before answering {url}\n{tail}")
+        try:
+            with urllib.request.urlopen(url, timeout=1) as response:
+                if response.status == 200:
+                    return
+                last = response.status
+        except (urllib.error.URLError, ConnectionError, OSError) as exc:
+            last = exc
+        time.sleep(0.1)
+    raise TimeoutError(f"{url} did not answer within {timeout} s (last: {last})")
+
+
+def start_app(plant_file: Path, port: int, log_file: Path, *args: str, root: Path = ROOT) -> subprocess.Popen:
+    """``python -m app.cli ARGS --plant plant_file --port port`` with its output in ``log_file``; the
+    data folder is the one of ``COMMISSION_DATA_DIR`` or a folder beside the log. ``root``: another
+    checkout of the program (a benchmark comparing two versions side by side)."""
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    env.setdefault("COMMISSION_DATA_DIR", str(log_file.parent / "data"))
+    env.pop("NICEGUI_USER_SIMULATION", None)
+    env.pop("PYTEST_CURRENT_TEST", None)  # NiceGUI must not think it runs inside pytest
+    with open(log_file, "wb") as log:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "app.cli", *args, "--plant", str(plant_file), *(("--port", str(port)) if port else ())],
+            cwd=root, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
+        )
+    proc.log_file = log_file  # type: ignore[attr-defined]
+    return proc
+
+
+def stop_app(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=5)
+
+
+@contextlib.contextmanager
+def running_app(plant_text: str, folder: Path, *args: str) -> Iterator[str]:
+    """The GUI in its own process on ``plant_text``; yields its base URL once it answers."""
+    plant = folder / "plant.toml"
+    plant.write_text(plant_text)
+    port = free_port()
+    proc = start_app(plant, port, folder / "app.log", *args)
+    try:
+        wait_http(f"http://127.0.0.1:{port}/", proc)
+        yield f"http://127.0.0.1:{port}"
+    finally:
+        stop_app(proc)
+
+
+def wait_devices_online(url: str, names: Iterable[str] | None = None, timeout: float = 30.0) -> dict[str, str]:
+    """Wait until ``/api/devices`` of the app at ``url`` lists ``names`` (every device when None) online."""
+    wanted = None if names is None else set(names)
+    end = time.monotonic() + timeout
+    status: dict[str, str] = {}
+    while True:
+        try:
+            with urllib.request.urlopen(url + "/api/devices", timeout=2) as response:
+                status = {d["name"]: d["status"] for d in json.load(response)}
+        except OSError as exc:
+            status = {"(no answer)": str(exc)}
+        names_now = set(status) if wanted is None else wanted
+        if names_now and all(status.get(n) == "online" for n in names_now):
+            return status
+        if time.monotonic() >= end:
+            raise TimeoutError(f"devices not online within {timeout} s: {status}")
+        time.sleep(0.1)
+
+
+# -- the cost of a process, from /proc ----------------------------------------------------------
+
+def app_pid(port: int) -> int:
+    """The process listening on ``port``."""
+    out = subprocess.run(["ss", "-ltnpH", f"sport = :{port}"], capture_output=True, text=True).stdout
+    return int(out.split("pid=")[1].split(",")[0])
+
+
+def cpu_s(pid: int) -> float:
+    """User + system CPU seconds of ``pid`` so far."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def rss_mb(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return 0.0
+
+
+def load() -> str:
+    """The machine's load averages (1, 5, 15 min) and cores, to print beside a figure."""
+    one, five, fifteen = os.getloadavg()
+    return f"load {one:.2f} {five:.2f} {fifteen:.2f} on {os.cpu_count()} cores"
+
+
+def need_playwright():
+    """playwright's sync API, or exit with how to get it (the browser is Debian's chromium)."""
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        sys.exit("this benchmark drives chromium through playwright: pip install playwright "
+                 f"(no browser download: it uses {CHROMIUM})")
+    return sync_playwright
