@@ -97,12 +97,29 @@ actuators = [{{ counts_per_mm = 10 }}, {{ stroke_mm = 300 }}]
 """
 
 
+def electrak_plant() -> str:
+    return f"""
+name = "t"
+[[bus]]
+name = "can2"
+type = "can"
+interface = "virtual"
+channel = "parity-{free_port()}"
+simulate = true
+[[device]]
+name = "lift"
+type = "electrak"
+bus = "can2"
+actuators = [{{ model = "HD24", gearing = "B026", stroke_mm = 300 }}, {{ model = "HD24", gearing = "B026", stroke_mm = 300 }}]
+"""
+
+
 NOT_MOVED = "its page still reads adapters or info (tests/test_layering.py STORE_ONLY_PENDING)"
 FAMILIES = [
     pytest.param("mo64", "gate", mo64_plant, id="mo64"),
     pytest.param("hdlock", "door-1", hdlock_plant, id="hdlock"),
     pytest.param("hdlock", "gate-1", hdlock_can_plant, id="hdlock-can"),
-    pytest.param("electrak", None, None, id="electrak", marks=pytest.mark.skip(reason=NOT_MOVED)),
+    pytest.param("electrak", "lift", electrak_plant, id="electrak"),
     pytest.param("m3io", None, None, id="m3io", marks=pytest.mark.skip(reason=NOT_MOVED)),
     pytest.param("scu", "lift", scu_plant, id="scu"),
 ]
