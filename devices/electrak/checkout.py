@@ -1,8 +1,9 @@
 """Electrak HD checkout: move a given distance out and back at a given speed, position within
 tolerance, current below the limit, no fault flags (status 0x07, SY2 document).
 
-Declared here, run by the generic runner (``app/record.py``). Control is taken for the run's
-session (under the dead-man rule); the cleanup stops and releases it, also after an abort.
+Declared here, run by the generic runner (``app/record.py``); reads the published points and invokes the
+declared commands (devices/electrak/policy.py). Control is taken for the run's session (under the dead-man
+rule); the cleanup stops and releases it, also after an abort.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ def _flags(ctx) -> str:
 
 
 async def _take(ctx) -> None:
-    await ctx.command("take control", lambda a: a.take_control(ctx.session, ctx.user))
+    await ctx.invoke("take control", {"user": ctx.user})
     # a message-timeout flag from before control was taken clears with the first control telegrams
     await ctx.wait(lambda: ctx.value("Error flags") == 0, 2.0)
     ctx.measure("Error flags", ctx.value("Error flags"), expect=0, fail=False)
@@ -70,11 +71,10 @@ async def _move(ctx, direction: int) -> None:
         pos = ctx.value("Position")
         return pos is not None and abs(pos - target) <= s["tolerance_mm"] and not (ctx.value("Motion flags") or 0) & 0b11
 
-    await ctx.command(f"set {target:g} mm at {s['speed_mm_s']:g} mm/s",
-                      lambda a: a.set_command(ctx.session, target, s["speed_mm_s"], 0.0))
-    await ctx.command("go", lambda a: a.go(ctx.session))
+    await ctx.invoke("set target", {"position_mm": float(target), "speed_mm_s": float(s["speed_mm_s"]), "current_a": 0.0})
+    await ctx.invoke("go")
     reached = await ctx.wait(arrived, s["move_timeout_s"])
-    await ctx.command("stop", lambda a: a.stop(ctx.session), write=False)
+    await ctx.invoke("stop")
     if peak["errors"]:
         ctx.measure("Error flags", peak["errors"], expect=0, fail=False)
         ctx.fail(f"error flags during the move: {_flags(ctx)} (peak current {peak['a']:.1f} A)")
@@ -87,5 +87,5 @@ async def _move(ctx, direction: int) -> None:
 
 
 async def cleanup(ctx, settings: dict) -> None:
-    await ctx.command("stop", lambda a: a.stop(ctx.session), write=False)
-    await ctx.command("release control", lambda a: a.release_control(ctx.session, "checkout finished"), write=False)
+    await ctx.invoke("stop")
+    await ctx.invoke("release control", {"reason": "checkout finished"})
