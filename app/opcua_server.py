@@ -119,8 +119,6 @@ def identity_of(state, device_type: str, options: dict[str, Any]) -> dict[str, s
             entry = values.get(name)
             if entry is not None and entry.get("value") not in (None, ""):
                 return str(entry["value"])
-            if info.get(name) not in (None, ""):
-                return str(info[name])
         return ""
 
     title = DEVICE_TYPES[device_type].title if device_type in DEVICE_TYPES else device_type
@@ -135,7 +133,7 @@ def identity_of(state, device_type: str, options: dict[str, Any]) -> dict[str, s
         "Model": model,
         "SerialNumber": first("SerialNumber", "Serial number", "serial") or str(options.get("serial", "")),
         "SoftwareRevision": first("FirmwareVersion", "Program version", "Firmware info", "version", "Software version"),
-        "HardwareRevision": first("HardwareVersion", "Hardware version", "product"),
+        "HardwareRevision": first("HardwareVersion", "Hardware version", "Product"),
         "DeviceRevision": first("Device code", "DeviceRevision", "Configuration info"),
     }
 

@@ -1,25 +1,27 @@
-"""CAN-M3IO page: inputs, SSR channels with fuse/triac/load, temperatures, watchdog, addressed data."""
+"""CAN-M3IO page: inputs, SSR channels with fuse/triac/load, temperatures, watchdog, addressed data.
+
+Reads only the live store (the points and records :mod:`devices.m3io.adapter` publishes) and invokes the
+declared commands (devices/m3io/policy.py) through the worker's gate. Each card is a small class with
+``build()`` (in the page's layout) and ``refresh()`` (on every change the store pushes)."""
 
 from __future__ import annotations
-
-import inspect
-from datetime import datetime
 
 from nicegui import ui
 
 from app import runtime as rt
+from app.state import DeviceState, LiveValue, session_tag
 from app.worker import DEADMAN_BOUND_S
+from devices.m3io import adapter as facts
 from devices.m3io import codec
 from devices.m3io.codec import Variant
 from pages.frame import fmt_age, frame, set_status_badge
 from pages.session import current_user
+from pages.simcontrols import sim_card
 from pages.widgets import (
-    sim_card_allowed,
     HistoryChart,
     Lamp,
     WriteGuard,
     checked_value,
-    confirm,
     counter_line,
     entry_age,
     event_log,
@@ -47,317 +49,344 @@ def temp_text(variant: Variant, channel: int, word: codec.TempWord) -> str:
     return codec.describe_temp(variant, channel, word).split(" · ", 1)[0].split(" ", 1)[1]
 
 
-def content(name: str) -> None:
-    runtime = rt.current()
-    state = runtime.store.devices[name]
-    adapter = runtime.worker.adapters[name]
-    twin = runtime.twins.get(name)
-    ids = adapter.ids
-    session = ui.context.client.id  # outputs switched on here belong to this page session
+def _quality(value: LiveValue | None) -> str:
+    return "unknown" if value is None else value.quality
 
-    async def act(describe: str, fn, success: str = "", write: bool = True):
-        async def action(a):
-            result = fn(a)
-            return await result if inspect.isawaitable(result) else result
 
-        return await run_command(name, action, describe, success=success, write=write)
+def _age_note(value: LiveValue | None) -> str:
+    quality = _quality(value)
+    return quality_note(quality, entry_age(value and value.entry())) if quality in ("stale", "offline") else ""
 
-    with frame(f"CAN-M3IO {name} ({adapter.variant.value})"):
-        guard = WriteGuard(state)  # switches and commands, disabled with the reason while the module does not answer
+
+class M3ioView:
+    """What every card of one page shares: the module's live record and its declared commands."""
+
+    def __init__(self, name: str):
+        runtime = rt.current()
+        self.name = name
+        self.store = runtime.store
+        self.state: DeviceState = runtime.store.devices[name]
+        self.session = ui.context.client.id  # outputs switched on here belong to this page session
+        self.tag = session_tag(self.session)
+        self.variant = Variant(self.fact(facts.P_VARIANT))
+        self.addressing: facts.Addressing = self.fact(facts.P_ADDRESSING)
+        self.cards: list = []
+
+    def live(self, point: str) -> LiveValue | None:
+        return self.state.live(point)
+
+    def fact(self, point: str, default=None):
+        value = self.state.live(point)
+        return default if value is None or value.value is None else value.value
+
+    def text(self, point: str, default: str = "-") -> str:
+        value = self.state.live(point)
+        return default if value is None else value.shown
+
+    def refresh(self) -> None:
+        for card in self.cards:
+            card.refresh()
+
+    async def act(self, command: str, args: dict | None = None, success: str = "", **options) -> tuple[bool, object]:
+        """Invoke a declared command of the module (devices/m3io/policy.py) by name; the gate decides on its kind
+        and the role and asks its declared risk here (``title``/``ok`` word the question)."""
+        result = await run_command(self.name, command, args=args, session=self.session, success=success, **options)
+        self.refresh()
+        return result
+
+
+class ModuleCard:
+    """Status, watchdog, counters, SW1 and the CAN IDs, the variant check, control of the module."""
+
+    def __init__(self, view: M3ioView):
+        self.view = view
+
+    def build(self) -> None:
+        view, a = self.view, self.view.addressing
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-6 w-full"):
-                badge = ui.badge("waiting", color="grey").classes("text-body2")
-                watchdog = ui.label().classes("text-body2")
-                counter_line(state, lambda c: f"frames in {c.responses} · requests {c.requests} · timeouts {c.timeouts} · "
+                self.badge = ui.badge("waiting", color="grey").classes("text-body2")
+                self.watchdog = ui.label().classes("text-body2")
+                counter_line(view.state, lambda c: f"frames in {c.responses} · requests {c.requests} · timeouts {c.timeouts} · "
                              f"malformed {c.malformed} · write errors {c.write_errors}")
-            ui.label(
-                f"SW1 0x{adapter.sw1:02X} ({adapter.sw1:08b}): "
-                + ("addressed mode (S8 on), " if ids.addressed else "S8 off, ")
-                + f"{ids.bitrate // 1000} kbit/s · "
-                + " · ".join(f"{k} 0x{v:03X}" for k, v in ids.by_name().items())
-            ).classes("text-body2 mono")
-            variant_line = ui.label().classes("text-body2").props("data-testid=variant-check")
+            ui.label(f"SW1 0x{a.sw1:02X} ({a.sw1:08b}): " + ("addressed mode (S8 on), " if a.addressed else "S8 off, ")
+                     + f"{a.bitrate // 1000} kbit/s · " + " · ".join(f"{k} 0x{v:03X}" for k, v in a.ids)).classes("text-body2 mono")
+            self.variant = ui.label().classes("text-body2").props("data-testid=variant-check")
             # the module is a slave: this tool serves its watchdog (DigOut) only while an engineer controls it
             with ui.row().classes("items-center gap-3"):
-                take = ui.button("Take control", icon="sports_esports", on_click=lambda: act(
-                    "take control", lambda a: a.take_control(session, current_user()[0] or "local engineer"),
-                    success="you control the module: DigOut serves its watchdog")).props("data-testid=take-control")
-                take.tooltip(f"Listens for another master (a PLC sending DigOut 0x{ids.dig_out:03X}) first; refused if there is one")
-                ui.button("Release", icon="logout", on_click=lambda: act(
-                    "release control", lambda a: a.release_control(session), write=False)).props("outline data-testid=release-control")
-                holder = ui.label().classes("text-body2").props("data-testid=controller")
-            if state.info.get("bitrate_mismatch"):
-                ui.label(
-                    f"SW1 sets {ids.bitrate // 1000} kbit/s, but the bus runs at {state.info['bus_bitrate'] // 1000} kbit/s: "
-                    "the module cannot be reached. Fix SW1 or the bus bit rate in the plant file."
-                ).classes("text-negative text-body1")
+                take = ui.button("Take control", icon="sports_esports", on_click=self.take).props("data-testid=take-control")
+                take.tooltip(f"Listens for another master (a PLC sending DigOut 0x{a.dig_out:03X}) first; refused if there is one")
+                ui.button("Release", icon="logout", on_click=lambda: view.act("release control")) \
+                    .props("outline data-testid=release-control")
+                self.holder = ui.label().classes("text-body2").props("data-testid=controller")
+            if view.fact(facts.P_BITRATE_CHECK) == "mismatch":
+                ui.label(f"SW1 sets {a.bitrate // 1000} kbit/s, but the bus runs at {(a.bus_bitrate or 0) // 1000} kbit/s: "
+                         "the module cannot be reached. Fix SW1 or the bus bit rate in the plant file.").classes("text-negative text-body1")
 
+    async def take(self) -> None:
+        await self.view.act("take control", {"user": current_user()[0] or "local engineer"},
+                            success="you control the module: DigOut serves its watchdog")
+
+    def refresh(self) -> None:
+        view, state = self.view, self.view.state
+        set_status_badge(self.badge, state.status, state.age)
+        served = bool(view.fact(facts.P_WATCHDOG))
+        other = view.fact(facts.P_OTHER_MASTER)
+        foreign = other is not None and other.active
+        self.watchdog.set_text(f"watchdog {view.text(facts.P_WATCHDOG)} · last answer {fmt_age(state.age)}")
+        self.watchdog.classes(replace="text-body2 " + ("text-positive" if served else "text-warning" if foreign else "text-grey-8"))
+        control = view.fact(facts.P_CONTROL)
+        self.holder.set_text(("you control the module" if control.session == view.tag else f"{control.user} controls the module")
+                             if control else "nobody controls the module")
+        check = view.live(facts.P_VARIANT_CHECK)
+        self.variant.set_text(f"Variant {view.variant.value}: {check.text}")
+        self.variant.classes(replace="text-body2 " + VARIANT_COLOR.get(check.value, "text-grey-8"))
+
+
+class OutputsCard:
+    """Inputs E1-E6, the stop rule, the LED, one row per SSR output and (HMR) P2."""
+
+    def __init__(self, view: M3ioView, guard: WriteGuard):
+        self.view, self.guard = view, guard
+        self.rows = [ChannelRow(view, guard, output, channels) for output, channels in facts.ssr_groups(view.variant)]
+
+    def build(self) -> None:
+        with ui.card().classes("col-xs-12 col-md"):
+            ui.label("Digital inputs").classes("text-subtitle1")
+            with ui.row().classes("gap-5"):
+                self.lamps = {f"E{i}": Lamp(f"E{i}") for i in range(1, 7)}
+            ui.separator()
+            with ui.row().classes("items-center w-full"):
+                ui.label("Outputs").classes("text-subtitle1")
+                ui.space()
+                ui.label("All off: in the bar at the bottom, always in sight").classes("text-caption text-grey-8")
+            with ui.row().classes("items-start gap-1 no-wrap").props("data-testid=stop-rule"):
+                ui.icon("front_hand", size="xs").classes("text-grey-8 q-mt-xs")
+                ui.label(STOP_RULE).classes("text-caption text-grey-8")
+            self.refused = ui.label().classes("text-negative text-body2")
+            self.led = ui.switch("LED (Bereit)", on_change=lambda e: switch(self.view, "LED", e)).props("data-output=LED")
+            self.guard.add(self.led)
+            with ui.column().classes("w-full gap-1"):
+                for row in self.rows:
+                    row.build()
+            self.p2 = self.p2_check = None
+            if self.view.variant is Variant.HMR:
+                with ui.row().classes("items-center"):
+                    self.p2 = ui.switch("Three-phase output loaded on two phases only (P2)", on_change=self.set_p2)
+                    self.guard.add(self.p2)
+                    ui.label("not stored in the module: sent with every DigOut, so a reset cannot lose it").classes(
+                        "text-caption text-grey-8")
+                self.p2_check = ui.label().classes("text-caption").props("data-testid=p2-check")
+
+    async def set_p2(self, event) -> None:
+        if bool(event.value) != bool(self.view.fact(facts.P_P2)):
+            await self.view.act("P2", {"on": int(bool(event.value))})
+
+    def refresh(self) -> None:
+        view = self.view
+        check = view.live(facts.P_VARIANT_CHECK)
+        may_switch = check is None or bool(check.raw)
+        self.refused.set_text("" if may_switch else f"Switching on is refused: {check.text}")
+        self.refused.set_visibility(not may_switch)
+        for key, lamp in self.lamps.items():
+            lamp.show(view.state.point(key))
+        self.led.set_value(bool(view.fact("LED")))
+        for row in self.rows:
+            row.refresh()
+        if self.p2 is not None:
+            self.p2.set_value(bool(view.fact(facts.P_P2)))
+            p2_check = view.live(facts.P_P2_CHECK)
+            self.p2_check.set_text("" if p2_check is None else f"P2 in the module: {p2_check.shown}")
+            self.p2_check.classes(replace="text-caption " + ("text-negative" if p2_check and p2_check.value == "mismatch"
+                                                             else "text-grey-8"))
+
+
+async def switch(view: M3ioView, output: str, event) -> None:
+    """A switch moved: the declared "<output> on/off" (an SSR asks its mains risk first); back if refused."""
+    value = bool(event.value)
+    if value == bool(view.fact(output)):
+        return  # the refresh set it to what the module has
+    ok, _ = await view.act(f"{output} {'on' if value else 'off'}", title=f"Switch {output} on?", ok="Switch on")
+    if not ok:
+        event.sender.set_value(bool(view.fact(output)))
+
+
+class ChannelRow:
+    """One SSR output with the load, fuse and triac of each channel it drives (HMR SSR1-3: three)."""
+
+    def __init__(self, view: M3ioView, guard: WriteGuard, output: str, channels: tuple[int, ...]):
+        self.view, self.guard, self.output, self.channels = view, guard, output, channels
+        self.shown: object = None
+
+    def build(self) -> None:
+        output = self.output
+        with ui.row().classes("items-center w-full gap-3 no-wrap") as row:
+            row.props(f'data-channel="{output}"')
+            self.switch = ui.switch(output, on_change=lambda e: switch(self.view, output, e)).classes("w-32")
+            self.switch.props(f'data-output="{output}"')
+            self.guard.add(self.switch)
+            self.details = ui.column().classes("gap-1 col")
+            self.age = ui.label().classes("q-age")
+        if output == "SSR1-3":
+            ui.label("Three-phase output: a fault on one of SSR1, SSR2, SSR3 switches all three off.").classes("text-caption text-grey-8")
+
+    def _channel(self, channel: int) -> tuple[str, str, str, bool]:
+        view = self.view
+        last = view.live(f"SSR{channel} Last")
+        return (view.text(f"SSR{channel} Last", "unknown"), view.fact(f"SSR{channel} Si", "unknown"),
+                view.fact(f"SSR{channel} Triac", "unknown"), last is not None)
+
+    def refresh(self) -> None:
+        view, output = self.view, self.output
+        on = bool(view.fact(output))
+        self.switch.set_value(on)
+        owners = {o.output: o.session for o in view.fact(facts.P_OWNERS, ())}
+        foreign = on and output in owners and owners[output] != view.tag
+        group = view.live(facts.P_LOAD_CHECK) if output == "SSR1-3" else None
+        group_fault = group.text if group is not None and group.value == "fault" else None
+        shown = (foreign, group_fault, tuple(self._channel(c) for c in self.channels))
+        entry = view.live(f"SSR{self.channels[0]} Last")
+        mark_quality(self.details, _quality(entry))  # greyed, with the age of its status, while stale or offline
+        self.age.set_text(_age_note(entry))
+        if shown == self.shown:
+            return  # rebuild only what changed
+        self.shown = shown
+        self.details.clear()
+        with self.details:
+            if foreign:
+                ui.label("switched on from another page: it goes off when that page goes away").classes("text-caption text-warning")
+            if group_fault:
+                ui.label(group_fault).classes("text-negative text-body2")
+            for channel, (load, fuse, triac, heard) in zip(self.channels, shown[2]):
+                self._show(channel, load, fuse, triac, heard)
+
+    def _show(self, channel: int, load: str, fuse: str, triac: str, heard: bool) -> None:
+        with ui.row().classes("items-center gap-2"):
+            if len(self.channels) > 1:
+                ui.label(f"SSR{channel}").classes("text-caption mono")
+            for title, value in (("load", load), ("fuse", fuse), ("triac", triac)):
+                color = STATE_COLOR.get(value, "grey")
+                ui.badge(f"{title}: {value}", color=color).props(f'data-{title}="{value}" outline={color == "grey"} multi-line')
+            if not heard:
+                ui.label("no status yet").classes("text-caption text-grey-8")
+        if fuse == "blown":
+            ui.label(codec.fuse_advice(self.view.variant, channel)).classes("text-negative text-body2")
+        if triac == "defective":
+            ui.label("triac defective: it does not conduct while switched on").classes("text-negative text-body2")
+
+
+class TemperatureCard:
+    """The Pt100 temperatures (section 7.2.2) and their chart."""
+
+    def __init__(self, view: M3ioView):
+        self.view = view
+        self.labels: dict[int, tuple[ui.label, ui.label]] = {}
+
+    def build(self) -> None:
+        view = self.view
+        with ui.card().classes("col-xs-12 col-md"):
+            ui.label("Pt100 temperatures (0.1 °C)").classes("text-subtitle1")
+            with ui.row().classes("gap-6"):
+                for channel in facts.temp_channels(view.variant):
+                    with ui.column().classes("gap-0"):
+                        ui.label(f"TEMP{channel}" + (" (SSR1-3)" if view.variant is Variant.HMR and channel == 1 else "")) \
+                            .classes("text-caption text-grey-8")
+                        self.labels[channel] = (ui.label("-").classes("text-h6").props(f'data-temp="{channel}"'),
+                                                ui.label().classes("q-age q-ml-none"))
+            HistoryChart(view.state, list(facts.history_points(view.variant)), window_s=600, height=260)
+
+    def refresh(self) -> None:
+        for channel, (label, note) in self.labels.items():
+            value = self.view.live(f"TEMP{channel}")
+            word = None if value is None or value.raw is None else codec.TempWord(value.raw)
+            label.set_text("-" if word is None else temp_text(self.view.variant, channel, word))
+            label.classes(replace="text-h6 " + ("" if word is None or word.in_range else "text-warning"))
+            mark_quality(label, _quality(value))
+            note.set_text(_age_note(value))
+
+
+class AddressedCard:
+    """Addressed mode (SW1 switch 8 on, 7.2.4.2): identity, the 15 customer-data records, the actual load data."""
+
+    def __init__(self, view: M3ioView, guard: WriteGuard):
+        self.view, self.guard = view, guard
+
+    def build(self) -> None:
+        with ui.card().classes("w-full"):
+            ui.label("Addressed data (SW1 switch 8 on)").classes("text-subtitle1")
+            self.identity = ui.label("not read").classes("text-body2").props("data-testid=identity")
+            self.guard.add(ui.button("Read identity", icon="badge", on_click=lambda: self.view.act("read identity"))
+                           .props("outline dense"))
+            ui.label(f"Software version: assumed decoding ({codec.VERSION_ASSUMPTION}).").classes("text-caption text-grey-8")
+            ui.separator()
+            ui.label("Customer data (15 records of 6 bytes)").classes("text-body2 text-weight-medium")
+            with ui.row().classes("items-center"):
+                # records 1-15 of 6 bytes (section 7.2.4.2, areas 3 and 4)
+                self.index = range_number("Record", 1, 15, integer=True, value=1).classes("w-32").props("data-testid=record")
+                self.data = ui.input("Bytes (hex, up to 6)", placeholder="01 02 03", validation=_bytes_check).props(
+                    "dense outlined data-testid=record-bytes").classes("w-56 mono")
+                self.record = ui.label().classes("mono")
+                self.guard.add(ui.button("Read", on_click=self.read_record).props("outline dense"),
+                               ui.button("Write", on_click=self.write_record).props("dense data-testid=record-write"))
+            ui.separator()
+            self.loads = ui.label().classes("text-body2 mono")
+            self.guard.add(ui.button("Read actual load data SSR1-6", on_click=lambda: self.view.act("read load data"))
+                           .props("outline dense"))
+
+    async def read_record(self) -> None:
+        view = self.view
+        number = await checked_value(self.index, view.name, "read customer data", parameter="Customer data")
+        if number is not None:
+            ok, _ = await view.act("read customer data", {"index": int(number)})
+            if ok:
+                self.record.set_text(f"record {int(number)}: {view.text(f'Customer data {int(number)}')}")
+
+    async def write_record(self) -> None:
+        view = self.view
+        number = await checked_value(self.index, view.name, "write customer data", parameter="Customer data")
+        reason = _bytes_check(self.data.value)
+        if reason is not None:
+            self.data.validate()
+            await refuse(view.name, "write customer data", f"{self.data.value!r}: {reason}", parameter="Customer data",
+                         new=self.data.value)
+        if number is None or reason is not None:
+            return
+        ok, _ = await view.act("write customer data", {"index": int(number), "payload": self.data.value or ""},
+                               success="written and verified")
+        if ok:
+            self.record.set_text(f"record {int(number)}: {view.text(f'Customer data {int(number)}')} (verified)")
+
+    def refresh(self) -> None:
+        view = self.view
+        identity = view.live(facts.P_IDENTITY)
+        self.identity.set_text("not read" if identity is None else identity.shown)
+        loads = [(i, view.live(f"SSR{i} load data")) for i in range(1, 7)]
+        self.loads.set_text(" · ".join(f"SSR{i}: {v.shown}" for i, v in loads if v is not None and v.value is not None))
+
+
+def content(name: str) -> None:
+    view = M3ioView(name)
+    with frame(f"CAN-M3IO {name} ({view.variant.value})"):
+        guard = WriteGuard(view.state)  # switches and commands, disabled with the reason while the module does not answer
+        module, outputs = ModuleCard(view), OutputsCard(view, guard)
+        view.cards = [module, outputs]
+        module.build()
         # side by side from 1024 px; one above the other on a tablet, where the chart would get a third of the width
         with ui.row().classes("w-full items-start gap-4"):
-            with ui.card().classes("col-xs-12 col-md"):
-                ui.label("Digital inputs").classes("text-subtitle1")
-                with ui.row().classes("gap-5"):
-                    input_lamps = {f"E{i}": Lamp(f"E{i}") for i in range(1, 7)}
-                ui.separator()
-                with ui.row().classes("items-center w-full"):
-                    ui.label("Outputs").classes("text-subtitle1")
-                    ui.space()
-                    ui.label("All off: in the bar at the bottom, always in sight").classes("text-caption text-grey-8")
-                with ui.row().classes("items-start gap-1 no-wrap").props("data-testid=stop-rule"):
-                    ui.icon("front_hand", size="xs").classes("text-grey-8 q-mt-xs")
-                    ui.label(STOP_RULE).classes("text-caption text-grey-8")
-                refused = ui.label().classes("text-negative text-body2")
-                led = ui.switch("LED (Bereit)", on_change=lambda e: _switch(act, adapter, session, "LED", e, mains=False))
-                led.props("data-output=LED")
-                guard.add(led)
-                channel_rows = _channels(adapter, act, session, guard) if adapter.variant is not Variant.KM else {}
-                if adapter.variant is Variant.HMR:
-                    with ui.row().classes("items-center"):
-                        p2 = ui.switch("Three-phase output loaded on two phases only (P2)",
-                                       on_change=lambda e: act("P2", lambda a: a.set_two_phase(e.value)))
-                        guard.add(p2)
-                        ui.label("not stored in the module: sent with every DigOut, so a reset cannot lose it").classes(
-                            "text-caption text-grey-8"
-                        )
-            if adapter.variant is not Variant.KM:
-                with ui.card().classes("col-xs-12 col-md"):
-                    ui.label("Pt100 temperatures (0.1 °C)").classes("text-subtitle1")
-                    temp_labels, temp_notes = {}, {}
-                    with ui.row().classes("gap-6"):
-                        for channel in adapter.temp_channels():
-                            with ui.column().classes("gap-0"):
-                                ui.label(f"TEMP{channel}" + (" (SSR1-3)" if adapter.variant is Variant.HMR and channel == 1 else "")).classes(
-                                    "text-caption text-grey-8"
-                                )
-                                temp_labels[channel] = ui.label("-").classes("text-h6").props(f'data-temp="{channel}"')
-                                temp_notes[channel] = ui.label().classes("q-age q-ml-none")
-                    chart = HistoryChart(state, [adapter.temp_label(c) for c in adapter.temp_channels()], window_s=600, height=260)
-            else:
-                temp_labels, chart = {}, None
-
-        if twin is not None:
-            _sim_card(twin, adapter)
-        if ids.addressed:
-            _addressed_card(name, state, adapter, guard)
-
+            outputs.build()
+            if view.variant is not Variant.KM:
+                view.cards.append(TemperatureCard(view))
+                view.cards[-1].build()
+        sim_card(name)  # the twin's declared controls, in simulation only
+        if view.addressing.addressed:
+            view.cards.append(AddressedCard(view, guard))
+            view.cards[-1].build()
         with ui.expansion("Events", icon="list", value=True).classes("w-full"):
-            event_log(state)
-
+            event_log(view.state)
     stop_bar("Switches every output off at once; anyone may, also without writing rights.", "All off", "power_off",
-             lambda: act("all off", lambda a: a.all_off("all off pressed"), write=False), "off-bar", "all-off")
-
-    def update() -> None:
-        set_status_badge(badge, state.status, state.age)
-        served = adapter.bus.cyclic_running(adapter.key)
-        last = adapter.last_answer
-        foreign = adapter.foreign_master()
-        watchdog.set_text(
-            (f"watchdog served: DigOut every {codec.DIGOUT_PERIOD_S * 1000:.0f} ms"
-             + (" (every output off: nobody controls the module)" if adapter.controller is None else "") if served
-             else "watchdog served by another master (a PLC): this tool only listens" if foreign
-             else "watchdog not served: outputs are off in the module; take control to serve it")
-            + f" · last answer {fmt_age(None if last is None else datetime.now().timestamp() - last)}"
-        )
-        watchdog.classes(replace="text-body2 " + ("text-positive" if served else "text-warning" if foreign else "text-grey-8"))
-        controller = adapter.controller
-        holder.set_text(("you control the module" if controller.session == session else f"{controller.user} controls the module")
-                        if controller else "nobody controls the module")
-        check = adapter.variant_check
-        variant_line.set_text(f"Variant {adapter.variant.value}: {check.text}")
-        variant_line.classes(replace="text-body2 " + VARIANT_COLOR[check.state])
-        refused.set_text("" if check.may_switch else f"Switching on is refused: {check.text}")
-        refused.set_visibility(not check.may_switch)
-        for key, lamp in input_lamps.items():
-            lamp.show(state.point(key))
-        led.set_value(adapter.outputs["LED"])
-        for refresh in channel_rows.values():
-            refresh()
-        if adapter.variant is Variant.HMR:
-            p2.set_value(adapter.two_phase)
-        for channel, label in temp_labels.items():
-            word = adapter.temps.get(channel)
-            label.set_text("-" if word is None else temp_text(adapter.variant, channel, word))
-            label.classes(replace="text-h6 " + ("" if word is None or word.in_range else "text-warning"))
-            entry = state.point(f"TEMP{channel}")
-            quality = "unknown" if entry is None else entry["quality"]
-            mark_quality(label, quality)
-            temp_notes[channel].set_text(quality_note(quality, entry_age(entry)) if quality in ("stale", "offline") else "")
-
-    update()
-    follow(state, update)  # on every change the store pushes (at most 10/s) and once a second for the ages
-
-
-async def _switch(act, adapter, session: str, output: str, event, mains: bool = True) -> None:
-    value = event.value
-    if value == adapter.outputs[output]:
-        return
-    if value and mains:
-        three = output == "SSR1-3"
-        ok = await confirm(
-            f"Switch {output} on?",
-            ("The three-phase output (400 V) " if three else "This output switches mains voltage (230/400 V) ")
-            + "to the connected load. Make sure nobody works on it.",
-            ok="Switch on",
-        )
-        if not ok:
-            event.sender.set_value(False)
-            return
-    ok, _ = await act(f"{output} {'on' if value else 'off'}", lambda a: a.set_output(session, output, value), write=value)
-    if not ok:
-        event.sender.set_value(adapter.outputs[output])
-
-
-def _channels(adapter, act, session: str, guard: WriteGuard) -> dict:
-    """One row per SSR channel (HMR: SSR1-3 as one three-phase channel)."""
-    rows = {}
-    groups = [("SSR1-3", [1, 2, 3])] + [(f"SSR{i}", [i]) for i in (4, 5, 6)] if adapter.variant is Variant.HMR else [
-        (f"SSR{i}", [i]) for i in range(1, 7)
-    ]
-    with ui.column().classes("w-full gap-1"):
-        for output, channels in groups:
-            with ui.row().classes("items-center w-full gap-3 no-wrap") as row:
-                row.props(f'data-channel="{output}"')
-                switch = ui.switch(output, on_change=lambda e, o=output: _switch(act, adapter, session, o, e)).classes("w-32")
-                switch.props(f'data-output="{output}"')
-                guard.add(switch)
-                details = ui.column().classes("gap-1 col")
-                age = ui.label().classes("q-age")
-            if output == "SSR1-3":
-                ui.label("Three-phase output: a fault on one of SSR1, SSR2, SSR3 switches all three off.").classes("text-caption text-grey-8")
-
-            shown: list = [None]
-
-            def refresh(switch=switch, details=details, age=age, output=output, channels=channels, shown=shown) -> None:
-                switch.set_value(adapter.outputs[output])
-                owner = adapter.owners.get(output)
-                foreign = adapter.outputs[output] and owner is not None and owner != session
-                group_fault = adapter.group_load_fault() if output == "SSR1-3" else None
-                view = (foreign, group_fault, tuple(
-                    (adapter.channels[c].load, adapter.channels[c].fuse, adapter.channels[c].triac, c in adapter.temps) for c in channels
-                ))
-                entry = adapter.state.point(f"SSR{channels[0]} Last")
-                quality = "unknown" if entry is None else entry["quality"]
-                mark_quality(details, quality)  # greyed, with the age of its status, while stale or offline
-                age.set_text(quality_note(quality, entry_age(entry)) if quality in ("stale", "offline") else "")
-                if view == shown[0]:
-                    return  # rebuild only what changed
-                shown[0] = view
-                details.clear()
-                with details:
-                    if foreign:
-                        ui.label("switched on from another page: it goes off when that page goes away").classes("text-caption text-warning")
-                    if group_fault:
-                        ui.label(group_fault).classes("text-negative text-body2")
-                    for channel in channels:
-                        m = adapter.channels[channel]
-                        with ui.row().classes("items-center gap-2"):
-                            if len(channels) > 1:
-                                ui.label(f"SSR{channel}").classes("text-caption mono")
-                            for title, value in (("load", m.load), ("fuse", m.fuse), ("triac", m.triac)):
-                                color = STATE_COLOR.get(value, "grey")
-                                ui.badge(f"{title}: {value}", color=color).props(f'data-{title}="{value}" outline={color == "grey"} multi-line')
-                            if channel not in adapter.temps:
-                                ui.label("no status yet").classes("text-caption text-grey-8")
-                        if m.fuse == "blown":
-                            ui.label(codec.fuse_advice(adapter.variant, channel)).classes("text-negative text-body2")
-                        if m.triac == "defective":
-                            ui.label("triac defective: it does not conduct while switched on").classes("text-negative text-body2")
-
-            rows[output] = refresh
-    return rows
-
-
-def _sim_card(twin, adapter) -> None:
-    with ui.card().classes("w-full bg-purple-1"):
-        ui.label("Simulated module (demo)").classes("text-subtitle1")
-        if not sim_card_allowed():  # a viewer changes nothing, the simulated plant included
-            return
-        with ui.row().classes("items-center"):
-            for i in range(1, 7):
-                ui.button(f"E{i}", on_click=lambda i=i: twin.toggle_input(f"E{i}")).props("outline dense")
-            ui.label("toggle inputs").classes("text-caption")
-        if adapter.variant is not Variant.KM:
-            with ui.row().classes("items-center gap-2"):
-                channel = ui.select({i: f"SSR{i}" for i in range(1, 7)}, value=1, label="Channel").props("dense outlined").classes("w-28")
-                ui.button("Remove load", on_click=lambda: setattr(twin.ssr[channel.value], "load", False)).props("outline dense")
-                ui.button("Connect load", on_click=lambda: setattr(twin.ssr[channel.value], "load", True)).props("outline dense")
-                ui.button("Blow fuse", on_click=lambda: setattr(twin.ssr[channel.value], "fuse_ok", False)).props(
-                    "outline dense color=negative data-testid=sim-blow-fuse"
-                )
-                ui.button("Break triac", on_click=lambda: setattr(twin.ssr[channel.value], "triac_ok", False)).props("outline dense color=negative")
-                ui.button("Short triac", on_click=lambda: setattr(twin.ssr[channel.value], "triac_shorted", True)).props("outline dense color=negative")
-                ui.button("Repair", on_click=lambda: _repair(twin.ssr[channel.value])).props("outline dense")
-            with ui.row().classes("items-center gap-2"):
-                temp = ui.number("Temperature °C", value=25.0, step=0.5).props("dense outlined").classes("w-40")
-                ui.button("Set", on_click=lambda: twin.set_temperature(channel.value, float(temp.value or 0))).props("outline dense")
-                ui.button("Cut 24 V (reset)", on_click=twin.power_cycle).props("outline dense data-testid=sim-power-cycle")
-                ui.label("The module reports a blown fuse until its 24 V are cut, even after repair.").classes("text-caption")
-
-
-def _repair(ssr) -> None:
-    ssr.fuse_ok = ssr.triac_ok = True
-    ssr.triac_shorted = False
-
-
-def _addressed_card(name: str, state, adapter, guard: WriteGuard) -> None:
-    with ui.card().classes("w-full"):
-        ui.label("Addressed data (SW1 switch 8 on)").classes("text-subtitle1")
-        identity = ui.label("not read").classes("text-body2")
-
-        async def read_identity() -> None:
-            ok, info = await run_command(name, lambda a: a.read_identity(), "read identity", write=False)
-            if ok:
-                identity.set_text(
-                    f"serial {info['serial']} · product 0x{info['product_code']:04X} {info['product']} · "
-                    f"software {info['version']} · configuration 0x{info['config']:02X}"
-                )
-
-        guard.add(ui.button("Read identity", icon="badge", on_click=read_identity).props("outline dense"))
-        ui.separator()
-        ui.label("Customer data (15 records of 6 bytes)").classes("text-body2 text-weight-medium")
-        with ui.row().classes("items-center"):
-            # records 1-15 of 6 bytes (section 7.2.4.2, areas 3 and 4)
-            index = range_number("Record", 1, 15, integer=True, value=1).classes("w-32").props("data-testid=record")
-            data = ui.input("Bytes (hex, up to 6)", placeholder="01 02 03", validation=_bytes_check).props(
-                "dense outlined data-testid=record-bytes").classes("w-56 mono")
-            record = ui.label().classes("mono")
-
-            async def read_record() -> None:
-                number = await checked_value(index, name, "read customer data", parameter="Customer data")
-                if number is None:
-                    return
-                ok, payload = await run_command(name, lambda a: a.read_customer(int(number)), "read customer data", write=False)
-                if ok:
-                    record.set_text(f"record {int(number)}: {payload.hex(' ')}")
-
-            async def write_record() -> None:
-                number = await checked_value(index, name, "write customer data", parameter="Customer data")
-                reason = _bytes_check(data.value)
-                if reason is not None:
-                    data.validate()
-                    await refuse(name, "write customer data", f"{data.value!r}: {reason}", parameter="Customer data", new=data.value)
-                if number is None or reason is not None:
-                    return
-                payload = bytes.fromhex(data.value or "")
-                ok, stored = await run_command(name, lambda a: a.write_customer(int(number), payload), "write customer data",
-                                               success="written and verified", parameter=f"Customer data {int(number)}",
-                                               new=payload.hex(" "))
-                if ok:
-                    record.set_text(f"record {int(number)}: {stored.hex(' ')} (verified)")
-
-            guard.add(ui.button("Read", on_click=read_record).props("outline dense"),
-                      ui.button("Write", on_click=write_record).props("dense data-testid=record-write"))
-        ui.separator()
-        loads = ui.label().classes("text-body2 mono")
-
-        async def read_loads() -> None:
-            ok, result = await run_command(name, lambda a: a.read_load_data(), "read load data", write=False)
-            if ok:
-                loads.set_text(" · ".join(
-                    f"SSR{i}: {w.text()} load {int(w.load)} triac {int(w.triac)} fuse {int(w.fuse)}" for i, w in result.items()
-                ))
-
-        guard.add(ui.button("Read actual load data SSR1-6", on_click=read_loads).props("outline dense"))
+             lambda: view.act("all off"), "off-bar", "all-off")
+    view.refresh()
+    follow(view.state, view.refresh)  # on every change the store pushes (at most 10/s) and once a second for the ages
 
 
 def _bytes_check(text) -> str | None:
@@ -367,3 +396,6 @@ def _bytes_check(text) -> str | None:
     except ValueError:
         return "bytes as hex, e.g. 01 02 0A"
     return None if len(payload) <= 6 else f"at most 6 bytes ({len(payload)} entered)"
+
+
+__all__ = ["content", "temp_text"]

@@ -161,7 +161,6 @@ NAMING_PENDING = {
 GATED_CALLS = {"run_command", "command", "checked"}
 # still passing write= (the older way), each to move to declared commands (then delete its line)
 WRITE_PENDING = {
-    "pages/m3io.py": "output switching and control not yet declared",
     "pages/monitor.py": "bus monitor actions",
     "app/record.py": "checkout steps of the record page",
     "app/batch.py": "batch apply's reads of each device's parameters",
@@ -271,7 +270,6 @@ def test_write_flag_reader():
 # yet moved still write). Each file below still does; delete its line when it is moved (see the MO 64: the
 # adapter publishes every fact as a point or a record, the page reads state.live(...)).
 STORE_ONLY_PENDING = {
-    "pages/m3io.py": "reads info and adapter attributes (31 reads), the twin for its sim card",
 }
 STORE_BYPASS = ("adapters", "twins", "info")
 

@@ -114,13 +114,33 @@ actuators = [{{ model = "HD24", gearing = "B026", stroke_mm = 300 }}, {{ model =
 """
 
 
+def m3io_plant() -> str:
+    return f"""
+name = "t"
+[[bus]]
+name = "can3"
+type = "can"
+interface = "virtual"
+channel = "parity-{free_port()}"
+bitrate = 500000
+simulate = true
+[[device]]
+name = "heater-hmr"
+type = "m3io"
+bus = "can3"
+variant = "HMR"
+sw1 = 0xCA
+master = "always"
+"""
+
+
 NOT_MOVED = "its page still reads adapters or info (tests/test_layering.py STORE_ONLY_PENDING)"
 FAMILIES = [
     pytest.param("mo64", "gate", mo64_plant, id="mo64"),
     pytest.param("hdlock", "door-1", hdlock_plant, id="hdlock"),
     pytest.param("hdlock", "gate-1", hdlock_can_plant, id="hdlock-can"),
     pytest.param("electrak", "lift", electrak_plant, id="electrak"),
-    pytest.param("m3io", None, None, id="m3io", marks=pytest.mark.skip(reason=NOT_MOVED)),
+    pytest.param("m3io", "heater-hmr", m3io_plant, id="m3io"),
     pytest.param("scu", "lift", scu_plant, id="scu"),
 ]
 

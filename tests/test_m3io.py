@@ -330,7 +330,7 @@ async def test_fuse_triac_load_states(modules):
     twin.ssr[1].fuse_ok = False
     assert await wait_for(lambda: adapter.channels[1].fuse == "blown", timeout=2)
     assert not twin.ssr[1].on
-    assert "SSR1 fuse blown" in modules.store.devices["hm"].info["faults"]
+    assert "SSR1 fuse blown" in modules.store.devices["hm"].live("Faults").value
     adapter.set_output(SESSION, "SSR2", True)
     twin.ssr[2].triac_ok = False
     assert await wait_for(lambda: adapter.channels[2].triac == "defective", timeout=2)
@@ -347,10 +347,10 @@ async def test_blown_fuse_cleared_after_the_module_was_reset(modules):
     assert await wait_for(lambda: adapter.channels[1].fuse == "blown", timeout=2)
     twin.ssr[1].fuse_ok = True  # replaced, but the 24 V were not cut: the module still reports Si = 0
     await asyncio.sleep(1.2)  # more than two 500 ms temperature/status telegrams (section 7.2.2) with Si = 0
-    assert adapter.channels[1].fuse == "blown" and "SSR1 fuse blown" in state.info["faults"]
+    assert adapter.channels[1].fuse == "blown" and "SSR1 fuse blown" in state.live("Faults").value
     twin.power_cycle()  # 24 V cut
     assert await wait_for(lambda: adapter.channels[1].fuse == "ok", timeout=2)
-    assert "SSR1 fuse blown" not in state.info["faults"]
+    assert "SSR1 fuse blown" not in state.live("Faults").value
     assert any("SSR1" in e.text and "cleared" in e.text for e in state.events)
     assert await wait_for(lambda: twin.ssr[1].on, timeout=1)  # still commanded: the module switches it again
 
@@ -421,8 +421,8 @@ async def test_variant_mismatch_refuses_outputs():
             adapter.set_output(SESSION, "SSR4", True)
         await asyncio.sleep(0.6)  # longer than several DigOut periods: nothing switched it on
         assert not adapter.outputs["SSR4"] and not runtime.twins["hmr"].ssr[4].on
-        assert any("HM01" in f for f in state.info["faults"])
-        assert state.info["variant_check"]["state"] == "mismatch"
+        assert any("HM01" in f for f in state.live("Faults").value)
+        assert state.live("Variant check").value == "mismatch"
         adapter.set_output(SESSION, "SSR4", False)  # switching off is never refused
     finally:
         await asyncio.wait_for(runtime.stop(), 5)
@@ -449,7 +449,7 @@ async def test_variant_checked_again_after_the_module_was_gone(modules, monkeypa
 async def test_variant_cannot_be_checked_in_simple_mode(modules):
     adapter = modules.worker.adapters["hm"]
     assert adapter.variant_check.state == "not possible" and adapter.variant_check.may_switch
-    assert "cannot be checked" in modules.store.devices["hm"].info["variant_check"]["text"]
+    assert "cannot be checked" in modules.store.devices["hm"].live("Variant check").text
 
 
 async def test_addressed_identity_and_customer_data(modules):
@@ -475,5 +475,5 @@ async def test_bitrate_mismatch_is_flagged():
     text = plant_text().replace("bitrate = 500000", "bitrate = 1000000")
     runtime = Runtime(parse_plant(text), simulate=False)
     state = runtime.store.devices["hm"]
-    assert state.info["bitrate_mismatch"]
+    assert state.live("Bit rate check").value == "mismatch"
     assert any("500 kbit/s" in e.text for e in state.events)

@@ -88,7 +88,7 @@ async def test_switching_off_and_all_off_release_the_outputs(module):
     events = len(state.events)
     adapter.session_lost(TAB_B, "disconnected")  # owns nothing, controls nothing: nothing to do
     assert len(state.events) == events
-    assert state.info["outputs_on"] == []
+    assert state.live("Outputs on").value == ()
 
 
 async def _beat(worker, session: str, last: dict | None = None) -> None:

@@ -18,7 +18,7 @@ import time
 from dataclasses import dataclass
 
 from devices.lease import Lease
-from devices.live import DeviceState
+from devices.live import DeviceState, session_tag
 from devices.m3io import codec
 from devices.m3io.codec import Variant
 from devices.transport import CanTransport
@@ -30,6 +30,100 @@ VERIFY_RETRY_S = 2.0  # product code not answered: ask again after this long
 LISTEN_S = 0.6  # listened this long since the bus opened before taking control: longer than the 500 ms temperature period (7.2.2)
 FOREIGN_WINDOW_S = codec.WATCHDOG_S  # a master must send DigOut within 2 s (7.1): one heard within this window is active
 FOREIGN_MASTER = "a PLC or another master"
+
+
+# -- what the adapter publishes besides the frames' points (DigIn E1-E6, TEMPx, SSRx Last/Si/Triac, the outputs) --
+P_ADDRESSING = "Addressing"  # Addressing record: SW1, mode, bit rates, the module's CAN IDs (section 5.8)
+P_VARIANT = "Variant"  # the plant file's variant (KM, HM, HMR)
+P_VARIANT_CHECK = "Variant check"  # ok / mismatch / unchecked / not possible; text says why; raw: may switch on
+P_BITRATE_CHECK = "Bit rate check"
+P_WATCHDOG = "Watchdog"  # True while this tool serves it (DigOut); text in words
+P_IDLE_SERVED = "Served with every output off"  # master = "always" and nobody in control
+P_OTHER_MASTER = "Other master"  # OtherMaster record: another node's DigOut, and whether it is active (2 s)
+P_CONTROLLED_BY = "Controlled by"  # the controlling engineer's user name (the tile's line)
+P_CONTROL = "Control"  # Control record (user, since, session tag) or None
+P_OWNERS = "Output owners"  # OutputOwner records: which session switched each output on
+P_OUTPUTS_ON = "Outputs on"  # names of the outputs on
+P_FAULTS = "Faults"  # the faults in words
+P_P2 = "P2"  # HMR: two-phase load (Sync cfg bit 7)
+P_P2_CHECK = "P2 check"  # addressed mode: the cfg the module reports against the P2 this tool sends
+P_LOAD_CHECK = "SSR1-3 load check"
+P_IDENTITY = "Identity"  # Identity record (addressed mode, read on demand)
+P_SERIAL = "Serial number"
+P_PRODUCT_CODE = "Product code"
+P_PRODUCT = "Product"
+P_SOFTWARE = "Software version"
+P_CONFIGURATION = "Configuration"
+OUTPUT_NAMES = ("LED", "SSR1-3", *(f"SSR{i}" for i in range(1, 7)))
+
+
+def temp_channels(variant: Variant) -> tuple[int, ...]:
+    """The Pt100 inputs a variant reports (TEMPx points): KM none, HMR 1, 4, 5, 6 (t1-t3 carry TEMP1), HM 1-6."""
+    if variant is Variant.KM:
+        return ()
+    return (1, 4, 5, 6) if variant is Variant.HMR else (1, 2, 3, 4, 5, 6)
+
+
+def ssr_groups(variant: Variant) -> tuple[tuple[str, tuple[int, ...]], ...]:
+    """Each switchable SSR output with the channels it drives (HMR: SSR1-3 one three-phase output); KM none."""
+    if variant is Variant.KM:
+        return ()
+    if variant is Variant.HMR:
+        return (("SSR1-3", (1, 2, 3)), *((f"SSR{i}", (i,)) for i in (4, 5, 6)))
+    return tuple((f"SSR{i}", (i,)) for i in range(1, 7))
+
+
+def history_points(variant: Variant) -> tuple[str, ...]:
+    """The chart's quantities, by point name: the temperatures."""
+    return tuple(f"TEMP{c}" for c in temp_channels(variant))
+
+
+@dataclass(frozen=True, slots=True)
+class Addressing:
+    """What SW1 sets (section 5.8): the mode, the bit rate and the module's CAN IDs; the bus's bit rate."""
+
+    sw1: int
+    addressed: bool
+    bitrate: int
+    bus_bitrate: int | None
+    dig_out: int
+    ids: tuple[tuple[str, int], ...]  # (frame name, CAN ID)
+
+
+@dataclass(frozen=True, slots=True)
+class Control:
+    user: str
+    since: float
+    session: str  # devices.live.session_tag of the controlling page
+
+
+@dataclass(frozen=True, slots=True)
+class OutputOwner:
+    output: str
+    session: str  # session tag of the page that switched it on
+
+
+@dataclass(frozen=True, slots=True)
+class OtherMaster:
+    """DigOut frames from another node (a PLC): how many, the last one, and whether one was heard within 2 s."""
+
+    active: bool
+    frames: int = 0
+    time: float | None = None
+    data: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class Identity:
+    """Addressed mode, area 2 (7.2.4.2.2): serial, product code, software version (decoded as assumed, see
+    codec.VERSION_ASSUMPTION), dynamic configuration."""
+
+    serial: str
+    product_code: int
+    product: str
+    version: str
+    version_raw: int
+    config: int
 
 
 class CommandError(Exception):
@@ -81,14 +175,29 @@ class M3ioAdapter:
         self.last_answer: float | None = None
         self.last_temps: float | None = None
         self.served = False
-        self.info: dict = {}
+        self._foreign_at: float | None = None  # monotonic time of the last sign of another master
+        self._other = OtherMaster(False)
+        self.identity: Identity | None = None
+        self._p2_checked = True  # addressed HMR: the module's cfg was read back since P2 was last sent
         self._mdata: dict[tuple[int, int], asyncio.Future] = {}
         self._gone_since: float | None = None  # last answer before a silence
         self._lock = asyncio.Lock()
         state.stale_after = 1.5
         bus_rate = bus.options.get("bitrate")
-        state.info.update(ids=self.ids, variant=self.variant, sw1=self.sw1,
-                          bitrate_mismatch=bus_rate != self.ids.bitrate, bus_bitrate=bus_rate)
+        self.bus_bitrate = bus_rate
+        self.bitrate_mismatch = bus_rate != self.ids.bitrate
+        state.fact(P_ADDRESSING, Addressing(self.sw1, self.ids.addressed, self.ids.bitrate, bus_rate, self.ids.dig_out,
+                                            tuple(self.ids.by_name().items())),
+                   text=f"SW1 0x{self.sw1:02X}: " + ("addressed mode, " if self.ids.addressed else "")
+                   + f"{self.ids.bitrate // 1000} kbit/s")
+        state.fact(P_VARIANT, self.variant.value)
+        if self.ids.addressed:  # read on demand: "not read" until then
+            state.fact(P_IDENTITY, None, text="not read")
+            for index in range(1, 7):
+                state.fact(f"SSR{index} load data", None, text="not read")
+        if self.variant is Variant.HMR:
+            state.fact(P_P2_CHECK, None, text="read back once this tool serves the module" if self.ids.addressed
+                       else "cannot be read back in simple mode (SW1 switch 8 off): sent with every DigOut")
         if bus_rate != self.ids.bitrate:
             state.event("warning", f"SW1 0x{self.sw1:02X} sets {self.ids.bitrate // 1000} kbit/s but bus {bus.name} runs at {bus_rate // 1000} kbit/s")
         self._publish()
@@ -103,13 +212,12 @@ class M3ioAdapter:
         self.lease = Lease()  # renewed by the worker's dead-man supervisor while a mains output is on
         self._listening_since = time.monotonic()  # since when another master's DigOut would have been heard
         self._listening_reconnects = -1
-        self._foreign_at: float | None = None  # monotonic time of the last sign of another master
         self._served_until = 0.0  # monotonic: the module may still answer our last DigOut until then
         # plant file `master = "always"`: this tool is the module's only master (a bench without a PLC) and
         # serves the watchdog with every output off while nobody controls it and no other master is heard
         self.always_master = config.options.get("master", "on-control") == "always"
         self._idle_serving = False
-        state.info.update(foreign_master=None, controlled_by=None)
+        self._publish_master()
         bus.subscribe(False, self.ids.dig_out, self.on_foreign_dig_out)
 
     # -- keep-alive (section 7.1), only while an engineer controls the module ----------------------
@@ -130,7 +238,8 @@ class M3ioAdapter:
     def _start_cfg(self) -> None:
         """P2 is not stored (7.2.4): while set, the Sync cfg goes out with the DigOut period, so a reset cannot lose it."""
         cfg = codec.cfg_with_dig_out(self.two_phase)
-        if cfg is not None and self.controller is not None:
+        self._p2_checked = False  # addressed mode: read back at the next poll
+        if cfg is not None and (self.controller is not None or self._idle_serving):
             self.bus.send(self.ids.sync, cfg, False)
             self.bus.start_periodic(self.cfg_key, codec.DIGOUT_PERIOD_S, self.ids.sync, cfg, False)
         else:
@@ -141,8 +250,8 @@ class M3ioAdapter:
         if getattr(msg, "is_rx", True) is False:  # our own frame, handed back by the interface
             return
         self._foreign_at = time.monotonic()
-        foreign = self.state.info.get("foreign_master") or {"frames": 0}
-        self.state.info["foreign_master"] = {"frames": foreign["frames"] + 1, "time": time.time(), "text": bytes(msg.data).hex(" ")}
+        self._other = OtherMaster(True, self._other.frames + 1, time.time(), bytes(msg.data).hex(" "))
+        self._publish_master()
         if self.controller is not None:
             self._release(f"lost: another master sends DigOut 0x{self.ids.dig_out:03X} ({FOREIGN_MASTER}); "
                           "this tool stopped sending so as not to fight it", level="error")
@@ -161,6 +270,7 @@ class M3ioAdapter:
 
     def _start_cfg_idle(self) -> None:
         cfg = codec.cfg_with_dig_out(self.two_phase)
+        self._p2_checked = False
         if cfg is not None:
             self.bus.start_periodic(self.cfg_key, codec.DIGOUT_PERIOD_S, self.ids.sync, cfg, False)
 
@@ -215,7 +325,6 @@ class M3ioAdapter:
         self.bus.start_periodic(self.key, codec.DIGOUT_PERIOD_S, self.ids.dig_out, self._dig_out_data(), False,
                                 lease=self.lease, stop_form=stop_form, on_lapse=self._lapsed)
         self._start_cfg()
-        self.state.info["controlled_by"] = user
         self._publish()
         self.state.event("info", f"{user} took control (no other master heard): DigOut 0x{self.ids.dig_out:03X} "
                                  f"every {codec.DIGOUT_PERIOD_S * 1000:.0f} ms serves the 2 s watchdog")
@@ -235,7 +344,6 @@ class M3ioAdapter:
         self.controller = None
         self.served = False
         self._served_until = time.monotonic() + codec.WATCHDOG_S + TEMP_SLACK_S
-        self.state.info["controlled_by"] = None
         self._publish()
         self.state.event(level, f"control {reason} ({user})" + (f": {', '.join(on)} off" if on else "") + "; DigOut stopped")
 
@@ -272,6 +380,7 @@ class M3ioAdapter:
 
     async def poll(self) -> None:
         """Serve the watchdog idle where the plant file says so; watch for silence; check the variant."""
+        self._publish_master()  # another master heard within 2 s: ages out here
         if (self.always_master and self.controller is None and not self._idle_serving and self.bus.state.connected
                 and not self.foreign_master()):
             if self._listening_reconnects != self.bus.state.reconnects:
@@ -294,8 +403,43 @@ class M3ioAdapter:
             self._gone_since = None
             if self.ids.addressed:
                 self._set_product(None)  # it may have been exchanged meanwhile: check its variant again
+                self._p2_checked = False  # and it lost its cfg (7.2.4): check that P2 is in force again
         if self.ids.addressed and self.product_code is None and now >= self._verify_after:
             await self._verify_variant()
+        elif (self.variant is Variant.HMR and self.ids.addressed and self.served and not self._p2_checked
+              and now >= self._verify_after):
+            await self._verify_p2()
+
+    async def _verify_p2(self) -> None:
+        """Addressed mode: read the dynamic configuration (area 2, index 15) and compare its bit 7 with the P2
+        this tool sends with every DigOut (7.2.4); a mismatch is an event and the page's P2 line."""
+        self._p2_checked = True
+        try:
+            answer = await self._request(codec.AREA_READ_CONFIG, codec.CONFIG_DYNAMIC)
+        except CommandError as exc:
+            self._p2_checked = False
+            self._verify_after = time.time() + VERIFY_RETRY_S
+            self.state.fact(P_P2_CHECK, "not read", text=f"P2 not verified: {exc}")
+            return
+        self._check_p2(answer.payload[0])
+
+    def _check_p2(self, config: int) -> None:
+        """The module's dynamic configuration against the P2 this tool sends (HMR only)."""
+        if self.variant is not Variant.HMR:
+            return
+        reported = bool(config & codec.P2)
+        if reported == self.two_phase:
+            self.state.fact(P_P2_CHECK, "verified", raw=config,
+                            text=f"verified: the module reports cfg 0x{config:02X} (P2 {int(reported)})")
+            return
+        text = (f"the module reports P2 {int(reported)} (cfg 0x{config:02X}), this tool sets P2 {int(self.two_phase)}"
+                + ("" if self.served else ": sent once this tool serves the module"))
+        old = self.state.points.get(P_P2_CHECK)
+        self.state.fact(P_P2_CHECK, "mismatch", raw=config, text=text)
+        if self.served and (old is None or old.value != "mismatch"):
+            self.state.event("warning", f"P2 {text}")
+            self._p2_checked = False  # sent again with the next DigOut period: read back after a while
+            self._verify_after = time.time() + VERIFY_RETRY_S
 
     async def _verify_variant(self) -> None:
         try:
@@ -329,6 +473,8 @@ class M3ioAdapter:
         self.state.mark_seen(self.last_answer)
         if self.controller is None and not self._idle_serving and time.monotonic() > self._served_until:
             self._foreign_at = time.monotonic()  # the module answers although this tool does not serve it: another master does
+            if not self._other.active:
+                self._publish_master()
 
     def on_dig_in(self, msg) -> None:
         try:
@@ -364,11 +510,7 @@ class M3ioAdapter:
             self._publish_channel(channel, word, self.last_answer)
         self._publish()
         if first == 5 or self.variant is Variant.HMR:
-            sample = {}
-            for channel in self.temp_channels():
-                word = self.temps.get(channel)
-                sample[self.temp_label(channel)] = word.celsius if word is not None and word.in_range else None
-            self.state.add_history(sample)
+            self.state.record_history(history_points(self.variant), self.last_answer)
 
     def on_mdata(self, msg) -> None:
         try:
@@ -385,7 +527,7 @@ class M3ioAdapter:
     def _publish_channel(self, channel: int, word: codec.TempWord, now: float) -> None:
         """Live points of one temperature word: TEMPx (not on HMR t2/t3, which carry TEMP1) and SSRx Last/Si/Triac (7.2.2, 7.2.3)."""
         publish, monitor = self.state.publish, self.channels[channel]
-        if channel in self.temp_channels():
+        if channel in temp_channels(self.variant):
             publish(f"TEMP{channel}", word.celsius if word.in_range else None, "°C", raw=word.raw, text=word.text(), time=now)
         publish(f"SSR{channel} Last", word.load, raw=int(word.load), text=monitor.load, time=now)
         publish(f"SSR{channel} Si", monitor.fuse, raw=int(word.fuse), text=f"fuse {monitor.fuse}", time=now)
@@ -404,27 +546,46 @@ class M3ioAdapter:
         group = self.group_load_fault()
         if group:
             faults.append(group)
-        self.state.info["faults"] = faults
-        self.state.info["outputs_on"] = [name for name, on in self.outputs.items() if on]
-        self.state.info["variant_check"] = {"state": self.variant_check.state, "text": self.variant_check.text}
-        publish = self.state.publish  # what this tool commands does not age while the module is online
+        fact = self.state.fact  # what this tool commands or was told does not age while the module is online
         for name, on in self.outputs.items():
-            publish(name, on, periodic=False, text="on" if on else "off")
-        publish("Watchdog", self.served, periodic=False,
-                text=f"served: DigOut every {codec.DIGOUT_PERIOD_S * 1000:.0f} ms" if self.served
-                else "not served by this tool: outputs are off in the module unless another master serves it")
-        publish("Controlled by", self.controller.user if self.controller else None, periodic=False,
-                text=None if self.controller else "nobody")
-        publish("Variant check", self.variant_check.state, periodic=False, text=self.variant_check.text)
+            fact(name, on, text="on" if on else "off")
+        fact(P_OUTPUTS_ON, tuple(name for name, on in self.outputs.items() if on),
+             text=", ".join(name for name, on in self.outputs.items() if on) or "none")
+        fact(P_OWNERS, tuple(OutputOwner(name, session_tag(session)) for name, session in self.owners.items()
+                             if self.outputs.get(name)))
+        self._publish_master()
+        controller = self.controller
+        fact(P_CONTROLLED_BY, controller.user if controller else None, text=None if controller else "nobody")
+        fact(P_CONTROL, Control(controller.user, controller.since, session_tag(controller.session)) if controller else None,
+             text=f"{controller.user} controls the module" if controller else "nobody controls the module")
+        fact(P_VARIANT_CHECK, self.variant_check.state, text=self.variant_check.text, raw=self.variant_check.may_switch)
         if self.variant is Variant.HMR:
-            publish("P2", self.two_phase, periodic=False, text="two-phase load" if self.two_phase else "three-phase load")
-        publish("Faults", len(faults), periodic=False, text="; ".join(faults) or "none")
-        rate, bus_rate = self.ids.bitrate, self.state.info.get("bus_bitrate")
-        publish("Bit rate check", "mismatch" if self.state.info.get("bitrate_mismatch") else "ok", periodic=False,
-                text=f"bit rate mismatch: module {rate // 1000} kbit/s, bus {(bus_rate or 0) // 1000} kbit/s"
-                if self.state.info.get("bitrate_mismatch") else f"{rate // 1000} kbit/s")
+            fact(P_P2, self.two_phase, text="two-phase load" if self.two_phase else "three-phase load")
+        fact(P_FAULTS, tuple(faults), text="; ".join(faults) or "none")
+        rate, bus_rate = self.ids.bitrate, self.bus_bitrate
+        fact(P_BITRATE_CHECK, "mismatch" if self.bitrate_mismatch else "ok",
+             text=f"bit rate mismatch: module {rate // 1000} kbit/s, bus {(bus_rate or 0) // 1000} kbit/s"
+             if self.bitrate_mismatch else f"{rate // 1000} kbit/s")
         if self.variant is Variant.HMR:
-            publish("SSR1-3 load check", "fault" if group else "ok", periodic=False, text=group or "ok")
+            fact(P_LOAD_CHECK, "fault" if group else "ok", text=group or "ok")
+
+    def _publish_master(self) -> None:
+        """The watchdog in words, and whether another master was heard within the last 2 s (it ages out: poll() calls this)."""
+        foreign = self.foreign_master()
+        if foreign != self._other.active:
+            self._other = OtherMaster(foreign, self._other.frames, self._other.time, self._other.data)
+        fact = self.state.fact
+        fact(P_OTHER_MASTER, self._other, text=f"{FOREIGN_MASTER} heard" if foreign else "none heard")
+        every = f"DigOut every {codec.DIGOUT_PERIOD_S * 1000:.0f} ms"
+        idle = self.served and self.controller is None
+        fact(P_IDLE_SERVED, idle)
+        if self.served:
+            text = f"served: {every}" + (" (every output off: nobody controls the module)" if idle else "")
+        elif foreign:
+            text = "served by another master (a PLC): this tool only listens"
+        else:
+            text = "not served: outputs are off in the module; take control to serve it"
+        fact(P_WATCHDOG, self.served, text=text)
 
     def group_load_fault(self) -> str | None:
         """HMR, SSR1-3 switched on: three phases must report a load, exactly two with P2 (4.3)."""
@@ -437,14 +598,6 @@ class M3ioAdapter:
         return f"SSR1-3 load fault: {loaded} of 3 phases report a load, {'P2 (two-phase load)' if self.two_phase else 'a three-phase load'} needs {expected}"
 
     # -- what the page shows ------------------------------------------------------------------
-    def temp_channels(self) -> list[int]:
-        if self.variant is Variant.KM:
-            return []
-        return [1, 4, 5, 6] if self.variant is Variant.HMR else [1, 2, 3, 4, 5, 6]
-
-    def temp_label(self, channel: int) -> str:
-        return f"TEMP{channel} [°C]"
-
     def channel_on(self, channel: int) -> bool:
         if self.variant is Variant.HMR and channel <= 3:
             return self.outputs["SSR1-3"]
@@ -486,6 +639,10 @@ class M3ioAdapter:
         self._publish()
         self.state.event("warning", f"every output switched off: {reason}")
 
+    def all_off_pressed(self) -> None:
+        """The page's All off (a stop: never refused)."""
+        self.all_off("all off pressed")
+
     def holders(self) -> set[str]:
         """The page sessions that keep outputs on through this adapter (for the worker's dead-man rule)."""
         return {session for name, session in self.owners.items() if self.outputs[name]}
@@ -520,13 +677,14 @@ class M3ioAdapter:
     def set_two_phase(self, on: bool) -> None:
         if self.variant is not Variant.HMR:
             raise CommandError("P2 (two-phase load) exists on the HMR only")
+        on = bool(on)
         self.two_phase = on
-        if self.controller is not None:
+        if self.controller is not None or self._idle_serving:
             self.bus.send(self.ids.sync, codec.encode_sync_cfg(on), False)
         self._start_cfg()
         self._publish()
         self.state.event("info", f"P2 {'on: three-phase output loaded on two phases' if on else 'off: three phases'}"
-                         + ("" if self.controller is not None else " (sent once this tool controls the module)"))
+                         + ("" if self.served else " (sent once this tool controls the module)"))
 
     # -- addressed data (7.2.4.2) ---------------------------------------------------------------
     async def _request(self, area: int, index: int, payload: bytes = b"") -> codec.MData:
@@ -552,28 +710,27 @@ class M3ioAdapter:
         config = await self._request(codec.AREA_READ_CONFIG, codec.CONFIG_DYNAMIC)
         code = codec.decode_u16(product.payload)
         raw_version = codec.decode_u16(version.payload)
-        info = {
-            "serial": codec.decode_serial(serial.payload),
-            "product_code": code,
-            "product": codec.product_name(code),
-            "version": f"{raw_version >> 8}.{raw_version & 0xFF}",
-            "config": config.payload[0],
-        }
-        self.info.update(info)
-        self.state.info["identity"] = info
-        publish = self.state.publish  # read on demand: does not age while online
-        publish("Serial number", info["serial"], raw=serial.payload.hex(" "), periodic=False)
-        publish("Product code", code, raw=code, text=info["product"], periodic=False)
-        publish("Software version", info["version"], raw=raw_version, periodic=False)
-        publish("Configuration", info["config"], raw=info["config"], text=f"0x{info['config']:02X}", periodic=False)
+        identity = Identity(codec.decode_serial(serial.payload), code, codec.product_name(code),
+                            codec.decode_version(raw_version), raw_version, config.payload[0])
+        self.identity = identity
+        fact = self.state.fact  # read on demand: does not age while online
+        fact(P_IDENTITY, identity, text=f"serial {identity.serial} · product 0x{code:04X} {identity.product} · software "
+                                        f"{identity.version} (assumed decoding) · configuration 0x{identity.config:02X}")
+        fact(P_SERIAL, identity.serial, raw=serial.payload.hex(" "))
+        fact(P_PRODUCT_CODE, code, raw=code, text=identity.product)
+        fact(P_PRODUCT, identity.product, raw=code)
+        fact(P_SOFTWARE, identity.version, raw=raw_version,
+             text=f"{identity.version} (assumed: {codec.VERSION_ASSUMPTION})")
+        fact(P_CONFIGURATION, identity.config, raw=identity.config, text=f"0x{identity.config:02X}")
         self._set_product(code)
-        return info
+        self._check_p2(identity.config)
+        return {"serial": identity.serial, "product_code": code, "product": identity.product, "version": identity.version,
+                "config": identity.config}
 
     async def read_customer(self, index: int) -> bytes:
         if index not in codec.CUSTOMER_RECORDS:
             raise CommandError(f"customer record {index} is outside 1..15")
         answer = await self._request(codec.AREA_READ_CUSTOMER, index)
-        self.state.info.setdefault("customer", {})[index] = answer.payload
         self._publish_customer(index, answer.payload)
         return answer.payload
 
@@ -584,7 +741,6 @@ class M3ioAdapter:
         if len(payload) > 6:
             raise CommandError(f"a customer record holds 6 bytes, got {len(payload)}")
         answer = await self._request(codec.AREA_WRITE_CUSTOMER, index, payload)
-        self.state.info.setdefault("customer", {})[index] = answer.payload
         self._publish_customer(index, answer.payload)
         if answer.payload != codec.pad6(payload):
             self.state.counters.write_errors += 1
@@ -600,10 +756,10 @@ class M3ioAdapter:
         for index in range(1, 7):
             answer = await self._request(codec.AREA_LOAD_DATA, index)
             result[index] = codec.TempWord(codec.decode_u16(answer.payload))
-        self.state.info["load_data"] = result
         for index, word in result.items():  # area 5: actual load data of SSR 1-6 (7.2.4.2)
             self.state.publish(f"SSR{index} load data", word.load, raw=word.raw,
-                               text=f"Last {int(word.load)}, Triac {int(word.triac)}, Si {int(word.fuse)}", periodic=False)
+                               text=f"{word.text()} load {int(word.load)} triac {int(word.triac)} fuse {int(word.fuse)}",
+                               periodic=False)
         return result
 
     def _publish_customer(self, index: int, payload: bytes) -> None:
@@ -635,9 +791,9 @@ class M3ioAdapter:
         return entries
 
     def backup_identity(self) -> dict:
-        identity = self.state.info.get("identity") or {}
-        return {"serial": identity.get("serial"), "product": identity.get("product"), "version": identity.get("version"),
-                "variant": self.variant.value, "sw1": self.sw1}
+        identity = self.identity
+        return {"serial": identity and identity.serial, "product": identity and identity.product,
+                "version": identity and identity.version, "variant": self.variant.value, "sw1": self.sw1}
 
     async def restore_entry(self, key: str, raw: str) -> str:
         space, _, index = key.partition(":")

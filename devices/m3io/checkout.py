@@ -101,7 +101,7 @@ async def _cycle(ctx, output: str) -> None:
     temp = ctx.value(f"TEMP{channels[0]}")
     if temp is not None:
         ctx.measure(f"TEMP{channels[0]}", temp, "°C", fail=False)
-    faults = ctx.state.info.get("faults") or []
+    faults = ctx.value("Faults") or ()  # the module's faults in words (devices/m3io/adapter.py P_FAULTS)
     await ctx.command(f"{output} off", lambda a: a.set_output(ctx.session, output, False), write=False)
     off = await ctx.wait(lambda: ctx.value(output) is False, 1.0)
     ctx.measure(f"{output} off again", ctx.value(output), expect=False)

@@ -267,6 +267,17 @@ def encode_u16(value: int) -> bytes:
     return value.to_bytes(2, "little")
 
 
+# The one place where the software version's decoding is stated: the document gives index 3 of area 2 as
+# "SW version" (7.2.4.2.2) without its format. Read as high byte . low byte (0x1201 -> "18.1"), which the
+# documents' firmware numbers (V16.0 in 7.2.1) fit; an assumption, and shown as one wherever it is shown.
+VERSION_ASSUMPTION = "the document names the SW version word without its format; read as high byte . low byte (0x1201 = 18.1)"
+
+
+def decode_version(raw: int) -> str:
+    """Area 2 index 3 (SW version) as assumed (:data:`VERSION_ASSUMPTION`): ``0x1201`` -> ``"18.1"``."""
+    return f"{raw >> 8}.{raw & 0xFF}"
+
+
 def decode_u16(payload: bytes) -> int:
     if len(payload) < 2:
         raise CodecError(f"a 16-bit value needs 2 bytes, got {len(payload)}")

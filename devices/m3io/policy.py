@@ -7,8 +7,13 @@ transmit list, never replayed. Sync frames that write the configuration or custo
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from devices.commands import Arg, Command, CommandError, TxField, TxForm
 from devices.m3io import codec
-from devices.commands import Command, TxField, TxForm
+from devices.m3io.adapter import OUTPUT_NAMES
 from devices.sendpolicy import Verdict
 
 TITLE = "CAN-M3IO"
@@ -47,10 +52,66 @@ def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verd
     return None
 
 
+THREE_PHASE_RISK = "The three-phase output (400 V) to the connected load. Make sure nobody works on it."
+MAINS_OUTPUT_RISK = "This output switches mains voltage (230/400 V) to the connected load. Make sure nobody works on it."
+
+
+@dataclass(frozen=True)
+class BytesArg:
+    """Bytes given as hex text (or bytes), at most ``size`` of them (a customer record holds 6, 7.2.4.2)."""
+
+    name: str
+    size: int = 6
+
+    def check(self, value: Any) -> bytes:
+        if isinstance(value, bytes | bytearray):
+            payload = bytes(value)
+        elif isinstance(value, str):
+            try:
+                payload = bytes.fromhex(value)
+            except ValueError:
+                raise CommandError(f"{self.name}: {value!r} is not bytes as hex, e.g. 01 02 0A") from None
+        else:
+            raise CommandError(f"{self.name}: {value!r} is not bytes as hex")
+        if len(payload) > self.size:
+            raise CommandError(f"{self.name}: at most {self.size} bytes ({len(payload)} given)")
+        return payload
+
+
+def _switch(output: str, on: bool) -> Command:
+    """``"<output> on"`` / ``"<output> off"``: the output is part of the name, never the caller's to choose.
+    On: an SSR switches mains (confirmed, engineers, audited first); the LED is a write. Off: a stop."""
+
+    def fixed(values: dict[str, Any]) -> dict[str, Any]:
+        return {**values, "name": output, "on": on}
+
+    def audit(values: Mapping[str, Any], adapter: Any) -> dict[str, Any]:
+        return {"new": ""}
+
+    if not on:
+        kind, risk = "stop", ""
+    elif output == "LED":
+        kind, risk = "write", ""
+    else:
+        kind, risk = "mains", THREE_PHASE_RISK if output == "SSR1-3" else MAINS_OUTPUT_RISK
+    return Command(f"{output} {'on' if on else 'off'}", kind, method="set_output", session=True, extras=("name", "on"),
+                   prepare=fixed, risk=risk, audit=audit)
+
+
+def _customer_audit(values: Mapping[str, Any], adapter: Any) -> dict[str, Any]:
+    return {"parameter": f"Customer data {values['index']}", "new": values["payload"].hex(" ")}
+
+
 COMMANDS = (
-    Command("all off", "stop"),
+    Command("take control", "write", method="take_control", session=True, extras=("user",)),
+    Command("release control", "stop", method="release_control", session=True),
+    *(_switch(output, on) for output in OUTPUT_NAMES for on in (True, False)),
+    Command("all off", "stop", method="all_off_pressed"),
+    Command("P2", "write", method="set_two_phase", args=(Arg("on", 0, 1),)),
     Command("read identity", "read", method="read_identity"),
-    Command("read customer data", "read"),
+    Command("read customer data", "read", method="read_customer", args=(Arg("index", 1, 15),)),
+    Command("write customer data", "write", method="write_customer", args=(Arg("index", 1, 15), BytesArg("payload")),
+            audit=_customer_audit),
     Command("read load data", "read", method="read_load_data"),
 )
 

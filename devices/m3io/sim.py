@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 from devices.m3io import codec
 from devices.m3io.codec import Variant
+from devices.simcontrols import SimAction, SimControls, SimParam
 
 TICK_S = 0.01
 STORE_S = 0.03  # a customer record takes this long to store (7.2.4.2.4)
@@ -76,6 +77,40 @@ class M3ioTwin:
         for s in self.ssr.values():
             s.on = s.commanded = s.si_blown = False
         self.resets += 1
+
+    def repair(self, channel: int) -> None:
+        """Fuse replaced, triac sound: the module still reports Si = 0 until its 24 V are cut (7.2.3)."""
+        ssr = self.ssr[channel]
+        ssr.fuse_ok = ssr.triac_ok = True
+        ssr.triac_shorted = False
+
+    def _ssr_action(self, name: str, label: str, attribute: str, value: bool, danger: bool = False) -> SimAction:
+        def run(channel: int) -> None:
+            setattr(self.ssr[channel], attribute, value)
+
+        return SimAction(name, label, run, params=(SimParam("channel", "SSR", 1, 1, 6),),
+                         icon="warning" if danger else "")
+
+    def controls(self) -> SimControls:
+        """What an engineer may do to this module in simulation (shown by pages/simcontrols.py)."""
+        actions = [SimAction(f"toggle E{i}", f"E{i}", lambda i=i: self.toggle_input(f"E{i}"), testid=f"toggle-e{i}")
+                   for i in range(1, 7)]
+        if self.variant is not Variant.KM:
+            actions += [
+                self._ssr_action("remove load", "Remove load", "load", False),
+                self._ssr_action("connect load", "Connect load", "load", True),
+                self._ssr_action("blow fuse", "Blow fuse", "fuse_ok", False, danger=True),
+                self._ssr_action("break triac", "Break triac", "triac_ok", False, danger=True),
+                self._ssr_action("short triac", "Short triac", "triac_shorted", True, danger=True),
+                SimAction("repair", "Repair", self.repair, params=(SimParam("channel", "SSR", 1, 1, 6),)),
+                SimAction("set temperature", "Set", lambda channel, tenths: self.set_temperature(channel, tenths / 10),
+                          params=(SimParam("channel", "Pt100 input", 1, 1, 6), SimParam("tenths", "0.1 °C", 250, -500, 2047))),
+            ]
+        actions.append(SimAction("cut 24 V", "Cut 24 V (reset)", self.power_cycle, icon="power_off", testid="power-cycle"))
+        note = "Toggle the inputs E1-E6" + ("" if self.variant is Variant.KM else
+                                           "; an SSR's faults by its number. The module reports a blown fuse until "
+                                           "its 24 V are cut, even after repair.")
+        return SimControls("Simulated module (demo)", tuple(actions), note=note)
 
     @property
     def watchdog_alive(self) -> bool:
