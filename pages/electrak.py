@@ -214,7 +214,7 @@ def content(name: str) -> None:
             with ui.column().classes("col gap-4"):
                 drive = DriveCard(view, guard)
                 drive.build()
-                sim_card(name)
+        sim_card(name)  # full width: its entries and buttons need a row of their own on a narrow screen
         service, bitrate = ServiceCard(view, guard), BitrateCard(view, guard)
         service.build()
         bitrate.build()

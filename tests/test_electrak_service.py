@@ -297,3 +297,19 @@ def test_timeout_bounded_above_the_control_period_and_confirmed_above_the_defaul
     assert TIMEOUT.validate(TIMEOUT_MAX_MS) == TIMEOUT_MAX_MS
     assert TIMEOUT.needs_confirmation(TIMEOUT_DEFAULT_MS) == ""
     assert "keep moving" in TIMEOUT.needs_confirmation(TIMEOUT_DEFAULT_MS + 1)
+
+
+async def test_the_twins_declared_disagree_switch_makes_reads_fail(lift):  # noqa: F811
+    """The simulation card's "last actuator disagrees" is a declared action of the twin (no page writes the twin)."""
+    _runtime, adapter, state, twin = lift
+    controls = twin.controls()
+    assert {"extra load", "actuator 1 connected", "actuator 2 connected", "last actuator disagrees",
+            "power cycle"} <= {a.name for a in controls.actions}
+    controls.invoke("last actuator disagrees", {"on": True})
+    assert controls.action("last actuator disagrees").state()
+    with pytest.raises(CommandError, match="disagree"):
+        await adapter.read_param(SOFT_START)
+    controls.invoke("last actuator disagrees", {"on": False})
+    assert await adapter.read_param(SOFT_START) == 300
+    report = next(r for r in state.live("Service reports").value if r.key == SOFT_START.key)
+    assert report.ok and state.live("Last service telegram").value == report

@@ -210,10 +210,10 @@ class ElectrakNetworkTwin:
 
         actions = [
             SimAction("extra load", "Set load", lambda amps: self.set_load(amps), icon="fitness_center", testid="load",
-                      params=(SimParam("amps", "extra load current [A]", 0, 0, 25),)),
+                      params=(SimParam("amps", "extra load [A]", 0, 0, 25),)),
             SimAction("static load", "Set static load", lambda speed: self.set_backdrive(speed), icon="south_east",
                       testid="static-load",
-                      params=(SimParam("speed", "static load on a standing rod [mm/s, - pushes in]", 0, -5, 5),)),
+                      params=(SimParam("speed", "rod load [mm/s]", 0, -5, 5),)),
             *(connected(i) for i in range(len(self.actuators))),
             SimAction("supply voltage fault", "Supply voltage fault", self.set_voltage_fault,
                       state=lambda: any(a.voltage_fault for a in self.actuators), testid="voltage-fault"),
@@ -221,7 +221,7 @@ class ElectrakNetworkTwin:
                       state=lambda: self.actuators[0].temperature_fault, testid="temperature-fault"),
             SimAction("manual control line", "Set manual control line", lambda direction: self.set_manual_line(direction),
                       icon="settings_remote", testid="manual-line",
-                      params=(SimParam("direction", "manual line (1 out, -1 in, 0 off)", 0, -1, 1),)),
+                      params=(SimParam("direction", "1 out, -1 in, 0 off", 0, -1, 1),)),
         ]
         if len(self.actuators) > 1:
             actions.append(SimAction("last actuator disagrees", "last actuator disagrees", self.disagree,
@@ -229,8 +229,8 @@ class ElectrakNetworkTwin:
         actions.append(SimAction("power cycle", "Power-cycle actuators", self.power_cycle, icon="power_settings_new",
                                  testid="power-cycle"))
         return SimControls("Simulated actuators (demo)", tuple(actions),
-                           note="Load raises the motor current (above the limit: overload); a static load moves a "
-                                "standing rod (Backdrive); an active manual control line makes the network send 0x06 "
+                           note="Load raises the motor current (above the limit: overload); a rod load moves a standing "
+                                "rod (Backdrive; negative pushes it in); an active manual control line makes the network send 0x06 "
                                 "itself; the disagreeing actuator's soft start time differs, so reads of it fail.")
 
     def remove(self, index: int) -> None:
