@@ -477,3 +477,34 @@ async def test_bitrate_mismatch_is_flagged():
     state = runtime.store.devices["hm"]
     assert state.live("Bit rate check").value == "mismatch"
     assert any("500 kbit/s" in e.text for e in state.events)
+
+
+async def test_p2_read_back_in_addressed_mode(modules):
+    """Issue 26.8: in addressed mode the module's dynamic configuration (area 2, index 15) is read back and its
+    bit 7 compared with the P2 this tool sends; after a restart of the module it is sent again and read back again."""
+    adapter = modules.worker.adapters["hmr"]
+    twin = modules.twins["hmr"]
+    state = modules.store.devices["hmr"]
+    assert await wait_for(lambda: (state.live("P2 check").value == "verified"), timeout=3)
+    adapter.set_two_phase(True)
+    assert await wait_for(lambda: state.live("P2 check").value == "verified" and state.live("P2 check").raw == codec.P2,
+                          timeout=3)
+    twin.powered = False
+    twin.power_cycle()
+    assert await wait_for(lambda: state.status != "online", timeout=4)
+    twin.powered = True
+    assert await wait_for(lambda: twin.cfg == codec.P2 and state.status == "online", timeout=3)
+    assert await wait_for(lambda: state.live("P2 check").value == "verified" and state.live("P2 check").raw == codec.P2,
+                          timeout=4)
+    assert "0x80" in state.live("P2 check").text
+
+
+async def test_software_version_shown_as_an_assumed_decoding(modules):
+    adapter = modules.worker.adapters["hmr"]
+    await adapter.read_identity()
+    state = modules.store.devices["hmr"]
+    version = state.live("Software version")
+    assert version.value == "18.1" and version.raw == 0x1201
+    assert "assumed" in version.text and codec.VERSION_ASSUMPTION in version.text
+    assert state.live("Identity").value.serial == "42120023" and "assumed decoding" in state.live("Identity").text
+    assert state.live("Product").value == "HMR01 (from 08.11.2013)"
