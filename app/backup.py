@@ -232,7 +232,7 @@ def load_document(text: str | bytes, source: str = "backup") -> dict:
         schema = data.get("schema") if isinstance(data, dict) else None
         raise BackupError(f"{source}: not a commission backup file (schema {str(schema)[:40]!r})")
     if data.get("version") != VERSION:
-        raise BackupError(f"{source}: backup schema version {str(data.get('version'))[:20]!r} is not supported "
+        raise BackupError(f"{source}: backup schema version {str(data.get('version'))[:20]} is not supported "
                           f"(this tool reads version {VERSION})")
     device = data.get("device")
     params = data.get("parameters")
