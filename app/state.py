@@ -48,20 +48,24 @@ class BusState:
 
 log = logging.getLogger(__name__)
 
-PUSH_PERIOD_S = 0.1  # changes reach the pages at most 10 times a second
+PUSH_PERIOD_S = 0.1  # a device's watchers are called at most 10 times a second
+PAGE_GAP_S = 0.05  # and the watchers of one page (one group) at most 20 times a second, all its devices in one go
 AGE_PERIOD_S = 1.0  # watchers are called at least this often, so ages and stale marks move on
-AGE_PHASES = 10  # the devices' once-a-second rounds fall into this many push rounds, not all into one
+AGE_PHASES = 10  # the devices' once-a-second rounds fall into this many slots of the second, not all into one
+SERVER = "server"  # the group of watchers that belong to no page (publishers, identity and drift checks)
 
 
 class Watch:
     """One reader following one device: ``callback()`` runs after the device changed (at most every
     :data:`PUSH_PERIOD_S`) and at least every :data:`AGE_PERIOD_S`. ``cancel()`` ends it."""
 
-    __slots__ = ("store", "device", "callback", "alive", "slow")
+    __slots__ = ("store", "device", "callback", "alive", "slow", "group")
 
-    def __init__(self, store: "StateStore", device: str, callback: Callable[[], object], slow: bool = False):
+    def __init__(self, store: "StateStore", device: str, callback: Callable[[], object], slow: bool = False,
+                 group: "_Group | None" = None):
         self.store, self.device, self.callback, self.alive = store, device, callback, True
         self.slow = slow  # called only once a second (counters, ages): a page that shows them changes once a second
+        self.group = group
 
     def cancel(self) -> None:
         if self.alive:
@@ -69,28 +73,86 @@ class Watch:
             watches = self.store._watches.get(self.device)
             if watches is not None and self in watches:
                 watches.remove(self)
+            if self.group is not None:
+                self.store._leave(self)
+
+
+class _Group:
+    """The watchers of one page (or of the server): called together, so that what changed on several
+    devices reaches the page in one message, at most every :data:`PAGE_GAP_S`."""
+
+    __slots__ = ("key", "watches", "dirty", "ages", "last_run", "last_device", "handle")
+
+    def __init__(self, key: object):
+        self.key = key
+        self.watches: dict[str, list[Watch]] = {}  # device -> this group's watchers of it
+        self.dirty: set[str] = set()  # devices changed since this group's watchers of them last ran
+        self.ages: set[str] = set()  # devices whose once-a-second round is due here
+        self.last_run = float("-inf")
+        self.last_device: dict[str, float] = {}  # device -> when this group's watchers of it last ran
+        self.handle: asyncio.Handle | None = None
+
+
+class _Devices(dict):
+    """The store's devices: each device record added tells the store when it changes (see :meth:`StateStore.adopt`)."""
+
+    def __init__(self, store: "StateStore"):
+        super().__init__()
+        self._store = store
+
+    def __setitem__(self, name: str, state: DeviceState) -> None:
+        super().__setitem__(name, self._store.adopt(state))
+
+
+def _notifying_class(store: "StateStore") -> type:
+    """A DeviceState whose ``version`` tells ``store`` when it moves: the same record (same fields, same
+    class for ``isinstance``), but every writer of it (adapters bump ``version``) now says that it changed."""
+    changed = store._changed
+
+    def get_version(self) -> int:
+        return self.__dict__["version"]
+
+    def set_version(self, value: int) -> None:
+        self.__dict__["version"] = value
+        changed(self.__dict__["name"])
+
+    return type("DeviceState", (DeviceState,), {"version": property(get_version, set_version), "__slots__": ()})
 
 
 class StateStore:
     """All live state of one plant, and the one producer that tells its readers what changed.
 
-    Adapters write the device records; every 0.1 s :meth:`push` looks at which devices changed
-    (an integer comparison per device), notes their alarms rising and clearing in their event
-    logs, and calls the watchers of the changed devices: the pages, the API and the broker
-    publisher follow the store instead of each polling it on a timer of its own.
+    Adapters write the device records; a write makes the store call the watchers of that device
+    soon after (in the same turn of the loop when the device's last call is older than
+    :data:`PUSH_PERIOD_S`), never on a timer of its own: a page sees a frame within milliseconds
+    and nothing runs while nothing changes. The watchers of one page run together (at most every
+    :data:`PAGE_GAP_S`), so a page gets one message for what changed meanwhile on all its devices.
+    Alarms rising and clearing are noted in the devices' event logs as they change. Once a second
+    per watched device (spread over the second) the watchers run anyway, so ages and stale marks
+    move on; a device nobody watches has no such round.
     """
 
     def __init__(self) -> None:
-        self.devices: dict[str, DeviceState] = {}
         self.buses: dict[str, BusState] = {}
         self._watches: dict[str, list[Watch]] = {}
-        self._pushed: dict[str, int] = {}  # device -> version last pushed
+        self._pushed: dict[str, int] = {}  # device -> version last pushed by push()
         # device -> time of its last once-a-second round. The devices' rounds are spread over the
-        # second (AGE_PHASES phases), so that no push calls every watcher of every page at once
+        # second (AGE_PHASES phases), so that no round calls every watcher of every page at once
         self._aged: dict[str, float] = {}
+        self._phase: dict[str, int] = {}  # device -> its slot of the second
         self.alarms: dict[str, tuple[str, ...]] = {}  # device -> its tile's alarms as last seen
-        self._task: asyncio.Task | None = None
+        self._alarm_inputs: dict[str, tuple] = {}  # device -> the values its alarms were last evaluated from
+        self._groups: dict[object, _Group] = {}
+        self._alarms = _Group("alarms")  # noting alarms: one more reader of every device, bounded like the others
+        self._pending: set[str] = set()  # devices written since the last fan-out
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: int | None = None
+        self._fan_handle: asyncio.Handle | None = None
+        self._age_handle: asyncio.TimerHandle | None = None
+        self._notifying = _notifying_class(self)
+        self.devices: dict[str, DeviceState] = _Devices(self)
         self.push_errors = 0
+        self.calls = 0  # watcher calls so far (for benchmarks and tests)
         # while watchers run: whether this call is their device's once-a-second round (a watcher
         # that draws read times or ages as well as values then draws both in one go)
         self.age_round = False
@@ -98,74 +160,210 @@ class StateStore:
     def device(self, name: str) -> DeviceState:
         return self.devices[name]
 
+    def adopt(self, state: DeviceState) -> DeviceState:
+        """Make ``state`` tell this store when it changes (its class becomes the store's DeviceState)."""
+        if type(state) is DeviceState:
+            state.__class__ = self._notifying
+        self._changed(state.name)
+        return state
+
     # -- following changes ---------------------------------------------------------
-    def watch(self, device: str, callback: Callable[[], object], slow: bool = False) -> Watch:
+    def watch(self, device: str, callback: Callable[[], object], slow: bool = False, group: object = SERVER) -> Watch:
         """Call ``callback`` whenever ``device`` changed (at most 10 times a second) and once a second;
-        ``slow``: only once a second (for what moves with every frame, such as counters)."""
-        w = Watch(self, device, callback, slow)
+        ``slow``: only once a second (for what moves with every frame, such as counters). ``group``:
+        the page the watcher belongs to (its watchers run together, see :data:`PAGE_GAP_S`)."""
+        g = self._groups.get(group)
+        if g is None:
+            g = self._groups[group] = _Group(group)
+        w = Watch(self, device, callback, slow, g)
         self._watches.setdefault(device, []).append(w)
+        g.watches.setdefault(device, []).append(w)
         self.ensure_running()
         return w
 
+    def _leave(self, w: Watch) -> None:
+        g = w.group
+        watches = g.watches.get(w.device)
+        if watches is not None and w in watches:
+            watches.remove(w)
+            if not watches:
+                del g.watches[w.device]
+                g.dirty.discard(w.device)
+                g.ages.discard(w.device)
+                g.last_device.pop(w.device, None)
+        if not g.watches and self._groups.get(g.key) is g:  # the page is gone
+            del self._groups[g.key]
+            if g.handle is not None:
+                g.handle.cancel()
+                g.handle = None
+
     def ensure_running(self) -> None:
-        """Start the producer on the running loop (idempotent; no-op without a loop)."""
-        if self._task is not None and not self._task.done():
-            return
+        """Follow changes on the running loop (idempotent; no-op without a loop)."""
         try:
             loop = asyncio.get_running_loop()
         except RuntimeError:
             return
-        self._task = loop.create_task(self._run(), name="state-push")
+        if self._loop is loop and not loop.is_closed():
+            return
+        import threading
+
+        self._loop, self._thread = loop, threading.get_ident()
+        self._groups = {key: g for key, g in self._groups.items() if g.watches}
+        for g in (*self._groups.values(), self._alarms):
+            g.handle = None
+            self._schedule(g, time.monotonic())
+        self._fan_handle = None
+        self._age_handle = loop.call_later(AGE_PERIOD_S / AGE_PHASES, self._age_tick)
+        self._pending.update(self.devices)
+        self._fan_soon()
 
     async def stop(self) -> None:
-        if self._task is not None:
-            self._task.cancel()
-            try:
-                await self._task
-            except (asyncio.CancelledError, Exception):  # noqa: BLE001 - stopping
-                pass
-            self._task = None
+        for g in (*self._groups.values(), self._alarms):
+            if g.handle is not None:
+                g.handle.cancel()
+                g.handle = None
+        for handle in (self._fan_handle, self._age_handle):
+            if handle is not None:
+                handle.cancel()
+        self._fan_handle = self._age_handle = None
+        self._loop = None
 
-    async def _run(self) -> None:
-        while True:
-            await asyncio.sleep(PUSH_PERIOD_S)
+    def _changed(self, name: str) -> None:
+        """A device record was written (from its ``version``): fan out soon, once for all writes of this turn."""
+        if name in self._pending:
+            return
+        self._pending.add(name)
+        if self._fan_handle is None and self._loop is not None:
+            self._fan_soon()
+
+    def _fan_soon(self) -> None:
+        import threading
+
+        loop = self._loop
+        if loop is None or self._fan_handle is not None or loop.is_closed():
+            return
+        if threading.get_ident() == self._thread:
+            self._fan_handle = loop.call_soon(self._fan_out)
+        else:  # a writer outside the loop: the loop does the rest
+            self._fan_handle = loop.call_soon_threadsafe(self._fan_out)
+
+    def _fan_out(self) -> None:
+        """The devices written since the last fan-out: into the groups that watch them."""
+        self._fan_handle = None
+        names, self._pending = self._pending, set()
+        now = time.monotonic()
+        for name in names:
+            if name not in self.devices:
+                continue
+            self._alarms.dirty.add(name)
+            age = self._age_due(name, now)  # a change when the round is due is that round (one call, not two)
+            for g in self._groups.values():
+                if name in g.watches:
+                    g.dirty.add(name)
+                    if age:
+                        g.ages.add(name)
+                    self._schedule(g, now)
+        self._schedule(self._alarms, now)
+
+    def _age_due(self, name: str, now: float) -> bool:
+        aged = self._aged.get(name)
+        if aged is None:  # first seen: its once-a-second rounds get a phase of their own
+            phase = self._phase.setdefault(name, len(self._phase) % AGE_PHASES)
+            self._aged[name] = now - phase * AGE_PERIOD_S / AGE_PHASES
+            return True
+        if now - aged < AGE_PERIOD_S:
+            return False
+        self._aged[name] = aged + AGE_PERIOD_S if now - aged < 2 * AGE_PERIOD_S else now
+        return True
+
+    def _age_tick(self) -> None:
+        """Every tenth of a second: the watched devices whose once-a-second round is due."""
+        loop = self._loop
+        if loop is None:
+            return
+        self._age_handle = loop.call_later(AGE_PERIOD_S / AGE_PHASES, self._age_tick)
+        now = time.monotonic()
+        try:
+            for name, watches in self._watches.items():
+                if watches and self._age_due(name, now):
+                    for g in self._groups.values():
+                        if name in g.watches:
+                            g.ages.add(name)
+                            self._schedule(g, now)
+        except Exception:  # the producer must never end
+            self.push_errors += 1
+            log.exception("once-a-second round failed")
+
+    def _schedule(self, g: _Group, now: float) -> None:
+        if g.handle is not None or (not g.dirty and not g.ages) or self._loop is None:
+            return
+        wait = g.last_run + PAGE_GAP_S - now
+        if g.dirty and not g.ages:  # only changes: none of them is due before its device's own gap
+            wait = max(wait, min(g.last_device.get(n, float("-inf")) for n in g.dirty) + PUSH_PERIOD_S - now)
+        g.handle = self._loop.call_later(wait, self._run, g) if wait > 0 else self._loop.call_soon(self._run, g)
+
+    def _run(self, g: _Group) -> None:
+        """Call one group's watchers of the devices that changed (or whose round is due) for it."""
+        g.handle = None
+        now = time.monotonic()
+        g.last_run = now
+        try:
+            if g is self._alarms:
+                for name in list(g.dirty):
+                    if now - g.last_device.get(name, float("-inf")) >= PUSH_PERIOD_S:
+                        g.dirty.discard(name)
+                        g.last_device[name] = now
+                        state = self.devices.get(name)
+                        if state is not None:
+                            self._note_alarms(name, state)
+                return
+            for name in list(g.dirty | g.ages):
+                age = name in g.ages
+                if not age and now - g.last_device.get(name, float("-inf")) < PUSH_PERIOD_S:
+                    continue  # its device's gap: the next run takes it
+                g.dirty.discard(name)
+                g.ages.discard(name)
+                g.last_device[name] = now
+                self._call(g.watches.get(name, ()), age)
+        except Exception:  # the producer must never end
+            self.push_errors += 1
+            log.exception("pushing live changes failed")
+        finally:
+            self.age_round = False
+            self._schedule(g, now)
+
+    def _call(self, watches, age_round: bool) -> int:
+        calls = 0
+        self.age_round = age_round
+        for w in list(watches):
+            if w.slow and not age_round:
+                continue
             try:
-                self.push()
-            except Exception:  # the producer must never end
+                w.callback()
+                calls += 1
+            except Exception:  # one reader's failure does not stop the others
                 self.push_errors += 1
-                log.exception("pushing live changes failed")
+                log.exception("a watcher of %s failed; it is removed", w.device)
+                w.cancel()
+        self.calls += calls
+        return calls
 
     def push(self, now: float | None = None) -> int:
-        """One round: alarms of changed devices, then their watchers; returns the number of calls."""
+        """One round at once, without the loop (tests, a store without a running loop): alarms of the
+        changed devices, then the watchers of the changed devices and of those whose once-a-second round
+        is due; returns the number of calls."""
         now = time.monotonic() if now is None else now
         calls = 0
-        for index, (name, state) in enumerate(self.devices.items()):
+        for name, state in self.devices.items():
             changed = self._pushed.get(name) != state.version
             if changed:
                 self._pushed[name] = state.version
                 self._note_alarms(name, state)
-            aged = self._aged.get(name)
-            if aged is None:  # first seen: its once-a-second rounds get a phase of their own (see below)
-                age_round = True
-                self._aged[name] = now - (index % AGE_PHASES) * AGE_PERIOD_S / AGE_PHASES
-            else:
-                age_round = now - aged >= AGE_PERIOD_S
-                if age_round:
-                    self._aged[name] = aged + AGE_PERIOD_S if now - aged < 2 * AGE_PERIOD_S else now
+            age_round = self._age_due(name, now)
             if not (changed or age_round):
                 continue
-            self.age_round = age_round
             try:
-                for w in list(self._watches.get(name, ())):
-                    if w.slow and not age_round:
-                        continue
-                    try:
-                        w.callback()
-                        calls += 1
-                    except Exception:  # one reader's failure does not stop the others
-                        self.push_errors += 1
-                        log.exception("a watcher of %s failed; it is removed", name)
-                        w.cancel()
+                calls += self._call(self._watches.get(name, ()), age_round)
             finally:
                 self.age_round = False
         return calls
@@ -177,8 +375,18 @@ class StateStore:
         device_type = DEVICE_TYPES.get(state.type)
         if device_type is None or state.online is not True:
             return
+        # the alarms follow from the values of the points they name: when those are as at the last
+        # evaluation that counted, the tile need not be evaluated again (most polls bring the same values)
+        inputs = _alarm_inputs(device_type.tile, state)
+        if self._alarm_inputs.get(name) == inputs:
+            return
         tile = device_type.tile.evaluate(lambda point: state.entry(point), time.time())
-        alarms = tuple(tile["alarms"]) if tile["quality"] in ("good", "unknown") else self.alarms.get(name, ())
+        if tile["quality"] in ("good", "unknown"):
+            alarms = tuple(tile["alarms"])
+            self._alarm_inputs[name] = inputs
+        else:
+            alarms = self.alarms.get(name, ())
+            self._alarm_inputs.pop(name, None)
         before = self.alarms.get(name, ())
         if alarms == before:
             return
@@ -191,3 +399,25 @@ class StateStore:
             if text not in alarms:
                 state.event("info", f"cleared: {text}")
         state.version = version  # the events themselves are not a new change to push again
+
+
+_ALARM_POINTS: dict[int, tuple[str, ...]] = {}
+
+
+def _alarm_inputs(spec, state: DeviceState) -> tuple:
+    """What a tile's alarms are evaluated from: each named point's value, text, raw word and unit (a
+    register parameter's raw value), not its time."""
+    names = _ALARM_POINTS.get(id(spec))
+    if names is None:
+        names = _ALARM_POINTS[id(spec)] = tuple(sorted(
+            {a.when.point for a in spec.alarms} | {a.unless.point for a in spec.alarms if a.unless is not None}))
+    points, params = state.points, state.params
+    inputs = []
+    for n in names:
+        p = points.get(n)
+        if p is not None:
+            inputs.append((p.value, p.text, p.raw, p.unit))
+        else:
+            param = params.by_name.get(n) if params is not None else None
+            inputs.append(None if param is None else state.raw(param))
+    return tuple(inputs)

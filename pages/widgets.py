@@ -193,15 +193,18 @@ def upload_button(label: str, testid: str) -> str:
 
 def follow(state: DeviceState, callback: Callable[[], object], slow: bool = False) -> None:
     """Keep part of a page up to date with one device: ``callback`` runs when the device changed
-    (pushed by the store at most 10 times a second) and once a second for ages; it ends with the page.
+    (pushed by the store as it changes, at most 10 times a second per device) and once a second for
+    ages; it ends with the page. The page's followers run together (what changed on all its devices
+    goes to the browser in one message, at most 20 a second).
 
     ``slow=True`` for what changes with every frame but is read as a statistic (counters): it is
     redrawn once a second, so the browser does not lay the page out again ten times a second for it.
     """
     from nicegui import context
 
-    watch = rt.current().store.watch(state.name, callback, slow)
-    context.client.on_delete(watch.cancel)
+    client = context.client
+    watch = rt.current().store.watch(state.name, callback, slow, group=client.id)
+    client.on_delete(watch.cancel)
 
 
 def counter_line(state: DeviceState, text: Callable[[object], str]) -> ui.label:

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import asyncio
+import time
 
-from app.state import AGE_PERIOD_S, DeviceState, StateStore
+from app.state import AGE_PERIOD_S, PAGE_GAP_S, PUSH_PERIOD_S, DeviceState, StateStore
 
 
 def _store() -> tuple[StateStore, DeviceState]:
@@ -151,3 +152,86 @@ def test_history_keeps_its_minutes_however_slowly_a_device_is_sampled():
     for i in range(20_000):  # and a fast device still at most 10 samples a second
         state.add_history({"bolt": 0.0}, now=newest + 1 + i * 0.01)
     assert len(state.history) == state.history.maxlen == HISTORY_SECONDS * 10
+
+
+def test_a_write_reaches_its_watchers_in_the_same_turn_not_on_a_timer():
+    async def main() -> list[float]:
+        store, state = _store()
+        delays: list[float] = []
+        written = [0.0]
+        store.watch("io-1", lambda: delays.append(time.monotonic() - written[0]) if written[0] else None)
+        await asyncio.sleep(0.3)  # the first round (everything new) is over
+        for i in range(5):
+            written[0] = time.monotonic()
+            state.publish("Temp", float(i))
+            await asyncio.sleep(0.15)  # longer than a device's gap: each write goes out at once
+        await store.stop()
+        return delays
+
+    delays = asyncio.run(main())
+    assert len(delays) >= 5
+    assert sorted(delays)[len(delays) // 2] < 0.02  # not up to 100 ms behind as with a 100 ms look-up
+
+
+def test_a_device_writing_fast_is_pushed_at_a_bounded_rate_and_its_last_value_arrives():
+    async def main() -> tuple[int, float, float]:
+        store, state = _store()
+        seen: list[float] = []
+        store.watch("io-1", lambda: seen.append(state.points["Temp"].value if "Temp" in state.points else -1))
+        start = time.monotonic()
+        for i in range(200):  # 200 writes a second for a second
+            state.publish("Temp", float(i))
+            await asyncio.sleep(0.005)
+        spent = time.monotonic() - start
+        await asyncio.sleep(0.25)
+        await store.stop()
+        return len(seen), spent, seen[-1]
+
+    calls, spent, last = asyncio.run(main())
+    assert calls <= spent / PUSH_PERIOD_S + 3  # at most 10 a second (and the once-a-second round)
+    assert last == 199.0  # the newest value is pushed after the last write
+
+
+def test_a_page_following_many_devices_runs_them_together():
+    async def main() -> tuple[int, int, float]:
+        store = StateStore()
+        loop = asyncio.get_running_loop()
+        runs: list[int] = []
+        turn = [0, False]
+
+        def called() -> None:
+            if not turn[1]:  # the first call of a turn: a new message to the page
+                turn[0], turn[1] = turn[0] + 1, True
+                loop.call_soon(lambda: turn.__setitem__(1, False))
+            runs.append(turn[0])
+
+        for i in range(10):
+            store.devices[f"d{i}"] = DeviceState(f"d{i}", "m3io", "can0")
+            store.watch(f"d{i}", called, group="page-1")
+        await asyncio.sleep(0.2)
+        runs.clear()
+        start = time.monotonic()
+        for k in range(100):  # every 10 ms another device changes
+            store.devices[f"d{k % 10}"].publish("Temp", float(k))
+            await asyncio.sleep(0.01)
+        spent = time.monotonic() - start
+        await store.stop()
+        turns = len(set(runs))
+        return len(runs), turns, spent
+
+    calls, turns, spent = asyncio.run(main())
+    assert calls >= 50  # every device's changes arrived
+    assert turns <= spent / PAGE_GAP_S + 3  # in at most 20 turns a second: one message each
+
+
+def test_a_device_nobody_watches_costs_no_call():
+    async def main() -> int:
+        store, state = _store()
+        store.ensure_running()
+        for i in range(20):
+            state.publish("Temp", float(i))
+            await asyncio.sleep(0.1)
+        await store.stop()
+        return store.calls
+
+    assert asyncio.run(main()) == 0

@@ -216,8 +216,10 @@ async def test_register_table_is_built_once_in_the_once_a_second_round(user_runt
     builds.clear()
     state.version += 1
     await asyncio.sleep(0.3)
-    assert builds == [False]  # a change: values only
+    # a change: values only (pushed as it comes, so a write of the starting runtime may add one more)
+    assert builds and set(builds) == {False}
+    builds.clear()
     store._aged = {name: 0.0 for name in store.devices}  # the next round is the once-a-second round
     state.version += 1
     await asyncio.sleep(0.15)
-    assert builds == [False, True]  # a change in the once-a-second round: one build with the read times
+    assert builds[0] is True and builds.count(True) == 1  # a change in the once-a-second round: one build with the read times
