@@ -21,9 +21,11 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from liveapp import (  # noqa: E402  (standard library only: runs after `pip install -e .`, no pytest)
+    CHROMIUM, CHROMIUM_ARGS, demo_plant_text, free_port, load, need_playwright, running_app, wait_devices_online,
+)
 
 GROUP = "239.74.163.11"
 DEVICE_ID = 660100
@@ -52,8 +54,6 @@ PAGES = {"device": f"/device/{LOCK}", "overview": "/", "plant": "/plant"}
 
 
 def bench_plant(port: int) -> str:
-    from webutil import demo_plant_text, free_port
-
     return demo_plant_text(free_port()) + f"""
 # frame_to_screen: a lock whose status frames come from the benchmark's second process
 [[bus]]
@@ -110,13 +110,11 @@ def latencies(shown: list[tuple[float, int]], sends: list[tuple[float, int]]) ->
 
 
 def main() -> None:
-    from conftest import CHROMIUM_ARGS, wait_devices_online
-    from playwright.sync_api import sync_playwright
-    from webutil import free_port, running_app
-
+    sync_playwright = need_playwright()
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=30.0, help="how long frames are sent")
     parser.add_argument("--rate", type=float, default=10.0, help="status frames per second")
+    parser.add_argument("--root", type=Path, help="run the app from another checkout (before and after, back to back)")
     args = parser.parse_args()
 
     import tempfile
@@ -126,10 +124,10 @@ def main() -> None:
     start, sent = ctx.Event(), ctx.Queue()
     proc = ctx.Process(target=sender, args=(port, args.rate, args.seconds, start, sent), daemon=True)
     proc.start()
-    with tempfile.TemporaryDirectory() as folder, running_app(bench_plant(port), Path(folder)) as url:
+    with tempfile.TemporaryDirectory() as folder, running_app(bench_plant(port), Path(folder), root=args.root) as url:
         wait_devices_online(url, [n for n in ("door-1", "gate-1", "lift")], timeout=60)
         with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
             pages = {}
             for kind, path in PAGES.items():
                 page = browser.new_page(viewport={"width": 1440, "height": 900})
@@ -157,7 +155,7 @@ def main() -> None:
             shown = {kind: page.evaluate("window.__shown") for kind, page in pages.items()}
             browser.close()
     proc.join(5)
-    print(f"frames sent: {len(sends)} at {args.rate:g}/s for {args.seconds:g} s (a second process, udp_multicast)")
+    print(f"frames sent: {len(sends)} at {args.rate:g}/s for {args.seconds:g} s (a second process, udp_multicast); {load()}")
     worst = 0.0
     for kind, values in shown.items():
         lat = latencies([tuple(v) for v in values], sends)

@@ -25,9 +25,12 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from liveapp import (  # noqa: E402  (standard library only: runs after `pip install -e .`, no pytest)
+    CHROMIUM, CHROMIUM_ARGS, app_pid, cpu_s, demo_plant_text, free_port, load, need_playwright, rss_mb, running_app,
+    wait_devices_online,
+)
 
 MIX = ["/", "/plant", "/device/door-1", "/device/gate-1", "/device/lift", "/device/heater-hm", "/device/lift-1",
        "/device/barrier-in", "/", "/plant"]
@@ -36,26 +39,6 @@ FIRST_VALUE = {"/plant": '[data-plant-tile="door-2"] >> text=/bolt (locked|unloc
                "/": '[data-device="door-2"] >> text=/bolt (locked|unlocked|moving)/'}
 
 TEXT_FONT_LOADED = "document.fonts.load('1em Roboto', 'bolt locked').then(() => true)"
-
-
-def app_pid(port: int) -> int:
-    """The process listening on ``port`` (the app started by running_app)."""
-    import subprocess
-
-    out = subprocess.run(["ss", "-ltnpH", f"sport = :{port}"], capture_output=True, text=True).stdout
-    return int(out.split("pid=")[1].split(",")[0])
-
-
-def cpu_s(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
-def rss_mb(pid: int) -> float:
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024
-    return 0.0
 
 
 def process_tree(root: int) -> list[int]:
@@ -115,22 +98,20 @@ def measure(pid: int, seconds: float, page) -> float:
 
 
 def main() -> None:
-    from conftest import CHROMIUM_ARGS, wait_devices_online
-    from playwright.sync_api import sync_playwright
-    from webutil import demo_plant_text, free_port, running_app
-
+    sync_playwright = need_playwright()
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=20.0, help="measuring time per step")
     parser.add_argument("--tries", type=int, default=3, help="first-value timings per page type and case")
+    parser.add_argument("--root", type=Path, help="run the app from another checkout (before and after, back to back)")
     args = parser.parse_args()
     firsts: list[tuple[str, str, float, float]] = []
-    with tempfile.TemporaryDirectory() as folder, running_app(demo_plant_text(free_port()), Path(folder)) as url:
+    with tempfile.TemporaryDirectory() as folder, running_app(demo_plant_text(free_port()), Path(folder), root=args.root) as url:
         wait_devices_online(url, timeout=60)
         pid = app_pid(int(url.rsplit(":", 1)[1]))
         results = {}
         with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)  # the open pages
-            newcomer = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)  # the new page
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)  # the open pages
+            newcomer = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)  # the new page
 
             def time_firsts(case: str) -> None:
                 for path in ("/plant", "/"):
@@ -148,7 +129,7 @@ def main() -> None:
                     pages.append(page)
                 idle.wait_for_timeout(3000)  # settle
                 results[count] = (measure(pid, args.seconds, idle), rss_mb(pid))
-                print(f"{count:2d} pages: app CPU {results[count][0]:5.1f} % of a core, RSS {results[count][1]:.0f} MB", flush=True)
+                print(f"{count:2d} pages: app CPU {results[count][0]:5.1f} % of a core, RSS {results[count][1]:.0f} MB ({load()})", flush=True)
                 if count == 0:
                     time_firsts("no other page open")
             time_firsts("20 open, drawn on this machine at the same priority")

@@ -106,12 +106,13 @@ def stop_app(proc: subprocess.Popen) -> None:
 
 
 @contextlib.contextmanager
-def running_app(plant_text: str, folder: Path, *args: str) -> Iterator[str]:
-    """The GUI in its own process on ``plant_text``; yields its base URL once it answers."""
+def running_app(plant_text: str, folder: Path, *args: str, root: Path | None = None) -> Iterator[str]:
+    """The GUI in its own process on ``plant_text`` (from the checkout ``root``, default this one);
+    yields its base URL once it answers."""
     plant = folder / "plant.toml"
     plant.write_text(plant_text)
     port = free_port()
-    proc = start_app(plant, port, folder / "app.log", *args)
+    proc = start_app(plant, port, folder / "app.log", *args, root=root or ROOT)
     try:
         wait_http(f"http://127.0.0.1:{port}/", proc)
         yield f"http://127.0.0.1:{port}"

@@ -1,6 +1,6 @@
 """App CPU of open HD-Lock and M3IO device pages: none open, then 5 HD-Lock and 5 M3IO pages in chromium.
 
-The app runs the demo plant in its own process (``tests/webutil.running_app``); the pages follow
+The app runs the demo plant in its own process (``bench/liveapp.running_app``); the pages follow
 the live store (pushed at most 10 times a second and once a second for ages), their charts append.
 CPU is the app process's user+system time over ``--seconds`` (from /proc), in % of one core,
 measured once with no page and once with the ten pages open.
@@ -15,20 +15,16 @@ import sys
 import tempfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "bench"))
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 HDLOCK = ["/device/door-1", "/device/door-2", "/device/gate-1", "/device/gate-2", "/device/door-1"]  # Modbus and CAN
 M3IO = ["/device/heater-hm", "/device/heater-hmr", "/device/heater-hm", "/device/heater-hmr", "/device/heater-hm"]
 
 
 def main() -> None:
-    from conftest import CHROMIUM_ARGS, wait_devices_online
-    from browser_load import app_pid, measure, rss_mb
-    from playwright.sync_api import sync_playwright
-    from webutil import demo_plant_text, free_port, running_app
+    from browser_load import measure
+    from liveapp import CHROMIUM_ARGS, app_pid, demo_plant_text, free_port, need_playwright, rss_mb, running_app, wait_devices_online
+    sync_playwright = need_playwright()
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=30.0, help="measuring time per step")

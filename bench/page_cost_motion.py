@@ -15,9 +15,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "bench"))
 
-from webutil import free_port, running_app  # noqa: E402
+from liveapp import free_port, running_app  # noqa: E402
 
 PLANT = """
 name = "page-cost"

@@ -17,11 +17,11 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench.browser_load import app_pid, cpu_s, rss_mb  # noqa: E402
+from liveapp import (  # noqa: E402
+    CHROMIUM_ARGS, app_pid, cpu_s, demo_plant_text, free_port, need_playwright, rss_mb, running_app, wait_devices_online,
+)
 
 PAGES = ["/", "/plant", "/device/door-1", "/device/lift", "/device/heater-hm", "/device/gate-1", "/device/lift-1"]
 
@@ -37,9 +37,7 @@ def slope_per_h(samples: list[tuple[float, float]]) -> float:
 
 
 def main() -> None:
-    from conftest import CHROMIUM_ARGS, wait_devices_online
-    from playwright.sync_api import sync_playwright
-    from webutil import demo_plant_text, free_port, running_app
+    sync_playwright = need_playwright()
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--minutes", type=float, default=60.0)
