@@ -58,6 +58,7 @@ type = "m3io"
 bus = "can3"
 variant = "HM"
 sw1 = 0x1A
+master = "always"  # no PLC here: the tool serves the module's watchdog, so it answers
 
 [[bus]]
 name = "gate-tcp"
