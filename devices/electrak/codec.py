@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import IntEnum
 
+from devices import errors
+
 CONTROL_ID = 0x06  # sent by the master every 100 ms
 STATUS_ID = 0x07  # sent by every actuator every 100 ms
 SERVICE_REQUEST_ID = 0x0A
@@ -27,7 +29,7 @@ SATURATED_WARN_S = 1.0
 ENV_FAULT_RUN_ON_S = 10.0
 
 
-class CodecError(ValueError):
+class CodecError(errors.CodecError):
     """A telegram that cannot be encoded or decoded."""
 
 

@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum
 
+from devices import errors
 from devices.hdlock.params import LOCK_REQUEST_SOURCE, PARAMS
 
 # LockStatus bits (holding 1000, section 3.2.1; bit 4 repeats "LockRequest", see SPEC-NOTES)
@@ -65,7 +66,7 @@ BROADCAST_TURNAROUND_S = 0.1  # Modbus over Serial Line 2.4.1: after a broadcast
 ADDRESS_SETTLE_S = 0.1  # section 4.3 gives no time for taking a new address: wait this long before looking for it
 
 
-class CodecError(ValueError):
+class CodecError(errors.CodecError):
     """A value that cannot be encoded or a frame that cannot be decoded."""
 
 

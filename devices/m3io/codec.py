@@ -7,8 +7,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
+from devices import errors
 
-class CodecError(ValueError):
+
+class CodecError(errors.CodecError):
     """A frame or value that cannot be encoded or decoded."""
 
 

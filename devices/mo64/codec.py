@@ -38,6 +38,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 from typing import Any
 
+from devices import errors
 from devices import values as v
 
 # -- line and connection (chapters 2.1, 3) ----------------------------------------------------------
@@ -49,7 +50,7 @@ MAX_LE = 255  # chapter 2.1: 6 to 259 characters, i.e. LE at most 255 (one byte)
 CRC_PRESET = 0xFFFF  # chapter 2.3: the CRC register is loaded with 0xFFFF
 
 
-class CodecError(ValueError):
+class CodecError(errors.CodecError):
     """A telegram that cannot be encoded or decoded."""
 
 

@@ -32,6 +32,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import IntEnum
 
+from devices import errors
+
 # -- line (section 3, "Physikalische Ebene" / "Netzwerkebene") ---------------------------------------
 DEFAULT_BAUDRATE = 38400
 BAUDRATES = (9600, 19200, 38400)  # custom units only for 9600/19200
@@ -65,7 +67,7 @@ MAX_CTP = 1024
 ACK = 0x06
 
 
-class CodecError(ValueError):
+class CodecError(errors.CodecError):
     """A telegram that cannot be encoded or decoded."""
 
 

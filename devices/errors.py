@@ -1,0 +1,13 @@
+"""The one root of every device codec's errors.
+
+Each device family keeps its own ``CodecError`` (``devices.scu.codec.CodecError``, ...), so an
+adapter catches exactly its family; code that handles bad wire data of any device catches
+:class:`CodecError` from here. It is a ``ValueError``: a telegram or value that cannot be
+encoded or decoded is a bad value, never a crash (STYLE.md item 9).
+"""
+
+from __future__ import annotations
+
+
+class CodecError(ValueError):
+    """A telegram, frame or value of any device that cannot be encoded or decoded."""
