@@ -52,6 +52,7 @@ PUSH_PERIOD_S = 0.1  # a device's watchers are called at most 10 times a second
 PAGE_GAP_S = 0.05  # and the watchers of one page (one group) at most 20 times a second, all its devices in one go
 AGE_PERIOD_S = 1.0  # watchers are called at least this often, so ages and stale marks move on
 AGE_PHASES = 10  # the devices' once-a-second rounds fall into this many slots of the second, not all into one
+AHEAD = 3  # a device's or page's calls may run this many periods ahead of their rate (a burst), never more
 SERVER = "server"  # the group of watchers that belong to no page (publishers, identity and drift checks)
 
 
@@ -81,15 +82,18 @@ class _Group:
     """The watchers of one page (or of the server): called together, so that what changed on several
     devices reaches the page in one message, at most every :data:`PAGE_GAP_S`."""
 
-    __slots__ = ("key", "watches", "dirty", "ages", "last_run", "last_device", "handle")
+    __slots__ = ("key", "watches", "dirty", "ages", "due", "due_device", "handle")
 
     def __init__(self, key: object):
         self.key = key
         self.watches: dict[str, list[Watch]] = {}  # device -> this group's watchers of it
         self.dirty: set[str] = set()  # devices changed since this group's watchers of them last ran
         self.ages: set[str] = set()  # devices whose once-a-second round is due here
-        self.last_run = float("-inf")
-        self.last_device: dict[str, float] = {}  # device -> when this group's watchers of it last ran
+        # the rate bounds, as "theoretical arrival times" (GCRA): the group may run while it is at most
+        # AHEAD periods ahead of its bound. A source at exactly the bound's rate (a status frame every 100 ms) is
+        # then pushed as it comes, never trailing its frames by a period
+        self.due = float("-inf")
+        self.due_device: dict[str, float] = {}  # device -> the same for this group's watchers of it
         self.handle: asyncio.Handle | None = None
 
 
@@ -190,7 +194,7 @@ class StateStore:
                 del g.watches[w.device]
                 g.dirty.discard(w.device)
                 g.ages.discard(w.device)
-                g.last_device.pop(w.device, None)
+                g.due_device.pop(w.device, None)
         if not g.watches and self._groups.get(g.key) is g:  # the page is gone
             del self._groups[g.key]
             if g.handle is not None:
@@ -297,33 +301,36 @@ class StateStore:
     def _schedule(self, g: _Group, now: float) -> None:
         if g.handle is not None or (not g.dirty and not g.ages) or self._loop is None:
             return
-        wait = g.last_run + PAGE_GAP_S - now
-        if g.dirty and not g.ages:  # only changes: none of them is due before its device's own gap
-            wait = max(wait, min(g.last_device.get(n, float("-inf")) for n in g.dirty) + PUSH_PERIOD_S - now)
+        wait = g.due - AHEAD * PAGE_GAP_S - now
+        if g.dirty and not g.ages:  # only changes: none of them is due before its device's own bound
+            wait = max(wait, min(g.due_device.get(n, float("-inf")) for n in g.dirty) - AHEAD * PUSH_PERIOD_S - now)
         g.handle = self._loop.call_later(wait, self._run, g) if wait > 0 else self._loop.call_soon(self._run, g)
 
     def _run(self, g: _Group) -> None:
         """Call one group's watchers of the devices that changed (or whose round is due) for it."""
         g.handle = None
         now = time.monotonic()
-        g.last_run = now
+        g.due = max(g.due, now) + PAGE_GAP_S
         try:
             if g is self._alarms:
                 for name in list(g.dirty):
-                    if now - g.last_device.get(name, float("-inf")) >= PUSH_PERIOD_S:
+                    due = g.due_device.get(name, float("-inf"))
+                    if now >= due - AHEAD * PUSH_PERIOD_S:
                         g.dirty.discard(name)
-                        g.last_device[name] = now
+                        g.due_device[name] = max(due, now) + PUSH_PERIOD_S
                         state = self.devices.get(name)
                         if state is not None:
                             self._note_alarms(name, state)
                 return
             for name in list(g.dirty | g.ages):
                 age = name in g.ages
-                if not age and now - g.last_device.get(name, float("-inf")) < PUSH_PERIOD_S:
-                    continue  # its device's gap: the next run takes it
-                g.dirty.discard(name)
+                due = g.due_device.get(name, float("-inf"))
+                if not age and now < due - AHEAD * PUSH_PERIOD_S:
+                    continue  # its device's bound: the next run takes it
+                if name in g.dirty:  # a round for ages alone takes nothing from the device's bound
+                    g.dirty.discard(name)
+                    g.due_device[name] = max(due, now) + PUSH_PERIOD_S
                 g.ages.discard(name)
-                g.last_device[name] = now
                 self._call(g.watches.get(name, ()), age)
         except Exception:  # the producer must never end
             self.push_errors += 1

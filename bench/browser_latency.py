@@ -5,7 +5,7 @@ HD-Lock (``bench-lock``, not simulated). A second process sends that lock's stat
 (section 6.5.1) ``--rate`` times a second, each with a new motorPos, and notes when it sent
 which value. Chromium opens the lock's device page, the overview and the plant view; a
 MutationObserver in each page notes (``Date.now()``) when the shown value changes: the device
-page's "motorPos N Inc", the tiles' "bolt N Inc". Latency = shown time - send time of the
+page's "motorPos N Inc", the overview tile's "bolt N Inc", the plant view's "bolt N % out". Latency = shown time - send time of the
 newest frame with that value (same machine, same clock). Printed per page: values shown,
 p50/p95/max in ms.
 
@@ -34,7 +34,7 @@ LOCK = "bench-lock"
 # the value a page shows, and when it changed; runs in each page
 OBSERVE_JS = """([kind, name]) => {
   window.__shown = [];
-  const re = kind === 'device' ? /motorPos (\\d+) Inc/ : /^bolt (\\d+) Inc$/;
+  const re = kind === 'device' ? /motorPos (\\d+) Inc/ : kind === 'plant' ? /^bolt (\\d+) % out$/ : /^bolt (\\d+) Inc$/;
   const scope = kind === 'overview' ? `[data-device="${name}"]` : kind === 'plant' ? `[data-plant-tile="${name}"]` : null;
   let last = null;
   new MutationObserver(records => {
@@ -98,12 +98,20 @@ def percentile(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, int(round(q / 100 * (len(ordered) - 1))))]
 
 
-def latencies(shown: list[tuple[float, int]], sends: list[tuple[float, int]]) -> list[float]:
-    """For each shown value: ms since the newest send of that value before it was shown."""
+FULL_SCALE_INC = 115  # the HD-Lock tile's bar: the plant view shows the bolt's share of it ("bolt 43 % out")
+
+
+def shown_as(kind: str, value: int) -> int:
+    """What a page shows for motorPos ``value``: the value, or on the plant view its share of full travel."""
+    return int(f"{value / FULL_SCALE_INC * 100:.0f}") if kind == "plant" else value
+
+
+def latencies(shown: list[tuple[float, int]], sends: list[tuple[float, int]], kind: str = "device") -> list[float]:
+    """For each shown value: ms since the newest send of a value shown that way before it was shown."""
     out = []
     for t_ms, value in shown:
         t = t_ms / 1000
-        before = [s for s, v in sends if v == value and s <= t + 0.002]
+        before = [s for s, v in sends if shown_as(kind, v) == value and s <= t + 0.002]
         if before:
             out.append((t - before[-1]) * 1000)
     return out
@@ -158,7 +166,7 @@ def main() -> None:
     print(f"frames sent: {len(sends)} at {args.rate:g}/s for {args.seconds:g} s (a second process, udp_multicast); {load()}")
     worst = 0.0
     for kind, values in shown.items():
-        lat = latencies([tuple(v) for v in values], sends)
+        lat = latencies([tuple(v) for v in values], sends, kind)
         if not lat:
             print(f"{kind:9s}: no value change seen")
             worst = float("inf")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 import time
 
-from app.state import AGE_PERIOD_S, PAGE_GAP_S, PUSH_PERIOD_S, DeviceState, StateStore
+from app.state import AGE_PERIOD_S, AHEAD, PAGE_GAP_S, PUSH_PERIOD_S, DeviceState, StateStore
 
 
 def _store() -> tuple[StateStore, DeviceState]:
@@ -188,7 +188,7 @@ def test_a_device_writing_fast_is_pushed_at_a_bounded_rate_and_its_last_value_ar
         return len(seen), spent, seen[-1]
 
     calls, spent, last = asyncio.run(main())
-    assert calls <= spent / PUSH_PERIOD_S + 3  # at most 10 a second (and the once-a-second round)
+    assert calls <= spent / PUSH_PERIOD_S + AHEAD + 3  # 10 a second after a burst of AHEAD + 1, and the once-a-second rounds
     assert last == 199.0  # the newest value is pushed after the last write
 
 
@@ -221,7 +221,7 @@ def test_a_page_following_many_devices_runs_them_together():
 
     calls, turns, spent = asyncio.run(main())
     assert calls >= 50  # every device's changes arrived
-    assert turns <= spent / PAGE_GAP_S + 3  # in at most 20 turns a second: one message each
+    assert turns <= spent / PAGE_GAP_S + AHEAD + 2  # in at most 20 turns a second: one message each
 
 
 def test_a_device_nobody_watches_costs_no_call():
