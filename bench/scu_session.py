@@ -133,7 +133,7 @@ async def rc_thread_figures(idle_s: float) -> dict:
         loop.call_soon(time.sleep, 1.0)
         await asyncio.sleep(0)
         stalled = gaps(blocked - 0.2, blocked + 1.0)
-        adapter.take_control("bench", "bench")
+        await adapter.take_control("bench", "bench")
         await adapter.jog("bench", int(codec.Function.F1), +1)
         await asyncio.sleep(0.6)
         moving_before = twin.actuators[0].moving

@@ -188,9 +188,9 @@ async def test_move_to_a_remote_position_is_followed_by_its_rs():
     async with Script(opening(False, True)) as script:
         adapter = make_adapter(script.port, actuators=[{"counts_per_mm": 10}, {}])
         await adapter.poll()
-        adapter.take_control("s1", "anna")
+        await adapter.take_control("s1", "anna")
         with pytest.raises(ControlBusy):
-            adapter.take_control("s2", "bert")
+            await adapter.take_control("s2", "bert")
         script.add((TX, p.rt_frame(0x3011, 100)), (RX, ok(codec.RT)),  # section 5: RT 04 00 11 30 01 00 (+ 0x0064)
                    (TX, codec.encode_rg(0x3011)), (RX, ok(codec.RG, (100).to_bytes(2, "little"))),
                    (TX, p.rt_frame(0x3021, 2000)), (RX, ok(codec.RT)),
@@ -210,7 +210,7 @@ async def test_dead_man_sends_rs_at_once_and_releases_control():
     async with Script(OPENING) as script:
         adapter = make_adapter(script.port)
         await adapter.poll()
-        adapter.take_control("s1", "anna")
+        await adapter.take_control("s1", "anna")
         script.add((TX, codec.encode_re(1, codec.Motion.OUT, codec.Ramp.SOFT)), (RX, ok(codec.RE)))
         await adapter.run_function("s1", 1, codec.Motion.OUT, codec.Ramp.SOFT)
         script.add((TX, codec.encode_rs(1)), (RX, ok(codec.RS)))
@@ -313,7 +313,7 @@ async def test_adapter_against_the_twin_keeps_rc_gaps_below_500_ms_moves_and_sto
         await wait_for(lambda: adapter.session == "open" and "A1 position" in adapter.state.points, timeout=5)
         assert adapter.session == "open" and "A1 position" in adapter.state.points, adapter.session_reason
         twin.add_load(1, 3.0)
-        adapter.take_control("s1", "anna")
+        await adapter.take_control("s1", "anna")
         await adapter.set_remote_speed("s1", 1, 100)
         await adapter.set_remote_position("s1", 1, counts=1500)
         start = adapter.state.points["A1 position"].value

@@ -115,7 +115,7 @@ async def scu():
 async def test_a_stalled_loop_stops_the_jog_by_rs_from_the_line_thread(scu):
     runtime, adapter, unit = scu
     twin = unit.twin
-    adapter.take_control("s1", "anna")
+    await adapter.take_control("s1", "anna")
     await adapter.jog("s1", F1, +1)
     assert await wait_for(lambda: twin.actuators[0].moving, 2)
     await asyncio.sleep(0.6)  # longer than the lease: the supervisor renews it while the page beats
@@ -167,7 +167,7 @@ async def test_a_lapse_never_sends_rs_19_and_keeps_the_emergency_stop_on(scu):
     so remote mode (and with it the emergency stop) stays."""
     runtime, adapter, unit = scu
     twin = unit.twin
-    adapter.take_control("s1", "anna")
+    await adapter.take_control("s1", "anna")
     await adapter.emergency_stop("s1")
     await adapter.run_function("s1", OUTPUT_1)
     assert twin.emergency_stop and twin.binary_outputs & 1

@@ -81,7 +81,7 @@ def moving(twin) -> list[int]:
 async def test_emergency_stop_survives_a_lost_and_reopened_session():
     async with unit() as (adapter, twin):
         await session_open(adapter)
-        adapter.take_control("s1", "anna")
+        await adapter.take_control("s1", "anna")
         await adapter.emergency_stop("s1")
         assert twin.emergency_stop
         twin.drop_line(True)  # cable out: the watchdog drops remote mode, the adapter loses the session
@@ -102,10 +102,10 @@ async def test_emergency_stop_survives_a_lost_and_reopened_session():
 async def test_go_while_the_emergency_stop_is_on_does_not_release_it():
     async with unit() as (adapter, twin):
         await session_open(adapter)
-        adapter.take_control("s1", "anna")
+        await adapter.take_control("s1", "anna")
         await adapter.emergency_stop("s1")
         with pytest.raises(ControlBusy):
-            adapter.take_control("s2", "bert")  # a second user cannot take control; the holder presses Go
+            await adapter.take_control("s2", "bert")  # a second user cannot take control; the holder presses Go
         with pytest.raises((CommandError, codec.CommandRefused)):
             await adapter.run_function("s1", F1, codec.Motion.OUT, codec.Ramp.SOFT)
         await asyncio.sleep(1.5)  # polls, a possible reopening
@@ -117,7 +117,7 @@ async def test_go_while_the_emergency_stop_is_on_does_not_release_it():
 async def test_a_jog_tap_on_a_busy_line_leaves_the_actuator_stopped():
     async with unit(answer_delay_s=0.03) as (adapter, twin):  # a busy line: every answer 30 ms late
         await session_open(adapter)
-        adapter.take_control("s1", "anna")
+        await adapter.take_control("s1", "anna")
         for tap in range(6):
             pressed = time.monotonic()
 
@@ -140,7 +140,7 @@ async def test_a_jog_tap_on_a_busy_line_leaves_the_actuator_stopped():
 async def test_go_then_stop_at_once_on_a_busy_line_leaves_the_actuator_stopped():
     async with unit(answer_delay_s=0.03) as (adapter, twin):
         await session_open(adapter)
-        adapter.take_control("s1", "anna")
+        await adapter.take_control("s1", "anna")
         for tap in range(4):
             pressed = time.monotonic()
 
@@ -162,7 +162,7 @@ async def test_go_then_stop_at_once_on_a_busy_line_leaves_the_actuator_stopped()
 async def test_rs_refused_with_cse_is_sent_again_and_the_actuator_stops():
     async with unit() as (adapter, twin):
         await session_open(adapter)
-        adapter.take_control("s1", "anna")
+        await adapter.take_control("s1", "anna")
         await adapter.run_function("s1", F1, codec.Motion.OUT, codec.Ramp.SOFT)
         assert await wait_for(lambda: moving(twin) == [1], 2)
         twin.cse_on_rs = 2  # the first two RS are not executed (section 4.2: CSE)
@@ -174,7 +174,7 @@ async def test_rs_refused_with_cse_is_sent_again_and_the_actuator_stops():
 async def test_rs_never_acknowledged_is_a_failed_stop_held_and_retried():
     async with unit() as (adapter, twin):
         await session_open(adapter)
-        adapter.take_control("s1", "anna")
+        await adapter.take_control("s1", "anna")
         await adapter.run_function("s1", F1, codec.Motion.OUT, codec.Ramp.SOFT)
         twin.cse_on_rs = -1  # every RS refused
         with pytest.raises(CommandError, match="STOP FAILED"):
@@ -196,7 +196,7 @@ async def test_a_unit_that_answers_rg_outside_remote_mode_is_watched_without_a_s
         assert "RO" not in twin.requests and "RC" not in twin.requests and not twin.remote
         assert "without" in adapter.state.live(P_WATCH).text and adapter.session != "open"
         assert await wait_for(lambda: "Battery voltage" in adapter.state.points, 6)
-        adapter.take_control("s1", "anna")  # control opens the session ...
+        await adapter.take_control("s1", "anna")  # control opens the session ...
         await session_open(adapter)
         assert twin.remote
         await adapter.release_control("s1")  # ... and its release ends it: the hand switch has the unit again
@@ -243,7 +243,7 @@ async def test_stray_bytes_split_and_late_answers_never_end_the_session():
         before = adapter.state.counters.responses
         assert await wait_for(lambda: adapter.state.counters.responses > before + 10, 5)
         assert adapter.session == "open"
-        adapter.take_control("s1", "anna")
+        await adapter.take_control("s1", "anna")
         await adapter.run_function("s1", F1, codec.Motion.OUT, codec.Ramp.SOFT)
         await adapter.stop("s1")
         assert moving(twin) == []

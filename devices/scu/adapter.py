@@ -1033,7 +1033,7 @@ class ScuAdapter:
             pub(entry.name, int(x), time=now)
 
     # -- control ------------------------------------------------------------------------------------
-    def take_control(self, session: str, user: str) -> None:
+    async def take_control(self, session: str, user: str) -> None:
         """One browser session at a time drives the unit (the remote session is opened for it by the next poll)."""
         if self.controller is not None and self.controller.session != session:
             raise ControlBusy(f"{self.controller.user} holds control since "
