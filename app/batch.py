@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from app import backup, replace
+from devices.commands import READ_PARAMETERS
 
 WRITTEN, UNCHANGED, FAILED, SKIPPED, REFUSED = "written", "unchanged", "failed", "skipped", "refused"
 
@@ -68,8 +69,7 @@ async def source_document(runtime, source: str, device: str) -> dict:
         adapter = runtime.worker.adapters[sibling]
         if not backup.supports_backup(adapter):
             raise backup.BackupError(f"{sibling} has no parameters to copy")
-        entries = await runtime.worker.command(sibling, lambda a: a.backup_read(), role="viewer", user="batch",
-                                               describe="read parameters for a batch", write=False, record=False)
+        entries = await runtime.worker.invoke(sibling, READ_PARAMETERS, user="batch", role="viewer")
         state = runtime.store.devices[sibling]
         return backup.make_document(runtime.plant.name, sibling, state.type, state.bus, adapter.backup_identity(), entries)
     path = Path(source.removeprefix("file:"))

@@ -35,6 +35,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from devices.commands import READ_PARAMETERS
+
 log = logging.getLogger(__name__)
 
 KINDS = ("approved", "snapshot", "restore", "checkout", "signoff")
@@ -351,7 +353,7 @@ class CheckoutContext:
         self.session = run.session
         self.user = run.user
         self.settings = run.settings
-        self.adapter = runtime.worker.adapters[run.device]  # to ask what it offers; commands go through command()
+        self.adapter = runtime.worker.adapters[run.device]  # to ask what it offers; commands go through invoke()
 
     @property
     def step(self) -> StepResult:
@@ -360,18 +362,6 @@ class CheckoutContext:
     def check_abort(self) -> None:
         if self._run.abort_event.is_set():
             raise Aborted(self._run.abort_reason or "aborted")
-
-    async def command(self, describe: str, action: Callable[[Any], Any], *, write: bool = True) -> Any:
-        """Run ``action(adapter)`` through the worker's command gate (role check, audit row)."""
-        self.check_abort()
-        runtime = self._run.runtime
-
-        async def call(adapter):
-            result = action(adapter)
-            return await result if asyncio.iscoroutine(result) else result
-
-        return await runtime.worker.command(self.device, call, role=self._run.role, user=self.user,
-                                            describe=f"checkout: {describe}", write=write, record=True)
 
     async def invoke(self, name: str, args: dict | None = None) -> Any:
         """Run the device type's declared command ``name`` through the worker's gate, for the run's
@@ -710,8 +700,7 @@ class RecordService:
         adapter = self.runtime.worker.adapters[device]
         if not supports_backup(adapter):
             raise RecordError(f"{device}: this device has no parameter set to read")
-        entries = await self.runtime.worker.command(device, lambda a: a.backup_read(), role=role, user=user,
-                                                    describe="read parameters for the record", write=False, record=False)
+        entries = await self.runtime.worker.invoke(device, READ_PARAMETERS, user=user, role=role)
         return adapter.backup_identity(), entries
 
     async def snapshot(self, device: str, *, user: str, role: str, title: str = "on demand") -> int:

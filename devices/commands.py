@@ -240,9 +240,16 @@ def commands_of(type_name: str) -> dict[str, Command]:
     return {c.name: c for c in getattr(policy, "COMMANDS", ())}
 
 
+READ_PARAMETERS = "read parameters"
+# what every device type offers whose adapter reads its parameter set (backup, records, batch copies)
+COMMON = {READ_PARAMETERS: Command(READ_PARAMETERS, "read", method="backup_read")}
+
+
 def find(type_name: str, name: str) -> Command | None:
-    """The command called ``name`` (or one declared with ``prefix`` whose name starts it)."""
+    """The command called ``name`` (or one declared with ``prefix`` whose name starts it); the
+    :data:`COMMON` ones where the type declares none of that name."""
     declared = commands_of(type_name)
     if name in declared:
         return declared[name]
-    return next((c for c in declared.values() if c.prefix and name.startswith(c.name)), None)
+    prefixed = next((c for c in declared.values() if c.prefix and name.startswith(c.name)), None)
+    return prefixed if prefixed is not None else COMMON.get(name)

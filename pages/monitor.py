@@ -742,7 +742,7 @@ class CanMonitor:
 
         # stopping only ends a file: allowed for everyone, audited
         stopped = await self.worker.checked(stop, device=self.bus, role=role, user=user, describe=f"stop recording {self.bus}",
-                                            write=False)
+                                            kind="stop")
         if stopped is None:
             ui.notify("Nothing was being recorded.", type="warning")
             return

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 
+from devices.commands import WRITE_PARAMETER
 from devices.hdlock import STATUS_FRAME_BOLT
 from devices.hdlock.params import PARAMS
 
@@ -72,7 +73,7 @@ async def _drive(ctx, value: int, bit: str, limit_s: float) -> float:
     if getattr(ctx, _SAVED, None) is None:
         setattr(ctx, _SAVED, _source(ctx))
     t0 = time.monotonic()
-    await ctx.command(f"LockRequestSource {SOURCE.enum[value]}", lambda a: a.write_param(SOURCE, value))
+    await ctx.invoke(WRITE_PARAMETER, {"param": SOURCE, "value": SOURCE.decode(value)})
     reached = await ctx.wait(lambda: _status(ctx, bit) == 1, limit_s + 1.0)
     took = round(time.monotonic() - t0, 2)
     if not reached:
@@ -104,5 +105,4 @@ async def cleanup(ctx, settings: dict) -> None:
     """The lock request source the lock had before the checkout, written back."""
     before = getattr(ctx, _SAVED, None)
     if before is not None and _source(ctx) != before:
-        await ctx.command(f"restore LockRequestSource {SOURCE.enum.get(before, before)}",
-                          lambda a: a.write_param(SOURCE, before))
+        await ctx.invoke(WRITE_PARAMETER, {"param": SOURCE, "value": before})

@@ -73,7 +73,7 @@ async def _ask(ctx) -> None:
 async def _take(ctx) -> None:
     """Control of the module for the run's session, where the adapter asks for it (take_control)."""
     if callable(getattr(ctx.adapter, "take_control", None)):
-        await ctx.command("take control", lambda a: a.take_control(ctx.session, ctx.user))
+        await ctx.invoke("take control", {"user": ctx.user})
     # addressed mode: outputs switch only once the product code matched the plant's variant (7.2.4.2.2)
     await ctx.wait(lambda: ctx.value("Variant check") in ("ok", "not possible", "mismatch"), ctx.settings["settle_s"] + 2)
     if ctx.value("Variant check") == "mismatch":
@@ -92,7 +92,7 @@ def _healthy(ctx, channels: list[int]) -> bool:
 async def _cycle(ctx, output: str) -> None:
     settle = ctx.settings["settle_s"]
     channels = _channels(output)
-    await ctx.command(f"{output} on", lambda a: a.set_output(ctx.session, output, True))
+    await ctx.invoke(f"{output} on")
     healthy = await ctx.wait(lambda: _healthy(ctx, channels) and ctx.value(output) is True, settle)
     for c in channels:
         ctx.measure(f"SSR{c} Last (load)", _point(ctx, f"SSR{c} Last"), expect=True, fail=False)
@@ -102,7 +102,7 @@ async def _cycle(ctx, output: str) -> None:
     if temp is not None:
         ctx.measure(f"TEMP{channels[0]}", temp, "°C", fail=False)
     faults = ctx.value("Faults") or ()  # the module's faults in words (devices/m3io/adapter.py P_FAULTS)
-    await ctx.command(f"{output} off", lambda a: a.set_output(ctx.session, output, False), write=False)
+    await ctx.invoke(f"{output} off")
     off = await ctx.wait(lambda: ctx.value(output) is False, 1.0)
     ctx.measure(f"{output} off again", ctx.value(output), expect=False)
     if not healthy:
@@ -117,6 +117,6 @@ async def cleanup(ctx, settings: dict) -> None:
     """Every output off (never refused)."""
     for output in outputs(ctx.options):
         if ctx.value(output):
-            await ctx.command(f"{output} off", lambda a, o=output: a.set_output(ctx.session, o, False), write=False)
+            await ctx.invoke(f"{output} off")
     if callable(getattr(ctx.adapter, "release_control", None)):
-        await ctx.command("release control", lambda a: a.release_control(ctx.session, "checkout finished"), write=False)
+        await ctx.invoke("release control", {"reason": "checkout finished"})

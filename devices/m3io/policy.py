@@ -104,7 +104,7 @@ def _customer_audit(values: Mapping[str, Any], adapter: Any) -> dict[str, Any]:
 
 COMMANDS = (
     Command("take control", "write", method="take_control", session=True, extras=("user",)),
-    Command("release control", "stop", method="release_control", session=True),
+    Command("release control", "stop", method="release_control", session=True, extras=("reason",)),
     *(_switch(output, on) for output in OUTPUT_NAMES for on in (True, False)),
     Command("all off", "stop", method="all_off_pressed"),
     Command("P2", "write", method="set_two_phase", args=(Arg("on", 0, 1),)),

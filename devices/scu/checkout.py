@@ -10,7 +10,7 @@ declared command "stop (RS)"; the cleanup stops and releases control, also after
 
 Watchdog trip (section 5: RC at least every 500 ms, "Die Kommunikation mit RC arbeitet als
 Watchdog"): RC must be withheld while a function runs and the drive seen to stop within 500 ms.
-It runs where the adapter offers a way to withhold RC (``withhold_rc``); otherwise the step is
+It runs where the type declares a command to withhold RC (``withhold RC``); otherwise the step is
 recorded as not available, with the reason.
 """
 
@@ -18,10 +18,12 @@ from __future__ import annotations
 
 import time
 
+from devices.commands import find
 from devices.scu import codec
 from devices.scu.adapter import P_FUNCTIONS, P_SCALES, P_SESSION
 
 TITLE = "Actuators out and back"
+WITHHOLD_RC = "withhold RC"  # the declared command the watchdog trip test needs (none declares it yet)
 SETTINGS = {
     "distance_mm": 10.0,  # where the actuator converts counts to mm (plant file: counts_per_mm or stroke_mm)
     "distance_counts": 150,  # otherwise
@@ -61,7 +63,7 @@ def _error_text(ctx) -> str:
 
 
 async def _take(ctx) -> None:
-    await ctx.command("take control", lambda a: a.take_control(ctx.session, ctx.user))
+    await ctx.invoke("take control", {"user": ctx.user})
     if not await ctx.wait(lambda: ctx.value(P_SESSION) == "open", 5.0):
         # a unit watched with RG alone opens the session for a command: the first RG of a move opens it
         ctx.note(f"remote session {ctx.value(P_SESSION)}: opened by the first command")
@@ -99,11 +101,9 @@ async def _move(ctx, n: int, fn: int, target: int, what: str) -> None:
         watch["last"] = pos
         return watch["still"] >= 2  # the same position in three looks: it stands
 
-    label = codec.FUNCTIONS[codec.Function(fn)].label
-    await ctx.command(f"A{n} remote position {target} counts", lambda a: a.set_remote_position(ctx.session, n, counts=target))
+    await ctx.invoke("set remote position", {"actuator": n, "value": target})
     t0 = time.monotonic()
-    await ctx.command(f"{label} to the remote position ({what})",
-                      lambda a: a.run_function(ctx.session, fn, codec.Motion.REMOTE_POSITION, codec.Ramp.SOFT))
+    await ctx.invoke("go (RE)", {"function": fn, "motion": int(codec.Motion.REMOTE_POSITION), "ramp": int(codec.Ramp.SOFT)})
     reached = await ctx.wait(arrived, s["move_timeout_s"])
     took = round(time.monotonic() - t0, 2)
     await ctx.invoke("stop (RS)")  # every RE is followed by its RS (section 4.6)
@@ -141,8 +141,7 @@ async def _out_and_back(ctx, n: int) -> None:
 
 
 async def _watchdog(ctx) -> None:
-    withhold = getattr(ctx.adapter, "withhold_rc", None)
-    if not callable(withhold):
+    if find(ctx.config.type, WITHHOLD_RC) is None:
         ctx.not_available(
             "the SCU adapter offers no way to withhold RC while a function runs: its RC leaves from the serial "
             "line's own thread under a lease, and RC is withheld only after that thread has sent RS itself (the "
@@ -153,11 +152,10 @@ async def _watchdog(ctx) -> None:
     if fn is None:
         ctx.not_available(f"no function drives A{n} alone")
     start = _position(ctx, n)
-    await ctx.command(f"{codec.FUNCTIONS[codec.Function(fn)].label} out (watchdog test)",
-                      lambda a: a.run_function(ctx.session, fn, codec.Motion.OUT, codec.Ramp.SOFT))
+    await ctx.invoke("go (RE)", {"function": fn, "motion": int(codec.Motion.OUT), "ramp": int(codec.Ramp.SOFT)})
     await ctx.wait(lambda: _position(ctx, n) != start, 2.0)
     t0 = time.monotonic()
-    await ctx.command("withhold RC (watchdog test)", lambda a: withhold(ctx.session))
+    await ctx.invoke(WITHHOLD_RC)
     last = {"pos": None, "at": t0}
 
     def stopped() -> bool:
