@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import os
 import time
+from collections.abc import Callable
 
 from nicegui import ui
 
@@ -229,6 +230,7 @@ def content() -> None:
     with frame("Overview"):
         ui.add_css(TILE_CSS)
         tiles: list[DeviceTile] = []
+        ticks: list = []  # the bus lines and discovery lists: one timer for the page, not one per bus
         with ui.element("div").classes("overview-layout"):
             if runtime.plant.devices:
                 _glance_table(runtime)
@@ -237,12 +239,22 @@ def content() -> None:
                     count = max(1, len(runtime.plant.devices_on(bus.name)))
                     width = count * TILE_WIDTH_PX + (count - 1) * TILE_GAP_PX
                     with ui.column().classes("bus-section gap-1").style(f"width: max({width}px, 30rem)"):
-                        _bus_section(runtime, bus, tiles)
+                        _bus_section(runtime, bus, tiles, ticks)
+                ui.timer(1.0, lambda count=[0]: _tick(ticks, count))
         if not runtime.plant.devices:
             ui.label("This plant file lists no devices.").classes("text-grey-8")
 
 
-def _bus_section(runtime, bus, tiles: list) -> None:
+def _tick(ticks: list, count: list) -> None:
+    """Once a second: every bus line (and every other second the discovery lists) of the page, each
+    setting only what changed."""
+    count[0] += 1
+    for every, tick in ticks:
+        if count[0] % every == 0:
+            tick()
+
+
+def _bus_section(runtime, bus, tiles: list, ticks: list) -> None:
     bus_state = runtime.store.buses[bus.name]
     with ui.row().classes("items-center gap-x-2 gap-y-0"):
         ui.icon("cable")
@@ -254,6 +266,7 @@ def _bus_section(runtime, bus, tiles: list) -> None:
 
             ui.button("Discover locks", icon="search", on_click=lambda b=bus.name: open_discover_dialog(b)).props("flat dense")
     conn = ui.label().classes("text-caption")
+    shown: list = [None]
 
     def show_conn(label=conn, state=bus_state) -> None:
         text = "connected" if state.connected else f"not connected: {state.last_error or 'opening...'}"
@@ -266,20 +279,24 @@ def _bus_section(runtime, bus, tiles: list) -> None:
         shed = getattr(state, "shed", 0)
         if shed:  # the program could not keep up with this bus: say so rather than lag
             text += f" · {shed} frames shed: more traffic than this program can handle"
-        label.set_text(text)
         ok = state.connected and getattr(state, "bus_state", "") != "bus-off"
-        label.classes(replace="text-caption " + (("text-warning" if shed else "text-positive") if ok else "text-negative"))
+        classes = "text-caption " + (("text-warning" if shed else "text-positive") if ok else "text-negative")
+        if (text, classes) == shown[0]:
+            return  # unchanged: nothing goes to the browser
+        shown[0] = (text, classes)
+        label.set_text(text)
+        label.classes(replace=classes)
 
     show_conn()
-    ui.timer(1.0, show_conn)
+    ticks.append((1, show_conn))
     with ui.element("div").classes("tile-grid") as row:
         for dev in runtime.plant.devices_on(bus.name):
             tiles.append(DeviceTile(dev.name))
     if bus.type == "can":
-        _discovered_section(bus.name, row, tiles)
+        ticks.append((2, _discovered_section(bus.name, row, tiles)))
 
 
-def _discovered_section(bus: str, tile_row, tiles: list) -> None:
+def _discovered_section(bus: str, tile_row, tiles: list) -> Callable[[], None]:
     """Devices heard on a CAN bus that the plant does not list yet, with Adopt.
 
     Only devices that showed the evidence their type needs are listed; unknown IDs still
@@ -336,7 +353,7 @@ def _discovered_section(bus: str, tile_row, tiles: list) -> None:
                 ui.label("Discovery on " + bus + ": " + "; ".join(notes)).classes("text-caption text-grey-8").props("data-discovery-note")
 
     refresh()
-    ui.timer(2.0, refresh)
+    return refresh
 
 
 def _adopt_dialog(bus: str, entry: dict, tile_row, tiles: list) -> None:
