@@ -44,6 +44,29 @@ def operator_words(entry: dict | None) -> dict | None:
     return {**entry, "text": words}
 
 
+SHARED_S = 0.25  # a tile evaluated for one page serves every other page (and row) showing it this long, unchanged
+_SHARED: dict[tuple[str, str], tuple[object, int, float, dict]] = {}
+
+
+def shared(kind: str, make):
+    """``make(state)`` once for all pages: the last result of a device's ``kind`` is reused while the device
+    has not changed (its version) and for at most :data:`SHARED_S` (ages and stale marks move on). Twenty
+    overview pages evaluate each device's tile once per change, not forty times. Readers do not change it."""
+
+    def get(state) -> dict:
+        key = (kind, state.name)
+        now = time.monotonic()
+        hit = _SHARED.get(key)
+        if hit is not None and hit[0] is state and hit[1] == state.version and now - hit[2] < SHARED_S:
+            return hit[3]
+        tile = make(state)
+        _SHARED[key] = (state, state.version, now, tile)
+        return tile
+
+    get.__doc__ = make.__doc__
+    return get
+
+
 def evaluate_tile(state) -> dict:
     """The device type's declared tile, evaluated against the device's live points (quality and age included),
     as the overview shows it (an engineer's words)."""
@@ -85,6 +108,10 @@ def plant_tile(state) -> dict:
         tile["quality"] = "offline"
     return tile
 
+
+fresh_evaluate_tile, fresh_plant_tile = evaluate_tile, plant_tile
+evaluate_tile = shared("tile", fresh_evaluate_tile)
+plant_tile = shared("plant", fresh_plant_tile)
 
 _REDUCED: dict[int, TileSpec] = {}
 
