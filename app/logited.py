@@ -294,7 +294,9 @@ class LogitedRs485:
     FRESH_TOKEN_S = 0.03  # a setting write starts only this soon after the token came (syn, then ack in this turn)
 
     def __init__(self, name: str, options: dict, state: BusState):
-        from devices.mo64 import codec  # the bus protocol's framing and token (LogiTed is that family's bus)
+        from devices.registry import line_codec
+
+        codec = line_codec("logited-rs485")  # the framing and token the device type on this line declares
 
         self.codec = codec
         self.name = name

@@ -39,7 +39,6 @@ log = logging.getLogger(__name__)
 DI_URI = "http://opcfoundation.org/UA/DI/"
 DEVICE_HEALTH = ("NORMAL", "FAILURE", "CHECK_FUNCTION", "OFF_SPEC", "MAINTENANCE_REQUIRED")
 IDENTITY = ("Manufacturer", "Model", "SerialNumber", "SoftwareRevision", "HardwareRevision", "DeviceRevision")
-MANUFACTURERS = {"hdlock": "BSS", "electrak": "Thomson", "scu": "Ewellix", "mo64": "Bauer"}
 REVISION_PERIOD_S = 5.0  # the revision counters are counted again from the audit log this often
 
 REFUSED_SERVICES = {ua.NodeId(i) for i in (
@@ -129,7 +128,7 @@ def identity_of(state, device_type: str, options: dict[str, Any]) -> dict[str, s
         models = sorted({str(a.get("model", "")) for a in options["actuators"] if isinstance(a, dict) and a.get("model")})
         model = f"{title} ({', '.join(models)})" if models else title
     return {
-        "Manufacturer": MANUFACTURERS.get(device_type, title),
+        "Manufacturer": (DEVICE_TYPES[device_type].manufacturer if device_type in DEVICE_TYPES else "") or title,
         "Model": model,
         "SerialNumber": first("SerialNumber", "Serial number", "serial") or str(options.get("serial", "")),
         "SoftwareRevision": first("FirmwareVersion", "Program version", "Firmware info", "version", "Software version"),

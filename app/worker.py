@@ -628,10 +628,12 @@ class Worker:
         old: Any = "",
         new: Any = "",
     ) -> Any:
-        """Run ``action(adapter)`` for ``device`` on behalf of a session (the older way; see :meth:`invoke`).
+        """Run ``action(adapter)`` for ``device`` on behalf of a session (the older way, left to the
+        worker's own callers such as restore's save step; pages, the API and the tools use :meth:`invoke`).
 
         The kind comes from the device type's declared command named ``describe`` when there is one
-        (:func:`app.gate.kind_for`); ``write`` counts only for pages not yet moved to declared commands.
+        (:func:`app.gate.kind_for`); ``write`` counts only where the type declares nothing of that name,
+        and no module of ``pages/`` or ``app/`` passes it (tests/test_layering.py).
         """
         if device not in self.adapters:
             raise KeyError(f"no device named {device!r} in this plant")
@@ -657,16 +659,17 @@ class Worker:
 
     async def checked(
         self, action: Callable[[], Awaitable[Any]], *, device: str, role: str, user: str, describe: str,
-        write: bool = True, record: bool = True, parameter: str = "", old: Any = "", new: Any = "",
-        kind: str | None = None,
+        kind: str = "write", record: bool = True, parameter: str = "", old: Any = "", new: Any = "",
     ) -> Any:
         """The one place where a change is checked (role) and audited (fail closed) before it runs.
 
-        The role is the account store's at this moment (:func:`app.gate.role_now`). A ``stop`` runs for
-        every role, first, and is audited afterwards from a queue; a ``read`` for every role, unaudited.
+        ``kind`` comes from a declared command (:func:`app.gate.invoke`); the worker's own actions that
+        are no device command (a simulation control, ending a recording, stopping the transmit list or
+        a replay) name theirs. The role is the account store's at this moment (:func:`app.gate.role_now`).
+        A ``stop`` runs for every role, first, and is audited afterwards from a queue; a ``read`` for
+        every role, unaudited.
         """
         what = describe or "command"
-        kind = kind or ("write" if write else ("stop" if record else "read"))
         role = gate.role_now(self, user, role)
         state = self.store.devices.get(device)
         if kind == "stop":
@@ -724,12 +727,15 @@ class Worker:
         """Find devices on a Modbus line (broadcast, then a scan), with polling held meanwhile."""
         if not isinstance(self.lines.get(bus), ModbusLine):
             raise KeyError(f"{bus} is not a Modbus RTU line")
-        by_type = {d.type for d in self.plant.devices_on(bus)} or {"hdlock"}
+        bus_type = self.plant.buses[bus].type
+        # the scans of the types on the line; on a line without devices, of every type that sits on such lines
+        by_type = {d.type for d in self.plant.devices_on(bus)} or {
+            t.name for t in DEVICE_TYPES.values() if bus_type in t.bus_types}
         found: list[dict] = []
         self.paused.add(bus)
         try:
             for type_name in sorted(by_type):
-                scan = getattr(importlib.import_module(f"devices.{type_name}.adapter"), "discover", None)
+                scan = DEVICE_TYPES[type_name].line_scan(bus_type) if type_name in DEVICE_TYPES else None
                 if scan is not None:
                     found += await scan(self.lines[bus], first, last, progress)
         finally:

@@ -215,6 +215,10 @@ class DeviceType:
         configuration (the plant loader refuses other devices on them; discovery never lists them)
     :param can_ids: ``(options, bus_type) -> [CanIdUse]``: the further IDs one configured device
         sends and receives
+    :param manufacturer: who makes it (the OPC UA server's DI identification); the title where empty
+    :param line_codec: ``"module"`` of the framing of a line the type's own protocol runs on (its
+        bus types that are no shared field bus), for the line's transport: e.g. the token passing of
+        a multi-master RS485 line
     """
 
     name: str
@@ -230,6 +234,8 @@ class DeviceType:
     can_ids: Callable[[dict[str, Any], str], Sequence[CanIdUse]] = lambda options, bus_type: ()
     tile: TileSpec = field(default_factory=TileSpec)  # the overview tile and the /plant tile, declared
     extra: dict[str, Any] = field(default_factory=dict)
+    manufacturer: str = ""
+    line_codec: str = ""
 
     def can_id_uses(self, options: dict[str, Any], bus_type: str) -> tuple[CanIdUse, ...]:
         """Every CAN ID a device of this type with ``options`` uses on a bus of ``bus_type``."""
@@ -242,6 +248,14 @@ class DeviceType:
 
     def sim_class(self, bus_type: str) -> Callable[..., Any] | None:
         return _load(self.sims[bus_type]) if bus_type in self.sims else None
+
+    def line_scan(self, bus_type: str) -> Callable[..., Any] | None:
+        """The scan for devices of this type on a line of ``bus_type``: the module-level ``discover(line,
+        first, last, progress)`` beside its adapter for that bus type, or None where it offers none."""
+        if bus_type not in self.adapters:
+            return None
+        module = importlib.import_module(self.adapters[bus_type].partition(":")[0])
+        return getattr(module, "discover", None)
 
 
 def _load(spec: str) -> Callable[..., Any]:
@@ -289,6 +303,17 @@ DEVICE_TYPES: Mapping[str, DeviceType] = _DeviceTypes()
 
 def iter_types() -> Iterator[DeviceType]:
     return iter(DEVICE_TYPES.values())
+
+
+def line_codec(bus_type: str) -> Any:
+    """The framing module of the device type that declares one for ``bus_type`` (see ``DeviceType.line_codec``).
+
+    :raises LookupError: no type declares one
+    """
+    for device_type in iter_types():
+        if device_type.line_codec and bus_type in device_type.bus_types:
+            return importlib.import_module(device_type.line_codec)
+    raise LookupError(f"no device type declares the framing of a {bus_type} line")
 
 
 def fixed_can_id_uses() -> Iterator[tuple[DeviceType, CanIdUse]]:

@@ -507,17 +507,14 @@ async def confirm(title: str, text: str, ok: str = "Continue", danger: bool = Tr
 
 
 async def run_command(
-    device: str, action: str | Callable[[object], Awaitable[object]], describe: str = "", success: str = "",
-    write: bool = True, parameter: str = "", old: object = "", new: object = "", *, args: dict | None = None,
-    session: str = "", confirmed: bool = False, title: str = "", ok: str = "Send",
+    device: str, action: str, *, success: str = "", args: dict | None = None, session: str = "",
+    confirmed: bool = False, title: str = "", ok: str = "Send",
 ) -> tuple[bool, object]:
     """Submit a command to the worker's gate and report the outcome as a notification.
 
     ``action`` is the name of a command the device type declares (``devices/<type>/policy.py``), run
     with ``args``: the gate takes its kind, ranges, risk and the role (as the account store says now)
-    from the declaration; a risk it names is asked here and the command invoked again, confirmed. The
-    older form (a callable on the adapter, ``describe``, ``write``) stays for pages not yet moved:
-    the gate still takes the kind from a declared command of that wording where there is one.
+    from the declaration; a risk it names is asked here and the command invoked again, confirmed.
     ``confirmed``: the page has asked its own question naming the same risk. ``title`` and ``ok`` word
     the dialog that asks the declared risk.
     """
@@ -528,32 +525,25 @@ async def run_command(
     worker = rt.current().worker
     user, role = current_user()
     try:
-        if isinstance(action, str):
-            try:
-                result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
-                                             confirmed=confirmed)
-            except NeedsConfirmation as question:
-                if not await confirm(title or f"{action}?", question.question, ok=ok):
-                    await refuse(device, action, "not confirmed",
-                                 new=", ".join(f"{k}={getattr(v, 'name', v)}" for k, v in (args or {}).items() if k != "known"))
-                    return False, None
-                user, role = current_user()  # looked up again: the answer may come much later
-                result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
-                                             confirmed=True)
-        else:
-            result = await worker.command(
-                device, action, role=role, user=user or "anonymous", describe=describe, write=write,
-                record=write or not describe.startswith("read"), parameter=parameter, old=old, new=new,
-            )
+        try:
+            result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
+                                         confirmed=confirmed)
+        except NeedsConfirmation as question:
+            if not await confirm(title or f"{action}?", question.question, ok=ok):
+                await refuse(device, action, "not confirmed",
+                             new=", ".join(f"{k}={getattr(v, 'name', v)}" for k, v in (args or {}).items() if k != "known"))
+                return False, None
+            user, role = current_user()  # looked up again: the answer may come much later
+            result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
+                                         confirmed=True)
     except PermissionDenied as exc:
         ui.notify(str(exc), type="negative")
         return False, None
     except CommandError as exc:
-        ui.notify(f"{action if isinstance(action, str) else describe}: {exc}", type="negative", multi_line=True)
+        ui.notify(f"{action}: {exc}", type="negative", multi_line=True)
         return False, None
     except Exception as exc:  # every adapter error carries a message for the engineer
-        ui.notify(f"{action if isinstance(action, str) else describe}: {exc}", type="negative", multi_line=True,
-                  close_button="OK", timeout=15000)
+        ui.notify(f"{action}: {exc}", type="negative", multi_line=True, close_button="OK", timeout=15000)
         return False, None
     if success:
         ui.notify(success, type="positive")

@@ -153,19 +153,10 @@ DEVICE_TYPE_NAMES = {"hdlock", "m3io", "electrak", "scu", "mo64"}
 # a device's own page names its type; pages/<type>.py is that page
 OWN_PAGES = {f"pages/{name}.py" for name in DEVICE_TYPE_NAMES}
 # still naming device types outside their own package, each to be moved into devices/<type>/ (then delete its line)
-NAMING_PENDING = {
-    "app/worker.py": "Modbus line discovery falls back to the HD-Lock's scan on a line without devices",
-    "app/logited.py": "the MO 64 LogiTed transports (bus types logited-tcp, logited-rs485)",
-    "app/opcua_server.py": "the OPC UA device-type nodes",
-}
+NAMING_PENDING: dict[str, str] = {}
 GATED_CALLS = {"run_command", "command", "checked"}
 # still passing write= (the older way), each to move to declared commands (then delete its line)
-WRITE_PENDING = {
-    "pages/monitor.py": "bus monitor actions",
-    "app/record.py": "checkout steps of the record page",
-    "app/batch.py": "batch apply's reads of each device's parameters",
-    "pages/widgets.py": "run_command's older form (a callable and write=) for the pages above",
-}
+WRITE_PENDING: dict[str, str] = {}
 
 
 def _python_files(*folders: str) -> list[Path]:

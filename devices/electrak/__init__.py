@@ -70,6 +70,7 @@ TILE = TileSpec(
 DEVICE_TYPE = DeviceType(
     name="electrak",
     title="Electrak HD network",
+    manufacturer="Thomson",
     bus_types=("can",),
     params=PARAMS,
     adapters={"can": "devices.electrak.adapter:ElectrakAdapter"},

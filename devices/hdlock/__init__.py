@@ -89,6 +89,7 @@ TILE = TileSpec(
 DEVICE_TYPE = DeviceType(
     name="hdlock",
     title="HD-Lock",
+    manufacturer="BSS",
     bus_types=("modbus-rtu", "can"),
     params=PARAMS,
     adapters={"modbus-rtu": "devices.hdlock.adapter:HdLockAdapter", "can": "devices.hdlock.adapter:HdLockCanAdapter"},

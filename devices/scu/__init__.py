@@ -88,6 +88,7 @@ TILE = TileSpec(
 DEVICE_TYPE = DeviceType(
     name="scu",
     title="Ewellix SCU",
+    manufacturer="Ewellix",
     bus_types=("serial",),
     params=None,
     adapters={"serial": "devices.scu.adapter:ScuAdapter"},
