@@ -476,9 +476,9 @@ def run_view(args) -> int:
 
     from nicegui import ui
 
-    from app import web
+    import server
 
-    web.register_view(store, host=args.host, allowed_hosts=args.allowed_host)
+    server.register_view(store, host=args.host, allowed_hosts=args.allowed_host)
     print(f"commission view: {args.broker} at http://{args.host}:{args.port}/ (read-only)", flush=True)
     ui.run(host=args.host, port=args.port, title="commission view", reload=False, show=False,
            show_welcome_message=False, favicon="🔧", tailwind=False)  # rules compiled beforehand: app/assets.py
@@ -528,6 +528,7 @@ def _main(argv: list[str] | None) -> int:
 
     from nicegui import ui
 
+    import server  # the composition root: the pages' routes on app/web.py's server
     from app import web
     from app.runtime import Runtime
 
@@ -539,7 +540,7 @@ def _main(argv: list[str] | None) -> int:
     if not args.no_sim and _refuse_taken_ports(plant):
         return 2
     runtime = Runtime(plant, simulate=not args.no_sim, data_dir=data_dir, auth_required=auth_required)
-    web.register(runtime, host=args.host, allowed_hosts=args.allowed_host)
+    server.register(runtime, host=args.host, allowed_hosts=args.allowed_host)
     url = " and ".join(reachable_urls(args.host, args.port, "https" if tls else "http"))
     if auth_required and tls is None:
         print("commission: note: served beyond the loopback address without --tls-cert/--tls-key, passwords and session "

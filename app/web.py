@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import csv
-import importlib
 import inspect
 import io
 import ipaddress
@@ -15,6 +14,7 @@ import socket
 import time
 import uuid
 from pathlib import Path
+from collections.abc import Callable
 from typing import Any, Literal
 from urllib.parse import parse_qs, quote, urlsplit
 
@@ -26,6 +26,7 @@ from socketio import exceptions as socketio_exceptions
 
 from app import runtime as rt
 from app.assets import AssetCache, preload_links, tailwind_style
+from app.browser import BEAT_EVENT, safe_redirect, session_token
 from app.runtime import Runtime
 from app.state import HISTORY_SECONDS
 from devices.live import json_fields as live_json_fields
@@ -35,10 +36,6 @@ log = logging.getLogger(__name__)
 OPEN_PATHS = {"/login", "/login/complete", "/logout"}
 LOOPBACK_NAMES = ("127.0.0.1", "localhost", "::1")
 WILDCARD_HOSTS = ("0.0.0.0", "::", "")
-BEAT_EVENT = "commission_beat"
-
-
-BUS_TOOLS = ("transmit", "poll", "replay")  # pages/bus_<tool>.py, linked from the bus monitor
 
 
 def storage_secret(data_dir: Path) -> str:
@@ -122,12 +119,6 @@ class HostOriginGuard:
             await send({"type": "websocket.close", "code": 1008})
             return None
         return await PlainTextResponse(why, status_code=403)(scope, receive, send)
-
-
-def session_token(request: Request | None) -> str | None:
-    if request is None or "session" not in request.scope:
-        return None
-    return request.session.get("auth")
 
 
 class AuthMiddleware:
@@ -388,10 +379,6 @@ class UploadGuard:
         return "", 200
 
 
-def safe_redirect(target: str) -> str:
-    return target if target.startswith("/") and not target.startswith("//") and "\\" not in target else "/"
-
-
 def serve_assets_from_memory() -> None:
     """NiceGUI's files from memory (app/assets.py), inside the host guard; every page preloads
     what it would otherwise ask for late and carries the pages' Tailwind rules, compiled beforehand."""
@@ -401,9 +388,11 @@ def serve_assets_from_memory() -> None:
         ui.add_head_html(head, shared=True)
 
 
-def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[str, ...] | list[str] = ()) -> None:
-    """Register every route for ``runtime`` and start/stop it with the app.
+def register(runtime: Runtime, pages: Callable[[], None], *, host: str = "127.0.0.1",
+             allowed_hosts: tuple[str, ...] | list[str] = ()) -> None:
+    """Serve ``runtime``: middleware, login, the JSON API, and start/stop it with the app.
 
+    :param pages: registers the page routes (the composition root, server/, passes them: app/ imports no page)
     :param host: the address the server listens on (its name is accepted as Host)
     :param allowed_hosts: further names or addresses browsers use to reach it
     """
@@ -446,92 +435,7 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
         request.session["id"] = str(uuid.uuid4())
         return RedirectResponse("/login", status_code=303)
 
-    @ui.page("/login")
-    def login_page(redirect_to: str = "/", expired: str = "") -> None:
-        from pages import login
-
-        login.content(redirect_to, expired)
-
-    @ui.page("/plant")
-    def plant_page() -> None:
-        from pages import plant_view
-
-        plant_view.content()
-
-    @ui.page("/backup")
-    def backup_page() -> None:
-        from pages import backup
-
-        backup.content()
-
-    @ui.page("/record")
-    @ui.page("/record/{name}")
-    def record_page(name: str = "") -> None:
-        from pages import record
-
-        record.content(name or None)
-
-    @ui.page("/replace/{name}")
-    def replace_page(name: str) -> None:
-        from pages import replace
-
-        replace.content(name)
-
-    @ui.page("/fleet")
-    def fleet_page() -> None:
-        from pages import fleet
-
-        fleet.content()
-
-    @ui.page("/audit")
-    def audit_page() -> None:
-        from pages import audit
-
-        audit.content()
-
-    @ui.page("/")
-    def overview_page() -> None:
-        from pages import overview
-
-        overview.content()
-
-    @ui.page("/device/{name}")
-    def device_page(name: str) -> None:
-        from pages.frame import frame
-
-        state = runtime.store.devices.get(name)
-        if state is None:
-            with frame("Unknown device"):
-                ui.label(f"The plant has no device named '{name}'.")
-                ui.link("Back to the overview", "/")
-            return
-        importlib.import_module(f"pages.{state.type}").content(name)
-        from pages.replace import notice
-
-        notice(name)  # "replaced?" with old and new identity, whatever the device type
-
-    @ui.page("/monitor/{bus}")
-    def monitor_page(bus: str) -> None:
-        from pages import monitor
-        from pages.frame import frame
-
-        if bus not in runtime.store.buses:
-            with frame("Unknown bus"):
-                ui.label(f"The plant has no bus named '{bus}'.")
-            return
-        monitor.content(bus)
-
-    @ui.page("/monitor/{bus}/{tool}")
-    def bus_tool_page(bus: str, tool: str) -> None:
-        """An engineer's bus tool (transmit list, Modbus poll, replay): ``pages.bus_<tool>.content(bus)``."""
-        from pages.frame import frame
-
-        if bus not in runtime.store.buses or tool not in BUS_TOOLS:
-            with frame("Unknown page"):
-                ui.label(f"There is no tool '{tool}' for a bus named '{bus}'.")
-                ui.link("Back to the overview", "/")
-            return
-        importlib.import_module(f"pages.bus_{tool}").content(bus)
+    pages()  # the page routes, from the composition root (server/), before the API
 
     # the JSON API is described at /docs (Swagger UI), /redoc and /openapi.json, behind the same login
     app.docs_url, app.redoc_url, app.openapi_url = "/docs", "/redoc", "/openapi.json"
@@ -567,8 +471,11 @@ def register(runtime: Runtime, *, host: str = "127.0.0.1", allowed_hosts: tuple[
                 "samples": [{"time": t, "values": values} for t, values in samples]}
 
 
-def register_view(store, *, host: str = "127.0.0.1", allowed_hosts: tuple[str, ...] | list[str] = ()) -> None:
+def register_view(store, pages: Callable[[], None], *, host: str = "127.0.0.1",
+                  allowed_hosts: tuple[str, ...] | list[str] = ()) -> None:
     """``commission view``: the plant-wide read-only view of ``store`` (an app.site_view.SiteStore).
+
+    :param pages: registers the view's page (the composition root, server/, passes it)
 
     No plant, no buses, no worker: nothing on these routes can write, and MQTT carries no commands.
     """
@@ -578,11 +485,7 @@ def register_view(store, *, host: str = "127.0.0.1", allowed_hosts: tuple[str, .
     names, any_ip = allowed_host_names(host, allowed_hosts)
     app.add_middleware(HostOriginGuard, names=names, any_ip=any_ip)
 
-    @ui.page("/")
-    def site_page() -> None:
-        from pages import site_view
-
-        site_view.content(store)
+    pages()  # the page of the view, from the composition root (server/)
 
     app.docs_url, app.redoc_url, app.openapi_url = "/docs", "/redoc", "/openapi.json"
     app.setup()

@@ -35,7 +35,7 @@ def fmt_time(t: float | None) -> str:
 
 
 def _logout() -> None:
-    from app.web import session_token
+    from app.browser import session_token
 
     rt.current().sessions.logout(session_token(ui.context.client.request))  # every tab of it loses its rights now
     ui.navigate.to("/logout")  # and the browser gets a new session cookie
@@ -123,7 +123,7 @@ def frame(title: str):
                 )
     client = ui.context.client
     runtime.worker.session_opened(client.id, role or "none")
-    from app.web import BEAT_EVENT
+    from app.browser import BEAT_EVENT
     from app.worker import BEAT_PERIOD_S
 
     ui.add_body_html(BEAT_JS % (round(BEAT_PERIOD_S * 1000), BEAT_EVENT))

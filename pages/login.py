@@ -9,7 +9,7 @@ from nicegui import context, ui
 
 from app import runtime as rt
 from app.auth import LOGIN_PASSWORD_MAX, shown_name
-from app.web import safe_redirect
+from app.browser import safe_redirect
 from pages.session import client_address
 
 

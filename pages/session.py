@@ -5,7 +5,7 @@ from __future__ import annotations
 from nicegui import context
 
 from app import runtime as rt
-from app.web import session_token
+from app.browser import session_token
 
 LOCAL = ("local", "engineer")
 

@@ -54,7 +54,7 @@ async def stop_worker_tasks(runtime, timeout: float = 5.0) -> None:
 async def simulated_user(runtime):
     """NiceGUI's simulated user on the app of ``runtime``, with NiceGUI's globals of its own.
 
-    The app is registered (``app.web.register``: the simulated user's host name is "test"), its
+    The app is registered (``server.register``: the simulated user's host name is "test"), its
     lifespan started, and on leaving the worker stopped (bounded) and the app shut down, also when
     the test failed inside, so that the next app can start.
     """
@@ -72,8 +72,8 @@ async def simulated_user(runtime):
         os.environ["NICEGUI_USER_SIMULATION"] = "true"
         try:
             prepare_simulation()
-            # nicegui_reset_globals drops the module of every page function (app.web): import it afresh
-            importlib.import_module("app.web").register(runtime, allowed_hosts=("test",))
+            # nicegui_reset_globals drops the module of every page function (server): import it afresh
+            importlib.import_module("server").register(runtime, allowed_hosts=("test",))
             ui.run(storage_secret="test secret")
             failure: BaseException | None = None
             async with core.app.router.lifespan_context(core.app):
