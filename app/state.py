@@ -82,10 +82,13 @@ class _Group:
     """The watchers of one page (or of the server): called together, so that what changed on several
     devices reaches the page in one message, at most every :data:`PAGE_GAP_S`."""
 
-    __slots__ = ("key", "watches", "dirty", "ages", "due", "due_device", "handle")
+    __slots__ = ("key", "watches", "dirty", "ages", "due", "due_device", "handle", "gap", "ahead")
 
-    def __init__(self, key: object):
+    def __init__(self, key: object, gap: float = PAGE_GAP_S, ahead: int = AHEAD):
         self.key = key
+        # a page: at most every ``gap``, after a burst of ``ahead`` (what changed reaches the screen at once);
+        # the server's readers (publishers, checks, alarms): rounds every PUSH_PERIOD_S, changes of many devices together
+        self.gap, self.ahead = gap, ahead
         self.watches: dict[str, list[Watch]] = {}  # device -> this group's watchers of it
         self.dirty: set[str] = set()  # devices changed since this group's watchers of them last ran
         self.ages: set[str] = set()  # devices whose once-a-second round is due here
@@ -147,7 +150,7 @@ class StateStore:
         self.alarms: dict[str, tuple[str, ...]] = {}  # device -> its tile's alarms as last seen
         self._alarm_inputs: dict[str, tuple] = {}  # device -> the values its alarms were last evaluated from
         self._groups: dict[object, _Group] = {}
-        self._alarms = _Group("alarms")  # noting alarms: one more reader of every device, bounded like the others
+        self._alarms = _Group("alarms", PUSH_PERIOD_S, 0)  # noting alarms: one more reader of every device, bounded like the others
         self._pending: set[str] = set()  # devices written since the last fan-out
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: int | None = None
@@ -178,7 +181,7 @@ class StateStore:
         the page the watcher belongs to (its watchers run together, see :data:`PAGE_GAP_S`)."""
         g = self._groups.get(group)
         if g is None:
-            g = self._groups[group] = _Group(group)
+            g = self._groups[group] = _Group(group) if group != SERVER else _Group(group, PUSH_PERIOD_S, 0)
         w = Watch(self, device, callback, slow, g)
         self._watches.setdefault(device, []).append(w)
         g.watches.setdefault(device, []).append(w)
@@ -301,21 +304,21 @@ class StateStore:
     def _schedule(self, g: _Group, now: float) -> None:
         if g.handle is not None or (not g.dirty and not g.ages) or self._loop is None:
             return
-        wait = g.due - AHEAD * PAGE_GAP_S - now
+        wait = g.due - g.ahead * g.gap - now
         if g.dirty and not g.ages:  # only changes: none of them is due before its device's own bound
-            wait = max(wait, min(g.due_device.get(n, float("-inf")) for n in g.dirty) - AHEAD * PUSH_PERIOD_S - now)
+            wait = max(wait, min(g.due_device.get(n, float("-inf")) for n in g.dirty) - g.ahead * PUSH_PERIOD_S - now)
         g.handle = self._loop.call_later(wait, self._run, g) if wait > 0 else self._loop.call_soon(self._run, g)
 
     def _run(self, g: _Group) -> None:
         """Call one group's watchers of the devices that changed (or whose round is due) for it."""
         g.handle = None
         now = time.monotonic()
-        g.due = max(g.due, now) + PAGE_GAP_S
+        g.due = max(g.due, now) + g.gap
         try:
             if g is self._alarms:
                 for name in list(g.dirty):
                     due = g.due_device.get(name, float("-inf"))
-                    if now >= due - AHEAD * PUSH_PERIOD_S:
+                    if now >= due - g.ahead * PUSH_PERIOD_S:
                         g.dirty.discard(name)
                         g.due_device[name] = max(due, now) + PUSH_PERIOD_S
                         state = self.devices.get(name)
@@ -325,7 +328,7 @@ class StateStore:
             for name in list(g.dirty | g.ages):
                 age = name in g.ages
                 due = g.due_device.get(name, float("-inf"))
-                if not age and now < due - AHEAD * PUSH_PERIOD_S:
+                if not age and now < due - g.ahead * PUSH_PERIOD_S:
                     continue  # its device's bound: the next run takes it
                 if name in g.dirty:  # a round for ages alone takes nothing from the device's bound
                     g.dirty.discard(name)
