@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from app import gate
+from devices.adapter import BackupAdapter, EntryRestorer, ParamWriter, RestoreDescriber
 from devices.commands import WRITE_PARAMETER
 from devices.commands import find as find_command
 
@@ -51,9 +52,8 @@ def tool_version() -> str:
 
 def supports_backup(adapter: Any) -> bool:
     """The adapter takes part, and (``backup_available``) this device has something to back up."""
-    methods = all(callable(getattr(adapter, name, None)) for name in ("backup_read", "backup_identity", "save_step"))
-    methods = methods and any(callable(getattr(adapter, name, None)) for name in ("write_param", "restore_entry"))
-    return methods and bool(getattr(adapter, "backup_available", True))
+    restores = isinstance(adapter, ParamWriter | EntryRestorer)
+    return isinstance(adapter, BackupAdapter) and restores and bool(getattr(adapter, "backup_available", True))
 
 
 async def nothing_to_back_up(adapter: Any) -> str:
@@ -65,7 +65,7 @@ async def nothing_to_back_up(adapter: Any) -> str:
     """
     if supports_backup(adapter):
         return ""
-    if getattr(adapter, "backup_available", True) is False and callable(getattr(adapter, "backup_read", None)):
+    if getattr(adapter, "backup_available", True) is False and isinstance(adapter, BackupAdapter):
         try:
             await asyncio.wait_for(adapter.backup_read(), timeout=2)
         except Exception as exc:  # noqa: BLE001 - the reason is the message
@@ -319,10 +319,9 @@ def _entry_text(adapter: Any, entry: dict, value: Any, now: dict) -> str:
     (``restore_text(key, value)``, names and units as its page shows them), the device's text
     when the value is the one it holds now, else the value with its unit. Never the file's
     ``text``: an edited file could name one value and hold another."""
-    describe = getattr(adapter, "restore_text", None)
-    if callable(describe):
+    if isinstance(adapter, RestoreDescriber):
         try:
-            return str(describe(entry["key"], value))
+            return str(adapter.restore_text(entry["key"], value))
         except Exception:  # noqa: BLE001 - a value the adapter cannot describe is shown as it is
             pass
     if value == now.get("value") and now.get("text"):

@@ -19,6 +19,7 @@ import logging
 from collections.abc import Awaitable, Callable, Mapping
 from typing import Any
 
+from devices.adapter import ControlChecker, SessionHolder
 from devices.commands import Command, CommandError, find
 from devices.commands import OPEN_KINDS as OPEN_KINDS
 
@@ -51,9 +52,9 @@ def may_run(kind: str, role: str) -> bool:
 
 
 def kind_for(worker: Any, device: str, describe: str, write: bool, record: bool) -> str:
-    """The kind of an action submitted the older way (an adapter callable and its wording): the
-    declaration of the device type's command by that name decides; a caller's ``write`` flag counts
-    only where the type declares nothing of that name (pages still to migrate)."""
+    """The kind of an action submitted the older way (an adapter callable and its wording, the worker's
+    own callers only): the declaration of the device type's command by that name decides; ``write``
+    counts only where the type declares nothing of that name (no module of pages/ or app/ passes it)."""
     command = declared(worker, device, describe)
     if command is not None:
         return command.kind
@@ -152,9 +153,11 @@ async def invoke(worker: Any, device: str, name: str, args: Mapping[str, Any] | 
                                  new=_shown(values))
             raise CommandError(reason)
     if command.needs_control and command.kind not in OPEN_KINDS:
-        holders = getattr(adapter, "holders", None)
-        controls = getattr(adapter, "controls", None)  # an adapter that tells control apart from running motion
-        if not (controls(session) if controls is not None else holders is not None and session in holders()):
+        if isinstance(adapter, ControlChecker):  # an adapter that tells control apart from running motion
+            controlled = adapter.controls(session)
+        else:
+            controlled = isinstance(adapter, SessionHolder) and session in adapter.holders()
+        if not controlled:
             reason = "take control of the device first"
             await worker.refused(device=device, user=user, role=role, describe=command.name, reason=reason, new=_shown(values))
             raise CommandError(reason)

@@ -47,6 +47,7 @@ from can.io.trc import TRCReader, TRCWriter
 from can.util import channel2int
 
 from app.can_bus import CanBusState, FrameRecord
+from devices.adapter import FrameDescriber, FrameOwner
 from devices.params import ParamMap
 from devices.registry import DEVICE_TYPES
 
@@ -703,7 +704,7 @@ def describers(worker: Any, bus: str, types_on_bus: Iterable[str]) -> list[Any]:
     adapters = [
         AdapterDescriber(worker.adapters[d.name])
         for d in worker.plant.devices_on(bus)
-        if callable(getattr(worker.adapters.get(d.name), "describe_frame", None))
+        if isinstance(worker.adapters.get(d.name), FrameDescriber)
     ]
     return adapters + can_codecs(types_on_bus)
 
@@ -824,9 +825,9 @@ Owner = Callable[[int, bool, bytes], bool]
 
 def owner_of(adapter: Any) -> Owner:
     """``adapter.owns_frame``, or a filter that matches nothing for adapters without it."""
-    owns = getattr(adapter, "owns_frame", None)
-    if owns is None:
+    if not isinstance(adapter, FrameOwner):
         return lambda _id, _ext, _data: False
+    owns = adapter.owns_frame
 
     def safe(arbitration_id: int, is_extended: bool, data: bytes) -> bool:
         try:
@@ -849,7 +850,7 @@ def device_owners(worker: Any, bus: str) -> list[tuple[str, Owner]]:
     owners: list[tuple[str, Owner]] = []
     for dev in worker.plant.devices_on(bus):
         adapter = worker.adapters.get(dev.name)
-        if callable(getattr(adapter, "owns_frame", None)):
+        if isinstance(adapter, FrameOwner):
             owners.append((dev.name, owner_of(adapter)))
             continue
         device_type = DEVICE_TYPES.get(dev.type)

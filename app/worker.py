@@ -24,6 +24,7 @@ from app.logited import LogitedRs485, LogitedTcp
 from app.serial_line import SerialLine
 from app.plant import DeviceConfig, Plant, can_id_conflict
 from app.state import BusState, DeviceState, StateStore
+from devices.adapter import LeaseRenewer, SessionHolder, SessionResumer, SessionStopper, ShutdownAdapter
 from devices.registry import DEVICE_TYPES, CanIdUse, fixed_can_id_uses
 
 log = logging.getLogger(__name__)
@@ -393,8 +394,11 @@ class Worker:
         self._holding_since.pop(session, None)
         reason = "the controlling browser disconnected"
         for name, adapter in self._holder_items():
-            stop = getattr(adapter, "session_stop", None) or getattr(adapter, "session_lost", None)
-            if stop is None:
+            if isinstance(adapter, SessionStopper):
+                stop = adapter.session_stop
+            elif isinstance(adapter, SessionHolder):
+                stop = adapter.session_lost
+            else:
                 continue
             try:
                 stop(session, reason)
@@ -426,10 +430,9 @@ class Worker:
         last = self.beats.get(session)
         if last is None:  # its first beat, or the first since its connection dropped: what it controls is its own again
             for name, adapter in self._holder_items():
-                back = getattr(adapter, "session_back", None)
-                if back is not None:
+                if isinstance(adapter, SessionResumer):
                     try:
-                        back(session)
+                        adapter.session_back(session)
                     except Exception:  # noqa: BLE001 - one adapter's failure must not stop the beats
                         log.exception("%s: session_back failed", name)
         self.beats[session] = now
@@ -458,11 +461,10 @@ class Worker:
 
     def _session_lost(self, session: str, reason: str) -> None:
         for name, adapter in self._holder_items():
-            lost = getattr(adapter, "session_lost", None)
-            if lost is None:
+            if not isinstance(adapter, SessionHolder):
                 continue
             try:
-                lost(session, reason)
+                adapter.session_lost(session, reason)
             except Exception:  # one adapter's failure must not keep the others running
                 log.exception("%s: stopping for a lost session failed", name)
 
@@ -471,9 +473,8 @@ class Worker:
         of this program's running time; renew the leases of the sessions that did (devices/lease.py)."""
         holding: set[str] = set()
         for _name, adapter in self._holder_items():
-            holders = getattr(adapter, "holders", None)
-            if holders is not None:
-                holding |= holders()
+            if isinstance(adapter, SessionHolder):
+                holding |= adapter.holders()
         for session in list(self._holding_since):
             if session not in holding:
                 del self._holding_since[session]
@@ -501,11 +502,10 @@ class Worker:
                                "busy_ms": round(busy * 1000)})
         if alive:
             for name, adapter in self._holder_items():
-                renew = getattr(adapter, "renew_leases", None)
-                if renew is None:
+                if not isinstance(adapter, LeaseRenewer):
                     continue
                 try:
-                    renew(alive)
+                    adapter.renew_leases(alive)
                 except Exception:  # one adapter's failure must not keep the others' leases from renewing
                     log.exception("%s: renewing its lease failed", name)
 
@@ -579,7 +579,7 @@ class Worker:
             log.error("bus task %s did not end", task.get_name())
         self.tasks.clear()
         # an adapter's last words on its still open line, answered (e.g. MO 64 levels deactivated and acknowledged)
-        last = [a.shutdown() for a in self.adapters.values() if hasattr(a, "shutdown")]
+        last = [a.shutdown() for a in self.adapters.values() if isinstance(a, ShutdownAdapter)]
         if last:
             try:
                 await asyncio.wait_for(asyncio.gather(*last, return_exceptions=True), 5.0)
