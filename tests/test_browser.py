@@ -125,7 +125,7 @@ def test_overview_tiles_online_and_open_device(app_url: str, page: Page, tmp_pat
         expect(tile).to_be_visible()
         expect(tile).to_contain_text(name)
         expect(tile).to_contain_text("HD-Lock on line1")
-        expect(tile.locator(".q-badge")).to_have_text(re.compile(r"^\s*online\s*$"))
+        expect(tile.locator(".q-badge:not(.drift-badge)")).to_have_text(re.compile(r"^\s*online\s*$"))
         expect(tile).to_contain_text(re.compile(r"req \d+"))
         inside_viewport(page, tile)
     save_shot(page, tmp_path, "overview.png")

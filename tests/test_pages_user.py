@@ -142,12 +142,16 @@ async def test_overview_lists_both_locks_online(env: Env):
         assert len(badges) == 2, f"{len(badges)} tiles say online"
 
     await eventually(both_online, timeout=5)
-    counters = [e.text for e in user.find(kind=ui.label, content="req ").elements]
-    assert len(counters) == 2
-    for text in counters:
-        words = text.split()
-        assert words[0] == "req" and int(words[1]) > 0, f"no requests counted: {text}"
-        assert "timeouts 0" in text, text
+
+    def counted() -> None:  # the counters line follows once a second (a slow watch)
+        counters = [e.text for e in user.find(kind=ui.label, content="req ").elements]
+        assert len(counters) == 2
+        for text in counters:
+            words = text.split()
+            assert words[0] == "req" and int(words[1]) > 0, f"no requests counted: {text}"
+            assert "timeouts 0" in text, text
+
+    await eventually(counted, timeout=5)
     # the declared tile (devices/hdlock TileSpec): door, bolt, bolt position
     await user.should_see(kind=ui.label, content="Door open")
     await user.should_see(kind=ui.label, content="bolt unlocked")
