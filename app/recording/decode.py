@@ -10,6 +10,7 @@ from typing import Any
 from app.can_bus import FrameRecord
 from app.recording.base import MAX_CACHE, UNKNOWN, Key
 from app.recording.filters import Owner, device_of
+from devices.adapter import FrameDescriber
 from devices.registry import DEVICE_TYPES
 
 
@@ -50,7 +51,7 @@ def describers(worker: Any, bus: str, types_on_bus: Iterable[str]) -> list[Any]:
     adapters = [
         AdapterDescriber(worker.adapters[d.name])
         for d in worker.plant.devices_on(bus)
-        if callable(getattr(worker.adapters.get(d.name), "describe_frame", None))
+        if isinstance(worker.adapters.get(d.name), FrameDescriber)
     ]
     return adapters + can_codecs(types_on_bus)
 

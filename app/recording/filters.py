@@ -9,6 +9,7 @@ from datetime import datetime
 from typing import Any
 
 from app.can_bus import FrameRecord
+from devices.adapter import FrameOwner
 from devices.registry import DEVICE_TYPES
 
 
@@ -34,9 +35,9 @@ Owner = Callable[[int, bool, bytes], bool]
 
 def owner_of(adapter: Any) -> Owner:
     """``adapter.owns_frame``, or a filter that matches nothing for adapters without it."""
-    owns = getattr(adapter, "owns_frame", None)
-    if owns is None:
+    if not isinstance(adapter, FrameOwner):
         return lambda _id, _ext, _data: False
+    owns = adapter.owns_frame
 
     def safe(arbitration_id: int, is_extended: bool, data: bytes) -> bool:
         try:
@@ -59,7 +60,7 @@ def device_owners(worker: Any, bus: str) -> list[tuple[str, Owner]]:
     owners: list[tuple[str, Owner]] = []
     for dev in worker.plant.devices_on(bus):
         adapter = worker.adapters.get(dev.name)
-        if callable(getattr(adapter, "owns_frame", None)):
+        if isinstance(adapter, FrameOwner):
             owners.append((dev.name, owner_of(adapter)))
             continue
         device_type = DEVICE_TYPES.get(dev.type)
