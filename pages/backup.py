@@ -54,107 +54,121 @@ def _files(directory: Path) -> list[dict]:
     return rows
 
 
-def content() -> None:
-    runtime = rt.current()
-    directory = runtime.backups_dir
-    devices = backup.backup_devices(runtime)
-    without = [name for name in runtime.store.devices if name not in devices]
-    with frame("Backup and restore"):
-        ui.label(f"Backups are written to {directory}").classes("text-caption text-grey-8")
+class BackupCard:
+    """Back up the chosen devices with progress, say why the others are left out, offer the archive."""
+
+    def __init__(self, directory: Path, devices: list[str], without: list[str]):
+        self.runtime = rt.current()
+        self.directory = directory
+        self.devices = devices
+        self.without = without
+        self.made: list[Path] = []
+        self.written = None  # called after a backup run (the file list reloads)
+
+    def build(self) -> None:
+        store = self.runtime.store
         with ui.card().classes("w-full"):
             ui.label("Back up").classes("text-subtitle1")
             with ui.row().classes("gap-4"):
-                boxes = {name: ui.checkbox(f"{name} ({runtime.store.devices[name].type})", value=True) for name in devices}
-            reasons = ui.column().classes("gap-0").props("data-testid=backup-nothing")  # devices left out, each with why
+                self.boxes = {name: ui.checkbox(f"{name} ({store.devices[name].type})", value=True)
+                              for name in self.devices}
+            # devices left out, each with why
+            self.reasons = ui.column().classes("gap-0").props("data-testid=backup-nothing")
             with ui.row().classes("items-center"):
-                start = ui.button("Back up selected", icon="save_alt").props("data-testid=backup-start")
-                archive = ui.button("Download as one archive", icon="folder_zip").props("outline")
-                archive.set_visibility(False)
-            progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
-            status = ui.label().classes("text-body2")
-            made: list[Path] = []
+                self.start = ui.button("Back up selected", icon="save_alt").props("data-testid=backup-start")
+                self.archive = ui.button("Download as one archive", icon="folder_zip").props("outline")
+                self.archive.set_visibility(False)
+            self.progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
+            self.status = ui.label().classes("text-body2")
 
+    async def explain_left_out(self) -> None:
+        for name in self.without:
+            reason = (await backup.why_nothing_to_back_up(self.runtime, name)).removeprefix("nothing to back up: ")
+            with self.reasons:
+                ui.label(f"{name} ({self.runtime.store.devices[name].type}): nothing to back up: {reason}").classes(
+                    "text-body2 text-grey-8")
+
+    async def run_backup(self) -> None:
+        chosen = [name for name, box in self.boxes.items() if box.value]
+        if not chosen:
+            ui.notify("Select at least one device", type="warning")
+            return
+        user, role = current_user()
+        self.start.disable()
+        self.made.clear()
+        failures = []
+        for n, name in enumerate(chosen):
+            self.status.set_text(f"reading {name} ({n + 1} of {len(chosen)}) ...")
+
+            def step(fraction: float, n=n) -> None:
+                self.progress.set_value((n + fraction) / len(chosen))
+
+            try:
+                self.made.append(await backup.backup_device(self.runtime, name, self.directory, step,
+                                                            user=user, role=role))
+            except Exception as exc:  # noqa: BLE001 - one device's failure must not stop the others
+                failures.append(f"{name}: {exc}")
+            self.progress.set_value((n + 1) / len(chosen))
+        self.start.enable()
+        self.status.set_text(f"{len(self.made)} backup file(s) written"
+                             + (f"; failed: {'; '.join(failures)}" if failures else ""))
+        self.status.classes(replace="text-body2 " + ("text-negative" if failures else "text-positive"))
+        self.archive.set_visibility(len(self.made) > 1)
+        if len(self.made) == 1:
+            ui.download(self.made[0])
+        if self.written is not None:
+            await self.written()
+
+    async def download_archive(self) -> None:
+        target = self.directory / f"plant-{self.runtime.plant.name}-{datetime.now():%Y%m%d-%H%M%S}.zip"
+        ui.download(await asyncio.to_thread(backup.zip_files, self.made, target))
+
+    def wire(self) -> None:
+        self.start.on_click(self.run_backup)
+        self.archive.on_click(self.download_archive)
+
+
+class FilesCard:
+    """The backups in the folder, each to download or restore, and the upload of a file to restore."""
+
+    def __init__(self, directory: Path):
+        self.directory = directory
+        self.restore_box: ui.column | None = None  # where a restore opens (placed by the page, below the cards)
+
+    def build(self) -> None:
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center w-full"):
                 ui.label("Backups in the folder").classes("text-subtitle1")
                 ui.space()
                 upload = ui.upload(auto_upload=True, max_file_size=5_000_000,
-                                   on_upload=lambda e: _uploaded(e)).props("accept=.json flat bordered hide-upload-btn").classes("w-64")
+                                   on_upload=lambda e: self._uploaded(e)).props(
+                    "accept=.json flat bordered hide-upload-btn").classes("w-64")
                 upload.add_slot("header", upload_button("Restore from a file", "restore-upload"))
-            table = ui.table(columns=FILE_COLUMNS, rows=[], row_key="name", pagination=20).classes(
+            self.table = ui.table(columns=FILE_COLUMNS, rows=[], row_key="name", pagination=20).classes(
                 "w-full reg-table").props("dense flat bordered")
-            table.add_slot("body-cell-actions", """
+            self.table.add_slot("body-cell-actions", """
                 <q-td :props="props">
                   <q-btn flat dense icon="download" @click="$parent.$emit('download', props.row.name)" />
                   <q-btn flat dense icon="settings_backup_restore" label="Restore" @click="$parent.$emit('restore', props.row.name)" />
                 </q-td>""")
-        with ui.row().classes("items-center"):
-            ui.link("Apply one set to several devices of a type", "/fleet").props("data-testid=open-fleet")
-        projects = [name for name in devices if project.has_project(runtime.plant, name)]
-        if projects:
-            ProjectCard(projects)
-        restore_box = ui.column().classes("w-full")
 
-    async def refresh_files() -> None:
-        table.rows = await asyncio.to_thread(_files, directory) if directory.is_dir() else []
-        table.update()
+    async def refresh(self) -> None:
+        self.table.rows = await asyncio.to_thread(_files, self.directory) if self.directory.is_dir() else []
+        self.table.update()
 
-    ui.timer(0, refresh_files, once=True)
+    def wire(self) -> None:
+        self.table.on("download", lambda e: ui.download(self.directory / Path(e.args).name))
+        self.table.on("restore", lambda e: self._restore_file(e.args))
 
-    async def explain_left_out() -> None:
-        for name in without:
-            reason = (await backup.why_nothing_to_back_up(runtime, name)).removeprefix("nothing to back up: ")
-            with reasons:
-                ui.label(f"{name} ({runtime.store.devices[name].type}): nothing to back up: {reason}").classes(
-                    "text-body2 text-grey-8")
+    async def _restore_file(self, name: str) -> None:
+        await self._open_restore(await asyncio.to_thread((self.directory / Path(name).name).read_bytes),
+                                 Path(name).name)
 
-    if without:
-        ui.timer(0, explain_left_out, once=True)
+    async def _uploaded(self, event: events.UploadEventArguments) -> None:
+        await self._open_restore(await event.file.read(), event.file.name)
 
-    async def run_backup() -> None:
-        chosen = [name for name, box in boxes.items() if box.value]
-        if not chosen:
-            ui.notify("Select at least one device", type="warning")
-            return
-        user, role = current_user()
-        start.disable()
-        made.clear()
-        failures = []
-        for n, name in enumerate(chosen):
-            status.set_text(f"reading {name} ({n + 1} of {len(chosen)}) ...")
-
-            def step(fraction: float, n=n) -> None:
-                progress.set_value((n + fraction) / len(chosen))
-
-            try:
-                made.append(await backup.backup_device(runtime, name, directory, step, user=user, role=role))
-            except Exception as exc:  # noqa: BLE001 - one device's failure must not stop the others
-                failures.append(f"{name}: {exc}")
-            progress.set_value((n + 1) / len(chosen))
-        start.enable()
-        status.set_text(f"{len(made)} backup file(s) written" + (f"; failed: {'; '.join(failures)}" if failures else ""))
-        status.classes(replace="text-body2 " + ("text-negative" if failures else "text-positive"))
-        archive.set_visibility(len(made) > 1)
-        if len(made) == 1:
-            ui.download(made[0])
-        await refresh_files()
-
-    async def download_archive() -> None:
-        target = directory / f"plant-{runtime.plant.name}-{datetime.now():%Y%m%d-%H%M%S}.zip"
-        ui.download(await asyncio.to_thread(backup.zip_files, made, target))
-
-    start.on_click(run_backup)
-    archive.on_click(download_archive)
-    table.on("download", lambda e: ui.download(directory / Path(e.args).name))
-    async def _restore_file(name: str) -> None:
-        await _open_restore(await asyncio.to_thread((directory / Path(name).name).read_bytes), Path(name).name)
-
-    table.on("restore", lambda e: _restore_file(e.args))
-
-    async def _uploaded(event: events.UploadEventArguments) -> None:
-        await _open_restore(await event.file.read(), event.file.name)
-
-    async def _open_restore(data: bytes, source: str) -> None:
+    async def _open_restore(self, data: bytes, source: str) -> None:
+        restore_box = self.restore_box
         restore_box.clear()
         try:
             document = await asyncio.to_thread(backup.load_document, data, source)  # off the event loop
@@ -168,6 +182,31 @@ def content() -> None:
         ui.run_javascript(
             f"(function show(n) {{ const e = getHtmlElement({flow.card.id});"
             " if (e) e.scrollIntoView({behavior: 'smooth', block: 'start'}); else if (n) setTimeout(() => show(n - 1), 50); })(40)")
+
+
+def content() -> None:
+    runtime = rt.current()
+    directory = runtime.backups_dir
+    devices = backup.backup_devices(runtime)
+    without = [name for name in runtime.store.devices if name not in devices]
+    backups = BackupCard(directory, devices, without)
+    files = FilesCard(directory)
+    with frame("Backup and restore"):
+        ui.label(f"Backups are written to {directory}").classes("text-caption text-grey-8")
+        backups.build()
+        files.build()
+        with ui.row().classes("items-center"):
+            ui.link("Apply one set to several devices of a type", "/fleet").props("data-testid=open-fleet")
+        projects = [name for name in devices if project.has_project(runtime.plant, name)]
+        if projects:
+            ProjectCard(projects)
+        files.restore_box = ui.column().classes("w-full")
+    ui.timer(0, files.refresh, once=True)
+    if without:
+        ui.timer(0, backups.explain_left_out, once=True)
+    backups.written = files.refresh
+    backups.wire()
+    files.wire()
 
 
 class RestoreFlow:
