@@ -23,6 +23,138 @@ REFRESH_S = 0.25
 SPEEDS = {0.1: "0.1 x", 0.5: "0.5 x", 1.0: "1 x (as recorded)", 2.0: "2 x", 5.0: "5 x", 10.0: "10 x"}
 
 
+class RecordingCard:
+    """The recording to replay: one of the data folder or an uploaded file, loaded and screened."""
+
+    def __init__(self, worker, bus: str):
+        self.worker = worker
+        self.bus = bus
+        self.log: rec.LoadedLog | None = None
+
+    def build(self) -> None:
+        with ui.card().classes("w-full"):
+            ui.label("Recording").classes("text-subtitle1")
+            files = {f.name: f"{f.name} ({f.size // 1024} KiB)" for f in rec.list_recordings()}
+            self.choice = ui.select(files, label="Recordings in the data folder", with_input=True).classes(
+                "w-full").props("outlined dense")
+            ui.upload(auto_upload=True, on_upload=lambda e: self.handle_upload(e)).props(
+                "flat bordered accept=" + ",".join(rec.READ_SUFFIXES)).classes("w-96").add_slot(
+                "header", upload_button("or open a file (" + " ".join(rec.READ_SUFFIXES) + ")", "replay-upload"))
+            self.file_status = ui.label("no file loaded").props("data-testid=replay-file")
+            self.load_bar = ui.linear_progress(value=0, show_value=False).classes("w-full")
+            self.load_bar.set_visibility(False)
+
+    async def load(self, path: Path, name: str) -> None:
+        load_bar, file_status = self.load_bar, self.file_status
+        load_bar.set_visibility(True)
+        load_bar.set_value(0)
+        file_status.set_text(f"reading {name} ...")
+
+        def report(frames: int, fraction: float) -> None:
+            load_bar.set_value(fraction)
+            file_status.set_text(f"reading {name}: {frames} frames")
+
+        try:
+            log = await rec.load_log(path, name, progress=report)
+        except rec.RecordingError as exc:
+            file_status.set_text(str(exc))
+            load_bar.set_visibility(False)
+            return
+        self.log = log
+        screening = await asyncio.to_thread(rp.screen, self.worker, self.bus, log.frames)
+        load_bar.set_visibility(False)
+        file_status.set_text(f"{name}: {len(log.frames)} frames, {log.duration:.1f} s ({log.format})"
+                             + (" - only the first frames (file too long)" if log.truncated else "")
+                             + (f". {screening.text()}" if screening.blocked else ""))
+
+    async def on_choice(self) -> None:
+        if self.choice.value:
+            try:
+                path = await asyncio.to_thread(rec.recording_path, self.choice.value)
+            except rec.RecordingError as exc:
+                self.file_status.set_text(str(exc))
+                return
+            await self.load(path, self.choice.value)
+
+    async def handle_upload(self, event) -> None:
+        try:  # streamed into the one uploads folder under a safe name ('..' is refused by name)
+            path = await rec.store_upload(event.file)
+        except rec.RecordingError as exc:
+            self.file_status.set_text(str(exc))
+            return
+        await self.load(path, rec.upload_name(event.file.name))
+
+
+class ReplayCard:
+    """Speed, start and stop of the replay, its progress and status."""
+
+    def __init__(self, worker, bus: str, session: str, recording: RecordingCard):
+        self.worker = worker
+        self.bus = bus
+        self.session = session
+        self.recording = recording
+        self.last: rp.Replay | None = None
+
+    def build(self) -> None:
+        with ui.card().classes("w-full"):
+            ui.label("Replay").classes("text-subtitle1")
+            with ui.row().classes("items-center gap-4"):
+                self.speed = ui.select(SPEEDS, value=1.0, label="Speed").props("outlined dense").classes("w-48")
+                self.start_button = ui.button("Start replay", icon="play_arrow", on_click=lambda: self.start()).props(
+                    "data-testid=replay-start")
+                self.stop_button = ui.button("Stop", icon="stop", color="negative", on_click=lambda: self.stop()).props(
+                    "data-testid=replay-stop")
+            self.progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
+            self.status = ui.label("").props("data-testid=replay-status")
+            ui.label("Refused while a device on this bus is under control; it stops by itself when one is taken "
+                     "under control, and when this page closes.").classes("text-caption text-grey-7")
+
+    async def start(self) -> None:
+        log = self.recording.log
+        if log is None:
+            notify_error("Choose a recording first.")
+            return
+        user, role = current_user()  # the account store's answer now, not the page's when it was built
+        try:
+            await rp.start_replay(self.worker, self.bus, log.frames, name=log.name,
+                                  speed=float(self.speed.value or 1.0), session=self.session,
+                                  user=user or "anonymous", role=role)
+        except (rp.ReplayError, PermissionDenied, AuditUnavailable) as exc:
+            self.status.set_text(f"refused: {exc}")
+        self.refresh()
+
+    async def stop(self) -> None:
+        worker, bus = self.worker, self.bus
+        replay = rp.running_replay(worker, bus)
+        user, role = current_user()
+        if replay is not None and replay.running:
+            replay.stop(f"stopped by {user or 'anonymous'}")  # at once, whatever the audit log says
+
+            async def stopped() -> str:
+                return f"after {replay.sent} of {replay.total} frames"
+
+            try:  # a stop is recorded afterwards, never refused
+                await worker.checked(stopped, device=bus, role=role, user=user or "anonymous", kind="stop",
+                                     describe=f"stop replay {replay.name} onto {bus}")
+            except AuditUnavailable:
+                pass
+        self.refresh()
+
+    def refresh(self) -> None:
+        replay = rp.running_replay(self.worker, self.bus) or self.last
+        if replay is not None and replay.session == self.session:
+            self.last = replay
+        if replay is None:
+            self.status.set_text(self.status.text or "no replay yet")
+            self.progress.set_value(0)
+        else:
+            self.progress.set_value(replay.fraction)
+            self.status.set_text(f"{replay.name}: {replay.summary()}")
+        running = replay is not None and replay.running
+        self.start_button.set_enabled(not running)
+        self.stop_button.set_enabled(running)
+
+
 def content(bus: str) -> None:
     runtime = rt.current()
     worker = runtime.worker
@@ -36,116 +168,10 @@ def content(bus: str) -> None:
         if bus not in worker.can_buses:
             ui.label(f"{bus} is not a CAN bus: only CAN recordings can be replayed.")
             return
-        session = ui.context.client.id
-        loaded: dict[str, rec.LoadedLog] = {}
-
-        with ui.card().classes("w-full"):
-            ui.label("Recording").classes("text-subtitle1")
-            files = {f.name: f"{f.name} ({f.size // 1024} KiB)" for f in rec.list_recordings()}
-            choice = ui.select(files, label="Recordings in the data folder", with_input=True).classes("w-full").props("outlined dense")
-            ui.upload(auto_upload=True, on_upload=lambda e: handle_upload(e)).props(
-                "flat bordered accept=" + ",".join(rec.READ_SUFFIXES)).classes("w-96").add_slot(
-                "header", upload_button("or open a file (" + " ".join(rec.READ_SUFFIXES) + ")", "replay-upload"))
-            file_status = ui.label("no file loaded").props("data-testid=replay-file")
-            load_bar = ui.linear_progress(value=0, show_value=False).classes("w-full")
-            load_bar.set_visibility(False)
-
-        with ui.card().classes("w-full"):
-            ui.label("Replay").classes("text-subtitle1")
-            with ui.row().classes("items-center gap-4"):
-                speed = ui.select(SPEEDS, value=1.0, label="Speed").props("outlined dense").classes("w-48")
-                start_button = ui.button("Start replay", icon="play_arrow", on_click=lambda: start()).props("data-testid=replay-start")
-                stop_button = ui.button("Stop", icon="stop", color="negative", on_click=lambda: stop()).props("data-testid=replay-stop")
-            progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
-            status = ui.label("").props("data-testid=replay-status")
-            ui.label("Refused while a device on this bus is under control; it stops by itself when one is taken "
-                     "under control, and when this page closes.").classes("text-caption text-grey-7")
-
-        async def load(path: Path, name: str) -> None:
-            load_bar.set_visibility(True)
-            load_bar.set_value(0)
-            file_status.set_text(f"reading {name} ...")
-
-            def report(frames: int, fraction: float) -> None:
-                load_bar.set_value(fraction)
-                file_status.set_text(f"reading {name}: {frames} frames")
-
-            try:
-                log = await rec.load_log(path, name, progress=report)
-            except rec.RecordingError as exc:
-                file_status.set_text(str(exc))
-                load_bar.set_visibility(False)
-                return
-            loaded["file"] = log
-            screening = await asyncio.to_thread(rp.screen, worker, bus, log.frames)
-            load_bar.set_visibility(False)
-            file_status.set_text(f"{name}: {len(log.frames)} frames, {log.duration:.1f} s ({log.format})"
-                                 + (" - only the first frames (file too long)" if log.truncated else "")
-                                 + (f". {screening.text()}" if screening.blocked else ""))
-
-        async def on_choice() -> None:
-            if choice.value:
-                try:
-                    path = await asyncio.to_thread(rec.recording_path, choice.value)
-                except rec.RecordingError as exc:
-                    file_status.set_text(str(exc))
-                    return
-                await load(path, choice.value)
-
-        choice.on_value_change(on_choice)
-
-        async def handle_upload(event) -> None:
-            try:  # streamed into the one uploads folder under a safe name ('..' is refused by name)
-                path = await rec.store_upload(event.file)
-            except rec.RecordingError as exc:
-                file_status.set_text(str(exc))
-                return
-            await load(path, rec.upload_name(event.file.name))
-
-        async def start() -> None:
-            log = loaded.get("file")
-            if log is None:
-                notify_error("Choose a recording first.")
-                return
-            user, role = current_user()  # the account store's answer now, not the page's when it was built
-            try:
-                await rp.start_replay(worker, bus, log.frames, name=log.name, speed=float(speed.value or 1.0),
-                                      session=session, user=user or "anonymous", role=role)
-            except (rp.ReplayError, PermissionDenied, AuditUnavailable) as exc:
-                status.set_text(f"refused: {exc}")
-            refresh()
-
-        async def stop() -> None:
-            replay = rp.running_replay(worker, bus)
-            user, role = current_user()
-            if replay is not None and replay.running:
-                replay.stop(f"stopped by {user or 'anonymous'}")  # at once, whatever the audit log says
-
-                async def stopped() -> str:
-                    return f"after {replay.sent} of {replay.total} frames"
-
-                try:  # a stop is recorded afterwards, never refused
-                    await worker.checked(stopped, device=bus, role=role, user=user or "anonymous", kind="stop",
-                                         describe=f"stop replay {replay.name} onto {bus}")
-                except AuditUnavailable:
-                    pass
-            refresh()
-
-        last: dict[str, rp.Replay | None] = {"replay": None}
-
-        def refresh() -> None:
-            replay = rp.running_replay(worker, bus) or last["replay"]
-            if replay is not None and replay.session == session:
-                last["replay"] = replay
-            if replay is None:
-                status.set_text(status.text or "no replay yet")
-                progress.set_value(0)
-            else:
-                progress.set_value(replay.fraction)
-                status.set_text(f"{replay.name}: {replay.summary()}")
-            running = replay is not None and replay.running
-            start_button.set_enabled(not running)
-            stop_button.set_enabled(running)
-
-        refresh()
-        ui.timer(REFRESH_S, refresh)
+        recording = RecordingCard(worker, bus)
+        recording.build()
+        replay = ReplayCard(worker, bus, ui.context.client.id, recording)
+        replay.build()
+        recording.choice.on_value_change(recording.on_choice)
+        replay.refresh()
+        ui.timer(REFRESH_S, replay.refresh)
