@@ -168,24 +168,45 @@ def content(bus: str) -> None:
 
 
 def modbus_content(bus: str) -> None:
-    runtime = rt.current()
-    bus_state = runtime.store.buses[bus]
     with frame(f"Bus monitor {bus}"):
         ui.add_css(CSS)
+        ModbusMonitor(bus)
+
+
+class ModbusMonitor:
+    """The transactions of one Modbus line, filtered, each decoded once, updated twice a second."""
+
+    def __init__(self, bus: str):
+        runtime = rt.current()
+        self.bus = bus
+        self.bus_state = runtime.store.buses[bus]
+        self._build()
+        self.decoder = rec.TransactionDecoder(runtime.worker, bus)
+        self.made: dict[int, tuple[object, dict]] = {}  # id(transaction) -> (transaction, row): each decoded once
+        self.shown_key = None
+        for control in (self.unit_filter, self.function_filter, self.address_filter, self.errors_only):
+            control.on_value_change(self.refilter)
+        self.export.on_click(self.download)
+        self.update(FIRST_SHOWN)  # the first answer carries the newest rows, the rest come with the first refresh
+        ui.timer(0.5, self.update)
+
+    def _build(self) -> None:
+        bus_state = self.bus_state
         with ui.row().classes("items-center gap-3 w-full"):
             ui.label(f"{bus_state.type} · {bus_state.endpoint}").classes("text-caption text-grey-8")
             if bus_state.type == "modbus-rtu":
-                _tool_links(bus, [("Modbus poll", "poll", "table_rows")])
+                _tool_links(self.bus, [("Modbus poll", "poll", "table_rows")])
         with ui.row().classes("items-center gap-3"):
-            paused = ui.switch("Pause")
-            errors_only = ui.switch("Errors only")
-            unit_filter = ui.input("Unit", placeholder="any").props("dense clearable data-monitor=filter-unit").classes("w-24")
-            function_filter = ui.select({0: "any function", **FUNCTIONS}, value=0, label="Function") \
+            self.paused = ui.switch("Pause")
+            self.errors_only = ui.switch("Errors only")
+            self.unit_filter = ui.input("Unit", placeholder="any").props(
+                "dense clearable data-monitor=filter-unit").classes("w-24")
+            self.function_filter = ui.select({0: "any function", **FUNCTIONS}, value=0, label="Function") \
                 .props("dense data-monitor=filter-function").classes("w-56")
-            address_filter = ui.input("Address", placeholder="3000 or 3000-3010") \
+            self.address_filter = ui.input("Address", placeholder="3000 or 3000-3010") \
                 .props("dense clearable data-monitor=filter-address").classes("w-44")
-            export = ui.button("Export CSV", icon="download").props("flat dense no-caps data-monitor=export")
-            summary = ui.label().classes("text-body2")
+            self.export = ui.button("Export CSV", icon="download").props("flat dense no-caps data-monitor=export")
+            self.summary = ui.label().classes("text-body2")
         with ui.element("div").classes("w-full monitor-scroll monitor-fill").props("data-monitor=transactions-box"):
             table = ui.table(columns=COLUMNS, rows=[], row_key="id", pagination=0).classes("w-full reg-table")
         table.props("dense flat bordered hide-bottom data-monitor=transactions")
@@ -195,89 +216,83 @@ def modbus_content(bus: str) -> None:
         table.add_slot("body-cell-rx", HEX_SLOT)
         table.add_slot("body-cell-decoded", WRAP_SLOT)
         table.mark("transactions")
-        decoder = rec.TransactionDecoder(runtime.worker, bus)
-        made: dict[int, tuple[object, dict]] = {}  # id(transaction) -> (transaction, row): each decoded once
-        shown_key: list = [None]
+        self.table = table
 
-        def row_of(t) -> dict:
-            cached = made.get(id(t))
-            if cached is not None and cached[0] is t:
-                return cached[1]
-            function = transaction_function(t)
-            row = {
-                "id": id(t),
-                "time": datetime.fromtimestamp(t.time).strftime("%H:%M:%S.%f")[:-3],
-                "date": datetime.fromtimestamp(t.time).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3],
-                "device": decoder.device(t.unit),
-                "unit": t.unit,
-                "function": "" if function is None else FUNCTIONS.get(function, f"{function:02d}"),
-                "request": t.request,
-                "tx": t.request_hex,
-                "rx": t.response_hex,
-                "decoded": decoder.decoded(t),
-                "rtt": "-" if t.rtt_ms is None else f"{t.rtt_ms:.1f}",
-                "error": t.error,
-            }
-            if len(made) > 4 * SHOWN:  # the log's ring buffer dropped the oldest: forget rows no longer listed
-                live = {id(x) for x in bus_state.transactions}
-                for key in [k for k in made if k not in live]:
-                    del made[key]
-            made[id(t)] = (t, row)
-            return row
+    def row_of(self, t) -> dict:
+        made, decoder = self.made, self.decoder
+        cached = made.get(id(t))
+        if cached is not None and cached[0] is t:
+            return cached[1]
+        function = transaction_function(t)
+        row = {
+            "id": id(t),
+            "time": datetime.fromtimestamp(t.time).strftime("%H:%M:%S.%f")[:-3],
+            "date": datetime.fromtimestamp(t.time).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3],
+            "device": decoder.device(t.unit),
+            "unit": t.unit,
+            "function": "" if function is None else FUNCTIONS.get(function, f"{function:02d}"),
+            "request": t.request,
+            "tx": t.request_hex,
+            "rx": t.response_hex,
+            "decoded": decoder.decoded(t),
+            "rtt": "-" if t.rtt_ms is None else f"{t.rtt_ms:.1f}",
+            "error": t.error,
+        }
+        if len(made) > 4 * SHOWN:  # the log's ring buffer dropped the oldest: forget rows no longer listed
+            live = {id(x) for x in self.bus_state.transactions}
+            for key in [k for k in made if k not in live]:
+                del made[key]
+        made[id(t)] = (t, row)
+        return row
 
-        def filters() -> tuple[int | None, int | None, tuple[int, int] | None] | None:
-            try:
-                unit = parse_unit(unit_filter.value)
-                unit_filter.props(remove="error")
-            except ValueError:
-                unit_filter.props('error error-message="0 ... 247"')
-                return None
-            try:
-                address = parse_address(address_filter.value)
-                address_filter.props(remove="error")
-            except ValueError:
-                address_filter.props('error error-message="0 ... 65535 or first-last"')
-                return None
-            return unit, (function_filter.value or None), address
+    def filters(self) -> tuple[int | None, int | None, tuple[int, int] | None] | None:
+        unit_filter, address_filter = self.unit_filter, self.address_filter
+        try:
+            unit = parse_unit(unit_filter.value)
+            unit_filter.props(remove="error")
+        except ValueError:
+            unit_filter.props('error error-message="0 ... 247"')
+            return None
+        try:
+            address = parse_address(address_filter.value)
+            address_filter.props(remove="error")
+        except ValueError:
+            address_filter.props('error error-message="0 ... 65535 or first-last"')
+            return None
+        return unit, (self.function_filter.value or None), address
 
-        def update(limit: int = SHOWN) -> None:
-            log = list(bus_state.transactions)
-            errors = sum(1 for t in log if t.error)
-            cycle = getattr(bus_state, "cycle_s", None)
-            conflicts = getattr(bus_state, "address_conflicts", 0)
-            summary.set_text(
-                f"{len(log)} transactions buffered, {errors} with errors"
-                + (f" · line cycle {cycle:.2f} s (every device polled once)" if cycle else "")
-                + (f" · {conflicts} answers from another unit: address conflict on the line?" if conflicts else ""))
-            if paused.value:
-                return
-            chosen = filters()
-            if chosen is None:
-                return
-            decoder.refresh()
-            selected = [t for t in reversed(log)
-                        if (not errors_only.value or t.error) and transaction_matches(t, *chosen)][:limit]
-            key = (tuple(id(t) for t in selected[:1]), len(selected), chosen, errors_only.value)
-            if key == shown_key[0]:
-                return  # nothing new on the line: nothing sent to the browser
-            shown_key[0] = key
-            table.rows = [row_of(t) for t in selected]
-            table.update()
+    def update(self, limit: int = SHOWN) -> None:
+        bus_state = self.bus_state
+        log = list(bus_state.transactions)
+        errors = sum(1 for t in log if t.error)
+        cycle = getattr(bus_state, "cycle_s", None)
+        conflicts = getattr(bus_state, "address_conflicts", 0)
+        self.summary.set_text(
+            f"{len(log)} transactions buffered, {errors} with errors"
+            + (f" · line cycle {cycle:.2f} s (every device polled once)" if cycle else "")
+            + (f" · {conflicts} answers from another unit: address conflict on the line?" if conflicts else ""))
+        if self.paused.value:
+            return
+        chosen = self.filters()
+        if chosen is None:
+            return
+        self.decoder.refresh()
+        selected = [t for t in reversed(log)
+                    if (not self.errors_only.value or t.error) and transaction_matches(t, *chosen)][:limit]
+        key = (tuple(id(t) for t in selected[:1]), len(selected), chosen, self.errors_only.value)
+        if key == self.shown_key:
+            return  # nothing new on the line: nothing sent to the browser
+        self.shown_key = key
+        self.table.rows = [self.row_of(t) for t in selected]
+        self.table.update()
 
-        def refilter() -> None:
-            shown_key[0] = None
-            update()
+    def refilter(self) -> None:
+        self.shown_key = None
+        self.update()
 
-        for control in (unit_filter, function_filter, address_filter, errors_only):
-            control.on_value_change(refilter)
-
-        def download() -> None:
-            ui.download(transactions_csv(table.rows).encode(), f"{bus}-transactions-{datetime.now():%Y%m%d-%H%M%S}.csv",
-                        "text/csv")
-
-        export.on_click(download)
-        update(FIRST_SHOWN)  # the first answer carries the newest rows, the rest come with the first refresh
-        ui.timer(0.5, update)
+    def download(self) -> None:
+        ui.download(transactions_csv(self.table.rows).encode(),
+                    f"{self.bus}-transactions-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
 
 
 # -- CAN buses --------------------------------------------------------------------------------------------
@@ -417,6 +432,12 @@ class CanMonitor:
         ui.download.content(text.encode(), f"{self.bus}.dbc", "application/octet-stream")
 
     def _build(self) -> None:
+        self._build_header()
+        self._build_filters()
+        self._build_recording()
+        self._build_views()
+
+    def _build_header(self) -> None:
         state = self.state
         with ui.row().classes("items-center gap-3 w-full"):
             ui.label(f"CAN · {state.endpoint} · {self.can_bus.options.get('bitrate', '?')} bit/s").classes("text-caption text-grey-8")
@@ -432,6 +453,7 @@ class CanMonitor:
                 "flat dense no-caps data-monitor=dbc").tooltip(
                 "A DBC of this bus's devices (cantools), so other tools decode recordings with names")
 
+    def _build_filters(self) -> None:
         with ui.row().classes("items-end gap-3 w-full"):
             self.id_from = ui.input("ID from (hex)", on_change=self._filters_changed).props("dense outlined clearable").classes("w-36 mono")
             self.id_to = ui.input("ID to (hex)", on_change=self._filters_changed).props("dense outlined clearable").classes("w-36 mono")
@@ -445,6 +467,7 @@ class CanMonitor:
             self.paused.props("data-monitor=pause")
             self.filter_info = ui.label().classes("text-caption text-grey-8")
 
+    def _build_recording(self) -> None:
         with ui.card().classes("w-full q-pa-sm"):
             with ui.row().classes("items-center gap-3 w-full"):
                 ui.icon("fiber_manual_record", color="negative")
@@ -460,56 +483,63 @@ class CanMonitor:
             with ui.expansion("Recordings", icon="folder", on_value_change=lambda e: e.value and self.refresh_recordings()).classes("w-full").props("dense") as self.recordings_panel:
                 self.recordings_box = ui.column().classes("w-full gap-0")
 
+    def _build_views(self) -> None:
         with ui.tabs(value="live").classes("w-full").props("dense align=left") as self.tabs:
             self.live_tab = ui.tab("live", "Live")
             self.file_tab = ui.tab("file", "Recorded file")
         with ui.tab_panels(self.tabs, value=self.live_tab).classes("w-full").props("keep-alive"):
             with ui.tab_panel(self.live_tab).classes("q-pa-none gap-2"):
-                with ui.row().classes("items-center gap-2"):
-                    ui.label("Overwrite view: one row per ID").classes("text-subtitle2")
-                    self.ids_info = ui.label().classes("text-caption text-grey-8")
-                with ui.element("div").classes("w-full monitor-scroll").style("max-height: 34vh; overflow-y: auto").props("data-monitor=overwrite-box"):
-                    self.id_table = ui.table(columns=ID_COLUMNS, rows=[], row_key="k", pagination=0).classes("w-full can-table")
-                self.id_table.props("dense flat bordered")
-                self.id_table.add_slot("body-cell-data", BYTES_SLOT)
-                self.id_table.add_slot("body-cell-decoded", DECODED_SLOT)
-                self.id_table.mark("overwrite")
-                self.id_table.props("data-monitor=overwrite hide-bottom")
-                with ui.row().classes("items-center gap-2"):
-                    ui.label("Frames, newest first").classes("text-subtitle2")
-                    self.frames_info = ui.label().classes("text-caption text-grey-8")
-                    self.frames_info.props("data-monitor=frames-info")
-                    self.live_pages = ui.pagination(1, 1, direction_links=True, on_change=self._show_paused_page).props(
-                        "dense max-pages=7 boundary-numbers data-monitor=live-pages")
-                    self.live_pages.set_visibility(False)
-                    ui.label("click a frame for its full decoding").classes("text-caption text-grey-6")
-                with ui.element("div").classes("w-full monitor-scroll").style(SCROLL_HEIGHT):
-                    self.frames_table = _frame_table("frames")
-                self.frames_table.on("rowClick", lambda e: self._show_details(e.args[1] if len(e.args) > 1 else {}, live=True))
+                self._build_live_tab()
             with ui.tab_panel(self.file_tab).classes("q-pa-none gap-2"):
-                with ui.row().classes("items-center gap-4 w-full"):
-                    self.upload = ui.upload(
-                        label="Open a recorded file (" + " ".join(rec.READ_SUFFIXES) + ")",
-                        auto_upload=True,
-                        max_file_size=MAX_UPLOAD_BYTES,
-                        on_upload=self.on_upload,
-                        on_rejected=lambda: notify_error(f"The file was refused: files up to {MAX_UPLOAD_BYTES // 2**20} MB can be opened."),
-                    ).props("accept=" + ",".join(rec.READ_SUFFIXES) + " flat bordered").classes("w-96").style("max-height: 100px")
-                    self.upload.add_slot("header", upload_button(
-                        "Open a recorded file (" + " ".join(rec.READ_SUFFIXES) + ")", "monitor-upload"))
-                    self.upload.mark("upload")
-                    self.upload.props("data-monitor=upload")
-                    with ui.column().classes("gap-1"):
-                        self.file_info = ui.label("No file opened.").classes("text-body2").mark("file-info")
-                        self.file_info.props("data-monitor=file-info")
-                        self.file_progress = ui.linear_progress(0, show_value=False).classes("w-96").props("data-monitor=file-progress")
-                        self.file_progress.set_visibility(False)
-                        self.file_pages = ui.pagination(1, 1, direction_links=True, on_change=self._show_file_page).props("dense max-pages=9 boundary-numbers")
-                        self.file_pages.mark("file-pages")
-                        self.file_pages.props("data-monitor=file-pages")
-                with ui.element("div").classes("w-full monitor-scroll").style(SCROLL_HEIGHT):
-                    self.file_table = _frame_table("file-frames", time_label="Time s")
-                self.file_table.on("rowClick", lambda e: self._show_details(e.args[1] if len(e.args) > 1 else {}, live=False))
+                self._build_file_tab()
+
+    def _build_live_tab(self) -> None:
+        with ui.row().classes("items-center gap-2"):
+            ui.label("Overwrite view: one row per ID").classes("text-subtitle2")
+            self.ids_info = ui.label().classes("text-caption text-grey-8")
+        with ui.element("div").classes("w-full monitor-scroll").style("max-height: 34vh; overflow-y: auto").props("data-monitor=overwrite-box"):
+            self.id_table = ui.table(columns=ID_COLUMNS, rows=[], row_key="k", pagination=0).classes("w-full can-table")
+        self.id_table.props("dense flat bordered")
+        self.id_table.add_slot("body-cell-data", BYTES_SLOT)
+        self.id_table.add_slot("body-cell-decoded", DECODED_SLOT)
+        self.id_table.mark("overwrite")
+        self.id_table.props("data-monitor=overwrite hide-bottom")
+        with ui.row().classes("items-center gap-2"):
+            ui.label("Frames, newest first").classes("text-subtitle2")
+            self.frames_info = ui.label().classes("text-caption text-grey-8")
+            self.frames_info.props("data-monitor=frames-info")
+            self.live_pages = ui.pagination(1, 1, direction_links=True, on_change=self._show_paused_page).props(
+                "dense max-pages=7 boundary-numbers data-monitor=live-pages")
+            self.live_pages.set_visibility(False)
+            ui.label("click a frame for its full decoding").classes("text-caption text-grey-6")
+        with ui.element("div").classes("w-full monitor-scroll").style(SCROLL_HEIGHT):
+            self.frames_table = _frame_table("frames")
+        self.frames_table.on("rowClick", lambda e: self._show_details(e.args[1] if len(e.args) > 1 else {}, live=True))
+
+    def _build_file_tab(self) -> None:
+        with ui.row().classes("items-center gap-4 w-full"):
+            self.upload = ui.upload(
+                label="Open a recorded file (" + " ".join(rec.READ_SUFFIXES) + ")",
+                auto_upload=True,
+                max_file_size=MAX_UPLOAD_BYTES,
+                on_upload=self.on_upload,
+                on_rejected=lambda: notify_error(f"The file was refused: files up to {MAX_UPLOAD_BYTES // 2**20} MB can be opened."),
+            ).props("accept=" + ",".join(rec.READ_SUFFIXES) + " flat bordered").classes("w-96").style("max-height: 100px")
+            self.upload.add_slot("header", upload_button(
+                "Open a recorded file (" + " ".join(rec.READ_SUFFIXES) + ")", "monitor-upload"))
+            self.upload.mark("upload")
+            self.upload.props("data-monitor=upload")
+            with ui.column().classes("gap-1"):
+                self.file_info = ui.label("No file opened.").classes("text-body2").mark("file-info")
+                self.file_info.props("data-monitor=file-info")
+                self.file_progress = ui.linear_progress(0, show_value=False).classes("w-96").props("data-monitor=file-progress")
+                self.file_progress.set_visibility(False)
+                self.file_pages = ui.pagination(1, 1, direction_links=True, on_change=self._show_file_page).props("dense max-pages=9 boundary-numbers")
+                self.file_pages.mark("file-pages")
+                self.file_pages.props("data-monitor=file-pages")
+        with ui.element("div").classes("w-full monitor-scroll").style(SCROLL_HEIGHT):
+            self.file_table = _frame_table("file-frames", time_label="Time s")
+        self.file_table.on("rowClick", lambda e: self._show_details(e.args[1] if len(e.args) > 1 else {}, live=False))
 
     # -- filters ---------------------------------------------------------------------------------------
     def _filters_changed(self) -> None:
