@@ -85,12 +85,8 @@ def notify_error(message: str) -> None:
     ui.notify(message, type="negative", multi_line=True, close_button="OK", timeout=0)
 
 
-@contextmanager
-def frame(title: str):
-    """Header, navigation and a content column; yields inside the column."""
-    runtime = rt.current()
-    ui.add_css(CSS)
-    ui.page_title(f"{title} - commission")
+def _header(runtime) -> tuple[ui.row, ui.row, str | None, str | None]:
+    """The header bar; returns its empty health and bus rows (filled by :class:`HeaderStatus`), user and role."""
     # one line down to 1024 px: below 1360 px the page links fold into a menu and the bus names get smaller
     # (static/commission.css, .hdr-*); the bus list gives way first, never the pages or the account
     with ui.header().classes("items-center no-wrap bg-blue-grey-9 q-py-xs hdr").props("data-testid=header"):
@@ -121,6 +117,84 @@ def frame(title: str):
                 ui.label("local engineer").classes("text-caption text-grey-4").tooltip(
                     "Served on the loopback address only: no login, full rights"
                 )
+    return health, buses, user, role
+
+
+class HeaderStatus:
+    """The header's live part: the audit log's state, the broker, the event-loop lag and the buses."""
+
+    def __init__(self, runtime, user: str | None):
+        self.runtime = runtime
+        self.user = user
+        self.broker_badge = self.broker_tip = None
+        self.bus_chips: dict = {}
+
+    def build(self, health: ui.row, buses: ui.row) -> None:
+        runtime = self.runtime
+        with health:
+            self.problem_box = ui.row().classes("items-center gap-1 no-wrap bg-negative q-px-sm rounded-borders") \
+                .props("data-testid=audit-state")
+            with self.problem_box:
+                ui.icon("report", color="white")
+                ui.label("audit log not writable: writes refused").classes("text-white text-caption")
+                self.problem_tip = ui.tooltip("")
+            self.problem_box.set_visibility(False)
+            if getattr(runtime, "mqtt", None) is not None:  # only with an [mqtt] table: the broker's state
+                with ui.badge("broker", color="orange-4").classes("text-black").props(
+                        "data-testid=broker-state") as self.broker_badge:
+                    self.broker_tip = ui.tooltip("")
+            with ui.label().classes("text-caption text-grey-5").props("data-testid=loop-lag") as self.loop_chip:
+                self.loop_tip = ui.tooltip("")
+        with buses:
+            for bus in runtime.store.buses.values():
+                with ui.link("", f"/monitor/{bus.name}").classes("text-white no-underline hdr-bus row items-center no-wrap"):
+                    ui.label(bus.name).classes("hdr-bus-name")  # left out on a narrow screen: the icon and its tooltip stay
+                    self.bus_chips[bus.name] = (ui.icon("link_off", color="red").classes("q-ml-xs"), ui.tooltip(""))
+
+    def refresh(self) -> None:
+        runtime = self.runtime
+        if runtime.auth_required and self.user and current_user()[0] != self.user:
+            ui.navigate.to("/login")  # logged out elsewhere, or the account was removed
+            return
+        problem = runtime.audit.problem
+        self.problem_box.set_visibility(bool(problem))
+        if problem:
+            self.problem_tip.set_text(f"{problem}. Free or repair the database; writes resume by themselves.")
+        if self.broker_badge is not None:  # publishing never holds up the buses
+            self._refresh_broker()
+        loop = runtime.worker.loop_health.summary()
+        # coloured by the p99 itself: on a busy machine some stall falls into every minute, and a colour that
+        # is always on says nothing (the stalls are in the tooltip)
+        p99 = loop["p99_ms"]
+        self.loop_chip.set_text(f"loop {p99:.0f} ms")
+        self.loop_chip.classes(replace="text-caption " + ("text-red-4" if p99 >= LOOP_RED_MS else "text-orange-4"
+                                                          if p99 >= LOOP_ORANGE_MS else "text-grey-5"))
+        self.loop_tip.set_text(f"Event-loop lag (it carries every keep-alive): p99 {loop['p99_ms']} ms over the last "
+                               f"minute, worst {loop['worst_ms']} ms, {loop['stalls']} stalls over 100 ms since start")
+        for bus in runtime.store.buses.values():
+            icon, tip = self.bus_chips[bus.name]
+            icon.set_name("lan" if bus.connected else "link_off")
+            icon.set_text_color("green" if bus.connected else "red")
+            tip.set_text(f"{bus.name}: {bus.type} {bus.endpoint}: "
+                         + ("connected" if bus.connected else bus.last_error or "not connected"))
+
+    def _refresh_broker(self) -> None:
+        broker = self.runtime.mqtt.summary()
+        self.broker_badge.set_text(f"broker {broker['state']}")
+        self.broker_badge.set_background_color("green-3" if broker["connected"] else "orange-4")
+        self.broker_tip.set_text(f"MQTT {broker['url']}: {broker['state']}"
+                                 + (f" ({broker['last_error']})" if broker["last_error"] and not broker["connected"] else "")
+                                 + f"; {broker['sent']} sent, {broker['queued']} waiting, "
+                                 f"{broker['dropped']} alarm events dropped")
+
+
+@contextmanager
+def frame(title: str):
+    """Header, navigation and a content column; yields inside the column."""
+    runtime = rt.current()
+    ui.add_css(CSS)
+    ui.page_title(f"{title} - commission")
+    health, buses, user, role = _header(runtime)
     client = ui.context.client
     runtime.worker.session_opened(client.id, role or "none")
     from app.browser import BEAT_EVENT
@@ -130,59 +204,10 @@ def frame(title: str):
     ui.add_body_html(HEADER_FIT_JS)
 
     # the header runs on every page: built once, then only changed texts and colours go to the browser
-    with health:
-        problem_box = ui.row().classes("items-center gap-1 no-wrap bg-negative q-px-sm rounded-borders") \
-            .props("data-testid=audit-state")
-        with problem_box:
-            ui.icon("report", color="white")
-            ui.label("audit log not writable: writes refused").classes("text-white text-caption")
-            problem_tip = ui.tooltip("")
-        problem_box.set_visibility(False)
-        broker_badge = broker_tip = None
-        if getattr(runtime, "mqtt", None) is not None:  # only with an [mqtt] table: the broker's state
-            with ui.badge("broker", color="orange-4").classes("text-black").props("data-testid=broker-state") as broker_badge:
-                broker_tip = ui.tooltip("")
-        with ui.label().classes("text-caption text-grey-5").props("data-testid=loop-lag") as loop_chip:
-            loop_tip = ui.tooltip("")
-    bus_chips = {}
-    with buses:
-        for bus in runtime.store.buses.values():
-            with ui.link("", f"/monitor/{bus.name}").classes("text-white no-underline hdr-bus row items-center no-wrap"):
-                ui.label(bus.name).classes("hdr-bus-name")  # left out on a narrow screen: the icon and its tooltip stay
-                bus_chips[bus.name] = (ui.icon("link_off", color="red").classes("q-ml-xs"), ui.tooltip(""))
-
-    def refresh_buses() -> None:
-        if runtime.auth_required and user and current_user()[0] != user:
-            ui.navigate.to("/login")  # logged out elsewhere, or the account was removed
-            return
-        problem = runtime.audit.problem
-        problem_box.set_visibility(bool(problem))
-        if problem:
-            problem_tip.set_text(f"{problem}. Free or repair the database; writes resume by themselves.")
-        if broker_badge is not None:  # publishing never holds up the buses
-            broker = runtime.mqtt.summary()
-            broker_badge.set_text(f"broker {broker['state']}")
-            broker_badge.set_background_color("green-3" if broker["connected"] else "orange-4")
-            broker_tip.set_text(f"MQTT {broker['url']}: {broker['state']}"
-                                + (f" ({broker['last_error']})" if broker["last_error"] and not broker["connected"] else "")
-                                + f"; {broker['sent']} sent, {broker['queued']} waiting, {broker['dropped']} alarm events dropped")
-        loop = runtime.worker.loop_health.summary()
-        # coloured by the p99 itself: on a busy machine some stall falls into every minute, and a colour that
-        # is always on says nothing (the stalls are in the tooltip)
-        p99 = loop["p99_ms"]
-        loop_chip.set_text(f"loop {p99:.0f} ms")
-        loop_chip.classes(replace="text-caption " + ("text-red-4" if p99 >= LOOP_RED_MS else "text-orange-4"
-                                                     if p99 >= LOOP_ORANGE_MS else "text-grey-5"))
-        loop_tip.set_text(f"Event-loop lag (it carries every keep-alive): p99 {loop['p99_ms']} ms over the last minute, "
-                          f"worst {loop['worst_ms']} ms, {loop['stalls']} stalls over 100 ms since start")
-        for bus in runtime.store.buses.values():
-            icon, tip = bus_chips[bus.name]
-            icon.set_name("lan" if bus.connected else "link_off")
-            icon.set_text_color("green" if bus.connected else "red")
-            tip.set_text(f"{bus.name}: {bus.type} {bus.endpoint}: " + ("connected" if bus.connected else bus.last_error or "not connected"))
-
-    refresh_buses()
-    ui.timer(2.0, refresh_buses)
+    status = HeaderStatus(runtime, user)
+    status.build(health, buses)
+    status.refresh()
+    ui.timer(2.0, status.refresh)
     with ui.column().classes("w-full q-pa-md gap-4"):
         ui.label(title).classes("text-h5")
         if role == "viewer":
