@@ -23,9 +23,12 @@ PAIR_COLUMNS = [f"{kind} {order}" for kind in WIDE_KINDS for order in mp.WORD_OR
 # which 32-bit columns are shown (a display choice, as Modbus Poll's format): all three need about 1250 px,
 # one kind fits a 1024 px window
 WIDE_CHOICES = {"all": "uint32, int32, float32", **WIDE_KINDS, "none": "none"}
+# which word orders those columns show: the two common ones fit beside one kind at 1024 px
+ORDER_CHOICES = {"words": "ABCD, CDAB", "swapped": "BADC, DCBA (bytes swapped)", "all": "all four"}
+ORDERS_SHOWN = {"words": ("ABCD", "CDAB"), "swapped": ("BADC", "DCBA"), "all": tuple(mp.WORD_ORDERS)}
 
 
-def _columns(base: int, function: int, wide: str = "all") -> list[dict]:
+def _columns(base: int, function: int, wide: str = "all", orders: str = "words") -> list[dict]:
     cols = [
         {"name": "address", "label": f"Address ({base}-based)", "field": "address", "align": "right"},
         {"name": "name", "label": "Known register", "field": "name", "align": "left"},
@@ -34,7 +37,8 @@ def _columns(base: int, function: int, wide: str = "all") -> list[dict]:
         return cols + [{"name": "unsigned", "label": "Value", "field": "unsigned", "align": "right"}]
     cols += [{"name": f, "label": f.capitalize(), "field": f, "align": "right", "classes": "mono"} for f in mp.FORMATS]
     cols += [{"name": c, "label": f"{WIDE_KINDS[kind]} {order}", "field": c, "align": "right", "classes": "mono"}
-             for c in PAIR_COLUMNS for kind, order in [c.split()] if wide in ("all", kind)]
+             for c in PAIR_COLUMNS for kind, order in [c.split()]
+             if wide in ("all", kind) and order in ORDERS_SHOWN[orders]]
     return cols
 
 
@@ -48,56 +52,83 @@ def content(bus: str) -> None:
         _view(runtime, bus)
 
 
-def _view(runtime, bus: str) -> None:
-    poll = mp.ModbusPoll(runtime.worker, bus)
-    client = ui.context.client
-    client.on_disconnect(poll.stop)
-    role = current_user()[1]  # what the page shows; every write asks again (the gate decides)
-    known = {d.options.get("address"): d.name for d in runtime.plant.devices_on(bus)}
-    line = runtime.worker.lines[bus]
+class PollView:
+    """What the cards of the poll share: the poll, the line, the known devices and the role."""
 
-    ui.label(
-        "Requests share the line with the devices' polls (one request of this window between theirs). "
-        f"Addresses are protocol addresses; choose how they are counted. Devices on this line: "
-        + (", ".join(f"{name} at {a}" for a, name in sorted(known.items())) or "none")
-        + (f". Line cycle {line.cycle_s:.2f} s." if line.cycle_s else ".")
-    ).classes("text-caption text-grey-8")
+    def __init__(self, runtime, bus: str):
+        self.runtime = runtime
+        self.bus = bus
+        self.poll = mp.ModbusPoll(runtime.worker, bus)
+        self.role = current_user()[1]  # what the page shows; every write asks again (the gate decides)
+        self.known = {d.options.get("address"): d.name for d in runtime.plant.devices_on(bus)}
+        self.line = runtime.worker.lines[bus]
+        self.request: RequestCard | None = None
+        self.results: ResultsCard | None = None
 
-    with ui.card().classes("w-full"):
-        with ui.row().classes("items-end gap-3 flex-wrap"):
-            unit = range_number("Unit", 0, 254, integer=True, value=min(known) if known else 1).classes("w-24")
-            function = ui.select({k: v for k, v in mp.FUNCTIONS.items()}, value=3, label="Function").props(
-                "dense outlined").classes("w-60")
-            base = ui.select({0: "0-based (protocol)", 1: "1-based (register 1 = address 0)"}, value=0,
-                             label="Addresses").props("dense outlined").classes("w-64")
-            start = _address_field("Start address", 1000, base).classes("w-36")
-            count = range_number("Count", 1, 2000, integer=True, value=10).classes("w-32")
-            period = range_number("Period s", mp.PERIOD_MIN_S, mp.PERIOD_MAX_S, unit="s", value=1.0, step=0.1).classes("w-32")
-            run_button = ui.button("Poll", icon="play_arrow").props("data-testid=poll-start")
-            ui.button("Stop", icon="stop", on_click=lambda: (poll.stop(), status.refresh())).props("flat")
+    def intro(self) -> None:
+        known, line = self.known, self.line
+        ui.label(
+            "Requests share the line with the devices' polls (one request of this window between theirs). "
+            f"Addresses are protocol addresses; choose how they are counted. Devices on this line: "
+            + (", ".join(f"{name} at {a}" for a, name in sorted(known.items())) or "none")
+            + (f". Line cycle {line.cycle_s:.2f} s." if line.cycle_s else ".")
+        ).classes("text-caption text-grey-8")
 
-    def current_spec() -> mp.PollSpec:
-        shown_start = int(start.value or 0)
-        protocol = shown_start - int(base.value or 0)
-        return mp.PollSpec(int(unit.value or 0), int(function.value), protocol, int(count.value or 1),
-                           float(period.value or 1.0)).check()
 
-    def run() -> None:
-        if not all_valid(unit, start, count, period):  # each field says what it allows; nothing is polled
+class RequestCard:
+    """What to poll: unit, function, how addresses are counted, start, count and period; Poll and Stop."""
+
+    def __init__(self, view: PollView):
+        self.view = view
+
+    def build(self) -> None:
+        view = self.view
+        known = view.known
+        with ui.card().classes("w-full"):
+            with ui.row().classes("items-end gap-3 flex-wrap"):
+                self.unit = range_number("Unit", 0, 254, integer=True, value=min(known) if known else 1).classes("w-24")
+                self.function = ui.select({k: v for k, v in mp.FUNCTIONS.items()}, value=3, label="Function").props(
+                    "dense outlined").classes("w-60")
+                self.base = ui.select({0: "0-based (protocol)", 1: "1-based (register 1 = address 0)"}, value=0,
+                                      label="Addresses").props("dense outlined").classes("w-64")
+                self.start = _address_field("Start address", 1000, self.base).classes("w-36")
+                self.count = range_number("Count", 1, 2000, integer=True, value=10).classes("w-32")
+                self.period = range_number("Period s", mp.PERIOD_MIN_S, mp.PERIOD_MAX_S, unit="s", value=1.0,
+                                           step=0.1).classes("w-32")
+                self.run_button = ui.button("Poll", icon="play_arrow").props("data-testid=poll-start")
+                ui.button("Stop", icon="stop", on_click=lambda: (view.poll.stop(), view.results.status.refresh())).props(
+                    "flat")
+        self.run_button.on_click(self.run)
+
+    def current_spec(self) -> mp.PollSpec:
+        shown_start = int(self.start.value or 0)
+        protocol = shown_start - int(self.base.value or 0)
+        return mp.PollSpec(int(self.unit.value or 0), int(self.function.value), protocol, int(self.count.value or 1),
+                           float(self.period.value or 1.0)).check()
+
+    def run(self) -> None:
+        if not all_valid(self.unit, self.start, self.count, self.period):  # each field says what it allows
             return
         try:
-            poll.start(current_spec())
+            self.view.poll.start(self.current_spec())
         except mp.PollError as exc:
             notify_error(str(exc))
             return
-        shown["polls"] = -1
+        self.view.results.shown_polls = -1
 
-    run_button.on_click(run)
 
-    shown: dict = {"polls": -1, "columns": None}
+class ResultsCard:
+    """The poll's status and its table of values, changed in place on every poll."""
 
-    @ui.refreshable
-    def status() -> None:
+    def __init__(self, view: PollView):
+        self.view = view
+        self.shown_polls = -1
+        self.shown_columns = None
+        self.status = ui.refreshable(self._status)
+
+    def _status(self) -> None:
+        view = self.view
+        poll, line = view.poll, view.line
         last = poll.last
         text = "stopped" if not poll.running else "polling"
         if poll.spec is not None:
@@ -108,113 +139,142 @@ def _view(runtime, bus: str) -> None:
         if last is not None and last.error:
             ui.label(last.error).classes("text-negative").props("data-testid=poll-error")
         if line.cycle_s:
-            ui.label(f"line cycle {line.cycle_s:.2f} s · devices stale after "
-                     f"{max((s.stale_after for s in runtime.store.devices.values() if s.bus == bus), default=0):.1f} s").classes(
+            stale = max((s.stale_after for s in view.runtime.store.devices.values() if s.bus == view.bus), default=0)
+            ui.label(f"line cycle {line.cycle_s:.2f} s · devices stale after {stale:.1f} s").classes(
                 "text-caption text-grey-7")
 
-    with ui.row().classes("w-full items-start no-wrap"):
-        with ui.column().classes("col gap-1"):
-            status()
-        wide = ui.select(WIDE_CHOICES, value="all", label="32-bit values", on_change=lambda: update_table()).props(
-            "dense outlined data-testid=poll-wide").classes("w-56")
-    # one table, its rows and columns changed in place on every poll (not a new table each time)
-    hint = ui.label("Set unit, function, start and count, then Poll.").classes("text-grey-7")
-    grid = ui.table(columns=_columns(0, 3), rows=[], row_key="address").props(
-        "dense flat bordered data-testid=poll-table").classes("w-full reg-table")
-    pairs = ui.label("32-bit columns: the register with the next one; ABCD = high word first, CDAB = low word first.").classes(
-        "text-caption text-grey-7")
+    def build(self) -> None:
+        with ui.row().classes("w-full items-start no-wrap"):
+            with ui.column().classes("col gap-1"):
+                self.status()
+            self.wide = ui.select(WIDE_CHOICES, value="all", label="32-bit values",
+                                  on_change=lambda: self.update_table()).props(
+                "dense outlined data-testid=poll-wide").classes("w-56")
+            self.orders = ui.select(ORDER_CHOICES, value="words", label="Word orders",
+                                    on_change=lambda: self.update_table()).props(
+                "dense outlined data-testid=poll-orders").classes("w-56")
+        # one table, its rows and columns changed in place on every poll (not a new table each time)
+        self.hint = ui.label("Set unit, function, start and count, then Poll.").classes("text-grey-7")
+        self.grid = ui.table(columns=_columns(0, 3), rows=[], row_key="address").props(
+            "dense flat bordered data-testid=poll-table").classes("w-full reg-table")
+        self.pairs = ui.label("32-bit columns: the register with the next one; ABCD = high word first, "
+                              "CDAB = low word first, BADC and DCBA the same with each word's bytes swapped.").classes("text-caption text-grey-7")
+        self.update_table()
+        ui.timer(REFRESH_S, self.tick)
 
-    def update_table() -> None:
+    def update_table(self) -> None:
+        poll, grid = self.view.poll, self.grid
         spec = poll.spec
-        hint.set_visibility(spec is None)
+        self.hint.set_visibility(spec is None)
         grid.set_visibility(spec is not None)
-        pairs.set_visibility(spec is not None and spec.function not in (1, 2) and wide.value != "none")
+        self.pairs.set_visibility(spec is not None and spec.function not in (1, 2) and self.wide.value != "none")
         if spec is None:
             return
-        offset = int(base.value or 0)
+        offset = int(self.view.request.base.value or 0)
         rows = []
         for r in poll.rows():
             row = {"address": r.address + offset, "name": r.name, **{c: "" for c in (*mp.FORMATS, *PAIR_COLUMNS)}}
             row.update(r.cells)
             rows.append(row)
-        columns = _columns(offset, spec.function, wide.value)
-        if columns != shown["columns"]:
-            grid.columns = shown["columns"] = columns
+        columns = _columns(offset, spec.function, self.wide.value, self.orders.value)
+        if columns != self.shown_columns:
+            grid.columns = self.shown_columns = columns
         elif rows == grid.rows:
             return
         grid.rows = rows
         grid.update()
 
-    update_table()
+    def tick(self) -> None:
+        poll = self.view.poll
+        if poll.polls != self.shown_polls:
+            self.shown_polls = poll.polls
+            self.status.refresh()
+            self.update_table()
 
-    def tick() -> None:
-        if poll.polls != shown["polls"]:
-            shown["polls"] = poll.polls
-            status.refresh()
-            update_table()
 
-    ui.timer(REFRESH_S, tick)
+class WriteCard:
+    """Writes of holding registers or coils (engineer only), through the send policy, confirmed when it asks."""
 
-    # -- writes (engineer only) ---------------------------------------------------------
-    with ui.card().classes("w-full"):
-        ui.label("Write holding registers or coils").classes("text-subtitle1")
-        if role != "engineer":
-            ui.label("Writes are for engineers (this session may read only).").classes("text-grey-7").props(
-                "data-testid=poll-write-note")
-            return
-        with ui.row().classes("items-end gap-3 flex-wrap"):
-            w_unit = range_number("Unit", 1, 254, integer=True, value=min(known) if known else 1).classes("w-24")
-            w_kind = ui.select({"register": "holding register(s), 06/16", "coil": "coil(s), 05/15"}, value="register",
-                               label="Write").props("dense outlined data-testid=poll-write-kind").classes("w-56")
-            w_address = _address_field("Address", 3000, base).classes("w-32")
-            w_values = ui.input("Value(s)", value="200", placeholder="e.g. 200 or 1, 2, -30 (coils: 1 0 1)").props(
-                "dense outlined").classes("w-56")
-            w_multi = ui.checkbox("function 16 (multiple)")
-            w_multi.bind_visibility_from(w_kind, "value", value="register")
-            w_button = ui.button("Write", icon="edit")
-        ui.label("Addresses as chosen above. Every write goes through the send policy of the unit's device type (by the "
-                 "line's type for a unit not in the plant): a known device's register asks for a confirmation; its "
-                 "read-only, MFR and never-written registers, and coils of a device without coils, are refused.").classes(
-            "text-caption text-grey-7")
+    def __init__(self, view: PollView):
+        self.view = view
 
-    async def write(confirmed: bool = False) -> None:
-        target = await checked_value(w_unit, "", f"Modbus poll write on {bus}", parameter="unit")
-        where = await checked_value(w_address, "", f"Modbus poll write on {bus}", parameter="address")
-        if target is None or where is None:
-            return  # the field says what it allows; the refusal is in the audit log
+    def build(self) -> None:
+        view = self.view
+        known, base = view.known, view.request.base
+        with ui.card().classes("w-full"):
+            ui.label("Write holding registers or coils").classes("text-subtitle1")
+            if view.role != "engineer":
+                ui.label("Writes are for engineers (this session may read only).").classes("text-grey-7").props(
+                    "data-testid=poll-write-note")
+                return
+            with ui.row().classes("items-end gap-3 flex-wrap"):
+                self.w_unit = range_number("Unit", 1, 254, integer=True, value=min(known) if known else 1).classes("w-24")
+                self.w_kind = ui.select({"register": "holding register(s), 06/16", "coil": "coil(s), 05/15"},
+                                        value="register", label="Write").props(
+                    "dense outlined data-testid=poll-write-kind").classes("w-56")
+                self.w_address = _address_field("Address", 3000, base).classes("w-32")
+                self.w_values = ui.input("Value(s)", value="200", placeholder="e.g. 200 or 1, 2, -30 (coils: 1 0 1)").props(
+                    "dense outlined").classes("w-56")
+                self.w_multi = ui.checkbox("function 16 (multiple)")
+                self.w_multi.bind_visibility_from(self.w_kind, "value", value="register")
+                w_button = ui.button("Write", icon="edit")
+            ui.label("Addresses as chosen above. Every write goes through the send policy of the unit's device type "
+                     "(by the line's type for a unit not in the plant): a known device's register asks for a "
+                     "confirmation; its read-only, MFR and never-written registers, and coils of a device without "
+                     "coils, are refused.").classes("text-caption text-grey-7")
+        w_button.on_click(lambda: self.write())
+
+    def _values(self) -> list[int] | None:
+        """The entered values, or None (said in a notification) when they are not whole numbers for the kind."""
+        text = self.w_values.value
         try:
-            values = [int(v, 0) for v in str(w_values.value or "").replace(",", " ").split()]
+            values = [int(v, 0) for v in str(text or "").replace(",", " ").split()]
         except ValueError:
-            notify_error(f"'{w_values.value}' is not a list of whole numbers")
-            return
+            notify_error(f"'{text}' is not a list of whole numbers")
+            return None
         if not values:
             notify_error("enter at least one value")
+            return None
+        if self.w_kind.value == "coil" and any(v not in (0, 1) for v in values):
+            notify_error(f"'{text}': a coil is 0 or 1")
+            return None
+        return values
+
+    def _ask(self, question: str) -> None:
+        with ui.dialog() as dialog, ui.card().classes("w-[32rem]"):
+            ui.label(question).classes("text-body1")
+            with ui.row().classes("justify-end w-full"):
+                ui.button("Cancel", on_click=dialog.close).props("flat")
+
+                async def go() -> None:
+                    dialog.close()
+                    await self.write(confirmed=True)
+
+                ui.button("Write", color="warning", on_click=go).props("data-testid=poll-confirm")
+        dialog.open()
+
+    async def write(self, confirmed: bool = False) -> None:
+        view = self.view
+        bus, poll = view.bus, view.poll
+        target = await checked_value(self.w_unit, "", f"Modbus poll write on {bus}", parameter="unit")
+        where = await checked_value(self.w_address, "", f"Modbus poll write on {bus}", parameter="address")
+        if target is None or where is None:
+            return  # the field says what it allows; the refusal is in the audit log
+        values = self._values()
+        if values is None:
             return
-        coils = w_kind.value == "coil"
-        if coils and any(v not in (0, 1) for v in values):
-            notify_error(f"'{w_values.value}': a coil is 0 or 1")
-            return
-        address = int(w_address.value or 0) - int(base.value or 0)
+        coils = self.w_kind.value == "coil"
+        address = int(self.w_address.value or 0) - int(view.request.base.value or 0)
         user, role = current_user()  # the account store's answer now, not the page's when it was built
         try:
             if coils:
-                await poll.write_coils(int(w_unit.value or 0), address, [bool(v) for v in values], user=user or "anonymous",
-                                       role=role, confirmed=confirmed)
+                await poll.write_coils(int(self.w_unit.value or 0), address, [bool(v) for v in values],
+                                       user=user or "anonymous", role=role, confirmed=confirmed)
             else:
-                await poll.write(int(w_unit.value or 0), address, values, user=user or "anonymous", role=role,
-                                 confirmed=confirmed, multiple=bool(w_multi.value) or len(values) > 1)
+                await poll.write(int(self.w_unit.value or 0), address, values, user=user or "anonymous", role=role,
+                                 confirmed=confirmed, multiple=bool(self.w_multi.value) or len(values) > 1)
         except mp.NeedsConfirmation as exc:
-            with ui.dialog() as dialog, ui.card().classes("w-[32rem]"):
-                ui.label(str(exc)).classes("text-body1")
-                with ui.row().classes("justify-end w-full"):
-                    ui.button("Cancel", on_click=dialog.close).props("flat")
-
-                    async def go() -> None:
-                        dialog.close()
-                        await write(confirmed=True)
-
-                    ui.button("Write", color="warning", on_click=go).props("data-testid=poll-confirm")
-            dialog.open()
+            self._ask(str(exc))
             return
         except (mp.PollError, PermissionDenied, AuditUnavailable) as exc:
             notify_error(str(exc))
@@ -224,7 +284,16 @@ def _view(runtime, bus: str) -> None:
             return
         ui.notify("written", type="positive")
 
-    w_button.on_click(lambda: write())
+
+def _view(runtime, bus: str) -> None:
+    view = PollView(runtime, bus)
+    ui.context.client.on_disconnect(view.poll.stop)
+    view.intro()
+    view.request = RequestCard(view)
+    view.results = ResultsCard(view)
+    view.request.build()
+    view.results.build()
+    WriteCard(view).build()
 
 
 def _address_field(label: str, value: int, base) -> ui.number:

@@ -59,22 +59,20 @@ def _who() -> dict:
     return {"user": user or "anonymous", "role": role}
 
 
-def _engineer_view(runtime, bus: str) -> None:
-    tl = tx.transmit_list(runtime.worker, bus, runtime.data_dir)
-    if not tl.loaded.is_set() and not getattr(tl, "_loading", False):
-        tl._loading = True
-        background_tasks.create(tl.load(), name=f"load transmit list {bus}")
-    session = ui.context.client.id
-    devices = runtime.plant.devices_on(bus)
+class TransmitView:
+    """What the cards of the transmit list share: the bus's list, the session and the checked action."""
 
-    ui.label(
-        "Rows are sent once or cyclically (10 ms .. 10 s). Cyclic rows stop within 0.5 s when this browser closes, "
-        "freezes or loses the network. Every send, start and stop is recorded in the audit log. Frames the device "
-        "documents forbid (HD-Lock firmware-update requests 0x706/0x707, commands 2-4, FwUpdateCommandRegister) "
-        "are refused."
-    ).classes("text-caption text-grey-8")
+    def __init__(self, runtime, bus: str, tl: tx.TransmitList):
+        self.bus = bus
+        self.tl = tl
+        self.session = ui.context.client.id
+        self.cards: list = []
 
-    async def guarded(action, ok: str = "") -> bool:
+    def refresh(self) -> None:
+        for card in self.cards:
+            card.refresh()
+
+    async def guarded(self, action, ok: str = "") -> bool:
         try:
             await action()
         except tx.NeedsConfirmation as exc:
@@ -88,97 +86,129 @@ def _engineer_view(runtime, bus: str) -> None:
             return False
         if ok:
             ui.notify(ok, type="positive")
-        update()
+        self.refresh()
         return True
 
-    # -- raw entry -------------------------------------------------------------------
-    with ui.card().classes("w-full"):
-        ui.label("Frame as bytes").classes("text-subtitle1")
-        with ui.row().classes("items-end gap-3 flex-wrap"):
-            can_id = ui.input("ID (hex)", value="123").props("dense outlined").classes("w-28 mono")
-            extended = ui.checkbox("extended (29-bit)")
-            dlc = range_number("DLC", 0, 8, integer=True, value=2).classes("w-24")
-            data = ui.input("Data (hex bytes)", value="01 02").props("dense outlined").classes("w-56 mono")
-            mode = ui.select({"once": "once", "cyclic": "cyclic"}, value="once", label="Send").props("dense outlined").classes("w-28")
-            period = range_number("Cycle ms", tx.PERIOD_MIN_MS, tx.PERIOD_MAX_MS, unit="ms", integer=True, value=100).classes("w-36")
-            period.bind_visibility_from(mode, "value", value="cyclic")
 
-            async def add_raw() -> None:
-                if not all_valid(dlc, *([period] if mode.value == "cyclic" else [])):
-                    return  # the field says what it allows; nothing is added
+class RawFrameCard:
+    """A frame entered as ID, DLC and data bytes, sent once or cyclically."""
 
-                async def do() -> None:
-                    payload = tx.parse_bytes(data.value or "")
-                    row = tx.make_row(_parse_int(can_id.value, "ID"), bool(extended.value), payload,
-                                      int(period.value) if mode.value == "cyclic" else None,
-                                      dlc=int(dlc.value) if dlc.value is not None else None)
-                    await tl.add(row, **_who())
+    def __init__(self, view: TransmitView):
+        self.view = view
 
-                await guarded(do)
+    def build(self) -> None:
+        with ui.card().classes("w-full"):
+            ui.label("Frame as bytes").classes("text-subtitle1")
+            with ui.row().classes("items-end gap-3 flex-wrap"):
+                self.can_id = ui.input("ID (hex)", value="123").props("dense outlined").classes("w-28 mono")
+                self.extended = ui.checkbox("extended (29-bit)")
+                self.dlc = range_number("DLC", 0, 8, integer=True, value=2).classes("w-24")
+                self.data = ui.input("Data (hex bytes)", value="01 02").props("dense outlined").classes("w-56 mono")
+                self.mode = ui.select({"once": "once", "cyclic": "cyclic"}, value="once", label="Send").props(
+                    "dense outlined").classes("w-28")
+                self.period = range_number("Cycle ms", tx.PERIOD_MIN_MS, tx.PERIOD_MAX_MS, unit="ms", integer=True,
+                                           value=100).classes("w-36")
+                self.period.bind_visibility_from(self.mode, "value", value="cyclic")
+                ui.button("Add", icon="add", on_click=self.add_raw).props("data-testid=transmit-add")
 
-            ui.button("Add", icon="add", on_click=add_raw).props("data-testid=transmit-add")
+    async def add_raw(self) -> None:
+        cyclic = self.mode.value == "cyclic"
+        if not all_valid(self.dlc, *([self.period] if cyclic else [])):
+            return  # the field says what it allows; nothing is added
 
-    # -- device messages by name (the frames each device type declares) -------------------
-    offered = [(dev, form) for dev in devices for form in tx.named_forms(dev.type, dev.options)]
-    if offered:
+        async def do() -> None:
+            payload = tx.parse_bytes(self.data.value or "")
+            row = tx.make_row(_parse_int(self.can_id.value, "ID"), bool(self.extended.value), payload,
+                              int(self.period.value) if self.mode.value == "cyclic" else None,
+                              dlc=int(self.dlc.value) if self.dlc.value is not None else None)
+            await self.view.tl.add(row, **_who())
+
+        await self.view.guarded(do)
+
+    def refresh(self) -> None:
+        pass
+
+
+class NamedFrameCard:
+    """Device messages by name: the frames each device type declares, built through its codec."""
+
+    def __init__(self, view: TransmitView, offered: list):
+        self.view = view
+        self.offered = offered
+
+    def build(self) -> None:
         with ui.card().classes("w-full"):
             with ui.row().classes("items-end gap-3"):
                 ui.label("Device message by name").classes("text-subtitle1")
                 # a row built by name is sent once or cyclically like a raw one
-                named_mode = ui.select({"once": "once", "cyclic": "cyclic"}, value="once", label="Send").props(
+                self.named_mode = ui.select({"once": "once", "cyclic": "cyclic"}, value="once", label="Send by name").props(
                     "dense outlined data-testid=named-mode").classes("w-28")
-                named_period = range_number("Cycle ms", tx.PERIOD_MIN_MS, tx.PERIOD_MAX_MS, unit="ms", integer=True,
-                                            value=500).classes("w-36")
-                named_period.bind_visibility_from(named_mode, "value", value="cyclic")
+                self.named_period = range_number("Cycle ms by name", tx.PERIOD_MIN_MS, tx.PERIOD_MAX_MS, unit="ms",
+                                                 integer=True, value=500).classes("w-36")
+                self.named_period.bind_visibility_from(self.named_mode, "value", value="cyclic")
+            for dev, form in self.offered:
+                self._form_row(dev, form)
 
-            async def add_named(build) -> None:
-                if named_mode.value == "cyclic" and not all_valid(named_period):
+    def _form_row(self, dev, form) -> None:
+        with ui.row().classes("items-center gap-2 flex-wrap"):
+            ui.label(f"{dev.name} {form.title}").classes("w-48")
+            entries = {}
+            for f in form.fields:
+                if f.kind == "flag":
+                    entries[f.name] = ui.checkbox(f.name, value=bool(f.default))
+                elif f.kind == "choice":
+                    entries[f.name] = ui.select(dict(f.choices or {}), value=f.default).props(
+                        "dense outlined").classes("w-36")
+                else:
+                    entries[f.name] = range_number(f.name.capitalize(), f.low, f.high, integer=True,
+                                                   value=f.default).classes("w-32")
+
+            async def add_form() -> None:
+                numbers = [e for f, e in zip(form.fields, entries.values()) if f.kind == "number"]
+                if not all_valid(*numbers):
                     return
+                await self.add_named(lambda: tx.named_row(dev.type, dev.name, dev.options, form.title,
+                                                          {n: e.value for n, e in entries.items()}))
 
-                async def do() -> None:
-                    row = build()
-                    if named_mode.value == "cyclic":
-                        row = tx.make_row(row.can_id, row.extended, row.data, int(named_period.value), row.label)
-                    await tl.add(row, **_who())
+            ui.button("Add", icon="add", on_click=add_form).props("flat dense")
 
-                await guarded(do)
-            for dev, form in offered:
-                with ui.row().classes("items-center gap-2 flex-wrap"):
-                    ui.label(f"{dev.name} {form.title}").classes("w-48")
-                    entries = {}
-                    for f in form.fields:
-                        if f.kind == "flag":
-                            entries[f.name] = ui.checkbox(f.name, value=bool(f.default))
-                        elif f.kind == "choice":
-                            entries[f.name] = ui.select(dict(f.choices or {}), value=f.default).props(
-                                "dense outlined").classes("w-36")
-                        else:
-                            entries[f.name] = range_number(f.name.capitalize(), f.low, f.high, integer=True,
-                                                           value=f.default).classes("w-32")
+    async def add_named(self, build) -> None:
+        if self.named_mode.value == "cyclic" and not all_valid(self.named_period):
+            return
 
-                    async def add_form(dev=dev, form=form, entries=entries) -> None:
-                        numbers = [e for f, e in zip(form.fields, entries.values()) if f.kind == "number"]
-                        if not all_valid(*numbers):
-                            return
-                        await add_named(lambda: tx.named_row(dev.type, dev.name, dev.options, form.title,
-                                                             {n: e.value for n, e in entries.items()}))
+        async def do() -> None:
+            row = build()
+            if self.named_mode.value == "cyclic":
+                row = tx.make_row(row.can_id, row.extended, row.data, int(self.named_period.value), row.label)
+            await self.view.tl.add(row, **_who())
 
-                    ui.button("Add", icon="add", on_click=add_form).props("flat dense")
+        await self.view.guarded(do)
 
-    # -- the list -------------------------------------------------------------------------
-    shown = {"version": -1, "sent": -1}
+    def refresh(self) -> None:
+        pass
 
-    # one table, its rows replaced in place: a new table on every count would throw away the one whose Stop
-    # button the engineer is about to press, and the press would be lost
-    with ui.row().classes("items-center gap-2"):
-        ui.label("Rows").classes("text-subtitle1")
-        ui.button("Stop all", icon="stop", color="negative",
-                  on_click=lambda: guarded(_stop_all(tl))).props("dense")
-    note = ui.label().classes("text-grey-7")
-    error = ui.label().classes("text-negative")
-    t = ui.table(columns=COLUMNS, rows=[], row_key="key").props("dense flat bordered").classes("w-full can-table")
-    t.props("data-testid=transmit-table")
-    t.add_slot("body-cell-actions", r"""
+
+class RowsCard:
+    """The list's rows with Send, Start, Stop and Remove; replaced in place when the list or a count changes."""
+
+    def __init__(self, view: TransmitView):
+        self.view = view
+        self.shown_version = -1
+        self.shown_sent = -1
+
+    def build(self) -> None:
+        view, tl = self.view, self.view.tl
+        # one table, its rows replaced in place: a new table on every count would throw away the one whose Stop
+        # button the engineer is about to press, and the press would be lost
+        with ui.row().classes("items-center gap-2"):
+            ui.label("Rows").classes("text-subtitle1")
+            ui.button("Stop all", icon="stop", color="negative",
+                      on_click=lambda: view.guarded(_stop_all(tl))).props("dense")
+        self.note = ui.label().classes("text-grey-7")
+        self.error = ui.label().classes("text-negative")
+        t = ui.table(columns=COLUMNS, rows=[], row_key="key").props("dense flat bordered").classes("w-full can-table")
+        t.props("data-testid=transmit-table")
+        t.add_slot("body-cell-actions", r"""
         <q-td :props="props">
           <q-btn v-if="!props.row.cyclic" dense flat icon="send" label="Send" @click="$parent.$emit('send', props.row.key)" />
           <q-btn v-if="props.row.cyclic && !props.row.running" dense flat color="positive" icon="play_arrow" label="Start"
@@ -188,12 +218,19 @@ def _engineer_view(runtime, bus: str) -> None:
           <q-btn dense flat icon="delete" @click="$parent.$emit('remove', props.row.key)" />
         </q-td>
     """)
+        t.on("send", lambda e: view.guarded(lambda: self.confirmed_send(e.args, False)))
+        t.on("start", lambda e: view.guarded(lambda: self.confirmed_send(e.args, True)))
+        t.on("stop", lambda e: view.guarded(lambda: tl.stop(e.args, **_who())))
+        t.on("remove", lambda e: view.guarded(lambda: tl.remove(e.args, **_who())))
+        self.table = t
 
-    async def confirmed_send(key: str, start: bool) -> None:
+    async def confirmed_send(self, key: str, start: bool) -> None:
         """Send or start a row; a risk its device policy names is asked first (and a "no" is audited)."""
+        tl, bus = self.view.tl, self.view.bus
+
         async def go(confirmed: bool) -> None:
             if start:
-                await tl.start(key, session=session, confirmed=confirmed, **_who())
+                await tl.start(key, session=self.view.session, confirmed=confirmed, **_who())
             else:
                 await tl.send_once(key, confirmed=confirmed, **_who())
 
@@ -206,38 +243,57 @@ def _engineer_view(runtime, bus: str) -> None:
                 await refuse(bus, f"transmit on {bus}: {what}", "not confirmed", parameter=row.id_text() if row else "")
                 return
             await go(True)
-        update()
+        self.refresh()
 
-    t.on("send", lambda e: guarded(lambda: confirmed_send(e.args, False)))
-    t.on("start", lambda e: guarded(lambda: confirmed_send(e.args, True)))
-    t.on("stop", lambda e: guarded(lambda: tl.stop(e.args, **_who())))
-    t.on("remove", lambda e: guarded(lambda: tl.remove(e.args, **_who())))
-
-    def update() -> None:
-        error.set_text(tl.load_error or "")
-        error.set_visibility(bool(tl.load_error))
+    def refresh(self) -> None:
+        tl, t = self.view.tl, self.table
+        self.error.set_text(tl.load_error or "")
+        self.error.set_visibility(bool(tl.load_error))
         loaded = tl.loaded.is_set()
         rows = [{
             "key": r.key, "id": r.id_text(), "dlc": r.dlc, "data": r.data.hex(" ").upper(), "label": r.label,
             "mode": "once" if r.period_ms is None else f"every {r.period_ms} ms" + (" · running" if tl.is_running(r.key) else ""),
             "running": tl.is_running(r.key), "cyclic": r.period_ms is not None, "sent": tl.sent.get(r.key, 0),
         } for r in tl.rows] if loaded else []
-        note.set_text("loading the saved list ..." if not loaded else "" if rows else "No rows yet: add a frame above.")
-        note.set_visibility(not loaded or not rows)
+        self.note.set_text("loading the saved list ..." if not loaded else "" if rows else "No rows yet: add a frame above.")
+        self.note.set_visibility(not loaded or not rows)
         t.set_visibility(loaded)
         if rows != t.rows:
             t.rows = rows
             t.update()
-        shown["version"] = tl.version
-        shown["sent"] = sum(tl.sent.values())
+        self.shown_version = tl.version
+        self.shown_sent = sum(tl.sent.values())
 
-    update()
+    def tick(self) -> None:  # O(1) unless something changed; at most 64 rows sent
+        tl = self.view.tl
+        if tl.version != self.shown_version or (tl.running and sum(tl.sent.values()) != self.shown_sent):
+            self.refresh()
 
-    def tick() -> None:  # O(1) unless something changed; at most 64 rows sent
-        if tl.version != shown["version"] or (tl.running and sum(tl.sent.values()) != shown["sent"]):
-            update()
 
-    ui.timer(REFRESH_S, tick)
+def _engineer_view(runtime, bus: str) -> None:
+    tl = tx.transmit_list(runtime.worker, bus, runtime.data_dir)
+    if not tl.loaded.is_set() and not getattr(tl, "_loading", False):
+        tl._loading = True
+        background_tasks.create(tl.load(), name=f"load transmit list {bus}")
+    view = TransmitView(runtime, bus, tl)
+    devices = runtime.plant.devices_on(bus)
+
+    ui.label(
+        "Rows are sent once or cyclically (10 ms .. 10 s). Cyclic rows stop within 0.5 s when this browser closes, "
+        "freezes or loses the network. Every send, start and stop is recorded in the audit log. Frames the device "
+        "documents forbid (HD-Lock firmware-update requests 0x706/0x707, commands 2-4, FwUpdateCommandRegister) "
+        "are refused."
+    ).classes("text-caption text-grey-8")
+    view.cards.append(RawFrameCard(view))
+    offered = [(dev, form) for dev in devices for form in tx.named_forms(dev.type, dev.options)]
+    if offered:
+        view.cards.append(NamedFrameCard(view, offered))
+    rows = RowsCard(view)
+    view.cards.append(rows)
+    for card in view.cards:
+        card.build()
+    rows.refresh()
+    ui.timer(REFRESH_S, rows.tick)
 
 
 def _stop_all(tl: tx.TransmitList):

@@ -75,9 +75,9 @@ def test_transmit_list(app_url: str, browser: Browser):
     expect(page.get_by_text("Transmit list · can1")).to_be_visible()
     page.get_by_label("ID (hex)").fill("321")
     page.get_by_label("Data (hex bytes)").fill("AA 55")
-    page.get_by_label("Send").click()
+    page.get_by_label("Send", exact=True).click()
     page.get_by_role("option", name="cyclic").click()
-    page.get_by_label("Cycle ms").fill("50")
+    page.get_by_label("Cycle ms", exact=True).fill("50")
     page.get_by_test_id("transmit-add").click()
     table = page.get_by_test_id("transmit-table")
     row = table.locator("tbody tr").filter(has_text="0x321")
@@ -97,7 +97,7 @@ def test_transmit_list(app_url: str, browser: Browser):
     page.get_by_label("ID (hex)").fill("706")
     page.get_by_label("Data (hex bytes)").fill("00 00 00 00 00 00")
     page.get_by_label("DLC").fill("6")
-    page.get_by_label("Send").click()
+    page.get_by_label("Send", exact=True).click()
     page.get_by_role("option", name="once").click()
     page.get_by_test_id("transmit-add").click()
     expect(page.get_by_text(re.compile("FWU erase sector.*firmware-update"))).to_be_visible()
@@ -138,9 +138,16 @@ def test_modbus_poll(app_url: str, browser: Browser):
     expect(header).not_to_contain_text("uint32")
     expect(header).to_contain_text("float32 ABCD")
     expect(table.locator("tbody tr").first).to_contain_text("SerialNumber")
+    expect(header).not_to_contain_text("float32 BADC")  # the byte-swapped orders only when chosen
     overflow = table.locator(".q-table__middle").evaluate("e => e.scrollWidth - e.clientWidth")
     assert overflow <= 1, f"the poll table is {overflow} px wider than its box at 1024 px"
     shoot(page, "modbus-poll-float32")
+    page.get_by_label("Word orders").click()
+    page.get_by_role("option", name="BADC, DCBA (bytes swapped)").click()
+    expect(header).to_contain_text("float32 DCBA")
+    expect(header).not_to_contain_text("float32 ABCD")
+    overflow = table.locator(".q-table__middle").evaluate("e => e.scrollWidth - e.clientWidth")
+    assert overflow <= 1, f"the poll table is {overflow} px wider than its box at 1024 px (byte-swapped orders)"
     page.set_viewport_size({"width": 1440, "height": 900})
     # a protected register is refused
     page.get_by_label("Address", exact=True).fill("10")
