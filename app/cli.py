@@ -103,6 +103,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     report.add_parser(sub)  # commission report --plant P --out DIR: the as-left report without a browser
 
+    from app import record_cli
+
+    record_cli.add_parsers(sub)  # commission approve / checkout / sign: the commissioning record without a browser
+
     from app import batch, project
 
     batch.add_parser(sub)  # commission apply --plant P --from FILE --devices a,b,c: one set to several devices

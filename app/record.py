@@ -183,17 +183,27 @@ def diff_sets(old: dict[str, dict], new: dict[str, dict]) -> list[dict]:
     return rows
 
 
+LIVE_VALUE = "live value"  # a read-only value (state, measurement, counter) that differs: not a setting, never "changed"
+
+
 def compare_with_approved(current: dict[str, dict], approved: dict[str, dict] | None) -> list[dict]:
-    """Every current parameter against the approved set: ``equal``, ``changed`` or ``not approved``."""
+    """Every current parameter against the approved set: ``equal``, ``changed`` or ``not approved``;
+    a differing value the device changes itself is ``updated by the device``, and a differing read-only
+    value (the bolt's position, a state, a timer: read with the set, but no setting) a ``live value``,
+    as drift leaves both out."""
     rows = []
     for key, now in current.items():
         ref = None if approved is None else approved.get(key)
         if ref is None:
             verdict = "not approved"
-        elif ref.get("raw") == now.get("raw"):
+        elif _same(ref.get("raw"), now.get("raw")):
             verdict = "equal"
+        elif now.get("device_updates"):
+            verdict = "updated by the device"
+        elif not (now.get("writable") if "writable" in now else ref.get("writable")):
+            verdict = LIVE_VALUE
         else:
-            verdict = "updated by the device" if now.get("device_updates") else "changed"
+            verdict = "changed"
         rows.append({"key": key, "name": now["name"], "value": now["text"], "unit": now.get("unit", ""),
                      "approved": None if ref is None else ref["text"], "verdict": verdict, "writable": now.get("writable")})
     return rows

@@ -20,7 +20,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from app.record import compare_with_approved, device_updated, param_set
+from app.record import LIVE_VALUE, compare_with_approved, device_updated, param_set
 
 AUDIT_ROWS = 200
 
@@ -78,7 +78,7 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
         "approved": None if approved_entry is None else {"id": approved_entry.id, "time": approved_entry.time,
                                                           "by": approved_entry.user, "title": approved_entry.title},
         "parameters": rows,
-        "counts": {v: sum(r["verdict"] == v for r in rows) for v in ("equal", "changed", "not approved", "updated by the device")},
+        "counts": {v: sum(r["verdict"] == v for r in rows) for v in ("equal", "changed", "not approved", "updated by the device", LIVE_VALUE)},
         "drift": (getattr(state, "drift", None) or {}).get("changed", []),
         "checkouts": [{"id": e.id, "time": e.time, **{k: e.data[k] for k in ("title", "status", "reason", "user", "duration_s", "steps")}}
                       for e in latest_checkouts.values()],
@@ -105,23 +105,32 @@ h1{font-size:22px}h2{font-size:18px;border-bottom:2px solid #444;margin-top:32px
 table{border-collapse:collapse;margin:6px 0 12px;font-size:12px;width:100%}
 td,th{border:1px solid #bbb;padding:2px 6px;text-align:left;vertical-align:top}th{background:#eee}
 .equal{color:#1b5e20}.changed,.failed,.aborted{color:#b71c1c;font-weight:600}.passed{color:#1b5e20;font-weight:600}
-.notapproved,.skipped{color:#8d6e00}.notavailable,.updatedbythedevice{color:#555}.sig{border:2px solid #1b5e20;padding:8px;margin:8px 0}.unsigned{border-color:#b71c1c}
+.notapproved,.skipped{color:#8d6e00}.notavailable,.updatedbythedevice,.livevalue{color:#555}.sig{border:2px solid #1b5e20;padding:8px;margin:8px 0}.unsigned{border-color:#b71c1c}
 """
+
+
+def _with_unit(value: Any, unit: str) -> str:
+    """A parameter's shown value with its unit once (the model's text often carries the unit already)."""
+    text = "" if value is None else str(value)
+    return text if not unit or text.endswith(unit) else f"{text} {unit}".strip()
 
 
 def _e(value: Any) -> str:
     return html.escape("" if value is None else str(value))
 
 
-def _signoff_html(sig: dict | None, what: str) -> str:
+def _signoff_html(sig: dict | None, what: str, plant: dict | None = None) -> str:
+    if not sig and plant:  # a device of a signed plant: the plant's sign-off covers it
+        return f'<div class="sig">{_e(what)}: no sign-off of its own; signed with the plant (record #{plant["id"]})</div>'
     if not sig:
         return f'<div class="sig unsigned">{_e(what)}: not signed</div>'
     return (f'<div class="sig">{_e(what)} signed by <b>{_e(sig["name"])}</b> ({_e(sig["role"])}) on {_when(sig["time"])}'
             f'<br>Comment: {_e(sig["comment"])}<br><small>record #{sig["id"]}, content SHA-256 {sig["sha256"][:16]}…</small></div>')
 
 
-def device_html(d: dict) -> str:
-    out = [f'<h2 id="{_e(d["device"])}">{_e(d["device"])} <small>({_e(d["type"])})</small></h2>', _signoff_html(d["signoff"], d["device"])]
+def device_html(d: dict, plant_signoff: dict | None = None) -> str:
+    out = [f'<h2 id="{_e(d["device"])}">{_e(d["device"])} <small>({_e(d["type"])})</small></h2>',
+           _signoff_html(d["signoff"], d["device"], plant_signoff)]
     ident = {"type": d["type"], "bus": d["bus"], "address": d["address"], **d["identity"], "status": d["status"]}
     out.append("<table>" + "".join(f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in ident.items()) + "</table>")
     who = ", ".join(d["commissioned_by"]) or "nobody yet"
@@ -134,7 +143,7 @@ def device_html(d: dict) -> str:
         + f"Values {_e(d['parameters_source'])}. " + ", ".join(f"{n} {_e(k)}" for k, n in d["counts"].items()) + "</p>")
     if d["parameters"]:
         out.append("<table><tr><th>Parameter</th><th>As left</th><th>Approved</th><th></th></tr>" + "".join(
-            f'<tr><td>{_e(r["name"])}</td><td>{_e(r["value"])} {_e(r["unit"])}</td><td>{_e(r["approved"])}</td>'
+            f'<tr><td>{_e(r["name"])}</td><td>{_e(_with_unit(r["value"], r["unit"]))}</td><td>{_e(r["approved"])}</td>'
             f'<td class="{r["verdict"].replace(" ", "")}">{_e(r["verdict"])}</td></tr>' for r in d["parameters"]) + "</table>")
     out.append("<h3>Checkouts</h3>")
     if not d["checkouts"]:
@@ -166,17 +175,21 @@ def _checkout_summary(d: dict) -> str:
     return ", ".join(f"{c['title']}: {c['status']}" for c in d["checkouts"]) or "none"
 
 
+def _signed_word(d: dict, p: dict) -> str:
+    return "signed" if d["signoff"] else "with the plant" if p.get("signoff") else "not signed"
+
+
 def plant_html(p: dict) -> str:
     summary = "".join(
         f'<tr><td><a href="#{_e(d["device"])}">{_e(d["device"])}</a></td><td>{_e(d["type"])}</td>'
         f'<td>{_e(_checkout_summary(d))}</td>'
         f'<td>{d["counts"]["changed"]} changed, {d["counts"]["not approved"]} not approved</td>'
-        f'<td>{"signed" if d["signoff"] else "not signed"}</td></tr>' for d in p["devices"])
+        f'<td>{_signed_word(d, p)}</td></tr>' for d in p["devices"])
     return (f"<!doctype html><html><head><meta charset='utf-8'><title>As-left report {_e(p['plant'])}</title><style>{CSS}</style></head><body>"
             f"<h1>As-left report: plant {_e(p['plant'])}</h1><p>Generated {_when(p['generated'])} by commission.</p>"
             + _signoff_html(p["signoff"], f"Plant {p['plant']}")
             + "<table><tr><th>Device</th><th>Type</th><th>Checkouts</th><th>Parameters</th><th>Sign-off</th></tr>" + summary + "</table>"
-            + "".join(device_html(d) for d in p["devices"]) + "</body></html>")
+            + "".join(device_html(d, p["signoff"]) for d in p["devices"]) + "</body></html>")
 
 
 # -- PDF (ReportLab, from the same content) ----------------------------------------------------------
@@ -204,6 +217,8 @@ def plant_pdf(p: dict) -> bytes:
         return t
 
     def sig(s: dict | None, what: str) -> Paragraph:
+        if not s and p.get("signoff") and what != f"Plant {p['plant']}":
+            return para(f"{what}: no sign-off of its own; signed with the plant (record #{p['signoff']['id']})", styles["BodyText"])
         if not s:
             return para(f"{what}: not signed", styles["BodyText"])
         return para(f"{what} signed by {s['name']} ({s['role']}) on {_when(s['time'])}. Comment: {s['comment']}. "
@@ -214,7 +229,7 @@ def plant_pdf(p: dict) -> bytes:
                    Spacer(1, 4 * mm)]
     story.append(table([["Device", "Type", "Checkouts", "Parameters", "Sign-off"]] + [
         [d["device"], d["type"], ", ".join(f"{c['title']}: {c['status']}" for c in d["checkouts"]) or "none",
-         f"{d['counts']['changed']} changed, {d['counts']['not approved']} not approved", "signed" if d["signoff"] else "not signed"]
+         f"{d['counts']['changed']} changed, {d['counts']['not approved']} not approved", _signed_word(d, p)]
         for d in p["devices"]], [0.18, 0.1, 0.37, 0.22, 0.13]))
     for d in p["devices"]:
         story += [PageBreak(), Paragraph(_e(f"{d['device']} ({d['type']})"), styles["Heading2"]), sig(d["signoff"], d["device"])]
@@ -227,7 +242,7 @@ def plant_pdf(p: dict) -> bytes:
         story.append(para(f"Values {d['parameters_source']}. " + ", ".join(f"{n} {k}" for k, n in d["counts"].items())))
         if d["parameters"]:
             story.append(table([["Parameter", "As left", "Approved", "Verdict"]] + [
-                [r["name"], f"{r['value']} {r['unit']}".strip(), r["approved"], r["verdict"]] for r in d["parameters"]],
+                [r["name"], _with_unit(r["value"], r["unit"]), r["approved"], r["verdict"]] for r in d["parameters"]],
                 [0.4, 0.25, 0.2, 0.15]))
         story.append(Paragraph("Checkouts", styles["Heading3"]))
         for c in d["checkouts"]:

@@ -1,0 +1,347 @@
+"""The commissioning record without a browser: ``commission approve``, ``commission checkout`` and
+``commission sign``.
+
+Each command starts the plant (with its simulated devices unless ``--no-sim``), waits for the
+devices to come online and acts through the same record service as the record page
+(``runtime.record``, app/record.py): the same checkout runner and the worker's gate, the same role
+checks. The CLI user (``cli:<login>``) acts with the engineer role; questions of a checkout are
+asked on standard input (``--answer ask``) or answered yes by the CLI user (``--answer yes``), and
+every answer is recorded with who gave it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from app.record import StepFailed, checkout_module
+
+SIGNER_ROLE = "commissioning engineer"
+
+
+# -- shared -------------------------------------------------------------------------------------
+def _common(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
+    parser.add_argument("--no-sim", action="store_true", help="do not start simulated devices")
+    parser.add_argument("--wait", type=float, default=20.0, help="seconds to wait for the devices to come online (default 20)")
+    parser.add_argument("--data-dir", type=Path, default=argparse.SUPPRESS,
+                        help="data folder with the record (default: ~/.local/share/commission)")
+
+
+def _devices(parser: argparse.ArgumentParser, what: str) -> None:
+    parser.add_argument("--device", action="append", default=[], metavar="NAME", help=f"device to {what} (repeatable)")
+    parser.add_argument("--all", action="store_true", help=f"{what} every device of the plant")
+
+
+def add_parsers(sub) -> None:
+    approve = sub.add_parser("approve", help="store the approved parameter set of devices as read now, headless")
+    _common(approve)
+    _devices(approve, "approve")
+    approve.set_defaults(func=run_approve)
+
+    checkout = sub.add_parser("checkout", help="run the declared checkout of devices, headless; exit code 0 only when all passed")
+    _common(checkout)
+    _devices(checkout, "check out")
+    checkout.add_argument("--answer", choices=["yes", "ask"], default=None,
+                          help="questions to a person: ask on standard input (default when it is a terminal) or "
+                               "answer yes, recorded as answered by the CLI user")
+    checkout.add_argument("--set", action="append", default=[], metavar="DEVICE:KEY=VALUE",
+                          help="a checkout setting of one device, e.g. lift:distance_mm=10 (repeatable)")
+    checkout.add_argument("--sim-action", action="append", default=[], metavar="DEVICE:ACTION[:K=V,...]",
+                          help="before the checkouts, run a declared control of a simulated device's twin (a fault "
+                               "to see a step fail, e.g. 'heater-hm:blow fuse:channel=1'); simulation only")
+    checkout.set_defaults(func=run_checkout)
+
+    sign = sub.add_parser("sign", help="sign the as-left record of the plant (or of one device), headless")
+    _common(sign)
+    sign.add_argument("--name", required=True, help="the name of the person signing")
+    sign.add_argument("--comment", default="", help="free comment of the sign-off")
+    sign.add_argument("--signer-role", default=SIGNER_ROLE, help=f"the signer's role as written in the record (default: {SIGNER_ROLE})")
+    sign.add_argument("--device", default=None, metavar="NAME", help="sign this device's record instead of the plant's")
+    sign.set_defaults(func=run_sign)
+
+
+def _cli_user() -> str:
+    from app.cli import _cli_user
+
+    return _cli_user()
+
+
+def _chosen(runtime, args) -> list[str]:
+    names = list(runtime.plant.devices)
+    if args.all or not args.device:
+        return names
+    unknown = [n for n in args.device if n not in runtime.plant.devices]
+    if unknown:
+        raise SystemExit(f"commission: no device {', '.join(unknown)} in plant {runtime.plant.name} "
+                         f"(devices: {', '.join(names)})")
+    return list(dict.fromkeys(args.device))
+
+
+async def _wait_online(runtime, names: list[str], wait_s: float) -> None:
+    end = time.monotonic() + wait_s
+    while time.monotonic() < end and not all(runtime.store.devices[n].status == "online" for n in names):
+        await asyncio.sleep(0.2)
+
+
+def _run_plant(args, work) -> int:
+    """Start the plant, wait for the chosen devices, run ``work(runtime, names)`` and stop."""
+    from app.cli import _load
+    from app.runtime import Runtime
+    from app.users import default_data_dir
+
+    plant = _load(args.plant)
+    data_dir = getattr(args, "data_dir", None) or default_data_dir()
+    runtime = Runtime(plant, simulate=not args.no_sim, data_dir=data_dir)
+
+    async def main() -> int:
+        await runtime.start()
+        try:
+            names = _chosen(runtime, args)
+            await _wait_online(runtime, names, args.wait)
+            return await work(runtime, names)
+        finally:
+            await runtime.stop()
+
+    return asyncio.run(main())
+
+
+# -- approve ------------------------------------------------------------------------------------
+async def approve_devices(runtime, names: list[str], *, user: str, role: str, out=print) -> int:
+    from app.backup import nothing_to_back_up
+
+    failures = 0
+    for name in names:
+        state = runtime.store.devices[name]
+        reason = await nothing_to_back_up(runtime.worker.adapters[name])
+        if reason:
+            out(f"{name}: skipped: {reason}")
+            continue
+        if state.status != "online":
+            out(f"{name}: not answering ({state.last_error or 'no answer'}): not approved")
+            failures += 1
+            continue
+        try:
+            entry_id = await runtime.record.approve(name, user=user, role=role)
+        except PermissionError as exc:
+            out(f"commission: {exc}")
+            return 1
+        except Exception as exc:  # noqa: BLE001 - said, and the exit code says it
+            out(f"{name}: not approved: {exc}")
+            failures += 1
+            continue
+        count = len(runtime.record.approved.get(name, {}))
+        out(f"{name}: approved set stored (record {entry_id}, {count} parameters)")
+    return 0 if failures == 0 else 1
+
+
+def run_approve(args) -> int:
+    return _run_plant(args, lambda runtime, names: approve_devices(runtime, names, user=_cli_user(), role="engineer"))
+
+
+# -- checkout -----------------------------------------------------------------------------------
+def _answerer(mode: str | None, user: str, out, runtime=None, device: str = ""):
+    """The ``ask`` of a CLI run: answered yes (recorded as the CLI user's answer), asked on stdin, or none.
+
+    With ``--answer yes`` on a simulated device, a request to act ("Toggle E1 now ...") is carried out on
+    the twin through its declared control (audited as a simulation action, as the page's sim card does)."""
+    if mode == "yes":
+        async def yes(question: str) -> bool:
+            out(f"    ? {question} -> yes (answered by {user} with --answer yes)")
+            controls = runtime.sim_controls(device) if runtime is not None else None
+            words = question.split()
+            if controls is not None and len(words) > 1 and words[0] == "Toggle":
+                action = f"toggle {words[1]}"
+                if any(a.name == action for a in controls.actions):
+                    out("      " + await sim_action(runtime, f"{device}:{action}", user=user, role="engineer"))
+            return True
+        return yes
+    if mode == "ask":
+        async def ask(question: str) -> bool:
+            while True:
+                try:
+                    line = await asyncio.to_thread(input, f"    ? {question} [yes/no] ")
+                except EOFError:
+                    raise StepFailed(f"{question} - no answer (standard input closed)") from None
+                word = line.strip().lower()
+                if word in ("y", "yes"):
+                    return True
+                if word in ("n", "no"):
+                    return False
+                print("    please answer yes or no", flush=True)
+        return ask
+
+    async def nobody(question: str) -> bool:
+        raise StepFailed(f"{question} - nobody to ask (standard input is no terminal: use --answer ask or --answer yes)")
+    return nobody
+
+
+def _step_line(r) -> str:
+    line = f"  [{r.status}] {r.name}"
+    if r.ended and r.started:
+        line += f" ({r.ended - r.started:.1f} s)"
+    if r.reason:
+        line += f": {r.reason}"
+    elif r.values:
+        line += ": " + "; ".join(f"{v['name']} {v['value']} {v['unit']}".strip() for v in r.values[:4])
+    return line
+
+
+def _settings(specs: list[str], device: str, module) -> dict[str, Any]:
+    settings: dict[str, Any] = {}
+    defaults = getattr(module, "SETTINGS", {})
+    for spec in specs:
+        name, _, rest = spec.partition(":")
+        key, eq, value = rest.partition("=")
+        if not eq or not key:
+            raise SystemExit(f"commission: --set {spec!r}: expected DEVICE:KEY=VALUE")
+        if name != device:
+            continue
+        if key not in defaults:
+            raise SystemExit(f"commission: --set {spec!r}: the {device} checkout has no setting {key!r} "
+                             f"(settings: {', '.join(defaults)})")
+        kind = type(defaults[key])
+        try:
+            settings[key] = (value.lower() in ("1", "true", "yes")) if kind is bool else kind(value)
+        except ValueError:
+            raise SystemExit(f"commission: --set {spec!r}: {value!r} is no {kind.__name__}") from None
+    return settings
+
+
+async def sim_action(runtime, spec: str, *, user: str, role: str) -> str:
+    """Run ``DEVICE:ACTION[:K=V,...]`` on a simulated twin through the worker's gate (audited as the page's sim card)."""
+    device, _, rest = spec.partition(":")
+    action, _, arg_text = rest.partition(":")
+    controls = runtime.sim_controls(device) if device in runtime.store.devices else None
+    if controls is None:
+        raise ValueError(f"--sim-action {spec!r}: {device!r} is no simulated device of this plant")
+    args: dict[str, Any] = {}
+    for item in filter(None, (a.strip() for a in arg_text.split(","))):
+        key, _, value = item.partition("=")
+        args[key] = value.lower() in ("1", "on", "true", "yes") if value.lower() in ("on", "off", "true", "false") else int(value, 0)
+    describe = controls.describe(action, args)
+
+    async def act() -> str:
+        result = controls.invoke(action, args)
+        if hasattr(result, "__await__"):
+            await result
+        return ""
+
+    await runtime.worker.checked(act, device=device, role=role, user=user, describe=f"simulation: {describe}", kind="system")
+    return f"{device}: simulation: {describe}"
+
+
+async def checkout_devices(runtime, names: list[str], *, user: str, role: str, answer: str | None,
+                           settings: list[str] = (), sim_actions: list[str] = (), out=print) -> int:
+    """Run each device's declared checkout in turn; 0 when every one passed, else 1."""
+    for spec in sim_actions:
+        try:
+            out(await sim_action(runtime, spec, user=user, role=role))
+        except Exception as exc:  # noqa: BLE001
+            out(f"commission: {exc}")
+            return 2
+        await asyncio.sleep(0.5)  # the next poll carries the fault
+    results: list[tuple[str, str, str, float | None]] = []
+    for name in names:
+        state = runtime.store.devices[name]
+        module = checkout_module(state.type)
+        if module is None:
+            out(f"{name}: the {state.type} type declares no checkout")
+            results.append((name, "none", "no checkout declared", None))
+            continue
+        if state.status != "online":
+            reason = f"not answering ({state.last_error or 'no answer'})"
+            out(f"{name}: {module.TITLE}: not run: {reason}")
+            results.append((name, "not run", reason, None))
+            continue
+        ask = _answerer(answer, user, out, runtime, name)
+        try:
+            run = runtime.record.new_run(name, user=user, role=role, ask=ask, settings=_settings(list(settings), name, module))
+        except Exception as exc:  # noqa: BLE001
+            out(f"{name}: {exc}")
+            results.append((name, "not run", str(exc), None))
+            continue
+        out(f"{name} ({state.type}): {module.TITLE}, {len(run.results)} steps")
+        shown: dict[int, str] = {}
+
+        def progress(run=run, shown=shown) -> None:
+            for i, r in enumerate(run.results):
+                if r.status in ("pending", "running") or shown.get(i) == r.status:
+                    continue
+                shown[i] = r.status
+                out(_step_line(r))
+
+        run.listeners.append(progress)
+        try:
+            result = await run.run()
+        except PermissionError as exc:
+            out(f"commission: {exc}")
+            return 1
+        line = f"{name}: {result['status']} in {result['duration_s']} s"
+        if result["reason"]:
+            line += f": {result['reason']}"
+        out(line + (f" (record {result.get('record_id')})" if result.get("record_id") else ""))
+        results.append((name, result["status"], result["reason"], result["duration_s"]))
+    passed = sum(s == "passed" for _n, s, _r, _d in results)
+    out(f"{passed} of {len(results)} checkouts passed")
+    for n, s, r, _d in results:
+        if s != "passed":
+            out(f"  {n}: {s}" + (f": {r}" if r else ""))
+    return 0 if results and passed == len(results) else 1
+
+
+def run_checkout(args) -> int:
+    answer = args.answer or ("ask" if sys.stdin is not None and sys.stdin.isatty() else None)
+
+    def out(text: str) -> None:
+        print(text, flush=True)
+
+    return _run_plant(args, lambda runtime, names: checkout_devices(
+        runtime, names, user=_cli_user(), role="engineer", answer=answer, settings=args.set, sim_actions=args.sim_action,
+        out=out))
+
+
+# -- sign ---------------------------------------------------------------------------------------
+async def sign_record(runtime, *, user: str, role: str, name: str, comment: str, signer_role: str = SIGNER_ROLE,
+                      device: str | None = None, out=print) -> int:
+    """The sign-off of the plant (``device`` None) or of one device, as the record page's sign buttons do."""
+    from app.report import device_content, plant_content
+
+    if not name.strip():
+        out("commission: a sign-off needs a name")
+        return 2
+    if role != "engineer":  # the page disables the button; the record service refuses as well
+        out(f"commission: {user} has the {role or 'no'} role and may not add to the commissioning record")
+        return 1
+    try:
+        content = await (device_content(runtime, device, user=user, role=role) if device
+                         else plant_content(runtime, user=user, role=role))
+        entry_id = await runtime.record.sign(device or "", user=user, role=role, name=name.strip(), signer_role=signer_role,
+                                             comment=comment, content=content)
+    except PermissionError as exc:
+        out(f"commission: {exc}")
+        return 1
+    entry = await runtime.record.get(entry_id)
+    what = f"device {device}" if device else f"plant {runtime.plant.name}"
+    out(f"{what}: signed by {name.strip()} ({signer_role}) as {user}, record {entry_id}, sha256 {entry.data['sha256'][:16]}...")
+    if not device:
+        for d in content["devices"]:
+            counts = d["counts"]
+            checks = ", ".join(f"{c['title']}: {c['status']}" for c in d["checkouts"]) or "no checkout"
+            out(f"  {d['device']}: {checks}; {counts['changed']} changed, {counts['not approved']} not approved")
+    return 0
+
+
+def run_sign(args) -> int:
+    device = args.device
+    args.device, args.all = ([device] if device else []), not device  # wait for the devices the content reads
+
+    async def work(runtime, _names) -> int:
+        return await sign_record(runtime, user=_cli_user(), role="engineer", name=args.name, comment=args.comment,
+                                 signer_role=args.signer_role, device=device)
+
+    return _run_plant(args, work)
