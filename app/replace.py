@@ -8,6 +8,12 @@ Each device is compared with its *known* identity, the newest of
 - the identity an engineer accepted at the end of a replacement (``identities.json`` in the data
   folder), or, when neither exists, the first identity seen (kept there too).
 
+The comparison costs O(1) per device while nothing changes: on every push of the store the watch
+builds a cheap key of what the identity is made of (the register words or live points it was read
+from, found once by matching the identity's values against the store; or, for an adapter whose
+identity is not in the store under its names, the few values ``backup_identity()`` returns, asked at
+most every CHECK_PERIOD_S) and reads and compares the whole identity only when that key moved.
+
 A device answering at its address with another serial number, firmware or variant than known
 carries ``DeviceState.replaced`` (old and new identity, what differs): the overview and the
 device page say "replaced?", and the event log has a line.
@@ -34,11 +40,13 @@ from app.record import Entry
 log = logging.getLogger(__name__)
 
 IDENTITY_FILE = "identities.json"
-CHECK_PERIOD_S = 0.25  # a device's identity is compared at most this often, and at most every half poll period of its bus
+CHECK_PERIOD_S = 0.25  # an identity the store does not hold is asked of its adapter at most this often (and every half poll)
 SERIAL_KEYS = ("serial", "SerialNumber")
 FIRMWARE_KEYS = ("FirmwareVersion", "firmware", "version", "sw_version")
 HARDWARE_KEYS = ("HardwareVersion", "hardware")
 VARIANT_KEYS = ("variant", "product", "model")
+FACET_KEYS = (SERIAL_KEYS, FIRMWARE_KEYS, HARDWARE_KEYS, VARIANT_KEYS)
+_MISSING = object()
 
 
 def _pick(identity: dict, keys: tuple[str, ...]) -> Any:
@@ -82,6 +90,33 @@ def live_identity(runtime, name: str) -> dict | None:
     return dict(identity)
 
 
+def identity_sources(state, identity: dict) -> tuple | None:
+    """Where in the store each value of ``identity`` comes from: ``("point", name)`` or ``("words", ((space,
+    address), ...))`` of a register parameter, found by name (or a name of the same facet, e.g. "serial" for
+    "SerialNumber") and checked against the value. None when a value is found nowhere (the adapter keeps it)."""
+    points = state.points
+    params = state.params
+    sources = []
+    for key, value in identity.items():
+        if value is None:
+            return None
+        names = (key, *next((g for g in FACET_KEYS if key in g), ()))
+        for candidate in names:
+            point = points.get(candidate)
+            if point is not None:
+                if point.value == value:
+                    sources.append(("point", candidate))
+                    break
+                continue
+            param = params.by_name.get(candidate) if params is not None else None
+            if param is not None and state.value(candidate) == value:
+                sources.append(("words", tuple((param.space, a) for a in param.addresses)))
+                break
+        else:
+            return None
+    return tuple(sources)
+
+
 class ReplacementWatch:
     """Follows every device's published identity against its known one (``runtime.replacements``)."""
 
@@ -91,7 +126,9 @@ class ReplacementWatch:
         self.known: dict[str, dict] = {}  # device -> {"identity", "time", "source"}
         self._watches: list = []
         self._writing: asyncio.Task | None = None
-        self._checked: dict[str, float] = {}  # device -> monotonic time of its last comparison
+        self._checked: dict[str, float] = {}  # device -> monotonic time its adapter was last asked (identity not in the store)
+        self._keys: dict[str, tuple] = {}  # device -> the cheap key of its identity at the last comparison
+        self._sources: dict[str, tuple | None] = {}  # device -> identity_sources() of its last identity
 
     def _load(self) -> dict:
         try:
@@ -144,22 +181,56 @@ class ReplacementWatch:
         if self._writing is not None:
             await asyncio.gather(self._writing, return_exceptions=True)
 
+    def _key(self, name: str) -> tuple:
+        """What the published identity is made of, cheaply (O(1) per device): the identity is read and
+        compared again only when this moved. Covers every input of :func:`live_identity`: online, the
+        adapter taking part, and the identity's register words or points (new ones appearing too)."""
+        state = self.runtime.store.devices[name]
+        adapter = self.runtime.worker.adapters.get(name)
+        if adapter is None or state.online is not True:
+            return (False,)
+        sources = self._sources.get(name)
+        if sources is None:  # not in the store under its names: the adapter's own few values
+            try:
+                identity = adapter.backup_identity()
+            except Exception:  # noqa: BLE001 - an identity not read yet is no identity
+                identity = _MISSING
+            return (True, getattr(adapter, "backup_available", True), id(state.params), identity)
+        points, registers = state.points, state.registers
+        key = [True, getattr(adapter, "backup_available", True), id(state.params), len(points), len(registers)]
+        for kind, where in sources:
+            if kind == "point":
+                point = points.get(where)
+                key.append(_MISSING if point is None else point.value)
+            else:
+                for address in where:
+                    entry = registers.get(address)
+                    key.append(_MISSING if entry is None else entry[0])
+        return tuple(key)
+
     def _period(self, name: str) -> float:
         bus = self.runtime.plant.buses.get(self.runtime.store.devices[name].bus)
         poll = bus.options.get("poll_period") if bus is not None else None
         return min(CHECK_PERIOD_S, poll / 2) if isinstance(poll, int | float) and poll > 0 else CHECK_PERIOD_S
 
     def _maybe_check(self, name: str) -> None:
-        """From the store's push: the identity is read from the live values, at most every CHECK_PERIOD_S."""
-        now = time.monotonic()
-        if now - self._checked.get(name, 0.0) >= self._period(name):
+        """From the store's push: the identity is read and compared only when its key moved (an identity
+        the store does not hold: its adapter is asked at most every CHECK_PERIOD_S, as before)."""
+        if self._sources.get(name) is None:
+            now = time.monotonic()
+            if now - self._checked.get(name, 0.0) < self._period(name):
+                return
             self._checked[name] = now
+        key = self._key(name)
+        if self._keys.get(name, _MISSING) != key:
             self.check(name)
 
     def check(self, name: str) -> dict | None:
         """Compare the published identity with the known one; sets ``state.replaced`` (or clears it)."""
         state = self.runtime.store.devices[name]
         now = live_identity(self.runtime, name)
+        self._sources[name] = None if now is None else identity_sources(state, now)
+        self._keys[name] = self._key(name)
         if now is None:
             return getattr(state, "replaced", None)
         ref = self.known.get(name)

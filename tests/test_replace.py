@@ -100,3 +100,25 @@ async def test_firmware_difference_named(two_locks):
     rp = await replace.plan_replacement(runtime, name)
     assert any(n.startswith("firmware version 57 -> 61") for n in rp.check.notes), rp.check.notes
     assert any("lacks or adds" in n or "lacks 0" in n for n in rp.check.notes), rp.check.notes
+
+
+async def test_identity_read_again_only_when_its_points_change(two_locks, monkeypatch):
+    """The watch compares a cheap key of the identity's register words on every push; the whole identity
+    is read (and compared) again only when those words change, e.g. by a swap."""
+    runtime = two_locks
+    name = "door-1"
+    adapter = runtime.worker.adapters[name]
+    state = runtime.store.devices[name]
+    watch = replace.watch_of(runtime)
+    assert await wait_for(lambda: watch._sources.get(name), timeout=3)  # the identity's words are found in the store
+    reads = []
+    original = adapter.backup_identity
+    monkeypatch.setattr(adapter, "backup_identity", lambda: reads.append(1) or original())
+    versions = state.version
+    await asyncio.sleep(2)
+    assert state.version > versions  # the lock was polled and pushed meanwhile
+    assert len(reads) < 4, len(reads)  # was up to four times a second; now only when the identity's words move
+    assert getattr(state, "replaced", None) is None
+    runtime.twins[name].swap_for_new(NEW_SERIAL)
+    assert await wait_for(lambda: getattr(state, "replaced", None), timeout=3)
+    assert reads and replace.facets(state.replaced["new"])["serial"] == NEW_SERIAL
