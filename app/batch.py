@@ -182,7 +182,7 @@ def add_parser(sub) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    from app.cli import _cli_user, _headless
+    from app.headless import _cli_user, _headless
 
     args.device = [d.strip() for d in args.devices.split(",") if d.strip()]
     source = args.source

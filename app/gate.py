@@ -28,6 +28,14 @@ log = logging.getLogger(__name__)
 WRITE_ROLES = {"engineer"}
 
 
+class PermissionDenied(Exception):
+    """A session without the engineer role asked for a write."""
+
+
+class AuditUnavailable(Exception):
+    """The audit log cannot be written: the write is refused (fail closed)."""
+
+
 class NeedsConfirmation(Exception):
     """The command names a risk and the caller has not confirmed it: ask, then invoke again with ``confirmed``."""
 
@@ -120,8 +128,6 @@ async def invoke(worker: Any, device: str, name: str, args: Mapping[str, Any] | 
         (audited as a refusal); :raises PermissionDenied: the role may not (audited);
         :raises NeedsConfirmation: it names a risk and ``confirmed`` is False (nothing audited: a question)
     """
-    from app.worker import PermissionDenied
-
     if device not in worker.adapters:
         raise KeyError(f"no device named {device!r} in this plant")
     command = declared(worker, device, name)

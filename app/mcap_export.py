@@ -212,7 +212,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     import asyncio
 
-    from app.cli import _load
+    from app.headless import _load
     from app.runtime import Runtime
 
     plant = _load(args.plant)

@@ -115,7 +115,8 @@ class MqttPublisher:
         if config.sparkplug:
             from app.sparkplug import SparkplugNode
 
-            self.sparkplug = SparkplugNode(config, store, plant_name, audit=audit, password=self._read_password)
+            self.sparkplug = SparkplugNode(config, store, plant_name, audit=audit, password=self._read_password,
+                                           timeout_s=PUBLISH_TIMEOUT_S)
 
     # -- what the header shows -----------------------------------------------------------------
     @property

@@ -66,7 +66,7 @@ def add_parsers(sub) -> None:
 
 
 def _cli_user() -> str:
-    from app.cli import _cli_user
+    from app.headless import _cli_user
 
     return _cli_user()
 
@@ -90,7 +90,7 @@ async def _wait_online(runtime, names: list[str], wait_s: float) -> None:
 
 def _run_plant(args, work) -> int:
     """Start the plant, wait for the chosen devices, run ``work(runtime, names)`` and stop."""
-    from app.cli import _load
+    from app.headless import _load
     from app.runtime import Runtime
     from app.users import default_data_dir
 

@@ -355,7 +355,7 @@ def add_parser(sub) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    from app.cli import _load
+    from app.headless import _load
     from app.runtime import Runtime
     from app.users import default_data_dir
 

@@ -214,8 +214,9 @@ class SparkplugNode:
     :param audit: the audit log (:class:`app.audit.AuditLog`) that refused commands are written to
     """
 
-    def __init__(self, config, store, plant_name: str, audit=None, password=None):
+    def __init__(self, config, store, plant_name: str, audit=None, password=None, timeout_s: float = 5.0):
         self.config = config
+        self.timeout_s = timeout_s  # the MQTT client's publish timeout, as the JSON publisher's
         self.store = store
         self.plant_name = plant_name
         self.audit = audit
@@ -323,8 +324,6 @@ class SparkplugNode:
     async def _connect(self):
         import aiomqtt
 
-        from app.mqtt import PUBLISH_TIMEOUT_S
-
         self.bd_seq = (self.bd_seq + 1) % 256
         password = await self._password() if self._password else None
         tls = None
@@ -337,7 +336,7 @@ class SparkplugNode:
             self.config.host, self.config.port, username=self.config.username, password=password,
             identifier=f"spb-{self.group}-{self.node}"[:64], clean_session=True,
             will=aiomqtt.Will(node_topic(self.group, "NDEATH", self.node), self.death_payload(), qos=1, retain=False),
-            keepalive=max(5, int(self.config.heartbeat)), tls_context=tls, timeout=PUBLISH_TIMEOUT_S,
+            keepalive=max(5, int(self.config.heartbeat)), tls_context=tls, timeout=self.timeout_s,
         )
         await asyncio.wait_for(client.__aenter__(), CONNECT_TIMEOUT_S)
         return client

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from app import gate
+from app.gate import AuditUnavailable, PermissionDenied  # noqa: F401 - raised by the gate; named here for callers
 from app.audit import AuditLog
 from app.can_bus import CanBus, CanBusState
 from app.modbus_line import ModbusLine
@@ -45,14 +46,6 @@ STALL_S = 0.1  # an event-loop stall longer than this is logged and shown
 LIVE_CREDIT_S = 2 * SUPERVISE_PERIOD_S
 SILENCE_LIMIT_S = 2.0  # however busy this program was: no sign of life for this long in real time stops the session
 LAG_WINDOW = 1200  # supervision ticks kept for the loop-lag figures (one minute)
-
-
-class PermissionDenied(Exception):
-    """A session without the engineer role asked for a write."""
-
-
-class AuditUnavailable(Exception):
-    """The audit log cannot be written: the write is refused (fail closed)."""
 
 
 @dataclass
