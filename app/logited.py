@@ -148,11 +148,14 @@ class LogitedTcp:
 
     def _drop(self, message: str) -> None:
         writer, self.writer, self.reader = self.writer, None, None
-        if writer is not None:
-            writer.close()
         task, self._reader_task = self._reader_task, None
-        if task is not None and task is not asyncio.current_task():
-            task.cancel()
+        try:
+            if writer is not None:
+                writer.close()
+            if task is not None and task is not asyncio.current_task():
+                task.cancel()
+        except RuntimeError:  # the event loop it ran on has ended: its socket and reader went with it
+            pass
         if self._waiter is not None:
             self._waiter.fail(SerialClosed(f"{self.name}: {message}"))
         self.state.connected = False
@@ -162,7 +165,10 @@ class LogitedTcp:
     def close(self) -> None:
         if self.connected:
             for frame in _closing_frames(self.closing, self.name):
-                self.writer.write(frame)  # flushed by the transport before it closes
+                try:
+                    self.writer.write(frame)  # flushed by the transport before it closes
+                except RuntimeError:  # the event loop it ran on has ended
+                    break
                 self._log("on close", frame, b"", "")
         self._drop("")
         self.state.connected = False

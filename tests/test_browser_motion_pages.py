@@ -183,7 +183,7 @@ def test_scu_and_mo64_entries_and_layout(app_url, chromium, tmp_path):
         speed = page.get_by_test_id("remote-speed")
         speed.fill("5000")
         page.get_by_test_id("set-speed").click()
-        expect(page.get_by_role("alert").filter(has_text="out of range: allowed 0 .. 1000")).to_be_visible(timeout=5_000)
+        expect(page.get_by_role("alert").filter(has_text="out of range: allowed 0 .. 100 ")).to_be_visible(timeout=5_000)
         assert speed.input_value() == "5000"
         check_layout(page, tmp_path, "scu")
         page.get_by_role("button", name="Release control").click()

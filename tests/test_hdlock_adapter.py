@@ -322,9 +322,10 @@ async def test_twin_server_stopped_and_back(running):
 
 async def test_crc_error_is_counted(running):
     state = await online(running)
-    running.sim.servers[0].corrupt_next = 1
-    assert await wait_for(lambda: state.counters.crc_errors >= 1, timeout=5)
-    assert await wait_for(lambda: state.status == "online", timeout=5)
+    other = running.store.devices["door-2"]
+    running.sim.servers[0].corrupt_next = 1  # the line's next answer, to whichever lock was asked
+    assert await wait_for(lambda: state.counters.crc_errors + other.counters.crc_errors >= 1, timeout=5)
+    assert await wait_for(lambda: state.status == "online" and other.status == "online", timeout=5)
 
 
 async def test_modbus_exception_is_named(running):
