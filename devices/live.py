@@ -104,6 +104,15 @@ def session_tag(session: str) -> str:
     return hashlib.sha256(session.encode()).hexdigest()[:12]
 
 
+@dataclass(frozen=True, slots=True)
+class Holder:
+    """Who holds control, as published: the user, the tag of the browser session (``session_tag``), since when."""
+
+    user: str
+    session: str
+    since: float
+
+
 def _doc(text: str, json_key: str | None = None) -> dict[str, str]:
     return {"doc": text, **({"json": json_key} if json_key else {})}
 

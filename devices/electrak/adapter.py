@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 from devices.electrak import codec
 from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, SERVICE, length_of, password_of, refusal
 from devices.lease import Lease
-from devices.live import DeviceState, session_tag
+from devices.live import DeviceState, Holder, session_tag
 from devices.params import Param, ParamError, backup_entry
 from devices.transport import CanTransport
 
@@ -71,15 +71,6 @@ class ForeignControl(CommandError):
 
 FOREIGN_SENDER = "a PLC, or an actuator whose manual control line is active"
 TIMEOUT_FLAG = 1 << 5  # error flags byte 7 bit 5: Message timeout
-
-
-@dataclass(frozen=True, slots=True)
-class Holder:
-    """Who holds control, as published: the user, the tag of the browser session (``session_tag``), since when."""
-
-    user: str
-    session: str
-    since: float
 
 
 @dataclass(frozen=True, slots=True)

@@ -29,7 +29,7 @@ from typing import Any
 
 from devices import values as v
 from devices.lease import Lease
-from devices.live import DeviceState, session_tag
+from devices.live import DeviceState, Holder, session_tag
 from devices.scu import codec
 from devices.scu import params as p
 from devices.transport import SerialClosed, SerialLineError, SerialTimeout
@@ -216,15 +216,6 @@ def value_text(data_id: int, value: Any) -> str:
 class Controller:
     session: str
     user: str
-    since: float
-
-
-@dataclass(frozen=True, slots=True)
-class Holder:
-    """Who holds control, as published: the user, the tag of the browser session (``session_tag``), since when."""
-
-    user: str
-    session: str
     since: float
 
 
