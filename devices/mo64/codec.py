@@ -38,7 +38,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 from typing import Any
 
-from devices import errors
+from devices import errors, framing
 from devices import values as v
 
 # -- line and connection (chapters 2.1, 3) ----------------------------------------------------------
@@ -114,8 +114,8 @@ def crc16(data: bytes | bytearray) -> int:
     return binascii.crc_hqx(bytes(data), CRC_PRESET)
 
 
-def _seal(body: bytes) -> bytes:
-    return body + crc16(body).to_bytes(2, "big")  # CSH before CSL (chapter 2.1)
+CHECKSUM = framing.Checksum(crc16, "big")  # CSH before CSL (chapter 2.1)
+_seal = CHECKSUM.seal
 
 
 # -- framing ---------------------------------------------------------------------------------------
@@ -203,7 +203,7 @@ def decode_frame(raw: bytes, framing: Framing = TCP) -> Frame:
         raise TruncatedFrameError(raw)
     if len(raw) > le + 4:
         raise FrameLengthError(f"{len(raw)} bytes for LE {le} (expected {le + 4})", raw)
-    if crc16(raw[:-2]) != int.from_bytes(raw[-2:], "big"):
+    if not CHECKSUM.matches(raw):
         raise ChecksumError(raw)
     data = raw[2:-2]
     if not framing.addressed:
@@ -213,44 +213,15 @@ def decode_frame(raw: bytes, framing: Framing = TCP) -> Frame:
     return Frame(data[2], data[3:], da=data[0], sa=data[1], raw=raw)
 
 
-# -- named stream errors ---------------------------------------------------------------------------
-class FrameError(CodecError):
-    """Bad wire data; ``raw`` holds the bytes concerned. The splitter returns these as values."""
-
-    def __init__(self, message: str, raw: bytes = b""):
-        self.raw = bytes(raw)
-        super().__init__(message)
-
-
-class GarbageError(FrameError):
-    """Bytes that start no telegram (no SD); they were skipped."""
-
-    def __init__(self, raw: bytes):
-        super().__init__(f"{len(raw)} byte(s) that start no telegram: {bytes(raw).hex(' ')}", raw)
+# -- named stream errors (devices/framing.py) ------------------------------------------------------
+# Bad wire data: ``raw`` holds the bytes concerned; the splitter returns these as values. GarbageError:
+# bytes that start no telegram (no SD), skipped; ChecksumError: CSH CSL do not match; FrameLengthError:
+# an LE impossible for the framing; TruncatedFrameError: cut off before its end (silent or closed).
+FrameError, GarbageError, ChecksumError, FrameLengthError, TruncatedFrameError = framing.error_tree(
+    CodecError, __name__, CHECKSUM)
 
 
-class ChecksumError(FrameError):
-    """A telegram whose CSH CSL do not match its CRC."""
-
-    def __init__(self, raw: bytes):
-        raw = bytes(raw)
-        self.expected = crc16(raw[:-2]) if len(raw) >= 2 else 0
-        self.received = int.from_bytes(raw[-2:], "big") if len(raw) >= 2 else 0
-        super().__init__(f"CRC 0x{self.received:04X} received, 0x{self.expected:04X} computed: {raw.hex(' ')}", raw)
-
-
-class FrameLengthError(FrameError):
-    """A telegram whose LE is impossible for the framing."""
-
-
-class TruncatedFrameError(FrameError):
-    """A telegram cut off before its end (the stream went silent or closed)."""
-
-    def __init__(self, raw: bytes):
-        super().__init__(f"telegram incomplete after {len(raw)} byte(s): {bytes(raw).hex(' ')}", raw)
-
-
-class FrameSplitter:
+class FrameSplitter(framing.Splitter):
     """Cuts a byte stream (TCP or RS485) into :class:`Frame` values and :class:`FrameError` values.
 
     ``feed(data)`` returns them in stream order; nothing is raised. A frame cut short stays
@@ -261,43 +232,15 @@ class FrameSplitter:
     :param framing: :data:`TCP` or :data:`RS485`
     """
 
+    garbage_error = GarbageError
+    truncated_error = TruncatedFrameError
+
     def __init__(self, framing: Framing = TCP):
+        super().__init__()
         self.framing = framing
-        self._buf = bytearray()
-        self.frames = 0
-        self.errors = 0
 
-    @property
-    def pending(self) -> bytes:
-        """Bytes received that do not yet form a frame."""
-        return bytes(self._buf)
-
-    def reset(self) -> None:
-        self._buf.clear()
-
-    def expire(self) -> list[FrameError]:
-        """Drop an incomplete frame; returns its error, or nothing if idle."""
-        if not self._buf:
-            return []
-        raw = bytes(self._buf)
-        self._buf.clear()
-        self.errors += 1
-        return [TruncatedFrameError(raw) if raw[0] == SD else GarbageError(raw)]
-
-    def feed(self, data: bytes | bytearray | Iterable[int]) -> list:
-        self._buf += bytes(data)
-        out: list = []
-        while self._buf:
-            item, used = self._one()
-            if item is None:
-                break
-            del self._buf[:used]
-            if isinstance(item, FrameError):
-                self.errors += 1
-            else:
-                self.frames += 1
-            out.append(item)
-        return out
+    def _starts_telegram(self, raw: bytes) -> bool:
+        return raw[0] == SD
 
     def _length_at(self, i: int) -> int | None:
         """Frame length starting at ``i``: None if more bytes are needed, 0 if impossible."""
@@ -310,10 +253,7 @@ class FrameSplitter:
     def _valid_at(self, i: int) -> bool:
         """A complete frame with a good CRC starts at ``i``."""
         n = self._length_at(i)
-        if not n or i + n > len(self._buf):
-            return False
-        chunk = bytes(self._buf[i:i + n])
-        return crc16(chunk[:-2]) == int.from_bytes(chunk[-2:], "big")
+        return bool(n) and i + n <= len(self._buf) and CHECKSUM.matches(self._buf[i:i + n])
 
     def _next_valid(self, start: int, stop: int) -> int | None:
         for j in range(start, min(stop, len(self._buf))):
@@ -321,12 +261,11 @@ class FrameSplitter:
                 return j
         return None
 
-    def _one(self) -> tuple[Any, int]:
+    def _next(self) -> tuple[Any, int]:
         buf = self._buf
         if buf[0] != SD:
             end = buf.find(bytes((SD,)))
-            end = len(buf) if end < 0 else end
-            return GarbageError(bytes(buf[:end])), end
+            return self._garbage(len(buf) if end < 0 else end)
         n = self._length_at(0)
         if n is None:
             return None, 0
@@ -335,16 +274,12 @@ class FrameSplitter:
                                     bytes(buf[:2])), 2  # an LE below the minimum is never SD
         if len(buf) < n:
             later = self._next_valid(1, len(buf))  # a stray SD announcing a long frame
-            if later is not None:
-                return GarbageError(bytes(buf[:later])), later
-            return None, 0
+            return (None, 0) if later is None else self._garbage(later)
         try:
             return decode_frame(bytes(buf[:n]), self.framing), n
         except ChecksumError as exc:
             later = self._next_valid(1, n)
-            if later is not None:
-                return GarbageError(bytes(buf[:later])), later
-            return exc, n
+            return (exc, n) if later is None else self._garbage(later)
 
 
 # -- telegram types (chapter 5, SPEC-NOTES "Replies") ----------------------------------------------
@@ -942,4 +877,4 @@ def _short(value: Any) -> str:
 
 
 __all__ = [name for name in dir() if not name.startswith("_") and name not in {
-    "annotations", "binascii", "Iterable", "Mapping", "dataclass", "IntEnum", "Any", "v"}]
+    "annotations", "binascii", "framing", "Iterable", "Mapping", "dataclass", "IntEnum", "Any", "v"}]

@@ -28,11 +28,10 @@ Public API, in the order a session uses it:
 from __future__ import annotations
 
 import binascii
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import IntEnum
 
-from devices import errors
+from devices import errors, framing
 
 # -- line (section 3, "Physikalische Ebene" / "Netzwerkebene") ---------------------------------------
 DEFAULT_BAUDRATE = 38400
@@ -77,12 +76,12 @@ def crc16(data: bytes | bytearray) -> int:
     return binascii.crc_hqx(bytes(data), 0)
 
 
-def _seal(body: bytes) -> bytes:
-    return body + crc16(body).to_bytes(2, "little")  # C1 = low byte first (section 3, table 3)
+CHECKSUM = framing.Checksum(crc16, "little")  # C1 = low byte first (section 3, table 3)
+_seal = CHECKSUM.seal
 
 
 def _check_crc(frame: bytes) -> bool:
-    return len(frame) >= 4 and crc16(frame[:-2]) == int.from_bytes(frame[-2:], "little")
+    return len(frame) >= 4 and CHECKSUM.matches(frame)
 
 
 def _byte(value: int, what: str) -> int:
@@ -583,41 +582,13 @@ def decode_request(frame: bytes) -> Request:
     return Request(command, p, frame)
 
 
-# -- named stream errors -------------------------------------------------------------------------------
-class FrameError(CodecError):
-    """Bad wire data; ``raw`` holds the bytes concerned. The splitter yields these as values."""
-
-    def __init__(self, message: str, raw: bytes = b""):
-        self.raw = bytes(raw)
-        super().__init__(message)
-
-
-class GarbageError(FrameError):
-    """Bytes that do not start a telegram; they were skipped."""
-
-    def __init__(self, raw: bytes):
-        super().__init__(f"{len(raw)} byte(s) that start no telegram: {bytes(raw).hex(' ')}", raw)
-
-
-class ChecksumError(FrameError):
-    """A telegram whose C1 C2 do not match its CRC (count it and retry the request)."""
-
-    def __init__(self, raw: bytes):
-        raw = bytes(raw)
-        self.expected = crc16(raw[:-2]) if len(raw) >= 2 else 0
-        self.received = int.from_bytes(raw[-2:], "little") if len(raw) >= 2 else 0
-        super().__init__(f"CRC 0x{self.received:04X} received, 0x{self.expected:04X} computed: {raw.hex(' ')}", raw)
-
-
-class FrameLengthError(FrameError):
-    """A telegram whose length is impossible (ctp beyond :data:`MAX_CTP`, or not matching)."""
-
-
-class TruncatedFrameError(FrameError):
-    """A telegram that stopped before its end (the inter-byte limit of 1000 ms passed, section 3)."""
-
-    def __init__(self, raw: bytes):
-        super().__init__(f"telegram incomplete after {len(raw)} byte(s): {bytes(raw).hex(' ')}", raw)
+# -- named stream errors (devices/framing.py) ---------------------------------------------------------
+# Bad wire data: ``raw`` holds the bytes concerned; the splitter yields these as values. GarbageError: bytes
+# that start no telegram (skipped); ChecksumError: C1 C2 do not match (count it and retry the request);
+# FrameLengthError: ctp beyond MAX_CTP or not matching; TruncatedFrameError: the inter-byte limit of
+# 1000 ms passed before the end (section 3).
+FrameError, GarbageError, ChecksumError, FrameLengthError, TruncatedFrameError = framing.error_tree(
+    CodecError, __name__, CHECKSUM)
 
 
 class ParameterCountError(FrameError):
@@ -645,8 +616,8 @@ ANSWERS = "answers"
 REQUESTS = "requests"
 
 
-class FrameSplitter:
-    """Cuts a serial byte stream into telegrams.
+class FrameSplitter(framing.Splitter):
+    """Cuts a serial byte stream into telegrams (devices/framing.py).
 
     ``feed(data)`` returns, in stream order, :class:`Answer` (or :class:`Request` with
     ``direction=REQUESTS``) values and :class:`FrameError` values (never raised): garbage before a
@@ -660,53 +631,25 @@ class FrameSplitter:
     :param direction: :data:`ANSWERS` (the adapter's side) or :data:`REQUESTS` (the twin's side)
     """
 
+    garbage_error = GarbageError
+    truncated_error = TruncatedFrameError
+
     def __init__(self, direction: str = ANSWERS):
         if direction not in (ANSWERS, REQUESTS):
             raise ValueError(f"direction must be {ANSWERS!r} or {REQUESTS!r}")
+        super().__init__()
         self.direction = direction
-        self._buf = bytearray()
-        self.frames = 0
-        self.errors = 0
 
-    @property
-    def pending(self) -> bytes:
-        """Bytes received that do not yet form a telegram."""
-        return bytes(self._buf)
+    def _starts_telegram(self, raw: bytes) -> bool:
+        return raw[:2] in COMMANDS
 
-    def reset(self) -> None:
-        self._buf.clear()
-
-    def expire(self) -> list[FrameError]:
-        """Drop an incomplete telegram (inter-byte timeout); returns the error, or nothing if idle."""
-        if not self._buf:
-            return []
-        raw = bytes(self._buf)
-        self._buf.clear()
-        self.errors += 1
-        return [TruncatedFrameError(raw) if raw[:2] in COMMANDS else GarbageError(raw)]
-
-    def feed(self, data: bytes | bytearray | Iterable[int]) -> list:
-        self._buf += bytes(data)
-        out: list = []
-        while self._buf:
-            start = self._sync()
-            if start:
-                out.append(GarbageError(bytes(self._buf[:start])))
-                self.errors += 1
-                del self._buf[:start]
-            if len(self._buf) < 2:
-                break
-            result = self._one()
-            if result is None:
-                break
-            item, length = result
-            del self._buf[:length]
-            if isinstance(item, FrameError):
-                self.errors += 1
-            else:
-                self.frames += 1
-            out.append(item)
-        return out
+    def _next(self):
+        start = self._sync()
+        if start:
+            return self._garbage(start)
+        if len(self._buf) < 2:
+            return None, 0
+        return self._one() or (None, 0)
 
     def _sync(self) -> int:
         """Offset of the first possible telegram start (known command, or a trailing 'R')."""
