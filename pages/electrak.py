@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import csv
 import io
+import logging
 import time
 from datetime import datetime
 
-from nicegui import ui
+from nicegui import background_tasks, ui
 
 from app import runtime as rt
 from app import worker as worker_module
@@ -21,6 +22,7 @@ from devices.electrak import codec
 from devices.electrak.adapter import FOREIGN_SENDER, SERIES
 from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, password_of, refusal
 from pages.frame import fmt_age, fmt_time, frame, set_status_badge
+from pages.session import current_user
 from pages.simcontrols import sim_card
 from pages.widgets import (
     HistoryChart,
@@ -40,9 +42,12 @@ from pages.widgets import (
     write_from_page,
 )
 
+log = logging.getLogger(__name__)
+
 WINDOW_S = 60
 TIMEOUT_BIT = 5  # error flags bit 5: Message timeout ("Fehler-Flags")
-USER = "local engineer"  # who takes control from this page (the audit row names the account)
+AUTO_READ_AGAIN_S = 30.0  # a page opened on a network whose service parameters were never read reads them once
+_auto_read: dict[str, float] = {}  # network -> when a page last read its service parameters by itself
 CHART_ROWS = [[facts.P_POSITION, facts.P_DRIVE_TARGET], [facts.P_CURRENT], [facts.P_SPEED]]
 CHART_UNITS = ("mm", "A", "mm/s")  # the rows' axes
 
@@ -227,6 +232,11 @@ def content(name: str) -> None:
     follow(view.state, view.refresh)  # on every change the store pushes (at most 10/s) and once a second for the ages
 
 
+def holder_name() -> str:
+    """Who takes control from this page: the logged-in account (the name the other browsers and the audit log show)."""
+    return current_user()[0] or "anonymous"
+
+
 def _stop_rule() -> str:
     return (
         f"Stop rule: motion stops when a jog button is released, on Stop, and within {worker_module.DEADMAN_BOUND_S:g} s of this browser going away "
@@ -249,7 +259,7 @@ class DriveCard:
             self.foreign = ui.label().classes("text-negative text-body2").props("data-testid=foreign-control")
             with ui.row():
                 self.take = ui.button("Take control", icon="sports_esports",
-                                      on_click=lambda: view.act("take control", {"user": USER})).props("data-testid=take-control")
+                                      on_click=lambda: view.act("take control", {"user": holder_name()})).props("data-testid=take-control")
                 self.take.tooltip(f"Listens {codec.LISTEN_S:g} s for another sender of 0x06 first ({FOREIGN_SENDER}); refused if there is one")
                 self.release = ui.button("Release", icon="logout", on_click=lambda: view.act("release control")).props("outline")
             # the ranges every actuator of the network accepts (codec.Limits: model, gearing, stroke): kept as typed, never clamped
@@ -312,7 +322,8 @@ class DriveCard:
         if c is None:
             self.holder.set_text("nobody controls the network: control telegrams are off")
         elif mine:
-            self.holder.set_text(f"you hold control since {datetime.fromtimestamp(c.since):%H:%M:%S}; control telegram every 100 ms")
+            self.holder.set_text(f"you hold control as {c.user} since {datetime.fromtimestamp(c.since):%H:%M:%S}; "
+                                 "control telegram every 100 ms")
         else:
             self.holder.set_text(f"{c.user} holds control (another browser) since {datetime.fromtimestamp(c.since):%H:%M:%S}")
         other = view.fact(facts.P_FOREIGN)
@@ -384,6 +395,9 @@ class ServiceCard:
     def __init__(self, view: ElectrakView, guard: WriteGuard):
         self.view, self.guard = view, guard
         self.rows: dict = {}
+        self.entries: dict = {}  # parameter key -> its entry field
+        self.shown: dict = {}  # parameter key -> the device value the field was last set to
+        self.auto_read = False
 
     def build(self) -> None:
         view, guard = self.view, self.guard
@@ -422,19 +436,69 @@ class ServiceCard:
             ui.label("change it step by step below").classes("text-caption text-grey-8")
             ui.element("span")
         else:
-            low, high = p.limits()
-            entry = range_number("", low, high, unit=p.unit, integer=p.scale == 1).classes("w-48") \
-                .props(f"data-testid=entry-{p.address:02X}")
-            self.guard.add(ui.button("Write", on_click=lambda: _write_service(self.view.name, p, entry))
+            entry = service_entry(p, self.view.state.raw(p))
+            entry.props(f"data-testid=entry-{p.address:02X}")
+            self.shown[p.key] = entry.value
+            entry.on("keydown.enter", lambda: self.write(p, entry))  # Enter writes, as the button does (same question)
+            self.guard.add(ui.button("Write", on_click=lambda: self.write(p, entry))
                            .props(f"dense data-testid=write-{p.address:02X}"))
+            self.entries[p.key] = entry
         self.rows[p.key] = (p, value, mark, answers, answers_tip, cell, age)
+
+    async def write(self, param, entry) -> None:
+        """Write the entry; afterwards the field shows the value read back from the actuators, not what was typed."""
+        state = self.view.state
+        before = state.read_time(param)
+        await _write_service(self.view.name, param, entry)
+        read = state.read_time(param)
+        raw = state.raw(param)
+        if read is not None and read != before and raw is not None:
+            value = param.decode(raw)
+            entry.value = value
+            entry.error = None
+            self.shown[param.key] = value
+
+    def follow_entry(self, key: str, p, raw: int | None) -> None:
+        """A field shows the actuators' value until the engineer types into it (hdlock's rule)."""
+        entry = self.entries.get(key)
+        if entry is None or raw is None:
+            return
+        value = p.decode(raw)
+        if entry.value is None or entry.value in (self.shown.get(key), value):  # untouched
+            if entry.value != value:
+                entry.value = value
+            self.shown[key] = value
+
+    def read_once(self) -> None:
+        """Read the service parameters when the page finds the network answering and none of them ever read, so
+        that the fields start at the actuators' values (a read changes nothing; once per network per 30 s)."""
+        view = self.view
+        if self.auto_read or not view.online() or any(view.state.raw(p) is not None for p in PARAMS):
+            return
+        self.auto_read = True
+        now = time.monotonic()
+        if now - _auto_read.get(view.name, -AUTO_READ_AGAIN_S) < AUTO_READ_AGAIN_S:
+            return
+        _auto_read[view.name] = now
+        user, role = current_user()
+
+        async def read() -> None:
+            try:
+                await view.runtime.worker.invoke(view.name, "read service parameters", None, user=user or "anonymous",
+                                                 role=role, session=view.session)
+            except Exception as exc:  # noqa: BLE001 - the card shows "not read" and the answers; Read all retries
+                log.info("%s: service parameters not read on opening the page: %s", view.name, exc)
+
+        background_tasks.create(read(), name=f"read service parameters {view.name}")
 
     def refresh(self) -> None:
         view, state = self.view, self.view.state
+        self.read_once()
         reports = {r.key: r for r in view.fact(facts.P_SERVICE_REPORTS, ())}
         now = time.time()
         for key, (p, value, mark, answers, answers_tip, cell, age) in self.rows.items():
             raw = state.raw(p)
+            self.follow_entry(key, p, raw)
             report = reports.get(key)
             value.set_text(("not read" if not report or report.ok else "no common value") if raw is None else p.display(raw))
             read = state.read_time(p)
@@ -463,6 +527,30 @@ async def _save(view: ElectrakView) -> None:
     ok, form = await view.act("save parameters")
     if ok:
         ui.notify(f"parameters saved: the network accepted the {form}", type="positive")
+
+
+def service_entry(param, raw: int | None) -> ui.number:
+    """The entry of one service parameter, starting at the actuators' value when it is known: a fraction where
+    the parameter takes whole numbers, a finer step than its unit (0.1 mm) or a value out of its range is
+    marked on the field with what is allowed (never rounded, never clamped)."""
+    low, high = param.limits()
+    value = None if raw is None else param.decode(raw)
+    entry = range_number("", low, high, unit=param.unit, integer=param.scale == 1, value=value).classes("w-48")
+    whole = entry.validation  # range_number's check: whole numbers and the range
+
+    def check(v) -> str | None:
+        if v is None:
+            return None
+        error = whole(v) if callable(whole) else None
+        if error:
+            return error
+        steps = float(v) / param.scale
+        if param.scale != 1 and abs(steps - round(steps)) > 1e-6:
+            return f"steps of {param.scale:g} {param.unit} only, {entry.rule}".replace("  ", " ")
+        return None
+
+    entry.validation = check
+    return entry
 
 
 async def _write_service(name: str, param, entry) -> None:
