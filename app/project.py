@@ -224,56 +224,246 @@ def _toml_value(value: Any) -> str:
 def update_entry(plant: Plant, device: str, key: str, value: Any) -> ProjectEntry:
     """Set the project's entry for ``key`` to ``value`` (checked by the parameter model first) and
     rewrite the plant file or the parameter file atomically; the running plant follows."""
-    config = plant.devices[device]
-    params = DEVICE_TYPES[config.type].params
+    params = DEVICE_TYPES[plant.devices[device].type].params
     param = params.by_key.get(key) if params is not None else None
     if param is None:
         raise ProjectError(f"{key!r} is not a parameter of {device}")
-    try:
-        raw = param.validate(value)
-    except ParamError as exc:
-        raise ProjectError(str(exc)) from None
-    if isinstance(config.project, dict):
-        if plant.path is None:
-            raise ProjectError("the plant has no file to write")
-        text = plant.path.read_text(encoding="utf-8")
-        name = next((n for n in config.project if _lookup(params, n) is param), None)
-        lines = text.splitlines(keepends=True)
-        if name is None:
-            raise ProjectError(f"the project of {device} does not name {param.label or param.name}: add it to the plant file")
-        line = _entry_line(text, config.line, name)
-        match = _name_pattern(name).search(lines[line - 1])
-        if match is None:
-            raise ProjectError(f"{plant.path}:{line}: cannot find {name} = ... to rewrite")
-        head = lines[line - 1][:match.end()]
-        rest = lines[line - 1][match.end():]
-        old = re.match(r'("(?:[^"\\]|\\.)*"|[^,}#\n]*?)(\s*(?:[,}#]|\n|$))', rest)
-        lines[line - 1] = head + _toml_value(value) + rest[len(old.group(1)):]
-        new_text = "".join(lines)
-        try:
-            new_plant = parse_plant(new_text, plant.path)
-        except PlantError as exc:
-            raise ProjectError(f"the rewritten plant file would not load: {exc}") from None
-        if new_plant.devices[device].project.get(name) != value:
-            raise ProjectError(f"{plant.path}:{line}: the rewrite did not give {name} = {value}")
-        backup.write_atomic(plant.path, new_text)
-        config.project = new_plant.devices[device].project
-        return next(e for e in entries(plant, device) if e.key == key)
-    path = project_file(plant, device)
-    if path is None:
-        raise ProjectError(f"{device}: the plant file names no project for it")
-    data = json.loads(path.read_text(encoding="utf-8"))
-    for item in data.get("parameters", []):
-        if item.get("key") == key:
-            item.update(value=param.decode(raw), raw=raw, text=param.display(raw))
-            break
-    else:
-        data.setdefault("parameters", []).append(
-            {"key": key, "name": param.label or param.name, "space": param.space, "address": param.address, "raw": raw,
-             "value": param.decode(raw), "text": param.display(raw), "unit": param.unit, "writable": True})
-    backup.load_document(json.dumps(data), str(path))  # still a readable parameter file
-    backup.write_atomic(path, json.dumps(data, indent=2, ensure_ascii=False))
+    if not any(e.key == key for e in entries(plant, device)):
+        raise ProjectError(f"the project of {device} does not name {param.label or param.name}: add it to the plant file")
+    save(plant, device, {key: value})
     return next(e for e in entries(plant, device) if e.key == key)
+
+
+# -- editing a project on the type's parameter model (the /project/<device> view) ----------------------------
+
+
+def editable(plant: Plant, device: str) -> list[Param]:
+    """The parameters a project of ``device`` may name: every writable one of its type's parameter model
+    ([] for a type without one)."""
+    params = DEVICE_TYPES[plant.devices[device].type].params
+    return [] if params is None else [p for p in params if p.writable]
+
+
+def allowed(param: Param) -> str:
+    """What an entry of ``param`` may be, in words: "0 .. 65535 ms", "one of: 0 Off, 1 On"."""
+    if param.enum is not None:
+        return "one of: " + ", ".join(f"{number} {name}" for number, name in param.enum.items())
+    low, high = param.limits()
+    number = (lambda x: f"{x:g}") if param.scale != 1 else (lambda x: str(int(x)))
+    step = f" in steps of {param.scale:g}" if param.scale != 1 else " (whole numbers)"
+    return f"{number(low)} .. {number(high)} {param.unit}".rstrip() + step
+
+
+def parse_value(param: Param, text: str | int | float) -> int | float:
+    """An entry as typed (a number, or an enum's name) -> the value the project keeps (the decoded number).
+
+    :raises ProjectError: not a number, out of range, no enum value; the message says what is allowed
+    """
+    if isinstance(text, str) and not text.strip():
+        raise ProjectError(f"{param.label or param.name}: empty; allowed: {allowed(param)}")
+    try:
+        raw = param.validate(text)
+    except ParamError as exc:
+        message = str(exc)
+        if "outside" in message or "not one of" in message:
+            raise ProjectError(message) from None
+        raise ProjectError(f"{message}; allowed: {allowed(param)}") from None
+    return param.decode(raw)
+
+
+def _bare_key(name: str) -> str:
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name)
+
+
+def _outside_strings(text: str):
+    """``(index, char, depth)`` of every character of TOML ``text`` outside its strings; depth counts the brackets
+    and braces open before it."""
+    depth, quote, escaped = 0, "", False
+    for i, ch in enumerate(text):
+        if quote:
+            if escaped:
+                escaped = False
+            elif ch == "\\" and quote == '"':
+                escaped = True
+            elif ch == quote:
+                quote = ""
+            continue
+        if ch in "\"'":
+            quote = ch
+            continue
+        if ch in "]}":
+            depth -= 1
+        yield i, ch, depth
+        if ch in "[{":
+            depth += 1
+
+
+def _split_items(inner: str) -> list[str]:
+    """The ``key = value`` items of an inline table's inside, split on its top-level commas."""
+    cuts = [i for i, ch, depth in _outside_strings(inner) if ch == "," and depth == 0]
+    bounds = zip([-1] + cuts, cuts + [len(inner)])
+    return [inner[a + 1:b].strip() for a, b in bounds if inner[a + 1:b].strip()]
+
+
+def _closing_brace(line: str, opening: int) -> int:
+    for i, ch, depth in _outside_strings(line[opening:]):
+        if ch == "}" and depth == 0:
+            return opening + i
+    raise ProjectError("the project's inline table does not close on its line")
+
+
+def _rewrite_inline(line: str, changes: dict[str, Any]) -> str:
+    """``project = { ... }`` with ``changes`` (name -> value, None to drop) applied; other items kept as written."""
+    opening = line.index("{", line.index("="))
+    closing = _closing_brace(line, opening)
+    items = []
+    done = set()
+    for item in _split_items(line[opening + 1:closing]):
+        key_text = item.split("=", 1)[0].strip()
+        name = json.loads(key_text) if key_text.startswith('"') else key_text.strip("'")
+        if name in changes:
+            done.add(name)
+            if changes[name] is None:
+                continue
+            item = f"{key_text} = {_toml_value(changes[name])}"
+        items.append(item)
+    items += [f"{_bare_key(n)} = {_toml_value(v)}" for n, v in changes.items() if n not in done and v is not None]
+    table = "{ " + ", ".join(items) + " }" if items else "{}"
+    return line[:opening] + table + line[closing + 1:]
+
+
+def _rewrite_table(lines: list[str], header: int, end: int, changes: dict[str, Any]) -> None:
+    """The lines of a ``[device.project]`` table (header on 0-based ``header``, up to ``end``) with ``changes``."""
+    done, last = set(), header
+    for i in range(end - 1, header, -1):
+        text = lines[i]
+        if not text.strip() or text.lstrip().startswith("#"):
+            continue
+        last = max(last, i)
+        name = next((n for n in changes if _name_pattern(n).search(text)), None)
+        if name is None:
+            continue
+        done.add(name)
+        if changes[name] is None:
+            del lines[i]
+            last -= 1
+            continue
+        match = _name_pattern(name).search(text)
+        rest = text[match.end():]
+        old = re.match(r'("(?:[^"\\]|\\.)*"|[^#\n]*?)(\s*(?:#|\n|$))', rest)
+        lines[i] = text[:match.end()] + _toml_value(changes[name]) + rest[len(old.group(1)):]
+    added = [f"{_bare_key(n)} = {_toml_value(v)}\n" for n, v in changes.items() if n not in done and v is not None]
+    lines[last + 1:last + 1] = added
+
+
+def _new_inline(lines: list[str], span: range, changes: dict[str, Any]) -> None:
+    """A ``project = { ... }`` line after the device table's last key (before any sub-table of it)."""
+    end = next((i for i in span if i > span.start and re.match(r"^\s*\[", lines[i])), span.stop)
+    last = max((i for i in range(span.start, end) if lines[i].strip() and not lines[i].lstrip().startswith("#")),
+               default=span.start)
+    items = ", ".join(f"{_bare_key(n)} = {_toml_value(v)}" for n, v in changes.items() if v is not None)
+    if not lines[last].endswith("\n"):
+        lines[last] += "\n"
+    lines.insert(last + 1, f"project = {{ {items} }}\n")
+
+
+def _names_for(config, params, changes: dict[str, Any]) -> dict[str, Any]:
+    """``changes`` by key -> by the name the project uses (its own spelling, else the parameter's label or name)."""
+    named = {}
+    for key, value in changes.items():
+        param = params.by_key[key]
+        project = config.project if isinstance(config.project, dict) else {}
+        name = next((n for n in project if _lookup(params, n) is param), param.label or param.name)
+        named[name] = value
+    return named
+
+
+def _write_with_backup(path: Path, old_text: str, new_text: str) -> None:
+    """``path`` rewritten atomically; what it held before is kept beside it as ``<name>.bak``."""
+    backup.write_atomic(path.with_name(path.name + ".bak"), old_text)
+    backup.write_atomic(path, new_text)
+
+
+def _save_inline(plant: Plant, device: str, named: dict[str, Any]) -> None:
+    config = plant.devices[device]
+    if plant.path is None:
+        raise ProjectError("the plant has no file to write")
+    text = plant.path.read_text(encoding="utf-8")
+    lines = text.splitlines(keepends=True)
+    span = _device_span(lines, config.line)
+    inline = next((i for i in span if re.match(r"^\s*project\s*=\s*\{", lines[i])), None)
+    table = next((i for i in span if re.match(r"^\s*\[\s*device\s*\.\s*project\s*\]", lines[i])), None)
+    if inline is not None:
+        lines[inline] = _rewrite_inline(lines[inline], named)
+    elif table is not None:
+        end = next((i for i in span if i > table and re.match(r"^\s*\[", lines[i])), span.stop)
+        _rewrite_table(lines, table, end, named)
+    else:
+        _new_inline(lines, span, named)
+    new_text = "".join(lines)
+    expected = {**(config.project or {})}
+    for name, value in named.items():
+        if value is None:
+            expected.pop(name, None)
+        else:
+            expected[name] = value
+    try:
+        new_plant = parse_plant(new_text, plant.path)
+    except PlantError as exc:
+        raise ProjectError(f"the rewritten plant file would not load: {exc}") from None
+    if new_plant.devices[device].project != expected:
+        raise ProjectError(f"{plant.path}: the rewrite would not give the project asked for: nothing written")
+    _write_with_backup(plant.path, text, new_text)
+    config.project = new_plant.devices[device].project
+
+
+def _save_file(path: Path, params, changes: dict[str, Any]) -> None:
+    text = path.read_text(encoding="utf-8")
+    data = json.loads(text)
+    items = data.setdefault("parameters", [])
+    for key, value in changes.items():
+        param = params.by_key[key]
+        found = next((item for item in items if item.get("key") == key), None)
+        if value is None:
+            if found is not None:
+                items.remove(found)
+            continue
+        raw = param.validate(value)
+        if found is None:
+            found = {"key": key, "name": param.label or param.name, "space": param.space, "address": param.address,
+                     "unit": param.unit, "writable": True}
+            items.append(found)
+        found.update(value=param.decode(raw), raw=raw, text=param.display(raw))
+    new_text = json.dumps(data, indent=2, ensure_ascii=False)
+    backup.load_document(new_text, str(path))  # still a readable parameter file
+    _write_with_backup(path, text, new_text)
+
+
+def save(plant: Plant, device: str, changes: dict[str, Any]) -> list[ProjectEntry]:
+    """Set the project's entries of ``device``: ``changes`` maps a parameter key to its new value, or to None to
+    drop the entry. Each value is checked by the parameter model first; the plant file (an inline table, a
+    ``[device.project]`` table, or a new ``project = { ... }`` line) or the parameter file is rewritten atomically,
+    its other content and comments kept, the old file kept as ``.bak``; the running plant follows.
+
+    :raises ProjectError: an invalid value, a type without a parameter model, a file that cannot be rewritten
+    """
+    config = plant.devices[device]
+    params = DEVICE_TYPES[config.type].params
+    if params is None:
+        raise ProjectError(f"{device}: its type has no parameter model a project can be written in")
+    checked = {}
+    for key, value in changes.items():
+        param = params.by_key.get(key)
+        if param is None or not param.writable:
+            raise ProjectError(f"{key!r} is not a writable parameter of {device}")
+        checked[key] = None if value is None else parse_value(param, value)
+    if not checked:
+        return entries(plant, device)
+    if isinstance(config.project, str):
+        _save_file(project_file(plant, device), params, checked)
+    else:
+        _save_inline(plant, device, _names_for(config, params, checked))
+    return entries(plant, device)
 
 
 # -- commission check --------------------------------------------------------------------------------
