@@ -1,9 +1,12 @@
-"""A generic Modbus poll on one RTU line, in the manner of Modbus Poll.
+"""A generic Modbus poll on one RTU line, in the manner of Modbus Poll: several poll windows at once.
 
-Unit address, function 01/02/03/04, start address, count and period; the answer shown as
+Each window (:class:`ModbusPoll`) has its own unit address, function 01/02/03/04, start address, count and period; the answer shown as
 unsigned, signed, hex, binary and, over two registers, 32-bit integers and floats in both word
 orders. Requests run through the line owner (:meth:`app.modbus_line.ModbusLine.tool_request`),
-between the devices' polls. Writes (06 single, 16 multiple) are engineer only, audited through
+between the devices' polls; the windows of a page (:class:`PollWindows`) take turns there, one request
+each in the order they asked (the line hands its tool slot over first come, first served), and a window
+whose unit does not answer waits longer between tries (up to :data:`BACKOFF_MAX_S`), so a silent unit
+costs the others at most one timeout per round. Writes (06 single, 16 multiple) are engineer only, audited through
 the worker, refused for a known device's registers that are not writable (RO, MFR, never
 written, not in its register map) and confirmed when they hit a known device's register.
 
@@ -20,6 +23,7 @@ import time
 from dataclasses import dataclass, field
 
 from app.modbus_line import LineError, ModbusLine
+from devices.transport import LineClosed, LineCrcError, LineTimeout
 from devices.params import Param
 from devices.registry import DEVICE_TYPES
 from devices.sendpolicy import ModbusMessage, Verdict, check_modbus
@@ -39,6 +43,8 @@ WORD_ORDERS = {"ABCD": "high word first", "CDAB": "low word first", "BADC": "hig
                "DCBA": "low word first, bytes swapped"}
 ADDRESS_MAX = 0xFFFF  # register and coil addresses 0..65535
 MAX_WRITE_COILS = 1968  # 6.11: 1..0x7B0 coils per write multiple coils
+MAX_WINDOWS = 8  # poll windows of one page: each adds a request per period to the line
+BACKOFF_MAX_S = 5.0  # a window whose unit stays silent tries again at most this far apart
 
 
 class PollError(ValueError):
@@ -250,19 +256,24 @@ async def read_once(line: ModbusLine, spec: PollSpec) -> list[int]:
 
 
 class ModbusPoll:
-    """A running poll of one browser page: the last answer, counts, and the loop task."""
+    """One poll window: its request, the last answer, counts (polls, errors, of them timeouts), the loop task."""
 
-    def __init__(self, worker, bus: str):
+    def __init__(self, worker, bus: str, number: int = 1):
         line = worker.lines.get(bus)
         if not isinstance(line, ModbusLine):
             raise KeyError(f"{bus} is not a Modbus RTU line")
         self.worker = worker
         self.bus = bus
         self.line = line
+        self.number = number  # the window's number on its page ("Window 2")
         self.spec: PollSpec | None = None
         self.last: PollResult | None = None
+        self.last_answer: float | None = None  # time.time() of the last good answer: the table's age
         self.polls = 0
         self.errors = 0
+        self.timeouts = 0  # errors where the unit did not answer at all
+        self.crc_errors = 0
+        self.silent = 0  # unanswered polls in a row (the backoff)
         self._task: asyncio.Task | None = None
 
     @property
@@ -273,8 +284,9 @@ class ModbusPoll:
         """Poll ``spec`` every ``period_s`` (reads change nothing: any role may poll)."""
         self.stop()
         self.spec = spec.check()
-        self.polls = self.errors = 0
+        self.polls = self.errors = self.timeouts = self.crc_errors = self.silent = 0
         self.last = None
+        self.last_answer = None
         self._task = asyncio.get_running_loop().create_task(self._run(self.spec), name=f"modbus poll {self.bus}")
 
     def stop(self) -> None:
@@ -282,20 +294,35 @@ class ModbusPoll:
             self._task.cancel()
             self._task = None
 
+    def interval_s(self, spec: PollSpec) -> float:
+        """Start to start of two polls: the period, doubled for every unanswered poll in a row (at most
+        :data:`BACKOFF_MAX_S`, never below the period), back to the period with the first answer."""
+        if not self.silent:
+            return spec.period_s
+        return max(spec.period_s, min(spec.period_s * 2 ** self.silent, BACKOFF_MAX_S))
+
     async def _run(self, spec: PollSpec) -> None:
         loop = asyncio.get_running_loop()
         while True:
             started = loop.time()
             await self.poll_once(spec)
-            await asyncio.sleep(max(0.0, spec.period_s - (loop.time() - started)))
+            await asyncio.sleep(max(0.0, self.interval_s(spec) - (loop.time() - started)))
 
     async def poll_once(self, spec: PollSpec) -> PollResult:
         start = time.perf_counter()
         try:
             values = await read_once(self.line, spec)
             result = PollResult(time.time(), values, rtt_ms=round((time.perf_counter() - start) * 1000, 1))
+            self.silent = 0
+            self.last_answer = result.time
         except LineError as exc:
             self.errors += 1
+            if isinstance(exc, (LineTimeout, LineClosed)):
+                self.timeouts += isinstance(exc, LineTimeout)
+                self.silent += 1
+            else:
+                self.silent = 0  # the unit answered (an exception, a bad CRC): no reason to wait longer
+                self.crc_errors += isinstance(exc, LineCrcError)
             result = PollResult(time.time(), self.last.values if self.last else [], error=str(exc))
         except Exception as exc:  # noqa: BLE001 - a bad answer is shown, never ends the page
             self.errors += 1
@@ -395,3 +422,42 @@ class ModbusPoll:
                                           target=dev.name if dev else self.bus, parameter=verdict.name or f"unit {unit} coil {address}",
                                           new=[int(b) for b in states])
         return describe
+
+
+class PollWindows:
+    """The poll windows of one page on one line, numbered 1, 2, ... as they were opened.
+
+    Every window polls on its own clock; their requests meet in the line's tool slot
+    (:meth:`app.modbus_line.ModbusLine.tool_request`), which takes them first come, first served between
+    the devices' polls: with several windows due at once they go in turn, one request each.
+    """
+
+    def __init__(self, worker, bus: str):
+        self.writer = ModbusPoll(worker, bus, 0)  # the page's writes (checked, confirmed, audited): no window's own
+        self.worker = worker
+        self.bus = bus
+        self.windows: list[ModbusPoll] = []
+
+    def add(self) -> ModbusPoll:
+        """A new window (not polling yet), numbered after the highest one open.
+
+        :raises PollError: :data:`MAX_WINDOWS` are open already
+        """
+        if len(self.windows) >= MAX_WINDOWS:
+            raise PollError(f"at most {MAX_WINDOWS} poll windows on one page: each adds its requests to the line")
+        window = ModbusPoll(self.worker, self.bus, max((w.number for w in self.windows), default=0) + 1)
+        self.windows.append(window)
+        return window
+
+    def remove(self, window: ModbusPoll) -> None:
+        window.stop()
+        if window in self.windows:
+            self.windows.remove(window)
+
+    def stop(self) -> None:
+        for window in self.windows:
+            window.stop()
+
+    @property
+    def running(self) -> int:
+        return sum(w.running for w in self.windows)

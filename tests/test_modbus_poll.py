@@ -11,10 +11,13 @@ from pathlib import Path
 import pytest
 
 from app.modbus_poll import (
+    BACKOFF_MAX_S,
+    MAX_WINDOWS,
     ModbusPoll,
     NeedsConfirmation,
     PollError,
     PollSpec,
+    PollWindows,
     format_register,
     pair_f32,
     pair_i32,
@@ -204,3 +207,57 @@ async def test_coil_writes_go_through_the_send_policy(line):
         await poll.write_coils(9, 0, [True, False], user="anna", role="engineer", confirmed=True)
     refused = [a for _u, a, r in _audit(runtime) if r.startswith("refused") and "coil" in a]
     assert len(refused) >= 2 and "function 05" in refused[0] and "function 15" in refused[1]
+
+
+# -- issue 32.14: several poll windows at once ------------------------------------------------------------
+
+
+async def test_windows_take_turns_and_a_silent_unit_does_not_starve_the_others(line):
+    """Three windows on one line, one of them asking a unit nobody answers: the two others keep their pace,
+    the silent one backs off, and the devices' own poll goes on between them."""
+    runtime, _poll = line
+    counters = runtime.store.devices["door-1"].counters
+    windows = PollWindows(runtime.worker, "line1")
+    silent, holding, inputs = windows.add(), windows.add(), windows.add()
+    assert [w.number for w in windows.windows] == [1, 2, 3]
+    silent.start(PollSpec(7, 3, 0, 1, period_s=0.2))  # nobody at unit 7: each try costs the 0.2 s timeout
+    holding.start(PollSpec(1, 3, 3000, 2, period_s=0.2))
+    inputs.start(PollSpec(1, 4, 104, 2, period_s=0.2))
+    before = counters.responses
+    try:
+        assert await wait_for(lambda: holding.polls >= 8 and inputs.polls >= 8, timeout=8), \
+            (holding.polls, inputs.polls, silent.polls)
+        assert holding.errors == 0 and inputs.errors == 0
+        assert inputs.rows()[0].name.endswith("SerialNumber (word 1 of 2)")
+        assert silent.timeouts >= 2 and silent.silent >= 2
+        assert silent.polls < holding.polls / 2, (silent.polls, holding.polls)  # backed off, not every 0.2 s
+        assert counters.responses > before + 5  # the lock's own poll went on between the windows
+        assert holding.last_answer is not None and silent.last_answer is None
+    finally:
+        windows.stop()
+    assert windows.running == 0
+
+
+def test_a_silent_window_backs_off_up_to_a_bound():
+    window = ModbusPoll.__new__(ModbusPoll)
+    spec = PollSpec(7, 3, 0, 1, period_s=0.2)
+    window.silent = 0
+    assert window.interval_s(spec) == 0.2
+    window.silent = 3
+    assert window.interval_s(spec) == pytest.approx(1.6)
+    window.silent = 20
+    assert window.interval_s(spec) == BACKOFF_MAX_S
+    window.silent = 1
+    assert window.interval_s(PollSpec(7, 3, 0, 1, period_s=30)) == 30  # never faster than its own period
+
+
+async def test_windows_are_numbered_and_bounded(line):
+    runtime, _poll = line
+    windows = PollWindows(runtime.worker, "line1")
+    opened = [windows.add() for _ in range(MAX_WINDOWS)]
+    with pytest.raises(PollError, match=f"at most {MAX_WINDOWS}"):
+        windows.add()
+    opened[1].start(PollSpec(1, 3, 1000, 1))
+    windows.remove(opened[1])
+    assert not opened[1].running and len(windows.windows) == MAX_WINDOWS - 1
+    assert windows.add().number == MAX_WINDOWS + 1  # a new window never takes an open one's number
