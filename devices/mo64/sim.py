@@ -42,8 +42,8 @@ from collections import deque
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
-from urllib.parse import urlparse
 
+from devices import simserver
 from devices.mo64 import codec
 from devices.simcontrols import SimAction, SimControls, SimParam
 from devices.mo64.codec import Command, Function, GateState, Reply, RequestType
@@ -441,13 +441,6 @@ class Mo64Twin:
 
 
 # -- servers -----------------------------------------------------------------------------------------
-def _host_port(url: str) -> tuple[str, int]:
-    parsed = urlparse(url)
-    if parsed.scheme != "socket" or not parsed.port:
-        raise ValueError(f"a simulated RS485 line needs a socket://host:port URL, not {url!r}")
-    return parsed.hostname or "127.0.0.1", parsed.port
-
-
 def _twin_for(dev: Any, address: int | None = None) -> Mo64Twin:
     opts = dev.options
     return Mo64Twin(dev.name, address, int(opts.get("serial_number", 6400000 + (address or 1))),
@@ -455,27 +448,12 @@ def _twin_for(dev: Any, address: int | None = None) -> Mo64Twin:
                     query_form=opts.get("query_form", "both"))
 
 
-class _Ticker:
-    def __init__(self, twins: list[Mo64Twin]):
-        self.twins = twins
-        self.task: asyncio.Task | None = None
+def _ticker(twins: list[Mo64Twin]) -> simserver.Ticker:
+    def step(dt_s: float, now: float) -> None:
+        for twin in twins:
+            twin.step(dt_s)
 
-    def start(self, name: str) -> None:
-        self.task = asyncio.create_task(self._run(), name=name)
-
-    async def _run(self) -> None:
-        last = time.monotonic()
-        while True:
-            await asyncio.sleep(TICK_S)
-            now = time.monotonic()
-            for twin in self.twins:
-                twin.step(now - last)
-            last = now
-
-    def stop(self) -> None:
-        if self.task:
-            self.task.cancel()
-            self.task = None
+    return simserver.Ticker(step, TICK_S)
 
 
 class Mo64TcpSim:
@@ -494,67 +472,49 @@ class Mo64TcpSim:
         self.twins: dict[str, Mo64Twin] = {dev.name: self.twin}
         self.host = bus.options.get("host", "127.0.0.1")
         self.port = int(bus.options.get("port", codec.TCP_PORT))
-        self.server: asyncio.base_events.Server | None = None
-        self._ticker = _Ticker([self.twin])
-        self._writer: asyncio.StreamWriter | None = None
-        self.connections = 0
-        self.refused = 0
+        # chapter 3: the next client connects after the first one closed
+        self.endpoint = simserver.TwinServer(f"the simulated MO 64 {bus.name}", self._serve, simserver.REFUSE)
+        self._ticker = _ticker([self.twin])
         self.garbage = 0
 
+    @property
+    def connections(self) -> int:
+        return self.endpoint.connections
+
+    @property
+    def refused(self) -> int:
+        return self.endpoint.refused
+
     async def start(self) -> None:
-        try:
-            self.server = await asyncio.start_server(self._serve, self.host, self.port)
-        except OSError as exc:
-            raise OSError(f"cannot listen on {self.host}:{self.port} for the simulated MO 64 "
-                          f"{self.bus.name}: {exc}") from None
+        await self.endpoint.start(self.host, self.port)
         self._ticker.start(f"sim {self.bus.name}")
 
     def _push(self, telegram: bytes) -> None:
-        writer = self._writer
-        if writer is not None and not writer.is_closing():
-            writer.write(codec.encode_frame(telegram))
+        for writer in self.endpoint.clients:
+            if not writer.is_closing():
+                writer.write(codec.encode_frame(telegram))
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        if self._writer is not None:
-            self.refused += 1  # chapter 3: the next client connects after the first one closed
-            writer.close()
-            return
-        self._writer = writer
-        self.connections += 1
+        async def answer(item) -> None:
+            if isinstance(item, codec.FrameError):
+                self.garbage += 1
+                return  # a telegram with a bad checksum is not answered
+            for delay, telegram in self.twin.handle(item):
+                if delay:
+                    await asyncio.sleep(delay)
+                writer.write(codec.encode_frame(telegram))
+                await writer.drain()
+
         self.twin.listeners.append(self._push)
-        splitter = codec.FrameSplitter(codec.TCP)
         try:
-            while True:
-                data = await reader.read(4096)
-                if not data:
-                    break
-                for item in splitter.feed(data):
-                    if isinstance(item, codec.FrameError):
-                        self.garbage += 1
-                        continue  # a telegram with a bad checksum is not answered
-                    for delay, telegram in self.twin.handle(item):
-                        if delay:
-                            await asyncio.sleep(delay)
-                        writer.write(codec.encode_frame(telegram))
-                        await writer.drain()
-        except (ConnectionError, asyncio.CancelledError):
-            pass
+            await simserver.serve_telegrams(reader, codec.FrameSplitter(codec.TCP), answer)
         finally:
             if self._push in self.twin.listeners:
                 self.twin.listeners.remove(self._push)
-            if self._writer is writer:
-                self._writer = None
-            writer.close()
 
     async def stop(self) -> None:
         self._ticker.stop()
-        if self._writer is not None:
-            self._writer.close()
-            self._writer = None
-        if self.server:
-            self.server.close()
-            await self.server.wait_closed()
-            self.server = None
+        await self.endpoint.stop()
 
 
 @dataclass
@@ -596,9 +556,8 @@ class Mo64Rs485Sim:
             twin = _twin_for(dev, address)
             self.by_address[address] = twin
             self.twins[dev.name] = twin
-        self.server: asyncio.base_events.Server | None = None
-        self._ticker = _Ticker(list(self.by_address.values()))
-        self._writers: list[asyncio.StreamWriter] = []
+        self.endpoint = simserver.TwinServer(f"the simulated RS485 line {bus.name}", self._serve, simserver.SHARE)
+        self._ticker = _ticker(list(self.by_address.values()))
         self._master_task: asyncio.Task | None = None
         self.tool_has_token = not self.shared
         self.holds: deque[TokenHold] = deque(maxlen=SIM_LOG_LIMIT)  # the demo plant runs for hours: bounded
@@ -613,18 +572,14 @@ class Mo64Rs485Sim:
         self._token_back = asyncio.Event()
 
     async def start(self) -> None:
-        host, port = _host_port(self.bus.options["port"])
-        try:
-            self.server = await asyncio.start_server(self._serve, host, port)
-        except OSError as exc:
-            raise OSError(f"cannot listen on {host}:{port} for the simulated RS485 line {self.bus.name}: {exc}") from None
+        await self.endpoint.start(*simserver.host_port(self.bus.options["port"], "a simulated RS485 line"))
         self._ticker.start(f"sim {self.bus.name}")
         if self.shared:
             self._master_task = asyncio.create_task(self._second_master(), name=f"sim {self.bus.name} master")
 
     async def _put(self, raw: bytes, source: asyncio.StreamWriter | None = None) -> None:
         """Bytes on the line: every client but the one that sent them hears them."""
-        for writer in list(self._writers):
+        for writer in list(self.endpoint.clients):
             if writer is source or writer.is_closing():
                 continue
             writer.write(raw)
@@ -634,25 +589,14 @@ class Mo64Rs485Sim:
                 pass
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        self._writers.append(writer)
-        splitter = codec.FrameSplitter(codec.RS485)
-        try:
-            while True:
-                data = await reader.read(4096)
-                if not data:
-                    break
-                for item in splitter.feed(data):
-                    if isinstance(item, codec.FrameError):
-                        self.garbage += 1
-                        continue
-                    await self._put(item.raw, writer)
-                    await self._frame_from_client(item)
-        except (ConnectionError, asyncio.CancelledError):
-            pass
-        finally:
-            if writer in self._writers:
-                self._writers.remove(writer)
-            writer.close()
+        async def on_line(item) -> None:
+            if isinstance(item, codec.FrameError):
+                self.garbage += 1
+                return
+            await self._put(item.raw, writer)
+            await self._frame_from_client(item)
+
+        await simserver.serve_telegrams(reader, codec.FrameSplitter(codec.RS485), on_line)
 
     async def _frame_from_client(self, frame: codec.Frame) -> None:
         if frame.is_token:
@@ -693,7 +637,7 @@ class Mo64Rs485Sim:
             while True:
                 await asyncio.sleep(TOKEN_HOLD_S)
                 rounds += 1
-                if rounds % 3 == 0 and self.by_address and self._writers:
+                if rounds % 3 == 0 and self.by_address and self.endpoint.clients:
                     address = sorted(self.by_address)[(rounds // 3) % len(self.by_address)]
                     request = codec.encode_frame(codec.encode_query(codec.Q_GATE_STATE), codec.RS485,
                                                  da=address, sa=self.next_master)
@@ -705,7 +649,7 @@ class Mo64Rs485Sim:
                         raw = codec.encode_frame(telegram, codec.RS485, da=self.next_master, sa=address)
                         self.own_answers.append(raw)
                         await self._put(raw)
-                if not self._writers:
+                if not self.endpoint.clients:
                     continue  # nobody to pass the token to
                 self._token_back.clear()
                 self.tool_has_token = True
@@ -731,13 +675,7 @@ class Mo64Rs485Sim:
         if self._master_task:
             self._master_task.cancel()
             self._master_task = None
-        for writer in self._writers:
-            writer.close()
-        self._writers.clear()
-        if self.server:
-            self.server.close()
-            await self.server.wait_closed()
-            self.server = None
+        await self.endpoint.stop()
 
 
 __all__ = ["Mo64Twin", "Mo64TcpSim", "Mo64Rs485Sim", "TokenHold"]

@@ -30,8 +30,8 @@ import time
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
-from urllib.parse import urlparse
 
+from devices import simserver
 from devices.scu import codec, params
 from devices.scu.codec import Function, Motion, Ramp, SafetyId, Status
 from devices.simcontrols import SimAction, SimControls, SimParam
@@ -591,13 +591,6 @@ def _answer(command: bytes, status: int) -> bytes:
     return body + codec.crc16(body).to_bytes(2, "little")
 
 
-def _host_port(url: str) -> tuple[str, int]:
-    parsed = urlparse(url)
-    if parsed.scheme != "socket" or not parsed.port:
-        raise ValueError(f"a simulated SCU line needs a socket://host:port URL, not {url!r}")
-    return parsed.hostname or "127.0.0.1", parsed.port
-
-
 class ScuSim:
     """The SCU of one plant-file serial bus, served on the TCP port of its ``socket://`` URL.
 
@@ -618,82 +611,47 @@ class ScuSim:
         self.twins: dict[str, ScuTwin] = {dev.name: self.twin}
         self.baudrate = int(bus.options.get("baudrate", codec.DEFAULT_BAUDRATE))
         self.wire_delay = bool(bus.options.get("wire_delay"))
-        self.server: asyncio.base_events.Server | None = None
-        self._task: asyncio.Task | None = None
-        self._writer: asyncio.StreamWriter | None = None
-        self.connections = 0
+        # point to point: a new master replaces the old one
+        self.endpoint = simserver.TwinServer(f"the simulated SCU line {bus.name}", self._serve, simserver.REPLACE)
+        self._ticker = simserver.Ticker(self.twin.step, TICK_S)
+
+    @property
+    def connections(self) -> int:
+        return self.endpoint.connections
 
     async def start(self) -> None:
-        host, port = _host_port(self.bus.options["port"])
-        try:
-            self.server = await asyncio.start_server(self._serve, host, port)
-        except OSError as exc:
-            raise OSError(f"cannot listen on {host}:{port} for the simulated SCU line {self.bus.name}: {exc}") from None
-        self._task = asyncio.create_task(self._run(), name=f"sim {self.bus.name}")
-
-    async def _run(self) -> None:
-        last = time.monotonic()
-        while True:
-            await asyncio.sleep(TICK_S)
-            now = time.monotonic()
-            self.twin.step(now - last, now)
-            last = now
+        await self.endpoint.start(*simserver.host_port(self.bus.options["port"], "a simulated SCU line"))
+        self._ticker.start(f"sim {self.bus.name}")
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        if self._writer is not None:
-            self._writer.close()
-        self._writer = writer
-        self.connections += 1
-        splitter = codec.FrameSplitter(codec.REQUESTS)
-        try:
-            while True:
-                try:
-                    timeout = codec.MAX_INTER_BYTE_S if splitter.pending else None
-                    data = await asyncio.wait_for(reader.read(4096), timeout)
-                except TimeoutError:
-                    splitter.expire()  # a telegram cut short: dropped without an answer
-                    continue
-                if not data:
-                    break
-                for item in splitter.feed(data):
-                    answer = self.twin.handle(item)
-                    if answer is None:
-                        continue
-                    if self.wire_delay:
-                        raw = getattr(item, "raw", b"")
-                        await asyncio.sleep(codec.wire_time_s(len(raw) + len(answer), self.baudrate))
-                    twin = self.twin
-                    if twin.answer_delay_s:
-                        await asyncio.sleep(twin.answer_delay_s)
-                    if twin.stray_bytes:
-                        twin.stray_bytes -= 1
-                        answer = b"\x00" + answer  # noise on the line: one byte that starts no telegram
-                    if twin.split_answers:
-                        cut = max(1, len(answer) // 2)
-                        writer.write(answer[:cut])
-                        await writer.drain()
-                        await asyncio.sleep(0.05)  # well inside the 1000 ms inter-byte limit (section 3)
-                        answer = answer[cut:]
-                    writer.write(answer)
-                    await writer.drain()
-        except (ConnectionError, asyncio.CancelledError):
-            pass
-        finally:
-            if self._writer is writer:
-                self._writer = None
-            writer.close()
+        async def answer(item) -> None:
+            answer = self.twin.handle(item)
+            if answer is None:
+                return
+            if self.wire_delay:
+                raw = getattr(item, "raw", b"")
+                await asyncio.sleep(codec.wire_time_s(len(raw) + len(answer), self.baudrate))
+            twin = self.twin
+            if twin.answer_delay_s:
+                await asyncio.sleep(twin.answer_delay_s)
+            if twin.stray_bytes:
+                twin.stray_bytes -= 1
+                answer = b"\x00" + answer  # noise on the line: one byte that starts no telegram
+            if twin.split_answers:
+                cut = max(1, len(answer) // 2)
+                writer.write(answer[:cut])
+                await writer.drain()
+                await asyncio.sleep(0.05)  # well inside the 1000 ms inter-byte limit (section 3)
+                answer = answer[cut:]
+            writer.write(answer)
+            await writer.drain()
+
+        # a telegram cut short (the inter-byte limit passed) is dropped without an answer
+        await simserver.serve_telegrams(reader, codec.FrameSplitter(codec.REQUESTS), answer, codec.MAX_INTER_BYTE_S)
 
     async def stop(self) -> None:
-        if self._task:
-            self._task.cancel()
-            self._task = None
-        if self._writer is not None:
-            self._writer.close()
-            self._writer = None
-        if self.server:
-            self.server.close()
-            await self.server.wait_closed()
-            self.server = None
+        self._ticker.stop()
+        await self.endpoint.stop()
 
 
 __all__ = ["ScuSim", "ScuTwin", "ActuatorTwin"]

@@ -1,0 +1,138 @@
+"""The TCP side of a device twin: the listening port, the clients it serves, the stream of telegrams
+each client sends, and the clock that moves the twin's physics.
+
+A simulated line is a TCP port (the master opens it as a pyserial ``socket://`` URL, or as the
+barrier's own TCP port). :class:`TwinServer` starts and stops the port and keeps the connected
+clients, by one of three rules: a point-to-point line where a new master replaces the old one
+(SCU), a device that serves one client at a time and closes a second at once (MO 64 over TCP), or
+a bus every client hears (MO 64 on RS485). :func:`serve_telegrams` reads one client's bytes through
+the family codec's splitter; :class:`Ticker` steps the twins on their own period.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Awaitable, Callable
+from urllib.parse import urlparse
+
+# what a second client gets (TwinServer ``clients``)
+SHARE = "share"  # every client is served (a bus)
+REPLACE = "replace"  # the new client replaces the one before (point to point: the old one is closed)
+REFUSE = "refuse"  # one client at a time: a second one is closed at once (counted in ``refused``)
+
+Handler = Callable[[asyncio.StreamReader, asyncio.StreamWriter], Awaitable[None]]
+
+
+def host_port(url: str, what: str) -> tuple[str, int]:
+    """Host and port of a ``socket://host:port`` URL (the plant file's port of a simulated line).
+
+    :param what: the line in words, for the error (``"a simulated SCU line"``)
+    """
+    parsed = urlparse(url)
+    if parsed.scheme != "socket" or not parsed.port:
+        raise ValueError(f"{what} needs a socket://host:port URL, not {url!r}")
+    return parsed.hostname or "127.0.0.1", parsed.port
+
+
+class TwinServer:
+    """One listening TCP port of the simulated plant; ``handle(reader, writer)`` serves each client.
+
+    A client that goes away (or a server that stops) ends its handler quietly; the writer is closed
+    and leaves :attr:`clients`.
+
+    :param what: the line in words, for the error when the port cannot be taken
+    :param clients: :data:`SHARE`, :data:`REPLACE` or :data:`REFUSE`
+    """
+
+    def __init__(self, what: str, handle: Handler, clients: str = SHARE):
+        if clients not in (SHARE, REPLACE, REFUSE):
+            raise ValueError(f"clients must be {SHARE!r}, {REPLACE!r} or {REFUSE!r}")
+        self.what = what
+        self.handle = handle
+        self.rule = clients
+        self.server: asyncio.base_events.Server | None = None
+        self.clients: list[asyncio.StreamWriter] = []
+        self.connections = 0
+        self.refused = 0
+
+    async def start(self, host: str, port: int) -> None:
+        try:
+            self.server = await asyncio.start_server(self._serve, host, port)
+        except OSError as exc:
+            raise OSError(f"cannot listen on {host}:{port} for {self.what}: {exc}") from None
+
+    async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        if self.clients and self.rule == REFUSE:
+            self.refused += 1
+            writer.close()
+            return
+        if self.rule == REPLACE:
+            for old in self.clients:
+                old.close()
+            self.clients.clear()
+        self.clients.append(writer)
+        self.connections += 1
+        try:
+            await self.handle(reader, writer)
+        except (ConnectionError, asyncio.CancelledError):
+            pass
+        finally:
+            if writer in self.clients:
+                self.clients.remove(writer)
+            writer.close()
+
+    async def stop(self) -> None:
+        for writer in self.clients:
+            writer.close()
+        self.clients.clear()
+        if self.server:
+            self.server.close()
+            await self.server.wait_closed()
+            self.server = None
+
+
+async def serve_telegrams(reader: asyncio.StreamReader, splitter, on_item: Callable[[object], Awaitable[None]],
+                          silence_s: float | None = None) -> None:
+    """Feed a client's bytes to ``splitter`` (devices/framing.py) and await ``on_item`` for each telegram or
+    :class:`~devices.framing.FrameError` it yields, until the client closes.
+
+    :param silence_s: a telegram still incomplete after this long without a byte is dropped
+        (``splitter.expire()``, nothing is answered); None: it waits for its bytes
+    """
+    while True:
+        try:
+            timeout = silence_s if silence_s is not None and splitter.pending else None
+            data = await asyncio.wait_for(reader.read(4096), timeout)
+        except TimeoutError:
+            splitter.expire()
+            continue
+        if not data:
+            return
+        for item in splitter.feed(data):
+            await on_item(item)
+
+
+class Ticker:
+    """Calls ``step(dt_s, now)`` every ``period_s`` on the event loop until :meth:`stop`."""
+
+    def __init__(self, step: Callable[[float, float], None], period_s: float):
+        self.step = step
+        self.period_s = period_s
+        self.task: asyncio.Task | None = None
+
+    def start(self, name: str) -> None:
+        self.task = asyncio.create_task(self._run(), name=name)
+
+    async def _run(self) -> None:
+        last = time.monotonic()
+        while True:
+            await asyncio.sleep(self.period_s)
+            now = time.monotonic()
+            self.step(now - last, now)
+            last = now
+
+    def stop(self) -> None:
+        if self.task:
+            self.task.cancel()
+            self.task = None
