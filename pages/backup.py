@@ -14,15 +14,12 @@ from app import backup, project
 from app import runtime as rt
 from pages.frame import frame, notify_error
 from pages.session import can_write, current_user
+from pages.diffrows import DIFF_COLUMNS, STATE_SLOT, WRAP
+from pages.diffrows import count as _count
+from pages.diffrows import row_state as _row_state
+from pages.project import ProjectCard
 from pages.widgets import confirm, upload_button
 
-WRAP = "white-space: normal; overflow-wrap: break-word"  # long texts wrap inside the screen, never cut off
-DIFF_COLUMNS = [
-    {"name": "name", "label": "Parameter", "field": "name", "align": "left"},
-    {"name": "current", "label": "Device now", "field": "current", "align": "left", "style": WRAP},
-    {"name": "backup", "label": "In the backup", "field": "backup", "align": "left", "style": WRAP},
-    {"name": "state", "label": "", "field": "state", "align": "left", "style": WRAP + "; min-width: 16rem"},
-]
 FILE_COLUMNS = [
     {"name": "name", "label": "File", "field": "name", "align": "left", "style": WRAP},
     {"name": "device", "label": "Device", "field": "device", "align": "left"},
@@ -32,13 +29,6 @@ FILE_COLUMNS = [
     {"name": "size", "label": "Size", "field": "size", "align": "left"},
     {"name": "actions", "label": "", "field": "name"},
 ]
-# the risk of a restored value (Param.needs_confirmation) is shown in red with a warning sign
-STATE_SLOT = """
-    <q-td :props="props" :style="props.col.style">
-      <span v-if="props.row.risk" class="text-negative text-weight-medium" data-testid="restore-risk">
-        <q-icon name="warning" size="xs" class="q-mr-xs" />{{ props.row.state }}</span>
-      <span v-else>{{ props.row.state }}</span>
-    </q-td>"""
 # the uploader's own header shows "0.0B / 0.00%" before any file: a plain pick button instead
 def _files(directory: Path) -> list[dict]:
     rows = []
@@ -341,11 +331,6 @@ class RestoreFlow:
         self.write.set_visibility(changed > 0)
 
 
-def _count(n: int, noun: str) -> str:
-    """"1 parameter", "2 parameters"."""
-    return f"{n} {noun}{'' if n == 1 else 's'}"
-
-
 async def _confirm_restore(device: str, to_write: list, others: list[str], wear_text: str) -> bool:
     """Ask before a restore writes, naming every value the device's save step makes permanent: the
     restored ones and every earlier change not saved yet (as the device page's Save dialog does)."""
@@ -373,139 +358,3 @@ async def _confirm_restore(device: str, to_write: list, others: list[str], wear_
     result = await dialog
     dialog.delete()
     return bool(result)
-
-
-def _row_state(row: backup.DiffRow) -> str:
-    if row.error:
-        return f"not written: {row.error}"
-    if not row.changed:
-        return "same"
-    return f"differs; risk, needs confirmation: {row.risk}" if row.risk else "differs"
-
-
-PROJECT_COLUMNS = [
-    {"name": "name", "label": "Parameter", "field": "name", "align": "left"},
-    {"name": "current", "label": "Device now", "field": "current", "align": "left", "style": WRAP},
-    {"name": "backup", "label": "Project", "field": "backup", "align": "left", "style": WRAP},
-    {"name": "state", "label": "", "field": "state", "align": "left", "style": WRAP},
-    {"name": "actions", "label": "Reconcile", "field": "key", "align": "left"},
-]
-PROJECT_ACTIONS = """
-    <q-td :props="props">
-      <div v-if="props.row.changed" class="column items-start">
-        <q-btn dense flat no-caps icon="memory" label="Keep device" :data-project-keep="props.row.key"
-               @click="$parent.$emit('keep', props.row.key)" />
-        <q-btn dense flat no-caps color="negative" icon="upload" label="Apply project" :data-project-apply="props.row.key"
-               :disable="!props.row.can_write" @click="$parent.$emit('apply', props.row.key)" />
-        <q-btn dense flat no-caps icon="edit_note" label="Update project" :data-project-update="props.row.key"
-               :disable="!props.row.can_write" @click="$parent.$emit('update', props.row.key)" />
-      </div>
-    </q-td>"""
-
-
-class ProjectCard:
-    """The plant file's project of each device against the device, reconciled per row: keep the device's
-    value, apply the project's (restore's verified write through the gate), or update the project
-    (the plant file's or the parameter file's entry rewritten atomically)."""
-
-    def __init__(self, devices: list[str]):
-        self.runtime = rt.current()
-        self.plan: backup.RestorePlan | None = None
-        self.kept: set[str] = set()
-        with ui.card().classes("w-full").props("data-testid=project-card"):
-            ui.label("Project against the devices").classes("text-subtitle1")
-            where = self.runtime.plant.path.name if self.runtime.plant.path else "the plant file"
-            ui.label(f"The intended parameters {where} names for each device, checked by the parameter model. "
-                     "Nothing is written until you press Apply project on a row.").classes("text-caption text-grey-8")
-            with ui.row().classes("items-center"):
-                self.device = ui.select(devices, value=devices[0], label="Device").props(
-                    "dense outlined data-testid=project-device").classes("w-56")
-                ui.button("Compare project with the device", icon="compare_arrows", on_click=self.compare).props(
-                    "data-testid=project-compare")
-            self.problems = ui.column().classes("gap-0")
-            self.table = ui.table(columns=PROJECT_COLUMNS, rows=[], row_key="key", pagination=0).classes(
-                "w-full reg-table").props("dense flat bordered")
-            self.table.add_slot("body-cell-state", STATE_SLOT)
-            self.table.add_slot("body-cell-actions", PROJECT_ACTIONS)
-            self.table.props(':table-row-class-fn="row => row.changed ? \'restore-differs\' : \'\'"')
-            self.table.on("keep", lambda e: self.keep(e.args))
-            self.table.on("apply", lambda e: self.apply(e.args))
-            self.table.on("update", lambda e: self.update(e.args))
-            self.table.set_visibility(False)
-            self.summary = ui.label().classes("text-body2").props("data-testid=project-summary")
-
-    async def compare(self) -> None:
-        name = self.device.value
-        self.problems.clear()
-        problems = [e for e in await asyncio.to_thread(project.entries, self.runtime.plant, name) if e.error]
-        with self.problems:
-            for entry in problems:
-                ui.label(f"✖ {entry.where}: {entry.error}").classes("text-negative text-body2")
-        try:
-            self.plan = await backup.plan_restore(self.runtime, name, project.document(self.runtime, name))
-        except Exception as exc:  # noqa: BLE001 - not answering, no parameter model ...
-            notify_error(f"Cannot compare: {exc}")
-            return
-        self.kept = {k for k in self.kept if k.startswith(name + "/")}
-        self.show()
-
-    def show(self) -> None:
-        name = self.plan.device
-        rows = []
-        for r in self.plan.rows:
-            kept = f"{name}/{r.key}" in self.kept and r.changed
-            state = "differs; the device's value kept" if kept else _row_state(r)
-            rows.append({"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": state,
-                         "risk": bool(r.changed and r.risk), "changed": r.changed and not kept, "can_write": can_write()})
-        self.table.rows = rows
-        self.table.update()
-        self.table.set_visibility(True)
-        changed = sum(1 for row in rows if row["changed"])
-        self.summary.set_text(f"{name}: {changed} of {len(rows)} project {'entry' if len(rows) == 1 else 'entries'} "
-                              f"{'differs' if changed == 1 else 'differ'} from the device"
-                              + ("" if changed else ": device and project agree"))
-
-    def _row(self, key: str) -> backup.DiffRow | None:
-        return next((r for r in self.plan.rows if r.key == key), None) if self.plan else None
-
-    def keep(self, key: str) -> None:
-        if self._row(key) is not None:
-            self.kept.add(f"{self.plan.device}/{key}")
-            self.show()
-
-    async def apply(self, key: str) -> None:
-        row = self._row(key)
-        if row is None or not row.changed:
-            return
-        if not await confirm(f"Write {row.name} = {row.backup_text} to {self.plan.device}?",
-                             f"The project's value is written, read back and saved in the device (now {row.current_text}).",
-                             ok="Write"):
-            return
-        confirmed = set()
-        if row.risk:
-            if not await confirm(f"Write {row.name} = {row.backup_text}?", row.risk, ok="Write anyway"):
-                return
-            confirmed.add(key)
-        user, role = current_user()
-        report = await backup.execute_restore(self.runtime, self.plan, {key}, user=user, role=role, confirmed=confirmed)
-        ui.notify(f"{row.name}: {report.summary()}", type="positive" if report.ok else "negative", multi_line=True)
-        await self.compare()
-
-    async def update(self, key: str) -> None:
-        row = self._row(key)
-        if row is None or not row.changed:
-            return
-        device = self.plan.device
-        user, role = current_user()
-
-        async def rewrite() -> None:
-            await asyncio.to_thread(project.update_entry, self.runtime.plant, device, key, row.current_value)
-
-        try:
-            await self.runtime.worker.engineer_action(rewrite, user=user, role=role, describe="update project",
-                                                      target=device, new=f"{row.name} = {row.current_text}")
-        except Exception as exc:  # noqa: BLE001 - a file that cannot be written, a viewer ...
-            notify_error(f"Project not updated: {exc}")
-            return
-        ui.notify(f"Project of {device}: {row.name} = {row.current_text}", type="positive")
-        await self.compare()

@@ -102,9 +102,17 @@ def register_pages(runtime: Runtime) -> None:
                 ui.link("Back to the overview", "/")
             return
         importlib.import_module(f"pages.{state.type}").content(name)
+        from pages.project import device_card
         from pages.replace import notice
 
         notice(name)  # "replaced?" with old and new identity, whatever the device type
+        device_card(name)  # the plant file's project against the device, whatever the device type
+
+    @ui.page("/project/{name}")
+    def project_page(name: str) -> None:
+        from pages import project
+
+        project.content(name)
 
     @ui.page("/monitor/{bus}")
     def monitor_page(bus: str) -> None:

@@ -1,0 +1,425 @@
+"""The offline project (app/project.py) in the browser.
+
+:class:`ProjectCard` shows the plant file's intended parameters of a device against the device and
+reconciles per row: keep the device's value, apply the project's (restore's verified write through the
+gate), or update the project (its entry rewritten atomically). The backup page shows it for every device
+with a project, each device's page for its own (:func:`device_card`, compared when the device answers).
+
+:func:`content` is the project editor (``/project/<device>``): every writable parameter of the device
+type's parameter model with the project's value, edited and checked without the device (it may never have
+answered), saved back into the plant file or the parameter file. Saving is an engineer's action, audited.
+"""
+
+from __future__ import annotations
+
+import asyncio
+
+from nicegui import background_tasks, ui
+
+from app import backup, project
+from app import runtime as rt
+from devices.params import Param
+from devices.registry import DEVICE_TYPES
+from pages.diffrows import STATE_SLOT, WRAP, row_state
+from pages.frame import frame, notify_error
+from pages.session import can_write, current_user
+from pages.widgets import confirm, follow, viewer_reason
+
+PROJECT_COLUMNS = [
+    {"name": "name", "label": "Parameter", "field": "name", "align": "left"},
+    {"name": "backup", "label": "Project", "field": "backup", "align": "left", "style": WRAP},
+    {"name": "current", "label": "Device now", "field": "current", "align": "left", "style": WRAP},
+    {"name": "state", "label": "", "field": "state", "align": "left", "style": WRAP},
+    {"name": "actions", "label": "Reconcile", "field": "key", "align": "left"},
+]
+# a differing row's project value in blue, the device's in orange (as the row's left edge)
+VALUE_SLOTS = {
+    name: f"""
+    <q-td :props="props" :style="props.col.style">
+      <span :class="props.row.changed ? '{colour} text-weight-medium' : ''">{{{{ props.value }}}}</span>
+    </q-td>"""
+    for name, colour in (("backup", "text-primary"), ("current", "text-deep-orange-9"))
+}
+PROJECT_ACTIONS = """
+    <q-td :props="props">
+      <div v-if="props.row.changed" class="column items-start">
+        <q-btn dense flat no-caps icon="memory" label="Keep device" :data-project-keep="props.row.key"
+               @click="$parent.$emit('keep', props.row.key)" />
+        <q-btn dense flat no-caps color="negative" icon="upload" label="Apply project" :data-project-apply="props.row.key"
+               :disable="!props.row.can_write" @click="$parent.$emit('apply', props.row.key)" />
+        <q-btn dense flat no-caps icon="edit_note" label="Update project" :data-project-update="props.row.key"
+               :disable="!props.row.can_write" @click="$parent.$emit('update', props.row.key)" />
+      </div>
+    </q-td>"""
+
+
+def _where(plant, name: str) -> str:
+    """Where the project of ``name`` is kept, in words."""
+    path = project.project_file(plant, name)
+    if path is not None:
+        return f"the parameter file {path.name}"
+    return plant.path.name if plant.path else "the plant file"
+
+
+class ProjectCard:
+    """The project of a device against the device, reconciled per row: keep the device's value, apply the
+    project's (restore's verified write through the gate), or update the project (the plant file's or the
+    parameter file's entry rewritten atomically).
+
+    :param devices: the devices to choose from (the backup page); with ``compact`` the one device of its page,
+        whose differing rows only are listed, compared by itself whenever the device comes to answer
+    """
+
+    def __init__(self, devices: list[str], *, compact: bool = False):
+        self.runtime = rt.current()
+        self.compact = compact
+        self.devices = devices
+        self.plan: backup.RestorePlan | None = None
+        self.kept: set[str] = set()
+        self.device: ui.select | None = None
+        with ui.card().classes("w-full gap-2").props("data-testid=project-card") as self.card:
+            self._head()
+            self.problems = ui.column().classes("gap-0")
+            self.table = ui.table(columns=PROJECT_COLUMNS, rows=[], row_key="key", pagination=0).classes(
+                "w-full reg-table").props("dense flat bordered")
+            self.table.add_slot("body-cell-state", STATE_SLOT)
+            self.table.add_slot("body-cell-actions", PROJECT_ACTIONS)
+            for column, slot in VALUE_SLOTS.items():
+                self.table.add_slot(f"body-cell-{column}", slot)
+            self.table.props(':table-row-class-fn="row => row.changed ? \'restore-differs\' : \'\'"')
+            self.table.on("keep", lambda e: self.keep(e.args))
+            self.table.on("apply", lambda e: self.apply(e.args))
+            self.table.on("update", lambda e: self.update(e.args))
+            self.table.set_visibility(False)
+            if not compact:
+                self.summary = ui.label().classes("text-body2").props("data-testid=project-summary")
+
+    def _head(self) -> None:
+        if self.compact:
+            with ui.row().classes("items-center w-full gap-x-4 gap-y-1"):
+                ui.label("Project").classes("text-subtitle1")
+                self.summary = ui.label().classes("text-body2").props("data-testid=project-summary")
+                ui.space()
+                self.again = ui.button("Compare again", icon="compare_arrows", on_click=self.compare).props(
+                    "flat dense no-caps data-testid=project-compare")
+                ui.link("Edit project", f"/project/{self.devices[0]}").props("data-testid=project-edit")
+            ui.label(f"The intended parameters {_where(self.runtime.plant, self.devices[0])} names for this device. "
+                     "Nothing is written until you press Apply project on a row.").classes("text-caption text-grey-8")
+            return
+        ui.label("Project against the devices").classes("text-subtitle1")
+        where = self.runtime.plant.path.name if self.runtime.plant.path else "the plant file"
+        ui.label(f"The intended parameters {where} names for each device, checked by the parameter model. "
+                 "Nothing is written until you press Apply project on a row.").classes("text-caption text-grey-8")
+        with ui.row().classes("items-center"):
+            self.device = ui.select(self.devices, value=self.devices[0], label="Device").props(
+                "dense outlined data-testid=project-device").classes("w-56")
+            ui.button("Compare project with the device", icon="compare_arrows", on_click=self.compare).props(
+                "data-testid=project-compare")
+            edit = ui.link("Edit project", f"/project/{self.devices[0]}").props("data-testid=project-edit")
+            self.device.on_value_change(lambda e: edit.props(f'href="/project/{e.value}"'))
+
+    @property
+    def name(self) -> str:
+        return self.device.value if self.device is not None else self.devices[0]
+
+    async def compare(self) -> None:
+        name = self.name
+        self.problems.clear()
+        problems = [e for e in await asyncio.to_thread(project.entries, self.runtime.plant, name) if e.error]
+        with self.problems:
+            for entry in problems:
+                ui.label(f"✖ {entry.where}: {entry.error}").classes("text-negative text-body2")
+        try:
+            self.plan = await backup.plan_restore(self.runtime, name, project.document(self.runtime, name))
+        except Exception as exc:  # noqa: BLE001 - not answering, no parameter model ...
+            if self.compact:
+                self.summary.set_text(f"not compared: {exc}")
+            else:
+                notify_error(f"Cannot compare: {exc}")
+            return
+        self.kept = {k for k in self.kept if k.startswith(name + "/")}
+        self.show()
+
+    def show(self) -> None:
+        name = self.plan.device
+        rows = []
+        for r in self.plan.rows:
+            kept = f"{name}/{r.key}" in self.kept and r.changed
+            state = "differs; the device's value kept" if kept else row_state(r)
+            rows.append({"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": state,
+                         "risk": bool(r.changed and r.risk), "changed": r.changed and not kept, "can_write": can_write()})
+        changed = sum(1 for row in rows if row["changed"])
+        self.table.rows = [row for row in rows if row["changed"]] if self.compact else rows
+        self.table.update()
+        self.table.set_visibility(bool(self.table.rows))
+        entries = f"{len(rows)} project {'entry' if len(rows) == 1 else 'entries'}"
+        verb = "differs" if changed == 1 else "differ"
+        if self.compact:
+            self.summary.set_text(f"{changed} of {entries} {verb} from the device" if changed
+                                  else f"device and project agree ({entries})")
+        else:
+            self.summary.set_text(f"{name}: {changed} of {entries} {verb} from the device"
+                                  + ("" if changed else ": device and project agree"))
+
+    def _row(self, key: str) -> backup.DiffRow | None:
+        return next((r for r in self.plan.rows if r.key == key), None) if self.plan else None
+
+    def keep(self, key: str) -> None:
+        if self._row(key) is not None:
+            self.kept.add(f"{self.plan.device}/{key}")
+            self.show()
+
+    async def apply(self, key: str) -> None:
+        row = self._row(key)
+        if row is None or not row.changed:
+            return
+        if not await confirm(f"Write {row.name} = {row.backup_text} to {self.plan.device}?",
+                             f"The project's value is written, read back and saved in the device (now {row.current_text}).",
+                             ok="Write"):
+            return
+        confirmed = set()
+        if row.risk:
+            if not await confirm(f"Write {row.name} = {row.backup_text}?", row.risk, ok="Write anyway"):
+                return
+            confirmed.add(key)
+        user, role = current_user()
+        report = await backup.execute_restore(self.runtime, self.plan, {key}, user=user, role=role, confirmed=confirmed)
+        ui.notify(f"{row.name}: {report.summary()}", type="positive" if report.ok else "negative", multi_line=True)
+        await self.compare()
+
+    async def update(self, key: str) -> None:
+        row = self._row(key)
+        if row is None or not row.changed:
+            return
+        device = self.plan.device
+        user, role = current_user()
+
+        async def rewrite() -> None:
+            await asyncio.to_thread(project.update_entry, self.runtime.plant, device, key, row.current_value)
+
+        try:
+            await self.runtime.worker.engineer_action(rewrite, user=user, role=role, describe="update project",
+                                                      target=device, new=f"{row.name} = {row.current_text}")
+        except Exception as exc:  # noqa: BLE001 - a file that cannot be written, a viewer ...
+            notify_error(f"Project not updated: {exc}")
+            return
+        ui.notify(f"Project of {device}: {row.name} = {row.current_text}", type="positive")
+        await self.compare()
+
+    def follow_device(self) -> None:
+        """Compare whenever the device comes to answer (on connect); say what is known while it does not."""
+        state = self.runtime.store.devices[self.name]
+        answering = {"now": False}
+
+        def changed() -> None:
+            online = state.status == "online"
+            if online and not answering["now"]:
+                background_tasks.create(self.compare(), name=f"project {self.name}")
+            elif not online and not answering["now"] and self.plan is None:
+                count = len(project.entries(self.runtime.plant, self.name))
+                self.summary.set_text(f"{count} project {'entry' if count == 1 else 'entries'}; the device does not "
+                                      "answer: compared when it does")
+            answering["now"] = online
+            self.again.set_enabled(online)
+
+        changed()
+        follow(state, changed)
+
+
+def _page_column() -> ui.element | None:
+    """The content column of the page being built (pages.frame.frame's), or None."""
+    columns = [e for e in ui.context.client.elements.values()
+               if isinstance(e, ui.column) and {"q-pa-md", "gap-4", "w-full"} <= set(e.classes)]
+    return min(columns, key=lambda e: e.id) if columns else None
+
+
+def device_card(name: str) -> None:
+    """On the page of device ``name``, below its title: its project against it (when the plant file names one),
+    or the way to write one on its type's parameter model (at the page's end)."""
+    runtime = rt.current()
+    if name not in runtime.plant.devices:
+        return
+    column = _page_column()
+    if column is None:
+        return
+    has = project.has_project(runtime.plant, name)
+    if not has and not project.editable(runtime.plant, name):
+        return  # a type without a parameter model: nothing a project could name
+    with column:
+        if has:
+            card = ProjectCard([name], compact=True)
+            card.card.move(target_container=column, target_index=1)
+            card.follow_device()
+            return
+        with ui.row().classes("items-center gap-2").props("data-testid=project-none"):
+            ui.icon("edit_note", color="grey-7")
+            ui.label("The plant file names no project for this device.").classes("text-body2 text-grey-8")
+            ui.link("Write one on its parameter model", f"/project/{name}").props("data-testid=project-edit")
+
+
+# -- the project editor (/project/<device>) -----------------------------------------------------------------
+
+EDIT_GRID = ("display: grid; grid-template-columns: minmax(12rem, 2fr) minmax(11rem, 15rem) minmax(10rem, 1.4fr); "
+             "gap: 6px 16px; align-items: start; width: 100%")
+
+
+def _shown(param: Param, value) -> str:
+    """A project value as the editor's field holds it ("" when the project does not name the parameter)."""
+    if value is None:
+        return ""
+    try:
+        return str(param.decode(param.validate(value)))
+    except ValueError:
+        return str(value)  # an invalid entry is shown as written, so it can be corrected
+
+
+class ProjectEditor:
+    """Every writable parameter of the device type's parameter model with the project's value, checked as typed,
+    saved into the project (an engineer's action, audited); read-only for a viewer."""
+
+    def __init__(self, name: str):
+        self.runtime = rt.current()
+        self.name = name
+        self.params = project.editable(self.runtime.plant, name)
+        self.fields: dict[str, ui.input | ui.select] = {}
+        self.values: dict[str, object] = {}
+        self.read_only = viewer_reason()
+
+    def build(self) -> None:
+        plant, state = self.runtime.plant, self.runtime.store.devices[self.name]
+        title = DEVICE_TYPES[state.type].title
+        where = _where(plant, self.name) if project.has_project(plant, self.name) else (
+            f"{plant.path.name if plant.path else 'the plant file'} (no project yet: saving adds one)")
+        with ui.card().classes("w-full gap-1"):
+            ui.label(f"{title} '{self.name}' on {state.bus}: the project is kept in {where}.").classes("text-body1")
+            ui.label(f"Edited on the {title} parameter model without the device (it is {state.status} now): nothing "
+                     "is written to the device here. An empty field is not in the project.").classes("text-caption text-grey-8")
+            with ui.row().classes("items-center gap-4"):
+                ui.link("Device page", f"/device/{self.name}")
+                if project.has_project(plant, self.name):
+                    ui.link("Project against the device on the backup page", "/backup")
+            self.problems = ui.column().classes("gap-0").props("data-testid=project-problems")
+        with ui.card().classes("w-full").props("data-testid=project-editor"):
+            with ui.element("div").style(EDIT_GRID):
+                for text in ("Parameter", "Project value", "Allowed"):
+                    ui.label(text).classes("text-caption text-weight-medium text-grey-8")
+                for param in self.params:
+                    self._field(param)
+            with ui.row().classes("items-center"):
+                self.save_button = ui.button("Save project", icon="save", on_click=self.save).props(
+                    "data-testid=project-save")
+                self.status = ui.label().classes("text-body2").props("data-testid=project-status")
+            if self.read_only:
+                self.save_button.disable()
+                self.status.set_text(self.read_only)
+        self.load()
+
+    def _field(self, param: Param) -> None:
+        with ui.column().classes("gap-0"):
+            ui.label(param.label or param.name).classes("text-body2 text-weight-medium")
+            if param.description:
+                ui.label(param.description).classes("text-caption text-grey-8").style(WRAP)
+        if param.enum is not None:
+            options = {"": "(not in the project)"} | {str(n): f"{text} ({n})" for n, text in param.enum.items()}
+            field = ui.select(options, value="").props("dense outlined options-dense")
+        else:
+            field = ui.input(placeholder="not in the project", suffix=param.unit or None,
+                             validation=lambda v, p=param: self._error(p, v)).props("dense outlined")
+        field.props(f'data-project-field="{param.key}"')
+        if self.read_only:
+            field.disable()
+        self.fields[param.key] = field
+        allowed = project.allowed(param)
+        risk = f" ⚠ {param.confirm}" if param.confirm else ""
+        ui.label(allowed + risk).classes("text-caption" + (" text-negative" if risk else " text-grey-8")).style(WRAP)
+
+    @staticmethod
+    def _error(param: Param, text) -> str | None:
+        if text is None or not str(text).strip():
+            return None
+        try:
+            project.parse_value(param, str(text))
+        except project.ProjectError as exc:
+            return str(exc)
+        return None
+
+    def load(self) -> None:
+        """The project's values into the fields, and its invalid or unknown entries named with file:line."""
+        entries = project.entries(self.runtime.plant, self.name)
+        self.values = {e.key: e.value for e in entries if e.key}
+        self.problems.clear()
+        with self.problems:
+            for entry in entries:
+                if entry.error:
+                    ui.label(f"✖ {entry.where}: {entry.error}").classes("text-negative text-body2")
+        for param in self.params:
+            self.fields[param.key].set_value(_shown(param, self.values.get(param.key)))
+
+    def changes(self) -> tuple[dict[str, object], list[str]]:
+        """What the fields change in the project (key -> value, None to drop) and what is wrong with them."""
+        changes, errors = {}, []
+        for param in self.params:
+            text = str(self.fields[param.key].value or "").strip()
+            old = self.values.get(param.key)
+            if not text:
+                if old is not None:
+                    changes[param.key] = None
+                continue
+            try:
+                value = project.parse_value(param, text)
+            except project.ProjectError as exc:
+                errors.append(str(exc))
+                continue
+            if old is None or _shown(param, old) != str(value):
+                changes[param.key] = value
+        return changes, errors
+
+    async def save(self) -> None:
+        changes, errors = self.changes()
+        if errors:
+            self.status.set_text("Not saved: " + "; ".join(errors))
+            self.status.classes(replace="text-body2 text-negative")
+            return
+        if not changes:
+            self.status.set_text("Nothing changed")
+            self.status.classes(replace="text-body2")
+            return
+        by_key = {p.key: p for p in self.params}
+        words = "; ".join(f"{by_key[k].label or by_key[k].name} {_shown(by_key[k], self.values.get(k)) or '-'} -> "
+                          f"{'-' if v is None else v}" for k, v in changes.items())
+        user, role = current_user()
+        self.save_button.disable()  # one save at a time: a second press waits for the first's values
+        try:
+            await self.runtime.worker.engineer_action(
+                lambda: asyncio.to_thread(project.save, self.runtime.plant, self.name, changes), user=user, role=role,
+                describe="edit project", target=self.name, parameter=", ".join(by_key[k].label or by_key[k].name
+                                                                               for k in changes), new=words)
+        except Exception as exc:  # noqa: BLE001 - a viewer, a file that cannot be written ...
+            self.status.set_text(f"Not saved: {exc}")
+            self.status.classes(replace="text-body2 text-negative")
+            return
+        finally:
+            self.save_button.enable()
+        self.load()
+        self.status.set_text(f"Saved: {words}")
+        self.status.classes(replace="text-body2 text-positive")
+
+
+def content(name: str) -> None:
+    runtime = rt.current()
+    state = runtime.store.devices.get(name)
+    with frame(f"Project of {name}"):
+        if state is None or name not in runtime.plant.devices:
+            ui.label(f"The plant has no device named '{name}'.")
+            ui.link("Back to the overview", "/")
+            return
+        if not project.editable(runtime.plant, name):
+            title = DEVICE_TYPES[state.type].title
+            refused = backup.restore_refused(runtime, name)
+            ui.label(f"A {title} has no parameter model in this tool, so it has no parameters a project can name"
+                     + (f" ({refused})." if refused else ": its backup keeps the device's own records, "
+                        "checked by the device when they are written.")).classes("text-body1").props(
+                "data-testid=project-no-model")
+            ui.link("Device page", f"/device/{name}")
+            return
+        ProjectEditor(name).build()
