@@ -12,7 +12,6 @@ import time
 from nicegui import ui
 
 from app import runtime as rt
-from app.state import DeviceState
 from devices.hdlock import codec
 from devices.hdlock.adapter import (
     HISTORY_CAN,
@@ -26,26 +25,11 @@ from devices.hdlock.adapter import (
 from devices.hdlock.params import HOLDING, INPUT, LOCK_STATUS_BITS, PARAMS
 from devices.hdlock.policy import unsaved_changes
 from devices.params import Param
-from pages.frame import fmt_age, frame, set_status_badge
+from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
+from pages.frame import fmt_age
 from pages.simcontrols import sim_card
-from pages.widgets import (
-    HistoryChart,
-    Lamp,
-    RegisterTable,
-    WriteGuard,
-    checked_value,
-    confirm,
-    counter_line,
-    entry_age,
-    event_log,
-    follow,
-    mark_quality,
-    quality_note,
-    range_number,
-    refuse,
-    run_command,
-    write_from_page,
-)
+from pages.widgets import HistoryChart, Lamp, RegisterTable, WriteGuard, checked_value, confirm, entry_age
+from pages.widgets import mark_quality, quality_note, range_number, refuse, run_command, write_from_page
 
 DEVICE_TYPE = "hdlock"
 
@@ -60,36 +44,18 @@ CARD_GRID = "display: grid; grid-template-columns: repeat(auto-fit, minmax(420px
 SIM_ELSEWHERE = ("swap for a new device", "refuse writes")
 
 
-class HdLockView:
+class HdLockView(DeviceView):
     """What every card of one page shares: the lock's live record, its bus and the write guard."""
 
     def __init__(self, name: str):
-        runtime = rt.current()
-        self.name = name
-        self.store = runtime.store
-        self.state: DeviceState = runtime.store.devices[name]
-        self.is_can = runtime.plant.buses[self.state.bus].type == "can"  # the plant file says how the lock is reached
+        super().__init__(name)
+        self.is_can = self.runtime.plant.buses[self.state.bus].type == "can"  # the plant file says how the lock is reached
         self.guard = WriteGuard(self.state)  # every write and command button, disabled with the reason while silent
-        self.cards: list = []
-
-    def fact(self, point: str, default=None):
-        value = self.state.live(point)
-        return default if value is None or value.value is None else value.value
-
-    def add(self, card):
-        card.build()
-        if callable(getattr(card, "refresh", None)):
-            self.cards.append(card)
-        return card
-
-    def refresh(self) -> None:
-        for card in self.cards:
-            card.refresh()
 
 
 def content(name: str) -> None:
     view = HdLockView(name)
-    with frame(f"HD-Lock {name}"):
+    with device_page(view, f"HD-Lock {name}"):
         view.add(HealthCard(view))
         view.add(LampsCard(view))
         with ui.card().classes("w-full gap-1"):
@@ -114,31 +80,25 @@ def content(name: str) -> None:
                     RegisterTable(view.state, PARAMS.space(INPUT))  # follows the store itself: values, ages, greyed rows
                 with ui.tab_panel(t_hold):
                     RegisterTable(view.state, PARAMS.space(HOLDING))
-        with ui.expansion("Events", icon="list", value=True).classes("w-full"):
-            event_log(view.state)
-        view.refresh()
-        follow(view.state, view.refresh)  # on every change the store pushes (at most 10/s) and once a second for the ages
 
 
-class HealthCard:
+class HealthCard(DeviceCard):
     """Address or device ID, serial, firmware, status, last seen, the line's counters and the last error."""
 
-    def __init__(self, view: HdLockView):
-        self.view = view
+    view: HdLockView
 
     def build(self) -> None:
+        self.status = StatusRow(self.view.state, lambda c: f"requests {c.requests} · timeouts {c.timeouts} · "
+                                f"CRC {c.crc_errors} · exceptions {c.exceptions} · write errors {c.write_errors}")
         with ui.card().classes("w-full"):
-            with ui.row().classes("items-center gap-6 w-full"):
-                self.badge = ui.badge("waiting", color="grey").classes("text-body2")
+            with self.status.build():
                 self.ident = ui.label().classes("text-body2")
                 self.seen = ui.label().classes("text-body2")
-                counter_line(self.view.state, lambda c: f"requests {c.requests} · timeouts {c.timeouts} · CRC {c.crc_errors} · "
-                             f"exceptions {c.exceptions} · write errors {c.write_errors}")
             self.error = ui.label().classes("text-negative text-body2")
 
     def refresh(self) -> None:
         view, state = self.view, self.view.state
-        set_status_badge(self.badge, state.status, state.age)
+        self.status.refresh()
         serial, fw = state.value("SerialNumber"), state.value("FirmwareVersion")
         if view.is_can:
             device_id = state.live(P_DEVICE_ID)
@@ -152,11 +112,8 @@ class HealthCard:
         self.error.set_text(state.last_error if state.status != "online" else "")
 
 
-class LampsCard:
+class LampsCard(DeviceCard):
     """LockStatus (holding 1000) as lamps, and the enumerated values with their quality."""
-
-    def __init__(self, view: HdLockView):
-        self.view = view
 
     def build(self) -> None:
         with ui.card().classes("w-full"):
@@ -194,11 +151,11 @@ def _note(entry: dict | None) -> str:
     return quality_note(entry["quality"], entry_age(entry))
 
 
-class ParameterCard:
+class ParameterCard(DeviceCard):
     """Editable RW holding registers with validation, unsaved marks, Save/Restore-Settings."""
 
     def __init__(self, view: HdLockView):
-        self.view = view
+        super().__init__(view)
         self.rows: dict[str, tuple] = {}
         self.entries: dict[str, ui.element] = {}
         self.shown: dict[str, object] = {}  # the device value each field was last given
@@ -358,15 +315,11 @@ async def _checked_masks(name: str, describe: str, p1, p2) -> tuple[int, int] | 
     return _parse_word(p1.value), _parse_word(p2.value)
 
 
-class SetAddressCard:
+class SetAddressCard(DeviceCard):
     """Set Modbus Address (command 3) with its two condition masks and a live preview."""
 
-    def __init__(self, view: HdLockView):
-        self.view = view
-
     def build(self) -> None:
-        with ui.card().classes("w-full"):
-            ui.label("Set Modbus Address (command 3)").classes("text-subtitle1")
+        with titled_card("Set Modbus Address (command 3)"):
             ui.label("Taken only if (P1 & LockStatus) ^ P2 == 0 (section 4.3).").classes("text-caption text-grey-8")
             with ui.row().classes("items-center"):
                 self.new = range_number("New address", 1, 254, integer=True).classes("w-56")
@@ -436,16 +389,11 @@ def _line_locks(name: str, state) -> tuple[dict[int, str], dict[str, int | None]
     return known, statuses, in_plant, len(known) - in_plant
 
 
-class BroadcastAddressCard:
+class BroadcastAddressCard(DeviceCard):
     """Set Modbus Address to broadcast address 255 (section 4.3): every lock on the line at once."""
 
-    def __init__(self, view: HdLockView):
-        self.view = view
-
     def build(self) -> None:
-        bus = self.view.state.bus
-        with ui.card().classes("w-full"):
-            ui.label(f"Set Modbus Address on every lock of {bus} (broadcast 255)").classes("text-subtitle1")
+        with titled_card(f"Set Modbus Address on every lock of {self.view.state.bus} (broadcast 255)"):
             ui.label(
                 "Every lock on the line gets the command and none answers; each lock whose LockStatus meets "
                 "(P1 & LockStatus) ^ P2 == 0 takes the new address (section 4.3)."
@@ -518,15 +466,11 @@ class BroadcastAddressCard:
         self.refresh()
 
 
-class CanStatusCard:
+class CanStatusCard(DeviceCard):
     """What the periodic status frame (section 6.5.1) and FWU status (6.5.2) say, as the adapter publishes it."""
 
-    def __init__(self, view: HdLockView):
-        self.view = view
-
     def build(self) -> None:
-        with ui.card().classes("w-full"):
-            ui.label("CAN status frame (every 1000 ms)").classes("text-subtitle1")
+        with titled_card("CAN status frame (every 1000 ms)"):
             self.text = ui.label("no status frame yet").classes("text-body2 mono")
             self.fwu = ui.label().classes("text-body2 text-warning")
 
@@ -541,8 +485,7 @@ class CanStatusCard:
 def _can_commands_card(name: str, state, guard: WriteGuard) -> None:
     """Commands through 0x700 and Set Device Address through 0x701 (section 6.6)."""
     sources = PARAMS.by_name["LockRequestSource"].enum
-    with ui.card().classes("w-full"):
-        ui.label("CAN commands (0x700, 0x701)").classes("text-subtitle1")
+    with titled_card("CAN commands (0x700, 0x701)"):
         broadcast = ui.checkbox("Send to all locks on this bus (broadcast, device ID 0)")
         with ui.row().classes("items-center"):
             source = ui.select({k: f"{v} (0x{k:02X})" for k, v in sources.items()}, label="LockRequestSource").props("dense outlined options-dense").classes("w-72")

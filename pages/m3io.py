@@ -8,31 +8,17 @@ from __future__ import annotations
 
 from nicegui import ui
 
-from app import runtime as rt
-from app.state import DeviceState, LiveValue, session_tag
+from app.state import LiveValue
 from app.worker import DEADMAN_BOUND_S
 from devices.m3io import adapter as facts
 from devices.m3io import codec
 from devices.m3io.codec import Variant
-from pages.frame import fmt_age, frame, set_status_badge
+from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
+from pages.frame import fmt_age
 from pages.session import current_user
 from pages.simcontrols import sim_card
-from pages.widgets import (
-    HistoryChart,
-    Lamp,
-    WriteGuard,
-    checked_value,
-    counter_line,
-    entry_age,
-    event_log,
-    follow,
-    mark_quality,
-    quality_note,
-    range_number,
-    refuse,
-    run_command,
-    stop_bar,
-)
+from pages.widgets import HistoryChart, Lamp, WriteGuard, checked_value, entry_age, mark_quality, quality_note
+from pages.widgets import range_number, refuse, stop_bar
 
 STATE_COLOR = {"ok": "positive", "present": "positive", "blown": "negative", "defective": "negative"}
 VARIANT_COLOR = {"ok": "text-positive", "mismatch": "text-negative text-weight-medium", "unchecked": "text-grey-8", "not possible": "text-warning"}
@@ -58,57 +44,28 @@ def _age_note(value: LiveValue | None) -> str:
     return quality_note(quality, entry_age(value and value.entry())) if quality in ("stale", "offline") else ""
 
 
-class M3ioView:
-    """What every card of one page shares: the module's live record and its declared commands."""
+class M3ioView(DeviceView):
+    """What every card of one page shares: the module's live record, its variant and addressing, and its
+    declared commands (devices/m3io/policy.py). Outputs switched on here belong to this page session."""
 
     def __init__(self, name: str):
-        runtime = rt.current()
-        self.name = name
-        self.store = runtime.store
-        self.state: DeviceState = runtime.store.devices[name]
-        self.session = ui.context.client.id  # outputs switched on here belong to this page session
-        self.tag = session_tag(self.session)
+        super().__init__(name)
         self.variant = Variant(self.fact(facts.P_VARIANT))
         self.addressing: facts.Addressing = self.fact(facts.P_ADDRESSING)
-        self.cards: list = []
-
-    def live(self, point: str) -> LiveValue | None:
-        return self.state.live(point)
-
-    def fact(self, point: str, default=None):
-        value = self.state.live(point)
-        return default if value is None or value.value is None else value.value
-
-    def text(self, point: str, default: str = "-") -> str:
-        value = self.state.live(point)
-        return default if value is None else value.shown
-
-    def refresh(self) -> None:
-        for card in self.cards:
-            card.refresh()
-
-    async def act(self, command: str, args: dict | None = None, success: str = "", **options) -> tuple[bool, object]:
-        """Invoke a declared command of the module (devices/m3io/policy.py) by name; the gate decides on its kind
-        and the role and asks its declared risk here (``title``/``ok`` word the question)."""
-        result = await run_command(self.name, command, args=args, session=self.session, success=success, **options)
-        self.refresh()
-        return result
 
 
-class ModuleCard:
+class ModuleCard(DeviceCard):
     """Status, watchdog, counters, SW1 and the CAN IDs, the variant check, control of the module."""
 
-    def __init__(self, view: M3ioView):
-        self.view = view
+    view: M3ioView
 
     def build(self) -> None:
         view, a = self.view, self.view.addressing
+        self.status = StatusRow(view.state, lambda c: f"frames in {c.responses} · requests {c.requests} · "
+                                f"timeouts {c.timeouts} · malformed {c.malformed} · write errors {c.write_errors}")
         with ui.card().classes("w-full"):
-            with ui.row().classes("items-center gap-6 w-full"):
-                self.badge = ui.badge("waiting", color="grey").classes("text-body2")
+            with self.status.build():
                 self.watchdog = ui.label().classes("text-body2")
-                counter_line(view.state, lambda c: f"frames in {c.responses} · requests {c.requests} · timeouts {c.timeouts} · "
-                             f"malformed {c.malformed} · write errors {c.write_errors}")
             ui.label(f"SW1 0x{a.sw1:02X} ({a.sw1:08b}): " + ("addressed mode (S8 on), " if a.addressed else "S8 off, ")
                      + f"{a.bitrate // 1000} kbit/s · " + " · ".join(f"{k} 0x{v:03X}" for k, v in a.ids)).classes("text-body2 mono")
             self.variant = ui.label().classes("text-body2").props("data-testid=variant-check")
@@ -129,7 +86,7 @@ class ModuleCard:
 
     def refresh(self) -> None:
         view, state = self.view, self.view.state
-        set_status_badge(self.badge, state.status, state.age)
+        self.status.refresh()
         served = bool(view.fact(facts.P_WATCHDOG))
         other = view.fact(facts.P_OTHER_MASTER)
         foreign = other is not None and other.active
@@ -143,16 +100,15 @@ class ModuleCard:
         self.variant.classes(replace="text-body2 " + VARIANT_COLOR.get(check.value, "text-grey-8"))
 
 
-class OutputsCard:
+class OutputsCard(DeviceCard):
     """Inputs E1-E6, the stop rule, the LED, one row per SSR output and (HMR) P2."""
 
-    def __init__(self, view: M3ioView, guard: WriteGuard):
-        self.view, self.guard = view, guard
-        self.rows = [ChannelRow(view, guard, output, channels) for output, channels in facts.ssr_groups(view.variant)]
+    def __init__(self, view: M3ioView):
+        super().__init__(view)
+        self.rows = [ChannelRow(view, view.guard, output, channels) for output, channels in facts.ssr_groups(view.variant)]
 
     def build(self) -> None:
-        with ui.card().classes("col-xs-12 col-md"):
-            ui.label("Digital inputs").classes("text-subtitle1")
+        with titled_card("Digital inputs", "col-xs-12 col-md"):
             with ui.row().classes("gap-5"):
                 self.lamps = {f"E{i}": Lamp(f"E{i}") for i in range(1, 7)}
             ui.separator()
@@ -275,17 +231,15 @@ class ChannelRow:
             ui.label("triac defective: it does not conduct while switched on").classes("text-negative text-body2")
 
 
-class TemperatureCard:
+class TemperatureCard(DeviceCard):
     """The Pt100 temperatures (section 7.2.2) and their chart."""
 
-    def __init__(self, view: M3ioView):
-        self.view = view
-        self.labels: dict[int, tuple[ui.label, ui.label]] = {}
+    view: M3ioView
 
     def build(self) -> None:
         view = self.view
-        with ui.card().classes("col-xs-12 col-md"):
-            ui.label("Pt100 temperatures (0.1 °C)").classes("text-subtitle1")
+        self.labels: dict[int, tuple[ui.label, ui.label]] = {}
+        with titled_card("Pt100 temperatures (0.1 °C)", "col-xs-12 col-md"):
             with ui.row().classes("gap-6"):
                 for channel in facts.temp_channels(view.variant):
                     with ui.column().classes("gap-0"):
@@ -305,15 +259,13 @@ class TemperatureCard:
             note.set_text(_age_note(value))
 
 
-class AddressedCard:
+class AddressedCard(DeviceCard):
     """Addressed mode (SW1 switch 8 on, 7.2.4.2): identity, the 15 customer-data records, the actual load data."""
 
-    def __init__(self, view: M3ioView, guard: WriteGuard):
-        self.view, self.guard = view, guard
+    view: M3ioView
 
     def build(self) -> None:
-        with ui.card().classes("w-full"):
-            ui.label("Addressed data (SW1 switch 8 on)").classes("text-subtitle1")
+        with titled_card("Addressed data (SW1 switch 8 on)"):
             self.identity = ui.label("not read").classes("text-body2").props("data-testid=identity")
             self.guard.add(ui.button("Read identity", icon="badge", on_click=lambda: self.view.act("read identity"))
                            .props("outline dense"))
@@ -366,27 +318,22 @@ class AddressedCard:
 
 def content(name: str) -> None:
     view = M3ioView(name)
-    with frame(f"CAN-M3IO {name} ({view.variant.value})"):
-        guard = WriteGuard(view.state)  # switches and commands, disabled with the reason while the module does not answer
-        module, outputs = ModuleCard(view), OutputsCard(view, guard)
-        view.cards = [module, outputs]
-        module.build()
+
+    def all_off() -> None:
+        stop_bar("Switches every output off at once; anyone may, also without writing rights.", "All off", "power_off",
+                 lambda: view.act("all off"), "off-bar", "all-off")
+
+    with device_page(view, f"CAN-M3IO {name} ({view.variant.value})", stop=all_off):
+        view.guard = WriteGuard(view.state)  # switches and commands, disabled with the reason while the module does not answer
+        view.add(ModuleCard(view))
         # side by side from 1024 px; one above the other on a tablet, where the chart would get a third of the width
         with ui.row().classes("w-full items-start gap-4"):
-            outputs.build()
+            view.add(OutputsCard(view))
             if view.variant is not Variant.KM:
-                view.cards.append(TemperatureCard(view))
-                view.cards[-1].build()
+                view.add(TemperatureCard(view))
         sim_card(name)  # the twin's declared controls, in simulation only
         if view.addressing.addressed:
-            view.cards.append(AddressedCard(view, guard))
-            view.cards[-1].build()
-        with ui.expansion("Events", icon="list", value=True).classes("w-full"):
-            event_log(view.state)
-    stop_bar("Switches every output off at once; anyone may, also without writing rights.", "All off", "power_off",
-             lambda: view.act("all off"), "off-bar", "all-off")
-    view.refresh()
-    follow(view.state, view.refresh)  # on every change the store pushes (at most 10/s) and once a second for the ages
+            view.add(AddressedCard(view))
 
 
 def _bytes_check(text) -> str | None:

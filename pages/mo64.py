@@ -9,28 +9,15 @@ from __future__ import annotations
 
 from nicegui import ui
 
-from app import runtime as rt
-from app.state import DeviceState, LiveValue, session_tag
+from app.state import LiveValue
 from devices.mo64 import adapter as facts
 from devices.mo64 import codec
 from devices.mo64.adapter import COMMAND_NAMES
 from devices.mo64.policy import EEPROM_RISK, operation_name, setting_name
-from pages.frame import frame, set_status_badge
+from pages.device_page import DeviceCard, DeviceView, StatusBadge, device_page, titled_card
 from pages.simcontrols import sim_card
-from pages.widgets import (
-    Lamp,
-    WriteGuard,
-    checked_value,
-    counter_line,
-    entry_age,
-    event_log,
-    follow,
-    mark_quality,
-    quality_note,
-    range_number,
-    refuse,
-    run_command,
-)
+from pages.widgets import Lamp, WriteGuard, checked_value, counter_line, entry_age, mark_quality, quality_note
+from pages.widgets import range_number, refuse
 
 MOTION_WARNING = "the boom moves: check that nobody stands under it"
 EEPROM_WARNING = EEPROM_RISK  # the declared risk of every setting write (devices/mo64/policy.py)
@@ -87,53 +74,24 @@ def boom_svg(position: int | None) -> str:
             + '</g><circle cx="23" cy="64" r="6" fill="#263238"/></svg>')
 
 
-class Mo64View:
-    """What every card of one page shares: the device's live record and the declared commands."""
-
-    def __init__(self, name: str):
-        runtime = rt.current()
-        self.name = name
-        self.store = runtime.store
-        self.state: DeviceState = runtime.store.devices[name]
-        self.session = ui.context.client.id
-        self.cards: list = []
-
-    def live(self, point: str) -> LiveValue | None:
-        return self.state.live(point)
-
-    def fact(self, point: str, default=None):
-        value = self.state.live(point)
-        return default if value is None or value.value is None else value.value
-
-    def text(self, point: str) -> str:
-        value = self.state.live(point)
-        return "-" if value is None else value.shown
-
-    def refresh(self) -> None:
-        for card in self.cards:
-            card.refresh()
-
-    async def act(self, command: str, args: dict | None = None, success: str = "", confirmed: bool = False):
-        """Invoke a declared command of the MO 64 (devices/mo64/policy.py) by name: the gate decides on its
-        kind and the role, and asks its declared risk here (run_command) unless ``confirmed``."""
-        result = await run_command(self.name, command, args=args, session=self.session, success=success,
-                                   confirmed=confirmed)
-        self.refresh()  # the reply and the levels are shown at once
-        return result
+class Mo64View(DeviceView):
+    """What every card of one page shares: the device's live record and the declared commands
+    (devices/mo64/policy.py)."""
 
     async def move(self, cmd: codec.Command, fn: codec.Function) -> None:
         words = operation_name(cmd, fn)
         # the declared risk ("the area is clear") is asked once per session: a session that confirmed it
         # (the adapter publishes the tags of those sessions) is not asked again
-        confirmed = session_tag(self.session) in self.fact(facts.P_CONFIRMED, ())
+        confirmed = self.tag in self.fact(facts.P_CONFIRMED, ())
         await self.act(words, success=f"{words}: ack", confirmed=confirmed)
 
 
-class GateCard:
+class GateCard(DeviceCard):
     """Gate state, the boom, position, alarms, the connection and the line's counters."""
 
     def __init__(self, view: Mo64View):
-        self.view = view
+        super().__init__(view)
+        self.badge = StatusBadge(view.state)
         self.last_position: object = object()
 
     def build(self) -> None:
@@ -143,7 +101,7 @@ class GateCard:
                 self.picture = ui.html(boom_svg(None)).props("data-testid=boom")
                 with ui.column().classes("gap-1"):
                     with ui.row().classes("items-center gap-4"):
-                        self.badge = ui.badge("waiting", color="grey").classes("text-body2")
+                        self.badge.build()
                         self.gate = ui.label("gate state: -").classes("text-h6").props("data-testid=gate-state")
                     self.position = ui.label("position: -").classes("text-h6").props("data-testid=position")
                     self.bar = ui.linear_progress(value=0, show_value=False).props("size=14px rounded").classes("w-72")
@@ -168,7 +126,7 @@ class GateCard:
 
     def refresh(self) -> None:
         view, state = self.view, self.view.state
-        set_status_badge(self.badge, state.status, state.age)
+        self.badge.refresh()
         self.gate.set_text(f"gate state: {view.text('Gate state')}")
         value = view.fact("Position")
         self.position.set_text(f"position: {view.text('Position')}")
@@ -193,16 +151,14 @@ class GateCard:
         self.error_line.set_text(state.last_error)
 
 
-class CommandsCard:
+class CommandsCard(DeviceCard):
     """Pulses and levels (chapter 5.2.1), the levels this tool set, the barrier's last answer."""
 
-    def __init__(self, view: Mo64View, guard: WriteGuard):
-        self.view, self.guard = view, guard
+    view: Mo64View
 
     def build(self) -> None:
         view, guard = self.view, self.guard
-        with ui.card().classes("w-full"):
-            ui.label("Commands (chapter 5.2.1)").classes("text-subtitle1")
+        with titled_card("Commands (chapter 5.2.1)"):
             with ui.row().classes("items-center gap-3"):
                 ui.label("Pulse:").classes("text-body2")
                 for cmd, icon in ((codec.Command.OPEN, "arrow_upward"), (codec.Command.CLOSE, "arrow_downward"),
@@ -242,16 +198,12 @@ class CommandsCard:
         self.reply.set_text(f"last answer: {self.view.text(facts.P_LAST_REPLY)}")
 
 
-class StatusCard:
+class StatusCard(DeviceCard):
     """The 40 status bits (chapter 5.1.7) as lamps, with their meanings on hover."""
 
-    def __init__(self, view: Mo64View):
-        self.view = view
-        self.lamps: dict[str, Lamp] = {}
-
     def build(self) -> None:
-        with ui.card().classes("w-full"):
-            ui.label("Barrier status (40 bits, chapter 5.1.7)").classes("text-subtitle1")
+        self.lamps: dict[str, Lamp] = {}
+        with titled_card("Barrier status (40 bits, chapter 5.1.7)"):
             with ui.row().classes("gap-8 items-start"):
                 for group, names in codec.STATUS_GROUPS.items():
                     with ui.column().classes("gap-0"):
@@ -268,18 +220,18 @@ class StatusCard:
             lamp.show(self.view.state.point(bit))
 
 
-class ValuesCard:
+class ValuesCard(DeviceCard):
     """Named values, each with its age while stale or offline (identity, counters, modes)."""
 
     def __init__(self, view: Mo64View, title: str, points: tuple[str, ...], testid: str, classes: str,
                  note: str = "", column: str = "gap-0 mono text-body2"):
-        self.view, self.title, self.points, self.testid = view, title, points, testid
+        super().__init__(view)
+        self.title, self.points, self.testid = title, points, testid
         self.classes, self.note, self.column = classes, note, column
         self.lines: dict[str, tuple] = {}
 
     def build(self) -> None:
-        with ui.card().classes(self.classes):
-            ui.label(self.title).classes("text-subtitle1")
+        with titled_card(self.title, self.classes):
             with ui.column().classes(self.column).props(f"data-testid={self.testid}"):
                 self.lines = {pt: _value_line() for pt in self.points}
             if self.note:
@@ -290,11 +242,8 @@ class ValuesCard:
             _show_line(line, f"{point}: {self.view.text(point)}", self.view.live(point))
 
 
-class ErrorMemoryCard:
+class ErrorMemoryCard(DeviceCard):
     """The 10 levels of the error memory (chapter 5.1.23), newest first, and a read again."""
-
-    def __init__(self, view: Mo64View, guard: WriteGuard):
-        self.view, self.guard = view, guard
 
     def build(self) -> None:
         with ui.card().classes("w-full"):
@@ -319,11 +268,13 @@ class ErrorMemoryCard:
         self.age.set_text(quality_note("offline", state.age) if offline else "")
 
 
-class SettingsCard:
+class SettingsCard(DeviceCard):
     """Settings (chapter 5.2.4-5.2.8): each with its value, an entry in its range and Write; change monitoring."""
 
-    def __init__(self, view: Mo64View, guard: WriteGuard):
-        self.view, self.guard = view, guard
+    view: Mo64View
+
+    def __init__(self, view: Mo64View):
+        super().__init__(view)
         self.values: dict[str, tuple] = {}
 
     def build(self) -> None:
@@ -388,31 +339,23 @@ class SettingsCard:
 
 def content(name: str) -> None:
     view = Mo64View(name)
-    with frame(f"Bauer MO 64 {name}"):
-        guard = WriteGuard(view.state)  # commands and settings, disabled with the reason while the barrier does not answer
-        identity = ValuesCard(view, "Identity", IDENTITY_POINTS, "identity", "col")
-        counters = ValuesCard(view, "Counters", COUNTER_POINTS, "counters", "col",
-                              note="The vehicle counter lives in RAM only: it is 0 after power-up (chapter 5.2.5).")
-        modes = ValuesCard(view, "Modes (decoded as far as the document names the fields, raw otherwise)", MODE_POINTS,
-                           "modes", "w-full", column="gap-0 text-body2")
-        view.cards = [GateCard(view), CommandsCard(view, guard), StatusCard(view), identity, counters,
-                      ErrorMemoryCard(view, guard), modes, SettingsCard(view, guard)]
-        for card in view.cards[:3]:
-            card.build()
+    with device_page(view, f"Bauer MO 64 {name}"):
+        view.guard = WriteGuard(view.state)  # commands and settings, disabled with the reason while the barrier does not answer
+        for card in (GateCard(view), CommandsCard(view), StatusCard(view)):
+            view.add(card)
         with ui.row().classes("w-full gap-4 items-stretch"):
-            identity.build()
-            counters.build()
-        for card in view.cards[5:]:
-            card.build()
+            view.add(ValuesCard(view, "Identity", IDENTITY_POINTS, "identity", "col"))
+            view.add(ValuesCard(view, "Counters", COUNTER_POINTS, "counters", "col",
+                                note="The vehicle counter lives in RAM only: it is 0 after power-up (chapter 5.2.5)."))
+        view.add(ErrorMemoryCard(view))
+        view.add(ValuesCard(view, "Modes (decoded as far as the document names the fields, raw otherwise)", MODE_POINTS,
+                            "modes", "w-full", column="gap-0 text-body2"))
+        view.add(SettingsCard(view))
         with ui.expansion("Assumptions beyond the manual (shown as such)").classes("w-full") \
                 .props("data-testid=assumptions"):
             for text in codec.ASSUMPTIONS:
                 ui.label(f"Assumption: {text}").classes("text-caption")
         sim_card(name)  # the twin's declared controls, in simulation only
-        with ui.expansion("Events", icon="list", value=True).classes("w-full"):
-            event_log(view.state)  # gate and status changes, faults rising and clearing, offline and back, commands; newest first
-    view.refresh()
-    follow(view.state, view.refresh)  # on every change the store pushes (at most 10/s) and once a second for the ages
 
 
 def _value_line(classes: str = "") -> tuple[ui.row, ui.label, ui.label]:

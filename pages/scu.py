@@ -13,34 +13,16 @@ from datetime import datetime
 
 from nicegui import ui
 
-from app import runtime as rt
 from app import worker as worker_module
-from app.state import DeviceState, session_tag
 from devices.scu import adapter as facts
 from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.adapter import RESTORE_REFUSED, SERVICE_IDS, WATCH_RG, chart_points
-from pages.electrak import gate
-from pages.frame import fmt_age, fmt_time, frame, set_status_badge
+from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
+from pages.frame import fmt_age, fmt_time
 from pages.simcontrols import sim_card
-from pages.widgets import (
-    HistoryChart,
-    Lamp,
-    LiveValue,
-    WriteGuard,
-    checked_value,
-    confirm,
-    counter_line,
-    entry_age,
-    event_log,
-    follow,
-    mark_quality,
-    quality_note,
-    range_number,
-    run_command,
-    session_role,
-    stop_bar,
-)
+from pages.widgets import HistoryChart, Lamp, LiveValue, WriteGuard, checked_value, confirm, entry_age, follow, gate
+from pages.widgets import mark_quality, quality_note, range_number, session_role, stop_bar
 
 STATUS_1 = ("present", "limit_in_out", "switch_1", "switch_2", "motion", "in_position", "out_position", "stroke_recorded")
 STATUS_2 = ("initialised", "enable_in", "enable_out")
@@ -78,28 +60,15 @@ class Access:
     mine: bool
 
 
-class ScuView:
-    """What every card of one page shares: the device's live record and the declared commands."""
+class ScuView(DeviceView):
+    """What every card of one page shares: the device's live record and the declared commands
+    (devices/scu/policy.py); its cards are refreshed with what controls may be used now (:class:`Access`)."""
 
     def __init__(self, name: str):
-        runtime = rt.current()
-        self.name = name
-        self.store = runtime.store
-        self.state: DeviceState = runtime.store.devices[name]
-        self.session = ui.context.client.id
+        super().__init__(name)
         self.viewer = session_role() == "viewer"
-        self.cards: list = []
-        self.guard: WriteGuard | None = None
         self.scales: tuple[facts.ActuatorScale, ...] = self.fact(facts.P_SCALES, ())  # as at page open
         self.functions: facts.FunctionMap = self.fact(facts.P_FUNCTIONS)
-
-    def fact(self, point: str, default=None):
-        value = self.state.live(point)
-        return default if value is None or value.value is None else value.value
-
-    def text(self, point: str) -> str:
-        value = self.state.live(point)
-        return "-" if value is None else value.shown
 
     def access(self) -> Access:
         self.guard.update()
@@ -115,37 +84,27 @@ class ScuView:
                       offline=self.guard.reason,  # writes and motion wait for a unit that answers; the stops never do
                       lost=lost,
                       estop="the emergency stop (function 19) is on: release it first" if self.fact(facts.P_ESTOP) else "",
-                      holder=holder, mine=holder is not None and holder.session == session_tag(self.session))
+                      holder=holder, mine=holder is not None and holder.session == self.tag)
 
     def refresh(self) -> None:
         access = self.access()
         for card in self.cards:
             card.refresh(access)
 
-    async def act(self, command: str, args: dict | None = None, success: str = "", confirmed: bool = False,
-                  title: str = "", ok: str = "Send"):
-        """Invoke the SCU's declared command ``command`` (devices/scu/policy.py) through the worker's gate."""
-        result = await run_command(self.name, command, args=args, session=self.session, success=success,
-                                   confirmed=confirmed, title=title, ok=ok)
-        self.refresh()  # what the command changed (control, RE/RS pending) is shown at once
-        return result
 
-
-class SessionCard:
+class SessionCard(DeviceCard):
     """The remote session, how the unit is watched, the RC timing, the last error answer and the line."""
 
-    def __init__(self, view: ScuView):
-        self.view = view
+    view: ScuView
 
     def build(self) -> None:
         view, state = self.view, self.view.state
+        self.status = StatusRow(state, lambda c: f"requests {c.requests} · answers {c.responses} · timeouts {c.timeouts} · "
+                                f"bad CRC {c.crc_errors} (retried) · error answers {c.exceptions} · seen {fmt_age(state.age)}")
         with ui.card().classes("w-full"):
-            with ui.row().classes("items-center gap-6 w-full"):
-                self.badge = ui.badge("waiting", color="grey").classes("text-body2")
+            with self.status.build():
                 self.session = ui.label().classes("text-body1").props("data-testid=session")
                 self.period = ui.label().classes("text-body2").props("data-testid=rc-period")
-                counter_line(state, lambda c: f"requests {c.requests} · answers {c.responses} · timeouts {c.timeouts} · bad CRC "
-                             f"{c.crc_errors} (retried) · error answers {c.exceptions} · seen {fmt_age(state.age)}")
             self.cyclic = ui.label().classes("text-caption")
             self.refusal = ui.label().classes("text-warning text-body2").props("data-testid=refusal")
             self.error_line = ui.label().classes("text-negative text-body2")
@@ -174,7 +133,7 @@ class SessionCard:
 
     def refresh(self, access: Access) -> None:
         view, state = self.view, self.view.state
-        set_status_badge(self.badge, state.status, state.age)
+        self.status.refresh()
         reason = view.fact(facts.P_SESSION_REASON, "")
         self.session.set_text(f"remote session: {view.fact(facts.P_SESSION, 'closed')}" + (f" ({reason})" if reason else ""))
         watch = state.live(facts.P_WATCH)
@@ -186,16 +145,15 @@ class SessionCard:
             gate(element, access.role)
 
 
-class PositionsCard:
+class PositionsCard(DeviceCard):
     """Each actuator's position as a bar between its end positions, and the positions' chart."""
 
     def __init__(self, view: ScuView):
-        self.view = view
+        super().__init__(view)
         self.rows: list[tuple] = []
 
     def build(self) -> None:
-        with ui.card().classes("w-full"):
-            ui.label("Positions").classes("text-subtitle1")
+        with titled_card("Positions"):
             with ui.grid(columns=3).classes("w-full gap-x-4 gap-y-1 items-center").style("grid-template-columns: 60px 1fr 280px"):
                 for s in self.view.scales:
                     ui.label(f"A{s.number}").classes("text-body1")
@@ -223,17 +181,16 @@ class PositionsCard:
                 bar.set_value(max(0.0, min(1.0, (e["value"] - lo["value"]) / (hi["value"] - lo["value"]))))
 
 
-class StatusCard:
+class StatusCard(DeviceCard):
     """Status 1 and 2 of each actuator as lamps, its current and speed."""
 
     def __init__(self, view: ScuView):
-        self.view = view
+        super().__init__(view)
         self.lamps: dict[str, Lamp] = {}
 
     def build(self) -> None:
         state = self.view.state
-        with ui.card().classes("w-full"):
-            ui.label("Actuator status 1 (0x0171..) and 2 (0x00E1..), current (0x00A1..), speed (0x00F1..)").classes("text-subtitle1")
+        with titled_card("Actuator status 1 (0x0171..) and 2 (0x00E1..), current (0x00A1..), speed (0x00F1..)"):
             with ui.row().classes("gap-8 items-start"):
                 for n in range(1, len(self.view.scales) + 1):
                     with ui.column().classes("gap-0"):
@@ -249,16 +206,15 @@ class StatusCard:
             lamp.show(self.view.state.point(key))
 
 
-class SupplyCard:
+class SupplyCard(DeviceCard):
     """Mains, battery and outputs as lamps; the I/O values, one line per point."""
 
     def __init__(self, view: ScuView):
-        self.view = view
+        super().__init__(view)
         self.lamps: dict[str, Lamp] = {}
 
     def build(self) -> None:
-        with ui.card().classes("w-full"):
-            ui.label("Supply and I/O").classes("text-subtitle1")
+        with titled_card("Supply and I/O"):
             with ui.row().classes("gap-6"):
                 for key in SUPPLY_LAMPS:
                     self.lamps[key] = Lamp(key, "ok")
@@ -277,17 +233,16 @@ class SupplyCard:
                 mark_quality(line, e["quality"])
 
 
-class ErrorsCard:
+class ErrorsCard(DeviceCard):
     """The error code and its history, each set bit with its cause, condition and behaviour."""
 
     def __init__(self, view: ScuView):
-        self.view = view
+        super().__init__(view)
         self.rows: dict[str, tuple] = {}  # per register: its line, and its bits (rebuilt only when the value changes)
         self.shown: dict[str, int] = {}
 
     def build(self) -> None:
-        with ui.card().classes("w-full"):
-            ui.label("Error code (0x00D1) and history (0x00D2..0x00D5), bit n = mask 1 << (n-1)").classes("text-subtitle1")
+        with titled_card("Error code (0x00D1) and history (0x00D2..0x00D5), bit n = mask 1 << (n-1)"):
             with ui.column().classes("gap-1").props("data-testid=errors"):
                 for key in ERROR_POINTS:
                     with ui.column().classes("gap-1") as box:
@@ -313,19 +268,18 @@ class ErrorsCard:
                              + f" — behaviour: {b.behaviour}").classes("text-caption text-negative" if key == "Error code" else "text-caption")
 
 
-class DriveCard:
+class DriveCard(DeviceCard):
     """Control, the function and its actuators, remote speed and positions, Go, Stop and jog (hold to run)."""
 
     def __init__(self, view: ScuView):
-        self.view = view
+        super().__init__(view)
         self.edited: list[int] = []  # the actuator whose remote position was set last on this page
         self.jog_held: dict[int, bool] = {}
         self.moves: list[ui.button] = []  # what starts motion or writes: off without control, session or unit
 
     def build(self) -> None:
         view = self.view
-        with ui.card().classes("w-full"):
-            ui.label("Drive").classes("text-subtitle1")
+        with titled_card("Drive"):
             with ui.row().classes("items-center gap-4"):
                 self.take = ui.button("Take control", icon="sports_esports",
                                       on_click=lambda: view.act("take control", {"user": _client_user()})) \
@@ -483,18 +437,17 @@ class DriveCard:
             gate(element, access.role or off or ("" if mine else "take control first"))
 
 
-class FunctionsCard:
+class FunctionsCard(DeviceCard):
     """Buzzer, outputs and LEDs on and off; the emergency stop and its release."""
 
     def __init__(self, view: ScuView):
-        self.view = view
+        super().__init__(view)
         self.on: list[ui.button] = []
         self.off: list[ui.button] = []
 
     def build(self) -> None:
         view = self.view
-        with ui.card().classes("w-full"):
-            ui.label("Functions (firmware V2B1 and later)").classes("text-subtitle1")
+        with titled_card("Functions (firmware V2B1 and later)"):
             with ui.row().classes("items-center gap-4"):
                 for fn, label in SWITCHES:
                     with ui.button_group():
@@ -523,15 +476,13 @@ def _read_gate(view: ScuView, access: Access) -> str:
     return access.role or access.offline or (access.lost if view.fact(facts.P_WATCH) != WATCH_RG else "")
 
 
-class DirectoryCard:
+class DirectoryCard(DeviceCard):
     """The data directory (section 4.3): read any data ID or group ID, its value and raw bytes."""
 
-    def __init__(self, view: ScuView):
-        self.view = view
+    view: ScuView
 
     def build(self) -> None:
-        with ui.card().classes("w-full"):
-            ui.label("Data directory (section 4.3): read any data ID or group ID").classes("text-subtitle1")
+        with titled_card("Data directory (section 4.3): read any data ID or group ID"):
             rows = [{"id": e.key, "name": e.name, "type": e.type_name, "unit": e.unit, "access": e.access.value,
                      "comment": e.comment} for e in p.DIRECTORY.values()]
             table = ui.table(columns=[{"name": k, "label": k.capitalize(), "field": k, "align": "left"}
@@ -557,15 +508,13 @@ class DirectoryCard:
         gate(self.button, _read_gate(self.view, access))
 
 
-class ServiceCard:
+class ServiceCard(DeviceCard):
     """The service data read on demand, each row with the time of its reading."""
 
-    def __init__(self, view: ScuView):
-        self.view = view
+    view: ScuView
 
     def build(self) -> None:
-        with ui.card().classes("w-full"):
-            ui.label("Service table").classes("text-subtitle1")
+        with titled_card("Service table"):
             self.table = ui.table(columns=[{"name": k, "label": k.capitalize(), "field": k, "align": "left"}
                                            for k in ("id", "name", "value", "read")], rows=[], row_key="id") \
                 .classes("w-full text-caption")
@@ -602,19 +551,17 @@ class ServiceCard:
 
 def content(name: str) -> None:
     view = ScuView(name)
-    with frame(f"Ewellix SCU {name}"):
+
+    def stop() -> None:
+        stop_bar("RS to every running function; anyone may stop, also without control.", "STOP", "stop_circle",
+                 lambda: view.act("stop (RS)"), "stop-bar", "big-stop").classes("text-h6")
+
+    with device_page(view, f"Ewellix SCU {name}", stop=stop):
         view.guard = WriteGuard(view.state)  # why write and motion-start controls are off while the unit does not answer
-        view.cards = [SessionCard(view), PositionsCard(view), StatusCard(view), SupplyCard(view), ErrorsCard(view),
-                      DriveCard(view), FunctionsCard(view), DirectoryCard(view), ServiceCard(view)]
-        for card in view.cards:
-            card.build()
+        for card in (SessionCard(view), PositionsCard(view), StatusCard(view), SupplyCard(view), ErrorsCard(view),
+                     DriveCard(view), FunctionsCard(view), DirectoryCard(view), ServiceCard(view)):
+            view.add(card)
         sim_card(name)  # the twin's declared controls, in simulation only
-        with ui.expansion("Events", icon="list", value=True).classes("w-full"):
-            event_log(view.state)  # session changes, error answers, offline and back, commands; newest first
-    stop_bar("RS to every running function; anyone may stop, also without control.", "STOP", "stop_circle",
-             lambda: view.act("stop (RS)"), "stop-bar", "big-stop").classes("text-h6")
-    view.refresh()
-    follow(view.state, view.refresh)  # on every change the store pushes (at most 10/s) and once a second for the ages
 
 
 def _client_user() -> str:

@@ -646,12 +646,26 @@ class WriteGuard:
             return
         self.reason = reason
         for control in self.controls:
-            control.set_enabled(not reason)
-            if reason:
-                text = reason.replace('"', "'")
-                control.props(f'title="{text}" data-disabled-reason="{text}"')
-            else:
-                control.props(remove="title data-disabled-reason")
+            _show_reason(control, reason)
+
+
+def _show_reason(control: ui.element, reason: str) -> None:
+    """Enable ``control``, or disable it with ``reason`` as its tooltip."""
+    control.set_enabled(not reason)
+    if reason:
+        text = reason.replace('"', "'")
+        control.props(f'title="{text}" data-disabled-reason="{text}"')
+    else:
+        control.props(remove="title data-disabled-reason")
+
+
+def gate(control: ui.element, reason: str) -> None:
+    """Enable ``control``, or disable it with ``reason`` as its tooltip (changed only when the reason changes):
+    for a control whose reason the page works out itself (control held, session open), not the device's silence."""
+    if getattr(control, "gate_reason", None) == reason:
+        return
+    control.gate_reason = reason  # type: ignore[attr-defined]
+    _show_reason(control, reason)
 
 
 async def write_from_page(device: str, param: Param, value, *, success: str, title: str = "", ok: str = "Write anyway",

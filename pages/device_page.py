@@ -1,0 +1,154 @@
+"""What every device page is made of: a view of one device's live record, small cards with ``build()``
+(in the page's layout) and ``refresh()`` (on every change the store pushes), the status badge and row
+every page starts with, and the page around the cards (frame, event log, the way out, following the store).
+
+A device page reads::
+
+    class LampsCard(DeviceCard):
+        def build(self) -> None:
+            with titled_card("Status"):
+                ...
+
+        def refresh(self) -> None:
+            ...
+
+    def content(name: str) -> None:
+        view = DeviceView(name)
+        with device_page(view, f"My device {name}"):
+            view.add(LampsCard(view))
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+from nicegui import ui
+
+from app import runtime as rt
+from app.state import DeviceState, LiveValue, session_tag
+from pages.frame import frame, set_status_badge
+from pages.widgets import WriteGuard, counter_line, event_log, follow, run_command
+
+
+class DeviceView:
+    """What every card of one device page shares: the device's live record, the page session (outputs and
+    control taken here belong to it) and the device's declared commands."""
+
+    def __init__(self, name: str):
+        runtime = rt.current()
+        self.name = name
+        self.runtime = runtime
+        self.store = runtime.store
+        self.state: DeviceState = runtime.store.devices[name]
+        self.session = ui.context.client.id
+        self.tag = session_tag(self.session)
+        self.cards: list = []
+        self.guard: WriteGuard | None = None  # the page's write and command controls, off with the reason while silent
+
+    def live(self, point: str) -> LiveValue | None:
+        return self.state.live(point)
+
+    def fact(self, point: str, default=None):
+        """The value of a point the adapter publishes, ``default`` while there is none."""
+        value = self.state.live(point)
+        return default if value is None or value.value is None else value.value
+
+    def text(self, point: str, default: str = "-") -> str:
+        value = self.state.live(point)
+        return default if value is None else value.shown
+
+    def add(self, card):
+        """Build ``card`` here in the layout; it is refreshed with the page from now on."""
+        card.build()
+        self.cards.append(card)
+        return card
+
+    def refresh(self) -> None:
+        for card in self.cards:
+            card.refresh()
+
+    async def act(self, command: str, args: dict | None = None, success: str = "", **options) -> tuple[bool, object]:
+        """Invoke a declared command of the device (``devices/<type>/policy.py``) by name: the gate decides on
+        its kind and the role and asks its declared risk here (``confirmed``, ``title`` and ``ok``: see
+        :func:`pages.widgets.run_command`). What the command changed is shown at once, not at the next push."""
+        result = await run_command(self.name, command, args=args, session=self.session, success=success, **options)
+        self.refresh()
+        return result
+
+
+class DeviceCard:
+    """One part of a device page."""
+
+    def __init__(self, view: DeviceView):
+        self.view = view
+
+    @property
+    def guard(self) -> WriteGuard:
+        """The page's write guard: controls added to it are off, with the reason, while they may not be used."""
+        return self.view.guard
+
+    def build(self) -> None:
+        raise NotImplementedError
+
+    def refresh(self) -> None:
+        """Show what the store holds now (a card that follows the store itself has nothing to do)."""
+
+
+@contextmanager
+def titled_card(title: str, classes: str = "w-full") -> Iterator[ui.card]:
+    """A card with its title on top."""
+    with ui.card().classes(classes) as card:
+        ui.label(title).classes("text-subtitle1")
+        yield card
+
+
+class StatusBadge:
+    """The device's status (waiting, online, stale, offline) with the age of its last answer."""
+
+    def __init__(self, state: DeviceState):
+        self.state = state
+
+    def build(self) -> None:
+        self.badge = ui.badge("waiting", color="grey").classes("text-body2")
+
+    def refresh(self) -> None:
+        set_status_badge(self.badge, self.state.status, self.state.age)
+
+
+class StatusRow:
+    """The first row of a device's main card: the status badge, the card's own labels (built inside
+    ``with row.build():``) and the line's counters (``counters(state.counters)``, redrawn once a second)."""
+
+    def __init__(self, state: DeviceState, counters: Callable[[object], str]):
+        self.state, self.counters = state, counters
+        self.badge = StatusBadge(state)
+
+    @contextmanager
+    def build(self) -> Iterator[ui.row]:
+        with ui.row().classes("items-center gap-6 w-full") as row:
+            self.badge.build()
+            yield row
+            counter_line(self.state, self.counters)
+
+    def refresh(self) -> None:
+        self.badge.refresh()
+
+
+@contextmanager
+def device_page(view: DeviceView, title: str, stop: Callable[[], object] | None = None) -> Iterator[None]:
+    """The page around a device's cards: the shared frame, the device's events at its end (state changes,
+    faults rising and clearing, offline and back, commands; newest first), ``stop()`` (the way out, a
+    :func:`pages.widgets.stop_bar`) below it; then every card is refreshed on every change the store pushes
+    (at most 10/s) and once a second for the ages."""
+    with frame(title):
+        yield
+        with ui.expansion("Events", icon="list", value=True).classes("w-full"):
+            event_log(view.state)
+    if stop is not None:
+        stop()
+    view.refresh()
+    follow(view.state, view.refresh)
+
+
+__all__ = ["DeviceCard", "DeviceView", "StatusBadge", "StatusRow", "device_page", "titled_card"]
