@@ -9,6 +9,7 @@ from types import SimpleNamespace
 
 import pytest
 from conftest import free_port
+from scripts import PAUSE, RX, TX, Script
 
 from app.logited import LogitedTcp
 from app.state import BusState
@@ -17,9 +18,6 @@ from devices.mo64 import codec
 from devices.mo64.adapter import BUSY_TEXT, CommandError, Mo64Adapter, NeedsConfirmation
 
 pytestmark = pytest.mark.timeout(30)
-
-TX, RX, PAUSE = "TX", "RX", "PAUSE"
-
 
 def tcp(telegram: bytes) -> bytes:
     return codec.encode_frame(telegram, codec.TCP)
@@ -36,56 +34,11 @@ def query(index: int, level: int | None = None) -> bytes:
     return tcp(codec.encode_query(index, level))
 
 
-class Script:
-    """A TCP peer that expects the adapter's requests in order and answers each with the scripted bytes."""
+class Mo64Script(Script):
+    """A LogiTed TCP peer speaking MO 64 telegrams (tests/scripts.py)."""
 
     def __init__(self, steps: list[tuple[str, object]]):
-        self.steps = list(steps)
-        self.seen: list[bytes] = []
-        self.problems: list[str] = []
-        self.port = free_port()
-        self.server = None
-
-    async def __aenter__(self) -> Script:
-        self.server = await asyncio.start_server(self._handle, "127.0.0.1", self.port)
-        return self
-
-    async def __aexit__(self, *exc) -> None:
-        self.server.close()
-        await self.server.wait_closed()
-
-    async def _handle(self, reader, writer) -> None:
-        splitter = codec.FrameSplitter(codec.TCP)
-        try:
-            while True:
-                data = await reader.read(4096)
-                if not data:
-                    return
-                for item in splitter.feed(data):
-                    raw = getattr(item, "raw", b"")
-                    self.seen.append(raw)
-                    if not self.steps or self.steps[0][0] != TX:
-                        self.problems.append(f"unexpected request {raw.hex(' ')}")
-                        continue
-                    _, expected = self.steps.pop(0)
-                    if raw != expected:
-                        self.problems.append(f"expected {expected.hex(' ')}, got {raw.hex(' ')}")
-                    while self.steps and self.steps[0][0] in (RX, PAUSE):
-                        kind, what = self.steps.pop(0)
-                        if kind == PAUSE:
-                            await writer.drain()
-                            await asyncio.sleep(what)
-                        else:
-                            writer.write(what)
-                    await writer.drain()
-        except (ConnectionError, asyncio.CancelledError):
-            pass
-        finally:
-            writer.close()
-
-    def done(self) -> None:
-        assert not self.problems, self.problems
-        assert not self.steps, f"not reached: {self.steps[:2]}"
+        super().__init__(steps, lambda: codec.FrameSplitter(codec.TCP))
 
 
 _made: list[Mo64Adapter] = []
@@ -111,7 +64,7 @@ def make_adapter(port: int, query_form: str | None = "short") -> Mo64Adapter:
 
 async def test_setting_write_busy_then_syn_ack_and_read_back():
     set_t_open = tcp(codec.encode_setting("t_open", 1500))
-    async with Script([
+    async with Mo64Script([
         (TX, set_t_open), (RX, BUSY),
         (TX, set_t_open), (RX, SYN), (PAUSE, 0.05), (RX, ACK),
         (TX, query(codec.Q_T_OPEN)), (RX, answer(0x0D, 1500)),
@@ -129,7 +82,7 @@ async def test_setting_write_busy_then_syn_ack_and_read_back():
 
 async def test_syn_and_ack_in_one_segment_are_both_taken():
     set_mask = tcp(codec.encode_setting("maintenance_interval", 5000))
-    async with Script([
+    async with Mo64Script([
         (TX, set_mask), (RX, SYN + ACK),
         (TX, query(codec.Q_MAINTENANCE_INTERVAL)), (RX, answer(0x1A, 5000)),
     ]) as script:
@@ -139,7 +92,7 @@ async def test_syn_and_ack_in_one_segment_are_both_taken():
 
 
 async def test_setting_nak_is_a_failed_write():
-    async with Script([(TX, tcp(codec.encode_setting("t_open", 10))), (RX, SYN), (RX, NAK)]) as script:
+    async with Mo64Script([(TX, tcp(codec.encode_setting("t_open", 10))), (RX, SYN), (RX, NAK)]) as script:
         adapter = make_adapter(script.port)
         with pytest.raises(CommandError, match="nak"):
             await adapter.write_setting("s1", "t_open", 10)
@@ -148,7 +101,7 @@ async def test_setting_nak_is_a_failed_write():
 
 
 async def test_query_answered_with_nak():
-    async with Script([(TX, query(codec.Q_GATE_STATE)), (RX, NAK)]) as script:
+    async with Mo64Script([(TX, query(codec.Q_GATE_STATE)), (RX, NAK)]) as script:
         adapter = make_adapter(script.port)
         with pytest.raises(CommandError, match="gate state with nak"):
             await adapter.query(codec.Q_GATE_STATE)
@@ -157,7 +110,7 @@ async def test_query_answered_with_nak():
 
 
 async def test_unsolicited_telegram_between_request_and_answer_is_published_with_an_event():
-    async with Script([
+    async with Mo64Script([
         (TX, query(codec.Q_GATE_STATE)), (RX, answer(0x1D, 42)), (RX, answer(0x0C, codec.GateState.OPENING)),
     ]) as script:
         adapter = make_adapter(script.port)
@@ -172,7 +125,7 @@ async def test_unsolicited_telegram_between_request_and_answer_is_published_with
 
 
 async def test_position_unknown_for_minus_one():
-    async with Script([(TX, query(codec.Q_BARRIER_POSITION)), (RX, answer(0x1D, -1))]) as script:
+    async with Mo64Script([(TX, query(codec.Q_BARRIER_POSITION)), (RX, answer(0x1D, -1))]) as script:
         adapter = make_adapter(script.port)
         await adapter.query(codec.Q_BARRIER_POSITION)
         script.done()
@@ -182,7 +135,7 @@ async def test_position_unknown_for_minus_one():
 
 async def test_motion_needs_confirmation_once_per_session_and_pulse_is_no_holder():
     open_pulse = bytes.fromhex("55 03 01 01 00 B8 B4")  # SPEC-NOTES golden vector
-    async with Script([(TX, open_pulse), (RX, ACK), (TX, open_pulse), (RX, NAK)]) as script:
+    async with Mo64Script([(TX, open_pulse), (RX, ACK), (TX, open_pulse), (RX, NAK)]) as script:
         adapter = make_adapter(script.port)
         with pytest.raises(NeedsConfirmation):
             await adapter.command("s1", codec.Command.OPEN)
@@ -197,7 +150,7 @@ async def test_motion_needs_confirmation_once_per_session_and_pulse_is_no_holder
 async def test_session_lost_deactivates_its_close_level_at_once():
     activate = tcp(codec.encode_command(codec.Command.CLOSE, codec.Function.ACTIVATE))
     deactivate = tcp(codec.encode_command(codec.Command.CLOSE, codec.Function.DEACTIVATE))
-    async with Script([(TX, activate), (RX, ACK), (TX, deactivate), (RX, ACK)]) as script:
+    async with Mo64Script([(TX, activate), (RX, ACK), (TX, deactivate), (RX, ACK)]) as script:
         adapter = make_adapter(script.port)
         await adapter.command("s1", codec.Command.CLOSE, codec.Function.ACTIVATE, confirmed=True)
         assert adapter.holders() == {"s1"}
@@ -214,7 +167,7 @@ async def test_session_lost_deactivates_its_close_level_at_once():
 async def test_open_level_is_shown_but_not_released_by_the_dead_man_and_cleared_on_request():
     activate = tcp(codec.encode_command(codec.Command.OPEN, codec.Function.ACTIVATE))
     deactivate = tcp(codec.encode_command(codec.Command.OPEN, codec.Function.DEACTIVATE))
-    async with Script([(TX, activate), (RX, ACK), (TX, deactivate), (RX, ACK)]) as script:
+    async with Mo64Script([(TX, activate), (RX, ACK), (TX, deactivate), (RX, ACK)]) as script:
         adapter = make_adapter(script.port)
         await adapter.command("s1", codec.Command.OPEN, codec.Function.ACTIVATE, confirmed=True)
         assert adapter.holders() == set()
@@ -248,7 +201,7 @@ async def test_backup_reads_the_settings_and_restore_writes_one():
               (TX, query(codec.Q_LOOP_PERIODS)), (RX, answer(0x1B, bytes.fromhex("10 27 20 4e 00 00")))]
     steps += [(TX, tcp(codec.encode_setting("multi_relays", [1, 0, 0, 0, 0, 3]))), (RX, SYN), (RX, ACK),
               (TX, query(codec.Q_MULTI_RELAYS)), (RX, answer(0x19, [1, 0, 0, 0, 0, 3]))]
-    async with Script(steps) as script:
+    async with Mo64Script(steps) as script:
         adapter = make_adapter(script.port)
         entries = await adapter.backup_read()
         by_key = {e["key"]: e for e in entries}

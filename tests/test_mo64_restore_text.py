@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from test_mo64_adapter import RX, TX, Script, answer, make_adapter, query
+from scripts import RX, TX
+from test_mo64_adapter import Mo64Script, answer, make_adapter, query
 
 from devices.mo64 import codec
 
@@ -19,7 +20,7 @@ async def test_restore_text_matches_the_backup_text_of_every_setting():
               (TX, query(codec.Q_DIRECTION_LOGICS)), (RX, answer(0x13, [5, 6])),
               (TX, query(codec.Q_DEC_BT)), (RX, answer(0x10, 0)),
               (TX, query(codec.Q_LOOP_PERIODS)), (RX, answer(0x1B, bytes(6)))]
-    async with Script(steps) as script:
+    async with Mo64Script(steps) as script:
         adapter = make_adapter(script.port)
         entries = await adapter.backup_read()
         script.done()

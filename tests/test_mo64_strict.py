@@ -11,7 +11,8 @@ import time
 import httpx
 import pytest
 from conftest import free_port, wait_for
-from test_mo64_adapter import RX, TX, Script, answer, close_lines, make_adapter, query  # noqa: F401 - close_lines: autouse, closes the adapters made here
+from scripts import RX, TX
+from test_mo64_adapter import Mo64Script, answer, close_lines, make_adapter, query  # noqa: F401 - close_lines: autouse, closes the adapters made here
 from webutil import simulated_user
 
 from app.plant import parse_plant
@@ -77,7 +78,7 @@ async def test_a_unit_that_naks_optional_queries_shows_every_live_value_in_the_a
 
 
 async def test_a_refused_startup_read_is_retried_later_with_backoff():
-    async with Script([
+    async with Mo64Script([
         (TX, query(codec.Q_GATE_STATE)), (RX, answer(0x0C, 5)),
         (TX, query(codec.Q_BARRIER_STATUS)), (RX, answer(0x07, {"status": 0, "more": b""})),
         (TX, query(codec.Q_BARRIER_POSITION)), (RX, answer(0x1D, 0)),
@@ -106,7 +107,7 @@ async def test_a_refused_startup_read_is_retried_later_with_backoff():
 
 async def test_query_form_document_first_then_the_short_form_and_the_choice_is_kept():
     document = codec.encode_frame(codec.encode_query(codec.Q_GATE_STATE, form="document"), codec.TCP)
-    async with Script([
+    async with Mo64Script([
         (TX, document), (RX, answer(codec.Reply.NAK)),
         (TX, query(codec.Q_GATE_STATE)), (RX, answer(0x0C, 4)),
         (TX, query(codec.Q_BARRIER_POSITION)), (RX, answer(0x1D, 100)),  # the short form from now on
@@ -162,7 +163,7 @@ async def test_error_memory_level_0_holds_the_newest_entry_read_from_the_twin():
 
 
 async def test_a_late_answer_is_counted_late_not_as_change_monitoring():
-    async with Script([
+    async with Mo64Script([
         (TX, query(codec.Q_GATE_STATE)),  # no answer in time ...
         (TX, query(codec.Q_BARRIER_POSITION)), (RX, answer(0x0C, 4)), (RX, answer(0x1D, 100)),  # ... then late
     ]) as script:
@@ -201,7 +202,7 @@ async def test_safety_bits_show_within_one_poll_while_change_monitoring_delivers
 
 
 async def test_assumed_selector_is_refused_until_verified_and_restore_skips_it():
-    async with Script([
+    async with Mo64Script([
         (TX, codec.encode_frame(codec.encode_setting("t_prewarn_open", 80), codec.TCP)), (RX, answer(codec.Reply.SYN)),
         (RX, answer(codec.Reply.ACK)), (TX, query(codec.Q_T_PREWARN_OPEN)), (RX, answer(0x0E, 80)),
     ]) as script:

@@ -9,6 +9,7 @@ from types import SimpleNamespace
 
 import pytest
 from conftest import free_port, wait_for
+from scripts import RX, TX, Script
 
 from app.serial_line import SerialLine
 from app.state import BusState
@@ -19,7 +20,6 @@ from devices.scu.adapter import CYCLIC_READ_IDS, P_CYCLIC, P_REFUSAL, ControlBus
 
 pytestmark = pytest.mark.timeout(60)
 
-TX, RX = "TX", "RX"
 ACK = codec.ACK
 
 
@@ -37,54 +37,11 @@ def positions(n: int = 2, ends: tuple[int, int] = (0, 3000)) -> bytes:
     return p.encode_data(0x2001, value, remote_only=False)
 
 
-class Script:
-    """A TCP peer that expects the adapter's requests in order and answers each with the scripted bytes."""
+class ScuScript(Script):
+    """A serial peer (through ``socket://``) speaking SCU telegrams (tests/scripts.py)."""
 
     def __init__(self, steps: list[tuple[str, bytes]]):
-        self.steps = list(steps)
-        self.seen: list[bytes] = []
-        self.problems: list[str] = []
-        self.port = free_port()
-        self.server = None
-
-    async def __aenter__(self) -> Script:
-        self.server = await asyncio.start_server(self._handle, "127.0.0.1", self.port)
-        return self
-
-    async def __aexit__(self, *exc) -> None:
-        self.server.close()
-        await self.server.wait_closed()
-
-    def add(self, *steps: tuple[str, bytes]) -> None:
-        self.steps.extend(steps)
-
-    async def _handle(self, reader, writer) -> None:
-        splitter = codec.FrameSplitter(codec.REQUESTS)
-        try:
-            while True:
-                data = await reader.read(4096)
-                if not data:
-                    return
-                for item in splitter.feed(data):
-                    raw = getattr(item, "raw", b"")
-                    self.seen.append(raw)
-                    if not self.steps or self.steps[0][0] != TX:
-                        self.problems.append(f"unexpected request {raw.hex(' ')}")
-                        continue
-                    _, expected = self.steps.pop(0)
-                    if raw != expected:
-                        self.problems.append(f"expected {expected.hex(' ')}, got {raw.hex(' ')}")
-                    while self.steps and self.steps[0][0] == RX:
-                        writer.write(self.steps.pop(0)[1])
-                    await writer.drain()
-        except (ConnectionError, asyncio.CancelledError):
-            pass
-        finally:
-            writer.close()
-
-    def done(self) -> None:
-        assert not self.problems, self.problems
-        assert not self.steps, f"not reached: {self.steps[:2]}"
+        super().__init__(steps, lambda: codec.FrameSplitter(codec.REQUESTS))
 
 
 _made: list[ScuAdapter] = []
@@ -147,7 +104,7 @@ def cyclic_answer(pos1: int = 1500, status1: int = 0x11, error: int = 0) -> byte
 
 
 async def test_opening_the_session_defines_the_cyclic_object_and_brings_live_data_with_rc():
-    async with Script(opening(False, False)) as script:
+    async with ScuScript(opening(False, False)) as script:
         adapter = make_adapter(script.port, actuators=[{"counts_per_mm": 10}, {"stroke_mm": 250}])
         await adapter.poll()
         assert adapter.session == "open" and adapter.cyclic == CYCLIC
@@ -167,7 +124,7 @@ async def test_opening_the_session_defines_the_cyclic_object_and_brings_live_dat
 
 async def test_refused_cyclic_definition_falls_back_to_rg_and_says_so():
     steps = OPENING[:7] + [(RX, refused(codec.RT, codec.Status.PDE))] + OPENING[8:]  # PDE to the definition
-    async with Script(steps) as script:
+    async with ScuScript(steps) as script:
         adapter = make_adapter(script.port)
         await adapter.poll()
         assert adapter.session == "open" and adapter.cyclic is None
@@ -185,7 +142,7 @@ async def test_refused_cyclic_definition_falls_back_to_rg_and_says_so():
 
 
 async def test_move_to_a_remote_position_is_followed_by_its_rs():
-    async with Script(opening(False, True)) as script:
+    async with ScuScript(opening(False, True)) as script:
         adapter = make_adapter(script.port, actuators=[{"counts_per_mm": 10}, {}])
         await adapter.poll()
         await adapter.take_control("s1", "anna")
@@ -207,7 +164,7 @@ async def test_move_to_a_remote_position_is_followed_by_its_rs():
 
 
 async def test_dead_man_sends_rs_at_once_and_releases_control():
-    async with Script(OPENING) as script:
+    async with ScuScript(OPENING) as script:
         adapter = make_adapter(script.port)
         await adapter.poll()
         await adapter.take_control("s1", "anna")
@@ -227,7 +184,7 @@ async def test_bad_crc_is_counted_and_retried_and_error_answers_are_named():
     bad = bytearray(ok(codec.RO))
     bad[-1] ^= 0xFF
     steps = PROBE + [(TX, codec.encode_ro(1)), (RX, bytes(bad)), (TX, codec.encode_ro(1)), (RX, ok(codec.RO))] + OPENING[4:]
-    async with Script(steps) as script:
+    async with ScuScript(steps) as script:
         adapter = make_adapter(script.port)
         await adapter.poll()
         assert adapter.session == "open" and adapter.state.counters.crc_errors == 1 and adapter.crc_retries == 1
@@ -243,7 +200,7 @@ async def test_bad_crc_is_counted_and_retried_and_error_answers_are_named():
 
 
 async def test_no_answer_marks_offline_naming_cable_dtr_rts_and_baud_rate():
-    async with Script([]) as script:
+    async with ScuScript([]) as script:
         script.problems = []
         adapter = make_adapter(script.port)
         for _ in range(3):
