@@ -42,7 +42,7 @@ VALUE_SLOTS = {
 }
 PROJECT_ACTIONS = """
     <q-td :props="props">
-      <div v-if="props.row.changed" class="column items-start">
+      <div v-if="props.row.changed" class="row items-center q-gutter-x-sm">
         <q-btn dense flat no-caps icon="memory" label="Keep device" :data-project-keep="props.row.key"
                @click="$parent.$emit('keep', props.row.key)" />
         <q-btn dense flat no-caps color="negative" icon="upload" label="Apply project" :data-project-apply="props.row.key"
@@ -91,7 +91,9 @@ class ProjectCard:
             self.table.on("apply", lambda e: self.apply(e.args))
             self.table.on("update", lambda e: self.update(e.args))
             self.table.set_visibility(False)
-            if not compact:
+            if compact:
+                self.table.props("hide-bottom")
+            else:
                 self.summary = ui.label().classes("text-body2").props("data-testid=project-summary")
 
     def _head(self) -> None:
@@ -259,8 +261,8 @@ def device_card(name: str) -> None:
 
 # -- the project editor (/project/<device>) -----------------------------------------------------------------
 
-EDIT_GRID = ("display: grid; grid-template-columns: minmax(12rem, 2fr) minmax(11rem, 15rem) minmax(10rem, 1.4fr); "
-             "gap: 6px 16px; align-items: start; width: 100%")
+PARAM_ROW = ("display: grid; grid-template-columns: minmax(0, 1fr) minmax(10rem, 15rem); gap: 2px 16px; "
+             "align-items: start; width: 100%; padding: 8px 0; border-top: 1px solid #e0e0e0")
 
 
 def _shown(param: Param, value) -> str:
@@ -300,11 +302,9 @@ class ProjectEditor:
                     ui.link("Project against the device on the backup page", "/backup")
             self.problems = ui.column().classes("gap-0").props("data-testid=project-problems")
         with ui.card().classes("w-full").props("data-testid=project-editor"):
-            with ui.element("div").style(EDIT_GRID):
-                for text in ("Parameter", "Project value", "Allowed"):
-                    ui.label(text).classes("text-caption text-weight-medium text-grey-8")
-                for param in self.params:
-                    self._field(param)
+            ui.label(f"{len(self.params)} writable parameters").classes("text-subtitle1")
+            for param in self.params:
+                self._field(param)
             with ui.row().classes("items-center"):
                 self.save_button = ui.button("Save project", icon="save", on_click=self.save).props(
                     "data-testid=project-save")
@@ -315,23 +315,26 @@ class ProjectEditor:
         self.load()
 
     def _field(self, param: Param) -> None:
-        with ui.column().classes("gap-0"):
-            ui.label(param.label or param.name).classes("text-body2 text-weight-medium")
-            if param.description:
-                ui.label(param.description).classes("text-caption text-grey-8").style(WRAP)
-        if param.enum is not None:
-            options = {"": "(not in the project)"} | {str(n): f"{text} ({n})" for n, text in param.enum.items()}
-            field = ui.select(options, value="").props("dense outlined options-dense")
-        else:
-            field = ui.input(placeholder="not in the project", suffix=param.unit or None,
-                             validation=lambda v, p=param: self._error(p, v)).props("dense outlined")
+        """One parameter: its name, what it allows, its risk and its doc text beside the project's value."""
+        with ui.element("div").style(PARAM_ROW):
+            with ui.column().classes("gap-0"):
+                ui.label(param.label or param.name).classes("text-body2 text-weight-medium")
+                allowed = "one of the listed values" if param.enum is not None else project.allowed(param)
+                ui.label(f"allowed: {allowed}").classes("text-caption text-grey-9")
+                if param.confirm:
+                    ui.label(f"⚠ asks before it is written: {param.confirm}").classes("text-caption text-negative").style(WRAP)
+                if param.description:
+                    ui.label(param.description).classes("text-caption text-grey-7").style(WRAP)
+            if param.enum is not None:
+                options = {"": "(not in the project)"} | {str(n): f"{text} ({n})" for n, text in param.enum.items()}
+                field = ui.select(options, value="").props("dense outlined options-dense")
+            else:
+                field = ui.input(placeholder="not in the project", suffix=param.unit or None,
+                                 validation=lambda v, p=param: self._error(p, v)).props("dense outlined")
         field.props(f'data-project-field="{param.key}"')
         if self.read_only:
             field.disable()
         self.fields[param.key] = field
-        allowed = project.allowed(param)
-        risk = f" ⚠ {param.confirm}" if param.confirm else ""
-        ui.label(allowed + risk).classes("text-caption" + (" text-negative" if risk else " text-grey-8")).style(WRAP)
 
     @staticmethod
     def _error(param: Param, text) -> str | None:

@@ -127,7 +127,7 @@ async def test_project_of_a_device_that_never_answered_is_edited_on_the_paramete
     await env.user.should_see("The plant file names no project for this device.")
     await env.user.open("/project/door-9")
     await env.user.should_see("Edited on the HD-Lock parameter model without the device")
-    await env.user.should_see("0 .. 65535 ms (whole numbers)")  # what LockRequestDelay allows
+    await env.user.should_see("allowed: 0 .. 65535 ms (whole numbers)")  # what LockRequestDelay allows
     fields = {e.props.get("data-project-field"): e for e in env.user.client.elements.values()
               if e.props.get("data-project-field")}
     assert "holding:3000" in fields and "input:51" not in fields  # writable parameters only

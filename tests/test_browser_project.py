@@ -1,0 +1,87 @@
+"""In chromium: the project card on a device page (the differing entry applied through the gate) and the
+project editor on a lock that never answered (edited, saved, shown again after a reload, an invalid entry
+refused). One app, one simulated HD-Lock with a project and one on a line nothing answers on."""
+
+from __future__ import annotations
+
+import json
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+from test_project_page import PLANT
+from webutil import free_port, running_app
+
+from app.plant import load_plant
+
+CHROMIUM = Path("/usr/bin/chromium")
+if not CHROMIUM.exists():
+    pytest.skip(f"{CHROMIUM} is not installed", allow_module_level=True)
+
+from playwright.sync_api import expect, sync_playwright  # noqa: E402
+
+pytestmark = pytest.mark.timeout(120)
+SHOTS = Path("/tmp/shots")
+
+
+def _online(url: str, name: str, timeout: float = 20) -> None:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        with urllib.request.urlopen(url + "/api/devices", timeout=2) as response:
+            if any(d["name"] == name and d["status"] == "online" for d in json.load(response)):
+                return
+        time.sleep(0.2)
+    raise TimeoutError(f"{name} did not come online")
+
+
+def _value(url: str, device: str, name: str):
+    with urllib.request.urlopen(f"{url}/api/devices/{device}", timeout=2) as response:
+        return json.load(response)["values"][name]["value"]
+
+
+def _shots(page, name: str) -> None:
+    SHOTS.mkdir(exist_ok=True)
+    for width, height in ((1440, 900), (768, 1024)):
+        page.set_viewport_size({"width": width, "height": height})
+        page.screenshot(path=str(SHOTS / f"{name}-{width}x{height}.png"), full_page=True)
+    page.set_viewport_size({"width": 1440, "height": 900})
+
+
+def test_project_card_and_editor_in_the_browser(tmp_path: Path):
+    with running_app(PLANT.format(port=free_port(), silent=free_port()), tmp_path) as url, sync_playwright() as pw:
+        _online(url, "door-1")
+        browser = pw.chromium.launch(executable_path=str(CHROMIUM),
+                                     args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"])
+        page = browser.new_page(viewport={"width": 1440, "height": 900})
+        try:
+            # the device page: the one differing entry, applied through the gate
+            page.goto(url + "/device/door-1")
+            card = page.get_by_test_id("project-card")
+            expect(card.get_by_test_id("project-summary")).to_contain_text("1 of 1 project entry differs", timeout=10000)
+            row = card.locator("tr", has_text="LockRequestDelay")
+            expect(row).to_contain_text("350 ms")
+            expect(row).to_contain_text("200 ms")
+            _shots(page, "device-project")
+            card.locator('[data-project-apply="holding:3000"]').click()
+            page.locator(".q-dialog").get_by_role("button", name="Write", exact=True).click()
+            expect(card.get_by_test_id("project-summary")).to_contain_text("device and project agree", timeout=10000)
+            assert _value(url, "door-1", "LockRequestDelay") == 350
+
+            # the editor on the lock that never answered: refused, then saved and shown again after a reload
+            page.goto(url + "/device/door-9")
+            page.get_by_test_id("project-none").get_by_test_id("project-edit").click()
+            field = page.locator('[data-project-field="holding:3000"]')
+            field.fill("70000")
+            expect(page.get_by_text("70000 is outside 0 .. 65535 ms").first).to_be_visible()
+            page.get_by_test_id("project-save").click()
+            expect(page.get_by_test_id("project-status")).to_contain_text("Not saved: LockRequestDelay: 70000 is outside")
+            field.fill("420")
+            page.get_by_test_id("project-save").click()
+            expect(page.get_by_test_id("project-status")).to_contain_text("Saved: LockRequestDelay - -> 420")
+            page.reload()
+            expect(page.locator('[data-project-field="holding:3000"]')).to_have_value("420")
+            _shots(page, "project-editor")
+            assert load_plant(tmp_path / "plant.toml").devices["door-9"].project == {"LockRequestDelay": 420}
+        finally:
+            browser.close()
