@@ -4,9 +4,6 @@ refused). One app, one simulated HD-Lock with a project and one on a line nothin
 
 from __future__ import annotations
 
-import json
-import time
-import urllib.request
 from pathlib import Path
 
 import pytest
@@ -20,37 +17,14 @@ if not CHROMIUM.exists():
     pytest.skip(f"{CHROMIUM} is not installed", allow_module_level=True)
 
 from playwright.sync_api import expect, sync_playwright  # noqa: E402
+from test_browser_fleet import _online, _shots, _value  # noqa: E402
 
 pytestmark = pytest.mark.timeout(120)
-SHOTS = Path("/tmp/shots")
-
-
-def _online(url: str, name: str, timeout: float = 20) -> None:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        with urllib.request.urlopen(url + "/api/devices", timeout=2) as response:
-            if any(d["name"] == name and d["status"] == "online" for d in json.load(response)):
-                return
-        time.sleep(0.2)
-    raise TimeoutError(f"{name} did not come online")
-
-
-def _value(url: str, device: str, name: str):
-    with urllib.request.urlopen(f"{url}/api/devices/{device}", timeout=2) as response:
-        return json.load(response)["values"][name]["value"]
-
-
-def _shots(page, name: str) -> None:
-    SHOTS.mkdir(exist_ok=True)
-    for width, height in ((1440, 900), (768, 1024)):
-        page.set_viewport_size({"width": width, "height": height})
-        page.screenshot(path=str(SHOTS / f"{name}-{width}x{height}.png"), full_page=True)
-    page.set_viewport_size({"width": 1440, "height": 900})
 
 
 def test_project_card_and_editor_in_the_browser(tmp_path: Path):
     with running_app(PLANT.format(port=free_port(), silent=free_port()), tmp_path) as url, sync_playwright() as pw:
-        _online(url, "door-1")
+        _online(url, ("door-1",))
         browser = pw.chromium.launch(executable_path=str(CHROMIUM),
                                      args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"])
         page = browser.new_page(viewport={"width": 1440, "height": 900})

@@ -17,6 +17,7 @@ from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
 from test_auth import login
+from test_backup_page import emit
 from webutil import eventually, free_port, simulated_user
 
 from app import project
@@ -95,14 +96,6 @@ def _dialog_button(user: User, text: str) -> UserInteraction:
     found = {e for e in user.client.elements.values() if isinstance(e, ui.button) and e.text == text and in_dialog(e)}
     assert found, f"no {text!r} button in a dialog"
     return UserInteraction(user, found, None)
-
-
-def emit(element: ui.element, event: str, args) -> None:
-    """The browser's ``$emit(event, args)`` on ``element`` (a table's slot button)."""
-    listeners = [key for key, listener in element._event_listeners.items() if listener.type == event]
-    assert listeners, f"nothing listens to {event!r}"
-    for key in listeners:
-        element._handle_event({"listener_id": key, "args": args})
 
 
 async def test_device_page_shows_the_differing_entry_and_applies_it_through_the_gate(env: Env):
