@@ -140,3 +140,78 @@ async def test_project_against_devices_applied_and_updated_per_row(offline):
     with pytest.raises(project.ProjectError):
         await asyncio.to_thread(project.update_entry, runtime.plant, "door-1", "holding:3000", 70000)
     assert "LockRequestDelay = 350" in path.read_text()
+
+
+TABLE_PLANT = """name = "tables"  # the site's plant
+
+[[bus]]
+name = "line1"
+type = "modbus-rtu"
+port = "socket://127.0.0.1:5999"
+
+[[device]]
+name = "door-1"
+type = "hdlock"
+bus = "line1"
+address = 1  # left door
+
+[device.project]
+LockRequestDelay = 300  # the closer is slow
+SettingOutput1 = 4
+
+[[device]]
+name = "door-2"
+type = "hdlock"
+bus = "line1"
+address = 2
+serial = 660021
+# the right door, no project yet
+
+[[device]]
+name = "door-3"
+type = "hdlock"
+bus = "line1"
+address = 3
+project = "door-3.json"
+"""
+
+
+def test_saving_a_project_keeps_the_file_and_its_comments(tmp_path):
+    path = tmp_path / "plant.toml"
+    path.write_text(TABLE_PLANT)
+    document = backup.make_document("tables", "door-3", "hdlock", "line1", {}, [backup_entry(PARAMS.by_key["holding:3000"], 200)])
+    (tmp_path / "door-3.json").write_text(json.dumps(document, indent=2))
+    plant = load_plant(path)
+
+    # a [device.project] table: one entry changed (its comment kept), one dropped, one added
+    project.save(plant, "door-1", {"holding:3000": 450, "holding:3001": None, "holding:3007": -5})
+    text = path.read_text()
+    assert "LockRequestDelay = 450  # the closer is slow\n" in text and "SettingOutput1" not in text
+    assert (tmp_path / "plant.toml.bak").read_text() == TABLE_PLANT
+    assert load_plant(path).devices["door-1"].project == {"LockRequestDelay": 450, "SettingsProximityOffsetLeft": -5}
+    assert plant.devices["door-1"].project == {"LockRequestDelay": 450, "SettingsProximityOffsetLeft": -5}
+
+    # a device without a project: a project line in its own table, before the comment that follows it
+    project.save(plant, "door-2", {"holding:3003": "Always left-hinged"})  # an enum by name is kept as its number
+    text = path.read_text()
+    assert "serial = 660021\nproject = { SettingsDirection = 1 }\n# the right door, no project yet\n" in text
+    assert load_plant(path).devices["door-2"].project == {"SettingsDirection": 1}
+    assert '# the site\'s plant' in text and "address = 1  # left door" in text
+
+    # the parameter file: an entry changed and one added, in the backup format
+    entries = project.save(plant, "door-3", {"holding:3000": 275, "holding:3008": 3})
+    assert {e.name: e.value for e in entries} == {"LockRequestDelay": 275, "SettingsProximityOffsetRight": 3}
+    assert not [e for e in entries if e.error]
+    saved = backup.load_document((tmp_path / "door-3.json").read_text())
+    assert {e["key"]: e["raw"] for e in saved["parameters"]} == {"holding:3000": 275, "holding:3008": 3}
+    assert json.loads((tmp_path / "door-3.json.bak").read_text()) == document
+
+    # refused before anything is written: out of range, not a number, not writable, unknown
+    before = path.read_text()
+    for changes, message in (({"holding:3000": 70000}, "outside 0 .. 65535 ms"),
+                             ({"holding:3000": "soon"}, "'soon' is not a number; allowed: 0 .. 65535 ms"),
+                             ({"input:51": 1}, "not a writable parameter"),
+                             ({"holding:3003": 7}, "is not one of: -1 Always right-hinged")):
+        with pytest.raises(project.ProjectError, match=message):
+            project.save(plant, "door-1", changes)
+    assert path.read_text() == before
