@@ -174,3 +174,28 @@ async def test_a_viewer_sees_the_project_read_only_and_the_worker_refuses_the_sa
         assert path.read_text() == before
         row = next(r for r in await runtime.audit.aquery(limit=20) if r.action == "edit project")
         assert row.user == "tablet" and row.result.startswith("refused")
+
+
+async def test_a_type_without_a_parameter_model_says_so(tmp_path: Path):
+    path = tmp_path / "plant.toml"
+    path.write_text(f"""name = "gates"
+
+[[bus]]
+name = "gate-tcp"
+type = "logited-tcp"
+host = "127.0.0.1"
+port = {free_port()}
+
+[[device]]
+name = "barrier-in"
+type = "mo64"
+bus = "gate-tcp"
+""")
+    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
+    async with simulated_user(runtime) as user:
+        await user.open("/project/barrier-in")
+        await user.should_see("A Bauer MO 64 has no parameter model in this tool")
+        assert not [e for e in user.client.elements.values() if e.props.get("data-project-field")]
+        await user.open("/device/barrier-in")
+        await user.should_see("barrier-in")
+        assert not [e for e in user.client.elements.values() if e.props.get("data-testid") in ("project-none", "project-card")]
