@@ -211,19 +211,22 @@ class ProjectCard:
     def follow_device(self) -> None:
         """Compare whenever the device comes to answer (on connect); say what is known while it does not."""
         state = self.runtime.store.devices[self.name]
-        answering = {"now": False}
+        answering = {"now": False, "said": False}
 
         def changed() -> None:
             online = state.status == "online"
             if online and not answering["now"]:
                 background_tasks.create(self.compare(), name=f"project {self.name}")
-            elif not online and not answering["now"] and self.plan is None:
+            elif not online and self.plan is None and not answering["said"]:
+                answering["said"] = True  # said once: the project file is not read again on every push
                 count = len(project.entries(self.runtime.plant, self.name))
                 self.summary.set_text(f"{count} project {'entry' if count == 1 else 'entries'}; the device does not "
                                       "answer: compared when it does")
+            if online != answering["now"]:
+                self.again.set_enabled(online)
             answering["now"] = online
-            self.again.set_enabled(online)
 
+        self.again.set_enabled(False)
         changed()
         follow(state, changed)
 
@@ -298,8 +301,7 @@ class ProjectEditor:
                      "is written to the device here. An empty field is not in the project.").classes("text-caption text-grey-8")
             with ui.row().classes("items-center gap-4"):
                 ui.link("Device page", f"/device/{self.name}")
-                if project.has_project(plant, self.name):
-                    ui.link("Project against the device on the backup page", "/backup")
+                ui.link("Backup page", "/backup")
             self.problems = ui.column().classes("gap-0").props("data-testid=project-problems")
         with ui.card().classes("w-full").props("data-testid=project-editor"):
             ui.label(f"{len(self.params)} writable parameters").classes("text-subtitle1")

@@ -151,6 +151,8 @@ async def test_project_of_a_device_that_never_answered_is_edited_on_the_paramete
     env.user.find(kind=ui.button, content="Save project").click()
     await env.user.should_see("Saved: LockRequestDelay 420 -> -")
     assert load_plant(env.path).devices["door-9"].project == {"SettingOutput1": 5}
+    await env.user.open("/device/door-9")  # its page now shows the project, to be compared once the lock answers
+    await env.user.should_see("1 project entry; the device does not answer: compared when it does")
 
 
 async def test_a_viewer_sees_the_project_read_only_and_the_worker_refuses_the_save(tmp_path: Path):
