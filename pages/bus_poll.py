@@ -7,17 +7,20 @@ confirmed, audited). Requests share the line with the devices' polls.
 
 from __future__ import annotations
 
-from nicegui import ui
+import time
+
+from nicegui import app, background_tasks, ui
 
 from app import modbus_poll as mp
 from app import runtime as rt
 from app.modbus_line import ModbusLine
 from app.worker import AuditUnavailable, PermissionDenied
-from pages.frame import fmt_time, frame, notify_error
+from pages.frame import fmt_age, frame, notify_error
 from pages.session import current_user
 from pages.widgets import all_valid, checked_value, range_number, range_text
 
 REFRESH_S = 0.25
+BASES = {0: "0-based (protocol)", 1: "1-based (register 1 = address 0)"}
 WIDE_KINDS = {"u32": "uint32", "i32": "int32", "f32": "float32"}
 PAIR_COLUMNS = [f"{kind} {order}" for kind in WIDE_KINDS for order in mp.WORD_ORDERS]
 # which 32-bit columns are shown (a display choice, as Modbus Poll's format): all three need about 1250 px,
@@ -53,52 +56,180 @@ def content(bus: str) -> None:
 
 
 class PollView:
-    """What the cards of the poll share: the poll, the line, the known devices and the role."""
+    """The page: its poll windows on one line, the known devices, the role and the write card."""
 
     def __init__(self, runtime, bus: str):
         self.runtime = runtime
         self.bus = bus
-        self.poll = mp.ModbusPoll(runtime.worker, bus)
+        self.windows = mp.PollWindows(runtime.worker, bus)
         self.role = current_user()[1]  # what the page shows; every write asks again (the gate decides)
         self.known = {d.options.get("address"): d.name for d in runtime.plant.devices_on(bus)}
         self.line = runtime.worker.lines[bus]
-        self.request: RequestCard | None = None
-        self.results: ResultsCard | None = None
+        self.cards: list[WindowCard] = []
+        self.restored = False  # the windows of the tab's storage are on the page (saving before would lose them)
+        self.client = ui.context.client
+
+    @property
+    def storage_key(self) -> str:
+        return f"modbus-poll:{self.bus}"
 
     def intro(self) -> None:
-        known, line = self.known, self.line
+        known = self.known
         ui.label(
-            "Requests share the line with the devices' polls (one request of this window between theirs). "
-            f"Addresses are protocol addresses; choose how they are counted. Devices on this line: "
-            + (", ".join(f"{name} at {a}" for a, name in sorted(known.items())) or "none")
-            + (f". Line cycle {line.cycle_s:.2f} s." if line.cycle_s else ".")
+            "Each window polls on its own clock; the windows take turns on the line, one request each between the "
+            "devices' polls, and a window whose unit does not answer tries again ever further apart (up to "
+            f"{mp.BACKOFF_MAX_S:g} s). Addresses are protocol addresses; choose how they are counted. Devices on this "
+            "line: " + (", ".join(f"{name} at {a}" for a, name in sorted(known.items())) or "none") + "."
         ).classes("text-caption text-grey-8")
-
-
-class RequestCard:
-    """What to poll: unit, function, how addresses are counted, start, count and period; Poll and Stop."""
-
-    def __init__(self, view: PollView):
-        self.view = view
+        self.cycle = ui.label().classes("text-caption text-grey-7").props("data-testid=poll-line-cycle")
 
     def build(self) -> None:
-        view = self.view
-        known = view.known
-        with ui.card().classes("w-full"):
+        self.intro()
+        self.container = ui.column().classes("w-full gap-4")
+        with ui.row().classes("items-center gap-3"):
+            self.add_button = ui.button("Add window", icon="add", on_click=lambda: self.add()).props(
+                "outline data-testid=poll-add")
+            self.count_note = ui.label().classes("text-caption text-grey-7")
+        self.show_count()
+
+    def add(self, settings: dict | None = None, save: bool = True):
+        try:
+            window = self.windows.add()
+        except mp.PollError as exc:
+            notify_error(str(exc))
+            return None
+        card = WindowCard(self, window)
+        with self.container:
+            card.build(settings or {})
+        self.cards.append(card)
+        self.show_count()
+        if settings and settings.get("running"):
+            card.run(save=False)
+        if save:
+            self.save()
+        return card
+
+    def remove(self, card: WindowCard) -> None:
+        self.windows.remove(card.window)
+        self.cards.remove(card)
+        self.save()  # before the card goes: this handler runs in the card's context
+        self.show_count()
+        card.card.delete()
+
+    def show_count(self) -> None:
+        n = len(self.cards)
+        self.add_button.set_enabled(n < mp.MAX_WINDOWS)
+        self.count_note.set_text(f"{n} of at most {mp.MAX_WINDOWS} windows" if n > 1 else "")
+
+    def save(self) -> None:
+        """The windows as they are set up now, kept for this browser tab (a reload brings them back)."""
+        if not self.restored:
+            return
+        try:
+            app.storage.tab[self.storage_key] = [card.settings() for card in self.cards]
+        except RuntimeError:  # no connection (any more): nothing to keep it for
+            pass
+
+    async def restore(self) -> None:
+        """The tab's windows from before a reload, polling again where they polled; else one new window."""
+        with self.container:  # the page's context in this task (the tab storage is the client's)
+            try:
+                await self.client.connected(timeout=30)
+                saved = list(app.storage.tab.get(self.storage_key) or [])
+            except (TimeoutError, RuntimeError):
+                saved = []
+            for settings in saved[:mp.MAX_WINDOWS]:
+                self.add(settings if isinstance(settings, dict) else {}, save=False)
+            if not self.cards:
+                self.add(save=False)
+            self.restored = True
+            self.save()
+
+    def resume(self) -> None:
+        """The same page connected again (a short network outage): the windows that polled poll again."""
+        for card in self.cards:
+            if card.wanted and not card.window.running:
+                card.run(save=False)
+
+    def tick(self) -> None:
+        line = self.line
+        if line.cycle_s:
+            stale = max((s.stale_after for s in self.runtime.store.devices.values() if s.bus == self.bus), default=0)
+            self.cycle.set_text(f"line cycle {line.cycle_s:.2f} s · devices stale after {stale:.1f} s")
+        for card in self.cards:
+            card.tick()
+
+
+class WindowCard:
+    """One poll window: what to poll (unit, function, addresses, count, period), Poll and Stop, its counts and
+    age, and its table of values, changed in place on every poll."""
+
+    def __init__(self, view: PollView, window: mp.ModbusPoll):
+        self.view = view
+        self.window = window
+        self.wanted = False  # polling as the engineer asked (a dropped connection stops it, a reconnect resumes)
+        self.shown_polls = -1
+        self.shown_columns = None
+
+    def build(self, settings: dict) -> None:
+        view, known, n = self.view, self.view.known, self.window.number
+
+        def pick(key: str, default, allowed=None):
+            value = settings.get(key, default)
+            return value if allowed is None or value in allowed else default
+
+        with ui.card().classes("w-full").props(f"data-testid=poll-window-{n}") as self.card:
+            with ui.row().classes("items-center w-full gap-3"):
+                ui.label(f"Window {n}").classes("text-subtitle1")
+                self.summary = ui.label().classes("text-body2 text-grey-8").props("data-testid=poll-summary")
+                ui.space()
+                ui.button(icon="close", on_click=lambda: view.remove(self)).props(
+                    'flat dense round data-testid=poll-remove aria-label="Remove window"').tooltip("Remove this window")
             with ui.row().classes("items-end gap-3 flex-wrap"):
-                self.unit = range_number("Unit", 0, 254, integer=True, value=min(known) if known else 1).classes("w-24")
-                self.function = ui.select({k: v for k, v in mp.FUNCTIONS.items()}, value=3, label="Function").props(
-                    "dense outlined").classes("w-60")
-                self.base = ui.select({0: "0-based (protocol)", 1: "1-based (register 1 = address 0)"}, value=0,
-                                      label="Addresses").props("dense outlined").classes("w-64")
-                self.start = _address_field("Start address", 1000, self.base).classes("w-36")
-                self.count = range_number("Count", 1, 2000, integer=True, value=10).classes("w-32")
-                self.period = range_number("Period s", mp.PERIOD_MIN_S, mp.PERIOD_MAX_S, unit="s", value=1.0,
-                                           step=0.1).classes("w-32")
-                self.run_button = ui.button("Poll", icon="play_arrow").props("data-testid=poll-start")
-                ui.button("Stop", icon="stop", on_click=lambda: (view.poll.stop(), view.results.status.refresh())).props(
-                    "flat")
-        self.run_button.on_click(self.run)
+                self.unit = range_number("Unit", 0, 254, integer=True,
+                                         value=pick("unit", min(known) if known else 1)).classes("w-28")
+                self.function = ui.select(dict(mp.FUNCTIONS), value=pick("function", 3, mp.FUNCTIONS),
+                                          label="Function").props("dense outlined").classes("w-60")
+                self.base = ui.select(BASES, value=pick("base", 0, BASES), label="Addresses").props(
+                    "dense outlined").classes("w-64")
+                self.start = _address_field("Start address", pick("start", 1000), self.base).classes("w-36")
+                self.count = range_number("Count", 1, 2000, integer=True, value=pick("count", 10)).classes("w-32")
+                self.period = range_number("Period s", mp.PERIOD_MIN_S, mp.PERIOD_MAX_S, unit="s",
+                                           value=pick("period", 1.0), step=0.1).classes("w-32")
+                self.run_button = ui.button("Poll", icon="play_arrow", on_click=lambda: self.run()).props(
+                    "data-testid=poll-start")
+                ui.button("Stop", icon="stop", on_click=self.stop).props("flat data-testid=poll-stop")
+            with ui.row().classes("w-full items-start no-wrap"):
+                with ui.column().classes("col gap-1"):
+                    self.status = ui.label("stopped").props("data-testid=poll-status")
+                    self.error = ui.label().classes("text-negative").props("data-testid=poll-error")
+                self.wide = ui.select(WIDE_CHOICES, value=pick("wide", "all", WIDE_CHOICES), label="32-bit values",
+                                      on_change=self.changed).props("dense outlined data-testid=poll-wide").classes("w-56")
+                self.orders = ui.select(ORDER_CHOICES, value=pick("orders", "words", ORDER_CHOICES), label="Word orders",
+                                        on_change=self.changed).props("dense outlined data-testid=poll-orders").classes("w-56")
+            self.hint = ui.label("Set unit, function, start and count, then Poll.").classes("text-grey-7")
+            # one table, its rows and columns changed in place on every poll (not a new table each time)
+            self.grid = ui.table(columns=_columns(0, 3), rows=[], row_key="address").props(
+                "dense flat bordered data-testid=poll-table").classes("w-full reg-table")
+            self.pairs = ui.label("32-bit columns: the register with the next one; ABCD = high word first, CDAB = low "
+                                  "word first, BADC and DCBA the same with each word's bytes swapped.").classes(
+                "text-caption text-grey-7")
+        for field in (self.unit, self.function, self.start, self.count, self.period):
+            field.on_value_change(lambda _: view.save())
+        self.base.on_value_change(self.changed)
+        self.error.set_visibility(False)
+        self.update_table()
+        self.show_status()
+
+    def settings(self) -> dict:
+        """What the window is set to, as the tab keeps it over a reload."""
+        return {"unit": self.unit.value, "function": self.function.value, "base": self.base.value,
+                "start": self.start.value, "count": self.count.value, "period": self.period.value,
+                "wide": self.wide.value, "orders": self.orders.value, "running": self.wanted}
+
+    def changed(self, *_args) -> None:
+        self.update_table()
+        self.view.save()
 
     def current_spec(self) -> mp.PollSpec:
         shown_start = int(self.start.value or 0)
@@ -106,73 +237,57 @@ class RequestCard:
         return mp.PollSpec(int(self.unit.value or 0), int(self.function.value), protocol, int(self.count.value or 1),
                            float(self.period.value or 1.0)).check()
 
-    def run(self) -> None:
+    def run(self, save: bool = True) -> None:
         if not all_valid(self.unit, self.start, self.count, self.period):  # each field says what it allows
             return
         try:
-            self.view.poll.start(self.current_spec())
+            self.window.start(self.current_spec())
         except mp.PollError as exc:
-            notify_error(str(exc))
+            notify_error(f"window {self.window.number}: {exc}")
             return
-        self.view.results.shown_polls = -1
-
-
-class ResultsCard:
-    """The poll's status and its table of values, changed in place on every poll."""
-
-    def __init__(self, view: PollView):
-        self.view = view
+        self.wanted = True
         self.shown_polls = -1
-        self.shown_columns = None
-        self.status = ui.refreshable(self._status)
+        self.show_status()
+        if save:
+            self.view.save()
 
-    def _status(self) -> None:
-        view = self.view
-        poll, line = view.poll, view.line
-        last = poll.last
-        text = "stopped" if not poll.running else "polling"
-        if poll.spec is not None:
-            text += f" · unit {poll.spec.unit} · {mp.FUNCTIONS[poll.spec.function]} · {poll.polls} polls, {poll.errors} errors"
-        if last is not None:
-            text += f" · last {fmt_time(last.time)}" + (f" · {last.rtt_ms} ms" if last.rtt_ms is not None else "")
-        ui.label(text).props("data-testid=poll-status")
-        if last is not None and last.error:
-            ui.label(last.error).classes("text-negative").props("data-testid=poll-error")
-        if line.cycle_s:
-            stale = max((s.stale_after for s in view.runtime.store.devices.values() if s.bus == view.bus), default=0)
-            ui.label(f"line cycle {line.cycle_s:.2f} s · devices stale after {stale:.1f} s").classes(
-                "text-caption text-grey-7")
+    def stop(self) -> None:
+        self.window.stop()
+        self.wanted = False
+        self.show_status()
+        self.view.save()
 
-    def build(self) -> None:
-        with ui.row().classes("w-full items-start no-wrap"):
-            with ui.column().classes("col gap-1"):
-                self.status()
-            self.wide = ui.select(WIDE_CHOICES, value="all", label="32-bit values",
-                                  on_change=lambda: self.update_table()).props(
-                "dense outlined data-testid=poll-wide").classes("w-56")
-            self.orders = ui.select(ORDER_CHOICES, value="words", label="Word orders",
-                                    on_change=lambda: self.update_table()).props(
-                "dense outlined data-testid=poll-orders").classes("w-56")
-        # one table, its rows and columns changed in place on every poll (not a new table each time)
-        self.hint = ui.label("Set unit, function, start and count, then Poll.").classes("text-grey-7")
-        self.grid = ui.table(columns=_columns(0, 3), rows=[], row_key="address").props(
-            "dense flat bordered data-testid=poll-table").classes("w-full reg-table")
-        self.pairs = ui.label("32-bit columns: the register with the next one; ABCD = high word first, "
-                              "CDAB = low word first, BADC and DCBA the same with each word's bytes swapped.").classes("text-caption text-grey-7")
-        self.update_table()
-        ui.timer(REFRESH_S, self.tick)
+    def show_status(self) -> None:
+        window = self.window
+        spec, last = window.spec, window.last
+        self.summary.set_text("" if spec is None else f"unit {spec.unit} · {mp.FUNCTIONS[spec.function]} · "
+                              f"{spec.address + int(self.base.value or 0)}+{spec.count} · every {spec.period_s:g} s")
+        text = "polling" if window.running else "stopped"
+        if spec is not None:
+            text += (f" · {window.polls} polls · {window.errors} errors ({window.timeouts} timeouts"
+                     + (f", {window.crc_errors} CRC" if window.crc_errors else "") + ")")
+            text += (f" · updated {fmt_age(time.time() - window.last_answer)}" if window.last_answer is not None
+                     else " · no answer yet" if window.polls else "")
+        if last is not None and last.rtt_ms is not None and not last.error:
+            text += f" · {last.rtt_ms} ms"
+        if window.running and window.silent > 1:
+            text += f" · no answer {window.silent} times in a row: tries every {window.interval_s(spec):.1f} s"
+        self.status.set_text(text)
+        error = last.error if last is not None else ""
+        self.error.set_text(error)
+        self.error.set_visibility(bool(error))
 
     def update_table(self) -> None:
-        poll, grid = self.view.poll, self.grid
-        spec = poll.spec
+        window, grid = self.window, self.grid
+        spec = window.spec
         self.hint.set_visibility(spec is None)
         grid.set_visibility(spec is not None)
         self.pairs.set_visibility(spec is not None and spec.function not in (1, 2) and self.wide.value != "none")
         if spec is None:
             return
-        offset = int(self.view.request.base.value or 0)
+        offset = int(self.base.value or 0)
         rows = []
-        for r in poll.rows():
+        for r in window.rows():
             row = {"address": r.address + offset, "name": r.name, **{c: "" for c in (*mp.FORMATS, *PAIR_COLUMNS)}}
             row.update(r.cells)
             rows.append(row)
@@ -185,11 +300,11 @@ class ResultsCard:
         grid.update()
 
     def tick(self) -> None:
-        poll = self.view.poll
-        if poll.polls != self.shown_polls:
-            self.shown_polls = poll.polls
-            self.status.refresh()
+        window = self.window
+        if window.polls != self.shown_polls:
+            self.shown_polls = window.polls
             self.update_table()
+        self.show_status()  # the age moves on between polls; an unchanged text is not sent again
 
 
 class WriteCard:
@@ -200,7 +315,7 @@ class WriteCard:
 
     def build(self) -> None:
         view = self.view
-        known, base = view.known, view.request.base
+        known = view.known
         with ui.card().classes("w-full"):
             ui.label("Write holding registers or coils").classes("text-subtitle1")
             if view.role != "engineer":
@@ -208,7 +323,9 @@ class WriteCard:
                     "data-testid=poll-write-note")
                 return
             with ui.row().classes("items-end gap-3 flex-wrap"):
-                self.w_unit = range_number("Unit", 1, 254, integer=True, value=min(known) if known else 1).classes("w-24")
+                self.w_base = base = ui.select(BASES, value=0, label="Addresses").props(
+                    "dense outlined data-testid=poll-write-base").classes("w-64")
+                self.w_unit = range_number("Unit", 1, 254, integer=True, value=min(known) if known else 1).classes("w-28")
                 self.w_kind = ui.select({"register": "holding register(s), 06/16", "coil": "coil(s), 05/15"},
                                         value="register", label="Write").props(
                     "dense outlined data-testid=poll-write-kind").classes("w-56")
@@ -218,7 +335,7 @@ class WriteCard:
                 self.w_multi = ui.checkbox("function 16 (multiple)")
                 self.w_multi.bind_visibility_from(self.w_kind, "value", value="register")
                 w_button = ui.button("Write", icon="edit")
-            ui.label("Addresses as chosen above. Every write goes through the send policy of the unit's device type "
+            ui.label("Every write goes through the send policy of the unit's device type "
                      "(by the line's type for a unit not in the plant): a known device's register asks for a "
                      "confirmation; its read-only, MFR and never-written registers, and coils of a device without "
                      "coils, are refused.").classes("text-caption text-grey-7")
@@ -255,7 +372,7 @@ class WriteCard:
 
     async def write(self, confirmed: bool = False) -> None:
         view = self.view
-        bus, poll = view.bus, view.poll
+        bus, poll = view.bus, view.windows.writer
         target = await checked_value(self.w_unit, "", f"Modbus poll write on {bus}", parameter="unit")
         where = await checked_value(self.w_address, "", f"Modbus poll write on {bus}", parameter="address")
         if target is None or where is None:
@@ -264,7 +381,7 @@ class WriteCard:
         if values is None:
             return
         coils = self.w_kind.value == "coil"
-        address = int(self.w_address.value or 0) - int(view.request.base.value or 0)
+        address = int(self.w_address.value or 0) - int(self.w_base.value or 0)
         user, role = current_user()  # the account store's answer now, not the page's when it was built
         try:
             if coils:
@@ -287,13 +404,13 @@ class WriteCard:
 
 def _view(runtime, bus: str) -> None:
     view = PollView(runtime, bus)
-    ui.context.client.on_disconnect(view.poll.stop)
-    view.intro()
-    view.request = RequestCard(view)
-    view.results = ResultsCard(view)
-    view.request.build()
-    view.results.build()
+    client = ui.context.client
+    client.on_disconnect(view.windows.stop)
+    client.on_connect(view.resume)
+    view.build()
     WriteCard(view).build()
+    ui.timer(REFRESH_S, view.tick)
+    background_tasks.create(view.restore(), name=f"modbus poll windows {bus}")
 
 
 def _address_field(label: str, value: int, base) -> ui.number:
