@@ -18,8 +18,8 @@ import asyncio
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 
+from app.line_base import LineBase
 from app.state import BusState
 from devices.transport import SerialClosed, SerialTimeout
 
@@ -28,20 +28,6 @@ log = logging.getLogger(__name__)
 SD = 0x55  # start delimiter of every telegram (document: "SD = 55h")
 BACKOFF_S = (0.5, 1.0, 2.0, 5.0, 10.0)
 CONNECT_TIMEOUT_S = 3.0
-
-
-@dataclass
-class LogitedTransaction:
-    """One line of the bus monitor's log: a request with its answer, or a telegram on its own."""
-
-    time: float
-    request: str
-    request_hex: str
-    response_hex: str
-    decoded: str
-    rtt_ms: float | None
-    error: str
-    unit: int = 0
 
 
 class _Waiter:
@@ -92,27 +78,58 @@ def telegram_length(buffer: bytes | bytearray) -> int | None:
     return 2 + buffer[1] + 2
 
 
-class LogitedTcp:
-    """The worker's TCP connection to one MO 64 (``type = "logited-tcp"``)."""
+class _LogitedLine(LineBase):
+    """What both LogiTed lines have: the adapter's listeners, closing frames and decoding for the log."""
+
+    BACKOFF_S = BACKOFF_S
 
     def __init__(self, name: str, options: dict, state: BusState):
-        self.name = name
-        self.options = options
-        self.state = state
-        self.reader: asyncio.StreamReader | None = None
-        self.writer: asyncio.StreamWriter | None = None
-        self._reader_task: asyncio.Task | None = None
-        self._lock = asyncio.Lock()
-        self._waiter: _Waiter | None = None
+        super().__init__(name, options, state)
         self.listeners: list[Callable[[bytes], None]] = []
         # called as the line closes for good (the tool stops): frames to send first (an adapter's
         # deactivations of levels it set)
         self.closing: list[Callable[[], list[bytes]]] = []
         self.describe: Callable[[bytes], str] | None = None  # the adapter's decoding for the log
-        self.released = False
         self.garbage = 0
-        self._failures = 0
-        self._next_connect = 0.0
+
+    def _hear(self, telegram: bytes) -> None:
+        """A telegram that answers no request: logged, and given to the adapter's listeners."""
+        self._log("unsolicited", b"", telegram, "")
+        for listener in self.listeners:
+            try:
+                listener(telegram)
+            except Exception:  # a bad telegram must never stop the line
+                log.exception("%s: listener failed for %s", self.name, telegram.hex(" "))
+
+    def _text(self, telegram: bytes) -> str:
+        if not telegram or self.describe is None:
+            return ""
+        try:
+            return self.describe(telegram)
+        except Exception as exc:  # noqa: BLE001 - shown as what it is
+            return f"cannot decode: {exc}"
+
+    def _unit(self, request: bytes, answer: bytes) -> int:
+        """The device address a log line concerns (0: the line has one device)."""
+        return 0
+
+    def _log(self, what: str, request: bytes, answer: bytes, error: str, rtt_ms: float | None = None) -> None:
+        self._record(what, request.hex(" ").upper(), answer.hex(" ").upper(),
+                     self._text(answer) if answer and not error else "", rtt_ms, error,
+                     unit=self._unit(request, answer))
+
+
+class LogitedTcp(_LogitedLine):
+    """The worker's TCP connection to one MO 64 (``type = "logited-tcp"``)."""
+
+    def __init__(self, name: str, options: dict, state: BusState):
+        super().__init__(name, options, state)
+        self.reader: asyncio.StreamReader | None = None
+        self.writer: asyncio.StreamWriter | None = None
+        self._reader_task: asyncio.Task | None = None
+        self._lock = asyncio.Lock()
+        self._waiter: _Waiter | None = None
+        self.released = False
 
     # -- connection -----------------------------------------------------------------------
     @property
@@ -123,28 +140,20 @@ class LogitedTcp:
         """Connect unless connected, released, or waiting out the backoff; True when connected."""
         if self.connected:
             return True
-        if self.released or time.monotonic() < self._next_connect:
+        if self.released or not self.backoff.ready():
             return False
         host, port = self.options["host"], self.options["port"]
         try:
             self.reader, self.writer = await asyncio.wait_for(asyncio.open_connection(host, port), CONNECT_TIMEOUT_S)
         except (OSError, asyncio.TimeoutError) as exc:
-            self._failed(f"the barrier at {host}:{port} did not take the connection ({exc or 'no answer'}): "
+            self._open_failed(f"the barrier at {host}:{port} did not take the connection ({exc or 'no answer'}): "
                          "is it powered and on the network, the address right, or is another client connected? "
                          "The MO 64 serves one client at a time")
             return False
-        self._failures = 0
-        self.state.connected = True
-        self.state.last_error = ""
+        self._opened()
         self._reader_task = asyncio.create_task(self._read_loop(), name=f"logited {self.name}")
         log.info("%s: connected to %s:%s", self.name, host, port)
         return True
-
-    def _failed(self, message: str) -> None:
-        self._failures += 1
-        self._next_connect = time.monotonic() + BACKOFF_S[min(self._failures - 1, len(BACKOFF_S) - 1)]
-        self.state.connected = False
-        self.state.last_error = message
 
     def _drop(self, message: str) -> None:
         writer, self.writer, self.reader = self.writer, None, None
@@ -160,7 +169,7 @@ class LogitedTcp:
             self._waiter.fail(SerialClosed(f"{self.name}: {message}"))
         self.state.connected = False
         if message:
-            self._failed(message)
+            self._open_failed(message)
 
     def close(self) -> None:
         if self.connected:
@@ -181,7 +190,7 @@ class LogitedTcp:
 
     def resume(self) -> None:
         self.released = False
-        self._next_connect = 0.0
+        self.backoff.resume()
         self.state.last_error = ""
 
     # -- telegrams ------------------------------------------------------------------------
@@ -217,25 +226,7 @@ class LogitedTcp:
     def _deliver(self, telegram: bytes) -> None:
         if self._waiter is not None and self._waiter.offer(telegram):
             return
-        self._log("unsolicited", b"", telegram, "")
-        for listener in self.listeners:
-            try:
-                listener(telegram)
-            except Exception:  # a bad telegram must never stop the connection
-                log.exception("%s: listener failed for %s", self.name, telegram.hex(" "))
-
-    def _text(self, telegram: bytes) -> str:
-        if not telegram or self.describe is None:
-            return ""
-        try:
-            return self.describe(telegram)
-        except Exception as exc:  # noqa: BLE001 - shown as what it is
-            return f"cannot decode: {exc}"
-
-    def _log(self, what: str, request: bytes, answer: bytes, error: str, rtt_ms: float | None = None) -> None:
-        self.state.transactions.append(LogitedTransaction(
-            time.time(), what, request.hex(" ").upper(), answer.hex(" ").upper(),
-            self._text(answer) if answer and not error else "", rtt_ms, error))
+        self._hear(telegram)
 
     async def transact(self, request: bytes, answers: Callable[[bytes], bool], *, timeout: float | None = None,
                        describe: str = "", interim: Callable[[bytes], bool] | None = None,
@@ -279,7 +270,7 @@ class LogitedTcp:
             return answer
 
 
-class LogitedRs485:
+class LogitedRs485(_LogitedLine):
     """The worker's RS485 line to several MO 64 (``type = "logited-rs485"``), 38400 8N1.
 
     Frames carry destination and source addresses and a token telegram passes the right to
@@ -304,31 +295,23 @@ class LogitedRs485:
 
         codec = line_codec("logited-rs485")  # the framing and token the device type on this line declares
 
+        super().__init__(name, options, state)
         self.codec = codec
-        self.name = name
-        self.options = options
-        self.state = state
         self.master = options["master_address"]
         self.shared = options["shared"]
         self.next_master = options["next_master"]
         self.port = None
-        self.listeners: list[Callable[[bytes], None]] = []
-        self.closing: list[Callable[[], list[bytes]]] = []  # frames to send as the line closes (see LogitedTcp)
-        self.describe: Callable[[bytes], str] | None = None
         self._splitter = codec.FrameSplitter(codec.RS485)
         self._lock = asyncio.Lock()
         self._waiter: _Waiter | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread = None
         self._run = False
-        self._failures = 0
-        self._next_open = 0.0
         self._pending = 0
         self._token = asyncio.Event()
         self._token_since: float | None = None
         self._pass_timer: asyncio.TimerHandle | None = None
         self.token_holds_ms: list[float] = []  # how long this tool held the token, most recent last (bounded)
-        self.garbage = 0
 
     # -- the port -----------------------------------------------------------------------
     def _open_blocking(self):
@@ -343,28 +326,23 @@ class LogitedRs485:
     async def connect(self) -> bool:
         if self.port is not None:
             return True
-        if time.monotonic() < self._next_open:
+        if not self.backoff.ready():
             return False
         import serial
 
         try:
             self.port = await asyncio.to_thread(self._open_blocking)
         except (serial.SerialException, OSError, ValueError) as exc:
-            self._failures += 1
-            self._next_open = time.monotonic() + BACKOFF_S[min(self._failures - 1, len(BACKOFF_S) - 1)]
-            self.state.connected = False
-            self.state.last_error = (f"cannot open {self.options['port']}: {exc}. Check the RS485 adapter, "
-                                     "the port name and that nothing else holds the port")
+            self._open_failed(f"cannot open {self.options['port']}: {exc}. Check the RS485 adapter, "
+                              "the port name and that nothing else holds the port")
             return False
         import threading
 
-        self._failures = 0
         self._loop = asyncio.get_running_loop()
         self._run = True
         self._thread = threading.Thread(target=self._read_thread, args=(self.port,), name=f"rs485 {self.name}", daemon=True)
         self._thread.start()
-        self.state.connected = True
-        self.state.last_error = ""
+        self._opened()
         return True
 
     def _read_thread(self, port) -> None:
@@ -380,8 +358,7 @@ class LogitedRs485:
     def _lost(self, why: str) -> None:
         self._shut(final=False)
         self.state.last_error = f"{self.options['port']} lost: {why}"
-        self._failures = 1
-        self._next_open = time.monotonic() + BACKOFF_S[0]
+        self.backoff.lost()
         if self._waiter is not None:
             self._waiter.fail(SerialClosed(f"{self.name}: {self.state.last_error}"))
 
@@ -430,12 +407,7 @@ class LogitedRs485:
             return
         if self._waiter is not None and self._waiter.offer(frame.raw):
             return
-        self._log("unsolicited", b"", frame.raw, "")
-        for listener in self.listeners:
-            try:
-                listener(frame.raw)
-            except Exception:
-                log.exception("%s: listener failed for %s", self.name, frame.raw.hex(" "))
+        self._hear(frame.raw)
 
     def _got_token(self) -> None:
         self._token_since = time.monotonic()
@@ -466,20 +438,7 @@ class LogitedRs485:
         except Exception as exc:  # noqa: BLE001
             self._lost(str(exc))
 
-    def _text(self, telegram: bytes) -> str:
-        if not telegram or self.describe is None:
-            return ""
-        try:
-            return self.describe(telegram)
-        except Exception as exc:  # noqa: BLE001
-            return f"cannot decode: {exc}"
-
-    def _log(self, what: str, request: bytes, answer: bytes, error: str, rtt_ms: float | None = None) -> None:
-        self.state.transactions.append(LogitedTransaction(
-            time.time(), what, request.hex(" ").upper(), answer.hex(" ").upper(),
-            self._text(answer) if answer and not error else "", rtt_ms, error, unit=self._barrier(request, answer)))
-
-    def _barrier(self, request: bytes, answer: bytes) -> int:
+    def _unit(self, request: bytes, answer: bytes) -> int:
         """The bus address of the barrier a log line concerns (not a master), or 0."""
         masters = {self.master, self.next_master}
         for raw, field in ((request, 2), (answer, 3), (answer, 2)):  # the request's DA, the answer's SA, else its DA

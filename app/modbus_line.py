@@ -14,12 +14,12 @@ import re
 import statistics
 import time
 from collections import Counter, deque
-from dataclasses import dataclass
 
 from pymodbus.client import AsyncModbusSerialClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 from pymodbus.framer import FramerRTU, FramerType
 
+from app.line_base import LineBase, Transaction
 from app.state import BusState, Counters, DeviceState
 from devices.transport import LineClosed, LineCrcError, LineError, LineException, LineTimeout
 
@@ -38,28 +38,6 @@ EXCEPTION_NAMES = {
     10: "gateway path unavailable",
     11: "gateway target did not respond",
 }
-
-
-@dataclass
-class Transaction:
-    """One request on the line as the bus monitor lists it.
-
-    ``space``, ``address`` and ``values`` carry what the monitor decodes through the device's
-    parameter model: the register space and first address asked, and the register values of
-    the answer (for a write without one, the value written).
-    """
-
-    time: float
-    unit: int
-    request: str
-    request_hex: str
-    response_hex: str
-    decoded: str
-    rtt_ms: float | None
-    error: str
-    space: str = ""
-    address: int | None = None
-    values: tuple[int, ...] = ()
 
 
 # Issue 16 item 5: a device is stale only when it missed more than two of the line's measured
@@ -118,22 +96,20 @@ def foreign_unit(received: bytes, unit: int) -> int | None:
     return None
 
 
-class ModbusLine:
+class ModbusLine(LineBase):
     """A pymodbus async RTU client on one serial line; implements :class:`devices.transport.ModbusTransport`.
 
     :param options: the bus options of the plant file (port, baudrate, parity, ...)
     """
 
+    BACKOFF_S = (0.5, 1.0, 2.0, 4.0, 8.0, 10.0)  # held from the start of an attempt
+
     def __init__(self, name: str, options: dict, state: BusState):
-        self.name = name
-        self.options = options
-        self.state = state
+        super().__init__(name, options, state)
         self.lock = asyncio.Lock()
         self.client: AsyncModbusSerialClient | None = None
         self._tx: list[bytes] = []
         self._rx: list[bytes] = []
-        self._backoff = 0.5
-        self._next_connect = 0.0
         self.address_conflicts: Counter[tuple[int, int]] = Counter()  # (unit asked, unit that answered) -> count
         self.conflicts_by_unit: Counter[int] = Counter()  # unit asked -> answers from another unit (per device)
         self._last_request: dict[tuple[int, str], float] = {}  # (unit, request) of a device's poll -> when last asked
@@ -156,9 +132,9 @@ class ModbusLine:
         if self.client is not None and self.client.connected:
             return True
         now = time.monotonic()
-        if now < self._next_connect:
+        if not self.backoff.ready(now):
             return False
-        self._next_connect = now + self._backoff
+        self.backoff.attempt(now)
         o = self.options
         if self.client is None:
             self.client = AsyncModbusSerialClient(
@@ -182,14 +158,10 @@ class ModbusLine:
         if ok:
             if not self.state.connected:
                 self.state.reconnects += 1
-            self.state.connected = True
-            self.state.last_error = ""
-            self._backoff = 0.5
+            self._opened()
             return True
-        self.state.connected = False
-        if not self.state.last_error:
-            self.state.last_error = f"cannot open {o['port']}: check the cable/adapter and the port name"
-        self._backoff = min(self._backoff * 2, 10.0)
+        self._open_failed(self.state.last_error or f"cannot open {o['port']}: check the cable/adapter and the port name",
+                          hold=False)
         self.client.close()
         self.client = None
         return False
@@ -283,21 +255,9 @@ class ModbusLine:
                 values = tuple(int(v) for v in registers)
             else:
                 values = (written,) if written is not None and not error else ()
-            self.state.transactions.append(
-                Transaction(
-                    time=time.time(),
-                    unit=unit,
-                    request=what,
-                    request_hex=" ".join(b.hex(" ") for b in self._tx),
-                    response_hex=" ".join(b.hex(" ") for b in self._rx),
-                    decoded=_describe(response) if answered else "",
-                    rtt_ms=round(rtt, 2) if response is not None else None,
-                    error=error,
-                    space=space,
-                    address=address,
-                    values=values,
-                )
-            )
+            self._record(what, " ".join(b.hex(" ") for b in self._tx), " ".join(b.hex(" ") for b in self._rx),
+                         _describe(response) if answered else "", round(rtt, 2) if response is not None else None,
+                         error, unit=unit, space=space, address=address, values=values)
             if counters is not None:
                 self._measure_cycle(unit, what)
             if error:

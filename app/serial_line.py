@@ -22,12 +22,12 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import serial
 
+from app.line_base import LineBase
 from app.state import BusState
-from devices.transport import SerialClosed, SerialLineError, SerialTimeout  # noqa: F401 - raised here, caught by adapters
+from devices.transport import Completion, SerialClosed, SerialLineError, SerialTimeout  # noqa: F401 - raised here, caught by adapters
 
 log = logging.getLogger(__name__)
 
@@ -36,22 +36,6 @@ REOPEN_BACKOFF_S = (0.5, 1.0, 2.0, 5.0)
 RESERVE_WINDOW_S = 0.06  # a request of the loop that would start this close before a reserved cyclic one waits for it
 
 
-@dataclass
-class SerialTransaction:
-    """One request on the line as the bus monitor lists it."""
-
-    time: float
-    request: str
-    request_hex: str
-    response_hex: str
-    decoded: str
-    rtt_ms: float | None
-    error: str
-    unit: int = 0
-
-
-# ``complete(buffer)`` -> total length of the answer once it can be told, else None (read more)
-Completion = Callable[[bytes], int | None]
 # What a cyclic tick gets: ``exchange(request, complete, describe=..., decode=..., timeout=...)`` -> the answer,
 # blocking, on the line's thread (raises SerialTimeout / SerialClosed like transact)
 Exchange = Callable[..., bytes]
@@ -81,18 +65,16 @@ class _LineThread:
             self.stop_event.wait(max(0.001, min(float(delay), 1.0)))
 
 
-class SerialLine:
+class SerialLine(LineBase):
     """The worker's handle on one serial port (``type = "serial"`` in the plant file); implements
     :class:`devices.transport.SerialTransport`."""
 
+    BACKOFF_S = REOPEN_BACKOFF_S
+
     def __init__(self, name: str, options: dict, state: BusState):
-        self.name = name
-        self.options = options
-        self.state = state
+        super().__init__(name, options, state)
         self.port: serial.SerialBase | None = None
         self._lock = asyncio.Lock()
-        self._failures = 0
-        self._next_open = 0.0
         self._port_lock = threading.Lock()  # the port itself: the loop's requests (in threads) and the line's own thread
         self._cyclic: dict[str, _LineThread] = {}
         self._reserved_at: float | None = None  # when the line's thread wants the port next (reserve)
@@ -115,22 +97,16 @@ class SerialLine:
         if self.port is not None:
             return True
         now = time.monotonic()
-        if now < self._next_open:
+        if not self.backoff.ready(now):
             return False
         try:
             self.port = await asyncio.to_thread(self._open_blocking)
         except (serial.SerialException, OSError, ValueError) as exc:
-            self._failures += 1
-            self._next_open = now + REOPEN_BACKOFF_S[min(self._failures - 1, len(REOPEN_BACKOFF_S) - 1)]
-            self.state.connected = False
-            self.state.last_error = (f"cannot open {self.options['port']}: {exc}. Check the cable, the port name, "
-                                     "and that nothing else holds the port")
+            self._open_failed(f"cannot open {self.options['port']}: {exc}. Check the cable, the port name, "
+                              "and that nothing else holds the port", now)
             return False
-        if self._failures:
+        if self._opened():
             self.state.reconnects += 1
-        self._failures = 0
-        self.state.connected = True
-        self.state.last_error = ""
         log.info("%s: %s open at %d baud, 8N1, DTR and RTS on", self.name, self.options["port"], self.options["baudrate"])
         return True
 
@@ -149,8 +125,7 @@ class SerialLine:
     def _lost(self, exc: Exception) -> None:
         self.state.last_error = f"{self.options['port']} lost: {exc}"
         self.close()
-        self._failures = 1
-        self._next_open = time.monotonic() + REOPEN_BACKOFF_S[0]
+        self.backoff.lost()
 
     # -- resynchronising, waking -----------------------------------------------------------
     def _flush_blocking(self, port: serial.SerialBase, quiet_s: float, limit_s: float) -> int:
@@ -283,9 +258,8 @@ class SerialLine:
                 text = decode(answer[:need])
             except Exception as exc:  # noqa: BLE001 - the log shows what could not be decoded
                 text = f"cannot decode: {exc}"
-        self.state.transactions.append(SerialTransaction(
-            time.time(), describe or request[:2].decode("ascii", "replace"), request.hex(" ").upper(),
-            answer.hex(" ").upper(), text, None if error else round(rtt, 2), error))
+        self._record(describe or request[:2].decode("ascii", "replace"), request.hex(" ").upper(),
+                     answer.hex(" ").upper(), text, None if error else round(rtt, 2), error)
         return None if error else need
 
     # -- the line's own thread ------------------------------------------------------------------------
