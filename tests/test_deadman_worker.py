@@ -2,7 +2,7 @@
 
 A browser's beats that waited because the server's loop was busy are not a dead browser; a browser
 that stays silent while the loop runs on time is. The supervisor is driven by hand with explicit
-monotonic times, as its 50 ms tick does (app.worker._supervise).
+monotonic times, as its 50 ms tick does (app.worker.loophealth.tick calling DeadmanSupervisor.tick).
 """
 
 from __future__ import annotations
@@ -35,15 +35,13 @@ class Holder:
 
 def worker_at(t0: float) -> Worker:
     worker = Worker(parse_plant('name = "empty"\n'))
-    worker._live, worker._live_at = 0.0, t0
+    worker.deadman.live, worker.deadman.live_at = 0.0, t0
     return worker
 
 
 def tick(worker: Worker, now: float) -> None:
-    """One supervision tick at monotonic time ``now`` (what _supervise does every 50 ms)."""
-    worker._live = worker._live_clock(now)
-    worker._live_at = now
-    worker._supervise_deadman(now)
+    """One supervision tick at monotonic time ``now`` (what the worker's tick does every 50 ms)."""
+    worker.deadman.tick(now)
 
 
 def test_a_busy_server_is_not_a_dead_browser():

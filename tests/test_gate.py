@@ -160,10 +160,10 @@ async def test_a_viewer_reaches_no_bus_through_any_declared_command_or_send_path
             args = {a.name: getattr(a, "low", 0) for a in command.args}
             with pytest.raises(PermissionDenied):
                 await worker.invoke(dev.name, command.name, args, user="tablet", role="viewer", session="v")
-            # the older way, with the caller claiming the action only makes things safer
+            # the older way (an adapter callable with the command's wording): the declaration decides the kind
             with pytest.raises(PermissionDenied):
                 await worker.command(dev.name, lambda a, _c=command.name: ran.append(_c), describe=command.name,
-                                     write=False, user="tablet", role="viewer")
+                                     user="tablet", role="viewer")
             walked += 1
     assert walked >= 10 and ran == []
     assert {t for t in DEVICE_TYPES if commands_of(t)} >= {"hdlock", "mo64", "electrak", "m3io", "scu"}

@@ -319,6 +319,17 @@ def test_no_page_or_app_module_says_whether_an_action_is_a_write():
         "a listed module passes no write= any more: delete its line"
 
 
+def test_only_the_gate_decides_the_kind_of_a_worker_command():
+    """``Worker.command`` takes no ``write=`` (the declarations decide), and no test passes one either."""
+    import inspect
+
+    from app.worker import Worker
+
+    assert "write" not in inspect.signature(Worker.command).parameters
+    offenders = {p.name: write_flags_in(p.read_text(encoding="utf-8")) for p in _python_files("tests")}
+    assert {k: v for k, v in offenders.items() if v} == {}
+
+
 def test_app_and_pages_name_no_device_type_outside_the_device_pages():
     offenders = {}
     for path in _python_files("pages", "app"):

@@ -249,7 +249,8 @@ async def test_write_is_refused_while_another_process_locks_the_audit_log(tmp_pa
             assert runtime.audit.problem  # shown in the header
             assert runtime.worker.loop_health.stalls == lags_before  # waiting for the lock never blocked the loop
             # a stop is not a write: it goes through even without an audit row
-            await runtime.worker.command("door-1", lambda a: asyncio.sleep(0), describe="stop", write=False)
+            await runtime.worker.checked(lambda: asyncio.sleep(0), device="door-1", role="engineer", user="local",
+                                         describe="stop", kind="stop")
         finally:
             locker.kill()
             locker.wait()
