@@ -47,6 +47,44 @@ def demo_plant_text(bus_port: int | None = None) -> str:
     return re.sub(r'(type = "logited-tcp"\nhost = "127\.0\.0\.1"\nport = )\d+', lambda m: f"{m.group(1)}{free_port()}", text)
 
 
+# -- plant files from parts (tests/plants.py builds the usual buses from these) ---------------------
+
+ELECTRAK_ACTUATORS = ({"model": "HD24", "gearing": "B026", "stroke_mm": 300},) * 2
+
+
+def toml_value(value) -> str:
+    """``value`` as a TOML literal: text quoted, true/false, numbers, arrays and inline tables."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {toml_value(v)}" for k, v in value.items()) + " }"
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    return repr(value)
+
+
+def table(kind: str, **fields) -> str:
+    """One ``[[kind]]`` entry: ``[[bus]]`` or ``[[device]]``."""
+    return "".join([f"[[{kind}]]\n", *(f"{k} = {toml_value(v)}\n" for k, v in fields.items() if v is not None)])
+
+
+def device(name: str, type: str, bus: str, **options) -> str:  # noqa: A002 - the plant file's key
+    return table("device", name=name, type=type, bus=bus, **options)
+
+
+def bus(name: str, type: str, *devices: str, **options) -> str:  # noqa: A002 - the plant file's key
+    """A bus and the devices on it (each from :func:`device`, with its ``bus`` set to ``name``)."""
+    return table("bus", name=name, type=type, **options) + "".join(devices)
+
+
+def plant_text(*buses: str, name: str | None = "t", head: str = "") -> str:
+    """A plant file of ``buses`` (``head``: lines before them, such as a ``[broker]`` table)."""
+    return (f"name = {toml_value(name)}\n" if name is not None else "") + head + "".join(buses)
+
+
+
 def across_processes(plant_text: str) -> str:
     """The same plant with its ``virtual`` CAN buses (one process only) on ``udp_multicast`` groups of
     their own, so ``commission sim`` in one process and the GUI in another share them."""
@@ -120,12 +158,19 @@ def running_app(plant_text: str, folder: Path, *args: str, root: Path | None = N
         stop_app(proc)
 
 
-def wait_devices_online(url: str, names: Iterable[str] | None = None, timeout: float = 30.0) -> dict[str, str]:
-    """Wait until ``/api/devices`` of the app at ``url`` lists ``names`` (every device when None) online."""
+def wait_devices_online(url: str, names: Iterable[str] | None = None, proc: subprocess.Popen | None = None,
+                        timeout: float = 30.0) -> dict[str, str]:
+    """Wait until ``/api/devices`` of the app at ``url`` lists ``names`` (every device when None) online.
+
+    Returns the status of every device; raises TimeoutError naming the devices that are not online,
+    or RuntimeError when ``proc`` (the app) exits meanwhile.
+    """
     wanted = None if names is None else set(names)
     end = time.monotonic() + timeout
     status: dict[str, str] = {}
     while True:
+        if proc is not None and proc.poll() is not None:
+            raise RuntimeError(f"the app exited with {proc.returncode} while waiting for its devices")
         try:
             with urllib.request.urlopen(url + "/api/devices", timeout=2) as response:
                 status = {d["name"]: d["status"] for d in json.load(response)}
@@ -136,7 +181,7 @@ def wait_devices_online(url: str, names: Iterable[str] | None = None, timeout: f
             return status
         if time.monotonic() >= end:
             raise TimeoutError(f"devices not online within {timeout} s: {status}")
-        time.sleep(0.1)
+        time.sleep(0.1)  # polling an HTTP endpoint from a synchronous caller: the condition is checked each round
 
 
 # -- the cost of a process, from /proc ----------------------------------------------------------

@@ -8,7 +8,6 @@ lift open in Debian's chromium, and prints the cost per page. Last line: ``app_c
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import tempfile
 import time
@@ -17,45 +16,24 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "bench"))
 
-from liveapp import free_port, running_app  # noqa: E402
-
-PLANT = """
-name = "page-cost"
-[[bus]]
-name = "can2"
-type = "can"
-interface = "virtual"
-channel = "page-cost-{port}"
-bitrate = 500000
-simulate = true
-[[device]]
-name = "lift"
-type = "electrak"
-bus = "can2"
-actuators = [
-    {{ model = "HD24", gearing = "B026", stroke_mm = 300 }},
-    {{ model = "HD24", gearing = "B026", stroke_mm = 300 }},
-]
-"""
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+from liveapp import (  # noqa: E402
+    CHROMIUM_ARGS,
+    ELECTRAK_ACTUATORS,
+    app_pid,
+    bus,
+    cpu_s,
+    device,
+    free_port,
+    plant_text,
+    running_app,
+)
 
 
-def app_pid(port: int) -> int:
-    """The process listening on ``port`` (the app started by running_app)."""
-    for pid in os.listdir("/proc"):
-        if pid.isdigit():
-            try:
-                cmd = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
-            except OSError:
-                continue
-            if b"app.cli" in cmd and str(port).encode() in cmd:
-                return int(pid)
-    raise RuntimeError(f"no app process on port {port}")
-
-
-def cpu_s(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+def lift_plant() -> str:
+    """An Electrak network of two HD24 actuators alone, on a virtual CAN channel of its own."""
+    return plant_text(bus("can2", "can", device("lift", "electrak", "can2", actuators=list(ELECTRAK_ACTUATORS)),
+                          interface="virtual", channel=f"page-cost-{free_port()}", bitrate=500000, simulate=True),
+                      name="page-cost")
 
 
 def measure(pid: int, seconds: float) -> float:
@@ -72,7 +50,7 @@ def main() -> None:
     args = parser.parse_args()
     from playwright.sync_api import sync_playwright
 
-    with tempfile.TemporaryDirectory() as folder, running_app(PLANT.format(port=free_port()), Path(folder)) as url:
+    with tempfile.TemporaryDirectory() as folder, running_app(lift_plant(), Path(folder)) as url:
         pid = app_pid(int(url.rsplit(":", 1)[1]))
         time.sleep(3)  # let the start-up settle (imports, first connections) before the idle window
         idle = measure(pid, args.seconds)

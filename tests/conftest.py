@@ -4,18 +4,21 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
-import socket
 import subprocess
 import sys
 import time
-import urllib.request
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from app.plant import Plant, parse_plant
+# the app in a process of its own, as the benchmarks start it (standard library only: bench/liveapp.py)
+sys.path.append(str(Path(__file__).resolve().parent.parent / "bench"))
+
+from liveapp import CHROMIUM_ARGS, free_port, free_udp_port, wait_devices_online  # noqa: E402
+from plants import heater_and_lock, modbus_plant  # noqa: E402
+
+from app.plant import Plant, parse_plant  # noqa: E402
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -44,36 +47,6 @@ def _own_data_dir(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatc
         monkeypatch.setenv("COMMISSION_DATA_DIR", str(request.getfixturevalue("tmp_path") / "data"))
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def free_udp_port() -> int:
-    """A UDP port nobody on this machine uses now (for a udp_multicast bus of one test)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("", 0))
-        return s.getsockname()[1]
-
-
-def modbus_plant(port: int | None = None, locks: tuple[tuple[str, int], ...] = (("door-1", 1),), **bus) -> Plant:
-    """A plant with one simulated RTU line on a free port and the given (name, address) locks."""
-    port = port or free_port()
-    options = {"timeout": 0.2, "retries": 0, "poll_period": 0.1, **bus}
-    lines = [
-        "[[bus]]",
-        'name = "line1"',
-        'type = "modbus-rtu"',
-        f'port = "socket://127.0.0.1:{port}"',
-        "simulate = true",
-        *[f"{k} = {str(v).lower() if isinstance(v, bool) else v!r}" for k, v in options.items()],
-    ]
-    for name, address in locks:
-        lines += ["[[device]]", f'name = "{name}"', 'type = "hdlock"', 'bus = "line1"', f"address = {address}"]
-    return parse_plant("\n".join(lines).replace("'", '"'))
-
-
 async def wait_for(predicate, timeout: float = 5.0, interval: float = 0.05) -> bool:
     """Poll ``predicate`` until it is true or ``timeout`` seconds passed."""
     loop = asyncio.get_running_loop()
@@ -88,6 +61,24 @@ async def wait_for(predicate, timeout: float = 5.0, interval: float = 0.05) -> b
 @pytest.fixture
 def plant() -> Plant:
     return modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
+
+
+@pytest.fixture
+async def can_rig(tmp_path: Path):
+    """The app without twins on :func:`plants.heater_and_lock`'s bus, and a python-can listener on that bus."""
+    import can
+
+    from app.runtime import Runtime
+
+    channel = f"rig-{free_port()}-{time.monotonic_ns()}"
+    runtime = Runtime(parse_plant(heater_and_lock(channel)), simulate=False, data_dir=tmp_path)
+    await runtime.start()
+    listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    try:
+        yield runtime, listener
+    finally:
+        listener.shutdown()
+        await asyncio.wait_for(runtime.stop(), 5)
 
 
 @contextlib.contextmanager
@@ -111,7 +102,6 @@ def sim_process(plant_file: Path) -> Iterator[tuple[subprocess.Popen, str]]:
 # -- browser tests ----------------------------------------------------------------------------
 
 CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
 
 
 @pytest.fixture(scope="module")
@@ -133,32 +123,6 @@ def chromium():
             browser.close()
 
 
-def wait_devices_online(url: str, names: Iterable[str] | None = None, proc: subprocess.Popen | None = None,
-                        timeout: float = 20.0) -> dict[str, str]:
-    """Wait until ``/api/devices`` of the app at ``url`` lists ``names`` (every device when None) online.
-
-    Returns the status of every device; raises TimeoutError naming the devices that are not online,
-    or RuntimeError when ``proc`` (the app) exits meanwhile.
-    """
-    wanted = None if names is None else set(names)
-    end = time.monotonic() + timeout
-    status: dict[str, str] = {}
-    while True:
-        if proc is not None and proc.poll() is not None:
-            raise RuntimeError(f"the app exited with {proc.returncode} while waiting for its devices")
-        try:
-            with urllib.request.urlopen(url + "/api/devices", timeout=2) as response:
-                status = {d["name"]: d["status"] for d in json.load(response)}
-        except OSError as exc:
-            status = {"(no answer)": str(exc)}
-        names_now = set(status) if wanted is None else wanted
-        if names_now and all(status.get(n) == "online" for n in names_now):
-            return status
-        if time.monotonic() >= end:
-            raise TimeoutError(f"devices not online within {timeout} s: {status}")
-        time.sleep(0.1)  # polling an HTTP endpoint from a synchronous test: the condition is checked each round
-
-
 def inside_viewport(page, locator) -> None:
     """Assert that the element of ``locator`` is visible and lies wholly inside the page's viewport."""
     box = locator.bounding_box()
@@ -167,3 +131,7 @@ def inside_viewport(page, locator) -> None:
     assert box["x"] >= 0 and box["y"] >= 0, f"{locator} starts outside the viewport: {box}"
     assert box["x"] + box["width"] <= size["width"] + 0.5, f"{locator} sticks out right of {size['width']} px: {box}"
     assert box["y"] + box["height"] <= size["height"] + 0.5, f"{locator} sticks out below {size['height']} px: {box}"
+
+
+__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "free_port", "free_udp_port", "inside_viewport", "modbus_plant", "sim_process",
+           "wait_devices_online", "wait_for"]

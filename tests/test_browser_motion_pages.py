@@ -5,7 +5,8 @@ network greys its values and disables its start buttons with the reason while ST
 from __future__ import annotations
 
 import pytest
-from conftest import CHROMIUM, free_port, inside_viewport
+from conftest import CHROMIUM, inside_viewport
+from plants import motion_plant_text
 from webutil import running_app
 
 pytestmark = [pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed"), pytest.mark.timeout(150)]
@@ -14,45 +15,8 @@ SIZES = ((1440, 900), (1024, 768))
 
 
 def plant_text() -> str:
-    return f"""
-name = "motion-browser"
-[[bus]]
-name = "can2"
-type = "can"
-interface = "virtual"
-channel = "browser-motion-{free_port()}"
-bitrate = 500000
-simulate = true
-[[device]]
-name = "lift"
-type = "electrak"
-bus = "can2"
-actuators = [
-    {{ model = "HD24", gearing = "B026", stroke_mm = 300 }},
-    {{ model = "HD24", gearing = "B026", stroke_mm = 300 }},
-]
-[[bus]]
-name = "rs232-1"
-type = "serial"
-port = "socket://127.0.0.1:{free_port()}"
-simulate = true
-[[device]]
-name = "scu"
-type = "scu"
-bus = "rs232-1"
-actuators = [{{ counts_per_mm = 10 }}, {{ stroke_mm = 300 }}]
-[[bus]]
-name = "gate-tcp"
-type = "logited-tcp"
-host = "127.0.0.1"
-port = {free_port()}
-poll_period = 0.3
-simulate = true
-[[device]]
-name = "gate"
-type = "mo64"
-bus = "gate-tcp"
-"""
+    return motion_plant_text("motion-browser", scu={"bus_name": "rs232-1", "timeout": None, "poll_period": None},
+                             mo64={"bus_name": "gate-tcp", "timeout": None, "poll_period": 0.3, "travel_s": None})
 
 
 # every visible, enabled button scrolled to the middle of the screen (or as far as the page goes) must be the

@@ -14,124 +14,39 @@ import time
 from collections.abc import Callable
 
 import pytest
-from conftest import free_port
+from plants import can_bus, device, electrak_bus, hdlock_can, modbus_line, mo64_tcp, plant, scu_line
 from webutil import eventually, simulated_user
 
 from app.mqtt import state_payload, status_payload
-from app.plant import parse_plant
+from app.plant import Plant
 from app.runtime import Runtime
 
 pytestmark = pytest.mark.timeout(60)
 
 
-def mo64_plant() -> str:
-    return f"""
-name = "t"
-[[bus]]
-name = "gate-bus"
-type = "logited-tcp"
-host = "127.0.0.1"
-port = {free_port()}
-timeout = 0.5
-poll_period = 0.2
-simulate = true
-[[device]]
-name = "gate"
-type = "mo64"
-bus = "gate-bus"
-travel_s = 0.6
-"""
+def mo64_plant() -> Plant:
+    return plant(mo64_tcp())
 
 
-def hdlock_plant() -> str:
-    return f"""
-name = "t"
-[[bus]]
-name = "line1"
-type = "modbus-rtu"
-port = "socket://127.0.0.1:{free_port()}"
-timeout = 0.2
-retries = 0
-poll_period = 0.1
-simulate = true
-[[device]]
-name = "door-1"
-type = "hdlock"
-bus = "line1"
-address = 1
-"""
+def hdlock_plant() -> Plant:
+    return plant(modbus_line())
 
 
-def hdlock_can_plant() -> str:
-    return f"""
-name = "t"
-[[bus]]
-name = "can1"
-type = "can"
-interface = "virtual"
-channel = "parity-{free_port()}"
-simulate = true
-[[device]]
-name = "gate-1"
-type = "hdlock"
-bus = "can1"
-device_id = 11
-"""
+def hdlock_can_plant() -> Plant:
+    return plant(can_bus(hdlock_can("gate-1", 11)))
 
 
-def scu_plant() -> str:
-    return f"""
-name = "t"
-[[bus]]
-name = "rs1"
-type = "serial"
-port = "socket://127.0.0.1:{free_port()}"
-timeout = 0.3
-poll_period = 0.2
-simulate = true
-[[device]]
-name = "lift"
-type = "scu"
-bus = "rs1"
-actuators = [{{ counts_per_mm = 10 }}, {{ stroke_mm = 300 }}]
-"""
+def scu_plant() -> Plant:
+    return plant(scu_line())
 
 
-def electrak_plant() -> str:
-    return f"""
-name = "t"
-[[bus]]
-name = "can2"
-type = "can"
-interface = "virtual"
-channel = "parity-{free_port()}"
-simulate = true
-[[device]]
-name = "lift"
-type = "electrak"
-bus = "can2"
-actuators = [{{ model = "HD24", gearing = "B026", stroke_mm = 300 }}, {{ model = "HD24", gearing = "B026", stroke_mm = 300 }}]
-"""
+def electrak_plant() -> Plant:
+    return plant(electrak_bus(bitrate=None))
 
 
-def m3io_plant() -> str:
-    return f"""
-name = "t"
-[[bus]]
-name = "can3"
-type = "can"
-interface = "virtual"
-channel = "parity-{free_port()}"
-bitrate = 500000
-simulate = true
-[[device]]
-name = "heater-hmr"
-type = "m3io"
-bus = "can3"
-variant = "HMR"
-sw1 = 0xCA
-master = "always"
-"""
+def m3io_plant() -> Plant:
+    return plant(can_bus(device("heater-hmr", "m3io", "can3", variant="HMR", sw1=0xCA, master="always"),
+                         name="can3", bitrate=500000))
 
 
 NOT_MOVED = "its page still reads adapters or info (tests/test_layering.py STORE_ONLY_PENDING)"
@@ -161,7 +76,7 @@ def record_reads(state, monkeypatch) -> set[str]:
 
 @pytest.mark.parametrize(("device_type", "device", "plant"), FAMILIES)
 async def test_api_and_mqtt_carry_every_value_the_page_shows(device_type, device, plant, monkeypatch):
-    runtime = Runtime(parse_plant(plant()), simulate=True)
+    runtime = Runtime(plant(), simulate=True)
     async with simulated_user(runtime) as user:
         state = runtime.store.devices[device]
         assert state.type == device_type

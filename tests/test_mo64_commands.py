@@ -118,11 +118,14 @@ async def test_assumed_selector_write_is_declared_with_its_flag_and_its_risk(run
 def test_the_page_invokes_every_command_by_a_declared_name():
     tree = ast.parse(PAGE.read_text())
     declared = set(commands_of("mo64"))
-    calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", "") in ("act", "run_command")]
+    def called(node: ast.Call) -> str:  # act(...), view.act(...), run_command(...)
+        return getattr(node.func, "id", "") or getattr(node.func, "attr", "")
+
+    calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and called(n) in ("act", "run_command")]
     assert calls
     for call in calls:
         assert not any(k.arg == "write" for k in call.keywords), f"line {call.lineno}: a write= flag"
         assert not any(isinstance(a, ast.Lambda) for a in call.args), f"line {call.lineno}: an adapter callable"
-        first = call.args[0] if call.func.id == "act" else call.args[1]
+        first = call.args[0] if called(call) == "act" else call.args[1]
         if isinstance(first, ast.Constant):
             assert first.value in declared, f"line {call.lineno}: {first.value!r} is not declared"

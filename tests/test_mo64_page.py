@@ -7,41 +7,21 @@ import contextlib
 from collections.abc import AsyncIterator
 
 import pytest
-from conftest import free_port
 from nicegui import ui
 from nicegui.functions.notify import notify
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
+from plants import mo64_tcp, plant
 from webutil import eventually, simulated_user
 
-from app.plant import parse_plant
 from app.runtime import Runtime
 
 pytestmark = pytest.mark.timeout(40)
 
 
-def mo64_plant(port: int):
-    return parse_plant(f"""
-name = "t"
-[[bus]]
-name = "gate-bus"
-type = "logited-tcp"
-host = "127.0.0.1"
-port = {port}
-timeout = 0.5
-poll_period = 0.2
-simulate = true
-[[device]]
-name = "gate"
-type = "mo64"
-bus = "gate-bus"
-travel_s = 0.6
-""")
-
-
 @pytest.fixture
 async def env() -> AsyncIterator[tuple[User, Runtime]]:
-    runtime = Runtime(mo64_plant(free_port()), simulate=True)
+    runtime = Runtime(plant(mo64_tcp()), simulate=True)
     async with simulated_user(runtime) as user:
         yield user, runtime
 

@@ -7,43 +7,22 @@ import asyncio
 
 import pytest
 from conftest import free_port, wait_for
+from plants import device, mo64_rs485, plant
 
-from app.plant import parse_plant
+from app.plant import Plant
 from app.runtime import Runtime
 from devices.mo64 import codec
 
 pytestmark = pytest.mark.timeout(60)
 
 
-def plant(port: int):
-    return parse_plant(f"""
-name = "gates"
-[[bus]]
-name = "gates-485"
-type = "logited-rs485"
-port = "socket://127.0.0.1:{port}"
-shared = true
-next_master = 1
-poll_period = 0.3
-simulate = true
-
-[[device]]
-name = "out-1"
-type = "mo64"
-bus = "gates-485"
-address = 16
-travel_s = 0.6
-
-[[device]]
-name = "out-2"
-type = "mo64"
-bus = "gates-485"
-address = 17
-""")
+def two_gates(port: int) -> Plant:
+    return plant(mo64_rs485(device("out-1", "mo64", "gates-485", address=16, travel_s=0.6),
+                            device("out-2", "mo64", "gates-485", address=17), port=port), name="gates")
 
 
 async def test_shared_line_token_within_200_ms_and_an_open_pulse():
-    runtime = Runtime(plant(free_port()), simulate=True)
+    runtime = Runtime(two_gates(free_port()), simulate=True)
     await runtime.start()
     try:
         states = runtime.store.devices

@@ -11,6 +11,7 @@ import time
 import httpx
 import pytest
 from conftest import free_port, wait_for
+from plants import device, mo64_rs485, mo64_tcp, plant_text
 from scripts import RX, TX
 from test_mo64_adapter import Mo64Script, answer, close_lines, make_adapter, query  # noqa: F401 - close_lines: autouse, closes the adapters made here
 from webutil import simulated_user
@@ -23,24 +24,8 @@ from devices.mo64.adapter import UNAVAILABLE, CommandError
 pytestmark = pytest.mark.timeout(60)
 
 
-def tcp_plant(port: int, **device: str) -> str:
-    extra = "".join(f"{k} = {v}\n" for k, v in device.items())
-    return f"""
-name = "strict"
-[[bus]]
-name = "gate-bus"
-type = "logited-tcp"
-host = "127.0.0.1"
-port = {port}
-timeout = 0.3
-poll_period = 0.2
-simulate = true
-[[device]]
-name = "gate"
-type = "mo64"
-bus = "gate-bus"
-travel_s = 0.6
-{extra}"""
+def tcp_plant(port: int, **device_options) -> str:
+    return plant_text(mo64_tcp(port=port, timeout=0.3, device_options=device_options), name="strict")
 
 
 LIVE = ("Gate state", "Position", "Barrier status", "LS", "Baum ab", "F_ereignis", "Service counter",
@@ -49,7 +34,7 @@ LIVE = ("Gate state", "Position", "Barrier status", "LS", "Baum ab", "F_ereignis
 
 async def test_a_unit_that_naks_optional_queries_shows_every_live_value_in_the_api_within_15_s(tmp_path):
     # 0x10: the MAC address (an RS485-only unit), 0x12: every error-memory level, 0x0B dec_bt
-    plant = parse_plant(tcp_plant(free_port(), refuse_queries="[16, 18, 11]"))
+    plant = parse_plant(tcp_plant(free_port(), refuse_queries=[16, 18, 11]))
     runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
     async with simulated_user(runtime) as user:
         client: httpx.AsyncClient = user.http_client
@@ -220,24 +205,8 @@ async def test_assumed_selector_is_refused_until_verified_and_restore_skips_it()
 
 # -- RS485: the token is held from the setting to its ack ----------------------------------------------
 def rs485_plant(port: int) -> str:
-    return f"""
-name = "gates"
-[[bus]]
-name = "gates-485"
-type = "logited-rs485"
-port = "socket://127.0.0.1:{port}"
-shared = true
-next_master = 1
-poll_period = 0.3
-simulate = true
-
-[[device]]
-name = "out-1"
-type = "mo64"
-bus = "gates-485"
-address = 16
-refuse_queries = [16]
-"""
+    return plant_text(mo64_rs485(device("out-1", "mo64", "gates-485", address=16, refuse_queries=[16]), port=port),
+                      name="gates")
 
 
 async def test_rs485_token_is_not_passed_between_syn_and_ack():

@@ -7,10 +7,10 @@ from __future__ import annotations
 from collections.abc import AsyncIterator
 
 import pytest
-from conftest import free_port
 from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
+from plants import motion_plant_text
 from webutil import eventually, simulated_user
 
 from app.plant import parse_plant
@@ -19,55 +19,9 @@ from app.runtime import Runtime
 pytestmark = pytest.mark.timeout(60)
 
 
-def motion_plant(tag: str):
-    return parse_plant(f"""
-name = "motion"
-[[bus]]
-name = "can2"
-type = "can"
-interface = "virtual"
-channel = "motion-{tag}"
-bitrate = 500000
-simulate = true
-[[device]]
-name = "lift"
-type = "electrak"
-bus = "can2"
-actuators = [
-    {{ model = "HD24", gearing = "B026", stroke_mm = 300 }},
-    {{ model = "HD24", gearing = "B026", stroke_mm = 300 }},
-]
-[[bus]]
-name = "rs1"
-type = "serial"
-port = "socket://127.0.0.1:{free_port()}"
-timeout = 0.3
-poll_period = 0.2
-simulate = true
-[[device]]
-name = "scu"
-type = "scu"
-bus = "rs1"
-actuators = [{{ counts_per_mm = 10 }}, {{ stroke_mm = 300 }}]
-[[bus]]
-name = "gate-bus"
-type = "logited-tcp"
-host = "127.0.0.1"
-port = {free_port()}
-timeout = 0.5
-poll_period = 0.2
-simulate = true
-[[device]]
-name = "gate"
-type = "mo64"
-bus = "gate-bus"
-travel_s = 0.6
-""")
-
-
 @pytest.fixture
 async def env(request) -> AsyncIterator[tuple[User, Runtime]]:
-    runtime = Runtime(motion_plant(request.node.name[-24:].replace("[", "-").replace("]", "")), simulate=True)
+    runtime = Runtime(parse_plant(motion_plant_text()), simulate=True)
     async with simulated_user(runtime) as user:
         yield user, runtime
 

@@ -6,39 +6,20 @@ import asyncio
 from collections.abc import AsyncIterator
 
 import pytest
-from conftest import free_port
 from nicegui.functions.notify import notify
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
+from plants import plant, scu_line
 from webutil import eventually, simulated_user
 
-from app.plant import parse_plant
 from app.runtime import Runtime
 
 pytestmark = pytest.mark.timeout(40)
 
 
-def scu_plant(port: int):
-    return parse_plant(f"""
-name = "t"
-[[bus]]
-name = "rs1"
-type = "serial"
-port = "socket://127.0.0.1:{port}"
-timeout = 0.3
-poll_period = 0.2
-simulate = true
-[[device]]
-name = "lift"
-type = "scu"
-bus = "rs1"
-actuators = [{{ counts_per_mm = 10 }}, {{ stroke_mm = 300 }}]
-""")
-
-
 @pytest.fixture
 async def env() -> AsyncIterator[tuple[User, Runtime]]:
-    runtime = Runtime(scu_plant(free_port()), simulate=True)
+    runtime = Runtime(plant(scu_line()), simulate=True)
     async with simulated_user(runtime) as user:
         yield user, runtime
 

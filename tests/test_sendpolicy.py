@@ -11,9 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import itertools
 import sqlite3
-import time
 
 import can
 import pytest
@@ -22,36 +20,12 @@ from app import replay as rp
 from app import transmit as tx
 from app.can_bus import FrameRecord
 from app.modbus_poll import ModbusPoll, NeedsConfirmation, PollError
-from app.plant import parse_plant
 from app.runtime import Runtime
 from devices.hdlock.params import PARAMS as HDLOCK_PARAMS
 from devices.sendpolicy import BusDevice, ModbusMessage, check_can, check_modbus
 from tests.conftest import free_port, modbus_plant, wait_for
 
-_n = itertools.count()
 LOCK_EXT = bytes.fromhex("4F 01 00 80")  # extended device 335 (section 6.4 example)
-
-
-def _can_plant(channel: str) -> str:
-    return (
-        f'[[bus]]\nname = "can1"\ntype = "can"\ninterface = "virtual"\nchannel = "{channel}"\n'
-        'bitrate = 500000\npoll_period = 2.0\n'
-        '[[device]]\nname = "heater"\ntype = "m3io"\nbus = "can1"\nvariant = "HM"\nsw1 = 0x1A\n'
-        '[[device]]\nname = "lock"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 335\nextended = true\n'
-    )
-
-
-@pytest.fixture
-async def can_rig(tmp_path):
-    channel = f"policy-{next(_n)}-{time.monotonic_ns()}"
-    runtime = Runtime(parse_plant(_can_plant(channel)), simulate=False, data_dir=tmp_path)
-    await runtime.start()
-    listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
-    try:
-        yield runtime, listener
-    finally:
-        listener.shutdown()
-        await asyncio.wait_for(runtime.stop(), 5)
 
 
 def _drain(listener: can.BusABC) -> list[can.Message]:

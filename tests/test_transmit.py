@@ -11,8 +11,6 @@ import time
 import can
 import pytest
 
-from app.plant import parse_plant
-from app.runtime import Runtime
 from app.transmit import (
     TransmitError,
     forbidden_reason,
@@ -24,31 +22,8 @@ from app.transmit import (
 from app.worker import DEADMAN_BOUND_S, PermissionDenied
 from tests.conftest import wait_for
 
-_n = itertools.count()
 SESSION = "tx-tab"
 LOCK = {"device_id": 335, "extended": True}
-
-
-def plant_text(channel: str) -> str:
-    return (
-        f'[[bus]]\nname = "can1"\ntype = "can"\ninterface = "virtual"\nchannel = "{channel}"\n'
-        'bitrate = 500000\npoll_period = 2.0\n'
-        '[[device]]\nname = "heater"\ntype = "m3io"\nbus = "can1"\nvariant = "HM"\nsw1 = 0x1A\n'
-        '[[device]]\nname = "lock"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 335\nextended = true\n'
-    )
-
-
-@pytest.fixture
-async def rig(tmp_path):
-    channel = f"tx-{next(_n)}-{id(object())}"
-    runtime = Runtime(parse_plant(plant_text(channel)), simulate=False, data_dir=tmp_path)
-    await runtime.start()
-    listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
-    try:
-        yield runtime, listener
-    finally:
-        listener.shutdown()
-        await asyncio.wait_for(runtime.stop(), 5)
 
 
 async def _frames(listener: can.BusABC, can_id: int, seconds: float) -> list[can.Message]:
@@ -117,8 +92,8 @@ def test_allowed_frames_pass():
 # -- against the bus ---------------------------------------------------------------------------------
 
 
-async def test_send_once_and_audit(rig):
-    runtime, listener = rig
+async def test_send_once_and_audit(can_rig):
+    runtime, listener = can_rig
     tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
     await tl.load()
     row = await tl.add(named_row("hdlock", "lock", LOCK, "register", {"operation": "input", "register": 104, "count": 2}), user="anna", role="engineer")
@@ -129,8 +104,8 @@ async def test_send_once_and_audit(rig):
     assert any(a.startswith("transmit once on can1: 0x702") for a in actions)
 
 
-async def test_cyclic_row_keeps_its_period_and_stops(rig):
-    runtime, listener = rig
+async def test_cyclic_row_keeps_its_period_and_stops(can_rig):
+    runtime, listener = can_rig
     tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
     await tl.load()
     row = await tl.add(make_row(0x321, False, b"\xaa\x55", period_ms=20), user="anna", role="engineer")
@@ -151,8 +126,8 @@ async def test_cyclic_row_keeps_its_period_and_stops(rig):
 
 
 @pytest.mark.parametrize(("can_id", "data"), [(0x706, b"\x00" * 6), (0x700, b"\x00\x00\x00\x00\x02")])
-async def test_forbidden_refused_by_name_and_audited(rig, can_id, data):
-    runtime, listener = rig
+async def test_forbidden_refused_by_name_and_audited(can_rig, can_id, data):
+    runtime, listener = can_rig
     tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
     await tl.load()
     with pytest.raises(TransmitError, match="firmware-update"):
@@ -167,8 +142,8 @@ async def test_forbidden_refused_by_name_and_audited(rig, can_id, data):
     assert len(refused) == 2 and all("firmware-update" in r for _a, r in refused)
 
 
-async def test_viewer_refused(rig):
-    runtime, listener = rig
+async def test_viewer_refused(can_rig):
+    runtime, listener = can_rig
     tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
     await tl.load()
     row = await tl.add(make_row(0x123, False, b"\x01", period_ms=50), user="anna", role="engineer")
@@ -189,8 +164,8 @@ async def _beat(worker, session: str) -> None:
         await asyncio.sleep(0.1)
 
 
-async def test_cyclic_rows_stop_when_the_session_is_lost(rig):
-    runtime, listener = rig
+async def test_cyclic_rows_stop_when_the_session_is_lost(can_rig):
+    runtime, listener = can_rig
     tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
     await tl.load()
     row = await tl.add(make_row(0x222, False, b"\x01", period_ms=10), user="anna", role="engineer")
@@ -207,8 +182,8 @@ async def test_cyclic_rows_stop_when_the_session_is_lost(rig):
     assert await wait_for(lambda: any("stopped: dead-man" in a for _u, a, _r in _audit(runtime)), timeout=2)
 
 
-async def test_closed_session_stops_its_rows(rig):
-    runtime, _listener = rig
+async def test_closed_session_stops_its_rows(can_rig):
+    runtime, _listener = can_rig
     tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
     await tl.load()
     row = await tl.add(make_row(0x223, False, b"", period_ms=100), user="anna", role="engineer")
@@ -218,8 +193,8 @@ async def test_closed_session_stops_its_rows(rig):
     assert not tl.running and not runtime.worker.can_buses["can1"].cyclic_running(f"transmit can1 {row.key}")
 
 
-async def test_list_saved_per_bus_and_restored(rig):
-    runtime, _listener = rig
+async def test_list_saved_per_bus_and_restored(can_rig):
+    runtime, _listener = can_rig
     tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
     await tl.load()
     await tl.add(make_row(0x1ABCDEF, True, b"\x01\x02", period_ms=250, label="x"), user="anna", role="engineer")

@@ -6,24 +6,10 @@ import asyncio
 import contextlib
 import importlib
 import os
-import re
-import socket
-import subprocess
-import sys
-import time
-import urllib.error
-import urllib.request
-from collections.abc import Callable, Iterator
-from pathlib import Path
+from collections.abc import Callable
 
-ROOT = Path(__file__).resolve().parent.parent
-DEMO_PLANT = ROOT / "plants" / "demo.toml"
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+import liveapp
+from liveapp import DEMO_PLANT, ROOT, free_port, running_app, start_app, stop_app, wait_http  # noqa: F401 - for the tests
 
 
 async def eventually(check: Callable[[], object], timeout: float = 5.0, interval: float = 0.05, what: str = "") -> None:
@@ -94,18 +80,15 @@ async def simulated_user(runtime):
             rt.set_current(None)
 
 
-# -- the app as a separate process (browser tests) ---------------------------------------------
+# -- the app as a separate process (browser tests): bench/liveapp.py, as the benchmarks start it ----------
 
 
 def demo_plant_text(bus_port: int) -> str:
     """The demo plant file with the simulated RS485 line moved to ``bus_port`` and every other
-    simulated TCP endpoint (the SCU's serial line) to a free port of its own."""
-    text = DEMO_PLANT.read_text()
-    assert 'port = "socket://127.0.0.1:5020"' in text, "demo plant no longer names socket://127.0.0.1:5020"
-    text = text.replace("socket://127.0.0.1:5020", f"socket://127.0.0.1:{bus_port}")
-    text = re.sub(r"socket://127\.0\.0\.1:(?!%d\b)\d+" % bus_port, lambda m: f"socket://127.0.0.1:{free_port()}", text)
-    # the simulated MO 64 on TCP: a host and a port of its own
-    return re.sub(r'(type = "logited-tcp"\nhost = "127\.0\.0\.1"\nport = )\d+', lambda m: f"{m.group(1)}{free_port()}", text)
+    simulated TCP endpoint (the SCU's serial line, the MO 64) to a free port of its own."""
+    text = liveapp.demo_plant_text(bus_port)
+    assert f"socket://127.0.0.1:{bus_port}" in text, "demo plant no longer names socket://127.0.0.1:5020"
+    return text
 
 
 def private_endpoints(plant, tag: str):
@@ -122,59 +105,5 @@ def private_endpoints(plant, tag: str):
     return plant
 
 
-def wait_http(url: str, proc: subprocess.Popen | None = None, timeout: float = 20.0) -> None:
-    """Wait until ``url`` answers 200 (raise if ``proc`` dies or ``timeout`` passes)."""
-    end = time.monotonic() + timeout
-    last: object = None
-    while time.monotonic() < end:
-        if proc is not None and proc.poll() is not None:
-            raise RuntimeError(f"the app exited with {proc.returncode} before answering {url}")
-        try:
-            with urllib.request.urlopen(url, timeout=1) as response:
-                if response.status == 200:
-                    return
-                last = response.status
-        except (urllib.error.URLError, ConnectionError, OSError) as exc:
-            last = exc
-        time.sleep(0.1)
-    raise TimeoutError(f"{url} did not answer within {timeout} s (last: {last})")
-
-
-def start_app(plant_file: Path, port: int, log_file: Path) -> subprocess.Popen:
-    """``python -m app.cli --plant plant_file --port port`` with its output in ``log_file``."""
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    env.pop("NICEGUI_USER_SIMULATION", None)
-    env.pop("PYTEST_CURRENT_TEST", None)  # NiceGUI must not think it runs inside pytest
-    with open(log_file, "wb") as log:
-        return subprocess.Popen(
-            [sys.executable, "-m", "app.cli", "--plant", str(plant_file), "--port", str(port)],
-            cwd=ROOT,
-            env=env,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-        )
-
-
-def stop_app(proc: subprocess.Popen) -> None:
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=5)
-
-
-@contextlib.contextmanager
-def running_app(plant_text: str, folder: Path) -> Iterator[str]:
-    """The GUI in its own process on ``plant_text``; yields its base URL once it answers."""
-    plant = folder / "plant.toml"
-    plant.write_text(plant_text)
-    port = free_port()
-    proc = start_app(plant, port, folder / "app.log")
-    try:
-        wait_http(f"http://127.0.0.1:{port}/", proc)
-        yield f"http://127.0.0.1:{port}"
-    finally:
-        stop_app(proc)
+__all__ = ["DEMO_PLANT", "ROOT", "demo_plant_text", "eventually", "free_port", "private_endpoints", "running_app",
+           "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "wait_http"]
