@@ -6,7 +6,9 @@ implements :class:`CanTransport`. Adapters are handed their transport (pass the 
 type against these protocols, so ``devices/`` never imports ``app/``. Pure declarations: no I/O.
 
 ``app.serial_line.SerialLine`` (point-to-point RS232, SCU) is described by :class:`SerialTransport`;
-its errors are declared here for it to raise (see the Serial errors below).
+its errors are declared here for it to raise (see the Serial errors below). Both families derive
+from :class:`TransportError`, and their timeouts and closed-port errors from :class:`TransportTimeout`
+and :class:`TransportClosed`, so code that handles any line's failure catches those.
 """
 
 from __future__ import annotations
@@ -16,17 +18,36 @@ from typing import Any, Protocol, runtime_checkable
 
 from devices.live import Counters
 
-# -- Modbus RTU line ------------------------------------------------------------------------
+# -- what every line raises ----------------------------------------------------------------
 
 
-class LineError(Exception):
-    """A transaction that did not give a usable answer."""
+class TransportError(Exception):
+    """A request on a line that did not give a usable answer; ``kind`` says why (for the counters)."""
 
     kind = "error"
 
 
-class LineTimeout(LineError):
+class TransportTimeout(TransportError):
+    """No (complete) answer in time."""
+
     kind = "timeout"
+
+
+class TransportClosed(TransportError):
+    """The port or connection is not open (cannot be opened, unplugged, lost)."""
+
+    kind = "closed"
+
+
+# -- Modbus RTU line ------------------------------------------------------------------------
+
+
+class LineError(TransportError):
+    """A transaction that did not give a usable answer."""
+
+
+class LineTimeout(LineError, TransportTimeout):
+    pass
 
 
 class LineCrcError(LineError):
@@ -43,10 +64,8 @@ class LineException(LineError):
         self.code = code
 
 
-class LineClosed(LineError):
+class LineClosed(LineError, TransportClosed):
     """The port could not be opened or was lost."""
-
-    kind = "closed"
 
 
 @runtime_checkable
@@ -133,20 +152,16 @@ class CanTransport(Protocol):
 # -- point-to-point serial line -------------------------------------------------------------
 
 
-class SerialLineError(Exception):
+class SerialLineError(TransportError):
     """A serial request that did not give a usable answer."""
 
-    kind = "error"
+
+class SerialTimeout(SerialLineError, TransportTimeout):
+    pass
 
 
-class SerialTimeout(SerialLineError):
-    kind = "timeout"
-
-
-class SerialClosed(SerialLineError):
+class SerialClosed(SerialLineError, TransportClosed):
     """The port is not open (cannot be opened, unplugged)."""
-
-    kind = "closed"
 
 
 # ``complete(buffer)`` -> total length of the answer once it can be told, else None (read more)
