@@ -17,7 +17,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 
 from app.line_base import LineBase
 from app.state import BusState
@@ -117,6 +117,46 @@ class _LogitedLine(LineBase):
         self._record(what, request.hex(" ").upper(), answer.hex(" ").upper(),
                      self._text(answer) if answer and not error else "", rtt_ms, error,
                      unit=self._unit(request, answer))
+
+    # -- one request and its answer (the caller holds the line) -------------------------------------
+    LOST_ERRORS: tuple[type[BaseException], ...] = (OSError, ConnectionError)  # a send that finds the line gone
+
+    async def _exchange(self, request: bytes, answers: Callable[[bytes], bool], send: Callable[[bytes], Awaitable[None]],
+                        timeout: float, describe: str, interim: Callable[[bytes], bool] | None,
+                        interim_timeout: float) -> bytes:
+        """``send(request)``, then the first telegram ``answers`` accepts, after any that ``interim`` says
+        are not final (each logged); see ``transact``."""
+        waiter = self._waiter = _Waiter(answers)
+        started = time.monotonic()
+        try:
+            await send(request)
+            answer = await waiter.get(timeout)
+            while interim is not None and interim(answer):
+                self._log(describe, request, answer, "", round((time.monotonic() - started) * 1000, 2))
+                timeout = self._final_timeout(interim_timeout)
+                answer = await waiter.get(timeout)
+        except asyncio.TimeoutError:
+            self._log(describe, request, b"", f"no answer within {timeout:g} s")
+            raise SerialTimeout(f"{self.name}: no answer within {timeout:g} s") from None
+        except SerialClosed as exc:
+            self._log(describe, request, b"", str(exc))
+            raise
+        except self.LOST_ERRORS as exc:
+            self._lost_sending(request, describe, exc)
+            raise SerialClosed(f"{self.name}: {self.state.last_error}") from None
+        finally:
+            waiter.waiting = False
+            self._waiter = None
+        self._log(describe, request, answer, "", round((time.monotonic() - started) * 1000, 2))
+        return answer
+
+    def _final_timeout(self, interim_timeout: float) -> float:
+        """How long the final answer after an interim one is awaited."""
+        return interim_timeout
+
+    def _lost_sending(self, request: bytes, describe: str, exc: BaseException) -> None:
+        """The line went away during an exchange (then SerialClosed is raised)."""
+        raise NotImplementedError
 
 
 class LogitedTcp(_LogitedLine):
@@ -243,31 +283,15 @@ class LogitedTcp(_LogitedLine):
         async with self._lock:
             if not await self.connect():
                 raise SerialClosed(f"{self.name}: {self.state.last_error}")
-            waiter = self._waiter = _Waiter(answers)
-            started = time.monotonic()
-            try:
-                self.writer.write(request)
-                await self.writer.drain()
-                answer = await waiter.get(timeout)
-                while interim is not None and interim(answer):
-                    self._log(describe, request, answer, "", round((time.monotonic() - started) * 1000, 2))
-                    timeout = interim_timeout
-                    answer = await waiter.get(timeout)
-            except asyncio.TimeoutError:
-                self._log(describe, request, b"", f"no answer within {timeout:g} s")
-                raise SerialTimeout(f"{self.name}: no answer within {timeout:g} s") from None
-            except (OSError, ConnectionError) as exc:
-                self._drop(f"connection lost: {exc}")
-                self._log(describe, request, b"", f"connection lost: {exc}")
-                raise SerialClosed(f"{self.name}: {self.state.last_error}") from None
-            except SerialClosed as exc:
-                self._log(describe, request, b"", str(exc))
-                raise
-            finally:
-                waiter.waiting = False
-                self._waiter = None
-            self._log(describe, request, answer, "", round((time.monotonic() - started) * 1000, 2))
-            return answer
+            return await self._exchange(request, answers, self._send, timeout, describe, interim, interim_timeout)
+
+    async def _send(self, request: bytes) -> None:
+        self.writer.write(request)
+        await self.writer.drain()
+
+    def _lost_sending(self, request: bytes, describe: str, exc: BaseException) -> None:
+        self._drop(f"connection lost: {exc}")
+        self._log(describe, request, b"", f"connection lost: {exc}")
 
 
 class LogitedRs485(_LogitedLine):
@@ -469,37 +493,26 @@ class LogitedRs485(_LogitedLine):
                     await self._hold_token(timeout, fresh=interim is not None)
                     left = self.HOLD_BUDGET_S - (time.monotonic() - self._token_since)
                     timeout = max(0.02, min(timeout, left))  # answered within the hold, or given up
-                waiter = self._waiter = _Waiter(answers)
-                started = time.monotonic()
-                try:
-                    await asyncio.to_thread(self.port.write, request)
-                    answer = await waiter.get(timeout)
-                    while interim is not None and interim(answer):
-                        self._log(describe, request, answer, "", round((time.monotonic() - started) * 1000, 2))
-                        timeout = interim_timeout
-                        if self.shared and self._token_since is not None:
-                            # the final answer within this turn: the token is passed before the limit
-                            timeout = max(0.0, min(timeout, self.TOKEN_LIMIT_S - self.LIMIT_MARGIN_S
-                                                   - (time.monotonic() - self._token_since)))
-                        answer = await waiter.get(timeout)
-                except asyncio.TimeoutError:
-                    self._log(describe, request, b"", f"no answer within {timeout:g} s")
-                    raise SerialTimeout(f"{self.name}: no answer within {timeout:g} s") from None
-                except SerialClosed as exc:
-                    self._log(describe, request, b"", str(exc))
-                    raise
-                except Exception as exc:  # noqa: BLE001 - a write to a lost port
-                    self._lost(str(exc))
-                    raise SerialClosed(f"{self.name}: {self.state.last_error}") from None
-                finally:
-                    waiter.waiting = False
-                    self._waiter = None
-                self._log(describe, request, answer, "", round((time.monotonic() - started) * 1000, 2))
-                return answer
+                return await self._exchange(request, answers, self._send, timeout, describe, interim, interim_timeout)
         finally:
             self._pending -= 1
             if self.shared and self._token.is_set() and self._pending == 0:
                 self._pass_token()  # done: hand the token on now
+
+    async def _send(self, request: bytes) -> None:
+        await asyncio.to_thread(self.port.write, request)
+
+    LOST_ERRORS = (Exception,)  # a write to a lost port
+
+    def _lost_sending(self, request: bytes, describe: str, exc: BaseException) -> None:
+        self._lost(str(exc))
+
+    def _final_timeout(self, interim_timeout: float) -> float:
+        if self.shared and self._token_since is not None:
+            # the final answer within this turn: the token is passed before the limit
+            return max(0.0, min(interim_timeout, self.TOKEN_LIMIT_S - self.LIMIT_MARGIN_S
+                                - (time.monotonic() - self._token_since)))
+        return interim_timeout
 
     async def _hold_token(self, timeout: float, fresh: bool = False) -> None:
         """Wait until this master holds the token with enough of its hold budget left (``fresh``: nearly
