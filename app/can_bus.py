@@ -387,6 +387,10 @@ class CanBus:
         if self._thread is not None:
             self._thread.join(timeout=2)
             self._thread = None
+        # the periodic senders end before their bus does: a cyclic thread that sent on the closed bus would
+        # log a traceback every period ("Cannot operate on a closed bus"). A reopened bus starts them again
+        for periodic in list(self._periodic.values()):
+            periodic.stop(join=True)
         if self.bus is not None:
             try:
                 self.bus.shutdown()
@@ -806,13 +810,18 @@ class _Periodic:
             except (OSError, AttributeError):
                 pass
 
-    def stop(self) -> None:
+    def stop(self, join: bool = False) -> None:
+        """End the sender; ``join``: also wait (at most a period and a bit) until its thread has sent its
+        last frame, before the bus it sends on is shut down (never from the thread itself, never in the loop)."""
         task, self.task = self.task, None
         if task is not None:
             try:
                 task.stop()
             except Exception as exc:  # noqa: BLE001 - a closed interface has stopped it already
                 log.debug("%s: stopping %s: %s", self.owner.name, self.key, exc)
+            thread = getattr(task, "thread", None)
+            if join and thread is not None and thread is not threading.current_thread() and thread.is_alive():
+                thread.join(timeout=self.period_s + 0.5)
 
     def running(self) -> bool:
         task = self.task
