@@ -483,6 +483,23 @@ def encode_answer(command: bytes, status: int = ACK, data: bytes | None = None) 
     return _seal(body)
 
 
+def _telegram(frame: bytes, shortest: int, what: str) -> bytes:
+    """``frame`` as bytes once its length, C1 C2 and command letters are plausible (section 3).
+
+    :raises FrameLengthError: shorter than ``shortest``
+    :raises ChecksumError: C1 C2 do not match
+    :raises GarbageError: not a command of table 3
+    """
+    frame = bytes(frame)
+    if len(frame) < shortest:
+        raise FrameLengthError(f"{what} has at least {shortest} bytes, got {len(frame)}", frame)
+    if not _check_crc(frame):
+        raise ChecksumError(frame)
+    if frame[:2] not in COMMANDS:
+        raise GarbageError(frame)
+    return frame
+
+
 def decode_answer(frame: bytes, expected: bytes | None = None) -> Answer:
     """Decode one complete answer frame.
 
@@ -490,14 +507,8 @@ def decode_answer(frame: bytes, expected: bytes | None = None) -> Answer:
     :raises ChecksumError: C1 C2 do not match
     :raises FrameLengthError: ctp and the frame length disagree, or the frame is too short
     """
-    frame = bytes(frame)
-    if len(frame) < 5:
-        raise FrameLengthError(f"an answer has at least 5 bytes, got {len(frame)}", frame)
-    if not _check_crc(frame):
-        raise ChecksumError(frame)
+    frame = _telegram(frame, 5, "an answer")
     command, status = frame[:2], frame[2]
-    if command not in COMMANDS:
-        raise GarbageError(frame)
     if expected is not None and command != expected:
         raise UnexpectedAnswer(expected, command, frame)
     if len(frame) == 5:
@@ -540,14 +551,8 @@ def decode_request(frame: bytes) -> Request:
     :raises ParameterCountError: PCE
     :raises ParameterDataError: PDE
     """
-    frame = bytes(frame)
-    if len(frame) < 4:
-        raise FrameLengthError(f"a request has at least 4 bytes, got {len(frame)}", frame)
-    if not _check_crc(frame):
-        raise ChecksumError(frame)
+    frame = _telegram(frame, 4, "a request")
     command, p = frame[:2], frame[2:-2]
-    if command not in COMMANDS:
-        raise GarbageError(frame)
     if command in (RC, RT):
         if len(p) < 2 or int.from_bytes(p[:2], "little") != len(p) - 2:
             raise ParameterCountError(f"{command.decode()}: ctp does not match {len(p) - 2} following bytes", frame)
