@@ -20,6 +20,11 @@ writable, in range, a whole number where the register holds one, an enum value);
 the project is a backup document (:func:`document`), so the backup page shows it with restore's
 diff and applies a row through restore's verified write; "update the project" rewrites one entry
 of the plant file or the parameter file atomically (:func:`update_entry`).
+
+Without the device (it may never have answered), :func:`save` sets, adds and drops entries on the type's
+parameter model (:func:`editable`, :func:`allowed`, :func:`parse_value`): an inline table, a
+``[device.project]`` table, a new ``project = { ... }`` line or the parameter file is rewritten atomically,
+its other content and comments kept and the old file kept as ``<name>.bak``.
 """
 
 from __future__ import annotations
