@@ -1,7 +1,8 @@
 """Keep-alive periods whatever the event loop does (issue 28).
 
 The Electrak control telegram 0x06 (every 100 ms; the actuators flag a message timeout after
-250 ms) and the M3IO DigOut (every 100 ms while an engineer controls the module; the module's
+250 ms), the SCU's RC (sent by its serial line's own thread; the unit ends remote mode after 500 ms
+without one; phases (a), (b) and (d), heard by the twin on an event loop of its own) and the M3IO DigOut (every 100 ms while an engineer controls the module; the module's
 watchdog switches its outputs off after 2 s) leave on python-can's cyclic task under a lease.
 This benchmark measures their periods as a third node of each bus hears them, in four phases:
 
@@ -46,6 +47,8 @@ from app.plant import parse_plant  # noqa: E402
 from app.runtime import Runtime  # noqa: E402
 from devices.electrak import codec as electrak  # noqa: E402
 from devices.m3io import codec as m3io  # noqa: E402
+from devices.scu import codec as scu  # noqa: E402
+from devices.scu.sim import ScuSim  # noqa: E402
 
 BUS_LIMIT_FPS = 1_000_000 // 131  # 8-byte extended frames
 DIGOUT_ID, DIGOUT_SSR1 = 0x422, 0x02  # M3IO HM, SW1 0x1A
@@ -104,8 +107,52 @@ def report(phase: str, heard: dict[str, Heard], start: float, end: float) -> flo
     return worst
 
 
-def in_process_plant(lift: str, heater: str, flood: str):
+class ScuTwinThread:
+    """The SCU twin on an event loop of its own (a real unit does not stall with this program): the RCs it
+    received, with their arrival times, are what the unit's watchdog (500 ms) sees."""
+
+    def __init__(self, plant):
+        self.sim = ScuSim(plant.buses["rs1"], plant.devices_on("rs1"))
+        self.loop = asyncio.new_event_loop()
+        self.thread = threading.Thread(target=self.loop.run_forever, name="scu twin", daemon=True)
+
+    def start(self) -> None:
+        self.thread.start()
+        asyncio.run_coroutine_threadsafe(self.sim.start(), self.loop).result(5)
+
+    def stop(self) -> None:
+        asyncio.run_coroutine_threadsafe(self.sim.stop(), self.loop).result(5)
+        self.loop.call_soon_threadsafe(self.loop.stop)
+        self.thread.join(5)
+        self.loop.close()
+
+    def rc_times(self, start: float, end: float) -> list[float]:
+        """Arrival times (wall clock) of the RCs between ``start`` and ``end`` (wall clock)."""
+        shift = time.time() - time.monotonic()
+        return [t + shift for t in list(self.sim.twin.rc_received) if start <= t + shift <= end]
+
+
+def report_scu(phase: str, unit: ScuTwinThread, start: float, end: float) -> float:
+    """The SCU RC's period as the unit received it; the worst gap ratio."""
+    nominal = scu.KEEP_ALIVE_PERIOD_S
+    times = unit.rc_times(start, end)
+    gaps = [b - a for a, b in zip(times, times[1:], strict=False)]
+    if not gaps:
+        print(f"  {phase}: SCU RC: no RC received")
+        return float("inf")
+    errors = sorted(abs(g - nominal) * 1000 for g in gaps)
+    trips = [t for t in unit.sim.twin.watchdog_trips if start <= t + time.time() - time.monotonic() <= end]
+    print(f"  {phase}: SCU RC: {len(times)} received, period error p50 {statistics.median(errors):.1f} ms, "
+          f"p99 {errors[min(len(errors) - 1, int(0.99 * len(errors)))]:.1f} ms, max {errors[-1]:.1f} ms; worst gap "
+          f"{max(gaps) * 1000:.0f} ms = {max(gaps) / nominal:.2f} x nominal; unit watchdog (500 ms) {'TRIPPED' if trips else 'fed'}")
+    return max(gaps) / nominal
+
+
+def in_process_plant(lift: str, heater: str, flood: str, scu_port: int):
     return parse_plant(
+        f'[[bus]]\nname = "rs1"\ntype = "serial"\nport = "socket://127.0.0.1:{scu_port}"\nbaudrate = 38400\n'
+        'timeout = 0.3\npoll_period = 0.2\n'
+        '[[device]]\nname = "scu"\ntype = "scu"\nbus = "rs1"\nactuators = 2\n'
         f'[[bus]]\nname = "can1"\ntype = "can"\ninterface = "virtual"\nchannel = "{flood}"\nbitrate = 1000000\n'
         f'[[bus]]\nname = "can2"\ntype = "can"\ninterface = "virtual"\nchannel = "{lift}"\nbitrate = 500000\nsimulate = true\n'
         f'[[bus]]\nname = "can3"\ntype = "can"\ninterface = "virtual"\nchannel = "{heater}"\nbitrate = 500000\nsimulate = true\n'
@@ -137,7 +184,10 @@ async def beat(runtime: Runtime, session: str) -> None:
 
 async def in_process(seconds: float) -> float:
     lift_ch, heater_ch, flood_ch = (f"{k}-{uuid.uuid4().hex}" for k in ("lift", "heater", "flood"))
-    runtime = Runtime(in_process_plant(lift_ch, heater_ch, flood_ch), simulate=True)
+    plant = in_process_plant(lift_ch, heater_ch, flood_ch, free_tcp_port())
+    unit = ScuTwinThread(plant)
+    unit.start()
+    runtime = Runtime(plant, simulate=True)
     heard = {"Electrak 0x06": Heard(can.Bus(interface="virtual", channel=lift_ch)),
              "M3IO DigOut": Heard(can.Bus(interface="virtual", channel=heater_ch))}
     await runtime.start()
@@ -145,12 +195,18 @@ async def in_process(seconds: float) -> float:
     worst = 0.0
     try:
         lift, heater = runtime.worker.adapters["lift"], runtime.worker.adapters["heater-hm"]
+        scu_adapter = runtime.worker.adapters["scu"]
         await lift.take_control("bench", "engineer")
         await heater.take_control("bench", "engineer")
+        for _ in range(100):  # the SCU's remote session: RC every KEEP_ALIVE_PERIOD_S from the line's thread
+            if scu_adapter.session == "open":
+                break
+            await asyncio.sleep(0.1)
+        await scu_adapter.take_control("bench", "engineer")
         await asyncio.sleep(1.0)
         start = time.time()
         await asyncio.sleep(seconds)
-        worst = max(worst, report("(a) idle", heard, start, time.time()))
+        worst = max(worst, report("(a) idle", heard, start, time.time()), report_scu("(a) idle", unit, start, time.time()))
 
         stop = threading.Event()
         sender = threading.Thread(target=flood_sender, args=(flood_ch, 2 * BUS_LIMIT_FPS, stop), daemon=True)
@@ -162,7 +218,7 @@ async def in_process(seconds: float) -> float:
         sender.join()
         shed = runtime.store.buses["can1"].shed
         print(f"  (b) flood: {2 * BUS_LIMIT_FPS:,} unknown extended frames/s on can1, {runtime.store.buses['can1'].rx_frames:,} handled, {shed:,} shed")
-        worst = max(worst, report("(b) 2x flood", heard, start, end))
+        worst = max(worst, report("(b) 2x flood", heard, start, end), report_scu("(b) 2x flood", unit, start, end))
         await asyncio.sleep(1.0)
 
         lift.jog("bench", +1)
@@ -173,6 +229,8 @@ async def in_process(seconds: float) -> float:
         await asyncio.sleep(0)
         end = blocked + 1.0
         worst = max(worst, report("(d) loop blocked 1 s", heard, blocked - 0.3, end))
+        # the SCU under control but nothing running: RC goes on from the line's thread through the block
+        report_scu("(d) loop blocked 1 s", unit, blocked - 0.3, end)
         stop_lift = [t for t, d in heard["Electrak 0x06"].between(electrak.CONTROL_ID, blocked, end) if not d[7] & 0x01]
         stop_heater = [t for t, d in heard["M3IO DigOut"].between(DIGOUT_ID, blocked, end) if not d[0] & DIGOUT_SSR1]
         for name, found in (("Electrak enable cleared", stop_lift), ("M3IO SSR1 off", stop_heater)):
@@ -181,9 +239,18 @@ async def in_process(seconds: float) -> float:
     finally:
         beating.cancel()
         await runtime.stop()
+        unit.stop()
         for h in heard.values():
             h.close()
     return worst
+
+
+def free_tcp_port() -> int:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
 
 
 CHROMIUM_PLANT = """
@@ -223,10 +290,11 @@ sw1 = 0x1A
 
 def with_pages(seconds: float, pages: int) -> float | None:
     """(c): the app in a process of its own, ``pages`` chromium pages open, keep-alives heard from here."""
-    sys.path.insert(0, str(ROOT / "tests"))
+    sys.path.insert(0, str(ROOT / "bench"))
+    from liveapp import running_app  # the app in a process of its own, as the other benchmarks start it (no tests/)
+
     try:
         from playwright.sync_api import sync_playwright
-        from webutil import free_port, running_app  # noqa: F401
     except ImportError as exc:
         print(f"  (c) skipped: {exc}")
         return None
