@@ -7,71 +7,35 @@ Electrak page recorded with their target, speed and current limit.
 from __future__ import annotations
 
 from collections.abc import AsyncIterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 from nicegui import ui
 from nicegui.testing import User
-from webutil import eventually, private_endpoints, simulated_user
+from plants import ELECTRAK_ACTUATORS, electrak_bus, modbus_line, plant
+from webutil import PageEnv, eventually, pages_on
 
-from app.plant import parse_plant
-from app.runtime import Runtime
+from app.plant import Plant
 
 pytestmark = pytest.mark.timeout(60)
 
-PLANT = """
-name = "ap"
+def audit_plant() -> Plant:
+    """An HD-Lock on an RTU line and an Electrak network of one actuator."""
+    return plant(modbus_line(baudrate=19200, parity="E", timeout=0.5, poll_period=0.5, retries=None),
+                 electrak_bus(actuators=ELECTRAK_ACTUATORS[:1], simulate=True), name="ap")
 
-[[bus]]
-name = "line1"
-type = "modbus-rtu"
-port = "socket://127.0.0.1:5020"
-baudrate = 19200
-parity = "E"
-timeout = 0.5
-poll_period = 0.5
-simulate = true
-
-[[device]]
-name = "door-1"
-type = "hdlock"
-bus = "line1"
-address = 1
-
-[[bus]]
-name = "can2"
-type = "can"
-interface = "virtual"
-channel = "ap-can2"
-bitrate = 500000
-simulate = true
-
-[[device]]
-name = "lift"
-type = "electrak"
-bus = "can2"
-actuators = [{ model = "HD24", gearing = "B026", stroke_mm = 300 }]
-"""
 
 LONG = ("refused: SettingsRemoveMagnet = 1 needs a confirmation: Security risk: with SettingsRemoveMagnet = 1 the bolt "
         "retracts as soon as the magnetic field of the strike plate weakens, even while locking is requested (END)")
 
 
-@dataclass
-class Env:
-    user: User
-    runtime: Runtime
+Env = PageEnv
 
 
 @pytest.fixture
 async def env(tmp_path: Path) -> AsyncIterator[Env]:
-    plant = private_endpoints(parse_plant(PLANT), tmp_path.name)
-    runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
-        await eventually(lambda: all(s.status == "online" for s in runtime.store.devices.values()), timeout=15,
-                         what="every device online")
-        yield Env(user, runtime)
+    async with pages_on(audit_plant(), tmp_path) as env:
+        yield env
 
 
 def _one(user: User, kind, test=lambda e: True):

@@ -9,85 +9,37 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import AsyncIterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 from nicegui import ui
 from nicegui.testing import User
-from webutil import eventually, private_endpoints, simulated_user
+from plants import can_bus, device, modbus_line, mo64_tcp, plant
+from webutil import PageEnv, eventually, pages_on
 
 from app import backup
-from app.plant import parse_plant
-from app.runtime import Runtime
+from app.plant import Plant
 from devices.hdlock.params import PARAMS
 from devices.params import backup_entry
 
 pytestmark = pytest.mark.timeout(60)
 
-PLANT = """
-name = "bp"
-
-[[bus]]
-name = "line1"
-type = "modbus-rtu"
-port = "socket://127.0.0.1:5020"
-baudrate = 19200
-parity = "E"
-timeout = 0.5
-poll_period = 0.5
-simulate = true
-
-[[device]]
-name = "door-1"
-type = "hdlock"
-bus = "line1"
-address = 1
-
-[[bus]]
-name = "can3"
-type = "can"
-interface = "virtual"
-channel = "bp-can3"
-bitrate = 500000
-simulate = true
-
-[[device]]
-name = "heater-hm"
-type = "m3io"
-bus = "can3"
-variant = "HM"
-sw1 = 0x1A
-master = "always"  # no PLC here: the tool serves the module's watchdog, so it answers
-
-[[bus]]
-name = "gate-tcp"
-type = "logited-tcp"
-host = "127.0.0.1"
-port = 5040
-simulate = true
-
-[[device]]
-name = "barrier-in"
-type = "mo64"
-bus = "gate-tcp"
-"""
+def backup_plant() -> Plant:
+    """An HD-Lock on an RTU line, an M3IO HM in unaddressed mode and an MO 64 on TCP."""
+    # master "always": no PLC here, the tool serves the module's watchdog, so it answers
+    heater = device("heater-hm", "m3io", "can3", variant="HM", sw1=0x1A, master="always")
+    return plant(modbus_line(baudrate=19200, parity="E", timeout=0.5, poll_period=0.5, retries=None),
+                 can_bus(heater, name="can3", bitrate=500000),
+                 mo64_tcp("barrier-in", "gate-tcp", travel_s=None, timeout=None, poll_period=None), name="bp")
 
 
-@dataclass
-class Env:
-    user: User
-    runtime: Runtime
+Env = PageEnv
 
 
 @pytest.fixture
 async def env(tmp_path: Path) -> AsyncIterator[Env]:
-    plant = private_endpoints(parse_plant(PLANT), tmp_path.name)
-    runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
-        await eventually(lambda: all(s.status == "online" for s in runtime.store.devices.values()), timeout=15,
-                         what="every device online")
-        yield Env(user, runtime)
+    async with pages_on(backup_plant(), tmp_path) as env:
+        yield env
 
 
 def _elements(user: User, kind):

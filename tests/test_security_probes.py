@@ -9,36 +9,17 @@ tablet viewer); the "browsers" are an HTTP client and a socket.io client each (t
 from __future__ import annotations
 
 import asyncio
-import os
 import sqlite3
-import subprocess
-import sys
 
 import pytest
 from conftest import free_port
 from socket_browser import SocketBrowser
-from webutil import wait_http
+from plants import modbus_line, plant_text
+from webutil import serve_beyond_loopback, stop_app, wait_http
 
 from app.users import UserStore
 
 pytestmark = pytest.mark.timeout(120)
-
-PLANT = """
-[[bus]]
-name = "line1"
-type = "modbus-rtu"
-port = "socket://127.0.0.1:{bus_port}"
-timeout = 0.2
-poll_period = 0.2
-simulate = true
-
-[[device]]
-name = "door-1"
-type = "hdlock"
-bus = "line1"
-address = 1
-"""
-
 
 @pytest.fixture(scope="module")
 def beyond_loopback(tmp_path_factory):
@@ -48,26 +29,14 @@ def beyond_loopback(tmp_path_factory):
     store = UserStore(data / "users.toml")
     store.add("anna", "engineer", "correct horse")
     store.add("tablet", "viewer", "battery staple")
-    (folder / "plant.toml").write_text(PLANT.format(bus_port=free_port()))
+    (folder / "plant.toml").write_text(plant_text(modbus_line(timeout=0.2, poll_period=0.2, retries=None), name=None))
     port = free_port()
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    for key in ("NICEGUI_USER_SIMULATION", "PYTEST_CURRENT_TEST", "NICEGUI_STORAGE_PATH"):
-        env.pop(key, None)
-    log = folder / "app.log"
-    with open(log, "wb") as out:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "app.cli", "--plant", str(folder / "plant.toml"), "--host", "0.0.0.0", "--port", str(port),
-             "--data-dir", str(data)], cwd=folder, env=env, stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
-        )
+    proc = serve_beyond_loopback(folder, port, data)
     try:
         wait_http(f"http://127.0.0.1:{port}/login", proc, timeout=40)
-        yield f"http://127.0.0.1:{port}", data, log
+        yield f"http://127.0.0.1:{port}", data, folder / "app.log"
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        stop_app(proc)
 
 
 def audit_rows(data, parameter: str) -> list[tuple[str, str, str, str]]:

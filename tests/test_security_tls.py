@@ -9,32 +9,18 @@ import os
 import ssl
 import stat
 import subprocess
-import sys
 import time
 
 import httpx
 import pytest
 from conftest import free_port
+from plants import modbus_line, plant_text
+from webutil import serve_beyond_loopback, stop_app
 
 from app.cli import main, reachable_urls
 from app.users import UserStore
 
 pytestmark = pytest.mark.timeout(90)
-
-PLANT = """
-[[bus]]
-name = "line1"
-type = "modbus-rtu"
-port = "socket://127.0.0.1:{bus_port}"
-simulate = true
-
-[[device]]
-name = "door-1"
-type = "hdlock"
-bus = "line1"
-address = 1
-"""
-
 
 def test_user_add_makes_the_data_folder_owner_only(tmp_path, monkeypatch):
     data = tmp_path / "new" / "data"
@@ -79,17 +65,10 @@ def test_https_with_secure_session_cookies(tmp_path):
                     "-keyout", str(key), "-out", str(cert)], check=True, capture_output=True, timeout=60)
     data = tmp_path / "data"
     UserStore(data / "users.toml").add("anna", "engineer", "correct horse")
-    (tmp_path / "plant.toml").write_text(PLANT.format(bus_port=free_port()))
+    (tmp_path / "plant.toml").write_text(plant_text(modbus_line(timeout=None, poll_period=None, retries=None), name=None))
     port = free_port()
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    for name in ("NICEGUI_USER_SIMULATION", "PYTEST_CURRENT_TEST", "NICEGUI_STORAGE_PATH"):
-        env.pop(name, None)
+    proc = serve_beyond_loopback(tmp_path, port, data, "--tls-cert", str(cert), "--tls-key", str(key))
     log = tmp_path / "app.log"
-    with open(log, "wb") as out:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "app.cli", "--plant", str(tmp_path / "plant.toml"), "--host", "0.0.0.0", "--port", str(port),
-             "--data-dir", str(data), "--tls-cert", str(cert), "--tls-key", str(key)],
-            cwd=tmp_path, env=env, stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
     try:
         with httpx.Client(verify=ssl.create_default_context(cafile=str(cert)), timeout=10) as client:
             answer = https_answer(client, f"https://127.0.0.1:{port}/login", proc, log)
@@ -101,11 +80,7 @@ def test_https_with_secure_session_cookies(tmp_path):
         printed = log.read_text()
         assert f"https://127.0.0.1:{port}/" in printed and "0.0.0.0" not in printed.split("at ", 1)[-1].splitlines()[0]
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        stop_app(proc)
 
 
 def https_answer(client: httpx.Client, url: str, proc: subprocess.Popen, log, timeout: float = 60.0) -> httpx.Response:

@@ -6,7 +6,11 @@ import asyncio
 import contextlib
 import importlib
 import os
-from collections.abc import Callable
+import subprocess
+import sys
+from collections.abc import AsyncIterator, Callable
+from dataclasses import dataclass
+from pathlib import Path
 
 import liveapp
 from liveapp import DEMO_PLANT, ROOT, free_port, running_app, start_app, stop_app, wait_http  # noqa: F401 - for the tests
@@ -80,6 +84,27 @@ async def simulated_user(runtime):
             rt.set_current(None)
 
 
+@dataclass
+class PageEnv:
+    """NiceGUI's simulated user and the app it talks to."""
+
+    user: object  # nicegui.testing.User
+    runtime: object  # app.runtime.Runtime
+
+
+@contextlib.asynccontextmanager
+async def pages_on(plant, folder: Path, online_within_s: float = 15) -> AsyncIterator[PageEnv]:
+    """The pages of ``plant`` (its twins simulated here, data in ``folder``) for NiceGUI's simulated user,
+    once every device answers."""
+    from app.runtime import Runtime
+
+    runtime = Runtime(plant, simulate=True, data_dir=folder / "data")
+    async with simulated_user(runtime) as user:
+        await eventually(lambda: all(s.status == "online" for s in runtime.store.devices.values()),
+                         timeout=online_within_s, what="every device online")
+        yield PageEnv(user, runtime)
+
+
 # -- the app as a separate process (browser tests): bench/liveapp.py, as the benchmarks start it ----------
 
 
@@ -89,6 +114,19 @@ def demo_plant_text(bus_port: int) -> str:
     text = liveapp.demo_plant_text(bus_port)
     assert f"socket://127.0.0.1:{bus_port}" in text, "demo plant no longer names socket://127.0.0.1:5020"
     return text
+
+
+def serve_beyond_loopback(folder: Path, port: int, data: Path, *args: str) -> subprocess.Popen:
+    """``python -m app.cli`` on ``folder/plant.toml`` listening on every interface (every browser logs in),
+    its data in ``data``, its output in ``folder/app.log``; run in ``folder``, where NiceGUI keeps its storage."""
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    for key in ("NICEGUI_USER_SIMULATION", "PYTEST_CURRENT_TEST", "NICEGUI_STORAGE_PATH"):
+        env.pop(key, None)
+    with open(folder / "app.log", "wb") as out:
+        return subprocess.Popen(
+            [sys.executable, "-m", "app.cli", "--plant", str(folder / "plant.toml"), "--host", "0.0.0.0", "--port", str(port),
+             "--data-dir", str(data), *args], cwd=folder, env=env, stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
+        )
 
 
 def private_endpoints(plant, tag: str):
@@ -105,5 +143,5 @@ def private_endpoints(plant, tag: str):
     return plant
 
 
-__all__ = ["DEMO_PLANT", "ROOT", "demo_plant_text", "eventually", "free_port", "private_endpoints", "running_app",
+__all__ = ["DEMO_PLANT", "PageEnv", "ROOT", "pages_on", "demo_plant_text", "eventually", "free_port", "private_endpoints", "running_app", "serve_beyond_loopback",
            "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "wait_http"]
