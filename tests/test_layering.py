@@ -470,3 +470,44 @@ def test_long_function_reader(lines, expected):
     if "Card.build" in expected:
         source += "class Card:\n    def build(self):\n        '''doc'''\n" + body.replace("    ", "        ")
     assert long_functions_in(source) == expected
+
+
+# -- the bus worker stays split by job, and page classes stay small cards (issue 27) ------------------------------
+WORKER_MODULE_LINES = 320  # app/worker/: one module per job (transports, adoption, polling, discovery, dead-man, ...)
+WORKER_FUNCTION_LINES = 50
+MAX_PAGE_CLASS_ATTRIBUTES = 30  # the CAN monitor once held 49; a view composes cards that hold their own
+
+
+def test_every_part_of_the_worker_is_small():
+    long = {}
+    for path in _python_files("app/worker"):
+        text = path.read_text(encoding="utf-8")
+        rel = path.relative_to(ROOT).as_posix()
+        if text.count("\n") > WORKER_MODULE_LINES:
+            long[rel] = text.count("\n")
+        long.update({f"{rel}::{name}": n for name, n in long_functions_in(text, WORKER_FUNCTION_LINES).items()})
+    assert long == {}
+
+
+def instance_attributes(source: str) -> dict[str, int]:
+    """``{class name: how many attributes its methods set on self}`` of every class in ``source``."""
+    counts = {}
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ClassDef):
+            counts[node.name] = len({n.attr for n in ast.walk(node) if isinstance(n, ast.Attribute)
+                                     and isinstance(n.ctx, ast.Store) and getattr(n.value, "id", "") == "self"})
+    return counts
+
+
+def test_no_page_class_holds_over_30_attributes():
+    offenders = {}
+    for path in _python_files("pages"):
+        for name, count in instance_attributes(path.read_text(encoding="utf-8")).items():
+            if count > MAX_PAGE_CLASS_ATTRIBUTES:
+                offenders[f"{path.relative_to(ROOT).as_posix()}::{name}"] = count
+    assert offenders == {}
+
+
+def test_attribute_counter():
+    source = "class A:\n    def __init__(self):\n        self.a = self.b = 1\n        self.a += 1\n        x.c = 2\n"
+    assert instance_attributes(source) == {"A": 2}
