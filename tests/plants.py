@@ -32,11 +32,12 @@ def channel(prefix: str) -> str:
 # -- the usual buses ----------------------------------------------------------------------------
 
 
-def modbus_line(locks=(("door-1", 1),), port: int | None = None, name: str = "line1", **options) -> str:
-    """A simulated RTU line on ``port`` (a free one by default) with HD-Lock ``(name, address)`` pairs."""
+def modbus_line(locks=(("door-1", 1),), port: int | str | None = None, name: str = "line1", **options) -> str:
+    """A simulated RTU line on TCP ``port`` (a free one by default; text: a serial device or URL as it is)
+    with HD-Lock ``(name, address)`` pairs."""
     options = {"timeout": 0.2, "retries": 0, "poll_period": 0.1, "simulate": True, **options}
     return bus(name, "modbus-rtu", *(device(lock, "hdlock", name, address=address) for lock, address in locks),
-               port=f"socket://127.0.0.1:{port or free_port()}", **options)
+               port=port if isinstance(port, str) else f"socket://127.0.0.1:{port or free_port()}", **options)
 
 
 def can_bus(*devices: str, name: str = "can1", channel_name: str | None = None, **options) -> str:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 from conftest import free_port, sim_process, wait_for
+from plants import bus, can_bus, device, modbus_line, plant_text
 
 from app.cli import main
 from app.plant import parse_plant
@@ -37,16 +38,13 @@ def test_malformed_plant_stops_with_its_line(tmp_path, capsys):
 
 def test_sim_without_simulated_bus_says_so(tmp_path, capsys):
     plant = tmp_path / "real.toml"
-    plant.write_text('[[bus]]\nname = "l"\ntype = "modbus-rtu"\nport = "/dev/ttyUSB0"\n')
+    plant.write_text(plant_text(bus("l", "modbus-rtu", port="/dev/ttyUSB0"), name=None))
     assert main(["sim", "--plant", str(plant)]) == 2
     assert "simulate = true" in capsys.readouterr().err
 
 
 async def test_missing_serial_port_is_reported_and_worker_keeps_running():
-    plant = parse_plant(
-        '[[bus]]\nname = "l"\ntype = "modbus-rtu"\nport = "/dev/ttyNOPE"\ntimeout = 0.1\npoll_period = 0.1\n'
-        '[[device]]\nname = "d"\ntype = "hdlock"\nbus = "l"\naddress = 1\n'
-    )
+    plant = parse_plant(_missing_port_plant())
     runtime = Runtime(plant, simulate=False)
     await runtime.start()
     try:
@@ -61,11 +59,8 @@ async def test_missing_serial_port_is_reported_and_worker_keeps_running():
 
 async def test_gui_worker_talks_to_commission_sim_in_another_process(tmp_path):
     port = free_port()
-    text = (
-        f'[[bus]]\nname = "line1"\ntype = "modbus-rtu"\nport = "socket://127.0.0.1:{port}"\nsimulate = true\n'
-        "timeout = 0.3\npoll_period = 0.1\n"
-        '[[device]]\nname = "door-1"\ntype = "hdlock"\nbus = "line1"\naddress = 3\nserial = 123456\n'
-    )
+    text = plant_text(bus("line1", "modbus-rtu", device("door-1", "hdlock", "line1", address=3, serial=123456),
+                          port=f"socket://127.0.0.1:{port}", simulate=True, timeout=0.3, poll_period=0.1), name=None)
     path = tmp_path / "plant.toml"
     path.write_text(text)
     with sim_process(path) as (_proc, line):
@@ -85,12 +80,7 @@ async def test_gui_worker_talks_to_commission_sim_in_another_process(tmp_path):
 
 
 def test_headless_backup_and_restore(tmp_path, capsys):
-    port = free_port()
-    plant = tmp_path / "plant.toml"
-    plant.write_text(
-        f'[[bus]]\nname = "line1"\ntype = "modbus-rtu"\nport = "socket://127.0.0.1:{port}"\nsimulate = true\ntimeout = 0.3\n'
-        'poll_period = 0.1\n[[device]]\nname = "door-1"\ntype = "hdlock"\nbus = "line1"\naddress = 1\n'
-    )
+    plant = _sim_plant(tmp_path, free_port())
     data = ["--data-dir", str(tmp_path / "data")]
     assert main(["backup", "--plant", str(plant), "--out", str(tmp_path / "out"), *data]) == 0
     files = list((tmp_path / "out").glob("door-1-*.json"))
@@ -105,12 +95,7 @@ def test_headless_backup_and_restore(tmp_path, capsys):
 
 
 def test_restore_yes_refuses_risky_values_unless_named(tmp_path, capsys):
-    port = free_port()
-    plant = tmp_path / "plant.toml"
-    plant.write_text(
-        f'[[bus]]\nname = "line1"\ntype = "modbus-rtu"\nport = "socket://127.0.0.1:{port}"\nsimulate = true\ntimeout = 0.3\n'
-        'poll_period = 0.1\n[[device]]\nname = "door-1"\ntype = "hdlock"\nbus = "line1"\naddress = 1\n'
-    )
+    plant = _sim_plant(tmp_path, free_port())
     data = ["--data-dir", str(tmp_path / "data")]
     assert main(["backup", "--plant", str(plant), "--out", str(tmp_path / "out"), *data]) == 0
     path = next((tmp_path / "out").glob("door-1-*.json"))
@@ -139,11 +124,14 @@ def _listener():
 
 def _sim_plant(tmp_path, port):
     plant = tmp_path / "plant.toml"
-    plant.write_text(
-        f'[[bus]]\nname = "line1"\ntype = "modbus-rtu"\nport = "socket://127.0.0.1:{port}"\nsimulate = true\ntimeout = 0.3\n'
-        'poll_period = 0.1\n[[device]]\nname = "door-1"\ntype = "hdlock"\nbus = "line1"\naddress = 1\n'
-    )
+    plant.write_text(plant_text(modbus_line(port=port, timeout=0.3, poll_period=0.1, retries=None), name=None))
     return plant
+
+
+def _missing_port_plant() -> str:
+    """A lock on a serial port that does not exist."""
+    return plant_text(modbus_line((("d", 1),), "/dev/ttyNOPE", "l", timeout=0.1, poll_period=0.1, retries=None,
+                                  simulate=None), name=None)
 
 
 def test_gui_port_in_use_is_named_and_no_url_printed(tmp_path, capsys):
@@ -171,10 +159,8 @@ def test_simulated_port_taken_refuses_to_start(tmp_path, capsys, command):
 def test_backup_skips_a_device_with_nothing_to_back_up(tmp_path, capsys):
     """An M3IO in simple mode (SW1 switch 8 off) has no stored data: skipped with the reason, the run succeeds."""
     plant = tmp_path / "plant.toml"
-    plant.write_text(
-        f'[[bus]]\nname = "can3"\ntype = "can"\ninterface = "virtual"\nchannel = "cli-{id(tmp_path)}"\nbitrate = 500000\n'
-        'simulate = true\n[[device]]\nname = "heater"\ntype = "m3io"\nbus = "can3"\nvariant = "HM"\nsw1 = 0x1A\n'
-    )
+    plant.write_text(plant_text(can_bus(device("heater", "m3io", "can3", variant="HM", sw1=0x1A), name="can3",
+                                        bitrate=500000), name=None))
     assert main(["backup", "--plant", str(plant), "--out", str(tmp_path / "out"), "--data-dir", str(tmp_path / "d")]) == 0
     out = capsys.readouterr()
     assert "heater: skipped" in out.out and "addressed mode" in out.out
@@ -214,8 +200,7 @@ def test_ctrl_c_stops_the_gui_with_one_line(tmp_path):
 
 def test_ctrl_c_stops_a_backup_with_one_line(tmp_path):
     plant = tmp_path / "plant.toml"
-    plant.write_text('[[bus]]\nname = "l"\ntype = "modbus-rtu"\nport = "/dev/ttyNOPE"\ntimeout = 0.1\npoll_period = 0.1\n'
-                     '[[device]]\nname = "d"\ntype = "hdlock"\nbus = "l"\naddress = 1\n')
+    plant.write_text(_missing_port_plant())
     done = _interrupted(["backup", "--plant", str(plant), "--out", str(tmp_path / "out")], "waiting", tmp_path)
     assert "Traceback" not in done.stderr and "KeyboardInterrupt" not in done.stderr
     assert "commission: stopped (Ctrl-C)" in done.stderr
