@@ -413,7 +413,9 @@ class ServiceCard:
             ui.label(f"The right password is written to 0xFF before each read or write. Each of the {len(view.actuators)} actuators "
                      "answers for itself: a read or write fails unless every one answers alike. Changes hold until power-off "
                      "unless saved.").classes("text-caption text-grey-8")
-            with ui.grid(columns=5).classes("w-full items-center gap-x-4 gap-y-1"):
+            # specifier, name, value, entry, Write: the entry takes what is left up to 12rem, never over the button
+            with ui.grid(columns="auto minmax(7rem, 1fr) minmax(7rem, 1fr) minmax(7rem, 12rem) auto") \
+                    .classes("w-full items-center gap-x-4 gap-y-1"):
                 for h in ("Specifier", "Parameter", "Value (every actuator)", "New value", ""):
                     ui.label(h).classes("text-caption text-grey-8")
                 for p in PARAMS:
@@ -454,7 +456,7 @@ class ServiceCard:
         raw = state.raw(param)
         if read is not None and read != before and raw is not None:
             value = param.decode(raw)
-            entry.value = value
+            _show(entry, value)
             entry.error = None
             self.shown[param.key] = value
 
@@ -465,8 +467,7 @@ class ServiceCard:
             return
         value = p.decode(raw)
         if entry.value is None or entry.value in (self.shown.get(key), value):  # untouched
-            if entry.value != value:
-                entry.value = value
+            _show(entry, value)
             self.shown[key] = value
 
     def read_once(self) -> None:
@@ -529,13 +530,23 @@ async def _save(view: ElectrakView) -> None:
         ui.notify(f"parameters saved: the network accepted the {form}", type="positive")
 
 
+def _show(entry: ui.number, value) -> None:
+    """Put the device's ``value`` in the field as the device has it: 321, not the 321.0 a field shows after
+    it held a fraction (the number element keeps the form of what it held before)."""
+    text = str(int(value)) if float(value).is_integer() else str(value)
+    if entry.value == value and entry.props.get(entry.VALUE_PROP) == text:
+        return
+    entry.value = None  # the element takes the integer form from an empty field
+    entry.value = value
+
+
 def service_entry(param, raw: int | None) -> ui.number:
     """The entry of one service parameter, starting at the actuators' value when it is known: a fraction where
     the parameter takes whole numbers, a finer step than its unit (0.1 mm) or a value out of its range is
     marked on the field with what is allowed (never rounded, never clamped)."""
     low, high = param.limits()
     value = None if raw is None else param.decode(raw)
-    entry = range_number("", low, high, unit=param.unit, integer=param.scale == 1, value=value).classes("w-48")
+    entry = range_number("", low, high, unit=param.unit, integer=param.scale == 1, value=value).classes("w-full")
     whole = entry.validation  # range_number's check: whole numbers and the range
 
     def check(v) -> str | None:

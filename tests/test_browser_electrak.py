@@ -7,6 +7,7 @@ import re
 
 import pytest
 from conftest import CHROMIUM, inside_viewport
+from playwright.sync_api import expect
 from webutil import running_app
 
 pytestmark = pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed")
@@ -130,5 +131,32 @@ def test_message_timeout_while_idle_is_not_a_red_fault(app_url, chromium):
         assert page.locator('[data-lamp="Message timeout"]').get_attribute("data-idle") == "0"
         assert page.get_by_test_id("idle-note").inner_text() == ""
         page.screenshot(path="/tmp/shots/electrak-control-1440.png")
+    finally:
+        page.close()
+
+
+def test_service_parameter_entry_in_the_browser(app_url, chromium):
+    """Issue 32 item 6: the fields start at the actuators' values; a fraction is refused on the field with what is
+    allowed; Enter writes, and the field then holds the value read back."""
+    page = chromium.new_page(viewport={"width": 1440, "height": 900})
+    try:
+        page.goto(f"{app_url}/device/lift")
+        soft_start = page.locator('[data-testid="entry-01"] input, input[data-testid="entry-01"]')
+        page.wait_for_function("""() => { const e = document.querySelector('[data-testid="entry-01"] input, input[data-testid="entry-01"]');
+            return e && e.value !== ''; }""", timeout=10_000)  # the page read the actuators' values by itself
+        soft_start.fill("12.5")
+        soft_start.press("Enter")
+        card = page.locator(".q-card", has=soft_start)
+        card.get_by_text(re.compile(r"whole numbers only, allowed 0 \.\. 65535 ms")).wait_for(timeout=15_000)
+        assert soft_start.input_value() == "12.5"  # kept as typed, not rounded to 12
+        soft_start.fill("321")
+        soft_start.press("Enter")
+        page.locator(".q-notification").get_by_text("Soft start time = 321 ms written and read back").wait_for(timeout=10_000)
+        assert soft_start.input_value() == "321"
+        expect(card.get_by_text("whole numbers only")).to_have_count(0)  # the mark went with the good value
+        for width, height in ((1440, 900), (768, 1024)):
+            page.set_viewport_size({"width": width, "height": height})
+            card.get_by_text("Service parameters").scroll_into_view_if_needed()
+            card.screenshot(path=f"/tmp/shots/electrak-service-{width}x{height}.png")
     finally:
         page.close()
