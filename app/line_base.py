@@ -8,7 +8,8 @@ its own port handling and request rules; here are only the parts that are the sa
 * :class:`Transaction`: one line of the bus monitor's log, appended by :meth:`LineBase._record`;
 * :class:`Backoff`: when a line that could not open (or was lost) may try again;
 * :meth:`LineBase._opened` / :meth:`LineBase._open_failed`: ``BusState.connected``, ``last_error``
-  and the backoff, kept together.
+  and the backoff, kept together;
+* :func:`serial_port`: the 8N1 pyserial port of the serial lines.
 """
 
 from __future__ import annotations
@@ -85,6 +86,15 @@ class Backoff:
     def resume(self) -> None:
         """Try at once next time."""
         self.next_try = 0.0
+
+
+def serial_port(options: dict):
+    """An unopened pyserial port (device path or URL) for the plant file's ``port`` and ``baudrate``:
+    8N1, reads that wait at most 50 ms, writes at most 1 s."""
+    import serial  # pyserial only for the lines that use a serial port
+
+    return serial.serial_for_url(options["port"], do_not_open=True, baudrate=options["baudrate"], bytesize=8,
+                                 parity=serial.PARITY_NONE, stopbits=1, timeout=0.05, write_timeout=1.0)
 
 
 class LineBase:

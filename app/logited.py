@@ -19,7 +19,7 @@ import logging
 import time
 from collections.abc import Awaitable, Callable
 
-from app.line_base import LineBase
+from app.line_base import LineBase, serial_port
 from app.state import BusState
 from devices.transport import SerialClosed, SerialTimeout
 
@@ -339,11 +339,7 @@ class LogitedRs485(_LogitedLine):
 
     # -- the port -----------------------------------------------------------------------
     def _open_blocking(self):
-        import serial
-
-        o = self.options
-        port = serial.serial_for_url(o["port"], do_not_open=True, baudrate=o["baudrate"], bytesize=8,
-                                     parity=serial.PARITY_NONE, stopbits=1, timeout=0.05, write_timeout=1.0)
+        port = serial_port(self.options)
         port.open()  # no input flush: on a live line it could drop the token meant for this master
         return port
 

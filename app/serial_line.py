@@ -25,7 +25,7 @@ from collections.abc import Callable
 
 import serial
 
-from app.line_base import LineBase
+from app.line_base import LineBase, serial_port
 from app.state import BusState
 from devices.transport import Completion, SerialClosed, SerialLineError, SerialTimeout  # noqa: F401 - raised here, caught by adapters
 
@@ -81,9 +81,7 @@ class SerialLine(LineBase):
 
     # -- the port -----------------------------------------------------------------------
     def _open_blocking(self) -> serial.SerialBase:
-        o = self.options
-        port = serial.serial_for_url(o["port"], do_not_open=True, baudrate=o["baudrate"], bytesize=8,
-                                     parity=serial.PARITY_NONE, stopbits=1, timeout=0.05, write_timeout=1.0)
+        port = serial_port(self.options)
         port.dtr = True  # the unit's RS232 converter is powered from DTR and RTS
         port.rts = True
         port.open()
