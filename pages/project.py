@@ -27,8 +27,8 @@ from pages.widgets import confirm, follow, viewer_reason
 
 PROJECT_COLUMNS = [
     {"name": "name", "label": "Parameter", "field": "name", "align": "left"},
-    {"name": "backup", "label": "Project", "field": "backup", "align": "left", "style": WRAP},
-    {"name": "current", "label": "Device now", "field": "current", "align": "left", "style": WRAP},
+    {"name": "backup", "label": "Project", "field": "backup", "align": "left", "style": WRAP + "; min-width: 5rem"},
+    {"name": "current", "label": "Device now", "field": "current", "align": "left", "style": WRAP + "; min-width: 5rem"},
     {"name": "state", "label": "", "field": "state", "align": "left", "style": WRAP},
     {"name": "actions", "label": "Reconcile", "field": "key", "align": "left"},
 ]

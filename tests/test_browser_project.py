@@ -4,38 +4,43 @@ refused). One app, one simulated HD-Lock with a project and one on a line nothin
 
 from __future__ import annotations
 
+import json
+import urllib.request
 from pathlib import Path
 
 import pytest
+from conftest import CHROMIUM, wait_devices_online
 from test_project_page import PLANT
 from webutil import free_port, running_app
 
 from app.plant import load_plant
 
-CHROMIUM = Path("/usr/bin/chromium")
 if not CHROMIUM.exists():
     pytest.skip(f"{CHROMIUM} is not installed", allow_module_level=True)
 
-from playwright.sync_api import expect, sync_playwright  # noqa: E402
-from test_browser_fleet import SHOTS, _online, _shots, _value  # noqa: E402
+from playwright.sync_api import expect  # noqa: E402
 
 pytestmark = pytest.mark.timeout(120)
+SHOTS = Path("/tmp/shots")
 
 
-def _card_shots(card, name: str) -> None:
-    """The card alone at both widths (a whole device page takes seconds to capture)."""
+def _shots(page, name: str, part=None) -> None:
+    """The page (or only ``part`` of it: a whole device page takes seconds to capture) at both widths."""
+    SHOTS.mkdir(exist_ok=True)
     for width, height in ((1440, 900), (768, 1024)):
-        card.page.set_viewport_size({"width": width, "height": height})
-        card.screenshot(path=str(SHOTS / f"{name}-{width}x{height}.png"))
-    card.page.set_viewport_size({"width": 1440, "height": 900})
+        page.set_viewport_size({"width": width, "height": height})
+        path = str(SHOTS / f"{name}-{width}x{height}.png")
+        if part is not None:
+            part.screenshot(path=path)
+        else:
+            page.screenshot(path=path, full_page=True)
+    page.set_viewport_size({"width": 1440, "height": 900})
 
 
-def test_project_card_and_editor_in_the_browser(tmp_path: Path):
-    with running_app(PLANT.format(port=free_port(), silent=free_port()), tmp_path) as url, sync_playwright() as pw:
-        _online(url, ("door-1",))
-        browser = pw.chromium.launch(executable_path=str(CHROMIUM),
-                                     args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"])
-        page = browser.new_page(viewport={"width": 1440, "height": 900})
+def test_project_card_and_editor_in_the_browser(tmp_path: Path, chromium):
+    with running_app(PLANT.format(port=free_port(), silent=free_port()), tmp_path) as url:
+        wait_devices_online(url, ["door-1"])
+        page = chromium.new_page(viewport={"width": 1440, "height": 900})
         try:
             # the device page: the one differing entry, applied through the gate
             page.goto(url + "/device/door-1")
@@ -44,11 +49,14 @@ def test_project_card_and_editor_in_the_browser(tmp_path: Path):
             row = card.locator("tr", has_text="LockRequestDelay")
             expect(row).to_contain_text("350 ms")
             expect(row).to_contain_text("200 ms")
-            _card_shots(card, "device-project")
+            _shots(page, "device-project", card)
             card.locator('[data-project-apply="holding:3000"]').click()
-            page.locator(".q-dialog").get_by_role("button", name="Write", exact=True).click()
+            dialog = page.locator(".q-dialog")
+            expect(dialog).to_contain_text("Write LockRequestDelay = 350 ms to door-1?")
+            dialog.get_by_role("button", name="Write", exact=True).click()
             expect(card.get_by_test_id("project-summary")).to_contain_text("device and project agree", timeout=10000)
-            assert _value(url, "door-1", "LockRequestDelay") == 350
+            with urllib.request.urlopen(f"{url}/api/devices/door-1", timeout=5) as response:
+                assert json.load(response)["values"]["LockRequestDelay"]["value"] == 350
 
             # the editor on the lock that never answered: refused, then saved and shown again after a reload
             page.goto(url + "/project/door-9")
@@ -65,4 +73,4 @@ def test_project_card_and_editor_in_the_browser(tmp_path: Path):
             _shots(page, "project-editor")
             assert load_plant(tmp_path / "plant.toml").devices["door-9"].project == {"LockRequestDelay": 420}
         finally:
-            browser.close()
+            page.close()
