@@ -24,13 +24,15 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from devices import errors
+
 LITTLE = "little"
 BIG = "big"
 _ORDERS = (LITTLE, BIG)
 
 
 # -- errors ------------------------------------------------------------------------------
-class ValueCodecError(ValueError):
+class ValueCodecError(errors.CodecError):
     """Base of the errors below; ``path`` names the struct member or array item."""
 
     def __init__(self, message: str, path: str = ""):
