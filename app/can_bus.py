@@ -32,6 +32,7 @@ import statistics
 import sys
 import threading
 import time
+import weakref
 from collections import OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -295,6 +296,15 @@ def recognised_by_a_device_type(arbitration_id: int, is_extended: bool, data: by
     return False
 
 
+_BUSES: "weakref.WeakSet[CanBus]" = weakref.WeakSet()
+
+
+def keepalives_running() -> bool:
+    """Whether a periodic keep-alive (``start_periodic``) runs on some CAN bus of this process: what a long hold
+    of the interpreter lock would make late (see app.runtime.FullCollections)."""
+    return any(periodic.running() for bus in list(_BUSES) for periodic in list(bus._periodic.values()))
+
+
 class CanBus:
     """A python-can bus owned by the worker; implements :class:`devices.transport.CanTransport`.
 
@@ -335,6 +345,7 @@ class CanBus:
         self._drop_base: int | None = None  # the interface's drop counter when the bus was opened
         self._load_mark = (time.monotonic(), 0, 0)  # (time, frames, bits) at the last load figure
         self._load_marks: deque[tuple[float, int]] = deque()  # (time, bits) of the load figures of the last LOAD_PEAK_S
+        _BUSES.add(self)
 
     # -- subscriptions ---------------------------------------------------------------
     def subscribe(self, is_extended: bool, arbitration_id: int, handler: Handler) -> None:

@@ -215,6 +215,9 @@ def run_sim(args) -> int:
                         'use interface = "udp_multicast" (channel "239.74.163.2") to share it across processes',
                         file=sys.stderr, flush=True,
                     )
+        from app.runtime import freeze_startup_heap
+
+        freeze_startup_heap()  # the twins' threads and timers then wait less for the collector
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGINT, signal.SIGTERM):
@@ -464,6 +467,7 @@ def _main(argv: list[str] | None) -> int:
         print("commission: note: served beyond the loopback address without --tls-cert/--tls-key, passwords and session "
               "cookies cross the network unencrypted", file=sys.stderr, flush=True)
     announce_task: list[asyncio.Task] = []
+    kept: list[object] = []
 
     async def announce() -> None:
         """Print the URL once the server accepts connections (uvicorn binds after the startup handlers)."""
@@ -477,6 +481,13 @@ def _main(argv: list[str] | None) -> int:
                 await asyncio.sleep(0.1)
                 continue
             writer.close()
+            from app.runtime import FullCollections, freeze_startup_heap
+
+            frozen = freeze_startup_heap()  # started: what is there now stays, the collector need not walk it
+            logging.getLogger("app.cli").debug("%d objects of the start frozen", frozen)
+            collections = FullCollections()  # and the full collections wait while a motion runs under a lease
+            collections.start()
+            kept.append(collections)  # referenced while the server runs
             print(f"commission: plant '{plant.name}' ({len(plant.devices)} devices) at {url}", flush=True)
             return
         print(f"commission: the GUI did not start listening on {args.host}:{args.port}", file=sys.stderr, flush=True)

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import logging
 import os
 import tempfile
 import time
 from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 from app import memory
@@ -23,6 +25,106 @@ from app.worker import Worker
 from devices.registry import DEVICE_TYPES
 
 log = logging.getLogger(__name__)
+
+
+def freeze_startup_heap() -> int:
+    """Once the program has started: collect what the start left behind, then move every object that is
+    left (modules, pages' code, the plant, adapters: hundreds of thousands, alive for the whole run) out of
+    the cyclic collector's sight (``gc.freeze``). A full collection then walks only what was made since,
+    a fraction of the heap: it holds the interpreter lock for a few milliseconds instead of a hundred or
+    more, during which no thread of the program (the keep-alive senders among them) could run.
+    Returns the number of objects frozen. Only for a program's own process (the GUI, ``commission sim``),
+    never in a test run that starts many runtimes in one process."""
+    import gc
+
+    gc.collect()
+    gc.freeze()
+    return gc.get_freeze_count()
+
+
+class FullCollections:
+    """Full collections of the cyclic garbage collector at moments of the program's choosing.
+
+    A full collection walks every object the pages and buffers hold (with 20 pages open a hundred
+    milliseconds of CPU and more) without giving up the interpreter lock: no keep-alive thread can send
+    meanwhile, and an Electrak flags a message timeout after 250 ms. CPython starts them whenever its
+    counts say so; here the young generations stay automatic, the full collection is checked once a
+    second and runs when CPython's own count (ten collections of the middle generation) says it is due
+    and at least ``min_gap_s`` after the last one (cyclic garbage of closed pages waits that long), but
+    not while ``busy()`` (default: a motion or mains output runs under a lease, or a CAN keep-alive is
+    sent for a device under control), for at most ``longest_defer_s`` (then it runs anyway: memory
+    stays bounded). For the program's own process (the GUI), not for tests that share one interpreter.
+    """
+
+    def __init__(self, min_gap_s: float = 120.0, longest_defer_s: float = 600.0, check_s: float = 1.0,
+                 busy: Callable[[], bool] | None = None):
+        self.min_gap_s, self.longest_defer_s, self.check_s = min_gap_s, longest_defer_s, check_s
+        self.busy = busy if busy is not None else _keepalives_busy
+        self.runs = 0
+        self.deferred = 0  # checks at which it was due but a lease held it back
+        self.last_ms: float | None = None  # CPU time of the last full collection
+        self._task: asyncio.Task | None = None
+        self._thresholds: tuple[int, int, int] | None = None
+
+    def start(self) -> None:
+        import gc
+
+        self._thresholds = gc.get_threshold()
+        young, middle, _full = self._thresholds
+        gc.set_threshold(young, middle, 1 << 30)  # the full generation: only from here
+        self._task = asyncio.get_running_loop().create_task(self._run(), name="full collections")
+
+    async def stop(self) -> None:
+        import gc
+
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+            self._task = None
+        if self._thresholds is not None:
+            gc.set_threshold(*self._thresholds)
+            self._thresholds = None
+
+    def due(self, now: float, last: float, due_since: float | None, busy: bool) -> bool:
+        """Whether to collect now: due by count and gap, and nothing running under a lease (or put off too long)."""
+        if not self._counted_due(now, last):
+            return False
+        return not busy or (due_since is not None and now - due_since >= self.longest_defer_s)
+
+    def _counted_due(self, now: float, last: float) -> bool:
+        import gc
+
+        every = self._thresholds[2] if self._thresholds is not None else gc.get_threshold()[2]
+        return gc.get_count()[2] > every and now - last >= self.min_gap_s
+
+    async def _run(self) -> None:
+        import gc
+
+        last = time.monotonic()
+        due_since: float | None = None
+        while True:
+            await asyncio.sleep(self.check_s)
+            now = time.monotonic()
+            busy = self.busy()
+            if self.due(now, last, due_since, busy):
+                started = time.process_time()
+                gc.collect()
+                self.last_ms = (time.process_time() - started) * 1000
+                self.runs += 1
+                last, due_since = time.monotonic(), None
+            elif busy and self._counted_due(now, last):
+                self.deferred += 1
+                if due_since is None:
+                    due_since = now
+
+
+def _keepalives_busy() -> bool:
+    """A motion or mains output runs under a lease, or a CAN keep-alive is being sent (a device under control)."""
+    from app.can_bus import keepalives_running
+    from devices.lease import any_granted
+
+    return any_granted() or keepalives_running()
 
 
 def _open_can(name: str, options: dict[str, Any]) -> CanBus:

@@ -15,9 +15,19 @@ from __future__ import annotations
 
 import threading
 import time
+import weakref
 
 LEASE_S = 0.35  # valid this long after a renewal: with a 100 ms period the stop form leaves <= 0.35 + 0.1 s after the last renewal
 RENEW_S = 0.05  # the supervisor renews this often (app.worker.SUPERVISE_PERIOD_S)
+
+_GRANTED: "weakref.WeakSet[Lease]" = weakref.WeakSet()  # leases granted and not revoked: something runs under them
+
+
+def any_granted() -> bool:
+    """Whether some motion or mains output runs under a lease now (granted and not revoked, lapsed or not):
+    what may not wait for the interpreter (e.g. a full collection of the cyclic garbage collector, see
+    app.runtime.FullCollections) is better put off meanwhile."""
+    return any(lease.granted for lease in list(_GRANTED))
 
 
 class Lease:
@@ -40,6 +50,7 @@ class Lease:
             self._until = now + self.valid_s
             self._lapsed_at = None
             self._renewed_at = now
+        _GRANTED.add(self)
 
     def renew(self, now: float | None = None) -> bool:
         """Extend a granted lease; False (and nothing extended) when it is not granted or has lapsed."""
@@ -59,6 +70,7 @@ class Lease:
         with self._lock:
             self._until = 0.0
             self._lapsed_at = None
+        _GRANTED.discard(self)
 
     def valid(self, now: float | None = None) -> bool:
         """Whether the lease holds now; a granted lease found past its time is latched as lapsed."""
