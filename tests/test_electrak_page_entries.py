@@ -10,6 +10,7 @@ from __future__ import annotations
 import uuid
 
 import pytest
+from nicegui import ui
 from nicegui.testing.user_interaction import UserInteraction
 from test_auth import login
 from webutil import eventually, simulated_user
@@ -95,6 +96,15 @@ async def test_service_fields_start_at_the_value_enter_writes_and_bad_entries_ar
         # the field follows the actuators' value afterwards (it holds the read-back, not a typed text of its own)
         await runtime.worker.adapters["lift"].write_param(soft_start, 400)
         await eventually(lambda: start_entry.value == 400, timeout=3, what=f"field follows the device: {start_entry.value}")
+        # Enter asks the same question as the Write button where the parameter wants one (a Timeout above 250 ms)
+        timeout_entry = by_testid(user, "entry-06")
+        timeout_entry.value = 300
+        interact(user, timeout_entry).trigger("keydown.enter")
+        await user.should_see("keep moving for that long")
+        assert all(a.service.values.get(0x06) == 250 for a in twins)  # nothing sent before the answer
+        user.find(kind=ui.button, content="Cancel").click()
+        await eventually(lambda: refused(runtime, "not confirmed"), timeout=5, what="unconfirmed write audited")
+        assert all(a.service.values.get(0x06) == 250 for a in twins)
         # what the engineer typed and did not write stays until written
         start_entry.value = 555
         await runtime.worker.adapters["lift"].write_param(soft_start, 410)
