@@ -274,6 +274,7 @@ class ModbusPoll:
         self.timeouts = 0  # errors where the unit did not answer at all
         self.crc_errors = 0
         self.silent = 0  # unanswered polls in a row (the backoff)
+        self.listeners: list = []  # called with no arguments after every poll (a page shows the answer at once)
         self._task: asyncio.Task | None = None
 
     @property
@@ -330,6 +331,11 @@ class ModbusPoll:
             result = PollResult(time.time(), self.last.values if self.last else [], error=f"{type(exc).__name__}: {exc}")
         self.polls += 1
         self.last = result
+        for listener in list(self.listeners):
+            try:
+                listener()
+            except Exception:  # noqa: BLE001 - a page that went away must not end the poll
+                log.exception("%s poll window %s: listener failed", self.bus, self.number)
         return result
 
     def rows(self) -> list[Row]:

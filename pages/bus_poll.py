@@ -19,7 +19,7 @@ from pages.frame import fmt_age, frame, notify_error
 from pages.session import current_user
 from pages.widgets import all_valid, checked_value, range_number, range_text
 
-REFRESH_S = 0.25
+REFRESH_S = 0.5  # the ages and the line cycle; each answer is shown as it comes (ModbusPoll.listeners)
 BASES = {0: "0-based (protocol)", 1: "1-based (register 1 = address 0)"}
 WIDE_KINDS = {"u32": "uint32", "i32": "int32", "f32": "float32"}
 PAIR_COLUMNS = [f"{kind} {order}" for kind in WIDE_KINDS for order in mp.WORD_ORDERS]
@@ -216,6 +216,7 @@ class WindowCard:
                 "text-caption text-grey-7")
         for field in (self.unit, self.function, self.start, self.count, self.period):
             field.on_value_change(lambda _: view.save())
+        self.window.listeners.append(self.tick)  # each answer on the page as it comes; the page's timer moves the ages
         self.base.on_value_change(self.changed)
         self.error.set_visibility(False)
         self.update_table()

@@ -262,3 +262,13 @@ async def test_windows_are_numbered_and_bounded(line):
     windows.remove(opened[1])
     assert not opened[1].running and len(windows.windows) == MAX_WINDOWS - 1
     assert windows.add().number == MAX_WINDOWS + 1  # a new window never takes an open one's number
+
+
+async def test_a_window_tells_its_page_of_every_answer(line):
+    """The page shows each answer as it comes (not at its next timer tick), a broken listener does not end the poll."""
+    _runtime, poll = line
+    heard = []
+    poll.listeners += [lambda: heard.append(poll.polls), lambda: 1 / 0]
+    await poll.poll_once(PollSpec(1, 3, 1000, 1))
+    await poll.poll_once(PollSpec(7, 3, 0, 1))  # no answer: told too
+    assert heard == [1, 2]
