@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from itertools import count
 
-from liveapp import ELECTRAK_ACTUATORS, bus, device, free_port, plant_text  # noqa: F401 - bus, device: for the tests
+from liveapp import ELECTRAK_ACTUATORS, bus, device, free_port, plant_text, table  # noqa: F401 - for the tests
 
 from app.plant import Plant, parse_plant
 
@@ -52,9 +52,10 @@ def hdlock_can(name: str, device_id: int, bus_name: str = "can1", **options) -> 
 
 def scu_line(name: str = "lift", bus_name: str = "rs1", port: int | None = None, actuators=SCU_ACTUATORS,
              **options) -> str:
-    """A simulated SCU on a serial line through ``socket://``."""
+    """A simulated SCU on a serial line through ``socket://`` (``actuators``: their settings, or how many)."""
     options = {"timeout": 0.3, "poll_period": 0.2, "simulate": True, **options}
-    return bus(bus_name, "serial", device(name, "scu", bus_name, actuators=list(actuators)),
+    return bus(bus_name, "serial", device(name, "scu", bus_name,
+                                                  actuators=actuators if isinstance(actuators, int) else list(actuators)),
                port=f"socket://127.0.0.1:{port or free_port()}", **options)
 
 
@@ -99,3 +100,8 @@ def heater_and_lock(channel_name: str) -> str:
     return plant_text(can_bus(device("heater", "m3io", "can1", variant="HM", sw1=0x1A),
                               hdlock_can("lock", 335, extended=True),
                               channel_name=channel_name, bitrate=500000, poll_period=2.0, simulate=None), name=None)
+
+
+__all__ = ["ELECTRAK_ACTUATORS", "SCU_ACTUATORS", "bus", "can_bus", "channel", "device", "electrak_bus", "free_port",
+           "hdlock_can", "heater_and_lock", "modbus_line", "modbus_plant", "mo64_rs485", "mo64_tcp", "motion_plant_text",
+           "plant", "plant_text", "scu_line", "table"]

@@ -5,14 +5,14 @@ per-device results. One app, two HD-Locks on a simulated Modbus line, four page 
 from __future__ import annotations
 
 import json
-import time
 import urllib.request
 from pathlib import Path
 
 import pytest
+from conftest import CHROMIUM, CHROMIUM_ARGS, wait_devices_online
+from plants import bus, device, plant_text
 from webutil import free_port, running_app
 
-CHROMIUM = Path("/usr/bin/chromium")
 if not CHROMIUM.exists():
     pytest.skip(f"{CHROMIUM} is not installed", allow_module_level=True)
 
@@ -21,44 +21,13 @@ from playwright.sync_api import expect, sync_playwright  # noqa: E402
 pytestmark = pytest.mark.timeout(180)
 SHOTS = Path("/tmp/shots")
 
-PLANT = """name = "fleet"
-
-[[bus]]
-name = "line1"
-type = "modbus-rtu"
-port = "socket://127.0.0.1:{port}"
-timeout = 0.3
-retries = 0
-poll_period = 0.2
-simulate = true
-
-[[device]]
-name = "door-1"
-type = "hdlock"
-bus = "line1"
-address = 1
-serial = 660020
-project = {{ LockRequestDelay = 350 }}
-
-[[device]]
-name = "door-2"
-type = "hdlock"
-bus = "line1"
-address = 2
-serial = 660021
-project = {{ LockRequestDelay = 200, SettingsProximityOffsetRight = 9 }}
-"""
-
-
-def _online(url: str, names: tuple[str, ...], timeout: float = 20) -> None:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        with urllib.request.urlopen(url + "/api/devices", timeout=2) as response:
-            devices = json.load(response)
-            if all(any(d["name"] == n and d["status"] == "online" for d in devices) for n in names):
-                return
-        time.sleep(0.2)
-    raise TimeoutError(f"{names} did not come online")
+def fleet_plant() -> str:
+    """Two HD-Locks on a simulated RTU line, each with its serial and a project."""
+    locks = (device("door-1", "hdlock", "line1", address=1, serial=660020, project={"LockRequestDelay": 350}),
+             device("door-2", "hdlock", "line1", address=2, serial=660021,
+                    project={"LockRequestDelay": 200, "SettingsProximityOffsetRight": 9}))
+    return plant_text(bus("line1", "modbus-rtu", *locks, port=f"socket://127.0.0.1:{free_port()}", timeout=0.3, retries=0,
+                          poll_period=0.2, simulate=True), name="fleet")
 
 
 def _value(url: str, device: str, name: str):
@@ -75,10 +44,9 @@ def _shots(page, name: str) -> None:
 
 
 def test_project_replacement_and_batch_in_the_browser(tmp_path: Path):
-    with running_app(PLANT.format(port=free_port()), tmp_path) as url, sync_playwright() as pw:
-        _online(url, ("door-1", "door-2"))
-        browser = pw.chromium.launch(executable_path=str(CHROMIUM),
-                                     args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"])
+    with running_app(fleet_plant(), tmp_path) as url, sync_playwright() as pw:
+        wait_devices_online(url, ("door-1", "door-2"), timeout=20)
+        browser = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
         page = browser.new_page(viewport={"width": 1440, "height": 900})
         try:
             # 1. the project against each device, reconciled per row

@@ -5,34 +5,14 @@ from __future__ import annotations
 
 import pytest
 from conftest import CHROMIUM, inside_viewport
+from plants import can_bus, device, plant_text
 from webutil import running_app
 
 pytestmark = pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed")
 
-PLANT = """
-name = "m3io-test"
-[[bus]]
-name = "can3"
-type = "can"
-interface = "virtual"
-channel = "browser-m3io"
-bitrate = 500000
-simulate = true
-
-[[device]]
-name = "heater-hm"
-type = "m3io"
-bus = "can3"
-variant = "HM"
-sw1 = 0x1A
-
-[[device]]
-name = "heater-hmr"
-type = "m3io"
-bus = "can3"
-variant = "HMR"
-sw1 = 0xCA
-"""
+PLANT = plant_text(can_bus(device("heater-hm", "m3io", "can3", variant="HM", sw1=0x1A),
+                           device("heater-hmr", "m3io", "can3", variant="HMR", sw1=0xCA),
+                           name="can3", channel_name="browser-m3io", bitrate=500000), name="m3io-test")
 
 
 @pytest.fixture(scope="module")

@@ -7,33 +7,21 @@ import re
 
 import pytest
 from conftest import CHROMIUM, free_port, inside_viewport
+from plants import mo64_tcp, plant_text
 from webutil import running_app
 
 pytestmark = [pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed"), pytest.mark.timeout(90)]
 
 
-def plant_text(port: int) -> str:
-    return f"""
-name = "mo64-test"
-[[bus]]
-name = "gate-tcp"
-type = "logited-tcp"
-host = "127.0.0.1"
-port = {port}
-poll_period = 0.3
-simulate = true
-
-[[device]]
-name = "barrier-in"
-type = "mo64"
-bus = "gate-tcp"
-"""
+def mo64_plant(port: int) -> str:
+    return plant_text(mo64_tcp("barrier-in", "gate-tcp", port, travel_s=None, timeout=None, poll_period=0.3),
+                      name="mo64-test")
 
 
 def test_open_the_barrier_and_see_it_open(tmp_path, chromium):
     from playwright.sync_api import expect
 
-    with running_app(plant_text(free_port()), tmp_path) as url:
+    with running_app(mo64_plant(free_port()), tmp_path) as url:
         for width, height in ((1440, 900), (1024, 768)):
             page = chromium.new_page(viewport={"width": width, "height": height})
             page.goto(f"{url}/device/barrier-in")

@@ -7,26 +7,14 @@ import re
 
 import pytest
 from conftest import CHROMIUM, free_port, inside_viewport
+from plants import plant_text, scu_line
 from webutil import running_app
 
 pytestmark = [pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed"), pytest.mark.timeout(90)]
 
 
-def plant_text(port: int) -> str:
-    return f"""
-name = "scu-test"
-[[bus]]
-name = "rs232-1"
-type = "serial"
-port = "socket://127.0.0.1:{port}"
-simulate = true
-
-[[device]]
-name = "lift-1"
-type = "scu"
-bus = "rs232-1"
-actuators = [{{ counts_per_mm = 10 }}, {{ stroke_mm = 300 }}]
-"""
+def scu_plant(port: int) -> str:
+    return plant_text(scu_line("lift-1", "rs232-1", port, timeout=None, poll_period=None), name="scu-test")
 
 
 def counts(page) -> int:
@@ -44,7 +32,7 @@ def test_move_actuator_1_to_a_remote_position_and_stop(tmp_path, chromium):
     from playwright.sync_api import TimeoutError as PlaywrightTimeout
     from playwright.sync_api import expect
 
-    with running_app(plant_text(free_port()), tmp_path) as url:
+    with running_app(scu_plant(free_port()), tmp_path) as url:
         page = chromium.new_page(viewport={"width": 1440, "height": 900})
         try:
             page.goto(f"{url}/device/lift-1")

@@ -10,6 +10,7 @@ from __future__ import annotations
 import itertools
 
 import pytest
+from plants import ELECTRAK_ACTUATORS, can_bus, device, table
 
 from app.plant import DEMO_PLANT, PLANTS_DIR, PlantError, load_plant, parse_plant
 from devices.registry import DEVICE_TYPES
@@ -18,20 +19,20 @@ _channels = itertools.count()
 
 
 def bus(name: str = "can1") -> str:
-    return f'[[bus]]\nname = "{name}"\ntype = "can"\ninterface = "virtual"\nchannel = "ids-{name}-{next(_channels)}"\n'
+    """A CAN bus without its devices (five lines: the refusals name the line of a device)."""
+    return can_bus(name=name, channel_name=f"ids-{name}-{next(_channels)}", simulate=None)
 
 
 def electrak(name: str = "lift", bus_name: str = "can1") -> str:
-    return (f'[[device]]\nname = "{name}"\ntype = "electrak"\nbus = "{bus_name}"\n'
-            'actuators = [{ model = "HD24", gearing = "B026", stroke_mm = 300 }]\n')
+    return device(name, "electrak", bus_name, actuators=list(ELECTRAK_ACTUATORS[:1]))
 
 
-def lock(name: str = "gate", device_id: int | str = 11, bus_name: str = "can1", table: str = "device") -> str:
-    return f'[[{table}]]\nname = "{name}"\ntype = "hdlock"\nbus = "{bus_name}"\ndevice_id = {device_id}\n'
+def lock(name: str = "gate", device_id: int = 11, bus_name: str = "can1", kind: str = "device") -> str:
+    return table(kind, name=name, type="hdlock", bus=bus_name, device_id=device_id)
 
 
-def m3io(name: str = "io", sw1: str = "0x85", bus_name: str = "can1") -> str:
-    return f'[[device]]\nname = "{name}"\ntype = "m3io"\nbus = "{bus_name}"\nvariant = "HM"\nsw1 = {sw1}\n'
+def m3io(name: str = "io", sw1: int = 0x85, bus_name: str = "can1") -> str:
+    return device(name, "m3io", bus_name, variant="HM", sw1=sw1)
 
 
 def uses(type_name: str, **options) -> tuple:
@@ -114,43 +115,43 @@ def test_lock_with_device_id_11_collides_with_the_electrak_service_answer():
 
 
 def test_m3io_sw1_0x85_mdata_inside_the_hdlock_request_block():
-    message = refused(bus() + lock(device_id=1) + m3io(sw1="0x85"))
+    message = refused(bus() + lock(device_id=1) + m3io(sw1=0x85))
     assert "'io'" in message and "'gate'" in message
     assert "0x705" in message and "MData" in message and "Silent Write Holding-Register" in message
 
 
 def test_m3io_sw1_0x85_sync_inside_the_electrak_internal_range():
-    message = refused(bus() + electrak() + m3io(sw1="0x85"))
+    message = refused(bus() + electrak() + m3io(sw1=0x85))
     assert "'io'" in message and "'lift'" in message
     assert "0x685" in message and "Sync" in message and "Electrak internal traffic" in message
 
 
 def test_order_in_the_file_does_not_matter():
-    message = refused(bus() + m3io(sw1="0x85") + electrak())
+    message = refused(bus() + m3io(sw1=0x85) + electrak())
     assert "0x685" in message and "'io'" in message and "'lift'" in message
 
 
 def test_two_m3io_modules_on_one_id():
     """S7 on, address 1: DigIn 0x181, DigOut 0x201; S7 off, address 1: DigOut 0x181, DigIn 0x201 (section 5.8.2)."""
-    message = refused(bus() + m3io("io-a", "0xC1") + m3io("io-b", "0x81"))
+    message = refused(bus() + m3io("io-a", 0xC1) + m3io("io-b", 0x81))
     assert "0x181" in message and "'io-a'" in message and "'io-b'" in message
     assert "DigOut" in message and "DigIn" in message
 
 
 def test_lock_id_inside_its_own_request_block():
-    message = refused(bus() + lock(device_id="0x703"))
+    message = refused(bus() + lock(device_id=0x703))
     assert "0x703" in message and "Read Holding-Register" in message and "HD-Lock device ID 1795" in message
 
 
 def test_simulated_devices_on_the_bus_count_too():
-    message = refused(bus() + electrak() + lock("spare", 11, table="sim_device"))
+    message = refused(bus() + electrak() + lock("spare", 11, kind="sim_device"))
     assert "'spare'" in message and "0x0B" in message
 
 
 def test_what_may_share_a_bus_loads():
     # locks share the request block; an extended ID never collides with a standard one
     parse_plant(bus() + lock("a", 1) + lock("b", 2) + lock("c", 660000))
-    parse_plant(bus() + electrak() + lock(device_id=660100) + m3io(sw1="0x1A"))  # M3IO on 0x422-0x426
+    parse_plant(bus() + electrak() + lock(device_id=660100) + m3io(sw1=0x1A))  # M3IO on 0x422-0x426
     # the same IDs on two buses are no overlap
     parse_plant(bus("can1") + bus("can2") + electrak(bus_name="can1") + lock(device_id=11, bus_name="can2"))
     load_plant(DEMO_PLANT)

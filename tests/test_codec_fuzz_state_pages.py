@@ -9,6 +9,7 @@ from datetime import datetime
 import can
 import pytest
 from conftest import modbus_plant
+from plants import can_bus, hdlock_can, modbus_line, plant_text
 from nicegui import ui
 from nicegui.testing import User
 
@@ -42,8 +43,8 @@ def test_error_while_online_stays_until_the_device_recovers():
 
 
 def test_discovery_log_line_is_readable(caplog):
-    plant = parse_plant('[[bus]]\nname = "can1"\ntype = "can"\ninterface = "virtual"\nchannel = "fuzz-state-1"\n'
-                        '[[device]]\nname = "gate"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 660100\n')
+    plant = parse_plant(plant_text(can_bus(hdlock_can("gate", 660100), channel_name="fuzz-state-1", simulate=None),
+                                   name=None))
     w = Worker(plant)
     status = hdlock.encode_status(hdlock.StatusFrame(0x0200, 0, 100, 4))
     caplog.set_level(logging.INFO, logger="app.worker")
@@ -55,8 +56,8 @@ def test_discovery_log_line_is_readable(caplog):
     assert "0xA1286" in lines[0] and "29-bit" in lines[0], lines[0]
 
 
-REAL_LINE = parse_plant('[[bus]]\nname = "line1"\ntype = "modbus-rtu"\nport = "/dev/ttyUSB7"\n'
-                        '[[device]]\nname = "door-1"\ntype = "hdlock"\nbus = "line1"\naddress = 1\n')
+REAL_LINE = parse_plant(plant_text(modbus_line(port="/dev/ttyUSB7", timeout=None, retries=None, poll_period=None,
+                                               simulate=None), name=None))
 
 
 def _page(runtime: Runtime, state: DeviceState | None = None):

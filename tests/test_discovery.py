@@ -12,7 +12,9 @@ import time
 
 import can
 import pytest
+import plants
 from conftest import wait_for
+from plants import ELECTRAK_ACTUATORS, can_bus, device, hdlock_can
 
 from app.plant import DeviceConfig, parse_plant
 from app.worker import Worker
@@ -24,12 +26,11 @@ ELECTRAK_CONTROL_AT_ZERO = bytes.fromhex("00 00 00 00 BE 03 00 01")  # target 0 
 
 
 def plant_text(extra: str = "", channel: str | None = None) -> str:
-    channel = channel or f"discovery-{next(_channels)}-{id(object())}"
-    return (f'[[bus]]\nname = "can1"\ntype = "can"\ninterface = "virtual"\nchannel = "{channel}"\n'
-            '[[device]]\nname = "gate"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 660100\n' + extra)
+    """A lock with device ID 660100 (and ``extra`` devices) on a virtual CAN bus, without twins."""
+    return plants.plant_text(can_bus(hdlock_can("gate", 660100), extra, channel_name=channel, simulate=None), name=None)
 
 
-ELECTRAK = '[[device]]\nname = "lift"\ntype = "electrak"\nbus = "can1"\nactuators = [{ model = "HD24", gearing = "B026", stroke_mm = 300 }]\n'
+ELECTRAK = device("lift", "electrak", "can1", actuators=list(ELECTRAK_ACTUATORS[:1]))
 
 
 def worker(extra: str = "") -> Worker:

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import asyncio
-import itertools
 
 import pytest
+import plants
 from conftest import wait_for
+from plants import ELECTRAK_ACTUATORS, electrak_bus
 
 from app.plant import PlantError, parse_plant
 from app.runtime import Runtime
@@ -70,19 +71,15 @@ def test_limits_by_model_and_gearing():
 
 def test_plant_validation():
     with pytest.raises(PlantError, match="gearing 'B999'"):
-        parse_plant(plant_text(actuators='[{ model = "HD24", gearing = "B999", stroke_mm = 300 }]'))
+        parse_plant(plant_text(actuators=[{"model": "HD24", "gearing": "B999", "stroke_mm": 300}]))
 
 
 # -- adapter + twin ------------------------------------------------------------------------------
 
-_n = itertools.count()
 
 
-def plant_text(actuators: str = '[{ model = "HD24", gearing = "B026", stroke_mm = 300 }, { model = "HD24", gearing = "B026", stroke_mm = 300 }]'):
-    return (
-        f'[[bus]]\nname = "can2"\ntype = "can"\ninterface = "virtual"\nchannel = "el-{next(_n)}-{id(object())}"\n'
-        f'bitrate = 500000\nsimulate = true\n[[device]]\nname = "lift"\ntype = "electrak"\nbus = "can2"\nactuators = {actuators}\n'
-    )
+def plant_text(actuators=ELECTRAK_ACTUATORS) -> str:
+    return plants.plant_text(electrak_bus(actuators=actuators, simulate=True), name=None)
 
 
 BEATING = ("s1", "a", "b", "browser-1")  # sessions whose browser stays alive (the dead-man rule)
@@ -294,6 +291,6 @@ def test_gearings_without_a_common_speed_are_refused():
     with pytest.raises(codec.CodecError, match="no speed"):
         codec.Limits.of([codec.Actuator("HD24", "B017", 300), codec.Actuator("HD24", "B160", 300)])
     with pytest.raises(PlantError, match="no speed"):
-        parse_plant(plant_text(actuators='[{ model = "HD24", gearing = "B017", stroke_mm = 300 }, '
-                                         '{ model = "HD24", gearing = "B160", stroke_mm = 300 }]'))
+        parse_plant(plant_text(actuators=[{"model": "HD24", "gearing": "B017", "stroke_mm": 300},
+                                          {"model": "HD24", "gearing": "B160", "stroke_mm": 300}]))
     assert codec.Limits.of([codec.Actuator("HD24", "B026", 300), codec.Actuator("HD24", "B045", 300)]).speed_max == 19

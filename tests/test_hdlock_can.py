@@ -7,6 +7,8 @@ import itertools
 
 import can
 import pytest
+import plants
+from plants import bus, hdlock_can, plant_text, table
 from conftest import free_udp_port, sim_process, wait_for
 
 from app.plant import DeviceConfig, parse_plant
@@ -144,15 +146,12 @@ def test_monitor_descriptions():
 _channels = itertools.count()
 
 
-def can_plant(interface: str = "virtual", channel: str | None = None, extra: str = "") -> str:
-    channel = channel or f"test-can-{next(_channels)}-{id(object())}"
-    return (
-        f'[[bus]]\nname = "can1"\ntype = "can"\ninterface = "{interface}"\nchannel = "{channel}"\n'
-        f"bitrate = 250000\npoll_period = 0.5\ntimeout = 0.3\nsimulate = true\n{extra}"
-        '[[device]]\nname = "gate-1"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 660100\n'
-        '[[device]]\nname = "gate-2"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 11\nserial = 660101\n'
-        '[[sim_device]]\nname = "spare"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 660102\n'
-    )
+def can_plant(interface: str = "virtual", channel: str | None = None, **bus_options) -> str:
+    """Two locks (device IDs 660100 and 11) and a simulated spare (660102) on one CAN bus."""
+    locks = (hdlock_can("gate-1", 660100), hdlock_can("gate-2", 11, serial=660101),
+             table("sim_device", name="spare", type="hdlock", bus="can1", device_id=660102))
+    return plant_text(bus("can1", "can", *locks, interface=interface, channel=channel or plants.channel("test-can"),
+                          bitrate=250000, poll_period=0.5, timeout=0.3, simulate=True, **bus_options), name=None)
 
 
 @pytest.fixture
@@ -329,10 +328,8 @@ async def test_malformed_frame_is_counted_not_fatal(running):
 
 
 async def test_interface_that_cannot_open_is_reported():
-    plant = parse_plant(
-        '[[bus]]\nname = "c"\ntype = "can"\ninterface = "socketcan"\nchannel = "nocan7"\n'
-        '[[device]]\nname = "g"\ntype = "hdlock"\nbus = "c"\ndevice_id = 5\n'
-    )
+    plant = parse_plant(plant_text(plants.bus("c", "can", hdlock_can("g", 5, "c"), interface="socketcan", channel="nocan7"),
+                                   name=None))
     runtime = Runtime(plant, simulate=False)
     await runtime.start()
     try:
@@ -346,7 +343,7 @@ async def test_interface_that_cannot_open_is_reported():
 async def test_across_processes_on_udp_multicast(tmp_path):
     """`commission sim` serves the twins on udp_multicast; this process is the GUI side."""
     port = free_udp_port()  # found at run time: another bus or test on this machine cannot share it
-    text = can_plant("udp_multicast", "239.74.163.2", extra=f"port = {port}\n")
+    text = can_plant("udp_multicast", "239.74.163.2", port=port)
     path = tmp_path / "plant.toml"
     path.write_text(text)
     with sim_process(path) as (_proc, line):

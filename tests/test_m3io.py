@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import itertools
 
 import pytest
+import plants
 from conftest import wait_for
+from plants import can_bus, device
 
 from app.plant import parse_plant
 from app.runtime import Runtime
@@ -259,17 +260,14 @@ def test_twin_shorted_triac_reads_no_load():
 
 # -- adapter + twins on a virtual bus --------------------------------------------------------------
 
-_n = itertools.count()
 SESSION = "tab-1"  # the NiceGUI client id of the page that switches
 
 
 def plant_text() -> str:
-    return (
-        f'[[bus]]\nname = "can3"\ntype = "can"\ninterface = "virtual"\nchannel = "m3-{next(_n)}-{id(object())}"\n'
-        'bitrate = 500000\npoll_period = 0.2\nsimulate = true\n'
-        '[[device]]\nname = "hm"\ntype = "m3io"\nbus = "can3"\nvariant = "HM"\nsw1 = 0x1A\n'
-        '[[device]]\nname = "hmr"\ntype = "m3io"\nbus = "can3"\nvariant = "HMR"\nsw1 = 0xCA\nserial = 42120023\n'
-    )
+    """An HM (SW1 0x1A) and an HMR (SW1 0xCA, serial 42120023) module on one simulated CAN bus."""
+    return plants.plant_text(can_bus(device("hm", "m3io", "can3", variant="HM", sw1=0x1A),
+                                     device("hmr", "m3io", "can3", variant="HMR", sw1=0xCA, serial=42120023),
+                                     name="can3", bitrate=500000, poll_period=0.2), name=None)
 
 
 async def _beat(worker, session: str) -> None:

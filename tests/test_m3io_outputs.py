@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import itertools
 import time
 
 import pytest
+import plants
 from conftest import wait_for
+from plants import can_bus, device
 
 from app.plant import parse_plant
 from app.runtime import Runtime
@@ -20,15 +21,11 @@ from app.worker import DEADMAN_BOUND_S
 from devices.m3io.adapter import ControlBusy
 
 TAB_A, TAB_B = "client-a", "client-b"  # NiceGUI client ids of two page sessions
-_n = itertools.count()
 
 
 def plant_text() -> str:
-    return (
-        f'[[bus]]\nname = "can3"\ntype = "can"\ninterface = "virtual"\nchannel = "m3o-{next(_n)}-{id(object())}"\n'
-        'bitrate = 500000\npoll_period = 0.2\nsimulate = true\n'
-        '[[device]]\nname = "hm"\ntype = "m3io"\nbus = "can3"\nvariant = "HM"\nsw1 = 0x1A\n'
-    )
+    return plants.plant_text(can_bus(device("hm", "m3io", "can3", variant="HM", sw1=0x1A), name="can3", bitrate=500000,
+                                     poll_period=0.2), name=None)
 
 
 @pytest.fixture

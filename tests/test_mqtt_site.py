@@ -20,6 +20,7 @@ from pathlib import Path
 
 import aiomqtt
 import pytest
+from plants import modbus_line, plant_text
 from test_mqtt_helpers import running_broker
 from webutil import ROOT, demo_plant_text, free_port, stop_app, wait_http
 
@@ -29,27 +30,10 @@ pytestmark = pytest.mark.timeout(90)
 OFFLINE_BOUND_S = 3.0
 VANISH_BOUND_S = 2.0  # the broker sends the last will when the dead instance's socket closes
 
-PLANT_B = """name = "cab-b"
-[mqtt]
-url = "{url}"
-site = "hall-3"
-heartbeat = 2
-
-[[bus]]
-name = "line9"
-type = "modbus-rtu"
-port = "socket://127.0.0.1:{port}"
-timeout = 0.2
-retries = 0
-poll_period = 0.2
-simulate = true
-
-[[device]]
-name = "door-9"
-type = "hdlock"
-bus = "line9"
-address = 1
-"""
+def plant_b(broker_url: str) -> str:
+    """Instance B of the site: one simulated lock, published to the broker at ``broker_url``."""
+    return plant_text(modbus_line((("door-9", 1),), name="line9", poll_period=0.2), name="cab-b",
+                      head=f'[mqtt]\nurl = "{broker_url}"\nsite = "hall-3"\nheartbeat = 2\n\n')
 
 
 def _spawn(args: list[str], log: Path) -> subprocess.Popen:
@@ -91,7 +75,7 @@ def site(tmp_path_factory):
     with running_broker(folder, free_port()) as broker:
         a = demo_plant_text(free_port()).replace('name = "demo"', f'name = "cab-a"\n\n[mqtt]\nurl = "{broker.url}"\nsite = "hall-3"\nheartbeat = 2', 1)
         (folder / "a.toml").write_text(a)
-        (folder / "b.toml").write_text(PLANT_B.format(url=broker.url, port=free_port()))
+        (folder / "b.toml").write_text(plant_b(broker.url))
         ports = {"a": free_port(), "b": free_port(), "view": free_port()}
         procs = {
             "sim-b": _spawn(["sim", "--plant", str(folder / "b.toml")], folder / "sim-b.log"),

@@ -9,6 +9,7 @@ import pytest
 from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
+from plants import can_bus, device, plant_text
 from webutil import eventually, simulated_user
 
 from app.plant import parse_plant
@@ -17,20 +18,8 @@ from app.runtime import Runtime
 pytestmark = pytest.mark.timeout(40)
 
 # no module on the bus (simulate = false): the page waits, then the module is offline
-PLANT = """
-name = "m"
-[[bus]]
-name = "can9"
-type = "can"
-interface = "virtual"
-channel = "pages-devices-m3io"
-[[device]]
-name = "io"
-type = "m3io"
-bus = "can9"
-variant = "HMR"
-sw1 = 0xCA
-"""
+PLANT = plant_text(can_bus(device("io", "m3io", "can9", variant="HMR", sw1=0xCA), name="can9",
+                           channel_name="pages-devices-m3io", simulate=None), name="m")
 
 
 @pytest.fixture

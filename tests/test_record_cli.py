@@ -7,10 +7,10 @@ import os
 import sqlite3
 import subprocess
 import sys
-import uuid
 from pathlib import Path
 
 import pytest
+from plants import can_bus, device, plant_text
 
 from app.record_cli import checkout_devices, sign_record
 from tests.recordutil import demo_runtime
@@ -23,26 +23,8 @@ ROOT = Path(__file__).resolve().parent.parent
 def _plant(tmp_path: Path) -> Path:
     """One simulated CAN bus of its own with the demo's HMR heater module (6 SSR, 6 inputs)."""
     path = tmp_path / "plant.toml"
-    path.write_text(f"""
-name = "bench"
-
-[[bus]]
-name = "can-a"
-type = "can"
-interface = "virtual"
-channel = "cli-{uuid.uuid4().hex[:8]}"
-bitrate = 500000
-simulate = true
-
-[[device]]
-name = "heater"
-type = "m3io"
-bus = "can-a"
-variant = "HMR"
-sw1 = 0xCA
-serial = 42120023
-master = "always"
-""")
+    heater = device("heater", "m3io", "can-a", variant="HMR", sw1=0xCA, serial=42120023, master="always")
+    path.write_text(plant_text(can_bus(heater, name="can-a", bitrate=500000), name="bench"))
     return path
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import can
 import pytest
+from plants import can_bus, plant_text
 
 from app import recording as rec
 from app import runtime as rt
@@ -163,7 +164,7 @@ def test_recordings_go_to_the_data_folder(tmp_path: Path, monkeypatch: pytest.Mo
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("COMMISSION_DATA_DIR", str(tmp_path / "userdata"))
     assert rec.recordings_dir() == tmp_path / "userdata" / "recordings"  # no plant running: the user's data folder
-    plant = parse_plant('name = "t"\n[[bus]]\nname = "c"\ntype = "can"\ninterface = "virtual"\nchannel = "rd-1"\n')
+    plant = parse_plant(plant_text(can_bus(name="c", channel_name="rd-1", simulate=None)))
     runtime = rt.Runtime(plant, simulate=False, data_dir=tmp_path / "data")
     rt.set_current(runtime)
     try:

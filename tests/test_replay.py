@@ -10,11 +10,11 @@ from pathlib import Path
 
 import can
 import pytest
+from plants import can_bus, device, plant
 
 from app import recording as rec
 from app import replay as rp
 from app.can_bus import FrameRecord
-from app.plant import parse_plant
 from app.worker import PermissionDenied, Worker
 from tests.webutil import eventually
 
@@ -34,10 +34,8 @@ class Audit:
 
 
 def _plant(channel: str, with_m3io: bool = True):
-    text = f'name = "t"\n[[bus]]\nname = "can9"\ntype = "can"\ninterface = "virtual"\nchannel = "{channel}"\nbitrate = 500000\n'
-    if with_m3io:
-        text += '[[device]]\nname = "io"\ntype = "m3io"\nbus = "can9"\nvariant = "HM"\nsw1 = 0x1A\n'
-    return parse_plant(text)
+    devices = [device("io", "m3io", "can9", variant="HM", sw1=0x1A)] if with_m3io else []
+    return plant(can_bus(*devices, name="can9", channel_name=channel, bitrate=500000, simulate=None))
 
 
 @pytest.fixture

@@ -3,21 +3,18 @@ folder, replay it, progress and the end state shown."""
 
 from __future__ import annotations
 
-import time
-
 import can
 from nicegui import ui
+from plants import can_bus, channel, plant
 
 from app import recording as rec
-from app.plant import parse_plant
 from app.runtime import Runtime
 from tests.webutil import eventually, simulated_user
 
-PLANT = 'name = "t"\n[[bus]]\nname = "can9"\ntype = "can"\ninterface = "virtual"\nchannel = "replay-page-%s"\nbitrate = 500000\n'
 
 
 async def test_replay_page_replays_a_recording(tmp_path):
-    runtime = Runtime(parse_plant(PLANT % time.monotonic_ns()), simulate=False, data_dir=tmp_path / "data")
+    runtime = Runtime(plant(can_bus(name="can9", channel_name=channel("replay-page"), bitrate=500000, simulate=None)), simulate=False, data_dir=tmp_path / "data")
     folder = runtime.data_dir / "recordings"
     folder.mkdir(parents=True)
     writer = rec.WRITERS[".log"][0](folder / "can9-test.log")

@@ -9,6 +9,7 @@ from types import SimpleNamespace
 
 import pytest
 from conftest import free_port, wait_for
+from plants import plant, scu_line
 from scripts import RX, TX, Script
 
 from app.serial_line import SerialLine
@@ -214,21 +215,7 @@ async def test_no_answer_marks_offline_naming_cable_dtr_rts_and_baud_rate():
 
 # -- against the twin --------------------------------------------------------------------------------
 def twin_plant(port: int):
-    from app.plant import parse_plant
-
-    return parse_plant(f"""
-name = "t"
-[[bus]]
-name = "rs1"
-type = "serial"
-port = "socket://127.0.0.1:{port}"
-simulate = true
-[[device]]
-name = "scu-1"
-type = "scu"
-bus = "rs1"
-actuators = [{{ counts_per_mm = 10 }}, {{ stroke_mm = 300 }}]
-""")
+    return plant(scu_line("scu-1", port=port, timeout=None, poll_period=None))
 
 
 async def start_twin(port: int):

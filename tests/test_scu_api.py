@@ -7,7 +7,9 @@ from __future__ import annotations
 import asyncio
 
 import pytest
+import plants
 from conftest import free_port
+from plants import scu_line
 from webutil import simulated_user
 
 from app.plant import parse_plant
@@ -23,10 +25,8 @@ LIVE = ("A1 position", "A2 position", "A1 position mm", "A2 position mm", "A1 st
         "Binary Output Status", "Keys", "Analogue input 1", "Session", "RC period")
 
 
-def plant_text(port: int, actuators: str) -> str:
-    return (f'[[bus]]\nname = "rs1"\ntype = "serial"\nport = "socket://127.0.0.1:{port}"\nbaudrate = 38400\n'
-            'timeout = 0.3\npoll_period = 0.2\nsimulate = true\n'
-            f'[[device]]\nname = "scu"\ntype = "scu"\nbus = "rs1"\nactuators = {actuators}\n')
+def plant_text(port: int, actuators) -> str:
+    return plants.plant_text(scu_line("scu", port=port, actuators=actuators, baudrate=38400), name=None)
 
 
 async def values_until(client, check, timeout: float) -> dict:
@@ -43,7 +43,7 @@ async def values_until(client, check, timeout: float) -> dict:
 
 @pytest.mark.parametrize("strict", [{}, {"single_ids_only": True}], ids=["groups", "single-ids-only"])
 async def test_every_live_value_of_the_scu_reaches_the_api_within_15_s(tmp_path, strict):
-    runtime = Runtime(parse_plant(plant_text(free_port(), "2")), simulate=True, data_dir=tmp_path / "data")
+    runtime = Runtime(parse_plant(plant_text(free_port(), 2)), simulate=True, data_dir=tmp_path / "data")
     twin = runtime.twins["scu"]
     for key, value in strict.items():
         setattr(twin, key, value)  # before the first byte: the unit refuses groups from the start
@@ -60,7 +60,7 @@ async def test_every_live_value_of_the_scu_reaches_the_api_within_15_s(tmp_path,
 async def test_positions_in_mm_from_the_units_conversion_factors(tmp_path):
     """No scale in the plant file: counts per mm from 0x1011/0x1012 (table 6); the twin answers 12.5 and
     8.0 counts per mm, so 1500 counts are 120 mm on A1 and 187.5 mm on A2."""
-    runtime = Runtime(parse_plant(plant_text(free_port(), "2")), simulate=True,
+    runtime = Runtime(parse_plant(plant_text(free_port(), 2)), simulate=True,
                       data_dir=tmp_path / "data")
     twin = runtime.twins["scu"]
     twin.actuators[1].counts_per_mm = 8.0  # what the unit reports in 0x1012

@@ -10,7 +10,9 @@ import contextlib
 from pathlib import Path
 
 import pytest
+import plants
 from conftest import free_port, wait_for
+from plants import scu_line
 
 from app.gate import NeedsConfirmation
 from app.plant import parse_plant
@@ -25,9 +27,7 @@ ESTOP = int(codec.Function.EMERGENCY_STOP)
 
 
 def plant_text(port: int) -> str:
-    return (f'[[bus]]\nname = "rs1"\ntype = "serial"\nport = "socket://127.0.0.1:{port}"\nbaudrate = 38400\n'
-            'timeout = 0.3\npoll_period = 0.2\nsimulate = true\n'
-            '[[device]]\nname = "scu"\ntype = "scu"\nbus = "rs1"\nactuators = [{ counts_per_mm = 10 }, {}]\n')
+    return plants.plant_text(scu_line("scu", port=port, actuators=[{"counts_per_mm": 10}, {}], baudrate=38400), name=None)
 
 
 @pytest.fixture

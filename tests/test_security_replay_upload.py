@@ -4,22 +4,20 @@ traceback; an upload is stored in the one uploads folder (no temporary folder pe
 from __future__ import annotations
 
 import tempfile
-import time
 from pathlib import Path
 
 from nicegui import ui
 from nicegui.elements.upload_files import SmallFileUpload
+from plants import can_bus, channel, plant
 
-from app.plant import parse_plant
 from app.runtime import Runtime
 from tests.webutil import simulated_user
 
-PLANT = 'name = "t"\n[[bus]]\nname = "can9"\ntype = "can"\ninterface = "virtual"\nchannel = "replay-upload-%s"\nbitrate = 500000\n'
 TRACE = b"(1700000000.000000) can0 301#01\n(1700000000.010000) can0 302#02\n"
 
 
 async def test_replay_uploads_are_named_and_stored_in_one_folder(tmp_path):
-    runtime = Runtime(parse_plant(PLANT % time.monotonic_ns()), simulate=False, data_dir=tmp_path / "data")
+    runtime = Runtime(plant(can_bus(name="can9", channel_name=channel("replay-upload"), bitrate=500000, simulate=None)), simulate=False, data_dir=tmp_path / "data")
     temporary = set(Path(tempfile.gettempdir()).glob("replay-*"))
     async with simulated_user(runtime) as user:
         await user.open("/monitor/can9/replay")

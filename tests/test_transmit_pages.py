@@ -2,24 +2,16 @@
 
 from __future__ import annotations
 
-import uuid
-
+from plants import can_bus, channel, modbus_line, plant
 from test_auth import login
 
-from app.plant import parse_plant
 from app.runtime import Runtime
 from app.users import UserStore
-from tests.conftest import free_port
 from webutil import simulated_user
 
 
 def _plant():
-    return parse_plant(
-        f'[[bus]]\nname = "line1"\ntype = "modbus-rtu"\nport = "socket://127.0.0.1:{free_port()}"\nsimulate = true\n'
-        'timeout = 0.2\nretries = 0\npoll_period = 0.2\n'
-        '[[device]]\nname = "door-1"\ntype = "hdlock"\nbus = "line1"\naddress = 1\n'
-        f'[[bus]]\nname = "can1"\ntype = "can"\ninterface = "virtual"\nchannel = "txp-{uuid.uuid4().hex[:10]}"\n'
-    )
+    return plant(modbus_line(poll_period=0.2), can_bus(channel_name=channel("txp"), simulate=None), name=None)
 
 
 async def test_viewer_never_sees_the_transmit_list_nor_writes(tmp_path):

@@ -8,6 +8,7 @@ import time
 
 import pytest
 from nicegui import ui
+from plants import can_bus, device, plant_text
 from webutil import simulated_user
 
 from app.plant import parse_plant
@@ -15,20 +16,8 @@ from app.runtime import Runtime
 
 pytestmark = pytest.mark.timeout(40)
 
-PLANT = """
-name = "w"
-[[bus]]
-name = "can9"
-type = "can"
-interface = "virtual"
-channel = "widgets-live"
-[[device]]
-name = "io"
-type = "m3io"
-bus = "can9"
-variant = "HM"
-sw1 = 0x1A
-"""
+PLANT = plant_text(can_bus(device("io", "m3io", "can9", variant="HM", sw1=0x1A), name="can9", channel_name="widgets-live",
+                           simulate=None), name="w")
 
 
 @pytest.fixture
