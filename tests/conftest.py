@@ -12,7 +12,9 @@ from pathlib import Path
 
 import pytest
 
-# the app in a process of its own, as the benchmarks start it (standard library only: bench/liveapp.py)
+# the source folder's build tools (tools/) and the app in a process of its own as the benchmarks start it
+# (standard library only: bench/liveapp.py)
+sys.path.append(str(Path(__file__).resolve().parent.parent))
 sys.path.append(str(Path(__file__).resolve().parent.parent / "bench"))
 
 from liveapp import CHROMIUM_ARGS, free_port, free_udp_port, wait_devices_online  # noqa: E402

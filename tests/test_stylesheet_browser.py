@@ -1,4 +1,4 @@
-"""The pages' Tailwind rules are compiled beforehand (pages/stylesheet.py), not in every browser."""
+"""The pages' Tailwind rules are compiled beforehand (tools/stylesheet.py), not in every browser."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from webutil import demo_plant_text, free_port, running_app
 
-from pages.stylesheet import STYLESHEET, build, class_tokens, compile_css, utility_classes
+from tools.stylesheet import STYLESHEET, build, class_tokens, compile_css, utility_classes
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -16,7 +16,7 @@ PAGES = ("/", "/plant", "/device/door-1", "/device/lift-1", "/device/heater-hm",
 
 def test_the_stylesheet_is_compiled_from_the_source_as_it_is(chromium):
     assert STYLESHEET.read_text(encoding="utf-8") == build(chromium), (
-        "classes changed since static/tailwind.css was made: run `python -m pages.stylesheet`")
+        "classes changed since static/tailwind.css was made: run `python -m tools.stylesheet`")
     assert {"w-full", "gap-2", "items-center"} <= utility_classes(STYLESHEET.read_text(encoding="utf-8"))
 
 
@@ -40,5 +40,5 @@ def test_every_tailwind_class_on_the_pages_has_its_rule_and_no_compiler_runs(chr
     needed = utility_classes(compile_css(sorted(seen), chromium))
     missing = needed - ours
     assert not missing, (f"classes on the pages with no rule in static/tailwind.css: {sorted(missing)}; add them to "
-                         "RENDERED_CLASSES in pages/stylesheet.py if Quasar or plotly put them there, then regenerate")
+                         "RENDERED_CLASSES in tools/stylesheet.py if Quasar or plotly put them there, then regenerate")
     assert len(class_tokens()) > 1000

@@ -8,7 +8,7 @@ program's source, so they are compiled here once instead, with the same compiler
 
 Regenerate after changing classes (``tests/test_stylesheet_browser.py`` fails until then)::
 
-    python -m pages.stylesheet
+    python -m tools.stylesheet
 
 Every word of every string in ``pages/``, ``app/`` and ``devices/`` is offered to the compiler:
 it makes rules only for the words that are Tailwind classes, so a class written anywhere (in a
