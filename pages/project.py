@@ -214,7 +214,7 @@ class ProjectCard:
         answering = {"now": False, "said": False}
 
         def changed() -> None:
-            online = state.status == "online"
+            online = state.status in ("online", "stale")  # a late answer is no new connection: no new compare
             if online and not answering["now"]:
                 background_tasks.create(self.compare(), name=f"project {self.name}")
             elif not online and self.plan is None and not answering["said"]:
