@@ -8,11 +8,10 @@ from collections.abc import AsyncIterator
 
 import pytest
 from nicegui import ui
-from nicegui.functions.notify import notify
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
 from plants import mo64_tcp, plant
-from webutil import eventually, simulated_user
+from webutil import by_testid, eventually, user_on
 
 from app.runtime import Runtime
 
@@ -21,15 +20,8 @@ pytestmark = pytest.mark.timeout(40)
 
 @pytest.fixture
 async def env() -> AsyncIterator[tuple[User, Runtime]]:
-    runtime = Runtime(plant(mo64_tcp()), simulate=True)
-    async with simulated_user(runtime) as user:
-        yield user, runtime
-
-
-def by_testid(user: User, testid: str):
-    found = [e for e in user.client.elements.values() if e.props.get("data-testid") == testid]
-    assert len(found) == 1, f"{testid}: {len(found)} elements"
-    return found[0]
+    async with user_on(plant(mo64_tcp())) as env:
+        yield env
 
 
 @contextlib.asynccontextmanager

@@ -11,7 +11,7 @@ from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
 from plants import motion_plant_text
-from webutil import eventually, simulated_user
+from webutil import by_testid, eventually, user_on
 
 from app.plant import parse_plant
 from app.runtime import Runtime
@@ -20,16 +20,9 @@ pytestmark = pytest.mark.timeout(60)
 
 
 @pytest.fixture
-async def env(request) -> AsyncIterator[tuple[User, Runtime]]:
-    runtime = Runtime(parse_plant(motion_plant_text()), simulate=True)
-    async with simulated_user(runtime) as user:
-        yield user, runtime
-
-
-def by_testid(user: User, testid: str):
-    found = [e for e in user.client.elements.values() if e.props.get("data-testid") == testid]
-    assert len(found) == 1, f"{testid}: {len(found)} elements"
-    return found[0]
+async def env() -> AsyncIterator[tuple[User, Runtime]]:
+    async with user_on(parse_plant(motion_plant_text())) as env:
+        yield env
 
 
 def click(user: User, testid: str) -> None:

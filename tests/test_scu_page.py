@@ -6,11 +6,10 @@ import asyncio
 from collections.abc import AsyncIterator
 
 import pytest
-from nicegui.functions.notify import notify
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
 from plants import plant, scu_line
-from webutil import eventually, simulated_user
+from webutil import by_testid, eventually, user_on
 
 from app.runtime import Runtime
 
@@ -19,15 +18,8 @@ pytestmark = pytest.mark.timeout(40)
 
 @pytest.fixture
 async def env() -> AsyncIterator[tuple[User, Runtime]]:
-    runtime = Runtime(plant(scu_line()), simulate=True)
-    async with simulated_user(runtime) as user:
-        yield user, runtime
-
-
-def by_testid(user: User, testid: str):
-    found = [e for e in user.client.elements.values() if e.props.get("data-testid") == testid]
-    assert len(found) == 1, f"{testid}: {len(found)} elements"
-    return found[0]
+    async with user_on(plant(scu_line())) as env:
+        yield env
 
 
 async def test_scu_page_shows_session_positions_and_drives_with_re_rs(env):

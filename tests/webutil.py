@@ -84,6 +84,23 @@ async def simulated_user(runtime):
             rt.set_current(None)
 
 
+@contextlib.asynccontextmanager
+async def user_on(plant) -> AsyncIterator[tuple]:
+    """NiceGUI's simulated user on ``plant``, its twins simulated here: yields ``(user, runtime)``."""
+    from app.runtime import Runtime
+
+    runtime = Runtime(plant, simulate=True)
+    async with simulated_user(runtime) as user:
+        yield user, runtime
+
+
+def by_testid(user, testid: str):
+    """The one element of the simulated user's page with ``data-testid=testid``."""
+    found = [e for e in user.client.elements.values() if e.props.get("data-testid") == testid]
+    assert len(found) == 1, f"{testid}: {len(found)} elements"
+    return found[0]
+
+
 @dataclass
 class PageEnv:
     """NiceGUI's simulated user and the app it talks to."""
@@ -143,5 +160,5 @@ def private_endpoints(plant, tag: str):
     return plant
 
 
-__all__ = ["DEMO_PLANT", "PageEnv", "ROOT", "pages_on", "demo_plant_text", "eventually", "free_port", "private_endpoints", "running_app", "serve_beyond_loopback",
+__all__ = ["DEMO_PLANT", "PageEnv", "ROOT", "by_testid", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "private_endpoints", "running_app", "serve_beyond_loopback",
            "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "wait_http"]
