@@ -67,23 +67,51 @@ class Worker:
         self.audit = audit
         self.store = store or StateStore()
         self.transports = Transports(plant, self.store)
-        self.lines: dict[str, Line] = self.transports.lines
-        self.can_buses: dict[str, CanBus] = self.transports.can_buses
         self.devices = Devices(plant, self.store, self.transports)
-        self.adapters: dict[str, Any] = self.devices.adapters
-        self.polling = Polling(plant, self.store, self.adapters, self.can_buses)
-        self.paused: set[str] = self.polling.paused
+        self.polling = Polling(plant, self.store, self.devices.adapters, self.transports.can_buses)
         self.extra_holders: dict[str, Any] = {}  # transmit lists, replays: under the dead-man rule like adapters
         self.deadman = DeadmanSupervisor(self._holder_items)
-        self.sessions: dict[str, str] = self.deadman.sessions  # connected browser sessions -> role
-        self.beats: dict[str, float] = self.deadman.beats  # session -> monotonic time of its last sign of life
         self.loop_health = LoopHealth()
         # the flood bound is the module's, passed in, so that a test may choose its own
-        self.discovery = CanDiscovery(plant, self.can_buses, flood_ids_per_s=FLOOD_NEW_IDS_PER_S)
-        self.discovered: dict[str, dict[tuple[bool, int], dict]] = self.discovery.discovered
-        for name, can_bus in self.can_buses.items():
+        self.discovery = CanDiscovery(plant, self.transports.can_buses, flood_ids_per_s=FLOOD_NEW_IDS_PER_S)
+        for name, can_bus in self.transports.can_buses.items():
             can_bus.listeners.append(lambda msg, bus=name: self.discovery.frame(bus, msg))
         self.tasks: list[asyncio.Task] = []
+
+    # -- what the parts hold, by the names pages, tools and tests use -----------------------------------
+    @property
+    def adapters(self) -> dict[str, Any]:
+        """Device name -> its adapter."""
+        return self.devices.adapters
+
+    @property
+    def can_buses(self) -> dict[str, CanBus]:
+        return self.transports.can_buses
+
+    @property
+    def lines(self) -> dict[str, Line]:
+        """Bus name -> its line (every bus that is not CAN)."""
+        return self.transports.lines
+
+    @property
+    def discovered(self) -> dict[str, dict[tuple[bool, int], dict]]:
+        """CAN bus name -> the devices listed on it: (extended, ID) -> what was heard."""
+        return self.discovery.discovered
+
+    @property
+    def paused(self) -> set[str]:
+        """Buses whose polling is held (a line scan runs)."""
+        return self.polling.paused
+
+    @property
+    def sessions(self) -> dict[str, str]:
+        """Connected browser sessions -> role."""
+        return self.deadman.sessions
+
+    @property
+    def beats(self) -> dict[str, float]:
+        """Session -> monotonic time of its last sign of life."""
+        return self.deadman.beats
 
     # -- running ---------------------------------------------------------------------------------------
     async def start(self) -> None:
