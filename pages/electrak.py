@@ -184,7 +184,7 @@ class ChartCard:
 
     def build(self) -> None:
         name, state = self.view.name, self.view.state
-        with ui.card().classes("col-8"):
+        with ui.card().classes("col-12 col-md-8"):
             with ui.row().classes("items-center w-full"):
                 ui.label(f"Position, current and speed (last {WINDOW_S} s, 100 ms frames)").classes("text-subtitle1")
                 ui.space()
@@ -213,10 +213,12 @@ def content(name: str) -> None:
         cards = [NetworkCard(view), FlagsCard(view)]
         for card in cards:
             card.build()
-        with ui.row().classes("w-full no-wrap items-start gap-4"):
+        # chart and drive side by side from 1024 px; on a tablet the drive card below the chart, each full width
+        # (beside it the chart was drawn over the drive card)
+        with ui.row().classes("w-full items-start gap-4"):
             chart = ChartCard(view)
             chart.build()
-            with ui.column().classes("col gap-4"):
+            with ui.column().classes("col-12 col-md gap-4"):
                 drive = DriveCard(view, guard)
                 drive.build()
         sim_card(name)  # full width: its entries and buttons need a row of their own on a narrow screen
