@@ -91,3 +91,25 @@ def test_a_trip_after_a_stall_says_how_long_the_server_was_busy():
         tick(worker, last + 1.0 + n * SUPERVISE_PERIOD_S)
     assert holder.lost
     assert "this program was busy for" in holder.lost[0]
+
+
+async def test_the_running_worker_ticks_the_supervisor_and_measures_the_loop():
+    """The composition: start() runs the 50 ms tick that feeds loop health and the dead-man supervisor."""
+    import asyncio
+
+    worker = Worker(parse_plant('name = "empty"\n'))
+    holder = Holder("tab")
+    worker.add_holder("output", holder)
+    await worker.start()
+    try:
+        worker.heartbeat("tab", 1000.0)  # one beat, then silence
+        loop = asyncio.get_running_loop()
+        end = loop.time() + 3.0
+        while not holder.lost and loop.time() < end:
+            await asyncio.sleep(SUPERVISE_PERIOD_S)
+        assert holder.lost and "not confirmed it is alive" in holder.lost[0]
+        assert len(worker.loop_health.lags_ms) >= DEADMAN_TIMEOUT_S / SUPERVISE_PERIOD_S
+        assert worker.deadman.trips and worker.deadman.trips[-1]["session"] == "tab"
+    finally:
+        await asyncio.wait_for(worker.stop(), 10)
+    assert worker.tasks == []
