@@ -706,7 +706,8 @@ class FileView:
 class CanMonitor:
     """One browser's view of one CAN bus: status, filters, recording, and the live and recorded-file tabs.
 
-    The cards read the bus's record in the store; one timer refreshes them a few times a second.
+    The cards read the bus's record in the store (frames, counters, ID statistics, the recording) and
+    name frames through one :class:`BusDecoding`; one timer refreshes them a few times a second.
     """
 
     def __init__(self, bus: str):
