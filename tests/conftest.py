@@ -83,6 +83,19 @@ async def can_rig(tmp_path: Path):
         await asyncio.wait_for(runtime.stop(), 5)
 
 
+def spy_writes(twin) -> list[tuple[int, int]]:
+    """Record every register write that reaches ``twin`` (over the wire, via FC 0x06) in the list returned."""
+    writes: list[tuple[int, int]] = []
+    original = twin.write
+
+    def recording(address: int, value: int):
+        writes.append((address, value))
+        return original(address, value)
+
+    twin.write = recording
+    return writes
+
+
 @contextlib.contextmanager
 def sim_process(plant_file: Path) -> Iterator[tuple[subprocess.Popen, str]]:
     """`commission sim --plant FILE` in its own process; yields it and its first line of output.
@@ -135,5 +148,5 @@ def inside_viewport(page, locator) -> None:
     assert box["y"] + box["height"] <= size["height"] + 0.5, f"{locator} sticks out below {size['height']} px: {box}"
 
 
-__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "free_port", "free_udp_port", "inside_viewport", "modbus_plant", "sim_process",
+__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "free_port", "free_udp_port", "inside_viewport", "modbus_plant", "sim_process", "spy_writes",
            "wait_devices_online", "wait_for"]

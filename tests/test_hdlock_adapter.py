@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from conftest import modbus_plant, wait_for
+from conftest import modbus_plant, spy_writes, wait_for
 
 from app.modbus_line import LineException, LineTimeout
 from app.runtime import Runtime
@@ -205,18 +205,6 @@ async def test_twin_answers_the_address_command_only_when_switched_on(running, a
 
 
 # -- broadcast address change (section 4.3, address 255) -----------------------------------------
-
-
-def spy_writes(twin) -> list[tuple[int, int]]:
-    writes: list[tuple[int, int]] = []
-    original = twin.write
-
-    def recording(address: int, value: int):
-        writes.append((address, value))
-        return original(address, value)
-
-    twin.write = recording
-    return writes
 
 
 KNOWN = {1: "door-1", 2: "door-2"}

@@ -6,42 +6,26 @@ Modbus RTU frames, with the app registered as in production (``app.web.register`
 
 from __future__ import annotations
 
-import logging
 from collections.abc import AsyncIterator
-from dataclasses import dataclass
 
 import pytest
-from conftest import modbus_plant
 from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
-from webutil import eventually, simulated_user
+from webutil import LockPages, eventually, lock_pages
 
-from app.runtime import Runtime
 
 pytestmark = pytest.mark.timeout(30)
 
 
-@dataclass
-class Env:
-    user: User
-    runtime: Runtime
-
-    def twin(self, name: str):
-        return self.runtime.twins[name]
-
-    def state(self, name: str):
-        return self.runtime.store.devices[name]
+Env = LockPages
 
 
 @pytest.fixture
 async def env(caplog: pytest.LogCaptureFixture) -> AsyncIterator[Env]:
-    plant = modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
-    runtime = Runtime(plant, simulate=True)
-    async with simulated_user(runtime) as user:
-        yield Env(user, runtime)
-    errors = [r for r in caplog.get_records("call") if r.levelno >= logging.ERROR and not r.name.startswith("pymodbus")]
-    assert not errors, "unexpected ERROR logs: " + "; ".join(r.getMessage() for r in errors)
+    """A simulated user on the app of a two-lock plant (door-1 at 1, door-2 at 2)."""
+    async with lock_pages(caplog) as env:
+        yield env
 
 
 async def online(env: Env, *names: str) -> None:

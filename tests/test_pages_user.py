@@ -7,20 +7,17 @@ app's lifespan starts (which starts the twins and the worker through ``app.on_st
 
 from __future__ import annotations
 
-import logging
 import re
 import time
 from collections.abc import AsyncIterator
-from dataclasses import dataclass
 
 import pytest
-from conftest import modbus_plant
 from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
-from webutil import eventually, simulated_user
+from conftest import spy_writes
+from webutil import LockPages, eventually, lock_pages
 
-from app.runtime import Runtime
 from app.worker import PermissionDenied
 from devices.hdlock.params import PARAMS, REMOVE_MAGNET
 
@@ -29,31 +26,14 @@ REMOVE = PARAMS.by_name["SettingsRemoveMagnet"]  # holding 3005, enum, 1 needs a
 
 pytestmark = pytest.mark.timeout(30)  # each test takes about a second; waits inside are bounded
 
-
-@dataclass
-class Env:
-    user: User
-    runtime: Runtime
-
-    def twin(self, name: str = "door-1"):
-        return self.runtime.twins[name]
-
-    def state(self, name: str = "door-1"):
-        return self.runtime.store.devices[name]
+Env = LockPages
 
 
 @pytest.fixture
 async def env(caplog: pytest.LogCaptureFixture) -> AsyncIterator[Env]:
     """A simulated user on the app of a two-lock plant (door-1 at 1, door-2 at 2)."""
-    plant = modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
-    runtime = Runtime(plant, simulate=True)
-    async with simulated_user(runtime) as user:
-        yield Env(user, runtime)
-    errors = [
-        r for r in caplog.get_records("call")
-        if r.levelno >= logging.ERROR and not r.name.startswith("pymodbus")  # late answers are logged there
-    ]
-    assert not errors, "unexpected ERROR logs: " + "; ".join(r.getMessage() for r in errors)
+    async with lock_pages(caplog) as env:
+        yield env
 
 
 async def online(env: Env, *names: str) -> None:
@@ -91,19 +71,6 @@ def write_button(user: User, param: str) -> UserInteraction:
 def lamp_on(user: User, name: str) -> str | None:
     """``data-on`` of the lamp named ``name``: "1", "0" or "unknown"."""
     return by_prop(user, "data-lamp", name).elements.copy().pop().props.get("data-on")
-
-
-def spy_writes(twin) -> list[tuple[int, int]]:
-    """Record every register write that reaches the twin (over the wire, via FC 0x06)."""
-    writes: list[tuple[int, int]] = []
-    original = twin.write
-
-    def recording(address: int, value: int):
-        writes.append((address, value))
-        return original(address, value)
-
-    twin.write = recording
-    return writes
 
 
 # -- overview and device page -------------------------------------------------------------------
