@@ -4,6 +4,7 @@ answered with scripted telegrams, as python-canopen's test_sdo), and the dead-ma
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import time
 from types import SimpleNamespace
 
@@ -225,7 +226,9 @@ def twin_bus(port: int):
     return bus, dev
 
 
-async def test_twin_tcp_open_pulse_goes_opening_then_open_at_100_percent():
+@contextlib.asynccontextmanager
+async def adapter_on_twin():
+    """The adapter on a LogiTed TCP line to the MO 64 twin on a free port: yields (twin server, adapter)."""
     from devices.mo64.sim import Mo64TcpSim
 
     port = free_port()
@@ -234,6 +237,16 @@ async def test_twin_tcp_open_pulse_goes_opening_then_open_at_100_percent():
     await sim.start()
     try:
         adapter = make_adapter(port)
+        try:
+            yield sim, adapter
+        finally:
+            adapter.line.close()
+    finally:
+        await sim.stop()
+
+
+async def test_twin_tcp_open_pulse_goes_opening_then_open_at_100_percent():
+    async with adapter_on_twin() as (_sim, adapter):
         await adapter.poll()
         assert adapter.state.points["Gate state"].text == "closed"
         assert await adapter.command("s1", codec.Command.OPEN, confirmed=True) == "ack"
@@ -248,20 +261,10 @@ async def test_twin_tcp_open_pulse_goes_opening_then_open_at_100_percent():
         await adapter.query(codec.Q_BARRIER_POSITION)
         assert "opening" in seen and seen[-1] == "open", seen
         assert adapter.state.points["Position"].value == 100
-    finally:
-        adapter.line.close()
-        await sim.stop()
 
 
 async def test_twin_backup_and_restore_writes_only_the_changed_setting():
-    from devices.mo64.sim import Mo64TcpSim
-
-    port = free_port()
-    bus, dev = twin_bus(port)
-    sim = Mo64TcpSim(bus, [dev])
-    await sim.start()
-    try:
-        adapter = make_adapter(port)
+    async with adapter_on_twin() as (sim, adapter):
         before = {e["key"]: e for e in await adapter.backup_read()}
         await adapter.write_setting("s1", "t_open", 700)
         await adapter.write_setting("s1", "multi_relays", [2, 0, 0, 0, 0, 0])
@@ -275,6 +278,3 @@ async def test_twin_backup_and_restore_writes_only_the_changed_setting():
         after = {e["key"]: e["raw"] for e in await adapter.backup_read()}
         assert after == {k: e["raw"] for k, e in before.items()}
         assert adapter.eeprom_writes["s1"] == 2 and adapter.eeprom_writes["restore"] == 2
-    finally:
-        adapter.line.close()
-        await sim.stop()

@@ -22,6 +22,15 @@ async def env() -> AsyncIterator[tuple[User, Runtime]]:
         yield env
 
 
+
+async def take_control(user, adapter) -> None:
+    """Open the lift's page once its remote session is open, and take control (Go is enabled then)."""
+    await eventually(lambda: adapter.session == "open", timeout=10)
+    await user.open("/device/lift")
+    user.find("Take control").click()
+    await eventually(lambda: by_testid(user, "go").enabled, timeout=3)
+
+
 async def test_scu_page_shows_session_positions_and_drives_with_re_rs(env):
     user, runtime = env
     adapter = runtime.worker.adapters["lift"]
@@ -72,10 +81,7 @@ async def test_go_asks_area_clear_and_cancel_sends_no_re(env):
     user, runtime = env
     adapter = runtime.worker.adapters["lift"]
     twin = runtime.twins["lift"]
-    await eventually(lambda: adapter.session == "open", timeout=10)
-    await user.open("/device/lift")
-    user.find("Take control").click()
-    await eventually(lambda: by_testid(user, "go").enabled, timeout=3)
+    await take_control(user, adapter)
     user.find("Go (RE)").click()
     await user.should_see("The area is clear: Go")
     user.find("Cancel").click()
@@ -111,10 +117,7 @@ async def test_drive_controls_are_off_with_the_reason_while_the_session_is_lost(
     user, runtime = env
     adapter = runtime.worker.adapters["lift"]
     twin = runtime.twins["lift"]
-    await eventually(lambda: adapter.session == "open", timeout=10)
-    await user.open("/device/lift")
-    user.find("Take control").click()
-    await eventually(lambda: by_testid(user, "go").enabled, timeout=3)
+    await take_control(user, adapter)
     twin.drop_line(True)
     await eventually(lambda: adapter.session != "open", timeout=5)
     await eventually(lambda: not by_testid(user, "go").enabled, timeout=3)
