@@ -59,16 +59,12 @@ def may_run(kind: str, role: str) -> bool:
     return kind in OPEN_KINDS or role in WRITE_ROLES
 
 
-def kind_for(worker: Any, device: str, describe: str, write: bool, record: bool) -> str:
+def kind_for(worker: Any, device: str, describe: str) -> str:
     """The kind of an action submitted the older way (an adapter callable and its wording, the worker's
-    own callers only): the declaration of the device type's command by that name decides; ``write``
-    counts only where the type declares nothing of that name (no module of pages/ or app/ passes it)."""
+    own callers only): the declaration of the device type's command by that name decides; anything
+    the type does not declare is a write (checked, confirmed and audited as one)."""
     command = declared(worker, device, describe)
-    if command is not None:
-        return command.kind
-    if write:
-        return "write"
-    return "stop" if record else "read"
+    return command.kind if command is not None else "write"
 
 
 def declared(worker: Any, device: str, name: str) -> Command | None:

@@ -64,7 +64,7 @@ class RestoreDescriber(Protocol):
     def restore_text(self, key: str, value: Any) -> str: ...
 
 
-# -- control and the dead-man rule (app/gate.py, app/worker.py) -----------------------------------------
+# -- control and the dead-man rule (app/gate.py, app/worker/deadman.py) -----------------------------------------
 @runtime_checkable
 class SessionHolder(Protocol):
     """Keeps something running for browser sessions and stops it when a session is lost."""

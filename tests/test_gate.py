@@ -70,11 +70,12 @@ async def test_stop_runs_before_its_audit_row_and_never_waits_for_it():
     assert worker.audit.rows[0]["action"] == "stop" and worker.audit.rows[0]["result"].startswith("ok")
 
 
-async def test_older_stop_wording_is_a_stop_too():
-    """A page that still submits a callable with ``write=False`` and the wording "stop" gets the declared kind."""
+async def test_an_action_by_its_wording_gets_the_declared_kind_or_counts_as_a_write():
+    """An action submitted as a callable and its wording gets the kind its type declares for that name;
+    a wording the type does not declare is checked as a write, never let through as a read."""
     worker = Worker(parse_plant(_can_plant(f"gate-{next(_n)}")), audit=SlowAudit())
-    assert gate.kind_for(worker, "lock", "Save-Settings", write=False, record=True) == "system"
-    assert gate.kind_for(worker, "lock", "read something", write=False, record=False) == "read"
+    assert gate.kind_for(worker, "lock", "Save-Settings") == "system"
+    assert gate.kind_for(worker, "lock", "read something") == "write"  # not declared: checked as a write
 
 
 # -- 33.1: the role is the account store's at the moment of the action --------------------------------------

@@ -25,7 +25,7 @@ async def command(worker: Any, device: str, action: Callable[[Any], Awaitable[An
     if device not in worker.adapters:
         raise KeyError(f"no device named {device!r} in this plant")
     adapter = worker.adapters[device]
-    kind = gate.kind_for(worker, device, describe, True, record)
+    kind = gate.kind_for(worker, device, describe)
     return await checked(
         worker, lambda: action(adapter), device=device, role=role, user=user, describe=describe, kind=kind,
         record=record or kind != "read", parameter=parameter, old=old, new=new,
