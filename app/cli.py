@@ -460,6 +460,9 @@ def _main(argv: list[str] | None) -> int:
         return 2
     if not args.no_sim and _refuse_taken_ports(plant):
         return 2
+    from app.runtime import raise_priority
+
+    raise_priority()  # before any thread starts: they all inherit it (the keep-alive threads ask for more)
     runtime = Runtime(plant, simulate=not args.no_sim, data_dir=data_dir, auth_required=auth_required)
     server.register(runtime, host=args.host, allowed_hosts=args.allowed_host)
     url = " and ".join(reachable_urls(args.host, args.port, "https" if tls else "http"))
