@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 from conftest import free_udp_port, wait_devices_online
+from plants import bus, hdlock_can
 from webutil import demo_plant_text, free_port, running_app
 
 GROUP = "239.74.163.12"
@@ -25,29 +26,9 @@ SIZES = [(1440, 900), (1024, 768), (768, 1024)]
 @pytest.fixture(scope="module")
 def app(tmp_path_factory):
     port = free_udp_port()
-    text = demo_plant_text(free_port()) + f"""
-[[bus]]
-name = "udp-can"
-type = "can"
-interface = "udp_multicast"
-channel = "{GROUP}"
-port = {port}
-bitrate = 250000
-poll_period = 1.0
-timeout = 0.2
-
-[[device]]
-name = "frame-lock"
-type = "hdlock"
-bus = "udp-can"
-device_id = {HEARD_ID}
-
-[[device]]
-name = "door-22"
-type = "hdlock"
-bus = "udp-can"
-device_id = {SILENT_ID}
-"""
+    locks = hdlock_can("frame-lock", HEARD_ID, "udp-can"), hdlock_can("door-22", SILENT_ID, "udp-can")
+    text = demo_plant_text(free_port()) + "\n" + bus("udp-can", "can", *locks, interface="udp_multicast", channel=GROUP,
+                                                     port=port, bitrate=250000, poll_period=1.0, timeout=0.2)
     with running_app(text, tmp_path_factory.mktemp("overview-plant")) as url:
         # the M3IO modules answer only while served (an engineer controls them): not waited for
         wait_devices_online(url, ["door-1", "gate-1", "lift", "lift-1", "barrier-in"], timeout=40)

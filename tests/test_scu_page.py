@@ -22,7 +22,6 @@ async def env() -> AsyncIterator[tuple[User, Runtime]]:
         yield env
 
 
-
 async def take_control(user, adapter) -> None:
     """Open the lift's page once its remote session is open, and take control (Go is enabled then)."""
     await eventually(lambda: adapter.session == "open", timeout=10)
