@@ -44,7 +44,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from app.plant import parse_plant  # noqa: E402
-from app.runtime import Runtime  # noqa: E402
+from app.runtime import Runtime, raise_priority  # noqa: E402
 from devices.electrak import codec as electrak  # noqa: E402
 from devices.m3io import codec as m3io  # noqa: E402
 from devices.scu import codec as scu  # noqa: E402
@@ -184,6 +184,7 @@ async def beat(runtime: Runtime, session: str) -> None:
 
 async def in_process(seconds: float) -> float:
     lift_ch, heater_ch, flood_ch = (f"{k}-{uuid.uuid4().hex}" for k in ("lift", "heater", "flood"))
+    raise_priority()  # as the GUI process does before its threads start (app/cli.py)
     plant = in_process_plant(lift_ch, heater_ch, flood_ch, free_tcp_port())
     unit = ScuTwinThread(plant)
     unit.start()

@@ -80,3 +80,16 @@ async def test_busy_while_a_can_keepalive_runs():
         assert not keepalives_running()
     finally:
         await bus.stop()
+
+
+def test_raise_priority_is_silent_where_not_permitted(monkeypatch):
+    import os
+
+    from app import runtime
+
+    def refuse(*_args):
+        raise PermissionError("not permitted")
+
+    monkeypatch.setattr(os, "setpriority", refuse)
+    monkeypatch.setattr(os, "getsid", lambda _pid: -1)  # not a session leader: the session's share is left alone
+    assert runtime.raise_priority(-20) is False
