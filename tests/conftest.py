@@ -60,6 +60,19 @@ async def wait_for(predicate, timeout: float = 5.0, interval: float = 0.05) -> b
     return bool(predicate())
 
 
+@contextlib.asynccontextmanager
+async def running_plant(plant: Plant):
+    """The app's runtime on ``plant`` with its twins, started; stopped (bounded) on leaving."""
+    from app.runtime import Runtime
+
+    runtime = Runtime(plant, simulate=True)
+    await runtime.start()
+    try:
+        yield runtime
+    finally:
+        await asyncio.wait_for(runtime.stop(), 5)
+
+
 @pytest.fixture
 def plant() -> Plant:
     return modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
@@ -148,5 +161,5 @@ def inside_viewport(page, locator) -> None:
     assert box["y"] + box["height"] <= size["height"] + 0.5, f"{locator} sticks out below {size['height']} px: {box}"
 
 
-__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "free_port", "free_udp_port", "inside_viewport", "modbus_plant", "sim_process", "spy_writes",
+__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "free_port", "free_udp_port", "inside_viewport", "modbus_plant", "running_plant", "sim_process", "spy_writes",
            "wait_devices_online", "wait_for"]

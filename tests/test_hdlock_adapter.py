@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from conftest import modbus_plant, spy_writes, wait_for
+from conftest import modbus_plant, running_plant, spy_writes, wait_for
 
 from app.modbus_line import LineException, LineTimeout
 from app.runtime import Runtime
@@ -16,12 +16,8 @@ from devices.hdlock.params import PARAMS
 
 @pytest.fixture
 async def running(plant):
-    runtime = Runtime(plant, simulate=True)
-    await runtime.start()
-    try:
+    async with running_plant(plant) as runtime:
         yield runtime
-    finally:
-        await asyncio.wait_for(runtime.stop(), 5)
 
 
 async def online(runtime, name="door-1"):

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import asyncio
 import itertools
 
 import can
 import pytest
 import plants
+from conftest import free_udp_port, running_plant, sim_process, wait_for
 from plants import bus, hdlock_can, plant_text, table
-from conftest import free_udp_port, sim_process, wait_for
 
 from app.plant import DeviceConfig, parse_plant
 from app.runtime import Runtime
@@ -156,12 +155,8 @@ def can_plant(interface: str = "virtual", channel: str | None = None, **bus_opti
 
 @pytest.fixture
 async def running():
-    runtime = Runtime(parse_plant(can_plant()), simulate=True)
-    await runtime.start()
-    try:
+    async with running_plant(parse_plant(can_plant())) as runtime:
         yield runtime
-    finally:
-        await asyncio.wait_for(runtime.stop(), 5)
 
 
 async def online(runtime, name="gate-1"):

@@ -12,11 +12,10 @@ import time
 
 import pytest
 import plants
-from conftest import wait_for
+from conftest import running_plant, wait_for
 from plants import can_bus, device
 
 from app.plant import parse_plant
-from app.runtime import Runtime
 from app.worker import DEADMAN_BOUND_S
 from devices.m3io.adapter import ControlBusy
 
@@ -30,12 +29,8 @@ def plant_text() -> str:
 
 @pytest.fixture
 async def module():
-    runtime = Runtime(parse_plant(plant_text()), simulate=True)
-    await runtime.start()
-    try:
+    async with running_plant(parse_plant(plant_text())) as runtime:
         yield runtime
-    finally:
-        await asyncio.wait_for(runtime.stop(), 5)
 
 
 async def control(runtime, session: str = TAB_A) -> None:
