@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 
 import can
 import pytest
@@ -141,8 +140,6 @@ def test_monitor_descriptions():
 
 
 # -- adapter against the twins on a virtual bus ---------------------------------------------------
-
-_channels = itertools.count()
 
 
 def can_plant(interface: str = "virtual", channel: str | None = None, **bus_options) -> str:
