@@ -52,13 +52,13 @@ TAILWIND_CSS = Path(__file__).resolve().parent.parent / "static" / "tailwind.css
 
 
 def tailwind_style() -> str:
-    """The Tailwind rules of the pages' classes, compiled beforehand (pages/stylesheet.py) instead
+    """The Tailwind rules of the pages' classes, compiled beforehand (tools/stylesheet.py) instead
     of in every browser: the app runs NiceGUI with ``tailwind=False``."""
     try:
         return f"<style>{TAILWIND_CSS.read_text(encoding='utf-8')}</style>"
     except OSError as exc:
         log.error("the pages' stylesheet is missing (%s): layouts will look wrong; "
-                  "run `python -m pages.stylesheet` in the source folder", exc)
+                  "run `python -m tools.stylesheet` in the source folder", exc)
         return ""
 
 
