@@ -40,6 +40,7 @@ from typing import Any
 
 import can
 
+from app import realtime
 from app.state import BusState
 from devices.lease import Lease
 
@@ -53,7 +54,6 @@ MAX_IDS = 4096  # rows of the overwrite view
 INBOX_FRAMES = 4096  # per kind waiting for the loop: about 0.45 s of a full 1 Mbit/s bus; beyond, the oldest are shed
 DRAIN_BUDGET_S = 0.004  # the loop drains one bus this long at most, then runs timers and other tasks
 DRAIN_CHECK = 4  # frames between two looks at the clock
-KEEPALIVE_NICE = -10  # scheduling priority asked for the keep-alive threads (Linux nice value; needs the right to raise it)
 READER_BACKOFF_S = 0.001  # the reader pauses this long when the hand-over is full (bench/can_ingest.py: 7.7x -> 12x)
 GIL_SWITCH_S = 0.001  # a busy reader thread holds the GIL at most this long while the loop owes a keep-alive (5 ms by default)
 SHED_WARN_S = 10.0  # at most one log line per bus this often while frames are shed
@@ -805,6 +805,7 @@ class _Periodic:
         self.errors = 0
         self.last_error = ""
         self._reported_lapse: float | None = None
+        self.priority = "as it is"  # the sender thread's place in the scheduling (app/realtime.py)
 
     def _message(self, data: bytes) -> can.Message:
         return can.Message(arbitration_id=self.arbitration_id, data=data, is_extended_id=self.is_extended_id, is_rx=False)
@@ -815,11 +816,8 @@ class _Periodic:
         if hasattr(self.task, "on_error"):  # python-can's thread ends at the first error unless told otherwise
             self.task.on_error = self._on_error
         thread = getattr(self.task, "thread", None)
-        if thread is not None and thread.native_id is not None:
-            try:  # ahead of busy processes of the same machine where the system allows it (CAP_SYS_NICE); else as it is
-                os.setpriority(os.PRIO_PROCESS, thread.native_id, KEEPALIVE_NICE)
-            except (OSError, AttributeError):
-                pass
+        if thread is not None:  # ahead of busy processes of the same machine where the system allows it; else as it is
+            self.priority = realtime.raise_sender(thread.native_id, self.period_s)
 
     def stop(self, join: bool = False) -> None:
         """End the sender; ``join``: also wait (at most a period and a bit) until its thread has sent its

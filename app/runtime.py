@@ -34,7 +34,7 @@ def raise_priority(nice: int = PROCESS_NICE) -> bool:
     """Ask for a higher scheduling priority (a lower nice value) for this thread and every thread it starts
     afterwards, where the system allows it (CAP_SYS_NICE, or a raised RLIMIT_NICE); else nothing changes.
 
-    The keep-alive threads ask for more (app.can_bus.KEEPALIVE_NICE), but they need the interpreter lock
+    The keep-alive threads ask for more (app/realtime.py), but they need the interpreter lock
     for every frame: a thread of the same process that holds it and is put aside for a browser's renderer
     keeps them waiting. bench/keepalive_jitter.py phase (c), 20 pages on two busy cores (load 15): worst
     Electrak control gap 572 ms with the process at 0, 266 ms at -10. Call it before threads are started.

@@ -25,6 +25,7 @@ from collections.abc import Callable
 
 import serial
 
+from app import realtime
 from app.line_base import LineBase, serial_port
 from app.state import BusState
 from devices.transport import Completion, SerialClosed, SerialLineError, SerialTimeout  # noqa: F401 - raised here, caught by adapters
@@ -52,9 +53,11 @@ class _LineThread:
         self.tick = tick
         self.stop_event = threading.Event()
         self.errors = 0
+        self.priority = "as it is"
         self.thread = threading.Thread(target=self._run, name=f"{line.name} {key}", daemon=True)
 
     def _run(self) -> None:
+        self.priority = realtime.raise_sender(threading.get_native_id(), 1.0)  # sleeps between short exchanges
         while not self.stop_event.is_set():
             try:
                 delay = self.tick(self.line.exchange_blocking)
