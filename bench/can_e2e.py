@@ -5,7 +5,7 @@ A second process sends standard 8-byte frames at ``--rate`` frames/s (9,009 = 1 
 111 bits each, no stuff bits) for ``--seconds``: a lock's status frames on its device ID and
 frames of unknown IDs (offered to discovery). This process runs the worker's CAN bus with an
 HD-Lock adapter (subscribed ID), once with no monitor page and once with ``--pages`` monitor
-refreshes every 0.3 s (row building and serialising as pages/monitor.py does). Printed for
+refreshes every 0.3 s (row building and serialising as pages/can_monitor.py does). Printed for
 each: frames sent, handled, shed at the hand-over, dropped by the kernel (the socket's drop
 counter), the socket's receive buffer, and the app's CPU per frame.
 
