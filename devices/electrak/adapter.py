@@ -9,6 +9,7 @@ from dataclasses import dataclass, replace
 
 from devices.electrak import codec
 from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, SERVICE, length_of, password_of, refusal
+from devices.decoding import decoded
 from devices.lease import Lease
 from devices.live import DeviceState, Holder, session_tag
 from devices.params import Param, ParamError, backup_entry
@@ -189,11 +190,8 @@ class ElectrakAdapter:
 
     # -- status ----------------------------------------------------------------------------
     def on_status(self, msg) -> None:
-        try:
-            frame = codec.StatusFrame.decode(bytes(msg.data))
-        except codec.CodecError as exc:
-            self.state.counters.malformed += 1
-            self.state.error(f"malformed status telegram: {exc}", log=False)
+        frame = decoded(self.state, codec.StatusFrame.decode, bytes(msg.data), "status telegram")
+        if frame is None:
             return
         now = time.time()
         self.frames.append((now, frame))
@@ -488,11 +486,8 @@ class ElectrakAdapter:
 
     # -- service parameters ----------------------------------------------------------------------
     def on_service(self, msg) -> None:
-        try:
-            answer = codec.ServiceMessage.decode(bytes(msg.data))
-        except codec.CodecError as exc:
-            self.state.counters.malformed += 1
-            self.state.error(f"malformed service answer: {exc}", log=False)
+        answer = decoded(self.state, codec.ServiceMessage.decode, bytes(msg.data), "service answer")
+        if answer is None:
             return
         request = self._pending
         if request is None or not codec.belongs_to(request, answer):

@@ -17,6 +17,7 @@ import asyncio
 import time
 from dataclasses import dataclass
 
+from devices.decoding import decoded
 from devices.lease import Lease
 from devices.live import DeviceState, session_tag
 from devices.m3io import codec
@@ -477,12 +478,10 @@ class M3ioAdapter:
                 self._publish_master()
 
     def on_dig_in(self, msg) -> None:
-        try:
-            self.inputs = codec.decode_dig_in(bytes(msg.data))
-        except codec.CodecError as exc:
-            self.state.counters.malformed += 1
-            self.state.error(f"malformed DigIn: {exc}", log=False)
+        inputs = decoded(self.state, codec.decode_dig_in, bytes(msg.data), "DigIn")
+        if inputs is None:
             return
+        self.inputs = inputs
         self.state.counters.responses += 1
         self._seen()
         raw = bytes(msg.data)[0]
@@ -491,11 +490,9 @@ class M3ioAdapter:
 
     def on_temps(self, msg) -> None:
         first = 1 if msg.arbitration_id == self.ids.temp14 else 5
-        try:
-            words = codec.decode_temps(bytes(msg.data), 4 if first == 1 else 2)
-        except codec.CodecError as exc:
-            self.state.counters.malformed += 1
-            self.state.error(f"malformed temperature frame: {exc}", log=False)
+        count = 4 if first == 1 else 2
+        words = decoded(self.state, lambda data: codec.decode_temps(data, count), bytes(msg.data), "temperature frame")
+        if words is None:
             return
         self.state.counters.responses += 1
         self._seen()
@@ -513,11 +510,8 @@ class M3ioAdapter:
             self.state.record_history(history_points(self.variant), self.last_answer)
 
     def on_mdata(self, msg) -> None:
-        try:
-            answer = codec.MData.decode(bytes(msg.data))
-        except codec.CodecError as exc:
-            self.state.counters.malformed += 1
-            self.state.error(f"malformed MData: {exc}", log=False)
+        answer = decoded(self.state, codec.MData.decode, bytes(msg.data), "MData")
+        if answer is None:
             return
         self._seen()
         future = self._mdata.get((answer.area, answer.index))

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from devices import values as v
+from devices.decoding import decoded, malformed
 from devices.live import DeviceState, session_tag
 from devices.mo64 import codec
 from devices.transport import SerialClosed, SerialLineError, SerialTimeout
@@ -322,7 +323,7 @@ class Mo64Adapter:
         self.state.counters.responses += 1
         self.state.mark_seen()
         if answer.error and answer.reply is None:
-            self.state.counters.malformed += 1
+            malformed(self.state)
         return answer
 
     async def query(self, index: int, level: int | None = None) -> codec.Answer:
@@ -383,12 +384,10 @@ class Mo64Adapter:
         frame = self._decode(telegram)
         if frame is None:
             if not self.rs485:
-                self.state.counters.malformed += 1
+                malformed(self.state)
             return
-        try:
-            answer = codec.decode_answer(frame)
-        except codec.CodecError:
-            self.state.counters.malformed += 1
+        answer = decoded(self.state, codec.decode_answer, frame, None)
+        if answer is None:
             return
         now = time.monotonic()
         if answer.reply is not None:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from devices import values as v
+from devices.decoding import malformed
 from devices.lease import Lease
 from devices.live import DeviceState, Holder, session_tag
 from devices.scu import codec
@@ -393,8 +394,7 @@ class ScuAdapter:
                     self.crc_retries += 1
                     self._publish_counts()
                 else:
-                    self.state.counters.malformed += 1
-                    self.state.error(f"{describe}: {exc}", log=False)
+                    malformed(self.state, f"{describe}: {exc}")
                 # The reader may have lost its place in the byte stream (a stray byte, an answer split or
                 # late): drop everything still arriving before the request is sent again (resynchronise).
                 await self._resync()
@@ -669,7 +669,7 @@ class ScuAdapter:
         elif isinstance(exc, codec.ChecksumError):
             self.state.counters.crc_errors += 1
         elif isinstance(exc, codec.FrameError):
-            self.state.counters.malformed += 1
+            malformed(self.state)
         self._no_answer()
 
     def _thread_rc_refused(self, answer: codec.Answer) -> None:
