@@ -1,8 +1,9 @@
 """Electrak HD network page: live charts, flags, control with keep-alive, service parameters.
 
 Reads only the live store (the points and records :mod:`devices.electrak.adapter` publishes) and invokes
-the declared commands (devices/electrak/policy.py) through the worker's gate. Each card is a small class
-with ``build()`` (in the page's layout) and ``refresh()`` (on every change the store pushes)."""
+the declared commands (devices/electrak/policy.py) through the worker's gate. Each card is a
+:class:`pages.device_page.DeviceCard` with ``build()`` (in the page's layout) and ``refresh()`` (on every
+change the store pushes); :func:`pages.device_page.device_page` puts the frame, events and STOP bar around them."""
 
 from __future__ import annotations
 
@@ -14,14 +15,13 @@ from datetime import datetime
 
 from nicegui import background_tasks, ui
 
-from app import runtime as rt
 from app import worker as worker_module
-from app.state import DeviceState, session_tag
 from devices.electrak import adapter as facts
 from devices.electrak import codec
 from devices.electrak.adapter import FOREIGN_SENDER, SERIES
 from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, password_of, refusal
-from pages.frame import fmt_age, fmt_time, frame, set_status_badge
+from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
+from pages.frame import fmt_age, fmt_time
 from pages.session import current_user
 from pages.simcontrols import sim_card
 from pages.widgets import (
@@ -30,14 +30,11 @@ from pages.widgets import (
     LiveValue,
     WriteGuard,
     checked_value,
-    counter_line,
-    event_log,
-    follow,
+    gate,
     mark_quality,
     quality_note,
     range_number,
     refuse,
-    run_command,
     stop_bar,
     write_from_page,
 )
@@ -52,24 +49,14 @@ CHART_ROWS = [[facts.P_POSITION, facts.P_DRIVE_TARGET], [facts.P_CURRENT], [fact
 CHART_UNITS = ("mm", "A", "mm/s")  # the rows' axes
 
 
-class ElectrakView:
-    """What every card of one page shares: the network's live record and its declared commands."""
+class ElectrakView(DeviceView):
+    """What every card of one page shares: the network's live record, its actuators and the ranges they
+    accept, and its declared commands (devices/electrak/policy.py)."""
 
     def __init__(self, name: str):
-        runtime = rt.current()
-        self.name = name
-        self.runtime = runtime
-        self.state: DeviceState = runtime.store.devices[name]
-        self.session = ui.context.client.id
-        self.tag = session_tag(self.session)
-        self.cards: list = []
-        self.guard: WriteGuard | None = None
+        super().__init__(name)
         self.actuators: tuple[codec.Actuator, ...] = self.fact(facts.P_ACTUATORS, ())  # as configured
         self.limits: codec.Limits = self.fact(facts.P_LIMITS)
-
-    def fact(self, point: str, default=None):
-        value = self.state.live(point)
-        return default if value is None or value.value is None else value.value
 
     def online(self) -> bool:
         return self.state.status == "online"
@@ -77,31 +64,22 @@ class ElectrakView:
     def refresh(self) -> None:
         if self.guard is not None:
             self.guard.update()  # first: the drive card's gates read its reason
-        for card in self.cards:
-            card.refresh()
-
-    async def act(self, command: str, args: dict | None = None, success: str = ""):
-        """Invoke a declared command of the network (devices/electrak/policy.py) by name through the gate."""
-        result = await run_command(self.name, command, args=args, session=self.session, success=success)
-        self.refresh()  # what the command changed (control, enable) is shown at once, not at the next push
-        return result
+        super().refresh()
 
 
-class NetworkCard:
+class NetworkCard(DeviceCard):
     """Status, actuators heard, the numbers of each status telegram, warnings and the configured ranges."""
 
-    def __init__(self, view: ElectrakView):
-        self.view = view
+    view: ElectrakView
 
     def build(self) -> None:
         view, state = self.view, self.view.state
+        self.status = StatusRow(state, lambda c: f"status frames {c.responses} · service requests {c.requests} · "
+                                f"timeouts {c.timeouts} · error answers {c.exceptions} · malformed {c.malformed}")
         with ui.card().classes("w-full"):
-            with ui.row().classes("items-center gap-6 w-full"):
-                self.badge = ui.badge("waiting", color="grey").classes("text-body2")
+            with self.status.build():
                 self.heard = ui.label().classes("text-body2")
                 self.seen = ui.label().classes("text-body2")
-                counter_line(state, lambda c: f"status frames {c.responses} · service requests {c.requests} · timeouts {c.timeouts} · "
-                             f"error answers {c.exceptions} · malformed {c.malformed}")
             _numbers_grid(state, len(view.actuators))
             self.heard_warning = ui.label().classes("text-warning text-body2")
             self.saturated = ui.label().classes("text-warning text-body2").props("data-testid=saturated-warning")
@@ -114,7 +92,7 @@ class NetworkCard:
 
     def refresh(self) -> None:
         view, state = self.view, self.view.state
-        set_status_badge(self.badge, state.status, state.age)
+        self.status.refresh()
         heard, configured = view.fact(facts.P_HEARD, 0), view.fact(facts.P_CONFIGURED)
         self.heard.set_text(f"actuators heard per 100 ms: {heard} of {configured} configured")
         self.heard_warning.set_text(
@@ -124,11 +102,13 @@ class NetworkCard:
         self.seen.set_text(f"last status {fmt_age(state.age)}")
 
 
-class FlagsCard:
+class FlagsCard(DeviceCard):
     """Motion and fault flags as lamps; Message timeout while nobody sends 0x06 is grey and explained."""
 
+    view: ElectrakView
+
     def __init__(self, view: ElectrakView):
-        self.view = view
+        super().__init__(view)
         self.shown_faults: tuple | None = None
         self.idle_shown: bool | None = None
 
@@ -176,11 +156,9 @@ class FlagsCard:
                     ui.label(f"{fault}: clears: {clears}").classes("text-negative text-body2")
 
 
-class ChartCard:
-    """Position (with the target driven to), current and speed over the last minute, one figure in rows."""
-
-    def __init__(self, view: ElectrakView):
-        self.view = view
+class ChartCard(DeviceCard):
+    """Position (with the target driven to), current and speed over the last minute, one figure in rows (it
+    follows the store itself: nothing to refresh)."""
 
     def build(self) -> None:
         name, state = self.view.name, self.view.state
@@ -202,36 +180,27 @@ class ChartCard:
             layout["margin"]["b"] = 48  # room under the time axis for its date line, never clipped
             chart.plot.update()
 
-    def refresh(self) -> None:
-        pass  # the chart follows the store itself
-
 
 def content(name: str) -> None:
     view = ElectrakView(name)
-    with frame(f"Electrak HD network {name}"):
-        guard = WriteGuard(view.state)  # write and motion-start controls, disabled with the reason while the network is silent
-        cards = [NetworkCard(view), FlagsCard(view)]
-        for card in cards:
-            card.build()
+
+    def stop() -> None:
+        stop_bar("Clears enable at once; anyone may stop, also without control.", "STOP", "stop_circle",
+                 lambda: view.act("stop"), "stop-bar", "big-stop").classes("text-h6")
+
+    with device_page(view, f"Electrak HD network {name}", stop=stop):
+        view.guard = WriteGuard(view.state)  # write and motion-start controls, disabled with the reason while the network is silent
+        view.add(NetworkCard(view))
+        view.add(FlagsCard(view))
         # chart and drive side by side from 1024 px; on a tablet the drive card below the chart, each full width
         # (beside it the chart was drawn over the drive card)
         with ui.row().classes("w-full items-start gap-4"):
-            chart = ChartCard(view)
-            chart.build()
+            view.add(ChartCard(view))
             with ui.column().classes("col-12 col-md gap-4"):
-                drive = DriveCard(view, guard)
-                drive.build()
+                view.add(DriveCard(view))
         sim_card(name)  # full width: its entries and buttons need a row of their own on a narrow screen
-        service, bitrate = ServiceCard(view, guard), BitrateCard(view, guard)
-        service.build()
-        bitrate.build()
-        with ui.expansion("Events", icon="list", value=True).classes("w-full"):
-            event_log(view.state)  # state changes, faults rising and clearing, offline and back, commands; newest first
-    stop_bar("Clears enable at once; anyone may stop, also without control.", "STOP", "stop_circle",
-             lambda: view.act("stop"), "stop-bar", "big-stop").classes("text-h6")
-    view.guard, view.cards = guard, [*cards, drive, service, bitrate]
-    view.refresh()
-    follow(view.state, view.refresh)  # on every change the store pushes (at most 10/s) and once a second for the ages
+        view.add(ServiceCard(view))
+        view.add(BitrateCard(view))
 
 
 def holder_name() -> str:
@@ -247,16 +216,14 @@ def _stop_rule() -> str:
     )
 
 
-class DriveCard:
+class DriveCard(DeviceCard):
     """Take control, target, speed and current limit, Go, Stop, hold-to-run jog, override; the telegram sent."""
 
-    def __init__(self, view: ElectrakView, guard: WriteGuard):
-        self.view, self.guard = view, guard
+    view: ElectrakView
 
     def build(self) -> None:
         view, limits = self.view, self.view.limits
-        with ui.card().classes("w-full"):
-            ui.label("Drive the network").classes("text-subtitle1")
+        with titled_card("Drive the network"):
             self.holder = ui.label().classes("text-body2")
             self.foreign = ui.label().classes("text-negative text-body2").props("data-testid=foreign-control")
             with ui.row():
@@ -343,19 +310,6 @@ class DriveCard:
         self.sent.set_text("" if telegram is None else telegram.shown)
 
 
-def gate(control: ui.element, reason: str) -> None:
-    """Enable ``control``, or disable it with ``reason`` as its tooltip (changed only when the reason changes)."""
-    if getattr(control, "gate_reason", None) == reason:
-        return
-    control.gate_reason = reason  # type: ignore[attr-defined]
-    control.set_enabled(not reason)
-    if reason:
-        text = reason.replace('"', "'")
-        control.props(f'title="{text}" data-disabled-reason="{text}"')
-    else:
-        control.props(remove="title data-disabled-reason")
-
-
 def _numbers_grid(state, configured: int) -> None:
     """Position, current and speed as numbers: the network's (mean, highest, mean) and each status telegram's."""
 
@@ -391,11 +345,13 @@ def _answers_text(report: facts.ServiceReport | None) -> tuple[str, str]:
     return "; ".join(report.problems), tip
 
 
-class ServiceCard:
+class ServiceCard(DeviceCard):
     """The service parameters (0x0A / 0x0B) of every actuator: value, age, answers, write, save."""
 
-    def __init__(self, view: ElectrakView, guard: WriteGuard):
-        self.view, self.guard = view, guard
+    view: ElectrakView
+
+    def __init__(self, view: ElectrakView):
+        super().__init__(view)
         self.rows: dict = {}
         self.entries: dict = {}  # parameter key -> its entry field
         self.shown: dict = {}  # parameter key -> the device value the field was last set to
@@ -579,11 +535,13 @@ async def _write_service(name: str, param, entry) -> None:
                           title="Set {name} to {value}?", ok="Change bit rate", field=entry)
 
 
-class BitrateCard:
+class BitrateCard(DeviceCard):
     """Write, save, switch the bus, restart: the bit rate changes only when all four are done."""
 
-    def __init__(self, view: ElectrakView, guard: WriteGuard):
-        self.view, self.guard = view, guard
+    view: ElectrakView
+
+    def __init__(self, view: ElectrakView):
+        super().__init__(view)
         self.param = PARAMS.get("service", BITRATE_SPECIFIER)
         self.bus_rate = view.fact(facts.P_BUS_BITRATE, codec.DEFAULT_BITRATE)
         self.steps: list = []
@@ -598,8 +556,8 @@ class BitrateCard:
     def build(self) -> None:
         view, state, bus_rate = self.view, self.view.state, self.bus_rate
         others = [d.name for d in view.runtime.plant.devices_on(state.bus) if d.name != view.name]
-        with ui.card().classes("w-full").props("data-testid=bitrate-card"):
-            ui.label("Change the bit rate").classes("text-subtitle1")
+        with titled_card("Change the bit rate") as card:
+            card.props("data-testid=bitrate-card")
             ui.label(f"Bus {state.bus} runs at {bus_rate // 1000} kbit/s"
                      + (f"; on it also: {', '.join(others)} (switch them alike, or they leave the bus)." if others else ".")
                      + (" Assumption (the document does not say): the actuators take a new bit rate when powered up again."
