@@ -226,6 +226,9 @@ class DeviceState:
     info: dict[str, Any] = field(default_factory=dict)
     points: dict[str, Point] = field(default_factory=dict)  # live points by the document's names
     registers_periodic: bool = True  # False: register values are read on demand (they do not age)
+    # (space, address) -> seconds between two readings of a register read more slowly than the device's
+    # cycle (settings and identity an adapter reads every few seconds): stale after STALE_READINGS of them
+    register_every: dict[tuple[str, int], float] = field(default_factory=dict)
     version: int = 0  # bumped by every write below: readers follow changes by comparing it (O(1))
 
     def touch(self) -> None:
@@ -324,6 +327,11 @@ class DeviceState:
             return "stale"
         return "good"
 
+    def param_quality(self, param: Param, now: float | None = None) -> str:
+        """The quality of a register parameter's value, aged by its own read period (:attr:`register_every`)."""
+        return self.quality(self.read_time(param), self.registers_periodic, now,
+                            self.register_every.get((param.space, param.address)))
+
     def point(self, name: str) -> dict[str, Any] | None:
         """One live point in the dict form (:meth:`LiveValue.entry`, with its quality), or None if never published."""
         p = self.points.get(name)
@@ -360,7 +368,9 @@ class DeviceState:
     def _param_live(self, param: Param, raw: int, now: float) -> LiveValue:
         read = self.read_time(param)
         return LiveValue(param.label or param.name, param.decode(raw), param.unit, read,
-                         self.quality(read, self.registers_periodic, now), raw, param.display(raw),
+                         self.quality(read, self.registers_periodic, now,
+                                      self.register_every.get((param.space, param.address))),
+                         raw, param.display(raw),
                          param.enum_name(raw) if param.enum is not None else None,
                          param.field_values(raw) if param.fields else None,
                          param.address, param.space, param.access.value)

@@ -223,7 +223,7 @@ class ParameterCard(DeviceCard):
             current.set_text("-" if raw is None else p.display(raw))
             self.follow_entry(key, p, raw)
             read = state.read_time(p)
-            quality = state.quality(read, state.registers_periodic, now)
+            quality = state.param_quality(p, now)  # aged by its own read period (settings: every 10 s)
             mark_quality(cell, quality)  # greyed with the age of its value while stale or offline
             age.set_text(quality_note(quality, None if read is None else now - read) if quality in ("stale", "offline") else "")
             mark.set_visibility(key in state.unsaved)

@@ -156,7 +156,7 @@ class RegisterTable:
         for p in self.params:
             raw = self.state.raw(p)
             read = self.state.read_time(p)
-            quality = self.state.quality(read, self.state.registers_periodic, now)
+            quality = self.state.param_quality(p, now)
             rows.append({
                 "key": p.key,
                 "address": p.address if p.words == 1 else f"{p.address}-{p.address + p.words - 1}",

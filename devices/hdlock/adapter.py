@@ -27,6 +27,31 @@ P_SOURCE_FRAME = "LockRequestSource (status frame, low 6 bits)"
 HISTORY_MODBUS = ("BoltPosition", "MotorCurrent", "Calculated proxi (normalized)")
 HISTORY_CAN = (STATUS_FRAME_BOLT, "MotorCurrent", P_PROXIMITY_FRAME)
 
+# Settings (RW and MFR holding registers) change only when written: they are read every SETTINGS_PERIOD_S,
+# on the first poll, after a failed poll, a write, a restore or a backup, and in the same poll as an
+# identity that changed. The live status and the identity (input registers, RO holding registers: the
+# serial number that replacement detection compares among them) are read every poll.
+SETTINGS_PERIOD_S = 10.0
+
+
+def _is_status(param: Param) -> bool:
+    return param.space == INPUT or param.access.value in ("R", "RO")
+
+
+def poll_blocks() -> tuple[list[tuple[str, int, int]], list[tuple[str, int, int]]]:
+    """The read blocks of every poll (status and identity) and those of the settings, as (space, start, count)."""
+    every: list[tuple[str, int, int]] = []
+    settings: list[tuple[str, int, int]] = []
+    for space in (INPUT, HOLDING):
+        for start, count in PARAMS.blocks(space):
+            inside = [p for p in PARAMS.space(space) if start <= p.address < start + count]
+            (every if any(_is_status(p) for p in inside) else settings).append((space, start, count))
+    return every, settings
+
+
+STATUS_BLOCKS, SETTINGS_BLOCKS = poll_blocks()
+SERIAL_PARAM = PARAMS.by_name["SerialNumber"]  # a new value means another lock (its settings are read at once)
+
 
 @dataclass(frozen=True, slots=True)
 class FoundLock:
@@ -113,8 +138,32 @@ class HdLockBackup:
         except ParamError as exc:
             raise CommandError(str(exc)) from None
 
+    _settings_due = 0.0  # monotonic time the settings are read next (0: at the next poll)
+
+    def _setup_periods(self) -> None:
+        for space, start, count in SETTINGS_BLOCKS:
+            for address in range(start, start + count):
+                self.state.register_every[(space, address)] = SETTINGS_PERIOD_S
+
+    def read_settings_next(self) -> None:
+        """Read the settings with the next poll (after a write, a restore, a replacement)."""
+        self._settings_due = 0.0
+
+    def _blocks_now(self) -> tuple[list[tuple[str, int, int]], bool]:
+        """The blocks this poll reads, and whether the settings are among them."""
+        if time.monotonic() >= self._settings_due:
+            return STATUS_BLOCKS + SETTINGS_BLOCKS, True
+        return STATUS_BLOCKS, False
+
+    def _settings_read(self) -> None:
+        self._settings_due = time.monotonic() + SETTINGS_PERIOD_S
+
+    def _serial_word(self) -> int | None:
+        return self.state.raw(SERIAL_PARAM)
+
     async def backup_read(self, progress=None) -> list[dict]:
         started = time.time()
+        self.read_settings_next()
         await self.poll()
         missing = [p.label or p.name for p in PARAMS if (self.state.read_time(p) or 0) < started]
         if missing:
@@ -151,26 +200,30 @@ class HdLockAdapter(HdLockBackup):
         self.state.fact(P_LINE_LOCKS, ())  # none found by a scan of the line yet
         self._fails = 0
         self._changing_address = False  # polling waits while the address is being changed
+        self._setup_periods()
         _LINE_LOCKS.setdefault(line, weakref.WeakSet()).add(self)
 
     # -- polling ------------------------------------------------------------------------
     async def poll(self) -> None:
-        """Read every register block once; one failed block marks the cycle failed."""
+        """Read the status and identity blocks (and the settings when due, see SETTINGS_PERIOD_S);
+        one failed block marks the cycle failed."""
         scans = _LINE_SCANS.get(self.line)
         if scans is not None:
             self.state.fact(P_LINE_LOCKS, tuple(FoundLock(e["address"], e.get("serial"), e.get("via", "scan"))
                                                 for _address, e in sorted(scans.items())))
+        blocks, with_settings = self._blocks_now()
+        serial = self._serial_word()
         try:
-            for space in (INPUT, HOLDING):
-                for start, count in self.blocks[space]:
-                    if self._changing_address:
-                        return
-                    if space == INPUT:
-                        values = await self.line.read_input(self.address, start, count, self.state.counters)
-                    else:
-                        values = await self.line.read_holding(self.address, start, count, self.state.counters)
-                    self.state.update_registers(space, start, values)
+            if not await self._read_blocks(blocks):
+                return
+            if not with_settings and serial is not None and self._serial_word() != serial:
+                with_settings = True  # another lock answers here: its settings now, not in 10 s
+                if not await self._read_blocks(SETTINGS_BLOCKS):
+                    return
+            if with_settings:
+                self._settings_read()
         except LineError as exc:
+            self.read_settings_next()
             self._fails += 1
             if self._fails >= 2 or self.state.online is None:
                 self.state.mark_offline(f"{exc}")
@@ -181,6 +234,18 @@ class HdLockAdapter(HdLockBackup):
             self.state.event("info", f"answering again at address {self.address}")
         self._fails = 0
         self.state.add_history(_sample(self.state, HISTORY_MODBUS))
+
+    async def _read_blocks(self, blocks: list[tuple[str, int, int]]) -> bool:
+        """Read ``blocks`` in turn; False when an address change began meanwhile (the poll stops)."""
+        for space, start, count in blocks:
+            if self._changing_address:
+                return False
+            if space == INPUT:
+                values = await self.line.read_input(self.address, start, count, self.state.counters)
+            else:
+                values = await self.line.read_holding(self.address, start, count, self.state.counters)
+            self.state.update_registers(space, start, values)
+        return True
 
     # -- writes -------------------------------------------------------------------------
     async def write_param(self, param: Param, value, *, confirmed: bool = False) -> int:
@@ -201,6 +266,7 @@ class HdLockAdapter(HdLockBackup):
             )
         if param.address != codec.REG_COMMAND:
             self.state.unsaved.add(param.key)
+        self.read_settings_next()  # a write may move other settings (a command register, a derived value)
         self.state.event("info", f"{param.label or param.name} = {param.display(raw)} written and read back")
         return raw
 
@@ -212,6 +278,7 @@ class HdLockAdapter(HdLockBackup):
         try:
             for register, value in writes.writes:
                 await self.line.write_register(self.address, register, value, self.state.counters)
+            self.read_settings_next()
         except LineError as exc:
             self.state.counters.write_errors += 1
             raise CommandError(f"{command.name.replace('_', '-').title()} failed: {exc}") from None
@@ -230,6 +297,7 @@ class HdLockAdapter(HdLockBackup):
         """Command 2 (section 4.2): reload the saved settings, dropping unsaved changes."""
         await self._command(codec.SystemCommand.RESTORE_SETTINGS)
         self.state.unsaved.clear()
+        self.read_settings_next()
         await self.poll()
         self.state.event("info", "saved settings restored; unsaved changes discarded")
 
@@ -484,6 +552,7 @@ class HdLockCanAdapter(HdLockBackup):
         self.state.params = PARAMS
         self.state.stale_after = 2.5  # status every 1000 ms (section 6.5)
         self._waiting: dict[tuple[str, int], asyncio.Future] = {}
+        self._setup_periods()
         self._subscribe()
 
     # -- frames ----------------------------------------------------------------------------
@@ -567,19 +636,28 @@ class HdLockCanAdapter(HdLockBackup):
 
     # -- polling ---------------------------------------------------------------------------
     async def poll(self) -> None:
-        """Read every register (one answer frame each); status frames arrive on their own."""
+        """Read the status and identity registers (one answer frame each), the settings when due
+        (SETTINGS_PERIOD_S); status frames arrive on their own."""
+        blocks, with_settings = self._blocks_now()
+        serial = self._serial_word()
         try:
-            for space in (INPUT, HOLDING):
-                for start, count in self.blocks[space]:
-                    await self._request(
-                        codec.encode_read(self.device_id, space, start, count),
-                        [(space, a) for a in range(start, start + count)],
-                    )
+            await self._read_blocks(blocks)
+            if not with_settings and serial is not None and self._serial_word() != serial:
+                with_settings = True  # another lock answers under this ID: its settings now
+                await self._read_blocks(SETTINGS_BLOCKS)
+            if with_settings:
+                self._settings_read()
         except CommandError as exc:
+            self.read_settings_next()
             if self.state.age is None or self.state.age > self.state.stale_after:
                 self.state.mark_offline(str(exc))
             else:
                 self.state.error(str(exc), log=False)
+
+    async def _read_blocks(self, blocks: list[tuple[str, int, int]]) -> None:
+        for space, start, count in blocks:
+            await self._request(codec.encode_read(self.device_id, space, start, count),
+                                [(space, a) for a in range(start, start + count)])
 
     # -- writes ----------------------------------------------------------------------------
     async def write_param(self, param: Param, value, *, confirmed: bool = False) -> int:
@@ -593,6 +671,7 @@ class HdLockCanAdapter(HdLockBackup):
                 "(refused by the firmware: protected register or value not accepted)"
             )
         self.state.unsaved.add(param.key)
+        self.read_settings_next()
         self.state.event("info", f"{param.label or param.name} = {param.display(raw)} written, echo checked")
         return raw
 
@@ -607,6 +686,7 @@ class HdLockCanAdapter(HdLockBackup):
     async def _system_command(self, command: codec.SystemCommand) -> None:
         for register, value in codec.encode_system_command(command).writes:
             await self._write_register(register, value)
+        self.read_settings_next()
 
     async def save_settings(self) -> None:
         before = (await self._request(codec.encode_read(self.device_id, INPUT, 101), [(INPUT, 101)]))[(INPUT, 101)]
@@ -620,6 +700,7 @@ class HdLockCanAdapter(HdLockBackup):
     async def restore_settings(self) -> None:
         await self._system_command(codec.SystemCommand.RESTORE_SETTINGS)
         self.state.unsaved.clear()
+        self.read_settings_next()
         await self.poll()
         self.state.event("info", "saved settings restored; unsaved changes discarded")
 
