@@ -49,3 +49,28 @@ def test_split_plant_puts_every_can_bus_on_a_multicast_group_of_its_own():
     can = [b for b in plant.buses.values() if b.type == "can"]
     assert can and all(b.options["interface"] == "udp_multicast" for b in can)
     assert len({b.options["channel"] for b in can}) == len(can)
+
+
+def test_wait_http_takes_the_statuses_it_is_told():
+    """running_app waits on /api/devices, where a login refuses with 401: that is an answer too."""
+    import http.server
+    import threading
+
+    class Refuse(http.server.BaseHTTPRequestHandler):
+        def do_GET(self):  # noqa: N802 - the standard library's name
+            self.send_response(401)
+            self.end_headers()
+
+        def log_message(self, *args):
+            pass
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Refuse)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        url = f"http://127.0.0.1:{server.server_address[1]}/api/devices"
+        liveapp.wait_http(url, accept=(200, 401), timeout=5)
+        with pytest.raises(TimeoutError):
+            liveapp.wait_http(url, timeout=0.5)
+    finally:
+        server.shutdown()
+        server.server_close()
