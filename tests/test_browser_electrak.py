@@ -8,29 +8,12 @@ import re
 import pytest
 from conftest import CHROMIUM, inside_viewport
 from playwright.sync_api import expect
+from plants import channel, electrak_bus, plant_text
 from webutil import running_app
 
 pytestmark = pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed")
 
-PLANT = """
-name = "electrak-test"
-[[bus]]
-name = "can2"
-type = "can"
-interface = "virtual"
-channel = "browser-electrak"
-bitrate = 500000
-simulate = true
-
-[[device]]
-name = "lift"
-type = "electrak"
-bus = "can2"
-actuators = [
-    { model = "HD24", gearing = "B026", stroke_mm = 300 },
-    { model = "HD24", gearing = "B026", stroke_mm = 300 },
-]
-"""
+PLANT = plant_text(electrak_bus(channel_name=channel("browser-electrak")), name="electrak-test")
 
 
 @pytest.fixture

@@ -7,15 +7,13 @@ allowed; control is taken in the logged-in account's name, shown to the other br
 
 from __future__ import annotations
 
-import uuid
-
 import pytest
 from nicegui import ui
 from nicegui.testing.user_interaction import UserInteraction
+from plants import channel, electrak_bus, plant
 from test_auth import login
-from webutil import eventually, simulated_user
+from webutil import by_testid, eventually, simulated_user
 
-from app.plant import parse_plant
 from app.runtime import Runtime
 from app.users import UserStore
 from devices.electrak.params import PARAMS
@@ -24,30 +22,7 @@ pytestmark = pytest.mark.timeout(60)
 
 
 def lift_plant():
-    return parse_plant(f"""
-name = "entries"
-[[bus]]
-name = "can2"
-type = "can"
-interface = "virtual"
-channel = "entries-{uuid.uuid4().hex[:10]}"
-bitrate = 500000
-simulate = true
-[[device]]
-name = "lift"
-type = "electrak"
-bus = "can2"
-actuators = [
-    {{ model = "HD24", gearing = "B026", stroke_mm = 300 }},
-    {{ model = "HD24", gearing = "B026", stroke_mm = 300 }},
-]
-""")
-
-
-def by_testid(user, testid: str):
-    found = [e for e in user.client.elements.values() if e.props.get("data-testid") == testid]
-    assert len(found) == 1, f"{testid}: {len(found)} elements"
-    return found[0]
+    return plant(electrak_bus(channel_name=channel("entries")), name="entries")
 
 
 def interact(user, element) -> UserInteraction:

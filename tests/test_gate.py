@@ -21,6 +21,7 @@ from app.runtime import Runtime
 from app.worker import PermissionDenied, Worker
 from devices.commands import KINDS, commands_of
 from devices.registry import DEVICE_TYPES
+from plants import channel, heater_and_lock
 from tests.conftest import wait_for
 
 DEMO = Path(__file__).resolve().parent.parent / "plants" / "demo.toml"
@@ -45,16 +46,16 @@ class SlowAudit:
         self.rows[row]["result"] = result
 
 
-def _can_plant(channel: str) -> str:
-    return (f'[[bus]]\nname = "can1"\ntype = "can"\ninterface = "virtual"\nchannel = "{channel}"\nbitrate = 500000\n'
-            'poll_period = 2.0\n[[device]]\nname = "lock"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 335\nextended = true\n')
+def _can_plant():
+    """:func:`plants.heater_and_lock` on a channel of its own: an HD-Lock "lock" and an M3IO "heater", no twins."""
+    return parse_plant(heater_and_lock(channel("gate")))
 
 
 # -- 33.2: a stop goes to the bus first, audited afterwards ------------------------------------------------
 
 
 async def test_stop_runs_before_its_audit_row_and_never_waits_for_it():
-    worker = Worker(parse_plant(_can_plant(f"gate-{next(_n)}")), audit=SlowAudit())
+    worker = Worker(_can_plant(), audit=SlowAudit())
     ran: list[float] = []
 
     async def stop() -> str:
@@ -73,7 +74,7 @@ async def test_stop_runs_before_its_audit_row_and_never_waits_for_it():
 async def test_an_action_by_its_wording_gets_the_declared_kind_or_counts_as_a_write():
     """An action submitted as a callable and its wording gets the kind its type declares for that name;
     a wording the type does not declare is checked as a write, never let through as a read."""
-    worker = Worker(parse_plant(_can_plant(f"gate-{next(_n)}")), audit=SlowAudit())
+    worker = Worker(_can_plant(), audit=SlowAudit())
     assert gate.kind_for(worker, "lock", "Save-Settings") == "system"
     assert gate.kind_for(worker, "lock", "read something") == "write"  # not declared: checked as a write
 
@@ -82,17 +83,12 @@ async def test_an_action_by_its_wording_gets_the_declared_kind_or_counts_as_a_wr
 
 
 @pytest.fixture
-async def accounts(tmp_path):
-    channel = f"gate-{next(_n)}-{time.monotonic_ns()}"
-    runtime = Runtime(parse_plant(_can_plant(channel)), simulate=False, data_dir=tmp_path, auth_required=True)
+def accounts(can_rig):
+    """conftest's ``can_rig`` with accounts: the engineer anna, each action checked against the account store."""
+    runtime, listener = can_rig
+    runtime.auth_required = True  # read at each action (Runtime.role_of), as it is when the GUI listens beyond loopback
     runtime.users.add("anna", "engineer", "correct horse")
-    await runtime.start()
-    listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
-    try:
-        yield runtime, listener
-    finally:
-        listener.shutdown()
-        await asyncio.wait_for(runtime.stop(), 5)
+    return runtime, listener
 
 
 def _drain(listener) -> list[can.Message]:
