@@ -212,3 +212,47 @@ async def test_register_table_is_built_once_in_the_once_a_second_round(user_runt
     state.version += 1
     await asyncio.sleep(0.15)
     assert builds[0] is True and builds.count(True) == 1  # a change in the once-a-second round: one build with the read times
+
+
+async def test_a_page_follows_its_devices_only_once_its_browser_connected(user_runtime):
+    """A page built for a browser that never connects (a prefetch, a closed tab) runs no live updates
+    in the minute NiceGUI keeps it; the one that connects catches up once and then follows."""
+    import re
+    from uuid import uuid4
+
+    from nicegui import Client
+    from nicegui.testing.user import _on_handshake
+
+    from pages.widgets import follow
+
+    user, runtime = user_runtime
+    state = runtime.store.devices["io"]
+    calls: list[str] = []
+
+    @ui.page("/follow-test")
+    def page() -> None:
+        follow(state, lambda: calls.append("update"))
+
+    response = await user.http_client.get("/follow-test")
+    client_id = re.search(r"'client_id': '([0-9a-f-]+)'", response.text).group(1)
+    assert client_id not in runtime.store._groups  # built, not connected: nothing follows the device
+    state.touch()
+    await asyncio.sleep(0.3)
+    assert calls == []
+
+    await _on_handshake(f"test-{uuid4()}", {"client_id": client_id, "tab_id": str(uuid4()), "document_id": str(uuid4())})
+    assert calls == ["update"]  # caught up once on connecting
+    assert client_id in runtime.store._groups
+    state.touch()
+    assert await _eventually(lambda: len(calls) >= 2)
+    Client.instances[client_id].delete()
+    assert client_id not in runtime.store._groups
+
+
+async def _eventually(condition, timeout: float = 3.0) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if condition():
+            return True
+        await asyncio.sleep(0.05)
+    return condition()
