@@ -41,13 +41,19 @@ def modbus_line(locks=(("door-1", 1),), port: int | str | None = None, name: str
 
 
 def can_bus(*devices: str, name: str = "can1", channel_name: str | None = None, **options) -> str:
-    """A simulated python-can ``virtual`` bus with ``devices`` on a channel of its own."""
-    options = {"simulate": True, **options}
-    return bus(name, "can", *devices, interface="virtual", channel=channel_name or channel(name), **options)
+    """A simulated python-can bus with ``devices``: ``virtual`` on a channel of its own unless ``options`` say
+    otherwise (``interface="udp_multicast"``, ``port=...``)."""
+    options = {"interface": "virtual", "simulate": True, **options}
+    return bus(name, "can", *devices, channel=channel_name or channel(name), **options)
 
 
 def hdlock_can(name: str, device_id: int, bus_name: str = "can1", **options) -> str:
     return device(name, "hdlock", bus_name, device_id=device_id, **options)
+
+
+def m3io_can(name: str = "hm", bus_name: str = "can3", variant: str = "HM", sw1: int = 0x1A, **options) -> str:
+    """A CAN-M3IO module (``options``: its others, such as ``master``)."""
+    return device(name, "m3io", bus_name, variant=variant, sw1=sw1, **options)
 
 
 def scu_line(name: str = "lift", bus_name: str = "rs1", port: int | None = None, actuators=SCU_ACTUATORS,
@@ -103,5 +109,5 @@ def heater_and_lock(channel_name: str) -> str:
 
 
 __all__ = ["ELECTRAK_ACTUATORS", "SCU_ACTUATORS", "bus", "can_bus", "channel", "device", "electrak_bus", "free_port",
-           "hdlock_can", "heater_and_lock", "modbus_line", "modbus_plant", "mo64_rs485", "mo64_tcp", "motion_plant_text",
+           "hdlock_can", "heater_and_lock", "m3io_can", "modbus_line", "modbus_plant", "mo64_rs485", "mo64_tcp", "motion_plant_text",
            "plant", "plant_text", "scu_line", "table"]

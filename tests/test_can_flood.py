@@ -10,10 +10,10 @@ import uuid
 import can
 import pytest
 from conftest import wait_for
+from plants import ELECTRAK_ACTUATORS, can_bus, electrak_bus, hdlock_can, plant
 
 import app.can_bus
 from app.can_bus import CanBus, CanBusState, open_error
-from app.plant import parse_plant
 from app.runtime import Runtime
 from devices.electrak import codec as electrak
 
@@ -21,13 +21,8 @@ SAFETY_GAP_S = 0.25  # Electrak: control telegram timeout 250 ms (message-timeou
 
 
 def _plant(flooded: str, lift: str):
-    return parse_plant(
-        f'[[bus]]\nname = "can1"\ntype = "can"\ninterface = "virtual"\nchannel = "{flooded}"\nbitrate = 1000000\nsimulate = true\n'
-        f'[[bus]]\nname = "can2"\ntype = "can"\ninterface = "virtual"\nchannel = "{lift}"\nbitrate = 500000\nsimulate = true\n'
-        '[[device]]\nname = "gate-1"\ntype = "hdlock"\nbus = "can1"\ndevice_id = 660100\n'
-        '[[device]]\nname = "lift"\ntype = "electrak"\nbus = "can2"\n'
-        'actuators = [{ model = "HD24", gearing = "B026", stroke_mm = 300 }]\n'
-    )
+    return plant(can_bus(hdlock_can("gate-1", 660100), channel_name=flooded, bitrate=1000000),
+                 electrak_bus(channel_name=lift, actuators=ELECTRAK_ACTUATORS[:1]), name=None)
 
 
 def _control_times(channel: str, stop: threading.Event, times: list[float]) -> None:

@@ -23,6 +23,7 @@ from pathlib import Path
 import can
 import pytest
 from conftest import CHROMIUM, free_port, free_udp_port, inside_viewport
+from plants import ELECTRAK_ACTUATORS, can_bus, electrak_bus, m3io_can, plant_text
 from webutil import running_app
 
 from app.worker import DEADMAN_BOUND_S, DEADMAN_TIMEOUT_S
@@ -33,40 +34,11 @@ GROUP = "239.74.163.9"
 CONTROL_ID, DIGOUT_ID = 0x006, 0x422  # Electrak control; M3IO DigOut of SW1 0x1A (0x3A0 + 5 * 0x1A)
 
 
-def plant_text(port_lift: int, port_heater: int) -> str:
-    return f"""
-name = "deadman"
-[[bus]]
-name = "can2"
-type = "can"
-interface = "udp_multicast"
-channel = "{GROUP}"
-port = {port_lift}
-bitrate = 500000
-simulate = true
-
-[[device]]
-name = "lift"
-type = "electrak"
-bus = "can2"
-actuators = [{{ model = "HD24", gearing = "B026", stroke_mm = 300 }}]
-
-[[bus]]
-name = "can3"
-type = "can"
-interface = "udp_multicast"
-channel = "{GROUP}"
-port = {port_heater}
-bitrate = 500000
-simulate = true
-
-[[device]]
-name = "heater-hm"
-type = "m3io"
-bus = "can3"
-variant = "HM"
-sw1 = 0x1A
-"""
+def deadman_plant(port_lift: int, port_heater: int) -> str:
+    """An Electrak network of one actuator and an M3IO HM heater, each on a udp_multicast bus of its own (ports)."""
+    multicast = {"interface": "udp_multicast", "channel_name": GROUP, "bitrate": 500000}
+    return plant_text(electrak_bus(actuators=ELECTRAK_ACTUATORS[:1], port=port_lift, **multicast),
+                      can_bus(m3io_can("heater-hm"), name="can3", port=port_heater, **multicast), name="deadman")
 
 
 class Listener:
@@ -128,7 +100,7 @@ def test_frozen_browser_stops_motion_and_mains_outputs_within_the_bound(tmp_path
     chromium, debug_port = start_chromium(tmp_path)
     frozen = False
     try:
-        with running_app(plant_text(port_lift, port_heater), tmp_path) as url, sync_playwright() as p:
+        with running_app(deadman_plant(port_lift, port_heater), tmp_path) as url, sync_playwright() as p:
             browser = p.chromium.connect_over_cdp(f"http://127.0.0.1:{debug_port}")
             context = browser.contexts[0]
 

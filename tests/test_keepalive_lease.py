@@ -18,6 +18,7 @@ import time
 import can
 import pytest
 from conftest import wait_for
+from plants import can_bus, channel, m3io_can, plant_text
 from test_electrak import beat, lift, start_lift  # noqa: F401 (fixture)
 
 from app.plant import parse_plant
@@ -173,15 +174,10 @@ async def test_idle_control_is_kept_alive_during_a_stall(lift):  # noqa: F811
 
 # -- M3IO: DigOut -----------------------------------------------------------------------------------------
 
-_n = itertools.count()
-
-
-def m3io_plant() -> str:
-    return (
-        f'[[bus]]\nname = "can3"\ntype = "can"\ninterface = "virtual"\nchannel = "ka-{next(_n)}-{id(object())}"\n'
-        'bitrate = 500000\npoll_period = 0.2\nsimulate = true\n'
-        '[[device]]\nname = "hm"\ntype = "m3io"\nbus = "can3"\nvariant = "HM"\nsw1 = 0x1A\n'
-    )
+def m3io_plant(**options) -> str:
+    """An M3IO HM ``hm`` (SW1 0x1A) on a CAN bus of its own, simulated (``options``: the module's, such as ``master``)."""
+    return plant_text(can_bus(m3io_can(**options), name="can3", channel_name=channel("ka"), bitrate=500000, poll_period=0.2),
+                      name=None)
 
 
 @pytest.fixture
@@ -283,7 +279,7 @@ async def test_a_stalled_loop_switches_mains_outputs_off_by_itself(m3io_module):
 async def test_master_always_serves_idle_and_yields_to_a_plc():
     """``master = "always"`` (a bench without a PLC): the watchdog is served with every output off while
     nobody controls the module, after listening first; a PLC's DigOut ends it at once."""
-    text = m3io_plant().replace('sw1 = 0x1A\n', 'sw1 = 0x1A\nmaster = "always"\n')
+    text = m3io_plant(master="always")
     runtime = Runtime(parse_plant(text), simulate=True)
     listener = Listener(runtime.plant.buses["can3"].options["channel"])
     await runtime.start()
@@ -309,4 +305,4 @@ def test_master_option_is_checked():
     from app.plant import PlantError
 
     with pytest.raises(PlantError, match="master"):
-        parse_plant(m3io_plant().replace('sw1 = 0x1A\n', 'sw1 = 0x1A\nmaster = "sometimes"\n'))
+        parse_plant(m3io_plant(master="sometimes"))

@@ -16,6 +16,7 @@ import time
 
 import pytest
 from conftest import free_port, wait_for
+from plants import plant_text, scu_line
 
 from app.plant import parse_plant
 from app.runtime import Runtime
@@ -73,10 +74,8 @@ class TwinThread:
         return [b - a for a, b in itertools.pairwise(times)]
 
 
-def plant_text(port: int) -> str:
-    return (f'[[bus]]\nname = "rs1"\ntype = "serial"\nport = "socket://127.0.0.1:{port}"\nbaudrate = 38400\n'
-            'timeout = 0.3\npoll_period = 0.2\nsimulate = true\n'
-            '[[device]]\nname = "scu"\ntype = "scu"\nbus = "rs1"\nactuators = 2\n')
+def scu_plant(port: int) -> str:
+    return plant_text(scu_line("scu", port=port, actuators=2, baudrate=38400), name=None)
 
 
 def block_loop(seconds: float) -> float:
@@ -88,7 +87,7 @@ def block_loop(seconds: float) -> float:
 
 @pytest.fixture
 async def scu():
-    plant = parse_plant(plant_text(free_port()))
+    plant = parse_plant(scu_plant(free_port()))
     unit = TwinThread(plant)
     unit.start()
     runtime = Runtime(plant, simulate=False)
