@@ -9,7 +9,8 @@ import subprocess
 import sys
 
 import pytest
-from conftest import free_port, modbus_plant, wait_for
+from conftest import modbus_plant, wait_for
+from plants import modbus_line, plant_text
 
 from app import backup, batch
 from app.runtime import Runtime
@@ -93,28 +94,8 @@ async def test_viewer_cannot_apply(locks, tmp_path):
 
 
 def test_cli_apply_confirmations_and_stop(tmp_path):
-    port = free_port()
     plant = tmp_path / "plant.toml"
-    plant.write_text(f"""name = "cli"
-[[bus]]
-name = "line1"
-type = "modbus-rtu"
-port = "socket://127.0.0.1:{port}"
-timeout = 0.2
-retries = 0
-poll_period = 0.1
-simulate = true
-[[device]]
-name = "door-1"
-type = "hdlock"
-bus = "line1"
-address = 1
-[[device]]
-name = "door-2"
-type = "hdlock"
-bus = "line1"
-address = 2
-""")
+    plant.write_text(plant_text(modbus_line(locks=(("door-1", 1), ("door-2", 2))), name="cli"))
     source = _source(tmp_path, delay=430, magnet=1)
     cmd = [sys.executable, "-m", "app.cli", "apply", "--plant", str(plant), "--from", str(source), "--devices", "door-1,door-2",
            "--data-dir", str(tmp_path / "data"), "--yes"]

@@ -9,7 +9,8 @@ import subprocess
 import sys
 
 import pytest
-from conftest import free_port, wait_for
+from conftest import wait_for
+from plants import device, modbus_line, plant_text
 
 from app import backup, project
 from app.plant import load_plant
@@ -17,36 +18,7 @@ from app.runtime import Runtime
 from devices.hdlock.params import PARAMS
 from devices.params import backup_entry
 
-LINE = """name = "offline"
-
-[[bus]]
-name = "line1"
-type = "modbus-rtu"
-port = "socket://127.0.0.1:{port}"
-timeout = 0.2
-retries = 0
-poll_period = 0.1
-simulate = true
-"""
-DOOR_1 = """
-[[device]]
-name = "door-1"
-type = "hdlock"
-bus = "line1"
-address = 1
-project = {{ LockRequestDelay = {delay}, SettingsProximityOffsetLeft = -5 }}
-"""
-DOOR_2 = """
-[[device]]
-name = "door-2"
-type = "hdlock"
-bus = "line1"
-address = 2
-project = "door-2.json"
-"""
-
-
-def _files(tmp_path, delay=350, extra="", offset_right=7):
+def _files(tmp_path, delay=350, extra: dict | None = None, offset_right=7):
     entries = [backup_entry(p, p.default if p.default is not None else 0) for p in PARAMS]
     for e in entries:
         if e["name"] == "SettingsProximityOffsetRight":
@@ -54,12 +26,15 @@ def _files(tmp_path, delay=350, extra="", offset_right=7):
     document = backup.make_document("offline", "door-2", "hdlock", "line1", {}, entries)
     (tmp_path / "door-2.json").write_text(json.dumps(document, indent=2))
     path = tmp_path / "plant.toml"
-    path.write_text(LINE.format(port=free_port()) + DOOR_1.format(delay=delay).replace("-5 }", f"-5{extra} }}") + DOOR_2)
+    door_1 = device("door-1", "hdlock", "line1", address=1,
+                    project={"LockRequestDelay": delay, "SettingsProximityOffsetLeft": -5, **(extra or {})})
+    door_2 = device("door-2", "hdlock", "line1", address=2, project="door-2.json")
+    path.write_text(plant_text(modbus_line(locks=()) + door_1 + door_2, name="offline"))
     return path
 
 
 def test_check_lists_invalid_and_unknown_entries_with_file_and_line(tmp_path):
-    path = _files(tmp_path, delay=70000, extra=", LockReqDelay = 3")
+    path = _files(tmp_path, delay=70000, extra={"LockReqDelay": 3})
     text = path.read_text().splitlines()
     line = next(i + 1 for i, t in enumerate(text) if t.startswith("project = {"))
     plant = load_plant(path)

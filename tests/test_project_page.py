@@ -16,6 +16,7 @@ import pytest
 from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
+from plants import mo64_tcp, plant_text
 from test_auth import login
 from test_backup_page import emit
 from webutil import eventually, free_port, simulated_user
@@ -180,19 +181,8 @@ async def test_a_viewer_sees_the_project_read_only_and_the_worker_refuses_the_sa
 
 async def test_a_type_without_a_parameter_model_says_so(tmp_path: Path):
     path = tmp_path / "plant.toml"
-    path.write_text(f"""name = "gates"
-
-[[bus]]
-name = "gate-tcp"
-type = "logited-tcp"
-host = "127.0.0.1"
-port = {free_port()}
-
-[[device]]
-name = "barrier-in"
-type = "mo64"
-bus = "gate-tcp"
-""")
+    path.write_text(plant_text(mo64_tcp("barrier-in", "gate-tcp", travel_s=None, timeout=None, poll_period=None, simulate=None),
+                               name="gates"))
     runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
     async with simulated_user(runtime) as user:
         await user.open("/project/barrier-in")
