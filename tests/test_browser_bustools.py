@@ -7,12 +7,11 @@ data folder of the test's own. Screenshots at 1440x900 and 1024x768 land in /tmp
 from __future__ import annotations
 
 import re
-import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from webutil import demo_plant_text, free_port, start_app, stop_app, wait_http
+from demo_app import demo_app
 
 pytest.importorskip("playwright")
 from playwright.sync_api import Browser, Page, expect, sync_playwright
@@ -28,25 +27,8 @@ pytestmark = [
 
 @pytest.fixture(scope="module")
 def app_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    folder = tmp_path_factory.mktemp("bustools")
-    channel = f"bustools-{uuid.uuid4().hex[:12]}"
-    text = demo_plant_text(free_port())
-    for n in range(1, 10):
-        text = text.replace(f'channel = "demo-can{n}"', f'channel = "{channel}-{n}"')
-    plant = folder / "plant.toml"
-    plant.write_text(text)
-    port = free_port()
-    log = folder / "app.log"
-    mp = pytest.MonkeyPatch()
-    mp.setenv("COMMISSION_DATA_DIR", str(folder / "data"))
-    proc = start_app(plant, port, log)
-    mp.undo()
-    try:
-        wait_http(f"http://127.0.0.1:{port}/", proc, timeout=30)
-        yield f"http://127.0.0.1:{port}"
-    finally:
-        stop_app(proc)
-        print(log.read_text(errors="replace")[-3000:])
+    with demo_app(tmp_path_factory.mktemp("bustools"), "bustools") as url:
+        yield url
 
 
 @pytest.fixture(scope="module")

@@ -11,12 +11,11 @@ is shared); the test fails only when a page shows no value at all.
 from __future__ import annotations
 
 import os
-import uuid
 from collections.abc import Iterator
 
 import pytest
 from conftest import CHROMIUM
-from webutil import demo_plant_text, free_port, start_app, stop_app, wait_http
+from demo_app import demo_app
 
 pytestmark = [pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium at /usr/bin/chromium"),
               pytest.mark.timeout(180)]
@@ -47,24 +46,8 @@ FIRST_VALUE_JS = """([selector, pattern]) => {
 
 @pytest.fixture(scope="module")
 def app_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
-    folder = tmp_path_factory.mktemp("first-value")
-    channel = f"first-{uuid.uuid4().hex[:12]}"
-    text = demo_plant_text(free_port())
-    for n in range(1, 10):
-        text = text.replace(f'channel = "demo-can{n}"', f'channel = "{channel}-{n}"')
-    plant = folder / "plant.toml"
-    plant.write_text(text)
-    port = free_port()
-    log = folder / "app.log"
-    mp = pytest.MonkeyPatch()
-    mp.setenv("COMMISSION_DATA_DIR", str(folder / "data"))
-    proc = start_app(plant, port, log)
-    mp.undo()
-    try:
-        wait_http(f"http://127.0.0.1:{port}/", proc, timeout=30)
-        yield f"http://127.0.0.1:{port}"
-    finally:
-        stop_app(proc)
+    with demo_app(tmp_path_factory.mktemp("first-value"), "first") as url:
+        yield url
 
 
 NAVIGATION_JS = """() => { const n = performance.getEntriesByType('navigation')[0];

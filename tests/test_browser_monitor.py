@@ -7,14 +7,13 @@ virtual channel of its own; recordings and screenshots go to the test's temporar
 from __future__ import annotations
 
 import re
-import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 import can
 import pytest
 from conftest import CHROMIUM
-from webutil import demo_plant_text, free_port, start_app, stop_app, wait_http
+from demo_app import demo_app
 
 pytest.importorskip("playwright")
 from playwright.sync_api import Browser, Page, expect
@@ -28,26 +27,10 @@ pytestmark = [
 
 
 @pytest.fixture
-def app_url(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[str]:
-    """``python -m app.cli`` on the demo plant, moved to a free port and a virtual channel of its own."""
-    channel = f"browser-monitor-{uuid.uuid4().hex[:12]}"
-    text = demo_plant_text(free_port())
-    assert 'channel = "demo-can1"' in text
-    plant = tmp_path / "plant.toml"
-    text = text.replace('channel = "demo-can1"', f'channel = "{channel}"')
-    for n in range(2, 10):  # further CAN buses of the demo: channels of their own as well
-        text = text.replace(f'channel = "demo-can{n}"', f'channel = "{channel}-{n}"')
-    plant.write_text(text)
-    monkeypatch.setenv("COMMISSION_RECORDINGS_DIR", str(tmp_path / "recordings"))
-    port = free_port()
-    log = tmp_path / "app.log"
-    proc = start_app(plant, port, log)
-    try:
-        wait_http(f"http://127.0.0.1:{port}/", proc, timeout=30)
-        yield f"http://127.0.0.1:{port}"
-    finally:
-        stop_app(proc)
-        print(log.read_text(errors="replace")[-3000:])
+def app_url(tmp_path: Path) -> Iterator[str]:
+    """``python -m app.cli`` on the demo plant, moved to free ports and virtual channels of its own."""
+    with demo_app(tmp_path, "browser-monitor", COMMISSION_RECORDINGS_DIR=str(tmp_path / "recordings")) as url:
+        yield url
 
 
 def count_cell(page: Page, can_id: str):

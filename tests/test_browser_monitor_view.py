@@ -10,13 +10,12 @@ import csv
 import io
 import re
 import urllib.request
-import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 import can
 import pytest
-from webutil import demo_plant_text, free_port, start_app, stop_app, wait_http
+from demo_app import demo_app
 
 pytest.importorskip("playwright")
 from playwright.sync_api import Browser, Page, expect, sync_playwright
@@ -35,26 +34,8 @@ pytestmark = [
 @pytest.fixture(scope="module")
 def app_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     tmp = tmp_path_factory.mktemp("monitor-view")
-    channel = f"monitor-view-{uuid.uuid4().hex[:12]}"
-    text = demo_plant_text(free_port())
-    text = text.replace('channel = "demo-can1"', f'channel = "{channel}"')
-    for n in range(2, 10):
-        text = text.replace(f'channel = "demo-can{n}"', f'channel = "{channel}-{n}"')
-    plant = tmp / "plant.toml"
-    plant.write_text(text)
-    port = free_port()
-    log = tmp / "app.log"
-    import os
-
-    os.environ["COMMISSION_RECORDINGS_DIR"] = str(tmp / "recordings")
-    proc = start_app(plant, port, log)
-    try:
-        wait_http(f"http://127.0.0.1:{port}/", proc, timeout=30)
-        yield f"http://127.0.0.1:{port}"
-    finally:
-        stop_app(proc)
-        os.environ.pop("COMMISSION_RECORDINGS_DIR", None)
-        print(log.read_text(errors="replace")[-2000:])
+    with demo_app(tmp, "monitor-view", COMMISSION_RECORDINGS_DIR=str(tmp / "recordings")) as url:
+        yield url
 
 
 @pytest.fixture(scope="module")
