@@ -74,7 +74,8 @@ def bus_database(plant: Plant, bus: str) -> Database:
 def dbc_text(worker_or_plant: Any, bus: str) -> str:
     """The DBC text of ``bus``, from a :class:`~app.plant.Plant` or anything with ``.plant`` (the worker).
 
-    The worker's plant includes adopted devices. Pure computation (no I/O): fine on the event loop.
+    The running plant (the runtime's, which the worker shares) includes adopted devices. Pure
+    computation (no I/O): fine on the event loop.
     """
     plant = worker_or_plant if isinstance(worker_or_plant, Plant) else worker_or_plant.plant
     return bus_database(plant, bus).as_dbc_string()

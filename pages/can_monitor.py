@@ -237,7 +237,7 @@ class BusStatusCard:
         from app import dbc
 
         try:
-            text = dbc.dbc_text(rt.current().worker, self.bus)
+            text = dbc.dbc_text(rt.current().plant, self.bus)  # the running plant: adopted devices included
         except dbc.DbcError as exc:
             notify_error(f"No DBC for {self.bus}: {exc}")
             return
