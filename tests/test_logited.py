@@ -8,10 +8,10 @@ import asyncio
 
 import pytest
 from conftest import free_port, wait_for
+from plants import bus, plant
 from webutil import eventually
 
 from app.logited import LogitedTcp, telegram_length
-from app.plant import parse_plant
 from app.state import BusState
 from devices.transport import SerialClosed, SerialTimeout
 
@@ -125,8 +125,8 @@ async def test_refused_then_taken_back_and_released_on_request():
 
 
 def test_plant_logited_tcp_bus():
-    plant = parse_plant('[[bus]]\nname = "gate"\ntype = "logited-tcp"\nhost = "10.0.0.5"\n')
-    assert plant.buses["gate"].options["port"] == 52719 and plant.buses["gate"].endpoint == "10.0.0.5:52719"
+    gate = plant(bus("gate", "logited-tcp", host="10.0.0.5"), name=None).buses["gate"]
+    assert gate.options["port"] == 52719 and gate.endpoint == "10.0.0.5:52719"
 
 
 # -- RS485 with token passing ------------------------------------------------------------------
@@ -240,6 +240,5 @@ async def test_rs485_without_the_token_sends_nothing():
 
 
 def test_plant_logited_rs485_bus():
-    plant = parse_plant('[[bus]]\nname = "gates"\ntype = "logited-rs485"\nport = "/dev/ttyUSB2"\nshared = true\n')
-    options = plant.buses["gates"].options
+    options = plant(bus("gates", "logited-rs485", port="/dev/ttyUSB2", shared=True), name=None).buses["gates"].options
     assert (options["baudrate"], options["master_address"], options["next_master"]) == (38400, 0, 1)

@@ -7,6 +7,7 @@ import time
 
 import pytest
 from conftest import free_port
+from plants import bus, device, plant, plant_text
 
 from app.plant import PlantError, parse_plant
 from app.serial_line import SerialClosed, SerialLine, SerialTimeout
@@ -103,16 +104,15 @@ async def test_unplugged_port_says_what_to_check_and_reopens_with_backoff():
 
 
 def test_plant_serial_bus_defaults_and_baudrates():
-    plant = parse_plant('[[bus]]\nname = "rs1"\ntype = "serial"\nport = "socket://127.0.0.1:5030"\n')
-    assert plant.buses["rs1"].options == {"port": "socket://127.0.0.1:5030", "baudrate": 38400, "timeout": 0.3,
+    line = plant(bus("rs1", "serial", port="socket://127.0.0.1:5030"), name=None)
+    assert line.buses["rs1"].options == {"port": "socket://127.0.0.1:5030", "baudrate": 38400, "timeout": 0.3,
                                           "poll_period": 0.2, "simulate": False, "wire_delay": False}
     with pytest.raises(PlantError, match="baudrate 57600 is not one of 9600, 19200, 38400"):
-        parse_plant('[[bus]]\nname = "rs1"\ntype = "serial"\nport = "/dev/ttyUSB0"\nbaudrate = 57600\n')
+        plant(bus("rs1", "serial", port="/dev/ttyUSB0", baudrate=57600), name=None)
 
 
 def test_one_scu_per_serial_line():
-    text = ('[[bus]]\nname = "rs1"\ntype = "serial"\nport = "socket://127.0.0.1:5031"\n'
-            '[[device]]\nname = "a"\ntype = "scu"\nbus = "rs1"\nactuators = 1\n'
-            '[[device]]\nname = "b"\ntype = "scu"\nbus = "rs1"\nactuators = 1\n')
+    text = plant_text(bus("rs1", "serial", device("a", "scu", "rs1", actuators=1), device("b", "scu", "rs1", actuators=1),
+                          port="socket://127.0.0.1:5031"), name=None)
     with pytest.raises(PlantError, match=r"<plant>:10: device 'b': the point-to-point line \(one SCU per RS232 line"):
         parse_plant(text)
