@@ -15,7 +15,6 @@ import os
 import re
 import signal
 import subprocess
-import threading
 import time
 import urllib.request
 from pathlib import Path
@@ -23,6 +22,7 @@ from pathlib import Path
 import can
 import pytest
 from conftest import CHROMIUM, free_port, free_udp_port, inside_viewport
+from frames import FrameListener
 from plants import ELECTRAK_ACTUATORS, can_bus, electrak_bus, m3io_can, plant_text
 from webutil import running_app
 
@@ -41,35 +41,11 @@ def deadman_plant(port_lift: int, port_heater: int) -> str:
                       can_bus(m3io_can("heater-hm"), name="can3", port=port_heater, **multicast), name="deadman")
 
 
-class Listener:
+class Listener(FrameListener):
     """Every frame of one udp_multicast bus with the time it arrived here."""
 
     def __init__(self, port: int):
-        self.bus = can.Bus(interface="udp_multicast", channel=GROUP, port=port, receive_own_messages=False)
-        self.frames: list[tuple[float, int, bytes]] = []
-        self._run = True
-        self._thread = threading.Thread(target=self._loop, daemon=True)
-        self._thread.start()
-
-    def _loop(self) -> None:
-        while self._run:
-            msg = self.bus.recv(0.05)
-            if msg is not None:
-                self.frames.append((time.monotonic(), msg.arbitration_id, bytes(msg.data)))
-
-    def first(self, can_id: int, test, since: float = 0.0, timeout: float = 5.0) -> float | None:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            for t, i, data in list(self.frames):
-                if t >= since and i == can_id and test(data):
-                    return t
-            time.sleep(0.01)
-        return None
-
-    def close(self) -> None:
-        self._run = False
-        self._thread.join(2)
-        self.bus.shutdown()
+        super().__init__(can.Bus(interface="udp_multicast", channel=GROUP, port=port, receive_own_messages=False))
 
 
 def start_chromium(folder: Path) -> tuple[subprocess.Popen, int]:

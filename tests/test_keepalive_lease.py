@@ -18,6 +18,7 @@ import time
 import can
 import pytest
 from conftest import wait_for
+from frames import FrameListener
 from plants import can_bus, channel, m3io_can, plant_text
 from test_electrak import beat, lift, start_lift  # noqa: F401 (fixture)
 
@@ -33,29 +34,11 @@ BLOCK_S = 2.0
 BOUND_S = 0.5  # the stated bound: the stop form on the bus within 0.5 s of the stall's start
 
 
-class Listener:
+class Listener(FrameListener):
     """Every frame of one virtual channel, time-stamped in a thread that the blocked loop cannot hold up."""
 
     def __init__(self, channel: str):
-        self.bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
-        self.frames: list[tuple[float, int, bytes]] = []
-        self._run = True
-        self._thread = threading.Thread(target=self._loop, daemon=True)
-        self._thread.start()
-
-    def _loop(self) -> None:
-        while self._run:
-            msg = self.bus.recv(0.02)
-            if msg is not None:
-                self.frames.append((time.monotonic(), msg.arbitration_id, bytes(msg.data)))
-
-    def of(self, can_id: int, since: float = 0.0, until: float = float("inf")) -> list[tuple[float, bytes]]:
-        return [(t, d) for t, i, d in list(self.frames) if i == can_id and since <= t <= until]
-
-    def close(self) -> None:
-        self._run = False
-        self._thread.join(2)
-        self.bus.shutdown()
+        super().__init__(can.Bus(interface="virtual", channel=channel, receive_own_messages=False), poll_s=0.02)
 
 
 def block_loop(seconds: float) -> float:
