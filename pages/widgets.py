@@ -144,6 +144,7 @@ class RegisterTable:
             '{{ props.value }}<q-badge v-if="props.row.unsaved" color="orange" class="q-ml-xs">unsaved</q-badge></q-td>',
         )
         self.table.props(':table-row-class-fn="row => row.quality_class"')
+        self._cache: dict[str, tuple[tuple, float | None, dict]] = {}  # key -> (raw, quality, unsaved), read time, row
         self.update()
         store = rt.current().store
         follow(state, lambda: self.update(times=store.age_round))  # one build per round, read times or not
@@ -151,36 +152,51 @@ class RegisterTable:
     def update(self, times: bool = False) -> None:
         """New values, qualities and unsaved marks at once; a new read time alone (every poll) once a
         second, with ``times`` (the device's once-a-second round): the whole table goes to the browser
-        on each change."""
-        import time
-
-        rows = []
+        on each change. A row whose value, quality and mark did not change is kept as it was built
+        (outside the once-a-second round its read time waits for that round), so a change of one
+        register builds one row, not the table."""
         now = time.time()
+        state, cache = self.state, self._cache
+        rows = []
+        changed = False
         for p in self.params:
-            raw = self.state.raw(p)
-            read = self.state.read_time(p)
-            quality = self.state.param_quality(p, now)
-            rows.append({
-                "key": p.key,
-                "address": p.address if p.words == 1 else f"{p.address}-{p.address + p.words - 1}",
-                "name": p.label or p.name,
-                "value": "-" if raw is None else p.display(raw),
-                "raw": "-" if raw is None else f"0x{raw:0{4 * p.words}X}",
-                "access": p.access.value + (" (never written)" if p.never_write and p.access.value == "RW" else ""),
-                "age": "-" if read is None else datetime.fromtimestamp(read).strftime("%H:%M:%S"),
-                "description": p.description,
-                "unsaved": p.key in self.state.unsaved,
-                # good: the Read column gives the time; stale or offline: how old the value is
-                "quality": "-" if raw is None else (quality_note(quality, None if read is None else now - read) or quality),
-                "quality_class": f"q-{quality}" if quality in ("stale", "offline") else "",
-            })
-        if rows == self.table.rows:
-            return
-        if not times and len(rows) == len(self.table.rows) and all(
-                {**new, "age": None} == {**old, "age": None} for new, old in zip(rows, self.table.rows)):
+            raw = state.raw(p)
+            read = state.read_time(p)
+            quality = state.param_quality(p, now)
+            unsaved = p.key in state.unsaved
+            sig = (raw, quality, unsaved)
+            old = cache.get(p.key)
+            if old is not None and old[0] == sig and (not times or (old[1] == read and quality == "good")):
+                rows.append(old[2])
+                continue
+            row = self._row(p, raw, read, quality, unsaved, now)
+            if old is not None and old[2] == row:
+                row = old[2]
+            else:
+                changed = True
+            cache[p.key] = (sig, read, row)
+            rows.append(row)
+        if not changed and len(rows) == len(self.table.rows):
             return
         self.table.rows = rows
         self.table.update()
+
+    @staticmethod
+    def _row(p: Param, raw: int | None, read: float | None, quality: str, unsaved: bool, now: float) -> dict:
+        return {
+            "key": p.key,
+            "address": p.address if p.words == 1 else f"{p.address}-{p.address + p.words - 1}",
+            "name": p.label or p.name,
+            "value": "-" if raw is None else p.display(raw),
+            "raw": "-" if raw is None else f"0x{raw:0{4 * p.words}X}",
+            "access": p.access.value + (" (never written)" if p.never_write and p.access.value == "RW" else ""),
+            "age": "-" if read is None else datetime.fromtimestamp(read).strftime("%H:%M:%S"),
+            "description": p.description,
+            "unsaved": unsaved,
+            # good: the Read column gives the time; stale or offline: how old the value is
+            "quality": "-" if raw is None else (quality_note(quality, None if read is None else now - read) or quality),
+            "quality_class": f"q-{quality}" if quality in ("stale", "offline") else "",
+        }
 
 
 def upload_button(label: str, testid: str) -> str:
