@@ -17,7 +17,7 @@ import time
 import aiomqtt
 import pytest
 from test_mqtt_helpers import running_broker
-from test_mqtt_site import PLANT_B, _spawn
+from test_mqtt_site import _spawn, plant_b
 from webutil import demo_plant_text, free_port, stop_app
 
 pytestmark = pytest.mark.timeout(120)
@@ -213,7 +213,7 @@ async def test_births_data_rebirth_refusal_and_death_of_two_instances(tmp_path):
         a = demo_plant_text(free_port()).replace(
             'name = "demo"', f'name = "cab-a"\n\n[mqtt]\nurl = "{broker.url}"\nsite = "hall-3"\nsparkplug = true\nrate = 4', 1)
         (tmp_path / "a.toml").write_text(a)
-        (tmp_path / "b.toml").write_text(PLANT_B.format(url=broker.url, port=free_port()).replace("heartbeat = 2", "sparkplug = true"))
+        (tmp_path / "b.toml").write_text(plant_b(broker.url).replace("heartbeat = 2", "sparkplug = true"))
         async with Host(broker.port) as host:
             procs = {
                 "sim-b": _spawn(["sim", "--plant", str(tmp_path / "b.toml")], tmp_path / "sim-b.log"),
