@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import logging
 import time
 from collections.abc import Awaitable, Callable
 from datetime import datetime
@@ -15,8 +14,6 @@ from app.state import DeviceState
 from app.worker import PermissionDenied
 from devices.commands import WRITE_PARAMETER
 from devices.params import Param, ParamError
-
-log = logging.getLogger(__name__)
 
 CHART_WINDOW_S = 300
 
@@ -222,36 +219,8 @@ def follow(state: DeviceState, callback: Callable[[], object], slow: bool = Fals
     from nicegui import context
 
     client = context.client
-    if client.has_socket_connection:
-        _watch(client, state.name, callback, slow)
-        return
-    # built for a browser that has not connected yet: its first answer carries the values; following the
-    # device starts when it connects (and catches up once then), so a page never connected costs nothing
-    pending = getattr(client, "commission_pending_follows", None)
-    if pending is None:
-        pending = client.commission_pending_follows = []
-        client.on_connect(lambda: _start_follows(client))
-    pending.append((state.name, callback, slow))
-
-
-def _watch(client, device: str, callback: Callable[[], object], slow: bool) -> None:
-    watch = rt.current().store.watch(device, callback, slow, group=client.id)
+    watch = rt.current().store.watch(state.name, callback, slow, group=client.id)
     client.on_delete(watch.cancel)
-
-
-def _start_follows(client) -> None:
-    """The page's browser connected (on_connect runs on every reconnect too: only the first one starts them)."""
-    pending = getattr(client, "commission_pending_follows", None)
-    if not pending or client.is_deleted:
-        return
-    client.commission_pending_follows = []
-    for device, callback, slow in pending:
-        _watch(client, device, callback, slow)
-    for _device, callback, _slow in pending:  # what changed between the page's answer and its connection
-        try:
-            callback()
-        except Exception:  # noqa: BLE001 - one widget's failure must not keep the others from starting
-            log.exception("updating a widget on connect failed")
 
 
 def counter_line(state: DeviceState, text: Callable[[object], str]) -> ui.label:
