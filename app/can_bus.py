@@ -472,7 +472,8 @@ class CanBus:
         if state.load_pct is None:
             state.load_avg_pct = state.load_peak_pct = None
             return
-        start = next((m for m in marks if now - m[0] <= LOAD_AVERAGE_S + 1e-6), marks[-2])
+        # the oldest mark inside the averaging window, but never the one just added (no span of time)
+        start = next((m for m in list(marks)[:-1] if now - m[0] <= LOAD_AVERAGE_S + 1e-6), marks[-2])
         state.load_avg_pct = (state.bits - start[1]) / (now - start[0]) / bitrate * 100
         spans = []
         listed = list(marks)

@@ -677,6 +677,20 @@ def test_bus_load_is_averaged_and_its_peak_kept_when_frames_arrive_in_batches():
     assert state.load_peak_pct == pytest.approx(steady, rel=0.15)
 
 
+
+def test_bus_load_after_a_long_pause_of_the_loop_is_a_figure_not_a_crash():
+    """The loop measured the load last more than the averaging window ago (it was busy, or the bus was
+    just reopened): the average is taken over the last span, never over no time at all."""
+    from app import can_bus as cb
+
+    state = cb.CanBusState("pause-test", "can", "")
+    bus = cb.CanBus("pause-test", {"interface": "virtual", "channel": "pause-test", "bitrate": 250_000}, state)  # never opened
+    bus._load_mark = (1000.0, 0, 0)
+    bus._measure_load(now=1000.5)
+    state.bits += 10_000
+    bus._measure_load(now=1000.5 + 3 * cb.LOAD_AVERAGE_S)
+    assert state.load_avg_pct == pytest.approx(10_000 / (3 * cb.LOAD_AVERAGE_S) / 250_000 * 100)
+
 # -- Modbus monitor: filters and export (issue 32.14) ------------------------------------------------------------
 
 

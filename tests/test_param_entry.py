@@ -27,7 +27,10 @@ class Env:
 
 
 @pytest.fixture
-async def env() -> AsyncIterator[Env]:
+async def env(monkeypatch) -> AsyncIterator[Env]:
+    from devices.hdlock import adapter as hdlock_adapter
+
+    monkeypatch.setattr(hdlock_adapter, "SETTINGS_PERIOD_S", 2.0)  # settings changed elsewhere are seen at the next settings read
     runtime = Runtime(modbus_plant(locks=(("door-1", 1),)), simulate=True)
     async with simulated_user(runtime) as user:
         state = runtime.store.devices["door-1"]
