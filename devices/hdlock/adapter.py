@@ -8,6 +8,7 @@ import weakref
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+from devices.decoding import decoded
 from devices.hdlock import STATUS_FRAME_BOLT, codec
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
 from devices.live import DeviceState
@@ -26,6 +27,7 @@ P_SOURCE_FRAME = "LockRequestSource (status frame, low 6 bits)"
 # the chart's quantities, sampled by their own names (register parameters and points alike)
 HISTORY_MODBUS = ("BoltPosition", "MotorCurrent", "Calculated proxi (normalized)")
 HISTORY_CAN = (STATUS_FRAME_BOLT, "MotorCurrent", P_PROXIMITY_FRAME)
+HISTORY_MIN_GAP_S = 0.1  # status frames faster than this (a lock in firmware test mode, a replayed recording) are charted at 10/s
 
 # Settings (RW and MFR holding registers) change only when written: they are read every SETTINGS_PERIOD_S,
 # on the first poll, after a failed poll, a write, a restore or a backup, and in the same poll as an
@@ -562,11 +564,8 @@ class HdLockCanAdapter(HdLockBackup):
 
     def on_frame(self, msg) -> None:
         """Every frame under this lock's device ID (called in the event loop)."""
-        try:
-            frame = codec.decode_lock_frame(bytes(msg.data))
-        except codec.CodecError as exc:
-            self.state.counters.malformed += 1
-            self.state.error(f"malformed frame {bytes(msg.data).hex(' ')}: {exc}", log=False)
+        frame = decoded(self.state, codec.decode_lock_frame, bytes(msg.data), "frame", show_bytes=True)
+        if frame is None:
             return
         state = self.state
         if isinstance(frame, codec.StatusFrame):
@@ -584,7 +583,9 @@ class HdLockCanAdapter(HdLockBackup):
             state.counters.responses += 1  # a frame heard, as the other CAN devices count them
             state.publish(P_SOURCE_FRAME, frame.lock_request_source, raw=word,
                           text=codec.LOCK_REQUEST_SOURCE.get(frame.lock_request_source, f"undefined ({frame.lock_request_source})"))
-            state.add_history(_sample(state, HISTORY_CAN))
+            history = state.history
+            if not history or arrival - history[-1][0] >= HISTORY_MIN_GAP_S:  # a chart needs no more than 10 samples a second
+                state.add_history(_sample(state, HISTORY_CAN), arrival)
         elif isinstance(frame, codec.FwuStatusFrame):
             state.fact(P_FWU, frame, text=fwu_text(frame))
             state.mark_seen()
