@@ -384,7 +384,10 @@ def _names_for(config, params, changes: dict[str, Any]) -> dict[str, Any]:
 
 
 def _write_with_backup(path: Path, old_text: str, new_text: str) -> None:
-    """``path`` rewritten atomically; what it held before is kept beside it as ``<name>.bak``."""
+    """``path`` rewritten atomically; what it held before is kept beside it as ``<name>.bak``. A save that
+    changes nothing writes nothing (the .bak keeps the file as it was before the last real change)."""
+    if new_text == old_text:
+        return
     backup.write_atomic(path.with_name(path.name + ".bak"), old_text)
     backup.write_atomic(path, new_text)
 
