@@ -22,7 +22,7 @@ from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, ti
 from pages.frame import fmt_age, fmt_time
 from pages.simcontrols import sim_card
 from pages.widgets import HistoryChart, Lamp, LiveValue, WriteGuard, checked_value, confirm, entry_age, follow, gate
-from pages.widgets import mark_quality, quality_note, range_number, session_role, stop_bar
+from pages.widgets import INT32_LIMIT, mark_quality, quality_note, range_number, session_role, stop_bar
 
 STATUS_1 = ("present", "limit_in_out", "switch_1", "switch_2", "motion", "in_position", "out_position", "stroke_recorded")
 STATUS_2 = ("initialised", "enable_in", "enable_out")
@@ -309,8 +309,11 @@ class DriveCard(DeviceCard):
                                        + (", ".join(f"A{a}" for a in functions.actuators_of(f)) or "none")
                                        for f in codec.MOTION_FUNCTIONS}, value=0,
                                       label="Function → actuators").classes("w-40").props("data-testid=function")
-            self.motion = ui.select({int(m): codec.MOTION_LABELS[m] for m in codec.Motion},
-                                    value=int(codec.Motion.REMOTE_POSITION), label="Motion (para_ID[0])").classes("w-72")
+            # the options without their detail (data IDs), which is in the tooltip: the whole text fits the field
+            self.motion = ui.select({int(m): codec.MOTION_LABELS[m].split(" (", 1)[0] for m in codec.Motion},
+                                    value=int(codec.Motion.REMOTE_POSITION), label="Motion (para_ID[0])") \
+                .classes("w-72").props("data-testid=motion")
+            self.motion.tooltip(" · ".join(label for label in codec.MOTION_LABELS.values() if " (" in label))
             self.ramp = ui.select({1: "soft start/stop", 0: "fast start/stop", 255: "as configured (-1)"}, value=1,
                                   label="Ramp (para_ID[1])").classes("w-48")
             # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s, as the unit is parametrised (plant file)
@@ -329,8 +332,10 @@ class DriveCard(DeviceCard):
     def _position_entry(self, s: facts.ActuatorScale) -> None:
         unit = "mm" if s.counts_per_mm or s.stroke_mm else "counts"
         low, high = _position_range(s)
+        # without a stroke the entry accepts what INT32 counts can say: shown as "any", not as 2.1e+09
+        any_beyond = INT32_LIMIT if s.stroke_mm else min(abs(low), abs(high))
         field = range_number(f"A{s.number} remote position [{unit}]", low, high, unit=unit, value=0,
-                             integer=unit == "counts").classes("w-56").props(f"data-testid=remote-pos-A{s.number}")
+                             integer=unit == "counts", any_beyond=any_beyond).classes("w-56").props(f"data-testid=remote-pos-A{s.number}")
 
         async def write_position() -> None:
             view = self.view

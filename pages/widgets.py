@@ -6,6 +6,7 @@ import json
 import time
 from collections.abc import Awaitable, Callable
 from datetime import datetime
+from decimal import Decimal
 
 from nicegui import context, ui
 
@@ -566,16 +567,45 @@ async def run_command(
     return True, result
 
 
-def range_text(low: float, high: float, unit: str = "") -> str:
-    return f"allowed {low:g} .. {high:g} {unit}".strip()
+INT32_LIMIT = 2 ** 31 - 1  # a limit at or beyond it is the width of the value, not a limit an engineer set
+
+
+def number_text(value: float) -> str:
+    """A limit as an engineer writes it: never exponent notation; whole numbers as such, with thousands
+    separators from six digits on (``214,748,364``; register numbers like ``65535`` stay as they are)."""
+    value = float(value)
+    if value == int(value):
+        text = str(int(value))
+    else:
+        text = format(Decimal(repr(value)), "f")
+    whole, dot, fraction = text.partition(".")
+    if abs(int(whole)) >= 100_000:
+        whole = f"{int(whole):,}" if whole != "-0" else whole
+    return whole + dot + fraction
+
+
+def range_text(low: float, high: float, unit: str = "", *, any_beyond: float = INT32_LIMIT) -> str:
+    """``allowed 1 .. 254 mm``; a limit at or beyond ``any_beyond`` (by default the 32-bit range) is no limit:
+    ``allowed up to 500 mm``, ``allowed from 0 mm``, ``allowed: any mm``."""
+    open_low, open_high = abs(low) >= any_beyond, abs(high) >= any_beyond
+    if open_low and open_high:
+        text = f"allowed: any {unit}" if unit else "allowed: any value"
+    elif open_low:
+        text = f"allowed up to {number_text(high)} {unit}"
+    elif open_high:
+        text = f"allowed from {number_text(low)} {unit}"
+    else:
+        text = f"allowed {number_text(low)} .. {number_text(high)} {unit}"
+    return text.strip()
 
 
 def range_number(label: str, low: float, high: float, *, unit: str = "", integer: bool = False, value=None,
-                 step: float | None = None, fmt: str | None = None) -> ui.number:
+                 step: float | None = None, fmt: str | None = None, any_beyond: float = INT32_LIMIT) -> ui.number:
     """A number entry with its allowed range shown under it. What was typed stays as typed: an entry
     outside the range (or a fraction where a whole number is needed) is marked invalid with the
     range, never clamped; :func:`checked_value` refuses it before anything is sent."""
-    rule = range_text(low, high, unit)
+    rule = range_text(low, high, unit, any_beyond=any_beyond)
+    bounded = abs(low) < any_beyond and abs(high) < any_beyond
 
     def check(v) -> str | None:
         if v is None:
@@ -583,7 +613,9 @@ def range_number(label: str, low: float, high: float, *, unit: str = "", integer
         if integer and float(v) != int(float(v)):
             return f"whole numbers only, {rule}"
         if not low <= float(v) <= high:
-            return f"out of range: {rule}"
+            if bounded:
+                return f"out of range: {rule}"
+            return f"out of range: allowed {number_text(low)} .. {number_text(high)} {unit}".strip()
         return None
 
     # no "%d" format for whole numbers: it rounded a typed 12.5 to 12 on leaving the field
