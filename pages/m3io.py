@@ -18,10 +18,11 @@ from pages.frame import fmt_age
 from pages.session import current_user
 from pages.simcontrols import sim_card
 from pages.widgets import HistoryChart, Lamp, WriteGuard, checked_value, entry_age, mark_quality, quality_note
-from pages.widgets import range_number, refuse, stop_bar
+from pages.widgets import gate, range_number, refuse, stop_bar, viewer_reason
 
 STATE_COLOR = {"ok": "positive", "present": "positive", "blown": "negative", "defective": "negative"}
 VARIANT_COLOR = {"ok": "text-positive", "mismatch": "text-negative text-weight-medium", "unchecked": "text-grey-8", "not possible": "text-warning"}
+TAKE_CONTROL = "take control of the module first"
 STOP_RULE = (
     "Outputs belong to the page that switched them on: they go off at once when that page is closed or reloaded, "
     f"or within {DEADMAN_BOUND_S:g} s when it stops confirming that it is alive (frozen tab, sleeping laptop, lost network). "
@@ -53,6 +54,20 @@ class M3ioView(DeviceView):
         self.variant = Variant(self.fact(facts.P_VARIANT))
         self.addressing: facts.Addressing = self.fact(facts.P_ADDRESSING)
 
+    def controls(self) -> bool:
+        """Whether this page session controls the module (display only: the gate decides)."""
+        control = self.fact(facts.P_CONTROL)
+        return control is not None and control.session == self.tag
+
+    def switch_reason(self, on: bool) -> str:
+        """Why an output's switch is off here ("" when it may be used): the module silent or a viewer (the page's
+        guard), or switching on without control. Switching an output off is never refused for want of control."""
+        reason = self.guard.reason if self.guard is not None else ""
+        if reason or on or self.controls():
+            return reason
+        control = self.fact(facts.P_CONTROL)
+        return TAKE_CONTROL if control is None else f"{control.user} controls the module"
+
 
 class ModuleCard(DeviceCard):
     """Status, watchdog, counters, SW1 and the CAN IDs, the variant check, control of the module."""
@@ -71,9 +86,11 @@ class ModuleCard(DeviceCard):
             self.variant = ui.label().classes("text-body2").props("data-testid=variant-check")
             # the module is a slave: this tool serves its watchdog (DigOut) only while an engineer controls it
             with ui.row().classes("items-center gap-3"):
-                take = ui.button("Take control", icon="sports_esports", on_click=self.take).props("data-testid=take-control")
-                take.tooltip(f"Listens for another master (a PLC sending DigOut 0x{a.dig_out:03X}) first; refused if there is one")
-                ui.button("Release", icon="logout", on_click=lambda: view.act("release control")) \
+                self.take_button = ui.button("Take control", icon="sports_esports", on_click=self.take) \
+                    .props("data-testid=take-control")
+                self.take_button.tooltip(f"Listens for another master (a PLC sending DigOut 0x{a.dig_out:03X}) first; "
+                                         "refused if there is one")
+                self.release = ui.button("Release", icon="logout", on_click=lambda: view.act("release control")) \
                     .props("outline data-testid=release-control")
                 self.holder = ui.label().classes("text-body2").props("data-testid=controller")
             if view.fact(facts.P_BITRATE_CHECK) == "mismatch":
@@ -95,6 +112,9 @@ class ModuleCard(DeviceCard):
         control = view.fact(facts.P_CONTROL)
         self.holder.set_text(("you control the module" if control.session == view.tag else f"{control.user} controls the module")
                              if control else "nobody controls the module")
+        mine = view.controls()
+        gate(self.take_button, viewer_reason() or ("you control the module" if mine else ""))
+        gate(self.release, viewer_reason() or ("" if mine else "you do not control the module"))
         check = view.live(facts.P_VARIANT_CHECK)
         self.variant.set_text(f"Variant {view.variant.value}: {check.text}")
         self.variant.classes(replace="text-body2 " + VARIANT_COLOR.get(check.value, "text-grey-8"))
@@ -120,8 +140,9 @@ class OutputsCard(DeviceCard):
                 ui.icon("front_hand", size="xs").classes("text-grey-8 q-mt-xs")
                 ui.label(STOP_RULE).classes("text-caption text-grey-8")
             self.refused = ui.label().classes("text-negative text-body2")
+            self.no_control = ui.label(f"Switches: {TAKE_CONTROL} (Take control above)").classes(
+                "text-caption text-grey-8").props("data-testid=switch-reason")
             self.led = ui.switch("LED (Bereit)", on_change=lambda e: switch(self.view, "LED", e)).props("data-output=LED")
-            self.guard.add(self.led)
             with ui.column().classes("w-full gap-1"):
                 for row in self.rows:
                     row.build()
@@ -146,7 +167,9 @@ class OutputsCard(DeviceCard):
         self.refused.set_visibility(not may_switch)
         for key, lamp in self.lamps.items():
             lamp.show(view.state.point(key))
+        self.no_control.set_visibility(not view.controls() and not (view.guard and view.guard.reason))
         self.led.set_value(bool(view.fact("LED")))
+        gate(self.led, view.switch_reason(bool(view.fact("LED"))))
         for row in self.rows:
             row.refresh()
         if self.p2 is not None:
@@ -180,7 +203,6 @@ class ChannelRow:
             row.props(f'data-channel="{output}"')
             self.switch = ui.switch(output, on_change=lambda e: switch(self.view, output, e)).classes("w-32")
             self.switch.props(f'data-output="{output}"')
-            self.guard.add(self.switch)
             self.details = ui.column().classes("gap-1 col")
             self.age = ui.label().classes("q-age")
         if output == "SSR1-3":
@@ -196,6 +218,7 @@ class ChannelRow:
         view, output = self.view, self.output
         on = bool(view.fact(output))
         self.switch.set_value(on)
+        gate(self.switch, view.switch_reason(on))
         owners = {o.output: o.session for o in view.fact(facts.P_OWNERS, ())}
         foreign = on and output in owners and owners[output] != view.tag
         group = view.live(facts.P_LOAD_CHECK) if output == "SSR1-3" else None
