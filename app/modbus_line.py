@@ -113,7 +113,7 @@ class ModbusLine(LineBase):
         self.address_conflicts: Counter[tuple[int, int]] = Counter()  # (unit asked, unit that answered) -> count
         self.conflicts_by_unit: Counter[int] = Counter()  # unit asked -> answers from another unit (per device)
         self._last_request: dict[tuple[int, str], float] = {}  # (unit, request) of a device's poll -> when last asked
-        self._intervals: dict[int, deque] = {}  # unit -> recent intervals between repeats of its requests
+        self._intervals: dict[tuple[int, str], deque] = {}  # (unit, request) -> recent intervals between its repeats
         self._unit_seen: dict[int, float] = {}
         self.cycle_s: float | None = None  # measured time for one poll of every device on the line
         self.devices: dict[int, tuple[DeviceState, float]] = {}  # unit -> (state, its configured threshold)
@@ -272,7 +272,15 @@ class ModbusLine(LineBase):
         self._apply_thresholds(time.monotonic())
 
     def _measure_cycle(self, unit: int, what: str) -> None:
-        """A device's poll asks the same requests once per cycle: the interval between two of them is a cycle."""
+        """The line's cycle is the time of one poll round of its devices: the longest of their poll intervals.
+
+        A device's poll asks the same requests once per round, but not all of them every round: an HD-Lock
+        reads its settings only every few seconds (SETTINGS_PERIOD_S), and an engineer's write and its
+        read-back come now and then. The interval between two asks of one request is therefore the poll
+        interval only for the requests asked every round, the ones repeated most often: a device's poll
+        interval is the shortest among its requests (each the median of its recent repeats, and at least the
+        time since it was last asked, so that a request no longer asked does not count).
+        """
         now = time.monotonic()
         key = (unit, what)
         last = self._last_request.get(key)
@@ -280,15 +288,32 @@ class ModbusLine(LineBase):
         if len(self._last_request) > 4096:  # bounded: drop the oldest requests
             for old in list(self._last_request)[:1024]:
                 del self._last_request[old]
+                self._intervals.pop(old, None)
         self._unit_seen[unit] = now
         for old in [u for u, seen in self._unit_seen.items() if now - seen > CYCLE_FORGET_S]:
             self._unit_seen.pop(old, None)
+        for old in [k for k in self._intervals if now - self._last_request.get(k, 0.0) > CYCLE_FORGET_S]:
             self._intervals.pop(old, None)
         if last is not None and now - last <= CYCLE_FORGET_S:
-            self._intervals.setdefault(unit, deque(maxlen=CYCLE_SAMPLES)).append(now - last)
-            self.cycle_s = round(max(statistics.median(s) for s in self._intervals.values() if s), 3)
+            self._intervals.setdefault(key, deque(maxlen=CYCLE_SAMPLES)).append(now - last)
+            self.cycle_s = self._line_cycle(now)
             self.state.cycle_s = self.cycle_s
         self._apply_thresholds(now)
+
+    def _poll_intervals(self, now: float) -> dict[int, float]:
+        """unit -> its poll interval: the shortest interval among its requests (see _measure_cycle)."""
+        shortest: dict[int, float] = {}
+        for (unit, what), intervals in self._intervals.items():
+            if not intervals or unit not in self._unit_seen:
+                continue
+            interval = max(statistics.median(intervals), now - self._last_request.get((unit, what), now))
+            if interval < shortest.get(unit, float("inf")):
+                shortest[unit] = interval
+        return shortest
+
+    def _line_cycle(self, now: float) -> float | None:
+        intervals = self._poll_intervals(now)
+        return round(max(intervals.values()), 3) if intervals else None
 
     def cycle_lower_bound(self, now: float | None = None) -> float:
         """The cycle in progress is at least as long as the time since the least recently asked device
