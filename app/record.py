@@ -227,6 +227,20 @@ def live_set(state, approved: dict[str, dict]) -> dict[str, dict]:
     return current
 
 
+def live_params(state) -> dict[str, dict]:
+    """Every register parameter the live store holds now (the device's last poll, as its page shows
+    it), in the form of :func:`param_set`; empty for a device without a parameter model or before
+    its first read."""
+    params = getattr(state, "params", None)
+    current: dict[str, dict] = {}
+    for param in params if params is not None else ():
+        raw = state.raw(param)
+        if raw is not None:
+            current[param.key] = {"name": param.label or param.name, "raw": raw, "text": param.display(raw), "unit": param.unit,
+                                  "writable": bool(param.writable)}
+    return current
+
+
 def device_updated(state, key: str) -> bool:
     """The parameter model marks ``key`` as changed by the device itself (``Param.device_updates``:
     a measured maximum, a counter): never drift."""

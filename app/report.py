@@ -20,7 +20,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from app.record import LIVE_VALUE, compare_with_approved, device_updated, param_set
+from app.record import LIVE_VALUE, compare_with_approved, device_updated, live_params, live_set, param_set
 
 AUDIT_ROWS = 200
 
@@ -52,13 +52,27 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
             current, source = param_set(entries), f"read from the device at {_when(time.time())}"
         except Exception as exc:  # noqa: BLE001 - the report says why
             source = f"not read: {exc}"
+    approved_entry = await record.store.run(record.store.latest, record.plant, device, "approved")
+    approved = approved_entry.data["parameters"] if approved_entry else None
     if not current:
         snap = await record.store.run(record.store.latest, record.plant, device, "snapshot")
         if snap is not None:
             identity = identity or snap.data.get("identity", {})
-            current, source = snap.data["parameters"], f"last snapshot of {_when(snap.time)} ({source})"
-    approved_entry = await record.store.run(record.store.latest, record.plant, device, "approved")
-    approved = approved_entry.data["parameters"] if approved_entry else None
+        # what the device page shows: the live store's values (its last poll) first, the last snapshot
+        # for whatever the live store does not hold (parameters read on demand, a device offline)
+        live = {**live_params(state), **live_set(state, {**(snap.data["parameters"] if snap else {}), **(approved or {})})}
+        if snap is not None:
+            current = {k: {**v, **live.get(k, {})} for k, v in snap.data["parameters"].items()}
+            current.update((k, v) for k, v in live.items() if k not in current)
+        else:
+            current = live
+        if live and state.last_seen:
+            source = (f"as the device showed them at {_when(state.last_seen)}" + (f" (else the last snapshot of {_when(snap.time)})" if snap else "")
+                      + (f"; {source}" if read else ""))
+        elif snap is not None:
+            source = f"of the last snapshot of {_when(snap.time)} ({source})"
+    if not current and not read:
+        source = "not read yet: the device has not answered (snapshot or approve to read it)"
     state = runtime.store.devices[device]
     current = {k: {**v, "device_updates": device_updated(state, k)} for k, v in current.items()}
     rows = compare_with_approved(current, approved)
@@ -119,6 +133,21 @@ def _e(value: Any) -> str:
     return html.escape("" if value is None else str(value))
 
 
+def commissioned_text(d: dict) -> str:
+    """Who commissioned the device and when, saying what is missing rather than leaving a blank."""
+    who = ", ".join(d["commissioned_by"]) or "nobody yet (no checkout, approved set or snapshot recorded)"
+    first, last = d["commissioned"]
+    when = "" if not first else f" on {first}" if first == last or not last else f" from {first} to {last}"
+    signed = "" if d.get("signoff") else ", not signed yet"
+    return f"Commissioned by {who}{when}{signed}."
+
+
+def values_text(d: dict) -> str:
+    """Where the parameter values come from and how they compare, one sentence."""
+    counts = ", ".join(f"{n} {k}" for k, n in d["counts"].items() if n) or "no parameters"
+    return f"Values {d['parameters_source']}: {counts}."
+
+
 def _signoff_html(sig: dict | None, what: str, plant: dict | None = None) -> str:
     if not sig and plant:  # a device of a signed plant: the plant's sign-off covers it
         return f'<div class="sig">{_e(what)}: no sign-off of its own; signed with the plant (record #{plant["id"]})</div>'
@@ -133,14 +162,13 @@ def device_html(d: dict, plant_signoff: dict | None = None) -> str:
            _signoff_html(d["signoff"], d["device"], plant_signoff)]
     ident = {"type": d["type"], "bus": d["bus"], "address": d["address"], **d["identity"], "status": d["status"]}
     out.append("<table>" + "".join(f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in ident.items()) + "</table>")
-    who = ", ".join(d["commissioned_by"]) or "nobody yet"
-    out.append(f"<p>Commissioned by {_e(who)}, {_e(d['commissioned'][0])} to {_e(d['commissioned'][1])}.</p>")
+    out.append(f"<p>{_e(commissioned_text(d))}</p>")
     if d["drift"]:
         out.append('<p class="changed">Changed since approved: ' + _e(", ".join(f"{r['name']} {r['approved']} → {r['now']}" for r in d["drift"])) + "</p>")
     ap = d["approved"]
     out.append("<h3>Parameters against the approved set</h3><p>" + (
         f"Approved set #{ap['id']} ({_e(ap['title'])}) by {_e(ap['by'])} on {_when(ap['time'])}. " if ap else "No approved set. ")
-        + f"Values {_e(d['parameters_source'])}. " + ", ".join(f"{n} {_e(k)}" for k, n in d["counts"].items()) + "</p>")
+        + _e(values_text(d)) + "</p>")
     if d["parameters"]:
         out.append("<table><tr><th>Parameter</th><th>As left</th><th>Approved</th><th></th></tr>" + "".join(
             f'<tr><td>{_e(r["name"])}</td><td>{_e(_with_unit(r["value"], r["unit"]))}</td><td>{_e(r["approved"])}</td>'
@@ -235,11 +263,11 @@ def plant_pdf(p: dict) -> bytes:
         story += [PageBreak(), Paragraph(_e(f"{d['device']} ({d['type']})"), styles["Heading2"]), sig(d["signoff"], d["device"])]
         ident = {"type": d["type"], "bus": d["bus"], "address": d["address"], **d["identity"], "status": d["status"]}
         story.append(table([["Identity", ""]] + [[k, v] for k, v in ident.items()], [0.3, 0.7]))
-        story.append(para(f"Commissioned by {', '.join(d['commissioned_by']) or 'nobody yet'}, {d['commissioned'][0]} to {d['commissioned'][1]}."))
+        story.append(para(commissioned_text(d)))
         if d["drift"]:
             story.append(para("Changed since approved: " + ", ".join(f"{r['name']} {r['approved']} -> {r['now']}" for r in d["drift"])))
         story.append(Paragraph("Parameters against the approved set", styles["Heading3"]))
-        story.append(para(f"Values {d['parameters_source']}. " + ", ".join(f"{n} {k}" for k, n in d["counts"].items())))
+        story.append(para(values_text(d)))
         if d["parameters"]:
             story.append(table([["Parameter", "As left", "Approved", "Verdict"]] + [
                 [r["name"], _with_unit(r["value"], r["unit"]), r["approved"], r["verdict"]] for r in d["parameters"]],

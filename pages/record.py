@@ -216,8 +216,22 @@ def _small_headings(text: str) -> str:
     return text
 
 
+PREVIEW_CSS = """
+.record-preview table{border-collapse:collapse;font-size:12px;margin:4px 0 12px}
+.record-preview td,.record-preview th{border:1px solid #ccc;padding:2px 8px;text-align:left;vertical-align:top}
+.record-preview th{background:#f3f3f3;font-weight:500}
+.record-preview p{margin:4px 0 8px}.record-preview .text-subtitle1{margin-top:12px}
+.record-preview .sig{border:2px solid #1b5e20;padding:6px 8px;margin:6px 0}.record-preview .unsigned{border-color:#b71c1c}
+.record-preview .equal,.record-preview .passed{color:#1b5e20}.record-preview .changed,.record-preview .failed,.record-preview .aborted{color:#b71c1c;font-weight:600}
+.record-preview .notapproved,.record-preview .skipped{color:#8d6e00}
+"""
+
+
 def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refresh_timeline) -> None:
     ui.label("As-left report and sign-off").classes("text-h6")
+    # in the head of the page: the preview's HTML is sanitized, which drops a <style> of its own (its
+    # tables and labels then ran together: "addressaddress 1")
+    ui.add_css(PREVIEW_CSS)
     preview = ui.html("").classes("w-full").mark("record-report")
     with ui.row().classes("items-end gap-3 w-full"):
         signer = ui.input("Name", value=user if user != "local" else "").props("dense outlined").mark("sign-name")
@@ -231,10 +245,7 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
 
     async def show() -> None:
         content = await device_content(runtime, name, read=False)
-        preview.content = ("<style>.record-preview h2{font-size:20px;line-height:1.3;margin:4px 0}.record-preview h3{font-size:16px;"
-                           "line-height:1.3;margin:12px 0 4px}.record-preview table{border-collapse:collapse;font-size:12px}"
-                           ".record-preview td,.record-preview th{border:1px solid #ccc;padding:1px 6px;text-align:left}</style>"
-                           "<div class='record-preview'>" + _small_headings(device_html(content)) + "</div>")
+        preview.content = "<div class='record-preview'>" + _small_headings(device_html(content)) + "</div>"
 
     async def sign(plant: bool) -> None:
         if not signer.value.strip():
