@@ -56,6 +56,11 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
     approved = approved_entry.data["parameters"] if approved_entry else None
     if not current:
         snap = await record.store.run(record.store.latest, record.plant, device, "snapshot")
+        if not identity:  # as the device page shows it (the adapter reads it from the live store)
+            try:
+                identity = runtime.worker.adapters[device].backup_identity()
+            except Exception:  # noqa: BLE001 - a device without one: the last snapshot's below
+                identity = {}
         if snap is not None:
             identity = identity or snap.data.get("identity", {})
         # what the device page shows: the live store's values (its last poll) first, the last snapshot
@@ -133,12 +138,12 @@ def _e(value: Any) -> str:
     return html.escape("" if value is None else str(value))
 
 
-def commissioned_text(d: dict) -> str:
+def commissioned_text(d: dict, plant_signed: bool = False) -> str:
     """Who commissioned the device and when, saying what is missing rather than leaving a blank."""
     who = ", ".join(d["commissioned_by"]) or "nobody yet (no checkout, approved set or snapshot recorded)"
     first, last = d["commissioned"]
     when = "" if not first else f" on {first}" if first == last or not last else f" from {first} to {last}"
-    signed = "" if d.get("signoff") else ", not signed yet"
+    signed = "" if d.get("signoff") or plant_signed else ", not signed yet"
     return f"Commissioned by {who}{when}{signed}."
 
 
@@ -162,7 +167,7 @@ def device_html(d: dict, plant_signoff: dict | None = None) -> str:
            _signoff_html(d["signoff"], d["device"], plant_signoff)]
     ident = {"type": d["type"], "bus": d["bus"], "address": d["address"], **d["identity"], "status": d["status"]}
     out.append("<table>" + "".join(f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in ident.items()) + "</table>")
-    out.append(f"<p>{_e(commissioned_text(d))}</p>")
+    out.append(f"<p>{_e(commissioned_text(d, bool(plant_signoff)))}</p>")
     if d["drift"]:
         out.append('<p class="changed">Changed since approved: ' + _e(", ".join(f"{r['name']} {r['approved']} → {r['now']}" for r in d["drift"])) + "</p>")
     ap = d["approved"]
@@ -263,7 +268,7 @@ def plant_pdf(p: dict) -> bytes:
         story += [PageBreak(), Paragraph(_e(f"{d['device']} ({d['type']})"), styles["Heading2"]), sig(d["signoff"], d["device"])]
         ident = {"type": d["type"], "bus": d["bus"], "address": d["address"], **d["identity"], "status": d["status"]}
         story.append(table([["Identity", ""]] + [[k, v] for k, v in ident.items()], [0.3, 0.7]))
-        story.append(para(commissioned_text(d)))
+        story.append(para(commissioned_text(d, bool(p.get("signoff")))))
         if d["drift"]:
             story.append(para("Changed since approved: " + ", ".join(f"{r['name']} {r['approved']} -> {r['now']}" for r in d["drift"])))
         story.append(Paragraph("Parameters against the approved set", styles["Heading3"]))

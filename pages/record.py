@@ -219,7 +219,7 @@ def _small_headings(text: str) -> str:
 PREVIEW_CSS = """
 .record-preview table{border-collapse:collapse;font-size:12px;margin:4px 0 12px}
 .record-preview td,.record-preview th{border:1px solid #ccc;padding:2px 8px;text-align:left;vertical-align:top}
-.record-preview th{background:#f3f3f3;font-weight:500}
+.record-preview th{background:#f3f3f3;font-weight:500}.record-preview td:last-child{white-space:nowrap}
 .record-preview p{margin:4px 0 8px}.record-preview .text-subtitle1{margin-top:12px}
 .record-preview .sig{border:2px solid #1b5e20;padding:6px 8px;margin:6px 0}.record-preview .unsigned{border-color:#b71c1c}
 .record-preview .equal,.record-preview .passed{color:#1b5e20}.record-preview .changed,.record-preview .failed,.record-preview .aborted{color:#b71c1c;font-weight:600}

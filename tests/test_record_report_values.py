@@ -24,10 +24,12 @@ async def test_report_preview_shows_the_live_values_of_an_online_device_without_
         html = device_html(content)
         assert "to .</p>" not in html and "not signed yet" in commissioned_text(content)
         assert "0 live value" not in html
+        assert content["identity"].get("serial") == 660020  # as the device page shows it, without a snapshot
 
 
 def test_commissioned_text_names_the_dates_it_has():
     d = {"commissioned_by": ["anna"], "commissioned": ["2026-11-24 10:00:00", "2026-11-24 12:00:00"], "signoff": {"id": 1}}
     assert commissioned_text(d) == "Commissioned by anna from 2026-11-24 10:00:00 to 2026-11-24 12:00:00."
+    assert commissioned_text({**d, "signoff": None}, plant_signed=True).endswith("12:00:00.")
     assert commissioned_text({"commissioned_by": [], "commissioned": ["", ""], "signoff": None}) == \
         "Commissioned by nobody yet (no checkout, approved set or snapshot recorded), not signed yet."
