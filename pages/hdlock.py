@@ -29,7 +29,7 @@ from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, ti
 from pages.frame import fmt_age
 from pages.simcontrols import sim_card
 from pages.widgets import HistoryChart, Lamp, RegisterTable, WriteGuard, checked_value, confirm, entry_age
-from pages.widgets import mark_quality, quality_note, range_number, refuse, run_command, write_from_page
+from pages.widgets import gate, mark_quality, quality_note, range_number, refuse, run_command, write_from_page
 
 DEVICE_TYPE = "hdlock"
 
@@ -40,6 +40,9 @@ CHART_AXES = {"MotorCurrent": "y2"}  # increments on the left axis, mA on the ri
 CHART_WINDOWS = (30, 300)  # the bolt moves in about half a second: 30 s by default, 5 min on demand
 # cards beside each other as the width allows, each as tall as its row (no blank area under a short one)
 CARD_GRID = "display: grid; grid-template-columns: repeat(auto-fit, minmax(420px, 1fr)); gap: 16px; width: 100%"
+# the Parameters card's grid: register, name, current value, new value, Write
+PARAM_COLUMNS = "auto minmax(8rem, max-content) minmax(7rem, max-content) auto auto"
+NAME_WRAP = "overflow-wrap: anywhere; min-width: 0"  # "SettingsProximityThresholdUnlock" wraps in its column
 # simulation actions shown elsewhere: the service swap on the replacement page, refused writes in tests
 SIM_ELSEWHERE = ("swap for a new device", "refuse writes")
 
@@ -175,9 +178,11 @@ class ParameterCard(DeviceCard):
             ui.label(
                 "Writes are volatile until Save-Settings; Restore-Settings reloads the saved values and discards unsaved changes."
             ).classes("text-caption text-grey-8")
-            # register, name, current, entry, button: the name column gives way on narrow screens
-            with ui.grid(columns="auto minmax(8rem, 1fr) minmax(6rem, 1fr) auto auto") \
-                    .classes("w-full items-center gap-x-4 gap-y-1"):
+            # register, name, current, entry, button: each column as wide as its content needs, the name and
+            # current columns never narrower than their minimum (a long name wraps inside its column instead of
+            # running into the value), and the table left-aligned (no gap between Current and New value)
+            with ui.grid(columns=PARAM_COLUMNS).classes("w-full items-center gap-x-4 gap-y-1") \
+                    .style("justify-content: start").props("data-testid=param-grid"):
                 for h in ("Register", "Name", "Current", "New value", ""):
                     ui.label(h).classes("text-caption text-grey-8")
                 for p in (p for p in PARAMS.space(HOLDING) if p.writable):
@@ -186,8 +191,10 @@ class ParameterCard(DeviceCard):
     def _row(self, p: Param) -> None:
         name = self.view.name
         ui.label(str(p.address)).classes("mono")
-        with ui.row().classes("items-center gap-1"):
-            ui.label(p.label or p.name).tooltip(p.description)
+        with ui.row().classes("items-center gap-1").style("min-width: 0"):
+            label = p.label or p.name
+            ui.label(label).style(NAME_WRAP).props(f'data-param-name="{p.name}"') \
+                .tooltip(f"{label}: {p.description}" if p.description else label)
             mark = ui.badge("unsaved", color="orange")
         with ui.row().classes("items-baseline gap-0 no-wrap") as cell:
             current = ui.label("-").classes("mono")
@@ -315,6 +322,16 @@ async def _checked_masks(name: str, describe: str, p1, p2) -> tuple[int, int] | 
     return _parse_word(p1.value), _parse_word(p2.value)
 
 
+def _gate_send(view: HdLockView, button: ui.button, address) -> None:
+    """A Send button of an address change: disabled with the reason while the lock does not answer (or the
+    session may not write), and while no new address is entered."""
+    view.guard.update()
+    reason = view.guard.reason
+    if not reason and address.value in (None, ""):
+        reason = f"enter the new address first ({getattr(address, 'rule', 'allowed 1 .. 254')})"
+    gate(button, reason)
+
+
 class SetAddressCard(DeviceCard):
     """Set Modbus Address (command 3) with its two condition masks and a live preview."""
 
@@ -326,12 +343,13 @@ class SetAddressCard(DeviceCard):
                 self.p1, self.p2 = _mask_inputs("sa")
             self.bits = ui.label().classes("text-caption")
             self.preview = ui.label().classes("text-body2")
-            button = ui.button("Send Set Modbus Address", icon="pin", on_click=self.send).props("data-testid=sa-send")
-            self.view.guard.add(button)
-        for element in (self.p1, self.p2):
+            self.button = ui.button("Send Set Modbus Address", icon="pin", on_click=self.send).props("data-testid=sa-send")
+        for element in (self.new, self.p1, self.p2):
             element.on_value_change(self.refresh)
+        _gate_send(self.view, self.button, self.new)
 
     def refresh(self) -> None:
+        _gate_send(self.view, self.button, self.new)
         m, e = _parse_word(self.p1.value), _parse_word(self.p2.value)
         preview = self.preview
         if m is None or e is None:
@@ -403,13 +421,14 @@ class BroadcastAddressCard(DeviceCard):
                 self.p1, self.p2 = _mask_inputs("bc")
             self.bits = ui.label().classes("text-caption")
             self.known = ui.label().classes("text-body2").props("data-testid=bc-known")
-            button = ui.button("Send to all locks (255)", icon="campaign", on_click=self.send) \
+            self.button = ui.button("Send to all locks (255)", icon="campaign", on_click=self.send) \
                 .props("color=negative data-testid=bc-send")
-            self.view.guard.add(button)
-        for element in (self.p1, self.p2):
+        for element in (self.new, self.p1, self.p2):
             element.on_value_change(self.refresh)
+        _gate_send(self.view, self.button, self.new)
 
     def refresh(self) -> None:
+        _gate_send(self.view, self.button, self.new)
         state = self.view.state
         m, e = _parse_word(self.p1.value), _parse_word(self.p2.value)
         known, statuses, in_plant, scanned = _line_locks(self.view.name, state)
