@@ -14,7 +14,7 @@ import os
 from collections.abc import Iterator
 
 import pytest
-from conftest import CHROMIUM
+from conftest import CHROMIUM, wait_devices_online
 from demo_app import demo_app
 
 pytestmark = [pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium at /usr/bin/chromium"),
@@ -47,6 +47,8 @@ FIRST_VALUE_JS = """([selector, pattern]) => {
 @pytest.fixture(scope="module")
 def app_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     with demo_app(tmp_path_factory.mktemp("first-value"), "first") as url:
+        # a page's first value, not the plant's start: the devices measured here answer first
+        wait_devices_online(url, ("door-1", "gate-1", "lift", "heater-hm", "lift-1", "barrier-in"))
         yield url
 
 
