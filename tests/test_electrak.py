@@ -123,6 +123,8 @@ async def test_move_to_target_and_arrive(lift):
     assert await wait_for(lambda: abs((adapter.position_mm() or 0) - 30.0) < 0.2 and state.live("Motion flags").value == 0, timeout=6)
     assert all(abs(a.position_mm - 30.0) < 0.2 for a in twin.actuators)
     assert state.live("Error flags").value == 0
+    # the chart's samples: from the start to the end position (the sample at the end may come a moment after arrival)
+    assert await wait_for(lambda: max(s["Position"] for _, s in state.history) >= 29.8, timeout=2)
     positions = [s["Position"] for _, s in state.history]
     assert positions[0] < 1 and max(positions) >= 29.8
 

@@ -22,7 +22,9 @@ async def running(plant):
 
 async def online(runtime, name="door-1"):
     state = runtime.store.devices[name]
-    assert await wait_for(lambda: state.status == "online" and state.value("SerialNumber") is not None)
+    # the identity comes with the status of every poll, the settings in the same first poll just after it
+    assert await wait_for(lambda: state.status == "online" and state.value("SerialNumber") is not None
+                          and state.value("LockRequestDelay") is not None)
     return state
 
 
