@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 from nicegui import ui
 from plants import can_bus, device, plant_text
+from test_pages_devices_m3io import one
 from webutil import eventually, simulated_user
 
 from app.plant import parse_plant
@@ -22,12 +23,6 @@ async def env():
     runtime = Runtime(parse_plant(PLANT), simulate=True)
     async with simulated_user(runtime) as user:
         yield user, runtime
-
-
-def one(user, prop: str, value: str, kind=ui.element):
-    found = [e for e in user.client.elements.values() if isinstance(e, kind) and e.props.get(prop) == value]
-    assert len(found) == 1, f"{len(found)} elements with {prop}={value!r}"
-    return found[0]
 
 
 async def test_switches_need_control_and_say_so(env):
