@@ -90,16 +90,22 @@ def test_transmit_list(app_url: str, browser: Browser):
     page.close()
 
 
+def _ask(page, window, start: str, count: str, period: str, function: str | None = None) -> None:
+    """Fill a poll window's request (``window`` the page itself while it has one window)."""
+    if function is not None:
+        window.get_by_label("Function").click()
+        page.get_by_role("option", name=function).click()
+    window.get_by_label("Start address").fill(start)
+    window.get_by_label("Count").fill(count)
+    window.get_by_label("Period s").fill(period)
+
+
 def test_modbus_poll(app_url: str, browser: Browser):
     page = browser.new_page(viewport={"width": 1440, "height": 900})
     page.set_default_timeout(15_000)
     page.goto(f"{app_url}/monitor/line1/poll")
     expect(page.get_by_text("Modbus poll · line1")).to_be_visible()
-    page.get_by_label("Function").click()
-    page.get_by_role("option", name="04 Read Input Registers").click()
-    page.get_by_label("Start address").fill("104")
-    page.get_by_label("Count").fill("2")
-    page.get_by_label("Period s").fill("0.5")
+    _ask(page, page, "104", "2", "0.5", function="04 Read Input Registers")
     page.get_by_test_id("poll-start").click()
     table = page.get_by_test_id("poll-table")
     first = table.locator("tbody tr").first
@@ -146,20 +152,14 @@ def test_modbus_poll_windows(app_url: str, browser: Browser):
     page.goto(f"{app_url}/monitor/line1/poll")
     first = page.get_by_test_id("poll-window-1")
     expect(first).to_be_visible()
-    first.get_by_label("Function").click()
-    page.get_by_role("option", name="04 Read Input Registers").click()
-    first.get_by_label("Start address").fill("104")
-    first.get_by_label("Count").fill("2")
-    first.get_by_label("Period s").fill("0.5")
+    _ask(page, first, "104", "2", "0.5", function="04 Read Input Registers")
     first.get_by_label("32-bit values").click()
     page.get_by_role("option", name="float32", exact=True).click()
     first.get_by_test_id("poll-start").click()
     page.get_by_test_id("poll-add").click()
     second = page.get_by_test_id("poll-window-2")
     expect(second).to_be_visible()
-    second.get_by_label("Start address").fill("3000")
-    second.get_by_label("Count").fill("4")
-    second.get_by_label("Period s").fill("0.3")
+    _ask(page, second, "3000", "4", "0.3")
     second.get_by_label("32-bit values").click()
     page.get_by_role("option", name="none", exact=True).click()
     second.get_by_test_id("poll-start").click()
