@@ -472,11 +472,11 @@ class CanBus:
         if state.load_pct is None:
             state.load_avg_pct = state.load_peak_pct = None
             return
+        listed = list(marks)
         # the oldest mark inside the averaging window, but never the one just added (no span of time)
-        start = next((m for m in list(marks)[:-1] if now - m[0] <= LOAD_AVERAGE_S + 1e-6), marks[-2])
+        start = next((m for m in listed[:-1] if now - m[0] <= LOAD_AVERAGE_S + 1e-6), listed[-2])
         state.load_avg_pct = (state.bits - start[1]) / (now - start[0]) / bitrate * 100
         spans = []
-        listed = list(marks)
         for i, (t0, b0) in enumerate(listed):  # each figure to the first one at least 1 s later
             later = next(((t1, b1) for t1, b1 in listed[i + 1:] if t1 - t0 >= LOAD_PEAK_WINDOW_S - 1e-6), None)
             if later is not None:
