@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from devices.decoding import decoded
 from devices.hdlock import STATUS_FRAME_BOLT, codec
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
-from devices.live import DeviceState
+from devices.live import DeviceState, Point
 from devices.params import Param, ParamError, backup_entry
 from devices.transport import CanTransport, LineCrcError, LineError, LineException, LineTimeout, ModbusTransport
 
@@ -564,28 +564,22 @@ class HdLockCanAdapter(HdLockBackup):
 
     def on_frame(self, msg) -> None:
         """Every frame under this lock's device ID (called in the event loop)."""
-        frame = decoded(self.state, codec.decode_lock_frame, bytes(msg.data), "frame", show_bytes=True)
+        data = bytes(msg.data)
+        memo = self._status_memo
+        if data == memo[0]:  # the same status as the last frame (a lock at rest): decoded and worded already
+            self._on_status(_arrival(msg), *memo[1:])
+            return
+        frame = decoded(self.state, codec.decode_lock_frame, data, "frame", show_bytes=True)
         if frame is None:
             return
         state = self.state
         if isinstance(frame, codec.StatusFrame):
-            arrival = _arrival(msg)
-            state.publish(P_STATUS_FRAME, frame, time=arrival, text=status_frame_text(frame))
-            state.fact(P_FWU, None, text="")
-            state.update_registers(HOLDING, 1000, [frame.status])
-            state.update_registers(HOLDING, 1001, [frame.motor_pos])
             # the third status word as sent: (proximity << 6) + LockRequestSource (section 6.5.1; SPEC-NOTES:
             # a source of 0x80-0x87 comes with ForceActive and is taken off before the split)
             word = ((frame.proximity << 6) + frame.lock_request_source) & 0xFFFF
-            state.publish(P_PROXIMITY_FRAME, frame.proximity, "Inc", raw=word)
-            # motorPos (section 6.5.1), with the time the frame arrived: tiles show it rather than the slower register poll
-            state.publish(STATUS_FRAME_BOLT, frame.motor_pos, "Inc", raw=frame.motor_pos, time=arrival)
-            state.counters.responses += 1  # a frame heard, as the other CAN devices count them
-            state.publish(P_SOURCE_FRAME, frame.lock_request_source, raw=word,
-                          text=codec.LOCK_REQUEST_SOURCE.get(frame.lock_request_source, f"undefined ({frame.lock_request_source})"))
-            history = state.history
-            if not history or arrival - history[-1][0] >= HISTORY_MIN_GAP_S:  # a chart needs no more than 10 samples a second
-                state.add_history(_sample(state, HISTORY_CAN), arrival)
+            source = codec.LOCK_REQUEST_SOURCE.get(frame.lock_request_source, f"undefined ({frame.lock_request_source})")
+            self._status_memo = memo = (data, frame, status_frame_text(frame), word, source)
+            self._on_status(_arrival(msg), *memo[1:])
         elif isinstance(frame, codec.FwuStatusFrame):
             state.fact(P_FWU, frame, text=fwu_text(frame))
             state.mark_seen()
@@ -595,6 +589,30 @@ class HdLockCanAdapter(HdLockBackup):
             future = self._waiting.pop((frame.space, frame.address), None)
             if future is not None and not future.done():
                 future.set_result(frame.value)
+
+    _status_memo: tuple = (None,)  # (frame bytes, StatusFrame, its text, third word, source text) of the last status
+
+    def _on_status(self, arrival: float, frame: codec.StatusFrame, text: str, word: int, source: str) -> None:
+        """A periodic status (section 6.5.1): its values as points and registers, one change for the readers
+        (O(1): a handful of small records, the version bumped once)."""
+        state = self.state
+        fwu = state.points.get(P_FWU)
+        if fwu is None or fwu.value is not None or fwu.text != "":  # status frames again: out of firmware-update mode
+            state.fact(P_FWU, None, text="")
+        state.counters.responses += 1  # a frame heard, as the other CAN devices count them
+        history = state.history
+        # a chart needs no more than 10 samples a second
+        sample = self._chart_sample if not history or arrival - history[-1][0] >= HISTORY_MIN_GAP_S else None
+        state.publish_telegram(arrival, {
+            P_STATUS_FRAME: Point(frame, "", arrival, None, text),
+            P_PROXIMITY_FRAME: Point(frame.proximity, "Inc", arrival, word),
+            # motorPos (section 6.5.1), with the time the frame arrived: tiles show it rather than the slower register poll
+            STATUS_FRAME_BOLT: Point(frame.motor_pos, "Inc", arrival, frame.motor_pos),
+            P_SOURCE_FRAME: Point(frame.lock_request_source, "", arrival, word, source),
+        }, {(HOLDING, 1000): frame.status, (HOLDING, 1001): frame.motor_pos}, sample)
+
+    def _chart_sample(self) -> dict:
+        return _sample(self.state, HISTORY_CAN)
 
     def owns_frame(self, arbitration_id: int, is_extended: bool, data: bytes) -> bool:
         """Bus monitor filter: frames from this lock and requests addressed to it (or broadcast)."""
