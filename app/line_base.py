@@ -9,7 +9,8 @@ its own port handling and request rules; here are only the parts that are the sa
 * :class:`Backoff`: when a line that could not open (or was lost) may try again;
 * :meth:`LineBase._opened` / :meth:`LineBase._open_failed`: ``BusState.connected``, ``last_error``
   and the backoff, kept together;
-* :func:`serial_port`: the 8N1 pyserial port of the serial lines.
+* :func:`serial_port`: the 8N1 pyserial port of the serial lines, and :func:`read_burst`, which a
+  reader thread uses to take a telegram's bytes in one piece instead of one by one.
 """
 
 from __future__ import annotations
@@ -128,3 +129,28 @@ class LineBase:
         entry = Transaction(time.time(), unit, request, request_hex, response_hex, decoded, rtt_ms, error, **modbus)
         self.state.transactions.append(entry)
         return entry
+
+
+def _counts_one_only(port) -> bool:
+    """pyserial's ``socket://`` port (an RS485 or RS232 gateway on TCP) says 1 for ``in_waiting`` whatever it holds."""
+    return type(port).__module__.endswith("protocol_socket")
+
+
+def read_burst(port, limit: int = 4096) -> bytes:
+    """The next bytes on ``port``: waits for the first one (at most the port's read timeout, then b""), then
+    takes what else has arrived by then without waiting. One read per burst (a telegram), not one per byte:
+    a reader thread hands the event loop one wake-up per telegram."""
+    first = port.read(1)
+    if not first:
+        return b""
+    if _counts_one_only(port):
+        if not port.in_waiting:
+            return first
+        timeout = port.timeout
+        port.timeout = 0  # a socket port's read then takes what the socket holds and returns (no waiting)
+        try:
+            return first + port.read(limit)
+        finally:
+            port.timeout = timeout
+    waiting = port.in_waiting
+    return first + port.read(min(waiting, limit)) if waiting else first

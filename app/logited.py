@@ -19,7 +19,7 @@ import logging
 import time
 from collections.abc import Awaitable, Callable
 
-from app.line_base import LineBase, serial_port
+from app.line_base import LineBase, read_burst, serial_port
 from app.state import BusState
 from devices.transport import SerialClosed, SerialTimeout
 
@@ -306,7 +306,8 @@ class LogitedRs485(_LogitedLine):
     latest when the hold budget runs out. Telegrams for this master that answer no request go to
     ``listeners``; every telegram on the line is logged for the bus monitor.
 
-    pyserial is blocking: a reader thread hands the bytes to the event loop, writes run in a thread.
+    pyserial is blocking: a reader thread hands the bytes to the event loop, a telegram at a time; a write
+    puts a few bytes into the driver's buffer and is made on the loop.
     """
 
     HOLD_BUDGET_S = 0.15  # pass the token this long after receiving it at the latest (limit 0.2 s)
@@ -368,7 +369,7 @@ class LogitedRs485(_LogitedLine):
     def _read_thread(self, port) -> None:
         while self._run:
             try:
-                data = port.read(port.in_waiting or 1)
+                data = read_burst(port)  # a telegram at a time: the loop wakes once for it, not once a byte
             except Exception as exc:  # noqa: BLE001 - unplugged: the loop reopens with backoff
                 self._loop.call_soon_threadsafe(self._lost, str(exc))
                 return
@@ -496,7 +497,9 @@ class LogitedRs485(_LogitedLine):
                 self._pass_token()  # done: hand the token on now
 
     async def _send(self, request: bytes) -> None:
-        await asyncio.to_thread(self.port.write, request)
+        # a telegram is a few bytes into the driver's buffer (like the token, :meth:`_pass_token`): written on
+        # the loop, not handed to a worker thread and back for each request
+        self.port.write(request)
 
     LOST_ERRORS = (Exception,)  # a write to a lost port
 

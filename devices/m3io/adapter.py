@@ -31,6 +31,9 @@ VERIFY_RETRY_S = 2.0  # product code not answered: ask again after this long
 LISTEN_S = 0.6  # listened this long since the bus opened before taking control: longer than the 500 ms temperature period (7.2.2)
 FOREIGN_WINDOW_S = codec.WATCHDOG_S  # a master must send DigOut within 2 s (7.1): one heard within this window is active
 FOREIGN_MASTER = "a PLC or another master"
+# master = "always" with nobody in control: every output off and no lease to lapse, so the 2 s watchdog (7.1) is
+# served with four times room at this period; inputs still come on change and temperatures every 500 ms (7.2.2)
+IDLE_DIGOUT_PERIOD_S = 0.5
 
 
 # -- what the adapter publishes besides the frames' points (DigIn E1-E6, TEMPx, SSRx Last/Si/Triac, the outputs) --
@@ -242,9 +245,14 @@ class M3ioAdapter:
         self._p2_checked = False  # addressed mode: read back at the next poll
         if cfg is not None and (self.controller is not None or self._idle_serving):
             self.bus.send(self.ids.sync, cfg, False)
-            self.bus.start_periodic(self.cfg_key, codec.DIGOUT_PERIOD_S, self.ids.sync, cfg, False)
+            self.bus.start_periodic(self.cfg_key, self._dig_out_period(), self.ids.sync, cfg, False)
         else:
             self.bus.stop_cyclic(self.cfg_key)
+
+    def _dig_out_period(self) -> float:
+        """DigOut (and Sync cfg) every 100 ms while an engineer controls the module, more slowly while it is only
+        served with every output off (:data:`IDLE_DIGOUT_PERIOD_S`)."""
+        return codec.DIGOUT_PERIOD_S if self.controller is not None else IDLE_DIGOUT_PERIOD_S
 
     def on_foreign_dig_out(self, msg) -> None:
         """A DigOut from another node: a PLC serves the module. Never fight it."""
@@ -263,17 +271,17 @@ class M3ioAdapter:
         """``master = "always"``: the watchdog served with every output off, nobody in control (no lease needed)."""
         self._idle_serving = True
         self.served = True
-        self.bus.start_periodic(self.key, codec.DIGOUT_PERIOD_S, self.ids.dig_out, codec.encode_dig_out(self.variant, {}), False)
+        self.bus.start_periodic(self.key, IDLE_DIGOUT_PERIOD_S, self.ids.dig_out, codec.encode_dig_out(self.variant, {}), False)
         self._start_cfg_idle()
         self._publish()
         self.state.event("info", f"serving the watchdog with every output off (master = \"always\" in the plant file): "
-                                 f"DigOut 0x{self.ids.dig_out:03X} every {codec.DIGOUT_PERIOD_S * 1000:.0f} ms")
+                                 f"DigOut 0x{self.ids.dig_out:03X} every {IDLE_DIGOUT_PERIOD_S * 1000:.0f} ms")
 
     def _start_cfg_idle(self) -> None:
         cfg = codec.cfg_with_dig_out(self.two_phase)
         self._p2_checked = False
         if cfg is not None:
-            self.bus.start_periodic(self.cfg_key, codec.DIGOUT_PERIOD_S, self.ids.sync, cfg, False)
+            self.bus.start_periodic(self.cfg_key, IDLE_DIGOUT_PERIOD_S, self.ids.sync, cfg, False)
 
     def _stop_idle_serving(self, reason: str) -> None:
         self._idle_serving = False

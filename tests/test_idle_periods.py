@@ -1,0 +1,83 @@
+"""What the idle plant sends and reads less often than its live values, and what still comes at once.
+
+A slow value is read at start, after a write or a change that concerns it, and marked stale by its own
+age; a live value keeps its rate. No timing is asserted: the periods the adapters choose are.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+
+import pytest
+from conftest import wait_for
+from plants import can_bus, channel, m3io_can, plant_text
+
+from app.plant import parse_plant
+from app.runtime import Runtime
+from devices.m3io import codec as m3io
+from devices.m3io.adapter import IDLE_DIGOUT_PERIOD_S
+
+
+async def _beat(worker, session: str) -> None:
+    while True:
+        worker.heartbeat(session)
+        await asyncio.sleep(0.1)
+
+
+async def test_m3io_served_idle_slower_and_at_100_ms_under_control():
+    """``master = "always"`` with nobody in control: DigOut (every output off) at the idle period, well inside
+    the 2 s watchdog; an engineer taking control brings the 100 ms keep-alive back, releasing it the idle one."""
+    assert m3io.DIGOUT_PERIOD_S < IDLE_DIGOUT_PERIOD_S <= m3io.WATCHDOG_S / 4
+    text = plant_text(can_bus(m3io_can(master="always"), name="can3", channel_name=channel("idle"), bitrate=500000,
+                              poll_period=0.2), name=None)
+    runtime = Runtime(parse_plant(text), simulate=True)
+    await runtime.start()
+    beat = asyncio.create_task(_beat(runtime.worker, "s1"))
+    try:
+        adapter, bus = runtime.worker.adapters["hm"], runtime.worker.can_buses["can3"]
+        state = runtime.store.devices["hm"]
+        assert await wait_for(lambda: state.status == "online", timeout=4)  # served idle: the module answers
+        assert bus._periodic[adapter.key].period_s == IDLE_DIGOUT_PERIOD_S
+        await adapter.take_control("s1", "engineer")
+        assert bus._periodic[adapter.key].period_s == m3io.DIGOUT_PERIOD_S
+        adapter.set_output("s1", "SSR1", True)
+        assert await wait_for(lambda: runtime.twins["hm"].ssr[1].on, timeout=1)
+        adapter.release_control("s1")
+        assert await wait_for(lambda: adapter.key in bus._periodic, timeout=3)  # served idle again after listening
+        assert bus._periodic[adapter.key].period_s == IDLE_DIGOUT_PERIOD_S
+        assert await wait_for(lambda: not runtime.twins["hm"].ssr[1].on, timeout=1)
+    finally:
+        beat.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await beat
+        await asyncio.wait_for(runtime.stop(), 5)
+
+
+def test_a_reader_takes_a_telegram_in_one_read_from_a_socket_port():
+    """pyserial's socket:// port says 1 for ``in_waiting`` whatever it holds; the RS485 reader thread still takes
+    a whole telegram in one read (one wake-up of the event loop for it, not one per byte)."""
+    import socket
+
+    import serial
+
+    from app.line_base import read_burst
+
+    server = socket.create_server(("127.0.0.1", 0))
+    port = serial.serial_for_url(f"socket://127.0.0.1:{server.getsockname()[1]}", timeout=0.5)
+    try:
+        peer, _ = server.accept()
+        telegram = bytes(range(0x55, 0x55 + 12))
+        peer.sendall(telegram)
+        got = read_burst(port)
+        while len(got) < len(telegram):  # the segment may arrive in parts: each read still takes all that is there
+            more = read_burst(port)
+            assert more, "the rest of the telegram did not come"
+            got += more
+        assert got == telegram
+        assert port.timeout == 0.5  # the port's read timeout is as it was
+        assert read_burst(port) == b""  # nothing more: waits the timeout and returns
+        peer.close()
+    finally:
+        port.close()
+        server.close()
