@@ -807,6 +807,7 @@ class _Periodic:
         self.last_error = ""
         self._reported_lapse: float | None = None
         self.priority = "as it is"  # the sender thread's place in the scheduling (app/realtime.py)
+        self._holding = False  # holds off the automatic full collection while it sends (app/realtime.py)
 
     def _message(self, data: bytes) -> can.Message:
         return can.Message(arbitration_id=self.arbitration_id, data=data, is_extended_id=self.is_extended_id, is_rx=False)
@@ -814,6 +815,9 @@ class _Periodic:
     def start(self, bus: can.BusABC) -> None:
         self.stop()
         self.task = bus.send_periodic(self._message(self.stop_checked(self.data)), self.period_s, modifier_callback=self._before_send)
+        if not self._holding:  # no full collection holds the interpreter lock while this sends (app/realtime.py)
+            self._holding = True
+            realtime.hold_full_collections()
         if hasattr(self.task, "on_error"):  # python-can's thread ends at the first error unless told otherwise
             self.task.on_error = self._on_error
         thread = getattr(self.task, "thread", None)
@@ -824,6 +828,9 @@ class _Periodic:
         """End the sender; ``join``: also wait (at most a period and a bit) until its thread has sent its
         last frame, before the bus it sends on is shut down (never from the thread itself, never in the loop)."""
         task, self.task = self.task, None
+        if self._holding:
+            self._holding = False
+            realtime.release_full_collections()
         if task is not None:
             try:
                 task.stop()
