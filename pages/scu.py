@@ -24,16 +24,20 @@ from pages.simcontrols import sim_card
 from pages.widgets import HistoryChart, Lamp, LiveValue, WriteGuard, checked_value, confirm, entry_age, follow, gate
 from pages.widgets import INT32_LIMIT, mark_quality, quality_note, range_number, session_role, stop_bar
 
-STATUS_1 = ("present", "limit_in_out", "switch_1", "switch_2", "motion", "in_position", "out_position", "stroke_recorded")
-STATUS_2 = ("initialised", "enable_in", "enable_out")
+# Actuator status 1 (0x0171..) and 2 (0x00E1..): point key -> its words in table 6 (the adapter publishes one point per bit)
+STATUS_BITS = {f.name: f.description for f in p.ACTUATOR_STATUS_1.fields + p.ACTUATOR_STATUS_2.fields}
 SWITCHES = ((codec.Function.BUZZER, "Buzzer"), (codec.Function.BINARY_OUTPUT_1, "Binary output 1"),
             (codec.Function.BINARY_OUTPUT_2, "Binary output 2"), (codec.Function.LED_1, "Operating unit LED1"),
             (codec.Function.LED_2, "Operating unit LED2"))
 SUPPLY_LAMPS = ("Mains", "Battery", "Charger on", "Charging", "Output 1", "Output 2", "Buzzer", "Sensor supply")
-IO_POINTS = ("Battery voltage", "Actual_State_Binary Inputs 1 ... 4", "Analogue input 1", "Analogue input 2",
-             "Analogue input 3", "Analogue input 4", "Binary Output Status", "LED HS", "LED LB",
-             "Lock Status", "Locking Box detected", "Benutzer")
-ERROR_POINTS = ("Error code", "Error history 1", "Error history 2", "Error history 3", "Error history 4")
+# the I/O lines: point key (as the adapter publishes it) -> data ID, whose declaration names and words it
+IO_POINTS = {"Battery voltage": 0x0164, "Actual_State_Binary Inputs 1 ... 4": 0x0020, "Analogue input 1": 0x0031,
+             "Analogue input 2": 0x0032, "Analogue input 3": 0x0033, "Analogue input 4": 0x0034,
+             "Binary Output Status": 0x0110, "LED HS": 0x0120, "LED LB": 0x0130, "Lock Status": 0x0162,
+             "Locking Box detected": 0x0165, "Benutzer": 0x0166}
+ERROR_POINTS = {"Error code": "Error code (last)", "Error history 1": "Error history 1", "Error history 2": "Error history 2",
+                "Error history 3": "Error history 3", "Error history 4": "Error history 4 (oldest)"}
+RAW_NOTE = "the raw value as the unit sends it, for the vendor"
 
 
 def _stop_rule() -> str:
@@ -41,6 +45,28 @@ def _stop_rule() -> str:
             f"of control, and within {worker_module.DEADMAN_BOUND_S:g} s when this browser closes, disconnects or "
             "freezes (dead-man rule), and after a lost session, even when the actuator stopped at its end position "
             "(section 4.6). Without RC for 500 ms the unit itself stops and leaves remote mode.")
+
+
+def io_text(key: str, entry: dict) -> tuple[str, str]:
+    """An I/O line in words, named as its declaration says, and the raw value beside it ("" when the words are the
+    number itself)."""
+    data_id = IO_POINTS[key]
+    item = p.item(data_id)
+    title = item.label or key
+    value = entry["value"]
+    raw = entry["raw"] if entry.get("raw") is not None else value
+    if data_id in p.FLAG_WORDS:
+        return f"{title}: {p.flags_text(data_id, int(raw))}", f"0x{int(raw):0{2 * item.size}X}"
+    if data_id == 0x0166:
+        return f"{title}: {p.user_text(int(value))}", f"raw {int(value)}"
+    number = f"{value:g}" if isinstance(value, float) else str(value)
+    return f"{title}: {number} {entry['unit'] or item.unit}".strip(), ""
+
+
+def _error_names(code: int) -> str:
+    """The causes of the set bits, short: the details (condition, behaviour) are listed under the line."""
+    names = [b.cause for b in codec.error_bits(code)] + [f"bit {n} (not in table 10)" for n in codec.unknown_error_bits(code)]
+    return "; ".join(names)
 
 
 def _labels(functions) -> list[str]:
@@ -195,8 +221,9 @@ class StatusCard(DeviceCard):
                 for n in range(1, len(self.view.scales) + 1):
                     with ui.column().classes("gap-0"):
                         ui.label(f"A{n}").classes("text-subtitle2")
-                        for key in STATUS_1 + STATUS_2:
-                            self.lamps[f"A{n} {key}"] = Lamp(f"A{n} {key}", "ok")
+                        for key, words in STATUS_BITS.items():
+                            lamp = self.lamps[f"A{n} {key}"] = Lamp(words[0].upper() + words[1:], "ok", f"A{n} {key}")
+                            lamp.row.props(f'data-lamp="A{n} {key}"')  # the point it shows
                         for what in ("current", "speed"):
                             LiveValue(state, f"A{n} {what}", lambda e, what=what: f"{what}: {e['value']:g} {e['unit']}".strip(),
                                       classes="mono text-body2").row.props(f"data-testid={what}-A{n}")
@@ -218,19 +245,27 @@ class SupplyCard(DeviceCard):
             with ui.row().classes("gap-6"):
                 for key in SUPPLY_LAMPS:
                     self.lamps[key] = Lamp(key, "ok")
-            with ui.column().classes("gap-0 mono text-body2"):  # one line per point, changed in place
-                self.lines = {key: ui.label() for key in IO_POINTS}
+            with ui.column().classes("gap-0 text-body2"):  # one line per point, changed in place
+                self.lines: dict[str, tuple] = {}
+                for key, data_id in IO_POINTS.items():
+                    with ui.row().classes("items-baseline gap-2 no-wrap").props(f'data-io="{key}"') as row:
+                        text = ui.label()
+                        raw = ui.label().classes("mono text-caption text-grey-7")
+                        raw.tooltip(f"{p.item(data_id).key} {p.item(data_id).name}: {RAW_NOTE}")
+                    self.lines[key] = (row, text, raw)
 
     def refresh(self, access: Access) -> None:
         point = self.view.state.point
         for key, lamp in self.lamps.items():
             lamp.show(point(key))
-        for key, line in self.lines.items():
+        for key, (row, text, raw) in self.lines.items():
             e = point(key)
-            line.set_visibility(e is not None)
+            row.set_visibility(e is not None)
             if e is not None:
-                line.set_text(f"{key}: {e['text'] or e['value']} {e['unit']}".strip())
-                mark_quality(line, e["quality"])
+                words, code = io_text(key, e)
+                text.set_text(words)
+                raw.set_text(code)
+                mark_quality(row, e["quality"])
 
 
 class ErrorsCard(DeviceCard):
@@ -244,23 +279,29 @@ class ErrorsCard(DeviceCard):
     def build(self) -> None:
         with titled_card("Error code (0x00D1) and history (0x00D2..0x00D5), bit n = mask 1 << (n-1)"):
             with ui.column().classes("gap-1").props("data-testid=errors"):
-                for key in ERROR_POINTS:
-                    with ui.column().classes("gap-1") as box:
-                        self.rows[key] = (box, ui.label().classes("text-body2 text-weight-medium"), ui.column().classes("gap-1"))
+                for key, title in ERROR_POINTS.items():
+                    with ui.column().classes("gap-1").props(f'data-error="{key}"') as box:
+                        with ui.row().classes("items-baseline gap-2") as head:
+                            line = ui.label().classes("text-body2 text-weight-medium")
+                            raw = ui.label().classes("mono text-caption text-grey-7")
+                            raw.tooltip(f"Error_Code {RAW_NOTE}")
+                        self.rows[key] = (box, head, line, raw, ui.column().classes("gap-1"), title)
 
     def refresh(self, access: Access) -> None:
-        for key, (box, line, bits) in self.rows.items():
+        for key, (box, head, line, raw, bits, title) in self.rows.items():
             e = self.view.state.point(key)
             box.set_visibility(e is not None)
             if e is None:
                 continue
             value = int(e["value"])
-            line.set_text(f"{key}: 0x{value:08X}")
-            mark_quality(line, e["quality"])
+            mark_quality(head, e["quality"])
             mark_quality(bits, e["quality"])
             if self.shown.get(key) == value:
                 continue
             self.shown[key] = value
+            line.set_text(f"{title}: " + (codec.NO_ERROR if value == 0 else _error_names(value)))
+            raw.set_text(codec.error_hex(value))
+            line.classes(replace="text-body2 text-weight-medium" + (" text-negative" if value and key == "Error code" else ""))
             bits.clear()
             with bits:
                 for b in codec.error_bits(value):

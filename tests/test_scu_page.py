@@ -6,12 +6,15 @@ import asyncio
 from collections.abc import AsyncIterator
 
 import pytest
+from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
 from plants import plant, scu_line
 from webutil import by_testid, eventually, user_on
 
 from app.runtime import Runtime
+from devices.scu import codec
+from devices.scu import params as p
 
 pytestmark = pytest.mark.timeout(40)
 
@@ -143,3 +146,45 @@ async def test_the_shared_sim_card_acts_on_the_scu_twin_through_the_gate(env):
     await eventually(lambda: (runtime.store.devices["lift"].point("Error code") or {}).get("value"), timeout=5)
     UserInteraction(user, {by_testid(user, "sim-on-battery")}, None).click()  # the switch goes on
     await eventually(lambda: not twin.mains, timeout=3)
+
+
+def _props_texts(user, prop: str, value: str) -> str:
+    """The texts of the labels inside the element whose ``prop`` is ``value`` (one line of a card)."""
+    (box,) = [e for e in user.client.elements.values() if e.props.get(prop) == value]
+    return " | ".join(e.text for e in box.descendants() if isinstance(e, ui.label))
+
+
+async def test_errors_and_io_are_named_as_the_document_names_them_with_the_raw_code_beside(env):
+    user, runtime = env
+    adapter, twin = runtime.worker.adapters["lift"], runtime.twins["lift"]
+    await eventually(lambda: adapter.session == "open" and all(
+        k in adapter.state.points for k in ("Error code", "Error history 4", "Binary Output Status", "LED HS", "Benutzer")),
+        timeout=10)
+    await user.open("/device/lift")
+    # Error_Code 0 is "no error", the raw code stays beside it for the vendor (section 4.5)
+    await eventually(lambda: _props_texts(user, "data-error", "Error code") == "Error code (last): no error | 0x00000000",
+                     timeout=3, what="Error code shown as no error")
+    assert _props_texts(user, "data-error", "Error history 4") == "Error history 4 (oldest): no error | 0x00000000"
+    # bit outputs by name, not 0x0; the document's short names explained (LED HS = hand switch, Benutzer = user)
+    assert _props_texts(user, "data-io", "Binary Output Status") == "Binary outputs: output 1 off, output 2 off | 0x00"
+    assert _props_texts(user, "data-io", "LED HS").startswith("Hand switch LEDs (LED HS): LED1 ")
+    assert _props_texts(user, "data-io", "Benutzer") == "Active user (Benutzer): user 1 | raw 1"
+    await user.should_not_see("0x0: none")
+    # status flags in words, each lamp still keyed by its point
+    lamp = next(e for e in user.client.elements.values() if e.props.get("data-lamp") == "A1 limit_in_out")
+    assert [e.text for e in lamp.descendants() if isinstance(e, ui.label)] == ["Limit in/out signal (limit_in_out)"]
+    # an error: its cause from table 10 on the line, the code beside it; the old code moves into the history
+    twin.raise_error(codec.ERROR_BITS[14].mask)
+    await eventually(lambda: _props_texts(user, "data-error", "Error code").startswith(
+        "Error code (last): total current exceeded | 0x00002000"), timeout=5, what="the error's cause")
+    await user.should_see("bit 14: total current exceeded — condition: while moving")
+
+
+def test_bit_fields_and_error_codes_in_words():
+    assert p.flags_text(0x0110, 0b10) == "output 1 off, output 2 on"
+    assert p.flags_text(0x0130, 0) == "all off" and p.flags_text(0x0130, 0b101) == "LED1, LED3 on"
+    assert p.flags_text(0x0162, 0b11) == "F1, F2 locked"
+    assert p.flags_text(0x0120, 0x80) == "LED1 off, LED2 off; undocumented bits set: 7"
+    assert p.user_text(3) == "user 3" and p.item(0x0166).title == "Active user (Benutzer)"
+    assert codec.error_text(0) == "no error" and codec.error_hex(0) == "0x00000000"
+    assert codec.error_text(1 << 21 | 1 << 8) == "bit 22: remote communication timeout; bit 9: not in table 10"

@@ -329,6 +329,25 @@ def unknown_error_bits(code: int) -> list[int]:
     return [n for n in range(1, 33) if code >> (n - 1) & 1 and n not in ERROR_BITS]
 
 
+NO_ERROR = "no error"  # Error_Code 0: no bit of table 10 set
+
+
+def error_text(code: int) -> str:
+    """An Error_Code value in words (section 4.5, table 10): ``"no error"`` for 0, else each set bit with its
+    document number and cause (``"bit 14: total current exceeded"``), undocumented bits by number."""
+    code = int(code)
+    if code == 0:
+        return NO_ERROR
+    words = [f"bit {b.bit}: {b.cause}" for b in error_bits(code)]
+    words += [f"bit {n}: not in table 10" for n in unknown_error_bits(code)]
+    return "; ".join(words)
+
+
+def error_hex(code: int) -> str:
+    """The raw Error_Code as the vendor reads it: ``0x00002000``."""
+    return f"0x{int(code):08X}"
+
+
 # -- requests ----------------------------------------------------------------------------------------
 def encode_frame(command: bytes, params: bytes = b"") -> bytes:
     """``<X><Y><P1..Pn><C1><C2>`` for any command.
