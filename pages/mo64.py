@@ -252,14 +252,19 @@ class ErrorMemoryCard(DeviceCard):
                 self.guard.add(ui.button("Read again", on_click=lambda: self.view.act("read error memory"))
                                .props("outline dense"))
                 self.age = ui.label().classes("q-age").props("data-testid=error-memory-age")
+            ui.label(codec.ERROR_MEMORY_MEANING).classes("text-caption text-grey-8")
             self.table = ui.table(columns=[{"name": k, "label": label, "field": k, "align": "left"} for k, label in
-                                           (("level", "Level"), ("flags", "Error flags"), ("time", "Operating hours"))],
-                                  rows=[], row_key="level").classes("w-full text-caption").props("dense flat")
+                                           (("level", "Level"), ("meaning", "Error flags"), ("raw", "Raw (for the vendor)"),
+                                            ("time", "Operating hours at the change"))],
+                                  rows=[], row_key="level").classes("w-full text-caption") \
+                .props("dense flat wrap-cells data-testid=error-memory")
 
     def refresh(self) -> None:
         state = self.view.state
-        rows = [{"level": e.level, "flags": f"0x{e.flags:08X}", "time": f"{e.timestamp_h} h"}
-                for e in self.view.fact(facts.P_ERROR_LEVELS, ())]
+        levels = {e.level: e for e in self.view.fact(facts.P_ERROR_LEVELS, ())}
+        rows = [{"level": codec.error_level_text(e.level),
+                 "meaning": codec.error_flags_text(e.flags, levels[e.level + 1].flags if e.level + 1 in levels else None),
+                 "raw": f"0x{e.flags:08X}", "time": f"{e.timestamp_h} h"} for e in levels.values()]
         if rows != self.table.rows:
             self.table.rows = rows
             self.table.update()

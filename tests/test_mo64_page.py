@@ -14,6 +14,7 @@ from plants import mo64_tcp, plant
 from webutil import by_testid, eventually, user_on
 
 from app.runtime import Runtime
+from devices.mo64 import codec
 
 pytestmark = pytest.mark.timeout(40)
 
@@ -137,3 +138,32 @@ async def test_the_shared_sim_card_acts_on_the_twin_through_the_gate(env, monkey
     monkeypatch.setattr("pages.widgets.viewer_reason", lambda: "the viewer role may not write")
     await user.open("/device/gate")
     await user.should_see("Simulation controls change the simulated plant: engineers only.")
+
+
+async def test_error_memory_rows_say_what_each_level_means_with_the_raw_flags_beside(env):
+    user, runtime = env
+    adapter = runtime.worker.adapters["gate"]
+    await eventually(lambda: "Gate state" in adapter.state.points, timeout=10)
+    twin(runtime).raise_fault(0x04)
+    twin(runtime).clear_fault()
+    await user.open("/device/gate")
+    UserInteraction(user, {user.find(kind=ui.button, content="Read again").elements.pop()}, None).click()
+    table = by_testid(user, "error-memory")
+
+    def rows() -> list[tuple]:
+        return [(r["level"], r["meaning"], r["raw"]) for r in table.rows]
+
+    # chapter 5.1.23: level 0 the newest change (the flags cleared), level 1 the one before (flag 2 set)
+    await eventually(lambda: rows()[:3] == [("0 (newest)", "no error (flag 2 cleared)", "0x00000000"),
+                                           ("1", "error flag 2 set", "0x00000004"), ("2", "no error", "0x00000000")],
+                     timeout=5, what="the error memory in words")
+    assert rows()[-1][0] == "9 (oldest)"
+    assert all(r["time"].endswith(" h") for r in table.rows)  # the operating hours at the change
+    await user.should_see("level 0 the newest, level 9 the oldest")
+
+
+def test_error_flags_in_words():
+    assert codec.error_flags_text(0) == "no error"
+    assert codec.error_flags_text(0x88, older=0x08) == "error flags 3, 7 set (7 new)"
+    assert codec.error_flags_text(0x08, older=0x18) == "error flag 3 set (4 cleared)"
+    assert codec.error_level_text(0) == "0 (newest)" and codec.error_level_text(9) == "9 (oldest)"

@@ -325,6 +325,48 @@ QUERY_ANSWER_OFFSET = 5  # SPEC-NOTES "Replies": query index n is answered by te
 QUERY_INDEXES = range(0x00, 0x1B)  # chapter 5.2.2, table 21: 0x00 .. 0x1A
 FORBIDDEN_QUERIES = frozenset(range(0x1B, 0x1F))  # table 21: 0x1B-0x1E "Nicht verwenden!"
 ERROR_MEMORY_LEVELS = 10  # chapter 5.1.23: "10 Ebenen (0...9)"
+# Chapter 5.1.23: the error flags are a 32-bit register; at every change of the flags they are stored together with
+# the operating hours counter's value of that moment, the current value in level 0: level 0 is the newest, 9 the
+# oldest, and each level's time stamp is the operating hours at which the flags took that value. The summary does
+# not name the 32 flags: a set flag is named by its bit number (bit 0 = least significant of fehlerflaggen_lo0).
+ERROR_MEMORY_MEANING = ("Each level is one change of the 32 error flags with the operating hours at that change "
+                        "(chapter 5.1.23): level 0 the newest, level 9 the oldest. The document summary does not "
+                        "name the flags: a set flag is shown by its bit number.")
+NO_ERROR = "no error"
+
+
+def error_flag_bits(flags: int) -> list[int]:
+    """The numbers (0..31) of the error flags set in a stored value (chapter 5.1.23)."""
+    return [n for n in range(32) if int(flags) >> n & 1]
+
+
+def error_flags_text(flags: int, older: int | None = None) -> str:
+    """A level of the error memory in words: which flags are set, and what changed against the older level
+    (``older``, the level below it in time; None for the oldest or when it is not known).
+
+    ``"no error"``, ``"no error (flags 3 cleared)"``, ``"error flags 3, 7 set (7 new)"``.
+    """
+    flags = int(flags)
+    now = error_flag_bits(flags)
+    before = set(error_flag_bits(older)) if older is not None else None
+    def flags_(numbers: list[int]) -> str:
+        return f"flag{'s' if len(numbers) > 1 else ''} {', '.join(map(str, numbers))}"
+
+    changes = []
+    if before is not None:
+        new = [n for n in now if n not in before]
+        gone = sorted(before - set(now))
+        if new and before:
+            changes.append(f"{', '.join(map(str, new))} new")
+        if gone:
+            changes.append(f"{flags_(gone) if not now else ', '.join(map(str, gone))} cleared")
+    tail = f" ({'; '.join(changes)})" if changes else ""
+    return (NO_ERROR if not now else f"error {flags_(now)} set") + tail
+
+
+def error_level_text(level: int) -> str:
+    """Level 0 is the newest change, 9 the oldest (chapter 5.1.23)."""
+    return f"{level} (newest)" if level == 0 else f"{level} (oldest)" if level == ERROR_MEMORY_LEVELS - 1 else str(level)
 
 
 def query_index(answer_type: int) -> int:
