@@ -19,7 +19,7 @@ from app import worker as worker_module
 from devices.electrak import adapter as facts
 from devices.electrak import codec
 from devices.electrak.adapter import FOREIGN_SENDER, SERIES
-from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, password_of, refusal
+from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, length_of, refusal
 from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
 from pages.frame import fmt_age, fmt_time
 from pages.session import current_user
@@ -382,7 +382,9 @@ class ServiceCard(DeviceCard):
             self.form = ui.label().classes("text-caption text-grey-8")
 
     def _row(self, p) -> None:
-        ui.label(f"0x{p.address:02X} (password 0x{password_of(p):08X})").classes("mono text-caption")
+        with ui.column().classes("gap-0").props(f'data-specifier="{p.address:02X}"'):
+            ui.label(f"0x{p.address:02X}").classes("mono text-caption")
+            ui.label(specifier_note(p)).classes("text-caption text-grey-8")
         with ui.row().classes("items-center gap-1"):
             ui.label(p.name).tooltip(p.description)
             mark = ui.badge("unsaved", color="orange")
@@ -480,6 +482,13 @@ class ServiceCard(DeviceCard):
         self.form.set_text(f"last save: the network accepted the {form}" if form else
                            f"Save sends the {codec.SAVE_FORMS[codec.SAVE_LENGTHS[0]]} and, on WRONG_SIZE, once the "
                            f"{codec.SAVE_FORMS[codec.SAVE_LENGTHS[1]]}.")
+
+
+def specifier_note(p) -> str:
+    """What the parameter is beside its specifier: its length and unit, and that its password goes to 0xFF first.
+    The password itself is a key, not data: it is never shown (it is in the register map for the adapter only)."""
+    unit = "" if p.enum is not None else f", {p.unit}" if p.unit else ""
+    return f"{length_of(p)} byte{'s' if length_of(p) != 1 else ''}{unit}, password-protected"
 
 
 async def _save(view: ElectrakView) -> None:

@@ -16,7 +16,8 @@ from webutil import by_testid, eventually, simulated_user
 
 from app.runtime import Runtime
 from app.users import UserStore
-from devices.electrak.params import PARAMS
+from devices.electrak import codec
+from devices.electrak.params import PARAMS, password_of
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -103,3 +104,21 @@ async def test_control_is_taken_in_the_logged_in_account_name(tmp_path):
         assert control.user == "anna"
         rows = [r for r in await runtime.audit.aquery() if r.device == "lift" and "take control" in r.action]
         assert rows and rows[-1].user == "anna", rows
+
+
+async def test_no_password_is_shown_the_specifier_column_says_what_the_parameter_is(tmp_path):
+    runtime = Runtime(lift_plant(), simulate=True, data_dir=tmp_path)
+    async with simulated_user(runtime) as user:
+        await eventually(lambda: runtime.store.devices["lift"].status == "online", timeout=10, what="lift online")
+        await user.open("/device/lift")
+        await user.should_see("Service parameters (0x0A / 0x0B)")
+        texts = " ".join(getattr(e, "text", "") or "" for e in user.client.elements.values())
+        for p in PARAMS:  # the passwords of the document's table: keys, not data
+            password = password_of(p)
+            assert f"{password:08X}" not in texts.upper() and str(password) not in texts, p.name
+        (cell,) = [e for e in user.client.elements.values() if e.props.get("data-specifier") == "01"]
+        assert [e.text for e in cell.descendants() if isinstance(e, ui.label)] == ["0x01", "2 bytes, ms, password-protected"]
+    # the bus monitor names a password telegram without decoding its value
+    text = codec.describe_frame(codec.SERVICE_REQUEST_ID, False, codec.password_request(password_of(PARAMS.get("service", 1)))
+                                .encode(), {(False, codec.STATUS_ID)})
+    assert text == "Electrak service WRITE_REQUEST 0xFF len 4 (password: not shown)"

@@ -348,6 +348,8 @@ def describe_frame(arbitration_id: int, is_extended: bool, data: bytes, known_id
             m = ServiceMessage.decode(data)
             kind = ServiceType(m.type).name if m.type in ServiceType._value2member_map_ else f"type 0x{m.type:02X}"
             extra = f" {m.error_name}" if m.error_code is not None else f" value {m.value}"
+            if m.specifier == PASSWORD_SPECIFIER and m.error_code is None:
+                extra = " (password: not shown)"  # a key, not a value: named, never decoded into words
             return f"Electrak service {kind} 0x{m.specifier:02X} len {m.length}{extra}"
         if arbitration_id in INTERNAL_IDS:
             return "Electrak internal (actuator to actuator)"
