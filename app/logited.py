@@ -367,14 +367,38 @@ class LogitedRs485(_LogitedLine):
         return True
 
     def _read_thread(self, port) -> None:
+        """Cuts the line's bytes into telegrams and hands them to the loop, a burst at a time. The token for this
+        master while no request waits is passed on from here at once (as :meth:`_got_token` would), without
+        waking the loop: on a shared line the token comes round many times a second."""
+        splitter = self.codec.FrameSplitter(self.codec.RS485)
+        token = self.codec.TOKEN
         while self._run:
             try:
                 data = read_burst(port)  # a telegram at a time: the loop wakes once for it, not once a byte
             except Exception as exc:  # noqa: BLE001 - unplugged: the loop reopens with backoff
                 self._loop.call_soon_threadsafe(self._lost, str(exc))
                 return
-            if data:
-                self._loop.call_soon_threadsafe(self._on_bytes, data)
+            if not data:
+                continue
+            items = [item for item in splitter.feed(data)
+                     if isinstance(item, self.codec.FrameError) or item.type != token or item.da == self.master]
+            if not items:
+                continue  # token telegrams between other masters
+            if (len(items) == 1 and not isinstance(items[0], self.codec.FrameError) and items[0].type == token
+                    and self.shared and self._pending == 0 and not self._token.is_set()):
+                # nothing waits for the line (a request that starts meanwhile waits for the next token)
+                if self._pass_from_thread(port):
+                    continue
+            self._loop.call_soon_threadsafe(self._on_items, items)
+
+    def _pass_from_thread(self, port) -> bool:
+        """The token onward from the reader thread; False if the write failed (the loop then sees the token)."""
+        try:
+            port.write(self.codec.encode_token(self.next_master, self.master))
+        except Exception:  # noqa: BLE001 - the loop takes the token and finds the port lost
+            return False
+        self.token_holds_ms.append(0.0)
+        return True
 
     def _lost(self, why: str) -> None:
         self._shut(final=False)
@@ -410,7 +434,11 @@ class LogitedRs485(_LogitedLine):
 
     # -- telegrams ------------------------------------------------------------------------
     def _on_bytes(self, data: bytes) -> None:
-        for item in self._splitter.feed(data):
+        self._on_items(self._splitter.feed(data))
+
+    def _on_items(self, items) -> None:
+        """Telegrams (and framing errors) off the line, in order (cut by the reader thread, or by :meth:`_on_bytes`)."""
+        for item in items:
             if isinstance(item, self.codec.FrameError):
                 self.garbage += len(item.raw or b"")
                 self._log("received", b"", item.raw or b"", f"{item.__class__.__name__}: {item}")
@@ -494,7 +522,13 @@ class LogitedRs485(_LogitedLine):
         finally:
             self._pending -= 1
             if self.shared and self._token.is_set() and self._pending == 0:
-                self._pass_token()  # done: hand the token on now
+                # done: hand the token on once the caller has had its turn, unless it asks again at once (the
+                # next request of the same poll goes out in this hold, not a token round later)
+                self._loop.call_soon(self._pass_when_done)
+
+    def _pass_when_done(self) -> None:
+        if self._pending == 0:
+            self._pass_token()
 
     async def _send(self, request: bytes) -> None:
         # a telegram is a few bytes into the driver's buffer (like the token, :meth:`_pass_token`): written on
