@@ -658,7 +658,11 @@ class CanBus:
         if stats.count:
             stats.period = dt
             stats.prev = stats.data
-        stats.add_time(ts, len(data))
+        stream = stats.streams.get(len(data))  # add_time(), its common case inlined: this runs per frame
+        if stream is not None:
+            stream.add(ts)
+        else:
+            stats.add_time(ts, len(data))
         stats.count += 1
         stats.last_time = now
         stats.last_ts = ts

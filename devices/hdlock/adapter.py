@@ -567,7 +567,7 @@ class HdLockCanAdapter(HdLockBackup):
         data = bytes(msg.data)
         memo = self._status_memo
         if data == memo[0]:  # the same status as the last frame (a lock at rest): decoded and worded already
-            self._on_status(_arrival(msg), *memo[1:])
+            self._on_status(_arrival(msg), memo)
             return
         frame = decoded(self.state, codec.decode_lock_frame, data, "frame", show_bytes=True)
         if frame is None:
@@ -579,7 +579,7 @@ class HdLockCanAdapter(HdLockBackup):
             word = ((frame.proximity << 6) + frame.lock_request_source) & 0xFFFF
             source = codec.LOCK_REQUEST_SOURCE.get(frame.lock_request_source, f"undefined ({frame.lock_request_source})")
             self._status_memo = memo = (data, frame, status_frame_text(frame), word, source)
-            self._on_status(_arrival(msg), *memo[1:])
+            self._on_status(_arrival(msg), memo)
         elif isinstance(frame, codec.FwuStatusFrame):
             state.fact(P_FWU, frame, text=fwu_text(frame))
             state.mark_seen()
@@ -592,9 +592,10 @@ class HdLockCanAdapter(HdLockBackup):
 
     _status_memo: tuple = (None,)  # (frame bytes, StatusFrame, its text, third word, source text) of the last status
 
-    def _on_status(self, arrival: float, frame: codec.StatusFrame, text: str, word: int, source: str) -> None:
-        """A periodic status (section 6.5.1): its values as points and registers, one change for the readers
-        (O(1): a handful of small records, the version bumped once)."""
+    def _on_status(self, arrival: float, memo: tuple) -> None:
+        """A periodic status (section 6.5.1), as :attr:`_status_memo` holds it: its values as points and registers,
+        one change for the readers (O(1): a handful of small records, the version bumped once)."""
+        _data, frame, text, word, source = memo
         state = self.state
         fwu = state.points.get(P_FWU)
         if fwu is None or fwu.value is not None or fwu.text != "":  # status frames again: out of firmware-update mode
