@@ -88,7 +88,7 @@ class MonitorRefresh:
         return len(json.dumps(rows)) + len(json.dumps(ids))
 
 
-async def ingest(count: int) -> tuple[float, int, int]:
+async def ingest(count: int) -> tuple[float, float, int, int]:
     channel = f"bench-{time.time_ns()}"
     worker = Worker(plant(channel))
     can_bus = worker.can_buses["can1"]
@@ -98,18 +98,18 @@ async def ingest(count: int) -> tuple[float, int, int]:
             sender.send(msg)
     state = worker.store.buses["can1"]
     device = worker.store.devices["gate-1"]
-    start = time.perf_counter()
+    start, cpu0 = time.perf_counter(), time.process_time()
     await can_bus.start()
     # the reader thread drains the queue far faster than a bus delivers: while the hand-over is full it
     # pauses (app.can_bus.READER_BACKOFF_S), then sheds the oldest; done when every frame was handled or shed
     while state.rx_frames + state.shed < count and time.perf_counter() - start < 60:
         await asyncio.sleep(0.001)
-    elapsed = time.perf_counter() - start
+    elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu0
     await asyncio.sleep(0.2)
     handled = state.rx_frames
     await can_bus.stop()
     assert device.value("LockStatus") in (0x0117, 0x0200)
-    return elapsed, handled, count - handled
+    return elapsed, cpu, handled, count - handled
 
 
 async def monitor_share(rate: int, seconds: float, with_monitor: bool) -> tuple[float, int]:
@@ -149,11 +149,13 @@ async def monitor_share(rate: int, seconds: float, with_monitor: bool) -> tuple[
 
 
 async def run(count: int, rate: int, seconds: float) -> None:
-    elapsed, handled, lost = await ingest(count)
+    elapsed, cpu, handled, lost = await ingest(count)
     fps = handled / elapsed
     print(f"frames queued: {count}, handled: {handled}, shed at the hand-over: {lost} "
           f"(the queue is drained at memory speed, faster than any bus delivers; the reader pauses while the hand-over is full)")
     print(f"receive path: {fps:,.0f} frames/s ({elapsed * 1e6 / max(handled, 1):.1f} us per frame)")
+    print(f"receive path CPU: {cpu * 1e6 / max(handled, 1):.1f} us per frame, {handled / max(cpu, 1e-9) / BUS_LIMIT_FPS:.2f}x the bus limit "
+          f"per core (CPU time of this process's threads: less sensitive than the wall time to other programs of the machine)")
     print(f"1 Mbit/s bus limit: {BUS_LIMIT_FPS:,.0f} frames/s (8-byte extended frames, {FRAME_BITS} bits)")
     print("not timed here: the interface's receive cost, making each can.Message, discovery of unknown IDs; "
           "the whole app end to end: bench/can_e2e.py")
