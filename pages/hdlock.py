@@ -37,6 +37,10 @@ DEVICE_TYPE = "hdlock"
 ENUM_VALUES = ("DoorState", "StateMachineState", "MotorState", "MotorState (IR53)", "MotorResult", "LockRequestSource (HR4)")
 LAMP_KIND = {"ProximityOverrange": "warn", "ForceActive": "warn"}
 CHART_AXES = {"MotorCurrent": "y2"}  # increments on the left axis, mA on the right
+# Both axes start at 0 so the lines meet the same baseline: a current of 0 mA is at the bottom, not level with
+# half the bolt's travel; a motor current is never negative, and at rest (0 mA) the axis still spans whole mA.
+CHART_Y = {"rangemode": "tozero"}
+CHART_Y2 = {"rangemode": "nonnegative", "tickformat": "d", "autorangeoptions": {"include": [0, 10]}}
 CHART_WINDOWS = (30, 300)  # the bolt moves in about half a second: 30 s by default, 5 min on demand
 # cards beside each other as the width allows, each as tall as its row (no blank area under a short one)
 CARD_GRID = "display: grid; grid-template-columns: repeat(auto-fit, minmax(420px, 1fr)); gap: 16px; width: 100%"
@@ -63,8 +67,11 @@ def content(name: str) -> None:
         view.add(LampsCard(view))
         with ui.card().classes("w-full gap-1"):
             ui.label("Bolt, motor current and proximity").classes("text-subtitle1")
-            HistoryChart(view.state, list(HISTORY_CAN if view.is_can else HISTORY_MODBUS), window_s=CHART_WINDOWS[0],
-                         axes=CHART_AXES, windows=CHART_WINDOWS)
+            chart = HistoryChart(view.state, list(HISTORY_CAN if view.is_can else HISTORY_MODBUS),
+                                 window_s=CHART_WINDOWS[0], axes=CHART_AXES, windows=CHART_WINDOWS)
+            chart.figure["layout"]["yaxis"].update(CHART_Y)
+            chart.figure["layout"]["yaxis2"].update(CHART_Y2)
+            chart.plot.update()
         with ui.element("div").style(CARD_GRID).props("data-testid=hdlock-cards"):
             sim_card(name, skip=SIM_ELSEWHERE)
             if view.is_can:
@@ -85,14 +92,27 @@ def content(name: str) -> None:
                     RegisterTable(view.state, PARAMS.space(HOLDING))
 
 
+def modbus_counters(c) -> str:
+    """The Modbus line's counters of this lock: CRC errors and exception answers are Modbus RTU's own."""
+    return (f"requests {c.requests} · timeouts {c.timeouts} · CRC {c.crc_errors} · exceptions {c.exceptions} · "
+            f"write errors {c.write_errors}")
+
+
+def can_counters(c) -> str:
+    """The CAN counters of this lock: its requests (0x700-0x705) and their timeouts, the frames heard from it
+    (status frames and register answers), frames that did not decode, and writes not confirmed. CAN has no
+    CRC errors or exception answers to count here (the controller drops bad frames)."""
+    return (f"requests {c.requests} · frames heard {c.responses} · timeouts {c.timeouts} · malformed {c.malformed} · "
+            f"write errors {c.write_errors}")
+
+
 class HealthCard(DeviceCard):
     """Address or device ID, serial, firmware, status, last seen, the line's counters and the last error."""
 
     view: HdLockView
 
     def build(self) -> None:
-        self.status = StatusRow(self.view.state, lambda c: f"requests {c.requests} · timeouts {c.timeouts} · "
-                                f"CRC {c.crc_errors} · exceptions {c.exceptions} · write errors {c.write_errors}")
+        self.status = StatusRow(self.view.state, can_counters if self.view.is_can else modbus_counters)
         with ui.card().classes("w-full"):
             with self.status.build():
                 self.ident = ui.label().classes("text-body2")
@@ -191,9 +211,10 @@ class ParameterCard(DeviceCard):
     def _row(self, p: Param) -> None:
         name = self.view.name
         ui.label(str(p.address)).classes("mono")
+        key = param_key(p)
         with ui.row().classes("items-center gap-1").style("min-width: 0"):
             label = p.label or p.name
-            ui.label(label).style(NAME_WRAP).props(f'data-param-name="{p.name}"') \
+            ui.label(label).style(NAME_WRAP).props(f'data-param-name="{key}"') \
                 .tooltip(f"{label}: {p.description}" if p.description else label)
             mark = ui.badge("unsaved", color="orange")
         with ui.row().classes("items-baseline gap-0 no-wrap") as cell:
@@ -205,9 +226,9 @@ class ParameterCard(DeviceCard):
         else:
             low, high = p.limits()
             entry = range_number("", low, high, unit=p.unit, integer=p.scale == 1).classes("w-48")
-        entry.props(f'data-param="{p.name}"')
+        entry.props(f'data-param="{key}"')
         entry.on("keydown.enter", lambda p=p, entry=entry: _write(name, p, entry))  # Enter writes, as the button does
-        button = ui.button("Write", on_click=lambda p=p, entry=entry: _write(name, p, entry)).props(f'dense data-write="{p.name}"')
+        button = ui.button("Write", on_click=lambda p=p, entry=entry: _write(name, p, entry)).props(f'dense data-write="{key}"')
         self.view.guard.add(button)
         self.rows[p.key] = (p, cell, current, age, mark)
         self.entries[p.key] = entry
@@ -239,6 +260,12 @@ class ParameterCard(DeviceCard):
         self.unsaved_label.set_visibility(count > 0)
         if self.save.props.get("color") != ("orange" if count else "primary"):
             self.save.props(f"color={'orange' if count else 'primary'}")
+
+
+def param_key(p: Param) -> str:
+    """A parameter's own key on the page (``data-param``, ``data-write``): its label where it has one, as the
+    register map keys it, since two registers share a name (LockRequestSource, holding 4 and 1002)."""
+    return p.label or p.name
 
 
 async def _write(name: str, param: Param, entry) -> None:
@@ -324,11 +351,15 @@ async def _checked_masks(name: str, describe: str, p1, p2) -> tuple[int, int] | 
 
 def _gate_send(view: HdLockView, button: ui.button, address) -> None:
     """A Send button of an address change: disabled with the reason while the lock does not answer (or the
-    session may not write), and while no new address is entered."""
+    session may not write), while no new address is entered, and while the entry is one the field refuses."""
     view.guard.update()
     reason = view.guard.reason
     if not reason and address.value in (None, ""):
         reason = f"enter the new address first ({getattr(address, 'rule', 'allowed 1 .. 254')})"
+    elif not reason:
+        refused = address.validation(address.value) if callable(address.validation) else None  # the field's own rule
+        if refused:  # (checked without touching the field's message: a refusal set on Send stays shown)
+            reason = f"address {address.value:g} is refused: {refused}"
     gate(button, reason)
 
 

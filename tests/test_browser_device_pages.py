@@ -59,15 +59,18 @@ def test_hdlock_entry_save_dialog_and_chart(app_url: str, chromium: Browser, tmp
         assert page.locator(".js-plotly-plot .ytitle").bounding_box()["x"] >= 0  # not clipped at the left edge
         page.screenshot(path=str(tmp_path / f"door-1-top-{size[0]}.png"))
 
-        # address 300: kept as typed, marked with the range, nothing sent (no confirmation, the lock keeps address 1)
+        # address 300: kept as typed, marked with the range, Send off with the field's reason: nothing can be sent
+        # (no confirmation, the lock keeps address 1)
         card = page.locator(".q-card", has_text="Set Modbus Address (command 3)")
         address = card.get_by_label("New address")
         address.scroll_into_view_if_needed()
         address.fill("300")
         address.press("Tab")  # the entry is taken on change, as a person leaves the field
-        page.locator('[data-testid="sa-send"]').click()
         expect(card).to_contain_text("out of range: allowed 1 .. 254")
         expect(address).to_have_value("300")
+        send = page.locator('[data-testid="sa-send"]')
+        expect(send).to_be_disabled()
+        expect(send).to_have_attribute("data-disabled-reason", "address 300 is refused: out of range: allowed 1 .. 254")
         expect(page.locator(".q-dialog")).to_have_count(0)
         expect(page.get_by_text("Modbus address 1 ·")).to_be_visible()
         inside_viewport(page, page.locator('[data-testid="sa-send"]'))

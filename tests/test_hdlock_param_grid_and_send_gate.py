@@ -1,4 +1,4 @@
-"""HD-Lock page: the address changes' Send buttons are off (with the reason) until a new address is entered,
+"""HD-Lock page: the address changes' Send buttons are off (with the reason) until a valid new address is entered,
 and the Parameters card's long names stay inside their column (chromium at 768 and 1440 px)."""
 
 from __future__ import annotations
@@ -49,6 +49,9 @@ async def test_send_buttons_are_off_with_the_reason_until_an_address_is_entered(
         await eventually(off, timeout=3)
         address.value = 9
         await eventually(lambda: send.enabled and "data-disabled-reason" not in send.props, timeout=3)
+        address.value = 300  # the field refuses it: Send is off with the field's reason
+        await eventually(lambda: not send.enabled and send.props.get("data-disabled-reason")
+                         == "address 300 is refused: out of range: allowed 1 .. 254", timeout=3)
         address.value = None
         await eventually(off, timeout=3)
     # a silent lock: the reason is its silence, whatever is entered

@@ -44,24 +44,24 @@ def test_elapsed_times_have_a_unit_and_the_register_top_is_named():
         assert p.display(0xFFFF) == "65535 ms (at its top: 65.5 s or more)"
 
 
-async def test_address_300_stays_typed_marked_with_the_range_and_nothing_is_sent(env):
+async def test_address_300_stays_typed_marked_with_the_range_and_send_is_refused(env):
     user, runtime = env
     await open_page(user, runtime)
     twin = runtime.twins["door-1"]
     (field,) = [e for e in user.client.elements.values() if isinstance(e, ui.number) and e.props.get("label") == "New address"
                 and "data-testid" not in e.props]  # the broadcast card's has one
+    send = one(user, "data-testid", "sa-send")
     field.value = 300
-    user.find(kind=ui.button, content="Send Set Modbus Address").click()
     await eventually(lambda: field.error and "1 .. 254" in field.error, what="address field marked with its range")
     assert field.value == 300  # not clamped to 254
+    # Send is off while the field refuses the entry, and says why: nothing can be sent
+    await eventually(lambda: not send.enabled, what="Send off")
+    reason = send.props.get("data-disabled-reason", "")
+    assert reason.startswith("address 300 is refused: out of range") and "1 .. 254" in reason, reason
     await user.should_not_see("Change the Modbus address")  # no confirmation: nothing will be sent
     assert twin.address == 1
-
-    async def refusal_audited() -> bool:
-        rows = await runtime.audit.aquery()
-        return any("Set Modbus Address" in r.action and r.result.startswith("refused: 300") for r in rows)
-
-    await eventually(refusal_audited, what="the refusal in the audit log")
+    field.value = 9  # a valid entry: Send is on again
+    await eventually(lambda: send.enabled, what="Send on for address 9")
 
 
 async def test_save_settings_asks_listing_the_unsaved_changes(env):

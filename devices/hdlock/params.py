@@ -26,6 +26,10 @@ class ElapsedParam(Param):
 INPUT = "input"
 HOLDING = "holding"
 
+# Holding 3004/3006 (thresholds) and 3007/3008 (offsets) are compared with, and shift, the magnet position that
+# input 7 "Calculated proxi (normalized)" and holding 1005 give in [Inc] (sections 3.1, 3.2, 3.2.7, 3.2.8).
+PROXIMITY_UNIT = "Inc"
+
 # -- value tables -----------------------------------------------------------------------
 
 LOCK_STATE: dict[int, str] = {
@@ -718,7 +722,7 @@ _HOLDINGS: list[Param] = [
         "restart. (section 3.2.5)",
     ),
     Param(
-        "SettingsProximityThresholdUnlock", HOLDING, 3004, Access.RW,
+        "SettingsProximityThresholdUnlock", HOLDING, 3004, Access.RW, unit=PROXIMITY_UNIT,
         signed=True,  # int16 two's complement, factory -30 (section 3.2.7)
         default=65506,
         description="Switching point for 'door closed' while not locked (bolt retracted): "
@@ -738,7 +742,7 @@ _HOLDINGS: list[Param] = [
         "from outside by manipulation. (section 3.2.6)",
     ),
     Param(
-        "SettingsProximityThresholdLock", HOLDING, 3006, Access.RW,
+        "SettingsProximityThresholdLock", HOLDING, 3006, Access.RW, unit=PROXIMITY_UNIT,
         signed=True,  # int16 two's complement, factory -60 (section 3.2.7)
         default=65476,
         description="Switching point for 'door closed' while locked (bolt extended): a wider "
@@ -747,14 +751,14 @@ _HOLDINGS: list[Param] = [
         "(section 3.2.7)",
     ),
     Param(
-        "SettingsProximityOffsetLeft", HOLDING, 3007, Access.RW,
+        "SettingsProximityOffsetLeft", HOLDING, 3007, Access.RW, unit=PROXIMITY_UNIT,
         signed=True,  # int16 two's complement (section 3.2.8)
         description="Offset for left-hinged doors (see Direction, input 11): fine adjustment "
         "of the strike plate position for special cases; positive shifts the zero line in "
         "opening direction. Negative values as 16-bit two's complement. (section 3.2.8)",
     ),
     Param(
-        "SettingsProximityOffsetRight", HOLDING, 3008, Access.RW,
+        "SettingsProximityOffsetRight", HOLDING, 3008, Access.RW, unit=PROXIMITY_UNIT,
         signed=True,  # int16 two's complement (section 3.2.8)
         description="Offset for right-hinged doors (see Direction, input 11): fine adjustment "
         "of the strike plate position for special cases; positive shifts the zero line in "
