@@ -26,7 +26,7 @@ from collections.abc import Callable
 import serial
 
 from app import realtime
-from app.line_base import LineBase, serial_port
+from app.line_base import LineBase, read_burst, serial_port
 from app.state import BusState
 from devices.transport import Completion, SerialClosed, SerialLineError, SerialTimeout  # noqa: F401 - raised here, caught by adapters
 
@@ -210,8 +210,10 @@ class SerialLine(LineBase):
             if remaining <= 0:
                 return buffer  # short: the caller names the timeout
             port.timeout = min(remaining, 0.05)
-            want = max(1, (need - len(buffer)) if need is not None else 1)
-            buffer += port.read(want)
+            if need is None:
+                buffer += read_burst(port)  # what has come (the whole answer, as a rule), not a byte at a time
+            else:
+                buffer += port.read(need - len(buffer))
 
     async def transact(self, request: bytes, complete: Completion, *, timeout: float | None = None,
                        describe: str = "", decode: Callable[[bytes], str] | None = None) -> bytes:
