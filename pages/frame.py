@@ -189,8 +189,10 @@ class HeaderStatus:
 
 
 @contextmanager
-def frame(title: str):
-    """Header, navigation and a content column; yields inside the column."""
+def frame(title: str, beat: bool = True):
+    """Header, navigation and a content column; yields inside the column. ``beat``: the page confirms it is
+    alive ten times a second (the dead-man rule); a page that can start or hold nothing (no motion, no
+    outputs, no control) leaves it out: twenty such pages would send two hundred messages a second for nothing."""
     runtime = rt.current()
     ui.add_css(CSS)
     ui.page_title(f"{title} - commission")
@@ -200,7 +202,8 @@ def frame(title: str):
     from app.browser import BEAT_EVENT
     from app.worker import BEAT_PERIOD_S
 
-    ui.add_body_html(BEAT_JS % (round(BEAT_PERIOD_S * 1000), BEAT_EVENT))
+    if beat:
+        ui.add_body_html(BEAT_JS % (round(BEAT_PERIOD_S * 1000), BEAT_EVENT))
     ui.add_body_html(HEADER_FIT_JS)
 
     # the header runs on every page: built once, then only changed texts and colours go to the browser

@@ -227,7 +227,7 @@ def _glance_table(runtime) -> None:
 
 def content() -> None:
     runtime = rt.current()
-    with frame("Overview"):
+    with frame("Overview", beat=False):  # a page that starts and holds nothing: no dead-man beats
         ui.add_css(TILE_CSS)
         tiles: list[DeviceTile] = []
         ticks: list = []  # the bus lines and discovery lists: one timer for the page, not one per bus

@@ -128,6 +128,11 @@ REGISTER_COLUMNS = [
 ]
 
 
+# changed cells of a table's rows (by row key) into the rows the browser shows: its reactive rows re-render those cells
+ROW_PATCH_JS = ("(function(e,p){if(!e)return;for(const r of e.props.rows){const c=p[r.key];if(c)Object.assign(r,c);}})"
+                "(mounted_app.elements[%d],%s)")
+
+
 class RegisterTable:
     """Live table of one register space of a device (address, name, value, raw, access)."""
 
@@ -149,14 +154,16 @@ class RegisterTable:
 
     def update(self, times: bool = False) -> None:
         """New values, qualities and unsaved marks at once; a new read time alone (every poll) once a
-        second, with ``times`` (the device's once-a-second round): the whole table goes to the browser
-        on each change. A row whose value, quality and mark did not change is kept as it was built
-        (outside the once-a-second round its read time waits for that round), so a change of one
-        register builds one row, not the table."""
+        second, with ``times`` (the device's once-a-second round). A row whose value, quality and mark did
+        not change is kept as it was built (outside the once-a-second round its read time waits for that
+        round), so a change of one register builds one row, not the table. Once the table is in the
+        browser only the changed cells of the changed rows go there (a few bytes, not the whole table with
+        its descriptions and columns, which the browser keeps): the table element is sent whole only when
+        its rows are new."""
         now = time.time()
         state, cache = self.state, self._cache
         rows = []
-        changed = False
+        patch: dict[str, dict] = {}
         for p in self.params:
             raw = state.raw(p)
             read = state.read_time(p)
@@ -168,16 +175,25 @@ class RegisterTable:
                 rows.append(old[2])
                 continue
             row = self._row(p, raw, read, quality, unsaved, now)
-            if old is not None and old[2] == row:
-                row = old[2]
-            else:
-                changed = True
+            if old is not None:
+                cells = {k: v for k, v in row.items() if old[2].get(k) != v}
+                if not cells:
+                    row = old[2]
+                else:
+                    patch[p.key] = cells
             cache[p.key] = (sig, read, row)
             rows.append(row)
-        if not changed and len(rows) == len(self.table.rows):
+        shown = self.table.rows
+        if len(rows) != len(shown) or any(a["key"] != b["key"] for a, b in zip(rows, shown)):
+            self.table.rows = rows  # new rows: the whole table (at the start)
+            self.table.update()
             return
-        self.table.rows = rows
-        self.table.update()
+        if not patch:
+            return
+        # the rows as the browser now has them, kept here unobserved (a whole update of the element, as for a
+        # reconnecting page, sends them as they are); the browser changes the cells of its own rows in place
+        dict.__setitem__(self.table._props, "rows", rows)
+        self.table.client.run_javascript(ROW_PATCH_JS % (self.table.id, json.dumps(patch, separators=(",", ":"))))
 
     @staticmethod
     def _row(p: Param, raw: int | None, read: float | None, quality: str, unsaved: bool, now: float) -> dict:
