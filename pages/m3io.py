@@ -23,6 +23,12 @@ from pages.widgets import gate, range_number, refuse, stop_bar, viewer_reason
 STATE_COLOR = {"ok": "positive", "present": "positive", "blown": "negative", "defective": "negative"}
 VARIANT_COLOR = {"ok": "text-positive", "mismatch": "text-negative text-weight-medium", "unchecked": "text-grey-8", "not possible": "text-warning"}
 TAKE_CONTROL = "take control of the module first"
+# The temperature chart's legend under the time axis, at the foot of the figure: above the plot it lay where
+# plotly's mode bar appears (top right), which covered the last channels' names.
+CHART_HEIGHT = 300
+LEGEND_MARGIN_B = 80  # the time axis with its date line, then one or two rows of legend
+MODE_BAR_MARGIN_T = 30  # the mode bar's own row above the plot, clear of the lines
+LEGEND_BELOW = {"orientation": "h", "x": 0, "xanchor": "left", "y": 0, "yanchor": "bottom", "yref": "container"}
 STOP_RULE = (
     "Outputs belong to the page that switched them on: they go off at once when that page is closed or reloaded, "
     f"or within {DEADMAN_BOUND_S:g} s when it stops confirming that it is alive (frozen tab, sleeping laptop, lost network). "
@@ -270,7 +276,10 @@ class TemperatureCard(DeviceCard):
                             .classes("text-caption text-grey-8")
                         self.labels[channel] = (ui.label("-").classes("text-h6").props(f'data-temp="{channel}"'),
                                                 ui.label().classes("q-age q-ml-none"))
-            HistoryChart(view.state, list(facts.history_points(view.variant)), window_s=600, height=260)
+            chart = HistoryChart(view.state, list(facts.history_points(view.variant)), window_s=600, height=CHART_HEIGHT)
+            chart.figure["layout"]["legend"] = LEGEND_BELOW  # the mode bar (top right) covered the legend above the plot
+            chart.figure["layout"]["margin"].update(t=MODE_BAR_MARGIN_T, b=LEGEND_MARGIN_B)
+            chart.plot.update()
 
     def refresh(self) -> None:
         for channel, (label, note) in self.labels.items():

@@ -107,3 +107,25 @@ def test_hmr_variant_checked_in_addressed_mode(app_url, chromium, tmp_path):
         _shot_1024(chromium, f"{app_url}/device/heater-hmr", tmp_path / "m3io-hmr-1024.png", "variant HMR as in the plant file")
     finally:
         page.close()
+
+
+@pytest.mark.parametrize("size", [(1440, 900), (768, 1024)], ids=["1440x900", "768x1024"])
+def test_the_mode_bar_does_not_cover_the_temperature_chart_legend(app_url, chromium, size):
+    page = chromium.new_page(viewport={"width": size[0], "height": size[1]})
+    try:
+        page.goto(f"{app_url}/device/heater-hm")
+        _take_control(page)  # temperatures come while the watchdog is served: the chart draws them with its legend
+        chart = page.locator(".js-plotly-plot").first
+        chart.locator(".legend .traces").first.wait_for(timeout=30_000)
+        chart.scroll_into_view_if_needed()
+        chart.hover()  # plotly shows its mode bar while the pointer is over the chart
+        bar = chart.locator(".modebar")
+        bar.wait_for(state="visible", timeout=5_000)
+        a, b = bar.bounding_box(), chart.locator(".legend").bounding_box()
+        apart = (a["x"] + a["width"] <= b["x"] or b["x"] + b["width"] <= a["x"]
+                 or a["y"] + a["height"] <= b["y"] or b["y"] + b["height"] <= a["y"])
+        assert apart, f"mode bar {a} over the legend {b}"
+        plot = chart.locator(".nsewdrag").first.bounding_box()  # the plotting area
+        assert a["y"] + a["height"] <= plot["y"] + 1, f"mode bar {a} over the plotted lines {plot}"
+    finally:
+        page.close()
