@@ -263,7 +263,8 @@ class ErrorMemoryCard(DeviceCard):
         state = self.view.state
         levels = {e.level: e for e in self.view.fact(facts.P_ERROR_LEVELS, ())}
         rows = [{"level": codec.error_level_text(e.level),
-                 "meaning": codec.error_flags_text(e.flags, levels[e.level + 1].flags if e.level + 1 in levels else None),
+                 "meaning": codec.error_level_meaning(e.flags, e.timestamp_h,
+                                                      levels[e.level + 1].flags if e.level + 1 in levels else None),
                  "raw": f"0x{e.flags:08X}", "time": f"{e.timestamp_h} h"} for e in levels.values()]
         if rows != self.table.rows:
             self.table.rows = rows

@@ -364,6 +364,14 @@ def error_flags_text(flags: int, older: int | None = None) -> str:
     return (NO_ERROR if not now else f"error {flags_(now)} set") + tail
 
 
+EMPTY_LEVEL = "empty: no change stored"  # flags 0 at 0 operating hours: a level no change has reached yet
+
+
+def error_level_meaning(flags: int, timestamp_h: int, older: int | None = None) -> str:
+    """One level in words (:func:`error_flags_text`), or :data:`EMPTY_LEVEL` for a level never written."""
+    return EMPTY_LEVEL if int(flags) == 0 and int(timestamp_h) == 0 else error_flags_text(flags, older)
+
+
 def error_level_text(level: int) -> str:
     """Level 0 is the newest change, 9 the oldest (chapter 5.1.23)."""
     return f"{level} (newest)" if level == 0 else f"{level} (oldest)" if level == ERROR_MEMORY_LEVELS - 1 else str(level)
