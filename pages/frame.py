@@ -14,7 +14,8 @@ from pages.session import current_user
 
 CSS = (Path(__file__).resolve().parent.parent / "static" / "commission.css").read_text()
 LOOP_ORANGE_MS, LOOP_RED_MS = 100, 250  # loop lag p99 worth a look; one that endangers a 250 ms keep-alive
-NAV_PAGES = (("Overview", "/"), ("Plant view", "/plant"), ("Backup", "/backup"), ("Audit", "/audit"), ("Record", "/record"))
+NAV_PAGES = (("Overview", "/"), ("Plant view", "/plant"), ("Fleet", "/fleet"), ("Backup", "/backup"), ("Audit", "/audit"),
+             ("Record", "/record"))
 STATUS_ICON = {"online": "check_circle", "stale": "schedule", "offline": "error", "unknown": "help"}
 
 
@@ -85,8 +86,9 @@ def notify_error(message: str) -> None:
     ui.notify(message, type="negative", multi_line=True, close_button="OK", timeout=0)
 
 
-def _header(runtime) -> tuple[ui.row, ui.row, str | None, str | None]:
-    """The header bar; returns its empty health and bus rows (filled by :class:`HeaderStatus`), user and role."""
+def _header(runtime) -> tuple[ui.row, ui.row, ui.menu, str | None, str | None]:
+    """The header bar; returns its empty health and bus rows and its page menu (filled by :class:`HeaderStatus`),
+    user and role."""
     # one line down to 1024 px: below 1360 px the page links fold into a menu and the bus names get smaller
     # (static/commission.css, .hdr-*); the bus list gives way first, never the pages or the account
     with ui.header().classes("items-center no-wrap bg-blue-grey-9 q-py-xs hdr").props("data-testid=header"):
@@ -105,7 +107,7 @@ def _header(runtime) -> tuple[ui.row, ui.row, str | None, str | None]:
                 ui.link(label, href).classes("text-white")
         with ui.button(icon="menu").props('flat dense color=white aria-label="Pages" data-testid=nav-menu') \
                 .classes("hdr-narrow"):
-            with ui.menu().props("data-testid=nav-menu-list"):
+            with ui.menu().props("data-testid=nav-menu-list") as menu:
                 for label, href in NAV_PAGES:
                     ui.menu_item(label).props(f'href="{href}" tag=a')
         with ui.row().classes("items-center gap-2 no-wrap hdr-keep").props("data-testid=account"):
@@ -117,7 +119,7 @@ def _header(runtime) -> tuple[ui.row, ui.row, str | None, str | None]:
                 ui.label("local engineer").classes("text-caption text-grey-4").tooltip(
                     "Served on the loopback address only: no login, full rights"
                 )
-    return health, buses, user, role
+    return health, buses, menu, user, role
 
 
 class HeaderStatus:
@@ -128,8 +130,10 @@ class HeaderStatus:
         self.user = user
         self.broker_badge = self.broker_tip = None
         self.bus_chips: dict = {}
+        self.bus_items: dict = {}  # bus -> its line in the page menu (name and state in words)
+        self.bus_shown: dict = {}  # bus -> (connected, words) last shown
 
-    def build(self, health: ui.row, buses: ui.row) -> None:
+    def build(self, health: ui.row, buses: ui.row, menu: ui.menu | None = None) -> None:
         runtime = self.runtime
         with health:
             self.problem_box = ui.row().classes("items-center gap-1 no-wrap bg-negative q-px-sm rounded-borders") \
@@ -147,9 +151,22 @@ class HeaderStatus:
                 self.loop_tip = ui.tooltip("")
         with buses:
             for bus in runtime.store.buses.values():
-                with ui.link("", f"/monitor/{bus.name}").classes("text-white no-underline hdr-bus row items-center no-wrap"):
+                with ui.link("", f"/monitor/{bus.name}").classes("text-white no-underline hdr-bus row items-center no-wrap") \
+                        .props(f'aria-label="{bus.name}" data-bus="{bus.name}"') as link:
                     ui.label(bus.name).classes("hdr-bus-name")  # left out on a narrow screen: the icon and its tooltip stay
-                    self.bus_chips[bus.name] = (ui.icon("link_off", color="red").classes("q-ml-xs"), ui.tooltip(""))
+                    self.bus_chips[bus.name] = (ui.icon("link_off", color="red").classes("q-ml-xs"), ui.tooltip(""), link)
+        if menu is not None and runtime.store.buses:
+            # a tablet has no hover for the icons' tooltips and no room for the names: the page menu names every
+            # bus with its state in words, each a link to its monitor
+            with menu:
+                ui.separator()
+                for bus in runtime.store.buses.values():
+                    with ui.menu_item().props(f'href="/monitor/{bus.name}" tag=a data-bus-item="{bus.name}"'):
+                        with ui.row().classes("items-center no-wrap gap-2"):
+                            icon = ui.icon("link_off", color="red", size="20px")
+                            ui.label(bus.name).classes("text-weight-medium text-no-wrap")
+                            words = ui.label().classes("text-caption text-grey-8")
+                    self.bus_items[bus.name] = (icon, words)
 
     def refresh(self) -> None:
         runtime = self.runtime
@@ -172,11 +189,20 @@ class HeaderStatus:
         self.loop_tip.set_text(f"Event-loop lag (it carries every keep-alive): p99 {loop['p99_ms']} ms over the last "
                                f"minute, worst {loop['worst_ms']} ms, {loop['stalls']} stalls over 100 ms since start")
         for bus in runtime.store.buses.values():
-            icon, tip = self.bus_chips[bus.name]
+            icon, tip, link = self.bus_chips[bus.name]
+            words = "connected" if bus.connected else bus.last_error or "not connected"
+            if self.bus_shown.get(bus.name) == (bus.connected, words):
+                continue  # unchanged: nothing goes to the browser
+            self.bus_shown[bus.name] = (bus.connected, words)
             icon.set_name("lan" if bus.connected else "link_off")
             icon.set_text_color("green" if bus.connected else "red")
-            tip.set_text(f"{bus.name}: {bus.type} {bus.endpoint}: "
-                         + ("connected" if bus.connected else bus.last_error or "not connected"))
+            tip.set_text(f"{bus.name}: {bus.type} {bus.endpoint}: {words}")
+            link.props(f'aria-label="{bus.name}: {words.replace(chr(34), chr(39))}"')
+            item = self.bus_items.get(bus.name)
+            if item is not None:
+                item[0].set_name("lan" if bus.connected else "link_off")
+                item[0].set_text_color("green" if bus.connected else "red")
+                item[1].set_text("connected" if bus.connected else "not connected")
 
     def _refresh_broker(self) -> None:
         broker = self.runtime.mqtt.summary()
@@ -196,7 +222,7 @@ def frame(title: str, beat: bool = True):
     runtime = rt.current()
     ui.add_css(CSS)
     ui.page_title(f"{title} - commission")
-    health, buses, user, role = _header(runtime)
+    health, buses, menu, user, role = _header(runtime)
     client = ui.context.client
     runtime.worker.session_opened(client.id, role or "none")
     from app.browser import BEAT_EVENT
@@ -208,7 +234,7 @@ def frame(title: str, beat: bool = True):
 
     # the header runs on every page: built once, then only changed texts and colours go to the browser
     status = HeaderStatus(runtime, user)
-    status.build(health, buses)
+    status.build(health, buses, menu)
     status.refresh()
     ui.timer(2.0, status.refresh)
     with ui.column().classes("w-full q-pa-md gap-4"):
