@@ -173,6 +173,8 @@ class ChartCard(DeviceCard):
             layout = chart.figure["layout"]
             for axis, unit in zip(("yaxis", "yaxis2", "yaxis3"), CHART_UNITS):
                 layout[axis]["title"] = {"text": unit}  # the axes name the units; the legend names the points
+                # position, current and speed are unsigned in the status frame: at rest an axis runs from 0, not -1
+                layout[axis]["rangemode"] = "nonnegative"
             target_trace = chart.figure["data"][1]
             target_trace["line"] = {"dash": "dash", "color": "#c10015"}
             target_trace["mode"] = "lines"

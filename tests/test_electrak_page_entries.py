@@ -122,3 +122,14 @@ async def test_no_password_is_shown_the_specifier_column_says_what_the_parameter
     text = codec.describe_frame(codec.SERVICE_REQUEST_ID, False, codec.password_request(password_of(PARAMS.get("service", 1)))
                                 .encode(), {(False, codec.STATUS_ID)})
     assert text == "Electrak service WRITE_REQUEST 0xFF len 4 (password: not shown)"
+
+
+async def test_the_chart_axes_do_not_run_below_zero(tmp_path):
+    """Position, current and speed are unsigned (status 0x07): an idle network's axes start at 0, not at -1."""
+    runtime = Runtime(lift_plant(), simulate=True, data_dir=tmp_path)
+    async with simulated_user(runtime) as user:
+        await user.open("/device/lift")
+        await user.should_see("Service parameters (0x0A / 0x0B)")
+        (chart,) = [e for e in user.client.elements.values() if isinstance(e, ui.plotly)]
+        layout = chart.figure["layout"]
+        assert [layout[a]["rangemode"] for a in ("yaxis", "yaxis2", "yaxis3")] == ["nonnegative"] * 3
