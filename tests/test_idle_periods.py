@@ -81,3 +81,47 @@ def test_a_reader_takes_a_telegram_in_one_read_from_a_socket_port():
     finally:
         port.close()
         server.close()
+
+
+async def test_mo64_counters_one_a_cycle_at_start_and_after_a_command_then_slower_and_stale_by_their_age():
+    """The counters read in turn change only with the barrier's use: each once at start (one a cycle), then one
+    every COUNTER_EVERY-th cycle; a command brings one a cycle again; each is marked stale by its own period."""
+    from test_mo64_adapter import adapter_on_twin
+
+    from devices.live import STALE_READINGS
+    from devices.mo64 import codec
+    from devices.mo64.adapter import COUNTER_EVERY, ROTATING_QUERIES
+
+    async with adapter_on_twin() as (_sim, adapter):
+        asked: list[int] = []
+        counter_now = adapter._counter_now
+
+        def recording():
+            index = counter_now()
+            if index is not None:
+                asked.append(index)
+            return index
+
+        adapter._counter_now = recording
+
+        async def counters_of_cycles(n: int) -> list[list[int]]:
+            cycles = []
+            for _ in range(n):
+                asked.clear()
+                await adapter.poll()
+                cycles.append(list(asked))
+            return cycles
+
+        start = await counters_of_cycles(len(ROTATING_QUERIES))
+        assert [c for cycle in start for c in cycle] == list(ROTATING_QUERIES)  # each once, one a cycle
+        later = await counters_of_cycles(2 * COUNTER_EVERY)
+        assert sum(len(cycle) for cycle in later) == 2  # one every COUNTER_EVERY-th cycle
+        assert await adapter.command("s1", codec.Command.OPEN, confirmed=True) == "ack"
+        after = await counters_of_cycles(len(ROTATING_QUERIES))
+        assert sorted(c for cycle in after for c in cycle) == sorted(ROTATING_QUERIES)  # read again at once
+        state = adapter.state
+        point = state.points["Service counter"]
+        assert point.every == adapter._rotation_s == len(ROTATING_QUERIES) * adapter.poll_period * COUNTER_EVERY
+        assert state.quality(point.time, point.periodic, point.time + 1.0, point.every) == "good"
+        aged = point.time + STALE_READINGS * point.every + 1.0
+        assert state.quality(point.time, point.periodic, aged, point.every) == "stale"

@@ -3,8 +3,9 @@
 Document 003, chapters 2 to 5, with the readings of SPEC-NOTES "Bauer MO 64" (all in
 :mod:`devices.mo64.codec`). The worker calls :meth:`Mo64Adapter.poll` every ``poll_period``:
 gate state, barrier status and position every cycle (every :data:`MONITORED_POLL_EVERY`-th
-cycle while change monitoring delivers them unsolicited), one counter in turn, identity and
-settings once and after writes. Unsolicited telegrams (chapter 3: the barrier sends on change
+cycle while change monitoring delivers them unsolicited), the counters in turn (one a cycle at
+start, after a command and when the gate state changed, else one every :data:`COUNTER_EVERY`-th
+cycle: they change only with the barrier's use), identity and settings once and after writes. Unsolicited telegrams (chapter 3: the barrier sends on change
 once configured) arrive through ``line.listeners`` and are published at once with an event.
 
 Commands (chapter 5.2.1): open / close / reverse as a pulse, or as a level (activate, which
@@ -31,6 +32,10 @@ MONITORED_POLL_EVERY = 5  # gate state and position, while change monitoring del
 MONITOR_FRESH_S = 30.0  # change monitoring counts as delivering this long after its last telegram
 LATE_WINDOW_S = 30.0  # a telegram of the type of a query that timed out this recently is its late answer
 OPTIONAL_RETRY_S = (10.0, 30.0, 60.0, 300.0)  # a start-up read that was refused or unanswered is tried again
+# the counters read in turn (service, maintenance, vehicle, loop-adjust, operating hours) change only when the barrier
+# is used: once each was read (at start, after a command, after a change of the gate state: one a cycle) one of
+# them is read every COUNTER_EVERY-th cycle, and each is stale after STALE_READINGS of its own period
+COUNTER_EVERY = 4
 STARTUP_READS_PER_CYCLE = 3  # start-up reads after the live queries, a few per cycle: live values come first
 UNAVAILABLE = "not available on this unit"
 # chapter 5.1.9 (SPEC-NOTES "Change monitoring"): the flag that makes the barrier send telegram type t
@@ -248,6 +253,7 @@ class Mo64Adapter:
         self._timed_out: dict[int, float] = {}  # answer type -> when its query timed out
         self._cycle = 0
         self._rotate = 0
+        self._counters_due: list[int] = list(ROTATING_QUERIES)  # read one a cycle until none is left
         self._monitor_last: float | None = None
         self._stop_tasks: set[asyncio.Task] = set()
         self.poll_period = float(line_options.get("poll_period", 0.5) or 0.5)
@@ -421,7 +427,10 @@ class Mo64Adapter:
             pub(name, None, raw=answer.payload.hex(" "), text=f"raw {answer.payload.hex(' ')} ({answer.error})", time=now)
             return
         if t == 0x0C:
+            before = self.state.points.get("Gate state")
             pub("Gate state", int(x), raw=int(x), text=x.name or f"undefined state {int(x)}", time=now)
+            if before is not None and before.raw != int(x):
+                self.counters_next()  # the boom moved or stopped: the counters may have counted
         elif t == 0x1D:
             pos = int(x)
             pub("Position", None if pos == codec.POSITION_UNKNOWN else pos, "%", raw=pos,
@@ -453,8 +462,22 @@ class Mo64Adapter:
 
     @property
     def _rotation_s(self) -> float:
-        """How often one counter read in turn comes round (one per cycle)."""
-        return len(ROTATING_QUERIES) * self.poll_period
+        """How often one counter read in turn comes round (one every COUNTER_EVERY-th cycle)."""
+        return len(ROTATING_QUERIES) * self.poll_period * COUNTER_EVERY
+
+    def counters_next(self) -> None:
+        """Read every counter in turn from the next cycle on, one a cycle (after a command, a change of the gate state)."""
+        self._counters_due = list(ROTATING_QUERIES)
+
+    def _counter_now(self) -> int | None:
+        """The counter this cycle reads, if any."""
+        if self._counters_due:
+            return self._counters_due.pop(0)
+        if self._cycle % COUNTER_EVERY:
+            return None
+        index = ROTATING_QUERIES[self._rotate % len(ROTATING_QUERIES)]
+        self._rotate += 1
+        return index
 
     def _error_entry(self, x: Any) -> None:
         if isinstance(x, (list, tuple)):
@@ -490,8 +513,8 @@ class Mo64Adapter:
 
     async def poll(self) -> None:
         """One cycle: the live queries first, each on its own (a nak or no answer of one never holds up
-        the others), one counter in turn, then a few of the start-up reads that are still due. Faults are
-        named in the state, never raised."""
+        the others), a counter in turn when one is due (:meth:`_counter_now`), then a few of the start-up reads
+        that are still due. Faults are named in the state, never raised."""
         if getattr(self.line, "released", False):
             self.state.fact(P_CONNECTION, "released")
             return
@@ -504,10 +527,10 @@ class Mo64Adapter:
                     await self.query(index)
                 except (CommandError, SerialTimeout, codec.CodecError) as exc:
                     problems.append(str(exc))
-            index = ROTATING_QUERIES[self._rotate % len(ROTATING_QUERIES)]
-            self._rotate += 1
-            await self._optional(self._optional_live.setdefault(index, {"state": "pending", "failures": 0, "next": 0.0}),
-                                 index, NAMES.get(index + codec.QUERY_ANSWER_OFFSET))
+            index = self._counter_now()
+            if index is not None:
+                await self._optional(self._optional_live.setdefault(index, {"state": "pending", "failures": 0, "next": 0.0}),
+                                     index, NAMES.get(index + codec.QUERY_ANSWER_OFFSET))
             due = [key for key, read in self._reads.items() if read["state"] != "done" and read["next"] <= time.monotonic()]
             for kind, n in due[:STARTUP_READS_PER_CYCLE]:
                 if kind == "query":
@@ -594,6 +617,7 @@ class Mo64Adapter:
             raise CommandError(f"{words}: the barrier answered {result}")
         if fn is codec.Function.DEACTIVATE:
             self._drop_level(cmd)
+        self.counters_next()
         self.state.event("info", f"{words}: ack")
         return "ack"
 
