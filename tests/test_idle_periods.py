@@ -125,3 +125,30 @@ async def test_mo64_counters_one_a_cycle_at_start_and_after_a_command_then_slowe
         assert state.quality(point.time, point.periodic, point.time + 1.0, point.every) == "good"
         aged = point.time + STALE_READINGS * point.every + 1.0
         assert state.quality(point.time, point.periodic, aged, point.every) == "stale"
+
+
+async def test_supervision_tick_slower_while_no_page_and_nothing_held_and_fast_at_once_when_one_connects():
+    """Nobody to supervise: the tick comes every IDLE_PERIOD_S; a page connecting ends the idle wait at once and
+    the 50 ms tick goes on while it is connected or anything is held."""
+    from test_deadman_worker import Holder
+
+    from app.worker import IDLE_PERIOD_S, SUPERVISE_PERIOD_S, Worker
+    from app.worker.loophealth import STALL_S
+
+    assert SUPERVISE_PERIOD_S < IDLE_PERIOD_S <= STALL_S  # a stall of twice STALL_S is still always caught
+    worker = Worker(parse_plant('name = "empty"\n'))
+    await worker.start()
+    try:
+        health = worker.loop_health
+        assert await wait_for(lambda: health.period_s == IDLE_PERIOD_S, timeout=2)
+        ticks = len(health.lags_ms)
+        worker.session_opened("tab")
+        assert health.period_s == IDLE_PERIOD_S  # the hurried tick runs in the loop's next turn
+        assert await wait_for(lambda: len(health.lags_ms) > ticks, timeout=2)
+        assert health.period_s == SUPERVISE_PERIOD_S
+        worker.session_deleted("tab")
+        assert await wait_for(lambda: health.period_s == IDLE_PERIOD_S, timeout=2)
+        worker.add_holder("output", Holder("api"))  # held for a session without a page: supervised again
+        assert await wait_for(lambda: health.period_s == SUPERVISE_PERIOD_S, timeout=2)
+    finally:
+        await asyncio.wait_for(worker.stop(), 10)

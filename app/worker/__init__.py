@@ -13,7 +13,8 @@ or a clear error.
 - :mod:`.polling` runs one polling task per bus;
 - :mod:`.discovery` lists devices heard on a CAN bus and scans Modbus lines;
 - :mod:`.deadman` keeps the browser sessions' beats and stops what a silent one keeps running;
-- :mod:`.loophealth` measures how late the event loop runs the 50 ms supervision tick;
+- :mod:`.loophealth` measures how late the event loop runs the 50 ms supervision tick (slower while
+  no page is connected and nothing is held);
 - :mod:`.commands` hands commands to the gate and audits them.
 """
 
@@ -51,7 +52,7 @@ from app.worker.discovery import (  # noqa: F401 - discovery's bounds, named her
     CanDiscovery,
     scan_line,
 )
-from app.worker.loophealth import LAG_WINDOW, STALL_S, SUPERVISE_PERIOD_S, LoopHealth  # noqa: F401
+from app.worker.loophealth import IDLE_PERIOD_S, LAG_WINDOW, STALL_S, SUPERVISE_PERIOD_S, LoopHealth  # noqa: F401
 from app.worker.polling import Polling
 from app.worker.transports import Line, Transports
 
@@ -72,6 +73,7 @@ class Worker:
         self.extra_holders: dict[str, Any] = {}  # transmit lists, replays: under the dead-man rule like adapters
         self.deadman = DeadmanSupervisor(self._holder_items)
         self.loop_health = LoopHealth()
+        self.hurry = loophealth.Hurry()  # a page connecting or a command coming ends the idle tick's wait
         # the flood bound is the module's, passed in, so that a test may choose its own
         self.discovery = CanDiscovery(plant, self.transports.can_buses, flood_ids_per_s=FLOOD_NEW_IDS_PER_S)
         for name, can_bus in self.transports.can_buses.items():
@@ -119,7 +121,9 @@ class Worker:
         for name in self.plant.buses:
             self.tasks.append(asyncio.create_task(self.polling.run(name), name=f"bus {name}"))
         self.deadman.start_clock()
-        self.tasks.append(asyncio.create_task(loophealth.tick(self.loop_health, self.deadman.tick), name="supervisor"))
+        self.tasks.append(asyncio.create_task(loophealth.tick(self.loop_health, self.deadman.tick,
+                                                              idle_period_s=IDLE_PERIOD_S, hurry=self.hurry),
+                                              name="supervisor"))
         self.store.ensure_running()  # the one producer that pushes changes to pages and publishers
 
     async def stop(self) -> None:
@@ -173,6 +177,7 @@ class Worker:
     # -- browser sessions and the dead-man rule (:mod:`.deadman`) ----------------------------------------
     def session_opened(self, session: str, role: str = "engineer") -> None:
         self.deadman.session_opened(session, role)
+        self.hurry.now()
 
     def session_closed(self, session: str) -> None:
         """A page's connection dropped: stop at once what it keeps running (:meth:`DeadmanSupervisor.session_closed`)."""
@@ -185,11 +190,13 @@ class Worker:
     def heartbeat(self, session: str, sent_ms: float | None = None) -> None:
         """A page confirms it is alive (:meth:`DeadmanSupervisor.heartbeat`)."""
         self.deadman.heartbeat(session, sent_ms)
+        self.hurry.now()
 
     def add_holder(self, name: str, holder: Any) -> None:
         """Put something that is not a device adapter (an engineer's cyclic transmit list, a replay)
         under the dead-man rule: it offers ``holders()`` and ``session_lost(session, reason)`` like an adapter."""
         self.extra_holders[name] = holder
+        self.hurry.now()
 
     def remove_holder(self, name: str) -> None:
         self.extra_holders.pop(name, None)
@@ -205,7 +212,10 @@ class Worker:
     async def invoke(self, device: str, name: str, args: dict | None = None, *, user: str, role: str,
                      session: str = "", confirmed: bool = False) -> Any:
         """Run the declared command ``name`` of ``device`` (:func:`app.gate.invoke`)."""
-        return await gate.invoke(self, device, name, args, user=user, role=role, session=session, confirmed=confirmed)
+        try:
+            return await gate.invoke(self, device, name, args, user=user, role=role, session=session, confirmed=confirmed)
+        finally:
+            self.hurry.now()  # it may have taken control: supervised from the next tick on, at 50 ms
 
     async def command(
         self, device: str, action: Callable[[Any], Awaitable[Any]], *, role: str = "engineer", user: str = "local",
@@ -217,8 +227,11 @@ class Worker:
         The kind comes from the device type's declared command named ``describe`` when there is one
         (:func:`app.gate.kind_for`); anything else counts as a write.
         """
-        return await commands.command(self, device, action, role=role, user=user, describe=describe, record=record,
-                                      parameter=parameter, old=old, new=new)
+        try:
+            return await commands.command(self, device, action, role=role, user=user, describe=describe, record=record,
+                                          parameter=parameter, old=old, new=new)
+        finally:
+            self.hurry.now()
 
     async def engineer_action(
         self, action: Callable[[], Awaitable[Any]], *, user: str, role: str, describe: str, target: str = "",
@@ -240,8 +253,11 @@ class Worker:
         A ``stop`` runs for every role, first, and is audited afterwards from a queue; a ``read`` for
         every role, unaudited.
         """
-        return await commands.checked(self, action, device=device, role=role, user=user, describe=describe, kind=kind,
-                                      record=record, parameter=parameter, old=old, new=new)
+        try:
+            return await commands.checked(self, action, device=device, role=role, user=user, describe=describe, kind=kind,
+                                          record=record, parameter=parameter, old=old, new=new)
+        finally:
+            self.hurry.now()
 
     async def refused(
         self, *, device: str, user: str, role: str, describe: str, reason: str, parameter: str = "", new: Any = "",

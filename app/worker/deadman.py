@@ -76,14 +76,16 @@ class DeadmanSupervisor:
     def start_clock(self, now: float | None = None) -> None:
         self.live_at = time.monotonic() if now is None else now
 
-    def tick(self, now: float) -> None:
-        """One supervision tick at monotonic time ``now``: advance the live clock, apply the rule."""
+    def tick(self, now: float) -> bool:
+        """One supervision tick at monotonic time ``now``: advance the live clock, apply the rule. Returns whether
+        there is anything to supervise (a page connected, something held): else the tick may come more slowly."""
         self.live = self.live_clock(now)
         self.live_at = now
         try:
-            self.supervise(now)
+            return self.supervise(now)
         except Exception:  # the supervisor itself must never end
             log.exception("dead-man supervision failed")
+            return True
 
     # -- sessions --------------------------------------------------------------------------------------
     def session_opened(self, session: str, role: str = "engineer") -> None:
@@ -155,9 +157,11 @@ class DeadmanSupervisor:
                              session, (now - last) * 1000, browser_gap_s * 1000)
 
     # -- the rule --------------------------------------------------------------------------------------
-    def supervise(self, now: float) -> None:
+    def supervise(self, now: float) -> bool:
         """Stop what a session keeps running once it has not confirmed it is alive for DEADMAN_TIMEOUT_S
-        of this program's running time; renew the leases of the sessions that did (devices/lease.py)."""
+        of this program's running time; renew the leases of the sessions that did (devices/lease.py).
+        Returns whether there is anything to supervise: a page connected (it may take control at any
+        moment), a session's beats, or something held."""
         holding: set[str] = set()
         for _name, holder in self._holders():
             if _can(holder, SessionHolder):
@@ -169,6 +173,7 @@ class DeadmanSupervisor:
         alive = {session for session in holding if not self._tripped(session, now, live_now)}
         if alive:
             self._renew(alive)
+        return bool(holding or self.sessions or self.beats or self.holding_since)
 
     def _tripped(self, session: str, now: float, live_now: float) -> bool:
         """Whether ``session`` is silent for too long; if so, what it holds is stopped and the trip noted."""

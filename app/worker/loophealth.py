@@ -3,6 +3,11 @@
 Every keep-alive and the dead-man rule ride on that tick, so its lateness is the figure an
 engineer needs when motion stopped "by itself": the latest lag, the 99th percentile of the last
 minute, the worst ever, and how often it stalled (shown in the page header).
+
+While no page is connected and nothing is held for anyone (the idle plant), there is nobody to
+supervise and nobody reading the figures: the tick then comes every :data:`IDLE_PERIOD_S`, which
+still catches every stall of twice that length. A page connecting or a command coming ends an idle
+wait at once (:meth:`Hurry.now`).
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ from dataclasses import dataclass, field
 log = logging.getLogger(__name__)
 
 SUPERVISE_PERIOD_S = 0.05  # the tick
+IDLE_PERIOD_S = 0.1  # the tick while no page is connected and nothing is held (the dead-man rule has nothing to do)
 STALL_S = 0.1  # an event-loop stall longer than this is logged and shown
 LAG_WINDOW = 1200  # ticks kept for the lag figures (one minute)
 
@@ -26,6 +32,7 @@ class LoopHealth:
     """How late the event loop runs the 50 ms supervision tick (it carries every keep-alive)."""
 
     lags_ms: deque = field(default_factory=lambda: deque(maxlen=LAG_WINDOW))
+    period_s: float = SUPERVISE_PERIOD_S  # the tick's period now (IDLE_PERIOD_S while idle)
     stalls: int = 0
     worst_ms: float = 0.0
     last_stall: float | None = None
@@ -51,19 +58,55 @@ class LoopHealth:
                 "stalls": self.stalls, "last_stall": self.last_stall}
 
 
-async def tick(health: LoopHealth, on_tick: Callable[[float], None], period_s: float = SUPERVISE_PERIOD_S) -> None:
+class Hurry:
+    """Ends the tick's idle wait at once (a page connected, a command came): the 50 ms tick resumes now."""
+
+    def __init__(self) -> None:
+        self._waiter: asyncio.Future | None = None
+
+    def now(self) -> None:
+        waiter = self._waiter
+        if waiter is not None and not waiter.done():
+            waiter.set_result(None)
+
+    async def wait_until(self, loop: asyncio.AbstractEventLoop, when: float) -> None:
+        waiter = self._waiter = loop.create_future()
+        handle = loop.call_at(when, _release, waiter)
+        try:
+            await waiter
+        finally:
+            handle.cancel()
+            self._waiter = None
+
+
+def _release(waiter: asyncio.Future) -> None:
+    if not waiter.done():
+        waiter.set_result(None)
+
+
+async def tick(health: LoopHealth, on_tick: Callable[[float], bool | None], period_s: float = SUPERVISE_PERIOD_S,
+               idle_period_s: float | None = None, hurry: Hurry | None = None) -> None:
     """Every ``period_s``: add how late this tick came to ``health``, then call ``on_tick(monotonic time)``.
 
-    Runs until cancelled; an exception of ``on_tick`` is logged and the ticks go on.
+    With ``idle_period_s``: while ``on_tick`` returns False (nothing to supervise) the next tick comes after
+    ``idle_period_s`` instead, or at once when ``hurry`` says so. Runs until cancelled; an exception of
+    ``on_tick`` is logged and the ticks go on (at ``period_s``).
     """
     loop = asyncio.get_running_loop()
-    expected = loop.time() + period_s
+    period = health.period_s = period_s
+    expected = loop.time() + period
     while True:
-        await asyncio.sleep(max(0.0, expected - loop.time()))
+        if hurry is not None and period != period_s:
+            await hurry.wait_until(loop, expected)
+        else:
+            await asyncio.sleep(max(0.0, expected - loop.time()))
         now = loop.time()
         health.add(now - expected, time.time())
-        expected = now + period_s
         try:
-            on_tick(time.monotonic())
+            busy = on_tick(time.monotonic())
         except Exception:  # the tick itself must never end
             log.exception("supervision tick failed")
+            busy = True
+        period = period_s if busy is not False or idle_period_s is None else idle_period_s
+        health.period_s = period
+        expected = now + period
