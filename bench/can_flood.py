@@ -23,7 +23,9 @@ Two ways of flooding, both printed (``--via``):
   against a real interface, whose frames come from another node through the kernel.
 * ``process``: a second process floods ``can1`` on python-can's ``udp_multicast`` interface (frames
   through the kernel, as from another node; ``can1`` is then a udp_multicast bus, the lock's twin on it
-  as well, and this process's own frames come back and are filtered); ``can2`` stays as above.
+  as well, and this process's own frames come back and are filtered); ``can2`` stays as above. Not
+  lighter for this machine: the sender process takes a share of its two cores (printed), and here
+  two readers (the worker's and the lock twin's) unpack every flood frame from its datagram.
 
 Per phase also the CPU this process's threads got and the time they waited for a CPU (the other
 programs of the machine: a thread holding the interpreter lock that waits for a CPU holds up the
@@ -96,12 +98,14 @@ def sender(channel: str, frames: list[can.Message], rate: int, stop: threading.E
             time.sleep(max(0.0, due - time.perf_counter()))
 
 
-def process_sender(port: int, kind: str, rate: int, ready, stop, sent) -> None:
-    """In a second process: ``rate`` frames/s on ``udp_multicast`` in 10 ms slices until ``stop``."""
+def process_sender(port: int, kind: str, rate: int, ready, stop, sent, cpu) -> None:
+    """In a second process: ``rate`` frames/s on ``udp_multicast`` in 10 ms slices until ``stop``; ``cpu``: the
+    share of a core it used."""
     frames = flood_frames(kind, 5_000)
     per_slice = max(1, rate // 100)
     with can.Bus(interface="udp_multicast", channel=GROUP, port=port) as bus:
         ready.set()
+        cpu0, t0 = time.process_time(), time.perf_counter()
         i, n, due = 0, 0, time.perf_counter()
         while not stop.is_set():
             for _ in range(per_slice):
@@ -111,6 +115,7 @@ def process_sender(port: int, kind: str, rate: int, ready, stop, sent) -> None:
             sent.value = n
             due += 0.01
             time.sleep(max(0.0, due - time.perf_counter()))
+        cpu.value = (time.process_time() - cpu0) / (time.perf_counter() - t0)
 
 
 class Flood:
@@ -123,8 +128,9 @@ class Flood:
             self.worker = threading.Thread(target=sender, args=(channel, frames, rate, self.stop, self.count), daemon=True)
         else:
             ctx = mp.get_context("spawn")
-            self.stop, self.ready, self.count = ctx.Event(), ctx.Event(), ctx.Value("q", 0)
-            self.worker = ctx.Process(target=process_sender, args=(port, kind, rate, self.ready, self.stop, self.count), daemon=True)
+            self.stop, self.ready, self.count, self.cpu = ctx.Event(), ctx.Event(), ctx.Value("q", 0), ctx.Value("d", 0.0)
+            self.worker = ctx.Process(target=process_sender, args=(port, kind, rate, self.ready, self.stop, self.count, self.cpu),
+                                      daemon=True)
 
     async def start(self) -> None:
         self.worker.start()
@@ -135,6 +141,10 @@ class Flood:
     def finish(self) -> None:
         self.stop.set()
         self.worker.join()
+
+    def sender_cpu(self) -> str:
+        """What the flood's sender itself cost this machine (after :meth:`finish`)."""
+        return "" if self.via == "thread" else f"; the sender process used {self.cpu.value * 100:.0f} % of a core of this machine"
 
     @property
     def sent(self) -> int:
@@ -204,7 +214,8 @@ async def phase(runtime: Runtime, flood: Flood, kind: str, factor: int, seconds:
           f"RSS {rss0:.0f} -> peak {rss_peak:.0f} MB (+{rss_peak - rss0:.0f}), "
           f"control telegrams {len(stamps)} in {elapsed:.1f} s, largest gap {gap_ms:.0f} ms, "
           f"message-timeout flag {'ROSE' if timeout_flag else 'never'}, lock {'went OFFLINE' if lock_offline else 'online'}; "
-          f"this process's threads (summed) ran {ran / 1e7 / elapsed:.0f} % of a core and waited {waited / 1e7 / elapsed:.0f} % for a CPU")
+          f"this process's threads (summed) ran {ran / 1e7 / elapsed:.0f} % of a core and waited {waited / 1e7 / elapsed:.0f} % for a CPU"
+          f"{flood.sender_cpu()}")
     await asyncio.sleep(1.0)  # let the hand-over drain before the next phase
     return gap_ms
 
