@@ -41,6 +41,10 @@ CHART_AXES = {"MotorCurrent": "y2"}  # increments on the left axis, mA on the ri
 # half the bolt's travel; a motor current is never negative, and at rest (0 mA) the axis still spans whole mA.
 CHART_Y = {"rangemode": "tozero"}
 CHART_Y2 = {"rangemode": "nonnegative", "tickformat": "d", "autorangeoptions": {"include": [0, 10]}}
+# the legend under the time axis, the mode bar (shown on hover, top right) in a row of its own above the plot
+LEGEND_BELOW = {"orientation": "h", "x": 0, "xanchor": "left", "y": 0, "yanchor": "bottom", "yref": "container"}
+LEGEND_MARGIN_B = 80  # the time axis with its date line, then one or two rows of legend
+MODE_BAR_MARGIN_T = 30
 CHART_WINDOWS = (30, 300)  # the bolt moves in about half a second: 30 s by default, 5 min on demand
 # cards beside each other as the width allows, each as tall as its row (no blank area under a short one)
 CARD_GRID = "display: grid; grid-template-columns: repeat(auto-fit, minmax(420px, 1fr)); gap: 16px; width: 100%"
@@ -71,6 +75,8 @@ def content(name: str) -> None:
                                  window_s=CHART_WINDOWS[0], axes=CHART_AXES, windows=CHART_WINDOWS)
             chart.figure["layout"]["yaxis"].update(CHART_Y)
             chart.figure["layout"]["yaxis2"].update(CHART_Y2)
+            chart.figure["layout"]["legend"] = LEGEND_BELOW  # above the plot plotly's mode bar covered it (768 px)
+            chart.figure["layout"]["margin"].update(t=MODE_BAR_MARGIN_T, b=LEGEND_MARGIN_B)
             chart.plot.update()
         with ui.element("div").style(CARD_GRID).props("data-testid=hdlock-cards"):
             sim_card(name, skip=SIM_ELSEWHERE)

@@ -51,6 +51,8 @@ async def test_modbus_lock_page_units_chart_axes_unique_entries_and_modbus_count
         assert layout["yaxis"]["rangemode"] == "tozero"
         assert layout["yaxis2"]["rangemode"] == "nonnegative" and layout["yaxis2"]["tickformat"] == "d"
         assert layout["yaxis2"]["title"]["text"] == "mA" and layout["yaxis"]["title"]["text"] == "Inc"
+        # the legend at the foot of the figure, clear of the mode bar that plotly shows top right on hover
+        assert layout["legend"]["yref"] == "container" and layout["legend"]["y"] == 0 and layout["margin"]["t"] >= 30
         # Modbus RTU's own counters
         assert "CRC" in header_counters(user) and "exceptions" in header_counters(user)
 
