@@ -390,7 +390,7 @@ def test_hdlock_register_answer_over_modbus_is_named_and_signed(worker: Worker):
     serial = Transaction(0, 2, "read input 104+2", "", "", "", 3.0, "", space="input", address=104, values=(0x000A, 0x1234))
     assert decoder.decoded(serial) == "SerialNumber = 660020"  # section 3.1 example: 0x000A1234
     write = Transaction(0, 1, "write holding 3006=65476", "", "", "", 3.0, "", space="holding", address=3006, values=(THRESHOLD_LOCK,))
-    assert decoder.decoded(write) == "wrote SettingsProximityThresholdLock = -60"
+    assert decoder.decoded(write) == "wrote SettingsProximityThresholdLock = -60 Inc"
     failed = Transaction(0, 1, "read holding 3006+1", "", "", "", None, "no answer within 0.5 s", space="holding", address=3006)
     assert decoder.decoded(failed) == ""
     # a line scan or a broadcast: no configured device at that unit, decoded with the line's (only) device type

@@ -87,7 +87,7 @@ async def test_project_against_devices_applied_and_updated_per_row(offline):
     # door-2 (parameter file): one changed parameter, SettingsProximityOffsetRight 7 against 0
     plan2 = await backup.plan_restore(runtime, "door-2", project.document(runtime, "door-2"))
     changed2 = [r for r in plan2.rows if r.changed]
-    assert [(r.name, r.backup_text) for r in changed2] == [("SettingsProximityOffsetRight", "7")]
+    assert [(r.name, r.backup_text) for r in changed2] == [("SettingsProximityOffsetRight", "7 Inc")]
 
     # apply the project's value on door-1, through the gate and restore's verified write
     report = await backup.execute_restore(runtime, plan1, {changed1[0].key}, user="anna", role="engineer")
