@@ -12,6 +12,7 @@ import contextlib
 import pytest
 from conftest import wait_for
 from plants import can_bus, channel, m3io_can, plant_text
+from test_scu_keepalive import scu  # noqa: F401 (fixture)
 
 from app.plant import parse_plant
 from app.runtime import Runtime
@@ -152,3 +153,27 @@ async def test_supervision_tick_slower_while_no_page_and_nothing_held_and_fast_a
         assert await wait_for(lambda: health.period_s == SUPERVISE_PERIOD_S, timeout=2)
     finally:
         await asyncio.wait_for(worker.stop(), 10)
+
+
+async def test_scu_data_read_in_turn_rides_on_the_rc_of_the_line_thread(scu):
+    """With the remote session open and the cyclic object, the data IDs read in turn are read by the line's thread
+    right after its RC (one wake-up of the loop for both), not each through a worker thread of the loop; they are
+    still read one a poll, and published with their own period."""
+    from devices.scu.adapter import ROTATING_IDS
+
+    runtime, adapter, _unit = scu
+    assert await wait_for(lambda: adapter.cyclic is not None, timeout=5)
+    sent: list[bytes] = []
+    transact = adapter.line.transact
+
+    async def spying(request, *args, **kwargs):
+        sent.append(bytes(request))
+        return await transact(request, *args, **kwargs)
+
+    adapter.line.transact = spying
+    read_at = dict(adapter._read_at)
+    turn = set(ROTATING_IDS)
+    assert await wait_for(lambda: turn <= {i for i, t in adapter._read_at.items() if t > read_at.get(i, 0.0)}, timeout=10)
+    assert [r for r in sent if r[:2] == b"RG"] == []  # none through the loop's worker threads
+    point = adapter.state.points["Battery voltage"]
+    assert point.every is not None and point.every < 2 * adapter._rotation_s

@@ -307,6 +307,10 @@ class ScuAdapter:
         self._last_answer: float | None = None
         self._silent_since: float | None = None
         self._rotate = 0
+        # the data IDs read in turn that the line's thread reads right after its next RC (the same wake-up brings
+        # them to the loop with the RC): one added by every poll while the session is open with the cyclic object
+        self._thread_rgs: deque[int] = deque()
+        self._rg_on_loop: list[int] = []  # reads the thread could not make well: made by the next poll instead
         self._read_at: dict[int, float] = {}  # RG data ID -> when it was last read (one entry per ID read)
         self._remote_timeout_seen = False
         self._stop_tasks: set[asyncio.Task] = set()
@@ -641,7 +645,17 @@ class ScuAdapter:
             return 0.0  # a bad CRC or a shifted answer: at once again
         if answer.ok:
             self._note_rc(sent_at)
-            self._call_loop(self._thread_rc_answer, answer, cyclic if frame != codec.KEEP_ALIVE else None)
+            with self._guard:  # while a function runs the poll reads them
+                data_ids = [] if held else list(self._thread_rgs)
+                if data_ids:
+                    self._thread_rgs.clear()
+            reads: list[tuple[int, codec.Answer | Exception]] = []
+            for data_id in data_ids:
+                try:
+                    reads.append((data_id, self._thread_request(exchange, codec.encode_rg(data_id), f"RG 0x{data_id:04X}")))
+                except (SerialLineError, codec.CodecError) as exc:
+                    reads.append((data_id, exc))
+            self._call_loop(self._thread_rc_answer, answer, cyclic if frame != codec.KEEP_ALIVE else None, reads)
             return min(max(0.0, sent_at + period - time.monotonic()), check)  # on the clock: period from send to send
         self._call_loop(self._thread_rc_refused, answer)
         if answer.status == codec.Status.PE:
@@ -651,8 +665,10 @@ class ScuAdapter:
         self._rc_plain = True  # RC with the cyclic object refused: RC without data, at once
         return 0.0
 
-    def _thread_rc_answer(self, answer: codec.Answer, cyclic: p.CyclicDefinition | None) -> None:
-        """In the loop: an RC the line's thread sent was acknowledged; its cyclic data published."""
+    def _thread_rc_answer(self, answer: codec.Answer, cyclic: p.CyclicDefinition | None,
+                          reads: list[tuple[int, codec.Answer | Exception]] = ()) -> None:
+        """In the loop: an RC the line's thread sent was acknowledged; its cyclic data published, and the data ID read
+        in turn that the thread read after it (a refusal or a failed read is left to the next poll, which tells why)."""
         self.state.counters.requests += 1
         self.state.counters.responses += 1
         self._answered()
@@ -661,6 +677,17 @@ class ScuAdapter:
                 self._publish_ids(cyclic.decode_read(answer.data))
             except (v.DecodeError, ValueError) as exc:
                 self.state.error(f"RC cyclic data: {exc}", log=False)
+        for data_id, rg in reads:
+            self.state.counters.requests += 1
+            if not isinstance(rg, codec.Answer) or not rg.ok:
+                if isinstance(rg, SerialTimeout):
+                    self.state.counters.timeouts += 1
+                elif isinstance(rg, codec.Answer):
+                    self.state.counters.responses += 1
+                self._rg_on_loop.append(data_id)
+                continue
+            self.state.counters.responses += 1
+            self._publish_read(data_id, rg)
 
     def _thread_rc_failed(self, exc: Exception) -> None:
         self.state.counters.requests += 1
@@ -904,8 +931,19 @@ class ScuAdapter:
                 for fn in sorted(self.rs_pending):
                     await self._send_rs(fn, self.rs_pending[fn])
             live = [] if self.cyclic is not None else list(CYCLIC_READ_IDS)
-            live.append(ROTATING_IDS[self._rotate % len(ROTATING_IDS)])
+            live += self._rg_on_loop
+            self._rg_on_loop = []
+            data_id = ROTATING_IDS[self._rotate % len(ROTATING_IDS)]
             self._rotate += 1
+            by_thread = self._rg_by_thread(data_id)
+            with self._guard:
+                if not by_thread or len(self._thread_rgs) >= 3:  # the line's thread does not read them now: here
+                    live += self._thread_rgs
+                    self._thread_rgs.clear()
+                if by_thread:
+                    self._thread_rgs.append(data_id)  # read right after the next RC, in the same wake-up (_rc_tick)
+                else:
+                    live.append(data_id)
             for data_id in live:
                 await self._read_live(data_id)
         except codec.CommandRefused as exc:
@@ -915,6 +953,12 @@ class ScuAdapter:
         except (SerialLineError, codec.CodecError, v.DecodeError) as exc:
             self.state.error(f"poll: {exc}", log=False)
         self._publish_period()
+
+    def _rg_by_thread(self, data_id: int) -> bool:
+        """Whether the line's thread reads ``data_id`` after its next RC: a single read while the session is open with
+        the cyclic object and the thread sends RC, nothing runs and no RS is owed."""
+        return (self.session == "open" and self.cyclic is not None and self._rc_threaded() and self.line.cyclic_running(RC_KEY)
+                and not self.running and not self.rs_pending and self._ids_of(data_id) == [data_id])
 
     async def _end_session(self, reason: str) -> None:
         try:
@@ -942,15 +986,26 @@ class ScuAdapter:
                                                 "its data IDs are read one by one")
                     await self._read_live(data_id)
                 continue
-            now = time.monotonic()
-            last = self._read_at.get(read_id)  # read in turn with the others: it ages by its own period
-            self._read_at[read_id] = now
-            try:
-                value = p.rg_value(read_id, answer)
-            except (v.DecodeError, ValueError) as exc:
-                self.state.error(f"RG 0x{read_id:04X}: {exc}", log=False)
-                continue
-            self._publish_ids({read_id: value}, every=None if last is None else now - last)
+            self._publish_read(read_id, answer)
+
+    def _publish_read(self, read_id: int, answer: codec.Answer) -> None:
+        """An RG answer of a data ID read in turn with the others: it ages by its own period (measured between two
+        reads; before the second one, the time one turn of them takes)."""
+        now = time.monotonic()
+        last = self._read_at.get(read_id)
+        self._read_at[read_id] = now
+        try:
+            value = p.rg_value(read_id, answer)
+        except (v.DecodeError, ValueError) as exc:
+            self.state.error(f"RG 0x{read_id:04X}: {exc}", log=False)
+            return
+        self._publish_ids({read_id: value}, every=self._rotation_s if last is None else now - last)
+
+    @property
+    def _rotation_s(self) -> float:
+        """How long one turn of the data IDs read in turn takes (one a poll)."""
+        options = getattr(self.line, "options", None) or {}
+        return len(ROTATING_IDS) * float(options.get("poll_period", 0.5) or 0.5)
 
     def _publish_period(self) -> None:
         gaps = self.rc_gaps()
