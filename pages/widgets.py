@@ -9,6 +9,7 @@ from datetime import datetime
 from decimal import Decimal
 
 from nicegui import context, ui
+from nicegui.element import Element
 
 from app import runtime as rt
 from app.state import DeviceState
@@ -187,6 +188,7 @@ class RegisterTable:
         if len(rows) != len(shown) or any(a["key"] != b["key"] for a, b in zip(rows, shown)):
             self.table.rows = rows  # new rows: the whole table (at the start)
             self.table.update()
+            dict.__setitem__(self.table._props, "rows", rows)  # sent as they are: no observed copy of every row kept
             return
         if not patch:
             return
@@ -333,6 +335,15 @@ document.addEventListener("visibilitychange", () => {
 </script>"""
 
 
+class _Plot(ui.plotly):
+    """A plotly element that sends the figure as it is: NiceGUI's own keeps an observed copy of every list of
+    the figure's data beside it (a second copy of the chart's window for each open page)."""
+
+    def update(self) -> None:
+        dict.__setitem__(self._props, "options", self._get_figure_json())
+        Element.update(self)
+
+
 class HistoryChart:
     """Rolling plotly time chart of the device history samples.
 
@@ -425,7 +436,7 @@ class HistoryChart:
         if not getattr(client, "commission_extend_js", False):
             ui.add_head_html(EXTEND_JS)
             client.commission_extend_js = True
-        self.plot = ui.plotly(self.figure).classes("w-full")
+        self.plot = _Plot(self.figure).classes("w-full")
         self.max_points = self.MAX_POINTS
         self.update()
         follow(state, self.update)
