@@ -134,6 +134,20 @@ ROW_PATCH_JS = ("(function(e,p){if(!e)return;for(const r of e.props.rows){const 
                 "(mounted_app.elements[%d],%s)")
 
 
+def _enclosing_tab_panel(element: ui.element) -> tuple[ui.element | None, ui.element | None]:
+    """The ``ui.tab_panel`` around ``element`` and its ``ui.tab_panels``, or (None, None)."""
+    from nicegui.elements.tabs import TabPanel, TabPanels
+
+    slot = element.parent_slot
+    while slot is not None:
+        parent = slot.parent
+        if isinstance(parent, TabPanel):
+            panels = parent.parent_slot.parent if parent.parent_slot is not None else None
+            return (parent, panels) if isinstance(panels, TabPanels) else (None, None)
+        slot = parent.parent_slot
+    return None, None
+
+
 class RegisterTable:
     """Live table of one register space of a device (address, name, value, raw, access)."""
 
@@ -149,6 +163,11 @@ class RegisterTable:
         )
         self.table.props(':table-row-class-fn="row => row.quality_class"')
         self._cache: dict[str, tuple[tuple, float | None, dict]] = {}  # key -> (raw, quality, unsaved), read time, row
+        # in a tab panel (input and holding registers side by side): followed while its tab is shown, brought up to
+        # date as it is chosen; a table nobody sees costs nothing on every push
+        self._panel, self._panels = _enclosing_tab_panel(self.table)
+        if self._panels is not None:
+            self._panels.on_value_change(lambda _: self.update(times=True))
         self.update()
         store = rt.current().store
         follow(state, lambda: self.update(times=store.age_round))  # one build per round, read times or not
@@ -161,6 +180,10 @@ class RegisterTable:
         browser only the changed cells of the changed rows go there (a few bytes, not the whole table with
         its descriptions and columns, which the browser keeps): the table element is sent whole only when
         its rows are new."""
+        panels = self._panels
+        if panels is not None and self.table.rows and \
+                panels._value_to_model_value(panels.value) != self._panel.props.get("name"):
+            return  # its tab is not shown: updated when it is chosen
         now = time.time()
         state, cache = self.state, self._cache
         rows = []
