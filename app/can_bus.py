@@ -29,7 +29,6 @@ import logging
 import os
 import socket
 import statistics
-import sys
 import threading
 import time
 import weakref
@@ -55,7 +54,6 @@ INBOX_FRAMES = 4096  # per kind waiting for the loop: about 0.45 s of a full 1 M
 DRAIN_BUDGET_S = 0.004  # the loop drains one bus this long at most, then runs timers and other tasks
 DRAIN_CHECK = 4  # frames between two looks at the clock
 READER_BACKOFF_S = 0.001  # the reader pauses this long when the hand-over is full (bench/can_ingest.py: 7.7x -> 12x)
-GIL_SWITCH_S = 0.001  # a busy reader thread holds the GIL at most this long while the loop owes a keep-alive (5 ms by default)
 SHED_WARN_S = 10.0  # at most one log line per bus this often while frames are shed
 CYCLE_GAPS = 16  # gaps kept per ID and frame length for the cycle time (median; O(1) per frame)
 CYCLE_STREAMS = 4  # frame lengths told apart per ID (a lock's status, 8 bytes, and its answers, 6 bytes); more share one
@@ -377,8 +375,6 @@ class CanBus:
 
     async def start(self) -> None:
         self._loop = asyncio.get_running_loop()
-        if sys.getswitchinterval() > GIL_SWITCH_S:  # measured by bench/can_flood.py: worst control gap 226 -> 121 ms at 6x
-            sys.setswitchinterval(GIL_SWITCH_S)
         self._task = asyncio.create_task(self._supervise(), name=f"can {self.name}")
 
     async def stop(self) -> None:
@@ -435,6 +431,8 @@ class CanBus:
                 self.state.last_error = ""
                 self._backoff = 0.5
             await asyncio.sleep(LOAD_PERIOD_S)
+            if self._periodic:  # threads started since the keep-alive began get their place (app/realtime.py)
+                realtime.refresh_holders()
             self._expire_own()
             self._measure_load()
             await self._count_interface_drops(loop)
@@ -819,9 +817,9 @@ class _Periodic:
     def start(self, bus: can.BusABC) -> None:
         self.stop()
         self.task = bus.send_periodic(self._message(self.stop_checked(self.data)), self.period_s, modifier_callback=self._before_send)
-        if not self._holding:  # no full collection holds the interpreter lock while this sends (app/realtime.py)
-            self._holding = True
-            realtime.hold_full_collections()
+        if not self._holding:  # no full collection holds the interpreter lock while this sends, and a busy thread
+            self._holding = True  # gives it up sooner (the switch interval, app/realtime.py)
+            realtime.hold_keepalive()
         if hasattr(self.task, "on_error"):  # python-can's thread ends at the first error unless told otherwise
             self.task.on_error = self._on_error
         thread = getattr(self.task, "thread", None)
@@ -834,7 +832,7 @@ class _Periodic:
         task, self.task = self.task, None
         if self._holding:
             self._holding = False
-            realtime.release_full_collections()
+            realtime.release_keepalive()
         if task is not None:
             try:
                 task.stop()

@@ -16,12 +16,31 @@ automatic full collection is put off (:func:`hold_full_collections`); the young 
 collected as before, and the full collection follows CPython's counts again once the last keep-alive
 has stopped. A program that schedules full collections itself (app.runtime.FullCollections: the full
 generation's threshold at :data:`FULL_MANAGED`) is left to do so.
+
+When its sleep ends the sender waits for the interpreter lock: CPython asks the thread that holds it to
+give it up only after the switch interval (``sys.setswitchinterval``, 5 ms by default), and a reader
+thread or the event loop busy with a flood takes it back after every hand-over. While a keep-alive runs
+the interval is :data:`KEEPALIVE_SWITCH_S`; the interval the program had comes back once the last
+keep-alive has stopped (unless somebody else changed it meanwhile).
+
+A shorter interval helps only while the holder runs. On a loaded machine the thread that holds the lock
+(the event loop, a CAN reader) waits for a CPU behind the other programs like any ordinary thread, and
+the sender waits as long: bench/can_flood.py at load 30 on two cores, worst control gap 525 ms (flood from
+a thread) and 687 ms (from a second process); this process's threads waited 1.1-3.3 times as long for a
+CPU as they ran. So while a keep-alive runs, every thread of the interpreter runs under the round-robin
+real-time policy too, at :data:`HOLDER_PRIORITY`, below the senders (:func:`hold_keepalive`); the policy
+each had comes back with the last release. They take the interpreter lock in turn, so together they run
+Python on one CPU at a time: this is done only on a machine with two CPUs or more whose kernel throttles
+real-time threads (a runaway one still leaves time to every other program). New threads and child
+processes start as ordinary ones (``SCHED_RESET_ON_FORK``); threads started during a hold get their place
+with :func:`refresh_holders`.
 """
 
 from __future__ import annotations
 
 import gc
 import os
+import sys
 import threading
 
 RT_PRIORITY = 10  # low among real-time priorities (1..99): above every ordinary program, below the kernel's own threads
@@ -46,38 +65,132 @@ def raise_sender(native_id: int | None, period_s: float) -> str:
         return "as it is"
 
 
+HOLDER_PRIORITY = 1  # the interpreter's other threads while a keep-alive runs: real-time, below RT_PRIORITY
+HOLDERS_REAL_TIME = True  # False: the other threads stay as they are (only the senders are raised)
+
+
+def _real_time_bounded() -> bool:
+    """Whether real-time threads that may not sleep still leave the machine usable: two CPUs or more and the
+    kernel's real-time throttling on (``sched_rt_runtime_us`` below ``sched_rt_period_us``)."""
+    try:
+        if (os.cpu_count() or 1) < 2:
+            return False
+        with open("/proc/sys/kernel/sched_rt_runtime_us") as f:
+            runtime = int(f.read())
+        with open("/proc/sys/kernel/sched_rt_period_us") as f:
+            period = int(f.read())
+        return 0 <= runtime < period
+    except (OSError, ValueError):
+        return False
+
+
+_boosted: dict[int, int] = {}  # native id -> the policy it had, of the threads raised to HOLDER_PRIORITY
+
+
+def _boost_holders() -> None:
+    """Every ordinary thread of the interpreter to HOLDER_PRIORITY (the caller holds ``_hold_lock``)."""
+    if not HOLDERS_REAL_TIME or not _real_time_bounded():
+        return
+    alive = set()
+    for thread in threading.enumerate():
+        tid = thread.native_id
+        if tid is None:
+            continue
+        alive.add(tid)
+        if tid in _boosted:
+            continue
+        try:
+            policy = os.sched_getscheduler(tid)
+            if policy & ~os.SCHED_RESET_ON_FORK != os.SCHED_OTHER:  # a sender already, or asked to stay behind
+                continue
+            os.sched_setscheduler(tid, os.SCHED_RR | os.SCHED_RESET_ON_FORK, os.sched_param(HOLDER_PRIORITY))
+            _boosted[tid] = policy
+        except ProcessLookupError:  # ended meanwhile
+            continue
+        except (OSError, AttributeError):  # not permitted, or no such call on this system: as they are
+            return
+    for tid in [t for t in _boosted if t not in alive]:
+        del _boosted[tid]
+
+
+def _restore_holders() -> None:
+    """The threads raised by :func:`_boost_holders` get their policy back (the caller holds ``_hold_lock``)."""
+    for tid, policy in _boosted.items():
+        try:
+            if (os.sched_getscheduler(tid) & ~os.SCHED_RESET_ON_FORK == os.SCHED_RR
+                    and os.sched_getparam(tid).sched_priority == HOLDER_PRIORITY):  # not changed by anybody else meanwhile
+                os.sched_setscheduler(tid, policy, os.sched_param(0))
+        except (OSError, AttributeError):  # ended meanwhile
+            continue
+    _boosted.clear()
+
+
+def refresh_holders() -> None:
+    """While a keep-alive runs: threads started since it began get their place too (cheap; call it now and then)."""
+    with _hold_lock:
+        if _holds > 0:
+            _boost_holders()
+
+
+def holders_raised() -> list[int]:
+    """Native ids of the threads running at HOLDER_PRIORITY for the keep-alives now."""
+    return list(_boosted)
+
+
 FULL_MANAGED = 1 << 30  # a full-generation threshold this high: no automatic full collection (app.runtime.FullCollections)
+
+KEEPALIVE_SWITCH_S = 0.001  # the switch interval while a keep-alive runs (CPython's default: 0.005)
 
 _hold_lock = threading.Lock()
 _holds = 0
 _full_threshold: int | None = None  # the full generation's threshold while a hold put it off; None: not changed here
+_switch_interval: float | None = None  # the switch interval before a hold lowered it; None: not changed here
+_switch_set = 0.0  # the interval as CPython reports it after the hold set it (whole microseconds)
 
 
 def hold_full_collections() -> None:
-    """A keep-alive sender started: no automatic full collection until every hold is released
-    (:func:`release_full_collections`, once per hold). Thread-safe."""
-    global _holds, _full_threshold
+    """A keep-alive sender started: no automatic full collection, the interpreter's switch interval at most
+    :data:`KEEPALIVE_SWITCH_S` and its other threads at :data:`HOLDER_PRIORITY` (where bounded), until every hold is released (:func:`release_full_collections`,
+    once per hold). Thread-safe."""
+    global _holds, _full_threshold, _switch_interval, _switch_set
     with _hold_lock:
         _holds += 1
+        _boost_holders()
         if _holds == 1:
             young, middle, full = gc.get_threshold()
             if full < FULL_MANAGED:  # else the program schedules them itself
                 _full_threshold = full
                 gc.set_threshold(young, middle, FULL_MANAGED)
+            before = sys.getswitchinterval()
+            if before > KEEPALIVE_SWITCH_S:
+                _switch_interval = before
+                sys.setswitchinterval(KEEPALIVE_SWITCH_S)
+                _switch_set = sys.getswitchinterval()
 
 
 def release_full_collections() -> None:
-    """A keep-alive sender stopped: with the last one, the full collection is CPython's again."""
-    global _holds, _full_threshold
+    """A keep-alive sender stopped: with the last one, the full collection is CPython's again, the switch
+    interval and the threads' policies what they were."""
+    global _holds, _full_threshold, _switch_interval
     with _hold_lock:
         if _holds == 0:
             return
         _holds -= 1
-        if _holds == 0 and _full_threshold is not None:
+        if _holds > 0:
+            return
+        if _full_threshold is not None:
             young, middle, full = gc.get_threshold()
             if full == FULL_MANAGED:  # nobody else changed it meanwhile
                 gc.set_threshold(young, middle, _full_threshold)
             _full_threshold = None
+        _restore_holders()
+        if _switch_interval is not None:
+            if sys.getswitchinterval() == _switch_set:  # nobody else changed it meanwhile
+                sys.setswitchinterval(_switch_interval)
+            _switch_interval = None
+
+
+hold_keepalive, release_keepalive = hold_full_collections, release_full_collections  # what a hold is for: a keep-alive
 
 
 def full_collections_held() -> bool:

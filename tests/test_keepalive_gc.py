@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import gc
+import sys
 import time
 
 import pytest
@@ -56,3 +57,53 @@ async def test_a_periodic_keepalive_holds_while_it_runs(thresholds):
     finally:
         await bus.stop()  # closing the bus ends its keep-alives and their holds
     assert gc.get_threshold() == (700, 10, 10) and not realtime.full_collections_held()
+
+
+@pytest.fixture
+def switch_interval():
+    saved = sys.getswitchinterval()
+    sys.setswitchinterval(0.005)  # CPython's default
+    yield
+    sys.setswitchinterval(saved)
+
+
+def test_a_hold_lowers_the_switch_interval_until_the_last_release(switch_interval, thresholds):
+    realtime.hold_keepalive()
+    realtime.hold_keepalive()
+    assert sys.getswitchinterval() == pytest.approx(realtime.KEEPALIVE_SWITCH_S, abs=1e-6)
+    realtime.release_keepalive()
+    assert sys.getswitchinterval() == pytest.approx(realtime.KEEPALIVE_SWITCH_S, abs=1e-6)  # one sender still runs
+    realtime.release_keepalive()
+    assert sys.getswitchinterval() == pytest.approx(0.005)
+
+
+def test_an_interval_set_lower_or_changed_meanwhile_is_left_as_it_is(switch_interval, thresholds):
+    sys.setswitchinterval(realtime.KEEPALIVE_SWITCH_S / 2)
+    realtime.hold_keepalive()
+    assert sys.getswitchinterval() == pytest.approx(realtime.KEEPALIVE_SWITCH_S / 2, abs=1e-6)
+    realtime.release_keepalive()
+    assert sys.getswitchinterval() == pytest.approx(realtime.KEEPALIVE_SWITCH_S / 2, abs=1e-6)
+    sys.setswitchinterval(0.005)
+    realtime.hold_keepalive()
+    sys.setswitchinterval(0.002)  # somebody else's choice while the keep-alive ran
+    realtime.release_keepalive()
+    assert sys.getswitchinterval() == pytest.approx(0.002)
+
+
+async def test_the_switch_interval_is_lowered_only_while_a_periodic_keepalive_runs(switch_interval, thresholds):
+    bus = CanBus("can9", {"interface": "virtual", "channel": f"sw-{time.time_ns()}"}, CanBusState("can9", "can", ""))
+    await bus.start()
+    try:
+        for _ in range(200):
+            if bus.state.connected:
+                break
+            await asyncio.sleep(0.01)
+        assert sys.getswitchinterval() == pytest.approx(0.005)  # a bus without keep-alives leaves it
+        bus.start_periodic("control", 0.1, 0x100, bytes(8))
+        assert sys.getswitchinterval() == pytest.approx(realtime.KEEPALIVE_SWITCH_S, abs=1e-6)
+        bus.stop_cyclic("control")
+        assert sys.getswitchinterval() == pytest.approx(0.005)
+        bus.start_periodic("control", 0.1, 0x100, bytes(8))
+    finally:
+        await bus.stop()
+    assert sys.getswitchinterval() == pytest.approx(0.005)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 import threading
 
+import pytest
+
 from app import realtime
 
 
@@ -47,3 +49,80 @@ def test_refused_everywhere_is_silent(monkeypatch):
     monkeypatch.setattr(os, "setpriority", refuse)
     out = _in_thread(lambda tid: realtime.raise_sender(tid, 0.1))
     assert out["result"] == "as it is" and out["policy"] == os.SCHED_OTHER
+
+
+def _permitted() -> bool:
+    out = _in_thread(lambda tid: os.sched_setscheduler(tid, os.SCHED_RR, os.sched_param(1)) or True) if _can_try() else {}
+    return out.get("policy") == os.SCHED_RR
+
+
+def _can_try() -> bool:
+    return hasattr(os, "sched_setscheduler") and realtime._real_time_bounded()
+
+
+class _Idle:
+    """A thread of the interpreter that waits (as the event loop or a reader does between frames)."""
+
+    def __init__(self):
+        self.go, self.ready = threading.Event(), threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+        self.ready.wait()
+
+    def _run(self):
+        self.ready.set()
+        self.go.wait()
+
+    def policy(self) -> tuple[int, int]:
+        tid = self.thread.native_id
+        return os.sched_getscheduler(tid) & ~os.SCHED_RESET_ON_FORK, os.sched_getparam(tid).sched_priority
+
+    def end(self):
+        self.go.set()
+        self.thread.join()
+
+
+def test_while_a_keepalive_runs_the_other_threads_run_real_time_below_the_senders():
+    if not _permitted():
+        pytest.skip("real-time not permitted here, or not bounded (one CPU, no throttling)")
+    before, sender = _Idle(), _Idle()
+    os.sched_setscheduler(sender.thread.native_id, os.SCHED_RR, os.sched_param(realtime.RT_PRIORITY))
+    try:
+        realtime.hold_keepalive()
+        try:
+            assert before.policy() == (os.SCHED_RR, realtime.HOLDER_PRIORITY)
+            assert os.sched_getscheduler(0) & ~os.SCHED_RESET_ON_FORK == os.SCHED_RR  # the caller's thread too
+            assert sender.policy() == (os.SCHED_RR, realtime.RT_PRIORITY)  # a sender stays above them
+            later = _Idle()  # started during the hold: an ordinary thread (reset on fork) until the next refresh
+            assert later.policy() == (os.SCHED_OTHER, 0)
+            realtime.refresh_holders()
+            assert later.policy() == (os.SCHED_RR, realtime.HOLDER_PRIORITY)
+        finally:
+            realtime.release_keepalive()
+        assert before.policy() == (os.SCHED_OTHER, 0) and later.policy() == (os.SCHED_OTHER, 0)
+        assert os.sched_getscheduler(0) == os.SCHED_OTHER and not realtime.holders_raised()
+        assert sender.policy() == (os.SCHED_RR, realtime.RT_PRIORITY)  # not raised here: not lowered here
+        later.end()
+    finally:
+        before.end()
+        sender.end()
+
+
+def test_other_threads_stay_as_they_are_where_it_is_not_bounded_or_not_permitted(monkeypatch):
+    idle = _Idle()
+    try:
+        monkeypatch.setattr(realtime, "_real_time_bounded", lambda: False)  # one CPU, or no real-time throttling
+        realtime.hold_keepalive()
+        assert idle.policy() == (os.SCHED_OTHER, 0) and not realtime.holders_raised()
+        realtime.release_keepalive()
+        monkeypatch.setattr(realtime, "_real_time_bounded", lambda: True)
+
+        def refuse(*_args):
+            raise PermissionError("not permitted")
+
+        monkeypatch.setattr(os, "sched_setscheduler", refuse)
+        realtime.hold_keepalive()
+        assert idle.policy() == (os.SCHED_OTHER, 0) and not realtime.holders_raised()
+        realtime.release_keepalive()
+    finally:
+        idle.end()
