@@ -125,7 +125,7 @@ def main() -> None:
             for count in (0, 5, 10, 20):
                 while len(pages) < count:
                     page = browser.new_page(viewport={"width": 1280, "height": 800})
-                    page.goto(url + MIX[len(pages) % len(MIX)])
+                    page.goto(url + MIX[len(pages) % len(MIX)], timeout=120_000)  # a loaded machine: a page may take long
                     pages.append(page)
                 idle.wait_for_timeout(3000)  # settle
                 results[count] = (measure(pid, args.seconds, idle), rss_mb(pid))
