@@ -25,7 +25,9 @@ Two ways of flooding, both printed (``--via``):
   through the kernel, as from another node; ``can1`` is then a udp_multicast bus, the lock's twin on it
   as well, and this process's own frames come back and are filtered); ``can2`` stays as above. Not
   lighter for this machine: the sender process takes a share of its two cores (printed), and here
-  two readers (the worker's and the lock twin's) unpack every flood frame from its datagram.
+  two readers (the worker's and the lock twin's) unpack every flood frame from its datagram. Where
+  permitted the sender runs real-time (as this process's threads do while a keep-alive runs, see
+  app/realtime.py), so it keeps its rate as another node would, not behind them.
 
 Per phase also the CPU this process's threads got and the time they waited for a CPU (the other
 programs of the machine: a thread holding the interpreter lock that waits for a CPU holds up the
@@ -51,6 +53,7 @@ import can
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from app import realtime  # noqa: E402
 from app.plant import parse_plant  # noqa: E402
 from app.runtime import Runtime  # noqa: E402
 from devices.electrak import codec as electrak  # noqa: E402
@@ -103,6 +106,10 @@ def process_sender(port: int, kind: str, rate: int, ready, stop, sent, cpu) -> N
     share of a core it used."""
     frames = flood_frames(kind, 5_000)
     per_slice = max(1, rate // 100)
+    try:  # another node's frames do not wait for this machine's CPUs: as the GUI's threads do while a keep-alive runs
+        os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(realtime.HOLDER_PRIORITY))
+    except (OSError, AttributeError):  # not permitted: an ordinary process (it may fall short of its rate; printed)
+        pass
     with can.Bus(interface="udp_multicast", channel=GROUP, port=port) as bus:
         ready.set()
         cpu0, t0 = time.process_time(), time.perf_counter()
