@@ -6,6 +6,7 @@ No I/O here. Section numbers refer to the HD-Lock document
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum
@@ -310,7 +311,7 @@ def decode_request(frame: CanFrame) -> CanRequest:
     return CanRequest(frame.arbitration_id, target, unpack_le(data[4:6]), unpack_le(data[6:8]))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class StatusFrame:
     """Periodic status (section 6.5.1); proximity/source split per SPEC-NOTES."""
 
@@ -324,7 +325,7 @@ class StatusFrame:
         return lock_status_bits(self.status)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class FwuStatusFrame:
     """Firmware-update status (section 6.5.2)."""
 
@@ -332,7 +333,7 @@ class FwuStatusFrame:
     application: bool  # True: firmware is updated, False: boot loader
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class RegisterAnswer:
     """One register in answer to a read or write (sections 6.5.3, 6.5.4)."""
 
@@ -344,32 +345,35 @@ class RegisterAnswer:
 LockFrame = StatusFrame | FwuStatusFrame | RegisterAnswer
 
 
+_WORDS3 = struct.Struct("<HHH")  # three 16-bit words, least significant byte first (section 6.2)
+_WORDS2 = struct.Struct("<HH")
+
+
 def decode_lock_frame(data: bytes) -> LockFrame:
-    """A frame sent by a lock under its device ID, identified by bytes 0-1."""
+    """A frame sent by a lock under its device ID, identified by bytes 0-1 (every status frame of a
+    lock on the bus comes here: one unpack, no intermediate objects)."""
     if len(data) < 2:
         raise CodecError(f"lock frame too short ({len(data)} bytes)")
-    kind = (data[0], data[1])
-    if kind == (0, 0):
+    b0, b1 = data[0], data[1]
+    if b0 == 0 and b1 == 0:
         if len(data) < 8:
             raise CodecError(f"status frame needs 8 bytes, got {len(data)}")
-        status, pos, word = (unpack_le(data[i:i + 2]) for i in (2, 4, 6))
+        status, pos, word = _WORDS3.unpack_from(data, 2)
         if status & FORCE_ACTIVE and word >= SOURCE_DOOR_IGNORED:
             # 6.5.1 adds a source of 0x80-0x87 (ForceActive set) to proximity << 6: 0x80 is 2 << 6 (SPEC-NOTES)
             word -= SOURCE_DOOR_IGNORED
             return StatusFrame(status, pos, word >> 6, SOURCE_DOOR_IGNORED | word & 0x3F)
         return StatusFrame(status, pos, word >> 6, word & 0x3F)
-    if kind == (1, 0):
+    if b0 == 1 and b1 == 0:
         if len(data) < 6:
             raise CodecError(f"FWU status frame needs 6 bytes, got {len(data)}")
-        return FwuStatusFrame(bool(unpack_le(data[2:4])), bool(unpack_le(data[4:6])))
-    if data[1] == 1 and data[0] in (0, 1):
+        flashing, application = _WORDS2.unpack_from(data, 2)
+        return FwuStatusFrame(bool(flashing), bool(application))
+    if b1 == 1 and b0 in (0, 1):
         if len(data) < 6:
             raise CodecError(f"register answer needs 6 bytes, got {len(data)}")
-        return RegisterAnswer(
-            "input" if data[0] == 0 else "holding",
-            unpack_le(data[2:4]),
-            unpack_le(data[4:6]),
-        )
+        address, value = _WORDS2.unpack_from(data, 2)
+        return RegisterAnswer("input" if b0 == 0 else "holding", address, value)
     raise CodecError(f"unknown lock frame type {data[0]:02X} {data[1]:02X}")
 
 
