@@ -119,7 +119,7 @@ async def test_opening_the_session_defines_the_cyclic_object_and_brings_live_dat
         assert pts["A2 position mm"].value == 0.0  # stroke 250 mm between the unit's limits 100 .. 5100
         assert pts["A1 motion"].value is True and pts["A1 present"].value is True
         assert pts["A1 current"].value == 2.5 and pts["A1 initialised"].value is True
-        assert pts["Mains"].value is True and pts["Error code"].text == "none"
+        assert pts["Mains"].value is True and pts["Error code"].text == codec.error_text(0) == "no error"
         assert adapter.state.history and adapter.state.online
 
 

@@ -489,10 +489,13 @@ class Mo64Adapter:
         self.error_memory = entries
         self.state.fact(P_ERROR_LEVELS, tuple(ErrorMemoryLevel(e["level"], e["flags"], e["timestamp_h"]) for e in entries))
         newest = entries[0] if entries else None
+        older = next((e["flags"] for e in entries if newest is not None and e["level"] == newest["level"] + 1), None)
+        # the newest level in the words of the page's error memory table (codec.error_level_meaning)
         self.state.publish("Error memory", None if newest is None else newest["flags"],
                            raw=None if newest is None else newest["flags"], periodic=False,
                            text="empty" if newest is None else
-                           f"newest: flags 0x{newest['flags']:08X} at {newest['timestamp_h']} h")
+                           f"newest ({newest['timestamp_h']} h): "
+                           f"{codec.error_level_meaning(newest['flags'], newest['timestamp_h'], older)}")
 
     # -- polling -----------------------------------------------------------------------------------------
     def _count_late(self, what: str) -> None:

@@ -207,6 +207,8 @@ def value_text(data_id: int, value: Any) -> str:
         on = [k for k, x in value.fields.items() if x is True or (not isinstance(x, bool) and x)]
         if data_id in p.DIRECTORY and p.DIRECTORY[data_id].vtype is p.ACTUATOR_ERRORS:
             return ", ".join(f"{k} {x}" for k, x in value.fields.items())
+        if data_id in p.FLAG_WORDS:  # in the words the page uses (params.flags_text)
+            return p.flags_text(data_id, int(value))
         return f"0x{int(value):X}: " + (", ".join(on) if on else "none")
     if isinstance(value, float):
         return f"{value:g}"
@@ -1052,10 +1054,7 @@ class ScuAdapter:
             pub(f"Analogue input {data_id - 0x0030}", round(x, 2), "V", time=now)
         elif data_id in dict(ERROR_BIT_GROUPS):
             title = dict(ERROR_BIT_GROUPS)[data_id]
-            bits = codec.error_bits(int(x))
-            unknown = codec.unknown_error_bits(int(x))
-            text = ", ".join(f"bit {b.bit} {b.cause}" for b in bits) + (f", undocumented bits {unknown}" if unknown else "")
-            pub(title, int(x), raw=int(x), time=now, text=text or "none")
+            pub(title, int(x), raw=int(x), time=now, text=codec.error_text(int(x)))  # the page's words (table 10)
             if data_id == 0x00D1:
                 for b in codec.ERROR_BITS.values():
                     pub(f"Error bit {b.bit}", bool(int(x) & b.mask), time=now, text=b.cause)
