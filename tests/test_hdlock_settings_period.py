@@ -64,3 +64,53 @@ async def test_settings_read_slowly_then_after_a_write_and_a_new_serial(monkeypa
         assert await wait_for(lambda: (state.read_time(other) or 0) > swapped, timeout=5)  # with its serial
         assert state.raw(PARAMS.by_name["SerialNumber"]) == twin.serial
         assert state.raw(other) == twin.holding[3005]
+
+
+def test_can_poll_leaves_out_what_status_frames_carry_and_reads_identity_with_the_settings():
+    from devices.hdlock.adapter import CAN_SETTINGS_BLOCKS, CAN_STATUS_BLOCKS, IDENTITY_BLOCK
+    every = {(s, a) for s, start, n in CAN_STATUS_BLOCKS for a in range(start, start + n)}
+    slow = {(s, a) for s, start, n in CAN_SETTINGS_BLOCKS for a in range(start, start + n)}
+    assert not every & slow and IDENTITY_BLOCK in CAN_SETTINGS_BLOCKS
+    assert (INPUT, 104) in slow and (INPUT, 0) in every and (INPUT, 57) in every
+    assert (HOLDING, 1000) not in every | slow and (HOLDING, 1001) not in every | slow  # every status frame carries them
+    assert (HOLDING, 1009) in every  # MotorCurrent, charted
+    assert {(p.space, a) for p in PARAMS for a in p.addresses} <= every | slow | {(HOLDING, 1000), (HOLDING, 1001)}
+
+
+@pytest.mark.timeout(60)
+async def test_can_settings_and_identity_read_slowly_then_after_a_write_and_a_gap(monkeypatch):
+    from test_hdlock_can import can_plant
+
+    from app.plant import parse_plant
+    from devices.hdlock.adapter import IDENTITY_BLOCK
+
+    monkeypatch.setattr(hdlock_adapter, "SETTINGS_PERIOD_S", 600.0)
+    async with running_plant(parse_plant(can_plant())) as runtime:
+        state = runtime.store.devices["gate-1"]
+        adapter = runtime.worker.adapters["gate-1"]
+        serial, setting = PARAMS.by_name["SerialNumber"], PARAMS.by_name["SettingsProximityThresholdUnlock"]
+        assert await wait_for(lambda: state.status == "online" and None not in (state.raw(serial), state.raw(setting)))
+        polls: list[list] = []
+        read_blocks = adapter._read_blocks
+
+        async def recorded(blocks):
+            polls.append(list(blocks))
+            await read_blocks(blocks)
+
+        adapter._read_blocks = recorded
+        assert await wait_for(lambda: len(polls) >= 3, timeout=10)
+        assert all(IDENTITY_BLOCK not in p and ("holding", 3000, 9) not in p for p in polls)  # status only
+        assert all(b[:2] != (HOLDING, 1000) for p in polls for b in p)
+        assert state.param_quality(serial) == "good"  # aged by the settings' period, not the poll's
+        assert (INPUT, 104) in state.register_every
+
+        polls.clear()
+        await adapter.write_param(setting, -25)  # a write: identity and settings with the next poll
+        assert await wait_for(lambda: any(IDENTITY_BLOCK in p for p in polls), timeout=5)
+        n = len(polls)
+        assert await wait_for(lambda: len(polls) >= n + 2, timeout=10)
+        assert all(IDENTITY_BLOCK not in p for p in polls[n + 1:])
+
+        polls.clear()
+        adapter._last_status -= 10 * state.stale_after  # no status frame for a while: the next one comes after a gap
+        assert await wait_for(lambda: any(IDENTITY_BLOCK in p for p in polls), timeout=5)

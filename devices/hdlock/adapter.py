@@ -54,6 +54,30 @@ def poll_blocks() -> tuple[list[tuple[str, int, int]], list[tuple[str, int, int]
 STATUS_BLOCKS, SETTINGS_BLOCKS = poll_blocks()
 SERIAL_PARAM = PARAMS.by_name["SerialNumber"]  # a new value means another lock (its settings are read at once)
 
+# On CAN every register read costs one answer frame (section 6.5.3/6.5.4), and the lock sends its status
+# (holding 1000, 1001) by itself every 1000 ms (section 6.5.1): the poll leaves those two out. A lock can
+# only answer under another lock's device ID after a silence (swapped, re-addressed: its status frames stop),
+# so the identity (input 100-105) is read with the settings: at the first poll, every SETTINGS_PERIOD_S,
+# after a failed poll and when status frames come again after a gap, and after a write, restore or backup.
+IDENTITY_BLOCK = next(b for b in STATUS_BLOCKS if b[0] == INPUT and b[1] <= SERIAL_PARAM.address < b[1] + b[2])
+CAN_FRAME_REGISTERS = ((HOLDING, 1000), (HOLDING, 1001))  # in every status frame
+
+
+def can_poll_blocks() -> tuple[list[tuple[str, int, int]], list[tuple[str, int, int]]]:
+    """The CAN poll's blocks: (every poll, with the settings), as (space, start, count)."""
+    every = []
+    for space, start, count in STATUS_BLOCKS:
+        if (space, start, count) == IDENTITY_BLOCK:
+            continue
+        if (space, start) == CAN_FRAME_REGISTERS[0]:
+            start, count = start + len(CAN_FRAME_REGISTERS), count - len(CAN_FRAME_REGISTERS)
+        if count > 0:
+            every.append((space, start, count))
+    return every, [IDENTITY_BLOCK] + SETTINGS_BLOCKS
+
+
+CAN_STATUS_BLOCKS, CAN_SETTINGS_BLOCKS = can_poll_blocks()
+
 
 @dataclass(frozen=True, slots=True)
 class FoundLock:
@@ -141,9 +165,11 @@ class HdLockBackup:
             raise CommandError(str(exc)) from None
 
     _settings_due = 0.0  # monotonic time the settings are read next (0: at the next poll)
+    status_blocks = STATUS_BLOCKS  # read every poll
+    settings_blocks = SETTINGS_BLOCKS  # read every SETTINGS_PERIOD_S and when something suggests a change
 
     def _setup_periods(self) -> None:
-        for space, start, count in SETTINGS_BLOCKS:
+        for space, start, count in self.settings_blocks:
             for address in range(start, start + count):
                 self.state.register_every[(space, address)] = SETTINGS_PERIOD_S
 
@@ -154,8 +180,8 @@ class HdLockBackup:
     def _blocks_now(self) -> tuple[list[tuple[str, int, int]], bool]:
         """The blocks this poll reads, and whether the settings are among them."""
         if time.monotonic() >= self._settings_due:
-            return STATUS_BLOCKS + SETTINGS_BLOCKS, True
-        return STATUS_BLOCKS, False
+            return self.status_blocks + self.settings_blocks, True
+        return self.status_blocks, False
 
     def _settings_read(self) -> None:
         self._settings_due = time.monotonic() + SETTINGS_PERIOD_S
@@ -543,6 +569,8 @@ class HdLockCanAdapter(HdLockBackup):
 
     params = PARAMS
     transport = "can"
+    status_blocks = CAN_STATUS_BLOCKS
+    settings_blocks = CAN_SETTINGS_BLOCKS
 
     def __init__(self, config, state: DeviceState, bus: CanTransport):
         self.config = config
@@ -591,12 +619,16 @@ class HdLockCanAdapter(HdLockBackup):
                 future.set_result(frame.value)
 
     _status_memo: tuple = (None,)  # (frame bytes, StatusFrame, its text, third word, source text) of the last status
+    _last_status = 0.0  # arrival time of the last status frame
 
     def _on_status(self, arrival: float, memo: tuple) -> None:
         """A periodic status (section 6.5.1), as :attr:`_status_memo` holds it: its values as points and registers,
         one change for the readers (O(1): a handful of small records, the version bumped once)."""
         _data, frame, text, word, source = memo
         state = self.state
+        if arrival - self._last_status > state.stale_after:  # status frames again after a gap: perhaps another lock
+            self.read_settings_next()
+        self._last_status = arrival
         fwu = state.points.get(P_FWU)
         if fwu is None or fwu.value is not None or fwu.text != "":  # status frames again: out of firmware-update mode
             state.fact(P_FWU, None, text="")
@@ -664,7 +696,7 @@ class HdLockCanAdapter(HdLockBackup):
             await self._read_blocks(blocks)
             if not with_settings and serial is not None and self._serial_word() != serial:
                 with_settings = True  # another lock answers under this ID: its settings now
-                await self._read_blocks(SETTINGS_BLOCKS)
+                await self._read_blocks(self.settings_blocks)
             if with_settings:
                 self._settings_read()
         except CommandError as exc:
