@@ -82,7 +82,8 @@ class _Idle:
         self.thread.join()
 
 
-def test_while_a_keepalive_runs_the_other_threads_run_real_time_below_the_senders():
+def test_while_a_keepalive_runs_the_other_threads_run_real_time_below_the_senders(monkeypatch):
+    monkeypatch.setattr(realtime, "HOLDERS_REAL_TIME", True)  # the default; a test session may turn it off
     if not _permitted():
         pytest.skip("real-time not permitted here, or not bounded (one CPU, no throttling)")
     before, sender = _Idle(), _Idle()
@@ -110,6 +111,7 @@ def test_while_a_keepalive_runs_the_other_threads_run_real_time_below_the_sender
 
 def test_other_threads_stay_as_they_are_where_it_is_not_bounded_or_not_permitted(monkeypatch):
     idle = _Idle()
+    monkeypatch.setattr(realtime, "HOLDERS_REAL_TIME", True)
     try:
         monkeypatch.setattr(realtime, "_real_time_bounded", lambda: False)  # one CPU, or no real-time throttling
         realtime.hold_keepalive()
