@@ -33,3 +33,14 @@ def test_decoded_frames_are_slotted_and_frozen():
         assert not hasattr(frame, "__dict__")  # no dict per frame: a flood of status frames allocates less
         with pytest.raises((AttributeError, TypeError)):
             frame.space = "x"  # type: ignore[misc]
+
+
+def test_a_status_is_worded_as_before_and_its_bit_names_once_per_status_word():
+    data = bytes([0, 0, 0x03, 0x01, 0x05, 0x00, 0xC4, 0x01])  # LockRequest, ProximityInPlace, BoltLocked
+    text = codec.describe_lock_frame(data)
+    assert text.startswith("Status 0x0103 [LockRequest, ProximityInPlace, BoltLocked] motorPos 5 proximity 7 source 4")
+    assert codec.describe_lock_frame(bytes(8)).startswith("Status 0x0000 [-] motorPos 0 proximity 0 source 0")
+    hits = codec._status_names.cache_info().hits
+    for low in range(16):  # discovery words every status-like frame of a flood of unknown IDs
+        codec.discovered(0x1000000 + low, True, bytes([0, 0, 0x03, 0x01, low, 0, 0xC4, 0x01]))
+    assert codec._status_names.cache_info().hits >= hits + 16

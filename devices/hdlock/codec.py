@@ -10,6 +10,7 @@ import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum
+from functools import lru_cache
 
 from devices import errors
 from devices.hdlock.params import LOCK_REQUEST_SOURCE, PARAMS
@@ -431,16 +432,22 @@ def describe_request(frame: CanFrame) -> str:
     return f"{name} -> {target}: {detail}"
 
 
+@lru_cache(maxsize=1024)
+def _status_names(status: int) -> str:
+    """The set bits of a LockStatus word by name, ``-`` for none (discovery words every status-like frame of
+    an unknown ID: a flood repeats few status words)."""
+    return ", ".join(name for name, on in lock_status_bits(status).items() if on) or "-"
+
+
 def describe_lock_frame(data: bytes) -> str:
     try:
         frame = decode_lock_frame(data)
     except CodecError as exc:
         return f"HD-Lock frame, malformed: {exc}"
     if isinstance(frame, StatusFrame):
-        active = [name for name, on in frame.bits.items() if on]
         source = LOCK_REQUEST_SOURCE.get(frame.lock_request_source)  # 6 bits: 0x0n and 0x8n share a name (SPEC-NOTES)
         return (
-            f"Status 0x{frame.status:04X} [{', '.join(active) or '-'}] motorPos {frame.motor_pos} "
+            f"Status 0x{frame.status:04X} [{_status_names(frame.status)}] motorPos {frame.motor_pos} "
             f"proximity {frame.proximity} source {frame.lock_request_source}{' ' + source if source else ''}"
         )
     if isinstance(frame, FwuStatusFrame):
