@@ -113,24 +113,69 @@ async def serve_telegrams(reader: asyncio.StreamReader, splitter, on_item: Calla
             await on_item(item)
 
 
-class Ticker:
-    """Calls ``step(dt_s, now)`` every ``period_s`` on the event loop until :meth:`stop`."""
+IDLE_S = 0.5  # the longest a resting twin goes unstepped (a change made behind its back is seen this late)
 
-    def __init__(self, step: Callable[[float, float], None], period_s: float):
+
+def _resume(sleeper: asyncio.Future) -> None:
+    if not sleeper.done():
+        sleeper.set_result(None)
+
+
+class Ticker:
+    """Calls ``step(dt_s, now)`` every ``period_s`` on the event loop until :meth:`stop`.
+
+    With ``rest``, a twin at rest is stepped less often: ``rest(now)`` says how long nothing moves or
+    falls due (0 while something moves; a pending deadline as seconds from now), and the ticker sleeps
+    that long, up to ``idle_s``, instead of ``period_s``. Whatever may set it moving (a telegram, a
+    command, a control) calls :meth:`wake` first: the twin is stepped up to now as the ticks would have
+    done, and the ticks go on at ``period_s`` from there while it moves.
+    """
+
+    def __init__(self, step: Callable[[float, float], None], period_s: float,
+                 rest: Callable[[float], float] | None = None, idle_s: float = IDLE_S):
         self.step = step
         self.period_s = period_s
+        self.rest = rest
+        self.idle_s = idle_s
         self.task: asyncio.Task | None = None
+        self.ticks = 0  # steps taken (the ticks and the catch-ups of wake())
+        self._last = time.monotonic()
+        self._sleeper: asyncio.Future | None = None  # set while resting longer than period_s
 
     def start(self, name: str) -> None:
+        self._last = time.monotonic()
         self.task = asyncio.create_task(self._run(), name=name)
 
+    def _step(self) -> None:
+        now = time.monotonic()
+        self.step(now - self._last, now)
+        self._last = now
+        self.ticks += 1
+
     async def _run(self) -> None:
-        last = time.monotonic()
+        loop = asyncio.get_running_loop()
         while True:
-            await asyncio.sleep(self.period_s)
-            now = time.monotonic()
-            self.step(now - last, now)
-            last = now
+            pause = self.period_s
+            if self.rest is not None:
+                pause = max(pause, min(self.idle_s, self.rest(time.monotonic())))
+            if pause > self.period_s:
+                self._sleeper = sleeper = loop.create_future()
+                timer = loop.call_later(pause, _resume, sleeper)
+                try:
+                    await sleeper
+                finally:
+                    timer.cancel()
+                    self._sleeper = None
+            else:
+                await asyncio.sleep(pause)
+            self._step()
+
+    def wake(self) -> None:
+        """Something may start to move: when resting, step up to now and tick at ``period_s`` again."""
+        sleeper = self._sleeper
+        if sleeper is not None and not sleeper.done():
+            self._step()
+            sleeper.set_result(None)
 
     def stop(self) -> None:
         if self.task:

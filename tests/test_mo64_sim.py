@@ -313,6 +313,7 @@ async def test_rs485_answers_only_its_address():
     try:
         assert q485(7, 0x10) == seal("55 04 10 00 02 07")
         assert await client.talk(q485(7, 0x10)) == seal("55 04 00 10 0C 05")  # to master 0 from 0x10
+        sim.twins["gate11"].settings["t_open"] = 0  # open without an open time: it stays open
         sim.twins["gate11"].gate = codec.GateState.OPEN
         assert await client.talk(q485(7, 0x11)) == seal("55 04 00 11 0C 04")
         assert await client.talk(q485(7, 0x12), timeout=0.3) is None  # nobody at 0x12: silence

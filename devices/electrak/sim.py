@@ -20,6 +20,7 @@ import math
 import time
 from dataclasses import dataclass, field
 
+from devices import simserver
 from devices.electrak import codec
 from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, TIMEOUT_SPECIFIER, length_of, password_of
 from devices.simcontrols import SimAction, SimControls, SimParam
@@ -298,6 +299,19 @@ class ElectrakNetworkTwin:
         elif not moved and not any(a.moving_since for a in present):
             self.motion_started = None
 
+    def at_rest(self) -> bool:
+        """Nothing for :meth:`step` to move: no rod runs, coasts or is pushed, no current decays, no motion is
+        requested or ordered by a manual line (the status frames still go out every STATUS_PERIOD_S)."""
+        c = self.control
+        if self.motion_started is not None or self.env_fault_since is not None or self.manual_control() is not None:
+            return False
+        for a in self.present:
+            if a.moving_since is not None or a.speed_mm_s or a.backdrive_mm_s or a.current_a > 0.005:
+                return False
+            if c is not None and c.enable and not c.override and abs(c.position_mm - a.position_mm) > 0.05:
+                return False
+        return True
+
     def _blocked(self) -> bool:
         return any(a.errors & BLOCKING for a in self.present)
 
@@ -383,6 +397,9 @@ class ElectrakSim:
         self.can = open_can(f"{bus.name} (simulated actuators)", options)
         self.can.subscribe(False, codec.CONTROL_ID, self.on_control)
         self.can.subscribe(False, codec.SERVICE_REQUEST_ID, self.on_service)
+        self._next_status = time.monotonic() + codec.STATUS_PERIOD_S
+        # steps every TICK_S while a rod moves, else only when the status frames are due (or a telegram comes)
+        self.ticker = simserver.Ticker(self._step, TICK_S, self._rest)
         self._task: asyncio.Task | None = None
 
     def on_control(self, msg) -> None:
@@ -390,6 +407,7 @@ class ElectrakSim:
             frame = codec.ControlFrame.decode(bytes(msg.data))
         except codec.CodecError:
             return
+        self.ticker.wake()  # a control telegram may start a motion: stepped up to now, then at TICK_S
         for twin in self.twins.values():
             if twin.present:
                 twin.on_control(frame, time.monotonic())
@@ -399,37 +417,39 @@ class ElectrakSim:
             request = codec.ServiceMessage.decode(bytes(msg.data))
         except codec.CodecError:
             return
+        self.ticker.wake()
         for twin in self.twins.values():
             for answer in twin.on_service(request):  # every networked device answers for itself
                 self.can.send(codec.SERVICE_RESPONSE_ID, answer.encode())
 
     async def start(self) -> None:
         await self.can.start()
-        self._task = asyncio.create_task(self._run(), name=f"sim {self.bus_config.name} electrak")
+        self._next_status = time.monotonic() + codec.STATUS_PERIOD_S
+        self.ticker.start(f"sim {self.bus_config.name} electrak")
+        self._task = self.ticker.task
 
-    async def _run(self) -> None:
-        last = time.monotonic()
-        next_status = last + codec.STATUS_PERIOD_S
-        while True:
-            await asyncio.sleep(TICK_S)
-            now = time.monotonic()
+    def _rest(self, now: float) -> float:
+        """0 while a rod moves; else until the next status frames are due (simserver.Ticker)."""
+        if not all(twin.at_rest() for twin in self.twins.values()):
+            return 0.0
+        return max(0.0, self._next_status - now) + 0.001
+
+    def _step(self, dt: float, now: float) -> None:
+        for twin in self.twins.values():
+            twin.step(dt, now)
+        if now >= self._next_status:
+            self._next_status += codec.STATUS_PERIOD_S
+            if now > self._next_status:
+                self._next_status = now + codec.STATUS_PERIOD_S
             for twin in self.twins.values():
-                twin.step(now - last, now)
-            last = now
-            if now >= next_status:
-                next_status += codec.STATUS_PERIOD_S
-                if now > next_status:
-                    next_status = now + codec.STATUS_PERIOD_S
-                for twin in self.twins.values():
-                    manual = twin.manual_control() if twin.present else None
-                    if manual is not None:  # the actuator with the active line sends the control telegram
-                        self.can.send(codec.CONTROL_ID, manual.encode())
-                        twin.on_control(manual, now)
-                    for a in twin.present:
-                        self.can.send(codec.STATUS_ID, twin.status(a).encode())
+                manual = twin.manual_control() if twin.present else None
+                if manual is not None:  # the actuator with the active line sends the control telegram
+                    self.can.send(codec.CONTROL_ID, manual.encode())
+                    twin.on_control(manual, now)
+                for a in twin.present:
+                    self.can.send(codec.STATUS_ID, twin.status(a).encode())
 
     async def stop(self) -> None:
-        if self._task:
-            self._task.cancel()
-            self._task = None
+        self.ticker.stop()
+        self._task = None
         await self.can.stop()

@@ -12,9 +12,11 @@ reset); addressed data with customer-data storage.
 from __future__ import annotations
 
 import asyncio
+import math
 import time
 from dataclasses import dataclass
 
+from devices import simserver
 from devices.m3io import codec
 from devices.m3io.codec import Variant
 from devices.simcontrols import SimAction, SimControls, SimParam
@@ -62,15 +64,21 @@ class M3ioTwin:
         self.store_fails = False  # fault injection: the next customer-data write does not stick
         self.resets = 0
 
+    def wake(self) -> None:
+        """Called before a control changes the module (the simulated bus steps it at once: M3ioSim)."""
+
     # -- controls of the simulated plant ----------------------------------------------------
     def toggle_input(self, name: str) -> None:
+        self.wake()
         self.inputs[name] = not self.inputs[name]
 
     def set_temperature(self, channel: int, celsius: float) -> None:
+        self.wake()
         self.temps_tenths[channel - 1] = round(celsius * 10)
 
     def power_cycle(self) -> None:
         """Cut the 24 V: blown fuses are forgotten by the module, cfg is lost, silence until the master talks."""
+        self.wake()
         self.cfg = 0
         self.last_digout = None
         self.led = False
@@ -80,12 +88,14 @@ class M3ioTwin:
 
     def repair(self, channel: int) -> None:
         """Fuse replaced, triac sound: the module still reports Si = 0 until its 24 V are cut (7.2.3)."""
+        self.wake()
         ssr = self.ssr[channel]
         ssr.fuse_ok = ssr.triac_ok = True
         ssr.triac_shorted = False
 
     def _ssr_action(self, name: str, label: str, attribute: str, value: bool, danger: bool = False) -> SimAction:
         def run(channel: int) -> None:
+            self.wake()
             setattr(self.ssr[channel], attribute, value)
 
         return SimAction(name, label, run, params=(SimParam("channel", "SSR", 1, 1, 6),),
@@ -220,6 +230,11 @@ class M3ioSim:
             self.can.subscribe(False, twin.ids.sync, lambda msg, t=twin: self.on_sync(t, msg))
         self._task: asyncio.Task | None = None
         self._inputs_sent: dict[str, tuple[bytes, float]] = {}
+        self._next_temp: dict[str, float] = {}
+        # steps every TICK_S while something falls due, else rests until it does (or a telegram comes)
+        self.ticker = simserver.Ticker(self._step, TICK_S, self._rest)
+        for twin in self.twins.values():
+            twin.wake = self.ticker.wake
 
     def _on_bus(self, twin: M3ioTwin) -> bool:
         return twin.powered and twin.ids.bitrate == self.bitrate and time.monotonic() >= twin.storing_until
@@ -227,6 +242,7 @@ class M3ioSim:
     def on_dig_out(self, twin: M3ioTwin, msg) -> None:
         if not self._on_bus(twin):
             return
+        self.ticker.wake()  # outputs commanded: stepped up to now, then on time for the watchdog and temperatures
         try:
             twin.on_dig_out(bytes(msg.data))
         except codec.CodecError:
@@ -258,25 +274,38 @@ class M3ioSim:
 
     async def start(self) -> None:
         await self.can.start()
-        self._task = asyncio.create_task(self._run(), name=f"sim {self.bus_config.name} m3io")
+        self.ticker.start(f"sim {self.bus_config.name} m3io")
+        self._task = self.ticker.task
 
-    async def _run(self) -> None:
-        next_temp: dict[str, float] = {}
-        while True:
-            await asyncio.sleep(TICK_S)
-            now = time.monotonic()
-            for name, twin in self.twins.items():
-                twin.apply()  # the watchdog switches outputs off after 2 s without DigOut
-                if not self._on_bus(twin) or twin.last_digout is None:
-                    continue
-                self._send_inputs(twin)  # on change, not more often than every 10 ms
-                if twin.variant is not Variant.KM and twin.watchdog_alive and now >= next_temp.get(name, 0):
-                    next_temp[name] = now + codec.TEMP_PERIOD_S
-                    for can_id, data in twin.temp_frames():
-                        self.can.send(can_id, data)
+    def _step(self, dt: float, now: float) -> None:
+        for name, twin in self.twins.items():
+            twin.apply()  # the watchdog switches outputs off after 2 s without DigOut
+            if not self._on_bus(twin) or twin.last_digout is None:
+                continue
+            self._send_inputs(twin)  # on change, not more often than every 10 ms
+            if twin.variant is not Variant.KM and twin.watchdog_alive and now >= self._next_temp.get(name, 0):
+                self._next_temp[name] = now + codec.TEMP_PERIOD_S
+                for can_id, data in twin.temp_frames():
+                    self.can.send(can_id, data)
+
+    def _rest(self, now: float) -> float:
+        """How long :meth:`_step` has nothing to do (simserver.Ticker): until the next temperature frames or
+        watchdog expiry of a module that gets DigOut, or at once while an input change waits to be sent."""
+        rest = math.inf
+        for name, twin in self.twins.items():
+            if twin.last_digout is None:
+                continue
+            if now < twin.storing_until:
+                rest = min(rest, twin.storing_until - now)
+            elif self._on_bus(twin) and twin.dig_in() != self._inputs_sent.get(name, (None,))[0]:
+                return 0.0
+            if twin.watchdog_alive:
+                rest = min(rest, twin.last_digout + codec.WATCHDOG_S - now)
+                if twin.variant is not Variant.KM:
+                    rest = min(rest, self._next_temp.get(name, 0) - now)
+        return max(0.0, rest) + 0.001
 
     async def stop(self) -> None:
-        if self._task:
-            self._task.cancel()
-            self._task = None
+        self.ticker.stop()
+        self._task = None
         await self.can.stop()

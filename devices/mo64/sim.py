@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import math
 import time
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping
@@ -294,6 +295,18 @@ class Mo64Twin:
                     self._start_close()
         self._notify()
 
+    def rest(self) -> float:
+        """How long :meth:`step` has nothing to do (simserver.Ticker): 0 while the gate moves, warns, is held
+        open or a vehicle passes; the open time left when it closes by itself; else unbounded."""
+        if self._vehicle or self.gate in _MOVING:
+            return 0.0
+        if self.gate == GateState.OPEN:
+            if self.obstructed or self.levels[Command.OPEN] or self.levels[Command.CLOSE]:
+                return 0.0
+            if self.settings["t_open"]:
+                return max(0.0, self._timer)
+        return math.inf
+
     def _step_vehicle(self, dt: float) -> None:
         if not self._vehicle:
             return
@@ -448,12 +461,18 @@ def _twin_for(dev: Any, address: int | None = None) -> Mo64Twin:
                     query_form=opts.get("query_form", "both"))
 
 
+_MOVING = (GateState.OPENING, GateState.CLOSING, GateState.PREWARN_OPEN, GateState.PREWARN_CLOSE)
+
+
 def _ticker(twins: list[Mo64Twin]) -> simserver.Ticker:
     def step(dt_s: float, now: float) -> None:
         for twin in twins:
             twin.step(dt_s)
 
-    return simserver.Ticker(step, TICK_S)
+    def rest(now: float) -> float:
+        return min(twin.rest() for twin in twins) if twins else math.inf
+
+    return simserver.Ticker(step, TICK_S, rest)  # slow while no gate moves; a telegram wakes it (wake())
 
 
 class Mo64TcpSim:
@@ -499,6 +518,7 @@ class Mo64TcpSim:
             if isinstance(item, codec.FrameError):
                 self.garbage += 1
                 return  # a telegram with a bad checksum is not answered
+            self._ticker.wake()  # a command may move the gate: stepped up to now, then at TICK_S
             for delay, telegram in self.twin.handle(item):
                 if delay:
                     await asyncio.sleep(delay)
@@ -616,6 +636,7 @@ class Mo64Rs485Sim:
             self.unaddressed += 1
             return  # nobody answers a telegram addressed to nobody
         # the barrier answers on its own time while the line goes on (a token passed meanwhile is heard)
+        self._ticker.wake()  # a command may move the gate: stepped up to now, then at TICK_S
         task = asyncio.create_task(self._answer(twin, frame, twin.handle(frame)))
         self._answering.add(task)
         task.add_done_callback(self._answering.discard)
@@ -643,6 +664,7 @@ class Mo64Rs485Sim:
                                                  da=address, sa=self.next_master)
                     self.own_queries += 1
                     await self._put(request)
+                    self._ticker.wake()
                     answers = self.by_address[address].handle(codec.decode_frame(request, codec.RS485))
                     for delay, telegram in answers:
                         await asyncio.sleep(delay or 0.002)

@@ -371,6 +371,15 @@ class ScuTwin:
         else:
             self.battery_v = max(20.0, self.battery_v - (0.002 + 0.01 * total) * dt)
 
+    def rest(self, now: float) -> float:
+        """How long :meth:`step` has nothing to do (simserver.Ticker): 0 while an actuator moves or the battery
+        charges; else until the remote watchdog falls due (if a session is open)."""
+        if any(act.moving for act in self.actuators) or (self.mains and MAINS_VOLTAGE_V - self.battery_v > 0.01):
+            return 0.0
+        if self.remote:
+            return max(0.0, self.last_rc + codec.WATCHDOG_S - now) + 0.001  # the first tick past the limit trips it
+        return math.inf
+
     # -- data directory ----------------------------------------------------------------------------
     def _act(self, n: int) -> ActuatorTwin | None:
         return self.actuators[n - 1] if n <= len(self.actuators) else None
@@ -613,7 +622,7 @@ class ScuSim:
         self.wire_delay = bool(bus.options.get("wire_delay"))
         # point to point: a new master replaces the old one
         self.endpoint = simserver.TwinServer(f"the simulated SCU line {bus.name}", self._serve, simserver.REPLACE)
-        self._ticker = simserver.Ticker(self.twin.step, TICK_S)
+        self._ticker = simserver.Ticker(self.twin.step, TICK_S, self.twin.rest)  # slow while nothing moves
 
     @property
     def connections(self) -> int:
@@ -625,6 +634,7 @@ class ScuSim:
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         async def answer(item) -> None:
+            self._ticker.wake()  # a command may start a motion: stepped up to now, then at TICK_S
             answer = self.twin.handle(item)
             if answer is None:
                 return
