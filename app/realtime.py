@@ -22,8 +22,8 @@ give it up only after the switch interval (``sys.setswitchinterval``, 5 ms by de
 thread or the event loop busy with a flood takes it back after every hand-over. While a keep-alive runs
 the interval is :data:`KEEPALIVE_SWITCH_S`; the interval the program had comes back once the last
 keep-alive has stopped (unless somebody else changed it meanwhile). bench/can_flood.py, 5 s phases, two runs
-each at load 13-33: worst control gap 168 and 157 ms at 1 ms, 113 and 123 ms at 0.5 ms, for about the
-same CPU time of the process (44 s user+sys either way) and 0-15 % more voluntary context switches.
+each at load 13-33: worst control gap 168 and 157 ms at 1 ms, 113 and 123 ms at 0.5 ms; the process's
+CPU time 44-45 s user+sys against 40-44 s, its voluntary context switches 15 % and 84 % more.
 
 A shorter interval helps only while the holder runs. On a loaded machine the thread that holds the lock
 (the event loop, a CAN reader) waits for a CPU behind the other programs like any ordinary thread, and
