@@ -72,9 +72,10 @@ def test_can_poll_leaves_out_what_status_frames_carry_and_reads_identity_with_th
     slow = {(s, a) for s, start, n in CAN_SETTINGS_BLOCKS for a in range(start, start + n)}
     assert not every & slow and IDENTITY_BLOCK in CAN_SETTINGS_BLOCKS
     assert (INPUT, 104) in slow and (INPUT, 0) in every and (INPUT, 57) in every
-    assert (HOLDING, 1000) not in every | slow and (HOLDING, 1001) not in every | slow  # every status frame carries them
+    assert (HOLDING, 1000) not in every and (HOLDING, 1001) not in every  # every status frame carries them
+    assert (HOLDING, 1000) in slow and (HOLDING, 1001) in slow  # and the settings' read (a backup has them at once)
     assert (HOLDING, 1009) in every  # MotorCurrent, charted
-    assert {(p.space, a) for p in PARAMS for a in p.addresses} <= every | slow | {(HOLDING, 1000), (HOLDING, 1001)}
+    assert {(p.space, a) for p in PARAMS for a in p.addresses} <= every | slow
 
 
 @pytest.mark.timeout(60)
@@ -102,7 +103,7 @@ async def test_can_settings_and_identity_read_slowly_then_after_a_write_and_a_ga
         assert all(IDENTITY_BLOCK not in p and ("holding", 3000, 9) not in p for p in polls)  # status only
         assert all(b[:2] != (HOLDING, 1000) for p in polls for b in p)
         assert state.param_quality(serial) == "good"  # aged by the settings' period, not the poll's
-        assert (INPUT, 104) in state.register_every
+        assert (INPUT, 104) in state.register_every and (HOLDING, 1000) not in state.register_every
 
         polls.clear()
         await adapter.write_param(setting, -25)  # a write: identity and settings with the next poll

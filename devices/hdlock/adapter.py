@@ -73,7 +73,9 @@ def can_poll_blocks() -> tuple[list[tuple[str, int, int]], list[tuple[str, int, 
             start, count = start + len(CAN_FRAME_REGISTERS), count - len(CAN_FRAME_REGISTERS)
         if count > 0:
             every.append((space, start, count))
-    return every, [IDENTITY_BLOCK] + SETTINGS_BLOCKS
+    # the settings' read takes holding 1000-1001 along (2 frames): a backup or a lock heard again after a gap has
+    # them from the same read, not only from the next status frame
+    return every, [IDENTITY_BLOCK, (HOLDING, CAN_FRAME_REGISTERS[0][1], len(CAN_FRAME_REGISTERS))] + SETTINGS_BLOCKS
 
 
 CAN_STATUS_BLOCKS, CAN_SETTINGS_BLOCKS = can_poll_blocks()
@@ -171,7 +173,8 @@ class HdLockBackup:
     def _setup_periods(self) -> None:
         for space, start, count in self.settings_blocks:
             for address in range(start, start + count):
-                self.state.register_every[(space, address)] = SETTINGS_PERIOD_S
+                if (space, address) not in CAN_FRAME_REGISTERS:  # those come with every status frame
+                    self.state.register_every[(space, address)] = SETTINGS_PERIOD_S
 
     def read_settings_next(self) -> None:
         """Read the settings with the next poll (after a write, a restore, a replacement)."""
