@@ -810,6 +810,7 @@ class _Periodic:
         self._reported_lapse: float | None = None
         self.priority = "as it is"  # the sender thread's place in the scheduling (app/realtime.py)
         self._holding = False  # holds off the automatic full collection while it sends (app/realtime.py)
+        self._boosting = False  # and, leased, has the interpreter's other threads run real-time below it
 
     def _message(self, data: bytes) -> can.Message:
         return can.Message(arbitration_id=self.arbitration_id, data=data, is_extended_id=self.is_extended_id, is_rx=False)
@@ -818,8 +819,9 @@ class _Periodic:
         self.stop()
         self.task = bus.send_periodic(self._message(self.stop_checked(self.data)), self.period_s, modifier_callback=self._before_send)
         if not self._holding:  # no full collection holds the interpreter lock while this sends, and a busy thread
-            self._holding = True  # gives it up sooner (the switch interval, app/realtime.py)
-            realtime.hold_keepalive()
+            self._holding = True  # gives it up sooner (the switch interval, app/realtime.py); a leased one (motion,
+            self._boosting = self.lease is not None  # mains outputs) also has the other threads run real-time below it
+            realtime.hold_keepalive(boost=self._boosting)
         if hasattr(self.task, "on_error"):  # python-can's thread ends at the first error unless told otherwise
             self.task.on_error = self._on_error
         thread = getattr(self.task, "thread", None)
@@ -832,7 +834,7 @@ class _Periodic:
         task, self.task = self.task, None
         if self._holding:
             self._holding = False
-            realtime.release_keepalive()
+            realtime.release_keepalive(boost=self._boosting)
         if task is not None:
             try:
                 task.stop()

@@ -68,7 +68,9 @@ def raise_sender(native_id: int | None, period_s: float) -> str:
 
 
 HOLDER_PRIORITY = 1  # the interpreter's other threads while a keep-alive runs: real-time, below RT_PRIORITY
-HOLDERS_REAL_TIME = True  # False: the other threads stay as they are (only the senders are raised)
+# False: the other threads stay as they are (only the senders are raised); COMMISSION_RT_HOLDERS=0 in the
+# environment turns it off for a process and its children (a test run: several processes beside chromium)
+HOLDERS_REAL_TIME = os.environ.get("COMMISSION_RT_HOLDERS", "1") != "0"
 
 
 def _real_time_bounded() -> bool:
@@ -128,9 +130,10 @@ def _restore_holders() -> None:
 
 
 def refresh_holders() -> None:
-    """While a keep-alive runs: threads started since it began get their place too (cheap; call it now and then)."""
+    """While a keep-alive that guards motion runs: threads started since it began get their place too (cheap;
+    call it now and then)."""
     with _hold_lock:
-        if _holds > 0:
+        if _boost_holds > 0:
             _boost_holders()
 
 
@@ -145,24 +148,34 @@ KEEPALIVE_SWITCH_S = 0.0005  # the switch interval while a keep-alive runs (CPyt
 
 _hold_lock = threading.Lock()
 _holds = 0
+_boost_holds = 0  # of the holds, those whose keep-alive guards a motion or mains output (a lease): the other threads raised
 _full_threshold: int | None = None  # the full generation's threshold while a hold put it off; None: not changed here
 _switch_interval: float | None = None  # the switch interval before a hold lowered it; None: not changed here
 _switch_set = 0.0  # the interval as CPython reports it after the hold set it (whole microseconds)
 
 
-def hold_full_collections() -> None:
-    """A keep-alive sender started: no automatic full collection, the interpreter's switch interval at most
-    :data:`KEEPALIVE_SWITCH_S` and its other threads at :data:`HOLDER_PRIORITY` (where bounded), until every hold is released (:func:`release_full_collections`,
-    once per hold). Thread-safe."""
-    global _holds, _full_threshold, _switch_interval, _switch_set
+def hold_full_collections(boost: bool = True) -> None:
+    """A keep-alive sender started: no automatic full collection until every hold is released
+    (:func:`release_full_collections`, once per hold, with the same ``boost``). Thread-safe.
+
+    ``boost``: the keep-alive guards a motion or mains output (a lease, a tight watchdog), so while it runs
+    the interpreter's switch interval is at most :data:`KEEPALIVE_SWITCH_S` and its other threads run
+    real-time below it (where bounded). A keep-alive with a wide margin (an I/O module served idle, every
+    output off, every 500 ms against its 2 s watchdog) leaves both as they are: an idle plant must not run
+    real-time for good."""
+    global _holds, _boost_holds, _full_threshold, _switch_interval, _switch_set
     with _hold_lock:
         _holds += 1
-        _boost_holders()
         if _holds == 1:
             young, middle, full = gc.get_threshold()
             if full < FULL_MANAGED:  # else the program schedules them itself
                 _full_threshold = full
                 gc.set_threshold(young, middle, FULL_MANAGED)
+        if not boost:
+            return
+        _boost_holds += 1
+        _boost_holders()
+        if _boost_holds == 1:
             before = sys.getswitchinterval()
             if before > KEEPALIVE_SWITCH_S:
                 _switch_interval = before
@@ -170,26 +183,27 @@ def hold_full_collections() -> None:
                 _switch_set = sys.getswitchinterval()
 
 
-def release_full_collections() -> None:
-    """A keep-alive sender stopped: with the last one, the full collection is CPython's again, the switch
-    interval and the threads' policies what they were."""
-    global _holds, _full_threshold, _switch_interval
+def release_full_collections(boost: bool = True) -> None:
+    """A keep-alive sender stopped: with the last one guarding motion the switch interval and the threads'
+    policies are what they were; with the last one of all, the full collection is CPython's again."""
+    global _holds, _boost_holds, _full_threshold, _switch_interval
     with _hold_lock:
         if _holds == 0:
             return
         _holds -= 1
-        if _holds > 0:
-            return
-        if _full_threshold is not None:
+        if boost and _boost_holds > 0:
+            _boost_holds -= 1
+            if _boost_holds == 0:
+                _restore_holders()
+                if _switch_interval is not None:
+                    if sys.getswitchinterval() == _switch_set:  # nobody else changed it meanwhile
+                        sys.setswitchinterval(_switch_interval)
+                    _switch_interval = None
+        if _holds == 0 and _full_threshold is not None:
             young, middle, full = gc.get_threshold()
             if full == FULL_MANAGED:  # nobody else changed it meanwhile
                 gc.set_threshold(young, middle, _full_threshold)
             _full_threshold = None
-        _restore_holders()
-        if _switch_interval is not None:
-            if sys.getswitchinterval() == _switch_set:  # nobody else changed it meanwhile
-                sys.setswitchinterval(_switch_interval)
-            _switch_interval = None
 
 
 hold_keepalive, release_keepalive = hold_full_collections, release_full_collections  # what a hold is for: a keep-alive

@@ -58,14 +58,18 @@ class _LineThread:
 
     def _run(self) -> None:
         self.priority = realtime.raise_sender(threading.get_native_id(), 1.0)  # sleeps between short exchanges
-        while not self.stop_event.is_set():
-            try:
-                delay = self.tick(self.line.exchange_blocking)
-            except Exception:  # noqa: BLE001 - the thread must go on: a failed tick is logged and counted
-                self.errors += 1
-                log.exception("%s: cyclic %s failed", self.line.name, self.key)
-                delay = 0.05
-            self.stop_event.wait(max(0.001, min(float(delay), 1.0)))
+        realtime.hold_keepalive()  # guards the unit's remote session (RC within 500 ms): as a CAN keep-alive does
+        try:
+            while not self.stop_event.is_set():
+                try:
+                    delay = self.tick(self.line.exchange_blocking)
+                except Exception:  # noqa: BLE001 - the thread must go on: a failed tick is logged and counted
+                    self.errors += 1
+                    log.exception("%s: cyclic %s failed", self.line.name, self.key)
+                    delay = 0.05
+                self.stop_event.wait(max(0.001, min(float(delay), 1.0)))
+        finally:
+            realtime.release_keepalive()
 
 
 class SerialLine(LineBase):

@@ -32,6 +32,12 @@ def pytest_configure(config: pytest.Config) -> None:
     import tempfile
 
     global _RUN_DATA_DIR
+    # a test that holds a motion would run its process's threads real-time (app/realtime.py): two test
+    # processes beside chromium and mosquitto on two cores would starve those; tests of it turn it on themselves
+    os.environ.setdefault("COMMISSION_RT_HOLDERS", "0")
+    from app import realtime
+
+    realtime.HOLDERS_REAL_TIME = os.environ["COMMISSION_RT_HOLDERS"] != "0"
     if "COMMISSION_DATA_DIR" not in os.environ:
         _RUN_DATA_DIR = os.environ["COMMISSION_DATA_DIR"] = tempfile.mkdtemp(prefix="commission-tests-")
 

@@ -11,6 +11,7 @@ import pytest
 
 from app import realtime
 from app.can_bus import CanBus, CanBusState
+from devices.lease import Lease
 
 
 @pytest.fixture
@@ -99,11 +100,15 @@ async def test_the_switch_interval_is_lowered_only_while_a_periodic_keepalive_ru
                 break
             await asyncio.sleep(0.01)
         assert sys.getswitchinterval() == pytest.approx(0.005)  # a bus without keep-alives leaves it
-        bus.start_periodic("control", 0.1, 0x100, bytes(8))
+        bus.start_periodic("idle", 0.5, 0x101, bytes(8))  # no lease (an I/O module served idle): left as well
+        assert sys.getswitchinterval() == pytest.approx(0.005)
+        lease = Lease()
+        lease.grant()
+        bus.start_periodic("control", 0.1, 0x100, bytes(8), lease=lease)  # guards a motion
         assert sys.getswitchinterval() == pytest.approx(realtime.KEEPALIVE_SWITCH_S, abs=1e-6)
         bus.stop_cyclic("control")
         assert sys.getswitchinterval() == pytest.approx(0.005)
-        bus.start_periodic("control", 0.1, 0x100, bytes(8))
+        bus.start_periodic("control", 0.1, 0x100, bytes(8), lease=lease)
     finally:
         await bus.stop()
     assert sys.getswitchinterval() == pytest.approx(0.005)

@@ -128,3 +128,53 @@ def test_other_threads_stay_as_they_are_where_it_is_not_bounded_or_not_permitted
         realtime.release_keepalive()
     finally:
         idle.end()
+
+
+def test_a_keepalive_without_a_lease_leaves_the_other_threads_and_the_switch_interval_as_they_are(monkeypatch):
+    """An I/O module served idle (every output off, DigOut every 500 ms against a 2 s watchdog) must not
+    keep an idle plant's program real-time for good: only a keep-alive that guards motion raises the others."""
+    import gc
+    import sys
+
+    monkeypatch.setattr(realtime, "HOLDERS_REAL_TIME", True)
+    monkeypatch.setattr(realtime, "_real_time_bounded", lambda: True)
+    raised: list[int] = []
+    monkeypatch.setattr(os, "sched_setscheduler", lambda tid, *_args: raised.append(tid))
+    monkeypatch.setattr(os, "sched_getscheduler", lambda tid: os.SCHED_OTHER)
+    saved_interval, saved_thresholds = sys.getswitchinterval(), gc.get_threshold()
+    sys.setswitchinterval(0.005)
+    gc.set_threshold(700, 10, 10)
+    try:
+        realtime.hold_keepalive(boost=False)
+        assert gc.get_threshold()[2] == realtime.FULL_MANAGED  # the full collection waits all the same
+        assert sys.getswitchinterval() == pytest.approx(0.005) and not raised
+        realtime.hold_keepalive()  # then a motion starts: its lease guards it
+        assert sys.getswitchinterval() == pytest.approx(realtime.KEEPALIVE_SWITCH_S, abs=1e-6) and raised
+        realtime.release_keepalive()  # the motion ended, the idle sender still runs
+        assert sys.getswitchinterval() == pytest.approx(0.005) and not realtime.holders_raised()
+        assert gc.get_threshold()[2] == realtime.FULL_MANAGED
+        realtime.release_keepalive(boost=False)
+        assert gc.get_threshold() == (700, 10, 10)
+    finally:
+        sys.setswitchinterval(saved_interval)
+        gc.set_threshold(*saved_thresholds)
+
+
+def test_only_a_leased_can_keepalive_raises_the_other_threads(monkeypatch):
+    from app.can_bus import _Periodic
+    from devices.lease import Lease
+
+    calls: list[tuple[str, bool]] = []
+    monkeypatch.setattr(realtime, "hold_keepalive", lambda boost=True: calls.append(("hold", boost)))
+    monkeypatch.setattr(realtime, "release_keepalive", lambda boost=True: calls.append(("release", boost)))
+
+    class Bus:
+        def send_periodic(self, *_args, **_kwargs):
+            return None
+
+    for lease, boost in ((None, False), (Lease(), True)):
+        periodic = _Periodic(None, "k", 0.5, 0x100, b"\0", False, lease, None, None)
+        periodic.start(Bus())
+        periodic.stop()
+        assert calls == [("hold", boost), ("release", boost)]
+        calls.clear()
