@@ -128,12 +128,16 @@ class Ticker:
     falls due (0 while something moves; a pending deadline as seconds from now), and the ticker sleeps
     that long, up to ``idle_s``, instead of ``period_s``. Whatever may set it moving (a telegram, a
     command, a control) calls :meth:`wake` first: the twin is stepped up to now as the ticks would have
-    done, and the ticks go on at ``period_s`` from there while it moves.
+    done, and the ticks go on at ``period_s`` from there while it moves. ``catch_up(dt_s, now)``, if given, is
+    that step instead: what must not fall due before the telegram that woke it is taken (a watchdog the
+    telegram feeds: a tick would have come after it, as its bytes were read first).
     """
 
     def __init__(self, step: Callable[[float, float], None], period_s: float,
-                 rest: Callable[[float], float] | None = None, idle_s: float = IDLE_S):
+                 rest: Callable[[float], float] | None = None, idle_s: float = IDLE_S,
+                 catch_up: Callable[[float, float], None] | None = None):
         self.step = step
+        self.catch_up = step if catch_up is None else catch_up
         self.period_s = period_s
         self.rest = rest
         self.idle_s = idle_s
@@ -146,9 +150,9 @@ class Ticker:
         self._last = time.monotonic()
         self.task = asyncio.create_task(self._run(), name=name)
 
-    def _step(self) -> None:
+    def _step(self, step: Callable[[float, float], None] | None = None) -> None:
         now = time.monotonic()
-        self.step(now - self._last, now)
+        (step or self.step)(now - self._last, now)
         self._last = now
         self.ticks += 1
 
@@ -174,7 +178,7 @@ class Ticker:
         """Something may start to move: when resting, step up to now and tick at ``period_s`` again."""
         sleeper = self._sleeper
         if sleeper is not None and not sleeper.done():
-            self._step()
+            self._step(self.catch_up)
             sleeper.set_result(None)
 
     def stop(self) -> None:

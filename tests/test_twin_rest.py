@@ -133,3 +133,19 @@ async def test_m3io_module_rests_until_digout_and_a_toggled_input_is_sent_at_onc
         assert await wait_for(lambda: any(i == twin.ids.dig_in and d == twin.dig_in() for i, d in sim.can.sent[sent:]), timeout=5)
     finally:
         await sim.stop()
+
+
+def test_scu_woken_by_a_late_rc_takes_it_before_its_watchdog():
+    """A line read late (a busy machine) still has the RC in time: woken by it, the twin is stepped up to now
+    without the watchdog's check, which the RC then feeds (as a tick would come after its bytes were read)."""
+    from devices.scu.sim import ScuSim
+
+    bus = SimpleNamespace(name="rs1", options={"port": "socket://127.0.0.1:1"})
+    sim = ScuSim(bus, [SimpleNamespace(name="scu", options={"actuators": 2})])
+    twin = sim.twin
+    now = time.monotonic()
+    twin.remote, twin.last_rc = True, now - 2 * scu_codec.WATCHDOG_S
+    sim._ticker.catch_up(1.0, now)
+    assert twin.remote and twin.session_lost_count == 0
+    sim._ticker.step(0.02, now)  # the next tick without an RC: remote mode ends
+    assert not twin.remote and twin.session_lost_count == 1
