@@ -301,7 +301,7 @@ class M3ioSim:
             elif self._on_bus(twin) and twin.dig_in() != self._inputs_sent.get(name, (None,))[0]:
                 return 0.0
             if twin.watchdog_alive:
-                rest = min(rest, twin.last_digout + codec.WATCHDOG_S - now)
+                rest = min(rest, twin.last_digout + codec.WATCHDOG_S + TICK_S - now)  # as the ticks found it: one late
                 if twin.variant is not Variant.KM:
                     rest = min(rest, self._next_temp.get(name, 0) - now)
         return max(0.0, rest) + 0.001

@@ -377,7 +377,8 @@ class ScuTwin:
         if any(act.moving for act in self.actuators) or (self.mains and MAINS_VOLTAGE_V - self.battery_v > 0.01):
             return 0.0
         if self.remote:
-            return max(0.0, self.last_rc + codec.WATCHDOG_S - now) + 0.001  # the first tick past the limit trips it
+            # the watchdog is found past its limit as by the ticks every TICK_S: up to one tick late
+            return max(0.0, self.last_rc + codec.WATCHDOG_S - now) + TICK_S
         return math.inf
 
     # -- data directory ----------------------------------------------------------------------------
