@@ -147,7 +147,7 @@ def _plant_view_reads_at_arms_length(page, width: int, height: int) -> None:
     for name, text in texts.items():
         for raw in ("0x", "_", " Inc", "counts", "CRC"):
             assert raw not in text, f"{name} shows {raw!r}: {text!r}"
-    assert "supply: mains, battery, charger on" in texts["lift-1"]
+    assert "supply: mains connected, battery connected, charge controller on" in texts["lift-1"]
     assert texts["barrier-in"].count("%") == 1, f"the position shown twice: {texts['barrier-in']!r}"
     assert texts["lift-1"].count("A1") == 1, f"A1 shown twice: {texts['lift-1']!r}"
     assert "bolt 100 % out" in texts["gate-2"] or "bolt 0 % out" in texts["gate-2"], texts["gate-2"]

@@ -262,12 +262,12 @@ class UnknownDataId(KeyError):
 # How the set and clear bits of a bit-field item read (section 4.3, table 6): (set, clear, no bit set).
 FLAG_WORDS: dict[int, tuple[str, str, str]] = {
     0x0020: ("active", "not active", "no input active"),
-    0x0100: ("yes", "no", "none"),
+    0x0100: ("", "", "none"),  # only what is there: "mains connected, battery connected, charge controller on"
     0x0110: ("on", "off", "all off"), 0x0120: ("on", "off", "all off"), 0x0130: ("on", "off", "all off"),
     0x0140: ("on", "off", "off"), 0x0150: ("on", "off", "off"),
     0x0162: ("locked", "unlocked", "no function locked"),
 }
-FLAGS_EACH = 4  # up to this many bits each is named with its state; more: only the set ones
+FLAGS_EACH = 4  # up to this many bits each is named with its state; more (or no state words): only the set ones
 
 
 def flags_text(data_id: int, raw: int) -> str:
@@ -282,10 +282,10 @@ def flags_text(data_id: int, raw: int) -> str:
     named = sum(f.mask for f in fields)
     extra = [n for n in range(32) if raw >> n & 1 and not named >> n & 1]
     tail = f"; undocumented bits set: {', '.join(map(str, extra))}" if extra else ""
-    if len(fields) <= FLAGS_EACH:
+    if len(fields) <= FLAGS_EACH and on:
         return ", ".join(f"{f.description} {on if raw & f.mask else off}" for f in fields) + tail
     set_ = [f.description for f in fields if raw & f.mask]
-    return (f"{', '.join(set_)} {on}" if set_ else none) + tail
+    return (f"{', '.join(set_)} {on}".rstrip() if set_ else none) + tail
 
 
 def user_text(value: int) -> str:
