@@ -22,6 +22,17 @@ def thresholds():
     gc.set_threshold(*saved)
 
 
+async def _connected_bus(prefix: str) -> CanBus:
+    """A started virtual CAN bus of its own channel, once it is connected."""
+    bus = CanBus("can9", {"interface": "virtual", "channel": f"{prefix}-{time.time_ns()}"}, CanBusState("can9", "can", ""))
+    await bus.start()
+    for _ in range(200):
+        if bus.state.connected:
+            break
+        await asyncio.sleep(0.01)
+    return bus
+
+
 def test_a_hold_puts_off_the_full_collection_until_the_last_release(thresholds):
     realtime.hold_full_collections()
     realtime.hold_full_collections()
@@ -42,13 +53,8 @@ def test_a_program_that_schedules_full_collections_itself_is_left_to_do_so(thres
 
 
 async def test_a_periodic_keepalive_holds_while_it_runs(thresholds):
-    bus = CanBus("can9", {"interface": "virtual", "channel": f"gc-{time.time_ns()}"}, CanBusState("can9", "can", ""))
-    await bus.start()
+    bus = await _connected_bus("gc")
     try:
-        for _ in range(200):
-            if bus.state.connected:
-                break
-            await asyncio.sleep(0.01)
         bus.start_periodic("control", 0.1, 0x100, bytes(8))
         assert bus.cyclic_running("control") and gc.get_threshold()[2] == realtime.FULL_MANAGED
         bus.start_periodic("control", 0.1, 0x100, bytes(8))  # started again: still one hold
@@ -92,13 +98,8 @@ def test_an_interval_set_lower_or_changed_meanwhile_is_left_as_it_is(switch_inte
 
 
 async def test_the_switch_interval_is_lowered_only_while_a_periodic_keepalive_runs(switch_interval, thresholds):
-    bus = CanBus("can9", {"interface": "virtual", "channel": f"sw-{time.time_ns()}"}, CanBusState("can9", "can", ""))
-    await bus.start()
+    bus = await _connected_bus("sw")
     try:
-        for _ in range(200):
-            if bus.state.connected:
-                break
-            await asyncio.sleep(0.01)
         assert sys.getswitchinterval() == pytest.approx(0.005)  # a bus without keep-alives leaves it
         bus.start_periodic("idle", 0.5, 0x101, bytes(8))  # no lease (an I/O module served idle): left as well
         assert sys.getswitchinterval() == pytest.approx(0.005)
