@@ -421,6 +421,12 @@ def _alarm_inputs(spec, state: DeviceState) -> tuple:
     if names is None:
         names = _ALARM_POINTS[id(spec)] = tuple(sorted(
             {a.when.point for a in spec.alarms} | {a.unless.point for a in spec.alarms if a.unless is not None}))
+    return point_inputs(state, names)
+
+
+def point_inputs(state: DeviceState, names) -> tuple:
+    """The named points' value, text, raw word and unit (a register parameter's raw value), not their times:
+    what a tile or its alarms are evaluated from, compared to tell whether evaluating again can change them."""
     points, params = state.points, state.params
     inputs = []
     for n in names:

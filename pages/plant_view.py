@@ -12,6 +12,7 @@ from dataclasses import replace
 from nicegui import ui
 
 from app import runtime as rt
+from app.state import point_inputs
 from devices.registry import DEVICE_TYPES, TileSpec, _fill
 from pages.frame import CSS, fmt_age
 from pages.widgets import follow
@@ -65,16 +66,7 @@ def _input_names(spec: TileSpec) -> tuple[str, ...]:
 def tile_inputs(state) -> tuple:
     """What a device's tile is evaluated from, its times left out: whether the device answers, and each point's
     value, text, raw word and unit (a register parameter's raw value). Far cheaper than evaluating the tile."""
-    points, params = state.points, state.params
-    inputs: list = [state.online]
-    for name in _input_names(DEVICE_TYPES[state.type].tile):
-        p = points.get(name)
-        if p is not None:
-            inputs.append((p.value, p.text, p.raw, p.unit))
-        else:
-            param = params.by_name.get(name) if params is not None else None
-            inputs.append(None if param is None else state.raw(param))
-    return tuple(inputs)
+    return (state.online, *point_inputs(state, _input_names(DEVICE_TYPES[state.type].tile)))
 
 
 def shared(kind: str, make):
