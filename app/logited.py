@@ -326,7 +326,6 @@ class LogitedRs485(_LogitedLine):
         self.shared = options["shared"]
         self.next_master = options["next_master"]
         self.port = None
-        self._splitter = codec.FrameSplitter(codec.RS485)
         self._lock = asyncio.Lock()
         self._waiter: _Waiter | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -433,11 +432,8 @@ class LogitedRs485(_LogitedLine):
         self._token_since = None
 
     # -- telegrams ------------------------------------------------------------------------
-    def _on_bytes(self, data: bytes) -> None:
-        self._on_items(self._splitter.feed(data))
-
     def _on_items(self, items) -> None:
-        """Telegrams (and framing errors) off the line, in order (cut by the reader thread, or by :meth:`_on_bytes`)."""
+        """Telegrams (and framing errors) off the line, in order, as the reader thread cut them."""
         for item in items:
             if isinstance(item, self.codec.FrameError):
                 self.garbage += len(item.raw or b"")
