@@ -13,12 +13,20 @@ pages open it is timed twice: with their browser at the same priority as everyth
 (SCHED_IDLE), which stands for the usual case of the pages being on other devices: the app still
 serves all 20, but their drawing no longer takes the cores from the app and the new page.
 
+An app's RSS grows by itself for its first ten minutes (each device's chart history fills up to
+HISTORY_SECONDS), pages or not. So a second app on its own copy of the demo plant runs beside it with
+no page open, started at the same time, and its growth over the same minutes is taken off: the RSS
+per page is ((growth with 0 -> 20 pages) - (the page-less app's growth meanwhile)) / 20; and each
+kind of page is opened and closed once before, so that what is loaded once for all pages (page
+modules, assets) is not counted as the cost of each.
+
 Last line: ``app_cpu_per_page_pct: X`` = (CPU with 20 pages - CPU with 0) / 20.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import tempfile
@@ -105,9 +113,15 @@ def main() -> None:
     parser.add_argument("--root", type=Path, help="run the app from another checkout (before and after, back to back)")
     args = parser.parse_args()
     firsts: list[tuple[str, str, float, float]] = []
-    with tempfile.TemporaryDirectory() as folder, running_app(demo_plant_text(free_port()), Path(folder), root=args.root) as url:
+    with contextlib.ExitStack() as stack:
+        folder, alone = (Path(stack.enter_context(tempfile.TemporaryDirectory())) for _ in range(2))
+        url = stack.enter_context(running_app(demo_plant_text(free_port()), folder, root=args.root))
+        control = stack.enter_context(running_app(demo_plant_text(free_port()), alone, root=args.root))  # never a page
         wait_devices_online(url, timeout=60)
+        wait_devices_online(control, timeout=60)
         pid = app_pid(int(url.rsplit(":", 1)[1]))
+        control_pid = app_pid(int(control.rsplit(":", 1)[1]))
+        control_rss = {}
         results = {}
         with sync_playwright() as p:
             browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)  # the open pages
@@ -121,6 +135,11 @@ def main() -> None:
                           f"(app answered after {answered * 1000:.0f} ms)", flush=True)
 
             idle = browser.new_page()  # a blank page: the playwright loop's clock, not an app page
+            for path in dict.fromkeys(MIX):  # each kind of page once, so what is loaded once (modules, assets) is in
+                page = browser.new_page(viewport={"width": 1280, "height": 800})
+                page.goto(url + path, timeout=120_000)
+                page.close()
+            idle.wait_for_timeout(5000)  # the closed pages' clients are deleted (NiceGUI's reconnect timeout)
             pages = []
             for count in (0, 5, 10, 20):
                 while len(pages) < count:
@@ -129,6 +148,7 @@ def main() -> None:
                     pages.append(page)
                 idle.wait_for_timeout(3000)  # settle
                 results[count] = (measure(pid, args.seconds, idle), rss_mb(pid))
+                control_rss[count] = rss_mb(control_pid)
                 print(f"{count:2d} pages: app CPU {results[count][0]:5.1f} % of a core, RSS {results[count][1]:.0f} MB ({load()})", flush=True)
                 if count == 0:
                     time_firsts("no other page open")
@@ -139,7 +159,9 @@ def main() -> None:
             newcomer.close()
             browser.close()
     per_page = (results[20][0] - results[0][0]) / 20
-    print(f"RSS growth 0 -> 20 pages: {results[20][1] - results[0][1]:.0f} MB")
+    growth, by_itself = results[20][1] - results[0][1], control_rss[20] - control_rss[0]
+    print(f"RSS growth 0 -> 20 pages: {growth:.0f} MB; the same app with no page open grew {by_itself:.0f} MB "
+          f"over the same minutes; per page: {(growth - by_itself) / 20:.2f} MB")
     print(f"app_cpu_per_page_pct: {per_page:.2f}")
 
 
