@@ -296,3 +296,34 @@ def test_gearings_without_a_common_speed_are_refused():
         parse_plant(plant_text(actuators=[{"model": "HD24", "gearing": "B017", "stroke_mm": 300},
                                           {"model": "HD24", "gearing": "B160", "stroke_mm": 300}]))
     assert codec.Limits.of([codec.Actuator("HD24", "B026", 300), codec.Actuator("HD24", "B045", 300)]).speed_max == 19
+
+
+def test_a_status_telegram_is_one_change_for_the_readers_with_every_point_of_it():
+    """Every point of a status telegram 0x07 comes with it, at its arrival, as one change of the device record
+    (one version step), however many points it carries; a telegram like the one before says the same."""
+    import types
+
+    from devices.electrak.adapter import P_HEARD, P_MOTION, P_POSITION, ElectrakAdapter
+    from devices.live import DeviceState
+
+    class Bus:
+        name, options = "can2", {"bitrate": 500000}
+        state = types.SimpleNamespace(last_error="", reconnects=0, connected=True)
+
+        def subscribe(self, *args) -> None:
+            pass
+
+    config = types.SimpleNamespace(name="lift", options={"actuators": [dict(a) for a in ELECTRAK_ACTUATORS]})
+    state = DeviceState("lift", "electrak", "can2")
+    adapter = ElectrakAdapter(config, state, Bus())
+    data = codec.StatusFrame(120.5, 1.2, 0.0, 0, 1 << 5).encode()
+    for _ in range(2):  # the second telegram is like the first: the same points, a new time
+        version = state.version
+        adapter.on_status(types.SimpleNamespace(data=data, timestamp=0.0))
+        assert state.version == version + 1
+        position = state.points[P_POSITION]
+        assert (position.value, position.unit, position.raw) == (120.5, "mm", [1205])
+        assert state.points["Message timeout"].value is True and state.points["Extending"].value is False
+        assert state.points[P_MOTION].text == "none" and state.points[P_HEARD].value == 0
+        assert position.time == state.points["Message timeout"].time == state.last_seen
+        assert "(expected while idle" in state.points["Error flags"].text

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import itertools
 import time
 from collections import deque
 from dataclasses import dataclass, replace
@@ -11,7 +12,7 @@ from devices.electrak import codec
 from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, SERVICE, length_of, password_of, refusal
 from devices.decoding import decoded
 from devices.lease import Lease
-from devices.live import DeviceState, Holder, session_tag
+from devices.live import DeviceState, Holder, Point, session_tag
 from devices.params import Param, ParamError, backup_entry
 from devices.transport import CanTransport
 
@@ -151,6 +152,10 @@ class ElectrakAdapter:
         self.command = codec.ControlFrame(0.0, 0.0, self.limits.speed_min, enable=False)
         self.frames: deque[tuple[float, codec.StatusFrame]] = deque(maxlen=200)
         self._last_sample = 0.0
+        self._status_data: bytes | None = None  # the last status telegram's bytes, and its decoding
+        self._status_frame: codec.StatusFrame | None = None
+        self._status_key: tuple | None = None  # what the status points were last worked out from, and their contents
+        self._status_contents: dict[str, tuple] = {}
         self._pending: codec.ServiceMessage | None = None  # the service request whose answers are collected
         self._answers: list[codec.ServiceMessage] = []
         self._all_answered: asyncio.Event | None = None
@@ -190,16 +195,27 @@ class ElectrakAdapter:
 
     # -- status ----------------------------------------------------------------------------
     def on_status(self, msg) -> None:
-        frame = decoded(self.state, codec.StatusFrame.decode, bytes(msg.data), "status telegram")
-        if frame is None:
-            return
+        """A status telegram 0x07 (every actuator sends one every 100 ms): the network's live points, one change
+        for the readers (O(1): a telegram like the one before is not decoded or worded again)."""
+        data = bytes(msg.data)
+        if data == self._status_data:
+            frame = self._status_frame
+        else:
+            frame = decoded(self.state, codec.StatusFrame.decode, data, "status telegram")
+            if frame is None:
+                return
+            self._status_data, self._status_frame = data, frame
         now = time.time()
-        self.frames.append((now, frame))
+        frames = self.frames
+        frames.append((now, frame))
+        while now - frames[0][0] > 1.0:  # the last second's telegrams (oldest first)
+            frames.popleft()
         self.state.counters.responses += 1
-        self.state.mark_seen(now)
-        heard = sum(1 for t, _ in self.frames if now - t <= 1.0) / 10  # frames per 100 ms = devices heard
+        heard = len(frames) / 10  # frames per 100 ms = devices heard
         # the newest telegram of each device: the last `heard` frames (they cannot be told apart)
-        recent = [f for _, f in list(self.frames)[-max(1, round(heard)):]]
+        count = max(1, round(heard))
+        recent = [f for _, f in itertools.islice(reversed(frames), count)]
+        recent.reverse()
         self.heard = round(heard)
         self.recent = recent
         motion = errors = 0
@@ -207,34 +223,54 @@ class ElectrakAdapter:
             motion |= f.motion
             errors |= f.errors
         self._watch_saturated(motion & 0x04, time.monotonic())
-        self._publish_status(recent, motion, errors, now)
-        if now - self._last_sample >= 0.09 and recent:
+        idle = self.idle()
+        sample = None
+        if now - self._last_sample >= 0.09:
             self._last_sample = now
-            self.state.record_history(SERIES, now)
+            sample = self._history_sample
+        self.state.publish_telegram(now, self._status_points(tuple(recent), motion, errors, idle, now), None, sample)
+        self.state.fact(P_IDLE, idle)  # a foreign sender's window ends with time: looked at with every status
 
-    def _publish_status(self, recent: list[codec.StatusFrame], motion: int, errors: int, now: float) -> None:
-        """Live points of the network: averages (the frames cannot be told apart), raw words per frame, flags by name."""
-        publish = self.state.publish
+    def _history_sample(self) -> dict:
+        points = self.state.points
+        return {n: points[n].value for n in SERIES if n in points}
+
+    def _status_points(self, recent: tuple[codec.StatusFrame, ...], motion: int, errors: int, idle: bool,
+                       now: float) -> dict[str, Point]:
+        """The live points of the network at ``now``: averages (the frames cannot be told apart), raw words per
+        frame, flags by name. What they say is worked out once for the same telegrams (an idle network sends
+        the same ones ten times a second); only their time is new."""
+        key = (recent, self.heard, motion, errors, idle)
+        if key != self._status_key:
+            self._status_key, self._status_contents = key, self._status_contents_of(recent, motion, errors, idle)
+        make = tuple.__new__  # Point(value, unit, now, raw, text) without the named tuple's argument handling
+        return {name: make(Point, (value, unit, now, raw, text, True, None))
+                for name, (value, unit, raw, text) in self._status_contents.items()}
+
+    def _status_contents_of(self, recent: tuple[codec.StatusFrame, ...], motion: int, errors: int,
+                            idle: bool) -> dict[str, tuple]:
+        """name -> (value, unit, raw, text) of every status point."""
+        out: dict[str, tuple] = {}
         if recent:
             n = len(recent)
-            publish(P_POSITION, round(sum(f.position_mm for f in recent) / n, 1), "mm", time=now,
-                    raw=[round(f.position_mm * 10) for f in recent], text="mean of the actuators heard")
-            publish(P_CURRENT, max(f.current_a for f in recent), "A", time=now,
-                    raw=[round(f.current_a * 10) for f in recent], text="highest of the actuators heard")
-            publish(P_SPEED, round(sum(f.speed_mm_s for f in recent) / n, 1), "mm/s", time=now,
-                    raw=[round(f.speed_mm_s * 10) for f in recent], text="mean of the actuators heard")
-        publish(P_MOTION, motion, time=now, raw=motion,
-                text=", ".join(name for bit, (name, _) in codec.MOTION_FLAGS.items() if motion >> bit & 1) or "none")
+            out[P_POSITION] = (round(sum(f.position_mm for f in recent) / n, 1), "mm",
+                               [round(f.position_mm * 10) for f in recent], "mean of the actuators heard")
+            out[P_CURRENT] = (max(f.current_a for f in recent), "A", [round(f.current_a * 10) for f in recent],
+                              "highest of the actuators heard")
+            out[P_SPEED] = (round(sum(f.speed_mm_s for f in recent) / n, 1), "mm/s",
+                            [round(f.speed_mm_s * 10) for f in recent], "mean of the actuators heard")
+        out[P_MOTION] = (motion, "", motion,
+                         ", ".join(name for bit, (name, _) in codec.MOTION_FLAGS.items() if motion >> bit & 1) or "none")
         text = ", ".join(name for bit, (name, _, _) in codec.ERROR_FLAGS.items() if errors >> bit & 1) or "none"
-        if errors & TIMEOUT_FLAG and self.idle():
+        if errors & TIMEOUT_FLAG and idle:
             text += " (expected while idle: nobody sends the control telegram 0x06)"
-        publish(P_ERRORS, errors, time=now, raw=errors, text=text)
+        out[P_ERRORS] = (errors, "", errors, text)
         for bit, (name, _) in codec.MOTION_FLAGS.items():
-            publish(name, bool(motion >> bit & 1), time=now, raw=motion >> bit & 1)
+            out[name] = (bool(motion >> bit & 1), "", motion >> bit & 1, None)
         for bit, (name, *_) in codec.ERROR_FLAGS.items():
-            publish(name, bool(errors >> bit & 1), time=now, raw=errors >> bit & 1)
-        publish(P_HEARD, self.heard, time=now, text=f"status telegrams per 100 ms, {len(self.actuators)} configured")
-        self.state.fact(P_IDLE, self.idle())  # a foreign sender's window ends with time: looked at with every status
+            out[name] = (bool(errors >> bit & 1), "", errors >> bit & 1, None)
+        out[P_HEARD] = (self.heard, "", None, f"status telegrams per 100 ms, {len(self.actuators)} configured")
+        return out
 
     def idle(self) -> bool:
         """Nobody sends the control telegram 0x06 (this tool holds no control, no other sender heard):
