@@ -6,6 +6,7 @@ import asyncio
 import os
 import time
 from collections.abc import Callable
+from html import escape
 
 from nicegui import ui
 
@@ -14,8 +15,8 @@ from app.plant import DEMO_PLANT, DeviceConfig, append_device, can_id_conflict, 
 from app.worker import AuditUnavailable, PermissionDenied
 from devices.registry import DEVICE_TYPES, format_can_ids
 from pages.frame import fmt_age, frame, set_status_badge, status_text
-from pages.plant_view import TextPool, evaluate_tile
-from pages.widgets import counter_line, follow, mark_quality, quality_note
+from pages.plant_view import evaluate_tile
+from pages.widgets import follow, mark_quality, quality_note
 from pages.session import current_user
 
 
@@ -47,6 +48,7 @@ table.glance-table td a.glance-replaced { color: #b71c1c; font-weight: 700; disp
 .drift-badge { align-self: flex-start; cursor: help; white-space: normal !important; }
 """
 TILE_WIDTH_PX, TILE_GAP_PX = 240, 12
+ICON = '<i class="q-icon notranslate material-icons" aria-hidden="true" role="presentation">%s</i>'
 
 # what a device's counters mean on its bus: CAN devices are heard (periodic frames), the others answer requests
 CAN_COUNTERS = (("responses", "frames heard", True), ("malformed", "malformed", True), ("timeouts", "timeouts", False))
@@ -95,14 +97,21 @@ def counters_text(counters: dict[str, int], bus_type: str, age: float | None) ->
 
 
 class DeviceTile:
-    """One device of the overview, following the live store: each push sets only what changed."""
+    """One device of the overview, set in place: what its values show when the device changed (the store's
+    push), counters and ages once a second on the page's tick (:meth:`refresh` with ``ticked``), every
+    element sent only when what it shows changed. Marks that are seldom shown (changed since approved,
+    replaced?, a stale note, the last error) are built the first time they are needed."""
 
     def __init__(self, name: str):
         runtime = rt.current()
+        self.name = name
         self.state = runtime.store.devices[name]
         self.device_type = DEVICE_TYPES[self.state.type]
         self.bus_type = runtime.plant.buses[self.state.bus].type
         self._shown: dict[str, object] = {}
+        self._tile: dict | None = None
+        self._seen: tuple = ()
+        self.drift = self.replaced = self.quality_note = self.error = None
         # a real link: a click opens the device page, a middle click or the context menu a new tab
         with ui.link(target=f"/device/{name}").classes("tile-link").props(f'data-device-link="{name}"') as self.link, \
                 ui.card().classes("tile") as self.card:
@@ -110,25 +119,13 @@ class DeviceTile:
             with ui.row().classes("items-center w-full no-wrap"):
                 ui.label(name).classes("text-subtitle1 text-weight-bold tile-name").props(f'title="{name}"')
                 self.badge = ui.badge("waiting", color="grey")
-            ui.label(f"{self.device_type.title} on {self.state.bus}").classes("text-caption text-grey-8")
-            # the commissioning record: the differing parameters on hover (title) and in the record page
-            self.drift = ui.badge("changed since approved", color="orange-9").classes("drift-badge") \
-                .props(f'data-drift="{name}"')
-            self.drift.set_visibility(False)
-            # another serial number (firmware, variant) than known at this address: the replacement assistant
-            self.replaced = ui.badge("replaced?", color="red-8").classes("drift-badge").props(f'data-replaced="{name}"')
-            self.replaced.set_visibility(False)
+            self.kind = ui.label(f"{self.device_type.title} on {self.state.bus}").classes("text-caption text-grey-8")
             self.values = ui.column().classes("gap-0 w-full").props("data-tile-values")
-            with self.values:
-                self.lines = TextPool("text-body2")
-                self.alarms = TextPool("text-body2 text-negative text-weight-medium")
-            self.quality_note = ui.label().classes("q-age")
-            # they move with every frame: redrawn once a second
-            self.counters = counter_line(self.state, lambda c: counters_text(c.as_dict(), self.bus_type, self.state.age)) \
-                .classes("tile-counters").props("data-tile-counters")
-            self.error = ui.label().classes("text-caption text-negative")
-        self.update()
-        follow(self.state, self.update)
+            self.lines = LabelPool(self.values)
+            # they move with every frame: drawn once a second, with every other tile's, on the page's tick
+            self.counters = ui.label().classes("text-caption mono text-grey-8 tile-counters") \
+                .props("data-counters data-tile-counters")
+        self.refresh(ticked=True)
 
     def _changed(self, key: str, value: object) -> bool:
         if self._shown.get(key, self) == value:
@@ -136,59 +133,118 @@ class DeviceTile:
         self._shown[key] = value
         return True
 
-    def update(self) -> None:
+    def _element(self, attr: str, make: Callable[[], ui.element]) -> ui.element:
+        """The seldom shown element ``attr``, built the first time it is needed, in its place in the card."""
+        element = getattr(self, attr)
+        if element is None:
+            with self.card:
+                element = make()
+            order = [getattr(self, a) for a in TILE_ORDER]
+            before = next(e for e in reversed(order[:TILE_ORDER.index(attr)]) if e is not None)
+            element.move(target_index=self.card.default_slot.children.index(before) + 1)
+            setattr(self, attr, element)
+        return element
+
+    def refresh(self, ticked: bool = False) -> None:
+        """Show the device as it is now; ``ticked``: the page's once-a-second tick (counters and ages too).
+        A push that changed nothing the tile shows (most frames: the counters moved) costs a comparison."""
         s = self.state
-        status, age = s.status, s.age
+        status = s.status
+        tile = evaluate_tile(s)  # the device type's declared tile: the same lines and alarms as the plant view
+        rows = drift_rows(s)
+        replaced = replaced_text(s)
+        seen = (tile, status, s.last_error, rows, replaced)
+        if not ticked and seen == self._seen:
+            return
+        self._seen = seen
+        age = s.age
         if self._changed("badge", (status, status_text(status, age))):
             set_status_badge(self.badge, status, age)
-        tile = evaluate_tile(s)  # the device type's declared tile: the same lines and alarms as the plant view
         quality = tile["quality"]
-        self.lines.show(list(tile["lines"]) + ([tile["bar"][1]] if tile["bar"] else []))
-        alarms = tile["alarms"] if quality in ("good", "unknown") else []
-        self.alarms.show([f"⚠ {a}" for a in alarms])
+        if tile is not self._tile:
+            self._tile = tile
+            alarms = tile["alarms"] if quality in ("good", "unknown") else []
+            self.lines.show([(line, LINE) for line in tile["lines"]] + ([(tile["bar"][1], LINE)] if tile["bar"] else [])
+                            + [(f"⚠ {a}", ALARM) for a in alarms])
         marked = quality if quality in ("stale", "offline") else "good"
         if self._changed("quality", marked):
             mark_quality(self.values, marked)
-        self.quality_note.set_text(quality_note(quality, tile["age"]) if marked != "good" else "")
-        self.error.set_text(s.last_error if status != "online" else "")
-        replaced = replaced_text(s)
-        if self._changed("replaced", replaced):
-            self.replaced.set_visibility(bool(replaced))
-            self.replaced._props["title"] = replaced
-            self.replaced.text = replaced_short(s) or "replaced?"
-            self.replaced.update()
-        rows = drift_rows(s)
-        if self._changed("drift", drift_text(rows)):
-            self.drift.set_visibility(bool(rows))
-            self.drift.text = f"changed since approved ({len(rows)})" if rows else "changed since approved"
-            self.drift._props["title"] = "Changed since approved: " + drift_text(rows) if rows else ""
-            self.drift.update()
+        note = quality_note(quality, tile["age"]) if marked != "good" else ""
+        if self._changed("note", note) and (note or self.quality_note is not None):
+            self._element("quality_note", lambda: ui.label().classes("q-age")).set_text(note)
+        error = s.last_error if status != "online" else ""
+        if self._changed("error", error) and (error or self.error is not None):
+            self._element("error", lambda: ui.label().classes("text-caption text-negative")).set_text(error)
+        if self._changed("replaced", replaced) and (replaced or self.replaced is not None):
+            # another serial number (firmware, variant) than known at this address: the replacement assistant
+            badge = self._element("replaced", lambda: ui.badge("replaced?", color="red-8").classes("drift-badge")
+                                  .props(f'data-replaced="{self.name}"'))
+            badge.set_visibility(bool(replaced))
+            badge._props["title"] = replaced
+            badge.text = replaced_short(s) or "replaced?"
+            badge.update()
+        if self._changed("drift", drift_text(rows)) and (rows or self.drift is not None):
+            # the commissioning record: the differing parameters on hover (title) and in the record page
+            badge = self._element("drift", lambda: ui.badge("changed since approved", color="orange-9")
+                                  .classes("drift-badge").props(f'data-drift="{self.name}"'))
+            badge.set_visibility(bool(rows))
+            badge.text = f"changed since approved ({len(rows)})" if rows else "changed since approved"
+            badge._props["title"] = "Changed since approved: " + drift_text(rows) if rows else ""
+            badge.update()
+        if ticked:
+            self.counters.set_text(counters_text(s.counters.as_dict(), self.bus_type, age))
+
+
+# a tile's card from top to bottom below its name (the seldom shown ones are built when first needed)
+TILE_ORDER = ("kind", "drift", "replaced", "values", "quality_note", "counters", "error")
+LINE, ALARM = "text-body2", "text-body2 text-negative text-weight-medium"
+
+
+class LabelPool:
+    """The labels of a column, reused in order: each new list of ``(text, classes)`` sets only what changed;
+    labels left over are hidden, none is built again."""
+
+    def __init__(self, column: ui.element):
+        self.column = column
+        self.labels: list[ui.label] = []
+        self.shown: list[tuple[str, str]] = []
+
+    def show(self, items: list[tuple[str, str]]) -> None:
+        if items == self.shown:
+            return
+        labels = self.labels
+        while len(labels) < len(items):
+            with self.column:
+                labels.append(ui.label())
+        for n, label in enumerate(labels):
+            if n < len(items):
+                text, classes = items[n]
+                label.set_text(text)
+                if n >= len(self.shown) or self.shown[n][1] != classes:
+                    label.classes(replace=classes)
+                if not label.visible:
+                    label.set_visibility(True)
+            elif label.visible:
+                label.set_visibility(False)
+        self.shown = list(items)
+
+
+def _cell(text: str, classes: str = "", attrs: str = "") -> str:
+    return f'<div class="{classes}"{attrs}>{escape(text)}</div>' if classes or attrs else f"<div>{escape(text)}</div>"
 
 
 class GlanceRow:
-    """One device in the at-a-glance table: state, alarms and age, set in place on each push."""
+    """One device in the at-a-glance table: state, alarms and age, one element (the row, its cells as HTML)
+    sent again only when one of them changed."""
 
     def __init__(self, name: str):
+        self.name = name
         self.state = rt.current().store.devices[name]
         self._shown: tuple = ()
-        with ui.element("tr").props(f'data-glance="{name}"') as self.row:
-            with ui.element("td"):
-                ui.link(name, f"/device/{name}")
-            with ui.element("td"):
-                self.status = ui.label()
-                self.drift = ui.label().classes("glance-drift").props(f'data-glance-drift="{name}"')
-                self.replaced = ui.link("replaced?", f"/replace/{name}").classes("glance-replaced").props(
-                    f'data-glance-replaced="{name}"')
-                self.replaced.set_visibility(False)
-            with ui.element("td").classes("alarms"):
-                self.alarms = ui.label()
-                self.drift_rows = ui.label().classes("glance-drift")
-            with ui.element("td").classes("age"):
-                self.age = ui.label()
-        self.update()
-        follow(self.state, self.update)
+        self.row = ui.html("", sanitize=False, tag="tr").props(f'data-glance="{name}"')
+        self.refresh()
 
-    def update(self) -> None:
+    def refresh(self, ticked: bool = False) -> None:
         s = self.state
         status, age = s.status, s.age
         tile = evaluate_tile(s)
@@ -199,67 +255,104 @@ class GlanceRow:
         if shown == self._shown:
             return
         self._shown = shown
-        self.status.set_text(status_text(status, None) if status != "stale" else "stale")
-        self.status.classes(replace=f"status-{status}")
-        self.alarms.set_text(shown[1])
-        self.age.set_text(shown[2])
-        self.drift.set_text("changed since approved" if rows else "")
-        self.drift_rows.set_text(f"Changed since approved: {shown[3]}" if rows else "")
-        self.replaced.set_visibility(bool(replaced))
-        self.replaced.set_text(replaced_short(s) or "replaced?")
-        self.replaced.props(f'title="{replaced}"')
+        name = escape(self.name, quote=True)
+        state = _cell(status_text(status, None) if status != "stale" else "stale", f"status-{status}")
+        if rows:
+            state += _cell("changed since approved", "glance-drift", f' data-glance-drift="{name}"')
+        if replaced:
+            state += (f'<a class="glance-replaced" href="/replace/{name}" data-glance-replaced="{name}" '
+                      f'title="{escape(replaced, quote=True)}">{escape(replaced_short(s) or "replaced?")}</a>')
+        alarm_cell = _cell(shown[1]) + (_cell(f"Changed since approved: {shown[3]}", "glance-drift") if rows else "")
+        self.row.set_content(f'<td><a href="/device/{name}">{escape(self.name)}</a></td><td>{state}</td>'
+                             f'<td class="alarms">{alarm_cell}</td><td class="age">{escape(shown[2])}</td>')
         self.row.classes(replace=f"glance-{status}")
 
 
-def _glance_table(runtime) -> None:
+def _glance_table(runtime, rows: list) -> None:
     """Every device in one dense table (state, alarms, age of its last value): the plant at a glance."""
     with ui.card().classes("glance q-pa-sm").props("data-testid=glance"):
         ui.label(f"All devices ({len(runtime.plant.devices)})").classes("text-subtitle2")
         with ui.element("table").classes("glance-table"):
-            with ui.element("thead"), ui.element("tr"):
-                for head in ("Device", "State", "Alarms", "Last value"):
-                    with ui.element("th"):
-                        ui.label(head)
+            ui.html("<tr><th>Device</th><th>State</th><th>Alarms</th><th>Last value</th></tr>", sanitize=False,
+                    tag="thead")
             with ui.element("tbody"):
                 for dev in runtime.plant.devices.values():
-                    GlanceRow(dev.name)
+                    rows.append(GlanceRow(dev.name))
+
+
+class _Followers:
+    """The page's one watcher per device: a push that brings a new version redraws the device's tile and
+    table row; the store's once-a-second round of a device with nothing new costs a comparison (the page's
+    tick draws ages and counters, of every device at once)."""
+
+    def __init__(self) -> None:
+        self.views: dict[str, list] = {}
+        self.versions: dict[str, int] = {}
+
+    def add(self, view) -> None:
+        name = view.state.name
+        if name not in self.views:
+            self.views[name] = []
+            state = view.state
+            follow(state, lambda: self._pushed(name, state))
+        self.views[name].append(view)
+
+    def _pushed(self, name: str, state) -> None:
+        version = state.version
+        if self.versions.get(name) == version:
+            return
+        self.versions[name] = version
+        for view in self.views[name]:
+            view.refresh()
+
+    def tick(self) -> None:
+        for views in self.views.values():
+            for view in views:
+                view.refresh(ticked=True)
 
 
 def content() -> None:
     runtime = rt.current()
     with frame("Overview", beat=False):  # a page that starts and holds nothing: no dead-man beats
         ui.add_css(TILE_CSS)
-        tiles: list[DeviceTile] = []
+        followers = _Followers()
         ticks: list = []  # the bus lines and discovery lists: one timer for the page, not one per bus
         with ui.element("div").classes("overview-layout"):
             if runtime.plant.devices:
-                _glance_table(runtime)
+                rows: list[GlanceRow] = []
+                _glance_table(runtime, rows)
+                for row in rows:
+                    followers.add(row)
             with ui.element("div").classes("bus-sections"):
                 for bus in runtime.plant.buses.values():
                     count = max(1, len(runtime.plant.devices_on(bus.name)))
                     width = count * TILE_WIDTH_PX + (count - 1) * TILE_GAP_PX
                     with ui.column().classes("bus-section gap-1").style(f"width: max({width}px, 30rem)"):
-                        _bus_section(runtime, bus, tiles, ticks)
+                        _bus_section(runtime, bus, followers, ticks)
+                # one tick for the page: every tile's counters and ages, the table's ages and the bus lines
+                # go to the browser together, in one message a second
+                ticks.insert(0, (1, followers.tick))
                 ui.timer(1.0, lambda count=[0]: _tick(ticks, count))
         if not runtime.plant.devices:
             ui.label("This plant file lists no devices.").classes("text-grey-8")
 
 
 def _tick(ticks: list, count: list) -> None:
-    """Once a second: every bus line (and every other second the discovery lists) of the page, each
-    setting only what changed."""
+    """Once a second: every tile, table row and bus line (and every other second the discovery lists) of
+    the page, each setting only what changed."""
     count[0] += 1
     for every, tick in ticks:
         if count[0] % every == 0:
             tick()
 
 
-def _bus_section(runtime, bus, tiles: list, ticks: list) -> None:
+def _bus_section(runtime, bus, followers: _Followers, ticks: list) -> None:
     bus_state = runtime.store.buses[bus.name]
     with ui.row().classes("items-center gap-x-2 gap-y-0"):
-        ui.icon("cable")
-        ui.label(f"{bus.name}").classes("text-h6")
-        ui.label(f"{bus.type} · {bus.endpoint}").classes("text-caption text-grey-8")
+        # icon, name and endpoint never change: one element, its parts laid out in the row as before
+        ui.html(f'{ICON % "cable"}<span class="text-h6">{escape(bus.name)}</span>'
+                f'<span class="text-caption text-grey-8">{escape(f"{bus.type} · {bus.endpoint}")}</span>',
+                sanitize=False).style("display: contents")
         ui.button("Bus monitor", icon="monitor_heart", on_click=lambda b=bus.name: ui.navigate.to(f"/monitor/{b}")).props("flat dense")
         if bus.type == "modbus-rtu":
             from pages.discover import open_discover_dialog
@@ -291,12 +384,12 @@ def _bus_section(runtime, bus, tiles: list, ticks: list) -> None:
     ticks.append((1, show_conn))
     with ui.element("div").classes("tile-grid") as row:
         for dev in runtime.plant.devices_on(bus.name):
-            tiles.append(DeviceTile(dev.name))
+            followers.add(DeviceTile(dev.name))
     if bus.type == "can":
-        ticks.append((2, _discovered_section(bus.name, row, tiles)))
+        ticks.append((2, _discovered_section(bus.name, row, followers)))
 
 
-def _discovered_section(bus: str, tile_row, tiles: list) -> Callable[[], None]:
+def _discovered_section(bus: str, tile_row, followers: _Followers) -> Callable[[], None]:
     """Devices heard on a CAN bus that the plant does not list yet, with Adopt.
 
     Only devices that showed the evidence their type needs are listed; unknown IDs still
@@ -338,7 +431,7 @@ def _discovered_section(bus: str, tile_row, tiles: list) -> Callable[[], None]:
                     title = DEVICE_TYPES[entry["type"]].title
                     ui.label(f"{title} with device ID {ident}").classes("text-body2")
                     ages[key] = ui.label(age_text(entry)).classes("text-caption text-grey-8")
-                    ui.button("Adopt", icon="add", on_click=lambda e=entry: _adopt_dialog(bus, e, tile_row, tiles)).props("dense outline").props(
+                    ui.button("Adopt", icon="add", on_click=lambda e=entry: _adopt_dialog(bus, e, tile_row, followers)).props("dense outline").props(
                         f'data-adopt="{entry["device_id"]}"'
                     )
             if flood:  # a flood is shown as a flood, never as devices
@@ -356,7 +449,7 @@ def _discovered_section(bus: str, tile_row, tiles: list) -> Callable[[], None]:
     return refresh
 
 
-def _adopt_dialog(bus: str, entry: dict, tile_row, tiles: list) -> None:
+def _adopt_dialog(bus: str, entry: dict, tile_row, followers: _Followers) -> None:
     runtime = rt.current()
     suggested = f"{entry['type']}-{entry['device_id']}"
     path = runtime.plant.path
@@ -403,7 +496,7 @@ def _adopt_dialog(bus: str, entry: dict, tile_row, tiles: list) -> None:
                 ui.notify(f"Cannot adopt: {exc}", type="negative", multi_line=True)
                 return
             with tile_row:
-                tiles.append(DeviceTile(dev.name))
+                followers.add(DeviceTile(dev.name))
             ui.notify(f"{dev.name} added to the running plant" + (f" and to {path.name}" if write else ""), type="positive")
             dialog.close()
 

@@ -123,22 +123,70 @@ async def test_header_changes_in_place_audit_problem_and_bus_state(user_runtime)
     assert _ids(user) == before  # nothing was built again: only texts, colours and visibility changed
 
 
-async def test_tile_counters_move_once_a_second(user_runtime):
+TWO = plant_text(can_bus(device("io", "m3io", "can9", variant="HM", sw1=0x1A), device("io2", "m3io", "can9", variant="HM", sw1=0x1B),
+                         name="can9", channel_name="widgets-live-two", simulate=None), name="w2")
+
+
+async def test_tile_counters_of_a_page_move_together_once_a_second():
+    """The counters of every tile of a page go to the browser together on the page's one-second tick (one
+    message), not each on its own device's round; they move once a second however often frames come."""
+    runtime = Runtime(parse_plant(TWO), simulate=False)
+    async with simulated_user(runtime) as user:
+        await user.open("/")
+        cards = {e.props["data-device"]: e for e in user.client.elements.values() if "data-device" in e.props}
+        labels = {next(d for d in cards[n].descendants() if "data-tile-counters" in d.props).id: n for n in ("io", "io2")}
+        sent: list[tuple[float, str]] = []
+        outbox = user.client.outbox
+        enqueue = outbox.enqueue_update
+
+        def recorded(element) -> None:
+            if element.id in labels:
+                sent.append((time.monotonic(), labels[element.id]))
+            enqueue(element)
+
+        outbox.enqueue_update = recorded
+        states = [runtime.store.devices[n] for n in ("io", "io2")]
+        end = time.monotonic() + 2.6
+        while time.monotonic() < end:  # frames ten times a second on both devices
+            for state in states:
+                state.counters.responses += 1
+                state.version += 1
+            await asyncio.sleep(0.1)
+        rounds: list[list[tuple[float, str]]] = []
+        for t, name in sent:
+            if rounds and t - rounds[-1][-1][0] < 0.03:
+                rounds[-1].append((t, name))
+            else:
+                rounds.append([(t, name)])
+        assert len(rounds) >= 2, sent
+        for one in rounds:
+            assert sorted(name for _t, name in one) == ["io", "io2"], f"not together: {rounds}"
+        starts = [one[0][0] for one in rounds]
+        assert all(b - a > 0.8 for a, b in zip(starts, starts[1:])), f"more often than once a second: {starts}"
+        for label_id, name in labels.items():  # and they say what was counted
+            count = runtime.store.devices[name].counters.responses
+            await wait_until(lambda: f"frames heard {count}" in user.client.elements[label_id].text, 2.0)
+
+
+async def wait_until(check, timeout: float) -> None:
+    end = time.monotonic() + timeout
+    while not check():
+        assert time.monotonic() < end, "not within the time"
+        await asyncio.sleep(0.02)
+
+
+async def test_a_changed_value_reaches_the_tile_at_once(user_runtime):
+    """Only counters and ages wait for the page's tick: a new value is pushed as it comes."""
     user, runtime = user_runtime
     await user.open("/")
+    card = next(e for e in user.client.elements.values() if e.props.get("data-device") == "io")
+    texts = lambda: [d.text for d in card.descendants() if isinstance(d, ui.label)]  # noqa: E731
+    await asyncio.sleep(0.5)
     state = runtime.store.devices["io"]
-    tile_label = next(e for e in user.client.elements.values() if "data-tile-counters" in e.props)
-    store = runtime.store
-    store._aged = {name: time.monotonic() + 1e9 for name in store.devices}  # no once-a-second round for now
-    shown = tile_label.text
-    for _ in range(5):
-        state.counters.responses += 1
-        state.version += 1
-        await asyncio.sleep(0.15)  # a push round each time: the device changed
-    assert tile_label.text == shown  # not redrawn ten times a second
-    store._aged = {name: 0.0 for name in store.devices}  # the next round is the once-a-second round
-    await asyncio.sleep(0.3)
-    assert tile_label.text != shown and f"frames heard {state.counters.responses}" in tile_label.text
+    state.publish("TEMP1", 21.5, "°C", text="21.5 °C")
+    sent = time.monotonic()
+    await wait_until(lambda: any("T1\u00a021.5" in t for t in texts()), 1.0)
+    assert time.monotonic() - sent < 0.5
 
 
 async def test_every_chart_axis_is_titled_with_its_unit(user_runtime):
