@@ -19,6 +19,11 @@ overrun counters), ``CanBusState.interface_dropped`` counts them; a ``udp_multic
 socket gets a receive buffer of ``UDP_RCVBUF`` bytes so the reader can wait for the
 interpreter lock without losing frames. Unknown IDs are offered to discovery once per
 ``NO_DISCOVERY_S`` when no device type recognises their frames (a bounded table).
+
+A quiet bus costs nothing: the reader waits until a frame comes (a ``socketcan`` or
+``udp_multicast`` socket together with a pipe that ends the wait when the bus closes, the
+``virtual`` interface's queue, woken by a frame of its own), never on a short timeout; only
+interfaces without either wait at most ``READ_WAIT_S`` at a time.
 """
 
 from __future__ import annotations
@@ -27,8 +32,11 @@ import asyncio
 import importlib
 import logging
 import os
+import queue
+import select
 import socket
 import statistics
+import struct
 import threading
 import time
 import weakref
@@ -61,6 +69,7 @@ BURST_GAP_S = 0.010  # frames of one ID and length closer than this are one burs
 UDP_RCVBUF = 4 * 2**20  # receive buffer of a udp_multicast socket: about 0.4 s of a full 1 Mbit/s bus (capped by net.core.rmem_max)
 NO_DISCOVERY_S = 10.0  # an unknown ID whose frames no device type recognises is offered to discovery again after this
 NO_DISCOVERY_IDS = 4096  # negative results remembered per bus (least recently heard goes first)
+READ_WAIT_S = 0.5  # the reader's longest wait where nothing can wake it early (interfaces other than the ones below)
 LOAD_PERIOD_S = 0.5  # bus load and frames/s are taken over this window
 LOAD_AVERAGE_S = 5.0  # the steady figure: frames reach the loop in batches, so one window jumps (0 %, then 18 %)
 LOAD_PEAK_S, LOAD_PEAK_WINDOW_S = 10.0, 1.0  # the peak: the highest load of any 1 s within the last 10 s
@@ -230,6 +239,41 @@ def _udp_socket(bus: can.BusABC) -> socket.socket | None:
     return sock if isinstance(sock, socket.socket) else None
 
 
+SO_MEMINFO = getattr(socket, "SO_MEMINFO", 55)  # Linux: the socket's memory figures, sk_drops among them
+SK_MEMINFO_DROPS = 8
+
+
+def _socket_drops(sock: socket.socket) -> int | None:
+    """The kernel's drop counter of ``sock`` from one getsockopt (Linux 4.7+; the figure /proc/net/udp shows),
+    or None where the system does not give it."""
+    try:
+        raw = sock.getsockopt(socket.SOL_SOCKET, SO_MEMINFO, 64)
+    except OSError:
+        return None
+    if len(raw) < 4 * (SK_MEMINFO_DROPS + 1):
+        return None
+    return struct.unpack_from("I", raw, 4 * SK_MEMINFO_DROPS)[0]
+
+
+_WAKE = can.Message(arbitration_id=0, data=b"")  # put into a virtual bus's queue: its reader stops waiting
+SOCKET_INTERFACES = ("socketcan", "udp_multicast")  # one frame per datagram, nothing kept back in the process
+
+
+def _is_virtual(bus: can.BusABC) -> bool:
+    return type(bus).__name__ == "VirtualBus" and isinstance(getattr(bus, "queue", None), queue.Queue)
+
+
+def _socket_fd(bus: can.BusABC | None, options: dict[str, Any]) -> int | None:
+    """The socket a ``socketcan`` or ``udp_multicast`` bus reads from (readable = a frame is there), else None."""
+    if bus is None or options.get("interface") not in SOCKET_INTERFACES:
+        return None
+    try:
+        fd = bus.fileno()
+    except (NotImplementedError, AttributeError, OSError, ValueError):
+        return None
+    return fd if isinstance(fd, int) and fd >= 0 else None
+
+
 def _proc_udp_drops(inode: int) -> int | None:
     """The kernel's drop counter of the UDP socket with ``inode`` (last column of /proc/net/udp[6])."""
     for table in ("/proc/net/udp", "/proc/net/udp6"):
@@ -248,13 +292,15 @@ def _proc_udp_drops(inode: int) -> int | None:
 def interface_drops(bus: can.BusABC, options: dict[str, Any]) -> tuple[int, str] | None:
     """``(frames lost by the interface, where the figure comes from)``, or None where it does not say.
 
-    udp_multicast: the socket's kernel drop counter (receive buffer full). SocketCAN: the
-    driver's ``rx_dropped + rx_over_errors + rx_fifo_errors`` of the network interface.
-    Blocking (reads /proc or /sys): call it in a thread.
+    udp_multicast: the socket's kernel drop counter (receive buffer full), from one system call that does not
+    block (:func:`_socket_drops`; else from /proc). SocketCAN: the driver's ``rx_dropped + rx_over_errors +
+    rx_fifo_errors`` of the network interface, read from /sys: blocking, call it in a thread.
     """
     sock = _udp_socket(bus)
     if sock is not None:
-        drops = _proc_udp_drops(os.fstat(sock.fileno()).st_ino)
+        drops = _socket_drops(sock)
+        if drops is None:
+            drops = _proc_udp_drops(os.fstat(sock.fileno()).st_ino)
         return None if drops is None else (drops, "kernel socket drops")
     if options.get("interface") == "socketcan" and isinstance(options.get("channel"), str):
         folder = f"/sys/class/net/{os.path.basename(options['channel'])}/statistics"
@@ -326,6 +372,7 @@ class CanBus:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
+        self._wake_pipe: tuple[int, int] | None = None  # ends the reader's wait on a socket when the bus closes
         self._failure: str = ""
         self._backoff = 0.5
         self._task: asyncio.Task | None = None
@@ -391,9 +438,17 @@ class CanBus:
 
     def _close(self) -> None:
         self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=2)
-            self._thread = None
+        self._wake_reader()
+        thread, self._thread = self._thread, None
+        if thread is not None:
+            thread.join(timeout=2)
+        wake, self._wake_pipe = self._wake_pipe, None
+        if wake is not None and (thread is None or not thread.is_alive()):  # never under a reader still polling it
+            for end in wake:
+                try:
+                    os.close(end)
+                except OSError:
+                    pass
         # the periodic senders end before their bus does: a cyclic thread that sent on the closed bus would
         # log a traceback every period ("Cannot operate on a closed bus"). A reopened bus starts them again
         for periodic in list(self._periodic.values()):
@@ -423,6 +478,7 @@ class CanBus:
             if self._thread is None:
                 self._failure = ""
                 self._stop.clear()
+                self._wake_pipe = os.pipe() if _socket_fd(self.bus, self.options) is not None else None
                 self._thread = threading.Thread(target=self._read, name=f"can-rx {self.name}", daemon=True)
                 self._thread.start()
                 self.state.connected = True
@@ -482,11 +538,18 @@ class CanBus:
         state.load_peak_pct = max(spans) if spans else state.load_pct
 
     async def _count_interface_drops(self, loop: asyncio.AbstractEventLoop) -> None:
-        """The interface's own count of lost frames since the bus was opened (read in a thread: /proc, /sys)."""
+        """The interface's own count of lost frames since the bus was opened: a socket's from one system call
+        here, a SocketCAN driver's from /sys in a thread; an interface that does not say costs nothing."""
         if self.bus is None:
             return
+        sock = _udp_socket(self.bus)
+        if sock is None and self.options.get("interface") != "socketcan":
+            return  # it does not say (interface_drops would find nothing)
         try:
-            found = await loop.run_in_executor(None, interface_drops, self.bus, self.options)
+            if sock is not None and (drops := _socket_drops(sock)) is not None:
+                found = (drops, "kernel socket drops")
+            else:
+                found = await loop.run_in_executor(None, interface_drops, self.bus, self.options)
         except Exception as exc:  # noqa: BLE001 - a counter that cannot be read is "not reported", never a failure
             log.debug("%s: drop counter unreadable: %s", self.name, exc)
             found = None
@@ -518,36 +581,80 @@ class CanBus:
 
     # -- receive path ------------------------------------------------------------------
     def _read(self) -> None:
-        """Reader thread: recv() with a timeout, batch frames into the loop, shed the oldest when it is behind."""
+        """Reader thread: wait until frames come (:meth:`_frames`), batch them into the loop, shed the oldest
+        when it is behind."""
         bus, loop = self.bus, self._loop
         assert bus is not None and loop is not None
         handlers, known, other = self.handlers, self._inbox, self._inbox_other
-        while not self._stop.is_set():
-            try:
-                msg = bus.recv(0.1)
-            except Exception as exc:  # CanOperationError when the interface goes away
+        stop = self._stop
+        try:
+            for msg in self._frames(bus):
+                inbox = known if (msg.is_extended_id, msg.arbitration_id) in handlers else other
+                if len(inbox) >= INBOX_FRAMES:
+                    # the loop is behind: give it the interpreter for a moment instead of reading and shedding
+                    # at full speed (frames wait in the interface's buffer meanwhile); then shed the oldest
+                    stop.wait(READER_BACKOFF_S)
+                if len(inbox) >= INBOX_FRAMES:
+                    try:
+                        inbox.popleft()
+                        self._shed += 1
+                    except IndexError:  # the loop emptied it meanwhile
+                        pass
+                inbox.append(msg)
+                if not self._scheduled:
+                    self._scheduled = True
+                    try:
+                        loop.call_soon_threadsafe(self._drain)
+                    except RuntimeError:  # loop closed while stopping
+                        return
+        except Exception as exc:  # CanOperationError when the interface goes away
+            if not stop.is_set():  # not the bus closing under it
                 self._failure = f"receive failed: {exc}"
-                return
-            if msg is None:
-                continue
-            inbox = known if (msg.is_extended_id, msg.arbitration_id) in handlers else other
-            if len(inbox) >= INBOX_FRAMES:
-                # the loop is behind: give it the interpreter for a moment instead of reading and shedding
-                # at full speed (frames wait in the interface's buffer meanwhile); then shed the oldest
-                self._stop.wait(READER_BACKOFF_S)
-            if len(inbox) >= INBOX_FRAMES:
-                try:
-                    inbox.popleft()
-                    self._shed += 1
-                except IndexError:  # the loop emptied it meanwhile
-                    pass
-            inbox.append(msg)
-            if not self._scheduled:
-                self._scheduled = True
-                try:
-                    loop.call_soon_threadsafe(self._drain)
-                except RuntimeError:  # loop closed while stopping
+
+    def _frames(self, bus: can.BusABC):
+        """The frames of ``bus`` as they come, until the bus closes (:meth:`_wake_reader`); raises what the interface
+        raises. Never wakes while the bus is quiet: a socket interface is waited on with a pipe that the closing
+        writes to, the ``virtual`` interface's queue gets a frame of its own; others wait ``READ_WAIT_S`` at most."""
+        stop = self._stop
+        fd = _socket_fd(bus, self.options)
+        wake = self._wake_pipe
+        if fd is not None and wake is not None:
+            poller = select.poll()
+            poller.register(fd, select.POLLIN)
+            poller.register(wake[0], select.POLLIN)
+            trouble = select.POLLERR | select.POLLHUP | select.POLLNVAL
+            while not stop.is_set():
+                events = dict(poller.poll())
+                if wake[0] in events or stop.is_set():
                     return
+                got = False
+                while (msg := bus.recv(0.0)) is not None:  # what has come by now, then wait again
+                    got = True
+                    yield msg
+                if not got and events.get(fd, 0) & trouble:
+                    raise can.CanOperationError(f"the interface reports an error on its socket (poll events {events[fd]:#x})")
+            return
+        timeout = None if _is_virtual(bus) else READ_WAIT_S
+        while not stop.is_set():
+            msg = bus.recv(timeout)
+            if msg is None or msg is _WAKE:
+                continue
+            yield msg
+
+    def _wake_reader(self) -> None:
+        """End the reader's wait (the bus closes): a byte into its pipe, or a frame of its own into a virtual bus's queue."""
+        wake = self._wake_pipe
+        if wake is not None:
+            try:
+                os.write(wake[1], b"\0")
+            except OSError:
+                pass
+        bus = self.bus
+        if bus is not None and _is_virtual(bus):
+            try:
+                bus.queue.put_nowait(_WAKE)
+            except (AttributeError, queue.Full):
+                pass
 
     def _drain(self) -> None:
         """In the loop: handle buffered frames, subscribed IDs first, for at most ``DRAIN_BUDGET_S``."""
