@@ -6,6 +6,9 @@ from __future__ import annotations
 from typing import Any
 
 BEAT_EVENT = "commission_beat"  # the socket event of a page's sign of life (dead-man rule)
+# run on a page when the dead-man supervisor asks it to beat (true: its session holds something, or its
+# connection came back) or to stop (false: it held nothing for a while); pages/frame.py BEAT_JS defines it
+BEAT_ASK_JS = "window.commissionBeat && window.commissionBeat.ask && window.commissionBeat.ask(%s)"
 
 
 def session_token(request: Any) -> str | None:

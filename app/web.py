@@ -26,7 +26,7 @@ from socketio import exceptions as socketio_exceptions
 
 from app import runtime as rt
 from app.assets import AssetCache, preload_links, tailwind_style
-from app.browser import BEAT_EVENT, safe_redirect, session_token
+from app.browser import BEAT_ASK_JS, BEAT_EVENT, safe_redirect, session_token
 from app.runtime import Runtime
 from app.state import HISTORY_SECONDS
 from devices.live import json_fields as live_json_fields
@@ -415,6 +415,16 @@ def register(runtime: Runtime, pages: Callable[[], None], *, host: str = "127.0.
             runtime.worker.heartbeat(client_id, msg.get("t"))  # the browser's own time of the beat
 
     core.sio.on(BEAT_EVENT, on_beat)
+
+    def ask_beat(session: str, on: bool) -> None:
+        """The dead-man supervisor asks the page of ``session`` to beat (it holds something, or its connection
+        came back) or to stop (it held nothing for a while); a page that holds nothing sends no beats."""
+        client = Client.instances.get(session)
+        if client is not None and not client.is_deleted:
+            client.run_javascript(BEAT_ASK_JS % ("true" if on else "false"))
+
+    runtime.worker.on_beat_ask(ask_beat)
+    app.on_connect(lambda client: runtime.worker.session_connected(client.id))  # a page back: asked to beat once more
     SOCKET_GUARD.install()
 
     @app.get("/login/complete", include_in_schema=False)

@@ -42,21 +42,42 @@ def _logout() -> None:
     ui.navigate.to("/logout")  # and the browser gets a new session cookie
 
 
-# A Web Worker ticks (timers of hidden tabs are throttled to 1 Hz, a worker's are not); the page
-# sends each tick to the server with the tick's own time (the browser's clock), so the server tells a
-# beat that waited because the server was busy from a browser that was silent. A frozen, asleep or
-# cut-off browser stops sending: the worker stops its motion and mains outputs (app.worker, dead-man rule).
+# The dead-man beat (app/worker/deadman.py). A Web Worker ticks every BEAT_PERIOD_S (timers of hidden tabs
+# are throttled to 1 Hz, a worker's are not); the page sends a tick to the server, with the tick's own time
+# (the browser's clock, so the server tells a beat that waited because the server was busy from a browser
+# that was silent), only while it is needed:
+# - while the server asks (``ask(true)``: its session holds motion, mains outputs, a transmit list, or its
+#   connection came back) until it says stop (``ask(false)``, app.browser.BEAT_ASK_JS);
+# - for BEAT_WINDOW_S after any user interaction (pointer, key, touch; capture phase, so before the page's
+#   own handlers): the command that takes control or starts motion reaches the server after a beat.
+# It sends one beat at once when it starts beating. A page that holds nothing sends nothing; a frozen, asleep
+# or cut-off browser stops sending, and the worker stops what its session holds.
 BEAT_JS = """
 <script>
 (function () {
   if (window.commissionBeat) return;
   const tick = new Worker(URL.createObjectURL(new Blob(
-    ["setInterval(function () { postMessage(performance.now()); }, %d);"], {type: "text/javascript"})));
-  tick.onmessage = function (e) {
+    ["setInterval(function () { postMessage(performance.timeOrigin + performance.now()); }, %d);"],
+    {type: "text/javascript"})));
+  const windowMs = %d;
+  let until = -1, asked = false, beating = false;
+  const send = function (t) {
     if (window.socket && window.did_handshake && window.socket.connected) {
-      window.socket.emit("%s", {client_id: window.clientId, t: e.data});
+      window.socket.emit("%s", {client_id: window.clientId, t: t});
     }
   };
+  const start = function () {
+    if (!beating) { beating = true; send(performance.timeOrigin + performance.now()); }
+  };
+  tick.onmessage = function (e) {
+    beating = asked || performance.now() < until;
+    if (beating) send(e.data);
+  };
+  const touched = function () { until = performance.now() + windowMs; start(); };
+  for (const name of ["pointerdown", "keydown", "touchstart"]) {
+    window.addEventListener(name, touched, {capture: true, passive: true});
+  }
+  tick.ask = function (on) { asked = !!on; if (asked) start(); };
   window.commissionBeat = tick;
 })();
 </script>
@@ -216,9 +237,10 @@ class HeaderStatus:
 
 @contextmanager
 def frame(title: str, beat: bool = True):
-    """Header, navigation and a content column; yields inside the column. ``beat``: the page confirms it is
-    alive ten times a second (the dead-man rule); a page that can start or hold nothing (no motion, no
-    outputs, no control) leaves it out: twenty such pages would send two hundred messages a second for nothing."""
+    """Header, navigation and a content column; yields inside the column. ``beat``: the page can confirm it is
+    alive ten times a second (the dead-man rule), which it does while its session holds something and just
+    after a user interaction (BEAT_JS); a page that can start or hold nothing (no motion, no outputs, no
+    control) leaves the beat out altogether."""
     runtime = rt.current()
     ui.add_css(CSS)
     ui.page_title(f"{title} - commission")
@@ -226,10 +248,10 @@ def frame(title: str, beat: bool = True):
     client = ui.context.client
     runtime.worker.session_opened(client.id, role or "none")
     from app.browser import BEAT_EVENT
-    from app.worker import BEAT_PERIOD_S
+    from app.worker import BEAT_PERIOD_S, BEAT_WINDOW_S
 
     if beat:
-        ui.add_body_html(BEAT_JS % (round(BEAT_PERIOD_S * 1000), BEAT_EVENT))
+        ui.add_body_html(BEAT_JS % (round(BEAT_PERIOD_S * 1000), round(BEAT_WINDOW_S * 1000), BEAT_EVENT))
     ui.add_body_html(HEADER_FIT_JS)
 
     # the header runs on every page: built once, then only changed texts and colours go to the browser

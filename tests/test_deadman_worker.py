@@ -113,3 +113,98 @@ async def test_the_running_worker_ticks_the_supervisor_and_measures_the_loop():
     finally:
         await asyncio.wait_for(worker.stop(), 10)
     assert worker.tasks == []
+
+
+# -- pages beat only while needed: the supervisor asks the page of a holding session to beat ---------------------
+
+class Resumer(Holder):
+    """A holder that keeps idle control over a dropped connection and gives it back on the first beat."""
+
+    def __init__(self, session: str):
+        super().__init__(session)
+        self.holding = False
+        self.back: list[str] = []
+
+    def holders(self) -> set[str]:
+        return {self.session} if self.holding and not self.lost else set()
+
+    def session_back(self, session: str) -> None:
+        self.back.append(session)
+
+
+def asking_worker(t0: float) -> tuple[Worker, list[tuple[str, bool]]]:
+    worker = worker_at(t0)
+    asks: list[tuple[str, bool]] = []
+    worker.on_beat_ask(lambda session, on: asks.append((session, on)))
+    return worker, asks
+
+
+def test_the_page_of_a_holding_session_is_asked_to_beat_and_told_to_stop_after_the_hold():
+    from app.worker import BEAT_RELEASE_S
+
+    t0 = time.monotonic()
+    worker, asks = asking_worker(t0)
+    holder = Resumer("tab")
+    worker.add_holder("output", holder)
+    worker.session_opened("tab")
+    tick(worker, t0 + SUPERVISE_PERIOD_S)
+    assert asks == [], "a page that holds nothing was asked to beat"
+    worker.heartbeat("tab", 1000.0)  # the interaction that switches the output on beats first
+    holder.holding = True
+    now = t0 + 2 * SUPERVISE_PERIOD_S
+    tick(worker, now)
+    assert asks == [("tab", True)]
+    for n in range(1, 20):  # 1 s of holding while beating: asked once, never tripped
+        worker.heartbeat("tab", 1000.0 + n * 50)
+        tick(worker, now + n * SUPERVISE_PERIOD_S)
+    assert asks == [("tab", True)] and holder.lost == [] and holder.renewed >= 19
+    holder.holding = False
+    off = now + 20 * SUPERVISE_PERIOD_S
+    tick(worker, off)
+    tick(worker, off + BEAT_RELEASE_S - 2 * SUPERVISE_PERIOD_S)
+    assert asks == [("tab", True)], "told to stop while it might hold again at once"
+    tick(worker, off + BEAT_RELEASE_S)
+    assert asks == [("tab", True), ("tab", False)]
+    tick(worker, off + BEAT_RELEASE_S + 1.0)
+    assert asks == [("tab", True), ("tab", False)], "told twice"
+
+
+def test_the_rule_is_the_same_for_an_asked_page_that_goes_silent_and_for_one_that_never_beat():
+    """Asking changes what the page sends, never when a silent session trips."""
+    t0 = time.monotonic()
+    worker, asks = asking_worker(t0)
+    silent, never = Resumer("tab"), Resumer("other")
+    worker.add_holder("output", silent)
+    worker.add_holder("jog", never)
+    worker.heartbeat("tab", 1000.0)
+    silent.holding = never.holding = True
+    n = 0
+    while not (silent.lost and never.lost) and n < 40:
+        n += 1
+        tick(worker, t0 + n * SUPERVISE_PERIOD_S)
+    assert silent.lost and never.lost
+    assert ("tab", True) in asks and ("other", True) in asks
+    assert n * SUPERVISE_PERIOD_S <= DEADMAN_BOUND_S
+
+
+def test_a_page_that_reconnects_is_asked_to_beat_and_its_first_beat_gives_its_control_back():
+    from app.worker import BEAT_RELEASE_S
+
+    t0 = time.monotonic()
+    worker, asks = asking_worker(t0)
+    holder = Resumer("tab")  # idle control: held, nothing running (not among the holders)
+    worker.add_holder("control", holder)
+    worker.session_opened("tab")
+    worker.session_connected("tab")
+    assert asks == [], "a page's first connection is no reconnect"
+    worker.session_closed("tab")
+    worker.session_connected("tab")  # it came back: its page is asked to beat
+    assert asks == [("tab", True)]
+    worker.heartbeat("tab", 5000.0)
+    assert holder.back == ["tab"]
+    tick(worker, t0 + BEAT_RELEASE_S + 0.1)
+    assert asks == [("tab", True), ("tab", False)], "it holds nothing: told to stop"
+    worker.session_closed("tab")
+    worker.session_deleted("tab")
+    worker.session_connected("tab")
+    assert asks == [("tab", True), ("tab", False)], "a page gone for good is not asked"

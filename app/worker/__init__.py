@@ -12,7 +12,9 @@ or a clear error.
   and takes a discovered device into the running plant;
 - :mod:`.polling` runs one polling task per bus;
 - :mod:`.discovery` lists devices heard on a CAN bus and scans Modbus lines;
-- :mod:`.deadman` keeps the browser sessions' beats and stops what a silent one keeps running;
+- :mod:`.deadman` keeps the browser sessions' beats and stops what a silent one keeps running; it asks
+  the page of a session that holds something to beat (through :meth:`Worker.on_beat_ask`: pages beat
+  only while they hold something or just after a user interaction);
 - :mod:`.loophealth` measures how late the event loop runs the 50 ms supervision tick (slower while
   no page is connected and nothing is held);
 - :mod:`.commands` hands commands to the gate and audits them.
@@ -37,6 +39,8 @@ from app.worker import commands, loophealth
 from app.worker.adoption import Devices
 from app.worker.deadman import (  # noqa: F401 - the dead-man rule's figures, named here for pages and tests
     BEAT_PERIOD_S,
+    BEAT_RELEASE_S,
+    BEAT_WINDOW_S,
     DEADMAN_BOUND_S,
     DEADMAN_TIMEOUT_S,
     LIVE_CREDIT_S,
@@ -178,6 +182,15 @@ class Worker:
     def session_opened(self, session: str, role: str = "engineer") -> None:
         self.deadman.session_opened(session, role)
         self.hurry.now()
+
+    def session_connected(self, session: str) -> None:
+        """A page's connection is up (again): one that had dropped is asked to beat (:meth:`DeadmanSupervisor.session_connected`)."""
+        self.deadman.session_connected(session)
+
+    def on_beat_ask(self, ask: Callable[[str, bool], None]) -> None:
+        """``ask(session, on)`` asks the page of ``session`` to beat (True) or to stop beating (False): the web
+        layer's way to reach a page (:attr:`DeadmanSupervisor.ask_beat`)."""
+        self.deadman.ask_beat = ask
 
     def session_closed(self, session: str) -> None:
         """A page's connection dropped: stop at once what it keeps running (:meth:`DeadmanSupervisor.session_closed`)."""

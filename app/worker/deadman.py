@@ -1,10 +1,24 @@
 """The dead-man supervisor (ARCHITECTURE rule 6): browser sessions, their beats, and the leases.
 
-Every page confirms it is alive about ten times a second (:meth:`DeadmanSupervisor.heartbeat`);
-motion and mains outputs of a session that stopped confirming (closed, disconnected, frozen,
-network lost) are stopped within DEADMAN_BOUND_S of its last confirmation. While it confirms,
-the supervisor renews the short leases of the senders it keeps running (devices/lease.py), so a
-stalled program stops motion too.
+A session that keeps motion or mains outputs running (it is among the holders' :meth:`holders`)
+must confirm it is alive about ten times a second (:meth:`DeadmanSupervisor.heartbeat`); what it
+holds is stopped once it has not confirmed for DEADMAN_TIMEOUT_S of this program's live clock
+(closed, disconnected, frozen, network lost), within DEADMAN_BOUND_S of its last confirmation, and
+a holder that never confirmed at all is stopped DEADMAN_TIMEOUT_S after it was first seen holding.
+While it confirms, the supervisor renews the short leases of the senders it keeps running
+(devices/lease.py), so a stalled program stops motion too.
+
+A page beats only while it is needed (a page that holds nothing sends nothing; the rule above is the
+same for every session, asked or not):
+
+- while its session holds something: the supervisor, seeing a session holding that it has not asked
+  yet, asks its page to beat (:attr:`DeadmanSupervisor.ask_beat`, a callback the web layer sets, so this
+  package imports no UI), and tells it to stop once it has held nothing for BEAT_RELEASE_S;
+- for BEAT_WINDOW_S after any user interaction on the page (pages/frame.py): the command that takes
+  control or starts motion comes from an interaction, so the page beats before that command reaches
+  the server and the first beat never waits for the server's request;
+- after its connection came back (:meth:`DeadmanSupervisor.session_connected`): its first beat gives
+  it back what it controlled (``session_back``), as before.
 
 Silence is counted on a clock that runs only while this program runs on time: a supervision tick
 credits at most LIVE_CREDIT_S however late it comes, so beats that waited in the socket because the
@@ -32,6 +46,8 @@ DEADMAN_TIMEOUT_S = 0.4  # a browser tab starved of CPU on a loaded laptop (anot
 DEADMAN_BOUND_S = 0.5  # the stated bound: timeout + one supervision period (0.45 s) + sending
 LIVE_CREDIT_S = 2 * SUPERVISE_PERIOD_S
 SILENCE_LIMIT_S = 2.0  # however busy this program was: no sign of life for this long in real time stops the session
+BEAT_WINDOW_S = 5.0  # a page beats this long after any user interaction (the take reaches the server while it beats)
+BEAT_RELEASE_S = 3.0  # a page asked to beat is told to stop once its session has held nothing this long
 
 
 _CAPABLE: dict[tuple[type, type], bool] = {}
@@ -65,6 +81,11 @@ class DeadmanSupervisor:
         self.trips: deque[dict] = deque(maxlen=100)  # dead-man trips, newest last
         self.live = 0.0  # seconds this program ran on time (advanced by the supervision tick)
         self.live_at: float | None = None  # monotonic time of the last advance
+        # the pages asked to beat: session -> monotonic time it was last seen holding (or asked)
+        self.asked: dict[str, float] = {}
+        self.dropped: set[str] = set()  # sessions whose connection dropped: asked to beat when it comes back
+        # asks the page of a session to beat (True) or to stop (False); set by the web layer (app/web.py)
+        self.ask_beat: Callable[[str, bool], None] | None = None
 
     # -- the live clock --------------------------------------------------------------------------------
     def live_clock(self, now: float) -> float:
@@ -91,6 +112,14 @@ class DeadmanSupervisor:
     def session_opened(self, session: str, role: str = "engineer") -> None:
         self.sessions[session] = role
 
+    def session_connected(self, session: str) -> None:
+        """A page's connection is up (again): one whose connection had dropped is asked to beat, and its
+        first beat gives it back the idle control it kept (:meth:`heartbeat`); it is told to stop
+        BEAT_RELEASE_S later if it holds nothing."""
+        if session in self.dropped:
+            self.dropped.discard(session)
+            self._ask(session, True, time.monotonic())
+
     def _forget_beats(self, session: str) -> None:
         for table in (self.beats, self.beats_live, self.browser_sent, self.holding_since):
             table.pop(session, None)
@@ -100,6 +129,8 @@ class DeadmanSupervisor:
         keeps running (motion, mains outputs). Idle control, which moves nothing, stays with the page until
         it is gone for good (:meth:`session_deleted`), so a page that reconnects keeps it."""
         self._forget_beats(session)
+        self.asked.pop(session, None)  # a request sent meanwhile may be lost: asked again when it is back (session_connected)
+        self.dropped.add(session)
         reason = "the controlling browser disconnected"
         for name, holder in self._holders():
             if _can(holder, SessionStopper):
@@ -117,6 +148,8 @@ class DeadmanSupervisor:
         """A page is gone for good (it did not reconnect): release everything it controlled."""
         self.sessions.pop(session, None)
         self._forget_beats(session)
+        self.asked.pop(session, None)
+        self.dropped.discard(session)
         self.session_lost(session, "the controlling browser's page is gone")
 
     def session_lost(self, session: str, reason: str) -> None:
@@ -129,7 +162,7 @@ class DeadmanSupervisor:
                 log.exception("%s: stopping for a lost session failed", name)
 
     def heartbeat(self, session: str, sent_ms: float | None = None) -> None:
-        """A page confirms it is alive (about every :data:`BEAT_PERIOD_S`).
+        """A page confirms it is alive (about every :data:`BEAT_PERIOD_S` while it beats).
 
         :param sent_ms: the browser's own clock when it sent the beat (``performance.now()`` of its tick
             worker), to tell a beat that came late because this program was busy from a browser that was silent
@@ -173,7 +206,36 @@ class DeadmanSupervisor:
         alive = {session for session in holding if not self._tripped(session, now, live_now)}
         if alive:
             self._renew(alive)
-        return bool(holding or self.sessions or self.beats or self.holding_since)
+        self._ask_pages(holding, now)
+        return bool(holding or self.sessions or self.beats or self.holding_since or self.asked)
+
+    def _ask_pages(self, holding: set[str], now: float) -> None:
+        """The pages of the sessions holding something beat; those that held nothing for BEAT_RELEASE_S stop.
+        Only what the pages send depends on it: the rule above is applied to every holding session alike."""
+        asked = self.asked
+        for session in holding:
+            if session not in asked:
+                self._ask(session, True, now)
+            else:
+                asked[session] = now
+        if len(asked) > len(holding):
+            for session, held_at in list(asked.items()):
+                if session not in holding and now - held_at >= BEAT_RELEASE_S:
+                    del asked[session]
+                    self._send_ask(session, False)
+
+    def _ask(self, session: str, on: bool, now: float) -> None:
+        self.asked[session] = now
+        self._send_ask(session, on)
+
+    def _send_ask(self, session: str, on: bool) -> None:
+        ask = self.ask_beat
+        if ask is None:
+            return
+        try:
+            ask(session, on)
+        except Exception:  # noqa: BLE001 - a page that went away: the rule does not depend on it
+            log.exception("session %s: asking its page to %s beating failed", session, "start" if on else "stop")
 
     def _tripped(self, session: str, now: float, live_now: float) -> bool:
         """Whether ``session`` is silent for too long; if so, what it holds is stopped and the trip noted."""
