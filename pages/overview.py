@@ -15,7 +15,7 @@ from app.plant import DEMO_PLANT, DeviceConfig, append_device, can_id_conflict, 
 from app.worker import AuditUnavailable, PermissionDenied
 from devices.registry import DEVICE_TYPES, format_can_ids
 from pages.frame import fmt_age, frame, set_status_badge, status_text
-from pages.plant_view import evaluate_tile
+from pages.plant_view import ICON, Followers, LabelPool, evaluate_tile
 from pages.widgets import follow, mark_quality, quality_note
 from pages.session import current_user
 
@@ -48,7 +48,6 @@ table.glance-table td a.glance-replaced { color: #b71c1c; font-weight: 700; disp
 .drift-badge { align-self: flex-start; cursor: help; white-space: normal !important; }
 """
 TILE_WIDTH_PX, TILE_GAP_PX = 240, 12
-ICON = '<i class="q-icon notranslate material-icons" aria-hidden="true" role="presentation">%s</i>'
 
 # what a device's counters mean on its bus: CAN devices are heard (periodic frames), the others answer requests
 CAN_COUNTERS = (("responses", "frames heard", True), ("malformed", "malformed", True), ("timeouts", "timeouts", False))
@@ -96,11 +95,20 @@ def counters_text(counters: dict[str, int], bus_type: str, age: float | None) ->
     return " · ".join(parts + [f"last {'frame' if bus_type == 'can' else 'answer'} {fmt_age(age)}"])
 
 
+def overview_shows(state) -> tuple:
+    """What a tile and a table row of the overview draw, ages and counters left out: redrawn when it changed."""
+    tile = evaluate_tile(state)
+    return (tile["lines"], tile["alarms"], tile["bar"], tile["quality"], state.status, state.last_error,
+            drift_text(drift_rows(state)), replaced_text(state))
+
+
 class DeviceTile:
-    """One device of the overview, set in place: what its values show when the device changed (the store's
-    push), counters and ages once a second on the page's tick (:meth:`refresh` with ``ticked``), every
-    element sent only when what it shows changed. Marks that are seldom shown (changed since approved,
-    replaced?, a stale note, the last error) are built the first time they are needed."""
+    """One device of the overview, set in place: what its values show when that changed (pushed through
+    :class:`pages.plant_view.Followers`), counters and ages once a second on the page's tick (``ticked``),
+    every element sent only when what it shows changed. Marks that are seldom shown (changed since
+    approved, replaced?, a stale note, the last error) are built the first time they are needed."""
+
+    shows = staticmethod(overview_shows)
 
     def __init__(self, name: str):
         runtime = rt.current()
@@ -110,7 +118,6 @@ class DeviceTile:
         self.bus_type = runtime.plant.buses[self.state.bus].type
         self._shown: dict[str, object] = {}
         self._tile: dict | None = None
-        self._seen: tuple = ()
         self.drift = self.replaced = self.quality_note = self.error = None
         # a real link: a click opens the device page, a middle click or the context menu a new tab
         with ui.link(target=f"/device/{name}").classes("tile-link").props(f'data-device-link="{name}"') as self.link, \
@@ -146,18 +153,12 @@ class DeviceTile:
         return element
 
     def refresh(self, ticked: bool = False) -> None:
-        """Show the device as it is now; ``ticked``: the page's once-a-second tick (counters and ages too).
-        A push that changed nothing the tile shows (most frames: the counters moved) costs a comparison."""
+        """Show the device as it is now; ``ticked``: the page's once-a-second tick (counters and ages too)."""
         s = self.state
-        status = s.status
+        status, age = s.status, s.age
         tile = evaluate_tile(s)  # the device type's declared tile: the same lines and alarms as the plant view
         rows = drift_rows(s)
         replaced = replaced_text(s)
-        seen = (tile, status, s.last_error, rows, replaced)
-        if not ticked and seen == self._seen:
-            return
-        self._seen = seen
-        age = s.age
         if self._changed("badge", (status, status_text(status, age))):
             set_status_badge(self.badge, status, age)
         quality = tile["quality"]
@@ -200,35 +201,6 @@ TILE_ORDER = ("kind", "drift", "replaced", "values", "quality_note", "counters",
 LINE, ALARM = "text-body2", "text-body2 text-negative text-weight-medium"
 
 
-class LabelPool:
-    """The labels of a column, reused in order: each new list of ``(text, classes)`` sets only what changed;
-    labels left over are hidden, none is built again."""
-
-    def __init__(self, column: ui.element):
-        self.column = column
-        self.labels: list[ui.label] = []
-        self.shown: list[tuple[str, str]] = []
-
-    def show(self, items: list[tuple[str, str]]) -> None:
-        if items == self.shown:
-            return
-        labels = self.labels
-        while len(labels) < len(items):
-            with self.column:
-                labels.append(ui.label())
-        for n, label in enumerate(labels):
-            if n < len(items):
-                text, classes = items[n]
-                label.set_text(text)
-                if n >= len(self.shown) or self.shown[n][1] != classes:
-                    label.classes(replace=classes)
-                if not label.visible:
-                    label.set_visibility(True)
-            elif label.visible:
-                label.set_visibility(False)
-        self.shown = list(items)
-
-
 def _cell(text: str, classes: str = "", attrs: str = "") -> str:
     return f'<div class="{classes}"{attrs}>{escape(text)}</div>' if classes or attrs else f"<div>{escape(text)}</div>"
 
@@ -236,6 +208,8 @@ def _cell(text: str, classes: str = "", attrs: str = "") -> str:
 class GlanceRow:
     """One device in the at-a-glance table: state, alarms and age, one element (the row, its cells as HTML)
     sent again only when one of them changed."""
+
+    shows = staticmethod(overview_shows)
 
     def __init__(self, name: str):
         self.name = name
@@ -280,42 +254,11 @@ def _glance_table(runtime, rows: list) -> None:
                     rows.append(GlanceRow(dev.name))
 
 
-class _Followers:
-    """The page's one watcher per device: a push that brings a new version redraws the device's tile and
-    table row; the store's once-a-second round of a device with nothing new costs a comparison (the page's
-    tick draws ages and counters, of every device at once)."""
-
-    def __init__(self) -> None:
-        self.views: dict[str, list] = {}
-        self.versions: dict[str, int] = {}
-
-    def add(self, view) -> None:
-        name = view.state.name
-        if name not in self.views:
-            self.views[name] = []
-            state = view.state
-            follow(state, lambda: self._pushed(name, state))
-        self.views[name].append(view)
-
-    def _pushed(self, name: str, state) -> None:
-        version = state.version
-        if self.versions.get(name) == version:
-            return
-        self.versions[name] = version
-        for view in self.views[name]:
-            view.refresh()
-
-    def tick(self) -> None:
-        for views in self.views.values():
-            for view in views:
-                view.refresh(ticked=True)
-
-
 def content() -> None:
     runtime = rt.current()
     with frame("Overview", beat=False):  # a page that starts and holds nothing: no dead-man beats
         ui.add_css(TILE_CSS)
-        followers = _Followers()
+        followers = Followers()
         ticks: list = []  # the bus lines and discovery lists: one timer for the page, not one per bus
         with ui.element("div").classes("overview-layout"):
             if runtime.plant.devices:
@@ -346,11 +289,11 @@ def _tick(ticks: list, count: list) -> None:
             tick()
 
 
-def _bus_section(runtime, bus, followers: _Followers, ticks: list) -> None:
+def _bus_section(runtime, bus, followers: Followers, ticks: list) -> None:
     bus_state = runtime.store.buses[bus.name]
     with ui.row().classes("items-center gap-x-2 gap-y-0"):
         # icon, name and endpoint never change: one element, its parts laid out in the row as before
-        ui.html(f'{ICON % "cable"}<span class="text-h6">{escape(bus.name)}</span>'
+        ui.html(f'{ICON % ("", "cable")}<span class="text-h6">{escape(bus.name)}</span>'
                 f'<span class="text-caption text-grey-8">{escape(f"{bus.type} · {bus.endpoint}")}</span>',
                 sanitize=False).style("display: contents")
         ui.button("Bus monitor", icon="monitor_heart", on_click=lambda b=bus.name: ui.navigate.to(f"/monitor/{b}")).props("flat dense")
@@ -389,7 +332,7 @@ def _bus_section(runtime, bus, followers: _Followers, ticks: list) -> None:
         ticks.append((2, _discovered_section(bus.name, row, followers)))
 
 
-def _discovered_section(bus: str, tile_row, followers: _Followers) -> Callable[[], None]:
+def _discovered_section(bus: str, tile_row, followers: Followers) -> Callable[[], None]:
     """Devices heard on a CAN bus that the plant does not list yet, with Adopt.
 
     Only devices that showed the evidence their type needs are listed; unknown IDs still
@@ -449,7 +392,7 @@ def _discovered_section(bus: str, tile_row, followers: _Followers) -> Callable[[
     return refresh
 
 
-def _adopt_dialog(bus: str, entry: dict, tile_row, followers: _Followers) -> None:
+def _adopt_dialog(bus: str, entry: dict, tile_row, followers: Followers) -> None:
     runtime = rt.current()
     suggested = f"{entry['type']}-{entry['device_id']}"
     path = runtime.plant.path

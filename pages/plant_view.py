@@ -5,9 +5,11 @@ There are no write controls on this page by construction: it only reads the stat
 
 from __future__ import annotations
 
+import logging
 import re
 import time
 from dataclasses import replace
+from html import escape
 
 from nicegui import ui
 
@@ -15,7 +17,6 @@ from app import runtime as rt
 from app.state import point_inputs
 from devices.registry import DEVICE_TYPES, TileSpec, _fill
 from pages.frame import CSS, fmt_age
-from pages.widgets import follow
 
 # the state of a tile in words and colour (never colour alone): what an operator reads from across the room
 BADGE = {"good": ("live", "positive"), "stale": ("stale", "warning"), "offline": ("offline", "negative"),
@@ -25,6 +26,7 @@ STATE = {"good": ("live", "check_circle"), "unknown": ("waiting for values", "ho
 # units of a quantity an operator reads as it is; a bar in any other unit (increments, counts) shows its share of full travel
 PHYSICAL_UNITS = {"mm", "cm", "m", "%", "V", "A", "°C", "s", "min", "h", "mm/s", "Hz", "W", "kW", "bar"}
 HEX_CODE = re.compile(r"^0x[0-9A-Fa-f]+:\s*")
+log = logging.getLogger(__name__)
 
 
 def operator_words(entry: dict | None) -> dict | None:
@@ -204,28 +206,43 @@ MORE_JS = """<script>
 </script>"""
 
 
-class TextPool:
-    """Labels in a column, reused: a new list of texts sets only the texts that changed (rows are not rebuilt)."""
+class LabelPool:
+    """The labels of a container, reused in order: each new list of ``(text, classes)`` sets only what
+    changed; labels left over are hidden, none is built again. ``before``: a later element of the container
+    that new labels go in front of (when it is built)."""
 
-    def __init__(self, classes: str):
-        self.column = ui.column().classes("gap-0 w-full")
-        self.classes = classes
+    def __init__(self, container: ui.element, before=lambda: None):
+        self.container = container
+        self.before = before
         self.labels: list[ui.label] = []
-        self.texts: list[str] = []
+        self.shown: list[tuple[str, str]] = []
 
-    def show(self, texts: list[str]) -> None:
-        if texts == self.texts:
+    def show(self, items: list[tuple[str, str]]) -> None:
+        if items == self.shown:
             return
-        while len(self.labels) < len(texts):
-            with self.column:
-                self.labels.append(ui.label().classes(self.classes))
-        for n, label in enumerate(self.labels):
-            text = texts[n] if n < len(texts) else ""
-            label.set_text(text)
-            visible = n < len(texts)
-            if label.visible != visible:
-                label.set_visibility(visible)
-        self.texts = list(texts)
+        labels = self.labels
+        while len(labels) < len(items):
+            with self.container:
+                label = ui.label()
+            before = self.before()
+            if before is not None:
+                label.move(target_index=self.container.default_slot.children.index(before))
+            labels.append(label)
+        for n, label in enumerate(labels):
+            if n < len(items):
+                text, classes = items[n]
+                label.set_text(text)
+                if n >= len(self.shown) or self.shown[n][1] != classes:
+                    label.classes(replace=classes)
+                if not label.visible:
+                    label.set_visibility(True)
+            elif label.visible:  # emptied too: a hidden label keeps no old text (an alarm that cleared)
+                label.set_text("")
+                label.set_visibility(False)
+        self.shown = list(items)
+
+
+ICON = '<i class="q-icon notranslate material-icons" aria-hidden="true" role="presentation"%s>%s</i>'
 
 
 def state_words(quality: str, alarms: list[str], age: float | None) -> tuple[str, str, str]:
@@ -240,7 +257,9 @@ def state_words(quality: str, alarms: list[str], age: float | None) -> tuple[str
 
 
 class PlantTile:
-    """One large tile, following the live store: each push sets only what changed."""
+    """One large tile, set in place: what changed when the device changed (the store's push), ages and stale
+    marks on the page's one-second tick; each element sent only when what it shows changed. Name and kind
+    never change and the state's icon and word change together: one element each."""
 
     def __init__(self, name: str):
         runtime = rt.current()
@@ -248,25 +267,27 @@ class PlantTile:
         self.device_type = DEVICE_TYPES[self.state.type]
         self._shown: dict[str, object] = {}
         self._tile: dict | None = None
+        self.bar_row = None
         with ui.card().classes("plant-tile") as self.card:
             self.card.props(f'data-plant-tile="{name}"')
             with ui.row().classes("items-center w-full no-wrap gap-2"):
                 self.icon = ui.icon("help", size="32px")
-                with ui.column().classes("gap-0 head"):
-                    ui.label(name).classes("name")
-                    ui.label(f"{self.device_type.title} · {self.state.bus}").classes("kind")
+                ui.html(f'<div class="name">{escape(name)}</div>'
+                        f'<div class="kind">{escape(f"{self.device_type.title} · {self.state.bus}")}</div>',
+                        sanitize=False).classes("head")
             with ui.row().classes("state-band items-center w-full no-wrap").props("data-plant-state") as self.band:
-                self.state_icon = ui.icon("hourglass_empty", size="20px")
-                self.state_word = ui.label().classes("word")
+                self.state_word = ui.html("", sanitize=False).style("display: contents")
                 self.age_note = ui.label().classes("age")
-            with ui.column().classes("values gap-0 w-full"):
-                self.lines = TextPool("value-line")
-                with ui.row().classes("items-center w-full no-wrap gap-2") as self.bar_row:
-                    self.bar = ui.linear_progress(value=0, show_value=False, size="14px").classes("col")
-                    self.bar_label = ui.label().classes("bar-label")
-            self.alarms = TextPool("alarm-text")
-        self.update()
-        follow(self.state, self.update)
+            self.values = ui.column().classes("values gap-0 w-full")
+            self.lines = LabelPool(self.values, lambda: self.bar_row)
+            self.alarms = LabelPool(self.card)
+        self.refresh()
+
+    @staticmethod
+    def shows(state) -> tuple:
+        """What a plant tile draws, its age left out."""
+        tile = plant_tile(state)
+        return tile["lines"], tile["alarms"], tile["bar"], tile["icon"], tile["quality"]
 
     def _changed(self, key: str, value: object) -> bool:
         if self._shown.get(key, self) == value:
@@ -274,7 +295,9 @@ class PlantTile:
         self._shown[key] = value
         return True
 
-    def update(self) -> None:
+    def refresh(self, ticked: bool = False) -> None:
+        """Show the device as it is now (``ticked``: the page's tick; a tile shows nothing that moves
+        without being evaluated again, so both are the same here)."""
         tile = plant_tile(self.state)
         if tile is self._tile:
             return  # the same evaluation (device unchanged, ages within SHARED_S) is on screen already
@@ -288,21 +311,118 @@ class PlantTile:
         if self._changed("state", state):
             self.card.classes(remove=" ".join(f"state-{s}" for s in STATE), add=f"state-{state}")
             self.band.props(f'data-plant-state="{state}"')
-            self.state_icon.set_name(STATE[state][1])
-            self.state_word.set_text(word)
+            self.state_word.set_content(ICON % (' style="font-size: 20px"', STATE[state][1])
+                                        + f'<span class="word">{escape(word)}</span>')
         self.age_note.set_text(age_text)
         if self._changed("icon", tile["icon"]):
             self.icon.name = tile["icon"]
             self.icon.update()
-        self.lines.show([line for line in tile["lines"] if line])
+        self.lines.show([(line, "value-line") for line in tile["lines"] if line])
         bar = tile["bar"]
-        if self._changed("bar-shown", bar is not None):
+        if bar is not None and self.bar_row is None:
+            with self.values:
+                with ui.row().classes("items-center w-full no-wrap gap-2") as self.bar_row:
+                    self.bar = ui.linear_progress(value=0, show_value=False, size="14px").classes("col")
+                    self.bar_label = ui.label().classes("bar-label")
+        if self._changed("bar-shown", bar is not None) and self.bar_row is not None:
             self.bar_row.set_visibility(bar is not None)
         if bar is not None:
             if self._changed("bar", bar[0]):
                 self.bar.set_value(bar[0])
             self.bar_label.set_text(bar[1])
-        self.alarms.show([f"⚠ {alarm}" for alarm in alarms])
+        self.alarms.show([(f"⚠ {alarm}", "alarm-text") for alarm in alarms])
+
+
+FEED_GROUP = "tiles"  # the store's group of the feed's watchers: bounded like one page's (see app/state.py)
+
+
+class _Feed:
+    """Tiles and table rows of every overview and plant view open, followed with one store watcher per
+    device for all of them (not one per page and device). A push that changed something a kind of view
+    shows (``shows(state)``: what it draws, its ages left out) redraws the views of that kind; the other
+    pushes (most frames bring the same values, only counters move) cost one comparison, however many pages
+    are open. Ages, counters and stale marks are drawn by each page's own tick."""
+
+    def __init__(self, store) -> None:
+        self.store = store
+        self.views: dict[str, dict] = {}  # device -> shows -> [views]
+        self.watches: dict = {}
+        self.versions: dict[str, int] = {}
+        self.shown: dict[tuple, tuple] = {}  # (device, shows) -> what they show now
+
+    @staticmethod
+    def of(store) -> "_Feed":
+        feed = getattr(store, "_tile_feed", None)
+        if feed is None:
+            feed = store._tile_feed = _Feed(store)
+        return feed
+
+    def add(self, view, shows) -> None:
+        name = view.state.name
+        if name not in self.watches:
+            self.watches[name] = self.store.watch(name, lambda: self._pushed(name), group=FEED_GROUP)
+        self.views.setdefault(name, {}).setdefault(shows, []).append(view)
+
+    def remove(self, view, shows) -> None:
+        name = view.state.name
+        kinds = self.views.get(name, {})
+        views = kinds.get(shows, [])
+        if view in views:
+            views.remove(view)
+        if not views:
+            kinds.pop(shows, None)
+            self.shown.pop((name, shows), None)
+        if not kinds and name in self.watches:
+            self.views.pop(name, None)
+            self.versions.pop(name, None)
+            self.watches.pop(name).cancel()
+
+    def _pushed(self, name: str) -> None:
+        state = self.store.devices.get(name)
+        if state is None:
+            return
+        version = state.version
+        if self.versions.get(name) == version:
+            return  # the store's once-a-second round: nothing new
+        self.versions[name] = version
+        for shows, views in list(self.views.get(name, {}).items()):
+            now = shows(state)
+            if self.shown.get((name, shows)) == now:
+                continue
+            self.shown[(name, shows)] = now
+            for view in list(views):
+                try:
+                    view.refresh()
+                except Exception:  # one page's failure does not stop the others
+                    self.store.push_errors += 1
+                    log.exception("a tile of %s failed; it is removed", name)
+                    self.remove(view, shows)
+
+
+class Followers:
+    """The views of one page on the shared feed, and the page's tick: every view's ages, counters and stale
+    marks drawn together, one message a second."""
+
+    def __init__(self) -> None:
+        from nicegui import context
+
+        self.feed = _Feed.of(rt.current().store)
+        self.views: list[tuple] = []
+        context.client.on_delete(self.close)
+
+    def add(self, view, shows=None) -> None:
+        shows = shows or type(view).shows
+        self.feed.add(view, shows)
+        self.views.append((view, shows))
+
+    def close(self) -> None:
+        for view, shows in self.views:
+            self.feed.remove(view, shows)
+        self.views.clear()
+
+    def tick(self) -> None:
+        for view, _shows in self.views:
+            view.refresh(ticked=True)
 
 
 def content() -> None:
@@ -313,15 +433,19 @@ def content() -> None:
         ui.label(f"Plant {runtime.plant.name}").classes("text-h5 text-white")
         ui.space()
         clock = ui.label().classes("text-h6 text-white")
+    followers = Followers()
     with ui.element("div").classes("plant-grid q-pa-sm"):
         tiles = [PlantTile(name) for name in runtime.plant.devices]
+    for tile in tiles:
+        followers.add(tile)
     if not tiles:
         ui.label("This plant file lists no devices.").classes("q-pa-md")
     ui.element("div").classes("plant-more").style("display: none").props("data-plant-more")
     ui.add_body_html(MORE_JS)
 
-    def tick() -> None:
+    def tick() -> None:  # the clock and every tile's ages and stale marks: one message a second
         clock.set_text(time.strftime("%H:%M:%S"))
+        followers.tick()
 
     tick()
     ui.timer(1.0, tick)
