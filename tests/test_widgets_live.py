@@ -260,3 +260,58 @@ async def test_register_table_is_built_once_in_the_once_a_second_round(user_runt
     state.version += 1
     await asyncio.sleep(0.15)
     assert builds[0] is True and builds.count(True) == 1  # a change in the once-a-second round: one build with the read times
+
+
+async def test_a_frame_that_changes_nothing_shown_redraws_no_tile_or_row(user_runtime, monkeypatch):
+    """Most frames bring the same values (only counters move): they cost the open pages a comparison, not a
+    redraw of every tile and table row; a new value redraws them."""
+    from pages.overview import DeviceTile, GlanceRow
+
+    user, runtime = user_runtime
+    await user.open("/")
+    pushed: list[str] = []
+    for cls in (DeviceTile, GlanceRow):
+        def counted(self, ticked: bool = False, _refresh=cls.refresh, _name=cls.__name__) -> None:
+            if not ticked:
+                pushed.append(_name)
+            _refresh(self, ticked)
+        monkeypatch.setattr(cls, "refresh", counted)
+    state = runtime.store.devices["io"]
+    await asyncio.sleep(0.3)
+    pushed.clear()
+    for _ in range(8):
+        state.counters.responses += 1
+        state.version += 1
+        await asyncio.sleep(0.1)
+    assert pushed == []
+    state.publish("TEMP2", 30.0, "°C", text="30.0 °C")
+    await wait_until(lambda: sorted(set(pushed)) == ["DeviceTile", "GlanceRow"], 1.0)
+
+
+def _tile_elements(user, prop: str, name: str) -> list:
+    card = next(e for e in user.client.elements.values() if e.props.get(prop) == name)
+    return list(card.descendants())
+
+
+async def test_tiles_are_light_and_seldom_shown_marks_are_built_when_needed(user_runtime):
+    """A tile builds what it shows: no hidden badges, notes or bars waiting; a table row is one element.
+    A mark needed later is built in its place (below the device's kind, above its values)."""
+    user, runtime = user_runtime
+    await user.open("/")
+    state = runtime.store.devices["io"]
+    elements = _tile_elements(user, "data-device", "io")
+    assert len(elements) <= 12, [type(e).__name__ for e in elements]
+    assert not any("data-drift" in e.props or "data-replaced" in e.props for e in elements)
+    row = next(e for e in user.client.elements.values() if e.props.get("data-glance") == "io")
+    assert list(row.descendants()) == []
+    state.drift = {"changed": [{"key": "holding:3000", "name": "Delay", "approved": "200 ms", "now": "350 ms"}]}
+    state.version += 1
+    await wait_until(lambda: any("data-drift" in e.props for e in _tile_elements(user, "data-device", "io")), 2.0)
+    card = next(e for e in user.client.elements.values() if e.props.get("data-device") == "io")
+    order = [("drift" if "data-drift" in e.props else "values" if "data-tile-values" in e.props else
+              "kind" if getattr(e, "text", "").startswith("CAN-M3IO") else "") for e in card.default_slot.children]
+    assert [o for o in order if o] == ["kind", "drift", "values"], order
+    assert "Changed since approved: Delay 200 ms → 350 ms" in row.content
+    await user.open("/plant")
+    elements = _tile_elements(user, "data-plant-tile", "io")
+    assert len(elements) <= 11, [type(e).__name__ for e in elements]
