@@ -10,6 +10,8 @@ A device page reads::
                 ...
 
         def refresh(self) -> None:
+            if self.unchanged(self.view.inputs(LAMP_POINTS)):
+                return  # the same values as drawn, nothing ageing: nothing to do on this push
             ...
 
     def content(name: str) -> None:
@@ -20,7 +22,7 @@ A device page reads::
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 
 from nicegui import ui
@@ -28,6 +30,7 @@ from nicegui import ui
 from app import runtime as rt
 from app.state import DeviceState, LiveValue, session_tag
 from pages.frame import frame, set_status_badge
+from devices.params import Param
 from pages.widgets import WriteGuard, counter_line, event_log, follow, run_command
 
 
@@ -45,6 +48,52 @@ class DeviceView:
         self.tag = session_tag(self.session)
         self.cards: list = []
         self.guard: WriteGuard | None = None  # the page's write and command controls, off with the reason while silent
+        self.pushing = False  # while the store's push runs the page's refresh (see :attr:`ages_due`)
+        self._keys: dict[str, tuple] = {}  # a register parameter's name -> the (space, address) of its words
+
+    @property
+    def ages_due(self) -> bool:
+        """Whether this refresh draws ages and what time alone changes (stale marks, "last seen"): on the store's
+        once-a-second round of the device, and on a refresh of the page's own (built, after a command, an entry
+        changed); not on a push that only brought values (that draws the values that changed)."""
+        return not self.pushing or self.store.age_round
+
+    def pushed(self) -> None:
+        """The store pushed a change of the device (or its once-a-second round): refresh the cards."""
+        self.pushing = True
+        try:
+            self.refresh()
+        finally:
+            self.pushing = False
+
+    def inputs(self, names: Iterable[str]) -> tuple:
+        """What the values named ``names`` (published points or register parameters, as :meth:`live` finds them)
+        are drawn from now, without their read times: a point's value, text and unit, a parameter's register
+        words. Equal inputs draw the same values (their qualities and ages aside: see :meth:`DeviceCard.unchanged`).
+        O(names), no record built."""
+        state = self.state
+        points, registers, keys = state.points, state.registers, self._keys
+        out = []
+        for name in names:
+            p = points.get(name)
+            if p is not None:
+                out.append((p.value, p.text, p.unit))
+                continue
+            key = keys.get(name)
+            if key is None:
+                param = state.params.by_name.get(name) if state.params is not None else None
+                key = keys[name] = () if param is None else tuple((param.space, a) for a in param.addresses)
+            if len(key) == 1:  # one word (most parameters): no tuple of one
+                e = registers.get(key[0])
+                out.append(None if e is None else e[0])
+            else:
+                out.append(tuple(None if (e := registers.get(k)) is None else e[0] for k in key))
+        return tuple(out)
+
+    def words(self, params: Iterable[Param]) -> tuple:
+        """The register words of ``params`` now (None for a word not read yet), without their read times."""
+        registers = self.state.registers
+        return tuple(None if (e := registers.get((p.space, a))) is None else e[0] for p in params for a in p.addresses)
 
     def live(self, point: str) -> LiveValue | None:
         return self.state.live(point)
@@ -80,8 +129,22 @@ class DeviceView:
 class DeviceCard:
     """One part of a device page."""
 
+    _drawn: object = None  # the inputs the card last drew (see :meth:`unchanged`)
+    aging = False  # the card shows a value as stale: its mark clears when the value is read again, same value or not
+
     def __init__(self, view: DeviceView):
         self.view = view
+
+    def unchanged(self, inputs: object) -> bool:
+        """Whether the card may skip this refresh: ``inputs`` (what its values are drawn from, e.g.
+        :meth:`DeviceView.inputs`; the device's online state is added here) are what it last drew, no age is due
+        (:attr:`DeviceView.ages_due`) and nothing it shows is marked stale (:attr:`aging`). Otherwise the inputs
+        are noted as drawn and the card draws. A card whose read times or counters alone moved does nothing."""
+        inputs = (self.view.state.online, inputs)
+        if inputs == self._drawn and not self.aging and not self.view.ages_due:
+            return True
+        self._drawn = inputs
+        return False
 
     @property
     def guard(self) -> WriteGuard:
@@ -148,7 +211,7 @@ def device_page(view: DeviceView, title: str, stop: Callable[[], object] | None 
     if stop is not None:
         stop()
     view.refresh()
-    follow(view.state, view.refresh)
+    follow(view.state, view.pushed)
 
 
 __all__ = ["DeviceCard", "DeviceView", "StatusBadge", "StatusRow", "device_page", "titled_card"]

@@ -51,6 +51,9 @@ CARD_GRID = "display: grid; grid-template-columns: repeat(auto-fit, minmax(420px
 # the Parameters card's grid: register, name, current value, new value, Write
 PARAM_COLUMNS = "auto minmax(8rem, max-content) minmax(7rem, max-content) auto auto"
 NAME_WRAP = "overflow-wrap: anywhere; min-width: 0"  # "SettingsProximityThresholdUnlock" wraps in its column
+LOCK_STATUS_ADDRESS = PARAMS.by_name["LockStatus"].address  # holding 1000, one word
+HEALTH_INPUTS = ("SerialNumber", "FirmwareVersion", P_ADDRESS, P_DEVICE_ID)
+LAMP_INPUTS = ("LockStatus", *ENUM_VALUES)
 # simulation actions shown elsewhere: the service swap on the replacement page, refused writes in tests
 SIM_ELSEWHERE = ("swap for a new device", "refuse writes")
 
@@ -127,6 +130,8 @@ class HealthCard(DeviceCard):
 
     def refresh(self) -> None:
         view, state = self.view, self.view.state
+        if self.unchanged((state.status, state.last_error, view.inputs(HEALTH_INPUTS))):
+            return  # status, error, address and identity as drawn: the ages move on the once-a-second round
         self.status.refresh()
         serial, fw = state.value("SerialNumber"), state.value("FirmwareVersion")
         if view.is_can:
@@ -162,7 +167,10 @@ class LampsCard(DeviceCard):
 
     def refresh(self) -> None:
         state = self.view.state
+        if self.unchanged(self.view.inputs(LAMP_INPUTS)):
+            return  # the same words, nothing shown stale: no record built, no element touched
         status = state.entry("LockStatus")
+        aging = status is not None and status["quality"] == "stale"
         for field_name, lamp in self.lamps.items():
             lamp.show(status, None if status is None else status["fields"][field_name])
         self.note.set_text(_note(status))
@@ -171,6 +179,8 @@ class LampsCard(DeviceCard):
             label.set_text(entry["name"] or f"undefined ({entry['value']})" if entry else "-")
             mark_quality(label, entry["quality"] if entry else "unknown")
             self.notes[key].set_text(_note(entry))
+            aging = aging or (entry is not None and entry["quality"] == "stale")
+        self.aging = aging
 
 
 def _note(entry: dict | None) -> str:
@@ -186,6 +196,7 @@ class ParameterCard(DeviceCard):
     def __init__(self, view: HdLockView):
         super().__init__(view)
         self.rows: dict[str, tuple] = {}
+        self.params: list[Param] = []  # the rows' parameters, in order
         self.entries: dict[str, ui.element] = {}
         self.shown: dict[str, object] = {}  # the device value each field was last given
 
@@ -237,6 +248,7 @@ class ParameterCard(DeviceCard):
         button = ui.button("Write", on_click=lambda p=p, entry=entry: _write(name, p, entry)).props(f'dense data-write="{key}"')
         self.view.guard.add(button)
         self.rows[p.key] = (p, cell, current, age, mark)
+        self.params.append(p)
         self.entries[p.key] = entry
 
     def follow_entry(self, key: str, p: Param, raw: int | None) -> None:
@@ -252,15 +264,20 @@ class ParameterCard(DeviceCard):
 
     def refresh(self) -> None:
         state, now = self.view.state, time.time()
+        if self.unchanged((self.view.words(self.params), frozenset(state.unsaved))):
+            return  # the same words and unsaved marks, nothing shown stale
+        aging = False
         for key, (p, cell, current, age, mark) in self.rows.items():
             raw = state.raw(p)
             current.set_text("-" if raw is None else p.display(raw))
             self.follow_entry(key, p, raw)
             read = state.read_time(p)
             quality = state.param_quality(p, now)  # aged by its own read period (settings: every 10 s)
+            aging = aging or quality == "stale"
             mark_quality(cell, quality)  # greyed with the age of its value while stale or offline
             age.set_text(quality_note(quality, None if read is None else now - read) if quality in ("stale", "offline") else "")
             mark.set_visibility(key in state.unsaved)
+        self.aging = aging
         count = len(state.unsaved)
         self.unsaved_label.set_text(f"{count} unsaved change{'s' if count != 1 else ''}")
         self.unsaved_label.set_visibility(count > 0)
@@ -386,6 +403,10 @@ class SetAddressCard(DeviceCard):
         _gate_send(self.view, self.button, self.new)
 
     def refresh(self) -> None:
+        state = self.view.state
+        if self.unchanged((state.status, state.last_error, self.new.value, self.p1.value, self.p2.value,
+                           self.view.inputs(("LockStatus",)))):
+            return  # the gate of Send and the preview are drawn from these alone
         _gate_send(self.view, self.button, self.new)
         m, e = _parse_word(self.p1.value), _parse_word(self.p2.value)
         preview = self.preview
@@ -444,6 +465,19 @@ def _line_locks(name: str, state) -> tuple[dict[int, str], dict[str, int | None]
     return known, statuses, in_plant, len(known) - in_plant
 
 
+def _line_inputs(view: HdLockView) -> tuple:
+    """What :func:`_line_locks` is drawn from, without building it: each lock's address and LockStatus word
+    on this line (in the plant file), and the locks a scan found."""
+    store, bus = view.store, view.state.bus
+    out: list = [view.state.points.get(P_LINE_LOCKS, (None,))[0]]
+    for dev in view.runtime.plant.devices_on(bus):
+        if dev.type == DEVICE_TYPE:
+            other = store.devices[dev.name]
+            address, status = other.points.get(P_ADDRESS), other.registers.get((HOLDING, LOCK_STATUS_ADDRESS))
+            out.append((dev.name, None if address is None else address.value, None if status is None else status[0]))
+    return tuple(out)
+
+
 class BroadcastAddressCard(DeviceCard):
     """Set Modbus Address to broadcast address 255 (section 4.3): every lock on the line at once."""
 
@@ -465,8 +499,11 @@ class BroadcastAddressCard(DeviceCard):
         _gate_send(self.view, self.button, self.new)
 
     def refresh(self) -> None:
-        _gate_send(self.view, self.button, self.new)
         state = self.view.state
+        if self.unchanged((state.status, state.last_error, self.new.value, self.p1.value, self.p2.value,
+                           _line_inputs(self.view))):
+            return  # the entries, the gate of Send and the locks of the line (their addresses and LockStatus) as drawn
+        _gate_send(self.view, self.button, self.new)
         m, e = _parse_word(self.p1.value), _parse_word(self.p2.value)
         known, statuses, in_plant, scanned = _line_locks(self.view.name, state)
         listed = ", ".join(f"{label} @{address}" if not label.startswith("address") else label for address, label in sorted(known.items()))
@@ -531,6 +568,8 @@ class CanStatusCard(DeviceCard):
             self.fwu = ui.label().classes("text-body2 text-warning")
 
     def refresh(self) -> None:
+        if self.unchanged(self.view.inputs((P_STATUS_FRAME, P_FWU))):
+            return
         status = self.view.state.live(P_STATUS_FRAME)
         if status is not None:
             self.text.set_text(status.shown)

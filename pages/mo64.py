@@ -59,6 +59,10 @@ COUNTER_POINTS = ("Service counter", "Maintenance counter", "Maintenance interva
                   "Loop-adjust counter A", "Loop-adjust counter B", "Loop-adjust counter C")
 MODE_POINTS = ("Induction-loop modes", "Direction logics", "Configuration flags", "Multi-relay modes",
                "Status mask", "Counting function", "Radio code (dec_bt)", "Loop periods")
+# what the gate card and the settings card are drawn from (besides the device's status and errors)
+GATE_INPUTS = ("Gate state", "Position", *sorted(ALARM_BITS), facts.P_LATE, facts.P_CONNECTION, facts.P_POLLING,
+               facts.P_QUERY_FORM, facts.P_UNAVAILABLE, facts.P_LEVELS_UNAVAILABLE)
+SETTINGS_INPUTS = (*SETTING_POINTS.values(), facts.P_EEPROM, "Change monitoring", facts.P_MONITORING)
 HIDDEN_BITS = frozenset(f"multi relay {n}" for n in range(7, 15))  # an MO 64 has six (5.1.25): SPEC-NOTES
 
 
@@ -126,6 +130,10 @@ class GateCard(DeviceCard):
 
     def refresh(self) -> None:
         view, state = self.view, self.view.state
+        bus = view.store.buses.get(state.bus)
+        if self.unchanged((state.status, state.last_error, bus.last_error if bus is not None else None,
+                           view.inputs(GATE_INPUTS))):
+            return  # status, errors and the gate's points as drawn: the badge's age moves on the once-a-second round
         self.badge.refresh()
         self.gate.set_text(f"gate state: {view.text('Gate state')}")
         value = view.fact("Position")
@@ -136,7 +144,6 @@ class GateCard(DeviceCard):
             self.picture.set_content(boom_svg(value))
         on = [b for b in ALARM_BITS if view.fact(b)]
         self.alarms.set_text(", ".join(ALARM_WORDS[b] for b in sorted(on)))
-        bus = view.store.buses.get(state.bus)
         late = view.fact(facts.P_LATE, 0)
         self.link.set_text(f"connection: {view.text(facts.P_CONNECTION)}"
                            + (f" ({bus.last_error})" if bus is not None and bus.last_error else "")
@@ -192,6 +199,8 @@ class CommandsCard(DeviceCard):
         await self.view.act("clear levels", success="levels deactivated")  # the gate asks the declared risk
 
     def refresh(self) -> None:
+        if self.unchanged(self.view.inputs((facts.P_LEVELS, facts.P_LAST_REPLY))):
+            return
         mine = sorted(level.command + (" (dead-man)" if level.dead_man else "")
                       for level in self.view.fact(facts.P_LEVELS, ()))
         self.levels.set_text("levels this tool set: " + (", ".join(mine) if mine else "none"))
@@ -216,8 +225,14 @@ class StatusCard(DeviceCard):
             ui.label(LEGEND).classes("text-caption text-grey-8").props("data-testid=status-legend")
 
     def refresh(self) -> None:
+        if self.unchanged(self.view.inputs(self.lamps)):
+            return  # the same 40 bits, none shown stale
+        aging = False
         for bit, lamp in self.lamps.items():
-            lamp.show(self.view.state.point(bit))
+            entry = self.view.state.point(bit)
+            lamp.show(entry)
+            aging = aging or (entry is not None and entry["quality"] == "stale")
+        self.aging = aging
 
 
 class ValuesCard(DeviceCard):
@@ -238,8 +253,12 @@ class ValuesCard(DeviceCard):
                 ui.label(self.note).classes("text-caption text-grey-8")
 
     def refresh(self) -> None:
+        if self.unchanged(self.view.inputs(self.points)):
+            return
+        aging = False
         for point, line in self.lines.items():
-            _show_line(line, f"{point}: {self.view.text(point)}", self.view.live(point))
+            aging = _show_line(line, f"{point}: {self.view.text(point)}", self.view.live(point)) or aging
+        self.aging = aging
 
 
 class ErrorMemoryCard(DeviceCard):
@@ -261,6 +280,8 @@ class ErrorMemoryCard(DeviceCard):
 
     def refresh(self) -> None:
         state = self.view.state
+        if self.unchanged((state.status, self.view.inputs((facts.P_ERROR_LEVELS,)))):
+            return
         levels = {e.level: e for e in self.view.fact(facts.P_ERROR_LEVELS, ())}
         rows = [{"level": codec.error_level_text(e.level),
                  "meaning": codec.error_level_meaning(e.flags, e.timestamp_h,
@@ -335,8 +356,12 @@ class SettingsCard(DeviceCard):
 
     def refresh(self) -> None:
         view = self.view
+        if self.unchanged(view.inputs(SETTINGS_INPUTS)):
+            return
+        aging = False
         for key, line in self.values.items():
-            _show_line(line, view.text(SETTING_POINTS[key]), view.live(SETTING_POINTS[key]))
+            aging = _show_line(line, view.text(SETTING_POINTS[key]), view.live(SETTING_POINTS[key])) or aging
+        self.aging = aging
         writes = view.fact(facts.P_EEPROM)
         mine, total = (0, 0) if writes is None else (writes.of(view.session), writes.total)
         self.writes.set_text(f"EEPROM writes this session: {mine} (all sessions: {total})")
@@ -372,12 +397,14 @@ def _value_line(classes: str = "") -> tuple[ui.row, ui.label, ui.label]:
     return row, text, age
 
 
-def _show_line(line: tuple, text: str, value: LiveValue | None) -> None:
+def _show_line(line: tuple, text: str, value: LiveValue | None) -> bool:
+    """Show a value with its quality; True when it is shown stale."""
     row, label, age = line
     quality = "unknown" if value is None else value.quality
     label.set_text(text)
     mark_quality(row, quality)  # greyed while stale or offline
     age.set_text(quality_note(quality, entry_age(value and value.entry())) if quality in ("stale", "offline") else "")
+    return quality == "stale"
 
 
 def _whole_number(label: str, low: int, high: int) -> ui.number:

@@ -163,6 +163,11 @@ class RegisterTable:
         )
         self.table.props(':table-row-class-fn="row => row.quality_class"')
         self._cache: dict[str, tuple[tuple, float | None, dict]] = {}  # key -> (raw, quality, unsaved), read time, row
+        self._keys = [(p.space, a) for p in params for a in p.addresses]  # every word the table shows
+        self._owner = [i for i, p in enumerate(params) for _ in p.addresses]  # word -> the row that shows it
+        self._words: list | None = None  # the words, online state and unsaved marks last drawn
+        self._marks: tuple | None = None
+        self._aging = False  # a row is shown stale: it turns good when read again, same word or not
         # in a tab panel (input and holding registers side by side): followed while its tab is shown, brought up to
         # date as it is chosen; a table nobody sees costs nothing on every push
         self._panel, self._panels = _enclosing_tab_panel(self.table)
@@ -176,28 +181,56 @@ class RegisterTable:
         """New values, qualities and unsaved marks at once; a new read time alone (every poll) once a
         second, with ``times`` (the device's once-a-second round). A row whose value, quality and mark did
         not change is kept as it was built (outside the once-a-second round its read time waits for that
-        round), so a change of one register builds one row, not the table. Once the table is in the
-        browser only the changed cells of the changed rows go there (a few bytes, not the whole table with
-        its descriptions and columns, which the browser keeps): the table element is sent whole only when
-        its rows are new."""
+        round), so a change of one register builds one row, not the table; a push that changed no word,
+        no unsaved mark and not the device's online state (a poll that read the same values) costs one
+        comparison of the table's words. Once the table is in the browser only the changed cells of the
+        changed rows go there (a few bytes, not the whole table with its descriptions and columns, which the
+        browser keeps): the table element is sent whole only when its rows are new."""
         panels = self._panels
         if panels is not None and self.table.rows and \
                 panels._value_to_model_value(panels.value) != self._panel.props.get("name"):
-            return  # its tab is not shown: updated when it is chosen
+            self._words = None  # its tab is not shown: updated when it is chosen
+            return
+        state = self.state
+        registers = state.registers
+        words = [None if (e := registers.get(k)) is None else e[0] for k in self._keys]
+        marks = (state.online, frozenset(state.unsaved) if state.unsaved else None)
+        if not times and words == self._words and marks == self._marks and not self._aging:
+            return  # the same words, marks and online state: nothing a row shows moved but read times
+        old_words = self._words
+        # a push of new words only (no round, same marks, nothing stale): the rows of the words that changed
+        only = None if times or old_words is None or marks != self._marks or self._aging or not self.table.rows else \
+            {self._owner[i] for i, (a, b) in enumerate(zip(words, old_words)) if a != b}
+        self._words, self._marks = words, marks
         now = time.time()
-        state, cache = self.state, self._cache
+        cache = self._cache
         rows = []
         patch: dict[str, dict] = {}
-        for p in self.params:
+        aging = False
+        for i, p in enumerate(self.params):
+            old = cache.get(p.key)
+            if only is not None and i not in only and old is not None:
+                rows.append(old[2])
+                continue
             raw = state.raw(p)
             read = state.read_time(p)
             quality = state.param_quality(p, now)
+            if quality == "stale":
+                aging = True
             unsaved = p.key in state.unsaved
             sig = (raw, quality, unsaved)
-            old = cache.get(p.key)
-            if old is not None and old[0] == sig and (not times or (old[1] == read and quality == "good")):
-                rows.append(old[2])
-                continue
+            if old is not None and old[0] == sig:
+                if not times or old[1] == read:
+                    rows.append(old[2])
+                    continue
+                if quality == "good":  # the same good value read again: only its Read cell moves (once a second)
+                    age = _clock(read)
+                    row = old[2] if old[2]["age"] == age else {**old[2], "age": age}
+                    if row is not old[2]:
+                        patch[p.key] = {"age": age}
+                    cache[p.key] = (sig, read, row)
+                    rows.append(row)
+                    continue
             row = self._row(p, raw, read, quality, unsaved, now)
             if old is not None:
                 cells = {k: v for k, v in row.items() if old[2].get(k) != v}
@@ -207,6 +240,7 @@ class RegisterTable:
                     patch[p.key] = cells
             cache[p.key] = (sig, read, row)
             rows.append(row)
+        self._aging = aging
         shown = self.table.rows
         if len(rows) != len(shown) or any(a["key"] != b["key"] for a, b in zip(rows, shown)):
             self.table.rows = rows  # new rows: the whole table (at the start)
@@ -229,13 +263,29 @@ class RegisterTable:
             "value": "-" if raw is None else p.display(raw),
             "raw": "-" if raw is None else f"0x{raw:0{4 * p.words}X}",
             "access": p.access.value + (" (never written)" if p.never_write and p.access.value == "RW" else ""),
-            "age": "-" if read is None else datetime.fromtimestamp(read).strftime("%H:%M:%S"),
+            "age": _clock(read),
             "description": p.description,
             "unsaved": unsaved,
             # good: the Read column gives the time; stale or offline: how old the value is
             "quality": "-" if raw is None else (quality_note(quality, None if read is None else now - read) or quality),
             "quality_class": f"q-{quality}" if quality in ("stale", "offline") else "",
         }
+
+
+_CLOCKS: dict[int, str] = {}  # whole seconds -> "HH:MM:SS": the rows of one poll share their second
+
+
+def _clock(t: float | None) -> str:
+    """A read time as the Read column shows it (local time, whole seconds); "-" for none."""
+    if t is None:
+        return "-"
+    second = int(t)
+    text = _CLOCKS.get(second)
+    if text is None:
+        if len(_CLOCKS) > 256:
+            _CLOCKS.clear()
+        text = _CLOCKS[second] = datetime.fromtimestamp(second).strftime("%H:%M:%S")
+    return text
 
 
 def upload_button(label: str, testid: str) -> str:
