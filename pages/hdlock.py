@@ -28,7 +28,7 @@ from devices.params import Param
 from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
 from pages.frame import fmt_age
 from pages.simcontrols import sim_card
-from pages.widgets import HistoryChart, Lamp, RegisterTable, WriteGuard, checked_value, confirm, entry_age
+from pages.widgets import HistoryChart, Lamp, RegisterTable, ValueLine, WriteGuard, checked_value, confirm, entry_age
 from pages.widgets import gate, mark_quality, quality_note, range_number, refuse, run_command, write_from_page
 
 DEVICE_TYPE = "hdlock"
@@ -155,7 +155,8 @@ class LampsCard(DeviceCard):
                 ui.label("LockStatus (holding 1000)").classes("text-subtitle1")
                 self.note = ui.label().classes("q-age").props("data-testid=lockstatus-quality")
             with ui.row().classes("gap-5"):
-                self.lamps = {f.name: Lamp(f.name, LAMP_KIND.get(f.name, "ok"), f.description) for f in LOCK_STATUS_BITS}
+                self.lamps = {f.name: Lamp(f.name, LAMP_KIND.get(f.name, "ok"), f.description, light=True)
+                              for f in LOCK_STATUS_BITS}
             with ui.row().classes("gap-8 q-mt-sm"):
                 self.labels, self.notes = {}, {}
                 for key in ENUM_VALUES:
@@ -234,9 +235,7 @@ class ParameterCard(DeviceCard):
             ui.label(label).style(NAME_WRAP).props(f'data-param-name="{key}"') \
                 .tooltip(f"{label}: {p.description}" if p.description else label)
             mark = ui.badge("unsaved", color="orange")
-        with ui.row().classes("items-baseline gap-0 no-wrap") as cell:
-            current = ui.label("-").classes("mono")
-            age = ui.label().classes("q-age")
+        current = ValueLine("mono")  # the value, greyed with its age while stale or offline: one element
         if p.enum is not None:
             entry = ui.select({k: f"{v} ({k})" for k, v in p.enum.items()}, value=None) \
                 .props("dense outlined options-dense").classes("w-64")
@@ -247,7 +246,7 @@ class ParameterCard(DeviceCard):
         entry.on("keydown.enter", lambda p=p, entry=entry: _write(name, p, entry))  # Enter writes, as the button does
         button = ui.button("Write", on_click=lambda p=p, entry=entry: _write(name, p, entry)).props(f'dense data-write="{key}"')
         self.view.guard.add(button)
-        self.rows[p.key] = (p, cell, current, age, mark)
+        self.rows[p.key] = (p, current, mark)
         self.params.append(p)
         self.entries[p.key] = entry
 
@@ -267,15 +266,15 @@ class ParameterCard(DeviceCard):
         if self.unchanged((self.view.words(self.params), frozenset(state.unsaved))):
             return  # the same words and unsaved marks, nothing shown stale
         aging = False
-        for key, (p, cell, current, age, mark) in self.rows.items():
+        for key, (p, current, mark) in self.rows.items():
             raw = state.raw(p)
-            current.set_text("-" if raw is None else p.display(raw))
             self.follow_entry(key, p, raw)
             read = state.read_time(p)
             quality = state.param_quality(p, now)  # aged by its own read period (settings: every 10 s)
             aging = aging or quality == "stale"
-            mark_quality(cell, quality)  # greyed with the age of its value while stale or offline
-            age.set_text(quality_note(quality, None if read is None else now - read) if quality in ("stale", "offline") else "")
+            # greyed with the age of its value while stale or offline
+            current.show("-" if raw is None else p.display(raw), quality,
+                         quality_note(quality, None if read is None else now - read) if quality in ("stale", "offline") else "")
             mark.set_visibility(key in state.unsaved)
         self.aging = aging
         count = len(state.unsaved)

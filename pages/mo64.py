@@ -7,6 +7,8 @@ with ``build()`` (in the page's layout) and ``refresh()`` (on every change the s
 
 from __future__ import annotations
 
+import html
+
 from nicegui import ui
 
 from app.state import LiveValue
@@ -16,7 +18,7 @@ from devices.mo64.adapter import COMMAND_NAMES
 from devices.mo64.policy import EEPROM_RISK, operation_name, setting_name
 from pages.device_page import DeviceCard, DeviceView, StatusBadge, device_page, titled_card
 from pages.simcontrols import sim_card
-from pages.widgets import Lamp, WriteGuard, checked_value, counter_line, entry_age, mark_quality, quality_note
+from pages.widgets import Lamp, ValueLine, WriteGuard, checked_value, counter_line, entry_age, mark_quality, quality_note
 from pages.widgets import range_number, refuse
 
 MOTION_WARNING = "the boom moves: check that nobody stands under it"
@@ -220,7 +222,7 @@ class StatusCard(DeviceCard):
                         for bit in names:
                             if bit in HIDDEN_BITS:
                                 continue
-                            self.lamps[bit] = Lamp(bit, "alarm" if bit in ALARM_BITS else "ok",
+                            self.lamps[bit] = Lamp(bit, "alarm" if bit in ALARM_BITS else "ok", light=True,
                                                    tooltip=BIT_MEANINGS.get(bit, f"{bit}: named in chapter 5.1.7"))
             ui.label(LEGEND).classes("text-caption text-grey-8").props("data-testid=status-legend")
 
@@ -384,26 +386,21 @@ def content(name: str) -> None:
         view.add(SettingsCard(view))
         with ui.expansion("Assumptions beyond the manual (shown as such)").classes("w-full") \
                 .props("data-testid=assumptions"):
-            for text in codec.ASSUMPTIONS:
-                ui.label(f"Assumption: {text}").classes("text-caption")
+            # static text: one element for all of them
+            ui.html("".join(f'<div class="text-caption">Assumption: {html.escape(text, quote=False)}</div>' for text in codec.ASSUMPTIONS),
+                    sanitize=False).classes("column gap-2")
         sim_card(name)  # the twin's declared controls, in simulation only
 
 
-def _value_line(classes: str = "") -> tuple[ui.row, ui.label, ui.label]:
-    """A value with its age next to it (shown while the value is stale or offline)."""
-    with ui.row().classes("items-baseline gap-0 no-wrap") as row:
-        text = ui.label("-").classes(classes)
-        age = ui.label().classes("q-age")
-    return row, text, age
+def _value_line(classes: str = "") -> ValueLine:
+    """A value with its age next to it (shown while the value is stale or offline), in one element."""
+    return ValueLine(classes)
 
 
-def _show_line(line: tuple, text: str, value: LiveValue | None) -> bool:
-    """Show a value with its quality; True when it is shown stale."""
-    row, label, age = line
+def _show_line(line: ValueLine, text: str, value: LiveValue | None) -> bool:
+    """Show a value with its quality (greyed, with its age, while stale or offline); True when it is shown stale."""
     quality = "unknown" if value is None else value.quality
-    label.set_text(text)
-    mark_quality(row, quality)  # greyed while stale or offline
-    age.set_text(quality_note(quality, entry_age(value and value.entry())) if quality in ("stale", "offline") else "")
+    line.show(text, quality, quality_note(quality, entry_age(value.entry())) if quality in ("stale", "offline") else "")
     return quality == "stale"
 
 

@@ -99,7 +99,12 @@ async def test_every_reading_beyond_the_manual_is_shown_as_an_assumption(env):
 
     user, runtime = env
     await user.open("/device/gate")
-    shown = [e.text for e in user.find(kind=ui.label).elements if e.text.startswith("Assumption: ")]
+    import html
+    import re
+
+    # one element holds them all (static text), one line (div) each
+    (block,) = [e for e in user.client.elements.values() if isinstance(e, ui.html) and "Assumption: " in e.content]
+    shown = [html.unescape(line) for line in re.findall(r'<div class="text-caption">(.*?)</div>', block.content)]
     for text in codec.ASSUMPTIONS:  # among them the short commands' one byte and the error memory's level byte
         assert f"Assumption: {text}" in shown
     assert f"Assumption: {codec.ASSUMED_SHORT_COMMAND}" in shown
@@ -170,3 +175,24 @@ def test_error_flags_in_words():
     assert codec.error_level_text(0) == "0 (newest)" and codec.error_level_text(9) == "9 (oldest)"
     assert codec.error_level_meaning(0, 0) == "empty: no change stored"
     assert codec.error_level_meaning(0, 12, older=0x10) == "no error (flag 4 cleared)"
+
+
+async def test_the_mo64_page_is_built_of_few_elements(env):
+    """Lamps of one element (and their tooltips), each value with its quality and age in one element: the page
+    was 453 elements (the header's ~100 among them)."""
+    user, runtime = env
+    state = runtime.worker.adapters["gate"].state
+    await eventually(lambda: "Serial number" in state.points and "Gate state" in state.points, timeout=10)
+    await user.open("/device/gate")
+    await user.should_see("Serial number: 6400001")
+    elements = list(user.client.elements.values())
+    assert len(elements) <= 340, len(elements)
+    lamps = [e for e in elements if "data-lamp" in e.props]
+    from pages.mo64 import HIDDEN_BITS
+
+    assert len(lamps) == len([b for names in codec.STATUS_GROUPS.values() for b in names if b not in HIDDEN_BITS])
+    for lamp in lamps:
+        assert isinstance(lamp, ui.label) and [type(e) for e in lamp.descendants()] == [ui.tooltip]
+    (serial,) = [e for e in elements if isinstance(e, ui.html) and "Serial number: 6400001" in e.content]
+    await eventually(lambda: serial.props.get("data-quality") == "good", timeout=5)
+    assert not list(serial.descendants())
