@@ -33,7 +33,8 @@ a.tile-link { color: inherit; text-decoration: none; display: block; min-width: 
 a.tile-link > .tile { min-width: 0; height: 100%; cursor: pointer; }
 .tile .tile-name { min-width: 0; flex: 1 1 auto; white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }
 .tile .q-badge { flex: none; white-space: nowrap; }
-.tile .tile-counters { overflow-wrap: anywhere; }
+.tile .tile-counters { overflow-wrap: anywhere; font-size: .75rem; line-height: 1.25rem; letter-spacing: .03333em;
+                      color: #616161; font-family: ui-monospace, SFMono-Regular, Menlo, Consolas, monospace; }
 .tile .q-age:empty { display: none; }
 table.glance-table { border-collapse: collapse; width: 100%; font-size: 13px; }
 table.glance-table th { text-align: left; font-weight: 500; color: #666; padding: 2px 6px; border-bottom: 1px solid #ddd; }
@@ -130,8 +131,7 @@ class DeviceTile:
             self.values = ui.column().classes("gap-0 w-full").props("data-tile-values")
             self.lines = LabelPool(self.values)
             # they move with every frame: drawn once a second, with every other tile's, on the page's tick
-            self.counters = ui.label().classes("text-caption mono text-grey-8 tile-counters") \
-                .props("data-counters data-tile-counters")
+            self.counters = ui.label().classes("tile-counters").props("data-tile-counters")  # one class: sent every second
         self.refresh(ticked=True)
 
     def _changed(self, key: str, value: object) -> bool:
@@ -339,7 +339,8 @@ def _discovered_section(bus: str, tile_row, followers: Followers) -> Callable[[]
     being watched, and what was left out, are counted below the list.
     """
     runtime = rt.current()
-    box = ui.column().classes("gap-1").props(f'data-discovered="{bus}"')
+    section = tile_row.parent_slot.parent
+    boxes: list = []  # the list's column, built when there is something to list (most buses never have)
     shown: list = [None]
 
     ages: dict = {}  # key -> the label with evidence and age, updated in place (the Adopt button stays put)
@@ -360,8 +361,14 @@ def _discovered_section(bus: str, tile_row, followers: Followers) -> Callable[[]
                     ages[key].set_text(age_text(entry))
             return
         shown[0] = signature
-        box.clear()
         ages.clear()
+        if not boxes:
+            if not entries and not watching and not left_out and not flood:
+                return
+            with section:
+                boxes.append(ui.column().classes("gap-1").props(f'data-discovered="{bus}"'))
+        box = boxes[0]
+        box.clear()
         if not entries and not watching and not left_out and not flood:
             return
         with box:
