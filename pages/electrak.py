@@ -27,8 +27,8 @@ from pages.simcontrols import sim_card
 from pages.widgets import (
     HistoryChart,
     Lamp,
-    LiveValue,
     WriteGuard,
+    entry_age,
     checked_value,
     gate,
     mark_quality,
@@ -64,13 +64,43 @@ class ElectrakView(DeviceView):
     def refresh(self) -> None:
         if self.guard is not None:
             self.guard.update()  # first: the drive card's gates read its reason
+        if self.store.age_round:  # once a second: every card drawn again (ages, stale marks, "last status")
+            for card in self.cards:
+                card.drawn = None
         super().refresh()
 
 
-class NetworkCard(DeviceCard):
+def point_values(points: dict, names) -> tuple:
+    """What the named points show, not when they were heard: (value, raw, text) of each, None for one not
+    published. A card compares it with what it drew last: a status telegram with the same values draws nothing."""
+    return tuple([None if p is None else (p.value, p.raw, p.text) for p in map(points.get, names)])
+
+
+class DrawnCard(DeviceCard):
+    """A card drawn only when what it shows changed (``inputs()``, compared with what it drew last) and on the
+    page's once-a-second round; ``draw()`` draws it."""
+
+    drawn: object = None
+
+    def inputs(self) -> object:
+        raise NotImplementedError
+
+    def draw(self) -> None:
+        raise NotImplementedError
+
+    def refresh(self) -> None:
+        inputs = self.inputs()
+        if inputs == self.drawn:
+            return
+        self.drawn = inputs
+        self.draw()
+
+
+class NetworkCard(DrawnCard):
     """Status, actuators heard, the numbers of each status telegram, warnings and the configured ranges."""
 
     view: ElectrakView
+    NUMBERS = (facts.P_POSITION, facts.P_CURRENT, facts.P_SPEED)
 
     def build(self) -> None:
         view, state = self.view, self.view.state
@@ -80,7 +110,7 @@ class NetworkCard(DeviceCard):
             with self.status.build():
                 self.heard = ui.label().classes("text-body2")
                 self.seen = ui.label().classes("text-body2")
-            _numbers_grid(state, len(view.actuators))
+            self.numbers = NumbersGrid(state, len(view.actuators))
             self.heard_warning = ui.label().classes("text-warning text-body2")
             self.saturated = ui.label().classes("text-warning text-body2").props("data-testid=saturated-warning")
             limits = view.limits
@@ -90,7 +120,13 @@ class NetworkCard(DeviceCard):
                 f"0..{limits.current_a:g} A (0 = calibrated limit)"
             ).classes("text-caption text-grey-8")
 
-    def refresh(self) -> None:
+    def inputs(self) -> tuple:
+        state = self.view.state
+        points = state.points
+        return (state.status, point_values(points, self.NUMBERS), point_values(points, (facts.P_HEARD, facts.P_CONFIGURED,
+                                                                                       facts.P_SATURATED)))
+
+    def draw(self) -> None:
         view, state = self.view, self.view.state
         self.status.refresh()
         heard, configured = view.fact(facts.P_HEARD, 0), view.fact(facts.P_CONFIGURED)
@@ -100,12 +136,16 @@ class NetworkCard(DeviceCard):
             "check wiring and power, or the plant file." if view.online() and heard != configured else "")
         self.saturated.set_text(view.fact(facts.P_SATURATED, "") if view.online() else "")
         self.seen.set_text(f"last status {fmt_age(state.age)}")
+        if not self.numbers.draw():
+            self.drawn = None  # a stale or offline value: drawn again with the next telegram (it may be good again)
 
 
-class FlagsCard(DeviceCard):
+class FlagsCard(DrawnCard):
     """Motion and fault flags as lamps; Message timeout while nobody sends 0x06 is grey and explained."""
 
     view: ElectrakView
+    POINTS = (*(n for n, _text in codec.MOTION_FLAGS.values()), *(n for n, _text, _clears in codec.ERROR_FLAGS.values()),
+              facts.P_IDLE, facts.P_ERRORS)
 
     def __init__(self, view: ElectrakView):
         super().__init__(view)
@@ -126,13 +166,21 @@ class FlagsCard(DeviceCard):
             self.fault_text = ui.column().classes("gap-0")
             self.idle_note = ui.label().classes("text-caption text-grey-8").props("data-testid=idle-note")
 
-    def refresh(self) -> None:
+    def inputs(self) -> tuple:
+        state = self.view.state
+        return state.status, point_values(state.points, self.POINTS)
+
+    def draw(self) -> None:
         view, state = self.view, self.view.state
         online = view.online()
-        for bit, lamp in self.motion.items():
-            lamp.show(state.point(codec.MOTION_FLAGS[bit][0]))
-        for bit, lamp in self.errors.items():
-            lamp.show(state.point(codec.ERROR_FLAGS[bit][0]))
+        good = True
+        for lamp, name in [*((lamp, codec.MOTION_FLAGS[bit][0]) for bit, lamp in self.motion.items()),
+                           *((lamp, codec.ERROR_FLAGS[bit][0]) for bit, lamp in self.errors.items())]:
+            entry = state.point(name)
+            lamp.show(entry)
+            good = good and (entry is None or entry["quality"] not in ("stale", "offline"))
+        if not good:
+            self.drawn = None  # drawn again with the next telegram, which may bring them back
         idle = bool(view.fact(facts.P_IDLE, True))
         if idle != self.idle_shown:  # Message timeout while nobody sends 0x06: the idle state, not a red fault
             self.idle_shown = idle
@@ -218,7 +266,7 @@ def _stop_rule() -> str:
     )
 
 
-class DriveCard(DeviceCard):
+class DriveCard(DrawnCard):
     """Take control, target, speed and current limit, Go, Stop, hold-to-run jog, override; the telegram sent."""
 
     view: ElectrakView
@@ -286,7 +334,14 @@ class DriveCard(DeviceCard):
                 await self.view.act("jog", {"direction": direction, "speed_mm_s": float(value)})
         return start
 
-    def refresh(self) -> None:
+    def inputs(self) -> tuple:
+        points = self.view.state.points
+        other = points.get(facts.P_FOREIGN)
+        foreign = other is not None and other.value is not None and time.time() - other.value.time <= 2.0
+        return (self.guard.reason, point_values(points, (facts.P_CONTROL, facts.P_TELEGRAM)),
+                other.value if foreign else None)
+
+    def draw(self) -> None:
         view = self.view
         c = view.fact(facts.P_CONTROL)
         mine = c is not None and c.session == view.tag
@@ -312,29 +367,52 @@ class DriveCard(DeviceCard):
         self.sent.set_text("" if telegram is None else telegram.shown)
 
 
-def _numbers_grid(state, configured: int) -> None:
-    """Position, current and speed as numbers: the network's (mean, highest, mean) and each status telegram's."""
+class NumbersGrid:
+    """Position, current and speed as numbers: the network's (mean, highest, mean) and each status telegram's, each
+    greyed with its age while stale or offline. Drawn by its card (one look at the store for all of them)."""
 
-    def word(i: int, scale: float, unit: str):
-        def fmt(entry: dict) -> str:
-            raw = entry.get("raw") or []
-            return f"{raw[i] * scale:.1f} {unit}" if i < len(raw) else "not heard"
-        return fmt
-
-    with ui.grid(columns=configured + 2).classes("items-baseline gap-x-6 gap-y-0").props("data-testid=numbers"):
-        ui.label("")
-        ui.label("network").classes("text-caption text-grey-8")
-        for i in range(configured):
-            ui.label(f"actuator {i + 1}").classes("text-caption text-grey-8").tooltip(
-                "The n-th status telegram 0x07 of each 100 ms: the telegrams carry no actuator number (document, "
-                "status telegram), so the columns follow the order heard.")
-        for point, unit in (("Position", "mm"), ("Current", "A"), ("Speed", "mm/s")):
-            ui.label(point).classes("text-body2 text-weight-medium")
-            LiveValue(state, point, lambda e: f"{e['value']:.1f} {e['unit']} ({(e['text'] or '').split(' of ')[0]})",
-                      classes="text-body1 mono").row.props(f"data-testid=network-{point.lower()}")
+    def __init__(self, state, configured: int):
+        self.state, self.configured = state, configured
+        self.cells: list[tuple[str, int | None, ui.row, ui.label, ui.label]] = []  # point, word (None: network), ...
+        with ui.grid(columns=configured + 2).classes("items-baseline gap-x-6 gap-y-0").props("data-testid=numbers"):
+            ui.label("")
+            ui.label("network").classes("text-caption text-grey-8")
             for i in range(configured):
-                LiveValue(state, point, word(i, 0.1, unit), classes="text-body1 mono") \
-                    .row.props(f"data-testid=actuator-{i + 1}-{point.lower()}")  # words in 0.1 mm, 0.1 A, 0.1 mm/s
+                ui.label(f"actuator {i + 1}").classes("text-caption text-grey-8").tooltip(
+                    "The n-th status telegram 0x07 of each 100 ms: the telegrams carry no actuator number (document, "
+                    "status telegram), so the columns follow the order heard.")
+            for point in NetworkCard.NUMBERS:
+                ui.label(point).classes("text-body2 text-weight-medium")
+                for i, testid in [(None, f"network-{point.lower()}")] + [
+                        (i, f"actuator-{i + 1}-{point.lower()}") for i in range(configured)]:  # words in 0.1 mm, 0.1 A, 0.1 mm/s
+                    with ui.row().classes("items-baseline gap-0 no-wrap") as row:
+                        label = ui.label("-").classes("text-body1 mono")
+                        age = ui.label().classes("q-age")
+                    row.props(f'data-point="{point}" data-testid={testid}')
+                    self.cells.append((point, i, row, label, age))
+
+    @staticmethod
+    def text(value, word: int | None) -> str:
+        if word is None:
+            return f"{value.value:.1f} {value.unit} ({(value.text or '').split(' of ')[0]})"
+        raw = value.raw or []
+        return f"{raw[word] * 0.1:.1f} {value.unit}" if word < len(raw) else "not heard"
+
+    def draw(self) -> bool:
+        """Every cell as the store has it now; False when a value is stale or offline."""
+        values = {point: self.state.live(point) for point in NetworkCard.NUMBERS}
+        good = True
+        for point, word, row, label, age in self.cells:
+            value = values[point]
+            quality = "unknown" if value is None else value.quality
+            label.set_text("-" if value is None else self.text(value, word))
+            mark_quality(row, quality)
+            if quality in ("stale", "offline"):
+                good = False
+                age.set_text(quality_note(quality, entry_age(value.entry())))
+            else:
+                age.set_text("")
+        return good
 
 
 def _answers_text(report: facts.ServiceReport | None) -> tuple[str, str]:
@@ -347,7 +425,7 @@ def _answers_text(report: facts.ServiceReport | None) -> tuple[str, str]:
     return "; ".join(report.problems), tip
 
 
-class ServiceCard(DeviceCard):
+class ServiceCard(DrawnCard):
     """The service parameters (0x0A / 0x0B) of every actuator: value, age, answers, write, save."""
 
     view: ElectrakView
@@ -455,8 +533,22 @@ class ServiceCard(DeviceCard):
         background_tasks.create(read(), name=f"read service parameters {view.name}")
 
     def refresh(self) -> None:
-        view, state = self.view, self.view.state
         self.read_once()
+        state = self.view.state
+        for key, entry in self.entries.items():
+            if entry.value is None:  # a field left empty shows the actuators' value again (a new value: in draw())
+                self.follow_entry(key, self.rows[key][0], state.raw(self.rows[key][0]))
+        super().refresh()
+
+    def inputs(self) -> tuple:
+        state = self.view.state
+        registers = state.registers
+        return (state.status, tuple([registers.get((p.space, a)) for p in PARAMS for a in p.addresses]),
+                frozenset(state.unsaved),
+                point_values(state.points, (facts.P_SERVICE_REPORTS, facts.P_SERVICE_LAST, facts.P_SAVE_FORM)))
+
+    def draw(self) -> None:
+        view, state = self.view, self.view.state
         reports = {r.key: r for r in view.fact(facts.P_SERVICE_REPORTS, ())}
         now = time.time()
         for key, (p, value, mark, answers, answers_tip, cell, age) in self.rows.items():
@@ -546,7 +638,7 @@ async def _write_service(name: str, param, entry) -> None:
                           title="Set {name} to {value}?", ok="Change bit rate", field=entry)
 
 
-class BitrateCard(DeviceCard):
+class BitrateCard(DrawnCard):
     """Write, save, switch the bus, restart: the bit rate changes only when all four are done."""
 
     view: ElectrakView
@@ -587,7 +679,12 @@ class BitrateCard(DeviceCard):
                            "at the new bit rate")
             self.status = ui.label().classes("text-body2").props("data-testid=bitrate-status")
 
-    def refresh(self) -> None:
+    def inputs(self) -> tuple:
+        state = self.view.state
+        return (state.status, state.raw(self.param), self.param.key in state.unsaved,
+                point_values(state.points, (facts.P_BITRATE_CHANGE, facts.P_HEARD, facts.P_CONFIGURED)))
+
+    def draw(self) -> None:
         view, state, param, bus_rate = self.view, self.view.state, self.param, self.bus_rate
         raw = state.raw(param)
         change = view.fact(facts.P_BITRATE_CHANGE)

@@ -75,10 +75,54 @@ class M3ioView(DeviceView):
         return TAKE_CONTROL if control is None else f"{control.user} controls the module"
 
 
-class ModuleCard(DeviceCard):
+    def refresh(self) -> None:
+        if self.store.age_round:  # once a second: every card drawn again (ages, stale marks, "last answer")
+            for card in self.cards:
+                card.drawn = None
+        super().refresh()
+
+
+def point_values(points: dict, names) -> tuple:
+    """What the named points show, not when they were heard: (value, raw, text) of each, None for one not
+    published. A card compares it with what it drew last: telegrams with the same values draw nothing."""
+    return tuple([None if p is None else (p.value, p.raw, p.text) for p in map(points.get, names)])
+
+
+class DrawnCard(DeviceCard):
+    """A card drawn only when what it shows changed (its :attr:`POINTS`, the module's status and the page's write
+    guard, compared with what it drew last) and on the page's once-a-second round; ``draw()`` draws it and returns
+    False when it shows a value as stale or offline (drawn again with the next telegram, which may bring it back)."""
+
+    view: M3ioView
+    drawn: object = None
+    POINTS: tuple[str, ...] = ()
+
+    def inputs(self) -> object:
+        view = self.view
+        return (view.state.status, view.guard.reason if view.guard is not None else "",
+                point_values(view.state.points, self.POINTS))
+
+    def draw(self) -> bool | None:
+        raise NotImplementedError
+
+    def refresh(self) -> None:
+        inputs = self.inputs()
+        if inputs == self.drawn:
+            return
+        self.drawn = inputs
+        if self.draw() is False:
+            self.drawn = None
+
+
+def _aging(value: LiveValue | None) -> bool:
+    return _quality(value) in ("stale", "offline")
+
+
+class ModuleCard(DrawnCard):
     """Status, watchdog, counters, SW1 and the CAN IDs, the variant check, control of the module."""
 
     view: M3ioView
+    POINTS = (facts.P_WATCHDOG, facts.P_OTHER_MASTER, facts.P_CONTROL, facts.P_VARIANT_CHECK)
 
     def build(self) -> None:
         view, a = self.view, self.view.addressing
@@ -107,7 +151,7 @@ class ModuleCard(DeviceCard):
         await self.view.act("take control", {"user": current_user()[0] or "local engineer"},
                             success="you control the module: DigOut serves its watchdog")
 
-    def refresh(self) -> None:
+    def draw(self) -> None:
         view, state = self.view, self.view.state
         self.status.refresh()
         served = bool(view.fact(facts.P_WATCHDOG))
@@ -126,12 +170,15 @@ class ModuleCard(DeviceCard):
         self.variant.classes(replace="text-body2 " + VARIANT_COLOR.get(check.value, "text-grey-8"))
 
 
-class OutputsCard(DeviceCard):
+class OutputsCard(DrawnCard):
     """Inputs E1-E6, the stop rule, the LED, one row per SSR output and (HMR) P2."""
 
     def __init__(self, view: M3ioView):
         super().__init__(view)
         self.rows = [ChannelRow(view, view.guard, output, channels) for output, channels in facts.ssr_groups(view.variant)]
+        self.POINTS = (facts.P_VARIANT_CHECK, facts.P_CONTROL, facts.P_OWNERS, facts.P_LOAD_CHECK, facts.P_P2,
+                       facts.P_P2_CHECK, "LED", *(f"E{i}" for i in range(1, 7)), *(row.output for row in self.rows),
+                       *(f"SSR{c} {what}" for row in self.rows for c in row.channels for what in ("Last", "Si", "Triac")))
 
     def build(self) -> None:
         with titled_card("Digital inputs", "col-xs-12 col-md"):
@@ -165,25 +212,29 @@ class OutputsCard(DeviceCard):
         if bool(event.value) != bool(self.view.fact(facts.P_P2)):
             await self.view.act("P2", {"on": int(bool(event.value))})
 
-    def refresh(self) -> None:
+    def draw(self) -> bool:
         view = self.view
         check = view.live(facts.P_VARIANT_CHECK)
         may_switch = check is None or bool(check.raw)
         self.refused.set_text("" if may_switch else f"Switching on is refused: {check.text}")
         self.refused.set_visibility(not may_switch)
+        good = True
         for key, lamp in self.lamps.items():
-            lamp.show(view.state.point(key))
+            entry = view.state.point(key)
+            lamp.show(entry)
+            good = good and (entry is None or entry["quality"] not in ("stale", "offline"))
         self.no_control.set_visibility(not view.controls() and not (view.guard and view.guard.reason))
         self.led.set_value(bool(view.fact("LED")))
         gate(self.led, view.switch_reason(bool(view.fact("LED"))))
         for row in self.rows:
-            row.refresh()
+            good = row.refresh() and good
         if self.p2 is not None:
             self.p2.set_value(bool(view.fact(facts.P_P2)))
             p2_check = view.live(facts.P_P2_CHECK)
             self.p2_check.set_text("" if p2_check is None else f"P2 in the module: {p2_check.shown}")
             self.p2_check.classes(replace="text-caption " + ("text-negative" if p2_check and p2_check.value == "mismatch"
                                                              else "text-grey-8"))
+        return good
 
 
 async def switch(view: M3ioView, output: str, event) -> None:
@@ -220,7 +271,8 @@ class ChannelRow:
         return (view.text(f"SSR{channel} Last", "unknown"), view.fact(f"SSR{channel} Si", "unknown"),
                 view.fact(f"SSR{channel} Triac", "unknown"), last is not None)
 
-    def refresh(self) -> None:
+    def refresh(self) -> bool:
+        """The output's switch and its channels as the store has them; False when their status is stale or offline."""
         view, output = self.view, self.output
         on = bool(view.fact(output))
         self.switch.set_value(on)
@@ -233,17 +285,17 @@ class ChannelRow:
         entry = view.live(f"SSR{self.channels[0]} Last")
         mark_quality(self.details, _quality(entry))  # greyed, with the age of its status, while stale or offline
         self.age.set_text(_age_note(entry))
-        if shown == self.shown:
-            return  # rebuild only what changed
-        self.shown = shown
-        self.details.clear()
-        with self.details:
-            if foreign:
-                ui.label("switched on from another page: it goes off when that page goes away").classes("text-caption text-warning")
-            if group_fault:
-                ui.label(group_fault).classes("text-negative text-body2")
-            for channel, (load, fuse, triac, heard) in zip(self.channels, shown[2]):
-                self._show(channel, load, fuse, triac, heard)
+        if shown != self.shown:  # rebuild only what changed
+            self.shown = shown
+            self.details.clear()
+            with self.details:
+                if foreign:
+                    ui.label("switched on from another page: it goes off when that page goes away").classes("text-caption text-warning")
+                if group_fault:
+                    ui.label(group_fault).classes("text-negative text-body2")
+                for channel, (load, fuse, triac, heard) in zip(self.channels, shown[2]):
+                    self._show(channel, load, fuse, triac, heard)
+        return not _aging(entry)
 
     def _show(self, channel: int, load: str, fuse: str, triac: str, heard: bool) -> None:
         with ui.row().classes("items-center gap-2"):
@@ -260,7 +312,7 @@ class ChannelRow:
             ui.label("triac defective: it does not conduct while switched on").classes("text-negative text-body2")
 
 
-class TemperatureCard(DeviceCard):
+class TemperatureCard(DrawnCard):
     """The Pt100 temperatures (section 7.2.2) and their chart."""
 
     view: M3ioView
@@ -276,25 +328,30 @@ class TemperatureCard(DeviceCard):
                             .classes("text-caption text-grey-8")
                         self.labels[channel] = (ui.label("-").classes("text-h6").props(f'data-temp="{channel}"'),
                                                 ui.label().classes("q-age q-ml-none"))
+            self.POINTS = tuple(f"TEMP{channel}" for channel in self.labels)
             chart = HistoryChart(view.state, list(facts.history_points(view.variant)), window_s=600, height=CHART_HEIGHT)
             chart.figure["layout"]["legend"] = LEGEND_BELOW  # the mode bar (top right) covered the legend above the plot
             chart.figure["layout"]["margin"].update(t=MODE_BAR_MARGIN_T, b=LEGEND_MARGIN_B)
             chart.plot.update()
 
-    def refresh(self) -> None:
+    def draw(self) -> bool:
+        good = True
         for channel, (label, note) in self.labels.items():
             value = self.view.live(f"TEMP{channel}")
+            good = good and not _aging(value)
             word = None if value is None or value.raw is None else codec.TempWord(value.raw)
             label.set_text("-" if word is None else temp_text(self.view.variant, channel, word))
             label.classes(replace="text-h6 " + ("" if word is None or word.in_range else "text-warning"))
             mark_quality(label, _quality(value))
             note.set_text(_age_note(value))
+        return good
 
 
-class AddressedCard(DeviceCard):
+class AddressedCard(DrawnCard):
     """Addressed mode (SW1 switch 8 on, 7.2.4.2): identity, the 15 customer-data records, the actual load data."""
 
     view: M3ioView
+    POINTS = (facts.P_IDENTITY, *(f"SSR{i} load data" for i in range(1, 7)))
 
     def build(self) -> None:
         with titled_card("Addressed data (SW1 switch 8 on)"):
@@ -340,7 +397,7 @@ class AddressedCard(DeviceCard):
         if ok:
             self.record.set_text(f"record {int(number)}: {view.text(f'Customer data {int(number)}')} (verified)")
 
-    def refresh(self) -> None:
+    def draw(self) -> None:
         view = self.view
         identity = view.live(facts.P_IDENTITY)
         self.identity.set_text("not read" if identity is None else identity.shown)

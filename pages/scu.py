@@ -114,14 +114,52 @@ class ScuView(DeviceView):
 
     def refresh(self) -> None:
         access = self.access()
+        if self.store.age_round:  # once a second: every card drawn again (ages, stale marks, "seen")
+            for card in self.cards:
+                card.drawn = None
         for card in self.cards:
             card.refresh(access)
 
 
-class SessionCard(DeviceCard):
+def point_values(points: dict, names) -> tuple:
+    """What the named points show, not when they were heard: (value, raw, text) of each, None for one not
+    published. A card compares it with what it drew last: a poll that brought the same values draws nothing."""
+    return tuple([None if p is None else (p.value, p.raw, p.text) for p in map(points.get, names)])
+
+
+class DrawnCard(DeviceCard):
+    """A card drawn only when what it shows changed (``inputs(access)``, compared with what it drew last) and on
+    the page's once-a-second round; ``draw(access)`` draws it and returns False when it shows a value as stale or
+    offline (drawn again with the next poll, which may bring it back)."""
+
+    drawn: object = None
+    POINTS: tuple[str, ...] = ()
+
+    def inputs(self, access: Access) -> object:
+        state = self.view.state
+        return access, state.status, point_values(state.points, self.POINTS)
+
+    def draw(self, access: Access) -> bool:
+        raise NotImplementedError
+
+    def refresh(self, access: Access) -> None:
+        inputs = self.inputs(access)
+        if inputs == self.drawn:
+            return
+        self.drawn = inputs
+        if self.draw(access) is False:
+            self.drawn = None
+
+
+def _aging(quality: str) -> bool:
+    return quality in ("stale", "offline")
+
+
+class SessionCard(DrawnCard):
     """The remote session, how the unit is watched, the RC timing, the last error answer and the line."""
 
     view: ScuView
+    POINTS = (facts.P_SESSION, facts.P_SESSION_REASON, facts.P_WATCH, facts.P_CYCLIC, facts.P_REFUSAL)
 
     def build(self) -> None:
         view, state = self.view, self.view.state
@@ -157,7 +195,10 @@ class SessionCard(DeviceCard):
         self.period.set_text(f"RC period {period:g} ms, longest gap {gap:g} ms" if period is not None and gap is not None
                              else "RC period: -")
 
-    def refresh(self, access: Access) -> None:
+    def inputs(self, access: Access) -> tuple:
+        return super().inputs(access), self.view.state.last_error
+
+    def draw(self, access: Access) -> None:
         view, state = self.view, self.view.state
         self.status.refresh()
         reason = view.fact(facts.P_SESSION_REASON, "")
@@ -171,12 +212,13 @@ class SessionCard(DeviceCard):
             gate(element, access.role)
 
 
-class PositionsCard(DeviceCard):
+class PositionsCard(DrawnCard):
     """Each actuator's position as a bar between its end positions, and the positions' chart."""
 
     def __init__(self, view: ScuView):
         super().__init__(view)
         self.rows: list[tuple] = []
+        self.POINTS = tuple(f"A{s.number} {what}" for s in view.scales for what in ("position", "in end", "out end"))
 
     def build(self) -> None:
         with titled_card("Positions"):
@@ -190,8 +232,13 @@ class PositionsCard(DeviceCard):
                     self.rows.append((s.number, bar, text, cell, age))
             HistoryChart(self.view.state, list(chart_points(self.view.scales)), window_s=60, height=260)
 
-    def refresh(self, access: Access) -> None:
+    def inputs(self, access: Access) -> tuple:
+        state = self.view.state
+        return state.status, point_values(state.points, self.POINTS)
+
+    def draw(self, access: Access) -> bool:
         point = self.view.state.point
+        good = True
         for number, bar, text, cell, age in self.rows:
             e = point(f"A{number} position")
             lo, hi = point(f"A{number} in end"), point(f"A{number} out end")
@@ -199,15 +246,17 @@ class PositionsCard(DeviceCard):
             mark_quality(cell, quality)  # greyed, with its age, while stale or offline
             mark_quality(bar, quality)
             age.set_text(quality_note(quality, entry_age(e)) if quality in ("stale", "offline") else "")
+            good = good and not _aging(quality)
             if e is None:
                 text.set_text("-")
                 continue
             text.set_text(e["text"] or str(e["value"]))
             if lo and hi and hi["value"] != lo["value"]:
                 bar.set_value(max(0.0, min(1.0, (e["value"] - lo["value"]) / (hi["value"] - lo["value"]))))
+        return good
 
 
-class StatusCard(DeviceCard):
+class StatusCard(DrawnCard):
     """Status 1 and 2 of each actuator as lamps, its current and speed."""
 
     def __init__(self, view: ScuView):
@@ -228,13 +277,28 @@ class StatusCard(DeviceCard):
                             LiveValue(state, f"A{n} {what}", lambda e, what=what: f"{what}: {e['value']:g} {e['unit']}".strip(),
                                       classes="mono text-body2").row.props(f"data-testid={what}-A{n}")
 
-    def refresh(self, access: Access) -> None:
-        for key, lamp in self.lamps.items():
-            lamp.show(self.view.state.point(key))
+    def inputs(self, access: Access) -> tuple:
+        state = self.view.state
+        return state.status, point_values(state.points, self.lamps)
+
+    def draw(self, access: Access) -> bool:
+        return _show_lamps(self.view.state, self.lamps)
 
 
-class SupplyCard(DeviceCard):
+def _show_lamps(state, lamps: dict[str, Lamp]) -> bool:
+    """Each lamp as its point is now; False when one is stale or offline."""
+    good = True
+    for key, lamp in lamps.items():
+        entry = state.point(key)
+        lamp.show(entry)
+        good = good and (entry is None or not _aging(entry["quality"]))
+    return good
+
+
+class SupplyCard(DrawnCard):
     """Mains, battery and outputs as lamps; the I/O values, one line per point."""
+
+    POINTS = SUPPLY_LAMPS + tuple(IO_POINTS)
 
     def __init__(self, view: ScuView):
         super().__init__(view)
@@ -254,22 +318,29 @@ class SupplyCard(DeviceCard):
                         raw.tooltip(f"{p.item(data_id).key} {p.item(data_id).name}: {RAW_NOTE}")
                     self.lines[key] = (row, text, raw)
 
-    def refresh(self, access: Access) -> None:
-        point = self.view.state.point
-        for key, lamp in self.lamps.items():
-            lamp.show(point(key))
+    def inputs(self, access: Access) -> tuple:
+        state = self.view.state
+        return state.status, point_values(state.points, self.POINTS)
+
+    def draw(self, access: Access) -> bool:
+        state = self.view.state
+        good = _show_lamps(state, self.lamps)
         for key, (row, text, raw) in self.lines.items():
-            e = point(key)
+            e = state.point(key)
             row.set_visibility(e is not None)
             if e is not None:
                 words, code = io_text(key, e)
                 text.set_text(words)
                 raw.set_text(code)
                 mark_quality(row, e["quality"])
+                good = good and not _aging(e["quality"])
+        return good
 
 
-class ErrorsCard(DeviceCard):
+class ErrorsCard(DrawnCard):
     """The error code and its history, each set bit with its cause, condition and behaviour."""
+
+    POINTS = tuple(ERROR_POINTS)
 
     def __init__(self, view: ScuView):
         super().__init__(view)
@@ -287,7 +358,12 @@ class ErrorsCard(DeviceCard):
                             raw.tooltip(f"Error_Code {RAW_NOTE}")
                         self.rows[key] = (box, head, line, raw, ui.column().classes("gap-1"), title)
 
-    def refresh(self, access: Access) -> None:
+    def inputs(self, access: Access) -> tuple:
+        state = self.view.state
+        return state.status, point_values(state.points, self.POINTS)
+
+    def draw(self, access: Access) -> bool:
+        good = True
         for key, (box, head, line, raw, bits, title) in self.rows.items():
             e = self.view.state.point(key)
             box.set_visibility(e is not None)
@@ -296,6 +372,7 @@ class ErrorsCard(DeviceCard):
             value = int(e["value"])
             mark_quality(head, e["quality"])
             mark_quality(bits, e["quality"])
+            good = good and not _aging(e["quality"])
             if self.shown.get(key) == value:
                 continue
             self.shown[key] = value
@@ -307,10 +384,13 @@ class ErrorsCard(DeviceCard):
                 for b in codec.error_bits(value):
                     ui.label(f"bit {b.bit}: {b.cause}" + (f" — condition: {b.condition}" if b.condition else "")
                              + f" — behaviour: {b.behaviour}").classes("text-caption text-negative" if key == "Error code" else "text-caption")
+        return good
 
 
-class DriveCard(DeviceCard):
+class DriveCard(DrawnCard):
     """Control, the function and its actuators, remote speed and positions, Go, Stop and jog (hold to run)."""
+
+    POINTS = (facts.P_RUNNING, facts.P_RS_PENDING)
 
     def __init__(self, view: ScuView):
         super().__init__(view)
@@ -460,7 +540,11 @@ class DriveCard(DeviceCard):
         self.drives.set_text(f"{codec.FUNCTIONS[fn].label} drives {self.view.functions.text(fn)}")
         self.target_warning.set_text(self.target_mismatch())
 
-    def refresh(self, access: Access) -> None:
+    def inputs(self, access: Access) -> tuple:
+        return (access, point_values(self.view.state.points, self.POINTS), self.function.value, self.motion.value,
+                tuple(self.edited))
+
+    def draw(self, access: Access) -> None:
         holder, mine = access.holder, access.mine
         if holder is None:
             self.holder.set_text("nobody holds control")
@@ -483,7 +567,7 @@ class DriveCard(DeviceCard):
             gate(element, access.role or off or ("" if mine else "take control first"))
 
 
-class FunctionsCard(DeviceCard):
+class FunctionsCard(DrawnCard):
     """Buzzer, outputs and LEDs on and off; the emergency stop and its release."""
 
     def __init__(self, view: ScuView):
@@ -508,7 +592,10 @@ class FunctionsCard(DeviceCard):
                     "release emergency stop (RS 19)", title="Release the emergency stop?", ok="Release it")).props("outline")
                 ui.label("Emergency stop acts at once, without confirmation.").classes("text-caption")
 
-    def refresh(self, access: Access) -> None:
+    def inputs(self, access: Access) -> Access:
+        return access
+
+    def draw(self, access: Access) -> None:
         control = "" if access.mine else "take control first"
         for element in self.on:
             gate(element, access.role or access.lost or access.offline or access.estop or control)
@@ -522,7 +609,7 @@ def _read_gate(view: ScuView, access: Access) -> str:
     return access.role or access.offline or (access.lost if view.fact(facts.P_WATCH) != WATCH_RG else "")
 
 
-class DirectoryCard(DeviceCard):
+class DirectoryCard(DrawnCard):
     """The data directory (section 4.3): read any data ID or group ID, its value and raw bytes."""
 
     view: ScuView
@@ -550,11 +637,14 @@ class DirectoryCard(DeviceCard):
             self.shown.set_text(f"{result['key']} {result['name']} ({result['type']}): {result['text'] or result['error']}")
             self.raw.set_text(f"raw: {result['raw'] or '(no data)'}")
 
-    def refresh(self, access: Access) -> None:
+    def inputs(self, access: Access) -> tuple:
+        return access, self.view.fact(facts.P_WATCH)
+
+    def draw(self, access: Access) -> None:
         gate(self.button, _read_gate(self.view, access))
 
 
-class ServiceCard(DeviceCard):
+class ServiceCard(DrawnCard):
     """The service data read on demand, each row with the time of its reading."""
 
     view: ScuView
@@ -590,7 +680,10 @@ class ServiceCard(DeviceCard):
             self.table.rows = rows
             self.table.update()
 
-    def refresh(self, access: Access) -> None:
+    def inputs(self, access: Access) -> tuple:
+        return access, self.view.fact(facts.P_WATCH), self.view.state.status, len(self.table.rows)
+
+    def draw(self, access: Access) -> None:
         gate(self.button, _read_gate(self.view, access))
         self.ages()
 

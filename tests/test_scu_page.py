@@ -188,3 +188,54 @@ def test_bit_fields_and_error_codes_in_words():
     assert p.user_text(3) == "user 3" and p.item(0x0166).title == "Active user (Benutzer)"
     assert codec.error_text(0) == "no error" and codec.error_hex(0) == "0x00000000"
     assert codec.error_text(1 << 21 | 1 << 8) == "bit 22: remote communication timeout; bit 9: not in table 10"
+
+
+# -- what an open page costs per push (issue 34) ------------------------------------------------------------------
+
+def page_view(user, runtime, device: str):
+    """The view of the page open in ``user`` (the page follows the store with one of its methods)."""
+    group = runtime.store._groups[user.client.id]
+    (view,) = [v for v in {getattr(w.callback, "__self__", None) for w in group.watches[device]} if hasattr(v, "cards")]
+    return view
+
+
+def count_reads(state, monkeypatch) -> list[str]:
+    """The names read from ``state`` through live/point/entry from now on."""
+    read: list[str] = []
+    for method in ("live", "point", "entry"):
+        original = getattr(state, method)
+
+        def reading(name, *args, _original=original, **kwargs):
+            read.append(name)
+            return _original(name, *args, **kwargs)
+
+        monkeypatch.setattr(state, method, reading)
+    return read
+
+
+async def test_a_poll_with_the_same_values_draws_nothing_and_the_round_draws_ages(env, monkeypatch):
+    from pages.scu import STATUS_BITS
+
+    user, runtime = env
+    state = runtime.store.devices["lift"]
+    lamp = f"A1 {next(iter(STATUS_BITS))}"
+    drawn = ("A1 position", lamp, "Binary Output Status", "Error code")
+    await eventually(lambda: all(n in state.points for n in drawn), timeout=10)
+    await user.open("/device/lift")
+    view = page_view(user, runtime, "lift")
+    view.refresh()  # everything as the store has it now
+    read = count_reads(state, monkeypatch)
+    now = state.last_seen + 0.2
+    state.publish_telegram(now, {n: state.points[n]._replace(time=now) for n in drawn})  # read again, the same values
+    view.refresh()
+    assert not [n for n in read if n in drawn], read  # nothing drawn again (no flags worded again)
+    runtime.store.age_round = True  # the once-a-second round: ages and stale marks drawn
+    try:
+        view.refresh()
+    finally:
+        runtime.store.age_round = False
+    assert set(drawn) <= set(read)
+    read.clear()  # a new value is drawn on the push that brings it
+    state.publish_telegram(now, {"Binary Output Status": state.points["Binary Output Status"]._replace(value=2, raw=2)})
+    view.refresh()
+    assert _props_texts(user, "data-io", "Binary Output Status") == "Binary outputs: output 1 off, output 2 on | 0x02"

@@ -1,0 +1,65 @@
+"""What an open Electrak page costs per push (issue 34): a status telegram with the same values draws nothing; the
+page's once-a-second round draws the ages and stale marks; the page is built from a bounded number of elements."""
+
+from __future__ import annotations
+
+import pytest
+from plants import channel, electrak_bus, plant
+from webutil import eventually, simulated_user
+
+from app.runtime import Runtime
+
+pytestmark = pytest.mark.timeout(60)
+
+# what the cards draw from (each read through the device record's live/point/entry)
+DRAWN = ("Position", "Current", "Speed", "Extending", "Message timeout", "Devices heard")
+
+
+def page_view(user, runtime, device: str):
+    """The view of the page open in ``user`` (the page follows the store with one of its methods)."""
+    group = runtime.store._groups[user.client.id]
+    views = {getattr(w.callback, "__self__", None) for w in group.watches[device]}
+    (view,) = [v for v in views if hasattr(v, "cards")]
+    return view
+
+
+def count_reads(state, monkeypatch) -> list[str]:
+    """The names read from ``state`` through live/point/entry from now on."""
+    read: list[str] = []
+    for method in ("live", "point", "entry"):
+        original = getattr(state, method)
+
+        def reading(name, *args, _original=original, **kwargs):
+            read.append(name)
+            return _original(name, *args, **kwargs)
+
+        monkeypatch.setattr(state, method, reading)
+    return read
+
+
+async def test_a_telegram_with_the_same_values_draws_nothing_and_the_round_draws_ages(tmp_path, monkeypatch):
+    runtime = Runtime(plant(electrak_bus(channel_name=channel("cost"))), simulate=True, data_dir=tmp_path)
+    async with simulated_user(runtime) as user:
+        state = runtime.store.devices["lift"]
+        await eventually(lambda: state.status == "online" and "Position" in state.points, timeout=10)
+        await user.open("/device/lift")
+        view = page_view(user, runtime, "lift")
+        view.refresh()  # everything as the store has it now
+        read = count_reads(state, monkeypatch)
+        state.publish_telegram(state.last_seen + 0.1, {n: state.points[n]._replace(time=state.last_seen + 0.1)
+                                                       for n in DRAWN})  # heard again, the same values
+        view.refresh()
+        assert not [n for n in read if n in DRAWN], read  # nothing drawn again
+        runtime.store.age_round = True  # the once-a-second round: ages and stale marks drawn
+        try:
+            view.refresh()
+        finally:
+            runtime.store.age_round = False
+        assert set(DRAWN) <= set(read)
+        # a new value is drawn on the push that brings it
+        read.clear()
+        state.publish_telegram(state.last_seen + 0.1, {"Position": state.points["Position"]._replace(value=123.4)})
+        view.refresh()
+        assert "Position" in read
+        cell = [e for e in user.client.elements.values() if e.props.get("data-testid") == "network-position"][0]
+        assert cell.default_slot.children[0].text.startswith("123.4 mm")

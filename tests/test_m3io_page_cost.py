@@ -1,0 +1,63 @@
+"""What an open M3IO page costs per push (issue 34): telegrams with the same values draw nothing; the page's
+once-a-second round draws the ages and stale marks; a new value is drawn on the push that brings it."""
+
+from __future__ import annotations
+
+import pytest
+from plants import can_bus, m3io_can, plant
+from webutil import eventually, simulated_user
+
+from app.runtime import Runtime
+
+pytestmark = pytest.mark.timeout(60)
+
+DRAWN = ("E1", "TEMP1", "SSR1 Last")
+
+
+def page_view(user, runtime, device: str):
+    """The view of the page open in ``user`` (the page follows the store with one of its methods)."""
+    group = runtime.store._groups[user.client.id]
+    (view,) = [v for v in {getattr(w.callback, "__self__", None) for w in group.watches[device]} if hasattr(v, "cards")]
+    return view
+
+
+def count_reads(state, monkeypatch) -> list[str]:
+    """The names read from ``state`` through live/point/entry from now on."""
+    read: list[str] = []
+    for method in ("live", "point", "entry"):
+        original = getattr(state, method)
+
+        def reading(name, *args, _original=original, **kwargs):
+            read.append(name)
+            return _original(name, *args, **kwargs)
+
+        monkeypatch.setattr(state, method, reading)
+    return read
+
+
+async def test_telegrams_with_the_same_values_draw_nothing_and_the_round_draws_ages(tmp_path, monkeypatch):
+    runtime = Runtime(plant(can_bus(m3io_can("heater-hm", master="always"), name="can3", bitrate=500000)),
+                      simulate=True, data_dir=tmp_path)
+    async with simulated_user(runtime) as user:
+        state = runtime.store.devices["heater-hm"]
+        await eventually(lambda: all(n in state.points for n in DRAWN), timeout=10)
+        await user.open("/device/heater-hm")
+        view = page_view(user, runtime, "heater-hm")
+        view.refresh()  # everything as the store has it now
+        read = count_reads(state, monkeypatch)
+        now = state.last_seen + 0.1
+        state.publish_telegram(now, {n: state.points[n]._replace(time=now) for n in DRAWN})  # heard again, the same values
+        view.refresh()
+        assert not [n for n in read if n in DRAWN], read  # nothing drawn again
+        runtime.store.age_round = True  # the once-a-second round: ages and stale marks drawn
+        try:
+            view.refresh()
+        finally:
+            runtime.store.age_round = False
+        assert set(DRAWN) <= set(read)
+        read.clear()  # a new value is drawn on the push that brings it
+        state.publish_telegram(now, {"E1": state.points["E1"]._replace(value=not state.points["E1"].value)})
+        view.refresh()
+        assert "E1" in read
+        (lamp,) = [e for e in user.client.elements.values() if e.props.get("data-lamp") == "E1"]
+        assert lamp.props["data-on"] == str(int(bool(state.points["E1"].value)))
