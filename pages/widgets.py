@@ -124,12 +124,13 @@ def mark_quality(element: ui.element, quality: str) -> None:
 
 class ValueLine:
     """A value with its quality in one element: its text, greyed with its age beside it while stale or offline
-    (classes q-stale, q-offline; ``data-quality``), where a row of a label and an age label took three."""
+    (classes q-stale, q-offline; ``data-quality``), where a row of a label and an age label took three. The
+    browser gets the same row of two blocks (the value with ``classes``, the age) as the row of labels made."""
 
     def __init__(self, classes: str = "", text: str = "-"):
         self.classes = classes
         self.shown: tuple = ()
-        self.element = ui.html("", sanitize=False).classes("no-wrap")
+        self.element = ui.html("", sanitize=False).classes("nicegui-row items-baseline gap-0 no-wrap")
         self.show(text, "unknown", "")
 
     def show(self, text: str, quality: str, note: str = "") -> None:
@@ -137,8 +138,8 @@ class ValueLine:
         shown = (text, note if quality in ("stale", "offline") else "")
         if shown != self.shown:
             self.shown = shown
-            value = f'<span class="{self.classes}">{html.escape(text, quote=False)}</span>' if self.classes else html.escape(text, quote=False)
-            self.element.set_content(value + (f'<span class="q-age">{html.escape(shown[1], quote=False)}</span>' if shown[1] else ""))
+            self.element.set_content(f'<div class="{self.classes}">{html.escape(text, quote=False)}</div>'
+                                     f'<div class="q-age">{html.escape(shown[1], quote=False)}</div>')
         mark_quality(self.element, quality)
 
     @property

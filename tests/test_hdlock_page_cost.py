@@ -128,5 +128,5 @@ async def test_the_hdlock_page_is_built_of_few_elements(door_page):
     for lamp in lamps:  # one element and its tooltip, with its name, state and quality
         assert isinstance(lamp, ui.label) and [type(e) for e in lamp.descendants()] == [ui.tooltip]
         assert lamp.text and lamp.props["data-on"] in ("0", "1") and lamp.props["data-quality"] == "good"
-    cells = [e for e in elements if isinstance(e, ui.html) and '<span class="mono">' in e.content]
+    cells = [e for e in elements if isinstance(e, ui.html) and '<div class="mono">' in e.content]
     assert len(cells) == len([p for p in PARAMS.space(HOLDING) if p.writable])  # each current value: one element
