@@ -230,11 +230,11 @@ class ParameterCard(DeviceCard):
         name = self.view.name
         ui.label(str(p.address)).classes("mono")
         key = param_key(p)
-        with ui.row().classes("items-center gap-1").style("min-width: 0"):
+        with ui.row().classes("items-center gap-1").style("min-width: 0") as mark:
             label = p.label or p.name
             ui.label(label).style(NAME_WRAP).props(f'data-param-name="{key}"') \
                 .tooltip(f"{label}: {p.description}" if p.description else label)
-            mark = ui.badge("unsaved", color="orange")
+            # its "unsaved" badge is built when the parameter is first written (most never are)
         current = ValueLine("mono")  # the value, greyed with its age while stale or offline: one element
         if p.enum is not None:
             entry = ui.select({k: f"{v} ({k})" for k, v in p.enum.items()}, value=None) \
@@ -275,13 +275,24 @@ class ParameterCard(DeviceCard):
             # greyed with the age of its value while stale or offline
             current.show("-" if raw is None else p.display(raw), quality,
                          quality_note(quality, None if read is None else now - read) if quality in ("stale", "offline") else "")
-            mark.set_visibility(key in state.unsaved)
+            _unsaved_badge(mark, key in state.unsaved)
         self.aging = aging
         count = len(state.unsaved)
         self.unsaved_label.set_text(f"{count} unsaved change{'s' if count != 1 else ''}")
         self.unsaved_label.set_visibility(count > 0)
         if self.save.props.get("color") != ("orange" if count else "primary"):
             self.save.props(f"color={'orange' if count else 'primary'}")
+
+
+def _unsaved_badge(row: ui.row, unsaved: bool) -> None:
+    """Show or hide the "unsaved" badge at the end of a parameter's name ``row``, built when first shown."""
+    badge = getattr(row, "unsaved_badge", None)
+    if badge is None:
+        if not unsaved:
+            return
+        with row:
+            badge = row.unsaved_badge = ui.badge("unsaved", color="orange")  # type: ignore[attr-defined]
+    badge.set_visibility(unsaved)
 
 
 def param_key(p: Param) -> str:

@@ -130,3 +130,16 @@ async def test_the_hdlock_page_is_built_of_few_elements(door_page):
         assert lamp.text and lamp.props["data-on"] in ("0", "1") and lamp.props["data-quality"] == "good"
     cells = [e for e in elements if isinstance(e, ui.html) and '<div class="mono">' in e.content]
     assert len(cells) == len([p for p in PARAMS.space(HOLDING) if p.writable])  # each current value: one element
+
+    # the "unsaved" mark of a parameter is built when it is first needed, beside the parameter's name
+    badges = lambda: [e for e in user.client.elements.values() if isinstance(e, ui.badge) and e.text == "unsaved"]  # noqa: E731
+    assert badges() == []
+    delay = PARAMS.by_name["LockRequestDelay"]
+    state.unsaved.add(delay.key)
+    state.touch()
+    page_view(runtime, "door-1").pushed()
+    (badge,) = badges()
+    assert badge.visible and badge.parent_slot.parent.default_slot.children[0].props["data-param-name"] == "LockRequestDelay"
+    state.unsaved.discard(delay.key)
+    page_view(runtime, "door-1").pushed()
+    assert not badge.visible
