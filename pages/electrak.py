@@ -8,6 +8,7 @@ change the store pushes); :func:`pages.device_page.device_page` puts the frame, 
 from __future__ import annotations
 
 import csv
+import html
 import io
 import logging
 import time
@@ -22,11 +23,11 @@ from devices.electrak.adapter import FOREIGN_SENDER, SERIES
 from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, length_of, refusal
 from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
 from pages.frame import fmt_age, fmt_time
+from pages.scu import LampStrip, lamp_html  # lamps drawn as the text of one element
 from pages.session import current_user
 from pages.simcontrols import sim_card
 from pages.widgets import (
     HistoryChart,
-    Lamp,
     WriteGuard,
     entry_age,
     checked_value,
@@ -150,19 +151,17 @@ class FlagsCard(DrawnCard):
     def __init__(self, view: ElectrakView):
         super().__init__(view)
         self.shown_faults: tuple | None = None
-        self.idle_shown: bool | None = None
 
     def build(self) -> None:
         with ui.card().classes("w-full"):
             with ui.row().classes("gap-10 items-start"):
                 with ui.column():
                     ui.label("Motion").classes("text-subtitle2")
-                    self.motion = {bit: Lamp(n, "ok", text) for bit, (n, text) in codec.MOTION_FLAGS.items()}
+                    self.motion = LampStrip("nicegui-column")
                 with ui.column():
                     ui.label("Faults").classes("text-subtitle2")
-                    with ui.grid(columns=4).classes("gap-x-6 gap-y-1"):
-                        self.errors = {bit: Lamp(n, "alarm", f"{text}. Clears: {clears}.")
-                                       for bit, (n, text, clears) in codec.ERROR_FLAGS.items()}
+                    self.errors = LampStrip("nicegui-grid gap-x-6 gap-y-1")
+                    self.errors.element.style("grid-template-columns: repeat(4, minmax(0, 1fr))")
             self.fault_text = ui.column().classes("gap-0")
             self.idle_note = ui.label().classes("text-caption text-grey-8").props("data-testid=idle-note")
 
@@ -173,23 +172,15 @@ class FlagsCard(DrawnCard):
     def draw(self) -> None:
         view, state = self.view, self.view.state
         online = view.online()
-        good = True
-        for lamp, name in [*((lamp, codec.MOTION_FLAGS[bit][0]) for bit, lamp in self.motion.items()),
-                           *((lamp, codec.ERROR_FLAGS[bit][0]) for bit, lamp in self.errors.items())]:
-            entry = state.point(name)
-            lamp.show(entry)
-            good = good and (entry is None or entry["quality"] not in ("stale", "offline"))
-        if not good:
+        idle = bool(view.fact(facts.P_IDLE, True))  # Message timeout while nobody sends 0x06: the idle state, not a red fault
+        motion = [(state.point(n), n, text) for n, text in codec.MOTION_FLAGS.values()]
+        errors = [(state.point(n), n, f"{text}. Clears: {clears}.", bit)
+                  for bit, (n, text, clears) in codec.ERROR_FLAGS.items()]
+        self.motion.show([lamp_html(n, n, entry, text) for entry, n, text in motion])
+        self.errors.show([lamp_html(n, n, entry, text, "alarm", idle if bit == TIMEOUT_BIT else None)
+                          for entry, n, text, bit in errors])
+        if any(entry is not None and entry["quality"] in ("stale", "offline") for entry, *_rest in motion + errors):
             self.drawn = None  # drawn again with the next telegram, which may bring them back
-        idle = bool(view.fact(facts.P_IDLE, True))
-        if idle != self.idle_shown:  # Message timeout while nobody sends 0x06: the idle state, not a red fault
-            self.idle_shown = idle
-            lamp = self.errors[TIMEOUT_BIT]
-            if idle:
-                lamp.dot.classes(remove="alarm").style("background: #9e9e9e; box-shadow: none")
-            else:
-                lamp.dot.classes(add="alarm").style(remove="background: #9e9e9e; box-shadow: none")
-            lamp.row.props(f'data-idle="{int(idle)}"')
         errors = view.fact(facts.P_ERRORS, 0)
         self.idle_note.set_text("Message timeout is expected while idle: nobody sends the control telegram 0x06. "
                                 "It clears with the first telegrams when you take control."
@@ -462,18 +453,13 @@ class ServiceCard(DrawnCard):
             self.form = ui.label().classes("text-caption text-grey-8")
 
     def _row(self, p) -> None:
-        with ui.column().classes("gap-0").props(f'data-specifier="{p.address:02X}"'):
-            ui.label(f"0x{p.address:02X}").classes("mono text-caption")
-            ui.label(specifier_note(p)).classes("text-caption text-grey-8")
+        ui.html(f'<div class="mono text-caption">0x{p.address:02X}</div>'  # static: one element
+                f'<div class="text-caption text-grey-8">{html.escape(specifier_note(p))}</div>', sanitize=False) \
+            .classes("nicegui-column gap-0").props(f'data-specifier="{p.address:02X}"')
         with ui.row().classes("items-center gap-1"):
             ui.label(p.name).tooltip(p.description)
             mark = ui.badge("unsaved", color="orange")
-        with ui.column().classes("gap-0") as cell:
-            with ui.row().classes("items-baseline gap-0 no-wrap"):
-                value = ui.label("not read").classes("mono")
-                age = ui.label().classes("q-age").props(f"data-testid=age-{p.address:02X}")
-            with ui.label().classes("text-caption") as answers:
-                answers_tip = ui.tooltip("")
+        cell = LampStrip("nicegui-column gap-0")  # value, read time or age, the answers: one element, drawn on change
         if p.address == BITRATE_SPECIFIER:
             ui.label("change it step by step below").classes("text-caption text-grey-8")
             ui.element("span")
@@ -485,7 +471,7 @@ class ServiceCard(DrawnCard):
             self.guard.add(ui.button("Write", on_click=lambda: self.write(p, entry))
                            .props(f"dense data-testid=write-{p.address:02X}"))
             self.entries[p.key] = entry
-        self.rows[p.key] = (p, value, mark, answers, answers_tip, cell, age)
+        self.rows[p.key] = (p, mark, cell)
 
     async def write(self, param, entry) -> None:
         """Write the entry; afterwards the field shows the value read back from the actuators, not what was typed."""
@@ -551,20 +537,22 @@ class ServiceCard(DrawnCard):
         view, state = self.view, self.view.state
         reports = {r.key: r for r in view.fact(facts.P_SERVICE_REPORTS, ())}
         now = time.time()
-        for key, (p, value, mark, answers, answers_tip, cell, age) in self.rows.items():
+        for key, (p, mark, cell) in self.rows.items():
             raw = state.raw(p)
             self.follow_entry(key, p, raw)
             report = reports.get(key)
-            value.set_text(("not read" if not report or report.ok else "no common value") if raw is None else p.display(raw))
+            value = ("not read" if not report or report.ok else "no common value") if raw is None else p.display(raw)
             read = state.read_time(p)
             quality = state.quality(read, False, now)  # read on demand: good while the network answers
-            mark_quality(cell, quality if raw is not None else "unknown")
+            mark_quality(cell.element, quality if raw is not None else "unknown")
             note = quality_note(quality, None if read is None else now - read) if quality in ("stale", "offline") else ""
-            age.set_text(note or (f"read {fmt_time(read)}" if read is not None and raw is not None else ""))
+            age = note or (f"read {fmt_time(read)}" if read is not None and raw is not None else "")
             text, tip = _answers_text(report)
-            answers.set_text(text)
-            answers.classes(replace="text-caption " + ("text-grey-8" if not report or report.ok else "text-negative"))
-            answers_tip.set_text(tip)
+            cell.show(['<div class="nicegui-row row items-baseline gap-0 no-wrap">'
+                       f'<div class="mono">{html.escape(value)}</div><div class="q-age" data-testid="age-{p.address:02X}">'
+                       f'{html.escape(age)}</div></div><div class="text-caption '
+                       + ("text-grey-8" if not report or report.ok else "text-negative") + '"'
+                       + (f' data-tip="{html.escape(tip, quote=True)}"' if tip else "") + f'>{html.escape(text)}</div>'])
             mark.set_visibility(key in state.unsaved)
         self.unsaved.set_text(f"{len(state.unsaved)} unsaved")
         self.unsaved.set_visibility(bool(state.unsaved))

@@ -7,6 +7,7 @@ page's layout) and ``refresh()`` (on every change the store pushes)."""
 
 from __future__ import annotations
 
+import html
 import time
 from dataclasses import dataclass
 from datetime import datetime
@@ -21,7 +22,7 @@ from devices.scu.adapter import RESTORE_REFUSED, SERVICE_IDS, WATCH_RG, chart_po
 from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
 from pages.frame import fmt_age, fmt_time
 from pages.simcontrols import sim_card
-from pages.widgets import HistoryChart, Lamp, LiveValue, WriteGuard, checked_value, confirm, entry_age, follow, gate
+from pages.widgets import HistoryChart, WriteGuard, checked_value, confirm, entry_age, follow, gate
 from pages.widgets import INT32_LIMIT, mark_quality, quality_note, range_number, session_role, stop_bar
 
 # Actuator status 1 (0x0171..) and 2 (0x00E1..): point key -> its words in table 6 (the adapter publishes one point per bit)
@@ -256,85 +257,119 @@ class PositionsCard(DrawnCard):
         return good
 
 
+# a lamp's or line's words on hover, as Quasar's tooltip shows them, for what is drawn as one element (LampStrip)
+TIP_CSS = ("[data-tip]{position:relative}[data-tip]:hover::after{content:attr(data-tip);position:absolute;left:0;"
+           "top:100%;margin-top:4px;z-index:9000;background:#757575;color:#fafafa;font-size:10px;line-height:1.4;"
+           "padding:6px 10px;border-radius:4px;width:max-content;max-width:20rem;white-space:normal;pointer-events:none}")
+
+
+def _attr(text: str) -> str:
+    return html.escape(text, quote=True)
+
+
+def lamp_html(key: str, name: str, entry: dict | None, tip: str = "", kind: str = "ok", idle: bool | None = None) -> str:
+    """One lamp as :class:`pages.widgets.Lamp` draws it (its data-lamp, data-on and data-quality, the dot's classes;
+    ``kind`` "ok", "warn" or "alarm"), in the text of the element that holds it: a lamp costs no element of its own.
+    ``idle``: a fault lamp whose fault is the normal state now (grey, never red; data-idle)."""
+    quality = "unknown" if entry is None else entry["quality"]
+    on = None if entry is None or quality == "offline" else bool(entry["value"])
+    dot = " ".join(x for x in ("lamp", "" if kind == "ok" or idle else kind, "unknown" if on is None else "on" if on else "") if x)
+    marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
+    return (f'<div class="nicegui-row row items-center gap-1 no-wrap{marks}" data-lamp="{_attr(key)}" '
+            f'data-on="{"unknown" if on is None else int(on)}" data-quality="{quality}"'
+            + (f' data-tip="{_attr(tip)}"' if tip else "") + ("" if idle is None else f' data-idle="{int(idle)}"')
+            + f'><span class="{dot}"' + (' style="background: #9e9e9e; box-shadow: none"' if idle else "")
+            + f'></span><div class="text-body2">{html.escape(name)}</div></div>')
+
+
+def value_html(point: str, testid: str, text: str, entry: dict | None) -> str:
+    """A value as :class:`pages.widgets.LiveValue` draws it (greyed with its age while stale or offline)."""
+    quality = "unknown" if entry is None else entry["quality"]
+    marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
+    note = quality_note(quality, entry_age(entry)) if _aging(quality) else ""
+    return (f'<div class="nicegui-row row items-baseline gap-0 no-wrap{marks}" data-point="{_attr(point)}" '
+            f'data-testid="{testid}" data-quality="{quality}"><div class="mono text-body2">'
+            f'{html.escape(text)}</div><div class="q-age">{html.escape(note)}</div></div>')
+
+
+class LampStrip:
+    """Lamps (and values) drawn as one element whose text is redrawn when one of them changes: some 5 KB of server
+    memory per page instead of four elements per lamp. Same look, words and data attributes as separate lamps."""
+
+    def __init__(self, classes: str):
+        client = ui.context.client
+        if not getattr(client, "commission_tip_css", False):
+            ui.add_css(TIP_CSS)
+            client.commission_tip_css = True
+        self.element = ui.html("", sanitize=False).classes(classes)
+
+    def show(self, parts: list[str]) -> None:
+        self.element.set_content("".join(parts))
+
+
 class StatusCard(DrawnCard):
     """Status 1 and 2 of each actuator as lamps, its current and speed."""
 
     def __init__(self, view: ScuView):
         super().__init__(view)
-        self.lamps: dict[str, Lamp] = {}
+        self.columns: list[tuple[int, LampStrip]] = []
+        self.POINTS = tuple(f"A{n} {key}" for n in range(1, len(view.scales) + 1)
+                            for key in (*STATUS_BITS, "current", "speed"))
 
     def build(self) -> None:
-        state = self.view.state
         with titled_card("Actuator status 1 (0x0171..) and 2 (0x00E1..), current (0x00A1..), speed (0x00F1..)"):
             with ui.row().classes("gap-8 items-start"):
                 for n in range(1, len(self.view.scales) + 1):
                     with ui.column().classes("gap-0"):
                         ui.label(f"A{n}").classes("text-subtitle2")
-                        for key, words in STATUS_BITS.items():
-                            lamp = self.lamps[f"A{n} {key}"] = Lamp(words[0].upper() + words[1:], "ok", f"A{n} {key}")
-                            lamp.row.props(f'data-lamp="A{n} {key}"')  # the point it shows
-                        for what in ("current", "speed"):
-                            LiveValue(state, f"A{n} {what}", lambda e, what=what: f"{what}: {e['value']:g} {e['unit']}".strip(),
-                                      classes="mono text-body2").row.props(f"data-testid={what}-A{n}")
-
-    def inputs(self, access: Access) -> tuple:
-        state = self.view.state
-        return state.status, point_values(state.points, self.lamps)
+                        self.columns.append((n, LampStrip("nicegui-column gap-0")))
 
     def draw(self, access: Access) -> bool:
-        return _show_lamps(self.view.state, self.lamps)
-
-
-def _show_lamps(state, lamps: dict[str, Lamp]) -> bool:
-    """Each lamp as its point is now; False when one is stale or offline."""
-    good = True
-    for key, lamp in lamps.items():
-        entry = state.point(key)
-        lamp.show(entry)
-        good = good and (entry is None or not _aging(entry["quality"]))
-    return good
+        point, good = self.view.state.point, True
+        for n, strip in self.columns:
+            parts = []
+            for key, words in STATUS_BITS.items():  # each lamp keyed by the point it shows
+                entry = point(f"A{n} {key}")
+                parts.append(lamp_html(f"A{n} {key}", words[0].upper() + words[1:], entry, f"A{n} {key}"))
+                good = good and (entry is None or not _aging(entry["quality"]))
+            for what in ("current", "speed"):
+                e = point(f"A{n} {what}")
+                parts.append(value_html(f"A{n} {what}", f"{what}-A{n}",
+                                         "-" if e is None else f"{what}: {e['value']:g} {e['unit']}".strip(), e))
+                good = good and (e is None or not _aging(e["quality"]))
+            strip.show(parts)
+        return good
 
 
 class SupplyCard(DrawnCard):
     """Mains, battery and outputs as lamps; the I/O values, one line per point."""
 
     POINTS = SUPPLY_LAMPS + tuple(IO_POINTS)
-
-    def __init__(self, view: ScuView):
-        super().__init__(view)
-        self.lamps: dict[str, Lamp] = {}
+    TIPS = {key: f"{p.item(data_id).key} {p.item(data_id).name}: {RAW_NOTE}" for key, data_id in IO_POINTS.items()}
 
     def build(self) -> None:
         with titled_card("Supply and I/O"):
-            with ui.row().classes("gap-6"):
-                for key in SUPPLY_LAMPS:
-                    self.lamps[key] = Lamp(key, "ok")
-            with ui.column().classes("gap-0 text-body2"):  # one line per point, changed in place
-                self.lines: dict[str, tuple] = {}
-                for key, data_id in IO_POINTS.items():
-                    with ui.row().classes("items-baseline gap-2 no-wrap").props(f'data-io="{key}"') as row:
-                        text = ui.label()
-                        raw = ui.label().classes("mono text-caption text-grey-7")
-                        raw.tooltip(f"{p.item(data_id).key} {p.item(data_id).name}: {RAW_NOTE}")
-                    self.lines[key] = (row, text, raw)
-
-    def inputs(self, access: Access) -> tuple:
-        state = self.view.state
-        return state.status, point_values(state.points, self.POINTS)
+            self.lamps = LampStrip("nicegui-row row gap-6")
+            self.lines = LampStrip("nicegui-column gap-0 text-body2")  # one line per point
 
     def draw(self, access: Access) -> bool:
-        state = self.view.state
-        good = _show_lamps(state, self.lamps)
-        for key, (row, text, raw) in self.lines.items():
-            e = state.point(key)
-            row.set_visibility(e is not None)
-            if e is not None:
-                words, code = io_text(key, e)
-                text.set_text(words)
-                raw.set_text(code)
-                mark_quality(row, e["quality"])
-                good = good and not _aging(e["quality"])
-        return good
+        point, good, parts = self.view.state.point, True, []
+        lamps = [(key, point(key)) for key in SUPPLY_LAMPS]
+        self.lamps.show([lamp_html(key, key, entry) for key, entry in lamps])
+        for key in IO_POINTS:
+            e = point(key)
+            if e is None:
+                continue  # not read (yet): no line
+            words, code = io_text(key, e)
+            quality = e["quality"]
+            marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
+            parts.append(f'<div class="nicegui-row row items-baseline gap-2 no-wrap{marks}" data-io="{_attr(key)}" '
+                         f'data-quality="{quality}"><div>{html.escape(words)}</div>'
+                         f'<div class="mono text-caption text-grey-7" data-tip="{_attr(self.TIPS[key])}">'
+                         f'{html.escape(code)}</div></div>')
+            good = good and not _aging(quality)
+        self.lines.show(parts)
+        return good and not any(e is not None and _aging(e["quality"]) for _key, e in lamps)
 
 
 class ErrorsCard(DrawnCard):

@@ -11,8 +11,11 @@ from app.runtime import Runtime
 
 pytestmark = pytest.mark.timeout(60)
 
+# a network of its own name: a page reads a network's service parameters by itself once per 30 s (pages.electrak)
+
 # what the cards draw from (each read through the device record's live/point/entry)
 DRAWN = ("Position", "Current", "Speed", "Extending", "Message timeout", "Devices heard")
+MAX_ELEMENTS = 260  # the whole page: header, cards, chart, simulation card, events, STOP bar
 
 
 def page_view(user, runtime, device: str):
@@ -38,12 +41,12 @@ def count_reads(state, monkeypatch) -> list[str]:
 
 
 async def test_a_telegram_with_the_same_values_draws_nothing_and_the_round_draws_ages(tmp_path, monkeypatch):
-    runtime = Runtime(plant(electrak_bus(channel_name=channel("cost"))), simulate=True, data_dir=tmp_path)
+    runtime = Runtime(plant(electrak_bus("hoist", channel_name=channel("cost"))), simulate=True, data_dir=tmp_path)
     async with simulated_user(runtime) as user:
-        state = runtime.store.devices["lift"]
+        state = runtime.store.devices["hoist"]
         await eventually(lambda: state.status == "online" and "Position" in state.points, timeout=10)
-        await user.open("/device/lift")
-        view = page_view(user, runtime, "lift")
+        await user.open("/device/hoist")
+        view = page_view(user, runtime, "hoist")
         view.refresh()  # everything as the store has it now
         read = count_reads(state, monkeypatch)
         state.publish_telegram(state.last_seen + 0.1, {n: state.points[n]._replace(time=state.last_seen + 0.1)
@@ -63,3 +66,16 @@ async def test_a_telegram_with_the_same_values_draws_nothing_and_the_round_draws
         assert "Position" in read
         cell = [e for e in user.client.elements.values() if e.props.get("data-testid") == "network-position"][0]
         assert cell.default_slot.children[0].text.startswith("123.4 mm")
+
+
+async def test_the_page_is_built_from_a_bounded_number_of_elements(tmp_path):
+    """Server memory grows with every element of every open page (some 5 KB each): lamps, numbers and lines are
+    drawn as few elements as they can be, with the same words, units and data attributes."""
+    runtime = Runtime(plant(electrak_bus("hoist", channel_name=channel("elements"))), simulate=True, data_dir=tmp_path)
+    async with simulated_user(runtime) as user:
+        state = runtime.store.devices["hoist"]
+        await eventually(lambda: state.status == "online", timeout=10)
+        await user.open("/device/hoist")
+        await eventually(lambda: any("2 of 2 configured" in (getattr(e, "text", "") or "") for e in user.client.elements.values()),
+                         timeout=5, what="the network drawn")
+        assert len(user.client.elements) <= MAX_ELEMENTS, len(user.client.elements)
