@@ -6,6 +6,8 @@ declared commands (devices/m3io/policy.py) through the worker's gate. Each card 
 
 from __future__ import annotations
 
+import html
+
 from nicegui import ui
 
 from app.state import LiveValue
@@ -260,7 +262,8 @@ class ChannelRow:
             row.props(f'data-channel="{output}"')
             self.switch = ui.switch(output, on_change=lambda e: switch(self.view, output, e)).classes("w-32")
             self.switch.props(f'data-output="{output}"')
-            self.details = ui.column().classes("gap-1 col")
+            # the channels' badges and advice: drawn as the text of one element when they change
+            self.details = ui.html("", sanitize=False).classes("nicegui-column gap-1 col")
             self.age = ui.label().classes("q-age")
         if output == "SSR1-3":
             ui.label("Three-phase output: a fault on one of SSR1, SSR2, SSR3 switches all three off.").classes("text-caption text-grey-8")
@@ -285,31 +288,42 @@ class ChannelRow:
         entry = view.live(f"SSR{self.channels[0]} Last")
         mark_quality(self.details, _quality(entry))  # greyed, with the age of its status, while stale or offline
         self.age.set_text(_age_note(entry))
-        if shown != self.shown:  # rebuild only what changed
+        if shown != self.shown:  # drawn again only when it changed
             self.shown = shown
-            self.details.clear()
-            with self.details:
-                if foreign:
-                    ui.label("switched on from another page: it goes off when that page goes away").classes("text-caption text-warning")
-                if group_fault:
-                    ui.label(group_fault).classes("text-negative text-body2")
-                for channel, (load, fuse, triac, heard) in zip(self.channels, shown[2]):
-                    self._show(channel, load, fuse, triac, heard)
+            parts = []
+            if foreign:
+                parts.append(_text_html("switched on from another page: it goes off when that page goes away",
+                                        "text-caption text-warning"))
+            if group_fault:
+                parts.append(_text_html(group_fault, "text-negative text-body2"))
+            for channel, (load, fuse, triac, heard) in zip(self.channels, shown[2]):
+                parts.append(self._show(channel, load, fuse, triac, heard))
+            self.details.set_content("".join(parts))
         return not _aging(entry)
 
-    def _show(self, channel: int, load: str, fuse: str, triac: str, heard: bool) -> None:
-        with ui.row().classes("items-center gap-2"):
-            if len(self.channels) > 1:
-                ui.label(f"SSR{channel}").classes("text-caption mono")
-            for title, value in (("load", load), ("fuse", fuse), ("triac", triac)):
-                color = STATE_COLOR.get(value, "grey")
-                ui.badge(f"{title}: {value}", color=color).props(f'data-{title}="{value}" outline={color == "grey"} multi-line')
-            if not heard:
-                ui.label("no status yet").classes("text-caption text-grey-8")
+    def _show(self, channel: int, load: str, fuse: str, triac: str, heard: bool) -> str:
+        """One channel's load, fuse and triac as badges (Quasar's), with what to do about a fault."""
+        parts = ['<div class="nicegui-row row items-center gap-2">']
+        if len(self.channels) > 1:
+            parts.append(_text_html(f"SSR{channel}", "text-caption mono"))
+        for title, value in (("load", load), ("fuse", fuse), ("triac", triac)):
+            text = html.escape(f"{title}: {value}", quote=True)
+            parts.append(f'<div class="q-badge flex inline items-center no-wrap q-badge--multi-line '
+                         f'bg-{STATE_COLOR.get(value, "grey")}" role="status" aria-label="{text}" '
+                         f'data-{title}="{html.escape(value, quote=True)}">{text}</div>')
+        if not heard:
+            parts.append(_text_html("no status yet", "text-caption text-grey-8"))
+        parts.append("</div>")
         if fuse == "blown":
-            ui.label(codec.fuse_advice(self.view.variant, channel)).classes("text-negative text-body2")
+            parts.append(_text_html(codec.fuse_advice(self.view.variant, channel), "text-negative text-body2"))
         if triac == "defective":
-            ui.label("triac defective: it does not conduct while switched on").classes("text-negative text-body2")
+            parts.append(_text_html("triac defective: it does not conduct while switched on", "text-negative text-body2"))
+        return "".join(parts)
+
+
+def _text_html(text: str, classes: str) -> str:
+    """A label's tag and classes, in the text of the element that holds it."""
+    return f'<div class="{classes}">{html.escape(text)}</div>'
 
 
 class TemperatureCard(DrawnCard):
