@@ -16,6 +16,7 @@ its own port handling and request rules; here are only the parts that are the sa
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from app.state import BusState
@@ -42,6 +43,30 @@ class Transaction:
     space: str = ""
     address: int | None = None
     values: tuple[int, ...] = ()
+
+
+class _DecodedOnRead(Transaction):
+    """A :class:`Transaction` whose ``decoded`` text is worked out when it is first read (the monitor, a
+    recording, an export), not for every telegram of a line that nobody looks at: the decoding is a pure
+    function of the telegram, so the text is the same whenever it is made."""
+
+    @property
+    def decoded(self) -> str:  # type: ignore[override]
+        text = self.__dict__.get("_decoded")
+        if text is None:
+            try:
+                text = self.__dict__["_decode"]()
+            except Exception as exc:  # noqa: BLE001 - the log shows what could not be decoded
+                text = f"cannot decode: {exc}"
+            self.__dict__["_decoded"] = text
+        return text
+
+    @decoded.setter
+    def decoded(self, value) -> None:
+        if callable(value):
+            self.__dict__["_decode"], self.__dict__["_decoded"] = value, None
+        else:
+            self.__dict__["_decoded"] = value
 
 
 class Backoff:
@@ -123,10 +148,12 @@ class LineBase:
         self.state.connected = False
         self.state.last_error = message
 
-    def _record(self, request: str, request_hex: str, response_hex: str, decoded: str, rtt_ms: float | None,
-                error: str, *, unit: int = 0, **modbus) -> Transaction:
-        """Append one line to the bus monitor's log (thread-safe: a deque append)."""
-        entry = Transaction(time.time(), unit, request, request_hex, response_hex, decoded, rtt_ms, error, **modbus)
+    def _record(self, request: str, request_hex: str, response_hex: str, decoded: str | Callable[[], str],
+                rtt_ms: float | None, error: str, *, unit: int = 0, **modbus) -> Transaction:
+        """Append one line to the bus monitor's log (thread-safe: a deque append). ``decoded``: the text, or a
+        function that makes it from the telegram alone, called when the line is first read."""
+        kind = _DecodedOnRead if callable(decoded) else Transaction
+        entry = kind(time.time(), unit, request, request_hex, response_hex, decoded, rtt_ms, error, **modbus)
         self.state.transactions.append(entry)
         return entry
 

@@ -15,6 +15,7 @@ the decoding the adapter gives it.
 from __future__ import annotations
 
 import asyncio
+import functools
 import logging
 import time
 from collections.abc import Awaitable, Callable
@@ -114,8 +115,9 @@ class _LogitedLine(LineBase):
         return 0
 
     def _log(self, what: str, request: bytes, answer: bytes, error: str, rtt_ms: float | None = None) -> None:
-        self._record(what, request.hex(" ").upper(), answer.hex(" ").upper(),
-                     self._text(answer) if answer and not error else "", rtt_ms, error,
+        # the answer's decoding is made when the monitor reads the line (the adapter's describe reads the telegram only)
+        decoded = functools.partial(self._text, answer) if answer and not error and self.describe is not None else ""
+        self._record(what, request.hex(" ").upper(), answer.hex(" ").upper(), decoded, rtt_ms, error,
                      unit=self._unit(request, answer))
 
     # -- one request and its answer (the caller holds the line) -------------------------------------

@@ -18,6 +18,7 @@ take the power of their RS232 converter from them.
 from __future__ import annotations
 
 import asyncio
+import functools
 import logging
 import threading
 import time
@@ -259,12 +260,9 @@ class SerialLine(LineBase):
         need = complete(answer) if answer or not error else None
         if not error and (need is None or len(answer) < need):
             error = f"no complete answer within {timeout:g} s ({len(answer)} bytes)"
-        text = ""
-        if not error and decode is not None:
-            try:
-                text = decode(answer[:need])
-            except Exception as exc:  # noqa: BLE001 - the log shows what could not be decoded
-                text = f"cannot decode: {exc}"
+        text: str | Callable[[], str] = ""
+        if not error and decode is not None:  # made when the monitor reads the line (_DecodedOnRead says why)
+            text = functools.partial(decode, answer[:need])
         self._record(describe or request[:2].decode("ascii", "replace"), request.hex(" ").upper(),
                      answer.hex(" ").upper(), text, None if error else round(rtt, 2), error)
         return None if error else need

@@ -30,7 +30,7 @@ from typing import Any
 from devices import values as v
 from devices.decoding import malformed
 from devices.lease import Lease
-from devices.live import DeviceState, Holder, session_tag
+from devices.live import DeviceState, Holder, Point, session_tag
 from devices.scu import codec
 from devices.scu import params as p
 from devices.transport import SerialClosed, SerialLineError, SerialTimeout
@@ -155,6 +155,22 @@ def chart_points(scales) -> tuple[str, ...]:
     converts counts to mm, else in counts."""
     return tuple(f"A{s.number} position mm" if s.counts_per_mm or s.stroke_mm else f"A{s.number} position"
                  for s in scales)
+
+
+def _collector(points: dict[str, Point], now: float, every: float | None):
+    """A ``DeviceState.publish`` that puts the point into ``points`` instead (published together afterwards)."""
+    make = tuple.__new__
+
+    def publish(name: str, value: Any, unit: str = "", *, raw: Any = None, text: str | None = None,
+                time: float | None = None, periodic: bool = True, every: float | None = every) -> None:
+        points[name] = make(Point, (value, unit, now if time is None else time, raw, text, periodic, every))
+
+    return publish
+
+
+def _history_sample(state: DeviceState, names: tuple[str, ...]) -> dict[str, Any]:
+    points = state.points
+    return {n: points[n].value for n in names if n in points}
 
 
 _STATUS_CODES = frozenset(int(x) for x in codec.Status)
@@ -315,6 +331,7 @@ class ScuAdapter:
         self._rg_on_loop: list[int] = []  # reads the thread could not make well: made by the next poll instead
         self._read_at: dict[int, float] = {}  # RG data ID -> when it was last read (one entry per ID read)
         self._remote_timeout_seen = False
+        self._cyclic_memo: tuple | None = None  # (cyclic object, RC answer data, scales), its values and point contents
         self._stop_tasks: set[asyncio.Task] = set()
         self.watch: str | None = None  # WATCH_RG or WATCH_SESSION once the first RG outside a session told
         self.single_ids: set[int] = set()  # groups this unit refused: read member by member (remembered)
@@ -676,7 +693,7 @@ class ScuAdapter:
         self._answered()
         if cyclic is not None and answer.has_ctp and cyclic is self.cyclic:
             try:
-                self._publish_ids(cyclic.decode_read(answer.data))
+                self._publish_cyclic_data(cyclic, bytes(answer.data))
             except (v.DecodeError, ValueError) as exc:
                 self.state.error(f"RC cyclic data: {exc}", log=False)
         for data_id, rg in reads:
@@ -1018,16 +1035,59 @@ class ScuAdapter:
 
     # -- live points ----------------------------------------------------------------------------------
     def _publish_ids(self, values: dict[int, Any], every: float | None = None) -> None:
+        """The points of an answer's values, as one change of the record (:meth:`DeviceState.publish_telegram`)."""
         now = time.time()
+        points: dict[str, Point] = {}
+        self._collect_ids(values, every, now, points)
+        self._publish_points(values, points, now)
+
+    def _collect_ids(self, values: dict[int, Any], every: float | None, now: float, points: dict[str, Point]) -> None:
+        pub = _collector(points, now, every)
         for data_id, value in values.items():
             members = value if isinstance(value, dict) else {data_id: value}
             for member, x in members.items():
-                self._publish_one(member, x, now, every)
-        if 0x0010 in values or any(0x0011 <= i <= 0x0016 for i in values):
-            self.state.record_history(chart_points(self.scales), now)
+                self._publish_one(member, x, now, every, pub)
 
-    def _publish_one(self, data_id: int, x: Any, now: float, every: float | None = None) -> None:
-        pub = self.state.publish if every is None else functools.partial(self.state.publish, every=every)
+    def _publish_points(self, values: dict[int, Any], points: dict[str, Point], now: float) -> None:
+        sample = None
+        if 0x0010 in values or any(0x0011 <= i <= 0x0016 for i in values):
+            names = chart_points(self.scales)
+            if any(n in points or n in self.state.points for n in names):
+                sample = functools.partial(_history_sample, self.state, names)
+        self.state.publish_telegram(now, points, None, sample)
+
+    def _publish_cyclic_data(self, cyclic: p.CyclicDefinition, data: bytes) -> None:
+        """The data of an RC answer (every 200 ms): its points as one change of the record. The same bytes as the
+        answer before (a unit at rest) are not decoded and worded again, only their time is new."""
+        now = time.time()
+        key = (cyclic, data, tuple(self.scales))
+        memo = self._cyclic_memo
+        if memo is not None and memo[0] == key:
+            _key, values, contents = memo
+            for data_id, value in values.items():  # what the words mean besides points: the remote timeout bit
+                members = value if isinstance(value, dict) else {data_id: value}
+                if 0x00D1 in members:
+                    self._note_remote_timeout(members[0x00D1])
+            make = tuple.__new__  # Point(value, unit, now, raw, text, periodic, every) without the argument handling
+            points = {name: make(Point, (c[0], c[1], now, c[2], c[3], c[4], c[5])) for name, c in contents.items()}
+        else:
+            values = cyclic.decode_read(data)
+            points = {}
+            self._collect_ids(values, None, now, points)
+            self._cyclic_memo = (key, values, {name: (pt.value, pt.unit, pt.raw, pt.text, pt.periodic, pt.every)
+                                               for name, pt in points.items()})
+        self._publish_points(values, points, now)
+
+    def _note_remote_timeout(self, x: Any) -> None:
+        """Error bit 22 (remote communication timeout) of 0x00D1 newly set while the session is open: it is lost."""
+        timeout = bool(int(x) & codec.REMOTE_TIMEOUT_MASK)
+        if timeout and not self._remote_timeout_seen and self.session == "open" and self.rc_times and len(self.rc_times) > 2:
+            self._lost("error bit 22 (remote communication timeout) is set")
+        self._remote_timeout_seen = timeout
+
+    def _publish_one(self, data_id: int, x: Any, now: float, every: float | None = None, pub=None) -> None:
+        if pub is None:
+            pub = self.state.publish if every is None else functools.partial(self.state.publish, every=every)
         entry = p.DIRECTORY.get(data_id)
         if entry is None:
             return
@@ -1058,10 +1118,7 @@ class ScuAdapter:
             if data_id == 0x00D1:
                 for b in codec.ERROR_BITS.values():
                     pub(f"Error bit {b.bit}", bool(int(x) & b.mask), time=now, text=b.cause)
-                timeout = bool(int(x) & codec.REMOTE_TIMEOUT_MASK)
-                if timeout and not self._remote_timeout_seen and self.session == "open" and self.rc_times and len(self.rc_times) > 2:
-                    self._lost("error bit 22 (remote communication timeout) is set")
-                self._remote_timeout_seen = timeout
+                self._note_remote_timeout(x)
         elif data_id == 0x0164:
             pub("Battery voltage", round(x, 1), "V", raw=round(x * 10), time=now)
         elif data_id in (0x0100, 0x0020, 0x0110, 0x0120, 0x0130, 0x0140, 0x0150, 0x0162):
