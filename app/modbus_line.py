@@ -114,6 +114,8 @@ class ModbusLine(LineBase):
         self.conflicts_by_unit: Counter[int] = Counter()  # unit asked -> answers from another unit (per device)
         self._last_request: dict[tuple[int, str], float] = {}  # (unit, request) of a device's poll -> when last asked
         self._intervals: dict[tuple[int, str], deque] = {}  # (unit, request) -> recent intervals between its repeats
+        self._medians: dict[tuple[int, str], float] = {}  # (unit, request) -> the median of its intervals
+        self._forget_at = 0.0  # monotonic time of the next look for requests and units not asked for CYCLE_FORGET_S
         self._unit_seen: dict[int, float] = {}
         self.cycle_s: float | None = None  # measured time for one poll of every device on the line
         self.devices: dict[int, tuple[DeviceState, float]] = {}  # unit -> (state, its configured threshold)
@@ -289,13 +291,21 @@ class ModbusLine(LineBase):
             for old in list(self._last_request)[:1024]:
                 del self._last_request[old]
                 self._intervals.pop(old, None)
+                self._medians.pop(old, None)
         self._unit_seen[unit] = now
-        for old in [u for u, seen in self._unit_seen.items() if now - seen > CYCLE_FORGET_S]:
-            self._unit_seen.pop(old, None)
-        for old in [k for k in self._intervals if now - self._last_request.get(k, 0.0) > CYCLE_FORGET_S]:
-            self._intervals.pop(old, None)
+        if now >= self._forget_at:  # what is older than CYCLE_FORGET_S goes (the figures skip it meanwhile)
+            self._forget_at = now + 1.0
+            for old in [u for u, seen in self._unit_seen.items() if now - seen > CYCLE_FORGET_S]:
+                self._unit_seen.pop(old, None)
+            for old in [k for k in self._intervals if now - self._last_request.get(k, 0.0) > CYCLE_FORGET_S]:
+                self._intervals.pop(old, None)
+                self._medians.pop(old, None)
         if last is not None and now - last <= CYCLE_FORGET_S:
-            self._intervals.setdefault(key, deque(maxlen=CYCLE_SAMPLES)).append(now - last)
+            intervals = self._intervals.get(key)
+            if intervals is None:
+                intervals = self._intervals[key] = deque(maxlen=CYCLE_SAMPLES)
+            intervals.append(now - last)
+            self._medians[key] = statistics.median(intervals)  # worked out when it changes, not at every look
             self.cycle_s = self._line_cycle(now)
             self.state.cycle_s = self.cycle_s
         self._apply_thresholds(now)
@@ -303,10 +313,12 @@ class ModbusLine(LineBase):
     def _poll_intervals(self, now: float) -> dict[int, float]:
         """unit -> its poll interval: the shortest interval among its requests (see _measure_cycle)."""
         shortest: dict[int, float] = {}
-        for (unit, what), intervals in self._intervals.items():
-            if not intervals or unit not in self._unit_seen:
+        seen, asked = self._unit_seen, self._last_request
+        for (unit, what), median in self._medians.items():
+            last = asked.get((unit, what), now)
+            if unit not in seen or now - seen[unit] > CYCLE_FORGET_S or now - last > CYCLE_FORGET_S:
                 continue
-            interval = max(statistics.median(intervals), now - self._last_request.get((unit, what), now))
+            interval = max(median, now - last)
             if interval < shortest.get(unit, float("inf")):
                 shortest[unit] = interval
         return shortest
@@ -319,7 +331,7 @@ class ModbusLine(LineBase):
         """The cycle in progress is at least as long as the time since the least recently asked device
         was asked (this covers the first cycle, before any interval was measured)."""
         now = time.monotonic() if now is None else now
-        return max((now - seen for seen in self._unit_seen.values()), default=0.0)
+        return max((now - seen for seen in self._unit_seen.values() if now - seen <= CYCLE_FORGET_S), default=0.0)
 
     def _apply_thresholds(self, now: float) -> None:
         cycle = max(self.cycle_s or 0.0, self.cycle_lower_bound(now)) or None
