@@ -22,6 +22,7 @@ A device page reads::
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 
@@ -90,6 +91,21 @@ class DeviceView:
                 out.append(tuple(None if (e := registers.get(k)) is None else e[0] for k in key))
         return tuple(out)
 
+    def qualities(self, names: Iterable[str]) -> tuple:
+        """The qualities of the values named ``names`` now (as :meth:`live` gives them), without a record built:
+        what a card's stale and offline marks are drawn from."""
+        state = self.state
+        points, params, now = state.points, state.params, time.time()
+        out = []
+        for name in names:
+            p = points.get(name)
+            if p is not None:
+                out.append(state.quality(p.time, p.periodic, now, p.every))
+                continue
+            param = params.by_name.get(name) if params is not None else None
+            out.append(None if param is None or state.raw(param) is None else state.param_quality(param, now))
+        return tuple(out)
+
     def words(self, params: Iterable[Param]) -> tuple:
         """The register words of ``params`` now (None for a word not read yet), without their read times."""
         registers = self.state.registers
@@ -130,20 +146,33 @@ class DeviceCard:
     """One part of a device page."""
 
     _drawn: object = None  # the inputs the card last drew (see :meth:`unchanged`)
-    aging = False  # the card shows a value as stale: its mark clears when the value is read again, same value or not
+    _ages: object = None  # and what its ages were drawn from
+    aging = False  # the card shows a value stale or offline: its mark and age move without a new value
 
     def __init__(self, view: DeviceView):
         self.view = view
 
-    def unchanged(self, inputs: object) -> bool:
+    def unchanged(self, inputs: object, ages: Callable[[], object] | None = None) -> bool:
         """Whether the card may skip this refresh: ``inputs`` (what its values are drawn from, e.g.
         :meth:`DeviceView.inputs`; the device's online state is added here) are what it last drew, no age is due
-        (:attr:`DeviceView.ages_due`) and nothing it shows is marked stale (:attr:`aging`). Otherwise the inputs
-        are noted as drawn and the card draws. A card whose read times or counters alone moved does nothing."""
+        (:attr:`DeviceView.ages_due`) and nothing it shows is stale or offline (:attr:`aging`). Otherwise the inputs
+        are noted as drawn and the card draws. A card whose read times or counters alone moved does nothing.
+
+        ``ages()``: what the card's time-dependent marks are drawn from (the qualities of its values,
+        :meth:`DeviceView.qualities`; an age it shows in words): when ages are due and they are what the card
+        last drew, the once-a-second round skips it as well. Without it the round always draws."""
         inputs = (self.view.state.online, inputs)
-        if inputs == self._drawn and not self.aging and not self.view.ages_due:
-            return True
+        if inputs == self._drawn and not self.aging:
+            if not self.view.ages_due:
+                return True
+            if ages is not None:
+                now = ages()
+                if now == self._ages:
+                    return True
+                self._ages = now
+                return False
         self._drawn = inputs
+        self._ages = None if ages is None else ages()
         return False
 
     @property

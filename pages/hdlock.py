@@ -26,7 +26,7 @@ from devices.hdlock.params import HOLDING, INPUT, LOCK_STATUS_BITS, PARAMS
 from devices.hdlock.policy import unsaved_changes
 from devices.params import Param
 from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
-from pages.frame import fmt_age
+from pages.frame import fmt_age, status_text
 from pages.simcontrols import sim_card
 from pages.widgets import HistoryChart, Lamp, RegisterTable, ValueLine, WriteGuard, checked_value, confirm, entry_age
 from pages.widgets import gate, mark_quality, quality_note, range_number, refuse, run_command, write_from_page
@@ -130,7 +130,8 @@ class HealthCard(DeviceCard):
 
     def refresh(self) -> None:
         view, state = self.view, self.view.state
-        if self.unchanged((state.status, state.last_error, view.inputs(HEALTH_INPUTS))):
+        if self.unchanged((state.status, state.last_error, view.inputs(HEALTH_INPUTS)),
+                          lambda: status_text(state.status, state.age) + fmt_age(state.age)):
             return  # status, error, address and identity as drawn: the ages move on the once-a-second round
         self.status.refresh()
         serial, fw = state.value("SerialNumber"), state.value("FirmwareVersion")
@@ -168,10 +169,10 @@ class LampsCard(DeviceCard):
 
     def refresh(self) -> None:
         state = self.view.state
-        if self.unchanged(self.view.inputs(LAMP_INPUTS)):
+        if self.unchanged(self.view.inputs(LAMP_INPUTS), lambda: self.view.qualities(LAMP_INPUTS)):
             return  # the same words, nothing shown stale: no record built, no element touched
         status = state.entry("LockStatus")
-        aging = status is not None and status["quality"] == "stale"
+        aging = status is not None and status["quality"] in ("stale", "offline")
         for field_name, lamp in self.lamps.items():
             lamp.show(status, None if status is None else status["fields"][field_name])
         self.note.set_text(_note(status))
@@ -180,7 +181,7 @@ class LampsCard(DeviceCard):
             label.set_text(entry["name"] or f"undefined ({entry['value']})" if entry else "-")
             mark_quality(label, entry["quality"] if entry else "unknown")
             self.notes[key].set_text(_note(entry))
-            aging = aging or (entry is not None and entry["quality"] == "stale")
+            aging = aging or (entry is not None and entry["quality"] in ("stale", "offline"))
         self.aging = aging
 
 
@@ -263,7 +264,8 @@ class ParameterCard(DeviceCard):
 
     def refresh(self) -> None:
         state, now = self.view.state, time.time()
-        if self.unchanged((self.view.words(self.params), frozenset(state.unsaved))):
+        if self.unchanged((self.view.words(self.params), frozenset(state.unsaved)),
+                          lambda: tuple(state.param_quality(p, now) for p in self.params)):
             return  # the same words and unsaved marks, nothing shown stale
         aging = False
         for key, (p, current, mark) in self.rows.items():
@@ -271,7 +273,7 @@ class ParameterCard(DeviceCard):
             self.follow_entry(key, p, raw)
             read = state.read_time(p)
             quality = state.param_quality(p, now)  # aged by its own read period (settings: every 10 s)
-            aging = aging or quality == "stale"
+            aging = aging or quality in ("stale", "offline")
             # greyed with the age of its value while stale or offline
             current.show("-" if raw is None else p.display(raw), quality,
                          quality_note(quality, None if read is None else now - read) if quality in ("stale", "offline") else "")
@@ -415,7 +417,7 @@ class SetAddressCard(DeviceCard):
     def refresh(self) -> None:
         state = self.view.state
         if self.unchanged((state.status, state.last_error, self.new.value, self.p1.value, self.p2.value,
-                           self.view.inputs(("LockStatus",)))):
+                           self.view.inputs(("LockStatus",))), lambda: None):
             return  # the gate of Send and the preview are drawn from these alone
         _gate_send(self.view, self.button, self.new)
         m, e = _parse_word(self.p1.value), _parse_word(self.p2.value)
@@ -511,7 +513,7 @@ class BroadcastAddressCard(DeviceCard):
     def refresh(self) -> None:
         state = self.view.state
         if self.unchanged((state.status, state.last_error, self.new.value, self.p1.value, self.p2.value,
-                           _line_inputs(self.view))):
+                           _line_inputs(self.view)), lambda: None):
             return  # the entries, the gate of Send and the locks of the line (their addresses and LockStatus) as drawn
         _gate_send(self.view, self.button, self.new)
         m, e = _parse_word(self.p1.value), _parse_word(self.p2.value)
@@ -578,7 +580,7 @@ class CanStatusCard(DeviceCard):
             self.fwu = ui.label().classes("text-body2 text-warning")
 
     def refresh(self) -> None:
-        if self.unchanged(self.view.inputs((P_STATUS_FRAME, P_FWU))):
+        if self.unchanged(self.view.inputs((P_STATUS_FRAME, P_FWU)), lambda: None):
             return
         status = self.view.state.live(P_STATUS_FRAME)
         if status is not None:

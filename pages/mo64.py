@@ -17,6 +17,7 @@ from devices.mo64 import codec
 from devices.mo64.adapter import COMMAND_NAMES
 from devices.mo64.policy import EEPROM_RISK, operation_name, setting_name
 from pages.device_page import DeviceCard, DeviceView, StatusBadge, device_page, titled_card
+from pages.frame import status_text
 from pages.simcontrols import sim_card
 from pages.widgets import Lamp, ValueLine, WriteGuard, checked_value, counter_line, entry_age, mark_quality, quality_note
 from pages.widgets import range_number, refuse
@@ -134,7 +135,7 @@ class GateCard(DeviceCard):
         view, state = self.view, self.view.state
         bus = view.store.buses.get(state.bus)
         if self.unchanged((state.status, state.last_error, bus.last_error if bus is not None else None,
-                           view.inputs(GATE_INPUTS))):
+                           view.inputs(GATE_INPUTS)), lambda: status_text(state.status, state.age)):
             return  # status, errors and the gate's points as drawn: the badge's age moves on the once-a-second round
         self.badge.refresh()
         self.gate.set_text(f"gate state: {view.text('Gate state')}")
@@ -201,7 +202,7 @@ class CommandsCard(DeviceCard):
         await self.view.act("clear levels", success="levels deactivated")  # the gate asks the declared risk
 
     def refresh(self) -> None:
-        if self.unchanged(self.view.inputs((facts.P_LEVELS, facts.P_LAST_REPLY))):
+        if self.unchanged(self.view.inputs((facts.P_LEVELS, facts.P_LAST_REPLY)), lambda: None):
             return
         mine = sorted(level.command + (" (dead-man)" if level.dead_man else "")
                       for level in self.view.fact(facts.P_LEVELS, ()))
@@ -227,7 +228,7 @@ class StatusCard(DeviceCard):
             ui.label(LEGEND).classes("text-caption text-grey-8").props("data-testid=status-legend")
 
     def refresh(self) -> None:
-        if self.unchanged(self.view.inputs(self.lamps)):
+        if self.unchanged(self.view.inputs(self.lamps), lambda: self.view.qualities(self.lamps)):
             return  # the same 40 bits, none shown stale
         aging = False
         for bit, lamp in self.lamps.items():
@@ -255,7 +256,7 @@ class ValuesCard(DeviceCard):
                 ui.label(self.note).classes("text-caption text-grey-8")
 
     def refresh(self) -> None:
-        if self.unchanged(self.view.inputs(self.points)):
+        if self.unchanged(self.view.inputs(self.points), lambda: self.view.qualities(self.points)):
             return
         aging = False
         for point, line in self.lines.items():
@@ -282,7 +283,8 @@ class ErrorMemoryCard(DeviceCard):
 
     def refresh(self) -> None:
         state = self.view.state
-        if self.unchanged((state.status, self.view.inputs((facts.P_ERROR_LEVELS,)))):
+        if self.unchanged((state.status, self.view.inputs((facts.P_ERROR_LEVELS,))),
+                          lambda: state.status == "offline" and quality_note("offline", state.age)):
             return
         levels = {e.level: e for e in self.view.fact(facts.P_ERROR_LEVELS, ())}
         rows = [{"level": codec.error_level_text(e.level),
@@ -358,7 +360,7 @@ class SettingsCard(DeviceCard):
 
     def refresh(self) -> None:
         view = self.view
-        if self.unchanged(view.inputs(SETTINGS_INPUTS)):
+        if self.unchanged(view.inputs(SETTINGS_INPUTS), lambda: view.qualities(SETTING_POINTS.values())):
             return
         aging = False
         for key, line in self.values.items():
@@ -398,10 +400,10 @@ def _value_line(classes: str = "") -> ValueLine:
 
 
 def _show_line(line: ValueLine, text: str, value: LiveValue | None) -> bool:
-    """Show a value with its quality (greyed, with its age, while stale or offline); True when it is shown stale."""
+    """Show a value with its quality (greyed, with its age, while stale or offline); True when it is shown stale or offline (with an age)."""
     quality = "unknown" if value is None else value.quality
     line.show(text, quality, quality_note(quality, entry_age(value.entry())) if quality in ("stale", "offline") else "")
-    return quality == "stale"
+    return quality in ("stale", "offline")
 
 
 def _whole_number(label: str, low: int, high: int) -> ui.number:

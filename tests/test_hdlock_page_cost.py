@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import gc
 import json
+import time
 
 import pytest
 from nicegui import ui
@@ -59,13 +60,24 @@ async def test_a_card_whose_values_did_not_change_draws_nothing_until_they_chang
     view.pushed()
     assert drawn == []
 
-    # the once-a-second round draws the ages and stale marks
-    runtime.store.age_round = True
-    try:
-        view.pushed()
-    finally:
-        runtime.store.age_round = False
-    assert len(drawn) == len(lamps.lamps)
+    # the once-a-second round: nothing drawn while the qualities are as drawn; a value turned stale is drawn stale
+    def round_() -> None:
+        runtime.store.age_round = True
+        try:
+            view.pushed()
+        finally:
+            runtime.store.age_round = False
+
+    round_()
+    assert drawn == []
+    word, read = state.registers[(HOLDING, 1000)]
+    state.registers[(HOLDING, 1000)] = (word, read - 60)  # LockStatus not read for a minute
+    round_()
+    assert len(drawn) == len(lamps.lamps) and lamps.aging
+    drawn.clear()
+    state.registers[(HOLDING, 1000)] = (word, time.time())  # read again, the same word: the stale mark clears
+    view.pushed()
+    assert len(drawn) == len(lamps.lamps) and not lamps.aging
 
     # a new LockStatus word is drawn on the push that brings it
     drawn.clear()
