@@ -121,6 +121,19 @@ def wait_http(url: str, proc: subprocess.Popen | None = None, timeout: float = 3
     raise TimeoutError(f"{url} did not answer within {timeout} s (last: {last})")
 
 
+def die_with_parent() -> None:
+    """In the child before it runs the app: the kernel ends it (SIGTERM) when the process that started it ends,
+    so an app started by a benchmark or a test that was killed does not run on and take the machine's CPU."""
+    import ctypes
+    import signal
+
+    PR_SET_PDEATHSIG = 1
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: the app is stopped by stop_app only
+        pass
+
+
 def start_app(plant_file: Path, port: int, log_file: Path, *args: str, root: Path = ROOT) -> subprocess.Popen:
     """``python -m app.cli ARGS --plant plant_file --port port`` with its output in ``log_file``; the
     data folder is the one of ``COMMISSION_DATA_DIR`` or a folder beside the log. ``root``: another
@@ -132,7 +145,7 @@ def start_app(plant_file: Path, port: int, log_file: Path, *args: str, root: Pat
     with open(log_file, "wb") as log:
         proc = subprocess.Popen(
             [sys.executable, "-m", "app.cli", *args, "--plant", str(plant_file), *(("--port", str(port)) if port else ())],
-            cwd=root, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
+            cwd=root, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=die_with_parent,
         )
     proc.log_file = log_file  # type: ignore[attr-defined]
     return proc

@@ -167,6 +167,7 @@ def serve_beyond_loopback(folder: Path, port: int, data: Path, *args: str) -> su
         return subprocess.Popen(
             [sys.executable, "-m", "app.cli", "--plant", str(folder / "plant.toml"), "--host", "0.0.0.0", "--port", str(port),
              "--data-dir", str(data), *args], cwd=folder, env=env, stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
+            preexec_fn=liveapp.die_with_parent,
         )
 
 
