@@ -373,11 +373,11 @@ class LogitedRs485(_LogitedLine):
         waking the loop: on a shared line the token comes round many times a second."""
         splitter = self.codec.FrameSplitter(self.codec.RS485)
         token = self.codec.TOKEN
-        while self._run:
+        while self._run and self.port is port:  # a reader of a port closed meanwhile ends (the line may be open again)
             try:
                 data = read_burst(port)  # a telegram at a time: the loop wakes once for it, not once a byte
             except Exception as exc:  # noqa: BLE001 - unplugged: the loop reopens with backoff
-                self._loop.call_soon_threadsafe(self._lost, str(exc))
+                self._loop.call_soon_threadsafe(self._port_lost, port, str(exc))
                 return
             if not data:
                 continue
@@ -400,6 +400,12 @@ class LogitedRs485(_LogitedLine):
             return False
         self.token_holds_ms.append(0.0)
         return True
+
+    def _port_lost(self, port, why: str) -> None:
+        """The reader of ``port`` failed: the line is lost if ``port`` is still its port. The read of a port closed
+        on purpose (or lost before) fails too, maybe after the line was opened again: that must not close the new one."""
+        if self.port is port:
+            self._lost(why)
 
     def _lost(self, why: str) -> None:
         self._shut(final=False)

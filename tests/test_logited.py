@@ -242,3 +242,27 @@ async def test_rs485_without_the_token_sends_nothing():
 def test_plant_logited_rs485_bus():
     options = plant(bus("gates", "logited-rs485", port="/dev/ttyUSB2", shared=True), name=None).buses["gates"].options
     assert (options["baudrate"], options["master_address"], options["next_master"]) == (38400, 0, 1)
+
+
+async def test_reader_of_a_closed_port_leaves_the_reopened_line_alone():
+    """A reader thread whose port was closed, the line opened again meanwhile, must not take the new port down with
+    its old one; the line's own port failing is the loss of the line."""
+    line = rs485(free_port())
+
+    class Failing:
+        timeout = 0.05
+
+        def read(self, n):
+            raise OSError("the port was closed")
+
+        def close(self):
+            pass
+
+    old, new = Failing(), Failing()
+    line._loop, line._run, line.port = asyncio.get_running_loop(), True, new
+    line._read_thread(old)
+    await asyncio.sleep(0)
+    assert line.port is new and line.state.last_error == ""
+    line._read_thread(new)
+    await asyncio.sleep(0)
+    assert line.port is None and "lost: the port was closed" in line.state.last_error
