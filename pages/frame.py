@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from html import escape
+
 import time
 from contextlib import contextmanager
 from datetime import datetime
@@ -143,6 +145,15 @@ def _header(runtime) -> tuple[ui.row, ui.row, ui.menu, str | None, str | None]:
     return health, buses, menu, user, role
 
 
+def bus_item_html(name: str, connected: bool) -> str:
+    """A bus in the page menu: its state's icon, its name and its state in words (a tablet has no hover)."""
+    icon = ('<i class="q-icon notranslate material-icons %s" aria-hidden="true" role="presentation" style="font-size: 20px">'
+            '%s</i>') % (("text-green", "lan") if connected else ("text-red", "link_off"))
+    return (f'<div class="row items-center no-wrap q-gutter-x-sm">{icon}'
+            f'<span class="text-weight-medium text-no-wrap">{escape(name)}</span>'
+            f'<span class="text-caption text-grey-8" data-bus-words>{"connected" if connected else "not connected"}</span></div>')
+
+
 class HeaderStatus:
     """The header's live part: the audit log's state, the broker, the event-loop lag and the buses."""
 
@@ -172,10 +183,11 @@ class HeaderStatus:
                 self.loop_tip = ui.tooltip("")
         with buses:
             for bus in runtime.store.buses.values():
+                # the bus's state in words is the link's title (the browser's own tooltip: no element of its own)
                 with ui.link("", f"/monitor/{bus.name}").classes("text-white no-underline hdr-bus row items-center no-wrap") \
                         .props(f'aria-label="{bus.name}" data-bus="{bus.name}"') as link:
-                    ui.label(bus.name).classes("hdr-bus-name")  # left out on a narrow screen: the icon and its tooltip stay
-                    self.bus_chips[bus.name] = (ui.icon("link_off", color="red").classes("q-ml-xs"), ui.tooltip(""), link)
+                    ui.label(bus.name).classes("hdr-bus-name")  # left out on a narrow screen: the icon and its title stay
+                    self.bus_chips[bus.name] = (ui.icon("link_off", color="red").classes("q-ml-xs"), link)
         if menu is not None and runtime.store.buses:
             # a tablet has no hover for the icons' tooltips and no room for the names: the page menu names every
             # bus with its state in words, each a link to its monitor
@@ -183,11 +195,8 @@ class HeaderStatus:
                 ui.separator()
                 for bus in runtime.store.buses.values():
                     with ui.menu_item().props(f'href="/monitor/{bus.name}" tag=a data-bus-item="{bus.name}"'):
-                        with ui.row().classes("items-center no-wrap gap-2"):
-                            icon = ui.icon("link_off", color="red", size="20px")
-                            ui.label(bus.name).classes("text-weight-medium text-no-wrap")
-                            words = ui.label().classes("text-caption text-grey-8")
-                    self.bus_items[bus.name] = (icon, words)
+                        # icon, name and state in one element (redrawn when the state changes)
+                        self.bus_items[bus.name] = ui.html(bus_item_html(bus.name, False), sanitize=False)
 
     def refresh(self) -> None:
         runtime = self.runtime
@@ -204,26 +213,25 @@ class HeaderStatus:
         # coloured by the p99 itself: on a busy machine some stall falls into every minute, and a colour that
         # is always on says nothing (the stalls are in the tooltip)
         p99 = loop["p99_ms"]
-        self.loop_chip.set_text(f"loop {p99:.0f} ms")
-        self.loop_chip.classes(replace="text-caption " + ("text-red-4" if p99 >= LOOP_RED_MS else "text-orange-4"
-                                                          if p99 >= LOOP_ORANGE_MS else "text-grey-5"))
+        self.loop_chip.set_text(f"loop {p99:.0f} ms")  # sent only when the text changed, as every text below
+        colour = "text-red-4" if p99 >= LOOP_RED_MS else "text-orange-4" if p99 >= LOOP_ORANGE_MS else "text-grey-5"
+        if colour not in self.loop_chip.classes:  # classes() sends the element each time it is called
+            self.loop_chip.classes(replace="text-caption " + colour)
         self.loop_tip.set_text(f"Event-loop lag (it carries every keep-alive): p99 {loop['p99_ms']} ms over the last "
                                f"minute, worst {loop['worst_ms']} ms, {loop['stalls']} stalls over 100 ms since start")
         for bus in runtime.store.buses.values():
-            icon, tip, link = self.bus_chips[bus.name]
+            icon, link = self.bus_chips[bus.name]
             words = "connected" if bus.connected else bus.last_error or "not connected"
             if self.bus_shown.get(bus.name) == (bus.connected, words):
                 continue  # unchanged: nothing goes to the browser
             self.bus_shown[bus.name] = (bus.connected, words)
             icon.set_name("lan" if bus.connected else "link_off")
             icon.set_text_color("green" if bus.connected else "red")
-            tip.set_text(f"{bus.name}: {bus.type} {bus.endpoint}: {words}")
-            link.props(f'aria-label="{bus.name}: {words.replace(chr(34), chr(39))}"')
+            title = f"{bus.name}: {bus.type} {bus.endpoint}: {words}".replace(chr(34), chr(39))
+            link.props(f'aria-label="{bus.name}: {words.replace(chr(34), chr(39))}" title="{title}"')
             item = self.bus_items.get(bus.name)
             if item is not None:
-                item[0].set_name("lan" if bus.connected else "link_off")
-                item[0].set_text_color("green" if bus.connected else "red")
-                item[1].set_text("connected" if bus.connected else "not connected")
+                item.set_content(bus_item_html(bus.name, bus.connected))
 
     def _refresh_broker(self) -> None:
         broker = self.runtime.mqtt.summary()

@@ -137,8 +137,11 @@ async def test_header_menu_names_every_bus_in_words_and_links_fleet(user_runtime
     links = [e for e in user.client.elements.values() if e.props.get("href") == "/fleet"]
     assert links, "Fleet is among the page links"
     bus = runtime.store.buses["can9"]
-    words = lambda: {e.text for e in user.find(ui.label).elements if e.text in ("connected", "not connected")}  # noqa: E731
+    item = next(e for e in items if e.props["data-bus-item"] == "can9")
+    words = lambda: item.default_slot.children[0].content  # noqa: E731 - icon, name and state: one element
     bus.connected = False
-    await eventually(lambda: "not connected" in words(), "the bus's state in words", timeout=5)
+    await eventually(lambda: "can9</span>" in words() and ">not connected</span>" in words(), "the bus's state in words", timeout=5)
+    bus.connected = True
+    await eventually(lambda: ">connected</span>" in words(), "connected again in words", timeout=5)
     chip = next(e for e in user.client.elements.values() if e.props.get("data-bus") == "can9")
     assert chip.props["aria-label"].startswith("can9: ")
