@@ -48,8 +48,10 @@ class BusState:
 
 log = logging.getLogger(__name__)
 
-PUSH_PERIOD_S = 0.1  # a device's watchers are called at most 10 times a second
-PAGE_GAP_S = 0.05  # and the watchers of one page (one group) at most 20 times a second, all its devices in one go
+PUSH_PERIOD_S = 0.1  # the server's readers of a device (publishers, checks, alarms) are called at most 10 times a second
+PAGE_GAP_S = 0.05  # the watchers of one page (one group) at most 20 times a second, all its devices in one go; one device's
+# watchers on a page at that rate too: a device that changes more often than 10 times a second (a lock's 10 status frames
+# and its register answers) would otherwise have every frame wait for its turn on a 100 ms grid, up to 100 ms
 AGE_PERIOD_S = 1.0  # watchers are called at least this often, so ages and stale marks move on
 AGE_PHASES = 10  # the devices' once-a-second rounds fall into this many slots of the second, not all into one
 AHEAD = 3  # a device's or page's calls may run this many periods ahead of their rate (a burst), never more
@@ -58,7 +60,7 @@ SERVER = "server"  # the group of watchers that belong to no page (publishers, i
 
 class Watch:
     """One reader following one device: ``callback()`` runs after the device changed (at most every
-    :data:`PUSH_PERIOD_S`) and at least every :data:`AGE_PERIOD_S`. ``cancel()`` ends it."""
+    :data:`PUSH_PERIOD_S` for the server's readers, :data:`PAGE_GAP_S` on a page) and at least every :data:`AGE_PERIOD_S`. ``cancel()`` ends it."""
 
     __slots__ = ("store", "device", "callback", "alive", "slow", "group")
 
@@ -82,10 +84,11 @@ class _Group:
     """The watchers of one page (or of the server): called together, so that what changed on several
     devices reaches the page in one message, at most every :data:`PAGE_GAP_S`."""
 
-    __slots__ = ("key", "watches", "dirty", "ages", "due", "due_device", "handle", "gap", "ahead")
+    __slots__ = ("key", "watches", "dirty", "ages", "due", "due_device", "handle", "gap", "ahead", "period")
 
-    def __init__(self, key: object, gap: float = PAGE_GAP_S, ahead: int = AHEAD):
+    def __init__(self, key: object, gap: float = PAGE_GAP_S, ahead: int = AHEAD, period: float = PAGE_GAP_S):
         self.key = key
+        self.period = period  # the bound of one device's watchers in this group (at most one call every ``period``)
         # a page: at most every ``gap``, after a burst of ``ahead`` (what changed reaches the screen at once);
         # the server's readers (publishers, checks, alarms): rounds every PUSH_PERIOD_S, changes of many devices together
         self.gap, self.ahead = gap, ahead
@@ -131,7 +134,7 @@ class StateStore:
 
     Adapters write the device records; a write makes the store call the watchers of that device
     soon after (in the same turn of the loop when the device's last call is older than
-    :data:`PUSH_PERIOD_S`), never on a timer of its own: a page sees a frame within milliseconds
+    :data:`PAGE_GAP_S` on a page, :data:`PUSH_PERIOD_S` for the server's readers), never on a timer of its own: a page sees a frame within milliseconds
     and nothing runs while nothing changes. The watchers of one page run together (at most every
     :data:`PAGE_GAP_S`), so a page gets one message for what changed meanwhile on all its devices.
     Alarms rising and clearing are noted in the devices' event logs as they change. Once a second
@@ -150,7 +153,7 @@ class StateStore:
         self.alarms: dict[str, tuple[str, ...]] = {}  # device -> its tile's alarms as last seen
         self._alarm_inputs: dict[str, tuple] = {}  # device -> the values its alarms were last evaluated from
         self._groups: dict[object, _Group] = {}
-        self._alarms = _Group("alarms", PUSH_PERIOD_S, 0)  # noting alarms: one more reader of every device, bounded like the others
+        self._alarms = _Group("alarms", PUSH_PERIOD_S, 0, PUSH_PERIOD_S)  # noting alarms: one more reader of every device, bounded like the others
         self._pending: set[str] = set()  # devices written since the last fan-out
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: int | None = None
@@ -176,12 +179,13 @@ class StateStore:
 
     # -- following changes ---------------------------------------------------------
     def watch(self, device: str, callback: Callable[[], object], slow: bool = False, group: object = SERVER) -> Watch:
-        """Call ``callback`` whenever ``device`` changed (at most 10 times a second) and once a second;
+        """Call ``callback`` whenever ``device`` changed (at most 20 times a second on a page, 10 for the server's
+        readers) and once a second;
         ``slow``: only once a second (for what moves with every frame, such as counters). ``group``:
         the page the watcher belongs to (its watchers run together, see :data:`PAGE_GAP_S`)."""
         g = self._groups.get(group)
         if g is None:
-            g = self._groups[group] = _Group(group) if group != SERVER else _Group(group, PUSH_PERIOD_S, 0)
+            g = self._groups[group] = _Group(group) if group != SERVER else _Group(group, PUSH_PERIOD_S, 0, PUSH_PERIOD_S)
         w = Watch(self, device, callback, slow, g)
         self._watches.setdefault(device, []).append(w)
         g.watches.setdefault(device, []).append(w)
@@ -306,7 +310,7 @@ class StateStore:
             return
         wait = g.due - g.ahead * g.gap - now
         if g.dirty and not g.ages:  # only changes: none of them is due before its device's own bound
-            wait = max(wait, min(g.due_device.get(n, float("-inf")) for n in g.dirty) - g.ahead * PUSH_PERIOD_S - now)
+            wait = max(wait, min(g.due_device.get(n, float("-inf")) for n in g.dirty) - g.ahead * g.period - now)
         g.handle = self._loop.call_later(wait, self._run, g) if wait > 0 else self._loop.call_soon(self._run, g)
 
     def _run(self, g: _Group) -> None:
@@ -318,9 +322,9 @@ class StateStore:
             if g is self._alarms:
                 for name in list(g.dirty):
                     due = g.due_device.get(name, float("-inf"))
-                    if now >= due - g.ahead * PUSH_PERIOD_S:
+                    if now >= due - g.ahead * g.period:
                         g.dirty.discard(name)
-                        g.due_device[name] = max(due, now) + PUSH_PERIOD_S
+                        g.due_device[name] = max(due, now) + g.period
                         state = self.devices.get(name)
                         if state is not None:
                             self._note_alarms(name, state)
@@ -328,11 +332,11 @@ class StateStore:
             for name in list(g.dirty | g.ages):
                 age = name in g.ages
                 due = g.due_device.get(name, float("-inf"))
-                if not age and now < due - g.ahead * PUSH_PERIOD_S:
+                if not age and now < due - g.ahead * g.period:
                     continue  # its device's bound: the next run takes it
                 if name in g.dirty:  # a round for ages alone takes nothing from the device's bound
                     g.dirty.discard(name)
-                    g.due_device[name] = max(due, now) + PUSH_PERIOD_S
+                    g.due_device[name] = max(due, now) + g.period
                 g.ages.discard(name)
                 self._call(g.watches.get(name, ()), age)
         except Exception:  # the producer must never end
