@@ -90,8 +90,9 @@ def sender(port: int, rate: float, seconds: float, start, sent) -> None:
         while time.time() - t0 < seconds:
             value = 1 + n % 110
             data = codec.encode_status(codec.StatusFrame(0x0117, value, 20, 4))
+            at = time.time()  # before the send: the app may show the value before this process gets to note it
             bus.send(can.Message(arbitration_id=DEVICE_ID, is_extended_id=True, data=data))
-            sent.put((time.time(), value))
+            sent.put((at, value))
             n += 1
             time.sleep(max(0.0, t0 + n / rate - time.time()))
     sent.put(None)
