@@ -26,7 +26,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from browser_load import MIX, process_tree, run_when_idle  # noqa: E402
+from browser_load import MIX, chromium_roots, run_when_idle  # noqa: E402
 from liveapp import (  # noqa: E402  (standard library only: runs after `pip install -e .`, no pytest)
     CHROMIUM, CHROMIUM_ARGS, demo_plant_text, free_port, load, need_playwright, running_app, wait_devices_online,
 )
@@ -146,7 +146,7 @@ def main() -> None:
             for n in range(max(0, args.pages - len(PAGES))):
                 other = others.new_page(viewport={"width": 1280, "height": 800})
                 other.goto(url + MIX[n % len(MIX)], timeout=120_000)
-            run_when_idle(newest_chromium())
+            run_when_idle(chromium_roots()[-1])  # the newest: the one with the other pages
             pages = {}
             for kind, path in PAGES.items():
                 page = browser.new_page(viewport={"width": 1440, "height": 900})
@@ -188,21 +188,6 @@ def main() -> None:
         worst = max(worst, p95)
         print(f"{kind:9s}: {len(lat)} values shown of {len(sends)} sent; p50 {p50:.0f} ms, p95 {p95:.0f} ms, max {max(lat):.0f} ms")
     print(f"frame_to_screen_p95_ms: {worst:.0f}")
-
-
-def newest_chromium() -> int:
-    """The chromium this process started last through playwright (the one with the other pages)."""
-    import os
-
-    roots = []
-    for pid in process_tree(os.getpid()):
-        try:
-            cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
-        except OSError:
-            continue
-        if b"chromium" in cmd and b"--type=" not in cmd:
-            roots.append(pid)
-    return max(roots)
 
 
 if __name__ == "__main__":

@@ -165,8 +165,8 @@ def main() -> None:
     print(f"app_cpu_per_page_pct: {per_page:.2f}")
 
 
-def chromium_root() -> int:
-    """The first chromium this process started through playwright: the one with the open pages."""
+def chromium_roots() -> list[int]:
+    """The chromium browsers this process started through playwright (their main processes), oldest first."""
     roots = []
     for pid in process_tree(os.getpid()):
         try:
@@ -175,7 +175,12 @@ def chromium_root() -> int:
             continue
         if b"chromium" in cmd and b"--type=" not in cmd:
             roots.append(pid)
-    return min(roots)
+    return sorted(roots)
+
+
+def chromium_root() -> int:
+    """The first chromium this process started through playwright: the one with the open pages."""
+    return chromium_roots()[0]
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ import time
 
 import pytest
 from plants import channel, electrak_bus, plant
-from webutil import eventually, simulated_user
+from webutil import count_reads, eventually, page_view, simulated_user
 
 from app.runtime import Runtime
 
@@ -20,26 +20,6 @@ DRAWN = ("Position", "Current", "Speed", "Extending", "Message timeout", "Device
 MAX_ELEMENTS = 260  # the whole page: header, cards, chart, simulation card, events, STOP bar
 
 
-def page_view(user, runtime, device: str):
-    """The view of the page open in ``user`` (the page follows the store with one of its methods)."""
-    group = runtime.store._groups[user.client.id]
-    views = {getattr(w.callback, "__self__", None) for w in group.watches[device]}
-    (view,) = [v for v in views if hasattr(v, "cards")]
-    return view
-
-
-def count_reads(state, monkeypatch) -> list[str]:
-    """The names read from ``state`` through live/point/entry from now on."""
-    read: list[str] = []
-    for method in ("live", "point", "entry"):
-        original = getattr(state, method)
-
-        def reading(name, *args, _original=original, **kwargs):
-            read.append(name)
-            return _original(name, *args, **kwargs)
-
-        monkeypatch.setattr(state, method, reading)
-    return read
 
 
 async def test_a_telegram_with_the_same_values_draws_nothing_and_the_round_draws_ages(tmp_path, monkeypatch):

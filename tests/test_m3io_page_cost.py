@@ -7,7 +7,7 @@ import time
 
 import pytest
 from plants import can_bus, m3io_can, plant
-from webutil import eventually, simulated_user
+from webutil import count_reads, eventually, page_view, simulated_user
 
 from app.runtime import Runtime
 
@@ -16,25 +16,6 @@ pytestmark = pytest.mark.timeout(60)
 DRAWN = ("E1", "TEMP1", "SSR1 Last")
 
 
-def page_view(user, runtime, device: str):
-    """The view of the page open in ``user`` (the page follows the store with one of its methods)."""
-    group = runtime.store._groups[user.client.id]
-    (view,) = [v for v in {getattr(w.callback, "__self__", None) for w in group.watches[device]} if hasattr(v, "cards")]
-    return view
-
-
-def count_reads(state, monkeypatch) -> list[str]:
-    """The names read from ``state`` through live/point/entry from now on."""
-    read: list[str] = []
-    for method in ("live", "point", "entry"):
-        original = getattr(state, method)
-
-        def reading(name, *args, _original=original, **kwargs):
-            read.append(name)
-            return _original(name, *args, **kwargs)
-
-        monkeypatch.setattr(state, method, reading)
-    return read
 
 
 async def test_telegrams_with_the_same_values_draw_nothing_and_the_round_draws_ages(tmp_path, monkeypatch):

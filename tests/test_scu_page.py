@@ -12,7 +12,7 @@ from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
 from plants import plant, scu_line
-from webutil import by_testid, eventually, user_on
+from webutil import by_testid, count_reads, eventually, page_view, user_on
 
 from app.runtime import Runtime
 from devices.scu import codec
@@ -230,25 +230,6 @@ def test_bit_fields_and_error_codes_in_words():
 
 # -- what an open page costs per push (issue 34) ------------------------------------------------------------------
 
-def page_view(user, runtime, device: str):
-    """The view of the page open in ``user`` (the page follows the store with one of its methods)."""
-    group = runtime.store._groups[user.client.id]
-    (view,) = [v for v in {getattr(w.callback, "__self__", None) for w in group.watches[device]} if hasattr(v, "cards")]
-    return view
-
-
-def count_reads(state, monkeypatch) -> list[str]:
-    """The names read from ``state`` through live/point/entry from now on."""
-    read: list[str] = []
-    for method in ("live", "point", "entry"):
-        original = getattr(state, method)
-
-        def reading(name, *args, _original=original, **kwargs):
-            read.append(name)
-            return _original(name, *args, **kwargs)
-
-        monkeypatch.setattr(state, method, reading)
-    return read
 
 
 async def test_a_poll_with_the_same_values_draws_nothing_and_the_round_draws_ages(env, monkeypatch):

@@ -187,3 +187,27 @@ def private_endpoints(plant, tag: str):
 
 __all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "lock_pages", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "private_endpoints", "running_app", "serve_beyond_loopback",
            "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "wait_http"]
+
+
+# -- what an open device page costs per push (issue 34): the page's view and what it reads ------------------------
+
+def page_view(user, runtime, device: str):
+    """The view of the device page open in ``user`` (the page follows the store with one of its methods)."""
+    group = runtime.store._groups[user.client.id]
+    views = {getattr(w.callback, "__self__", None) for w in group.watches[device]}
+    (view,) = [v for v in views if hasattr(v, "cards")]
+    return view
+
+
+def count_reads(state, monkeypatch) -> list[str]:
+    """The names read from ``state`` through live/point/entry from now on."""
+    read: list[str] = []
+    for method in ("live", "point", "entry"):
+        original = getattr(state, method)
+
+        def reading(name, *args, _original=original, **kwargs):
+            read.append(name)
+            return _original(name, *args, **kwargs)
+
+        monkeypatch.setattr(state, method, reading)
+    return read
