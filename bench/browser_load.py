@@ -173,7 +173,7 @@ def chromium_roots() -> list[int]:
             cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
         except OSError:
             continue
-        if b"chromium" in cmd and b"--type=" not in cmd:
+        if b"chromium" in cmd.split(b"\0", 1)[0] and b"--type=" not in cmd:  # the browser, not a helper process
             roots.append(pid)
     return sorted(roots)
 

@@ -187,6 +187,28 @@ class DeviceCard:
         """Show what the store holds now (a card that follows the store itself has nothing to do)."""
 
 
+class DrawnCard(DeviceCard):
+    """A card drawn only when what it shows changed (``inputs()``, compared with what it drew last) and on the
+    page's once-a-second round; ``draw()`` draws it, and returns False when it showed a value as stale or
+    offline (it is then drawn again with the next push, which may bring the value back)."""
+
+    drawn: object = None
+
+    def inputs(self) -> object:
+        raise NotImplementedError
+
+    def draw(self) -> bool | None:
+        raise NotImplementedError
+
+    def refresh(self) -> None:
+        inputs = self.inputs()
+        if inputs == self.drawn:
+            return
+        self.drawn = inputs
+        if self.draw() is False:
+            self.drawn = None
+
+
 @contextmanager
 def titled_card(title: str, classes: str = "w-full") -> Iterator[ui.card]:
     """A card with its title on top."""

@@ -21,7 +21,7 @@ from devices.electrak import adapter as facts
 from devices.electrak import codec
 from devices.electrak.adapter import FOREIGN_SENDER, SERIES
 from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, length_of, refusal
-from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
+from pages.device_page import DeviceCard, DeviceView, DrawnCard, StatusRow, device_page, titled_card
 from pages.frame import fmt_age, fmt_time
 from pages.scu import LampStrip, lamp_html  # lamps drawn as the text of one element
 from pages.session import current_user
@@ -75,26 +75,6 @@ def point_values(points: dict, names) -> tuple:
     """What the named points show, not when they were heard: (value, raw, text) of each, None for one not
     published. A card compares it with what it drew last: a status telegram with the same values draws nothing."""
     return tuple([None if p is None else (p.value, p.raw, p.text) for p in map(points.get, names)])
-
-
-class DrawnCard(DeviceCard):
-    """A card drawn only when what it shows changed (``inputs()``, compared with what it drew last) and on the
-    page's once-a-second round; ``draw()`` draws it."""
-
-    drawn: object = None
-
-    def inputs(self) -> object:
-        raise NotImplementedError
-
-    def draw(self) -> None:
-        raise NotImplementedError
-
-    def refresh(self) -> None:
-        inputs = self.inputs()
-        if inputs == self.drawn:
-            return
-        self.drawn = inputs
-        self.draw()
 
 
 class NetworkCard(DrawnCard):

@@ -16,6 +16,7 @@ from devices.m3io import adapter as facts
 from devices.m3io import codec
 from devices.m3io.codec import Variant
 from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
+from pages.device_page import DrawnCard as ChangedCard
 from pages.frame import fmt_age
 from pages.session import current_user
 from pages.simcontrols import sim_card
@@ -90,30 +91,18 @@ def point_values(points: dict, names) -> tuple:
     return tuple([None if p is None else (p.value, p.raw, p.text) for p in map(points.get, names)])
 
 
-class DrawnCard(DeviceCard):
+class DrawnCard(ChangedCard):
     """A card drawn only when what it shows changed (its :attr:`POINTS`, the module's status and the page's write
     guard, compared with what it drew last) and on the page's once-a-second round; ``draw()`` draws it and returns
     False when it shows a value as stale or offline (drawn again with the next telegram, which may bring it back)."""
 
     view: M3ioView
-    drawn: object = None
     POINTS: tuple[str, ...] = ()
 
     def inputs(self) -> object:
         view = self.view
         return (view.state.status, view.guard.reason if view.guard is not None else "",
                 point_values(view.state.points, self.POINTS))
-
-    def draw(self) -> bool | None:
-        raise NotImplementedError
-
-    def refresh(self) -> None:
-        inputs = self.inputs()
-        if inputs == self.drawn:
-            return
-        self.drawn = inputs
-        if self.draw() is False:
-            self.drawn = None
 
 
 def _aging(value: LiveValue | None) -> bool:

@@ -7,7 +7,7 @@ import time
 
 import pytest
 from plants import channel, electrak_bus, plant
-from webutil import count_reads, eventually, page_view, simulated_user
+from webutil import count_reads, eventually, heard_again, page_view, refresh_on_the_round, simulated_user
 
 from app.runtime import Runtime
 
@@ -29,21 +29,14 @@ async def test_a_telegram_with_the_same_values_draws_nothing_and_the_round_draws
         await eventually(lambda: state.status == "online" and "Position" in state.points, timeout=10)
         await user.open("/device/hoist")
         view = page_view(user, runtime, "hoist")
-        def heard_again(names) -> None:  # the same values, heard now (a slow machine may have let them go stale)
-            now = time.time()
-            state.publish_telegram(now, {n: state.points[n]._replace(time=now) for n in list(names)})
 
-        heard_again(state.points)
+        heard_again(state)
         view.refresh()  # everything as the store has it now
         read = count_reads(state, monkeypatch)
-        heard_again(state.points)  # heard again, the same values
+        heard_again(state)  # heard again, the same values
         view.refresh()
         assert not [n for n in read if n in DRAWN], read  # nothing drawn again
-        runtime.store.age_round = True  # the once-a-second round: ages and stale marks drawn
-        try:
-            view.refresh()
-        finally:
-            runtime.store.age_round = False
+        refresh_on_the_round(runtime.store, view)  # the once-a-second round: ages and stale marks drawn
         assert set(DRAWN) <= set(read)
         # a new value is drawn on the push that brings it
         read.clear()

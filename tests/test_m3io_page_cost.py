@@ -7,7 +7,7 @@ import time
 
 import pytest
 from plants import can_bus, m3io_can, plant
-from webutil import count_reads, eventually, page_view, simulated_user
+from webutil import count_reads, eventually, heard_again, page_view, refresh_on_the_round, simulated_user
 
 from app.runtime import Runtime
 
@@ -26,22 +26,15 @@ async def test_telegrams_with_the_same_values_draw_nothing_and_the_round_draws_a
         await eventually(lambda: all(n in state.points for n in DRAWN), timeout=10)
         await user.open("/device/heater-hm")
         view = page_view(user, runtime, "heater-hm")
-        def heard_again(names) -> None:  # the same values, heard now (a slow machine may have let them go stale)
-            now = time.time()
-            state.publish_telegram(now, {n: state.points[n]._replace(time=now) for n in list(names)})
 
-        heard_again(state.points)
+        heard_again(state)
         view.refresh()  # everything as the store has it now
         read = count_reads(state, monkeypatch)
-        heard_again(state.points)  # heard again, the same values
+        heard_again(state)  # heard again, the same values
         now = time.time()
         view.refresh()
         assert not [n for n in read if n in DRAWN], read  # nothing drawn again
-        runtime.store.age_round = True  # the once-a-second round: ages and stale marks drawn
-        try:
-            view.refresh()
-        finally:
-            runtime.store.age_round = False
+        refresh_on_the_round(runtime.store, view)  # the once-a-second round: ages and stale marks drawn
         assert set(DRAWN) <= set(read)
         read.clear()  # a new value is drawn on the push that brings it
         state.publish_telegram(now, {"E1": state.points["E1"]._replace(value=not state.points["E1"].value)})

@@ -12,7 +12,7 @@ from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
 from plants import plant, scu_line
-from webutil import by_testid, count_reads, eventually, page_view, user_on
+from webutil import by_testid, count_reads, eventually, heard_again, page_view, refresh_on_the_round, user_on
 
 from app.runtime import Runtime
 from devices.scu import codec
@@ -242,22 +242,15 @@ async def test_a_poll_with_the_same_values_draws_nothing_and_the_round_draws_age
     await eventually(lambda: all(n in state.points for n in drawn), timeout=10)
     await user.open("/device/lift")
     view = page_view(user, runtime, "lift")
-    def heard_again(names) -> None:  # the same values, heard now (a slow machine may have let them go stale)
-        now = time.time()
-        state.publish_telegram(now, {n: state.points[n]._replace(time=now) for n in list(names)})
 
-    heard_again(state.points)
+    heard_again(state)
     view.refresh()  # everything as the store has it now
     read = count_reads(state, monkeypatch)
-    heard_again(state.points)  # read again, the same values
+    heard_again(state)  # read again, the same values
     now = time.time()
     view.refresh()
     assert not [n for n in read if n in drawn], read  # nothing drawn again (no flags worded again)
-    runtime.store.age_round = True  # the once-a-second round: ages and stale marks drawn
-    try:
-        view.refresh()
-    finally:
-        runtime.store.age_round = False
+    refresh_on_the_round(runtime.store, view)  # the once-a-second round: ages and stale marks drawn
     assert set(drawn) <= set(read)
     read.clear()  # a new value is drawn on the push that brings it
     state.publish_telegram(now, {"Binary Output Status": state.points["Binary Output Status"]._replace(value=2, raw=2)})

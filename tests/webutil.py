@@ -9,6 +9,7 @@ import logging
 import os
 import subprocess
 import sys
+import time
 from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -211,3 +212,18 @@ def count_reads(state, monkeypatch) -> list[str]:
 
         monkeypatch.setattr(state, method, reading)
     return read
+
+
+def heard_again(state) -> None:
+    """Every point of ``state`` heard again now with the same value (a slow machine may have let them go stale)."""
+    now = time.time()
+    state.publish_telegram(now, {n: p._replace(time=now) for n, p in list(state.points.items())})
+
+
+def refresh_on_the_round(store, view) -> None:
+    """``view.refresh()`` as the store's once-a-second round calls it (ages and stale marks drawn)."""
+    store.age_round = True
+    try:
+        view.refresh()
+    finally:
+        store.age_round = False
