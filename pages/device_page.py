@@ -187,25 +187,32 @@ class DeviceCard:
         """Show what the store holds now (a card that follows the store itself has nothing to do)."""
 
 
+def point_values(points: dict, names) -> tuple:
+    """What the named points show, not when they were heard: (value, raw, text) of each, None for one not
+    published. A card compares it with what it drew last: a telegram or poll with the same values draws nothing."""
+    return tuple([None if p is None else (p.value, p.raw, p.text) for p in map(points.get, names)])
+
+
 class DrawnCard(DeviceCard):
     """A card drawn only when what it shows changed (``inputs()``, compared with what it drew last) and on the
-    page's once-a-second round; ``draw()`` draws it, and returns False when it showed a value as stale or
-    offline (it is then drawn again with the next push, which may bring the value back)."""
+    store's once-a-second round of the device (ages, stale marks); ``draw()`` draws it, and returns False when it
+    showed a value as stale or offline (it is then drawn again with the next push, which may bring the value back).
+    ``context``: what the page passes to every card's refresh (the SCU page: what the user may do)."""
 
     drawn: object = None
 
-    def inputs(self) -> object:
+    def inputs(self, *context) -> object:
         raise NotImplementedError
 
-    def draw(self) -> bool | None:
+    def draw(self, *context) -> bool | None:
         raise NotImplementedError
 
-    def refresh(self) -> None:
-        inputs = self.inputs()
-        if inputs == self.drawn:
+    def refresh(self, *context) -> None:
+        inputs = self.inputs(*context)
+        if inputs == self.drawn and not self.view.store.age_round:
             return
         self.drawn = inputs
-        if self.draw() is False:
+        if self.draw(*context) is False:
             self.drawn = None
 
 
@@ -265,4 +272,4 @@ def device_page(view: DeviceView, title: str, stop: Callable[[], object] | None 
     follow(view.state, view.pushed)
 
 
-__all__ = ["DeviceCard", "DeviceView", "StatusBadge", "StatusRow", "device_page", "titled_card"]
+__all__ = ["DeviceCard", "DeviceView", "DrawnCard", "point_values", "StatusBadge", "StatusRow", "device_page", "titled_card"]

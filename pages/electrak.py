@@ -21,7 +21,7 @@ from devices.electrak import adapter as facts
 from devices.electrak import codec
 from devices.electrak.adapter import FOREIGN_SENDER, SERIES
 from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, length_of, refusal
-from pages.device_page import DeviceCard, DeviceView, DrawnCard, StatusRow, device_page, titled_card
+from pages.device_page import DeviceCard, DeviceView, DrawnCard, StatusRow, device_page, point_values, titled_card
 from pages.frame import fmt_age, fmt_time
 from pages.scu import LampStrip, lamp_html  # lamps drawn as the text of one element
 from pages.session import current_user
@@ -65,16 +65,7 @@ class ElectrakView(DeviceView):
     def refresh(self) -> None:
         if self.guard is not None:
             self.guard.update()  # first: the drive card's gates read its reason
-        if self.store.age_round:  # once a second: every card drawn again (ages, stale marks, "last status")
-            for card in self.cards:
-                card.drawn = None
         super().refresh()
-
-
-def point_values(points: dict, names) -> tuple:
-    """What the named points show, not when they were heard: (value, raw, text) of each, None for one not
-    published. A card compares it with what it drew last: a status telegram with the same values draws nothing."""
-    return tuple([None if p is None else (p.value, p.raw, p.text) for p in map(points.get, names)])
 
 
 class NetworkCard(DrawnCard):

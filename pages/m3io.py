@@ -15,7 +15,7 @@ from app.worker import DEADMAN_BOUND_S
 from devices.m3io import adapter as facts
 from devices.m3io import codec
 from devices.m3io.codec import Variant
-from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
+from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, point_values, titled_card
 from pages.device_page import DrawnCard as ChangedCard
 from pages.frame import fmt_age
 from pages.session import current_user
@@ -76,19 +76,6 @@ class M3ioView(DeviceView):
             return reason
         control = self.fact(facts.P_CONTROL)
         return TAKE_CONTROL if control is None else f"{control.user} controls the module"
-
-
-    def refresh(self) -> None:
-        if self.store.age_round:  # once a second: every card drawn again (ages, stale marks, "last answer")
-            for card in self.cards:
-                card.drawn = None
-        super().refresh()
-
-
-def point_values(points: dict, names) -> tuple:
-    """What the named points show, not when they were heard: (value, raw, text) of each, None for one not
-    published. A card compares it with what it drew last: telegrams with the same values draw nothing."""
-    return tuple([None if p is None else (p.value, p.raw, p.text) for p in map(points.get, names)])
 
 
 class DrawnCard(ChangedCard):

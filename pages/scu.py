@@ -19,7 +19,8 @@ from devices.scu import adapter as facts
 from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.adapter import RESTORE_REFUSED, SERVICE_IDS, WATCH_RG, chart_points
-from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
+from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, point_values, titled_card
+from pages.device_page import DrawnCard as ChangedCard
 from pages.frame import fmt_age, fmt_time
 from pages.simcontrols import sim_card
 from pages.widgets import HistoryChart, WriteGuard, checked_value, confirm, entry_age, follow, gate
@@ -115,41 +116,19 @@ class ScuView(DeviceView):
 
     def refresh(self) -> None:
         access = self.access()
-        if self.store.age_round:  # once a second: every card drawn again (ages, stale marks, "seen")
-            for card in self.cards:
-                card.drawn = None
         for card in self.cards:
             card.refresh(access)
 
 
-def point_values(points: dict, names) -> tuple:
-    """What the named points show, not when they were heard: (value, raw, text) of each, None for one not
-    published. A card compares it with what it drew last: a poll that brought the same values draws nothing."""
-    return tuple([None if p is None else (p.value, p.raw, p.text) for p in map(points.get, names)])
+class DrawnCard(ChangedCard):
+    """A card of the SCU page drawn only when what it shows changed (``inputs(access)``: by default the page's
+    access, the unit's status and its :attr:`POINTS`) and on the once-a-second round (see the base class)."""
 
-
-class DrawnCard(DeviceCard):
-    """A card drawn only when what it shows changed (``inputs(access)``, compared with what it drew last) and on
-    the page's once-a-second round; ``draw(access)`` draws it and returns False when it shows a value as stale or
-    offline (drawn again with the next poll, which may bring it back)."""
-
-    drawn: object = None
     POINTS: tuple[str, ...] = ()
 
     def inputs(self, access: Access) -> object:
         state = self.view.state
         return access, state.status, point_values(state.points, self.POINTS)
-
-    def draw(self, access: Access) -> bool:
-        raise NotImplementedError
-
-    def refresh(self, access: Access) -> None:
-        inputs = self.inputs(access)
-        if inputs == self.drawn:
-            return
-        self.drawn = inputs
-        if self.draw(access) is False:
-            self.drawn = None
 
 
 def _aging(quality: str) -> bool:
