@@ -300,10 +300,15 @@ class DeviceState:
         self.events.append(Event(time.time(), level, text))
         self.version += 1
 
-    def record_history(self, names: tuple[str, ...] | list[str], now: float | None = None) -> None:
-        """One chart sample of the published points ``names``, keyed by the points' own names (so the
+    def sample_of(self, names: tuple[str, ...] | list[str]) -> dict[str, Any]:
+        """A chart sample of the published points ``names`` as they are now, keyed by the points' own names (so the
         history and ``values()`` name a quantity once); a point not published yet is left out."""
-        sample = {n: self.points[n].value for n in names if n in self.points}
+        points = self.points
+        return {n: points[n].value for n in names if n in points}
+
+    def record_history(self, names: tuple[str, ...] | list[str], now: float | None = None) -> None:
+        """One chart sample of the published points ``names`` (:meth:`sample_of`), if any is published."""
+        sample = self.sample_of(names)
         if sample:
             self.add_history(sample, now)
 

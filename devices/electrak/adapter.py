@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import functools
 import itertools
 import time
 from collections import deque
@@ -227,13 +228,9 @@ class ElectrakAdapter:
         sample = None
         if now - self._last_sample >= 0.09:
             self._last_sample = now
-            sample = self._history_sample
+            sample = functools.partial(self.state.sample_of, SERIES)
         self.state.publish_telegram(now, self._status_points(tuple(recent), motion, errors, idle, now), None, sample)
         self.state.fact(P_IDLE, idle)  # a foreign sender's window ends with time: looked at with every status
-
-    def _history_sample(self) -> dict:
-        points = self.state.points
-        return {n: points[n].value for n in SERIES if n in points}
 
     def _status_points(self, recent: tuple[codec.StatusFrame, ...], motion: int, errors: int, idle: bool,
                        now: float) -> dict[str, Point]:
@@ -243,8 +240,8 @@ class ElectrakAdapter:
         key = (recent, self.heard, motion, errors, idle)
         if key != self._status_key:
             self._status_key, self._status_contents = key, self._status_contents_of(recent, motion, errors, idle)
-        make = tuple.__new__  # Point(value, unit, now, raw, text) without the named tuple's argument handling
-        return {name: make(Point, (value, unit, now, raw, text, True, None))
+        make = Point._make
+        return {name: make((value, unit, now, raw, text, True, None))
                 for name, (value, unit, raw, text) in self._status_contents.items()}
 
     def _status_contents_of(self, recent: tuple[codec.StatusFrame, ...], motion: int, errors: int,

@@ -159,18 +159,13 @@ def chart_points(scales) -> tuple[str, ...]:
 
 def _collector(points: dict[str, Point], now: float, every: float | None):
     """A ``DeviceState.publish`` that puts the point into ``points`` instead (published together afterwards)."""
-    make = tuple.__new__
+    make = Point._make
 
     def publish(name: str, value: Any, unit: str = "", *, raw: Any = None, text: str | None = None,
                 time: float | None = None, periodic: bool = True, every: float | None = every) -> None:
-        points[name] = make(Point, (value, unit, now if time is None else time, raw, text, periodic, every))
+        points[name] = make((value, unit, now if time is None else time, raw, text, periodic, every))
 
     return publish
-
-
-def _history_sample(state: DeviceState, names: tuple[str, ...]) -> dict[str, Any]:
-    points = state.points
-    return {n: points[n].value for n in names if n in points}
 
 
 _STATUS_CODES = frozenset(int(x) for x in codec.Status)
@@ -1053,7 +1048,7 @@ class ScuAdapter:
         if 0x0010 in values or any(0x0011 <= i <= 0x0016 for i in values):
             names = chart_points(self.scales)
             if any(n in points or n in self.state.points for n in names):
-                sample = functools.partial(_history_sample, self.state, names)
+                sample = functools.partial(self.state.sample_of, names)
         self.state.publish_telegram(now, points, None, sample)
 
     def _publish_cyclic_data(self, cyclic: p.CyclicDefinition, data: bytes) -> None:
@@ -1068,8 +1063,8 @@ class ScuAdapter:
                 members = value if isinstance(value, dict) else {data_id: value}
                 if 0x00D1 in members:
                     self._note_remote_timeout(members[0x00D1])
-            make = tuple.__new__  # Point(value, unit, now, raw, text, periodic, every) without the argument handling
-            points = {name: make(Point, (c[0], c[1], now, c[2], c[3], c[4], c[5])) for name, c in contents.items()}
+            make = Point._make
+            points = {name: make((c[0], c[1], now, c[2], c[3], c[4], c[5])) for name, c in contents.items()}
         else:
             values = cyclic.decode_read(data)
             points = {}
