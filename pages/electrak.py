@@ -23,15 +23,16 @@ from devices.electrak.adapter import FOREIGN_SENDER, SERIES
 from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, length_of, refusal
 from pages.device_page import DeviceCard, DeviceView, DrawnCard, StatusRow, device_page, point_values, titled_card
 from pages.frame import fmt_age, fmt_time
-from pages.scu import LampStrip, lamp_html  # lamps drawn as the text of one element
 from pages.session import current_user
 from pages.simcontrols import sim_card
 from pages.widgets import (
     HistoryChart,
+    LampStrip,
     WriteGuard,
     entry_age,
     checked_value,
     gate,
+    lamp_html,
     mark_quality,
     quality_note,
     range_number,

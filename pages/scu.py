@@ -24,7 +24,8 @@ from pages.device_page import DrawnCard as ChangedCard
 from pages.frame import fmt_age, fmt_time
 from pages.simcontrols import sim_card
 from pages.widgets import HistoryChart, WriteGuard, checked_value, confirm, entry_age, follow, gate
-from pages.widgets import INT32_LIMIT, mark_quality, quality_note, range_number, session_role, stop_bar
+from pages.widgets import INT32_LIMIT, LampStrip, html_attr, lamp_html, mark_quality, quality_note, range_number, session_role
+from pages.widgets import stop_bar, value_html
 
 # Actuator status 1 (0x0171..) and 2 (0x00E1..): point key -> its words in table 6 (the adapter publishes one point per bit)
 STATUS_BITS = {f.name: f.description for f in p.ACTUATOR_STATUS_1.fields + p.ACTUATOR_STATUS_2.fields}
@@ -236,56 +237,6 @@ class PositionsCard(DrawnCard):
         return good
 
 
-# a lamp's or line's words on hover, as Quasar's tooltip shows them, for what is drawn as one element (LampStrip)
-TIP_CSS = ("[data-tip]{position:relative}[data-tip]:hover::after{content:attr(data-tip);position:absolute;left:0;"
-           "top:100%;margin-top:4px;z-index:9000;background:#757575;color:#fafafa;font-size:10px;line-height:1.4;"
-           "padding:6px 10px;border-radius:4px;width:max-content;max-width:20rem;white-space:normal;pointer-events:none}")
-
-
-def _attr(text: str) -> str:
-    return html.escape(text, quote=True)
-
-
-def lamp_html(key: str, name: str, entry: dict | None, tip: str = "", kind: str = "ok", idle: bool | None = None) -> str:
-    """One lamp as :class:`pages.widgets.Lamp` draws it (its data-lamp, data-on and data-quality, the dot's classes;
-    ``kind`` "ok", "warn" or "alarm"), in the text of the element that holds it: a lamp costs no element of its own.
-    ``idle``: a fault lamp whose fault is the normal state now (grey, never red; data-idle)."""
-    quality = "unknown" if entry is None else entry["quality"]
-    on = None if entry is None or quality == "offline" else bool(entry["value"])
-    dot = " ".join(x for x in ("lamp", "" if kind == "ok" or idle else kind, "unknown" if on is None else "on" if on else "") if x)
-    marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
-    return (f'<div class="nicegui-row row items-center gap-1 no-wrap{marks}" data-lamp="{_attr(key)}" '
-            f'data-on="{"unknown" if on is None else int(on)}" data-quality="{quality}"'
-            + (f' data-tip="{_attr(tip)}"' if tip else "") + ("" if idle is None else f' data-idle="{int(idle)}"')
-            + f'><span class="{dot}"' + (' style="background: #9e9e9e; box-shadow: none"' if idle else "")
-            + f'></span><div class="text-body2">{html.escape(name)}</div></div>')
-
-
-def value_html(point: str, testid: str, text: str, entry: dict | None) -> str:
-    """A value as :class:`pages.widgets.LiveValue` draws it (greyed with its age while stale or offline)."""
-    quality = "unknown" if entry is None else entry["quality"]
-    marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
-    note = quality_note(quality, entry_age(entry)) if _aging(quality) else ""
-    return (f'<div class="nicegui-row row items-baseline gap-0 no-wrap{marks}" data-point="{_attr(point)}" '
-            f'data-testid="{testid}" data-quality="{quality}"><div class="mono text-body2">'
-            f'{html.escape(text)}</div><div class="q-age">{html.escape(note)}</div></div>')
-
-
-class LampStrip:
-    """Lamps (and values) drawn as one element whose text is redrawn when one of them changes: some 5 KB of server
-    memory per page instead of four elements per lamp. Same look, words and data attributes as separate lamps."""
-
-    def __init__(self, classes: str):
-        client = ui.context.client
-        if not getattr(client, "commission_tip_css", False):
-            ui.add_css(TIP_CSS)
-            client.commission_tip_css = True
-        self.element = ui.html("", sanitize=False).classes(classes)
-
-    def show(self, parts: list[str]) -> None:
-        self.element.set_content("".join(parts))
-
-
 class StatusCard(DrawnCard):
     """Status 1 and 2 of each actuator as lamps, its current and speed."""
 
@@ -342,9 +293,9 @@ class SupplyCard(DrawnCard):
             words, code = io_text(key, e)
             quality = e["quality"]
             marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
-            parts.append(f'<div class="nicegui-row row items-baseline gap-2 no-wrap{marks}" data-io="{_attr(key)}" '
+            parts.append(f'<div class="nicegui-row row items-baseline gap-2 no-wrap{marks}" data-io="{html_attr(key)}" '
                          f'data-quality="{quality}"><div>{html.escape(words)}</div>'
-                         f'<div class="mono text-caption text-grey-7" data-tip="{_attr(self.TIPS[key])}">'
+                         f'<div class="mono text-caption text-grey-7" data-tip="{html_attr(self.TIPS[key])}">'
                          f'{html.escape(code)}</div></div>')
             good = good and not _aging(quality)
         self.lines.show(parts)

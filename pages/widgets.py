@@ -206,6 +206,54 @@ def _enclosing_tab_panel(element: ui.element) -> tuple[ui.element | None, ui.ele
     return None, None
 
 
+# a lamp's or line's words on hover, as Quasar's tooltip shows them, for what is drawn as one element (LampStrip)
+TIP_CSS = ("[data-tip]{position:relative}[data-tip]:hover::after{content:attr(data-tip);position:absolute;left:0;"
+           "top:100%;margin-top:4px;z-index:9000;background:#757575;color:#fafafa;font-size:10px;line-height:1.4;"
+           "padding:6px 10px;border-radius:4px;width:max-content;max-width:20rem;white-space:normal;pointer-events:none}")
+
+
+def html_attr(text: str) -> str:
+    """``text`` as the value of an HTML attribute in double quotes."""
+    return html.escape(text, quote=True)
+
+
+def lamp_html(key: str, name: str, entry: dict | None, tip: str = "", kind: str = "ok", idle: bool | None = None) -> str:
+    """One lamp as :class:`Lamp` draws it (its data-lamp, data-on and data-quality, the dot's classes;
+    ``kind`` "ok", "warn" or "alarm"), in the text of the element that holds it: a lamp costs no element of its own.
+    ``idle``: a fault lamp whose fault is the normal state now (grey, never red; data-idle)."""
+    quality = "unknown" if entry is None else entry["quality"]
+    on = None if entry is None or quality == "offline" else bool(entry["value"])
+    dot = " ".join(x for x in ("lamp", "" if kind == "ok" or idle else kind, "unknown" if on is None else "on" if on else "") if x)
+    marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
+    return (f'<div class="nicegui-row row items-center gap-1 no-wrap{marks}" data-lamp="{html_attr(key)}" '
+            f'data-on="{"unknown" if on is None else int(on)}" data-quality="{quality}"'
+            + (f' data-tip="{html_attr(tip)}"' if tip else "") + ("" if idle is None else f' data-idle="{int(idle)}"')
+            + f'><span class="{dot}"' + (' style="background: #9e9e9e; box-shadow: none"' if idle else "")
+            + f'></span><div class="text-body2">{html.escape(name)}</div></div>')
+
+
+def value_html(point: str, testid: str, text: str, entry: dict | None) -> str:
+    """A value as :class:`LiveValue` draws it (greyed with its age while stale or offline)."""
+    quality = "unknown" if entry is None else entry["quality"]
+    marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
+    note = quality_note(quality, entry_age(entry)) if quality in ("stale", "offline") else ""
+    return (f'<div class="nicegui-row row items-baseline gap-0 no-wrap{marks}" data-point="{html_attr(point)}" '
+            f'data-testid="{testid}" data-quality="{quality}"><div class="mono text-body2">'
+            f'{html.escape(text)}</div><div class="q-age">{html.escape(note)}</div></div>')
+
+
+class LampStrip:
+    """Lamps (and values) drawn as one element whose text is redrawn when one of them changes: some 5 KB of server
+    memory per page instead of four elements per lamp. Same look, words and data attributes as separate lamps."""
+
+    def __init__(self, classes: str):
+        add_css_once("tip", TIP_CSS)
+        self.element = ui.html("", sanitize=False).classes(classes)
+
+    def show(self, parts: list[str]) -> None:
+        self.element.set_content("".join(parts))
+
+
 class RegisterTable:
     """Live table of one register space of a device (address, name, value, raw, access)."""
 
