@@ -116,9 +116,11 @@ class ControlSession:
     holder and :meth:`idle` when nothing runs any more (stopped and acknowledged).
     """
 
-    def __init__(self, lease_s: float = LEASE_S):
+    def __init__(self, lease_s: float = LEASE_S, lease=None):
+        """:param lease: the lease object (``LeaseState`` by default; an adapter whose cyclic sender runs on a thread
+            of its own passes the thread-safe ``devices.lease.Lease``, which has the same methods)"""
         self.holder: Holder | None = None
-        self.lease = LeaseState(lease_s)
+        self.lease = LeaseState(lease_s) if lease is None else lease
         self.running = False
         self.lapses = 0
 
@@ -203,11 +205,10 @@ class ControlSession:
         """Time passes: a lease past its time lapses (once), which stops what runs."""
         if not self.running or self.lease.valid(now):
             return []
-        if self.lease.lapsed_at is None:  # granted? no: running without a lease is a family's bug; stop anyway
-            self.lease.lapsed_at = now
-        self.running = False
+        self.running = False  # (running without a granted lease would be a family's bug: it stops as well)
         self.lapses += 1
-        late_ms = ((self.lease.lapsed_at - self.lease.renewed_at) * 1000 if self.lease.renewed_at is not None
+        lapsed_at, renewed_at = self.lease.lapsed_at, self.lease.renewed_at
+        late_ms = ((lapsed_at - renewed_at) * 1000 if lapsed_at is not None and renewed_at is not None
                    else self.lease.valid_s * 1000)
         return [Stop("lease lapsed: the controlling page stopped confirming it is alive, or this program stalled",
                      lapse=True),
