@@ -161,3 +161,43 @@ class LoginThrottle:
     def succeeded(self, *keys: str) -> None:
         for key in keys:
             self._failures.pop(key, None)
+
+
+async def check_login(*, throttle: LoginThrottle, users, audit, typed: str, secret: str, address: str, via: str = ""):
+    """One login attempt as every face checks it (the web login's rules, shared with the OPC UA server).
+
+    Throttled per account and per client address by ``throttle``; counted as a failure before the
+    check (an attempt cut off half-way still counts); the password is hashed in a thread, never on the
+    event loop; a name or password too long for an account is refused without hashing; refusals write
+    audit rows within ``throttle.rows``. ``via`` names the face in the audit rows (``"opcua"``).
+    Returns ``(account or None, words for the user)``.
+    """
+    import asyncio
+
+    account = shown_name(typed)
+    keys = (f"user:{account}", f"client:{address}")
+    source = f"{via} {address}".strip()
+
+    async def refused(result: str) -> None:
+        skipped = throttle.rows.take(address)
+        if skipped is None or audit is None:
+            return
+        if skipped:
+            result += f"; {skipped} more refused from this address not written one by one"
+        await audit.arecord(user=account or "?", role="", device="", action="login", result=result)
+
+    wait = throttle.wait_s(*keys)
+    if wait > 0:
+        await refused(f"refused: throttled ({wait:.0f} s) from {source}")
+        return None, f"Too many wrong passwords: try again in {wait:.0f} s."
+    failures = throttle.failed(*keys)
+    user = None
+    if users is not None and account == typed and len(secret) <= LOGIN_PASSWORD_MAX:
+        user = await asyncio.to_thread(users.verify, typed, secret)
+    if user is None:
+        await refused(f"failed: wrong user name or password from {source} ({failures} in a row)")
+        return None, "Wrong user name or password"
+    throttle.succeeded(*keys)
+    if audit is not None:
+        await audit.arecord(user=user.name, role=user.role, device="", action="login", result=f"ok from {source}")
+    return user, ""

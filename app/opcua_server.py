@@ -25,11 +25,16 @@ import asyncio
 import logging
 import math
 import time
+import weakref
 from datetime import datetime, timezone
 from typing import Any
 
 from asyncua import Server, ua
 from asyncua.crypto.permission_rules import PermissionRuleset, User, UserRole
+from asyncua.server.uaprocessor import UaProcessor
+from asyncua.ua.ua_binary import nodeid_from_binary, struct_from_binary
+
+from app.auth import LoginThrottle, check_login
 
 from devices.live import jsonable
 from devices.registry import DEVICE_TYPES
@@ -64,16 +69,74 @@ class ReadOnlyRules(PermissionRuleset):
 
 
 class AccountUsers:
-    """Sessions log in with an account of the accounts file (app/users.py); anonymous only if allowed."""
+    """Sessions log in with an account of the accounts file (app/users.py); anonymous only if allowed.
 
-    def __init__(self, users, anonymous: bool):
-        self.users, self.anonymous = users, anonymous
+    asyncua asks for the user synchronously, on the event loop, in the middle of ActivateSession;
+    a password hash there would stop every bus task for its duration. So each user-name login is
+    checked before asyncua sees it (:func:`_check_logins_first`): throttled, hashed in a thread and
+    audited by :func:`app.auth.check_login`, like the web login; asyncua then only picks up the
+    verdict. A login without a verdict is refused, never hashed on the loop.
+    """
+
+    def __init__(self, users, anonymous: bool, audit=None, throttle: LoginThrottle | None = None):
+        self.users, self.anonymous, self.audit = users, anonymous, audit
+        self.throttle = throttle if throttle is not None else LoginThrottle()
+        self._verdicts: dict[tuple[str, str], list] = {}  # (name, password) -> [user or None, pending logins]
+
+    async def check(self, username: str, password: str, address: str) -> None:
+        """Check one user-name login before asyncua activates its session."""
+        user, _words = await check_login(throttle=self.throttle, users=self.users, audit=self.audit, typed=username,
+                                         secret=password, address=address, via="opcua")
+        entry = self._verdicts.setdefault((username, password), [None, 0])
+        entry[0], entry[1] = user, entry[1] + 1
+        while len(self._verdicts) > 64:  # bounded: a verdict is taken at once by the login it belongs to
+            self._verdicts.pop(next(iter(self._verdicts)))
 
     def get_user(self, iserver, username=None, password=None, certificate=None):
         if username is None:
             return User(role=UserRole.Anonymous) if self.anonymous else None
-        account = self.users.verify(username, password or "") if self.users is not None else None
-        return None if account is None else User(role=UserRole.User, name=username)
+        entry = self._verdicts.get((username, password or ""))
+        if entry is None:
+            return None
+        entry[1] -= 1
+        if entry[1] <= 0:
+            del self._verdicts[(username, password or "")]
+        return None if entry[0] is None else User(role=UserRole.User, name=username)
+
+
+_ACTIVATE = ua.NodeId(ua.ObjectIds.ActivateSessionRequest_Encoding_DefaultBinary)
+_LOGINS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # asyncua's InternalServer -> AccountUsers
+
+
+def _check_logins_first() -> None:
+    """Let a user-name ActivateSession be checked (awaited, off the loop) before asyncua handles it.
+
+    asyncua has no asynchronous seam for a login: its processor's public ``process_message`` is
+    wrapped once; it looks the server's accounts up in :data:`_LOGINS` and does nothing for others.
+    """
+    if getattr(UaProcessor.process_message, "checks_logins_first", False):
+        return
+    original = UaProcessor.process_message
+
+    async def process_message(self, seqhdr, body):
+        logins = _LOGINS.get(self.iserver)
+        if logins is not None and not logins.anonymous and self.session is not None:
+            try:
+                peek = body.copy()
+                typeid = nodeid_from_binary(peek)
+                if typeid == _ACTIVATE:
+                    struct_from_binary(ua.RequestHeader, peek)
+                    token = struct_from_binary(ua.ActivateSessionParameters, peek).UserIdentityToken
+                    if isinstance(token, ua.UserNameIdentityToken):
+                        name, password = self.iserver.decrypt_user_token(self.session, token)
+                        address = self.name[0] if isinstance(self.name, tuple) and self.name else str(self.name)
+                        await logins.check(name or "", password or "", str(address))
+            except (ValueError, TypeError, ua.UaError, ua.UaStatusCodeError):
+                pass  # asyncua refuses the malformed request itself
+        return await original(self, seqhdr, body)
+
+    process_message.checks_logins_first = True
+    UaProcessor.process_message = process_message
 
 
 def health_of(state, controlled: bool, alarms: list[str]) -> int:
@@ -185,9 +248,10 @@ class OpcuaServer:
     :param audit: the audit log, counted for the revision counters
     """
 
-    def __init__(self, config, store, plant, worker=None, users=None, audit=None):
+    def __init__(self, config, store, plant, worker=None, users=None, audit=None, throttle: LoginThrottle | None = None):
         self.config, self.store, self.plant = config, store, plant
         self.worker, self.users, self.audit = worker, users, audit
+        self.throttle = throttle  # the web login's (app/auth.py): a guesser is slowed down on both faces
         self.server: Server | None = None
         self.ns = self.di = 0
         self._devices: dict[str, dict[str, Any]] = {}  # device -> node ids and what was last written
@@ -196,8 +260,11 @@ class OpcuaServer:
         self.started = False
 
     async def start(self) -> None:
-        server = Server(user_manager=AccountUsers(self.users, self.config.anonymous))
+        logins = AccountUsers(self.users, self.config.anonymous, audit=self.audit, throttle=self.throttle)
+        server = Server(user_manager=logins)
         await server.init()
+        _check_logins_first()
+        _LOGINS[server.iserver] = logins
         server.set_endpoint(self.config.endpoint)
         server.set_server_name(f"commission {self.plant.name}")
         await server.set_application_uri(f"urn:commission:{self.plant.name}")
@@ -207,7 +274,8 @@ class OpcuaServer:
             await server.load_private_key(str(self.config.private_key))
             policies.append(ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt)
         server.set_security_policy(policies, permission_ruleset=ReadOnlyRules())
-        tokens = [ua.UserNameIdentityToken] + ([ua.AnonymousIdentityToken] if self.config.anonymous else [])
+        # user names only when anonymous sessions are off: otherwise a login would be a free password oracle
+        tokens = [ua.AnonymousIdentityToken] if self.config.anonymous else [ua.UserNameIdentityToken]
         server.set_identity_tokens(tokens)
         self.server = server
         self.di = await server.register_namespace(DI_URI)

@@ -281,7 +281,8 @@ class Runtime:
         if plant.opcua is not None:
             from app.opcua_server import OpcuaServer
 
-            self.opcua = OpcuaServer(plant.opcua, self.store, plant, worker=self.worker, users=self.users, audit=self.audit)
+            self.opcua = OpcuaServer(plant.opcua, self.store, plant, worker=self.worker, users=self.users, audit=self.audit,
+                                     throttle=self.login_throttle)
 
     def session_user(self, token: str | None):
         """The account a session token stands for, as the account store says now (or None)."""
