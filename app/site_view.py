@@ -3,6 +3,11 @@
 Subscribes to ``commission/#`` (docs/mqtt.md) and keeps the newest state, status and alarms of
 each device, and the birth/death of each instance. Publishes nothing, ever. Bounded: at most
 ``MAX_DEVICES`` devices and ``MAX_INSTANCES`` instances; messages beyond are counted, not kept.
+
+Anyone who may publish to the broker can send anything: every payload is checked against its
+schema (the pydantic models below, strict: a heartbeat ``"30"`` is no number), at most
+``MAX_PAYLOAD`` bytes and ``MAX_DEPTH`` levels deep, before anything of it is kept; what does not
+fit is dropped and counted (``ignored``), and the view goes on answering.
 """
 
 from __future__ import annotations
@@ -13,7 +18,9 @@ import logging
 import ssl
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from app.mqtt import BACKOFF_FIRST_S, BACKOFF_MAX_S, CONNECT_TIMEOUT_S, INSTANCES, TOPIC_ROOT
 from app.plant import parse_mqtt_url
@@ -23,6 +30,79 @@ log = logging.getLogger(__name__)
 MAX_DEVICES = 5000
 MAX_INSTANCES = 500
 MAX_PAYLOAD = 1_000_000  # bytes; a larger message is not one of ours
+MAX_DEPTH = 8  # levels of nesting (objects and lists); ours have at most five (state -> values -> value -> fields)
+MAX_NAME = 256  # characters of a name, status or unit
+MAX_TEXT = 4096  # characters of a text or an error
+
+
+Name = Field(default="", max_length=MAX_NAME)
+Number = float | int
+
+
+class _Payload(BaseModel):
+    model_config = ConfigDict(strict=True, extra="allow")
+    instance: str = Field(default="", max_length=MAX_NAME)
+    time: Number | None = None
+
+
+class ValueEntry(BaseModel):
+    """One value of a state message (docs/mqtt.md, "state")."""
+    model_config = ConfigDict(strict=True, extra="allow")
+    value: Any = None
+    unit: str | None = Field(default="", max_length=MAX_NAME)
+    quality: str | None = Field(default="", max_length=MAX_NAME)
+    time: Number | None = None
+    text: str | None = Field(default="", max_length=MAX_TEXT)
+
+
+class InstancePayload(_Payload):
+    site: str | None = Field(default=None, max_length=MAX_NAME)
+    plant: str | None = Field(default=None, max_length=MAX_NAME)
+    state: Literal["online", "offline"] = "online"
+    reason: str = Field(default="", max_length=MAX_TEXT)
+    devices: list[str] = Field(default_factory=list, max_length=MAX_DEVICES)
+    heartbeat: Number = Field(default=10.0, gt=0, le=86_400)
+
+
+class DevicePayload(_Payload):
+    type: str = Name
+    bus: str = Name
+    device: str = Name
+    status: str = Name
+
+
+class StatePayload(DevicePayload):
+    values: dict[str, ValueEntry] = Field(default_factory=dict)
+
+
+class StatusPayload(DevicePayload):
+    last_error: str | None = Field(default="", max_length=MAX_TEXT)
+    counters: dict[str, Number | None] = Field(default_factory=dict)
+
+
+class AlarmsPayload(DevicePayload):
+    active: list[str] = Field(default_factory=list, max_length=1000)
+
+
+SCHEMAS: dict[str, type[BaseModel]] = {"state": StatePayload, "status": StatusPayload, "alarms": AlarmsPayload}
+
+
+def nested_within(data: Any, limit: int = MAX_DEPTH) -> bool:
+    """Whether ``data`` (decoded JSON) is at most ``limit`` levels of objects and lists deep."""
+    level = [data]
+    for _ in range(limit):
+        nxt = []
+        for item in level:
+            if isinstance(item, dict):
+                nxt.extend(item.values())
+            elif isinstance(item, list):
+                nxt.extend(item)
+        if not nxt:
+            return True
+        level = [i for i in nxt if isinstance(i, dict | list)]
+        if not level:
+            return True
+    return False
 STALE_HEARTBEATS = 3  # a device or instance is stale after this many heartbeats without a message
 
 
@@ -80,12 +160,19 @@ class SiteStore:
                 return
             try:
                 data = json.loads(payload)
-            except ValueError:
+            except (ValueError, RecursionError):  # RecursionError: nested deeper than the decoder goes
                 self.ignored += 1
                 return
-            if not isinstance(data, dict):
+            schema = InstancePayload if middle == INSTANCES else SCHEMAS.get(leaf)
+            if not isinstance(data, dict) or not nested_within(data):
                 self.ignored += 1
                 return
+            if schema is not None:
+                try:
+                    schema.model_validate(data)
+                except ValidationError:
+                    self.ignored += 1
+                    return
         if middle == INSTANCES:
             self._instance(site, leaf, data, now)
         elif leaf in ("state", "status", "alarms"):
