@@ -387,6 +387,9 @@ async def plan_restore(runtime, name: str, document: dict, progress=None) -> Res
     for entry in document["parameters"]:
         if not entry.get("writable"):
             continue  # read-only parameters are kept for reference, never written
+        model = state.params.by_key.get(entry["key"]) if state.params is not None else None
+        if model is not None and not model.setting:
+            continue  # measured by the device (a maximum so far): kept for reference, never copied (Param.setting)
         now = current.get(entry["key"])
         if now is None or not now.get("writable"):
             warnings.append(f"{entry['name']} is not writable on this device: skipped")

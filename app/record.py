@@ -246,7 +246,7 @@ def device_updated(state, key: str) -> bool:
     a measured maximum, a counter): never drift."""
     params = getattr(state, "params", None)
     param = params.by_key.get(key) if params is not None else None
-    return bool(getattr(param, "device_updates", False))
+    return param is not None and param.writable and not param.setting
 
 
 def drift_of(state, approved: dict[str, dict], snapshot: dict[str, dict] | None = None) -> list[dict]:

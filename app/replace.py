@@ -346,7 +346,7 @@ async def check_identity(runtime, name: str, document: dict, current_keys: set[s
         names = {e["key"]: e["name"] for e in document.get("parameters", [])}
         check.lacks = [names[k] for k in names if k not in current_keys]
         model = state.params
-        check.adds = [(p.label or p.name) for p in (model or []) if p.key in current_keys and p.key not in names and p.writable]
+        check.adds = [(p.label or p.name) for p in (model or []) if p.key in current_keys and p.key not in names and p.setting]
     if any(n.startswith("firmware") for n in check.notes):
         if check.lacks or check.adds:
             check.notes.append(f"with the new firmware the device lacks {len(check.lacks)} and adds {len(check.adds)} "

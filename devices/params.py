@@ -97,6 +97,14 @@ class Param:
         return self.access is Access.RW and not self.never_write and self.words == 1
 
     @property
+    def setting(self) -> bool:
+        """Whether the value is a setting the engineer chooses, not one the device measures or counts itself
+        (a measured maximum such as HD-Lock's MaximumTimeLock, "longest time measured so far"). Only settings are
+        restored, applied in a batch, preselected when a device is replaced and compared as drift; a measured
+        value stays writable one at a time where the device allows it (to reset it), never copied from a set."""
+        return self.writable and not self.device_updates
+
+    @property
     def bits(self) -> int:
         return 16 * self.words
 
@@ -273,4 +281,5 @@ def backup_entry(param: Param, raw: int) -> dict:
         "text": param.display(raw),
         "unit": param.unit,
         "writable": param.writable,
+        "setting": param.setting,
     }

@@ -45,8 +45,8 @@ async def change_every_writable(runtime, name: str, entries: list[dict]) -> int:
     adapter = runtime.worker.adapters[name]
     changed = 0
     for entry in entries:
-        if not entry["writable"]:
-            continue
+        if not entry.get("setting", entry["writable"]):
+            continue  # read-only, or measured by the device (never restored: Param.setting)
         if name == "heater-hmr":
             new = "0a 0b 0c 0d 0e 0f"
         elif entry["key"] == "service:4":  # the bit rate: changing it takes the actuators off the bus
