@@ -49,6 +49,15 @@ REG_COMMAND = 2003
 REG_FW_UPDATE = 32770  # FwUpdateCommandRegister: never written by this tool
 REG_DEVICE_ADDRESS = 103  # DeviceAddress, changed only by command 3 (sections 3.2, 4.3)
 REG_LOCK_REQUEST_SOURCE = 4  # section 6.5.1: the source the lock uses is holding 4; 1002 is a register of its own
+REG_LOCK_REQUEST_SOURCE_SETTING = 1002  # section 3.2.2: the setting, values as holding 4
+# section 6.6.1.1: of LockRequestSource only the low byte is kept (the high byte is 0 after a reset) and the lock
+# acts on it (0x80-0x87: the door is ignored): a value is judged as the lock stores it, never as the whole word
+LOW_BYTE_REGISTERS = frozenset({REG_LOCK_REQUEST_SOURCE, REG_LOCK_REQUEST_SOURCE_SETTING})
+
+
+def stored_value(address: int, word: int) -> int:
+    """The value holding ``address`` keeps of a written 16-bit ``word`` (:data:`LOW_BYTE_REGISTERS`: the low byte)."""
+    return word & 0xFF if address in LOW_BYTE_REGISTERS else word & 0xFFFF
 
 
 class SystemCommand(IntEnum):

@@ -7,8 +7,9 @@ bytes (transmit list, replay, Modbus poll window, restore, the lock's own comman
 from __future__ import annotations
 
 from devices.hdlock import codec
-from devices.hdlock.params import DOOR_IGNORED_SOURCES, DOOR_IGNORED_WARNING, PARAMS
+from devices.hdlock.params import DOOR_IGNORED_WARNING, PARAMS
 from devices.commands import Arg, Command, TxField, TxForm, param_write
+from devices.params import ParamError
 from devices.sendpolicy import Verdict, can_id_owner
 
 TITLE = "HD-Lock"
@@ -40,7 +41,12 @@ SOURCE_RISK = DOOR_IGNORED_WARNING  # cmdSetLockRequestSource 0x80-0x87, holding
 
 
 def register_verdict(address: int, value: int) -> Verdict:
-    """A write of ``value`` (a 16-bit word, two's complement for signed registers) to holding ``address``."""
+    """A write of ``value`` (a 16-bit word, two's complement for signed registers) to holding ``address``.
+
+    The one rule for every path (page, API, restore, Modbus poll window, transmit list, replay, the CAN
+    command that sets holding 4): the value is judged as the lock stores it (:func:`codec.stored_value`),
+    by the parameter's own checks (access, range, value table) and its confirmation.
+    """
     if address in NEVER_REGISTERS:
         return Verdict(refused=f"{NEVER_REGISTERS[address]}: never written", name=f"holding {address}")
     param = PARAMS.get("holding", address)
@@ -57,12 +63,14 @@ def register_verdict(address: int, value: int) -> Verdict:
     if not param.writable:
         return Verdict(refused=f"{name} is {param.access.value}: not writable", name=name)
     raw = value & 0xFFFF
-    decoded = param.decode(raw)
-    low, high = param.limits()
-    if not low <= decoded <= high:
-        return Verdict(refused=f"{label}: {decoded} is outside {low:g} .. {high:g} {param.unit}".rstrip(), name=name)
-    risk = param.needs_confirmation(raw)
-    return Verdict(confirm=(risk,) if risk else (), name=f"{name} = {param.display(raw)}", kind="write")
+    stored = codec.stored_value(address, raw)
+    kept = "" if stored == raw else f" (sent as 0x{raw:04X}: the lock keeps the low byte, section 6.6.1.1)"
+    try:
+        param.validate(param.decode(stored))  # range and value table, as the declared write checks them
+    except ParamError as exc:
+        return Verdict(refused=f"{exc}{kept}: not written", name=name)
+    risk = param.needs_confirmation(stored)
+    return Verdict(confirm=(risk,) if risk else (), name=f"{name} = {param.display(stored)}{kept}", kind="write")
 
 
 def check_modbus(function: int, address: int, values: list[int], device) -> Verdict:
@@ -82,7 +90,14 @@ def check_modbus(function: int, address: int, values: list[int], device) -> Verd
 
 
 def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verdict | None:
-    """A frame on the HD-Lock request block 0x700-0x707 (section 6.6); other IDs are not the lock's requests."""
+    """A frame on the HD-Lock request block 0x700-0x707 (section 6.6), or one under a lock's device ID (what
+    the lock sends: never sent by this tool); other IDs are not the lock's."""
+    sender = next((d.name for d in devices if _device_id(d) == (extended, can_id)), None)
+    if sender is not None:
+        ident = codec.DeviceId(can_id, extended)
+        return Verdict(refused=f"CAN ID {ident} is what HD-Lock {sender} sends under its device ID (its status, "
+                               "answers and firmware-update status, section 6.5): this tool never sends it, so "
+                               "nothing can pose as the lock", name=f"{sender} frame", kind="system")
     if extended or can_id not in codec.CAN_REQUEST_IDS:
         return None
     name = codec.CAN_REQUEST_NAMES[can_id]
@@ -105,8 +120,13 @@ def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verd
                            name=f"HD-Lock Command {command}", kind="system")
         value = int.from_bytes(data[6:8], "little") if len(data) >= 8 else None
         if command == codec.CanCommand.SET_LOCK_REQUEST_SOURCE:
-            risks = (SOURCE_RISK,) if value in DOOR_IGNORED_SOURCES else ()
-            return Verdict(confirm=risks + broadcast, name=f"HD-Lock cmdSetLockRequestSource = {value}", kind="write")
+            if value is None:
+                return Verdict(refused="HD-Lock cmdSetLockRequestSource needs its value in bytes 6-7 (8 bytes, "
+                                       "section 6.6.1)", name=f"HD-Lock {name}")
+            # the command sets holding 4 (section 6.5.1): judged as that write, on the byte the lock keeps
+            verdict = register_verdict(codec.REG_LOCK_REQUEST_SOURCE, value)
+            return Verdict(verdict.refused and f"HD-Lock cmdSetLockRequestSource: {verdict.refused}",
+                           verdict.confirm + broadcast, f"HD-Lock cmdSetLockRequestSource: {verdict.name}", "write")
         if command == codec.CanCommand.SET_CAN_BAUDRATE:
             return Verdict(confirm=(BITRATE_RISK,) + broadcast, name=f"HD-Lock cmdSetCANbaudrate = {value}", kind="system")
         return Verdict(refused=f"HD-Lock Command {command} is not in the document (section 6.6.1): not sent",
@@ -114,7 +134,10 @@ def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verd
     if can_id == codec.CAN_SET_DEVICE_ADDRESS:
         if len(data) < 8:
             return Verdict(refused="HD-Lock Set Device Address needs the new ID in bytes 4-7 (section 6.6.2)", name=name)
-        new = codec.DeviceId.from_u32(int.from_bytes(data[4:8], "little"))
+        try:
+            new = codec.DeviceId.from_u32(int.from_bytes(data[4:8], "little"))
+        except codec.CodecError as exc:
+            return Verdict(refused=f"HD-Lock Set Device Address: {exc} (section 6.6.2)", name=name, kind="system")
         owner = can_id_owner(bus, new.value, new.extended, exclude=_target_name(devices, target))
         if new.value == codec.CAN_BROADCAST:
             return Verdict(refused="device ID 0 is the broadcast address (section 6.4)", name=name, kind="system")
@@ -145,7 +168,10 @@ def _device_id(dev) -> tuple[bool, int] | None:
 
 def _target_name(devices, target: int) -> str:
     """The plant's lock a request addresses (bytes 0-3), so its own ID does not count as taken."""
-    ident = codec.DeviceId.from_u32(target)
+    try:
+        ident = codec.DeviceId.from_u32(target)
+    except codec.CodecError:  # no lock has that ID (more than 29 bits)
+        return ""
     return next((d.name for d in devices if _device_id(d) == (ident.extended, ident.value)), "")
 
 
@@ -153,8 +179,13 @@ def _target_name(devices, target: int) -> str:
 
 
 def _source_risk(args) -> str:
-    risks = [SOURCE_RISK] if args.get("value") in DOOR_IGNORED_SOURCES else []
+    risks = list(register_verdict(codec.REG_LOCK_REQUEST_SOURCE, args["value"]).confirm)
     return " ".join(risks + ([BROADCAST_RISK] if args.get("broadcast") else []))
+
+
+def _source_refusal(args, bus, device: str) -> str:
+    """cmdSetLockRequestSource sets holding 4: the same rules as that write (value table, section 6.6.1.1)."""
+    return register_verdict(codec.REG_LOCK_REQUEST_SOURCE, args["value"]).refused
 
 
 def _bitrate_risk(args) -> str:
@@ -236,7 +267,7 @@ COMMANDS = (
     Command("Save-Settings", "system", method="save_settings", audit=_save_audit),
     Command("Restore-Settings", "system", method="restore_settings", risk=RESTORE_RISK),
     Command("cmdSetLockRequestSource", "write", method="set_lock_request_source",
-            args=(Arg("value", 0, 0x87),), flags=("broadcast",), risk=_source_risk),
+            args=(Arg("value", 0, 0x87),), flags=("broadcast",), risk=_source_risk, refuse_if=_source_refusal),
     Command("cmdSetCANbaudrate", "system", method="set_can_bitrate", args=(Arg("code", 0, 255),), flags=("broadcast",),
             risk=_bitrate_risk),
     Command("Set Device Address", "system", method="set_device_address", args=(Arg("new_value", 1, codec.EXT_ID_MAX),),
