@@ -220,3 +220,35 @@ def _text(value: object) -> str:
     if isinstance(value, bytes):
         return value.hex(" ")
     return str(value)
+
+
+class LogBudget(logging.Filter):
+    """A bound on the log lines that others (network clients, brokers) can make the program write:
+    at most ``lines`` per ``window_s``; the rest are counted, and the next line let through says
+    how many were left out. A ``logging.Filter``, so it can sit on a library's loggers too."""
+
+    def __init__(self, lines: int = 20, window_s: float = 60.0, clock=time.monotonic):
+        super().__init__()
+        self.lines, self.window_s, self.clock = lines, window_s, clock
+        self._start, self._used, self.left_out, self._pending = -window_s, 0, 0, 0
+
+    def take(self) -> int | None:
+        """None: write no line (it is counted); else write one, after the returned number left out."""
+        now = self.clock()
+        if now - self._start >= self.window_s:
+            self._start, self._used = now, 0
+        if self._used >= self.lines:
+            self.left_out += 1
+            self._pending += 1
+            return None
+        self._used += 1
+        skipped, self._pending = self._pending, 0
+        return skipped
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        skipped = self.take()
+        if skipped is None:
+            return False
+        if skipped:
+            record.msg = f"{record.msg} [{skipped} similar lines left out before this one]"
+        return True

@@ -14,7 +14,12 @@ NDEATH that carries the bdSeq of its birth.
   goes offline gets a DDEATH and a DBIRTH when it is back.
 - ``Node Control/Rebirth`` (NCMD) is answered on the same connection: NBIRTH with the *same*
   bdSeq, then every DBIRTH with the same definitions and fresh values. Every other NCMD or DCMD
-  is refused and written to the audit log; nothing is ever sent to a device from here.
+  is refused; nothing is ever sent to a device from here. Anyone who may publish to the broker can
+  send commands, so a refusal is bounded: one audit row per command (its metrics named, at most
+  ``MAX_NAMED`` of them, cut to ``MAX_TEXT`` characters), at most ``RefusalRows``' rows a minute
+  (the rest counted, and the next row says how many), written under the node's name (a device's
+  audit rows and its as-left report stay the engineer's), never on a device's page; a payload over
+  ``MAX_COMMAND_BYTES`` is refused undecoded, and a command on a topic with extra levels is refused too.
 - ``primary_host``: births and data go out only while ``spBv1.0/STATE/<host>`` says online; when
   the host goes offline the node sends its NDEATH and disconnects, and is born again (next bdSeq)
   when the host is back (spec 3.0, "Edge Node operation with a Primary Host Application").
@@ -38,6 +43,9 @@ from typing import Any
 
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 
+from app.audit import LogBudget
+from app.auth import RefusalRows
+
 log = logging.getLogger(__name__)
 
 NAMESPACE = "spBv1.0"
@@ -54,6 +62,17 @@ QUALITY_BAD, QUALITY_GOOD, QUALITY_STALE = 0, 192, 500
 QUALITY_CODES = {"good": QUALITY_GOOD, "stale": QUALITY_STALE, "offline": QUALITY_BAD, "unknown": QUALITY_BAD}
 REBIRTH = "Node Control/Rebirth"
 BDSEQ = "bdSeq"
+MAX_COMMAND_BYTES = 64 * 1024  # a command payload beyond this is refused without decoding it
+MAX_TEXT = 64  # characters of a metric name or value kept in a refusal
+MAX_NAMED = 5  # metrics named in the one row of a refused command
+REFUSED_KEPT = 100  # refusals kept for the summary, newest last
+
+_refusal_lines = LogBudget(lines=10, window_s=60.0)  # log lines of refused commands (others cause them)
+
+
+def _cut(text: Any) -> str:
+    text = str(text)
+    return text if len(text) <= MAX_TEXT else f"{text[:MAX_TEXT]}... ({len(text)} characters)"
 
 
 # -- the payload schema, built in code ----------------------------------------------------------
@@ -229,7 +248,9 @@ class SparkplugNode:
         self.sent = 0
         self.births = 0
         self.rebirths = 0
-        self.refused: list[dict[str, Any]] = []  # the last refused commands, newest last
+        self.refused: list[dict[str, Any]] = []  # the last REFUSED_KEPT refused commands (sizes capped), newest last
+        self.refused_count = 0
+        self._refusal_rows = RefusalRows()
         self.host_online: bool | None = None if config.primary_host else True
         self._devices: dict[str, _Device] = {}
         self._rebirth = asyncio.Event()
@@ -241,7 +262,7 @@ class SparkplugNode:
     def summary(self) -> dict[str, Any]:
         return {"state": self.state, "last_error": self.last_error, "group": self.group, "node": self.node,
                 "bdSeq": self.bd_seq, "sent": self.sent, "births": self.births, "rebirths": self.rebirths,
-                "host_online": self.host_online, "refused": len(self.refused)}
+                "host_online": self.host_online, "refused": self.refused_count}
 
     async def start(self) -> None:
         self._task = asyncio.create_task(self._run(), name="sparkplug node")
@@ -377,8 +398,9 @@ class SparkplugNode:
             await asyncio.sleep(backoff)
 
     async def _session(self, client) -> None:
-        await client.subscribe(node_topic(self.group, "NCMD", self.node), qos=1)
-        await client.subscribe(node_topic(self.group, "DCMD", self.node, "+"), qos=1)
+        # '#' also matches the level itself: commands on topics with extra levels are heard, and refused
+        await client.subscribe(node_topic(self.group, "NCMD", self.node) + "/#", qos=1)
+        await client.subscribe(node_topic(self.group, "DCMD", self.node) + "/#", qos=1)
         if self.config.primary_host:
             self.state = "waiting for the primary host"
             await client.subscribe(state_topic(self.config.primary_host), qos=1)
@@ -469,31 +491,57 @@ class SparkplugNode:
         parts = topic.split("/")
         kind = parts[2] if len(parts) > 2 else ""
         device = parts[4] if kind == "DCMD" and len(parts) > 4 else ""
+        if len(parts) != (5 if kind == "DCMD" else 4):
+            await self._refuse(kind, device, "", f"a topic with extra levels ({_cut(topic)})")
+            return
+        if len(data) > MAX_COMMAND_BYTES:
+            await self._refuse(kind, device, "", f"a payload of {len(data)} bytes (at most {MAX_COMMAND_BYTES})")
+            return
         payload = Payload()
         try:
             payload.ParseFromString(data)
         except Exception:  # noqa: BLE001 - not a Sparkplug payload
-            await self._refuse(kind, device, "(undecodable payload)", "not a Sparkplug B payload")
+            await self._refuse(kind, device, "", "not a Sparkplug B payload")
             return
+        others = []
         for metric in payload.metrics:
             if kind == "NCMD" and metric.name == REBIRTH and metric.WhichOneof("value") == "boolean_value" and metric.boolean_value:
-                log.info("sparkplug: Rebirth requested; births again on the same connection (bdSeq %d)", self.bd_seq)
+                if not self._rebirth.is_set():
+                    log.info("sparkplug: Rebirth requested; births again on the same connection (bdSeq %d)", self.bd_seq)
                 self._rebirth.set()
                 continue
-            value = metric.WhichOneof("value")
-            await self._refuse(kind, device, metric.name, "read-only: Sparkplug commands other than Node Control/Rebirth "
-                               "are never executed", getattr(metric, value) if value else None)
+            others.append(metric)
+        if not payload.metrics:
+            await self._refuse(kind, device, "", "no metrics")
+        elif others:
+            value = others[0].WhichOneof("value")
+            await self._refuse(kind, device, ", ".join(_cut(m.name) for m in others[:MAX_NAMED]),
+                               "read-only: Sparkplug commands other than Node Control/Rebirth are never executed",
+                               getattr(others[0], value) if value and len(others) == 1 else None, count=len(others))
 
-    async def _refuse(self, kind: str, device: str, metric: str, reason: str, value: Any = None) -> None:
-        row = {"time": time.time(), "kind": kind, "device": device, "metric": metric, "value": value, "reason": reason}
-        self.refused = [*self.refused[-99:], row]
-        log.warning("sparkplug: %s %s %s refused: %s", kind, device or self.node, metric, reason)
-        state = self.store.devices.get(device)
-        if state is not None:
-            state.event("warning", f"refused Sparkplug {kind} {metric}: {reason}")
-        if self.audit is not None:
-            try:
-                await self.audit.arecord(user="sparkplug", role="host", device=device or self.node, action=f"Sparkplug {kind}",
-                                         parameter=metric, new="" if value is None else value, result=f"refused: {reason}")
-            except Exception as exc:  # noqa: BLE001 - nothing was executed anyway
-                log.error("audit: %s", exc)
+    async def _refuse(self, kind: str, device: str, metric: str, reason: str, value: Any = None, count: int = 1) -> None:
+        """One refused command: counted, kept (capped), logged and audited within their bounds.
+
+        Written under the node's name, never the device's, and not on the device's page: a command
+        comes from whoever may publish to the broker, unauthenticated."""
+        self.refused_count += 1
+        target = f"{_cut(device)}: " if device else ""
+        names = f"{target}{metric}" + (f" (+{count - MAX_NAMED} more)" if count > MAX_NAMED else "")
+        shown = "" if value is None else _cut(value if not isinstance(value, bytes) else value.hex())
+        what = f"{count} metrics" if count > 1 else "1 metric" if metric else "the command"
+        row = {"time": time.time(), "kind": _cut(kind), "device": _cut(device), "metric": names, "value": shown,
+               "reason": f"{what}: {reason}"}
+        self.refused = [*self.refused[-(REFUSED_KEPT - 1):], row]
+        if _refusal_lines.take() is not None:
+            log.warning("sparkplug: %s %s refused (%s): %s", row["kind"], names or self.node, what, reason)
+        skipped = self._refusal_rows.take("sparkplug")
+        if self.audit is None or skipped is None:
+            return
+        result = f"refused: {what}: {reason}"
+        if skipped:
+            result += f"; {skipped} more refused commands not written one by one"
+        try:
+            await self.audit.arecord(user="sparkplug", role="unauthenticated", device=self.node, action=f"Sparkplug {row['kind']}",
+                                     parameter=names, new=shown, result=result)
+        except Exception as exc:  # noqa: BLE001 - nothing was executed anyway
+            log.error("audit: %s", exc)

@@ -275,7 +275,7 @@ async def test_births_data_rebirth_refusal_and_death_of_two_instances(tmp_path):
                     rows = _audit_rows(tmp_path / "da" / "audit.sqlite")
                     return [r for r in rows if r[1].startswith("Sparkplug") and r[4].startswith("refused")]
                 rows = await host.until(lambda: len(refused()) >= 2, 10, "the refused commands in the audit log") and refused()
-                assert {(r[0], r[1], r[2]) for r in rows} == {("door-1", "Sparkplug DCMD", "LockRequestDelay"),
+                assert {(r[0], r[1], r[2]) for r in rows} == {("cab-a", "Sparkplug DCMD", "door-1: LockRequestDelay"),
                                                              ("cab-a", "Sparkplug NCMD", "Node Control/Reboot")}
 
                 # death: a killed instance's NDEATH is its will, with the bdSeq of its birth
