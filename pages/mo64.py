@@ -87,10 +87,8 @@ class Mo64View(DeviceView):
 
     async def move(self, cmd: codec.Command, fn: codec.Function) -> None:
         words = operation_name(cmd, fn)
-        # the declared risk ("the area is clear") is asked once per session: a session that confirmed it
-        # (the adapter publishes the tags of those sessions) is not asked again
-        confirmed = self.tag in self.fact(facts.P_CONFIRMED, ())
-        await self.act(words, success=f"{words}: ack", confirmed=confirmed)
+        # the declared risk ("the area is clear") is asked by the gate for every motion, every time
+        await self.act(words, success=f"{words}: ack")
 
 
 class GateCard(DeviceCard):
@@ -192,8 +190,8 @@ class CommandsCard(DeviceCard):
             ui.label("A level stays active in the barrier until it is deactivated. Close and reverse levels are "
                      "deactivated when this browser closes or freezes (dead-man rule) and when the tool stops (each "
                      "acknowledged by the barrier); an open level is not, since "
-                     "deactivating it would let an unattended boom close. The first motion of a session asks for "
-                     f"a confirmation ({MOTION_WARNING}).").classes("text-caption text-grey-8")
+                     "deactivating it would let an unattended boom close. Every motion asks for its own "
+                     f"confirmation ({MOTION_WARNING}).").classes("text-caption text-grey-8")
 
     async def clear_levels(self) -> None:
         if not self.view.fact(facts.P_LEVELS, ()):

@@ -134,7 +134,7 @@ async def test_position_unknown_for_minus_one():
     assert point.value is None and point.text == "unknown"
 
 
-async def test_motion_needs_confirmation_once_per_session_and_pulse_is_no_holder():
+async def test_every_motion_needs_its_own_confirmation_and_pulse_is_no_holder():
     open_pulse = bytes.fromhex("55 03 01 01 00 B8 B4")  # SPEC-NOTES golden vector
     async with Mo64Script([(TX, open_pulse), (RX, ACK), (TX, open_pulse), (RX, NAK)]) as script:
         adapter = make_adapter(script.port)
@@ -142,8 +142,10 @@ async def test_motion_needs_confirmation_once_per_session_and_pulse_is_no_holder
             await adapter.command("s1", codec.Command.OPEN)
         assert await adapter.command("s1", codec.Command.OPEN, confirmed=True) == "ack"
         assert adapter.holders() == set()
-        with pytest.raises(CommandError, match="nak"):
+        with pytest.raises(NeedsConfirmation):  # the confirmation was for that one pulse (issue 42 item 6)
             await adapter.command("s1", codec.Command.OPEN)
+        with pytest.raises(CommandError, match="nak"):
+            await adapter.command("s1", codec.Command.OPEN, confirmed=True)
         script.done()
     assert adapter.last_reply == "open pulse: nak"
 

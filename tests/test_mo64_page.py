@@ -63,8 +63,11 @@ async def test_mo64_page_shows_the_gate_and_opens_after_the_confirmation(env):
     await eventually(lambda: "open pulse: ack" in by_testid(user, "reply").text, timeout=3, what=str(user.notify.messages))
     await eventually(lambda: "gate state: open" == by_testid(user, "gate-state").text, timeout=6)
     await eventually(lambda: by_testid(user, "position").text == "position: 100 %", timeout=3)
-    # the second motion of the session asks no more
+    # the second motion of the session asks again (issue 42 item 6: the close went out unasked)
     UserInteraction(user, {by_testid(user, "activate-close")}, None).click()
+    await user.should_see("nobody stands under it (the area is clear)")
+    assert adapter.holders() == set()  # nothing sent before the answer
+    user.find("Send").click()
     await eventually(lambda: adapter.holders() == {user.client.id}, timeout=3, what=str(user.notify.messages))
     await eventually(lambda: "close (dead-man)" in by_testid(user, "levels").text, timeout=2)
     UserInteraction(user, {by_testid(user, "clear-levels")}, None).click()

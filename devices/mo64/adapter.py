@@ -24,7 +24,9 @@ from typing import Any
 from devices import values as v
 from devices.decoding import decoded, malformed
 from devices.live import DeviceState, session_tag
+from devices.control import Report
 from devices.mo64 import codec
+from devices.mo64.control import DEAD_MAN_LEVELS, Mo64Control, Send
 from devices.transport import SerialClosed, SerialLineError, SerialTimeout
 
 SYN_ACK_TIMEOUT_S = 5.0  # after syn the EEPROM write ends with ack or nak (chapter 5.2.4); bound of the wait
@@ -49,7 +51,7 @@ BUSY_TEXT = "the motor runs, try again when it stands"
 # (chapter 5.2.1, page 33: the level prevents closing until deactivated), the unsafe direction.
 # the dead-man rule clears close and reverse levels of a lost session; an open level stays, since
 # clearing it would let an unattended boom close (page 33: the level holds the barrier open)
-HELD_LEVELS = frozenset({codec.Command.CLOSE, codec.Command.REVERSE})
+HELD_LEVELS = DEAD_MAN_LEVELS  # devices/mo64/control.py holds the rule
 COMMAND_NAMES = {codec.Command.OPEN: "open", codec.Command.CLOSE: "close", codec.Command.REVERSE: "reverse"}
 LIVE_QUERIES = (codec.Q_GATE_STATE, codec.Q_BARRIER_STATUS, codec.Q_BARRIER_POSITION)
 ROTATING_QUERIES = (codec.Q_SERVICE_COUNTER, codec.Q_MAINTENANCE_COUNTER, codec.Q_VEHICLE_COUNTER,
@@ -91,7 +93,9 @@ P_MONITORING = "Change monitoring state"  # on / off / unknown, from the change 
 P_LEVELS = "Levels set by this tool"  # HeldLevel records
 P_EEPROM = "EEPROM writes"  # EepromWrites record
 P_VERIFIED = "Verified selectors"  # assumed selectors an engineer confirmed for this unit
-P_CONFIRMED = "Motion confirmed"  # session tags (devices.live.session_tag) that confirmed the area is clear
+# kept empty: a confirmation that the area is clear belongs to the one motion it was given for (issue 42 item 6),
+# so no session is ever shown as having confirmed (a page that read it skipped the question for later motions)
+P_CONFIRMED = "Motion confirmed"
 POLLING_SLOWER = "gate state and position slower (changes are reported); status every cycle"
 QUERY_FORM_WORDS = {None: "not known yet", "document": "02 Auswahl index (the document's, page 33)",
                     "short": "02 Auswahl (the document's form refused)"}
@@ -142,7 +146,7 @@ class CommandError(Exception):
 
 
 class NeedsConfirmation(CommandError):
-    """The first motion of a session needs its confirmation."""
+    """A motion needs its own confirmation that the area is clear (every one, every time)."""
 
 
 def to_json(value: Any) -> Any:
@@ -230,8 +234,7 @@ class Mo64Adapter:
         self.address = config.options.get("address")
         self.master = int(line_options.get("master_address", codec.RS485_LAYOUT.master_address))
         self.masters = {self.master, int(line_options.get("next_master", self.master + 1))}  # the masters of a shared line
-        self.levels: dict[codec.Command, str] = {}  # levels this tool activated -> session that did
-        self.motion_confirmed: set[str] = set()
+        self.core = Mo64Control()  # the motion rule: what asks, the levels and their dead-man (sans-I/O)
         # each setting write wears the barrier's EEPROM (document: "EEPROM"): restore says how many
         self.restore_wear = "each written setting wears the barrier's EEPROM"
         self.eeprom_writes: dict[str, int] = {}
@@ -545,6 +548,7 @@ class Mo64Adapter:
         except (SerialLineError, codec.CodecError) as exc:
             self.state.error(f"poll: {exc}", log=False)
         finally:
+            self._act(self.core.tick(time.monotonic()))  # a lapsed lease, a release to send again
             self._cycle += 1
             self._show_reads()
             self.state.fact(P_CONNECTION, "connected" if getattr(self.line, "connected", True) else "not connected")
@@ -590,54 +594,109 @@ class Mo64Adapter:
         self._show_reads()
         return list(self.error_memory)
 
-    # -- commands (chapter 5.2.1) -------------------------------------------------------------------------
-    def confirm_motion(self, session: str) -> None:
-        """The session confirmed that nobody stands under the boom (asked once per session)."""
-        self.motion_confirmed.add(session)
-        self._publish_confirmed()
+    # -- commands (chapter 5.2.1), carried out as devices/mo64/control.py says ---------------------------------
+    @property
+    def levels(self) -> dict[codec.Command, str]:
+        """The levels this tool activated and the barrier holds until deactivated: command -> session."""
+        return self.core.held()
+
+    @property
+    def motion_confirmed(self) -> frozenset[str]:
+        """Sessions remembered as having confirmed motion: none, ever (each motion asks again)."""
+        return frozenset()
+
+    def _decided(self, decision) -> Send:
+        if decision.question:
+            raise NeedsConfirmation(f"{decision.question} Confirm it for this command (each motion asks again).")
+        if decision.refused:
+            raise CommandError(decision.refused)
+        self._act([a for a in decision.actions if not isinstance(a, Send)])
+        return decision.send
 
     async def command(self, session: str, command: int, function: int = codec.Function.PULSE,
-                      confirmed: bool = False) -> str:
-        """Open, close or reverse as a pulse or a level; the answer ack or nak is returned and shown."""
+                      confirmed: bool = False, role: str = "engineer") -> str:
+        """Open, close or reverse as a pulse or a level; the answer ack or nak is returned and shown.
+
+        ``confirmed``: the operator confirmed that the area is clear for this very command (a motion
+        asks each time; releasing a close or reverse level is a stop and asks nothing)."""
         cmd, fn = codec.Command(command), codec.Function(function)
-        # releasing a close or reverse level moves nothing towards a person (the dead-man rule does the same)
-        safe = fn is codec.Function.DEACTIVATE and cmd in HELD_LEVELS
-        if confirmed and not safe:
-            self.motion_confirmed.add(session)
-            self._publish_confirmed()
-        if not safe and session not in self.motion_confirmed:
-            raise NeedsConfirmation("the boom moves: check that nobody stands under it, then confirm")
-        words = f"{COMMAND_NAMES[cmd]} {fn.name.lower()}"
-        if fn is codec.Function.ACTIVATE:
-            self._hold(cmd, session)  # before sending: a lost answer must still be followed by deactivate
-        answer = await self._transact(codec.encode_command(cmd, fn), {codec.Reply.ACK, codec.Reply.NAK}, words)
+        send = self._decided(self.core.request(session, cmd, fn, confirmed=confirmed, role=role, now=time.monotonic()))
+        self._publish_levels()
+        answer = await self._carry(send, {codec.Reply.ACK, codec.Reply.NAK, codec.Reply.BUSY})
         result = answer.reply.name.lower() if answer.reply is not None else answer.name
-        self._reply(f"{words}: {result}")
+        self._reply(f"{send.words}: {result}")
         if answer.reply is not codec.Reply.ACK:
-            if fn is codec.Function.ACTIVATE:
-                self._drop_level(cmd)
-            self.state.event("warning", f"{words}: {result}")
-            raise CommandError(f"{words}: the barrier answered {result}")
-        if fn is codec.Function.DEACTIVATE:
-            self._drop_level(cmd)
+            self.state.event("warning", f"{send.words}: {result}")
+            raise CommandError(f"{send.words}: the barrier answered {result}"
+                               + (f" ({BUSY_TEXT})" if answer.reply is codec.Reply.BUSY else ""))
         self.counters_next()
-        self.state.event("info", f"{words}: ack")
+        self.state.event("info", f"{send.words}: ack")
         return "ack"
 
-    def _hold(self, cmd: codec.Command, session: str) -> None:
-        self.levels[cmd] = session
+    async def send_raw(self, session: str, telegram: bytes, confirmed: bool = False, role: str = "engineer") -> str:
+        """A raw telegram (type and payload, unframed) from a bus tool: decoded into the command it amounts to
+        and checked by the same rule (a motion asks that the area is clear; a telegram the barrier sends, a
+        short command or an unknown setting selector is refused); returns the barrier's answer in words."""
+        send = self._decided(self.core.raw(session, bytes(telegram), confirmed=confirmed, role=role,
+                                           now=time.monotonic()))
+        self._publish_levels()
+        answer = await self._carry(send, set(codec.REPLY_TYPES) | set(codec.ANSWER_TYPES))
+        result = answer.reply.name.lower() if answer.reply is not None else answer.name
+        self._reply(f"{send.words}: {result}")
+        if answer.reply is None:
+            self._publish(answer)
+        return result
+
+    async def _carry(self, send: Send, types: set[int], describe: str = "") -> codec.Answer:
+        """Send ``send`` and tell the core its answer (ack, nak, busy, or lost when none came)."""
+        try:
+            answer = await self._transact(send.telegram, types, describe or send.words)
+        except (SerialLineError, codec.CodecError):
+            self._after(send, "lost")
+            raise
+        word = {codec.Reply.ACK: "ack", codec.Reply.NAK: "nak", codec.Reply.BUSY: "busy"}.get(answer.reply, "ack")
+        self._after(send, word)
+        return answer
+
+    def _after(self, send: Send, word: str) -> None:
+        self._act(self.core.answered(send.ref, word, time.monotonic()))
         self._publish_levels()
 
-    def _drop_level(self, cmd: codec.Command) -> None:
-        self.levels.pop(cmd, None)
+    def _act(self, actions: list) -> None:
+        """Carry out the core's own actions: its reports, and its deactivations each in a task of its own."""
+        for action in actions:
+            if isinstance(action, Report):
+                self.state.event(action.level, action.text)
+            elif isinstance(action, Send):
+                task = asyncio.get_running_loop().create_task(self._release(action))
+                self._stop_tasks.add(task)
+                task.add_done_callback(self._stop_tasks.discard)
         self._publish_levels()
+
+    async def _release(self, send: Send) -> bool:
+        words = f"{send.words} ({send.why})" if send.why else send.words
+        try:
+            answer = await self._carry(send, {codec.Reply.ACK, codec.Reply.NAK, codec.Reply.BUSY}, words)
+        except (SerialLineError, codec.CodecError) as exc:
+            self.state.error(f"{words} not answered: {exc}")
+            return False
+        self._reply(f"{words}: {answer.name}")
+        if answer.reply is not codec.Reply.ACK:
+            self.state.event("warning", f"{words}: {answer.name}")
+            return False
+        return True
+
+    def renew_leases(self, alive: set[str]) -> None:
+        """The dead-man supervisor's beat (devices/adapter.py LeaseRenewer): the levels of ``alive`` stay,
+        a level whose lease lapsed is released, a release not acknowledged is sent again."""
+        self._act(self.core.beat(alive, time.monotonic()))
 
     def _publish_levels(self) -> None:
         self.state.fact(P_LEVELS, tuple(sorted((HeldLevel(COMMAND_NAMES[c], c in HELD_LEVELS) for c in self.levels),
                                                key=lambda level: level.command)))
 
     def _publish_confirmed(self) -> None:
-        self.state.fact(P_CONFIRMED, tuple(sorted(session_tag(s) for s in self.motion_confirmed)))
+        self.state.fact(P_CONFIRMED, ())
 
     def _publish_writes(self) -> None:
         self.state.fact(P_EEPROM, EepromWrites(self.eeprom_writes_total, tuple(sorted(
@@ -684,43 +743,27 @@ class Mo64Adapter:
         """The deactivations of the close and reverse levels this tool set, sent by the line as it closes
         (the tool stops): a level the dead-man rule would release is not left behind in the barrier."""
         frames = []
-        for cmd in [c for c in self.levels if c in HELD_LEVELS]:
-            frames.append(self._frame(codec.encode_command(cmd, codec.Function.DEACTIVATE)))
-            self.state.event("warning", f"the tool stops: {COMMAND_NAMES[cmd]} deactivate sent")
-            self._drop_level(cmd)
+        for send in self.core.closing():
+            frames.append(self._frame(send.telegram))
+            self.state.event("warning", f"the tool stops: {send.words} sent")
+        self._publish_levels()
         return frames
 
     async def _deactivate(self, cmd: codec.Command, why: str) -> bool:
-        words = f"{COMMAND_NAMES[cmd]} deactivate ({why})"
-        try:
-            answer = await self._transact(codec.encode_command(cmd, codec.Function.DEACTIVATE),
-                                          {codec.Reply.ACK, codec.Reply.NAK}, words)
-        except (SerialLineError, codec.CodecError) as exc:
-            self.state.error(f"{words} not answered: {exc}")
-            return False
-        self._reply(f"{words}: {answer.name}")
-        if answer.reply is codec.Reply.ACK:
-            self._drop_level(cmd)
-            return True
-        self.state.event("warning", f"{words}: {answer.name}")
-        return False
+        """Deactivate a level this tool set (the caller confirmed what it needs: clear levels asks first)."""
+        session = self.levels.get(cmd, "")
+        send = self._decided(self.core.request(session, cmd, codec.Function.DEACTIVATE, confirmed=True,
+                                               now=time.monotonic()))
+        send = Send(send.telegram, send.words, send.session, send.ref, send.kind, why)
+        return await self._release(send)
 
     def holders(self) -> set[str]:
         """Sessions whose close or reverse level is still active in the barrier (see HELD_LEVELS)."""
-        return {s for cmd, s in self.levels.items() if cmd in HELD_LEVELS}
+        return self.core.holders()
 
     def session_lost(self, session: str, reason: str) -> None:
-        """Deactivate at once the close and reverse levels ``session`` set; forget its confirmation."""
-        self.motion_confirmed.discard(session)
-        self._publish_confirmed()
-        held = [cmd for cmd, s in self.levels.items() if s == session and cmd in HELD_LEVELS]
-        if not held:
-            return
-        self.state.event("warning", f"dead-man: {reason}; deactivating " + ", ".join(COMMAND_NAMES[c] for c in held))
-        for cmd in held:
-            task = asyncio.get_running_loop().create_task(self._deactivate(cmd, f"dead-man: {reason}"))
-            self._stop_tasks.add(task)
-            task.add_done_callback(self._stop_tasks.discard)
+        """Deactivate at once the close and reverse levels ``session`` set (devices/mo64/control.py)."""
+        self._act(self.core.session_lost(session, reason, time.monotonic()))
 
     async def stopped(self) -> None:
         """Wait for the deactivations :meth:`session_lost` has sent off (tests, shutdown)."""

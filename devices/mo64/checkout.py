@@ -3,8 +3,8 @@ barrier and the induction loops as expected, and the error memory unchanged by t
 
 Declared here, run by the generic runner (``app/record.py``). The boom is moved with the declared
 commands "open pulse" and "close pulse" (``devices/mo64/policy.py``, chapter 5.2.1) through the
-worker's gate; their declared risk ("the area is clear") is the question the engineer answers
-first, and the answer is recorded with who gave it. Gate state 0x0C (chapter 5.1.12), barrier
+worker's gate; their declared risk ("the area is clear") is asked right before each of them (every
+motion asks, devices/mo64/control.py), and each answer is recorded with who gave it. Gate state 0x0C (chapter 5.1.12), barrier
 status 0x07 (LS, F_ereignis, loops occupied; chapter 5.1.7) and position 0x1D (5.1.29) come from
 the adapter's polling; the error memory 0x17 (5.1.23: every change of the error flags is stored
 in level 0) is read before and after the cycle with the declared read "read error memory".
@@ -45,7 +45,7 @@ def steps(options: dict, settings: dict) -> list[dict]:
 
 
 async def _ask(ctx) -> None:
-    await ctx.ask(AREA_CLEAR_RISK)  # the declared risk of "open pulse" and "close pulse": asked once, recorded
+    await ctx.ask(AREA_CLEAR_RISK)  # before anything is read or waited for; asked again before each motion
 
 
 def _state(ctx) -> int | None:
@@ -106,6 +106,7 @@ async def _cycle(ctx, command: str, goal: GateState, limit_s: float, position: i
         safety.update(name for name in ("LS", "F_ereignis", *LOOPS) if ctx.value(name))
         return state == goal and ctx.value("Position") == position
 
+    await ctx.ask(AREA_CLEAR_RISK)  # every motion asks, right before it goes out (issue 42 item 6)
     t0 = time.monotonic()
     answer = await ctx.invoke(command)
     ctx.measure(f"{command}: the barrier's answer", answer, expect="ack")

@@ -1,12 +1,13 @@
 """What the MO 64 barrier control lets this tool do: its declared commands (see :mod:`devices.commands`).
 
-The MO 64 sits on LogiTed lines (TCP or RS485), where no raw-byte tool of this program sends, so
-it declares no frame rules; its commands carry the kinds the gate decides on, and the risks the
-gate asks before it runs them (the page asks nothing of its own):
+The MO 64 sits on LogiTed lines (TCP or RS485). Its commands carry the kinds the gate decides on, and the
+risks the gate asks before it runs them (the page asks nothing of its own); a raw telegram of a bus tool is
+judged by :func:`check_telegram`, the same rule (devices/mo64/control.py):
 
 - operating commands (chapter 5.2.1) as ``"<open|close|reverse> <pulse|activate|deactivate>"``:
-  motion, asking that the area is clear; deactivating a close or reverse level is a stop (what the
-  dead-man rule does), deactivating the open level is motion (it lets the boom close, page 33);
+  motion, asking that the area is clear every time (a confirmation is never remembered); deactivating a
+  close or reverse level is a stop (what the dead-man rule does), deactivating the open level is motion
+  (it lets the boom close, page 33);
 - ``"clear levels"``: system, engineers only, asks the risk (an open level released lets the boom close);
 - ``"set <setting name>"`` (chapter 5.2.4-5.2.8) with the setting's numbers and their ranges
   (``codec.setting_fields``): a write; the risk names the EEPROM wear, and for an assumed selector the
@@ -21,18 +22,15 @@ from __future__ import annotations
 
 from devices.commands import Arg, Command
 from devices.mo64 import codec
-from devices.mo64.adapter import COMMAND_NAMES, HELD_LEVELS, operation_method, setting_method
+from devices.mo64.adapter import COMMAND_NAMES, operation_method, setting_method
+from devices.mo64.control import AREA_CLEAR_RISK, EEPROM_RISK, OPEN_LEVEL_RISK, meaning, operation
+from devices.sendpolicy import Verdict
 
 TITLE = "MO 64"
-
-AREA_CLEAR_RISK = "The boom moves: check that nobody stands under it (the area is clear)."
-OPEN_LEVEL_RISK = ("Deactivating the open level lets the boom close (page 33): check that nobody stands under it "
-                   "(the area is clear).")
+__all__ = ["AREA_CLEAR_RISK", "OPEN_LEVEL_RISK", "EEPROM_RISK", "check_telegram"]
 CLEAR_LEVELS_RISK = ("Deactivates every level this tool set in the barrier (levels set by another master or at the "
                      "barrier are not touched). An open level released lets the boom close (page 33): check that "
                      "nobody stands under it (the area is clear).")
-EEPROM_RISK = ("Every setting write wears the barrier's EEPROM (chapter 4: the number of writes is limited). "
-               "Write only what must change.")
 
 
 def selector_risk(setting: codec.Setting) -> str:
@@ -58,10 +56,18 @@ def setting_name(key: str) -> str:
 
 
 def _operation(cmd: codec.Command, fn: codec.Function) -> Command:
-    if fn is codec.Function.DEACTIVATE and cmd in HELD_LEVELS:
+    what = operation(cmd, fn)  # the motion rule's own reading (devices/mo64/control.py)
+    if what.kind == "stop":
         return Command(operation_name(cmd, fn), "stop", method=operation_method(cmd, fn), session=True)
-    risk = OPEN_LEVEL_RISK if fn is codec.Function.DEACTIVATE else AREA_CLEAR_RISK
-    return Command(operation_name(cmd, fn), "motion", method=operation_method(cmd, fn), session=True, risk=risk)
+    return Command(operation_name(cmd, fn), what.kind, method=operation_method(cmd, fn), session=True, risk=what.risk)
+
+
+def check_telegram(telegram: bytes) -> Verdict:
+    """The verdict on a raw telegram to an MO 64 (type and payload, unframed): the declared command it amounts
+    to, its kind and its risk (asked for each telegram), or why it is never sent (a telegram the barrier sends,
+    a short command, an unknown setting selector)."""
+    what = meaning(telegram)
+    return Verdict(refused=what.refused, confirm=(what.risk,) if what.risk else (), name=what.name, kind=what.kind)
 
 
 def _setting(key: str) -> Command:
