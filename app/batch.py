@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from app import backup, replace
+from app import backup, files, replace
 from devices.commands import READ_PARAMETERS
 
 WRITTEN, UNCHANGED, FAILED, SKIPPED, REFUSED = "written", "unchanged", "failed", "skipped", "refused"
@@ -73,7 +73,7 @@ async def source_document(runtime, source: str, device: str) -> dict:
         state = runtime.store.devices[sibling]
         return backup.make_document(runtime.plant.name, sibling, state.type, state.bus, adapter.backup_identity(), entries)
     path = Path(source.removeprefix("file:"))
-    data = await asyncio.to_thread(path.read_bytes)
+    data = await asyncio.to_thread(files.read_regular, path, files.MAX_DOCUMENT_BYTES, "parameter file")
     return await asyncio.to_thread(backup.load_document, data, path.name)
 
 
@@ -185,11 +185,21 @@ def run_cli(args: argparse.Namespace) -> int:
     from app.headless import _cli_user, _headless
 
     args.device = [d.strip() for d in args.devices.split(",") if d.strip()]
+    if not args.device:  # an empty selection must never mean "every device" (the headless runner's default)
+        print(f"commission apply: no device named in --devices {args.devices!r}: name the devices to write, "
+              "separated by commas (--devices door-1,door-2)", file=sys.stderr)
+        return 2
     source = args.source
     if source not in ("project",) and not source.startswith(("approved:", "device:")):
         path = Path(source)
-        if not path.is_file():
+        try:
+            files.read_regular(path, files.MAX_DOCUMENT_BYTES, "parameter file")
+        except FileNotFoundError:
             print(f"commission apply: {source}: no such file", file=sys.stderr)
+            return 2
+        except OSError as exc:
+            print(f"commission apply: {exc if isinstance(exc, files.FileRefused) else f'{source}: {exc.strerror or exc}'}",
+                  file=sys.stderr)
             return 2
         source = str(path)
 

@@ -296,7 +296,9 @@ def run_restore(args) -> int:
     from app import backup
 
     try:
-        document = backup.load_document(args.file.read_bytes(), str(args.file))
+        from app import files
+
+        document = backup.load_document(files.read_regular(args.file, files.MAX_DOCUMENT_BYTES, "backup file"), str(args.file))
     except (OSError, backup.BackupError) as exc:
         print(f"commission restore: {exc}", file=sys.stderr)
         return 2
@@ -378,8 +380,10 @@ def run_view(args) -> int:
             return 2
     elif args.password_file:
         try:
-            password = args.password_file.read_text(encoding="utf-8").strip()
-        except OSError as exc:
+            from app import files
+
+            password = files.read_regular_text(args.password_file, files.MAX_SECRET_BYTES, "password file").strip()
+        except (OSError, ValueError) as exc:
             print(f"commission view: cannot read {args.password_file}: {exc.strerror or exc}", file=sys.stderr)
             return 2
     if not is_loopback(args.host) and not args.public:

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from app import backup
+from app import backup, files
 from app.plant import Plant, PlantError, load_plant, parse_plant
 from devices.params import Param, ParamError
 from devices.registry import DEVICE_TYPES
@@ -148,10 +148,14 @@ def entries(plant: Plant, device: str) -> list[ProjectEntry]:
         return found
     path = project_file(plant, device)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = files.read_regular_text(path, files.MAX_DOCUMENT_BYTES, "parameter file")
         document = backup.load_document(text, str(path))
+    except files.FileRefused as exc:
+        return [ProjectEntry(device, "", None, where, config.line, error=f"project file {exc}")]
     except OSError as exc:
         return [ProjectEntry(device, "", None, where, config.line, error=f"project file {path}: {exc.strerror or exc}")]
+    except UnicodeDecodeError:
+        return [ProjectEntry(device, "", None, where, config.line, error=f"project file {path}: not UTF-8 text (a backup file is JSON)")]
     except backup.BackupError as exc:
         return [ProjectEntry(device, "", None, str(path), 1, error=str(exc))]
     doc_type = document["device"].get("type")
