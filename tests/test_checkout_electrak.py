@@ -17,6 +17,8 @@ async def test_electrak_checkout_passes_and_an_overload_fails_with_the_reason(tm
         assert {v["name"] for v in out["values"]} >= {"Position", "Peak current", "Error flags"}
         assert any(f["id"] == 0x06 and f["dir"] == "tx" for f in out["evidence"]["frames"]), "control telegrams kept"
         assert runtime.worker.adapters["lift"].controller is None, "control released"
+        asked = [a["question"] for s in result["steps"] for a in s.get("answers", ())]
+        assert len(asked) == 1 and "area is clear" in asked[0], asked  # Go's area-clear question, asked once first
 
         runtime.twins["lift"].set_load(30.0)
         result = await run_checkout(runtime, "lift")

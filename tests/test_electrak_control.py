@@ -83,7 +83,7 @@ async def test_holders_are_sessions_with_motion_running(lift):  # noqa: F811
     adapter.jog("s1", +1)
     assert adapter.holders() == {"s1"}
     adapter.jog("s1", 0)
-    adapter.override("s1", True)
+    adapter.override("s1", True, confirmed=True)
     assert adapter.holders() == {"s1"}
 
 

@@ -9,7 +9,9 @@ import time
 from collections import deque
 from dataclasses import dataclass, replace
 
-from devices.electrak import codec
+from devices.control import ControlChanged, Report
+from devices.control import Holder as CoreHolder
+from devices.electrak import codec, control
 from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, SERVICE, length_of, password_of, refusal
 from devices.decoding import decoded
 from devices.lease import Lease
@@ -55,9 +57,7 @@ P_BUS_BITRATE = "Bus bit rate"  # the bit rate of the CAN bus the network is on 
 SERIES = (P_POSITION, P_CURRENT, P_SPEED, P_DRIVE_TARGET)  # the history (and the chart), by point name
 
 
-def stop_form(data: bytes) -> bytes:
-    """The control telegram 0x06 with enable and override cleared (byte 7 bits 0 and 1), the rest kept."""
-    return bytes(data[:7]) + bytes([data[7] & ~0x03]) if len(data) == 8 else bytes(data)
+stop_form = control.stop_form_bytes  # the control telegram 0x06 with enable and override cleared, the rest kept
 
 
 class CommandError(Exception):
@@ -72,7 +72,7 @@ class ForeignControl(CommandError):
     """Another node of the bus sends the control telegram 0x06."""
 
 
-FOREIGN_SENDER = "a PLC, or an actuator whose manual control line is active"
+FOREIGN_SENDER = control.FOREIGN_SENDER
 TIMEOUT_FLAG = 1 << 5  # error flags byte 7 bit 5: Message timeout
 
 
@@ -107,14 +107,6 @@ class BitrateChange:
     saved: float | None = None
 
 
-@dataclass
-class Controller:
-    session: str
-    user: str
-    since: float
-    disconnected: float | None = None  # monotonic time its page's connection dropped (it may reconnect)
-
-
 class ElectrakAdapter:
     """The network of actuators of one plant device (status frames cannot be told apart)."""
 
@@ -123,19 +115,13 @@ class ElectrakAdapter:
 
     @property
     def command(self) -> codec.ControlFrame:
-        return self._command
+        """The control telegram 0x06 this tool wants on the bus (the core's)."""
+        return self.core.command
 
-    @command.setter
-    def command(self, frame: codec.ControlFrame) -> None:
-        self._command = frame
-        if hasattr(self, "key"):  # after __init__: every change of the control telegram is a new point
-            if frame.enable or frame.override:
-                self.lease.grant()  # a new command of the controlling session: it is alive now
-            else:
-                self.lease.revoke()
-            if self.controller is not None:  # the keep-alive carries it from the next period; and it leaves at once
-                self.bus.modify_periodic(self.key, frame.encode(), send_now=True)
-            self._publish_command()
+    @property
+    def controller(self) -> CoreHolder | None:
+        """Who controls the network (session, user, since, disconnected), None: nobody."""
+        return self.core.holder
 
     def __init__(self, config, state: DeviceState, bus: CanTransport):
         self.config = config
@@ -148,9 +134,8 @@ class ElectrakAdapter:
         self.recent: list[codec.StatusFrame] = []  # the newest status telegram of each actuator heard
         self.heard = 0
         self._reports: dict[str, ServiceReport] = {}
-        self.controller: Controller | None = None
-        self.lease = Lease()  # renewed by the worker's dead-man supervisor while motion runs (devices/lease.py)
-        self.command = codec.ControlFrame(0.0, 0.0, self.limits.speed_min, enable=False)
+        self.core = control.ElectrakControl(self.limits, len(self.actuators))  # the safety rules, without I/O
+        self.lease = Lease()  # the periodic sender's: follows the core's lease (grant, renew, revoke)
         self.frames: deque[tuple[float, codec.StatusFrame]] = deque(maxlen=200)
         self._last_sample = 0.0
         self._status_data: bytes | None = None  # the last status telegram's bytes, and its decoding
@@ -161,9 +146,7 @@ class ElectrakAdapter:
         self._answers: list[codec.ServiceMessage] = []
         self._all_answered: asyncio.Event | None = None
         self._service_lock = asyncio.Lock()
-        self._listening_since = time.monotonic()  # since when 0x06 frames would have been heard
-        self._listening_reconnects = -1  # the bus's open count that _listening_since belongs to
-        self._foreign_at: float | None = None  # monotonic time of the last 0x06 frame from another node
+        self._listening_reconnects = -1  # the bus's open count the core's listening window belongs to
         self._saturated_since: float | None = None
         self._foreign: ForeignSender | None = None
         self._saturated_warning = ""
@@ -217,7 +200,9 @@ class ElectrakAdapter:
         count = max(1, round(heard))
         recent = [f for _, f in itertools.islice(reversed(frames), count)]
         recent.reverse()
-        self.heard = round(heard)
+        if round(heard) != self.heard or self.core.heard is None:
+            self.heard = round(heard)
+            self._carry(self.core.actuators_heard(self.heard, time.monotonic()))
         self.recent = recent
         motion = errors = 0
         for f in recent:
@@ -326,7 +311,54 @@ class ElectrakAdapter:
         if self.state.age is not None and self.state.age > self.state.stale_after * 3 and self.state.online:
             self.state.mark_offline("no status telegram for more than 3 s: check the bus and the actuators' power")
 
-    # -- control ---------------------------------------------------------------------------
+    # -- control: the core (devices/electrak/control.py) decides, this shell carries it out ----------------
+    def _carry(self, actions) -> None:
+        """Carry out the control core's actions on the bus, the lease of the periodic sender and the store."""
+        publish = False
+        for action in actions:
+            kind = type(action)
+            if kind is control.Send:
+                self.bus.send(codec.CONTROL_ID, action.frame.encode(), False)
+            elif kind is control.ModifyPeriodic:
+                self.bus.modify_periodic(self.key, action.frame.encode(), send_now=action.send_now)
+            elif kind is control.StartPeriodic:
+                # on python-can's cyclic task: its clock does not depend on the event loop; without a valid
+                # lease only the stop form leaves (enable and override cleared)
+                self.bus.start_periodic(self.key, codec.CONTROL_PERIOD_S, codec.CONTROL_ID, action.frame.encode(), False,
+                                        lease=self.lease, stop_form=stop_form, on_lapse=self._lapsed)
+            elif kind is control.StopPeriodic:
+                self.bus.stop_cyclic(self.key)
+            elif kind is control.LeaseGranted:
+                self.lease.grant(action.at)
+            elif kind is control.LeaseRenewed:
+                self.lease.renew(action.at)
+            elif kind is control.LeaseRevoked:
+                self.lease.revoke()
+            elif kind is Report:
+                self.state.event(action.level, action.text)
+            elif kind in (control.CommandChanged, ControlChanged):
+                publish = True
+        if publish:
+            self._publish_command()
+        if self.core.override_until is not None:  # the override/reset pulse ends by itself
+            self._wake(self.core.override_until)
+
+    def _wake(self, at: float) -> None:
+        try:
+            loop = asyncio.get_running_loop()
+        except RuntimeError:  # no loop (a test without one): the supervisor's next beat ends it
+            return
+        loop.call_later(max(0.0, at - time.monotonic()) + 0.005, self._tick)
+
+    def _tick(self) -> None:
+        self._carry(self.core.tick(time.monotonic()))
+
+    def _decided(self, decision) -> None:
+        """Carry out a granted request; a refused one raises with the core's reason."""
+        if not decision.ok:
+            raise (ControlBusy if decision.busy else CommandError)(decision.refused)
+        self._carry(decision.actions)
+
     def _control_frame(self):
         return codec.CONTROL_ID, self.command.encode(), False
 
@@ -335,183 +367,98 @@ class ElectrakAdapter:
         if getattr(msg, "is_rx", True) is False:  # our own frame, handed back by the interface
             return
         now = time.monotonic()
-        self._foreign_at = now
         frames = self._foreign.frames if self._foreign is not None else 0
         try:
             text = codec.describe_frame(codec.CONTROL_ID, False, bytes(msg.data), {(False, codec.STATUS_ID)})
         except Exception:  # describe_frame reports malformed frames itself; never let a frame stop the bus
             text = bytes(msg.data).hex(" ")
         self._foreign = ForeignSender(frames + 1, time.time(), text or "")
+        actions = self.core.foreign_control(now)  # whoever holds control here releases it: never fight it
         self.state.fact(P_FOREIGN, self._foreign, text=f"{self._foreign.text} · {self._foreign.frames} frames")
         self.state.fact(P_IDLE, self.idle())
-        if self.controller is not None:
-            self._release(f"lost: another sender of the control telegram 0x06 is on the bus ({FOREIGN_SENDER}); "
-                          "this tool stopped sending so as not to fight it", level="error")
+        self._carry(actions)
 
     def foreign_sender(self, now: float | None = None) -> bool:
         """Was a control telegram from another node heard within the listening window?"""
-        now = time.monotonic() if now is None else now
-        return self._foreign_at is not None and now - self._foreign_at <= codec.LISTEN_S
+        return self.core.foreign_sender(time.monotonic() if now is None else now)
 
     async def take_control(self, session: str, user: str) -> None:
         """Listen for another sender of 0x06 first; then send the control telegram every 100 ms (enable cleared)."""
-        if self.controller is not None and self.controller.session != session and self.controller.disconnected is not None:
-            self._release("taken over by another page: the page that held it had disconnected")
-        if self.controller is not None and self.controller.session != session:
-            raise ControlBusy(f"{self.controller.user} holds control since {time.strftime('%H:%M:%S', time.localtime(self.controller.since))}")
-        if self.controller is not None:
+        h = self.controller
+        if h is not None and h.session == session:
             return
+        if h is not None and h.disconnected is None:
+            raise ControlBusy(f"{h.user} holds control since {time.strftime('%H:%M:%S', time.localtime(h.since))}")
         if not self.bus.state.connected:
             raise CommandError(f"CAN bus {self.bus.name} is not open: {self.bus.state.last_error or 'not connected'}")
         if self._listening_reconnects != self.bus.state.reconnects:  # (re)opened since: listen from now on
-            self._listening_reconnects, self._listening_since = self.bus.state.reconnects, time.monotonic()
-        heard_for = time.monotonic() - self._listening_since
-        if heard_for < codec.LISTEN_S:
-            await asyncio.sleep(codec.LISTEN_S - heard_for)
-        if self.foreign_sender():
-            raise ForeignControl(
-                f"control telegrams 0x06 from another sender are on the bus ({FOREIGN_SENDER}): taking control would fight it. "
-                "Stop that sender (or release the control line) and try again."
-            )
-        if self.controller is not None:  # taken while this session listened
-            if self.controller.session == session:
-                return
-            raise ControlBusy(f"{self.controller.user} took control meanwhile")
-        self.controller = Controller(session, user, time.time())
-        self._publish_command()
-        self.command = codec.ControlFrame(self.command.position_mm, self.command.current_a, self.command.speed_mm_s, enable=False)
-        # on python-can's cyclic task: its clock does not depend on the event loop; without a valid
-        # lease only the stop form leaves (enable and override cleared)
-        self.bus.start_periodic(self.key, codec.CONTROL_PERIOD_S, codec.CONTROL_ID, self.command.encode(), False,
-                                lease=self.lease, stop_form=stop_form, on_lapse=self._lapsed)
-        self.state.event("info", f"{user} took control (no other sender of 0x06 heard for {codec.LISTEN_S:g} s); "
-                                 "control telegrams every 100 ms")
-
-    def _release(self, reason: str, level: str = "warning") -> None:
-        """Clear enable and override, send that at once, stop the keep-alive."""
-        user = self.controller.user if self.controller else "nobody"
-        c = self.command
-        self.bus.stop_cyclic(self.key)
-        self.controller = None
-        self.command = codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=False)
-        self.bus.send(*self._control_frame())
-        self._publish_command()
-        self.state.event(level, f"control {reason} ({user}): enable cleared, control telegrams stopped")
+            self._listening_reconnects = self.bus.state.reconnects
+            self.core.bus_opened(time.monotonic())
+        wait = self.core.listen_remaining(time.monotonic())
+        if wait > 0:
+            await asyncio.sleep(wait)
+        now = time.monotonic()
+        decision = self.core.take(session, user, now, time.time())
+        if not decision.ok and self.core.foreign_sender(now):
+            raise ForeignControl(decision.refused)
+        self._decided(decision)
 
     def release_control(self, session: str, reason: str = "released") -> bool:
         """Drop the enable bit, send it once more and stop the keep-alive."""
-        if self.controller is None or (session and self.controller.session != session):
-            return False
-        self._release(reason)
-        return True
+        actions = self.core.release(session, reason, time.monotonic())
+        self._carry(actions)
+        return bool(actions)
 
     # -- the dead-man rule (app.worker) -------------------------------------------------------
     def renew_leases(self, alive: set[str]) -> None:
         """The worker's supervisor, every 50 ms: the controlling session is alive, motion may go on."""
-        c = self.controller
-        if c is None or c.session not in alive or not (self.command.enable or self.command.override):
-            return
-        if not self.lease.renew() and self.lease.lapsed_at is not None:
-            self._lapsed(self.lease.lapsed_at)
+        self._carry(self.core.beat(alive, time.monotonic()))
 
     def _lapsed(self, lapsed_at: float) -> None:
         """The lease ran out (the program stalled): the sender has sent the stop form by itself since."""
-        if self.lease.lapsed_at != lapsed_at or not (self.command.enable or self.command.override):
-            return
-        renewed = self.lease.renewed_at
-        stalled_ms = (time.monotonic() - renewed) * 1000 if renewed is not None else 0.0
-        c = self.command
-        self.command = codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=False)
-        self.state.event("error", f"motion stopped: this program stalled ({stalled_ms:.0f} ms without renewing the motion's lease, "
-                                  f"limit {self.lease.valid_s * 1000:.0f} ms); the control telegram's sender cleared enable by itself. "
-                                  "The browser was not at fault: press again to move")
+        self._carry(self.core.tick(max(time.monotonic(), lapsed_at)))
 
     def holders(self) -> set[str]:
         """The session that keeps motion running: control held and enable (or override) set."""
-        c = self.controller
-        return {c.session} if c is not None and (self.command.enable or self.command.override) else set()
+        return self.core.holders()
 
     def session_back(self, session: str) -> None:
         """The page of ``session`` confirms it is alive again after its connection dropped: its control is its own again."""
-        if self.controller is not None and self.controller.session == session:
-            self.controller.disconnected = None
+        self._carry(self.core.back(session))
 
     def session_stop(self, session: str, reason: str) -> None:
         """The page of ``session`` disconnected: motion stops at once (enable cleared, sent now); control, which
         moves nothing by itself, stays until the page is gone for good (:meth:`session_lost`)."""
-        c = self.controller
-        if c is None or c.session != session:
-            return
-        c.disconnected = time.monotonic()  # another page may take control over; this one keeps it if it comes back first
-        if not (self.command.enable or self.command.override):
-            return
-        cmd = self.command
-        self.command = codec.ControlFrame(cmd.position_mm, cmd.current_a, cmd.speed_mm_s, enable=False)
-        self.state.event("warning", f"motion stopped: {reason} ({c.user}); enable cleared")
+        self._carry(self.core.disconnected(session, reason, time.monotonic()))
 
     def session_lost(self, session: str, reason: str) -> None:
         """The browser of ``session`` went away or froze: stop at once and release its control."""
-        if self.controller is not None and self.controller.session == session:
-            self._release(f"released: {reason}")
-
-    def _check_holder(self, session: str) -> None:
-        if self.controller is None:
-            raise CommandError("take control first")
-        if self.controller.session != session:
-            raise ControlBusy(f"{self.controller.user} holds control")
+        self._carry(self.core.lost(session, reason, time.monotonic()))
 
     def set_command(self, session: str, position_mm: float, speed_mm_s: float, current_a: float) -> None:
         """New target, speed and current limit (validated); keeps the enable bit as it is."""
-        self._check_holder(session)
-        problems = self.limits.check(position_mm, current_a, speed_mm_s)
-        if problems:
-            raise CommandError("; ".join(problems))
-        self.command = codec.ControlFrame(position_mm, current_a, speed_mm_s, enable=self.command.enable)
+        self._decided(self.core.set_target(session, position_mm, speed_mm_s, current_a, time.monotonic()))
 
     def go(self, session: str) -> None:
-        self._check_holder(session)
-        c = self.command
-        problems = self.limits.check(c.position_mm, c.current_a, c.speed_mm_s)
-        if problems:
-            raise CommandError("; ".join(problems))
-        self.command = codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=True)
-        self.state.event("info", f"go: target {c.position_mm:g} mm at {c.speed_mm_s:g} mm/s, limit {c.current_a:g} A")
+        """Enable: the actuators move to the target set before (refused while fewer actuators are heard than configured)."""
+        self._decided(self.core.go(session, time.monotonic()))
 
     def stop(self, session: str | None = None) -> None:
         """Clear the enable bit (anyone may stop); the telegram leaves at once, not at the next period."""
-        c = self.command
-        self.command = codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=False)
-        if self.controller is None:  # no keep-alive running: send it once
-            self.bus.send(*self._control_frame())
-        self.state.event("info", "stop: enable cleared")
+        self._carry(self.core.stop(session, time.monotonic()))
 
     def jog(self, session: str, direction: int, speed_mm_s: float | None = None) -> None:
         """Hold-to-run: move toward an end while held (direction +1 out, -1 in); 0 stops."""
-        self._check_holder(session)
-        c = self.command
-        if direction == 0:
-            current = self.position_mm()
-            target = c.position_mm if current is None else round(current, 1)
-            self.command = codec.ControlFrame(target, c.current_a, c.speed_mm_s, enable=False)
-            return
-        speed = speed_mm_s or c.speed_mm_s
-        target = self.limits.stroke_mm if direction > 0 else 0.0
-        problems = self.limits.check(target, c.current_a, speed)
-        if problems:
-            raise CommandError("; ".join(problems))
-        self.command = codec.ControlFrame(target, c.current_a, speed, enable=True)
+        self._decided(self.core.jog(session, direction, speed_mm_s, time.monotonic(), self.position_mm()))
 
     def jog_stop(self, session: str) -> None:
         """A jog button released: the jog of ``session`` ends where the actuators are (nothing when it does not jog)."""
-        c = self.controller
-        if c is not None and c.session == session and self.command.enable:
-            self.jog(session, 0)
+        self._carry(self.core.jog_release(session, time.monotonic(), self.position_mm()))
 
-    def override(self, session: str, active: bool) -> None:
-        """Override/reset bit: holds motion and resets the expected number of devices."""
-        self._check_holder(session)
-        c = self.command
-        self.command = codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=False, override=active)
+    def override(self, session: str, active: bool, *, confirmed: bool = False) -> None:
+        """Override/reset bit (a pulse of three control periods): holds motion and resets the expected number of
+        devices. Setting it needs ``confirmed`` (the risk of :data:`devices.electrak.control.OVERRIDE_RISK`)."""
+        self._decided(self.core.override(session, active, time.monotonic(), confirmed=confirmed))
 
     def position_mm(self) -> float | None:
         recent = self.recent

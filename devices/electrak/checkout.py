@@ -8,6 +8,8 @@ rule); the cleanup stops and releases it, also after an abort.
 
 from __future__ import annotations
 
+from devices.electrak.policy import AREA_CLEAR_RISK
+
 TITLE = "Move out and back"
 SETTINGS = {
     "distance_mm": 20.0,
@@ -30,7 +32,8 @@ def steps(options: dict, settings: dict) -> list[dict]:
 
 
 async def _ask(ctx) -> None:
-    await ctx.ask("Is the area around the actuators clear for a short move out and back?")
+    # the question Go asks (its declared risk): answered here once, before control is taken
+    await ctx.ask(AREA_CLEAR_RISK)
 
 
 def _flags(ctx) -> str:

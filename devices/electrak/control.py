@@ -376,8 +376,12 @@ class ElectrakControl:
     def _carry(self, base: list, now: float) -> list:
         """The shared core's actions in the family's terms: its Stop clears enable and override."""
         out: list = []
+        lapse = False
         for action in base:
+            if lapse and isinstance(action, Report):  # the lapse in the Electrak's words (below)
+                continue
             if isinstance(action, Stop):
+                lapse = action.lapse
                 c = self.command
                 if c.enable or c.override:
                     self.command = stop_form(c)
@@ -386,6 +390,14 @@ class ElectrakControl:
                         out.append(ModifyPeriodic(self.command))
                     out.append(CommandChanged(self.command))
                 out.append(LeaseRevoked())
+                if lapse:
+                    lease = self.session.lease
+                    renewed = lease.renewed_at
+                    stalled_ms = (now - renewed) * 1000 if renewed is not None else lease.valid_s * 1000
+                    out.append(Report("error", f"motion stopped: this program stalled ({stalled_ms:.0f} ms without "
+                                               f"renewing the motion's lease, limit {lease.valid_s * 1000:.0f} ms); the "
+                                               "control telegram's sender cleared enable by itself. The browser was not "
+                                               "at fault: press again to move"))
             else:
                 out.append(action)
         return out

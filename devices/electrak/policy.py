@@ -1,15 +1,27 @@
 """What this tool never sends to an Electrak HD network as raw bytes, and what it confirms first.
 
-Asked through :mod:`devices.sendpolicy` by the transmit list and the replay. The control
-telegram with enable set moves the actuators: only the Electrak page sends it (hold-to-run,
-a visible stop, the dead-man rule); without enable it stops them.
+Asked through :mod:`devices.sendpolicy` by the transmit list and the replay. A raw frame is judged as
+the declared command it amounts to:
+
+- the control telegram 0x06 with enable set moves the actuators: only the Electrak page sends it
+  (hold-to-run, a visible stop, the dead-man rule); with override/reset set it asks what the declared
+  override asks (it resets the number of actuators the network expects); only with both cleared is it
+  a stop;
+- a service write 0x0A of a parameter is checked by that parameter's range and value table and asks
+  its own confirmation, like the parameter's declared write;
+- what the actuators send (status 0x07, service answers 0x0B, their internal traffic 0x600-0x6FF)
+  is never sent by this tool: it would speak for an actuator.
+
+Go and jog ask that the area is clear, as the SCU's and the MO 64's motion commands do.
 """
 
 from __future__ import annotations
 
-from devices.electrak import codec
 from devices.commands import Arg, Command, CommandError, param_write
-from devices.electrak.params import PARAMS
+from devices.electrak import codec
+from devices.electrak.control import OVERRIDE_RISK, is_stop
+from devices.electrak.params import PARAMS, SERVICE, length_of, refusal
+from devices.params import ParamError
 from devices.sendpolicy import Verdict
 
 TITLE = "Electrak HD"
@@ -19,22 +31,86 @@ MOTION_REFUSED = ("Electrak control telegram with enable set drives the actuator
 SERVICE_WRITE_RISK = ("Electrak service write: changes a parameter of the actuators of this network "
                       "(permanent once saved; section 'Service-Telegramm').")
 SAVE_RISK = "Electrak save (specifier 0xF0): writes the service parameters to the actuators' non-volatile memory."
+AREA_CLEAR_RISK = ("The actuators move: check that the area is clear (nobody and nothing in the stroke of any "
+                   "actuator of the network, nor under the load they carry).")
+SHORT_CONTROL_RISK = ("Electrak control telegram of {n} bytes: the document defines 8 (target, current limit, speed, "
+                      "control bits); what the actuators do with it is not known.")
+DEVICE_SENT = {
+    codec.STATUS_ID: "the status telegram 0x07",
+    codec.SERVICE_RESPONSE_ID: "the service answer 0x0B",
+}
+
+
+def _device_sent(can_id: int) -> str:
+    what = DEVICE_SENT.get(can_id) or (f"internal traffic 0x{can_id:03X} (0x600-0x6FF)" if can_id in codec.INTERNAL_IDS else "")
+    if not what:
+        return ""
+    return (f"Electrak {what} is sent by the actuators themselves (document, 'Das Netzwerk im Überblick'): this tool "
+            "never sends it, as it would speak for an actuator. Leave it out of the list (a replay skips it).")
 
 
 def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verdict | None:
     if extended:
         return None
+    sent_by_devices = _device_sent(can_id)
+    if sent_by_devices:
+        return Verdict(refused=sent_by_devices, name=f"Electrak 0x{can_id:03X} (sent by the actuators)", kind="write")
     if can_id == codec.CONTROL_ID:
-        if len(data) >= 8 and data[7] & codec.ENABLE:
-            return Verdict(refused=MOTION_REFUSED, name="Electrak control (enable)", kind="motion")
-        return Verdict(name="Electrak control (no enable: stops)", kind="stop")
+        return _control(data)
     if can_id == codec.SERVICE_REQUEST_ID and len(data) >= 2:
         if data[0] == codec.ServiceType.READ_REQUEST:
             return Verdict(name=f"Electrak service read 0x{data[1]:02X}", kind="read")
         if data[1] == codec.SAVE_SPECIFIER:
             return Verdict(confirm=(SAVE_RISK,), name="Electrak service save", kind="system")
-        return Verdict(confirm=(SERVICE_WRITE_RISK,), name=f"Electrak service write 0x{data[1]:02X}", kind="write")
+        return _service_write(data)
     return None
+
+
+def _control(data: bytes) -> Verdict:
+    """A raw control telegram 0x06 as the command it amounts to: Go (refused), override/reset (asked), or a stop."""
+    if len(data) >= 8 and data[7] & codec.ENABLE:
+        return Verdict(refused=MOTION_REFUSED, name="Electrak control (enable)", kind="motion")
+    if len(data) < 8:
+        return Verdict(confirm=(SHORT_CONTROL_RISK.format(n=len(data)),), name="Electrak control (short)", kind="write")
+    if not is_stop(bytes(data[:8])):  # override/reset set
+        return Verdict(confirm=(OVERRIDE_RISK,), name="Electrak control (override/reset)", kind="write")
+    return Verdict(name="Electrak control (enable and override cleared: stops)", kind="stop")
+
+
+def _service_write(data: bytes) -> Verdict:
+    """A raw service write 0x0A as the declared write of the parameter it amounts to: the same range, value table
+    and confirmation (the value as the actuators store it: the parameter's length in bytes of the payload)."""
+    name = f"Electrak service write 0x{data[1]:02X}"
+    param = PARAMS.get(SERVICE, data[1]) if data[0] == codec.ServiceType.WRITE_REQUEST else None
+    if param is None or len(data) < 8:
+        return Verdict(confirm=(SERVICE_WRITE_RISK,), name=name, kind="write")
+    name = f"Electrak {param.name} (service 0x{data[1]:02X})"
+    length = length_of(param)
+    if data[2] != length:
+        return Verdict(refused=f"{param.name} is {length} byte{'s' if length > 1 else ''} long (length byte 2 = {length}), "
+                               f"not {data[2]}: the actuators answer WRONG_SIZE. Build the frame with length {length}, "
+                               "or write it on the Electrak page", name=name)
+    payload = int.from_bytes(data[4:8], "little")
+    raw = payload & ((1 << 8 * length) - 1)
+    if raw != payload:
+        return Verdict(refused=f"{param.name}: the payload 0x{payload:08X} does not fit its {length} byte(s): "
+                               "send the value in bytes 4.. of the payload only", name=name)
+    value = param.decode(raw)
+    reason = refusal(param, value)
+    if not reason:
+        try:
+            param.validate(value)
+        except ParamError as exc:
+            reason = str(exc)
+    if reason:
+        low, high = param.limits()
+        allowed = (f"allowed {low:g} .. {high:g} {param.unit}".rstrip() if param.enum is None else
+                   "allowed: " + ", ".join(f"{k} ({v})" for k, v in param.enum.items()))
+        return Verdict(refused=f"{reason} ({allowed}). Write a value in range, or use the Electrak page's entry",
+                       name=name)
+    own = param.needs_confirmation(raw)
+    return Verdict(confirm=(SERVICE_WRITE_RISK, *((own,) if own else ())), name=f"{name} = {param.display(raw)}",
+                   kind="write")
 
 
 def _set_target_audit(values, adapter) -> dict:
@@ -63,6 +139,10 @@ def _override(values: dict) -> dict:
     return {**values, "active": bool(values["active"])}
 
 
+def _override_risk(values) -> str:
+    return OVERRIDE_RISK if values.get("active") else ""
+
+
 # the wire's ranges (0.1 units in 16 bits); the network's own (stroke, gearing, model) are the adapter's check
 _POSITION = Arg("position_mm", 0, 6553.5, integer=False, unit="mm")
 _SPEED = Arg("speed_mm_s", 0, 6553.5, integer=False, unit="mm/s")
@@ -77,10 +157,12 @@ COMMANDS = (
     Command("take control", "system", method="take_control", session=True, extras=("user",)),
     Command("set target", "write", method="set_command", session=True, args=(_POSITION, _SPEED, _CURRENT),
             audit=_set_target_audit),
-    Command("go", "motion", method="go", session=True, audit=_go_audit),
+    Command("go", "motion", method="go", session=True, audit=_go_audit, risk=AREA_CLEAR_RISK),
     Command("jog", "motion", method="jog", session=True, args=(Arg("direction", -1, 1), _SPEED), prepare=_jog,
-            audit=_jog_audit),
-    Command("override", "write", method="override", session=True, args=(Arg("active", 0, 1),), prepare=_override),
+            audit=_jog_audit, risk=AREA_CLEAR_RISK),
+    # asked when set (it resets the number of actuators the network expects); the adapter refuses it unconfirmed
+    Command("override", "write", method="override", session=True, args=(Arg("active", 0, 1),), prepare=_override,
+            risk=_override_risk, confirmation=True),
     # -- service parameters ----------------------------------------------------------------------------------------
     Command("read service parameters", "read", method="read_all"),
     Command("save parameters", "system", method="save_parameters"),
