@@ -9,6 +9,9 @@ session that switched them on: :meth:`M3ioAdapter.holders` names those sessions 
 dead-man rule, :meth:`M3ioAdapter.session_lost` switches a session's outputs off at once, and the
 DigOut keep-alive runs on python-can's cyclic task under a lease (devices/lease.py): a program
 that stalls sends the outputs-off form by itself.
+
+Those rules live in :mod:`devices.m3io.control` (sans-I/O, in virtual time); this adapter feeds it the
+events (operators, pages, frames, time) and carries its actions out on the bus.
 """
 
 from __future__ import annotations
@@ -20,20 +23,16 @@ from dataclasses import dataclass
 from devices.decoding import decoded
 from devices.lease import Lease
 from devices.live import DeviceState, session_tag
+from devices.control import Decision, Report
 from devices.m3io import codec
 from devices.m3io.codec import Variant
+from devices.m3io.control import (FOREIGN_MASTER, FOREIGN_WINDOW_S, IDLE_DIGOUT_PERIOD_S, LISTEN_S,  # noqa: F401 (names of this module)
+                                  MDATA_TIMEOUT_S, TEMP_SLACK_S, DigOut, EndKeepAlive, KeepAlive, LeaseChange, M3ioControl,
+                                  stop_form)
 from devices.transport import CanTransport
 
-MDATA_TIMEOUT_S = 0.5
 OFFLINE_AFTER_S = 2.5
-TEMP_SLACK_S = 0.6  # after the watchdog ran out, a temperature telegram already under way may still come
 VERIFY_RETRY_S = 2.0  # product code not answered: ask again after this long
-LISTEN_S = 0.6  # listened this long since the bus opened before taking control: longer than the 500 ms temperature period (7.2.2)
-FOREIGN_WINDOW_S = codec.WATCHDOG_S  # a master must send DigOut within 2 s (7.1): one heard within this window is active
-FOREIGN_MASTER = "a PLC or another master"
-# master = "always" with nobody in control: every output off and no lease to lapse, so the 2 s watchdog (7.1) is
-# served with four times room at this period; inputs still come on change and temperatures every 500 ms (7.2.2)
-IDLE_DIGOUT_PERIOD_S = 0.5
 
 
 # -- what the adapter publishes besides the frames' points (DigIn E1-E6, TEMPx, SSRx Last/Si/Triac, the outputs) --
@@ -142,19 +141,6 @@ class ForeignMaster(CommandError):
     """Another node of the bus serves the module (sends DigOut)."""
 
 
-@dataclass
-class Controller:
-    session: str
-    user: str
-    since: float
-    disconnected: float | None = None  # monotonic time its page's connection dropped (it may reconnect)
-
-
-def stop_form(data: bytes) -> bytes:
-    """DigOut with every SSR off (bits 1-6 cleared); the LED (bit 0) is no mains output and stays."""
-    return bytes([data[0] & 0x01]) + bytes(data[1:]) if data else bytes(data)
-
-
 class M3ioAdapter:
     params = None
     transport = "can"
@@ -166,9 +152,12 @@ class M3ioAdapter:
         self.variant = Variant(config.options["variant"])
         self.sw1 = config.options["sw1"]
         self.ids = codec.derive_ids(self.sw1)
-        self.outputs = {name: False for name in codec.OUTPUT_BITS[self.variant]}
-        self.owners: dict[str, str] = {}  # output that is on -> page session (NiceGUI client id) that switched it on
-        self.controller: Controller | None = None  # the engineer whose session this tool serves the watchdog for
+        # the safety rules (devices/m3io/control.py): who controls the module, the outputs and their owners, the
+        # keep-alive and its lease, another master; plant file `master = "always"`: this tool is the module's only
+        # master (a bench without a PLC) and serves the watchdog with every output off while nobody controls it
+        self.core = M3ioControl(self.variant, self.ids.dig_out, config.options.get("master", "on-control") == "always")
+        self.outputs = self.core.outputs  # output -> on (the core's)
+        self.owners = self.core.owners  # output that is on -> page session (NiceGUI client id) that switched it on
         self.product_code: int | None = None
         self.variant_check = codec.check_variant(self.variant, self.ids.addressed, None)
         self._verify_after = 0.0
@@ -178,8 +167,6 @@ class M3ioAdapter:
         self.temps: dict[int, codec.TempWord] = {}
         self.last_answer: float | None = None
         self.last_temps: float | None = None
-        self.served = False
-        self._foreign_at: float | None = None  # monotonic time of the last sign of another master
         self._other = OtherMaster(False)
         self.identity: Identity | None = None
         self._p2_checked = True  # addressed HMR: the module's cfg was read back since P2 was last sent
@@ -213,37 +200,59 @@ class M3ioAdapter:
             bus.subscribe(False, self.ids.mdata, self.on_mdata)
         self.key = f"m3io digout {config.name}"
         self.cfg_key = f"m3io cfg {config.name}"
-        self.lease = Lease()  # renewed by the worker's dead-man supervisor while a mains output is on
-        self._listening_since = time.monotonic()  # since when another master's DigOut would have been heard
-        self._listening_reconnects = -1
-        self._served_until = 0.0  # monotonic: the module may still answer our last DigOut until then
-        # plant file `master = "always"`: this tool is the module's only master (a bench without a PLC) and
-        # serves the watchdog with every output off while nobody controls it and no other master is heard
-        self.always_master = config.options.get("master", "on-control") == "always"
-        self._idle_serving = False
+        self.lease = Lease()  # the sender's: granted, renewed and revoked as the core says (devices/lease.py)
+        self.always_master = self.core.always_master
+        self.core.variant_checked(self.variant_check.may_switch, self.variant_check.text, time.monotonic())
         self._publish_master()
         bus.subscribe(False, self.ids.dig_out, self.on_foreign_dig_out)
 
-    # -- keep-alive (section 7.1), only while an engineer controls the module ----------------------
-    def _dig_out_data(self) -> bytes:
-        sent = self.outputs if self.variant_check.may_switch else {}  # nothing on before the variant matched
-        return codec.encode_dig_out(self.variant, sent)
+    # -- the core's actions carried out -------------------------------------------------------------
+    @property
+    def controller(self):
+        """The engineer's session this tool serves the watchdog for (devices.control.Holder: session, user,
+        since, disconnected), or None."""
+        return self.core.holder
 
-    def _send_now(self) -> None:
-        """The new DigOut at once (not only at the next period) and as the keep-alive's contents from now on."""
-        if self.controller is None:  # nobody controls the module: this tool sends nothing
-            return
-        if any(on for name, on in self.outputs.items() if name != "LED"):
-            self.lease.grant()  # the controlling session acted just now
-        else:
-            self.lease.revoke()
-        self.bus.modify_periodic(self.key, self._dig_out_data(), send_now=True)
+    @property
+    def served(self) -> bool:
+        return self.core.served
+
+    def _do(self, actions, now: float) -> None:
+        """Carry the core's actions out on the bus, in order."""
+        for action in actions:
+            if isinstance(action, KeepAlive):
+                # python-can's cyclic task: its clock does not depend on the event loop; without a valid lease
+                # (a mains output on and the worker renewing it) only the outputs-off form leaves
+                leased = {"lease": self.lease, "stop_form": stop_form, "on_lapse": self._lapsed} if action.leased else {}
+                self.bus.start_periodic(self.key, action.period_s, self.ids.dig_out, action.data, False, **leased)
+                self._start_cfg()
+            elif isinstance(action, DigOut):
+                self.bus.modify_periodic(self.key, action.data, send_now=True)
+            elif isinstance(action, EndKeepAlive):
+                self.bus.stop_cyclic(self.key)
+                self.bus.stop_cyclic(self.cfg_key)
+            elif isinstance(action, LeaseChange):
+                if action.what == "grant":
+                    self.lease.grant(now)
+                elif action.what == "revoke":
+                    self.lease.revoke()
+                elif not self.lease.renew(now):  # the sender found it lapsed first: the core hears of it
+                    self._do(self.core.sender_lapsed(now), now)
+            elif isinstance(action, Report):
+                self.state.event(action.level, action.text)
+
+    def _decided(self, decision: Decision, now: float, error: type[Exception] | None = None) -> None:
+        """Carry out a granted decision, or raise the refusal as ``error`` (ControlBusy when another holds control)."""
+        if not decision.ok:
+            raise (ControlBusy if decision.busy else error or CommandError)(decision.refused)
+        self._do(decision.actions, now)
+        self._publish()
 
     def _start_cfg(self) -> None:
         """P2 is not stored (7.2.4): while set, the Sync cfg goes out with the DigOut period, so a reset cannot lose it."""
         cfg = codec.cfg_with_dig_out(self.two_phase)
         self._p2_checked = False  # addressed mode: read back at the next poll
-        if cfg is not None and (self.controller is not None or self._idle_serving):
+        if cfg is not None and self.served:
             self.bus.send(self.ids.sync, cfg, False)
             self.bus.start_periodic(self.cfg_key, self._dig_out_period(), self.ids.sync, cfg, False)
         else:
@@ -258,144 +267,69 @@ class M3ioAdapter:
         """A DigOut from another node: a PLC serves the module. Never fight it."""
         if getattr(msg, "is_rx", True) is False:  # our own frame, handed back by the interface
             return
-        self._foreign_at = time.monotonic()
+        now = time.monotonic()
         self._other = OtherMaster(True, self._other.frames + 1, time.time(), bytes(msg.data).hex(" "))
-        self._publish_master()
-        if self.controller is not None:
-            self._release(f"lost: another master sends DigOut 0x{self.ids.dig_out:03X} ({FOREIGN_MASTER}); "
-                          "this tool stopped sending so as not to fight it", level="error")
-        elif self._idle_serving:
-            self._stop_idle_serving(f"another master sends DigOut 0x{self.ids.dig_out:03X} ({FOREIGN_MASTER}): this tool only listens now")
-
-    def _start_idle_serving(self) -> None:
-        """``master = "always"``: the watchdog served with every output off, nobody in control (no lease needed)."""
-        self._idle_serving = True
-        self.served = True
-        self.bus.start_periodic(self.key, IDLE_DIGOUT_PERIOD_S, self.ids.dig_out, codec.encode_dig_out(self.variant, {}), False)
-        self._start_cfg_idle()
+        self._do(self.core.foreign_dig_out(now), now)
         self._publish()
-        self.state.event("info", f"serving the watchdog with every output off (master = \"always\" in the plant file): "
-                                 f"DigOut 0x{self.ids.dig_out:03X} every {IDLE_DIGOUT_PERIOD_S * 1000:.0f} ms")
-
-    def _start_cfg_idle(self) -> None:
-        cfg = codec.cfg_with_dig_out(self.two_phase)
-        self._p2_checked = False
-        if cfg is not None:
-            self.bus.start_periodic(self.cfg_key, IDLE_DIGOUT_PERIOD_S, self.ids.sync, cfg, False)
-
-    def _stop_idle_serving(self, reason: str) -> None:
-        self._idle_serving = False
-        self.served = False
-        self.bus.stop_cyclic(self.key)
-        self.bus.stop_cyclic(self.cfg_key)
-        self._served_until = time.monotonic() + codec.WATCHDOG_S + TEMP_SLACK_S
-        self._publish()
-        self.state.event("warning", f"stopped serving the watchdog: {reason}")
 
     def foreign_master(self, now: float | None = None) -> bool:
-        """Was another master heard within the last 2 s (its DigOut, or the module answering while this tool did not serve it)?"""
-        now = time.monotonic() if now is None else now
-        return self._foreign_at is not None and now - self._foreign_at <= FOREIGN_WINDOW_S
+        """Was another master heard within the last 2 s (its DigOut, or the module answering while this tool did not
+        serve it nor ask it anything)?"""
+        return self.core.foreign_master(time.monotonic() if now is None else now)
 
     async def take_control(self, session: str, user: str) -> None:
         """Listen for another master first; then serve the watchdog: DigOut every 100 ms, outputs off."""
-        if self.controller is not None and self.controller.session != session and self.controller.disconnected is not None:
-            self._release("taken over by another page: the page that held it had disconnected")
-        if self.controller is not None and self.controller.session != session:
-            raise ControlBusy(f"{self.controller.user} controls the module since "
-                              f"{time.strftime('%H:%M:%S', time.localtime(self.controller.since))}")
-        if self.controller is not None:
+        holder = self.controller
+        if holder is not None and holder.session == session:
             return
+        if holder is not None and holder.disconnected is None:
+            raise ControlBusy(f"{holder.user} controls the module since {time.strftime('%H:%M:%S', time.localtime(holder.since))}")
         if not self.bus.state.connected:
             raise CommandError(f"CAN bus {self.bus.name} is not open: {self.bus.state.last_error or 'not connected'}")
-        if self._listening_reconnects != self.bus.state.reconnects:  # (re)opened since: listen from now on
-            self._listening_reconnects, self._listening_since = self.bus.state.reconnects, time.monotonic()
-        heard_for = time.monotonic() - self._listening_since
-        if heard_for < LISTEN_S:
-            await asyncio.sleep(LISTEN_S - heard_for)
-        if self.foreign_master():
-            raise ForeignMaster(
-                f"another master serves this module ({FOREIGN_MASTER}: DigOut 0x{self.ids.dig_out:03X} or the module's "
-                f"answers heard within {FOREIGN_WINDOW_S:g} s): taking control would fight it. Stop that master and try again."
-            )
-        if self.controller is not None:  # taken while this session listened
+        left = self.core.listen_left(time.monotonic(), self.bus.state.reconnects)  # (re)opened since: listen from now on
+        if left > 0:
+            await asyncio.sleep(left)
+        now = time.monotonic()
+        decision = self.core.take(session, user, now, time.time(), self.bus.state.reconnects)
+        if not decision.ok and self.controller is not None and self.controller is not holder:  # taken while listening
             if self.controller.session == session:
                 return
             raise ControlBusy(f"{self.controller.user} took control meanwhile")
-        for name in self.outputs:
-            self.outputs[name] = False
-        self.owners.clear()
-        self.lease.revoke()
-        self._idle_serving = False  # the controlled keep-alive below takes over
-        self.controller = Controller(session, user, time.time())
-        self.served = True
-        # python-can's cyclic task: its clock does not depend on the event loop; without a valid lease
-        # (a mains output on and the worker renewing it) only the outputs-off form leaves
-        self.bus.start_periodic(self.key, codec.DIGOUT_PERIOD_S, self.ids.dig_out, self._dig_out_data(), False,
-                                lease=self.lease, stop_form=stop_form, on_lapse=self._lapsed)
-        self._start_cfg()
-        self._publish()
-        self.state.event("info", f"{user} took control (no other master heard): DigOut 0x{self.ids.dig_out:03X} "
-                                 f"every {codec.DIGOUT_PERIOD_S * 1000:.0f} ms serves the 2 s watchdog")
-
-    def _release(self, reason: str, level: str = "warning") -> None:
-        """Every output off (sent at once), then the keep-alive stops: the module's watchdog runs out in 2 s."""
-        user = self.controller.user if self.controller else "nobody"
-        on = [name for name, value in self.outputs.items() if value]
-        for name in self.outputs:
-            self.outputs[name] = False
-        self.owners.clear()
-        self.lease.revoke()
-        if self.controller is not None:
-            self.bus.modify_periodic(self.key, self._dig_out_data(), send_now=True)
-        self.bus.stop_cyclic(self.key)
-        self.bus.stop_cyclic(self.cfg_key)
-        self.controller = None
-        self.served = False
-        self._served_until = time.monotonic() + codec.WATCHDOG_S + TEMP_SLACK_S
-        self._publish()
-        self.state.event(level, f"control {reason} ({user})" + (f": {', '.join(on)} off" if on else "") + "; DigOut stopped")
+        self._decided(decision, now, ForeignMaster if "another master" in decision.refused else CommandError)
 
     def release_control(self, session: str, reason: str = "released") -> bool:
         if self.controller is None or (session and self.controller.session != session):
             return False
-        self._release(reason)
+        now = time.monotonic()
+        self._do(self.core.release(session, now, reason), now)
+        self._publish()
         return True
 
     def renew_leases(self, alive: set[str]) -> None:
         """The worker's supervisor, every 50 ms: the session that switched the outputs on is alive."""
-        if self.controller is None or not any(self.owners.get(n) in alive for n, on in self.outputs.items() if on):
-            return
-        if not self.lease.renew() and self.lease.lapsed_at is not None:
-            self._lapsed(self.lease.lapsed_at)
+        now = time.monotonic()
+        actions = self.core.beat(alive, now)
+        if actions:
+            self._do(actions, now)
+            if any(not isinstance(a, LeaseChange) for a in actions):
+                self._publish()
 
     def _lapsed(self, lapsed_at: float) -> None:
         """The lease ran out (this program stalled): the keep-alive has sent every output off by itself since."""
         if self.lease.lapsed_at != lapsed_at:
             return
-        names = [name for name, on in self.outputs.items() if on and name != "LED"]
-        if not names:
-            return
-        renewed = self.lease.renewed_at
-        stalled_ms = (time.monotonic() - renewed) * 1000 if renewed is not None else 0.0
-        for name in names:
-            self.outputs[name] = False
-            self.owners.pop(name, None)
-        self._send_now()
+        now = time.monotonic()
+        self._do(self.core.sender_lapsed(now), now)
         self._publish()
-        self.state.event("error", f"{', '.join(names)} off: this program stalled ({stalled_ms:.0f} ms without renewing the "
-                                  f"outputs' lease, limit {self.lease.valid_s * 1000:.0f} ms) and the DigOut keep-alive "
-                                  "switched them off by itself. The browser was not at fault: switch on again")
 
     async def poll(self) -> None:
         """Serve the watchdog idle where the plant file says so; watch for silence; check the variant."""
         self._publish_master()  # another master heard within 2 s: ages out here
-        if (self.always_master and self.controller is None and not self._idle_serving and self.bus.state.connected
-                and not self.foreign_master()):
-            if self._listening_reconnects != self.bus.state.reconnects:
-                self._listening_reconnects, self._listening_since = self.bus.state.reconnects, time.monotonic()
-            if time.monotonic() - self._listening_since >= LISTEN_S:  # listened first
-                self._start_idle_serving()
+        mono = time.monotonic()
+        actions = self.core.tick(mono) + self.core.serve_idle(mono, self.bus.state.connected, self.bus.state.reconnects)
+        if actions:
+            self._do(actions, mono)
+            self._publish()
         now = time.time()
         if self.last_answer is None or now - self.last_answer > OFFLINE_AFTER_S:
             if self.last_answer is not None and self._gone_since is None:
@@ -465,25 +399,22 @@ class M3ioAdapter:
         check = codec.check_variant(self.variant, self.ids.addressed, code)
         changed = check != self.variant_check
         self.variant_check = check
-        if check.state == "mismatch":
-            if any(self.outputs.values()):
-                self.all_off("the module is not the variant the plant file names")
-            if changed:
-                self.state.event("error", check.text)
+        now = time.monotonic()
+        self._do(self.core.variant_checked(check.may_switch, check.text, now), now)
+        if check.state == "mismatch" and changed:
+            self.state.event("error", check.text)
         elif check.state == "ok" and changed:
             self.state.event("info", check.text)
-            if any(self.outputs.values()):
-                self._send_now()
         self._publish()
 
     # -- frames ------------------------------------------------------------------------------
-    def _seen(self) -> None:
+    def _seen(self, kind: str, key: tuple[int, int] | None = None) -> None:
+        """A frame of the module: it answers although this tool does not serve it nor asked it: another master does."""
         self.last_answer = time.time()
         self.state.mark_seen(self.last_answer)
-        if self.controller is None and not self._idle_serving and time.monotonic() > self._served_until:
-            self._foreign_at = time.monotonic()  # the module answers although this tool does not serve it: another master does
-            if not self._other.active:
-                self._publish_master()
+        self.core.module_frame(kind, time.monotonic(), key)
+        if not self._other.active and self.foreign_master():
+            self._publish_master()
 
     def on_dig_in(self, msg) -> None:
         inputs = decoded(self.state, codec.decode_dig_in, bytes(msg.data), "DigIn")
@@ -491,7 +422,7 @@ class M3ioAdapter:
             return
         self.inputs = inputs
         self.state.counters.responses += 1
-        self._seen()
+        self._seen("DigIn")
         raw = bytes(msg.data)[0]
         for name, on in self.inputs.items():
             self.state.publish(name, on, raw=raw, time=self.last_answer)
@@ -503,7 +434,7 @@ class M3ioAdapter:
         if words is None:
             return
         self.state.counters.responses += 1
-        self._seen()
+        self._seen("Temp")
         self.last_temps = self.last_answer
         for offset, word in enumerate(words):
             channel = first + offset
@@ -521,7 +452,7 @@ class M3ioAdapter:
         answer = decoded(self.state, codec.MData.decode, bytes(msg.data), "MData")
         if answer is None:
             return
-        self._seen()
+        self._seen("MData", (answer.area, answer.index))
         future = self._mdata.get((answer.area, answer.index))
         if future is not None and not future.done():
             future.set_result(answer)
@@ -615,31 +546,13 @@ class M3ioAdapter:
     def set_output(self, session: str, name: str, on: bool) -> None:
         """Switch an output for the page session ``session``, which must control the module and then owns
         the output until it is switched off or the session is lost. Switching off is never refused."""
-        if name not in self.outputs:
-            raise CommandError(f"{self.variant.value} has no output {name}")
-        if on:
-            if self.controller is None:
-                raise CommandError("take control of the module first: this tool serves its watchdog only while you control it")
-            if self.controller.session != session:
-                raise ControlBusy(f"{self.controller.user} controls the module")
-            if not self.variant_check.may_switch:
-                raise CommandError(self.variant_check.text)
-        if on and not self.outputs[name]:
-            self.owners[name] = session
-        elif not on:
-            self.owners.pop(name, None)
-        self.outputs[name] = on
-        self._send_now()
-        self._publish()
-        self.state.event("info", f"{name} {'on' if on else 'off'}")
+        now = time.monotonic()
+        self._decided(self.core.set_output(session, name, on, now), now)
 
     def all_off(self, reason: str = "all off") -> None:
-        for name in self.outputs:
-            self.outputs[name] = False
-        self.owners.clear()
-        self._send_now()
+        now = time.monotonic()
+        self._do(self.core.all_off(now, reason), now)
         self._publish()
-        self.state.event("warning", f"every output switched off: {reason}")
 
     def all_off_pressed(self) -> None:
         """The page's All off (a stop: never refused)."""
@@ -647,33 +560,28 @@ class M3ioAdapter:
 
     def holders(self) -> set[str]:
         """The page sessions that keep outputs on through this adapter (for the worker's dead-man rule)."""
-        return {session for name, session in self.owners.items() if self.outputs[name]}
+        return self.core.holders()
 
     def session_lost(self, session: str, reason: str) -> None:
         """``session`` is gone or stopped confirming it is alive: its outputs off at once, and its control released."""
-        self.session_stop(session, reason)
-        if self.controller is not None and self.controller.session == session:
-            self._release(f"released: {reason}")
+        now = time.monotonic()
+        actions = self.core.lost(session, reason, now)
+        if actions:
+            self._do(actions, now)
+            self._publish()
 
     def session_back(self, session: str) -> None:
         """The page of ``session`` confirms it is alive again after its connection dropped: its control is its own again."""
-        if self.controller is not None and self.controller.session == session:
-            self.controller.disconnected = None
+        self._do(self.core.back(session), time.monotonic())
 
     def session_stop(self, session: str, reason: str) -> None:
         """The page of ``session`` disconnected: its outputs off at once; its control (the watchdog with
         every output off) stays until the page is gone for good (:meth:`session_lost`)."""
-        if self.controller is not None and self.controller.session == session:
-            self.controller.disconnected = time.monotonic()  # another page may take control over
-        names = [name for name, owner in self.owners.items() if owner == session and self.outputs[name]]
-        for name in [name for name, owner in self.owners.items() if owner == session]:
-            del self.owners[name]
-        if names:
-            for name in names:
-                self.outputs[name] = False
-            self._send_now()
+        now = time.monotonic()
+        actions = self.core.disconnected(session, reason, now)
+        if actions:
+            self._do(actions, now)
             self._publish()
-            self.state.event("warning", f"{', '.join(names)} off: {reason}")
 
     # -- SYNC cfg (7.2.4) ----------------------------------------------------------------------
     def set_two_phase(self, on: bool) -> None:
@@ -681,7 +589,7 @@ class M3ioAdapter:
             raise CommandError("P2 (two-phase load) exists on the HMR only")
         on = bool(on)
         self.two_phase = on
-        if self.controller is not None or self._idle_serving:
+        if self.served:
             self.bus.send(self.ids.sync, codec.encode_sync_cfg(on), False)
         self._start_cfg()
         self._publish()
@@ -697,6 +605,7 @@ class M3ioAdapter:
             self._mdata[(area, index)] = future
             self.state.counters.requests += 1
             try:
+                self.core.request_sent(area, index, time.monotonic())  # its answer is no sign of another master
                 self.bus.send(self.ids.sync, codec.encode_sync_request(area, index, payload), False)
                 return await asyncio.wait_for(future, MDATA_TIMEOUT_S)
             except asyncio.TimeoutError:

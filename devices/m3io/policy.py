@@ -1,7 +1,7 @@
 """What this tool confirms before it sends raw bytes to a CAN-M3IO module (the M3IO document).
 
 DigOut with an SSR bit switches mains voltage onto a load (section 7.2.1): confirmed in the
-transmit list, never replayed. Sync frames that write the configuration or customer data
+transmit list, never replayed. What the module sends (DigIn, temperatures, MData) is never sent. Sync frames that write the configuration or customer data
 (section 7.2.4, areas 1 and 4) are confirmed. Asked through :mod:`devices.sendpolicy`.
 """
 
@@ -18,6 +18,7 @@ from devices.sendpolicy import Verdict
 
 TITLE = "CAN-M3IO"
 
+MODULE_SENDS = ("DigIn", "Temp1-4", "Temp5-6", "MData")  # sender "Modul" in the tables of section 5.8
 MAINS_RISK = "{device}: DigOut switches {outputs} on: mains voltage on the load(s) (section 7.2.1)."
 CONFIG_RISK = "{device}: Sync {what} writes the module's {target} (section 7.2.4)."
 
@@ -31,6 +32,12 @@ def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verd
             variant = codec.Variant(dev.options.get("variant", "HM"))
         except (KeyError, TypeError, ValueError, codec.CodecError):
             continue
+        sent_by_module = {name: i for name, i in ids.by_name().items() if name in MODULE_SENDS}
+        if can_id in sent_by_module.values():
+            frame = next(name for name, i in sent_by_module.items() if i == can_id)
+            return Verdict(refused=f"{dev.name}: {frame} (0x{can_id:03X}) is what the module sends (sections 5.8, 7.2): "
+                                   "this tool never sends it, so nothing can pose as the module", name=f"{dev.name} {frame}",
+                           kind="system")
         if can_id == ids.dig_out:
             if len(data) != 1:
                 return Verdict(refused=f"{dev.name}: DigOut has 1 byte (section 7.2.1), not {len(data)}", name=f"{dev.name} DigOut")
