@@ -9,11 +9,20 @@ ends when the engineer's browser goes away. Starting is checked and audited thro
 ``worker.engineer_action``.
 
 Error frames and remote frames of the file are not sent (the send path carries data frames);
-they are counted in ``skipped``. Nor is any frame the device types' send policy forbids (firmware
-update, a factory reset, a register that is not writable) or would ask a confirmation for (motion:
-an Electrak control telegram with enable; mains: an M3IO DigOut with an SSR on; a risky value):
-nobody confirms frames of a file one by one, so they are filtered, counted by reason, and shown
-before the replay starts (:func:`screen`).
+they are counted in ``skipped``. Every other frame is judged by the one send policy
+(:func:`devices.sendpolicy.check_send`, as every other path that sends bytes), and a replay never sends:
+
+- a frame that a device sends (status, answers, internal traffic: the lock status under a lock's
+  ID, Electrak 0x07, Electrak internal 0x600-0x6FF, an M3IO's inputs): the policy refuses it, and a
+  frame on an ID that a device of the bus or a device type's fixed IDs declare as the device's own
+  (``CanIdUse.sender == "device"``) is kept off as well: a replay never impersonates a device;
+- a frame the policy forbids (firmware update, a factory reset, a register that is not writable) or
+  would ask a confirmation for (motion: an Electrak control telegram with enable; mains: an M3IO
+  DigOut with an SSR on; a risky value): nobody confirms frames of a file one by one.
+
+Those frames are filtered, counted by reason, and shown before the replay starts (:func:`screen`).
+Starting asks a confirmation that says how many frames go out onto which bus
+(:class:`NeedsConfirmation`, then ``confirmed=True``).
 """
 
 from __future__ import annotations
@@ -26,7 +35,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from app.can_bus import FrameRecord
-from devices.sendpolicy import check_can
+from devices.sendpolicy import CanMessage, check_send
 
 log = logging.getLogger(__name__)
 
@@ -38,6 +47,15 @@ CONTROL_CHECK_S = 0.2  # how often a running replay looks whether a device came 
 
 class ReplayError(Exception):
     """A replay that cannot start; the message says why."""
+
+
+class NeedsConfirmation(ReplayError):
+    """The replay may start once the engineer confirmed the question: how many frames go out onto which bus."""
+
+    def __init__(self, question: str, frames: int):
+        super().__init__(question)
+        self.question = question
+        self.frames = frames
 
 
 def holder_name(bus: str) -> str:
@@ -84,11 +102,49 @@ class Screening:
         return (f"{len(self.blocked)} frame(s) will not be sent: "
                 + "; ".join(f"{n} x {reason}" for reason, n in sorted(self.reasons.items(), key=lambda i: -i[1])))
 
+    def going_out(self, frames: Sequence[FrameRecord]) -> int:
+        """How many of ``frames`` a replay sends: data frames the policy lets through."""
+        return sum(1 for i, rec in enumerate(frames)
+                   if not (rec.is_error_frame or rec.is_remote_frame) and i not in self.blocked)
+
+
+def device_sent(bus_devices: Sequence[Any], can_id: int, extended: bool) -> str:
+    """What a device sends on ``can_id`` on a bus with ``bus_devices`` (its declared use), or "" when no device
+    declares it as its own: the devices of the bus and every CAN type's fixed IDs (devices/registry.py)."""
+    from devices.registry import DEVICE_TYPES, fixed_can_id_uses
+
+    for device_type, use in fixed_can_id_uses():
+        if use.sender == "device" and use.covers(extended, can_id):
+            return f"{use.use} ({device_type.title})"
+    for dev in bus_devices:
+        if dev.type not in DEVICE_TYPES:
+            continue
+        for use in DEVICE_TYPES[dev.type].can_ids(dev.options, "can"):
+            if use.sender == "device" and use.covers(extended, can_id):
+                return f"{use.use} ({dev.name})"
+    return ""
+
+
+def frame_reason(bus_devices: Sequence[Any], can_id: int, extended: bool, data: bytes) -> str:
+    """Why a replay keeps this frame off the bus ("" : it goes out): the send policy's verdict, the same as
+    every other path's; a frame a device sends is never replayed."""
+    verdict = check_send(bus_devices, CanMessage(can_id, extended, bytes(data)))
+    if verdict.refused:
+        return verdict.refused
+    own = device_sent(bus_devices, can_id, extended)
+    if own:
+        return f"sent by a device: {own} (a replay never impersonates a device)"
+    if verdict.confirm:
+        return (f"{verdict.kind}: {verdict.name or 'needs a confirmation'} (confirmed frame by frame only, never "
+                "from a file)")
+    return ""
+
 
 def screen(worker: Any, bus: str, frames: Sequence[FrameRecord]) -> Screening:
     """Ask the send policy about every frame (O(frames); run it in a thread for a long file).
 
-    A frame the policy refuses, or would ask a confirmation for, is filtered: its reason is counted.
+    A frame the policy refuses, or would ask a confirmation for, and a frame a device sends, is filtered:
+    its reason is counted.
     """
     devices = list(worker.plant.devices_on(bus))
     blocked, reasons, cache = set(), {}, {}
@@ -98,9 +154,7 @@ def screen(worker: Any, bus: str, frames: Sequence[FrameRecord]) -> Screening:
         key = (rec.arbitration_id, rec.is_extended_id, bytes(rec.data))
         reason = cache.get(key)
         if reason is None:
-            verdict = check_can(devices, *key)
-            reason = verdict.refused or (f"{verdict.kind}: {verdict.name or 'needs a confirmation'} (confirmed frame by "
-                                         "frame only, never from a file)" if verdict.confirm else "")
+            reason = frame_reason(devices, *key)
             if len(cache) < 65536:
                 cache[key] = reason
         if reason:
@@ -252,37 +306,65 @@ class Replay:
                 self._finish()
 
 
+def question(worker: Any, bus: str, frames: Sequence[FrameRecord], screening: Screening, *, name: str,
+             speed: float) -> str:
+    """The confirmation a replay asks: how many frames go out onto which bus, what is kept off and why."""
+    going = screening.going_out(frames)
+    config = worker.plant.buses.get(bus)
+    kind = "a simulated bus" if config is not None and config.simulated else "a live bus: real devices receive them"
+    duration = (frames[-1].time - frames[0].time) / speed if len(frames) > 1 else 0.0
+    text = (f"Replay {going} recorded frame(s) of {name} onto {bus} ({kind}) over {duration:.1f} s at {speed:g} x. "
+            "Every device on the bus acts on them as if this tool sent each one now.")
+    if screening.blocked:
+        text += f" {screening.text()}."
+    return text
+
+
 async def start_replay(
     worker: Any, bus: str, frames: Sequence[FrameRecord], *, name: str = "recording", speed: float = 1.0,
-    session: str = "", user: str = "local", role: str = "engineer",
+    session: str = "", user: str = "local", role: str = "engineer", confirmed: bool = False,
 ) -> Replay:
     """Check, audit and start a replay of ``frames`` onto CAN bus ``bus``.
 
     :param speed: factor on the recorded speed (:data:`SPEED_MIN` .. :data:`SPEED_MAX`)
     :param session: the browser session that runs it (dead-man rule)
+    :param confirmed: the engineer confirmed the question (:func:`question`: how many frames go out)
     :raises PermissionDenied: not an engineer; :raises ReplayError: refused (see :func:`refusal`),
-        no frames, or a speed out of range
+        no frames, none that may go out, or a speed out of range; :raises NeedsConfirmation: not confirmed yet
     """
+    from app.gate import WRITE_ROLES, role_now
+
+    screening = await asyncio.to_thread(screen, worker, bus, frames)
+    if not confirmed and role_now(worker, user, role) in WRITE_ROLES:  # another role is refused and audited below
+        _check(worker, bus, frames, screening, name, speed)
+        raise NeedsConfirmation(question(worker, bus, frames, screening, name=name, speed=speed),
+                                screening.going_out(frames))
 
     async def action() -> str:
-        screening = await asyncio.to_thread(screen, worker, bus, frames)
-        if not SPEED_MIN <= speed <= SPEED_MAX:
-            raise ReplayError(f"speed {speed:g} is outside {SPEED_MIN:g}..{SPEED_MAX:g} x")
-        if not frames:
-            raise ReplayError(f"{name} has no frames to replay")
-        problem = refusal(worker, bus)
-        if problem:
-            raise ReplayError(problem)
+        _check(worker, bus, frames, screening, name, speed)
         replay = Replay(worker, bus, frames, name=name, speed=speed, session=session, user=user, screening=screening)
         replay.start()
         holder.append(replay)
         kept_off = f"; {screening.text()}" if screening.blocked else ""
-        return f"{len(frames)} frames, {replay.duration_s:.1f} s at {speed:g} x{kept_off}"
+        return (f"{screening.going_out(frames)} of {len(frames)} frames, {replay.duration_s:.1f} s at {speed:g} x, "
+                f"confirmed{kept_off}")
 
     holder: list[Replay] = []
     await worker.engineer_action(action, user=user, role=role, target=bus,
                                  describe=f"replay {name} onto {bus} at {speed:g} x")
     return holder[0]
+
+
+def _check(worker: Any, bus: str, frames: Sequence[FrameRecord], screening: Screening, name: str, speed: float) -> None:
+    if not SPEED_MIN <= speed <= SPEED_MAX:
+        raise ReplayError(f"speed {speed:g} is outside {SPEED_MIN:g}..{SPEED_MAX:g} x")
+    if not frames:
+        raise ReplayError(f"{name} has no frames to replay")
+    if not screening.going_out(frames):
+        raise ReplayError(f"nothing of {name} may go out onto {bus}: {screening.text() or 'no data frames'}")
+    problem = refusal(worker, bus)
+    if problem:
+        raise ReplayError(problem)
 
 
 def running_replay(worker: Any, bus: str) -> Replay | None:

@@ -1,6 +1,8 @@
 """Replay a recorded file onto a CAN bus (``/monitor/BUS/replay``): engineers only.
 
-Pick a recording of the data folder or upload one, choose the speed, start; the bus monitor shows
+Pick a recording of the data folder or upload one, choose the speed, start: the start asks a
+confirmation that says how many frames go out onto the bus and which frames are kept off and why
+(frames a device sends, frames the send policy forbids or would ask for); the bus monitor shows
 the frames as sent. Progress is shown; Stop ends it at once; leaving the page ends it too (dead-man).
 """
 
@@ -17,7 +19,7 @@ from app import runtime as rt
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import frame, notify_error
 from pages.session import current_user
-from pages.widgets import upload_button
+from pages.widgets import confirm, upload_button
 
 REFRESH_S = 0.25
 SPEEDS = {0.1: "0.1 x", 0.5: "0.5 x", 1.0: "1 x (as recorded)", 2.0: "2 x", 5.0: "5 x", 10.0: "10 x"}
@@ -106,7 +108,9 @@ class ReplayCard:
                     "data-testid=replay-stop")
             self.progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
             self.status = ui.label("").props("data-testid=replay-status")
-            ui.label("Refused while a device on this bus is under control; it stops by itself when one is taken "
+            ui.label("Start asks first, naming how many frames go out. Frames a device sends (status, answers, "
+                     "internal traffic) and frames the device policies forbid or would ask for are never replayed. "
+                     "Refused while a device on this bus is under control; it stops by itself when one is taken "
                      "under control, and when this page closes.").classes("text-caption text-grey-7")
 
     async def start(self) -> None:
@@ -114,13 +118,23 @@ class ReplayCard:
         if log is None:
             notify_error("Choose a recording first.")
             return
-        user, role = current_user()  # the account store's answer now, not the page's when it was built
-        try:
-            await rp.start_replay(self.worker, self.bus, log.frames, name=log.name,
-                                  speed=float(self.speed.value or 1.0), session=self.session,
-                                  user=user or "anonymous", role=role)
-        except (rp.ReplayError, PermissionDenied, AuditUnavailable) as exc:
-            self.status.set_text(f"refused: {exc}")
+        speed = float(self.speed.value or 1.0)
+        confirmed = False
+        while True:
+            user, role = current_user()  # the account store's answer now, not the page's when it was built
+            try:
+                await rp.start_replay(self.worker, self.bus, log.frames, name=log.name, speed=speed,
+                                      session=self.session, user=user or "anonymous", role=role, confirmed=confirmed)
+            except rp.NeedsConfirmation as question:
+                if confirmed or not await confirm(f"Replay onto {self.bus}?", question.question,
+                                                  ok=f"Send {question.frames} frames"):
+                    self.status.set_text("not started: the replay was not confirmed")
+                    break
+                confirmed = True
+                continue
+            except (rp.ReplayError, PermissionDenied, AuditUnavailable) as exc:
+                self.status.set_text(f"refused: {exc}")
+            break
         self.refresh()
 
     async def stop(self) -> None:

@@ -85,7 +85,7 @@ async def test_replay_of_a_recording_reproduces_its_frames_in_order(env, tmp_pat
     writer.stop()
     loaded = rec.read_log(path)
     started = time.monotonic()
-    replay = await rp.start_replay(worker, "can9", loaded.frames, name=loaded.name, speed=2.0, session="s1")
+    replay = await rp.start_replay(worker, "can9", loaded.frames, name=loaded.name, speed=2.0, session="s1", confirmed=True)
     assert replay.running and rp.running_replay(worker, "can9") is replay
     got = await _collect(listener, len(loaded.frames), timeout=10)
     await eventually(lambda: replay.state == "done", timeout=5)
@@ -104,7 +104,7 @@ async def test_error_frames_are_skipped_and_speed_scales(env):
     worker, listener = env
     frames = _frames(10, 0.05)  # 0.45 s recorded
     started = time.monotonic()
-    replay = await rp.start_replay(worker, "can9", frames, speed=0.5, session="s1")
+    replay = await rp.start_replay(worker, "can9", frames, speed=0.5, session="s1", confirmed=True)
     await eventually(lambda: replay.state == "done", timeout=10)
     elapsed = time.monotonic() - started
     assert replay.sent == 10 and replay.skipped == 1
@@ -116,14 +116,14 @@ async def test_error_frames_are_skipped_and_speed_scales(env):
 async def test_stop_at_any_time_and_the_dead_man_rule(env):
     worker, listener = env
     frames = _frames(200, 0.01)
-    replay = await rp.start_replay(worker, "can9", frames, session="s1")
+    replay = await rp.start_replay(worker, "can9", frames, session="s1", confirmed=True)
     await eventually(lambda: replay.sent >= 5, timeout=5)
     replay.stop()
     sent = replay.sent
     assert replay.state == "stopped" and not replay.holders() and rp.holder_name("can9") not in worker.extra_holders
     await asyncio.sleep(0.1)  # (a stopped replay would have sent ~10 more meanwhile)
     assert replay.sent == sent < 200
-    again = await rp.start_replay(worker, "can9", frames, session="s2")
+    again = await rp.start_replay(worker, "can9", frames, session="s2", confirmed=True)
     await eventually(lambda: again.sent >= 5, timeout=5)
     assert again.holders() == {"s2"}
     worker.session_closed("s1")  # another browser leaving changes nothing
@@ -142,15 +142,15 @@ async def test_refused_while_a_device_is_under_control_and_for_viewers(env, monk
     assert worker.audit.rows[-1]["result"].startswith("refused")
     monkeypatch.setattr(worker.adapters["io"], "holders", lambda: {"other"}, raising=False)
     with pytest.raises(rp.ReplayError, match="io on can9 is under control"):
-        await rp.start_replay(worker, "can9", frames, session="s1")
+        await rp.start_replay(worker, "can9", frames, session="s1", confirmed=True)
     assert worker.audit.rows[-1]["result"].startswith("failed: io on can9 is under control")
     monkeypatch.setattr(worker.adapters["io"], "holders", lambda: set(), raising=False)
     long = _frames(300, 0.01)
-    replay = await rp.start_replay(worker, "can9", long, session="s1")
+    replay = await rp.start_replay(worker, "can9", long, session="s1", confirmed=True)
     with pytest.raises(rp.ReplayError, match="runs on can9 already"):
-        await rp.start_replay(worker, "can9", frames, session="s1")
+        await rp.start_replay(worker, "can9", frames, session="s1", confirmed=True)
     monkeypatch.setattr(worker.adapters["io"], "holders", lambda: {"other"}, raising=False)  # taken meanwhile
     await eventually(lambda: replay.state == "stopped", timeout=2)
     assert "io came under control" in replay.reason and replay.sent < 300
     with pytest.raises(rp.ReplayError, match="outside"):
-        await rp.start_replay(worker, "can9", frames, speed=1000, session="s1")
+        await rp.start_replay(worker, "can9", frames, speed=1000, session="s1", confirmed=True)

@@ -29,6 +29,10 @@ async def test_replay_page_replays_a_recording(tmp_path):
         choice.set_value("can9-test.log")
         await user.should_see("can9-test.log: 20 frames")
         user.find("Start replay").click()
+        # asks first, naming how many frames go out (issue 42 item 11: 297 frames went out unasked)
+        await user.should_see("Replay 20 recorded frame(s) of can9-test.log onto can9 (a live bus")
+        assert not any(f.direction == "tx" for f in runtime.worker.can_buses["can9"].state.frames)
+        user.find("Send 20 frames").click()
         await eventually(lambda: any(f.direction == "tx" for f in runtime.worker.can_buses["can9"].state.frames), timeout=5)
         await user.should_see("done: 20 of 20 frames sent", retries=50)
         sent = [f.arbitration_id for f in runtime.worker.can_buses["can9"].state.frames if f.direction == "tx"]

@@ -93,7 +93,8 @@ async def test_replay_keeps_forbidden_and_risky_frames_off_the_bus(can_rig):
     ]
     screening = await asyncio.to_thread(rp.screen, runtime.worker, "can1", frames)
     assert len(screening.blocked) == 5 and "firmware" in screening.text()
-    replay = await rp.start_replay(runtime.worker, "can1", frames, name="probe.log", speed=10.0, session="s1")
+    replay = await rp.start_replay(runtime.worker, "can1", frames, name="probe.log", speed=10.0, session="s1",
+                                  confirmed=True)
     assert await wait_for(lambda: replay.state == "done", timeout=5)
     assert replay.sent == 2 and replay.filtered == 5
     assert await wait_for(lambda: True, timeout=0.05) is True
