@@ -509,7 +509,7 @@ class M3ioAdapter:
             self._other = OtherMaster(foreign, self._other.frames, self._other.time, self._other.data)
         fact = self.state.fact
         fact(P_OTHER_MASTER, self._other, text=f"{FOREIGN_MASTER} heard" if foreign else "none heard")
-        every = f"DigOut every {codec.DIGOUT_PERIOD_S * 1000:.0f} ms"
+        every = f"DigOut every {self._dig_out_period() * 1000:.0f} ms"  # the period it is sent at now
         idle = self.served and self.controller is None
         fact(P_IDLE_SERVED, idle)
         if self.served:
