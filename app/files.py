@@ -11,6 +11,7 @@ from __future__ import annotations
 import errno
 import os
 import stat
+import tempfile
 from pathlib import Path
 
 MAX_DOCUMENT_BYTES = 32 * 1024 * 1024  # a backup or parameter file; the largest real ones are a few hundred KiB
@@ -74,3 +75,55 @@ def read_regular(path: str | Path, limit: int = MAX_DOCUMENT_BYTES, what: str = 
 def read_regular_text(path: str | Path, limit: int = MAX_DOCUMENT_BYTES, what: str = "file") -> str:
     """:func:`read_regular` as UTF-8 text (a :class:`UnicodeDecodeError` is a :class:`ValueError`)."""
     return read_regular(path, limit, what).decode("utf-8")
+
+
+def writable_target(path: str | Path) -> Path:
+    """The file a save of ``path`` writes: the end of its symlinks (the link itself stays). A target that
+    is not a regular file, or is read-only, is refused with the reason (:class:`FileRefused`)."""
+    target = Path(os.path.realpath(path))
+    try:
+        info = os.stat(target)
+    except FileNotFoundError:
+        return target
+    if not stat.S_ISREG(info.st_mode):
+        raise FileRefused(path, f"{path}: {kind_of(info.st_mode)}, not a regular file: nothing written")
+    if not info.st_mode & stat.S_IWUSR or not os.access(target, os.W_OK):
+        shown = f"{path} (a link to {target})" if target != Path(path).absolute() else str(path)
+        raise FileRefused(path, f"{shown} is read-only (mode {stat.S_IMODE(info.st_mode):04o}): nothing written; "
+                                f"make it writable (chmod u+w) to save here")
+    return target
+
+
+def replace_atomic(path: str | Path, text: str) -> Path:
+    """Write ``text`` to ``path`` as a whole or not at all: a temporary file in the target's folder,
+    flushed to disk, given the target's mode, then renamed over it. A symlink is followed (the link
+    stays a link), a read-only file is refused (:func:`writable_target`). Returns the file written."""
+    target = writable_target(path)
+    try:
+        mode = stat.S_IMODE(os.stat(target).st_mode)
+    except FileNotFoundError:
+        mode = None
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+            handle.flush()
+            if mode is not None:
+                os.fchmod(handle.fileno(), mode)
+            os.fsync(handle.fileno())
+        os.replace(tmp, target)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    try:  # the rename itself on disk
+        folder = os.open(target.parent, os.O_RDONLY)
+        try:
+            os.fsync(folder)
+        finally:
+            os.close(folder)
+    except OSError:
+        pass
+    return target

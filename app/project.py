@@ -33,6 +33,7 @@ import argparse
 import json
 import re
 import sys
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -388,19 +389,49 @@ def _names_for(config, params, changes: dict[str, Any]) -> dict[str, Any]:
 
 
 def _write_with_backup(path: Path, old_text: str, new_text: str) -> None:
-    """``path`` rewritten atomically; what it held before is kept beside it as ``<name>.bak``. A save that
-    changes nothing writes nothing (the .bak keeps the file as it was before the last real change)."""
+    """``path`` rewritten atomically where it points (a symlink stays a link), with its mode; what it held
+    before is kept beside it as ``<name>.bak``. A read-only file is refused with the reason, before
+    anything is written. A save that changes nothing writes nothing (the .bak keeps the file as it was
+    before the last real change)."""
     if new_text == old_text:
         return
-    backup.write_atomic(path.with_name(path.name + ".bak"), old_text)
-    backup.write_atomic(path, new_text)
+    try:
+        target = files.writable_target(path)
+        backup.write_atomic(target.with_name(target.name + ".bak"), old_text)
+        files.replace_atomic(target, new_text)
+    except files.FileRefused as exc:
+        raise ProjectError(str(exc)) from None
+    except OSError as exc:
+        raise ProjectError(f"{path}: cannot be written ({exc.strerror or exc}): nothing saved") from None
 
 
-def _save_inline(plant: Plant, device: str, named: dict[str, Any]) -> None:
-    config = plant.devices[device]
+def _fresh_plant(plant: Plant) -> Plant:
+    """The plant file as it is on disk now (another page, a text editor may have changed it)."""
+    if plant.path is None:
+        raise ProjectError("the plant has no file to write")
+    try:
+        return parse_plant(plant.path.read_text(encoding="utf-8"), plant.path)
+    except PlantError as exc:
+        raise ProjectError(f"the plant file no longer loads ({exc}): fix it, then reload the project") from None
+    except OSError as exc:
+        raise ProjectError(f"{plant.path}: cannot be read ({exc.strerror or exc})") from None
+
+
+def _save_inline(plant: Plant, device: str, changes: dict[str, Any]) -> None:
+    """``changes`` (by key) into the device's inline or ``[device.project]`` table, on the file as it is now."""
     if plant.path is None:
         raise ProjectError("the plant has no file to write")
     text = plant.path.read_text(encoding="utf-8")
+    try:
+        current = parse_plant(text, plant.path)
+    except PlantError as exc:
+        raise ProjectError(f"the plant file no longer loads ({exc}): fix it, then reload the project") from None
+    config = current.devices.get(device)
+    if config is None:
+        raise ProjectError(f"{plant.path} no longer names device '{device}' (changed meanwhile): reload")
+    if isinstance(config.project, str):
+        raise ProjectError(f"{plant.path}: the project of {device} is now a parameter file (changed meanwhile): reload")
+    named = _names_for(config, DEVICE_TYPES[config.type].params, changes)
     lines = text.splitlines(keepends=True)
     span = _device_span(lines, config.line)
     inline = next((i for i in span if re.match(r"^\s*project\s*=\s*\{", lines[i])), None)
@@ -426,7 +457,8 @@ def _save_inline(plant: Plant, device: str, named: dict[str, Any]) -> None:
     if new_plant.devices[device].project != expected:
         raise ProjectError(f"{plant.path}: the rewrite would not give the project asked for: nothing written")
     _write_with_backup(plant.path, text, new_text)
-    config.project = new_plant.devices[device].project
+    running = plant.devices[device]
+    running.project, running.line = new_plant.devices[device].project, new_plant.devices[device].line
 
 
 def _save_file(path: Path, params, changes: dict[str, Any]) -> None:
@@ -451,13 +483,21 @@ def _save_file(path: Path, params, changes: dict[str, Any]) -> None:
     _write_with_backup(path, text, new_text)
 
 
-def save(plant: Plant, device: str, changes: dict[str, Any]) -> list[ProjectEntry]:
+_SAVING = threading.Lock()  # project saves one at a time: each reads the file it changes, then writes it
+
+
+def save(plant: Plant, device: str, changes: dict[str, Any], expected: dict[str, Any] | None = None) -> list[ProjectEntry]:
     """Set the project's entries of ``device``: ``changes`` maps a parameter key to its new value, or to None to
     drop the entry. Each value is checked by the parameter model first; the plant file (an inline table, a
     ``[device.project]`` table, or a new ``project = { ... }`` line) or the parameter file is rewritten atomically,
     its other content and comments kept, the old file kept as ``.bak``; the running plant follows.
 
-    :raises ProjectError: an invalid value, a type without a parameter model, a file that cannot be rewritten
+    Saves are serialised, and each re-reads the file it changes, so two at the same moment both land and an
+    edit made outside is kept. ``expected`` (key -> the value the editor showed, None for none) refuses the
+    save when one of the changed entries is no longer what the editor showed: "changed meanwhile, reload".
+
+    :raises ProjectError: an invalid value, a type without a parameter model, a file that cannot be rewritten,
+        an entry changed meanwhile
     """
     config = plant.devices[device]
     params = DEVICE_TYPES[config.type].params
@@ -471,10 +511,22 @@ def save(plant: Plant, device: str, changes: dict[str, Any]) -> list[ProjectEntr
         checked[key] = None if value is None else parse_value(param, value)
     if not checked:
         return entries(plant, device)
-    if isinstance(config.project, str):
-        _save_file(project_file(plant, device), params, checked)
-    else:
-        _save_inline(plant, device, _names_for(config, params, checked))
+    with _SAVING:
+        if expected is not None:
+            source = plant if isinstance(config.project, str) else _fresh_plant(plant)
+            if device not in source.devices:
+                raise ProjectError(f"{plant.path} no longer names device '{device}' (changed meanwhile): reload")
+            now = {e.key: e.value for e in entries(source, device) if e.key}
+            moved = [k for k in checked if k in expected and now.get(k) != expected[k]]
+            if moved:
+                words = ", ".join(f"{params.by_key[k].label or params.by_key[k].name} is now "
+                                  f"{'not in the project' if now.get(k) is None else now[k]}" for k in moved)
+                raise ProjectError(f"the project of {device} was changed meanwhile ({words}): nothing saved; "
+                                   "reload the project and make the change again")
+        if isinstance(config.project, str):
+            _save_file(project_file(plant, device), params, checked)
+        else:
+            _save_inline(plant, device, checked)
     return entries(plant, device)
 
 

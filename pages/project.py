@@ -77,6 +77,7 @@ class ProjectCard:
         self.plan: backup.RestorePlan | None = None
         self.kept: set[str] = set()
         self.device: ui.select | None = None
+        self.may_write = can_write()  # the session's role now: the automatic compare runs without the page's context
         with ui.card().classes("w-full gap-2").props("data-testid=project-card") as self.card:
             self._head()
             self.problems = ui.column().classes("gap-0")
@@ -149,7 +150,7 @@ class ProjectCard:
             kept = f"{name}/{r.key}" in self.kept and r.changed
             state = "differs; the device's value kept" if kept else row_state(r)
             rows.append({"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": state,
-                         "risk": bool(r.changed and r.risk), "changed": r.changed and not kept, "can_write": can_write()})
+                         "risk": bool(r.changed and r.risk), "changed": r.changed and not kept, "can_write": self.may_write})
         changed = sum(1 for row in rows if row["changed"])
         self.table.rows = [row for row in rows if row["changed"]] if self.compact else rows
         self.table.update()
@@ -393,10 +394,11 @@ class ProjectEditor:
         words = "; ".join(f"{by_key[k].label or by_key[k].name} {_shown(by_key[k], self.values.get(k)) or '-'} -> "
                           f"{'-' if v is None else v}" for k, v in changes.items())
         user, role = current_user()
+        shown = {k: self.values.get(k) for k in changes}  # what this page showed: refused if another save changed it
         self.save_button.disable()  # one save at a time: a second press waits for the first's values
         try:
             await self.runtime.worker.engineer_action(
-                lambda: asyncio.to_thread(project.save, self.runtime.plant, self.name, changes), user=user, role=role,
+                lambda: asyncio.to_thread(project.save, self.runtime.plant, self.name, changes, shown), user=user, role=role,
                 describe="edit project", target=self.name, parameter=", ".join(by_key[k].label or by_key[k].name
                                                                                for k in changes), new=words)
         except Exception as exc:  # noqa: BLE001 - a viewer, a file that cannot be written ...
