@@ -18,7 +18,7 @@ from pages.diffrows import DIFF_COLUMNS, STATE_SLOT, WRAP
 from pages.diffrows import count as _count
 from pages.diffrows import row_state as _row_state
 from pages.project import ProjectCard
-from pages.widgets import confirm, upload_button
+from pages.widgets import confirm, gate, upload_button, viewer_reason
 
 FILE_COLUMNS = [
     {"name": "name", "label": "File", "field": "name", "align": "left", "style": WRAP},
@@ -54,6 +54,7 @@ class BackupCard:
         self.without = without
         self.made: list[Path] = []
         self.written = None  # called after a backup run (the file list reloads)
+        self.archive_path: Path | None = None  # the last archive downloaded
 
     def build(self) -> None:
         store = self.runtime.store
@@ -66,6 +67,7 @@ class BackupCard:
             self.reasons = ui.column().classes("gap-0").props("data-testid=backup-nothing")
             with ui.row().classes("items-center"):
                 self.start = ui.button("Back up selected", icon="save_alt").props("data-testid=backup-start")
+                gate(self.start, viewer_reason())  # reading every parameter and writing files: an engineer's action
                 self.archive = ui.button("Download as one archive", icon="folder_zip").props("outline")
                 self.archive.set_visibility(False)
             self.progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
@@ -103,15 +105,19 @@ class BackupCard:
         self.status.set_text(f"{len(self.made)} backup file(s) written"
                              + (f"; failed: {'; '.join(failures)}" if failures else ""))
         self.status.classes(replace="text-body2 " + ("text-negative" if failures else "text-positive"))
-        self.archive.set_visibility(len(self.made) > 1)
+        self.archive.set_visibility(len(self.made) > 1)  # to download the archive again
         if len(self.made) == 1:
             ui.download(self.made[0])
+        elif self.made:  # several devices: their files as one archive, downloaded at once as one file is
+            await self.download_archive()
         if self.written is not None:
             await self.written()
 
     async def download_archive(self) -> None:
         target = self.directory / f"plant-{self.runtime.plant.name}-{datetime.now():%Y%m%d-%H%M%S}.zip"
-        ui.download(await asyncio.to_thread(backup.zip_files, self.made, target))
+        archive = await asyncio.to_thread(backup.zip_files, self.made, target)
+        self.archive_path = archive
+        ui.download(archive)
 
     def wire(self) -> None:
         self.start.on_click(self.run_backup)
@@ -227,7 +233,9 @@ class RestoreFlow:
                 return
             with ui.row().classes("items-center"):
                 self.device = ui.select(candidates, value=default, label="Restore to").props("dense outlined").classes("w-56")
-                ui.button("Compare with the device", icon="compare_arrows", on_click=self.compare).props("data-testid=restore-compare")
+                compare = ui.button("Compare with the device", icon="compare_arrows", on_click=self.compare).props(
+                    "data-testid=restore-compare")
+                gate(compare, viewer_reason())  # the first step of a restore: an engineer's action
             self.progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
             self.warnings = ui.column().classes("gap-0")
             self.table = ui.table(columns=DIFF_COLUMNS, rows=[], row_key="key", selection="multiple", pagination=0).classes(

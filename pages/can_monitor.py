@@ -32,7 +32,7 @@ from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import fmt_age, frame, notify_error
 from pages.monitor_common import CSS, SHOWN, tool_links
 from pages.session import current_user
-from pages.widgets import upload_button
+from pages.widgets import gate, upload_button, viewer_reason
 
 SCROLL_HEIGHT = "max-height: 56vh; overflow-y: auto"  # each table scrolls inside its box: the page height stays bounded
 SHOWN_IDS = 300  # rows of the overwrite view
@@ -346,6 +346,7 @@ class RecordingCard:
                 self.format.mark("format")
                 self.record_button = ui.button("Record", icon="fiber_manual_record", color="negative", on_click=self.start)
                 self.record_button.mark("record")
+                self.read_only = viewer_reason()  # recording writes files on disk: an engineer's action
                 self.stop_button = ui.button("Stop", icon="stop", on_click=self.stop).mark("stop")
                 self.status = ui.label().classes("text-body2").mark("record-status")
                 self.status.props("data-monitor=record-status")
@@ -366,8 +367,8 @@ class RecordingCard:
             self.status.set_text(f"{last.path.name}: {last.elapsed:.1f} s, {last.frames} frames, {_size(last.size)}{problem}")
         else:
             self.status.set_text("not recording")
-        self.record_button.set_enabled(active is None)
-        self.format.set_enabled(active is None)
+        gate(self.record_button, self.read_only or ("recording: stop it first" if active is not None else ""))
+        self.format.set_enabled(active is None and not self.read_only)
         self.stop_button.set_enabled(active is not None)
         self.download_button.set_visibility(active is None and self.last is not None)
 

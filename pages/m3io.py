@@ -104,6 +104,8 @@ class ModuleCard(DrawnCard):
 
     def build(self) -> None:
         view, a = self.view, self.view.addressing
+        # the session's role, worked out here in the page's context: the store's round redraws without it
+        self.read_only = viewer_reason()
         self.status = StatusRow(view.state, lambda c: f"frames in {c.responses} · requests {c.requests} · "
                                 f"timeouts {c.timeouts} · malformed {c.malformed} · write errors {c.write_errors}")
         with ui.card().classes("w-full"):
@@ -141,8 +143,8 @@ class ModuleCard(DrawnCard):
         self.holder.set_text(("you control the module" if control.session == view.tag else f"{control.user} controls the module")
                              if control else "nobody controls the module")
         mine = view.controls()
-        gate(self.take_button, viewer_reason() or ("you control the module" if mine else ""))
-        gate(self.release, viewer_reason() or ("" if mine else "you do not control the module"))
+        gate(self.take_button, self.read_only or ("you control the module" if mine else ""))
+        gate(self.release, self.read_only or ("" if mine else "you do not control the module"))
         check = view.live(facts.P_VARIANT_CHECK)
         self.variant.set_text(f"Variant {view.variant.value}: {check.text}")
         self.variant.classes(replace="text-body2 " + VARIANT_COLOR.get(check.value, "text-grey-8"))

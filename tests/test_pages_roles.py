@@ -1,0 +1,180 @@
+"""Roles on the pages, with NiceGUI's simulated user, on loopback (every 127.* address is a local engineer) and with
+accounts required (issue 42 items 2, 8, 9 and 12):
+
+- an engineer keeps M3IO control buttons and the project card's Apply/Update enabled after the store's rounds
+  redraw them (they worked the role out without the page's session and showed "read-only session");
+- a viewer sees the write buttons disabled with the reason before any click (Discover locks, Back up selected,
+  Compare a backup with the device, Record on a bus monitor, the M3IO's control);
+- the M3IO header names the DigOut period it sends at; a whole-plant backup downloads at once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+from nicegui import ui
+from nicegui.testing import User
+from nicegui.testing.user_interaction import UserInteraction
+from plants import channel
+from test_auth import login
+from webutil import by_testid, eventually, free_port, simulated_user
+
+from app.plant import load_plant
+from app.runtime import Runtime
+from app.users import UserStore
+from pages.widgets import VIEWER_REASON
+
+pytestmark = pytest.mark.timeout(90)
+
+PLANT = """name = "roles"
+
+[[bus]]
+name = "line1"
+type = "modbus-rtu"
+port = "socket://127.0.0.1:{port}"
+timeout = 0.3
+retries = 0
+poll_period = 0.2
+simulate = true
+
+[[device]]
+name = "door-1"
+type = "hdlock"
+bus = "line1"
+address = 1
+project = {{ LockRequestDelay = 350 }}
+
+[[device]]
+name = "door-2"
+type = "hdlock"
+bus = "line1"
+address = 2
+
+[[bus]]
+name = "can3"
+type = "can"
+interface = "virtual"
+channel = "{channel}"
+bitrate = 500000
+simulate = true
+
+[[device]]
+name = "heater-hm"
+type = "m3io"
+bus = "can3"
+variant = "HM"
+sw1 = 0x1A
+master = "always"
+"""
+
+ENGINEER, VIEWER = ("anna", "correct horse"), ("tablet", "battery staple")
+
+
+@dataclass
+class Env:
+    user: User
+    runtime: Runtime
+
+
+async def _env(tmp_path: Path, accounts: bool, who: tuple[str, str]) -> AsyncIterator[Env]:
+    path = tmp_path / "plant.toml"
+    path.write_text(PLANT.format(port=free_port(), channel=channel("roles")))
+    store = UserStore(tmp_path / "users.toml")
+    store.add(*ENGINEER[:1], "engineer", ENGINEER[1])
+    store.add(*VIEWER[:1], "viewer", VIEWER[1])
+    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path, auth_required=accounts)
+    async with simulated_user(runtime) as user:
+        if accounts:
+            await login(user, *who)
+        for name in ("door-1", "door-2", "heater-hm"):
+            await eventually(lambda n=name: runtime.store.devices[n].status == "online", timeout=15, what=f"{name} online")
+        yield Env(user, runtime)
+
+
+@pytest.fixture(params=["loopback", "accounts"])
+async def engineer(request, tmp_path: Path) -> AsyncIterator[Env]:
+    """An engineer: on loopback (no login) and logged in with accounts required."""
+    async for env in _env(tmp_path, request.param == "accounts", ENGINEER):
+        yield env
+
+
+@pytest.fixture
+async def viewer(tmp_path: Path) -> AsyncIterator[Env]:
+    """A viewer's account (accounts required: on loopback everybody is the local engineer)."""
+    async for env in _env(tmp_path, True, VIEWER):
+        yield env
+
+
+def reason_of(element: ui.element) -> str:
+    """Why ``element`` is disabled ("" while it is enabled)."""
+    return "" if element.enabled else element.props.get("data-disabled-reason", "disabled without a reason")
+
+
+async def store_rounds(env: Env, device: str, rounds: int = 2) -> None:
+    """Wait until the store's once-a-second round of ``device`` ran ``rounds`` times for the page's watchers (it
+    redraws the page's cards there, outside the page's own context)."""
+    seen: list[bool] = []
+    store = env.runtime.store
+    watch = store.watch(device, lambda: seen.append(True) if store.age_round else None, group=env.user.client.id)
+    try:
+        await eventually(lambda: len(seen) >= rounds, timeout=5, what=f"{rounds} rounds of the store")
+    finally:
+        watch.cancel()
+
+
+async def test_an_engineer_keeps_the_m3io_control_and_the_header_names_the_period(engineer: Env):
+    user, runtime = engineer.user, engineer.runtime
+    await user.open("/device/heater-hm")
+    take, release = by_testid(user, "take-control"), by_testid(user, "release-control")
+    card = next(c for c in user.client.elements.values() if isinstance(c, ui.label) and c.text.startswith("watchdog "))
+    assert "DigOut every 500 ms" in card.text  # served with every output off: the idle period
+    await store_rounds(engineer, "heater-hm")
+    assert reason_of(take) == "" and reason_of(release) == "you do not control the module"
+    UserInteraction(user, {take}, None).click()
+    adapter = runtime.worker.adapters["heater-hm"]
+    await eventually(lambda: adapter.controller is not None, timeout=5, what="control taken")
+    await eventually(lambda: "DigOut every 100 ms" in card.text, timeout=5, what="the period while controlled")
+    await store_rounds(engineer, "heater-hm")
+    assert reason_of(release) == "" and reason_of(take) == "you control the module"
+
+
+async def test_an_engineer_may_apply_the_project_after_the_automatic_compare(engineer: Env):
+    user = engineer.user
+    await user.open("/device/door-1")
+    await user.should_see("1 of 1 project entry differs from the device", retries=100)
+    table = next(t for t in user.client.elements.values() if isinstance(t, ui.table) and t.rows and "can_write" in t.rows[0])
+    assert all(row["can_write"] for row in table.rows), table.rows
+
+
+async def test_a_viewer_sees_write_buttons_disabled_with_the_reason(viewer: Env):
+    user = viewer.user
+    await user.open("/device/heater-hm")
+    await store_rounds(viewer, "heater-hm")
+    assert reason_of(by_testid(user, "take-control")) == VIEWER_REASON
+    assert reason_of(by_testid(user, "release-control")) == VIEWER_REASON
+    await user.open("/device/door-1")
+    await user.should_see("1 of 1 project entry differs from the device", retries=100)
+    table = next(t for t in user.client.elements.values() if isinstance(t, ui.table) and t.rows and "can_write" in t.rows[0])
+    assert not any(row["can_write"] for row in table.rows)
+    await user.open("/")
+    assert reason_of(by_testid(user, "discover-locks")) == VIEWER_REASON
+    await user.open("/backup")
+    await user.should_see("Back up selected")
+    assert reason_of(by_testid(user, "backup-start")) == VIEWER_REASON
+    await user.open("/monitor/can3")
+    await user.should_see("Recording")
+    record = next(e for e in user.client.elements.values() if isinstance(e, ui.button) and e.text == "Record")
+    assert reason_of(record) == VIEWER_REASON
+
+
+async def test_a_whole_plant_backup_downloads_as_one_archive_at_once(engineer: Env):
+    user = engineer.user
+    await user.open("/backup")
+    await user.should_see("Back up selected")
+    downloads = len(user.download.http_responses)
+    UserInteraction(user, {by_testid(user, "backup-start")}, None).click()
+    await user.should_see("backup file(s) written", retries=200)
+    await eventually(lambda: len(user.download.http_responses) > downloads, timeout=5, what="the archive downloaded")
