@@ -517,7 +517,8 @@ def save(plant: Plant, device: str, changes: dict[str, Any], expected: dict[str,
             if device not in source.devices:
                 raise ProjectError(f"{plant.path} no longer names device '{device}' (changed meanwhile): reload")
             now = {e.key: e.value for e in entries(source, device) if e.key}
-            moved = [k for k in checked if k in expected and now.get(k) != expected[k]]
+            # changed by someone else since the editor showed it, and not to what this save asks for anyway
+            moved = [k for k in checked if k in expected and now.get(k) != expected[k] and now.get(k) != checked[k]]
             if moved:
                 words = ", ".join(f"{params.by_key[k].label or params.by_key[k].name} is now "
                                   f"{'not in the project' if now.get(k) is None else now[k]}" for k in moved)
