@@ -337,7 +337,9 @@ async def check_identity(runtime, name: str, document: dict, current_keys: set[s
         check.refusals.append(f"variant {a['variant']} in the set, {variant_now} on the device")
     if not new:
         check.refusals.append("the device has not told its identity (not answering?)")
-    if a["serial"] is not None and b["serial"] is not None and str(a["serial"]) != str(b["serial"]):
+    # a set taken from another device (a batch's source) has that device's serial: no sign of a replacement
+    own = (document.get("device") or {}).get("name") in (None, name)
+    if own and a["serial"] is not None and b["serial"] is not None and str(a["serial"]) != str(b["serial"]):
         check.notes.append(f"serial number {a['serial']} -> {b['serial']} (the replacement)")
     for facet in ("firmware", "hardware"):
         if a[facet] is not None and b[facet] is not None and str(a[facet]) != str(b[facet]):

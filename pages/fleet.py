@@ -105,6 +105,7 @@ class FleetView:
         self.results.clear()
         self.labels = {}
         with self.results:
+            ui.label(self._source_line(plan)).classes("text-body2").props("data-testid=fleet-source-line")
             for error in plan.errors:
                 ui.label(f"✖ {error}").classes("text-negative text-body1")
             for entry in plan.devices:
@@ -116,6 +117,17 @@ class FleetView:
         self.summary.classes(replace="text-body1 " + ("" if plan.ready else "text-negative"))
         self.apply.set_visibility(ready)
         self.apply.set_enabled(can_write())
+
+    def _source_line(self, plan: batch.BatchPlan) -> str:
+        """Where the set comes from, said once (not as a warning on every device it goes to)."""
+        line = f"Set: {self.source.options.get(self.source.value, self.source.value)}"
+        document = next((e.plan.document for e in plan.devices if e.plan is not None), None)
+        if document is not None and self.source.value != "project":
+            device = document.get("device") or {}
+            serial = (document.get("identity") or {}).get("serial")
+            line += (f", taken from {device.get('name', '?')}" + (f" (serial {serial})" if serial is not None else "")
+                     + f" of plant '{document.get('plant', '?')}'")
+        return line
 
     def _show_entry(self, entry) -> None:
         """One device's card of the dry run: its status, the identity notes and the rows to write."""
@@ -130,7 +142,8 @@ class FleetView:
                     ui.label(f"⚠ {note}").classes("text-caption text-warning")
             if entry.plan is not None:
                 for warning in entry.plan.warnings:
-                    if "serial number" not in warning:
+                    # another device's serial and name are what a batch from it means, not a warning
+                    if not warning.startswith(("the backup was taken from serial number", "the backup was taken from device")):
                         ui.label(f"⚠ {warning}").classes("text-caption text-warning")
                 for row in entry.changed:
                     risk = f"  (needs confirmation: {row.risk})" if row.risk else ""

@@ -178,3 +178,26 @@ async def test_a_whole_plant_backup_downloads_as_one_archive_at_once(engineer: E
     UserInteraction(user, {by_testid(user, "backup-start")}, None).click()
     await user.should_see("backup file(s) written", retries=200)
     await eventually(lambda: len(user.download.http_responses) > downloads, timeout=5, what="the archive downloaded")
+
+
+@pytest.fixture
+async def local(tmp_path: Path) -> AsyncIterator[Env]:
+    """The local engineer on loopback (what is tested is not a role)."""
+    async for env in _env(tmp_path, False, ENGINEER):
+        yield env
+
+
+async def test_the_fleet_page_warns_only_about_what_is_true(local: Env):
+    """A set of door-1 applied to door-2: door-2's serial and door-1's name are what a batch means (issue 42 item 5)."""
+    user, runtime = local.user, local.runtime
+    await runtime.record.approve("door-1", user="anna", role="engineer")
+    await user.open("/fleet")
+    source = by_testid(user, "fleet-source")
+    await eventually(lambda: source.value == "approved:door-1", timeout=5, what="the approved set as the source")
+    UserInteraction(user, {by_testid(user, "fleet-compare")}, None).click()
+    await user.should_see("ready:", retries=200)
+    card = next(e for e in user.client.elements.values() if e.props.get("data-fleet-result") == "door-2")
+    words = " ".join(getattr(e, "text", "") for e in card.descendants())
+    assert "serial number" not in words and "taken from device" not in words and "⚠" not in words, words
+    line = by_testid(user, "fleet-source-line").text
+    assert "approved set of door-1" in line and "taken from door-1" in line, line
