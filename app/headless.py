@@ -99,3 +99,121 @@ def _cli_user() -> str:
         return f"cli:{getpass.getuser()}"
     except (KeyError, OSError):
         return "cli"
+
+
+# -- a person at a terminal: the questions of a checkout on real equipment, and a dead-man of its own --------
+HELD_GAP_S = 0.7  # two presses of SPACE this close together: the key is held (the terminal's auto-repeat)
+NO_KEYS = ("n", "N")
+HOLD_WORDS = ("hold SPACE to answer yes, and keep holding it while the step runs: releasing it stops what moves "
+              "within 0.5 s (dead-man); n = no")
+
+
+def simulated(runtime, device: str) -> bool:
+    """Whether ``device`` is a twin of this run's simulated plant (nothing real moves when it does)."""
+    return device in getattr(runtime, "twins", {})
+
+
+def terminal_present(stream=None) -> bool:
+    """Whether a person can answer on this process's terminal (standard input is one)."""
+    stream = sys.stdin if stream is None else stream
+    try:
+        return stream is not None and stream.isatty()
+    except (AttributeError, ValueError, OSError):
+        return False
+
+
+class TtyKeys:
+    """Single key presses from the terminal on standard input (cbreak mode, restored at :meth:`stop`), read in a
+    thread of their own and handed to ``on_key`` in the event loop."""
+
+    def __init__(self, stream=None):
+        self.stream = sys.stdin if stream is None else stream
+        self._thread = None
+        self._running = False
+        self._saved = None
+
+    def start(self, on_key) -> None:
+        import termios
+        import threading
+        import tty
+
+        loop = asyncio.get_running_loop()
+        fd = self.stream.fileno()
+        self._saved = termios.tcgetattr(fd)
+        tty.setcbreak(fd)
+        self._running = True
+
+        def read() -> None:
+            import os
+            import select
+
+            while self._running:
+                ready, _, _ = select.select([fd], [], [], 0.1)
+                if not ready:
+                    continue
+                data = os.read(fd, 32)
+                if not data:
+                    break
+                for char in data.decode(errors="replace"):
+                    loop.call_soon_threadsafe(on_key, char)
+
+        self._thread = threading.Thread(target=read, name="terminal keys", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        import termios
+
+        self._running = False
+        if self._thread is not None:
+            self._thread.join(0.5)
+        if self._saved is not None:
+            termios.tcsetattr(self.stream.fileno(), termios.TCSADRAIN, self._saved)
+            self._saved = None
+
+
+class TerminalPerson:
+    """The person running a checkout of real equipment at a terminal.
+
+    Every question is theirs (``--answer yes`` answers for simulated devices only): yes is SPACE held, no is
+    ``n``. Each press of SPACE confirms to the worker's dead-man supervisor that the person is there
+    (``worker.heartbeat(session)``), so motion and mains outputs of the run's session are kept only while the
+    key is held and stop within the dead-man bound once it is released (the run itself does not beat).
+    ``keys``: the source of key presses (:class:`TtyKeys`, or a test's)."""
+
+    def __init__(self, worker, session: str, keys, out=print, clock=None):
+        import time
+
+        self.worker, self.session, self.keys, self.out = worker, session, keys, out
+        self.clock = clock or time.monotonic
+        self.presses: asyncio.Queue[str] = asyncio.Queue()
+        self.beats = 0
+
+    def start(self) -> None:
+        self.keys.start(self._key)
+
+    def stop(self) -> None:
+        self.keys.stop()
+
+    def _key(self, key: str) -> None:
+        if key == " ":
+            self.beats += 1
+            self.worker.heartbeat(self.session)  # the person is there: the key is held
+        self.presses.put_nowait(key)
+
+    async def ask(self, question: str) -> bool:
+        while not self.presses.empty():  # presses before the question answer nothing
+            self.presses.get_nowait()
+        self.out(f"    ? {question}\n      ({HOLD_WORDS})")
+        last: float | None = None
+        while True:
+            key = await self.presses.get()
+            if key in NO_KEYS:
+                self.out("      -> no")
+                return False
+            if key != " ":
+                continue
+            now = self.clock()
+            if last is not None and now - last <= HELD_GAP_S:
+                self.out("      -> yes (SPACE held: keep holding it while the step runs)")
+                return True
+            last = now

@@ -7,6 +7,11 @@ devices to come online and acts through the same record service as the record pa
 checks. The CLI user (``cli:<login>``) acts with the engineer role; questions of a checkout are
 asked on standard input (``--answer ask``) or answered yes by the CLI user (``--answer yes``), and
 every answer is recorded with who gave it.
+
+Headless runs are no way around the operator (issue 40): ``--answer yes`` answers only for simulated
+devices (twins of this run). A checkout of real equipment asks every question of the person at the
+terminal (:class:`app.headless.TerminalPerson`: yes is SPACE held, and the key held is the run's dead-man:
+released, what moves stops within the dead-man bound); without a terminal such a run refuses to start.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ import argparse
 import asyncio
 import sys
 import time
+import uuid
 from pathlib import Path
 from typing import Any
 
@@ -48,7 +54,9 @@ def add_parsers(sub) -> None:
     _devices(checkout, "check out")
     checkout.add_argument("--answer", choices=["yes", "ask"], default=None,
                           help="questions to a person: ask on standard input (default when it is a terminal) or "
-                               "answer yes, recorded as answered by the CLI user")
+                               "answer yes, recorded as answered by the CLI user; yes answers for simulated devices "
+                               "only: real equipment is asked of the person at the terminal, who holds SPACE while "
+                               "it moves (without a terminal such a run does not start)")
     checkout.add_argument("--set", action="append", default=[], metavar="DEVICE:KEY=VALUE",
                           help="a checkout setting of one device, e.g. lift:distance_mm=10 (repeatable)")
     checkout.add_argument("--sim-action", action="append", default=[], metavar="DEVICE:ACTION[:K=V,...]",
@@ -235,9 +243,31 @@ async def sim_action(runtime, spec: str, *, user: str, role: str) -> str:
     return f"{device}: simulation: {describe}"
 
 
+REAL_WITHOUT_PERSON = ("commission: not started: {devices} {are} real equipment (not a twin of this run): a checkout "
+                       "moves it or switches its mains outputs, so each of its questions is asked of a person at a "
+                       "terminal who holds SPACE while it moves (the run's dead-man). --answer yes answers only for "
+                       "simulated devices. Run 'commission checkout' from a terminal, or the checkout from the "
+                       "device's record page.")
+
+
+def real_devices(runtime, names: list[str]) -> list[str]:
+    """The devices of ``names`` that are real equipment (not twins of this run's simulated plant)."""
+    from app.headless import simulated
+
+    return [n for n in names if not simulated(runtime, n)]
+
+
 async def checkout_devices(runtime, names: list[str], *, user: str, role: str, answer: str | None,
-                           settings: list[str] = (), sim_actions: list[str] = (), out=print) -> int:
-    """Run each device's declared checkout in turn; 0 when every one passed, else 1."""
+                           settings: list[str] = (), sim_actions: list[str] = (), out=print, person=None) -> int:
+    """Run each device's declared checkout in turn; 0 when every one passed, else 1 (2: not started).
+
+    ``person``: the person at the terminal (:class:`app.headless.TerminalPerson`) who answers for real
+    equipment and whose held key is the dead-man of its runs; without one a run with real equipment
+    does not start."""
+    real = real_devices(runtime, names)
+    if real and person is None:
+        out(REAL_WITHOUT_PERSON.format(devices=", ".join(real), are="is" if len(real) == 1 else "are"))
+        return 2
     for spec in sim_actions:
         try:
             out(await sim_action(runtime, spec, user=user, role=role))
@@ -258,9 +288,17 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
             out(f"{name}: {module.TITLE}: not run: {reason}")
             results.append((name, "not run", reason, None))
             continue
-        ask = _answerer(answer, user, out, runtime, name)
+        options: dict[str, Any] = {}
+        if name in real:  # the person answers, and their held key is the session's dead-man (the run does not beat)
+            ask = person.ask
+            options["session"] = person.session
+            if answer == "yes":
+                out(f"{name}: real equipment: --answer yes does not answer for it; the questions are yours")
+        else:
+            ask = _answerer(answer, user, out, runtime, name)
         try:
-            run = runtime.record.new_run(name, user=user, role=role, ask=ask, settings=_settings(list(settings), name, module))
+            run = runtime.record.new_run(name, user=user, role=role, ask=ask, settings=_settings(list(settings), name, module),
+                                         **options)
         except Exception as exc:  # noqa: BLE001
             out(f"{name}: {exc}")
             results.append((name, "not run", str(exc), None))
@@ -295,14 +333,37 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
 
 
 def run_checkout(args) -> int:
-    answer = args.answer or ("ask" if sys.stdin is not None and sys.stdin.isatty() else None)
+    from app.headless import TerminalPerson, TtyKeys, terminal_present
+
+    terminal = terminal_present()
+    answer = args.answer or ("ask" if terminal else None)
 
     def out(text: str) -> None:
         print(text, flush=True)
 
-    return _run_plant(args, lambda runtime, names: checkout_devices(
-        runtime, names, user=_cli_user(), role="engineer", answer=answer, settings=args.set, sim_actions=args.sim_action,
-        out=out))
+    if not terminal:  # refuse before anything connects to a real bus
+        from app.headless import _load
+
+        plant = _load(args.plant)
+        chosen = [n for n in plant.devices if args.all or not args.device or n in args.device]
+        real = [n for n in chosen if args.no_sim or not plant.buses[plant.devices[n].bus].simulated]
+        if real:
+            out(REAL_WITHOUT_PERSON.format(devices=", ".join(real), are="is" if len(real) == 1 else "are"))
+            return 2
+
+    async def work(runtime, names: list[str]) -> int:
+        person = None
+        if terminal and real_devices(runtime, names):
+            person = TerminalPerson(runtime.worker, f"cli-checkout-{uuid.uuid4().hex[:8]}", TtyKeys(), out)
+            person.start()
+        try:
+            return await checkout_devices(runtime, names, user=_cli_user(), role="engineer", answer=answer,
+                                          settings=args.set, sim_actions=args.sim_action, out=out, person=person)
+        finally:
+            if person is not None:
+                person.stop()
+
+    return _run_plant(args, work)
 
 
 # -- sign ---------------------------------------------------------------------------------------
