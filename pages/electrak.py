@@ -20,6 +20,7 @@ from app import worker as worker_module
 from devices.electrak import adapter as facts
 from devices.electrak import codec
 from devices.electrak.adapter import FOREIGN_SENDER, SERIES
+from devices.electrak.policy import AREA_CLEAR_RISK
 from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, length_of, refusal
 from pages.device_page import DeviceCard, DeviceView, DrawnCard, StatusRow, device_page, point_values, titled_card
 from pages.frame import fmt_age, fmt_time
@@ -31,6 +32,7 @@ from pages.widgets import (
     WriteGuard,
     entry_age,
     checked_value,
+    confirm,
     gate,
     lamp_html,
     mark_quality,
@@ -234,6 +236,10 @@ class DriveCard(DrawnCard):
 
     view: ElectrakView
 
+    def __init__(self, view: ElectrakView):
+        super().__init__(view)
+        self.area_clear_for: float | None = None  # the control (its start) for which the jog was armed
+
     def build(self) -> None:
         view, limits = self.view, self.view.limits
         with titled_card("Drive the network"):
@@ -259,14 +265,15 @@ class DriveCard(DrawnCard):
             with ui.row():
                 self.jog_in = ui.button("In", icon="keyboard_double_arrow_left").props("outline data-testid=jog-in")
                 self.jog_out = ui.button("Out", icon="keyboard_double_arrow_right").props("outline data-testid=jog-out")
-                self.reset = ui.button("Override/reset").props("flat")
+                self.reset = ui.button("Override/reset", on_click=self.override).props("flat data-testid=override")
+                self.reset.tooltip("Resets the number of actuators the network expects (asks first); held for three "
+                                   "control periods, then cleared by itself")
+            self.armed = ui.label().classes("text-caption text-grey-8").props("data-testid=jog-armed")
             for button, direction in ((self.jog_in, -1), (self.jog_out, 1)):
                 for event in ("mousedown", "touchstart"):
                     button.on(event, self.jog(direction))
                 for event in ("mouseup", "mouseleave", "touchend", "touchcancel"):
                     button.on(event, lambda: view.act("jog stop"))
-            self.reset.on("mousedown", lambda: view.act("override", {"active": 1}))
-            self.reset.on("mouseup", lambda: view.act("override", {"active": 0}))
             with ui.row().classes("items-start no-wrap gap-1 bg-blue-grey-1 q-pa-xs rounded-borders"):
                 ui.icon("timer_off", size="xs").classes("q-mt-xs")
                 ui.label(_stop_rule()).classes("text-caption").props("data-testid=stop-rule")
@@ -286,15 +293,36 @@ class DriveCard(DrawnCard):
         return ok
 
     async def go(self) -> None:
-        if await self.apply():
-            await self.view.act("go")
+        if await self.apply():  # the gate asks the declared risk: the area is clear
+            await self.view.act("go", title="Go: is the area clear?", ok="The area is clear: Go")
+
+    async def override(self) -> None:
+        await self.view.act("override", {"active": 1}, title="Override/reset: the network counts its actuators anew",
+                            ok="Override/reset")
+
+    def _my_control(self):
+        c = self.view.fact(facts.P_CONTROL)
+        return c if c is not None and c.session == self.view.tag else None
 
     def jog(self, direction: int):
+        """Hold-to-run. The area-clear question of the declared jog is asked at the first press while this page holds
+        control (a dialog would end the hold): that press arms the jog, the next ones move while held."""
         async def start() -> None:
-            value = await checked_value(self.speed, self.view.name, f"jog {'out' if direction > 0 else 'in'}",
-                                        parameter="Target speed")
+            name = f"jog {'out' if direction > 0 else 'in'}"
+            mine = self._my_control()
+            if mine is not None and self.area_clear_for != mine.since:
+                if await confirm("Jog: is the area clear?", f"{AREA_CLEAR_RISK} Jogging is then armed while you hold "
+                                 "control: hold In or Out to move, release to stop.", ok="The area is clear"):
+                    self.area_clear_for = mine.since
+                    self.refresh()
+                    ui.notify("Jog armed: hold In or Out to move (it stops when released)", type="info")
+                else:
+                    await refuse(self.view.name, name, "not confirmed")
+                return
+            value = await checked_value(self.speed, self.view.name, name, parameter="Target speed")
             if value is not None:
-                await self.view.act("jog", {"direction": direction, "speed_mm_s": float(value)})
+                await self.view.act("jog", {"direction": direction, "speed_mm_s": float(value)},
+                                    confirmed=mine is not None)  # the question above named the declared risk
         return start
 
     def inputs(self) -> tuple:
@@ -302,7 +330,7 @@ class DriveCard(DrawnCard):
         other = points.get(facts.P_FOREIGN)
         foreign = other is not None and other.value is not None and time.time() - other.value.time <= 2.0
         return (self.guard.reason, point_values(points, (facts.P_CONTROL, facts.P_TELEGRAM)),
-                other.value if foreign else None)
+                other.value if foreign else None, self.area_clear_for)
 
     def draw(self) -> None:
         view = self.view
@@ -326,6 +354,9 @@ class DriveCard(DrawnCard):
         gate(self.release, "" if mine else "you do not hold control")
         for element in (self.apply_button, self.go_button, self.jog_in, self.jog_out, self.reset):
             gate(element, offline or ("" if mine else "take control first"))
+        armed = mine and self.area_clear_for == c.since
+        self.armed.set_text("" if not mine else "jog armed: the area was confirmed clear; hold In or Out to move" if armed
+                            else "the first press of In or Out asks that the area is clear, then arms the jog")
         telegram = view.state.live(facts.P_TELEGRAM)
         self.sent.set_text("" if telegram is None else telegram.shown)
 

@@ -93,6 +93,8 @@ async def test_motion_commands_record_target_speed_and_limit(env: Env):
     go_button = _one(env.user, ui.button, lambda e: e.props.get("data-testid") == "go")
     await eventually(lambda: go_button.enabled, what="Go enabled for the holder of control")
     env.user.find(marker=None, content="Go", kind=ui.button).click()
+    await env.user.should_see("The area is clear: Go")  # Go asks that the area is clear
+    env.user.find(marker=None, content="The area is clear: Go", kind=ui.button).click()
     await eventually(lambda: adapter.command.enable, timeout=5, what="enabled")
     env.user.find("Stop").click()
 

@@ -43,6 +43,9 @@ def test_go_moves_the_position_chart_toward_the_target(app_url, chromium, tmp_pa
         target = page.get_by_label("Target position [mm]", exact=False)
         target.fill("40")
         page.get_by_test_id("go").click()
+        dialog = page.locator(".q-dialog")
+        expect(dialog).to_contain_text("area is clear")  # Go asks first (issue 40), as the SCU's and MO 64's motion does
+        dialog.get_by_role("button", name="The area is clear: Go").click()
         page.get_by_text("Extending").first.wait_for(timeout=5_000)
         page.wait_for_function(
             """() => { const p = document.querySelector('.js-plotly-plot');
@@ -114,6 +117,36 @@ def test_message_timeout_while_idle_is_not_a_red_fault(app_url, chromium):
         assert page.locator('[data-lamp="Message timeout"]').get_attribute("data-idle") == "0"
         assert page.get_by_test_id("idle-note").inner_text() == ""
         page.screenshot(path="/tmp/shots/electrak-control-1440.png")
+    finally:
+        page.close()
+
+
+def test_jog_is_armed_by_the_area_clear_question_and_override_asks(app_url, chromium):
+    """Issue 40: the first press of a jog button asks that the area is clear (a dialog would end the hold), the
+    next press moves while held; Override/reset asks its risk before anything is sent."""
+    page = chromium.new_page(viewport={"width": 1440, "height": 900})
+    try:
+        page.goto(f"{app_url}/device/lift")
+        page.get_by_text("actuators heard per 100 ms: 2 of 2 configured").wait_for(timeout=10_000)
+        page.get_by_test_id("take-control").click()
+        page.get_by_text("you hold control").wait_for(timeout=5_000)
+        jog = page.get_by_test_id("jog-out")
+        jog.click()
+        dialog = page.locator(".q-dialog")
+        expect(dialog).to_contain_text("area is clear")
+        dialog.get_by_role("button", name="The area is clear").click()
+        page.get_by_test_id("jog-armed").get_by_text("jog armed").wait_for(timeout=5_000)
+        assert page.locator('[data-lamp="Extending"]').get_attribute("data-on") != "1"  # the arming press moved nothing
+        box = jog.bounding_box()
+        page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+        page.mouse.down()  # hold-to-run, asked nothing more
+        page.wait_for_function("() => document.querySelector('[data-lamp=\"Extending\"]').dataset.on === '1'", timeout=5_000)
+        page.mouse.up()
+        page.wait_for_function("() => document.querySelector('[data-lamp=\"Extending\"]').dataset.on === '0'", timeout=5_000)
+        page.get_by_test_id("override").click()
+        expect(dialog).to_contain_text("alone")  # names its risk
+        dialog.get_by_role("button", name="Cancel").click()
+        expect(page.locator(".q-dialog")).to_have_count(0)
     finally:
         page.close()
 

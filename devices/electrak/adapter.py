@@ -395,8 +395,9 @@ class ElectrakAdapter:
             self._listening_reconnects = self.bus.state.reconnects
             self.core.bus_opened(time.monotonic())
         wait = self.core.listen_remaining(time.monotonic())
-        if wait > 0:
+        while wait > 0:  # (the loop may wake a timer up to its clock resolution early)
             await asyncio.sleep(wait)
+            wait = self.core.listen_remaining(time.monotonic())
         now = time.monotonic()
         decision = self.core.take(session, user, now, time.time())
         if not decision.ok and self.core.foreign_sender(now):
