@@ -40,11 +40,13 @@ table.glance-table { border-collapse: collapse; width: 100%; font-size: 13px; }
 table.glance-table th { text-align: left; font-weight: 500; color: #666; padding: 2px 6px; border-bottom: 1px solid #ddd; }
 table.glance-table td { padding: 3px 6px; border-bottom: 1px solid #eee; vertical-align: top; }
 table.glance-table td a { color: #1565c0; text-decoration: none; font-weight: 500; }
-table.glance-table td.alarms { color: #c10015; font-weight: 500; overflow-wrap: anywhere; }
+table.glance-table td:first-child { white-space: nowrap; }  /* a device's name is never broken */
+table.glance-table td.alarms { color: #c10015; font-weight: 500; overflow-wrap: break-word; }  /* between words */
 table.glance-table td.age { white-space: nowrap; color: #666; }
 table.glance-table tr.glance-offline td { background: #fdeaea; }
 table.glance-table tr.glance-stale td { background: #fff4d6; }
 table.glance-table .glance-drift { color: #8a4b00; font-weight: 500; }
+table.glance-table .glance-unsaved { color: #8a4b00; font-weight: 500; cursor: help; }
 table.glance-table td a.glance-replaced { color: #b71c1c; font-weight: 700; display: block; }
 .drift-badge { align-self: flex-start; cursor: help; white-space: normal !important; }
 """
@@ -83,6 +85,22 @@ def replaced_short(state) -> str:
     return "replaced? " + ", ".join(f"{k} {old[k]} → {new[k]}" for k in replaced["differs"])
 
 
+def unsaved_text(state) -> str:
+    """"2 unsaved changes" (written, lost at the device's next reset unless saved), "" for none."""
+    count = len(getattr(state, "unsaved", ()) or ())
+    return f"{count} unsaved change{'s' if count != 1 else ''}" if count else ""
+
+
+def unsaved_names(state) -> str:
+    """The unsaved parameters by name (the tile's hover text)."""
+    params = getattr(state, "params", None)
+    names = []
+    for key in sorted(getattr(state, "unsaved", ()) or ()):
+        p = params.by_key.get(key) if params is not None else None
+        names.append(key if p is None else (p.label or p.name))
+    return "Written, not saved in the device (lost at its next reset): " + ", ".join(names) if names else ""
+
+
 def drift_text(rows: list[dict]) -> str:
     return "; ".join(f"{r['name']} {r['approved']} → {r['now']}" for r in rows)
 
@@ -100,7 +118,7 @@ def overview_shows(state) -> tuple:
     """What a tile and a table row of the overview draw, ages and counters left out: redrawn when it changed."""
     tile = evaluate_tile(state)
     return (tile["lines"], tile["alarms"], tile["bar"], tile["quality"], state.status, state.last_error,
-            drift_text(drift_rows(state)), replaced_text(state))
+            drift_text(drift_rows(state)), replaced_text(state), unsaved_text(state))
 
 
 class DeviceTile:
@@ -119,7 +137,7 @@ class DeviceTile:
         self.bus_type = runtime.plant.buses[self.state.bus].type
         self._shown: dict[str, object] = {}
         self._tile: dict | None = None
-        self.drift = self.replaced = self.quality_note = self.error = None
+        self.drift = self.replaced = self.unsaved = self.quality_note = self.error = None
         # a real link: a click opens the device page, a middle click or the context menu a new tab
         with ui.link(target=f"/device/{name}").classes("tile-link").props(f'data-device-link="{name}"') as self.link, \
                 ui.card().classes("tile") as self.card:
@@ -192,12 +210,21 @@ class DeviceTile:
             badge.text = f"changed since approved ({len(rows)})" if rows else "changed since approved"
             badge._props["title"] = "Changed since approved: " + drift_text(rows) if rows else ""
             badge.update()
+        unsaved = unsaved_text(s)
+        if self._changed("unsaved", unsaved) and (unsaved or self.unsaved is not None):
+            # written, not saved: lost at the device's next reset (its page offers Save)
+            badge = self._element("unsaved", lambda: ui.badge("", color="amber-10").classes("drift-badge")
+                                  .props(f'data-unsaved="{self.name}"'))
+            badge.set_visibility(bool(unsaved))
+            badge.text = unsaved
+            badge._props["title"] = unsaved_names(s)
+            badge.update()
         if ticked:
             self.counters.set_text(counters_text(s.counters.as_dict(), self.bus_type, age))
 
 
 # a tile's card from top to bottom below its name (the seldom shown ones are built when first needed)
-TILE_ORDER = ("kind", "drift", "replaced", "values", "quality_note", "counters", "error")
+TILE_ORDER = ("kind", "drift", "replaced", "unsaved", "values", "quality_note", "counters", "error")
 LINE, ALARM = "text-body2", "text-body2 text-negative text-weight-medium"
 
 
@@ -225,7 +252,8 @@ class GlanceRow:
         alarms = tile["alarms"] if tile["quality"] in ("good", "unknown") else []
         rows = drift_rows(s)
         replaced = replaced_text(s)
-        shown = (status, "; ".join(alarms), fmt_age(age) if age is not None else "never", drift_text(rows), replaced)
+        unsaved = unsaved_text(s)
+        shown = (status, "; ".join(alarms), fmt_age(age) if age is not None else "never", drift_text(rows), replaced, unsaved)
         if shown == self._shown:
             return
         self._shown = shown
@@ -233,6 +261,8 @@ class GlanceRow:
         state = _cell(status_text(status, None) if status != "stale" else "stale", f"status-{status}")
         if rows:
             state += _cell("changed since approved", "glance-drift", f' data-glance-drift="{name}"')
+        if unsaved:
+            state += _cell(unsaved, "glance-unsaved", f' data-glance-unsaved="{name}" title="{escape(unsaved_names(s), quote=True)}"')
         if replaced:
             state += (f'<a class="glance-replaced" href="/replace/{name}" data-glance-replaced="{name}" '
                       f'title="{escape(replaced, quote=True)}">{escape(replaced_short(s) or "replaced?")}</a>')

@@ -165,12 +165,12 @@ async def _wait_table(user: User) -> ui.table:
 
 
 async def test_the_restore_confirmation_names_every_unsaved_change_the_save_makes_permanent(env: Env):
-    """Issue 32 items 4 and 13: a value written earlier and not saved (MaximumTimeUnlock = 1234),
+    """Issue 32 items 4 and 13: a value written earlier and not saved (SettingOutput1 = 5),
     deselected in the diff, is made permanent by the restore's Save-Settings: the confirmation names
     it beside the restored row, and counts in words ("1 parameter", not "1 parameters")."""
-    unlock = PARAMS.by_name["MaximumTimeUnlock"]
-    await env.runtime.worker.command("door-1", lambda a: a.write_param(unlock, 1234), describe="write")
-    assert unlock.key in env.runtime.store.devices["door-1"].unsaved
+    output = PARAMS.by_name["SettingOutput1"]  # a setting (a measured maximum is never restored: issue 42 item 4)
+    await env.runtime.worker.command("door-1", lambda a: a.write_param(output, 5), describe="write")
+    assert output.key in env.runtime.store.devices["door-1"].unsaved
     entries = []
     for p in PARAMS:
         raw = p.default if p.default is not None else 0
@@ -188,18 +188,18 @@ async def test_the_restore_confirmation_names_every_unsaved_change_the_save_make
     env.user.find("Compare with the device").click()
     table = await _wait_table(env.user)
     names = {r["name"] for r in table.selected}
-    assert {"LockRequestDelay", "MaximumTimeUnlock"} <= names, names
-    table.selected = [r for r in table.rows if r["name"] == "LockRequestDelay"]  # MaximumTimeUnlock deselected
+    assert {"LockRequestDelay", "SettingOutput1"} <= names, names
+    table.selected = [r for r in table.rows if r["name"] == "LockRequestDelay"]  # SettingOutput1 deselected
     env.user.find("Write selected").click()
     await env.user.should_see("Write 1 parameter to door-1?")
     await env.user.should_see("LockRequestDelay 200 ms -> 250 ms")
-    await env.user.should_see("MaximumTimeUnlock (holding 1003) = 1234 ms")  # the unrelated unsaved change, named
+    await env.user.should_see(f"SettingOutput1 (holding 3001) = {output.display(5)}")  # the unrelated unsaved change, named
     await env.user.should_not_see("Write 1 parameters")
     env.user.find(marker="restore-confirm-ok").click()
     await env.user.should_see("1 written", retries=100)
 
     def save_row():
-        rows = env.runtime.audit.query(device="door-1", text="MaximumTimeUnlock")
+        rows = env.runtime.audit.query(device="door-1", text="SettingOutput1")
         assert any(e.action == "restore: save step" for e in rows), rows  # what the save made permanent is searchable
 
-    await eventually(save_row, what="the save step's audit row naming MaximumTimeUnlock")
+    await eventually(save_row, what="the save step's audit row naming SettingOutput1")

@@ -201,3 +201,20 @@ async def test_the_fleet_page_warns_only_about_what_is_true(local: Env):
     assert "serial number" not in words and "taken from device" not in words and "⚠" not in words, words
     line = by_testid(user, "fleet-source-line").text
     assert "approved set of door-1" in line and "taken from door-1" in line, line
+
+
+async def test_the_overview_shows_unsaved_changes(local: Env):
+    """door-1 written and not saved: its tile and its table row say so (issue 42 item 7)."""
+    user, runtime = local.user, local.runtime
+    state = runtime.store.devices["door-1"]
+    param = state.params.by_name["LockRequestDelay"]
+    await runtime.worker.adapters["door-1"].write_param(param, 420)
+    assert state.unsaved
+    await user.open("/")
+    await user.should_see("1 unsaved change", retries=100)
+    badge = next(e for e in user.client.elements.values() if e.props.get("data-unsaved") == "door-1")
+    assert badge.visible and badge.text == "1 unsaved change" and "LockRequestDelay" in badge.props["title"]
+    row = next(e for e in user.client.elements.values() if e.props.get("data-glance") == "door-1")
+    assert 'data-glance-unsaved="door-1"' in row.content and "1 unsaved change" in row.content
+    await runtime.worker.adapters["door-1"].save_step()
+    await eventually(lambda: not badge.visible, timeout=5, what="the badge gone after Save")
