@@ -31,9 +31,13 @@ from typing import Any
 
 from asyncua import Server, ua
 from asyncua.crypto.permission_rules import PermissionRuleset, User, UserRole
+from asyncua.common.connection import TransportLimits
+from asyncua.server.binary_server_asyncio import OPCUAProtocol
+from asyncua.server.internal_session import SessionState
 from asyncua.server.uaprocessor import UaProcessor
 from asyncua.ua.ua_binary import nodeid_from_binary, struct_from_binary
 
+from app.audit import LogBudget
 from app.auth import LoginThrottle, check_login
 
 from devices.live import jsonable
@@ -46,6 +50,25 @@ DEVICE_HEALTH = ("NORMAL", "FAILURE", "CHECK_FUNCTION", "OFF_SPEC", "MAINTENANCE
 IDENTITY = ("Manufacturer", "Model", "SerialNumber", "SoftwareRevision", "HardwareRevision", "DeviceRevision")
 REVISION_PERIOD_S = 5.0  # the revision counters are counted again from the audit log this often
 
+# What clients may take (anonymous ones too). Per client address: sessions and connections that have not
+# activated a session (the oldest idle one is closed for a new one, so a flood of idle sockets cannot keep
+# a real client out); per session: subscriptions and monitored items; in all: connections, subscriptions,
+# message and chunk sizes (a channel's unfinished chunks are bounded by the message size), idle time.
+MAX_SESSIONS_PER_CLIENT = 8
+MAX_IDLE_PER_CLIENT = 4
+MAX_SUBSCRIPTIONS_PER_SESSION = 10
+MAX_MONITORED_ITEMS_PER_SESSION = 2000  # created over the session's life
+MAX_CONNECTIONS = 128
+MAX_SUBSCRIPTIONS = 200
+MAX_MESSAGE_BYTES = 2 * 1024 * 1024
+MAX_CHUNK_BYTES = 65535
+MAX_CHUNKS = 32
+ACTIVATION_TIMEOUT_S = 10.0  # a connection without an activated session is closed after this
+MAX_SESSION_TIMEOUT_MS = 60_000  # a session without requests ends after at most this
+MAX_PENDING_MESSAGES = 50  # per connection, queued behind the one being handled
+MAX_QUEUE_SIZE = 100  # per monitored item
+LOG_LINES_PER_MINUTE = 30  # log lines that clients can cause (the library's and ours)
+
 REFUSED_SERVICES = {ua.NodeId(i) for i in (
     ua.ObjectIds.WriteRequest_Encoding_DefaultBinary, ua.ObjectIds.CallRequest_Encoding_DefaultBinary,
     ua.ObjectIds.HistoryUpdateRequest_Encoding_DefaultBinary, ua.ObjectIds.AddNodesRequest_Encoding_DefaultBinary,
@@ -53,6 +76,24 @@ REFUSED_SERVICES = {ua.NodeId(i) for i in (
     ua.ObjectIds.DeleteReferencesRequest_Encoding_DefaultBinary, ua.ObjectIds.RegisterServerRequest_Encoding_DefaultBinary,
     ua.ObjectIds.RegisterServer2Request_Encoding_DefaultBinary,
 )}
+
+
+_client_lines = LogBudget(lines=LOG_LINES_PER_MINUTE, window_s=60.0)  # what clients can make the server log
+
+
+def _quiet_asyncua() -> None:
+    """asyncua writes INFO lines for every connection and request and an ERROR for every refused one:
+    its server loggers keep warnings only, within :data:`LOG_LINES_PER_MINUTE` a minute (the rest counted)."""
+    import logging as _logging
+
+    server_log = _logging.getLogger("asyncua.server")
+    if server_log.level == _logging.NOTSET or server_log.level < _logging.WARNING:
+        server_log.setLevel(_logging.WARNING)
+    for name in list(_logging.root.manager.loggerDict):
+        if name == "asyncua.server" or name.startswith("asyncua.server."):
+            logger = _logging.getLogger(name)
+            if _client_lines not in logger.filters:
+                logger.addFilter(_client_lines)
 
 
 class ReadOnlyRules(PermissionRuleset):
@@ -63,7 +104,9 @@ class ReadOnlyRules(PermissionRuleset):
     def check_validity(self, user, action_type, body) -> bool:
         if action_type in REFUSED_SERVICES:
             ReadOnlyRules.refused += 1
-            log.info("opcua: %s refused for %s (the server is read-only)", action_type, getattr(user, "name", None) or "anonymous")
+            if _client_lines.take() is not None:
+                log.info("opcua: %s refused for %s (the server is read-only)", action_type,
+                         getattr(user, "name", None) or "anonymous")
             return False
         return True
 
@@ -73,7 +116,7 @@ class AccountUsers:
 
     asyncua asks for the user synchronously, on the event loop, in the middle of ActivateSession;
     a password hash there would stop every bus task for its duration. So each user-name login is
-    checked before asyncua sees it (:func:`_check_logins_first`): throttled, hashed in a thread and
+    checked before asyncua sees it (:func:`_check_requests_first`): throttled, hashed in a thread and
     audited by :func:`app.auth.check_login`, like the web login; asyncua then only picks up the
     verdict. A login without a verdict is refused, never hashed on the loop.
     """
@@ -105,38 +148,113 @@ class AccountUsers:
 
 
 _ACTIVATE = ua.NodeId(ua.ObjectIds.ActivateSessionRequest_Encoding_DefaultBinary)
-_LOGINS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # asyncua's InternalServer -> AccountUsers
+_CREATE_SESSION = ua.NodeId(ua.ObjectIds.CreateSessionRequest_Encoding_DefaultBinary)
+_CREATE_SUBSCRIPTION = ua.NodeId(ua.ObjectIds.CreateSubscriptionRequest_Encoding_DefaultBinary)
+_CREATE_ITEMS = ua.NodeId(ua.ObjectIds.CreateMonitoredItemsRequest_Encoding_DefaultBinary)
+_REGISTER = {ua.NodeId(ua.ObjectIds.RegisterServerRequest_Encoding_DefaultBinary),
+             ua.NodeId(ua.ObjectIds.RegisterServer2Request_Encoding_DefaultBinary)}
 
 
-def _check_logins_first() -> None:
-    """Let a user-name ActivateSession be checked (awaited, off the loop) before asyncua handles it.
+class _Guard:
+    """The server's accounts and what each client holds, for the checks before asyncua handles a request."""
 
-    asyncua has no asynchronous seam for a login: its processor's public ``process_message`` is
-    wrapped once; it looks the server's accounts up in :data:`_LOGINS` and does nothing for others.
+    def __init__(self, logins: AccountUsers):
+        self.logins = logins
+        self.processors: weakref.WeakSet = weakref.WeakSet()  # every connection's processor that sent a request
+        self.items: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # processor -> monitored items created
+        self.refused = 0
+
+    def sessions_of(self, host: str, besides) -> int:
+        return sum(1 for p in list(self.processors) if p is not besides and _host(p.name) == host and p.session is not None
+                   and p.session.state != SessionState.Closed)
+
+    def subscriptions_of(self, iserver, session) -> int:
+        return sum(1 for sub in list(iserver.subscription_service.subscriptions.values()) if sub.session_id == session.session_id)
+
+
+_GUARDS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # asyncua's InternalServer -> _Guard
+
+
+def _host(peer) -> str:
+    return str(peer[0]) if isinstance(peer, tuple) and peer else str(peer)
+
+
+async def _refusal(guard: _Guard, processor, typeid, peek, seqhdr) -> ua.StatusCode | None:
+    """The refusal of this request by the limits above, or None to let asyncua handle it."""
+    if typeid in _REGISTER:
+        return ua.StatusCode(ua.StatusCodes.BadServiceUnsupported)  # never a discovery server for others
+    if typeid == _CREATE_SESSION:
+        if guard.sessions_of(_host(processor.name), processor) >= MAX_SESSIONS_PER_CLIENT:
+            return ua.StatusCode(ua.StatusCodes.BadTooManySessions)
+    elif typeid == _CREATE_SUBSCRIPTION and processor.session is not None:
+        if guard.subscriptions_of(processor.iserver, processor.session) >= MAX_SUBSCRIPTIONS_PER_SESSION:
+            return ua.StatusCode(ua.StatusCodes.BadTooManySubscriptions)
+    elif typeid == _CREATE_ITEMS and processor.session is not None:
+        asked = len(struct_from_binary(ua.CreateMonitoredItemsParameters, peek).ItemsToCreate)
+        made = guard.items.get(processor, 0)
+        if made + asked > MAX_MONITORED_ITEMS_PER_SESSION:
+            return ua.StatusCode(ua.StatusCodes.BadTooManyMonitoredItems)
+        guard.items[processor] = made + asked
+    elif typeid == _ACTIVATE and not guard.logins.anonymous and processor.session is not None:
+        token = struct_from_binary(ua.ActivateSessionParameters, peek).UserIdentityToken
+        if isinstance(token, ua.UserNameIdentityToken):
+            name, password = processor.iserver.decrypt_user_token(processor.session, token)
+            await guard.logins.check(name or "", password or "", _host(processor.name))
+    return None
+
+
+def _check_requests_first() -> None:
+    """Let each request be checked (limits, logins awaited off the loop) before asyncua handles it.
+
+    asyncua has no asynchronous seam for a login and handles RegisterServer before its permission
+    rules: its processor's public ``process_message`` is wrapped once; it looks the server up in
+    :data:`_GUARDS` and does nothing for others. Likewise ``OPCUAProtocol.connection_made`` closes
+    the oldest connection of an address that holds :data:`MAX_IDLE_PER_CLIENT` without a session.
     """
-    if getattr(UaProcessor.process_message, "checks_logins_first", False):
+    if getattr(UaProcessor.process_message, "checks_requests_first", False):
         return
     original = UaProcessor.process_message
 
     async def process_message(self, seqhdr, body):
-        logins = _LOGINS.get(self.iserver)
-        if logins is not None and not logins.anonymous and self.session is not None:
+        guard = _GUARDS.get(self.iserver)
+        if guard is not None:
+            guard.processors.add(self)
+            refusal, requesthdr = None, None
             try:
                 peek = body.copy()
                 typeid = nodeid_from_binary(peek)
-                if typeid == _ACTIVATE:
-                    struct_from_binary(ua.RequestHeader, peek)
-                    token = struct_from_binary(ua.ActivateSessionParameters, peek).UserIdentityToken
-                    if isinstance(token, ua.UserNameIdentityToken):
-                        name, password = self.iserver.decrypt_user_token(self.session, token)
-                        address = self.name[0] if isinstance(self.name, tuple) and self.name else str(self.name)
-                        await logins.check(name or "", password or "", str(address))
-            except (ValueError, TypeError, ua.UaError, ua.UaStatusCodeError):
+                requesthdr = struct_from_binary(ua.RequestHeader, peek)
+                refusal = await _refusal(guard, self, typeid, peek, seqhdr)
+            except (ValueError, TypeError, IndexError, ua.UaError, ua.UaStatusCodeError):
                 pass  # asyncua refuses the malformed request itself
+            if refusal is not None and requesthdr is not None:
+                guard.refused += 1
+                if _client_lines.take() is not None:
+                    log.warning("opcua: a request from %s refused: %s", _host(self.name), refusal.name)
+                response = ua.ServiceFault()
+                response.ResponseHeader.ServiceResult = refusal
+                self.send_response(requesthdr.RequestHandle, seqhdr, response)
+                return True
         return await original(self, seqhdr, body)
 
-    process_message.checks_logins_first = True
+    process_message.checks_requests_first = True
     UaProcessor.process_message = process_message
+
+    made = OPCUAProtocol.connection_made
+
+    def connection_made(self, transport):
+        guard = _GUARDS.get(self.iserver)
+        if guard is not None:
+            host = _host(transport.get_extra_info("peername"))
+            idle = [c for c in list(self.clients) if _host(c.peer_name) == host and c.transport is not None
+                    and (c.processor is None or c.processor.session is None or not c.processor.session.is_activated())]
+            for old in idle[:max(0, len(idle) - MAX_IDLE_PER_CLIENT + 1)]:
+                if _client_lines.take() is not None:
+                    log.warning("opcua: %s holds %d connections without a session: the oldest closed", host, len(idle))
+                old.transport.close()
+        made(self, transport)
+
+    OPCUAProtocol.connection_made = connection_made
 
 
 def health_of(state, controlled: bool, alarms: list[str]) -> int:
@@ -263,8 +381,9 @@ class OpcuaServer:
         logins = AccountUsers(self.users, self.config.anonymous, audit=self.audit, throttle=self.throttle)
         server = Server(user_manager=logins)
         await server.init()
-        _check_logins_first()
-        _LOGINS[server.iserver] = logins
+        self._limit(server)
+        _check_requests_first()
+        _GUARDS[server.iserver] = _Guard(logins)
         server.set_endpoint(self.config.endpoint)
         server.set_server_name(f"commission {self.plant.name}")
         await server.set_application_uri(f"urn:commission:{self.plant.name}")
@@ -287,6 +406,20 @@ class OpcuaServer:
         self.started = True
         self._task = asyncio.create_task(self._update_loop(), name="opcua values")
         log.info("opcua: read-only server on %s (%d devices)", self.config.endpoint, len(self._devices))
+
+    @staticmethod
+    def _limit(server: Server) -> None:
+        """The limits of what clients may take, on asyncua's own settings (see the constants above)."""
+        server.limits = TransportLimits(max_recv_buffer=MAX_CHUNK_BYTES, max_send_buffer=MAX_CHUNK_BYTES,
+                                        max_chunk_count=MAX_CHUNKS, max_message_size=MAX_MESSAGE_BYTES)
+        iserver = server.iserver
+        iserver.max_connections = MAX_CONNECTIONS
+        iserver.max_pending_activation_seconds = ACTIVATION_TIMEOUT_S
+        iserver.max_subscriptions = MAX_SUBSCRIPTIONS
+        iserver.max_session_timeout_ms = MAX_SESSION_TIMEOUT_MS
+        iserver.max_pending_messages_per_connection = MAX_PENDING_MESSAGES
+        iserver.max_monitored_item_queue_size = MAX_QUEUE_SIZE
+        _quiet_asyncua()
 
     async def stop(self) -> None:
         if self._task is not None:

@@ -1,0 +1,158 @@
+"""What an anonymous OPC UA client may take (issue 41, items 2 and 10): RegisterServer refused,
+subscriptions and monitored items per session, sessions and idle connections per client address,
+message and chunk sizes bounded; and the log lines such clients cause are bounded."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import socket
+
+import pytest
+from asyncua import Client, ua
+from conftest import free_port
+
+from app import opcua_server
+from app.opcua_server import OpcuaServer
+from app.plant import parse_plant
+from app.state import StateStore
+from devices.live import DeviceState
+
+pytestmark = pytest.mark.timeout(90)
+
+
+@pytest.fixture
+async def server():
+    port = free_port()
+    plant = parse_plant(f'name = "p"\n[opcua]\nendpoint = "opc.tcp://127.0.0.1:{port}"\n')
+    store = StateStore()
+    state = DeviceState("pump", "hdlock", "line1", stale_after=1e9)
+    state.mark_seen()
+    state.publish("Speed", 1.5, "rpm")
+    store.devices["pump"] = state
+    srv = OpcuaServer(plant.opcua, store, plant)
+    await srv.start()
+    srv.url = f"opc.tcp://127.0.0.1:{port}"
+    srv.port = port
+    try:
+        yield srv
+    finally:
+        await srv.stop()
+
+
+def _registered(n: int) -> ua.RegisteredServer:
+    entry = ua.RegisteredServer()
+    entry.ServerUri = f"urn:forged:{n}"
+    entry.ProductUri = "x" * 4000
+    entry.ServerNames = [ua.LocalizedText(f"forged {n}")]
+    entry.ServerType = ua.ApplicationType.Server
+    entry.DiscoveryUrls = [f"opc.tcp://10.0.0.{n % 250}:4840"]
+    entry.IsOnline = True
+    return entry
+
+
+async def test_register_server_is_refused(server):
+    client = Client(server.url, timeout=5)
+    await client.connect()
+    try:
+        for n in range(3):
+            with pytest.raises(ua.UaStatusCodeError):
+                await client.uaclient.register_server(_registered(n))
+        servers = await client.find_servers()
+        assert [s.ApplicationUri for s in servers] == ["urn:commission:p"]
+    finally:
+        await client.disconnect()
+
+
+async def test_subscriptions_per_session_are_bounded(server):
+    client = Client(server.url, timeout=5)
+    other = Client(server.url, timeout=5)
+    await client.connect()
+    await other.connect()
+    try:
+        made = 0
+        with pytest.raises(ua.UaStatusCodeError) as refused:
+            for _ in range(opcua_server.MAX_SUBSCRIPTIONS_PER_SESSION + 1):
+                await client.create_subscription(1000, None)
+                made += 1
+        assert made == opcua_server.MAX_SUBSCRIPTIONS_PER_SESSION
+        assert refused.value.code == ua.StatusCodes.BadTooManySubscriptions
+        await other.create_subscription(1000, None)  # the next client still gets one
+    finally:
+        await client.disconnect()
+        await other.disconnect()
+
+
+async def test_monitored_items_per_request_are_bounded(server):
+    client = Client(server.url, timeout=5)
+    await client.connect()
+    try:
+        sub = await client.create_subscription(1000, None)
+        node = client.get_node(ua.ObjectIds.Server_ServerStatus_CurrentTime)
+        with pytest.raises(ua.UaStatusCodeError) as refused:
+            await sub.subscribe_data_change([node] * (opcua_server.MAX_MONITORED_ITEMS_PER_SESSION + 1))
+        assert refused.value.code == ua.StatusCodes.BadTooManyMonitoredItems
+    finally:
+        await client.disconnect()
+
+
+async def test_sessions_per_client_address_are_bounded(server):
+    clients = []
+    try:
+        for _ in range(opcua_server.MAX_SESSIONS_PER_CLIENT):
+            client = Client(server.url, timeout=5)
+            await client.connect()
+            clients.append(client)
+        extra = Client(server.url, timeout=5)
+        with pytest.raises((ua.UaStatusCodeError, ua.UaError)):
+            await extra.connect()
+        await extra.disconnect()
+    finally:
+        for client in clients:
+            await client.disconnect()
+
+
+async def test_idle_connections_of_one_address_are_bounded_and_a_real_client_gets_in(server):
+    loop = asyncio.get_running_loop()
+    idle = []
+    for _ in range(opcua_server.MAX_IDLE_PER_CLIENT * 3):
+        sock = socket.create_connection(("127.0.0.1", server.port))
+        sock.setblocking(False)
+        idle.append(sock)
+        await asyncio.sleep(0.01)
+
+    async def closed(sock) -> bool:
+        try:
+            return await asyncio.wait_for(loop.sock_recv(sock, 1), 0.05) == b""
+        except (asyncio.TimeoutError, ConnectionError):
+            return False
+    await asyncio.sleep(0.3)
+    still_open = [s for s in idle if not await closed(s)]
+    assert len(still_open) <= opcua_server.MAX_IDLE_PER_CLIENT, len(still_open)
+    client = Client(server.url, timeout=5)
+    await client.connect()
+    await client.disconnect()
+    for sock in idle:
+        sock.close()
+
+
+async def test_limits_of_the_transport_and_the_server(server):
+    limits = server.server.limits
+    assert limits.max_message_size <= 4 * 1024 * 1024 and limits.max_chunk_count <= 64
+    iserver = server.server.iserver
+    assert iserver.max_connections <= 256 and iserver.max_pending_activation_seconds <= 15
+    assert iserver.max_subscriptions <= 500 and iserver.max_session_timeout_ms <= 120_000
+
+
+async def test_outsiders_cannot_fill_the_log(server, caplog):
+    caplog.set_level(logging.INFO)
+    client = Client(server.url, timeout=5)
+    await client.connect()
+    try:
+        for n in range(200):
+            with pytest.raises(ua.UaStatusCodeError):
+                await client.uaclient.register_server(_registered(n))
+    finally:
+        await client.disconnect()
+    server_lines = [r for r in caplog.records if r.name.startswith(("asyncua.server", "app.opcua_server"))]
+    assert len(server_lines) <= 60, f"{len(server_lines)} log lines for 200 refused requests"
