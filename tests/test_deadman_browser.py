@@ -97,6 +97,9 @@ def test_frozen_browser_stops_motion_and_mains_outputs_within_the_bound(tmp_path
             lift.get_by_text(re.compile(r"[Mm]otion stops")).first.wait_for(timeout=10_000)  # the stop rule is stated
             lift.get_by_test_id("take-control").click()
             lift.get_by_text("you hold control").wait_for(timeout=10_000)
+            lift.get_by_test_id("jog-out").click()  # the first press asks that the area is clear and arms the jog
+            lift.locator(".q-dialog").get_by_role("button", name="The area is clear").click()
+            lift.get_by_test_id("jog-armed").get_by_text("jog armed").wait_for(timeout=10_000)
             lift.get_by_test_id("jog-out").scroll_into_view_if_needed()
             box = lift.get_by_test_id("jog-out").bounding_box()
             lift.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
