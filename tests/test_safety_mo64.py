@@ -174,6 +174,21 @@ def test_every_motion_asks_every_time_and_a_confirmation_is_for_one_request():
     assert core.raw("s", codec.encode_answer(0x0C, 4), confirmed=True, now=0.3).refused  # the barrier's telegram
 
 
+def test_a_refused_stop_of_a_lost_operators_level_is_sent_again():
+    """Found by the machine: another page's stop of a close level is refused (nak) after the level's operator
+    was lost; the level must still be released, not held again for nobody."""
+    core = Mo64Control()
+    activate = core.request("eng-2", codec.Command.CLOSE, codec.Function.ACTIVATE, confirmed=True, now=0.0).send
+    core.answered(activate.ref, "ack", 0.0)
+    stop = core.request("eng-1", codec.Command.CLOSE, codec.Function.DEACTIVATE, now=0.01).send
+    assert core.session_lost("eng-2", "the page is gone", 0.02) == []  # its release is on its way already
+    core.answered(stop.ref, "nak", 0.03)
+    again = [a for a in core.tick(0.03 + RETRY_S) if isinstance(a, Send)]
+    assert [a.words for a in again] == ["close deactivate"]
+    core.answered(again[0].ref, "ack", 0.3)
+    assert core.levels == {}
+
+
 @pytest.fixture
 async def runtime(tmp_path):
     from conftest import free_port, wait_for

@@ -249,8 +249,12 @@ class Mo64Control:
         """The operator of ``session`` is gone: release its close and reverse levels now."""
         actions: list = []
         for level in list(self.levels.values()):
-            if level.session == session and level.dead_man and level.state != "deactivating":
+            if level.session != session or not level.dead_man:
+                continue
+            if level.state != "deactivating":
                 actions += self._release(level, f"dead-man: {reason}", now)
+            elif level.gone_at is None:  # a stop is on its way: should it be refused, it is sent again
+                level.gone_at = now
         return actions
 
     def beat(self, alive: set[str], now: float) -> list:
