@@ -13,11 +13,13 @@ from pathlib import Path
 
 from nicegui import ui
 
+from app import backup
 from app import runtime as rt
 from app.record import checkout_module, diff_sets
 from app.report import device_content, device_html, plant_content, write_plant
 from pages.frame import fmt_time, frame
 from pages.session import current_user
+from pages.widgets import VIEWER_REASON, gate
 
 STATUS_COLOUR = {"passed": "positive", "failed": "negative", "aborted": "negative", "running": "primary", "pending": "grey",
                  "skipped": "grey", "error": "negative"}
@@ -154,8 +156,18 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool):
     with ui.row():
         approve = ui.button("Approve current set", icon="verified").props("outline dense").mark("record-approve")
         snap = ui.button("Snapshot now", icon="photo_camera").props("outline dense").mark("record-snapshot")
+    no_set = "" if backup.device_backs_up(runtime, name) else f"{name} has no parameter set to approve or keep"
     for b in (approve, snap):
-        b.set_enabled(engineer)
+        gate(b, VIEWER_REASON if not engineer else no_set)
+
+    async def why_no_set() -> None:  # the adapter's own words (e.g. an M3IO in simple mode keeps no records)
+        why = (await backup.why_nothing_to_back_up(runtime, name)).removeprefix("nothing to back up: ")
+        if why and engineer:
+            for b in (approve, snap):
+                gate(b, f"{name} has no parameter set to approve or keep: {why}")
+
+    if no_set:
+        ui.timer(0, why_no_set, once=True)
     columns = [{"name": "id", "label": "#", "field": "id"}, {"name": "time", "label": "Time", "field": "time", "align": "left"},
                {"name": "kind", "label": "Kind", "field": "kind", "align": "left"},
                {"name": "title", "label": "What", "field": "title", "align": "left"},

@@ -218,3 +218,16 @@ async def test_the_overview_shows_unsaved_changes(local: Env):
     assert 'data-glance-unsaved="door-1"' in row.content and "1 unsaved change" in row.content
     await runtime.worker.adapters["door-1"].save_step()
     await eventually(lambda: not badge.visible, timeout=5, what="the badge gone after Save")
+
+
+async def test_approve_is_offered_only_for_a_device_with_a_parameter_set(local: Env):
+    """An M3IO HM in simple mode keeps no parameters: Approve and Snapshot say so instead of failing (item 8)."""
+    user = local.user
+    await user.open("/record/heater-hm")
+    approve = next(iter(user.find(marker="record-approve").elements))
+    snapshot = next(iter(user.find(marker="record-snapshot").elements))
+    await eventually(lambda: ":" in reason_of(approve), timeout=5, what="the adapter's reason")
+    assert reason_of(approve).startswith("heater-hm has no parameter set to approve or keep: ")
+    assert reason_of(snapshot) == reason_of(approve)
+    await user.open("/record/door-1")
+    assert reason_of(next(iter(user.find(marker="record-approve").elements))) == ""
