@@ -38,6 +38,23 @@ def notice(name: str) -> None:
 
     update()
     follow(state, update)
+    if backup.device_backs_up(runtime, name):
+        _offer(name)
+
+
+def _offer(name: str) -> None:
+    """The way to the replacement assistant on every device page that keeps parameters (at the page's end),
+    not only once a swap was detected."""
+    from pages.project import _page_column
+
+    column = _page_column()
+    if column is None:
+        return
+    with column, ui.row().classes("items-center gap-2").props("data-testid=replace-offer"):
+        ui.icon("swap_horiz", color="grey-7")
+        ui.label("Swapped this device for a new one?").classes("text-body2 text-grey-8")
+        ui.link("Replacement assistant", f"/replace/{name}").props("data-testid=replace-link")
+        ui.label("checks the new one's identity and writes the approved set to it").classes("text-caption text-grey-8")
 
 
 def content(name: str) -> None:

@@ -231,3 +231,15 @@ async def test_approve_is_offered_only_for_a_device_with_a_parameter_set(local: 
     assert reason_of(snapshot) == reason_of(approve)
     await user.open("/record/door-1")
     assert reason_of(next(iter(user.find(marker="record-approve").elements))) == ""
+
+
+async def test_every_device_page_that_keeps_parameters_links_the_replacement_assistant(local: Env):
+    """Not only once a swap was detected (item 10)."""
+    user = local.user
+    for name in ("door-1", "door-2"):
+        await user.open(f"/device/{name}")
+        link = by_testid(user, "replace-link")
+        assert link.props["href"] == f"/replace/{name}"
+    await user.open("/device/heater-hm")  # simple mode: no parameters to put into a new module
+    await user.should_see("watchdog")
+    assert not [e for e in user.client.elements.values() if e.props.get("data-testid") == "replace-link"]
