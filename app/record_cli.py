@@ -294,6 +294,8 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
             options["session"] = person.session
             if answer == "yes":
                 out(f"{name}: real equipment: --answer yes does not answer for it; the questions are yours")
+        elif person is not None and answer != "yes":  # the terminal reads keys for the person: ask there too
+            ask = person.ask
         else:
             ask = _answerer(answer, user, out, runtime, name)
         try:
