@@ -180,6 +180,26 @@ async def invoke(worker: Any, device: str, name: str, args: Mapping[str, Any] | 
                                 record=command.kind != "read", parameter=row["parameter"], old=row["old"], new=row["new"])
 
 
+CANCELLED = "cancelled: not confirmed"  # an audit row's result when the user answered a question with Cancel
+
+
+async def cancelled(worker: Any, *, device: str, user: str, role: str, describe: str, parameter: str = "",
+                    new: Any = "") -> None:
+    """The user answered a confirmation with Cancel: nothing was sent and nothing was refused. Noted on the
+    device as information and in the audit log (``CANCELLED``), under the parameter's name where there is one."""
+    state = worker.store.devices.get(device)
+    if state is not None:
+        state.event("info", f"cancelled by {user or 'anonymous'}: {describe}" + (f" = {new}" if new != "" else "")
+                    + ": not confirmed, nothing sent")
+    audit = getattr(worker, "audit", None)
+    if audit is not None:
+        try:
+            await audit.arecord(user=user, role=role, device=device, action=describe, parameter=parameter, new=new,
+                                result=CANCELLED)
+        except Exception as exc:  # noqa: BLE001 - nothing was sent anyway; the header shows the audit state
+            log.error("audit of a cancelled %s failed: %s", describe, exc)
+
+
 def question(worker: Any, device: str, name: str, args: Mapping[str, Any] | None = None) -> str:
     """The confirmation the declared command ``name`` asks with ``args`` ("" for none): what a restore
     shows beside a value before anything is sent. :raises CommandError: not declared, out of range, or

@@ -14,7 +14,7 @@ from app import transmit as tx
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import frame, notify_error
 from pages.session import current_user
-from pages.widgets import all_valid, confirm, range_number, refuse
+from pages.widgets import all_valid, cancelled, confirm, range_number, refuse
 
 REFRESH_S = 0.5
 COLUMNS = [
@@ -240,7 +240,7 @@ class RowsCard:
             row = tl.row(key)
             what = row.describe() if row else key
             if not await confirm(f"Send {what}?", str(exc), ok="Send"):
-                await refuse(bus, f"transmit on {bus}: {what}", "not confirmed", parameter=row.id_text() if row else "")
+                await cancelled(bus, f"transmit on {bus}: {what}", parameter=row.id_text() if row else "")
                 return
             await go(True)
         self.refresh()

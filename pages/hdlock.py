@@ -29,7 +29,7 @@ from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, ti
 from pages.frame import fmt_age, status_text
 from pages.simcontrols import sim_card
 from pages.widgets import HistoryChart, Lamp, RegisterTable, ValueLine, WriteGuard, checked_value, confirm, entry_age
-from pages.widgets import gate, mark_quality, quality_note, range_number, refuse, run_command, write_from_page
+from pages.widgets import cancelled, gate, mark_quality, quality_note, range_number, refuse, run_command, write_from_page
 
 DEVICE_TYPE = "hdlock"
 
@@ -329,7 +329,7 @@ async def _save(name: str, state) -> None:
     confirmed = await dialog
     dialog.delete()
     if not confirmed:
-        await refuse(name, "Save-Settings", "not confirmed", parameter="Save-Settings", new="; ".join(changes))
+        await cancelled(name, "Save-Settings", parameter="Save-Settings", new="; ".join(changes))
         return
     # the declaration's audit row lists what became permanent, as read when the command runs
     await run_command(name, "Save-Settings", success="Settings saved to the lock's flash")

@@ -731,7 +731,7 @@ async def confirm(title: str, text: str, ok: str = "Continue", danger: bool = Tr
 
 async def run_command(
     device: str, action: str, *, success: str = "", args: dict | None = None, session: str = "",
-    confirmed: bool = False, title: str = "", ok: str = "Send",
+    confirmed: bool = False, title: str = "", ok: str = "Send", parameter: str = "", new: object = "",
 ) -> tuple[bool, object]:
     """Submit a command to the worker's gate and report the outcome as a notification.
 
@@ -739,7 +739,8 @@ async def run_command(
     with ``args``: the gate takes its kind, ranges, risk and the role (as the account store says now)
     from the declaration; a risk it names is asked here and the command invoked again, confirmed.
     ``confirmed``: the page has asked its own question naming the same risk. ``title`` and ``ok`` word
-    the dialog that asks the declared risk.
+    the dialog that asks the declared risk. ``parameter`` and ``new``: the parameter's name and value as an
+    engineer reads them, for the audit row of a question answered with Cancel.
     """
     from app.gate import NeedsConfirmation
     from devices.commands import CommandError
@@ -753,8 +754,8 @@ async def run_command(
                                          confirmed=confirmed)
         except NeedsConfirmation as question:
             if not await confirm(title or f"{action}?", question.question, ok=ok):
-                await refuse(device, action, "not confirmed",
-                             new=", ".join(f"{k}={getattr(v, 'name', v)}" for k, v in (args or {}).items() if k != "known"))
+                await cancelled(device, action, parameter=parameter, new=new if parameter else ", ".join(
+                    f"{k}={getattr(v, 'name', v)}" for k, v in (args or {}).items() if k != "known"))
                 return False, None
             user, role = current_user()  # looked up again: the answer may come much later
             result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
@@ -838,6 +839,17 @@ async def refuse(device: str, describe: str, reason: str, parameter: str = "", n
     user, role = current_user()
     await rt.current().worker.refused(device=device, user=user or "anonymous", role=role, describe=describe,
                                       reason=reason, parameter=parameter, new=new)
+
+
+async def cancelled(device: str, describe: str, parameter: str = "", new: object = "") -> None:
+    """The user answered a question with Cancel: nothing sent, nothing refused (an information on the device,
+    audited as cancelled under the parameter's name)."""
+    from app.gate import cancelled as note
+    from pages.session import current_user
+
+    user, role = current_user()
+    await note(rt.current().worker, device=device, user=user or "anonymous", role=role, describe=describe,
+               parameter=parameter, new=new)
 
 
 def all_valid(*fields: ui.number) -> bool:
@@ -951,13 +963,13 @@ async def write_from_page(device: str, param: Param, value, *, success: str, tit
         # (the same question as a restore or the API), audits parameter, old and new
         await run_command(device, WRITE_PARAMETER, args={"param": param.key, "value": param.decode(raw)},
                           title=(title or "Write {name} = {value}?").format(name=param.name, value=param.display(raw)),
-                          ok=ok, success=success.format(name=param.name, value=param.display(raw)))
+                          ok=ok, success=success.format(name=param.name, value=param.display(raw)),
+                          parameter=param.label or param.name, new=param.display(raw))
         return
     warning = param.needs_confirmation(raw)
     title = (title or "Write {name} = {value}?").format(name=param.name, value=param.display(raw))
     if warning and not await confirm(title, warning, ok=ok):
-        await refuse(device, f"write {param.name}", "not confirmed", parameter=param.label or param.name,
-                     new=param.display(raw))
+        await cancelled(device, f"write {param.name}", parameter=param.label or param.name, new=param.display(raw))
         return
     before = rt.current().store.devices[device].raw(param)
     await run_command(

@@ -37,6 +37,12 @@ async def refused(runtime: Runtime, *words: str) -> bool:
                for r in await runtime.audit.aquery())
 
 
+async def cancelled(runtime: Runtime, parameter: str) -> bool:
+    """A question answered with Cancel: audited as cancelled (no refusal), under the parameter's name."""
+    return any(r.device == "lift" and r.result == "cancelled: not confirmed" and parameter in r.parameter
+               for r in await runtime.audit.aquery())
+
+
 async def test_service_fields_start_at_the_value_enter_writes_and_bad_entries_are_refused_on_the_field(tmp_path):
     runtime = Runtime(lift_plant(), simulate=True, data_dir=tmp_path)
     soft_start, soft_stop = PARAMS.get("service", 0x01), PARAMS.get("service", 0x02)
@@ -81,7 +87,7 @@ async def test_service_fields_start_at_the_value_enter_writes_and_bad_entries_ar
         await user.should_see("keep moving for that long")
         assert all(a.service.values.get(0x06) == 250 for a in twins)  # nothing sent before the answer
         user.find(kind=ui.button, content="Cancel").click()
-        await eventually(lambda: refused(runtime, "not confirmed"), timeout=5, what="unconfirmed write audited")
+        await eventually(lambda: cancelled(runtime, "Timeout"), timeout=5, what="unconfirmed write audited as cancelled")
         assert all(a.service.values.get(0x06) == 250 for a in twins)
         # what the engineer typed and did not write stays until written
         start_entry.value = 555

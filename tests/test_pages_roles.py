@@ -243,3 +243,27 @@ async def test_every_device_page_that_keeps_parameters_links_the_replacement_ass
     await user.open("/device/heater-hm")  # simple mode: no parameters to put into a new module
     await user.should_see("watchdog")
     assert not [e for e in user.client.elements.values() if e.props.get("data-testid") == "replace-link"]
+
+
+async def test_a_question_answered_with_cancel_is_no_refusal_and_names_the_parameter(local: Env):
+    """SettingsRemoveMagnet = 1 asked and cancelled: an information, audited as cancelled under the name (item 12)."""
+    user, runtime = local.user, local.runtime
+    await user.open("/device/door-1")
+    entry = next(e for e in user.client.elements.values() if e.props.get("data-param") == "SettingsRemoveMagnet")
+    entry.value = 1
+    UserInteraction(user, {next(e for e in user.client.elements.values()
+                                if e.props.get("data-write") == "SettingsRemoveMagnet")}, None).click()
+    await user.should_see("Cancel")
+    user.find(kind=ui.button, content="Cancel").click()
+
+    async def audited():
+        rows = [r for r in await runtime.audit.aquery(limit=50) if r.device == "door-1" and "not confirmed" in r.result]
+        assert rows, "no audit row"
+        return rows[-1]
+
+    await eventually(audited, timeout=5, what="the cancel audited")
+    row = await audited()
+    assert row.result == "cancelled: not confirmed" and row.parameter == "SettingsRemoveMagnet", row
+    assert runtime.twins["door-1"].holding[3005] == 0
+    event = next(e for e in reversed(runtime.store.devices["door-1"].events) if "not confirmed" in e.text)
+    assert event.level == "info" and "cancelled" in event.text, event
