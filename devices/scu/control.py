@@ -191,8 +191,14 @@ class ScuControl:
         if self.phase != "open":
             return []
         self.phase, self.reason = "lost", reason
+        self._unconfirm_estop()
         self._backoff(now)
         return [Report("error", f"remote session lost: {reason}; reopening with backoff")]
+
+    def _unconfirm_estop(self) -> None:
+        """Remote mode ended: whether F20 is still on in the unit is not known until the session is open again."""
+        if self.estop is not None and self.estop.confirmed:
+            self.estop = Estop(self.estop.who, self.estop.at, confirmed=False, refusal="remote mode ended")
 
     def closed(self, reason: str) -> None:
         """Nobody needs the session (watching with RG): RA sent."""
@@ -218,6 +224,7 @@ class ScuControl:
             self.withheld_since, self.withheld_reason = now, reason
         was_open = self.phase == "open"
         self.phase, self.reason = "lost", f"RC withheld: {reason}"
+        self._unconfirm_estop()
         if was_open:
             self._backoff(now)
         self.next_open = max(self.next_open, self.withheld_since + WITHHOLD_S)
@@ -274,11 +281,19 @@ class ScuControl:
             return [SendRS(fn, action.why, action.attempt + 1, three_bytes=action.three_bytes)]
         # not acknowledged: refused (PDE, PCE in both forms, ICE, PE), or CSE / no answer RS_ATTEMPTS times
         if fn == ESTOP:
-            return [Report("error", f"RS 19 ({action.why}) not acknowledged ({outcome.value}): the emergency stop is still on")]
+            # the release was not acknowledged: it stays on here, and RE 19 goes out again so that the unit (which may
+            # have executed the RS whose answer was lost) is in the same state as the tool says
+            if self.estop is not None:
+                self.estop = Estop(self.estop.who, self.estop.at, confirmed=False, refusal="release not acknowledged")
+            return [Report("error", f"RS 19 ({action.why}) not acknowledged ({outcome.value}): the emergency stop "
+                                    "stays on; RE 19 is sent again"), SendEstop("release not acknowledged")]
         self.rs_pending[fn] = action.why
         self.running.setdefault(fn, "")
         self.stop_failures += 1
         actions: list = []
+        if outcome == Outcome.PE:
+            # not possible in the unit's mode: remote mode has ended (its watchdog stopped every remote drive, section 5)
+            actions += self.lost(f"PE to RS {label(fn)}: the unit is no longer in remote mode", now)
         if self.estop is not None and self.estop.confirmed:
             reason = (f"RS {label(fn)} ({action.why}) not acknowledged ({outcome.value}); the emergency stop F20 is on "
                       "in the unit and keeps every drive stopped; RS is sent again")
@@ -326,7 +341,8 @@ class ScuControl:
         text = {Outcome.PDE: "refused (PDE): F20 exists from firmware V2B1 only (table 8)",
                 Outcome.LOST: "not answered"}.get(outcome, f"refused ({outcome.value})")
         self.estop = Estop(self.estop.who, self.estop.at, confirmed=False, refusal=text)
-        actions: list = [Report("error", f"RE 19 (emergency stop) {text}: the running functions get their RS; "
+        actions: list = self.lost("PE to RE 19: the unit is no longer in remote mode", now) if outcome == Outcome.PE else []
+        actions += [Report("error", f"RE 19 (emergency stop) {text}: the running functions get their RS; "
                                          "the emergency stop stays on in this tool and no motion starts until it is released")]
         return actions
 
@@ -363,9 +379,18 @@ class ScuControl:
     def tick(self, now: float) -> list:
         if not self.held:
             return []
-        if not self.control.lease.granted:
-            self.control.started(now)
-        return self._stops(self.control.tick(now), None)
+        lease = self.control.lease
+        if not lease.granted:
+            lease.grant(now)  # something runs without a lease (an RS owed since a lost session): from now on
+        elif lease.lapsed_at is not None:
+            return []  # the lapse was dealt with (RC withheld, RS sent); what is still held gets its RS on reopening
+        self.control.running = True
+        actions = self._stops(self.control.tick(now), None)
+        if not actions or (self.estop is not None and self.estop.confirmed):
+            return actions  # with F20 on in the unit RC goes on: remote mode keeps the emergency stop in force
+        # a lapse means this program or the page stalled: RC is withheld first, so the unit's watchdog stops every
+        # drive within 500 ms whatever becomes of the RS that follow
+        return self.withhold("the lease of the running functions lapsed", now) + actions
 
     def session_lost(self, session: str, reason: str) -> list:
         """The page of ``session`` went away or froze: RS at once for what it runs, and its control released."""
