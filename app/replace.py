@@ -129,6 +129,9 @@ class ReplacementWatch:
         self._checked: dict[str, float] = {}  # device -> monotonic time its adapter was last asked (identity not in the store)
         self._keys: dict[str, tuple] = {}  # device -> the cheap key of its identity at the last comparison
         self._sources: dict[str, tuple | None] = {}  # device -> identity_sources() of its last identity
+        # devices whose twin runs in this process and has not told its identity yet: a twin starts from the plant
+        # file at every start, so another identity than the last run left is the simulated plant reset, no swap
+        self._fresh_twins: set[str] = set()
 
     def _load(self) -> dict:
         try:
@@ -172,6 +175,8 @@ class ReplacementWatch:
                     ref = {"identity": approved.data["identity"], "time": approved.time, "source": "approved set"}
             if ref is not None:
                 self.known[name] = ref
+            if name in getattr(self.runtime, "twins", {}):
+                self._fresh_twins.add(name)
             self._watches.append(self.runtime.store.watch(name, lambda n=name: self._maybe_check(n)))
             self.check(name)
 
@@ -234,6 +239,13 @@ class ReplacementWatch:
         if now is None:
             return getattr(state, "replaced", None)
         ref = self.known.get(name)
+        if name in self._fresh_twins:
+            self._fresh_twins.discard(name)
+            if ref is not None and differences(ref["identity"], now):
+                state.event("info", f"simulated plant started afresh: the twin has the plant file's identity "
+                                    f"({identity_text(now)}) and factory settings again, not those of the last run "
+                                    f"({identity_text(ref['identity'])}); taken as known")
+                ref = None
         if ref is None:  # first seen: this is the device as installed
             self.known[name] = {"identity": now, "time": time.time(), "source": "first seen"}
             self._persist()

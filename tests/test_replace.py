@@ -123,3 +123,34 @@ async def test_identity_read_again_only_when_its_points_change(two_locks, monkey
     runtime.twins[name].swap_for_new(NEW_SERIAL)
     assert await wait_for(lambda: getattr(state, "replaced", None), timeout=3)
     assert reads and replace.facets(state.replaced["new"])["serial"] == NEW_SERIAL
+
+
+async def test_a_restarted_simulated_plant_is_said_to_be_reset_not_replaced(tmp_path):
+    """The twins start from the plant file at every start: the identity the last run ended with (a simulated swap,
+    accepted) is no sign of a replacement in the next run; the device's events say the plant started afresh
+    (issue 42 item 12)."""
+    plant = modbus_plant(locks=(("door-1", 1),))
+    runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
+    await runtime.start()
+    try:
+        assert await wait_for(lambda: replace.live_identity(runtime, "door-1") is not None, timeout=8)
+        runtime.twins["door-1"].swap_for_new(NEW_SERIAL)
+        state = runtime.store.devices["door-1"]
+        assert await wait_for(lambda: getattr(state, "replaced", None), timeout=3)
+        runtime.replacements.accept("door-1", replace.live_identity(runtime, "door-1"), "replacement by anna")
+        assert getattr(state, "replaced", None) is None
+    finally:
+        await asyncio.wait_for(runtime.stop(), 5)
+    again = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
+    await again.start()
+    try:
+        state = again.store.devices["door-1"]
+        assert await wait_for(lambda: replace.live_identity(again, "door-1") is not None, timeout=8)
+        assert await wait_for(lambda: any("started afresh" in e.text for e in state.events), timeout=3)
+        assert getattr(state, "replaced", None) is None
+        assert str(NEW_SERIAL) in next(e.text for e in state.events if "started afresh" in e.text)
+        # a swap in this run is still a swap
+        again.twins["door-1"].swap_for_new(NEW_SERIAL + 1)
+        assert await wait_for(lambda: getattr(state, "replaced", None), timeout=3)
+    finally:
+        await asyncio.wait_for(again.stop(), 5)
