@@ -235,6 +235,10 @@ class ParameterCard(DeviceCard):
             label = p.label or p.name
             ui.label(label).style(NAME_WRAP).props(f'data-param-name="{key}"') \
                 .tooltip(f"{label}: {p.description}" if p.description else label)
+            if not p.setting:  # the lock measures it (Param.setting): written only to reset it, never from a set
+                ui.badge("measured", color="grey-6").props(f'data-measured="{key}" outline').tooltip(
+                    "Measured by the lock, not a setting: write it only to reset it. Restore, batch apply and the "
+                    "replacement assistant never copy it, and it is no drift.")
             # its "unsaved" badge is built when the parameter is first written (most never are)
         current = ValueLine("mono")  # the value, greyed with its age while stale or offline: one element
         if p.enum is not None:

@@ -267,3 +267,12 @@ async def test_a_question_answered_with_cancel_is_no_refusal_and_names_the_param
     assert runtime.twins["door-1"].holding[3005] == 0
     event = next(e for e in reversed(runtime.store.devices["door-1"].events) if "not confirmed" in e.text)
     assert event.level == "info" and "cancelled" in event.text, event
+
+
+async def test_the_lock_page_marks_measured_values(local: Env):
+    """MaximumTimeLock/Unlock are the lock's measurements, marked as such in the parameter table (item 4)."""
+    user = local.user
+    await user.open("/device/door-1")
+    await user.should_see("LockRequestDelay")
+    marked = {e.props["data-measured"] for e in user.client.elements.values() if e.props.get("data-measured")}
+    assert marked == {"MaximumTimeLock", "MaximumTimeUnlock"}, marked
