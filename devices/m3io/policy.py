@@ -59,7 +59,7 @@ def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verd
     return None
 
 
-THREE_PHASE_RISK = "The three-phase output (400 V) to the connected load. Make sure nobody works on it."
+THREE_PHASE_RISK = "The three-phase output switches 400 V to the connected load. Make sure nobody works on it."
 MAINS_OUTPUT_RISK = "This output switches mains voltage (230/400 V) to the connected load. Make sure nobody works on it."
 
 
