@@ -52,8 +52,8 @@ class M3ioSafety(RuleBasedStateMachine):
     def __init__(self):
         super().__init__()
         self.core = M3ioControl(self.variant, DIG_OUT)
-        self.now = 0.0
-        self.core.listen_left(self.now, 0)  # the bus opened at 0
+        self.core.listen_left(0.0, 0)  # the bus opened at 0: listened long enough by now
+        self.now = 1.0
         self.beating = {s for s, role in SESSIONS.items() if role == "engineer"}
         self.connected = set(SESSIONS)
         self.last_alive = dict.fromkeys(SESSIONS, 0.0)  # the operator's last beat or press
@@ -81,7 +81,7 @@ class M3ioSafety(RuleBasedStateMachine):
                     self.lease.grant(self.now)
                 elif action.what == "revoke":
                     self.lease.revoke()
-                elif not self.lease.renew(self.now):
+                elif not (self.lease.valid(self.now) and self.lease.renew(action.at)):
                     self._carry_out(self.core.sender_lapsed(self.now))
 
     def _wire(self) -> bytes | None:
@@ -118,7 +118,7 @@ class M3ioSafety(RuleBasedStateMachine):
             for s in sorted(self.core.holders() - alive):
                 self._carry_out(self.core.lost(s, "dead-man: silent", self.now))
                 self.gone_at.setdefault(s, self.now)
-            self._carry_out(self.core.beat(alive, self.now))
+            self._carry_out(self.core.beat({s: self.last_alive[s] for s in alive}, self.now))
             self._check_wire()
 
     # -- rules: operators ---------------------------------------------------------------------------------------
@@ -156,9 +156,17 @@ class M3ioSafety(RuleBasedStateMachine):
             else:  # switching off is a stop every role may give: it only ever switches off
                 after = self._snapshot()
                 assert after[0] == before[0] and all(not v or before[1][k] for k, v in after[1].items())
-        if on and decision.ok:
+        if on and decision.ok:  # a press of its page: it is alive
             self.last_alive[session] = self.now
+            self.gone_at.pop(session, None)
         self._operator(session, decision)
+
+    @rule(session=st.sampled_from(["eng-1", "eng-2"]), output=st.sampled_from(["SSR1", "SSR2", "SSR6", "LED"]))
+    def engineer_takes_and_switches_on(self, session, output):
+        """The usual way to mains on: take control, switch an output on (the second page tries it too)."""
+        self.take(session)
+        if output in self.core.outputs:
+            self.switch(session, output, True)
 
     @rule()
     def all_off(self):

@@ -236,8 +236,8 @@ class M3ioAdapter:
                     self.lease.grant(now)
                 elif action.what == "revoke":
                     self.lease.revoke()
-                elif not self.lease.renew(now):  # the sender found it lapsed first: the core hears of it
-                    self._do(self.core.sender_lapsed(now), now)
+                elif not (self.lease.valid(now) and self.lease.renew(action.at if action.at is not None else now)):
+                    self._do(self.core.sender_lapsed(now), now)  # the sender found it lapsed first: the core hears of it
             elif isinstance(action, Report):
                 self.state.event(action.level, action.text)
 
@@ -305,8 +305,9 @@ class M3ioAdapter:
         self._publish()
         return True
 
-    def renew_leases(self, alive: set[str]) -> None:
-        """The worker's supervisor, every 50 ms: the session that switched the outputs on is alive."""
+    def renew_leases(self, alive) -> None:
+        """The worker's supervisor, every 50 ms: the session that switched the outputs on is alive (``alive``: a set of
+        sessions, or a mapping of each to its page's last beat on the monotonic clock, from which the lease counts)."""
         now = time.monotonic()
         actions = self.core.beat(alive, now)
         if actions:

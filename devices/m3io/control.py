@@ -25,6 +25,7 @@ No import of asyncio, threading, sockets or any bus library (tests/test_control_
 from __future__ import annotations
 
 import math
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 
 from devices.control import LEASE_S, ControlChanged, ControlSession, Decision, Holder, Report, Stop
@@ -67,9 +68,11 @@ class EndKeepAlive:
 
 @dataclass(frozen=True, slots=True)
 class LeaseChange:
-    """The sender's lease: ``grant``, ``renew`` or ``revoke`` at the event's time."""
+    """The sender's lease: ``grant``, ``renew`` or ``revoke`` at the event's time; a renewal counts from ``at``
+    (the controlling page's last sign of life when the supervisor tells it, else the event's time)."""
 
     what: str
+    at: float | None = None
 
 
 def stop_form(data: bytes) -> bytes:
@@ -193,6 +196,7 @@ class M3ioControl:
         until it is off or the session is lost. Switching off is never refused."""
         if name not in self.outputs:
             return Decision(f"{self.variant.value} has no output {name}")
+        lapsed = self.tick(now)  # a lease that lapsed meanwhile stays lapsed: no press of another output renews it
         if on:
             if role != ENGINEER:
                 return Decision(f"a {role} watches the module: switching on needs the engineer role")
@@ -209,26 +213,28 @@ class M3ioControl:
         else:
             self.owners.pop(name, None)
         self.outputs[name] = on
-        actions = self._leased(now) + self._resend() + [Report("info", f"{name} {'on' if on else 'off'}")]
+        actions = lapsed + self._leased(now) + self._resend() + [Report("info", f"{name} {'on' if on else 'off'}")]
         return Decision(actions=tuple(actions))
 
     def all_off(self, now: float, reason: str = "all off") -> list:
         """Every output off (a stop: never refused)."""
+        lapsed = self.tick(now)
         self._clear_outputs()
-        return self._leased(now) + self._resend() + [Report("warning", f"every output switched off: {reason}")]
+        return lapsed + self._leased(now) + self._resend() + [Report("warning", f"every output switched off: {reason}")]
 
     def disconnected(self, session: str, reason: str, now: float) -> list:
         """The page of ``session`` disconnected: its outputs off at once; its control (the watchdog with every
         output off) stays until the page is gone for good (:meth:`lost`), and another page may take it over."""
+        lapsed = self.tick(now)
         self.session.disconnected(session, reason, now)  # what runs is the outputs: switched off below
         names = [name for name, owner in self.owners.items() if owner == session and self.outputs[name]]
         for name in [name for name, owner in self.owners.items() if owner == session]:
             del self.owners[name]
         if not names:
-            return []
+            return lapsed
         for name in names:
             self.outputs[name] = False
-        return self._leased(now) + self._resend() + [Report("warning", f"{', '.join(names)} off: {reason}")]
+        return lapsed + self._leased(now) + self._resend() + [Report("warning", f"{', '.join(names)} off: {reason}")]
 
     def back(self, session: str) -> list:
         """The page of ``session`` is alive again: its control is its own again (nothing switches on)."""
@@ -242,15 +248,20 @@ class M3ioControl:
         return actions
 
     # -- the lease -------------------------------------------------------------------------------------
-    def beat(self, alive: set[str], now: float) -> list:
-        """The dead-man supervisor: ``alive`` confirmed they are alive. Renews the lease of the mains outputs."""
-        if not self.session.running:
+    def beat(self, alive: Collection[str] | Mapping[str, float], now: float) -> list:
+        """The dead-man supervisor: ``alive`` confirmed they are alive (a mapping: each with the time of its
+        page's last beat). Renews the lease of the mains outputs, counted from the page's last beat where it is
+        told: a page that froze just before this program stalled keeps nothing on past that beat + the lease."""
+        holder = self.holder
+        if not self.session.running or holder is None:
             return []
-        renewed = self.session.lease.renewed_at
-        actions = self.session.beat(alive, now)
-        if not actions and self.session.lease.renewed_at != renewed:
-            return [LeaseChange("renew")]
-        return self._lapse(actions, now)
+        lease = self.session.lease
+        if holder.session in alive and holder.disconnected is None and lease.valid(now):
+            seen = alive.get(holder.session, now) if isinstance(alive, Mapping) else now
+            at = min(now, seen if isinstance(seen, int | float) else now)
+            lease.renew(at)
+            return [LeaseChange("renew", at)]
+        return self._lapse(self.session.tick(now), now)
 
     def tick(self, now: float) -> list:
         """Time passes: a lease past its time lapses (the SSRs off); old requests are forgotten; idle serving
