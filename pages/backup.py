@@ -4,7 +4,6 @@ restore one with a diff of the writable parameters and a report."""
 from __future__ import annotations
 
 import asyncio
-import json
 from datetime import datetime
 from pathlib import Path
 
@@ -42,6 +41,13 @@ def _files(directory: Path) -> list[dict]:
         rows.append({"name": path.name, "device": device, "type": dtype, "time": when, "by": by,
                      "size": f"{path.stat().st_size / 1024:.1f} kB"})
     return rows
+
+
+def _identity_words(identity: object) -> str:
+    """A backup's device identity as words (``serial 660020, FirmwareVersion 57``), not as JSON."""
+    if not isinstance(identity, dict) or not identity:
+        return "not recorded"
+    return ", ".join(f"{key} {value}" for key, value in identity.items() if value not in (None, ""))
 
 
 class BackupCard:
@@ -222,7 +228,7 @@ class RestoreFlow:
                 f"{dtype} '{document['device'].get('name')}' of plant '{document.get('plant')}', taken "
                 f"{backup.local_time(document.get('time'))}"
                 + (f" by {backup.taken_by(document)}" if backup.taken_by(document) else "")
-                + f" with commission {document.get('tool', {}).get('version', '?')}; identity {json.dumps(document.get('identity'))}"
+                + f" with commission {document.get('tool', {}).get('version', '?')}; identity: {_identity_words(document.get('identity'))}"
             ).classes("text-caption text-grey-8")
             if not candidates:
                 ui.label(f"This plant has no {dtype!r}: the backup cannot be restored here.").classes("text-negative")

@@ -52,7 +52,8 @@ def _magnet_document() -> dict:
     for p in PARAMS:
         raw = 1 if p.name == "SettingsRemoveMagnet" else (p.default if p.default is not None else 0)
         entries.append(backup_entry(p, raw))
-    return backup.make_document("bp", "door-1", "hdlock", "line1", {}, entries, user="anna", role="engineer")
+    return backup.make_document("bp", "door-1", "hdlock", "line1", {"serial": 660020, "FirmwareVersion": 57}, entries,
+                                user="anna", role="engineer")
 
 
 async def test_a_device_with_nothing_to_back_up_is_named_with_the_reason(env: Env):
@@ -118,6 +119,7 @@ async def test_restore_rows_name_enums_units_and_the_risk(env: Env):
     emit(files, "restore", "door-1-magnet.json")  # the row's Restore button
     await env.user.should_see("Restore from door-1-magnet.json")
     await env.user.should_see("by anna (engineer)")
+    await env.user.should_see("identity: serial 660020, FirmwareVersion 57")  # in words, not as JSON (issue 42 item 13)
     env.user.find("Compare with the device").click()
     table = await _wait_table(env.user)
     rows = {r["name"]: r for r in table.rows}
