@@ -158,3 +158,53 @@ SAFETY_PROPERTIES = {"hdlock": [test_raw_write_verdict_equals_the_declared_write
                                 test_registers_outside_the_map_are_never_written,
                                 test_nothing_the_policy_forbids_is_allowed_from_any_path,
                                 test_no_frame_under_a_locks_device_id_is_allowed]}
+
+
+# -- Set Device Address (section 6.6.2) over the twins ---------------------------------------------------------
+
+@pytest.fixture
+async def can_locks():
+    """Two locks of the plant (gate-1 660100, gate-2 11) and a spare heard on the bus but not in the plant (660102)."""
+    from conftest import running_plant
+    from test_hdlock_can import can_plant, online
+
+    from app.plant import parse_plant
+
+    async with running_plant(parse_plant(can_plant())) as runtime:
+        await online(runtime, "gate-2")
+        yield runtime
+
+
+async def test_set_device_address_refuses_an_id_heard_on_the_bus(can_locks):
+    """Issue 40: the spare lock's ID (on the bus, not in the plant) was accepted; afterwards two locks had it."""
+    from devices.hdlock.adapter import CommandError
+
+    adapter, twins = can_locks.worker.adapters["gate-2"], can_locks.twins
+    spare = codec.DeviceId.make(660102, True)
+    with pytest.raises(CommandError, match="heard on the bus"):
+        await adapter.set_device_address(spare.value, True)
+    assert twins["gate-2"].device_id == codec.DeviceId(11, False) and adapter.device_id == codec.DeviceId(11, False)
+    assert [t.name for t in twins.values() if t.device_id == spare] == ["spare"]
+
+
+async def test_set_device_address_counts_only_the_same_lock_as_success(can_locks):
+    """A status frame under the new ID from another lock is no proof: the serial number must be this lock's."""
+    from devices.hdlock.adapter import CommandError
+
+    adapter, twins = can_locks.worker.adapters["gate-2"], can_locks.twins
+    twins["gate-2"].keeps_device_id = True  # fault injection: the lock does not take the new ID
+    twins["spare"].silent = True  # not heard while this tool listens on the new ID...
+    send = adapter._send
+
+    def send_then_spare_talks(frame):
+        send(frame)
+        if frame.arbitration_id == codec.CAN_SET_DEVICE_ADDRESS:
+            twins["spare"].silent = False  # ...and answering under it right after the command
+    adapter._send = send_then_spare_talks
+    with pytest.raises(CommandError, match="serial"):
+        await adapter.set_device_address(660102, True)
+    assert adapter.device_id == codec.DeviceId(11, False)
+    twins["gate-2"].keeps_device_id = False
+    twins["spare"].device_id = codec.DeviceId.make(660105, True)
+    assert await adapter.set_device_address(12) is True
+    assert twins["gate-2"].device_id == adapter.device_id == codec.DeviceId(12, False)

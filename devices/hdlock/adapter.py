@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import time
 import weakref
 from collections.abc import Mapping
@@ -34,6 +35,7 @@ HISTORY_MIN_GAP_S = 0.1  # status frames faster than this (a lock in firmware te
 # identity that changed. The live status and the identity (input registers, RO holding registers: the
 # serial number that replacement detection compares among them) are read every poll.
 SETTINGS_PERIOD_S = 10.0
+NEW_ID_LISTEN_S = 1.3  # Set Device Address listens this long under the new ID first: a lock sends its status every 1000 ms
 
 
 def _is_status(param: Param) -> bool:
@@ -794,32 +796,69 @@ class HdLockCanAdapter(HdLockBackup):
         self.state.event("warning", f"CAN bit rate {rate} bit/s sent to {who}: switch the bus to {rate} bit/s to reach it again")
 
     async def set_device_address(self, new_value: int, extended: bool | None = None) -> bool:
-        """Set Device Address (0x701); True when the lock's own status frame (section 6.5.1: bytes 0-1
-        are 0) arrives under the new ID - any other frame there is someone else's, not the proof."""
+        """Set Device Address (0x701), section 6.6.2. Refused when anything is heard under the new ID first (a lock
+        that is on the bus but not in the plant file: each CAN ID belongs to one participant, 6.2 b). True once a
+        status frame (6.5.1) comes under the new ID and the lock answering there has this lock's serial number;
+        False when none comes (the lock kept its ID); CommandError when another lock answers there."""
         try:
             new = codec.DeviceId.make(new_value, extended)
             frame = codec.encode_set_device_address(self.device_id, new)
         except codec.CodecError as exc:
             raise CommandError(str(exc)) from None
         old = self.device_id
+        if new == old:
+            raise CommandError(f"the lock has device ID {new} already: nothing to change")
+        serial = await self._read_serial()
         heard = asyncio.Event()
+        status = asyncio.Event()
 
         def on_new(msg) -> None:
+            heard.set()
             if codec.looks_like_status(bytes(msg.data)):
-                heard.set()
+                status.set()
 
         self.bus.subscribe(new.extended, new.value, on_new)
         try:
+            with contextlib.suppress(asyncio.TimeoutError):  # a lock sends its status every 1000 ms (6.5.1)
+                await asyncio.wait_for(heard.wait(), timeout=NEW_ID_LISTEN_S)
+            if heard.is_set():
+                raise CommandError(f"CAN ID {new} is heard on the bus: another participant sends under it (a lock that "
+                                   "is not in the plant file?). Each CAN ID belongs to one participant only (section 6.2 b): "
+                                   "choose another ID, or adopt that lock and give it another ID first")
             self._send(frame)
             try:
-                await asyncio.wait_for(heard.wait(), timeout=2.5)  # the status comes every 1000 ms
+                await asyncio.wait_for(status.wait(), timeout=2.5)  # the status comes every 1000 ms
             except asyncio.TimeoutError:
                 self.state.event("warning", f"no frame under the new ID {new} within 2.5 s: the lock kept {old}?")
                 return False
         finally:
             self.bus.unsubscribe(new.extended, new.value, on_new)
-        self.bus.unsubscribe(old.extended, old.value, self.on_frame)
-        self.device_id = new
-        self._subscribe()
-        self.state.event("warning", f"device ID changed {old} -> {new}: change device_id in the plant file")
+        self._listen_under(new)
+        try:
+            answered = await self._read_serial()
+        except CommandError as exc:
+            answered, why = None, str(exc)
+        if answered != serial:
+            self._listen_under(old)
+            self.read_settings_next()
+            found = "no serial number answered there" if answered is None else f"the lock answering there has serial number {answered}"
+            self.state.event("error", f"Set Device Address {old} -> {new}: a status frame came under {new}, but {found}, "
+                                      f"not {serial} (this lock's): another lock may use that ID now. Check both locks")
+            raise CommandError(f"not confirmed: under {new} {found}, not this lock's {serial}"
+                               + (f" ({why})" if answered is None else "") + f"; this page keeps talking to {old}. "
+                               "Check which lock uses which ID (the bus monitor shows their status frames)")
+        self.state.event("warning", f"device ID changed {old} -> {new} (serial number {serial} answers there): "
+                                    "change device_id in the plant file")
         return True
+
+    def _listen_under(self, ident: codec.DeviceId) -> None:
+        """Talk to the lock under ``ident`` from now on."""
+        self.bus.unsubscribe(self.device_id.extended, self.device_id.value, self.on_frame)
+        self.device_id = ident
+        self._subscribe()
+
+    async def _read_serial(self) -> int:
+        """The serial number (input 104 high word, 105 low word, SPEC-NOTES) of the lock under the current ID."""
+        high, low = (INPUT, SERIAL_PARAM.address), (INPUT, SERIAL_PARAM.address + 1)
+        answer = await self._request(codec.encode_read(self.device_id, INPUT, SERIAL_PARAM.address, 2), [high, low])
+        return codec.serial_number(answer[high], answer[low])

@@ -85,6 +85,7 @@ class HdLockTwin:
         self.can_bitrate: int | None = None
         self.bus_bitrate: int | None = None
         self.fwu_mode = False  # firmware-update mode: FWU status instead of status (CAN)
+        self.keeps_device_id = False  # fault injection: Set Device Address is not taken (the ID stays)
         self.max_time = {"lock": 0, "unlock": 0}
         self._move_start: float | None = None
         self.step(0.0)
@@ -497,7 +498,7 @@ class HdLockCanSim:
                 twin.fwu_mode = True
             elif req.a == codec.CanCommand.UPDATE_LEAVE:
                 twin.fwu_mode = False
-        elif req.kind == codec.CAN_SET_DEVICE_ADDRESS and not broadcast:
+        elif req.kind == codec.CAN_SET_DEVICE_ADDRESS and not broadcast and not twin.keeps_device_id:
             twin.device_id = req.new_id
         elif req.kind in (codec.CAN_READ_INPUT, codec.CAN_READ_HOLDING) and not twin.fwu_mode:
             space = INPUT if req.kind == codec.CAN_READ_INPUT else HOLDING
