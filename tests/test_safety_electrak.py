@@ -405,3 +405,22 @@ def test_a_raw_control_telegram_is_a_stop_only_with_enable_and_override_cleared(
         assert verdict.allowed and verdict.kind != "stop" and verdict.confirm  # override/reset: asked
     else:
         assert is_stop(data) and verdict.kind == "stop" and not verdict.confirm
+
+
+def test_motion_stops_when_an_actuator_goes_after_an_override_that_counted_fewer():
+    """After an override/reset with one actuator missing, the network's own 'Too few devices' lock is gone: the core
+    stops motion itself as soon as fewer actuators are heard again, and refuses Go until all are heard."""
+    core = ElectrakControl(LIMITS, CONFIGURED)
+    core.bus_opened(0.0)
+    core.actuators_heard(1, 0.5)
+    assert core.take("s", "engineer", 1.0, 0.0).ok
+    assert core.override("s", True, 1.0, confirmed=True).ok and core.count_reset_to == 1
+    core.tick(1.0 + OVERRIDE_PULSE_S)
+    assert "Reconnect" in core.go("s", 1.4).refused
+    core.actuators_heard(2, 1.5)  # the missing one is back
+    assert core.go("s", 1.5).ok and core.command.enable
+    actions = core.actuators_heard(1, 1.6)
+    assert not core.command.enable and any(isinstance(a, ModifyPeriodic) and not a.frame.enable for a in actions)
+    assert "Reconnect" in core.jog("s", 1, None, 1.7).refused
+    core.actuators_heard(2, 1.8)
+    assert core.override("s", True, 1.9, confirmed=True).ok and core.count_reset_to is None  # all counted again
