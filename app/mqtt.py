@@ -1,8 +1,9 @@
 """Publish the plant's live data to an MQTT broker (``[mqtt]`` in the plant file), read-only.
 
 Topic tree and payloads: docs/mqtt.md. Everything is read from the state store
-(``DeviceState.values_json()`` / ``summary()``); nothing here talks to a bus, and nothing is ever
-subscribed to: MQTT carries no commands.
+(``DeviceState.values_json()`` / ``summary()``); nothing here talks to a bus, and MQTT carries no
+commands: the only topic read is the instance's own instance topic, to notice a takeover of its
+client id (its own last will published while it runs, or a birth of another ``session``).
 
 Two asyncio tasks of their own: the *sampler* looks at every device at most ``rate`` times a
 second and queues what changed (latest message per topic, so a broker that is away costs a
@@ -16,12 +17,14 @@ import asyncio
 import json
 import logging
 import os
+import secrets
 import ssl
 import time
 from collections import OrderedDict, deque
 from pathlib import Path
 from typing import Any
 
+from app.audit import LogBudget
 from app.plant import MqttConfig
 from app.state import jsonable
 from devices.registry import DEVICE_TYPES
@@ -75,13 +78,21 @@ def active_alarms(state, now: float) -> list[str]:
 
 
 def instance_payload(config: MqttConfig, plant_name: str, devices: list[str], state: str, now: float,
-                     reason: str = "") -> dict[str, Any]:
-    """``commission/<site>/$instances/<instance>``: birth (``online``), death (``offline``) and the last will."""
+                     reason: str = "", session: str = "") -> dict[str, Any]:
+    """``commission/<site>/$instances/<instance>``: birth (``online``), death (``offline``) and the last will;
+    ``session``: random per run, so the instance tells its own messages from another client's."""
     payload = {"schema": "commission-instance", "version": SCHEMA_VERSION, "instance": config.instance, "site": config.site,
                "plant": plant_name, "state": state, "devices": devices, "time": now, "heartbeat": config.heartbeat}
     if reason:
         payload["reason"] = reason
+    if session:
+        payload["session"] = session
     return payload
+
+
+WILL_REASON = "lost (last will)"
+_takeover_lines = LogBudget(lines=10, window_s=60.0)
+TAKEOVER_SHOWN_S = 300.0  # the header says "client id taken over" this long after the last one
 
 
 def _fingerprint(payload: dict[str, Any]) -> bytes:
@@ -103,6 +114,9 @@ class MqttPublisher:
         self.sent = 0
         self.dropped = 0  # alarm events dropped from a full buffer
         self.reconnects = 0
+        self.session = secrets.token_hex(8)  # this run's: in the birth and the will
+        self.takeovers = 0
+        self.last_takeover: float | None = None
         self._pending: OrderedDict[str, tuple[bytes, bool]] = OrderedDict()  # topic -> newest retained message
         self._events: deque[tuple[str, bytes]] = deque(maxlen=config.buffer)  # alarm rise/clear, not retained
         self._wake = asyncio.Event()
@@ -123,10 +137,17 @@ class MqttPublisher:
     def connected(self) -> bool:
         return self.state == "connected"
 
+    @property
+    def client_id(self) -> str:
+        return f"commission-{self.config.site}-{self.config.instance}"[:64]
+
     def summary(self) -> dict[str, Any]:
-        return {"url": self.config.url, "state": self.state, "connected": self.connected, "last_error": self.last_error,
+        state = self.state
+        if state == "connected" and self.last_takeover is not None and time.time() - self.last_takeover < TAKEOVER_SHOWN_S:
+            state = "connected: client id taken over"
+        return {"url": self.config.url, "state": state, "connected": self.connected, "last_error": self.last_error,
                 "since": self.since, "sent": self.sent, "queued": len(self._pending) + len(self._events),
-                "dropped": self.dropped, "reconnects": self.reconnects,
+                "dropped": self.dropped, "reconnects": self.reconnects, "takeovers": self.takeovers,
                 **({"sparkplug": self.sparkplug.summary()} if self.sparkplug is not None else {})}
 
     def _set_state(self, state: str, error: str = "") -> None:
@@ -152,7 +173,8 @@ class MqttPublisher:
         self._tasks = []
         if client is not None:
             try:
-                payload = instance_payload(self.config, self.plant_name, list(self.store.devices), "offline", time.time(), "stopped")
+                payload = instance_payload(self.config, self.plant_name, list(self.store.devices), "offline", time.time(), "stopped",
+                                           self.session)
                 await asyncio.wait_for(client.publish(self._instance_topic, dumps(payload), qos=1, retain=True), 2.0)
                 await asyncio.wait_for(client.__aexit__(None, None, None), 2.0)
             except Exception as exc:  # noqa: BLE001 - the last will says the same when this fails
@@ -241,10 +263,10 @@ class MqttPublisher:
         import aiomqtt
 
         will_payload = dumps(instance_payload(self.config, self.plant_name, list(self.store.devices), "offline",
-                                              time.time(), "lost (last will)"))
+                                              time.time(), WILL_REASON, self.session))
         client = aiomqtt.Client(
             self.config.host, self.config.port, username=self.config.username, password=self._password,
-            identifier=f"commission-{self.config.site}-{self.config.instance}"[:64],
+            identifier=self.client_id,
             will=aiomqtt.Will(self._instance_topic, will_payload, qos=1, retain=True),
             keepalive=max(5, int(self.config.heartbeat)), tls_context=await self._tls_context(), timeout=PUBLISH_TIMEOUT_S,
         )
@@ -287,8 +309,55 @@ class MqttPublisher:
                 self._last.clear()  # a broker without persistence lost every retained message: send all again
                 await asyncio.sleep(backoff)
 
+    def on_own_topic(self, payload: bytes, retained: bool = False) -> None:
+        """A message on this instance's own instance topic: its own last will (the broker closed this
+        connection: another client connected with its client id, or the broker dropped it), or a birth
+        of another run (a second instance of the same name, or a client posing as it), is a takeover."""
+        try:
+            data = json.loads(payload) if payload else {}
+        except ValueError:
+            data = {}
+        if not isinstance(data, dict):
+            data = {}
+        session = data.get("session")
+        if session == self.session and data.get("reason") == WILL_REASON:
+            what = ("the broker published this instance's last will while it runs: another client connected with its "
+                    f"client id {self.client_id!r}, or the broker dropped the connection")
+        elif data.get("state") == "online" and session != self.session and not retained:
+            # (a retained birth of another session is the last run's, before its connection timed out)
+            what = f"another client publishes as this instance on {self._instance_topic} (client id {self.client_id!r} or its name)"
+        else:
+            return
+        self.takeovers += 1
+        self.last_takeover = time.time()
+        if _takeover_lines.take() is None:
+            return  # a client taking the id again and again: counted, logged at most 10 times a minute
+        log.warning("mqtt: %s; give each instance a broker account and let the broker take it as the client id "
+                    "(docs/mqtt.md, \"The broker's side\")", what)
+
+    async def _watch_own_topic(self, client) -> None:
+        async for message in client.messages:
+            if str(message.topic) == self._instance_topic:
+                payload = message.payload if isinstance(message.payload, bytes | bytearray) else b""
+                self.on_own_topic(bytes(payload)[:65536], bool(message.retain))
+
     async def _publish_session(self, client) -> None:
-        birth = instance_payload(self.config, self.plant_name, list(self.store.devices), "online", time.time())
+        watcher = None
+        try:
+            await client.subscribe(self._instance_topic, qos=1)
+            watcher = asyncio.create_task(self._watch_own_topic(client), name="mqtt own topic")
+        except Exception as exc:  # noqa: BLE001 - a broker that refuses the subscription: publishing goes on
+            log.info("mqtt: cannot read the instance's own topic (%s): a takeover of its client id is not noticed", _why(exc))
+        try:
+            await self._publish_until_lost(client)
+        finally:
+            if watcher is not None:
+                watcher.cancel()
+                await asyncio.gather(watcher, return_exceptions=True)
+
+    async def _publish_until_lost(self, client) -> None:
+        birth = instance_payload(self.config, self.plant_name, list(self.store.devices), "online", time.time(),
+                                 session=self.session)
         await client.publish(self._instance_topic, dumps(birth), qos=1, retain=True)
         self.sent += 1
         self._last.clear()  # the first look after a (re)connect sends everything
