@@ -1,0 +1,43 @@
+"""Words people see in chromium, at 1440x900 and 768x1024 on the demo plant (issue 42 items 8 and 13): every bus
+in the header is named (on a tablet in small type under its icon), the overview table keeps each device's name
+on one line, and the M3IO header names the DigOut period it is sent at."""
+
+from __future__ import annotations
+
+import pytest
+from conftest import wait_devices_online
+from webutil import demo_plant_text, free_port, running_app
+
+SIZES = [(1440, 900), (768, 1024)]
+
+
+@pytest.fixture(scope="module")
+def app(tmp_path_factory):
+    with running_app(demo_plant_text(free_port()), tmp_path_factory.mktemp("labels")) as url:
+        wait_devices_online(url, ["door-1", "heater-hm", "barrier-out-1"], timeout=40)
+        yield url
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("width,height", SIZES, ids=[f"{w}x{h}" for w, h in SIZES])
+def test_bus_names_table_names_and_the_digout_period(app, chromium, width: int, height: int):
+    page = chromium.new_page(viewport={"width": width, "height": height})
+    try:
+        page.goto(app + "/")
+        page.wait_for_selector("[data-glance='barrier-out-1']")
+        names = page.evaluate("""() => [...document.querySelectorAll('.hdr-bus')].map(link => {
+            const name = link.querySelector('.hdr-bus-name'); const r = name.getBoundingClientRect();
+            return {bus: link.dataset.bus, text: name.innerText, visible: r.width > 0 && r.height > 0,
+                    inside: r.right <= window.innerWidth && r.bottom <= link.closest('header, .q-header, .hdr').getBoundingClientRect().bottom};
+        })""")
+        assert names and all(n["visible"] and n["inside"] and n["text"] == n["bus"] for n in names), names
+        lines = page.evaluate("""() => [...document.querySelectorAll('[data-glance] td:first-child a')].map(a => {
+            const lh = parseFloat(getComputedStyle(a).lineHeight) || 20;
+            return {name: a.innerText, oneLine: a.getBoundingClientRect().height < 1.6 * lh};
+        })""")
+        assert lines and all(line["oneLine"] for line in lines), lines
+        page.goto(app + "/device/heater-hm")
+        page.get_by_text("DigOut every 500 ms").first.wait_for(timeout=10000)
+        assert page.get_by_text("DigOut every 100 ms").count() == 0
+    finally:
+        page.close()
