@@ -29,17 +29,18 @@ from typing import Any
 
 from devices import values as v
 from devices.decoding import malformed
+from devices.control import ControlChanged, Report
 from devices.lease import Lease
 from devices.live import DeviceState, Holder, Point, session_tag
 from devices.scu import codec
 from devices.scu import params as p
+from devices.scu.control import (ESTOP, NOT_HELD, RS_ATTEMPTS, OpenSession, Outcome, ScuControl, SendEstop, SendRS,
+                                 WithholdRC)
 from devices.transport import SerialClosed, SerialLineError, SerialTimeout
 
-REOPEN_BACKOFF_S = (0.2, 0.5, 1.0, 2.0, 5.0)
 CRC_RETRIES = 2  # an answer with a bad CRC is counted and the request sent again
 # RS refused with CSE ("the unit did not execute the telegram", section 4.2) or unanswered is sent again, at
 # most this many times in all; the function stays held (RS pending, retried every poll) until an RS is acknowledged.
-RS_ATTEMPTS = 3
 # How the unit is watched while nobody holds control (section 4.1 lists RG among the remote-only commands;
 # a unit that answers RG outside remote mode is watched without a session, so its own watchdog is never
 # kept alive for nobody).
@@ -54,7 +55,6 @@ ROTATING_IDS = (0x00F0, 0x0164, 0x0040, 0x0020, 0x0110, 0x0120, 0x0130, 0x0140, 
 CYCLIC_INDEX = 0  # RC index 0 = CyclicObj 1 (0x3001)
 # Emergency stop (function 19) is not released by the dead-man rule: RS would end the emergency stop,
 # the unsafe direction. It is released only by an explicit "release emergency stop" (section 4.4, F20).
-NOT_HELD = frozenset({codec.Function.EMERGENCY_STOP})
 RESTORE_REFUSED = ("the SCU accepts writes only to its volatile remote data 0x3xxx, which is lost at reset "
                    "(document section 4.3, table 7): its configuration cannot be written back over RS232; "
                    "the snapshot is a record for the commissioning file")
@@ -226,13 +226,6 @@ def value_text(data_id: int, value: Any) -> str:
     return str(value)
 
 
-@dataclass
-class Controller:
-    session: str
-    user: str
-    since: float
-
-
 @dataclass(frozen=True, slots=True)
 class Refusal:
     """An error answer of the unit (section 4.2): to which command, its code and what to do."""
@@ -306,17 +299,14 @@ class ScuAdapter:
             else {n - 1: [n] for n in range(1, len(self.scales) + 1)})
         self.baudrate = line.options.get("baudrate", codec.DEFAULT_BAUDRATE) if line is not None else codec.DEFAULT_BAUDRATE
         self.port = line.options.get("port", "") if line is not None else ""
-        self.session = "closed"  # closed, opening, open, lost, released
-        self.session_reason = ""
-        self.controller: Controller | None = None
-        self.running: dict[int, str] = {}  # fnc_ID -> session that sent its RE (RS not yet sent)
+        # the safety state and its rules (devices/scu/control.py): session, control, running functions, owed RS,
+        # the emergency stop, RC withheld; this adapter carries its actions out on the line
+        self.core = ScuControl(lease=Lease())
         self.started: set[int] = set()  # functions run since the session opened (Stop sends RS to them)
         self.cyclic: p.CyclicDefinition | None = None
         self.cyclic_note = ""
         self.rc_times: deque[float] = deque(maxlen=50)
         self.crc_retries = 0
-        self._failures = 0
-        self._next_open = 0.0
         self._last_answer: float | None = None
         self._silent_since: float | None = None
         self._rotate = 0
@@ -331,8 +321,6 @@ class ScuAdapter:
         self.watch: str | None = None  # WATCH_RG or WATCH_SESSION once the first RG outside a session told
         self.single_ids: set[int] = set()  # groups this unit refused: read member by member (remembered)
         self.cyclic_refused = False  # the unit refused the cyclic object (definition or RC with it)
-        self.rs_pending: dict[int, str] = {}  # functions whose RS was not acknowledged: held, sent again
-        self.estop = False  # function 19 on (RE 19 acknowledged, RS 19 not yet)
         self.resyncs = 0
         self.skipped_bytes = 0
         self._fn_locks: dict[int, asyncio.Lock] = {}
@@ -342,7 +330,6 @@ class ScuAdapter:
         # held functions and the lease one state for the thread: no RS and no withheld RC for a stop the
         # loop has just made.
         self.rc_on_line_thread = True  # False: RC from the poll on the loop (a line without a thread of its own)
-        self.lease = Lease()
         self._guard = threading.Lock()
         self._held: frozenset[int] = frozenset()  # running functions the lease covers (never 19)
         self._rc_armed = False
@@ -374,6 +361,114 @@ class ScuAdapter:
         state.fact(P_CYCLIC, self.cyclic_note)
         state.fact(P_REFUSAL, None, text="none")
         state.fact(P_SINGLE_IDS, ())
+
+    # -- the core's state, as the rest of the program reads it ------------------------------------------
+    @property
+    def session(self) -> str:
+        """closed, opening, open, lost or released."""
+        return self.core.phase
+
+    @property
+    def session_reason(self) -> str:
+        return self.core.reason
+
+    @property
+    def controller(self):
+        """The holder of control (``session``, ``user``, ``since``), or None."""
+        return self.core.control.holder
+
+    @property
+    def running(self) -> dict[int, str]:
+        """fnc_ID -> session that sent its RE, until its RS is acknowledged."""
+        return self.core.running
+
+    @property
+    def rs_pending(self) -> dict[int, str]:
+        """Functions whose RS was not acknowledged: held, sent again."""
+        return self.core.rs_pending
+
+    @property
+    def estop(self) -> bool:
+        """The emergency stop is on (pressed, not yet released by RS 19)."""
+        return self.core.estop is not None
+
+    @property
+    def lease(self) -> Lease:
+        return self.core.control.lease
+
+    # -- carrying the core's actions out ----------------------------------------------------------------
+    async def _carry_out(self, actions) -> None:
+        """Do what the core asks, in order; what an answer leads to comes before the rest."""
+        todo = list(actions)
+        while todo:
+            action = todo.pop(0)
+            if isinstance(action, SendRS):
+                todo[:0] = await self._rs_action(action)
+            elif isinstance(action, SendEstop):
+                todo[:0] = self.core.estop_answered(await self._estop_request(action.why), time.monotonic())
+                self._publish_estop()
+            elif isinstance(action, OpenSession):
+                await self.open_session(forced=action.forced)
+            else:
+                self._apply(action)
+        self._sync_held()
+        self._sync_phase()
+
+    def _apply(self, action) -> None:
+        """The actions without I/O of the line: reports, control, withholding RC."""
+        if isinstance(action, Report):
+            if action.text.startswith("STOP FAILED"):
+                self.state.error(action.text)
+            self.state.event(action.level, action.text)
+        elif isinstance(action, ControlChanged):
+            c = action.holder
+            self.state.fact(P_CONTROLLED_BY, None if c is None else c.user, text="nobody" if c is None else None)
+            self._publish_control()
+        elif isinstance(action, WithholdRC):
+            with self._guard:
+                self._rc_withheld = True
+            self._sync_phase()
+
+    def _sync_phase(self) -> None:
+        """The session's phase as the core has it: published, and RC armed only while it is open."""
+        with self._guard:
+            armed = self._rc_armed
+        if self.core.phase == "open" and not armed:
+            self._arm_rc()
+        elif self.core.phase != "open" and armed:
+            self._disarm_rc()
+        self._publish_session()
+
+    @staticmethod
+    def _outcome(exc: BaseException | None) -> Outcome:
+        if exc is None:
+            return Outcome.ACK
+        if isinstance(exc, codec.CommandRefused):
+            return Outcome.of_status(exc.code)
+        return Outcome.LOST
+
+    async def _estop_request(self, why: str) -> Outcome:
+        try:
+            await self._request(codec.encode_re(codec.Function.EMERGENCY_STOP), f"RE F20 emergency stop ({why})",
+                                keepalive=False)
+        except (SerialLineError, codec.CodecError) as exc:
+            return self._outcome(exc)
+        return Outcome.ACK
+
+    async def _rs_action(self, action: SendRS) -> list:
+        """One RS as the core asks (its form and attempt); returns what the core makes of the answer."""
+        label = codec.FUNCTIONS[codec.Function(action.fn)].label
+        frame = codec.encode_rs(action.fn, -1, -1) if action.three_bytes else codec.encode_rs(action.fn)
+        exc: BaseException | None = None
+        try:
+            await self._request(frame, f"RS {label} ({action.why})" + (f", attempt {action.attempt}" if action.attempt > 1 else "")
+                                + (" (three-byte form)" if action.three_bytes else ""), keepalive=False)
+        except (SerialLineError, codec.CodecError) as e:
+            exc = e
+        follow = self.core.rs_answered(action, self._outcome(exc), time.monotonic())
+        if action.fn == ESTOP:
+            self._publish_estop()
+        return follow
 
     # -- the line -------------------------------------------------------------------------------
     async def _request(self, frame: bytes, describe: str, *, keepalive: bool = True,
@@ -466,7 +561,7 @@ class ScuAdapter:
         silent = now - self._silent_since
         if self.session == "open" and silent > codec.WATCHDOG_S:
             self._lost("no answer for more than 500 ms: the unit has dropped remote mode (watchdog)")
-        if silent >= codec.MAX_ANSWER_DELAY_S or self._last_answer is None and self._failures >= 1:
+        if silent >= codec.MAX_ANSWER_DELAY_S or self._last_answer is None and self.core.failures >= 1:
             self.state.mark_offline(self.offline_message())
 
     def offline_message(self) -> str:
@@ -531,7 +626,7 @@ class ScuAdapter:
         return "not known yet: the first RG outside a session tells"
 
     def _set_session(self, session: str, reason: str = "") -> None:
-        self.session, self.session_reason = session, reason
+        self.core.phase, self.core.reason = session, reason
         self._publish_session()
         if session == "open":
             self._arm_rc()
@@ -599,14 +694,19 @@ class ScuAdapter:
         if fn in NOT_HELD:
             return False  # never RS 19: it would end the emergency stop
         label = codec.FUNCTIONS[codec.Function(fn)].label
+        three = self.core.rs_three_bytes
         for attempt in range(1, RS_ATTEMPTS + 1):
+            frame = codec.encode_rs(fn, -1, -1) if three else codec.encode_rs(fn)
             try:
-                answer = self._thread_request(exchange, codec.encode_rs(fn), f"RS {label} ({why})"
+                answer = self._thread_request(exchange, frame, f"RS {label} ({why})"
                                               + (f", attempt {attempt}" if attempt > 1 else ""))
             except (SerialLineError, codec.CodecError):
                 continue
             if answer.ok:
                 return True
+            if answer.status == codec.Status.PCE and not three:
+                three = True  # the unit takes the three-byte form of table 3 (remembered by the loop's next RS)
+                continue
             if answer.status == codec.Status.PE:
                 return False  # remote mode gone: the unit has stopped remote motion (section 5)
         return False
@@ -634,7 +734,7 @@ class ScuAdapter:
             with self._guard:
                 self._stopped_by_thread |= {fn for fn, ok in results.items() if ok}
             self._call_loop(self._lapsed, lapsed_at, results)
-        if withheld and not self.estop:
+        if withheld and not self._estop_confirmed():
             # The unit's own watchdog now ends remote mode and stops every drive (section 5), also one whose RS
             # was lost. With the emergency stop on, RC goes on: nothing moves, and remote mode keeps F20 in force.
             return period
@@ -672,12 +772,19 @@ class ScuAdapter:
             self._call_loop(self._thread_rc_answer, answer, cyclic if frame != codec.KEEP_ALIVE else None, reads)
             return min(max(0.0, sent_at + period - time.monotonic()), check)  # on the clock: period from send to send
         self._call_loop(self._thread_rc_refused, answer)
+        if answer.status == codec.Status.CSE:
+            return 0.0  # "Fehler in der Telegramm-Checksumme" (section 4.2): line noise, RC again at once
         if answer.status == codec.Status.PE:
             with self._guard:
                 self._rc_armed = False  # remote mode is gone: the loop reopens the session
             return period
         self._rc_plain = True  # RC with the cyclic object refused: RC without data, at once
         return 0.0
+
+    def _estop_confirmed(self) -> bool:
+        """F20 is on in the unit (acknowledged since the session opened): remote mode keeps it in force."""
+        estop = self.core.estop
+        return estop is not None and estop.confirmed
 
     def _thread_rc_answer(self, answer: codec.Answer, cyclic: p.CyclicDefinition | None,
                           reads: list[tuple[int, codec.Answer | Exception]] = ()) -> None:
@@ -718,8 +825,10 @@ class ScuAdapter:
         self.state.counters.exceptions += 1
         info = codec.CommandRefused(answer.command, answer.status).info
         if answer.status == codec.Status.PE:
-            self._lost(f"PE (permission error) to the RC keep-alive: the unit is no longer in remote mode")
+            self._lost("PE (permission error) to the RC keep-alive: the unit is no longer in remote mode")
             return
+        if answer.status == codec.Status.CSE:
+            return  # line noise (section 4.2): sent again, remembered as nothing
         if self.cyclic is not None:
             self.cyclic = None
             self.cyclic_refused = True
@@ -749,25 +858,24 @@ class ScuAdapter:
                 f"thread sent RS to {names(results) or 'nothing'} by itself")
         if [fn for fn, ok in results.items() if not ok]:
             text += f" (not acknowledged: {names([f for f, ok in results.items() if not ok])}; RS is sent again)"
-        text += (" and kept RC going: the emergency stop is on" if self.estop else
-                 " and withheld RC, so the unit's watchdog ends remote mode and stops every drive (section 5)")
+        confirmed = self._estop_confirmed()
+        text += (" and kept RC going: the emergency stop is on (F20, confirmed by the unit)" if confirmed else
+                 " and withheld RC, so the unit's watchdog ends remote mode and stops every drive (section 5); the "
+                 "session is opened again only after that")
         self.state.event("error", text + ". Press again to move")
-        if self.estop:
+        if confirmed:
             with self._guard:
                 self._rc_withheld = False  # RC went on; a function still held after a failed RS gets RS again
         else:
-            self._lost("RC withheld after the motion's lease lapsed: the unit's watchdog ends remote mode")
+            # not reopened before the unit's watchdog has tripped: a reopening's RO + RC would feed it again
+            withheld_at = min(time.monotonic(), lapsed_at + 0.05)
+            self.core.withhold("the lease of the running functions lapsed", withheld_at)
+            self._sync_phase()
 
     def _lost(self, reason: str) -> None:
-        if self.session != "open":
-            return
-        self._set_session("lost", reason)
-        self.state.event("error", f"remote session lost: {reason}; reopening with backoff")
-        self._schedule_reopen()
-
-    def _schedule_reopen(self) -> None:
-        self._failures += 1
-        self._next_open = time.monotonic() + REOPEN_BACKOFF_S[min(self._failures - 1, len(REOPEN_BACKOFF_S) - 1)]
+        for action in self.core.lost(reason, time.monotonic()):
+            self._apply(action)
+        self._sync_phase()
 
     async def _rc(self) -> codec.Answer:
         if self.cyclic is not None:
@@ -775,8 +883,8 @@ class ScuAdapter:
                 answer = await self._request(codec.encode_rc(CYCLIC_INDEX), "RC keep-alive with CyclicObj 1",
                                              keepalive=False)
             except codec.CommandRefused as exc:
-                if exc.code == codec.Status.PE:
-                    raise
+                if exc.code in (codec.Status.PE, codec.Status.CSE):
+                    raise  # remote mode gone, or line noise (sent again with the next RC): nothing to remember
                 # The definition was taken but RC with it is refused: RC without data from now on, RG for the rest.
                 self.cyclic = None
                 self.cyclic_refused = True
@@ -804,6 +912,8 @@ class ScuAdapter:
 
     async def _probe(self) -> None:
         """Does the unit answer RG outside remote mode? Decides how it is watched (remembered for this unit)."""
+        if self._last_answer is None:
+            await self._wake()  # a unit on battery may be asleep from the start (section 3, Low Power, V2B1)
         try:
             answer = await self._request(codec.encode_rg(PROBE_ID), "RG 0x0011 outside a session (probe)",
                                          keepalive=False, quiet=True)
@@ -816,27 +926,62 @@ class ScuAdapter:
         self._publish_session()
 
     def _needs_session(self) -> bool:
-        """A remote session is needed: the unit refuses RG without one, someone drives, or a stop is owed."""
-        return (self.watch == WATCH_SESSION or self.controller is not None or bool(self.running)
-                or bool(self.rs_pending) or self.estop)
+        """A remote session is needed: the unit refuses RG without one, someone drives, a stop is owed, or F20 is on."""
+        return self.core.needs_session(self.watch == WATCH_SESSION)
 
-    async def open_session(self) -> None:
-        """RO with the Safety_ID, RC, the cyclic object definition (or the RG fallback), the end positions."""
-        self._set_session("opening")
+    def _ro_frame(self) -> bytes:
+        """RO with the Safety_ID alone (section 5 example), or with para_ID[0] as table 3 lists it once the unit
+        answered PCE to the short form."""
+        if self.core.ro_two_bytes:
+            return codec.encode_frame(codec.RO, bytes([int(self.safety_id), codec.UNUSED]))
+        return codec.encode_ro(self.safety_id)
+
+    async def open_session(self, forced: bool = False) -> None:
+        """RO with the Safety_ID, RC; before anything else F20 again when it is on and the RS owed (the core's
+        actions, whatever follows); then the cyclic object definition (or the RG fallback) and the end positions.
+
+        :param forced: for the emergency stop: whatever the backoff or an earlier RA (never while RC is withheld)
+        """
+        why_not = self.core.may_open(time.monotonic(), forced)
+        if why_not:
+            if forced and self.core.phase != "open":
+                self.state.event("error", f"emergency stop: the session is not opened now ({why_not}); F20 is switched "
+                                          "on in the unit as soon as it is")
+            return
+        answered_before = self._last_answer is not None
+        self.core.opening()
+        self._sync_phase()
         self.cyclic = None
         with self._guard:
             self.rc_times.clear()
-        if self._failures:
+        if self.core.failures or not answered_before:
             await self._wake()
+        sid = int(self.safety_id)
         try:
-            await self._request(codec.encode_ro(self.safety_id), f"RO Safety_ID {int(self.safety_id)}", keepalive=False)
+            try:
+                await self._request(self._ro_frame(), f"RO Safety_ID {sid}", keepalive=False)
+            except codec.CommandRefused as exc:
+                if not self.core.ro_refused(self._outcome(exc)):
+                    raise
+                self.state.event("warning", "the unit answered PCE to RO with the Safety_ID alone: it takes RO with "
+                                            "Safety_ID and para_ID[0] as table 3 lists it; that form from now on")
+                await self._request(self._ro_frame(), f"RO Safety_ID {sid}, para_ID[0] -1", keepalive=False)
             await self._request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)  # section 5: RC before any other command
         except (SerialLineError, codec.CodecError) as exc:
-            self._set_session("lost" if self._last_answer else "closed", str(exc))
-            self._schedule_reopen()
+            self.core.open_failed(str(exc), time.monotonic(), answered_before=self._last_answer is not None)
+            self._sync_phase()
+            if forced:
+                for action in self.core.estop_unreachable(str(exc), time.monotonic()):
+                    self._apply(action)
             return
-        self._set_session("open")
-        self._failures = 0
+        actions = self.core.opened(time.monotonic())
+        self._sync_phase()
+        # the emergency stop again (released only by the person who asks for it) and the RS of every RE still owed
+        # (section 4.6), before the cyclic object is defined: whatever becomes of that, these have gone out
+        await self._carry_out(actions)
+        self._publish_estop()
+        if self.core.phase != "open":
+            return  # an RS was not acknowledged: RC is withheld until the unit's watchdog has stopped every drive
         if self.cyclic_refused:
             self.cyclic_note = "RC without data (the unit refused the cyclic object); live data is read with RG"
         else:
@@ -849,26 +994,18 @@ class ScuAdapter:
             except codec.CommandRefused as exc:
                 if exc.code == codec.Status.PE:
                     return
-                self.cyclic_refused = True
-                self.cyclic_note = (f"the unit refused the cyclic object definition ({exc.info.name}: {exc.info.title}); "
-                                    "live data is read with RG requests instead")
-                self.state.event("warning", self.cyclic_note)
+                if exc.code == codec.Status.CSE:
+                    self.cyclic_note = ("the cyclic object's definition arrived damaged (CSE, line noise): live data "
+                                        "is read with RG until the next opening defines it again")
+                else:
+                    self.cyclic_refused = True
+                    self.cyclic_note = (f"the unit refused the cyclic object definition ({exc.info.name}: {exc.info.title}); "
+                                        "live data is read with RG requests instead")
+                    self.state.event("warning", self.cyclic_note)
             except (SerialLineError, codec.CodecError):
                 return
         self._publish_cyclic()
         self.state.event("info", f"remote session open (Safety_ID {int(self.safety_id)}); {self.cyclic_note}")
-        if self.estop:
-            # The emergency stop is released only by the person who asks for it: after a lost session it is
-            # switched on again (RE 19, the safe direction), never released (table 8: RS 19 switches it off).
-            try:
-                await self._request(codec.encode_re(codec.Function.EMERGENCY_STOP),
-                                    "RE F20 emergency stop (kept on after reopening)")
-            except (SerialLineError, codec.CodecError) as exc:
-                self.state.event("error", f"emergency stop could not be confirmed after reopening: {exc}")
-        # after a lost session the unit has stopped; the RS of every RE still follows (section 4.6)
-        for fn in sorted(set(self.running) | set(self.rs_pending)):
-            if fn not in NOT_HELD:
-                await self._send_rs(fn, "after the lost session")
         try:
             await self._read_end_positions()
         except (SerialLineError, codec.CodecError, v.DecodeError):
@@ -924,16 +1061,16 @@ class ScuAdapter:
         if self.session == "released":
             return
         if self.watch is None:
-            if time.monotonic() < self._next_open:
+            if time.monotonic() < self.core.next_open:
                 return
             try:
                 await self._probe()
-            except (SerialLineError, codec.CodecError, v.DecodeError):
-                self._schedule_reopen()
+            except (SerialLineError, codec.CodecError, v.DecodeError) as exc:
+                self.core.open_failed(f"no answer to the first RG: {exc}", time.monotonic(), answered_before=False)
                 return
         if self._needs_session() and self.session != "open":
-            if time.monotonic() < self._next_open:
-                return
+            if self.core.may_open(time.monotonic()):
+                return  # backoff, released, or RC withheld until the unit's watchdog has tripped
             await self.open_session()
             return
         if not self._needs_session() and self.session == "open" and self.watch == WATCH_RG:
@@ -992,6 +1129,8 @@ class ScuAdapter:
             except codec.CommandRefused as exc:
                 if exc.code == codec.Status.PE:
                     raise
+                if exc.code == codec.Status.CSE:
+                    continue  # line noise (section 4.2): read again in its turn, nothing remembered
                 entry = p.DIRECTORY.get(read_id)
                 if read_id == data_id and entry is not None and entry.is_group and data_id not in self.single_ids:
                     self.single_ids.add(data_id)  # remembered for this unit: its members one by one from now on
@@ -1132,24 +1271,21 @@ class ScuAdapter:
     # -- control ------------------------------------------------------------------------------------
     async def take_control(self, session: str, user: str) -> None:
         """One browser session at a time drives the unit (the remote session is opened for it by the next poll)."""
-        if self.controller is not None and self.controller.session != session:
-            raise ControlBusy(f"{self.controller.user} holds control since "
-                              f"{time.strftime('%H:%M:%S', time.localtime(self.controller.since))}")
-        if self.controller is None:
-            self.controller = Controller(session, user, time.time())
-            self.state.fact(P_CONTROLLED_BY, user)
-            self._publish_control()
-            self.state.event("info", f"{user} took control")
+        decision = self.core.control.take(session, user, time.monotonic(), time.time())
+        if decision.busy:
+            c = self.controller
+            raise ControlBusy(f"{c.user} holds control since {time.strftime('%H:%M:%S', time.localtime(c.since))}")
+        for action in decision.actions:
+            self._apply(action)
 
     def controls(self, session: str) -> bool:
         """Whether ``session`` holds control of the unit (the gate's check for commands that need control)."""
-        return self.controller is not None and self.controller.session == session
+        return self.core.control.controls(session)
 
     def _check_holder(self, session: str) -> None:
-        if self.controller is None:
-            raise CommandError("take control first")
-        if self.controller.session != session:
-            raise ControlBusy(f"{self.controller.user} holds control")
+        decision = self.core.control.check_holder(session)
+        if not decision.ok:
+            raise (ControlBusy if decision.busy else CommandError)(decision.refused)
 
     def _check_open(self) -> None:
         if self.session != "open":
@@ -1159,29 +1295,29 @@ class ScuAdapter:
 
     async def _ensure_open(self) -> None:
         """Open the remote session now when it is needed and closed (watching with RG, or lost with backoff past)."""
-        if self.session == "open" or self.session == "released":
+        if self.session in ("open", "released"):
             return
-        if self.session in ("closed", "lost") and time.monotonic() >= self._next_open:
+        if not self.core.may_open(time.monotonic()):
             await self.open_session()
 
     async def release_control(self, session: str, reason: str = "released") -> bool:
         if self.controller is None or (session and self.controller.session != session):
             return False
-        await self._stop_held(self.controller.session, reason)
-        user = self.controller.user
-        self.controller = None
-        self.state.fact(P_CONTROLLED_BY, None, text="nobody")
-        self._publish_control()
-        self.state.event("info", f"control {reason} ({user})")
+        holder = self.controller.session
+        await self._stop_held(holder, reason)
+        self.core.control.running = False  # what it ran has had its RS (an RS not acknowledged stays owed)
+        for action in self.core.control.release(holder, reason):
+            self._apply(action)
         return True
 
     def holders(self) -> set[str]:
         """Sessions whose RE (motion, buzzer, outputs, LEDs) has not yet been followed by an acknowledged RS."""
-        return {s for fn, s in self.running.items() if fn not in NOT_HELD}
+        return self.core.holders()
 
     def session_lost(self, session: str, reason: str) -> None:
         """The browser of ``session`` went away or froze: RS at once for everything it runs, release control."""
-        held = [fn for fn, s in self.running.items() if s == session and fn not in NOT_HELD]
+        actions = self.core.session_lost(session, reason)
+        held = [a.fn for a in actions if isinstance(a, SendRS)]
         now = time.monotonic()
         for fn in held:
             self._stop_marks[fn] = now
@@ -1190,12 +1326,9 @@ class ScuAdapter:
             task = asyncio.get_running_loop().create_task(self._stop_functions(held, f"dead-man: {reason}"))
             self._stop_tasks.add(task)
             task.add_done_callback(self._stop_tasks.discard)
-        if self.controller is not None and self.controller.session == session:
-            user = self.controller.user
-            self.controller = None
-            self.state.fact(P_CONTROLLED_BY, None, text="nobody")
-            self._publish_control()
-            self.state.event("warning", f"control released ({user}): {reason}")
+        for action in actions:
+            if not isinstance(action, SendRS):
+                self._apply(action)
 
     async def stopped(self) -> None:
         """Wait for the RS frames that :meth:`session_lost` has sent off (tests, shutdown)."""
@@ -1226,38 +1359,12 @@ class ScuAdapter:
             return await self._rs(fn, why)
 
     async def _rs(self, fn: int, why: str) -> bool:
-        label = codec.FUNCTIONS[codec.Function(fn)].label
-        problem = ""
-        for attempt in range(1, RS_ATTEMPTS + 1):
-            try:
-                await self._request(codec.encode_rs(fn), f"RS {label} ({why})" + (f", attempt {attempt}" if attempt > 1 else ""),
-                                    keepalive=False)
-            except codec.CommandRefused as exc:
-                problem = f"{exc.info.name} ({exc.info.title})"
-                if exc.code == codec.Status.PE:
-                    break  # remote mode gone: the unit has stopped remote motion (section 5); RS again on reopening
-                continue  # CSE: "not executed" (section 4.2): sent again
-            except (SerialLineError, codec.CodecError) as exc:
-                problem = f"not answered ({exc})"
-                if self.session != "open":
-                    break
-                continue
-            self.running.pop(fn, None)
-            self.rs_pending.pop(fn, None)
-            if fn == codec.Function.EMERGENCY_STOP:
-                self.estop = False
-                self._publish_estop()
-            self._sync_held()
-            return True
-        if fn != codec.Function.EMERGENCY_STOP:
-            self.rs_pending[fn] = why
-            self.running.setdefault(fn, self.running.get(fn, ""))
-        self._sync_held()
-        self.state.error(f"STOP FAILED: RS {label} ({why}) was not acknowledged: {problem}. {label} stays held; "
-                         "RS is sent again on every poll and when the session reopens. Use the hand switch or cut "
-                         "the supply if the actuator moves")
-        self.state.event("error", f"STOP FAILED: RS {label} ({why}): {problem}")
-        return False
+        """RS as the core rules it: sent again on CSE or no answer, in the three-byte form after a PCE; not
+        acknowledged, it is a failed stop and RC is withheld (devices/scu/control.py)."""
+        await self._carry_out([SendRS(fn, why, three_bytes=self.core.rs_three_bytes)])
+        if fn == ESTOP:
+            return self.core.estop is None
+        return fn not in self.running and fn not in self.rs_pending
 
     async def _stop_held(self, session: str, why: str) -> None:
         await self._stop_functions([fn for fn, s in self.running.items() if s == session and fn not in NOT_HELD], why)
@@ -1278,10 +1385,9 @@ class ScuAdapter:
         fn = codec.Function(function)
         if fn == codec.Function.EMERGENCY_STOP:
             return await self.emergency_stop(session)
-        if self.estop and fn in codec.MOTION_FUNCTIONS:
-            raise CommandError("the emergency stop (function 19) is on: release it first (RS 19, by the person who set it)")
-        if int(fn) in self.rs_pending:
-            raise CommandError(f"the RS of {codec.FUNCTIONS[fn].label} is not acknowledged yet: no new RE until it is")
+        decision = self.core.check_run(session, int(fn))
+        if not decision.ok:
+            raise (ControlBusy if decision.busy else CommandError)(decision.refused)
         await self._ensure_open()
         self._check_open()
         frame = codec.encode_re(fn, motion, ramp) if fn in codec.MOTION_FUNCTIONS else codec.encode_re(fn)
@@ -1295,14 +1401,14 @@ class ScuAdapter:
                 await self._rc()
             if self._stopped_since(int(fn), requested_at):
                 raise CommandError(f"{label}: a stop came after this request: no RE sent")
-            if fn not in NOT_HELD:
-                self.lease.grant()  # the controlling session pressed just now: alive; the supervisor renews it
-            self.running[int(fn)] = session  # before the request: a lost answer must still be followed by RS
+            # runs from now on (the controlling session pressed just now: alive; the supervisor renews its lease),
+            # before the request: a lost answer must still be followed by RS
+            self.core.re_sent(session, int(fn), time.monotonic())
             self._sync_held()
             try:
                 await self._request(frame, f"RE {words}", keepalive=False)
-            except BaseException:
-                await self._rs(int(fn), "RE not confirmed")
+            except BaseException as exc:
+                await self._carry_out(self.core.re_answered(int(fn), self._outcome(exc)))
                 raise
             if self._stopped_since(int(fn), requested_at):
                 await self._rs(int(fn), "stop requested while the RE was on the line")
@@ -1321,14 +1427,15 @@ class ScuAdapter:
         if self.session != "open" and not self.running and not self.rs_pending:
             return [f"nothing sent: the session is {self.session}; without RC the unit has stopped remote motion"]
         await self._ensure_open()
-        targets = [function] if function is not None else sorted(
-            {fn for fn in self.running if fn not in NOT_HELD} | {fn for fn in self.started if fn not in NOT_HELD}
-            | set(self.rs_pending) or {int(codec.Function.F1)})
+        targets = self.core.stop_targets(function, self.started)
         failed = await self._stop_functions(targets, "stop")
         if failed:
+            withheld = self.core.withheld_since is not None
             raise CommandError("STOP FAILED: no acknowledged RS for "
                                + ", ".join(codec.FUNCTIONS[codec.Function(f)].label for f in failed)
-                               + f" ({self.state.last_error}); RS is sent again on every poll")
+                               + f" ({self.state.last_error}); " + (
+                                   "RC is withheld, so the unit's own watchdog stops every drive within 500 ms "
+                                   "(section 5)" if withheld else "RS is sent again on every poll"))
         return [codec.FUNCTIONS[codec.Function(f)].label for f in targets]
 
     async def jog(self, session: str, function: int, direction: int, ramp: int = -1,
@@ -1358,31 +1465,52 @@ class ScuAdapter:
         return (", ".join(f"A{a}" for a in acts) if acts else "no actuator") + (
             " (assumed: SCP11, section 5; set functions in the plant file)" if self.functions_assumed else "")
 
-    def _publish_estop(self) -> None:
-        self.state.fact(P_ESTOP, self.estop,
-                        text="on (function 19): released only by its explicit release" if self.estop else "off")
+    def estop_text(self) -> str:
+        """The emergency stop in words: on or off, who pressed it and when, what the unit said."""
+        e = self.core.estop
+        if e is None:
+            return "off"
+        unit = ("confirmed by the unit" if e.confirmed else
+                f"not confirmed by the unit ({e.refusal})" if e.refusal else "not yet confirmed by the unit")
+        return (f"ON since {time.strftime('%H:%M:%S', time.localtime(e.at))}, pressed by {e.who}; {unit}; released only "
+                "by its explicit release (RS 19)")
 
-    async def emergency_stop(self, session: str | None = None) -> str:
-        """RE of function 19 (no confirmation, no control needed); every other running function gets RS."""
+    def _publish_estop(self) -> None:
+        self.state.fact(P_ESTOP, self.estop, text=self.estop_text())
+
+    async def emergency_stop(self, session: str | None = None, user: str | None = None) -> str:
+        """RE of function 19 (no confirmation, no control needed, in any state of the session: never refused); every
+        other running function gets RS whatever the unit answers, and what cannot be stopped so is stopped by the
+        unit's watchdog (RC withheld)."""
         self._stop_all_at = time.monotonic()
-        await self._ensure_open()
-        self._check_open()
-        await self._request(codec.encode_re(codec.Function.EMERGENCY_STOP), "RE F20 emergency stop", keepalive=False)
-        self.running[int(codec.Function.EMERGENCY_STOP)] = session or ""
-        self.estop = True
-        self._sync_held()
+        c = self.controller
+        who = user or (c.user if c is not None and session and c.session == session
+                       else f"page {session_tag(session)}" if session else "a page")
+        actions = self.core.estop_pressed(who, time.monotonic(), time.time())
         self._publish_estop()
-        self.state.event("warning", "emergency stop (function 19)")
-        await self._stop_functions([f for f in self.running if f not in NOT_HELD], "emergency stop")
-        return "emergency stop active"
+        await self._carry_out(actions)
+        self._publish_estop()
+        # what ran before the press and has not had an acknowledged RS yet gets it now (under its lock)
+        await self._stop_functions(sorted(self.core.held), "emergency stop")
+        e = self.core.estop
+        if e is not None and e.confirmed:
+            return "emergency stop active"
+        return ("emergency stop ON in this tool; " + self.estop_text().split("; ", 1)[1]
+                + ": no motion starts until it is released")
 
     async def release_emergency_stop(self, session: str) -> str:
         """RS 19: the only way the emergency stop is released (never by a stop, a reopening or the dead-man rule)."""
-        self._check_holder(session)
+        decision = self.core.estop_release(session)
+        if not decision.ok:
+            raise (ControlBusy if decision.busy else CommandError)(decision.refused)
         await self._ensure_open()
         self._check_open()
-        if not await self._send_rs(int(codec.Function.EMERGENCY_STOP), "emergency stop released"):
-            raise CommandError("RS 19 not acknowledged: the emergency stop is still on")
+        async with self._fn_lock(ESTOP):
+            await self._carry_out(decision.actions)
+        self._publish_estop()
+        if self.core.estop is not None:
+            raise CommandError("RS 19 not acknowledged: the emergency stop is still on (RE 19 was sent again)")
+        self.state.event("info", "emergency stop released (RS 19)")
         return "emergency stop released"
 
     async def _write_read_back(self, data_id: int, value: Any, what: str) -> Any:
@@ -1454,15 +1582,18 @@ class ScuAdapter:
                    "mode within 500 ms (section 5) and the hand switch has the unit then")
         finally:
             self.cyclic = None
-            self._set_session("released", "released to the hand switch (RA); open the session again to drive it")
+            self.core.released()
+            self._sync_phase()
         self.state.event("info" if how.startswith("released (RA") else "warning", f"SCU {how}")
         return how
 
     async def reopen(self, session: str | None = None) -> str:
         """Open the remote session again (after a release, or by hand after a loss): the line is resynchronised first."""
         await self._resync()
-        self._set_session("closed")
-        self._next_open = 0.0
+        self.core.reopen_asked()
+        why_not = self.core.may_open(time.monotonic())
+        if why_not and self.session != "open":
+            raise CommandError(f"not opened now: {why_not}")
         await self.open_session()
         return self.session
 

@@ -435,13 +435,21 @@ def encode_re(function: int, para0: int = -1, para1: int = -1) -> bytes:
     return encode_frame(RE, bytes([fn, p0, p1]))
 
 
-def encode_rs(function: int, para0: int = -1) -> bytes:
+def encode_rs(function: int, para0: int = -1, para1: int | None = None) -> bytes:
     """RS: stop a function (table 3, "SG"); fnc_ID and para_ID[0], -1 by default (table 9 lists
     parameters for RE only).
 
+    Table 3's row gives P1 and P2, its text "P2, P3 sind zusätzliche Funktionsparameter": a unit that
+    reads the text answers PCE to the two-byte form, and gets the three-byte form (``para1`` -1) from
+    the adapter after that (SPEC-NOTES).
+
     :param function: fnc_ID (:class:`Function`)
+    :param para1: None for the two-byte form; -1 for the three-byte form
     """
-    return encode_frame(RS, bytes([_function(function), _byte(para0, "para_ID[0]")]))
+    params = bytes([_function(function), _byte(para0, "para_ID[0]")])
+    if para1 is not None:
+        params += bytes([_byte(para1, "para_ID[1]")])
+    return encode_frame(RS, params)
 
 
 def _function(function: int) -> Function:
@@ -559,7 +567,7 @@ class Request:
 
 # Parameter bytes per request (table 3); RC and RT carry ctp. RO is read in both forms: the Safety_ID
 # alone (section 5 example, what encode_ro sends) and with the para_ID[0] that table 3 lists.
-_REQUEST_PARAMS = {RO: (1, 2), RA: (0,), RG: (2,), RE: (3,), RS: (2,)}
+_REQUEST_PARAMS = {RO: (1, 2), RA: (0,), RG: (2,), RE: (3,), RS: (2, 3)}
 
 
 def decode_request(frame: bytes) -> Request:

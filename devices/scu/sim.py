@@ -196,6 +196,11 @@ class ScuTwin:
         self.rg_outside_session = False  # True: RG answered without remote mode (section 4.1 says it is not)
         self.cse_on_rs = 0  # the next N RS answer CSE and are not executed (-1: every RS)
         self.answer_delay_s = 0.0  # each answer this late (section 3 allows up to 2000 ms)
+        # the document's other readings (SPEC-NOTES) and older firmware
+        self.ro_two_bytes_only = False  # PCE to RO with the Safety_ID alone: RO takes para_ID[0] too (table 3)
+        self.rs_three_bytes_only = False  # PCE to the two-byte RS: RS takes para_ID[0] and para_ID[1] (table 3 text)
+        self.v2b0 = False  # firmware before V2B1: no F20 (table 8), RE/RS 19 answered PDE
+        self.rt_cyclic_unanswered = False  # the definition of a cyclic object (RT 0x3001..) gets no answer
         self.stray_bytes = 0  # the next N answers come with a stray byte in front (a noisy line)
         self.split_answers = False  # answers come in two pieces with a pause between (inter-byte gap)
         self.keys = 0  # Actual_State_Keys (0x0040)
@@ -492,6 +497,8 @@ class ScuTwin:
         if cmd == codec.RG and not self.remote and self.rg_outside_session:
             return self._rg(req)
         if cmd == codec.RO:
+            if self.ro_two_bytes_only and len(req.params) < 2:
+                return _answer(cmd, Status.PCE)
             self.remote, self.safety_id, self.rc_seen, self.last_rc = True, req.safety_id, False, now
             return _answer(cmd, Status.ACK)
         if cmd == codec.RA:
@@ -507,10 +514,16 @@ class ScuTwin:
         if cmd == codec.RG:
             return self._rg(req)
         if cmd == codec.RT:
+            if self.rt_cyclic_unanswered and req.data_id in codec.CYCLIC_OBJECT_IDS:
+                return None
             return _answer(cmd, self.write(req.data_id, req.data))
+        if cmd in (codec.RE, codec.RS) and self.v2b0 and req.function == Function.EMERGENCY_STOP:
+            return _answer(cmd, Status.PDE)  # table 8: F20 from firmware V2B1
         if cmd == codec.RE:
             return _answer(cmd, self._execute(req.function, req.para, now))
         if cmd == codec.RS:
+            if self.rs_three_bytes_only and len(req.params) < 3:
+                return _answer(cmd, Status.PCE)
             if self.cse_on_rs:
                 self.cse_on_rs -= 1 if self.cse_on_rs > 0 else 0
                 return _answer(cmd, Status.CSE)  # "Fehler in der Telegramm-Checksumme": not executed (section 4.2)
