@@ -262,6 +262,7 @@ class Runtime:
         self.store = StateStore()
         self.sim = SimulatedPlant(plant) if simulate else None
         self.worker = Worker(plant, self.store, audit=self.audit)
+        self.worker.after_change = self.keep_unsaved_now  # reminders durable before a write is reported done
         self.worker.role_of = self.role_of  # the gate asks the account store at every action
         self._unsaved_path = self.data_dir / UNSAVED_FILE
         self._unsaved_written = self._load_unsaved()
@@ -327,18 +328,24 @@ class Runtime:
                 state.event("warning", f"{len(keys)} parameter(s) written in an earlier session are not saved in the device yet")
         return self._unsaved_now()
 
+    async def keep_unsaved_now(self) -> None:
+        """The unsaved-change reminders on disk now, if they changed (in a thread): the worker awaits this
+        after every change it ran, so a write is reported done only once its reminder survives a crash."""
+        now = self._unsaved_now()
+        if now == self._unsaved_written:
+            return
+        try:
+            await asyncio.to_thread(self._write_unsaved, now)
+            self._unsaved_written = now
+        except OSError as exc:
+            log.error("cannot keep the unsaved-change reminders in %s: %s", self._unsaved_path, exc)
+
     async def _keep_unsaved(self) -> None:
-        """Write the unsaved-change reminders to the data folder whenever they change (in a thread)."""
+        """Write the unsaved-change reminders to the data folder whenever they change (in a thread); a
+        change the worker ran is written at once (:meth:`keep_unsaved_now`), this catches the rest."""
         while True:
             await asyncio.sleep(1.0)
-            now = self._unsaved_now()
-            if now == self._unsaved_written:
-                continue
-            try:
-                await asyncio.to_thread(self._write_unsaved, now)
-                self._unsaved_written = now
-            except OSError as exc:
-                log.error("cannot keep the unsaved-change reminders in %s: %s", self._unsaved_path, exc)
+            await self.keep_unsaved_now()
 
     def _write_unsaved(self, now: dict[str, list[str]]) -> None:
         try:

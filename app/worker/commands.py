@@ -54,6 +54,10 @@ async def checked(worker: Any, action: Callable[[], Awaitable[Any]], *, device: 
         if row is not None:
             await worker.audit.afinish(row, f"failed: {exc}")
         raise
+    finally:
+        after_change = getattr(worker, "after_change", None)  # the runtime's: unsaved reminders onto disk
+        if kind != "read" and after_change is not None:
+            await after_change()
     if row is not None:
         # an outcome in words (e.g. which lock took a broadcast address) goes into the row too
         await worker.audit.afinish(row, f"ok: {result}"[:500] if isinstance(result, str) and result else "ok")
