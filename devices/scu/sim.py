@@ -201,6 +201,7 @@ class ScuTwin:
         self.rs_three_bytes_only = False  # PCE to the two-byte RS: RS takes para_ID[0] and para_ID[1] (table 3 text)
         self.v2b0 = False  # firmware before V2B1: no F20 (table 8), RE/RS 19 answered PDE
         self.rt_cyclic_unanswered = False  # the definition of a cyclic object (RT 0x3001..) gets no answer
+        self.cse_next: dict[str, int] = {}  # command -> the next N of it answered CSE (line noise, not executed)
         self.stray_bytes = 0  # the next N answers come with a stray byte in front (a noisy line)
         self.split_answers = False  # answers come in two pieces with a pause between (inter-byte gap)
         self.keys = 0  # Actual_State_Keys (0x0040)
@@ -494,6 +495,9 @@ class ScuTwin:
 
     def _request(self, req: codec.Request, now: float) -> bytes:
         cmd = req.command
+        if self.cse_next.get(cmd.decode()):
+            self.cse_next[cmd.decode()] -= 1
+            return _answer(cmd, Status.CSE)  # damaged on the way (section 4.2): not executed
         if cmd == codec.RG and not self.remote and self.rg_outside_session:
             return self._rg(req)
         if cmd == codec.RO:
