@@ -265,6 +265,7 @@ class Runtime:
         self.worker.after_change = self.keep_unsaved_now  # reminders durable before a write is reported done
         self.worker.role_of = self.role_of  # the gate asks the account store at every action
         self._unsaved_path = self.data_dir / UNSAVED_FILE
+        self._unsaved_lock = asyncio.Lock()
         self._unsaved_written = self._load_unsaved()
         self._tasks: list[asyncio.Task] = []
         from app.record import RecordService
@@ -331,14 +332,15 @@ class Runtime:
     async def keep_unsaved_now(self) -> None:
         """The unsaved-change reminders on disk now, if they changed (in a thread): the worker awaits this
         after every change it ran, so a write is reported done only once its reminder survives a crash."""
-        now = self._unsaved_now()
-        if now == self._unsaved_written:
-            return
-        try:
-            await asyncio.to_thread(self._write_unsaved, now)
-            self._unsaved_written = now
-        except OSError as exc:
-            log.error("cannot keep the unsaved-change reminders in %s: %s", self._unsaved_path, exc)
+        async with self._unsaved_lock:  # one writer at a time: the newest reminders are the ones on disk
+            now = self._unsaved_now()
+            if now == self._unsaved_written:
+                return
+            try:
+                await asyncio.to_thread(self._write_unsaved, now)
+                self._unsaved_written = now
+            except OSError as exc:
+                log.error("cannot keep the unsaved-change reminders in %s: %s", self._unsaved_path, exc)
 
     async def _keep_unsaved(self) -> None:
         """Write the unsaved-change reminders to the data folder whenever they change (in a thread); a
