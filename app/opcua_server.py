@@ -30,8 +30,8 @@ from datetime import datetime, timezone
 from typing import Any
 
 from asyncua import Server, ua
-from asyncua.crypto.permission_rules import PermissionRuleset, User, UserRole
 from asyncua.common.connection import TransportLimits
+from asyncua.crypto.permission_rules import PermissionRuleset, User, UserRole
 from asyncua.server.binary_server_asyncio import OPCUAProtocol
 from asyncua.server.internal_session import SessionState
 from asyncua.server.uaprocessor import UaProcessor
@@ -39,7 +39,6 @@ from asyncua.ua.ua_binary import nodeid_from_binary, struct_from_binary
 
 from app.audit import LogBudget
 from app.auth import LoginThrottle, check_login
-
 from devices.live import jsonable
 from devices.registry import DEVICE_TYPES
 

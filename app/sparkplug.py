@@ -475,14 +475,15 @@ class SparkplugNode:
                 else:
                     await self._on_command(topic, bytes(message.payload))
             except Exception:  # noqa: BLE001 - a bad message must not end the node
-                log.exception("sparkplug: cannot handle a message on %s", topic)
+                if _refusal_lines.take() is not None:  # anyone may publish: bounded like the refusals
+                    log.exception("sparkplug: cannot handle a message on %s", topic[:200])
 
     def _on_state(self, payload: bytes) -> None:
         try:
             online = bool(json.loads(payload or b"{}").get("online"))
         except (ValueError, AttributeError):
             online = payload.strip().upper() == b"ONLINE"  # the 2.2 form
-        if online != self.host_online:
+        if online != self.host_online and _refusal_lines.take() is not None:  # a flapping STATE: bounded lines
             log.info("sparkplug: primary host %s is %s", self.config.primary_host, "online" if online else "offline")
         self.host_online = online
         self._host_changed.set()

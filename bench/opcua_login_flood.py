@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
+import itertools
 import re
 import secrets
 import sys
@@ -39,8 +41,17 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from liveapp import (  # noqa: E402 - after the path
-    CHROMIUM, CHROMIUM_ARGS, demo_plant_text, free_port, free_udp_port, load, need_playwright, start_app, stop_app,
-    wait_devices_online, wait_http,
+    CHROMIUM,
+    CHROMIUM_ARGS,
+    demo_plant_text,
+    free_port,
+    free_udp_port,
+    load,
+    need_playwright,
+    start_app,
+    stop_app,
+    wait_devices_online,
+    wait_http,
 )
 
 GROUP = "239.74.163.41"
@@ -118,7 +129,7 @@ class ControlListener(threading.Thread):
         frames = [(t, on) for t, on in list(self.frames) if start <= t <= end]
         cleared = sum(1 for _t, on in frames if not on)
         times = [start] + [t for t, _on in frames] + [end]
-        return cleared, max(b - a for a, b in zip(times, times[1:]))
+        return cleared, max(b - a for a, b in itertools.pairwise(times))
 
     def close(self) -> None:
         self.running = False
@@ -142,10 +153,8 @@ def flood(url: str, clients: int, seconds: float, counts: dict) -> None:
                 await client.disconnect()
             except (ua.UaError, ua.UaStatusCodeError, asyncio.TimeoutError, OSError):
                 counts["refused"] += 1
-                try:
+                with contextlib.suppress(Exception):  # half-open: nothing to close
                     await client.disconnect()
-                except Exception:  # noqa: BLE001 - half-open: nothing to close
-                    pass
             counts["guesses"] += 1
 
     async def main() -> None:
@@ -193,14 +202,10 @@ def main() -> None:
             page.get_by_text("you hold control").wait_for(timeout=15_000)
             page.get_by_test_id("jog-out").click()  # the first press asks that the area is clear and arms the jog
             clear = page.locator(".q-dialog").get_by_role("button", name=re.compile("area is clear"))
-            try:  # versions of the page that ask it in a dialog
+            with contextlib.suppress(Exception):  # versions of the page that ask it in a dialog (else playwright's timeout)
                 clear.click(timeout=5_000)
-            except Exception:  # noqa: BLE001 - playwright's TimeoutError: no such question in this version
-                pass
-            try:  # versions that arm the jog with the first press say so
+            with contextlib.suppress(Exception):  # versions that arm the jog with the first press say so
                 page.get_by_test_id("jog-armed").get_by_text("jog armed").wait_for(timeout=10_000)
-            except Exception:  # noqa: BLE001 - playwright's TimeoutError: this version jogs at the first press
-                pass
             page.get_by_test_id("jog-out").scroll_into_view_if_needed()
             box = page.get_by_test_id("jog-out").bounding_box()
             page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)

@@ -97,7 +97,7 @@ async def test_a_takeover_of_the_client_id_is_detected_and_shown(tmp_path, caplo
 
 def _doc_block(first_line: str) -> str:
     text = (ROOT / "docs" / "mqtt.md").read_text()
-    blocks = re.findall(r"```conf\n(.*?)```", text, re.S)
+    blocks = re.findall(r"```conf\n(.*?)```", text, re.DOTALL)
     found = [b for b in blocks if b.startswith(first_line)]
     assert found, f"docs/mqtt.md has no block starting with {first_line!r}"
     return found[0]

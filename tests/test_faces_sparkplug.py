@@ -5,6 +5,7 @@ a row also for an empty payload and a topic with extra levels. Rebirth still wor
 
 from __future__ import annotations
 
+import logging
 import random
 import time
 import tracemalloc
@@ -48,7 +49,7 @@ def _longest(rows) -> int:
 
 
 async def test_one_bounded_row_per_refused_command(tmp_path):
-    node, store, audit = _node(tmp_path)
+    node, _store, audit = _node(tmp_path)
     try:
         await node._on_command(NCMD, _command(*[(f"m{i}", STRING, "x") for i in range(20_000)]))
         rows = _rows(audit)
@@ -81,7 +82,7 @@ async def test_nothing_from_the_broker_lands_on_a_device(tmp_path):
 
 
 async def test_rows_are_rate_limited_and_the_rest_counted(tmp_path):
-    node, store, audit = _node(tmp_path)
+    node, _store, audit = _node(tmp_path)
     try:
         for i in range(200):
             await node._on_command(NCMD, _command((f"Node Control/Reboot{i}", BOOLEAN, True)))
@@ -93,7 +94,7 @@ async def test_rows_are_rate_limited_and_the_rest_counted(tmp_path):
 
 
 async def test_empty_payload_and_extra_levels_are_refused_with_a_row(tmp_path):
-    node, store, audit = _node(tmp_path)
+    node, _store, audit = _node(tmp_path)
     try:
         await node._on_command(NCMD, b"")
         await node._on_command(DCMD + "/extra/levels", _command(("Param", STRING, 1)))
@@ -107,8 +108,9 @@ async def test_empty_payload_and_extra_levels_are_refused_with_a_row(tmp_path):
         audit.close()
 
 
-async def test_fuzz_of_malformed_commands_is_bounded(tmp_path):
-    node, store, audit = _node(tmp_path)
+async def test_fuzz_of_malformed_commands_is_bounded(tmp_path, caplog):
+    caplog.set_level(logging.INFO, logger="app.sparkplug")
+    node, _store, audit = _node(tmp_path)
     rng = random.Random(41)
     topics = [NCMD, DCMD, NCMD + "/x", DCMD + "/y/z", "spBv1.0/hall/DCMD/cab/ghost", "spBv1.0/hall/NCMD"]
     tracemalloc.start()
@@ -133,3 +135,5 @@ async def test_fuzz_of_malformed_commands_is_bounded(tmp_path):
         audit.close()
     assert time.monotonic() - started < 20
     assert grown < 2_000_000, grown
+    lines = [r for r in caplog.records if r.name == "app.sparkplug"]
+    assert len(lines) <= 20, f"{len(lines)} log lines for 10,000 commands from outside"

@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 from conftest import free_port
-from plants import modbus_line, plant_text
 
 from app import files
 from app.cli import main
+from plants import modbus_line, plant_text
 
 ROOT = Path(__file__).resolve().parent.parent
 pytestmark = pytest.mark.timeout(240)
@@ -41,7 +41,7 @@ def _cli(*args: str, timeout: float = 30) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     try:
         return subprocess.run([sys.executable, "-m", "app.cli", *args], cwd=ROOT, env=env, capture_output=True, text=True,
-                              timeout=timeout, stdin=subprocess.DEVNULL, preexec_fn=_limit)
+                              timeout=timeout, stdin=subprocess.DEVNULL, preexec_fn=_limit, check=False)
     except subprocess.TimeoutExpired as exc:
         raise AssertionError(f"commission {' '.join(args)} hung for {timeout} s") from exc
 

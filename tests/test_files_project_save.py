@@ -11,11 +11,11 @@ import threading
 import time
 
 import pytest
-from plants import device, modbus_line, plant_text
 
 from app import project
 from app.plant import load_plant
 from devices.hdlock.params import PARAMS
+from plants import device, modbus_line, plant_text
 
 DELAY = next(p for p in PARAMS if p.name == "LockRequestDelay").key
 LEFT = next(p for p in PARAMS if p.name == "SettingsProximityOffsetLeft").key
@@ -48,7 +48,7 @@ def test_two_saves_at_the_same_moment_keep_both(tmp_path, monkeypatch):
         barrier = threading.Barrier(2)
         errors = []
 
-        def save(changes):
+        def save(changes, barrier=barrier, errors=errors):
             barrier.wait()
             try:
                 project.save(plant, "door-1", changes)
