@@ -20,8 +20,8 @@ from app import worker as worker_module
 from devices.electrak import adapter as facts
 from devices.electrak import codec
 from devices.electrak.adapter import FOREIGN_SENDER, SERIES
-from devices.electrak.policy import AREA_CLEAR_RISK
 from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, length_of, refusal
+from devices.electrak.policy import AREA_CLEAR_RISK
 from pages.device_page import DeviceCard, DeviceView, DrawnCard, StatusRow, device_page, point_values, titled_card
 from pages.frame import fmt_age, fmt_time
 from pages.session import current_user
