@@ -46,7 +46,7 @@ FRAME_COLUMNS = [
     {"name": "device", "label": "Device", "field": "device", "align": "left"},
     {"name": "dt", "label": "Δt ms", "field": "dt", "align": "right", "classes": "mono nowrap"},
     {"name": "dlc", "label": "DLC", "field": "dlc", "align": "right"},
-    {"name": "data", "label": "Data", "field": "data", "align": "left", "classes": "mono"},
+    {"name": "data", "label": "Data", "field": "data", "align": "left", "classes": "mono bytes"},
     {"name": "decoded", "label": "Decoded", "field": "decoded", "align": "left"},
 ]
 ID_COLUMNS = [
@@ -64,7 +64,7 @@ DECODED_SLOT = (
     "(props.value === 'unknown' ? 'text-grey-6' : '')\">{{ props.value }}</q-td>"
 )
 BYTES_SLOT = (
-    '<q-td :props="props" class="mono">'
+    '<q-td :props="props" class="mono bytes">'
     '<span v-for="(b, i) in props.row.bytes" :key="i" :class="b[1] ? \'byte byte-changed\' : \'byte\'">{{ b[0] }}</span>'
     "</q-td>"
 )

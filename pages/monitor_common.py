@@ -30,6 +30,15 @@ CSS = """
 .can-table .q-table td.nowrap, .can-table .q-table th.nowrap { white-space: nowrap; }
 .can-table .q-table td.cycle { white-space: normal; min-width: 90px; max-width: 150px; }
 .can-table tbody tr { cursor: pointer; }
+/* a tablet: a frame's bytes wrap (four to a line) and the cycle column narrows, so Decoded stays in sight */
+@media (max-width: 899px) {
+  .can-table .q-table th { white-space: normal; }
+  .can-table .q-table td.mono, .can-table .q-table td .mono { white-space: normal; }
+  .can-table .q-table td.bytes { min-width: 8.5em; }
+  .can-table .q-table td.bytes .byte { display: inline-block; }
+  .can-table .q-table td.cycle { min-width: 70px; max-width: 100px; }
+  .can-table .q-table td.decoded { min-width: 160px; }
+}
 """
 
 
