@@ -240,7 +240,8 @@ class ElectrakControl:
         problems = self.limits.check(c.position_mm, c.current_a, c.speed_mm_s)
         if problems:
             return Decision("; ".join(problems))
-        actions = self._command(codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=True), now)
+        actions = self.tick(now)  # a lapse not yet seen is reported first; this press starts anew
+        actions += self._command(codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=True), now)
         actions.append(Report("info", f"go: target {c.position_mm:g} mm at {c.speed_mm_s:g} mm/s, limit {c.current_a:g} A"))
         return Decision(actions=tuple(actions))
 
@@ -263,7 +264,9 @@ class ElectrakControl:
         problems = self.limits.check(target, c.current_a, speed)
         if problems:
             return Decision("; ".join(problems))
-        return Decision(actions=tuple(self._command(codec.ControlFrame(target, c.current_a, speed, enable=True), now)))
+        before = self.tick(now)  # a lapse not yet seen is reported first; this press starts anew
+        return Decision(actions=tuple(before + self._command(codec.ControlFrame(target, c.current_a, speed, enable=True),
+                                                             now)))
 
     def jog_release(self, session: str, now: float, position_mm: float | None = None) -> list:
         """A jog button released: the jog of ``session`` ends (nothing when it does not jog)."""
