@@ -104,8 +104,16 @@ def evaluate_tile(state) -> dict:
     """The device type's declared tile, evaluated against the device's live points (quality and age included),
     as the overview shows it (an engineer's words)."""
     now = time.time()
-    # only the values the tile declares: registers and published points alike, each with its quality
-    tile = DEVICE_TYPES[state.type].tile.evaluate(lambda name: state.entry(name, now), now)
+    spec = DEVICE_TYPES[state.type].tile
+
+    def entry(name: str):
+        return state.entry(name, now)
+
+    # only the values the tile declares: registers and published points alike, each with its quality; a line of
+    # the bar's own quantity is left out while the bar shows it ("position: 0 %" beside "0 % open" said it twice)
+    tile = (spec if spec.bar is None else _without_bar_lines(spec)).evaluate(entry, now)
+    if tile["bar"] is None and spec.bar is not None:  # no bar to show the quantity: its line after all
+        tile = spec.evaluate(entry, now)
     if tile["quality"] == "unknown" and state.online is False:  # never heard and given up on: offline, not "waiting"
         tile["quality"] = "offline"
     return tile

@@ -81,3 +81,16 @@ def test_tile_counters_mean_something_on_the_devices_bus():
     for bus_type in ("modbus-rtu", "serial", "logited-tcp", "logited-rs485"):
         text = counters_text(counters | {"requests": 168, "timeouts": 2, "crc_errors": 1}, bus_type, 3.0)
         assert text.startswith("req 168 · timeouts 2 · CRC 1") and "frames heard" not in text and text.endswith("last answer 3 s ago")
+
+
+def test_an_overview_tile_says_the_bar_s_quantity_once():
+    """An MO 64's tile: "0 % open" on its bar, not "position: 0 %" beside it (issue 42 item 13)."""
+    from pages.plant_view import fresh_evaluate_tile
+
+    points = {"Position": point(0, unit="%", text="0 %"), "Gate state": point(5, text="closed")}
+    state = SimpleNamespace(type="mo64", online=True, entry=lambda name, now: points.get(name))
+    tile = fresh_evaluate_tile(state)
+    assert tile["bar"] == (0.0, "0 % open")
+    assert not any("position" in line for line in tile["lines"]), tile["lines"]
+    points.pop("Position")  # no position heard: no bar, and no line of it either
+    assert fresh_evaluate_tile(state)["bar"] is None
