@@ -161,7 +161,33 @@ class _Guard:
         self.logins = logins
         self.processors: weakref.WeakSet = weakref.WeakSet()  # every connection's processor that sent a request
         self.items: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # processor -> monitored items created
+        self.framing: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # connection -> where its framing is
         self.refused = 0
+
+    def frame_fits(self, protocol, data: bytes) -> bool:
+        """Follow the connection's framing (8-byte headers: type, chunk type, size); False as soon as a
+        chunk announces more than :data:`MAX_CHUNK_BYTES`: asyncua would buffer it whole before looking."""
+        state = self.framing.get(protocol)
+        if state is None:
+            state = self.framing[protocol] = [b"", 0]  # header bytes so far, bytes still to come of this chunk
+        i, end = 0, len(data)
+        while i < end:
+            if state[1] > 0:
+                step = min(state[1], end - i)
+                state[1] -= step
+                i += step
+                continue
+            need = 8 - len(state[0])
+            state[0] += data[i:i + need]
+            i += need
+            if len(state[0]) < 8:
+                break
+            size = int.from_bytes(state[0][4:8], "little")
+            state[0] = b""
+            if size > MAX_CHUNK_BYTES or size < 8:
+                return False
+            state[1] = size - 8
+        return True
 
     def sessions_of(self, host: str, besides) -> int:
         return sum(1 for p in list(self.processors) if p is not besides and _host(p.name) == host and p.session is not None
@@ -254,6 +280,21 @@ def _check_requests_first() -> None:
         made(self, transport)
 
     OPCUAProtocol.connection_made = connection_made
+
+    received = OPCUAProtocol.data_received
+
+    def data_received(self, data: bytes) -> None:
+        guard = _GUARDS.get(self.iserver)
+        if guard is not None and not guard.frame_fits(self, data):
+            if _client_lines.take() is not None:
+                log.warning("opcua: %s announced a message chunk over %d bytes: connection closed",
+                            _host(self.peer_name), MAX_CHUNK_BYTES)
+            if self.transport is not None:
+                self.transport.close()
+            return
+        received(self, data)
+
+    OPCUAProtocol.data_received = data_received
 
 
 def health_of(state, controlled: bool, alarms: list[str]) -> int:

@@ -156,3 +156,23 @@ async def test_outsiders_cannot_fill_the_log(server, caplog):
         await client.disconnect()
     server_lines = [r for r in caplog.records if r.name.startswith(("asyncua.server", "app.opcua_server"))]
     assert len(server_lines) <= 60, f"{len(server_lines)} log lines for 200 refused requests"
+
+
+async def test_a_chunk_announced_larger_than_the_limit_closes_the_connection(server):
+    loop = asyncio.get_running_loop()
+    sock = socket.create_connection(("127.0.0.1", server.port))
+    sock.setblocking(False)
+    try:
+        header = b"MSGC" + (50 * 1024 * 1024).to_bytes(4, "little")  # an unfinished chunk of 50 MB
+        try:
+            await loop.sock_sendall(sock, header)
+            for _ in range(64):
+                await loop.sock_sendall(sock, b"\0" * 16384)
+            closed = await asyncio.wait_for(loop.sock_recv(sock, 1), 3) == b""
+        except ConnectionError:
+            closed = True  # closed by the server while this was still sending
+        except asyncio.TimeoutError:
+            closed = False
+        assert closed, "the server keeps buffering an unfinished chunk"
+    finally:
+        sock.close()
