@@ -21,14 +21,10 @@ import asyncio
 import contextlib
 
 import pytest
-from conftest import wait_for
 from hypothesis import settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
-from plants import can_bus, m3io_can, plant_text
 
-from app.plant import parse_plant
-from app.runtime import Runtime
 from devices.control import STOP_DEADLINE_S, LeaseState
 from devices.m3io import codec
 from devices.m3io.codec import Variant
@@ -365,12 +361,19 @@ def test_the_masters_frames_are_still_judged():
 
 def hmr_plant() -> str:
     """An HMR in addressed mode (SW1 0xCA, serial 42120023) on a simulated CAN bus, nobody in control."""
+    from plants import can_bus, m3io_can, plant_text
+
     return plant_text(can_bus(m3io_can("hmr", "can7", variant="HMR", sw1=0xCA, serial=42120023), name="can7",
                               bitrate=500000, poll_period=0.2), name=None)
 
 
 async def test_reading_identity_is_no_sign_of_another_master():
     """Issue 40: "read identity" made the module answer MData, counted as another master: control refused for 2 s."""
+    from conftest import wait_for
+
+    from app.plant import parse_plant
+    from app.runtime import Runtime
+
     runtime = Runtime(parse_plant(hmr_plant()), simulate=True)
     await runtime.start()
     try:
