@@ -295,7 +295,7 @@ class M3ioAdapter:
             if self.controller.session == session:
                 return
             raise ControlBusy(f"{self.controller.user} took control meanwhile")
-        self._decided(decision, now, ForeignMaster if "another master" in decision.refused else CommandError)
+        self._decided(decision, now, ForeignMaster if self.core.foreign_master(now) else CommandError)
 
     def release_control(self, session: str, reason: str = "released") -> bool:
         if self.controller is None or (session and self.controller.session != session):
