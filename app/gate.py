@@ -143,6 +143,8 @@ async def invoke(worker: Any, device: str, name: str, args: Mapping[str, Any] | 
         await worker.refused(device=device, user=user, role=role, describe=command.name, reason=str(exc),
                              new=_shown(values))
         raise
+    if "user" in command.extras:
+        values["user"] = user  # who did it, for what the device reports (an emergency stop names who pressed it)
     adapter = worker.adapters[device]
     if command.refuse_if is not None:
         config = worker.plant.devices[device]

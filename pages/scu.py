@@ -189,8 +189,32 @@ class SessionCard(DrawnCard):
         refusal = state.live(facts.P_REFUSAL)
         self.refusal.set_text(f"last error answer: {refusal.text}" if refusal is not None and refusal.value else "")
         self.error_line.set_text(state.last_error if state.online is False else "")
-        for element in (self.reopen, self.release_scu):  # opening again is how a session recovers; RA hands the unit back
-            gate(element, access.role)
+        # opening again is how a session recovers; RA hands the unit back
+        gate(self.reopen, access.role or ("the remote session is open" if view.fact(facts.P_SESSION) == "open" else ""))
+        gate(self.release_scu, access.role)
+
+
+class EstopCard(DrawnCard):
+    """The emergency stop in red at the top of the page while it is on: who pressed it, when, and whether the
+    unit confirmed it; nothing at all while it is off."""
+
+    view: ScuView
+    POINTS = (facts.P_ESTOP,)
+
+    def build(self) -> None:
+        # sticky under the header: seen wherever the page is scrolled to (the button is half-way down)
+        self.banner = ui.card().classes("w-full bg-negative text-white").props("data-testid=estop-banner") \
+            .style("position: sticky; top: 64px; z-index: 5")
+        with self.banner, ui.row().classes("items-center gap-3 no-wrap"):
+            ui.icon("emergency", size="md")
+            self.text = ui.label().classes("text-h6")
+        self.banner.set_visibility(False)
+
+    def draw(self, access: Access) -> None:
+        estop = self.view.state.live(facts.P_ESTOP)
+        on = bool(estop is not None and estop.value)
+        self.banner.set_visibility(on)
+        self.text.set_text(f"EMERGENCY STOP (F20) {estop.text}" if on else "")
 
 
 class PositionsCard(DrawnCard):
@@ -551,11 +575,12 @@ class FunctionsCard(DrawnCard):
                         self.off.append(ui.button("off", on_click=lambda fn=fn: view.act(
                             "function off (RS)", {"function": int(fn)})).props("outline"))
             with ui.row().classes("items-center gap-4"):
-                ui.button("Emergency stop (function 19)", icon="emergency", color="negative",
+                ui.button("Emergency stop (F20, function 19)", icon="emergency", color="negative",
                           on_click=lambda: view.act("emergency stop (RE 19)")).props("data-testid=emergency-stop")
-                self.release_estop = ui.button("Release emergency stop (RS 19)", on_click=lambda: view.act(
+                self.release_estop = ui.button("Release emergency stop (RS 19, F20)", on_click=lambda: view.act(
                     "release emergency stop (RS 19)", title="Release the emergency stop?", ok="Release it")).props("outline")
-                ui.label("Emergency stop acts at once, without confirmation.").classes("text-caption")
+                ui.label("Emergency stop acts at once, without confirmation, for anyone, in any state of the session; "
+                         "only its release needs control.").classes("text-caption")
 
     def inputs(self, access: Access) -> Access:
         return access
@@ -662,7 +687,7 @@ def content(name: str) -> None:
 
     with device_page(view, f"Ewellix SCU {name}", stop=stop):
         view.guard = WriteGuard(view.state)  # why write and motion-start controls are off while the unit does not answer
-        for card in (SessionCard(view), PositionsCard(view), StatusCard(view), SupplyCard(view), ErrorsCard(view),
+        for card in (EstopCard(view), SessionCard(view), PositionsCard(view), StatusCard(view), SupplyCard(view), ErrorsCard(view),
                      DriveCard(view), FunctionsCard(view), DirectoryCard(view), ServiceCard(view)):
             view.add(card)
         sim_card(name)  # the twin's declared controls, in simulation only

@@ -75,9 +75,11 @@ TILE = TileSpec(
     lines=(
         TileLine("Session", "remote session: {text}", missing="remote session: closed"),
         TileLine("A1 position", "A1 {text}", missing="A1: no position yet"),
+        TileLine("A2 position", "A2 {text}", missing=""),
         TileLine("Battery Mains", "supply: {text}", missing=""),
     ),
     alarms=(
+        TileAlarm(When("Emergency stop", (True,)), "EMERGENCY STOP (F20) {text}"),
         TileAlarm(When("Error code", (0, None), negate=True), "error: {text}"),
         TileAlarm(When("Session", ("lost",)), "{text}"),
     ),

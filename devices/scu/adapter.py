@@ -1472,8 +1472,8 @@ class ScuAdapter:
             return "off"
         unit = ("confirmed by the unit" if e.confirmed else
                 f"not confirmed by the unit ({e.refusal})" if e.refusal else "not yet confirmed by the unit")
-        return (f"ON since {time.strftime('%H:%M:%S', time.localtime(e.at))}, pressed by {e.who}; {unit}; released only "
-                "by its explicit release (RS 19)")
+        return (f"ON since {time.strftime('%H:%M:%S', time.localtime(e.at))}, pressed by {e.who}; {unit}; released "
+                "only by its release (RS 19)")
 
     def _publish_estop(self) -> None:
         self.state.fact(P_ESTOP, self.estop, text=self.estop_text())

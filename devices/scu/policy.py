@@ -80,7 +80,7 @@ COMMANDS = (
     Command("stop (RS)", "stop", method="stop", session=True),
     Command("function off (RS)", "stop", method="stop", session=True, args=(Arg("function", 0, 21),), prepare=_stoppable),
     Command("jog stop (RS)", "stop", method="jog_stop", session=True, args=(_FUNCTION,)),
-    Command("emergency stop (RE 19)", "stop", method="emergency_stop", session=True),
+    Command("emergency stop (RE 19)", "stop", method="emergency_stop", session=True, extras=("user",)),
     Command("release control", "stop", method="release_control", session=True),
     # -- motion: engineers, with control --------------------------------------------------------------------------------
     Command("go (RE)", "motion", method="run_function", session=True, needs_control=True,
