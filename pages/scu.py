@@ -373,6 +373,10 @@ class ErrorsCard(DrawnCard):
                 for b in codec.error_bits(value):
                     ui.label(f"bit {b.bit}: {b.cause}" + (f" — condition: {b.condition}" if b.condition else "")
                              + f" — behaviour: {b.behaviour}").classes("text-caption text-negative" if key == "Error code" else "text-caption")
+                if key == "Error code" and value & codec.CLEARED_BY_NEXT_MOVE:
+                    ui.label("What clears it: the next movement (table 10). Take control and jog any actuator "
+                             "briefly (hold IN or OUT), or run the checkout, which starts with a move.") \
+                        .classes("text-body2 text-weight-medium").props("data-testid=error-clears")
         return good
 
 

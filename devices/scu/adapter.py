@@ -1498,6 +1498,18 @@ class ScuAdapter:
         return ("emergency stop ON in this tool; " + self.estop_text().split("; ", 1)[1]
                 + ": no motion starts until it is released")
 
+    async def withhold_rc(self, session: str) -> str:
+        """The watchdog test (section 5), a declared and confirmed command of the controlling engineer: RC is withheld
+        on purpose, so the unit must stop every drive within 500 ms and leave remote mode (error bit 22). The session
+        is opened again after that, and every RE still running gets its RS."""
+        self._check_holder(session)
+        self._check_open()
+        for action in self.core.withhold("withheld on purpose: the watchdog test (section 5)", time.monotonic()):
+            self._apply(action)
+        self.state.event("warning", "RC withheld on purpose (watchdog test): the unit must stop every drive within "
+                                    "500 ms and leave remote mode")
+        return "RC withheld: the unit's watchdog must stop every drive within 500 ms"
+
     async def release_emergency_stop(self, session: str) -> str:
         """RS 19: the only way the emergency stop is released (never by a stop, a reopening or the dead-man rule)."""
         decision = self.core.estop_release(session)

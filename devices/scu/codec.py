@@ -317,6 +317,10 @@ _ERROR_TABLE = [
 ]
 ERROR_BITS: dict[int, ErrorBit] = {row[0]: ErrorBit(*row) for row in _ERROR_TABLE}  # bits 9 and 23 are unused
 REMOTE_TIMEOUT_MASK = ERROR_BITS[22].mask
+# Table 10: bits 14 to 21 are reset "mit nächster Bewegung". Bit 22 (remote timeout) names no clearing condition
+# ("abhängig von der Safety_ID"): read as cleared by the next movement as well (SPEC-NOTES), so a master that
+# reopens the session can still read why it was lost. A checkout does not fail on these before it moves.
+CLEARED_BY_NEXT_MOVE = sum(ERROR_BITS[n].mask for n in range(14, 23))
 
 
 def error_bits(code: int) -> list[ErrorBit]:

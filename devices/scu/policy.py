@@ -89,6 +89,10 @@ COMMANDS = (
             args=(_FUNCTION, Arg("direction", -1, 1), _RAMP), extras=("requested_at",), prepare=_jog),
     Command("release emergency stop (RS 19)", "motion", method="release_emergency_stop", session=True,
             needs_control=True, risk=ESTOP_RELEASE_RISK),
+    Command("withhold RC", "motion", method="withhold_rc", session=True, needs_control=True,
+            risk="Withhold RC on purpose (the watchdog test, section 5): the unit must stop every drive within "
+                 "500 ms, leave remote mode and set error bit 22. A drive that goes on moving fails the test: stand "
+                 "by the hand switch's stop."),
     # -- writes: the volatile remote data (table 7), read back --------------------------------------------------------
     Command("function on (RE)", "write", method="run_function", session=True, needs_control=True,
             args=(Arg("function", 10, 21),), prepare=_switch),

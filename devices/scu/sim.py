@@ -57,7 +57,7 @@ _ACTUATOR_ERROR_BITS = tuple(codec.ERROR_BITS[14 + n].mask for n in range(1, 7))
 # Bits table 10 clears "mit nächster Bewegung": 14 (total current), 15..20 (actuators), 21 (position difference).
 # Bit 22 (remote timeout) names no clearing condition: the twin keeps it until the next motion the same
 # way, so a master that reopens the session can still read why it was lost (section 4.5, table 10).
-_CLEARED_BY_MOTION = sum(codec.ERROR_BITS[n].mask for n in range(14, 23))
+_CLEARED_BY_MOTION = codec.CLEARED_BY_NEXT_MOVE
 
 
 @dataclass
