@@ -30,6 +30,7 @@ from devices.control import LEASE_S, ControlChanged, ControlSession, Decision, R
 from devices.electrak import codec
 
 OVERRIDE_PULSE_S = 0.3  # three control periods carry the override/reset bit, then it is cleared by itself
+# (its lease, LEASE_S, is not renewed: a program that stalls meanwhile stops sending it 0.35 s after the confirmation)
 FOREIGN_SENDER = "a PLC, or an actuator whose manual control line is active"
 
 OVERRIDE_RISK = (
@@ -326,6 +327,9 @@ class ElectrakControl:
     def beat(self, alive: set[str], now: float) -> list:
         """The dead-man supervisor (every 50 ms): the sessions whose pages confirmed they are alive."""
         actions = self.tick(now)
+        c = self.command
+        if c.override and not c.enable:  # the override pulse is never renewed: it ends by itself, or its lease lapses
+            return actions
         renewed = self.session.lease.renewed_at
         base = self.session.beat(alive, now)
         actions += self._carry(base, now)
