@@ -1,8 +1,11 @@
 """The commissioning record: approved sets, snapshots, checkouts with evidence, sign-offs.
 
 Everything lives in one SQLite database beside the audit log (``record.sqlite`` in the data
-folder, owner only). Rows are append-only (ARCHITECTURE rule 10): triggers refuse every UPDATE
-and DELETE, so a signed record is never changed; a newer row supersedes an older one.
+folder, owner only). Rows are append-only (ARCHITECTURE rule 11): triggers refuse every UPDATE,
+DELETE and REPLACE, so a signed record is never changed; a newer row supersedes an older one.
+Each row carries the SHA-256 of the row before it and its own over every field (app/verify.py), and
+the last row written is kept beside the database (``record.sqlite.head``): a row changed, replaced
+or deleted from outside the program is named by ``commission verify`` and by every report.
 
 - **approved set** (kind ``approved``): the parameters an engineer approves for a device, from a
   backup file or from the device as it is at sign-off;
@@ -10,7 +13,10 @@ and DELETE, so a signed record is never changed; a newer row supersedes an older
   itself after every Save-Settings and every restore (the end of a write session), and on demand;
 - **checkout** (kind ``checkout``): the result of a declared checkout (``devices/<type>/checkout.py``)
   with each step's measured values, limits, the answers a person gave and the bus traffic;
-- **sign-off** (kind ``signoff``): name, role, time, comment and the frozen report content.
+- **sign-off** (kind ``signoff``): the account that signed, name, role, time, comment and the frozen
+  report content;
+- **integrity** (kind ``integrity``): what the program found changed from outside (a removed
+  protection trigger) or the digest of rows kept before the chain began.
 
 Drift: each device's parameters are compared with its approved set whenever its live values
 change (at most once a second); a device that differs carries ``DeviceState.drift``, which the
@@ -20,7 +26,6 @@ overview, the plant view, ``/api/devices`` and MQTT show.
 from __future__ import annotations
 
 import asyncio
-import hashlib
 import importlib
 import json
 import logging
@@ -35,11 +40,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from app.verify import GENESIS, Check, check_database, content_sha256, head_path, legacy_digest, read_head, read_rows, row_hash
 from devices.commands import READ_PARAMETERS
 
 log = logging.getLogger(__name__)
 
-KINDS = ("approved", "snapshot", "restore", "checkout", "signoff")
+KINDS = ("approved", "snapshot", "restore", "checkout", "signoff", "integrity")
 PLANT = ""  # the device name of plant-wide rows (a plant sign-off)
 
 SCHEMA = """
@@ -53,15 +59,22 @@ CREATE TABLE IF NOT EXISTS record (
     role TEXT NOT NULL,
     title TEXT NOT NULL DEFAULT '',
     data TEXT NOT NULL,
-    supersedes INTEGER
+    supersedes INTEGER,
+    prev_hash TEXT,
+    hash TEXT
 );
 CREATE INDEX IF NOT EXISTS record_device ON record (plant, device, kind);
-CREATE TRIGGER IF NOT EXISTS record_no_update BEFORE UPDATE ON record
-BEGIN SELECT RAISE(ABORT, 'commissioning records are append-only: add a new row that supersedes this one'); END;
-CREATE TRIGGER IF NOT EXISTS record_no_delete BEFORE DELETE ON record
-BEGIN SELECT RAISE(ABORT, 'commissioning records are append-only: they are never deleted'); END;
 """
-COLUMNS = ("id", "time", "plant", "device", "kind", "user", "role", "title", "data", "supersedes")
+TRIGGER_SQL = {
+    "record_no_update": """CREATE TRIGGER IF NOT EXISTS record_no_update BEFORE UPDATE ON record
+BEGIN SELECT RAISE(ABORT, 'commissioning records are append-only: add a new row that supersedes this one'); END;""",
+    "record_no_delete": """CREATE TRIGGER IF NOT EXISTS record_no_delete BEFORE DELETE ON record
+BEGIN SELECT RAISE(ABORT, 'commissioning records are append-only: they are never deleted'); END;""",
+    "record_no_replace": """CREATE TRIGGER IF NOT EXISTS record_no_replace BEFORE INSERT ON record
+WHEN EXISTS (SELECT 1 FROM record WHERE id = NEW.id)
+BEGIN SELECT RAISE(ABORT, 'commissioning records are append-only: a row is never replaced'); END;""",
+}
+COLUMNS = ("id", "time", "plant", "device", "kind", "user", "role", "title", "data", "supersedes", "prev_hash", "hash")
 DRIFT_POINT = "Changed since approved"
 
 
@@ -81,6 +94,8 @@ class Entry:
     title: str
     data: dict
     supersedes: int | None
+    prev_hash: str | None = None
+    hash: str | None = None
 
     def brief(self) -> dict:
         return {"id": self.id, "time": self.time, "device": self.device, "kind": self.kind, "user": self.user,
@@ -96,6 +111,7 @@ class RecordStore:
         self._lock = threading.Lock()
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="record")
         self._db: sqlite3.Connection | None = None
+        self.altered: list[str] = []  # what was found changed from outside when the database was opened
 
     def _open(self) -> sqlite3.Connection:
         if self._db is None:
@@ -104,32 +120,96 @@ class RecordStore:
             os.chmod(self.path, 0o600)  # who approved and signed what is nobody else's business either
             db = sqlite3.connect(str(self.path), check_same_thread=False, isolation_level=None, timeout=2.0)
             db.execute("PRAGMA journal_mode=WAL")
+            existed = db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'record'").fetchone() is not None
+            columns = {c[1] for c in db.execute("PRAGMA table_info(record)")}
+            triggers = {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type = 'trigger'")}
             db.executescript(SCHEMA)
+            legacy = existed and "hash" not in columns  # a record of an older version: its rows have no chain yet
+            if legacy:
+                db.execute("ALTER TABLE record ADD COLUMN prev_hash TEXT")
+                db.execute("ALTER TABLE record ADD COLUMN hash TEXT")
+            removed = [] if legacy or not existed else [t for t in TRIGGER_SQL if t not in triggers]
+            for sql in TRIGGER_SQL.values():
+                db.execute(sql)
             for suffix in ("-wal", "-shm"):
                 side = self.path.with_name(self.path.name + suffix)
                 if side.exists():
                     os.chmod(side, 0o600)
             self._db = db
+            if legacy:
+                rows = read_rows(db)
+                if rows:
+                    self._append(db, plant=PLANT, device=PLANT, kind="integrity", user="commission", role="",
+                                 title=f"chain begins: {len(rows)} earlier rows kept by their digest",
+                                 data={"legacy": {"rows": len(rows), "first": rows[0]["id"], "last": rows[-1]["id"],
+                                                  "sha256": legacy_digest(rows)}}, supersedes=None, when=None)
+            if removed:
+                self.altered = [f"the record's protection {t} had been removed from outside the program (put back now)"
+                                for t in removed]
+                log.error("%s: %s", self.path, "; ".join(self.altered))
+                self._append(db, plant=PLANT, device=PLANT, kind="integrity", user="commission", role="",
+                             title="altered from outside: " + ", ".join(removed) + " removed",
+                             data={"removed_triggers": removed, "found": time.time()}, supersedes=None, when=None)
         return self._db
+
+    def _append(self, db: sqlite3.Connection, *, plant: str, device: str, kind: str, user: str, role: str, data: dict,
+                title: str, supersedes: int | None, when: float | None) -> int:
+        """Insert one row chained to the last one, in one write transaction (other processes wait)."""
+        text = json.dumps(data, ensure_ascii=False, default=str)
+        db.execute("BEGIN IMMEDIATE")
+        try:
+            last = db.execute("SELECT id, hash FROM record ORDER BY id DESC LIMIT 1").fetchone()
+            seq = db.execute("SELECT seq FROM sqlite_sequence WHERE name = 'record'").fetchone()
+            row = {"id": max(last[0] if last else 0, seq[0] if seq else 0) + 1, "time": when or time.time(), "plant": plant,
+                   "device": device, "kind": kind, "user": user, "role": role, "title": title, "data": text,
+                   "supersedes": supersedes, "prev_hash": (last[1] or GENESIS) if last else GENESIS}
+            row["hash"] = row_hash(row)
+            db.execute(f"INSERT INTO record ({', '.join(COLUMNS)}) VALUES ({', '.join('?' * len(COLUMNS))})",
+                       tuple(row[c] for c in COLUMNS))
+            db.execute("COMMIT")
+        except BaseException:
+            db.execute("ROLLBACK")
+            raise
+        self._write_head(row["id"], row["hash"])
+        return row["id"]
+
+    def _write_head(self, entry_id: int, digest: str) -> None:
+        path = head_path(self.path)
+        current = read_head(self.path)
+        if current is not None and current.get("id", 0) > entry_id:
+            return  # another process wrote a later row already
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.part")
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        with os.fdopen(fd, "w") as handle:
+            handle.write(json.dumps({"id": entry_id, "hash": digest, "time": time.time()}))
+        os.replace(tmp, path)
 
     def add(self, *, plant: str, device: str, kind: str, user: str, role: str, data: dict, title: str = "",
             supersedes: int | None = None, when: float | None = None) -> int:
         if kind not in KINDS:
             raise RecordError(f"unknown record kind {kind!r}")
-        text = json.dumps(data, ensure_ascii=False, default=str)
         with self._lock:
             try:
-                cursor = self._open().execute(
-                    "INSERT INTO record (time, plant, device, kind, user, role, title, data, supersedes) VALUES (?,?,?,?,?,?,?,?,?)",
-                    (when or time.time(), plant, device, kind, user, role, title, text, supersedes))
+                return self._append(self._open(), plant=plant, device=device, kind=kind, user=user, role=role, data=data,
+                                    title=title, supersedes=supersedes, when=when)
             except sqlite3.Error as exc:
                 raise RecordError(f"{self.path}: {exc}") from None
-        return int(cursor.lastrowid)
+
+    def verify(self) -> Check:
+        """The chain, the sign-offs and the protection of this database (app/verify.py)."""
+        with self._lock:
+            self._open()
+            return check_database(self.path)
+
+    def chain_rows(self) -> list[dict]:
+        """Every row as stored (``data`` as text), ordered by id: the chain an archive carries."""
+        with self._lock:
+            return read_rows(self._open())
 
     def _rows(self, sql: str, args: tuple = ()) -> list[Entry]:
         with self._lock:
             rows = self._open().execute(sql, args).fetchall()
-        return [Entry(*row[:8], json.loads(row[8]), row[9]) for row in rows]
+        return [Entry(*row[:8], json.loads(row[8]), *row[9:]) for row in rows]
 
     def get(self, entry_id: int) -> Entry | None:
         rows = self._rows(f"SELECT {', '.join(COLUMNS)} FROM record WHERE id = ?", (entry_id,))
@@ -736,8 +816,10 @@ class RecordService:
         self.check_drift(device)
         return entry_id
 
-    async def approve(self, device: str, *, user: str, role: str, document: dict | None = None, title: str = "") -> int:
-        """Approve a set: a backup document's, or (None) the device's as read now."""
+    async def approve(self, device: str, *, user: str, role: str, document: dict | None = None, title: str = "",
+                      account: str = "") -> int:
+        """Approve a set: a backup document's, or (None) the device's as read now. ``account``: the named
+        account that approved (the page and the CLI ask for one); it is the row's user."""
         if document is not None:
             if document.get("device", {}).get("type") != self.runtime.store.devices[device].type:
                 raise RecordError(f"the backup is of a {document.get('device', {}).get('type')!r}, not of {device}'s type")
@@ -747,8 +829,9 @@ class RecordService:
             identity, entries = await self.read_set(device, user=user, role=role)
             params, source = param_set(entries), "the device as read at approval"
         previous = await self.store.run(self.store.latest, self.plant, device, "approved")
-        entry_id = await self.add(device, "approved", user=user, role=role, title=title or f"approved from {source}",
-                                  data={"identity": identity, "parameters": params, "source": source},
+        entry_id = await self.add(device, "approved", user=account or user, role=role, title=title or f"approved from {source}",
+                                  data={"identity": identity, "parameters": params, "source": source,
+                                        **({"account": account} if account else {})},
                                   supersedes=previous.id if previous else None)
         self.approved[device] = params
         self.check_drift(device)
@@ -786,11 +869,26 @@ class RecordService:
         return run
 
     # -- sign-off ---------------------------------------------------------------------------
-    async def sign(self, device: str, *, user: str, role: str, name: str, signer_role: str, comment: str, content: dict) -> int:
-        """Freeze ``content`` (the report) with a signature; a newer sign-off supersedes this one."""
-        frozen = json.dumps(content, sort_keys=True, ensure_ascii=False, default=str)
+    async def sign(self, device: str, *, user: str, role: str, name: str, signer_role: str, comment: str, content: dict,
+                   account: str = "") -> int:
+        """Freeze ``content`` (the report) with a signature; a newer sign-off supersedes this one.
+
+        ``account``: the named account that signed (logged in at that moment, also on the loopback
+        address): a sign-off without one is refused."""
+        if not account or account == "local" or account.startswith("cli:"):
+            raise RecordError("a sign-off needs a named account: log in with your account (create one with "
+                              "'commission user add NAME --role engineer') and sign again")
+        users = getattr(self.runtime, "users", None)
+        known = None if users is None else users.users.get(account)
+        if users is not None and (known is None or known.role != "engineer"):
+            raise RecordError(f"{account} is no engineer account of this installation: a sign-off needs one "
+                              "(commission user add NAME --role engineer)")
         previous = await self.store.run(self.store.latest, self.plant, device, "signoff")
-        return await self.add(device, "signoff", user=user, role=role, title=f"signed by {name} ({signer_role})",
+        return await self.add(device, "signoff", user=account, role=role, title=f"signed by {name} ({signer_role}) as {account}",
                               supersedes=previous.id if previous else None,
-                              data={"name": name, "role": signer_role, "comment": comment, "time": time.time(),
-                                    "sha256": hashlib.sha256(frozen.encode()).hexdigest(), "content": content})
+                              data={"name": name, "role": signer_role, "account": account, "comment": comment, "time": time.time(),
+                                    "sha256": content_sha256(content), "content": content})
+
+    async def check(self) -> Check:
+        """The record's chain, sign-offs and protection as ``commission verify --record`` checks them."""
+        return await self.store.run(self.store.verify)

@@ -72,6 +72,10 @@ def add_parsers(sub) -> None:
     sign.add_argument("--device", default=None, metavar="NAME", help="sign this device's record instead of the plant's")
     sign.set_defaults(func=run_sign)
 
+    from app import verify
+
+    verify.add_parser(sub)  # commission verify ARCHIVE | --record: the chain, every evidence file and the sign-off
+
 
 def _cli_user() -> str:
     from app.headless import _cli_user

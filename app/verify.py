@@ -1,0 +1,283 @@
+"""Tamper evidence of the commissioning record, checkable by anyone.
+
+Every record row carries the SHA-256 of the row before it (``prev_hash``) and its own (``hash``)
+over every field that matters: id, time, plant, device, kind, account, role, title, the stored data
+(content, signer's name, comment, time of signing) and what it supersedes. Changing, replacing or
+deleting a row from outside the program breaks the chain at that row, like a certificate-transparency
+log; the archive carries the chain, the evidence files and a manifest of their hashes.
+
+``commission verify ARCHIVE`` checks an archive; ``commission verify --record`` the record database
+of a data folder. Both name the first row or file that differs. Nothing here needs the program's
+own state: the rules are in this file (:func:`row_hash`), so a third party can check with them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import io
+import json
+import sqlite3
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+GENESIS = "0" * 64  # the prev_hash of the first row
+HASHED = ("id", "time", "plant", "device", "kind", "user", "role", "title", "data", "supersedes", "prev_hash")
+MANIFEST = "manifest.json"
+MANIFEST_SUM = "manifest.sha256"
+CHAIN = "record/chain.jsonl"
+TRIGGERS = ("record_no_update", "record_no_delete", "record_no_replace")
+
+
+def row_hash(row: dict) -> str:
+    """SHA-256 of a row: the canonical JSON (sorted keys, no spaces, UTF-8) of the fields of
+    :data:`HASHED`, ``data`` as the text stored."""
+    fields = {k: row.get(k) for k in HASHED}
+    text = json.dumps(fields, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def content_sha256(content: dict) -> str:
+    """The SHA-256 of a sign-off's frozen report content, as stored in the sign-off."""
+    frozen = json.dumps(content, sort_keys=True, ensure_ascii=False, default=str)
+    return hashlib.sha256(frozen.encode()).hexdigest()
+
+
+def sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+@dataclass
+class Check:
+    """The result of a check: ``problems`` in the order found (the first names the first row or file
+    that differs), ``notes`` that are no alteration (rows kept before the chain began)."""
+
+    what: str
+    problems: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    rows: int = 0
+    files: int = 0
+    head: tuple[int, str] | None = None
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+    def summary(self) -> str:
+        if self.ok:
+            parts = [f"{self.rows} record rows chained"] + ([f"{self.files} files match the manifest"] if self.files else [])
+            head = f"; last row #{self.head[0]}, hash {self.head[1][:16]}" if self.head else ""
+            return f"{self.what}: intact ({', '.join(parts)}{head})"
+        return f"{self.what}: ALTERED: {self.problems[0]}"
+
+    def lines(self) -> list[str]:
+        out = [self.summary()]
+        out += [f"  altered: {p}" for p in self.problems[1:]]
+        out += [f"  note: {n}" for n in self.notes]
+        return out
+
+
+def legacy_digest(rows: list[dict]) -> str:
+    """One SHA-256 over the rows kept before the chain began (each row's fields as :func:`row_hash` takes them)."""
+    return sha256("".join(row_hash({**r, "prev_hash": None}) for r in rows).encode())
+
+
+def check_chain(rows: list[dict], check: Check, head: dict | None = None) -> None:
+    """Check the chain of ``rows`` (ordered by id): each row's hash, its link to the row before and
+    gap-free ids; ``head`` (the last row written, as kept beside the database or in a manifest) must
+    still be there with the same hash. Rows without a hash are accepted only before the first chained
+    row, and only when that row (kind ``integrity``) names them and their digest."""
+    legacy: list[dict] = []
+    while len(legacy) < len(rows) and rows[len(legacy)].get("hash") is None and rows[len(legacy)].get("prev_hash") is None:
+        legacy.append(rows[len(legacy)])
+    chained = rows[len(legacy):]
+    if legacy:
+        start = chained[0] if chained else None
+        try:
+            named = json.loads(start["data"]).get("legacy") if start and start.get("kind") == "integrity" else None
+        except (TypeError, ValueError):
+            named = None
+        if named and named.get("rows") == len(legacy) and named.get("sha256") == legacy_digest(legacy):
+            check.notes.append(f"{len(legacy)} rows were recorded before the record kept its chain; row #{start['id']} "
+                               "holds their digest, which matches")
+        elif named:
+            check.problems.append(f"rows #{legacy[0]['id']} to #{legacy[-1]['id']}, recorded before the chain began, were "
+                                  f"changed: their digest is not the one row #{start['id']} holds")
+        else:
+            check.problems.append(f"row #{legacy[0]['id']} ({legacy[0].get('kind')} {legacy[0].get('title')!r}) has no hash: "
+                                  "it was written or replaced from outside the program")
+    before = None
+    for row in chained:
+        check.rows += 1
+        rid = row.get("id")
+        if before is not None and rid != before["id"] + 1:
+            missing = f"#{before['id'] + 1}" if rid == before["id"] + 2 else f"#{before['id'] + 1} to #{rid - 1}"
+            check.problems.append(f"row {missing} is missing (deleted from outside the program): row #{rid} follows #{before['id']}")
+        if row.get("hash") != row_hash(row):
+            check.problems.append(f"row #{rid} ({row.get('kind')} {row.get('title')!r}) was changed after it was written: "
+                                  "its content no longer matches its hash")
+        elif before is not None and rid == before["id"] + 1 and row.get("prev_hash") != before["hash"]:
+            check.problems.append(f"row #{before['id']} was changed or replaced: row #{rid} no longer links to it")
+        elif before is None and row.get("prev_hash") != GENESIS:
+            check.problems.append(f"row #{rid} does not start the chain: the rows before it were deleted")
+        before = row
+    if before is not None:
+        check.head = (before["id"], before["hash"])
+    if head:
+        by_id = {r.get("id"): r for r in rows}
+        kept = by_id.get(head.get("id"))
+        if kept is None:
+            check.problems.append(f"row #{head.get('id')}, the last one written, is missing (deleted from outside the program)")
+        elif kept.get("hash") != head.get("hash"):
+            check.problems.append(f"row #{head.get('id')}, the last one written, was changed or replaced")
+
+
+def check_signoffs(rows: list[dict], check: Check) -> None:
+    """Each sign-off's stored SHA-256 matches its frozen content; a protection the program found
+    removed from outside (an ``integrity`` row) stays an alteration of the record for ever."""
+    for row in rows:
+        if row.get("kind") == "integrity":
+            try:
+                removed = json.loads(row["data"]).get("removed_triggers")
+            except (TypeError, ValueError):
+                removed = None
+            if removed:
+                check.problems.append(f"row #{row.get('id')}: the program found the record's protection ({', '.join(removed)}) "
+                                      "removed from outside the program; rows may have been changed or deleted then")
+        if row.get("kind") != "signoff":
+            continue
+        try:
+            data = json.loads(row["data"])
+        except (TypeError, ValueError):
+            check.problems.append(f"row #{row.get('id')} (sign-off) cannot be read")
+            continue
+        if "content" in data and data.get("sha256") != content_sha256(data["content"]):
+            check.problems.append(f"row #{row.get('id')} (sign-off by {data.get('name')}): the signed content does not "
+                                  "match its SHA-256")
+
+
+# -- the record database -------------------------------------------------------------------------
+def read_rows(db: sqlite3.Connection) -> list[dict]:
+    cols = [c[1] for c in db.execute("PRAGMA table_info(record)")]
+    names = [c for c in ("id", "time", "plant", "device", "kind", "user", "role", "title", "data", "supersedes", "prev_hash", "hash")
+             if c in cols]
+    return [dict(zip(names, r)) for r in db.execute(f"SELECT {', '.join(names)} FROM record ORDER BY id")]
+
+
+def head_path(db_path: Path) -> Path:
+    return db_path.with_name(db_path.name + ".head")
+
+
+def read_head(db_path: Path) -> dict | None:
+    try:
+        return json.loads(head_path(db_path).read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def check_database(path: Path) -> Check:
+    """Check a record database read-only (another program may have it open)."""
+    check = Check(f"record {path}")
+    if not path.exists():
+        check.problems.append(f"{path} does not exist")
+        return check
+    db = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    try:
+        triggers = {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type = 'trigger'")}
+        rows = read_rows(db)
+    finally:
+        db.close()
+    check_chain(rows, check, read_head(path))
+    for name in TRIGGERS:
+        if name not in triggers:
+            check.problems.append(f"the record's protection {name} was removed from outside the program")
+    check_signoffs(rows, check)
+    return check
+
+
+# -- the archive ---------------------------------------------------------------------------------
+def manifest_sum(manifest: bytes) -> bytes:
+    return f"{sha256(manifest)}  {MANIFEST}\n".encode()
+
+
+def check_archive(path: Path) -> Check:
+    """Check an as-left archive: its manifest, every file against the manifest, the record chain it
+    carries, the sign-offs, and that the chain it carries is the one the manifest names."""
+    check = Check(f"archive {path.name}")
+    try:
+        data = path.read_bytes()
+        archive = zipfile.ZipFile(io.BytesIO(data))
+        names = archive.namelist()
+    except (OSError, zipfile.BadZipFile) as exc:
+        check.problems.append(f"{path} is no readable archive ({exc}): it was altered or is not an as-left archive")
+        return check
+    contents: dict[str, bytes] = {}
+    for name in names:
+        try:
+            contents[name] = archive.read(name)
+        except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:  # a CRC that no longer matches, broken data
+            check.problems.append(f"file {name} was altered: its bytes no longer match the archive's check sum ({exc})")
+        except Exception as exc:  # noqa: BLE001 - zlib's own error for broken deflate data
+            check.problems.append(f"file {name} was altered: it cannot be unpacked ({exc})")
+    if MANIFEST not in contents or MANIFEST_SUM not in contents:
+        if MANIFEST not in names or MANIFEST_SUM not in names:
+            check.problems.append(f"the archive has no {MANIFEST} and {MANIFEST_SUM}: it is no verifiable as-left archive")
+        return check
+    if contents[MANIFEST_SUM] != manifest_sum(contents[MANIFEST]):
+        check.problems.append(f"file {MANIFEST} was altered: its SHA-256 is not the one in {MANIFEST_SUM}")
+        return check
+    try:
+        manifest = json.loads(contents[MANIFEST])
+    except ValueError:
+        check.problems.append(f"file {MANIFEST} cannot be read")
+        return check
+    listed: dict[str, dict] = manifest.get("files", {})
+    for name in sorted(listed, key=lambda n: (n != CHAIN, n)):
+        if name not in names:
+            check.problems.append(f"file {name} is missing from the archive")
+        elif name in contents and sha256(contents[name]) != listed[name].get("sha256"):
+            check.problems.append(f"file {name} was altered: its SHA-256 is not the one in the manifest")
+        else:
+            check.files += 1
+    for name in names:
+        if name not in listed and name not in (MANIFEST, MANIFEST_SUM):
+            check.problems.append(f"file {name} was added: it is not in the manifest")
+    if CHAIN in contents:
+        rows = [json.loads(line) for line in contents[CHAIN].decode("utf-8", "replace").splitlines() if line.strip()]
+        chain = Check(check.what)
+        check_chain(rows, chain, manifest.get("chain", {}).get("head"))
+        check_signoffs(rows, chain)
+        check.problems += [f"in {CHAIN}: {p}" for p in chain.problems]
+        check.notes += chain.notes
+        check.rows, check.head = chain.rows, chain.head
+    if manifest.get("simulated"):
+        check.notes.append("made on simulated devices: " + ", ".join(manifest["simulated"]))
+    for problem in manifest.get("record_altered", []):
+        check.notes.append(f"the record was already altered when the archive was made: {problem}")
+    return check
+
+
+# -- CLI: commission verify ------------------------------------------------------------------------
+def add_parser(sub) -> None:
+    parser = sub.add_parser("verify", help="check an as-left archive (or the record database) for alterations; "
+                                           "exit code 0 only when intact")
+    parser.add_argument("archive", nargs="?", type=Path, help="the as-left archive (.zip) to check")
+    parser.add_argument("--record", action="store_true", help="check the record database of the data folder instead")
+    parser.add_argument("--data-dir", type=Path, default=None, help="data folder with the record (default: ~/.local/share/commission)")
+    parser.set_defaults(func=run_cli)
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    if args.archive is None and not args.record:
+        print("commission verify: name an archive (commission verify PLANT-as-left.zip) or --record for the data folder's record")
+        return 2
+    if args.record:
+        from app.users import default_data_dir
+
+        check = check_database((args.data_dir or default_data_dir()) / "record.sqlite")
+    else:
+        check = check_archive(args.archive)
+    for line in check.lines():
+        print(line)
+    return 0 if check.ok else 1
