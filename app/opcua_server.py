@@ -26,6 +26,7 @@ import logging
 import math
 import time
 import weakref
+from collections import OrderedDict
 from datetime import datetime, timezone
 from typing import Any
 
@@ -55,6 +56,8 @@ REVISION_PERIOD_S = 5.0  # the revision counters are counted again from the audi
 # message and chunk sizes (a channel's unfinished chunks are bounded by the message size), idle time.
 MAX_SESSIONS_PER_CLIENT = 8
 MAX_IDLE_PER_CLIENT = 4
+CONNECTIONS_PER_S_PER_CLIENT = 5.0  # new connections a second per client address (a burst of CONNECTION_BURST)
+CONNECTION_BURST = 10  # beyond: closed at once, before any handshake (a guesser's refusals cost the loop next to nothing)
 MAX_SUBSCRIPTIONS_PER_SESSION = 10
 MAX_MONITORED_ITEMS_PER_SESSION = 2000  # created over the session's life
 MAX_CONNECTIONS = 128
@@ -162,7 +165,21 @@ class _Guard:
         self.processors: weakref.WeakSet = weakref.WeakSet()  # every connection's processor that sent a request
         self.items: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # processor -> monitored items created
         self.framing: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # connection -> where its framing is
+        self.arrivals: OrderedDict[str, list[float]] = OrderedDict()  # client address -> [tokens, last time]
         self.refused = 0
+
+    def may_connect(self, host: str, now: float) -> bool:
+        """A token bucket per client address: :data:`CONNECTIONS_PER_S_PER_CLIENT`, bursts of :data:`CONNECTION_BURST`."""
+        bucket = self.arrivals.pop(host, None) or [float(CONNECTION_BURST), now]
+        self.arrivals[host] = bucket
+        while len(self.arrivals) > 4096:
+            self.arrivals.popitem(last=False)
+        bucket[0] = min(float(CONNECTION_BURST), bucket[0] + (now - bucket[1]) * CONNECTIONS_PER_S_PER_CLIENT)
+        bucket[1] = now
+        if bucket[0] < 1.0:
+            return False
+        bucket[0] -= 1.0
+        return True
 
     def frame_fits(self, protocol, data: bytes) -> bool:
         """Follow the connection's framing (8-byte headers: type, chunk type, size); False as soon as a
@@ -271,6 +288,13 @@ def _check_requests_first() -> None:
         guard = _GUARDS.get(self.iserver)
         if guard is not None:
             host = _host(transport.get_extra_info("peername"))
+            if not guard.may_connect(host, time.monotonic()):
+                guard.refused += 1
+                if _client_lines.take() is not None:
+                    log.warning("opcua: %s opens more than %.0f connections a second: closed at once", host,
+                                CONNECTIONS_PER_S_PER_CLIENT)
+                transport.close()
+                return
             idle = [c for c in list(self.clients) if _host(c.peer_name) == host and c.transport is not None
                     and (c.processor is None or c.processor.session is None or not c.processor.session.is_activated())]
             for old in idle[:max(0, len(idle) - MAX_IDLE_PER_CLIENT + 1)]:

@@ -176,3 +176,26 @@ async def test_a_chunk_announced_larger_than_the_limit_closes_the_connection(ser
         assert closed, "the server keeps buffering an unfinished chunk"
     finally:
         sock.close()
+
+
+async def test_new_connections_per_client_address_are_rate_limited(server):
+    loop = asyncio.get_running_loop()
+    socks = []
+    for _ in range(opcua_server.CONNECTION_BURST * 3):
+        sock = socket.create_connection(("127.0.0.1", server.port))
+        sock.setblocking(False)
+        socks.append(sock)
+
+    async def closed(sock) -> bool:
+        try:
+            return await asyncio.wait_for(loop.sock_recv(sock, 1), 0.2) == b""
+        except (asyncio.TimeoutError, ConnectionError):
+            return False
+    shut = [s for s in socks if await closed(s)]
+    assert len(shut) >= opcua_server.CONNECTION_BURST, f"{len(shut)} of {len(socks)} closed at once"
+    for sock in socks:
+        sock.close()
+    await asyncio.sleep(1.0)  # the bucket fills again: a real client gets in
+    client = Client(server.url, timeout=5)
+    await client.connect()
+    await client.disconnect()
