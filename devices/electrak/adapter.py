@@ -411,8 +411,9 @@ class ElectrakAdapter:
         return bool(actions)
 
     # -- the dead-man rule (app.worker) -------------------------------------------------------
-    def renew_leases(self, alive: set[str]) -> None:
-        """The worker's supervisor, every 50 ms: the controlling session is alive, motion may go on."""
+    def renew_leases(self, alive) -> None:
+        """The worker's supervisor, every 50 ms: the controlling session is alive, motion may go on (``alive``: a set
+        of sessions, or a mapping of each to its page's last beat on the monotonic clock, from which the lease counts)."""
         self._carry(self.core.beat(alive, time.monotonic()))
 
     def _lapsed(self, lapsed_at: float) -> None:

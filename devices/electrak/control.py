@@ -24,6 +24,7 @@ carries the actions out on python-can's periodic sender.
 
 from __future__ import annotations
 
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, replace
 
 from devices.control import LEASE_S, ControlChanged, ControlSession, Decision, Report, Stop
@@ -324,12 +325,22 @@ class ElectrakControl:
         return self._release(f"released: {reason}", now)
 
     # -- time ----------------------------------------------------------------------------------------------
-    def beat(self, alive: set[str], now: float) -> list:
-        """The dead-man supervisor (every 50 ms): the sessions whose pages confirmed they are alive."""
+    def beat(self, alive: Collection[str] | Mapping[str, float], now: float) -> list:
+        """The dead-man supervisor (every 50 ms): the sessions whose pages confirmed they are alive; a mapping gives
+        each one's last beat (monotonic), from which the lease then counts: a page that froze just before this
+        program stalled keeps nothing moving past that beat + the lease."""
         actions = self.tick(now)
         c = self.command
         if c.override and not c.enable:  # the override pulse is never renewed: it ends by itself, or its lease lapses
             return actions
+        h = self.session.holder
+        beat_at = alive.get(h.session) if isinstance(alive, Mapping) and h is not None else None
+        if beat_at is not None and self.session.running:
+            lease = self.session.lease
+            at = min(now, max(beat_at, lease.renewed_at or beat_at))  # a press since is a sign of life too
+            if h.disconnected is None and lease.valid(now) and lease.renew(at):
+                actions.append(LeaseRenewed(at))
+            return actions + self._carry(self.session.tick(now), now)
         renewed = self.session.lease.renewed_at
         base = self.session.beat(alive, now)
         actions += self._carry(base, now)
