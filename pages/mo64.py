@@ -19,10 +19,11 @@ from devices.mo64.policy import EEPROM_RISK, operation_name, setting_name
 from pages.device_page import DeviceCard, DeviceView, StatusBadge, device_page, titled_card
 from pages.frame import status_text
 from pages.simcontrols import sim_card
-from pages.widgets import Lamp, ValueLine, WriteGuard, checked_value, counter_line, entry_age, mark_quality, quality_note
-from pages.widgets import range_number, refuse
+from pages.widgets import Lamp, ValueLine, WriteGuard, checked_value, counter_line, entry_age, gate, mark_quality
+from pages.widgets import quality_note, range_number, refuse, viewer_reason
 
 MOTION_WARNING = "the boom moves: check that nobody stands under it"
+STOP_HINT = "a stop: anyone may stop (deactivating a close or reverse level never moves the boom)"
 EEPROM_WARNING = EEPROM_RISK  # the declared risk of every setting write (devices/mo64/policy.py)
 ALARM_BITS = {"LS", "Baum ab", "F_ereignis"}
 ALARM_WORDS = {"LS": "light barrier interrupted", "Baum ab": "boom off", "F_ereignis": "fault event"}
@@ -123,11 +124,14 @@ class GateCard(DeviceCard):
             else:
                 with ui.row().classes("items-center gap-2"):
                     ui.label("The MO 64 serves one TCP client at a time (chapter 3).").classes("text-caption text-grey-8")
-                    ui.button("Release the connection", icon="link_off", on_click=lambda: view.act(
+                    release = ui.button("Release the connection", icon="link_off", on_click=lambda: view.act(
                         "release the connection", success="released: another client may connect")) \
                         .props("outline dense data-testid=release")
-                    ui.button("Take it back", icon="link", on_click=lambda: view.act("take the connection back")) \
+                    resume = ui.button("Take it back", icon="link", on_click=lambda: view.act("take the connection back")) \
                         .props("outline dense data-testid=resume")
+                    # engineers only (declared writes); usable while the barrier is silent: that may be why
+                    for button in (release, resume):
+                        gate(button, viewer_reason())
 
     def refresh(self) -> None:
         view, state = self.view, self.view.state
@@ -181,10 +185,15 @@ class CommandsCard(DeviceCard):
                         guard.add(ui.button(f"{COMMAND_NAMES[cmd]} activate",
                                             on_click=lambda cmd=cmd: view.move(cmd, codec.Function.ACTIVATE))
                                   .props(f"outline data-testid=activate-{COMMAND_NAMES[cmd]}"))
-                        ui.button("deactivate", on_click=lambda cmd=cmd: view.move(cmd, codec.Function.DEACTIVATE)) \
+                        off = ui.button("deactivate", on_click=lambda cmd=cmd: view.move(cmd, codec.Function.DEACTIVATE)) \
                             .props(f"outline data-testid=deactivate-{COMMAND_NAMES[cmd]}")
-                ui.button("Clear my levels", icon="layers_clear", on_click=self.clear_levels) \
+                        if cmd is codec.Command.OPEN:  # lets the boom close: motion (devices/mo64/control.py)
+                            gate(off, viewer_reason())
+                        else:  # a stop, never refused: on for every role, also while the barrier is silent
+                            off.props(f'title="{STOP_HINT}"')
+                clear = ui.button("Clear my levels", icon="layers_clear", on_click=self.clear_levels) \
                     .props("data-testid=clear-levels")
+                gate(clear, viewer_reason())  # a declared system command: engineers only
             self.levels = ui.label().classes("text-body2").props("data-testid=levels")
             self.reply = ui.label().classes("text-body2 mono").props("data-testid=reply")
             ui.label("A level stays active in the barrier until it is deactivated. Close and reverse levels are "
