@@ -13,16 +13,63 @@ import html
 import io
 import json
 import os
+import re
 import tempfile
 import time
 import zipfile
-from datetime import datetime
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
 from app.record import LIVE_VALUE, compare_with_approved, device_updated, live_params, live_set, param_set
+from app.verify import CHAIN, MANIFEST, MANIFEST_SUM, manifest_sum, seal_archive, sha256
 
 AUDIT_ROWS = 200
+SIMULATED_MARK = "SIMULATED DEVICES - made on the built-in twins, not on site equipment"
+
+
+def tool_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return f"commission {version('commission')}"
+    except PackageNotFoundError:
+        return "commission (version unknown)"
+
+
+def plant_file(plant) -> dict:
+    """The plant file the report was made with and its SHA-256 (None: a plant given without a file)."""
+    path = getattr(plant, "path", None)
+    if path is None:
+        return {"path": None, "sha256": None}
+    try:
+        return {"path": str(path), "sha256": sha256(Path(path).read_bytes())}
+    except OSError as exc:
+        return {"path": str(path), "sha256": None, "error": exc.strerror or str(exc)}
+
+
+def evidence_file(device: str, bus: str, run_id: int, n: int, evidence: dict) -> tuple[str, bytes] | None:
+    """The evidence file of step ``n`` of checkout ``run_id`` (its name in the archive and its bytes):
+    CAN frames as a candump log, serial, Modbus and LogiTed transactions as text; None without traffic."""
+    stem = f"evidence/{device}/checkout-{run_id}-step{n}"
+    if evidence.get("kind") == "can" and evidence.get("frames"):
+        return f"{stem}.log", can_trace(evidence["frames"], ".log", bus)
+    if evidence.get("transactions"):
+        return f"{stem}.txt", serial_trace(evidence["transactions"])
+    return None
+
+
+def _run_summary(runs: list[dict]) -> list[dict]:
+    """Per checkout: its last run's result, how many runs and how they ended, who ran them."""
+    by_title: dict[str, dict] = {}
+    for run in sorted(runs, key=lambda r: r["time"]):
+        s = by_title.setdefault(run["title"], {"title": run["title"], "runs": 0, "passed": 0, "failed": 0, "by": []})
+        s["runs"] += 1
+        s["passed" if run["status"] == "passed" else "failed"] += 1
+        s.update(last=run["status"], last_reason=run["reason"], last_time=run["time"], last_id=run["id"])
+        if run["user"] not in s["by"]:
+            s["by"].append(run["user"])
+    return list(by_title.values())
 
 
 def _when(t: float | None) -> str:
@@ -81,40 +128,64 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
     state = runtime.store.devices[device]
     current = {k: {**v, "device_updates": device_updated(state, k)} for k, v in current.items()}
     rows = compare_with_approved(current, approved)
-    checkouts = await record.timeline(device, ("checkout",))
-    latest_checkouts: dict[str, Any] = {}
-    for entry in checkouts:  # newest first: the latest run of each checkout stands, older ones are listed as superseded
-        latest_checkouts.setdefault(entry.data.get("title", ""), entry)
+    checkouts = await record.timeline(device, ("checkout",))  # every run stays in the report with its result
+    runs = []
+    for entry in checkouts:
+        steps = []
+        for n, step in enumerate(entry.data.get("steps", []), 1):
+            made = evidence_file(device, config.bus, entry.id, n, step.get("evidence") or {})
+            ev = step.get("evidence") or {}
+            steps.append({**step, "evidence_file": None if made is None else {
+                "name": made[0], "sha256": sha256(made[1]),
+                "items": len(ev.get("frames") or ev.get("transactions") or []),
+                "what": "CAN frames" if ev.get("kind") == "can" else "transactions"}})
+        runs.append({"id": entry.id, "time": entry.time, "settings": entry.data.get("settings", {}), "steps": steps,
+                     **{k: entry.data.get(k) for k in ("title", "status", "reason", "user", "duration_s")}})
     entries = await record.timeline(device)
     since = min((e.time for e in entries), default=time.time() - 86400) - 60
     audit = await runtime.audit.aquery(device=device, since=since, limit=AUDIT_ROWS) if runtime.audit else []
     signoff = await record.store.run(record.store.latest, record.plant, device, "signoff")
     people = sorted({e.user for e in entries if e.kind in ("checkout", "approved", "snapshot")})
+    from app.headless import simulated
+
     return {
         "device": device, "type": state.type, "bus": config.bus, "address": _address(config.options),
         "identity": {k: v for k, v in identity.items() if v is not None},
-        "status": state.status, "parameters_source": source,
+        "status": state.status, "parameters_source": source, "simulated": simulated(runtime, device),
         "approved": None if approved_entry is None else {"id": approved_entry.id, "time": approved_entry.time,
                                                           "by": approved_entry.user, "title": approved_entry.title},
         "parameters": rows,
+        "settings": [r for r in rows if r.get("writable")],
+        "live_values": [r for r in rows if not r.get("writable")],
         "counts": {v: sum(r["verdict"] == v for r in rows) for v in ("equal", "changed", "not approved", "updated by the device", LIVE_VALUE)},
         "drift": (getattr(state, "drift", None) or {}).get("changed", []),
-        "checkouts": [{"id": e.id, "time": e.time, **{k: e.data[k] for k in ("title", "status", "reason", "user", "duration_s", "steps")}}
-                      for e in latest_checkouts.values()],
+        "checkouts": runs,
+        "checkout_summary": _run_summary(runs),
         "audit": [{"time": a.time, "user": a.user, "role": a.role, "action": a.action, "parameter": a.parameter,
                    "old": a.old, "new": a.new, "result": a.result} for a in audit],
         "commissioned_by": people,
         "commissioned": [_when(min((e.time for e in entries), default=None)), _when(max((e.time for e in entries), default=None))],
-        "signoff": None if signoff is None else {"id": signoff.id, **{k: signoff.data[k] for k in ("name", "role", "comment", "time", "sha256")}},
+        "signoff": _signoff(signoff),
     }
+
+
+def _signoff(entry) -> dict | None:
+    if entry is None:
+        return None
+    return {"id": entry.id, "account": entry.data.get("account") or entry.user, "row_hash": entry.hash,
+            **{k: entry.data.get(k) for k in ("name", "role", "comment", "time", "sha256")}}
 
 
 async def plant_content(runtime, *, read: bool = True, user: str = "local", role: str = "engineer") -> dict:
     devices = list(await asyncio.gather(*(device_content(runtime, name, read=read, user=user, role=role)
                                           for name in runtime.plant.devices)))  # buses read side by side
     signoff = await runtime.record.store.run(runtime.record.store.latest, runtime.record.plant, "", "signoff")
-    return {"plant": runtime.plant.name, "generated": time.time(), "devices": devices,
-            "signoff": None if signoff is None else {"id": signoff.id, **{k: signoff.data[k] for k in ("name", "role", "comment", "time", "sha256")}}}
+    check = await runtime.record.check()
+    return {"plant": runtime.plant.name, "generated": time.time(), "devices": devices, "tool": tool_version(),
+            "plant_file": plant_file(runtime.plant), "simulated": [d["device"] for d in devices if d["simulated"]],
+            "record_check": {"ok": check.ok, "summary": check.summary(), "problems": check.problems, "notes": check.notes,
+                             "head": None if check.head is None else {"id": check.head[0], "hash": check.head[1]}},
+            "signoff": _signoff(signoff)}
 
 
 # -- HTML ------------------------------------------------------------------------------------------
@@ -125,13 +196,19 @@ table{border-collapse:collapse;margin:6px 0 12px;font-size:12px;width:100%}
 td,th{border:1px solid #bbb;padding:2px 6px;text-align:left;vertical-align:top}th{background:#eee}
 .equal{color:#1b5e20}.changed,.failed,.aborted{color:#b71c1c;font-weight:600}.passed{color:#1b5e20;font-weight:600}
 .notapproved,.skipped{color:#8d6e00}.notavailable,.updatedbythedevice,.livevalue{color:#555}.sig{border:2px solid #1b5e20;padding:8px;margin:8px 0}.unsigned{border-color:#b71c1c}
+.sim{background:#fff3cd;border:2px solid #8d6e00;color:#5d4200;padding:4px 8px;font-weight:600;margin:6px 0}
+.altered{background:#fdecea;border:2px solid #b71c1c;color:#b71c1c;padding:6px 8px;font-weight:600;margin:6px 0}
+.hash{font-family:monospace;font-size:11px;word-break:break-all}
+@media print{.sim.every{position:fixed;top:0;left:0;right:0}}
 """
 
 
 def _with_unit(value: Any, unit: str) -> str:
-    """A parameter's shown value with its unit once (the model's text often carries the unit already)."""
+    """A value with its unit once (the model's text often carries the unit already, also before a remark)."""
     text = "" if value is None else str(value)
-    return text if not unit or text.endswith(unit) else f"{text} {unit}".strip()
+    if not unit or text.endswith(unit) or re.search(rf"(?<![\w]){re.escape(unit)}(?![\w])", text):
+        return text
+    return f"{text} {unit}".strip()
 
 
 def _e(value: Any) -> str:
@@ -153,59 +230,147 @@ def values_text(d: dict) -> str:
     return f"Values {d['parameters_source']}: {counts}."
 
 
-def _signoff_html(sig: dict | None, what: str, plant: dict | None = None) -> str:
+def measured_text(v: dict) -> str:
+    return f'{v["name"]} = {_with_unit(v["value"], v["unit"])} ({v["limit"] or "recorded"}: {"ok" if v["ok"] else "FAIL"})'
+
+
+def evidence_text(s: dict) -> str:
+    f = s.get("evidence_file")
+    if not f:
+        return "no bus traffic"
+    return f'{f["name"]} ({f["items"]} {f["what"]}), SHA-256 {f["sha256"]}'
+
+
+def signoff_text(sig: dict | None, what: str, plant: dict | None = None) -> str:
     if not sig and plant:  # a device of a signed plant: the plant's sign-off covers it
-        return f'<div class="sig">{_e(what)}: no sign-off of its own; signed with the plant (record #{plant["id"]})</div>'
+        return f"{what}: no sign-off of its own; signed with the plant (record #{plant['id']})"
     if not sig:
-        return f'<div class="sig unsigned">{_e(what)}: not signed</div>'
-    return (f'<div class="sig">{_e(what)} signed by <b>{_e(sig["name"])}</b> ({_e(sig["role"])}) on {_when(sig["time"])}'
-            f'<br>Comment: {_e(sig["comment"])}<br><small>record #{sig["id"]}, content SHA-256 {sig["sha256"][:16]}…</small></div>')
+        return f"{what}: not signed"
+    return (f"{what} signed by {sig['name']} ({sig['role']}), account {sig.get('account') or '?'}, on {_when(sig['time'])}. "
+            f"Comment: {sig['comment'] or '-'}. Record #{sig['id']}, content SHA-256 {sig['sha256']}"
+            + (f", row hash {sig['row_hash']}" if sig.get("row_hash") else ""))
 
 
-def device_html(d: dict, plant_signoff: dict | None = None) -> str:
-    out = [f'<h2 id="{_e(d["device"])}">{_e(d["device"])} <small>({_e(d["type"])})</small></h2>',
-           _signoff_html(d["signoff"], d["device"], plant_signoff)]
+def _signoff_html(sig: dict | None, what: str, plant: dict | None = None) -> str:
+    cls = "sig" if sig or plant else "sig unsigned"
+    return f'<div class="{cls}">{_e(signoff_text(sig, what, plant))}</div>'
+
+
+def summary_rows(d: dict, p: dict | None = None) -> list[str]:
+    """The summary of one device a site manager reads: per checkout its last result and runs, the
+    approved set, drift and the sign-off."""
+    runs = "; ".join(f"{c['title']}: {c['last']}"
+                     + (f" ({c['last_reason']})" if c["last"] != "passed" and c["last_reason"] else "")
+                     + f", {c['runs']} run{'s' if c['runs'] != 1 else ''} ({c['passed']} passed, {c['failed']} not)"
+                     + f", by {', '.join(c['by'])}" for c in d.get("checkout_summary", [])) or "no checkout run"
+    ap = d["approved"]
+    approved = f"#{ap['id']} by {ap['by']}, {_when(ap['time'])}" if ap else "none"
+    drift = ("no approved set" if not ap else
+             f"{len(d['drift'])} changed: " + ", ".join(f"{r['name']} {r['approved']} -> {r['now']}" for r in d["drift"])
+             if d["drift"] else "none")
+    signed = "signed" if d["signoff"] else "with the plant" if p and p.get("signoff") else "not signed"
+    return [d["device"] + (" (simulated)" if d.get("simulated") else ""), d["type"], runs, approved, drift, signed]
+
+
+SUMMARY_HEAD = ["Device", "Type", "Checkouts: last result, runs, who ran them", "Approved set", "Drift", "Sign-off"]
+
+
+def _rows_html(head: list[str], rows: list[list[Any]], classes: dict[int, Any] | None = None) -> str:
+    out = "<table><tr>" + "".join(f"<th>{_e(h)}</th>" for h in head) + "</tr>"
+    for r in rows:
+        out += "<tr>" + "".join(
+            f'<td class="{_e(classes[i](r))}">{_e(c)}</td>' if classes and i in classes else f"<td>{_e(c)}</td>"
+            for i, c in enumerate(r)) + "</tr>"
+    return out + "</table>"
+
+
+def _param_rows(rows: list[dict]) -> list[list[Any]]:
+    return [[r["name"], _with_unit(r["value"], r["unit"]), r["approved"], r["verdict"]] for r in rows]
+
+
+def _verdict_class(r: list[Any]) -> str:
+    return str(r[-1]).replace(" ", "")
+
+
+def device_html(d: dict, plant_signoff: dict | None = None, *, appendix: bool = True) -> str:
+    """One device: its summary (identity, sign-off, drift, every checkout run); ``appendix``: its full
+    listings (settings, live values, each step with its evidence file, the audit rows) below."""
+    out = [f'<h2 id="{_e(d["device"])}">{_e(d["device"])} <small>({_e(d["type"])})</small></h2>']
+    if d.get("simulated"):
+        out.append(f'<div class="sim">{_e(SIMULATED_MARK)}</div>')
+    out.append(_signoff_html(d["signoff"], d["device"], plant_signoff))
     ident = {"type": d["type"], "bus": d["bus"], "address": d["address"], **d["identity"], "status": d["status"]}
     out.append("<table>" + "".join(f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in ident.items()) + "</table>")
     out.append(f"<p>{_e(commissioned_text(d, bool(plant_signoff)))}</p>")
     if d["drift"]:
         out.append('<p class="changed">Changed since approved: ' + _e(", ".join(f"{r['name']} {r['approved']} → {r['now']}" for r in d["drift"])) + "</p>")
     ap = d["approved"]
-    out.append("<h3>Parameters against the approved set</h3><p>" + (
+    changed = [r for r in d.get("settings", d["parameters"]) if r["verdict"] != "equal"]
+    out.append("<h3>Settings against the approved set</h3><p>" + (
         f"Approved set #{ap['id']} ({_e(ap['title'])}) by {_e(ap['by'])} on {_when(ap['time'])}. " if ap else "No approved set. ")
-        + _e(values_text(d)) + "</p>")
-    if d["parameters"]:
-        out.append("<table><tr><th>Parameter</th><th>As left</th><th>Approved</th><th></th></tr>" + "".join(
-            f'<tr><td>{_e(r["name"])}</td><td>{_e(_with_unit(r["value"], r["unit"]))}</td><td>{_e(r["approved"])}</td>'
-            f'<td class="{r["verdict"].replace(" ", "")}">{_e(r["verdict"])}</td></tr>' for r in d["parameters"]) + "</table>")
-    out.append("<h3>Checkouts</h3>")
+        + _e(values_text(d)) + (" Settings that differ:" if changed else " Every setting equals the approved set.") + "</p>")
+    if changed:
+        out.append(_rows_html(["Setting", "As left", "Approved", ""], _param_rows(changed), {3: _verdict_class}))
+    out.append("<h3>Checkout runs</h3>")
     if not d["checkouts"]:
         out.append("<p>No checkout run.</p>")
-    for c in d["checkouts"]:
-        out.append(f'<p><b>{_e(c["title"])}</b>: <span class="{c["status"].replace(" ", "")}">{_e(c["status"])}</span> '
-                   f'{_e(c["reason"])} — {_e(c["user"])}, {_when(c["time"])}, {c["duration_s"]} s (record #{c["id"]})</p>')
-        rows = []
-        for s in c["steps"]:
-            values = "; ".join(f'{v["name"]} = {v["value"]} {v["unit"]} ({v["limit"] or "recorded"}: {"ok" if v["ok"] else "FAIL"})'
-                               for v in s["values"])
-            answers = "; ".join(f'{a["question"]} {a["answer"]} ({a["by"]})' for a in s["answers"])
-            ev = s.get("evidence") or {}
-            n = len(ev.get("frames") or ev.get("transactions") or [])
-            rows.append(f'<tr><td>{_e(s["name"])}</td><td class="{s["status"].replace(" ", "")}">{_e(s["status"])}</td><td>{_e(s["limits"])}</td>'
-                        f'<td>{_e(values)}{"<br>" if values and answers else ""}{_e(answers)}{"<br>" + _e(s["reason"]) if s["reason"] else ""}</td>'
-                        f'<td>{n} {"frames" if ev.get("kind") == "can" else "transactions"}</td></tr>')
-        out.append("<table><tr><th>Step</th><th>Result</th><th>Limits</th><th>Measured, answers</th><th>Evidence</th></tr>"
-                   + "".join(rows) + "</table>")
-    out.append(f"<h3>Audit rows ({len(d['audit'])})</h3>")
-    if d["audit"]:
-        out.append("<table><tr><th>Time</th><th>User</th><th>Action</th><th>Parameter</th><th>Old → new</th><th>Result</th></tr>" + "".join(
-            f'<tr><td>{_when(a["time"])}</td><td>{_e(a["user"])} ({_e(a["role"])})</td><td>{_e(a["action"])}</td><td>{_e(a["parameter"])}</td>'
-            f'<td>{_e(a["old"])} → {_e(a["new"])}</td><td>{_e(a["result"])}</td></tr>' for a in d["audit"]) + "</table>")
+    else:
+        out.append(_rows_html(["Run", "Checkout", "Result", "Run by", "Time", "Duration"], [
+            [f"#{c['id']}", c["title"], c["status"] + (f": {c['reason']}" if c["reason"] else ""), c["user"], _when(c["time"]),
+             f"{c['duration_s']} s"] for c in d["checkouts"]], {2: lambda r: str(r[2]).split(":")[0].replace(" ", "")}))
+    if appendix:
+        out.append(appendix_html(d))
     return "\n".join(out)
 
 
+def appendix_html(d: dict) -> str:
+    out = [f"<h3>Appendix {_e(d['device'])}: settings</h3>"]
+    out.append(_rows_html(["Setting", "As left", "Approved", ""], _param_rows(d.get("settings", [])), {3: _verdict_class})
+               if d.get("settings") else "<p>No settings read.</p>")
+    out.append(f"<h3>Appendix {_e(d['device'])}: live values (read with the set; states and measurements, no settings)</h3>")
+    out.append(_rows_html(["Value", "As read", "At approval", ""], _param_rows(d.get("live_values", [])), {3: _verdict_class})
+               if d.get("live_values") else "<p>No live values read.</p>")
+    for c in d["checkouts"]:
+        out.append(f"<h3>Appendix {_e(d['device'])}: checkout run #{c['id']}, {_e(c['title'])}: {_e(c['status'])}</h3>"
+                   f"<p>Run by {_e(c['user'])} on {_when(c['time'])} in {c['duration_s']} s.</p>")
+        rows = []
+        for s in c["steps"]:
+            detail = "; ".join([measured_text(v) for v in s["values"]] + [f'{a["question"]} {a["answer"]} ({a["by"]})' for a in s["answers"]]
+                               + ([s["reason"]] if s["reason"] else []))
+            rows.append([s["name"], s["status"], s["limits"], detail, evidence_text(s)])
+        out.append(_rows_html(["Step", "Result", "Limits", "Measured, answers", "Evidence file"], rows,
+                              {1: lambda r: str(r[1]).replace(" ", "")}))
+    out.append(f"<h3>Appendix {_e(d['device'])}: audit rows ({len(d['audit'])})</h3>")
+    if d["audit"]:
+        out.append(_rows_html(["Time", "User", "Action", "Parameter", "Old → new", "Result"], [
+            [_when(a["time"]), f'{a["user"]} ({a["role"]})', a["action"], a["parameter"], f'{a["old"]} → {a["new"]}', a["result"]]
+            for a in d["audit"]]))
+    return "\n".join(out)
+
+
+def cover_lines(p: dict) -> list[str]:
+    """The cover's facts: when, with which version, from which plant file, and the record's check."""
+    pf = p.get("plant_file") or {}
+    plant_line = (f"Plant file {pf['path']}, SHA-256 {pf['sha256']}" if pf.get("sha256") else
+                  f"Plant file {pf['path']}: not readable ({pf.get('error', '')})" if pf.get("path") else "Plant file: none (plant given without a file)")
+    check = p.get("record_check") or {}
+    head = check.get("head")
+    lines = [f"Generated {_when(p['generated'])} with {p.get('tool', 'commission')}.", plant_line]
+    if check:
+        lines.append(f"Record check: {'intact' if check['ok'] else 'ALTERED'}" + (
+            f"; last row #{head['id']}, hash {head['hash']}" if head else ""))
+    return lines
+
+
+def altered_text(p: dict) -> str:
+    check = p.get("record_check") or {}
+    if check.get("ok", True):
+        return ""
+    return "The record was altered outside the program: " + "; ".join(check["problems"])
+
+
 def _checkout_summary(d: dict) -> str:
-    return ", ".join(f"{c['title']}: {c['status']}" for c in d["checkouts"]) or "none"
+    return ", ".join(f"{c['title']}: {c['last']}" for c in d.get("checkout_summary", [])) or "none"
 
 
 def _signed_word(d: dict, p: dict) -> str:
@@ -213,16 +378,16 @@ def _signed_word(d: dict, p: dict) -> str:
 
 
 def plant_html(p: dict) -> str:
-    summary = "".join(
-        f'<tr><td><a href="#{_e(d["device"])}">{_e(d["device"])}</a></td><td>{_e(d["type"])}</td>'
-        f'<td>{_e(_checkout_summary(d))}</td>'
-        f'<td>{d["counts"]["changed"]} changed, {d["counts"]["not approved"]} not approved</td>'
-        f'<td>{_signed_word(d, p)}</td></tr>' for d in p["devices"])
+    sim = f'<div class="sim every">{_e(SIMULATED_MARK)}: {_e(", ".join(p["simulated"]))}</div>' if p.get("simulated") else ""
+    altered = f'<div class="altered">{_e(altered_text(p))}</div>' if altered_text(p) else ""
+    rows = [summary_rows(d, p) for d in p["devices"]]
+    summary = _rows_html(SUMMARY_HEAD, rows)
     return (f"<!doctype html><html><head><meta charset='utf-8'><title>As-left report {_e(p['plant'])}</title><style>{CSS}</style></head><body>"
-            f"<h1>As-left report: plant {_e(p['plant'])}</h1><p>Generated {_when(p['generated'])} by commission.</p>"
-            + _signoff_html(p["signoff"], f"Plant {p['plant']}")
-            + "<table><tr><th>Device</th><th>Type</th><th>Checkouts</th><th>Parameters</th><th>Sign-off</th></tr>" + summary + "</table>"
-            + "".join(device_html(d, p["signoff"]) for d in p["devices"]) + "</body></html>")
+            + sim + f"<h1>As-left report: plant {_e(p['plant'])}</h1>" + altered
+            + "".join(f"<p>{_e(line)}</p>" for line in cover_lines(p))
+            + _signoff_html(p["signoff"], f"Plant {p['plant']}") + summary
+            + "".join(device_html(d, p["signoff"], appendix=False) for d in p["devices"])
+            + "<h2>Appendix: full listings</h2>" + "".join(sim + appendix_html(d) for d in p["devices"]) + "</body></html>")
 
 
 # -- PDF (ReportLab, from the same content) ----------------------------------------------------------
@@ -235,63 +400,89 @@ def plant_pdf(p: dict) -> bytes:
 
     styles = getSampleStyleSheet()
     small = styles["BodyText"].clone("small", fontSize=7.5, leading=9)
+    mono = styles["BodyText"].clone("mono", fontName="Courier", fontSize=6.5, leading=8)
+    warn = styles["BodyText"].clone("warn", textColor=colors.HexColor("#b71c1c"), fontName="Helvetica-Bold")
     buf = io.BytesIO()
-    doc = SimpleDocTemplate(buf, pagesize=A4, leftMargin=14 * mm, rightMargin=14 * mm, topMargin=14 * mm, bottomMargin=14 * mm,
-                            title=f"As-left report {p['plant']}", author="commission")
+    doc = SimpleDocTemplate(buf, pagesize=A4, leftMargin=14 * mm, rightMargin=14 * mm, topMargin=18 * mm, bottomMargin=16 * mm,
+                            title=f"As-left report {p['plant']}", author=p.get("tool", "commission"))
     width = A4[0] - 28 * mm
+    simulated = bool(p.get("simulated"))
+
+    def every_page(canvas, document) -> None:  # the simulated mark on every page, the page number at the foot
+        canvas.saveState()
+        if simulated:
+            canvas.setFillColor(colors.HexColor("#fff3cd"))
+            canvas.rect(14 * mm, A4[1] - 13 * mm, width, 7 * mm, fill=1, stroke=0)
+            canvas.setFillColor(colors.HexColor("#5d4200"))
+            canvas.setFont("Helvetica-Bold", 9)
+            canvas.drawCentredString(A4[0] / 2, A4[1] - 10.8 * mm, SIMULATED_MARK)
+        canvas.setFillColor(colors.grey)
+        canvas.setFont("Helvetica", 7)
+        canvas.drawString(14 * mm, 8 * mm, f"As-left report {p['plant']}, {_when(p['generated'])}")
+        canvas.drawRightString(A4[0] - 14 * mm, 8 * mm, f"page {document.page}")
+        canvas.restoreState()
 
     def para(text: Any, style=small) -> Paragraph:
         return Paragraph(_e(text), style)
 
-    def table(rows: list[list[Any]], widths: list[float]) -> Table:
-        t = Table([[para(c) for c in r] for r in rows], colWidths=[w * width for w in widths], repeatRows=1)
+    def table(rows: list[list[Any]], widths: list[float], style=small) -> Table:
+        t = Table([[para(c, style if i else small) for i, c in enumerate(r)] for r in rows], colWidths=[w * width for w in widths], repeatRows=1)
         t.setStyle(TableStyle([("GRID", (0, 0), (-1, -1), 0.3, colors.grey), ("BACKGROUND", (0, 0), (-1, 0), colors.whitesmoke),
                                ("VALIGN", (0, 0), (-1, -1), "TOP")]))
         return t
 
     def sig(s: dict | None, what: str) -> Paragraph:
-        if not s and p.get("signoff") and what != f"Plant {p['plant']}":
-            return para(f"{what}: no sign-off of its own; signed with the plant (record #{p['signoff']['id']})", styles["BodyText"])
-        if not s:
-            return para(f"{what}: not signed", styles["BodyText"])
-        return para(f"{what} signed by {s['name']} ({s['role']}) on {_when(s['time'])}. Comment: {s['comment']}. "
-                    f"Record #{s['id']}, SHA-256 {s['sha256'][:16]}", styles["BodyText"])
+        plant = p.get("signoff") if what != f"Plant {p['plant']}" else None
+        return para(signoff_text(s, what, plant), styles["BodyText"])
 
-    story: list = [Paragraph(_e(f"As-left report: plant {p['plant']}"), styles["Title"]),
-                   para(f"Generated {_when(p['generated'])} by commission.", styles["BodyText"]), sig(p["signoff"], f"Plant {p['plant']}"),
-                   Spacer(1, 4 * mm)]
-    story.append(table([["Device", "Type", "Checkouts", "Parameters", "Sign-off"]] + [
-        [d["device"], d["type"], ", ".join(f"{c['title']}: {c['status']}" for c in d["checkouts"]) or "none",
-         f"{d['counts']['changed']} changed, {d['counts']['not approved']} not approved", _signed_word(d, p)]
-        for d in p["devices"]], [0.18, 0.1, 0.37, 0.22, 0.13]))
+    story: list = [Paragraph(_e(f"As-left report: plant {p['plant']}"), styles["Title"])]
+    if altered_text(p):
+        story.append(para(altered_text(p), warn))
+    story += [para(line, styles["BodyText"]) for line in cover_lines(p)]
+    story += [sig(p["signoff"], f"Plant {p['plant']}"), Spacer(1, 4 * mm),
+              table([SUMMARY_HEAD] + [summary_rows(d, p) for d in p["devices"]], [0.13, 0.08, 0.37, 0.16, 0.14, 0.12])]
+    story.append(para("Each device follows on its own page; the full listings (settings, live values, every step with its "
+                      "evidence file and SHA-256, audit rows) are in the appendix.", small))
     for d in p["devices"]:
         story += [PageBreak(), Paragraph(_e(f"{d['device']} ({d['type']})"), styles["Heading2"]), sig(d["signoff"], d["device"])]
         ident = {"type": d["type"], "bus": d["bus"], "address": d["address"], **d["identity"], "status": d["status"]}
         story.append(table([["Identity", ""]] + [[k, v] for k, v in ident.items()], [0.3, 0.7]))
         story.append(para(commissioned_text(d, bool(p.get("signoff")))))
         if d["drift"]:
-            story.append(para("Changed since approved: " + ", ".join(f"{r['name']} {r['approved']} -> {r['now']}" for r in d["drift"])))
-        story.append(Paragraph("Parameters against the approved set", styles["Heading3"]))
-        story.append(para(values_text(d)))
-        if d["parameters"]:
-            story.append(table([["Parameter", "As left", "Approved", "Verdict"]] + [
-                [r["name"], _with_unit(r["value"], r["unit"]), r["approved"], r["verdict"]] for r in d["parameters"]],
-                [0.4, 0.25, 0.2, 0.15]))
-        story.append(Paragraph("Checkouts", styles["Heading3"]))
+            story.append(para("Changed since approved: " + ", ".join(f"{r['name']} {r['approved']} -> {r['now']}" for r in d["drift"]), warn))
+        story.append(Paragraph("Settings against the approved set", styles["Heading3"]))
+        changed = [r for r in d.get("settings", []) if r["verdict"] != "equal"]
+        story.append(para(values_text(d) + (" Settings that differ:" if changed else " Every setting equals the approved set.")))
+        if changed:
+            story.append(table([["Setting", "As left", "Approved", "Verdict"]] + _param_rows(changed), [0.4, 0.25, 0.2, 0.15]))
+        story.append(Paragraph("Checkout runs", styles["Heading3"]))
+        if not d["checkouts"]:
+            story.append(para("No checkout run."))
+        else:
+            story.append(table([["Run", "Checkout", "Result", "Run by", "Time", "Duration"]] + [
+                [f"#{c['id']}", c["title"], c["status"] + (f": {c['reason']}" if c["reason"] else ""), c["user"], _when(c["time"]),
+                 f"{c['duration_s']} s"] for c in d["checkouts"]], [0.07, 0.2, 0.37, 0.12, 0.15, 0.09]))
+    story += [PageBreak(), Paragraph("Appendix: full listings", styles["Heading1"])]
+    for d in p["devices"]:
+        story.append(Paragraph(_e(f"{d['device']} ({d['type']}): settings"), styles["Heading3"]))
+        story.append(table([["Setting", "As left", "Approved", "Verdict"]] + _param_rows(d.get("settings", [])), [0.4, 0.25, 0.2, 0.15])
+                     if d.get("settings") else para("No settings read."))
+        story.append(Paragraph(_e(f"{d['device']}: live values (states and measurements, no settings)"), styles["Heading3"]))
+        story.append(table([["Value", "As read", "At approval", "Verdict"]] + _param_rows(d.get("live_values", [])), [0.4, 0.25, 0.2, 0.15])
+                     if d.get("live_values") else para("No live values read."))
         for c in d["checkouts"]:
-            story.append(para(f"{c['title']}: {c['status'].upper()} {c['reason']} - {c['user']}, {_when(c['time'])}, {c['duration_s']} s"))
-            story.append(table([["Step", "Result", "Measured, answers", "Evidence"]] + [
+            story.append(Paragraph(_e(f"{d['device']}: checkout run #{c['id']}, {c['title']}: {c['status']}"), styles["Heading3"]))
+            story.append(para(f"Run by {c['user']} on {_when(c['time'])} in {c['duration_s']} s."))
+            story.append(table([["Step", "Result", "Measured, answers", "Evidence file, SHA-256"]] + [
                 [s["name"], s["status"] + (f": {s['reason']}" if s["reason"] else ""),
-                 "; ".join(f"{v['name']} = {v['value']} {v['unit']} ({v['limit'] or 'recorded'}: {'ok' if v['ok'] else 'FAIL'})" for v in s["values"])
-                 + "".join(f"; {a['question']} {a['answer']} ({a['by']})" for a in s["answers"]),
-                 str(len((s.get("evidence") or {}).get("frames") or (s.get("evidence") or {}).get("transactions") or []))]
-                for s in c["steps"]], [0.2, 0.2, 0.5, 0.1]))
+                 "; ".join([measured_text(v) for v in s["values"]] + [f"{a['question']} {a['answer']} ({a['by']})" for a in s["answers"]]),
+                 evidence_text(s)] for s in c["steps"]], [0.18, 0.2, 0.34, 0.28]))
         if d["audit"]:
-            story.append(Paragraph(f"Audit rows ({len(d['audit'])})", styles["Heading3"]))
+            story.append(Paragraph(_e(f"{d['device']}: audit rows ({len(d['audit'])})"), styles["Heading3"]))
             story.append(table([["Time", "User", "Action", "Parameter", "Old -> new", "Result"]] + [
                 [_when(a["time"]), a["user"], a["action"], a["parameter"], f"{a['old']} -> {a['new']}", a["result"]] for a in d["audit"]],
                 [0.15, 0.1, 0.2, 0.15, 0.2, 0.2]))
-    doc.build(story)
+    doc.build(story, onFirstPage=every_page, onLaterPages=every_page)
     return buf.getvalue()
 
 
@@ -312,13 +503,16 @@ def can_trace(frames: list[dict], suffix: str, channel: str) -> bytes:
 
 
 def serial_trace(rows: list[dict]) -> bytes:
-    return "".join(f"{_when(r['t'])}.{int(r['t'] * 1000) % 1000:03d} TX {r['tx']} RX {r['rx']} {r['decoded']} {r['error']}\n"
-                   for r in rows).encode()
+    """Serial, Modbus and LogiTed transactions as text, one a line, times in UTC (the same bytes wherever made)."""
+    def utc(t: float) -> str:
+        return datetime.fromtimestamp(t, timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
+
+    return "".join(f"{utc(r['t'])} TX {r['tx']} RX {r['rx']} {r['decoded']} {r['error']}\n" for r in rows).encode()
 
 
 async def write_plant(runtime, out_dir: Path, content: dict | None = None, *, user: str = "local", role: str = "engineer") -> dict[str, Path]:
     """report.html, report.pdf and the archive (reports, approved sets and snapshots as backup files,
-    evidence traces) of the plant into ``out_dir``; returns the paths."""
+    evidence traces, the record's chain and a manifest of every file's SHA-256) into ``out_dir``."""
     content = content or await plant_content(runtime, user=user, role=role)
     snapshots = {}
     for d in content["devices"]:
@@ -326,7 +520,12 @@ async def write_plant(runtime, out_dir: Path, content: dict | None = None, *, us
             entry = await runtime.record.store.run(runtime.record.store.latest, runtime.record.plant, d["device"], kind)
             if entry is not None:
                 snapshots[f"backups/{d['device']}-{kind}.json"] = json.dumps(_as_backup(runtime, d, entry), indent=1, ensure_ascii=False)
-    return await asyncio.to_thread(_write_files, out_dir, content, snapshots)
+    chain = await runtime.record.store.run(runtime.record.store.chain_rows)
+    raw = {}
+    for d in content["devices"]:  # the evidence as the checkout rows hold it (the content keeps only its file names)
+        for entry in await runtime.record.timeline(d["device"], ("checkout",)):
+            raw[entry.id] = entry.data.get("steps", [])
+    return await asyncio.to_thread(_write_files, out_dir, content, snapshots, chain, raw)
 
 
 def _as_backup(runtime, d: dict, entry) -> dict:
@@ -338,7 +537,8 @@ def _as_backup(runtime, d: dict, entry) -> dict:
                          user=entry.user, role=entry.role)
 
 
-def _write_files(out_dir: Path, content: dict, backups: dict[str, str]) -> dict[str, Path]:
+def _write_files(out_dir: Path, content: dict, backups: dict[str, str], chain: list[dict] | None = None,
+                 raw_steps: dict[int, list] | None = None) -> dict[str, Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     name = f"{content['plant']}-as-left"
     html_text = plant_html(content)
@@ -346,24 +546,36 @@ def _write_files(out_dir: Path, content: dict, backups: dict[str, str]) -> dict[
     paths = {"html": out_dir / f"{name}.html", "pdf": out_dir / f"{name}.pdf", "zip": out_dir / f"{name}.zip"}
     _atomic(paths["html"], html_text.encode())
     _atomic(paths["pdf"], pdf)
+    files: dict[str, bytes] = {f"{name}.html": html_text.encode(), f"{name}.pdf": pdf,
+                               f"{name}.json": json.dumps(content, indent=1, ensure_ascii=False, default=str).encode()}
+    files.update((path, text.encode()) for path, text in backups.items())
+    for d in content["devices"]:
+        for c in d["checkouts"]:
+            for n, s in enumerate(c["steps"], 1):
+                ev = (raw_steps or {}).get(c["id"], c["steps"])[n - 1].get("evidence") or s.get("evidence") or {}
+                made = evidence_file(d["device"], d["bus"], c["id"], n, ev)
+                if made is not None:
+                    files[made[0]] = made[1]
+                if ev.get("kind") == "can" and ev.get("frames"):
+                    files[made[0].removesuffix(".log") + ".trc"] = can_trace(ev["frames"], ".trc", d["bus"])
+    if chain is not None:
+        files[CHAIN] = "".join(json.dumps(r, ensure_ascii=False, sort_keys=True) + "\n" for r in chain).encode()
+    check = content.get("record_check") or {}
+    manifest = {"format": 1, "plant": content["plant"], "generated": content["generated"], "tool": content.get("tool"),
+                "plant_file": content.get("plant_file"), "simulated": content.get("simulated", []),
+                "chain": {"rows": len(chain or []), "head": None if not chain else {"id": chain[-1]["id"], "hash": chain[-1]["hash"]}},
+                "record_altered": check.get("problems", []),
+                "signoff": content.get("signoff") and {k: content["signoff"].get(k) for k in ("id", "account", "name", "sha256", "row_hash")},
+                "files": {path: {"sha256": sha256(data), "bytes": len(data)} for path, data in files.items()},
+                "check": "commission verify ARCHIVE (app/verify.py describes every rule)"}
+    manifest_bytes = json.dumps(manifest, indent=1, ensure_ascii=False, default=str).encode()
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as archive:
-        archive.writestr(f"{name}.html", html_text)
-        archive.writestr(f"{name}.pdf", pdf)
-        archive.writestr(f"{name}.json", json.dumps(content, indent=1, ensure_ascii=False, default=str))
-        for path, text in backups.items():
-            archive.writestr(path, text)
-        for d in content["devices"]:
-            for c in d["checkouts"]:
-                for n, s in enumerate(c["steps"], 1):
-                    ev = s.get("evidence") or {}
-                    stem = f"evidence/{d['device']}/checkout-{c['id']}-step{n}"
-                    if ev.get("kind") == "can" and ev.get("frames"):
-                        archive.writestr(f"{stem}.log", can_trace(ev["frames"], ".log", d["bus"]))
-                        archive.writestr(f"{stem}.trc", can_trace(ev["frames"], ".trc", d["bus"]))
-                    elif ev.get("transactions"):
-                        archive.writestr(f"{stem}.txt", serial_trace(ev["transactions"]))
-    _atomic(paths["zip"], buf.getvalue())
+        archive.writestr(MANIFEST, manifest_bytes)
+        archive.writestr(MANIFEST_SUM, manifest_sum(manifest_bytes))
+        for path, data in files.items():
+            archive.writestr(path, data)
+    _atomic(paths["zip"], seal_archive(buf.getvalue()))
     return paths
 
 

@@ -201,6 +201,58 @@ def manifest_sum(manifest: bytes) -> bytes:
     return f"{sha256(manifest)}  {MANIFEST}\n".encode()
 
 
+def _eocd(data: bytes) -> int:
+    """Offset of the zip's end-of-central-directory record (-1: none)."""
+    return data.rfind(b"PK\x05\x06", max(0, len(data) - 22 - 65535))
+
+
+def _spans(data: bytes, end: int) -> list[tuple[str, int, int]]:
+    """Each member's stored bytes (local header and data) as (name, start, end), and the central directory."""
+    archive = zipfile.ZipFile(io.BytesIO(data))
+    cd_start = int.from_bytes(data[end + 16:end + 20], "little")
+    infos = sorted(archive.infolist(), key=lambda i: i.header_offset)
+    starts = [i.header_offset for i in infos] + [cd_start]
+    return [(i.filename, starts[n], starts[n + 1]) for n, i in enumerate(infos)] + [("(the archive's directory)", cd_start, end + 20)]
+
+
+def seal_archive(data: bytes) -> bytes:
+    """The archive with a comment holding the SHA-256 of each member's stored bytes and of every byte
+    of the archive but the comment with those: one byte changed anywhere (also in a header, or in padding that does not change
+    what unpacks) is found, and the member it lies in named."""
+    end = _eocd(data)
+    spans = _spans(data, end)
+    placeholder = {"sha256": "0" * 64, "spans": {name: "0" * 64 for name, _a, _b in spans}}
+    length = len(json.dumps(placeholder, separators=(",", ":")).encode())
+    head = data[:end + 20] + length.to_bytes(2, "little")
+    sealed = {name: sha256(data[a:b]) for name, a, b in spans}
+    comment = {"sha256": sha256(head + json.dumps(sealed, separators=(",", ":")).encode()), "spans": sealed}
+    return head + json.dumps(comment, separators=(",", ":")).encode()
+
+
+def _check_seal(data: bytes, check: Check) -> None:
+    end = _eocd(data)
+    if end < 0:
+        check.problems.append("the archive's directory is missing: it was altered")
+        return
+    try:
+        seal = json.loads(data[end + 22:])
+        spans = _spans(data, end)
+    except Exception:  # noqa: BLE001 - an altered directory breaks the zip reader in many ways
+        check.problems.append("the archive's seal (its comment) was altered or removed")
+        return
+    if isinstance(seal, dict) and sha256(data[:end + 22] + json.dumps(seal.get("spans"), separators=(",", ":")).encode()) == seal.get("sha256"):
+        return
+    if not isinstance(seal, dict) or not isinstance(seal.get("spans"), dict):
+        check.problems.append("the archive's seal (its comment) was altered or removed")
+        return
+    for name, a, b in spans:
+        if seal.get("spans", {}).get(name) != sha256(data[a:b]):
+            check.problems.append(f"file {name} was altered: its stored bytes are not the ones sealed when the archive was made"
+                                  if not name.startswith("(") else f"{name} was altered")
+            return
+    check.problems.append("the archive was altered: its bytes are not the ones sealed when it was made")
+
+
 def check_archive(path: Path) -> Check:
     """Check an as-left archive: its manifest, every file against the manifest, the record chain it
     carries, the sign-offs, and that the chain it carries is the one the manifest names."""
@@ -209,9 +261,11 @@ def check_archive(path: Path) -> Check:
         data = path.read_bytes()
         archive = zipfile.ZipFile(io.BytesIO(data))
         names = archive.namelist()
-    except (OSError, zipfile.BadZipFile) as exc:
+    except Exception as exc:  # noqa: BLE001 - an altered archive breaks the zip reader in many ways
         check.problems.append(f"{path} is no readable archive ({exc}): it was altered or is not an as-left archive")
         return check
+    sealed = Check(check.what)
+    _check_seal(data, sealed)
     contents: dict[str, bytes] = {}
     for name in names:
         try:
@@ -251,6 +305,8 @@ def check_archive(path: Path) -> Check:
         check.problems += [f"in {CHAIN}: {p}" for p in chain.problems]
         check.notes += chain.notes
         check.rows, check.head = chain.rows, chain.head
+    check.problems += [p for p in sealed.problems if p not in check.problems and not any(
+        p.split(" was altered")[0] == q.split(" was altered")[0] for q in check.problems)]
     if manifest.get("simulated"):
         check.notes.append("made on simulated devices: " + ", ".join(manifest["simulated"]))
     for problem in manifest.get("record_altered", []):

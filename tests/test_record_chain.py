@@ -175,18 +175,13 @@ async def test_archive_verifies_and_one_byte_changed_names_the_file(tmp_path):
     check = check_archive(forged)
     assert check.problems[0] == "file record/chain.jsonl was altered: its SHA-256 is not the one in the manifest", check.problems
 
-    # every byte of the archive's file data, changed one at a time, is found (a sample of offsets)
+    # any byte of the archive changed (file data, the deflate stream's padding, headers, the directory): found
     clean = archive.read_bytes()
-    with zipfile.ZipFile(archive) as z:
-        spans = [(i.header_offset + 30 + len(i.filename.encode()) + len(i.extra), i.compress_size) for i in z.infolist()]
-    for start, size in spans:
-        for offset in (start, start + size // 3, start + size - 1):
-            if size == 0:
-                continue
-            changed = bytearray(clean)
-            changed[offset] ^= 0x40
-            bad.write_bytes(bytes(changed))
-            assert not check_archive(bad).ok, offset
+    for offset in [*range(0, len(clean), max(1, len(clean) // 400)), len(clean) - 1]:
+        changed = bytearray(clean)
+        changed[offset] ^= 0x40
+        bad.write_bytes(bytes(changed))
+        assert not check_archive(bad).ok, offset
 
 
 async def test_a_record_changed_from_outside_is_reported_altered_by_verify_and_the_report(tmp_path):
