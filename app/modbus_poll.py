@@ -47,6 +47,12 @@ MAX_WINDOWS = 8  # poll windows of one page: each adds a request per period to t
 BACKOFF_MAX_S = 5.0  # a window whose unit stays silent tries again at most this far apart
 
 
+def count_range(function: int) -> tuple[int, int]:
+    """How many values one read of ``function`` may ask for: 01/02 1..2000 bits, 03/04 1..125 registers
+    (Modbus application protocol 6.1-6.4)."""
+    return 1, MAX_BITS if function in (1, 2) else MAX_REGISTERS
+
+
 class PollError(ValueError):
     """An entry that cannot be polled or written, or a write refused before anything was sent."""
 
@@ -68,9 +74,10 @@ class PollSpec:
             raise PollError(f"unit address {self.unit} is outside {UNIT_MIN}..{UNIT_MAX}")
         if self.function not in FUNCTIONS:
             raise PollError(f"function {self.function:02d} is not one of 01, 02, 03, 04")
-        limit = MAX_BITS if self.function in (1, 2) else MAX_REGISTERS
-        if not 1 <= self.count <= limit:
-            raise PollError(f"count {self.count} is outside 1..{limit} for function {self.function:02d}")
+        low, limit = count_range(self.function)
+        if not low <= self.count <= limit:
+            raise PollError(f"count {self.count} is outside {low}..{limit} for function {self.function:02d} "
+                            f"({FUNCTIONS[self.function][3:]})")
         if not 0 <= self.address <= 0xFFFF or self.address + self.count > 0x10000:
             raise PollError(f"addresses {self.address}..{self.address + self.count - 1} do not fit 0..65535")
         if not PERIOD_MIN_S <= self.period_s <= PERIOD_MAX_S:

@@ -193,7 +193,7 @@ class WindowCard:
                 self.base = ui.select(BASES, value=pick("base", 0, BASES), label="Addresses").props(
                     "dense outlined").classes("w-64")
                 self.start = _address_field("Start address", pick("start", 1000), self.base).classes("w-36")
-                self.count = range_number("Count", 1, 2000, integer=True, value=pick("count", 10)).classes("w-32")
+                self.count = _count_field(pick("count", 10), self.function).classes("w-32")
                 self.period = range_number("Period s", mp.PERIOD_MIN_S, mp.PERIOD_MAX_S, unit="s",
                                            value=pick("period", 1.0), step=0.1).classes("w-32")
                 self.run_button = ui.button("Poll", icon="play_arrow", on_click=lambda: self.run()).props(
@@ -412,6 +412,35 @@ def _view(runtime, bus: str) -> None:
     WriteCard(view).build()
     ui.timer(REFRESH_S, view.tick)
     background_tasks.create(view.restore(), name=f"modbus poll windows {bus}")
+
+
+def _count_field(value: int, function) -> ui.number:
+    """The count entry, its range that of the chosen function (01/02: 1 .. 2000 bits, 03/04: 1 .. 125
+    registers, :func:`app.modbus_poll.count_range`), checked in the field before Poll sends anything."""
+
+    def limits() -> tuple[int, int]:
+        return mp.count_range(int(function.value or 3))
+
+    def check(v) -> str | None:
+        if v is None:
+            return None
+        low, high = limits()
+        rule = f"{range_text(low, high)} for {mp.FUNCTIONS.get(int(function.value or 3), 'this function')}"
+        if float(v) != int(float(v)):
+            return f"whole numbers only, {rule}"
+        return None if low <= float(v) <= high else f"out of range: {rule}"
+
+    field = ui.number("Count", value=value, validation=check).props("dense outlined")
+
+    def show_range() -> None:
+        field.rule = range_text(*limits())  # type: ignore[attr-defined]
+        field.props(f'hint="{field.rule}"')
+        if field.value is not None:
+            field.validate()
+
+    show_range()
+    function.on_value_change(lambda _: show_range())
+    return field
 
 
 def _address_field(label: str, value: int, base) -> ui.number:
