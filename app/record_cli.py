@@ -1,5 +1,8 @@
-"""The commissioning record without a browser: ``commission approve``, ``commission checkout`` and
-``commission sign``.
+"""The commissioning record without a browser: ``commission approve``, ``commission checkout``,
+``commission sign`` and ``commission verify`` (app/verify.py).
+
+An approval and a sign-off name an engineer account (``--account NAME``, its password asked as at a
+login): who approved and who signed is an account, not only a typed name.
 
 Each command starts the plant (with its simulated devices unless ``--no-sim``), waits for the
 devices to come online and acts through the same record service as the record page
@@ -24,7 +27,7 @@ import uuid
 from pathlib import Path
 from typing import Any
 
-from app.record import StepFailed, checkout_module
+from app.record import RecordError, StepFailed, checkout_module
 
 SIGNER_ROLE = "commissioning engineer"
 
@@ -38,6 +41,12 @@ def _common(parser: argparse.ArgumentParser) -> None:
                         help="data folder with the record (default: ~/.local/share/commission)")
 
 
+def _account(parser: argparse.ArgumentParser, what: str) -> None:
+    parser.add_argument("--account", required=True, metavar="NAME",
+                        help=f"the engineer account that {what} (its password is asked on the terminal, or read from "
+                             "standard input when that is no terminal)")
+
+
 def _devices(parser: argparse.ArgumentParser, what: str) -> None:
     parser.add_argument("--device", action="append", default=[], metavar="NAME", help=f"device to {what} (repeatable)")
     parser.add_argument("--all", action="store_true", help=f"{what} every device of the plant")
@@ -47,6 +56,7 @@ def add_parsers(sub) -> None:
     approve = sub.add_parser("approve", help="store the approved parameter set of devices as read now, headless")
     _common(approve)
     _devices(approve, "approve")
+    _account(approve, "approves")
     approve.set_defaults(func=run_approve)
 
     checkout = sub.add_parser("checkout", help="run the declared checkout of devices, headless; exit code 0 only when all passed")
@@ -70,6 +80,9 @@ def add_parsers(sub) -> None:
     sign.add_argument("--comment", default="", help="free comment of the sign-off")
     sign.add_argument("--signer-role", default=SIGNER_ROLE, help=f"the signer's role as written in the record (default: {SIGNER_ROLE})")
     sign.add_argument("--device", default=None, metavar="NAME", help="sign this device's record instead of the plant's")
+    _account(sign, "signs")
+    sign.add_argument("--yes", action="store_true", help="sign even when devices have no checkout, a failed one or "
+                                                         "settings not approved (they are listed either way)")
     sign.set_defaults(func=run_sign)
 
     from app import verify
@@ -81,6 +94,35 @@ def _cli_user() -> str:
     from app.headless import _cli_user
 
     return _cli_user()
+
+
+def read_password(account: str) -> str:
+    """The account's password: asked on the terminal, or the first line of standard input."""
+    import getpass
+
+    if sys.stdin is not None and sys.stdin.isatty():
+        return getpass.getpass(f"password of {account}: ")
+    return (sys.stdin.readline() if sys.stdin is not None else "").rstrip("\n")
+
+
+async def login_account(runtime, account: str, password: str, *, out=print) -> str | None:
+    """The named engineer account for a sign-off or an approval, checked as a login (throttled and
+    audited like the web login); None after saying why not."""
+    from app.auth import check_login
+
+    if not runtime.users.has_engineer():
+        out("commission: there is no engineer account yet: create one with 'commission user add NAME --role engineer' "
+            "and give it with --account NAME")
+        return None
+    user, words = await check_login(throttle=runtime.login_throttle, users=runtime.users, audit=runtime.audit, typed=account,
+                                    secret=password, address="command line", via="cli")
+    if user is None:
+        out(f"commission: {words} for account {account!r}: nothing was signed or approved")
+        return None
+    if user.role != "engineer":
+        out(f"commission: {account} has the {user.role} role: only an engineer account signs or approves")
+        return None
+    return user.name
 
 
 def _chosen(runtime, args) -> list[str]:
@@ -123,7 +165,7 @@ def _run_plant(args, work) -> int:
 
 
 # -- approve ------------------------------------------------------------------------------------
-async def approve_devices(runtime, names: list[str], *, user: str, role: str, out=print) -> int:
+async def approve_devices(runtime, names: list[str], *, user: str, role: str, out=print, account: str = "") -> int:
     from app.backup import nothing_to_back_up
 
     failures = 0
@@ -138,7 +180,7 @@ async def approve_devices(runtime, names: list[str], *, user: str, role: str, ou
             failures += 1
             continue
         try:
-            entry_id = await runtime.record.approve(name, user=user, role=role)
+            entry_id = await runtime.record.approve(name, user=user, role=role, account=account)
         except PermissionError as exc:
             out(f"commission: {exc}")
             return 1
@@ -152,7 +194,15 @@ async def approve_devices(runtime, names: list[str], *, user: str, role: str, ou
 
 
 def run_approve(args) -> int:
-    return _run_plant(args, lambda runtime, names: approve_devices(runtime, names, user=_cli_user(), role="engineer"))
+    password = read_password(args.account)
+
+    async def work(runtime, names: list[str]) -> int:
+        account = await login_account(runtime, args.account, password)
+        if account is None:
+            return 1
+        return await approve_devices(runtime, names, user=_cli_user(), role="engineer", account=account)
+
+    return _run_plant(args, work)
 
 
 # -- checkout -----------------------------------------------------------------------------------
@@ -374,9 +424,11 @@ def run_checkout(args) -> int:
 
 # -- sign ---------------------------------------------------------------------------------------
 async def sign_record(runtime, *, user: str, role: str, name: str, comment: str, signer_role: str = SIGNER_ROLE,
-                      device: str | None = None, out=print) -> int:
-    """The sign-off of the plant (``device`` None) or of one device, as the record page's sign buttons do."""
-    from app.report import device_content, plant_content
+                      device: str | None = None, out=print, account: str = "", sign_anyway: bool = False) -> int:
+    """The sign-off of the plant (``device`` None) or of one device by a named ``account``, as the
+    record page's sign buttons do; devices without a checkout, with a failed one or with settings not
+    approved are listed, and nothing is signed unless ``sign_anyway``."""
+    from app.report import device_content, plant_content, sign_gaps
 
     if not name.strip():
         out("commission: a sign-off needs a name")
@@ -384,21 +436,37 @@ async def sign_record(runtime, *, user: str, role: str, name: str, comment: str,
     if role != "engineer":  # the page disables the button; the record service refuses as well
         out(f"commission: {user} has the {role or 'no'} role and may not add to the commissioning record")
         return 1
+    if not account:
+        out("commission: not signed: a sign-off needs a named account: give it with --account NAME (create one with "
+            "'commission user add NAME --role engineer')")
+        return 1
     try:
         content = await (device_content(runtime, device, user=user, role=role) if device
                          else plant_content(runtime, user=user, role=role))
+        gaps = sign_gaps(content)
+        if gaps:
+            out(("Signing anyway (--yes) although:" if sign_anyway else "Not signed: before signing, look at these:"))
+            for line in gaps:
+                out(f"  {line}")
+            if not sign_anyway:
+                out("Run the missing checkouts and approve the sets, or sign anyway with --yes.")
+                return 1
         entry_id = await runtime.record.sign(device or "", user=user, role=role, name=name.strip(), signer_role=signer_role,
-                                             comment=comment, content=content)
+                                             comment=comment, content=content, account=account)
     except PermissionError as exc:
         out(f"commission: {exc}")
         return 1
+    except RecordError as exc:
+        out(f"commission: not signed: {exc}")
+        return 1
     entry = await runtime.record.get(entry_id)
     what = f"device {device}" if device else f"plant {runtime.plant.name}"
-    out(f"{what}: signed by {name.strip()} ({signer_role}) as {user}, record {entry_id}, sha256 {entry.data['sha256'][:16]}...")
+    out(f"{what}: signed by {name.strip()} ({signer_role}) with account {account}, record {entry_id}, "
+        f"sha256 {entry.data['sha256'][:16]}...")
     if not device:
         for d in content["devices"]:
             counts = d["counts"]
-            checks = ", ".join(f"{c['title']}: {c['status']}" for c in d["checkouts"]) or "no checkout"
+            checks = ", ".join(f"{c['title']}: {c['last']} ({c['runs']} runs)" for c in d["checkout_summary"]) or "no checkout"
             out(f"  {d['device']}: {checks}; {counts['changed']} changed, {counts['not approved']} not approved")
     return 0
 
@@ -406,9 +474,13 @@ async def sign_record(runtime, *, user: str, role: str, name: str, comment: str,
 def run_sign(args) -> int:
     device = args.device
     args.device, args.all = ([device] if device else []), not device  # wait for the devices the content reads
+    password = read_password(args.account)
 
     async def work(runtime, _names) -> int:
+        account = await login_account(runtime, args.account, password)
+        if account is None:
+            return 1
         return await sign_record(runtime, user=_cli_user(), role="engineer", name=args.name, comment=args.comment,
-                                 signer_role=args.signer_role, device=device)
+                                 signer_role=args.signer_role, device=device, account=account, sign_anyway=args.yes)
 
     return _run_plant(args, work)

@@ -169,6 +169,27 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
     }
 
 
+def sign_gaps(content: dict) -> list[str]:
+    """What a signer is asked about before signing (a plant's or one device's content): devices with
+    no checkout, whose last checkout did not pass, without an approved set or with settings not
+    approved or changed since."""
+    gaps = []
+    for d in content.get("devices", [content]):
+        said = []
+        if not d["checkouts"]:
+            said.append("no checkout run")
+        said += [f"last {c['title']} {c['last']}" for c in d.get("checkout_summary", []) if c["last"] != "passed"]
+        if d["approved"] is None:
+            said.append("no approved set")
+        elif d["counts"].get("not approved"):
+            said.append(f"{d['counts']['not approved']} not approved")
+        if d["counts"].get("changed"):
+            said.append(f"{d['counts']['changed']} changed since approved")
+        if said:
+            gaps.append(f"{d['device']}: {', '.join(said)}")
+    return gaps
+
+
 def _signoff(entry) -> dict | None:
     if entry is None:
         return None

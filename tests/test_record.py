@@ -63,8 +63,9 @@ async def test_drift_in_the_api_snapshot_after_save_and_the_signed_report(tmp_pa
             await runtime.record.approve("door-1", user="tablet", role="viewer")
 
         content = await plant_content(runtime, user="anna")
+        runtime.users.add("anna", "engineer", "anna-password")  # a sign-off needs a named account
         await runtime.record.sign("", user="anna", role="engineer", name="Anna Berg", signer_role="commissioning engineer",
-                                  comment="door-1 delay raised on site", content=content)
+                                  comment="door-1 delay raised on site", content=content, account="anna")
         paths = await write_plant(runtime, tmp_path / "out")
         html = paths["html"].read_text()
         assert "LockRequestDelay" in html and "350 ms" in html and "changed" in html and "Anna Berg" in html

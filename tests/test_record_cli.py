@@ -28,9 +28,9 @@ def _plant(tmp_path: Path) -> Path:
     return path
 
 
-def _cli(tmp_path: Path, *args: str, stdin: str | None = None) -> subprocess.CompletedProcess:
+def _cli(tmp_path: Path, *args: str, stdin: str | None = None, plant: bool = True) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.run([sys.executable, "-m", "app.cli", *args, "--plant", str(tmp_path / "plant.toml"),
+    return subprocess.run([sys.executable, "-m", "app.cli", *args, *(("--plant", str(tmp_path / "plant.toml")) if plant else ()),
                            "--data-dir", str(tmp_path / "data")],
                           cwd=ROOT, env=env, input=stdin, capture_output=True, text=True, timeout=150)
 
@@ -42,7 +42,11 @@ def _rows(tmp_path: Path, kind: str) -> list[tuple]:
 
 def test_checkout_sign_and_a_fault_from_the_command_line(tmp_path):
     _plant(tmp_path)
-    approve = _cli(tmp_path, "approve", "--all")
+    added = _cli(tmp_path, "user", "add", "anna", "--role", "engineer", "--password-stdin", stdin="anna-password\n", plant=False)
+    assert added.returncode == 0, added.stdout + added.stderr
+    wrong = _cli(tmp_path, "approve", "--all", "--account", "anna", stdin="guess\n")
+    assert wrong.returncode != 0 and "Wrong user name or password for account 'anna'" in wrong.stdout, wrong.stdout
+    approve = _cli(tmp_path, "approve", "--all", "--account", "anna", stdin="anna-password\n")
     assert approve.returncode == 0, approve.stdout + approve.stderr
     assert "heater: approved set stored" in approve.stdout
 
@@ -71,16 +75,26 @@ def test_checkout_sign_and_a_fault_from_the_command_line(tmp_path):
     asked = _cli(tmp_path, "checkout", "--device", "heater", "--answer", "ask", stdin="no\n")
     assert asked.returncode != 0 and "answered no by cli:" in asked.stdout
 
-    signed = _cli(tmp_path, "sign", "--name", "Anna Berg", "--comment", "bench commissioned")
+    # the last run failed: the sign-off lists it and signs only when told to sign anyway
+    held = _cli(tmp_path, "sign", "--name", "Anna Berg", "--comment", "bench commissioned", "--account", "anna",
+                stdin="anna-password\n")
+    assert held.returncode == 1 and "heater: last SSR outputs on and off failed" in held.stdout, held.stdout
+    signed = _cli(tmp_path, "sign", "--name", "Anna Berg", "--comment", "bench commissioned", "--account", "anna", "--yes",
+                  stdin="anna-password\n")
     assert signed.returncode == 0, signed.stdout + signed.stderr
-    assert "plant bench: signed by Anna Berg (commissioning engineer)" in signed.stdout
+    assert "plant bench: signed by Anna Berg (commissioning engineer) with account anna" in signed.stdout
+    assert "SSR outputs on and off: failed (4 runs)" in signed.stdout  # every run stays in the record
 
     checkouts = _rows(tmp_path, "checkout")
     assert [title for _d, _u, _r, title in checkouts] == [
         "SSR outputs on and off: passed", "SSR outputs on and off: failed", "SSR outputs on and off: failed",
         "SSR outputs on and off: failed"]
     assert all(user.startswith("cli") and role == "engineer" for _d, user, role, _t in checkouts)
-    assert _rows(tmp_path, "signoff") == [("", checkouts[0][1], "engineer", "signed by Anna Berg (commissioning engineer)")]
+    assert _rows(tmp_path, "signoff") == [("", "anna", "engineer", "signed by Anna Berg (commissioning engineer) as anna")]
+    assert _rows(tmp_path, "approved")[0][1] == "anna"
+
+    verified = _cli(tmp_path, "verify", "--record", plant=False)
+    assert verified.returncode == 0 and "intact" in verified.stdout, verified.stdout + verified.stderr
 
 
 def test_an_unknown_device_is_named(tmp_path):
@@ -103,6 +117,10 @@ async def test_viewers_can_neither_run_checkouts_nor_sign(tmp_path):
         assert code == 0, said
         assert any(s.startswith("door-2: passed in") for s in said)
         code = await sign_record(runtime, user="cli:anna", role="engineer", name="Anna", comment="ok", out=said.append)
+        assert code == 1 and "a sign-off needs a named account" in said[-1]  # the login of the command line is none
+        runtime.users.add("anna", "engineer", "anna-password")
+        code = await sign_record(runtime, user="cli:anna", role="engineer", name="Anna", comment="ok", out=said.append,
+                                 account="anna", sign_anyway=True)
         assert code == 0 and [e.kind for e in await runtime.record.timeline()] == ["signoff", "checkout"]
 
 
