@@ -45,6 +45,32 @@ def pytest_configure(config: pytest.Config) -> None:
 _RUN_DATA_DIR: str | None = None
 
 
+# -- markers: the fast loop is ``pytest -m "not browser and not slow"`` ------------------------
+
+#: test files that drive a real browser but are not named test_browser_*.py
+BROWSER_FILES = {
+    "test_backup_page_browser.py",
+    "test_deadman_browser.py",
+    "test_mqtt_browser.py",
+    "test_stylesheet_browser.py",
+}
+
+#: tests that take more than about 5 s on two shared cores: a file name (every test in it) or a node id
+SLOW_TESTS: set[str] = set()
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark every real-browser test ``browser`` (a test_browser_*.py file, one of BROWSER_FILES, or a test
+    that uses the ``chromium`` fixture) and every test of SLOW_TESTS ``slow``."""
+    for item in items:
+        name = item.path.name
+        if name.startswith("test_browser_") or name in BROWSER_FILES or "chromium" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.browser)
+        node = item.nodeid.split("/")[-1]
+        if name in SLOW_TESTS or node in SLOW_TESTS or node.split("[")[0] in SLOW_TESTS:
+            item.add_marker(pytest.mark.slow)
+
+
 @pytest.fixture(autouse=True)
 def _own_data_dir(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> None:
     """Each test its own data folder (its own audit log: no test waits on another's database lock),
