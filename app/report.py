@@ -128,6 +128,13 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
     state = runtime.store.devices[device]
     current = {k: {**v, "device_updates": device_updated(state, k)} for k, v in current.items()}
     rows = compare_with_approved(current, approved)
+    params = getattr(state, "params", None)
+    for r in rows:  # a setting or a live value: the parameter model says, else what the set was read with
+        param = params.by_key.get(r["key"]) if params is not None else None
+        if param is not None:
+            r["writable"] = bool(param.writable)
+        elif r.get("writable") is None:
+            r["writable"] = bool(((approved or {}).get(r["key"]) or current.get(r["key"]) or {}).get("writable"))
     checkouts = await record.timeline(device, ("checkout",))  # every run stays in the report with its result
     runs = []
     for entry in checkouts:

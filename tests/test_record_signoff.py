@@ -1,0 +1,114 @@
+"""Who signed is known, every run stays, and the as-left report reads as a site's document (issue 43,
+"The record"): a sign-off names an engineer account, the report's first page is a summary, settings
+stand apart from live values, each step names its evidence file and SHA-256, a report made on
+simulated devices says so on every page, and the cover names the version and the plant file."""
+
+from __future__ import annotations
+
+import asyncio
+import hashlib
+import io
+import zipfile
+
+import pytest
+
+from app.plant import load_plant
+from app.record import RecordError
+from app.report import SIMULATED_MARK, _with_unit, plant_content, plant_html, sign_gaps, write_plant
+from tests.recordutil import DEMO, demo_plant, run_checkout
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def test_a_value_with_its_unit_in_a_remark_gets_no_second_unit():
+    assert _with_unit("65535 ms (at its top: 65.5 s or more)", "ms") == "65535 ms (at its top: 65.5 s or more)"
+    assert _with_unit("200", "ms") == "200 ms"
+
+
+async def test_sign_off_needs_an_engineer_account_and_every_run_stays_in_the_report(tmp_path):
+    from app.runtime import Runtime
+    from tests.conftest import wait_for
+
+    source = demo_plant(("door-2",))
+    path = tmp_path / "plant.toml"
+    path.write_text(DEMO.read_text())  # the demo's file; the runtime below uses the free ports of ``source``
+    runtime = Runtime(source, simulate=True, data_dir=tmp_path / "data")
+    runtime.plant.path = path
+    await runtime.start()
+    try:
+        state = runtime.store.devices["door-2"]
+        assert await wait_for(lambda: state.status == "online" and state.value("LockRequestDelay") is not None, 20)
+        content = await plant_content(runtime, read=False)
+        assert sign_gaps(content) == ["door-2: no checkout run, no approved set"]
+
+        await asyncio.to_thread(runtime.users.add, "anna", "engineer", "anna-password")  # argon2: off the event loop
+        await asyncio.to_thread(runtime.users.add, "vera", "viewer", "vera-password")
+        await runtime.record.approve("door-2", user="local", role="engineer", account="anna")
+        passed = await run_checkout(runtime, "door-2", user="anna")
+        failed = await run_checkout(runtime, "door-2", answer=False, user="anna")  # "is the door closed?" no
+        assert (failed["status"], passed["status"]) == ("failed", "passed"), [(s["name"], s["reason"]) for s in passed["steps"]]
+        content = await plant_content(runtime, read=False)
+        assert sign_gaps(content) == ["door-2: last Lock and unlock cycle failed"]
+
+        for account, words in (("", "needs a named account"), ("local", "needs a named account"),
+                               ("cli:anna", "needs a named account"), ("vera", "no engineer account"),
+                               ("nobody", "no engineer account")):
+            with pytest.raises(RecordError, match=words):
+                await runtime.record.sign("", user="local", role="engineer", name="Anna Berg", signer_role="engineer",
+                                          comment="", content=content, account=account)
+        entry_id = await runtime.record.sign("", user="local", role="engineer", name="Anna Berg", signer_role="commissioning engineer",
+                                             comment="door-2 cycled", content=content, account="anna")
+        entry = await runtime.record.get(entry_id)
+        assert entry.user == "anna" and entry.data["account"] == "anna"
+
+        content = await plant_content(runtime, read=False)
+        paths = await write_plant(runtime, tmp_path / "out", content)
+    finally:
+        await runtime.stop()
+
+    door = content["devices"][0]
+    assert [c["status"] for c in door["checkouts"]] == ["failed", "passed"]  # every run, newest first
+    summary = door["checkout_summary"][0]
+    assert (summary["runs"], summary["passed"], summary["failed"], summary["last"], summary["by"]) == (2, 1, 1, "failed", ["anna"])
+    assert content["signoff"]["account"] == "anna"
+
+    # settings apart from live values
+    settings = {r["name"] for r in door["settings"]}
+    live = {r["name"] for r in door["live_values"]}
+    assert "LockRequestDelay" in settings and {"LockState", "BoltPosition"} <= live and not settings & live
+
+    # each step names its evidence file and its SHA-256, the same as the file in the archive
+    archive = zipfile.ZipFile(io.BytesIO(paths["zip"].read_bytes()))
+    named = [s["evidence_file"] for c in door["checkouts"] for s in c["steps"] if s.get("evidence_file")]
+    assert named
+    for f in named:
+        assert hashlib.sha256(archive.read(f["name"])).hexdigest() == f["sha256"]
+
+    html = plant_html(content)
+    assert "account anna" in html and named[0]["name"] in html and named[0]["sha256"] in html
+    assert SIMULATED_MARK in html
+    assert f"Plant file {path}, SHA-256 {hashlib.sha256(path.read_bytes()).hexdigest()}" in html
+    assert content["tool"].startswith("commission ") and content["tool"] in html
+    assert "Record check: intact" in html
+
+    from pypdf import PdfReader
+
+    pages = [page.extract_text() for page in PdfReader(paths["pdf"]).pages]
+    assert all("SIMULATED DEVICES" in text for text in pages), [t[:80] for t in pages]
+    first = pages[0]
+    assert "door-2" in first and "2 runs (1 passed, 1 not)" in first and "by anna" in first
+    assert "LockRequestDelay" not in first, "page 1 is the summary: the listings are in the appendix"
+    assert "account anna" in first and "SHA-256" in first
+    appendix = "\n".join(pages[pages.index(next(t for t in pages if "Appendix" in t)):])
+    assert "LockRequestDelay" in appendix and named[0]["name"].split("/")[-1] in appendix.replace("\n", "")
+
+
+def test_sign_gaps_name_each_missing_piece():
+    device = {"device": "m1", "checkouts": [{"id": 1}], "checkout_summary": [{"title": "SSR", "last": "failed"}],
+              "approved": {"id": 2}, "counts": {"not approved": 95, "changed": 1}}
+    assert sign_gaps({"devices": [device]}) == ["m1: last SSR failed, 95 not approved, 1 changed since approved"]
+    assert sign_gaps(device) == sign_gaps({"devices": [device]})
+
+
+def test_load_plant_keeps_its_path():
+    assert load_plant(DEMO).path is not None
