@@ -1,9 +1,11 @@
 """Bus monitor.
 
-Modbus/serial lines: the transaction log of the worker (bounded ring buffer), filtered by unit,
-function and address, each transaction decoded once through the device's parameter model (signed,
-scaled, enum names, units), with the device that answered it; exported as CSV. CAN buses have a
-monitor of their own (pages/can_monitor.py); :func:`content` shows the one a bus needs.
+Request/answer lines: the transaction log of the worker (bounded ring buffer), each transaction decoded
+once, with the device that answered it, exported as CSV. Each kind of line has its own filters and
+decoding: a Modbus line by unit, function and address, decoded through the device's parameter model
+(signed, scaled, enum names, units); an SCU's RS232 line by command letters and data ID, and a LogiTed
+line (MO 64) by telegram type, both in the words of their device pages (:mod:`app.recording.lines`).
+CAN buses have a monitor of their own (pages/can_monitor.py); :func:`content` shows the one a bus needs.
 
 The table is refreshed by a timer twice a second, never once per transaction, and shows at
 most ``SHOWN`` transactions.
@@ -18,6 +20,7 @@ from nicegui import ui
 from app import recording as rec
 from app import runtime as rt
 from app.can_bus import CanBusState
+from app.recording import lines
 from pages.can_monitor import CanMonitor, _frame_rows  # noqa: F401 - _frame_rows: the CAN list's rows (bench/can_ingest.py)
 from pages.frame import frame
 from pages.monitor_common import CSS, SHOWN, tool_links
@@ -116,13 +119,21 @@ def content(bus: str) -> None:
 
 
 def modbus_content(bus: str) -> None:
+    """The monitor of a request/answer line, with the filters and decoding of its kind."""
     with frame(f"Bus monitor {bus}"):
         ui.add_css(CSS)
-        ModbusMonitor(bus)
+        words = lines.line_words(rt.current().worker, bus)
+        if words is not None:
+            TaggedMonitor(bus, words)
+        elif rt.current().store.buses[bus].type == "modbus-rtu":
+            ModbusMonitor(bus)
+        else:
+            LineMonitor(bus)
 
 
-class ModbusMonitor:
-    """The transactions of one Modbus line, filtered, each decoded once, updated twice a second."""
+class LineMonitor:
+    """The transactions of one line, filtered, each decoded once, updated twice a second; without filters of
+    its own kind (a line this monitor knows no decoding for): subclasses add them."""
 
     def __init__(self, bus: str):
         runtime = rt.current()
@@ -132,7 +143,7 @@ class ModbusMonitor:
         self.decoder = rec.TransactionDecoder(runtime.worker, bus)
         self.made: dict[int, tuple[object, dict]] = {}  # id(transaction) -> (transaction, row): each decoded once
         self.shown_key = None
-        for control in (self.unit_filter, self.function_filter, self.address_filter, self.errors_only):
+        for control in (*self.filter_controls(), self.errors_only):
             control.on_value_change(self.refilter)
         self.export.on_click(self.download)
         self.update(FIRST_SHOWN)  # the first answer carries the newest rows, the rest come with the first refresh
@@ -147,12 +158,7 @@ class ModbusMonitor:
         with ui.row().classes("items-center gap-3"):
             self.paused = ui.switch("Pause")
             self.errors_only = ui.switch("Errors only")
-            self.unit_filter = ui.input("Unit", placeholder="any").props(
-                "dense clearable data-monitor=filter-unit").classes("w-24")
-            self.function_filter = ui.select({0: "any function", **FUNCTIONS}, value=0, label="Function") \
-                .props("dense data-monitor=filter-function").classes("w-56")
-            self.address_filter = ui.input("Address", placeholder="3000 or 3000-3010") \
-                .props("dense clearable data-monitor=filter-address").classes("w-44")
+            self.build_filters()
             self.export = ui.button("Export CSV", icon="download").props("flat dense no-caps data-monitor=export")
             self.summary = ui.label().classes("text-body2")
         with ui.element("div").classes("w-full monitor-scroll monitor-fill").props("data-monitor=transactions-box"):
@@ -166,23 +172,42 @@ class ModbusMonitor:
         table.mark("transactions")
         self.table = table
 
+    # -- what a kind of line filters on and how it words a transaction -----------------------------------
+    def build_filters(self) -> None:
+        """The filter controls of this kind of line (none here)."""
+
+    def filter_controls(self) -> tuple:
+        return ()
+
+    def filters(self) -> tuple | None:
+        """The filters as entered, or None while one of them is not valid (it says why)."""
+        return ()
+
+    def matches(self, t, chosen: tuple) -> bool:
+        return True
+
+    def words(self, t) -> tuple[str, str, str]:
+        """``(request, decoded, function)`` of a transaction: the request and the answer in words, and what the
+        CSV's function column says."""
+        return t.request, t.decoded, ""
+
     def row_of(self, t) -> dict:
         made, decoder = self.made, self.decoder
         cached = made.get(id(t))
         if cached is not None and cached[0] is t:
             return cached[1]
-        function = transaction_function(t)
+        request, decoded, function = self.words(t)
         row = {
             "id": id(t),
             "time": datetime.fromtimestamp(t.time).strftime("%H:%M:%S.%f")[:-3],
             "date": datetime.fromtimestamp(t.time).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3],
             "device": decoder.device(t.unit),
             "unit": t.unit,
-            "function": "" if function is None else FUNCTIONS.get(function, f"{function:02d}"),
-            "request": t.request,
+            "function": function,
+            "request": request,
             "tx": t.request_hex,
             "rx": t.response_hex,
-            "decoded": decoder.decoded(t),
+            "decoded": decoded,
             "rtt": "-" if t.rtt_ms is None else f"{t.rtt_ms:.1f}",
             "error": t.error,
         }
@@ -192,6 +217,64 @@ class ModbusMonitor:
                 del made[key]
         made[id(t)] = (t, row)
         return row
+
+    def refresh_decoders(self) -> None:
+        self.decoder.refresh()
+
+    def update(self, limit: int = SHOWN) -> None:
+        bus_state = self.bus_state
+        log = list(bus_state.transactions)
+        errors = sum(1 for t in log if t.error)
+        cycle = getattr(bus_state, "cycle_s", None)
+        conflicts = getattr(bus_state, "address_conflicts", 0)
+        self.summary.set_text(
+            f"{len(log)} transactions buffered, {errors} with errors"
+            + (f" · line cycle {cycle:.2f} s (every device polled once)" if cycle else "")
+            + (f" · {conflicts} answers from another unit: address conflict on the line?" if conflicts else ""))
+        if self.paused.value:
+            return
+        chosen = self.filters()
+        if chosen is None:
+            return
+        self.refresh_decoders()
+        matches, errors_only = self.matches, self.errors_only.value
+        selected = [t for t in reversed(log) if (not errors_only or t.error) and matches(t, chosen)][:limit]
+        key = (tuple(id(t) for t in selected[:1]), len(selected), chosen, errors_only)
+        if key == self.shown_key:
+            return  # nothing new on the line: nothing sent to the browser
+        self.shown_key = key
+        self.table.rows = [self.row_of(t) for t in selected]
+        self.table.update()
+
+    def refilter(self) -> None:
+        self.shown_key = None
+        self.update()
+
+    def download(self) -> None:
+        ui.download(transactions_csv(self.table.rows).encode(),
+                    f"{self.bus}-transactions-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
+
+
+class ModbusMonitor(LineMonitor):
+    """A Modbus line: filtered by unit, function and any register asked; decoded through the parameter model."""
+
+    def build_filters(self) -> None:
+        self.unit_filter = ui.input("Unit", placeholder="any").props(
+            "dense clearable data-monitor=filter-unit").classes("w-24")
+        self.function_filter = ui.select({0: "any function", **FUNCTIONS}, value=0, label="Function") \
+            .props("dense data-monitor=filter-function").classes("w-56")
+        self.address_filter = ui.input("Address", placeholder="3000 or 3000-3010") \
+            .props("dense clearable data-monitor=filter-address").classes("w-44")
+
+    def filter_controls(self) -> tuple:
+        return self.unit_filter, self.function_filter, self.address_filter
+
+    def matches(self, t, chosen: tuple) -> bool:
+        return transaction_matches(t, *chosen)
+
+    def words(self, t) -> tuple[str, str, str]:
+        function = transaction_function(t)
+        return t.request, self.decoder.decoded(t), "" if function is None else FUNCTIONS.get(function, f"{function:02d}")
 
     def filters(self) -> tuple[int | None, int | None, tuple[int, int] | None] | None:
         unit_filter, address_filter = self.unit_filter, self.address_filter
@@ -209,35 +292,57 @@ class ModbusMonitor:
             return None
         return unit, (self.function_filter.value or None), address
 
-    def update(self, limit: int = SHOWN) -> None:
-        bus_state = self.bus_state
-        log = list(bus_state.transactions)
-        errors = sum(1 for t in log if t.error)
-        cycle = getattr(bus_state, "cycle_s", None)
-        conflicts = getattr(bus_state, "address_conflicts", 0)
-        self.summary.set_text(
-            f"{len(log)} transactions buffered, {errors} with errors"
-            + (f" · line cycle {cycle:.2f} s (every device polled once)" if cycle else "")
-            + (f" · {conflicts} answers from another unit: address conflict on the line?" if conflicts else ""))
-        if self.paused.value:
-            return
-        chosen = self.filters()
-        if chosen is None:
-            return
-        self.decoder.refresh()
-        selected = [t for t in reversed(log)
-                    if (not self.errors_only.value or t.error) and transaction_matches(t, *chosen)][:limit]
-        key = (tuple(id(t) for t in selected[:1]), len(selected), chosen, self.errors_only.value)
-        if key == self.shown_key:
-            return  # nothing new on the line: nothing sent to the browser
-        self.shown_key = key
-        self.table.rows = [self.row_of(t) for t in selected]
-        self.table.update()
 
-    def refilter(self) -> None:
-        self.shown_key = None
-        self.update()
+class TaggedMonitor(LineMonitor):
+    """A line whose device type words its telegrams like its device page and declares the filters that fit them
+    (:mod:`app.recording.lines`): an SCU's RS232 line by command letters and data ID, a LogiTed line by telegram
+    type."""
 
-    def download(self) -> None:
-        ui.download(transactions_csv(self.table.rows).encode(),
-                    f"{self.bus}-transactions-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
+    def __init__(self, bus: str, words: lines.LineWords):
+        self.line_words = words
+        self.filter_fields: list[tuple[lines.LineFilter, ui.element]] = []
+        super().__init__(bus)
+
+    def build_filters(self) -> None:
+        for spec in self.line_words.filters:
+            if spec.choices:
+                control = ui.select({"": "any", **spec.choices}, value="", label=spec.label) \
+                    .props(f"dense data-monitor=filter-{spec.key}").classes("w-60")
+            else:
+                control = ui.input(spec.label, placeholder=spec.placeholder) \
+                    .props(f"dense clearable data-monitor=filter-{spec.key}").classes("w-40")
+            if spec.hint:
+                control.tooltip(spec.hint)
+            self.filter_fields.append((spec, control))
+
+    def filter_controls(self) -> tuple:
+        return tuple(control for _spec, control in self.filter_fields)
+
+    def filters(self) -> tuple[str | None, ...] | None:
+        chosen: list[str | None] = []
+        for spec, control in self.filter_fields:
+            text = (control.value or "").strip()
+            if spec.choices or not text:
+                chosen.append(text or None)
+                continue
+            try:
+                chosen.append(spec.parse(text))
+                control.props(remove="error")
+            except ValueError as exc:
+                control.props(f'error error-message="{str(exc) or "not valid"}"')
+                return None
+        return tuple(chosen)
+
+    def refresh_decoders(self) -> None:
+        super().refresh_decoders()
+        self.line_words.refresh()
+
+    def words(self, t) -> tuple[str, str, str]:
+        text = self.line_words.text(t)
+        return text.request, text.decoded, ", ".join(sorted(text.tags))
+
+    def matches(self, t, chosen: tuple) -> bool:
+        if not any(chosen):
+            return True
+        tags = self.line_words.text(t).tags
+        return all(want is None or want in tags for want in chosen)
