@@ -25,7 +25,9 @@ codec's (devices/mo64/codec.py), the behaviour is the document's, as strict as t
 * short commands (0x03) are answered nak: their codes are not in the summary (codec ASSUMPTIONS).
 
 Demo controls on :class:`Mo64Twin`: :meth:`~Mo64Twin.drive_vehicle`, :meth:`~Mo64Twin.break_light_barrier`,
-:meth:`~Mo64Twin.raise_fault`, :meth:`~Mo64Twin.clear_fault`, :meth:`~Mo64Twin.power_up`;
+:meth:`~Mo64Twin.interrupt_at_next_close` (a person walking through as the boom closes),
+:meth:`~Mo64Twin.occupy_loop`, :meth:`~Mo64Twin.raise_fault`, :meth:`~Mo64Twin.clear_fault`, :meth:`~Mo64Twin.power_up`;
+fault injection :attr:`~Mo64Twin.light_barrier_dead` (a light barrier that never reports: no LS, no reversal);
 :attr:`~Mo64Twin.setting_writes` counts EEPROM writes per setting.
 
 Servers: :class:`Mo64TcpSim` (one barrier, one client at a time, chapter 3) and :class:`Mo64Rs485Sim`
@@ -62,6 +64,7 @@ START_OPERATING_HOURS = 1234
 PROGRAM_VERSION = 0x0412
 DEVICE_CODE = 5  # chapter 5.1.5: 0x0005 = MO 64-V4
 VEHICLE_WAIT_OPEN_S = 15.0
+INTERRUPT_AT_PCT = 60.0  # interrupt_at_next_close: the person steps into the beam once the boom is down to here
 TOKEN_HOLD_S = 0.05  # how long the second master keeps the token each round
 TOKEN_LOST_S = 1.0  # the second master takes the token back when the tool did not pass it by then
 
@@ -122,10 +125,13 @@ class Mo64Twin:
         # gate
         self.gate = GateState.CLOSED
         self.position = 0.0 if position_known else None
+        self.open_end_pct = 100.0  # where the open limit switch stops the boom (a unit may report 99 %)
         self._timer = 0.0  # time left in a pre-warning, or of the open time
         self.levels = {c: False for c in Command}
         # inputs, safety, faults
-        self.light_barrier = False
+        self.light_barrier = False  # the beam is interrupted
+        self.light_barrier_dead = False  # fault injection: the light barrier never reports (LS stays 0, nothing reverses)
+        self._interrupt_next_close = False  # a person walks through the beam as the boom next closes
         self.loops = {"A": False, "B": False, "C": False}
         self.error_flags = 0
         self.error_memory: list[tuple[int, int]] = [(0, 0)] * codec.ERROR_MEMORY_LEVELS
@@ -160,12 +166,17 @@ class Mo64Twin:
         return codec.POSITION_UNKNOWN if self.position is None else int(round(self.position))
 
     @property
+    def light_barrier_reports(self) -> bool:
+        """LS as the control sees it: interrupted, and the light barrier working."""
+        return self.light_barrier and not self.light_barrier_dead
+
+    @property
     def obstructed(self) -> bool:
-        return self.light_barrier or any(self.loops.values())
+        return self.light_barrier_reports or any(self.loops.values())
 
     def status_word(self) -> int:
         """The 40 status bits (chapter 5.1.7), Status0 in the low byte."""
-        bits = {"LS": self.light_barrier, "F_ereignis": bool(self.error_flags),
+        bits = {"LS": self.light_barrier_reports, "F_ereignis": bool(self.error_flags),
                 "loop A occupied": self.loops["A"], "loop B occupied": self.loops["B"],
                 "loop C occupied": self.loops["C"],
                 "SERVICE": 0 < self.settings["maintenance_interval"] <= self.maintenance_counter}
@@ -187,6 +198,16 @@ class Mo64Twin:
 
     def break_light_barrier(self, broken: bool = True) -> None:
         self.light_barrier = broken
+        if not broken:
+            self._interrupt_next_close = False
+
+    def interrupt_at_next_close(self) -> None:
+        """A person stands ready at the light barrier and interrupts it once the boom closes (until freed)."""
+        self._interrupt_next_close = True
+
+    def occupy_loop(self, loop: str, occupied: bool = True) -> None:
+        """A vehicle (or a test mass) stands on loop ``loop`` (A, B or C); its occupied bit follows (5.1.7)."""
+        self.loops[loop] = occupied
 
     def raise_fault(self, flags: int = 0x0001) -> None:
         """Set error flags (chapter 5.1.23): the motor stops where it is, the error memory records it."""
@@ -211,6 +232,13 @@ class Mo64Twin:
                       testid="vehicle"),
             SimAction("light barrier interrupted", "Light barrier interrupted", self.break_light_barrier,
                       state=lambda: self.light_barrier, testid="light-barrier"),
+            SimAction("interrupt light barrier while closing", "Interrupt the light barrier at the next close",
+                      self.interrupt_at_next_close, testid="light-barrier-next-close"),
+            *(SimAction(f"loop {x} occupied", f"Loop {x} occupied", lambda on, x=x: self.occupy_loop(x, on),
+                        state=lambda x=x: self.loops[x], testid=f"loop-{x.lower()}") for x in "ABC"),
+            SimAction("light barrier never reports", "Light barrier never reports (broken)",
+                      lambda on: setattr(self, "light_barrier_dead", on), state=lambda: self.light_barrier_dead,
+                      testid="light-barrier-dead"),
             SimAction("raise fault", "Raise fault", self.raise_fault, icon="error", testid="raise-fault",
                       params=(SimParam("flags", "error flags", 0x0001, 1, 0xFFFFFFFF, hex=True),)),
             SimAction("clear faults", "Clear faults", self.clear_fault, testid="clear-faults"),
@@ -265,6 +293,9 @@ class Mo64Twin:
         """Advance by ``dt`` seconds and send what changed to the listeners."""
         self.clock += dt
         self._step_vehicle(dt)
+        if self._interrupt_next_close and self.gate == GateState.CLOSING and (self.position or 0.0) <= INTERRUPT_AT_PCT:
+            self._interrupt_next_close = False
+            self.light_barrier = True  # held until freed (break_light_barrier(False))
         if self.gate in (GateState.CLOSING, GateState.PREWARN_CLOSE) and self.obstructed:
             self.gate = GateState.OPENING if self.gate == GateState.CLOSING else GateState.OPEN
             self._timer = self._t_open_s()  # light barrier or loop: reverse and hold open
@@ -274,8 +305,8 @@ class Mo64Twin:
             if self._timer <= 0:
                 self.gate = GateState.OPENING if self.gate == GateState.PREWARN_OPEN else GateState.CLOSING
         elif self.gate == GateState.OPENING:
-            self.position = min(100.0, (50.0 if self.position is None else self.position) + speed * dt)
-            if self.position >= 100.0:
+            self.position = min(self.open_end_pct, (50.0 if self.position is None else self.position) + speed * dt)
+            if self.position >= self.open_end_pct:
                 self.gate = GateState.OPEN
                 self._timer = self._t_open_s()
                 self.service_counter += 1
