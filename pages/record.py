@@ -1,8 +1,11 @@
 """The commissioning record page: checkouts with progress and abort, the approved set and its
-drift, the timeline with a diff of any two entries, sign-off and the as-left report downloads.
+drift, the timeline with a diff of any two entries, sign-off, the as-left report downloads and the
+check of the record (or of an archive) for alterations.
 
 Every action goes through ``runtime.record`` (app/record.py), which checks the role: a viewer
-reads the record and downloads reports, never runs a checkout, approves or signs.
+reads the record and downloads reports, never runs a checkout, approves or signs. An approval and a
+sign-off name an engineer account: a session without one (the loopback address) is asked to log in
+at that moment.
 """
 
 from __future__ import annotations
@@ -16,7 +19,8 @@ from nicegui import ui
 from app import backup
 from app import runtime as rt
 from app.record import checkout_module, diff_sets
-from app.report import device_content, device_html, plant_content, write_plant
+from app.report import device_content, device_html, plant_content, sign_gaps, write_plant
+from app.verify import check_archive
 from pages.frame import fmt_time, frame
 from pages.session import current_user
 from pages.widgets import VIEWER_REASON, gate
@@ -64,6 +68,8 @@ def content(name: str | None = None) -> None:
                 timeline = _timeline_card(runtime, name, user, role, engineer)
         with ui.card().classes("w-full"):
             _signoff_card(runtime, name, user, role, engineer, timeline)
+        with ui.card().classes("w-full"):
+            _check_card(runtime)
 
 
 def _downloads(runtime, user: str, role: str) -> None:
@@ -114,9 +120,21 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool) -> 
                         ui.label("; ".join(f"{v['name']} {v['value']} {v['unit']}".strip() for v in r.values[:3])).classes("text-caption")
 
     async def ask(question: str) -> bool:
+        twin_action = _twin_action(runtime, name, question)
         with ui.dialog().props("persistent") as dialog, ui.card():
             ui.label(question).classes("text-body1")
             ui.label(f"Your answer is recorded with your name ({user}).").classes("text-caption")
+            if twin_action:  # a simulated device: its inputs are on the twin, offered here so one tab is enough
+                async def act() -> None:
+                    from app.record_cli import sim_action
+
+                    try:
+                        ui.notify(await sim_action(runtime, f"{name}:{twin_action}", user=user, role=role), type="info")
+                    except Exception as exc:  # noqa: BLE001 - said
+                        ui.notify(f"simulation: {exc}", type="negative")
+
+                ui.button(f"{twin_action.capitalize()} on the simulated device", icon="smart_toy",
+                          on_click=act).props("outline").mark("checkout-twin-action")
             with ui.row():
                 ui.button("Yes", on_click=lambda: dialog.submit(True)).mark("checkout-yes")
                 ui.button("No", color="negative", on_click=lambda: dialog.submit(False)).mark("checkout-no")
@@ -143,6 +161,84 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool) -> 
     if last is not None:
         last.listeners.append(lambda: draw(last))
         draw(last)
+
+
+async def ask_account(runtime, user: str, what: str) -> str | None:
+    """The engineer account that approves or signs: the session's own when it is one (logged in beyond
+    the loopback address), else asked now with a login (throttled and audited as the login page's).
+    None when the person cancels or no account could be checked (said)."""
+    from app.auth import check_login
+    from pages.session import client_address
+
+    known = runtime.users.users.get(user)
+    if known is not None and known.role == "engineer":
+        return known.name
+    if not runtime.users.has_engineer():
+        ui.notify(f"{what} needs a named engineer account and this installation has none yet: create one with "
+                  "'commission user add NAME --role engineer', then try again", type="warning", multi_line=True)
+        return None
+    address = client_address() or "unknown address"
+    with ui.dialog().props("persistent") as dialog, ui.card().classes("w-96").mark("account-dialog"):
+        ui.label(f"{what}: who is it?").classes("text-h6")
+        ui.label("An approval and a sign-off name an engineer account: log in with yours. The record keeps the "
+                 "account beside the name you type.").classes("text-body2")
+        name = ui.input("Account").props("outlined autofocus maxlength=64").classes("w-full").mark("account-name")
+        password = ui.input("Password", password=True, password_toggle_button=True).props("outlined").classes("w-full").mark(
+            "account-password")
+        message = ui.label().classes("text-negative text-body2").mark("account-message")
+
+        async def attempt() -> None:
+            account, words = await check_login(throttle=runtime.login_throttle, users=runtime.users, audit=runtime.audit,
+                                               typed=(name.value or "").strip(), secret=password.value or "", address=address,
+                                               via="record page")
+            if account is None:
+                message.set_text(words)
+                password.set_value("")
+                return
+            if account.role != "engineer":
+                message.set_text(f"{account.name} has the {account.role} role: an engineer account approves and signs")
+                return
+            dialog.submit(account.name)
+
+        password.on("keydown.enter", attempt)
+        with ui.row():
+            ui.button("Log in and continue", icon="login", on_click=attempt).mark("account-ok")
+            ui.button("Cancel", on_click=lambda: dialog.submit(None)).props("flat").mark("account-cancel")
+    try:
+        return await dialog
+    finally:
+        dialog.delete()  # asked again next time, with empty fields
+
+
+async def confirm_gaps(gaps: list[str], what: str) -> bool:
+    """Before a sign-off: the devices without a checkout, with a failed one or with settings not approved."""
+    if not gaps:
+        return True
+    with ui.dialog().props("persistent") as dialog, ui.card().mark("gaps-dialog"):
+        ui.label(f"Sign {what} although these are open?").classes("text-h6")
+        with ui.column().classes("gap-0"):
+            for line in gaps:
+                ui.label(line).classes("text-body2")
+        ui.label("The list is kept in the signed report. Run the missing checkouts and approve the sets first, "
+                 "or sign anyway.").classes("text-caption")
+        with ui.row():
+            ui.button("Sign anyway", color="negative", on_click=lambda: dialog.submit(True)).mark("gaps-sign")
+            ui.button("Cancel", on_click=lambda: dialog.submit(False)).props("flat").mark("gaps-cancel")
+    try:
+        return bool(await dialog)
+    finally:
+        dialog.delete()
+
+
+def _twin_action(runtime, device: str, question: str) -> str:
+    """The twin's declared control a question asks a person to do ("Toggle E1 now ..." -> "toggle E1"),
+    where the device is simulated; "" otherwise."""
+    controls = runtime.sim_controls(device) if device in runtime.store.devices else None
+    words = question.split()
+    if controls is None or len(words) < 2 or words[0] != "Toggle":
+        return ""
+    action = f"toggle {words[1]}"
+    return action if any(a.name == action for a in controls.actions) else ""
 
 
 def _session_id() -> str:
@@ -206,8 +302,11 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool):
     async def act(what: str) -> None:
         try:
             if what == "approve":
-                await runtime.record.approve(name, user=user, role=role)
-                ui.notify("approved set stored", type="positive")
+                account = await ask_account(runtime, user, f"Approving the set of {name}")
+                if account is None:
+                    return
+                await runtime.record.approve(name, user=user, role=role, account=account)
+                ui.notify(f"approved set stored (account {account})", type="positive")
             else:
                 await runtime.record.snapshot(name, user=user, role=role)
                 ui.notify("snapshot stored", type="positive")
@@ -263,14 +362,26 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
         if not signer.value.strip():
             ui.notify("a sign-off needs a name", type="warning")
             return
+        what = f"plant {runtime.plant.name}" if plant else name
         try:
             content = await (plant_content(runtime, user=user, role=role) if plant else device_content(runtime, name, user=user, role=role))
-            await runtime.record.sign("" if plant else name, user=user, role=role, name=signer.value.strip(),
-                                      signer_role=signer_role.value.strip(), comment=comment.value, content=content)
         except Exception as exc:  # noqa: BLE001
-            ui.notify(f"sign-off: {exc}", type="negative", multi_line=True)
+            ui.notify(f"sign-off: the report could not be made: {exc}", type="negative", multi_line=True)
             return
-        ui.notify("signed: the record is frozen; a later sign-off supersedes it", type="positive")
+        if not await confirm_gaps(sign_gaps(content), what):
+            return
+        account = await ask_account(runtime, user, f"Signing {what}")
+        if account is None:
+            return
+        try:
+            await runtime.record.sign("" if plant else name, user=user, role=role, name=signer.value.strip(),
+                                      signer_role=signer_role.value.strip(), comment=comment.value, content=content,
+                                      account=account)
+        except Exception as exc:  # noqa: BLE001
+            ui.notify(f"sign-off: not signed: {exc}", type="negative", multi_line=True)
+            return
+        ui.notify(f"signed by {signer.value.strip()} with account {account}: the record is frozen; a later sign-off "
+                  "supersedes it", type="positive")
         await show()
         await refresh_timeline()
 
@@ -278,3 +389,35 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
     sign_plant.on_click(lambda: sign(True))
     ui.timer(0.2, show, once=True)
     ui.timer(5.0, show)  # checkouts, approvals and snapshots of this page or another one show up
+
+
+def _check_card(runtime) -> None:
+    """Whether the record (or an as-left archive someone hands over) was altered: the chain of row
+    hashes, the sign-offs, every file against the archive's manifest (app/verify.py)."""
+    ui.label("Check for alterations").classes("text-h6")
+    ui.label("Every record row carries the hash of the row before it; an archive carries the chain and a manifest of "
+             "every file's SHA-256. The same check runs as 'commission verify ARCHIVE'.").classes("text-body2 text-grey-8")
+    result = ui.column().classes("w-full gap-0").mark("check-result")
+
+    def show(check) -> None:
+        result.clear()
+        with result:
+            ui.label(check.summary()).classes("text-body1 " + ("text-positive" if check.ok else "text-negative text-weight-bold"))
+            for line in check.problems[1:] + [f"note: {n}" for n in check.notes]:
+                ui.label(line).classes("text-body2")
+
+    async def check_record() -> None:
+        show(await runtime.record.check())
+
+    async def uploaded(event) -> None:
+        data = await event.file.read()
+        with tempfile.TemporaryDirectory() as folder:
+            path = Path(folder) / Path(event.file.name).name
+            path.write_bytes(data)
+            show(await asyncio.to_thread(check_archive, path))
+        upload.reset()
+
+    with ui.row().classes("items-center gap-3"):
+        ui.button("Check the record", icon="fact_check", on_click=check_record).props("outline").mark("check-record")
+        upload = ui.upload(auto_upload=True, max_file_size=500_000_000, on_upload=uploaded,
+                           label="Check an archive (.zip)").props("accept=.zip flat bordered").classes("w-72").mark("check-archive")

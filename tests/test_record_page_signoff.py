@@ -1,0 +1,86 @@
+"""The record page on the loopback address: an approval and a sign-off ask for an engineer account at
+that moment, a sign-off lists what is open first, and the record's check says whether it was altered."""
+
+from __future__ import annotations
+
+import asyncio
+
+import pytest
+from webutil import simulated_user
+
+from tests.conftest import wait_for
+from tests.recordutil import demo_plant
+
+pytestmark = pytest.mark.timeout(90)
+
+
+def _one(user, marker):
+    return next(iter(user.find(marker=marker).elements))
+
+
+async def test_sign_off_on_loopback_asks_for_an_account_and_lists_what_is_open(tmp_path):
+    from app.runtime import Runtime
+
+    runtime = Runtime(demo_plant(("door-1",)), simulate=True, data_dir=tmp_path / "data")
+    async with simulated_user(runtime) as user:
+        state = runtime.store.devices["door-1"]
+        assert await wait_for(lambda: state.status == "online" and state.value("LockRequestDelay") is not None, 15)
+        await asyncio.to_thread(runtime.users.add, "anna", "engineer", "anna-password")
+        await asyncio.to_thread(runtime.users.add, "vera", "viewer", "vera-password")
+        await user.open("/record/door-1")
+
+        # approve: asks for the account
+        user.find(marker="record-approve").click()
+        await user.should_see("Approving the set of door-1: who is it?", retries=100)
+        user.find(marker="account-name").type("vera")
+        user.find(marker="account-password").type("vera-password")
+        user.find(marker="account-ok").click()
+        await user.should_see("vera has the viewer role: an engineer account approves and signs", retries=100)
+        _one(user, "account-name").value = "anna"
+        _one(user, "account-password").value = "anna-password"
+        user.find(marker="account-ok").click()
+        await user.should_see("approved set stored (account anna)", retries=100)
+        approved = await runtime.record.timeline("door-1", ("approved",))
+        assert approved[0].user == "anna" and approved[0].data["account"] == "anna"
+
+        # sign the plant: no checkout yet, listed first; cancelled, nothing signed
+        _one(user, "sign-name").value = "Anna Berg"
+        user.find(marker="sign-plant").click()
+        await user.should_see("door-1: no checkout run", retries=100)
+        user.find(marker="gaps-cancel").click()
+        await asyncio.sleep(0.2)
+        assert await runtime.record.timeline(None, ("signoff",)) == []
+
+        # signed anyway, with the account given at that moment (a wrong password first)
+        user.find(marker="sign-plant").click()
+        await user.should_see("door-1: no checkout run", retries=100)
+        user.find(marker="gaps-sign").click()
+        await user.should_see("Signing plant demo: who is it?", retries=100)
+        _one(user, "account-name").value = "anna"
+        _one(user, "account-password").value = "wrong"
+        user.find(marker="account-ok").click()
+        await user.should_see("Wrong user name or password", retries=100)
+        assert await runtime.record.timeline(None, ("signoff",)) == []
+        _one(user, "account-password").value = "anna-password"
+        user.find(marker="account-ok").click()
+        await user.should_see("signed by Anna Berg with account anna", retries=100)
+        signoff = (await runtime.record.timeline(None, ("signoff",)))[0]
+        assert signoff.user == "anna" and signoff.data["account"] == "anna" and signoff.data["name"] == "Anna Berg"
+
+        user.find(marker="check-record").click()
+        await user.should_see("intact", retries=100)
+
+
+async def test_no_account_yet_is_said_with_what_to_do(tmp_path):
+    from app.runtime import Runtime
+
+    runtime = Runtime(demo_plant(("door-1",)), simulate=True, data_dir=tmp_path / "data")
+    async with simulated_user(runtime) as user:
+        assert await wait_for(lambda: runtime.store.devices["door-1"].status == "online", 15)
+        await user.open("/record/door-1")
+        _one(user, "sign-name").value = "Anna Berg"
+        user.find(marker="sign-device").click()
+        await user.should_see("door-1: no checkout run", retries=100)
+        user.find(marker="gaps-sign").click()
+        await user.should_see("commission user add NAME --role engineer", retries=100)
+        assert await runtime.record.timeline(None, ("signoff",)) == []
