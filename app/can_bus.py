@@ -36,7 +36,6 @@ import queue
 import select
 import socket
 import statistics
-import struct
 import threading
 import time
 import weakref
@@ -47,7 +46,7 @@ from typing import Any
 
 import can
 
-from app import realtime
+from app import host, realtime
 from app.state import BusState
 from devices.lease import Lease
 
@@ -239,20 +238,10 @@ def _udp_socket(bus: can.BusABC) -> socket.socket | None:
     return sock if isinstance(sock, socket.socket) else None
 
 
-SO_MEMINFO = getattr(socket, "SO_MEMINFO", 55)  # Linux: the socket's memory figures, sk_drops among them
-SK_MEMINFO_DROPS = 8
-
-
 def _socket_drops(sock: socket.socket) -> int | None:
-    """The kernel's drop counter of ``sock`` from one getsockopt (Linux 4.7+; the figure /proc/net/udp shows),
+    """The kernel's drop counter of ``sock`` from one getsockopt (Linux: :func:`app.host.socket_drops`),
     or None where the system does not give it."""
-    try:
-        raw = sock.getsockopt(socket.SOL_SOCKET, SO_MEMINFO, 64)
-    except OSError:
-        return None
-    if len(raw) < 4 * (SK_MEMINFO_DROPS + 1):
-        return None
-    return struct.unpack_from("I", raw, 4 * SK_MEMINFO_DROPS)[0]
+    return host.socket_drops(sock)
 
 
 _WAKE = can.Message(arbitration_id=0, data=b"")  # put into a virtual bus's queue: its reader stops waiting
@@ -275,18 +264,8 @@ def _socket_fd(bus: can.BusABC | None, options: dict[str, Any]) -> int | None:
 
 
 def _proc_udp_drops(inode: int) -> int | None:
-    """The kernel's drop counter of the UDP socket with ``inode`` (last column of /proc/net/udp[6])."""
-    for table in ("/proc/net/udp", "/proc/net/udp6"):
-        try:
-            with open(table) as f:
-                next(f, None)
-                for line in f:
-                    parts = line.split()
-                    if len(parts) >= 13 and parts[9] == str(inode):
-                        return int(parts[12])
-        except OSError:
-            continue
-    return None
+    """The kernel's drop counter of the UDP socket with ``inode`` (Linux's /proc: :func:`app.host.udp_drops`)."""
+    return host.udp_drops(inode)
 
 
 def interface_drops(bus: can.BusABC, options: dict[str, Any]) -> tuple[int, str] | None:
@@ -303,15 +282,8 @@ def interface_drops(bus: can.BusABC, options: dict[str, Any]) -> tuple[int, str]
             drops = _proc_udp_drops(os.fstat(sock.fileno()).st_ino)
         return None if drops is None else (drops, "kernel socket drops")
     if options.get("interface") == "socketcan" and isinstance(options.get("channel"), str):
-        folder = f"/sys/class/net/{os.path.basename(options['channel'])}/statistics"
-        total = 0
-        try:
-            for name in ("rx_dropped", "rx_over_errors", "rx_fifo_errors"):
-                with open(f"{folder}/{name}") as f:
-                    total += int(f.read().strip() or 0)
-        except (OSError, ValueError):
-            return None
-        return total, "driver overruns"
+        total = host.netdev_drops(options["channel"])  # /sys (Linux, where SocketCAN is)
+        return None if total is None else (total, "driver overruns")
     return None
 
 

@@ -10,6 +10,7 @@ import socket
 import sys
 from pathlib import Path
 
+from app import host
 from app.headless import _bindable, _cli_user, _headless, _load, _refuse_taken_ports
 
 EPILOG = """\
@@ -41,6 +42,11 @@ examples:
 The plant file (TOML) lists [[bus]] and [[device]] tables; see README.md.
 """
 
+# argparse formats help with %: the Windows variable's signs are doubled
+DATA_DIR_HELP = ("accounts, audit database and backups (default: $COMMISSION_DATA_DIR, else the user data folder: "
+                 "~/.local/share/commission on Linux, %%LOCALAPPDATA%%\\commission on Windows, "
+                 "~/Library/Application Support/commission on macOS)")
+
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
@@ -62,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--show", action="store_true", help="open a browser window")
     parser.add_argument("-v", "--verbose", action="store_true", help="log more")
     parser.add_argument("--data-dir", type=Path, default=None,
-                        help="accounts, audit database and backups (default: ~/.local/share/commission)")
+                        help=DATA_DIR_HELP)
     sub = parser.add_subparsers(dest="command")
     sim = sub.add_parser("sim", help="run only the simulated devices of a plant file")
     sim.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
@@ -131,7 +137,7 @@ def build_parser() -> argparse.ArgumentParser:
     for command in (sim, backup, restore, user, add, remove, listing):
         # SUPPRESS: a subcommand's default must not overwrite a --data-dir given before it
         command.add_argument("--data-dir", type=Path, default=argparse.SUPPRESS,
-                             help="accounts, audit database and backups (default: ~/.local/share/commission)")
+                             help=DATA_DIR_HELP)
     return parser
 
 
@@ -219,11 +225,13 @@ def run_sim(args) -> int:
 
         freeze_startup_heap()  # the twins' threads and timers then wait less for the collector
         stop = asyncio.Event()
-        loop = asyncio.get_running_loop()
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            loop.add_signal_handler(sig, stop.set)
-        await stop.wait()
-        await sim.stop()
+        # the loop's own signal handlers on Unix; Windows' loops have none: the interpreter's (app/host.py)
+        undo = host.on_stop_signals(asyncio.get_running_loop(), stop.set)
+        try:
+            await stop.wait()
+            await sim.stop()  # a second Ctrl+C meanwhile changes nothing
+        finally:
+            undo()
 
     asyncio.run(main())
     return 0
@@ -446,7 +454,7 @@ def _main(argv: list[str] | None) -> int:
 
     from app.runtime import secure_data_dir
 
-    os.umask(0o077)  # sessions, accounts, audit, backups and recordings: owner only
+    host.private_umask()  # sessions, accounts, audit, backups and recordings: owner only (Windows: the profile's ACL)
     secure_data_dir(data_dir)
     # NiceGUI keeps its per-browser storage here instead of the working folder
     os.environ.setdefault("NICEGUI_STORAGE_PATH", str(data_dir / "nicegui"))
@@ -512,7 +520,7 @@ def _main(argv: list[str] | None) -> int:
             raise KeyboardInterrupt
         interrupted.append(signum)
 
-    signal.signal(signal.SIGINT, on_interrupt)
+    host.set_interrupt_handler(on_interrupt)
     ui.run(
         host=args.host,
         port=args.port,

@@ -14,6 +14,8 @@ import stat
 import tempfile
 from pathlib import Path
 
+from app import host
+
 MAX_DOCUMENT_BYTES = 32 * 1024 * 1024  # a backup or parameter file; the largest real ones are a few hundred KiB
 MAX_SECRET_BYTES = 64 * 1024  # a password file
 
@@ -109,7 +111,7 @@ def replace_atomic(path: str | Path, text: str) -> Path:
             handle.write(text)
             handle.flush()
             if mode is not None:
-                os.fchmod(handle.fileno(), mode)
+                host.copy_mode(handle.fileno(), mode)  # Windows before Python 3.13: no fchmod (app/host.py)
             os.fsync(handle.fileno())
         os.replace(tmp, target)
     except BaseException:

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 from urllib.parse import urlparse
 
+from app.host import TerminalKeys
 from app.plant import DEMO_PLANT, PlantError, load_plant
 
 
@@ -122,53 +123,10 @@ def terminal_present(stream=None) -> bool:
         return False
 
 
-class TtyKeys:
-    """Single key presses from the terminal on standard input (cbreak mode, restored at :meth:`stop`), read in a
-    thread of their own and handed to ``on_key`` in the event loop."""
-
-    def __init__(self, stream=None):
-        self.stream = sys.stdin if stream is None else stream
-        self._thread = None
-        self._running = False
-        self._saved = None
-
-    def start(self, on_key) -> None:
-        import termios
-        import threading
-        import tty
-
-        loop = asyncio.get_running_loop()
-        fd = self.stream.fileno()
-        self._saved = termios.tcgetattr(fd)
-        tty.setcbreak(fd)
-        self._running = True
-
-        def read() -> None:
-            import os
-            import select
-
-            while self._running:
-                ready, _, _ = select.select([fd], [], [], 0.1)
-                if not ready:
-                    continue
-                data = os.read(fd, 32)
-                if not data:
-                    break
-                for char in data.decode(errors="replace"):
-                    loop.call_soon_threadsafe(on_key, char)
-
-        self._thread = threading.Thread(target=read, name="terminal keys", daemon=True)
-        self._thread.start()
-
-    def stop(self) -> None:
-        import termios
-
-        self._running = False
-        if self._thread is not None:
-            self._thread.join(0.5)
-        if self._saved is not None:
-            termios.tcsetattr(self.stream.fileno(), termios.TCSADRAIN, self._saved)
-            self._saved = None
+class TtyKeys(TerminalKeys):
+    """Single key presses from the terminal on standard input, read in a thread of their own and handed to
+    ``on_key`` in the event loop (POSIX: cbreak mode, restored at :meth:`stop`; Windows: the console's key
+    buffer through msvcrt): :class:`app.host.TerminalKeys`."""
 
 
 class TerminalPerson:

@@ -14,9 +14,9 @@ allocator's locks meanwhile, so it must not run on the event loop.
 from __future__ import annotations
 
 import asyncio
-import ctypes
-import ctypes.util
 import logging
+
+from app import host
 
 log = logging.getLogger(__name__)
 
@@ -24,17 +24,9 @@ TRIM_PERIOD_S = 60.0
 
 
 def _load_trim():
-    """glibc's ``malloc_trim``, or None on a C library without it (musl, macOS, Windows)."""
-    name = ctypes.util.find_library("c")
-    if not name:
-        return None
-    try:
-        function = ctypes.CDLL(name).malloc_trim
-    except (OSError, AttributeError):
-        return None
-    function.argtypes = [ctypes.c_size_t]
-    function.restype = ctypes.c_int
-    return function
+    """glibc's ``malloc_trim``, or None on a C library without it (musl) and on Windows and macOS
+    (:func:`app.host.heap_trimmer`)."""
+    return host.heap_trimmer()
 
 
 _malloc_trim = _load_trim()

@@ -5,7 +5,8 @@ until its next period, sends one telegram and sleeps again: a few hundred micros
 times a second. On a laptop whose two cores also draw twenty browser pages it must not wait for a
 time slice behind them. Where the system permits it (Linux, CAP_SYS_NICE), such a thread runs under
 the round-robin real-time policy at a low real-time priority, so it runs as soon as its sleep ends;
-elsewhere it asks for a better nice value, and where neither is allowed it runs as it is. A real-time
+elsewhere it asks for a better nice value, and where neither is allowed (Windows, macOS: app/host.py)
+it runs as it is. A real-time
 thread that never sleeps would take a core: only threads that sleep between short sends belong here
 (a sender with a period under :data:`MIN_PERIOD_S` is left as it is).
 
@@ -45,6 +46,8 @@ import os
 import sys
 import threading
 
+from app import host
+
 RT_PRIORITY = 10  # low among real-time priorities (1..99): above every ordinary program, below the kernel's own threads
 KEEPALIVE_NICE = -10  # where real-time is not permitted: ahead of busy ordinary programs
 MIN_PERIOD_S = 0.01
@@ -56,14 +59,14 @@ def raise_sender(native_id: int | None, period_s: float) -> str:
     if native_id is None or period_s < MIN_PERIOD_S:
         return "as it is"
     try:
-        os.sched_setscheduler(native_id, os.SCHED_RR, os.sched_param(RT_PRIORITY))
+        host.set_thread_round_robin(native_id, RT_PRIORITY)
         return "real-time"
-    except (OSError, AttributeError):  # not permitted, or no such call on this system
+    except (OSError, AttributeError):  # not permitted, or no such call on this system (host.Unsupported)
         pass
     try:
-        os.setpriority(os.PRIO_PROCESS, native_id, KEEPALIVE_NICE)
+        host.set_nice(native_id, KEEPALIVE_NICE)
         return "nice"
-    except (OSError, AttributeError):
+    except (OSError, AttributeError):  # Windows, a thread on macOS: an ordinary thread (docs/windows-macos.md)
         return "as it is"
 
 
@@ -75,17 +78,8 @@ HOLDERS_REAL_TIME = os.environ.get("COMMISSION_RT_HOLDERS", "1") != "0"
 
 def _real_time_bounded() -> bool:
     """Whether real-time threads that may not sleep still leave the machine usable: two CPUs or more and the
-    kernel's real-time throttling on (``sched_rt_runtime_us`` below ``sched_rt_period_us``)."""
-    try:
-        if (os.cpu_count() or 1) < 2:
-            return False
-        with open("/proc/sys/kernel/sched_rt_runtime_us") as f:
-            runtime = int(f.read())
-        with open("/proc/sys/kernel/sched_rt_period_us") as f:
-            period = int(f.read())
-        return 0 <= runtime < period
-    except (OSError, ValueError):
-        return False
+    kernel's real-time throttling on (Linux only: :func:`app.host.real_time_bounded`)."""
+    return host.real_time_bounded()
 
 
 _boosted: dict[int, int] = {}  # native id -> the policy it had, of the threads raised to HOLDER_PRIORITY
@@ -104,10 +98,10 @@ def _boost_holders() -> None:
         if tid in _boosted:
             continue
         try:
-            policy = os.sched_getscheduler(tid)
-            if policy & ~os.SCHED_RESET_ON_FORK != os.SCHED_OTHER:  # a sender already, or asked to stay behind
+            policy = host.thread_policy_raw(tid)
+            if host.policy_kind(policy) != host.ordinary_policy():  # a sender already, or asked to stay behind
                 continue
-            os.sched_setscheduler(tid, os.SCHED_RR | os.SCHED_RESET_ON_FORK, os.sched_param(HOLDER_PRIORITY))
+            host.set_thread_round_robin(tid, HOLDER_PRIORITY, reset_on_fork=True)
             _boosted[tid] = policy
         except ProcessLookupError:  # ended meanwhile
             continue
@@ -121,9 +115,9 @@ def _restore_holders() -> None:
     """The threads raised by :func:`_boost_holders` get their policy back (the caller holds ``_hold_lock``)."""
     for tid, policy in _boosted.items():
         try:
-            if (os.sched_getscheduler(tid) & ~os.SCHED_RESET_ON_FORK == os.SCHED_RR
-                    and os.sched_getparam(tid).sched_priority == HOLDER_PRIORITY):  # not changed by anybody else meanwhile
-                os.sched_setscheduler(tid, policy, os.sched_param(0))
+            if (host.thread_policy(tid) == host.round_robin_policy()
+                    and host.thread_rt_priority(tid) == HOLDER_PRIORITY):  # not changed by anybody else meanwhile
+                host.set_thread_policy(tid, policy)
         except (OSError, AttributeError):  # ended meanwhile
             continue
     _boosted.clear()

@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from app import host
 from app.verify import GENESIS, Check, check_database, content_sha256, head_path, legacy_digest, read_head, read_rows, row_hash
 from devices.commands import READ_PARAMETERS
 
@@ -117,7 +118,7 @@ class RecordStore:
         if self._db is None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             os.close(os.open(self.path, os.O_RDWR | os.O_CREAT, 0o600))
-            os.chmod(self.path, 0o600)  # who approved and signed what is nobody else's business either
+            host.protect_file(self.path)  # who approved and signed what is nobody else's business either
             db = sqlite3.connect(str(self.path), check_same_thread=False, isolation_level=None, timeout=2.0)
             db.execute("PRAGMA journal_mode=WAL")
             existed = db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'record'").fetchone() is not None
@@ -134,7 +135,7 @@ class RecordStore:
             for suffix in ("-wal", "-shm"):
                 side = self.path.with_name(self.path.name + suffix)
                 if side.exists():
-                    os.chmod(side, 0o600)
+                    host.protect_file(side)
             self._db = db
             if legacy:
                 rows = read_rows(db)

@@ -6,14 +6,13 @@ import asyncio
 import contextlib
 import json
 import logging
-import os
 import tempfile
 import time
 from pathlib import Path
 from collections.abc import Callable
 from typing import Any
 
-from app import memory
+from app import host, memory
 from app.audit import AuditLog
 from app.auth import AuthSessions, LoginThrottle
 from app.backup import write_atomic
@@ -39,30 +38,13 @@ def raise_priority(nice: int = PROCESS_NICE) -> bool:
     keeps them waiting. bench/keepalive_jitter.py phase (c), 20 pages on two busy cores (load 15): worst
     Electrak control gap 572 ms with the process at 0, 266 ms at -10. Call it before threads are started.
     Returns whether the priority is now at least ``nice``."""
-    _raise_session_group(nice)
+    host.raise_session_group(nice)  # Linux with autogroups; nothing elsewhere
     try:
-        if os.getpriority(os.PRIO_PROCESS, 0) > nice:
-            os.setpriority(os.PRIO_PROCESS, 0, nice)
-        return os.getpriority(os.PRIO_PROCESS, 0) <= nice
-    except (OSError, AttributeError):  # not permitted, or no such call on this system
+        if host.get_nice(0) > nice:
+            host.set_nice(0, nice)
+        return host.get_nice(0) <= nice
+    except (OSError, AttributeError):  # not permitted, or no such call on this system (Windows: host.Unsupported)
         return False
-
-
-def _raise_session_group(nice: int) -> None:
-    """Linux with autogroups (``kernel.sched_autogroup_enabled``): the scheduler first shares the CPU between
-    sessions, and a thread's nice value counts only within its own; a process that leads its own session
-    (started as a service or by a program, not from a shell whose session it would raise with it) raises
-    its session's share too. Silently nothing where that is not permitted or not there."""
-    try:
-        if os.getsid(0) != os.getpid():
-            return
-        with open("/proc/self/autogroup") as f:
-            current = int(f.read().rsplit("nice", 1)[1])
-        if current > nice:
-            with open("/proc/self/autogroup", "w") as f:
-                f.write(str(nice))
-    except (OSError, ValueError, IndexError, AttributeError):
-        pass
 
 
 def freeze_startup_heap() -> int:
@@ -213,9 +195,9 @@ UNSAVED_FILE = "unsaved.json"
 
 
 def secure_data_dir(path: Path) -> None:
-    """The data folder holds accounts, the audit log, sessions and backups: owner only."""
-    path.mkdir(parents=True, exist_ok=True, mode=0o700)
-    os.chmod(path, 0o700)
+    """The data folder holds accounts, the audit log, sessions and backups: owner only (POSIX mode 0700;
+    on Windows the user profile's ACL, see :func:`app.host.protect_folder`)."""
+    host.protect_folder(path)
 
 
 def remove_stale_parts(folder: Path, older_than_s: float = STALE_PART_S) -> list[Path]:

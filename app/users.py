@@ -11,6 +11,8 @@ import tomllib
 from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError
 
+from app import host
+
 ROLES = ("engineer", "viewer")  # engineer: may write, drive, restore; viewer: reads only
 LOOPBACK_HOSTS = {"127.0.0.1", "localhost", "::1"}
 _hasher = PasswordHasher()
@@ -21,12 +23,9 @@ class UserError(ValueError):
 
 
 def default_data_dir() -> Path:
-    """Where accounts, the audit log and backups live unless ``--data-dir`` says otherwise."""
-    base = os.environ.get("COMMISSION_DATA_DIR")
-    if base:
-        return Path(base)
-    xdg = os.environ.get("XDG_DATA_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".local" / "share") / "commission"
+    """Where accounts, the audit log and backups live unless ``--data-dir`` says otherwise:
+    ``COMMISSION_DATA_DIR``, else the platform's user data folder (:func:`app.host.data_dir`)."""
+    return host.data_dir()
 
 
 @dataclass(frozen=True)
@@ -79,8 +78,7 @@ class UserStore:
 
     def save(self) -> None:
         # the data folder is owner only from its first file on (``commission user add`` before the GUI ever ran)
-        self.path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
-        os.chmod(self.path.parent, 0o700)
+        host.protect_folder(self.path.parent)
         lines = ["# commission accounts: manage with `commission user add NAME --role engineer|viewer`", ""]
         for user in sorted(self.users.values(), key=lambda u: u.name):
             lines += ["[[user]]", f'name = "{user.name}"', f'role = "{user.role}"', f'hash = "{user.password_hash}"', ""]
@@ -88,7 +86,7 @@ class UserStore:
         fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)  # never readable by others, not even briefly
         with os.fdopen(fd, "w", encoding="utf-8") as handle:
             handle.write("\n".join(lines))
-        os.chmod(tmp, 0o600)
+        host.protect_file(tmp)
         tmp.replace(self.path)
         self._stamp = self._file_stamp()
 

@@ -24,6 +24,7 @@ from nicegui import Client, app, core, ui
 from pydantic import BaseModel, Field, create_model
 from socketio import exceptions as socketio_exceptions
 
+from app import host
 from app import runtime as rt
 from app.assets import AssetCache, preload_links, tailwind_style
 from app.browser import BEAT_ASK_JS, BEAT_EVENT, safe_redirect, session_token
@@ -44,7 +45,7 @@ def storage_secret(data_dir: Path) -> str:
     if not path.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(secrets.token_urlsafe(32))
-    path.chmod(0o600)
+    host.protect_file(path)  # POSIX 0600; Windows: the user profile's ACL (docs/windows-macos.md)
     return path.read_text().strip()
 
 
