@@ -15,10 +15,11 @@ import asyncio
 import json
 import logging
 import secrets
+import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
 
+from app import recording as rec
 from app.backup import write_atomic
 from devices.commands import TxForm, transmit_forms
 from devices.sendpolicy import BusDevice, Verdict, check_can
@@ -131,6 +132,49 @@ def verdict(row_or_id, extended: bool = False, data: bytes = b"", bus_devices=()
 def forbidden_reason(can_id: int, extended: bool, data: bytes, bus_devices=()) -> str | None:
     """Why a frame is never sent by this tool, named after the document; None when it may be sent."""
     return verdict(can_id, extended, data, bus_devices).refused or None
+
+
+# -- frames this tool sends itself ---------------------------------------------------------------------
+
+OWN_CYCLIC_HEARD_S = 1.0  # a cyclic frame of this tool counts as running while its last one is this recent (and
+# within three of its cycles)
+
+
+def _cycle_text(cycle_s: float) -> str:
+    return f"{cycle_s * 1000:.0f} ms" if cycle_s < 1.0 else f"{cycle_s:.1f} s"
+
+
+def overridden_by(worker, bus: str, can_id: int, extended: bool, *, now: float | None = None,
+                  own_rows: tuple[int, ...] = ()) -> str:
+    """Why a frame sent now does not last, or "": this tool itself sends the same ID cyclically (a device's
+    keep-alive it serves, such as an M3IO's DigOut), and its next frame replaces what was sent. Read from what the
+    bus heard this tool send (its ID table), so any device's keep-alive is found by the same rule.
+
+    :param own_rows: IDs of this list's own running cyclic rows (not the keep-alive of a device)
+    """
+    state = worker.store.buses.get(bus)
+    stats = getattr(state, "ids", {}).get((extended, can_id))
+    if stats is None or stats.direction != "tx" or can_id in own_rows:
+        return ""
+    cycles = stats.cycles()
+    if not cycles:
+        return ""
+    cycle_s = cycles[0][2]
+    now = time.time() if now is None else now
+    if now - stats.last_time > max(3 * cycle_s, OWN_CYCLIC_HEARD_S):
+        return ""
+    data = bytes(stats.data)
+    owner = rec.device_of(rec.device_owners(worker, bus), can_id, extended, data)
+    types = {d.type for d in worker.plant.devices_on(bus)}
+    meaning = rec.FrameDecoder(worker.known_ids(bus), rec.describers(worker, bus, types))(can_id, extended, data)
+    what = f" ({meaning})" if meaning != rec.UNKNOWN else ""
+    cycle = _cycle_text(cycle_s)
+    ident = f"0x{can_id:08X} ext" if extended else f"0x{can_id:03X}"
+    if owner:
+        return (f"{owner} is served by this tool, which sends {ident} itself every {cycle}{what}: its next one, "
+                f"within {cycle}, sets {owner} back to what its page shows. To change {owner}, use its page.")
+    return (f"This tool sends {ident} itself every {cycle}{what}: its next one, within {cycle}, replaces what "
+            "you send.")
 
 
 # -- rows built from device messages ----------------------------------------------------------------
@@ -247,16 +291,24 @@ class TransmitList:
     def is_running(self, key: str) -> bool:
         return key in self.running and self._can().cyclic_running(self._cyclic_key(key))
 
+    def overridden(self, row: TxRow) -> str:
+        """Why ``row`` sent now does not last (:func:`overridden_by`), or ""."""
+        own = tuple(r.can_id for r in self.rows if r.extended == row.extended and r.key != row.key and self.is_running(r.key))
+        return overridden_by(self.worker, self.bus, row.can_id, row.extended, own_rows=own)
+
     async def _refuse_if_forbidden(self, row: TxRow, *, user: str, role: str, describe: str,
                                    confirmed: bool | None = None) -> Verdict:
-        """Refuse (audited) what the device policies forbid; with ``confirmed`` False, ask for their risks first."""
+        """Refuse (audited) what the device policies forbid; with ``confirmed`` False, ask for their risks first,
+        and say so when a frame of this tool overrides the row (:meth:`overridden`)."""
         found = verdict(row, bus_devices=self.bus_devices())
         if found.refused:
             await self.worker.refused(device=self.bus, user=user, role=role, describe=describe, reason=found.refused,
                                       parameter=found.name or row.id_text(), new=row.data.hex(" "))
             raise TransmitError(found.refused)
-        if confirmed is False and found.confirm:
-            raise NeedsConfirmation(found.question)
+        if confirmed is False:
+            note = self.overridden(row)
+            if found.confirm or note:
+                raise NeedsConfirmation(" ".join(t for t in (found.question, note) if t))
         return found
 
     # -- edits (engineer only, audited) -------------------------------------------------------
@@ -296,8 +348,11 @@ class TransmitList:
                                           target=self.bus, parameter=row.id_text())
 
     # -- sending ---------------------------------------------------------------------------------
-    async def send_once(self, key: str, *, user: str, role: str, confirmed: bool = False) -> None:
-        """Send a row once. :raises NeedsConfirmation: its device policy names a risk and ``confirmed`` is False"""
+    async def send_once(self, key: str, *, user: str, role: str, confirmed: bool = False) -> str:
+        """Send a row once; returns why it does not last ("" when nothing of this tool overrides it).
+
+        :raises NeedsConfirmation: its device policy names a risk, or a frame of this tool overrides it, and
+            ``confirmed`` is False"""
         row = self.row(key)
         if row is None:
             raise TransmitError("no such row")
@@ -311,11 +366,14 @@ class TransmitList:
             self.version += 1
             return ""
 
+        note = self.overridden(row)  # before the send: the ID table then names this frame, not the keep-alive
         await self.worker.engineer_action(do, user=user, role=role, describe=describe, target=self.bus,
                                           parameter=found.name or row.id_text(), new=row.data.hex(" "))
+        return note
 
-    async def start(self, key: str, *, user: str, role: str, session: str, confirmed: bool = False) -> None:
-        """Start a cyclic row for ``session`` (its browser keeps it alive under the dead-man rule)."""
+    async def start(self, key: str, *, user: str, role: str, session: str, confirmed: bool = False) -> str:
+        """Start a cyclic row for ``session`` (its browser keeps it alive under the dead-man rule); returns why its
+        frames do not last ("" when nothing of this tool sends the same ID)."""
         row = self.row(key)
         if row is None:
             raise TransmitError("no such row")
@@ -336,8 +394,10 @@ class TransmitList:
             self.version += 1
             return ""
 
+        note = self.overridden(row)
         await self.worker.engineer_action(do, user=user, role=role, describe=describe, target=self.bus,
                                           parameter=found.name or row.id_text(), new=row.data.hex(" "))
+        return note
 
     async def stop(self, key: str, *, user: str, role: str) -> None:
         """Stop a cyclic row: never refused (any role), stopped first, audited after."""

@@ -14,7 +14,7 @@ from app import transmit as tx
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import frame, notify_error
 from pages.session import current_user
-from pages.widgets import all_valid, cancelled, confirm, range_number, refuse
+from pages.widgets import all_valid, cancelled, confirm, range_number
 
 REFRESH_S = 0.5
 COLUMNS = [
@@ -44,7 +44,7 @@ def content(bus: str) -> None:
         if bus not in runtime.worker.can_buses:
             ui.label(f"{bus} is not a CAN bus: transmit lists are for CAN buses.")
             return
-        user, role = current_user()
+        _user, role = current_user()
         if role != "engineer":
             with ui.row().classes("bg-amber-1 q-pa-sm items-center").props("data-testid=transmit-viewer-note"):
                 ui.icon("lock")
@@ -206,6 +206,8 @@ class RowsCard:
                       on_click=lambda: view.guarded(_stop_all(tl))).props("dense")
         self.note = ui.label().classes("text-grey-7")
         self.error = ui.label().classes("text-negative")
+        self.overridden = ui.label().classes("text-warning text-body2").props("data-testid=transmit-overridden")
+        self.overridden.set_visibility(False)
         t = ui.table(columns=COLUMNS, rows=[], row_key="key").props("dense flat bordered").classes("w-full can-table")
         t.props("data-testid=transmit-table")
         t.add_slot("body-cell-actions", r"""
@@ -228,21 +230,26 @@ class RowsCard:
         """Send or start a row; a risk its device policy names is asked first (and a "no" is audited)."""
         tl, bus = self.view.tl, self.view.bus
 
-        async def go(confirmed: bool) -> None:
+        async def go(confirmed: bool) -> str:
             if start:
-                await tl.start(key, session=self.view.session, confirmed=confirmed, **_who())
-            else:
-                await tl.send_once(key, confirmed=confirmed, **_who())
+                return await tl.start(key, session=self.view.session, confirmed=confirmed, **_who())
+            return await tl.send_once(key, confirmed=confirmed, **_who())
 
+        row = tl.row(key)
+        what = row.describe() if row else key
         try:
-            await go(False)
+            note = await go(False)
         except tx.NeedsConfirmation as exc:
-            row = tl.row(key)
-            what = row.describe() if row else key
             if not await confirm(f"Send {what}?", str(exc), ok="Send"):
                 await cancelled(bus, f"transmit on {bus}: {what}", parameter=row.id_text() if row else "")
                 return
-            await go(True)
+            note = await go(True)
+        # a frame this tool sends itself replaces it: said again after the send, and kept under the list
+        self.overridden.set_text(f"{'Started' if start else 'Sent'} {what}; {note}" if note else "")
+        self.overridden.set_visibility(bool(note))
+        if note:
+            ui.notify(f"{'Started' if start else 'Sent once'}, but it does not last: {note}", type="warning",
+                      multi_line=True, timeout=10_000)
         self.refresh()
 
     def refresh(self) -> None:
