@@ -172,7 +172,7 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
                    "old": a.old, "new": a.new, "result": a.result} for a in audit],
         "commissioned_by": people,
         "commissioned": [_when(min((e.time for e in entries), default=None)), _when(max((e.time for e in entries), default=None))],
-        "signoff": _signoff(signoff),
+        "signoff": signoff_of(signoff),
     }
 
 
@@ -197,7 +197,7 @@ def sign_gaps(content: dict) -> list[str]:
     return gaps
 
 
-def _signoff(entry) -> dict | None:
+def signoff_of(entry) -> dict | None:
     if entry is None:
         return None
     return {"id": entry.id, "account": entry.data.get("account") or entry.user, "row_hash": entry.hash,
@@ -213,7 +213,7 @@ async def plant_content(runtime, *, read: bool = True, user: str = "local", role
             "plant_file": plant_file(runtime.plant), "simulated": [d["device"] for d in devices if d["simulated"]],
             "record_check": {"ok": check.ok, "summary": check.summary(), "problems": check.problems, "notes": check.notes,
                              "head": None if check.head is None else {"id": check.head[0], "hash": check.head[1]}},
-            "signoff": _signoff(signoff)}
+            "signoff": signoff_of(signoff)}
 
 
 # -- HTML ------------------------------------------------------------------------------------------
@@ -252,9 +252,12 @@ def commissioned_text(d: dict, plant_signed: bool = False) -> str:
     return f"Commissioned by {who}{when}{signed}."
 
 
+DIFFERING = ("changed", "not approved")  # settings the summary lists (a value the device measures itself is no difference)
+
+
 def values_text(d: dict) -> str:
     """Where the parameter values come from and how they compare, one sentence."""
-    counts = ", ".join(f"{n} {k}" for k, n in d["counts"].items() if n) or "no parameters"
+    counts = ", ".join(f"{n} {k}{'s' if k == LIVE_VALUE and n != 1 else ''}" for k, n in d["counts"].items() if n) or "no parameters"
     return f"Values {d['parameters_source']}: {counts}."
 
 
@@ -333,7 +336,7 @@ def device_html(d: dict, plant_signoff: dict | None = None, *, appendix: bool = 
     if d["drift"]:
         out.append('<p class="changed">Changed since approved: ' + _e(", ".join(f"{r['name']} {r['approved']} → {r['now']}" for r in d["drift"])) + "</p>")
     ap = d["approved"]
-    changed = [r for r in d.get("settings", d["parameters"]) if r["verdict"] != "equal"]
+    changed = [r for r in d.get("settings", d["parameters"]) if r["verdict"] in DIFFERING]
     out.append("<h3>Settings against the approved set</h3><p>" + (
         f"Approved set #{ap['id']} ({_e(ap['title'])}) by {_e(ap['by'])} on {_when(ap['time'])}. " if ap else "No approved set. ")
         + _e(values_text(d)) + (" Settings that differ:" if changed else " Every setting equals the approved set.") + "</p>")
@@ -479,7 +482,7 @@ def plant_pdf(p: dict) -> bytes:
         if d["drift"]:
             story.append(para("Changed since approved: " + ", ".join(f"{r['name']} {r['approved']} -> {r['now']}" for r in d["drift"]), warn))
         story.append(Paragraph("Settings against the approved set", styles["Heading3"]))
-        changed = [r for r in d.get("settings", []) if r["verdict"] != "equal"]
+        changed = [r for r in d.get("settings", []) if r["verdict"] in DIFFERING]
         story.append(para(values_text(d) + (" Settings that differ:" if changed else " Every setting equals the approved set.")))
         if changed:
             story.append(table([["Setting", "As left", "Approved", "Verdict"]] + _param_rows(changed), [0.4, 0.25, 0.2, 0.15]))

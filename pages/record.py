@@ -19,11 +19,11 @@ from nicegui import ui
 from app import backup
 from app import runtime as rt
 from app.record import checkout_module, diff_sets
-from app.report import device_content, device_html, plant_content, sign_gaps, write_plant
+from app.report import appendix_html, device_content, device_html, plant_content, sign_gaps, signoff_of, write_plant
 from app.verify import check_archive
 from pages.frame import fmt_time, frame
 from pages.session import current_user
-from pages.widgets import VIEWER_REASON, gate
+from pages.widgets import VIEWER_REASON, gate, upload_button
 
 STATUS_COLOUR = {"passed": "positive", "failed": "negative", "aborted": "negative", "running": "primary", "pending": "grey",
                  "skipped": "grey", "error": "negative"}
@@ -335,6 +335,7 @@ PREVIEW_CSS = """
 .record-preview .sig{border:2px solid #1b5e20;padding:6px 8px;margin:6px 0}.record-preview .unsigned{border-color:#b71c1c}
 .record-preview .equal,.record-preview .passed{color:#1b5e20}.record-preview .changed,.record-preview .failed,.record-preview .aborted{color:#b71c1c;font-weight:600}
 .record-preview .notapproved,.record-preview .skipped{color:#8d6e00}
+.record-preview .sim{background:#fff3cd;border:2px solid #8d6e00;color:#5d4200;padding:4px 8px;font-weight:600;margin:6px 0}
 """
 
 
@@ -344,6 +345,9 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
     # tables and labels then ran together: "addressaddress 1")
     ui.add_css(PREVIEW_CSS)
     preview = ui.html("").classes("w-full").mark("record-report")
+    with ui.expansion("Full listings: settings, live values, every step with its evidence file, audit rows").classes(
+            "w-full").mark("record-listings"):
+        listings = ui.html("").classes("w-full")
     with ui.row().classes("items-end gap-3 w-full"):
         signer = ui.input("Name", value=user if user != "local" else "").props("dense outlined").mark("sign-name")
         signer_role = ui.input("Role", value="commissioning engineer").props("dense outlined").mark("sign-role")
@@ -356,7 +360,9 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
 
     async def show() -> None:
         content = await device_content(runtime, name, read=False)
-        preview.content = "<div class='record-preview'>" + _small_headings(device_html(content)) + "</div>"
+        plant = await runtime.record.store.run(runtime.record.store.latest, runtime.record.plant, "", "signoff")
+        preview.content = "<div class='record-preview'>" + _small_headings(device_html(content, signoff_of(plant), appendix=False)) + "</div>"
+        listings.content = "<div class='record-preview'>" + _small_headings(appendix_html(content)) + "</div>"
 
     async def sign(plant: bool) -> None:
         if not signer.value.strip():
@@ -419,5 +425,6 @@ def _check_card(runtime) -> None:
 
     with ui.row().classes("items-center gap-3"):
         ui.button("Check the record", icon="fact_check", on_click=check_record).props("outline").mark("check-record")
-        upload = ui.upload(auto_upload=True, max_file_size=500_000_000, on_upload=uploaded,
-                           label="Check an archive (.zip)").props("accept=.zip flat bordered").classes("w-72").mark("check-archive")
+        upload = ui.upload(auto_upload=True, max_file_size=500_000_000, on_upload=uploaded).props(
+            "accept=.zip flat bordered hide-upload-btn").classes("w-72").mark("check-archive")
+        upload.add_slot("header", upload_button("Check an archive (.zip)", "check-archive-upload"))

@@ -17,9 +17,22 @@ SHOTS = Path("/tmp/shots")
 
 @pytest.fixture(scope="module")
 def app(tmp_path_factory):
-    with running_app(demo_plant_text(free_port()), tmp_path_factory.mktemp("record")) as url:
+    from app.users import UserStore, default_data_dir
+
+    folder = tmp_path_factory.mktemp("record")
+    # who approves and signs: an account in the data folder the app will use (this run's, from the environment)
+    UserStore(default_data_dir() / "users.toml").add("anna", "engineer", "anna-password")
+    with running_app(demo_plant_text(free_port()), folder) as url:
         wait_devices_online(url, ["door-2"], timeout=40)
         yield url
+
+
+def log_in(page) -> None:
+    """The account asked for at the moment of approving or signing (the page is on the loopback address)."""
+    page.get_by_label("Account").fill("anna")
+    page.get_by_label("Password").fill("anna-password")
+    page.screenshot(path=str(SHOTS / "record-account-1440x900.png"), full_page=False)
+    page.get_by_role("button", name="Log in and continue").click()
 
 
 def test_checkout_sign_and_drift_from_the_record_page(chromium, app):
@@ -28,21 +41,34 @@ def test_checkout_sign_and_drift_from_the_record_page(chromium, app):
     try:
         page.goto(f"{app}/record/door-2")
         page.get_by_role("button", name="Approve current set").click()
-        page.get_by_text("approved set stored").wait_for(timeout=15000)
+        log_in(page)
+        page.get_by_text("approved set stored (account anna)").wait_for(timeout=15000)
         page.get_by_role("button", name="Run checkout").click()
         page.get_by_role("button", name="Yes").click()
-        page.get_by_text("checkout passed").wait_for(timeout=30000)
+        try:
+            page.get_by_text("checkout passed").wait_for(timeout=30000)
+        except Exception:
+            page.screenshot(path=str(SHOTS / "record-checkout-failed.png"))
+            raise
         page.get_by_label("Name").fill("Anna Berg")
         page.get_by_label("Comment").fill("door-2 cycled on site")
         page.get_by_role("button", name="Sign plant demo").click()
+        page.get_by_text("Sign plant demo although these are open?").wait_for(timeout=90000)  # the other devices: no checkout
+        page.screenshot(path=str(SHOTS / "record-sign-open-items-1440x900.png"), full_page=False)
+        page.get_by_role("button", name="Sign anyway").click()
+        log_in(page)
         try:
-            page.get_by_text("signed: the record is frozen").wait_for(timeout=90000)
+            page.get_by_text("signed by Anna Berg with account anna").wait_for(timeout=90000)
         except Exception:
             page.screenshot(path=str(SHOTS / "record-failed.png"))
             raise
+        page.get_by_role("button", name="Check the record").click()
+        page.get_by_text("intact (").wait_for(timeout=15000)
         page.screenshot(path=str(SHOTS / "record-1440x900.png"), full_page=False)
+        page.screenshot(path=str(SHOTS / "record-1440x900-full.png"), full_page=True)
         page.set_viewport_size({"width": 768, "height": 1024})
         page.screenshot(path=str(SHOTS / "record-768x1024.png"), full_page=False)
+        page.screenshot(path=str(SHOTS / "record-768x1024-full.png"), full_page=True)
     finally:
         page.close()
     with urllib.request.urlopen(f"{app}/api/devices", timeout=5) as response:
