@@ -38,6 +38,10 @@ COLUMNS = [  # widths in % of a fixed-layout table: hex wraps between bytes (nev
     {"name": "rtt", "label": "RTT ms", "field": "rtt", "align": "right", "headerStyle": "width: 5%"},
     {"name": "error", "label": "Error", "field": "error", "align": "left", "headerStyle": "width: 7%"},
 ]
+# a line worded like its device page: the request is a name ("RG 0x0011 Actual_Position Actuator 1"), so it gets the
+# room the hex of a short SCU or LogiTed request does not need
+WORDED_WIDTHS = {"time": 9, "device": 10, "request": 16, "tx": 11, "rx": 19, "decoded": 25, "rtt": 5, "error": 5}
+WORDED_COLUMNS = [{**c, "headerStyle": f"width: {WORDED_WIDTHS[c['name']]}%"} for c in COLUMNS]
 CUT_SLOT = '<q-td :props="props" :class="\'cut \' + (props.col.name === \'error\' ? \'text-negative\' : \'\')" :title="props.value">{{ props.value }}</q-td>'
 HEX_SLOT = '<q-td :props="props" class="mono hex">{{ props.value }}</q-td>'
 WRAP_SLOT = '<q-td :props="props" class="clamp" :title="props.value"><div>{{ props.value }}</div></q-td>'
@@ -135,6 +139,9 @@ class LineMonitor:
     """The transactions of one line, filtered, each decoded once, updated twice a second; without filters of
     its own kind (a line this monitor knows no decoding for): subclasses add them."""
 
+    columns = COLUMNS
+    clamped = ("decoded",)  # columns shown in two lines, the whole on hover
+
     def __init__(self, bus: str):
         runtime = rt.current()
         self.bus = bus
@@ -162,13 +169,15 @@ class LineMonitor:
             self.export = ui.button("Export CSV", icon="download").props("flat dense no-caps data-monitor=export")
             self.summary = ui.label().classes("text-body2")
         with ui.element("div").classes("w-full monitor-scroll monitor-fill").props("data-monitor=transactions-box"):
-            table = ui.table(columns=COLUMNS, rows=[], row_key="id", pagination=0).classes("w-full reg-table")
+            table = ui.table(columns=self.columns, rows=[], row_key="id", pagination=0).classes("w-full reg-table")
         table.props("dense flat bordered hide-bottom data-monitor=transactions")
         for name in ("time", "device", "request", "rtt", "error"):
-            table.add_slot(f"body-cell-{name}", CUT_SLOT)
+            if name not in self.clamped:
+                table.add_slot(f"body-cell-{name}", CUT_SLOT)
         table.add_slot("body-cell-tx", HEX_SLOT)
         table.add_slot("body-cell-rx", HEX_SLOT)
-        table.add_slot("body-cell-decoded", WRAP_SLOT)
+        for name in self.clamped:
+            table.add_slot(f"body-cell-{name}", WRAP_SLOT)
         table.mark("transactions")
         self.table = table
 
@@ -199,7 +208,8 @@ class LineMonitor:
         request, decoded, function = self.words(t)
         row = {
             "id": id(t),
-            "time": datetime.fromtimestamp(t.time).strftime("%H:%M:%S.%f")[:-3],
+            # a narrow column breaks before the milliseconds, not inside a number (a zero-width space there)
+            "time": datetime.fromtimestamp(t.time).strftime("%H:%M:%S\u200b.%f")[:-3],
             "date": datetime.fromtimestamp(t.time).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3],
             "device": decoder.device(t.unit),
             "unit": t.unit,
@@ -297,6 +307,9 @@ class TaggedMonitor(LineMonitor):
     """A line whose device type words its telegrams like its device page and declares the filters that fit them
     (:mod:`app.recording.lines`): an SCU's RS232 line by command letters and data ID, a LogiTed line by telegram
     type."""
+
+    columns = WORDED_COLUMNS
+    clamped = ("request", "decoded")
 
     def __init__(self, bus: str, words: lines.LineWords):
         self.line_words = words
