@@ -2,25 +2,27 @@
 
 Every call that only some systems have is made here and nowhere else (tests/test_platform_layering.py
 parses app/, devices/, pages/ and server/ and fails on one outside this module), each with the fallback
-the other systems get. The list, with what a user of each system sees, is in docs/windows-macos.md:
+the other systems get. What each system gets (docs/windows-macos.md says it for users):
 
-================================  ===============================  =========================================
-what                              Linux                            Windows / macOS (the fallback)
-================================  ===============================  =========================================
-data folder (:func:`data_dir`)    ``~/.local/share/commission``    ``%LOCALAPPDATA%\\commission``;
-                                  (``$XDG_DATA_HOME``)             ``~/Library/Application Support/commission``
-owner-only files                  modes 0700 / 0600                Windows: the user profile's ACL, no chmod;
-(:func:`protect_folder`, ...)                                      macOS: modes 0700 / 0600
-stop on Ctrl+C                    ``loop.add_signal_handler``      Windows: ``signal.signal`` (the loop has no
-(:func:`on_stop_signals`)                                          signal handlers), Ctrl+Break too
-keep-alive thread priority        real-time round robin, else a    as it is (an ordinary thread)
-(:func:`set_thread_round_robin`)  better nice value
-process priority, session group   nice -5, ``/proc/self/autogroup``  macOS: nice -5 where permitted; Windows: as it is
-heap trim (:func:`heap_trimmer`)   glibc's ``malloc_trim``          none: freed pages are left to the allocator
-kernel drop counters              ``SO_MEMINFO``, ``/proc``, ``/sys``  not shown (None)
-single keys at a terminal         termios cbreak mode + select     Windows: ``msvcrt`` (a thread polls it)
-(:class:`TerminalKeys`)
-================================  ===============================  =========================================
+- the data folder (:func:`data_dir`): platformdirs' user data folder, ``~/.local/share/commission`` on
+  Linux, ``%LOCALAPPDATA%\\commission`` on Windows, ``~/Library/Application Support/commission`` on macOS;
+  the old ``~/.local/share/commission`` is still used while it exists and the new one does not;
+- owner-only files (:func:`protect_folder`, :func:`protect_file`, :func:`private_umask`): modes 0700/0600
+  and umask 077 on POSIX; on Windows the user profile's ACL, no modes;
+- stopping on Ctrl+C (:func:`on_stop_signals`): the event loop's signal handlers on Unix; on Windows, whose
+  loops have none, ``signal.signal`` handing the stop to the loop, Ctrl+Break too;
+- keep-alive sender threads (:func:`set_thread_round_robin`, :func:`set_nice`,
+  :func:`set_thread_time_critical`): real-time round robin or a better nice value on Linux, the
+  time-critical thread priority on Windows, as they are on macOS;
+- the process's priority (:func:`set_nice`, :func:`raise_session_group`, :func:`set_process_above_normal`):
+  nice -5 and its session group (``/proc/self/autogroup``) on Linux, nice -5 where permitted on macOS,
+  the above-normal priority class on Windows;
+- heap pages given back (:func:`heap_trimmer`): glibc's ``malloc_trim`` on Linux, nothing elsewhere;
+- the kernel's drop counters (:func:`socket_drops`, :func:`udp_drops`, :func:`netdev_drops`): ``SO_MEMINFO``,
+  ``/proc`` and ``/sys`` on Linux, None elsewhere;
+- single keys at a terminal (:class:`TerminalKeys`): termios cbreak mode and select on POSIX, ``msvcrt``
+  on Windows;
+- an atomic save's file mode (:func:`copy_mode`): ``fchmod`` where the system has it.
 
 The branches read ``sys.platform`` and ``os.name`` when called, not at import, so tests set them to Windows'
 and macOS' values and run those branches here (tests/test_platform.py). Where a call may simply be missing
@@ -259,6 +261,53 @@ def set_nice(native_id: int, nice: int) -> None:
 def get_nice(native_id: int = 0) -> int:
     """The nice value of thread or process ``native_id`` (:class:`Unsupported` on Windows)."""
     return _os_call("getpriority")(_os_call("PRIO_PROCESS"), native_id)
+
+
+THREAD_SET_INFORMATION = 0x0020
+THREAD_PRIORITY_TIME_CRITICAL = 15  # in the normal priority class: base priority 15, ahead of every ordinary thread
+ABOVE_NORMAL_PRIORITY_CLASS = 0x8000
+
+
+def _kernel32():
+    """Windows' kernel32 through ctypes (tests replace this with a stand-in)."""
+    import ctypes
+
+    return ctypes.WinDLL("kernel32", use_last_error=True)
+
+
+def _win_error(call: str) -> OSError:
+    import ctypes
+
+    code = ctypes.get_last_error() if hasattr(ctypes, "get_last_error") else 0
+    return OSError(errno.EPERM, f"{call} failed (Windows error {code})")
+
+
+def set_thread_time_critical(native_id: int) -> None:
+    """Windows: thread ``native_id`` at THREAD_PRIORITY_TIME_CRITICAL within the process's class, which any
+    user may set: the keep-alive sender runs as soon as its sleep ends, ahead of every ordinary thread of the
+    machine. Only for threads that sleep between short sends (as on Linux' real-time policy). OSError when
+    Windows refuses; :class:`Unsupported` on every other system."""
+    if not is_windows():
+        raise Unsupported(errno.ENOSYS, f"no Windows thread priorities on {sys.platform}")
+    kernel32 = _kernel32()
+    handle = kernel32.OpenThread(THREAD_SET_INFORMATION, False, native_id)
+    if not handle:
+        raise _win_error("OpenThread")
+    try:
+        if not kernel32.SetThreadPriority(handle, THREAD_PRIORITY_TIME_CRITICAL):
+            raise _win_error("SetThreadPriority")
+    finally:
+        kernel32.CloseHandle(handle)
+
+
+def set_process_above_normal() -> None:
+    """Windows: this process in the ABOVE_NORMAL priority class (any user may set it; Windows' counterpart of
+    a nice value of about -5). OSError when refused, :class:`Unsupported` on every other system."""
+    if not is_windows():
+        raise Unsupported(errno.ENOSYS, f"no Windows priority classes on {sys.platform}")
+    kernel32 = _kernel32()
+    if not kernel32.SetPriorityClass(kernel32.GetCurrentProcess(), ABOVE_NORMAL_PRIORITY_CLASS):
+        raise _win_error("SetPriorityClass")
 
 
 def real_time_bounded() -> bool:

@@ -5,7 +5,8 @@ until its next period, sends one telegram and sleeps again: a few hundred micros
 times a second. On a laptop whose two cores also draw twenty browser pages it must not wait for a
 time slice behind them. Where the system permits it (Linux, CAP_SYS_NICE), such a thread runs under
 the round-robin real-time policy at a low real-time priority, so it runs as soon as its sleep ends;
-elsewhere it asks for a better nice value, and where neither is allowed (Windows, macOS: app/host.py)
+elsewhere it asks for a better nice value; on Windows it runs at the time-critical thread priority
+within the process's class (any user may set it); where none of these is allowed (macOS: app/host.py)
 it runs as it is. A real-time
 thread that never sleeps would take a core: only threads that sleep between short sends belong here
 (a sender with a period under :data:`MIN_PERIOD_S` is left as it is).
@@ -55,7 +56,7 @@ MIN_PERIOD_S = 0.01
 
 def raise_sender(native_id: int | None, period_s: float) -> str:
     """Give the sender thread ``native_id`` (its ``threading.Thread.native_id``) its place; returns which:
-    ``"real-time"``, ``"nice"`` or ``"as it is"``."""
+    ``"real-time"``, ``"nice"``, ``"time-critical"`` (Windows) or ``"as it is"``."""
     if native_id is None or period_s < MIN_PERIOD_S:
         return "as it is"
     try:
@@ -66,7 +67,12 @@ def raise_sender(native_id: int | None, period_s: float) -> str:
     try:
         host.set_nice(native_id, KEEPALIVE_NICE)
         return "nice"
-    except (OSError, AttributeError):  # Windows, a thread on macOS: an ordinary thread (docs/windows-macos.md)
+    except (OSError, AttributeError):  # Windows, a thread on macOS
+        pass
+    try:
+        host.set_thread_time_critical(native_id)
+        return "time-critical"
+    except (OSError, AttributeError):  # refused, or not Windows (macOS): an ordinary thread (docs/windows-macos.md)
         return "as it is"
 
 

@@ -31,7 +31,8 @@ PROCESS_NICE = -5  # the GUI process ahead of a browser and other busy programs 
 
 def raise_priority(nice: int = PROCESS_NICE) -> bool:
     """Ask for a higher scheduling priority (a lower nice value) for this thread and every thread it starts
-    afterwards, where the system allows it (CAP_SYS_NICE, or a raised RLIMIT_NICE); else nothing changes.
+    afterwards, where the system allows it (CAP_SYS_NICE, or a raised RLIMIT_NICE; on Windows the above-normal
+    priority class, which any user may set: app/host.py); else nothing changes.
 
     The keep-alive threads ask for more (app/realtime.py), but they need the interpreter lock
     for every frame: a thread of the same process that holds it and is put aside for a browser's renderer
@@ -43,7 +44,14 @@ def raise_priority(nice: int = PROCESS_NICE) -> bool:
         if host.get_nice(0) > nice:
             host.set_nice(0, nice)
         return host.get_nice(0) <= nice
-    except (OSError, AttributeError):  # not permitted, or no such call on this system (Windows: host.Unsupported)
+    except host.Unsupported:  # Windows: no nice values; the above-normal priority class instead
+        pass
+    except (OSError, AttributeError):  # not permitted
+        return False
+    try:
+        host.set_process_above_normal()
+        return True
+    except (OSError, AttributeError):
         return False
 
 

@@ -16,10 +16,10 @@ from pathlib import Path
 
 import pytest
 from conftest import free_port
-from plants import modbus_line, plant_text
 
 from app import host, memory, realtime, runtime, web
 from app.users import UserStore, default_data_dir
+from plants import modbus_line, plant_text
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -171,16 +171,64 @@ def _in_thread(fn):
     return out["result"]
 
 
-def test_windows_keepalive_thread_runs_as_it_is(windows):
+class FakeKernel32:
+    """Windows' kernel32 as far as app/host.py calls it; ``refuse``: every call fails as Windows' do (0)."""
+
+    def __init__(self, refuse: bool = False):
+        self.refuse, self.calls = refuse, []
+
+    def OpenThread(self, access, inherit, tid):
+        self.calls.append(("OpenThread", access, inherit, tid))
+        return 0 if self.refuse else 0x1234
+
+    def SetThreadPriority(self, handle, priority):
+        self.calls.append(("SetThreadPriority", handle, priority))
+        return 1
+
+    def CloseHandle(self, handle):
+        self.calls.append(("CloseHandle", handle))
+        return 1
+
+    def GetCurrentProcess(self):
+        return -1
+
+    def SetPriorityClass(self, handle, cls):
+        self.calls.append(("SetPriorityClass", handle, cls))
+        return 0 if self.refuse else 1
+
+
+def test_windows_keepalive_thread_runs_time_critical(windows):
     _no_proc(windows)
-    assert _in_thread(lambda tid: realtime.raise_sender(tid, 0.1)) == "as it is"
+    kernel32 = FakeKernel32()
+    windows.setattr(host, "_kernel32", lambda: kernel32)
+    tid = {}
+    assert _in_thread(lambda t: tid.update(t=t) or realtime.raise_sender(t, 0.1)) == "time-critical"
+    assert kernel32.calls == [("OpenThread", host.THREAD_SET_INFORMATION, False, tid["t"]),
+                              ("SetThreadPriority", 0x1234, host.THREAD_PRIORITY_TIME_CRITICAL), ("CloseHandle", 0x1234)]
     assert host.real_time_bounded() is False
     realtime.hold_keepalive()  # the other threads: nothing to raise, nothing raised
     try:
         assert realtime.holders_raised() == []
     finally:
         realtime.release_keepalive()
-    assert runtime.raise_priority() is False  # no nice values: the process stays as it is
+    kernel32.calls.clear()
+    assert runtime.raise_priority() is True  # no nice values: the above-normal priority class instead
+    assert kernel32.calls == [("SetPriorityClass", -1, host.ABOVE_NORMAL_PRIORITY_CLASS)]
+
+
+def test_windows_refusing_a_priority_leaves_the_thread_as_it_is(windows):
+    windows.setattr(host, "_kernel32", lambda: FakeKernel32(refuse=True))
+    assert _in_thread(lambda tid: realtime.raise_sender(tid, 0.1)) == "as it is"
+    assert runtime.raise_priority() is False
+
+
+def test_windows_priorities_are_not_tried_elsewhere(monkeypatch):
+    monkeypatch.setattr(sys, "platform", "darwin")
+    monkeypatch.setattr(host, "_kernel32", lambda: pytest.fail("kernel32 off Windows"))
+    with pytest.raises(host.Unsupported):
+        host.set_thread_time_critical(1)
+    with pytest.raises(host.Unsupported):
+        host.set_process_above_normal()
 
 
 def test_macos_never_gives_a_thread_id_to_setpriority(macos):
