@@ -139,6 +139,14 @@ def test_posix_protects_with_owner_only_modes(tmp_path, monkeypatch):
     assert "0700" in host.protection()
 
 
+def test_posix_umask_is_owner_only(monkeypatch):
+    monkeypatch.setattr(sys, "platform", "darwin")
+    masks = []
+    monkeypatch.setattr(os, "umask", lambda mask: masks.append(mask) or 0o022)
+    host.private_umask()
+    assert masks == [0o077]
+
+
 def test_windows_leaves_protection_to_the_profile_acl(tmp_path, windows):
     _no_chmod(windows)
     folder = tmp_path / "data"
@@ -280,6 +288,8 @@ def test_linux_drop_counter_of_a_udp_socket():
         if drops is None:  # a kernel before 4.7
             drops = host.udp_drops(os.fstat(sock.fileno()).st_ino)
         assert drops == 0
+    if Path("/sys/class/net/lo/statistics/rx_dropped").exists():
+        assert isinstance(host.netdev_drops("lo"), int)  # the figures a SocketCAN interface has too
 
 
 # -- stopping on Ctrl+C -------------------------------------------------------------------------------------------
