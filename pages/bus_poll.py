@@ -425,7 +425,7 @@ def _count_field(value: int, function) -> ui.number:
         if v is None:
             return None
         low, high = limits()
-        rule = f"{range_text(low, high)} for {mp.FUNCTIONS.get(int(function.value or 3), 'this function')}"
+        rule = f"{range_text(low, high)} for function {int(function.value or 3):02d}"
         if float(v) != int(float(v)):
             return f"whole numbers only, {rule}"
         return None if low <= float(v) <= high else f"out of range: {rule}"
