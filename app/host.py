@@ -172,19 +172,20 @@ def on_stop_signals(loop, callback: Callable[[], None]) -> Callable[[], None]:
     main thread), which hands the callback to the loop with ``call_soon_threadsafe`` (that wakes a loop that
     waits for I/O). Must be called from the main thread."""
     on_loop: list[int] = []
-    previous: dict[int, object] = {}
+    previous: dict[int, object] = {}  # the handler each signal had: back in place at undo
 
     def handler(_signum, _frame) -> None:
         loop.call_soon_threadsafe(callback)
 
     for sig in stop_signals():
+        previous[sig] = signal.getsignal(sig)
         try:
             loop.add_signal_handler(sig, callback)
             on_loop.append(sig)
             continue
         except NotImplementedError:  # Windows' loops: no signal handling of their own
             pass
-        previous[sig] = signal.signal(sig, handler)
+        signal.signal(sig, handler)
 
     def undo() -> None:
         for sig in on_loop:
