@@ -4,26 +4,86 @@ from __future__ import annotations
 
 import pytest
 
+from devices.hdlock.params import PARAMS
 from tests.conftest import wait_for
 from tests.recordutil import demo_runtime, run_checkout
 
-pytestmark = pytest.mark.timeout(120)
+pytestmark = pytest.mark.timeout(180)
+
+
+def _person(twin):
+    """Answers as the person at the door would: opens and closes it on the twin when asked, yes to the rest."""
+    async def ask(question: str) -> bool:
+        if question.startswith("Open the door now"):
+            twin.open_door()
+        elif question.startswith("Close the door again"):
+            twin.close_door()
+        return True
+    return ask
+
+
+def _step(result: dict, name: str) -> dict:
+    return next(s for s in result["steps"] if s["name"] == name)
 
 
 async def test_hdlock_checkout_passes_on_modbus_and_can(tmp_path):
     async with demo_runtime(tmp_path, ("door-2", "gate-2")) as runtime:
         for name in ("door-2", "gate-2"):
-            result = await run_checkout(runtime, name)
-            assert result["status"] == "passed", result
-            steps = {s["name"]: s for s in result["steps"]}
-            lock = steps["Lock"]
+            twin, state = runtime.twins[name], runtime.store.devices[name]
+            assert await wait_for(lambda: state.raw(PARAMS.get("holding", 16)) is not None and twin.bolt > 100, 15)
+            result = await run_checkout(runtime, name, ask=_person(twin))
+            assert result["status"] == "passed", [(s["name"], s["reason"]) for s in result["steps"] if s["reason"]]
+            lock = _step(result, "Lock")
             assert any(v["name"].startswith("Lock time") and v["ok"] for v in lock["values"])
-            assert steps["Door closed (asked)"]["answers"][0]["by"] == "anna"
+            # the lock was locked at the start (factory IrsNotLine, input active, door closed): it was unlocked first
+            assert any("unlocking first" in n for n in lock["notes"]), lock["notes"]
+            limits = {v["name"]: v["value"] for v in lock["values"]}
+            assert limits["LockMaximumTime (the lock's own, holding 16)"] == 1500
+            assert limits["LockOkPosition (the lock's own, holding 11)"] == 100
+            assert limits["RetryLockCounter"] == 0
+            assert _step(result, "Door closed (asked)")["answers"][0]["by"] == "anna"
+            refused = _step(result, "Lock request refused with the door open (asked)")
+            assert refused["status"] == "passed" and any(v["value"] == "stayed in" for v in refused["values"])
             evidence = lock["evidence"]
             assert evidence["frames" if evidence["kind"] == "can" else "transactions"], "the step's traffic is kept"
-            assert runtime.twins[name].holding[4] == 4  # the source the lock had (IrsNotLine), written back
+            assert twin.holding[1002] == 4 and twin.holding[4] == 4  # the sources the lock had (IrsNotLine), written back
+            assert not {"holding:4", "holding:1002"} & state.unsaved, "nothing the checkout undid is left unsaved"
         rows = await runtime.record.timeline("door-2", ("checkout",))
         assert rows and rows[0].data["status"] == "passed"
+
+
+async def test_hdlock_checkout_fails_a_bolt_stuck_in_its_locked_end_position(tmp_path):
+    """A lock that is locked and never leaves its end position: 'Lock' cannot pass without seeing movement."""
+    async with demo_runtime(tmp_path, ("door-2",)) as runtime:
+        twin = runtime.twins["door-2"]
+        state = runtime.store.devices["door-2"]
+        assert await wait_for(lambda: state.raw(PARAMS.get("holding", 26)) is not None and twin.bolt > 100, 15)
+        twin.bolt_stuck = True
+        result = await run_checkout(runtime, "door-2", ask=_person(twin))
+        assert result["status"] == "failed"
+        lock = _step(result, "Lock")
+        assert lock["status"] == "failed", lock
+        assert "did not leave its locked end position" in lock["reason"] and "UnlockMaximumTime 1500 ms" in lock["reason"]
+        assert "Error unlocking" in lock["reason"] or "RetryUnlockCounter 1" in lock["reason"], lock["reason"]
+        assert twin.holding[1002] == 4 and twin.holding[4] == 4
+
+
+async def test_hdlock_checkout_fails_a_bolt_that_cannot_lock_with_the_error_state(tmp_path):
+    """The lock's own LockMaximumTime passes, it reports an error state and counts a retry: 'Lock' fails with both."""
+    async with demo_runtime(tmp_path, ("door-2",)) as runtime:
+        twin = runtime.twins["door-2"]
+        state = runtime.store.devices["door-2"]
+        twin.write(1002, 0)  # unlocked, as the lock may be found
+        assert await wait_for(lambda: state.raw(PARAMS.get("holding", 16)) is not None and twin.bolt == 0
+                              and state.raw(PARAMS.get("input", 9)) == 2, 15)
+        twin.bolt_stuck = True
+        result = await run_checkout(runtime, "door-2", ask=_person(twin))
+        lock = _step(result, "Lock")
+        assert lock["status"] == "failed", lock
+        assert "did not leave its unlocked end position" in lock["reason"], lock["reason"]
+        assert "LockMaximumTime 1500 ms" in lock["reason"] and "RetryLockCounter 0 -> 1" in lock["reason"], lock["reason"]
+        assert twin.input[12] >= 1
+        assert twin.holding[1002] == 0  # written back as it was found
 
 
 async def test_hdlock_checkout_fails_with_the_reason_when_the_door_is_open(tmp_path):

@@ -1,9 +1,23 @@
-"""HD-Lock checkout: door in position, a lock and unlock cycle, bolt end positions and times.
+"""HD-Lock checkout: door in position, a lock and unlock cycle with the bolt seen moving, the lock's
+own time limits and end positions, no error or retry states, and a lock request refused while the door
+is open.
 
 Declared here, run by the generic runner (``app/record.py``) through ``ctx``: every command goes
-through the worker's gate. The cycle is driven by LockRequestSource (holding 4, section 3.2.2):
-IrsAlways (1) makes the lock bolt once the door is in position, IrsNever (0) unbolts; the source
-the lock had is written back at the end (cleanup), also after a failure or an abort.
+through the worker's gate. The cycle is driven by LockRequestSource in holding 1002, the register
+section 3.2.2 names as controlling the bolt: IrsAlways (1) makes the lock bolt once the door is in
+position, IrsNever (0) unbolts. Holding 4 reports the source in use (section 6.5.1). Both as the lock
+had them are written back at the end (cleanup), also after a failure or an abort, and a change the
+checkout made and undid is not left as an unsaved change.
+
+Limits come from the lock itself (section 3.2): LockMaximumTime / UnlockMaximumTime (holding 16 / 26,
+from the request to the bolt at its Ok position) plus one poll period for seeing it here, and
+LockOkPosition / UnlockOkPosition (holding 11 / 21) for the end positions; a limit the lock did not
+report fails the step (it is never replaced by a guess). StateMachineState (input 9) must not enter an
+error state (6-12) and RetryLockCounter / RetryUnlockCounter (inputs 12 / 13) must not count during the
+cycle. The lock must be seen moving: a bolt that is locked at the start is unlocked first.
+
+With a person's help the lock's door condition is tested while it acts (section 3.2.2, condition 2):
+the door is opened, a lock request (IrsAlways) is given, and the bolt must stay in.
 """
 
 from __future__ import annotations
@@ -17,16 +31,28 @@ from devices.hdlock.params import PARAMS
 TITLE = "Lock and unlock cycle"
 SETTINGS = {
     "door_timeout_s": 5.0,  # the door must be in position (DoorInPosition) within this
-    "lock_time_max_s": 6.0,  # command to BoltLocked seen (includes up to one poll period)
-    "unlock_time_max_s": 6.0,
+    "poll_allowance_s": 1.2,  # seeing the bolt at its end here: one poll period, or one 1 s CAN status frame
+    "refuse_watch_s": 1.0,  # with the door open and a lock request: watched this long beyond the lock's own limits
 }
-SOURCE = PARAMS.get("holding", 4)  # holding 4: the source the lock uses (section 6.5.1), not 1002
+SOURCE = PARAMS.get("holding", 1002)  # section 3.2.2: LockRequestSource, the register that controls the bolt
+SOURCE_IN_USE = PARAMS.get("holding", 4)  # section 6.5.1: the source the lock uses now
+STATE = PARAMS.get("input", 9)
+RETRY_LOCK, RETRY_UNLOCK = PARAMS.get("input", 12), PARAMS.get("input", 13)
+LOCK_MAX_TIME, UNLOCK_MAX_TIME = PARAMS.get("holding", 16), PARAMS.get("holding", 26)
+LOCK_OK, UNLOCK_OK = PARAMS.get("holding", 11), PARAMS.get("holding", 21)
+REQUEST_DELAY = PARAMS.get("holding", 3000)
 IRS_NEVER, IRS_ALWAYS = 0, 1
-_SAVED = "_hdlock_source_before"
+ERROR_STATES = range(6, 13)  # input 9: 6 error locked ... 12 error unlocking
+LOCKED_STATE, UNLOCKED_STATE = 4, 2
+_SAVED = "_hdlock_before"
 
 
 def _status(ctx, bit: str) -> int | None:
     return ctx.field("LockStatus", bit)
+
+
+def _raw(ctx, param) -> int | None:
+    return ctx.state.raw(param)
 
 
 def _bolt(ctx) -> int | None:
@@ -35,20 +61,47 @@ def _bolt(ctx) -> int | None:
     return max(entries, key=lambda e: e["time"])["value"] if entries else None
 
 
-def _source(ctx) -> int | None:
-    raw = ctx.state.raw(SOURCE)
-    return None if raw is None else SOURCE.decode(raw)
+def _still_at(ctx, ok_param, start: int | None, *, locked: bool) -> bool:
+    """The bolt is still at the end position it started from (beyond that end's Ok position, or where it was)."""
+    bolt, ok = _bolt(ctx), _raw(ctx, ok_param)
+    if bolt is None:
+        return True
+    if ok is None:
+        return bolt == start
+    return bolt >= ok if locked else bolt <= ok
+
+
+def _state_name(value: int | None) -> str:
+    if value is None:
+        return "unknown"
+    return f"{value} {STATE.enum.get(value, '?')}" if STATE.enum else str(value)
+
+
+def _limit(ctx, param, unit: str) -> int:
+    """A limit the lock itself holds; the step fails when the lock did not report it."""
+    raw = _raw(ctx, param)
+    if raw is None:
+        ctx.fail(f"{param.name} (holding {param.address}) was not read from the lock: the step's limit is the lock's "
+                 "own value (section 3.2), not a guess; wait until the settings are read, then run the checkout again")
+    ctx.measure(f"{param.name} (the lock's own, holding {param.address})", raw, unit, fail=False)
+    return raw
 
 
 def steps(options: dict, settings: dict) -> list[dict]:
+    allowance = settings["poll_allowance_s"]
     return [
         {"name": "Door closed (asked)", "limits": "the engineer confirms", "run": _ask_door},
         {"name": "Door in position, proximity", "limits": f"DoorInPosition within {settings['door_timeout_s']:g} s; "
          "proximity below the unlock threshold; no overrange", "run": _door},
-        {"name": "Lock", "limits": f"BoltLocked within {settings['lock_time_max_s']:g} s; bolt >= LockOkPosition",
-         "run": _lock},
-        {"name": "Unlock", "limits": f"BoltUnlocked within {settings['unlock_time_max_s']:g} s; bolt <= UnlockOkPosition",
+        {"name": "Lock", "limits": f"bolt seen moving out; BoltLocked within LockMaximumTime (holding 16) + {allowance:g} s; "
+         "bolt >= LockOkPosition (holding 11); StateMachineState Locked, no error state (6-12); RetryLockCounter "
+         "unchanged", "run": _lock},
+        {"name": "Unlock", "limits": f"BoltUnlocked within UnlockMaximumTime (holding 26) + {allowance:g} s; bolt <= "
+         "UnlockOkPosition (holding 21); StateMachineState Unlocked, no error state (6-12); RetryUnlockCounter unchanged",
          "run": _unlock},
+        {"name": "Lock request refused with the door open (asked)",
+         "limits": "door opened by a person; with IrsAlways the bolt stays in for LockRequestDelay + LockMaximumTime "
+         f"+ {settings['refuse_watch_s']:g} s", "run": _refuse_open_door},
     ]
 
 
@@ -69,40 +122,153 @@ async def _door(ctx) -> None:
     ctx.measure("DoorInPosition", _status(ctx, "DoorInPosition"), expect=1)
 
 
-async def _drive(ctx, value: int, bit: str, limit_s: float) -> float:
-    if getattr(ctx, _SAVED, None) is None:
-        setattr(ctx, _SAVED, _source(ctx))
+async def _write_source(ctx, value: int) -> None:
+    before = getattr(ctx, _SAVED, None)
+    if before is None:
+        setattr(ctx, _SAVED, {"source": _raw(ctx, SOURCE), "in_use": _raw(ctx, SOURCE_IN_USE),
+                              "unsaved": {k for k in (SOURCE.key, SOURCE_IN_USE.key) if k in ctx.state.unsaved}})
+    try:
+        await ctx.invoke(WRITE_PARAMETER, {"param": SOURCE, "value": SOURCE.decode(value)})
+    except Exception as exc:  # noqa: BLE001 - a read-back that crossed a poll's read of the same register: once more
+        if "instead of" not in str(exc):
+            raise
+        ctx.note(f"{exc}; written once more")
+        await ctx.wait(lambda: False, 0.3)
+        await ctx.invoke(WRITE_PARAMETER, {"param": SOURCE, "value": SOURCE.decode(value)})
+
+
+def _why(ctx) -> str:
+    return (f"bolt at {_bolt(ctx)} Inc, LockStatus 0x{(_raw(ctx, PARAMS.get('holding', 1000)) or 0):04X}, "
+            f"StateMachineState {_state_name(_raw(ctx, STATE))}, RetryLockCounter {_raw(ctx, RETRY_LOCK)}, "
+            f"RetryUnlockCounter {_raw(ctx, RETRY_UNLOCK)}")
+
+
+async def _drive(ctx, *, lock: bool) -> None:
+    """Give the request, follow the lock to its end position, and check it against the lock's own limits."""
+    s = ctx.settings
+    word, bit = ("Lock", "BoltLocked") if lock else ("Unlock", "BoltUnlocked")
+    time_param, ok_param = (LOCK_MAX_TIME, LOCK_OK) if lock else (UNLOCK_MAX_TIME, UNLOCK_OK)
+    counter, other = (RETRY_LOCK, RETRY_UNLOCK) if lock else (RETRY_UNLOCK, RETRY_LOCK)
+    limit_ms = _limit(ctx, time_param, "ms")
+    ok_pos = _limit(ctx, ok_param, "Inc")
+    limit_s = limit_ms / 1000 + s["poll_allowance_s"]
+    count_before = _raw(ctx, counter)
+    start_bolt = _bolt(ctx)
+    states: list[int] = []
+    counted: list[int] = []
+
+    def at_end() -> bool:
+        state, n = _raw(ctx, STATE), _raw(ctx, counter)
+        if state is not None and (not states or states[-1] != state):
+            states.append(state)
+        if n is not None and count_before is not None and n > count_before:
+            counted.append(n)
+        bolt = _bolt(ctx)
+        return (_status(ctx, bit) == 1 and bolt is not None and (bolt >= ok_pos if lock else bolt <= ok_pos)
+                and state == (LOCKED_STATE if lock else UNLOCKED_STATE))
+
+    def error_seen() -> bool:
+        return any(x in ERROR_STATES for x in states) or bool(counted)
+
     t0 = time.monotonic()
-    await ctx.invoke(WRITE_PARAMETER, {"param": SOURCE, "value": SOURCE.decode(value)})
-    reached = await ctx.wait(lambda: _status(ctx, bit) == 1, limit_s + 1.0)
+    await _write_source(ctx, IRS_ALWAYS if lock else IRS_NEVER)
+    reached = await ctx.wait(lambda: at_end() or error_seen(), limit_s + 0.5) and not error_seen()
     took = round(time.monotonic() - t0, 2)
+    went = " -> ".join(_state_name(x) for x in states) or "no state read"
+    ctx.note(f"StateMachineState: {went}")
     if not reached:
-        ctx.fail(f"{bit} not reached within {limit_s:g} s (bolt at {_bolt(ctx)} Inc, "
-                 f"LockStatus 0x{(ctx.value('LockStatus') or 0):04X})")
-    return took
+        errors = [_state_name(x) for x in states if x in ERROR_STATES]
+        moved = not _still_at(ctx, UNLOCK_OK if lock else LOCK_OK, start_bolt, locked=not lock)
+        what = (f"the bolt did not leave its {'unlocked' if lock else 'locked'} end position" if not moved else
+                f"{bit} (bolt {'>=' if lock else '<='} {ok_pos} Inc) not reached")
+        ctx.fail(f"{word}: {what} within {word}MaximumTime {limit_ms} ms + {s['poll_allowance_s']:g} s"
+                 + (f"; the lock reports {', '.join(errors)}" if errors else "")
+                 + (f"; {counter.name} {count_before} -> {max(counted)}" if counted else "")
+                 + f" ({_why(ctx)}): is the bolt blocked, the strike plate aligned, the supply sufficient?")
+    ctx.measure(f"{word} time (request to {bit} seen)", took, "s", high=round(limit_s, 2))
+    ctx.measure(f"BoltPosition {'locked' if lock else 'unlocked'}", _bolt(ctx), "Inc",
+                low=ok_pos if lock else None, high=None if lock else ok_pos)
+    ctx.measure("StateMachineState", _state_name(_raw(ctx, STATE)), expect=_state_name(LOCKED_STATE if lock else UNLOCKED_STATE))
+    ctx.measure(counter.name, _raw(ctx, counter), expect=count_before)
+    if _raw(ctx, other) is not None:
+        ctx.measure(other.name, _raw(ctx, other), fail=False)
+    ctx.measure(f"BoltMoving{'Out' if lock else 'In'} after the end position", _status(ctx, f"BoltMoving{'Out' if lock else 'In'}"),
+                expect=0)
+    ctx.measure("Bolt moved (start -> end)", f"{start_bolt} -> {_bolt(ctx)} Inc", fail=False)
 
 
 async def _lock(ctx) -> None:
     s = ctx.settings
-    took = await _drive(ctx, IRS_ALWAYS, "BoltLocked", s["lock_time_max_s"])
-    ctx.measure("Lock time (command to BoltLocked seen)", took, "s", high=s["lock_time_max_s"])
-    ctx.measure("BoltPosition locked", _bolt(ctx), "Inc", low=ctx.value("LockOkPosition") or 0)
-    ctx.measure("BoltMovingOut after the end position", _status(ctx, "BoltMovingOut"), expect=0)
-    ctx.measure("MaximumTimeLock (the lock's own)", ctx.value("MaximumTimeLock"), "ms", fail=False)
+    for name in ("LockStatus", "StateMachineState"):
+        if not await ctx.wait(lambda n=name: ctx.entry(n) is not None, s["door_timeout_s"]):
+            ctx.fail(f"no {name} from the lock")
+    if _raw(ctx, STATE) in ERROR_STATES:
+        ctx.fail(f"the lock is in an error state before the cycle: StateMachineState {_state_name(_raw(ctx, STATE))} "
+                 f"({_why(ctx)}); find and remove the cause (blocked bolt, strike plate), then run the checkout again")
+    if _status(ctx, "BoltUnlocked") != 1:
+        # a lock that is locked already would pass without moving: unlock it first, so that locking is seen
+        ctx.note(f"the bolt was not unlocked at the start ({_why(ctx)}): unlocking first, so the lock is seen moving out")
+        limit_ms = _limit(ctx, UNLOCK_MAX_TIME, "ms")
+        ok_pos = _limit(ctx, UNLOCK_OK, "Inc")
+        start = _bolt(ctx)
+        await _write_source(ctx, IRS_NEVER)
+        unlocked = await ctx.wait(lambda: _status(ctx, "BoltUnlocked") == 1 and (_bolt(ctx) or 0) <= ok_pos
+                                  and _raw(ctx, STATE) not in ERROR_STATES, limit_ms / 1000 + s["poll_allowance_s"] + 0.5)
+        if not unlocked:
+            what = ("did not leave its locked end position" if _still_at(ctx, LOCK_OK, start, locked=True) else
+                    f"did not reach UnlockOkPosition {ok_pos} Inc")
+            ctx.fail(f"unlocking first (the bolt was locked): the bolt {what} within UnlockMaximumTime {limit_ms} ms + "
+                     f"{s['poll_allowance_s']:g} s ({_why(ctx)}), so the lock cannot be seen locking; is the bolt blocked?")
+    await _drive(ctx, lock=True)
 
 
 async def _unlock(ctx) -> None:
+    await _drive(ctx, lock=False)
+
+
+async def _refuse_open_door(ctx) -> None:
+    """Section 3.2.2, condition 2: with a source below 0x80 the bolt goes out only while the door is closed."""
     s = ctx.settings
-    took = await _drive(ctx, IRS_NEVER, "BoltUnlocked", s["unlock_time_max_s"])
-    ctx.measure("Unlock time (command to BoltUnlocked seen)", took, "s", high=s["unlock_time_max_s"])
-    high = ctx.value("UnlockOkPosition")
-    ctx.measure("BoltPosition unlocked", _bolt(ctx), "Inc", high=high if high is not None else 5)
-    ctx.measure("BoltLocked after unlocking", _status(ctx, "BoltLocked"), expect=0)
-    ctx.measure("MaximumTimeUnlock (the lock's own)", ctx.value("MaximumTimeUnlock"), "ms", fail=False)
+    await ctx.ask("Open the door now and keep it open until you are asked to close it.")
+    if not await ctx.wait(lambda: _status(ctx, "DoorInPosition") == 0 and _status(ctx, "ProximityInPlace") == 0,
+                          s["door_timeout_s"]):
+        ctx.fail(f"the door was to be opened, but the lock still sees it in position after {s['door_timeout_s']:g} s "
+                 f"(proximity {ctx.value('Calculated proxi (normalized)')} Inc): is the strike plate's magnet still "
+                 "in range, is the proximity threshold set right?")
+    ctx.measure("DoorInPosition (door open)", _status(ctx, "DoorInPosition"), expect=0)
+    watch_s = (_limit(ctx, REQUEST_DELAY, "ms") + _limit(ctx, LOCK_MAX_TIME, "ms")) / 1000 + s["refuse_watch_s"]
+    count_before = _raw(ctx, RETRY_LOCK)
+    moved: list[str] = []
+
+    def bolt_out() -> bool:
+        if _status(ctx, "BoltMovingOut") == 1 or _status(ctx, "BoltUnlocked") != 1:
+            moved.append(f"bolt at {_bolt(ctx)} Inc")
+        return bool(moved)
+
+    await _write_source(ctx, IRS_ALWAYS)
+    await ctx.wait(bolt_out, watch_s)
+    await _write_source(ctx, IRS_NEVER)
+    ctx.measure("Bolt with the door open and IrsAlways", "moved out" if moved else "stayed in", expect="stayed in", fail=False)
+    if count_before is not None:
+        ctx.measure(RETRY_LOCK.name, _raw(ctx, RETRY_LOCK), expect=count_before, fail=False)
+    await ctx.ask("Close the door again.")
+    await ctx.wait(lambda: _status(ctx, "DoorInPosition") == 1, s["door_timeout_s"])
+    if moved:
+        ctx.fail(f"the lock did not refuse: with the door open and a lock request (IrsAlways) the {moved[0]} "
+                 "moved out (section 3.2.2 condition 2: the door must be closed); check SettingsProximityThreshold "
+                 "and that LockRequestSource is not one of 0x80-0x87 (door ignored)")
+    ctx.measure("DoorInPosition (closed again)", _status(ctx, "DoorInPosition"), expect=1, fail=False)
 
 
 async def cleanup(ctx, settings: dict) -> None:
-    """The lock request source the lock had before the checkout, written back."""
+    """LockRequestSource (1002) and the source in use (4) as the lock had them, written back; a change the
+    checkout made and undid is not left as an unsaved change (the lock holds what it held before)."""
     before = getattr(ctx, _SAVED, None)
-    if before is not None and _source(ctx) != before:
-        await ctx.invoke(WRITE_PARAMETER, {"param": SOURCE, "value": before})
+    if before is None:
+        return
+    for param, raw in ((SOURCE, before["source"]), (SOURCE_IN_USE, before["in_use"])):
+        if raw is not None and _raw(ctx, param) != raw:
+            await ctx.invoke(WRITE_PARAMETER, {"param": param, "value": param.decode(raw)})
+    for param, raw in ((SOURCE, before["source"]), (SOURCE_IN_USE, before["in_use"])):
+        if param.key not in before["unsaved"] and _raw(ctx, param) == raw:
+            ctx.state.unsaved.discard(param.key)

@@ -60,6 +60,7 @@ class HdLockTwin:
                 store[address_] = word
         self.holding[103] = address
         self.input[104], self.input[105] = serial >> 16 & 0xFFFF, serial & 0xFFFF
+        self.input[12] = self.input[13] = 0  # RetryLockCounter, RetryUnlockCounter: failed attempts since power-up
         self.writable = {a for p in PARAMS.space(HOLDING) if p.access is Access.RW for a in p.addresses}
         self.flash = self._settings()
         self.factory = dict(self.flash)  # what a new lock out of the box holds (swap_for_new)
@@ -88,6 +89,15 @@ class HdLockTwin:
         self.keeps_device_id = False  # fault injection: Set Device Address is not taken (the ID stays)
         self.max_time = {"lock": 0, "unlock": 0}
         self._move_start: float | None = None
+        # fault injection: the bolt is blocked and never leaves the end position it is in (the motor runs, nothing moves)
+        self.bolt_stuck = False
+        # the lock's retry state machine (input 9 states 3-12, counters inputs 12/13, settings holding 16/26, 30-33)
+        self._direction = 0  # +1 locking, -1 unlocking, 0 not yet decided
+        self._attempt_start = time.monotonic()
+        self._fails = 0  # failed attempts in the current interval-1 series
+        self._series = 0  # interval-1 series done
+        self._pause_until: float | None = None
+        self._error_state: int | None = None  # an error state of input 9 the lock is in, None while it is not
         self.step(0.0)
 
     # -- registers ---------------------------------------------------------------------
@@ -113,7 +123,11 @@ class HdLockTwin:
         param = PARAMS.get(HOLDING, address)
         if param is not None and param.enum is not None and param.decode(value) not in param.enum:
             return None  # refused by the firmware; the old value stays
-        self.holding[address] = value & 0xFFFF  # 4 and 1002 are two registers (section 3.2), not mirrors
+        self.holding[address] = value & 0xFFFF  # 4 and 1002 are two registers (section 3.2), not mirrors ...
+        if address == codec.REG_LOCK_REQUEST_SOURCE_SETTING:
+            # ... but 1002 controls the bolt (section 3.2.2): what is written there becomes the source in use,
+            # which holding 4 reports (section 6.5.1); a write of 4 (or cmdSetLockRequestSource) leaves 1002 alone
+            self.holding[codec.REG_LOCK_REQUEST_SOURCE] = value & 0xFFFF
         if address == codec.REG_COMMAND and value:
             self._command(value)
         if address == 32770 and value == 1:
@@ -188,6 +202,7 @@ class HdLockTwin:
             SimAction("open door", "Open door", self.open_door, icon="meeting_room", testid="open"),
             switch("LOCK-REQUEST input", "LOCK-REQUEST input active", "line_input", "line-input"),
             switch("strong magnet", "Strong magnet", "strong_magnet", "strong-magnet"),
+            switch("bolt blocked", "Bolt blocked (never leaves its end position)", "bolt_stuck", "bolt-stuck"),
             switch("stop answering", "Stop answering", "silent", "silent"),
         ]
         if can:
@@ -213,6 +228,59 @@ class HdLockTwin:
     def back_to_bus_bitrate(self) -> None:
         """After cmdSetCANbaudrate: the lock runs at the bus's bit rate again (as if switched back by hand)."""
         self.can_bitrate = self.bus_bitrate or codec.CAN_DEFAULT_BITRATE
+
+    # -- the lock's retry state machine (input 9, sections 3.1 and 3.2) ----------------------
+    def _drive(self, request: bool, now: float) -> int:
+        """Which way the motor drives now (+1 out, -1 in, 0 off), and the error and retry states.
+
+        A lock or unlock attempt must bring the bolt to its Ok position (holding 11 / 21) within
+        LockMaximumTime / UnlockMaximumTime (holding 16 / 26); a failed attempt counts in
+        RetryLockCounter / RetryUnlockCounter (inputs 12 / 13), and is retried after Lock/UnlockFailDelay1
+        (holding 30, ms), Lock/UnlockInterval1 (32) times; then after Lock/UnlockFailDelay2 (31, s), the
+        series Lock/UnlockInterval2 (33) times; then the lock gives up until the request changes. States
+        (input 9): locking fails 7, pause short 8, pause long 9, given up 10 (then 11 once the request is
+        gone); unlocking fails 12 (also in its pauses), given up 6. The document names the states and the
+        settings, not how they follow each other: this order is the twin's reading (docs/spec-notes.md)."""
+        h, i = self.holding, self.input
+        direction = 1 if request else -1
+        if direction != self._direction:
+            if self._error_state == 10 and direction < 0:
+                self._error_state = 11  # the lock request is gone after locking failed for good: open with an error
+            else:
+                self._error_state = None
+            self._direction, self._attempt_start, self._fails, self._series, self._pause_until = direction, now, 0, 0, None
+        if direction > 0:
+            at_ok, at_end, limit_ms = round(self.bolt) >= h[11], self.bolt >= BOLT_MAX, h[16]
+        else:
+            at_ok, at_end, limit_ms = round(self.bolt) <= h[21], self.bolt <= 0, h[26]
+        if self._error_state in (6, 10) or (self._error_state == 11 and direction < 0 and at_end):
+            return 0  # given up until the request changes
+        if self._pause_until is not None:
+            if now < self._pause_until:
+                return 0
+            self._pause_until, self._attempt_start = None, now
+            self._error_state = None if self._error_state != 11 else 11
+        if at_ok:
+            if self._error_state != 11 or direction > 0:
+                self._error_state = None
+            self._fails = self._series = 0
+            self._attempt_start = now
+            return 0 if at_end else direction
+        if (now - self._attempt_start) * 1000 <= limit_ms:
+            return direction
+        # this attempt failed
+        counter = 12 if direction > 0 else 13
+        i[counter] = min(0xFFFF, i.get(counter, 0) + 1)
+        self._fails += 1
+        if self._fails < max(1, h[32]):
+            self._error_state, self._pause_until = (8 if direction > 0 else 12), now + h[30] / 1000
+        else:
+            self._fails, self._series = 0, self._series + 1
+            if self._series < max(1, h[33]):
+                self._error_state, self._pause_until = (9 if direction > 0 else 12), now + h[31]
+            else:
+                self._error_state = 10 if direction > 0 else 6
+        return 0
 
     # -- physics -----------------------------------------------------------------------
     def step(self, dt: float) -> None:
@@ -246,11 +314,12 @@ class HdLockTwin:
         cond1 = {0: False, 1: True, 2: self.strong_magnet, 3: not line, 4: line}.get(source & 0x7F, self.toggle)
         cond2 = True if source & 0x80 else door_in_position
         request = cond1 and cond2
-        # bolt
+        # bolt, with the lock's own time limits and retries
         old_bolt = self.bolt
-        if request and self.bolt < BOLT_MAX:
+        drive = self._drive(request, now)
+        if drive > 0 and not self.bolt_stuck:
             self.bolt = min(BOLT_MAX, self.bolt + BOLT_SPEED * dt)
-        elif not request and self.bolt > 0:
+        elif drive < 0 and not self.bolt_stuck:
             self.bolt = max(0.0, self.bolt - BOLT_SPEED * dt)
         moving_out, moving_in = self.bolt > old_bolt, self.bolt < old_bolt
         moving = moving_out or moving_in
@@ -279,6 +348,10 @@ class HdLockTwin:
         status |= codec.BOLT_MOVING_IN if moving_in else 0
         # state machine (input 9)
         state = 4 if locked and not moving else 2 if unlocked and not moving else 3 if moving_out else 5
+        if self._error_state is not None:
+            state = self._error_state
+        elif drive and not moving:  # the motor drives a blocked bolt
+            state = 3 if drive > 0 else 5
         if state != i[9]:
             self.state_since = now
         motor = 1 if moving_out else 2 if moving_in else 0
@@ -292,7 +365,7 @@ class HdLockTwin:
         i.update({
             0: int(locked), 1: int(request), 2: bolt, 3: motor, 4: round(BOLT_SPEED) if moving else 0,
             5: hall1, 6: hall2, 7: proximity, 8: 3 if door_in_position else (2 if in_place else 1),
-            9: state, 10: min(0xFFFF, int((now - self.state_since) * 1000)), 11: 0, 12: 0, 13: 0,
+            9: state, 10: min(0xFFFF, int((now - self.state_since) * 1000)), 11: 0,
             16: h[3006] if locked_side else h[3004],
             50: bolt, 51: round(BOLT_SPEED) if moving_out else (0x10000 - round(BOLT_SPEED) if moving_in else 0),
             52: round(BOLT_SPEED) if moving else 0, 53: 4 if moving else 0xFFFF, 55: 80 if moving else (5 if bolt else 0),
