@@ -206,7 +206,7 @@ class RowsCard:
                       on_click=lambda: view.guarded(_stop_all(tl))).props("dense")
         self.note = ui.label().classes("text-grey-7")
         self.error = ui.label().classes("text-negative")
-        self.overridden = ui.label().classes("text-warning text-body2").props("data-testid=transmit-overridden")
+        self.overridden = ui.label().classes("text-orange-10 text-body2").props("data-testid=transmit-overridden")
         self.overridden.set_visibility(False)
         t = ui.table(columns=COLUMNS, rows=[], row_key="key").props("dense flat bordered").classes("w-full can-table")
         t.props("data-testid=transmit-table")
