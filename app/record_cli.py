@@ -445,7 +445,7 @@ async def sign_record(runtime, *, user: str, role: str, name: str, comment: str,
                          else plant_content(runtime, user=user, role=role))
         gaps = sign_gaps(content)
         if gaps:
-            out(("Signing anyway (--yes) although:" if sign_anyway else "Not signed: before signing, look at these:"))
+            out("Signing anyway (--yes) although:" if sign_anyway else "Not signed: before signing, look at these:")
             for line in gaps:
                 out(f"  {line}")
             if not sign_anyway:
@@ -466,7 +466,7 @@ async def sign_record(runtime, *, user: str, role: str, name: str, comment: str,
     if not device:
         for d in content["devices"]:
             counts = d["counts"]
-            checks = ", ".join(f"{c['title']}: {c['last']} ({c['runs']} runs)" for c in d["checkout_summary"]) or "no checkout"
+            checks = ", ".join(f"{c['title']}: {c['last']} ({c['runs']} run{'s' if c['runs'] != 1 else ''})" for c in d["checkout_summary"]) or "no checkout"
             out(f"  {d['device']}: {checks}; {counts['changed']} changed, {counts['not approved']} not approved")
     return 0
 

@@ -21,8 +21,16 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from app.record import LIVE_VALUE, compare_with_approved, device_updated, live_params, live_set, param_set
+from app.record import (
+    LIVE_VALUE,
+    compare_with_approved,
+    device_updated,
+    live_params,
+    live_set,
+    param_set,
+)
 from app.verify import CHAIN, MANIFEST, MANIFEST_SUM, manifest_sum, seal_archive, sha256
+from devices.params import Access
 
 AUDIT_ROWS = 200
 SIMULATED_MARK = "SIMULATED DEVICES - made on the built-in twins, not on site equipment"
@@ -131,10 +139,11 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
     params = getattr(state, "params", None)
     for r in rows:  # a setting or a live value: the parameter model says, else what the set was read with
         param = params.by_key.get(r["key"]) if params is not None else None
-        if param is not None:
-            r["writable"] = bool(param.writable)
-        elif r.get("writable") is None:
-            r["writable"] = bool(((approved or {}).get(r["key"]) or current.get(r["key"]) or {}).get("writable"))
+        if param is not None:  # configuration (also the factory's, read-only) is a setting; states, measurements are not
+            r["setting"] = param.access is not Access.R and not param.device_updates
+        else:
+            r["setting"] = bool(r.get("writable") if r.get("writable") is not None else
+                                ((approved or {}).get(r["key"]) or current.get(r["key"]) or {}).get("writable"))
     checkouts = await record.timeline(device, ("checkout",))  # every run stays in the report with its result
     runs = []
     for entry in checkouts:
@@ -162,8 +171,8 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
         "approved": None if approved_entry is None else {"id": approved_entry.id, "time": approved_entry.time,
                                                           "by": approved_entry.user, "title": approved_entry.title},
         "parameters": rows,
-        "settings": [r for r in rows if r.get("writable")],
-        "live_values": [r for r in rows if not r.get("writable")],
+        "settings": [r for r in rows if r["setting"]],
+        "live_values": [r for r in rows if not r["setting"]],
         "counts": {v: sum(r["verdict"] == v for r in rows) for v in ("equal", "changed", "not approved", "updated by the device", LIVE_VALUE)},
         "drift": (getattr(state, "drift", None) or {}).get("changed", []),
         "checkouts": runs,
@@ -336,10 +345,11 @@ def device_html(d: dict, plant_signoff: dict | None = None, *, appendix: bool = 
     if d["drift"]:
         out.append('<p class="changed">Changed since approved: ' + _e(", ".join(f"{r['name']} {r['approved']} → {r['now']}" for r in d["drift"])) + "</p>")
     ap = d["approved"]
-    changed = [r for r in d.get("settings", d["parameters"]) if r["verdict"] in DIFFERING]
+    changed = [r for r in d.get("settings", d["parameters"]) if r["verdict"] in DIFFERING] if ap else []
     out.append("<h3>Settings against the approved set</h3><p>" + (
         f"Approved set #{ap['id']} ({_e(ap['title'])}) by {_e(ap['by'])} on {_when(ap['time'])}. " if ap else "No approved set. ")
-        + _e(values_text(d)) + (" Settings that differ:" if changed else " Every setting equals the approved set.") + "</p>")
+        + _e(values_text(d)) + (" Settings that differ:" if changed else " Every setting equals the approved set." if d["approved"] else
+                   " The settings read are listed in the appendix.") + "</p>")
     if changed:
         out.append(_rows_html(["Setting", "As left", "Approved", ""], _param_rows(changed), {3: _verdict_class}))
     out.append("<h3>Checkout runs</h3>")
@@ -427,11 +437,18 @@ def plant_pdf(p: dict) -> bytes:
     from reportlab.lib.pagesizes import A4
     from reportlab.lib.styles import getSampleStyleSheet
     from reportlab.lib.units import mm
-    from reportlab.platypus import PageBreak, Paragraph, SimpleDocTemplate, Spacer, Table, TableStyle
+    from reportlab.platypus import (
+        KeepTogether,
+        PageBreak,
+        Paragraph,
+        SimpleDocTemplate,
+        Spacer,
+        Table,
+        TableStyle,
+    )
 
     styles = getSampleStyleSheet()
     small = styles["BodyText"].clone("small", fontSize=7.5, leading=9)
-    mono = styles["BodyText"].clone("mono", fontName="Courier", fontSize=6.5, leading=8)
     warn = styles["BodyText"].clone("warn", textColor=colors.HexColor("#b71c1c"), fontName="Helvetica-Bold")
     buf = io.BytesIO()
     doc = SimpleDocTemplate(buf, pagesize=A4, leftMargin=14 * mm, rightMargin=14 * mm, topMargin=18 * mm, bottomMargin=16 * mm,
@@ -472,27 +489,30 @@ def plant_pdf(p: dict) -> bytes:
     story += [para(line, styles["BodyText"]) for line in cover_lines(p)]
     story += [sig(p["signoff"], f"Plant {p['plant']}"), Spacer(1, 4 * mm),
               table([SUMMARY_HEAD] + [summary_rows(d, p) for d in p["devices"]], [0.13, 0.08, 0.37, 0.16, 0.14, 0.12])]
-    story.append(para("Each device follows on its own page; the full listings (settings, live values, every step with its "
+    story.append(para("Each device follows on the next pages; the full listings (settings, live values, every step with its "
                       "evidence file and SHA-256, audit rows) are in the appendix.", small))
-    for d in p["devices"]:
-        story += [PageBreak(), Paragraph(_e(f"{d['device']} ({d['type']})"), styles["Heading2"]), sig(d["signoff"], d["device"])]
+    story.append(PageBreak())
+    for d in p["devices"]:  # each device kept on one page where it fits, one after the other
+        part = [Paragraph(_e(f"{d['device']} ({d['type']})"), styles["Heading2"]), sig(d["signoff"], d["device"])]
         ident = {"type": d["type"], "bus": d["bus"], "address": d["address"], **d["identity"], "status": d["status"]}
-        story.append(table([["Identity", ""]] + [[k, v] for k, v in ident.items()], [0.3, 0.7]))
-        story.append(para(commissioned_text(d, bool(p.get("signoff")))))
+        part.append(table([["Identity", ""]] + [[k, v] for k, v in ident.items()], [0.3, 0.7]))
+        part.append(para(commissioned_text(d, bool(p.get("signoff")))))
         if d["drift"]:
-            story.append(para("Changed since approved: " + ", ".join(f"{r['name']} {r['approved']} -> {r['now']}" for r in d["drift"]), warn))
-        story.append(Paragraph("Settings against the approved set", styles["Heading3"]))
-        changed = [r for r in d.get("settings", []) if r["verdict"] in DIFFERING]
-        story.append(para(values_text(d) + (" Settings that differ:" if changed else " Every setting equals the approved set.")))
+            part.append(para("Changed since approved: " + ", ".join(f"{r['name']} {r['approved']} -> {r['now']}" for r in d["drift"]), warn))
+        part.append(Paragraph("Settings against the approved set", styles["Heading3"]))
+        changed = [r for r in d.get("settings", []) if r["verdict"] in DIFFERING] if d["approved"] else []
+        part.append(para(values_text(d) + (" Settings that differ:" if changed else " Every setting equals the approved set." if d["approved"] else
+                   " The settings read are listed in the appendix.")))
         if changed:
-            story.append(table([["Setting", "As left", "Approved", "Verdict"]] + _param_rows(changed), [0.4, 0.25, 0.2, 0.15]))
-        story.append(Paragraph("Checkout runs", styles["Heading3"]))
+            part.append(table([["Setting", "As left", "Approved", "Verdict"]] + _param_rows(changed), [0.4, 0.25, 0.2, 0.15]))
+        part.append(Paragraph("Checkout runs", styles["Heading3"]))
         if not d["checkouts"]:
-            story.append(para("No checkout run."))
+            part.append(para("No checkout run."))
         else:
-            story.append(table([["Run", "Checkout", "Result", "Run by", "Time", "Duration"]] + [
+            part.append(table([["Run", "Checkout", "Result", "Run by", "Time", "Duration"]] + [
                 [f"#{c['id']}", c["title"], c["status"] + (f": {c['reason']}" if c["reason"] else ""), c["user"], _when(c["time"]),
                  f"{c['duration_s']} s"] for c in d["checkouts"]], [0.07, 0.2, 0.37, 0.12, 0.15, 0.09]))
+        story += [KeepTogether(part), Spacer(1, 6 * mm)]
     story += [PageBreak(), Paragraph("Appendix: full listings", styles["Heading1"])]
     for d in p["devices"]:
         story.append(Paragraph(_e(f"{d['device']} ({d['type']}): settings"), styles["Heading3"]))

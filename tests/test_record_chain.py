@@ -4,6 +4,7 @@ byte changed (issue 43, "The record")."""
 
 from __future__ import annotations
 
+import asyncio
 import io
 import json
 import os
@@ -205,8 +206,9 @@ async def test_a_record_changed_from_outside_is_reported_altered_by_verify_and_t
     _outside(path, "DROP TRIGGER record_no_delete", f"DELETE FROM record WHERE id = {signoff - 1}")
 
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    result = subprocess.run([sys.executable, "-m", "app.cli", "verify", "--record", "--data-dir", str(tmp_path / "data")],
-                            cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)
+    result = await asyncio.to_thread(
+        subprocess.run, [sys.executable, "-m", "app.cli", "verify", "--record", "--data-dir", str(tmp_path / "data")],
+        cwd=ROOT, env=env, capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 1, result.stdout + result.stderr
     first = result.stdout.splitlines()[0]
     assert "ALTERED" in first and f"row #{signoff - 1} is missing" in first, result.stdout

@@ -32,7 +32,7 @@ def _cli(tmp_path: Path, *args: str, stdin: str | None = None, plant: bool = Tru
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     return subprocess.run([sys.executable, "-m", "app.cli", *args, *(("--plant", str(tmp_path / "plant.toml")) if plant else ()),
                            "--data-dir", str(tmp_path / "data")],
-                          cwd=ROOT, env=env, input=stdin, capture_output=True, text=True, timeout=150)
+                          cwd=ROOT, env=env, input=stdin, capture_output=True, text=True, timeout=150, check=False)
 
 
 def _rows(tmp_path: Path, kind: str) -> list[tuple]:
