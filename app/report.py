@@ -139,8 +139,8 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
     params = getattr(state, "params", None)
     for r in rows:  # a setting or a live value: the parameter model says, else what the set was read with
         param = params.by_key.get(r["key"]) if params is not None else None
-        if param is not None:  # configuration (also the factory's, read-only) is a setting; states, measurements are not
-            r["setting"] = param.access is not Access.R and not param.device_updates
+        if param is not None:  # configuration (also the factory's, MFR) is a setting; states and measurements (R, RO) are not
+            r["setting"] = param.access in (Access.RW, Access.MFR) and not param.device_updates
         else:
             r["setting"] = bool(r.get("writable") if r.get("writable") is not None else
                                 ((approved or {}).get(r["key"]) or current.get(r["key"]) or {}).get("writable"))

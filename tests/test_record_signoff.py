@@ -85,7 +85,8 @@ async def test_sign_off_needs_an_engineer_account_and_every_run_stays_in_the_rep
     # settings apart from live values
     settings = {r["name"] for r in door["settings"]}
     live = {r["name"] for r in door["live_values"]}
-    assert "LockRequestDelay" in settings and {"LockState", "BoltPosition"} <= live and not settings & live
+    assert {"LockRequestDelay", "LockMaximumTime"} <= settings and not settings & live  # MFR: the factory's configuration
+    assert {"LockState", "BoltPosition", "LockStatus", "BoltPosition (HR1001)", "MaximumTimeLock"} <= live
 
     # each step names its evidence file and its SHA-256, the same as the file in the archive
     archive = zipfile.ZipFile(io.BytesIO(paths["zip"].read_bytes()))
