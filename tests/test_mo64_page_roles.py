@@ -10,13 +10,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from plants import mo64_tcp, plant
 from test_auth import login
 from webutil import by_testid, eventually, simulated_user
 
 from app.runtime import Runtime
 from app.users import UserStore
 from pages.widgets import VIEWER_REASON
+from plants import mo64_tcp, plant
 
 pytestmark = pytest.mark.timeout(60)
 
