@@ -23,10 +23,10 @@ import time
 from dataclasses import dataclass, field
 
 from app.modbus_line import LineError, ModbusLine
-from devices.transport import LineClosed, LineCrcError, LineTimeout
 from devices.params import Param
 from devices.registry import DEVICE_TYPES
 from devices.sendpolicy import ModbusMessage, Verdict, check_modbus
+from devices.transport import LineClosed, LineCrcError, LineTimeout
 
 log = logging.getLogger(__name__)
 
@@ -341,7 +341,7 @@ class ModbusPoll:
         for listener in list(self.listeners):
             try:
                 listener()
-            except Exception:  # noqa: BLE001 - a page that went away must not end the poll
+            except Exception:
                 log.exception("%s poll window %s: listener failed", self.bus, self.number)
         return result
 

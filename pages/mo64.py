@@ -16,11 +16,29 @@ from devices.mo64 import adapter as facts
 from devices.mo64 import codec
 from devices.mo64.adapter import COMMAND_NAMES
 from devices.mo64.policy import EEPROM_RISK, operation_name, setting_name
-from pages.device_page import DeviceCard, DeviceView, StatusBadge, device_page, titled_card
+from pages.device_page import (
+    DeviceCard,
+    DeviceView,
+    StatusBadge,
+    device_page,
+    titled_card,
+)
 from pages.frame import status_text
 from pages.simcontrols import sim_card
-from pages.widgets import Lamp, ValueLine, WriteGuard, checked_value, counter_line, entry_age, gate, mark_quality
-from pages.widgets import quality_note, range_number, refuse, viewer_reason
+from pages.widgets import (
+    Lamp,
+    ValueLine,
+    WriteGuard,
+    checked_value,
+    counter_line,
+    entry_age,
+    gate,
+    mark_quality,
+    quality_note,
+    range_number,
+    refuse,
+    viewer_reason,
+)
 
 MOTION_WARNING = "the boom moves: check that nobody stands under it"
 STOP_HINT = "a stop: anyone may stop (deactivating a close or reverse level never moves the boom)"
@@ -479,4 +497,4 @@ def _parse(key: str, text: str | None):
     return int(text, 0) if text else 0
 
 
-__all__ = ["content", "boom_svg"]
+__all__ = ["boom_svg", "content"]
