@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import time
-from types import SimpleNamespace
 
 from devices.live import DeviceState
 from devices.mo64 import codec as mo_codec
@@ -11,6 +10,7 @@ from devices.mo64.adapter import Mo64Adapter
 from devices.scu import codec as scu_codec
 from devices.scu import params as p
 from devices.scu.adapter import ERROR_BIT_GROUPS, ScuAdapter, value_text
+from devices.scu.control import ScuControl
 
 
 def test_scu_flag_words_in_the_pages_words():
@@ -26,7 +26,7 @@ def test_scu_error_codes_in_the_pages_words():
     adapter = ScuAdapter.__new__(ScuAdapter)  # only the publishing path: no line
     adapter.state = DeviceState("scu-1", "scu", "rs1")
     adapter.scales = []
-    adapter.session = "closed"
+    adapter.core = ScuControl()  # session closed
     adapter.rc_times = []
     adapter._remote_timeout_seen = False
     now = time.time()
