@@ -96,3 +96,25 @@ async def test_hdlock_checkout_fails_with_the_reason_when_the_door_is_open(tmp_p
         door = next(s for s in result["steps"] if s["name"].startswith("Door in position"))
         assert door["status"] == "failed" and "not in position" in door["reason"]
         assert result["steps"][-1]["status"] == "skipped"
+
+
+async def test_hdlock_checkout_fails_a_lock_that_bolts_with_the_door_open(tmp_path):
+    """Section 3.2.2 condition 2, tested while it acts: a lock that bolts with the door open fails that step;
+    a door said to be opened that the lock still sees in position fails it too, with its own reason."""
+    async with demo_runtime(tmp_path, ("door-2",)) as runtime:
+        twin = runtime.twins["door-2"]
+        state = runtime.store.devices["door-2"]
+        assert await wait_for(lambda: state.raw(PARAMS.get("holding", 16)) is not None and twin.bolt > 100, 15)
+        twin.ignores_door = True
+        result = await run_checkout(runtime, "door-2", ask=_person(twin))
+        step = _step(result, "Lock request refused with the door open (asked)")
+        assert _step(result, "Lock")["status"] == "passed" and step["status"] == "failed", step
+        assert "the lock did not refuse" in step["reason"] and "moved out" in step["reason"], step["reason"]
+        assert twin.holding[1002] == 4 and twin.holding[4] == 4
+        twin.ignores_door = False
+
+        async def door_stays(question: str) -> bool:  # "opened", but the strike plate stays in range
+            return True
+        result = await run_checkout(runtime, "door-2", ask=door_stays, settings={"door_timeout_s": 2.0})
+        step = _step(result, "Lock request refused with the door open (asked)")
+        assert step["status"] == "failed" and "still sees it in position" in step["reason"], step["reason"]

@@ -15,15 +15,16 @@ pytestmark = pytest.mark.timeout(180)
 FAST = {"safety_seen_s": 5.0}
 
 
-def _engineer(twin):
+def _engineer(twin, dead_loops: str = ""):
     """Answers as the person at the barrier would, acting on the twin as asked (its declared controls):
-    ready at the light barrier (interrupts it once the boom closes), frees it, occupies and frees loops."""
+    ready at the light barrier (interrupts it once the boom closes), frees it, occupies and frees loops
+    (``dead_loops``: occupied, but their detector never sees it)."""
     async def ask(question: str) -> bool:
         if question.startswith("Stand ready at the light barrier"):
             twin.interrupt_at_next_close()
         elif question.startswith("Free the light barrier"):
             twin.break_light_barrier(False)
-        elif question.startswith("Occupy loop "):
+        elif question.startswith("Occupy loop ") and question.split()[2] not in dead_loops:
             twin.occupy_loop(question.split()[2], True)
         elif question.startswith("Free loop "):
             twin.occupy_loop(question.split()[2].rstrip("."), False)
@@ -124,3 +125,13 @@ async def test_mo64_checkout_fails_on_a_fault_event_and_says_so(tmp_path):
         step = next(s for s in result["steps"] if s["status"] == "failed")
         assert step["name"] == "Light barrier, loops, no fault" and "fault event (F_ereignis)" in step["reason"], step
         assert ("open", "pulse") not in list(twin.commands), "nothing moved"
+
+
+async def test_mo64_checkout_fails_a_loop_that_never_reports(tmp_path):
+    async with demo_runtime(tmp_path, ("barrier-in",)) as runtime:
+        twin = runtime.twins["barrier-in"]
+        result = await run_checkout(runtime, "barrier-in", ask=_engineer(twin, dead_loops="B"), settings={"safety_seen_s": 2.0})
+        step = next(s for s in result["steps"] if s["status"] == "failed")
+        assert step["name"] == "Induction loops (asked)", step
+        assert "loop B was to be occupied, but the barrier did not report it" in step["reason"], step["reason"]
+        assert any(v["name"] == "Loop A occupied seen" and v["ok"] for v in step["values"])

@@ -91,6 +91,7 @@ class HdLockTwin:
         self._move_start: float | None = None
         # fault injection: the bolt is blocked and never leaves the end position it is in (the motor runs, nothing moves)
         self.bolt_stuck = False
+        self.ignores_door = False  # fault injection: condition 2 (door closed, section 3.2.2) is never checked
         # the lock's retry state machine (input 9 states 3-12, counters inputs 12/13, settings holding 16/26, 30-33)
         self._direction = 0  # +1 locking, -1 unlocking, 0 not yet decided
         self._attempt_start = time.monotonic()
@@ -203,6 +204,7 @@ class HdLockTwin:
             switch("LOCK-REQUEST input", "LOCK-REQUEST input active", "line_input", "line-input"),
             switch("strong magnet", "Strong magnet", "strong_magnet", "strong-magnet"),
             switch("bolt blocked", "Bolt blocked (never leaves its end position)", "bolt_stuck", "bolt-stuck"),
+            switch("ignores the door", "Locks with the door open (broken)", "ignores_door", "ignores-door"),
             switch("stop answering", "Stop answering", "silent", "silent"),
         ]
         if can:
@@ -312,7 +314,7 @@ class HdLockTwin:
                 self.toggle = not self.toggle
             self._last_line = line
         cond1 = {0: False, 1: True, 2: self.strong_magnet, 3: not line, 4: line}.get(source & 0x7F, self.toggle)
-        cond2 = True if source & 0x80 else door_in_position
+        cond2 = True if source & 0x80 or self.ignores_door else door_in_position
         request = cond1 and cond2
         # bolt, with the lock's own time limits and retries
         old_bolt = self.bolt
