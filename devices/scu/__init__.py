@@ -75,7 +75,6 @@ TILE = TileSpec(
     lines=(
         TileLine("Session", "remote session: {text}", missing="remote session: closed"),
         TileLine("A1 position", "A1 {text}", missing="A1: no position yet"),
-        TileLine("A2 position", "A2 {text}", missing=""),
         TileLine("Battery Mains", "supply: {text}", missing=""),
     ),
     alarms=(
