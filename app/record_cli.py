@@ -243,13 +243,15 @@ def _answerer(mode: str | None, user: str, out, runtime=None, device: str = ""):
 
 
 def _step_line(r) -> str:
+    from app.report import with_unit
+
     line = f"  [{r.status}] {r.name}"
     if r.ended and r.started:
         line += f" ({r.ended - r.started:.1f} s)"
     if r.reason:
         line += f": {r.reason}"
     elif r.values:
-        line += ": " + "; ".join(f"{v['name']} {v['value']} {v['unit']}".strip() for v in r.values[:4])
+        line += ": " + "; ".join(f"{v['name']} {with_unit(v['value'], v['unit'])}" for v in r.values[:4])
     return line
 
 

@@ -67,6 +67,24 @@ def evidence_file(device: str, bus: str, run_id: int, n: int, evidence: dict) ->
     return None
 
 
+_EVIDENCE_NAMED: dict[tuple, dict | None] = {}  # (plant, device, run id, step) -> name and SHA-256: record rows never change
+EVIDENCE_NAMED_MAX = 4096
+
+
+def evidence_named(plant: str, device: str, bus: str, run_id: int, n: int, evidence: dict) -> dict | None:
+    """The evidence file of a step as the report names it (file name, SHA-256, how many items); made
+    once per step of a stored run (the record page's preview asks every few seconds)."""
+    key = (plant, device, run_id, n)
+    if key not in _EVIDENCE_NAMED:
+        made = evidence_file(device, bus, run_id, n, evidence)
+        if len(_EVIDENCE_NAMED) >= EVIDENCE_NAMED_MAX:
+            _EVIDENCE_NAMED.pop(next(iter(_EVIDENCE_NAMED)))
+        _EVIDENCE_NAMED[key] = None if made is None else {
+            "name": made[0], "sha256": sha256(made[1]), "items": len(evidence.get("frames") or evidence.get("transactions") or []),
+            "what": "CAN frames" if evidence.get("kind") == "can" else "transactions"}
+    return _EVIDENCE_NAMED[key]
+
+
 def _run_summary(runs: list[dict]) -> list[dict]:
     """Per checkout: its last run's result, how many runs and how they ended, who ran them."""
     by_title: dict[str, dict] = {}
@@ -149,12 +167,8 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
     for entry in checkouts:
         steps = []
         for n, step in enumerate(entry.data.get("steps", []), 1):
-            made = evidence_file(device, config.bus, entry.id, n, step.get("evidence") or {})
-            ev = step.get("evidence") or {}
-            steps.append({**step, "evidence_file": None if made is None else {
-                "name": made[0], "sha256": sha256(made[1]),
-                "items": len(ev.get("frames") or ev.get("transactions") or []),
-                "what": "CAN frames" if ev.get("kind") == "can" else "transactions"}})
+            named = evidence_named(record.plant, device, config.bus, entry.id, n, step.get("evidence") or {})
+            steps.append({**step, "evidence_file": named})
         runs.append({"id": entry.id, "time": entry.time, "settings": entry.data.get("settings", {}), "steps": steps,
                      **{k: entry.data.get(k) for k in ("title", "status", "reason", "user", "duration_s")}})
     entries = await record.timeline(device)
@@ -240,12 +254,15 @@ td,th{border:1px solid #bbb;padding:2px 6px;text-align:left;vertical-align:top}t
 """
 
 
-def _with_unit(value: Any, unit: str) -> str:
+def with_unit(value: Any, unit: str) -> str:
     """A value with its unit once (the model's text often carries the unit already, also before a remark)."""
     text = "" if value is None else str(value)
     if not unit or text.endswith(unit) or re.search(rf"(?<![\w]){re.escape(unit)}(?![\w])", text):
         return text
     return f"{text} {unit}".strip()
+
+
+_with_unit = with_unit  # the older name
 
 
 def _e(value: Any) -> str:
@@ -271,7 +288,7 @@ def values_text(d: dict) -> str:
 
 
 def measured_text(v: dict) -> str:
-    return f'{v["name"]} = {_with_unit(v["value"], v["unit"])} ({v["limit"] or "recorded"}: {"ok" if v["ok"] else "FAIL"})'
+    return f'{v["name"]} = {with_unit(v["value"], v["unit"])} ({v["limit"] or "recorded"}: {"ok" if v["ok"] else "FAIL"})'
 
 
 def evidence_text(s: dict) -> str:
@@ -325,7 +342,7 @@ def _rows_html(head: list[str], rows: list[list[Any]], classes: dict[int, Any] |
 
 
 def _param_rows(rows: list[dict]) -> list[list[Any]]:
-    return [[r["name"], _with_unit(r["value"], r["unit"]), r["approved"], r["verdict"]] for r in rows]
+    return [[r["name"], with_unit(r["value"], r["unit"]), r["approved"], r["verdict"]] for r in rows]
 
 
 def _verdict_class(r: list[Any]) -> str:
@@ -664,11 +681,15 @@ def run_cli(args: argparse.Namespace) -> int:
             end = time.monotonic() + args.wait
             while time.monotonic() < end and not all(s.status == "online" for s in runtime.store.devices.values()):
                 await asyncio.sleep(0.2)
-            return await write_plant(runtime, args.out)
+            content = await plant_content(runtime)
+            return content, await write_plant(runtime, args.out, content)
         finally:
             await runtime.stop()
 
-    paths = asyncio.run(main())
+    content, paths = asyncio.run(main())
     for kind, path in paths.items():
         print(f"{kind}: {path} ({path.stat().st_size} bytes)")
+    if altered_text(content):  # never passed over in silence: the report says it on its cover too
+        print(f"commission report: {altered_text(content)}")
+        return 1
     return 0

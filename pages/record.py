@@ -19,7 +19,16 @@ from nicegui import ui
 from app import backup
 from app import runtime as rt
 from app.record import checkout_module, diff_sets
-from app.report import appendix_html, device_content, device_html, plant_content, sign_gaps, signoff_of, write_plant
+from app.report import (
+    appendix_html,
+    device_content,
+    device_html,
+    plant_content,
+    sign_gaps,
+    signoff_of,
+    with_unit,
+    write_plant,
+)
 from app.verify import check_archive
 from pages.frame import fmt_time, frame
 from pages.session import current_user
@@ -117,7 +126,7 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool) -> 
                     if r.reason:
                         ui.label(r.reason).classes("text-negative text-caption")
                     elif r.values:
-                        ui.label("; ".join(f"{v['name']} {v['value']} {v['unit']}".strip() for v in r.values[:3])).classes("text-caption")
+                        ui.label("; ".join(f"{v['name']} {with_unit(v['value'], v['unit'])}" for v in r.values[:3])).classes("text-caption")
 
     async def ask(question: str) -> bool:
         twin_action = _twin_action(runtime, name, question)
