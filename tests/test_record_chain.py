@@ -87,6 +87,25 @@ def test_a_sign_off_replaced_from_outside_is_named(tmp_path):
     assert any("record_no_replace" in p for p in again.problems) and any("row #3" in p for p in again.problems)
 
 
+def test_a_row_replaced_with_its_hash_recomputed_is_named_by_the_next_link(tmp_path):
+    from app.verify import row_hash
+
+    _store(tmp_path)
+    path = tmp_path / "record.sqlite"
+    db = sqlite3.connect(path)
+    db.row_factory = sqlite3.Row
+    row = dict(db.execute("SELECT * FROM record WHERE id = 2").fetchone())
+    db.close()
+    row["user"] = "eve"
+    row["hash"] = row_hash(row)  # the rules are public: a forger can recompute the row's own hash
+    _outside(path, "DROP TRIGGER record_no_replace")
+    db = sqlite3.connect(path)
+    db.execute(f"INSERT OR REPLACE INTO record ({', '.join(row)}) VALUES ({', '.join('?' * len(row))})", tuple(row.values()))
+    db.commit()
+    db.close()
+    assert check_database(path).problems[0] == "row #2 was changed or replaced: row #3 no longer links to it"
+
+
 def test_drop_trigger_and_delete_name_the_missing_row(tmp_path):
     _store(tmp_path)
     path = tmp_path / "record.sqlite"
