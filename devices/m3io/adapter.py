@@ -286,9 +286,12 @@ class M3ioAdapter:
             raise ControlBusy(f"{holder.user} controls the module since {time.strftime('%H:%M:%S', time.localtime(holder.since))}")
         if not self.bus.state.connected:
             raise CommandError(f"CAN bus {self.bus.name} is not open: {self.bus.state.last_error or 'not connected'}")
-        left = self.core.listen_left(time.monotonic(), self.bus.state.reconnects)  # (re)opened since: listen from now on
-        if left > 0:
-            await asyncio.sleep(left)
+        # (re)opened since: listen from now on; the loop may wake a timer a little early, so wait until it has passed
+        for _ in range(5):  # (a bus that opens again meanwhile restarts the window; the core refuses after that)
+            left = self.core.listen_left(time.monotonic(), self.bus.state.reconnects)
+            if left <= 0:
+                break
+            await asyncio.sleep(left + 0.005)
         now = time.monotonic()
         decision = self.core.take(session, user, now, time.time(), self.bus.state.reconnects)
         if not decision.ok and self.controller is not None and self.controller is not holder:  # taken while listening
