@@ -428,7 +428,7 @@ class CanBus:
         if self.bus is not None:
             try:
                 self.bus.shutdown()
-            except Exception as exc:  # a dying interface may fail to shut down; it is gone anyway
+            except Exception as exc:  # noqa: BLE001 - a dying interface may fail to shut down; it is gone anyway
                 log.debug("shutdown of %s failed: %s", self.name, exc)
             self.bus = None
         self.state.connected = False
@@ -440,7 +440,7 @@ class CanBus:
             if self.bus is None:
                 try:
                     self.bus = await loop.run_in_executor(None, self._open)
-                except Exception as exc:  # CanInterfaceNotImplementedError, CanInitializationError, OSError ...
+                except Exception as exc:  # noqa: BLE001 - CanInterfaceNotImplementedError, CanInitializationError, OSError ...
                     self.state.connected = False
                     self.state.last_error = open_error(self.options, exc)
                     log.warning("%s: %s", self.name, self.state.last_error)
@@ -579,7 +579,7 @@ class CanBus:
                         loop.call_soon_threadsafe(self._drain)
                     except RuntimeError:  # loop closed while stopping
                         return
-        except Exception as exc:  # CanOperationError when the interface goes away
+        except Exception as exc:  # noqa: BLE001 - CanOperationError when the interface goes away
             if not stop.is_set():  # not the bus closing under it
                 self._failure = f"receive failed: {exc}"
 
@@ -685,7 +685,7 @@ class CanBus:
             elif self.listeners and self._offer(key, msg):
                 for listener in self.listeners:
                     listener(msg)
-        except Exception as exc:  # a bad frame must never stop the bus
+        except Exception as exc:  # noqa: BLE001 - a bad frame must never stop the bus
             log.debug("%s: handler failed for %s: %s", self.name, msg, exc)
             state.dropped += 1
 
@@ -748,7 +748,7 @@ class CanBus:
         if state.recorder is not None:
             try:
                 state.recorder.on_message_received(msg)
-            except Exception as exc:  # disk full or closed file: stop recording, keep the bus
+            except Exception as exc:  # noqa: BLE001 - disk full or closed file: stop recording, keep the bus
                 state.recorder = None
                 state.last_error = f"recording stopped: {exc}"
 

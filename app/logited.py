@@ -243,7 +243,7 @@ class LogitedTcp(_LogitedLine):
             while True:
                 chunk = await reader.read(1024)
                 if not chunk:
-                    self._drop(f"the barrier closed the connection (another client, or it restarted); reconnecting")
+                    self._drop("the barrier closed the connection (another client, or it restarted); reconnecting")
                     return
                 buffer += chunk
                 while buffer:

@@ -154,7 +154,7 @@ class ModbusLine(LineBase):
             )
         try:
             ok = await self.client.connect()
-        except Exception as exc:  # pyserial raises SerialException / OSError variants
+        except Exception as exc:  # noqa: BLE001 - pyserial raises SerialException / OSError variants
             ok = False
             self.state.last_error = f"cannot open {o['port']}: {exc}"
         if ok:

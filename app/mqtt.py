@@ -207,7 +207,7 @@ class MqttPublisher:
         """One look at every device: queue each topic whose content changed (or whose heartbeat is due)."""
         now = time.time() if now is None else now
         site, instance = self.config.site, self.config.instance
-        for name, state in self.store.devices.items():
+        for state in self.store.devices.values():
             self.sample_device(state, site, instance, now)
 
     def sample_device(self, state, site: str, instance: str, now: float) -> None:

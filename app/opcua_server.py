@@ -375,9 +375,11 @@ def identity_of(state, device_type: str, options: dict[str, Any]) -> dict[str, s
     return {
         "Manufacturer": (DEVICE_TYPES[device_type].manufacturer if device_type in DEVICE_TYPES else "") or title,
         "Model": model,
-        "SerialNumber": first("SerialNumber", "Serial number", "serial") or str(options.get("serial", "")),
-        "SoftwareRevision": first("FirmwareVersion", "Program version", "Firmware info", "version", "Software version"),
-        "HardwareRevision": first("HardwareVersion", "Hardware version", "Product"),
+        "SerialNumber": (first("SerialNumber", "Serial number", "serial") or str(info.get("serial") or "")
+                         or str(options.get("serial", ""))),
+        "SoftwareRevision": (first("FirmwareVersion", "Program version", "Firmware info", "version", "Software version")
+                             or str(info.get("version") or "")),
+        "HardwareRevision": first("HardwareVersion", "Hardware version", "Product") or str(info.get("product") or ""),
         "DeviceRevision": first("Device code", "DeviceRevision", "Configuration info"),
     }
 

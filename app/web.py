@@ -15,7 +15,7 @@ import time
 import uuid
 from pathlib import Path
 from collections.abc import Callable
-from typing import Any, Literal
+from typing import Any
 from urllib.parse import parse_qs, quote, urlsplit
 
 from fastapi import HTTPException, Query, Request

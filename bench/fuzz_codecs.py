@@ -170,7 +170,7 @@ def uncaught(target: Target, examples: int) -> tuple[Counter, dict[str, Any]]:
             target.call(drawn)
         except target.allowed:
             pass
-        except Exception as exc:  # the point: anything else is a finding
+        except Exception as exc:  # noqa: BLE001 - the point: anything else is a finding
             key = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"[:120]
             seen[key] += 1
             sample.setdefault(key, drawn)

@@ -49,7 +49,7 @@ def open_discover_dialog(bus: str) -> None:
             found = await runtime.worker.engineer_action(
                 lambda: runtime.worker.discover(bus, a, b, on_progress), user=user, role=role,
                 describe=f"scan line {bus} addresses {a}..{b}", target=bus)
-        except Exception as exc:
+        except Exception as exc:  # noqa: BLE001 - the scan stops; the engineer is told why
             ui.notify(f"discover failed: {exc}", type="negative")
             found = []
         finally:

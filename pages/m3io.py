@@ -15,7 +15,7 @@ from app.worker import DEADMAN_BOUND_S
 from devices.m3io import adapter as facts
 from devices.m3io import codec
 from devices.m3io.codec import Variant
-from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, point_values, titled_card
+from pages.device_page import DeviceView, StatusRow, device_page, point_values, titled_card
 from pages.device_page import DrawnCard as ChangedCard
 from pages.frame import fmt_age
 from pages.session import current_user

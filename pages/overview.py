@@ -16,7 +16,7 @@ from app.worker import AuditUnavailable, PermissionDenied
 from devices.registry import DEVICE_TYPES, format_can_ids
 from pages.frame import fmt_age, frame, set_status_badge, status_text
 from pages.plant_view import ICON, Followers, LabelPool, evaluate_tile
-from pages.widgets import follow, gate, mark_quality, quality_note, viewer_reason
+from pages.widgets import gate, mark_quality, quality_note, viewer_reason
 from pages.session import current_user
 
 

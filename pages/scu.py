@@ -19,7 +19,7 @@ from devices.scu import adapter as facts
 from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.adapter import RESTORE_REFUSED, SERVICE_IDS, WATCH_RG, chart_points
-from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, point_values, titled_card
+from pages.device_page import DeviceView, StatusRow, device_page, point_values, titled_card
 from pages.device_page import DrawnCard as ChangedCard
 from pages.frame import fmt_age, fmt_time
 from pages.simcontrols import sim_card

@@ -766,7 +766,7 @@ async def run_command(
     except CommandError as exc:
         ui.notify(f"{action}: {exc}", type="negative", multi_line=True)
         return False, None
-    except Exception as exc:  # every adapter error carries a message for the engineer
+    except Exception as exc:  # noqa: BLE001 - every adapter error carries a message for the engineer
         ui.notify(f"{action}: {exc}", type="negative", multi_line=True, close_button="OK", timeout=15000)
         return False, None
     if success:

@@ -9,7 +9,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 
-import pytest
 from conftest import wait_for
 from plants import can_bus, channel, m3io_can, plant_text
 from test_scu_keepalive import scu  # noqa: F401 (fixture)
@@ -155,7 +154,7 @@ async def test_supervision_tick_slower_while_no_page_and_nothing_held_and_fast_a
         await asyncio.wait_for(worker.stop(), 10)
 
 
-async def test_scu_data_read_in_turn_rides_on_the_rc_of_the_line_thread(scu):
+async def test_scu_data_read_in_turn_rides_on_the_rc_of_the_line_thread(scu):  # noqa: F811 - the fixture imported above
     """With the remote session open and the cyclic object, the data IDs read in turn are read by the line's thread
     right after its RC (one wake-up of the loop for both), not each through a worker thread of the loop; they are
     still read one a poll, and published with their own period."""

@@ -267,7 +267,7 @@ async def test_master_always_serves_idle_and_yields_to_a_plc():
     listener = Listener(runtime.plant.buses["can3"].options["channel"])
     await runtime.start()
     try:
-        adapter, twin = runtime.worker.adapters["hm"], runtime.twins["hm"]
+        adapter = runtime.worker.adapters["hm"]
         assert await wait_for(lambda: runtime.store.devices["hm"].status == "online", timeout=4)
         sent = listener.of(adapter.ids.dig_out)
         assert sent and all(d == b"\x00" for _, d in sent)  # every output off

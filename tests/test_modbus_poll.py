@@ -6,7 +6,6 @@ import asyncio
 import contextlib
 import sqlite3
 import struct
-from pathlib import Path
 
 import pytest
 

@@ -130,7 +130,7 @@ def test_udp_multicast_gets_a_big_receive_buffer_and_reports_kernel_drops():
     try:
         assert cb.interface_drops(small.bus, small.options) == (0, "kernel socket drops")
         with can.Bus(**{k: v for k, v in _udp_options(port).items() if k != "bitrate"}) as sender:
-            for i in range(300):
+            for _ in range(300):
                 sender.send(can.Message(arbitration_id=0x100, is_extended_id=False, data=bytes(8)))
         count, source = cb.interface_drops(small.bus, small.options)
         assert count > 0 and source == "kernel socket drops"

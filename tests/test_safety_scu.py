@@ -380,7 +380,7 @@ class ScuSafety(RuleBasedStateMachine):
         core, now = self.shell.core, self.shell.now
         if core.estop is not None and core.estop.confirmed:
             return  # F20 on in the unit keeps every drive stopped
-        for fn, since in self.unit.moving.items():
+        for since in self.unit.moving.values():
             failures = [t for t in self.shell.stop_failed_at if t >= since]
             if failures:
                 assert now <= failures[0] + WATCHDOG_S + RC_PERIOD_S + TIMEOUT_S + SLACK_S, (

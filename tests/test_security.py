@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import asyncio
 import os
-import sqlite3
 import stat
 import subprocess
 import sys
@@ -25,7 +24,6 @@ from test_auth import login, secured_app
 from webutil import DEMO_PLANT, demo_plant_text, wait_http
 
 from app import backup
-from app.audit import AuditLog
 from app.runtime import Runtime, remove_stale_parts
 from app.users import UserStore
 from app.worker import AuditUnavailable, PermissionDenied

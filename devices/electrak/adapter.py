@@ -370,7 +370,7 @@ class ElectrakAdapter:
         frames = self._foreign.frames if self._foreign is not None else 0
         try:
             text = codec.describe_frame(codec.CONTROL_ID, False, bytes(msg.data), {(False, codec.STATUS_ID)})
-        except Exception:  # describe_frame reports malformed frames itself; never let a frame stop the bus
+        except Exception:  # noqa: BLE001 - describe_frame reports malformed frames itself; never let a frame stop the bus
             text = bytes(msg.data).hex(" ")
         self._foreign = ForeignSender(frames + 1, time.time(), text or "")
         actions = self.core.foreign_control(now)  # whoever holds control here releases it: never fight it

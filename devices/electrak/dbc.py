@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from cantools.database.can import Message, Signal
+from cantools.database.can import Message
 
-from devices.dbcform import NODE, DbcError, bits, ident, sig
+from devices.dbcform import NODE, bits, ident, sig
 from devices.electrak import codec
 
 # -- Electrak HD network (control 0x06, status 0x07, service 0x0A/0x0B) ----------------------------------

@@ -6,7 +6,7 @@ from typing import Any
 
 from cantools.database.can import Message, Signal
 
-from devices.dbcform import NODE, DbcError, bits, ident, sig
+from devices.dbcform import NODE, DbcError, ident, sig
 from devices.hdlock import codec
 
 # -- HD-Lock (section 6.5) ------------------------------------------------------------------------------

@@ -112,7 +112,7 @@ def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verd
         return Verdict(name=f"HD-Lock {name}", kind="read")
     if can_id == codec.CAN_COMMAND:
         if len(data) < 5:
-            return Verdict(refused=f"HD-Lock Command (0x700) without a command byte (section 6.6.1)", name=name)
+            return Verdict(refused="HD-Lock Command (0x700) without a command byte (section 6.6.1)", name=name)
         command = data[4]
         if command in NEVER_CAN_COMMANDS:
             cmd_name = codec.CanCommand(command).name

@@ -296,7 +296,7 @@ _ERROR_TABLE = [
     (14, "total_current", "total current exceeded", "while moving", f"{_FAST}; cleared with the next motion"),
     *[(14 + n, f"actuator_{n}", f"error of actuator {n}",
        "peak current, short-circuit current, sensor monitor, over-current (not at a limit position) or "
-       "timeout (not at a limit position)", f"the actuator is stopped (fast stop); cleared with the next motion")
+       "timeout (not at a limit position)", "the actuator is stopped (fast stop); cleared with the next motion")
       for n in range(1, 7)],
     (21, "position_difference", "position difference between the actuators too large (synchronised parallel run)",
      "only if synchronised parallel run is configured", "motion is not started or is stopped (fast stop); "

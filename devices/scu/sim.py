@@ -33,7 +33,7 @@ from typing import Any
 
 from devices import simserver
 from devices.scu import codec, params
-from devices.scu.codec import Function, Motion, Ramp, SafetyId, Status
+from devices.scu.codec import Function, Motion, Ramp, Status
 from devices.simcontrols import SimAction, SimControls, SimParam
 
 log = logging.getLogger(__name__)
