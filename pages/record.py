@@ -147,7 +147,10 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool) -> 
             with ui.row():
                 ui.button("Yes", on_click=lambda: dialog.submit(True)).mark("checkout-yes")
                 ui.button("No", color="negative", on_click=lambda: dialog.submit(False)).mark("checkout-no")
-        return bool(await dialog)
+        try:
+            return bool(await dialog)
+        finally:
+            dialog.delete()  # one question on the page at a time
 
     async def run_it() -> None:
         try:

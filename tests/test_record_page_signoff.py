@@ -14,6 +14,14 @@ from tests.recordutil import demo_plant
 pytestmark = pytest.mark.timeout(90)
 
 
+def _present(user, **query) -> list:
+    """The elements of the page that match (none: an empty list, not an error)."""
+    try:
+        return list(user.find(**query).elements)
+    except AssertionError:
+        return []
+
+
 def _one(user, marker):
     return next(iter(user.find(marker=marker).elements))
 
@@ -84,3 +92,36 @@ async def test_no_account_yet_is_said_with_what_to_do(tmp_path):
         user.find(marker="gaps-sign").click()
         await user.should_see("commission user add NAME --role engineer", retries=100)
         assert await runtime.record.timeline(None, ("signoff",)) == []
+
+
+async def test_a_question_to_act_on_a_simulated_device_offers_the_twin_control_in_the_same_tab(tmp_path):
+    """The M3IO checkout asks to toggle an input: on the demo the inputs are the twin's, so the question
+    offers its control, and the checkout passes in one tab."""
+    from nicegui import ui
+
+    from app.runtime import Runtime
+
+    runtime = Runtime(demo_plant(("heater-hmr",)), simulate=True, data_dir=tmp_path / "data")
+    async with simulated_user(runtime) as user:
+        state = runtime.store.devices["heater-hmr"]
+        assert await wait_for(lambda: state.status == "online", 15)
+        await user.open("/record/heater-hmr")
+        user.find(marker="checkout-run").click()
+        run = None
+        for _ in range(300):
+            runtime.worker.heartbeat(user.client.id)  # the page's browser is alive (the simulated user sends no beats)
+            run = runtime.record.runs.get("heater-hmr")
+            if run is not None and run.status not in ("ready", "running"):
+                break
+            if _present(user, marker="checkout-yes"):
+                question = " ".join(e.text for e in _present(user, kind=ui.label) if e.text.startswith(("Toggle", "Is ", "Are ")))
+                if "Toggle" in question:
+                    name = question.split()[1]
+                    before = state.entry(name)["value"]
+                    user.find(marker="checkout-twin-action").click()
+                    assert await wait_for(lambda: state.entry(name)["value"] != before, 5), question
+                user.find(marker="checkout-yes").click()
+            await asyncio.sleep(0.1)
+        assert run is not None and run.status == "passed", "; ".join(f"{r.name}: {r.status} {r.reason}" for r in run.results if r.status != "passed")
+        audit = await runtime.audit.aquery(device="heater-hmr", limit=50)
+        assert any(a.action.startswith("simulation: toggle E") for a in audit), [a.action for a in audit]
