@@ -206,13 +206,14 @@ def content(name: str) -> None:
     with device_page(view, f"Electrak HD network {name}", stop=stop):
         view.guard = WriteGuard(view.state)  # write and motion-start controls, disabled with the reason while the network is silent
         view.add(NetworkCard(view))
-        view.add(FlagsCard(view))
-        # chart and drive side by side from 1024 px; on a tablet the drive card below the chart, each full width
+        # chart and drive side by side from 1024 px, right under the network's values, so Go and the jog buttons are
+        # in sight at 1440x900; on a tablet the drive card below the chart, each full width
         # (beside it the chart was drawn over the drive card)
         with ui.row().classes("w-full items-start gap-4"):
             view.add(ChartCard(view))
             with ui.column().classes("col-12 col-md gap-4"):
                 view.add(DriveCard(view))
+        view.add(FlagsCard(view))
         sim_card(name)  # full width: its entries and buttons need a row of their own on a narrow screen
         view.add(ServiceCard(view))
         view.add(BitrateCard(view))
@@ -472,7 +473,7 @@ class ServiceCard(DrawnCard):
             self.shown[p.key] = entry.value
             entry.on("keydown.enter", lambda: self.write(p, entry))  # Enter writes, as the button does (same question)
             self.guard.add(ui.button("Write", on_click=lambda: self.write(p, entry))
-                           .props(f"dense data-testid=write-{p.address:02X}"))
+                           .props(f"data-testid=write-{p.address:02X}"))
             self.entries[p.key] = entry
         self.rows[p.key] = (p, mark, cell)
 
