@@ -20,14 +20,9 @@ def _engineer(twin, dead_loops: str = ""):
     ready at the light barrier (interrupts it once the boom closes), frees it, occupies and frees loops
     (``dead_loops``: occupied, but their detector never sees it)."""
     async def ask(question: str) -> bool:
-        if question.startswith("Stand ready at the light barrier"):
-            twin.interrupt_at_next_close()
-        elif question.startswith("Free the light barrier"):
-            twin.break_light_barrier(False)
-        elif question.startswith("Occupy loop ") and question.split()[2] not in dead_loops:
-            twin.occupy_loop(question.split()[2], True)
-        elif question.startswith("Free loop "):
-            twin.occupy_loop(question.split()[2].rstrip("."), False)
+        words = question.split()
+        if words[0] == "Toggle" and words[1] not in [f"loop-{x}" for x in dead_loops]:
+            twin.controls().invoke(f"toggle {words[1]}")  # the twin's declared control, as the record page offers it
         return True
     return ask
 

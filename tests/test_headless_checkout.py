@@ -120,9 +120,16 @@ async def test_the_person_answers_by_holding_space_and_no_means_nothing_moves(tm
         assert not any(c[1] == "pulse" for c in twin.commands)
         # held: every question is answered yes while SPACE is held, and the cycle runs
         lines.clear()
+
+        def out(line: str) -> None:  # the person also does what a question asks (light barrier, loops) at the twin
+            lines.append(line)
+            if line.startswith("    ? Toggle "):
+                twin.controls().invoke(f"toggle {line.split()[2]}")
+
+        person.out = out
         keys.hold_space()
         code = await asyncio.wait_for(checkout_devices(runtime, ["gate"], user="cli:test", role="engineer",
-                                                       answer="yes", out=lines.append, person=person), 60)
+                                                       answer="yes", out=out, person=person), 90)
         keys.release()
         assert code == 0, lines
         assert [c for c in twin.commands if c[1] == "pulse"][-2:] == [("open", "pulse"), ("close", "pulse")]

@@ -258,6 +258,8 @@ async def test_the_checkout_asks_that_the_area_is_clear_before_each_motion(tmp_p
 
         async def ask(question: str) -> bool:
             asked.append((question, len(twin.commands)))
+            if question.startswith("Toggle "):  # a person's part (light barrier, loops): the twin's declared control
+                twin.controls().invoke(f"toggle {question.split()[1]}")
             return True
 
         result = await run_checkout(runtime, "barrier-in", ask=ask)
@@ -265,4 +267,4 @@ async def test_the_checkout_asks_that_the_area_is_clear_before_each_motion(tmp_p
         moves = [i for i, c in enumerate(twin.commands) if c[1] == "pulse"]
         area = [n for q, n in asked if q == AREA_CLEAR_RISK]
         # one question right before each pulse: the close pulse is not sent on the open pulse's answer
-        assert len(moves) == 2 and all(any(n == m for n in area) for m in moves), (asked, list(twin.commands))
+        assert len(moves) >= 2 and all(any(n == m for n in area) for m in moves), (asked, list(twin.commands))

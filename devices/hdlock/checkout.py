@@ -44,6 +44,10 @@ REQUEST_DELAY = PARAMS.get("holding", 3000)
 IRS_NEVER, IRS_ALWAYS = 0, 1
 ERROR_STATES = range(6, 13)  # input 9: 6 error locked ... 12 error unlocking
 LOCKED_STATE, UNLOCKED_STATE = 4, 2
+# what a person is asked to do; "Toggle door" names the twin's control where the lock is simulated (the record
+# page and the CLI offer it with the question)
+OPEN_DOOR = "Toggle door now: open the door and keep it open until you are asked to close it."
+CLOSE_DOOR = "Toggle door now: close the door again."
 _SAVED = "_hdlock_before"
 
 
@@ -229,7 +233,7 @@ async def _unlock(ctx) -> None:
 async def _refuse_open_door(ctx) -> None:
     """Section 3.2.2, condition 2: with a source below 0x80 the bolt goes out only while the door is closed."""
     s = ctx.settings
-    await ctx.ask("Open the door now and keep it open until you are asked to close it.")
+    await ctx.ask(OPEN_DOOR)
     if not await ctx.wait(lambda: _status(ctx, "DoorInPosition") == 0 and _status(ctx, "ProximityInPlace") == 0,
                           s["door_timeout_s"]):
         ctx.fail(f"the door was to be opened, but the lock still sees it in position after {s['door_timeout_s']:g} s "
@@ -251,7 +255,7 @@ async def _refuse_open_door(ctx) -> None:
     ctx.measure("Bolt with the door open and IrsAlways", "moved out" if moved else "stayed in", expect="stayed in", fail=False)
     if count_before is not None:
         ctx.measure(RETRY_LOCK.name, _raw(ctx, RETRY_LOCK), expect=count_before, fail=False)
-    await ctx.ask("Close the door again.")
+    await ctx.ask(CLOSE_DOOR)
     await ctx.wait(lambda: _status(ctx, "DoorInPosition") == 1, s["door_timeout_s"])
     if moved:
         ctx.fail(f"the lock did not refuse: with the door open and a lock request (IrsAlways) the {moved[0]} "

@@ -186,6 +186,10 @@ class HdLockTwin:
     def open_door(self) -> None:
         self.door_target_closed = False
 
+    def toggle_door(self) -> None:
+        """Open a closed (or closing) door, close an open one: what a checkout asks a person to do."""
+        self.door_target_closed = not self.door_target_closed
+
     def set_line_input(self, active: bool) -> None:
         self.line_input = active
 
@@ -201,6 +205,7 @@ class HdLockTwin:
         actions = [
             SimAction("close door", "Close door", self.close_door, icon="door_front", testid="close"),
             SimAction("open door", "Open door", self.open_door, icon="meeting_room", testid="open"),
+            SimAction("toggle door", "Open / close door", self.toggle_door, testid="toggle-door"),
             switch("LOCK-REQUEST input", "LOCK-REQUEST input active", "line_input", "line-input"),
             switch("strong magnet", "Strong magnet", "strong_magnet", "strong-magnet"),
             switch("bolt blocked", "Bolt blocked (never leaves its end position)", "bolt_stuck", "bolt-stuck"),

@@ -205,6 +205,14 @@ class Mo64Twin:
         """A person stands ready at the light barrier and interrupts it once the boom closes (until freed)."""
         self._interrupt_next_close = True
 
+    def toggle_light_barrier(self) -> None:
+        """What a checkout asks a person at the light barrier to do: free it when it is interrupted (or about to
+        be), else interrupt it as the boom next closes."""
+        if self.light_barrier or self._interrupt_next_close:
+            self.break_light_barrier(False)
+        else:
+            self.interrupt_at_next_close()
+
     def occupy_loop(self, loop: str, occupied: bool = True) -> None:
         """A vehicle (or a test mass) stands on loop ``loop`` (A, B or C); its occupied bit follows (5.1.7)."""
         self.loops[loop] = occupied
@@ -232,10 +240,12 @@ class Mo64Twin:
                       testid="vehicle"),
             SimAction("light barrier interrupted", "Light barrier interrupted", self.break_light_barrier,
                       state=lambda: self.light_barrier, testid="light-barrier"),
-            SimAction("interrupt light barrier while closing", "Interrupt the light barrier at the next close",
-                      self.interrupt_at_next_close, testid="light-barrier-next-close"),
+            SimAction("toggle LS", "Light barrier: interrupt at the next close / free", self.toggle_light_barrier,
+                      testid="toggle-ls"),
             *(SimAction(f"loop {x} occupied", f"Loop {x} occupied", lambda on, x=x: self.occupy_loop(x, on),
                         state=lambda x=x: self.loops[x], testid=f"loop-{x.lower()}") for x in "ABC"),
+            *(SimAction(f"toggle loop-{x}", f"Loop {x}: occupy / free", lambda x=x: self.occupy_loop(x, not self.loops[x]),
+                        testid=f"toggle-loop-{x.lower()}") for x in "ABC"),
             SimAction("light barrier never reports", "Light barrier never reports (broken)",
                       lambda on: setattr(self, "light_barrier_dead", on), state=lambda: self.light_barrier_dead,
                       testid="light-barrier-dead"),
