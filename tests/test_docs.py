@@ -8,6 +8,7 @@ from __future__ import annotations
 import ast
 import contextlib
 import io
+import itertools
 import re
 import shlex
 from pathlib import Path
@@ -154,29 +155,23 @@ def parse(line: str) -> tuple[int, str]:
     return 0, ""
 
 
-def subcommands(parser=None) -> dict[str, object]:
-    import argparse
-
-    parser = parser or build_parser()
-    for action in parser._actions:  # argparse offers no public way to list its subcommands
-        if isinstance(action, argparse._SubParsersAction):
-            return dict(action.choices)
-    return {}
-
-
 def mention_problem(line: str) -> str:
-    """What is wrong with a mention of a command in running text (its command words and options), or ''."""
+    """What is wrong with a mention of a command in running text (its command words and options), or ''.
+
+    The command words are checked by asking the CLI's parser for their help (an unknown one is refused
+    as on the command line), the options against the options that help names."""
     words = [w for w in shlex.split(line)[1:] if w != "..."]
-    parser = build_parser()
-    commands = subcommands(parser)
-    while words and not words[0].startswith("-") and commands:
-        if words[0] not in commands:
-            return f"no command {words[0]!r} (known: {', '.join(commands)})"
-        parser = commands[words.pop(0)]
-        commands = subcommands(parser)
-    known = {option for action in parser._actions for option in action.option_strings}
+    command = list(itertools.takewhile(lambda w: not w.startswith("-"), words))[:2]
+    help_text, stderr = io.StringIO(), io.StringIO()
+    try:
+        with contextlib.redirect_stdout(help_text), contextlib.redirect_stderr(stderr):
+            build_parser().parse_args([*command, "--help"])
+    except SystemExit as exc:
+        if exc.code:
+            return stderr.getvalue().strip().splitlines()[-1]
+    known = set(re.findall(r"(?<![\w-])(--?[A-Za-z][\w-]*)", help_text.getvalue()))
     unknown = [w.split("=")[0] for w in words if w.startswith("-") and w.split("=")[0] not in known]
-    return f"{parser.prog} has no option {', '.join(unknown)}" if unknown else ""
+    return f"commission {' '.join(command)} has no option {', '.join(unknown)}" if unknown else ""
 
 
 def test_the_docs_show_commands():
@@ -204,7 +199,8 @@ def test_a_wrong_command_line_is_caught():
     assert parse("commission restore --plant P --device door-1 f.json [--yes]")[0] == 0
     assert mention_problem("commission user add") == ""
     assert mention_problem("commission export --format mcap") == ""
-    assert "no command" in mention_problem("commission users add")
+    assert "invalid choice: 'users'" in mention_problem("commission users add")
+    assert mention_problem("commission --host 0.0.0.0") == ""
     assert "no option --formt" in mention_problem("commission export --formt mcap")
 
 
