@@ -115,6 +115,18 @@ def test_the_docs_name_pages():
     assert len(named_paths()) >= 15, "the guide names the app's pages in backticks, e.g. `/device/door-1`"
 
 
+def test_a_page_the_app_does_not_serve_is_caught():
+    routes, names, tools = app_routes(), demo_names(), bus_tools()
+
+    def served(path: str) -> bool:
+        return any(route_matches(path, r, names, tools) for r in routes)
+
+    assert served("/device/door-1") and served("/monitor/BUS/poll") and served("/replace/<device>") and served("/fleet")
+    assert not served("/devices/door-1")  # no such route
+    assert not served("/device/door-9")  # no such device in the demo plant
+    assert not served("/monitor/can1/sniff")  # no such bus tool
+
+
 def test_every_page_the_docs_name_is_a_route_of_the_app():
     routes, names, tools = app_routes(), demo_names(), bus_tools()
     assert "/device/{name}" in routes and "/api/devices" in routes
