@@ -14,6 +14,8 @@ Pure: no I/O; imported by the gate and by tests.
 
 from __future__ import annotations
 
+from devices.errors import DeviceError
+
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -22,7 +24,7 @@ KINDS = ("read", "stop", "write", "motion", "mains", "system")
 OPEN_KINDS = frozenset({"read", "stop"})  # what every role may run
 
 
-class CommandError(ValueError):
+class CommandError(DeviceError, ValueError):
     """An argument out of its declared range, or a command the device type does not declare."""
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 from devices import values
+from devices.errors import DeviceError
 
 
 class Access(str, Enum):
@@ -24,7 +25,7 @@ class Access(str, Enum):
     MFR = "MFR"  # manufacturer only: shown, never written
 
 
-class ParamError(ValueError):
+class ParamError(DeviceError, ValueError):
     """An entry that cannot be written to a parameter (range, type, access)."""
 
 

@@ -13,6 +13,8 @@ and :class:`TransportClosed`, so code that handles any line's failure catches th
 
 from __future__ import annotations
 
+from devices.errors import DeviceError
+
 from collections.abc import Awaitable, Callable, Mapping
 from typing import Any, Protocol, runtime_checkable
 
@@ -21,7 +23,7 @@ from devices.live import Counters
 # -- what every line raises ----------------------------------------------------------------
 
 
-class TransportError(Exception):
+class TransportError(DeviceError):
     """A request on a line that did not give a usable answer; ``kind`` says why (for the counters)."""
 
     kind = "error"

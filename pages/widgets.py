@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import html
 import json
+import logging
 import time
 from collections.abc import Awaitable, Callable
 from datetime import datetime
@@ -19,6 +20,7 @@ from devices.commands import WRITE_PARAMETER
 from devices.params import Param, ParamError
 
 CHART_WINDOW_S = 300
+log = logging.getLogger(__name__)
 
 
 def session_role() -> str:
@@ -744,6 +746,7 @@ async def run_command(
     """
     from app.gate import NeedsConfirmation
     from devices.commands import CommandError
+    from devices.errors import DeviceError
     from pages.session import current_user
 
     worker = rt.current().worker
@@ -766,7 +769,11 @@ async def run_command(
     except CommandError as exc:
         ui.notify(f"{action}: {exc}", type="negative", multi_line=True)
         return False, None
-    except Exception as exc:  # noqa: BLE001 - every adapter error carries a message for the engineer
+    except DeviceError as exc:  # a refusal of the device, its rules or its line: the message says what to do
+        ui.notify(f"{action}: {exc}", type="negative", multi_line=True, close_button="OK", timeout=15000)
+        return False, None
+    except Exception as exc:  # noqa: BLE001 - not a refusal: a fault of this tool, logged with its traceback
+        log.exception("%s on %s failed", action, device)
         ui.notify(f"{action}: {exc}", type="negative", multi_line=True, close_button="OK", timeout=15000)
         return False, None
     if success:

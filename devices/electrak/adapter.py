@@ -9,6 +9,7 @@ import time
 from collections import deque
 from dataclasses import dataclass, replace
 
+from devices import errors
 from devices.control import ControlChanged, Report
 from devices.control import Holder as CoreHolder
 from devices.electrak import codec, control
@@ -60,11 +61,11 @@ SERIES = (P_POSITION, P_CURRENT, P_SPEED, P_DRIVE_TARGET)  # the history (and th
 stop_form = control.stop_form_bytes  # the control telegram 0x06 with enable and override cleared, the rest kept
 
 
-class CommandError(Exception):
+class CommandError(errors.CommandError):
     """A command that did not take effect; the message says what to do."""
 
 
-class ControlBusy(CommandError):
+class ControlBusy(CommandError, errors.ControlBusy):
     """Another session holds control."""
 
 

@@ -9,6 +9,7 @@ import weakref
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+from devices import errors
 from devices.decoding import decoded
 from devices.hdlock import STATUS_FRAME_BOLT, codec
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
@@ -116,7 +117,7 @@ def _arrival(msg) -> float:
     return stamp if isinstance(stamp, int | float) and 0 <= now - stamp < 5.0 else now
 
 
-class CommandError(Exception):
+class CommandError(errors.CommandError):
     """A command or write that did not take effect; the message says what to do."""
 
 

@@ -20,6 +20,7 @@ import asyncio
 import time
 from dataclasses import dataclass
 
+from devices import errors
 from devices.decoding import decoded
 from devices.lease import Lease
 from devices.live import DeviceState, session_tag
@@ -129,11 +130,11 @@ class Identity:
     config: int
 
 
-class CommandError(Exception):
+class CommandError(errors.CommandError):
     """A command that did not take effect; the message says what to do."""
 
 
-class ControlBusy(CommandError):
+class ControlBusy(CommandError, errors.ControlBusy):
     """Another session controls the module."""
 
 

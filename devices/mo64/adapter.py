@@ -21,6 +21,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from devices import errors
 from devices import values as v
 from devices.decoding import decoded, malformed
 from devices.live import DeviceState, session_tag
@@ -141,7 +142,7 @@ class EepromWrites:
         return dict(self.sessions).get(session_tag(session), 0)
 
 
-class CommandError(Exception):
+class CommandError(errors.CommandError):
     """A command or write that did not take effect; the message says why."""
 
 

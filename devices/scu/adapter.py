@@ -27,6 +27,7 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
+from devices import errors
 from devices import values as v
 from devices.decoding import malformed
 from devices.control import ControlChanged, Report
@@ -98,11 +99,11 @@ P_FIRMWARE = "Firmware info"  # 0x0001 (read with the service data and the backu
 P_CONFIGURATION = "Configuration info"  # 0x0002
 
 
-class CommandError(Exception):
+class CommandError(errors.CommandError):
     """A command that did not take effect; the message says what to do."""
 
 
-class ControlBusy(CommandError):
+class ControlBusy(CommandError, errors.ControlBusy):
     """Another session holds control."""
 
 
