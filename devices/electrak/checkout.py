@@ -1,5 +1,12 @@
-"""Electrak HD checkout: move a given distance out and back at a given speed, position within
-tolerance, current below the limit, no fault flags (status 0x07, SY2 document).
+"""Electrak HD checkout: move a given distance out and back, position within tolerance, current below
+the limit, no fault flags, Saturated not held (status 0x07, SY2 document).
+
+Limits from the network's own configuration (model, gearing and stroke of each actuator, codec.Limits):
+the speed is the middle of the speed range every gearing of the network accepts ("Geschwindigkeit" by
+gearing, B017 11-58 ... B160 1-5 mm/s), the current limit is the models' own (MD12 25 A, HD24 12.5 A,
+HD48 6.5 A). The peak current is taken after the start-up: the document excludes the inrush
+("Diese Strombegrenzung gilt nicht während der Motor-Anfahrphase"). "Saturated" must not stay on under
+CAN control ("Der Anwender muss sicherstellen, dass dieses Bit bei keinem Gerät aktiviert bleibt").
 
 Declared here, run by the generic runner (``app/record.py``); reads the published points and invokes the
 declared commands (devices/electrak/policy.py). Control is taken for the run's session (under the dead-man
@@ -8,21 +15,42 @@ rule); the cleanup stops and releases it, also after an abort.
 
 from __future__ import annotations
 
+from devices.electrak import codec
 from devices.electrak.policy import AREA_CLEAR_RISK
 
 TITLE = "Move out and back"
 SETTINGS = {
     "distance_mm": 20.0,
-    "speed_mm_s": 15.0,
+    "speed_mm_s": None,  # None: the middle of the speed range every actuator's gearing accepts
     "tolerance_mm": 1.0,
-    "current_max_a": 8.0,
-    "move_timeout_s": 10.0,
+    "current_max_a": None,  # None: the actuators' own limit by model (the lowest of the network)
+    "startup_s": 0.5,  # the inrush after each start is not counted in the peak current (document: Strombegrenzung)
+    "saturated_max_s": 1.0,  # Saturated on this long without a break fails the move
+    "move_timeout_s": 20.0,
 }
 
 
+def limits_of(options: dict, settings: dict) -> tuple[float, float]:
+    """(speed mm/s, current limit A) for this network: the settings', else from its actuators' model and gearing."""
+    try:
+        limits = codec.Limits.of([codec.Actuator(a["model"], a["gearing"], float(a["stroke_mm"]))
+                                  for a in options.get("actuators", [])])
+    except (codec.CodecError, KeyError, TypeError, ValueError):
+        limits = None
+    speed = settings.get("speed_mm_s")
+    if speed is None:
+        speed = round((limits.speed_min + limits.speed_max) / 2, 1) if limits is not None else 5.0
+    current = settings.get("current_max_a")
+    if current is None:
+        current = limits.current_a if limits is not None else 6.5
+    return float(speed), float(current)
+
+
 def steps(options: dict, settings: dict) -> list[dict]:
-    move = (f"{settings['distance_mm']:g} mm at {settings['speed_mm_s']:g} mm/s, position within ±{settings['tolerance_mm']:g} mm, "
-            f"current <= {settings['current_max_a']:g} A, no error flags")
+    speed, current = limits_of(options, settings)
+    move = (f"{settings['distance_mm']:g} mm at {speed:g} mm/s (middle of the gearings' range), position within "
+            f"±{settings['tolerance_mm']:g} mm, current after start-up <= {current:g} A (the models' limit), no error "
+            f"flags, Saturated not on for {settings['saturated_max_s']:g} s")
     return [
         {"name": "Area clear (asked)", "limits": "the engineer confirms", "run": _ask},
         {"name": "Take control, no faults", "limits": "every configured actuator heard; error flags 0", "run": _take},
@@ -56,7 +84,10 @@ async def _take(ctx) -> None:
 
 
 async def _move(ctx, direction: int) -> None:
+    import time
+
     s = ctx.settings
+    speed, current_max = limits_of(ctx.options, s)
     start = ctx.start_mm
     stroke = ctx.value("Stroke") or 0
     if direction > 0:
@@ -64,28 +95,44 @@ async def _move(ctx, direction: int) -> None:
         ctx.out_mm = target
     else:
         target = start
-    peak = {"a": 0.0, "errors": 0}
+    peak = {"a": 0.0, "errors": 0, "saturated_since": None, "saturated_s": 0.0}
+    started = {"at": None}
 
     def arrived() -> bool:
-        peak["a"] = max(peak["a"], ctx.value("Current") or 0.0)
+        now = time.monotonic()
+        if started["at"] is not None and now - started["at"] >= s["startup_s"]:  # the inrush is not counted
+            peak["a"] = max(peak["a"], ctx.value("Current") or 0.0)
         peak["errors"] |= ctx.value("Error flags") or 0
         if peak["errors"]:
             return True
+        if (ctx.value("Motion flags") or 0) & 0b100:  # Saturated
+            peak["saturated_since"] = peak["saturated_since"] or now
+            peak["saturated_s"] = max(peak["saturated_s"], now - peak["saturated_since"])
+            if peak["saturated_s"] >= s["saturated_max_s"]:
+                return True
+        else:
+            peak["saturated_since"] = None
         pos = ctx.value("Position")
         return pos is not None and abs(pos - target) <= s["tolerance_mm"] and not (ctx.value("Motion flags") or 0) & 0b11
 
-    await ctx.invoke("set target", {"position_mm": float(target), "speed_mm_s": float(s["speed_mm_s"]), "current_a": 0.0})
+    await ctx.invoke("set target", {"position_mm": float(target), "speed_mm_s": speed, "current_a": 0.0})
     await ctx.invoke("go")
+    started["at"] = time.monotonic()
     reached = await ctx.wait(arrived, s["move_timeout_s"])
     await ctx.invoke("stop")
     if peak["errors"]:
         ctx.measure("Error flags", peak["errors"], expect=0, fail=False)
-        ctx.fail(f"error flags during the move: {_flags(ctx)} (peak current {peak['a']:.1f} A)")
+        ctx.fail(f"error flags during the move: {_flags(ctx)} (peak current after start-up {peak['a']:.1f} A)")
+    ctx.measure("Saturated, longest time on", round(peak["saturated_s"], 2), "s", high=s["saturated_max_s"], fail=False)
+    if peak["saturated_s"] >= s["saturated_max_s"]:
+        ctx.fail(f"Saturated stayed on for {peak['saturated_s']:.1f} s: the actuators run at the highest speed their supply "
+                 f"and load allow at {speed:g} mm/s; the document: it must not stay on under CAN control (lower the speed, "
+                 "check the supply voltage and the load)")
     ctx.measure("Position", ctx.value("Position"), "mm", low=target - s["tolerance_mm"], high=target + s["tolerance_mm"],
                 fail=reached)
     if not reached:
         ctx.fail(f"target {target:g} mm not reached within {s['move_timeout_s']:g} s (at {ctx.value('Position')} mm)")
-    ctx.measure("Peak current", round(peak["a"], 2), "A", high=s["current_max_a"])
+    ctx.measure("Peak current after start-up", round(peak["a"], 2), "A", high=current_max)
     ctx.measure("Error flags", ctx.value("Error flags"), expect=0)
 
 
