@@ -131,14 +131,20 @@ async def _write_source(ctx, value: int) -> None:
     if before is None:
         setattr(ctx, _SAVED, {"source": _raw(ctx, SOURCE), "in_use": _raw(ctx, SOURCE_IN_USE),
                               "unsaved": {k for k in (SOURCE.key, SOURCE_IN_USE.key) if k in ctx.state.unsaved}})
+    await _write(ctx, SOURCE, value)
+
+
+async def _write(ctx, param, raw: int) -> None:
+    """Write ``param`` through the gate; a read-back that differs is written once more (on CAN an answer to a
+    poll's read of the same register, sent just before, can arrive as the write's echo), a second one fails."""
     try:
-        await ctx.invoke(WRITE_PARAMETER, {"param": SOURCE, "value": SOURCE.decode(value)})
-    except Exception as exc:  # noqa: BLE001 - a read-back that crossed a poll's read of the same register: once more
+        await ctx.invoke(WRITE_PARAMETER, {"param": param, "value": param.decode(raw)})
+    except Exception as exc:  # noqa: BLE001 - only a differing read-back is tried again; the rest is the step's reason
         if "instead of" not in str(exc):
             raise
         ctx.note(f"{exc}; written once more")
         await ctx.wait(lambda: False, 0.3)
-        await ctx.invoke(WRITE_PARAMETER, {"param": SOURCE, "value": SOURCE.decode(value)})
+        await ctx.invoke(WRITE_PARAMETER, {"param": param, "value": param.decode(raw)})
 
 
 def _why(ctx) -> str:
@@ -272,7 +278,7 @@ async def cleanup(ctx, settings: dict) -> None:
         return
     for param, raw in ((SOURCE, before["source"]), (SOURCE_IN_USE, before["in_use"])):
         if raw is not None and _raw(ctx, param) != raw:
-            await ctx.invoke(WRITE_PARAMETER, {"param": param, "value": param.decode(raw)})
+            await _write(ctx, param, raw)
     for param, raw in ((SOURCE, before["source"]), (SOURCE_IN_USE, before["in_use"])):
         if param.key not in before["unsaved"] and _raw(ctx, param) == raw:
             ctx.state.unsaved.discard(param.key)
