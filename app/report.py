@@ -67,15 +67,15 @@ def evidence_file(device: str, bus: str, run_id: int, n: int, evidence: dict) ->
     return None
 
 
-_EVIDENCE_NAMED: dict[tuple, dict | None] = {}  # (plant, device, run id, step) -> name and SHA-256: record rows never change
+_EVIDENCE_NAMED: dict[tuple, dict | None] = {}  # (row hash, step) -> name and SHA-256: record rows never change
 EVIDENCE_NAMED_MAX = 4096
 
 
-def evidence_named(plant: str, device: str, bus: str, run_id: int, n: int, evidence: dict) -> dict | None:
+def evidence_named(row: str | None, device: str, bus: str, run_id: int, n: int, evidence: dict) -> dict | None:
     """The evidence file of a step as the report names it (file name, SHA-256, how many items); made
-    once per step of a stored run (the record page's preview asks every few seconds)."""
-    key = (plant, device, run_id, n)
-    if key not in _EVIDENCE_NAMED:
+    once per step of a stored run (``row``: its hash; the record page's preview asks every few seconds)."""
+    key = (row, device, bus, run_id, n)
+    if row is None or key not in _EVIDENCE_NAMED:
         made = evidence_file(device, bus, run_id, n, evidence)
         if len(_EVIDENCE_NAMED) >= EVIDENCE_NAMED_MAX:
             _EVIDENCE_NAMED.pop(next(iter(_EVIDENCE_NAMED)))
@@ -167,7 +167,7 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
     for entry in checkouts:
         steps = []
         for n, step in enumerate(entry.data.get("steps", []), 1):
-            named = evidence_named(record.plant, device, config.bus, entry.id, n, step.get("evidence") or {})
+            named = evidence_named(entry.hash, device, config.bus, entry.id, n, step.get("evidence") or {})
             steps.append({**step, "evidence_file": named})
         runs.append({"id": entry.id, "time": entry.time, "settings": entry.data.get("settings", {}), "steps": steps,
                      **{k: entry.data.get(k) for k in ("title", "status", "reason", "user", "duration_s")}})

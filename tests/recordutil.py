@@ -49,10 +49,29 @@ async def demo_runtime(tmp_path, devices: tuple[str, ...] | None = None, online:
 
 async def run_checkout(runtime, device: str, *, answer: bool = True, settings: dict | None = None, user: str = "anna",
                        ask=None):
-    """Run ``device``'s checkout; every question answered ``answer``, or by ``ask(question)`` where given."""
+    """Run ``device``'s checkout; every question answered ``answer``, or by ``ask(question)`` where given.
+    Answered yes, a request to act on the simulated device ("Toggle door now: ...") is carried out on its
+    twin first, as the record page offers it."""
     if ask is None:
         async def ask(question: str) -> bool:
+            if answer:
+                await act_on_twin(runtime, device, question, user)
             return answer
 
     run = runtime.record.new_run(device, user=user, role="engineer", ask=ask, settings=settings)
     return await run.run()
+
+
+async def act_on_twin(runtime, device: str, question: str, user: str = "anna") -> bool:
+    """Do what a "Toggle <control> now ..." question asks on the device's twin (its declared control)."""
+    from app.record_cli import sim_action
+
+    controls = runtime.sim_controls(device)
+    words = question.split()
+    if controls is None or len(words) < 2 or words[0] != "Toggle":
+        return False
+    action = f"toggle {words[1]}"
+    if not any(a.name == action for a in controls.actions):
+        return False
+    await sim_action(runtime, f"{device}:{action}", user=user, role="engineer")
+    return True
