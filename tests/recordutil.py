@@ -48,13 +48,13 @@ async def demo_runtime(tmp_path, devices: tuple[str, ...] | None = None, online:
 
 
 async def run_checkout(runtime, device: str, *, answer: bool = True, settings: dict | None = None, user: str = "anna",
-                       ask=None):
+                       ask=None, act: bool = False):
     """Run ``device``'s checkout; every question answered ``answer``, or by ``ask(question)`` where given.
-    Answered yes, a request to act on the simulated device ("Toggle door now: ...") is carried out on its
-    twin first, as the record page offers it."""
+    ``act``: answered yes, a request to act on the simulated device ("Toggle door now: ...") is carried
+    out on its twin first, as the record page offers it (else nobody acts, as a person who only says yes)."""
     if ask is None:
         async def ask(question: str) -> bool:
-            if answer:
+            if answer and act:
                 await act_on_twin(runtime, device, question, user)
             return answer
 

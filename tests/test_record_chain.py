@@ -150,7 +150,7 @@ async def _signed_plant(runtime, tmp_path):
 
     runtime.users.add("anna", "engineer", "anna-password")
     await runtime.record.approve("door-2", user="local", role="engineer", account="anna")
-    await run_checkout(runtime, "door-2")
+    await run_checkout(runtime, "door-2", act=True)
     content = await plant_content(runtime, read=False)
     return await runtime.record.sign("", user="local", role="engineer", name="Anna Berg", signer_role="commissioning engineer",
                                      comment="door-2 cycled", content=content, account="anna")

@@ -53,7 +53,7 @@ async def test_sign_off_needs_an_engineer_account_and_every_run_stays_in_the_rep
         await runtime.record.approve("door-2", user="local", role="engineer", account="anna")
         # two runs, whatever the second's result (the family's own steps are not under test here)
         failed = await run_checkout(runtime, "door-2", answer=False, user="anna")  # "is the door closed?" no
-        second = await run_checkout(runtime, "door-2", user="anna")
+        second = await run_checkout(runtime, "door-2", user="anna", act=True)
         assert failed["status"] == "failed"
         content = await plant_content(runtime, read=False)
         assert sign_gaps(content) == ([] if second["status"] == "passed" else ["door-2: last Lock and unlock cycle failed"])
