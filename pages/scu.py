@@ -15,7 +15,7 @@ from datetime import datetime
 from nicegui import ui
 
 from app import worker as worker_module
-from devices.scu import adapter as facts
+from devices.scu import facts
 from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.adapter import RESTORE_REFUSED, SERVICE_IDS, WATCH_RG, chart_points
