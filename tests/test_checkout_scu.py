@@ -55,3 +55,16 @@ async def test_scu_checkout_passes_after_a_line_drop_left_error_bit_22(tmp_path)
         steps = {s["name"]: s for s in result["steps"]}
         assert steps["Take control, no error bits"]["status"] == "passed", steps["Take control, no error bits"]["reason"]
         assert steps["A1 out and back"]["status"] == "passed", steps["A1 out and back"]["reason"]
+
+
+async def test_scu_checkout_fails_a_unit_whose_watchdog_stops_nothing(tmp_path):
+    async with demo_runtime(tmp_path, ("lift-1",)) as runtime:
+        twin = runtime.twins["lift-1"]
+        twin.ignores_watchdog = True
+        result = await run_checkout(runtime, "lift-1")
+        steps = {s["name"]: s for s in result["steps"]}
+        watchdog = steps["Watchdog trip (RC withheld)"]
+        assert watchdog["status"] == "failed", watchdog
+        moved = next(v for v in watchdog["values"] if "last movement after RC withheld" in v["name"])
+        assert moved["value"] > 0.7, moved  # the drive went on until the reopened session's RS stopped it
+        assert await_no_open_re(twin) or not any(a.moving for a in twin.actuators)

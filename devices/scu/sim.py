@@ -202,6 +202,7 @@ class ScuTwin:
         self.v2b0 = False  # firmware before V2B1: no F20 (table 8), RE/RS 19 answered PDE
         self.rt_cyclic_unanswered = False  # the definition of a cyclic object (RT 0x3001..) gets no answer
         self.cse_next: dict[str, int] = {}  # command -> the next N of it answered CSE (line noise, not executed)
+        self.ignores_watchdog = False  # a broken unit: no RC for 500 ms stops nothing (the checkout must see it)
         self.stray_bytes = 0  # the next N answers come with a stray byte in front (a noisy line)
         self.split_answers = False  # answers come in two pieces with a pause between (inter-byte gap)
         self.keys = 0  # Actual_State_Keys (0x0040)
@@ -285,7 +286,7 @@ class ScuTwin:
 
     def check_watchdog(self, now: float) -> bool:
         """Drop remote mode when RC did not come for 500 ms (section 4.1, table 3); True if it tripped."""
-        if self.remote and now - self.last_rc > codec.WATCHDOG_S:
+        if self.remote and now - self.last_rc > codec.WATCHDOG_S and not self.ignores_watchdog:
             self.session_lost_count += 1
             self.watchdog_trips.append(now)
             self.raise_error(codec.REMOTE_TIMEOUT_MASK)
