@@ -177,7 +177,7 @@ def add_parser(sub) -> None:
     parser.add_argument("--accept-risk", action="append", default=[], metavar="NAME",
                         help="write this risky parameter's value (repeatable)")
     parser.add_argument("--no-sim", action="store_true", help="do not start simulated devices")
-    parser.add_argument("--data-dir", type=Path, default=None, help="data folder (default: ~/.local/share/commission)")
+    parser.add_argument("--data-dir", type=Path, default=None, help="data folder (default: the per-user data folder, docs/windows-macos.md)")
     parser.set_defaults(func=run_cli)
 
 

@@ -38,7 +38,7 @@ def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-sim", action="store_true", help="do not start simulated devices")
     parser.add_argument("--wait", type=float, default=20.0, help="seconds to wait for the devices to come online (default 20)")
     parser.add_argument("--data-dir", type=Path, default=argparse.SUPPRESS,
-                        help="data folder with the record (default: ~/.local/share/commission)")
+                        help="data folder with the record (default: the per-user data folder, docs/windows-macos.md)")
 
 
 def _account(parser: argparse.ArgumentParser, what: str) -> None:

@@ -663,7 +663,7 @@ def add_parser(sub) -> None:
     parser.add_argument("--out", type=Path, required=True, help="folder for the report files")
     parser.add_argument("--no-sim", action="store_true", help="do not start simulated devices")
     parser.add_argument("--wait", type=float, default=20.0, help="seconds to wait for the devices to come online (default 20)")
-    parser.add_argument("--data-dir", type=Path, default=None, help="data folder with the record (default: ~/.local/share/commission)")
+    parser.add_argument("--data-dir", type=Path, default=None, help="data folder with the record (default: the per-user data folder, docs/windows-macos.md)")
     parser.set_defaults(func=run_cli)
 
 

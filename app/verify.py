@@ -320,7 +320,7 @@ def add_parser(sub) -> None:
                                            "exit code 0 only when intact")
     parser.add_argument("archive", nargs="?", type=Path, help="the as-left archive (.zip) to check")
     parser.add_argument("--record", action="store_true", help="check the record database of the data folder instead")
-    parser.add_argument("--data-dir", type=Path, default=None, help="data folder with the record (default: ~/.local/share/commission)")
+    parser.add_argument("--data-dir", type=Path, default=None, help="data folder with the record (default: the per-user data folder, docs/windows-macos.md)")
     parser.set_defaults(func=run_cli)
 
 
