@@ -98,7 +98,7 @@ def test_closing_the_door_locks_the_bolt(app_url: str, page: Page, tmp_path: Pat
     expect(page.locator('[data-value="DoorState"]')).not_to_have_text("-")
     assert bolt_position(page) == 0
 
-    page.get_by_role("button", name="Close door").click()
+    page.get_by_test_id("sim-close").click()
 
     expect(lamp(page, "DoorInPosition")).to_have_attribute("data-on", "1")
     expect(lamp(page, "BoltLocked")).to_have_attribute("data-on", "1")
