@@ -379,9 +379,14 @@ def chromium():
             browser.close()
 
 
-def inside_viewport(page, locator) -> None:
-    """Assert that the element of ``locator`` is visible and lies wholly inside the page's viewport."""
-    box = locator.bounding_box()
+def inside_viewport(page, locator, timeout: float = 5.0) -> None:
+    """Assert that the element of ``locator`` is visible and lies wholly inside the page's viewport. A live table may
+    draw its rows anew meanwhile: the element is looked up again until it is rendered (``timeout`` seconds at most)."""
+    end = time.monotonic() + timeout
+    box = locator.bounding_box(timeout=timeout * 1000)
+    while box is None and time.monotonic() < end:
+        page.wait_for_timeout(50)
+        box = locator.bounding_box(timeout=max(1.0, (end - time.monotonic()) * 1000))
     assert box is not None, f"{locator} is not rendered"
     size = page.viewport_size or page.evaluate("({width: window.innerWidth, height: window.innerHeight})")
     assert box["x"] >= 0 and box["y"] >= 0, f"{locator} starts outside the viewport: {box}"

@@ -38,8 +38,8 @@ def network(*actuators: tuple[str, str]) -> str:
     return plant_text(electrak_bus(actuators=[{"model": m, "gearing": g, "stroke_mm": 300} for m, g in actuators]))
 
 
-@pytest.mark.parametrize("actuators", [(("HD24", "B100"),), (("HD48", "B160"), ("HD48", "B160"))])
-async def test_the_speed_and_current_come_from_the_networks_own_gearing_and_model(tmp_path, actuators):
+@pytest.mark.parametrize("actuators", [(("HD24", "B100"),), (("HD48", "B160"), ("HD48", "B160")), (("MD12", "B017"),)])
+def test_the_speed_and_current_come_from_the_networks_own_gearing_and_model(actuators):
     """HD24/B100 accepts 2..9 mm/s and an HD48 6.5 A at most: a fixed 15 mm/s and 8 A failed or passed wrongly."""
     from devices.electrak.checkout import SETTINGS, limits_of
 
@@ -47,7 +47,10 @@ async def test_the_speed_and_current_come_from_the_networks_own_gearing_and_mode
     speed, current = limits_of(options, SETTINGS)
     low, high = codec.SPEED_RANGE_MM_S[actuators[0][1]]
     assert low <= speed <= high and current == codec.CURRENT_LIMIT_A[actuators[0][0]]
-    async with running_plant(parse_plant(network(*actuators))) as runtime:
+
+
+async def test_a_slow_gearing_passes_at_its_own_speed(tmp_path):
+    async with running_plant(parse_plant(network(("HD24", "B100")))) as runtime:
         assert await wait_for(lambda: runtime.store.devices["lift"].status == "online", 10)
         result = await run_checkout(runtime, "lift", settings={"distance_mm": 5.0})
         assert result["status"] == "passed", [(s["name"], s["reason"]) for s in result["steps"]]

@@ -106,7 +106,12 @@ def test_view_shows_both_plants_devices_with_live_values(site):
             assert isinstance(devices[name]["values"]["BoltPosition"]["value"], int)
         return devices
 
-    _until(both_live, 30, "both instances' devices live in the view")
+    try:
+        _until(both_live, 30, "both instances' devices live in the view")
+    except AssertionError as exc:  # say what the instances said, so a failure under load can be read afterwards
+        logs = {n: (site["folder"] / f"{n}.log").read_text(errors="replace")[-1500:] for n in ("a", "b", "sim-b", "view")
+                if (site["folder"] / f"{n}.log").exists()}
+        raise AssertionError(f"{exc}; {site['procs']['b'].poll()=}; logs: {logs}") from None
     snap = _site(view)
     assert [s["site"] for s in snap["sites"]] == ["hall-3"]
     assert {i["name"]: i["state"] for i in snap["sites"][0]["instances"]} == {"cab-a": "online", "cab-b": "online"}
