@@ -255,6 +255,8 @@ async def test_the_checkout_asks_that_the_area_is_clear_before_each_motion(tmp_p
     asked: list[tuple[str, int]] = []
     async with demo_runtime(tmp_path, ("barrier-in",)) as runtime:
         twin = runtime.twins["barrier-in"]
+        twin.settings["t_open"] = 150  # 1.5 s: the automatic closing comes sooner (read from the device by the checkout)
+        await runtime.worker.adapters["barrier-in"].read_settings()
 
         async def ask(question: str) -> bool:
             asked.append((question, len(twin.commands)))
@@ -262,7 +264,7 @@ async def test_the_checkout_asks_that_the_area_is_clear_before_each_motion(tmp_p
                 twin.controls().invoke(f"toggle {question.split()[1]}")
             return True
 
-        result = await run_checkout(runtime, "barrier-in", ask=ask)
+        result = await run_checkout(runtime, "barrier-in", ask=ask, settings={"safety_seen_s": 2.0})
         assert result["status"] == "passed", [(s["name"], s["reason"]) for s in result["steps"]]
         moves = [i for i, c in enumerate(twin.commands) if c[1] == "pulse"]
         area = [n for q, n in asked if q == AREA_CLEAR_RISK]
