@@ -36,6 +36,7 @@ async def _short_t_open(runtime, name: str, ticks: int) -> None:
 async def test_mo64_checkout_passes_and_an_interrupted_light_barrier_fails_the_close(tmp_path):
     async with demo_runtime(tmp_path, ("barrier-in",)) as runtime:
         twin = runtime.twins["barrier-in"]
+        twin.travel_s = 0.8  # a quick boom: the steps wait on what the barrier reports, not on its speed
         await _short_t_open(runtime, "barrier-in", 150)  # 1.5 s
         result = await run_checkout(runtime, "barrier-in", ask=_engineer(twin), settings=FAST)
         assert result["status"] == "passed", [(s["name"], s["reason"], s["notes"]) for s in result["steps"] if s["reason"]]
@@ -75,6 +76,7 @@ async def test_mo64_checkout_fails_a_light_barrier_that_never_reports(tmp_path):
     """The light barrier is checked while it acts: one that never reports fails its step with the reason."""
     async with demo_runtime(tmp_path, ("barrier-in",)) as runtime:
         twin = runtime.twins["barrier-in"]
+        twin.travel_s = 0.8  # a quick boom: the steps wait on what the barrier reports, not on its speed
         twin.light_barrier_dead = True
         result = await run_checkout(runtime, "barrier-in", ask=_engineer(twin), settings=FAST)
         assert result["status"] == "failed"
@@ -91,6 +93,7 @@ async def test_mo64_checkout_without_automatic_closing_and_error_memory(tmp_path
     there, never "unchanged"; an end position within the tolerance passes."""
     async with demo_runtime(tmp_path, ("barrier-in",)) as runtime:
         twin = runtime.twins["barrier-in"]
+        twin.travel_s = 0.8  # a quick boom: the steps wait on what the barrier reports, not on its speed
         await _short_t_open(runtime, "barrier-in", 0)
         twin.refuse_queries.add(Q_ERROR_MEMORY)
         twin.open_end_pct = 99.0  # its open limit switch stops the boom at 99 %
@@ -112,6 +115,7 @@ async def test_mo64_checkout_without_automatic_closing_and_error_memory(tmp_path
 async def test_mo64_checkout_fails_on_a_fault_event_and_says_so(tmp_path):
     async with demo_runtime(tmp_path, ("barrier-in",)) as runtime:
         twin = runtime.twins["barrier-in"]
+        twin.travel_s = 0.8  # a quick boom: the steps wait on what the barrier reports, not on its speed
         twin.raise_fault(0x0004)
         state = runtime.store.devices["barrier-in"]
         assert await wait_for(lambda: (state.entry("F_ereignis") or {}).get("value") is True, 10)
@@ -125,6 +129,7 @@ async def test_mo64_checkout_fails_on_a_fault_event_and_says_so(tmp_path):
 async def test_mo64_checkout_fails_a_loop_that_never_reports(tmp_path):
     async with demo_runtime(tmp_path, ("barrier-in",)) as runtime:
         twin = runtime.twins["barrier-in"]
+        twin.travel_s = 0.8  # a quick boom: the steps wait on what the barrier reports, not on its speed
         result = await run_checkout(runtime, "barrier-in", ask=_engineer(twin, dead_loops="B"), settings={"safety_seen_s": 2.0})
         step = next(s for s in result["steps"] if s["status"] == "failed")
         assert step["name"] == "Induction loops (asked)", step

@@ -255,6 +255,7 @@ async def test_the_checkout_asks_that_the_area_is_clear_before_each_motion(tmp_p
     asked: list[tuple[str, int]] = []
     async with demo_runtime(tmp_path, ("barrier-in",)) as runtime:
         twin = runtime.twins["barrier-in"]
+        twin.travel_s = 0.8  # a quick boom: the steps wait on what the barrier reports, not on its speed
         twin.settings["t_open"] = 150  # 1.5 s: the automatic closing comes sooner (read from the device by the checkout)
         await runtime.worker.adapters["barrier-in"].read_settings()
 
