@@ -56,7 +56,8 @@ def test_hdlock_entry_save_dialog_and_chart(app_url: str, chromium: Browser, tmp
         expect(page.locator(".js-plotly-plot .y2title")).to_have_text("mA")  # each axis titled with its unit
         expect(page.locator(".js-plotly-plot .ytitle")).to_have_text("Inc")
         expect(page.locator(".js-plotly-plot .ytitle")).to_be_visible()
-        assert page.locator(".js-plotly-plot .ytitle").bounding_box()["x"] >= 0  # not clipped at the left edge
+        page.wait_for_function("() => { const t = document.querySelector('.js-plotly-plot .ytitle');"
+                               " return t && t.getBoundingClientRect().x >= 0; }")  # not clipped at the left edge
         page.screenshot(path=str(tmp_path / f"door-1-top-{size[0]}.png"))
 
         # address 300: kept as typed, marked with the range, Send off with the field's reason: nothing can be sent

@@ -77,6 +77,9 @@ def test_https_with_secure_session_cookies(tmp_path):
             assert "secure" in cookie and "httponly" in cookie, cookie
         with pytest.raises(httpx.TransportError):  # plain HTTP is not served on that port
             httpx.get(f"http://127.0.0.1:{port}/login", timeout=5)
+        end = time.monotonic() + 10  # the start's lines reach the log file a moment after the port answers
+        while f"https://127.0.0.1:{port}/" not in log.read_text() and time.monotonic() < end:
+            time.sleep(0.05)
         printed = log.read_text()
         assert f"https://127.0.0.1:{port}/" in printed and "0.0.0.0" not in printed.split("at ", 1)[-1].splitlines()[0]
     finally:
