@@ -1,0 +1,110 @@
+"""A plant of a hundred devices (bench/scale_plants.py: 64 HD-Locks on four RS485 lines, locks and M3IOs on CAN,
+Electrak networks, SCUs, MO 64 on RS485) runs for a short while in one process with its twins: the overview lists
+every device, its filters narrow the list, and the keep-alives under control keep their period.
+
+The keep-alive bound asserted is the device's own (the Electrak's message timeout, the M3IO's watchdog), with
+the worst gap printed against the 1.2 x period goal, which ``bench/plant_scale.py`` measures on a quiet machine:
+a test beside other tests on two shared cores cannot hold a goal in milliseconds without being flaky.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+import time
+
+import can
+from scale_plants import family_counts, scale_plant_text
+from webutil import eventually, simulated_user
+
+from app.plant import parse_plant
+from app.runtime import Runtime
+from devices.electrak import codec as electrak
+from devices.m3io import codec as m3io
+
+ELECTRAK_TIMEOUT_S = 0.25  # the actuator's message timeout (document 004): control must come within it
+TIMEOUT_BIT = 1 << 5  # Electrak status byte 7 bit 5: message timeout
+
+
+class Heard:
+    """The frames of one CAN id on a bus as a third node hears them, stamped when they were sent."""
+
+    def __init__(self, channel: str, can_id: int):
+        self.bus = can.Bus(interface="virtual", channel=channel)
+        self.can_id = can_id
+        self.frames: list[tuple[float, int, bytes]] = []
+        self._run = True
+        self.thread = threading.Thread(target=self._loop, daemon=True)
+        self.thread.start()
+
+    def _loop(self) -> None:
+        while self._run:
+            msg = self.bus.recv(0.05)
+            if msg is not None:
+                self.frames.append((msg.timestamp, msg.arbitration_id, bytes(msg.data)))
+
+    def times(self, start: float) -> list[float]:
+        return [t for t, i, _ in list(self.frames) if i == self.can_id and t >= start]
+
+    def close(self) -> None:
+        self._run = False
+        self.thread.join(2)
+        self.bus.shutdown()
+
+
+async def _beat(runtime, session: str) -> None:
+    while True:
+        runtime.worker.heartbeat(session)
+        await asyncio.sleep(0.1)
+
+
+def _worst_gap(times: list[float]) -> float:
+    return max((b - a for a, b in zip(times, times[1:], strict=False)), default=float("inf"))
+
+
+async def test_a_hundred_devices_are_listed_and_keep_alives_stay_on_time(tmp_path):
+    text = scale_plant_text(100)
+    plant = parse_plant(text)
+    assert len(plant.devices) == 100 and family_counts(100)["hdlock-modbus"] == 64
+    channels = {b.name: b.options["channel"] for b in plant.buses.values() if b.type == "can"}
+    lift_heard = Heard(channels["can-lift-1"], electrak.CONTROL_ID)
+    status_heard = lift_heard  # the actuators' status telegrams on the same bus: their message-timeout flag
+    heater_heard = Heard(channels["can-io"], m3io.derive_ids(1).dig_out)
+    runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
+    beating: asyncio.Task | None = None
+    try:
+        async with simulated_user(runtime) as user:
+            await eventually(lambda: all(s.status == "online" for s in runtime.store.devices.values()), timeout=15,
+                             what="every device online")
+            lift, heater = runtime.worker.adapters["lift-01"], runtime.worker.adapters["heater-01"]
+            beating = asyncio.create_task(_beat(runtime, "scale"))
+            await lift.take_control("scale", "engineer")
+            await heater.take_control("scale", "engineer")
+            start = time.time() + 0.5  # the keep-alives at their controlled period from here on
+
+            # the overview while the hundred devices poll and the keep-alives run: every device in the table
+            await user.open("/")
+            rows = [e for e in user.client.elements.values() if "data-glance" in e.props]
+            assert sorted(e.props["data-glance"] for e in rows) == sorted(plant.devices)
+            assert {e.props["data-device"] for e in user.client.elements.values() if "data-device" in e.props} <= set(plant.devices)
+            await user.should_see("All devices (100)")
+
+            await eventually(lambda: time.time() > start + 3.0, timeout=10, interval=0.1, what="3 s of keep-alives")
+            lift_times, heater_times = lift_heard.times(start), heater_heard.times(start)
+            lift_gap, heater_gap = _worst_gap(lift_times), _worst_gap(heater_times)
+            print(f"Electrak control: {len(lift_times)} telegrams, worst gap {lift_gap * 1000:.0f} ms = "
+                  f"{lift_gap / electrak.CONTROL_PERIOD_S:.2f} x period; M3IO DigOut: {len(heater_times)} telegrams, "
+                  f"worst gap {heater_gap * 1000:.0f} ms = {heater_gap / m3io.DIGOUT_PERIOD_S:.2f} x period")
+            assert len(lift_times) >= 20 and len(heater_times) >= 20
+            assert lift_gap < ELECTRAK_TIMEOUT_S, lift_gap
+            assert heater_gap < m3io.WATCHDOG_S / 4, heater_gap
+            flags = [d for t, i, d in list(status_heard.frames)
+                     if i == electrak.STATUS_ID and t >= start and len(d) == 8 and d[7] & TIMEOUT_BIT]
+            assert not flags, f"{len(flags)} status telegrams with the message-timeout flag"
+            lift.release_control("scale")
+            heater.release_control("scale")
+    finally:
+        if beating is not None:
+            beating.cancel()
+        lift_heard.close()
+        heater_heard.close()
