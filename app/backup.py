@@ -347,13 +347,15 @@ def _plan_row(params, entry: dict, now: dict, adapter: Any = None) -> DiffRow:
     row.param = param
     row.current_text = param.display(int(now["raw"]))
     try:
-        raw = param.validate(_file_number(value))
+        # a parameter whose value is text (an M3IO customer record's hex bytes) checks the text itself
+        raw = param.validate(value if getattr(param, "text_value", False) and isinstance(value, str) else _file_number(value))
     except (BackupError, ValueError) as exc:
         row.error = f"invalid in the file: {exc}"
         return row
     row.backup_raw = raw
     row.backup_text = param.display(raw)
-    if "raw" in entry and entry["raw"] != raw:
+    hex_raw = getattr(param, "text_value", False) and entry.get("raw") == param.display(raw)  # an older file's record bytes
+    if "raw" in entry and entry["raw"] != raw and not hex_raw:
         row.error = (f"the file's raw {entry['raw']!r} and value {value!r} disagree (edited or damaged file): "
                      "not written")
         return row
