@@ -55,10 +55,11 @@ def _spread(count: int, groups: int) -> list[int]:
 
 
 def scale_plant_text(n: int, name: str | None = None, split: bool = False, wire_delay: bool = True,
-                     modbus_poll_period: float = 0.5, head: str = "") -> str:
+                     modbus_poll_period: float = 0.5, head: str = "", counts: dict[str, int] | None = None) -> str:
     """The plant file of ``n`` devices (see the module text); ``head``: lines before the buses (a ``[mqtt]``
-    table). Channel names carry a free port, so two plants made here never share a CAN bus."""
-    counts = family_counts(n)
+    table); ``counts``: devices per family instead of the mix (the families left out have none). Channel
+    names carry a free port, so two plants made here never share a CAN bus."""
+    counts = {name: 0 for name, _ in MIX} | counts if counts is not None else family_counts(n)
     tag = free_port()
     buses: list[str] = []
     locks = counts["hdlock-modbus"]
@@ -98,6 +99,32 @@ def scale_plant_text(n: int, name: str | None = None, split: bool = False, wire_
                          poll_period=1.0, simulate=True))
     text = plant_text(*buses, name=name or f"scale-{n}", head=head)
     return across_processes(text) if split else text
+
+
+def tcp_ports(text: str) -> list[int]:
+    """The localhost TCP ports of a plant file's simulated endpoints (``socket://127.0.0.1:PORT``)."""
+    import re
+
+    return [int(p) for p in re.findall(r"socket://127\.0\.0\.1:(\d+)", text)]
+
+
+def wait_listening(ports: list[int], proc=None, timeout: float = 60.0) -> None:
+    """Wait until every port of ``ports`` takes a connection (the twins of ``commission sim`` listen)."""
+    import socket
+    import time
+
+    end = time.monotonic() + timeout
+    for port in ports:
+        while True:
+            if proc is not None and proc.poll() is not None:
+                raise RuntimeError(f"the twins' process exited with {proc.returncode}")
+            try:
+                with socket.create_connection(("127.0.0.1", port), timeout=1):
+                    break
+            except OSError:
+                if time.monotonic() > end:
+                    raise TimeoutError(f"nothing listens on port {port} within {timeout} s") from None
+                time.sleep(0.1)  # a synchronous caller polling a port: checked again each round
 
 
 def bus_of_devices(text: str) -> dict[str, str]:
