@@ -47,8 +47,10 @@ async def change_every_writable(runtime, name: str, entries: list[dict]) -> int:
     for entry in entries:
         if not entry.get("setting", entry["writable"]):
             continue  # read-only, or measured by the device (never restored: Param.setting)
-        if name == "heater-hmr":
+        if entry["key"].startswith("customer:"):
             new = "0a 0b 0c 0d 0e 0f"
+        elif entry["key"] == "cfg:7":  # the M3IO's P2: the other of its two values (1 asks first: confirmed below)
+            new = 1 - entry["raw"]
         elif entry["key"] == "service:4":  # the bit rate: changing it takes the actuators off the bus
             continue
         elif entry["key"] in ("holding:4", "holding:1002"):

@@ -3,6 +3,7 @@
 from typing import Any
 
 from devices.m3io import codec
+from devices.m3io.params import P2_OPTION, PARAMS
 from devices.registry import CanIdUse, DeviceType, TileAlarm, TileLine, TileSpec, When
 
 
@@ -20,8 +21,20 @@ def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str
         errors.append(("master", 'master must be "on-control" (DigOut only while an engineer controls the module, the default) '
                                  'or "always" (this tool is the module\'s only master: it serves the watchdog with every output off '
                                  'whenever nobody controls it and no other master is heard)'))
-    for key in sorted(set(options) - {"variant", "sw1", "serial", "master"}):
-        errors.append((key, f"unknown key '{key}' for an M3IO; known: variant, sw1, master, serial (simulated twin)"))
+    p2 = options.get(P2_OPTION, False)
+    if not isinstance(p2, bool):
+        errors.append((P2_OPTION, "p2 (the HMR's three-phase output loaded on two phases, section 4.3) is true or false"))
+    elif p2 and options.get("variant") != "HMR":
+        errors.append((P2_OPTION, "p2 = true exists on the HMR only (its three-phase output SSR1-3, section 4.3)"))
+    firmware = options.get("firmware", 0x1201)
+    if isinstance(firmware, bool) or not isinstance(firmware, int) or not 0 <= firmware <= 0xFFFF:
+        errors.append(("firmware", "firmware (simulated twin) is the SW version word, e.g. 0x1201 for 18.1"))
+    store_s = options.get("store_s", 0.03)
+    if isinstance(store_s, bool) or not isinstance(store_s, int | float) or not 0 <= store_s <= 2.5:
+        errors.append(("store_s", "store_s (simulated twin: seconds to store a customer record) is 0 .. 2.5"))
+    for key in sorted(set(options) - {"variant", "sw1", "serial", "master", P2_OPTION, "firmware", "store_s"}):
+        errors.append((key, f"unknown key '{key}' for an M3IO; known: variant, sw1, master, p2, serial, firmware and "
+                            "store_s (simulated twin)"))
     return errors
 
 
@@ -75,7 +88,7 @@ DEVICE_TYPE = DeviceType(
     name="m3io",
     title="CAN-M3IO",
     bus_types=("can",),
-    params=None,
+    params=PARAMS,
     adapters={"can": "devices.m3io.adapter:M3ioAdapter"},
     sims={"can": "devices.m3io.sim:M3ioSim"},
     check_config=_check_config,

@@ -27,6 +27,8 @@ from devices.live import DeviceState, session_tag
 from devices.control import Decision, Report
 from devices.m3io import codec
 from devices.m3io.codec import Variant
+from devices.m3io.params import P2_OPTION, PARAMS
+from devices.m3io.settings import ModuleSettings
 from devices.m3io.control import (FOREIGN_MASTER, FOREIGN_WINDOW_S, IDLE_DIGOUT_PERIOD_S, LISTEN_S,  # noqa: F401 (names of this module)
                                   MDATA_TIMEOUT_S, TEMP_SLACK_S, DigOut, EndKeepAlive, KeepAlive, LeaseChange, M3ioControl,
                                   stop_form)
@@ -142,9 +144,10 @@ class ForeignMaster(CommandError):
     """Another node of the bus serves the module (sends DigOut)."""
 
 
-class M3ioAdapter:
-    params = None
+class M3ioAdapter(ModuleSettings):
+    params = PARAMS
     transport = "can"
+    error_type = CommandError  # what the settings (devices/m3io/settings.py) raise
 
     def __init__(self, config, state: DeviceState, bus: CanTransport):
         self.config = config
@@ -162,7 +165,7 @@ class M3ioAdapter:
         self.product_code: int | None = None
         self.variant_check = codec.check_variant(self.variant, self.ids.addressed, None)
         self._verify_after = 0.0
-        self.two_phase = False
+        self.two_phase = bool(config.options.get(P2_OPTION, False))  # the plant file keeps P2: the module forgets it
         self.channels = {i: codec.ChannelMonitor() for i in range(1, 7)}
         self.inputs: dict[str, bool] | None = None
         self.temps: dict[int, codec.TempWord] = {}
@@ -175,6 +178,7 @@ class M3ioAdapter:
         self._gone_since: float | None = None  # last answer before a silence
         self._lock = asyncio.Lock()
         state.stale_after = 1.5
+        self._init_settings()
         bus_rate = bus.options.get("bitrate")
         self.bus_bitrate = bus_rate
         self.bitrate_mismatch = bus_rate != self.ids.bitrate
@@ -352,11 +356,14 @@ class M3ioAdapter:
             if self.ids.addressed:
                 self._set_product(None)  # it may have been exchanged meanwhile: check its variant again
                 self._p2_checked = False  # and it lost its cfg (7.2.4): check that P2 is in force again
+                self._settings_read = False  # and its records may be another module's: read them again
         if self.ids.addressed and self.product_code is None and now >= self._verify_after:
             await self._verify_variant()
         elif (self.variant is Variant.HMR and self.ids.addressed and self.served and not self._p2_checked
               and now >= self._verify_after):
             await self._verify_p2()
+        elif self.ids.addressed and self.product_code is not None:
+            await self._read_settings_once()
 
     async def _verify_p2(self) -> None:
         """Addressed mode: read the dynamic configuration (area 2, index 15) and compare its bit 7 with the P2
@@ -593,7 +600,7 @@ class M3ioAdapter:
         if self.variant is not Variant.HMR:
             raise CommandError("P2 (two-phase load) exists on the HMR only")
         on = bool(on)
-        self.two_phase = on
+        self._p2_changed(on)
         if self.served:
             self.bus.send(self.ids.sync, codec.encode_sync_cfg(on), False)
         self._start_cfg()
@@ -602,7 +609,7 @@ class M3ioAdapter:
                          + ("" if self.served else " (sent once this tool controls the module)"))
 
     # -- addressed data (7.2.4.2) ---------------------------------------------------------------
-    async def _request(self, area: int, index: int, payload: bytes = b"") -> codec.MData:
+    async def _request(self, area: int, index: int, payload: bytes = b"", timeout: float = MDATA_TIMEOUT_S) -> codec.MData:
         if not self.ids.addressed:
             raise CommandError(f"addressed data needs SW1 switch 8 on (SW1 is 0x{self.sw1:02X})")
         async with self._lock:
@@ -612,10 +619,10 @@ class M3ioAdapter:
             try:
                 self.core.request_sent(area, index, time.monotonic())  # its answer is no sign of another master
                 self.bus.send(self.ids.sync, codec.encode_sync_request(area, index, payload), False)
-                return await asyncio.wait_for(future, MDATA_TIMEOUT_S)
+                return await asyncio.wait_for(future, timeout)
             except asyncio.TimeoutError:
                 self.state.counters.timeouts += 1
-                raise CommandError(f"no MData for area {area} index {index} within {MDATA_TIMEOUT_S} s") from None
+                raise CommandError(f"no MData for area {area} index {index} within {timeout:g} s") from None
             finally:
                 self._mdata.pop((area, index), None)
 
@@ -638,34 +645,11 @@ class M3ioAdapter:
         fact(P_SOFTWARE, identity.version, raw=raw_version,
              text=f"{identity.version} (assumed: {codec.VERSION_ASSUMPTION})")
         fact(P_CONFIGURATION, identity.config, raw=identity.config, text=f"0x{identity.config:02X}")
+        self._keep_identity(int.from_bytes(serial.payload[:4], "little"), code, raw_version, identity.config)
         self._set_product(code)
         self._check_p2(identity.config)
         return {"serial": identity.serial, "product_code": code, "product": identity.product, "version": identity.version,
                 "config": identity.config}
-
-    async def read_customer(self, index: int) -> bytes:
-        if index not in codec.CUSTOMER_RECORDS:
-            raise CommandError(f"customer record {index} is outside 1..15")
-        answer = await self._request(codec.AREA_READ_CUSTOMER, index)
-        self._publish_customer(index, answer.payload)
-        return answer.payload
-
-    async def write_customer(self, index: int, payload: bytes) -> bytes:
-        """Write and verify: the answer is what the module stored (7.2.4.2.4)."""
-        if index not in codec.CUSTOMER_RECORDS:
-            raise CommandError(f"customer record {index} is outside 1..15")
-        if len(payload) > 6:
-            raise CommandError(f"a customer record holds 6 bytes, got {len(payload)}")
-        answer = await self._request(codec.AREA_WRITE_CUSTOMER, index, payload)
-        self._publish_customer(index, answer.payload)
-        if answer.payload != codec.pad6(payload):
-            self.state.counters.write_errors += 1
-            raise CommandError(
-                f"customer record {index}: the module stored {answer.payload.hex(' ')} instead of "
-                f"{codec.pad6(payload).hex(' ')}: write it again"
-            )
-        self.state.event("info", f"customer record {index} = {answer.payload.hex(' ')} written and verified")
-        return answer.payload
 
     async def read_load_data(self) -> dict[int, codec.TempWord]:
         result = {}
@@ -677,49 +661,3 @@ class M3ioAdapter:
                                text=f"{word.text()} load {int(word.load)} triac {int(word.triac)} fuse {int(word.fuse)}",
                                periodic=False)
         return result
-
-    def _publish_customer(self, index: int, payload: bytes) -> None:
-        self.state.publish(f"Customer data {index}", payload.hex(" "), raw=list(payload), periodic=False)
-
-    # -- backup and restore (app/backup.py) ------------------------------------------------------
-    @property
-    def backup_available(self) -> bool:
-        """Only the addressed mode has stored data (customer records) to back up."""
-        return self.ids.addressed
-
-    async def backup_read(self, progress=None) -> list[dict]:
-        """Identity (for reference) and the 15 customer-data records (writable)."""
-        if not self.ids.addressed:
-            raise CommandError(f"nothing to back up: customer data needs addressed mode (SW1 switch 8 on; SW1 is 0x{self.sw1:02X})")
-        info = await self.read_identity()
-        entries = [
-            {"key": f"config:{k}", "name": name, "space": "config", "address": index, "raw": info[k], "value": info[k],
-             "text": str(info[k]), "unit": "", "writable": False}
-            for k, name, index in (("serial", "Serial number", 1), ("product_code", "Product code", 2),
-                                   ("version", "Software version", 3), ("config", "Dynamic configuration", 15))
-        ]
-        for index in codec.CUSTOMER_RECORDS:
-            payload = await self.read_customer(index)
-            entries.append({"key": f"customer:{index}", "name": f"Customer data {index}", "space": "customer", "address": index,
-                            "raw": payload.hex(" "), "value": payload.hex(" "), "text": payload.hex(" "), "unit": "", "writable": True})
-            if progress:
-                progress(index / 15)
-        return entries
-
-    def backup_identity(self) -> dict:
-        identity = self.identity
-        return {"serial": identity and identity.serial, "product": identity and identity.product,
-                "version": identity and identity.version, "variant": self.variant.value, "sw1": self.sw1}
-
-    async def restore_entry(self, key: str, raw: str) -> str:
-        space, _, index = key.partition(":")
-        if space != "customer":
-            raise CommandError(f"{key} is not writable")
-        try:
-            payload = bytes.fromhex(str(raw))
-        except ValueError:
-            raise CommandError(f"{key}: {raw!r} is not hex bytes") from None
-        return (await self.write_customer(int(index), payload)).hex(" ")
-
-    async def save_step(self) -> None:
-        return None  # every customer record is stored when written

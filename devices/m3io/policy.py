@@ -2,7 +2,8 @@
 
 DigOut with an SSR bit switches mains voltage onto a load (section 7.2.1): confirmed in the
 transmit list, never replayed. What the module sends (DigIn, temperatures, MData) is never sent. Sync frames that write the configuration or customer data
-(section 7.2.4, areas 1 and 4) are confirmed. Asked through :mod:`devices.sendpolicy`.
+(section 7.2.4, areas 1 and 4) are confirmed; a cfg byte with P2 set (the Sync cfg, or area 1 index 15) asks what the
+declared write of P2 asks (devices/m3io/params.py). Asked through :mod:`devices.sendpolicy`.
 """
 
 from __future__ import annotations
@@ -11,9 +12,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from devices.commands import Arg, Command, CommandError, TxField, TxForm
+from devices.commands import Arg, Command, CommandError, TxField, TxForm, param_write
 from devices.m3io import codec
 from devices.m3io.adapter import OUTPUT_NAMES
+from devices.m3io.params import P2_RISK, PARAMS
 from devices.sendpolicy import Verdict
 
 TITLE = "CAN-M3IO"
@@ -49,8 +51,11 @@ def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verd
                                name=f"{dev.name} DigOut: {on}", kind="mains")
             return Verdict(name=f"{dev.name} DigOut: {on}", kind="stop" if not any(outputs.values()) else "write")
         if can_id == ids.sync and data:
+            if len(data) == 1 and data[0] & codec.P2:  # the Sync cfg byte with P2 (7.2.4)
+                return Verdict(confirm=(P2_RISK,), name=f"{dev.name} Sync cfg P2", kind="write")
             if data[0] == codec.AREA_WRITE_CONFIG:
-                return Verdict(confirm=(CONFIG_RISK.format(device=dev.name, what="area 1", target="configuration"),),
+                p2 = (P2_RISK,) if len(data) > 2 and data[2] & codec.P2 else ()
+                return Verdict(confirm=(CONFIG_RISK.format(device=dev.name, what="area 1", target="configuration"), *p2),
                                name=f"{dev.name} write config", kind="write")
             if data[0] == codec.AREA_WRITE_CUSTOMER:
                 return Verdict(confirm=(CONFIG_RISK.format(device=dev.name, what="area 4", target="customer data"),),
@@ -114,12 +119,15 @@ COMMANDS = (
     Command("release control", "stop", method="release_control", session=True, extras=("reason",)),
     *(_switch(output, on) for output in OUTPUT_NAMES for on in (True, False)),
     Command("all off", "stop", method="all_off_pressed"),
-    Command("P2", "write", method="set_two_phase", args=(Arg("on", 0, 1),)),
+    # P2 on asks what the parameter model's P2 asks (a lost phase is no longer a load fault, section 4.3)
+    Command("P2", "write", method="set_two_phase", args=(Arg("on", 0, 1),), risk=lambda values: P2_RISK if values.get("on") else ""),
     Command("read identity", "read", method="read_identity"),
     Command("read customer data", "read", method="read_customer", args=(Arg("index", 1, 15),)),
     Command("write customer data", "write", method="write_customer", args=(Arg("index", 1, 15), BytesArg("payload")),
             audit=_customer_audit),
     Command("read load data", "read", method="read_load_data"),
+    # the parameter model (devices/m3io/params.py): customer records and P2, checked and confirmed by the model
+    param_write(PARAMS),
 )
 
 

@@ -7,6 +7,12 @@ fault injection (remove a load, blow a fuse, break or short a triac); Si = 0 lat
 until the 24 V are cut; the HMR load check of the three-phase output (three phases, or
 exactly two with P2); both ID schemes; the SYNC cfg byte (not stored: lost at any
 reset); addressed data with customer-data storage.
+
+Strict modes a real module may have (plant options of the simulated twin): ``firmware`` before 17.0
+(``0x1100``) knows no P2 (section 4.3): it ignores area 1 index 15 (undefined addresses are ignored,
+7.2.4.2) and the P2 bit of the cfg byte; ``store_s``: how long storing a customer record takes, deaf and
+silent meanwhile (7.2.4.2.4: the document gives no time; a real EEPROM may take far longer than the
+twin's default).
 """
 
 from __future__ import annotations
@@ -23,6 +29,8 @@ from devices.simcontrols import SimAction, SimControls, SimParam
 
 TICK_S = 0.01
 STORE_S = 0.03  # a customer record takes this long to store (7.2.4.2.4)
+FIRMWARE = 0x1201  # 18.1, the document's firmware
+P2_FIRMWARE = 0x1100  # P2 exists from firmware 17.0 on (section 4.3): older firmware ignores it
 
 
 @dataclass
@@ -44,14 +52,16 @@ class SsrTwin:
 class M3ioTwin:
     """One module: its switches, inputs, temperatures and stored data."""
 
-    def __init__(self, variant: Variant, sw1: int, serial: int = 33852, name: str = "m3io"):
+    def __init__(self, variant: Variant, sw1: int, serial: int = 33852, name: str = "m3io", firmware: int = FIRMWARE,
+                 store_s: float = STORE_S):
         self.name = name
         self.variant = variant
         self.sw1 = sw1
         self.ids = codec.derive_ids(sw1)
         self.serial = serial
         self.product = {Variant.HM: 0x3000, Variant.KM: 0x3009, Variant.HMR: 0x300A}[variant]
-        self.version = 0x1201  # firmware 18.1
+        self.version = firmware  # the SW version word (area 2 index 3): 0x1201 = 18.1
+        self.store_s = float(store_s)  # strict mode: a slow EEPROM (7.2.4.2.4)
         self.inputs = {f"E{i}": False for i in range(1, 7)}
         self.temps_tenths = [215 + 10 * i for i in range(6)]  # Pt100 readings, 0.1 C
         self.ssr = {i: SsrTwin() for i in range(1, 7)}
@@ -176,20 +186,28 @@ class M3ioTwin:
     def dig_in(self) -> bytes:
         return codec.encode_dig_in(self.inputs)
 
+    @property
+    def knows_p2(self) -> bool:
+        return self.version >= P2_FIRMWARE
+
+    def _take_cfg(self, cfg: int) -> None:
+        self.cfg = cfg if self.knows_p2 else cfg & ~codec.P2  # before 17.0 the bit means nothing
+        self.apply()
+
     def on_sync(self, data: bytes) -> bytes | None:
         """SYNC: cfg byte (length 1) or addressed request (length >= 2, addressed mode). Returns MData."""
         if len(data) <= 1:
             if data:
-                self.cfg = data[0]
-                self.apply()
+                self._take_cfg(data[0])
             return None
         if not self.ids.addressed:
             return None
         area, index, payload = data[0], data[1], bytes(data[2:8])
         now = time.monotonic()
         if area == codec.AREA_WRITE_CONFIG and index == codec.CONFIG_DYNAMIC:
-            self.cfg = payload[0] if payload else self.cfg
-            self.apply()
+            if not self.knows_p2:
+                return None  # an undefined address for this firmware: ignored (7.2.4.2)
+            self._take_cfg(payload[0] if payload else self.cfg)
             return codec.MData(area, index, bytes([self.cfg])).encode()
         if area == codec.AREA_READ_CONFIG:
             values = {
@@ -207,7 +225,7 @@ class M3ioTwin:
                 self.store_fails = False
                 record = bytes(b ^ 0x01 for b in record)  # a failed write: what is stored differs
             self.customer[index] = record
-            self.storing_until = now + STORE_S  # deaf while storing; answers when done
+            self.storing_until = now + self.store_s  # deaf while storing; answers when done
             return codec.MData(area, index, record).encode()
         if area == codec.AREA_LOAD_DATA and 1 <= index <= 6:
             return codec.MData(area, index, self.word(index).raw.to_bytes(2, "little") + b"\x00\x00\x00\x00").encode()
@@ -224,7 +242,8 @@ class M3ioSim:
         options = {k: v for k, v in bus.options.items() if k != "simulate"}
         self.can = open_can(f"{bus.name} (simulated M3IO)", options)
         for dev in devices:
-            twin = M3ioTwin(Variant(dev.options["variant"]), dev.options["sw1"], dev.options.get("serial", 33852), dev.name)
+            twin = M3ioTwin(Variant(dev.options["variant"]), dev.options["sw1"], dev.options.get("serial", 33852), dev.name,
+                            firmware=dev.options.get("firmware", FIRMWARE), store_s=dev.options.get("store_s", STORE_S))
             self.twins[dev.name] = twin
             self.can.subscribe(False, twin.ids.dig_out, lambda msg, t=twin: self.on_dig_out(t, msg))
             self.can.subscribe(False, twin.ids.sync, lambda msg, t=twin: self.on_sync(t, msg))
