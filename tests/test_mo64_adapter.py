@@ -208,11 +208,13 @@ async def test_backup_reads_the_settings_and_restore_writes_one():
         adapter = make_adapter(script.port)
         entries = await adapter.backup_read()
         by_key = {e["key"]: e for e in entries}
-        assert "vehicle_counter" not in by_key  # RAM only (chapter 5.2.5)
-        assert by_key["config_flags"]["value"] == [0, 1, 0, 0]
-        assert by_key["multi_relays"]["raw"] == [1, 0, 0, 0, 0, 2]
-        assert not by_key["induction_loops"]["writable"]
-        assert by_key["dec_bt"]["value"] == (1 << 31) | 0b100110 and not by_key["dec_bt"]["writable"]
+        # each setting by the parameter model's name and key (devices/mo64/params.py): space = setting, address = bit
+        assert not any(k.startswith("vehicle_counter") for k in by_key)  # RAM only (chapter 5.2.5)
+        assert by_key["config_flags:16"]["name"] == "GnApl bei Vorwarnung vor dem Öffnen blinken"
+        assert by_key["config_flags:16"]["value"] == 1  # konfig1 = 1: its bits 1, 0
+        assert [by_key[f"multi_relays:{8 * n}"]["raw"] for n in range(6)] == [1, 0, 0, 0, 0, 2]
+        assert not by_key["induction_loops:0"]["writable"]
+        assert by_key["dec_bt:0"]["value"] == (1 << 31) | 0b100110 and not by_key["dec_bt:0"]["writable"]
         assert by_key["loop_periods"]["value"] == "10 27 20 4e 00 00"  # layout not in the summary: raw
         await adapter.restore_entry("multi_relays", [1, 0, 0, 0, 0, 3])
         with pytest.raises(CommandError, match="not restored"):
@@ -273,9 +275,9 @@ async def test_twin_backup_and_restore_writes_only_the_changed_setting():
         sim.twin.setting_writes.clear()
         now = {e["key"]: e for e in await adapter.backup_read()}
         changed = [k for k, e in before.items() if e["writable"] and now[k]["raw"] != e["raw"]]
-        assert sorted(changed) == ["multi_relays", "t_open"]
+        assert sorted(changed) == ["multi_relays:0", "t_open:0"]  # the parameter model's keys
         for key in changed:
-            await adapter.restore_entry(key, before[key]["value"])
+            await adapter.write_param(key, before[key]["value"], session="restore")
         assert sim.twin.setting_writes == {"t_open": 1, "multi_relays": 1}
         after = {e["key"]: e["raw"] for e in await adapter.backup_read()}
         assert after == {k: e["raw"] for k, e in before.items()}

@@ -6,10 +6,11 @@ Codec (:mod:`devices.mo64.codec`), adapter (:mod:`devices.mo64.adapter`), twin
 
 from typing import Any
 
+from devices.mo64.params import PARAMS
 from devices.registry import DeviceType, TileAlarm, TileBar, TileLine, TileSpec, When
 
 # all but the address set up the simulated barrier (devices/mo64/sim.py): its strict modes among them
-_KEYS = {"address", "serial_number", "travel_s", "refuse_queries", "query_form"}
+_KEYS = {"address", "serial_number", "travel_s", "refuse_queries", "query_form", "refuse_selectors", "eeprom_write_s"}
 
 
 def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str]]:
@@ -53,7 +54,7 @@ DEVICE_TYPE = DeviceType(
     manufacturer="Bauer",
     line_codec="devices.mo64.codec",  # the RS485 line's framing and token passing (app/logited.py)
     bus_types=("logited-tcp", "logited-rs485"),
-    params=None,
+    params=PARAMS,  # every EEPROM setting the document names (devices/mo64/params.py)
     adapters={"logited-tcp": "devices.mo64.adapter:Mo64Adapter", "logited-rs485": "devices.mo64.adapter:Mo64Adapter"},
     sims={"logited-tcp": "devices.mo64.sim:Mo64TcpSim", "logited-rs485": "devices.mo64.sim:Mo64Rs485Sim"},
     check_config=_check_config,

@@ -17,20 +17,47 @@ from __future__ import annotations
 
 import asyncio
 import time
-from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
-from devices import errors
-from devices import values as v
+from devices.control import Report
 from devices.decoding import decoded, malformed
 from devices.live import DeviceState, session_tag
-from devices.control import Report
 from devices.mo64 import codec
 from devices.mo64.control import DEAD_MAN_LEVELS, Mo64Control, Send
+from devices.mo64.facts import (
+    BUSY_TEXT,
+    NAMES,
+    P_CONFIRMED,
+    P_CONNECTION,
+    P_EEPROM,
+    P_ERROR_LEVELS,
+    P_LAST_REPLY,
+    P_LATE,
+    P_LEVELS,
+    P_LEVELS_UNAVAILABLE,
+    P_LINE,
+    P_MONITORING,
+    P_POLLING,
+    P_QUERY_FORM,
+    P_UNAVAILABLE,
+    P_UNEXPECTED,
+    P_VERIFIED,
+    POLLING_SLOWER,
+    QUERY_FORM_WORDS,
+    CommandError,
+    EepromWrites,
+    ErrorMemoryLevel,
+    HeldLevel,
+    LineFacts,
+    NeedsConfirmation,
+    from_json,
+    to_json,
+    value_text,
+)
+from devices.mo64.params import PARAMS
+from devices.mo64.settings import MONITOR_FLAGS, SYN_ACK_TIMEOUT_S, Mo64Settings, setting_method
 from devices.transport import SerialClosed, SerialLineError, SerialTimeout
 
-SYN_ACK_TIMEOUT_S = 5.0  # after syn the EEPROM write ends with ack or nak (chapter 5.2.4); bound of the wait
 MONITORED_POLL_EVERY = 5  # gate state and position, while change monitoring delivers them, every 5th cycle
 MONITOR_FRESH_S = 30.0  # change monitoring counts as delivering this long after its last telegram
 LATE_WINDOW_S = 30.0  # a telegram of the type of a query that timed out this recently is its late answer
@@ -44,9 +71,6 @@ UNAVAILABLE = "not available on this unit"
 # chapter 5.1.9 (SPEC-NOTES "Change monitoring"): the flag that makes the barrier send telegram type t
 MONITOR_BITS = {0x07: 0, 0x0A: 1, 0x0B: 2, 0x0C: 3, 0x17: 4, 0x1C: 5, 0x1D: 6}
 SAFETY_BITS = ("LS", "Baum ab", "F_ereignis")  # read every cycle, whatever change monitoring does
-MONITOR_FLAGS = ("barrier status", "gate state", "service counter", "maintenance counter", "vehicle counter",
-                 "error memory", "barrier position")  # issue 13 item 6: what the tool switches on
-BUSY_TEXT = "the motor runs, try again when it stands"
 # A level that keeps the boom moving towards a person is released by the dead-man rule: the close and
 # reverse levels. The open level is NOT released: deactivating it lets an unattended boom close
 # (chapter 5.2.1, page 33: the level prevents closing until deactivated), the unsafe direction.
@@ -62,166 +86,12 @@ IDENTITY_QUERIES = (codec.Q_DEVICE, codec.Q_PROGRAM_VERSION, codec.Q_SERIAL_NUMB
 SETTING_QUERIES = tuple(dict.fromkeys([s.query for s in codec.SETTINGS.values()]
                                       + [codec.Q_INDUCTION_LOOPS, codec.Q_DIRECTION_LOGICS, codec.Q_COUNTING,
                                          codec.Q_DEC_BT, codec.Q_LOOP_PERIODS]))
-READ_ONLY_BACKUP = ((codec.Q_INDUCTION_LOOPS, "induction_loops", "induction-loop modes"),
-                    (codec.Q_DIRECTION_LOGICS, "direction_logics", "direction logics"),
-                    (codec.Q_DEC_BT, "dec_bt", "radio code (dec_bt)"),
-                    # query index 0x16 is answered by 0x1B tele_induktionsschleifenperioden; "Nicht verwenden!"
-                    # in table 21 concerns the query indexes 0x1B-0x1E, not this telegram (SPEC-NOTES)
-                    (codec.Q_LOOP_PERIODS, "loop_periods", "induction-loop periods"))
-NAMES = {  # answer type -> live point name
-    0x05: "Device code", 0x06: "Program version", 0x07: "Barrier status", 0x08: "Status mask",
-    0x09: "Change monitoring", 0x0A: "Service counter", 0x0B: "Maintenance counter", 0x0C: "Gate state",
-    0x0D: "Open time", 0x0E: "Pre-warning before opening", 0x0F: "Pre-warning before closing",
-    0x10: "Radio code (dec_bt)", 0x11: "Counting function", 0x12: "Induction-loop modes",
-    0x13: "Direction logics", 0x14: "Serial number", 0x15: "MAC address", 0x16: "Operating hours",
-    0x18: "Configuration flags", 0x19: "Multi-relay modes", 0x1A: "Maintenance interval",
-    0x1B: "Loop periods", 0x1C: "Vehicle counter", 0x1D: "Position", 0x1E: "Password",
-}
 
 
-# -- the facts the adapter publishes beside the telegrams' points (what the page, the API and MQTT read) ------
-P_LINE = "Line"  # LineFacts: transport, RS485 bus address and master
-P_CONNECTION = "Connection"  # connected, not connected, released, reconnecting
-P_POLLING = "Polling"
-P_QUERY_FORM = "Query form"  # "document" or "short" once the unit answered one (text in words)
-P_LATE = "Late answers"
-P_UNEXPECTED = "Unexpected telegrams"
-P_UNAVAILABLE = "Not available"  # the queries this unit refused (point names)
-P_LEVELS_UNAVAILABLE = "Error memory levels not available"
-P_LAST_REPLY = "Last reply"
-P_ERROR_LEVELS = "Error memory levels"  # ErrorMemoryLevel records, level 0 the newest
-P_MONITORING = "Change monitoring state"  # on / off / unknown, from the change monitoring read
-P_LEVELS = "Levels set by this tool"  # HeldLevel records
-P_EEPROM = "EEPROM writes"  # EepromWrites record
-P_VERIFIED = "Verified selectors"  # assumed selectors an engineer confirmed for this unit
-# kept empty: a confirmation that the area is clear belongs to the one motion it was given for (issue 42 item 6),
-# so no session is ever shown as having confirmed (a page that read it skipped the question for later motions)
-P_CONFIRMED = "Motion confirmed"
-POLLING_SLOWER = "gate state and position slower (changes are reported); status every cycle"
-QUERY_FORM_WORDS = {None: "not known yet", "document": "02 Auswahl index (the document's, page 33)",
-                    "short": "02 Auswahl (the document's form refused)"}
-
-
-@dataclass(frozen=True, slots=True)
-class ErrorMemoryLevel:
-    """One level of the error memory (chapter 5.1.23): error flags and the operating hours they were set at."""
-
-    level: int
-    flags: int
-    timestamp_h: int
-
-
-@dataclass(frozen=True, slots=True)
-class HeldLevel:
-    """A level this tool activated and the barrier keeps until it is deactivated; ``dead_man``: released when
-    the session that set it goes away (close and reverse, :data:`HELD_LEVELS`)."""
-
-    command: str
-    dead_man: bool
-
-
-@dataclass(frozen=True, slots=True)
-class LineFacts:
-    """How the tool reaches the barrier: ``logited-tcp`` or ``logited-rs485`` with bus address and master."""
-
-    transport: str
-    rs485: bool
-    address: int | None
-    master: int
-
-
-@dataclass(frozen=True, slots=True)
-class EepromWrites:
-    """Setting writes that reached the EEPROM (chapter 4: each wears it), in all and per session tag."""
-
-    total: int
-    sessions: tuple[tuple[str, int], ...] = ()
-
-    def of(self, session: str) -> int:
-        """The writes of ``session`` (a page's own id; matched by its tag)."""
-        return dict(self.sessions).get(session_tag(session), 0)
-
-
-class CommandError(errors.CommandError):
-    """A command or write that did not take effect; the message says why."""
-
-
-class NeedsConfirmation(CommandError):
-    """A motion needs its own confirmation that the area is clear (every one, every time)."""
-
-
-def to_json(value: Any) -> Any:
-    """A decoded setting value in the backup file's form (numbers and lists of numbers)."""
-    if isinstance(value, Mapping):
-        if set(value) == {"mask", "more"}:
-            return to_json(value["mask"])
-        return [to_json(x) for x in value.values()]
-    if isinstance(value, (list, tuple)):
-        return [to_json(x) for x in value]
-    if isinstance(value, (bytes, bytearray)):
-        return bytes(value).hex(" ")
-    if isinstance(value, bool) or value is None:
-        return value
-    if isinstance(value, int):
-        return int(value)
-    return value
-
-
-def from_json(setting: codec.Setting, raw: Any) -> Any:
-    """The file's form of a setting back to what :func:`codec.encode_setting` takes."""
-    if isinstance(setting.vtype, v.Struct):
-        names = [name for name, _ in setting.vtype.members]
-        if not isinstance(raw, list) or len(raw) != len(names):
-            raise CommandError(f"{setting.name}: {raw!r} is not a list of {len(names)} numbers")
-        return dict(zip(names, raw))
-    if isinstance(setting.vtype, v.Array):
-        return list(raw) if isinstance(raw, list) else raw
-    return raw
-
-
-def value_text(answer_type: int, value: Any) -> str:
-    """A decoded answer in words for tables."""
-    if answer_type in (0x0D, 0x0E, 0x0F):
-        return f"{codec.time_s(int(value)):g} s ({int(value)} x 10 ms)"
-    if answer_type == 0x15:
-        return codec.format_mac(value)
-    if answer_type == 0x10:  # chapter 5.1.16: bit 31 says whether a radio code is stored, A9..A1 in bits 17..0
-        fields = value.fields
-        if not fields.get("code stored"):
-            return f"0x{int(value):08X}: no radio code stored"
-        return f"0x{int(value):08X}: radio code stored; switches " + " ".join(
-            f"A{n}={int(fields[f'A{n}'])}" for n in range(1, 10))
-    if answer_type == 0x05:
-        return f"{int(value)}" + (f" ({value.name})" if getattr(value, "name", None) else "")
-    if answer_type == 0x1D:
-        return "unknown" if int(value) == codec.POSITION_UNKNOWN else f"{int(value)} %"
-    if answer_type == 0x19:
-        return ", ".join(f"multi{n}: {codec.MULTI_MODE_NAMES.get(m, f'mode {m}')}" for n, m in enumerate(value, 1))
-    if answer_type == 0x12:
-        return ", ".join(f"loop {c}: 0x{int(m):04X}" for c, m in zip("ABC", value))
-    if answer_type == 0x13:
-        return "; ".join(f"logic {n}: 0x{int(x):08X} " + ", ".join(f"{k} {f}" for k, f in x.fields.items())
-                         for n, x in enumerate(value, 1))
-    if answer_type == 0x18:
-        return "; ".join(f"{k}: 0x{int(x):04X}" + ("".join(f", {n} {f}" for n, f in x.fields.items()))
-                         for k, x in value.items())
-    if answer_type in (0x07, 0x08):
-        bits = value["status"] if "status" in value else value["mask"]
-        on = bits.active
-        return f"0x{int(bits):010X}: " + (", ".join(on) if on else "none") + (
-            f" (+ raw {value['more'].hex(' ')})" if value.get("more") else "")
-    if answer_type == 0x09:
-        on = value.active
-        return f"0x{int(value):04X}: " + (", ".join(on) if on else "off")
-    if isinstance(value, (bytes, bytearray)):
-        return f"raw {bytes(value).hex(' ')}" if value else "raw (empty)"
-    return str(to_json(value))
-
-
-class Mo64Adapter:
+class Mo64Adapter(Mo64Settings):
     """One MO 64 barrier on a LogiTed TCP or RS485 line."""
 
-    params = None
+    params = PARAMS
     backup_available = True
 
     def __init__(self, config, state: DeviceState, line):
@@ -262,6 +132,8 @@ class Mo64Adapter:
         self._stop_tasks: set[asyncio.Task] = set()
         self.poll_period = float(line_options.get("poll_period", 0.5) or 0.5)
         state.stale_after = 5.0
+        state.params = PARAMS  # settings by name: project, drift, restore (devices/mo64/params.py)
+        state.registers_periodic = False  # settings are read at start and after writes: they do not age
         fact = state.fact
         fact(P_LINE, LineFacts(self.transport, self.rs485, self.address, self.master),
              text=f"RS485 bus address {self.address}, this tool is master {self.master}" if self.rs485 else "TCP")
@@ -461,6 +333,7 @@ class Mo64Adapter:
         setting = next((s for s in codec.SETTINGS.values() if s.query + codec.QUERY_ANSWER_OFFSET == t), None)
         if setting is not None:
             self.settings[setting.key] = to_json(x)
+        self.publish_params(answer)  # the parameter model's raw values (devices/mo64/settings.py)
         if t == 0x09:
             self.state.fact(P_MONITORING, "on" if int(x) else "off")
 
@@ -771,88 +644,6 @@ class Mo64Adapter:
         while self._stop_tasks:
             await asyncio.gather(*list(self._stop_tasks), return_exceptions=True)
 
-    # -- settings (chapter 5.2.4-5.2.8) --------------------------------------------------------------------
-    async def write_setting(self, session: str, key: str, value: Any, selector_verified: bool = False) -> Any:
-        """Write one setting, handle busy / syn / ack / nak, read it back; returns the read-back value.
-
-        A setting whose selector is an assumption (codec ``Setting.assumed``) is refused unless the
-        engineer confirms (``selector_verified``, kept for this unit) that the selector is verified on
-        this unit: a wrong selector would write another EEPROM setting.
-        """
-        setting = codec.SETTINGS.get(key)
-        if setting is None:
-            raise CommandError(f"no setting {key!r}")
-        if setting.assumed and not (selector_verified or key in self.verified_selectors):
-            raise CommandError(f"{setting.name}: not written: the selector 0x{setting.telegram:02X} "
-                               f"0x{setting.selector:02X} is an assumption ({setting.assumed}); write it only after "
-                               "confirming that the selector is verified on this unit")
-        try:
-            telegram = codec.encode_setting(key, value)
-        except codec.CodecError as exc:
-            raise CommandError(str(exc)) from None
-        if setting.assumed:
-            self.verified_selectors.add(key)
-            self.state.fact(P_VERIFIED, tuple(sorted(self.verified_selectors)))
-        replies = {codec.Reply.ACK, codec.Reply.NAK, codec.Reply.BUSY, codec.Reply.SYN}
-        syn: list[bool] = []
-
-        def interim(raw: bytes) -> bool:  # syn, then ack or nak within the same exchange (chapter 5.2.4)
-            frame = self._decode(raw)
-            if frame is not None and frame.type == codec.Reply.SYN:
-                syn.append(True)
-                return True
-            return False
-
-        try:
-            answer = await self._transact(telegram, replies, f"set {setting.name}", interim=interim,
-                                          interim_timeout=SYN_ACK_TIMEOUT_S)
-        except SerialTimeout:
-            if not syn:
-                raise
-            raise CommandError(f"{setting.name}: syn, but no ack or nak in time") from None
-        finally:
-            if syn and setting.eeprom:
-                self._count_write(session)
-        result = answer.name
-        self._reply(f"set {setting.name}: {result}")
-        if answer.reply is codec.Reply.BUSY:
-            raise CommandError(f"{setting.name}: busy: {BUSY_TEXT}")
-        if answer.reply is not codec.Reply.ACK:
-            self.state.counters.write_errors += 1
-            raise CommandError(f"{setting.name}: the barrier answered {result}")
-        back_answer = await self.query(setting.query)
-        back = codec.setting_value(key, back_answer)
-        if to_json(back) != to_json(_normal(setting, value)):
-            self.state.counters.write_errors += 1
-            raise CommandError(f"{setting.name}: wrote {to_json(value)}, read back {to_json(back)}")
-        self.state.event("info", f"set {setting.name} = {value_text(back_answer.type, back_answer.value)} (read back)")
-        return back
-
-    async def write_declared(self, session: str, key: str, numbers: list[int], selector_verified: bool = False) -> str:
-        """A declared "set ..." command (devices/mo64/policy.py): the setting from its numbers
-        (:func:`codec.setting_fields`), written and read back; the outcome with the value before, for
-        the audit row."""
-        setting = codec.SETTINGS[key]
-        before = self.settings.get(key)
-        answer_type = setting.query + codec.QUERY_ANSWER_OFFSET
-        back = await self.write_setting(session, key, codec.setting_from_fields(key, numbers),
-                                        selector_verified=selector_verified)
-        was = "not read" if before is None else self.restore_text(key, before)
-        return f"{setting.name}: {was} -> {value_text(answer_type, back)} (read back)"
-
-    def _count_write(self, session: str) -> None:
-        self.eeprom_writes[session] = self.eeprom_writes.get(session, 0) + 1
-        self.eeprom_writes_total += 1
-        self._publish_writes()
-
-    async def set_change_monitoring(self, session: str, on: bool) -> str:
-        """Switch the unsolicited telegrams of :data:`MONITOR_FLAGS` on, or all off (one EEPROM write)."""
-        value = {name: int(bool(on)) for name in MONITOR_FLAGS}
-        await self.write_setting(session, "change_monitoring", value)
-        if not on:
-            self._monitor_last = None
-        return "on" if on else "off"
-
     # -- the TCP connection --------------------------------------------------------------------------------
     def release(self, session: str | None = None) -> str:
         if self.rs485:
@@ -870,65 +661,11 @@ class Mo64Adapter:
         self.state.fact(P_CONNECTION, "reconnecting")
         return "reconnecting"
 
-    # -- backup and restore --------------------------------------------------------------------------------
-    async def backup_read(self, progress=None) -> list[dict]:
-        """Every backed-up setting (codec ``backup``) and the read-only loop modes and direction logics."""
-        items = [s for s in codec.SETTINGS.values() if s.backup]
-        total = len(items) + len(READ_ONLY_BACKUP)
-        entries = []
-        for n, setting in enumerate(items, 1):
-            answer = await self.query(setting.query)
-            value = to_json(codec.setting_value(setting.key, answer))
-            entries.append({"key": setting.key, "name": setting.name, "value": value, "raw": value,
-                            "text": value_text(answer.type, answer.value), "unit": setting.unit, "writable": True})
-            if progress:
-                progress(n / total)
-        for n, (index, key, name) in enumerate(READ_ONLY_BACKUP, len(items) + 1):
-            answer = await self.query(index)
-            value = to_json(answer.value)
-            entries.append({"key": key, "name": name, "value": value, "raw": value,
-                            "text": value_text(answer.type, answer.value), "unit": "",
-                            "writable": False})  # no setting telegram is named for them (chapter 5.2)
-            if progress:
-                progress(n / total)
-        return entries
-
-    def backup_identity(self) -> dict:
-        pts = self.state.points
-        get = lambda name: getattr(pts.get(name), "value", None)  # noqa: E731
-        return {"serial": get("Serial number"), "device code": get("Device code"),
-                "program version": get("Program version"), "mac": get("MAC address"),
-                "transport": self.transport, "address": self.address}
-
-    def restore_text(self, key: str, value: Any) -> str:
-        """A backed-up value in the words its table shows (relay modes and flags by name, times in s)."""
-        setting = codec.SETTINGS[key]
-        answer_type = setting.query + codec.QUERY_ANSWER_OFFSET  # SPEC-NOTES "Replies": index n answered by type n + 5
-        wire = codec.ANSWER_TYPES[answer_type]
-        return value_text(answer_type, wire.decode(setting.vtype.encode(from_json(setting, value))))
-
-    async def restore_entry(self, key: str, raw: Any, session: str = "restore") -> None:
-        """Write one backed-up setting; one on an assumed selector only once an engineer confirmed on the
-        device page that the selector is verified on this unit (else refused, nothing sent)."""
-        setting = codec.SETTINGS.get(key)
-        if setting is None or not setting.backup:
-            raise CommandError(f"{key} is not restored (read-only, or RAM only like the vehicle counter)")
-        await self.write_setting(session, key, from_json(setting, raw))
-
-    async def save_step(self) -> str:
-        return "no save step: the MO 64 stores every setting in its EEPROM as it is written (chapter 4)"
-
 
 # -- the adapter methods the declared commands name (devices/mo64/policy.py) -------------------------------
 def operation_method(cmd: codec.Command, fn: codec.Function) -> str:
     """The adapter method of operating command ``cmd`` with function ``fn``, e.g. ``open_pulse``."""
     return f"{COMMAND_NAMES[cmd]}_{fn.name.lower()}"
-
-
-def setting_method(key: str) -> str:
-    """The adapter method of the declared "set ..." command of setting ``key``, e.g. ``write_t_open``."""
-    return f"write_{key}"
-
 
 def _operation(cmd: codec.Command, fn: codec.Function):
     async def run(self: Mo64Adapter, session: str) -> str:
@@ -939,26 +676,16 @@ def _operation(cmd: codec.Command, fn: codec.Function):
     run.__doc__ = f"{COMMAND_NAMES[cmd]} {fn.name.lower()} (chapter 5.2.1), as the declared command of that name."
     return run
 
-
-def _setting(key: str):
-    async def run(self: Mo64Adapter, session: str, *numbers: int, selector_verified: bool = False) -> str:
-        return await self.write_declared(session, key, list(numbers), selector_verified=selector_verified)
-
-    run.__name__ = setting_method(key)
-    run.__doc__ = f"set {codec.SETTINGS[key].name}, as the declared command of that name."
-    return run
-
-
 for _cmd in codec.Command:
     for _fn in codec.Function:
         assert not hasattr(Mo64Adapter, operation_method(_cmd, _fn)), operation_method(_cmd, _fn)
         setattr(Mo64Adapter, operation_method(_cmd, _fn), _operation(_cmd, _fn))
-for _key in codec.SETTINGS:
-    if _key != "change_monitoring":  # declared as "change monitoring" (on/off), see set_change_monitoring
-        assert not hasattr(Mo64Adapter, setting_method(_key)), setting_method(_key)
-        setattr(Mo64Adapter, setting_method(_key), _setting(_key))
 
 
-def _normal(setting: codec.Setting, value: Any) -> Any:
-    """``value`` as the read-back decodes it (a mapping of bits becomes its number)."""
-    return setting.vtype.decode(setting.vtype.encode(value))
+__all__ = [
+    "BUSY_TEXT", "COMMAND_NAMES", "CommandError", "EepromWrites", "ErrorMemoryLevel", "HeldLevel", "LineFacts",
+    "MONITOR_FLAGS", "Mo64Adapter", "NAMES", "NeedsConfirmation", "P_CONFIRMED", "P_CONNECTION", "P_EEPROM",
+    "P_ERROR_LEVELS", "P_LAST_REPLY", "P_LATE", "P_LEVELS", "P_LEVELS_UNAVAILABLE", "P_LINE", "P_MONITORING",
+    "P_POLLING", "P_QUERY_FORM", "P_UNAVAILABLE", "P_UNEXPECTED", "P_VERIFIED", "POLLING_SLOWER", "QUERY_FORM_WORDS",
+    "SYN_ACK_TIMEOUT_S", "UNAVAILABLE", "from_json", "operation_method", "setting_method", "to_json", "value_text",
+]

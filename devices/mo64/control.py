@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 from devices.control import LEASE_S, STOP_DEADLINE_S, LeaseState, Report
 from devices.mo64 import codec
+from devices.mo64 import params as model
 
 AREA_CLEAR_RISK = "The boom moves: check that nobody stands under it (the area is clear)."
 OPEN_LEVEL_RISK = ("Deactivating the open level lets the boom close (page 33): check that nobody stands under it "
@@ -99,7 +100,10 @@ def meaning(telegram: bytes) -> Meaning:
         return Meaning(f"setting 0x{request.kind:02X} 0x{request.selector:02X}", "write",
                        refused=f"setting selector 0x{request.kind:02X} 0x{request.selector:02X} is not known: a wrong "
                                "selector writes another EEPROM setting")
-    return Meaning(f"set {request.setting.name}", "write", EEPROM_RISK if request.setting.eeprom else "")
+    # a flag the value switches off (force monitoring, light-barrier test, ...) is named first (devices/mo64/params.py)
+    questions = model.safety_questions(request.setting.key, model.setting_int(request.setting.key, request.value))
+    return Meaning(f"set {request.setting.name}", "write",
+                   " ".join(questions + ([EEPROM_RISK] if request.setting.eeprom else [])))
 
 
 # -- actions and answers -----------------------------------------------------------------------------

@@ -13,6 +13,11 @@ judged by :func:`check_telegram`, the same rule (devices/mo64/control.py):
   (``codec.setting_fields``): a write; the risk names the EEPROM wear, and for an assumed selector the
   flag ``selector_verified`` says the engineer verified it on this unit, a statement the risk repeats
   for the confirmation (without it, the adapter refuses a selector not verified before);
+- ``"write parameter"`` (:func:`devices.commands.param_write` on :data:`devices.mo64.params.PARAMS`): one named
+  setting (a time, one configuration flag, one relay mode...) checked by the model and written by read-modify-write;
+  it asks what the model names (a flag that switches a safety function off, by its name) and, for an assumed
+  selector, that it is verified on this unit. The page, restore and the batch write through it;
+- a ``"set ..."`` command or raw telegram whose value switches a safety flag off asks the same question, naming it;
 - ``"change monitoring"`` (on = 1 or 0): a write of the EEPROM;
 - releasing and taking back the TCP connection: writes (another client gets the barrier);
 - reading the error memory: a read.
@@ -20,8 +25,11 @@ judged by :func:`check_telegram`, the same rule (devices/mo64/control.py):
 
 from __future__ import annotations
 
-from devices.commands import Arg, Command
+import dataclasses
+
+from devices.commands import Arg, Command, param_write
 from devices.mo64 import codec
+from devices.mo64 import params as model
 from devices.mo64.adapter import COMMAND_NAMES, operation_method, setting_method
 from devices.mo64.control import AREA_CLEAR_RISK, EEPROM_RISK, OPEN_LEVEL_RISK, meaning, operation
 from devices.sendpolicy import Verdict
@@ -42,6 +50,12 @@ def selector_risk(setting: codec.Setting) -> str:
 def _setting_risk(setting: codec.Setting):
     def risk(args) -> str:
         parts = [selector_risk(setting)] if setting.assumed and args.get("selector_verified") else []
+        try:  # a flag this value switches off is named (devices/mo64/params.py), whatever the path
+            number = model.setting_int(setting.key, codec.setting_from_fields(
+                setting.key, [args[name] for name, _, _ in codec.setting_fields(setting.key)]))
+            parts = model.safety_questions(setting.key, number) + parts
+        except (KeyError, codec.CodecError):
+            pass  # out of range: refused by the argument check
         return " ".join(parts + ([EEPROM_RISK] if setting.eeprom else []))
     return risk
 
@@ -77,7 +91,20 @@ def _setting(key: str) -> Command:
                    flags=("selector_verified",) if setting.assumed else (), risk=_setting_risk(setting))
 
 
+def _write_verdict(param: model.Mo64Param, raw: int) -> tuple[str, str]:
+    """The declared write of one parameter: what the model asks (a safety flag switched off, named) and, for an
+    assumed selector, that it is verified on this unit. The EEPROM wear is said on the page and in restore."""
+    if not param.setting_key:
+        return f"{param.name} is read only: no setting telegram is named for it (chapter 5.2)", ""
+    parts = [param.needs_confirmation(raw)] + ([model.selector_risk(param)] if param.selector_assumed else [])
+    return "", " ".join(p for p in parts if p)
+
+
+# the gate passes the page's session: its EEPROM writes are counted for it (Mo64Settings.write_param_in)
+WRITE_PARAM = dataclasses.replace(param_write(model.PARAMS, _write_verdict), method="write_param_in", session=True)
+
 COMMANDS = (
+    WRITE_PARAM,
     *(_operation(cmd, fn) for cmd in (codec.Command.OPEN, codec.Command.CLOSE, codec.Command.REVERSE)
       for fn in codec.Function),
     Command("clear levels", "system", method="clear_levels_asked", session=True, risk=CLEAR_LEVELS_RISK),

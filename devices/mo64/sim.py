@@ -28,7 +28,9 @@ Demo controls on :class:`Mo64Twin`: :meth:`~Mo64Twin.drive_vehicle`, :meth:`~Mo6
 :meth:`~Mo64Twin.interrupt_at_next_close` (a person walking through as the boom closes),
 :meth:`~Mo64Twin.occupy_loop`, :meth:`~Mo64Twin.raise_fault`, :meth:`~Mo64Twin.clear_fault`, :meth:`~Mo64Twin.power_up`;
 fault injection :attr:`~Mo64Twin.light_barrier_dead` (a light barrier that never reports: no LS, no reversal);
-:attr:`~Mo64Twin.setting_writes` counts EEPROM writes per setting.
+:attr:`~Mo64Twin.setting_writes` counts EEPROM writes per setting; strict modes of a real unit:
+:attr:`~Mo64Twin.refuse_selectors` (assumed setting selectors it naks) and :attr:`~Mo64Twin.eeprom_write_s`
+(a slow EEPROM write between syn and ack).
 
 Servers: :class:`Mo64TcpSim` (one barrier, one client at a time, chapter 3) and :class:`Mo64Rs485Sim`
 (several barriers by bus address, and with ``shared = true`` a second master passing the token,
@@ -84,7 +86,8 @@ class Mo64Twin:
 
     def __init__(self, name: str = "mo64", address: int | None = None, serial_number: int = 6400001,
                  travel_s: float = TRAVEL_S, position_known: bool = True, refuse_queries: Iterable[int] = (),
-                 query_form: str = "both", late: Mapping[int, float] | None = None):
+                 query_form: str = "both", late: Mapping[int, float] | None = None,
+                 refuse_selectors: Iterable[str] = (), eeprom_write_s: float | None = None):
         self.name = name
         self.address = address
         self.travel_s = float(travel_s)
@@ -98,7 +101,14 @@ class Mo64Twin:
             raise ValueError(f"query_form {query_form!r}: both, document or short")
         self.query_form = query_form
         self.late = dict(late or {})
-        self.eeprom_write_s = EEPROM_WRITE_S
+        # strict modes for the settings: setting keys whose selector this unit does not take (an assumed selector
+        # that is wrong on it: nak, nothing stored), and how long its EEPROM write takes between syn and ack
+        # (a real unit may take far longer than this twin's default; the tool waits up to SYN_ACK_TIMEOUT_S)
+        unknown = set(refuse_selectors) - set(codec.SETTINGS)
+        if unknown:
+            raise ValueError(f"refuse_selectors {sorted(unknown)}: not settings of the MO 64 ({', '.join(codec.SETTINGS)})")
+        self.refuse_selectors = set(refuse_selectors)
+        self.eeprom_write_s = EEPROM_WRITE_S if eeprom_write_s is None else float(eeprom_write_s)
         # identity (chapter 5.1.5, 5.1.6, 5.1.20, 5.1.21)
         self.device_code = DEVICE_CODE
         self.program_version = PROGRAM_VERSION
@@ -111,7 +121,9 @@ class Mo64Twin:
             "t_open": DEFAULT_T_OPEN, "t_prewarn_open": DEFAULT_T_PREWARN, "t_prewarn_close": DEFAULT_T_PREWARN,
             "change_monitoring": 0, "maintenance_interval": DEFAULT_MAINTENANCE_INTERVAL, "status_mask": 0,
             "multi_relays": (1, 0, 0, 0, 0, 0),
-            "config_flags": {"konfig0": 0, "konfig1": 0, "konfig2": 0, "konfig3": 0},
+            # factory-like flags (the summary prints no factory values): Kraftüberwachung "Stopp und öffnen"
+            # (konfig2 bits 12, 11 = 1) and LS-Test on (konfig3 bit 0), as devices/mo64/params.py places them
+            "config_flags": {"konfig0": 0, "konfig1": 0, "konfig2": 1 << 11, "konfig3": 1},
         }
         self.induction_loops = (0x0001, 0x0001, 0x0000)
         self.direction_logics = (0, 0)
@@ -472,7 +484,7 @@ class Mo64Twin:
 
     def _setting(self, request: codec.Request) -> list[tuple[float, bytes]]:
         setting = request.setting
-        if setting is None:
+        if setting is None or setting.key in self.refuse_selectors:
             return self._nak(f"setting 0x{request.kind:02X} selector 0x{request.selector:02X} unknown")
         if not setting.eeprom:  # the vehicle counter: RAM only, answered ack (chapter 5.2.5)
             self.vehicle_counter = int(request.value)
@@ -499,7 +511,8 @@ def _twin_for(dev: Any, address: int | None = None) -> Mo64Twin:
     opts = dev.options
     return Mo64Twin(dev.name, address, int(opts.get("serial_number", 6400000 + (address or 1))),
                     float(opts.get("travel_s", TRAVEL_S)), refuse_queries=opts.get("refuse_queries", ()),
-                    query_form=opts.get("query_form", "both"))
+                    query_form=opts.get("query_form", "both"), refuse_selectors=opts.get("refuse_selectors", ()),
+                    eeprom_write_s=opts.get("eeprom_write_s"))
 
 
 _MOVING = (GateState.OPENING, GateState.CLOSING, GateState.PREWARN_OPEN, GateState.PREWARN_CLOSE)
