@@ -10,10 +10,20 @@ import socket
 import sys
 from pathlib import Path
 
-from app import host
+from app import host, i18n
 from app.headless import _bindable, _cli_user, _headless, _load, _refuse_taken_ports
+from app.i18n import N_
 
-EPILOG = """\
+# the language of the command's messages and help: --lang, else the environment (LANGUAGE, LC_ALL, LC_MESSAGES,
+# LANG); set by main() before the parser is built
+LANG = i18n.get(i18n.DEFAULT)
+
+
+def _(message: str) -> str:
+    return LANG.gettext(message)
+
+
+EPILOG = N_("""\
 examples:
   commission                          GUI on the built-in simulated demo plant
   commission --plant site.toml        GUI on the real buses of site.toml (buses with
@@ -40,65 +50,102 @@ examples:
                                       plant file, no buses, nothing written anywhere
 
 The plant file (TOML) lists [[bus]] and [[device]] tables; see README.md.
-"""
+""")
 
 # argparse formats help with %: the Windows variable's signs are doubled
-DATA_DIR_HELP = ("accounts, audit database and backups (default: $COMMISSION_DATA_DIR, else the user data folder: "
-                 "~/.local/share/commission on Linux, %%LOCALAPPDATA%%\\commission on Windows, "
-                 "~/Library/Application Support/commission on macOS)")
+DATA_DIR_HELP = N_("accounts, audit database and backups (default: $COMMISSION_DATA_DIR, else the user data folder: "
+                   "~/.local/share/commission on Linux, %%LOCALAPPDATA%%\\commission on Windows, "
+                   "~/Library/Application Support/commission on macOS)")
+
+
+class _Words:
+    """argparse's own words (usage, the section titles) in the command's language."""
+
+    def add_usage(self, usage, actions, groups, prefix=None):
+        return super().add_usage(usage, actions, groups, _("usage: ") if prefix is None else prefix)
+
+    def start_section(self, heading):
+        return super().start_section(_(heading) if heading else heading)
+
+
+class HelpFormatter(_Words, argparse.HelpFormatter):
+    pass
+
+
+class RawHelpFormatter(_Words, argparse.RawDescriptionHelpFormatter):
+    """The top-level help: its examples keep their lines."""
+
+
+ARGPARSE_WORDS = (N_("options"), N_("positional arguments"), N_("show this help message and exit"))
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """An argument parser whose built-in help option and error line speak the command's language."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        kwargs["add_help"] = False
+        super().__init__(*args, **kwargs)
+        self.add_argument("-h", "--help", action="help", default=argparse.SUPPRESS, help=_("show this help message and exit"))
+
+    def error(self, message):
+        self.print_usage(sys.stderr)
+        self.exit(2, _("{prog}: error: {message}").format(prog=self.prog, message=message) + "\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="commission",
-        description="Browser-based commissioning tool for field devices on CAN, Modbus RTU and serial lines.",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=_("Browser-based commissioning tool for field devices on CAN, Modbus RTU and serial lines."),
+        epilog=_(EPILOG),
+        formatter_class=RawHelpFormatter,
     )
-    parser.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
-    parser.add_argument("--host", default="127.0.0.1", help="address to serve the GUI on (default: 127.0.0.1, loopback only)")
-    parser.add_argument("--port", type=int, default=8080, help="HTTP port of the GUI (default: 8080)")
+    parser.add_argument("--lang", choices=sorted(i18n.LANGUAGES), default=None,
+                        help=_("language of the messages and of this help (default: from LANG, else English)"))
+    parser.add_argument("--plant", type=Path, default=None, help=_("plant file (default: the built-in demo plant)"))
+    parser.add_argument("--host", default="127.0.0.1", help=_("address to serve the GUI on (default: 127.0.0.1, loopback only)"))
+    parser.add_argument("--port", type=int, default=8080, help=_("HTTP port of the GUI (default: 8080)"))
     parser.add_argument("--allowed-host", action="append", default=[], metavar="NAME",
-                        help="a further host name or address browsers use to reach the GUI (repeatable); "
-                             "requests for any other name are refused (DNS rebinding)")
+                        help=_("a further host name or address browsers use to reach the GUI (repeatable); "
+                             "requests for any other name are refused (DNS rebinding)"))
     parser.add_argument("--tls-cert", type=Path, default=None, metavar="FILE",
-                        help="serve HTTPS with this certificate (PEM, the chain after it); session cookies are then Secure")
-    parser.add_argument("--tls-key", type=Path, default=None, metavar="FILE", help="the certificate's private key (PEM)")
-    parser.add_argument("--no-sim", action="store_true", help="do not start simulated devices, even for buses with simulate = true")
-    parser.add_argument("--show", action="store_true", help="open a browser window")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log more")
+                        help=_("serve HTTPS with this certificate (PEM, the chain after it); session cookies are then Secure"))
+    parser.add_argument("--tls-key", type=Path, default=None, metavar="FILE", help=_("the certificate's private key (PEM)"))
+    parser.add_argument("--no-sim", action="store_true", help=_("do not start simulated devices, even for buses with simulate = true"))
+    parser.add_argument("--show", action="store_true", help=_("open a browser window"))
+    parser.add_argument("-v", "--verbose", action="store_true", help=_("log more"))
     parser.add_argument("--data-dir", type=Path, default=None,
-                        help=DATA_DIR_HELP)
-    sub = parser.add_subparsers(dest="command")
-    sim = sub.add_parser("sim", help="run only the simulated devices of a plant file")
-    sim.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
-    sim.add_argument("--all", action="store_true", help="simulate every bus, not only those with simulate = true")
+                        help=_(DATA_DIR_HELP))
+    sub = parser.add_subparsers(dest="command", parser_class=ArgumentParser)
+    sim = sub.add_parser("sim", help=_("run only the simulated devices of a plant file"))
+    sim.add_argument("--plant", type=Path, default=None, help=_("plant file (default: the built-in demo plant)"))
+    sim.add_argument("--all", action="store_true", help=_("simulate every bus, not only those with simulate = true"))
 
-    backup = sub.add_parser("backup", help="back up the parameters of one device or the whole plant, headless")
-    backup.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
-    backup.add_argument("--device", action="append", default=[], help="device name (repeatable; default: every device)")
-    backup.add_argument("--out", type=Path, required=True, help="folder for the backup files")
-    backup.add_argument("--no-sim", action="store_true", help="do not start simulated devices")
+    backup = sub.add_parser("backup", help=_("back up the parameters of one device or the whole plant, headless"))
+    backup.add_argument("--plant", type=Path, default=None, help=_("plant file (default: the built-in demo plant)"))
+    backup.add_argument("--device", action="append", default=[], help=_("device name (repeatable; default: every device)"))
+    backup.add_argument("--out", type=Path, required=True, help=_("folder for the backup files"))
+    backup.add_argument("--no-sim", action="store_true", help=_("do not start simulated devices"))
 
-    restore = sub.add_parser("restore", help="restore one device from a backup file, headless")
-    restore.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
-    restore.add_argument("--device", required=True, help="device name")
-    restore.add_argument("file", type=Path, help="backup file (JSON)")
-    restore.add_argument("--yes", action="store_true", help="write without asking (the diff is printed anyway); "
-                         "values that need a confirmation are still refused unless named with --accept-risk")
+    restore = sub.add_parser("restore", help=_("restore one device from a backup file, headless"))
+    restore.add_argument("--plant", type=Path, default=None, help=_("plant file (default: the built-in demo plant)"))
+    restore.add_argument("--device", required=True, help=_("device name"))
+    restore.add_argument("file", type=Path, help=_("backup file (JSON)"))
+    restore.add_argument("--yes", action="store_true", help=_("write without asking (the diff is printed anyway); "
+                         "values that need a confirmation are still refused unless named with --accept-risk"))
     restore.add_argument("--accept-risk", action="append", default=[], metavar="NAME",
-                         help="confirm a risky value of parameter NAME (repeatable), as the GUI's confirmation does")
-    restore.add_argument("--no-sim", action="store_true", help="do not start simulated devices")
+                         help=_("confirm a risky value of parameter NAME (repeatable), as the GUI's confirmation does"))
+    restore.add_argument("--no-sim", action="store_true", help=_("do not start simulated devices"))
 
-    user = sub.add_parser("user", help="manage accounts (needed to serve beyond the loopback address)")
+    user = sub.add_parser("user", help=_("manage accounts (needed to serve beyond the loopback address)"))
     user_sub = user.add_subparsers(dest="user_command", required=True)
-    add = user_sub.add_parser("add", help="add or replace an account")
+    add = user_sub.add_parser("add", help=_("add or replace an account"))
     add.add_argument("name")
     add.add_argument("--role", choices=["engineer", "viewer"], required=True)
-    add.add_argument("--password-stdin", action="store_true", help="read the password from standard input")
-    remove = user_sub.add_parser("remove", help="remove an account")
+    add.add_argument("--password-stdin", action="store_true", help=_("read the password from standard input"))
+    remove = user_sub.add_parser("remove", help=_("remove an account"))
     remove.add_argument("name")
-    listing = user_sub.add_parser("list", help="list accounts")
+    listing = user_sub.add_parser("list", help=_("list accounts"))
 
     from app import dbc
 
@@ -121,23 +168,23 @@ def build_parser() -> argparse.ArgumentParser:
 
     mcap_export.add_parser(sub)  # commission export --format mcap: a recording or the live data for Foxglove, PlotJuggler
 
-    view = sub.add_parser("view", help="read-only plant-wide view of every site publishing to an MQTT broker")
-    view.add_argument("--broker", required=True, metavar="URL", help="mqtt://host[:1883] or mqtts://host[:8883]")
-    view.add_argument("--username", default=None, help="broker user name")
-    view.add_argument("--password-env", default=None, metavar="VAR", help="environment variable holding the broker password")
-    view.add_argument("--password-file", type=Path, default=None, metavar="FILE", help="file holding the broker password")
-    view.add_argument("--ca-file", type=Path, default=None, help="mqtts: CA certificate(s) of the broker")
-    view.add_argument("--host", default="127.0.0.1", help="address to serve the view on (default: 127.0.0.1)")
-    view.add_argument("--port", type=int, default=8090, help="HTTP port of the view (default: 8090)")
+    view = sub.add_parser("view", help=_("read-only plant-wide view of every site publishing to an MQTT broker"))
+    view.add_argument("--broker", required=True, metavar="URL", help=_("mqtt://host[:1883] or mqtts://host[:8883]"))
+    view.add_argument("--username", default=None, help=_("broker user name"))
+    view.add_argument("--password-env", default=None, metavar="VAR", help=_("environment variable holding the broker password"))
+    view.add_argument("--password-file", type=Path, default=None, metavar="FILE", help=_("file holding the broker password"))
+    view.add_argument("--ca-file", type=Path, default=None, help=_("mqtts: CA certificate(s) of the broker"))
+    view.add_argument("--host", default="127.0.0.1", help=_("address to serve the view on (default: 127.0.0.1)"))
+    view.add_argument("--port", type=int, default=8090, help=_("HTTP port of the view (default: 8090)"))
     view.add_argument("--allowed-host", action="append", default=[], metavar="NAME",
-                      help="a further host name browsers use to reach the view (repeatable)")
+                      help=_("a further host name browsers use to reach the view (repeatable)"))
     view.add_argument("--public", action="store_true",
-                      help="allow --host beyond the loopback address: the view has no login and shows every published value")
+                      help=_("allow --host beyond the loopback address: the view has no login and shows every published value"))
 
     for command in (sim, backup, restore, user, add, remove, listing):
         # SUPPRESS: a subcommand's default must not overwrite a --data-dir given before it
         command.add_argument("--data-dir", type=Path, default=argparse.SUPPRESS,
-                             help=DATA_DIR_HELP)
+                             help=_(DATA_DIR_HELP))
     return parser
 
 
@@ -173,7 +220,7 @@ def _tls_files(args) -> tuple[str, str] | None:
     if not args.tls_cert and not args.tls_key:
         return None
     if not (args.tls_cert and args.tls_key):
-        print("commission: --tls-cert and --tls-key go together (the certificate and its private key)", file=sys.stderr)
+        print(_("commission: --tls-cert and --tls-key go together (the certificate and its private key)"), file=sys.stderr)
         raise SystemExit(2)
     import ssl
 
@@ -181,7 +228,8 @@ def _tls_files(args) -> tuple[str, str] | None:
     try:
         context.load_cert_chain(args.tls_cert, args.tls_key)
     except (OSError, ssl.SSLError) as exc:
-        print(f"commission: cannot use {args.tls_cert} with {args.tls_key}: {getattr(exc, 'strerror', None) or exc}", file=sys.stderr)
+        print(_("commission: cannot use {cert} with {key}: {error}").format(
+            cert=args.tls_cert, key=args.tls_key, error=getattr(exc, "strerror", None) or exc), file=sys.stderr)
         raise SystemExit(2) from None
     return str(args.tls_cert), str(args.tls_key)
 
@@ -198,7 +246,7 @@ def run_sim(args) -> int:
     plant = _load(args.plant)
     sim = SimulatedPlant(plant, only_flagged=not args.all)
     if not sim.servers:
-        print("commission sim: the plant file has no bus with simulate = true (use --all to simulate every bus)", file=sys.stderr)
+        print(_("commission sim: the plant file has no bus with simulate = true (use --all to simulate every bus)"), file=sys.stderr)
         return 2
     if _refuse_taken_ports(plant, "commission sim", every=args.all):
         return 2
@@ -214,11 +262,12 @@ def run_sim(args) -> int:
             if bus.simulated or args.all:
                 devices = plant.devices_on(bus.name) + [d for d in plant.sim_devices.values() if d.bus == bus.name]
                 names = ", ".join(d.name for d in devices)
-                print(f"simulating {bus.name} ({bus.type}) on {bus.endpoint}: {names}", flush=True)
+                print(_("simulating {bus} ({type}) on {endpoint}: {names}").format(
+                    bus=bus.name, type=bus.type, endpoint=bus.endpoint, names=names), flush=True)
                 if bus.options.get("interface") == "virtual":
                     print(
-                        f"  note: {bus.name} uses the virtual CAN interface, which other processes cannot reach; "
-                        'use interface = "udp_multicast" (channel "239.74.163.2") to share it across processes',
+                        _("  note: {bus} uses the virtual CAN interface, which other processes cannot reach; "
+                          'use interface = "udp_multicast" (channel "239.74.163.2") to share it across processes').format(bus=bus.name),
                         file=sys.stderr, flush=True,
                     )
         from app.runtime import freeze_startup_heap
@@ -253,23 +302,23 @@ def run_user(args) -> int:
         return 0
     if args.user_command == "remove":
         if not store.remove(args.name):
-            print(f"commission user: no account named {args.name}", file=sys.stderr)
+            print(_("commission user: no account named {name}").format(name=args.name), file=sys.stderr)
             return 2
-        print(f"removed {args.name}")
+        print(_("removed {name}").format(name=args.name))
         return 0
     if args.password_stdin or not sys.stdin.isatty():
         password = sys.stdin.readline().rstrip("\n")
     else:
-        password = getpass.getpass(f"password for {args.name}: ")
-        if getpass.getpass("again: ") != password:
-            print("commission user: the passwords differ", file=sys.stderr)
+        password = getpass.getpass(_("password for {name}: ").format(name=args.name))
+        if getpass.getpass(_("again: ")) != password:
+            print(_("commission user: the passwords differ"), file=sys.stderr)
             return 2
     try:
         store.add(args.name, args.role, password)
     except UserError as exc:
         print(f"commission user: {exc}", file=sys.stderr)
         return 2
-    print(f"{args.name} ({args.role}) saved in {store.path}")
+    print(_("{name} ({role}) saved in {path}").format(name=args.name, role=args.role, path=store.path))
     return 0
 
 
@@ -282,16 +331,17 @@ def run_backup(args) -> int:
             state = runtime.store.devices[name]
             reason = await backup.nothing_to_back_up(runtime.worker.adapters[name])
             if reason:
-                print(f"{name}: skipped: {reason}", flush=True)
+                print(_("{name}: skipped: {reason}").format(name=name, reason=reason), flush=True)
                 continue
             if state.status != "online":
-                print(f"{name}: not answering ({state.last_error or 'no answer'}): skipped", file=sys.stderr)
+                print(_("{name}: not answering ({error}): skipped").format(name=name, error=state.last_error or _("no answer")),
+                      file=sys.stderr)
                 failures += 1
                 continue
             try:
                 path = await backup.backup_device(runtime, name, args.out, user=_cli_user(), role="engineer")
             except Exception as exc:  # noqa: BLE001 - one device's failure must not stop the others
-                print(f"{name}: backup failed: {exc}", file=sys.stderr)
+                print(_("{name}: backup failed: {error}").format(name=name, error=exc), file=sys.stderr)
                 failures += 1
                 continue
             print(f"{name}: {path}")
@@ -314,7 +364,7 @@ def run_restore(args) -> int:
     async def work(runtime, names) -> int:
         name = names[0]
         if runtime.store.devices[name].status != "online":
-            print(f"{name}: not answering: {runtime.store.devices[name].last_error}", file=sys.stderr)
+            print(_("{name}: not answering: {error}").format(name=name, error=runtime.store.devices[name].last_error), file=sys.stderr)
             return 1
         try:
             plan = await backup.plan_restore(runtime, name, document)
@@ -322,42 +372,45 @@ def run_restore(args) -> int:
             print(f"commission restore: {exc}", file=sys.stderr)
             return 2
         for warning in plan.warnings:
-            print(f"warning: {warning}")
+            print(_("warning: {warning}").format(warning=warning))
         changed = [r for r in plan.rows if r.changed]
         for row in changed:
-            mark = f"   [needs confirmation: {row.risk}]" if row.risk else ""
+            mark = _("   [needs confirmation: {risk}]").format(risk=row.risk) if row.risk else ""
             print(f"  {row.name}: {row.current_text} -> {row.backup_text}{mark}")
         if not changed:
-            print("nothing to write: the device already holds the backed-up values"
-                  + (" (invalid entries of the file are listed above)" if plan.invalid else ""))
+            print(_("nothing to write: the device already holds the backed-up values")
+                  + (_(" (invalid entries of the file are listed above)") if plan.invalid else ""))
             return 1 if plan.invalid else 0
         selected = {r.key for r in changed}
         wear = getattr(runtime.worker.adapters[name], "restore_wear", "")
         if wear:
-            print(f"note: {wear}: this restore makes {len(changed)} such write(s)")
+            print(_("note: {wear}: this restore makes {count} such write(s)").format(wear=wear, count=len(changed)))
         risky = plan.risky(selected)
         accepted = {n.lower() for n in args.accept_risk}
         confirmed = {r.key for r in risky if r.name.lower() in accepted}
         if not args.yes:
             if not sys.stdin.isatty():
-                print("commission restore: add --yes to write without a terminal to confirm", file=sys.stderr)
+                print(_("commission restore: add --yes to write without a terminal to confirm"), file=sys.stderr)
                 return 2
-            if input(f"write {len(changed)} parameters to {name}? [y/N] ").strip().lower() != "y":
-                print("nothing written")
+            if input(_("write {count} parameters to {name}? [y/N] ").format(count=len(changed), name=name)).strip().lower() \
+                    not in YES:
+                print(_("nothing written"))
                 return 1
             for row in risky:
-                if row.key not in confirmed and input(f"{row.name} = {row.backup_text}: {row.risk} Write it? [y/N] ").strip().lower() == "y":
+                if row.key not in confirmed and input(_("{name} = {value}: {risk} Write it? [y/N] ").format(
+                        name=row.name, value=row.backup_text, risk=row.risk)).strip().lower() in YES:
                     confirmed.add(row.key)
         unconfirmed = [r for r in risky if r.key not in confirmed]
         if unconfirmed:
             for row in unconfirmed:
-                print(f"commission restore: {row.name} = {row.backup_text} needs a confirmation ({row.risk}); "
-                      f"name it with --accept-risk {row.name} to write it", file=sys.stderr)
-            print("nothing written", file=sys.stderr)
+                print(_("commission restore: {name} = {value} needs a confirmation ({risk}); "
+                        "name it with --accept-risk {name} to write it").format(name=row.name, value=row.backup_text, risk=row.risk),
+                      file=sys.stderr)
+            print(_("nothing written"), file=sys.stderr)
             return 2
         report = await backup.execute_restore(runtime, plan, selected, user=_cli_user(), confirmed=confirmed)
         for parameter, error in report.failed + report.refused:
-            print(f"  failed: {parameter}: {error}", file=sys.stderr)
+            print(_("  failed: {parameter}: {error}").format(parameter=parameter, error=error), file=sys.stderr)
         print(report.summary())
         return 0 if report.ok else 1
 
@@ -378,13 +431,13 @@ def run_view(args) -> int:
         print(f"commission view: --broker {exc}", file=sys.stderr)
         return 2
     if args.ca_file and not args.broker.startswith("mqtts://"):
-        print("commission view: --ca-file is for TLS: give the broker as mqtts://...", file=sys.stderr)
+        print(_("commission view: --ca-file is for TLS: give the broker as mqtts://..."), file=sys.stderr)
         return 2
     password = None
     if args.password_env:
         password = os.environ.get(args.password_env)
         if password is None:
-            print(f"commission view: the environment variable {args.password_env} is not set", file=sys.stderr)
+            print(_("commission view: the environment variable {name} is not set").format(name=args.password_env), file=sys.stderr)
             return 2
     elif args.password_file:
         try:
@@ -392,14 +445,17 @@ def run_view(args) -> int:
 
             password = files.read_regular_text(args.password_file, files.MAX_SECRET_BYTES, "password file").strip()
         except (OSError, ValueError) as exc:
-            print(f"commission view: cannot read {args.password_file}: {exc.strerror or exc}", file=sys.stderr)
+            print(_("commission view: cannot read {file}: {error}").format(file=args.password_file, error=exc.strerror or exc),
+                  file=sys.stderr)
             return 2
     if not is_loopback(args.host) and not args.public:
-        print(f"commission view: refusing to listen on {args.host}: the view has no login and shows every value published "
-              "to the broker; add --public if everyone who can reach this address may see them", file=sys.stderr)
+        print(_("commission view: refusing to listen on {host}: the view has no login and shows every value published "
+                "to the broker; add --public if everyone who can reach this address may see them").format(host=args.host),
+              file=sys.stderr)
         return 2
     if not _bindable(args.host, args.port):
-        print(f"commission view: port {args.port} on {args.host} is taken; choose another with --port", file=sys.stderr)
+        print(_("commission view: port {port} on {host} is taken; choose another with --port").format(port=args.port, host=args.host),
+              file=sys.stderr)
         return 2
     store = SiteStore(args.broker, args.username, password, str(args.ca_file) if args.ca_file else None)
     import tempfile
@@ -412,21 +468,33 @@ def run_view(args) -> int:
     import server
 
     server.register_view(store, host=args.host, allowed_hosts=args.allowed_host)
-    print(f"commission view: {args.broker} at http://{args.host}:{args.port}/ (read-only)", flush=True)
+    print(_("commission view: {broker} at {url} (read-only)").format(broker=args.broker, url=f"http://{args.host}:{args.port}/"),
+          flush=True)
     ui.run(host=args.host, port=args.port, title="commission view", reload=False, show=False,
            show_welcome_message=False, favicon="🔧", tailwind=False)  # rules compiled beforehand: app/assets.py
     return 0
+
+
+YES = ("y", "j")  # [y/N] and [j/N]: either is a yes in either language
 
 
 def main(argv: list[str] | None = None) -> int:
     try:
         return _main(argv)
     except KeyboardInterrupt:
-        print("commission: stopped (Ctrl-C)", file=sys.stderr, flush=True)
+        print(_("commission: stopped (Ctrl-C)"), file=sys.stderr, flush=True)
         return 130
 
 
+def set_language(code: str | None) -> i18n.Lang:
+    """The language of the command's messages and help from now on (``code``; None: from the environment)."""
+    global LANG
+    LANG = i18n.get(code or i18n.environment_language())
+    return LANG
+
+
 def _main(argv: list[str] | None) -> int:
+    set_language(i18n.cli_language(argv))  # before the parser: its help is in that language
     args = build_parser().parse_args(argv)
     _quiet_libraries(args.verbose)
     commands = {"sim": run_sim, "backup": run_backup, "restore": run_restore, "user": run_user, "view": run_view}
@@ -442,10 +510,12 @@ def _main(argv: list[str] | None) -> int:
     tls = _tls_files(args)
     if auth_required and not UserStore(data_dir / "users.toml").has_engineer():
         print(
-            f"commission: refusing to listen on {args.host}: beyond the loopback address every browser must log in, "
-            "and there is no engineer account yet. Add one with\n"
-            f"  commission user add NAME --role engineer{'' if args.data_dir is None else f' --data-dir {args.data_dir}'}\n"
-            "or serve on 127.0.0.1 only (the default).",
+            _("commission: refusing to listen on {host}: beyond the loopback address every browser must log in, "
+              "and there is no engineer account yet. Add one with\n"
+              "  {command}\n"
+              "or serve on 127.0.0.1 only (the default).").format(
+                host=args.host,
+                command=f"commission user add NAME --role engineer{'' if args.data_dir is None else f' --data-dir {args.data_dir}'}"),
             file=sys.stderr,
         )
         return 2
@@ -467,8 +537,8 @@ def _main(argv: list[str] | None) -> int:
 
     plant = _load(args.plant)
     if not _bindable(args.host, args.port):
-        print(f"commission: port {args.port} on {args.host} is taken (another commission or another program); "
-              f"choose another with --port", file=sys.stderr)
+        print(_("commission: port {port} on {host} is taken (another commission or another program); "
+                "choose another with --port").format(port=args.port, host=args.host), file=sys.stderr)
         return 2
     if not args.no_sim and _refuse_taken_ports(plant):
         return 2
@@ -477,10 +547,10 @@ def _main(argv: list[str] | None) -> int:
     raise_priority()  # before any thread starts: they all inherit it (the keep-alive threads ask for more)
     runtime = Runtime(plant, simulate=not args.no_sim, data_dir=data_dir, auth_required=auth_required)
     server.register(runtime, host=args.host, allowed_hosts=args.allowed_host)
-    url = " and ".join(reachable_urls(args.host, args.port, "https" if tls else "http"))
+    url = _(" and ").join(reachable_urls(args.host, args.port, "https" if tls else "http"))
     if auth_required and tls is None:
-        print("commission: note: served beyond the loopback address without --tls-cert/--tls-key, passwords and session "
-              "cookies cross the network unencrypted", file=sys.stderr, flush=True)
+        print(_("commission: note: served beyond the loopback address without --tls-cert/--tls-key, passwords and session "
+                "cookies cross the network unencrypted"), file=sys.stderr, flush=True)
     announce_task: list[asyncio.Task] = []
     kept: list[object] = []
 
@@ -503,9 +573,11 @@ def _main(argv: list[str] | None) -> int:
             collections = FullCollections()  # and the full collections wait while a motion runs under a lease
             collections.start()
             kept.append(collections)  # referenced while the server runs
-            print(f"commission: plant '{plant.name}' ({len(plant.devices)} devices) at {url}", flush=True)
+            print(_("commission: plant '{plant}' ({count} devices) at {url}").format(plant=plant.name, count=len(plant.devices), url=url),
+                  flush=True)
             return
-        print(f"commission: the GUI did not start listening on {args.host}:{args.port}", file=sys.stderr, flush=True)
+        print(_("commission: the GUI did not start listening on {host}:{port}").format(host=args.host, port=args.port),
+              file=sys.stderr, flush=True)
 
     from nicegui import app as gui_app
 

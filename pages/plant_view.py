@@ -5,6 +5,7 @@ There are no write controls on this page by construction: it only reads the stat
 
 from __future__ import annotations
 
+import json
 import logging
 import re
 import time
@@ -13,26 +14,31 @@ from html import escape
 
 from nicegui import ui
 
+from app import i18n
 from app import runtime as rt
+from app.i18n import N_, Lang
 from app.state import point_inputs
-from devices.registry import DEVICE_TYPES, TileSpec, _fill
+from devices.registry import DEVICE_TYPES, TileAlarm, TileBar, TileLine, TileSpec, _fill
 from pages.frame import CSS, fmt_age
 
 # the state of a tile in words and colour (never colour alone): what an operator reads from across the room
 BADGE = {"good": ("live", "positive"), "stale": ("stale", "warning"), "offline": ("offline", "negative"),
          "unknown": ("waiting", "grey")}  # the site view's badges
-STATE = {"good": ("live", "check_circle"), "unknown": ("waiting for values", "hourglass_empty"),
-         "stale": ("STALE", "schedule"), "offline": ("OFFLINE", "cloud_off"), "fault": ("FAULT", "warning")}
+STATE = {"good": (N_("live"), "check_circle"), "unknown": (N_("waiting for values"), "hourglass_empty"),
+         "stale": (N_("STALE"), "schedule"), "offline": (N_("OFFLINE"), "cloud_off"), "fault": (N_("FAULT"), "warning")}
 # units of a quantity an operator reads as it is; a bar in any other unit (increments, counts) shows its share of full travel
 PHYSICAL_UNITS = {"mm", "cm", "m", "%", "V", "A", "°C", "s", "min", "h", "mm/s", "Hz", "W", "kW", "bar"}
 HEX_CODE = re.compile(r"^0x[0-9A-Fa-f]+:\s*")
 log = logging.getLogger(__name__)
 
 
-def operator_words(entry: dict | None) -> dict | None:
+def operator_words(entry: dict | None, lang: Lang | None = None, point: str | None = None) -> dict | None:
     """A live entry as an operator reads it: its enum name, or its text without the code before it
     ("0x7: mains, battery, charger_on" -> "mains, battery, charger on") and without the diagnosis after
-    a state word ("lost: CRC 0x5100 received ..." -> "lost"); the store's words only, nothing decoded here."""
+    a state word ("lost: CRC 0x5100 received ..." -> "lost"); the store's words only, nothing decoded here.
+    With ``lang`` its value, name and text write themselves in that language in a tile's templates (the
+    documents' words in German, decimal comma, each a value of ``point``) and still compare as the device's
+    own (the tile's conditions)."""
     if entry is None:
         return None
     name, text, value = entry.get("name"), entry.get("text"), entry.get("value")
@@ -44,7 +50,9 @@ def operator_words(entry: dict | None) -> dict | None:
             words = value  # a state word with the engineer's diagnosis after it
         elif HEX_CODE.match(text):
             words = HEX_CODE.sub("", text).replace("_", " ")
-    return {**entry, "text": words}
+    if lang is None:
+        return {**entry, "text": words}
+    return {**entry, "text": lang.value(words, point), "name": lang.value(name, point), "value": lang.value(value, point)}
 
 
 SHARED_S = 0.25  # a tile evaluated for one page serves every other page (and row) showing it this long, unchanged
@@ -119,15 +127,18 @@ def evaluate_tile(state) -> dict:
     return tile
 
 
-def plant_tile(state) -> dict:
+def plant_tile(state, lang: Lang | None = None) -> dict:
     """The declared tile in an operator's words: each value once (a line of the bar's quantity is left out
     while the bar shows it, a bar in increments or counts shows its share of full travel), texts without
-    codes and diagnoses, an alarm that is a bare state word named by its point."""
+    codes and diagnoses, an alarm that is a bare state word named by its point; with ``lang`` in that
+    language (:func:`translated_spec`, :func:`operator_words`)."""
     now = time.time()
     spec = DEVICE_TYPES[state.type].tile
+    if lang is not None:
+        spec = translated_spec(spec, lang)
 
     def entry(name: str) -> dict | None:
-        return operator_words(state.entry(name, now))
+        return operator_words(state.entry(name, now), lang, name)
 
     # only the values the tile declares: registers and published points alike, each with its quality
     tile = _without_bar_lines(spec).evaluate(entry, now)
@@ -135,14 +146,16 @@ def plant_tile(state) -> dict:
         tile = spec.evaluate(entry, now)
     elif (bar_entry := _bar_entry(spec, entry)) is not None and bar_entry.get("unit") not in PHYSICAL_UNITS:
         prefix = spec.bar.label.split("{value", 1)[0].strip()
-        tile["bar"] = (tile["bar"][0], f"{prefix} {tile['bar'][0] * 100:.0f} % out".strip())
+        percent = f"{tile['bar'][0] * 100:.0f}"
+        tile["bar"] = (tile["bar"][0], f"{prefix} {percent} % out".strip() if lang is None else
+                       lang.gettext("{prefix} {share} out").format(prefix=prefix, share=f"{percent} %").strip())
     alarms = []
     for alarm in spec.alarms:
         point = entry(alarm.when.point)
         if alarm.when.holds(point) and not (alarm.unless is not None and alarm.unless.holds(entry(alarm.unless.point))):
             text = alarm.text.format(**_fill(point))
-            if point is not None and isinstance(point.get("value"), str) and text == point["value"]:
-                text = f"{alarm.when.point}: {text}"
+            if point is not None and isinstance(point.get("value"), str) and text == format(point["value"]):
+                text = f"{alarm.when.point if lang is None else lang.phrase(alarm.when.point)}: {text}"
             alarms.append(text)
     tile["alarms"] = alarms
     if tile["quality"] == "unknown" and state.online is False:  # never heard and given up on: offline, not "waiting"
@@ -152,14 +165,58 @@ def plant_tile(state) -> dict:
 
 fresh_evaluate_tile, fresh_plant_tile = evaluate_tile, plant_tile
 evaluate_tile = shared("tile", fresh_evaluate_tile)
-plant_tile = shared("plant", fresh_plant_tile)
+_PLANT_TILES: dict[str, object] = {"": shared("plant", fresh_plant_tile)}
+
+
+def plant_tile(state, lang: Lang | None = None) -> dict:  # noqa: F811 - the shared form of the one above
+    """:func:`fresh_plant_tile` shared by every page of one language (see :func:`shared`)."""
+    code = "" if lang is None else lang.code
+    get = _PLANT_TILES.get(code)
+    if get is None:
+        get = _PLANT_TILES[code] = shared(f"plant-{code}", lambda state: fresh_plant_tile(state, lang))
+    return get(state)
+
+
+_TRANSLATED: dict[tuple[int, str], TileSpec] = {}
+
+
+def translated_spec(spec: TileSpec, lang: Lang) -> TileSpec:
+    """``spec`` with its texts in ``lang`` (the catalog's device vocabulary, docs/i18n.md): templates, the texts
+    of its cases and of a line with nothing heard, its alarms and its bar's label; its conditions unchanged."""
+    key = (id(spec), lang.code)
+    found = _TRANSLATED.get(key)
+    if found is None:
+        word = lang.phrase
+
+        def line(item: TileLine) -> TileLine:
+            return replace(item, template=word(item.template), missing=word(item.missing), item=word(item.item),
+                           cases=tuple((when, word(text), icon) for when, text, icon in item.cases))
+
+        bar = spec.bar
+        found = _TRANSLATED[key] = replace(
+            spec, lines=tuple(line(item) for item in spec.lines),
+            alarms=tuple(TileAlarm(alarm.when, word(alarm.text), alarm.unless) for alarm in spec.alarms),
+            bar=None if bar is None else TileBar(bar.point, word(bar.label), bar.full_scale, bar.full_scale_point, bar.fresher))
+    return found
+
+
+def tile_texts(spec: TileSpec) -> list[str]:
+    """Every text of ``spec`` that :func:`translated_spec` translates (the catalog test walks them)."""
+    texts = [spec.bar.label] if spec.bar is not None else []
+    for item in spec.lines:
+        texts += [item.template, item.missing, *(text for _when, text, _icon in item.cases)]
+        if item.values:
+            texts.append(item.item)
+    texts += [alarm.text for alarm in spec.alarms]
+    return [text for text in texts if text and i18n.has_words(text)]
+
 
 _REDUCED: dict[int, TileSpec] = {}
 
 
 def _without_bar_lines(spec: TileSpec) -> TileSpec:
     """``spec`` without the lines that show the bar's own quantity (the bar says it once)."""
-    key = id(spec)
+    key = id(spec)  # a translated spec is kept for good (_TRANSLATED): its id is never another's
     if key not in _REDUCED:
         sources = set(spec.bar.sources()) if spec.bar is not None else set()
         _REDUCED[key] = replace(spec, lines=tuple(line for line in spec.lines if not line.point or line.point not in sources))
@@ -207,9 +264,9 @@ TILE_CSS = """
 
 # when the tiles do not fit the screen, say so (the page scrolls; the note names how many are below); runs in the browser
 MORE_JS = """<script>
-(() => { const mark = () => { const more = document.querySelector('.plant-more'); if (!more) return;
+(() => { const words = %s; const mark = () => { const more = document.querySelector('.plant-more'); if (!more) return;
   const below = [...document.querySelectorAll('[data-plant-tile]')].filter(t => t.getBoundingClientRect().bottom > window.innerHeight + 1).length;
-  more.textContent = below ? `${below} more below: scroll down` : ''; more.style.display = below ? '' : 'none'; };
+  more.textContent = below ? words.replace('{n}', below) : ''; more.style.display = below ? '' : 'none'; };
   window.addEventListener('resize', mark); window.addEventListener('scroll', mark); setInterval(mark, 2000); })();
 </script>"""
 
@@ -253,15 +310,18 @@ class LabelPool:
 ICON = '<i class="q-icon notranslate material-icons" aria-hidden="true" role="presentation"%s>%s</i>'
 
 
-def state_words(quality: str, alarms: list[str], age: float | None) -> tuple[str, str, str]:
+def state_words(quality: str, alarms: list[str], age: float | None, lang: Lang | None = None) -> tuple[str, str, str]:
     """``(state, word, age text)`` of a tile: offline and stale first (old data raises no alarms), then faults."""
+    lang = lang or i18n.get("en")
+    _ = lang.gettext
     if quality == "offline":
-        return "offline", STATE["offline"][0], "never heard" if age is None else f"no answer, last heard {fmt_age(age)}"
+        return "offline", _(STATE["offline"][0]), \
+            _("never heard") if age is None else _("no answer, last heard {age}").format(age=fmt_age(age, lang))
     if quality == "stale":
-        return "stale", STATE["stale"][0], "no fresh values" if age is None else f"last heard {fmt_age(age)}"
+        return "stale", _(STATE["stale"][0]), _("no fresh values") if age is None else _("last heard {age}").format(age=fmt_age(age, lang))
     if alarms:
-        return "fault", STATE["fault"][0], ""
-    return quality, STATE[quality][0], ""
+        return "fault", _(STATE["fault"][0]), ""
+    return quality, _(STATE[quality][0]), ""
 
 
 class PlantTile:
@@ -269,8 +329,9 @@ class PlantTile:
     marks on the page's one-second tick; each element sent only when what it shows changed. Name and kind
     never change and the state's icon and word change together: one element each."""
 
-    def __init__(self, name: str):
+    def __init__(self, name: str, lang: Lang | None = None):
         runtime = rt.current()
+        self.lang = lang or i18n.get("en")
         self.state = runtime.store.devices[name]
         self.device_type = DEVICE_TYPES[self.state.type]
         self._shown: dict[str, object] = {}
@@ -281,7 +342,7 @@ class PlantTile:
             with ui.row().classes("items-center w-full no-wrap gap-2"):
                 self.icon = ui.icon("help", size="32px")
                 ui.html(f'<div class="name">{escape(name)}</div>'
-                        f'<div class="kind">{escape(f"{self.device_type.title} · {self.state.bus}")}</div>',
+                        f'<div class="kind">{escape(f"{self.lang.phrase(self.device_type.title)} · {self.state.bus}")}</div>',
                         sanitize=False).classes("head")
             with ui.row().classes("state-band items-center w-full no-wrap").props("data-plant-state") as self.band:
                 self.state_word = ui.html("", sanitize=False).style("display: contents")
@@ -292,9 +353,9 @@ class PlantTile:
         self.refresh()
 
     @staticmethod
-    def shows(state) -> tuple:
+    def shows(state, lang: Lang | None = None) -> tuple:
         """What a plant tile draws, its age left out."""
-        tile = plant_tile(state)
+        tile = plant_tile(state, lang)
         return tile["lines"], tile["alarms"], tile["bar"], tile["icon"], tile["quality"]
 
     def _changed(self, key: str, value: object) -> bool:
@@ -306,13 +367,13 @@ class PlantTile:
     def refresh(self, ticked: bool = False) -> None:
         """Show the device as it is now (``ticked``: the page's tick; a tile shows nothing that moves
         without being evaluated again, so both are the same here)."""
-        tile = plant_tile(self.state)
+        tile = plant_tile(self.state, self.lang)
         if tile is self._tile:
             return  # the same evaluation (device unchanged, ages within SHARED_S) is on screen already
         self._tile = tile
         quality = tile["quality"]
         alarms = tile["alarms"] if quality in ("good", "unknown") else []  # old data raises no alarms
-        state, word, age_text = state_words(quality, alarms, tile["age"])
+        state, word, age_text = state_words(quality, alarms, tile["age"], self.lang)
         marked = quality if quality in ("stale", "offline") else "good"
         if self._changed("quality", marked):  # the values' quality, as everywhere a value is shown (without fading)
             self.card.props(f'data-quality="{marked}"')
@@ -433,26 +494,41 @@ class Followers:
             view.refresh(ticked=True)
 
 
+_SHOWS: dict[str, object] = {}
+
+
+def shows_in(lang: Lang):
+    """:meth:`PlantTile.shows` in ``lang``: one function per language, so that the feed compares the tiles of
+    one language once per change however many pages show them."""
+    found = _SHOWS.get(lang.code)
+    if found is None:
+        found = _SHOWS[lang.code] = lambda state: PlantTile.shows(state, lang)
+    return found
+
+
 def content() -> None:
     runtime = rt.current()
+    lang = i18n.page_language()
+    _ = lang.gettext
     ui.add_css(CSS + TILE_CSS)
-    ui.page_title(f"{runtime.plant.name} - plant view")
-    with ui.header().classes("items-center bg-blue-grey-9 q-py-sm"):
-        ui.label(f"Plant {runtime.plant.name}").classes("text-h5 text-white")
+    ui.page_title(_("{plant} - plant view").format(plant=runtime.plant.name))
+    with ui.header().classes("items-center bg-blue-grey-9 q-py-sm no-wrap"):
+        ui.label(_("Plant {plant}").format(plant=runtime.plant.name)).classes("text-h5 text-white")
         ui.space()
         clock = ui.label().classes("text-h6 text-white")
+        i18n.language_switch(lang)
     followers = Followers()
     with ui.element("div").classes("plant-grid q-pa-sm"):
-        tiles = [PlantTile(name) for name in runtime.plant.devices]
+        tiles = [PlantTile(name, lang) for name in runtime.plant.devices]
     for tile in tiles:
-        followers.add(tile)
+        followers.add(tile, shows_in(lang))
     if not tiles:
-        ui.label("This plant file lists no devices.").classes("q-pa-md")
+        ui.label(_("This plant file lists no devices.")).classes("q-pa-md")
     ui.element("div").classes("plant-more").style("display: none").props("data-plant-more")
-    ui.add_body_html(MORE_JS)
+    ui.add_body_html(MORE_JS % json.dumps(_("{n} more below: scroll down")))
 
     def tick() -> None:  # the clock and every tile's ages and stale marks: one message a second
-        clock.set_text(time.strftime("%H:%M:%S"))
+        clock.set_text(lang.clock())
         followers.tick()
 
     tick()

@@ -1,0 +1,64 @@
+"""The device vocabulary of the catalogs: the texts of the device types' tiles and the words of their live points
+(states, flags, errors), marked here for ``pybabel extract`` since the device packages declare them in English
+(devices/*/__init__.py, params.py, codec.py) and stay free of translation.
+
+German takes the documents' own words; the comment before each group names its document and section (it goes
+to the catalogs as the entries' note). A word that is a value of one live point carries that point as its
+context: ``open`` of ``Gate state`` is the barrier's, ``open`` of ``Session`` the SCU's remote session's.
+tests/test_i18n_catalog.py walks the tiles of every device type and fails on a text missing here.
+"""
+
+from __future__ import annotations
+
+from app.i18n import N_, NP_
+
+TILE_TEXTS = (
+    # doc: HD-Lock, 000, section 3.1 (input registers 2, 8, 9) and 3.2.1 (LockStatus bits BoltLocked ... ProximityOverrange)
+    N_("HD-Lock"), N_("door: unknown"), N_("bolt locked"), N_("bolt unlocked"), N_("bolt moving"), N_("bolt: unknown"),
+    N_("hall sensors overdriven (magnet)"), N_("bolt {value} Inc"),
+    # doc: CAN-M3IO, 001, sections 7.2.2 (TEMPx), 7.2.3 (Si, Triac, Last) and 7.2.4 (SSR outputs)
+    N_("CAN-M3IO"), N_("outputs on: {list}"), N_("none"), N_("SSR{0} fuse blown"), N_("SSR{0} triac defective"),
+    # doc: Electrak HD, 004, status telegram 0x07: Bewegungs-Flags and Fehler-Flags
+    N_("Electrak HD network"), N_("moving: extending"), N_("moving: retracting"), N_("idle (no controller)"),
+    N_("standing"), N_("waiting for status telegrams"), N_("actuators heard: {value}"), N_("actuators heard: {0}"),
+    N_("actuators configured: {value}"), N_("{value:.1f} of {full:g} mm"),
+    N_("Parameter"), N_("Current overload"), N_("Voltage"), N_("Temperature"), N_("Backdrive"), N_("Message timeout"),
+    N_("Severe fault"), N_("Too few devices"),
+    # doc: MO 64, 003, 5.1.3 tele_schrankenstatus (F_ereignis, LS, Baum ab) and 5.1.12 tele_torzustand
+    N_("Bauer MO 64"), N_("gate: {text}"), N_("gate state: not read yet"), N_("position: {text}"),
+    N_("fault event (F_ereignis)"), N_("light barrier interrupted"), N_("boom off (Baum ab)"), N_("{value} % open"),
+    # doc: Ewellix SCU, 002, section 5 (remote session RO/RC/RA), data 0x0100 (Battery Mains), function F20
+    N_("Ewellix SCU"), N_("remote session: {text}"), N_("remote session: closed"), N_("A1 {text}"),
+    N_("A1: no position yet"), N_("supply: {text}"), N_("EMERGENCY STOP (F20) {text}"), N_("error: {text}"),
+    N_("A1 {value} of {full} counts"),
+)
+
+POINT_WORDS = (
+    # doc: HD-Lock, 000, section 3.1, input register 8 DoorState
+    NP_("DoorState", "Undefined"), NP_("DoorState", "Door open"), NP_("DoorState", "Door closing"),
+    NP_("DoorState", "Door closed"),
+    # doc: HD-Lock, 000, section 3.1, input register 9 StateMachineState
+    NP_("StateMachineState", "Start"), NP_("StateMachineState", "Referencing"), NP_("StateMachineState", "Unlocked"),
+    NP_("StateMachineState", "Locking"), NP_("StateMachineState", "Locked"), NP_("StateMachineState", "Unlocking"),
+    NP_("StateMachineState", "Error locked"), NP_("StateMachineState", "Error locking"),
+    NP_("StateMachineState", "Error locking pause short"), NP_("StateMachineState", "Error locking pause long"),
+    NP_("StateMachineState", "Error locking waiting"), NP_("StateMachineState", "Error unlocked"),
+    NP_("StateMachineState", "Error unlocking"),
+    # doc: MO 64, 003, 5.1.12 tele_torzustand 0x0C (Torzustand Bedeutung)
+    NP_("Gate state", "opening"), NP_("Gate state", "closing"), NP_("Gate state", "pre-warning before opening"),
+    NP_("Gate state", "pre-warning before closing"), NP_("Gate state", "open"), NP_("Gate state", "closed"),
+    NP_("Gate state", "intermediate position"),
+    # doc: Ewellix SCU, 002, section 5: the remote session (RO opens, RC keeps, RA ends it)
+    NP_("Session", "closed"), NP_("Session", "opening"), NP_("Session", "open"), NP_("Session", "lost"),
+    NP_("Session", "released"), N_("Session"),
+    # doc: Ewellix SCU, 002, data ID 0x0100 Battery Mains: bit 0 mains, 1 battery, 2 charge controller, 3 charging
+    NP_("Battery Mains", "mains connected"), NP_("Battery Mains", "battery connected"),
+    NP_("Battery Mains", "charge controller on"), NP_("Battery Mains", "charging active"),
+    # doc: CAN-M3IO, 001, section 7.2.2: readings outside 0-200 °C are out of the measuring range
+    N_("out of range ({0})"),
+    # doc: CAN-M3IO, 001, sections 6.1 (bit rate) and 4 (variants): the module against the plant file
+    N_("bit rate mismatch: module {0} kbit/s, bus {1} kbit/s"),
+    # the MQTT broker's connection as the header shows it (app/mqtt.py)
+    NP_("broker", "connecting"), NP_("broker", "connected"), NP_("broker", "connected: client id taken over"),
+    NP_("broker", "down"), NP_("broker", "stopped"),
+)
