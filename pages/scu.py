@@ -18,7 +18,8 @@ from app import worker as worker_module
 from devices.scu import facts
 from devices.scu import codec
 from devices.scu import params as p
-from devices.scu.adapter import RESTORE_REFUSED, SERVICE_IDS, WATCH_RG, chart_points
+from devices.scu.adapter import SERVICE_IDS, WATCH_RG, chart_points
+from devices.scu.model import VOLATILE
 from pages.device_page import DeviceView, StatusRow, device_page, point_values, titled_card
 from pages.device_page import DrawnCard as ChangedCard
 from pages.frame import fmt_age, fmt_time
@@ -650,8 +651,10 @@ class ServiceCard(DrawnCard):
                 .classes("w-full text-caption")
             self.table.props('dense wrap-cells data-testid=service-table :table-row-class-fn="row => row.quality_class"')
             self.button = ui.button("Read service data (RG)", on_click=self.read).props("outline data-testid=read-service")
-            ui.label("Backup: the Backup page writes a snapshot of identity, counters, conversion factors and user "
-                     f"position data. There is no restore: {RESTORE_REFUSED}.").classes("text-caption text-grey-8")
+            ui.label("Backup: the Backup page writes the settings of the parameter model (remote speeds and positions, "
+                     "with the conversion factors, virtual limits and Safety_ID for reference) and a record of identity, "
+                     "counters and error history. Restore, the project and a batch write the settings back with RT and "
+                     f"read each back with RG; {VOLATILE}.").classes("text-caption text-grey-8")
 
     async def read(self) -> None:
         out = []

@@ -5,9 +5,10 @@ from typing import Any
 
 from devices.registry import DeviceType, TileAlarm, TileBar, TileLine, TileSpec, When
 from devices.scu import codec
+from devices.scu.model import PARAMS
 
 _ACTUATOR_KEYS = {"counts_per_mm", "stroke_mm", "in_counts", "out_counts"}
-_KEYS = {"actuators", "safety_id", "functions", "speed_select"}
+_KEYS = {"actuators", "safety_id", "functions", "speed_select", "serial"}
 
 
 def _number(x: Any) -> bool:
@@ -66,6 +67,10 @@ def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str
     safety = options.get("safety_id", int(codec.DEFAULT_SAFETY_ID))
     if isinstance(safety, bool) or safety not in tuple(codec.SafetyId):
         errors.append(("safety_id", "safety_id must be 0, 1 or 2 (RO, section 4.1; default 1)"))
+    serial = options.get("serial")
+    if serial is not None and (isinstance(serial, bool) or not isinstance(serial, int | str) or serial == ""):
+        errors.append(("serial", "serial = \"...\" or a number: the unit's serial number from its type plate (no data ID "
+                                 "carries it, section 4.3); it names the unit in backups, batches and replacements"))
     for key in sorted(set(options) - _KEYS):
         errors.append((key, f"unknown key '{key}' for an SCU; known: {', '.join(sorted(_KEYS))}"))
     return errors
@@ -91,7 +96,7 @@ DEVICE_TYPE = DeviceType(
     title="Ewellix SCU",
     manufacturer="Ewellix",
     bus_types=("serial",),
-    params=None,
+    params=PARAMS,
     adapters={"serial": "devices.scu.adapter:ScuAdapter"},
     sims={"serial": "devices.scu.sim:ScuSim"},
     check_config=_check_config,

@@ -35,6 +35,8 @@ from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.facts import (  # noqa: F401 - the published names, also read from here by older callers
     CommandError, ControlBusy, ActuatorScale, FunctionMap, P_ACTUATORS, P_CONFIGURATION, P_CONTROL, P_CONTROLLED_BY, P_CRC_RETRIES, P_CYCLIC, P_ESTOP, P_FIRMWARE, P_FUNCTIONS, P_LINE, P_RC_GAP, P_RC_PERIOD, P_REFUSAL, P_RESYNCS, P_RS_PENDING, P_RUNNING, P_SAFETY_ID, P_SCALES, P_SERIAL, P_SESSION, P_SESSION_REASON, P_SINGLE_IDS, P_SKIPPED, P_SPEED, P_WATCH, Refusal, SerialLine, SpeedRange, _STATUS_CODES, _collector, _describe_answer, actuator_scales, answer_length, chart_points, header_offset, value_text, jsonable as _jsonable)
+from devices.scu.model import PARAMS
+from devices.scu.settings import RESTORE_NOTE, ScuSettings
 from devices.scu.control import (ESTOP, NOT_HELD, RS_ATTEMPTS, OpenSession, Outcome, ScuControl, SendEstop, SendRS,
                                  WithholdRC)
 from devices.transport import SerialClosed, SerialLineError, SerialTimeout
@@ -52,13 +54,10 @@ PROBE_ID = 0x0011  # a single data ID every unit answers (section 5 example read
 # with one RG per poll in turn.
 CYCLIC_READ_IDS = (0x0010, 0x0170, 0x00E0, 0x00A0, 0x00D1, 0x0100)
 ROTATING_IDS = (0x00F0, 0x0164, 0x0040, 0x0020, 0x0110, 0x0120, 0x0130, 0x0140, 0x0150, 0x0162, 0x0165, 0x0166,
-                0x0030, 0x00D2, 0x00D3, 0x00D4, 0x00D5)
+                0x0030, 0x00D2, 0x00D3, 0x00D4, 0x00D5, 0x3010, 0x3020)  # 0x3010/0x3020: the settings (drift)
 CYCLIC_INDEX = 0  # RC index 0 = CyclicObj 1 (0x3001)
 # Emergency stop (function 19) is not released by the dead-man rule: RS would end the emergency stop,
 # the unsafe direction. It is released only by an explicit "release emergency stop" (section 4.4, F20).
-RESTORE_REFUSED = ("the SCU accepts writes only to its volatile remote data 0x3xxx, which is lost at reset "
-                   "(document section 4.3, table 7): its configuration cannot be written back over RS232; "
-                   "the snapshot is a record for the commissioning file")
 ERROR_BIT_GROUPS = ((0x00D1, "Error code"), (0x00D2, "Error history 1"), (0x00D3, "Error history 2"),
                     (0x00D4, "Error history 3"), (0x00D5, "Error history 4"))
 REMOTE_SPEED_MAX = 1000  # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s
@@ -73,10 +72,10 @@ SERVICE_IDS = (0x0001, 0x0002, 0x0060, 0x0070, 0x0080, 0x0090, 0x00B0, 0x00C0, 0
 class ScuAdapter:
     """One SCU on a serial line (``type = "scu"`` on a ``type = "serial"`` bus)."""
 
-    params = None
+    params = PARAMS
     transport = "serial"
     backup_available = True
-    restore_refused = RESTORE_REFUSED
+    restore_wear = RESTORE_NOTE  # nothing to save: the remote data are volatile (table 7)
     keepalive_period_s = codec.KEEP_ALIVE_PERIOD_S  # RC interleaved into long operations after this gap
 
     def __init__(self, config, state: DeviceState, line):
@@ -86,6 +85,8 @@ class ScuAdapter:
         options = config.options
         self.safety_id = codec.SafetyId(options.get("safety_id", codec.DEFAULT_SAFETY_ID))
         self.scales = actuator_scales(options)
+        state.params = PARAMS
+        self.settings = ScuSettings(self)  # the parameter model on this line (devices/scu/settings.py)
         self.speed_select = options.get("speed_select", "relative")
         self.speed_max, self.speed_unit = SPEED_LIMITS[self.speed_select]
         # Which actuators each function F1..F10 drives: the unit's parametrisation (section 4.4), which the
@@ -837,6 +838,7 @@ class ScuAdapter:
             except codec.CommandRefused:
                 value = None
             if value is not None:
+                self.settings.note(0x2000 + scale.number, value)
                 lo, hi = value["Position_Virtual_Limit_In"], value["Position_Virtual_Limit_Out"]
                 self.scales[i] = scale.with_ends(lo, hi)
                 self._publish_scales()
@@ -849,6 +851,7 @@ class ScuAdapter:
                         codec.encode_rg(0x1010 + s.number), f"RG 0x{0x1010 + s.number:04X} conversion factor"))
                 except codec.CommandRefused:
                     continue
+                self.settings.note(0x1010 + s.number, factor)
                 self.state.publish(f"A{s.number} conversion factor", factor, "counts/mm", periodic=False)
                 if isinstance(factor, float) and math.isfinite(factor) and factor > 0:
                     self.scales[i] = ActuatorScale(s.number, factor, None, s.in_counts, s.out_counts)
@@ -1024,6 +1027,7 @@ class ScuAdapter:
         entry = p.DIRECTORY.get(data_id)
         if entry is None:
             return
+        self.settings.note(data_id, x, now)
         n = entry.actuator
         if n is not None and n > len(self.scales):
             return
@@ -1336,6 +1340,7 @@ class ScuAdapter:
 
     def _publish_remote(self, data_id: int, value: Any) -> None:
         entry = p.item(data_id)
+        self.settings.note(data_id, value)
         if entry.function is not None:
             self.state.publish(f"F{entry.function} remote speed", value, "% or counts/s", periodic=False)
         elif entry.actuator is not None:
@@ -1428,27 +1433,18 @@ class ScuAdapter:
         self._publish_ids({data_id: value})
         return result
 
-    # -- backup (a snapshot for the record; no restore) -----------------------------------------------
+    # -- parameter model: backup, restore, project, batch, drift (devices/scu/settings.py) -------------------
     async def backup_read(self, progress=None) -> list[dict]:
-        ids = list(SERVICE_IDS) + [0x2000 + s.number for s in self.scales] + [0x00D0]
-        entries = []
-        for k, data_id in enumerate(ids, 1):
-            result = await self.read_data(data_id)
-            value = result["value"]
-            entries.append({"key": result["key"], "name": result["name"], "value": _jsonable(value),
-                            "text": result["text"], "unit": result["unit"], "raw": result["raw"], "writable": False})
-            if progress:
-                progress(k / len(ids))
-        return entries
+        return await self.settings.backup_read(progress)
 
     def backup_identity(self) -> dict:
-        pts = self.state.points
-        return {"firmware": getattr(pts.get("Firmware info"), "value", None),
-                "configuration": getattr(pts.get("Configuration info"), "value", None),
-                "actuators": len(self.scales), "port": self.port, "baudrate": self.baudrate}
+        return self.settings.identity()
 
-    async def restore_entry(self, key: str, raw: Any) -> None:
-        raise CommandError(f"no restore: {RESTORE_REFUSED}")
+    async def read_param(self, param) -> int:
+        return await self.settings.read_param(param)
 
-    async def save_step(self) -> str:
-        raise CommandError(f"no save step: {RESTORE_REFUSED}")
+    async def write_param(self, param, value, *, confirmed: bool = False) -> int:
+        return await self.settings.write(param, value, confirmed=confirmed)
+
+    async def save_step(self) -> None:
+        return None  # remote data are volatile (table 7): there is nothing to save them with

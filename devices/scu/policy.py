@@ -12,8 +12,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from devices.commands import Arg, Command, CommandError
+from devices.commands import Arg, Command, CommandError, param_write
 from devices.scu import codec
+from devices.scu.model import PARAMS
 
 TITLE = "Ewellix SCU"
 
@@ -101,6 +102,9 @@ COMMANDS = (
     Command("set remote position", "write", method="set_remote_target", session=True, needs_control=True,
             args=(Arg("actuator", 1, 6), Arg("value", -(2 ** 31), 2 ** 31 - 1, integer=False)), flags=("mm",),
             audit=_position_audit),
+    # the parameter model's settings (remote speeds and positions, devices/scu/model.py): restore, project, batch and
+    # the API; the adapter opens the session for it and refuses it while a function runs (devices/scu/settings.py)
+    param_write(PARAMS),
     # -- the session --------------------------------------------------------------------------------------------------
     Command("take control", "system", method="take_control", session=True, extras=("user",)),
     Command("open remote session", "system", method="reopen", session=True),

@@ -138,8 +138,9 @@ def _actuator_configs(option: Any) -> list[dict]:
 class ScuTwin:
     """The unit's state and its answers; :meth:`handle` takes one item of a request splitter."""
 
-    def __init__(self, name: str = "scu", actuators: Any = 2, safety_id: int = 1):
+    def __init__(self, name: str = "scu", actuators: Any = 2, safety_id: int = 1, speed_select: str = "relative"):
         self.name = name
+        self.speed_select = speed_select  # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s
         self.configured_safety_id = safety_id
         self.actuators: list[ActuatorTwin] = []
         for n, cfg in enumerate(_actuator_configs(actuators), 1):
@@ -163,9 +164,7 @@ class ScuTwin:
             self.actuators.append(act)
         self.user = 1
         # remote data (table 7): volatile, defaults after reset
-        self.cyclic: list[tuple[int, ...]] = [(params.NO_DATA_ID,) * 12 for _ in codec.CYCLIC_OBJECT_IDS]
-        self.remote_speed = [DEFAULT_REMOTE_SPEED] * params.FUNCTIONS
-        self.remote_position = [a.user_positions["Position_Memory_1[USER_1]"] for a in self.actuators]
+        self.reset_remote_data()
         # session
         self.remote = False
         self.safety_id: int | None = None
@@ -205,6 +204,10 @@ class ScuTwin:
         self.ignores_watchdog = False  # a broken unit: no RC for 500 ms stops nothing (the checkout must see it)
         self.stray_bytes = 0  # the next N answers come with a stray byte in front (a noisy line)
         self.split_answers = False  # answers come in two pieces with a pause between (inter-byte gap)
+        # data IDs the unit's parametrisation does not have (a function or actuator it was not configured with): RG
+        # and RT of them, and of a group holding one, answer PDE ("Fehler in den Telegramm-Datenbytes", section 4.2)
+        self.refused_ids: set[int] = set()
+        self.resets = 0
         self.keys = 0  # Actual_State_Keys (0x0040)
         self.function_log: list[tuple[str, int]] = []  # (RE/RS, fnc_ID) in the order executed
         self.function_times: list[float] = []  # monotonic time of each function_log entry
@@ -216,6 +219,30 @@ class ScuTwin:
         self.re_without_rs = 0
         self.answers = 0
         self.requests: dict[str, int] = {}
+
+    def reset_remote_data(self) -> None:
+        """Remote data back to their defaults, as after a reset (table 7: "In flüchtigen Registern gespeichert.
+        Initialisiert nach Reset mit voreingestellten Werten")."""
+        self.cyclic: list[tuple[int, ...]] = [(params.NO_DATA_ID,) * 12 for _ in codec.CYCLIC_OBJECT_IDS]
+        self.remote_speed = [DEFAULT_REMOTE_SPEED] * params.FUNCTIONS
+        self.remote_position = [a.user_positions["Position_Memory_1[USER_1]"] for a in self.actuators]
+
+    def reset(self) -> None:
+        """A reset of the unit (power cycle): every motion stops, remote mode ends, the remote data are back at
+        their defaults (table 7): what a real unit does that a twin kept running would hide."""
+        now = time.monotonic()
+        for act in self.actuators:
+            act.stop()
+        if self.remote:
+            self._end_session(now, "reset")
+        self.emergency_stop = False
+        self.reset_remote_data()
+        self.resets += 1
+
+    def _refused(self, data_id: int) -> bool:
+        entry = params.DIRECTORY.get(data_id)
+        members = entry.members if entry is not None and entry.is_group else ()
+        return data_id in self.refused_ids or any(m in self.refused_ids for m in members)
 
     # -- demo controls ----------------------------------------------------------------------------
     def controls(self) -> SimControls:
@@ -232,8 +259,10 @@ class ScuTwin:
                       testid="on-battery"),
             SimAction("line dropped", "Line dropped (no answers)", self.drop_line, state=lambda: self.line_dropped,
                       testid="line-dropped"),
+            SimAction("reset", "Reset the unit", self.reset, icon="restart_alt", testid="reset-unit"),
         ), note="Load raises the current of a moving actuator (above 12 A it trips); an actuator error stops it fast "
-                "and sets its error bit; a dropped line ends remote mode within 500 ms.")
+                "and sets its error bit; a dropped line ends remote mode within 500 ms; a reset ends remote mode and "
+                "sets the remote speeds and positions back to their defaults (volatile, table 7).")
 
     def add_load(self, actuator: int, amps: float) -> None:
         """Add ``amps`` of load current to actuator 1..6 while it moves (negative removes load)."""
@@ -443,7 +472,7 @@ class ScuTwin:
     def write(self, data_id: int, data: bytes) -> int:
         """RT / RC write data to remote data ``data_id``; returns the answer code."""
         entry = params.DIRECTORY.get(data_id)
-        if entry is None or not entry.writable:
+        if entry is None or not entry.writable or self._refused(data_id):
             return Status.PDE  # "Nur data_Ids 3xxx sind erlaubt" (table 3), and only those of table 7
         if len(data) != entry.size:
             return Status.PCE
@@ -457,12 +486,14 @@ class ScuTwin:
                 return Status.PDE
             self.cyclic[data_id - 0x3001] = tuple(value)
         elif entry.function is not None:
-            if value > 100:
-                return Status.PDE  # speed select relative: 0 .. 100 % (table 7)
+            if value > (100 if self.speed_select == "relative" else 1000):
+                return Status.PDE  # speed select relative: 0 .. 100 %, absolute: 0 .. 1000 counts/s (table 7)
             self.remote_speed[entry.function - 1] = value
         elif entry.actuator is not None:
-            self.remote_position[entry.actuator - 1] = value
             act = self._act(entry.actuator)
+            if act is None:
+                return Status.PDE  # no such actuator on this unit
+            self.remote_position[entry.actuator - 1] = value
             if act and act.moving and act.motion == Motion.REMOTE_POSITION:  # a moving remote target follows
                 target = self._target(act, Motion.REMOTE_POSITION)
                 direction = (target > act.position) - (target < act.position)
@@ -537,7 +568,7 @@ class ScuTwin:
 
     def _rg(self, req: codec.Request) -> bytes:
         entry = params.DIRECTORY.get(req.data_id)
-        if entry is None or (self.single_ids_only and entry.is_group):
+        if entry is None or (self.single_ids_only and entry.is_group) or self._refused(req.data_id):
             return _answer(codec.RG, Status.PDE)
         return codec.encode_answer(codec.RG, Status.ACK, self.read(req.data_id))
 
@@ -635,7 +666,8 @@ class ScuSim:
         self.bus = bus
         self.device = dev
         self.twin = ScuTwin(dev.name, dev.options.get("actuators", 2),
-                            int(dev.options.get("safety_id", codec.DEFAULT_SAFETY_ID)))
+                            int(dev.options.get("safety_id", codec.DEFAULT_SAFETY_ID)),
+                            dev.options.get("speed_select", "relative"))
         self.twins: dict[str, ScuTwin] = {dev.name: self.twin}
         self.baudrate = int(bus.options.get("baudrate", codec.DEFAULT_BAUDRATE))
         self.wire_delay = bool(bus.options.get("wire_delay"))

@@ -1,0 +1,207 @@
+"""The SCU's parameter model (devices/scu/model.py) and its paths through app/: backup with names and units,
+restore, the offline project and `commission check`, batch apply with identity gates, drift and the replacement
+assistant, each against the twin (two simulated units on their own RS232 lines); the twin's strict modes for what a
+real unit does differently (refused data IDs, a reset that loses the volatile remote data)."""
+
+from __future__ import annotations
+
+import asyncio
+
+import pytest
+from conftest import wait_for
+from plants import SCU_ACTUATORS, bus, device, free_port, plant, plant_text
+
+from app import backup, batch, project, replace
+from app.plant import parse_plant
+from app.gate import PermissionDenied
+from app.runtime import Runtime
+from devices.commands import WRITE_PARAMETER
+from devices.params import Access
+from devices.scu.model import PARAMS, SAFETY_ID, SETTINGS, params_for
+
+pytestmark = pytest.mark.timeout(60)
+
+SPEED_F1 = PARAMS.by_name["Remote Speed F1"]
+SPEED_F2 = PARAMS.by_name["Remote Speed F2"]
+POSITION_A1 = PARAMS.by_name["Remote Position A1"]
+
+
+# -- the model (pure) ----------------------------------------------------------------------------------------------
+def test_the_model_names_the_writable_remote_data_as_settings_and_the_rest_read_only():
+    assert len(PARAMS.params) == 35  # 10 speeds, 6 positions, 6 factors, 12 virtual limits, Safety_ID
+    assert [q.name for q in SETTINGS] == [f"Remote Speed F{n}" for n in range(1, 11)] + [
+        f"Remote Position A{n}" for n in range(1, 7)]
+    assert SPEED_F1.key == "data:12305" and SPEED_F1.unit == "% or counts/s" and SPEED_F1.limits() == (0, 1000)
+    assert POSITION_A1.writable and POSITION_A1.setting and POSITION_A1.limits() == (-(2 ** 31), 2 ** 31 - 1)
+    assert POSITION_A1.display(POSITION_A1.validate(-250)) == "-250 counts"
+    factor = PARAMS.by_name["Conversion factor A1"]
+    assert factor.access is Access.RO and not factor.setting and factor.display(factor.encode(12.5)) == "12.5 counts/mm"
+    limit = PARAMS.by_name["Position_Virtual_Limit_Out A2"]
+    assert limit.key == "limit_out:8194" and not limit.writable
+    assert not SAFETY_ID.writable and SAFETY_ID.display(2) == "stop remote (2)"
+    assert all("0x3001" not in q.description for q in PARAMS)  # the cyclic objects are the tool's own, no setting
+    with pytest.raises(ValueError, match="outside 0 .. 1000"):
+        SPEED_F1.validate(1001)
+    with pytest.raises(ValueError, match="cannot be written"):
+        factor.validate(10)
+    assert len(params_for(2)) == 10 + 2 * 4 + 1  # the speeds of every function, the values of two actuators
+
+
+# -- against the twin ------------------------------------------------------------------------------------------------
+def _unit(name: str, bus_name: str, **options) -> str:
+    """A simulated SCU with two actuators on an RS232 line of its own (``options``: the device's)."""
+    return bus(bus_name, "serial", device(name, "scu", bus_name, actuators=list(SCU_ACTUATORS), **options),
+               port=f"socket://127.0.0.1:{free_port()}", timeout=0.3, poll_period=0.2, simulate=True)
+
+
+def _two_units(project_a: str = "") -> str:
+    a = _unit("lift-a", "rs-a", serial="A-1001")
+    if project_a:
+        a = a.replace('serial = "A-1001"', f'serial = "A-1001"\nproject = {{ {project_a} }}')
+    return plant_text(a, _unit("lift-b", "rs-b", serial="B-1002"), name="lifts")
+
+
+@pytest.fixture
+async def lifts(tmp_path):
+    path = tmp_path / "plant.toml"
+    path.write_text(_two_units('"Remote Speed F1" = 60'))
+    from app.plant import load_plant
+
+    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
+    await runtime.start()
+    for name in ("lift-a", "lift-b"):
+        assert await wait_for(lambda n=name: runtime.store.devices[n].status == "online", timeout=10), name
+    try:
+        yield runtime
+    finally:
+        await asyncio.wait_for(runtime.stop(), 5)
+
+
+async def test_backup_names_every_value_and_restore_writes_the_settings_back_read_back(lifts, tmp_path):
+    runtime = lifts
+    twin = runtime.twins["lift-a"]
+    document = backup.load_document((await backup.backup_device(runtime, "lift-a", tmp_path)).read_bytes())
+    entries = {e["key"]: e for e in document["parameters"]}
+    assert {k: entries["data:12305"][k] for k in ("name", "raw", "text", "writable", "setting")} == {
+        "name": "Remote Speed F1", "raw": 100, "text": "100 % or counts/s", "writable": True, "setting": True}
+    assert entries["data:4113"]["name"] == "Conversion factor A1" and not entries["data:4113"]["writable"]
+    assert entries["limit_out:8194"]["text"] == "3750 counts"  # A2: 300 mm stroke at 12.5 counts/mm
+    assert entries["session:0"]["text"] == "stop all (1)"
+    assert "data:12323" not in entries  # A3 is not configured on this unit
+    assert entries["0x0001"]["text"].startswith("SCU V2B3")  # the record entries stay, never written
+    assert document["identity"]["serial"] == "A-1001"
+
+    adapter = runtime.worker.adapters["lift-a"]
+    await runtime.worker.command("lift-a", lambda a: a.write_param(SPEED_F2, 40), user="anna", describe="write")
+    await runtime.worker.command("lift-a", lambda a: a.write_param(POSITION_A1, 1234), user="anna", describe="write")
+    assert twin.remote_speed[1] == 40 and twin.remote_position[0] == 1234
+    assert adapter.state.raw(SPEED_F2) == 40 and adapter.state.raw(POSITION_A1) == 1234
+
+    plan = await backup.plan_restore(runtime, "lift-a", document)
+    changed = {r.name: (r.current_text, r.backup_text) for r in plan.rows if r.changed}
+    assert changed == {"Remote Speed F2": ("40 % or counts/s", "100 % or counts/s"),
+                       "Remote Position A1": ("1234 counts", "600 counts")}
+    assert not plan.warnings and {r.name for r in plan.rows} == {q.name for q in params_for(2) if q.setting}
+    report = await backup.execute_restore(runtime, plan, {r.key for r in plan.rows}, user="anna", role="engineer")
+    assert report.ok and sorted(report.written) == ["Remote Position A1", "Remote Speed F2"], report.summary()
+    assert report.saved is None  # volatile remote data: nothing to save (table 7)
+    assert twin.remote_speed[1] == 100 and twin.remote_position[0] == 600  # Memory 1 of User 1
+    rows = await runtime.audit.aquery(limit=20)
+    assert any(r.action == "restore" and r.parameter == "Remote Speed F2" and r.new == "100 % or counts/s" for r in rows)
+
+
+async def test_a_write_is_refused_beyond_the_speed_select_while_a_function_runs_and_for_a_refused_data_id(lifts):
+    runtime = lifts
+    twin, adapter = runtime.twins["lift-a"], runtime.worker.adapters["lift-a"]
+    with pytest.raises(Exception, match="above 100 %: the unit's speed select is relative"):
+        await adapter.write_param(SPEED_F1, 500)
+    assert twin.remote_speed[0] == 100
+    # a function runs: a remote speed would change its motion (section 4.6)
+    async def beat():  # the browser of s1 is alive (the worker's dead-man supervisor)
+        while True:
+            runtime.worker.heartbeat("s1")
+            await asyncio.sleep(0.1)
+
+    beating = asyncio.create_task(beat())
+    try:
+        await runtime.worker.invoke("lift-a", "take control", session="s1", user="anna", role="engineer")
+        await runtime.worker.invoke("lift-a", "jog (RE)", {"function": 0, "direction": 1, "ramp": 1}, session="s1",
+                                    user="anna", role="engineer")
+        with pytest.raises(Exception, match="F1 .* runs or its stop is owed"):
+            await adapter.write_param(SPEED_F1, 50)
+        await runtime.worker.invoke("lift-a", "jog stop (RS)", {"function": 0}, session="s1", user="anna", role="engineer")
+        await runtime.worker.invoke("lift-a", "release control", session="s1", user="anna", role="engineer")
+    finally:
+        beating.cancel()
+    assert twin.remote_speed[0] == 100
+    # strict mode: the unit's parametrisation has no F2 (its remote speed answers PDE)
+    twin.refused_ids = {0x3012}
+    with pytest.raises(Exception, match="PDE"):
+        await adapter.write_param(SPEED_F2, 50)
+    entries = {e["key"] for e in await adapter.backup_read()}  # the group read refused: member by member
+    assert SPEED_F1.key in entries and SPEED_F2.key not in entries
+    assert adapter.settings.refused[SPEED_F2.key] == "PDE: the unit refuses RG 0x3012"
+
+
+async def test_project_check_and_the_page_diff_apply_per_row(lifts, tmp_path):
+    runtime = lifts
+    twin = runtime.twins["lift-a"]
+    assert project.check_plant(runtime.plant) == []
+    [entry] = project.entries(runtime.plant, "lift-a")
+    assert (entry.name, entry.param.key, entry.error) == ("Remote Speed F1", "data:12305", "")
+    wrong = parse_plant(_two_units('"Remote Speed F1" = 1200, "Conversion factor A1" = 10'))
+    problems = " ".join(project.check_plant(wrong))
+    assert "outside 0 .. 1000" in problems and "Conversion factor A1" in problems
+    assert [p.name for p in project.editable(runtime.plant, "lift-b")] == [q.name for q in SETTINGS]
+
+    plan = await backup.plan_restore(runtime, "lift-a", project.document(runtime, "lift-a"))
+    [row] = [r for r in plan.rows if r.changed]
+    assert (row.name, row.current_text, row.backup_text) == ("Remote Speed F1", "100 % or counts/s", "60 % or counts/s")
+    report = await backup.execute_restore(runtime, plan, {row.key}, user="anna", role="engineer")
+    assert report.ok and twin.remote_speed[0] == 60
+
+
+async def test_batch_sets_one_setting_on_both_units_and_reports_each(lifts, tmp_path):
+    runtime = lifts
+    adapter = runtime.worker.adapters["lift-a"]
+    await adapter.write_param(SPEED_F2, 35)
+    plan = await batch.plan_batch(runtime, ["lift-a", "lift-b"], "device:lift-a")
+    assert plan.ready, [d.error for d in plan.devices]
+    assert [(d.device, [r.name for r in d.changed]) for d in plan.devices] == [
+        ("lift-a", []), ("lift-b", ["Remote Speed F2"])]
+    assert all(d.check.ok for d in plan.devices)
+    results = await batch.apply_batch(runtime, plan, user="anna", role="engineer")
+    assert [(r.device, r.status) for r in results] == [("lift-a", batch.UNCHANGED), ("lift-b", batch.WRITTEN)]
+    assert runtime.twins["lift-b"].remote_speed[1] == 35
+
+
+async def test_drift_after_a_reset_and_the_replacement_assistant_writes_the_approved_set_back(lifts):
+    runtime = lifts
+    twin, state = runtime.twins["lift-a"], runtime.store.devices["lift-a"]
+    await runtime.worker.adapters["lift-a"].write_param(SPEED_F2, 55)
+    await runtime.record.approve("lift-a", user="anna", role="engineer")
+    assert state.drift == {"approved": True, "changed": []}
+    twin.reset()  # the unit's remote data are back at their defaults (table 7): the poll's reads in turn see it
+    assert await wait_for(lambda: state.drift["changed"], 15)
+    assert state.drift["changed"] == [{"key": "data:12306", "name": "Remote Speed F2", "approved": "55 % or counts/s",
+                                       "now": "100 % or counts/s"}]
+    rp = await replace.plan_replacement(runtime, "lift-a")
+    assert rp.check.ok and [r.name for r in rp.plan.rows if r.changed] == ["Remote Speed F2"]
+    report = await replace.execute_replacement(runtime, rp, {r.key for r in rp.plan.rows if r.changed}, user="anna",
+                                               role="engineer")
+    assert report.ok and twin.remote_speed[1] == 55
+    assert await wait_for(lambda: not state.drift["changed"], 15)
+
+
+async def test_the_declared_write_goes_through_the_gate_for_a_viewer_it_is_refused(lifts):
+    runtime = lifts
+    with pytest.raises(PermissionDenied):
+        await runtime.worker.invoke("lift-a", WRITE_PARAMETER, {"param": SPEED_F1.key, "value": 20}, user="tab",
+                                    role="viewer")
+    await runtime.worker.invoke("lift-a", WRITE_PARAMETER, {"param": SPEED_F1.key, "value": 20}, user="anna",
+                                role="engineer")
+    assert runtime.twins["lift-a"].remote_speed[0] == 20
+
+
+def test_serial_is_a_known_key():
+    assert plant(_unit("lift", "rs1", serial=7)).devices["lift"].options["serial"] == 7
