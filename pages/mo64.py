@@ -11,10 +11,13 @@ import html
 
 from nicegui import ui
 
+from app.project import allowed
 from app.state import LiveValue
 from devices.mo64 import adapter as facts
 from devices.mo64 import codec
 from devices.mo64.adapter import COMMAND_NAMES
+from devices.commands import WRITE_PARAMETER
+from devices.mo64.params import PARAMS, Mo64Param
 from devices.mo64.policy import EEPROM_RISK, operation_name, setting_name
 from pages.device_page import (
     DeviceCard,
@@ -71,6 +74,10 @@ LEGEND = ("Funk = radio code received; BT = open input; LS = light barrier inter
           "Hover a lamp for its meaning.")
 TIME_KEYS = ("t_open", "t_prewarn_open", "t_prewarn_close")
 INT_KEYS = ("maintenance_interval", "vehicle_counter")
+PIECE_KEYS = ("multi_relays", "config_flags")  # settings of several named pieces: a table and one entry, and raw
+PIECES = tuple(p for p in PARAMS if p.writable and p.setting_key in PIECE_KEYS)
+PIECE_COLUMNS = [{"name": k, "label": label, "field": k, "align": "left"} for k, label in
+                 (("name", "Setting"), ("value", "Value"), ("allowed", "Allowed"))]
 SETTING_POINTS = {"t_open": "Open time", "t_prewarn_open": "Pre-warning before opening",
                   "t_prewarn_close": "Pre-warning before closing", "change_monitoring": "Change monitoring",
                   "status_mask": "Status mask", "multi_relays": "Multi-relay modes",
@@ -325,20 +332,25 @@ class ErrorMemoryCard(DeviceCard):
 
 
 class SettingsCard(DeviceCard):
-    """Settings (chapter 5.2.4-5.2.8): each with its value, an entry in its range and Write; change monitoring."""
+    """Settings (chapter 5.2.4-5.2.8) by the parameter model (devices/mo64/params.py): each named setting with its
+    value, an entry in its range or of its named choices and Write (the declared "write parameter": a flag that
+    switches a safety function off asks a question naming it); the whole relay modes and configuration words raw;
+    change monitoring."""
 
     view: Mo64View
 
     def __init__(self, view: Mo64View):
         super().__init__(view)
-        self.values: dict[str, tuple] = {}
+        self.values: dict[str, ValueLine] = {}
+        self.pieces: ui.table | None = None
 
     def build(self) -> None:
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-4"):
                 ui.label("Settings (chapter 5.2.4-5.2.8)").classes("text-subtitle1")
                 self.writes = ui.label().classes("text-body2").props("data-testid=eeprom-writes")
-            ui.label(EEPROM_WARNING + " Busy means the motor runs: try again when it stands.").classes("text-caption text-warning")
+            ui.label(EEPROM_WARNING + " Busy means the motor runs: try again when it stands. A setting is read from "
+                     "the barrier, the one value changed, written whole and read back.").classes("text-caption text-warning")
             with ui.row().classes("items-center gap-2"):
                 ui.label("Change monitoring (TCP: changes are sent by the barrier, polling slows down):").classes("text-body2")
                 self.guard.add(ui.button("On", on_click=lambda: self.monitoring(True)).props("outline dense data-testid=monitoring-on"),
@@ -346,39 +358,84 @@ class SettingsCard(DeviceCard):
                 self.mon = ui.label().classes("text-body2").props("data-testid=monitoring")
             with ui.grid(columns=3).classes("w-full gap-x-4 items-center") \
                     .style("grid-template-columns: minmax(120px, 220px) minmax(0, 1fr) 300px; row-gap: 28px"):  # room for each entry's range
-                for key, setting in codec.SETTINGS.items():
-                    if key != "change_monitoring":
-                        self._row(key, setting)
+                for param in PARAMS:
+                    if param.writable and param.setting_key not in PIECE_KEYS and param.setting_key != "change_monitoring":
+                        self._param_row(param)
+                for key in PIECE_KEYS:
+                    self._raw_row(key, codec.SETTINGS[key])
+            ui.label("Relay modes and configuration flags by name (chapter 5.1.24, 5.1.25)").classes("text-subtitle2")
+            self.pieces = ui.table(columns=PIECE_COLUMNS, rows=[], row_key="key").classes("w-full text-caption") \
+                .props("dense flat wrap-cells data-testid=setting-pieces")
+            self.pieces.add_slot("body-cell-name", '<q-td :props="props" :title="props.row.description" '
+                                                   'style="cursor: help">{{ props.value }}</q-td>')
+            with ui.row().classes("items-center gap-2"):
+                self.piece = ui.select({p.key: p.name for p in PIECES}, label="setting", with_input=True,
+                                       on_change=lambda e: self._chosen(e.value)).classes("w-96") \
+                    .props("dense outlined data-testid=piece-param")
+                self.piece_value = ui.input("value or choice").classes("w-64") \
+                    .props("dense outlined data-testid=piece-value")
+                self.guard.add(ui.button("Write", on_click=self.write_piece).props("outline dense data-testid=piece-write"))
 
-    def _row(self, key: str, setting: codec.Setting) -> None:
-        ui.label(setting.name + (" (assumed selector)" if setting.assumed else "")).classes("text-body2")
+    def _chosen(self, key: str | None) -> None:
+        param = PARAMS.by_key.get(key or "")
+        self.piece_value.props(f'hint="{html.escape(allowed(param))}"' if param is not None else 'hint=""')
+
+    async def write_piece(self) -> None:
+        param = PARAMS.by_key.get(self.piece.value or "")
+        if param is None:
+            self.piece.error = "choose a setting first"
+            return
+        self.piece.error = None
+        await self.write_param(param, self.piece_value)
+
+    def _param_row(self, param: Mo64Param) -> None:
+        notes = [n for n in ("assumed selector" if param.selector_assumed else "",
+                             "assumed bit position" if param.assumed and not param.selector_assumed else "") if n]
+        ui.label(param.name + (f" ({', '.join(notes)})" if notes else "")).classes("text-body2") \
+            .props(f'title="{html.escape(param.description + (" Assumption: " + param.assumed if param.assumed else ""))}"')
+        self.values[param.key] = _value_line("mono text-body2")
+        with ui.row().classes("items-center gap-1 no-wrap"):
+            low, high = param.limits()
+            if param.scale != 1:
+                field = range_number("seconds", low, high, unit=param.unit, step=param.scale).classes("w-40")
+            elif param.fields:
+                field = ui.input("number (0x.. allowed)", validation=lambda text, p=param: _number_problem(p, text)) \
+                    .classes("w-48").props("dense outlined")
+            else:
+                field = _whole_number("value", int(low), int(high)).classes("w-48")
+            field.props(f"data-testid=entry-{param.space}")
+            self.guard.add(ui.button("Write", on_click=lambda p=param, f=field: self.write_param(p, f))
+                           .props(f"outline dense data-testid=write-{param.space}"))
+
+    def _raw_row(self, key: str, setting: codec.Setting) -> None:
+        ui.label(setting.name).classes("text-body2")
         self.values[key] = _value_line("mono text-body2")
         with ui.row().classes("items-center gap-1 no-wrap"):
-            if key in TIME_KEYS:
-                low, high = _limits(key)
-                field = range_number("seconds", low * codec.TIME_STEP_S, high * codec.TIME_STEP_S, unit="s",
-                                     step=0.01).classes("w-40")
-            elif key in INT_KEYS:
-                low, high = _limits(key)
-                field = _whole_number("value", low, high).classes("w-48")
-            else:
-                field = ui.input("raw (as shown, e.g. 0x0 or 1,0,0,0,0,0)",
-                                 validation=lambda text, k=key: _raw_problem(k, text)).classes("w-48") \
-                    .props("dense outlined")
-            field.props(f"data-testid=entry-{key}")
+            field = ui.input("raw (as shown, e.g. 1,0,0,0,0,0)",
+                             validation=lambda text, k=key: _raw_problem(k, text)).classes("w-48") \
+                .props(f"dense outlined data-testid=entry-{key}")
             self.guard.add(ui.button("Write", on_click=lambda k=key, f=field: self.write(k, f))
                            .props(f"outline dense data-testid=write-{key}"))
+
+    async def write_param(self, param: Mo64Param, field) -> None:
+        """One named setting through the declared write: the gate asks what the model names (a safety flag by its
+        name, an assumed selector) and the page's session counts the EEPROM write."""
+        value = await _param_value(self.view.name, param, field)
+        if value is None:
+            return
+        shown = param.display(param.validate(value))
+        await self.view.act(WRITE_PARAMETER, {"param": param.key, "value": value},
+                            success=f"{param.name} = {shown} written and read back",
+                            title=f"Write {param.name} = {shown}?", ok="Write anyway", parameter=param.name, new=shown)
 
     async def write(self, key: str, field) -> None:
         setting = codec.SETTINGS[key]
         value = await _entry_value(self.view.name, key, field)
         if value is None:
             return
-        args: dict = codec.setting_to_fields(key, value)
-        if setting.assumed and key not in self.view.fact(facts.P_VERIFIED, ()):
-            # the engineer states it by confirming the declared risk, which says so
-            args["selector_verified"] = True
-        await self.view.act(setting_name(key), args, success=f"{setting.name} written and read back")
+        # the declared "set ..." asks the EEPROM wear and names every safety flag this value switches off
+        await self.view.act(setting_name(key), codec.setting_to_fields(key, value),
+                            success=f"{setting.name} written and read back")
 
     async def monitoring(self, on: bool) -> None:
         await self.view.act("change monitoring", {"on": int(on)}, success="change monitoring " + ("on" if on else "off"))
@@ -388,9 +445,23 @@ class SettingsCard(DeviceCard):
         if self.unchanged(view.inputs(SETTINGS_INPUTS), lambda: view.qualities(SETTING_POINTS.values())):
             return
         aging = False
+        state = view.state
         for key, line in self.values.items():
-            aging = _show_line(line, view.text(SETTING_POINTS[key]), view.live(SETTING_POINTS[key])) or aging
+            param = PARAMS.by_key.get(key)
+            if param is None:
+                aging = _show_line(line, view.text(SETTING_POINTS[key]), view.live(SETTING_POINTS[key])) or aging
+                continue
+            raw = state.raw(param)
+            point = SETTING_POINTS.get(param.setting_key)
+            aging = _show_line(line, "-" if raw is None else param.display(raw),
+                               view.live(point) if point else None) or aging
         self.aging = aging
+        rows = [{"key": p.key, "name": p.name + (" (assumed bit position)" if p.assumed else ""),
+                 "value": "-" if (raw := state.raw(p)) is None else p.display(raw), "allowed": allowed(p),
+                 "description": p.description} for p in PIECES]
+        if self.pieces is not None and rows != self.pieces.rows:
+            self.pieces.rows = rows
+            self.pieces.update()
         writes = view.fact(facts.P_EEPROM)
         mine, total = (0, 0) if writes is None else (writes.of(view.session), writes.total)
         self.writes.set_text(f"EEPROM writes this session: {mine} (all sessions: {total})")
@@ -448,6 +519,32 @@ def _whole_number(label: str, low: int, high: int) -> ui.number:
     field.props(f'hint="{rule}" dense outlined')
     field.rule = rule  # type: ignore[attr-defined]
     return field
+
+
+def _number_problem(param: Mo64Param, text: str | None) -> str | None:
+    if not (text or "").strip():
+        return None
+    try:
+        param.validate(text.strip())
+    except ValueError as exc:
+        return str(exc)
+    return None
+
+
+async def _param_value(device: str, param: Mo64Param, field):
+    """The value of a named setting's entry as the model takes it, or None: the entry keeps what was typed, marked
+    with the reason, and the refusal is audited; nothing is sent."""
+    if isinstance(field, ui.number):
+        value = await checked_value(field, device, f"write {param.name}", parameter=param.name)
+        return None if value is None else (value if param.scale != 1 else int(value))
+    value = field.value
+    problem = "enter a value first" if not (value or "").strip() else _number_problem(param, value)
+    if problem:
+        field.error = problem
+        await refuse(device, f"write {param.name}", f"{value!r}: {problem}", parameter=param.name, new=value or "")
+        return None
+    field.error = None
+    return param.decode(param.validate(value.strip()))
 
 
 def _limits(key: str) -> tuple[int, int]:
