@@ -75,6 +75,8 @@ class Mo64Param(Param):
             value = int(self.decode(raw))
             name = self.names.get(value)
             return f"{name} ({value})" if name else f"mode {value} (not named in the summary)"
+        if self.scale != 1:
+            return f"{self.decode(raw):g} {self.unit}"  # 12.5 s, 10 s (not 10.0 s)
         return super().display(raw)
 
 
