@@ -1,0 +1,101 @@
+"""The language of a browser and of the command line, numbers and times per language, and the plant view's device
+words in German (issue 47)."""
+
+from __future__ import annotations
+
+import pytest
+
+from app import cli, i18n
+from pages.plant_view import operator_words, state_words
+
+DE, EN = i18n.get("de"), i18n.get("en")
+
+
+@pytest.mark.parametrize("header, code", [
+    ("de-DE,de;q=0.9,en;q=0.8", "de"),
+    ("en-US,en;q=0.9,de;q=0.8", "en"),
+    ("fr-FR, de;q=0.5, en;q=0.4", "de"),
+    ("fr-FR", "en"),
+    ("", "en"),
+    (None, "en"),
+    ("de;q=0, en", "en"),
+    ("DE-at", "de"),
+])
+def test_the_browser_language_follows_accept_language(header, code):
+    assert i18n.accept_language(header) == code
+
+
+@pytest.mark.parametrize("argv, environ, code", [
+    (["--lang", "de"], {}, "de"),
+    (["--lang=de", "sim"], {"LANG": "en_US.UTF-8"}, "de"),
+    (["--lang", "en"], {"LANG": "de_DE.UTF-8"}, "en"),
+    ([], {"LANG": "de_DE.UTF-8"}, "de"),
+    ([], {"LANG": "C.UTF-8"}, "en"),
+    ([], {"LANGUAGE": "fr:de", "LANG": "fr_FR.UTF-8"}, "de"),
+    ([], {"LC_ALL": "en_GB.UTF-8", "LANG": "de_DE.UTF-8"}, "en"),
+    ([], {}, "en"),
+])
+def test_the_command_line_follows_lang_and_its_option(argv, environ, code):
+    assert i18n.cli_language(argv, environ) == code
+
+
+def test_numbers_and_times_are_written_the_languages_way():
+    assert DE.number(1234.5, 1) == "1.234,5" and EN.number(1234.5, 1) == "1,234.5"
+    assert DE.number(21.5) == "21,5" and DE.number(3) == "3"
+    assert "{v:.1f} of {f:g} mm".format(v=DE.value(12.25), f=DE.value(300)) == "12,2 of 300 mm"
+    assert "{v:.2f}|{v}|{n}|{n:d}".format(v=DE.value(0.5), n=DE.value(1500)) == "0,50|0,5|1.500|1.500"
+    assert DE.value(0.5) == 0.5 and DE.value(3) + 1 == 4  # still numbers for a tile's conditions and bars
+    assert DE.age(5) == "vor 5 s" and EN.age(5) == "5 s ago" and DE.age(9000) == "vor 2,5 h"
+    assert DE.clock(0).count(":") == 2 and len(DE.clock(0)) == 8
+    assert DE.numbers_in("T1 21.5 °C, 192.168.1.1, V1.2") == "T1 21,5 °C, 192.168.1.1, V1.2"
+
+
+def test_device_words_in_german_keep_their_value_for_the_tiles_conditions():
+    entry = {"value": "closed", "text": "closed", "name": None, "unit": "", "quality": "good", "time": 0.0}
+    words = operator_words(entry, DE, "Gate state")
+    assert words["value"] == "closed" and words["text"].startswith("clos")  # conditions compare the device's word
+    assert "gate: {text}".format(**words) == "gate: Schranke ist geschlossen"
+    assert "{text}".format(**operator_words(dict(entry, value="open", text="open"), DE, "Session")) == "aktiv"
+    temp = {"value": 21.5, "text": "21.5 °C", "name": None, "unit": "°C", "quality": "good", "time": 0.0}
+    assert "{text}".format(**operator_words(temp, DE, "TEMP1")) == "21,5 °C"
+    hot = dict(temp, value=None, text="out of range (250.3)")
+    assert "{text}".format(**operator_words(hot, DE, "TEMP1")) == "Messbereichsüberschreitung (250,3)"
+    supply = {"value": 7, "text": "0x7: mains connected, battery connected, charge controller on", "name": None}
+    assert "{text}".format(**operator_words(supply, DE, "Battery Mains")) == \
+        "Netz angeschlossen, Akku angeschlossen, Laderegler ein"
+    assert DE.phrase("SSR3 fuse blown") == "SSR3: Sicherung (Si) defekt"
+    assert EN.phrase("SSR3 fuse blown") == "SSR3 fuse (Sicherung, Si) blown"  # the document's term beside it
+    assert not DE.missing
+
+
+def test_a_tiles_state_in_german():
+    assert state_words("offline", [], None, DE)[1:] == ("OFFLINE", "nie gehört")
+    assert state_words("stale", [], 63.0, DE)[1:] == ("VERALTET", "zuletzt gehört vor 63 s")
+    assert state_words("good", ["x"], 0.0, DE)[:2] == ("fault", "STÖRUNG")
+    assert state_words("stale", [], 63.0)[1:] == ("STALE", "last heard 63 s ago")  # English without a language
+
+
+def test_the_command_line_help_in_german(capsys):
+    try:
+        assert cli.main(["--lang", "de", "--help"]) == 0
+    except SystemExit as exit_:
+        assert exit_.code == 0
+    finally:
+        cli.set_language("en")
+    out = capsys.readouterr().out
+    assert out.startswith("Aufruf: commission")
+    for words in ("Optionen:", "Beispiele:", "diese Hilfe zeigen und beenden", "Anlagendatei (Vorgabe: die eingebaute Demo-Anlage)",
+                  "Sprache der Meldungen und dieser Hilfe"):
+        assert words in out
+    for english in ("usage:", "options:", "examples:", "show this help message", "plant file (default"):
+        assert english not in out
+    assert cli.build_parser().format_help().startswith("usage: commission")  # the language was set back
+
+
+def test_the_command_lines_messages_in_german(capsys, tmp_path):
+    try:
+        assert cli.main(["--lang", "de", "--host", "0.0.0.0", "--data-dir", str(tmp_path)]) == 2
+    finally:
+        cli.set_language("en")
+    err = capsys.readouterr().err
+    assert "lausche nicht auf 0.0.0.0" in err and "commission user add NAME --role engineer" in err
