@@ -1,0 +1,158 @@
+"""MO 64 settings on the parameter model, on every path against the twins: the project's difference on the device
+page applied per row, restore with names and the question a safety flag names, batch apply to two barriers on one
+RS485 line (each reported), drift of a changed setting in /api/devices, and the page's question when force
+monitoring is cleared (NiceGUI's simulated user)."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+
+import pytest
+from nicegui.testing.user_interaction import UserInteraction
+from plants import device, mo64_rs485, mo64_tcp, plant_text
+from test_backup_page import emit
+from test_project_page import _card_table, _dialog_button
+from webutil import by_testid, eventually, simulated_user
+
+from app import backup, batch, project
+from app.plant import load_plant, parse_plant
+from app.runtime import Runtime
+from devices.mo64.params import KRAFT_RISK, PARAMS
+
+pytestmark = pytest.mark.timeout(60)
+KRAFT = PARAMS.by_name["Kraftüberwachung"]
+T_OPEN = PARAMS.by_name["t_offen"]
+
+
+def _force_bits(twin) -> int:
+    return twin.settings["config_flags"]["konfig2"] >> 11 & 0b11
+
+
+async def _online(runtime: Runtime, *names: str) -> None:
+    for name in names:
+        await eventually(lambda n=name: runtime.store.devices[n].status == "online"
+                         and runtime.store.devices[n].raw(KRAFT) is not None, timeout=15, what=f"{name} read")
+
+
+def _changed(document: dict, **values) -> dict:
+    """``document`` with the entries named (by the model's name) set to ``values`` (decoded), as a file holds them."""
+    for entry in document["parameters"]:
+        param = PARAMS.by_key.get(entry["key"])
+        if param is not None and param.name in values:
+            raw = param.validate(values[param.name])
+            entry.update(value=param.decode(raw), raw=raw, text=param.display(raw))
+    return document
+
+
+async def test_the_project_differs_on_the_device_page_and_is_applied_per_row(tmp_path):
+    path = tmp_path / "plant.toml"
+    path.write_text(plant_text(mo64_tcp("gate", device_options={"project": {"t_offen": 12.5}}), name="gates"))
+    bad = parse_plant(plant_text(mo64_tcp("gate", device_options={"project": {"t_offen": 700, "multi7": 1}})))
+    problems = project.check_plant(bad)  # commission check: without the device
+    assert any("t_offen: 700 is outside 0 .. 655" in p for p in problems), problems
+    assert any("unknown parameter 'multi7'" in p for p in problems), problems
+    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
+    async with simulated_user(runtime) as user:
+        await _online(runtime, "gate")
+        twin = runtime.twins["gate"]
+        await user.open("/device/gate")
+        await user.should_see("1 of 1 project entry differs from the device", retries=100)
+        table = _card_table(user)
+        assert [(r["name"], r["backup"], r["current"], r["changed"]) for r in table.rows] == [
+            ("t_offen", "12.5 s", "10 s", True)]
+        emit(table, "apply", "t_open:0")
+        await user.should_see("Write t_offen = 12.5 s to gate?")
+        _dialog_button(user, "Write").click()
+        await user.should_see("device and project agree (1 project entry)", retries=100)
+        assert twin.settings["t_open"] == 1250 and twin.setting_writes == {"t_open": 1}  # written and read back
+        rows = await runtime.audit.aquery(limit=50)
+        assert any(r.device == "gate" and r.action == "restore" and r.parameter == "t_offen" for r in rows)
+
+
+async def test_restore_names_each_setting_and_asks_before_force_monitoring_is_cleared(tmp_path):
+    runtime = Runtime(parse_plant(plant_text(mo64_tcp("gate"))), simulate=True, data_dir=tmp_path / "data")
+    await runtime.start()
+    try:
+        await _online(runtime, "gate")
+        twin = runtime.twins["gate"]
+        path = await backup.backup_device(runtime, "gate")
+        document = _changed(json.loads(path.read_text()), Kraftüberwachung="ohne", t_offen=12)
+        plan = await backup.plan_restore(runtime, "gate", document)
+        changed = {r.name: r for r in plan.rows if r.changed}
+        assert set(changed) == {"Kraftüberwachung", "t_offen"}
+        assert (changed["Kraftüberwachung"].current_text, changed["Kraftüberwachung"].backup_text) == (
+            "Stopp und öffnen (1)", "ohne (0)")
+        assert KRAFT_RISK in changed["Kraftüberwachung"].risk and not changed["t_offen"].risk
+        keys = {r.key for r in changed.values()}
+        report = await backup.execute_restore(runtime, plan, keys, user="anna", role="engineer")
+        assert report.written == ["t_offen"] and [n for n, _ in report.refused] == ["Kraftüberwachung"]
+        assert "Kraftüberwachung" in report.refused[0][1] and _force_bits(twin) == 1  # not written
+        plan = await backup.plan_restore(runtime, "gate", document)
+        report = await backup.execute_restore(runtime, plan, {KRAFT.key}, user="anna", role="engineer",
+                                              confirmed={KRAFT.key})
+        assert report.ok and report.written == ["Kraftüberwachung"], report.summary()
+        assert _force_bits(twin) == 0 and twin.settings["t_open"] == 1200
+    finally:
+        await asyncio.wait_for(runtime.stop(), 15)
+
+
+async def test_a_batch_sets_one_setting_on_both_rs485_barriers_and_asks_for_force_monitoring(tmp_path):
+    text = plant_text(mo64_rs485(device("out-1", "mo64", "gates-485", address=16, travel_s=0.6),
+                                 device("out-2", "mo64", "gates-485", address=17, travel_s=0.6)))
+    runtime = Runtime(parse_plant(text), simulate=True, data_dir=tmp_path / "data")
+    await runtime.start()
+    try:
+        await _online(runtime, "out-1", "out-2")
+        path = await backup.backup_device(runtime, "out-1")
+        source = tmp_path / "set.json"
+        source.write_text(json.dumps(_changed(json.loads(path.read_text()), t_offen=12.5)))
+        plan = await batch.plan_batch(runtime, ["out-1", "out-2"], str(source))
+        assert plan.ready, [d.error for d in plan.devices]
+        assert [[r.name for r in d.changed] for d in plan.devices] == [["t_offen"], ["t_offen"]]
+        seen = []
+        results = await batch.apply_batch(runtime, plan, user="anna", role="engineer", on_device=seen.append)
+        assert [(r.device, r.status) for r in results] == [("out-1", "written"), ("out-2", "written")]
+        assert seen == results and all("1 written" in r.text for r in results)
+        assert all(runtime.twins[n].settings["t_open"] == 1250 for n in ("out-1", "out-2"))
+
+        source.write_text(json.dumps(_changed(json.loads(path.read_text()), t_offen=12.5, Kraftüberwachung="ohne")))
+        plan = await batch.plan_batch(runtime, ["out-1", "out-2"], str(source))
+        rows = [r for d in plan.devices for r in d.changed]
+        assert [r.name for r in rows] == ["Kraftüberwachung", "Kraftüberwachung"] and all(KRAFT_RISK in r.risk for r in rows)
+        results = await batch.apply_batch(runtime, plan, user="anna", role="engineer")
+        assert [r.status for r in results] == ["failed", "skipped"] and "Kraftüberwachung" in results[0].text
+        assert _force_bits(runtime.twins["out-1"]) == 1
+        plan = await batch.plan_batch(runtime, ["out-1", "out-2"], str(source))
+        results = await batch.apply_batch(runtime, plan, user="anna", role="engineer", confirmed={"Kraftüberwachung"})
+        assert [r.status for r in results] == ["written", "written"]
+        assert all(_force_bits(runtime.twins[n]) == 0 for n in ("out-1", "out-2"))
+    finally:
+        await asyncio.wait_for(runtime.stop(), 15)
+
+
+async def test_drift_of_a_changed_setting_and_the_page_asks_before_force_monitoring_is_cleared(tmp_path):
+    runtime = Runtime(parse_plant(plant_text(mo64_tcp("gate"))), simulate=True, data_dir=tmp_path / "data")
+    async with simulated_user(runtime) as user:
+        await _online(runtime, "gate")
+        state, twin = runtime.store.devices["gate"], runtime.twins["gate"]
+        await runtime.record.approve("gate", user="anna", role="engineer")
+
+        async def drift() -> dict:
+            return next(d for d in (await user.http_client.get("/api/devices")).json() if d["name"] == "gate")["drift"]
+        assert (await drift()) == {"approved": True, "changed": []}
+        await runtime.worker.command("gate", lambda a: a.write_param(T_OPEN, 12.5), user="anna", describe="write")
+        await eventually(lambda: state.drift["changed"], timeout=5, what="drift")
+        assert (await drift())["changed"] == [{"key": "t_open:0", "name": "t_offen", "approved": "10 s", "now": "12.5 s"}]
+
+        await user.open("/device/gate")
+        await eventually(lambda: by_testid(user, "piece-write").enabled, timeout=10, what="Write enabled")
+        by_testid(user, "piece-param").value = KRAFT.key
+        by_testid(user, "piece-value").value = "ohne"
+        UserInteraction(user, {by_testid(user, "piece-write")}, None).click()
+        await user.should_see("Kraftüberwachung (force monitoring) = ohne switches the force monitoring off")
+        assert _force_bits(twin) == 1  # asked first, nothing sent
+        _dialog_button(user, "Write anyway").click()
+        await eventually(lambda: _force_bits(twin) == 0, timeout=10, what="force monitoring off in the barrier")
+        await eventually(lambda: any(r["key"] == KRAFT.key for r in state.drift["changed"]), timeout=5,
+                         what="drift of the flag")
