@@ -252,7 +252,7 @@ class Runtime:
         self.store = StateStore()
         self.sim = SimulatedPlant(plant) if simulate else None
         self.worker = Worker(plant, self.store, audit=self.audit)
-        self.worker.after_change = self.keep_unsaved_now  # reminders durable before a write is reported done
+        self.worker.after_change = self.after_change  # reminders and kept options durable before a write is reported done
         self.worker.role_of = self.role_of  # the gate asks the account store at every action
         self._unsaved_path = self.data_dir / UNSAVED_FILE
         self._unsaved_lock = asyncio.Lock()
@@ -318,6 +318,30 @@ class Runtime:
                 state.unsaved.update(str(k) for k in keys)
                 state.event("warning", f"{len(keys)} parameter(s) written in an earlier session are not saved in the device yet")
         return self._unsaved_now()
+
+    async def after_change(self) -> None:
+        """After every change the worker ran: the unsaved-change reminders and the device options an adapter keeps
+        in the plant file (an M3IO's P2, ``plant_options()``) onto disk."""
+        await self.keep_unsaved_now()
+        await self.keep_plant_options()
+
+    async def keep_plant_options(self) -> None:
+        """What an adapter says the plant file should hold (``plant_options()``), kept there (app.plant.keep_device_options)."""
+        from app.plant import PlantError, keep_device_options
+
+        for name, adapter in list(self.worker.adapters.items()):
+            wanted = getattr(adapter, "plant_options", None)
+            if not callable(wanted) or name not in self.plant.devices:
+                continue
+            state = self.store.devices.get(name)
+            try:
+                done = await asyncio.to_thread(keep_device_options, self.plant, name, wanted())
+            except (OSError, PlantError) as exc:
+                done = ""
+                if state is not None:
+                    state.event("error", f"the plant file could not keep {wanted()}: {exc}")
+            if done and state is not None:
+                state.event("info", done)
 
     async def keep_unsaved_now(self) -> None:
         """The unsaved-change reminders on disk now, if they changed (in a thread): the worker awaits this

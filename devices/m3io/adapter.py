@@ -362,7 +362,7 @@ class M3ioAdapter(ModuleSettings):
         elif (self.variant is Variant.HMR and self.ids.addressed and self.served and not self._p2_checked
               and now >= self._verify_after):
             await self._verify_p2()
-        elif self.ids.addressed and self.product_code is not None:
+        if self.ids.addressed and self.product_code is not None:
             await self._read_settings_once()
 
     async def _verify_p2(self) -> None:
