@@ -1,0 +1,125 @@
+"""The plant view and the login in German (issue 47), with NiceGUI's simulated user against twins on a real Modbus
+RTU line: no text of the English catalog on the page, numbers and Quasar's components in German, and the
+header's switch keeps a browser's language."""
+
+from __future__ import annotations
+
+import contextlib
+import re
+from html import unescape
+from pathlib import Path
+
+import pytest
+from babel.messages.pofile import read_po
+from nicegui import ui
+from plants import modbus_plant
+from webutil import eventually, simulated_user
+
+from app import i18n
+from app.runtime import Runtime
+from app.users import UserStore
+
+pytestmark = pytest.mark.timeout(60)
+
+LOCALE = Path(__file__).resolve().parent.parent / "locale"
+GERMAN = "de-DE,de;q=0.9,en;q=0.5"
+TAG = re.compile(r"<[^>]+>")
+
+
+def english_patterns() -> list[tuple[str, re.Pattern]]:
+    """Every English text of the catalog whose German differs, as a pattern of a whole shown text (a field
+    ``{...}`` stands for anything); texts of 12 or more letters without fields are also looked for inside texts."""
+    with open(LOCALE / "de" / "LC_MESSAGES" / "messages.po", "rb") as f:
+        german = read_po(f)
+    patterns = []
+    for message in german:
+        if not message.id or message.string == message.id or not i18n.has_words(message.id):
+            continue
+        parts = re.split(r"\{[^{}]*\}", message.id.strip())
+        whole = ".+?".join(re.escape(part) for part in parts)
+        patterns.append((message.id, re.compile(whole if len(parts) > 1 or len(message.id) < 12 else f".*{whole}.*", re.S)))
+    return patterns
+
+
+def shown_texts(user) -> list[str]:
+    """Every text the page shows or says: labels, HTML, buttons', inputs' and toggles' labels, tooltips, ARIA labels."""
+    texts = []
+    for element in user.client.elements.values():
+        if not element.visible:
+            continue
+        for text in (getattr(element, "text", None), element.props.get("label"), element.props.get("aria-label"),
+                     element.props.get("title")):
+            if isinstance(text, str) and text.strip():
+                texts.append(text.strip())
+        content = getattr(element, "content", None)
+        if isinstance(content, str) and content.strip():
+            texts += [piece.strip() for piece in unescape(TAG.sub("\n", content)).split("\n") if piece.strip()]
+    return texts
+
+
+def english_on(user) -> list[tuple[str, str]]:
+    patterns = english_patterns()
+    return [(text, message) for text in shown_texts(user) for message, pattern in patterns if pattern.fullmatch(text)]
+
+
+@contextlib.asynccontextmanager
+async def german_user(runtime: Runtime):
+    async with simulated_user(runtime) as user:
+        user.http_client.headers["Accept-Language"] = GERMAN
+        yield user
+
+
+def lock_plant():
+    return modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
+
+
+async def test_the_plant_view_in_german_shows_no_english(tmp_path):
+    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await eventually(lambda: all(s.status == "online" for s in runtime.store.devices.values()), timeout=15,
+                         what="both locks online")
+        await user.open("/plant")
+        await user.should_see("Anlage plant", retries=50)
+        await user.should_see("Tür geöffnet", retries=100)  # the twins' doors start open, bolt in
+        await user.should_see("Bolzen eingefahren (entriegelt)")
+        await user.should_see("Bolzen 0 % ausgefahren")
+        assert user.client.page.resolve_language() == "de-DE"  # Quasar's own components in German too
+        assert english_on(user) == []
+        assert not i18n.get("de").missing, i18n.get("de").missing
+
+
+async def test_the_login_in_german_shows_no_english(tmp_path):
+    store = UserStore(tmp_path / "users.toml")
+    store.add("anna", "engineer", "correct horse")
+    runtime = Runtime(modbus_plant(locks=(("door-1", 1),)), simulate=True, data_dir=tmp_path, auth_required=True)
+    async with german_user(runtime) as user:
+        await user.open("/login")
+        await user.should_see("Anmelden")
+        await user.should_see("Anlage plant")
+        assert english_on(user) == []
+        user.find(kind=ui.input, content="Benutzer").type("anna")
+        user.find(kind=ui.input, content="Passwort").type("wrong horse")
+        user.find(kind=ui.button, content="Anmelden").click()
+        await user.should_see("Falscher Benutzername oder falsches Passwort", retries=100)  # argon2 on a loaded machine
+        assert english_on(user) == []
+        user.find(kind=ui.input, content="Passwort").type("correct horse")
+        user.find(kind=ui.button, content="Anmelden").click()
+        await user.should_see("Übersicht", retries=100)  # the header's link, in German as the login
+
+
+async def test_the_switch_keeps_the_browsers_language(tmp_path):
+    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await user.open("/plant")
+        await user.should_see("Anlage plant")
+        switch = next(e for e in user.client.elements.values() if e.props.get("data-testid") == "language")
+        assert switch.value == "de"
+        switch.set_value("en")  # the browser chooses English: kept in its storage, whatever it accepts
+        await user.open("/plant")
+        await user.should_see("Plant plant")
+        assert user.client.page.resolve_language() == "en-GB"
+        assert english_on(user), "the English page is seen as English (the check of the German pages sees)"
+        await user.open("/")
+        await user.should_see("Plant view")  # every page's header follows the choice
+        switch = next(e for e in user.client.elements.values() if e.props.get("data-testid") == "language")
+        assert switch.value == "en"
