@@ -19,7 +19,7 @@ from devices.scu import facts
 from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.adapter import SERVICE_IDS, WATCH_RG, chart_points
-from devices.scu.model import VOLATILE
+from devices.scu.model import LIMIT_FIELDS, SESSION, VOLATILE, params_for
 from pages.device_page import DeviceView, StatusRow, device_page, point_values, titled_card
 from pages.device_page import DrawnCard as ChangedCard
 from pages.frame import fmt_age, fmt_time
@@ -639,6 +639,56 @@ class DirectoryCard(DrawnCard):
         gate(self.button, _read_gate(self.view, access))
 
 
+class SettingsCard(DrawnCard):
+    """The parameter model (devices/scu/model.py) as the unit answered it: the settings (remote speeds and positions,
+    written with RT and read back with RG by restore, the project and a batch) and, for reference, the read-only
+    values of its configuration and the plant file."""
+
+    view: ScuView
+
+    def build(self) -> None:
+        self.params = params_for(len(self.view.scales))
+        self.keys = [(q.space, a) for q in self.params for a in q.addresses]
+        with titled_card("Settings (parameter model)"):
+            columns = [{"name": k, "label": label, "field": k, "align": "left"}
+                       for k, label in (("id", "Data ID"), ("name", "Name"), ("value", "Value"), ("kind", "Kind"),
+                                        ("read", "Read"))]
+            self.table = ui.table(columns=columns, rows=[], row_key="key").classes("w-full text-caption")
+            self.table.props("dense wrap-cells data-testid=settings-table")
+            self.button = ui.button("Read settings (RG)", on_click=self.read).props("outline data-testid=read-settings")
+            ui.label("Remote speeds and positions are the settings: a backup lists them with their names and units, and "
+                     "restore, the project and a batch write them with RT and read each back with RG, refused while a "
+                     f"function runs; {VOLATILE}. Conversion factors and virtual limits are the unit's configuration "
+                     "(RT writes only data IDs 3xxx, table 3); the Safety_ID is the plant file's.").classes(
+                "text-caption text-grey-8")
+
+    async def read(self) -> None:
+        await self.view.act("read parameters")
+
+    @staticmethod
+    def _id(q) -> str:
+        if q.space == SESSION:
+            return "RO"
+        return f"0x{q.address:04X}" + (f" {LIMIT_FIELDS[q.space]}" if q.space in LIMIT_FIELDS else "")
+
+    def inputs(self, access: Access) -> tuple:
+        registers = self.view.state.registers
+        return access, tuple(None if (e := registers.get(k)) is None else e for k in self.keys)
+
+    def draw(self, access: Access) -> None:
+        gate(self.button, _read_gate(self.view, access))
+        state = self.view.state
+        rows = []
+        for q in self.params:
+            raw = state.raw(q)
+            read = state.read_time(q)
+            rows.append({"key": q.key, "id": self._id(q), "name": q.name, "value": "-" if raw is None else q.display(raw),
+                         "kind": "setting" if q.setting else "read-only", "read": "-" if read is None else fmt_time(read)})
+        if rows != self.table.rows:
+            self.table.rows = rows
+            self.table.update()
+
+
 class ServiceCard(DrawnCard):
     """The service data read on demand, each row with the time of its reading."""
 
@@ -695,7 +745,7 @@ def content(name: str) -> None:
     with device_page(view, f"Ewellix SCU {name}", stop=stop):
         view.guard = WriteGuard(view.state)  # why write and motion-start controls are off while the unit does not answer
         for card in (EstopCard(view), SessionCard(view), PositionsCard(view), StatusCard(view), SupplyCard(view), ErrorsCard(view),
-                     DriveCard(view), FunctionsCard(view), DirectoryCard(view), ServiceCard(view)):
+                     DriveCard(view), FunctionsCard(view), SettingsCard(view), DirectoryCard(view), ServiceCard(view)):
             view.add(card)
         sim_card(name)  # the twin's declared controls, in simulation only
 

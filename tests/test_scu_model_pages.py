@@ -66,6 +66,17 @@ async def test_project_difference_applied_per_row_on_the_page_and_drift_on_the_o
         assert any(r.device == "lift-a" and r.action == "restore" and r.parameter == "Remote Speed F1" for r in rows)
 
         # drift: approved as it is, then the unit is reset (its remote data are volatile, table 7)
+        # the model on the page: settings and the read-only values, as the unit answered them
+        user.find(kind=ui.button, content="Read settings (RG)").click()
+        settings = next(e for e in user.client.elements.values()
+                        if isinstance(e, ui.table) and e.props.get("data-testid") == "settings-table")
+        await eventually(lambda: any(r["value"] == "12.5 counts/mm" for r in settings.rows), timeout=10)
+        rows = {r["name"]: r for r in settings.rows}
+        assert (rows["Remote Speed F1"]["id"], rows["Remote Speed F1"]["value"], rows["Remote Speed F1"]["kind"]) == (
+            "0x3011", "60 % or counts/s", "setting")
+        assert rows["Conversion factor A2"]["kind"] == "read-only" and rows["Safety_ID"]["value"] == "stop all (1)"
+        assert rows["Position_Virtual_Limit_Out A2"]["id"] == "0x2002 Position_Virtual_Limit_Out"
+
         await runtime.record.approve("lift-a", user="anna", role="engineer")
         api = await user.http_client.get("/api/devices")
         assert next(d for d in api.json() if d["name"] == "lift-a")["drift"] == {"approved": True, "changed": []}
