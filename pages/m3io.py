@@ -15,6 +15,8 @@ from app.worker import DEADMAN_BOUND_S
 from devices.m3io import adapter as facts
 from devices.m3io import codec
 from devices.m3io.codec import Variant
+from devices.m3io.params import P2_PARAM, RECORD_PARAMS
+from devices.commands import WRITE_PARAMETER
 from pages.device_page import DeviceView, StatusRow, device_page, point_values, titled_card
 from pages.device_page import DrawnCard as ChangedCard
 from pages.frame import fmt_age
@@ -184,13 +186,19 @@ class OutputsCard(DrawnCard):
                 with ui.row().classes("items-center"):
                     self.p2 = ui.switch("Three-phase output loaded on two phases only (P2)", on_change=self.set_p2)
                     self.guard.add(self.p2)
-                    ui.label("not stored in the module: sent with every DigOut, so a reset cannot lose it").classes(
+                    ui.label("not stored in the module: sent with every DigOut period, so a reset cannot lose it, and "
+                             "kept in the plant file (p2), so a restart does not assume three phases").classes(
                         "text-caption text-grey-8")
                 self.p2_check = ui.label().classes("text-caption").props("data-testid=p2-check")
 
     async def set_p2(self, event) -> None:
-        if bool(event.value) != bool(self.view.fact(facts.P_P2)):
-            await self.view.act("P2", {"on": int(bool(event.value))})
+        """The model's write of P2 (on asks what it switches off, devices/m3io/params.py); back if refused."""
+        if bool(event.value) == bool(self.view.fact(facts.P_P2)):
+            return
+        ok, _ = await self.view.act(WRITE_PARAMETER, {"param": P2_PARAM.key, "value": int(bool(event.value))},
+                                    title="Switch P2 on?" if event.value else "", ok="Switch P2 on")
+        if not ok:
+            event.sender.set_value(bool(self.view.fact(facts.P_P2)))
 
     def draw(self) -> bool:
         view = self.view
@@ -343,7 +351,7 @@ class AddressedCard(DrawnCard):
     """Addressed mode (SW1 switch 8 on, 7.2.4.2): identity, the 15 customer-data records, the actual load data."""
 
     view: M3ioView
-    POINTS = (facts.P_IDENTITY, *(f"SSR{i} load data" for i in range(1, 7)))
+    POINTS = (facts.P_IDENTITY, *(f"SSR{i} load data" for i in range(1, 7)), *(p.name for p in RECORD_PARAMS))
 
     def build(self) -> None:
         with titled_card("Addressed data (SW1 switch 8 on)"):
@@ -361,6 +369,11 @@ class AddressedCard(DrawnCard):
                 self.record = ui.label().classes("mono")
                 self.guard.add(ui.button("Read", on_click=self.read_record).props("outline dense"),
                                ui.button("Write", on_click=self.write_record).props("dense data-testid=record-write"))
+            # the records as last read (the parameter model's values: projects, backups and drift compare these)
+            with ui.element("div").classes("mono text-body2").style(
+                    "display: grid; grid-template-columns: repeat(auto-fill, minmax(13rem, 1fr)); gap: 0 16px").props(
+                    "data-testid=records"):
+                self.records = [ui.label() for _ in RECORD_PARAMS]
             ui.separator()
             self.loads = ui.label().classes("text-body2 mono")
             self.guard.add(ui.button("Read actual load data SSR1-6", on_click=lambda: self.view.act("read load data"))
@@ -393,6 +406,9 @@ class AddressedCard(DrawnCard):
         view = self.view
         identity = view.live(facts.P_IDENTITY)
         self.identity.set_text("not read" if identity is None else identity.shown)
+        for label, param in zip(self.records, RECORD_PARAMS):
+            raw = view.state.raw(param)
+            label.set_text(f"{param.address:>2}: {'not read' if raw is None else param.display(raw)}")
         loads = [(i, view.live(f"SSR{i} load data")) for i in range(1, 7)]
         self.loads.set_text(" · ".join(f"SSR{i}: {v.shown}" for i, v in loads if v is not None and v.value is not None))
 
