@@ -242,6 +242,8 @@ class GlanceRow:
         self.name = name
         self.state = rt.current().store.devices[name]
         self._shown: tuple = ()
+        self.rank = RANK_OTHER  # where the row goes in the table: alarms and offline devices first (:func:`rank_of`)
+        self.alarmed = False
         self.row = ui.html("", sanitize=False, tag="tr").props(f'data-glance="{name}"')
         self.refresh()
 
@@ -253,6 +255,8 @@ class GlanceRow:
         rows = drift_rows(s)
         replaced = replaced_text(s)
         unsaved = unsaved_text(s)
+        self.alarmed = bool(alarms)
+        self.rank = rank_of(status, bool(alarms), bool(rows or replaced or unsaved))
         shown = (status, "; ".join(alarms), fmt_age(age) if age is not None else "never", drift_text(rows), replaced, unsaved)
         if shown == self._shown:
             return
@@ -272,16 +276,102 @@ class GlanceRow:
         self.row.classes(replace=f"glance-{status}")
 
 
-def _glance_table(runtime, rows: list) -> None:
-    """Every device in one dense table (state, alarms, age of its last value): the plant at a glance."""
-    with ui.card().classes("glance q-pa-sm").props("data-testid=glance"):
-        ui.label(f"All devices ({len(runtime.plant.devices)})").classes("text-subtitle2")
-        with ui.element("table").classes("glance-table"):
-            ui.html("<tr><th>Device</th><th>State</th><th>Alarms</th><th>Last value</th></tr>", sanitize=False,
-                    tag="thead")
-            with ui.element("tbody"):
-                for dev in runtime.plant.devices.values():
-                    rows.append(GlanceRow(dev.name))
+RANK_ATTENTION, RANK_MARKED, RANK_OTHER = 0, 1, 2
+LARGE_PLANT = 24  # devices: from here on the overview offers filters and draws a bus's tiles when it is opened
+STATE_FILTERS = {"": "Every state", "attention": "Alarm, offline or stale", "alarms": "With alarms",
+                 "offline": "Offline", "stale": "Stale", "online": "Online"}
+
+
+def rank_of(status: str, alarmed: bool, marked: bool) -> int:
+    """A device's place in the table: alarms and offline first, then stale or changed ones, then the rest."""
+    if alarmed or status == "offline":
+        return RANK_ATTENTION
+    if status == "stale" or marked:
+        return RANK_MARKED
+    return RANK_OTHER
+
+
+class OverviewFilter:
+    """What the overview lists: a bus, a device type and a state, each "" for all (large plants only; a small
+    plant lists everything). The table's rows, the bus sections and their tiles follow it on the page's tick."""
+
+    def __init__(self, runtime) -> None:
+        self.runtime = runtime
+        self.bus = self.type = self.state = ""
+
+    def matches(self, name: str, row: GlanceRow | None) -> bool:
+        dev = self.runtime.plant.devices[name]
+        if (self.bus and dev.bus != self.bus) or (self.type and dev.type != self.type):
+            return False
+        if not self.state or row is None:
+            return True
+        status = row.state.status
+        if self.state == "attention":
+            return row.rank == RANK_ATTENTION or status == "stale"
+        if self.state == "alarms":
+            return row.alarmed
+        return status == self.state
+
+
+class GlanceTable:
+    """Every device in one dense table (state, alarms, age of its last value): the plant at a glance, alarms and
+    offline devices first. A row is one element; the order is sent again only when a device's rank changed."""
+
+    def __init__(self, runtime, followers: Followers, filt: OverviewFilter, large: bool):
+        self.runtime = runtime
+        self.filter = filt
+        self.rows: dict[str, GlanceRow] = {}
+        self.shown_count = None
+        with ui.card().classes("glance q-pa-sm").props("data-testid=glance"):
+            total = len(runtime.plant.devices)
+            self.title = ui.label(f"All devices ({total})").classes("text-subtitle2")
+            if large:
+                self._filters(runtime)
+            with ui.element("table").classes("glance-table"):
+                ui.html("<tr><th>Device</th><th>State</th><th>Alarms</th><th>Last value</th></tr>", sanitize=False,
+                        tag="thead")
+                with ui.element("tbody") as self.body:
+                    for dev in runtime.plant.devices.values():
+                        self.rows[dev.name] = row = GlanceRow(dev.name)
+                        followers.add(row)
+        self.order = list(self.rows)
+        self.arrange()
+
+    def _filters(self, runtime) -> None:
+        buses = {"": "Every bus"} | {b: b for b in runtime.plant.buses}
+        present = sorted({d.type for d in runtime.plant.devices.values()})
+        types = {"": "Every type"} | {t: DEVICE_TYPES[t].title for t in present}
+        with ui.row().classes("items-center gap-1 w-full no-wrap").props("data-testid=overview-filters"):
+            for attr, options, testid in (("bus", buses, "filter-bus"), ("type", types, "filter-type"),
+                                          ("state", STATE_FILTERS, "filter-state")):
+                ui.select(options, value="", on_change=lambda e, a=attr: self.set_filter(a, e.value or "")).props(
+                    f"dense options-dense outlined data-testid={testid}").classes("col")
+
+    def set_filter(self, attr: str, value: str) -> None:
+        setattr(self.filter, attr, value)
+        self.arrange()
+        if self.on_filter is not None:
+            self.on_filter()
+
+    on_filter = None  # the bus sections' visibility, set by the page
+
+    def arrange(self) -> None:
+        """Alarms and offline first, in plant order within a rank; rows outside the filter hidden."""
+        place = {name: i for i, name in enumerate(self.rows)}
+        order = sorted(place, key=lambda n: (self.rows[n].rank, place[n]))
+        if order != self.order:
+            self.order = order
+            self.body.default_slot.children[:] = [self.rows[n].row for n in order]
+            self.body.update()
+        shown = 0
+        for name, row in self.rows.items():
+            visible = self.filter.matches(name, row)
+            row.row.set_visibility(visible)
+            shown += visible
+        if shown != self.shown_count:
+            self.shown_count = shown
+            total = len(self.rows)
+            self.title.set_text(f"All devices ({total})" if shown == total else f"{shown} of {total} devices")
 
 
 def content() -> None:
@@ -290,14 +380,16 @@ def content() -> None:
         ui.add_css(TILE_CSS)
         followers = Followers()
         ticks: list = []  # the bus lines and discovery lists: one timer for the page, not one per bus
+        large = len(runtime.plant.devices) > LARGE_PLANT
+        filt = OverviewFilter(runtime)
         with ui.element("div").classes("overview-layout"):
-            if runtime.plant.devices:
-                rows: list[GlanceRow] = []
-                _glance_table(runtime, rows)
-                for row in rows:
-                    followers.add(row)
+            table = GlanceTable(runtime, followers, filt, large) if runtime.plant.devices else None
             with ui.element("div").classes("bus-sections"):
+                sections = []
                 for bus in runtime.plant.buses.values():
+                    if large:
+                        sections.append(_large_bus_section(runtime, bus, followers, ticks, filt, table))
+                        continue
                     count = max(1, len(runtime.plant.devices_on(bus.name)))
                     width = count * TILE_WIDTH_PX + (count - 1) * TILE_GAP_PX
                     with ui.column().classes("bus-section gap-1").style(f"width: max({width}px, 30rem)"):
@@ -305,9 +397,59 @@ def content() -> None:
                 # one tick for the page: every tile's counters and ages, the table's ages and the bus lines
                 # go to the browser together, in one message a second
                 ticks.insert(0, (1, followers.tick))
+                if table is not None:
+                    def arrange() -> None:
+                        table.arrange()
+                        for section in sections:
+                            section()
+
+                    table.on_filter = arrange
+                    ticks.insert(1, (1, arrange))
                 ui.timer(1.0, lambda count=[0]: _tick(ticks, count))
         if not runtime.plant.devices:
             ui.label("This plant file lists no devices.").classes("text-grey-8")
+
+
+def _large_bus_section(runtime, bus, followers: Followers, ticks: list, filt: OverviewFilter,
+                       table: GlanceTable | None) -> Callable[[], None]:
+    """A bus of a large plant: a closed section with its device count and their states in its caption; its tiles
+    are drawn the first time it is opened (a hundred tiles at once would be a slow page nobody reads whole).
+    Returns what the page's tick calls: the caption and the visibility under the filter."""
+    names = [d.name for d in runtime.plant.devices_on(bus.name)]
+    built: list = []
+    tiles: dict[str, DeviceTile] = {}
+    shown: list = [None]
+    expansion = ui.expansion(bus.name, icon="cable").classes("bus-section w-full").props(
+        f'dense data-bus-section="{escape(bus.name, quote=True)}"')
+
+    def build() -> None:
+        if built:
+            return
+        built.append(True)
+        with expansion:
+            _bus_section(runtime, bus, followers, ticks, tiles)
+        update()
+
+    def update() -> None:
+        rows = table.rows if table is not None else {}
+        states = [rows[n] for n in names if n in rows]
+        attention = sum(1 for r in states if r.rank == RANK_ATTENTION)
+        online = sum(1 for r in states if r.state.status == "online")
+        caption = f"{bus.type} · {len(names)} device{'s' if len(names) != 1 else ''} · {online} online" + (
+            f" · {attention} with alarms or offline" if attention else "")
+        visible = [n for n in names if filt.matches(n, rows.get(n))]
+        if (caption, len(visible)) != shown[0]:
+            shown[0] = (caption, len(visible))
+            expansion.props(f'caption="{escape(caption, quote=True)}"')
+            expansion.set_visibility(bool(visible) or (not names and not (filt.bus or filt.type or filt.state)))
+        if filt.bus == bus.name and not expansion.value:
+            expansion.set_value(True)
+        for name, tile in tiles.items():
+            tile.link.set_visibility(name in visible)
+
+    expansion.on_value_change(lambda e: build() if e.value else None)
+    update()
+    return update
 
 
 def _tick(ticks: list, count: list) -> None:
@@ -319,7 +461,7 @@ def _tick(ticks: list, count: list) -> None:
             tick()
 
 
-def _bus_section(runtime, bus, followers: Followers, ticks: list) -> None:
+def _bus_section(runtime, bus, followers: Followers, ticks: list, tiles: dict | None = None) -> None:
     bus_state = runtime.store.buses[bus.name]
     with ui.row().classes("items-center gap-x-2 gap-y-0"):
         # icon, name and endpoint never change: one element, its parts laid out in the row as before
@@ -359,7 +501,10 @@ def _bus_section(runtime, bus, followers: Followers, ticks: list) -> None:
     ticks.append((1, show_conn))
     with ui.element("div").classes("tile-grid") as row:
         for dev in runtime.plant.devices_on(bus.name):
-            followers.add(DeviceTile(dev.name))
+            tile = DeviceTile(dev.name)
+            followers.add(tile)
+            if tiles is not None:
+                tiles[dev.name] = tile
     if bus.type == "can":
         ticks.append((2, _discovered_section(bus.name, row, followers)))
 

@@ -4,7 +4,11 @@ every device, its filters narrow the list, and the keep-alives under control kee
 
 The keep-alive bound asserted is the device's own (the Electrak's message timeout, the M3IO's watchdog), with
 the worst gap printed against the 1.2 x period goal, which ``bench/plant_scale.py`` measures on a quiet machine:
-a test beside other tests on two shared cores cannot hold a goal in milliseconds without being flaky.
+a test beside other tests on two shared cores cannot hold a goal in milliseconds without being flaky. The gaps
+are those of the telegrams as sent (python-can's virtual bus stamps them in ``send``), not the twins' own
+message-timeout flags: here the twins share the tool's event loop, and a stalled loop delays their check of a
+telegram that left on time (``bench/keepalive_jitter.py`` keeps its twin on a loop of its own for that).
+The RS485 twins answer at once (no wire time): the lines' timing is the benchmark's.
 """
 
 from __future__ import annotations
@@ -22,8 +26,7 @@ from app.runtime import Runtime
 from devices.electrak import codec as electrak
 from devices.m3io import codec as m3io
 
-ELECTRAK_TIMEOUT_S = 0.25  # the actuator's message timeout (document 004): control must come within it
-TIMEOUT_BIT = 1 << 5  # Electrak status byte 7 bit 5: message timeout
+ELECTRAK_TIMEOUT_S = electrak.DEFAULT_TIMEOUT_MS / 1000  # the actuator's message timeout: control must come within it
 
 
 class Heard:
@@ -58,17 +61,25 @@ async def _beat(runtime, session: str) -> None:
         await asyncio.sleep(0.1)
 
 
+def _listed(rows) -> set[str]:
+    return {e.props["data-glance"] for e in rows if e.visible}
+
+
+async def _choose(user, testid: str, value: str) -> None:
+    select = next(e for e in user.client.elements.values() if e.props.get("data-testid") == testid)
+    select.set_value(value)
+
+
 def _worst_gap(times: list[float]) -> float:
     return max((b - a for a, b in zip(times, times[1:], strict=False)), default=float("inf"))
 
 
 async def test_a_hundred_devices_are_listed_and_keep_alives_stay_on_time(tmp_path):
-    text = scale_plant_text(100)
+    text = scale_plant_text(100, wire_delay=False)
     plant = parse_plant(text)
     assert len(plant.devices) == 100 and family_counts(100)["hdlock-modbus"] == 64
     channels = {b.name: b.options["channel"] for b in plant.buses.values() if b.type == "can"}
     lift_heard = Heard(channels["can-lift-1"], electrak.CONTROL_ID)
-    status_heard = lift_heard  # the actuators' status telegrams on the same bus: their message-timeout flag
     heater_heard = Heard(channels["can-io"], m3io.derive_ids(1).dig_out)
     runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
     beating: asyncio.Task | None = None
@@ -88,6 +99,23 @@ async def test_a_hundred_devices_are_listed_and_keep_alives_stay_on_time(tmp_pat
             assert sorted(e.props["data-glance"] for e in rows) == sorted(plant.devices)
             assert {e.props["data-device"] for e in user.client.elements.values() if "data-device" in e.props} <= set(plant.devices)
             await user.should_see("All devices (100)")
+            # a large plant: its buses are closed sections with their counts; a filter narrows the table
+            sections = {e.props["data-bus-section"]: e for e in user.client.elements.values() if "data-bus-section" in e.props}
+            assert set(sections) == set(plant.buses)
+            assert "16 devices" in sections["rs485-4"].props["caption"]
+            await _choose(user, "filter-bus", "rs485-4")
+            await eventually(lambda: _listed(rows) == {f"door-4-{a:02d}" for a in range(1, 17)}, timeout=5,
+                             what="the table lists the line's locks only")
+            await eventually(lambda: sections["rs485-4"].value, timeout=5, what="the chosen bus opened")
+            await eventually(lambda: len([e for e in user.client.elements.values() if "data-device" in e.props]) == 16,
+                             timeout=5, what="the opened bus's tiles drawn")
+            await _choose(user, "filter-bus", "")
+            await _choose(user, "filter-type", "electrak")
+            await eventually(lambda: _listed(rows) == {f"lift-{i:02d}" for i in range(1, 5)}, timeout=5,
+                             what="the Electrak networks only")
+            await _choose(user, "filter-type", "")
+            await _choose(user, "filter-state", "online")
+            await eventually(lambda: len(_listed(rows)) == 100, timeout=5, what="every device online")
 
             await eventually(lambda: time.time() > start + 3.0, timeout=10, interval=0.1, what="3 s of keep-alives")
             lift_times, heater_times = lift_heard.times(start), heater_heard.times(start)
@@ -98,9 +126,6 @@ async def test_a_hundred_devices_are_listed_and_keep_alives_stay_on_time(tmp_pat
             assert len(lift_times) >= 20 and len(heater_times) >= 20
             assert lift_gap < ELECTRAK_TIMEOUT_S, lift_gap
             assert heater_gap < m3io.WATCHDOG_S / 4, heater_gap
-            flags = [d for t, i, d in list(status_heard.frames)
-                     if i == electrak.STATUS_ID and t >= start and len(d) == 8 and d[7] & TIMEOUT_BIT]
-            assert not flags, f"{len(flags)} status telegrams with the message-timeout flag"
             lift.release_control("scale")
             heater.release_control("scale")
     finally:
