@@ -12,6 +12,9 @@ With the largest plant still running, chromium (Debian's, through playwright) op
 the plant view in a fresh context each time and times the request to the value of the plant's last
 lock on screen (every tile drawn by then: a page is built with its values).
 
+Then each family alone (as many devices as one bus of the hundred carries) and the tool with no device,
+measured the same way: the cost per device of each family.
+
 Then the RS485 lines alone: four lines of 16 HD-Locks, the twins in ``commission sim`` with the wire
 time emulated, the tool's worker in this process. (a) A full register read of the 16 locks of every
 line (12 transactions a lock), the four lines at once, against the wire time of the same telegrams
@@ -43,6 +46,8 @@ from liveapp import (  # noqa: E402
 )
 from scale_plants import BAUD, family_counts, scale_plant_text, tcp_ports, wait_listening  # noqa: E402
 
+# each family alone, as many as a bus of the 100-device mix carries
+FAMILIES = (("hdlock-modbus", 16), ("hdlock-can", 8), ("m3io", 8), ("electrak", 4), ("scu", 4), ("mo64", 6))
 BITS_PER_CHAR = 11  # start + 8 data + even parity + stop
 GAP_CHARS = 3.5  # the silence that ends an RTU telegram
 
@@ -74,16 +79,23 @@ def last_lock(n: int) -> str:
 
 FIRST_VALUE = {"/": '[data-device="{name}"] >> text=/bolt (locked|unlocked|moving)/',
                "/plant": '[data-plant-tile="{name}"] >> text=/bolt (locked|unlocked|moving)/'}
+LARGE_PLANT = 24  # pages/overview.py: from here on the overview opens with its table, its buses closed
+# a large plant's overview opens with its table (its buses closed, their tiles drawn when opened): the lock's row
+LARGE_FIRST_VALUE = '[data-glance="{name}"] >> text=online'
+
 TEXT_FONT_LOADED = "document.fonts.load('1em Roboto', 'bolt locked').then(() => true)"
 
 
-def first_values(url: str, name: str, tries: int) -> dict[str, tuple[float, float]]:
-    """path -> median seconds from the request to ``name``'s value on screen, and to the app's answer."""
+def first_values(url: str, name: str, tries: int, large: bool) -> dict[str, tuple[float, float]]:
+    """path -> median seconds from the request to ``name``'s value on screen, and to the app's answer
+    (``large``: a plant whose overview shows the table first, see pages/overview.py ``LARGE_PLANT``)."""
     sync_playwright = need_playwright()
     found: dict[str, tuple[float, float]] = {}
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         for path, selector in FIRST_VALUE.items():
+            if large and path == "/":
+                selector = LARGE_FIRST_VALUE
             totals, answers = [], []
             for _ in range(tries):
                 page = browser.new_page(viewport={"width": 1600, "height": 1000})  # a new context: nothing cached
@@ -99,37 +111,42 @@ def first_values(url: str, name: str, tries: int) -> dict[str, tuple[float, floa
     return found
 
 
-def measure_size(n: int, folder: Path, args: argparse.Namespace, browser: bool) -> dict:
-    """One plant of ``n`` devices split in two processes: CPU, RSS (and first values when ``browser``)."""
-    plant = folder / f"scale{n}.toml"
-    text = scale_plant_text(n, split=True)
+def measure_size(n: int, folder: Path, args: argparse.Namespace, browser: bool, counts: dict | None = None,
+                 label: str = "") -> dict:
+    """One plant of ``n`` devices split in two processes: CPU, RSS (and first values when ``browser``);
+    ``counts``: devices per family instead of the mix (see scale_plants.scale_plant_text)."""
+    label = label or f"{n:4d} devices"
+    plant = folder / f"scale{n}-{len(list(folder.glob('scale*.toml')))}.toml"
+    text = scale_plant_text(n, split=True, counts=counts)
     plant.write_text(text)
-    twins = start_app(plant, 0, folder / f"sim{n}.log", "sim")
+    twins = start_app(plant, 0, folder / f"sim{plant.stem}.log", "sim") if n else None
     tool = None
     try:
         wait_listening(tcp_ports(text), twins)  # the twins listen before the tool connects (it would back off)
         port = free_port()
-        tool = start_app(plant, port, folder / f"tool{n}.log", "--no-sim")
+        tool = start_app(plant, port, folder / f"tool{plant.stem}.log", "--no-sim")
         url = f"http://127.0.0.1:{port}"
         wait_http(f"{url}/api/devices", tool, timeout=60)
         t_online = time.monotonic()
-        wait_devices_online(url, proc=tool, timeout=120)
+        if n:
+            wait_devices_online(url, proc=tool, timeout=120)
         online_s = time.monotonic() - t_online
         time.sleep(args.settle)
         loads = [os.getloadavg()[0]]
-        c0, l0, s0, t0 = cpu_s(tool.pid), thread_cpu_s(tool.pid, tool.pid), cpu_s(twins.pid), time.monotonic()
+        c0, l0, t0 = cpu_s(tool.pid), thread_cpu_s(tool.pid, tool.pid), time.monotonic()
+        s0 = cpu_s(twins.pid) if twins else 0.0
         time.sleep(args.seconds)
         spent = time.monotonic() - t0
         loads.append(os.getloadavg()[0])
         result = {"n": n, "online_s": online_s, "cpu": 100 * (cpu_s(tool.pid) - c0) / spent,
                   "loop": 100 * (thread_cpu_s(tool.pid, tool.pid) - l0) / spent,
-                  "twins": 100 * (cpu_s(twins.pid) - s0) / spent, "rss": rss_mb(tool.pid), "load": loads}
-        print(f"{n:4d} devices: tool {result['cpu']:5.1f} % of a core (event loop {result['loop']:4.1f}), "
+                  "twins": 100 * (cpu_s(twins.pid) - s0) / spent if twins else 0.0, "rss": rss_mb(tool.pid), "load": loads}
+        print(f"{label}: tool {result['cpu']:5.1f} % of a core (event loop {result['loop']:4.1f}), "
               f"RSS {result['rss']:6.1f} MB; twins {result['twins']:5.1f} %; every device online {online_s:4.1f} s "
               f"after the API answered; load {loads[0]:.2f} -> {loads[1]:.2f}", flush=True)
         if browser:
             name = last_lock(n)
-            result["first"] = first_values(url, name, args.tries)
+            result["first"] = first_values(url, name, args.tries, n > LARGE_PLANT)
             for path, (total, answered) in result["first"].items():
                 print(f"     first value of {name} on a new {path} page: {total * 1000:.0f} ms "
                       f"(app's answer {answered * 1000:.0f} ms), {load()}", flush=True)
@@ -137,7 +154,8 @@ def measure_size(n: int, folder: Path, args: argparse.Namespace, browser: bool) 
     finally:
         if tool is not None:
             stop_app(tool)
-        stop_app(twins)
+        if twins is not None:
+            stop_app(twins)
 
 
 # -- the RS485 lines against the wire -----------------------------------------------------------
@@ -224,6 +242,7 @@ def main() -> None:
     parser.add_argument("--cycle-seconds", type=float, default=20.0, help="the RS485 lines' own polling, measured")
     parser.add_argument("--no-browser", action="store_true", help="leave out the first values (no chromium)")
     parser.add_argument("--no-lines", action="store_true", help="leave out the RS485 lines against the wire")
+    parser.add_argument("--no-families", action="store_true", help="leave out the cost of each family alone")
     args = parser.parse_args()
     sizes = [int(x) for x in args.sizes.split(",")]
     print(f"plants of {', '.join(map(str, sizes))} devices, {args.seconds:g} s each after {args.settle:g} s; {load()}", flush=True)
@@ -233,6 +252,12 @@ def main() -> None:
         os.environ.setdefault("COMMISSION_DATA_DIR", str(folder / "data"))
         for n in sizes:
             results.append(measure_size(n, folder, args, browser=not args.no_browser and n == max(sizes)))
+        families = []
+        if not args.no_families:
+            empty = measure_size(0, folder, args, False, counts={}, label="no device (the tool alone)")
+            for family, k in FAMILIES:
+                families.append((family, k, measure_size(k, folder, args, False, counts={family: k},
+                                                         label=f"{k:2d} x {family}")))
         if not args.no_lines:
             full, polled = asyncio.run(lines_against_wire(folder, args.cycle_seconds))
             print(f"RS485 lines of HD-Locks at {BAUD} baud 8E1 ({load()}):")
@@ -255,6 +280,12 @@ def main() -> None:
     for r in results:
         print(f"{r['n']:7d}  {r['cpu']:9.1f}  {r['loop']:12.1f}  {r['rss']:6.1f}  {r['twins']:11.1f}  "
               f"{r['load'][0]:.2f}-{r['load'][1]:.2f}")
+    if families:
+        print(f"by family (the tool with no device: {empty['cpu']:.1f} % of a core, {empty['rss']:.0f} MB):")
+        print("family            devices  tool CPU %  per device %  RSS MB  per device MB")
+        for family, k, r in families:
+            print(f"{family:16s}  {k:7d}  {r['cpu']:10.1f}  {(r['cpu'] - empty['cpu']) / k:12.3f}  {r['rss']:6.1f}  "
+                  f"{(r['rss'] - empty['rss']) / k:13.2f}")
     print(f"per device: {cpu_slope:.3f} % of a core (event loop {loop_slope:.3f}), {rss_slope:.2f} MB; "
           f"the tool with no device (intercept): {cpu_base:.1f} %, {rss_base:.0f} MB")
     print(f"tool_cpu_per_device_pct: {cpu_slope:.3f}")
