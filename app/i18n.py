@@ -386,7 +386,7 @@ def choose(code: str) -> None:
     ui.navigate.reload()
 
 
-def language_switch(lang: Lang, *, dark: bool = True):
+def language_switch(lang: Lang, *, dark: bool = True, size: str = "sm"):
     """``DE | EN`` for the page's header: the chosen language is kept per browser and the page is built again."""
     from nicegui import ui
 
@@ -395,6 +395,6 @@ def language_switch(lang: Lang, *, dark: bool = True):
     colour = "color=blue-grey-8 text-color=white toggle-color=white toggle-text-color=black" if dark else \
         "color=grey-3 text-color=black toggle-color=primary"
     label = lang.gettext("Language")
-    toggle.props(f'dense no-caps unelevated size=sm {colour} data-testid=language aria-label="{label}"')
+    toggle.props(f'dense no-caps unelevated size={size} {colour} data-testid=language aria-label="{label}"')
     toggle.tooltip(" / ".join(f"{name}" for name in LANGUAGES.values()))
     return toggle

@@ -516,7 +516,7 @@ def content() -> None:
         ui.label(_("Plant {plant}").format(plant=runtime.plant.name)).classes("text-h5 text-white")
         ui.space()
         clock = ui.label().classes("text-h6 text-white")
-        i18n.language_switch(lang)
+        i18n.language_switch(lang, size="md")  # a finger's width on a tablet
     followers = Followers()
     with ui.element("div").classes("plant-grid q-pa-sm"):
         tiles = [PlantTile(name, lang) for name in runtime.plant.devices]

@@ -55,6 +55,10 @@ def test_the_plant_view_in_german(app, chromium, tmp_path: Path, width: int, hei
         assert not any(line.strip().endswith("ago") for line in every.split("\n"))
         # the tiles fit the width of the screen (German words are longer): nothing scrolls sideways
         assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth + 1")
+        overflowing = page.eval_on_selector_all("[data-plant-tile]", """tiles => tiles.filter(t => [...t.querySelectorAll(
+            '.bar-label, .value-line, .alarm-text')].some(e => e.getBoundingClientRect().right > t.getBoundingClientRect().right + 1))
+            .map(t => t.getAttribute('data-plant-tile'))""")
+        assert overflowing == [], f"texts run out of their tiles: {overflowing}"
         page.screenshot(path=str(tmp_path / f"plant-de-{width}x{height}.png"), full_page=True)
     finally:
         context.close()
