@@ -78,7 +78,7 @@ async def run(rate: int, seconds: float, pages: int) -> float:
             refresh()
     await asyncio.sleep(1.0)  # let the last frames arrive
     cpu = (time.process_time() - cpu0) / (time.perf_counter() - t0)
-    await can_bus._count_interface_drops(asyncio.get_running_loop())
+    await can_bus.link.count_interface_drops(asyncio.get_running_loop())
     handled = state.rx_frames  # frames dispatched (shed ones never are)
     await can_bus.stop()
     n = sent.value

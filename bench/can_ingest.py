@@ -92,7 +92,7 @@ async def ingest(count: int) -> tuple[float, float, int, int]:
     channel = f"bench-{time.time_ns()}"
     worker = Worker(plant(channel))
     can_bus = worker.can_buses["can1"]
-    can_bus.bus = can_bus._open()  # open first so the virtual queue exists
+    can_bus.bus = can_bus.open()  # open first so the virtual queue exists
     with can.Bus(interface="virtual", channel=channel) as sender:
         for msg in frames(count):
             sender.send(msg)

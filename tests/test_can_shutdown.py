@@ -13,7 +13,7 @@ import uuid
 
 import pytest
 
-from app.can_bus import CanBus, CanBusState, _Periodic
+from app.can_bus import CanBus, CanBusState, PeriodicSender
 
 
 async def _open_bus(channel: str) -> CanBus:
@@ -30,19 +30,19 @@ async def _open_bus(channel: str) -> CanBus:
 @pytest.mark.asyncio
 async def test_periodic_senders_end_before_the_bus_shuts_down(caplog, monkeypatch):
     caplog.set_level(logging.DEBUG)
-    before_send = _Periodic._before_send
+    before_send = PeriodicSender.before_send
 
     def slow_before_send(self, msg):  # the sender passed its check and waits for the interpreter, as under load
-        time.sleep(0.005)
+        time.sleep(0.005)  # a sender delayed inside its send, as under load
         before_send(self, msg)
 
-    monkeypatch.setattr(_Periodic, "_before_send", slow_before_send)
+    monkeypatch.setattr(PeriodicSender, "before_send", slow_before_send)
     for _ in range(5):
         bus = await _open_bus(f"shutdown-{uuid.uuid4().hex}")
         bus.start_periodic("a", 0.001, 0x123, b"\x01\x02")
         bus.start_periodic("b", 0.0013, 0x124, b"\x03")
         await asyncio.sleep(0.05)
-        threads = [p.task.thread for p in bus._periodic.values()]
+        threads = [p.task.thread for p in bus.senders.periodic.values()]
         assert all(t.is_alive() for t in threads)
         await bus.stop()
         await asyncio.sleep(0.02)  # a thread still running would send on the closed bus meanwhile
@@ -56,13 +56,12 @@ async def test_a_reopened_bus_starts_its_periodic_senders_again():
     bus = await _open_bus(f"reopen-{uuid.uuid4().hex}")
     try:
         bus.start_periodic("a", 0.02, 0x123, b"\x01")
-        await asyncio.sleep(0.05)
-        await asyncio.get_running_loop().run_in_executor(None, bus._close)  # as the supervisor does on a failure
+        await asyncio.sleep(0.05)  # a few periods of the 20 ms sender
+        await asyncio.get_running_loop().run_in_executor(None, bus.link.close)  # as the supervisor does on a failure
         assert not bus.cyclic_running("a")
-        bus._stop.clear()
-        bus.bus = bus._open()
-        bus._restart_periodic()
-        await asyncio.sleep(0.05)
+        bus.bus = bus.open()
+        bus.senders.restart(bus.bus)
+        await asyncio.sleep(0.05)  # a few periods of the 20 ms sender
         assert bus.cyclic_running("a")
     finally:
         await bus.stop()

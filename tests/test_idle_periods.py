@@ -38,14 +38,14 @@ async def test_m3io_served_idle_slower_and_at_100_ms_under_control():
         adapter, bus = runtime.worker.adapters["hm"], runtime.worker.can_buses["can3"]
         state = runtime.store.devices["hm"]
         assert await wait_for(lambda: state.status == "online", timeout=4)  # served idle: the module answers
-        assert bus._periodic[adapter.key].period_s == IDLE_DIGOUT_PERIOD_S
+        assert bus.senders.periodic[adapter.key].period_s == IDLE_DIGOUT_PERIOD_S
         await adapter.take_control("s1", "engineer")
-        assert bus._periodic[adapter.key].period_s == m3io.DIGOUT_PERIOD_S
+        assert bus.senders.periodic[adapter.key].period_s == m3io.DIGOUT_PERIOD_S
         adapter.set_output("s1", "SSR1", True)
         assert await wait_for(lambda: runtime.twins["hm"].ssr[1].on, timeout=1)
         adapter.release_control("s1")
-        assert await wait_for(lambda: adapter.key in bus._periodic, timeout=3)  # served idle again after listening
-        assert bus._periodic[adapter.key].period_s == IDLE_DIGOUT_PERIOD_S
+        assert await wait_for(lambda: adapter.key in bus.senders.periodic, timeout=3)  # served idle again after listening
+        assert bus.senders.periodic[adapter.key].period_s == IDLE_DIGOUT_PERIOD_S
         assert await wait_for(lambda: not runtime.twins["hm"].ssr[1].on, timeout=1)
     finally:
         beat.cancel()

@@ -664,13 +664,13 @@ def test_bus_load_is_averaged_and_its_peak_kept_when_frames_arrive_in_batches():
     bus = cb.CanBus("load-test", {"interface": "virtual", "channel": "load-test", "bitrate": 250_000}, state)  # never opened
     steady = 200 * cb.frame_bits(8, False) / 250_000 * 100  # 8.9 %
     t = 1000.0
-    bus._load_mark = (t, 0, 0)
+    bus.stats.load_mark = (t, 0, 0)
     seen = []
     for step in range(1, 41):  # 20 s in half-second windows
         if step % 2:
             for i in range(200):
                 bus.dispatch(can.Message(arbitration_id=0x7, is_extended_id=False, data=bytes(8), timestamp=t + i * 0.005))
-        bus._measure_load(now=t + step * cb.LOAD_PERIOD_S)
+        bus.stats.measure_load(now=t + step * cb.LOAD_PERIOD_S)
         seen.append(state.load_pct)
     assert max(seen) > 1.5 * steady and min(seen) == 0  # what the half-second figure does
     assert state.load_avg_pct == pytest.approx(steady, rel=0.15)
@@ -685,10 +685,10 @@ def test_bus_load_after_a_long_pause_of_the_loop_is_a_figure_not_a_crash():
 
     state = cb.CanBusState("pause-test", "can", "")
     bus = cb.CanBus("pause-test", {"interface": "virtual", "channel": "pause-test", "bitrate": 250_000}, state)  # never opened
-    bus._load_mark = (1000.0, 0, 0)
-    bus._measure_load(now=1000.5)
+    bus.stats.load_mark = (1000.0, 0, 0)
+    bus.stats.measure_load(now=1000.5)
     state.bits += 10_000
-    bus._measure_load(now=1000.5 + 3 * cb.LOAD_AVERAGE_S)
+    bus.stats.measure_load(now=1000.5 + 3 * cb.LOAD_AVERAGE_S)
     assert state.load_avg_pct == pytest.approx(10_000 / (3 * cb.LOAD_AVERAGE_S) / 250_000 * 100)
 
 # -- Modbus monitor: filters and export (issue 32.14) ------------------------------------------------------------

@@ -77,10 +77,10 @@ def test_cycle_statistics_are_bounded_per_id():
 def test_bus_load_and_frames_per_second():
     bus, state = make_bus(bitrate=250_000)
     assert frame_bits(8, False) == 111 and frame_bits(8, True) == 131 and frame_bits(0, False) == 47
-    bus._load_mark = (time.monotonic() - 1.0, 0, 0)  # one second ago
+    bus.stats.load_mark = (time.monotonic() - 1.0, 0, 0)  # one second ago
     for i in range(500):
         bus.dispatch(can.Message(arbitration_id=0x7, is_extended_id=False, data=bytes(8), timestamp=i * 0.002))
-    bus._measure_load()
+    bus.stats.measure_load()
     assert state.frames_per_s == pytest.approx(500, rel=0.05)
     assert state.load_pct == pytest.approx(500 * 111 / 250_000 * 100, rel=0.05)  # 22 %
 
@@ -98,7 +98,7 @@ def test_unknown_ids_are_offered_to_discovery_once_per_period_not_per_frame():
     assert heard.count(660102) == 5
     for n in range(cb.NO_DISCOVERY_IDS + 10):  # the table of negative results is bounded
         bus.dispatch(can.Message(arbitration_id=0x10000 + n, is_extended_id=True, data=b"\x01"))
-    assert len(bus._no_discovery) == cb.NO_DISCOVERY_IDS
+    assert len(bus.link.no_discovery) == cb.NO_DISCOVERY_IDS
     assert state.rx_frames == 1005 + cb.NO_DISCOVERY_IDS + 10  # every frame still reaches the monitor
 
 
@@ -107,7 +107,7 @@ def test_a_negative_result_expires(monkeypatch: pytest.MonkeyPatch):
     heard: list[int] = []
     bus.listeners.append(lambda msg: heard.append(1))
     clock = [100.0]
-    monkeypatch.setattr(cb.time, "monotonic", lambda: clock[0])
+    monkeypatch.setattr(time, "monotonic", lambda: clock[0])
     bus.dispatch(can.Message(arbitration_id=0x321, is_extended_id=False, data=b"\x01"))
     bus.dispatch(can.Message(arbitration_id=0x321, is_extended_id=False, data=b"\x01"))
     clock[0] += cb.NO_DISCOVERY_S + 0.1
@@ -126,7 +126,7 @@ def test_udp_multicast_gets_a_big_receive_buffer_and_reports_kernel_drops():
     port = free_port()
     state = CanBusState("u", "can", "")
     small = CanBus("u", {**_udp_options(port), "rcvbuf": 4096}, state)
-    small.bus = small._open()  # opened, but nobody reads: the kernel must drop
+    small.bus = small.open()  # opened, but nobody reads: the kernel must drop
     try:
         assert cb.interface_drops(small.bus, small.options) == (0, "kernel socket drops")
         with can.Bus(**{k: v for k, v in _udp_options(port).items() if k != "bitrate"}) as sender:
@@ -139,7 +139,7 @@ def test_udp_multicast_gets_a_big_receive_buffer_and_reports_kernel_drops():
 
     big_state = CanBusState("u2", "can", "")
     big = CanBus("u2", _udp_options(free_port()), big_state)
-    big.bus = big._open()
+    big.bus = big.open()
     try:
         assert big_state.rcvbuf is not None and big_state.rcvbuf >= 1_000_000  # the default is about 200 kB
     finally:

@@ -161,20 +161,24 @@ def test_a_keepalive_without_a_lease_leaves_the_other_threads_and_the_switch_int
 
 
 def test_only_a_leased_can_keepalive_raises_the_other_threads(monkeypatch):
-    from app.can_bus import _Periodic
+    import uuid
+
+    from app.can_bus import CanBus, CanBusState, PeriodicSender
     from devices.lease import Lease
 
     calls: list[tuple[str, bool]] = []
     monkeypatch.setattr(realtime, "hold_keepalive", lambda boost=True: calls.append(("hold", boost)))
     monkeypatch.setattr(realtime, "release_keepalive", lambda boost=True: calls.append(("release", boost)))
 
-    class Bus:
-        def send_periodic(self, *_args, **_kwargs):
-            return None
-
-    for lease, boost in ((None, False), (Lease(), True)):
-        periodic = _Periodic(None, "k", 0.5, 0x100, b"\0", False, lease, None, None)
-        periodic.start(Bus())
-        periodic.stop()
-        assert calls == [("hold", boost), ("release", boost)]
-        calls.clear()
+    channel = f"rt-{uuid.uuid4().hex[:10]}"
+    bus = CanBus("rt", {"interface": "virtual", "channel": channel}, CanBusState("rt", "can", channel))
+    bus.bus = bus.open()
+    try:
+        for lease, boost in ((None, False), (Lease(), True)):
+            periodic = PeriodicSender(bus.link, "k", 0.5, 0x100, b"\0", False, lease, None, None)
+            periodic.start(bus.bus)
+            periodic.stop(join=True)
+            assert calls == [("hold", boost), ("release", boost)]
+            calls.clear()
+    finally:
+        bus.bus.shutdown()
