@@ -90,6 +90,7 @@ async def test_backup_names_every_value_and_restore_writes_the_settings_back_rea
     assert "data:12323" not in entries  # A3 is not configured on this unit
     assert entries["0x0001"]["text"].startswith("SCU V2B3")  # the record entries stay, never written
     assert document["identity"]["serial"] == "A-1001"
+    assert document["identity"]["configuration"].startswith("SCP11")
 
     adapter = runtime.worker.adapters["lift-a"]
     await runtime.worker.command("lift-a", lambda a: a.write_param(SPEED_F2, 40), user="anna", describe="write")
@@ -141,6 +142,10 @@ async def test_a_write_is_refused_beyond_the_speed_select_while_a_function_runs_
     entries = {e["key"] for e in await adapter.backup_read()}  # the group read refused: member by member
     assert SPEED_F1.key in entries and SPEED_F2.key not in entries
     assert adapter.settings.refused[SPEED_F2.key] == "PDE: the unit refuses RG 0x3012"
+    twin.refused_ids = set()
+    twin.single_ids_only = True  # groups refused (the document describes 0x0010 alone): read member by member
+    entries = {e["key"]: e for e in await adapter.backup_read()}
+    assert entries[SPEED_F2.key]["raw"] == 100 and entries["limit_out:8194"]["raw"] == 3750
 
 
 async def test_project_check_and_the_page_diff_apply_per_row(lifts, tmp_path):

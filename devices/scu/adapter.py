@@ -54,7 +54,7 @@ PROBE_ID = 0x0011  # a single data ID every unit answers (section 5 example read
 # with one RG per poll in turn.
 CYCLIC_READ_IDS = (0x0010, 0x0170, 0x00E0, 0x00A0, 0x00D1, 0x0100)
 ROTATING_IDS = (0x00F0, 0x0164, 0x0040, 0x0020, 0x0110, 0x0120, 0x0130, 0x0140, 0x0150, 0x0162, 0x0165, 0x0166,
-                0x0030, 0x00D2, 0x00D3, 0x00D4, 0x00D5, 0x3010, 0x3020)  # 0x3010/0x3020: the settings (drift)
+                0x0030, 0x00D2, 0x00D3, 0x00D4, 0x00D5, 0x3010, 0x3020, 0x0001, 0x0002)  # settings (drift), identity
 CYCLIC_INDEX = 0  # RC index 0 = CyclicObj 1 (0x3001)
 # Emergency stop (function 19) is not released by the dead-man rule: RS would end the emergency stop,
 # the unsafe direction. It is released only by an explicit "release emergency stop" (section 4.4, F20).

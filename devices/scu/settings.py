@@ -87,7 +87,7 @@ class ScuSettings:
         value = result["value"]
         if result["error"]:
             raise CommandError(f"RG 0x{data_id:04X}: {result['error']}")
-        return dict(value) if isinstance(value, dict) else {data_id: value}
+        return dict(value) if p.item(data_id).is_group else {data_id: value}  # a struct's value is a dict too
 
     async def read_all(self) -> dict[str, int]:
         """Every modelled value of this unit, fresh: ``{key: raw}`` (a value the unit refuses is left out)."""
