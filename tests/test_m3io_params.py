@@ -240,3 +240,32 @@ async def test_strict_twin_without_p2_and_with_a_slow_store(tmp_path):
         assert stored == record_param(2).validate("0b 0c") and runtime.twins["io-b"].customer[2][:2] == b"\x0b\x0c"
     finally:
         await runtime.stop()
+
+
+async def test_the_replacement_assistant_restores_the_approved_records_on_a_new_module(tmp_path):
+    """A module exchanged (off the bus, back with another serial number and empty records, P2 forgotten): the new
+    identity is read when it answers again, and the approved set is restored through restore's verified write."""
+    from app import replace
+
+    runtime = await _started(_plant_file(tmp_path), tmp_path)
+    try:
+        adapter, state, twin = runtime.worker.adapters["io-a"], runtime.store.devices["io-a"], runtime.twins["io-a"]
+        await adapter.write_param(record_param(1), "01 02")
+        await adapter.read_identity()
+        await runtime.record.approve("io-a", user="anna", role="engineer")
+        twin.powered = False  # taken off the bus
+        assert await wait_for(lambda: state.status == "offline", 6)
+        twin.serial, twin.customer, twin.powered = 42120099, {}, True  # the new module
+        twin.power_cycle()
+        assert await wait_for(lambda: getattr(state, "replaced", None), 10)
+        assert state.replaced["differs"] == ["serial"]
+        assert await wait_for(lambda: state.raw(record_param(1)) == record_param(1).validate("ff"), 5)  # read again
+        rp = await replace.plan_replacement(runtime, "io-a")
+        assert rp.check.ok and any("serial number 42120023 -> 42120099" in n for n in rp.check.notes), rp.check.notes
+        changed = [r for r in rp.plan.rows if r.changed]
+        assert [(r.name, r.current_text, r.backup_text) for r in changed] == [
+            ("Customer data 1", "ff ff ff ff ff ff", "01 02 ff ff ff ff")]
+        report = await replace.execute_replacement(runtime, rp, {r.key for r in changed}, user="anna", role="engineer")
+        assert report.ok and report.written == ["Customer data 1"] and twin.customer[1] == bytes.fromhex("0102ffffffff")
+    finally:
+        await runtime.stop()
