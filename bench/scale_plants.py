@@ -55,9 +55,10 @@ def _spread(count: int, groups: int) -> list[int]:
 
 
 def scale_plant_text(n: int, name: str | None = None, split: bool = False, wire_delay: bool = True,
-                     modbus_poll_period: float = 0.5, head: str = "", counts: dict[str, int] | None = None) -> str:
+                     modbus_poll_period: float = 0.5, head: str = "", counts: dict[str, int] | None = None, prefix: str = "") -> str:
     """The plant file of ``n`` devices (see the module text); ``head``: lines before the buses (a ``[mqtt]``
-    table); ``counts``: devices per family instead of the mix (the families left out have none). Channel
+    table); ``counts``: devices per family instead of the mix (the families left out have none); ``prefix``:
+    before every device name (device names are unique within a site, docs/mqtt.md). Channel
     names carry a free port, so two plants made here never share a CAN bus."""
     counts = {name: 0 for name, _ in MIX} | counts if counts is not None else family_counts(n)
     tag = free_port()
@@ -67,34 +68,34 @@ def scale_plant_text(n: int, name: str | None = None, split: bool = False, wire_
     for line, on_line in enumerate(_spread(locks, lines), start=1):
         bus_name = f"rs485-{line}"
         buses.append(bus(bus_name, "modbus-rtu",
-                         *(device(f"door-{line}-{a:02d}", "hdlock", bus_name, address=a, serial=660000 + 100 * line + a)
+                         *(device(f"{prefix}door-{line}-{a:02d}", "hdlock", bus_name, address=a, serial=660000 + 100 * line + a)
                            for a in range(1, on_line + 1)),
                          port=f"socket://127.0.0.1:{free_port()}", baudrate=BAUD, parity="E", timeout=0.5, retries=1,
                          poll_period=modbus_poll_period, wire_delay=wire_delay or None, simulate=True))
     if counts["hdlock-can"]:
         buses.append(bus("can-locks", "can",
-                         *(device(f"gate-{i:02d}", "hdlock", "can-locks", device_id=661000 + i)
+                         *(device(f"{prefix}gate-{i:02d}", "hdlock", "can-locks", device_id=661000 + i)
                            for i in range(1, counts["hdlock-can"] + 1)),
                          interface="virtual", channel=f"scale-{tag}-locks", bitrate=250000, poll_period=2.0, simulate=True))
     if counts["m3io"]:
         buses.append(bus("can-io", "can",
-                         *(device(f"heater-{i:02d}", "m3io", "can-io", variant="HM", sw1=i, master="always")
+                         *(device(f"{prefix}heater-{i:02d}", "m3io", "can-io", variant="HM", sw1=i, master="always")
                            for i in range(1, counts["m3io"] + 1)),
                          interface="virtual", channel=f"scale-{tag}-io", bitrate=500000, simulate=True))
     for i in range(1, counts["electrak"] + 1):
-        buses.append(bus(f"can-lift-{i}", "can", device(f"lift-{i:02d}", "electrak", f"can-lift-{i}",
+        buses.append(bus(f"can-lift-{i}", "can", device(f"{prefix}lift-{i:02d}", "electrak", f"can-lift-{i}",
                                                         actuators=list(ELECTRAK_ACTUATORS)),
                          interface="virtual", channel=f"scale-{tag}-lift{i}", bitrate=500000, simulate=True))
     for i in range(1, counts["scu"] + 1):
         buses.append(bus(f"rs232-{i}", "serial",
-                         device(f"table-{i:02d}", "scu", f"rs232-{i}", actuators=[{"counts_per_mm": 10}, {"stroke_mm": 300}]),
+                         device(f"{prefix}table-{i:02d}", "scu", f"rs232-{i}", actuators=[{"counts_per_mm": 10}, {"stroke_mm": 300}]),
                          port=f"socket://127.0.0.1:{free_port()}", baudrate=38400, timeout=0.3, poll_period=0.2, simulate=True))
     gates = counts["mo64"]
     gate_lines = math.ceil(gates / GATES_PER_LINE) if gates else 0
     for line, on_line in enumerate(_spread(gates, gate_lines), start=1):
         bus_name = f"gates-{line}"
         buses.append(bus(bus_name, "logited-rs485",
-                         *(device(f"barrier-{line}-{a:02d}", "mo64", bus_name, address=16 + a) for a in range(on_line)),
+                         *(device(f"{prefix}barrier-{line}-{a:02d}", "mo64", bus_name, address=16 + a) for a in range(on_line)),
                          port=f"socket://127.0.0.1:{free_port()}", master_address=0, shared=True, next_master=1,
                          poll_period=1.0, simulate=True))
     text = plant_text(*buses, name=name or f"scale-{n}", head=head)
