@@ -179,15 +179,15 @@ async def test_a_viewer_sees_the_project_read_only_and_the_worker_refuses_the_sa
         assert row.user == "tablet" and row.result.startswith("refused")
 
 
-async def test_a_type_without_a_parameter_model_says_so(tmp_path: Path):
+async def test_the_mo64_project_is_edited_on_its_parameter_model(tmp_path: Path):
     path = tmp_path / "plant.toml"
     path.write_text(plant_text(mo64_tcp("barrier-in", "gate-tcp", travel_s=None, timeout=None, poll_period=None, simulate=None),
                                name="gates"))
     runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
     async with simulated_user(runtime) as user:
-        await user.open("/project/barrier-in")
-        await user.should_see("A Bauer MO 64 has no parameter model in this tool")
-        assert not [e for e in user.client.elements.values() if e.props.get("data-project-field")]
+        await user.open("/project/barrier-in")  # every family has a parameter model now (devices/mo64/params.py)
+        await user.should_see("Kraftüberwachung")
+        assert [e for e in user.client.elements.values() if e.props.get("data-project-field")]
         await user.open("/device/barrier-in")
         await user.should_see("barrier-in")
-        assert not [e for e in user.client.elements.values() if e.props.get("data-testid") in ("project-none", "project-card")]
+        assert [e for e in user.client.elements.values() if e.props.get("data-testid") == "project-none"]
