@@ -210,3 +210,31 @@ async def test_the_declared_write_goes_through_the_gate_for_a_viewer_it_is_refus
 
 def test_serial_is_a_known_key():
     assert plant(_unit("lift", "rs1", serial=7)).devices["lift"].options["serial"] == 7
+
+
+def test_commission_check_names_an_scu_project_entry_the_model_refuses(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    from devices.params import backup_entry
+
+    # a parameter file in the backup format (a backup of another unit will do): its read-only entries are ignored
+    entries = [backup_entry(q, q.validate(70) if q.name == "Remote Speed F2" else q.encode(0)) for q in params_for(2)]
+    document = backup.make_document("lifts", "lift-b", "scu", "rs-b", {"serial": "B-1002"}, entries)
+    (tmp_path / "lift-b.json").write_text(json.dumps(document, indent=2))
+    bad = _two_units('"Remote Speed F1" = 1200, "Position_Virtual_Limit_In A1" = 10')
+    bad = bad.replace('serial = "B-1002"', 'serial = "B-1002"\nproject = "lift-b.json"')
+    path = tmp_path / "plant.toml"
+    path.write_text(bad)
+    out = subprocess.run([sys.executable, "-m", "app.cli", "check", "--plant", str(path)], capture_output=True, text=True,
+                         timeout=60)
+    assert out.returncode == 1, out.stdout + out.stderr
+    assert "device 'lift-a': Remote Speed F1: 1200 is outside 0 .. 1000 % or counts/s" in out.stdout
+    assert "device 'lift-a': Position_Virtual_Limit_In A1 is RO and cannot be written" in out.stdout
+    path.write_text(bad.replace('"Remote Speed F1" = 1200, "Position_Virtual_Limit_In A1" = 10', '"Remote Speed F1" = 80'))
+    from app.plant import load_plant
+
+    good = load_plant(path)
+    assert project.check_plant(good) == []  # the parameter file and the inline table alike
+    assert [(e.name, e.value) for e in project.entries(good, "lift-b") if e.value != 0] == [("Remote Speed F2", 70)]
