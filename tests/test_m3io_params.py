@@ -85,6 +85,16 @@ def test_p2_in_the_plant_file_is_checked():
         parse_plant(plant_text(can_bus(device("io", "m3io", "can1", variant="HMR", sw1=0x1A, p2=1))))
 
 
+def test_commission_check_names_a_bad_record_and_an_unknown_one_without_the_device():
+    text = plant_text(can_bus(device("io", "m3io", "can1", variant="HMR", sw1=0xCA))).replace(
+        'name = "io"', 'name = "io"\nproject = { "Customer data 3" = "zz", "Customer data 16" = "01", P2 = 2 }')
+    problems = project.check_plant(parse_plant(text))
+    assert any("Customer data 3: 'zz' is not bytes as hex" in p for p in problems), problems
+    assert any("unknown parameter 'Customer data 16'" in p for p in problems), problems
+    assert any("P2: 2 is not one of: 0 three-phase load, 1 two-phase load (P2)" in p for p in problems), problems
+    assert all(p.startswith("<plant>:") or ".toml:" in p for p in problems)
+
+
 # -- against the twins ------------------------------------------------------------------------------------------
 
 
@@ -223,6 +233,11 @@ async def test_backup_restore_names_units_and_hm_in_simple_mode_has_nothing(tmp_
         report = await backup.execute_restore(runtime, plan, {r.key for r in plan.rows})
         assert report.written == ["Customer data 1"] and report.ok and runtime.twins["io-a"].customer[1] == b"\xff" * 6
         assert "addressed mode" in await backup.why_nothing_to_back_up(runtime, "io-c")
+        # a backup made before the model kept a record's hex text as its raw value: still restored
+        old = {**document, "parameters": [{"key": "customer:1", "name": "Customer data 1", "raw": "0a 0b 0c 0d 0e 0f",
+                                           "value": "0a 0b 0c 0d 0e 0f", "writable": True}]}
+        plan = await backup.plan_restore(runtime, "io-a", old)
+        assert [(r.error, r.backup_text, r.changed) for r in plan.rows] == [("", "0a 0b 0c 0d 0e 0f", True)]
     finally:
         await runtime.stop()
 
