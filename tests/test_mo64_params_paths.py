@@ -10,7 +10,8 @@ import json
 
 import pytest
 from nicegui.testing.user_interaction import UserInteraction
-from plants import device, mo64_rs485, mo64_tcp, plant_text
+from plants import mo64_tcp, plant_text
+from recordutil import demo_plant
 from test_backup_page import emit
 from test_project_page import _card_table, _dialog_button
 from webutil import by_testid, eventually, simulated_user
@@ -98,35 +99,34 @@ async def test_restore_names_each_setting_and_asks_before_force_monitoring_is_cl
 
 
 async def test_a_batch_sets_one_setting_on_both_rs485_barriers_and_asks_for_force_monitoring(tmp_path):
-    text = plant_text(mo64_rs485(device("out-1", "mo64", "gates-485", address=16, travel_s=0.6),
-                                 device("out-2", "mo64", "gates-485", address=17, travel_s=0.6)))
-    runtime = Runtime(parse_plant(text), simulate=True, data_dir=tmp_path / "data")
+    # the demo plant's two barriers on its shared RS485 line (another master passes the token)
+    runtime = Runtime(demo_plant(("barrier-out-1", "barrier-out-2")), simulate=True, data_dir=tmp_path / "data")
     await runtime.start()
     try:
-        await _online(runtime, "out-1", "out-2")
-        path = await backup.backup_device(runtime, "out-1")
+        await _online(runtime, "barrier-out-1", "barrier-out-2")
+        path = await backup.backup_device(runtime, "barrier-out-1")
         source = tmp_path / "set.json"
         source.write_text(json.dumps(_changed(json.loads(path.read_text()), t_offen=12.5)))
-        plan = await batch.plan_batch(runtime, ["out-1", "out-2"], str(source))
+        plan = await batch.plan_batch(runtime, ["barrier-out-1", "barrier-out-2"], str(source))
         assert plan.ready, [d.error for d in plan.devices]
         assert [[r.name for r in d.changed] for d in plan.devices] == [["t_offen"], ["t_offen"]]
         seen = []
         results = await batch.apply_batch(runtime, plan, user="anna", role="engineer", on_device=seen.append)
-        assert [(r.device, r.status) for r in results] == [("out-1", "written"), ("out-2", "written")]
+        assert [(r.device, r.status) for r in results] == [("barrier-out-1", "written"), ("barrier-out-2", "written")]
         assert seen == results and all("1 written" in r.text for r in results)
-        assert all(runtime.twins[n].settings["t_open"] == 1250 for n in ("out-1", "out-2"))
+        assert all(runtime.twins[n].settings["t_open"] == 1250 for n in ("barrier-out-1", "barrier-out-2"))
 
         source.write_text(json.dumps(_changed(json.loads(path.read_text()), t_offen=12.5, Kraftüberwachung="ohne")))
-        plan = await batch.plan_batch(runtime, ["out-1", "out-2"], str(source))
+        plan = await batch.plan_batch(runtime, ["barrier-out-1", "barrier-out-2"], str(source))
         rows = [r for d in plan.devices for r in d.changed]
         assert [r.name for r in rows] == ["Kraftüberwachung", "Kraftüberwachung"] and all(KRAFT_RISK in r.risk for r in rows)
         results = await batch.apply_batch(runtime, plan, user="anna", role="engineer")
         assert [r.status for r in results] == ["failed", "skipped"] and "Kraftüberwachung" in results[0].text
-        assert _force_bits(runtime.twins["out-1"]) == 1
-        plan = await batch.plan_batch(runtime, ["out-1", "out-2"], str(source))
+        assert _force_bits(runtime.twins["barrier-out-1"]) == 1
+        plan = await batch.plan_batch(runtime, ["barrier-out-1", "barrier-out-2"], str(source))
         results = await batch.apply_batch(runtime, plan, user="anna", role="engineer", confirmed={"Kraftüberwachung"})
         assert [r.status for r in results] == ["written", "written"]
-        assert all(_force_bits(runtime.twins[n]) == 0 for n in ("out-1", "out-2"))
+        assert all(_force_bits(runtime.twins[n]) == 0 for n in ("barrier-out-1", "barrier-out-2"))
     finally:
         await asyncio.wait_for(runtime.stop(), 15)
 
