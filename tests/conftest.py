@@ -278,14 +278,14 @@ def _own_data_dir(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatc
 
 
 async def wait_for(predicate, timeout: float = 5.0, interval: float = 0.05) -> bool:
-    """Poll ``predicate`` until it is true or ``timeout`` seconds passed."""
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout
-    while loop.time() < end:
-        if predicate():
-            return True
-        await asyncio.sleep(interval)
-    return bool(predicate())
+    """Whether ``predicate`` became true within ``timeout`` s (:func:`webutil.eventually`, as a truth value)."""
+    from webutil import eventually
+
+    try:
+        await eventually(lambda: bool(predicate()), timeout, interval)
+    except AssertionError:
+        return False
+    return True
 
 
 @contextlib.asynccontextmanager

@@ -269,21 +269,21 @@ async def test_chart_target_only_while_the_actuators_are_driven_to_it(lift):
     import time
 
     start = time.time()
-    await asyncio.sleep(0.3)
+    await asyncio.sleep(0.3)  # three control periods (100 ms) while idle: no target may be drawn
     assert targets(start) and all(t is None for t in targets(start))  # idle: no target drawn
     assert adapter.idle() and "expected while idle" in state.point("Error flags")["text"]
     await adapter.take_control("s1", "engineer")
     assert not adapter.idle()
     adapter.set_command("s1", 120.0, 20.0, 0)
     mark = time.time()
-    await asyncio.sleep(0.3)
+    await asyncio.sleep(0.3)  # three control periods: set but not enabled, no target may be drawn
     assert all(t is None for t in targets(mark))  # set but not enabled: nothing goes there
     adapter.go("s1")
     mark = time.time()
     assert await wait_for(lambda: 120.0 in targets(mark), timeout=1)
     adapter.stop("s1")
     mark = time.time()
-    await asyncio.sleep(0.3)
+    await asyncio.sleep(0.3)  # three control periods after the stop: no target may be drawn
     assert targets(mark) and all(t is None for t in targets(mark))
 
 

@@ -84,7 +84,7 @@ async def test_go_is_refused_after_an_override_while_an_actuator_is_missing(lift
     with pytest.raises(CommandError, match="Reconnect"):
         adapter.jog("s1", +1)
     start = twin.actuators[0].position_mm
-    await asyncio.sleep(0.4)
+    await asyncio.sleep(0.4)  # four control periods: the refused go must move nothing
     assert twin.actuators[0].position_mm == start and not adapter.command.enable
 
 

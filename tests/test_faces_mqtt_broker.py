@@ -15,6 +15,7 @@ from pathlib import Path
 import aiomqtt
 import pytest
 from conftest import free_port
+from webutil import eventually
 from test_mqtt_helpers import MOSQUITTO, running_broker
 
 from app.mqtt import MqttPublisher
@@ -25,14 +26,6 @@ from devices.live import DeviceState
 ROOT = Path(__file__).resolve().parent.parent
 pytestmark = pytest.mark.timeout(90)
 INSTANCE_TOPIC = "commission/hall-3/$instances/cab-a"
-
-
-async def _until(check, timeout: float, what: str):
-    end = asyncio.get_running_loop().time() + timeout
-    while not check():
-        if asyncio.get_running_loop().time() > end:
-            raise AssertionError(f"not within {timeout} s: {what}")
-        await asyncio.sleep(0.05)
 
 
 def _publisher(url: str, extra: str = "") -> MqttPublisher:
@@ -80,15 +73,15 @@ async def test_a_takeover_of_the_client_id_is_detected_and_shown(tmp_path, caplo
         publisher = _publisher(broker.url)
         await publisher.start()
         try:
-            await _until(lambda: publisher.connected and publisher.sent > 2, 10, "the instance connected")
+            await eventually(lambda: publisher.connected and publisher.sent > 2, 10, what="the instance connected")
             intruder = aiomqtt.Client("127.0.0.1", broker.port, identifier="commission-hall-3-cab-a")
             await intruder.__aenter__()
-            await asyncio.sleep(0.5)
+            await asyncio.sleep(0.5)  # the intruder holds the instance's client id for a while
             try:
                 await intruder.__aexit__(None, None, None)
             except aiomqtt.MqttError:
                 pass  # the instance took its id back meanwhile
-            await _until(lambda: publisher.summary().get("takeovers", 0) >= 1, 15, "the takeover detected")
+            await eventually(lambda: publisher.summary().get("takeovers", 0) >= 1, 15, what="the takeover detected")
             assert "taken over" in publisher.summary()["state"]
             assert any("client id" in r.getMessage() and "commission-hall-3-cab-a" in r.getMessage() for r in caplog.records)
         finally:
@@ -126,8 +119,8 @@ async def test_the_documented_acls_keep_outsiders_out(tmp_path, monkeypatch):
         async with Watcher(port, "commission/#", username="view", password="pw-view") as watcher:
             await publisher.start()
             try:
-                await _until(lambda: any(t == INSTANCE_TOPIC and isinstance(p, dict) and p.get("state") == "online"
-                                         for t, p in watcher.messages), 10, "the instance's birth, read by the viewer")
+                await eventually(lambda: any(t == INSTANCE_TOPIC and isinstance(p, dict) and p.get("state") == "online"
+                                         for t, p in watcher.messages), 10, what="the instance's birth, read by the viewer")
                 # a viewer cannot write the instance's topics
                 async with aiomqtt.Client("127.0.0.1", port, username="view", password="pw-view") as forger:
                     await forger.publish(INSTANCE_TOPIC, b'{"state": "offline", "reason": "lost (last will)"}', qos=1)
@@ -135,8 +128,8 @@ async def test_the_documented_acls_keep_outsiders_out(tmp_path, monkeypatch):
                 # a client with the instance's client id but another account does not take its place
                 async with aiomqtt.Client("127.0.0.1", port, username="view", password="pw-view",
                                           identifier="commission-hall-3-cab-a"):
-                    await asyncio.sleep(1.0)
-                await asyncio.sleep(0.5)
+                    await asyncio.sleep(1.0)  # the impostor stays connected for a second: it must not take the instance's place
+                await asyncio.sleep(0.5)  # time for a forged will or message to arrive: none may
                 assert not watcher.wills(), watcher.wills()
                 assert not any(isinstance(p, dict) and p.get("forged") for _t, p in watcher.messages)
                 assert publisher.reconnects == 0 and publisher.summary().get("takeovers", 0) == 0

@@ -126,7 +126,7 @@ async def test_idle_connections_of_one_address_are_bounded_and_a_real_client_get
             return await asyncio.wait_for(loop.sock_recv(sock, 1), 0.05) == b""
         except (asyncio.TimeoutError, ConnectionError):
             return False
-    await asyncio.sleep(0.3)
+    await asyncio.sleep(0.3)  # the server's idle limit has time to close the surplus connections
     still_open = [s for s in idle if not await closed(s)]
     assert len(still_open) <= opcua_server.MAX_IDLE_PER_CLIENT, len(still_open)
     client = Client(server.url, timeout=5)

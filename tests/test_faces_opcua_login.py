@@ -34,7 +34,7 @@ class SlowUsers:
     def verify(self, name: str, password: str):
         self.checks += 1
         self.threads.add(threading.current_thread().name)
-        time.sleep(HASH_S)
+        time.sleep(HASH_S)  # a slow password hash, as argon2 is on a small machine
         return self.users.verify(name, password)
 
 

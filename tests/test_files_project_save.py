@@ -39,7 +39,7 @@ def test_two_saves_at_the_same_moment_keep_both(tmp_path, monkeypatch):
     real_parse = project.parse_plant
 
     def slow_parse(*args, **kwargs):  # a save takes a moment between reading the file and writing it
-        time.sleep(0.05)
+        time.sleep(0.05)  # a save takes a moment between reading and writing (the race under test)
         return real_parse(*args, **kwargs)
 
     monkeypatch.setattr(project, "parse_plant", slow_parse)

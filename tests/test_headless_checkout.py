@@ -110,9 +110,9 @@ async def test_the_person_answers_by_holding_space_and_no_means_nothing_moves(tm
                                                     out=lines.append, person=person))
         assert await wait_for(lambda: any("hold SPACE to answer yes" in line for line in lines), timeout=15)
         keys.press(" ")
-        await asyncio.sleep(HELD_GAP_S + 0.2)
+        await asyncio.sleep(HELD_GAP_S + 0.2)  # longer than a held key's repeat gap: the next press is a new one
         keys.press(" ")  # too late to be a held key: still no answer
-        await asyncio.sleep(0.1)
+        await asyncio.sleep(0.1)  # time for a wrongly taken answer to end the step: none may
         assert not task.done()
         keys.press("n")
         assert await asyncio.wait_for(task, 30) == 1
@@ -146,7 +146,7 @@ async def test_a_released_key_stops_what_the_persons_session_holds(tmp_path):
         await runtime.worker.invoke("gate", "close activate", user="cli:test", role="engineer", session=person.session,
                                     confirmed=True)
         assert twin.levels[codec.Command.CLOSE]
-        await asyncio.sleep(1.0)
+        await asyncio.sleep(1.0)  # a second with SPACE held: the level must stay
         assert twin.levels[codec.Command.CLOSE], "held while SPACE is held"
         keys.release()
         released = asyncio.get_running_loop().time()

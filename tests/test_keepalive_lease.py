@@ -112,7 +112,7 @@ async def test_a_stalled_loop_stops_the_jog_by_itself(lift):  # noqa: F811
         # after the stall: the program knows the motion stopped and says why; nothing restarts by itself
         assert await wait_for(lambda: not adapter.command.enable, timeout=1)
         assert any("stalled" in e.text and "browser was not at fault" in e.text for e in state.events if e.level == "error")
-        await asyncio.sleep(0.3)
+        await asyncio.sleep(0.3)  # three control periods after the stall: nothing may enable again
         assert not [d for t, d in listener.of(electrak.CONTROL_ID, since=stops[0]) if d[7] & 0x01]
         assert adapter.controller is not None  # control stays with the engineer: the next press moves again
     finally:
@@ -195,7 +195,7 @@ async def test_no_digout_without_an_engineer_in_control(m3io_module):
     adapter.release_control("s1")
     assert not twin.ssr[1].on or await wait_for(lambda: not twin.ssr[1].on, timeout=1)
     released = time.monotonic()
-    await asyncio.sleep(0.5)
+    await asyncio.sleep(0.5)  # five DigOut periods after the release: nothing may be sent
     assert listener.of(dig_out, since=released + 0.05) == []  # nothing after the release
 
 
@@ -255,7 +255,7 @@ async def test_a_stalled_loop_switches_mains_outputs_off_by_itself(m3io_module):
     assert not [d for t, d in during if t > offs[0] and d[0] & 0x02]
     assert await wait_for(lambda: not adapter.outputs["SSR1"], timeout=1)
     assert any("stalled" in e.text for e in state.events if e.level == "error")
-    await asyncio.sleep(0.3)
+    await asyncio.sleep(0.3)  # after the stall: SSR1 must stay off while the watchdog is served
     assert not twin.ssr[1].on and twin.watchdog_alive  # off, and the watchdog still served
 
 
@@ -277,7 +277,7 @@ async def test_master_always_serves_idle_and_yields_to_a_plc():
         listener.bus.send(can.Message(arbitration_id=adapter.ids.dig_out, data=plc, is_extended_id=False))
         assert await wait_for(lambda: not runtime.worker.can_buses["can3"].cyclic_running(adapter.key), timeout=1)
         stopped = time.monotonic()
-        await asyncio.sleep(0.5)
+        await asyncio.sleep(0.5)  # five periods after the PLC took over: this tool must send nothing
         assert [d for t, d in listener.of(adapter.ids.dig_out, since=stopped + 0.05) if d != plc] == []
     finally:
         await asyncio.wait_for(runtime.stop(), 5)

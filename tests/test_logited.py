@@ -177,7 +177,7 @@ async def line_with_second_master(port: int, holds: list, requests: list, events
                         events.append("request")
 
                         async def answer_later(sa=frame.sa):  # the barrier answers 30 ms later; the line reads on
-                            await asyncio.sleep(0.03)
+                            await asyncio.sleep(0.03)  # the barrier answers 30 ms later (the reply delay under test)
                             events.append("answer")
                             writer.write(codec.encode_frame(bytes((0x0C, 0x04)), codec.RS485, da=sa, sa=0x05))
 

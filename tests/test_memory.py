@@ -43,7 +43,7 @@ async def test_keep_trimmed_runs_off_the_loop(monkeypatch) -> None:
     calls = []  # whether each trim ran on the event loop's thread
     monkeypatch.setattr(memory, "trim", lambda: calls.append(threading.current_thread() is threading.main_thread()))
     task = asyncio.create_task(memory.keep_trimmed(0.01))
-    await asyncio.sleep(0.1)
+    await asyncio.sleep(0.1)  # ten trim periods of 10 ms
     task.cancel()
     await asyncio.gather(task, return_exceptions=True)
     assert len(calls) >= 3 and not any(calls)

@@ -5,7 +5,6 @@ Every CAN test uses its own python-can ``virtual`` channel and closes every bus 
 
 from __future__ import annotations
 
-import asyncio
 import logging
 import os
 import time
@@ -16,11 +15,11 @@ from pathlib import Path
 
 import can
 import pytest
-from conftest import free_port
+from conftest import free_port, wait_for
 from nicegui import ui
 from nicegui.elements.upload_files import SmallFileUpload
 from nicegui.testing import User
-from webutil import demo_plant_text, eventually, simulated_user
+from webutil import demo_plant_text, eventually, eventually_sync, simulated_user
 
 from app import recording as rec
 from app.can_bus import CanBus, CanBusState, FrameRecord
@@ -202,18 +201,8 @@ SENT = [
 async def _started_bus(channel: str) -> CanBus:
     bus = CanBus("rec", {"interface": "virtual", "channel": channel, "bitrate": 250000}, CanBusState("rec", "can", channel))
     await bus.start()
-    assert await _until(lambda: bus.state.connected, 3), bus.state.last_error
+    assert await wait_for(lambda: bus.state.connected, 3), bus.state.last_error
     return bus
-
-
-async def _until(predicate, timeout: float) -> bool:
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout
-    while loop.time() < end:
-        if predicate():
-            return True
-        await asyncio.sleep(0.02)
-    return bool(predicate())
 
 
 @pytest.mark.timeout(20)
@@ -230,15 +219,15 @@ async def test_recording_round_trip(tmp_path: Path, suffix: str):
             rec.start_recording(bus.state, suffix, tmp_path)
         for can_id, ext, data in SENT:
             sender.send(can.Message(arbitration_id=can_id, is_extended_id=ext, data=data))
-        assert await _until(lambda: bus.state.rx_frames == len(SENT), 5), f"received {bus.state.rx_frames}"
+        assert await wait_for(lambda: bus.state.rx_frames == len(SENT), 5), f"received {bus.state.rx_frames}"
         assert bus.send(0x703, b"\x0b\x00\x00\x00\xb8\x0b\x02\x00")  # sent by us: recorded as well
-        assert await _until(lambda: recording.frames == len(SENT) + 1, 5)  # the writer thread has them all
+        assert await wait_for(lambda: recording.frames == len(SENT) + 1, 5)  # the writer thread has them all
         stopped = rec.stop_recording(bus.state)
         assert stopped is recording and not recording.active and recording.error == ""
         assert bus.state.recorder is None and rec.stop_recording(bus.state) is None
         # frames after the stop do not reach the closed file
         sender.send(can.Message(arbitration_id=0x555, data=b"\x01"))
-        assert await _until(lambda: bus.state.rx_frames == len(SENT) + 1, 5)
+        assert await wait_for(lambda: bus.state.rx_frames == len(SENT) + 1, 5)
     finally:
         sender.shutdown()
         await bus.stop()
@@ -273,23 +262,14 @@ def test_write_error_ends_the_recording_not_the_bus(tmp_path: Path):
     bus = CanBus("w", {"interface": "virtual", "channel": unique_channel()}, state)  # never opened: dispatch only
     recording = rec.start_recording(state, ".log", tmp_path)
     bus.dispatch(can.Message(arbitration_id=0x100, data=b"\x01"))
-    assert wait_until(lambda: recording.frames == 1)  # written by the recording's own thread
+    assert eventually_sync(lambda: recording.frames == 1)  # written by the recording's own thread
     recording.writer.file.close()  # the disk is gone
     bus.dispatch(can.Message(arbitration_id=0x101, data=b"\x02"))
-    assert wait_until(lambda: recording.error)  # the writer thread ends the recording and says why
+    assert eventually_sync(lambda: recording.error)  # the writer thread ends the recording and says why
     bus.dispatch(can.Message(arbitration_id=0x102, data=b"\x03"))
     assert state.recorder is None and "recording stopped" in state.last_error
     assert not recording.active and recording.error and recording.frames == 1
     assert state.rx_frames == 3 and len(state.frames) == 3  # the monitor keeps going
-
-
-def wait_until(check, timeout: float = 5.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if check():
-            return True
-        time.sleep(0.01)
-    return bool(check())
 
 
 def test_recording_refuses_unknown_format(tmp_path: Path):

@@ -8,7 +8,7 @@ import asyncio
 import pytest
 from asyncua import Client, ua
 from conftest import free_port
-from webutil import private_endpoints
+from webutil import eventually, private_endpoints
 
 from app.opcua_server import DEVICE_HEALTH, DI_URI, IDENTITY, OpcuaServer, health_of, status_of
 from app.plant import OpcuaConfig, load_plant
@@ -17,17 +17,6 @@ from devices.live import DeviceState
 
 pytestmark = pytest.mark.timeout(90)
 DEMO_PLANT = "plants/demo.toml"
-
-
-async def _until(check, timeout: float, what: str):
-    end = asyncio.get_running_loop().time() + timeout
-    while True:
-        result = await check()
-        if result:
-            return result
-        if asyncio.get_running_loop().time() > end:
-            raise AssertionError(f"not within {timeout} s: {what}")
-        await asyncio.sleep(0.1)
 
 
 class _Changes:
@@ -63,7 +52,7 @@ async def test_devices_identity_health_subscription_and_refused_write(tmp_path):
             for name, node in devices.items():
                 found[name] = {p: await (await node.get_child(f"{di}:{p}")).read_value() for p in ("Manufacturer", "Model", "SerialNumber")}
             return found if found["door-1"]["SerialNumber"] == "660020" else None
-        identity = await _until(identities_read, 30, "door-1's serial number read from the device")
+        identity = await eventually(identities_read, 30, what="door-1's serial number read from the device")
         assert identity["door-1"]["Manufacturer"] == "BSS" and identity["lift-1"]["Manufacturer"] == "Ewellix"
         assert identity["heater-hm"]["Model"] == "CAN-M3IO HM"
         assert all(i["Model"] for i in identity.values())
@@ -71,18 +60,18 @@ async def test_devices_identity_health_subscription_and_refused_write(tmp_path):
         async def all_healthy():
             healths = {n: await (await d.get_child(f"{di}:DeviceHealth")).read_value() for n, d in devices.items()}
             return healths if all(DEVICE_HEALTH[h] in ("NORMAL", "OFF_SPEC", "MAINTENANCE_REQUIRED") for h in healths.values()) else None
-        await _until(all_healthy, 30, "every demo device answers (no FAILURE)")
+        await eventually(all_healthy, 30, what="every demo device answers (no FAILURE)")
 
         # a live value with its unit and status; a subscription sees it change
         params = await devices["lift-1"].get_child(f"{di}:ParameterSet")
 
         async def some_points():
             return await params.get_children()
-        points = await _until(some_points, 20, "lift-1's live values")
+        points = await eventually(some_points, 20, what="lift-1's live values")
         units = [await (await p.get_child("0:EngineeringUnits")).read_value() for p in points]
         assert any(u.DisplayName.Text for u in units), "engineering units travel with the values"
         door_params = await devices["door-1"].get_child(f"{di}:ParameterSet")
-        target = await _until(door_params.get_children, 20, "door-1's live values")
+        target = await eventually(door_params.get_children, 20, what="door-1's live values")
         value = await target[0].read_data_value()
         assert value.StatusCode.is_good() and value.SourceTimestamp is not None
 
@@ -90,12 +79,12 @@ async def test_devices_identity_health_subscription_and_refused_write(tmp_path):
         subscription = await client.create_subscription(100, handler)
         moving = [n for n in target if (await n.read_browse_name()).Name in ("BoltPosition", "Status", "DoorState")] or target
         await subscription.subscribe_data_change(moving)
-        await _until(lambda: asyncio.sleep(0, bool(handler.values)), 10, "a data change notification")
+        await eventually(lambda: asyncio.sleep(0, bool(handler.values)), 10, what="a data change notification")
 
         # the twin stops answering: its values turn Bad and its health FAILURE
         runtime.twins["door-1"].silent = True
         health = await devices["door-1"].get_child(f"{di}:DeviceHealth")
-        await _until(lambda: _equals(health, DEVICE_HEALTH.index("FAILURE")), 20, "door-1's health FAILURE")
+        await eventually(lambda: _equals(health, DEVICE_HEALTH.index("FAILURE")), 20, what="door-1's health FAILURE")
         assert (await target[0].read_data_value(raise_on_bad_status=False)).StatusCode.is_bad()
         runtime.twins["door-1"].silent = False
 

@@ -5,12 +5,11 @@ the buses in words."""
 from __future__ import annotations
 
 import asyncio
-import time
 
 import pytest
 from nicegui import ui
 from plants import can_bus, device, plant_text
-from webutil import simulated_user
+from webutil import eventually, simulated_user
 
 from app.plant import parse_plant
 from app.runtime import Runtime
@@ -26,14 +25,6 @@ async def user_runtime():
     runtime = Runtime(parse_plant(PLANT), simulate=False)
     async with simulated_user(runtime) as user:
         yield user, runtime
-
-
-async def eventually(check, what: str, timeout: float = 5.0) -> None:
-    end = time.monotonic() + timeout
-    while not check():
-        if time.monotonic() > end:
-            raise AssertionError(f"not within {timeout} s: {what}")
-        await asyncio.sleep(0.02)
 
 
 def sent_js(client) -> list[str]:
@@ -70,7 +61,7 @@ async def test_register_table_sends_only_the_changed_cells_and_shows_what_the_st
     first = params[0]
     state.update_registers(INPUT, first.address, [1] * first.words)
     shown = lambda: next(r for r in table.table.rows if r["key"] == first.key)["value"]  # noqa: E731
-    await eventually(lambda: shown() == first.display(state.raw(first)), "the new value in the table")
+    await eventually(lambda: shown() == first.display(state.raw(first)), what="the new value in the table")
     patches = [code for code in sent if "mounted_app.elements" in code]
     assert patches, "the change goes out as a patch of the table's cells"
     assert first.key in patches[-1]
@@ -112,7 +103,7 @@ async def test_register_table_in_a_hidden_tab_waits_for_its_tab(user_runtime):
     await asyncio.sleep(0.4)  # several pushes
     assert row() == before  # its tab is not shown: nothing built, nothing sent
     panels.set_value("hold")
-    await eventually(lambda: row()["value"] == target.display(state.raw(target)), "the hidden table brought up to date")
+    await eventually(lambda: row()["value"] == target.display(state.raw(target)), what="the hidden table brought up to date")
 
 
 async def test_tile_is_reused_while_its_points_hold_the_same_values(user_runtime):
@@ -140,8 +131,8 @@ async def test_header_menu_names_every_bus_in_words_and_links_fleet(user_runtime
     item = next(e for e in items if e.props["data-bus-item"] == "can9")
     words = lambda: item.default_slot.children[0].content  # noqa: E731 - icon, name and state: one element
     bus.connected = False
-    await eventually(lambda: "can9</span>" in words() and ">not connected</span>" in words(), "the bus's state in words", timeout=5)
+    await eventually(lambda: "can9</span>" in words() and ">not connected</span>" in words(), timeout=5, what="the bus's state in words")
     bus.connected = True
-    await eventually(lambda: ">connected</span>" in words(), "connected again in words", timeout=5)
+    await eventually(lambda: ">connected</span>" in words(), timeout=5, what="connected again in words")
     chip = next(e for e in user.client.elements.values() if e.props.get("data-bus") == "can9")
     assert chip.props["aria-label"].startswith("can9: ")

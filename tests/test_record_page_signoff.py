@@ -56,7 +56,7 @@ async def test_sign_off_on_loopback_asks_for_an_account_and_lists_what_is_open(t
         user.find(marker="sign-plant").click()
         await user.should_see("door-1: no checkout run", retries=100)
         user.find(marker="gaps-cancel").click()
-        await asyncio.sleep(0.2)
+        await asyncio.sleep(0.2)  # time for a cancelled sign-off to be written: none may be
         assert await runtime.record.timeline(None, ("signoff",)) == []
 
         # signed anyway, with the account given at that moment (a wrong password first)

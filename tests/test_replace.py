@@ -116,7 +116,7 @@ async def test_identity_read_again_only_when_its_points_change(two_locks, monkey
     original = adapter.backup_identity
     monkeypatch.setattr(adapter, "backup_identity", lambda: reads.append(1) or original())
     versions = state.version
-    await asyncio.sleep(2)
+    await asyncio.sleep(2)  # two seconds of polls: the identity is read only when its words move
     assert state.version > versions  # the lock was polled and pushed meanwhile
     assert len(reads) < 4, len(reads)  # was up to four times a second; now only when the identity's words move
     assert getattr(state, "replaced", None) is None

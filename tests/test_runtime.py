@@ -51,7 +51,7 @@ async def test_a_blocked_event_loop_is_measured_and_counted(tmp_path, caplog):
     runtime = Runtime(modbus_plant(locks=(("door-1", 1),)), simulate=False, data_dir=tmp_path)
     await runtime.start()
     try:
-        await asyncio.sleep(0.3)
+        await asyncio.sleep(0.3)  # the runtime runs a few ticks before the block is measured
         before = runtime.worker.loop_health.stalls
         # a blocking call on the loop, as a locked database once was; no page is connected, so the tick comes
         # every IDLE_PERIOD_S and measures at least the block less one period

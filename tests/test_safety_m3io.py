@@ -378,7 +378,7 @@ async def test_reading_identity_is_no_sign_of_another_master():
     await runtime.start()
     try:
         adapter = runtime.worker.adapters["hmr"]
-        await asyncio.sleep(LISTEN_S)
+        await asyncio.sleep(LISTEN_S)  # listen to the module's own telegrams for LISTEN_S
         info = await adapter.read_identity()
         assert info["serial"] == "42120023"
         assert not adapter.foreign_master()

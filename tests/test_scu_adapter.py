@@ -244,7 +244,7 @@ async def test_adapter_against_the_twin_keeps_rc_gaps_below_500_ms_moves_and_sto
     stale: set[str] = set()
 
     async def watch_quality(start_at: float, stop_at: float):  # as a page sees the points, ten times a second
-        await asyncio.sleep(start_at - time.monotonic())
+        await asyncio.sleep(start_at - time.monotonic())  # the page opens at start_at
         while time.monotonic() < stop_at:
             stale.update(name for name in list(adapter.state.points) if adapter.state.point(name)["quality"] == "stale")
             await asyncio.sleep(0.1)

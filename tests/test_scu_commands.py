@@ -112,7 +112,7 @@ async def test_a_viewer_sends_nothing_but_stops(scu):
                        ("take control", {"user": "tablet"}), ("open remote session", {}), ("release the SCU (RA)", {})):
         with pytest.raises(PermissionDenied):
             await invoke(runtime, name, args, role="viewer", session="s1", confirmed=True)
-    await asyncio.sleep(0.3)
+    await asyncio.sleep(0.3)  # time for a refused command to reach the unit: none may
     after = dict(twin.requests)
     assert {k: after.get(k, 0) - before.get(k, 0) for k in ("RE", "RS", "RT", "RA", "RO") if after.get(k, 0) != before.get(k, 0)} == {}
     await invoke(runtime, "emergency stop (RE 19)", role="viewer", session="v")

@@ -34,7 +34,7 @@ async def test_a_stop_never_acknowledged_with_the_browser_gone_ends_with_the_uni
         assert await wait_for(lambda: moving(twin) == [], 2.0), "F1 still drives after a refused stop"
         assert twin.watchdog_trips, "the unit's watchdog did not stop it: RC was not withheld"
         ro_before = twin.requests.get("RO", 0)
-        await asyncio.sleep(0.4)
+        await asyncio.sleep(0.4)  # four RC periods: a reopening must not start the drive
         assert moving(twin) == [], "a reopening started the drive again"
         assert "STOP FAILED" in adapter.state.last_error and "watchdog" in adapter.state.last_error
         twin.cse_on_rs = 0
@@ -107,7 +107,7 @@ async def test_one_cse_is_line_noise_and_remembered_as_nothing():
         twin.cse_next = {"RT": 1, "RG": 1}
         await session_open(adapter)
         await adapter.take_control("s1", "anna")
-        await asyncio.sleep(1.0)
+        await asyncio.sleep(1.0)  # ten polls with a single CSE each: none may be remembered as a refusal
         assert not adapter.cyclic_refused, "a CSE to the cyclic definition was remembered as a refusal"
         assert not adapter.single_ids, "a CSE to a group read was remembered as a refusal of groups"
 

@@ -139,7 +139,7 @@ async def test_a_stalled_loop_stops_the_jog_by_rs_from_the_line_thread(scu):
                                       if e.level == "error"), 3)
     assert adapter.holders() == set() and not adapter.rs_pending
     assert await wait_for(lambda: adapter.session == "open", 10), adapter.session_reason
-    await asyncio.sleep(0.5)
+    await asyncio.sleep(0.5)  # five polls after reopening: nothing may move
     assert not any(a.moving for a in twin.actuators) and ("RE", F1) not in unit.log_since(blocked)
     assert adapter.controller is not None  # control stays with the engineer: the next press moves again
     await adapter.jog("s1", F1, -1)
@@ -152,7 +152,7 @@ async def test_an_idle_session_is_kept_alive_through_a_stall(scu):
     """Nothing runs: RC goes on from the line's thread through a 1 s stall, the watchdog never trips."""
     runtime, adapter, unit = scu
     twin = unit.twin
-    await asyncio.sleep(0.5)
+    await asyncio.sleep(0.5)  # the session runs idle before the stall
     blocked = block_loop(1.0)
     await asyncio.sleep(0)
     gaps = unit.rc_gaps(blocked - 0.2, blocked + 1.0)

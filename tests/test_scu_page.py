@@ -76,8 +76,7 @@ async def test_scu_dead_man_sends_rs_when_the_session_goes_away(env):
     # the session never sends a heartbeat: the worker trips it DEADMAN_TIMEOUT_S after it holds something
     await eventually(lambda: adapter.holders() == set(), timeout=1.0)
     assert not twin.actuators[0].moving and ("RS", 0) in twin.function_log
-    await asyncio.sleep(0.05)
-    assert adapter.controller is None
+    await eventually(lambda: adapter.controller is None, timeout=2.0)
     assert any("dead-man" in e.text for e in adapter.state.events)
 
 
@@ -89,7 +88,7 @@ async def test_go_asks_area_clear_and_cancel_sends_no_re(env):
     user.find("Go (RE)").click()
     await user.should_see("The area is clear: Go")
     user.find("Cancel").click()
-    await asyncio.sleep(0.3)
+    await asyncio.sleep(0.3)  # time for a cancelled Go to reach the unit: it may not
     assert not any(cmd == "RE" for cmd, _ in twin.function_log) and adapter.holders() == set()
 
 

@@ -93,7 +93,7 @@ async def test_emergency_stop_survives_a_lost_and_reopened_session():
         assert ("RS", ESTOP) not in twin.function_log, twin.function_log
         await adapter.release_scu("s1")  # RA, then "Open the remote session"
         await adapter.reopen("s1")
-        await asyncio.sleep(0.3)
+        await asyncio.sleep(0.3)  # three polls after reopening: the emergency stop must stay
         assert twin.emergency_stop and ("RS", ESTOP) not in twin.function_log
         await adapter.release_emergency_stop("s1")  # only the explicit release switches it off
         assert not twin.emergency_stop and twin.function_log[-1] == ("RS", ESTOP)
@@ -192,7 +192,7 @@ async def test_rs_never_acknowledged_is_a_failed_stop_held_and_retried():
 async def test_a_unit_that_answers_rg_outside_remote_mode_is_watched_without_a_session():
     async with unit(rg_outside_session=True) as (adapter, twin):
         assert await wait_for(lambda: adapter.watch == WATCH_RG and "A1 position" in adapter.state.points, 5)
-        await asyncio.sleep(0.6)
+        await asyncio.sleep(0.6)  # six polls: no session may be opened
         assert "RO" not in twin.requests and "RC" not in twin.requests and not twin.remote
         assert "without" in adapter.state.live(P_WATCH).text and adapter.session != "open"
         assert await wait_for(lambda: "Battery voltage" in adapter.state.points, 6)
@@ -235,9 +235,9 @@ async def test_stray_bytes_split_and_late_answers_never_end_the_session():
     async with unit(split_answers=True) as (adapter, twin):
         await session_open(adapter)
         twin.stray_bytes = 5
-        await asyncio.sleep(1.0)
+        await asyncio.sleep(1.0)  # a second of stray bytes on the line
         twin.answer_delay_s = 0.45  # late beyond the 0.3 s timeout: the answers arrive during the next request
-        await asyncio.sleep(0.8)
+        await asyncio.sleep(0.8)  # late answers for a while: each arrives during the next request
         twin.answer_delay_s = 0.0
         await session_open(adapter, 10)
         before = adapter.state.counters.responses

@@ -15,7 +15,7 @@ import pytest
 from conftest import free_port
 from socket_browser import SocketBrowser
 from plants import modbus_line, plant_text
-from webutil import serve_beyond_loopback, stop_app, wait_http
+from webutil import eventually, serve_beyond_loopback, stop_app, wait_http
 
 from app.users import UserStore
 
@@ -44,14 +44,6 @@ def audit_rows(data, parameter: str) -> list[tuple[str, str, str, str]]:
         return db.execute("SELECT user, role, new, result FROM audit WHERE parameter = ? ORDER BY id", (parameter,)).fetchall()
 
 
-async def wait_until(check, timeout: float = 20.0, what: str = "") -> None:
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout
-    while not check():
-        assert loop.time() < end, f"not within {timeout} s: {what}"
-        await asyncio.sleep(0.1)
-
-
 async def test_an_event_naming_another_browsers_client_does_not_run_as_that_user(beyond_loopback):
     base, data, _log = beyond_loopback
     engineer, viewer = SocketBrowser(base), SocketBrowser(base)
@@ -77,8 +69,8 @@ async def test_an_event_naming_another_browsers_client_does_not_run_as_that_user
         # the engineer's own events still work: a write of 180 lands, the forged 175 never did
         await engineer.set_value(field, 180)
         await engineer.emit_event(write, "click", [])
-        await wait_until(lambda: any(row[2].startswith("180") for row in audit_rows(data, "LockRequestDelay")),
-                         what="the engineer's own write of 180")
+        await eventually(lambda: any(row[2].startswith("180") for row in audit_rows(data, "LockRequestDelay")),
+                         timeout=20, what="the engineer's own write of 180")
         rows = audit_rows(data, "LockRequestDelay")
         assert not [row for row in rows if row[2].startswith("175")], rows
         assert all(row[:2] == ("anna", "engineer") for row in rows), rows

@@ -311,7 +311,7 @@ async def test_primary_host_state_is_honoured(tmp_path):
             await node.start()
             try:
                 await host.until(lambda: node.state == "waiting for the primary host", 10, "the node waits for the host")
-                await asyncio.sleep(0.3)
+                await asyncio.sleep(0.3)  # time for a premature birth to arrive: none may
                 assert not host.of("NBIRTH", "cab-c"), "no birth while the primary host is not online"
                 await host.client.publish("spBv1.0/STATE/scada", b'{"online": true, "timestamp": 1}', qos=1, retain=True)
                 await host.until(lambda: host.of("DBIRTH", "cab-c", "pump"), 10, "births once the host is online")
@@ -325,7 +325,7 @@ async def test_primary_host_state_is_honoured(tmp_path):
                 assert metrics(death)["bdSeq"]["value"] == first_bd
                 mark = len(host.messages)
                 state.publish("Speed", 3.5, "rpm")
-                await asyncio.sleep(0.5)
+                await asyncio.sleep(0.5)  # time for a publication to arrive while the host is offline: none may
                 assert not host.of("DDATA", "cab-c", "pump", since=mark), "nothing published while the host is offline"
                 await host.client.publish("spBv1.0/STATE/scada", b'{"online": true, "timestamp": 3}', qos=1, retain=True)
                 nbirth = (await host.until(lambda: host.of("NBIRTH", "cab-c", since=mark), 10, "born again"))[0]

@@ -213,7 +213,7 @@ def test_a_device_writing_fast_is_pushed_at_a_bounded_rate_and_its_last_value_ar
             state.publish("Temp", float(i))
             await asyncio.sleep(0.005)
         spent = time.monotonic() - start
-        await asyncio.sleep(0.25)
+        await asyncio.sleep(0.25)  # the store's last round after the burst
         await store.stop()
         return len(seen), spent, seen[-1]
 
@@ -238,7 +238,7 @@ def test_a_page_following_many_devices_runs_them_together():
         for i in range(10):
             store.devices[f"d{i}"] = DeviceState(f"d{i}", "m3io", "can0")
             store.watch(f"d{i}", called, group="page-1")
-        await asyncio.sleep(0.2)
+        await asyncio.sleep(0.2)  # the store's first round (everything new) is over
         runs.clear()
         start = time.monotonic()
         for k in range(100):  # every 10 ms another device changes

@@ -9,7 +9,7 @@ import time
 import pytest
 from nicegui import ui
 from plants import can_bus, device, plant_text
-from webutil import simulated_user
+from webutil import eventually, simulated_user
 
 from app.plant import parse_plant
 from app.runtime import Runtime
@@ -165,14 +165,7 @@ async def test_tile_counters_of_a_page_move_together_once_a_second():
         assert all(b - a > 0.8 for a, b in zip(starts, starts[1:])), f"more often than once a second: {starts}"
         for label_id, name in labels.items():  # and they say what was counted
             count = runtime.store.devices[name].counters.responses
-            await wait_until(lambda: f"frames heard {count}" in user.client.elements[label_id].text, 2.0)
-
-
-async def wait_until(check, timeout: float) -> None:
-    end = time.monotonic() + timeout
-    while not check():
-        assert time.monotonic() < end, "not within the time"
-        await asyncio.sleep(0.02)
+            await eventually(lambda: f"frames heard {count}" in user.client.elements[label_id].text, 2.0)
 
 
 async def test_a_changed_value_reaches_the_tile_at_once(user_runtime):
@@ -181,11 +174,11 @@ async def test_a_changed_value_reaches_the_tile_at_once(user_runtime):
     await user.open("/")
     card = next(e for e in user.client.elements.values() if e.props.get("data-device") == "io")
     texts = lambda: [d.text for d in card.descendants() if isinstance(d, ui.label)]  # noqa: E731
-    await asyncio.sleep(0.5)
+    await asyncio.sleep(0.5)  # the page's first rounds are over before the new value comes
     state = runtime.store.devices["io"]
     state.publish("TEMP1", 21.5, "°C", text="21.5 °C")
     sent = time.monotonic()
-    await wait_until(lambda: any("T1\u00a021.5" in t for t in texts()), 1.0)
+    await eventually(lambda: any("T1\u00a021.5" in t for t in texts()), 1.0)
     assert time.monotonic() - sent < 0.5
 
 
@@ -252,13 +245,13 @@ async def test_register_table_is_built_once_in_the_once_a_second_round(user_runt
     store._aged = {name: time.monotonic() + 1e9 for name in store.devices}  # no once-a-second round for now
     builds.clear()
     state.version += 1
-    await asyncio.sleep(0.3)
+    await eventually(lambda: builds, timeout=5.0)
     # a change: values only (pushed as it comes, so a write of the starting runtime may add one more)
     assert builds and set(builds) == {False}
     builds.clear()
     store._aged = {name: 0.0 for name in store.devices}  # the next round is the once-a-second round
     state.version += 1
-    await asyncio.sleep(0.15)
+    await eventually(lambda: builds, timeout=5.0)
     assert builds[0] is True and builds.count(True) == 1  # a change in the once-a-second round: one build with the read times
 
 
@@ -277,7 +270,7 @@ async def test_a_frame_that_changes_nothing_shown_redraws_no_tile_or_row(user_ru
             _refresh(self, ticked)
         monkeypatch.setattr(cls, "refresh", counted)
     state = runtime.store.devices["io"]
-    await asyncio.sleep(0.3)
+    await asyncio.sleep(0.3)  # the page's first rounds are over before counting
     pushed.clear()
     for _ in range(8):
         state.counters.responses += 1
@@ -285,7 +278,7 @@ async def test_a_frame_that_changes_nothing_shown_redraws_no_tile_or_row(user_ru
         await asyncio.sleep(0.1)
     assert pushed == []
     state.publish("TEMP2", 30.0, "°C", text="30.0 °C")
-    await wait_until(lambda: sorted(set(pushed)) == ["DeviceTile", "GlanceRow"], 1.0)
+    await eventually(lambda: sorted(set(pushed)) == ["DeviceTile", "GlanceRow"], 1.0)
 
 
 def _tile_elements(user, prop: str, name: str) -> list:
@@ -307,7 +300,7 @@ async def test_tiles_are_light_and_seldom_shown_marks_are_built_when_needed(user
     monkeypatch.setattr(runtime.record, "check_drift", lambda device: [])  # the drift below stays as set
     state.drift = {"changed": [{"key": "holding:3000", "name": "Delay", "approved": "200 ms", "now": "350 ms"}]}
     state.version += 1
-    await wait_until(lambda: any("data-drift" in e.props for e in _tile_elements(user, "data-device", "io")), 2.0)
+    await eventually(lambda: any("data-drift" in e.props for e in _tile_elements(user, "data-device", "io")), 2.0)
     card = next(e for e in user.client.elements.values() if e.props.get("data-device") == "io")
     order = [("drift" if "data-drift" in e.props else "values" if "data-tile-values" in e.props else
               "kind" if getattr(e, "text", "").startswith("CAN-M3IO") else "") for e in card.default_slot.children]

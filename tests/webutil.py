@@ -18,8 +18,10 @@ import liveapp
 from liveapp import DEMO_PLANT, ROOT, free_port, running_app, start_app, stop_app, wait_http  # noqa: F401 - for the tests
 
 
-async def eventually(check: Callable[[], object], timeout: float = 5.0, interval: float = 0.05, what: str = "") -> None:
-    """Retry ``check`` (which raises AssertionError, or returns falsy) until it passes or ``timeout`` ends."""
+async def eventually(check: Callable[[], object], timeout: float = 5.0, interval: float = 0.05, what: str = "",
+                     retry_on: tuple[type[BaseException], ...] = (AssertionError,)) -> object:
+    """Retry ``check`` (which raises AssertionError, or returns falsy; a coroutine's result is awaited) until it
+    passes or ``timeout`` ends; returns what it returned. The one way the suite waits on a condition."""
     loop = asyncio.get_running_loop()
     end = loop.time() + timeout
     while True:
@@ -28,13 +30,30 @@ async def eventually(check: Callable[[], object], timeout: float = 5.0, interval
             if asyncio.iscoroutine(result):
                 result = await result
             if result is None or result:
-                return
-            error: AssertionError | None = AssertionError(f"not true within {timeout} s: {what or check}")
-        except AssertionError as exc:
+                return result
+            error: BaseException = AssertionError(f"not true within {timeout} s: {what or check}")
+        except retry_on as exc:
             error = exc
         if loop.time() >= end:
             raise error
         await asyncio.sleep(interval)
+
+
+def eventually_sync(check: Callable[[], object], timeout: float = 5.0, interval: float = 0.05, what: str = "",
+                    retry_on: tuple[type[BaseException], ...] = (AssertionError,)) -> object:
+    """:func:`eventually` for a test without an event loop (a thread, a process beside it)."""
+    end = time.monotonic() + timeout
+    while True:
+        try:
+            result = check()
+            if result is None or result:
+                return result
+            error: BaseException = AssertionError(f"not true within {timeout} s: {what or check}")
+        except retry_on as exc:
+            error = exc
+        if time.monotonic() >= end:
+            raise error
+        time.sleep(interval)
 
 
 async def stop_worker_tasks(runtime, timeout: float = 5.0) -> None:
