@@ -1,7 +1,7 @@
 """MO 64 settings on the parameter model, on every path against the twins: the project's difference on the device
-page applied per row, restore with names and the question a safety flag names, batch apply to two barriers on one
-RS485 line (each reported), drift of a changed setting in /api/devices, and the page's question when force
-monitoring is cleared (NiceGUI's simulated user)."""
+page applied per row, restore with names and the question a safety flag names, batch apply to the demo plant's two
+barriers on one RS485 line (each reported), drift of a changed setting in /api/devices, the page's question when
+force monitoring is cleared (NiceGUI's simulated user) and the replacement assistant."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from test_backup_page import emit
 from test_project_page import _card_table, _dialog_button
 from webutil import by_testid, eventually, simulated_user
 
-from app import backup, batch, project
+from app import backup, batch, project, replace
 from app.plant import load_plant, parse_plant
 from app.runtime import Runtime
 from devices.mo64.params import KRAFT_RISK, PARAMS
@@ -156,3 +156,16 @@ async def test_drift_of_a_changed_setting_and_the_page_asks_before_force_monitor
         await eventually(lambda: _force_bits(twin) == 0, timeout=10, what="force monitoring off in the barrier")
         await eventually(lambda: any(r["key"] == KRAFT.key for r in state.drift["changed"]), timeout=5,
                          what="drift of the flag")
+
+        # the replacement assistant: the approved set against the unit, by name, the flag's question included
+        rp = await replace.plan_replacement(runtime, "gate")
+        assert rp.check.ok and not rp.check.lacks and not rp.check.adds
+        rows = {r.name: r for r in rp.plan.rows if r.changed}
+        assert set(rows) == {"t_offen", "Kraftüberwachung"}
+        assert (rows["t_offen"].current_text, rows["t_offen"].backup_text) == ("12.5 s", "10 s")
+        assert not rows["Kraftüberwachung"].risk  # back on: asks nothing
+        report = await replace.execute_replacement(runtime, rp, {r.key for r in rows.values()}, user="anna",
+                                                   role="engineer")
+        assert report.ok and sorted(report.written) == ["Kraftüberwachung", "t_offen"], report.summary()
+        assert _force_bits(twin) == 1 and twin.settings["t_open"] == 1000
+        await eventually(lambda: not state.drift["changed"], timeout=5, what="no drift after the replacement")
