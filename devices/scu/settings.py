@@ -14,6 +14,7 @@ store shows, a different one fails the write. Nothing is saved: remote data are 
 
 from __future__ import annotations
 
+import asyncio
 import time
 from typing import Any
 
@@ -23,6 +24,7 @@ from devices.scu import params as p
 from devices.scu.facts import CommandError, jsonable
 from devices.scu.model import PARAMS, SAFETY_ID, VOLATILE, DataParam, params_for, params_of, raw_of
 
+SESSION_WAIT_S = 3.0  # a read or write waits this long for a remote session that is being opened (or in its backoff)
 # The data directory's record for the commissioning file, besides the model: identity, counters, error history
 # (table 6). Read with the backup, never written.
 RECORD_IDS = (0x0001, 0x0002, 0x0060, 0x0070, 0x0080, 0x0090, 0x00B0, 0x00C0, 0x00C1, 0x00D0)
@@ -66,6 +68,24 @@ class ScuSettings:
         self.state.publish_telegram(time.time(), {}, {(SAFETY_ID.space, SAFETY_ID.address): sid})
 
     # -- reads ------------------------------------------------------------------------------------
+    async def _session(self, needed: bool) -> None:
+        """Wait (at most :data:`SESSION_WAIT_S`) for the remote session where the unit needs one: a compare or a write
+        asked just as the unit came online finds the session still being opened (section 4.1: RG and RT only in
+        remote mode, unless the unit answers RG without one)."""
+        adapter = self.adapter
+        if not needed or adapter.session in ("open", "released"):
+            return
+        deadline = time.monotonic() + SESSION_WAIT_S
+        while adapter.session != "open" and time.monotonic() < deadline:
+            await adapter._ensure_open()
+            if adapter.session != "open":
+                await asyncio.sleep(0.1)
+
+    def _needs_session_to_read(self) -> bool:
+        from devices.scu.adapter import WATCH_RG
+
+        return self.adapter.watch != WATCH_RG
+
     async def _read(self, data_id: int) -> dict[int, Any]:
         """RG of ``data_id`` (a group: its members, one by one when the unit refuses the group): ``{data ID: value}``
         of what the unit answered; a member it refuses is left out and remembered."""
@@ -92,6 +112,7 @@ class ScuSettings:
     async def read_all(self) -> dict[str, int]:
         """Every modelled value of this unit, fresh: ``{key: raw}`` (a value the unit refuses is left out)."""
         values: dict[int, Any] = {}
+        await self._session(self._needs_session_to_read())
         for group in MODEL_GROUPS:
             values.update(await self._read(group))
         self._note_safety_id()
@@ -109,6 +130,7 @@ class ScuSettings:
         if q.space == SAFETY_ID.space:
             self._note_safety_id()
             return int(self.adapter.safety_id)
+        await self._session(self._needs_session_to_read())
         values = await self._read(q.address)
         if q.address not in values:
             raise CommandError(f"{q.name}: {self.refused.get(q.key, 'no answer')}")
@@ -146,6 +168,7 @@ class ScuSettings:
         if reason:
             raise CommandError(reason)
         adapter = self.adapter
+        await self._session(True)
         await adapter._ensure_open()
         adapter._check_open()
         reason = self.refusal(q, raw)  # the session's opening may have sent RE 19 and owed RS: look again
