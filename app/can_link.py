@@ -161,6 +161,7 @@ class Handover(can.Listener):
 
     def __init__(self, link: CanLink, limit: int):
         self.link = link
+        self.handlers = link.handlers  # subscribed IDs (the link's own dict, changed in place)
         self.limit = limit
         self.known: deque[can.Message] = deque()
         self.other: deque[can.Message] = deque()
@@ -172,20 +173,24 @@ class Handover(can.Listener):
         self.closing = threading.Event()
 
     def on_message_received(self, msg: can.Message) -> None:
-        inbox = self.known if (msg.is_extended_id, msg.arbitration_id) in self.link.handlers else self.other
-        if len(inbox) >= self.limit:
+        """In the notifier's thread, once per frame (kept short: it shares the interpreter with the loop)."""
+        inbox = self.known if (msg.is_extended_id, msg.arbitration_id) in self.handlers else self.other
+        limit = self.limit
+        if len(inbox) >= limit:
             # the loop is behind: give it the interpreter for a moment instead of reading and shedding
             # at full speed (frames wait in the interface's buffer meanwhile); then shed the oldest
             self.closing.wait(READER_BACKOFF_S)
-        if len(inbox) >= self.limit:
-            try:
-                inbox.popleft()
-                self.shed_count += 1
-            except IndexError:  # the loop emptied it meanwhile
-                pass
+            if len(inbox) >= limit:
+                try:
+                    inbox.popleft()
+                    self.shed_count += 1
+                except IndexError:  # the loop emptied it meanwhile
+                    pass
         inbox.append(msg)
-        self.thread = threading.current_thread()
-        self.wake()
+        if not self.scheduled:
+            if self.thread is None:
+                self.thread = threading.current_thread()
+            self.wake()
 
     def sent_by_thread(self, msg: can.Message) -> None:
         self.sent.append(msg)
@@ -284,6 +289,7 @@ class CanLink:
         assert self.bus is not None
         self.failure = ""
         self.handover.closing.clear()
+        self.handover.thread = None
         self.notifier = can.Notifier(self.bus, [self.handover], timeout=READ_WAIT_S)
         self.state.connected = True
         self.state.reconnects += 1
