@@ -238,3 +238,29 @@ def test_commission_check_names_an_scu_project_entry_the_model_refuses(tmp_path)
     good = load_plant(path)
     assert project.check_plant(good) == []  # the parameter file and the inline table alike
     assert [(e.name, e.value) for e in project.entries(good, "lift-b") if e.value != 0] == [("Remote Speed F2", 70)]
+
+
+async def test_on_the_demo_plant_lift_1s_project_differs_applies_and_a_reset_shows_as_drift(tmp_path):
+    from webutil import private_endpoints
+
+    from app.plant import DEMO_PLANT, load_plant
+
+    demo = private_endpoints(load_plant(DEMO_PLANT), tmp_path.name)
+    assert project.check_plant(demo) == []
+    runtime = Runtime(demo, simulate=True, data_dir=tmp_path / "data")
+    await runtime.start()
+    try:
+        twin, state = runtime.twins["lift-1"], runtime.store.devices["lift-1"]
+        assert await wait_for(lambda: state.status == "online", timeout=10)
+        plan = await backup.plan_restore(runtime, "lift-1", project.document(runtime, "lift-1"))
+        assert [(r.name, r.current_text, r.backup_text) for r in plan.rows if r.changed] == [
+            ("Remote Speed F1", "100 % or counts/s", "60 % or counts/s")]
+        report = await backup.execute_restore(runtime, plan, {r.key for r in plan.rows}, user="anna", role="engineer")
+        assert report.ok and twin.remote_speed[0] == 60
+        await runtime.record.approve("lift-1", user="anna", role="engineer")
+        twin.reset()
+        assert await wait_for(lambda: state.drift["changed"], 20)
+        assert [(r["name"], r["approved"], r["now"]) for r in state.drift["changed"]] == [
+            ("Remote Speed F1", "60 % or counts/s", "100 % or counts/s")]
+    finally:
+        await asyncio.wait_for(runtime.stop(), 5)
