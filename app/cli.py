@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
+import re
 import signal
 import socket
 import sys
@@ -90,7 +91,28 @@ class ArgumentParser(argparse.ArgumentParser):
 
     def error(self, message):
         self.print_usage(sys.stderr)
-        self.exit(2, _("{prog}: error: {message}").format(prog=self.prog, message=message) + "\n")
+        self.exit(2, _("{prog}: error: {message}").format(prog=self.prog, message=argparse_message(message)) + "\n")
+
+
+# argparse's own refusals, as Python 3.10-3.13 word them: translated by their shape (others pass as they are)
+ARGPARSE_ERRORS = (
+    (re.compile(r"the following arguments are required: (?P<names>.+)"), N_("the following arguments are required: {names}")),
+    (re.compile(r"unrecognized arguments: (?P<words>.+)"), N_("unrecognized arguments: {words}")),
+    (re.compile(r"argument (?P<argument>[^:]+): invalid choice: (?P<value>.+?) \(choose from (?P<choices>.+)\)"),
+     N_("argument {argument}: invalid choice: {value} (choose from {choices})")),
+    (re.compile(r"argument (?P<argument>[^:]+): expected one argument"), N_("argument {argument}: expected one argument")),
+    (re.compile(r"argument (?P<argument>[^:]+): invalid (?P<kind>\w+) value: (?P<value>.+)"),
+     N_("argument {argument}: invalid {kind} value: {value}")),
+)
+
+
+def argparse_message(message: str) -> str:
+    """An argparse refusal in the command's language."""
+    for pattern, words in ARGPARSE_ERRORS:
+        match = pattern.fullmatch(message)
+        if match is not None:
+            return _(words).format(**match.groupdict())
+    return message
 
 
 def build_parser() -> argparse.ArgumentParser:

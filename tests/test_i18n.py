@@ -99,3 +99,17 @@ def test_the_command_lines_messages_in_german(capsys, tmp_path):
         cli.set_language("en")
     err = capsys.readouterr().err
     assert "lausche nicht auf 0.0.0.0" in err and "commission user add NAME --role engineer" in err
+
+
+def test_argparses_refusals_in_german(capsys):
+    try:
+        with pytest.raises(SystemExit) as exit_:
+            cli.main(["--lang", "de", "restore"])
+    finally:
+        cli.set_language("en")
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert "commission restore: Fehler: folgende Argumente fehlen: --device, file" in err and err.startswith("Aufruf:")
+    with pytest.raises(SystemExit):
+        cli.main(["--port", "x"])
+    assert "commission: error: argument --port: invalid int value: 'x'" in capsys.readouterr().err  # English as it was
