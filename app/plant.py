@@ -703,17 +703,22 @@ def set_device_options(path: Path, device: str, options: dict[str, Any]) -> bool
     return True
 
 
+def options_to_keep(plant: Plant, device: str, options: dict[str, Any]) -> dict[str, Any]:
+    """Those of ``options`` the running plant does not hold for ``device`` yet (a flag that is absent counts as false)."""
+    config = plant.devices.get(device)
+    if config is None:
+        return {}
+    return {k: v for k, v in options.items() if config.options.get(k, False if isinstance(v, bool) else None) != v}
+
+
 def keep_device_options(plant: Plant, device: str, options: dict[str, Any]) -> str:
     """Keep what an adapter says the plant file should hold for ``device`` (``plant_options()``, e.g. an M3IO's
     ``p2``): the running plant follows at once, the plant file is rewritten (:func:`set_device_options`), except
     the built-in demo plant, which this tool never rewrites. Returns what was done, in words ("" for nothing)."""
-    config = plant.devices.get(device)
-    if config is None:
-        return ""
-    changed = {k: v for k, v in options.items() if config.options.get(k, False if isinstance(v, bool) else None) != v}
+    changed = options_to_keep(plant, device, options)
     if not changed:
         return ""
-    config.options.update(changed)
+    plant.devices[device].options.update(changed)
     words = ", ".join(f"{k} = {_option_toml(v)}" for k, v in changed.items())
     if plant.path is None or plant.path.resolve() == DEMO_PLANT.resolve():
         return f"{words} holds until this program ends: the built-in demo plant is not rewritten"

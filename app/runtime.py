@@ -327,12 +327,12 @@ class Runtime:
 
     async def keep_plant_options(self) -> None:
         """What an adapter says the plant file should hold (``plant_options()``), kept there (app.plant.keep_device_options)."""
-        from app.plant import PlantError, keep_device_options
+        from app.plant import PlantError, keep_device_options, options_to_keep
 
         for name, adapter in list(self.worker.adapters.items()):
             wanted = getattr(adapter, "plant_options", None)
-            if not callable(wanted) or name not in self.plant.devices:
-                continue
+            if not callable(wanted) or not options_to_keep(self.plant, name, wanted()):
+                continue  # nothing to keep, or the plant holds it already (no thread for it)
             state = self.store.devices.get(name)
             try:
                 done = await asyncio.to_thread(keep_device_options, self.plant, name, wanted())
