@@ -264,3 +264,30 @@ async def test_on_the_demo_plant_lift_1s_project_differs_applies_and_a_reset_sho
             ("Remote Speed F1", "60 % or counts/s", "100 % or counts/s")]
     finally:
         await asyncio.wait_for(runtime.stop(), 5)
+
+
+def test_the_twins_strict_modes_refused_data_ids_a_reset_and_the_speed_select():
+    from devices.scu import codec
+    from devices.scu import params as p
+    from devices.scu.sim import ScuTwin
+
+    twin = ScuTwin("lift", 2)
+
+    def ask(frame: bytes) -> codec.Answer:
+        return codec.decode_answer(twin.handle(codec.decode_request(frame), now=1.0), frame[:2])
+
+    assert ask(codec.encode_ro(codec.SafetyId.STOP_ALL)).ok and ask(codec.KEEP_ALIVE).ok
+    assert ask(p.rt_frame(0x3012, 40)).ok and twin.remote_speed[1] == 40
+    assert ask(p.rt_frame(0x3012, 101)).status == codec.Status.PDE  # relative: 0 .. 100 % (table 7)
+    assert ask(p.rt_frame(0x3023, 5)).status == codec.Status.PDE  # A3: no such actuator on this unit
+    twin.refused_ids = {0x3012}  # the unit's parametrisation has no F2
+    assert ask(codec.encode_rg(0x3012)).status == codec.Status.PDE
+    assert ask(codec.encode_rg(0x3010)).status == codec.Status.PDE  # a group holding it too
+    assert ask(p.rt_frame(0x3012, 50)).status == codec.Status.PDE and twin.remote_speed[1] == 40
+    assert p.rg_value(0x3011, ask(codec.encode_rg(0x3011))) == 100
+    twin.reset()  # volatile remote data back at their defaults, remote mode ended (table 7)
+    assert twin.remote_speed[1] == 100 and twin.remote_position == [600, 600] and not twin.remote
+    assert ask(codec.encode_rg(0x3011)).status == codec.Status.PE
+    absolute = ScuTwin("lift", 1, speed_select="absolute")
+    absolute.remote, absolute.rc_seen = True, True
+    assert absolute.write(0x3011, (1000).to_bytes(2, "little")) == codec.Status.ACK and absolute.remote_speed[0] == 1000
