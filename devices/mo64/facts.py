@@ -15,6 +15,7 @@ from devices import errors
 from devices import values as v
 from devices.live import session_tag
 from devices.mo64 import codec
+from devices.mo64 import params as model
 
 BUSY_TEXT = "the motor runs, try again when it stands"
 NAMES = {  # answer type -> live point name
@@ -151,9 +152,10 @@ def value_text(answer_type: int, value: Any) -> str:
     if answer_type == 0x13:
         return "; ".join(f"logic {n}: 0x{int(x):08X} " + ", ".join(f"{k} {f}" for k, f in x.fields.items())
                          for n, x in enumerate(value, 1))
-    if answer_type == 0x18:
-        return "; ".join(f"{k}: 0x{int(x):04X}" + ("".join(f", {n} {f}" for n, f in x.fields.items()))
-                         for k, x in value.items())
+    if answer_type == 0x18:  # the words, and the safety flags by the parameter model's names (devices/mo64/params.py)
+        number = model.value_int(0x18, value)
+        return (", ".join(f"{k} 0x{int(x):04X}" for k, x in value.items()) + " ("
+                + ", ".join(f"{p.name}: {p.display(model.extract(p, number))}" for p in model.SAFETY) + ")")
     if answer_type in (0x07, 0x08):
         bits = value["status"] if "status" in value else value["mask"]
         on = bits.active
