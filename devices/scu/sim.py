@@ -377,7 +377,10 @@ class ScuTwin:
                 act.current_a = IDLE_CURRENT_A
                 continue
             pct = self.remote_speed[act.function] if act.function is not None else DEFAULT_REMOTE_SPEED
-            v_set = MAX_SPEED_COUNTS_S * min(pct, 100) / 100.0
+            if self.speed_select == "absolute" and act.function is not None:  # counts/s (table 7)
+                v_set = float(min(pct, MAX_SPEED_COUNTS_S))
+            else:
+                v_set = MAX_SPEED_COUNTS_S * min(pct, 100) / 100.0
             dist = abs(act.target - act.position)
             if act.soft:
                 v_new = act.speed + accel * dt if act.speed < v_set else max(act.speed - accel * dt, v_set)
