@@ -95,6 +95,24 @@ def test_commission_check_names_a_bad_record_and_an_unknown_one_without_the_devi
     assert all(p.startswith("<plant>:") or ".toml:" in p for p in problems)
 
 
+def test_the_plant_file_keeps_p2_with_its_comments_and_project_table(tmp_path):
+    from app.plant import keep_device_options, set_device_options
+
+    path = tmp_path / "plant.toml"
+    path.write_text(plant_text(can_bus(device("io", "m3io", "can1", variant="HMR", sw1=0xCA), name="can1"))
+                    + '# the heater of line 2\n[device.project]\n"Customer data 1" = "01"\n')
+    plant = load_plant(path)
+    assert keep_device_options(plant, "io", {"p2": True}) == "p2 = true kept in the plant file plant.toml"
+    assert plant.devices["io"].options["p2"] is True and keep_device_options(plant, "io", {"p2": True}) == ""
+    text = path.read_text()
+    assert text.index("p2 = true") < text.index("[device.project]") and "# the heater of line 2" in text
+    assert load_plant(path).devices["io"].project == {"Customer data 1": "01"}
+    assert set_device_options(path, "io", {"p2": False}) and "p2 = false" in path.read_text()
+    assert "p2 = true" not in path.read_text()
+    with pytest.raises(PlantError, match="names no device 'other'"):
+        set_device_options(path, "other", {"p2": True})
+
+
 # -- against the twins ------------------------------------------------------------------------------------------
 
 

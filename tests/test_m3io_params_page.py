@@ -69,3 +69,27 @@ async def test_the_p2_switch_asks_and_stays_off_when_cancelled(tmp_path):
         _dialog_button(user, "Cancel").click()
         await eventually(lambda: switch.value is False, timeout=5, what="the switch back off")
         assert not runtime.twins["io-b"].cfg & codec.P2 and not runtime.worker.adapters["io-b"].two_phase
+
+
+async def test_the_project_editor_takes_records_as_hex_bytes_and_p2_by_name(tmp_path):
+    path = _plant_file(tmp_path)
+    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
+    async with simulated_user(runtime) as user:
+        await user.open("/project/io-a")
+        await user.should_see("Edited on the CAN-M3IO parameter model without the device")
+        await user.should_see("allowed: 1 to 6 bytes as hex, e.g. 01 02 0a (padded with ff to 6 bytes)")
+        fields = {e.props.get("data-project-field"): e for e in user.client.elements.values()
+                  if e.props.get("data-project-field")}
+        assert set(fields) == {*(f"customer:{i}" for i in range(1, 16)), "cfg:7"}  # settings only: no SW1, no area 2
+        fields["customer:2"].set_value("01 02 03 04 05 06 07")
+        user.find(kind=ui.button, content="Save project").click()
+        await user.should_see("Not saved: Customer data 2: a customer record holds 6 bytes, 7 given")
+        fields["customer:2"].set_value("aa")
+        fields["cfg:7"].set_value("1")
+        user.find(kind=ui.button, content="Save project").click()
+        await user.should_see("Saved: Customer data 2 - -> aa ff ff ff ff ff; P2 - -> 1")
+        assert load_plant(path).devices["io-a"].project == {"Customer data 2": "aa ff ff ff ff ff", "P2": 1}
+        await user.open("/project/io-a")  # reloaded from the file
+        fields = {e.props.get("data-project-field"): e for e in user.client.elements.values()
+                  if e.props.get("data-project-field")}
+        assert fields["customer:2"].value == "aa ff ff ff ff ff" and fields["cfg:7"].value == "1"
