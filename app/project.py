@@ -212,7 +212,9 @@ def document(runtime, device: str) -> dict:
         item = {"key": entry.key, "name": entry.param.label or entry.param.name if entry.param else entry.name,
                 "value": entry.value, "writable": True}
         if entry.param is not None and entry.raw is not None:
-            item.update(raw=entry.raw, unit=entry.param.unit, text=entry.param.display(entry.raw))
+            # the number the entry stands for: an enum's name (``Kraftüberwachung = "ohne"``) is applied as its value
+            item.update(raw=entry.raw, unit=entry.param.unit, text=entry.param.display(entry.raw),
+                        value=entry.param.decode(entry.raw))
         elif entry.param is not None:
             item.update(unit=entry.param.unit)
         items.append(item)

@@ -50,6 +50,10 @@ async def test_the_project_differs_on_the_device_page_and_is_applied_per_row(tmp
     path = tmp_path / "plant.toml"
     path.write_text(plant_text(mo64_tcp("gate", device_options={"project": {"t_offen": 12.5}}), name="gates"))
     bad = parse_plant(plant_text(mo64_tcp("gate", device_options={"project": {"t_offen": 700, "multi7": 1}})))
+    named = parse_plant(plant_text(mo64_tcp("gate", device_options={"project": {"LS-Test": "aus"}})))
+    assert not project.check_plant(named)  # a choice by its name
+    (entry,) = project.entries(named, "gate")
+    assert (entry.key, entry.raw) == ("config_flags:48", 0)
     problems = project.check_plant(bad)  # commission check: without the device
     assert any("t_offen: 700 is outside 0 .. 655" in p for p in problems), problems
     assert any("unknown parameter 'multi7'" in p for p in problems), problems
