@@ -116,13 +116,21 @@ def measure_size(n: int, folder: Path, args: argparse.Namespace, browser: bool, 
     """One plant of ``n`` devices split in two processes: CPU, RSS (and first values when ``browser``);
     ``counts``: devices per family instead of the mix (see scale_plants.scale_plant_text)."""
     label = label or f"{n:4d} devices"
-    plant = folder / f"scale{n}-{len(list(folder.glob('scale*.toml')))}.toml"
-    text = scale_plant_text(n, split=True, counts=counts)
-    plant.write_text(text)
-    twins = start_app(plant, 0, folder / f"sim{plant.stem}.log", "sim") if n else None
+    for attempt in range(3):  # a free port taken by another program meanwhile ends the twins: new ports
+        plant = folder / f"scale{n}-{len(list(folder.glob('scale*.toml')))}.toml"
+        text = scale_plant_text(n, split=True, counts=counts)
+        plant.write_text(text)
+        twins = start_app(plant, 0, folder / f"sim{plant.stem}.log", "sim") if n else None
+        try:
+            wait_listening(tcp_ports(text), twins)  # the twins listen before the tool connects (it would back off)
+            break
+        except RuntimeError:
+            tail = (folder / f"sim{plant.stem}.log").read_text(errors="replace").splitlines()[-3:]
+            print(f"{label}: the twins did not start ({' / '.join(tail)}), attempt {attempt + 1}", flush=True)
+            if attempt == 2:
+                raise
     tool = None
     try:
-        wait_listening(tcp_ports(text), twins)  # the twins listen before the tool connects (it would back off)
         port = free_port()
         tool = start_app(plant, port, folder / f"tool{plant.stem}.log", "--no-sim")
         url = f"http://127.0.0.1:{port}"
@@ -233,6 +241,84 @@ async def lines_against_wire(folder: Path, cycle_seconds: float) -> tuple[list[d
     return full, polled
 
 
+async def keepalives_with_hundred(folder: Path, seconds: float) -> list[tuple[str, int, float, float]]:
+    """The Electrak's control telegram and an M3IO's DigOut (both every 100 ms under control) while the other
+    98 devices poll: the tool's worker in this process (at the GUI's priority, app/cli.py), the twins in
+    ``commission sim``, the keep-alives heard on the ``udp_multicast`` buses from a third node (the kernel's
+    receive time). Returns (name, telegrams, worst gap s, period s)."""
+    import can
+
+    from app.plant import parse_plant
+    from app.runtime import Runtime, raise_priority
+    from devices.electrak import codec as electrak
+    from devices.m3io import codec as m3io
+
+    text = scale_plant_text(100, name="keepalive", split=True)
+    plant_file = folder / "keepalive.toml"
+    plant_file.write_text(text)
+    plant = parse_plant(text)
+    twins = start_app(plant_file, 0, folder / "keepalive-sim.log", "sim")
+    heard: dict[str, list[float]] = {"Electrak control 0x06": [], "M3IO DigOut": []}
+    wanted = {"can-lift-1": ("Electrak control 0x06", electrak.CONTROL_ID),
+              "can-io": ("M3IO DigOut", m3io.derive_ids(1).dig_out)}
+    buses, run = [], [True]
+
+    def listen(bus, name: str, can_id: int) -> None:
+        while run[0]:
+            msg = bus.recv(0.05)
+            if msg is not None and msg.arbitration_id == can_id and not msg.is_extended_id:
+                heard[name].append(msg.timestamp)
+
+    import threading
+
+    threads = []
+    try:
+        await asyncio.to_thread(wait_listening, tcp_ports(text), twins)
+        raise_priority()
+        for bus_name, (name, can_id) in wanted.items():
+            options = plant.buses[bus_name].options
+            bus = can.Bus(interface="udp_multicast", channel=options["channel"], port=options["port"])
+            buses.append(bus)
+            threads.append(threading.Thread(target=listen, args=(bus, name, can_id), daemon=True))
+            threads[-1].start()
+        runtime = Runtime(parse_plant(text.replace("simulate = true", "simulate = false")), simulate=False,
+                          data_dir=folder / "keepalive-data")
+        await runtime.start()
+
+        async def beat() -> None:
+            while True:
+                runtime.worker.heartbeat("bench")
+                await asyncio.sleep(0.1)
+
+        beating = asyncio.create_task(beat())
+        try:
+            end = time.monotonic() + 90
+            while time.monotonic() < end and not all(s.status == "online" for s in runtime.store.devices.values()):
+                await asyncio.sleep(0.2)
+            await runtime.worker.adapters["lift-01"].take_control("bench", "engineer")
+            await runtime.worker.adapters["heater-01"].take_control("bench", "engineer")
+            await asyncio.sleep(1.0)
+            start = time.time()
+            await asyncio.sleep(seconds)
+            stop = time.time()
+        finally:
+            beating.cancel()
+            await runtime.stop()
+    finally:
+        run[0] = False
+        for thread in threads:
+            thread.join(2)
+        for bus in buses:
+            bus.shutdown()
+        stop_app(twins)
+    found = []
+    for name, times in heard.items():
+        inside = [t for t in times if start <= t <= stop]
+        gaps = [b - a for a, b in zip(inside, inside[1:], strict=False)]
+        found.append((name, len(inside), max(gaps, default=float("inf")), 0.1))
+    return found
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", default="10,30,100", help="plant sizes, devices")
@@ -243,6 +329,8 @@ def main() -> None:
     parser.add_argument("--no-browser", action="store_true", help="leave out the first values (no chromium)")
     parser.add_argument("--no-lines", action="store_true", help="leave out the RS485 lines against the wire")
     parser.add_argument("--no-families", action="store_true", help="leave out the cost of each family alone")
+    parser.add_argument("--keepalive-seconds", type=float, default=20.0,
+                        help="the keep-alives under control with 100 devices polling (0: left out)")
     args = parser.parse_args()
     sizes = [int(x) for x in args.sizes.split(",")]
     print(f"plants of {', '.join(map(str, sizes))} devices, {args.seconds:g} s each after {args.settle:g} s; {load()}", flush=True)
@@ -272,6 +360,13 @@ def main() -> None:
                       f"{', ' + str(r['errors']) + ' errors' if r['errors'] else ''}")
             if full:
                 print(f"full_read_wire_ratio_worst: {max(r['took'] / r['wire'] if r['wire'] else float('inf') for r in full):.3f}")
+        if args.keepalive_seconds:
+            found = asyncio.run(keepalives_with_hundred(folder, args.keepalive_seconds))
+            print(f"keep-alives under control, 98 other devices polling ({load()}):")
+            for name, count, worst, period in found:
+                print(f"  {name}: {count} telegrams in {args.keepalive_seconds:g} s, worst gap {worst * 1000:.0f} ms "
+                      f"= {worst / period:.2f} x its period")
+            print(f"keepalive_worst_gap_ratio: {max(w / p for _, _, w, p in found):.2f}")
     xs = [float(r["n"]) for r in results]
     cpu_slope, cpu_base = fit(xs, [r["cpu"] for r in results]) if len(results) > 1 else (float("nan"), float("nan"))
     rss_slope, rss_base = fit(xs, [r["rss"] for r in results]) if len(results) > 1 else (float("nan"), float("nan"))
