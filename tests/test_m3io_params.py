@@ -302,3 +302,26 @@ async def test_the_replacement_assistant_restores_the_approved_records_on_a_new_
         assert report.ok and report.written == ["Customer data 1"] and twin.customer[1] == bytes.fromhex("0102ffffffff")
     finally:
         await runtime.stop()
+
+
+async def test_p2_switched_off_while_not_served_is_sent_off_when_served_again(tmp_path):
+    """Simple mode (no read-back): the module holds P2 until a reset (7.2.4), so P2 off set while this tool did not
+    serve it goes out as cfg 0 once it does, or the module would go on accepting two loaded phases."""
+    path = tmp_path / "plant.toml"
+    path.write_text(plant_text(can_bus(device("io", "m3io", "can1", variant="HMR", sw1=0x1B), name="can1",
+                                       bitrate=500_000, poll_period=0.2), name="simple"))
+    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
+    await runtime.start()
+    try:
+        adapter, twin = runtime.worker.adapters["io"], runtime.twins["io"]
+        await adapter.take_control("s1", "anna")
+        await adapter.write_param(P2_PARAM, 1, confirmed=True)
+        assert await wait_for(lambda: twin.cfg & codec.P2, 3)
+        adapter.release_control("s1")
+        await adapter.write_param(P2_PARAM, 0)
+        assert twin.cfg & codec.P2  # not served: nothing sent, the module still holds it
+        await adapter.take_control("s1", "anna")
+        assert await wait_for(lambda: not twin.cfg & codec.P2, 3)
+        assert load_plant(path).devices["io"].options.get("p2") is None  # a direct adapter call: no gate, no file
+    finally:
+        await runtime.stop()

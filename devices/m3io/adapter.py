@@ -166,6 +166,7 @@ class M3ioAdapter(ModuleSettings):
         self.variant_check = codec.check_variant(self.variant, self.ids.addressed, None)
         self._verify_after = 0.0
         self.two_phase = bool(config.options.get(P2_OPTION, False))  # the plant file keeps P2: the module forgets it
+        self._p2_off_unsent = False  # P2 switched off while this tool did not serve the module: cfg 0 still to send
         self.channels = {i: codec.ChannelMonitor() for i in range(1, 7)}
         self.inputs: dict[str, bool] | None = None
         self.temps: dict[int, codec.TempWord] = {}
@@ -262,6 +263,9 @@ class M3ioAdapter(ModuleSettings):
             self.bus.start_periodic(self.cfg_key, self._dig_out_period(), self.ids.sync, cfg, False)
         else:
             self.bus.stop_cyclic(self.cfg_key)
+            if self._p2_off_unsent and self.served:  # P2 was switched off while not served: the module may still hold it
+                self.bus.send(self.ids.sync, codec.encode_sync_cfg(False), False)
+        self._p2_off_unsent = self._p2_off_unsent and not self.served
 
     def _dig_out_period(self) -> float:
         """DigOut (and Sync cfg) every 100 ms while an engineer controls the module, more slowly while it is only
@@ -603,6 +607,7 @@ class M3ioAdapter(ModuleSettings):
         self._p2_changed(on)
         if self.served:
             self.bus.send(self.ids.sync, codec.encode_sync_cfg(on), False)
+        self._p2_off_unsent = not on and not self.served
         self._start_cfg()
         self._publish()
         self.state.event("info", f"P2 {'on: three-phase output loaded on two phases' if on else 'off: three phases'}"
