@@ -6,6 +6,8 @@ selector, a slow EEPROM write)."""
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_mo64_adapter import adapter_on_twin, close_lines  # noqa: F401 - close_lines: autouse, closes the adapters
 
 from devices.commands import commands_of
@@ -155,3 +157,25 @@ async def test_a_refused_assumed_selector_writes_nothing_and_says_so():
         assert sim.twin.settings["t_prewarn_open"] == 50 and sim.twin.setting_writes == {}
         sim.twin.refuse_selectors = set()
         assert await adapter.write_param(prewarn, 0.8, confirmed=True) == 80
+
+
+# -- every piece, any value: the other bits stay ---------------------------------------------------------------
+WRITABLE = [p for p in PARAMS if p.setting_key and p.setting_key != "vehicle_counter"]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.sampled_from(WRITABLE), st.integers(0, (1 << 64) - 1), st.data())
+def test_writing_any_piece_changes_only_its_own_bits(param, before, data):
+    key = param.setting_key
+    width = 8 * codec.SETTING_VALUE_BYTES[codec.SETTINGS[key].telegram]
+    before &= (1 << width) - 1
+    if key == "t_open" or key.startswith("t_prewarn"):
+        before = min(before & 0xFFFF, codec.TIME_MAX)
+    low, high = param.limits()
+    raw = param.encode(data.draw(st.sampled_from(sorted(param.enum)) if param.enum else
+                                 st.integers(int(low / param.scale), int(high / param.scale)).map(lambda n: n * param.scale)))
+    after = model.replace(param, before, raw)
+    assert model.extract(param, after) == raw
+    assert after & ~(param.mask << param.address) == before & ~(param.mask << param.address)
+    value = model.setting_value(key, after)
+    assert model.setting_int(key, value) == after  # what the telegram carries, back to the same number
