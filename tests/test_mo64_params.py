@@ -163,7 +163,7 @@ async def test_a_refused_assumed_selector_writes_nothing_and_says_so():
 WRITABLE = [p for p in PARAMS if p.setting_key and p.setting_key != "vehicle_counter"]
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=200, deadline=None)
 @given(st.sampled_from(WRITABLE), st.integers(0, (1 << 64) - 1), st.data())
 def test_writing_any_piece_changes_only_its_own_bits(param, before, data):
     key = param.setting_key
