@@ -157,6 +157,9 @@ async def test_a_refused_assumed_selector_writes_nothing_and_says_so():
         assert sim.twin.settings["t_prewarn_open"] == 50 and sim.twin.setting_writes == {}
         sim.twin.refuse_selectors = set()
         assert await adapter.write_param(prewarn, 0.8, confirmed=True) == 80
+        counter = PARAMS.by_name["Vehicle counter"]  # signed, RAM only: ack without syn, no EEPROM write counted
+        assert counter.decode(await adapter.write_param(counter, -5, confirmed=True)) == -5
+        assert sim.twin.vehicle_counter == -5 and "vehicle_counter" not in sim.twin.setting_writes
 
 
 # -- every piece, any value: the other bits stay ---------------------------------------------------------------
