@@ -347,15 +347,33 @@ def _stored() -> str | None:
         return None
 
 
+QUERY_KEY = "lang"  # ?lang=de on any page: the switch's links; kept for the browser from then on
+
+
+def _keep(code: str) -> None:
+    from nicegui import app
+
+    try:
+        if app.storage.user.get(STORAGE_KEY) != code:
+            app.storage.user[STORAGE_KEY] = code
+    except (RuntimeError, AssertionError):  # no per-browser storage here: the page itself still gets the language
+        pass
+
+
 def browser_code() -> str:
-    """The language of the browser building the current page: the one it chose with the switch (kept in its
-    ``app.storage.user``), else its ``Accept-Language``."""
+    """The language of the browser building the current page: the one it asked for with ``?lang=`` (the
+    header's switch; kept in its ``app.storage.user`` from then on), else the one it chose before, else its
+    ``Accept-Language``."""
     from nicegui import context
 
+    request = context.client.request
+    asked = normalize(request.query_params.get(QUERY_KEY)) if request is not None else None
+    if asked is not None:
+        _keep(asked)
+        return asked
     stored = _stored()
     if stored is not None:
         return stored
-    request = context.client.request
     return accept_language(request.headers.get("accept-language") if request is not None else None)
 
 
@@ -374,27 +392,37 @@ def page_language() -> Lang:
     return get(code)
 
 
-def choose(code: str) -> None:
-    """Keep ``code`` as this browser's language and build the page again in it."""
-    from nicegui import app, ui
+def switch_href(code: str) -> str:
+    """This page again in ``code``: its own address with ``?lang=code`` (its other query parameters kept)."""
+    from urllib.parse import urlencode
 
-    code = normalize(code) or DEFAULT
-    try:
-        app.storage.user[STORAGE_KEY] = code
-    except (RuntimeError, AssertionError):
-        return
-    ui.navigate.reload()
+    from nicegui import context
+
+    request = context.client.request
+    query = {k: v for k, v in (request.query_params.items() if request is not None else ()) if k != QUERY_KEY}
+    return "?" + urlencode({**query, QUERY_KEY: code})
+
+
+SWITCH_STYLE = "padding: 0 6px; border-radius: 4px; text-decoration: none; font-size: 13px; font-weight: 600; line-height: 22px"
+SWITCH_COLOURS = {  # (chosen, the other) on a dark header and on a light card
+    True: ("background: #fff; color: #263238", "color: #fff"),
+    False: ("background: #1976d2; color: #fff", "color: #1976d2"),
+}
 
 
 def language_switch(lang: Lang, *, dark: bool = True, size: str = "sm"):
-    """``DE | EN`` for the page's header: the chosen language is kept per browser and the page is built again."""
+    """``DE | EN`` for a page's header: two links to the page itself in the other language (``?lang=``), so a
+    page with nothing to press (the plant view) has nothing to press here either; the choice is kept per
+    browser. ``size="md"``: a finger's width on a tablet."""
     from nicegui import ui
 
-    toggle = ui.toggle({code: code.upper() for code in LANGUAGES}, value=lang.code,
-                       on_change=lambda e: e.value and e.value != lang.code and choose(e.value))
-    colour = "color=blue-grey-8 text-color=white toggle-color=white toggle-text-color=black" if dark else \
-        "color=grey-3 text-color=black toggle-color=primary"
+    chosen, other = SWITCH_COLOURS[dark]
+    padding = "; padding: 4px 10px; font-size: 16px" if size == "md" else ""
     label = lang.gettext("Language")
-    toggle.props(f'dense no-caps unelevated size={size} {colour} data-testid=language aria-label="{label}"')
-    toggle.tooltip(" / ".join(f"{name}" for name in LANGUAGES.values()))
-    return toggle
+    with ui.element("span").style("display: inline-flex; gap: 2px; align-items: center").props(
+            f'data-testid=language role=group aria-label="{label}"') as box:
+        for code, name in LANGUAGES.items():
+            current = code == lang.code
+            ui.link(code.upper(), switch_href(code)).style(f"{SWITCH_STYLE}; {chosen if current else other}{padding}").props(
+                f'data-lang={code} hreflang={code} lang={code} title="{name}"' + (' aria-current="true"' if current else ""))
+    return box

@@ -84,9 +84,11 @@ def test_an_english_browser_gets_english_and_the_header_follows(app, chromium):
         header.get_by_text("Anlagenansicht").wait_for(timeout=15_000)
         assert "Übersicht" in header.inner_text() and "Anlage: demo" in header.inner_text()
         # the switch: English for this browser from now on, on every page
-        page.locator("[data-testid=language]").get_by_text("EN").click()
+        page.locator("[data-testid=language] [data-lang=en]").click()
         page.locator("[data-testid=header]").get_by_text("Plant view").wait_for(timeout=15_000)
         page.goto(f"{app}/plant")
         page.get_by_text("Plant demo").wait_for(timeout=15_000)
+        for selector in ("button", "input", "select", ".q-toggle"):  # the switch is two links: nothing to press
+            assert page.locator(selector).count() == 0, selector
     finally:
         context.close()

@@ -112,14 +112,16 @@ async def test_the_switch_keeps_the_browsers_language(tmp_path):
     async with german_user(runtime) as user:
         await user.open("/plant")
         await user.should_see("Anlage plant")
-        switch = next(e for e in user.client.elements.values() if e.props.get("data-testid") == "language")
-        assert switch.value == "de"
-        switch.set_value("en")  # the browser chooses English: kept in its storage, whatever it accepts
-        await user.open("/plant")
+        links = {e.props.get("data-lang"): e for e in user.client.elements.values() if isinstance(e, ui.link) and e.props.get("data-lang")}
+        assert set(links) == {"de", "en"} and links["de"].props.get("aria-current") == "true"
+        assert links["en"].props["href"] == "?lang=en"  # the page itself in English: links, nothing to press
+        await user.open("/plant?lang=en")  # the browser chooses English: kept in its storage, whatever it accepts
         await user.should_see("Plant plant")
         assert user.client.page.resolve_language() == "en-GB"
         assert english_on(user), "the English page is seen as English (the check of the German pages sees)"
         await user.open("/")
         await user.should_see("Plant view")  # every page's header follows the choice
-        switch = next(e for e in user.client.elements.values() if e.props.get("data-testid") == "language")
-        assert switch.value == "en"
+        await user.open("/plant")
+        await user.should_see("Plant plant")
+        await user.open("/plant?lang=de")
+        await user.should_see("Anlage plant")
