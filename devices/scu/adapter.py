@@ -1090,13 +1090,13 @@ class ScuAdapter:
         if not decision.ok:
             raise (ControlBusy if decision.busy else CommandError)(decision.refused)
 
-    def _check_open(self) -> None:
+    def check_open(self) -> None:
         if self.session != "open":
             raise CommandError(f"the remote session is {self.session}"
                                + (f" ({self.session_reason})" if self.session_reason else "")
                                + ": everything except RO/RA needs remote mode (section 4.1)")
 
-    async def _ensure_open(self) -> None:
+    async def ensure_open(self) -> None:
         """Open the remote session now when it is needed and closed (watching with RG, or lost with backoff past)."""
         if self.session in ("open", "released"):
             return
@@ -1191,8 +1191,8 @@ class ScuAdapter:
         decision = self.core.check_run(session, int(fn))
         if not decision.ok:
             raise (ControlBusy if decision.busy else CommandError)(decision.refused)
-        await self._ensure_open()
-        self._check_open()
+        await self.ensure_open()
+        self.check_open()
         frame = codec.encode_re(fn, motion, ramp) if fn in codec.MOTION_FUNCTIONS else codec.encode_re(fn)
         label = codec.FUNCTIONS[fn].label
         words = (f"{label} {codec.MOTION_LABELS[codec.Motion(motion)]}, ramp {codec.Ramp(ramp & 0xFF).name.lower()}"
@@ -1229,7 +1229,7 @@ class ScuAdapter:
             self._stop_marks[int(function)] = now
         if self.session != "open" and not self.running and not self.rs_pending:
             return [f"nothing sent: the session is {self.session}; without RC the unit has stopped remote motion"]
-        await self._ensure_open()
+        await self.ensure_open()
         targets = self.core.stop_targets(function, self.started)
         failed = await self._stop_functions(targets, "stop")
         if failed:
@@ -1306,7 +1306,7 @@ class ScuAdapter:
         on purpose, so the unit must stop every drive within 500 ms and leave remote mode (error bit 22). The session
         is opened again after that, and every RE still running gets its RS."""
         self._check_holder(session)
-        self._check_open()
+        self.check_open()
         for action in self.core.withhold("withheld on purpose: the watchdog test (section 5)", time.monotonic()):
             self._apply(action)
         self.state.event("warning", "RC withheld on purpose (watchdog test): the unit must stop every drive within "
@@ -1318,8 +1318,8 @@ class ScuAdapter:
         decision = self.core.estop_release(session)
         if not decision.ok:
             raise (ControlBusy if decision.busy else CommandError)(decision.refused)
-        await self._ensure_open()
-        self._check_open()
+        await self.ensure_open()
+        self.check_open()
         async with self._fn_lock(ESTOP):
             await self._carry_out(decision.actions)
         self._publish_estop()
@@ -1328,7 +1328,7 @@ class ScuAdapter:
         self.state.event("info", "emergency stop released (RS 19)")
         return "emergency stop released"
 
-    async def _write_read_back(self, data_id: int, value: Any, what: str) -> Any:
+    async def write_read_back(self, data_id: int, value: Any, what: str) -> Any:
         await self._request(p.rt_frame(data_id, value), f"RT 0x{data_id:04X} {what} = {value}")
         answer = await self._request(codec.encode_rg(data_id), f"RG 0x{data_id:04X} {what} (read-back)")
         back = p.rg_value(data_id, answer)
@@ -1351,19 +1351,19 @@ class ScuAdapter:
     async def set_remote_speed(self, session: str, function: int, speed: int) -> int:
         """RT 0x3011.. (F1..F10) and RG read-back; % or counts/s per the unit's configuration (table 7)."""
         self._check_holder(session)
-        await self._ensure_open()
-        self._check_open()
+        await self.ensure_open()
+        self.check_open()
         if isinstance(speed, bool) or not isinstance(speed, int) or not 0 <= speed <= self.speed_max:
             raise CommandError(f"remote speed: 0..{self.speed_max} {self.speed_unit} (the unit's speed select is "
                                f"{self.speed_select}, table 7), a whole number")
-        return await self._write_read_back(p.speed_id(function), speed, f"remote speed F{function}")
+        return await self.write_read_back(p.speed_id(function), speed, f"remote speed F{function}")
 
     async def set_remote_position(self, session: str, actuator: int, *, counts: int | None = None,
                                   mm: float | None = None) -> int:
         """RT 0x3021.. in counts (or mm through the actuator's conversion) and RG read-back."""
         self._check_holder(session)
-        await self._ensure_open()
-        self._check_open()
+        await self.ensure_open()
+        self.check_open()
         if not 1 <= actuator <= len(self.scales):
             raise CommandError(f"actuator {actuator} is not configured (1..{len(self.scales)})")
         if counts is None:
@@ -1372,7 +1372,7 @@ class ScuAdapter:
             counts = self.scales[actuator - 1].counts(float(mm))
         if not -(2 ** 31) <= int(counts) < 2 ** 31:
             raise CommandError("remote position must fit INT32")
-        return await self._write_read_back(p.remote_position_id(actuator), int(counts), f"remote position A{actuator}")
+        return await self.write_read_back(p.remote_position_id(actuator), int(counts), f"remote position A{actuator}")
 
     async def set_remote_target(self, session: str, actuator: int, value: float, mm: bool = False) -> int:
         """The declared ``set remote position``: ``value`` in mm (``mm``) or counts."""
@@ -1417,8 +1417,8 @@ class ScuAdapter:
     async def read_data(self, data_id: int) -> dict:
         """RG of one data ID or group ID: decoded value, text and the raw bytes."""
         if self.watch != WATCH_RG:
-            await self._ensure_open()
-            self._check_open()
+            await self.ensure_open()
+            self.check_open()
         entry = p.item(data_id)
         answer = await self._request(codec.encode_rg(data_id), f"RG 0x{data_id:04X} {entry.name}")
         result = {"data_id": data_id, "key": entry.key, "name": entry.name, "type": entry.type_name, "unit": entry.unit,

@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from devices.commands import Arg, Command, CommandError, param_write
+from devices.commands import COMMON, READ_PARAMETERS, Arg, Command, CommandError, param_write
 from devices.scu import codec
 from devices.scu.model import PARAMS
 
@@ -111,5 +111,6 @@ COMMANDS = (
     Command("release the SCU (RA)", "system", method="release_scu", session=True),
     # -- reads ---------------------------------------------------------------------------------------------------------
     Command("read data", "read", method="read_data", args=(Arg("data_id", 0, 0xFFFF),)),
+    COMMON[READ_PARAMETERS],  # the parameter model's values, as a backup reads them (the page's Settings card)
     Command("read 0x", "read", prefix=True),
 )

@@ -77,7 +77,7 @@ class ScuSettings:
             return
         deadline = time.monotonic() + SESSION_WAIT_S
         while adapter.session != "open" and time.monotonic() < deadline:
-            await adapter._ensure_open()
+            await adapter.ensure_open()
             if adapter.session != "open":
                 await asyncio.sleep(0.1)
 
@@ -169,14 +169,14 @@ class ScuSettings:
             raise CommandError(reason)
         adapter = self.adapter
         await self._session(True)
-        await adapter._ensure_open()
-        adapter._check_open()
+        await adapter.ensure_open()
+        adapter.check_open()
         reason = self.refusal(q, raw)  # the session's opening may have sent RE 19 and owed RS: look again
         if reason:
             raise CommandError(reason)
         number = q.decode(raw)
         try:
-            await adapter._write_read_back(q.data_id, number, q.name)
+            await adapter.write_read_back(q.data_id, number, q.name)
         except codec.CommandRefused as exc:
             self.state.counters.write_errors += 1
             raise CommandError(f"{q.name} = {q.display(raw)}: the unit answered {exc.info.name} ({exc.info.title})") from None
