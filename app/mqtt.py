@@ -38,6 +38,7 @@ BACKOFF_FIRST_S = 0.5
 BACKOFF_MAX_S = 5.0
 CONNECT_TIMEOUT_S = 10.0
 PUBLISH_TIMEOUT_S = 5.0
+PUBLISH_WINDOW = 16  # retained topics (state, status, alarms) published at QoS 1 without waiting for each other
 
 
 def device_topic(site: str, device: str, leaf: str) -> str:
@@ -362,7 +363,18 @@ class MqttPublisher:
         self.sent += 1
         self._last.clear()  # the first look after a (re)connect sends everything
         next_birth = time.monotonic() + self.config.heartbeat
+        inflight: set[asyncio.Task] = set()
+        failed: list[BaseException] = []
+        try:
+            await self._publish_loop(client, birth, next_birth, inflight, failed)
+        finally:
+            for task in list(inflight):
+                task.cancel()
+
+    async def _publish_loop(self, client, birth: dict, next_birth: float, inflight: set, failed: list) -> None:
         while True:
+            if failed:
+                raise failed[0]
             if time.monotonic() >= next_birth:  # the instance's heartbeat: subscribers tell a stalled one
                 birth["time"] = time.time()
                 await client.publish(self._instance_topic, dumps(birth), qos=1, retain=True)
@@ -374,18 +386,33 @@ class MqttPublisher:
                 self._events.popleft()  # only once the broker has it
                 self.sent += 1
                 continue
-            if self._pending:
+            if self._pending and len(inflight) < PUBLISH_WINDOW:
+                # several retained topics in flight at once: an instance's rate is not one round trip through
+                # its event loop per message (a cabinet on a busy machine fell behind its own 20 devices)
                 topic, (payload, retain) = next(iter(self._pending.items()))
-                await client.publish(topic, payload, qos=1, retain=retain)
-                if self._pending.get(topic, (None,))[0] is payload:  # not replaced by a newer one meanwhile
-                    del self._pending[topic]
-                self.sent += 1
+                del self._pending[topic]  # a newer one queued meanwhile goes out after it; a lost broker sends all again
+                task = asyncio.create_task(client.publish(topic, payload, qos=1, retain=retain))
+                inflight.add(task)
+                task.add_done_callback(lambda t: self._published(t, inflight, failed))
                 continue
+            if failed:
+                raise failed[0]
             self._wake.clear()
             try:
                 await asyncio.wait_for(self._wake.wait(), max(0.05, next_birth - time.monotonic()))
             except TimeoutError:
                 pass
+
+    def _published(self, task: asyncio.Task, inflight: set, failed: list) -> None:
+        """A retained topic's publish ended: counted when the broker has it, its error ends the session."""
+        inflight.discard(task)
+        if task.cancelled():
+            return
+        if task.exception() is not None:
+            failed.append(task.exception())
+        else:
+            self.sent += 1
+        self._wake.set()
 
 
 def _why(exc: BaseException) -> str:
