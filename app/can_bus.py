@@ -31,10 +31,12 @@ from app.can_link import (
     READ_WAIT_S,
     READER_BACKOFF_S,
     UDP_RCVBUF,
+    VIRTUAL_READ_WAIT_S,
     CanLink,
     Handler,
     interface_drops,
     open_error,
+    read_wait_s,
     recognised_by_a_device_type,
 )
 from app.can_stats import (
@@ -60,8 +62,9 @@ from devices.lease import Lease
 __all__ = [
     "BURST_GAP_S", "CYCLE_GAPS", "CYCLE_STREAMS", "DRAIN_BUDGET_S", "INBOX_FRAMES", "LOAD_AVERAGE_S", "LOAD_PEAK_S",
     "LOAD_PEAK_WINDOW_S", "LOAD_PERIOD_S", "MAX_IDS", "MONITOR_FRAMES", "NO_DISCOVERY_IDS", "NO_DISCOVERY_S", "READ_WAIT_S",
-    "READER_BACKOFF_S", "UDP_RCVBUF", "CanBus", "CanBusState", "CanStats", "CycleStream", "FrameRecord", "Handler", "IdStats",
-    "Key", "PeriodicSender", "frame_bits", "interface_drops", "keepalives_running", "open_error", "recognised_by_a_device_type",
+    "READER_BACKOFF_S", "UDP_RCVBUF", "VIRTUAL_READ_WAIT_S", "CanBus", "CanBusState", "CanStats", "CycleStream", "FrameRecord", "Handler", "IdStats",
+    "Key", "PeriodicSender", "frame_bits", "interface_drops", "keepalives_running", "open_error", "read_wait_s",
+    "recognised_by_a_device_type",
 ]
 
 

@@ -24,7 +24,8 @@ reached through the bus's public ``fileno()``. Unknown IDs are offered to discov
 ``NO_DISCOVERY_S`` when no device type recognises their frames (a bounded table).
 
 A quiet bus costs little: the notifier waits in the interface's own ``recv`` at most ``READ_WAIT_S`` at
-a time (two wake-ups a second), which is also how soon a closing bus ends it.
+a time (two wake-ups a second), which is also how soon a closing bus ends it; python-can's in-process
+``virtual`` bus (the simulated plant, tests) waits ``VIRTUAL_READ_WAIT_S``, so that it closes sooner.
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ DRAIN_BUDGET_S = 0.004  # the loop drains one bus this long at most, then runs t
 DRAIN_CHECK = 4  # frames between two looks at the clock
 READER_BACKOFF_S = 0.001  # the notifier pauses this long when the hand-over is full (bench/can_ingest.py: 7.7x -> 12x)
 READ_WAIT_S = 0.5  # the notifier's longest wait in recv: a quiet bus wakes it twice a second, a closing one ends it as soon
+VIRTUAL_READ_WAIT_S = 0.1  # the same on python-can's in-process virtual bus (the simulated plant, tests): closed sooner
 ERROR_PAUSE_S = 0.1  # the notifier's pause after the interface failed, until the supervisor reopens the bus
 SENT_FRAMES = 4096  # frames the periodic senders sent, waiting for the loop's monitor and echo filter
 UDP_RCVBUF = 4 * 2**20  # receive buffer of a udp_multicast socket: about 0.4 s of a full 1 Mbit/s bus (capped by net.core.rmem_max)
@@ -149,6 +151,12 @@ def recognised_by_a_device_type(arbitration_id: int, is_extended: bool, data: by
         except Exception:  # noqa: BLE001, S112 - a frame a codec cannot parse is not its device's
             continue
     return False
+
+
+def read_wait_s(options: dict[str, Any]) -> float:
+    """The notifier's longest wait in ``recv`` on this bus: how often a quiet bus wakes it, and how soon a
+    closing bus ends it (a ``virtual`` bus, in this process only, ends sooner)."""
+    return VIRTUAL_READ_WAIT_S if options.get("interface") == "virtual" else READ_WAIT_S
 
 
 class Handover(can.Listener):
@@ -290,7 +298,7 @@ class CanLink:
         self.failure = ""
         self.handover.closing.clear()
         self.handover.thread = None
-        self.notifier = can.Notifier(self.bus, [self.handover], timeout=READ_WAIT_S)
+        self.notifier = can.Notifier(self.bus, [self.handover], timeout=read_wait_s(self.options))
         self.state.connected = True
         self.state.reconnects += 1
         if self.on_open is not None:

@@ -1,5 +1,6 @@
 """A quiet CAN bus costs little: python-can's notifier waits in the interface's own ``recv`` for at most
-``READ_WAIT_S`` at a time (no shorter waits, no busy reads), and the bus closing ends its thread."""
+``READ_WAIT_S`` at a time (``VIRTUAL_READ_WAIT_S`` on the in-process ``virtual`` bus; no shorter waits,
+no busy reads), and the bus closing ends its thread."""
 
 from __future__ import annotations
 
@@ -44,9 +45,10 @@ async def _quiet_then_one_frame(options: dict, sender_options: dict, calls: list
         calls.clear()
         await asyncio.sleep(QUIET_S)  # a quiet bus for QUIET_S: what the reader does when nothing comes
         waits = [timeout for _name, timeout in calls]
-        # every wait on a quiet bus is the longest one: never a busy read, at most one wake-up per READ_WAIT_S
-        assert all(t == cb.READ_WAIT_S for t in waits), waits
-        assert len(waits) <= QUIET_S / cb.READ_WAIT_S + 1, waits
+        # every wait on a quiet bus is the longest one: never a busy read, at most one wake-up per wait
+        wait = cb.read_wait_s(options)
+        assert all(t == wait for t in waits), waits
+        assert len(waits) <= QUIET_S / wait + 1, waits
     finally:
         await bus.stop()
     assert not thread.is_alive()  # the closing ended the notifier's thread
@@ -69,3 +71,5 @@ async def test_a_quiet_udp_multicast_bus_is_read_with_the_longest_wait(recv_call
 
 def test_interfaces_wait_a_bounded_time():
     assert cb.READ_WAIT_S >= 0.5  # at most two wake-ups a second on a quiet bus, and a close within that
+    assert cb.read_wait_s({"interface": "socketcan", "channel": "can0"}) == cb.READ_WAIT_S
+    assert 0.05 <= cb.read_wait_s({"interface": "virtual", "channel": "x"}) <= cb.READ_WAIT_S
