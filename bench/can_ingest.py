@@ -1,7 +1,7 @@
 """CAN receive path throughput against the physical limit of a 1 Mbit/s bus.
 
 Frames go through exactly the path the worker uses: python-can ``virtual`` bus ->
-reader thread -> batched hand-over to the event loop -> dispatch by ID -> the
+python-can's Notifier thread -> batched hand-over to the event loop -> dispatch by ID -> the
 HD-Lock adapter's codec -> state store (registers, history) and the monitor's ring
 buffer and per-ID overwrite statistics.
 
@@ -100,7 +100,7 @@ async def ingest(count: int) -> tuple[float, float, int, int]:
     device = worker.store.devices["gate-1"]
     start, cpu0 = time.perf_counter(), time.process_time()
     await can_bus.start()
-    # the reader thread drains the queue far faster than a bus delivers: while the hand-over is full it
+    # the notifier's thread drains the queue far faster than a bus delivers: while the hand-over is full it
     # pauses (app.can_bus.READER_BACKOFF_S), then sheds the oldest; done when every frame was handled or shed
     while state.rx_frames + state.shed < count and time.perf_counter() - start < 60:
         await asyncio.sleep(0.001)
@@ -152,7 +152,7 @@ async def run(count: int, rate: int, seconds: float) -> None:
     elapsed, cpu, handled, lost = await ingest(count)
     fps = handled / elapsed
     print(f"frames queued: {count}, handled: {handled}, shed at the hand-over: {lost} "
-          f"(the queue is drained at memory speed, faster than any bus delivers; the reader pauses while the hand-over is full)")
+          f"(the queue is drained at memory speed, faster than any bus delivers; the notifier pauses while the hand-over is full)")
     print(f"receive path: {fps:,.0f} frames/s ({elapsed * 1e6 / max(handled, 1):.1f} us per frame)")
     print(f"receive path CPU: {cpu * 1e6 / max(handled, 1):.1f} us per frame, {handled / max(cpu, 1e-9) / BUS_LIMIT_FPS:.2f}x the bus limit "
           f"per core (CPU time of this process's threads: less sensitive than the wall time to other programs of the machine)")
