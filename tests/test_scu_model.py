@@ -19,7 +19,7 @@ from devices.commands import WRITE_PARAMETER
 from devices.params import Access
 from devices.scu.model import PARAMS, SAFETY_ID, SETTINGS, params_for
 
-pytestmark = pytest.mark.timeout(60)
+pytestmark = pytest.mark.timeout(120)
 
 SPEED_F1 = PARAMS.by_name["Remote Speed F1"]
 SPEED_F2 = PARAMS.by_name["Remote Speed F2"]
@@ -70,7 +70,7 @@ async def lifts(tmp_path):
     runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
     await runtime.start()
     for name in ("lift-a", "lift-b"):
-        assert await wait_for(lambda n=name: runtime.store.devices[n].status == "online", timeout=10), name
+        assert await wait_for(lambda n=name: runtime.store.devices[n].status == "online", timeout=20), name
     try:
         yield runtime
     finally:
@@ -187,7 +187,7 @@ async def test_drift_after_a_reset_and_the_replacement_assistant_writes_the_appr
     await runtime.record.approve("lift-a", user="anna", role="engineer")
     assert state.drift == {"approved": True, "changed": []}
     twin.reset()  # the unit's remote data are back at their defaults (table 7): the poll's reads in turn see it
-    assert await wait_for(lambda: state.drift["changed"], 15)
+    assert await wait_for(lambda: state.drift["changed"], 30)
     assert state.drift["changed"] == [{"key": "data:12306", "name": "Remote Speed F2", "approved": "55 % or counts/s",
                                        "now": "100 % or counts/s"}]
     rp = await replace.plan_replacement(runtime, "lift-a")
@@ -195,7 +195,7 @@ async def test_drift_after_a_reset_and_the_replacement_assistant_writes_the_appr
     report = await replace.execute_replacement(runtime, rp, {r.key for r in rp.plan.rows if r.changed}, user="anna",
                                                role="engineer")
     assert report.ok and twin.remote_speed[1] == 55
-    assert await wait_for(lambda: not state.drift["changed"], 15)
+    assert await wait_for(lambda: not state.drift["changed"], 30)
 
 
 async def test_the_declared_write_goes_through_the_gate_for_a_viewer_it_is_refused(lifts):
@@ -251,7 +251,7 @@ async def test_on_the_demo_plant_lift_1s_project_differs_applies_and_a_reset_sho
     await runtime.start()
     try:
         twin, state = runtime.twins["lift-1"], runtime.store.devices["lift-1"]
-        assert await wait_for(lambda: state.status == "online", timeout=10)
+        assert await wait_for(lambda: state.status == "online", timeout=20)
         plan = await backup.plan_restore(runtime, "lift-1", project.document(runtime, "lift-1"))
         assert [(r.name, r.current_text, r.backup_text) for r in plan.rows if r.changed] == [
             ("Remote Speed F1", "100 % or counts/s", "60 % or counts/s")]
@@ -259,7 +259,7 @@ async def test_on_the_demo_plant_lift_1s_project_differs_applies_and_a_reset_sho
         assert report.ok and twin.remote_speed[0] == 60
         await runtime.record.approve("lift-1", user="anna", role="engineer")
         twin.reset()
-        assert await wait_for(lambda: state.drift["changed"], 20)
+        assert await wait_for(lambda: state.drift["changed"], 30)
         assert [(r["name"], r["approved"], r["now"]) for r in state.drift["changed"]] == [
             ("Remote Speed F1", "60 % or counts/s", "100 % or counts/s")]
     finally:
@@ -291,3 +291,17 @@ def test_the_twins_strict_modes_refused_data_ids_a_reset_and_the_speed_select():
     absolute = ScuTwin("lift", 1, speed_select="absolute")
     absolute.remote, absolute.rc_seen = True, True
     assert absolute.write(0x3011, (1000).to_bytes(2, "little")) == codec.Status.ACK and absolute.remote_speed[0] == 1000
+
+
+async def test_a_unit_watched_with_rg_alone_gets_a_session_for_the_write_and_closes_it_after(lifts):
+    runtime = lifts
+    twin, adapter = runtime.twins["lift-b"], runtime.worker.adapters["lift-b"]
+    twin.rg_outside_session = True  # it answers RG outside remote mode: watched with RG, no session while idle
+    adapter.watch = None  # asked again at the next poll
+    assert await wait_for(lambda: adapter.watch == "rg" and adapter.session == "closed", 20), adapter.session
+    assert {e["key"] for e in await adapter.backup_read()} >= {q.key for q in params_for(2)}  # read without a session
+    assert adapter.session == "closed"
+    await runtime.worker.invoke("lift-b", WRITE_PARAMETER, {"param": SPEED_F2.key, "value": 45}, user="anna",
+                                role="engineer")
+    assert twin.remote_speed[1] == 45
+    assert await wait_for(lambda: adapter.session == "closed" and not twin.remote, 20)  # RA once nobody needs it

@@ -17,7 +17,7 @@ from webutil import eventually, simulated_user
 from app.plant import load_plant
 from app.runtime import Runtime
 
-pytestmark = pytest.mark.timeout(90)
+pytestmark = pytest.mark.timeout(120)
 
 
 def _plant(tmp_path: Path) -> Path:
@@ -51,16 +51,16 @@ async def test_project_difference_applied_per_row_on_the_page_and_drift_on_the_o
     runtime = Runtime(load_plant(_plant(tmp_path)), simulate=True, data_dir=tmp_path / "data")
     async with simulated_user(runtime) as user:
         twin, state = runtime.twins["lift-a"], runtime.store.devices["lift-a"]
-        await eventually(lambda: state.status == "online", timeout=15, what="lift-a online")
+        await eventually(lambda: state.status == "online", timeout=30, what="lift-a online")
         await user.open("/device/lift-a")
-        await user.should_see("1 of 2 project entries differs from the device", retries=150)  # A1 is at 600 already
+        await user.should_see("1 of 2 project entries differs from the device", retries=300)  # A1 is at 600 already
         table = _card_table(user)
         assert [(r["name"], r["backup"], r["current"]) for r in table.rows] == [
             ("Remote Speed F1", "60 % or counts/s", "100 % or counts/s")]
         emit(table, "apply", "data:12305")
         await user.should_see("Write Remote Speed F1 = 60 % or counts/s to lift-a?")
         _dialog_button(user, "Write").click()
-        await user.should_see("device and project agree (2 project entries)", retries=150)
+        await user.should_see("device and project agree (2 project entries)", retries=300)
         assert twin.remote_speed[0] == 60  # written with RT and read back with RG
         rows = await runtime.audit.aquery(limit=50)
         assert any(r.device == "lift-a" and r.action == "restore" and r.parameter == "Remote Speed F1" for r in rows)
@@ -70,7 +70,7 @@ async def test_project_difference_applied_per_row_on_the_page_and_drift_on_the_o
         user.find(kind=ui.button, content="Read settings (RG)").click()
         settings = next(e for e in user.client.elements.values()
                         if isinstance(e, ui.table) and e.props.get("data-testid") == "settings-table")
-        await eventually(lambda: any(r["value"] == "12.5 counts/mm" for r in settings.rows), timeout=10)
+        await eventually(lambda: any(r["value"] == "12.5 counts/mm" for r in settings.rows), timeout=30)
         rows = {r["name"]: r for r in settings.rows}
         assert (rows["Remote Speed F1"]["id"], rows["Remote Speed F1"]["value"], rows["Remote Speed F1"]["kind"]) == (
             "0x3011", "60 % or counts/s", "setting")
@@ -81,13 +81,13 @@ async def test_project_difference_applied_per_row_on_the_page_and_drift_on_the_o
         api = await user.http_client.get("/api/devices")
         assert next(d for d in api.json() if d["name"] == "lift-a")["drift"] == {"approved": True, "changed": []}
         twin.reset()
-        await eventually(lambda: state.drift["changed"], timeout=15, what="drift of lift-a")
+        await eventually(lambda: state.drift["changed"], timeout=30, what="drift of lift-a")
         changed = [{"key": "data:12305", "name": "Remote Speed F1", "approved": "60 % or counts/s",
                     "now": "100 % or counts/s"}]
         api = await user.http_client.get("/api/devices")
         assert next(d for d in api.json() if d["name"] == "lift-a")["drift"] == {"approved": True, "changed": changed}
         await user.open("/")
-        await user.should_see("changed since approved", retries=100)
+        await user.should_see("changed since approved", retries=300)
 
 
 async def test_the_project_editor_offers_the_settings_of_the_model(tmp_path: Path):

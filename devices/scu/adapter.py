@@ -726,8 +726,9 @@ class ScuAdapter:
         self._publish_session()
 
     def _needs_session(self) -> bool:
-        """A remote session is needed: the unit refuses RG without one, someone drives, a stop is owed, or F20 is on."""
-        return self.core.needs_session(self.watch == WATCH_SESSION)
+        """A remote session is needed: the unit refuses RG without one, someone drives, a stop is owed, F20 is on, or a
+        setting is being written (RT, devices/scu/settings.py)."""
+        return self.core.needs_session(self.watch == WATCH_SESSION) or self.settings.writing > 0
 
     def _ro_frame(self) -> bytes:
         """RO with the Safety_ID alone (section 5 example), or with para_ID[0] as table 3 lists it once the unit

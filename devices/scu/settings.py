@@ -42,6 +42,7 @@ class ScuSettings:
         self.params = params_for(len(adapter.scales))
         self.keys = {q.key for q in self.params}
         self.refused: dict[str, str] = {}  # parameter key -> why the unit refused its data ID (a refused selector)
+        self.writing = 0  # writes under way: the session stays open for them (a unit watched with RG alone)
 
     # -- the live store ---------------------------------------------------------------------------
     def note(self, data_id: int, value: Any, now: float | None = None) -> None:
@@ -168,18 +169,27 @@ class ScuSettings:
         if reason:
             raise CommandError(reason)
         adapter = self.adapter
-        await self._session(True)
-        await adapter.ensure_open()
-        adapter.check_open()
-        reason = self.refusal(q, raw)  # the session's opening may have sent RE 19 and owed RS: look again
-        if reason:
-            raise CommandError(reason)
         number = q.decode(raw)
+        self.writing += 1
         try:
-            await adapter.write_read_back(q.data_id, number, q.name)
-        except codec.CommandRefused as exc:
-            self.state.counters.write_errors += 1
-            raise CommandError(f"{q.name} = {q.display(raw)}: the unit answered {exc.info.name} ({exc.info.title})") from None
+            for attempt in (1, 2):  # a PE: the session ended under the write (section 4.2), opened once more
+                await self._session(True)
+                await adapter.ensure_open()
+                adapter.check_open()
+                reason = self.refusal(q, raw)  # the session's opening may have sent RE 19 and owed RS: look again
+                if reason:
+                    raise CommandError(reason)
+                try:
+                    await adapter.write_read_back(q.data_id, number, q.name)
+                    break
+                except codec.CommandRefused as exc:
+                    if exc.code == codec.Status.PE and attempt == 1:
+                        continue
+                    self.state.counters.write_errors += 1
+                    raise CommandError(f"{q.name} = {q.display(raw)}: the unit answered {exc.info.name} "
+                                       f"({exc.info.title})") from None
+        finally:
+            self.writing -= 1
         self.state.event("info", f"{q.name} = {q.display(raw)} written (RT) and read back (RG); {VOLATILE}")
         return raw
 
