@@ -325,3 +325,34 @@ async def test_p2_switched_off_while_not_served_is_sent_off_when_served_again(tm
         assert load_plant(path).devices["io"].options.get("p2") is None  # a direct adapter call: no gate, no file
     finally:
         await runtime.stop()
+
+
+async def test_on_the_demo_plant_heater_hmrs_project_differs_applies_and_a_change_shows_as_drift(tmp_path):
+    from webutil import private_endpoints
+
+    from app.plant import DEMO_PLANT
+
+    demo = private_endpoints(load_plant(DEMO_PLANT), tmp_path.name)
+    assert project.check_plant(demo) == []
+    for name in [n for n in demo.devices if demo.devices[n].bus != "can3"]:
+        del demo.devices[name]
+    demo.buses["can3"].options["poll_period"] = 0.2  # the settings are read at the first polls once it answers
+    runtime = Runtime(demo, simulate=True, data_dir=tmp_path / "data")
+    async with simulated_user(runtime) as user:
+        twin, state = runtime.twins["heater-hmr"], runtime.store.devices["heater-hmr"]
+        assert await wait_for(lambda: state.status == "online" and state.raw(record_param(15)) is not None, 15)
+        plan = await backup.plan_restore(runtime, "heater-hmr", project.document(runtime, "heater-hmr"))
+        assert [(r.name, r.current_text, r.backup_text) for r in plan.rows if r.changed] == [
+            ("Customer data 1", "ff ff ff ff ff ff", "01 02 03 ff ff ff")]
+        report = await backup.execute_restore(runtime, plan, {r.key for r in plan.rows}, user="anna", role="engineer")
+        assert report.ok and twin.customer[1] == bytes.fromhex("010203ffffff")
+        await runtime.record.approve("heater-hmr", user="anna", role="engineer")
+        await gate.invoke(runtime.worker, "heater-hmr", WRITE_PARAMETER, {"param": "customer:1", "value": "04"},
+                          user="anna", role="engineer")
+        assert await wait_for(lambda: state.drift["changed"], 5)
+        devices = (await user.http_client.get("/api/devices")).json()
+        drift = next(d for d in devices if d["name"] == "heater-hmr")["drift"]
+        assert [(r["name"], r["approved"], r["now"]) for r in drift["changed"]] == [
+            ("Customer data 1", "01 02 03 ff ff ff", "04 ff ff ff ff ff")]
+        await user.open("/")
+        await user.should_see("changed since approved")
