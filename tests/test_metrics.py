@@ -24,7 +24,7 @@ CEILINGS = {
     "getattr_default": 129,
     "hasattr": 16,
     "except_exception": 129,
-    "private_access": 51,
+    "private_access": 47,
     "exception_roots": 20,
 }
 
