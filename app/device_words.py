@@ -58,6 +58,30 @@ POINT_WORDS = (
     N_("out of range ({0})"),
     # doc: CAN-M3IO, 001, sections 6.1 (bit rate) and 4 (variants): the module against the plant file
     N_("bit rate mismatch: module {0} kbit/s, bus {1} kbit/s"),
+    # doc: Ewellix SCU, 002, section 4.5, table 10 Fehlercodes (Error_Code 0x00D1): "bit n: cause", as devices/scu/codec.py
+    # words them, joined by "; "
+    NP_("Error code", "no error"), NP_("Error code", "bit {0}: CRC error in the ROM test (faulty ROM)"),
+    NP_("Error code", "bit {0}: RAM test failed (faulty RAM)"), NP_("Error code", "bit {0}: CPU test failed (faulty CPU)"),
+    NP_("Error code", "bit {0}: stack overflow detected"), NP_("Error code", "bit {0}: program flow error (watchdog reset)"),
+    NP_("Error code", "bit {0}: hand switch test failed (short circuit in the hand switch)"),
+    NP_("Error code", "bit {0}: binary input test failed (short circuit between binary inputs)"),
+    NP_("Error code", "bit {0}: relay and FET test failed (faulty relay or FET)"),
+    NP_("Error code", "bit {0}: communication with the MoveEnable controller failed"),
+    NP_("Error code", "bit {0}: MoveEnable output check failed (the MoveEnable controller's output is wrong)"),
+    NP_("Error code", "bit {0}: over-temperature at the rectifier or FET"),
+    NP_("Error code", "bit {0}: switched off because of deep discharge of the battery"),
+    NP_("Error code", "bit {0}: total current exceeded"), NP_("Error code", "bit {0}: error of actuator {1}"),
+    NP_("Error code", "bit {0}: position difference between the actuators too large (synchronised parallel run)"),
+    NP_("Error code", "bit {0}: remote communication timeout"),
+    NP_("Error code", "bit {0}: locking box I{1}C communication error"),  # I2C: its digit is a number too
+    NP_("Error code", "bit {0}: RAM copy of the EEPROM configuration data has a wrong CRC"),
+    NP_("Error code", "bit {0}: RAM copy of the EEPROM user data has a wrong CRC"),
+    NP_("Error code", "bit {0}: EEPROM locking box data has a wrong CRC"),
+    NP_("Error code", "bit {0}: RAM copy of the EEPROM dynamic data has a wrong CRC"),
+    NP_("Error code", "bit {0}: RAM copy of the EEPROM calibration data has a wrong CRC"),
+    NP_("Error code", "bit {0}: RAM copy of the EEPROM calibration data has a wrong CRC (as printed for bit {1})"),
+    NP_("Error code", "bit {0}: IO test"), NP_("Error code", "bit {0}: motions are not executed"),
+    NP_("Error code", "bit {0}: not in table {1}"),
     # the MQTT broker's connection as the header shows it (app/mqtt.py)
     NP_("broker", "connecting"), NP_("broker", "connected"), NP_("broker", "connected: client id taken over"),
     NP_("broker", "down"), NP_("broker", "stopped"),

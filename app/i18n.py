@@ -98,7 +98,7 @@ class Lang:
         """A device's word or sentence (a state, a flag, an error, a tile's text) in this language: the catalog's
         entry of it as a value of the point ``context``, else without context; else the entry with its numbers
         as ``{0}``, ``{1}`` ... (``SSR3 fuse blown``, ``out of range (250.3)``); else each comma-separated part
-        so; numbers written the language's way. What is still not found is shown as it came and noted in
+        so, and each part of a list at ``; ``; numbers written the language's way. What is still not found is shown as it came and noted in
         :attr:`missing`."""
         key = (context, text)
         found = self._phrases.get(key)
@@ -129,8 +129,9 @@ class Lang:
                 found = self._lookup(pattern, context)
                 if found is not None:
                     return found.format(*(self._number_text(n) for n in numbers))
-        if ", " in text:
-            return ", ".join(self.phrase(part, context) for part in text.split(", "))
+        for separator in ("; ", ", "):  # a list of words: each one looked up
+            if separator in text:
+                return separator.join(self.phrase(part, context) for part in text.split(separator))
         self.missing.add(text)
         return self.numbers_in(text)
 

@@ -119,3 +119,18 @@ def test_the_catalogs_count_their_texts():
     counts = {code: sum(1 for m in catalog(code) if m.id) for code in i18n.LANGUAGES}
     print("catalog texts:", counts)
     assert counts["de"] == counts["en"] > 200
+
+
+def test_every_scu_error_bit_is_in_the_documents_german():
+    """Table 10 (002, section 4.5) as the SCU's tile shows an Error_Code: each bit, and several at once."""
+    from devices.scu import codec
+
+    german = i18n.Lang("de")
+    for bit in codec.ERROR_BITS.values():
+        german.phrase(codec.error_text(bit.mask), "Error code")
+    german.phrase(codec.error_text(1 << 8), "Error code")  # bit 9: not in table 10
+    assert not german.missing, german.missing
+    both = codec.ERROR_BITS[14].mask | codec.ERROR_BITS[22].mask
+    assert german.phrase(codec.error_text(both), "Error code") == \
+        "Bit 14: Summenstrom wurde überschritten; Bit 22: Remote Kommunikation Timeout"
+    assert german.phrase(codec.error_text(codec.ERROR_BITS[17].mask), "Error code") == "Bit 17: Fehler des Antriebs 3"
