@@ -149,8 +149,9 @@ class Lang:
 
     def _number_text(self, text: str) -> str:
         """A number as a device's text wrote it (``21.5``), written this language's way with as many decimals."""
-        digits = len(text.split(".", 1)[1]) if "." in text else 0
-        return self.number(float(text) if digits else int(text), digits, group=False)
+        if "." not in text:
+            return text  # a whole number reads alike in both (and keeps its leading zeros: 08:05:09, 0x0A)
+        return self.number(float(text), len(text.split(".", 1)[1]), group=False)
 
     def numbers_in(self, text: str) -> str:
         """``text`` with each decimal number in it written this language's way (``21.5 °C`` -> ``21,5 °C``)."""

@@ -113,3 +113,8 @@ def test_argparses_refusals_in_german(capsys):
     with pytest.raises(SystemExit):
         cli.main(["--port", "x"])
     assert "commission: error: argument --port: invalid int value: 'x'" in capsys.readouterr().err  # English as it was
+
+
+def test_whole_numbers_keep_their_digits():
+    assert DE.phrase("bit 09: not in table 10", "Error code") == "Bit 09: nicht in Tabelle 10"
+    assert DE.numbers_in("08:05:09 0x0A 12.50 mm") == "08:05:09 0x0A 12,50 mm"
