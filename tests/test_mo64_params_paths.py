@@ -30,10 +30,12 @@ def _force_bits(twin) -> int:
     return twin.settings["config_flags"]["konfig2"] >> 11 & 0b11
 
 
-async def _online(runtime: Runtime, *names: str) -> None:
+async def _online(runtime: Runtime, *names: str, settings: bool = True) -> None:
+    """Each device answers, and (``settings``) its start-up reads brought the settings into the store."""
     for name in names:
         await eventually(lambda n=name: runtime.store.devices[n].status == "online"
-                         and runtime.store.devices[n].raw(KRAFT) is not None, timeout=15, what=f"{name} read")
+                         and (not settings or runtime.store.devices[n].raw(KRAFT) is not None), timeout=20,
+                         what=f"{name} read")
 
 
 def _changed(document: dict, **values) -> dict:
@@ -107,7 +109,7 @@ async def test_a_batch_sets_one_setting_on_both_rs485_barriers_and_asks_for_forc
     runtime = Runtime(demo_plant(("barrier-out-1", "barrier-out-2")), simulate=True, data_dir=tmp_path / "data")
     await runtime.start()
     try:
-        await _online(runtime, "barrier-out-1", "barrier-out-2")
+        await _online(runtime, "barrier-out-1", "barrier-out-2", settings=False)  # the backup reads them
         path = await backup.backup_device(runtime, "barrier-out-1")
         source = tmp_path / "set.json"
         source.write_text(json.dumps(_changed(json.loads(path.read_text()), t_offen=12.5)))
@@ -116,7 +118,8 @@ async def test_a_batch_sets_one_setting_on_both_rs485_barriers_and_asks_for_forc
         assert [[r.name for r in d.changed] for d in plan.devices] == [["t_offen"], ["t_offen"]]
         seen = []
         results = await batch.apply_batch(runtime, plan, user="anna", role="engineer", on_device=seen.append)
-        assert [(r.device, r.status) for r in results] == [("barrier-out-1", "written"), ("barrier-out-2", "written")]
+        assert [(r.device, r.status) for r in results] == [("barrier-out-1", "written"), ("barrier-out-2", "written")], \
+            [r.text for r in results]
         assert seen == results and all("1 written" in r.text for r in results)
         assert all(runtime.twins[n].settings["t_open"] == 1250 for n in ("barrier-out-1", "barrier-out-2"))
 
@@ -129,7 +132,7 @@ async def test_a_batch_sets_one_setting_on_both_rs485_barriers_and_asks_for_forc
         assert _force_bits(runtime.twins["barrier-out-1"]) == 1
         plan = await batch.plan_batch(runtime, ["barrier-out-1", "barrier-out-2"], str(source))
         results = await batch.apply_batch(runtime, plan, user="anna", role="engineer", confirmed={"Kraftüberwachung"})
-        assert [r.status for r in results] == ["written", "written"]
+        assert [r.status for r in results] == ["written", "written"], [r.text for r in results]
         assert all(_force_bits(runtime.twins[n]) == 0 for n in ("barrier-out-1", "barrier-out-2"))
     finally:
         await asyncio.wait_for(runtime.stop(), 15)
@@ -173,3 +176,24 @@ async def test_drift_of_a_changed_setting_and_the_page_asks_before_force_monitor
         assert report.ok and sorted(report.written) == ["Kraftüberwachung", "t_offen"], report.summary()
         assert _force_bits(twin) == 1 and twin.settings["t_open"] == 1000
         await eventually(lambda: not state.drift["changed"], timeout=5, what="no drift after the replacement")
+
+
+async def test_the_demo_plants_barriers_name_a_project_whose_difference_is_applied(tmp_path):
+    runtime = Runtime(demo_plant(("barrier-in", "barrier-out-1", "barrier-out-2")), simulate=True,
+                      data_dir=tmp_path / "data")
+    await runtime.start()
+    try:
+        await _online(runtime, "barrier-in", "barrier-out-1", "barrier-out-2", settings=False)  # the plans read them
+        plan = await backup.plan_restore(runtime, "barrier-in", project.document(runtime, "barrier-in"))
+        assert [(r.name, r.current_text, r.backup_text) for r in plan.rows if r.changed] == [("t_offen", "10 s", "12.5 s")]
+        report = await backup.execute_restore(runtime, plan, {"t_open:0"}, user="anna", role="engineer")
+        assert report.ok and runtime.twins["barrier-in"].settings["t_open"] == 1250
+        # each RS485 barrier's own project, in one batch
+        plan = await batch.plan_batch(runtime, ["barrier-out-1", "barrier-out-2"], "project")
+        assert plan.ready, [d.error for d in plan.devices]
+        assert [[r.backup_text for r in d.changed] for d in plan.devices] == [["8 s"], ["8 s"]]
+        results = await batch.apply_batch(runtime, plan, user="anna", role="engineer")
+        assert [r.status for r in results] == ["written", "written"], [r.text for r in results]
+        assert all(runtime.twins[n].settings["t_open"] == 800 for n in ("barrier-out-1", "barrier-out-2"))
+    finally:
+        await asyncio.wait_for(runtime.stop(), 15)

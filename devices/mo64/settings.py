@@ -37,6 +37,7 @@ READ_ONLY_BACKUP = ((codec.Q_LOOP_PERIODS, "loop_periods", "induction-loop perio
 # the queries a backup reads, in the model's order; the vehicle counter is RAM only (chapter 5.2.5): not backed up
 PARAM_QUERIES = tuple(dict.fromkeys(p.query for p in model.PARAMS
                                     if not p.setting_key or codec.SETTINGS[p.setting_key].backup))
+READ_ATTEMPTS = 3  # a query of a backup or a read-modify-write, asked again when unanswered
 WRITE_SESSION = "write parameter"  # the EEPROM writes of a restore, a batch or the API (no page session)
 
 
@@ -93,7 +94,7 @@ class Mo64Settings:
         if answer.reply is not codec.Reply.ACK:
             self.state.counters.write_errors += 1
             raise CommandError(f"{setting.name}: the barrier answered {result}")
-        back_answer = await self.query(setting.query)
+        back_answer = await self._read(setting.query)
         back = codec.setting_value(key, back_answer)
         if to_json(back) != to_json(_normal(setting, value)):
             self.state.counters.write_errors += 1
@@ -127,6 +128,17 @@ class Mo64Settings:
         return "on" if on else "off"
 
     # -- the parameter model (devices/mo64/params.py) ------------------------------------------------------
+    async def _read(self, index: int) -> codec.Answer:
+        """A query of a whole read (backup, read-modify-write), asked again when it went unanswered (at most
+        :data:`READ_ATTEMPTS` times): on a shared RS485 line an answer may miss this tool's turn (chapter 2.6.1),
+        which fails nothing yet."""
+        for _ in range(READ_ATTEMPTS - 1):
+            try:
+                return await self.query(index)
+            except SerialTimeout:
+                continue
+        return await self.query(index)
+
     def publish_params(self, answer: codec.Answer) -> None:
         """Keep the model's raw values of an answer that carries settings (one store change for all of them)."""
         pieces = model.of_query(answer.query) if answer.query is not None else []
@@ -148,7 +160,7 @@ class Mo64Settings:
     async def read_param(self, param: Param | str) -> int:
         """The raw value of ``param`` read from the unit now."""
         param = self._model_param(param)
-        answer = await self.query(param.query)
+        answer = await self._read(param.query)
         return model.extract(param, model.value_int(answer.type, answer.value))
 
     async def write_param(self, param: Param | str, value, *, confirmed: bool = False, session: str = WRITE_SESSION) -> int:
@@ -169,7 +181,7 @@ class Mo64Settings:
             raise CommandError(f"{param.name}: not written: the selector 0x{setting.telegram:02X} "
                                f"0x{setting.selector:02X} is an assumption ({setting.assumed}); write it only after "
                                "confirming that the selector is verified on this unit")
-        now = model.setting_int(key, codec.setting_value(key, await self.query(setting.query)))
+        now = model.setting_int(key, codec.setting_value(key, await self._read(setting.query)))
         back = await self.write_setting(session, key, model.setting_value(key, model.replace(param, now, raw)),
                                         selector_verified=confirmed)
         back_raw = model.extract(param, model.setting_int(key, back))
@@ -193,13 +205,13 @@ class Mo64Settings:
         total = len(PARAM_QUERIES) + len(READ_ONLY_BACKUP)
         entries = []
         for n, index in enumerate(PARAM_QUERIES, 1):
-            answer = await self.query(index)
+            answer = await self._read(index)
             number = model.value_int(answer.type, answer.value)
             entries += [backup_entry(p, model.extract(p, number)) for p in model.of_query(index)]
             if progress:
                 progress(n / total)
         for n, (index, key, name) in enumerate(READ_ONLY_BACKUP, len(PARAM_QUERIES) + 1):
-            answer = await self.query(index)
+            answer = await self._read(index)
             value = to_json(answer.value)
             entries.append({"key": key, "name": name, "value": value, "raw": value,
                             "text": value_text(answer.type, answer.value), "unit": "",
