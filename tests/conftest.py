@@ -59,6 +59,14 @@ BROWSER_FILES = {
 #: ``--durations=0`` of the fast loop): a file name (every test in it, where most of its tests are slow)
 #: or a node id without its parameters (every parametrisation). The fast loop leaves them out.
 SLOW_TESTS: set[str] = {
+    "test_scale_plant.py",
+    "test_metrics.py",
+    "test_mo64_params_paths.py",
+    "test_m3io_params.py::test_the_replacement_assistant_restores_the_approved_records_on_a_new_module",
+    "test_m3io_params_page.py",
+    "test_scu_model.py::test_drift_after_a_reset_and_the_replacement_assistant_writes_the_approved_set_back",
+    "test_scu_model.py::test_on_the_demo_plant_lift_1s_project_differs_applies_and_a_reset_shows_as_drift",
+    "test_scu_model_pages.py",
     "test_api.py",
     "test_audit_page.py",
     "test_backup.py",
