@@ -17,7 +17,8 @@ from pages.diffrows import DIFF_COLUMNS, STATE_SLOT, WRAP
 from pages.diffrows import count as _count
 from pages.diffrows import row_state as _row_state
 from pages.project import ProjectCard
-from pages.widgets import confirm, gate, upload_button, viewer_reason
+from pages.widgets import upload_button
+from pages.command_client import confirm, enable_unless, viewer_reason
 
 FILE_COLUMNS = [
     {"name": "name", "label": "File", "field": "name", "align": "left", "style": WRAP},
@@ -73,7 +74,7 @@ class BackupCard:
             self.reasons = ui.column().classes("gap-0").props("data-testid=backup-nothing")
             with ui.row().classes("items-center"):
                 self.start = ui.button("Back up selected", icon="save_alt").props("data-testid=backup-start")
-                gate(self.start, viewer_reason())  # reading every parameter and writing files: an engineer's action
+                enable_unless(self.start, viewer_reason())  # reading every parameter and writing files: an engineer's action
                 self.archive = ui.button("Download as one archive", icon="folder_zip").props("outline")
                 self.archive.set_visibility(False)
             self.progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
@@ -241,7 +242,7 @@ class RestoreFlow:
                 self.device = ui.select(candidates, value=default, label="Restore to").props("dense outlined").classes("w-56")
                 compare = ui.button("Compare with the device", icon="compare_arrows", on_click=self.compare).props(
                     "data-testid=restore-compare")
-                gate(compare, viewer_reason())  # the first step of a restore: an engineer's action
+                enable_unless(compare, viewer_reason())  # the first step of a restore: an engineer's action
             self.progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
             self.warnings = ui.column().classes("gap-0")
             self.table = ui.table(columns=DIFF_COLUMNS, rows=[], row_key="key", selection="multiple", pagination=0).classes(

@@ -17,7 +17,8 @@ from app.modbus_line import ModbusLine
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import fmt_age, frame, notify_error
 from pages.session import current_user
-from pages.widgets import all_valid, checked_value, range_number, range_text
+from pages.widgets import range_number, range_text
+from pages.command_client import all_valid, checked_value
 
 REFRESH_S = 0.5  # the ages and the line cycle; each answer is shown as it comes (ModbusPoll.listeners)
 BASES = {0: "0-based (protocol)", 1: "1-based (register 1 = address 0)"}

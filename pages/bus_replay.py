@@ -19,7 +19,8 @@ from app import runtime as rt
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import frame, notify_error
 from pages.session import current_user
-from pages.widgets import confirm, upload_button
+from pages.widgets import upload_button
+from pages.command_client import confirm
 
 REFRESH_S = 0.25
 SPEEDS = {0.1: "0.1 x", 0.5: "0.5 x", 1.0: "1 x (as recorded)", 2.0: "2 x", 5.0: "5 x", 10.0: "10 x"}

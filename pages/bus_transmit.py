@@ -14,7 +14,8 @@ from app import transmit as tx
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import frame, notify_error
 from pages.session import current_user
-from pages.widgets import all_valid, cancelled, confirm, range_number
+from pages.widgets import range_number
+from pages.command_client import all_valid, cancelled, confirm
 
 REFRESH_S = 0.5
 COLUMNS = [

@@ -32,7 +32,8 @@ from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import fmt_age, frame, notify_error
 from pages.monitor_common import CSS, SHOWN, tool_links
 from pages.session import current_user
-from pages.widgets import gate, upload_button, viewer_reason
+from pages.widgets import upload_button
+from pages.command_client import enable_unless, viewer_reason
 
 SCROLL_HEIGHT = "max-height: 56vh; overflow-y: auto"  # each table scrolls inside its box: the page height stays bounded
 SHOWN_IDS = 300  # rows of the overwrite view
@@ -367,7 +368,7 @@ class RecordingCard:
             self.status.set_text(f"{last.path.name}: {last.elapsed:.1f} s, {last.frames} frames, {_size(last.size)}{problem}")
         else:
             self.status.set_text("not recording")
-        gate(self.record_button, self.read_only or ("recording: stop it first" if active is not None else ""))
+        enable_unless(self.record_button, self.read_only or ("recording: stop it first" if active is not None else ""))
         self.format.set_enabled(active is None and not self.read_only)
         self.stop_button.set_enabled(active is not None)
         self.download_button.set_visibility(active is None and self.last is not None)

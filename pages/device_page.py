@@ -32,7 +32,8 @@ from app import runtime as rt
 from app.state import DeviceState, LiveValue, session_tag
 from pages.frame import frame, set_status_badge
 from devices.params import Param
-from pages.widgets import WriteGuard, counter_line, event_log, follow, run_command
+from pages.widgets import counter_line, event_log, follow
+from pages.command_client import run_command, WriteGuard
 
 
 class DeviceView:

@@ -6,7 +6,8 @@ from nicegui import ui
 
 from app import runtime as rt
 from pages.session import current_user
-from pages.widgets import all_valid, range_number
+from pages.widgets import range_number
+from pages.command_client import all_valid
 
 
 def open_discover_dialog(bus: str) -> None:

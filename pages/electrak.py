@@ -26,22 +26,9 @@ from pages.device_page import DeviceCard, DeviceView, DrawnCard, StatusRow, devi
 from pages.frame import fmt_age, fmt_time
 from pages.session import current_user
 from pages.simcontrols import sim_card
-from pages.widgets import (
-    HistoryChart,
-    LampStrip,
-    WriteGuard,
-    entry_age,
-    checked_value,
-    confirm,
-    gate,
-    lamp_html,
-    mark_quality,
-    quality_note,
-    range_number,
-    refuse,
-    stop_bar,
-    write_from_page,
-)
+from pages.widgets import entry_age, lamp_html, LampStrip, mark_quality, quality_note, range_number, stop_bar
+from pages.command_client import checked_value, confirm, enable_unless, refuse, write_from_page, WriteGuard
+from pages.charts import HistoryChart
 
 log = logging.getLogger(__name__)
 
@@ -351,10 +338,10 @@ class DriveCard(DrawnCard):
         else:
             self.foreign.set_text("")
         offline = self.guard.reason  # motion and writes wait for a network that answers; the stops never do
-        gate(self.take, offline or ("" if c is None else "you hold control" if mine else "another browser holds control"))
-        gate(self.release, "" if mine else "you do not hold control")
+        enable_unless(self.take, offline or ("" if c is None else "you hold control" if mine else "another browser holds control"))
+        enable_unless(self.release, "" if mine else "you do not hold control")
         for element in (self.apply_button, self.go_button, self.jog_in, self.jog_out, self.reset):
-            gate(element, offline or ("" if mine else "take control first"))
+            enable_unless(element, offline or ("" if mine else "take control first"))
         armed = mine and self.area_clear_for == c.since
         self.armed.set_text("" if not mine else "jog armed: the area was confirmed clear; hold In or Out to move" if armed
                             else "the first press of In or Out asks that the area is clear, then arms the jog")

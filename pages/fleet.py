@@ -11,7 +11,7 @@ from app import backup, batch, project
 from app import runtime as rt
 from pages.frame import frame, notify_error
 from pages.session import can_write, current_user
-from pages.widgets import confirm
+from pages.command_client import confirm
 
 STATUS_CLASS = {batch.WRITTEN: "text-positive", batch.UNCHANGED: "text-grey-8", batch.FAILED: "text-negative",
                 batch.SKIPPED: "text-warning", batch.REFUSED: "text-negative"}

@@ -28,8 +28,11 @@ from devices.params import Param
 from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
 from pages.frame import fmt_age, status_text
 from pages.simcontrols import sim_card
-from pages.widgets import HistoryChart, Lamp, RegisterTable, ValueLine, WriteGuard, checked_value, confirm, entry_age
-from pages.widgets import cancelled, gate, mark_quality, quality_note, range_number, refuse, run_command, write_from_page
+from pages.widgets import entry_age, Lamp, RegisterTable, ValueLine
+from pages.command_client import checked_value, confirm, WriteGuard
+from pages.charts import HistoryChart
+from pages.widgets import mark_quality, quality_note, range_number
+from pages.command_client import cancelled, enable_unless, refuse, run_command, write_from_page
 
 DEVICE_TYPE = "hdlock"
 
@@ -399,7 +402,7 @@ def _gate_send(view: HdLockView, button: ui.button, address) -> None:
         refused = address.validation(address.value) if callable(address.validation) else None  # the field's own rule
         if refused:  # (checked without touching the field's message: a refusal set on Send stays shown)
             reason = f"address {address.value:g} is refused: {refused}"
-    gate(button, reason)
+    enable_unless(button, reason)
 
 
 class SetAddressCard(DeviceCard):

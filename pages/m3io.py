@@ -22,8 +22,11 @@ from pages.device_page import DrawnCard as ChangedCard
 from pages.frame import fmt_age
 from pages.session import current_user
 from pages.simcontrols import sim_card
-from pages.widgets import HistoryChart, Lamp, WriteGuard, checked_value, entry_age, mark_quality, quality_note
-from pages.widgets import gate, range_number, refuse, stop_bar, viewer_reason
+from pages.widgets import entry_age, Lamp, mark_quality, quality_note
+from pages.command_client import checked_value, WriteGuard
+from pages.charts import HistoryChart
+from pages.widgets import range_number, stop_bar
+from pages.command_client import enable_unless, refuse, viewer_reason
 
 STATE_COLOR = {"ok": "positive", "present": "positive", "blown": "negative", "defective": "negative"}
 VARIANT_COLOR = {"ok": "text-positive", "mismatch": "text-negative text-weight-medium", "unchecked": "text-grey-8", "not possible": "text-warning"}
@@ -145,8 +148,8 @@ class ModuleCard(DrawnCard):
         self.holder.set_text(("you control the module" if control.session == view.tag else f"{control.user} controls the module")
                              if control else "nobody controls the module")
         mine = view.controls()
-        gate(self.take_button, self.read_only or ("you control the module" if mine else ""))
-        gate(self.release, self.read_only or ("" if mine else "you do not control the module"))
+        enable_unless(self.take_button, self.read_only or ("you control the module" if mine else ""))
+        enable_unless(self.release, self.read_only or ("" if mine else "you do not control the module"))
         check = view.live(facts.P_VARIANT_CHECK)
         self.variant.set_text(f"Variant {view.variant.value}: {check.text}")
         self.variant.classes(replace="text-body2 " + VARIANT_COLOR.get(check.value, "text-grey-8"))
@@ -213,7 +216,7 @@ class OutputsCard(DrawnCard):
             good = good and (entry is None or entry["quality"] not in ("stale", "offline"))
         self.no_control.set_visibility(not view.controls() and not (view.guard and view.guard.reason))
         self.led.set_value(bool(view.fact("LED")))
-        gate(self.led, view.switch_reason(bool(view.fact("LED"))))
+        enable_unless(self.led, view.switch_reason(bool(view.fact("LED"))))
         for row in self.rows:
             good = row.refresh() and good
         if self.p2 is not None:
@@ -265,7 +268,7 @@ class ChannelRow:
         view, output = self.view, self.output
         on = bool(view.fact(output))
         self.switch.set_value(on)
-        gate(self.switch, view.switch_reason(on))
+        enable_unless(self.switch, view.switch_reason(on))
         owners = {o.output: o.session for o in view.fact(facts.P_OWNERS, ())}
         foreign = on and output in owners and owners[output] != view.tag
         group = view.live(facts.P_LOAD_CHECK) if output == "SSR1-3" else None

@@ -28,20 +28,8 @@ from pages.device_page import (
 )
 from pages.frame import status_text
 from pages.simcontrols import sim_card
-from pages.widgets import (
-    Lamp,
-    ValueLine,
-    WriteGuard,
-    checked_value,
-    counter_line,
-    entry_age,
-    gate,
-    mark_quality,
-    quality_note,
-    range_number,
-    refuse,
-    viewer_reason,
-)
+from pages.widgets import counter_line, entry_age, Lamp, mark_quality, quality_note, range_number, ValueLine
+from pages.command_client import checked_value, enable_unless, refuse, viewer_reason, WriteGuard
 
 MOTION_WARNING = "the boom moves: check that nobody stands under it"
 STOP_HINT = "a stop: anyone may stop (deactivating a close or reverse level never moves the boom)"
@@ -156,7 +144,7 @@ class GateCard(DeviceCard):
                         .props("outline dense data-testid=resume")
                     # engineers only (declared writes); usable while the barrier is silent: that may be why
                     for button in (release, resume):
-                        gate(button, viewer_reason())
+                        enable_unless(button, viewer_reason())
 
     def refresh(self) -> None:
         view, state = self.view, self.view.state
@@ -213,12 +201,12 @@ class CommandsCard(DeviceCard):
                         off = ui.button("deactivate", on_click=lambda cmd=cmd: view.move(cmd, codec.Function.DEACTIVATE)) \
                             .props(f"outline data-testid=deactivate-{COMMAND_NAMES[cmd]}")
                         if cmd is codec.Command.OPEN:  # lets the boom close: motion (devices/mo64/control.py)
-                            gate(off, viewer_reason())
+                            enable_unless(off, viewer_reason())
                         else:  # a stop, never refused: on for every role, also while the barrier is silent
                             off.props(f'title="{STOP_HINT}"')
                 clear = ui.button("Clear my levels", icon="layers_clear", on_click=self.clear_levels) \
                     .props("data-testid=clear-levels")
-                gate(clear, viewer_reason())  # a declared system command: engineers only
+                enable_unless(clear, viewer_reason())  # a declared system command: engineers only
             self.levels = ui.label().classes("text-body2").props("data-testid=levels")
             self.reply = ui.label().classes("text-body2 mono").props("data-testid=reply")
             ui.label("A level stays active in the barrier until it is deactivated. Close and reverse levels are "

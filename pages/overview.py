@@ -16,7 +16,8 @@ from app.worker import AuditUnavailable, PermissionDenied
 from devices.registry import DEVICE_TYPES, format_can_ids
 from pages.frame import fmt_age, frame, set_status_badge, status_text
 from pages.plant_view import ICON, Followers, LabelPool, evaluate_tile
-from pages.widgets import gate, mark_quality, quality_note, viewer_reason
+from pages.widgets import mark_quality, quality_note
+from pages.command_client import enable_unless, viewer_reason
 from pages.session import current_user
 
 
@@ -474,7 +475,7 @@ def _bus_section(runtime, bus, followers: Followers, ticks: list, tiles: dict | 
 
             discover = ui.button("Discover locks", icon="search", on_click=lambda b=bus.name: open_discover_dialog(b)).props(
                 "flat dense data-testid=discover-locks")
-            gate(discover, viewer_reason())  # it sends to the line: an engineer's action
+            enable_unless(discover, viewer_reason())  # it sends to the line: an engineer's action
     conn = ui.label().classes("text-caption")
     shown: list = [None]
 

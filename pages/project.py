@@ -23,7 +23,8 @@ from devices.registry import DEVICE_TYPES
 from pages.diffrows import STATE_SLOT, WRAP, row_state
 from pages.frame import frame, notify_error
 from pages.session import can_write, current_user
-from pages.widgets import confirm, follow, viewer_reason
+from pages.widgets import follow
+from pages.command_client import confirm, viewer_reason
 
 PROJECT_COLUMNS = [
     {"name": "name", "label": "Parameter", "field": "name", "align": "left"},

@@ -32,7 +32,8 @@ from app.report import (
 from app.verify import check_archive
 from pages.frame import fmt_time, frame
 from pages.session import current_user
-from pages.widgets import VIEWER_REASON, gate, upload_button
+from pages.widgets import upload_button
+from pages.command_client import enable_unless, VIEWER_REASON
 
 STATUS_COLOUR = {"passed": "positive", "failed": "negative", "aborted": "negative", "running": "primary", "pending": "grey",
                  "skipped": "grey", "error": "negative"}
@@ -266,13 +267,13 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool):
         snap = ui.button("Snapshot now", icon="photo_camera").props("outline dense").mark("record-snapshot")
     no_set = "" if backup.device_backs_up(runtime, name) else f"{name} has no parameter set to approve or keep"
     for b in (approve, snap):
-        gate(b, VIEWER_REASON if not engineer else no_set)
+        enable_unless(b, VIEWER_REASON if not engineer else no_set)
 
     async def why_no_set() -> None:  # the adapter's own words (e.g. an M3IO in simple mode keeps no records)
         why = (await backup.why_nothing_to_back_up(runtime, name)).removeprefix("nothing to back up: ")
         if why and engineer:
             for b in (approve, snap):
-                gate(b, f"{name} has no parameter set to approve or keep: {why}")
+                enable_unless(b, f"{name} has no parameter set to approve or keep: {why}")
 
     if no_set:
         ui.timer(0, why_no_set, once=True)

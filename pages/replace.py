@@ -13,7 +13,8 @@ from pages.backup import DIFF_COLUMNS, STATE_SLOT, _confirm_restore, _count, _ro
 from pages.frame import frame, notify_error
 from pages.session import can_write, current_user
 from pages.simcontrols import sim_card
-from pages.widgets import confirm, follow
+from pages.widgets import follow
+from pages.command_client import confirm
 
 
 def notice(name: str) -> None:

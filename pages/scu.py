@@ -24,8 +24,11 @@ from pages.device_page import DeviceView, StatusRow, device_page, point_values, 
 from pages.device_page import DrawnCard as ChangedCard
 from pages.frame import fmt_age, fmt_time
 from pages.simcontrols import sim_card
-from pages.widgets import HistoryChart, WriteGuard, checked_value, confirm, entry_age, follow, gate
-from pages.widgets import INT32_LIMIT, LampStrip, html_attr, lamp_html, mark_quality, quality_note, range_number, session_role
+from pages.widgets import entry_age, follow
+from pages.command_client import checked_value, confirm, enable_unless, WriteGuard
+from pages.charts import HistoryChart
+from pages.widgets import html_attr, INT32_LIMIT, lamp_html, LampStrip, mark_quality, quality_note, range_number
+from pages.command_client import session_role
 from pages.widgets import stop_bar, value_html
 
 # Actuator status 1 (0x0171..) and 2 (0x00E1..): point key -> its words in table 6 (the adapter publishes one point per bit)
@@ -191,8 +194,8 @@ class SessionCard(DrawnCard):
         self.refusal.set_text(f"last error answer: {refusal.text}" if refusal is not None and refusal.value else "")
         self.error_line.set_text(state.last_error if state.online is False else "")
         # opening again is how a session recovers; RA hands the unit back
-        gate(self.reopen, access.role or ("the remote session is open" if view.fact(facts.P_SESSION) == "open" else ""))
-        gate(self.release_scu, access.role)
+        enable_unless(self.reopen, access.role or ("the remote session is open" if view.fact(facts.P_SESSION) == "open" else ""))
+        enable_unless(self.release_scu, access.role)
 
 
 class EstopCard(DrawnCard):
@@ -554,11 +557,11 @@ class DriveCard(DrawnCard):
         off = access.lost or access.offline or access.estop
         self.drive_off.set_text(f"Drive off: {off}" if off and mine else "")
         self.show_targets()
-        gate(self.take, access.role or access.offline or (
+        enable_unless(self.take, access.role or access.offline or (
             "" if holder is None else "you hold control" if mine else "another browser holds control"))
-        gate(self.release, access.role or ("" if mine else "you do not hold control"))
+        enable_unless(self.release, access.role or ("" if mine else "you do not hold control"))
         for element in self.moves:
-            gate(element, access.role or off or ("" if mine else "take control first"))
+            enable_unless(element, access.role or off or ("" if mine else "take control first"))
 
 
 class FunctionsCard(DrawnCard):
@@ -593,10 +596,10 @@ class FunctionsCard(DrawnCard):
     def draw(self, access: Access) -> None:
         control = "" if access.mine else "take control first"
         for element in self.on:
-            gate(element, access.role or access.lost or access.offline or access.estop or control)
-        gate(self.release_estop, access.role or access.lost or access.offline or control)
+            enable_unless(element, access.role or access.lost or access.offline or access.estop or control)
+        enable_unless(self.release_estop, access.role or access.lost or access.offline or control)
         for element in self.off:
-            gate(element, access.role or control)
+            enable_unless(element, access.role or control)
 
 
 def _read_gate(view: ScuView, access: Access) -> str:
@@ -636,7 +639,7 @@ class DirectoryCard(DrawnCard):
         return access, self.view.fact(facts.P_WATCH)
 
     def draw(self, access: Access) -> None:
-        gate(self.button, _read_gate(self.view, access))
+        enable_unless(self.button, _read_gate(self.view, access))
 
 
 class SettingsCard(DrawnCard):
@@ -676,7 +679,7 @@ class SettingsCard(DrawnCard):
         return access, tuple(None if (e := registers.get(k)) is None else e for k in self.keys)
 
     def draw(self, access: Access) -> None:
-        gate(self.button, _read_gate(self.view, access))
+        enable_unless(self.button, _read_gate(self.view, access))
         state = self.view.state
         rows = []
         for q in self.params:
@@ -731,7 +734,7 @@ class ServiceCard(DrawnCard):
         return access, self.view.fact(facts.P_WATCH), self.view.state.status, len(self.table.rows)
 
     def draw(self, access: Access) -> None:
-        gate(self.button, _read_gate(self.view, access))
+        enable_unless(self.button, _read_gate(self.view, access))
         self.ages()
 
 

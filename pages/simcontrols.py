@@ -7,7 +7,7 @@ from nicegui import ui
 
 from app import runtime as rt
 from devices.simcontrols import SimAction, SimControls
-from pages.widgets import sim_action, sim_card_allowed
+from pages.command_client import sim_action, sim_card_allowed
 
 
 def sim_card(device: str, only: tuple[str, ...] = (), skip: tuple[str, ...] = ()) -> None:

@@ -6,28 +6,17 @@ import html
 import json
 import logging
 import time
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable
 from datetime import datetime
 from decimal import Decimal
 
 from nicegui import context, ui
-from nicegui.element import Element
 
 from app import runtime as rt
 from app.state import DeviceState
-from app.worker import PermissionDenied
-from devices.commands import WRITE_PARAMETER
-from devices.params import Param, ParamError
+from devices.params import Param
 
-CHART_WINDOW_S = 300
 log = logging.getLogger(__name__)
-
-
-def session_role() -> str:
-    """Role of the browser session (engineer on loopback, else the account's role)."""
-    from pages.session import current_user
-
-    return current_user()[1]
 
 
 # a lamp of one element (:class:`Lamp` with ``light=True``): its light drawn before its name, as .lamp draws it
@@ -242,6 +231,12 @@ def value_html(point: str, testid: str, text: str, entry: dict | None) -> str:
     return (f'<div class="nicegui-row row items-baseline gap-0 no-wrap{marks}" data-point="{html_attr(point)}" '
             f'data-testid="{testid}" data-quality="{quality}"><div class="mono text-body2">'
             f'{html.escape(text)}</div><div class="q-age">{html.escape(note)}</div></div>')
+
+
+def clock_text(t: float) -> str:
+    from pages.frame import fmt_time
+
+    return fmt_time(t)
 
 
 class LampStrip:
@@ -463,246 +458,13 @@ def event_log(state) -> ui.table:
             return
         shown[0], shown[1] = newest, len(events)
         count = len(events)
-        table.rows = [{"id": count - i, "time": _fmt_time(e.time), "level": e.level, "text": e.text}
+        table.rows = [{"id": count - i, "time": clock_text(e.time), "level": e.level, "text": e.text}
                       for i, e in enumerate(reversed(events))]
         table.update()
 
     update()
     follow(state, update)
     return table
-
-
-def _fmt_time(t: float) -> str:
-    from pages.frame import fmt_time
-
-    return fmt_time(t)
-
-
-# New samples for a chart, drawn with one extendTraces once plotly is loaded and the chart drawn (calls
-# that come earlier wait, up to 10 s). While the page is hidden (another tab, a minimised window) nothing
-# is drawn: samples that arrive meanwhile are merged, at most ``max`` per trace, and drawn in one go
-# when the page is shown again. A whole new drawing of the chart drops what was waiting.
-EXTEND_JS = """<script>
-window.commissionExtend = function (id, update, idx, max) {
-  const q = (window.__cx = window.__cx || {});
-  const waiting = q[id];
-  if (waiting) {
-    for (let t = 0; t < update.x.length; t++) {
-      waiting.u.x[t] = waiting.u.x[t].concat(update.x[t]).slice(-max);
-      waiting.u.y[t] = waiting.u.y[t].concat(update.y[t]).slice(-max);
-    }
-    waiting.m = max;
-  } else {
-    q[id] = {u: update, i: idx, m: max};
-  }
-  window.__cxFlush(id, 0);
-};
-window.commissionRedrawn = function (id) { delete (window.__cx || {})[id]; };
-window.__cxFlush = function (id, tries) {
-  const q = window.__cx || {};
-  const waiting = q[id];
-  if (!waiting || document.hidden) return;
-  const vm = getElement(id);
-  if (!(vm && vm.Plotly && vm.$el && vm.$el.data)) {
-    if (tries < 100) setTimeout(() => window.__cxFlush(id, tries + 1), 100); else delete q[id];
-    return;
-  }
-  delete q[id];
-  vm.Plotly.extendTraces(vm.$el, waiting.u, waiting.i, waiting.m);
-};
-document.addEventListener("visibilitychange", () => {
-  if (!document.hidden) for (const id of Object.keys(window.__cx || {})) window.__cxFlush(id, 0);
-});
-</script>"""
-
-
-class _Plot(ui.plotly):
-    """A plotly element that sends the figure as it is: NiceGUI's own keeps an observed copy of every list of
-    the figure's data beside it (a second copy of the chart's window for each open page)."""
-
-    def update(self) -> None:
-        dict.__setitem__(self._props, "options", self._get_figure_json())
-        Element.update(self)
-
-
-class HistoryChart:
-    """Rolling plotly time chart of the device history samples.
-
-    The browser keeps the window: after the first drawing only new samples are sent (plotly
-    ``extendTraces``, bounded by ``maxPoints``); a long window is thinned to at most
-    :data:`MAX_POINTS` points. ``axes`` puts series on a second y axis (``{"Current [mA]": "y2"}``);
-    ``rows`` stacks groups of series one above the other, each on its own y axis, over one time axis
-    (``[["Position [mm]"], ["Current [A]"]]``, heights in the ratio of ``row_heights``): one figure
-    and one drawing for all of them. ``windows`` offers window lengths to choose from (seconds, e.g.
-    ``(30, 300)``).
-    """
-
-    MAX_POINTS = 1500
-    MIN_PERIOD_S = 1.0  # new samples go to the browser once a second (values show at once elsewhere): a drawing costs
-    # the browser as much as the rest of a device page
-
-    @staticmethod
-    def _iso(t: float) -> str:
-        return datetime.fromtimestamp(t).isoformat(timespec="milliseconds")
-
-    ROW_GAP = 0.08  # between stacked rows, as a share of the plotting height
-
-    def __init__(self, state: DeviceState, series: list[str] | None = None, window_s: int = CHART_WINDOW_S,
-                 height: int = 320, axes: dict[str, str] | None = None, windows: tuple[int, ...] = (),
-                 rows: list[list[str]] | None = None, row_heights: tuple[float, ...] = ()):
-        if (series is None) == (rows is None):
-            raise ValueError("a chart takes either series or rows of series")
-        row_axes = ["y" if i == 0 else f"y{i + 1}" for i in range(len(rows or ()))]  # top row first
-        if rows is not None:
-            axes = {name: axis for axis, row in zip(row_axes, rows) for name in row}
-            series = [name for row in rows for name in row]
-        self.state = state
-        self.series = series
-        self.window_s = window_s
-        self.axes = axes or {}
-        self.sent_t: float | None = None  # time of the newest sample in the browser
-        self.sent_at = 0.0  # monotonic time of the last sending
-        self.sent_points = 0  # samples sent since the last full drawing (for tests and measurements)
-        self.drawn = False
-        layout: dict = {
-            "margin": {"l": 65, "r": 65 if self.axes and not rows else 30, "t": 10, "b": 40},  # room for ticks and titles
-            "height": height,
-            # fixed margins, tick labels not measured for overflow: each new drawing lays the chart out once;
-            # time labels level (a narrow chart gets fewer, none cut off at the bottom)
-            "xaxis": {"type": "date", "automargin": False, "ticklabeloverflow": "allow", "tickangle": 0},
-            "yaxis": {"automargin": False, "ticklabeloverflow": "allow"},
-            "legend": {"orientation": "h", "y": 1.02, "yanchor": "bottom", "x": 0},
-            "showlegend": True,
-            "uirevision": "keep",
-        }
-
-        def unit_of(name: str) -> str:  # a series keyed by a point's or parameter's own name: its unit
-            value = state.live(name)
-            param = state.params.by_name.get(name) if state.params is not None else None
-            return (value.unit if value is not None else "") or (param.unit if param is not None else "") or name
-
-        def units(names: list[str]) -> str:  # the axis titles name the units; the legend names the series
-            found = [s[s.rfind("[") + 1:-1] if s.endswith("]") and "[" in s else unit_of(s) for s in names]
-            return ", ".join(dict.fromkeys(found))
-
-        def on(axis: str) -> list[str]:
-            return [s for s in series if self.axes.get(s, "y") == axis]
-
-        if rows:  # stacked, the first row on top; the time axis under the lowest
-            weights = list(row_heights) or [1.0] * len(rows)
-            share, top = (1.0 - self.ROW_GAP * (len(rows) - 1)) / sum(weights), 1.0
-            for name, weight in zip(row_axes, weights):
-                axis = layout.setdefault(name.replace("y", "yaxis"), {"automargin": False, "ticklabeloverflow": "allow"})
-                axis.update(domain=[max(0.0, top - weight * share), top], anchor="x")
-                axis["title"] = {"text": units(on(name))}
-                top -= weight * share + self.ROW_GAP
-            layout["xaxis"]["anchor"] = row_axes[-1]
-        elif not self.axes and all(s.endswith("]") and "[" in s for s in series):
-            layout["yaxis"]["title"] = {"text": units(series)}  # one axis: titled with its unit(s) too
-        elif self.axes:
-            layout["yaxis2"] = {"overlaying": "y", "side": "right", "title": {"text": units(on("y2"))}, "automargin": False,
-                                "ticklabeloverflow": "allow", "showgrid": False}
-            layout["yaxis"]["title"] = {"text": units(on("y"))}
-        self.figure = {
-            "data": [{"type": "scatter", "mode": "lines", "name": s, "x": [], "y": [], "yaxis": self.axes.get(s, "y")}
-                     for s in series],
-            "layout": layout,
-            "config": {"displaylogo": False, "responsive": True},
-        }
-        if windows:
-            options = {w: (f"{w // 60} min" if w >= 60 and w % 60 == 0 else f"{w} s") for w in windows}
-            ui.toggle(options, value=window_s, on_change=lambda e: self.set_window(int(e.value))) \
-                .props("dense size=sm no-caps").classes("self-end").props('data-chart-window')
-        client = context.client
-        if not getattr(client, "commission_extend_js", False):
-            ui.add_head_html(EXTEND_JS)
-            client.commission_extend_js = True
-        self.plot = _Plot(self.figure).classes("w-full")
-        self.max_points = self.MAX_POINTS
-        self.update()
-        follow(state, self.update)
-
-    @property
-    def step_s(self) -> float:
-        """Shortest gap between two drawn samples: long windows are thinned to MAX_POINTS."""
-        return self.window_s / self.MAX_POINTS
-
-    def set_window(self, window_s: int) -> None:
-        self.window_s = window_s
-        self.sent_t = None  # draw the new window whole once
-        self.update()
-
-    def _thin(self, samples: list[tuple[float, dict]], after: float | None) -> list[tuple[float, dict]]:
-        kept, last = [], after
-        for t, sample in samples:
-            if last is None or t - last >= self.step_s:
-                kept.append((t, sample))
-                last = t
-        return kept
-
-    def _columns(self, samples: list[tuple[float, dict]]) -> tuple[list[str], list[list]]:
-        xs = [self._iso(t) for t, _ in samples]
-        return xs, [[s.get(name) for _, s in samples] for name in self.series]
-
-    def _max_points(self, samples: list[tuple[float, dict]]) -> int:
-        """Points that fill the window at the rate seen (the browser drops older ones)."""
-        if len(samples) < 2:
-            return self.MAX_POINTS
-        gap = max(self.step_s, (samples[-1][0] - samples[0][0]) / (len(samples) - 1))
-        return max(10, min(self.MAX_POINTS, int(self.window_s / gap) + 1))
-
-    def update(self) -> None:
-        history = self.state.history
-        layout = self.figure["layout"]
-        if not history:
-            if not layout.get("annotations"):  # nothing read yet: the last window up to now, not an axis at 1970/2000
-                now = time.time()
-                layout["xaxis"].update(autorange=False, range=[self._iso(now - self.window_s), self._iso(now)])
-                layout["annotations"] = [{"text": "no data yet", "xref": "paper", "yref": "paper", "x": 0.5, "y": 0.5,
-                                          "showarrow": False, "font": {"size": 16, "color": "#757575"}}]
-                self.plot.update()
-            return
-        newest = history[-1][0]
-        if self.sent_t is not None and newest <= self.sent_t:
-            return
-        if self.sent_t is not None and time.monotonic() - self.sent_at < self.MIN_PERIOD_S:
-            return  # the next push or the once-a-second round sends what came meanwhile
-        self.sent_at = time.monotonic()
-        if self.sent_t is None or newest - self.sent_t > self.window_s:
-            self._redraw(newest)
-            return
-        fresh = []
-        for sample in reversed(history):  # O(new samples), not a scan of the whole history
-            if sample[0] <= self.sent_t:
-                break
-            fresh.append(sample)
-        fresh.reverse()
-        fresh = self._thin(fresh, self.sent_t)
-        if not fresh:
-            return
-        xs, ys = self._columns(fresh)
-        self.plot.client.run_javascript(
-            f"window.commissionExtend({self.plot.id}, {json.dumps({'x': [xs] * len(self.series), 'y': ys})}, "
-            f"{list(range(len(self.series)))}, {self.max_points})")
-        self.sent_t = fresh[-1][0]
-        self.sent_points += len(fresh)
-
-    def _redraw(self, newest: float) -> None:
-        layout = self.figure["layout"]
-        if layout.pop("annotations", None) is not None:
-            layout["xaxis"].pop("range", None)
-            layout["xaxis"]["autorange"] = True
-        samples = self._thin(self.state.history_since(self.window_s, now=newest), None)
-        self.max_points = self._max_points(samples)
-        xs, ys = self._columns(samples)
-        for trace, column in zip(self.figure["data"], ys):
-            trace["x"], trace["y"] = xs, column
-        self.plot.update()  # (the figure keeps this drawing for a reconnecting browser; new samples only go out)
-        if self.drawn:  # samples still waiting in a hidden page belong to the old drawing
-            self.plot.client.run_javascript(f"window.commissionRedrawn && window.commissionRedrawn({self.plot.id})")
-        self.drawn = True
-        self.sent_t = samples[-1][0] if samples else newest
-        self.sent_points = len(samples)
 
 
 def stop_bar(note: str, label: str, icon: str, on_click: Callable[[], object], bar_id: str, button_id: str) -> ui.button:
@@ -716,69 +478,6 @@ def stop_bar(note: str, label: str, icon: str, on_click: Callable[[], object], b
     with ui.footer().classes("stop-bar bg-grey-2 q-py-xs q-px-md items-center justify-end gap-4").props(f"bordered data-testid={bar_id}"):
         ui.label(note).classes("text-caption text-grey-8")
         return ui.button(label, icon=icon, color="negative", on_click=on_click).props(f"size=lg push data-testid={button_id}")
-
-
-async def confirm(title: str, text: str, ok: str = "Continue", danger: bool = True) -> bool:
-    """Modal confirmation; resolves True only when the engineer presses ``ok``."""
-    with ui.dialog() as dialog, ui.card().classes("max-w-lg"):
-        ui.label(title).classes("text-h6")
-        ui.label(text).classes("text-body1" + (" text-negative" if danger else ""))
-        with ui.row().classes("justify-end w-full"):
-            ui.button("Cancel", on_click=lambda: dialog.submit(False)).props("flat")
-            ui.button(ok, color="negative" if danger else "primary", on_click=lambda: dialog.submit(True))
-    result = await dialog
-    dialog.delete()
-    return bool(result)
-
-
-async def run_command(
-    device: str, action: str, *, success: str = "", args: dict | None = None, session: str = "",
-    confirmed: bool = False, title: str = "", ok: str = "Send", parameter: str = "", new: object = "",
-) -> tuple[bool, object]:
-    """Submit a command to the worker's gate and report the outcome as a notification.
-
-    ``action`` is the name of a command the device type declares (``devices/<type>/policy.py``), run
-    with ``args``: the gate takes its kind, ranges, risk and the role (as the account store says now)
-    from the declaration; a risk it names is asked here and the command invoked again, confirmed.
-    ``confirmed``: the page has asked its own question naming the same risk. ``title`` and ``ok`` word
-    the dialog that asks the declared risk. ``parameter`` and ``new``: the parameter's name and value as an
-    engineer reads them, for the audit row of a question answered with Cancel.
-    """
-    from app.gate import NeedsConfirmation
-    from devices.commands import CommandError
-    from devices.errors import DeviceError
-    from pages.session import current_user
-
-    worker = rt.current().worker
-    user, role = current_user()
-    try:
-        try:
-            result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
-                                         confirmed=confirmed)
-        except NeedsConfirmation as question:
-            if not await confirm(title or f"{action}?", question.question, ok=ok):
-                await cancelled(device, action, parameter=parameter, new=new if parameter else ", ".join(
-                    f"{k}={getattr(v, 'name', v)}" for k, v in (args or {}).items() if k != "known"))
-                return False, None
-            user, role = current_user()  # looked up again: the answer may come much later
-            result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
-                                         confirmed=True)
-    except PermissionDenied as exc:
-        ui.notify(str(exc), type="negative")
-        return False, None
-    except CommandError as exc:
-        ui.notify(f"{action}: {exc}", type="negative", multi_line=True)
-        return False, None
-    except DeviceError as exc:  # a refusal of the device, its rules or its line: the message says what to do
-        ui.notify(f"{action}: {exc}", type="negative", multi_line=True, close_button="OK", timeout=15000)
-        return False, None
-    except Exception as exc:  # noqa: BLE001 - not a refusal: a fault of this tool, logged with its traceback
-        log.exception("%s on %s failed", action, device)
-        ui.notify(f"{action}: {exc}", type="negative", multi_line=True, close_button="OK", timeout=15000)
-        return False, None
-    if success:
-        ui.notify(success, type="positive")
-    return True, result
 
 
 INT32_LIMIT = 2 ** 31 - 1  # a limit at or beyond it is the width of the value, not a limit an engineer set
@@ -839,190 +538,3 @@ def range_number(label: str, low: float, high: float, *, unit: str = "", integer
     return field
 
 
-async def refuse(device: str, describe: str, reason: str, parameter: str = "", new: object = "") -> None:
-    """An entry refused before anything was sent: in the device's event log and the audit log."""
-    from pages.session import current_user
-
-    user, role = current_user()
-    await rt.current().worker.refused(device=device, user=user or "anonymous", role=role, describe=describe,
-                                      reason=reason, parameter=parameter, new=new)
-
-
-async def cancelled(device: str, describe: str, parameter: str = "", new: object = "") -> None:
-    """The user answered a question with Cancel: nothing sent, nothing refused (an information on the device,
-    audited as cancelled under the parameter's name)."""
-    from app.gate import cancelled as note
-    from pages.session import current_user
-
-    user, role = current_user()
-    await note(rt.current().worker, device=device, user=user or "anonymous", role=role, describe=describe,
-               parameter=parameter, new=new)
-
-
-def all_valid(*fields: ui.number) -> bool:
-    """Check every :func:`range_number` entry (each marks its own error); True when all hold a valid value."""
-    ok = True
-    for field in fields:
-        if field.value is None:
-            field.error = f"enter a value first ({getattr(field, 'rule', '')})".replace(" ()", "")
-            ok = False
-        elif not field.validate():
-            ok = False
-    return ok
-
-
-async def checked_value(field: ui.number, device: str, describe: str, parameter: str = "") -> float | None:
-    """The value of a :func:`range_number` entry, or None (field marked, refusal audited, nothing sent)."""
-    if not all_valid(field):
-        if field.value is not None:  # an empty field only asks for a value; a bad one is a refusal
-            await refuse(device, describe, f"{field.value:g}: {field.error}", parameter=parameter, new=field.value)
-        return None
-    return field.value
-
-
-VIEWER_REASON = "read-only session: only an engineer account may change the device"
-
-
-def viewer_reason() -> str:
-    """Why this session's write controls are disabled ("" for an engineer). Display only: the gate decides."""
-    from pages.session import can_write
-
-    return "" if can_write() else VIEWER_REASON
-
-
-class WriteGuard:
-    """Disables a device's write controls, with the reason, while the device does not answer or the
-    session may not write (a viewer sees them disabled with the reason; the gate refuses them anyway)."""
-
-    def __init__(self, state: DeviceState, *controls: ui.element):
-        self.state = state
-        self.controls: list[ui.element] = list(controls)
-        self.reason = ""
-        self.read_only = viewer_reason()
-        follow(state, self.update)
-        self.update()
-
-    def add(self, *controls: ui.element) -> None:
-        self.controls.extend(controls)
-        self.update(force=True)
-
-    def update(self, force: bool = False) -> None:
-        status = self.state.status
-        if self.read_only:
-            reason = self.read_only
-        elif status in ("offline", "unknown"):
-            reason = ("the device does not answer" + (f": {self.state.last_error}" if self.state.last_error else "")
-                      if status == "offline" else "waiting for the device's first answer")
-        else:
-            reason = ""
-        if reason == self.reason and not force:
-            return
-        self.reason = reason
-        for control in self.controls:
-            _show_reason(control, reason)
-
-
-def _show_reason(control: ui.element, reason: str) -> None:
-    """Enable ``control``, or disable it with ``reason`` as its tooltip."""
-    control.set_enabled(not reason)
-    if reason:
-        text = reason.replace('"', "'")
-        control.props(f'title="{text}" data-disabled-reason="{text}"')
-    else:
-        control.props(remove="title data-disabled-reason")
-
-
-def gate(control: ui.element, reason: str) -> None:
-    """Enable ``control``, or disable it with ``reason`` as its tooltip (changed only when the reason changes):
-    for a control whose reason the page works out itself (control held, session open), not the device's silence."""
-    if getattr(control, "gate_reason", None) == reason:
-        return
-    control.gate_reason = reason  # type: ignore[attr-defined]
-    _show_reason(control, reason)
-
-
-async def write_from_page(device: str, param: Param, value, *, success: str, title: str = "", ok: str = "Write anyway",
-                          field: ui.element | None = None) -> None:
-    """An engineer's entry for one parameter: check it, ask when the parameter wants a
-    confirmation, then write through the worker with old and new value for the audit log.
-
-    A refused entry stays in ``field`` as typed, marked with the reason (no toast over the page),
-    and is recorded in the audit log; nothing is sent."""
-    if value is None or value == "":
-        if field is not None:
-            field.error = "enter a value first"
-        else:
-            ui.notify(f"{param.name}: enter a value first", type="warning")
-        return
-    try:
-        raw = param.validate(value)
-    except ParamError as exc:
-        if field is not None:
-            field.error = str(exc)
-        else:
-            ui.notify(str(exc), type="negative")
-        await refuse(device, f"write {param.name}", str(exc), parameter=param.label or param.name, new=value)
-        return
-    if field is not None:
-        field.error = None
-    if declares(device, WRITE_PARAMETER):
-        # the device type's declared write: the gate checks the value, asks what its send policy names
-        # (the same question as a restore or the API), audits parameter, old and new
-        await run_command(device, WRITE_PARAMETER, args={"param": param.key, "value": param.decode(raw)},
-                          title=(title or "Write {name} = {value}?").format(name=param.name, value=param.display(raw)),
-                          ok=ok, success=success.format(name=param.name, value=param.display(raw)),
-                          parameter=param.label or param.name, new=param.display(raw))
-        return
-    warning = param.needs_confirmation(raw)
-    title = (title or "Write {name} = {value}?").format(name=param.name, value=param.display(raw))
-    if warning and not await confirm(title, warning, ok=ok):
-        await cancelled(device, f"write {param.name}", parameter=param.label or param.name, new=param.display(raw))
-        return
-    before = rt.current().store.devices[device].raw(param)
-    await run_command(
-        device,
-        lambda a: a.write_param(param, param.decode(raw), confirmed=bool(warning)),
-        f"write {param.name}",
-        success=success.format(name=param.name, value=param.display(raw)),
-        parameter=param.label or param.name, old="" if before is None else param.display(before), new=param.display(raw),
-    )
-
-
-def declares(device: str, name: str) -> bool:
-    """Whether the device's type declares the command ``name`` (pages still moving fall back to the older way)."""
-    from devices.commands import find
-
-    config = rt.current().plant.devices.get(device)
-    return config is not None and find(config.type, name) is not None
-
-
-def sim_card_allowed(note_testid: str = "sim-readonly") -> bool:
-    """Whether this session may act on the twins; a viewer gets a note in place of the card's controls."""
-    reason = viewer_reason()
-    if reason:
-        ui.label("Simulation controls change the simulated plant: engineers only.").classes("text-caption text-grey-8").props(
-            f"data-testid={note_testid}")
-    return not reason
-
-
-def sim_action(device: str, describe: str, fn: Callable[[], object]) -> Callable[[], Awaitable[None]]:
-    """A simulation-card action through the worker's gate: engineers only, audited ("simulation: ...")."""
-
-    async def run() -> None:
-        from pages.session import current_user
-
-        user, role = current_user()
-
-        async def act() -> str:
-            result = fn()
-            if hasattr(result, "__await__"):
-                await result
-            return ""
-
-        try:
-            await rt.current().worker.checked(act, device=device, role=role, user=user or "anonymous",
-                                              describe=f"simulation: {describe}", kind="system")
-        except Exception as exc:  # noqa: BLE001 - refused or failed: said on the page
-            ui.notify(str(exc), type="negative")
-
-    return run

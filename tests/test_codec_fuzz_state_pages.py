@@ -62,7 +62,7 @@ REAL_LINE = parse_plant(plant_text(modbus_line(port="/dev/ttyUSB7", timeout=None
 
 def _page(runtime: Runtime, state: DeviceState | None = None):
     from pages.frame import frame
-    from pages.widgets import HistoryChart
+    from pages.charts import HistoryChart
 
     rt.set_current(runtime)
     charts: list[HistoryChart] = []

@@ -15,7 +15,7 @@ from webutil import by_testid, eventually, simulated_user
 
 from app.runtime import Runtime
 from app.users import UserStore
-from pages.widgets import VIEWER_REASON
+from pages.command_client import VIEWER_REASON
 from plants import mo64_tcp, plant
 
 pytestmark = pytest.mark.timeout(60)

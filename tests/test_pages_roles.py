@@ -25,7 +25,7 @@ from webutil import by_testid, eventually, free_port, simulated_user
 from app.plant import load_plant
 from app.runtime import Runtime
 from app.users import UserStore
-from pages.widgets import VIEWER_REASON
+from pages.command_client import VIEWER_REASON
 
 pytestmark = pytest.mark.timeout(90)
 

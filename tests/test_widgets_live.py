@@ -40,7 +40,7 @@ async def charts_on_page(user, path: str, *makes) -> list:
 
 
 async def test_chart_sends_only_new_samples_and_thins_long_windows(user_runtime):
-    from pages.widgets import HistoryChart
+    from pages.charts import HistoryChart
 
     user, runtime = user_runtime
     state = runtime.store.devices["io"]
@@ -66,7 +66,7 @@ async def test_chart_sends_only_new_samples_and_thins_long_windows(user_runtime)
 
 
 async def test_empty_chart_says_no_data_yet(user_runtime):
-    from pages.widgets import HistoryChart
+    from pages.charts import HistoryChart
 
     user, runtime = user_runtime
     state = runtime.store.devices["io"]
@@ -77,7 +77,8 @@ async def test_empty_chart_says_no_data_yet(user_runtime):
 
 
 async def test_range_entry_keeps_what_was_typed_and_refuses_with_the_range(user_runtime):
-    from pages.widgets import checked_value, range_number
+    from pages.widgets import range_number
+    from pages.command_client import checked_value
 
     user, runtime = user_runtime
     fields = []
@@ -183,7 +184,7 @@ async def test_a_changed_value_reaches_the_tile_at_once(user_runtime):
 
 
 async def test_every_chart_axis_is_titled_with_its_unit(user_runtime):
-    from pages.widgets import HistoryChart
+    from pages.charts import HistoryChart
 
     user, runtime = user_runtime
     state = runtime.store.devices["io"]
@@ -201,7 +202,7 @@ async def test_every_chart_axis_is_titled_with_its_unit(user_runtime):
 
 async def test_stacked_rows_share_one_time_axis_each_titled_with_its_unit(user_runtime):
     """Rows of series one above the other in one figure (one drawing for all), each on its own y axis."""
-    from pages.widgets import HistoryChart
+    from pages.charts import HistoryChart
 
     user, runtime = user_runtime
     state = runtime.store.devices["io"]

@@ -1,0 +1,255 @@
+"""The pages' command client: every write, command and question of a page goes through here to the
+worker's gate (``Worker.invoke``), with the confirmation dialogs, refusals and the controls a session
+may not use shown disabled with their reason."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Awaitable, Callable
+
+from nicegui import ui
+
+from app import runtime as rt
+from app.state import DeviceState
+from app.worker import PermissionDenied
+from devices.commands import WRITE_PARAMETER
+from devices.params import Param, ParamError
+from pages.widgets import follow
+
+log = logging.getLogger(__name__)
+
+
+def session_role() -> str:
+    """Role of the browser session (engineer on loopback, else the account's role)."""
+    from pages.session import current_user
+
+    return current_user()[1]
+
+
+async def confirm(title: str, text: str, ok: str = "Continue", danger: bool = True) -> bool:
+    """Modal confirmation; resolves True only when the engineer presses ``ok``."""
+    with ui.dialog() as dialog, ui.card().classes("max-w-lg"):
+        ui.label(title).classes("text-h6")
+        ui.label(text).classes("text-body1" + (" text-negative" if danger else ""))
+        with ui.row().classes("justify-end w-full"):
+            ui.button("Cancel", on_click=lambda: dialog.submit(False)).props("flat")
+            ui.button(ok, color="negative" if danger else "primary", on_click=lambda: dialog.submit(True))
+    result = await dialog
+    dialog.delete()
+    return bool(result)
+
+
+async def run_command(
+    device: str, action: str, *, success: str = "", args: dict | None = None, session: str = "",
+    confirmed: bool = False, title: str = "", ok: str = "Send", parameter: str = "", new: object = "",
+) -> tuple[bool, object]:
+    """Submit a command to the worker's gate and report the outcome as a notification.
+
+    ``action`` is the name of a command the device type declares (``devices/<type>/policy.py``), run
+    with ``args``: the gate takes its kind, ranges, risk and the role (as the account store says now)
+    from the declaration; a risk it names is asked here and the command invoked again, confirmed.
+    ``confirmed``: the page has asked its own question naming the same risk. ``title`` and ``ok`` word
+    the dialog that asks the declared risk. ``parameter`` and ``new``: the parameter's name and value as an
+    engineer reads them, for the audit row of a question answered with Cancel.
+    """
+    from app.gate import NeedsConfirmation
+    from devices.commands import CommandError
+    from devices.errors import DeviceError
+    from pages.session import current_user
+
+    worker = rt.current().worker
+    user, role = current_user()
+    try:
+        try:
+            result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
+                                         confirmed=confirmed)
+        except NeedsConfirmation as question:
+            if not await confirm(title or f"{action}?", question.question, ok=ok):
+                await cancelled(device, action, parameter=parameter, new=new if parameter else ", ".join(
+                    f"{k}={getattr(v, 'name', v)}" for k, v in (args or {}).items() if k != "known"))
+                return False, None
+            user, role = current_user()  # looked up again: the answer may come much later
+            result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
+                                         confirmed=True)
+    except PermissionDenied as exc:
+        ui.notify(str(exc), type="negative")
+        return False, None
+    except CommandError as exc:
+        ui.notify(f"{action}: {exc}", type="negative", multi_line=True)
+        return False, None
+    except DeviceError as exc:  # a refusal of the device, its rules or its line: the message says what to do
+        ui.notify(f"{action}: {exc}", type="negative", multi_line=True, close_button="OK", timeout=15000)
+        return False, None
+    except Exception as exc:  # noqa: BLE001 - not a refusal: a fault of this tool, logged with its traceback
+        log.exception("%s on %s failed", action, device)
+        ui.notify(f"{action}: {exc}", type="negative", multi_line=True, close_button="OK", timeout=15000)
+        return False, None
+    if success:
+        ui.notify(success, type="positive")
+    return True, result
+
+
+async def refuse(device: str, describe: str, reason: str, parameter: str = "", new: object = "") -> None:
+    """An entry refused before anything was sent: in the device's event log and the audit log."""
+    from pages.session import current_user
+
+    user, role = current_user()
+    await rt.current().worker.refused(device=device, user=user or "anonymous", role=role, describe=describe,
+                                      reason=reason, parameter=parameter, new=new)
+
+
+async def cancelled(device: str, describe: str, parameter: str = "", new: object = "") -> None:
+    """The user answered a question with Cancel: nothing sent, nothing refused (an information on the device,
+    audited as cancelled under the parameter's name)."""
+    from app.gate import cancelled as note
+    from pages.session import current_user
+
+    user, role = current_user()
+    await note(rt.current().worker, device=device, user=user or "anonymous", role=role, describe=describe,
+               parameter=parameter, new=new)
+
+
+def all_valid(*fields: ui.number) -> bool:
+    """Check every :func:`range_number` entry (each marks its own error); True when all hold a valid value."""
+    ok = True
+    for field in fields:
+        if field.value is None:
+            field.error = f"enter a value first ({getattr(field, 'rule', '')})".replace(" ()", "")
+            ok = False
+        elif not field.validate():
+            ok = False
+    return ok
+
+
+async def checked_value(field: ui.number, device: str, describe: str, parameter: str = "") -> float | None:
+    """The value of a :func:`range_number` entry, or None (field marked, refusal audited, nothing sent)."""
+    if not all_valid(field):
+        if field.value is not None:  # an empty field only asks for a value; a bad one is a refusal
+            await refuse(device, describe, f"{field.value:g}: {field.error}", parameter=parameter, new=field.value)
+        return None
+    return field.value
+
+
+VIEWER_REASON = "read-only session: only an engineer account may change the device"
+
+
+def viewer_reason() -> str:
+    """Why this session's write controls are disabled ("" for an engineer). Display only: the gate decides."""
+    from pages.session import can_write
+
+    return "" if can_write() else VIEWER_REASON
+
+
+class WriteGuard:
+    """Disables a device's write controls, with the reason, while the device does not answer or the
+    session may not write (a viewer sees them disabled with the reason; the gate refuses them anyway)."""
+
+    def __init__(self, state: DeviceState, *controls: ui.element):
+        self.state = state
+        self.controls: list[ui.element] = list(controls)
+        self.reason = ""
+        self.read_only = viewer_reason()
+        follow(state, self.update)
+        self.update()
+
+    def add(self, *controls: ui.element) -> None:
+        self.controls.extend(controls)
+        self.update(force=True)
+
+    def update(self, force: bool = False) -> None:
+        status = self.state.status
+        if self.read_only:
+            reason = self.read_only
+        elif status in ("offline", "unknown"):
+            reason = ("the device does not answer" + (f": {self.state.last_error}" if self.state.last_error else "")
+                      if status == "offline" else "waiting for the device's first answer")
+        else:
+            reason = ""
+        if reason == self.reason and not force:
+            return
+        self.reason = reason
+        for control in self.controls:
+            _show_reason(control, reason)
+
+
+def _show_reason(control: ui.element, reason: str) -> None:
+    """Enable ``control``, or disable it with ``reason`` as its tooltip."""
+    control.set_enabled(not reason)
+    if reason:
+        text = reason.replace('"', "'")
+        control.props(f'title="{text}" data-disabled-reason="{text}"')
+    else:
+        control.props(remove="title data-disabled-reason")
+
+
+def enable_unless(control: ui.element, reason: str) -> None:
+    """Enable ``control``, or disable it with ``reason`` as its tooltip (changed only when the reason changes):
+    for a control whose reason the page works out itself (control held, session open), not the device's silence."""
+    if getattr(control, "gate_reason", None) == reason:
+        return
+    control.gate_reason = reason  # type: ignore[attr-defined]
+    _show_reason(control, reason)
+
+
+async def write_from_page(device: str, param: Param, value, *, success: str, title: str = "", ok: str = "Write anyway",
+                          field: ui.element | None = None) -> None:
+    """An engineer's entry for one parameter: check it, ask when the parameter wants a
+    confirmation, then write through the worker with old and new value for the audit log.
+
+    A refused entry stays in ``field`` as typed, marked with the reason (no toast over the page),
+    and is recorded in the audit log; nothing is sent."""
+    if value is None or value == "":
+        if field is not None:
+            field.error = "enter a value first"
+        else:
+            ui.notify(f"{param.name}: enter a value first", type="warning")
+        return
+    try:
+        raw = param.validate(value)
+    except ParamError as exc:
+        if field is not None:
+            field.error = str(exc)
+        else:
+            ui.notify(str(exc), type="negative")
+        await refuse(device, f"write {param.name}", str(exc), parameter=param.label or param.name, new=value)
+        return
+    if field is not None:
+        field.error = None
+    # the device type's declared write (every type declares it): the gate checks the value, asks what its send
+    # policy names (the same question as a restore or the API), audits parameter, old and new
+    await run_command(device, WRITE_PARAMETER, args={"param": param.key, "value": param.decode(raw)},
+                      title=(title or "Write {name} = {value}?").format(name=param.name, value=param.display(raw)),
+                      ok=ok, success=success.format(name=param.name, value=param.display(raw)),
+                      parameter=param.label or param.name, new=param.display(raw))
+
+
+def sim_card_allowed(note_testid: str = "sim-readonly") -> bool:
+    """Whether this session may act on the twins; a viewer gets a note in place of the card's controls."""
+    reason = viewer_reason()
+    if reason:
+        ui.label("Simulation controls change the simulated plant: engineers only.").classes("text-caption text-grey-8").props(
+            f"data-testid={note_testid}")
+    return not reason
+
+
+def sim_action(device: str, describe: str, fn: Callable[[], object]) -> Callable[[], Awaitable[None]]:
+    """A simulation-card action through the worker's gate: engineers only, audited ("simulation: ...")."""
+
+    async def run() -> None:
+        from pages.session import current_user
+
+        user, role = current_user()
+
+        async def act() -> str:
+            result = fn()
+            if hasattr(result, "__await__"):
+                await result
+            return ""
+
+        try:
+            await rt.current().worker.checked(act, device=device, role=role, user=user or "anonymous",
+                                              describe=f"simulation: {describe}", kind="system")
+        except Exception as exc:  # noqa: BLE001 - refused or failed: said on the page
+            ui.notify(str(exc), type="negative")
+
+    return run
