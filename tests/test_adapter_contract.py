@@ -8,7 +8,8 @@ import pytest
 
 from devices import adapter as contract
 from devices.electrak.adapter import ElectrakAdapter
-from devices.hdlock.adapter import HdLockAdapter, HdLockCanAdapter
+from devices.hdlock.adapter import HdLockAdapter
+from devices.hdlock.can_adapter import HdLockCanAdapter
 from devices.m3io.adapter import M3ioAdapter
 from devices.mo64.adapter import Mo64Adapter
 from devices.scu.adapter import ScuAdapter

@@ -13,7 +13,7 @@ import pytest
 from tools import metrics
 
 LONG_MODULES = {  # the modules over 700 lines: none may join them
-    "app/plant.py", "app/record.py", "devices/hdlock/adapter.py", "devices/hdlock/params.py", "devices/mo64/codec.py",
+    "app/plant.py", "app/record.py", "devices/hdlock/params.py", "devices/mo64/codec.py",
     "devices/mo64/sim.py", "devices/scu/adapter.py", "devices/scu/codec.py", "devices/scu/sim.py", "pages/can_monitor.py",
     "pages/electrak.py", "pages/scu.py", "pages/widgets.py",
 }

@@ -7,7 +7,7 @@ from types import SimpleNamespace
 
 from app.plant import DeviceConfig
 from devices.hdlock import STATUS_FRAME_BOLT, codec
-from devices.hdlock.adapter import HdLockCanAdapter
+from devices.hdlock.can_adapter import HdLockCanAdapter
 from devices.live import DeviceState
 from devices.registry import DEVICE_TYPES
 from pages.overview import counters_text
