@@ -12,7 +12,9 @@ from decimal import Decimal
 
 from nicegui import context, ui
 
+from app import i18n
 from app import runtime as rt
+from app.i18n import N_, Lang
 from app.state import DeviceState
 from devices.params import Param
 
@@ -82,6 +84,7 @@ class Lamp:
 
 
 QUALITY_CLASSES = "q-stale q-offline q-unknown"
+QUALITY_WORDS = {"good": N_("good"), "stale": N_("stale"), "offline": N_("offline"), "unknown": N_("unknown")}
 
 
 def entry_age(entry: dict | None) -> float | None:
@@ -90,16 +93,17 @@ def entry_age(entry: dict | None) -> float | None:
     return None if entry is None or entry.get("time") is None else max(0.0, time.time() - entry["time"])
 
 
-def quality_note(quality: str, age: float | None) -> str:
+def quality_note(quality: str, age: float | None, lang: Lang | None = None) -> str:
     """The words shown next to a value that is not good: ``stale 12 s``, ``offline, last 2 min``."""
     from pages.frame import fmt_age
 
+    _ = (lang or i18n.get("en")).gettext
     if quality == "stale":
-        return f"stale {fmt_age(age)}"
+        return _("stale {age}").format(age=fmt_age(age, lang))
     if quality == "offline":
-        return f"offline, last {fmt_age(age)}" if age is not None else "offline"
+        return _("offline, last {age}").format(age=fmt_age(age, lang)) if age is not None else _("offline")
     if quality == "unknown":
-        return "not read"
+        return _("not read")
     return ""
 
 
@@ -141,8 +145,8 @@ class ValueLine:
 class LiveValue:
     """A label showing one live point of the store with its quality (greyed, with its age, when not good)."""
 
-    def __init__(self, state: DeviceState, point: str, fmt=None, classes: str = "text-body1"):
-        self.state, self.point, self.fmt = state, point, fmt
+    def __init__(self, state: DeviceState, point: str, fmt=None, classes: str = "text-body1", lang: Lang | None = None):
+        self.state, self.point, self.fmt, self.lang = state, point, fmt, lang
         with ui.row().classes("items-baseline gap-0 no-wrap") as self.row:
             self.label = ui.label("-").classes(classes)
             self.age = ui.label().classes("q-age")
@@ -163,19 +167,26 @@ class LiveValue:
             quality = entry["quality"]
             age = None if entry["time"] is None else max(0.0, time.time() - entry["time"])
         mark_quality(self.row, quality)
-        self.age.set_text(quality_note(quality, age) if quality in ("stale", "offline") else "")
+        self.age.set_text(quality_note(quality, age, self.lang) if quality in ("stale", "offline") else "")
 
 
 REGISTER_COLUMNS = [
-    {"name": "address", "label": "Addr", "field": "address", "align": "right", "sortable": True},
-    {"name": "name", "label": "Name", "field": "name", "align": "left"},
+    {"name": "address", "label": N_("Addr"), "field": "address", "align": "right", "sortable": True},
+    {"name": "name", "label": N_("Name"), "field": "name", "align": "left"},
     # a long value (a register of flags) wraps: every column, Quality too, stays in sight at 1024 px
-    {"name": "value", "label": "Value", "field": "value", "align": "left", "style": "white-space: normal; min-width: 8rem"},
-    {"name": "raw", "label": "Raw", "field": "raw", "align": "left", "classes": "mono"},
-    {"name": "access", "label": "Access", "field": "access", "align": "center"},
-    {"name": "age", "label": "Read", "field": "age", "align": "right"},
-    {"name": "quality", "label": "Quality", "field": "quality", "align": "left"},
+    {"name": "value", "label": N_("Value"), "field": "value", "align": "left", "style": "white-space: normal; min-width: 8rem"},
+    {"name": "raw", "label": N_("Raw"), "field": "raw", "align": "left", "classes": "mono"},
+    {"name": "access", "label": N_("Access"), "field": "access", "align": "center"},
+    {"name": "age", "label": N_("Read"), "field": "age", "align": "right"},
+    {"name": "quality", "label": N_("Quality"), "field": "quality", "align": "left"},
 ]
+
+
+def columns(table: list[dict], lang: Lang | None) -> list[dict]:
+    """A table's columns with their labels (marked ``N_``) in ``lang``."""
+    if lang is None:
+        return table
+    return [{**column, "label": lang.gettext(column["label"])} for column in table]
 
 
 # changed cells of a table's rows (by row key) into the rows the browser shows: its reactive rows re-render those cells
@@ -223,20 +234,20 @@ def lamp_html(key: str, name: str, entry: dict | None, tip: str = "", kind: str 
             + f'></span><div class="text-body2">{html.escape(name)}</div></div>')
 
 
-def value_html(point: str, testid: str, text: str, entry: dict | None) -> str:
+def value_html(point: str, testid: str, text: str, entry: dict | None, lang: Lang | None = None) -> str:
     """A value as :class:`LiveValue` draws it (greyed with its age while stale or offline)."""
     quality = "unknown" if entry is None else entry["quality"]
     marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
-    note = quality_note(quality, entry_age(entry)) if quality in ("stale", "offline") else ""
+    note = quality_note(quality, entry_age(entry), lang) if quality in ("stale", "offline") else ""
     return (f'<div class="nicegui-row row items-baseline gap-0 no-wrap{marks}" data-point="{html_attr(point)}" '
             f'data-testid="{testid}" data-quality="{quality}"><div class="mono text-body2">'
             f'{html.escape(text)}</div><div class="q-age">{html.escape(note)}</div></div>')
 
 
-def clock_text(t: float) -> str:
+def clock_text(t: float, lang: Lang | None = None) -> str:
     from pages.frame import fmt_time
 
-    return fmt_time(t)
+    return fmt_time(t, lang)
 
 
 class LampStrip:
@@ -254,15 +265,17 @@ class LampStrip:
 class RegisterTable:
     """Live table of one register space of a device (address, name, value, raw, access)."""
 
-    def __init__(self, state: DeviceState, params: list[Param]):
+    def __init__(self, state: DeviceState, params: list[Param], lang: Lang | None = None):
         self.state = state
         self.params = params
-        self.table = ui.table(columns=REGISTER_COLUMNS, rows=[], row_key="key", pagination=0).classes("w-full reg-table")
+        self.lang = lang
+        self.table = ui.table(columns=columns(REGISTER_COLUMNS, lang), rows=[], row_key="key", pagination=0).classes("w-full reg-table")
         self.table.props("dense flat bordered")
+        unsaved = html.escape((lang or i18n.get("en")).gettext("unsaved"))
         self.table.add_slot(
             "body-cell-name",
             '<q-td :props="props" :title="props.row.description" style="cursor: help; white-space: normal">'
-            '{{ props.value }}<q-badge v-if="props.row.unsaved" color="orange" class="q-ml-xs">unsaved</q-badge></q-td>',
+            '{{ props.value }}<q-badge v-if="props.row.unsaved" color="orange" class="q-ml-xs">' + unsaved + '</q-badge></q-td>',
         )
         self.table.props(':table-row-class-fn="row => row.quality_class"')
         self._cache: dict[str, tuple[tuple, float | None, dict]] = {}  # key -> (raw, quality, unsaved), read time, row
@@ -334,7 +347,7 @@ class RegisterTable:
                     cache[p.key] = (sig, read, row)
                     rows.append(row)
                     continue
-            row = self._row(p, raw, read, quality, unsaved, now)
+            row = self._row(p, raw, read, quality, unsaved, now, self.lang)
             if old is not None:
                 cells = {k: v for k, v in row.items() if old[2].get(k) != v}
                 if not cells:
@@ -358,19 +371,22 @@ class RegisterTable:
         self.table.client.run_javascript(ROW_PATCH_JS % (self.table.id, json.dumps(patch, separators=(",", ":"))))
 
     @staticmethod
-    def _row(p: Param, raw: int | None, read: float | None, quality: str, unsaved: bool, now: float) -> dict:
+    def _row(p: Param, raw: int | None, read: float | None, quality: str, unsaved: bool, now: float,
+             lang: Lang | None = None) -> dict:
+        _ = (lang or i18n.get("en")).gettext
         return {
             "key": p.key,
             "address": p.address if p.words == 1 else f"{p.address}-{p.address + p.words - 1}",
             "name": p.label or p.name,
-            "value": "-" if raw is None else p.display(raw),
+            "value": "-" if raw is None else p.display(raw) if lang is None else lang.numbers_in(p.display(raw)),
             "raw": "-" if raw is None else f"0x{raw:0{4 * p.words}X}",
-            "access": p.access.value + (" (never written)" if p.never_write and p.access.value == "RW" else ""),
+            "access": p.access.value + (" " + _("(never written)") if p.never_write and p.access.value == "RW" else ""),
             "age": _clock(read),
             "description": p.description,
             "unsaved": unsaved,
             # good: the Read column gives the time; stale or offline: how old the value is
-            "quality": "-" if raw is None else (quality_note(quality, None if read is None else now - read) or quality),
+            "quality": "-" if raw is None else (quality_note(quality, None if read is None else now - read, lang)
+                                                or _(QUALITY_WORDS.get(quality, quality))),
             "quality_class": f"q-{quality}" if quality in ("stale", "offline") else "",
         }
 
@@ -418,7 +434,7 @@ def follow(state: DeviceState, callback: Callable[[], object], slow: bool = Fals
     client.on_delete(watch.cancel)
 
 
-def counter_line(state: DeviceState, text: Callable[[object], str]) -> ui.label:
+def counter_line(state: DeviceState, text: Callable[[object], str]) -> ui.label:  # text: in the page's language
     """A device's counters as one caption line (``text(state.counters)``), redrawn once a second:
     they move with every frame, and a statistic does not need ten layouts a second in every browser."""
     label = ui.label().classes("text-caption mono text-grey-8").props("data-counters")
@@ -432,22 +448,25 @@ def counter_line(state: DeviceState, text: Callable[[object], str]) -> ui.label:
 
 
 EVENT_COLUMNS = [
-    {"name": "time", "label": "Time", "field": "time", "align": "left", "classes": "mono", "headerClasses": "w-24"},
-    {"name": "level", "label": "Level", "field": "level", "align": "left"},
-    {"name": "text", "label": "Event", "field": "text", "align": "left", "classes": "ev-text"},
+    {"name": "time", "label": N_("Time"), "field": "time", "align": "left", "classes": "mono", "headerClasses": "w-24"},
+    {"name": "level", "label": N_("Level"), "field": "level", "align": "left"},
+    {"name": "text", "label": N_("Event"), "field": "text", "align": "left", "classes": "ev-text"},
 ]
+LEVEL_WORDS = {"info": N_("info"), "warning": N_("warning"), "error": N_("error")}  # an event's level as its badge says it
 
 
-def event_log(state) -> ui.table:
+def event_log(state, lang: Lang | None = None) -> ui.table:
     """The device's events newest first (state changes, faults rising and clearing, offline and back,
-    commands and refusals), updated in place when one is added; as bounded as the store's list."""
-    table = ui.table(columns=EVENT_COLUMNS, rows=[], row_key="id", pagination=0).classes("w-full")
+    commands and refusals), updated in place when one is added; as bounded as the store's list. The events'
+    texts are the device's record and stay as written (docs/i18n.md); their level and time are in ``lang``."""
+    _ = (lang or i18n.get("en")).gettext
+    table = ui.table(columns=columns(EVENT_COLUMNS, lang), rows=[], row_key="id", pagination=0).classes("w-full")
     table.props("dense flat hide-bottom data-testid=events").style("max-height: 16rem")
     table.add_slot("body-cell-text", '<q-td :props="props" style="white-space: normal">{{ props.value }}</q-td>')
     table.add_slot(
         "body-cell-level",
         '<q-td :props="props"><q-badge :color="props.value == \'error\' ? \'negative\' : props.value == \'warning\' '
-        '? \'warning\' : \'grey-6\'">{{ props.value }}</q-badge></q-td>',
+        '? \'warning\' : \'grey-6\'">{{ props.row.level_text }}</q-badge></q-td>',
     )
     shown: list = [None, -1]  # newest event and count last shown: O(1) when nothing was added
 
@@ -458,7 +477,8 @@ def event_log(state) -> ui.table:
             return
         shown[0], shown[1] = newest, len(events)
         count = len(events)
-        table.rows = [{"id": count - i, "time": clock_text(e.time), "level": e.level, "text": e.text}
+        table.rows = [{"id": count - i, "time": clock_text(e.time, lang), "level": e.level,
+                       "level_text": _(LEVEL_WORDS[e.level]) if e.level in LEVEL_WORDS else e.level, "text": e.text}
                       for i, e in enumerate(reversed(events))]
         table.update()
 
@@ -483,9 +503,10 @@ def stop_bar(note: str, label: str, icon: str, on_click: Callable[[], object], b
 INT32_LIMIT = 2 ** 31 - 1  # a limit at or beyond it is the width of the value, not a limit an engineer set
 
 
-def number_text(value: float) -> str:
+def number_text(value: float, lang: Lang | None = None) -> str:
     """A limit as an engineer writes it: never exponent notation; whole numbers as such, with thousands
-    separators from six digits on (``214,748,364``; register numbers like ``65535`` stay as they are)."""
+    separators from six digits on (``214,748,364``; register numbers like ``65535`` stay as they are); with
+    ``lang`` that language's signs (``214.748.364``, ``0,5`` in German)."""
     value = float(value)
     if value == int(value):
         text = str(int(value))
@@ -494,41 +515,49 @@ def number_text(value: float) -> str:
     whole, dot, fraction = text.partition(".")
     if abs(int(whole)) >= 100_000:
         whole = f"{int(whole):,}" if whole != "-0" else whole
+    if lang is not None:
+        symbols = lang.locale.number_symbols["latn"]
+        whole, dot = whole.replace(",", symbols["group"]), dot and symbols["decimal"]
     return whole + dot + fraction
 
 
-def range_text(low: float, high: float, unit: str = "", *, any_beyond: float = INT32_LIMIT) -> str:
+def range_text(low: float, high: float, unit: str = "", *, any_beyond: float = INT32_LIMIT, lang: Lang | None = None) -> str:
     """``allowed 1 .. 254 mm``; a limit at or beyond ``any_beyond`` (by default the 32-bit range) is no limit:
     ``allowed up to 500 mm``, ``allowed from 0 mm``, ``allowed: any mm``."""
+    _ = (lang or i18n.get("en")).gettext
     open_low, open_high = abs(low) >= any_beyond, abs(high) >= any_beyond
     if open_low and open_high:
-        text = f"allowed: any {unit}" if unit else "allowed: any value"
+        text = _("allowed: any {unit}").format(unit=unit) if unit else _("allowed: any value")
     elif open_low:
-        text = f"allowed up to {number_text(high)} {unit}"
+        text = _("allowed up to {high} {unit}").format(high=number_text(high, lang), unit=unit)
     elif open_high:
-        text = f"allowed from {number_text(low)} {unit}"
+        text = _("allowed from {low} {unit}").format(low=number_text(low, lang), unit=unit)
     else:
-        text = f"allowed {number_text(low)} .. {number_text(high)} {unit}"
+        text = _("allowed {low} .. {high} {unit}").format(low=number_text(low, lang), high=number_text(high, lang), unit=unit)
     return text.strip()
 
 
 def range_number(label: str, low: float, high: float, *, unit: str = "", integer: bool = False, value=None,
-                 step: float | None = None, fmt: str | None = None, any_beyond: float = INT32_LIMIT) -> ui.number:
+                 step: float | None = None, fmt: str | None = None, any_beyond: float = INT32_LIMIT,
+                 lang: Lang | None = None) -> ui.number:
     """A number entry with its allowed range shown under it. What was typed stays as typed: an entry
     outside the range (or a fraction where a whole number is needed) is marked invalid with the
-    range, never clamped; :func:`checked_value` refuses it before anything is sent."""
-    rule = range_text(low, high, unit, any_beyond=any_beyond)
+    range, never clamped; :func:`checked_value` refuses it before anything is sent. ``label``: in the
+    page's language; ``lang`` words the range and the marks."""
+    _ = (lang or i18n.get("en")).gettext
+    rule = range_text(low, high, unit, any_beyond=any_beyond, lang=lang)
     bounded = abs(low) < any_beyond and abs(high) < any_beyond
 
     def check(v) -> str | None:
         if v is None:
             return None
         if integer and float(v) != int(float(v)):
-            return f"whole numbers only, {rule}"
+            return _("whole numbers only, {rule}").format(rule=rule)
         if not low <= float(v) <= high:
             if bounded:
-                return f"out of range: {rule}"
-            return f"out of range: allowed {number_text(low)} .. {number_text(high)} {unit}".strip()
+                return _("out of range: {rule}").format(rule=rule)
+            return _("out of range: allowed {low} .. {high} {unit}").format(
+                low=number_text(low, lang), high=number_text(high, lang), unit=unit).strip()
         return None
 
     # no "%d" format for whole numbers: it rounded a typed 12.5 to 12 on leaving the field

@@ -118,3 +118,17 @@ def test_argparses_refusals_in_german(capsys):
 def test_whole_numbers_keep_their_digits():
     assert DE.phrase("bit 09: not in table 10", "Error code") == "Bit 09: nicht in Tabelle 10"
     assert DE.numbers_in("08:05:09 0x0A 12.50 mm") == "08:05:09 0x0A 12,50 mm"
+
+
+def test_the_shared_widgets_word_ranges_and_qualities_per_language():
+    from pages.widgets import number_text, quality_note, range_text
+
+    assert range_text(0.5, 250000, "mm") == "allowed 0.5 .. 250,000 mm"  # English as it always was
+    assert range_text(0.5, 250000, "mm", lang=EN) == "allowed 0.5 .. 250,000 mm"
+    assert range_text(0.5, 250000, "mm", lang=DE) == "zulässig 0,5 .. 250.000 mm"
+    assert range_text(-2 ** 31, 500, "mm", lang=DE) == "zulässig bis 500 mm"
+    assert number_text(65535, DE) == "65535"  # register numbers keep their digits
+    assert quality_note("stale", 12) == "stale 12 s ago"
+    assert quality_note("stale", 12, DE) == "veraltet, vor 12 s"
+    assert quality_note("offline", 180, DE) == "offline, zuletzt vor 3 min"
+    assert quality_note("unknown", None, DE) == "nicht gelesen"
