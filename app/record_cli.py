@@ -6,7 +6,7 @@ login): who approved and who signed is an account, not only a typed name.
 
 Each command starts the plant (with its simulated devices unless ``--no-sim``), waits for the
 devices to come online and acts through the same record service as the record page
-(``runtime.record``, app/record.py): the same checkout runner and the worker's gate, the same role
+(``runtime.record``, app/record.py): the same checkout runner (app/checkout.py) and the worker's gate, the same role
 checks. The CLI user (``cli:<login>``) acts with the engineer role; questions of a checkout are
 asked on standard input (``--answer ask``) or answered yes by the CLI user (``--answer yes``), and
 every answer is recorded with who gave it.
@@ -27,7 +27,8 @@ import uuid
 from pathlib import Path
 from typing import Any
 
-from app.record import RecordError, StepFailed, checkout_module
+from app.checkout import StepFailed, checkout_module
+from app.record_store import RecordError
 
 SIGNER_ROLE = "commissioning engineer"
 

@@ -21,7 +21,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from app.record import (
+from app.record_sets import (
     LIVE_VALUE,
     compare_with_approved,
     device_updated,

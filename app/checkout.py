@@ -1,0 +1,380 @@
+"""The generic runner of declared checkouts (``devices/<type>/checkout.py``): one run's steps in
+order, the context a step acts through (every command through the worker's gate), the answers a
+person gave, and the bus traffic of each step as evidence. The record service (app/record.py)
+starts runs and stores their results in the commissioning record.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import importlib
+import logging
+import time
+import uuid
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from app.record_store import RecordError
+
+log = logging.getLogger(__name__)
+
+
+# -- evidence: the bus traffic of a checkout step ------------------------------------------------
+class TrafficTap:
+    """Collects what the bus monitor buffers of one bus hold from the moment it starts: CAN frames
+    (``CanBusState.frames``) or serial, Modbus and LogiTed transactions (``BusState.transactions``).
+    Swept every 0.2 s while a step runs, so a busy bus cannot push frames out of the ring first."""
+
+    def __init__(self, bus_state):
+        self.bus_state = bus_state
+        self.is_can = hasattr(bus_state, "frames")
+        self.items: list = []
+        self.since = time.time()
+        self._last = self.since - 1e-6
+
+    def sweep(self) -> None:
+        buffer = self.bus_state.frames if self.is_can else self.bus_state.transactions
+        new = []
+        for item in reversed(buffer):
+            if item.time <= self._last:
+                break
+            new.append(item)
+        if new:
+            new.reverse()
+            self._last = new[-1].time
+            self.items.extend(new)
+
+    def take(self) -> dict:
+        self.sweep()
+        items, self.items = self.items, []
+        if self.is_can:
+            rows = [{"t": f.time, "id": f.arbitration_id, "ext": f.is_extended_id, "dir": f.direction,
+                     "data": f.data.hex(), "err": f.is_error_frame} for f in items]
+            return {"kind": "can", "frames": rows}
+        rows = [{"t": t.time, "request": t.request, "tx": t.request_hex, "rx": t.response_hex, "decoded": t.decoded,
+                 "error": t.error} for t in items]
+        return {"kind": "serial", "transactions": rows}
+
+
+# -- checkouts ---------------------------------------------------------------------------------
+class Aborted(Exception):
+    """The engineer aborted the checkout (or the page that ran it went away)."""
+
+
+class StepFailed(Exception):
+    """A step's check failed; the message is the reason the report shows."""
+
+
+class NotAvailable(Exception):
+    """A step this device (or its adapter) cannot do; the message says why. It does not fail the
+    checkout: the report lists the step as "not available" with the reason."""
+
+
+NOT_AVAILABLE = "not available"
+NOT_FAILING = ("passed", NOT_AVAILABLE, "skipped")  # step results that let a checkout pass
+
+
+class Skipped(NotAvailable):
+    """A step the person running the checkout chose to leave out (e.g. no test input wired); the
+    message says who and why."""
+
+    status = "skipped"
+
+
+@dataclass
+class StepResult:
+    name: str
+    limits: str = ""
+    status: str = "pending"  # pending, running, passed, failed, aborted, error, skipped, not available
+    reason: str = ""
+    values: list[dict] = field(default_factory=list)
+    answers: list[dict] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    started: float | None = None
+    ended: float | None = None
+    evidence: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return {"name": self.name, "limits": self.limits, "status": self.status, "reason": self.reason, "values": self.values,
+                "answers": self.answers, "notes": self.notes, "started": self.started, "ended": self.ended,
+                "evidence": self.evidence}
+
+
+AskFn = Callable[[str], Awaitable[bool]]
+
+
+def checkout_module(device_type: str):
+    """``devices/<type>/checkout.py``, or None when the type declares no checkout."""
+    try:
+        return importlib.import_module(f"devices.{device_type}.checkout")
+    except ModuleNotFoundError:
+        return None
+
+
+class CheckoutContext:
+    """What a declared checkout step may do: every command through the worker's gate (the one
+    place that sends), waits on conditions, measurements against limits, questions to a person."""
+
+    WAIT_STEP_S = 0.05
+
+    def __init__(self, run: "CheckoutRun"):
+        self._run = run
+        runtime = run.runtime
+        self.device = run.device
+        self.state = runtime.store.devices[run.device]
+        self.config = runtime.plant.devices[run.device]
+        self.options = dict(self.config.options)
+        self.session = run.session
+        self.user = run.user
+        self.settings = run.settings
+        self.adapter = runtime.worker.adapters[run.device]  # to ask what it offers; commands go through invoke()
+
+    @property
+    def step(self) -> StepResult:
+        return self._run.current
+
+    def check_abort(self) -> None:
+        if self._run.abort_event.is_set():
+            raise Aborted(self._run.abort_reason or "aborted")
+
+    async def invoke(self, name: str, args: dict | None = None) -> Any:
+        """Run the device type's declared command ``name`` through the worker's gate, for the run's
+        session. A command that names a risk is run confirmed only when the person running the checkout
+        answered that risk's question yes in this run (asked here if not yet; the answer is recorded)."""
+        from app.gate import NeedsConfirmation
+
+        self.check_abort()
+        worker = self._run.runtime.worker
+        confirmed = False
+        while True:
+            try:
+                return await worker.invoke(self.device, name, args, user=self.user, role=self._run.role,
+                                           session=self.session, confirmed=confirmed)
+            except NeedsConfirmation as exc:
+                if confirmed:
+                    raise
+                if exc.question not in self._run.confirmed:
+                    await self.ask(exc.question)
+                else:
+                    self.note(f"{name}: {exc.question!r} answered yes earlier in this run")
+                confirmed = True
+
+    async def wait(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
+        """True once ``predicate()`` holds, False after ``timeout_s``; an abort ends the wait at once."""
+        loop = asyncio.get_running_loop()
+        end = loop.time() + timeout_s
+        while True:
+            self.check_abort()
+            try:
+                if predicate():
+                    return True
+            except (KeyError, TypeError, ValueError):
+                pass
+            if loop.time() >= end:
+                return False
+            self._run.tap_sweep()
+            await asyncio.sleep(self.WAIT_STEP_S)
+
+    def entry(self, name: str) -> dict | None:
+        return self.state.entry(name)
+
+    def value(self, name: str) -> Any:
+        e = self.state.entry(name)
+        return None if e is None else e.get("value")
+
+    def field(self, name: str, field_name: str) -> int | None:
+        e = self.state.entry(name)
+        return None if e is None or not e.get("fields") else e["fields"].get(field_name)
+
+    def measure(self, name: str, value: Any, unit: str = "", *, low: float | None = None, high: float | None = None,
+                expect: Any = None, fail: bool = True) -> bool:
+        """Record a measured value against its limit; a value outside it fails the step (``fail``)."""
+        ok = True
+        limit = ""
+        if value is None:
+            ok, limit = False, "a value"
+        if expect is not None:
+            limit = f"= {expect}"
+            ok = ok and value == expect
+        if low is not None:
+            limit = f">= {low:g}" if high is None else f"{low:g} .. {high:g}"
+            ok = ok and value is not None and value >= low
+        if high is not None:
+            limit = limit or f"<= {high:g}"
+            ok = ok and value is not None and value <= high
+        self.step.values.append({"name": name, "value": value, "unit": unit, "limit": f"{limit} {unit}".strip() if limit else "",
+                                 "ok": ok})
+        if not ok and fail:
+            shown = "no value" if value is None else f"{value} {unit}".strip()
+            raise StepFailed(f"{name}: {shown}, expected {limit} {unit}".strip())
+        return ok
+
+    def note(self, text: str) -> None:
+        self.step.notes.append(text)
+
+    def fail(self, reason: str) -> None:
+        raise StepFailed(reason)
+
+    def not_available(self, reason: str) -> None:
+        """End the step as "not available" (it does not fail the checkout) with ``reason``."""
+        raise NotAvailable(reason)
+
+    def skip(self, reason: str) -> None:
+        """End the step as "skipped" by the person running it (it does not fail the checkout)."""
+        raise Skipped(reason)
+
+    async def ask(self, question: str) -> bool:
+        """Ask the person running the checkout; the answer and who gave it are recorded. "No" fails the step."""
+        self.check_abort()
+        answer = await self._run.ask(question)
+        self.step.answers.append({"question": question, "answer": "yes" if answer else "no", "by": self.user,
+                                  "role": self._run.role, "time": time.time()})
+        if not answer:
+            raise StepFailed(f"{question} - answered no by {self.user}")
+        self._run.confirmed.add(question)
+        return True
+
+    async def choose(self, question: str, no_means: str) -> bool:
+        """Ask a question whose "no" is an answer, not a failure (e.g. "is a test input wired to E1?");
+        the answer and who gave it are recorded; ``no_means`` says in the step's notes what "no" did."""
+        self.check_abort()
+        answer = await self._run.ask(question)
+        self.step.answers.append({"question": question, "answer": "yes" if answer else "no", "by": self.user,
+                                  "role": self._run.role, "time": time.time()})
+        if not answer:
+            self.note(f"answered no by {self.user}: {no_means}")
+        return bool(answer)
+
+
+class CheckoutRun:
+    """One run of a device's declared checkout: progress, a visible abort, evidence per step.
+
+    :param session: the browser session the run belongs to: outputs it switches on are under
+        that session's dead-man rule. Without one (CLI, tests) the run confirms it is alive itself.
+    """
+
+    def __init__(self, runtime, device: str, *, user: str, role: str, ask: AskFn | None = None, session: str = "",
+                 settings: dict | None = None):
+        state = runtime.store.devices[device]
+        module = checkout_module(state.type)
+        if module is None:
+            raise RecordError(f"{device}: the {state.type} type declares no checkout")
+        self.runtime, self.device, self.user, self.role = runtime, device, user, role
+        self.module = module
+        self.settings = {**getattr(module, "SETTINGS", {}), **(settings or {})}
+        self.steps_decl = module.steps(runtime.plant.devices[device].options, self.settings)
+        self.results = [StepResult(s["name"], s.get("limits", "")) for s in self.steps_decl]
+        self.current: StepResult = self.results[0] if self.results else StepResult("-")
+        self.session = session or f"checkout-{uuid.uuid4().hex[:8]}"
+        self._own_session = not session
+        self._ask = ask
+        self.abort_event = asyncio.Event()
+        self.abort_reason = ""
+        self.status = "ready"
+        self.started: float | None = None
+        self.ended: float | None = None
+        self.listeners: list[Callable[[], None]] = []
+        self._tap = TrafficTap(runtime.store.buses[state.bus])
+        self.record_id: int | None = None
+        self.confirmed: set[str] = set()  # questions answered yes in this run (a declared risk is asked once)
+        self.drift_before: set[str] = set()  # keys drifting before the run (set by RecordService.new_run)
+
+    @property
+    def progress(self) -> float:
+        done = sum(r.status not in ("pending", "running") for r in self.results)
+        return done / max(1, len(self.results))
+
+    def abort(self, reason: str = "aborted by the engineer") -> None:
+        self.abort_reason = reason
+        self.abort_event.set()
+
+    def tap_sweep(self) -> None:
+        self._tap.sweep()
+
+    def _changed(self) -> None:
+        for fn in list(self.listeners):
+            try:
+                fn()
+            except Exception:  # noqa: BLE001 - a page that went away
+                log.debug("checkout listener failed", exc_info=True)
+
+    async def ask(self, question: str) -> bool:
+        if self._ask is None:
+            raise StepFailed(f"{question} - nobody to ask (run it from the device's record page)")
+        return await self._ask(question)
+
+    async def _beat(self) -> None:
+        while True:
+            self.runtime.worker.heartbeat(self.session)
+            await asyncio.sleep(0.1)
+
+    async def run(self) -> dict:
+        """Run every step in order; the first failure ends the run (later steps are skipped), the
+        cleanup always runs. Returns the result as stored (its ``record_id`` set)."""
+        if self.role != "engineer":
+            raise PermissionError(f"{self.user} has the {self.role or 'no'} role and may not run checkouts")
+        ctx = CheckoutContext(self)
+        beat = asyncio.create_task(self._beat()) if self._own_session else None
+        self.status, self.started = "running", time.time()
+        self._changed()
+        try:
+            for decl, result in zip(self.steps_decl, self.results):
+                self.current = result
+                result.status, result.started = "running", time.time()
+                self._tap.take()  # the evidence of each step starts with it
+                self._changed()
+                try:
+                    ctx.check_abort()
+                    await decl["run"](ctx)
+                    result.status = "passed"
+                except StepFailed as exc:
+                    result.status, result.reason = "failed", str(exc)
+                except NotAvailable as exc:
+                    result.status, result.reason = getattr(exc, "status", NOT_AVAILABLE), str(exc)
+                except Aborted as exc:
+                    result.status, result.reason = "aborted", str(exc)
+                except Exception as exc:  # noqa: BLE001 - a refused or failed command is the step's reason
+                    result.status, result.reason = "failed", f"{type(exc).__name__}: {exc}" if not str(exc) else str(exc)
+                result.ended = time.time()
+                result.evidence = self._tap.take()
+                self._changed()
+                if result.status not in NOT_FAILING:
+                    break
+            for result in self.results:
+                if result.status == "pending":
+                    result.status, result.reason = "skipped", "not run: an earlier step did not pass"
+        finally:
+            cleanup = getattr(self.module, "cleanup", None)
+            if cleanup is not None:
+                ctx.step.notes.append("cleanup ran")
+                self.abort_event.clear()  # the cleanup stops and restores: it must run after an abort too
+                try:
+                    await cleanup(ctx, self.settings)
+                except Exception as exc:  # noqa: BLE001 - said in the result
+                    ctx.step.notes.append(f"cleanup failed: {exc}")
+            if beat is not None:
+                beat.cancel()
+        self.ended = time.time()
+        if any(r.status == "aborted" for r in self.results):
+            self.status = "aborted"
+        elif all(r.status in NOT_FAILING for r in self.results):
+            self.status = "passed"
+        else:
+            self.status = "failed"
+        data = self.as_dict()
+        service = getattr(self.runtime, "record", None)
+        if service is not None:
+            service.check_drift(self.device)  # what the checkout changed and restored is no longer held back
+            self.record_id = await service.add(self.device, "checkout", user=self.user, role=self.role, data=data,
+                                               title=f"{self.module.TITLE}: {self.status}")
+            data["record_id"] = self.record_id
+        self._changed()
+        return data
+
+    def as_dict(self) -> dict:
+        failed = next((r for r in self.results if r.status in ("failed", "aborted")), None)
+        return {"device": self.device, "title": self.module.TITLE, "status": self.status, "reason": failed.reason if failed else "",
+                "user": self.user, "role": self.role, "started": self.started, "ended": self.ended,
+                "duration_s": None if self.started is None or self.ended is None else round(self.ended - self.started, 2),
+                "settings": self.settings, "steps": [r.as_dict() for r in self.results]}
