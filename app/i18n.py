@@ -391,7 +391,26 @@ def page_language() -> Lang:
         page = copy.copy(client.page)
         page.language = wanted
         client.page = page
-    return get(code)
+    lang = get(code)
+    client.__dict__[CLIENT_KEY] = lang  # what a press on this page answers in (:func:`client_language`)
+    return lang
+
+
+CLIENT_KEY = "commission_lang"
+
+
+def client_language() -> Lang:
+    """The language of the page whose event is being handled (a press, a dialog's answer): the one
+    :func:`page_language` gave the page when it was built, English for a page built without it. For the code
+    that answers a press (the command client's notifications and questions); what draws gets its ``Lang``
+    handed, since a store push runs outside any page."""
+    from nicegui import context
+
+    try:
+        lang = context.client.__dict__.get(CLIENT_KEY)
+    except RuntimeError:  # no page here
+        lang = None
+    return lang if isinstance(lang, Lang) else get(DEFAULT)
 
 
 def switch_href(code: str) -> str:

@@ -9,7 +9,9 @@ from collections.abc import Awaitable, Callable
 
 from nicegui import ui
 
+from app import i18n
 from app import runtime as rt
+from app.i18n import N_, Lang
 from app.state import DeviceState
 from app.worker import PermissionDenied
 from devices.commands import WRITE_PARAMETER
@@ -26,13 +28,16 @@ def session_role() -> str:
     return current_user()[1]
 
 
-async def confirm(title: str, text: str, ok: str = "Continue", danger: bool = True) -> bool:
-    """Modal confirmation; resolves True only when the engineer presses ``ok``."""
+async def confirm(title: str, text: str, ok: str | None = None, danger: bool = True, lang: Lang | None = None) -> bool:
+    """Modal confirmation; resolves True only when the engineer presses ``ok`` (by default "Continue").
+    ``title``, ``text`` and ``ok`` in the page's language; ``lang`` (by default the page's) words the rest."""
+    _ = (lang or i18n.client_language()).gettext
+    ok = _("Continue") if ok is None else ok
     with ui.dialog() as dialog, ui.card().classes("max-w-lg"):
         ui.label(title).classes("text-h6")
         ui.label(text).classes("text-body1" + (" text-negative" if danger else ""))
         with ui.row().classes("justify-end w-full"):
-            ui.button("Cancel", on_click=lambda: dialog.submit(False)).props("flat")
+            ui.button(_("Cancel"), on_click=lambda: dialog.submit(False)).props("flat")
             ui.button(ok, color="negative" if danger else "primary", on_click=lambda: dialog.submit(True))
     result = await dialog
     dialog.delete()
@@ -41,7 +46,7 @@ async def confirm(title: str, text: str, ok: str = "Continue", danger: bool = Tr
 
 async def run_command(
     device: str, action: str, *, success: str = "", args: dict | None = None, session: str = "",
-    confirmed: bool = False, title: str = "", ok: str = "Send", parameter: str = "", new: object = "",
+    confirmed: bool = False, title: str = "", ok: str | None = None, parameter: str = "", new: object = "",
 ) -> tuple[bool, object]:
     """Submit a command to the worker's gate and report the outcome as a notification.
 
@@ -49,8 +54,9 @@ async def run_command(
     with ``args``: the gate takes its kind, ranges, risk and the role (as the account store says now)
     from the declaration; a risk it names is asked here and the command invoked again, confirmed.
     ``confirmed``: the page has asked its own question naming the same risk. ``title`` and ``ok`` word
-    the dialog that asks the declared risk. ``parameter`` and ``new``: the parameter's name and value as an
-    engineer reads them, for the audit row of a question answered with Cancel.
+    the dialog that asks the declared risk (``ok`` by default "Send"), ``success`` the notification, all in
+    the page's language. ``parameter`` and ``new``: the parameter's name and value as an engineer reads them,
+    for the audit row of a question answered with Cancel.
     """
     from app.gate import NeedsConfirmation
     from devices.commands import CommandError
@@ -64,7 +70,8 @@ async def run_command(
             result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
                                          confirmed=confirmed)
         except NeedsConfirmation as question:
-            if not await confirm(title or f"{action}?", question.question, ok=ok):
+            if not await confirm(title or f"{action}?", question.question,
+                                 ok=i18n.client_language().gettext("Send") if ok is None else ok):
                 await cancelled(device, action, parameter=parameter, new=new if parameter else ", ".join(
                     f"{k}={getattr(v, 'name', v)}" for k, v in (args or {}).items() if k != "known"))
                 return False, None
@@ -109,12 +116,14 @@ async def cancelled(device: str, describe: str, parameter: str = "", new: object
                parameter=parameter, new=new)
 
 
-def all_valid(*fields: ui.number) -> bool:
+def all_valid(*fields: ui.number, lang: Lang | None = None) -> bool:
     """Check every :func:`range_number` entry (each marks its own error); True when all hold a valid value."""
+    _ = (lang or i18n.client_language()).gettext
     ok = True
     for field in fields:
         if field.value is None:
-            field.error = f"enter a value first ({getattr(field, 'rule', '')})".replace(" ()", "")
+            rule = getattr(field, "rule", "")
+            field.error = _("enter a value first ({rule})").format(rule=rule) if rule else _("enter a value first")
             ok = False
         elif not field.validate():
             ok = False
@@ -130,25 +139,27 @@ async def checked_value(field: ui.number, device: str, describe: str, parameter:
     return field.value
 
 
-VIEWER_REASON = "read-only session: only an engineer account may change the device"
+VIEWER_REASON = N_("read-only session: only an engineer account may change the device")
 
 
-def viewer_reason() -> str:
-    """Why this session's write controls are disabled ("" for an engineer). Display only: the gate decides."""
+def viewer_reason(lang: Lang | None = None) -> str:
+    """Why this session's write controls are disabled ("" for an engineer), in ``lang`` (by default the page's).
+    Display only: the gate decides."""
     from pages.session import can_write
 
-    return "" if can_write() else VIEWER_REASON
+    return "" if can_write() else (lang or i18n.client_language()).gettext(VIEWER_REASON)
 
 
 class WriteGuard:
     """Disables a device's write controls, with the reason, while the device does not answer or the
     session may not write (a viewer sees them disabled with the reason; the gate refuses them anyway)."""
 
-    def __init__(self, state: DeviceState, *controls: ui.element):
+    def __init__(self, state: DeviceState, *controls: ui.element, lang: Lang | None = None):
         self.state = state
+        self.lang = lang or i18n.client_language()  # kept: a store push that updates it runs outside the page
         self.controls: list[ui.element] = list(controls)
         self.reason = ""
-        self.read_only = viewer_reason()
+        self.read_only = viewer_reason(self.lang)
         follow(state, self.update)
         self.update()
 
@@ -161,8 +172,10 @@ class WriteGuard:
         if self.read_only:
             reason = self.read_only
         elif status in ("offline", "unknown"):
-            reason = ("the device does not answer" + (f": {self.state.last_error}" if self.state.last_error else "")
-                      if status == "offline" else "waiting for the device's first answer")
+            _ = self.lang.gettext
+            reason = ((_("the device does not answer: {error}").format(error=self.state.last_error) if self.state.last_error
+                       else _("the device does not answer"))
+                      if status == "offline" else _("waiting for the device's first answer"))
         else:
             reason = ""
         if reason == self.reason and not force:
@@ -191,18 +204,21 @@ def enable_unless(control: ui.element, reason: str) -> None:
     _show_reason(control, reason)
 
 
-async def write_from_page(device: str, param: Param, value, *, success: str, title: str = "", ok: str = "Write anyway",
-                          field: ui.element | None = None) -> None:
+async def write_from_page(device: str, param: Param, value, *, success: str, title: str = "", ok: str | None = None,
+                          field: ui.element | None = None, lang: Lang | None = None) -> None:
     """An engineer's entry for one parameter: check it, ask when the parameter wants a
     confirmation, then write through the worker with old and new value for the audit log.
 
     A refused entry stays in ``field`` as typed, marked with the reason (no toast over the page),
-    and is recorded in the audit log; nothing is sent."""
+    and is recorded in the audit log; nothing is sent. ``success`` and ``title`` (with ``{name}`` and
+    ``{value}``) and ``ok`` (by default "Write anyway") in the page's language."""
+    lang = lang or i18n.client_language()
+    _ = lang.gettext
     if value is None or value == "":
         if field is not None:
-            field.error = "enter a value first"
+            field.error = _("enter a value first")
         else:
-            ui.notify(f"{param.name}: enter a value first", type="warning")
+            ui.notify(_("{name}: enter a value first").format(name=param.name), type="warning")
         return
     try:
         raw = param.validate(value)
@@ -218,16 +234,18 @@ async def write_from_page(device: str, param: Param, value, *, success: str, tit
     # the device type's declared write (every type declares it): the gate checks the value, asks what its send
     # policy names (the same question as a restore or the API), audits parameter, old and new
     await run_command(device, WRITE_PARAMETER, args={"param": param.key, "value": param.decode(raw)},
-                      title=(title or "Write {name} = {value}?").format(name=param.name, value=param.display(raw)),
-                      ok=ok, success=success.format(name=param.name, value=param.display(raw)),
+                      title=(title or _("Write {name} = {value}?")).format(name=param.name, value=lang.numbers_in(param.display(raw))),
+                      ok=_("Write anyway") if ok is None else ok,
+                      success=success.format(name=param.name, value=lang.numbers_in(param.display(raw))),
                       parameter=param.label or param.name, new=param.display(raw))
 
 
-def sim_card_allowed(note_testid: str = "sim-readonly") -> bool:
+def sim_card_allowed(note_testid: str = "sim-readonly", lang: Lang | None = None) -> bool:
     """Whether this session may act on the twins; a viewer gets a note in place of the card's controls."""
-    reason = viewer_reason()
+    lang = lang or i18n.client_language()
+    reason = viewer_reason(lang)
     if reason:
-        ui.label("Simulation controls change the simulated plant: engineers only.").classes("text-caption text-grey-8").props(
+        ui.label(lang.gettext("Simulation controls change the simulated plant: engineers only.")).classes("text-caption text-grey-8").props(
             f"data-testid={note_testid}")
     return not reason
 
