@@ -326,8 +326,9 @@ class Runtime:
         await self.keep_plant_options()
 
     async def keep_plant_options(self) -> None:
-        """What an adapter says the plant file should hold (``plant_options()``), kept there (app.plant.keep_device_options)."""
-        from app.plant import PlantError, keep_device_options, options_to_keep
+        """What an adapter says the plant file should hold (``plant_options()``), kept there (app.plant_options.keep_device_options)."""
+        from app.plant import PlantError
+        from app.plant_options import keep_device_options, options_to_keep
 
         for name, adapter in list(self.worker.adapters.items()):
             wanted = getattr(adapter, "plant_options", None)

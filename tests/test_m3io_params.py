@@ -96,7 +96,7 @@ def test_commission_check_names_a_bad_record_and_an_unknown_one_without_the_devi
 
 
 def test_the_plant_file_keeps_p2_with_its_comments_and_project_table(tmp_path):
-    from app.plant import keep_device_options, set_device_options
+    from app.plant_options import keep_device_options, set_device_options
 
     path = tmp_path / "plant.toml"
     path.write_text(plant_text(can_bus(device("io", "m3io", "can1", variant="HMR", sw1=0xCA), name="can1"))
