@@ -9,6 +9,8 @@ from datetime import datetime
 from nicegui import context, ui
 from nicegui.element import Element
 
+from app import i18n
+from app.i18n import Lang
 from app.state import DeviceState
 from pages.widgets import follow
 
@@ -71,7 +73,9 @@ class HistoryChart:
     ``rows`` stacks groups of series one above the other, each on its own y axis, over one time axis
     (``[["Position [mm]"], ["Current [A]"]]``, heights in the ratio of ``row_heights``): one figure
     and one drawing for all of them. ``windows`` offers window lengths to choose from (seconds, e.g.
-    ``(30, 300)``).
+    ``(30, 300)``). With ``lang`` the legend names the series by the catalog's entry of each name (the page marks
+    them ``N_``; a name the catalog lacks is shown as it is), the axes write numbers the language's way and the
+    empty chart says so in it.
     """
 
     MAX_POINTS = 1500
@@ -86,7 +90,7 @@ class HistoryChart:
 
     def __init__(self, state: DeviceState, series: list[str] | None = None, window_s: int = CHART_WINDOW_S,
                  height: int = 320, axes: dict[str, str] | None = None, windows: tuple[int, ...] = (),
-                 rows: list[list[str]] | None = None, row_heights: tuple[float, ...] = ()):
+                 rows: list[list[str]] | None = None, row_heights: tuple[float, ...] = (), lang: Lang | None = None):
         if (series is None) == (rows is None):
             raise ValueError("a chart takes either series or rows of series")
         row_axes = ["y" if i == 0 else f"y{i + 1}" for i in range(len(rows or ()))]  # top row first
@@ -94,6 +98,7 @@ class HistoryChart:
             axes = {name: axis for axis, row in zip(row_axes, rows) for name in row}
             series = [name for row in rows for name in row]
         self.state = state
+        self.lang = lang or i18n.get("en")
         self.series = series
         self.window_s = window_s
         self.axes = axes or {}
@@ -112,6 +117,9 @@ class HistoryChart:
             "showlegend": True,
             "uirevision": "keep",
         }
+        symbols = self.lang.locale.number_symbols["latn"]
+        if symbols["decimal"] != ".":
+            layout["separators"] = symbols["decimal"] + symbols["group"]  # plotly's decimal and group signs: ",."
 
         def unit_of(name: str) -> str:  # a series keyed by a point's or parameter's own name: its unit
             value = state.live(name)
@@ -141,7 +149,8 @@ class HistoryChart:
                                 "ticklabeloverflow": "allow", "showgrid": False}
             layout["yaxis"]["title"] = {"text": units(on("y"))}
         self.figure = {
-            "data": [{"type": "scatter", "mode": "lines", "name": s, "x": [], "y": [], "yaxis": self.axes.get(s, "y")}
+            "data": [{"type": "scatter", "mode": "lines", "name": self.lang.gettext(s), "x": [], "y": [],
+                      "yaxis": self.axes.get(s, "y")}
                      for s in series],
             "layout": layout,
             "config": {"displaylogo": False, "responsive": True},
@@ -195,7 +204,7 @@ class HistoryChart:
             if not layout.get("annotations"):  # nothing read yet: the last window up to now, not an axis at 1970/2000
                 now = time.time()
                 layout["xaxis"].update(autorange=False, range=[self._iso(now - self.window_s), self._iso(now)])
-                layout["annotations"] = [{"text": "no data yet", "xref": "paper", "yref": "paper", "x": 0.5, "y": 0.5,
+                layout["annotations"] = [{"text": self.lang.gettext("no data yet"), "xref": "paper", "yref": "paper", "x": 0.5, "y": 0.5,
                                           "showarrow": False, "font": {"size": 16, "color": "#757575"}}]
                 self.plot.update()
             return
