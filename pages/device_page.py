@@ -28,7 +28,9 @@ from contextlib import contextmanager
 
 from nicegui import ui
 
+from app import i18n
 from app import runtime as rt
+from app.i18n import Lang
 from app.state import DeviceState, LiveValue, session_tag
 from pages.frame import frame, set_status_badge
 from devices.params import Param
@@ -38,10 +40,12 @@ from pages.command_client import run_command, WriteGuard
 
 class DeviceView:
     """What every card of one device page shares: the device's live record, the page session (outputs and
-    control taken here belong to it) and the device's declared commands."""
+    control taken here belong to it), the device's declared commands and the page's language (:attr:`lang`, handed
+    to what draws: a store push runs outside the page)."""
 
-    def __init__(self, name: str):
+    def __init__(self, name: str, lang: Lang | None = None):
         runtime = rt.current()
+        self.lang = lang or i18n.page_language()
         self.name = name
         self.runtime = runtime
         self.store = runtime.store
@@ -228,23 +232,25 @@ def titled_card(title: str, classes: str = "w-full") -> Iterator[ui.card]:
 class StatusBadge:
     """The device's status (waiting, online, stale, offline) with the age of its last answer."""
 
-    def __init__(self, state: DeviceState):
+    def __init__(self, state: DeviceState, lang: Lang | None = None):
         self.state = state
+        self.lang = lang
 
     def build(self) -> None:
-        self.badge = ui.badge("waiting", color="grey").classes("text-body2")
+        self.badge = ui.badge((self.lang or i18n.get("en")).gettext("waiting"), color="grey").classes("text-body2")
 
     def refresh(self) -> None:
-        set_status_badge(self.badge, self.state.status, self.state.age)
+        set_status_badge(self.badge, self.state.status, self.state.age, self.lang)
 
 
 class StatusRow:
     """The first row of a device's main card: the status badge, the card's own labels (built inside
-    ``with row.build():``) and the line's counters (``counters(state.counters)``, redrawn once a second)."""
+    ``with row.build():``) and the line's counters (``counters(state.counters)``, redrawn once a second; in the
+    page's language, as ``lang`` words the badge)."""
 
-    def __init__(self, state: DeviceState, counters: Callable[[object], str]):
+    def __init__(self, state: DeviceState, counters: Callable[[object], str], lang: Lang | None = None):
         self.state, self.counters = state, counters
-        self.badge = StatusBadge(state)
+        self.badge = StatusBadge(state, lang)
 
     @contextmanager
     def build(self) -> Iterator[ui.row]:
@@ -265,8 +271,8 @@ def device_page(view: DeviceView, title: str, stop: Callable[[], object] | None 
     (at most 10/s) and once a second for the ages."""
     with frame(title):
         yield
-        with ui.expansion("Events", icon="list", value=True).classes("w-full"):
-            event_log(view.state)
+        with ui.expansion(view.lang.gettext("Events"), icon="list", value=True).classes("w-full"):
+            event_log(view.state, view.lang)
     if stop is not None:
         stop()
     view.refresh()

@@ -125,3 +125,19 @@ async def test_the_switch_keeps_the_browsers_language(tmp_path):
         await user.should_see("Plant plant")
         await user.open("/plant?lang=de")
         await user.should_see("Anlage plant")
+
+
+async def test_a_device_page_in_german_has_its_frame_events_and_badge_in_german(tmp_path):
+    """The parts every device page shares (pages/device_page.py, widgets, command client): status badge, the
+    event log's title and columns, the disabled reasons of the write guard."""
+    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await eventually(lambda: runtime.store.devices["door-1"].status == "online", timeout=15, what="door-1 online")
+        await user.open("/device/door-1")
+        await user.should_see("Ereignisse", retries=50)
+        await user.should_see("online")
+        shown = shown_texts(user)
+        for english in ("Events", "Time", "Level", "Event", "waiting"):
+            assert english not in shown, english
+        events = next(e for e in user.client.elements.values() if isinstance(e, ui.table) and "events" in str(e.props))
+        assert [c["label"] for c in events.columns] == ["Zeit", "Stufe", "Ereignis"]
