@@ -182,7 +182,7 @@ def add_parser(sub) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    from app.headless import _cli_user, _headless
+    from app.headless import cli_user, run_headless
 
     args.device = [d.strip() for d in args.devices.split(",") if d.strip()]
     if not args.device:  # an empty selection must never mean "every device" (the headless runner's default)
@@ -252,10 +252,10 @@ def run_cli(args: argparse.Namespace) -> int:
         def said(result: DeviceResult) -> None:
             print(f"{result.device}: {result.status}: {result.text}", flush=True)
 
-        results = await apply_batch(runtime, plan, user=_cli_user(), role="engineer", confirmed=confirmed, on_device=said)
+        results = await apply_batch(runtime, plan, user=cli_user(), role="engineer", confirmed=confirmed, on_device=said)
         failed = [r for r in results if r.status in (FAILED, REFUSED)]
         if failed:
             print(f"commission apply: stopped at {failed[0].device}: {failed[0].text}", file=sys.stderr)
         return 1 if failed else 0
 
-    return asyncio.run(_headless(args, work))
+    return asyncio.run(run_headless(args, work))

@@ -17,7 +17,8 @@ from app.host import TerminalKeys
 from app.plant import DEMO_PLANT, PlantError, load_plant
 
 
-def _load(path: Path | None):
+def load_plant_or_exit(path: Path | None):
+    """The plant file at ``path`` (the demo plant without one); a file that cannot be used ends the command (exit 2)."""
     try:
         return load_plant(path or DEMO_PLANT)
     except PlantError as exc:
@@ -25,7 +26,7 @@ def _load(path: Path | None):
         raise SystemExit(2) from None
 
 
-def _bindable(host: str, port: int) -> bool:
+def bindable(host: str, port: int) -> bool:
     """Whether a TCP server could listen on ``host:port`` now (SO_REUSEADDR, as asyncio and uvicorn bind)."""
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
     with socket.socket(family, socket.SOCK_STREAM) as probe:
@@ -52,12 +53,12 @@ def _simulated_endpoints(plant, every: bool = False) -> list[tuple[str, str, int
     return endpoints
 
 
-def _refuse_taken_ports(plant, program: str = "commission", every: bool = False) -> bool:
+def refuse_taken_ports(plant, program: str = "commission", every: bool = False) -> bool:
     """Say which simulated ports are taken (another copy of the plant?); True when the start must stop.
 
     Polling whatever owns such a port as if it were this plant's twin would be worse than not starting.
     """
-    taken = [(bus, host, port) for bus, host, port in _simulated_endpoints(plant, every) if not _bindable(host, port)]
+    taken = [(bus, host, port) for bus, host, port in _simulated_endpoints(plant, every) if not bindable(host, port)]
     for bus, host, port in taken:
         print(f"{program}: the simulated bus '{bus}' cannot listen on {host}:{port}: the port is taken "
               "(another copy of this plant or another program); stop it, or give the bus another port in the plant file",
@@ -65,13 +66,13 @@ def _refuse_taken_ports(plant, program: str = "commission", every: bool = False)
     return bool(taken)
 
 
-async def _headless(args, work) -> int:
+async def run_headless(args, work) -> int:
     """Start the plant without GUI, wait until its devices answer, run ``work(runtime)``."""
     from app.runtime import Runtime
     from app.users import default_data_dir
 
-    plant = _load(args.plant)
-    if not args.no_sim and _refuse_taken_ports(plant):
+    plant = load_plant_or_exit(args.plant)
+    if not args.no_sim and refuse_taken_ports(plant):
         return 2
     names = getattr(args, "device", None)
     names = [names] if isinstance(names, str) else (names or list(plant.devices))
@@ -92,7 +93,7 @@ async def _headless(args, work) -> int:
         await runtime.stop()
 
 
-def _cli_user() -> str:
+def cli_user() -> str:
     """Who ran a headless backup or restore, for the audit log."""
     import getpass
 
@@ -100,6 +101,14 @@ def _cli_user() -> str:
         return f"cli:{getpass.getuser()}"
     except (KeyError, OSError):
         return "cli"
+
+
+# the names these had before; app/cli.py still imports them so
+_load = load_plant_or_exit
+_bindable = bindable
+_refuse_taken_ports = refuse_taken_ports
+_headless = run_headless
+_cli_user = cli_user
 
 
 # -- a person at a terminal: the questions of a checkout on real equipment, and a dead-man of its own --------

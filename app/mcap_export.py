@@ -212,10 +212,10 @@ def run(args: argparse.Namespace) -> int:
         return 0
     import asyncio
 
-    from app.headless import _load
+    from app.headless import load_plant_or_exit
     from app.runtime import Runtime
 
-    plant = _load(args.plant)
+    plant = load_plant_or_exit(args.plant)
 
     async def session() -> int:
         runtime = Runtime(plant, simulate=not args.no_sim)

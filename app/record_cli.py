@@ -92,9 +92,9 @@ def add_parsers(sub) -> None:
 
 
 def _cli_user() -> str:
-    from app.headless import _cli_user
+    from app.headless import cli_user
 
-    return _cli_user()
+    return cli_user()
 
 
 def read_password(account: str) -> str:
@@ -145,11 +145,11 @@ async def _wait_online(runtime, names: list[str], wait_s: float) -> None:
 
 def _run_plant(args, work) -> int:
     """Start the plant, wait for the chosen devices, run ``work(runtime, names)`` and stop."""
-    from app.headless import _load
+    from app.headless import load_plant_or_exit
     from app.runtime import Runtime
     from app.users import default_data_dir
 
-    plant = _load(args.plant)
+    plant = load_plant_or_exit(args.plant)
     data_dir = getattr(args, "data_dir", None) or default_data_dir()
     runtime = Runtime(plant, simulate=not args.no_sim, data_dir=data_dir)
 
@@ -401,9 +401,9 @@ def run_checkout(args) -> int:
         print(text, flush=True)
 
     if not terminal:  # refuse before anything connects to a real bus
-        from app.headless import _load
+        from app.headless import load_plant_or_exit
 
-        plant = _load(args.plant)
+        plant = load_plant_or_exit(args.plant)
         chosen = [n for n in plant.devices if args.all or not args.device or n in args.device]
         real = [n for n in chosen if args.no_sim or not plant.buses[plant.devices[n].bus].simulated]
         if real:

@@ -668,11 +668,11 @@ def add_parser(sub) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    from app.headless import _load
+    from app.headless import load_plant_or_exit
     from app.runtime import Runtime
     from app.users import default_data_dir
 
-    plant = _load(args.plant)
+    plant = load_plant_or_exit(args.plant)
     runtime = Runtime(plant, simulate=not args.no_sim, data_dir=args.data_dir or default_data_dir())
 
     async def main() -> dict:
