@@ -17,7 +17,8 @@ transactions are decoded through the parameter model of the device at their unit
 (:class:`TransactionDecoder`). No UI here.
 
 The package is split along those concerns: :mod:`.write`, :mod:`.read`, :mod:`.decode`,
-:mod:`.filters` and :mod:`.modbus`, over :mod:`.base`; every name is also here, as before.
+:mod:`.filters` and :mod:`.modbus`, over :mod:`.base`; every public name is also here, as before
+(each module's private helpers stay in it).
 """
 
 from __future__ import annotations
@@ -42,10 +43,6 @@ from app.recording.write import (  # noqa: F401
     RecordingFile,
     UPLOADS_KEPT,
     UPLOADS_SUBDIR,
-    _UPLOAD_SERIAL,
-    _prune_uploads,
-    _safe_name,
-    _writer_channel,
     active_recording,
     list_recordings,
     recording_path,
@@ -58,10 +55,6 @@ from app.recording.write import (  # noqa: F401
 from app.recording.read import (  # noqa: F401
     LoadedLog,
     Progress,
-    _CANDUMP_LINE,
-    _CountingBinary,
-    _CountingText,
-    _record_of,
     detect_format,
     file_format,
     iter_log,
