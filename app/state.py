@@ -73,11 +73,7 @@ class Watch:
     def cancel(self) -> None:
         if self.alive:
             self.alive = False
-            watches = self.store._watches.get(self.device)
-            if watches is not None and self in watches:
-                watches.remove(self)
-            if self.group is not None:
-                self.store._leave(self)
+            self.store.unwatch(self)
 
 
 class _Group:
@@ -117,7 +113,7 @@ class _Devices(dict):
 def _notifying_class(store: "StateStore") -> type:
     """A DeviceState whose ``version`` tells ``store`` when it moves: the same record (same fields, same
     class for ``isinstance``), but every writer of it (adapters bump ``version``) now says that it changed."""
-    changed = store._changed
+    changed = store.changed
 
     def get_version(self) -> int:
         return self.__dict__["version"]
@@ -192,6 +188,14 @@ class StateStore:
         self.ensure_running()
         return w
 
+    def unwatch(self, w: Watch) -> None:
+        """Call ``w`` no more (:meth:`Watch.cancel`); a page whose last watcher goes is forgotten."""
+        watches = self._watches.get(w.device)
+        if watches is not None and w in watches:
+            watches.remove(w)
+        if w.group is not None:
+            self._leave(w)
+
     def _leave(self, w: Watch) -> None:
         g = w.group
         watches = g.watches.get(w.device)
@@ -238,6 +242,11 @@ class StateStore:
                 handle.cancel()
         self._fan_handle = self._age_handle = None
         self._loop = None
+
+    def changed(self, name: str) -> None:
+        """A device record was written (the call its ``version`` makes when it moves): its readers are called soon,
+        once for all writes of this turn of the loop."""
+        self._changed(name)
 
     def _changed(self, name: str) -> None:
         """A device record was written (from its ``version``): fan out soon, once for all writes of this turn."""
