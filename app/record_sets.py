@@ -78,7 +78,7 @@ def live_params(state) -> dict[str, dict]:
     """Every register parameter the live store holds now (the device's last poll, as its page shows
     it), in the form of :func:`param_set`; empty for a device without a parameter model or before
     its first read."""
-    params = getattr(state, "params", None)
+    params = state.params
     current: dict[str, dict] = {}
     for param in params if params is not None else ():
         raw = state.raw(param)
@@ -91,7 +91,7 @@ def live_params(state) -> dict[str, dict]:
 def device_updated(state, key: str) -> bool:
     """The parameter model marks ``key`` as changed by the device itself (``Param.device_updates``:
     a measured maximum, a counter): never drift."""
-    params = getattr(state, "params", None)
+    params = state.params
     param = params.by_key.get(key) if params is not None else None
     return param is not None and param.writable and not param.setting
 

@@ -154,7 +154,7 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
     state = runtime.store.devices[device]
     current = {k: {**v, "device_updates": device_updated(state, k)} for k, v in current.items()}
     rows = compare_with_approved(current, approved)
-    params = getattr(state, "params", None)
+    params = state.params
     for r in rows:  # a setting or a live value: the parameter model says, else what the set was read with
         param = params.by_key.get(r["key"]) if params is not None else None
         if param is not None:  # configuration (also the factory's, MFR) is a setting; states and measurements (R, RO) are not
