@@ -10,12 +10,14 @@ from html import escape
 
 from nicegui import ui
 
+from app import i18n
 from app import runtime as rt
+from app.i18n import N_, Lang
 from app.plant import DEMO_PLANT, DeviceConfig, append_device, can_id_conflict, device_toml
 from app.worker import AuditUnavailable, PermissionDenied
 from devices.registry import DEVICE_TYPES, format_can_ids
 from pages.frame import fmt_age, frame, set_status_badge, status_text
-from pages.plant_view import ICON, Followers, LabelPool, evaluate_tile
+from pages.plant_view import ICON, Followers, LabelPool, evaluate_tile, plant_tile
 from pages.widgets import mark_quality, quality_note
 from pages.command_client import enable_unless, viewer_reason
 from pages.session import current_user
@@ -54,9 +56,22 @@ table.glance-table td a.glance-replaced { color: #b71c1c; font-weight: 700; disp
 TILE_WIDTH_PX, TILE_GAP_PX = 240, 12
 
 # what a device's counters mean on its bus: CAN devices are heard (periodic frames), the others answer requests
-CAN_COUNTERS = (("responses", "frames heard", True), ("malformed", "malformed", True), ("timeouts", "timeouts", False))
-REQUEST_COUNTERS = (("requests", "req", True), ("timeouts", "timeouts", True), ("crc_errors", "CRC", True),
-                    ("exceptions", "exc", False), ("malformed", "malformed", False))
+CAN_COUNTERS = (("responses", N_("frames heard"), True), ("malformed", N_("malformed"), True), ("timeouts", N_("timeouts"), False))
+REQUEST_COUNTERS = (("requests", N_("req"), True), ("timeouts", N_("timeouts"), True), ("crc_errors", "CRC", True),
+                    ("exceptions", N_("exc"), False), ("malformed", N_("malformed"), False))
+
+
+def english(lang: Lang | None) -> Lang:
+    return lang or i18n.get("en")
+
+
+def overview_tile(state, lang: Lang | None = None) -> dict:
+    """The device type's declared tile as the overview shows it: in English an engineer's words
+    (:func:`evaluate_tile`), in another language the plant view's words in it (:func:`plant_tile`: the
+    documents' words; the engineer's diagnoses are on the device's page)."""
+    if lang is None or lang.code == "en":
+        return evaluate_tile(state)
+    return plant_tile(state, lang)
 
 
 def drift_rows(state) -> list[dict]:
@@ -65,17 +80,18 @@ def drift_rows(state) -> list[dict]:
     return list(drift.get("changed") or [])
 
 
-def replaced_text(state) -> str:
+def replaced_text(state, lang: Lang | None = None) -> str:
     """"replaced?" with the known and the new identity (app/replace.py), "" while the identity is as known."""
     replaced = getattr(state, "replaced", None)
     if not replaced:
         return ""
     from app.replace import identity_text
 
-    return f"replaced? known {identity_text(replaced['old'])}, now {identity_text(replaced['new'])}"
+    return english(lang).gettext("replaced? known {old}, now {new}").format(
+        old=identity_text(replaced["old"]), new=identity_text(replaced["new"]))
 
 
-def replaced_short(state) -> str:
+def replaced_short(state, lang: Lang | None = None) -> str:
     """"replaced? serial 660020 → 770077": what differs, old and new."""
     replaced = getattr(state, "replaced", None)
     if not replaced:
@@ -83,43 +99,62 @@ def replaced_short(state) -> str:
     from app.replace import facets
 
     old, new = facets(replaced["old"]), facets(replaced["new"])
-    return "replaced? " + ", ".join(f"{k} {old[k]} → {new[k]}" for k in replaced["differs"])
+    return english(lang).gettext("replaced?") + " " + ", ".join(f"{k} {old[k]} → {new[k]}" for k in replaced["differs"])
 
 
-def unsaved_text(state) -> str:
+def unsaved_text(state, lang: Lang | None = None) -> str:
     """"2 unsaved changes" (written, lost at the device's next reset unless saved), "" for none."""
     count = len(getattr(state, "unsaved", ()) or ())
-    return f"{count} unsaved change{'s' if count != 1 else ''}" if count else ""
+    return english(lang).ngettext("{n} unsaved change", "{n} unsaved changes", count).format(n=count) if count else ""
 
 
-def unsaved_names(state) -> str:
+def unsaved_names(state, lang: Lang | None = None) -> str:
     """The unsaved parameters by name (the tile's hover text)."""
     params = getattr(state, "params", None)
     names = []
     for key in sorted(getattr(state, "unsaved", ()) or ()):
         p = params.by_key.get(key) if params is not None else None
         names.append(key if p is None else (p.label or p.name))
-    return "Written, not saved in the device (lost at its next reset): " + ", ".join(names) if names else ""
+    if not names:
+        return ""
+    return english(lang).gettext("Written, not saved in the device (lost at its next reset): {names}").format(names=", ".join(names))
 
 
-def drift_text(rows: list[dict]) -> str:
-    return "; ".join(f"{r['name']} {r['approved']} → {r['now']}" for r in rows)
+def drift_text(rows: list[dict], lang: Lang | None = None) -> str:
+    show = (lambda v: v) if lang is None else (lambda v: lang.numbers_in(str(v)))
+    return "; ".join(f"{r['name']} {show(r['approved'])} → {show(r['now'])}" for r in rows)
 
 
-def counters_text(counters: dict[str, int], bus_type: str, age: float | None) -> str:
+def counters_text(counters: dict[str, int], bus_type: str, age: float | None, lang: Lang | None = None) -> str:
     """The tile's counter line for a device on a ``bus_type`` bus; a counter marked False only when not 0."""
+    _ = english(lang).gettext
     chosen = CAN_COUNTERS if bus_type == "can" else REQUEST_COUNTERS
-    parts = [f"{label} {counters.get(key, 0)}" for key, label, always in chosen if always or counters.get(key)]
+    parts = [f"{_(label)} {counters.get(key, 0)}" for key, label, always in chosen if always or counters.get(key)]
     if counters.get("write_errors"):
-        parts.append(f"write err {counters['write_errors']}")
-    return " · ".join(parts + [f"last {'frame' if bus_type == 'can' else 'answer'} {fmt_age(age)}"])
+        parts.append(_("write err {n}").format(n=counters["write_errors"]))
+    last = _("last frame {age}") if bus_type == "can" else _("last answer {age}")
+    return " · ".join(parts + [last.format(age=fmt_age(age, lang))])
 
 
-def overview_shows(state) -> tuple:
+def overview_shows(state, lang: Lang | None = None) -> tuple:
     """What a tile and a table row of the overview draw, ages and counters left out: redrawn when it changed."""
-    tile = evaluate_tile(state)
+    tile = overview_tile(state, lang)
     return (tile["lines"], tile["alarms"], tile["bar"], tile["quality"], state.status, state.last_error,
             drift_text(drift_rows(state)), replaced_text(state), unsaved_text(state))
+
+
+_SHOWS: dict[str, object] = {}
+
+
+def shows_in(lang: Lang | None):
+    """:func:`overview_shows` in ``lang``: one function per language, so the feed compares the tiles of one language
+    once per change however many pages show them."""
+    if lang is None or lang.code == "en":
+        return overview_shows
+    found = _SHOWS.get(lang.code)
+    if found is None:
+        found = _SHOWS[lang.code] = lambda state: overview_shows(state, lang)
+    return found
 
 
 class DeviceTile:
@@ -130,9 +165,11 @@ class DeviceTile:
 
     shows = staticmethod(overview_shows)
 
-    def __init__(self, name: str):
+    def __init__(self, name: str, lang: Lang | None = None):
         runtime = rt.current()
         self.name = name
+        self.lang = lang
+        _ = english(lang).gettext
         self.state = runtime.store.devices[name]
         self.device_type = DEVICE_TYPES[self.state.type]
         self.bus_type = runtime.plant.buses[self.state.bus].type
@@ -145,8 +182,9 @@ class DeviceTile:
             self.card.props(f'data-device="{name}"')
             with ui.row().classes("items-center w-full no-wrap"):
                 ui.label(name).classes("text-subtitle1 text-weight-bold tile-name").props(f'title="{name}"')
-                self.badge = ui.badge("waiting", color="grey")
-            self.kind = ui.label(f"{self.device_type.title} on {self.state.bus}").classes("text-caption text-grey-8")
+                self.badge = ui.badge(_("waiting"), color="grey")
+            title = self.device_type.title if lang is None else lang.phrase(self.device_type.title)
+            self.kind = ui.label(_("{type} on {bus}").format(type=title, bus=self.state.bus)).classes("text-caption text-grey-8")
             self.values = ui.column().classes("gap-0 w-full").props("data-tile-values")
             self.lines = LabelPool(self.values)
             # they move with every frame: drawn once a second, with every other tile's, on the page's tick
@@ -174,12 +212,14 @@ class DeviceTile:
     def refresh(self, ticked: bool = False) -> None:
         """Show the device as it is now; ``ticked``: the page's once-a-second tick (counters and ages too)."""
         s = self.state
+        lang = self.lang
+        _ = english(lang).gettext
         status, age = s.status, s.age
-        tile = evaluate_tile(s)  # the device type's declared tile: the same lines and alarms as the plant view
+        tile = overview_tile(s, lang)  # the device type's declared tile: the same lines and alarms as the plant view
         rows = drift_rows(s)
-        replaced = replaced_text(s)
-        if self._changed("badge", (status, status_text(status, age))):
-            set_status_badge(self.badge, status, age)
+        replaced = replaced_text(s, lang)
+        if self._changed("badge", (status, status_text(status, age, lang))):
+            set_status_badge(self.badge, status, age, lang)
         quality = tile["quality"]
         if tile is not self._tile:
             self._tile = tile
@@ -189,7 +229,7 @@ class DeviceTile:
         marked = quality if quality in ("stale", "offline") else "good"
         if self._changed("quality", marked):
             mark_quality(self.values, marked)
-        note = quality_note(quality, tile["age"]) if marked != "good" else ""
+        note = quality_note(quality, tile["age"], lang) if marked != "good" else ""
         if self._changed("note", note) and (note or self.quality_note is not None):
             self._element("quality_note", lambda: ui.label().classes("q-age")).set_text(note)
         error = s.last_error if status != "online" else ""
@@ -197,31 +237,31 @@ class DeviceTile:
             self._element("error", lambda: ui.label().classes("text-caption text-negative")).set_text(error)
         if self._changed("replaced", replaced) and (replaced or self.replaced is not None):
             # another serial number (firmware, variant) than known at this address: the replacement assistant
-            badge = self._element("replaced", lambda: ui.badge("replaced?", color="red-8").classes("drift-badge")
+            badge = self._element("replaced", lambda: ui.badge(_("replaced?"), color="red-8").classes("drift-badge")
                                   .props(f'data-replaced="{self.name}"'))
             badge.set_visibility(bool(replaced))
             badge._props["title"] = replaced
-            badge.text = replaced_short(s) or "replaced?"
+            badge.text = replaced_short(s, lang) or _("replaced?")
             badge.update()
         if self._changed("drift", drift_text(rows)) and (rows or self.drift is not None):
             # the commissioning record: the differing parameters on hover (title) and in the record page
-            badge = self._element("drift", lambda: ui.badge("changed since approved", color="orange-9")
+            badge = self._element("drift", lambda: ui.badge(_("changed since approved"), color="orange-9")
                                   .classes("drift-badge").props(f'data-drift="{self.name}"'))
             badge.set_visibility(bool(rows))
-            badge.text = f"changed since approved ({len(rows)})" if rows else "changed since approved"
-            badge._props["title"] = "Changed since approved: " + drift_text(rows) if rows else ""
+            badge.text = _("changed since approved ({n})").format(n=len(rows)) if rows else _("changed since approved")
+            badge._props["title"] = _("Changed since approved: {rows}").format(rows=drift_text(rows, lang)) if rows else ""
             badge.update()
-        unsaved = unsaved_text(s)
+        unsaved = unsaved_text(s, lang)
         if self._changed("unsaved", unsaved) and (unsaved or self.unsaved is not None):
             # written, not saved: lost at the device's next reset (its page offers Save)
             badge = self._element("unsaved", lambda: ui.badge("", color="amber-10").classes("drift-badge")
                                   .props(f'data-unsaved="{self.name}"'))
             badge.set_visibility(bool(unsaved))
             badge.text = unsaved
-            badge._props["title"] = unsaved_names(s)
+            badge._props["title"] = unsaved_names(s, lang)
             badge.update()
         if ticked:
-            self.counters.set_text(counters_text(s.counters.as_dict(), self.bus_type, age))
+            self.counters.set_text(counters_text(s.counters.as_dict(), self.bus_type, age, lang))
 
 
 # a tile's card from top to bottom below its name (the seldom shown ones are built when first needed)
@@ -239,8 +279,9 @@ class GlanceRow:
 
     shows = staticmethod(overview_shows)
 
-    def __init__(self, name: str):
+    def __init__(self, name: str, lang: Lang | None = None):
         self.name = name
+        self.lang = lang
         self.state = rt.current().store.devices[name]
         self._shown: tuple = ()
         self.rank = RANK_OTHER  # where the row goes in the table: alarms and offline devices first (:func:`rank_of`)
@@ -250,28 +291,31 @@ class GlanceRow:
 
     def refresh(self, ticked: bool = False) -> None:
         s = self.state
+        lang = self.lang
+        _ = english(lang).gettext
         status, age = s.status, s.age
-        tile = evaluate_tile(s)
+        tile = overview_tile(s, lang)
         alarms = tile["alarms"] if tile["quality"] in ("good", "unknown") else []
         rows = drift_rows(s)
-        replaced = replaced_text(s)
-        unsaved = unsaved_text(s)
+        replaced = replaced_text(s, lang)
+        unsaved = unsaved_text(s, lang)
         self.alarmed = bool(alarms)
         self.rank = rank_of(status, bool(alarms), bool(rows or replaced or unsaved))
-        shown = (status, "; ".join(alarms), fmt_age(age) if age is not None else "never", drift_text(rows), replaced, unsaved)
+        shown = (status, "; ".join(alarms), fmt_age(age, lang) if age is not None else _("never"), drift_text(rows, lang),
+                 replaced, unsaved)
         if shown == self._shown:
             return
         self._shown = shown
         name = escape(self.name, quote=True)
-        state = _cell(status_text(status, None) if status != "stale" else "stale", f"status-{status}")
+        state = _cell(status_text(status, None, lang) if status != "stale" else _("stale"), f"status-{status}")
         if rows:
-            state += _cell("changed since approved", "glance-drift", f' data-glance-drift="{name}"')
+            state += _cell(_("changed since approved"), "glance-drift", f' data-glance-drift="{name}"')
         if unsaved:
-            state += _cell(unsaved, "glance-unsaved", f' data-glance-unsaved="{name}" title="{escape(unsaved_names(s), quote=True)}"')
+            state += _cell(unsaved, "glance-unsaved", f' data-glance-unsaved="{name}" title="{escape(unsaved_names(s, lang), quote=True)}"')
         if replaced:
             state += (f'<a class="glance-replaced" href="/replace/{name}" data-glance-replaced="{name}" '
-                      f'title="{escape(replaced, quote=True)}">{escape(replaced_short(s) or "replaced?")}</a>')
-        alarm_cell = _cell(shown[1]) + (_cell(f"Changed since approved: {shown[3]}", "glance-drift") if rows else "")
+                      f'title="{escape(replaced, quote=True)}">{escape(replaced_short(s, lang) or _("replaced?"))}</a>')
+        alarm_cell = _cell(shown[1]) + (_cell(_("Changed since approved: {rows}").format(rows=shown[3]), "glance-drift") if rows else "")
         self.row.set_content(f'<td><a href="/device/{name}">{escape(self.name)}</a></td><td>{state}</td>'
                              f'<td class="alarms">{alarm_cell}</td><td class="age">{escape(shown[2])}</td>')
         self.row.classes(replace=f"glance-{status}")
@@ -279,8 +323,8 @@ class GlanceRow:
 
 RANK_ATTENTION, RANK_MARKED, RANK_OTHER = 0, 1, 2
 LARGE_PLANT = 24  # devices: from here on the overview offers filters and draws a bus's tiles when it is opened
-STATE_FILTERS = {"": "Every state", "attention": "Alarm, offline or stale", "alarms": "With alarms",
-                 "offline": "Offline", "stale": "Stale", "online": "Online"}
+STATE_FILTERS = {"": N_("Every state"), "attention": N_("Alarm, offline or stale"), "alarms": N_("With alarms"),
+                 "offline": N_("Offline"), "stale": N_("Stale"), "online": N_("Online")}
 
 
 def rank_of(status: str, alarmed: bool, marked: bool) -> int:
@@ -318,33 +362,39 @@ class GlanceTable:
     """Every device in one dense table (state, alarms, age of its last value): the plant at a glance, alarms and
     offline devices first. A row is one element; the order is sent again only when a device's rank changed."""
 
-    def __init__(self, runtime, followers: Followers, filt: OverviewFilter, large: bool):
+    def __init__(self, runtime, followers: Followers, filt: OverviewFilter, large: bool, lang: Lang | None = None):
         self.runtime = runtime
+        self.lang = lang
+        _ = english(lang).gettext
         self.filter = filt
         self.rows: dict[str, GlanceRow] = {}
         self.shown_count = None
         with ui.card().classes("glance q-pa-sm").props("data-testid=glance"):
             total = len(runtime.plant.devices)
-            self.title = ui.label(f"All devices ({total})").classes("text-subtitle2")
+            self.title = ui.label(_("All devices ({total})").format(total=total)).classes("text-subtitle2")
             if large:
                 self._filters(runtime)
             with ui.element("table").classes("glance-table"):
-                ui.html("<tr><th>Device</th><th>State</th><th>Alarms</th><th>Last value</th></tr>", sanitize=False,
-                        tag="thead")
+                ui.html("<tr>" + "".join(f"<th>{escape(_(head))}</th>" for head in (N_("Device"), N_("State"), N_("Alarms"),
+                                                                                   N_("Last value"))) + "</tr>",
+                        sanitize=False, tag="thead")
                 with ui.element("tbody") as self.body:
                     for dev in runtime.plant.devices.values():
-                        self.rows[dev.name] = row = GlanceRow(dev.name)
-                        followers.add(row)
+                        self.rows[dev.name] = row = GlanceRow(dev.name, lang)
+                        followers.add(row, shows_in(lang))
         self.order = list(self.rows)
         self.arrange()
 
     def _filters(self, runtime) -> None:
-        buses = {"": "Every bus"} | {b: b for b in runtime.plant.buses}
+        lang = english(self.lang)
+        _ = lang.gettext
+        buses = {"": _("Every bus")} | {b: b for b in runtime.plant.buses}
         present = sorted({d.type for d in runtime.plant.devices.values()})
-        types = {"": "Every type"} | {t: DEVICE_TYPES[t].title for t in present}
+        types = {"": _("Every type")} | {t: lang.phrase(DEVICE_TYPES[t].title) for t in present}
+        states = {key: _(label) for key, label in STATE_FILTERS.items()}
         with ui.row().classes("items-center gap-1 w-full no-wrap").props("data-testid=overview-filters"):
             for attr, options, testid in (("bus", buses, "filter-bus"), ("type", types, "filter-type"),
-                                          ("state", STATE_FILTERS, "filter-state")):
+                                          ("state", states, "filter-state")):
                 ui.select(options, value="", on_change=lambda e, a=attr: self.set_filter(a, e.value or "")).props(
                     f"dense options-dense outlined data-testid={testid}").classes("col")
 
@@ -372,11 +422,15 @@ class GlanceTable:
         if shown != self.shown_count:
             self.shown_count = shown
             total = len(self.rows)
-            self.title.set_text(f"All devices ({total})" if shown == total else f"{shown} of {total} devices")
+            _ = english(self.lang).gettext
+            self.title.set_text(_("All devices ({total})").format(total=total) if shown == total else
+                                _("{shown} of {total} devices").format(shown=shown, total=total))
 
 
 def content() -> None:
     runtime = rt.current()
+    lang = i18n.page_language()
+    _ = lang.gettext
     with frame("Overview", beat=False):  # a page that starts and holds nothing: no dead-man beats
         ui.add_css(TILE_CSS)
         followers = Followers()
@@ -384,17 +438,17 @@ def content() -> None:
         large = len(runtime.plant.devices) > LARGE_PLANT
         filt = OverviewFilter(runtime)
         with ui.element("div").classes("overview-layout"):
-            table = GlanceTable(runtime, followers, filt, large) if runtime.plant.devices else None
+            table = GlanceTable(runtime, followers, filt, large, lang) if runtime.plant.devices else None
             with ui.element("div").classes("bus-sections"):
                 sections = []
                 for bus in runtime.plant.buses.values():
                     if large:
-                        sections.append(_large_bus_section(runtime, bus, followers, ticks, filt, table))
+                        sections.append(_large_bus_section(runtime, bus, followers, ticks, filt, table, lang))
                         continue
                     count = max(1, len(runtime.plant.devices_on(bus.name)))
                     width = count * TILE_WIDTH_PX + (count - 1) * TILE_GAP_PX
                     with ui.column().classes("bus-section gap-1").style(f"width: max({width}px, 30rem)"):
-                        _bus_section(runtime, bus, followers, ticks)
+                        _bus_section(runtime, bus, followers, ticks, lang=lang)
                 # one tick for the page: every tile's counters and ages, the table's ages and the bus lines
                 # go to the browser together, in one message a second
                 ticks.insert(0, (1, followers.tick))
@@ -408,11 +462,11 @@ def content() -> None:
                     ticks.insert(1, (1, arrange))
                 ui.timer(1.0, lambda count=[0]: _tick(ticks, count))
         if not runtime.plant.devices:
-            ui.label("This plant file lists no devices.").classes("text-grey-8")
+            ui.label(_("This plant file lists no devices.")).classes("text-grey-8")
 
 
 def _large_bus_section(runtime, bus, followers: Followers, ticks: list, filt: OverviewFilter,
-                       table: GlanceTable | None) -> Callable[[], None]:
+                       table: GlanceTable | None, lang: Lang | None = None) -> Callable[[], None]:
     """A bus of a large plant: a closed section with its device count and their states in its caption; its tiles
     are drawn the first time it is opened (a hundred tiles at once would be a slow page nobody reads whole).
     Returns what the page's tick calls: the caption and the visibility under the filter."""
@@ -428,7 +482,7 @@ def _large_bus_section(runtime, bus, followers: Followers, ticks: list, filt: Ov
             return
         built.append(True)
         with expansion:
-            _bus_section(runtime, bus, followers, ticks, tiles)
+            _bus_section(runtime, bus, followers, ticks, tiles, lang)
         update()
 
     def update() -> None:
@@ -436,8 +490,10 @@ def _large_bus_section(runtime, bus, followers: Followers, ticks: list, filt: Ov
         states = [rows[n] for n in names if n in rows]
         attention = sum(1 for r in states if r.rank == RANK_ATTENTION)
         online = sum(1 for r in states if r.state.status == "online")
-        caption = f"{bus.type} · {len(names)} device{'s' if len(names) != 1 else ''} · {online} online" + (
-            f" · {attention} with alarms or offline" if attention else "")
+        words = english(lang)
+        caption = f"{bus.type} · " + words.ngettext("{n} device", "{n} devices", len(names)).format(n=len(names)) + \
+            " · " + words.gettext("{n} online").format(n=online) + (
+                " · " + words.gettext("{n} with alarms or offline").format(n=attention) if attention else "")
         visible = [n for n in names if filt.matches(n, rows.get(n))]
         if (caption, len(visible)) != shown[0]:
             shown[0] = (caption, len(visible))
@@ -462,34 +518,37 @@ def _tick(ticks: list, count: list) -> None:
             tick()
 
 
-def _bus_section(runtime, bus, followers: Followers, ticks: list, tiles: dict | None = None) -> None:
+def _bus_section(runtime, bus, followers: Followers, ticks: list, tiles: dict | None = None, lang: Lang | None = None) -> None:
     bus_state = runtime.store.buses[bus.name]
+    lang = english(lang)
+    _ = lang.gettext
     with ui.row().classes("items-center gap-x-2 gap-y-0"):
         # icon, name and endpoint never change: one element, its parts laid out in the row as before
         ui.html(f'{ICON % ("", "cable")}<span class="text-h6">{escape(bus.name)}</span>'
                 f'<span class="text-caption text-grey-8">{escape(f"{bus.type} · {bus.endpoint}")}</span>',
                 sanitize=False).style("display: contents")
-        ui.button("Bus monitor", icon="monitor_heart", on_click=lambda b=bus.name: ui.navigate.to(f"/monitor/{b}")).props("flat dense")
+        ui.button(_("Bus monitor"), icon="monitor_heart", on_click=lambda b=bus.name: ui.navigate.to(f"/monitor/{b}")).props("flat dense")
         if bus.type == "modbus-rtu":
             from pages.discover import open_discover_dialog
 
-            discover = ui.button("Discover locks", icon="search", on_click=lambda b=bus.name: open_discover_dialog(b)).props(
+            discover = ui.button(_("Discover locks"), icon="search", on_click=lambda b=bus.name: open_discover_dialog(b)).props(
                 "flat dense data-testid=discover-locks")
-            enable_unless(discover, viewer_reason())  # it sends to the line: an engineer's action
+            enable_unless(discover, viewer_reason(lang))  # it sends to the line: an engineer's action
     conn = ui.label().classes("text-caption")
     shown: list = [None]
 
     def show_conn(label=conn, state=bus_state) -> None:
-        text = "connected" if state.connected else f"not connected: {state.last_error or 'opening...'}"
+        text = _("connected") if state.connected else _("not connected: {error}").format(error=state.last_error or _("opening..."))
         if state.connected and hasattr(state, "bus_state"):
-            text += f" · {state.bus_state} · {state.rx_frames} frames in, {state.error_frames} error frames"
+            text += " · " + _("{state} · {rx} frames in, {errors} error frames").format(
+                state=state.bus_state, rx=state.rx_frames, errors=state.error_frames)
         if getattr(state, "cycle_s", None):  # Modbus: the measured time to poll every device once
-            text += f" · cycle {state.cycle_s:.2f} s"
+            text += " · " + _("cycle {seconds} s").format(seconds=lang.number(state.cycle_s, 2))
         if getattr(state, "address_conflicts", 0):
-            text += f" · {state.address_conflicts} answers from another unit: address conflict on the line?"
+            text += " · " + _("{n} answers from another unit: address conflict on the line?").format(n=state.address_conflicts)
         shed = getattr(state, "shed", 0)
         if shed:  # the program could not keep up with this bus: say so rather than lag
-            text += f" · {shed} frames shed: more traffic than this program can handle"
+            text += " · " + _("{n} frames shed: more traffic than this program can handle").format(n=shed)
         ok = state.connected and getattr(state, "bus_state", "") != "bus-off"
         classes = "text-caption " + (("text-warning" if shed else "text-positive") if ok else "text-negative")
         if (text, classes) == shown[0]:
@@ -502,21 +561,23 @@ def _bus_section(runtime, bus, followers: Followers, ticks: list, tiles: dict | 
     ticks.append((1, show_conn))
     with ui.element("div").classes("tile-grid") as row:
         for dev in runtime.plant.devices_on(bus.name):
-            tile = DeviceTile(dev.name)
-            followers.add(tile)
+            tile = DeviceTile(dev.name, lang)
+            followers.add(tile, shows_in(lang))
             if tiles is not None:
                 tiles[dev.name] = tile
     if bus.type == "can":
-        ticks.append((2, _discovered_section(bus.name, row, followers)))
+        ticks.append((2, _discovered_section(bus.name, row, followers, lang)))
 
 
-def _discovered_section(bus: str, tile_row, followers: Followers) -> Callable[[], None]:
+def _discovered_section(bus: str, tile_row, followers: Followers, lang: Lang | None = None) -> Callable[[], None]:
     """Devices heard on a CAN bus that the plant does not list yet, with Adopt.
 
     Only devices that showed the evidence their type needs are listed; unknown IDs still
     being watched, and what was left out, are counted below the list.
     """
     runtime = rt.current()
+    lang = english(lang)
+    _ = lang.gettext
     section = tile_row.parent_slot.parent
     boxes: list = []  # the list's column, built when there is something to list (most buses never have)
     shown: list = [None]
@@ -524,7 +585,8 @@ def _discovered_section(bus: str, tile_row, followers: Followers) -> Callable[[]
     ages: dict = {}  # key -> the label with evidence and age, updated in place (the Adopt button stays put)
 
     def age_text(entry: dict) -> str:
-        return f"{entry.get('evidence') or ''} · {entry['frames']} frames, last {fmt_age(time.time() - entry['last_seen'])}"
+        return f"{entry.get('evidence') or ''} · " + _("{n} frames, last {age}").format(
+            n=entry["frames"], age=fmt_age(time.time() - entry["last_seen"], lang))
 
     def refresh() -> None:
         entries = list(runtime.worker.discovered.get(bus, {}).items())
@@ -551,34 +613,37 @@ def _discovered_section(bus: str, tile_row, followers: Followers) -> Callable[[]
             return
         with box:
             if entries:
-                ui.label(f"Discovered on {bus}, not in the plant file").classes("text-subtitle2")
+                ui.label(_("Discovered on {bus}, not in the plant file").format(bus=bus)).classes("text-subtitle2")
             for key, entry in entries:
                 with ui.row().classes("items-center gap-3"):
                     ui.icon("fiber_new", color="orange")
                     ident = f"{entry['device_id']} ({'ext' if entry['extended'] else 'std'} 0x{entry['device_id']:X})"
-                    title = DEVICE_TYPES[entry["type"]].title
-                    ui.label(f"{title} with device ID {ident}").classes("text-body2")
+                    title = lang.phrase(DEVICE_TYPES[entry["type"]].title)
+                    ui.label(_("{type} with device ID {ident}").format(type=title, ident=ident)).classes("text-body2")
                     ages[key] = ui.label(age_text(entry)).classes("text-caption text-grey-8")
-                    ui.button("Adopt", icon="add", on_click=lambda e=entry: _adopt_dialog(bus, e, tile_row, followers)).props("dense outline").props(
+                    ui.button(_("Adopt"), icon="add", on_click=lambda e=entry: _adopt_dialog(bus, e, tile_row, followers, lang)).props("dense outline").props(
                         f'data-adopt="{entry["device_id"]}"'
                     )
             if flood:  # a flood is shown as a flood, never as devices
-                ui.label(f"Discovery on {bus}: {flood}").classes("text-body2 text-negative").props("data-discovery-flood")
+                ui.label(_("Discovery on {bus}: {flood}").format(bus=bus, flood=flood)).classes("text-body2 text-negative").props("data-discovery-flood")
             notes = []
             if watching:
                 rules = "; ".join(summary.get("rules") or [])
-                notes.append(f"watching {watching} unknown ID{'s' if watching != 1 else ''}" + (f" (listed after {rules})" if rules else ""))
+                notes.append(lang.ngettext("watching {n} unknown ID", "watching {n} unknown IDs", watching).format(n=watching)
+                             + (" " + _("(listed after {rules})").format(rules=rules) if rules else ""))
             if left_out:
-                notes.append(f"{left_out} left out: too many unknown IDs at once")
+                notes.append(_("{n} left out: too many unknown IDs at once").format(n=left_out))
             if notes:
-                ui.label("Discovery on " + bus + ": " + "; ".join(notes)).classes("text-caption text-grey-8").props("data-discovery-note")
+                ui.label(_("Discovery on {bus}: {flood}").format(bus=bus, flood="; ".join(notes))).classes("text-caption text-grey-8").props("data-discovery-note")
 
     refresh()
     return refresh
 
 
-def _adopt_dialog(bus: str, entry: dict, tile_row, followers: Followers) -> None:
+def _adopt_dialog(bus: str, entry: dict, tile_row, followers: Followers, lang: Lang | None = None) -> None:
     runtime = rt.current()
+    lang = english(lang)
+    _ = lang.gettext
     suggested = f"{entry['type']}-{entry['device_id']}"
     path = runtime.plant.path
     bus_config = runtime.plant.buses[bus]
@@ -591,20 +656,21 @@ def _adopt_dialog(bus: str, entry: dict, tile_row, followers: Followers) -> None
     conflict = can_id_conflict(runtime.plant.devices_on(bus) + [config(suggested)], bus_config)
 
     with ui.dialog() as dialog, ui.card().classes("w-[34rem] max-w-full"):
-        ui.label("Adopt a discovered device").classes("text-h6")
-        name = ui.input("Name in the plant", value=suggested).props("outlined dense")
+        ui.label(_("Adopt a discovered device")).classes("text-h6")
+        name = ui.input(_("Name in the plant"), value=suggested).props("outlined dense")
         own = [u for u in device_type.can_id_uses(config(suggested).options, "can") if not u.shared]
         if own:
-            ui.label("CAN IDs it uses: " + "; ".join(f"{format_can_ids(u.first, u.last, u.extended)} {u.use}" for u in own)).classes(
+            ui.label(_("CAN IDs it uses: {ids}").format(ids="; ".join(f"{format_can_ids(u.first, u.last, u.extended)} {u.use}" for u in own))).classes(
                 "text-caption")
-        ui.label("Lines for the plant file:").classes("text-caption text-grey-8")
+        ui.label(_("Lines for the plant file:")).classes("text-caption text-grey-8")
         lines = ui.code(device_toml(config(suggested)), language="toml").classes("w-full")
         name.on_value_change(lambda e: lines.set_content(device_toml(config(e.value or suggested))))
         writable = path is not None and path.exists() and os.access(path, os.W_OK) and path.resolve() != DEMO_PLANT.resolve()
-        note = f"Write appends them to {path}." if writable else "The plant file cannot be written here (built-in or read-only): copy the lines."
+        note = _("Write appends them to {path}.").format(path=path) if writable else \
+            _("The plant file cannot be written here (built-in or read-only): copy the lines.")
         ui.label(note).classes("text-caption")
         if conflict is not None:
-            ui.label("Cannot be adopted: " + conflict[1].split(": ", 1)[-1]).classes("text-body2 text-negative").props("data-adopt-conflict")
+            ui.label(_("Cannot be adopted: {reason}").format(reason=conflict[1].split(": ", 1)[-1])).classes("text-body2 text-negative").props("data-adopt-conflict")
 
         async def take(write: bool) -> None:
             dev = config(name.value or suggested)
@@ -621,17 +687,18 @@ def _adopt_dialog(bus: str, entry: dict, tile_row, followers: Followers) -> None
                     adopt, user=user, role=role, target=dev.name, new=device_toml(dev).strip(),
                     describe="adopt discovered device" + (f" and append it to {path.name}" if write else ""))
             except (ValueError, OSError, PermissionDenied, AuditUnavailable) as exc:
-                ui.notify(f"Cannot adopt: {exc}", type="negative", multi_line=True)
+                ui.notify(_("Cannot adopt: {error}").format(error=exc), type="negative", multi_line=True)
                 return
             with tile_row:
-                followers.add(DeviceTile(dev.name))
-            ui.notify(f"{dev.name} added to the running plant" + (f" and to {path.name}" if write else ""), type="positive")
+                followers.add(DeviceTile(dev.name, lang), shows_in(lang))
+            ui.notify(_("{name} added to the running plant and to {file}").format(name=dev.name, file=path.name) if write else
+                      _("{name} added to the running plant").format(name=dev.name), type="positive")
             dialog.close()
 
         with ui.row().classes("justify-end w-full"):
-            ui.button("Cancel", on_click=dialog.close).props("flat")
-            add_button = ui.button("Add to the running plant", on_click=lambda: take(False)).props("outline")
-            write_button = ui.button("Add and write to the plant file", on_click=lambda: take(True))
+            ui.button(_("Cancel"), on_click=dialog.close).props("flat")
+            add_button = ui.button(_("Add to the running plant"), on_click=lambda: take(False)).props("outline")
+            write_button = ui.button(_("Add and write to the plant file"), on_click=lambda: take(True))
             if not writable or conflict is not None:
                 write_button.disable()
             if conflict is not None:
