@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from app import host, i18n
-from app.headless import _bindable, _cli_user, _headless, _load, _refuse_taken_ports
+from app.headless import bindable, cli_user, load_plant_or_exit, refuse_taken_ports, run_headless
 from app.i18n import N_
 
 # the language of the command's messages and help: --lang, else the environment (LANGUAGE, LC_ALL, LC_MESSAGES,
@@ -265,12 +265,12 @@ def _quiet_libraries(verbose: bool) -> None:
 def run_sim(args) -> int:
     from app.runtime import SimulatedPlant
 
-    plant = _load(args.plant)
+    plant = load_plant_or_exit(args.plant)
     sim = SimulatedPlant(plant, only_flagged=not args.all)
     if not sim.servers:
         print(_("commission sim: the plant file has no bus with simulate = true (use --all to simulate every bus)"), file=sys.stderr)
         return 2
-    if _refuse_taken_ports(plant, "commission sim", every=args.all):
+    if refuse_taken_ports(plant, "commission sim", every=args.all):
         return 2
 
     async def main() -> None:
@@ -361,7 +361,7 @@ def run_backup(args) -> int:
                 failures += 1
                 continue
             try:
-                path = await backup.backup_device(runtime, name, args.out, user=_cli_user(), role="engineer")
+                path = await backup.backup_device(runtime, name, args.out, user=cli_user(), role="engineer")
             except Exception as exc:  # noqa: BLE001 - one device's failure must not stop the others
                 print(_("{name}: backup failed: {error}").format(name=name, error=exc), file=sys.stderr)
                 failures += 1
@@ -369,7 +369,7 @@ def run_backup(args) -> int:
             print(f"{name}: {path}")
         return 1 if failures else 0
 
-    return asyncio.run(_headless(args, work))
+    return asyncio.run(run_headless(args, work))
 
 
 def run_restore(args) -> int:
@@ -430,13 +430,13 @@ def run_restore(args) -> int:
                       file=sys.stderr)
             print(_("nothing written"), file=sys.stderr)
             return 2
-        report = await backup.execute_restore(runtime, plan, selected, user=_cli_user(), confirmed=confirmed)
+        report = await backup.execute_restore(runtime, plan, selected, user=cli_user(), confirmed=confirmed)
         for parameter, error in report.failed + report.refused:
             print(_("  failed: {parameter}: {error}").format(parameter=parameter, error=error), file=sys.stderr)
         print(report.summary())
         return 0 if report.ok else 1
 
-    return asyncio.run(_headless(args, work))
+    return asyncio.run(run_headless(args, work))
 
 
 def run_view(args) -> int:
@@ -475,7 +475,7 @@ def run_view(args) -> int:
                 "to the broker; add --public if everyone who can reach this address may see them").format(host=args.host),
               file=sys.stderr)
         return 2
-    if not _bindable(args.host, args.port):
+    if not bindable(args.host, args.port):
         print(_("commission view: port {port} on {host} is taken; choose another with --port").format(port=args.port, host=args.host),
               file=sys.stderr)
         return 2
@@ -557,12 +557,12 @@ def _main(argv: list[str] | None) -> int:
     from app import web
     from app.runtime import Runtime
 
-    plant = _load(args.plant)
-    if not _bindable(args.host, args.port):
+    plant = load_plant_or_exit(args.plant)
+    if not bindable(args.host, args.port):
         print(_("commission: port {port} on {host} is taken (another commission or another program); "
                 "choose another with --port").format(port=args.port, host=args.host), file=sys.stderr)
         return 2
-    if not args.no_sim and _refuse_taken_ports(plant):
+    if not args.no_sim and refuse_taken_ports(plant):
         return 2
     from app.runtime import raise_priority
 

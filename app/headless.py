@@ -103,14 +103,6 @@ def cli_user() -> str:
         return "cli"
 
 
-# the names these had before; app/cli.py still imports them so
-_load = load_plant_or_exit
-_bindable = bindable
-_refuse_taken_ports = refuse_taken_ports
-_headless = run_headless
-_cli_user = cli_user
-
-
 # -- a person at a terminal: the questions of a checkout on real equipment, and a dead-man of its own --------
 HELD_GAP_S = 0.7  # two presses of SPACE this close together: the key is held (the terminal's auto-repeat)
 NO_KEYS = ("n", "N")
