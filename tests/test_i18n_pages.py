@@ -139,8 +139,8 @@ async def test_a_device_page_in_german_has_its_frame_events_and_badge_in_german(
     async with german_user(runtime) as user:
         await eventually(lambda: runtime.store.devices["door-1"].status == "online", timeout=15, what="door-1 online")
         await user.open("/device/door-1")
-        await user.should_see("Ereignisse", retries=50)
-        await user.should_see("online")
+        await user.should_see("Ereignisse", retries=100)
+        await user.should_see("online", retries=100)
         shown = shown_texts(user)
         for english in ("Events", "Time", "Level", "Event", "waiting"):
             assert english not in shown, english
@@ -160,3 +160,20 @@ async def test_the_overview_in_german_shows_no_english(tmp_path):
         await eventually(lambda: any("letzte Antwort" in t for t in shown_texts(user)), timeout=5, what="the counters' line")
         assert english_on(user) == []
         assert not i18n.get("de").missing, i18n.get("de").missing
+
+
+async def test_the_backup_page_in_german_shows_no_english(tmp_path):
+    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await eventually(lambda: all(s.status == "online" for s in runtime.store.devices.values()), timeout=15,
+                         what="both locks online")
+        await user.open("/backup")
+        await user.should_see("Backup und Wiederherstellung", retries=50)
+        await user.should_see("Backups im Ordner")
+        user.find(content="Auswahl sichern").click()
+        await user.should_see("2 Backup-Datei(en) geschrieben", retries=200)
+        await eventually(lambda: any(t.endswith("door-1.json") or "door-1" in t for t in shown_texts(user)), timeout=5,
+                         what="the files listed")
+        assert english_on(user) == []
+        files = next(e for e in user.client.elements.values() if isinstance(e, ui.table))
+        assert [c["label"] for c in files.columns][:2] == ["Datei", "Gerät"]
