@@ -186,7 +186,7 @@ def columns(table: list[dict], lang: Lang | None) -> list[dict]:
     """A table's columns with their labels (marked ``N_``) in ``lang``."""
     if lang is None:
         return table
-    return [{**column, "label": lang.gettext(column["label"])} for column in table]
+    return [{**column, "label": lang.gettext(column["label"])} if column["label"] else column for column in table]  # "": no header
 
 
 # changed cells of a table's rows (by row key) into the rows the browser shows: its reactive rows re-render those cells

@@ -176,4 +176,4 @@ async def test_the_backup_page_in_german_shows_no_english(tmp_path):
                          what="the files listed")
         assert english_on(user) == []
         files = next(e for e in user.client.elements.values() if isinstance(e, ui.table))
-        assert [c["label"] for c in files.columns][:2] == ["Datei", "Gerät"]
+        assert [c["label"] for c in files.columns] == ["Datei", "Gerät", "Typ", "Erstellt (Ortszeit)", "Von", "Größe", ""]
