@@ -6,21 +6,24 @@ from datetime import datetime
 
 from nicegui import ui
 
+from app import i18n
 from app import runtime as rt
 from app.audit import to_csv
+from app.i18n import N_
 from pages.frame import frame
+from pages.widgets import columns
 
 COLUMNS = [
-    {"name": "time", "label": "Time", "field": "time", "align": "left", "sortable": True},
-    {"name": "user", "label": "User", "field": "user", "align": "left"},
-    {"name": "role", "label": "Role", "field": "role", "align": "left"},
-    {"name": "device", "label": "Device", "field": "device", "align": "left"},
-    {"name": "action", "label": "Action", "field": "action", "align": "left"},
-    {"name": "parameter", "label": "Parameter", "field": "parameter", "align": "left"},
-    {"name": "old", "label": "Old", "field": "old", "align": "left"},
-    {"name": "new", "label": "New", "field": "new", "align": "left"},
+    {"name": "time", "label": N_("Time"), "field": "time", "align": "left", "sortable": True},
+    {"name": "user", "label": N_("User"), "field": "user", "align": "left"},
+    {"name": "role", "label": N_("Role"), "field": "role", "align": "left"},
+    {"name": "device", "label": N_("Device"), "field": "device", "align": "left"},
+    {"name": "action", "label": N_("Action"), "field": "action", "align": "left"},
+    {"name": "parameter", "label": N_("Parameter"), "field": "parameter", "align": "left"},
+    {"name": "old", "label": N_("Old"), "field": "old", "align": "left"},
+    {"name": "new", "label": N_("New"), "field": "new", "align": "left"},
     # the whole result, wrapped inside the screen (a refusal's reason is the point of the row)
-    {"name": "result", "label": "Result", "field": "result", "align": "left",
+    {"name": "result", "label": N_("Result"), "field": "result", "align": "left",
      "style": "white-space: normal; overflow-wrap: break-word; min-width: 14rem", "classes": "audit-result"},
 ]
 for _column in COLUMNS:  # old and new values (a restored setting's text) wrap too
@@ -31,22 +34,25 @@ for _column in COLUMNS:  # old and new values (a restored setting's text) wrap t
 def content() -> None:
     runtime = rt.current()
     audit = runtime.audit
-    with frame("Audit log"):
-        ui.label(f"Stored in {audit.path}; survives restarts.").classes("text-caption text-grey-8")
+    lang = i18n.page_language()
+    _ = lang.gettext
+    with frame(N_("Audit log")):
+        ui.label(_("Stored in {path}; survives restarts.").format(path=audit.path)).classes("text-caption text-grey-8")
         with ui.row().classes("items-end gap-3"):
             # every device, no blank entry: "any device" is the cleared field
-            device = ui.select(sorted(runtime.plant.devices), value=None, label="Device").props(
-                'dense outlined clearable placeholder="any device"'
+            anyone = _("any device")
+            device = ui.select(sorted(runtime.plant.devices), value=None, label=_("Device")).props(
+                f'dense outlined clearable placeholder="{anyone}"'
             ).classes("w-48")
-            user = ui.input("User").props("dense outlined clearable").classes("w-36")
-            text = ui.input("Text (action, parameter, values, result)").props("dense outlined clearable").classes("w-64")
-            result = ui.select({"": "any result", "ok": "ok", "failed": "failed", "refused": "refused"}, value="", label="Result").props(
-                "dense outlined"
-            ).classes("w-36")
+            user = ui.input(_("User")).props("dense outlined clearable").classes("w-36")
+            text = ui.input(_("Text (action, parameter, values, result)")).props("dense outlined clearable").classes("w-64")
+            # the rows' results are the log's own words (records are not translated): the filter names them so
+            result = ui.select({"": _("any result"), "ok": "ok", "failed": "failed", "refused": "refused"}, value="",
+                               label=_("Result")).props("dense outlined").classes("w-36")
             ui.button("CSV", icon="download", on_click=lambda: download()).props("outline")
         count = ui.label().classes("text-caption")
         problem = ui.label().classes("text-negative text-body2")
-        table = ui.table(columns=COLUMNS, rows=[], row_key="id", pagination=50).classes("w-full reg-table")
+        table = ui.table(columns=columns(COLUMNS, lang), rows=[], row_key="id", pagination=50).classes("w-full reg-table")
         table.props("dense flat bordered")
 
     async def entries():
@@ -61,7 +67,7 @@ def content() -> None:
             found = await entries()
             known = sorted(set(runtime.plant.devices) | set(await audit.adevices()))
         except Exception as exc:  # noqa: BLE001 - a locked database is shown, not raised
-            problem.set_text(f"The audit log cannot be read: {exc}")
+            problem.set_text(_("The audit log cannot be read: {error}").format(error=exc))
             return
         problem.set_text("")
         known = [name for name in known if name]  # plant-wide rows (accounts, files) have no device
@@ -72,7 +78,8 @@ def content() -> None:
              "device": e.device, "action": e.action, "parameter": e.parameter, "old": e.old, "new": e.new, "result": e.result}
             for e in found
         ]
-        count.set_text(f"{len(rows)} entries" + (" (newest 5000)" if len(rows) == 5000 else ""))
+        count.set_text(_("{n} entries").format(n=len(rows))
+                       + (" " + _("(newest 5000)") if len(rows) == 5000 else ""))
         if rows != table.rows:
             table.rows = rows
             table.update()

@@ -177,3 +177,14 @@ async def test_the_backup_page_in_german_shows_no_english(tmp_path):
         assert english_on(user) == []
         files = next(e for e in user.client.elements.values() if isinstance(e, ui.table))
         assert [c["label"] for c in files.columns] == ["Datei", "Gerät", "Typ", "Erstellt (Ortszeit)", "Von", "Größe", ""]
+
+
+async def test_the_audit_log_in_german_shows_no_english_but_its_records(tmp_path):
+    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await user.open("/audit")
+        await user.should_see("Audit-Log", retries=50)
+        await user.should_see("Einträge", retries=50)
+        assert english_on(user) == []
+        table = next(e for e in user.client.elements.values() if isinstance(e, ui.table))
+        assert [c["label"] for c in table.columns][:3] == ["Zeit", "Benutzer", "Rolle"]
