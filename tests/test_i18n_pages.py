@@ -188,3 +188,17 @@ async def test_the_audit_log_in_german_shows_no_english_but_its_records(tmp_path
         assert english_on(user) == []
         table = next(e for e in user.client.elements.values() if isinstance(e, ui.table))
         assert [c["label"] for c in table.columns][:3] == ["Zeit", "Benutzer", "Rolle"]
+
+
+async def test_the_fleet_page_in_german_shows_no_english(tmp_path):
+    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await eventually(lambda: all(s.status == "online" for s in runtime.store.devices.values()), timeout=15,
+                         what="both locks online")
+        await user.open("/fleet")
+        await user.should_see("Auf mehrere Geräte anwenden", retries=50)
+        await user.should_see("Prüfen und vergleichen")
+        assert english_on(user) == []
+        source = next(e for e in user.client.elements.values() if e.props.get("data-testid") == "fleet-source")
+        await eventually(lambda: source.options, timeout=5, what="the sources")
+        assert "door-1, wie es jetzt ist (Geschwistergerät)" in source.options.values()
