@@ -11,6 +11,9 @@ from devices.scu import codec as scu_codec
 from devices.scu import params as p
 from devices.scu.adapter import ERROR_BIT_GROUPS, ScuAdapter, value_text
 from devices.scu.control import ScuControl
+from devices.scu.keepalive import RcKeepAlive
+from devices.scu.livedata import ScuLiveData
+from devices.scu.settings import ScuSettings
 
 
 def test_scu_flag_words_in_the_pages_words():
@@ -27,12 +30,15 @@ def test_scu_error_codes_in_the_pages_words():
     adapter.state = DeviceState("scu-1", "scu", "rs1")
     adapter.scales = []
     adapter.core = ScuControl()  # session closed
+    adapter.settings = ScuSettings(adapter)
+    adapter.rc = RcKeepAlive(adapter)
+    adapter.live = ScuLiveData(adapter)
     adapter.rc_times = []
-    adapter._remote_timeout_seen = False
+    adapter.live.remote_timeout_seen = False
     now = time.time()
     for data_id, title in ERROR_BIT_GROUPS:
         for code in (0, 1 << 14, (1 << 14) | (1 << 30)):
-            adapter._publish_one(data_id, code, now)
+            adapter.live.publish_one(data_id, code, now)
             assert adapter.state.points[title].text == scu_codec.error_text(code)
 
 

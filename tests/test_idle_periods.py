@@ -170,9 +170,9 @@ async def test_scu_data_read_in_turn_rides_on_the_rc_of_the_line_thread(scu):  #
         return await transact(request, *args, **kwargs)
 
     adapter.line.transact = spying
-    read_at = dict(adapter._read_at)
+    read_at = dict(adapter.live.read_at)
     turn = set(ROTATING_IDS)
-    assert await wait_for(lambda: turn <= {i for i, t in adapter._read_at.items() if t > read_at.get(i, 0.0)}, timeout=10)
+    assert await wait_for(lambda: turn <= {i for i, t in adapter.live.read_at.items() if t > read_at.get(i, 0.0)}, timeout=10)
     assert [r for r in sent if r[:2] == b"RG"] == []  # none through the loop's worker threads
     point = adapter.state.points["Battery voltage"]
-    assert point.every is not None and point.every < 2 * adapter._rotation_s
+    assert point.every is not None and point.every < 2 * adapter.live.rotation_s

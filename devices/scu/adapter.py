@@ -8,7 +8,7 @@ RT with RG read-back, RA, RG of any data ID) go through the same line; every RE 
 its RS (section 4.6), also under the worker's dead-man rule (:meth:`holders`,
 :meth:`session_lost`).
 
-The RC keep-alive leaves from the serial line's own thread (:meth:`ScuAdapter._rc_tick`), on a
+The RC keep-alive leaves from the serial line's own thread (devices/scu/keepalive.py), on a
 clock no page work can delay, under a lease (devices/lease.py) the worker's dead-man supervisor
 renews while a function runs. Once that lease has lapsed (the event loop stalled, or the
 controlling browser is gone) the thread sends RS to every running function by itself (never RS 19:
@@ -21,23 +21,23 @@ from __future__ import annotations
 import asyncio
 import functools
 import math
-import threading
 import time
-from collections import deque
 from typing import Any
 
 from devices import values as v
 from devices.decoding import malformed
 from devices.control import ControlChanged, Report
 from devices.lease import Lease
-from devices.live import DeviceState, Holder, Point, session_tag
+from devices.live import DeviceState, Holder, session_tag
 from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.facts import (  # noqa: F401 - the published names, also read from here by older callers
-    CommandError, ControlBusy, ActuatorScale, FunctionMap, P_ACTUATORS, P_CONFIGURATION, P_CONTROL, P_CONTROLLED_BY, P_CRC_RETRIES, P_CYCLIC, P_ESTOP, P_FIRMWARE, P_FUNCTIONS, P_LINE, P_RC_GAP, P_RC_PERIOD, P_REFUSAL, P_RESYNCS, P_RS_PENDING, P_RUNNING, P_SAFETY_ID, P_SCALES, P_SERIAL, P_SESSION, P_SESSION_REASON, P_SINGLE_IDS, P_SKIPPED, P_SPEED, P_WATCH, Refusal, SerialLine, SpeedRange, _STATUS_CODES, _collector, _describe_answer, actuator_scales, answer_length, chart_points, header_offset, value_text, jsonable as _jsonable)
+    CommandError, ControlBusy, ActuatorScale, FunctionMap, P_ACTUATORS, P_CONFIGURATION, P_CONTROL, P_CONTROLLED_BY, P_CRC_RETRIES, P_CYCLIC, P_ESTOP, P_FIRMWARE, P_FUNCTIONS, P_LINE, P_RC_GAP, P_RC_PERIOD, P_REFUSAL, P_RESYNCS, P_RS_PENDING, P_RUNNING, P_SAFETY_ID, P_SCALES, P_SERIAL, P_SESSION, P_SESSION_REASON, P_SINGLE_IDS, P_SKIPPED, P_SPEED, P_WATCH, Refusal, SerialLine, SpeedRange, chart_points, describe_answer, actuator_scales, answer_length, header_offset, value_text, jsonable as _jsonable)
+from devices.scu.keepalive import CYCLIC_INDEX, RC_KEY, RcKeepAlive
+from devices.scu.livedata import ERROR_BIT_GROUPS, ROTATING_IDS, ScuLiveData  # noqa: F401 - ERROR_BIT_GROUPS: read from here
 from devices.scu.model import PARAMS
 from devices.scu.settings import RESTORE_NOTE, ScuSettings
-from devices.scu.control import (ESTOP, NOT_HELD, RS_ATTEMPTS, OpenSession, Outcome, ScuControl, SendEstop, SendRS,
+from devices.scu.control import (ESTOP, NOT_HELD, OpenSession, Outcome, ScuControl, SendEstop, SendRS,
                                  WithholdRC)
 from devices.transport import SerialClosed, SerialLineError, SerialTimeout
 
@@ -53,20 +53,12 @@ PROBE_ID = 0x0011  # a single data ID every unit answers (section 5 example read
 # Live data the cyclic object brings with every RC (at most 6 read IDs, table 7); the rest is read
 # with one RG per poll in turn.
 CYCLIC_READ_IDS = (0x0010, 0x0170, 0x00E0, 0x00A0, 0x00D1, 0x0100)
-ROTATING_IDS = (0x00F0, 0x0164, 0x0040, 0x0020, 0x0110, 0x0120, 0x0130, 0x0140, 0x0150, 0x0162, 0x0165, 0x0166,
-                0x0030, 0x00D2, 0x00D3, 0x00D4, 0x00D5, 0x3010, 0x3020, 0x0001, 0x0002)  # settings (drift), identity
-CYCLIC_INDEX = 0  # RC index 0 = CyclicObj 1 (0x3001)
 # Emergency stop (function 19) is not released by the dead-man rule: RS would end the emergency stop,
 # the unsafe direction. It is released only by an explicit "release emergency stop" (section 4.4, F20).
-ERROR_BIT_GROUPS = ((0x00D1, "Error code"), (0x00D2, "Error history 1"), (0x00D3, "Error history 2"),
-                    (0x00D4, "Error history 3"), (0x00D5, "Error history 4"))
 REMOTE_SPEED_MAX = 1000  # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s
 # Table 7 / section 4.6: the remote speed is in % (0 .. 100) with "speed select relative", the standard
 # parametrisation, or in counts/s (0 .. 1000) with "speed select absolute"; the plant file says which.
 SPEED_LIMITS = {"relative": (100, "%"), "absolute": (REMOTE_SPEED_MAX, "counts/s")}
-RC_KEY = "scu rc"  # the RC keep-alive in the serial line's own thread (SerialLine.start_cyclic)
-RC_RETRY_S = 0.05  # an RC not answered is sent again this soon (the watchdog allows 500 ms)
-LEASE_CHECK_S = 0.02  # while a function runs the line's thread looks at the lease this often
 SERVICE_IDS = (0x0001, 0x0002, 0x0060, 0x0070, 0x0080, 0x0090, 0x00B0, 0x00C0, 0x00C1, 0x1010)
 
 class ScuAdapter:
@@ -102,21 +94,16 @@ class ScuAdapter:
         # the safety state and its rules (devices/scu/control.py): session, control, running functions, owed RS,
         # the emergency stop, RC withheld; this adapter carries its actions out on the line
         self.core = ScuControl(lease=Lease())
+        self.rc = RcKeepAlive(self)  # the RC keep-alive on the line's own thread (devices/scu/keepalive.py)
+        self.live = ScuLiveData(self)  # the live points (devices/scu/livedata.py)
         self.started: set[int] = set()  # functions run since the session opened (Stop sends RS to them)
         self.cyclic: p.CyclicDefinition | None = None
         self.cyclic_note = ""
-        self.rc_times: deque[float] = deque(maxlen=50)
         self.crc_retries = 0
         self._last_answer: float | None = None
         self._silent_since: float | None = None
         self._rotate = 0
-        # the data IDs read in turn that the line's thread reads right after its next RC (the same wake-up brings
-        # them to the loop with the RC): one added by every poll while the session is open with the cyclic object
-        self._thread_rgs: deque[int] = deque()
-        self._rg_on_loop: list[int] = []  # reads the thread could not make well: made by the next poll instead
-        self._read_at: dict[int, float] = {}  # RG data ID -> when it was last read (one entry per ID read)
-        self._remote_timeout_seen = False
-        self._cyclic_memo: tuple | None = None  # (cyclic object, RC answer data, scales), its values and point contents
+        self.rg_on_loop: list[int] = []  # reads the thread could not make well: made by the next poll instead
         self._stop_tasks: set[asyncio.Task] = set()
         self.watch: str | None = None  # WATCH_RG or WATCH_SESSION once the first RG outside a session told
         self.single_ids: set[int] = set()  # groups this unit refused: read member by member (remembered)
@@ -126,19 +113,6 @@ class ScuAdapter:
         self._fn_locks: dict[int, asyncio.Lock] = {}
         self._stop_marks: dict[int, float] = {}  # fnc_ID -> when a stop of it was asked
         self._stop_all_at = 0.0  # when a stop of everything was asked
-        # The RC keep-alive on the line's own thread, under a lease (issue 28). ``_guard`` makes the set of
-        # held functions and the lease one state for the thread: no RS and no withheld RC for a stop the
-        # loop has just made.
-        self.rc_on_line_thread = True  # False: RC from the poll on the loop (a line without a thread of its own)
-        self._guard = threading.Lock()
-        self._held: frozenset[int] = frozenset()  # running functions the lease covers (never 19)
-        self._rc_armed = False
-        self._rc_withheld = False  # the lease lapsed: RC is withheld until the session is opened again
-        self._rc_plain = False  # the unit refused RC with the cyclic object: the thread sends RC without data
-        self._rc_last = 0.0  # monotonic time the last acknowledged RC was sent (any sender)
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._stopped_by_thread: set[int] = set()  # RS acknowledged by the line's thread, not yet seen by the loop
-        self.lapses = 0
         state.stale_after = 2.0
         state.registers_periodic = False
         self._publish_session()
@@ -155,7 +129,7 @@ class ScuAdapter:
         state.fact(P_CONTROLLED_BY, None, text="nobody")
         self._publish_control()
         self._publish_scales()
-        self._sync_held()
+        self.sync_held()
         self._publish_estop()
         self._publish_counts()
         state.fact(P_CYCLIC, self.cyclic_note)
@@ -211,8 +185,8 @@ class ScuAdapter:
                 await self.open_session(forced=action.forced)
             else:
                 self._apply(action)
-        self._sync_held()
-        self._sync_phase()
+        self.sync_held()
+        self.sync_phase()
 
     def _apply(self, action) -> None:
         """The actions without I/O of the line: reports, control, withholding RC."""
@@ -225,18 +199,18 @@ class ScuAdapter:
             self.state.fact(P_CONTROLLED_BY, None if c is None else c.user, text="nobody" if c is None else None)
             self._publish_control()
         elif isinstance(action, WithholdRC):
-            with self._guard:
-                self._rc_withheld = True
-            self._sync_phase()
+            with self.rc.guard:
+                self.rc.withheld = True
+            self.sync_phase()
 
-    def _sync_phase(self) -> None:
+    def sync_phase(self) -> None:
         """The session's phase as the core has it: published, and RC armed only while it is open."""
-        with self._guard:
-            armed = self._rc_armed
+        with self.rc.guard:
+            armed = self.rc.armed
         if self.core.phase == "open" and not armed:
-            self._arm_rc()
+            self.rc.arm()
         elif self.core.phase != "open" and armed:
-            self._disarm_rc()
+            self.rc.disarm()
         self._publish_session()
 
     @staticmethod
@@ -277,8 +251,8 @@ class ScuAdapter:
 
         :param quiet: a refusal is expected (a probe): not shown as the last error answer
         """
-        if (keepalive and frame[:2] != codec.RC and self.session == "open" and not self._rc_threaded()
-                and self._rc_due()):
+        if (keepalive and frame[:2] != codec.RC and self.session == "open" and not self.rc.threaded()
+                and self.rc.due()):
             await self._rc()  # only RC feeds the unit's 500 ms watchdog (section 5): long operations interleave it
         expected = bytes(frame[:2])
         for attempt in range(CRC_RETRIES + 1):
@@ -286,13 +260,13 @@ class ScuAdapter:
             sent_at = time.monotonic()
             try:
                 raw = await self.line.transact(frame, functools.partial(answer_length, expected=expected),
-                                               describe=describe, decode=_describe_answer)
+                                               describe=describe, decode=describe_answer)
             except SerialTimeout:
                 self.state.counters.timeouts += 1
-                self._no_answer()
+                self.no_answer()
                 raise
             except SerialClosed:
-                self._no_answer()
+                self.no_answer()
                 raise
             start = header_offset(raw, expected) or 0
             if start:
@@ -314,9 +288,9 @@ class ScuAdapter:
                 if attempt < CRC_RETRIES:
                     continue
                 raise
-            self._answered()
+            self.answered()
             if frame[:2] == codec.RC and answer.ok:
-                self._note_rc(sent_at)
+                self.rc.note(sent_at)
             if not answer.ok:
                 await self._refused(describe, answer, quiet=quiet)
             self.state.counters.responses += 1
@@ -335,32 +309,40 @@ class ScuAdapter:
                 self.resyncs += 1
                 self._publish_counts()
 
-    def _rc_due(self) -> bool:
-        return time.monotonic() - self._rc_last >= self.keepalive_period_s
-
-    def _note_rc(self, sent_at: float) -> None:
-        with self._guard:
-            self._rc_last = max(self._rc_last, sent_at)
-            self.rc_times.append(time.monotonic())
-
     def rc_gaps(self) -> list[float]:
         """Seconds between the acknowledged RCs kept (the last 50)."""
-        with self._guard:
-            times = list(self.rc_times)
-        return [b - a for a, b in zip(times, times[1:])]
+        return self.rc.gaps()
 
-    def _answered(self) -> None:
+    @property
+    def rc_times(self):
+        """When the last 50 acknowledged RCs were sent (monotonic)."""
+        return self.rc.times
+
+    @rc_times.setter
+    def rc_times(self, times) -> None:
+        self.rc.times = times
+
+    @property
+    def rc_on_line_thread(self) -> bool:
+        """False: RC from the poll on the loop, also on a line with a thread of its own (a scripted conversation)."""
+        return self.rc.wanted
+
+    @rc_on_line_thread.setter
+    def rc_on_line_thread(self, wanted: bool) -> None:
+        self.rc.wanted = wanted
+
+    def answered(self) -> None:
         self._last_answer = time.monotonic()
         self._silent_since = None
         self.state.mark_seen()
 
-    def _no_answer(self) -> None:
+    def no_answer(self) -> None:
         now = time.monotonic()
         if self._silent_since is None:
             self._silent_since = self._last_answer if self._last_answer is not None else now
         silent = now - self._silent_since
         if self.session == "open" and silent > codec.WATCHDOG_S:
-            self._lost("no answer for more than 500 ms: the unit has dropped remote mode (watchdog)")
+            self.lost("no answer for more than 500 ms: the unit has dropped remote mode (watchdog)")
         if silent >= codec.MAX_ANSWER_DELAY_S or self._last_answer is None and self.core.failures >= 1:
             self.state.mark_offline(self.offline_message())
 
@@ -382,7 +364,7 @@ class ScuAdapter:
             self.state.error(f"{describe}: {info.name} ({info.title}): {info.meaning}. {info.remedy}")
         if answer.status == codec.Status.PE and self.session == "open":
             if answer.command == codec.RC:
-                self._lost(f"PE (permission error) to {describe}: the unit is no longer in remote mode")
+                self.lost(f"PE (permission error) to {describe}: the unit is no longer in remote mode")
             elif answer.command not in (codec.RO, codec.RA):
                 # PE also means "not possible in the unit's current state" (an emergency stop, a locked
                 # function): only an RC refused as well shows that remote mode is gone (section 4.2).
@@ -413,7 +395,7 @@ class ScuAdapter:
     def _publish_scales(self) -> None:
         self.state.fact(P_SCALES, tuple(self.scales))
 
-    def _publish_cyclic(self) -> None:
+    def publish_cyclic(self) -> None:
         self.state.fact(P_CYCLIC, self.cyclic_note)
 
     def watch_text(self) -> str:
@@ -429,37 +411,17 @@ class ScuAdapter:
         self.core.phase, self.core.reason = session, reason
         self._publish_session()
         if session == "open":
-            self._arm_rc()
+            self.rc.arm()
         else:
-            self._disarm_rc()
+            self.rc.disarm()
 
     # -- the RC keep-alive on the line's own thread, under a lease (issue 28) ------------------------------
-    def _rc_threaded(self) -> bool:
-        return self.rc_on_line_thread and hasattr(self.line, "start_cyclic")
 
-    def _arm_rc(self) -> None:
-        """The session is open: RC every ``keepalive_period_s`` from the line's thread from now on."""
-        if not self._rc_threaded():
-            return
-        self._loop = asyncio.get_running_loop()
-        with self._guard:
-            self._rc_armed = True
-            self._rc_withheld = False
-            self._rc_plain = False
-        if not self.line.cyclic_running(RC_KEY):
-            self.line.start_cyclic(RC_KEY, self._rc_tick)
-
-    def _disarm_rc(self) -> None:
-        with self._guard:
-            self._rc_armed = False
-        if self._rc_threaded():
-            self.line.stop_cyclic(RC_KEY)
-
-    def _sync_held(self) -> None:
+    def sync_held(self) -> None:
         """The functions the lease covers follow ``running``; nothing held: the lease ends without a lapse."""
-        with self._guard:
-            self._held = frozenset(fn for fn in self.running if fn not in NOT_HELD)
-            if not self._held:
+        with self.rc.guard:
+            self.rc.held = frozenset(fn for fn in self.running if fn not in NOT_HELD)
+            if not self.rc.held:
                 self.lease.revoke()
         names = lambda fns: ", ".join(codec.FUNCTIONS[codec.Function(f)].label for f in fns) or "none"  # noqa: E731
         self.state.fact(P_RUNNING, tuple(sorted(self.running)), text=names(sorted(self.running)))
@@ -467,215 +429,15 @@ class ScuAdapter:
 
     def renew_leases(self, alive: set[str]) -> None:
         """The worker's supervisor, every 50 ms: a session that runs a function is alive, it may go on."""
-        with self._guard:
-            held = self._held
+        with self.rc.guard:
+            held = self.rc.held
         if held and {s for fn, s in list(self.running.items()) if fn in held} & alive:
             self.lease.renew()
 
-    def _call_loop(self, callback, *args) -> None:
-        loop = self._loop
-        if loop is None:
-            return
-        try:
-            loop.call_soon_threadsafe(callback, *args)
-        except RuntimeError:  # the loop is closed: nothing to report to any more
-            pass
-
-    def _thread_request(self, exchange, frame: bytes, describe: str) -> codec.Answer:
-        """One request from the line's thread (blocking); raises SerialLineError or codec.FrameError."""
-        expected = bytes(frame[:2])
-        raw = exchange(frame, functools.partial(answer_length, expected=expected), describe=describe,
-                       decode=_describe_answer)
-        start = header_offset(raw, expected) or 0
-        return codec.decode_answer(raw[start:], expected)
-
-    def _thread_rs(self, exchange, fn: int, why: str) -> bool:
-        """RS of ``fn`` from the line's thread, sent again on CSE or no answer (RS_ATTEMPTS); True once acknowledged."""
-        if fn in NOT_HELD:
-            return False  # never RS 19: it would end the emergency stop
-        label = codec.FUNCTIONS[codec.Function(fn)].label
-        three = self.core.rs_three_bytes
-        for attempt in range(1, RS_ATTEMPTS + 1):
-            frame = codec.encode_rs(fn, -1, -1) if three else codec.encode_rs(fn)
-            try:
-                answer = self._thread_request(exchange, frame, f"RS {label} ({why})"
-                                              + (f", attempt {attempt}" if attempt > 1 else ""))
-            except (SerialLineError, codec.CodecError):
-                continue
-            if answer.ok:
-                return True
-            if answer.status == codec.Status.PCE and not three:
-                three = True  # the unit takes the three-byte form of table 3 (remembered by the loop's next RS)
-                continue
-            if answer.status == codec.Status.PE:
-                return False  # remote mode gone: the unit has stopped remote motion (section 5)
-        return False
-
-    def _rc_tick(self, exchange) -> float:
-        """On the serial line's own thread: RC when due; after a lapse of the lease RS and no more RC.
-
-        Reads only what the loop sets atomically (``_guard``); reports to the loop with ``call_soon_threadsafe``.
-        Returns the seconds until it wants to run again.
-        """
-        period = self.keepalive_period_s
-        with self._guard:
-            if not self._rc_armed:
-                return period
-            held = self._held
-            lapsed = bool(held) and not self.lease.valid()
-            first = lapsed and not self._rc_withheld
-            if first:
-                self._rc_withheld = True
-            withheld = self._rc_withheld
-            lapsed_at = self.lease.lapsed_at
-        if first:
-            why = "lease lapsed: this program stalled or the controlling browser is gone"
-            results = {fn: self._thread_rs(exchange, fn, why) for fn in sorted(held)}
-            with self._guard:
-                self._stopped_by_thread |= {fn for fn, ok in results.items() if ok}
-            self._call_loop(self._lapsed, lapsed_at, results)
-        if withheld and not self._estop_confirmed():
-            # The unit's own watchdog now ends remote mode and stops every drive (section 5), also one whose RS
-            # was lost. With the emergency stop on, RC goes on: nothing moves, and remote mode keeps F20 in force.
-            return period
-        check = LEASE_CHECK_S if held and not withheld else period  # a lapse is noticed within 20 ms
-        now = time.monotonic()
-        due = self._rc_last + period
-        if now < due:
-            reserve = getattr(self.line, "reserve", None)
-            if reserve is not None:
-                reserve(due)  # the poll's requests give way to the RC due then
-            return min(due - now, check)
-        cyclic = self.cyclic
-        frame = codec.encode_rc(CYCLIC_INDEX) if cyclic is not None and not self._rc_plain else codec.KEEP_ALIVE
-        sent_at = time.monotonic()
-        try:
-            answer = self._thread_request(exchange, frame, "RC keep-alive" + (" with CyclicObj 1" if frame != codec.KEEP_ALIVE else ""))
-        except SerialLineError as exc:
-            self._call_loop(self._thread_rc_failed, exc)
-            return RC_RETRY_S
-        except codec.FrameError as exc:
-            self._call_loop(self._thread_rc_failed, exc)
-            return 0.0  # a bad CRC or a shifted answer: at once again
-        if answer.ok:
-            self._note_rc(sent_at)
-            with self._guard:  # while a function runs the poll reads them
-                data_ids = [] if held else list(self._thread_rgs)
-                if data_ids:
-                    self._thread_rgs.clear()
-            reads: list[tuple[int, codec.Answer | Exception]] = []
-            for data_id in data_ids:
-                try:
-                    reads.append((data_id, self._thread_request(exchange, codec.encode_rg(data_id), f"RG 0x{data_id:04X}")))
-                except (SerialLineError, codec.CodecError) as exc:
-                    reads.append((data_id, exc))
-            self._call_loop(self._thread_rc_answer, answer, cyclic if frame != codec.KEEP_ALIVE else None, reads)
-            return min(max(0.0, sent_at + period - time.monotonic()), check)  # on the clock: period from send to send
-        self._call_loop(self._thread_rc_refused, answer)
-        if answer.status == codec.Status.CSE:
-            return 0.0  # "Fehler in der Telegramm-Checksumme" (section 4.2): line noise, RC again at once
-        if answer.status == codec.Status.PE:
-            with self._guard:
-                self._rc_armed = False  # remote mode is gone: the loop reopens the session
-            return period
-        self._rc_plain = True  # RC with the cyclic object refused: RC without data, at once
-        return 0.0
-
-    def _estop_confirmed(self) -> bool:
-        """F20 is on in the unit (acknowledged since the session opened): remote mode keeps it in force."""
-        estop = self.core.estop
-        return estop is not None and estop.confirmed
-
-    def _thread_rc_answer(self, answer: codec.Answer, cyclic: p.CyclicDefinition | None,
-                          reads: list[tuple[int, codec.Answer | Exception]] = ()) -> None:
-        """In the loop: an RC the line's thread sent was acknowledged; its cyclic data published, and the data ID read
-        in turn that the thread read after it (a refusal or a failed read is left to the next poll, which tells why)."""
-        self.state.counters.requests += 1
-        self.state.counters.responses += 1
-        self._answered()
-        if cyclic is not None and answer.has_ctp and cyclic is self.cyclic:
-            try:
-                self._publish_cyclic_data(cyclic, bytes(answer.data))
-            except (v.DecodeError, ValueError) as exc:
-                self.state.error(f"RC cyclic data: {exc}", log=False)
-        for data_id, rg in reads:
-            self.state.counters.requests += 1
-            if not isinstance(rg, codec.Answer) or not rg.ok:
-                if isinstance(rg, SerialTimeout):
-                    self.state.counters.timeouts += 1
-                elif isinstance(rg, codec.Answer):
-                    self.state.counters.responses += 1
-                self._rg_on_loop.append(data_id)
-                continue
-            self.state.counters.responses += 1
-            self._publish_read(data_id, rg)
-
-    def _thread_rc_failed(self, exc: Exception) -> None:
-        self.state.counters.requests += 1
-        if isinstance(exc, SerialTimeout):
-            self.state.counters.timeouts += 1
-        elif isinstance(exc, codec.ChecksumError):
-            self.state.counters.crc_errors += 1
-        elif isinstance(exc, codec.FrameError):
-            malformed(self.state)
-        self._no_answer()
-
-    def _thread_rc_refused(self, answer: codec.Answer) -> None:
-        self.state.counters.requests += 1
-        self.state.counters.exceptions += 1
-        info = codec.CommandRefused(answer.command, answer.status).info
-        if answer.status == codec.Status.PE:
-            self._lost("PE (permission error) to the RC keep-alive: the unit is no longer in remote mode")
-            return
-        if answer.status == codec.Status.CSE:
-            return  # line noise (section 4.2): sent again, remembered as nothing
-        if self.cyclic is not None:
-            self.cyclic = None
-            self.cyclic_refused = True
-            self.cyclic_note = (f"the unit refused RC with the cyclic object ({info.name}: {info.title}); "
-                                "RC without data keeps the session, live data is read with RG")
-            self._publish_cyclic()
-            self.state.event("warning", self.cyclic_note)
-
-    def _lapsed(self, lapsed_at: float, results: dict[int, bool]) -> None:
-        """In the loop: the lease lapsed and the line's thread has sent RS by itself and withholds RC."""
-        self.lapses += 1
-        renewed = self.lease.renewed_at
-        late_ms = (lapsed_at - renewed) * 1000 if renewed is not None else self.lease.valid_s * 1000
-        stopped = [fn for fn, ok in results.items() if ok]
-        with self._guard:
-            self._stopped_by_thread -= set(stopped)
-        for fn in stopped:
-            self.running.pop(fn, None)
-            self.rs_pending.pop(fn, None)
-        for fn, ok in results.items():
-            if not ok and fn in self.running:
-                self.rs_pending[fn] = "lease lapsed"
-        self._sync_held()
-        names = lambda fns: ", ".join(codec.FUNCTIONS[codec.Function(f)].label for f in fns)  # noqa: E731
-        text = (f"motion stopped: the lease of the running functions lapsed (not renewed for {late_ms:.0f} ms: this "
-                "program stalled, or the controlling browser stopped confirming it is alive); the serial line's own "
-                f"thread sent RS to {names(results) or 'nothing'} by itself")
-        if [fn for fn, ok in results.items() if not ok]:
-            text += f" (not acknowledged: {names([f for f, ok in results.items() if not ok])}; RS is sent again)"
-        confirmed = self._estop_confirmed()
-        text += (" and kept RC going: the emergency stop is on (F20, confirmed by the unit)" if confirmed else
-                 " and withheld RC, so the unit's watchdog ends remote mode and stops every drive (section 5); the "
-                 "session is opened again only after that")
-        self.state.event("error", text + ". Press again to move")
-        if confirmed:
-            with self._guard:
-                self._rc_withheld = False  # RC went on; a function still held after a failed RS gets RS again
-        else:
-            # not reopened before the unit's watchdog has tripped: a reopening's RO + RC would feed it again
-            withheld_at = min(time.monotonic(), lapsed_at + 0.05)
-            self.core.withhold("the lease of the running functions lapsed", withheld_at)
-            self._sync_phase()
-
-    def _lost(self, reason: str) -> None:
+    def lost(self, reason: str) -> None:
         for action in self.core.lost(reason, time.monotonic()):
             self._apply(action)
-        self._sync_phase()
+        self.sync_phase()
 
     async def _rc(self) -> codec.Answer:
         if self.cyclic is not None:
@@ -690,12 +452,12 @@ class ScuAdapter:
                 self.cyclic_refused = True
                 self.cyclic_note = (f"the unit refused RC with the cyclic object ({exc.info.name}: {exc.info.title}); "
                                     "RC without data keeps the session, live data is read with RG")
-                self._publish_cyclic()
+                self.publish_cyclic()
                 self.state.event("warning", self.cyclic_note)
                 return await self._request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)
             if answer.has_ctp:
                 try:
-                    self._publish_ids(self.cyclic.decode_read(answer.data))
+                    self.live.publish_ids(self.cyclic.decode_read(answer.data))
                 except (v.DecodeError, ValueError) as exc:
                     self.state.error(f"RC cyclic data: {exc}", log=False)
             return answer
@@ -721,7 +483,7 @@ class ScuAdapter:
             self.watch = WATCH_SESSION
         else:
             self.watch = WATCH_RG
-            self._publish_ids({PROBE_ID: p.rg_value(PROBE_ID, answer)})
+            self.live.publish_ids({PROBE_ID: p.rg_value(PROBE_ID, answer)})
         self.state.event("info", self.watch_text())
         self._publish_session()
 
@@ -751,10 +513,10 @@ class ScuAdapter:
             return
         answered_before = self._last_answer is not None
         self.core.opening()
-        self._sync_phase()
+        self.sync_phase()
         self.cyclic = None
-        with self._guard:
-            self.rc_times.clear()
+        with self.rc.guard:
+            self.rc.times.clear()
         if self.core.failures or not answered_before:
             await self._wake()
         sid = int(self.safety_id)
@@ -770,13 +532,13 @@ class ScuAdapter:
             await self._request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)  # section 5: RC before any other command
         except (SerialLineError, codec.CodecError) as exc:
             self.core.open_failed(str(exc), time.monotonic(), answered_before=self._last_answer is not None)
-            self._sync_phase()
+            self.sync_phase()
             if forced:
                 for action in self.core.estop_unreachable(str(exc), time.monotonic()):
                     self._apply(action)
             return
         actions = self.core.opened(time.monotonic())
-        self._sync_phase()
+        self.sync_phase()
         # the emergency stop again (released only by the person who asks for it) and the RS of every RE still owed
         # (section 4.6), before the cyclic object is defined: whatever becomes of that, these have gone out
         await self._carry_out(actions)
@@ -805,7 +567,7 @@ class ScuAdapter:
                     self.state.event("warning", self.cyclic_note)
             except (SerialLineError, codec.CodecError):
                 return
-        self._publish_cyclic()
+        self.publish_cyclic()
         self.state.event("info", f"remote session open (Safety_ID {int(self.safety_id)}); {self.cyclic_note}")
         try:
             await self._read_end_positions()
@@ -880,22 +642,22 @@ class ScuAdapter:
             await self._end_session("nobody holds control: watching with RG outside a remote session")
         try:
             if self.session == "open":
-                if not self._rc_threaded():
-                    await self._rc()  # else the line's own thread sends it (_rc_tick)
+                if not self.rc.threaded():
+                    await self._rc()  # else the line's own thread sends it (RcKeepAlive.tick)
                 for fn in sorted(self.rs_pending):
                     await self._send_rs(fn, self.rs_pending[fn])
             live = [] if self.cyclic is not None else list(CYCLIC_READ_IDS)
-            live += self._rg_on_loop
-            self._rg_on_loop = []
+            live += self.rg_on_loop
+            self.rg_on_loop = []
             data_id = ROTATING_IDS[self._rotate % len(ROTATING_IDS)]
             self._rotate += 1
             by_thread = self._rg_by_thread(data_id)
-            with self._guard:
-                if not by_thread or len(self._thread_rgs) >= 3:  # the line's thread does not read them now: here
-                    live += self._thread_rgs
-                    self._thread_rgs.clear()
+            with self.rc.guard:
+                if not by_thread or len(self.rc.thread_rgs) >= 3:  # the line's thread does not read them now: here
+                    live += self.rc.thread_rgs
+                    self.rc.thread_rgs.clear()
                 if by_thread:
-                    self._thread_rgs.append(data_id)  # read right after the next RC, in the same wake-up (_rc_tick)
+                    self.rc.thread_rgs.append(data_id)  # read right after the next RC, in the same wake-up (_rc_tick)
                 else:
                     live.append(data_id)
             for data_id in live:
@@ -906,12 +668,12 @@ class ScuAdapter:
                 self._publish_session()
         except (SerialLineError, codec.CodecError, v.DecodeError) as exc:
             self.state.error(f"poll: {exc}", log=False)
-        self._publish_period()
+        self.live.publish_period()
 
     def _rg_by_thread(self, data_id: int) -> bool:
         """Whether the line's thread reads ``data_id`` after its next RC: a single read while the session is open with
         the cyclic object and the thread sends RC, nothing runs and no RS is owed."""
-        return (self.session == "open" and self.cyclic is not None and self._rc_threaded() and self.line.cyclic_running(RC_KEY)
+        return (self.session == "open" and self.cyclic is not None and self.rc.threaded() and self.line.cyclic_running(RC_KEY)
                 and not self.running and not self.rs_pending and self._ids_of(data_id) == [data_id])
 
     async def _end_session(self, reason: str) -> None:
@@ -942,135 +704,9 @@ class ScuAdapter:
                                                 "its data IDs are read one by one")
                     await self._read_live(data_id)
                 continue
-            self._publish_read(read_id, answer)
-
-    def _publish_read(self, read_id: int, answer: codec.Answer) -> None:
-        """An RG answer of a data ID read in turn with the others: it ages by its own period (measured between two
-        reads; before the second one, the time one turn of them takes)."""
-        now = time.monotonic()
-        last = self._read_at.get(read_id)
-        self._read_at[read_id] = now
-        try:
-            value = p.rg_value(read_id, answer)
-        except (v.DecodeError, ValueError) as exc:
-            self.state.error(f"RG 0x{read_id:04X}: {exc}", log=False)
-            return
-        self._publish_ids({read_id: value}, every=self._rotation_s if last is None else now - last)
-
-    @property
-    def _rotation_s(self) -> float:
-        """How long one turn of the data IDs read in turn takes (one a poll)."""
-        options = getattr(self.line, "options", None) or {}
-        return len(ROTATING_IDS) * float(options.get("poll_period", 0.5) or 0.5)
-
-    def _publish_period(self) -> None:
-        gaps = self.rc_gaps()
-        if gaps:
-            mean, longest = round(sum(gaps) / len(gaps) * 1000, 1), round(max(gaps) * 1000, 1)
-            self.state.publish(P_RC_PERIOD, mean, "ms", text=f"mean {mean:g} ms, longest gap {longest:g} ms")
-            self.state.publish(P_RC_GAP, longest, "ms")
+            self.live.publish_read(read_id, answer)
 
     # -- live points ----------------------------------------------------------------------------------
-    def _publish_ids(self, values: dict[int, Any], every: float | None = None) -> None:
-        """The points of an answer's values, as one change of the record (:meth:`DeviceState.publish_telegram`)."""
-        now = time.time()
-        points: dict[str, Point] = {}
-        self._collect_ids(values, every, now, points)
-        self._publish_points(values, points, now)
-
-    def _collect_ids(self, values: dict[int, Any], every: float | None, now: float, points: dict[str, Point]) -> None:
-        pub = _collector(points, now, every)
-        for data_id, value in values.items():
-            members = value if isinstance(value, dict) else {data_id: value}
-            for member, x in members.items():
-                self._publish_one(member, x, now, every, pub)
-
-    def _publish_points(self, values: dict[int, Any], points: dict[str, Point], now: float) -> None:
-        sample = None
-        if 0x0010 in values or any(0x0011 <= i <= 0x0016 for i in values):
-            names = chart_points(self.scales)
-            if any(n in points or n in self.state.points for n in names):
-                sample = functools.partial(self.state.sample_of, names)
-        self.state.publish_telegram(now, points, None, sample)
-
-    def _publish_cyclic_data(self, cyclic: p.CyclicDefinition, data: bytes) -> None:
-        """The data of an RC answer (every 200 ms): its points as one change of the record. The same bytes as the
-        answer before (a unit at rest) are not decoded and worded again, only their time is new."""
-        now = time.time()
-        key = (cyclic, data, tuple(self.scales))
-        memo = self._cyclic_memo
-        if memo is not None and memo[0] == key:
-            _key, values, contents = memo
-            for data_id, value in values.items():  # what the words mean besides points: the remote timeout bit
-                members = value if isinstance(value, dict) else {data_id: value}
-                if 0x00D1 in members:
-                    self._note_remote_timeout(members[0x00D1])
-            make = Point._make
-            points = {name: make((c[0], c[1], now, c[2], c[3], c[4], c[5])) for name, c in contents.items()}
-        else:
-            values = cyclic.decode_read(data)
-            points = {}
-            self._collect_ids(values, None, now, points)
-            self._cyclic_memo = (key, values, {name: (pt.value, pt.unit, pt.raw, pt.text, pt.periodic, pt.every)
-                                               for name, pt in points.items()})
-        self._publish_points(values, points, now)
-
-    def _note_remote_timeout(self, x: Any) -> None:
-        """Error bit 22 (remote communication timeout) of 0x00D1 newly set while the session is open: it is lost."""
-        timeout = bool(int(x) & codec.REMOTE_TIMEOUT_MASK)
-        if timeout and not self._remote_timeout_seen and self.session == "open" and self.rc_times and len(self.rc_times) > 2:
-            self._lost("error bit 22 (remote communication timeout) is set")
-        self._remote_timeout_seen = timeout
-
-    def _publish_one(self, data_id: int, x: Any, now: float, every: float | None = None, pub=None) -> None:
-        if pub is None:
-            pub = self.state.publish if every is None else functools.partial(self.state.publish, every=every)
-        entry = p.DIRECTORY.get(data_id)
-        if entry is None:
-            return
-        self.settings.note(data_id, x, now)
-        n = entry.actuator
-        if n is not None and n > len(self.scales):
-            return
-        group = entry.group
-        if group == 0x0010:
-            scale = self.scales[n - 1]
-            mm = scale.mm(x)
-            pub(f"A{n} position", x, "counts", raw=x, time=now, text=f"{x} counts" + (f" = {mm:g} mm" if mm is not None else ""))
-            if mm is not None:
-                pub(f"A{n} position mm", mm, "mm", raw=x, time=now)
-        elif group in (0x0170, 0x00E0):
-            label = "status 1" if group == 0x0170 else "status 2"
-            pub(f"A{n} {label}", int(x), raw=int(x), time=now, text=value_text(data_id, x))
-            for key, bit in x.fields.items():
-                pub(f"A{n} {key}", bool(bit), raw=int(bool(bit)), time=now)
-        elif group == 0x00A0:
-            pub(f"A{n} current", round(x, 1), "A", raw=round(x * 10), time=now)
-        elif group == 0x00F0:
-            pub(f"A{n} speed", x, "% or counts/s", raw=x, time=now)
-        elif group == 0x0030:
-            pub(f"Analogue input {data_id - 0x0030}", round(x, 2), "V", time=now)
-        elif data_id in dict(ERROR_BIT_GROUPS):
-            title = dict(ERROR_BIT_GROUPS)[data_id]
-            pub(title, int(x), raw=int(x), time=now, text=codec.error_text(int(x)))  # the page's words (table 10)
-            if data_id == 0x00D1:
-                for b in codec.ERROR_BITS.values():
-                    pub(f"Error bit {b.bit}", bool(int(x) & b.mask), time=now, text=b.cause)
-                self._note_remote_timeout(x)
-        elif data_id == 0x0164:
-            pub("Battery voltage", round(x, 1), "V", raw=round(x * 10), time=now)
-        elif data_id in (0x0100, 0x0020, 0x0110, 0x0120, 0x0130, 0x0140, 0x0150, 0x0162):
-            pub(entry.name, int(x), raw=int(x), time=now, text=value_text(data_id, x))
-            if data_id in (0x0100, 0x0110, 0x0140, 0x0150):
-                for key, bit in x.fields.items():
-                    pub(key.replace("_", " ").capitalize(), bool(bit), time=now)
-        elif data_id in (0x0001, 0x0002):
-            pub(entry.name, str(x), periodic=False)
-        elif data_id == 0x0040:
-            pub("Keys", int(x), raw=int(x), time=now, text=f"0x{int(x):08X}" + (
-                " (keys pressed: bits " + ", ".join(str(b) for b in range(32) if int(x) >> b & 1) + ")" if x else " (none)"))
-        elif data_id in (0x0165, 0x0166):
-            pub(entry.name, int(x), time=now)
 
     # -- control ------------------------------------------------------------------------------------
     async def take_control(self, session: str, user: str) -> None:
@@ -1152,13 +788,13 @@ class ScuAdapter:
     async def _send_rs(self, fn: int, why: str) -> bool:
         """RS of ``fn`` after any RE of it still on the line (never before it); True once acknowledged."""
         async with self._fn_lock(fn):
-            with self._guard:
-                by_thread = fn in self._stopped_by_thread
-                self._stopped_by_thread.discard(fn)
+            with self.rc.guard:
+                by_thread = fn in self.rc.stopped_by_thread
+                self.rc.stopped_by_thread.discard(fn)
             if by_thread and fn in self.running:  # the line's thread got its RS acknowledged after a lapse
                 self.running.pop(fn, None)
                 self.rs_pending.pop(fn, None)
-                self._sync_held()
+                self.sync_held()
                 return True
             return await self._rs(fn, why)
 
@@ -1201,14 +837,14 @@ class ScuAdapter:
         async with self._fn_lock(int(fn)):
             if self._stopped_since(int(fn), requested_at):
                 raise CommandError(f"{label}: a stop came after this request: no RE sent")
-            if self._rc_due():
+            if self.rc.due():
                 await self._rc()
             if self._stopped_since(int(fn), requested_at):
                 raise CommandError(f"{label}: a stop came after this request: no RE sent")
             # runs from now on (the controlling session pressed just now: alive; the supervisor renews its lease),
             # before the request: a lost answer must still be followed by RS
             self.core.re_sent(session, int(fn), time.monotonic())
-            self._sync_held()
+            self.sync_held()
             try:
                 await self._request(frame, f"RE {words}", keepalive=False)
             except BaseException as exc:
@@ -1400,7 +1036,7 @@ class ScuAdapter:
         finally:
             self.cyclic = None
             self.core.released()
-            self._sync_phase()
+            self.sync_phase()
         self.state.event("info" if how.startswith("released (RA") else "warning", f"SCU {how}")
         return how
 
@@ -1431,7 +1067,7 @@ class ScuAdapter:
             return result
         result["value"] = value
         result["text"] = value_text(data_id, value)
-        self._publish_ids({data_id: value})
+        self.live.publish_ids({data_id: value})
         return result
 
     # -- parameter model: backup, restore, project, batch, drift (devices/scu/settings.py) -------------------

@@ -102,7 +102,7 @@ def chart_points(scales) -> tuple[str, ...]:
                  for s in scales)
 
 
-def _collector(points: dict[str, Point], now: float, every: float | None):
+def point_collector(points: dict[str, Point], now: float, every: float | None):
     """A ``DeviceState.publish`` that puts the point into ``points`` instead (published together afterwards)."""
     make = Point._make
 
@@ -146,7 +146,7 @@ def answer_length(buffer: bytes, expected: bytes | None = None) -> int | None:
     return start + (7 + ctp if ctp <= codec.MAX_CTP else 5)
 
 
-def _describe_answer(raw: bytes) -> str:
+def describe_answer(raw: bytes) -> str:
     start = header_offset(raw) or 0
     try:
         a = codec.decode_answer(raw[start:])
