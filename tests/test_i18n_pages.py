@@ -46,11 +46,13 @@ def english_patterns() -> list[tuple[str, re.Pattern]]:
     return patterns
 
 
-def shown_texts(user) -> list[str]:
-    """Every text the page shows or says: labels, HTML, buttons', inputs' and toggles' labels, tooltips, ARIA labels."""
+def shown_texts(user, skip: tuple[str, ...] = ()) -> list[str]:
+    """Every text the page shows or says: labels, HTML, buttons', inputs' and toggles' labels, tooltips, ARIA labels;
+    none of the parts whose data-testid is in ``skip`` (and their contents)."""
     texts = []
+    skipped = {id(d) for e in user.client.elements.values() if e.props.get("data-testid") in skip for d in [e, *e.descendants()]}
     for element in user.client.elements.values():
-        if not element.visible:
+        if not element.visible or id(element) in skipped:
             continue
         for text in (getattr(element, "text", None), element.props.get("label"), element.props.get("aria-label"),
                      element.props.get("title")):
@@ -62,9 +64,9 @@ def shown_texts(user) -> list[str]:
     return texts
 
 
-def english_on(user) -> list[tuple[str, str]]:
+def english_on(user, skip: tuple[str, ...] = ()) -> list[tuple[str, str]]:
     patterns = english_patterns()
-    return [(text, message) for text in shown_texts(user) for message, pattern in patterns if pattern.fullmatch(text)]
+    return [(text, message) for text in shown_texts(user, skip) for message, pattern in patterns if pattern.fullmatch(text)]
 
 
 @contextlib.asynccontextmanager
@@ -202,3 +204,15 @@ async def test_the_fleet_page_in_german_shows_no_english(tmp_path):
         source = next(e for e in user.client.elements.values() if e.props.get("data-testid") == "fleet-source")
         await eventually(lambda: source.options, timeout=5, what="the sources")
         assert "door-1, wie es jetzt ist (Geschwistergerät)" in source.options.values()
+
+
+async def test_the_replacement_assistant_in_german_shows_no_english(tmp_path):
+    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await eventually(lambda: runtime.store.devices["door-1"].status == "online", timeout=15, what="door-1 online")
+        await user.open("/replace/door-1")
+        await user.should_see("door-1 austauschen", retries=50)
+        await user.should_see("1. Identität")
+        await user.should_see("Identität wie bekannt", retries=50)
+        # the twin's card: its words are declared by devices/*/sim.py and are not in the catalogs yet (docs/i18n.md)
+        assert english_on(user, skip=("sim-card",)) == []
