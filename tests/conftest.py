@@ -55,6 +55,37 @@ BROWSER_FILES = {
     "test_stylesheet_browser.py",
 }
 
+#: test files that hold a device, a bus or a page to a real-time bound (a keep-alive period, the dead-man
+#: bound, a poll cycle against the wire time): the whole suite runs them in a phase of their own with two
+#: processes, the rest beside each other with four (README, Test), so no other test takes their cores.
+REALTIME_FILES = {
+    "test_beat_on_demand.py",
+    "test_can_flood.py",
+    "test_deadman_browser.py",
+    "test_deadman_worker.py",
+    "test_electrak.py",
+    "test_electrak_control.py",
+    "test_idle_periods.py",
+    "test_keepalive_gc.py",
+    "test_keepalive_lease.py",
+    "test_m3io.py",
+    "test_m3io_outputs.py",
+    "test_modbus_line_cycle.py",
+    "test_modbus_stale.py",
+    "test_mo64_rs485.py",
+    "test_realtime.py",
+    "test_runtime.py",
+    "test_scale_plant.py",
+    "test_scu_adapter.py",
+    "test_scu_faults.py",
+    "test_scu_keepalive.py",
+    "test_scu_page.py",
+    "test_scu_safety.py",
+    "test_serial_line.py",
+    "test_state_push.py",
+    "test_transmit.py",
+}
+
 #: tests that take more than about a second on two cores shared with other programs (measured with
 #: ``--durations=0`` of the fast loop): a file name (every test in it, where most of its tests are slow)
 #: or a node id without its parameters (every parametrisation). The fast loop leaves them out.
@@ -265,7 +296,7 @@ SLOW_TESTS: set[str] = {
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Mark every real-browser test ``browser`` (a test_browser_*.py file, one of BROWSER_FILES, or a test
-    that uses the ``chromium`` fixture) and every test of SLOW_TESTS ``slow``."""
+    that uses the ``chromium`` fixture), every test of SLOW_TESTS ``slow`` and every test of REALTIME_FILES ``realtime``."""
     for item in items:
         name = item.path.name
         if name.startswith("test_browser_") or name in BROWSER_FILES or "chromium" in getattr(item, "fixturenames", ()):
@@ -273,6 +304,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         node = item.nodeid.split("/")[-1]
         if name in SLOW_TESTS or node in SLOW_TESTS or node.split("[")[0] in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
+        if name in REALTIME_FILES:
+            item.add_marker(pytest.mark.realtime)
 
 
 @pytest.fixture(autouse=True)
