@@ -237,7 +237,7 @@ def content() -> None:
             ui.link(_("Apply one set to several devices of a type"), "/fleet").props("data-testid=open-fleet")
         projects = [name for name in devices if project.has_project(runtime.plant, name)]
         if projects:
-            ProjectCard(projects)
+            ProjectCard(projects, lang=lang)
         files.restore_box = ui.column().classes("w-full")
     ui.timer(0, files.refresh, once=True)
     if without:

@@ -13,26 +13,30 @@ answered), saved back into the plant file or the parameter file. Saving is an en
 from __future__ import annotations
 
 import asyncio
+import html
 
 from nicegui import background_tasks, ui
 
-from app import backup, project
+from app import backup, i18n, project
 from app import runtime as rt
+from app.i18n import N_, Lang
 from devices.params import Param
 from devices.registry import DEVICE_TYPES
 from pages.diffrows import STATE_SLOT, WRAP, row_state
 from pages.frame import frame, notify_error
 from pages.session import can_write, current_user
-from pages.widgets import follow
+from pages.widgets import columns, follow
 from pages.command_client import confirm, viewer_reason
 
 PROJECT_COLUMNS = [
-    {"name": "name", "label": "Parameter", "field": "name", "align": "left"},
-    {"name": "backup", "label": "Project", "field": "backup", "align": "left", "style": WRAP + "; min-width: 5rem"},
-    {"name": "current", "label": "Device now", "field": "current", "align": "left", "style": WRAP + "; min-width: 5rem"},
+    {"name": "name", "label": N_("Parameter"), "field": "name", "align": "left"},
+    {"name": "backup", "label": N_("Project"), "field": "backup", "align": "left", "style": WRAP + "; min-width: 5rem"},
+    {"name": "current", "label": N_("Device now"), "field": "current", "align": "left", "style": WRAP + "; min-width: 5rem"},
     {"name": "state", "label": "", "field": "state", "align": "left", "style": WRAP},
-    {"name": "actions", "label": "Reconcile", "field": "key", "align": "left"},
+    {"name": "actions", "label": N_("Reconcile"), "field": "key", "align": "left"},
 ]
+# the state cell showing a row's state in the page's language (``state`` stays the English key)
+STATE_TEXT_SLOT = STATE_SLOT.replace("props.row.state }}", "props.row.state_text }}")
 # a differing row's project value in blue, the device's in orange (as the row's left edge)
 VALUE_SLOTS = {
     name: f"""
@@ -44,22 +48,29 @@ VALUE_SLOTS = {
 PROJECT_ACTIONS = """
     <q-td :props="props">
       <div v-if="props.row.changed" class="row items-center q-gutter-x-sm">
-        <q-btn dense flat no-caps icon="memory" label="Keep device" :data-project-keep="props.row.key"
+        <q-btn dense flat no-caps icon="memory" label="{keep}" :data-project-keep="props.row.key"
                @click="$parent.$emit('keep', props.row.key)" />
-        <q-btn dense flat no-caps color="negative" icon="upload" label="Apply project" :data-project-apply="props.row.key"
+        <q-btn dense flat no-caps color="negative" icon="upload" label="{apply}" :data-project-apply="props.row.key"
                :disable="!props.row.can_write" @click="$parent.$emit('apply', props.row.key)" />
-        <q-btn dense flat no-caps icon="edit_note" label="Update project" :data-project-update="props.row.key"
+        <q-btn dense flat no-caps icon="edit_note" label="{update}" :data-project-update="props.row.key"
                :disable="!props.row.can_write" @click="$parent.$emit('update', props.row.key)" />
       </div>
     </q-td>"""
 
 
-def _where(plant, name: str) -> str:
+def _where(plant, name: str, lang: Lang | None = None) -> str:
     """Where the project of ``name`` is kept, in words."""
+    _ = (lang or i18n.get("en")).gettext
     path = project.project_file(plant, name)
     if path is not None:
-        return f"the parameter file {path.name}"
-    return plant.path.name if plant.path else "the plant file"
+        return _("the parameter file {file}").format(file=path.name)
+    return plant.path.name if plant.path else _("the plant file")
+
+
+def _state_text(row: backup.DiffRow, lang: Lang) -> str:
+    from pages.backup import state_text
+
+    return state_text(row, lang)
 
 
 class ProjectCard:
@@ -71,8 +82,10 @@ class ProjectCard:
         whose differing rows only are listed, compared by itself whenever the device comes to answer
     """
 
-    def __init__(self, devices: list[str], *, compact: bool = False):
+    def __init__(self, devices: list[str], *, compact: bool = False, lang: Lang | None = None):
         self.runtime = rt.current()
+        self.lang = lang = lang or i18n.client_language()
+        _ = lang.gettext
         self.compact = compact
         self.devices = devices
         self.plan: backup.RestorePlan | None = None
@@ -82,10 +95,11 @@ class ProjectCard:
         with ui.card().classes("w-full gap-2").props("data-testid=project-card") as self.card:
             self._head()
             self.problems = ui.column().classes("gap-0")
-            self.table = ui.table(columns=PROJECT_COLUMNS, rows=[], row_key="key", pagination=0).classes(
+            self.table = ui.table(columns=columns(PROJECT_COLUMNS, lang), rows=[], row_key="key", pagination=0).classes(
                 "w-full reg-table").props("dense flat bordered")
-            self.table.add_slot("body-cell-state", STATE_SLOT)
-            self.table.add_slot("body-cell-actions", PROJECT_ACTIONS)
+            self.table.add_slot("body-cell-state", STATE_TEXT_SLOT)
+            self.table.add_slot("body-cell-actions", PROJECT_ACTIONS.replace("{keep}", html.escape(_("Keep device"))).replace(
+                "{apply}", html.escape(_("Apply project"))).replace("{update}", html.escape(_("Update project"))))
             for column, slot in VALUE_SLOTS.items():
                 self.table.add_slot(f"body-cell-{column}", slot)
             self.table.props(':table-row-class-fn="row => row.changed ? \'restore-differs\' : \'\'"')
@@ -99,27 +113,29 @@ class ProjectCard:
                 self.summary = ui.label().classes("text-body2").props("data-testid=project-summary")
 
     def _head(self) -> None:
+        _ = self.lang.gettext
         if self.compact:
             with ui.row().classes("items-center w-full gap-x-4 gap-y-1"):
-                ui.label("Project").classes("text-subtitle1")
+                ui.label(_("Project")).classes("text-subtitle1")
                 self.summary = ui.label().classes("text-body2").props("data-testid=project-summary")
                 ui.space()
-                self.again = ui.button("Compare again", icon="compare_arrows", on_click=self.compare).props(
+                self.again = ui.button(_("Compare again"), icon="compare_arrows", on_click=self.compare).props(
                     "flat dense no-caps data-testid=project-compare")
-                ui.link("Edit project", f"/project/{self.devices[0]}").props("data-testid=project-edit")
-            ui.label(f"The intended parameters {_where(self.runtime.plant, self.devices[0])} names for this device. "
-                     "Nothing is written until you press Apply project on a row.").classes("text-caption text-grey-8")
+                ui.link(_("Edit project"), f"/project/{self.devices[0]}").props("data-testid=project-edit")
+            ui.label(_("The intended parameters {where} names for this device. Nothing is written until you press Apply "
+                       "project on a row.").format(where=_where(self.runtime.plant, self.devices[0], self.lang))).classes(
+                "text-caption text-grey-8")
             return
-        ui.label("Project against the devices").classes("text-subtitle1")
-        where = self.runtime.plant.path.name if self.runtime.plant.path else "the plant file"
-        ui.label(f"The intended parameters {where} names for each device, checked by the parameter model. "
-                 "Nothing is written until you press Apply project on a row.").classes("text-caption text-grey-8")
+        ui.label(_("Project against the devices")).classes("text-subtitle1")
+        where = self.runtime.plant.path.name if self.runtime.plant.path else _("the plant file")
+        ui.label(_("The intended parameters {where} names for each device, checked by the parameter model. "
+                   "Nothing is written until you press Apply project on a row.").format(where=where)).classes("text-caption text-grey-8")
         with ui.row().classes("items-center"):
-            self.device = ui.select(self.devices, value=self.devices[0], label="Device").props(
+            self.device = ui.select(self.devices, value=self.devices[0], label=_("Device")).props(
                 "dense outlined data-testid=project-device").classes("w-56")
-            ui.button("Compare project with the device", icon="compare_arrows", on_click=self.compare).props(
+            ui.button(_("Compare project with the device"), icon="compare_arrows", on_click=self.compare).props(
                 "data-testid=project-compare")
-            edit = ui.link("Edit project", f"/project/{self.devices[0]}").props("data-testid=project-edit")
+            edit = ui.link(_("Edit project"), f"/project/{self.devices[0]}").props("data-testid=project-edit")
             self.device.on_value_change(lambda e: edit.props(f'href="/project/{e.value}"'))
 
     @property
@@ -137,33 +153,35 @@ class ProjectCard:
             self.plan = await backup.plan_restore(self.runtime, name, project.document(self.runtime, name))
         except Exception as exc:  # noqa: BLE001 - not answering, no parameter model ...
             if self.compact:
-                self.summary.set_text(f"not compared: {exc}")
+                self.summary.set_text(self.lang.gettext("not compared: {error}").format(error=exc))
             else:
-                notify_error(f"Cannot compare: {exc}")
+                notify_error(self.lang.gettext("Cannot compare: {error}").format(error=exc))
             return
         self.kept = {k for k in self.kept if k.startswith(name + "/")}
         self.show()
 
     def show(self) -> None:
         name = self.plan.device
+        lang = self.lang
+        _ = lang.gettext
         rows = []
         for r in self.plan.rows:
             kept = f"{name}/{r.key}" in self.kept and r.changed
             state = "differs; the device's value kept" if kept else row_state(r)
             rows.append({"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": state,
+                         "state_text": _("differs; the device's value kept") if kept else _state_text(r, lang),
                          "risk": bool(r.changed and r.risk), "changed": r.changed and not kept, "can_write": self.may_write})
         changed = sum(1 for row in rows if row["changed"])
         self.table.rows = [row for row in rows if row["changed"]] if self.compact else rows
         self.table.update()
         self.table.set_visibility(bool(self.table.rows))
-        entries = f"{len(rows)} project {'entry' if len(rows) == 1 else 'entries'}"
-        verb = "differs" if changed == 1 else "differ"
+        entries = lang.ngettext("{n} project entry", "{n} project entries", len(rows)).format(n=len(rows))
+        differ = lang.ngettext("{changed} of {entries} differs from the device", "{changed} of {entries} differ from the device",
+                               changed).format(changed=changed, entries=entries)
         if self.compact:
-            self.summary.set_text(f"{changed} of {entries} {verb} from the device" if changed
-                                  else f"device and project agree ({entries})")
+            self.summary.set_text(differ if changed else _("device and project agree ({entries})").format(entries=entries))
         else:
-            self.summary.set_text(f"{name}: {changed} of {entries} {verb} from the device"
-                                  + ("" if changed else ": device and project agree"))
+            self.summary.set_text(f"{name}: {differ}" + ("" if changed else ": " + _("device and project agree")))
 
     def _row(self, key: str) -> backup.DiffRow | None:
         return next((r for r in self.plan.rows if r.key == key), None) if self.plan else None
@@ -177,13 +195,15 @@ class ProjectCard:
         row = self._row(key)
         if row is None or not row.changed:
             return
-        if not await confirm(f"Write {row.name} = {row.backup_text} to {self.plan.device}?",
-                             f"The project's value is written, read back and saved in the device (now {row.current_text}).",
-                             ok="Write"):
+        _ = self.lang.gettext
+        if not await confirm(_("Write {name} = {value} to {device}?").format(name=row.name, value=row.backup_text, device=self.plan.device),
+                             _("The project's value is written, read back and saved in the device (now {value}).").format(
+                                 value=row.current_text), ok=_("Write"), lang=self.lang):
             return
         confirmed = set()
         if row.risk:
-            if not await confirm(f"Write {row.name} = {row.backup_text}?", row.risk, ok="Write anyway"):
+            if not await confirm(_("Write {name} = {value}?").format(name=row.name, value=row.backup_text), row.risk,
+                                 ok=_("Write anyway"), lang=self.lang):
                 return
             confirmed.add(key)
         user, role = current_user()
@@ -205,9 +225,10 @@ class ProjectCard:
             await self.runtime.worker.engineer_action(rewrite, user=user, role=role, describe="update project",
                                                       target=device, new=f"{row.name} = {row.current_text}")
         except Exception as exc:  # noqa: BLE001 - a file that cannot be written, a viewer ...
-            notify_error(f"Project not updated: {exc}")
+            notify_error(self.lang.gettext("Project not updated: {error}").format(error=exc))
             return
-        ui.notify(f"Project of {device}: {row.name} = {row.current_text}", type="positive")
+        ui.notify(self.lang.gettext("Project of {device}: {name} = {value}").format(device=device, name=row.name, value=row.current_text),
+                  type="positive")
         await self.compare()
 
     def follow_device(self) -> None:
@@ -222,8 +243,8 @@ class ProjectCard:
             elif not online and self.plan is None and not answering["said"]:
                 answering["said"] = True  # said once: the project file is not read again on every push
                 count = len(project.entries(self.runtime.plant, self.name))
-                self.summary.set_text(f"{count} project {'entry' if count == 1 else 'entries'}; the device does not "
-                                      "answer: compared when it does")
+                self.summary.set_text(self.lang.ngettext("{n} project entry", "{n} project entries", count).format(n=count)
+                                      + "; " + self.lang.gettext("the device does not answer: compared when it does"))
             if online != answering["now"]:
                 self.again.set_enabled(online)
             answering["now"] = online
@@ -240,10 +261,11 @@ def _page_column() -> ui.element | None:
     return min(columns, key=lambda e: e.id) if columns else None
 
 
-def device_card(name: str) -> None:
+def device_card(name: str, lang: Lang | None = None) -> None:
     """On the page of device ``name``, below its title: its project against it (when the plant file names one),
-    or the way to write one on its type's parameter model (at the page's end)."""
+    or the way to write one on its type's parameter model (at the page's end); in ``lang`` (by default the page's)."""
     runtime = rt.current()
+    lang = lang or i18n.client_language()
     if name not in runtime.plant.devices:
         return
     column = _page_column()
@@ -254,14 +276,14 @@ def device_card(name: str) -> None:
         return  # a type without a parameter model: nothing a project could name
     with column:
         if has:
-            card = ProjectCard([name], compact=True)
+            card = ProjectCard([name], compact=True, lang=lang)
             card.card.move(target_container=column, target_index=1)
             card.follow_device()
             return
         with ui.row().classes("items-center gap-2").props("data-testid=project-none"):
             ui.icon("edit_note", color="grey-7")
-            ui.label("The plant file names no project for this device.").classes("text-body2 text-grey-8")
-            ui.link("Write one on its parameter model", f"/project/{name}").props("data-testid=project-edit")
+            ui.label(lang.gettext("The plant file names no project for this device.")).classes("text-body2 text-grey-8")
+            ui.link(lang.gettext("Write one on its parameter model"), f"/project/{name}").props("data-testid=project-edit")
 
 
 # -- the project editor (/project/<device>) -----------------------------------------------------------------

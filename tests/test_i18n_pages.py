@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from babel.messages.pofile import read_po
 from nicegui import ui
-from plants import modbus_plant
+from plants import free_port, modbus_plant
 from webutil import eventually, simulated_user
 
 from app import i18n
@@ -179,6 +179,28 @@ async def test_the_backup_page_in_german_shows_no_english(tmp_path):
         assert english_on(user) == []
         files = next(e for e in user.client.elements.values() if isinstance(e, ui.table))
         assert [c["label"] for c in files.columns] == ["Datei", "Gerät", "Typ", "Erstellt (Ortszeit)", "Von", "Größe", ""]
+
+
+async def test_a_project_in_german_shows_no_english(tmp_path):
+    """The project card of the backup page, its comparison with the device and the reconciling buttons."""
+    from test_project_page import PLANT
+
+    from app.plant import load_plant
+
+    path = tmp_path / "plant.toml"
+    path.write_text(PLANT.format(port=free_port(), silent=free_port()))
+    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
+    async with german_user(runtime) as user:
+        await eventually(lambda: runtime.store.devices["door-1"].status == "online", timeout=15, what="door-1 online")
+        await user.open("/backup")
+        await user.should_see("Projekt gegen die Geräte", retries=50)
+        user.find(content="Projekt mit dem Gerät vergleichen").click()
+        await user.should_see("door-1: 1 der 1 Projekteintrag weicht vom Gerät ab", retries=100)
+        assert english_on(user) == []
+        table = next(e for e in user.client.elements.values()
+                     if isinstance(e, ui.table) and any(c["name"] == "state" for c in e.columns))
+        assert [c["label"] for c in table.columns] == ["Parameter", "Projekt", "Gerät jetzt", "", "Abgleichen"]
+        assert table.rows[0]["state_text"] == "weicht ab" and table.rows[0]["state"] == "differs"
 
 
 async def test_the_audit_log_in_german_shows_no_english_but_its_records(tmp_path):
