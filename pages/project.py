@@ -306,33 +306,41 @@ class ProjectEditor:
     """Every writable parameter of the device type's parameter model with the project's value, checked as typed,
     saved into the project (an engineer's action, audited); read-only for a viewer."""
 
-    def __init__(self, name: str):
+    def __init__(self, name: str, lang: Lang | None = None):
         self.runtime = rt.current()
+        self.lang = lang or i18n.get("en")
         self.name = name
         self.params = project.editable(self.runtime.plant, name)
         self.fields: dict[str, ui.input | ui.select] = {}
         self.values: dict[str, object] = {}
-        self.read_only = viewer_reason()
+        self.read_only = viewer_reason(self.lang)
 
     def build(self) -> None:
+        from pages.frame import status_text
+
+        lang = self.lang
+        _ = lang.gettext
         plant, state = self.runtime.plant, self.runtime.store.devices[self.name]
-        title = DEVICE_TYPES[state.type].title
-        where = _where(plant, self.name) if project.has_project(plant, self.name) else (
-            f"{plant.path.name if plant.path else 'the plant file'} (no project yet: saving adds one)")
+        title = lang.phrase(DEVICE_TYPES[state.type].title)
+        where = _where(plant, self.name, lang) if project.has_project(plant, self.name) else \
+            _("{file} (no project yet: saving adds one)").format(file=plant.path.name if plant.path else _("the plant file"))
         with ui.card().classes("w-full gap-1"):
-            ui.label(f"{title} '{self.name}' on {state.bus}: the project is kept in {where}.").classes("text-body1")
-            ui.label(f"Edited on the {title} parameter model without the device (it is {state.status} now): nothing "
-                     "is written to the device here. An empty field is not in the project.").classes("text-caption text-grey-8")
+            ui.label(_("{type} '{name}' on {bus}: the project is kept in {where}.").format(
+                type=title, name=self.name, bus=state.bus, where=where)).classes("text-body1")
+            status = state.status if lang.code == "en" else status_text(state.status, state.age, lang)
+            ui.label(_("Edited on the {type} parameter model without the device (it is {status} now): nothing "
+                       "is written to the device here. An empty field is not in the project.").format(type=title, status=status)).classes(
+                "text-caption text-grey-8")
             with ui.row().classes("items-center gap-4"):
-                ui.link("Device page", f"/device/{self.name}")
-                ui.link("Backup page", "/backup")
+                ui.link(_("Device page"), f"/device/{self.name}")
+                ui.link(_("Backup page"), "/backup")
             self.problems = ui.column().classes("gap-0").props("data-testid=project-problems")
         with ui.card().classes("w-full").props("data-testid=project-editor"):
-            ui.label(f"{len(self.params)} writable parameters").classes("text-subtitle1")
+            ui.label(_("{n} writable parameters").format(n=len(self.params))).classes("text-subtitle1")
             for param in self.params:
                 self._field(param)
             with ui.row().classes("items-center"):
-                self.save_button = ui.button("Save project", icon="save", on_click=self.save).props(
+                self.save_button = ui.button(_("Save project"), icon="save", on_click=self.save).props(
                     "data-testid=project-save")
                 self.status = ui.label().classes("text-body2").props("data-testid=project-status")
             if self.read_only:
@@ -342,20 +350,21 @@ class ProjectEditor:
 
     def _field(self, param: Param) -> None:
         """One parameter: its name, what it allows, its risk and its doc text beside the project's value."""
+        _ = self.lang.gettext
         with ui.element("div").style(PARAM_ROW):
             with ui.column().classes("gap-0"):
                 ui.label(param.label or param.name).classes("text-body2 text-weight-medium")
-                allowed = "one of the listed values" if param.enum is not None else project.allowed(param)
-                ui.label(f"allowed: {allowed}").classes("text-caption text-grey-9")
+                allowed = _("one of the listed values") if param.enum is not None else self.lang.numbers_in(project.allowed(param))
+                ui.label(_("allowed: {allowed}").format(allowed=allowed)).classes("text-caption text-grey-9")
                 if param.confirm:
-                    ui.label(f"⚠ asks before it is written: {param.confirm}").classes("text-caption text-negative").style(WRAP)
+                    ui.label("⚠ " + _("asks before it is written: {risk}").format(risk=param.confirm)).classes("text-caption text-negative").style(WRAP)
                 if param.description:
                     ui.label(param.description).classes("text-caption text-grey-7").style(WRAP)
             if param.enum is not None:
-                options = {"": "(not in the project)"} | {str(n): f"{text} ({n})" for n, text in param.enum.items()}
+                options = {"": _("(not in the project)")} | {str(n): f"{text} ({n})" for n, text in param.enum.items()}
                 field = ui.select(options, value="").props("dense outlined options-dense")
             else:
-                field = ui.input(placeholder="not in the project", suffix=param.unit or None,
+                field = ui.input(placeholder=_("not in the project"), suffix=param.unit or None,
                                  validation=lambda v, p=param: self._error(p, v)).props("dense outlined")
         field.props(f'data-project-field="{param.key}"')
         if self.read_only:
@@ -404,13 +413,14 @@ class ProjectEditor:
         return changes, errors
 
     async def save(self) -> None:
+        _ = self.lang.gettext
         changes, errors = self.changes()
         if errors:
-            self.status.set_text("Not saved: " + "; ".join(errors))
+            self.status.set_text(_("Not saved: {errors}").format(errors="; ".join(errors)))
             self.status.classes(replace="text-body2 text-negative")
             return
         if not changes:
-            self.status.set_text("Nothing changed")
+            self.status.set_text(_("Nothing changed"))
             self.status.classes(replace="text-body2")
             return
         by_key = {p.key: p for p in self.params}
@@ -425,31 +435,34 @@ class ProjectEditor:
                 describe="edit project", target=self.name, parameter=", ".join(by_key[k].label or by_key[k].name
                                                                                for k in changes), new=words)
         except Exception as exc:  # noqa: BLE001 - a viewer, a file that cannot be written ...
-            self.status.set_text(f"Not saved: {exc}")
+            self.status.set_text(_("Not saved: {errors}").format(errors=exc))
             self.status.classes(replace="text-body2 text-negative")
             return
         finally:
             self.save_button.enable()
         self.load()
-        self.status.set_text(f"Saved: {words}")
+        self.status.set_text(_("Saved: {changes}").format(changes=words))
         self.status.classes(replace="text-body2 text-positive")
 
 
 def content(name: str) -> None:
     runtime = rt.current()
     state = runtime.store.devices.get(name)
-    with frame(f"Project of {name}"):
+    lang = i18n.page_language()
+    _ = lang.gettext
+    with frame(_("Project of {name}").format(name=name)):
         if state is None or name not in runtime.plant.devices:
-            ui.label(f"The plant has no device named '{name}'.")
-            ui.link("Back to the overview", "/")
+            ui.label(_("The plant has no device named '{name}'.").format(name=name))
+            ui.link(_("Back to the overview"), "/")
             return
         if not project.editable(runtime.plant, name):
-            title = DEVICE_TYPES[state.type].title
+            title = lang.phrase(DEVICE_TYPES[state.type].title)
             refused = backup.restore_refused(runtime, name)
-            ui.label(f"A {title} has no parameter model in this tool, so it has no parameters a project can name"
-                     + (f" ({refused})." if refused else ": its backup keeps the device's own records, "
-                        "checked by the device when they are written.")).classes("text-body1").props(
-                "data-testid=project-no-model")
-            ui.link("Device page", f"/device/{name}")
+            ui.label(_("A {type} has no parameter model in this tool, so it has no parameters a project can name ({reason}).")
+                     .format(type=title, reason=refused) if refused else
+                     _("A {type} has no parameter model in this tool, so it has no parameters a project can name: its backup "
+                       "keeps the device's own records, checked by the device when they are written.").format(type=title)).classes(
+                "text-body1").props("data-testid=project-no-model")
+            ui.link(_("Device page"), f"/device/{name}")
             return
-        ProjectEditor(name).build()
+        ProjectEditor(name, lang).build()

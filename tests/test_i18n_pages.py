@@ -238,3 +238,15 @@ async def test_the_replacement_assistant_in_german_shows_no_english(tmp_path):
         await user.should_see("Identität wie bekannt", retries=50)
         # the twin's card: its words are declared by devices/*/sim.py and are not in the catalogs yet (docs/i18n.md)
         assert english_on(user, skip=("sim-card",)) == []
+
+
+async def test_the_project_editor_in_german_shows_no_english_but_the_parameters_own_words(tmp_path):
+    """Parameter names are the documents' names and their descriptions are English in devices/*/params.py: the
+    editor's own words are German."""
+    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await user.open("/project/door-1")
+        await user.should_see("Projekt von door-1", retries=50)
+        await user.should_see("Projekt speichern")
+        descriptions = {p.description for p in runtime.store.devices["door-1"].params.by_name.values()}
+        assert [(text, message) for text, message in english_on(user) if text not in descriptions] == []
