@@ -250,3 +250,21 @@ async def test_the_project_editor_in_german_shows_no_english_but_the_parameters_
         await user.should_see("Projekt speichern")
         descriptions = {p.description for p in runtime.store.devices["door-1"].params.by_name.values()}
         assert [(text, message) for text, message in english_on(user) if text not in descriptions] == []
+
+
+async def test_the_plant_wide_view_in_german_shows_no_english(tmp_path):
+    """``commission view``'s page (pages/site_view.py) on a store fed as the broker would feed it."""
+    from test_faces_site_view import _good, _store
+
+    from pages import site_view
+
+    store = _store()
+    _good(store)
+    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        ui.page("/site-view-de")(lambda: site_view.content(store))
+        await user.open("/site-view-de")
+        await user.should_see("Anlagenweite Ansicht", retries=50)
+        await user.should_see("Standort hall")
+        await user.should_see("Bolzen ausgefahren (verriegelt)")  # the plant view's words on the remote tile
+        assert english_on(user) == []
