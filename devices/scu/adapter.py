@@ -18,7 +18,6 @@ stops every drive (section 5) even if an RS was lost.
 
 from __future__ import annotations
 
-import asyncio
 import functools
 import math
 import time
@@ -33,6 +32,7 @@ from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.facts import (  # noqa: F401 - the published names, also read from here by older callers
     CommandError, ControlBusy, ActuatorScale, FunctionMap, P_ACTUATORS, P_CONFIGURATION, P_CONTROL, P_CONTROLLED_BY, P_CRC_RETRIES, P_CYCLIC, P_ESTOP, P_FIRMWARE, P_FUNCTIONS, P_LINE, P_RC_GAP, P_RC_PERIOD, P_REFUSAL, P_RESYNCS, P_RS_PENDING, P_RUNNING, P_SAFETY_ID, P_SCALES, P_SERIAL, P_SESSION, P_SESSION_REASON, P_SINGLE_IDS, P_SKIPPED, P_SPEED, P_WATCH, Refusal, SerialLine, SpeedRange, chart_points, describe_answer, actuator_scales, answer_length, header_offset, value_text, jsonable as _jsonable)
+from devices.scu.functions import ScuFunctions
 from devices.scu.keepalive import CYCLIC_INDEX, RC_KEY, RcKeepAlive
 from devices.scu.livedata import ERROR_BIT_GROUPS, ROTATING_IDS, ScuLiveData  # noqa: F401 - ERROR_BIT_GROUPS: read from here
 from devices.scu.model import PARAMS
@@ -96,7 +96,7 @@ class ScuAdapter:
         self.core = ScuControl(lease=Lease())
         self.rc = RcKeepAlive(self)  # the RC keep-alive on the line's own thread (devices/scu/keepalive.py)
         self.live = ScuLiveData(self)  # the live points (devices/scu/livedata.py)
-        self.started: set[int] = set()  # functions run since the session opened (Stop sends RS to them)
+        self.functions = ScuFunctions(self)  # RE, RS, the emergency stop (devices/scu/functions.py)
         self.cyclic: p.CyclicDefinition | None = None
         self.cyclic_note = ""
         self.crc_retries = 0
@@ -104,15 +104,11 @@ class ScuAdapter:
         self._silent_since: float | None = None
         self._rotate = 0
         self.rg_on_loop: list[int] = []  # reads the thread could not make well: made by the next poll instead
-        self._stop_tasks: set[asyncio.Task] = set()
         self.watch: str | None = None  # WATCH_RG or WATCH_SESSION once the first RG outside a session told
         self.single_ids: set[int] = set()  # groups this unit refused: read member by member (remembered)
         self.cyclic_refused = False  # the unit refused the cyclic object (definition or RC with it)
         self.resyncs = 0
         self.skipped_bytes = 0
-        self._fn_locks: dict[int, asyncio.Lock] = {}
-        self._stop_marks: dict[int, float] = {}  # fnc_ID -> when a stop of it was asked
-        self._stop_all_at = 0.0  # when a stop of everything was asked
         state.stale_after = 2.0
         state.registers_periodic = False
         self._publish_session()
@@ -130,7 +126,7 @@ class ScuAdapter:
         self._publish_control()
         self._publish_scales()
         self.sync_held()
-        self._publish_estop()
+        self.publish_estop()
         self._publish_counts()
         state.fact(P_CYCLIC, self.cyclic_note)
         state.fact(P_REFUSAL, None, text="none")
@@ -171,7 +167,7 @@ class ScuAdapter:
         return self.core.control.lease
 
     # -- carrying the core's actions out ----------------------------------------------------------------
-    async def _carry_out(self, actions) -> None:
+    async def carry_out(self, actions) -> None:
         """Do what the core asks, in order; what an answer leads to comes before the rest."""
         todo = list(actions)
         while todo:
@@ -180,15 +176,15 @@ class ScuAdapter:
                 todo[:0] = await self._rs_action(action)
             elif isinstance(action, SendEstop):
                 todo[:0] = self.core.estop_answered(await self._estop_request(action.why), time.monotonic())
-                self._publish_estop()
+                self.publish_estop()
             elif isinstance(action, OpenSession):
                 await self.open_session(forced=action.forced)
             else:
-                self._apply(action)
+                self.apply(action)
         self.sync_held()
         self.sync_phase()
 
-    def _apply(self, action) -> None:
+    def apply(self, action) -> None:
         """The actions without I/O of the line: reports, control, withholding RC."""
         if isinstance(action, Report):
             if action.text.startswith("STOP FAILED"):
@@ -214,7 +210,7 @@ class ScuAdapter:
         self._publish_session()
 
     @staticmethod
-    def _outcome(exc: BaseException | None) -> Outcome:
+    def outcome(exc: BaseException | None) -> Outcome:
         if exc is None:
             return Outcome.ACK
         if isinstance(exc, codec.CommandRefused):
@@ -223,10 +219,10 @@ class ScuAdapter:
 
     async def _estop_request(self, why: str) -> Outcome:
         try:
-            await self._request(codec.encode_re(codec.Function.EMERGENCY_STOP), f"RE F20 emergency stop ({why})",
+            await self.request(codec.encode_re(codec.Function.EMERGENCY_STOP), f"RE F20 emergency stop ({why})",
                                 keepalive=False)
         except (SerialLineError, codec.CodecError) as exc:
-            return self._outcome(exc)
+            return self.outcome(exc)
         return Outcome.ACK
 
     async def _rs_action(self, action: SendRS) -> list:
@@ -235,17 +231,17 @@ class ScuAdapter:
         frame = codec.encode_rs(action.fn, -1, -1) if action.three_bytes else codec.encode_rs(action.fn)
         exc: BaseException | None = None
         try:
-            await self._request(frame, f"RS {label} ({action.why})" + (f", attempt {action.attempt}" if action.attempt > 1 else "")
+            await self.request(frame, f"RS {label} ({action.why})" + (f", attempt {action.attempt}" if action.attempt > 1 else "")
                                 + (" (three-byte form)" if action.three_bytes else ""), keepalive=False)
         except (SerialLineError, codec.CodecError) as e:
             exc = e
-        follow = self.core.rs_answered(action, self._outcome(exc), time.monotonic())
+        follow = self.core.rs_answered(action, self.outcome(exc), time.monotonic())
         if action.fn == ESTOP:
-            self._publish_estop()
+            self.publish_estop()
         return follow
 
     # -- the line -------------------------------------------------------------------------------
-    async def _request(self, frame: bytes, describe: str, *, keepalive: bool = True,
+    async def request(self, frame: bytes, describe: str, *, keepalive: bool = True,
                        quiet: bool = False) -> codec.Answer:
         """One request and its answer; bad CRC retried; error codes raise CommandRefused (counted).
 
@@ -253,7 +249,7 @@ class ScuAdapter:
         """
         if (keepalive and frame[:2] != codec.RC and self.session == "open" and not self.rc.threaded()
                 and self.rc.due()):
-            await self._rc()  # only RC feeds the unit's 500 ms watchdog (section 5): long operations interleave it
+            await self.send_rc()  # only RC feeds the unit's 500 ms watchdog (section 5): long operations interleave it
         expected = bytes(frame[:2])
         for attempt in range(CRC_RETRIES + 1):
             self.state.counters.requests += 1
@@ -369,7 +365,7 @@ class ScuAdapter:
                 # PE also means "not possible in the unit's current state" (an emergency stop, a locked
                 # function): only an RC refused as well shows that remote mode is gone (section 4.2).
                 try:
-                    await self._request(codec.KEEP_ALIVE, "RC (is remote mode still open after a PE?)",
+                    await self.request(codec.KEEP_ALIVE, "RC (is remote mode still open after a PE?)",
                                         keepalive=False, quiet=True)
                 except (codec.CommandRefused, SerialLineError, codec.CodecError):
                     pass
@@ -436,13 +432,13 @@ class ScuAdapter:
 
     def lost(self, reason: str) -> None:
         for action in self.core.lost(reason, time.monotonic()):
-            self._apply(action)
+            self.apply(action)
         self.sync_phase()
 
-    async def _rc(self) -> codec.Answer:
+    async def send_rc(self) -> codec.Answer:
         if self.cyclic is not None:
             try:
-                answer = await self._request(codec.encode_rc(CYCLIC_INDEX), "RC keep-alive with CyclicObj 1",
+                answer = await self.request(codec.encode_rc(CYCLIC_INDEX), "RC keep-alive with CyclicObj 1",
                                              keepalive=False)
             except codec.CommandRefused as exc:
                 if exc.code in (codec.Status.PE, codec.Status.CSE):
@@ -454,14 +450,14 @@ class ScuAdapter:
                                     "RC without data keeps the session, live data is read with RG")
                 self.publish_cyclic()
                 self.state.event("warning", self.cyclic_note)
-                return await self._request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)
+                return await self.request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)
             if answer.has_ctp:
                 try:
                     self.live.publish_ids(self.cyclic.decode_read(answer.data))
                 except (v.DecodeError, ValueError) as exc:
                     self.state.error(f"RC cyclic data: {exc}", log=False)
             return answer
-        return await self._request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)
+        return await self.request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)
 
     async def _wake(self) -> None:
         """Low-power wake-up (section 3, V2B1): RxD held at space for at least 100 ms."""
@@ -477,7 +473,7 @@ class ScuAdapter:
         if self._last_answer is None:
             await self._wake()  # a unit on battery may be asleep from the start (section 3, Low Power, V2B1)
         try:
-            answer = await self._request(codec.encode_rg(PROBE_ID), "RG 0x0011 outside a session (probe)",
+            answer = await self.request(codec.encode_rg(PROBE_ID), "RG 0x0011 outside a session (probe)",
                                          keepalive=False, quiet=True)
         except codec.CommandRefused:
             self.watch = WATCH_SESSION
@@ -522,27 +518,27 @@ class ScuAdapter:
         sid = int(self.safety_id)
         try:
             try:
-                await self._request(self._ro_frame(), f"RO Safety_ID {sid}", keepalive=False)
+                await self.request(self._ro_frame(), f"RO Safety_ID {sid}", keepalive=False)
             except codec.CommandRefused as exc:
-                if not self.core.ro_refused(self._outcome(exc)):
+                if not self.core.ro_refused(self.outcome(exc)):
                     raise
                 self.state.event("warning", "the unit answered PCE to RO with the Safety_ID alone: it takes RO with "
                                             "Safety_ID and para_ID[0] as table 3 lists it; that form from now on")
-                await self._request(self._ro_frame(), f"RO Safety_ID {sid}, para_ID[0] -1", keepalive=False)
-            await self._request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)  # section 5: RC before any other command
+                await self.request(self._ro_frame(), f"RO Safety_ID {sid}, para_ID[0] -1", keepalive=False)
+            await self.request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)  # section 5: RC before any other command
         except (SerialLineError, codec.CodecError) as exc:
             self.core.open_failed(str(exc), time.monotonic(), answered_before=self._last_answer is not None)
             self.sync_phase()
             if forced:
                 for action in self.core.estop_unreachable(str(exc), time.monotonic()):
-                    self._apply(action)
+                    self.apply(action)
             return
         actions = self.core.opened(time.monotonic())
         self.sync_phase()
         # the emergency stop again (released only by the person who asks for it) and the RS of every RE still owed
         # (section 4.6), before the cyclic object is defined: whatever becomes of that, these have gone out
-        await self._carry_out(actions)
-        self._publish_estop()
+        await self.carry_out(actions)
+        self.publish_estop()
         if self.core.phase != "open":
             return  # an RS was not acknowledged: RC is withheld until the unit's watchdog has stopped every drive
         if self.cyclic_refused:
@@ -550,7 +546,7 @@ class ScuAdapter:
         else:
             definition = p.CyclicDefinition(read_ids=self._cyclic_ids())
             try:
-                await self._request(codec.encode_rt(0x3001, definition.encode()), "RT CyclicObj 1 definition")
+                await self.request(codec.encode_rt(0x3001, definition.encode()), "RT CyclicObj 1 definition")
                 self.cyclic = definition
                 self.cyclic_note = ("cyclic object 0x3001: positions, status 1 and 2, currents, error code, "
                                     "mains/battery with every RC")
@@ -596,7 +592,7 @@ class ScuAdapter:
         the conversion factors 0x1011.. (counts per mm) where the plant file gives no scale."""
         for i, scale in enumerate(self.scales):
             try:
-                answer = await self._request(codec.encode_rg(0x2000 + scale.number), f"RG 0x{0x2000 + scale.number:04X}")
+                answer = await self.request(codec.encode_rg(0x2000 + scale.number), f"RG 0x{0x2000 + scale.number:04X}")
                 value = p.rg_value(0x2000 + scale.number, answer)
             except codec.CommandRefused:
                 value = None
@@ -610,7 +606,7 @@ class ScuAdapter:
             self.state.publish(f"A{s.number} out end", s.out_counts, "counts", periodic=False)
             if not s.has_mm:
                 try:
-                    factor = p.rg_value(0x1010 + s.number, await self._request(
+                    factor = p.rg_value(0x1010 + s.number, await self.request(
                         codec.encode_rg(0x1010 + s.number), f"RG 0x{0x1010 + s.number:04X} conversion factor"))
                 except codec.CommandRefused:
                     continue
@@ -643,9 +639,9 @@ class ScuAdapter:
         try:
             if self.session == "open":
                 if not self.rc.threaded():
-                    await self._rc()  # else the line's own thread sends it (RcKeepAlive.tick)
+                    await self.send_rc()  # else the line's own thread sends it (RcKeepAlive.tick)
                 for fn in sorted(self.rs_pending):
-                    await self._send_rs(fn, self.rs_pending[fn])
+                    await self.send_rs(fn, self.rs_pending[fn])
             live = [] if self.cyclic is not None else list(CYCLIC_READ_IDS)
             live += self.rg_on_loop
             self.rg_on_loop = []
@@ -678,7 +674,7 @@ class ScuAdapter:
 
     async def _end_session(self, reason: str) -> None:
         try:
-            await self._request(codec.encode_ra(), "RA (nobody in control)", keepalive=False)
+            await self.request(codec.encode_ra(), "RA (nobody in control)", keepalive=False)
         except (SerialLineError, codec.CodecError):
             pass
         self.cyclic = None
@@ -688,7 +684,7 @@ class ScuAdapter:
         """RG of a data ID, or of the members of a group the unit refused; one refused read never ends the poll."""
         for read_id in self._ids_of(data_id):
             try:
-                answer = await self._request(codec.encode_rg(read_id), f"RG 0x{read_id:04X}",
+                answer = await self.request(codec.encode_rg(read_id), f"RG 0x{read_id:04X}",
                                              quiet=read_id == data_id and p.DIRECTORY.get(read_id) is not None
                                              and p.DIRECTORY[read_id].is_group)
             except codec.CommandRefused as exc:
@@ -716,13 +712,13 @@ class ScuAdapter:
             c = self.controller
             raise ControlBusy(f"{c.user} holds control since {time.strftime('%H:%M:%S', time.localtime(c.since))}")
         for action in decision.actions:
-            self._apply(action)
+            self.apply(action)
 
     def controls(self, session: str) -> bool:
         """Whether ``session`` holds control of the unit (the gate's check for commands that need control)."""
         return self.core.control.controls(session)
 
-    def _check_holder(self, session: str) -> None:
+    def check_holder(self, session: str) -> None:
         decision = self.core.control.check_holder(session)
         if not decision.ok:
             raise (ControlBusy if decision.busy else CommandError)(decision.refused)
@@ -744,157 +740,58 @@ class ScuAdapter:
         if self.controller is None or (session and self.controller.session != session):
             return False
         holder = self.controller.session
-        await self._stop_held(holder, reason)
+        await self.functions.stop_held(holder, reason)
         self.core.control.running = False  # what it ran has had its RS (an RS not acknowledged stays owed)
         for action in self.core.control.release(holder, reason):
-            self._apply(action)
+            self.apply(action)
         return True
 
     def holders(self) -> set[str]:
         """Sessions whose RE (motion, buzzer, outputs, LEDs) has not yet been followed by an acknowledged RS."""
         return self.core.holders()
 
+    # -- the unit's functions: RE, RS, the emergency stop (devices/scu/functions.py) ---------------------
     def session_lost(self, session: str, reason: str) -> None:
         """The browser of ``session`` went away or froze: RS at once for everything it runs, release control."""
-        actions = self.core.session_lost(session, reason)
-        held = [a.fn for a in actions if isinstance(a, SendRS)]
-        now = time.monotonic()
-        for fn in held:
-            self._stop_marks[fn] = now
-        if held:
-            self.state.event("warning", f"dead-man: {reason}; RS to " + ", ".join(codec.FUNCTIONS[codec.Function(f)].label for f in held))
-            task = asyncio.get_running_loop().create_task(self._stop_functions(held, f"dead-man: {reason}"))
-            self._stop_tasks.add(task)
-            task.add_done_callback(self._stop_tasks.discard)
-        for action in actions:
-            if not isinstance(action, SendRS):
-                self._apply(action)
+        self.functions.session_lost(session, reason)
 
     async def stopped(self) -> None:
         """Wait for the RS frames that :meth:`session_lost` has sent off (tests, shutdown)."""
-        while self._stop_tasks:
-            await asyncio.gather(*list(self._stop_tasks), return_exceptions=True)
-
-    async def _stop_functions(self, functions: list[int], why: str) -> list[int]:
-        """RS to each function; the functions whose RS was not acknowledged."""
-        return [fn for fn in functions if not await self._send_rs(fn, why)]
-
-    def _fn_lock(self, fn: int) -> asyncio.Lock:
-        lock = self._fn_locks.get(fn)
-        if lock is None:
-            lock = self._fn_locks[fn] = asyncio.Lock()
-        return lock
-
-    async def _send_rs(self, fn: int, why: str) -> bool:
-        """RS of ``fn`` after any RE of it still on the line (never before it); True once acknowledged."""
-        async with self._fn_lock(fn):
-            with self.rc.guard:
-                by_thread = fn in self.rc.stopped_by_thread
-                self.rc.stopped_by_thread.discard(fn)
-            if by_thread and fn in self.running:  # the line's thread got its RS acknowledged after a lapse
-                self.running.pop(fn, None)
-                self.rs_pending.pop(fn, None)
-                self.sync_held()
-                return True
-            return await self._rs(fn, why)
-
-    async def _rs(self, fn: int, why: str) -> bool:
-        """RS as the core rules it: sent again on CSE or no answer, in the three-byte form after a PCE; not
-        acknowledged, it is a failed stop and RC is withheld (devices/scu/control.py)."""
-        await self._carry_out([SendRS(fn, why, three_bytes=self.core.rs_three_bytes)])
-        if fn == ESTOP:
-            return self.core.estop is None
-        return fn not in self.running and fn not in self.rs_pending
-
-    async def _stop_held(self, session: str, why: str) -> None:
-        await self._stop_functions([fn for fn, s in self.running.items() if s == session and fn not in NOT_HELD], why)
-
-    def _stopped_since(self, fn: int, since: float) -> bool:
-        return max(self._stop_all_at, self._stop_marks.get(fn, 0.0)) > since
+        await self.functions.stopped()
 
     async def run_function(self, session: str, function: int, motion: int = -1, ramp: int = -1,
                            requested_at: float | None = None) -> str:
-        """RE of a function (F1..F10 with motion and ramp; buzzer, outputs, LEDs with -1, -1).
-
-        RC (when due) and the RE go out back to back under the function's lock, so an RS of the same
-        function (Stop, jog release, dead-man) is never sent before the RE; a stop requested after
-        ``requested_at`` (the moment the page saw the press) cancels the RE, or is followed by RS right after it.
-        """
-        requested_at = time.monotonic() if requested_at is None else requested_at
-        self._check_holder(session)
-        fn = codec.Function(function)
-        if fn == codec.Function.EMERGENCY_STOP:
-            return await self.emergency_stop(session)
-        decision = self.core.check_run(session, int(fn))
-        if not decision.ok:
-            raise (ControlBusy if decision.busy else CommandError)(decision.refused)
-        await self.ensure_open()
-        self.check_open()
-        frame = codec.encode_re(fn, motion, ramp) if fn in codec.MOTION_FUNCTIONS else codec.encode_re(fn)
-        label = codec.FUNCTIONS[fn].label
-        words = (f"{label} {codec.MOTION_LABELS[codec.Motion(motion)]}, ramp {codec.Ramp(ramp & 0xFF).name.lower()}"
-                 if fn in codec.MOTION_FUNCTIONS else f"{label} {codec.FUNCTIONS[fn].description}")
-        async with self._fn_lock(int(fn)):
-            if self._stopped_since(int(fn), requested_at):
-                raise CommandError(f"{label}: a stop came after this request: no RE sent")
-            if self.rc.due():
-                await self._rc()
-            if self._stopped_since(int(fn), requested_at):
-                raise CommandError(f"{label}: a stop came after this request: no RE sent")
-            # runs from now on (the controlling session pressed just now: alive; the supervisor renews its lease),
-            # before the request: a lost answer must still be followed by RS
-            self.core.re_sent(session, int(fn), time.monotonic())
-            self.sync_held()
-            try:
-                await self._request(frame, f"RE {words}", keepalive=False)
-            except BaseException as exc:
-                await self._carry_out(self.core.re_answered(int(fn), self._outcome(exc)))
-                raise
-            if self._stopped_since(int(fn), requested_at):
-                await self._rs(int(fn), "stop requested while the RE was on the line")
-                raise CommandError(f"{label}: stopped right after its RE (a stop came while the RE was on the line)")
-        self.started.add(int(fn))
-        self.state.event("info", f"RE {words}")
-        return words
+        """RE of a function (F1..F10 with motion and ramp; buzzer, outputs, LEDs with -1, -1)."""
+        return await self.functions.run_function(session, function, motion, ramp, requested_at)
 
     async def stop(self, session: str | None = None, function: int | None = None) -> list[str]:
-        """RS to ``function``, or to every function run (anyone may stop); raises when an RS is not acknowledged."""
-        now = time.monotonic()
-        if function is None:
-            self._stop_all_at = now
-        else:
-            self._stop_marks[int(function)] = now
-        if self.session != "open" and not self.running and not self.rs_pending:
-            return [f"nothing sent: the session is {self.session}; without RC the unit has stopped remote motion"]
-        await self.ensure_open()
-        targets = self.core.stop_targets(function, self.started)
-        failed = await self._stop_functions(targets, "stop")
-        if failed:
-            withheld = self.core.withheld_since is not None
-            raise CommandError("STOP FAILED: no acknowledged RS for "
-                               + ", ".join(codec.FUNCTIONS[codec.Function(f)].label for f in failed)
-                               + f" ({self.state.last_error}); " + (
-                                   "RC is withheld, so the unit's own watchdog stops every drive within 500 ms "
-                                   "(section 5)" if withheld else "RS is sent again on every poll"))
-        return [codec.FUNCTIONS[codec.Function(f)].label for f in targets]
+        """RS to ``function``, or to every function run (anyone may stop)."""
+        return await self.functions.stop(session, function)
 
     async def jog(self, session: str, function: int, direction: int, ramp: int = -1,
                   requested_at: float | None = None) -> str:
-        """Hold-to-run: +1 out, -1 in while held; 0 (release) sends RS, after the press's RE if that is on the line."""
-        if direction == 0:
-            fn = int(function)
-            self._stop_marks[fn] = time.monotonic()  # a press whose RE has not gone out yet sends none
-            lock = self._fn_locks.get(fn)
-            if self.running.get(fn) == session or (lock is not None and lock.locked()) or fn in self.rs_pending:
-                if not await self._send_rs(fn, "jog released"):
-                    raise CommandError(f"STOP FAILED: RS {codec.FUNCTIONS[codec.Function(fn)].label} not acknowledged")
-            return "stopped"
-        return await self.run_function(session, function, codec.Motion.OUT if direction > 0 else codec.Motion.IN, ramp,
-                                       requested_at=requested_at)
+        """Hold-to-run: +1 out, -1 in while held; 0 (release) sends RS."""
+        return await self.functions.jog(session, function, direction, ramp, requested_at)
 
     async def jog_stop(self, session: str, function: int) -> str:
         """Release of a jog button: RS after the press's RE (the declared stop ``jog stop (RS)``)."""
-        return await self.jog(session, function, 0)
+        return await self.functions.jog_stop(session, function)
+
+    async def emergency_stop(self, session: str | None = None, user: str | None = None) -> str:
+        """RE of function 19: never refused (devices/scu/functions.py)."""
+        return await self.functions.emergency_stop(session, user)
+
+    async def withhold_rc(self, session: str) -> str:
+        """The watchdog test (section 5): RC withheld on purpose."""
+        return await self.functions.withhold_rc(session)
+
+    async def release_emergency_stop(self, session: str) -> str:
+        """RS 19: the only way the emergency stop is released."""
+        return await self.functions.release_emergency_stop(session)
+
+    async def send_rs(self, fn: int, why: str) -> bool:
+        """RS of ``fn`` after any RE of it still on the line (never before it); True once acknowledged."""
+        return await self.functions.send_rs(fn, why)
 
     def actuators_of(self, function: int) -> list[int]:
         """The actuators function ``function`` (fnc_ID 0..9) drives, as configured (or assumed, SCP11)."""
@@ -915,59 +812,12 @@ class ScuAdapter:
         return (f"ON since {time.strftime('%H:%M:%S', time.localtime(e.at))}, pressed by {e.who}; {unit}; released "
                 "only by its release (RS 19)")
 
-    def _publish_estop(self) -> None:
+    def publish_estop(self) -> None:
         self.state.fact(P_ESTOP, self.estop, text=self.estop_text())
 
-    async def emergency_stop(self, session: str | None = None, user: str | None = None) -> str:
-        """RE of function 19 (no confirmation, no control needed, in any state of the session: never refused); every
-        other running function gets RS whatever the unit answers, and what cannot be stopped so is stopped by the
-        unit's watchdog (RC withheld)."""
-        self._stop_all_at = time.monotonic()
-        c = self.controller
-        who = user or (c.user if c is not None and session and c.session == session
-                       else f"page {session_tag(session)}" if session else "a page")
-        actions = self.core.estop_pressed(who, time.monotonic(), time.time())
-        self._publish_estop()
-        await self._carry_out(actions)
-        self._publish_estop()
-        # what ran before the press and has not had an acknowledged RS yet gets it now (under its lock)
-        await self._stop_functions(sorted(self.core.held), "emergency stop")
-        e = self.core.estop
-        if e is not None and e.confirmed:
-            return "emergency stop active"
-        return ("emergency stop ON in this tool; " + self.estop_text().split("; ", 1)[1]
-                + ": no motion starts until it is released")
-
-    async def withhold_rc(self, session: str) -> str:
-        """The watchdog test (section 5), a declared and confirmed command of the controlling engineer: RC is withheld
-        on purpose, so the unit must stop every drive within 500 ms and leave remote mode (error bit 22). The session
-        is opened again after that, and every RE still running gets its RS."""
-        self._check_holder(session)
-        self.check_open()
-        for action in self.core.withhold("withheld on purpose: the watchdog test (section 5)", time.monotonic()):
-            self._apply(action)
-        self.state.event("warning", "RC withheld on purpose (watchdog test): the unit must stop every drive within "
-                                    "500 ms and leave remote mode")
-        return "RC withheld: the unit's watchdog must stop every drive within 500 ms"
-
-    async def release_emergency_stop(self, session: str) -> str:
-        """RS 19: the only way the emergency stop is released (never by a stop, a reopening or the dead-man rule)."""
-        decision = self.core.estop_release(session)
-        if not decision.ok:
-            raise (ControlBusy if decision.busy else CommandError)(decision.refused)
-        await self.ensure_open()
-        self.check_open()
-        async with self._fn_lock(ESTOP):
-            await self._carry_out(decision.actions)
-        self._publish_estop()
-        if self.core.estop is not None:
-            raise CommandError("RS 19 not acknowledged: the emergency stop is still on (RE 19 was sent again)")
-        self.state.event("info", "emergency stop released (RS 19)")
-        return "emergency stop released"
-
     async def write_read_back(self, data_id: int, value: Any, what: str) -> Any:
-        await self._request(p.rt_frame(data_id, value), f"RT 0x{data_id:04X} {what} = {value}")
-        answer = await self._request(codec.encode_rg(data_id), f"RG 0x{data_id:04X} {what} (read-back)")
+        await self.request(p.rt_frame(data_id, value), f"RT 0x{data_id:04X} {what} = {value}")
+        answer = await self.request(codec.encode_rg(data_id), f"RG 0x{data_id:04X} {what} (read-back)")
         back = p.rg_value(data_id, answer)
         self._publish_remote(data_id, back)
         if back != value:
@@ -987,7 +837,7 @@ class ScuAdapter:
 
     async def set_remote_speed(self, session: str, function: int, speed: int) -> int:
         """RT 0x3011.. (F1..F10) and RG read-back; % or counts/s per the unit's configuration (table 7)."""
-        self._check_holder(session)
+        self.check_holder(session)
         await self.ensure_open()
         self.check_open()
         if isinstance(speed, bool) or not isinstance(speed, int) or not 0 <= speed <= self.speed_max:
@@ -998,7 +848,7 @@ class ScuAdapter:
     async def set_remote_position(self, session: str, actuator: int, *, counts: int | None = None,
                                   mm: float | None = None) -> int:
         """RT 0x3021.. in counts (or mm through the actuator's conversion) and RG read-back."""
-        self._check_holder(session)
+        self.check_holder(session)
         await self.ensure_open()
         self.check_open()
         if not 1 <= actuator <= len(self.scales):
@@ -1026,10 +876,10 @@ class ScuAdapter:
         remote mode within 500 ms (section 5). The result says which, and the event says the same.
         """
         for fn in [f for f in self.running if f not in NOT_HELD]:
-            await self._send_rs(fn, "release of the SCU")
+            await self.send_rs(fn, "release of the SCU")
         how = "released (RA acknowledged): normal mode, the hand switch has the unit"
         try:
-            await self._request(codec.encode_ra(), "RA release the SCU", keepalive=False)
+            await self.request(codec.encode_ra(), "RA release the SCU", keepalive=False)
         except (SerialLineError, codec.CodecError) as exc:
             how = (f"released without an acknowledged RA ({exc}): RC has stopped, so the unit's watchdog ends remote "
                    "mode within 500 ms (section 5) and the hand switch has the unit then")
@@ -1057,7 +907,7 @@ class ScuAdapter:
             await self.ensure_open()
             self.check_open()
         entry = p.item(data_id)
-        answer = await self._request(codec.encode_rg(data_id), f"RG 0x{data_id:04X} {entry.name}")
+        answer = await self.request(codec.encode_rg(data_id), f"RG 0x{data_id:04X} {entry.name}")
         result = {"data_id": data_id, "key": entry.key, "name": entry.name, "type": entry.type_name, "unit": entry.unit,
                   "comment": entry.comment, "raw": answer.data.hex(" ").upper(), "value": None, "text": "", "error": ""}
         try:
