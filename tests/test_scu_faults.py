@@ -122,7 +122,7 @@ async def test_a_unit_asleep_at_start_up_is_woken_before_the_first_request():
             await wake(duration_s)
 
         adapter.line.wake = spy
-        adapter._last_answer = None  # as at start-up: nothing heard from the unit yet
+        adapter.link.last_answer = None  # as at start-up: nothing heard from the unit yet
         adapter.watch = None
         assert await wait_for(lambda: adapter.watch is not None, 5)
         assert woken, "no wake-up before the first request to a unit that never answered"

@@ -14,17 +14,19 @@ renews while a function runs. Once that lease has lapsed (the event loop stalled
 controlling browser is gone) the thread sends RS to every running function by itself (never RS 19:
 the emergency stop stays on) and then withholds RC, so the unit's own watchdog ends remote mode and
 stops every drive (section 5) even if an RS was lost.
+
+The adapter composes its parts, each with its own state: :class:`~devices.scu.link.ScuLink` (requests and answers),
+:class:`~devices.scu.opening.ScuOpening` (the remote session), :class:`~devices.scu.keepalive.RcKeepAlive`,
+:class:`~devices.scu.livedata.ScuLiveData` (live points) and :class:`~devices.scu.functions.ScuFunctions` (RE, RS,
+the emergency stop); the parameter model is :class:`~devices.scu.settings.ScuSettings`.
 """
 
 from __future__ import annotations
 
-import functools
-import math
 import time
 from typing import Any
 
 from devices import values as v
-from devices.decoding import malformed
 from devices.control import ControlChanged, Report
 from devices.lease import Lease
 from devices.live import DeviceState, Holder, session_tag
@@ -33,26 +35,21 @@ from devices.scu import params as p
 from devices.scu.facts import (  # noqa: F401 - the published names, also read from here by older callers
     CommandError, ControlBusy, ActuatorScale, FunctionMap, P_ACTUATORS, P_CONFIGURATION, P_CONTROL, P_CONTROLLED_BY, P_CRC_RETRIES, P_CYCLIC, P_ESTOP, P_FIRMWARE, P_FUNCTIONS, P_LINE, P_RC_GAP, P_RC_PERIOD, P_REFUSAL, P_RESYNCS, P_RS_PENDING, P_RUNNING, P_SAFETY_ID, P_SCALES, P_SERIAL, P_SESSION, P_SESSION_REASON, P_SINGLE_IDS, P_SKIPPED, P_SPEED, P_WATCH, Refusal, SerialLine, SpeedRange, chart_points, describe_answer, actuator_scales, answer_length, header_offset, value_text, jsonable as _jsonable)
 from devices.scu.functions import ScuFunctions
-from devices.scu.keepalive import CYCLIC_INDEX, RC_KEY, RcKeepAlive
+from devices.scu.link import ScuLink
+from devices.scu.opening import CYCLIC_READ_IDS, PROBE_ID, WATCH_RG, WATCH_SESSION, ScuOpening  # noqa: F401 - read from here
+from devices.scu.keepalive import RC_KEY, RcKeepAlive
 from devices.scu.livedata import ERROR_BIT_GROUPS, ROTATING_IDS, ScuLiveData  # noqa: F401 - ERROR_BIT_GROUPS: read from here
 from devices.scu.model import PARAMS
 from devices.scu.settings import RESTORE_NOTE, ScuSettings
 from devices.scu.control import (ESTOP, NOT_HELD, OpenSession, Outcome, ScuControl, SendEstop, SendRS,
                                  WithholdRC)
-from devices.transport import SerialClosed, SerialLineError, SerialTimeout
+from devices.transport import SerialLineError
 
-CRC_RETRIES = 2  # an answer with a bad CRC is counted and the request sent again
 # RS refused with CSE ("the unit did not execute the telegram", section 4.2) or unanswered is sent again, at
 # most this many times in all; the function stays held (RS pending, retried every poll) until an RS is acknowledged.
 # How the unit is watched while nobody holds control (section 4.1 lists RG among the remote-only commands;
 # a unit that answers RG outside remote mode is watched without a session, so its own watchdog is never
 # kept alive for nobody).
-WATCH_RG = "rg"  # RG outside a remote session: no RO/RC until someone takes control
-WATCH_SESSION = "session"  # the unit refuses RG outside remote mode: the session is open for reading only
-PROBE_ID = 0x0011  # a single data ID every unit answers (section 5 example reads it)
-# Live data the cyclic object brings with every RC (at most 6 read IDs, table 7); the rest is read
-# with one RG per poll in turn.
-CYCLIC_READ_IDS = (0x0010, 0x0170, 0x00E0, 0x00A0, 0x00D1, 0x0100)
 # Emergency stop (function 19) is not released by the dead-man rule: RS would end the emergency stop,
 # the unsafe direction. It is released only by an explicit "release emergency stop" (section 4.4, F20).
 REMOTE_SPEED_MAX = 1000  # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s
@@ -94,24 +91,19 @@ class ScuAdapter:
         # the safety state and its rules (devices/scu/control.py): session, control, running functions, owed RS,
         # the emergency stop, RC withheld; this adapter carries its actions out on the line
         self.core = ScuControl(lease=Lease())
+        self.link = ScuLink(self)  # requests and answers on the line (devices/scu/link.py)
+        self.opening = ScuOpening(self)  # opening the remote session (devices/scu/opening.py)
         self.rc = RcKeepAlive(self)  # the RC keep-alive on the line's own thread (devices/scu/keepalive.py)
         self.live = ScuLiveData(self)  # the live points (devices/scu/livedata.py)
         self.functions = ScuFunctions(self)  # RE, RS, the emergency stop (devices/scu/functions.py)
         self.cyclic: p.CyclicDefinition | None = None
         self.cyclic_note = ""
-        self.crc_retries = 0
-        self._last_answer: float | None = None
-        self._silent_since: float | None = None
-        self._rotate = 0
-        self.rg_on_loop: list[int] = []  # reads the thread could not make well: made by the next poll instead
         self.watch: str | None = None  # WATCH_RG or WATCH_SESSION once the first RG outside a session told
         self.single_ids: set[int] = set()  # groups this unit refused: read member by member (remembered)
         self.cyclic_refused = False  # the unit refused the cyclic object (definition or RC with it)
-        self.resyncs = 0
-        self.skipped_bytes = 0
         state.stale_after = 2.0
         state.registers_periodic = False
-        self._publish_session()
+        self.publish_session()
         state.fact(P_ACTUATORS, len(self.scales))
         state.fact(P_SAFETY_ID, int(self.safety_id), text=codec.SAFETY_MODES[self.safety_id])
         state.fact(P_LINE, SerialLine(self.port, self.baudrate), text=f"{self.port} at {self.baudrate} baud 8N1")
@@ -124,10 +116,10 @@ class ScuAdapter:
                    text=None if serial not in (None, "") else "not in the plant file (no data ID for it, section 4.3)")
         state.fact(P_CONTROLLED_BY, None, text="nobody")
         self._publish_control()
-        self._publish_scales()
+        self.publish_scales()
         self.sync_held()
         self.publish_estop()
-        self._publish_counts()
+        self.link.publish_counts()
         state.fact(P_CYCLIC, self.cyclic_note)
         state.fact(P_REFUSAL, None, text="none")
         state.fact(P_SINGLE_IDS, ())
@@ -207,7 +199,7 @@ class ScuAdapter:
             self.rc.arm()
         elif self.core.phase != "open" and armed:
             self.rc.disarm()
-        self._publish_session()
+        self.publish_session()
 
     @staticmethod
     def outcome(exc: BaseException | None) -> Outcome:
@@ -219,7 +211,7 @@ class ScuAdapter:
 
     async def _estop_request(self, why: str) -> Outcome:
         try:
-            await self.request(codec.encode_re(codec.Function.EMERGENCY_STOP), f"RE F20 emergency stop ({why})",
+            await self.link.request(codec.encode_re(codec.Function.EMERGENCY_STOP), f"RE F20 emergency stop ({why})",
                                 keepalive=False)
         except (SerialLineError, codec.CodecError) as exc:
             return self.outcome(exc)
@@ -231,7 +223,7 @@ class ScuAdapter:
         frame = codec.encode_rs(action.fn, -1, -1) if action.three_bytes else codec.encode_rs(action.fn)
         exc: BaseException | None = None
         try:
-            await self.request(frame, f"RS {label} ({action.why})" + (f", attempt {action.attempt}" if action.attempt > 1 else "")
+            await self.link.request(frame, f"RS {label} ({action.why})" + (f", attempt {action.attempt}" if action.attempt > 1 else "")
                                 + (" (three-byte form)" if action.three_bytes else ""), keepalive=False)
         except (SerialLineError, codec.CodecError) as e:
             exc = e
@@ -241,69 +233,11 @@ class ScuAdapter:
         return follow
 
     # -- the line -------------------------------------------------------------------------------
-    async def request(self, frame: bytes, describe: str, *, keepalive: bool = True,
-                       quiet: bool = False) -> codec.Answer:
-        """One request and its answer; bad CRC retried; error codes raise CommandRefused (counted).
 
-        :param quiet: a refusal is expected (a probe): not shown as the last error answer
-        """
-        if (keepalive and frame[:2] != codec.RC and self.session == "open" and not self.rc.threaded()
-                and self.rc.due()):
-            await self.send_rc()  # only RC feeds the unit's 500 ms watchdog (section 5): long operations interleave it
-        expected = bytes(frame[:2])
-        for attempt in range(CRC_RETRIES + 1):
-            self.state.counters.requests += 1
-            sent_at = time.monotonic()
-            try:
-                raw = await self.line.transact(frame, functools.partial(answer_length, expected=expected),
-                                               describe=describe, decode=describe_answer)
-            except SerialTimeout:
-                self.state.counters.timeouts += 1
-                self.no_answer()
-                raise
-            except SerialClosed:
-                self.no_answer()
-                raise
-            start = header_offset(raw, expected) or 0
-            if start:
-                self.skipped_bytes += start  # a stray byte or an old answer's tail before this answer: skipped
-                self._publish_counts()
-                raw = raw[start:]
-            try:
-                answer = codec.decode_answer(raw, expected)
-            except codec.FrameError as exc:
-                if isinstance(exc, codec.ChecksumError):
-                    self.state.counters.crc_errors += 1
-                    self.crc_retries += 1
-                    self._publish_counts()
-                else:
-                    malformed(self.state, f"{describe}: {exc}")
-                # The reader may have lost its place in the byte stream (a stray byte, an answer split or
-                # late): drop everything still arriving before the request is sent again (resynchronise).
-                await self._resync()
-                if attempt < CRC_RETRIES:
-                    continue
-                raise
-            self.answered()
-            if frame[:2] == codec.RC and answer.ok:
-                self.rc.note(sent_at)
-            if not answer.ok:
-                await self._refused(describe, answer, quiet=quiet)
-            self.state.counters.responses += 1
-            return answer
-        raise AssertionError("unreachable")
-
-    async def _resync(self) -> None:
-        """Flush what the line still holds (the rest of a shifted answer) so the next answer starts clean."""
-        flush = getattr(self.line, "flush_input", None)
-        if flush is not None:
-            try:
-                dropped = await flush()
-            except SerialLineError:
-                return
-            if dropped:
-                self.resyncs += 1
-                self._publish_counts()
+    @property
+    def crc_retries(self) -> int:
+        """Answers with a bad CRC, sent again."""
+        return self.link.crc_retries
 
     def rc_gaps(self) -> list[float]:
         """Seconds between the acknowledged RCs kept (the last 50)."""
@@ -327,68 +261,19 @@ class ScuAdapter:
     def rc_on_line_thread(self, wanted: bool) -> None:
         self.rc.wanted = wanted
 
-    def answered(self) -> None:
-        self._last_answer = time.monotonic()
-        self._silent_since = None
-        self.state.mark_seen()
-
-    def no_answer(self) -> None:
-        now = time.monotonic()
-        if self._silent_since is None:
-            self._silent_since = self._last_answer if self._last_answer is not None else now
-        silent = now - self._silent_since
-        if self.session == "open" and silent > codec.WATCHDOG_S:
-            self.lost("no answer for more than 500 ms: the unit has dropped remote mode (watchdog)")
-        if silent >= codec.MAX_ANSWER_DELAY_S or self._last_answer is None and self.core.failures >= 1:
-            self.state.mark_offline(self.offline_message())
-
-    def offline_message(self) -> str:
-        return (f"no answer from the SCU within {codec.MAX_ANSWER_DELAY_S:g} s on {self.port}: check the RS232 cable "
-                "(9-pin Sub-D, RxD/TxD/GND), that DTR and RTS are on (they power the unit's RS232 converter; or a "
-                f"separate 5.5-15 V supply on pin 4 or 7), and the baud rate ({self.baudrate}; standard units 38400, "
-                "custom 9600 or 19200); a unit on battery with Low Power enabled is woken by RxD at space for "
-                "100 ms (firmware V2B1), which is sent before every reopening")
-
-    async def _refused(self, describe: str, answer: codec.Answer, *, quiet: bool = False) -> None:
-        exc = codec.CommandRefused(answer.command, answer.status)
-        self.state.counters.exceptions += 1
-        info = exc.info
-        if not quiet:
-            refusal = Refusal(describe, info.name, info.title, info.meaning, info.remedy, time.time())
-            self.state.fact(P_REFUSAL, refusal, text=f"{info.name} ({info.title}) to {describe}: {info.meaning}. "
-                                                     f"What to do: {info.remedy}")
-            self.state.error(f"{describe}: {info.name} ({info.title}): {info.meaning}. {info.remedy}")
-        if answer.status == codec.Status.PE and self.session == "open":
-            if answer.command == codec.RC:
-                self.lost(f"PE (permission error) to {describe}: the unit is no longer in remote mode")
-            elif answer.command not in (codec.RO, codec.RA):
-                # PE also means "not possible in the unit's current state" (an emergency stop, a locked
-                # function): only an RC refused as well shows that remote mode is gone (section 4.2).
-                try:
-                    await self.request(codec.KEEP_ALIVE, "RC (is remote mode still open after a PE?)",
-                                        keepalive=False, quiet=True)
-                except (codec.CommandRefused, SerialLineError, codec.CodecError):
-                    pass
-        raise exc
-
     # -- the session -------------------------------------------------------------------------------
-    def _publish_session(self) -> None:
+    def publish_session(self) -> None:
         self.state.fact(P_SESSION, self.session,
                         text=self.session + (f": {self.session_reason}" if self.session_reason else ""))
         self.state.fact(P_SESSION_REASON, self.session_reason)
         self.state.fact(P_WATCH, self.watch, text=self.watch_text())
-
-    def _publish_counts(self) -> None:
-        self.state.fact(P_SKIPPED, self.skipped_bytes)
-        self.state.fact(P_RESYNCS, self.resyncs)
-        self.state.fact(P_CRC_RETRIES, self.crc_retries)
 
     def _publish_control(self) -> None:
         c = self.controller
         self.state.fact(P_CONTROL, None if c is None else Holder(c.user, session_tag(c.session), c.since),
                         text="nobody" if c is None else f"{c.user} since {time.strftime('%H:%M:%S', time.localtime(c.since))}")
 
-    def _publish_scales(self) -> None:
+    def publish_scales(self) -> None:
         self.state.fact(P_SCALES, tuple(self.scales))
 
     def publish_cyclic(self) -> None:
@@ -403,9 +288,9 @@ class ScuAdapter:
                     "(section 4.1); no RE is sent unless a page holds control")
         return "not known yet: the first RG outside a session tells"
 
-    def _set_session(self, session: str, reason: str = "") -> None:
+    def set_session(self, session: str, reason: str = "") -> None:
         self.core.phase, self.core.reason = session, reason
-        self._publish_session()
+        self.publish_session()
         if session == "open":
             self.rc.arm()
         else:
@@ -435,186 +320,21 @@ class ScuAdapter:
             self.apply(action)
         self.sync_phase()
 
-    async def send_rc(self) -> codec.Answer:
-        if self.cyclic is not None:
-            try:
-                answer = await self.request(codec.encode_rc(CYCLIC_INDEX), "RC keep-alive with CyclicObj 1",
-                                             keepalive=False)
-            except codec.CommandRefused as exc:
-                if exc.code in (codec.Status.PE, codec.Status.CSE):
-                    raise  # remote mode gone, or line noise (sent again with the next RC): nothing to remember
-                # The definition was taken but RC with it is refused: RC without data from now on, RG for the rest.
-                self.cyclic = None
-                self.cyclic_refused = True
-                self.cyclic_note = (f"the unit refused RC with the cyclic object ({exc.info.name}: {exc.info.title}); "
-                                    "RC without data keeps the session, live data is read with RG")
-                self.publish_cyclic()
-                self.state.event("warning", self.cyclic_note)
-                return await self.request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)
-            if answer.has_ctp:
-                try:
-                    self.live.publish_ids(self.cyclic.decode_read(answer.data))
-                except (v.DecodeError, ValueError) as exc:
-                    self.state.error(f"RC cyclic data: {exc}", log=False)
-            return answer
-        return await self.request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)
-
-    async def _wake(self) -> None:
-        """Low-power wake-up (section 3, V2B1): RxD held at space for at least 100 ms."""
-        wake = getattr(self.line, "wake", None)
-        if wake is not None:
-            try:
-                await wake(0.15)
-            except SerialLineError:
-                pass
-
-    async def _probe(self) -> None:
-        """Does the unit answer RG outside remote mode? Decides how it is watched (remembered for this unit)."""
-        if self._last_answer is None:
-            await self._wake()  # a unit on battery may be asleep from the start (section 3, Low Power, V2B1)
-        try:
-            answer = await self.request(codec.encode_rg(PROBE_ID), "RG 0x0011 outside a session (probe)",
-                                         keepalive=False, quiet=True)
-        except codec.CommandRefused:
-            self.watch = WATCH_SESSION
-        else:
-            self.watch = WATCH_RG
-            self.live.publish_ids({PROBE_ID: p.rg_value(PROBE_ID, answer)})
-        self.state.event("info", self.watch_text())
-        self._publish_session()
-
     def _needs_session(self) -> bool:
         """A remote session is needed: the unit refuses RG without one, someone drives, a stop is owed, F20 is on, or a
         setting is being written (RT, devices/scu/settings.py)."""
         return self.core.needs_session(self.watch == WATCH_SESSION) or self.settings.writing > 0
 
-    def _ro_frame(self) -> bytes:
-        """RO with the Safety_ID alone (section 5 example), or with para_ID[0] as table 3 lists it once the unit
-        answered PCE to the short form."""
-        if self.core.ro_two_bytes:
-            return codec.encode_frame(codec.RO, bytes([int(self.safety_id), codec.UNUSED]))
-        return codec.encode_ro(self.safety_id)
-
     async def open_session(self, forced: bool = False) -> None:
-        """RO with the Safety_ID, RC; before anything else F20 again when it is on and the RS owed (the core's
-        actions, whatever follows); then the cyclic object definition (or the RG fallback) and the end positions.
+        """RO with the Safety_ID, RC, the emergency stop and owed RS again, the cyclic object (devices/scu/opening.py).
 
         :param forced: for the emergency stop: whatever the backoff or an earlier RA (never while RC is withheld)
         """
-        why_not = self.core.may_open(time.monotonic(), forced)
-        if why_not:
-            if forced and self.core.phase != "open":
-                self.state.event("error", f"emergency stop: the session is not opened now ({why_not}); F20 is switched "
-                                          "on in the unit as soon as it is")
-            return
-        answered_before = self._last_answer is not None
-        self.core.opening()
-        self.sync_phase()
-        self.cyclic = None
-        with self.rc.guard:
-            self.rc.times.clear()
-        if self.core.failures or not answered_before:
-            await self._wake()
-        sid = int(self.safety_id)
-        try:
-            try:
-                await self.request(self._ro_frame(), f"RO Safety_ID {sid}", keepalive=False)
-            except codec.CommandRefused as exc:
-                if not self.core.ro_refused(self.outcome(exc)):
-                    raise
-                self.state.event("warning", "the unit answered PCE to RO with the Safety_ID alone: it takes RO with "
-                                            "Safety_ID and para_ID[0] as table 3 lists it; that form from now on")
-                await self.request(self._ro_frame(), f"RO Safety_ID {sid}, para_ID[0] -1", keepalive=False)
-            await self.request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)  # section 5: RC before any other command
-        except (SerialLineError, codec.CodecError) as exc:
-            self.core.open_failed(str(exc), time.monotonic(), answered_before=self._last_answer is not None)
-            self.sync_phase()
-            if forced:
-                for action in self.core.estop_unreachable(str(exc), time.monotonic()):
-                    self.apply(action)
-            return
-        actions = self.core.opened(time.monotonic())
-        self.sync_phase()
-        # the emergency stop again (released only by the person who asks for it) and the RS of every RE still owed
-        # (section 4.6), before the cyclic object is defined: whatever becomes of that, these have gone out
-        await self.carry_out(actions)
-        self.publish_estop()
-        if self.core.phase != "open":
-            return  # an RS was not acknowledged: RC is withheld until the unit's watchdog has stopped every drive
-        if self.cyclic_refused:
-            self.cyclic_note = "RC without data (the unit refused the cyclic object); live data is read with RG"
-        else:
-            definition = p.CyclicDefinition(read_ids=self._cyclic_ids())
-            try:
-                await self.request(codec.encode_rt(0x3001, definition.encode()), "RT CyclicObj 1 definition")
-                self.cyclic = definition
-                self.cyclic_note = ("cyclic object 0x3001: positions, status 1 and 2, currents, error code, "
-                                    "mains/battery with every RC")
-            except codec.CommandRefused as exc:
-                if exc.code == codec.Status.PE:
-                    return
-                if exc.code == codec.Status.CSE:
-                    self.cyclic_note = ("the cyclic object's definition arrived damaged (CSE, line noise): live data "
-                                        "is read with RG until the next opening defines it again")
-                else:
-                    self.cyclic_refused = True
-                    self.cyclic_note = (f"the unit refused the cyclic object definition ({exc.info.name}: {exc.info.title}); "
-                                        "live data is read with RG requests instead")
-                    self.state.event("warning", self.cyclic_note)
-            except (SerialLineError, codec.CodecError):
-                return
-        self.publish_cyclic()
-        self.state.event("info", f"remote session open (Safety_ID {int(self.safety_id)}); {self.cyclic_note}")
-        try:
-            await self._read_end_positions()
-        except (SerialLineError, codec.CodecError, v.DecodeError):
-            pass
+        await self.opening.open(forced)
 
-    def _cyclic_ids(self) -> tuple[int, ...]:
-        """The cyclic object's read IDs: the groups, or for a unit that refuses groups its single IDs (at most 6)."""
-        if not self.single_ids:
-            return CYCLIC_READ_IDS
-        ids: list[int] = []
-        for group in CYCLIC_READ_IDS:
-            ids.extend(self._ids_of(group))
-        return tuple(ids[:6])
-
-    def _ids_of(self, group: int) -> list[int]:
-        """What to read for ``group``: the group ID, or its members for the configured actuators once refused."""
-        entry = p.DIRECTORY.get(group)
-        if group not in self.single_ids or entry is None or not entry.is_group:
-            return [group]
-        return [m for m in entry.members
-                if p.DIRECTORY[m].actuator is None or p.DIRECTORY[m].actuator <= len(self.scales)]
-
-    async def _read_end_positions(self) -> None:
-        """Position_Virtual_Limit_In/Out of UserPositionData (section 7) as the end positions of the bars and mm;
-        the conversion factors 0x1011.. (counts per mm) where the plant file gives no scale."""
-        for i, scale in enumerate(self.scales):
-            try:
-                answer = await self.request(codec.encode_rg(0x2000 + scale.number), f"RG 0x{0x2000 + scale.number:04X}")
-                value = p.rg_value(0x2000 + scale.number, answer)
-            except codec.CommandRefused:
-                value = None
-            if value is not None:
-                self.settings.note(0x2000 + scale.number, value)
-                lo, hi = value["Position_Virtual_Limit_In"], value["Position_Virtual_Limit_Out"]
-                self.scales[i] = scale.with_ends(lo, hi)
-                self._publish_scales()
-            s = self.scales[i]
-            self.state.publish(f"A{s.number} in end", s.in_counts, "counts", periodic=False)
-            self.state.publish(f"A{s.number} out end", s.out_counts, "counts", periodic=False)
-            if not s.has_mm:
-                try:
-                    factor = p.rg_value(0x1010 + s.number, await self.request(
-                        codec.encode_rg(0x1010 + s.number), f"RG 0x{0x1010 + s.number:04X} conversion factor"))
-                except codec.CommandRefused:
-                    continue
-                self.settings.note(0x1010 + s.number, factor)
-                self.state.publish(f"A{s.number} conversion factor", factor, "counts/mm", periodic=False)
-                if isinstance(factor, float) and math.isfinite(factor) and factor > 0:
-                    self.scales[i] = ActuatorScale(s.number, factor, None, s.in_counts, s.out_counts)
-                    self._publish_scales()
+    async def send_rc(self) -> codec.Answer:
+        """One RC from the loop (with the cyclic object when it is defined)."""
+        return await self.opening.send_rc()
 
     async def poll(self) -> None:
         """One cycle: learn how the unit is watched; open the session when needed (with backoff), close it when
@@ -625,7 +345,7 @@ class ScuAdapter:
             if time.monotonic() < self.core.next_open:
                 return
             try:
-                await self._probe()
+                await self.opening.probe()
             except (SerialLineError, codec.CodecError, v.DecodeError) as exc:
                 self.core.open_failed(f"no answer to the first RG: {exc}", time.monotonic(), answered_before=False)
                 return
@@ -635,7 +355,7 @@ class ScuAdapter:
             await self.open_session()
             return
         if not self._needs_session() and self.session == "open" and self.watch == WATCH_RG:
-            await self._end_session("nobody holds control: watching with RG outside a remote session")
+            await self.opening.end("nobody holds control: watching with RG outside a remote session")
         try:
             if self.session == "open":
                 if not self.rc.threaded():
@@ -643,10 +363,10 @@ class ScuAdapter:
                 for fn in sorted(self.rs_pending):
                     await self.send_rs(fn, self.rs_pending[fn])
             live = [] if self.cyclic is not None else list(CYCLIC_READ_IDS)
-            live += self.rg_on_loop
-            self.rg_on_loop = []
-            data_id = ROTATING_IDS[self._rotate % len(ROTATING_IDS)]
-            self._rotate += 1
+            live += self.live.rg_on_loop
+            self.live.rg_on_loop = []
+            data_id = ROTATING_IDS[self.live.rotate % len(ROTATING_IDS)]
+            self.live.rotate += 1
             by_thread = self._rg_by_thread(data_id)
             with self.rc.guard:
                 if not by_thread or len(self.rc.thread_rgs) >= 3:  # the line's thread does not read them now: here
@@ -661,7 +381,7 @@ class ScuAdapter:
         except codec.CommandRefused as exc:
             if exc.code == codec.Status.PE and self.session != "open" and self.watch == WATCH_RG:
                 self.watch = WATCH_SESSION  # it answered RG once (perhaps still in an old remote mode): no more
-                self._publish_session()
+                self.publish_session()
         except (SerialLineError, codec.CodecError, v.DecodeError) as exc:
             self.state.error(f"poll: {exc}", log=False)
         self.live.publish_period()
@@ -670,21 +390,13 @@ class ScuAdapter:
         """Whether the line's thread reads ``data_id`` after its next RC: a single read while the session is open with
         the cyclic object and the thread sends RC, nothing runs and no RS is owed."""
         return (self.session == "open" and self.cyclic is not None and self.rc.threaded() and self.line.cyclic_running(RC_KEY)
-                and not self.running and not self.rs_pending and self._ids_of(data_id) == [data_id])
-
-    async def _end_session(self, reason: str) -> None:
-        try:
-            await self.request(codec.encode_ra(), "RA (nobody in control)", keepalive=False)
-        except (SerialLineError, codec.CodecError):
-            pass
-        self.cyclic = None
-        self._set_session("closed", reason)
+                and not self.running and not self.rs_pending and self.opening.ids_of(data_id) == [data_id])
 
     async def _read_live(self, data_id: int) -> None:
         """RG of a data ID, or of the members of a group the unit refused; one refused read never ends the poll."""
-        for read_id in self._ids_of(data_id):
+        for read_id in self.opening.ids_of(data_id):
             try:
-                answer = await self.request(codec.encode_rg(read_id), f"RG 0x{read_id:04X}",
+                answer = await self.link.request(codec.encode_rg(read_id), f"RG 0x{read_id:04X}",
                                              quiet=read_id == data_id and p.DIRECTORY.get(read_id) is not None
                                              and p.DIRECTORY[read_id].is_group)
             except codec.CommandRefused as exc:
@@ -816,8 +528,8 @@ class ScuAdapter:
         self.state.fact(P_ESTOP, self.estop, text=self.estop_text())
 
     async def write_read_back(self, data_id: int, value: Any, what: str) -> Any:
-        await self.request(p.rt_frame(data_id, value), f"RT 0x{data_id:04X} {what} = {value}")
-        answer = await self.request(codec.encode_rg(data_id), f"RG 0x{data_id:04X} {what} (read-back)")
+        await self.link.request(p.rt_frame(data_id, value), f"RT 0x{data_id:04X} {what} = {value}")
+        answer = await self.link.request(codec.encode_rg(data_id), f"RG 0x{data_id:04X} {what} (read-back)")
         back = p.rg_value(data_id, answer)
         self._publish_remote(data_id, back)
         if back != value:
@@ -879,7 +591,7 @@ class ScuAdapter:
             await self.send_rs(fn, "release of the SCU")
         how = "released (RA acknowledged): normal mode, the hand switch has the unit"
         try:
-            await self.request(codec.encode_ra(), "RA release the SCU", keepalive=False)
+            await self.link.request(codec.encode_ra(), "RA release the SCU", keepalive=False)
         except (SerialLineError, codec.CodecError) as exc:
             how = (f"released without an acknowledged RA ({exc}): RC has stopped, so the unit's watchdog ends remote "
                    "mode within 500 ms (section 5) and the hand switch has the unit then")
@@ -892,7 +604,7 @@ class ScuAdapter:
 
     async def reopen(self, session: str | None = None) -> str:
         """Open the remote session again (after a release, or by hand after a loss): the line is resynchronised first."""
-        await self._resync()
+        await self.link.resync()
         self.core.reopen_asked()
         why_not = self.core.may_open(time.monotonic())
         if why_not and self.session != "open":
@@ -907,7 +619,7 @@ class ScuAdapter:
             await self.ensure_open()
             self.check_open()
         entry = p.item(data_id)
-        answer = await self.request(codec.encode_rg(data_id), f"RG 0x{data_id:04X} {entry.name}")
+        answer = await self.link.request(codec.encode_rg(data_id), f"RG 0x{data_id:04X} {entry.name}")
         result = {"data_id": data_id, "key": entry.key, "name": entry.name, "type": entry.type_name, "unit": entry.unit,
                   "comment": entry.comment, "raw": answer.data.hex(" ").upper(), "value": None, "text": "", "error": ""}
         try:

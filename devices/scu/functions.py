@@ -125,7 +125,7 @@ class ScuFunctions:
             self.adapter.core.re_sent(session, int(fn), time.monotonic())
             self.adapter.sync_held()
             try:
-                await self.adapter.request(frame, f"RE {words}", keepalive=False)
+                await self.adapter.link.request(frame, f"RE {words}", keepalive=False)
             except BaseException as exc:
                 await self.adapter.carry_out(self.adapter.core.re_answered(int(fn), self.adapter.outcome(exc)))
                 raise

@@ -224,7 +224,7 @@ class RcKeepAlive:
         in turn that the thread read after it (a refusal or a failed read is left to the next poll, which tells why)."""
         self.adapter.state.counters.requests += 1
         self.adapter.state.counters.responses += 1
-        self.adapter.answered()
+        self.adapter.link.answered()
         if cyclic is not None and answer.has_ctp and cyclic is self.adapter.cyclic:
             try:
                 self.adapter.live.publish_cyclic_data(cyclic, bytes(answer.data))
@@ -237,7 +237,7 @@ class RcKeepAlive:
                     self.adapter.state.counters.timeouts += 1
                 elif isinstance(rg, codec.Answer):
                     self.adapter.state.counters.responses += 1
-                self.adapter.rg_on_loop.append(data_id)
+                self.adapter.live.rg_on_loop.append(data_id)
                 continue
             self.adapter.state.counters.responses += 1
             self.adapter.live.publish_read(data_id, rg)
@@ -250,7 +250,7 @@ class RcKeepAlive:
             self.adapter.state.counters.crc_errors += 1
         elif isinstance(exc, codec.FrameError):
             malformed(self.adapter.state)
-        self.adapter.no_answer()
+        self.adapter.link.no_answer()
 
     def on_refused(self, answer: codec.Answer) -> None:
         self.adapter.state.counters.requests += 1

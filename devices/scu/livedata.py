@@ -31,6 +31,8 @@ class ScuLiveData:
         self.read_at: dict[int, float] = {}  # RG data ID -> when it was last read (one entry per ID read)
         self.remote_timeout_seen = False
         self.memo: tuple | None = None  # (cyclic object, RC answer data, scales), its values and point contents
+        self.rotate = 0  # the turn of the data IDs read one a poll (ROTATING_IDS)
+        self.rg_on_loop: list[int] = []  # reads the line's thread could not make well: made by the next poll instead
 
     def publish_read(self, read_id: int, answer: codec.Answer) -> None:
         """An RG answer of a data ID read in turn with the others: it ages by its own period (measured between two

@@ -23,6 +23,7 @@ from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.facts import CommandError, jsonable
 from devices.scu.model import PARAMS, SAFETY_ID, VOLATILE, DataParam, params_for, params_of, raw_of
+from devices.scu.opening import WATCH_RG
 
 SESSION_WAIT_S = 3.0  # a read or write waits this long for a remote session that is being opened (or in its backoff)
 # The data directory's record for the commissioning file, besides the model: identity, counters, error history
@@ -83,8 +84,6 @@ class ScuSettings:
                 await asyncio.sleep(0.1)
 
     def _needs_session_to_read(self) -> bool:
-        from devices.scu.adapter import WATCH_RG
-
         return self.adapter.watch != WATCH_RG
 
     async def _read(self, data_id: int) -> dict[int, Any]:
