@@ -143,7 +143,7 @@ async def test_the_shared_sim_card_acts_on_the_twin_through_the_gate(env, monkey
     UserInteraction(user, {by_testid(user, "sim-raise-fault")}, None).click()
     await eventually(lambda: any("outside" in str(m) for m in user.notify.messages), timeout=3)
     assert twin(runtime).error_flags == 0x4
-    monkeypatch.setattr("pages.command_client.viewer_reason", lambda: "the viewer role may not write")
+    monkeypatch.setattr("pages.command_client.viewer_reason", lambda *_: "the viewer role may not write")
     await user.open("/device/gate")
     await user.should_see("Simulation controls change the simulated plant: engineers only.")
 
