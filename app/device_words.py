@@ -82,7 +82,7 @@ POINT_WORDS = (
     NP_("Error code", "bit {0}: RAM copy of the EEPROM calibration data has a wrong CRC (as printed for bit {1})"),
     NP_("Error code", "bit {0}: IO test"), NP_("Error code", "bit {0}: motions are not executed"),
     NP_("Error code", "bit {0}: not in table {1}"),
-    # the MQTT broker's connection as the header shows it (app/mqtt.py)
-    NP_("broker", "connecting"), NP_("broker", "connected"), NP_("broker", "connected: client id taken over"),
+    # the MQTT broker's connection as the header and the plant-wide view show it (app/mqtt.py, app/site_view.py)
+    NP_("broker", "starting"), NP_("broker", "connecting"), NP_("broker", "connected"), NP_("broker", "connected: client id taken over"),
     NP_("broker", "down"), NP_("broker", "stopped"),
 )

@@ -267,4 +267,6 @@ async def test_the_plant_wide_view_in_german_shows_no_english(tmp_path):
         await user.should_see("Anlagenweite Ansicht", retries=50)
         await user.should_see("Standort hall")
         await user.should_see("Bolzen ausgefahren (verriegelt)")  # the plant view's words on the remote tile
+        await user.should_see("Broker startet")  # not connected to any broker here
         assert english_on(user) == []
+        assert not i18n.get("de").missing, i18n.get("de").missing
