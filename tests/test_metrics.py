@@ -14,17 +14,17 @@ from tools import metrics
 
 LONG_MODULES = {  # the modules over 700 lines: none may join them
     "app/plant.py", "app/record.py", "devices/hdlock/params.py", "devices/mo64/codec.py",
-    "devices/mo64/sim.py", "devices/scu/adapter.py", "devices/scu/codec.py", "devices/scu/sim.py", "pages/can_monitor.py",
+    "devices/mo64/sim.py", "devices/scu/sim.py", "pages/can_monitor.py",
     "pages/electrak.py", "pages/scu.py", "pages/widgets.py",
 }
 LARGE_CLASSES = {  # the classes over 30 attributes: none may join them
-    "HdLockTwin", "M3ioAdapter", "Mo64Adapter", "Mo64Twin", "ScuAdapter", "ScuTwin",
+    "HdLockTwin", "M3ioAdapter", "Mo64Adapter", "Mo64Twin", "ScuTwin",
 }
 CEILINGS = {
-    "getattr_default": 129,
-    "hasattr": 16,
+    "getattr_default": 125,
+    "hasattr": 15,
     "except_exception": 129,
-    "private_access": 47,
+    "private_access": 20,
     "exception_roots": 20,
 }
 
