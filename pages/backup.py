@@ -18,6 +18,7 @@ from pages.session import can_write, current_user
 from pages.diffrows import DIFF_COLUMNS, STATE_SLOT, WRAP
 from pages.diffrows import count as _count  # noqa: F401 - its tests count with it
 from pages.diffrows import row_state as _row_state
+from pages.diffrows import state_text
 from pages.project import ProjectCard
 from pages.widgets import columns, upload_button
 from pages.command_client import confirm, enable_unless, viewer_reason
@@ -34,16 +35,6 @@ FILE_COLUMNS = [
 DIFF_WORDS = (N_("Parameter"), N_("Device now"), N_("In the backup"))  # the labels of pages/diffrows.py's columns
 # the state cell of pages/diffrows.py, showing a row's state in the page's language (``state`` stays the English key)
 STATE_TEXT_SLOT = STATE_SLOT.replace("props.row.state }}", "props.row.state_text }}")
-
-
-def state_text(row: backup.DiffRow, lang: Lang) -> str:
-    """:func:`pages.diffrows.row_state` in ``lang`` (the row's error and risk as the device's record words them)."""
-    _ = lang.gettext
-    if row.error:
-        return _("not written: {error}").format(error=row.error)
-    if not row.changed:
-        return _("same")
-    return _("differs; risk, needs confirmation: {risk}").format(risk=row.risk) if row.risk else _("differs")
 
 
 def english(lang: Lang | None) -> Lang:

@@ -4,6 +4,7 @@ risk drawn in red, and the words of each row's state."""
 from __future__ import annotations
 
 from app import backup
+from app.i18n import Lang
 
 WRAP = "white-space: normal; overflow-wrap: break-word"  # long texts wrap inside the screen, never cut off
 DIFF_COLUMNS = [
@@ -32,3 +33,13 @@ def row_state(row: backup.DiffRow) -> str:
     if not row.changed:
         return "same"
     return f"differs; risk, needs confirmation: {row.risk}" if row.risk else "differs"
+
+
+def state_text(row: backup.DiffRow, lang: Lang) -> str:
+    """:func:`pages.diffrows.row_state` in ``lang`` (the row's error and risk as the device's record words them)."""
+    _ = lang.gettext
+    if row.error:
+        return _("not written: {error}").format(error=row.error)
+    if not row.changed:
+        return _("same")
+    return _("differs; risk, needs confirmation: {risk}").format(risk=row.risk) if row.risk else _("differs")

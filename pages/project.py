@@ -22,7 +22,7 @@ from app import runtime as rt
 from app.i18n import N_, Lang
 from devices.params import Param
 from devices.registry import DEVICE_TYPES
-from pages.diffrows import STATE_SLOT, WRAP, row_state
+from pages.diffrows import STATE_SLOT, WRAP, row_state, state_text
 from pages.frame import frame, notify_error
 from pages.session import can_write, current_user
 from pages.widgets import columns, follow
@@ -68,8 +68,6 @@ def _where(plant, name: str, lang: Lang | None = None) -> str:
 
 
 def _state_text(row: backup.DiffRow, lang: Lang) -> str:
-    from pages.backup import state_text
-
     return state_text(row, lang)
 
 
