@@ -14,6 +14,7 @@ import asyncio
 import logging
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 from urllib.parse import urlparse
 
 from pymodbus.constants import ExcCodes
@@ -41,6 +42,20 @@ TYPICAL_HOLDING = {
     30: 500, 31: 10, 32: 3, 33: 5, 40: 4, 41: 2, 3007: 0, 3008: 0,
 }
 TYPICAL_INPUT = {14: 72, 15: 0b100111, 100: 57, 102: 3, 103: 2}
+
+
+@dataclass
+class BoltMotion:
+    """The bolt's motion and the lock's retry state machine (input 9 states 3-12, counters inputs 12/13, settings
+    holding 16/26, 30-33)."""
+
+    attempt_start: float
+    move_start: float | None = None  # when the current lock or unlock motion started (its time, max_time)
+    direction: int = 0  # +1 locking, -1 unlocking, 0 not yet decided
+    fails: int = 0  # failed attempts in the current interval-1 series
+    series: int = 0  # interval-1 series done
+    pause_until: float | None = None
+    error_state: int | None = None  # an error state of input 9 the lock is in, None while it is not
 
 
 class HdLockTwin:
@@ -88,17 +103,11 @@ class HdLockTwin:
         self.fwu_mode = False  # firmware-update mode: FWU status instead of status (CAN)
         self.keeps_device_id = False  # fault injection: Set Device Address is not taken (the ID stays)
         self.max_time = {"lock": 0, "unlock": 0}
-        self._move_start: float | None = None
         # fault injection: the bolt is blocked and never leaves the end position it is in (the motor runs, nothing moves)
         self.bolt_stuck = False
         self.ignores_door = False  # fault injection: condition 2 (door closed, section 3.2.2) is never checked
         # the lock's retry state machine (input 9 states 3-12, counters inputs 12/13, settings holding 16/26, 30-33)
-        self._direction = 0  # +1 locking, -1 unlocking, 0 not yet decided
-        self._attempt_start = time.monotonic()
-        self._fails = 0  # failed attempts in the current interval-1 series
-        self._series = 0  # interval-1 series done
-        self._pause_until: float | None = None
-        self._error_state: int | None = None  # an error state of input 9 the lock is in, None while it is not
+        self.motion = BoltMotion(attempt_start=time.monotonic())
         self.step(0.0)
 
     # -- registers ---------------------------------------------------------------------
@@ -250,43 +259,43 @@ class HdLockTwin:
         settings, not how they follow each other: this order is the twin's reading (docs/spec-notes.md)."""
         h, i = self.holding, self.input
         direction = 1 if request else -1
-        if direction != self._direction:
-            if self._error_state == 10 and direction < 0:
-                self._error_state = 11  # the lock request is gone after locking failed for good: open with an error
+        if direction != self.motion.direction:
+            if self.motion.error_state == 10 and direction < 0:
+                self.motion.error_state = 11  # the lock request is gone after locking failed for good: open with an error
             else:
-                self._error_state = None
-            self._direction, self._attempt_start, self._fails, self._series, self._pause_until = direction, now, 0, 0, None
+                self.motion.error_state = None
+            self.motion.direction, self.motion.attempt_start, self.motion.fails, self.motion.series, self.motion.pause_until = direction, now, 0, 0, None
         if direction > 0:
             at_ok, at_end, limit_ms = round(self.bolt) >= h[11], self.bolt >= BOLT_MAX, h[16]
         else:
             at_ok, at_end, limit_ms = round(self.bolt) <= h[21], self.bolt <= 0, h[26]
-        if self._error_state in (6, 10) or (self._error_state == 11 and direction < 0 and at_end):
+        if self.motion.error_state in (6, 10) or (self.motion.error_state == 11 and direction < 0 and at_end):
             return 0  # given up until the request changes
-        if self._pause_until is not None:
-            if now < self._pause_until:
+        if self.motion.pause_until is not None:
+            if now < self.motion.pause_until:
                 return 0
-            self._pause_until, self._attempt_start = None, now
-            self._error_state = None if self._error_state != 11 else 11
+            self.motion.pause_until, self.motion.attempt_start = None, now
+            self.motion.error_state = None if self.motion.error_state != 11 else 11
         if at_ok:
-            if self._error_state != 11 or direction > 0:
-                self._error_state = None
-            self._fails = self._series = 0
-            self._attempt_start = now
+            if self.motion.error_state != 11 or direction > 0:
+                self.motion.error_state = None
+            self.motion.fails = self.motion.series = 0
+            self.motion.attempt_start = now
             return 0 if at_end else direction
-        if (now - self._attempt_start) * 1000 <= limit_ms:
+        if (now - self.motion.attempt_start) * 1000 <= limit_ms:
             return direction
         # this attempt failed
         counter = 12 if direction > 0 else 13
         i[counter] = min(0xFFFF, i.get(counter, 0) + 1)
-        self._fails += 1
-        if self._fails < max(1, h[32]):
-            self._error_state, self._pause_until = (8 if direction > 0 else 12), now + h[30] / 1000
+        self.motion.fails += 1
+        if self.motion.fails < max(1, h[32]):
+            self.motion.error_state, self.motion.pause_until = (8 if direction > 0 else 12), now + h[30] / 1000
         else:
-            self._fails, self._series = 0, self._series + 1
-            if self._series < max(1, h[33]):
-                self._error_state, self._pause_until = (9 if direction > 0 else 12), now + h[31]
+            self.motion.fails, self.motion.series = 0, self.motion.series + 1
+            if self.motion.series < max(1, h[33]):
+                self.motion.error_state, self.motion.pause_until = (9 if direction > 0 else 12), now + h[31]
             else:
-                self._error_state = 10 if direction > 0 else 6
+                self.motion.error_state = 10 if direction > 0 else 6
         return 0
 
     # -- physics -----------------------------------------------------------------------
@@ -330,14 +339,14 @@ class HdLockTwin:
             self.bolt = max(0.0, self.bolt - BOLT_SPEED * dt)
         moving_out, moving_in = self.bolt > old_bolt, self.bolt < old_bolt
         moving = moving_out or moving_in
-        if moving and self._move_start is None:
-            self._move_start = now
-        if not moving and self._move_start is not None:
-            took = int((now - self._move_start) * 1000)
+        if moving and self.motion.move_start is None:
+            self.motion.move_start = now
+        if not moving and self.motion.move_start is not None:
+            took = int((now - self.motion.move_start) * 1000)
             key = "lock" if self.bolt > 5 else "unlock"
             register = 1004 if key == "lock" else 1003
             h[register] = max(h[register], min(took, 0xFFFF))
-            self._move_start = None
+            self.motion.move_start = None
         target_ma = 420.0 if moving else (35.0 if self.bolt >= BOLT_MAX else 0.0)
         self.current_ma += (target_ma - self.current_ma) * min(1.0, dt * 12) if dt else 0
         bolt = round(self.bolt)
@@ -355,8 +364,8 @@ class HdLockTwin:
         status |= codec.BOLT_MOVING_IN if moving_in else 0
         # state machine (input 9)
         state = 4 if locked and not moving else 2 if unlocked and not moving else 3 if moving_out else 5
-        if self._error_state is not None:
-            state = self._error_state
+        if self.motion.error_state is not None:
+            state = self.motion.error_state
         elif drive and not moving:  # the motor drives a blocked bolt
             state = 3 if drive > 0 else 5
         if state != i[9]:
