@@ -419,7 +419,7 @@ class DeviceState:
             if raw is not None:
                 value = self._param_live(param, raw, now)
                 result[value.name] = value
-        for name, p in self.points.items():
+        for name, p in list(self.points.items()):  # a snapshot: a line's own thread may publish meanwhile
             result[name] = self._point_live(name, p, now)
         return result
 
