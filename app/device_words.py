@@ -86,3 +86,18 @@ POINT_WORDS = (
     NP_("broker", "starting"), NP_("broker", "connecting"), NP_("broker", "connected"), NP_("broker", "connected: client id taken over"),
     NP_("broker", "down"), NP_("broker", "stopped"),
 )
+
+# doc: MO 64, 003: what this tool assumes beyond the document's page summaries (devices/mo64/codec.py ASSUMPTIONS), shown
+# on the barrier's page as such
+MO64_ASSUMPTIONS = (
+    N_("RS485 telegrams are assumed to be 55 LE DA SA type data CSH CSL, with LE counting DA to the end of the data and this tool's master address 0x00 by default (the manual's summary does not print the address fields)."),
+    N_('The RS485 token telegram is assumed to be the shortest telegram of the manual (6 characters): 55 02 DA SA CSH CSL, sent by the master that holds the token to the next master DA.'),
+    N_('TCP port 52719, the frame 55 LE type data CSH CSL and the reply types ack 0x01, nak 0x02, busy 0x03, syn 0x04 come from a public client, not from the manual.'),
+    N_("Short commands (0x03) are sent as one command byte; the manual's summary names their effects (e.g. clearing a loop-adjust counter) but not their codes."),
+    N_('The error memory level is chosen by an index byte after the query index; each answer carries index, error flags and time stamp.'),
+    N_("Queries: the manual prints 02 Auswahl index (page 33), the public client sends 02 Auswahl; the manual's form is tried first and the unit's answer decides (shown as the query form)."),
+    N_('Status bits: positions as the public client has them; the manual lists Multi3-6 before the loop adjustment bits and the MO 64 has six multi relays, so relays 7-14 are not shown.'),
+    N_("Setting selectors 0x04 0x01 (pre-warning before opening) and 0x04 0x02 (pre-warning before closing) follow the order of the answer telegrams 0x0D-0x0F; the manual's summary names only 0x04 0x00 (open time) and 0x04 0x04 (change monitoring)."),
+    N_("The vehicle counter (0x05 0x00) and the maintenance interval (0x05 0x01, u32) selectors are assumed; the manual's summary names the 32-bit vehicle counter setting but not its selector."),
+    N_('The layouts of the counting function (0x11), loop periods (0x1B) and the fields of induction loops, direction logics, configuration flags and multi relays that the summary does not number are shown as raw values.'),
+)

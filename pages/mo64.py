@@ -11,6 +11,8 @@ import html
 
 from nicegui import ui
 
+from app import i18n
+from app.i18n import N_, NP_
 from app.project import allowed
 from app.state import LiveValue
 from devices.mo64 import adapter as facts
@@ -28,55 +30,104 @@ from pages.device_page import (
 )
 from pages.frame import status_text
 from pages.simcontrols import sim_card
-from pages.widgets import counter_line, entry_age, Lamp, mark_quality, quality_note, range_number, ValueLine
+from pages.widgets import columns, counter_line, entry_age, Lamp, mark_quality, quality_note, range_number, ValueLine
 from pages.command_client import checked_value, enable_unless, refuse, viewer_reason, WriteGuard
 
-MOTION_WARNING = "the boom moves: check that nobody stands under it"
-STOP_HINT = "a stop: anyone may stop (deactivating a close or reverse level never moves the boom)"
+MOTION_WARNING = N_("the boom moves: check that nobody stands under it")
+STOP_HINT = N_("a stop: anyone may stop (deactivating a close or reverse level never moves the boom)")
 EEPROM_WARNING = EEPROM_RISK  # the declared risk of every setting write (devices/mo64/policy.py)
 ALARM_BITS = {"LS", "Baum ab", "F_ereignis"}
-ALARM_WORDS = {"LS": "light barrier interrupted", "Baum ab": "boom off", "F_ereignis": "fault event"}
+ALARM_WORDS = {"LS": N_("light barrier interrupted"), "Baum ab": N_("boom off"), "F_ereignis": N_("fault event")}
 # what the status bits mean (chapter 5.1.7, pages 16-17; SPEC-NOTES "Barrier status"); a bit the summary
 # names without its function says so
 BIT_MEANINGS = {
-    "Funk": "radio (Funk): the learned radio code is being received (page 16)",
-    "BT": "BT: the open command input (BT = open, BZ = close, chapter 5.2.1)",
-    "BTS": "BTS: command input named in chapter 5.1.7; its function is not in the summary",
-    "SLZ": "SLZ: input named in chapter 5.1.7; its function is not in the summary",
-    "LS": "LS: the light barrier is interrupted (safety: a closing boom reverses)",
-    "Baum ab": "Baum ab: boom off - the boom is broken away or removed (safety)",
-    "F_ereignis": "F_ereignis: fault event - an error flag is set; see the error memory (safety)",
-    "SERVICE": "SERVICE: maintenance is due (maintenance counter reached the interval)",
-    "mains monitoring": "mains monitoring: the mains supply monitor reports",
+    "Funk": N_("radio (Funk): the learned radio code is being received (page 16)"),
+    "BT": N_("BT: the open command input (BT = open, BZ = close, chapter 5.2.1)"),
+    "BTS": N_("BTS: command input named in chapter 5.1.7; its function is not in the summary"),
+    "SLZ": N_("SLZ: input named in chapter 5.1.7; its function is not in the summary"),
+    "LS": N_("LS: the light barrier is interrupted (safety: a closing boom reverses)"),
+    "Baum ab": N_("Baum ab: boom off - the boom is broken away or removed (safety)"),
+    "F_ereignis": N_("F_ereignis: fault event - an error flag is set; see the error memory (safety)"),
+    "SERVICE": N_("SERVICE: maintenance is due (maintenance counter reached the interval)"),
+    "mains monitoring": N_("mains monitoring: the mains supply monitor reports"),
+    "loop EXT": N_("the external loop detector reports"),
 }
+# a meaning with the bit's name, loop or relay in it: its text in the catalog with the field, the field's value
+BIT_TEMPLATES: dict[str, tuple[str, dict]] = {}
 for _name in ("BTA1", "BTA2", "BTA3", "BTZ1A", "BTZ1B", "BTZ2"):
-    BIT_MEANINGS[_name] = f"{_name}: command input named in chapter 5.1.7; its function is not in the summary"
+    BIT_TEMPLATES[_name] = (N_("{name}: command input named in chapter 5.1.7; its function is not in the summary"),
+                            {"name": _name})
 for _loop in "ABC":
-    BIT_MEANINGS[f"adjusting loop {_loop}"] = f"loop {_loop} is being adjusted (Abgleich Schleife {_loop}, page 17)"
-    BIT_MEANINGS[f"loop {_loop} occupied"] = f"a vehicle is on loop {_loop}"
-BIT_MEANINGS["loop EXT"] = "the external loop detector reports"
+    BIT_TEMPLATES[f"adjusting loop {_loop}"] = (N_("loop {loop} is being adjusted (Abgleich Schleife {loop}, page 17)"),
+                                                {"loop": _loop})
+    BIT_TEMPLATES[f"loop {_loop} occupied"] = (N_("a vehicle is on loop {loop}"), {"loop": _loop})
 for _n in range(1, 7):
-    BIT_MEANINGS[f"multi relay {_n}"] = f"multi relay {_n} is switched on (Multi{_n}, page 17)"
-LEGEND = ("Funk = radio code received; BT = open input; LS = light barrier interrupted; Baum ab = boom off "
-          "(broken away or removed); F_ereignis = fault event (see the error memory); SERVICE = maintenance due. "
-          "Hover a lamp for its meaning.")
+    BIT_TEMPLATES[f"multi relay {_n}"] = (N_("multi relay {n} is switched on (Multi{n}, page 17)"), {"n": _n})
+for _bit, (_text, _fields) in BIT_TEMPLATES.items():
+    BIT_MEANINGS[_bit] = _text.format(**_fields)
+# the lamps' names where the summary words them in English (chapter 5.1.7, pages 16-17); the others are its own
+BIT_NAMES = {"mains monitoring": N_("mains monitoring"), "loop EXT": N_("loop EXT")}
+BIT_NAME_TEMPLATES = {f"adjusting loop {x}": (N_("adjusting loop {loop}"), {"loop": x}) for x in "ABC"} | {
+    f"loop {x} occupied": (N_("loop {loop} occupied"), {"loop": x}) for x in "ABC"} | {
+    f"multi relay {n}": (N_("multi relay {n}"), {"n": n}) for n in range(1, 15)}
+GROUP_NAMES = {"inputs": N_("inputs"), "safety": N_("safety"), "loops": N_("loops"), "multi relays": N_("multi relays"),
+               "service": N_("service")}
+
+
+def bit_meaning(bit: str, lang) -> str:
+    """What a status bit means, in ``lang``."""
+    if bit in BIT_TEMPLATES:
+        text, fields = BIT_TEMPLATES[bit]
+        return lang.gettext(text).format(**fields)
+    if bit in BIT_MEANINGS:
+        return lang.gettext(BIT_MEANINGS[bit])
+    return lang.gettext("{bit}: named in chapter 5.1.7").format(bit=bit)
+
+
+def bit_name(bit: str, lang) -> str:
+    """A status bit's name on its lamp, in ``lang`` (the summary's own abbreviations stay as printed)."""
+    if bit in BIT_NAME_TEMPLATES:
+        text, fields = BIT_NAME_TEMPLATES[bit]
+        return lang.gettext(text).format(**fields)
+    return lang.gettext(BIT_NAMES[bit]) if bit in BIT_NAMES else bit
+
+
+LEGEND = N_("Funk = radio code received; BT = open input; LS = light barrier interrupted; Baum ab = boom off "
+            "(broken away or removed); F_ereignis = fault event (see the error memory); SERVICE = maintenance due. "
+            "Hover a lamp for its meaning.")
+ENTRY_WORDS = (N_("enter a value first"),)  # an entry's own reason (the others are the codec's)
 TIME_KEYS = ("t_open", "t_prewarn_open", "t_prewarn_close")
 INT_KEYS = ("maintenance_interval", "vehicle_counter")
 PIECE_KEYS = ("multi_relays", "config_flags")  # settings of several named pieces: a table and one entry, and raw
+ERROR_COLUMNS = [{"name": k, "label": label, "field": k, "align": "left"} for k, label in
+                 (("level", NP_("error memory", "Level")), ("meaning", N_("Error flags")), ("raw", N_("Raw (for the vendor)")),
+                  ("time", N_("Operating hours at the change")))]
+# chapter 5.1.23 as devices/mo64/codec.py words it (ERROR_MEMORY_MEANING), marked here for the catalogs
+ERROR_MEMORY_MEANING = N_("Each level is one change of the 32 error flags with the operating hours at that change "
+                          "(chapter 5.1.23): level 0 the newest, level 9 the oldest. The document summary does not name "
+                          "the flags: a set flag is shown by its bit number.")
 PIECES = tuple(p for p in PARAMS if p.writable and p.setting_key in PIECE_KEYS)
 PIECE_COLUMNS = [{"name": k, "label": label, "field": k, "align": "left"} for k, label in
-                 (("name", "Setting"), ("value", "Value"), ("allowed", "Allowed"))]
-SETTING_POINTS = {"t_open": "Open time", "t_prewarn_open": "Pre-warning before opening",
-                  "t_prewarn_close": "Pre-warning before closing", "change_monitoring": "Change monitoring",
-                  "status_mask": "Status mask", "multi_relays": "Multi-relay modes",
-                  "config_flags": "Configuration flags", "maintenance_interval": "Maintenance interval",
-                  "vehicle_counter": "Vehicle counter"}
+                 (("name", N_("Setting")), ("value", N_("Value")), ("allowed", N_("Allowed")))]
+# the points' names as the page labels them (the adapter publishes them under these names)
+POINT_LABELS = (N_("Device code"), N_("Program version"), N_("Serial number"), N_("MAC address"), N_("Operating hours"),
+                N_("Service counter"), N_("Maintenance counter"), N_("Maintenance interval"), N_("Vehicle counter"),
+                N_("Loop-adjust counter A"), N_("Loop-adjust counter B"), N_("Loop-adjust counter C"),
+                N_("Induction-loop modes"), N_("Direction logics"), N_("Configuration flags"), N_("Multi-relay modes"),
+                N_("Status mask"), N_("Counting function"), N_("Radio code (dec_bt)"), N_("Loop periods"))
+SETTING_POINTS = {"t_open": N_("Open time"), "t_prewarn_open": N_("Pre-warning before opening"),
+                  "t_prewarn_close": N_("Pre-warning before closing"), "change_monitoring": N_("Change monitoring"),
+                  "status_mask": N_("Status mask"), "multi_relays": N_("Multi-relay modes"),
+                  "config_flags": N_("Configuration flags"), "maintenance_interval": N_("Maintenance interval"),
+                  "vehicle_counter": N_("Vehicle counter")}
+RAW_SETTING_NAMES = (N_("multi-relay modes"), N_("configuration flags"))  # codec.SETTINGS' names of the raw rows
 IDENTITY_POINTS = ("Device code", "Program version", "Serial number", "MAC address", "Operating hours")
 COUNTER_POINTS = ("Service counter", "Maintenance counter", "Maintenance interval", "Vehicle counter",
                   "Loop-adjust counter A", "Loop-adjust counter B", "Loop-adjust counter C")
 MODE_POINTS = ("Induction-loop modes", "Direction logics", "Configuration flags", "Multi-relay modes",
                "Status mask", "Counting function", "Radio code (dec_bt)", "Loop periods")
 # what the gate card and the settings card are drawn from (besides the device's status and errors)
+COMMAND_WORDS = {codec.Command.OPEN: N_("open"), codec.Command.CLOSE: N_("close"), codec.Command.REVERSE: N_("reverse")}
 GATE_INPUTS = ("Gate state", "Position", *sorted(ALARM_BITS), facts.P_LATE, facts.P_CONNECTION, facts.P_POLLING,
                facts.P_QUERY_FORM, facts.P_UNAVAILABLE, facts.P_LEVELS_UNAVAILABLE)
 SETTINGS_INPUTS = (*SETTING_POINTS.values(), facts.P_EEPROM, "Change monitoring", facts.P_MONITORING)
@@ -102,7 +153,7 @@ class Mo64View(DeviceView):
     async def move(self, cmd: codec.Command, fn: codec.Function) -> None:
         words = operation_name(cmd, fn)
         # the declared risk ("the area is clear") is asked by the gate for every motion, every time
-        await self.act(words, success=f"{words}: ack")
+        await self.act(words, success=self.lang.gettext("{operation}: ack").format(operation=words))
 
 
 class GateCard(DeviceCard):
@@ -110,69 +161,73 @@ class GateCard(DeviceCard):
 
     def __init__(self, view: Mo64View):
         super().__init__(view)
-        self.badge = StatusBadge(view.state)
+        self.badge = StatusBadge(view.state, view.lang)
         self.last_position: object = object()
 
     def build(self) -> None:
         view = self.view
+        _ = view.lang.gettext
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-6 w-full no-wrap"):
                 self.picture = ui.html(boom_svg(None)).props("data-testid=boom")
                 with ui.column().classes("gap-1"):
                     with ui.row().classes("items-center gap-4"):
                         self.badge.build()
-                        self.gate = ui.label("gate state: -").classes("text-h6").props("data-testid=gate-state")
-                    self.position = ui.label("position: -").classes("text-h6").props("data-testid=position")
+                        self.gate = ui.label(_("gate state: {text}").format(text="-")).classes("text-h6").props("data-testid=gate-state")
+                    self.position = ui.label(_("position: {text}").format(text="-")).classes("text-h6").props("data-testid=position")
                     self.bar = ui.linear_progress(value=0, show_value=False).props("size=14px rounded").classes("w-72")
                     self.alarms = ui.label().classes("text-negative text-body1").props("data-testid=alarms")
                     self.link = ui.label().classes("text-body2").props("data-testid=connection")
                     self.error_line = ui.label().classes("text-negative text-caption")
                     self.unavailable = ui.label().classes("text-caption text-grey-8").props("data-testid=unavailable")
-                    counter_line(view.state, lambda c: f"requests {c.requests}  answers {c.responses}  "
-                                                       f"timeouts {c.timeouts}  malformed {c.malformed}")
+                    counter_line(view.state, lambda c: _("requests {requests}  answers {answers}  timeouts {timeouts}  "
+                                                         "malformed {malformed}").format(
+                        requests=c.requests, answers=c.responses, timeouts=c.timeouts, malformed=c.malformed))
             line = view.fact(facts.P_LINE)
             if line is not None and line.rs485:
-                ui.label(f"RS485 bus address {line.address}, this tool is master {line.master}.") \
+                ui.label(_("RS485 bus address {address}, this tool is master {master}.").format(address=line.address, master=line.master)) \
                     .classes("text-caption text-grey-8")
             else:
                 with ui.row().classes("items-center gap-2"):
-                    ui.label("The MO 64 serves one TCP client at a time (chapter 3).").classes("text-caption text-grey-8")
-                    release = ui.button("Release the connection", icon="link_off", on_click=lambda: view.act(
-                        "release the connection", success="released: another client may connect")) \
+                    ui.label(_("The MO 64 serves one TCP client at a time (chapter 3).")).classes("text-caption text-grey-8")
+                    release = ui.button(_("Release the connection"), icon="link_off", on_click=lambda: view.act(
+                        "release the connection", success=_("released: another client may connect"))) \
                         .props("outline dense data-testid=release")
-                    resume = ui.button("Take it back", icon="link", on_click=lambda: view.act("take the connection back")) \
+                    resume = ui.button(_("Take it back"), icon="link", on_click=lambda: view.act("take the connection back")) \
                         .props("outline dense data-testid=resume")
                     # engineers only (declared writes); usable while the barrier is silent: that may be why
                     for button in (release, resume):
-                        enable_unless(button, viewer_reason())
+                        enable_unless(button, viewer_reason(view.lang))
 
     def refresh(self) -> None:
         view, state = self.view, self.view.state
+        _ = view.lang.gettext
         bus = view.store.buses.get(state.bus)
         if self.unchanged((state.status, state.last_error, bus.last_error if bus is not None else None,
-                           view.inputs(GATE_INPUTS)), lambda: status_text(state.status, state.age)):
+                           view.inputs(GATE_INPUTS)), lambda: status_text(state.status, state.age, view.lang)):
             return  # status, errors and the gate's points as drawn: the badge's age moves on the once-a-second round
         self.badge.refresh()
-        self.gate.set_text(f"gate state: {view.text('Gate state')}")
+        self.gate.set_text(_("gate state: {text}").format(text=view.lang.phrase(view.text("Gate state"), "Gate state")))
         value = view.fact("Position")
-        self.position.set_text(f"position: {view.text('Position')}")
+        self.position.set_text(_("position: {text}").format(text=view.lang.numbers_in(view.text("Position"))))
         self.bar.set_value(0 if value is None else value / 100)
         if value != self.last_position:
             self.last_position = value
             self.picture.set_content(boom_svg(value))
         on = [b for b in ALARM_BITS if view.fact(b)]
-        self.alarms.set_text(", ".join(ALARM_WORDS[b] for b in sorted(on)))
+        self.alarms.set_text(", ".join(_(ALARM_WORDS[b]) for b in sorted(on)))
         late = view.fact(facts.P_LATE, 0)
-        self.link.set_text(f"connection: {view.text(facts.P_CONNECTION)}"
+        self.link.set_text(_("connection: {text}").format(text=view.text(facts.P_CONNECTION))
                            + (f" ({bus.last_error})" if bus is not None and bus.last_error else "")
-                           + f"; polling {view.text(facts.P_POLLING)}; query form: {view.text(facts.P_QUERY_FORM)}"
-                           + (f"; late answers {late}" if late else ""))
+                           + _("; polling {polling}; query form: {form}").format(
+                               polling=view.text(facts.P_POLLING), form=view.text(facts.P_QUERY_FORM))
+                           + (_("; late answers {n}").format(n=late) if late else ""))
         missing = view.fact(facts.P_UNAVAILABLE, ())
         levels_missing = view.fact(facts.P_LEVELS_UNAVAILABLE, ())
-        self.unavailable.set_text(("not available on this unit: " + ", ".join(missing) if missing else "")
+        self.unavailable.set_text((_("not available on this unit: {list}").format(list=", ".join(missing)) if missing else "")
                                   + ("; " if missing and levels_missing else "")
-                                  + (f"error memory levels {', '.join(map(str, levels_missing))} not available on this unit"
-                                     if levels_missing else ""))
+                                  + (_("error memory levels {levels} not available on this unit").format(
+                                      levels=", ".join(map(str, levels_missing))) if levels_missing else ""))
         self.error_line.set_text(state.last_error)
 
 
@@ -183,69 +238,75 @@ class CommandsCard(DeviceCard):
 
     def build(self) -> None:
         view, guard = self.view, self.guard
-        with titled_card("Commands (chapter 5.2.1)"):
+        _ = view.lang.gettext
+        with titled_card(_("Commands (chapter 5.2.1)")):
             with ui.row().classes("items-center gap-3"):
-                ui.label("Pulse:").classes("text-body2")
+                ui.label(_("Pulse:")).classes("text-body2")
                 for cmd, icon in ((codec.Command.OPEN, "arrow_upward"), (codec.Command.CLOSE, "arrow_downward"),
                                   (codec.Command.REVERSE, "swap_vert")):
-                    guard.add(ui.button(COMMAND_NAMES[cmd].capitalize(), icon=icon,
+                    guard.add(ui.button(_(COMMAND_WORDS[cmd]).capitalize(), icon=icon,
                                         on_click=lambda cmd=cmd: view.move(cmd, codec.Function.PULSE))
                               .props(f"data-testid=pulse-{COMMAND_NAMES[cmd]}"))
             with ui.row().classes("items-center gap-3"):
-                ui.label("Level:").classes("text-body2")
+                ui.label(_("Level:")).classes("text-body2")
                 for cmd in (codec.Command.OPEN, codec.Command.CLOSE, codec.Command.REVERSE):
                     with ui.button_group():
-                        guard.add(ui.button(f"{COMMAND_NAMES[cmd]} activate",
+                        guard.add(ui.button(_("{command} activate").format(command=_(COMMAND_WORDS[cmd])),
                                             on_click=lambda cmd=cmd: view.move(cmd, codec.Function.ACTIVATE))
                                   .props(f"outline data-testid=activate-{COMMAND_NAMES[cmd]}"))
-                        off = ui.button("deactivate", on_click=lambda cmd=cmd: view.move(cmd, codec.Function.DEACTIVATE)) \
+                        off = ui.button(_("deactivate"), on_click=lambda cmd=cmd: view.move(cmd, codec.Function.DEACTIVATE)) \
                             .props(f"outline data-testid=deactivate-{COMMAND_NAMES[cmd]}")
                         if cmd is codec.Command.OPEN:  # lets the boom close: motion (devices/mo64/control.py)
-                            enable_unless(off, viewer_reason())
+                            enable_unless(off, viewer_reason(view.lang))
                         else:  # a stop, never refused: on for every role, also while the barrier is silent
-                            off.props(f'title="{STOP_HINT}"')
-                clear = ui.button("Clear my levels", icon="layers_clear", on_click=self.clear_levels) \
+                            off.props(f'title="{html.escape(_(STOP_HINT))}"')
+                clear = ui.button(_("Clear my levels"), icon="layers_clear", on_click=self.clear_levels) \
                     .props("data-testid=clear-levels")
-                enable_unless(clear, viewer_reason())  # a declared system command: engineers only
+                enable_unless(clear, viewer_reason(view.lang))  # a declared system command: engineers only
             self.levels = ui.label().classes("text-body2").props("data-testid=levels")
             self.reply = ui.label().classes("text-body2 mono").props("data-testid=reply")
-            ui.label("A level stays active in the barrier until it is deactivated. Close and reverse levels are "
-                     "deactivated when this browser closes or freezes (dead-man rule) and when the tool stops (each "
-                     "acknowledged by the barrier); an open level is not, since "
-                     "deactivating it would let an unattended boom close. Every motion asks for its own "
-                     f"confirmation ({MOTION_WARNING}).").classes("text-caption text-grey-8")
+            ui.label(_("A level stays active in the barrier until it is deactivated. Close and reverse levels are "
+                       "deactivated when this browser closes or freezes (dead-man rule) and when the tool stops (each "
+                       "acknowledged by the barrier); an open level is not, since "
+                       "deactivating it would let an unattended boom close. Every motion asks for its own "
+                       "confirmation ({warning}).").format(warning=_(MOTION_WARNING))).classes("text-caption text-grey-8")
 
     async def clear_levels(self) -> None:
+        _ = self.view.lang.gettext
         if not self.view.fact(facts.P_LEVELS, ()):
-            ui.notify("no level set by this tool is active")
+            ui.notify(_("no level set by this tool is active"))
             return
-        await self.view.act("clear levels", success="levels deactivated")  # the gate asks the declared risk
+        await self.view.act("clear levels", success=_("levels deactivated"))  # the gate asks the declared risk
 
     def refresh(self) -> None:
         if self.unchanged(self.view.inputs((facts.P_LEVELS, facts.P_LAST_REPLY)), lambda: None):
             return
-        mine = sorted(level.command + (" (dead-man)" if level.dead_man else "")
+        _ = self.view.lang.gettext
+        mine = sorted(_(level.command) + (_(" (dead-man)") if level.dead_man else "")
                       for level in self.view.fact(facts.P_LEVELS, ()))
-        self.levels.set_text("levels this tool set: " + (", ".join(mine) if mine else "none"))
-        self.reply.set_text(f"last answer: {self.view.text(facts.P_LAST_REPLY)}")
+        self.levels.set_text(_("levels this tool set: {list}").format(list=", ".join(mine) if mine else _("none")))
+        self.reply.set_text(_("last answer: {text}").format(text=self.view.text(facts.P_LAST_REPLY)))
 
 
 class StatusCard(DeviceCard):
     """The 40 status bits (chapter 5.1.7) as lamps, with their meanings on hover."""
 
     def build(self) -> None:
+        lang = self.view.lang
+        _ = lang.gettext
         self.lamps: dict[str, Lamp] = {}
-        with titled_card("Barrier status (40 bits, chapter 5.1.7)"):
+        with titled_card(_("Barrier status (40 bits, chapter 5.1.7)")):
             with ui.row().classes("gap-8 items-start"):
                 for group, names in codec.STATUS_GROUPS.items():
                     with ui.column().classes("gap-0"):
-                        ui.label(group).classes("text-subtitle2")
+                        ui.label(_(GROUP_NAMES.get(group, group))).classes("text-subtitle2")
                         for bit in names:
                             if bit in HIDDEN_BITS:
                                 continue
-                            self.lamps[bit] = Lamp(bit, "alarm" if bit in ALARM_BITS else "ok", light=True,
-                                                   tooltip=BIT_MEANINGS.get(bit, f"{bit}: named in chapter 5.1.7"))
-            ui.label(LEGEND).classes("text-caption text-grey-8").props("data-testid=status-legend")
+                            lamp = self.lamps[bit] = Lamp(bit_name(bit, lang), "alarm" if bit in ALARM_BITS else "ok",
+                                                          light=True, tooltip=bit_meaning(bit, lang))
+                            lamp.row.props(f'data-lamp="{bit}"')  # the bit's name, whatever the lamp says
+            ui.label(_(LEGEND)).classes("text-caption text-grey-8").props("data-testid=status-legend")
 
     def refresh(self) -> None:
         if self.unchanged(self.view.inputs(self.lamps), lambda: self.view.qualities(self.lamps)):
@@ -269,18 +330,21 @@ class ValuesCard(DeviceCard):
         self.lines: dict[str, tuple] = {}
 
     def build(self) -> None:
-        with titled_card(self.title, self.classes):
+        _ = self.view.lang.gettext
+        with titled_card(_(self.title), self.classes):
             with ui.column().classes(self.column).props(f"data-testid={self.testid}"):
                 self.lines = {pt: _value_line() for pt in self.points}
             if self.note:
-                ui.label(self.note).classes("text-caption text-grey-8")
+                ui.label(_(self.note)).classes("text-caption text-grey-8")
 
     def refresh(self) -> None:
         if self.unchanged(self.view.inputs(self.points), lambda: self.view.qualities(self.points)):
             return
         aging = False
+        lang = self.view.lang
         for point, line in self.lines.items():
-            aging = _show_line(line, f"{point}: {self.view.text(point)}", self.view.live(point)) or aging
+            aging = _show_line(line, f"{lang.gettext(point)}: {lang.numbers_in(self.view.text(point))}", self.view.live(point),
+                               lang) or aging
         self.aging = aging
 
 
@@ -288,35 +352,37 @@ class ErrorMemoryCard(DeviceCard):
     """The 10 levels of the error memory (chapter 5.1.23), newest first, and a read again."""
 
     def build(self) -> None:
+        _ = self.view.lang.gettext
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-4"):
-                ui.label("Error memory (10 levels, newest first, chapter 5.1.23)").classes("text-subtitle1")
-                self.guard.add(ui.button("Read again", on_click=lambda: self.view.act("read error memory"))
+                ui.label(_("Error memory (10 levels, newest first, chapter 5.1.23)")).classes("text-subtitle1")
+                self.guard.add(ui.button(_("Read again"), on_click=lambda: self.view.act("read error memory"))
                                .props("outline dense"))
                 self.age = ui.label().classes("q-age").props("data-testid=error-memory-age")
-            ui.label(codec.ERROR_MEMORY_MEANING).classes("text-caption text-grey-8")
-            self.table = ui.table(columns=[{"name": k, "label": label, "field": k, "align": "left"} for k, label in
-                                           (("level", "Level"), ("meaning", "Error flags"), ("raw", "Raw (for the vendor)"),
-                                            ("time", "Operating hours at the change"))],
+            ui.label(_(ERROR_MEMORY_MEANING)).classes("text-caption text-grey-8")
+            lang = self.view.lang  # the document's Ebene, not the event log's Stufe
+            self.table = ui.table(columns=[{**c, "label": lang.pgettext("error memory", c["label"]) if c["name"] == "level"
+                                            else lang.gettext(c["label"])} for c in ERROR_COLUMNS],
                                   rows=[], row_key="level").classes("w-full text-caption") \
                 .props("dense flat wrap-cells data-testid=error-memory")
 
     def refresh(self) -> None:
         state = self.view.state
         if self.unchanged((state.status, self.view.inputs((facts.P_ERROR_LEVELS,))),
-                          lambda: state.status == "offline" and quality_note("offline", state.age)):
+                          lambda: state.status == "offline" and quality_note("offline", state.age, self.view.lang)):
             return
+        lang = self.view.lang
         levels = {e.level: e for e in self.view.fact(facts.P_ERROR_LEVELS, ())}
-        rows = [{"level": codec.error_level_text(e.level),
-                 "meaning": codec.error_level_meaning(e.flags, e.timestamp_h,
-                                                      levels[e.level + 1].flags if e.level + 1 in levels else None),
-                 "raw": f"0x{e.flags:08X}", "time": f"{e.timestamp_h} h"} for e in levels.values()]
+        rows = [{"level": error_level_text(e.level, lang),
+                 "meaning": error_level_meaning(e.flags, e.timestamp_h,
+                                                levels[e.level + 1].flags if e.level + 1 in levels else None, lang),
+                 "raw": f"0x{e.flags:08X}", "time": f"{lang.number(e.timestamp_h)} h"} for e in levels.values()]
         if rows != self.table.rows:
             self.table.rows = rows
             self.table.update()
         offline = state.status == "offline" and rows
         mark_quality(self.table, "offline" if offline else "good")
-        self.age.set_text(quality_note("offline", state.age) if offline else "")
+        self.age.set_text(quality_note("offline", state.age, lang) if offline else "")
 
 
 class SettingsCard(DeviceCard):
@@ -333,16 +399,18 @@ class SettingsCard(DeviceCard):
         self.pieces: ui.table | None = None
 
     def build(self) -> None:
+        lang = self.view.lang
+        _ = lang.gettext
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center gap-4"):
-                ui.label("Settings (chapter 5.2.4-5.2.8)").classes("text-subtitle1")
+                ui.label(_("Settings (chapter 5.2.4-5.2.8)")).classes("text-subtitle1")
                 self.writes = ui.label().classes("text-body2").props("data-testid=eeprom-writes")
-            ui.label(EEPROM_WARNING + " Busy means the motor runs: try again when it stands. A setting is read from "
-                     "the barrier, the one value changed, written whole and read back.").classes("text-caption text-warning")
+            ui.label(_(EEPROM_WARNING) + " " + _("Busy means the motor runs: try again when it stands. A setting is read "
+                                                 "from the barrier, the one value changed, written whole and read back.")).classes("text-caption text-warning")
             with ui.row().classes("items-center gap-2"):
-                ui.label("Change monitoring (TCP: changes are sent by the barrier, polling slows down):").classes("text-body2")
-                self.guard.add(ui.button("On", on_click=lambda: self.monitoring(True)).props("outline dense data-testid=monitoring-on"),
-                               ui.button("Off", on_click=lambda: self.monitoring(False)).props("outline dense data-testid=monitoring-off"))
+                ui.label(_("Change monitoring (TCP: changes are sent by the barrier, polling slows down):")).classes("text-body2")
+                self.guard.add(ui.button(_("On"), on_click=lambda: self.monitoring(True)).props("outline dense data-testid=monitoring-on"),
+                               ui.button(_("Off"), on_click=lambda: self.monitoring(False)).props("outline dense data-testid=monitoring-off"))
                 self.mon = ui.label().classes("text-body2").props("data-testid=monitoring")
             with ui.grid(columns=3).classes("w-full gap-x-4 items-center") \
                     .style("grid-template-columns: minmax(120px, 220px) minmax(0, 1fr) 300px; row-gap: 28px"):  # room for each entry's range
@@ -351,18 +419,18 @@ class SettingsCard(DeviceCard):
                         self._param_row(param)
                 for key in PIECE_KEYS:
                     self._raw_row(key, codec.SETTINGS[key])
-            ui.label("Relay modes and configuration flags by name (chapter 5.1.24, 5.1.25)").classes("text-subtitle2")
-            self.pieces = ui.table(columns=PIECE_COLUMNS, rows=[], row_key="key").classes("w-full text-caption") \
+            ui.label(_("Relay modes and configuration flags by name (chapter 5.1.24, 5.1.25)")).classes("text-subtitle2")
+            self.pieces = ui.table(columns=columns(PIECE_COLUMNS, lang), rows=[], row_key="key").classes("w-full text-caption") \
                 .props("dense flat wrap-cells data-testid=setting-pieces")
             self.pieces.add_slot("body-cell-name", '<q-td :props="props" :title="props.row.description" '
                                                    'style="cursor: help">{{ props.value }}</q-td>')
             with ui.row().classes("items-center gap-2"):
-                self.piece = ui.select({p.key: p.name for p in PIECES}, label="setting", with_input=True,
+                self.piece = ui.select({p.key: p.name for p in PIECES}, label=_("setting"), with_input=True,
                                        on_change=lambda e: self._chosen(e.value)).classes("w-96") \
                     .props("dense outlined data-testid=piece-param")
-                self.piece_value = ui.input("value or choice").classes("w-64") \
+                self.piece_value = ui.input(_("value or choice")).classes("w-64") \
                     .props("dense outlined data-testid=piece-value")
-                self.guard.add(ui.button("Write", on_click=self.write_piece).props("outline dense data-testid=piece-write"))
+                self.guard.add(ui.button(_("Write"), on_click=self.write_piece).props("outline dense data-testid=piece-write"))
 
     def _chosen(self, key: str | None) -> None:
         param = PARAMS.by_key.get(key or "")
@@ -371,38 +439,42 @@ class SettingsCard(DeviceCard):
     async def write_piece(self) -> None:
         param = PARAMS.by_key.get(self.piece.value or "")
         if param is None:
-            self.piece.error = "choose a setting first"
+            self.piece.error = self.view.lang.gettext("choose a setting first")
             return
         self.piece.error = None
         await self.write_param(param, self.piece_value)
 
     def _param_row(self, param: Mo64Param) -> None:
-        notes = [n for n in ("assumed selector" if param.selector_assumed else "",
-                             "assumed bit position" if param.assumed and not param.selector_assumed else "") if n]
-        ui.label(param.name + (f" ({', '.join(notes)})" if notes else "")).classes("text-body2") \
-            .props(f'title="{html.escape(param.description + (" Assumption: " + param.assumed if param.assumed else ""))}"')
+        lang = self.view.lang
+        _ = lang.gettext
+        notes = [n for n in (_("assumed selector") if param.selector_assumed else "",
+                             _("assumed bit position") if param.assumed and not param.selector_assumed else "") if n]
+        assumption = " " + _("Assumption: {text}").format(text=param.assumed) if param.assumed else ""
+        ui.label(_(param.name) + (f" ({', '.join(notes)})" if notes else "")).classes("text-body2") \
+            .props(f'title="{html.escape(param.description + assumption)}"')
         self.values[param.key] = _value_line("mono text-body2")
         with ui.row().classes("items-center gap-1 no-wrap"):
             low, high = param.limits()
             if param.scale != 1:
-                field = range_number("seconds", low, high, unit=param.unit, step=param.scale).classes("w-40")
+                field = range_number(_("seconds"), low, high, unit=param.unit, step=param.scale, lang=lang).classes("w-40")
             elif param.fields:
-                field = ui.input("number (0x.. allowed)", validation=lambda text, p=param: _number_problem(p, text)) \
+                field = ui.input(_("number (0x.. allowed)"), validation=lambda text, p=param: _number_problem(p, text)) \
                     .classes("w-48").props("dense outlined")
             else:
-                field = _whole_number("value", int(low), int(high)).classes("w-48")
+                field = _whole_number(_("value"), int(low), int(high), lang).classes("w-48")
             field.props(f"data-testid=entry-{param.space}")
-            self.guard.add(ui.button("Write", on_click=lambda p=param, f=field: self.write_param(p, f))
+            self.guard.add(ui.button(_("Write"), on_click=lambda p=param, f=field: self.write_param(p, f))
                            .props(f"outline dense data-testid=write-{param.space}"))
 
     def _raw_row(self, key: str, setting: codec.Setting) -> None:
-        ui.label(setting.name).classes("text-body2")
+        _ = self.view.lang.gettext
+        ui.label(_(setting.name)).classes("text-body2")
         self.values[key] = _value_line("mono text-body2")
         with ui.row().classes("items-center gap-1 no-wrap"):
-            field = ui.input("raw (as shown, e.g. 1,0,0,0,0,0)",
+            field = ui.input(_("raw (as shown, e.g. 1,0,0,0,0,0)"),
                              validation=lambda text, k=key: _raw_problem(k, text)).classes("w-48") \
                 .props(f"dense outlined data-testid=entry-{key}")
-            self.guard.add(ui.button("Write", on_click=lambda k=key, f=field: self.write(k, f))
+            self.guard.add(ui.button(_("Write"), on_click=lambda k=key, f=field: self.write(k, f))
                            .props(f"outline dense data-testid=write-{key}"))
 
     async def write_param(self, param: Mo64Param, field) -> None:
@@ -411,10 +483,12 @@ class SettingsCard(DeviceCard):
         value = await _param_value(self.view.name, param, field)
         if value is None:
             return
+        _ = self.view.lang.gettext
         shown = param.display(param.validate(value))
         await self.view.act(WRITE_PARAMETER, {"param": param.key, "value": value},
-                            success=f"{param.name} = {shown} written and read back",
-                            title=f"Write {param.name} = {shown}?", ok="Write anyway", parameter=param.name, new=shown)
+                            success=_("{name} = {value} written and read back").format(name=param.name, value=shown),
+                            title=_("Write {name} = {value}?").format(name=param.name, value=shown), ok=_("Write anyway"),
+                            parameter=param.name, new=shown)
 
     async def write(self, key: str, field) -> None:
         setting = codec.SETTINGS[key]
@@ -423,10 +497,12 @@ class SettingsCard(DeviceCard):
             return
         # the declared "set ..." asks the EEPROM wear and names every safety flag this value switches off
         await self.view.act(setting_name(key), codec.setting_to_fields(key, value),
-                            success=f"{setting.name} written and read back")
+                            success=self.view.lang.gettext("{name} written and read back").format(name=setting.name))
 
     async def monitoring(self, on: bool) -> None:
-        await self.view.act("change monitoring", {"on": int(on)}, success="change monitoring " + ("on" if on else "off"))
+        _ = self.view.lang.gettext
+        await self.view.act("change monitoring", {"on": int(on)},
+                            success=_("change monitoring on") if on else _("change monitoring off"))
 
     def refresh(self) -> None:
         view = self.view
@@ -437,14 +513,15 @@ class SettingsCard(DeviceCard):
         for key, line in self.values.items():
             param = PARAMS.by_key.get(key)
             if param is None:
-                aging = _show_line(line, view.text(SETTING_POINTS[key]), view.live(SETTING_POINTS[key])) or aging
+                aging = _show_line(line, view.text(SETTING_POINTS[key]), view.live(SETTING_POINTS[key]), view.lang) or aging
                 continue
             raw = state.raw(param)
             point = SETTING_POINTS.get(param.setting_key)
             aging = _show_line(line, "-" if raw is None else param.display(raw),
-                               view.live(point) if point else None) or aging
+                               view.live(point) if point else None, view.lang) or aging
         self.aging = aging
-        rows = [{"key": p.key, "name": p.name + (" (assumed bit position)" if p.assumed else ""),
+        _ = view.lang.gettext
+        rows = [{"key": p.key, "name": p.name + (" " + _("(assumed bit position)") if p.assumed else ""),
                  "value": "-" if (raw := state.raw(p)) is None else p.display(raw), "allowed": allowed(p),
                  "description": p.description} for p in PIECES]
         if self.pieces is not None and rows != self.pieces.rows:
@@ -452,30 +529,69 @@ class SettingsCard(DeviceCard):
             self.pieces.update()
         writes = view.fact(facts.P_EEPROM)
         mine, total = (0, 0) if writes is None else (writes.of(view.session), writes.total)
-        self.writes.set_text(f"EEPROM writes this session: {mine} (all sessions: {total})")
+        self.writes.set_text(_("EEPROM writes this session: {mine} (all sessions: {total})").format(mine=mine, total=total))
         self.mon.set_text(f"{view.text('Change monitoring')}; {view.text(facts.P_MONITORING)}")
 
 
 def content(name: str) -> None:
     view = Mo64View(name)
-    with device_page(view, f"Bauer MO 64 {name}"):
-        view.guard = WriteGuard(view.state)  # commands and settings, disabled with the reason while the barrier does not answer
+    _ = view.lang.gettext
+    with device_page(view, _("Bauer MO 64 {name}").format(name=name)):
+        view.guard = WriteGuard(view.state, lang=view.lang)  # commands and settings, disabled with the reason while the barrier does not answer
         for card in (GateCard(view), CommandsCard(view), StatusCard(view)):
             view.add(card)
         with ui.row().classes("w-full gap-4 items-stretch"):
-            view.add(ValuesCard(view, "Identity", IDENTITY_POINTS, "identity", "col"))
-            view.add(ValuesCard(view, "Counters", COUNTER_POINTS, "counters", "col",
-                                note="The vehicle counter lives in RAM only: it is 0 after power-up (chapter 5.2.5)."))
+            view.add(ValuesCard(view, N_("Identity"), IDENTITY_POINTS, "identity", "col"))
+            view.add(ValuesCard(view, N_("Counters"), COUNTER_POINTS, "counters", "col",
+                                note=N_("The vehicle counter lives in RAM only: it is 0 after power-up (chapter 5.2.5).")))
         view.add(ErrorMemoryCard(view))
-        view.add(ValuesCard(view, "Modes (decoded as far as the document names the fields, raw otherwise)", MODE_POINTS,
+        view.add(ValuesCard(view, N_("Modes (decoded as far as the document names the fields, raw otherwise)"), MODE_POINTS,
                             "modes", "w-full", column="gap-0 text-body2"))
         view.add(SettingsCard(view))
-        with ui.expansion("Assumptions beyond the manual (shown as such)").classes("w-full") \
+        with ui.expansion(_("Assumptions beyond the manual (shown as such)")).classes("w-full") \
                 .props("data-testid=assumptions"):
             # static text: one element for all of them
-            ui.html("".join(f'<div class="text-caption">Assumption: {html.escape(text, quote=False)}</div>' for text in codec.ASSUMPTIONS),
+            assumption = _("Assumption: {text}")
+            ui.html("".join(f'<div class="text-caption">{html.escape(assumption.format(text=_(text)), quote=False)}</div>'
+                            for text in codec.ASSUMPTIONS),
                     sanitize=False).classes("column gap-2")
         sim_card(name)  # the twin's declared controls, in simulation only
+
+
+def error_level_text(level: int, lang) -> str:
+    """:func:`devices.mo64.codec.error_level_text` in ``lang``: level 0 the newest change, 9 the oldest (5.1.23)."""
+    if level == 0:
+        return lang.gettext("{level} (newest)").format(level=level)
+    if level == codec.ERROR_MEMORY_LEVELS - 1:
+        return lang.gettext("{level} (oldest)").format(level=level)
+    return str(level)
+
+
+def error_level_meaning(flags: int, timestamp_h: int, older: int | None, lang) -> str:
+    """:func:`devices.mo64.codec.error_level_meaning` in ``lang``: the flags set, what changed against the older
+    level, or a level no change has reached yet."""
+    _ = lang.gettext
+    if int(flags) == 0 and int(timestamp_h) == 0:
+        return _("empty: no change stored")
+    now = codec.error_flag_bits(int(flags))
+    before = set(codec.error_flag_bits(older)) if older is not None else None
+
+    def numbers(bits) -> str:
+        return ", ".join(map(str, bits))
+
+    def named(bits: list[int]) -> str:
+        return lang.ngettext("flag {list}", "flags {list}", len(bits)).format(list=numbers(bits))
+
+    changes = []
+    if before is not None:
+        new = [n for n in now if n not in before]
+        gone = sorted(before - set(now))
+        if new and before:
+            changes.append(_("{list} new").format(list=numbers(new)))
+        if gone:
+            changes.append(_("{list} cleared").format(list=named(gone) if not now else numbers(gone)))
+    tail = f" ({'; '.join(changes)})" if changes else ""
+    return (_("no error") if not now else _("error {flags} set").format(flags=named(now))) + tail
 
 
 def _value_line(classes: str = "") -> ValueLine:
@@ -483,24 +599,25 @@ def _value_line(classes: str = "") -> ValueLine:
     return ValueLine(classes)
 
 
-def _show_line(line: ValueLine, text: str, value: LiveValue | None) -> bool:
+def _show_line(line: ValueLine, text: str, value: LiveValue | None, lang=None) -> bool:
     """Show a value with its quality (greyed, with its age, while stale or offline); True when it is shown stale or offline (with an age)."""
     quality = "unknown" if value is None else value.quality
-    line.show(text, quality, quality_note(quality, entry_age(value.entry())) if quality in ("stale", "offline") else "")
+    line.show(text, quality, quality_note(quality, entry_age(value.entry()), lang) if quality in ("stale", "offline") else "")
     return quality in ("stale", "offline")
 
 
-def _whole_number(label: str, low: int, high: int) -> ui.number:
+def _whole_number(label: str, low: int, high: int, lang=None) -> ui.number:
     """A whole-number entry whose range reads as whole numbers (not 2.14748e+09)."""
-    rule = f"allowed {low:,} .. {high:,}".replace(",", "\u2009")
+    _ = (lang or i18n.get("en")).gettext
+    rule = _("allowed {low} .. {high}").format(low=f"{low:,}".replace(",", "\u2009"), high=f"{high:,}".replace(",", "\u2009"))
 
     def check(v) -> str | None:
         if v is None:
             return None
         if float(v) != int(float(v)):
-            return f"whole numbers only, {rule}"
+            return _("whole numbers only, {rule}").format(rule=rule)
         if not low <= float(v) <= high:
-            return f"out of range: {rule}"
+            return _("out of range: {rule}").format(rule=rule)
         return None
 
     field = ui.number(label, step=1, format="%d", validation=check)
@@ -528,7 +645,7 @@ async def _param_value(device: str, param: Mo64Param, field):
     value = field.value
     problem = "enter a value first" if not (value or "").strip() else _number_problem(param, value)
     if problem:
-        field.error = problem
+        field.error = i18n.client_language().gettext(problem)  # the audit row below stays as written: English
         await refuse(device, f"write {param.name}", f"{value!r}: {problem}", parameter=param.name, new=value or "")
         return None
     field.error = None
@@ -564,7 +681,7 @@ async def _entry_value(device: str, key: str, field):
     text = field.value
     problem = "enter a value first" if not (text or "").strip() else _raw_problem(key, text)
     if problem:
-        field.error = problem
+        field.error = i18n.client_language().gettext(problem)  # the audit row below stays as written: English
         await refuse(device, f"set {setting.name}", f"{text!r}: {problem}", parameter=setting.name, new=text or "")
         return None
     field.error = None

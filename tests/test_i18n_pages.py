@@ -270,3 +270,33 @@ async def test_the_plant_wide_view_in_german_shows_no_english(tmp_path):
         await user.should_see("Broker startet")  # not connected to any broker here
         assert english_on(user) == []
         assert not i18n.get("de").missing, i18n.get("de").missing
+
+
+def mo64_descriptions(runtime, name: str) -> set[str]:
+    """The parameter model's own English (devices/mo64/params.py): each description, also with its assumption."""
+    from devices.mo64.params import PARAMS
+
+    return {p.description for p in PARAMS} | {f"{p.description} Annahme: {p.assumed}" for p in PARAMS if p.assumed}
+
+
+async def test_the_mo64_page_in_german_shows_no_english(tmp_path):
+    """The barrier's page in the words of its document (003): Torzustand, Schrankenstatus, Fehlerspeicher, Pegel."""
+    from plants import mo64_tcp, plant
+
+    runtime = Runtime(plant(mo64_tcp()), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await eventually(lambda: {"Gate state", "Serial number"} <= set(runtime.store.devices["gate"].points), timeout=15,
+                         what="the barrier's first answers")
+        await user.open("/device/gate")
+        await user.should_see("Torzustand: Schranke ist geschlossen", retries=100)
+        await user.should_see("Schrankenstatus (40 Bits, Kapitel 5.1.7)")
+        await user.should_see("Seriennummer: 6400001", retries=50)
+        await user.should_see("Schleife A belegt")
+        await user.should_see("Fehlerspeicher (10 Ebenen, neueste zuerst, Kapitel 5.1.23)")
+        descriptions = mo64_descriptions(runtime, "gate")
+        # the simulation card's words are declared by devices/mo64/sim.py (pages/simcontrols.py joins later)
+        found = [(text, message) for text, message in english_on(user, skip=("sim-card",)) if text not in descriptions]
+        assert found == [], "\n".join(map(str, found))
+        errors = next(e for e in user.client.elements.values() if e.props.get("data-testid") == "error-memory")
+        assert [c["label"] for c in errors.columns] == ["Ebene", "Fehlerflaggen", "Roh (für den Hersteller)",
+                                                        "Betriebsstunden bei der Änderung"]
