@@ -101,3 +101,5 @@ MO64_ASSUMPTIONS = (
     N_("The vehicle counter (0x05 0x00) and the maintenance interval (0x05 0x01, u32) selectors are assumed; the manual's summary names the 32-bit vehicle counter setting but not its selector."),
     N_('The layouts of the counting function (0x11), loop periods (0x1B) and the fields of induction loops, direction logics, configuration flags and multi relays that the summary does not number are shown as raw values.'),
 )
+# doc: MO 64, 003, chapter 4 (Schreibzugriff auf das EEPROM): the declared risk of every setting write (devices/mo64/policy.py)
+MO64_RISKS = (N_("Every setting write wears the barrier's EEPROM (chapter 4: the number of writes is limited). Write only what must change."),)
