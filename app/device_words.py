@@ -103,3 +103,15 @@ MO64_ASSUMPTIONS = (
 )
 # doc: MO 64, 003, chapter 4 (Schreibzugriff auf das EEPROM): the declared risk of every setting write (devices/mo64/policy.py)
 MO64_RISKS = (N_("Every setting write wears the barrier's EEPROM (chapter 4: the number of writes is limited). Write only what must change."),)
+# doc: CAN-M3IO, 001, section 6.3 (Watchdog: 2 s, DigOut) and 7.2.1 (P2: a two-pole load at the three-phase output): the
+# watchdog's and P2's words on the module's page (devices/m3io/adapter.py)
+M3IO_WORDS = (
+    N_("served: DigOut every {0} ms"), N_("served: DigOut every {0} ms (every output off: nobody controls the module)"),
+    N_("served by another master (a PLC): this tool only listens"),
+    N_("not served: outputs are off in the module; take control to serve it"),
+    N_("read back once this tool serves the module"),
+    N_("cannot be read back in simple mode (SW1 switch 8 off): sent with every DigOut"),
+    N_("The product code has not been read yet: outputs stay off until it matches the plant file."),
+)
+# doc: CAN-M3IO, 001, section 7.2.4.2.2: the software version word, whose format the document does not give (devices/m3io/codec.py)
+M3IO_ASSUMPTIONS = (N_("the document names the SW version word without its format; read as high byte . low byte (0x1201 = 18.1)"),)

@@ -10,6 +10,8 @@ import html
 
 from nicegui import ui
 
+from app import i18n
+from app.i18n import N_
 from app.state import LiveValue
 from app.worker import DEADMAN_BOUND_S
 from devices.m3io import adapter as facts
@@ -30,33 +32,56 @@ from pages.command_client import enable_unless, refuse, viewer_reason
 
 STATE_COLOR = {"ok": "positive", "present": "positive", "blown": "negative", "defective": "negative"}
 VARIANT_COLOR = {"ok": "text-positive", "mismatch": "text-negative text-weight-medium", "unchecked": "text-grey-8", "not possible": "text-warning"}
-TAKE_CONTROL = "take control of the module first"
+TAKE_CONTROL = N_("take control of the module first")
+# the channels' states (section 7.2.3: Last, Si, Triac) and the badges' titles, as the adapter publishes them
+CHANNEL_WORDS = (N_("ok"), N_("present"), N_("blown"), N_("defective"), N_("unknown"), N_("load"), N_("fuse"), N_("triac"))
 # The temperature chart's legend under the time axis, at the foot of the figure: above the plot it lay where
 # plotly's mode bar appears (top right), which covered the last channels' names.
 CHART_HEIGHT = 300
 LEGEND_MARGIN_B = 80  # the time axis with its date line, then one or two rows of legend
 MODE_BAR_MARGIN_T = 30  # the mode bar's own row above the plot, clear of the lines
 LEGEND_BELOW = {"orientation": "h", "x": 0, "xanchor": "left", "y": 0, "yanchor": "bottom", "yref": "container"}
-STOP_RULE = (
+STOP_RULE = N_(
     "Outputs belong to the page that switched them on: they go off at once when that page is closed or reloaded, "
-    f"or within {DEADMAN_BOUND_S:g} s when it stops confirming that it is alive (frozen tab, sleeping laptop, lost network). "
+    "or within {bound} s when it stops confirming that it is alive (frozen tab, sleeping laptop, lost network). "
     "Another open tab does not keep them on. While you control the module this tool serves its 2 s watchdog, "
     "and it switches the outputs off by itself if the program stalls."
 )
 
 
-def temp_text(variant: Variant, channel: int, word: codec.TempWord) -> str:
-    """``21.5 °C`` or ``out of range (-5.0 °C)``: the reading in the bus monitor's words (codec.describe_temp, 7.2.2)."""
-    return codec.describe_temp(variant, channel, word).split(" · ", 1)[0].split(" ", 1)[1]
+def temp_text(variant: Variant, channel: int, word: codec.TempWord, lang=None) -> str:
+    """``21.5 °C`` or ``out of range (-5.0 °C)``: the reading in the bus monitor's words (codec.describe_temp, 7.2.2),
+    in ``lang`` when given."""
+    text = codec.describe_temp(variant, channel, word).split(" · ", 1)[0].split(" ", 1)[1]
+    if lang is None:
+        return text
+    if word.in_range:
+        return lang.numbers_in(text)
+    return lang.gettext("out of range ({value} °C)").format(value=lang.number(word.celsius, 1))
+
+
+VARIANT_UNCHECKABLE = N_(
+    "The variant cannot be checked: with SW1 switch 8 off the module does not report its product code. "
+    'Make sure the module is the variant the plant file names (variant = "{variant}"): '
+    "HM and HMR switch different SSRs with the same DigOut bits.")
+
+
+def variant_text(check: LiveValue, view: M3ioView) -> str:
+    """The variant check's words (devices/m3io/codec.py check_variant) in the page's language; a module that
+    reports another variant is named in English (docs/i18n.md)."""
+    variant = view.variant.value
+    if check.value == "not possible" and check.text == VARIANT_UNCHECKABLE.format(variant=variant):
+        return view.lang.gettext(VARIANT_UNCHECKABLE).format(variant=variant)
+    return view.lang.gettext(check.text)
 
 
 def _quality(value: LiveValue | None) -> str:
     return "unknown" if value is None else value.quality
 
 
-def _age_note(value: LiveValue | None) -> str:
+def _age_note(value: LiveValue | None, lang=None) -> str:
     quality = _quality(value)
-    return quality_note(quality, entry_age(value and value.entry())) if quality in ("stale", "offline") else ""
+    return quality_note(quality, entry_age(value and value.entry()), lang) if quality in ("stale", "offline") else ""
 
 
 class M3ioView(DeviceView):
@@ -80,7 +105,8 @@ class M3ioView(DeviceView):
         if reason or on or self.controls():
             return reason
         control = self.fact(facts.P_CONTROL)
-        return TAKE_CONTROL if control is None else f"{control.user} controls the module"
+        _ = self.lang.gettext
+        return _(TAKE_CONTROL) if control is None else _("{user} controls the module").format(user=control.user)
 
 
 class DrawnCard(ChangedCard):
@@ -109,49 +135,56 @@ class ModuleCard(DrawnCard):
 
     def build(self) -> None:
         view, a = self.view, self.view.addressing
+        _ = view.lang.gettext
         # the session's role, worked out here in the page's context: the store's round redraws without it
-        self.read_only = viewer_reason()
-        self.status = StatusRow(view.state, lambda c: f"frames in {c.responses} · requests {c.requests} · "
-                                f"timeouts {c.timeouts} · malformed {c.malformed} · write errors {c.write_errors}")
+        self.read_only = viewer_reason(view.lang)
+        self.status = StatusRow(view.state, lambda c: _("frames in {responses} · requests {requests} · timeouts {timeouts} "
+                                                        "· malformed {malformed} · write errors {write_errors}").format(
+            responses=c.responses, requests=c.requests, timeouts=c.timeouts, malformed=c.malformed,
+            write_errors=c.write_errors), view.lang)
         with ui.card().classes("w-full"):
             with self.status.build():
                 self.watchdog = ui.label().classes("text-body2")
-            ui.label(f"SW1 0x{a.sw1:02X} ({a.sw1:08b}): " + ("addressed mode (S8 on), " if a.addressed else "S8 off, ")
+            ui.label(f"SW1 0x{a.sw1:02X} ({a.sw1:08b}): " + (_("addressed mode (S8 on), ") if a.addressed else _("S8 off, "))
                      + f"{a.bitrate // 1000} kbit/s · " + " · ".join(f"{k} 0x{v:03X}" for k, v in a.ids)).classes("text-body2 mono")
             self.variant = ui.label().classes("text-body2").props("data-testid=variant-check")
             # the module is a slave: this tool serves its watchdog (DigOut) only while an engineer controls it
             with ui.row().classes("items-center gap-3"):
-                self.take_button = ui.button("Take control", icon="sports_esports", on_click=self.take) \
+                self.take_button = ui.button(_("Take control"), icon="sports_esports", on_click=self.take) \
                     .props("data-testid=take-control")
-                self.take_button.tooltip(f"Listens for another master (a PLC sending DigOut 0x{a.dig_out:03X}) first; "
-                                         "refused if there is one")
-                self.release = ui.button("Release", icon="logout", on_click=lambda: view.act("release control")) \
+                self.take_button.tooltip(_("Listens for another master (a PLC sending DigOut {id}) first; refused if "
+                                           "there is one").format(id=f"0x{a.dig_out:03X}"))
+                self.release = ui.button(_("Release"), icon="logout", on_click=lambda: view.act("release control")) \
                     .props("outline data-testid=release-control")
                 self.holder = ui.label().classes("text-body2").props("data-testid=controller")
             if view.fact(facts.P_BITRATE_CHECK) == "mismatch":
-                ui.label(f"SW1 sets {a.bitrate // 1000} kbit/s, but the bus runs at {(a.bus_bitrate or 0) // 1000} kbit/s: "
-                         "the module cannot be reached. Fix SW1 or the bus bit rate in the plant file.").classes("text-negative text-body1")
+                ui.label(_("SW1 sets {module} kbit/s, but the bus runs at {bus} kbit/s: the module cannot be reached. Fix SW1 "
+                           "or the bus bit rate in the plant file.").format(module=a.bitrate // 1000,
+                                                                            bus=(a.bus_bitrate or 0) // 1000)).classes("text-negative text-body1")
 
     async def take(self) -> None:
         await self.view.act("take control", {"user": current_user()[0] or "local engineer"},
-                            success="you control the module: DigOut serves its watchdog")
+                            success=self.view.lang.gettext("you control the module: DigOut serves its watchdog"))
 
     def draw(self) -> None:
         view, state = self.view, self.view.state
+        _ = view.lang.gettext
         self.status.refresh()
         served = bool(view.fact(facts.P_WATCHDOG))
         other = view.fact(facts.P_OTHER_MASTER)
         foreign = other is not None and other.active
-        self.watchdog.set_text(f"watchdog {view.text(facts.P_WATCHDOG)} · last answer {fmt_age(state.age)}")
+        self.watchdog.set_text(_("watchdog {state} · last answer {age}").format(state=view.lang.phrase(view.text(facts.P_WATCHDOG)),
+                                                                                age=fmt_age(state.age, view.lang)))
         self.watchdog.classes(replace="text-body2 " + ("text-positive" if served else "text-warning" if foreign else "text-grey-8"))
         control = view.fact(facts.P_CONTROL)
-        self.holder.set_text(("you control the module" if control.session == view.tag else f"{control.user} controls the module")
-                             if control else "nobody controls the module")
+        self.holder.set_text((_("you control the module") if control.session == view.tag
+                              else _("{user} controls the module").format(user=control.user))
+                             if control else _("nobody controls the module"))
         mine = view.controls()
-        enable_unless(self.take_button, self.read_only or ("you control the module" if mine else ""))
-        enable_unless(self.release, self.read_only or ("" if mine else "you do not control the module"))
+        enable_unless(self.take_button, self.read_only or (_("you control the module") if mine else ""))
+        enable_unless(self.release, self.read_only or ("" if mine else _("you do not control the module")))
         check = view.live(facts.P_VARIANT_CHECK)
-        self.variant.set_text(f"Variant {view.variant.value}: {check.text}")
+        self.variant.set_text(_("Variant {variant}: {text}").format(variant=view.variant.value, text=variant_text(check, view)))
         self.variant.classes(replace="text-body2 " + VARIANT_COLOR.get(check.value, "text-grey-8"))
 
 
@@ -166,31 +199,32 @@ class OutputsCard(DrawnCard):
                        *(f"SSR{c} {what}" for row in self.rows for c in row.channels for what in ("Last", "Si", "Triac")))
 
     def build(self) -> None:
-        with titled_card("Digital inputs", "col-xs-12 col-md"):
+        _ = self.view.lang.gettext
+        with titled_card(_("Digital inputs"), "col-xs-12 col-md"):
             with ui.row().classes("gap-5"):
                 self.lamps = {f"E{i}": Lamp(f"E{i}") for i in range(1, 7)}
             ui.separator()
             with ui.row().classes("items-center w-full"):
-                ui.label("Outputs").classes("text-subtitle1")
+                ui.label(_("Outputs")).classes("text-subtitle1")
                 ui.space()
-                ui.label("All off: in the bar at the bottom, always in sight").classes("text-caption text-grey-8")
+                ui.label(_("All off: in the bar at the bottom, always in sight")).classes("text-caption text-grey-8")
             with ui.row().classes("items-start gap-1 no-wrap").props("data-testid=stop-rule"):
                 ui.icon("front_hand", size="xs").classes("text-grey-8 q-mt-xs")
-                ui.label(STOP_RULE).classes("text-caption text-grey-8")
+                ui.label(_(STOP_RULE).format(bound=f"{DEADMAN_BOUND_S:g}")).classes("text-caption text-grey-8")
             self.refused = ui.label().classes("text-negative text-body2")
-            self.no_control = ui.label(f"Switches: {TAKE_CONTROL} (Take control above)").classes(
+            self.no_control = ui.label(_("Switches: {reason} (Take control above)").format(reason=_(TAKE_CONTROL))).classes(
                 "text-caption text-grey-8").props("data-testid=switch-reason")
-            self.led = ui.switch("LED (Bereit)", on_change=lambda e: switch(self.view, "LED", e)).props("data-output=LED")
+            self.led = ui.switch(_("LED (Bereit)"), on_change=lambda e: switch(self.view, "LED", e)).props("data-output=LED")
             with ui.column().classes("w-full gap-1"):
                 for row in self.rows:
                     row.build()
             self.p2 = self.p2_check = None
             if self.view.variant is Variant.HMR:
                 with ui.row().classes("items-center"):
-                    self.p2 = ui.switch("Three-phase output loaded on two phases only (P2)", on_change=self.set_p2)
+                    self.p2 = ui.switch(_("Three-phase output loaded on two phases only (P2)"), on_change=self.set_p2)
                     self.guard.add(self.p2)
-                    ui.label("not stored in the module: sent with every DigOut period, so a reset cannot lose it, and "
-                             "kept in the plant file (p2), so a restart does not assume three phases").classes(
+                    ui.label(_("not stored in the module: sent with every DigOut period, so a reset cannot lose it, and "
+                               "kept in the plant file (p2), so a restart does not assume three phases")).classes(
                         "text-caption text-grey-8")
                 self.p2_check = ui.label().classes("text-caption").props("data-testid=p2-check")
 
@@ -198,16 +232,18 @@ class OutputsCard(DrawnCard):
         """The model's write of P2 (on asks what it switches off, devices/m3io/params.py); back if refused."""
         if bool(event.value) == bool(self.view.fact(facts.P_P2)):
             return
+        words = self.view.lang.gettext
         ok, _ = await self.view.act(WRITE_PARAMETER, {"param": P2_PARAM.key, "value": int(bool(event.value))},
-                                    title="Switch P2 on?" if event.value else "", ok="Switch P2 on")
+                                    title=words("Switch P2 on?") if event.value else "", ok=words("Switch P2 on"))
         if not ok:
             event.sender.set_value(bool(self.view.fact(facts.P_P2)))
 
     def draw(self) -> bool:
         view = self.view
+        _ = view.lang.gettext
         check = view.live(facts.P_VARIANT_CHECK)
         may_switch = check is None or bool(check.raw)
-        self.refused.set_text("" if may_switch else f"Switching on is refused: {check.text}")
+        self.refused.set_text("" if may_switch else _("Switching on is refused: {text}").format(text=variant_text(check, view)))
         self.refused.set_visibility(not may_switch)
         good = True
         for key, lamp in self.lamps.items():
@@ -222,7 +258,7 @@ class OutputsCard(DrawnCard):
         if self.p2 is not None:
             self.p2.set_value(bool(view.fact(facts.P_P2)))
             p2_check = view.live(facts.P_P2_CHECK)
-            self.p2_check.set_text("" if p2_check is None else f"P2 in the module: {p2_check.shown}")
+            self.p2_check.set_text("" if p2_check is None else _("P2 in the module: {text}").format(text=view.lang.phrase(p2_check.shown)))
             self.p2_check.classes(replace="text-caption " + ("text-negative" if p2_check and p2_check.value == "mismatch"
                                                              else "text-grey-8"))
         return good
@@ -233,7 +269,9 @@ async def switch(view: M3ioView, output: str, event) -> None:
     value = bool(event.value)
     if value == bool(view.fact(output)):
         return  # the refresh set it to what the module has
-    ok, _ = await view.act(f"{output} {'on' if value else 'off'}", title=f"Switch {output} on?", ok="Switch on")
+    words = view.lang.gettext
+    ok, _ = await view.act(f"{output} {'on' if value else 'off'}", title=words("Switch {output} on?").format(output=output),
+                           ok=words("Switch on"))
     if not ok:
         event.sender.set_value(bool(view.fact(output)))
 
@@ -255,7 +293,7 @@ class ChannelRow:
             self.details = ui.html("", sanitize=False).classes("nicegui-column gap-1 col")
             self.age = ui.label().classes("q-age")
         if output == "SSR1-3":
-            ui.label("Three-phase output: a fault on one of SSR1, SSR2, SSR3 switches all three off.").classes("text-caption text-grey-8")
+            ui.label(self.view.lang.gettext("Three-phase output: a fault on one of SSR1, SSR2, SSR3 switches all three off.")).classes("text-caption text-grey-8")
 
     def _channel(self, channel: int) -> tuple[str, str, str, bool]:
         view = self.view
@@ -276,15 +314,15 @@ class ChannelRow:
         shown = (foreign, group_fault, tuple(self._channel(c) for c in self.channels))
         entry = view.live(f"SSR{self.channels[0]} Last")
         mark_quality(self.details, _quality(entry))  # greyed, with the age of its status, while stale or offline
-        self.age.set_text(_age_note(entry))
+        self.age.set_text(_age_note(entry, view.lang))
         if shown != self.shown:  # drawn again only when it changed
             self.shown = shown
             parts = []
             if foreign:
-                parts.append(_text_html("switched on from another page: it goes off when that page goes away",
+                parts.append(_text_html(view.lang.gettext("switched on from another page: it goes off when that page goes away"),
                                         "text-caption text-warning"))
             if group_fault:
-                parts.append(_text_html(group_fault, "text-negative text-body2"))
+                parts.append(_text_html(view.lang.gettext(group_fault), "text-negative text-body2"))
             for channel, (load, fuse, triac, heard) in zip(self.channels, shown[2]):
                 parts.append(self._show(channel, load, fuse, triac, heard))
             self.details.set_content("".join(parts))
@@ -292,21 +330,24 @@ class ChannelRow:
 
     def _show(self, channel: int, load: str, fuse: str, triac: str, heard: bool) -> str:
         """One channel's load, fuse and triac as badges (Quasar's), with what to do about a fault."""
+        _ = self.view.lang.gettext
         parts = ['<div class="nicegui-row row items-center gap-2">']
         if len(self.channels) > 1:
             parts.append(_text_html(f"SSR{channel}", "text-caption mono"))
         for title, value in (("load", load), ("fuse", fuse), ("triac", triac)):
-            text = html.escape(f"{title}: {value}", quote=True)
+            text = html.escape(f"{_(title)}: {_(value)}", quote=True)
             parts.append(f'<div class="q-badge flex inline items-center no-wrap q-badge--multi-line '
                          f'bg-{STATE_COLOR.get(value, "grey")}" role="status" aria-label="{text}" '
                          f'data-{title}="{html.escape(value, quote=True)}">{text}</div>')
         if not heard:
-            parts.append(_text_html("no status yet", "text-caption text-grey-8"))
+            parts.append(_text_html(_("no status yet"), "text-caption text-grey-8"))
         parts.append("</div>")
         if fuse == "blown":
-            parts.append(_text_html(codec.fuse_advice(self.view.variant, channel), "text-negative text-body2"))
+            fuse_name, hmr, hm = codec.FUSES[channel]  # codec.fuse_advice, in the page's language
+            parts.append(_text_html(_("replace fuse {fuse} ({rating}, fast-acting 5x20 mm)").format(
+                fuse=fuse_name, rating=hmr if self.view.variant is Variant.HMR else hm), "text-negative text-body2"))
         if triac == "defective":
-            parts.append(_text_html("triac defective: it does not conduct while switched on", "text-negative text-body2"))
+            parts.append(_text_html(_("triac defective: it does not conduct while switched on"), "text-negative text-body2"))
         return "".join(parts)
 
 
@@ -323,7 +364,7 @@ class TemperatureCard(DrawnCard):
     def build(self) -> None:
         view = self.view
         self.labels: dict[int, tuple[ui.label, ui.label]] = {}
-        with titled_card("Pt100 temperatures (0.1 °C)", "col-xs-12 col-md"):
+        with titled_card(view.lang.gettext("Pt100 temperatures (0.1 °C)"), "col-xs-12 col-md"):
             with ui.row().classes("gap-6"):
                 for channel in facts.temp_channels(view.variant):
                     with ui.column().classes("gap-0"):
@@ -332,7 +373,8 @@ class TemperatureCard(DrawnCard):
                         self.labels[channel] = (ui.label("-").classes("text-h6").props(f'data-temp="{channel}"'),
                                                 ui.label().classes("q-age q-ml-none"))
             self.POINTS = tuple(f"TEMP{channel}" for channel in self.labels)
-            chart = HistoryChart(view.state, list(facts.history_points(view.variant)), window_s=600, height=CHART_HEIGHT)
+            chart = HistoryChart(view.state, list(facts.history_points(view.variant)), window_s=600, height=CHART_HEIGHT,
+                                 lang=view.lang)
             chart.figure["layout"]["legend"] = LEGEND_BELOW  # the mode bar (top right) covered the legend above the plot
             chart.figure["layout"]["margin"].update(t=MODE_BAR_MARGIN_T, b=LEGEND_MARGIN_B)
             chart.plot.update()
@@ -343,10 +385,10 @@ class TemperatureCard(DrawnCard):
             value = self.view.live(f"TEMP{channel}")
             good = good and not _aging(value)
             word = None if value is None or value.raw is None else codec.TempWord(value.raw)
-            label.set_text("-" if word is None else temp_text(self.view.variant, channel, word))
+            label.set_text("-" if word is None else temp_text(self.view.variant, channel, word, self.view.lang))
             label.classes(replace="text-h6 " + ("" if word is None or word.in_range else "text-warning"))
             mark_quality(label, _quality(value))
-            note.set_text(_age_note(value))
+            note.set_text(_age_note(value, self.view.lang))
         return good
 
 
@@ -357,21 +399,23 @@ class AddressedCard(DrawnCard):
     POINTS = (facts.P_IDENTITY, *(f"SSR{i} load data" for i in range(1, 7)), *(p.name for p in RECORD_PARAMS))
 
     def build(self) -> None:
-        with titled_card("Addressed data (SW1 switch 8 on)"):
-            self.identity = ui.label("not read").classes("text-body2").props("data-testid=identity")
-            self.guard.add(ui.button("Read identity", icon="badge", on_click=lambda: self.view.act("read identity"))
+        _ = self.view.lang.gettext
+        with titled_card(_("Addressed data (SW1 switch 8 on)")):
+            self.identity = ui.label(_("not read")).classes("text-body2").props("data-testid=identity")
+            self.guard.add(ui.button(_("Read identity"), icon="badge", on_click=lambda: self.view.act("read identity"))
                            .props("outline dense"))
-            ui.label(f"Software version: assumed decoding ({codec.VERSION_ASSUMPTION}).").classes("text-caption text-grey-8")
+            ui.label(_("Software version: assumed decoding ({assumption}).").format(assumption=_(codec.VERSION_ASSUMPTION))).classes("text-caption text-grey-8")
             ui.separator()
-            ui.label("Customer data (15 records of 6 bytes)").classes("text-body2 text-weight-medium")
+            ui.label(_("Customer data (15 records of 6 bytes)")).classes("text-body2 text-weight-medium")
             with ui.row().classes("items-center"):
                 # records 1-15 of 6 bytes (section 7.2.4.2, areas 3 and 4)
-                self.index = range_number("Record", 1, 15, integer=True, value=1).classes("w-32").props("data-testid=record")
-                self.data = ui.input("Bytes (hex, up to 6)", placeholder="01 02 03", validation=_bytes_check).props(
+                self.index = range_number(_("Record"), 1, 15, integer=True, value=1, lang=self.view.lang).classes("w-32").props("data-testid=record")
+                self.data = ui.input(_("Bytes (hex, up to 6)"), placeholder="01 02 03",
+                                     validation=lambda text: _bytes_check(text, self.view.lang)).props(
                     "dense outlined data-testid=record-bytes").classes("w-56 mono")
                 self.record = ui.label().classes("mono")
-                self.guard.add(ui.button("Read", on_click=self.read_record).props("outline dense"),
-                               ui.button("Write", on_click=self.write_record).props("dense data-testid=record-write"))
+                self.guard.add(ui.button(_("Read"), on_click=self.read_record).props("outline dense"),
+                               ui.button(_("Write"), on_click=self.write_record).props("dense data-testid=record-write"))
             # the records as last read (the parameter model's values: projects, backups and drift compare these)
             with ui.element("div").classes("mono text-body2").style(
                     "display: grid; grid-template-columns: repeat(auto-fill, minmax(13rem, 1fr)); gap: 0 16px").props(
@@ -379,7 +423,7 @@ class AddressedCard(DrawnCard):
                 self.records = [ui.label() for _ in RECORD_PARAMS]
             ui.separator()
             self.loads = ui.label().classes("text-body2 mono")
-            self.guard.add(ui.button("Read actual load data SSR1-6", on_click=lambda: self.view.act("read load data"))
+            self.guard.add(ui.button(_("Read actual load data SSR1-6"), on_click=lambda: self.view.act("read load data"))
                            .props("outline dense"))
 
     async def read_record(self) -> None:
@@ -388,7 +432,8 @@ class AddressedCard(DrawnCard):
         if number is not None:
             ok, _ = await view.act("read customer data", {"index": int(number)})
             if ok:
-                self.record.set_text(f"record {int(number)}: {view.text(f'Customer data {int(number)}')}")
+                self.record.set_text(view.lang.gettext("record {n}: {text}").format(
+                    n=int(number), text=view.text(f"Customer data {int(number)}")))
 
     async def write_record(self) -> None:
         view = self.view
@@ -401,30 +446,33 @@ class AddressedCard(DrawnCard):
         if number is None or reason is not None:
             return
         ok, _ = await view.act("write customer data", {"index": int(number), "payload": self.data.value or ""},
-                               success="written and verified")
+                               success=view.lang.gettext("written and verified"))
         if ok:
-            self.record.set_text(f"record {int(number)}: {view.text(f'Customer data {int(number)}')} (verified)")
+            self.record.set_text(view.lang.gettext("record {n}: {text} (verified)").format(
+                n=int(number), text=view.text(f"Customer data {int(number)}")))
 
     def draw(self) -> None:
         view = self.view
+        _ = view.lang.gettext
         identity = view.live(facts.P_IDENTITY)
-        self.identity.set_text("not read" if identity is None else identity.shown)
+        self.identity.set_text(_("not read") if identity is None else _(identity.shown))
         for label, param in zip(self.records, RECORD_PARAMS):
             raw = view.state.raw(param)
-            label.set_text(f"{param.address:>2}: {'not read' if raw is None else param.display(raw)}")
+            label.set_text(f"{param.address:>2}: {_('not read') if raw is None else param.display(raw)}")
         loads = [(i, view.live(f"SSR{i} load data")) for i in range(1, 7)]
         self.loads.set_text(" · ".join(f"SSR{i}: {v.shown}" for i, v in loads if v is not None and v.value is not None))
 
 
 def content(name: str) -> None:
     view = M3ioView(name)
+    _ = view.lang.gettext
 
     def all_off() -> None:
-        stop_bar("Switches every output off at once; anyone may, also without writing rights.", "All off", "power_off",
+        stop_bar(_("Switches every output off at once; anyone may, also without writing rights."), _("All off"), "power_off",
                  lambda: view.act("all off"), "off-bar", "all-off")
 
-    with device_page(view, f"CAN-M3IO {name} ({view.variant.value})", stop=all_off):
-        view.guard = WriteGuard(view.state)  # switches and commands, disabled with the reason while the module does not answer
+    with device_page(view, _("CAN-M3IO {name} ({variant})").format(name=name, variant=view.variant.value), stop=all_off):
+        view.guard = WriteGuard(view.state, lang=view.lang)  # switches and commands, disabled with the reason while the module does not answer
         view.add(ModuleCard(view))
         # side by side from 1024 px; one above the other on a tablet, where the chart would get a third of the width
         with ui.row().classes("w-full items-start gap-4"):
@@ -436,13 +484,15 @@ def content(name: str) -> None:
             view.add(AddressedCard(view))
 
 
-def _bytes_check(text) -> str | None:
-    """Customer data: up to 6 bytes as hex (section 7.2.4.2: 6 data bytes per record)."""
+def _bytes_check(text, lang=None) -> str | None:
+    """Customer data: up to 6 bytes as hex (section 7.2.4.2: 6 data bytes per record); the reason in ``lang``
+    (English by default: the audit row's)."""
+    _ = (lang or i18n.get("en")).gettext
     try:
         payload = bytes.fromhex(text or "")
     except ValueError:
-        return "bytes as hex, e.g. 01 02 0A"
-    return None if len(payload) <= 6 else f"at most 6 bytes ({len(payload)} entered)"
+        return _("bytes as hex, e.g. 01 02 0A")
+    return None if len(payload) <= 6 else _("at most 6 bytes ({n} entered)").format(n=len(payload))
 
 
 __all__ = ["content", "temp_text"]

@@ -300,3 +300,22 @@ async def test_the_mo64_page_in_german_shows_no_english(tmp_path):
         errors = next(e for e in user.client.elements.values() if e.props.get("data-testid") == "error-memory")
         assert [c["label"] for c in errors.columns] == ["Ebene", "Fehlerflaggen", "Roh (für den Hersteller)",
                                                         "Betriebsstunden bei der Änderung"]
+
+
+async def test_the_m3io_page_in_german_shows_no_english(tmp_path):
+    """The I/O module's page in the words of its document (001): Ausgänge, Last, Si, Triac, Drehstromausgang, Watchdog."""
+    from plants import can_bus, m3io_can, plant
+
+    runtime = Runtime(plant(can_bus(m3io_can("io", variant="HMR", sw1=0x9A), name="can3")), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await user.open("/device/io")
+        await user.should_see("CAN-M3IO io (HMR)", retries=50)
+        await user.should_see("Digitale Eingänge")
+        await user.should_see("Pt100-Temperaturen (0,1 °C)")
+        await user.should_see("Drehstromausgang: ein Fehler an SSR1, SSR2 oder SSR3 schaltet alle drei ab.")
+        await user.should_see("Adressierte Daten (SW1 Schalter 8 ein)")
+        await eventually(lambda: any(t.startswith("Watchdog nicht bedient") for t in shown_texts(user)), timeout=5,
+                         what="the watchdog's words")
+        # the simulation card's words are declared by devices/m3io/sim.py (pages/simcontrols.py joins later)
+        found = english_on(user, skip=("sim-card",))
+        assert found == [], "\n".join(map(str, found))
