@@ -11,7 +11,7 @@ import html
 from nicegui import ui
 
 from app import i18n
-from app.i18n import N_
+from app.i18n import N_, NP_
 from app.state import LiveValue
 from app.worker import DEADMAN_BOUND_S
 from devices.m3io import adapter as facts
@@ -34,7 +34,8 @@ STATE_COLOR = {"ok": "positive", "present": "positive", "blown": "negative", "de
 VARIANT_COLOR = {"ok": "text-positive", "mismatch": "text-negative text-weight-medium", "unchecked": "text-grey-8", "not possible": "text-warning"}
 TAKE_CONTROL = N_("take control of the module first")
 # the channels' states (section 7.2.3: Last, Si, Triac) and the badges' titles, as the adapter publishes them
-CHANNEL_WORDS = (N_("ok"), N_("present"), N_("blown"), N_("defective"), N_("unknown"), N_("load"), N_("fuse"), N_("triac"))
+CUSTOMER_DATA_WORDS = (NP_("customer data", "Record"), NP_("customer data", "Read"))  # a record and reading it
+CHANNEL_WORDS = (N_("none (no load, no supply, or a triac with a permanent short circuit)"), N_("not checked (off)"), N_("ok"), N_("present"), N_("blown"), N_("defective"), N_("unknown"), N_("load"), N_("fuse"), N_("triac"))
 # The temperature chart's legend under the time axis, at the foot of the figure: above the plot it lay where
 # plotly's mode bar appears (top right), which covered the last channels' names.
 CHART_HEIGHT = 300
@@ -409,12 +410,12 @@ class AddressedCard(DrawnCard):
             ui.label(_("Customer data (15 records of 6 bytes)")).classes("text-body2 text-weight-medium")
             with ui.row().classes("items-center"):
                 # records 1-15 of 6 bytes (section 7.2.4.2, areas 3 and 4)
-                self.index = range_number(_("Record"), 1, 15, integer=True, value=1, lang=self.view.lang).classes("w-32").props("data-testid=record")
+                self.index = range_number(self.view.lang.pgettext("customer data", "Record"), 1, 15, integer=True, value=1, lang=self.view.lang).classes("w-32").props("data-testid=record")
                 self.data = ui.input(_("Bytes (hex, up to 6)"), placeholder="01 02 03",
                                      validation=lambda text: _bytes_check(text, self.view.lang)).props(
                     "dense outlined data-testid=record-bytes").classes("w-56 mono")
                 self.record = ui.label().classes("mono")
-                self.guard.add(ui.button(_("Read"), on_click=self.read_record).props("outline dense"),
+                self.guard.add(ui.button(self.view.lang.pgettext("customer data", "Read"), on_click=self.read_record).props("outline dense"),
                                ui.button(_("Write"), on_click=self.write_record).props("dense data-testid=record-write"))
             # the records as last read (the parameter model's values: projects, backups and drift compare these)
             with ui.element("div").classes("mono text-body2").style(
