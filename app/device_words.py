@@ -115,3 +115,33 @@ M3IO_WORDS = (
 )
 # doc: CAN-M3IO, 001, section 7.2.4.2.2: the software version word, whose format the document does not give (devices/m3io/codec.py)
 M3IO_ASSUMPTIONS = (N_("the document names the SW version word without its format; read as high byte . low byte (0x1201 = 18.1)"),)
+# doc: Electrak HD, 004, status telegram 0x07: Bewegungs-Flags (names and meanings) and Fehler-Flags (meanings and how
+# each clears), as devices/electrak/codec.py words them
+ELECTRAK_FLAGS = (
+    N_('Extending'),
+    N_('moving out'),
+    N_('Retracting'),
+    N_('moving in'),
+    N_('Saturated'),
+    N_('moving at the highest speed the supply voltage and load allow; when driven over CAN make sure this does not stay set on any actuator, or the network cannot keep synchronised'),
+    N_('Waiting'),
+    N_('standing still, waiting for the other actuators to catch up'),
+    N_('a value of the control telegram is outside the range allowed for the model; no motion while set'),
+    N_("send values within the model's ranges"),
+    N_('the last motion exceeded the calibrated current limit or the limit in the control telegram (longer than 40 ms, not during start-up); no motion while set'),
+    N_('move in the opposite direction, or drop the enable bit'),
+    N_('the supply voltage is outside the operating range; a running motion goes on for 10 s, no new motion'),
+    N_('bring the supply voltage of every actuator back into range'),
+    N_('the temperature is outside the operating range; a running motion goes on for 10 s, no new motion'),
+    N_('let the actuators return to the operating temperature'),
+    N_('the rod moved without a command (high static load or strong vibration)'),
+    N_('check the load. Assumption (the document does not say how it clears): with the next commanded motion'),
+    N_('no control telegram within the timeout (250 ms by default); no actuator moves while set'),
+    N_('send control telegrams every 100 ms'),
+    N_('no motion detected while driving the motor, or the position changed in the wrong direction; no motion while set'),
+    N_('move in the opposite direction, or drop the enable bit'),
+    N_('an actuator found fewer networked devices than expected; no motion while set'),
+    N_('reconnect the missing actuator, or set the override/reset bit (or line) to reset the expected count'),
+)
+# doc: Electrak HD, 004: the declared risk of every motion of the network (devices/electrak/policy.py)
+ELECTRAK_RISKS = (N_("The actuators move: check that the area is clear (nobody and nothing in the stroke of any actuator of the network, nor under the load they carry)."),)

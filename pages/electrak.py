@@ -16,7 +16,9 @@ from datetime import datetime
 
 from nicegui import background_tasks, ui
 
+from app import i18n
 from app import worker as worker_module
+from app.i18n import N_
 from devices.electrak import adapter as facts
 from devices.electrak import codec
 from devices.electrak.adapter import FOREIGN_SENDER, SERIES
@@ -37,6 +39,9 @@ TIMEOUT_BIT = 5  # error flags bit 5: Message timeout ("Fehler-Flags")
 AUTO_READ_AGAIN_S = 30.0  # a page opened on a network whose service parameters were never read reads them once
 _auto_read: dict[str, float] = {}  # network -> when a page last read its service parameters by itself
 CHART_ROWS = [[facts.P_POSITION, facts.P_DRIVE_TARGET], [facts.P_CURRENT], [facts.P_SPEED]]
+# the points' names and the network's summary of them (devices/electrak/adapter.py), and who else may send 0x06
+POINT_WORDS = (N_("Position"), N_("Current"), N_("Speed"), N_("mean"), N_("highest"),
+               N_("a PLC, or an actuator whose manual control line is active"))
 CHART_UNITS = ("mm", "A", "mm/s")  # the rows' axes
 
 
@@ -66,20 +71,25 @@ class NetworkCard(DrawnCard):
 
     def build(self) -> None:
         view, state = self.view, self.view.state
-        self.status = StatusRow(state, lambda c: f"status frames {c.responses} · service requests {c.requests} · "
-                                f"timeouts {c.timeouts} · error answers {c.exceptions} · malformed {c.malformed}")
+        _ = view.lang.gettext
+        self.status = StatusRow(state, lambda c: _("status frames {responses} · service requests {requests} · timeouts "
+                                                   "{timeouts} · error answers {exceptions} · malformed {malformed}").format(
+            responses=c.responses, requests=c.requests, timeouts=c.timeouts, exceptions=c.exceptions, malformed=c.malformed),
+            view.lang)
         with ui.card().classes("w-full"):
             with self.status.build():
                 self.heard = ui.label().classes("text-body2")
                 self.seen = ui.label().classes("text-body2")
-            self.numbers = NumbersGrid(state, len(view.actuators))
+            self.numbers = NumbersGrid(state, len(view.actuators), view.lang)
             self.heard_warning = ui.label().classes("text-warning text-body2")
             self.saturated = ui.label().classes("text-warning text-body2").props("data-testid=saturated-warning")
-            limits = view.limits
+            limits, number = view.limits, view.lang.number
             ui.label(
-                "actuators: " + "; ".join(f"{a.model} {a.gearing} {a.stroke_mm:g} mm stroke" for a in view.actuators)
-                + f" · accepted: 0..{limits.stroke_mm:g} mm, {limits.speed_min:g}..{limits.speed_max:g} mm/s, "
-                f"0..{limits.current_a:g} A (0 = calibrated limit)"
+                _("actuators: {list}").format(list="; ".join(_("{model} {gearing} {stroke} mm stroke").format(
+                    model=a.model, gearing=a.gearing, stroke=number(a.stroke_mm)) for a in view.actuators))
+                + " · " + _("accepted: 0..{stroke} mm, {low}..{high} mm/s, 0..{current} A (0 = calibrated limit)").format(
+                    stroke=number(limits.stroke_mm), low=number(limits.speed_min), high=number(limits.speed_max),
+                    current=number(limits.current_a))
             ).classes("text-caption text-grey-8")
 
     def inputs(self) -> tuple:
@@ -90,14 +100,17 @@ class NetworkCard(DrawnCard):
 
     def draw(self) -> None:
         view, state = self.view, self.view.state
+        _ = view.lang.gettext
         self.status.refresh()
         heard, configured = view.fact(facts.P_HEARD, 0), view.fact(facts.P_CONFIGURED)
-        self.heard.set_text(f"actuators heard per 100 ms: {heard} of {configured} configured")
+        self.heard.set_text(_("actuators heard per 100 ms: {heard} of {configured} configured").format(
+            heard=heard, configured=configured))
         self.heard_warning.set_text(
-            f"The network answers with {heard} status telegrams per 100 ms, but {configured} actuators are configured: "
-            "check wiring and power, or the plant file." if view.online() and heard != configured else "")
-        self.saturated.set_text(view.fact(facts.P_SATURATED, "") if view.online() else "")
-        self.seen.set_text(f"last status {fmt_age(state.age)}")
+            _("The network answers with {heard} status telegrams per 100 ms, but {configured} actuators are configured: "
+              "check wiring and power, or the plant file.").format(heard=heard, configured=configured)
+            if view.online() and heard != configured else "")
+        self.saturated.set_text(_(view.fact(facts.P_SATURATED, "")) if view.online() else "")
+        self.seen.set_text(_("last status {age}").format(age=fmt_age(state.age, view.lang)))
         if not self.numbers.draw():
             self.drawn = None  # a stale or offline value: drawn again with the next telegram (it may be good again)
 
@@ -114,13 +127,14 @@ class FlagsCard(DrawnCard):
         self.shown_faults: tuple | None = None
 
     def build(self) -> None:
+        _ = self.view.lang.gettext
         with ui.card().classes("w-full"):
             with ui.row().classes("gap-10 items-start"):
                 with ui.column():
-                    ui.label("Motion").classes("text-subtitle2")
+                    ui.label(_("Motion")).classes("text-subtitle2")
                     self.motion = LampStrip("nicegui-column")
                 with ui.column():
-                    ui.label("Faults").classes("text-subtitle2")
+                    ui.label(_("Faults")).classes("text-subtitle2")
                     self.errors = LampStrip("nicegui-grid gap-x-6 gap-y-1")
                     self.errors.element.style("grid-template-columns: repeat(4, minmax(0, 1fr))")
             self.fault_text = ui.column().classes("gap-0")
@@ -132,19 +146,20 @@ class FlagsCard(DrawnCard):
 
     def draw(self) -> None:
         view, state = self.view, self.view.state
+        _ = view.lang.gettext
         online = view.online()
         idle = bool(view.fact(facts.P_IDLE, True))  # Message timeout while nobody sends 0x06: the idle state, not a red fault
-        motion = [(state.point(n), n, text) for n, text in codec.MOTION_FLAGS.values()]
-        errors = [(state.point(n), n, f"{text}. Clears: {clears}.", bit)
+        motion = [(state.point(n), n, _(text)) for n, text in codec.MOTION_FLAGS.values()]
+        errors = [(state.point(n), n, _("{text}. Clears: {clears}.").format(text=_(text), clears=_(clears)), bit)
                   for bit, (n, text, clears) in codec.ERROR_FLAGS.items()]
-        self.motion.show([lamp_html(n, n, entry, text) for entry, n, text in motion])
-        self.errors.show([lamp_html(n, n, entry, text, "alarm", idle if bit == TIMEOUT_BIT else None)
+        self.motion.show([lamp_html(n, _(n), entry, text) for entry, n, text in motion])
+        self.errors.show([lamp_html(n, _(n), entry, text, "alarm", idle if bit == TIMEOUT_BIT else None)
                           for entry, n, text, bit in errors])
         if any(entry is not None and entry["quality"] in ("stale", "offline") for entry, *_rest in motion + errors):
             self.drawn = None  # drawn again with the next telegram, which may bring them back
         errors = view.fact(facts.P_ERRORS, 0)
-        self.idle_note.set_text("Message timeout is expected while idle: nobody sends the control telegram 0x06. "
-                                "It clears with the first telegrams when you take control."
+        self.idle_note.set_text(_("Message timeout is expected while idle: nobody sends the control telegram 0x06. "
+                                  "It clears with the first telegrams when you take control.")
                                 if idle and online and errors >> TIMEOUT_BIT & 1 else "")
         faults = tuple(bit for bit in codec.ERROR_FLAGS if online and errors >> bit & 1 and not (idle and bit == TIMEOUT_BIT))
         if faults != self.shown_faults:  # rebuilt only when the faults change
@@ -153,7 +168,7 @@ class FlagsCard(DrawnCard):
             with self.fault_text:
                 for bit in faults:
                     fault, _text, clears = codec.ERROR_FLAGS[bit]
-                    ui.label(f"{fault}: clears: {clears}").classes("text-negative text-body2")
+                    ui.label(_("{fault}: clears: {clears}").format(fault=_(fault), clears=_(clears))).classes("text-negative text-body2")
 
 
 class ChartCard(DeviceCard):
@@ -164,12 +179,14 @@ class ChartCard(DeviceCard):
         name, state = self.view.name, self.view.state
         with ui.card().classes("col-12 col-md-8"):
             with ui.row().classes("items-center w-full"):
-                ui.label(f"Position, current and speed (last {WINDOW_S} s, 100 ms frames)").classes("text-subtitle1")
+                ui.label(self.view.lang.gettext("Position, current and speed (last {window} s, 100 ms frames)").format(
+                    window=WINDOW_S)).classes("text-subtitle1")
                 ui.space()
                 ui.button("CSV", icon="download", on_click=lambda: _export_csv(state, name)).props("flat dense")
                 ui.button("PNG", icon="image", on_click=lambda: _export_png(chart, name)).props("flat dense")
             # one figure, three rows over one time axis: one drawing a second for all of them
-            chart = HistoryChart(state, rows=CHART_ROWS, row_heights=(1.6, 1, 1), window_s=WINDOW_S, height=520)
+            chart = HistoryChart(state, rows=CHART_ROWS, row_heights=(1.6, 1, 1), window_s=WINDOW_S, height=520,
+                                 lang=self.view.lang)
             layout = chart.figure["layout"]
             for axis, unit in zip(("yaxis", "yaxis2", "yaxis3"), CHART_UNITS):
                 layout[axis]["title"] = {"text": unit}  # the axes name the units; the legend names the points
@@ -185,13 +202,14 @@ class ChartCard(DeviceCard):
 
 def content(name: str) -> None:
     view = ElectrakView(name)
+    _ = view.lang.gettext
 
     def stop() -> None:
-        stop_bar("Clears enable at once; anyone may stop, also without control.", "STOP", "stop_circle",
+        stop_bar(_("Clears enable at once; anyone may stop, also without control."), _("STOP"), "stop_circle",
                  lambda: view.act("stop"), "stop-bar", "big-stop").classes("text-h6")
 
-    with device_page(view, f"Electrak HD network {name}", stop=stop):
-        view.guard = WriteGuard(view.state)  # write and motion-start controls, disabled with the reason while the network is silent
+    with device_page(view, _("Electrak HD network {name}").format(name=name), stop=stop):
+        view.guard = WriteGuard(view.state, lang=view.lang)  # write and motion-start controls, disabled with the reason while the network is silent
         view.add(NetworkCard(view))
         # chart and drive side by side from 1024 px, right under the network's values, so Go and the jog buttons are
         # in sight at 1440x900; on a tablet the drive card below the chart, each full width
@@ -211,12 +229,12 @@ def holder_name() -> str:
     return current_user()[0] or "anonymous"
 
 
-def _stop_rule() -> str:
-    return (
-        f"Stop rule: motion stops when a jog button is released, on Stop, and within {worker_module.DEADMAN_BOUND_S:g} s of this browser going away "
+def _stop_rule(lang=None) -> str:
+    return (lang or i18n.get("en")).gettext(
+        "Stop rule: motion stops when a jog button is released, on Stop, and within {bound} s of this browser going away "
         "(closed, disconnected or frozen): enable is cleared and sent at once. Without control telegrams the actuators "
         "stop by themselves after their Timeout (250 ms by default)."
-    )
+    ).format(bound=f"{worker_module.DEADMAN_BOUND_S:g}")
 
 
 class DriveCard(DrawnCard):
@@ -230,32 +248,35 @@ class DriveCard(DrawnCard):
 
     def build(self) -> None:
         view, limits = self.view, self.view.limits
-        with titled_card("Drive the network"):
+        lang = view.lang
+        _ = lang.gettext
+        with titled_card(_("Drive the network")):
             self.holder = ui.label().classes("text-body2")
             self.foreign = ui.label().classes("text-negative text-body2").props("data-testid=foreign-control")
             with ui.row():
-                self.take = ui.button("Take control", icon="sports_esports",
+                self.take = ui.button(_("Take control"), icon="sports_esports",
                                       on_click=lambda: view.act("take control", {"user": holder_name()})).props("data-testid=take-control")
-                self.take.tooltip(f"Listens {codec.LISTEN_S:g} s for another sender of 0x06 first ({FOREIGN_SENDER}); refused if there is one")
-                self.release = ui.button("Release", icon="logout", on_click=lambda: view.act("release control")).props("outline")
+                self.take.tooltip(_("Listens {seconds} s for another sender of 0x06 first ({sender}); refused if there is "
+                                    "one").format(seconds=lang.number(codec.LISTEN_S), sender=_(FOREIGN_SENDER)))
+                self.release = ui.button(_("Release"), icon="logout", on_click=lambda: view.act("release control")).props("outline")
             # the ranges every actuator of the network accepts (codec.Limits: model, gearing, stroke): kept as typed, never clamped
-            self.position = range_number("Target position [mm]", 0, limits.stroke_mm, unit="mm", value=0.0, step=0.1,
-                                         fmt="%.1f").props("data-testid=target").classes("w-full")
-            self.speed = range_number("Speed [mm/s]", limits.speed_min, limits.speed_max, unit="mm/s", value=limits.speed_max,
-                                      step=0.1, fmt="%.1f").props("data-testid=speed").classes("w-full")
-            self.current = range_number("Current limit [A] (0 = calibrated)", 0, limits.current_a, unit="A", value=0.0,
-                                        step=0.1, fmt="%.1f").props("data-testid=current-limit").classes("w-full")
+            self.position = range_number(_("Target position [mm]"), 0, limits.stroke_mm, unit="mm", value=0.0, step=0.1,
+                                         fmt="%.1f", lang=lang).props("data-testid=target").classes("w-full")
+            self.speed = range_number(_("Speed [mm/s]"), limits.speed_min, limits.speed_max, unit="mm/s",
+                                      value=limits.speed_max, step=0.1, fmt="%.1f", lang=lang).props("data-testid=speed").classes("w-full")
+            self.current = range_number(_("Current limit [A] (0 = calibrated)"), 0, limits.current_a, unit="A", value=0.0,
+                                        step=0.1, fmt="%.1f", lang=lang).props("data-testid=current-limit").classes("w-full")
             with ui.row():
-                self.apply_button = ui.button("Apply", on_click=self.apply).props("outline data-testid=apply")
-                self.go_button = ui.button("Go", icon="play_arrow", color="positive", on_click=self.go).props("data-testid=go")
-                ui.button("Stop", icon="stop", color="negative", on_click=lambda: view.act("stop")).props("data-testid=stop")
-            ui.label("Jog (hold to run, stops when released)").classes("text-caption text-grey-8")
+                self.apply_button = ui.button(_("Apply"), on_click=self.apply).props("outline data-testid=apply")
+                self.go_button = ui.button(_("Go"), icon="play_arrow", color="positive", on_click=self.go).props("data-testid=go")
+                ui.button(_("Stop"), icon="stop", color="negative", on_click=lambda: view.act("stop")).props("data-testid=stop")
+            ui.label(_("Jog (hold to run, stops when released)")).classes("text-caption text-grey-8")
             with ui.row():
-                self.jog_in = ui.button("In", icon="keyboard_double_arrow_left").props("outline data-testid=jog-in")
-                self.jog_out = ui.button("Out", icon="keyboard_double_arrow_right").props("outline data-testid=jog-out")
-                self.reset = ui.button("Override/reset", on_click=self.override).props("flat data-testid=override")
-                self.reset.tooltip("Resets the number of actuators the network expects (asks first); held for three "
-                                   "control periods, then cleared by itself")
+                self.jog_in = ui.button(_("In"), icon="keyboard_double_arrow_left").props("outline data-testid=jog-in")
+                self.jog_out = ui.button(_("Out"), icon="keyboard_double_arrow_right").props("outline data-testid=jog-out")
+                self.reset = ui.button(_("Override/reset"), on_click=self.override).props("flat data-testid=override")
+                self.reset.tooltip(_("Resets the number of actuators the network expects (asks first); held for three "
+                                     "control periods, then cleared by itself"))
             self.armed = ui.label().classes("text-caption text-grey-8").props("data-testid=jog-armed")
             for button, direction in ((self.jog_in, -1), (self.jog_out, 1)):
                 for event in ("mousedown", "touchstart"):
@@ -264,7 +285,7 @@ class DriveCard(DrawnCard):
                     button.on(event, lambda: view.act("jog stop"))
             with ui.row().classes("items-start no-wrap gap-1 bg-blue-grey-1 q-pa-xs rounded-borders"):
                 ui.icon("timer_off", size="xs").classes("q-mt-xs")
-                ui.label(_stop_rule()).classes("text-caption").props("data-testid=stop-rule")
+                ui.label(_stop_rule(lang)).classes("text-caption").props("data-testid=stop-rule")
             self.sent = ui.label().classes("text-caption mono text-grey-8")
 
     async def entries(self, describe: str) -> tuple[float, float, float] | None:
@@ -282,11 +303,13 @@ class DriveCard(DrawnCard):
 
     async def go(self) -> None:
         if await self.apply():  # the gate asks the declared risk: the area is clear
-            await self.view.act("go", title="Go: is the area clear?", ok="The area is clear: Go")
+            _ = self.view.lang.gettext
+            await self.view.act("go", title=_("Go: is the area clear?"), ok=_("The area is clear: Go"))
 
     async def override(self) -> None:
-        await self.view.act("override", {"active": 1}, title="Override/reset: the network counts its actuators anew",
-                            ok="Override/reset")
+        _ = self.view.lang.gettext
+        await self.view.act("override", {"active": 1}, title=_("Override/reset: the network counts its actuators anew"),
+                            ok=_("Override/reset"))
 
     def _my_control(self):
         c = self.view.fact(facts.P_CONTROL)
@@ -299,11 +322,13 @@ class DriveCard(DrawnCard):
             name = f"jog {'out' if direction > 0 else 'in'}"
             mine = self._my_control()
             if mine is not None and self.area_clear_for != mine.since:
-                if await confirm("Jog: is the area clear?", f"{AREA_CLEAR_RISK} Jogging is then armed while you hold "
-                                 "control: hold In or Out to move, release to stop.", ok="The area is clear"):
+                _ = self.view.lang.gettext
+                if await confirm(_("Jog: is the area clear?"), _(AREA_CLEAR_RISK) + " " + _(
+                        "Jogging is then armed while you hold control: hold In or Out to move, release to stop."),
+                        ok=_("The area is clear"), lang=self.view.lang):
                     self.area_clear_for = mine.since
                     self.refresh()
-                    ui.notify("Jog armed: hold In or Out to move (it stops when released)", type="info")
+                    ui.notify(_("Jog armed: hold In or Out to move (it stops when released)"), type="info")
                 else:
                     await refuse(self.view.name, name, "not confirmed")
                 return
@@ -322,29 +347,33 @@ class DriveCard(DrawnCard):
 
     def draw(self) -> None:
         view = self.view
+        _ = view.lang.gettext
         c = view.fact(facts.P_CONTROL)
         mine = c is not None and c.session == view.tag
         if c is None:
-            self.holder.set_text("nobody controls the network: control telegrams are off")
+            self.holder.set_text(_("nobody controls the network: control telegrams are off"))
         elif mine:
-            self.holder.set_text(f"you hold control as {c.user} since {datetime.fromtimestamp(c.since):%H:%M:%S}; "
-                                 "control telegram every 100 ms")
+            self.holder.set_text(_("you hold control as {user} since {time}; control telegram every 100 ms").format(
+                user=c.user, time=f"{datetime.fromtimestamp(c.since):%H:%M:%S}"))
         else:
-            self.holder.set_text(f"{c.user} holds control (another browser) since {datetime.fromtimestamp(c.since):%H:%M:%S}")
+            self.holder.set_text(_("{user} holds control (another browser) since {time}").format(
+                user=c.user, time=f"{datetime.fromtimestamp(c.since):%H:%M:%S}"))
         other = view.fact(facts.P_FOREIGN)
         if other is not None and time.time() - other.time <= 2.0:  # shown for 2 s after the last one
-            self.foreign.set_text(f"Another sender of the control telegram 0x06 is on the bus ({FOREIGN_SENDER}): "
-                                  f"{other.text} · {other.frames} frames. Take control is refused while it sends.")
+            self.foreign.set_text(_("Another sender of the control telegram 0x06 is on the bus ({sender}): {text} · {frames} "
+                                    "frames. Take control is refused while it sends.").format(
+                sender=_(FOREIGN_SENDER), text=other.text, frames=other.frames))
         else:
             self.foreign.set_text("")
         offline = self.guard.reason  # motion and writes wait for a network that answers; the stops never do
-        enable_unless(self.take, offline or ("" if c is None else "you hold control" if mine else "another browser holds control"))
-        enable_unless(self.release, "" if mine else "you do not hold control")
+        enable_unless(self.take, offline or ("" if c is None else _("you hold control") if mine
+                                             else _("another browser holds control")))
+        enable_unless(self.release, "" if mine else _("you do not hold control"))
         for element in (self.apply_button, self.go_button, self.jog_in, self.jog_out, self.reset):
-            enable_unless(element, offline or ("" if mine else "take control first"))
+            enable_unless(element, offline or ("" if mine else _("take control first")))
         armed = mine and self.area_clear_for == c.since
-        self.armed.set_text("" if not mine else "jog armed: the area was confirmed clear; hold In or Out to move" if armed
-                            else "the first press of In or Out asks that the area is clear, then arms the jog")
+        self.armed.set_text("" if not mine else _("jog armed: the area was confirmed clear; hold In or Out to move") if armed
+                            else _("the first press of In or Out asks that the area is clear, then arms the jog"))
         telegram = view.state.live(facts.P_TELEGRAM)
         self.sent.set_text("" if telegram is None else telegram.shown)
 
@@ -353,18 +382,20 @@ class NumbersGrid:
     """Position, current and speed as numbers: the network's (mean, highest, mean) and each status telegram's, each
     greyed with its age while stale or offline. Drawn by its card (one look at the store for all of them)."""
 
-    def __init__(self, state, configured: int):
+    def __init__(self, state, configured: int, lang=None):
         self.state, self.configured = state, configured
+        self.lang = lang or i18n.get("en")
+        _ = self.lang.gettext
         self.cells: list[tuple[str, int | None, ui.row, ui.label, ui.label]] = []  # point, word (None: network), ...
         with ui.grid(columns=configured + 2).classes("items-baseline gap-x-6 gap-y-0").props("data-testid=numbers"):
             ui.label("")
-            ui.label("network").classes("text-caption text-grey-8")
+            ui.label(_("network")).classes("text-caption text-grey-8")
             for i in range(configured):
-                ui.label(f"actuator {i + 1}").classes("text-caption text-grey-8").tooltip(
-                    "The n-th status telegram 0x07 of each 100 ms: the telegrams carry no actuator number (document, "
-                    "status telegram), so the columns follow the order heard.")
+                ui.label(_("actuator {n}").format(n=i + 1)).classes("text-caption text-grey-8").tooltip(
+                    _("The n-th status telegram 0x07 of each 100 ms: the telegrams carry no actuator number (document, "
+                      "status telegram), so the columns follow the order heard."))
             for point in NetworkCard.NUMBERS:
-                ui.label(point).classes("text-body2 text-weight-medium")
+                ui.label(_(point)).classes("text-body2 text-weight-medium")
                 for i, testid in [(None, f"network-{point.lower()}")] + [
                         (i, f"actuator-{i + 1}-{point.lower()}") for i in range(configured)]:  # words in 0.1 mm, 0.1 A, 0.1 mm/s
                     with ui.row().classes("items-baseline gap-0 no-wrap") as row:
@@ -373,12 +404,12 @@ class NumbersGrid:
                     row.props(f'data-point="{point}" data-testid={testid}')
                     self.cells.append((point, i, row, label, age))
 
-    @staticmethod
-    def text(value, word: int | None) -> str:
+    def text(self, value, word: int | None) -> str:
+        lang = self.lang
         if word is None:
-            return f"{value.value:.1f} {value.unit} ({(value.text or '').split(' of ')[0]})"
+            return f"{lang.number(value.value, 1)} {value.unit} ({lang.gettext((value.text or '').split(' of ')[0])})"
         raw = value.raw or []
-        return f"{raw[word] * 0.1:.1f} {value.unit}" if word < len(raw) else "not heard"
+        return f"{lang.number(raw[word] * 0.1, 1)} {value.unit}" if word < len(raw) else lang.gettext("not heard")
 
     def draw(self) -> bool:
         """Every cell as the store has it now; False when a value is stale or offline."""
@@ -391,19 +422,20 @@ class NumbersGrid:
             mark_quality(row, quality)
             if quality in ("stale", "offline"):
                 good = False
-                age.set_text(quality_note(quality, entry_age(value.entry())))
+                age.set_text(quality_note(quality, entry_age(value.entry()), self.lang))
             else:
                 age.set_text("")
         return good
 
 
-def _answers_text(report: facts.ServiceReport | None) -> tuple[str, str]:
+def _answers_text(report: facts.ServiceReport | None, lang=None) -> tuple[str, str]:
     """Short text and tooltip of the last exchange of one parameter with every actuator."""
     if not report:
         return "", ""
-    tip = "; ".join(f"answer {n}: {a}" for n, a in enumerate(report.answers, 1)) or "no answer"
+    _ = (lang or i18n.get("en")).gettext
+    tip = "; ".join(_("answer {n}: {text}").format(n=n, text=a) for n, a in enumerate(report.answers, 1)) or _("no answer")
     if report.ok:
-        return f"{len(report.answers)} of {report.expected} agree", tip
+        return _("{n} of {expected} agree").format(n=len(report.answers), expected=report.expected), tip
     return "; ".join(report.problems), tip
 
 
@@ -421,45 +453,47 @@ class ServiceCard(DrawnCard):
 
     def build(self) -> None:
         view, guard = self.view, self.guard
+        _ = view.lang.gettext
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center w-full"):
-                ui.label("Service parameters (0x0A / 0x0B)").classes("text-subtitle1")
+                ui.label(_("Service parameters (0x0A / 0x0B)")).classes("text-subtitle1")
                 self.unsaved = ui.badge("", color="orange")
                 ui.space()
                 guard.add(
-                    ui.button("Read all", icon="refresh", on_click=lambda: view.act("read service parameters")).props("outline"),
-                    ui.button("Save parameters (0xF0)", icon="save", on_click=lambda: _save(view)).props("data-testid=save-params"),
+                    ui.button(_("Read all"), icon="refresh", on_click=lambda: view.act("read service parameters")).props("outline"),
+                    ui.button(_("Save parameters (0xF0)"), icon="save", on_click=lambda: _save(view)).props("data-testid=save-params"),
                 )
-            ui.label(f"The right password is written to 0xFF before each read or write. Each of the {len(view.actuators)} actuators "
-                     "answers for itself: a read or write fails unless every one answers alike. Changes hold until power-off "
-                     "unless saved.").classes("text-caption text-grey-8")
+            ui.label(_("The right password is written to 0xFF before each read or write. Each of the {n} actuators answers "
+                       "for itself: a read or write fails unless every one answers alike. Changes hold until power-off unless "
+                       "saved.").format(n=len(view.actuators))).classes("text-caption text-grey-8")
             # specifier, name, value, entry, Write: the entry takes what is left up to 12rem, never over the button
             with ui.grid(columns="auto minmax(7rem, 1fr) minmax(7rem, 1fr) minmax(7rem, 12rem) auto") \
                     .classes("w-full items-center gap-x-4 gap-y-1"):
-                for h in ("Specifier", "Parameter", "Value (every actuator)", "New value", ""):
-                    ui.label(h).classes("text-caption text-grey-8")
+                for h in (N_("Specifier"), N_("Parameter"), N_("Value (every actuator)"), N_("New value"), ""):
+                    ui.label(_(h) if h else "").classes("text-caption text-grey-8")
                 for p in PARAMS:
                     self._row(p)
             self.last = ui.label().classes("text-caption mono text-grey-8")
             self.form = ui.label().classes("text-caption text-grey-8")
 
     def _row(self, p) -> None:
+        _ = self.view.lang.gettext
         ui.html(f'<div class="mono text-caption">0x{p.address:02X}</div>'  # static: one element
-                f'<div class="text-caption text-grey-8">{html.escape(specifier_note(p))}</div>', sanitize=False) \
+                f'<div class="text-caption text-grey-8">{html.escape(specifier_note(p, self.view.lang))}</div>', sanitize=False) \
             .classes("nicegui-column gap-0").props(f'data-specifier="{p.address:02X}"')
         with ui.row().classes("items-center gap-1"):
-            ui.label(p.name).tooltip(p.description)
-            mark = ui.badge("unsaved", color="orange")
+            ui.label(_(p.name)).tooltip(p.description)
+            mark = ui.badge(_("unsaved"), color="orange")
         cell = LampStrip("nicegui-column gap-0")  # value, read time or age, the answers: one element, drawn on change
         if p.address == BITRATE_SPECIFIER:
-            ui.label("change it step by step below").classes("text-caption text-grey-8")
+            ui.label(_("change it step by step below")).classes("text-caption text-grey-8")
             ui.element("span")
         else:
-            entry = service_entry(p, self.view.state.raw(p))
+            entry = service_entry(p, self.view.state.raw(p), self.view.lang)
             entry.props(f"data-testid=entry-{p.address:02X}")
             self.shown[p.key] = entry.value
             entry.on("keydown.enter", lambda: self.write(p, entry))  # Enter writes, as the button does (same question)
-            self.guard.add(ui.button("Write", on_click=lambda: self.write(p, entry))
+            self.guard.add(ui.button(_("Write"), on_click=lambda: self.write(p, entry))
                            .props(f"data-testid=write-{p.address:02X}"))
             self.entries[p.key] = entry
         self.rows[p.key] = (p, mark, cell)
@@ -468,7 +502,7 @@ class ServiceCard(DrawnCard):
         """Write the entry; afterwards the field shows the value read back from the actuators, not what was typed."""
         state = self.view.state
         before = state.read_time(param)
-        await _write_service(self.view.name, param, entry)
+        await _write_service(self.view.name, param, entry, self.view.lang)
         read = state.read_time(param)
         raw = state.raw(param)
         if read is not None and read != before and raw is not None:
@@ -526,48 +560,59 @@ class ServiceCard(DrawnCard):
 
     def draw(self) -> None:
         view, state = self.view, self.view.state
+        lang = view.lang
+        _ = lang.gettext
         reports = {r.key: r for r in view.fact(facts.P_SERVICE_REPORTS, ())}
         now = time.time()
         for key, (p, mark, cell) in self.rows.items():
             raw = state.raw(p)
             self.follow_entry(key, p, raw)
             report = reports.get(key)
-            value = ("not read" if not report or report.ok else "no common value") if raw is None else p.display(raw)
+            value = (_("not read") if not report or report.ok else _("no common value")) if raw is None \
+                else lang.numbers_in(p.display(raw))
             read = state.read_time(p)
             quality = state.quality(read, False, now)  # read on demand: good while the network answers
             mark_quality(cell.element, quality if raw is not None else "unknown")
-            note = quality_note(quality, None if read is None else now - read) if quality in ("stale", "offline") else ""
-            age = note or (f"read {fmt_time(read)}" if read is not None and raw is not None else "")
-            text, tip = _answers_text(report)
+            note = quality_note(quality, None if read is None else now - read, lang) if quality in ("stale", "offline") else ""
+            age = note or (_("read {time}").format(time=fmt_time(read)) if read is not None and raw is not None else "")
+            text, tip = _answers_text(report, lang)
             cell.show(['<div class="nicegui-row row items-baseline gap-0 no-wrap">'
                        f'<div class="mono">{html.escape(value)}</div><div class="q-age" data-testid="age-{p.address:02X}">'
                        f'{html.escape(age)}</div></div><div class="text-caption '
                        + ("text-grey-8" if not report or report.ok else "text-negative") + '"'
                        + (f' data-tip="{html.escape(tip, quote=True)}"' if tip else "") + f'>{html.escape(text)}</div>'])
             mark.set_visibility(key in state.unsaved)
-        self.unsaved.set_text(f"{len(state.unsaved)} unsaved")
+        self.unsaved.set_text(_("{n} unsaved").format(n=len(state.unsaved)))
         self.unsaved.set_visibility(bool(state.unsaved))
         report = view.fact(facts.P_SERVICE_LAST)
-        self.last.set_text("" if not report else f"last service telegram: {report.what} at {fmt_time(report.time)}: "
-                           + ("; ".join(f"answer {n}: {a}" for n, a in enumerate(report.answers, 1)) or "no answer")
+        self.last.set_text("" if not report else _("last service telegram: {what} at {time}: ").format(
+                               what=report.what, time=fmt_time(report.time))
+                           + ("; ".join(_("answer {n}: {text}").format(n=n, text=a) for n, a in enumerate(report.answers, 1))
+                              or _("no answer"))
                            + ("" if report.ok else " - " + "; ".join(report.problems)))
         form = view.fact(facts.P_SAVE_FORM)
-        self.form.set_text(f"last save: the network accepted the {form}" if form else
-                           f"Save sends the {codec.SAVE_FORMS[codec.SAVE_LENGTHS[0]]} and, on WRONG_SIZE, once the "
-                           f"{codec.SAVE_FORMS[codec.SAVE_LENGTHS[1]]}.")
+        self.form.set_text(_("last save: the network accepted the {form}").format(form=_(form)) if form else
+                           _("Save sends the {first} and, on WRONG_SIZE, once the {second}.").format(
+                               first=_(codec.SAVE_FORMS[codec.SAVE_LENGTHS[0]]), second=_(codec.SAVE_FORMS[codec.SAVE_LENGTHS[1]])))
 
 
-def specifier_note(p) -> str:
+SAVE_FORM_WORDS = (N_("4-byte form (parameter table)"), N_("1-byte form (document example)"))  # codec.SAVE_FORMS
+
+
+def specifier_note(p, lang=None) -> str:
     """What the parameter is beside its specifier: its length and unit, and that its password goes to 0xFF first.
     The password itself is a key, not data: it is never shown (it is in the register map for the adapter only)."""
     unit = "" if p.enum is not None else f", {p.unit}" if p.unit else ""
-    return f"{length_of(p)} byte{'s' if length_of(p) != 1 else ''}{unit}, password-protected"
+    n = length_of(p)
+    return (lang or i18n.get("en")).ngettext("{n} byte{unit}, password-protected", "{n} bytes{unit}, password-protected",
+                                             n).format(n=n, unit=unit)
 
 
 async def _save(view: ElectrakView) -> None:
     ok, form = await view.act("save parameters")
     if ok:
-        ui.notify(f"parameters saved: the network accepted the {form}", type="positive")
+        _ = view.lang.gettext
+        ui.notify(_("parameters saved: the network accepted the {form}").format(form=_(form)), type="positive")
 
 
 def _show(entry: ui.number, value) -> None:
@@ -580,13 +625,13 @@ def _show(entry: ui.number, value) -> None:
     entry.value = value
 
 
-def service_entry(param, raw: int | None) -> ui.number:
+def service_entry(param, raw: int | None, lang=None) -> ui.number:
     """The entry of one service parameter, starting at the actuators' value when it is known: a fraction where
     the parameter takes whole numbers, a finer step than its unit (0.1 mm) or a value out of its range is
     marked on the field with what is allowed (never rounded, never clamped)."""
     low, high = param.limits()
     value = None if raw is None else param.decode(raw)
-    entry = range_number("", low, high, unit=param.unit, integer=param.scale == 1, value=value).classes("w-full")
+    entry = range_number("", low, high, unit=param.unit, integer=param.scale == 1, value=value, lang=lang).classes("w-full")
     whole = entry.validation  # range_number's check: whole numbers and the range
 
     def check(v) -> str | None:
@@ -597,24 +642,26 @@ def service_entry(param, raw: int | None) -> ui.number:
             return error
         steps = float(v) / param.scale
         if param.scale != 1 and abs(steps - round(steps)) > 1e-6:
-            return f"steps of {param.scale:g} {param.unit} only, {entry.rule}".replace("  ", " ")
+            return (lang or i18n.get("en")).gettext("steps of {step} {unit} only, {rule}").format(
+                step=f"{param.scale:g}", unit=param.unit, rule=entry.rule).replace("  ", " ")
         return None
 
     entry.validation = check
     return entry
 
 
-async def _write_service(name: str, param, entry) -> None:
+async def _write_service(name: str, param, entry, lang=None) -> None:
     value = await checked_value(entry, name, f"write {param.name}", parameter=param.name)
     if value is None:
         return
     reason = refusal(param, value)  # beyond the range: the document's own refusals (params.refusal)
+    _ = (lang or i18n.get("en")).gettext
     if reason:
-        entry.error = reason
+        entry.error = _(reason)  # the audit row below stays as written: English
         await refuse(name, f"write {param.name}", reason, parameter=param.name, new=value)
         return
-    await write_from_page(name, param, value, success="{name} = {value} written and read back from every actuator",
-                          title="Set {name} to {value}?", ok="Change bit rate", field=entry)
+    await write_from_page(name, param, value, success=_("{name} = {value} written and read back from every actuator"),
+                          title=_("Set {name} to {value}?"), ok=_("Change bit rate"), field=entry, lang=lang)
 
 
 class BitrateCard(DrawnCard):
@@ -637,25 +684,28 @@ class BitrateCard(DrawnCard):
 
     def build(self) -> None:
         view, state, bus_rate = self.view, self.view.state, self.bus_rate
+        _ = view.lang.gettext
         others = [d.name for d in view.runtime.plant.devices_on(state.bus) if d.name != view.name]
-        with titled_card("Change the bit rate") as card:
+        with titled_card(_("Change the bit rate")) as card:
             card.props("data-testid=bitrate-card")
-            ui.label(f"Bus {state.bus} runs at {bus_rate // 1000} kbit/s"
-                     + (f"; on it also: {', '.join(others)} (switch them alike, or they leave the bus)." if others else ".")
-                     + (" Assumption (the document does not say): the actuators take a new bit rate when powered up again."
-                        if BITRATE_AT_POWER_UP else "")).classes("text-caption text-grey-8")
+            ui.label(_("Bus {bus} runs at {rate} kbit/s").format(bus=state.bus, rate=bus_rate // 1000)
+                     + (_("; on it also: {list} (switch them alike, or they leave the bus).").format(list=", ".join(others))
+                        if others else ".")
+                     + (" " + _("Assumption (the document does not say): the actuators take a new bit rate when powered up "
+                                "again.") if BITRATE_AT_POWER_UP else "")).classes("text-caption text-grey-8")
             with ui.column().classes("gap-1 w-full"):
-                row, _ = self._step("1. Write the new bit rate and read it back from every actuator")
+                row, _label = self._step(_("1. Write the new bit rate and read it back from every actuator"))
                 with row:
                     choice = ui.select({k: v for k, v in BITRATE_NAMES.items() if codec.BITRATES[k] != bus_rate}, value=None,
-                                       label="new bit rate").props("dense outlined options-dense data-testid=new-bitrate").classes("w-36")
-                    self.guard.add(ui.button("Write", on_click=lambda: _write_bitrate(view.name, self.param, choice.value)).props("dense"))
-                row, _ = self._step("2. Save it (0xF0) on every actuator, or it is lost at power-off")
+                                       label=_("new bit rate")).props("dense outlined options-dense data-testid=new-bitrate").classes("w-36")
+                    self.guard.add(ui.button(_("Write"), on_click=lambda: _write_bitrate(view.name, self.param, choice.value,
+                                                                                        view.lang)).props("dense"))
+                row, _label = self._step(_("2. Save it (0xF0) on every actuator, or it is lost at power-off"))
                 with row:
-                    self.guard.add(ui.button("Save", icon="save", on_click=lambda: _save(view)).props("dense outline"))
-                _, self.switch_text = self._step()
-                self._step("4. Restart commission with the changed plant file, then power-cycle the actuators; they come back "
-                           "at the new bit rate")
+                    self.guard.add(ui.button(_("Save"), icon="save", on_click=lambda: _save(view)).props("dense outline"))
+                _row, self.switch_text = self._step()
+                self._step(_("4. Restart commission with the changed plant file, then power-cycle the actuators; they come "
+                             "back at the new bit rate"))
             self.status = ui.label().classes("text-body2").props("data-testid=bitrate-status")
 
     def inputs(self) -> tuple:
@@ -665,6 +715,7 @@ class BitrateCard(DrawnCard):
 
     def draw(self) -> None:
         view, state, param, bus_rate = self.view, self.view.state, self.param, self.bus_rate
+        _ = view.lang.gettext
         raw = state.raw(param)
         change = view.fact(facts.P_BITRATE_CHANGE)
         pending = raw if raw is not None and codec.BITRATES.get(raw) != bus_rate else (change.raw if change else None)
@@ -672,8 +723,8 @@ class BitrateCard(DrawnCard):
         heard_all = view.online() and view.fact(facts.P_HEARD) == view.fact(facts.P_CONFIGURED)
         written = target is not None
         saved = written and param.key not in state.unsaved and bool(change is None or change.saved)
-        self.switch_text.set_text("3. Switch the bus: in the plant file set bitrate = "
-                                  + (f"{target}" if target else "<new rate>") + f" for [[bus]] name = \"{state.bus}\"")
+        self.switch_text.set_text(_("3. Switch the bus: in the plant file set bitrate = {rate} for [[bus]] name = \"{bus}\"").format(
+            rate=f"{target}" if target else _("<new rate>"), bus=state.bus))
         for (icon, _row), ok in zip(self.steps, [written, saved, False, False]):
             color = "positive" if ok else "grey"
             if icon.props.get("color") != color:  # runs on every push: nothing to send when unchanged
@@ -681,23 +732,25 @@ class BitrateCard(DrawnCard):
                 icon.props(f"color={color}")
                 icon.update()
         if not written:
-            self.status.set_text(f"The actuators run at the bus's {bus_rate // 1000} kbit/s." if raw is not None and heard_all
-                                 else "Read the bit rate (Read all) to see what the actuators hold.")
+            self.status.set_text(_("The actuators run at the bus's {rate} kbit/s.").format(rate=bus_rate // 1000)
+                                 if raw is not None and heard_all
+                                 else _("Read the bit rate (Read all) to see what the actuators hold."))
         elif not saved:
-            self.status.set_text(f"{BITRATE_NAMES.get(pending)} written and read back, NOT saved: save it (step 2), or "
-                                 "power-cycling the actuators brings back the old bit rate.")
+            self.status.set_text(_("{rate} written and read back, NOT saved: save it (step 2), or power-cycling the actuators "
+                                   "brings back the old bit rate.").format(rate=BITRATE_NAMES.get(pending)))
         else:
-            self.status.set_text(f"{BITRATE_NAMES.get(pending)} saved. The actuators switch at their next power-up: do steps "
-                                 "3 and 4 now, or they are lost to this bus after a power cut.")
+            self.status.set_text(_("{rate} saved. The actuators switch at their next power-up: do steps 3 and 4 now, or they "
+                                   "are lost to this bus after a power cut.").format(rate=BITRATE_NAMES.get(pending)))
         self.status.classes(replace="text-body2 " + ("text-warning" if written else "text-grey-8"))
 
 
-async def _write_bitrate(name: str, param, code) -> None:
+async def _write_bitrate(name: str, param, code, lang=None) -> None:
+    _ = (lang or i18n.get("en")).gettext
     if code is None:
-        ui.notify("Choose the new bit rate first", type="warning")
+        ui.notify(_("Choose the new bit rate first"), type="warning")
         return
-    await write_from_page(name, param, int(code), success="{name} {value} written and read back from every actuator: now save it",
-                          title="Set the actuators' bit rate to {value}?", ok="Write bit rate")
+    await write_from_page(name, param, int(code), success=_("{name} {value} written and read back from every actuator: now save it"),
+                          title=_("Set the actuators' bit rate to {value}?"), ok=_("Write bit rate"), lang=lang)
 
 
 def _export_csv(state, name: str) -> None:

@@ -319,3 +319,23 @@ async def test_the_m3io_page_in_german_shows_no_english(tmp_path):
         # the simulation card's words are declared by devices/m3io/sim.py (pages/simcontrols.py joins later)
         found = english_on(user, skip=("sim-card",))
         assert found == [], "\n".join(map(str, found))
+
+
+async def test_the_electrak_page_in_german_shows_no_english(tmp_path):
+    """The actuators' page in the words of their document (004): Bewegungs-Flags, Fehler-Flags, Steuertelegramm, Hub."""
+    from plants import electrak_bus, plant
+
+    runtime = Runtime(plant(electrak_bus()), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await eventually(lambda: runtime.store.devices["lift"].status == "online", timeout=15, what="the network online")
+        await user.open("/device/lift")
+        await user.should_see("Electrak-HD-Netzwerk lift", retries=50)
+        await user.should_see("Bewegungs-Flags")
+        await user.should_see("Serviceparameter (0x0A / 0x0B)")
+        await user.should_see("niemand steuert das Netzwerk: Steuertelegramme sind aus", retries=50)
+        await eventually(lambda: any(t.startswith("gehörte Aktuatoren pro 100 ms: 2 von 2") for t in shown_texts(user)),
+                         timeout=5, what="the actuators heard")
+        descriptions = {p.description for p in runtime.store.devices["lift"].params.by_name.values()}
+        # the simulation card's words are declared by devices/electrak/sim.py (pages/simcontrols.py joins later)
+        found = [(text, message) for text, message in english_on(user, skip=("sim-card",)) if text not in descriptions]
+        assert found == [], "\n".join(map(str, found))
