@@ -40,7 +40,7 @@ AUTO_READ_AGAIN_S = 30.0  # a page opened on a network whose service parameters 
 _auto_read: dict[str, float] = {}  # network -> when a page last read its service parameters by itself
 CHART_ROWS = [[facts.P_POSITION, facts.P_DRIVE_TARGET], [facts.P_CURRENT], [facts.P_SPEED]]
 # the points' names and the network's summary of them (devices/electrak/adapter.py), and who else may send 0x06
-POINT_WORDS = (N_("Position"), N_("Current"), N_("Speed"), N_("mean"), N_("highest"),
+POINT_WORDS = (N_("Drive target"), N_("Position"), N_("Current"), N_("Speed"), N_("mean"), N_("highest"),
                N_("a PLC, or an actuator whose manual control line is active"))
 CHART_UNITS = ("mm", "A", "mm/s")  # the rows' axes
 
@@ -109,7 +109,8 @@ class NetworkCard(DrawnCard):
             _("The network answers with {heard} status telegrams per 100 ms, but {configured} actuators are configured: "
               "check wiring and power, or the plant file.").format(heard=heard, configured=configured)
             if view.online() and heard != configured else "")
-        self.saturated.set_text(_(view.fact(facts.P_SATURATED, "")) if view.online() else "")
+        saturated = view.fact(facts.P_SATURATED, "")
+        self.saturated.set_text(_(saturated) if saturated and view.online() else "")  # gettext("") is the catalog's header
         self.seen.set_text(_("last status {age}").format(age=fmt_age(state.age, view.lang)))
         if not self.numbers.draw():
             self.drawn = None  # a stale or offline value: drawn again with the next telegram (it may be good again)

@@ -66,7 +66,9 @@ def shown_texts(user, skip: tuple[str, ...] = ()) -> list[str]:
 
 def english_on(user, skip: tuple[str, ...] = ()) -> list[tuple[str, str]]:
     patterns = english_patterns()
-    return [(text, message) for text in shown_texts(user, skip) for message, pattern in patterns if pattern.fullmatch(text)]
+    texts = shown_texts(user, skip)
+    header = [(text, "the catalog's header (gettext of an empty text)") for text in texts if "Project-Id-Version" in text]
+    return header + [(text, message) for text in texts for message, pattern in patterns if pattern.fullmatch(text)]
 
 
 @contextlib.asynccontextmanager
