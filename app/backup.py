@@ -53,7 +53,7 @@ def tool_version() -> str:
 def supports_backup(adapter: Any) -> bool:
     """The adapter takes part, and (``backup_available``) this device has something to back up."""
     restores = isinstance(adapter, ParamWriter | EntryRestorer)
-    return isinstance(adapter, BackupAdapter) and restores and bool(getattr(adapter, "backup_available", True))
+    return isinstance(adapter, BackupAdapter) and restores and bool(adapter.backup_available)
 
 
 async def nothing_to_back_up(adapter: Any) -> str:
@@ -65,7 +65,7 @@ async def nothing_to_back_up(adapter: Any) -> str:
     """
     if supports_backup(adapter):
         return ""
-    if getattr(adapter, "backup_available", True) is False and isinstance(adapter, BackupAdapter):
+    if isinstance(adapter, BackupAdapter) and adapter.backup_available is False:
         try:
             await asyncio.wait_for(adapter.backup_read(), timeout=2)
         except Exception as exc:  # noqa: BLE001 - the reason is the message
@@ -92,12 +92,14 @@ async def why_nothing_to_back_up(runtime, name: str) -> str:
 
 def restore_refused(runtime, name: str) -> str:
     """Why device ``name``'s type takes no restore (its backup is a record only), or ""."""
-    return getattr(runtime.worker.adapters.get(name), "restore_refused", "") or ""
+    adapter = runtime.worker.adapters.get(name)
+    return adapter.restore_refused if isinstance(adapter, BackupAdapter) else ""
 
 
 def restore_wear(runtime, name: str) -> str:
     """What each restored write costs device ``name`` (an EEPROM's wear), or ""."""
-    return getattr(runtime.worker.adapters.get(name), "restore_wear", "") or ""
+    adapter = runtime.worker.adapters.get(name)
+    return adapter.restore_wear if isinstance(adapter, BackupAdapter) else ""
 
 
 def make_document(plant: str, device: str, device_type: str, bus: str, identity: dict, entries: list[dict], now: float | None = None,
@@ -372,7 +374,7 @@ async def plan_restore(runtime, name: str, document: dict, progress=None) -> Res
         raise BackupError(f"the backup is of a {backup_type!r}, but {name} is a {state.type!r}: refused")
     if not supports_backup(adapter):
         raise BackupError(f"{name}: this device type cannot be restored")
-    if getattr(adapter, "restore_refused", ""):
+    if adapter.restore_refused:
         raise BackupError(f"{name}: {adapter.restore_refused}")
     current = {e["key"]: e for e in await adapter.backup_read(progress)}
     warnings = []

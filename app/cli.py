@@ -404,7 +404,7 @@ def run_restore(args) -> int:
                   + (_(" (invalid entries of the file are listed above)") if plan.invalid else ""))
             return 1 if plan.invalid else 0
         selected = {r.key for r in changed}
-        wear = getattr(runtime.worker.adapters[name], "restore_wear", "")
+        wear = backup.restore_wear(runtime, name)
         if wear:
             print(_("note: {wear}: this restore makes {count} such write(s)").format(wear=wear, count=len(changed)))
         risky = plan.risky(selected)

@@ -34,6 +34,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from devices.adapter import BackupAdapter
 from app import backup
 from app.record import Entry
 
@@ -200,9 +201,9 @@ class ReplacementWatch:
                 identity = adapter.backup_identity()
             except Exception:  # noqa: BLE001 - an identity not read yet is no identity
                 identity = _MISSING
-            return (True, getattr(adapter, "backup_available", True), id(state.params), identity)
+            return (True, (not isinstance(adapter, BackupAdapter) or adapter.backup_available), id(state.params), identity)
         points, registers = state.points, state.registers
-        key = [True, getattr(adapter, "backup_available", True), id(state.params), len(points), len(registers)]
+        key = [True, (not isinstance(adapter, BackupAdapter) or adapter.backup_available), id(state.params), len(points), len(registers)]
         for kind, where in sources:
             if kind == "point":
                 point = points.get(where)

@@ -32,9 +32,20 @@ class ShutdownAdapter(Protocol):
 
 
 # -- backup and restore (app/backup.py) ----------------------------------------------------------------
+class BackupDefaults:
+    """What a backup adapter declares about itself unless it says otherwise (members of
+    :class:`BackupAdapter`, read without probing)."""
+
+    backup_available: bool = True  # this device has something to back up in its configuration
+    restore_wear: str = ""  # what each restored write costs the device (an EEPROM's wear), in words
+    restore_refused: str = ""  # why this device takes no restore (its backup is a record only)
+
+
 @runtime_checkable
 class BackupAdapter(Protocol):
-    """Reads its device's settings for a backup file and names the device."""
+    """Reads its device's settings for a backup file and names the device. Every one inherits
+    :class:`BackupDefaults` (tests/test_adapter_contract.py), so app/ reads ``backup_available``,
+    ``restore_wear`` and ``restore_refused`` of a backup adapter without probing."""
 
     async def backup_read(self, progress: Callable[[float], Any] | None = None) -> list[dict]: ...
 

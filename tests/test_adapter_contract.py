@@ -22,6 +22,7 @@ def test_every_adapter_polls_backs_up_and_holds_sessions(cls):
     for protocol in (contract.PollingAdapter, contract.BackupAdapter, contract.SessionHolder):
         assert issubclass(cls, protocol), protocol.__name__
     assert issubclass(cls, contract.ParamWriter) or issubclass(cls, contract.EntryRestorer)
+    assert issubclass(cls, contract.BackupDefaults)  # what it declares about its backup, read without probing
 
 
 @pytest.mark.parametrize("cls", [c for c in ADAPTERS if issubclass(c, contract.ControlAdapter)], ids=lambda c: c.__name__)

@@ -9,6 +9,7 @@ import time
 from collections import deque
 from dataclasses import dataclass, replace
 
+from devices.adapter import BackupDefaults
 from devices import errors
 from devices.control import ControlChanged, Report
 from devices.control import Holder as CoreHolder
@@ -108,7 +109,7 @@ class BitrateChange:
     saved: float | None = None
 
 
-class ElectrakAdapter:
+class ElectrakAdapter(BackupDefaults):
     """The network of actuators of one plant device (status frames cannot be told apart)."""
 
     params = PARAMS

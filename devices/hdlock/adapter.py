@@ -8,6 +8,7 @@ import weakref
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+from devices.adapter import BackupDefaults
 from devices import errors
 from devices.hdlock import STATUS_FRAME_BOLT, codec
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
@@ -136,7 +137,7 @@ def known_addresses(line: ModbusTransport) -> set[int]:
     return {a.address for a in _LINE_LOCKS.get(line, ())} | set(_LINE_SCANS.get(line, {}))
 
 
-class HdLockBackup:
+class HdLockBackup(BackupDefaults):
     """Write checks, backup/restore (see app/backup.py) and the worker's session hooks,
     shared by the Modbus and the CAN adapter."""
 

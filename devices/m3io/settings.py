@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 
+from devices.adapter import BackupDefaults
 from devices.m3io import codec
 from devices.m3io.codec import Variant
 from devices.m3io.params import (ADDRESSING, CFG, CONFIG, CONFIG_PARAMS, CUSTOMER, P2_OPTION, P2_PARAM, PARAMS, RECORD_PARAMS,
@@ -22,7 +23,7 @@ STORE_TIMEOUT_S = 3.0
 SETTINGS_RETRY_S = 5.0  # the settings could not be read when the module first answered: again after this long
 
 
-class ModuleSettings:
+class ModuleSettings(BackupDefaults):
     """Settings of the module (a part of the adapter: it uses its ``state``, ``ids``, ``variant``, ``_request``)."""
 
     def _init_settings(self) -> None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from devices.adapter import BackupDefaults
 from devices.mo64 import codec
 from devices.mo64 import params as model
 from devices.mo64.facts import (
@@ -41,7 +42,7 @@ READ_ATTEMPTS = 3  # a query of a backup or a read-modify-write, asked again whe
 WRITE_SESSION = "write parameter"  # the EEPROM writes of a restore, a batch or the API (no page session)
 
 
-class Mo64Settings:
+class Mo64Settings(BackupDefaults):
     """Settings, the parameter model's writes, backup and restore of one MO 64 (mixed into the adapter)."""
 
     params = model.PARAMS

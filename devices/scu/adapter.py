@@ -26,6 +26,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from devices.adapter import BackupDefaults
 from devices import values as v
 from devices.control import ControlChanged, Report
 from devices.lease import Lease
@@ -58,7 +59,7 @@ REMOTE_SPEED_MAX = 1000  # table 7: relative 0 .. 100 %, absolute 0 .. 1000 coun
 SPEED_LIMITS = {"relative": (100, "%"), "absolute": (REMOTE_SPEED_MAX, "counts/s")}
 SERVICE_IDS = (0x0001, 0x0002, 0x0060, 0x0070, 0x0080, 0x0090, 0x00B0, 0x00C0, 0x00C1, 0x1010)
 
-class ScuAdapter:
+class ScuAdapter(BackupDefaults):
     """One SCU on a serial line (``type = "scu"`` on a ``type = "serial"`` bus)."""
 
     params = PARAMS

@@ -16,6 +16,7 @@ from devices.linewords import LineFilter, LineText, cached, from_hex
 from devices.scu import adapter as scu_adapter
 from devices.scu import codec as scu
 from devices.scu import params as scu_params
+from devices.scu.keepalive import CYCLIC_INDEX
 
 COMMAND_WORDS = {"RO": "RO open remote mode", "RC": "RC keep-alive / cyclic object", "RG": "RG read data",
                  "RT": "RT write remote data", "RE": "RE start a function", "RS": "RS stop a function",
@@ -117,7 +118,7 @@ class ScuLineDecoder:
         for dev in self.devices:
             cyclic = getattr(self.adapters.get(dev.name), "cyclic", None)
             if isinstance(cyclic, scu_params.CyclicDefinition):
-                found[scu_adapter.CYCLIC_INDEX] = cyclic
+                found[CYCLIC_INDEX] = cyclic
         self._learn(found)
 
     def _learn(self, found: dict[int, scu_params.CyclicDefinition]) -> None:
