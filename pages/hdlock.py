@@ -11,7 +11,9 @@ import time
 
 from nicegui import ui
 
+from app import i18n
 from app import runtime as rt
+from app.i18n import N_
 from devices.hdlock import codec
 from devices.hdlock.adapter import (
     HISTORY_CAN,
@@ -67,18 +69,19 @@ class HdLockView(DeviceView):
     def __init__(self, name: str):
         super().__init__(name)
         self.is_can = self.runtime.plant.buses[self.state.bus].type == "can"  # the plant file says how the lock is reached
-        self.guard = WriteGuard(self.state)  # every write and command button, disabled with the reason while silent
+        self.guard = WriteGuard(self.state, lang=self.lang)  # every write and command button, disabled with the reason while silent
 
 
 def content(name: str) -> None:
     view = HdLockView(name)
-    with device_page(view, f"HD-Lock {name}"):
+    _ = view.lang.gettext
+    with device_page(view, _("HD-Lock {name}").format(name=name)):
         view.add(HealthCard(view))
         view.add(LampsCard(view))
         with ui.card().classes("w-full gap-1"):
-            ui.label("Bolt, motor current and proximity").classes("text-subtitle1")
+            ui.label(_("Bolt, motor current and proximity")).classes("text-subtitle1")
             chart = HistoryChart(view.state, list(HISTORY_CAN if view.is_can else HISTORY_MODBUS),
-                                 window_s=CHART_WINDOWS[0], axes=CHART_AXES, windows=CHART_WINDOWS)
+                                 window_s=CHART_WINDOWS[0], axes=CHART_AXES, windows=CHART_WINDOWS, lang=view.lang)
             chart.figure["layout"]["yaxis"].update(CHART_Y)
             chart.figure["layout"]["yaxis2"].update(CHART_Y2)
             chart.figure["layout"]["legend"] = LEGEND_BELOW  # above the plot plotly's mode bar covered it (768 px)
@@ -88,34 +91,36 @@ def content(name: str) -> None:
             sim_card(name, skip=SIM_ELSEWHERE)
             if view.is_can:
                 view.add(CanStatusCard(view))
-                _can_commands_card(name, view.state, view.guard)
+                _can_commands_card(name, view.state, view.guard, view.lang)
             else:
                 view.add(SetAddressCard(view))
                 view.add(BroadcastAddressCard(view))
         view.add(ParameterCard(view))  # the writable parameters
         with ui.card().classes("w-full"):
             with ui.tabs() as tabs:
-                t_in = ui.tab("Input registers")
-                t_hold = ui.tab("Holding registers")
+                t_in = ui.tab(_("Input registers"))
+                t_hold = ui.tab(_("Holding registers"))
             with ui.tab_panels(tabs, value=t_in).classes("w-full"):
                 with ui.tab_panel(t_in):
-                    RegisterTable(view.state, PARAMS.space(INPUT))  # follows the store itself: values, ages, greyed rows
+                    RegisterTable(view.state, PARAMS.space(INPUT), lang=view.lang)  # follows the store itself: values, ages, greyed rows
                 with ui.tab_panel(t_hold):
-                    RegisterTable(view.state, PARAMS.space(HOLDING))
+                    RegisterTable(view.state, PARAMS.space(HOLDING), lang=view.lang)
 
 
-def modbus_counters(c) -> str:
+def modbus_counters(c, lang=None) -> str:
     """The Modbus line's counters of this lock: CRC errors and exception answers are Modbus RTU's own."""
-    return (f"requests {c.requests} · timeouts {c.timeouts} · CRC {c.crc_errors} · exceptions {c.exceptions} · "
-            f"write errors {c.write_errors}")
+    return (lang or i18n.get("en")).gettext("requests {requests} · timeouts {timeouts} · CRC {crc} · exceptions {exceptions} · "
+                                            "write errors {write_errors}").format(
+        requests=c.requests, timeouts=c.timeouts, crc=c.crc_errors, exceptions=c.exceptions, write_errors=c.write_errors)
 
 
-def can_counters(c) -> str:
+def can_counters(c, lang=None) -> str:
     """The CAN counters of this lock: its requests (0x700-0x705) and their timeouts, the frames heard from it
     (status frames and register answers), frames that did not decode, and writes not confirmed. CAN has no
     CRC errors or exception answers to count here (the controller drops bad frames)."""
-    return (f"requests {c.requests} · frames heard {c.responses} · timeouts {c.timeouts} · malformed {c.malformed} · "
-            f"write errors {c.write_errors}")
+    return (lang or i18n.get("en")).gettext("requests {requests} · frames heard {responses} · timeouts {timeouts} · "
+                                            "malformed {malformed} · write errors {write_errors}").format(
+        requests=c.requests, responses=c.responses, timeouts=c.timeouts, malformed=c.malformed, write_errors=c.write_errors)
 
 
 class HealthCard(DeviceCard):
@@ -124,7 +129,9 @@ class HealthCard(DeviceCard):
     view: HdLockView
 
     def build(self) -> None:
-        self.status = StatusRow(self.view.state, can_counters if self.view.is_can else modbus_counters)
+        lang = self.view.lang
+        counters = can_counters if self.view.is_can else modbus_counters
+        self.status = StatusRow(self.view.state, lambda c: counters(c, lang), lang)
         with ui.card().classes("w-full"):
             with self.status.build():
                 self.ident = ui.label().classes("text-body2")
@@ -134,19 +141,19 @@ class HealthCard(DeviceCard):
     def refresh(self) -> None:
         view, state = self.view, self.view.state
         if self.unchanged((state.status, state.last_error, view.inputs(HEALTH_INPUTS)),
-                          lambda: status_text(state.status, state.age) + fmt_age(state.age)):
+                          lambda: status_text(state.status, state.age, view.lang) + fmt_age(state.age, view.lang)):
             return  # status, error, address and identity as drawn: the ages move on the once-a-second round
+        _ = view.lang.gettext
         self.status.refresh()
         serial, fw = state.value("SerialNumber"), state.value("FirmwareVersion")
         if view.is_can:
             device_id = state.live(P_DEVICE_ID)
-            where = f"CAN device ID {device_id.shown if device_id is not None else None}"
+            where = _("CAN device ID {id}").format(id=device_id.shown if device_id is not None else None)
         else:
-            where = f"Modbus address {view.fact(P_ADDRESS)}"
-        self.ident.set_text(
-            f"{where} · serial {serial if serial is not None else '-'} · firmware V{fw if fw is not None else '-'}"
-        )
-        self.seen.set_text(f"last seen {fmt_age(state.age)}")
+            where = _("Modbus address {address}").format(address=view.fact(P_ADDRESS))
+        self.ident.set_text(_("{where} · serial {serial} · firmware V{firmware}").format(
+            where=where, serial=serial if serial is not None else "-", firmware=fw if fw is not None else "-"))
+        self.seen.set_text(_("last seen {age}").format(age=fmt_age(state.age, view.lang)))
         self.error.set_text(state.last_error if state.status != "online" else "")
 
 
@@ -154,9 +161,10 @@ class LampsCard(DeviceCard):
     """LockStatus (holding 1000) as lamps, and the enumerated values with their quality."""
 
     def build(self) -> None:
+        _ = self.view.lang.gettext
         with ui.card().classes("w-full"):
             with ui.row().classes("items-baseline gap-2"):
-                ui.label("LockStatus (holding 1000)").classes("text-subtitle1")
+                ui.label(_("LockStatus (holding 1000)")).classes("text-subtitle1")
                 self.note = ui.label().classes("q-age").props("data-testid=lockstatus-quality")
             with ui.row().classes("gap-5"):
                 self.lamps = {f.name: Lamp(f.name, LAMP_KIND.get(f.name, "ok"), f.description, light=True)
@@ -178,21 +186,24 @@ class LampsCard(DeviceCard):
         aging = status is not None and status["quality"] in ("stale", "offline")
         for field_name, lamp in self.lamps.items():
             lamp.show(status, None if status is None else status["fields"][field_name])
-        self.note.set_text(_note(status))
+        lang = self.view.lang
+        self.note.set_text(_note(status, lang))
         for key, label in self.labels.items():
             entry = state.entry(key)
-            label.set_text(entry["name"] or f"undefined ({entry['value']})" if entry else "-")
+            context = key.split(" ")[0]  # the enumeration's register: DoorState, StateMachineState ...
+            label.set_text((lang.phrase(entry["name"], context) if entry["name"]
+                            else lang.gettext("undefined ({value})").format(value=entry["value"])) if entry else "-")
             mark_quality(label, entry["quality"] if entry else "unknown")
-            self.notes[key].set_text(_note(entry))
+            self.notes[key].set_text(_note(entry, lang))
             aging = aging or (entry is not None and entry["quality"] in ("stale", "offline"))
         self.aging = aging
 
 
-def _note(entry: dict | None) -> str:
+def _note(entry: dict | None, lang=None) -> str:
     """``stale 4 s`` / ``offline, last 1 min`` under a value that is not good."""
     if entry is None or entry["quality"] not in ("stale", "offline"):
         return ""
-    return quality_note(entry["quality"], entry_age(entry))
+    return quality_note(entry["quality"], entry_age(entry), lang)
 
 
 class ParameterCard(DeviceCard):
@@ -207,9 +218,10 @@ class ParameterCard(DeviceCard):
 
     def build(self) -> None:
         name, state, guard = self.view.name, self.view.state, self.view.guard
+        _ = self.view.lang.gettext
         with ui.card().classes("w-full"):
             with ui.row().classes("items-center w-full"):
-                ui.label("Parameters (RW holding registers)").classes("text-subtitle1")
+                ui.label(_("Parameters (RW holding registers)")).classes("text-subtitle1")
                 self.unsaved_label = ui.badge("", color="orange")
                 ui.space()
                 self.save = ui.button("Save-Settings", icon="save", on_click=lambda: _save(name, state)) \
@@ -218,20 +230,21 @@ class ParameterCard(DeviceCard):
                     "outline data-testid=restore-settings")
                 guard.add(self.save, restore)
             ui.label(
-                "Writes are volatile until Save-Settings; Restore-Settings reloads the saved values and discards unsaved changes."
+                _("Writes are volatile until Save-Settings; Restore-Settings reloads the saved values and discards unsaved changes.")
             ).classes("text-caption text-grey-8")
             # register, name, current, entry, button: each column as wide as its content needs, the name and
             # current columns never narrower than their minimum (a long name wraps inside its column instead of
             # running into the value), and the table left-aligned (no gap between Current and New value)
             with ui.grid(columns=PARAM_COLUMNS).classes("w-full items-center gap-x-4 gap-y-1") \
                     .style("justify-content: start").props("data-testid=param-grid"):
-                for h in ("Register", "Name", "Current", "New value", ""):
-                    ui.label(h).classes("text-caption text-grey-8")
+                for h in (N_("Register"), N_("Name"), N_("Current"), N_("New value"), ""):
+                    ui.label(_(h) if h else "").classes("text-caption text-grey-8")
                 for p in (p for p in PARAMS.space(HOLDING) if p.writable):
                     self._row(p)
 
     def _row(self, p: Param) -> None:
         name = self.view.name
+        _ = self.view.lang.gettext
         ui.label(str(p.address)).classes("mono")
         key = param_key(p)
         with ui.row().classes("items-center gap-1").style("min-width: 0") as mark:
@@ -239,9 +252,9 @@ class ParameterCard(DeviceCard):
             ui.label(label).style(NAME_WRAP).props(f'data-param-name="{key}"') \
                 .tooltip(f"{label}: {p.description}" if p.description else label)
             if not p.setting:  # the lock measures it (Param.setting): written only to reset it, never from a set
-                ui.badge("measured", color="grey-6").props(f'data-measured="{key}" outline').tooltip(
-                    "Measured by the lock, not a setting: write it only to reset it. Restore, batch apply and the "
-                    "replacement assistant never copy it, and it is no drift.")
+                ui.badge(_("measured"), color="grey-6").props(f'data-measured="{key}" outline').tooltip(
+                    _("Measured by the lock, not a setting: write it only to reset it. Restore, batch apply and the "
+                      "replacement assistant never copy it, and it is no drift."))
             # its "unsaved" badge is built when the parameter is first written (most never are)
         current = ValueLine("mono")  # the value, greyed with its age while stale or offline: one element
         if p.enum is not None:
@@ -249,10 +262,10 @@ class ParameterCard(DeviceCard):
                 .props("dense outlined options-dense").classes("w-64")
         else:
             low, high = p.limits()
-            entry = range_number("", low, high, unit=p.unit, integer=p.scale == 1).classes("w-48")
+            entry = range_number("", low, high, unit=p.unit, integer=p.scale == 1, lang=self.view.lang).classes("w-48")
         entry.props(f'data-param="{key}"')
         entry.on("keydown.enter", lambda p=p, entry=entry: _write(name, p, entry))  # Enter writes, as the button does
-        button = ui.button("Write", on_click=lambda p=p, entry=entry: _write(name, p, entry)).props(f'dense data-write="{key}"')
+        button = ui.button(_("Write"), on_click=lambda p=p, entry=entry: _write(name, p, entry)).props(f'dense data-write="{key}"')
         self.view.guard.add(button)
         self.rows[p.key] = (p, current, mark)
         self.params.append(p)
@@ -282,25 +295,26 @@ class ParameterCard(DeviceCard):
             quality = state.param_quality(p, now)  # aged by its own read period (settings: every 10 s)
             aging = aging or quality in ("stale", "offline")
             # greyed with the age of its value while stale or offline
-            current.show("-" if raw is None else p.display(raw), quality,
-                         quality_note(quality, None if read is None else now - read) if quality in ("stale", "offline") else "")
-            _unsaved_badge(mark, key in state.unsaved)
+            lang = self.view.lang
+            current.show("-" if raw is None else lang.numbers_in(p.display(raw)), quality,
+                         quality_note(quality, None if read is None else now - read, lang) if quality in ("stale", "offline") else "")
+            _unsaved_badge(mark, key in state.unsaved, lang)
         self.aging = aging
         count = len(state.unsaved)
-        self.unsaved_label.set_text(f"{count} unsaved change{'s' if count != 1 else ''}")
+        self.unsaved_label.set_text(self.view.lang.ngettext("{n} unsaved change", "{n} unsaved changes", count).format(n=count))
         self.unsaved_label.set_visibility(count > 0)
         if self.save.props.get("color") != ("orange" if count else "primary"):
             self.save.props(f"color={'orange' if count else 'primary'}")
 
 
-def _unsaved_badge(row: ui.row, unsaved: bool) -> None:
+def _unsaved_badge(row: ui.row, unsaved: bool, lang=None) -> None:
     """Show or hide the "unsaved" badge at the end of a parameter's name ``row``, built when first shown."""
     badge = getattr(row, "unsaved_badge", None)
     if badge is None:
         if not unsaved:
             return
         with row:
-            badge = row.unsaved_badge = ui.badge("unsaved", color="orange")  # type: ignore[attr-defined]
+            badge = row.unsaved_badge = ui.badge((lang or i18n.get("en")).gettext("unsaved"), color="orange")  # type: ignore[attr-defined]
     badge.set_visibility(unsaved)
 
 
@@ -311,40 +325,44 @@ def param_key(p: Param) -> str:
 
 
 async def _write(name: str, param: Param, entry) -> None:
-    await write_from_page(name, param, entry.value, success="{name} = {value} written and read back (not yet saved)",
+    await write_from_page(name, param, entry.value,
+                          success=i18n.client_language().gettext("{name} = {value} written and read back (not yet saved)"),
                           field=entry)
 
 
 async def _save(name: str, state) -> None:
     """Save-Settings writes the lock's flash (section 4.1): ask first, naming what becomes permanent."""
     changes = unsaved_changes(state)
+    lang = i18n.client_language()
+    _ = lang.gettext
     with ui.dialog() as dialog, ui.card().classes("max-w-lg").props("data-testid=save-dialog"):
-        ui.label("Save-Settings: write the settings to the lock's flash?").classes("text-h6")
+        ui.label(_("Save-Settings: write the settings to the lock's flash?")).classes("text-h6")
         if changes:
-            ui.label(f"{len(changes)} unsaved change{'s' if len(changes) != 1 else ''} become{'s' if len(changes) == 1 else ''} "
-                     "permanent (kept after a reset):").classes("text-body1")
+            ui.label(lang.ngettext("{n} unsaved change becomes permanent (kept after a reset):",
+                                   "{n} unsaved changes become permanent (kept after a reset):", len(changes)).format(
+                n=len(changes))).classes("text-body1")
             with ui.column().classes("gap-0 q-pl-md").props("data-testid=save-changes"):
                 for line in changes:
                     ui.label(line).classes("text-body2 mono")
         else:
-            ui.label("No unsaved changes are known here: the lock's current settings are written to its flash again.").classes(
+            ui.label(_("No unsaved changes are known here: the lock's current settings are written to its flash again.")).classes(
                 "text-body1")
-        ui.label("Each save is counted in SavedSettings (input 101).").classes("text-caption text-grey-8")
+        ui.label(_("Each save is counted in SavedSettings (input 101).")).classes("text-caption text-grey-8")
         with ui.row().classes("justify-end w-full"):
-            ui.button("Cancel", on_click=lambda: dialog.submit(False)).props("flat")
-            ui.button("Save to flash", icon="save", on_click=lambda: dialog.submit(True)).props("data-testid=save-confirm")
+            ui.button(_("Cancel"), on_click=lambda: dialog.submit(False)).props("flat")
+            ui.button(_("Save to flash"), icon="save", on_click=lambda: dialog.submit(True)).props("data-testid=save-confirm")
     confirmed = await dialog
     dialog.delete()
     if not confirmed:
         await cancelled(name, "Save-Settings", parameter="Save-Settings", new="; ".join(changes))
         return
     # the declaration's audit row lists what became permanent, as read when the command runs
-    await run_command(name, "Save-Settings", success="Settings saved to the lock's flash")
+    await run_command(name, "Save-Settings", success=_("Settings saved to the lock's flash"))
 
 
 async def _restore(name: str) -> None:
     # the declared command names its risk (all unsaved changes are lost): run_command asks it
-    await run_command(name, "Restore-Settings", success="Saved settings restored")
+    await run_command(name, "Restore-Settings", success=i18n.client_language().gettext("Saved settings restored"))
 
 
 def _parse_word(text) -> int | None:
@@ -356,26 +374,29 @@ def _parse_word(text) -> int | None:
     return value if 0 <= value <= 0xFFFF else None
 
 
-def _bit_names(mask: int) -> str:
-    return ", ".join(f.name for f in LOCK_STATUS_BITS if mask >> f.shift & 1) or "no bits"
+def _bit_names(mask: int, lang=None) -> str:
+    return ", ".join(f.name for f in LOCK_STATUS_BITS if mask >> f.shift & 1) or (lang or i18n.get("en")).gettext("no bits")
 
 
-def _condition_text(m: int, e: int) -> str:
-    return f"checks: {_bit_names(m)}; must be set: {_bit_names(e & m) if e & m else 'none'}"
+def _condition_text(m: int, e: int, lang=None) -> str:
+    _ = (lang or i18n.get("en")).gettext
+    return _("checks: {bits}; must be set: {set}").format(bits=_bit_names(m, lang),
+                                                          set=_bit_names(e & m, lang) if e & m else _("none"))
 
 
-MASK_RULE = "16-bit number, e.g. 0x010C"
+MASK_RULE = N_("16-bit number, e.g. 0x010C")
 
 
-def _mask_check(text) -> str | None:
-    return None if _parse_word(text) is not None else MASK_RULE
-
-
-def _mask_inputs(prefix: str):
+def _mask_inputs(prefix: str, lang=None):
     """P1 and P2 of section 4.3; a wrong entry stays as typed, marked with what is allowed."""
-    p1 = ui.input("P1 mask (hex)", value="0x0000", validation=_mask_check).props(
+    _ = (lang or i18n.get("en")).gettext
+
+    def check(text) -> str | None:
+        return None if _parse_word(text) is not None else _(MASK_RULE)
+
+    p1 = ui.input(_("P1 mask (hex)"), value="0x0000", validation=check).props(
         f"dense outlined data-testid={prefix}-p1").classes("w-44 mono")
-    p2 = ui.input("P2 expected (hex)", value="0x0000", validation=_mask_check).props(
+    p2 = ui.input(_("P2 expected (hex)"), value="0x0000", validation=check).props(
         f"dense outlined data-testid={prefix}-p2").classes("w-44 mono")
     return p1, p2
 
@@ -397,11 +418,12 @@ def _gate_send(view: HdLockView, button: ui.button, address) -> None:
     view.guard.update()
     reason = view.guard.reason
     if not reason and address.value in (None, ""):
-        reason = f"enter the new address first ({getattr(address, 'rule', 'allowed 1 .. 254')})"
+        reason = view.lang.gettext("enter the new address first ({rule})").format(rule=getattr(address, "rule", "1 .. 254"))
     elif not reason:
         refused = address.validation(address.value) if callable(address.validation) else None  # the field's own rule
         if refused:  # (checked without touching the field's message: a refusal set on Send stays shown)
-            reason = f"address {address.value:g} is refused: {refused}"
+            reason = view.lang.gettext("address {address} is refused: {reason}").format(address=f"{address.value:g}",
+                                                                                         reason=refused)
     enable_unless(button, reason)
 
 
@@ -409,14 +431,16 @@ class SetAddressCard(DeviceCard):
     """Set Modbus Address (command 3) with its two condition masks and a live preview."""
 
     def build(self) -> None:
-        with titled_card("Set Modbus Address (command 3)"):
-            ui.label("Taken only if (P1 & LockStatus) ^ P2 == 0 (section 4.3).").classes("text-caption text-grey-8")
+        lang = self.view.lang
+        _ = lang.gettext
+        with titled_card(_("Set Modbus Address (command 3)")):
+            ui.label(_("Taken only if (P1 & LockStatus) ^ P2 == 0 (section 4.3).")).classes("text-caption text-grey-8")
             with ui.row().classes("items-center"):
-                self.new = range_number("New address", 1, 254, integer=True).classes("w-56")
-                self.p1, self.p2 = _mask_inputs("sa")
+                self.new = range_number(_("New address"), 1, 254, integer=True, lang=lang).classes("w-56")
+                self.p1, self.p2 = _mask_inputs("sa", lang)
             self.bits = ui.label().classes("text-caption")
             self.preview = ui.label().classes("text-body2")
-            self.button = ui.button("Send Set Modbus Address", icon="pin", on_click=self.send).props("data-testid=sa-send")
+            self.button = ui.button(_("Send Set Modbus Address"), icon="pin", on_click=self.send).props("data-testid=sa-send")
         for element in (self.new, self.p1, self.p2):
             element.on_value_change(self.refresh)
         _gate_send(self.view, self.button, self.new)
@@ -427,22 +451,24 @@ class SetAddressCard(DeviceCard):
                            self.view.inputs(("LockStatus",))), lambda: None):
             return  # the gate of Send and the preview are drawn from these alone
         _gate_send(self.view, self.button, self.new)
+        lang = self.view.lang
+        _ = lang.gettext
         m, e = _parse_word(self.p1.value), _parse_word(self.p2.value)
         preview = self.preview
         if m is None or e is None:
-            preview.set_text("P1 and P2 must be 16-bit numbers, e.g. 0x010C")
+            preview.set_text(_("P1 and P2 must be 16-bit numbers, e.g. 0x010C"))
             preview.classes(replace="text-body2 text-negative")
             return
-        self.bits.set_text(_condition_text(m, e))
+        self.bits.set_text(_condition_text(m, e, lang))
         status = self.view.state.value("LockStatus")
         if status is None:
-            preview.set_text("LockStatus not read yet")
+            preview.set_text(_("LockStatus not read yet"))
             return
         result = codec.set_address_condition(m, e, int(status))
         ok = result == 0
         preview.set_text(
-            f"now: (0x{m:04X} & 0x{int(status):04X}) ^ 0x{e:04X} = 0x{result:04X} -> "
-            + ("condition holds, the lock would take the address" if ok else "condition fails, the lock would refuse")
+            _("now: {formula} -> ").format(formula=f"(0x{m:04X} & 0x{int(status):04X}) ^ 0x{e:04X} = 0x{result:04X}")
+            + (_("condition holds, the lock would take the address") if ok else _("condition fails, the lock would refuse"))
         )
         preview.classes(replace="text-body2 " + ("text-positive" if ok else "text-negative"))
 
@@ -456,7 +482,8 @@ class SetAddressCard(DeviceCard):
         target = int(value)
         # the declared risk (the lock answers only at the new address) is asked by run_command
         ok, outcome = await run_command(name, "Set Modbus Address", args={"new_address": target, "mask": m, "expected": e},
-                                        title=f"Change the Modbus address to {target}?")
+                                        title=self.view.lang.gettext("Change the Modbus address to {address}?").format(
+                                            address=target))
         if ok:
             ui.notify(outcome.text, type="positive" if outcome.taken else "warning", multi_line=True, close_button="OK", timeout=15000)
 
@@ -501,17 +528,19 @@ class BroadcastAddressCard(DeviceCard):
     """Set Modbus Address to broadcast address 255 (section 4.3): every lock on the line at once."""
 
     def build(self) -> None:
-        with titled_card(f"Set Modbus Address on every lock of {self.view.state.bus} (broadcast 255)"):
+        lang = self.view.lang
+        _ = lang.gettext
+        with titled_card(_("Set Modbus Address on every lock of {bus} (broadcast 255)").format(bus=self.view.state.bus)):
             ui.label(
-                "Every lock on the line gets the command and none answers; each lock whose LockStatus meets "
-                "(P1 & LockStatus) ^ P2 == 0 takes the new address (section 4.3)."
+                _("Every lock on the line gets the command and none answers; each lock whose LockStatus meets "
+                  "(P1 & LockStatus) ^ P2 == 0 takes the new address (section 4.3).")
             ).classes("text-caption text-grey-8")
             with ui.row().classes("items-center"):
-                self.new = range_number("New address", 1, 254, integer=True).props("data-testid=bc-address").classes("w-56")
-                self.p1, self.p2 = _mask_inputs("bc")
+                self.new = range_number(_("New address"), 1, 254, integer=True, lang=lang).props("data-testid=bc-address").classes("w-56")
+                self.p1, self.p2 = _mask_inputs("bc", lang)
             self.bits = ui.label().classes("text-caption")
             self.known = ui.label().classes("text-body2").props("data-testid=bc-known")
-            self.button = ui.button("Send to all locks (255)", icon="campaign", on_click=self.send) \
+            self.button = ui.button(_("Send to all locks (255)"), icon="campaign", on_click=self.send) \
                 .props("color=negative data-testid=bc-send")
         for element in (self.new, self.p1, self.p2):
             element.on_value_change(self.refresh)
@@ -525,16 +554,20 @@ class BroadcastAddressCard(DeviceCard):
         _gate_send(self.view, self.button, self.new)
         m, e = _parse_word(self.p1.value), _parse_word(self.p2.value)
         known, statuses, in_plant, scanned = _line_locks(self.view.name, state)
+        lang = self.view.lang
+        _ = lang.gettext
         listed = ", ".join(f"{label} @{address}" if not label.startswith("address") else label for address, label in sorted(known.items()))
-        text = f"{len(known)} lock{'s' if len(known) != 1 else ''} known on {state.bus} ({in_plant} in the plant, {scanned} found by a scan): {listed}"
+        text = lang.ngettext("{n} lock known on {bus} ({in_plant} in the plant, {scanned} found by a scan): {list}",
+                             "{n} locks known on {bus} ({in_plant} in the plant, {scanned} found by a scan): {list}",
+                             len(known)).format(n=len(known), bus=state.bus, in_plant=in_plant, scanned=scanned, list=listed)
         if m is None or e is None:
-            self.bits.set_text("P1 and P2 must be 16-bit numbers, e.g. 0x010C")
+            self.bits.set_text(_("P1 and P2 must be 16-bit numbers, e.g. 0x010C"))
         else:
-            self.bits.set_text(_condition_text(m, e))
+            self.bits.set_text(_condition_text(m, e, lang))
             takers, unknown = codec.broadcast_takers(m, e, statuses)
-            text += f". By the last LockStatus read: {', '.join(takers) or 'none'} would take it"
+            text += _(". By the last LockStatus read: {list} would take it").format(list=", ".join(takers) or _("none"))
             if unknown:
-                text += f"; unknown for {', '.join(unknown)}"
+                text += _("; unknown for {list}").format(list=", ".join(unknown))
         self.known.set_text(text)
 
     async def send(self) -> None:
@@ -546,28 +579,36 @@ class BroadcastAddressCard(DeviceCard):
         m, e = masks
         target = int(value)
         known, statuses, in_plant, scanned = _line_locks(name, self.view.state)
+        lang = self.view.lang
+        _ = lang.gettext
         if target in known:
-            self.new.error = f"address {target} is {known[target]}: choose an address no lock uses"
-            await refuse(name, describe, self.new.error, parameter="DeviceAddress", new=target)
+            used = N_("address {address} is {lock}: choose an address no lock uses")
+            self.new.error = _(used).format(address=target, lock=known[target])
+            await refuse(name, describe, used.format(address=target, lock=known[target]), parameter="DeviceAddress", new=target)
             return
         takers, unknown = codec.broadcast_takers(m, e, statuses)
         if len(takers) > 1:
             ui.notify(
-                f"{' and '.join(takers)} would all take address {target} and then answer together: "
-                "narrow the condition (P1/P2) so that only one lock meets it", type="warning", multi_line=True,
+                _("{locks} would all take address {address} and then answer together: narrow the condition (P1/P2) so "
+                  "that only one lock meets it").format(locks=_(" and ").join(takers), address=target),
+                type="warning", multi_line=True,
             )
             return
         count = len(known)
         if not await confirm(
-            f"Up to {count} lock{'s' if count != 1 else ''} on {bus} may take address {target}",
-            f"{count} lock{'s' if count != 1 else ''} known on {bus} may be affected ({in_plant} in the plant, "
-            f"{scanned} found by a scan): {', '.join(sorted(known.values()))}. Every lock whose LockStatus meets the "
-            f"condition ({_condition_text(m, e)}) takes address {target} at once; by the last status read "
-            f"{', '.join(takers) or 'none of them'} would"
-            + (f", unknown for {', '.join(unknown)}" if unknown else "")
-            + ". Locks on the line that are not known here take it too if they meet the condition. "
-            f"Afterwards send Save-Settings at address {target} and change the plant file.",
-            ok=f"Send to all ({count})",
+            lang.ngettext("Up to {n} lock on {bus} may take address {address}",
+                          "Up to {n} locks on {bus} may take address {address}", count).format(n=count, bus=bus, address=target),
+            lang.ngettext("{n} lock known on {bus} may be affected ({in_plant} in the plant, {scanned} found by a scan): "
+                          "{list}.", "{n} locks known on {bus} may be affected ({in_plant} in the plant, {scanned} found "
+                          "by a scan): {list}.", count).format(n=count, bus=bus, in_plant=in_plant, scanned=scanned,
+                                                              list=", ".join(sorted(known.values())))
+            + " " + _("Every lock whose LockStatus meets the condition ({condition}) takes address {address} at once; by "
+                      "the last status read {takers} would").format(condition=_condition_text(m, e, lang), address=target,
+                                                                    takers=", ".join(takers) or _("none of them"))
+            + (_(", unknown for {list}").format(list=", ".join(unknown)) if unknown else "")
+            + ". " + _("Locks on the line that are not known here take it too if they meet the condition. Afterwards send "
+                       "Save-Settings at address {address} and change the plant file.").format(address=target),
+            ok=_("Send to all ({n})").format(n=count), lang=lang,
         ):
             return
         # the question above names the declared risk, with the locks known here
@@ -582,8 +623,9 @@ class CanStatusCard(DeviceCard):
     """What the periodic status frame (section 6.5.1) and FWU status (6.5.2) say, as the adapter publishes it."""
 
     def build(self) -> None:
-        with titled_card("CAN status frame (every 1000 ms)"):
-            self.text = ui.label("no status frame yet").classes("text-body2 mono")
+        _ = self.view.lang.gettext
+        with titled_card(_("CAN status frame (every 1000 ms)")):
+            self.text = ui.label(_("no status frame yet")).classes("text-body2 mono")
             self.fwu = ui.label().classes("text-body2 text-warning")
 
     def refresh(self) -> None:
@@ -596,61 +638,66 @@ class CanStatusCard(DeviceCard):
         self.fwu.set_text("" if fwu is None or fwu.value is None else fwu.shown)
 
 
-def _can_commands_card(name: str, state, guard: WriteGuard) -> None:
+def _can_commands_card(name: str, state, guard: WriteGuard, lang=None) -> None:
     """Commands through 0x700 and Set Device Address through 0x701 (section 6.6)."""
+    _ = (lang or i18n.get("en")).gettext
     sources = PARAMS.by_name["LockRequestSource"].enum
-    with titled_card("CAN commands (0x700, 0x701)"):
-        broadcast = ui.checkbox("Send to all locks on this bus (broadcast, device ID 0)")
+    with titled_card(_("CAN commands (0x700, 0x701)")):
+        broadcast = ui.checkbox(_("Send to all locks on this bus (broadcast, device ID 0)"))
         with ui.row().classes("items-center"):
             source = ui.select({k: f"{v} (0x{k:02X})" for k, v in sources.items()}, label="LockRequestSource").props("dense outlined options-dense").classes("w-72")
-            guard.add(ui.button("Set", on_click=lambda: _send_source(name, source, broadcast.value)).props("dense"))
+            guard.add(ui.button(_("Set"), on_click=lambda: _send_source(name, source, broadcast.value)).props("dense"))
         with ui.row().classes("items-center"):
             rate = ui.select(
                 {k: f"{r // 1000 if r % 1000 == 0 else r / 1000:g} kbit/s" + (f" ({length})" if length else "") for k, (r, length) in codec.CAN_BITRATES.items()},
-                label="CAN bit rate",
+                label=_("CAN bit rate"),
             ).props("dense outlined options-dense").classes("w-72")
-            guard.add(ui.button("Set", on_click=lambda: _send_bitrate(name, rate, broadcast.value)).props("dense color=negative"))
+            guard.add(ui.button(_("Set"), on_click=lambda: _send_bitrate(name, rate, broadcast.value)).props("dense color=negative"))
         ui.separator()
-        ui.label("Set Device Address (0x701)").classes("text-body2 text-weight-medium")
+        ui.label(_("Set Device Address (0x701)")).classes("text-body2 text-weight-medium")
         ui.label(
-            "IDs above 0x7FF are extended (29-bit) automatically; tick Extended to use an extended ID up to 0x7FF "
-            "(the request then carries 0x80000000)."
+            _("IDs above 0x7FF are extended (29-bit) automatically; tick Extended to use an extended ID up to 0x7FF "
+              "(the request then carries 0x80000000).")
         ).classes("text-caption text-grey-8")
         with ui.row().classes("items-center"):
-            new_id = ui.input("New device ID (dec or 0x hex)").props("dense outlined").classes("w-56")
-            extended = ui.checkbox("Extended")
-            guard.add(ui.button("Send", on_click=lambda: _send_device_id(name, new_id, extended.value)).props("dense"))
+            new_id = ui.input(_("New device ID (dec or 0x hex)")).props("dense outlined").classes("w-56")
+            extended = ui.checkbox(_("Extended"))
+            guard.add(ui.button(_("Send"), on_click=lambda: _send_device_id(name, new_id, extended.value)).props("dense"))
 
 
 async def _send_source(name: str, field, broadcast: bool) -> None:
     value = field.value
     if value is None:
-        field.error = "choose a LockRequestSource first"
+        field.error = i18n.client_language().gettext("choose a LockRequestSource first")
         return
+    _ = i18n.client_language().gettext
     field.error = None
     label = PARAMS.by_name["LockRequestSource"].enum[value]
     # 0x80-0x87 (the door ignored) and a broadcast are risks the HD-Lock policy names: the gate asks them
     await run_command(name, "cmdSetLockRequestSource", args={"value": value, "broadcast": broadcast},
-                      success=f"LockRequestSource {label} sent" + (" to all locks" if broadcast else " and read back from holding 4"))
+                      success=(_("LockRequestSource {label} sent to all locks") if broadcast
+                               else _("LockRequestSource {label} sent and read back from holding 4")).format(label=label))
 
 
 async def _send_bitrate(name: str, field, broadcast: bool) -> None:
     code = field.value
     if code is None:
-        field.error = "choose a bit rate first"
+        field.error = i18n.client_language().gettext("choose a bit rate first")
         return
+    _ = i18n.client_language().gettext
     field.error = None
     rate = codec.CAN_BITRATES[code][0]
-    who = "Every lock on this bus" if broadcast else "The lock"
+    who = _("Every lock on this bus") if broadcast else _("The lock")
     if not await confirm(
-        f"Switch to {rate} bit/s?",
-        f"{who} leaves this bus at once and is unreachable until the bus itself is switched to {rate} bit/s "
-        "(change bitrate in the plant file and restart). Send Save-Settings first if other changes should be kept.",
-        ok="Switch bit rate",
+        _("Switch to {rate} bit/s?").format(rate=rate),
+        _("{who} leaves this bus at once and is unreachable until the bus itself is switched to {rate} bit/s (change "
+          "bitrate in the plant file and restart). Send Save-Settings first if other changes should be kept.").format(
+            who=who, rate=rate),
+        ok=_("Switch bit rate"),
     ):
         return
     await run_command(name, "cmdSetCANbaudrate", args={"code": code, "broadcast": broadcast}, confirmed=True,
-                      success=f"bit rate {rate} bit/s sent")  # the question above names the risk
+                      success=_("bit rate {rate} bit/s sent").format(rate=rate))  # the question above names the risk
 
 
 async def _send_device_id(name: str, field, extended: bool) -> None:
@@ -659,10 +706,10 @@ async def _send_device_id(name: str, field, extended: bool) -> None:
     try:
         value = int(str(text).strip(), 0)
         new = codec.DeviceId.make(value, extended or None)
-        reason = "0 is the broadcast address" if value == 0 else None
+        reason = N_("0 is the broadcast address") if value == 0 else None
     except (ValueError, codec.CodecError) as exc:
-        reason = str(exc) if isinstance(exc, codec.CodecError) else "a number, e.g. 11 or 0x1A2B"
-    field.error = reason
+        reason = str(exc) if isinstance(exc, codec.CodecError) else N_("a number, e.g. 11 or 0x1A2B")
+    field.error = None if reason is None else i18n.client_language().gettext(reason)  # the audit row: English
     if reason is not None:
         await refuse(name, "Set Device Address", f"{text!r}: {reason}", parameter="DeviceId", new=text)
         return
@@ -670,6 +717,7 @@ async def _send_device_id(name: str, field, extended: bool) -> None:
     ok, heard = await run_command(name, "Set Device Address", args={"new_value": new.value, "extended": new.extended})
     if ok:
         if heard:
-            ui.notify(f"The lock answers under {new} now", type="positive")
+            ui.notify(i18n.client_language().gettext("The lock answers under {id} now").format(id=new), type="positive")
         else:
-            ui.notify("No frame under the new ID: the lock may have kept its old ID", type="warning")
+            ui.notify(i18n.client_language().gettext("No frame under the new ID: the lock may have kept its old ID"),
+                      type="warning")

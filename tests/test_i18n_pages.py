@@ -341,3 +341,21 @@ async def test_the_electrak_page_in_german_shows_no_english(tmp_path):
         # the simulation card's words are declared by devices/electrak/sim.py (pages/simcontrols.py joins later)
         found = [(text, message) for text, message in english_on(user, skip=("sim-card",)) if text not in descriptions]
         assert found == [], "\n".join(map(str, found))
+
+
+async def test_the_hdlock_page_in_german_shows_no_english_but_the_parameters_own_words(tmp_path):
+    """The lock's page (document 000): its cards, the LockStatus and the states in German, register and bit names as the
+    document prints them, descriptions the parameter model's."""
+    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await eventually(lambda: runtime.store.devices["door-1"].status == "online", timeout=15, what="door-1 online")
+        await user.open("/device/door-1")
+        await user.should_see("HD-Lock door-1", retries=50)
+        await user.should_see("Parameter (RW-Holding-Register)")
+        await user.should_see("Set Modbus Address an jedes Schloss von line1 (Broadcast 255)")
+        await user.should_see("Tür geöffnet", retries=100)  # DoorState in the document's words
+        descriptions = {p.description for p in runtime.store.devices["door-1"].params.by_name.values()}
+        # the simulation card's words are declared by devices/hdlock/sim.py (pages/simcontrols.py joins later)
+        found = [(text, message) for text, message in english_on(user, skip=("sim-card",))
+                 if text not in descriptions and not any(text.endswith(f": {d}") for d in descriptions)]
+        assert found == [], "\n".join(map(str, found))
