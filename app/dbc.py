@@ -8,7 +8,7 @@ IDs its SW1 gives, the Electrak network's control, status and service telegrams.
 
 Each device type describes its own frames in ``devices/<type>/dbc.py`` (``dbc_messages`` per
 device, ``dbc_bus_messages`` for frames its devices share); this module names no device type.
-The descriptions are checked against the codecs' decoders in tests/test_dbc.py.
+The descriptions are checked against the codecs' decoders in tests/devices/test_dbc.py.
 
 CLI: ``commission dbc --plant P --bus B --out FILE.dbc`` (:func:`add_parser`, :func:`run`);
 the monitor gets the text with :func:`dbc_text`.

@@ -1,6 +1,6 @@
 """What differs between the systems the tool runs on: Linux, Windows and macOS.
 
-Every call that only some systems have is made here and nowhere else (tests/test_platform_layering.py
+Every call that only some systems have is made here and nowhere else (tests/app/test_platform_layering.py
 parses app/, devices/, pages/ and server/ and fails on one outside this module), each with the fallback
 the other systems get. What each system gets (docs/windows-macos.md says it for users):
 
@@ -25,7 +25,7 @@ the other systems get. What each system gets (docs/windows-macos.md says it for 
 - an atomic save's file mode (:func:`copy_mode`): ``fchmod`` where the system has it.
 
 The branches read ``sys.platform`` and ``os.name`` when called, not at import, so tests set them to Windows'
-and macOS' values and run those branches here (tests/test_platform.py). Where a call may simply be missing
+and macOS' values and run those branches here (tests/app/test_platform.py). Where a call may simply be missing
 or refused the module tries it and falls back (:class:`Unsupported` is an OSError, so callers that already
 catch OSError need nothing new).
 """

@@ -1,6 +1,6 @@
 """The safety invariants over many random fault sequences, per device family (issue 40).
 
-Each family's stateful property test (``tests/test_safety_<family>.py``) declares its hypothesis
+Each family's stateful property test (``tests/safety/test_safety_<family>.py``) declares its hypothesis
 ``RuleBasedStateMachine`` in ``SAFETY_MACHINES`` (and plain ``@given`` properties in
 ``SAFETY_PROPERTIES``). The suite runs a bounded, derandomised number of sequences; this runs at
 least ``--sequences`` (1,000) per family with a random seed, so each run explores new sequences, and
@@ -23,7 +23,7 @@ import traceback
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "tests" / "safety")]
 
 FAMILIES = ("hdlock", "m3io", "scu", "mo64", "electrak")
 

@@ -44,7 +44,7 @@ class BackupDefaults:
 @runtime_checkable
 class BackupAdapter(Protocol):
     """Reads its device's settings for a backup file and names the device. Every one inherits
-    :class:`BackupDefaults` (tests/test_adapter_contract.py), so app/ reads ``backup_available``,
+    :class:`BackupDefaults` (tests/devices/test_adapter_contract.py), so app/ reads ``backup_available``,
     ``restore_wear`` and ``restore_refused`` of a backup adapter without probing."""
 
     async def backup_read(self, progress: Callable[[float], Any] | None = None) -> list[dict]: ...

@@ -17,7 +17,7 @@ The rules every family shares:
 - a page that disconnects stops what it runs at once (it keeps control until it is gone for good);
   a page gone for good stops and releases.
 
-No import of asyncio, threading, sockets or any bus library (tests/test_control_layering.py).
+No import of asyncio, threading, sockets or any bus library (tests/safety/test_control_layering.py).
 """
 
 from __future__ import annotations

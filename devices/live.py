@@ -224,7 +224,7 @@ class DeviceState:
     unsaved: set[str] = field(default_factory=set)  # parameter keys written since Save-Settings
     # adapter-specific live facts of the families not yet moved to published points (HD-Lock, Electrak,
     # M3IO, SCU): pages of those families still read it. A moved family (MO 64) publishes every fact as a
-    # point or a record (:meth:`fact`) and writes nothing here; tests/test_layering.py lists who still reads it
+    # point or a record (:meth:`fact`) and writes nothing here; tests/app/test_layering.py lists who still reads it
     info: dict[str, Any] = field(default_factory=dict)
     points: dict[str, Point] = field(default_factory=dict)  # live points by the document's names
     registers_periodic: bool = True  # False: register values are read on demand (they do not age)

@@ -16,6 +16,10 @@ import pytest
 # (standard library only: bench/liveapp.py)
 sys.path.append(str(Path(__file__).resolve().parent.parent))
 sys.path.append(str(Path(__file__).resolve().parent.parent / "bench"))
+# the tests live in folders by layer; the shared helpers (webutil, plants, ...) here, and a test may import
+# another's fixture or plant (from test_electrak import lift) across the folders
+TESTS = Path(__file__).resolve().parent
+sys.path[:0] = [str(TESTS)] + [str(TESTS / layer) for layer in ("app", "browser", "devices", "pages", "safety")]
 
 from liveapp import CHROMIUM_ARGS, free_port, free_udp_port, wait_devices_online  # noqa: E402
 from plants import heater_and_lock, modbus_plant  # noqa: E402

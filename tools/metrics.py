@@ -18,7 +18,7 @@ Each figure is read from the source with :mod:`ast` (comments and strings do not
 * ``exception_roots``: exception classes of the project whose bases are none of the project's exception
   classes (one root: every refusal a caller can catch by one type).
 
-``tests/test_metrics.py`` holds the figures that are rules as ceilings.
+``tests/app/test_metrics.py`` holds the figures that are rules as ceilings.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ a bound. This script lists every ``asyncio.sleep``/``time.sleep`` call under tes
 - ``poll``: inside a loop (a bounded wait on a condition, or a sender's period);
 - ``yield``: ``sleep(0)``, handing the event loop over once;
 - ``delay``: a constant delay with its reason, the comment on its line or the line above;
-- ``UNEXPLAINED``: a constant delay without a reason (``tests/test_sleeps.py`` fails on any).
+- ``UNEXPLAINED``: a constant delay without a reason (``tests/app/test_sleeps.py`` fails on any).
 
 Run: ``python -m tools.sleeps`` (``--all`` lists every sleep, not only the delays).
 """

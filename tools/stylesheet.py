@@ -6,7 +6,7 @@ new page shows its first values. The classes a page can carry are the ones writt
 program's source, so they are compiled here once instead, with the same compiler (NiceGUI's
 ``tailwindcss.min.js``, run in chromium) and the app runs with ``tailwind=False``.
 
-Regenerate after changing classes (``tests/test_stylesheet_browser.py`` fails until then)::
+Regenerate after changing classes (``tests/browser/test_stylesheet_browser.py`` fails until then)::
 
     python -m tools.stylesheet
 
@@ -31,7 +31,7 @@ PRELUDE = "@custom-variant dark (&:where(body.body--dark, body.body--dark *));"
 TOKEN = re.compile(r"[a-z!-][a-z0-9:\-\[\]/.%_#()!,]*")
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
 # classes Quasar and plotly put on the pages themselves (found on the demo plant's pages by
-# tests/test_stylesheet_browser.py): the compiler in the browser made rules for them too,
+# tests/browser/test_stylesheet_browser.py): the compiler in the browser made rules for them too,
 # the same as Quasar's and plotly's own
 RENDERED_CLASSES = (
     "absolute", "flex", "inline", "justify-center", "overflow-hidden", "self-stretch",

@@ -18,7 +18,7 @@ of what runs, the dead-man rule. This module adds what is the Electrak's own (do
 
 Events in (methods), actions out (lists of the dataclasses below and of :mod:`devices.control`'s
 :class:`Report` and :class:`ControlChanged`); every method takes ``now``, monotonic seconds of the
-caller's clock. No I/O (tests/test_control_layering.py); the adapter (devices/electrak/adapter.py)
+caller's clock. No I/O (tests/safety/test_control_layering.py); the adapter (devices/electrak/adapter.py)
 carries the actions out on python-can's periodic sender.
 """
 

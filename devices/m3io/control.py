@@ -19,7 +19,7 @@ The rules (the M3IO document, sections 7 and 7.1):
   asked nothing) is never fought: control is refused while it was heard within 2 s, and this tool stops
   sending as soon as one appears. An answer to this tool's own request is no sign of another master.
 
-No import of asyncio, threading, sockets or any bus library (tests/test_control_layering.py).
+No import of asyncio, threading, sockets or any bus library (tests/safety/test_control_layering.py).
 """
 
 from __future__ import annotations

@@ -23,7 +23,7 @@ The rules (document 003, chapter 5.2.1; SPEC-NOTES "Operating commands"):
 - a session without the engineer role moves nothing and sets nothing: it may only stop (deactivate a
   close or reverse level), as the gate lets every role stop.
 
-No import of asyncio, threading, sockets, clocks or bus libraries (tests/test_control_layering.py).
+No import of asyncio, threading, sockets, clocks or bus libraries (tests/safety/test_control_layering.py).
 """
 
 from __future__ import annotations

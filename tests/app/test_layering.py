@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 LAYERS = ("server", "pages", "app", "devices")  # top to bottom; a layer may import only the layers below it
 
 # server/ is the composition root: the pages' routes on app/web.py's server. The console script

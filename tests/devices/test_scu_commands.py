@@ -75,7 +75,7 @@ def test_the_scu_declares_its_commands_with_their_kinds():
 
 
 def test_the_scu_page_invokes_commands_by_name_without_write_flags():
-    tree = ast.parse((Path(__file__).resolve().parent.parent / "pages" / "scu.py").read_text())
+    tree = ast.parse((Path(__file__).resolve().parents[2] / "pages" / "scu.py").read_text())
     flags = [n.lineno for n in ast.walk(tree) if isinstance(n, ast.keyword) and n.arg == "write"]
     assert flags == [], f"write= flags in pages/scu.py at lines {flags}"
     declared = set(commands_of("scu"))

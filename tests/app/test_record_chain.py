@@ -20,7 +20,7 @@ from app.record import RecordStore
 from app.verify import check_archive, check_database, content_sha256
 
 pytestmark = pytest.mark.timeout(120)
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _store(tmp_path: Path) -> RecordStore:

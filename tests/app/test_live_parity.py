@@ -2,7 +2,7 @@
 
 The page is built by NiceGUI's simulated user against the device's twin; every name it reads from
 the device's live record (``live``, ``point``, ``entry``) is recorded. Pages read nothing else of a
-device (tests/test_layering.py: no adapter, no twin, no ``info``), so what the page shows is these
+device (tests/app/test_layering.py: no adapter, no twin, no ``info``), so what the page shows is these
 values plus the summary (status, age, last error, counters). Each must be in ``/api/devices/{name}``
 and in the MQTT ``state`` and ``status`` payloads, with the same value. One device type per row: a
 family is switched on here when its page is moved to the store.
@@ -49,7 +49,7 @@ def m3io_plant() -> Plant:
                          name="can3", bitrate=500000))
 
 
-NOT_MOVED = "its page still reads adapters or info (tests/test_layering.py STORE_ONLY_PENDING)"
+NOT_MOVED = "its page still reads adapters or info (tests/app/test_layering.py STORE_ONLY_PENDING)"
 FAMILIES = [
     pytest.param("mo64", "gate", mo64_plant, id="mo64"),
     pytest.param("hdlock", "door-1", hdlock_plant, id="hdlock"),

@@ -14,7 +14,7 @@ from app.cli import main
 from app.plant import parse_plant
 from app.runtime import Runtime
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_help_documents_everything(capsys):

@@ -18,7 +18,7 @@ from devices.hdlock.sim import HdLockTwin
 from devices.m3io import codec as m3io
 from devices.m3io.sim import M3ioTwin
 
-DEMO = Path(__file__).resolve().parent.parent / "plants" / "demo.toml"
+DEMO = Path(__file__).resolve().parents[2] / "plants" / "demo.toml"
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,7 @@
 
 The worker runs for real (its dead-man supervisor renews the lease while the page of ``s1`` beats);
 the twin runs on an event loop of its own in another thread, so that blocking the program's loop on
-purpose (``time.sleep`` run as a loop callback, as tests/test_keepalive_lease.py does) does not block
+purpose (``time.sleep`` run as a loop callback, as tests/safety/test_keepalive_lease.py does) does not block
 the unit. What the unit saw is read from the twin: RC arrivals, RE/RS with their times, the watchdog.
 """
 

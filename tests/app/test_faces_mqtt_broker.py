@@ -23,7 +23,7 @@ from app.plant import parse_plant
 from app.state import StateStore
 from devices.live import DeviceState
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.timeout(90)
 INSTANCE_TOPIC = "commission/hall-3/$instances/cab-a"
 

@@ -182,7 +182,7 @@ def test_monitor_names_devices_and_decodes_values_in_browser(app_url: str, chrom
     assert device is not None and 0 <= device["x"] and device["x"] + device["width"] <= 1024, device
     page.screenshot(path=str(tmp_path / "monitor-names-1024.png"))
 
-    # (the M3IO modules of can3 send their TEMP frames only while served: tests/test_monitor.py decodes them)
+    # (the M3IO modules of can3 send their TEMP frames only while served: tests/app/test_monitor.py decodes them)
     page.set_viewport_size({"width": 1440, "height": 900})
     page.goto(f"{app_url}/monitor/line1")
     rows = page.locator(".q-table tbody tr")

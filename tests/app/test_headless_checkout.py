@@ -27,7 +27,7 @@ from app.runtime import Runtime, SimulatedPlant
 from devices.mo64 import codec
 
 pytestmark = pytest.mark.timeout(120)
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @contextlib.asynccontextmanager

@@ -1,6 +1,6 @@
 """The bus monitor of an SCU's RS232 line and of a LogiTed line (issue 42 item 11): telegrams decoded in the words of
 their device pages (not "ACK, 53 data bytes", not "between others"). The pages and their filters:
-tests/test_monitor_lines_pages.py."""
+tests/pages/test_monitor_lines_pages.py."""
 
 from __future__ import annotations
 

@@ -18,7 +18,7 @@ from app import files
 from app.cli import main
 from plants import modbus_line, plant_text
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.timeout(240)
 MEMORY = 1 << 30  # the command under test gets this much address space: /dev/zero must not take the machine
 

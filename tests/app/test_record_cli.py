@@ -17,7 +17,7 @@ from tests.recordutil import demo_runtime
 
 pytestmark = pytest.mark.timeout(180)
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _plant(tmp_path: Path) -> Path:

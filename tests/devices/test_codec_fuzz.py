@@ -14,7 +14,7 @@ import pytest
 
 from devices.hdlock import codec as hdlock
 
-_spec = importlib.util.spec_from_file_location("fuzz_codecs", Path(__file__).resolve().parent.parent / "bench" / "fuzz_codecs.py")
+_spec = importlib.util.spec_from_file_location("fuzz_codecs", Path(__file__).resolve().parents[2] / "bench" / "fuzz_codecs.py")
 fuzz = importlib.util.module_from_spec(_spec)
 sys.modules["fuzz_codecs"] = fuzz  # dataclasses look their module up by name
 _spec.loader.exec_module(fuzz)

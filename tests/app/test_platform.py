@@ -21,7 +21,7 @@ from app import host, memory, realtime, runtime, web
 from app.users import UserStore, default_data_dir
 from plants import modbus_line, plant_text
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture

@@ -21,7 +21,7 @@ from devices.mo64 import codec
 from devices.mo64.adapter import CommandError
 
 pytestmark = pytest.mark.timeout(60)
-PAGE = Path(__file__).resolve().parent.parent / "pages" / "mo64.py"
+PAGE = Path(__file__).resolve().parents[2] / "pages" / "mo64.py"
 OPEN, CLOSE, REVERSE = codec.Command.OPEN, codec.Command.CLOSE, codec.Command.REVERSE
 
 

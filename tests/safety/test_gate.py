@@ -24,7 +24,7 @@ from devices.registry import DEVICE_TYPES
 from plants import channel, heater_and_lock
 from tests.conftest import wait_for
 
-DEMO = Path(__file__).resolve().parent.parent / "plants" / "demo.toml"
+DEMO = Path(__file__).resolve().parents[2] / "plants" / "demo.toml"
 _n = itertools.count()
 
 
