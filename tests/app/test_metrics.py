@@ -13,15 +13,14 @@ import pytest
 from tools import metrics
 
 LONG_MODULES = {  # the modules over 700 lines: none may join them
-    "app/plant.py", "app/record.py", "devices/hdlock/params.py", "devices/mo64/codec.py",
-    "devices/mo64/sim.py", "pages/can_monitor.py",
-    "pages/electrak.py", "pages/scu.py", "pages/widgets.py",
+    "devices/hdlock/params.py", "devices/mo64/codec.py", "devices/mo64/sim.py", "pages/can_monitor.py",
+    "pages/electrak.py", "pages/scu.py",
 }
 LARGE_CLASSES = {  # the classes over 30 attributes: none may join them
     "M3ioAdapter", "Mo64Adapter", "Mo64Twin", "ScuTwin",
 }
 CEILINGS = {
-    "getattr_default": 125,
+    "getattr_default": 117,
     "hasattr": 15,
     "except_exception": 129,
     "private_access": 20,
