@@ -145,3 +145,20 @@ ELECTRAK_FLAGS = (
 )
 # doc: Electrak HD, 004: the declared risk of every motion of the network (devices/electrak/policy.py)
 ELECTRAK_RISKS = (N_("The actuators move: check that the area is clear (nobody and nothing in the stroke of any actuator of the network, nor under the load they carry)."),)
+# doc: Ewellix SCU, 002, table 7 (remote data: volatile) and the Safety_ID (what the unit does on a communication timeout),
+# as devices/scu/model.py and codec.py word them
+SCU_WORDS = (
+    N_('volatile remote data (table 7): the unit keeps it until its next reset, then starts again with its configured default'),
+    N_('On a communication timeout (0.5 s) every motion is stopped and none is started; after the timeout only RC, RA and RO are available.'),
+    N_('On a communication timeout (0.5 s) every motion is stopped.'),
+    N_('On a communication timeout (0.5 s) only the remote motion is stopped (firmware V2B3 and later).'),
+)
+# doc: Ewellix SCU, 002, sections 4.1 (RG outside remote mode) and 4.3 (the cyclic object 0x3001 with every RC): how the
+# unit is watched, as devices/scu/adapter.py and opening.py word it
+SCU_WATCH_WORDS = (
+    N_("watching with RG outside a remote session: the unit answers RG without remote mode; the session (RO, RC) is opened only while someone holds control or a function runs"),
+    N_("the remote session is open for reading only: the unit refuses RG outside remote mode (section 4.1); no RE is sent unless a page holds control"),
+    N_("not known yet: the first RG outside a session tells"),
+    N_("cyclic object 0x3001: positions, status 1 and 2, currents, error code, mains/battery with every RC"),
+    N_("RC without data (the unit refused the cyclic object); live data is read with RG"),
+)

@@ -14,7 +14,9 @@ from datetime import datetime
 
 from nicegui import ui
 
+from app import i18n
 from app import worker as worker_module
+from app.i18n import N_
 from devices.scu import facts
 from devices.scu import codec
 from devices.scu import params as p
@@ -27,31 +29,36 @@ from pages.simcontrols import sim_card
 from pages.widgets import entry_age, follow
 from pages.command_client import checked_value, confirm, enable_unless, WriteGuard
 from pages.charts import HistoryChart
-from pages.widgets import html_attr, INT32_LIMIT, lamp_html, LampStrip, mark_quality, quality_note, range_number
+from pages.widgets import columns, html_attr, INT32_LIMIT, lamp_html, LampStrip, mark_quality, quality_note, range_number
 from pages.command_client import session_role
 from pages.widgets import stop_bar, value_html
 
 # Actuator status 1 (0x0171..) and 2 (0x00E1..): point key -> its words in table 6 (the adapter publishes one point per bit)
 STATUS_BITS = {f.name: f.description for f in p.ACTUATOR_STATUS_1.fields + p.ACTUATOR_STATUS_2.fields}
-SWITCHES = ((codec.Function.BUZZER, "Buzzer"), (codec.Function.BINARY_OUTPUT_1, "Binary output 1"),
-            (codec.Function.BINARY_OUTPUT_2, "Binary output 2"), (codec.Function.LED_1, "Operating unit LED1"),
-            (codec.Function.LED_2, "Operating unit LED2"))
+SWITCHES = ((codec.Function.BUZZER, N_("Buzzer")), (codec.Function.BINARY_OUTPUT_1, N_("Binary output 1")),
+            (codec.Function.BINARY_OUTPUT_2, N_("Binary output 2")), (codec.Function.LED_1, N_("Operating unit LED1")),
+            (codec.Function.LED_2, N_("Operating unit LED2")))
 SUPPLY_LAMPS = ("Mains", "Battery", "Charger on", "Charging", "Output 1", "Output 2", "Buzzer", "Sensor supply")
+SUPPLY_WORDS = (N_("Mains"), N_("Battery"), N_("Charger on"), N_("Charging"), N_("Output 1"), N_("Output 2"),
+                N_("Sensor supply"))  # the lamps' names (data 0x0100 Battery Mains, 0x0110 outputs)
 # the I/O lines: point key (as the adapter publishes it) -> data ID, whose declaration names and words it
 IO_POINTS = {"Battery voltage": 0x0164, "Actual_State_Binary Inputs 1 ... 4": 0x0020, "Analogue input 1": 0x0031,
              "Analogue input 2": 0x0032, "Analogue input 3": 0x0033, "Analogue input 4": 0x0034,
              "Binary Output Status": 0x0110, "LED HS": 0x0120, "LED LB": 0x0130, "Lock Status": 0x0162,
              "Locking Box detected": 0x0165, "Benutzer": 0x0166}
-ERROR_POINTS = {"Error code": "Error code (last)", "Error history 1": "Error history 1", "Error history 2": "Error history 2",
-                "Error history 3": "Error history 3", "Error history 4": "Error history 4 (oldest)"}
-RAW_NOTE = "the raw value as the unit sends it, for the vendor"
+ERROR_POINTS = {"Error code": N_("Error code (last)"), "Error history 1": N_("Error history 1"),
+                "Error history 2": N_("Error history 2"), "Error history 3": N_("Error history 3"),
+                "Error history 4": N_("Error history 4 (oldest)")}
+RAW_NOTE = N_("the raw value as the unit sends it, for the vendor")
 
 
-def _stop_rule() -> str:
-    return (f"Every RE (Go, jog, function on) is followed by its RS: on Stop, on release of a jog button, on release "
-            f"of control, and within {worker_module.DEADMAN_BOUND_S:g} s when this browser closes, disconnects or "
-            "freezes (dead-man rule), and after a lost session, even when the actuator stopped at its end position "
-            "(section 4.6). Without RC for 500 ms the unit itself stops and leaves remote mode.")
+def _stop_rule(lang=None) -> str:
+    return (lang or i18n.get("en")).gettext(
+        "Every RE (Go, jog, function on) is followed by its RS: on Stop, on release of a jog button, on release "
+        "of control, and within {bound} s when this browser closes, disconnects or "
+        "freezes (dead-man rule), and after a lost session, even when the actuator stopped at its end position "
+        "(section 4.6). Without RC for 500 ms the unit itself stops and leaves remote mode.").format(
+        bound=f"{worker_module.DEADMAN_BOUND_S:g}")
 
 
 def io_text(key: str, entry: dict) -> tuple[str, str]:
@@ -107,16 +114,18 @@ class ScuView(DeviceView):
         self.guard.update()
         sess = self.fact(facts.P_SESSION, "closed")
         reason = self.fact(facts.P_SESSION_REASON, "")
+        _ = self.lang.gettext
         lost = ""  # a lost or released session: nothing reaches the unit until it is open again
         if sess in ("lost", "released"):
-            lost = (f"the remote session is {sess}" + (f" ({reason})" if reason else "")
-                    + ("; it is reopened with backoff, or press \"Open the remote session\"" if sess == "lost"
-                       else "; press \"Open the remote session\" to drive again"))
+            lost = (_("the remote session is {state}").format(state=self.lang.phrase(sess, "Session"))
+                    + (f" ({reason})" if reason else "")
+                    + (_("; it is reopened with backoff, or press \"Open the remote session\"") if sess == "lost"
+                       else _("; press \"Open the remote session\" to drive again")))
         holder = self.fact(facts.P_CONTROL)
-        return Access(role="a viewer cannot change anything" if self.viewer else "",
+        return Access(role=_("a viewer cannot change anything") if self.viewer else "",
                       offline=self.guard.reason,  # writes and motion wait for a unit that answers; the stops never do
                       lost=lost,
-                      estop="the emergency stop (function 19) is on: release it first" if self.fact(facts.P_ESTOP) else "",
+                      estop=_("the emergency stop (function 19) is on: release it first") if self.fact(facts.P_ESTOP) else "",
                       holder=holder, mine=holder is not None and holder.session == self.tag)
 
     def refresh(self) -> None:
@@ -148,8 +157,12 @@ class SessionCard(DrawnCard):
 
     def build(self) -> None:
         view, state = self.view, self.view.state
-        self.status = StatusRow(state, lambda c: f"requests {c.requests} · answers {c.responses} · timeouts {c.timeouts} · "
-                                f"bad CRC {c.crc_errors} (retried) · error answers {c.exceptions} · seen {fmt_age(state.age)}")
+        lang = view.lang
+        _ = lang.gettext
+        self.status = StatusRow(state, lambda c: _("requests {requests} · answers {answers} · timeouts {timeouts} · bad CRC "
+                                                   "{crc} (retried) · error answers {exceptions} · seen {age}").format(
+            requests=c.requests, answers=c.responses, timeouts=c.timeouts, crc=c.crc_errors, exceptions=c.exceptions,
+            age=fmt_age(state.age, lang)), lang)
         with ui.card().classes("w-full"):
             with self.status.build():
                 self.session = ui.label().classes("text-body1").props("data-testid=session")
@@ -158,43 +171,47 @@ class SessionCard(DrawnCard):
             self.refusal = ui.label().classes("text-warning text-body2").props("data-testid=refusal")
             self.error_line = ui.label().classes("text-negative text-body2")
             line = view.fact(facts.P_LINE)
-            ui.label(f"Line {line.port} at {line.baudrate} baud 8N1. DTR and RTS are switched on when the port "
-                     "opens and kept on: they power the unit's RS232 converter (section 3).").classes("text-caption text-grey-8")
+            ui.label(_("Line {port} at {baud} baud 8N1. DTR and RTS are switched on when the port opens and kept on: they "
+                       "power the unit's RS232 converter (section 3).").format(port=line.port, baud=line.baudrate)).classes("text-caption text-grey-8")
             safety_id = view.fact(facts.P_SAFETY_ID)
-            with ui.expansion(f"Safety_ID {safety_id} (RO): what the unit does on a communication timeout") \
+            with ui.expansion(_("Safety_ID {id} (RO): what the unit does on a communication timeout").format(id=safety_id)) \
                     .classes("w-full text-caption"):
                 for sid, text in codec.SAFETY_MODES.items():
-                    ui.label(f"{int(sid)}: {text}" + ("  ← this plant" if sid == safety_id else "")) \
+                    ui.label(f"{int(sid)}: {_(text)}" + ("  ← " + _("this plant") if sid == safety_id else "")) \
                         .classes("text-caption" + (" text-weight-bold" if sid == safety_id else ""))
             with ui.row():
-                self.release_scu = ui.button("Release the SCU (RA)", icon="pan_tool", on_click=lambda: view.act(
-                    "release the SCU (RA)", success="released: the hand switch has the unit")) \
+                self.release_scu = ui.button(_("Release the SCU (RA)"), icon="pan_tool", on_click=lambda: view.act(
+                    "release the SCU (RA)", success=_("released: the hand switch has the unit"))) \
                     .props("outline data-testid=release-scu")
-                self.reopen = ui.button("Open the remote session", icon="link",
+                self.reopen = ui.button(_("Open the remote session"), icon="link",
                                         on_click=lambda: view.act("open remote session")).props("outline")
         follow(state, self.show_period, slow=True)
         self.show_period()
 
     def show_period(self) -> None:  # a statistic of every RC: once a second
         period, gap = self.view.fact(facts.P_RC_PERIOD), self.view.fact(facts.P_RC_GAP)
-        self.period.set_text(f"RC period {period:g} ms, longest gap {gap:g} ms" if period is not None and gap is not None
-                             else "RC period: -")
+        lang = self.view.lang
+        self.period.set_text(lang.gettext("RC period {period} ms, longest gap {gap} ms").format(
+            period=lang.number(period), gap=lang.number(gap)) if period is not None and gap is not None
+            else lang.gettext("RC period: -"))
 
     def inputs(self, access: Access) -> tuple:
         return super().inputs(access), self.view.state.last_error
 
     def draw(self, access: Access) -> None:
         view, state = self.view, self.view.state
+        _ = view.lang.gettext
         self.status.refresh()
         reason = view.fact(facts.P_SESSION_REASON, "")
-        self.session.set_text(f"remote session: {view.fact(facts.P_SESSION, 'closed')}" + (f" ({reason})" if reason else ""))
+        self.session.set_text(_("remote session: {text}").format(text=view.lang.phrase(view.fact(facts.P_SESSION, "closed"), "Session"))
+                              + (f" ({reason})" if reason else ""))
         watch = state.live(facts.P_WATCH)
-        self.cyclic.set_text(" · ".join(x for x in (watch.text if watch else "", view.fact(facts.P_CYCLIC, "")) if x))
+        self.cyclic.set_text(" · ".join(_(x) for x in (watch.text if watch else "", view.fact(facts.P_CYCLIC, "")) if x))
         refusal = state.live(facts.P_REFUSAL)
-        self.refusal.set_text(f"last error answer: {refusal.text}" if refusal is not None and refusal.value else "")
+        self.refusal.set_text(_("last error answer: {text}").format(text=refusal.text) if refusal is not None and refusal.value else "")
         self.error_line.set_text(state.last_error if state.online is False else "")
         # opening again is how a session recovers; RA hands the unit back
-        enable_unless(self.reopen, access.role or ("the remote session is open" if view.fact(facts.P_SESSION) == "open" else ""))
+        enable_unless(self.reopen, access.role or (_("the remote session is open") if view.fact(facts.P_SESSION) == "open" else ""))
         enable_unless(self.release_scu, access.role)
 
 
@@ -218,7 +235,8 @@ class EstopCard(DrawnCard):
         estop = self.view.state.live(facts.P_ESTOP)
         on = bool(estop is not None and estop.value)
         self.banner.set_visibility(on)
-        self.text.set_text(f"EMERGENCY STOP (F20) {estop.text}" if on else "")
+        self.text.set_text(self.view.lang.gettext("EMERGENCY STOP (F20) {text}").format(text=self.view.lang.phrase(estop.text))
+                           if on else "")
 
 
 class PositionsCard(DrawnCard):
@@ -230,7 +248,7 @@ class PositionsCard(DrawnCard):
         self.POINTS = tuple(f"A{s.number} {what}" for s in view.scales for what in ("position", "in end", "out end"))
 
     def build(self) -> None:
-        with titled_card("Positions"):
+        with titled_card(self.view.lang.gettext("Positions")):
             with ui.grid(columns=3).classes("w-full gap-x-4 gap-y-1 items-center").style("grid-template-columns: 60px 1fr 280px"):
                 for s in self.view.scales:
                     ui.label(f"A{s.number}").classes("text-body1")
@@ -239,7 +257,7 @@ class PositionsCard(DrawnCard):
                         text = ui.label("-").classes("mono").props(f"data-testid=pos-A{s.number}")
                         age = ui.label().classes("q-age")
                     self.rows.append((s.number, bar, text, cell, age))
-            HistoryChart(self.view.state, list(chart_points(self.view.scales)), window_s=60, height=260)
+            HistoryChart(self.view.state, list(chart_points(self.view.scales)), window_s=60, height=260, lang=self.view.lang)
 
     def inputs(self, access: Access) -> tuple:
         state = self.view.state
@@ -254,12 +272,12 @@ class PositionsCard(DrawnCard):
             quality = "unknown" if e is None else e["quality"]
             mark_quality(cell, quality)  # greyed, with its age, while stale or offline
             mark_quality(bar, quality)
-            age.set_text(quality_note(quality, entry_age(e)) if quality in ("stale", "offline") else "")
+            age.set_text(quality_note(quality, entry_age(e), self.view.lang) if quality in ("stale", "offline") else "")
             good = good and not _aging(quality)
             if e is None:
                 text.set_text("-")
                 continue
-            text.set_text(e["text"] or str(e["value"]))
+            text.set_text(self.view.lang.numbers_in(e["text"] or str(e["value"])))
             if lo and hi and hi["value"] != lo["value"]:
                 bar.set_value(max(0.0, min(1.0, (e["value"] - lo["value"]) / (hi["value"] - lo["value"]))))
         return good
@@ -275,7 +293,7 @@ class StatusCard(DrawnCard):
                             for key in (*STATUS_BITS, "current", "speed"))
 
     def build(self) -> None:
-        with titled_card("Actuator status 1 (0x0171..) and 2 (0x00E1..), current (0x00A1..), speed (0x00F1..)"):
+        with titled_card(self.view.lang.gettext("Actuator status 1 (0x0171..) and 2 (0x00E1..), current (0x00A1..), speed (0x00F1..)")):
             with ui.row().classes("gap-8 items-start"):
                 for n in range(1, len(self.view.scales) + 1):
                     with ui.column().classes("gap-0"):
@@ -292,8 +310,9 @@ class StatusCard(DrawnCard):
                 good = good and (entry is None or not _aging(entry["quality"]))
             for what in ("current", "speed"):
                 e = point(f"A{n} {what}")
+                lang = self.view.lang
                 parts.append(value_html(f"A{n} {what}", f"{what}-A{n}",
-                                         "-" if e is None else f"{what}: {e['value']:g} {e['unit']}".strip(), e))
+                                         "-" if e is None else f"{lang.gettext(what)}: {lang.number(e['value'])} {e['unit']}".strip(), e))
                 good = good and (e is None or not _aging(e["quality"]))
             strip.show(parts)
         return good
@@ -303,17 +322,18 @@ class SupplyCard(DrawnCard):
     """Mains, battery and outputs as lamps; the I/O values, one line per point."""
 
     POINTS = SUPPLY_LAMPS + tuple(IO_POINTS)
-    TIPS = {key: f"{p.item(data_id).key} {p.item(data_id).name}: {RAW_NOTE}" for key, data_id in IO_POINTS.items()}
+    TIPS = {key: f"{p.item(data_id).key} {p.item(data_id).name}: " for key, data_id in IO_POINTS.items()}
 
     def build(self) -> None:
-        with titled_card("Supply and I/O"):
+        with titled_card(self.view.lang.gettext("Supply and I/O")):
             self.lamps = LampStrip("nicegui-row row gap-6")
             self.lines = LampStrip("nicegui-column gap-0 text-body2")  # one line per point
 
     def draw(self, access: Access) -> bool:
         point, good, parts = self.view.state.point, True, []
         lamps = [(key, point(key)) for key in SUPPLY_LAMPS]
-        self.lamps.show([lamp_html(key, key, entry) for key, entry in lamps])
+        _ = self.view.lang.gettext
+        self.lamps.show([lamp_html(key, _(key), entry) for key, entry in lamps])
         for key in IO_POINTS:
             e = point(key)
             if e is None:
@@ -323,7 +343,7 @@ class SupplyCard(DrawnCard):
             marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
             parts.append(f'<div class="nicegui-row row items-baseline gap-2 no-wrap{marks}" data-io="{html_attr(key)}" '
                          f'data-quality="{quality}"><div>{html.escape(words)}</div>'
-                         f'<div class="mono text-caption text-grey-7" data-tip="{html_attr(self.TIPS[key])}">'
+                         f'<div class="mono text-caption text-grey-7" data-tip="{html_attr(self.TIPS[key] + _(RAW_NOTE))}">'
                          f'{html.escape(code)}</div></div>')
             good = good and not _aging(quality)
         self.lines.show(parts)
@@ -341,15 +361,16 @@ class ErrorsCard(DrawnCard):
         self.shown: dict[str, int] = {}
 
     def build(self) -> None:
-        with titled_card("Error code (0x00D1) and history (0x00D2..0x00D5), bit n = mask 1 << (n-1)"):
+        _ = self.view.lang.gettext
+        with titled_card(_("Error code (0x00D1) and history (0x00D2..0x00D5), bit n = mask 1 << (n-1)")):
             with ui.column().classes("gap-1").props("data-testid=errors"):
                 for key, title in ERROR_POINTS.items():
                     with ui.column().classes("gap-1").props(f'data-error="{key}"') as box:
                         with ui.row().classes("items-baseline gap-2") as head:
                             line = ui.label().classes("text-body2 text-weight-medium")
                             raw = ui.label().classes("mono text-caption text-grey-7")
-                            raw.tooltip(f"Error_Code {RAW_NOTE}")
-                        self.rows[key] = (box, head, line, raw, ui.column().classes("gap-1"), title)
+                            raw.tooltip(f"Error_Code {_(RAW_NOTE)}")
+                        self.rows[key] = (box, head, line, raw, ui.column().classes("gap-1"), _(title))
 
     def inputs(self, access: Access) -> tuple:
         state = self.view.state
@@ -369,17 +390,22 @@ class ErrorsCard(DrawnCard):
             if self.shown.get(key) == value:
                 continue
             self.shown[key] = value
-            line.set_text(f"{title}: " + (codec.NO_ERROR if value == 0 else _error_names(value)))
+            lang = self.view.lang
+            _ = lang.gettext
+            # in German each cause with its bit, as table 10 and the plant view word it (the catalog's entries)
+            words = codec.NO_ERROR if value == 0 else _error_names(value) if lang.code == "en" else codec.error_text(value)
+            line.set_text(f"{title}: " + lang.phrase(words, "Error code"))
             raw.set_text(codec.error_hex(value))
             line.classes(replace="text-body2 text-weight-medium" + (" text-negative" if value and key == "Error code" else ""))
             bits.clear()
             with bits:
                 for b in codec.error_bits(value):
-                    ui.label(f"bit {b.bit}: {b.cause}" + (f" — condition: {b.condition}" if b.condition else "")
-                             + f" — behaviour: {b.behaviour}").classes("text-caption text-negative" if key == "Error code" else "text-caption")
+                    ui.label(lang.phrase(f"bit {b.bit}: {b.cause}", "Error code")
+                             + (" — " + _("condition: {text}").format(text=b.condition) if b.condition else "")
+                             + " — " + _("behaviour: {text}").format(text=b.behaviour)).classes("text-caption text-negative" if key == "Error code" else "text-caption")
                 if key == "Error code" and value & codec.CLEARED_BY_NEXT_MOVE:
-                    ui.label("What clears it: the next movement (table 10). Take control and jog any actuator "
-                             "briefly (hold IN or OUT), or run the checkout, which starts with a move.") \
+                    ui.label(_("What clears it: the next movement (table 10). Take control and jog any actuator "
+                               "briefly (hold IN or OUT), or run the checkout, which starts with a move.")) \
                         .classes("text-body2 text-weight-medium").props("data-testid=error-clears")
         return good
 
@@ -397,12 +423,13 @@ class DriveCard(DrawnCard):
 
     def build(self) -> None:
         view = self.view
-        with titled_card("Drive"):
+        _ = view.lang.gettext
+        with titled_card(_("Drive")):
             with ui.row().classes("items-center gap-4"):
-                self.take = ui.button("Take control", icon="sports_esports",
+                self.take = ui.button(_("Take control"), icon="sports_esports",
                                       on_click=lambda: view.act("take control", {"user": _client_user()})) \
                     .props("data-testid=take-control")
-                self.release = ui.button("Release control", icon="logout",
+                self.release = ui.button(_("Release control"), icon="logout",
                                          on_click=lambda: view.act("release control")).props("outline")
                 self.holder = ui.label().classes("text-body2")
             self._selects()
@@ -414,7 +441,7 @@ class DriveCard(DrawnCard):
             self._motion_buttons()
             with ui.row().classes("items-start no-wrap gap-1 bg-blue-grey-1 q-pa-xs rounded-borders"):
                 ui.icon("timer_off", size="xs").classes("q-mt-xs")
-                ui.label(_stop_rule()).classes("text-caption").props("data-testid=stop-rule")
+                ui.label(_stop_rule(view.lang)).classes("text-caption").props("data-testid=stop-rule")
             self.running = ui.label().classes("text-caption mono")
             self.drive_off = ui.label().classes("text-negative text-body2").props("data-testid=drive-off")
         self.function.on_value_change(lambda _: self.show_targets())
@@ -422,22 +449,25 @@ class DriveCard(DrawnCard):
 
     def _selects(self) -> None:
         functions, speed = self.view.functions, self.view.fact(facts.P_SPEED)
+        lang = self.view.lang
+        _ = lang.gettext
         with ui.row().classes("items-end gap-4"):
             self.function = ui.select({int(f): f"{codec.FUNCTIONS[f].label} → "
-                                       + (", ".join(f"A{a}" for a in functions.actuators_of(f)) or "none")
+                                       + (", ".join(f"A{a}" for a in functions.actuators_of(f)) or _("none"))
                                        for f in codec.MOTION_FUNCTIONS}, value=0,
-                                      label="Function → actuators").classes("w-40").props("data-testid=function")
+                                      label=_("Function → actuators")).classes("w-40").props("data-testid=function")
             # the options without their detail (data IDs), which is in the tooltip: the whole text fits the field
-            self.motion = ui.select({int(m): codec.MOTION_LABELS[m].split(" (", 1)[0] for m in codec.Motion},
-                                    value=int(codec.Motion.REMOTE_POSITION), label="Motion (para_ID[0])") \
+            self.motion = ui.select({int(m): _(codec.MOTION_LABELS[m].split(" (", 1)[0]) for m in codec.Motion},
+                                    value=int(codec.Motion.REMOTE_POSITION), label=_("Motion (para_ID[0])")) \
                 .classes("w-72").props("data-testid=motion")
-            self.motion.tooltip(" · ".join(label for label in codec.MOTION_LABELS.values() if " (" in label))
-            self.ramp = ui.select({1: "soft start/stop", 0: "fast start/stop", 255: "as configured (-1)"}, value=1,
-                                  label="Ramp (para_ID[1])").classes("w-48")
+            self.motion.tooltip(" · ".join(_(label) for label in codec.MOTION_LABELS.values() if " (" in label))
+            self.ramp = ui.select({1: _("soft start/stop"), 0: _("fast start/stop"), 255: _("as configured (-1)")}, value=1,
+                                  label=_("Ramp (para_ID[1])")).classes("w-48")
             # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s, as the unit is parametrised (plant file)
-            self.speed = range_number(f"Remote speed [{speed.unit}]", 0, speed.high, integer=True, value=50, step=1) \
+            self.speed = range_number(_("Remote speed [{unit}]").format(unit=speed.unit), 0, speed.high, integer=True,
+                                      value=50, step=1, lang=lang) \
                 .classes("w-56").props("data-testid=remote-speed")
-            self.moves.append(ui.button("Set speed (RT)", on_click=self.write_speed).props("outline data-testid=set-speed"))
+            self.moves.append(ui.button(_("Set speed (RT)"), on_click=self.write_speed).props("outline data-testid=set-speed"))
 
     async def write_speed(self) -> None:
         function = self.function.value + 1
@@ -445,15 +475,16 @@ class DriveCard(DrawnCard):
                                     parameter=f"Remote Speed F{function}")
         if value is not None:
             await self.view.act("set remote speed", {"function": function, "speed": int(value)},
-                                success="remote speed written and read back")
+                                success=self.view.lang.gettext("remote speed written and read back"))
 
     def _position_entry(self, s: facts.ActuatorScale) -> None:
         unit = "mm" if s.counts_per_mm or s.stroke_mm else "counts"
         low, high = _position_range(s)
         # without a stroke the entry accepts what INT32 counts can say: shown as "any", not as 2.1e+09
         any_beyond = INT32_LIMIT if s.stroke_mm else min(abs(low), abs(high))
-        field = range_number(f"A{s.number} remote position [{unit}]", low, high, unit=unit, value=0,
-                             integer=unit == "counts", any_beyond=any_beyond).classes("w-56").props(f"data-testid=remote-pos-A{s.number}")
+        _ = self.view.lang.gettext
+        field = range_number(_("A{n} remote position [{unit}]").format(n=s.number, unit=unit), low, high, unit=unit, value=0,
+                             integer=unit == "counts", any_beyond=any_beyond, lang=self.view.lang).classes("w-56").props(f"data-testid=remote-pos-A{s.number}")
 
         async def write_position() -> None:
             view = self.view
@@ -461,23 +492,24 @@ class DriveCard(DrawnCard):
                                         parameter=f"Remote Position A{s.number}")
             if value is None:
                 return
-            ok, _ = await view.act("set remote position", {"actuator": s.number, "value": float(value), "mm": unit == "mm"},
-                                   success="remote position written and read back")
+            ok, _result = await view.act("set remote position", {"actuator": s.number, "value": float(value), "mm": unit == "mm"},
+                                         success=view.lang.gettext("remote position written and read back"))
             if ok:
                 self.edited[:] = [s.number]
                 self.show_targets()
 
-        self.moves.append(ui.button("Set (RT)", on_click=write_position).props(f"outline data-testid=set-pos-A{s.number}"))
+        self.moves.append(ui.button(_("Set (RT)"), on_click=write_position).props(f"outline data-testid=set-pos-A{s.number}"))
 
     def _motion_buttons(self) -> None:
+        _ = self.view.lang.gettext
         with ui.row().classes("items-center gap-4"):
-            self.moves.append(ui.button("Go (RE)", icon="play_arrow", color="positive", on_click=self.go_pressed)
+            self.moves.append(ui.button(_("Go (RE)"), icon="play_arrow", color="positive", on_click=self.go_pressed)
                               .props("data-testid=go"))
-            ui.button("Stop (RS)", icon="stop", color="negative",
+            ui.button(_("Stop (RS)"), icon="stop", color="negative",
                       on_click=lambda: self.view.act("stop (RS)")).props("data-testid=stop")
-            ui.label("Jog (hold to run):").classes("text-caption")
-            jog_in = ui.button("In", icon="keyboard_double_arrow_left").props("outline data-testid=jog-in")
-            jog_out = ui.button("Out", icon="keyboard_double_arrow_right").props("outline data-testid=jog-out")
+            ui.label(_("Jog (hold to run):")).classes("text-caption")
+            jog_in = ui.button(_("In"), icon="keyboard_double_arrow_left").props("outline data-testid=jog-in")
+            jog_out = ui.button(_("Out"), icon="keyboard_double_arrow_right").props("outline data-testid=jog-out")
         self.moves += [jog_in, jog_out]
         for button, direction in ((jog_in, -1), (jog_out, 1)):
             for event in ("mousedown", "touchstart"):
@@ -493,12 +525,14 @@ class DriveCard(DrawnCard):
         fn = self.function.value
         acts = self.view.functions.actuators_of(fn)
         warning = self.target_mismatch()
+        _ = self.view.lang.gettext
         if not await confirm(
-                "Start the motion",
-                f"{codec.FUNCTIONS[fn].label} drives {self.view.functions.text(fn)}: "
-                f"{codec.MOTION_LABELS[self.motion.value]}. Check that the area is clear: nobody and nothing in "
-                "the stroke of " + (", ".join(f"A{a}" for a in acts) or "its actuators") + "."
-                + (f" {warning}" if warning else ""), ok="The area is clear: Go"):
+                _("Start the motion"),
+                _("{function} drives {actuators}: {motion}. Check that the area is clear: nobody and nothing in the stroke "
+                  "of {list}.").format(function=codec.FUNCTIONS[fn].label, actuators=functions_text(self.view, fn),
+                                       motion=_(codec.MOTION_LABELS[self.motion.value]),
+                                       list=", ".join(f"A{a}" for a in acts) or _("its actuators"))
+                + (f" {warning}" if warning else ""), ok=_("The area is clear: Go"), lang=self.view.lang):
             return
         # the question above names the declared risk (the area is clear), with the actuators it drives
         await self.view.act("go (RE)", {"function": fn, "motion": self.motion.value, "ramp": self.ramp_value(),
@@ -528,13 +562,15 @@ class DriveCard(DrawnCard):
         fn = self.function.value
         acts = self.view.functions.actuators_of(fn)
         if self.motion.value == int(codec.Motion.REMOTE_POSITION) and self.edited and self.edited[0] not in acts:
-            return (f"The remote position you set last is A{self.edited[0]}'s, but {codec.FUNCTIONS[fn].label} drives "
-                    + (", ".join(f"A{a}" for a in acts) or "no actuator") + f": A{self.edited[0]} will not move.")
+            _ = self.view.lang.gettext
+            return _("The remote position you set last is A{n}'s, but {function} drives {list}: A{n} will not move.").format(
+                n=self.edited[0], function=codec.FUNCTIONS[fn].label, list=", ".join(f"A{a}" for a in acts) or _("no actuator"))
         return ""
 
     def show_targets(self) -> None:
         fn = self.function.value
-        self.drives.set_text(f"{codec.FUNCTIONS[fn].label} drives {self.view.functions.text(fn)}")
+        self.drives.set_text(self.view.lang.gettext("{function} drives {actuators}").format(
+            function=codec.FUNCTIONS[fn].label, actuators=functions_text(self.view, fn)))
         self.target_warning.set_text(self.target_mismatch())
 
     def inputs(self, access: Access) -> tuple:
@@ -543,25 +579,26 @@ class DriveCard(DrawnCard):
 
     def draw(self, access: Access) -> None:
         holder, mine = access.holder, access.mine
+        _ = self.view.lang.gettext
         if holder is None:
-            self.holder.set_text("nobody holds control")
+            self.holder.set_text(_("nobody holds control"))
         elif mine:
-            self.holder.set_text(f"you hold control since {datetime.fromtimestamp(holder.since):%H:%M:%S}")
+            self.holder.set_text(_("you hold control since {time}").format(time=f"{datetime.fromtimestamp(holder.since):%H:%M:%S}"))
         else:
-            self.holder.set_text(f"{holder.user} holds control (another browser) since "
-                                 f"{datetime.fromtimestamp(holder.since):%H:%M:%S}")
+            self.holder.set_text(_("{user} holds control (another browser) since {time}").format(
+                user=holder.user, time=f"{datetime.fromtimestamp(holder.since):%H:%M:%S}"))
         run, failed = _labels(self.view.fact(facts.P_RUNNING, ())), _labels(self.view.fact(facts.P_RS_PENDING, ()))
-        self.running.set_text("RE sent, RS pending: " + (", ".join(run) if run else "none")
-                              + (f" · STOP FAILED, RS not acknowledged (sent again every poll): {', '.join(failed)}"
-                                 if failed else ""))
+        self.running.set_text(_("RE sent, RS pending: {list}").format(list=", ".join(run) if run else _("none"))
+                              + (_(" · STOP FAILED, RS not acknowledged (sent again every poll): {list}").format(
+                                  list=", ".join(failed)) if failed else ""))
         off = access.lost or access.offline or access.estop
-        self.drive_off.set_text(f"Drive off: {off}" if off and mine else "")
+        self.drive_off.set_text(_("Drive off: {reason}").format(reason=off) if off and mine else "")
         self.show_targets()
         enable_unless(self.take, access.role or access.offline or (
-            "" if holder is None else "you hold control" if mine else "another browser holds control"))
-        enable_unless(self.release, access.role or ("" if mine else "you do not hold control"))
+            "" if holder is None else _("you hold control") if mine else _("another browser holds control")))
+        enable_unless(self.release, access.role or ("" if mine else _("you do not hold control")))
         for element in self.moves:
-            enable_unless(element, access.role or off or ("" if mine else "take control first"))
+            enable_unless(element, access.role or off or ("" if mine else _("take control first")))
 
 
 class FunctionsCard(DrawnCard):
@@ -574,27 +611,28 @@ class FunctionsCard(DrawnCard):
 
     def build(self) -> None:
         view = self.view
-        with titled_card("Functions (firmware V2B1 and later)"):
+        _ = view.lang.gettext
+        with titled_card(_("Functions (firmware V2B1 and later)")):
             with ui.row().classes("items-center gap-4"):
                 for fn, label in SWITCHES:
                     with ui.button_group():
-                        self.on.append(ui.button(f"{label} on", on_click=lambda fn=fn: view.act(
+                        self.on.append(ui.button(_("{name} on").format(name=_(label)), on_click=lambda fn=fn: view.act(
                             "function on (RE)", {"function": int(fn)})).props("outline"))
-                        self.off.append(ui.button("off", on_click=lambda fn=fn: view.act(
+                        self.off.append(ui.button(_("off"), on_click=lambda fn=fn: view.act(
                             "function off (RS)", {"function": int(fn)})).props("outline"))
             with ui.row().classes("items-center gap-4"):
-                ui.button("Emergency stop (F20, function 19)", icon="emergency", color="negative",
+                ui.button(_("Emergency stop (F20, function 19)"), icon="emergency", color="negative",
                           on_click=lambda: view.act("emergency stop (RE 19)")).props("data-testid=emergency-stop")
-                self.release_estop = ui.button("Release emergency stop (RS 19, F20)", on_click=lambda: view.act(
-                    "release emergency stop (RS 19)", title="Release the emergency stop?", ok="Release it")).props("outline")
-                ui.label("Emergency stop acts at once, without confirmation, for anyone, in any state of the session; "
-                         "only its release needs control.").classes("text-caption")
+                self.release_estop = ui.button(_("Release emergency stop (RS 19, F20)"), on_click=lambda: view.act(
+                    "release emergency stop (RS 19)", title=_("Release the emergency stop?"), ok=_("Release it"))).props("outline")
+                ui.label(_("Emergency stop acts at once, without confirmation, for anyone, in any state of the session; "
+                           "only its release needs control.")).classes("text-caption")
 
     def inputs(self, access: Access) -> Access:
         return access
 
     def draw(self, access: Access) -> None:
-        control = "" if access.mine else "take control first"
+        control = "" if access.mine else self.view.lang.gettext("take control first")
         for element in self.on:
             enable_unless(element, access.role or access.lost or access.offline or access.estop or control)
         enable_unless(self.release_estop, access.role or access.lost or access.offline or control)
@@ -613,19 +651,19 @@ class DirectoryCard(DrawnCard):
     view: ScuView
 
     def build(self) -> None:
-        with titled_card("Data directory (section 4.3): read any data ID or group ID"):
+        _ = self.view.lang.gettext
+        with titled_card(_("Data directory (section 4.3): read any data ID or group ID")):
             rows = [{"id": e.key, "name": e.name, "type": e.type_name, "unit": e.unit, "access": e.access.value,
                      "comment": e.comment} for e in p.DIRECTORY.values()]
-            table = ui.table(columns=[{"name": k, "label": k.capitalize(), "field": k, "align": "left"}
-                                      for k in ("id", "name", "type", "unit", "access", "comment")],
+            table = ui.table(columns=columns(DIRECTORY_COLUMNS, self.view.lang),
                              rows=rows, row_key="id", selection="single", pagination=10).classes("w-full text-caption")
             table.props("dense wrap-cells")
             with ui.row().classes("items-center gap-4"):
                 self.pick = ui.select({e.data_id: f"{e.key} {e.name}" for e in p.DIRECTORY.values()}, value=0x0010,
-                                      label="Data ID", with_input=True).classes("w-96").props("data-testid=data-id")
+                                      label=_("Data ID"), with_input=True).classes("w-96").props("data-testid=data-id")
                 table.on("selection", lambda e: self.pick.set_value(int(e.args["rows"][0]["id"], 16))
                          if e.args.get("rows") else None)
-                self.button = ui.button("Read (RG)", on_click=self.read).props("data-testid=read-data")
+                self.button = ui.button(_("Read (RG)"), on_click=self.read).props("data-testid=read-data")
             self.shown = ui.label().classes("mono text-body2").props("data-testid=data-value")
             self.raw = ui.label().classes("mono text-caption text-grey-8").props("data-testid=data-raw")
 
@@ -633,7 +671,7 @@ class DirectoryCard(DrawnCard):
         ok, result = await self.view.act("read data", {"data_id": self.pick.value})
         if ok:
             self.shown.set_text(f"{result['key']} {result['name']} ({result['type']}): {result['text'] or result['error']}")
-            self.raw.set_text(f"raw: {result['raw'] or '(no data)'}")
+            self.raw.set_text(self.view.lang.gettext("raw: {raw}").format(raw=result["raw"] or self.view.lang.gettext("(no data)")))
 
     def inputs(self, access: Access) -> tuple:
         return access, self.view.fact(facts.P_WATCH)
@@ -652,17 +690,16 @@ class SettingsCard(DrawnCard):
     def build(self) -> None:
         self.params = params_for(len(self.view.scales))
         self.keys = [(q.space, a) for q in self.params for a in q.addresses]
-        with titled_card("Settings (parameter model)"):
-            columns = [{"name": k, "label": label, "field": k, "align": "left"}
-                       for k, label in (("id", "Data ID"), ("name", "Name"), ("value", "Value"), ("kind", "Kind"),
-                                        ("read", "Read"))]
-            self.table = ui.table(columns=columns, rows=[], row_key="key").classes("w-full text-caption")
+        lang = self.view.lang
+        _ = lang.gettext
+        with titled_card(_("Settings (parameter model)")):
+            self.table = ui.table(columns=columns(SETTINGS_COLUMNS, lang), rows=[], row_key="key").classes("w-full text-caption")
             self.table.props("dense wrap-cells data-testid=settings-table")
-            self.button = ui.button("Read settings (RG)", on_click=self.read).props("outline data-testid=read-settings")
-            ui.label("Remote speeds and positions are the settings: a backup lists them with their names and units, and "
-                     "restore, the project and a batch write them with RT and read each back with RG, refused while a "
-                     f"function runs; {VOLATILE}. Conversion factors and virtual limits are the unit's configuration "
-                     "(RT writes only data IDs 3xxx, table 3); the Safety_ID is the plant file's.").classes(
+            self.button = ui.button(_("Read settings (RG)"), on_click=self.read).props("outline data-testid=read-settings")
+            ui.label(_("Remote speeds and positions are the settings: a backup lists them with their names and units, and "
+                       "restore, the project and a batch write them with RT and read each back with RG, refused while a "
+                       "function runs; {volatile}. Conversion factors and virtual limits are the unit's configuration "
+                       "(RT writes only data IDs 3xxx, table 3); the Safety_ID is the plant file's.").format(volatile=_(VOLATILE))).classes(
                 "text-caption text-grey-8")
 
     async def read(self) -> None:
@@ -685,8 +722,10 @@ class SettingsCard(DrawnCard):
         for q in self.params:
             raw = state.raw(q)
             read = state.read_time(q)
-            rows.append({"key": q.key, "id": self._id(q), "name": q.name, "value": "-" if raw is None else q.display(raw),
-                         "kind": "setting" if q.setting else "read-only", "read": "-" if read is None else fmt_time(read)})
+            _ = self.view.lang.gettext
+            rows.append({"key": q.key, "id": self._id(q), "name": q.name,
+                         "value": "-" if raw is None else self.view.lang.numbers_in(q.display(raw)),
+                         "kind": _("setting") if q.setting else _("read-only"), "read": "-" if read is None else fmt_time(read)})
         if rows != self.table.rows:
             self.table.rows = rows
             self.table.update()
@@ -698,16 +737,16 @@ class ServiceCard(DrawnCard):
     view: ScuView
 
     def build(self) -> None:
-        with titled_card("Service table"):
-            self.table = ui.table(columns=[{"name": k, "label": k.capitalize(), "field": k, "align": "left"}
-                                           for k in ("id", "name", "value", "read")], rows=[], row_key="id") \
+        _ = self.view.lang.gettext
+        with titled_card(_("Service table")):
+            self.table = ui.table(columns=columns(SERVICE_COLUMNS, self.view.lang), rows=[], row_key="id") \
                 .classes("w-full text-caption")
             self.table.props('dense wrap-cells data-testid=service-table :table-row-class-fn="row => row.quality_class"')
-            self.button = ui.button("Read service data (RG)", on_click=self.read).props("outline data-testid=read-service")
-            ui.label("Backup: the Backup page writes the settings of the parameter model (remote speeds and positions, "
-                     "with the conversion factors, virtual limits and Safety_ID for reference) and a record of identity, "
-                     "counters and error history. Restore, the project and a batch write the settings back with RT and "
-                     f"read each back with RG; {VOLATILE}.").classes("text-caption text-grey-8")
+            self.button = ui.button(_("Read service data (RG)"), on_click=self.read).props("outline data-testid=read-service")
+            ui.label(_("Backup: the Backup page writes the settings of the parameter model (remote speeds and positions, "
+                       "with the conversion factors, virtual limits and Safety_ID for reference) and a record of identity, "
+                       "counters and error history. Restore, the project and a batch write the settings back with RT and "
+                       "read each back with RG; {volatile}.").format(volatile=_(VOLATILE))).classes("text-caption text-grey-8")
 
     async def read(self) -> None:
         out = []
@@ -724,7 +763,7 @@ class ServiceCard(DrawnCard):
         """The rows with the time of their reading; greyed with their age while the unit does not answer."""
         quality = "offline" if self.view.state.status == "offline" else "good"
         now = time.time()
-        rows = [{**row, "read": quality_note(quality, now - row["time"]) if quality == "offline" else fmt_time(row["time"]),
+        rows = [{**row, "read": quality_note(quality, now - row["time"], self.view.lang) if quality == "offline" else fmt_time(row["time"]),
                  "quality_class": "q-offline" if quality == "offline" else ""} for row in self.table.rows]
         if rows != self.table.rows:
             self.table.rows = rows
@@ -740,17 +779,51 @@ class ServiceCard(DrawnCard):
 
 def content(name: str) -> None:
     view = ScuView(name)
+    _ = view.lang.gettext
 
     def stop() -> None:
-        stop_bar("RS to every running function; anyone may stop, also without control.", "STOP", "stop_circle",
+        stop_bar(_("RS to every running function; anyone may stop, also without control."), _("STOP"), "stop_circle",
                  lambda: view.act("stop (RS)"), "stop-bar", "big-stop").classes("text-h6")
 
-    with device_page(view, f"Ewellix SCU {name}", stop=stop):
-        view.guard = WriteGuard(view.state)  # why write and motion-start controls are off while the unit does not answer
+    with device_page(view, _("Ewellix SCU {name}").format(name=name), stop=stop):
+        view.guard = WriteGuard(view.state, lang=view.lang)  # why write and motion-start controls are off while the unit does not answer
         for card in (EstopCard(view), SessionCard(view), PositionsCard(view), StatusCard(view), SupplyCard(view), ErrorsCard(view),
                      DriveCard(view), FunctionsCard(view), SettingsCard(view), DirectoryCard(view), ServiceCard(view)):
             view.add(card)
         sim_card(name)  # the twin's declared controls, in simulation only
+
+
+DIRECTORY_COLUMNS = [{"name": k, "label": label, "field": k, "align": "left"} for k, label in
+                     (("id", N_("Id")), ("name", N_("Name")), ("type", N_("Type")), ("unit", N_("Unit")),
+                      ("access", N_("Access")), ("comment", N_("Comment")))]
+SETTINGS_COLUMNS = [{"name": k, "label": label, "field": k, "align": "left"} for k, label in
+                    (("id", N_("Data ID")), ("name", N_("Name")), ("value", N_("Value")), ("kind", N_("Kind")),
+                     ("read", N_("Read")))]
+SERVICE_COLUMNS = [{"name": k, "label": label, "field": k, "align": "left"} for k, label in
+                   (("id", N_("Id")), ("name", N_("Name")), ("value", N_("Value")), ("read", N_("Read")))]
+# the motions of para_ID[0] (devices/scu/codec.py MOTION_LABELS, table 7) as the select and the question show them
+MOTION_WORDS = (
+    N_('undefined direction'),
+    N_('undefined direction (no motion)'),
+    N_('Move to position In'),
+    N_('Move to position Out'),
+    N_('Move to position Mem1'),
+    N_('Move to position Mem2'),
+    N_('Move to position Mem3'),
+    N_('Move to position Mem4'),
+    N_('Move to position Intermediate In'),
+    N_('Move to position Intermediate Out'),
+    N_('Move to remote position'),
+    N_('Move to remote position (data IDs 0x3021..0x3026)'),
+)
+
+
+def functions_text(view: ScuView, function: int) -> str:
+    """:meth:`devices.scu.facts.FunctionMap.text` in the page's language: the actuators a function drives."""
+    _ = view.lang.gettext
+    acts = view.functions.actuators_of(function)
+    return (", ".join(f"A{a}" for a in acts) if acts else _("no actuator")) + (
+        " " + _("(assumed: SCP11, section 5; set functions in the plant file)") if view.functions.assumed else "")
 
 
 def _client_user() -> str:

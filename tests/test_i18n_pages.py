@@ -359,3 +359,23 @@ async def test_the_hdlock_page_in_german_shows_no_english_but_the_parameters_own
         found = [(text, message) for text, message in english_on(user, skip=("sim-card",))
                  if text not in descriptions and not any(text.endswith(f": {d}") for d in descriptions)]
         assert found == [], "\n".join(map(str, found))
+
+
+async def test_the_scu_page_in_german_shows_no_english(tmp_path):
+    """The control unit's page (document 002): Remote-Betrieb, NOT-HALT, Netz, Akku, the error codes of table 10; the
+    status bits' words of table 6 and the data directory are the parameter model's."""
+    from plants import plant, scu_line
+
+    runtime = Runtime(plant(scu_line()), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await eventually(lambda: runtime.store.devices["lift"].status == "online", timeout=15, what="the unit online")
+        await user.open("/device/lift")
+        await user.should_see("Ewellix SCU lift", retries=50)
+        await user.should_see("Versorgung und E/A")
+        await user.should_see("NOT-HALT (F20, Funktion 19)")
+        await eventually(lambda: any(t.startswith("Remote-Betrieb: ") for t in shown_texts(user)), timeout=5,
+                         what="the remote session's words")
+        descriptions = {p.description for p in runtime.store.devices["lift"].params.by_name.values()}
+        # the simulation card's words are declared by devices/scu/sim.py (pages/simcontrols.py joins later)
+        found = [(text, message) for text, message in english_on(user, skip=("sim-card",)) if text not in descriptions]
+        assert found == [], "\n".join(map(str, found))
