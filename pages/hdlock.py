@@ -191,8 +191,11 @@ class LampsCard(DeviceCard):
         for key, label in self.labels.items():
             entry = state.entry(key)
             context = key.split(" ")[0]  # the enumeration's register: DoorState, StateMachineState ...
-            label.set_text((lang.phrase(entry["name"], context) if entry["name"]
-                            else lang.gettext("undefined ({value})").format(value=entry["value"])) if entry else "-")
+            name = entry["name"] if entry else None
+            # the states the catalog words (DoorState, StateMachineState); the others as the register map names them
+            known = bool(name) and (lang.has(name, context) or lang.has(name))
+            label.set_text((lang.phrase(name, context) if known else name
+                            or lang.gettext("undefined ({value})").format(value=entry["value"])) if entry else "-")
             mark_quality(label, entry["quality"] if entry else "unknown")
             self.notes[key].set_text(_note(entry, lang))
             aging = aging or (entry is not None and entry["quality"] in ("stale", "offline"))

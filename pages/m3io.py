@@ -259,7 +259,8 @@ class OutputsCard(DrawnCard):
         if self.p2 is not None:
             self.p2.set_value(bool(view.fact(facts.P_P2)))
             p2_check = view.live(facts.P_P2_CHECK)
-            self.p2_check.set_text("" if p2_check is None else _("P2 in the module: {text}").format(text=view.lang.phrase(p2_check.shown)))
+            self.p2_check.set_text("" if p2_check is None else _("P2 in the module: {text}").format(
+                text=_(p2_check.shown) if p2_check.shown else ""))  # gettext("") would be the catalog's header
             self.p2_check.classes(replace="text-caption " + ("text-negative" if p2_check and p2_check.value == "mismatch"
                                                              else "text-grey-8"))
         return good
@@ -456,7 +457,7 @@ class AddressedCard(DrawnCard):
         view = self.view
         _ = view.lang.gettext
         identity = view.live(facts.P_IDENTITY)
-        self.identity.set_text(_("not read") if identity is None else _(identity.shown))
+        self.identity.set_text(_("not read") if identity is None else _(identity.shown) if identity.shown else "")
         for label, param in zip(self.records, RECORD_PARAMS):
             raw = view.state.raw(param)
             label.set_text(f"{param.address:>2}: {_('not read') if raw is None else param.display(raw)}")

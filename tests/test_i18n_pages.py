@@ -321,6 +321,7 @@ async def test_the_m3io_page_in_german_shows_no_english(tmp_path):
         # the simulation card's words are declared by devices/m3io/sim.py (pages/simcontrols.py joins later)
         found = english_on(user, skip=("sim-card",))
         assert found == [], "\n".join(map(str, found))
+        assert not i18n.get("de").missing, i18n.get("de").missing
 
 
 async def test_the_electrak_page_in_german_shows_no_english(tmp_path):
@@ -359,6 +360,7 @@ async def test_the_hdlock_page_in_german_shows_no_english_but_the_parameters_own
         found = [(text, message) for text, message in english_on(user, skip=("sim-card",))
                  if text not in descriptions and not any(text.endswith(f": {d}") for d in descriptions)]
         assert found == [], "\n".join(map(str, found))
+        assert not i18n.get("de").missing, i18n.get("de").missing  # nothing looked up that the catalog does not have
 
 
 async def test_the_scu_page_in_german_shows_no_english(tmp_path):
