@@ -89,11 +89,11 @@ async def test_a_viewer_cannot_clear_levels_or_release_the_connection(env, monke
         monkeypatch.setattr("pages.session.current_user", lambda: ("tablet", "viewer"))
         UserInteraction(user, {by_testid(user, "clear-levels")}, None).click()  # refused by the gate before any question
         await eventually(lambda: any("refused for tablet: clear levels: the viewer role may not" in e.text for e in adapter.state.events),
-                         timeout=3)
+                         timeout=10)
         assert adapter.holders() == {"engineer-1"} and twin(runtime).levels[2]  # still active in the barrier
         UserInteraction(user, {by_testid(user, "release")}, None).click()
         await eventually(lambda: any("refused for tablet: release the connection: the viewer role may not" in e.text for e in adapter.state.events),
-                         timeout=3)
+                         timeout=10)
         assert not runtime.worker.lines["gate-bus"].released
 
 

@@ -17,7 +17,7 @@ from babel.messages.pofile import read_po
 from app import i18n
 from devices.registry import DEVICE_TYPES
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 LOCALE = ROOT / "locale"
 KEYWORDS = {"_": None, "gettext": None, "ngettext": (1, 2), "pgettext": ((1, "c"), 2), "N_": None, "NP_": ((1, "c"), 2)}
 FIELD = re.compile(r"\{[^{}]*\}")

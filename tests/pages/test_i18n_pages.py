@@ -21,7 +21,7 @@ from app.users import UserStore
 
 pytestmark = pytest.mark.timeout(60)
 
-LOCALE = Path(__file__).resolve().parent.parent / "locale"
+LOCALE = Path(__file__).resolve().parents[2] / "locale"
 GERMAN = "de-DE,de;q=0.9,en;q=0.5"
 TAG = re.compile(r"<[^>]+>")
 
