@@ -162,9 +162,9 @@ async def test_error_memory_rows_say_what_each_level_means_with_the_raw_flags_be
         return [(r["level"], r["meaning"], r["raw"]) for r in table.rows]
 
     # chapter 5.1.23: level 0 the newest change (the flags cleared), level 1 the one before (flag 2 set)
-    await eventually(lambda: rows()[:2] == [("0 (newest)", "no error (flag 2 cleared)", "0x00000000"),
-                                           ("1", "error flag 2 set", "0x00000004")],
-                     timeout=5, what="the error memory in words")
+    await eventually(lambda: len(rows()) == 10 and rows()[:2] == [("0 (newest)", "no error (flag 2 cleared)", "0x00000000"),
+                                                                 ("1", "error flag 2 set", "0x00000004")],
+                     timeout=10, what="the error memory in words, all ten levels read")
     assert rows()[2] == ("2", "empty: no change stored", "0x00000000")  # a level no change has reached yet
     assert rows()[-1][0] == "9 (oldest)"
     assert all(r["time"].endswith(" h") for r in table.rows)  # the operating hours at the change
