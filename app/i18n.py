@@ -277,6 +277,11 @@ def get(code: str | None) -> Lang:
     return lang
 
 
+def english(lang: Lang | None) -> Lang:
+    """``lang``, or English where a caller gives none (the texts of code not yet given a page's language)."""
+    return lang or get("en")
+
+
 def normalize(code: str | None) -> str | None:
     """``de_DE.UTF-8`` / ``de-AT`` / ``DE`` -> ``de``; None for a language the tool does not speak."""
     if not code:

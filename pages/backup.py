@@ -12,7 +12,7 @@ from nicegui import events, ui
 
 from app import backup, i18n, project
 from app import runtime as rt
-from app.i18n import N_, Lang
+from app.i18n import english, N_, Lang
 from pages.frame import frame, notify_error
 from pages.session import can_write, current_user
 from pages.diffrows import DIFF_COLUMNS, STATE_SLOT, WRAP
@@ -36,9 +36,6 @@ DIFF_WORDS = (N_("Parameter"), N_("Device now"), N_("In the backup"))  # the lab
 # the state cell of pages/diffrows.py, showing a row's state in the page's language (``state`` stays the English key)
 STATE_TEXT_SLOT = STATE_SLOT.replace("props.row.state }}", "props.row.state_text }}")
 
-
-def english(lang: Lang | None) -> Lang:
-    return lang or i18n.get("en")
 
 
 def differ_text(changed: int, total: int, lang: Lang) -> str:

@@ -9,9 +9,8 @@ from collections.abc import Callable
 
 from nicegui import ui
 
-from app import i18n
 from app import runtime as rt
-from app.i18n import Lang
+from app.i18n import english, Lang
 from app.plant import DEMO_PLANT, DeviceConfig, append_device, can_id_conflict, device_toml
 from app.worker import AuditUnavailable, PermissionDenied
 from devices.registry import DEVICE_TYPES, format_can_ids
@@ -81,9 +80,6 @@ def open_discover_dialog(bus: str) -> None:
     start.on_click(run)
     dialog.open()
 
-
-def english(lang: Lang | None) -> Lang:
-    return lang or i18n.get("en")
 
 
 def discovered_section(bus: str, tile_row, add_tile: Callable[[str], None], lang: Lang | None = None) -> Callable[[], None]:

@@ -9,7 +9,7 @@ from nicegui import ui
 
 from app import i18n
 from app import runtime as rt
-from app.i18n import N_, Lang
+from app.i18n import english, N_, Lang
 from devices.registry import DEVICE_TYPES
 from pages.frame import fmt_age, frame, set_status_badge, status_text
 from pages.plant_view import ICON, Followers, LabelPool, evaluate_tile, plant_tile
@@ -55,9 +55,6 @@ CAN_COUNTERS = (("responses", N_("frames heard"), True), ("malformed", N_("malfo
 REQUEST_COUNTERS = (("requests", N_("req"), True), ("timeouts", N_("timeouts"), True), ("crc_errors", "CRC", True),
                     ("exceptions", N_("exc"), False), ("malformed", N_("malformed"), False))
 
-
-def english(lang: Lang | None) -> Lang:
-    return lang or i18n.get("en")
 
 
 def overview_tile(state, lang: Lang | None = None) -> dict:
