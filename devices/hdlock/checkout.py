@@ -37,6 +37,7 @@ SETTINGS = {
 SOURCE = PARAMS.get("holding", 1002)  # section 3.2.2: LockRequestSource, the register that controls the bolt
 SOURCE_IN_USE = PARAMS.get("holding", 4)  # section 6.5.1: the source the lock uses now
 STATE = PARAMS.get("input", 9)
+PROXIMITY = PARAMS.get("input", 7).name  # "Calculated proxi (normalized)" [Inc]
 RETRY_LOCK, RETRY_UNLOCK = PARAMS.get("input", 12), PARAMS.get("input", 13)
 LOCK_MAX_TIME, UNLOCK_MAX_TIME = PARAMS.get("holding", 16), PARAMS.get("holding", 26)
 LOCK_OK, UNLOCK_OK = PARAMS.get("holding", 11), PARAMS.get("holding", 21)
@@ -119,9 +120,13 @@ async def _door(ctx) -> None:
         proximity = ctx.value("Calculated proxi (normalized)")
         ctx.fail(f"the door is not in position after {s['door_timeout_s']:g} s (proximity {proximity} Inc): "
                  "is it closed, is the strike plate in range?")
+    # the proximity (input 7) and DoorInPosition (holding 1000) come from different reads: measure a proximity
+    # read after the door was seen in position, not one of the door still moving (bounded by one poll)
+    seen = (ctx.entry("LockStatus") or {}).get("time") or 0.0
+    await ctx.wait(lambda: ((ctx.entry(PROXIMITY) or {}).get("time") or 0.0) > seen, s["poll_allowance_s"])
     ctx.measure("ProximityOverrange", _status(ctx, "ProximityOverrange"), expect=0)
     threshold = ctx.value("SettingsProximityThresholdUnlock")
-    proximity = ctx.value("Calculated proxi (normalized)")
+    proximity = ctx.value(PROXIMITY)
     ctx.measure("Proximity", proximity, "Inc", high=None if threshold is None else -threshold - 1)
     ctx.measure("DoorInPosition", _status(ctx, "DoorInPosition"), expect=1)
 

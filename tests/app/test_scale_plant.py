@@ -85,7 +85,7 @@ async def test_a_hundred_devices_are_listed_and_keep_alives_stay_on_time(tmp_pat
     beating: asyncio.Task | None = None
     try:
         async with simulated_user(runtime) as user:
-            await eventually(lambda: all(s.status == "online" for s in runtime.store.devices.values()), timeout=15,
+            await eventually(lambda: all(s.status == "online" for s in runtime.store.devices.values()), timeout=45,
                              what="every device online")
             lift, heater = runtime.worker.adapters["lift-01"], runtime.worker.adapters["heater-01"]
             beating = asyncio.create_task(_beat(runtime, "scale"))

@@ -25,11 +25,16 @@ def test_bus_names_table_names_and_the_digout_period(app, chromium, width: int, 
     try:
         page.goto(app + "/")
         page.wait_for_selector("[data-glance='barrier-out-1']")
-        names = page.evaluate("""() => [...document.querySelectorAll('.hdr-bus')].map(link => {
+        bus_names = """() => [...document.querySelectorAll('.hdr-bus')].map(link => {
             const name = link.querySelector('.hdr-bus-name'); const r = name.getBoundingClientRect();
             return {bus: link.dataset.bus, text: name.innerText, visible: r.width > 0 && r.height > 0,
                     inside: r.right <= window.innerWidth && r.bottom <= link.closest('header, .q-header, .hdr').getBoundingClientRect().bottom};
-        })""")
+        })"""
+        try:  # the header fits itself once a second: while the page still lays out, the names may give way to icons
+            page.wait_for_function(f"({bus_names})().every(n => n.visible && n.inside)", timeout=10000)
+        except Exception:  # noqa: BLE001 - said below with the names
+            pass
+        names = page.evaluate(bus_names)
         assert names and all(n["visible"] and n["inside"] and n["text"] == n["bus"] for n in names), names
         lines = page.evaluate("""() => [...document.querySelectorAll('[data-glance] td:first-child a')].map(a => {
             const lh = parseFloat(getComputedStyle(a).lineHeight) || 20;

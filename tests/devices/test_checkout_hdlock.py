@@ -115,4 +115,5 @@ async def test_hdlock_checkout_fails_a_lock_that_bolts_with_the_door_open(tmp_pa
             return True
         result = await run_checkout(runtime, "door-2", ask=door_stays, settings={"door_timeout_s": 2.0})
         step = _step(result, "Lock request refused with the door open (asked)")
-        assert step["status"] == "failed" and "still sees it in position" in step["reason"], step["reason"]
+        assert step["status"] == "failed" and "still sees it in position" in step["reason"], [
+            (s["name"], s["status"], s["reason"]) for s in result["steps"]]
