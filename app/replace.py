@@ -267,6 +267,13 @@ class ReplacementWatch:
         state.version = version + 1
         return replaced
 
+    def approved(self, name: str, identity: dict) -> None:
+        """A set was approved: its identity is the reference from now on, as at start-up (:meth:`start`), so a
+        unit swapped after the approval is named even where this watch had not compared the unit yet."""
+        if name in self.runtime.store.devices and identity and facets(identity)["serial"] is not None:
+            self._fresh_twins.discard(name)
+            self.accept(name, identity, "approved set")
+
     def accept(self, name: str, identity: dict, source: str) -> None:
         """The engineer took the device as it is now (end of a replacement): its identity becomes the known one."""
         self.known[name] = {"identity": dict(identity), "time": time.time(), "source": source}

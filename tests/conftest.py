@@ -60,8 +60,8 @@ BROWSER_FILES = {
 }
 
 #: test files that hold a device, a bus or a page to a real-time bound (a keep-alive period, the dead-man
-#: bound, a poll cycle against the wire time): the whole suite runs them in a phase of their own with two
-#: processes, the rest beside each other with four (README, Test), so no other test takes their cores.
+#: bound, a poll cycle against the wire time): ``-m realtime`` runs just them; the whole suite
+#: (tools/suite.py) never runs them beside a browser test, whose chromium and app take the cores.
 REALTIME_FILES = {
     "test_beat_on_demand.py",
     "test_can_flood.py",

@@ -263,10 +263,11 @@ def test_the_readme_fits_on_a_few_screens():
 
 def test_the_readme_shows_the_command_ci_runs_and_the_fast_loop_first():
     ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
-    ci_command = [line for line in ci.splitlines() if "python3 -m pytest" in line and not line.startswith("#")]
+    ci_command = [line for line in ci.splitlines() if "python3 -m tools.suite" in line and not line.startswith("#")]
     assert len(ci_command) == 1, ci_command
     test_section = README.read_text(encoding="utf-8").split("\n## Test", 1)[1].split("\n## ", 1)[0]
-    commands = [line.split("#")[0].strip() for line in test_section.splitlines() if "pytest" in line and not line.startswith(("`", " "))]
+    commands = [line.split("#")[0].strip() for line in test_section.splitlines()
+                if line.startswith("python3 -m ") and not line.startswith(("`", " "))]
     assert commands and commands[0] == 'python3 -m pytest -q -m "not browser and not slow"', commands
     assert ci_command[0] in commands, f"the README's Test section does not show {ci_command[0]!r}, which .ci/run runs"
 

@@ -66,6 +66,11 @@ def test_move_actuator_1_to_a_remote_position_and_stop(tmp_path, chromium):
             page.get_by_test_id("pos-A1").scroll_into_view_if_needed()
             inside_viewport(page, page.get_by_test_id("pos-A1"))
             page.screenshot(path=str(tmp_path / "scu-moved.png"))
+            try:
+                expect(page.get_by_text("you hold control")).to_be_visible(timeout=5_000)
+            except AssertionError:
+                raise AssertionError("control lost after the stop; events: "
+                                     f"{page.get_by_test_id('events').inner_text()[:1500]}") from None
             page.get_by_role("button", name="Release control").click()
             expect(page.get_by_text("nobody holds control")).to_be_visible(timeout=10_000)
         finally:

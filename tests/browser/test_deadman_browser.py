@@ -50,10 +50,14 @@ class Listener(FrameListener):
 
 def start_chromium(folder: Path) -> tuple[subprocess.Popen, int]:
     """Chromium as a process of its own (not conftest's ``chromium`` fixture): the test freezes
-    that very process with SIGSTOP, which a browser launched inside playwright's driver does not allow."""
+    that very process with SIGSTOP, which a browser launched inside playwright's driver does not allow.
+    With the switches playwright's own launch gives every chromium: a page in a background tab keeps its
+    timers (the heater's page is behind the lift's here), as in the other browser tests."""
     port = free_port()
     proc = subprocess.Popen(
         [str(CHROMIUM), "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+         "--disable-background-timer-throttling", "--disable-renderer-backgrounding",
+         "--disable-backgrounding-occluded-windows",
          f"--remote-debugging-port={port}", f"--user-data-dir={folder / 'profile'}", "--window-size=1440,900", "about:blank"],
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
     )
