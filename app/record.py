@@ -34,40 +34,11 @@ import logging
 import time
 from pathlib import Path
 
-from app.checkout import (
-    NOT_AVAILABLE,
-    NOT_FAILING,
-    Aborted,
-    AskFn,
-    CheckoutContext,
-    CheckoutRun,
-    NotAvailable,
-    Skipped,
-    StepFailed,
-    StepResult,
-    TrafficTap,
-    checkout_module,
-)
-from app.record_sets import (
-    LIVE_VALUE,
-    compare_with_approved,
-    device_updated,
-    diff_sets,
-    drift_of,
-    live_params,
-    live_set,
-    param_set,
-)
-from app.record_store import COLUMNS, KINDS, PLANT, SCHEMA, TRIGGER_SQL, Entry, RecordError, RecordStore
+from app.checkout import CheckoutRun
+from app.record_sets import drift_of, param_set
+from app.record_store import Entry, RecordError, RecordStore
 from app.verify import Check, content_sha256
 from devices.commands import READ_PARAMETERS
-
-__all__ = [  # the record's names as they were importable from here before its parts had modules of their own
-    "AUDIT_FOLLOW_S", "AUTO_SNAPSHOT_ACTIONS", "COLUMNS", "DRIFT_POINT", "KINDS", "LIVE_VALUE", "NOT_AVAILABLE", "NOT_FAILING",
-    "PLANT", "SCHEMA", "TRIGGER_SQL", "Aborted", "AskFn", "CheckoutContext", "CheckoutRun", "Entry", "NotAvailable",
-    "RecordError", "RecordService", "RecordStore", "Skipped", "StepFailed", "StepResult", "TrafficTap", "checkout_module",
-    "compare_with_approved", "device_updated", "diff_sets", "drift_of", "live_params", "live_set", "param_set",
-]
 
 log = logging.getLogger(__name__)
 

@@ -36,7 +36,7 @@ from typing import Any
 
 from devices.adapter import BackupAdapter
 from app import backup
-from app.record import Entry
+from app.record_store import Entry
 
 log = logging.getLogger(__name__)
 

@@ -18,7 +18,8 @@ from nicegui import ui
 
 from app import backup
 from app import runtime as rt
-from app.record import checkout_module, diff_sets
+from app.checkout import checkout_module
+from app.record_sets import diff_sets
 from app.report import (
     appendix_html,
     device_content,

@@ -11,7 +11,7 @@ import zipfile
 import pytest
 from webutil import simulated_user
 
-from app.record import RecordStore
+from app.record_store import RecordStore
 from app.report import plant_content, plant_html, write_plant
 from devices.hdlock.params import PARAMS
 from tests.conftest import wait_for

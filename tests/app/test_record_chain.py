@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from app.record import RecordStore
+from app.record_store import RecordStore
 from app.verify import check_archive, check_database, content_sha256
 
 pytestmark = pytest.mark.timeout(120)

@@ -125,7 +125,7 @@ async def test_viewers_can_neither_run_checkouts_nor_sign(tmp_path):
 
 
 def test_read_only_values_that_moved_are_live_values_not_changes():
-    from app.record import LIVE_VALUE, compare_with_approved
+    from app.record_sets import LIVE_VALUE, compare_with_approved
     from app.report import _with_unit
 
     approved = {"input:0": {"name": "LockState", "raw": 0, "text": "Unlocked (0)", "writable": False},

@@ -13,7 +13,7 @@ import zipfile
 import pytest
 
 from app.plant import load_plant
-from app.record import RecordError
+from app.record_store import RecordError
 from app.report import (
     SIMULATED_MARK,
     _with_unit,
