@@ -105,6 +105,9 @@ def test_frozen_browser_stops_motion_and_mains_outputs_within_the_bound(tmp_path
             lift.locator(".q-dialog").get_by_role("button", name="The area is clear").click()
             lift.get_by_test_id("jog-armed").get_by_text("jog armed").wait_for(timeout=10_000)
             lift.get_by_test_id("jog-out").scroll_into_view_if_needed()
+            inside_viewport(lift, lift.get_by_test_id("jog-out"))
+            # photographed armed, before the jog: a screenshot holds the browser up for a while, and the beats with it
+            lift.screenshot(path=str(tmp_path / "deadman-lift-armed.png"))
             box = lift.get_by_test_id("jog-out").bounding_box()
             lift.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
             lift.mouse.down()  # hold-to-run: held, never released
@@ -112,8 +115,6 @@ def test_frozen_browser_stops_motion_and_mains_outputs_within_the_bound(tmp_path
             jog_started = time.monotonic()
             # moving: the worker keeps sending enabled control telegrams while the browser's beats arrive
             assert lift_bus.first(CONTROL_ID, lambda d: d[7] & 0x01, since=jog_started + 0.3, timeout=5), "the jog stopped by itself"
-            inside_viewport(lift, lift.get_by_test_id("jog-out"))
-            lift.screenshot(path=str(tmp_path / "deadman-lift-jogging.png"))
 
             # both are still running at the moment of the freeze (not stopped earlier by a false trip):
             # the newest DigOut (every 100 ms) has SSR1 on, the newest control telegram has enable set
