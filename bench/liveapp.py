@@ -25,16 +25,48 @@ CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
+# Ports for the simulated endpoints are taken below the kernel's ephemeral range (Linux: 32768-60999), where
+# no outgoing connection is given one meanwhile, and from a block of their own per process: the suite runs
+# up to eight test processes side by side (pytest-xdist's gw0..gw7), a benchmark or a single run uses block 8
+# or 9. A port asked of the kernel (bind to port 0) and let go could be handed to another process's
+# connection before the simulation binds it ("address already in use").
+PORT_BLOCKS_FROM, PORT_BLOCK, PORT_BLOCKS = 12000, 2000, 10
+_next_port: dict[int, int] = {}
+
+
+def _block() -> int:
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    if worker.startswith("gw") and worker[2:].isdigit():
+        return int(worker[2:]) % 8
+    return 8 + os.getpid() % 2
+
+
+def _free(kind: int, host: str) -> int:
+    start = PORT_BLOCKS_FROM + _block() * PORT_BLOCK
+    offset = _next_port.get(kind, 0)
+    for _ in range(PORT_BLOCK):
+        port = start + offset
+        offset = (offset + 1) % PORT_BLOCK
+        with socket.socket(socket.AF_INET, kind) as s:
+            try:
+                s.bind((host, port))
+            except OSError:
+                continue  # in use (by a test of this process that still runs, or another program)
+        _next_port[kind] = offset
+        return port
+    with socket.socket(socket.AF_INET, kind) as s:  # the whole block in use: the kernel's choice
+        s.bind((host, 0))
         return s.getsockname()[1]
+
+
+def free_port() -> int:
+    """A TCP port free on 127.0.0.1 now, from this process's own block (see PORT_BLOCKS_FROM)."""
+    return _free(socket.SOCK_STREAM, "127.0.0.1")
 
 
 def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("", 0))
-        return s.getsockname()[1]
+    """A UDP port free now, from this process's own block (UDP and TCP ports are separate)."""
+    return _free(socket.SOCK_DGRAM, "")
 
 
 def demo_plant_text(bus_port: int | None = None) -> str:

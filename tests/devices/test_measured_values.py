@@ -10,7 +10,7 @@ import json
 import pytest
 from conftest import modbus_plant, wait_for
 
-from app import backup, batch, record, replace
+from app import backup, batch, record_sets, replace
 from app.runtime import Runtime
 from devices.hdlock.params import PARAMS
 from devices.params import backup_entry
@@ -79,8 +79,8 @@ async def test_measured_maxima_are_not_restored_batched_preselected_or_drift(loc
     assert not set(check.adds) & set(MEASURED), check.adds
     # drift: an approved set whose measured maxima differ from the device's has no drift
     state = runtime.store.devices["door-2"]
-    approved = record.param_set(document["parameters"])
-    assert not [r for r in record.drift_of(state, approved) if r["name"] in MEASURED]
-    current = {k: {**v, "device_updates": record.device_updated(state, k)} for k, v in record.live_params(state).items()}
-    verdicts = {r["name"]: r["verdict"] for r in record.compare_with_approved(current, approved)}  # as the report does
+    approved = record_sets.param_set(document["parameters"])
+    assert not [r for r in record_sets.drift_of(state, approved) if r["name"] in MEASURED]
+    current = {k: {**v, "device_updates": record_sets.device_updated(state, k)} for k, v in record_sets.live_params(state).items()}
+    verdicts = {r["name"]: r["verdict"] for r in record_sets.compare_with_approved(current, approved)}  # as the report does
     assert all(verdicts[name] != "changed" for name in MEASURED), verdicts
