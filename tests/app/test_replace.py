@@ -89,6 +89,20 @@ async def test_type_or_variant_mismatch_refuses(two_locks):
         await replace.execute_replacement(runtime, replace.ReplacementPlan(check, None, "x"), set(), user="a", role="engineer")
 
 
+async def test_a_unit_swapped_after_its_approval_is_named_though_the_watch_had_not_compared_it_yet(two_locks):
+    """The approved set's identity is the reference from the approval on, not the first identity the watch
+    happens to compare after it (which, under load, may already be the new unit's)."""
+    runtime, name = two_locks, "door-2"
+    watch = runtime.replacements
+    watch.known.pop(name, None)  # as if the watch had not compared door-2 yet
+    await runtime.record.approve(name, user="anna", role="engineer")
+    assert watch.known[name]["source"] == "approved set"
+    runtime.twins[name].swap_for_new(880089)
+    state = runtime.store.devices[name]
+    assert await wait_for(lambda: getattr(state, "replaced", None), timeout=10)
+    assert state.replaced["differs"] == ["serial"] and state.replaced["source"] == "approved set"
+
+
 async def test_firmware_difference_named(two_locks):
     runtime = two_locks
     name = "door-2"
