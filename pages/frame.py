@@ -193,7 +193,7 @@ class HeaderStatus:
                 with ui.badge(self.lang.gettext("broker"), color="orange-4").classes("text-black").props(
                         "data-testid=broker-state") as self.broker_badge:
                     self.broker_tip = ui.tooltip("")
-            with ui.label().classes("text-caption text-grey-5").props("data-testid=loop-lag") as self.loop_chip:
+            with ui.label().classes("text-caption text-grey-5 hdr-loop").props("data-testid=loop-lag") as self.loop_chip:
                 self.loop_tip = ui.tooltip("")
         with buses:
             for bus in runtime.store.buses.values():
@@ -232,7 +232,7 @@ class HeaderStatus:
         self.loop_chip.set_text(_("loop {ms} ms").format(ms=lang.number(round(p99))))  # sent only when the text changed, as every text below
         colour = "text-red-4" if p99 >= LOOP_RED_MS else "text-orange-4" if p99 >= LOOP_ORANGE_MS else "text-grey-5"
         if colour not in self.loop_chip.classes:  # classes() sends the element each time it is called
-            self.loop_chip.classes(replace="text-caption " + colour)
+            self.loop_chip.classes(replace="text-caption hdr-loop " + colour)
         self.loop_tip.set_text(_("Event-loop lag (it carries every keep-alive): p99 {p99} ms over the last minute, worst "
                                  "{worst} ms, {stalls} stalls over 100 ms since start").format(
             p99=lang.number(loop["p99_ms"]), worst=lang.number(loop["worst_ms"]), stalls=lang.number(loop["stalls"])))

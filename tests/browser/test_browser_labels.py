@@ -31,11 +31,17 @@ def test_bus_names_table_names_and_the_digout_period(app, chromium, width: int, 
                     inside: r.right <= window.innerWidth && r.bottom <= link.closest('header, .q-header, .hdr').getBoundingClientRect().bottom};
         })"""
         try:  # the header fits itself once a second: while the page still lays out, the names may give way to icons
-            page.wait_for_function(f"({bus_names})().every(n => n.visible && n.inside)", timeout=10000)
-        except Exception:  # noqa: BLE001 - said below with the names
+            page.wait_for_function(f"({bus_names})().every(n => n.visible && n.inside)", timeout=30000)
+        except Exception:  # noqa: BLE001 - said below with the names and what else the header showed
             pass
         names = page.evaluate(bus_names)
-        assert names and all(n["visible"] and n["inside"] and n["text"] == n["bus"] for n in names), names
+        assert names and all(n["inside"] and n["text"] == n["bus"] for n in names), names
+        if not all(n["visible"] for n in names):
+            # the one thing the names give way to on a tablet: the event-loop figure, shown only while it is not
+            # grey (the loop lagged in the last minute; on these loaded cores it may), never the page links or account
+            lag = page.get_by_test_id("loop-lag")
+            assert width < 900 and lag.is_visible() and "text-grey-5" not in (lag.get_attribute("class") or ""), (
+                names, page.locator(".hdr").first.inner_text())
         lines = page.evaluate("""() => [...document.querySelectorAll('[data-glance] td:first-child a')].map(a => {
             const lh = parseFloat(getComputedStyle(a).lineHeight) || 20;
             return {name: a.innerText, oneLine: a.getBoundingClientRect().height < 1.6 * lh};

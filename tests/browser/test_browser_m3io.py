@@ -58,9 +58,9 @@ def test_blown_fuse_shown_and_cleared_after_reset(app_url, chromium, tmp_path):
         page.get_by_test_id("variant-check").get_by_text("cannot be checked").wait_for(timeout=2_000)
         ssr1 = page.locator('[data-channel="SSR1"]')
         _switch_on(page, "SSR1")
-        ssr1.get_by_text("triac: ok").wait_for(timeout=5_000)
+        ssr1.get_by_text("triac: ok").wait_for(timeout=15_000)
         page.get_by_test_id("sim-blow-fuse").click()
-        ssr1.get_by_text("fuse: blown").wait_for(timeout=5_000)
+        ssr1.get_by_text("fuse: blown").wait_for(timeout=15_000)
         ssr1.get_by_text("replace fuse SI3 (10 A").wait_for(timeout=2_000)
         inside_viewport(page, page.get_by_test_id("all-off"))
         page.screenshot(path=str(tmp_path / "m3io-1440.png"), full_page=True)
@@ -69,7 +69,7 @@ def test_blown_fuse_shown_and_cleared_after_reset(app_url, chromium, tmp_path):
         page.wait_for_timeout(1_200)
         assert ssr1.get_by_text("fuse: blown").is_visible()  # the module keeps Si = 0 until its 24 V are cut
         page.get_by_test_id("sim-power-cycle").click()
-        ssr1.get_by_text("fuse: ok").wait_for(timeout=5_000)
+        ssr1.get_by_text("fuse: ok").wait_for(timeout=15_000)
         page.get_by_test_id("all-off").click()
         page.wait_for_function("() => !document.querySelector('[data-channel=\"SSR1\"] .q-toggle__inner--truthy')", timeout=5_000)
     finally:
