@@ -269,10 +269,10 @@ async def test_actuator_stops_at_its_end_position(unit):
         assert await line.talk(cmd("RE", "01 02 00")) == ack("RE")  # F2 out, fast start/stop
         assert await line.status_1(2) & 1 << 4  # motion active
 
-        async def at_the_end():
-            return await line.position(2) == act.out_counts
+        async def at_the_end():  # the position reaches the end a tick before the motion is reported ended
+            return await line.position(2) == act.out_counts and not await line.status_1(2) & 1 << 4
 
-        await eventually(at_the_end, timeout=3, what="F2 at its out position")
+        await eventually(at_the_end, timeout=3, what="F2 stopped at its out position")
         status = await line.status_1(2)
         assert await line.position(2) == act.out_counts
         assert status & 1 << 6 and status & 1 << 1 and not status & 1 << 4  # out position, limit, no motion
