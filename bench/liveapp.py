@@ -30,7 +30,7 @@ CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networki
 # up to eight test processes side by side (pytest-xdist's gw0..gw7), a benchmark or a single run uses block 8
 # or 9. A port asked of the kernel (bind to port 0) and let go could be handed to another process's
 # connection before the simulation binds it ("address already in use").
-PORT_BLOCKS_FROM, PORT_BLOCK, PORT_BLOCKS = 12000, 2000, 10
+PORT_BLOCKS_FROM, PORT_BLOCK = 12000, 2000  # ten blocks: 12000-31999
 _next_port: dict[int, int] = {}
 
 

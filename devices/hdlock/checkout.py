@@ -117,7 +117,7 @@ async def _ask_door(ctx) -> None:
 async def _door(ctx) -> None:
     s = ctx.settings
     if not await ctx.wait(lambda: _status(ctx, "DoorInPosition") == 1, s["door_timeout_s"]):
-        proximity = ctx.value("Calculated proxi (normalized)")
+        proximity = ctx.value(PROXIMITY)
         ctx.fail(f"the door is not in position after {s['door_timeout_s']:g} s (proximity {proximity} Inc): "
                  "is it closed, is the strike plate in range?")
     # the proximity (input 7) and DoorInPosition (holding 1000) come from different reads: measure a proximity
@@ -248,7 +248,7 @@ async def _refuse_open_door(ctx) -> None:
     if not await ctx.wait(lambda: _status(ctx, "DoorInPosition") == 0 and _status(ctx, "ProximityInPlace") == 0,
                           s["door_timeout_s"]):
         ctx.fail(f"the door was to be opened, but the lock still sees it in position after {s['door_timeout_s']:g} s "
-                 f"(proximity {ctx.value('Calculated proxi (normalized)')} Inc): is the strike plate's magnet still "
+                 f"(proximity {ctx.value(PROXIMITY)} Inc): is the strike plate's magnet still "
                  "in range, is the proximity threshold set right?")
     ctx.measure("DoorInPosition (door open)", _status(ctx, "DoorInPosition"), expect=0)
     watch_s = (_limit(ctx, REQUEST_DELAY, "ms") + _limit(ctx, LOCK_MAX_TIME, "ms")) / 1000 + s["refuse_watch_s"]
