@@ -34,12 +34,13 @@ from app import gate
 from devices.adapter import BackupAdapter, EntryRestorer, ParamWriter, RestoreDescriber
 from devices.commands import WRITE_PARAMETER
 from devices.commands import find as find_command
+from devices.errors import CommissionError
 
 SCHEMA = "commission-backup"
 VERSION = 1
 
 
-class BackupError(ValueError):
+class BackupError(CommissionError, ValueError):
     """A backup that cannot be made, read or restored; the message says which and why."""
 
 

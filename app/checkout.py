@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from app.record_store import RecordError
+from devices.errors import CommissionError
 
 log = logging.getLogger(__name__)
 
@@ -58,15 +59,15 @@ class TrafficTap:
 
 
 # -- checkouts ---------------------------------------------------------------------------------
-class Aborted(Exception):
+class Aborted(CommissionError):
     """The engineer aborted the checkout (or the page that ran it went away)."""
 
 
-class StepFailed(Exception):
+class StepFailed(CommissionError):
     """A step's check failed; the message is the reason the report shows."""
 
 
-class NotAvailable(Exception):
+class NotAvailable(CommissionError):
     """A step this device (or its adapter) cannot do; the message says why. It does not fail the
     checkout: the report lists the step as "not available" with the reason."""
 

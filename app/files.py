@@ -15,12 +15,13 @@ import tempfile
 from pathlib import Path
 
 from app import host
+from devices.errors import CommissionError
 
 MAX_DOCUMENT_BYTES = 32 * 1024 * 1024  # a backup or parameter file; the largest real ones are a few hundred KiB
 MAX_SECRET_BYTES = 64 * 1024  # a password file
 
 
-class FileRefused(OSError):
+class FileRefused(CommissionError, OSError):
     """A named file that is not read: not a regular file, or too large. ``str()`` is the whole message."""
 
     def __init__(self, path: str | Path, message: str):

@@ -20,23 +20,24 @@ from collections.abc import Awaitable, Callable, Mapping
 from typing import Any
 
 from devices.adapter import ControlChecker, SessionHolder
-from devices.commands import Command, CommandError, find
 from devices.commands import OPEN_KINDS as OPEN_KINDS
+from devices.commands import Command, CommandError, find
+from devices.errors import CommissionError
 
 log = logging.getLogger(__name__)
 
 WRITE_ROLES = {"engineer"}
 
 
-class PermissionDenied(Exception):
+class PermissionDenied(CommissionError):
     """A session without the engineer role asked for a write."""
 
 
-class AuditUnavailable(Exception):
+class AuditUnavailable(CommissionError):
     """The audit log cannot be written: the write is refused (fail closed)."""
 
 
-class NeedsConfirmation(Exception):
+class NeedsConfirmation(CommissionError):
     """The command names a risk and the caller has not confirmed it: ask, then invoke again with ``confirmed``."""
 
     def __init__(self, command: str, question: str):

@@ -40,6 +40,8 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from devices.errors import CommissionError
+
 APP_NAME = "commission"
 
 
@@ -55,7 +57,7 @@ def is_linux() -> bool:
     return sys.platform.startswith("linux")
 
 
-class Unsupported(OSError):
+class Unsupported(CommissionError, OSError):
     """This system has no such call (Windows, macOS): the caller's documented fallback applies."""
 
 

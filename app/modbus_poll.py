@@ -23,6 +23,7 @@ import time
 from dataclasses import dataclass, field
 
 from app.modbus_line import LineError, ModbusLine
+from devices.errors import CommissionError
 from devices.params import Param
 from devices.registry import DEVICE_TYPES
 from devices.sendpolicy import ModbusMessage, Verdict, check_modbus
@@ -53,7 +54,7 @@ def count_range(function: int) -> tuple[int, int]:
     return 1, MAX_BITS if function in (1, 2) else MAX_REGISTERS
 
 
-class PollError(ValueError):
+class PollError(CommissionError, ValueError):
     """An entry that cannot be polled or written, or a write refused before anything was sent."""
 
 

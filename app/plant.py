@@ -15,6 +15,7 @@ from typing import Any
 
 import tomllib
 
+from devices.errors import CommissionError
 from devices.registry import DEVICE_TYPES, format_can_ids
 
 PLANTS_DIR = Path(__file__).resolve().parent.parent / "plants"
@@ -81,7 +82,7 @@ TYPE_WORDS = {bool: "true or false (without quotes)", int: "a whole number (with
 COMMON_DEVICE_KEYS = {"name", "type", "bus", "description"}
 
 
-class PlantError(ValueError):
+class PlantError(CommissionError, ValueError):
     """A plant file that cannot be used; the message says where and what."""
 
 

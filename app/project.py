@@ -40,11 +40,12 @@ from typing import Any
 
 from app import backup, files
 from app.plant import Plant, PlantError, load_plant, parse_plant
+from devices.errors import CommissionError
 from devices.params import Param, ParamError
 from devices.registry import DEVICE_TYPES
 
 
-class ProjectError(ValueError):
+class ProjectError(CommissionError, ValueError):
     """A project that cannot be read or changed; the message names file and line."""
 
 

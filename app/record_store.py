@@ -23,6 +23,7 @@ from pathlib import Path
 
 from app import host
 from app.verify import GENESIS, Check, check_database, head_path, legacy_digest, read_head, read_rows, row_hash
+from devices.errors import CommissionError
 
 log = logging.getLogger(__name__)
 
@@ -58,7 +59,7 @@ BEGIN SELECT RAISE(ABORT, 'commissioning records are append-only: a row is never
 COLUMNS = ("id", "time", "plant", "device", "kind", "user", "role", "title", "data", "supersedes", "prev_hash", "hash")
 
 
-class RecordError(Exception):
+class RecordError(CommissionError):
     """A record that cannot be written or read; the message says which and why."""
 
 

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from app.can_bus import FrameRecord
+from devices.errors import CommissionError
 from devices.sendpolicy import CanMessage, check_send
 
 log = logging.getLogger(__name__)
@@ -45,7 +46,7 @@ BURST_FRAMES = 64  # frames sent in one go when late, before the loop runs anyth
 CONTROL_CHECK_S = 0.2  # how often a running replay looks whether a device came under control
 
 
-class ReplayError(Exception):
+class ReplayError(CommissionError):
     """A replay that cannot start; the message says why."""
 
 

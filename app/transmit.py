@@ -22,6 +22,7 @@ from pathlib import Path
 from app import recording as rec
 from app.backup import write_atomic
 from devices.commands import TxForm, transmit_forms
+from devices.errors import CommissionError
 from devices.sendpolicy import BusDevice, Verdict, check_can
 
 log = logging.getLogger(__name__)
@@ -34,7 +35,7 @@ MAX_ROWS = 64  # rows per bus: the list, its file and the page stay small
 FILE_PREFIX = "transmit-"
 
 
-class TransmitError(ValueError):
+class TransmitError(CommissionError, ValueError):
     """An entry or a request that is refused (out of range, forbidden by a device document)."""
 
 

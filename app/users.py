@@ -12,13 +12,14 @@ from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError
 
 from app import host
+from devices.errors import CommissionError
 
 ROLES = ("engineer", "viewer")  # engineer: may write, drive, restore; viewer: reads only
 LOOPBACK_HOSTS = {"127.0.0.1", "localhost", "::1"}
 _hasher = PasswordHasher()
 
 
-class UserError(ValueError):
+class UserError(CommissionError, ValueError):
     """A user name, role or password that cannot be used."""
 
 

@@ -13,10 +13,12 @@ from typing import Any
 from cantools.database.can import Signal
 from cantools.database.conversion import BaseConversion
 
+from devices.errors import CommissionError
+
 NODE = "commission"  # this tool (or the controller it stands for) as a DBC node
 
 
-class DbcError(Exception):
+class DbcError(CommissionError):
     """The bus cannot be exported (no such bus, not CAN, a device without its IDs); the message says why."""
 
 

@@ -18,7 +18,15 @@ surface (STYLE.md item 19). Below it:
 from __future__ import annotations
 
 
-class DeviceError(Exception):
+class CommissionError(Exception):
+    """The root of every error the project raises on purpose: a refusal, a bad file, a bad entry.
+
+    Below it, each module's own errors keep the builtin they also are (a ``PlantError`` is a
+    ``ValueError``, a ``FileRefused`` an ``OSError``), so a caller may catch either.
+    """
+
+
+class DeviceError(CommissionError):
     """Anything a device, a command or a transport refuses or cannot do."""
 
 

@@ -10,6 +10,7 @@ from can.io.canutils import CanutilsLogReader, CanutilsLogWriter
 from can.io.csv import CSVReader, CSVWriter
 from can.io.trc import TRCReader, TRCWriter
 
+from devices.errors import CommissionError
 
 # suffix -> (writer class, what the engineer sees in the format select)
 WRITERS: dict[str, tuple[type[can.io.generic.MessageWriter], str]] = {
@@ -33,5 +34,5 @@ UNKNOWN = "unknown"
 Key = tuple[bool, int]
 
 
-class RecordingError(Exception):
+class RecordingError(CommissionError):
     """A recording that cannot be started, or a file that cannot be read; the message says why."""

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from devices import values as v
+from devices.errors import CommissionError
 from devices.params import Access
 from devices.scu import codec
 
@@ -251,7 +252,7 @@ if len(DIRECTORY) != len(_ITEMS):
 GROUPS = {g: DIRECTORY[g] for g in _GROUP_NAMES}
 
 
-class UnknownDataId(KeyError):
+class UnknownDataId(CommissionError, KeyError):
     """A data ID that is not in the document's tables."""
 
     def __init__(self, data_id: int):

@@ -24,7 +24,7 @@ CEILINGS = {
     "hasattr": 15,
     "except_exception": 129,
     "private_access": 20,
-    "exception_roots": 20,
+    "exception_roots": 1,
 }
 
 
