@@ -21,6 +21,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from app.cli_lang import _
 from app.record_sets import (
     LIVE_VALUE,
     compare_with_approved,
@@ -658,12 +659,12 @@ def _atomic(path: Path, data: bytes) -> None:
 
 # -- CLI: commission report --plant P --out DIR ----------------------------------------------------------
 def add_parser(sub) -> None:
-    parser = sub.add_parser("report", help="write the as-left report (HTML, PDF) and archive of a plant, headless")
-    parser.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
-    parser.add_argument("--out", type=Path, required=True, help="folder for the report files")
-    parser.add_argument("--no-sim", action="store_true", help="do not start simulated devices")
-    parser.add_argument("--wait", type=float, default=20.0, help="seconds to wait for the devices to come online (default 20)")
-    parser.add_argument("--data-dir", type=Path, default=None, help="data folder with the record (default: the per-user data folder, docs/windows-macos.md)")
+    parser = sub.add_parser("report", help=_("write the as-left report (HTML, PDF) and archive of a plant, headless"))
+    parser.add_argument("--plant", type=Path, default=None, help=_("plant file (default: the built-in demo plant)"))
+    parser.add_argument("--out", type=Path, required=True, help=_("folder for the report files"))
+    parser.add_argument("--no-sim", action="store_true", help=_("do not start simulated devices"))
+    parser.add_argument("--wait", type=float, default=20.0, help=_("seconds to wait for the devices to come online (default 20)"))
+    parser.add_argument("--data-dir", type=Path, default=None, help=_("data folder with the record (default: the per-user data folder, docs/windows-macos.md)"))
     parser.set_defaults(func=run_cli)
 
 
