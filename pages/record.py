@@ -17,6 +17,7 @@ from pathlib import Path
 from nicegui import ui
 
 from app import backup
+from app import i18n
 from app import runtime as rt
 from app.checkout import checkout_module
 from app.record_sets import diff_sets
@@ -84,10 +85,14 @@ def content(name: str | None = None) -> None:
 
 
 def _downloads(runtime, user: str, role: str) -> None:
+    # the report's language is chosen when it is made: the page's, or the other one for a reader who needs it
+    language = ui.toggle({code: code.upper() for code in sorted(i18n.LANGUAGES)}, value=i18n.page_language().code).props(
+        "dense no-caps").tooltip("language of the report").mark("record-report-language")
+
     async def download(kind: str) -> None:
         folder = Path(tempfile.mkdtemp(prefix="commission-report-"))
         try:
-            paths = await write_plant(runtime, folder, user=user or "viewer", role=role)
+            paths = await write_plant(runtime, folder, user=user or "viewer", role=role, lang=i18n.get(language.value))
         except Exception as exc:  # noqa: BLE001 - said to the engineer
             ui.notify(f"report: {exc}", type="negative", multi_line=True)
             return
@@ -354,6 +359,7 @@ PREVIEW_CSS = """
 
 
 def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refresh_timeline) -> None:
+    lang = i18n.page_language()  # the preview speaks the page's language
     ui.label("As-left report and sign-off").classes("text-h6")
     # in the head of the page: the preview's HTML is sanitized, which drops a <style> of its own (its
     # tables and labels then ran together: "addressaddress 1")
@@ -375,8 +381,9 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
     async def show() -> None:
         content = await device_content(runtime, name, read=False)
         plant = await runtime.record.store.run(runtime.record.store.latest, runtime.record.plant, "", "signoff")
-        preview.content = "<div class='record-preview'>" + _small_headings(device_html(content, signoff_of(plant), appendix=False)) + "</div>"
-        listings.content = "<div class='record-preview'>" + _small_headings(appendix_html(content)) + "</div>"
+        preview.content = "<div class='record-preview'>" + _small_headings(
+            device_html(content, signoff_of(plant), appendix=False, lang=lang)) + "</div>"
+        listings.content = "<div class='record-preview'>" + _small_headings(appendix_html(content, lang)) + "</div>"
 
     async def sign(plant: bool) -> None:
         if not signer.value.strip():
