@@ -443,7 +443,9 @@ def _result(status: str, reason: str | None, lang: i18n.Lang | None) -> Shown:
 
 
 def identity_rows(d: dict, lang: i18n.Lang | None = None) -> list[tuple[str, Any]]:
-    ident = {"type": d["type"], "bus": d["bus"], "address": d["address"], **d["identity"], "status": word(d["status"], lang)}
+    key, _sep, number = d["address"].partition(" ")  # "address 1": the plant file's key and its value
+    address = f"{word(key, lang)} {number}" if key == "address" else d["address"]
+    ident = {"type": d["type"], "bus": d["bus"], "address": address, **d["identity"], "status": word(d["status"], lang)}
     return [(word(k, lang), v) for k, v in ident.items()]
 
 
