@@ -94,10 +94,10 @@ async def german_locks(tmp_path, *online: str):
         yield runtime, user
 
 
-def english_but(user, descriptions=frozenset(), skip=("sim-card",), suffixed: bool = False) -> list[tuple[str, str]]:
+def english_but(user, descriptions=frozenset(), skip=(), suffixed: bool = False) -> list[tuple[str, str]]:
     """The English texts on the page but the parameter model's own descriptions (devices/*/params.py, English; with
-    ``suffixed`` also after a name, ``Name: description``) and the simulation card (its words are declared by
-    devices/*/sim.py; pages/simcontrols.py joins later)."""
+    ``suffixed`` also after a name, ``Name: description``); the simulation card is looked at too (its words are
+    declared by devices/*/sim.py and shown in the catalogs' words by pages/simcontrols.py)."""
     return [(text, message) for text, message in english_on(user, skip=skip)
             if text not in descriptions and not (suffixed and any(text.endswith(f": {d}") for d in descriptions))]
 
@@ -297,6 +297,7 @@ async def test_the_mo64_page_in_german_shows_no_english(tmp_path):
         await user.should_see("Seriennummer: 6400001", retries=50)
         await user.should_see("Schleife A belegt")
         await user.should_see("Fehlerspeicher (10 Ebenen, neueste zuerst, Kapitel 5.1.23)")
+        await user.should_see("Ein Fahrzeug durchfahren lassen")  # the twin's card
         found = english_but(user, mo64_descriptions(runtime, "gate"))
         assert found == [], "\n".join(map(str, found))
         errors = next(e for e in user.client.elements.values() if e.props.get("data-testid") == "error-memory")
@@ -350,6 +351,8 @@ async def test_the_hdlock_page_in_german_shows_no_english_but_the_parameters_own
         await user.should_see("Parameter (RW-Holding-Register)")
         await user.should_see("Set Modbus Address an jedes Schloss von line1 (Broadcast 255)")
         await user.should_see("Tür geöffnet", retries=100)  # DoorState in the document's words
+        await user.should_see("Simuliertes Schloss")  # the twin's card in the catalogs' words
+        await user.should_see("Starker Magnet")
         found = english_but(user, descriptions_of(runtime, "door-1"), suffixed=True)
         assert found == [], "\n".join(map(str, found))
         assert not i18n.get("de").missing, i18n.get("de").missing  # nothing looked up that the catalog does not have
