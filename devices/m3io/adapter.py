@@ -274,7 +274,7 @@ class M3ioAdapter(ModuleSettings):
 
     def on_foreign_dig_out(self, msg) -> None:
         """A DigOut from another node: a PLC serves the module. Never fight it."""
-        if getattr(msg, "is_rx", True) is False:  # our own frame, handed back by the interface
+        if not msg.is_rx:  # our own frame, handed back by the interface
             return
         now = time.monotonic()
         self._other = OtherMaster(True, self._other.frames + 1, time.time(), bytes(msg.data).hex(" "))

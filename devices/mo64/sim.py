@@ -409,7 +409,7 @@ class Mo64Twin:
         for listener in list(self.listeners):
             try:
                 listener(telegram)
-            except Exception:  # noqa: BLE001 - a closed connection must not stop the twin
+            except (OSError, RuntimeError):  # a closed connection (or its ended event loop) must not stop the twin
                 log.exception("%s: change telegram not sent", self.name)
 
     # -- answers -------------------------------------------------------------------------------------

@@ -618,7 +618,7 @@ class ScuSim:
             if answer is None:
                 return
             if self.wire_delay:
-                raw = getattr(item, "raw", b"")
+                raw = item.raw
                 await asyncio.sleep(codec.wire_time_s(len(raw) + len(answer), self.baudrate))
             twin = self.twin
             if twin.answer_delay_s:
