@@ -7,7 +7,8 @@ bytes (transmit list, replay, Modbus poll window, restore, the lock's own comman
 from __future__ import annotations
 
 from devices.hdlock import codec
-from devices.hdlock.params import DOOR_IGNORED_WARNING, PARAMS
+from devices.hdlock.params import PARAMS
+from devices.hdlock.tables import DOOR_IGNORED_WARNING
 from devices.commands import Arg, Command, TxField, TxForm, param_write, read_parameters
 from devices.hdlock.adapter import HdLockAdapter, HdLockBackup
 from devices.hdlock.can_adapter import HdLockCanAdapter

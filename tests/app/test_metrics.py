@@ -13,17 +13,17 @@ import pytest
 from tools import metrics
 
 LONG_MODULES = {  # the modules over 700 lines: none may join them
-    "devices/hdlock/params.py", "devices/mo64/codec.py", "devices/mo64/sim.py", "pages/can_monitor.py",
+    "devices/mo64/sim.py", "pages/can_monitor.py",
     "pages/electrak.py", "pages/scu.py",
 }
 LARGE_CLASSES = {  # the classes over 30 attributes: none may join them
     "M3ioAdapter", "Mo64Adapter", "Mo64Twin", "ScuTwin",
 }
 CEILINGS = {
-    "getattr_default": 117,
-    "hasattr": 15,
-    "except_exception": 129,
-    "private_access": 20,
+    "getattr_default": 92,
+    "hasattr": 9,
+    "except_exception": 126,
+    "private_access": 17,
     "exception_roots": 1,
 }
 
