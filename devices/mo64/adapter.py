@@ -108,8 +108,7 @@ class Mo64Adapter(Mo64Settings):
         self.core = Mo64Control()  # the motion rule: what asks, the levels and their dead-man (sans-I/O)
         # each setting write wears the barrier's EEPROM (document: "EEPROM"): restore says how many
         self.restore_wear = "each written setting wears the barrier's EEPROM"
-        self.eeprom_writes: dict[str, int] = {}
-        self.eeprom_writes_total = 0
+        self.eeprom_writes: dict[str, int] = {}  # EEPROM writes of each session (eeprom_writes_total: all of them)
         self.last_reply = ""
         self.error_memory: list[dict] = []
         self.settings: dict[str, Any] = {}

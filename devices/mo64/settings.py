@@ -46,6 +46,12 @@ class Mo64Settings(BackupDefaults):
     """Settings, the parameter model's writes, backup and restore of one MO 64 (mixed into the adapter)."""
 
     params = model.PARAMS
+    eeprom_writes: dict[str, int]  # EEPROM writes of each session, kept by the adapter
+
+    @property
+    def eeprom_writes_total(self) -> int:
+        """Every EEPROM write this tool made, whichever session asked."""
+        return sum(self.eeprom_writes.values())
 
     async def write_setting(self, session: str, key: str, value: Any, selector_verified: bool = False) -> Any:
         """Write one setting, handle busy / syn / ack / nak, read it back; returns the read-back value.
@@ -117,7 +123,6 @@ class Mo64Settings(BackupDefaults):
 
     def _count_write(self, session: str) -> None:
         self.eeprom_writes[session] = self.eeprom_writes.get(session, 0) + 1
-        self.eeprom_writes_total += 1
         self._publish_writes()
 
     async def set_change_monitoring(self, session: str, on: bool) -> str:
