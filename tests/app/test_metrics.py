@@ -13,11 +13,11 @@ import pytest
 from tools import metrics
 
 LONG_MODULES = {  # the modules over 700 lines: none may join them
-    "devices/mo64/sim.py", "pages/can_monitor.py",
+    "pages/can_monitor.py",
     "pages/electrak.py", "pages/scu.py",
 }
 LARGE_CLASSES = {  # the classes over 30 attributes: none may join them
-    "Mo64Twin", "ScuTwin",
+    "ScuTwin",
 }
 CEILINGS = {
     "getattr_default": 92,
