@@ -229,7 +229,8 @@ def transmit_forms(type_name: str, options: Mapping[str, Any]) -> list[TxForm]:
     """The frames a device of ``type_name`` with ``options`` offers to build by name (none when it declares none)."""
     from devices.sendpolicy import policy_of
 
-    forms = getattr(policy_of(type_name), "transmit_forms", None)
+    policy = policy_of(type_name)
+    forms = policy.transmit_forms if policy is not None else None
     return list(forms(options)) if forms is not None else []
 
 

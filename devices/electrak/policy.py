@@ -26,6 +26,7 @@ from devices.params import ParamError
 from devices.sendpolicy import Verdict
 
 TITLE = "Electrak HD"
+check_modbus = transmit_forms = None  # hooks of devices/sendpolicy.py this type has none of
 
 MOTION_REFUSED = ("Electrak control telegram with enable set drives the actuators: use the Electrak page "
                   "(hold-to-run, a visible stop) instead")

@@ -19,6 +19,7 @@ from devices.m3io.params import P2_RISK, PARAMS
 from devices.sendpolicy import Verdict
 
 TITLE = "CAN-M3IO"
+check_modbus = None  # hooks of devices/sendpolicy.py this type has none of
 
 MODULE_SENDS = ("DigIn", "Temp1-4", "Temp5-6", "MData")  # sender "Modul" in the tables of section 5.8
 MAINS_RISK = "{device}: DigOut switches {outputs} on: mains voltage on the load(s) (section 7.2.1)."

@@ -18,6 +18,7 @@ from devices.scu.adapter import ScuAdapter
 from devices.scu.model import PARAMS
 
 TITLE = "Ewellix SCU"
+check_can = check_modbus = transmit_forms = None  # hooks of devices/sendpolicy.py this type has none of
 
 _FUNCTION = Arg("function", 0, 9)  # fnc_ID of F1..F10 (motion functions, section 4.4)
 _RAMP = Arg("ramp", -1, 1)  # para_ID[1]: 1 soft, 0 fast, -1 as configured

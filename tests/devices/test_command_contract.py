@@ -15,6 +15,7 @@ import pytest
 
 from devices.commands import READ_PARAMETERS, Command, CommandError, commands_of, find
 from devices.registry import DEVICE_TYPES
+from devices.sendpolicy import policy_of
 
 WALKED = [(type_name, bus_type) for type_name, device_type in sorted(DEVICE_TYPES.items())
           for bus_type in device_type.bus_types]
@@ -72,3 +73,11 @@ def test_running_a_command_on_an_adapter_that_does_not_serve_it_is_refused_befor
     modbus_adapter = object.__new__(DEVICE_TYPES["hdlock"].adapter_class("modbus-rtu"))
     with pytest.raises(CommandError, match="not a command"):
         command.call(modbus_adapter, "", {"new_value": 5})
+
+
+@pytest.mark.parametrize("type_name", sorted(DEVICE_TYPES))
+def test_every_policy_declares_its_commands_and_each_send_policy_hook(type_name):
+    policy = policy_of(type_name)
+    assert policy is not None and isinstance(policy.COMMANDS, tuple)
+    for hook in ("check_can", "check_modbus", "transmit_forms"):
+        assert hook in vars(policy) and (vars(policy)[hook] is None or callable(vars(policy)[hook])), hook
