@@ -18,7 +18,7 @@ LONG_MODULES = {  # the modules over 700 lines: none may join them
 }
 LARGE_CLASSES: set[str] = set()  # the classes over 30 attributes: none may join them
 CEILINGS = {
-    "getattr_default": 89,
+    "getattr_default": 88,
     "hasattr": 9,
     "except_exception": 126,
     "private_access": 17,
