@@ -13,17 +13,15 @@ import pytest
 from tools import metrics
 
 LONG_MODULES = {  # the modules over 700 lines: none may join them
-    "devices/hdlock/params.py", "devices/mo64/codec.py", "devices/mo64/sim.py", "pages/can_monitor.py",
+    "pages/can_monitor.py",
     "pages/electrak.py", "pages/scu.py",
 }
-LARGE_CLASSES = {  # the classes over 30 attributes: none may join them
-    "M3ioAdapter", "Mo64Adapter", "Mo64Twin", "ScuTwin",
-}
+LARGE_CLASSES: set[str] = set()  # the classes over 30 attributes: none may join them
 CEILINGS = {
-    "getattr_default": 117,
-    "hasattr": 15,
-    "except_exception": 129,
-    "private_access": 20,
+    "getattr_default": 88,
+    "hasattr": 9,
+    "except_exception": 126,
+    "private_access": 17,
     "exception_roots": 1,
 }
 

@@ -136,14 +136,14 @@ async def test_a_write_is_refused_beyond_the_speed_select_while_a_function_runs_
         beating.cancel()
     assert twin.remote_speed[0] == 100
     # strict mode: the unit's parametrisation has no F2 (its remote speed answers PDE)
-    twin.refused_ids = {0x3012}
+    twin.strict.refused_ids = {0x3012}
     with pytest.raises(Exception, match="PDE"):
         await adapter.write_param(SPEED_F2, 50)
     entries = {e["key"] for e in await adapter.backup_read()}  # the group read refused: member by member
     assert SPEED_F1.key in entries and SPEED_F2.key not in entries
     assert adapter.settings.refused[SPEED_F2.key] == "PDE: the unit refuses RG 0x3012"
-    twin.refused_ids = set()
-    twin.single_ids_only = True  # groups refused (the document describes 0x0010 alone): read member by member
+    twin.strict.refused_ids = set()
+    twin.strict.single_ids_only = True  # groups refused (the document describes 0x0010 alone): read member by member
     entries = {e["key"]: e for e in await adapter.backup_read()}
     assert entries[SPEED_F2.key]["raw"] == 100 and entries["limit_out:8194"]["raw"] == 3750
 
@@ -280,7 +280,7 @@ def test_the_twins_strict_modes_refused_data_ids_a_reset_and_the_speed_select():
     assert ask(p.rt_frame(0x3012, 40)).ok and twin.remote_speed[1] == 40
     assert ask(p.rt_frame(0x3012, 101)).status == codec.Status.PDE  # relative: 0 .. 100 % (table 7)
     assert ask(p.rt_frame(0x3023, 5)).status == codec.Status.PDE  # A3: no such actuator on this unit
-    twin.refused_ids = {0x3012}  # the unit's parametrisation has no F2
+    twin.strict.refused_ids = {0x3012}  # the unit's parametrisation has no F2
     assert ask(codec.encode_rg(0x3012)).status == codec.Status.PDE
     assert ask(codec.encode_rg(0x3010)).status == codec.Status.PDE  # a group holding it too
     assert ask(p.rt_frame(0x3012, 50)).status == codec.Status.PDE and twin.remote_speed[1] == 40
@@ -296,7 +296,7 @@ def test_the_twins_strict_modes_refused_data_ids_a_reset_and_the_speed_select():
 async def test_a_unit_watched_with_rg_alone_gets_a_session_for_the_write_and_closes_it_after(lifts):
     runtime = lifts
     twin, adapter = runtime.twins["lift-b"], runtime.worker.adapters["lift-b"]
-    twin.rg_outside_session = True  # it answers RG outside remote mode: watched with RG, no session while idle
+    twin.strict.rg_outside_session = True  # it answers RG outside remote mode: watched with RG, no session while idle
     adapter.watch = None  # asked again at the next poll
     assert await wait_for(lambda: adapter.watch == "rg" and adapter.session == "closed", 20), adapter.session
     assert {e["key"] for e in await adapter.backup_read()} >= {q.key for q in params_for(2)}  # read without a session

@@ -146,7 +146,7 @@ async def test_the_shared_sim_card_acts_on_the_scu_twin_through_the_gate(env):
     assert await runtime.audit.aquery(device="lift", text="simulation: actuator error actuator=2")
     await eventually(lambda: (runtime.store.devices["lift"].point("Error code") or {}).get("value"), timeout=5)
     UserInteraction(user, {by_testid(user, "sim-on-battery")}, None).click()  # the switch goes on
-    await eventually(lambda: not twin.mains, timeout=3)
+    await eventually(lambda: not twin.io.mains, timeout=3)
 
 
 def _props_texts(user, prop: str, value: str) -> str:

@@ -152,8 +152,8 @@ async def test_a_viewer_reaches_no_bus_through_any_declared_command_or_send_path
             assert command.kind in KINDS
             if command.open:
                 continue
-            if command.method:
-                setattr(adapter, command.method, lambda *a, _c=command.name, **k: ran.append(_c))
+            if (function := command.function_for(type(adapter))) is not None:
+                setattr(adapter, function.__name__, lambda *a, _c=command.name, **k: ran.append(_c))
             args = {a.name: getattr(a, "low", 0) for a in command.args}
             with pytest.raises(PermissionDenied):
                 await worker.invoke(dev.name, command.name, args, user="tablet", role="viewer", session="v")
