@@ -251,9 +251,9 @@ class Runtime:
         self.auth_required = auth_required
         self.store = StateStore()
         self.sim = SimulatedPlant(plant) if simulate else None
-        self.worker = Worker(plant, self.store, audit=self.audit)
-        self.worker.after_change = self.after_change  # reminders and kept options durable before a write is reported done
-        self.worker.role_of = self.role_of  # the gate asks the account store at every action
+        # the gate asks the account store at every action; reminders and kept options are durable before a write
+        # is reported done
+        self.worker = Worker(plant, self.store, audit=self.audit, role_lookup=self.role_of, after_change=self.after_change)
         self._unsaved_path = self.data_dir / UNSAVED_FILE
         self._unsaved_lock = asyncio.Lock()
         self._unsaved_written = self._load_unsaved()
