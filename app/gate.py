@@ -28,6 +28,7 @@ import asyncio
 import dataclasses
 import inspect
 import logging
+import sqlite3
 from collections.abc import Awaitable, Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -43,6 +44,7 @@ from devices.errors import CommissionError
 log = logging.getLogger(__name__)
 
 WRITE_ROLES = {"engineer"}
+AUDIT_ERRORS = (OSError, sqlite3.Error, RuntimeError)  # writing a row: the file, the database, a log closed at the end
 CANCELLED = "cancelled: not confirmed"  # an audit row's result when the user answered a question with Cancel
 
 
@@ -70,16 +72,15 @@ class GateWorker(Protocol):
     store: StateStore
     audit: AuditLog | None
 
+    role_of: Callable[[str], str | None]
+    """The role of a user as the account store says now; None where no accounts are in use (the caller's role
+    stands)."""
+    after_change: Callable[[], Awaitable[None]]
+    """Awaited after every action that is not a read (the runtime keeps unsaved reminders on disk)."""
+
     @property
     def adapters(self) -> Mapping[str, Any]:
         """Device name -> its adapter (whatever the device type's adapter is: a declared command names its method)."""
-
-    def role_of(self, user: str) -> str | None:
-        """The role of ``user`` as the account store says now; None where no accounts are in use (the caller's
-        role stands)."""
-
-    async def after_change(self) -> None:
-        """Called after every action that is not a read (the runtime keeps unsaved reminders on disk)."""
 
 
 def may_run(kind: str, role: str) -> bool:
@@ -186,13 +187,8 @@ class CommandGate:
         state = self.worker.store.devices.get(device)
         if state is not None:
             state.event("warning", f"refused for {user or 'anonymous'}: {describe or 'entry'}: {reason}")
-        audit = self.worker.audit
-        if audit is not None:
-            try:
-                await audit.arecord(user=user, role=role, device=device, action=describe or "entry",
-                                    parameter=parameter, new=new, result=f"refused: {reason}"[:500])
-            except Exception as exc:  # noqa: BLE001 - nothing was sent anyway; the audit state shows the failure
-                log.error("audit: %s", exc)
+        await self._note("audit: %s", user=user, role=role, device=device, action=describe or "entry",
+                         parameter=parameter, new=new, result=f"refused: {reason}"[:500])
 
     async def cancelled(self, *, device: str, user: str, role: str, describe: str, parameter: str = "",
                         new: Any = "") -> None:
@@ -202,13 +198,8 @@ class CommandGate:
         if state is not None:
             state.event("info", f"cancelled by {user or 'anonymous'}: {describe}" + (f" = {new}" if new != "" else "")
                         + ": not confirmed, nothing sent")
-        audit = self.worker.audit
-        if audit is not None:
-            try:
-                await audit.arecord(user=user, role=role, device=device, action=describe, parameter=parameter, new=new,
-                                    result=CANCELLED)
-            except Exception as exc:  # noqa: BLE001 - nothing was sent anyway; the header shows the audit state
-                log.error("audit of a cancelled %s failed: %s", describe, exc)
+        await self._note(f"audit of a cancelled {describe} failed: %s", user=user, role=role, device=device,
+                         action=describe, parameter=parameter, new=new, result=CANCELLED)
 
     def question(self, device: str, name: str, args: Mapping[str, Any] | None = None) -> str:
         """The confirmation the declared command ``name`` asks with ``args`` ("" for none): what a restore
@@ -233,14 +224,14 @@ class CommandGate:
             await self.refused(device=device, user=user, role=role, describe=name, reason=reason)
             raise CommandError(reason)
         if not may_run(command.kind, role):
-            await self.refused(device=device, user=user, role=role, describe=command.name, new=_shown(values),
+            await self.refused(device=device, user=user, role=role, describe=command.name, new=shown(values),
                                reason=f"the {role or 'anonymous'} role may not run a {command.kind} command")
             raise PermissionDenied(f"{user or 'anonymous'} has the {role or 'no'} role and may not write ({command.name})")
         try:
             values = command.checked_args(values)
         except CommandError as exc:
             await self.refused(device=device, user=user, role=role, describe=command.name, reason=str(exc),
-                               new=_shown(values))
+                               new=shown(values))
             raise
         if "user" in command.extras:
             values["user"] = user  # who did it, for what the device reports (an emergency stop names who pressed it)
@@ -252,7 +243,7 @@ class CommandGate:
             reason = "take control of the device first"
         if reason:
             await self.refused(device=device, user=user, role=role, describe=command.name, reason=reason,
-                               new=_shown(values))
+                               new=shown(values))
             raise CommandError(reason)
         risk = command.risk_text(values)
         if risk and not confirmed:
@@ -262,13 +253,13 @@ class CommandGate:
             result = command.call(adapter, session, values, confirmed=bool(risk))
             return await result if inspect.isawaitable(result) else result
 
-        shown = {"action": command.name, "parameter": "", "old": "", "new": _shown(values)}
+        wording = {"action": command.name, "parameter": "", "old": "", "new": shown(values)}
         if command.audit is not None:
-            shown.update(command.audit(values, adapter))
+            wording.update(command.audit(values, adapter))
         if action:
-            shown["action"] = action
-        row = Row(user=user, role=role, device=device, action=shown["action"] or "command",
-                  parameter=shown["parameter"], old=shown["old"], new=shown["new"])
+            wording["action"] = action
+        row = Row(user=user, role=role, device=device, action=wording["action"] or "command",
+                  parameter=wording["parameter"], old=wording["old"], new=wording["new"])
         return await self._execute(run, command.kind, row)
 
     def _policy_refusal(self, command: Command, device: str, values: Mapping[str, Any]) -> str:
@@ -280,35 +271,29 @@ class CommandGate:
 
     # -- running: audit row first (or, for a stop, after) --------------------------------------------------------
     async def _execute(self, action: Callable[[], Awaitable[Any]], kind: str, row: Row) -> Any:
-        """Run ``action`` whose role is checked: a stop first and audited after; anything else audited
-        first (fail closed) unless it is a read."""
-        if kind == "stop":
-            return await self._run_stop(action, row)
+        """Run ``action`` whose role is checked. A stop runs first and its row (with the outcome) is queued
+        afterwards; anything else but a read is audited first (fail closed) and finished with its outcome."""
         audit = self.worker.audit
-        started = await self._audit_start(audit, row) if kind != "read" and audit is not None else None
+        stop = kind == "stop"
+        started = await self._audit_start(audit, row) if not stop and kind != "read" and audit is not None else None
         try:
             result = await action()
         except Exception as exc:  # re-raised: the row tells how it ended
-            if started is not None:
-                await audit.afinish(started, f"failed: {exc}")
+            await self._finish(row, started, f"failed: {exc}"[:500] if stop else f"failed: {exc}", stop=stop)
             raise
         finally:
-            if kind != "read":
+            if not stop and kind != "read":
                 await self.worker.after_change()
-        if started is not None:
-            # an outcome in words (e.g. which lock took a broadcast address) goes into the row too
-            await audit.afinish(started, _outcome(result))
+        # an outcome in words (e.g. which lock took a broadcast address) goes into the row too
+        await self._finish(row, started, _outcome(result), stop=stop)
         return result
 
-    async def _run_stop(self, action: Callable[[], Awaitable[Any]], row: Row) -> Any:
-        """A stop: runs at once for any role; the audit row (with the outcome) is queued afterwards."""
-        try:
-            result = await action()
-        except Exception as exc:  # re-raised: the row tells how it ended
-            self._audit_later(row, f"failed: {exc}"[:500])
-            raise
-        self._audit_later(row, _outcome(result))
-        return result
+    async def _finish(self, row: Row, started: Any, result: str, *, stop: bool) -> None:
+        """How an action ended: into the row written before it, or (a stop) into a row written now from a queue."""
+        if stop:
+            self._audit_later(row, result)
+        elif started is not None and self.worker.audit is not None:
+            await self.worker.audit.afinish(started, result)
 
     def _audit_later(self, row: Row, result: str) -> None:
         """Write an audit row from a task of its own: the caller (a stop) never waits for the database."""
@@ -339,17 +324,24 @@ class CommandGate:
                 f"Free or repair {audit.path} (locked by another program, read-only or disk full) and try again."
             ) from None
 
+    async def _note(self, failure: str, **row: Any) -> None:
+        """Write the audit row of a request that sends nothing (refused, cancelled). A row that cannot be
+        written is logged with ``failure`` (a %-format for the error): the request's outcome stands, and the
+        header shows the audit state."""
+        audit = self.worker.audit
+        if audit is None:
+            return
+        try:
+            await audit.arecord(**row)
+        except AUDIT_ERRORS as exc:
+            log.error(failure, exc)
+
     async def _refuse_role(self, row: Row) -> None:
         """The role may not run it: noted on the device and in the audit log. :raises PermissionDenied: always"""
         state = self.worker.store.devices.get(row.device)
         if state is not None:
             state.event("warning", f"refused for {row.user} ({row.role}): {row.action}")
-        audit = self.worker.audit
-        if audit is not None:
-            try:
-                await audit.arecord(**row.fields(), result=f"refused: the {row.role or 'anonymous'} role may not write")
-            except Exception as exc:  # noqa: BLE001 - refused anyway; the audit state shows the failure
-                log.error("audit: %s", exc)
+        await self._note("audit: %s", **row.fields(), result=f"refused: the {row.role or 'anonymous'} role may not write")
         raise PermissionDenied(f"{row.user or 'anonymous'} has the {row.role or 'no'} role and may not write ({row.action})")
 
 
@@ -365,5 +357,6 @@ def _outcome(result: Any) -> str:
     return f"ok: {result}"[:500] if isinstance(result, str) and result else "ok"
 
 
-def _shown(values: Mapping[str, Any]) -> str:
+def shown(values: Mapping[str, Any]) -> str:
+    """Arguments as the audit log and a cancelled question show them: a parameter or a choice by its name."""
     return ", ".join(f"{k}={getattr(v, 'name', v)}" for k, v in values.items())

@@ -6,7 +6,7 @@ gaps (scaled by ``speed``), can be stopped at any time, is refused on a bus wher
 under control (an adapter's ``holders()`` is not empty) and stops by itself when a device comes
 under control meanwhile. It is under the dead-man rule: registered with ``worker.add_holder``, it
 ends when the engineer's browser goes away. Starting is checked and audited through
-``worker.engineer_action``.
+``worker.gate.run``.
 
 Error frames and remote frames of the file are not sent (the send path carries data frames);
 they are counted in ``skipped``. Every other frame is judged by the one send policy

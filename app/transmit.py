@@ -2,7 +2,7 @@
 
 Rows are entered as bytes or built by name from the frames each device type declares
 (``transmit_forms`` in its policy.py). Every send and every cyclic start/stop goes through
-the worker (:meth:`app.worker.Worker.engineer_action` / ``refused``): engineer role, audit row.
+the worker's gate (:meth:`app.gate.CommandGate.run` / ``refused``): engineer role, audit row.
 Frames that a device document forbids are refused by name before anything is sent
 (:func:`forbidden_reason`). Cyclic rows belong to the browser session that started them and stop
 under the worker's dead-man rule (``holders`` / ``session_lost``). The list is saved per bus as

@@ -59,7 +59,7 @@ async def run_command(
     the page's language. ``parameter`` and ``new``: the parameter's name and value as an engineer reads them,
     for the audit row of a question answered with Cancel.
     """
-    from app.gate import NeedsConfirmation
+    from app.gate import NeedsConfirmation, shown
     from devices.commands import CommandError
     from devices.errors import CommissionError
     from pages.session import current_user
@@ -73,8 +73,8 @@ async def run_command(
         except NeedsConfirmation as question:
             if not await confirm(title or f"{action}?", question.question,
                                  ok=i18n.client_language().gettext("Send") if ok is None else ok):
-                await cancelled(device, action, parameter=parameter, new=new if parameter else ", ".join(
-                    f"{k}={getattr(v, 'name', v)}" for k, v in (args or {}).items() if k != "known"))
+                await cancelled(device, action, parameter=parameter,
+                                new=new if parameter else shown({k: v for k, v in (args or {}).items() if k != "known"}))
                 return False, None
             user, role = current_user()  # looked up again: the answer may come much later
             result = await worker.gate.invoke(device, action, args, user=user or "anonymous", role=role, session=session,

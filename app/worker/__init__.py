@@ -62,21 +62,30 @@ log = logging.getLogger(__name__)
 STOP_S = 5.0  # the bus tasks' end, at most this long
 
 
+def no_accounts(user: str) -> None:
+    """No account store: every caller's role stands."""
+    return None
+
+
+async def nothing_to_keep() -> None:
+    """Nothing to make durable after a change."""
+
+
 class Worker:
     """Every adapter is reached through it; one polling task per bus, one supervision tick.
 
-    :param role_lookup: the role of a user as the account store says now, None where no accounts are in
-        use (:meth:`role_of`; the runtime's); without it the caller's role stands
+    :param role_of: the role of a user as the account store says now, None where no accounts are in use
+        (the runtime's); by default no accounts: the caller's role stands
     :param after_change: awaited after every action that is not a read (the runtime's: unsaved reminders
         onto disk before a write is reported done)
     """
 
     def __init__(self, plant: Plant, store: StateStore | None = None, audit: AuditLog | None = None, *,
-                 role_lookup: Callable[[str], str | None] | None = None,
-                 after_change: Callable[[], Awaitable[None]] | None = None):
+                 role_of: Callable[[str], str | None] = no_accounts,
+                 after_change: Callable[[], Awaitable[None]] = nothing_to_keep):
         self.plant = plant
-        self._role_lookup = role_lookup
-        self._after_change = after_change
+        self.role_of = role_of  # read by the gate at every action
+        self.after_change = after_change
         self.audit = audit
         self.store = store or StateStore()
         self.transports = Transports(plant, self.store)
@@ -86,8 +95,9 @@ class Worker:
         self.deadman = DeadmanSupervisor(self._holder_items)
         self.loop_health = LoopHealth()
         self.hurry = loophealth.Hurry()  # a page connecting or a command coming ends the idle tick's wait
-        self.gate = CommandGate(self, done=self.hurry.now)  # the one way in for commands; it may take control:
-        # supervised from the next tick on, at 50 ms
+        # the one way in for commands; after each the tick hurries (a command may have taken control: supervised
+        # from the next tick on, at 50 ms)
+        self.gate = CommandGate(self, done=self.hurry.now)
         # the flood bound is the module's, passed in, so that a test may choose its own
         self.discovery = CanDiscovery(plant, self.transports.can_buses, flood_ids_per_s=FLOOD_NEW_IDS_PER_S)
         for name, can_bus in self.transports.can_buses.items():
@@ -128,15 +138,6 @@ class Worker:
     def beats(self) -> dict[str, float]:
         """Session -> monotonic time of its last sign of life."""
         return self.deadman.beats
-
-    def role_of(self, user: str) -> str | None:
-        """The role of ``user`` as the account store says now (None: no accounts in use, the caller's role stands)."""
-        return None if self._role_lookup is None else self._role_lookup(user)
-
-    async def after_change(self) -> None:
-        """An action that is not a read ran (:class:`app.gate.CommandGate`)."""
-        if self._after_change is not None:
-            await self._after_change()
 
     # -- running ---------------------------------------------------------------------------------------
     async def start(self) -> None:
