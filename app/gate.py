@@ -25,7 +25,6 @@ refused, sent first, and audited afterwards from a queue, whatever the audit log
 from __future__ import annotations
 
 import asyncio
-import dataclasses
 import inspect
 import logging
 import sqlite3
@@ -100,7 +99,7 @@ class Row:
     new: Any = ""
 
     def fields(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        return dict(vars(self))  # the values themselves (a list of register values stays the list the caller gave)
 
 
 class CommandGate:
