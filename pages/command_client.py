@@ -1,6 +1,6 @@
 """The pages' command client: every write, command and question of a page goes through here to the
-worker's gate (``worker.gate``, :class:`app.gate.CommandGate`), with the confirmation dialogs, refusals and the controls a session
-may not use shown disabled with their reason."""
+worker's gate (``worker.gate``, :class:`app.gate.CommandGate`), with the confirmation dialogs, refusals
+and the controls a session may not use shown disabled with their reason."""
 
 from __future__ import annotations
 
