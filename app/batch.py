@@ -70,7 +70,7 @@ async def source_document(runtime, source: str, device: str) -> dict:
         adapter = runtime.worker.adapters[sibling]
         if not backup.supports_backup(adapter):
             raise backup.BackupError(f"{sibling} has no parameters to copy")
-        entries = await runtime.worker.invoke(sibling, READ_PARAMETERS, user="batch", role="viewer")
+        entries = await runtime.worker.gate.invoke(sibling, READ_PARAMETERS, user="batch", role="viewer")
         state = runtime.store.devices[sibling]
         return backup.make_document(runtime.plant.name, sibling, state.type, state.bus, adapter.backup_identity(), entries)
     path = Path(source.removeprefix("file:"))

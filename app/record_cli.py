@@ -297,7 +297,7 @@ async def sim_action(runtime, spec: str, *, user: str, role: str) -> str:
             await result
         return ""
 
-    await runtime.worker.checked(act, device=device, role=role, user=user, describe=f"simulation: {describe}", kind="system")
+    await runtime.worker.gate.run(act, device=device, role=role, user=user, describe=f"simulation: {describe}", kind="system")
     return f"{device}: simulation: {describe}"
 
 

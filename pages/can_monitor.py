@@ -383,8 +383,8 @@ class RecordingCard:
             return await asyncio.to_thread(rec.start_recording, self.state, suffix, None, self.options)
 
         try:
-            self.last = await rt.current().worker.engineer_action(
-                start, user=user, role=role, describe=f"start recording {self.bus} ({suffix})", target=self.bus)
+            self.last = await rt.current().worker.gate.run(
+                start, user=user, role=role, describe=f"start recording {self.bus} ({suffix})", device=self.bus, kind="write")
         except (rec.RecordingError, PermissionDenied, AuditUnavailable) as exc:
             notify_error(str(exc))
             return
@@ -398,8 +398,8 @@ class RecordingCard:
             return await asyncio.to_thread(rec.stop_recording, self.state)  # writes what is queued, then closes
 
         # stopping only ends a file: allowed for everyone, audited
-        stopped = await rt.current().worker.checked(stop, device=self.bus, role=role, user=user,
-                                                    describe=f"stop recording {self.bus}", kind="stop")
+        stopped = await rt.current().worker.gate.run(stop, device=self.bus, role=role, user=user,
+                                                     describe=f"stop recording {self.bus}", kind="stop")
         if stopped is None:
             ui.notify("Nothing was being recorded.", type="warning")
             return

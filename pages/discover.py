@@ -57,9 +57,9 @@ def open_discover_dialog(bus: str) -> None:
         user, role = current_user()
         try:
             # a scan holds the line's polling and talks to every address: an engineer action, audited
-            found = await runtime.worker.engineer_action(
+            found = await runtime.worker.gate.run(
                 lambda: runtime.worker.discover(bus, a, b, on_progress), user=user, role=role,
-                describe=f"scan line {bus} addresses {a}..{b}", target=bus)
+                describe=f"scan line {bus} addresses {a}..{b}", device=bus, kind="write")
         except Exception as exc:  # noqa: BLE001 - the scan stops; the engineer is told why
             ui.notify(f"discover failed: {exc}", type="negative")
             found = []
@@ -196,9 +196,9 @@ def adopt_dialog(bus: str, entry: dict, tile_row, add_tile: Callable[[str], None
 
             try:
                 # it changes the running plant (and the plant file): an engineer action, audited
-                await runtime.worker.engineer_action(
-                    adopt, user=user, role=role, target=dev.name, new=device_toml(dev).strip(),
-                    describe="adopt discovered device" + (f" and append it to {path.name}" if write else ""))
+                await runtime.worker.gate.run(
+                    adopt, user=user, role=role, device=dev.name, new=device_toml(dev).strip(),
+                    describe="adopt discovered device" + (f" and append it to {path.name}" if write else ""), kind="write")
             except (ValueError, OSError, PermissionDenied, AuditUnavailable) as exc:
                 ui.notify(_("Cannot adopt: {error}").format(error=exc), type="negative", multi_line=True)
                 return

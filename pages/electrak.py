@@ -537,8 +537,8 @@ class ServiceCard(DrawnCard):
 
         async def read() -> None:
             try:
-                await view.runtime.worker.invoke(view.name, "read service parameters", None, user=user or "anonymous",
-                                                 role=role, session=view.session)
+                await view.runtime.worker.gate.invoke(view.name, "read service parameters", None, user=user or "anonymous",
+                                                      role=role, session=view.session)
             except Exception as exc:  # noqa: BLE001 - the card shows "not read" and the answers; Read all retries
                 log.info("%s: service parameters not read on opening the page: %s", view.name, exc)
 

@@ -220,8 +220,8 @@ class ProjectCard:
             await asyncio.to_thread(project.update_entry, self.runtime.plant, device, key, row.current_value)
 
         try:
-            await self.runtime.worker.engineer_action(rewrite, user=user, role=role, describe="update project",
-                                                      target=device, new=f"{row.name} = {row.current_text}")
+            await self.runtime.worker.gate.run(rewrite, user=user, role=role, describe="update project",
+                                               device=device, new=f"{row.name} = {row.current_text}", kind="write")
         except Exception as exc:  # noqa: BLE001 - a file that cannot be written, a viewer ...
             notify_error(self.lang.gettext("Project not updated: {error}").format(error=exc))
             return
@@ -428,10 +428,10 @@ class ProjectEditor:
         shown = {k: self.values.get(k) for k in changes}  # what this page showed: refused if another save changed it
         self.save_button.disable()  # one save at a time: a second press waits for the first's values
         try:
-            await self.runtime.worker.engineer_action(
+            await self.runtime.worker.gate.run(
                 lambda: asyncio.to_thread(project.save, self.runtime.plant, self.name, changes, shown), user=user, role=role,
-                describe="edit project", target=self.name, parameter=", ".join(by_key[k].label or by_key[k].name
-                                                                               for k in changes), new=words)
+                describe="edit project", device=self.name, parameter=", ".join(by_key[k].label or by_key[k].name
+                                                                               for k in changes), new=words, kind="write")
         except Exception as exc:  # noqa: BLE001 - a viewer, a file that cannot be written ...
             self.status.set_text(_("Not saved: {errors}").format(errors=exc))
             self.status.classes(replace="text-body2 text-negative")

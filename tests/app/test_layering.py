@@ -320,12 +320,12 @@ def test_no_page_or_app_module_says_whether_an_action_is_a_write():
 
 
 def test_only_the_gate_decides_the_kind_of_a_worker_command():
-    """``Worker.command`` takes no ``write=`` (the declarations decide), and no test passes one either."""
+    """The gate's ``run`` takes no ``write=`` (the declarations decide), and no test passes one either."""
     import inspect
 
-    from app.worker import Worker
+    from app.gate import CommandGate
 
-    assert "write" not in inspect.signature(Worker.command).parameters
+    assert "write" not in inspect.signature(CommandGate.run).parameters
     offenders = {p.name: write_flags_in(p.read_text(encoding="utf-8")) for p in _python_files("tests")}
     assert {k: v for k, v in offenders.items() if v} == {}
 

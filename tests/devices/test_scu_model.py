@@ -93,8 +93,10 @@ async def test_backup_names_every_value_and_restore_writes_the_settings_back_rea
     assert document["identity"]["configuration"].startswith("SCP11")
 
     adapter = runtime.worker.adapters["lift-a"]
-    await runtime.worker.command("lift-a", lambda a: a.write_param(SPEED_F2, 40), user="anna", describe="write")
-    await runtime.worker.command("lift-a", lambda a: a.write_param(POSITION_A1, 1234), user="anna", describe="write")
+    await runtime.worker.gate.run(lambda: runtime.worker.adapters["lift-a"].write_param(SPEED_F2, 40),
+                                  device="lift-a", user="anna", describe="write", role="engineer")
+    await runtime.worker.gate.run(lambda: runtime.worker.adapters["lift-a"].write_param(POSITION_A1, 1234),
+                                  device="lift-a", user="anna", describe="write", role="engineer")
     assert twin.remote_speed[1] == 40 and twin.remote_position[0] == 1234
     assert adapter.state.raw(SPEED_F2) == 40 and adapter.state.raw(POSITION_A1) == 1234
 
@@ -125,13 +127,13 @@ async def test_a_write_is_refused_beyond_the_speed_select_while_a_function_runs_
 
     beating = asyncio.create_task(beat())
     try:
-        await runtime.worker.invoke("lift-a", "take control", session="s1", user="anna", role="engineer")
-        await runtime.worker.invoke("lift-a", "jog (RE)", {"function": 0, "direction": 1, "ramp": 1}, session="s1",
-                                    user="anna", role="engineer")
+        await runtime.worker.gate.invoke("lift-a", "take control", session="s1", user="anna", role="engineer")
+        await runtime.worker.gate.invoke("lift-a", "jog (RE)", {"function": 0, "direction": 1, "ramp": 1}, session="s1",
+                                         user="anna", role="engineer")
         with pytest.raises(Exception, match="F1 .* runs or its stop is owed"):
             await adapter.write_param(SPEED_F1, 50)
-        await runtime.worker.invoke("lift-a", "jog stop (RS)", {"function": 0}, session="s1", user="anna", role="engineer")
-        await runtime.worker.invoke("lift-a", "release control", session="s1", user="anna", role="engineer")
+        await runtime.worker.gate.invoke("lift-a", "jog stop (RS)", {"function": 0}, session="s1", user="anna", role="engineer")
+        await runtime.worker.gate.invoke("lift-a", "release control", session="s1", user="anna", role="engineer")
     finally:
         beating.cancel()
     assert twin.remote_speed[0] == 100
@@ -201,10 +203,10 @@ async def test_drift_after_a_reset_and_the_replacement_assistant_writes_the_appr
 async def test_the_declared_write_goes_through_the_gate_for_a_viewer_it_is_refused(lifts):
     runtime = lifts
     with pytest.raises(PermissionDenied):
-        await runtime.worker.invoke("lift-a", WRITE_PARAMETER, {"param": SPEED_F1.key, "value": 20}, user="tab",
-                                    role="viewer")
-    await runtime.worker.invoke("lift-a", WRITE_PARAMETER, {"param": SPEED_F1.key, "value": 20}, user="anna",
-                                role="engineer")
+        await runtime.worker.gate.invoke("lift-a", WRITE_PARAMETER, {"param": SPEED_F1.key, "value": 20}, user="tab",
+                                         role="viewer")
+    await runtime.worker.gate.invoke("lift-a", WRITE_PARAMETER, {"param": SPEED_F1.key, "value": 20}, user="anna",
+                                     role="engineer")
     assert runtime.twins["lift-a"].remote_speed[0] == 20
 
 
@@ -301,7 +303,7 @@ async def test_a_unit_watched_with_rg_alone_gets_a_session_for_the_write_and_clo
     assert await wait_for(lambda: adapter.watch == "rg" and adapter.session == "closed", 20), adapter.session
     assert {e["key"] for e in await adapter.backup_read()} >= {q.key for q in params_for(2)}  # read without a session
     assert adapter.session == "closed"
-    await runtime.worker.invoke("lift-b", WRITE_PARAMETER, {"param": SPEED_F2.key, "value": 45}, user="anna",
-                                role="engineer")
+    await runtime.worker.gate.invoke("lift-b", WRITE_PARAMETER, {"param": SPEED_F2.key, "value": 45}, user="anna",
+                                     role="engineer")
     assert twin.remote_speed[1] == 45
     assert await wait_for(lambda: adapter.session == "closed" and not twin.remote, 20)  # RA once nobody needs it
