@@ -2,7 +2,7 @@
 
 Reads only the live store (the points and records :mod:`devices.electrak.adapter` publishes) and invokes
 the declared commands (devices/electrak/policy.py) through the worker's gate. Each card is a
-:class:`pages.device_page.DeviceCard` with ``build()`` (in the page's layout) and ``refresh()`` (on every
+:class:`pages.cards.DeviceCard` with ``build()`` (in the page's layout) and ``refresh()`` (on every
 change the store pushes); :func:`pages.device_page.device_page` puts the frame, events and STOP bar around them."""
 
 from __future__ import annotations
@@ -24,7 +24,8 @@ from devices.electrak import codec
 from devices.electrak.adapter import FOREIGN_SENDER, SERIES
 from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, length_of, refusal
 from devices.electrak.policy import AREA_CLEAR_RISK
-from pages.device_page import DeviceCard, DeviceView, DrawnCard, StatusRow, device_page, point_values, titled_card
+from pages.cards import DeviceCard, DrawnCard, point_values, titled_card
+from pages.device_page import DeviceView, StatusRow, device_page
 from pages.frame import fmt_age, fmt_time
 from pages.session import current_user
 from pages.simcontrols import sim_card
@@ -98,7 +99,7 @@ class NetworkCard(DrawnCard):
         return (state.status, point_values(points, self.NUMBERS), point_values(points, (facts.P_HEARD, facts.P_CONFIGURED,
                                                                                        facts.P_SATURATED)))
 
-    def draw(self) -> None:
+    def draw(self) -> bool:
         view, state = self.view, self.view.state
         _ = view.lang.gettext
         self.status.refresh()
@@ -112,8 +113,7 @@ class NetworkCard(DrawnCard):
         saturated = view.fact(facts.P_SATURATED, "")
         self.saturated.set_text(_(saturated) if saturated and view.online() else "")  # gettext("") is the catalog's header
         self.seen.set_text(_("last status {age}").format(age=fmt_age(state.age, view.lang)))
-        if not self.numbers.draw():
-            self.drawn = None  # a stale or offline value: drawn again with the next telegram (it may be good again)
+        return self.numbers.draw()  # False: a stale or offline value, drawn again with the next telegram (it may be good again)
 
 
 class FlagsCard(DrawnCard):
@@ -145,7 +145,7 @@ class FlagsCard(DrawnCard):
         state = self.view.state
         return state.status, point_values(state.points, self.POINTS)
 
-    def draw(self) -> None:
+    def draw(self) -> bool:
         view, state = self.view, self.view.state
         _ = view.lang.gettext
         online = view.online()
@@ -156,8 +156,8 @@ class FlagsCard(DrawnCard):
         self.motion.show([lamp_html(n, _(n), entry, text) for entry, n, text in motion])
         self.errors.show([lamp_html(n, _(n), entry, text, "alarm", idle if bit == TIMEOUT_BIT else None)
                           for entry, n, text, bit in errors])
-        if any(entry is not None and entry["quality"] in ("stale", "offline") for entry, *_rest in motion + errors):
-            self.drawn = None  # drawn again with the next telegram, which may bring them back
+        # a stale or offline lamp: drawn again with the next telegram, which may bring them back
+        good = not any(entry is not None and entry["quality"] in ("stale", "offline") for entry, *_rest in motion + errors)
         errors = view.fact(facts.P_ERRORS, 0)
         self.idle_note.set_text(_("Message timeout is expected while idle: nobody sends the control telegram 0x06. "
                                   "It clears with the first telegrams when you take control.")
@@ -170,6 +170,7 @@ class FlagsCard(DrawnCard):
                 for bit in faults:
                     fault, _text, clears = codec.ERROR_FLAGS[bit]
                     ui.label(_("{fault}: clears: {clears}").format(fault=_(fault), clears=_(clears))).classes("text-negative text-body2")
+        return good
 
 
 class ChartCard(DeviceCard):

@@ -26,7 +26,8 @@ from devices.hdlock.params import HOLDING, INPUT, LOCK_STATUS_BITS, PARAMS
 from devices.hdlock.policy import unsaved_changes
 from devices.params import Param
 from pages.hdlock_can import CanStatusCard, can_commands_card
-from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
+from pages.cards import DeviceCard, titled_card
+from pages.device_page import DeviceView, StatusRow, device_page
 from pages.frame import fmt_age, status_text
 from pages.simcontrols import sim_card
 from pages.widgets import entry_age, Lamp, RegisterTable, ValueLine

@@ -16,13 +16,8 @@ from devices.mo64 import adapter as facts
 from devices.mo64 import codec
 from devices.mo64.adapter import COMMAND_NAMES
 from devices.mo64.policy import operation_name
-from pages.device_page import (
-    DeviceCard,
-    DeviceView,
-    StatusBadge,
-    device_page,
-    titled_card,
-)
+from pages.cards import DeviceCard, titled_card
+from pages.device_page import DeviceView, StatusBadge, device_page
 from pages.frame import status_text
 from pages.mo64_settings import SettingsCard, show_line, value_line
 from pages.simcontrols import sim_card

@@ -16,10 +16,8 @@ from devices.mo64 import codec
 from devices.commands import WRITE_PARAMETER
 from devices.mo64.params import PARAMS, Mo64Param
 from devices.mo64.policy import EEPROM_RISK, setting_name
-from pages.device_page import (
-    DeviceCard,
-    DeviceView,
-)
+from pages.cards import DeviceCard
+from pages.device_page import DeviceView
 from pages.widgets import columns, entry_age, quality_note, range_number, ValueLine
 from pages.command_client import checked_value, refuse
 

@@ -22,8 +22,8 @@ from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.adapter import SERVICE_IDS, WATCH_RG, chart_points
 from devices.scu.model import LIMIT_FIELDS, SESSION, VOLATILE, params_for
-from pages.device_page import DeviceView, StatusRow, device_page, point_values, titled_card
-from pages.device_page import DrawnCard as ChangedCard
+from pages.cards import DrawnCard, point_values, titled_card
+from pages.device_page import DeviceView, StatusRow, device_page
 from pages.frame import fmt_age, fmt_time
 from pages.simcontrols import sim_card
 from pages.widgets import entry_age, follow
@@ -132,17 +132,6 @@ class ScuView(DeviceView):
         access = self.access()
         for card in self.cards:
             card.refresh(access)
-
-
-class DrawnCard(ChangedCard):
-    """A card of the SCU page drawn only when what it shows changed (``inputs(access)``: by default the page's
-    access, the unit's status and its :attr:`POINTS`) and on the once-a-second round (see the base class)."""
-
-    POINTS: tuple[str, ...] = ()
-
-    def inputs(self, access: Access) -> object:
-        state = self.view.state
-        return access, state.status, point_values(state.points, self.POINTS)
 
 
 def _aging(quality: str) -> bool:
