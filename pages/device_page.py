@@ -33,7 +33,6 @@ from app import i18n
 from app import runtime as rt
 from app.i18n import Lang
 from app.state import DeviceState, LiveValue, session_tag
-from pages.cards import DeviceCard
 from pages.frame import frame, set_status_badge
 from devices.params import Param
 from pages.widgets import counter_line, event_log, follow
@@ -54,7 +53,7 @@ class DeviceView:
         self.state: DeviceState = runtime.store.devices[name]
         self.session = ui.context.client.id
         self.tag = session_tag(self.session)
-        self.cards: list[DeviceCard] = []
+        self.cards: list = []  # its cards (pages.cards), refreshed with the page
         self.guard: WriteGuard | None = None  # the page's write and command controls, off with the reason while silent
         self.pushing = False  # while the store's push runs the page's refresh (see :attr:`ages_due`)
         self._keys: dict[str, tuple] = {}  # a register parameter's name -> the (space, address) of its words
