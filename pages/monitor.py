@@ -21,7 +21,7 @@ from app import recording as rec
 from app import runtime as rt
 from app.can_bus import CanBusState
 from app.recording import lines
-from pages.can_monitor import CanMonitor, _frame_rows  # noqa: F401 - _frame_rows: the CAN list's rows (bench/can_ingest.py)
+from pages.can_monitor import CanMonitor
 from pages.frame import frame
 from pages.monitor_common import CSS, SHOWN, tool_links
 
