@@ -7,6 +7,8 @@ cyclic rows stop when this browser stops confirming it is alive. Viewers never s
 
 from __future__ import annotations
 
+import weakref
+
 from nicegui import background_tasks, ui
 
 from app import runtime as rt
@@ -278,10 +280,13 @@ class RowsCard:
             self.refresh()
 
 
+_LOADING: weakref.WeakSet[tx.TransmitList] = weakref.WeakSet()  # the lists whose file is being loaded (once)
+
+
 def _engineer_view(runtime, bus: str) -> None:
     tl = tx.transmit_list(runtime.worker, bus, runtime.data_dir)
-    if not tl.loaded.is_set() and not getattr(tl, "_loading", False):
-        tl._loading = True
+    if not tl.loaded.is_set() and tl not in _LOADING:
+        _LOADING.add(tl)
         background_tasks.create(tl.load(), name=f"load transmit list {bus}")
     view = TransmitView(runtime, bus, tl)
     devices = runtime.plant.devices_on(bus)

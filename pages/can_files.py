@@ -260,7 +260,7 @@ class FileView:
         self.pages.update()
         first = loaded.frames[0].time
         start = f", starts {datetime.fromtimestamp(first):%Y-%m-%d %H:%M:%S}" if first > 1e8 else ""
-        fmt = f" ({loaded.format} file)" if getattr(loaded, "format", "") else ""
+        fmt = f" ({loaded.format} file)" if loaded.format else ""
         self.file_info.set_text(
             f"{loaded.name}{fmt}: {len(loaded.frames)} frames{' (file truncated)' if loaded.truncated else ''}, "
             f"{loaded.duration:.1f} s{start}, {loaded.error_frames} error frames; "

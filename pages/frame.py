@@ -170,7 +170,7 @@ def bus_item_html(name: str, connected: bool, lang: Lang | None = None) -> str:
 class HeaderStatus:
     """The header's live part: the audit log's state, the broker, the event-loop lag and the buses."""
 
-    def __init__(self, runtime, user: str | None, lang: Lang | None = None):
+    def __init__(self, runtime: rt.Runtime, user: str | None, lang: Lang | None = None):
         self.runtime = runtime
         self.user = user
         self.lang = lang or i18n.get("en")
@@ -189,7 +189,7 @@ class HeaderStatus:
                 ui.label(self.lang.gettext("audit log not writable: writes refused")).classes("text-white text-caption")
                 self.problem_tip = ui.tooltip("")
             self.problem_box.set_visibility(False)
-            if getattr(runtime, "mqtt", None) is not None:  # only with an [mqtt] table: the broker's state
+            if runtime.mqtt is not None:  # only with an [mqtt] table: the broker's state
                 with ui.badge(self.lang.gettext("broker"), color="orange-4").classes("text-black").props(
                         "data-testid=broker-state") as self.broker_badge:
                     self.broker_tip = ui.tooltip("")

@@ -33,7 +33,7 @@ from pages.simcontrols import sim_card
 from pages.widgets import entry_age, Lamp, RegisterTable, ValueLine
 from pages.command_client import checked_value, confirm, WriteGuard
 from pages.charts import HistoryChart
-from pages.widgets import mark_quality, quality_note, range_number
+from pages.widgets import mark_quality, quality_note, range_number, RangeNumber
 from pages.command_client import cancelled, enable_unless, refuse, run_command, write_from_page
 
 DEVICE_TYPE = "hdlock"
@@ -218,6 +218,7 @@ class ParameterCard(DeviceCard):
         self.params: list[Param] = []  # the rows' parameters, in order
         self.entries: dict[str, ui.element] = {}
         self.shown: dict[str, object] = {}  # the device value each field was last given
+        self.badges: dict[str, ui.badge] = {}  # parameter key -> its "unsaved" badge, built when first shown
 
     def build(self) -> None:
         name, state, guard = self.view.name, self.view.state, self.view.guard
@@ -285,6 +286,16 @@ class ParameterCard(DeviceCard):
                 entry.value = value
             self.shown[key] = value
 
+    def show_unsaved(self, key: str, row: ui.row, unsaved: bool) -> None:
+        """Show or hide the "unsaved" badge at the end of a parameter's name ``row``, built when first shown."""
+        badge = self.badges.get(key)
+        if badge is None:
+            if not unsaved:
+                return
+            with row:
+                badge = self.badges[key] = ui.badge(self.view.lang.gettext("unsaved"), color="orange")
+        badge.set_visibility(unsaved)
+
     def refresh(self) -> None:
         state, now = self.view.state, time.time()
         if self.unchanged((self.view.words(self.params), frozenset(state.unsaved)),
@@ -301,24 +312,13 @@ class ParameterCard(DeviceCard):
             lang = self.view.lang
             current.show("-" if raw is None else lang.numbers_in(p.display(raw)), quality,
                          quality_note(quality, None if read is None else now - read, lang) if quality in ("stale", "offline") else "")
-            _unsaved_badge(mark, key in state.unsaved, lang)
+            self.show_unsaved(key, mark, key in state.unsaved)
         self.aging = aging
         count = len(state.unsaved)
         self.unsaved_label.set_text(self.view.lang.ngettext("{n} unsaved change", "{n} unsaved changes", count).format(n=count))
         self.unsaved_label.set_visibility(count > 0)
         if self.save.props.get("color") != ("orange" if count else "primary"):
             self.save.props(f"color={'orange' if count else 'primary'}")
-
-
-def _unsaved_badge(row: ui.row, unsaved: bool, lang=None) -> None:
-    """Show or hide the "unsaved" badge at the end of a parameter's name ``row``, built when first shown."""
-    badge = getattr(row, "unsaved_badge", None)
-    if badge is None:
-        if not unsaved:
-            return
-        with row:
-            badge = row.unsaved_badge = ui.badge((lang or i18n.get("en")).gettext("unsaved"), color="orange")  # type: ignore[attr-defined]
-    badge.set_visibility(unsaved)
 
 
 def param_key(p: Param) -> str:
@@ -415,13 +415,13 @@ async def _checked_masks(name: str, describe: str, p1, p2) -> tuple[int, int] | 
     return _parse_word(p1.value), _parse_word(p2.value)
 
 
-def _gate_send(view: HdLockView, button: ui.button, address) -> None:
+def _gate_send(view: HdLockView, button: ui.button, address: RangeNumber) -> None:
     """A Send button of an address change: disabled with the reason while the lock does not answer (or the
     session may not write), while no new address is entered, and while the entry is one the field refuses."""
     view.guard.update()
     reason = view.guard.reason
     if not reason and address.value in (None, ""):
-        reason = view.lang.gettext("enter the new address first ({rule})").format(rule=getattr(address, "rule", "1 .. 254"))
+        reason = view.lang.gettext("enter the new address first ({rule})").format(rule=address.rule)
     elif not reason:
         refused = address.validation(address.value) if callable(address.validation) else None  # the field's own rule
         if refused:  # (checked without touching the field's message: a refusal set on Send stays shown)

@@ -235,8 +235,8 @@ class LineMonitor:
         bus_state = self.bus_state
         log = list(bus_state.transactions)
         errors = sum(1 for t in log if t.error)
-        cycle = getattr(bus_state, "cycle_s", None)
-        conflicts = getattr(bus_state, "address_conflicts", 0)
+        cycle = bus_state.cycle_s
+        conflicts = bus_state.address_conflicts
         self.summary.set_text(
             f"{len(log)} transactions buffered, {errors} with errors"
             + (f" · line cycle {cycle:.2f} s (every device polled once)" if cycle else "")

@@ -32,6 +32,7 @@ from app.report import (
 )
 from app.verify import check_archive
 from pages.frame import fmt_time, frame
+from pages.overview import drift_of
 from pages.session import current_user
 from pages.widgets import upload_button
 from pages.command_client import enable_unless, VIEWER_REASON
@@ -59,7 +60,7 @@ def content(name: str | None = None) -> None:
         drift = ui.label().classes("text-body1").mark("record-drift")
 
         def show_drift() -> None:
-            d = getattr(state, "drift", None) or {}
+            d = drift_of(state)
             if not d.get("approved"):
                 drift.text, cls = "No approved set for this device yet.", "text-grey-8"
             elif d["changed"]:

@@ -12,6 +12,7 @@ from app import runtime as rt
 from app.i18n import N_, Lang
 from pages.backup import DIFF_COLUMNS, STATE_TEXT_SLOT, _confirm_restore, _row_state, differ_text, state_text
 from pages.frame import frame, notify_error
+from pages.overview import replaced_of
 from pages.session import can_write, current_user
 from pages.simcontrols import sim_card
 from pages.widgets import columns, follow
@@ -35,7 +36,7 @@ def notice(name: str, lang: Lang | None = None) -> None:
                 ui.link(_("Replacement assistant"), f"/replace/{name}").props("data-testid=replaced-open")
 
     def update() -> None:
-        replaced = getattr(state, "replaced", None)
+        replaced = replaced_of(state)
         card.set_visibility(bool(replaced))
         if replaced:
             text.set_text(_("replaced? known {old}, now {new}").format(
@@ -120,7 +121,7 @@ class Assistant:
         follow(self.state, self.show_identity)
 
     def show_identity(self) -> None:
-        replaced = getattr(self.state, "replaced", None)
+        replaced = replaced_of(self.state)
         watch = replace.watch_of(self.runtime)
         known = (watch.known.get(self.name) or {}) if watch else {}
         now = replace.live_identity(self.runtime, self.name)

@@ -49,6 +49,8 @@ class Lamp:
     not a row of a light, a name and a tooltip: the same look and the same ``data-lamp``, ``data-on`` and
     ``data-quality``, at a quarter of the elements (a page of 40 lamps)."""
 
+    _on: bool | None | str = "never"  # what the lamp shows now ("never": not set yet)
+
     def __init__(self, name: str, kind: str = "ok", tooltip: str = "", light: bool = False):
         if light:
             add_css_once("lamp", LAMP_CSS)
@@ -66,7 +68,7 @@ class Lamp:
         self.kind = kind
 
     def set(self, on: bool | None) -> None:
-        if getattr(self, "_on", "never") == on:
+        if self._on == on:
             return  # unchanged: no class or prop work (this runs on every push)
         self._on = on
         self.dot.classes(remove="on unknown")
@@ -537,9 +539,15 @@ def range_text(low: float, high: float, unit: str = "", *, any_beyond: float = I
     return text.strip()
 
 
+class RangeNumber(ui.number):
+    """A number entry that carries its allowed range in words (:attr:`rule`, shown under it)."""
+
+    rule: str = ""
+
+
 def range_number(label: str, low: float, high: float, *, unit: str = "", integer: bool = False, value=None,
                  step: float | None = None, fmt: str | None = None, any_beyond: float = INT32_LIMIT,
-                 lang: Lang | None = None) -> ui.number:
+                 lang: Lang | None = None) -> RangeNumber:
     """A number entry with its allowed range shown under it. What was typed stays as typed: an entry
     outside the range (or a fraction where a whole number is needed) is marked invalid with the
     range, never clamped; :func:`checked_value` refuses it before anything is sent. ``label``: in the
@@ -561,9 +569,9 @@ def range_number(label: str, low: float, high: float, *, unit: str = "", integer
         return None
 
     # no "%d" format for whole numbers: it rounded a typed 12.5 to 12 on leaving the field
-    field = ui.number(label, value=value, step=step, format=fmt, validation=check)
+    field = RangeNumber(label, value=value, step=step, format=fmt, validation=check)
     field.props(f'hint="{rule}" dense outlined')
-    field.rule = rule  # type: ignore[attr-defined]
+    field.rule = rule
     return field
 
 
