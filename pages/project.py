@@ -252,7 +252,7 @@ class ProjectCard:
         follow(state, changed)
 
 
-def _page_column() -> ui.element | None:
+def page_column() -> ui.element | None:
     """The content column of the page being built (pages.frame.frame's), or None."""
     columns = [e for e in ui.context.client.elements.values()
                if isinstance(e, ui.column) and {"q-pa-md", "gap-4", "w-full"} <= set(e.classes)]
@@ -266,7 +266,7 @@ def device_card(name: str, lang: Lang | None = None) -> None:
     lang = lang or i18n.client_language()
     if name not in runtime.plant.devices:
         return
-    column = _page_column()
+    column = page_column()
     if column is None:
         return
     has = project.has_project(runtime.plant, name)

@@ -10,7 +10,8 @@ from nicegui import ui
 from app import backup, i18n, replace
 from app import runtime as rt
 from app.i18n import N_, Lang
-from pages.backup import DIFF_COLUMNS, STATE_TEXT_SLOT, _confirm_restore, _row_state, differ_text, state_text
+from pages.backup import DIFF_COLUMNS, STATE_TEXT_SLOT, confirm_restore, differ_text, state_text
+from pages.diffrows import row_state
 from pages.frame import frame, notify_error
 from pages.overview import replaced_of
 from pages.session import can_write, current_user
@@ -51,9 +52,9 @@ def notice(name: str, lang: Lang | None = None) -> None:
 def _offer(name: str, lang: Lang) -> None:
     """The way to the replacement assistant on every device page that keeps parameters (at the page's end),
     not only once a swap was detected."""
-    from pages.project import _page_column
+    from pages.project import page_column
 
-    column = _page_column()
+    column = page_column()
     if column is None:
         return
     with column, ui.row().classes("items-center gap-2").props("data-testid=replace-offer"):
@@ -170,7 +171,7 @@ class Assistant:
         self.diff_card.set_visibility(True)
 
     def _show_rows(self) -> None:
-        rows = [{"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": _row_state(r),
+        rows = [{"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": row_state(r),
                  "state_text": state_text(r, self.lang), "risk": bool(r.changed and r.risk)} for r in self.rp.plan.rows]
         self.table.rows = rows
         self.table.selected = [row for row in rows if row["state"].startswith("differs")]
@@ -191,7 +192,7 @@ class Assistant:
             ui.notify(_("No differing parameter is selected"), type="warning")
             return
         others = backup.unsaved_lines(self.state, skip={r.key for r in to_write})
-        if not await _confirm_restore(self.name, to_write, others, "", lang):
+        if not await confirm_restore(self.name, to_write, others, "", lang):
             return
         confirmed: set[str] = set()
         for row in self.rp.plan.risky(selected):

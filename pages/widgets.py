@@ -264,6 +264,11 @@ class LampStrip:
         self.element.set_content("".join(parts))
 
 
+def _tab_name(value: object) -> object:
+    """The name of the tab a ``ui.tab_panels`` shows (its value: a tab, a panel or the name itself)."""
+    return value.props["name"] if isinstance(value, ui.tab | ui.tab_panel) else value
+
+
 class RegisterTable:
     """Live table of one register space of a device (address, name, value, raw, access)."""
 
@@ -305,8 +310,7 @@ class RegisterTable:
         changed rows go there (a few bytes, not the whole table with its descriptions and columns, which the
         browser keeps): the table element is sent whole only when its rows are new."""
         panels = self._panels
-        if panels is not None and self.table.rows and \
-                panels._value_to_model_value(panels.value) != self._panel.props.get("name"):
+        if panels is not None and self.table.rows and _tab_name(panels.value) != self._panel.props.get("name"):
             self._words = None  # its tab is not shown: updated when it is chosen
             return
         state = self.state
