@@ -13,7 +13,7 @@ from nicegui import events, ui
 from app import backup, i18n, project
 from app import runtime as rt
 from app.i18n import english, N_, Lang
-from pages.frame import frame, notify_error
+from pages.frame import ACTION_ERRORS, frame, notify_error
 from pages.session import can_write, current_user
 from pages.diffrows import DIFF_COLUMNS, STATE_SLOT, WRAP
 from pages.diffrows import count as _count  # noqa: F401 - its tests count with it
@@ -124,7 +124,7 @@ class BackupCard:
             try:
                 self.made.append(await backup.backup_device(self.runtime, name, self.directory, step,
                                                             user=user, role=role))
-            except Exception as exc:  # noqa: BLE001 - one device's failure must not stop the others
+            except ACTION_ERRORS as exc:  # one device's refusal must not stop the others
                 failures.append(f"{name}: {exc}")
             self.progress.set_value((n + 1) / len(chosen))
         self.start.enable()
@@ -293,7 +293,7 @@ class RestoreFlow:
         self.progress.set_value(0)
         try:
             self.plan = await backup.plan_restore(self.runtime, self.device.value, self.document, self.progress.set_value)
-        except Exception as exc:  # noqa: BLE001 - type mismatch, unreadable device ...
+        except ACTION_ERRORS as exc:  # type mismatch, unreadable device ...
             notify_error(self.lang.gettext("Cannot restore: {error}").format(error=exc))
             return
         self.progress.set_value(1)
@@ -360,7 +360,7 @@ class RestoreFlow:
     async def compare_quietly(self) -> None:
         try:
             self.plan = await backup.plan_restore(self.runtime, self.plan.device, self.document)
-        except Exception:  # noqa: BLE001 - the report above already says what happened
+        except ACTION_ERRORS:  # the report above already says what happened
             return
         rows = {r.key: r for r in self.plan.rows}
         for row in self.table.rows:

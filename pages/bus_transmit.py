@@ -14,7 +14,7 @@ from nicegui import background_tasks, ui
 from app import runtime as rt
 from app import transmit as tx
 from app.worker import AuditUnavailable, PermissionDenied
-from pages.frame import frame, notify_error
+from pages.frame import ACTION_ERRORS, frame, notify_error
 from pages.session import current_user
 from pages.widgets import range_number
 from pages.command_client import all_valid, cancelled, confirm
@@ -84,7 +84,7 @@ class TransmitView:
         except (tx.TransmitError, PermissionDenied, AuditUnavailable, KeyError) as exc:
             notify_error(str(exc))
             return False
-        except Exception as exc:  # noqa: BLE001 - shown, never ends the page
+        except ACTION_ERRORS as exc:  # shown, never ends the page
             notify_error(f"{type(exc).__name__}: {exc}")
             return False
         if ok:

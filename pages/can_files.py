@@ -229,7 +229,7 @@ class FileView:
         except rec.RecordingError as exc:
             self.file_info.set_text(f"cannot open: {exc}")
             notify_error(str(exc))
-        except Exception as exc:  # noqa: BLE001 - a failing save/temp dir: still a message, never a crash
+        except OSError as exc:  # a failing save/temp dir: still a message, never a crash
             self.file_info.set_text(f"{name}: cannot open: {exc}")
             notify_error(f"{name}: cannot open: {exc}")
         finally:

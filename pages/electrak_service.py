@@ -18,7 +18,7 @@ from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, length_of, refusa
 from pages.cards import DrawnCard, point_values
 from pages.command_client import checked_value, refuse, write_from_page
 from pages.device_page import DeviceView
-from pages.frame import fmt_time
+from pages.frame import ACTION_ERRORS, fmt_time
 from pages.session import current_user
 from pages.widgets import LampStrip, mark_quality, quality_note, range_number
 
@@ -136,7 +136,7 @@ class ServiceCard(DrawnCard):
             try:
                 await view.runtime.worker.invoke(view.name, "read service parameters", None, user=user or "anonymous",
                                                  role=role, session=view.session)
-            except Exception as exc:  # noqa: BLE001 - the card shows "not read" and the answers; Read all retries
+            except ACTION_ERRORS as exc:  # the card shows "not read" and the answers; Read all retries
                 log.info("%s: service parameters not read on opening the page: %s", view.name, exc)
 
         background_tasks.create(read(), name=f"read service parameters {view.name}")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sqlite3
 from html import escape
 
 import time
@@ -14,6 +15,7 @@ from nicegui import ui
 from app import i18n
 from app import runtime as rt
 from app.i18n import N_, Lang
+from devices.errors import CommissionError
 from pages.session import current_user
 
 CSS = (Path(__file__).resolve().parent.parent / "static" / "commission.css").read_text()
@@ -109,6 +111,12 @@ HEADER_FIT_JS = """
 })();
 </script>
 """
+
+
+#: what a page's action says to the engineer (and goes on) instead of failing: the project's refusals (devices/errors.py:
+#: a device or command refusing, a bad file or entry, a role, the audit log), and a file, folder or database that
+#: cannot be read or written. Anything else is a bug: it ends the action and is logged with its traceback.
+ACTION_ERRORS = (CommissionError, OSError, sqlite3.Error)
 
 
 def notify_error(message: str) -> None:

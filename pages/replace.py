@@ -12,7 +12,7 @@ from app import runtime as rt
 from app.i18n import N_, Lang
 from pages.backup import DIFF_COLUMNS, STATE_TEXT_SLOT, confirm_restore, differ_text, state_text
 from pages.diffrows import row_state
-from pages.frame import frame, notify_error
+from pages.frame import ACTION_ERRORS, frame, notify_error
 from pages.overview import replaced_of
 from pages.session import can_write, current_user
 from pages.simcontrols import sim_card
@@ -144,7 +144,7 @@ class Assistant:
         self.progress.set_value(0)
         try:
             self.rp = await replace.plan_replacement(self.runtime, self.name, self.progress.set_value)
-        except Exception as exc:  # noqa: BLE001 - no approved set, device not answering ...
+        except ACTION_ERRORS as exc:  # no approved set, device not answering ...
             notify_error(_("Cannot compare: {error}").format(error=exc))
             return
         self.progress.set_value(1)
@@ -206,7 +206,7 @@ class Assistant:
         try:
             report = await replace.execute_replacement(self.runtime, self.rp, selected, user=user, role=role,
                                                        confirmed=confirmed, progress=self.progress.set_value)
-        except Exception as exc:  # noqa: BLE001
+        except ACTION_ERRORS as exc:  # refused before any write (each write's own refusal is in the report)
             notify_error(_("Not written: {error}").format(error=exc))
             return
         finally:
@@ -226,5 +226,5 @@ class Assistant:
             self.rp = await replace.plan_replacement(self.runtime, self.name)
             if self.rp.plan is not None:
                 self._show_rows()
-        except Exception:  # noqa: BLE001 - the report above says what happened
+        except ACTION_ERRORS:  # the report above says what happened
             pass
