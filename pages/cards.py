@@ -16,6 +16,7 @@ from nicegui import ui
 from pages.command_client import WriteGuard
 
 if TYPE_CHECKING:
+    from app.state import DeviceState
     from pages.device_page import DeviceView
 
 
@@ -68,10 +69,11 @@ class DeviceCard:
         """Show what the store holds now (a card that follows the store itself has nothing to do)."""
 
 
-def point_values(points: dict, names) -> tuple:
-    """What the named points show, not when they were heard: (value, raw, text) of each, None for one not
-    published. A card compares it with what it drew last: a telegram or poll with the same values draws nothing."""
-    return tuple([None if p is None else (p.value, p.raw, p.text) for p in map(points.get, names)])
+def point_values(state: DeviceState, names) -> tuple:
+    """What the named points of ``state`` show, not when they were heard: (value, raw, text) of each, None for one
+    not published. A card compares it with what it drew last: a telegram or poll with the same values draws
+    nothing. What it then draws it reads as :class:`app.state.LiveValue` (``view.live()``, ``view.fact()``)."""
+    return tuple([None if p is None else (p.value, p.raw, p.text) for p in map(state.points.get, names)])
 
 
 class DrawnCard(DeviceCard):
@@ -88,7 +90,7 @@ class DrawnCard(DeviceCard):
     def inputs(self, *context) -> object:
         view = self.view
         return (context, view.state.status, view.guard.reason if view.guard is not None else "",
-                point_values(view.state.points, self.POINTS))
+                point_values(view.state, self.POINTS))
 
     def ages_due(self) -> bool:
         """Only on the store's once-a-second round: a refresh of the page's own draws what changed."""

@@ -90,9 +90,8 @@ class NetworkCard(DrawnCard):
 
     def inputs(self) -> tuple:
         state = self.view.state
-        points = state.points
-        return (state.status, point_values(points, self.NUMBERS), point_values(points, (facts.P_HEARD, facts.P_CONFIGURED,
-                                                                                       facts.P_SATURATED)))
+        return (state.status, point_values(state, self.NUMBERS), point_values(state, (facts.P_HEARD, facts.P_CONFIGURED,
+                                                                                     facts.P_SATURATED)))
 
     def draw(self) -> bool:
         view, state = self.view, self.view.state
@@ -138,7 +137,7 @@ class FlagsCard(DrawnCard):
 
     def inputs(self) -> tuple:
         state = self.view.state
-        return state.status, point_values(state.points, self.POINTS)
+        return state.status, point_values(state, self.POINTS)
 
     def draw(self) -> bool:
         view, state = self.view, self.view.state
@@ -336,11 +335,10 @@ class DriveCard(DrawnCard):
         return start
 
     def inputs(self) -> tuple:
-        points = self.view.state.points
-        other = points.get(facts.P_FOREIGN)
-        foreign = other is not None and other.value is not None and time.time() - other.value.time <= 2.0
-        return (self.guard.reason, point_values(points, (facts.P_CONTROL, facts.P_TELEGRAM)),
-                other.value if foreign else None, self.area_clear_for)
+        other = self.view.fact(facts.P_FOREIGN)
+        foreign = other is not None and time.time() - other.time <= 2.0
+        return (self.guard.reason, point_values(self.view.state, (facts.P_CONTROL, facts.P_TELEGRAM)),
+                other if foreign else None, self.area_clear_for)
 
     def draw(self) -> None:
         view = self.view
@@ -472,7 +470,7 @@ class BitrateCard(DrawnCard):
     def inputs(self) -> tuple:
         state = self.view.state
         return (state.status, state.raw(self.param), self.param.key in state.unsaved,
-                point_values(state.points, (facts.P_BITRATE_CHANGE, facts.P_HEARD, facts.P_CONFIGURED)))
+                point_values(state, (facts.P_BITRATE_CHANGE, facts.P_HEARD, facts.P_CONFIGURED)))
 
     def draw(self) -> None:
         view, state, param, bus_rate = self.view, self.view.state, self.param, self.bus_rate

@@ -154,7 +154,7 @@ class ServiceCard(DrawnCard):
         registers = state.registers
         return (state.status, tuple([registers.get((p.space, a)) for p in PARAMS for a in p.addresses]),
                 frozenset(state.unsaved),
-                point_values(state.points, (facts.P_SERVICE_REPORTS, facts.P_SERVICE_LAST, facts.P_SAVE_FORM)))
+                point_values(state, (facts.P_SERVICE_REPORTS, facts.P_SERVICE_LAST, facts.P_SAVE_FORM)))
 
     def draw(self) -> None:
         view, state = self.view, self.view.state

@@ -26,7 +26,7 @@ from devices.hdlock.params import HOLDING, INPUT, LOCK_STATUS_BITS, PARAMS
 from devices.hdlock.policy import unsaved_changes
 from devices.params import Param
 from pages.hdlock_can import CanStatusCard, can_commands_card
-from pages.cards import DeviceCard, titled_card
+from pages.cards import DeviceCard, point_values, titled_card
 from pages.device_page import DeviceView, StatusRow, device_page
 from pages.frame import fmt_age, status_text
 from pages.simcontrols import sim_card
@@ -518,12 +518,12 @@ def _line_inputs(view: HdLockView) -> tuple:
     """What :func:`_line_locks` is drawn from, without building it: each lock's address and LockStatus word
     on this line (in the plant file), and the locks a scan found."""
     store, bus = view.store, view.state.bus
-    out: list = [view.state.points.get(P_LINE_LOCKS, (None,))[0]]
+    out: list = [view.fact(P_LINE_LOCKS)]
     for dev in view.runtime.plant.devices_on(bus):
         if dev.type == DEVICE_TYPE:
             other = store.devices[dev.name]
-            address, status = other.points.get(P_ADDRESS), other.registers.get((HOLDING, LOCK_STATUS_ADDRESS))
-            out.append((dev.name, None if address is None else address.value, None if status is None else status[0]))
+            (address,), status = point_values(other, (P_ADDRESS,)), other.registers.get((HOLDING, LOCK_STATUS_ADDRESS))
+            out.append((dev.name, None if address is None else address[0], None if status is None else status[0]))
     return tuple(out)
 
 

@@ -202,7 +202,7 @@ class PositionsCard(DrawnCard):
 
     def inputs(self, access: Access) -> tuple:
         state = self.view.state
-        return state.status, point_values(state.points, self.POINTS)
+        return state.status, point_values(state, self.POINTS)
 
     def draw(self, access: Access) -> bool:
         point = self.view.state.point
@@ -315,7 +315,7 @@ class ErrorsCard(DrawnCard):
 
     def inputs(self, access: Access) -> tuple:
         state = self.view.state
-        return state.status, point_values(state.points, self.POINTS)
+        return state.status, point_values(state, self.POINTS)
 
     def draw(self, access: Access) -> bool:
         good = True
@@ -515,7 +515,7 @@ class DriveCard(DrawnCard):
         self.target_warning.set_text(self.target_mismatch())
 
     def inputs(self, access: Access) -> tuple:
-        return (access, point_values(self.view.state.points, self.POINTS), self.function.value, self.motion.value,
+        return (access, point_values(self.view.state, self.POINTS), self.function.value, self.motion.value,
                 tuple(self.edited))
 
     def draw(self, access: Access) -> None:
