@@ -144,14 +144,14 @@ class FlagsCard(DrawnCard):
         _ = view.lang.gettext
         online = view.online()
         idle = bool(view.fact(facts.P_IDLE, True))  # Message timeout while nobody sends 0x06: the idle state, not a red fault
-        motion = [(state.point(n), n, _(text)) for n, text in codec.MOTION_FLAGS.values()]
-        errors = [(state.point(n), n, _("{text}. Clears: {clears}.").format(text=_(text), clears=_(clears)), bit)
+        motion = [(state.live(n), n, _(text)) for n, text in codec.MOTION_FLAGS.values()]
+        errors = [(state.live(n), n, _("{text}. Clears: {clears}.").format(text=_(text), clears=_(clears)), bit)
                   for bit, (n, text, clears) in codec.ERROR_FLAGS.items()]
         self.motion.show([lamp_html(n, _(n), entry, text) for entry, n, text in motion])
         self.errors.show([lamp_html(n, _(n), entry, text, "alarm", idle if bit == TIMEOUT_BIT else None)
                           for entry, n, text, bit in errors])
         # a stale or offline lamp: drawn again with the next telegram, which may bring them back
-        good = not any(entry is not None and entry["quality"] in ("stale", "offline") for entry, *_rest in motion + errors)
+        good = not any(value is not None and value.quality in ("stale", "offline") for value, *_rest in motion + errors)
         errors = view.fact(facts.P_ERRORS, 0)
         self.idle_note.set_text(_("Message timeout is expected while idle: nobody sends the control telegram 0x06. "
                                   "It clears with the first telegrams when you take control.")
@@ -417,7 +417,7 @@ class NumbersGrid:
             mark_quality(row, quality)
             if quality in ("stale", "offline"):
                 good = False
-                age.set_text(quality_note(quality, entry_age(value.entry()), self.lang))
+                age.set_text(quality_note(quality, entry_age(value), self.lang))
             else:
                 age.set_text("")
         return good

@@ -14,6 +14,7 @@ from nicegui import ui
 from app import i18n
 from app import runtime as rt
 from app.i18n import N_
+from app.state import LiveValue
 from devices.hdlock import codec
 from devices.hdlock.adapter import (
     HISTORY_CAN,
@@ -182,31 +183,31 @@ class LampsCard(DeviceCard):
         state = self.view.state
         if self.unchanged(self.view.inputs(LAMP_INPUTS), lambda: self.view.qualities(LAMP_INPUTS)):
             return  # the same words, nothing shown stale: no record built, no element touched
-        status = state.entry("LockStatus")
-        aging = status is not None and status["quality"] in ("stale", "offline")
+        status = state.live("LockStatus")
+        aging = status is not None and status.quality in ("stale", "offline")
         for field_name, lamp in self.lamps.items():
-            lamp.show(status, None if status is None else status["fields"][field_name])
+            lamp.show(status, None if status is None else status.fields[field_name])
         lang = self.view.lang
         self.note.set_text(_note(status, lang))
         for key, label in self.labels.items():
-            entry = state.entry(key)
+            entry = state.live(key)
             context = key.split(" ")[0]  # the enumeration's register: DoorState, StateMachineState ...
-            name = entry["name"] if entry else None
+            name = entry.enum if entry else None
             # the states the catalog words (DoorState, StateMachineState); the others as the register map names them
             known = bool(name) and (lang.has(name, context) or lang.has(name))
             label.set_text((lang.phrase(name, context) if known else name
-                            or lang.gettext("undefined ({value})").format(value=entry["value"])) if entry else "-")
-            mark_quality(label, entry["quality"] if entry else "unknown")
+                            or lang.gettext("undefined ({value})").format(value=entry.value)) if entry else "-")
+            mark_quality(label, entry.quality if entry else "unknown")
             self.notes[key].set_text(_note(entry, lang))
-            aging = aging or (entry is not None and entry["quality"] in ("stale", "offline"))
+            aging = aging or (entry is not None and entry.quality in ("stale", "offline"))
         self.aging = aging
 
 
-def _note(entry: dict | None, lang=None) -> str:
+def _note(value: LiveValue | None, lang=None) -> str:
     """``stale 4 s`` / ``offline, last 1 min`` under a value that is not good."""
-    if entry is None or entry["quality"] not in ("stale", "offline"):
+    if value is None or value.quality not in ("stale", "offline"):
         return ""
-    return quality_note(entry["quality"], entry_age(entry), lang)
+    return quality_note(value.quality, entry_age(value), lang)
 
 
 class ParameterCard(DeviceCard):

@@ -82,7 +82,7 @@ def _quality(value: LiveValue | None) -> str:
 
 def _age_note(value: LiveValue | None, lang=None) -> str:
     quality = _quality(value)
-    return quality_note(quality, entry_age(value and value.entry()), lang) if quality in ("stale", "offline") else ""
+    return quality_note(quality, entry_age(value), lang) if quality in ("stale", "offline") else ""
 
 
 class M3ioView(DeviceView):
@@ -234,9 +234,9 @@ class OutputsCard(DrawnCard):
         self.refused.set_visibility(not may_switch)
         good = True
         for key, lamp in self.lamps.items():
-            entry = view.state.point(key)
-            lamp.show(entry)
-            good = good and (entry is None or entry["quality"] not in ("stale", "offline"))
+            value = view.live(key)
+            lamp.show(value)
+            good = good and (value is None or value.quality not in ("stale", "offline"))
         self.no_control.set_visibility(not view.controls() and not (view.guard and view.guard.reason))
         self.led.set_value(bool(view.fact("LED")))
         enable_unless(self.led, view.switch_reason(bool(view.fact("LED"))))

@@ -291,9 +291,9 @@ class StatusCard(DeviceCard):
             return  # the same 40 bits, none shown stale
         aging = False
         for bit, lamp in self.lamps.items():
-            entry = self.view.state.point(bit)
-            lamp.show(entry)
-            aging = aging or (entry is not None and entry["quality"] == "stale")
+            value = self.view.live(bit)
+            lamp.show(value)
+            aging = aging or (value is not None and value.quality == "stale")
         self.aging = aging
 
 

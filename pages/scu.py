@@ -16,6 +16,7 @@ from nicegui import ui
 from app import i18n
 from app import worker as worker_module
 from app.i18n import N_
+from app.state import LiveValue
 from devices.scu import facts
 from devices.scu import codec
 from devices.scu import params as p
@@ -60,20 +61,20 @@ def _stop_rule(lang=None) -> str:
         bound=f"{worker_module.DEADMAN_BOUND_S:g}")
 
 
-def io_text(key: str, entry: dict) -> tuple[str, str]:
+def io_text(key: str, live: LiveValue) -> tuple[str, str]:
     """An I/O line in words, named as its declaration says, and the raw value beside it ("" when the words are the
     number itself)."""
     data_id = IO_POINTS[key]
     item = p.item(data_id)
     title = item.label or key
-    value = entry["value"]
-    raw = entry["raw"] if entry.get("raw") is not None else value
+    value = live.value
+    raw = live.raw if live.raw is not None else value
     if data_id in p.FLAG_WORDS:
         return f"{title}: {p.flags_text(data_id, int(raw))}", f"0x{int(raw):0{2 * item.size}X}"
     if data_id == 0x0166:
         return f"{title}: {p.user_text(int(value))}", f"raw {int(value)}"
     number = f"{value:g}" if isinstance(value, float) else str(value)
-    return f"{title}: {number} {entry['unit'] or item.unit}".strip(), ""
+    return f"{title}: {number} {live.unit or item.unit}".strip(), ""
 
 
 def _error_names(code: int) -> str:
@@ -205,12 +206,12 @@ class PositionsCard(DrawnCard):
         return state.status, point_values(state, self.POINTS)
 
     def draw(self, access: Access) -> bool:
-        point = self.view.state.point
+        point = self.view.live
         good = True
         for number, bar, text, cell, age in self.rows:
             e = point(f"A{number} position")
             lo, hi = point(f"A{number} in end"), point(f"A{number} out end")
-            quality = "unknown" if e is None else e["quality"]
+            quality = "unknown" if e is None else e.quality
             mark_quality(cell, quality)  # greyed, with its age, while stale or offline
             mark_quality(bar, quality)
             age.set_text(quality_note(quality, entry_age(e), self.view.lang) if quality in ("stale", "offline") else "")
@@ -218,9 +219,9 @@ class PositionsCard(DrawnCard):
             if e is None:
                 text.set_text("-")
                 continue
-            text.set_text(self.view.lang.numbers_in(e["text"] or str(e["value"])))
-            if lo and hi and hi["value"] != lo["value"]:
-                bar.set_value(max(0.0, min(1.0, (e["value"] - lo["value"]) / (hi["value"] - lo["value"]))))
+            text.set_text(self.view.lang.numbers_in(e.text or str(e.value)))
+            if lo and hi and hi.value != lo.value:
+                bar.set_value(max(0.0, min(1.0, (e.value - lo.value) / (hi.value - lo.value))))
         return good
 
 
@@ -242,19 +243,19 @@ class StatusCard(DrawnCard):
                         self.columns.append((n, LampStrip("nicegui-column gap-0")))
 
     def draw(self, access: Access) -> bool:
-        point, good = self.view.state.point, True
+        point, good = self.view.live, True
         for n, strip in self.columns:
             parts = []
             for key, words in STATUS_BITS.items():  # each lamp keyed by the point it shows
                 entry = point(f"A{n} {key}")
                 parts.append(lamp_html(f"A{n} {key}", words[0].upper() + words[1:], entry, f"A{n} {key}"))
-                good = good and (entry is None or not _aging(entry["quality"]))
+                good = good and (entry is None or not _aging(entry.quality))
             for what in ("current", "speed"):
                 e = point(f"A{n} {what}")
                 lang = self.view.lang
                 parts.append(value_html(f"A{n} {what}", f"{what}-A{n}",
-                                         "-" if e is None else f"{lang.gettext(what)}: {lang.number(e['value'])} {e['unit']}".strip(), e))
-                good = good and (e is None or not _aging(e["quality"]))
+                                         "-" if e is None else f"{lang.gettext(what)}: {lang.number(e.value)} {e.unit}".strip(), e))
+                good = good and (e is None or not _aging(e.quality))
             strip.show(parts)
         return good
 
@@ -271,7 +272,7 @@ class SupplyCard(DrawnCard):
             self.lines = LampStrip("nicegui-column gap-0 text-body2")  # one line per point
 
     def draw(self, access: Access) -> bool:
-        point, good, parts = self.view.state.point, True, []
+        point, good, parts = self.view.live, True, []
         lamps = [(key, point(key)) for key in SUPPLY_LAMPS]
         _ = self.view.lang.gettext
         self.lamps.show([lamp_html(key, _(key), entry) for key, entry in lamps])
@@ -280,7 +281,7 @@ class SupplyCard(DrawnCard):
             if e is None:
                 continue  # not read (yet): no line
             words, code = io_text(key, e)
-            quality = e["quality"]
+            quality = e.quality
             marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
             parts.append(f'<div class="nicegui-row row items-baseline gap-2 no-wrap{marks}" data-io="{html_attr(key)}" '
                          f'data-quality="{quality}"><div>{html.escape(words)}</div>'
@@ -288,7 +289,7 @@ class SupplyCard(DrawnCard):
                          f'{html.escape(code)}</div></div>')
             good = good and not _aging(quality)
         self.lines.show(parts)
-        return good and not any(e is not None and _aging(e["quality"]) for _key, e in lamps)
+        return good and not any(e is not None and _aging(e.quality) for _key, e in lamps)
 
 
 class ErrorsCard(DrawnCard):
@@ -320,14 +321,14 @@ class ErrorsCard(DrawnCard):
     def draw(self, access: Access) -> bool:
         good = True
         for key, (box, head, line, raw, bits, title) in self.rows.items():
-            e = self.view.state.point(key)
+            e = self.view.live(key)
             box.set_visibility(e is not None)
             if e is None:
                 continue
-            value = int(e["value"])
-            mark_quality(head, e["quality"])
-            mark_quality(bits, e["quality"])
-            good = good and not _aging(e["quality"])
+            value = int(e.value)
+            mark_quality(head, e.quality)
+            mark_quality(bits, e.quality)
+            good = good and not _aging(e.quality)
             if self.shown.get(key) == value:
                 continue
             self.shown[key] = value
