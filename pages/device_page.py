@@ -117,6 +117,12 @@ class DeviceView:
         registers = self.state.registers
         return tuple(None if (e := registers.get((p.space, a))) is None else e[0] for p in params for a in p.addresses)
 
+    def readings(self, params: Iterable[Param]) -> tuple:
+        """The register words of ``params`` with their read times, (word, time) each (None for a word not read
+        yet): what a card that shows when each value was read is drawn from."""
+        registers = self.state.registers
+        return tuple([registers.get((p.space, a)) for p in params for a in p.addresses])
+
     def live(self, point: str) -> LiveValue | None:
         return self.state.live(point)
 

@@ -151,8 +151,7 @@ class ServiceCard(DrawnCard):
 
     def inputs(self) -> tuple:
         state = self.view.state
-        registers = state.registers
-        return (state.status, tuple([registers.get((p.space, a)) for p in PARAMS for a in p.addresses]),
+        return (state.status, self.view.readings(PARAMS),
                 frozenset(state.unsaved),
                 point_values(state, (facts.P_SERVICE_REPORTS, facts.P_SERVICE_LAST, facts.P_SAVE_FORM)))
 

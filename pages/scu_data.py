@@ -78,7 +78,6 @@ class SettingsCard(DrawnCard):
 
     def build(self) -> None:
         self.params = params_for(len(self.view.scales))
-        self.keys = [(q.space, a) for q in self.params for a in q.addresses]
         lang = self.view.lang
         _ = lang.gettext
         with titled_card(_("Settings (parameter model)")):
@@ -101,8 +100,7 @@ class SettingsCard(DrawnCard):
         return f"0x{q.address:04X}" + (f" {LIMIT_FIELDS[q.space]}" if q.space in LIMIT_FIELDS else "")
 
     def inputs(self, access: Access) -> tuple:
-        registers = self.view.state.registers
-        return access, tuple(None if (e := registers.get(k)) is None else e for k in self.keys)
+        return access, self.view.readings(self.params)
 
     def draw(self, access: Access) -> None:
         enable_unless(self.button, _read_gate(self.view, access))
