@@ -1,4 +1,5 @@
-"""Electrak HD network page: live charts, flags, control with keep-alive, service parameters.
+"""Electrak HD network page: live charts, flags, control with keep-alive, service parameters
+(:mod:`pages.electrak_service`), bit rate.
 
 Reads only the live store (the points and records :mod:`devices.electrak.adapter` publishes) and invokes
 the declared commands (devices/electrak/policy.py) through the worker's gate. Each card is a

@@ -1,4 +1,5 @@
-"""Ewellix SCU page: live positions and status, remote session, drive by function, data directory, service table.
+"""Ewellix SCU page: live positions and status, remote session, drive by function, data directory, service table
+(the cards of data read on demand are in :mod:`pages.scu_data`, what every card shares in :mod:`pages.scu_view`).
 
 Reads only the live store (the points and records :mod:`devices.scu.adapter` publishes: session, watching
 mode, control, running functions, emergency stop, scales, line) and invokes the declared commands
