@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sqlite3
 from datetime import datetime
 
 from nicegui import ui
@@ -66,7 +67,7 @@ def content() -> None:
         try:
             found = await entries()
             known = sorted(set(runtime.plant.devices) | set(await audit.adevices()))
-        except Exception as exc:  # noqa: BLE001 - a locked database is shown, not raised
+        except (OSError, sqlite3.Error) as exc:  # a locked or unreadable database is shown, not raised
             problem.set_text(_("The audit log cannot be read: {error}").format(error=exc))
             return
         problem.set_text("")

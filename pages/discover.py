@@ -14,7 +14,7 @@ from app.i18n import english, Lang
 from app.plant import DEMO_PLANT, DeviceConfig, append_device, can_id_conflict, device_toml
 from app.worker import AuditUnavailable, PermissionDenied
 from devices.registry import DEVICE_TYPES, format_can_ids
-from pages.frame import fmt_age
+from pages.frame import ACTION_ERRORS, fmt_age
 from pages.session import current_user
 from pages.widgets import range_number
 from pages.command_client import all_valid
@@ -60,7 +60,7 @@ def open_discover_dialog(bus: str) -> None:
             found = await runtime.worker.gate.run(
                 lambda: runtime.worker.discover(bus, a, b, on_progress), user=user, role=role,
                 describe=f"scan line {bus} addresses {a}..{b}", device=bus, kind="write")
-        except Exception as exc:  # noqa: BLE001 - the scan stops; the engineer is told why
+        except ACTION_ERRORS as exc:  # the scan stops; the engineer is told why
             ui.notify(f"discover failed: {exc}", type="negative")
             found = []
         finally:

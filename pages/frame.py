@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sqlite3
 from html import escape
 
 import time
@@ -14,6 +15,7 @@ from nicegui import ui
 from app import i18n
 from app import runtime as rt
 from app.i18n import N_, Lang
+from devices.errors import CommissionError
 from pages.session import current_user
 
 CSS = (Path(__file__).resolve().parent.parent / "static" / "commission.css").read_text()
@@ -111,6 +113,12 @@ HEADER_FIT_JS = """
 """
 
 
+#: what a page's action says to the engineer (and goes on) instead of failing: the project's refusals (devices/errors.py:
+#: a device or command refusing, a bad file or entry, a role, the audit log), and a file, folder or database that
+#: cannot be read or written. Anything else is a bug: it ends the action and is logged with its traceback.
+ACTION_ERRORS = (CommissionError, OSError, sqlite3.Error)
+
+
 def notify_error(message: str) -> None:
     ui.notify(message, type="negative", multi_line=True, close_button="OK", timeout=0)
 
@@ -170,7 +178,7 @@ def bus_item_html(name: str, connected: bool, lang: Lang | None = None) -> str:
 class HeaderStatus:
     """The header's live part: the audit log's state, the broker, the event-loop lag and the buses."""
 
-    def __init__(self, runtime, user: str | None, lang: Lang | None = None):
+    def __init__(self, runtime: rt.Runtime, user: str | None, lang: Lang | None = None):
         self.runtime = runtime
         self.user = user
         self.lang = lang or i18n.get("en")
@@ -189,7 +197,7 @@ class HeaderStatus:
                 ui.label(self.lang.gettext("audit log not writable: writes refused")).classes("text-white text-caption")
                 self.problem_tip = ui.tooltip("")
             self.problem_box.set_visibility(False)
-            if getattr(runtime, "mqtt", None) is not None:  # only with an [mqtt] table: the broker's state
+            if runtime.mqtt is not None:  # only with an [mqtt] table: the broker's state
                 with ui.badge(self.lang.gettext("broker"), color="orange-4").classes("text-black").props(
                         "data-testid=broker-state") as self.broker_badge:
                     self.broker_tip = ui.tooltip("")

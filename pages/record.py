@@ -32,7 +32,8 @@ from app.report import (
     write_plant,
 )
 from app.verify import check_archive
-from pages.frame import fmt_time, frame
+from pages.frame import ACTION_ERRORS, fmt_time, frame
+from pages.overview import drift_of
 from pages.session import current_user
 from pages.widgets import upload_button
 from pages.command_client import enable_unless, VIEWER_REASON
@@ -60,7 +61,7 @@ def content(name: str | None = None) -> None:
         drift = ui.label().classes("text-body1").mark("record-drift")
 
         def show_drift() -> None:
-            d = getattr(state, "drift", None) or {}
+            d = drift_of(state)
             if not d.get("approved"):
                 drift.text, cls = "No approved set for this device yet.", "text-grey-8"
             elif d["changed"]:
@@ -93,7 +94,7 @@ def _downloads(runtime, user: str, role: str) -> None:
         folder = Path(tempfile.mkdtemp(prefix="commission-report-"))
         try:
             paths = await write_plant(runtime, folder, user=user or "viewer", role=role, lang=i18n.get(language.value))
-        except Exception as exc:  # noqa: BLE001 - said to the engineer
+        except ACTION_ERRORS as exc:  # said to the engineer
             ui.notify(f"report: {exc}", type="negative", multi_line=True)
             return
         ui.download(paths[kind].read_bytes(), paths[kind].name)
@@ -146,7 +147,7 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool) -> 
 
                     try:
                         ui.notify(await sim_action(runtime, f"{name}:{twin_action}", user=user, role=role), type="info")
-                    except Exception as exc:  # noqa: BLE001 - said
+                    except (*ACTION_ERRORS, ValueError) as exc:  # said (no such twin or action: a ValueError)
                         ui.notify(f"simulation: {exc}", type="negative")
 
                 ui.button(f"{twin_action.capitalize()} on the simulated device", icon="smart_toy",
@@ -162,7 +163,7 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool) -> 
     async def run_it() -> None:
         try:
             run = runtime.record.new_run(name, user=user, role=role, ask=ask, session=_session_id())
-        except Exception as exc:  # noqa: BLE001
+        except ACTION_ERRORS as exc:  # a checkout running already, a role
             ui.notify(str(exc), type="negative")
             return
         run.listeners.append(lambda: draw(run))
@@ -329,7 +330,7 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool):
             else:
                 await runtime.record.snapshot(name, user=user, role=role)
                 ui.notify("snapshot stored", type="positive")
-        except Exception as exc:  # noqa: BLE001 - said to the engineer
+        except ACTION_ERRORS as exc:  # said to the engineer
             ui.notify(f"{what}: {exc}", type="negative", multi_line=True)
         await refresh()
 
@@ -392,7 +393,7 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
         what = f"plant {runtime.plant.name}" if plant else name
         try:
             content = await (plant_content(runtime, user=user, role=role) if plant else device_content(runtime, name, user=user, role=role))
-        except Exception as exc:  # noqa: BLE001
+        except ACTION_ERRORS as exc:  # said to the engineer
             ui.notify(f"sign-off: the report could not be made: {exc}", type="negative", multi_line=True)
             return
         if not await confirm_gaps(sign_gaps(content), what):
@@ -404,7 +405,7 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
             await runtime.record.sign("" if plant else name, user=user, role=role, name=signer.value.strip(),
                                       signer_role=signer_role.value.strip(), comment=comment.value, content=content,
                                       account=account)
-        except Exception as exc:  # noqa: BLE001
+        except ACTION_ERRORS as exc:  # said to the engineer
             ui.notify(f"sign-off: not signed: {exc}", type="negative", multi_line=True)
             return
         ui.notify(f"signed by {signer.value.strip()} with account {account}: the record is frozen; a later sign-off "

@@ -13,14 +13,14 @@ import pytest
 from tools import metrics
 
 LONG_MODULES = {  # the modules over 700 lines: none may join them
-    "app/report.py", "pages/can_monitor.py", "pages/electrak.py", "pages/scu.py",
+    "app/report.py",
 }
 LARGE_CLASSES: set[str] = set()  # the classes over 30 attributes: none may join them
 CEILINGS = {
-    "getattr_default": 80,
-    "hasattr": 7,
-    "except_exception": 122,
-    "private_access": 17,
+    "getattr_default": 59,
+    "hasattr": 6,
+    "except_exception": 100,
+    "private_access": 5,
     "exception_roots": 1,
 }
 
