@@ -17,7 +17,7 @@ import re
 import tempfile
 import time
 import zipfile
-from datetime import datetime, timezone
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +32,7 @@ from app.record_sets import (
     live_set,
     param_set,
 )
+from app.report_evidence import can_trace, evidence_file, evidence_named
 from app.verify import CHAIN, MANIFEST, MANIFEST_SUM, manifest_sum, seal_archive, sha256
 from devices.params import Access
 
@@ -57,35 +58,6 @@ def plant_file(plant) -> dict:
         return {"path": str(path), "sha256": sha256(Path(path).read_bytes())}
     except OSError as exc:
         return {"path": str(path), "sha256": None, "error": exc.strerror or str(exc)}
-
-
-def evidence_file(device: str, bus: str, run_id: int, n: int, evidence: dict) -> tuple[str, bytes] | None:
-    """The evidence file of step ``n`` of checkout ``run_id`` (its name in the archive and its bytes):
-    CAN frames as a candump log, serial, Modbus and LogiTed transactions as text; None without traffic."""
-    stem = f"evidence/{device}/checkout-{run_id}-step{n}"
-    if evidence.get("kind") == "can" and evidence.get("frames"):
-        return f"{stem}.log", can_trace(evidence["frames"], ".log", bus)
-    if evidence.get("transactions"):
-        return f"{stem}.txt", serial_trace(evidence["transactions"])
-    return None
-
-
-_EVIDENCE_NAMED: dict[tuple, dict | None] = {}  # (row hash, step) -> name and SHA-256: record rows never change
-EVIDENCE_NAMED_MAX = 4096
-
-
-def evidence_named(row: str | None, device: str, bus: str, run_id: int, n: int, evidence: dict) -> dict | None:
-    """The evidence file of a step as the report names it (file name, SHA-256, how many items); made
-    once per step of a stored run (``row``: its hash; the record page's preview asks every few seconds)."""
-    key = (row, device, bus, run_id, n)
-    if row is None or key not in _EVIDENCE_NAMED:
-        made = evidence_file(device, bus, run_id, n, evidence)
-        if len(_EVIDENCE_NAMED) >= EVIDENCE_NAMED_MAX:
-            _EVIDENCE_NAMED.pop(next(iter(_EVIDENCE_NAMED)))
-        _EVIDENCE_NAMED[key] = None if made is None else {
-            "name": made[0], "sha256": sha256(made[1]), "items": len(evidence.get("frames") or evidence.get("transactions") or []),
-            "what": N_("CAN frames") if evidence.get("kind") == "can" else N_("transactions")}
-    return _EVIDENCE_NAMED[key]
 
 
 def _run_summary(runs: list[dict]) -> list[dict]:
@@ -284,7 +256,7 @@ SOURCE_PHRASES = (N_("read from the device at "), N_("as the device showed them 
                   N_("not read yet: the device has not answered (snapshot or approve to read it)"))
 
 
-def _lang(lang: i18n.Lang | None) -> i18n.Lang:
+def language(lang: i18n.Lang | None) -> i18n.Lang:
     return i18n.english(lang)
 
 
@@ -298,12 +270,12 @@ def when(t: float | None, lang: i18n.Lang | None = None) -> str:
 
 def word(text: Any, lang: i18n.Lang | None) -> str:
     """A word of the content (a verdict, a result, an identity's key) in the report's language."""
-    return "" if text is None else _lang(lang).gettext(str(text)) if isinstance(text, str) else str(text)
+    return "" if text is None else language(lang).gettext(str(text)) if isinstance(text, str) else str(text)
 
 
 def source_text(source: str, lang: i18n.Lang | None) -> str:
     """Where the values come from (content data, English) in the report's language, phrase by phrase."""
-    lang = _lang(lang)
+    lang = language(lang)
     for phrase in SOURCE_PHRASES:
         source = source.replace(phrase, lang.gettext(phrase))
     return source
@@ -316,7 +288,7 @@ def seconds(value: Any, lang: i18n.Lang | None) -> str:
 
 def commissioned_text(d: dict, plant_signed: bool = False, lang: i18n.Lang | None = None) -> str:
     """Who commissioned the device and when, saying what is missing rather than leaving a blank."""
-    _ = _lang(lang).gettext
+    _ = language(lang).gettext
     who = ", ".join(d["commissioned_by"]) or _("nobody yet (no checkout, approved set or snapshot recorded)")
     first, last = d["commissioned"]
     when_text = "" if not first else (_(" on {first}").format(first=first) if first == last or not last
@@ -330,7 +302,7 @@ DIFFERING = ("changed", "not approved")  # settings the summary lists (a value t
 
 def values_text(d: dict, lang: i18n.Lang | None = None) -> str:
     """Where the parameter values come from and how they compare, one sentence."""
-    lang = _lang(lang)
+    lang = language(lang)
     _ = lang.gettext
     counts = ", ".join(f"{n} {word(LIVE_VALUES if k == LIVE_VALUE and n != 1 else k, lang)}"
                        for k, n in d["counts"].items() if n) or _("no parameters")
@@ -338,13 +310,13 @@ def values_text(d: dict, lang: i18n.Lang | None = None) -> str:
 
 
 def measured_text(v: dict, lang: i18n.Lang | None = None) -> str:
-    _ = _lang(lang).gettext
+    _ = language(lang).gettext
     return "{name} = {value} ({limit}: {verdict})".format(
         name=v["name"], value=with_unit(v["value"], v["unit"]), limit=v["limit"] or _("recorded"), verdict=_("ok") if v["ok"] else _("FAIL"))
 
 
 def evidence_text(s: dict, lang: i18n.Lang | None = None) -> str:
-    _ = _lang(lang).gettext
+    _ = language(lang).gettext
     f = s.get("evidence_file")
     if not f:
         return _("no bus traffic")
@@ -352,7 +324,7 @@ def evidence_text(s: dict, lang: i18n.Lang | None = None) -> str:
 
 
 def signoff_text(sig: dict | None, what: str, plant: dict | None = None, lang: i18n.Lang | None = None) -> str:
-    _ = _lang(lang).gettext
+    _ = language(lang).gettext
     if not sig and plant:  # a device of a signed plant: the plant's sign-off covers it
         return _("{what}: no sign-off of its own; signed with the plant (record #{id})").format(what=what, id=plant["id"])
     if not sig:
@@ -371,7 +343,7 @@ def _signoff_html(sig: dict | None, what: str, plant: dict | None = None, lang: 
 def summary_rows(d: dict, p: dict | None = None, lang: i18n.Lang | None = None) -> list[str]:
     """The summary of one device a site manager reads: per checkout its last result and runs, the
     approved set, drift and the sign-off."""
-    lang = _lang(lang)
+    lang = language(lang)
     _ = lang.gettext
     runs = "; ".join(
         f"{c['title']}: {word(c['last'], lang)}"
@@ -397,7 +369,7 @@ AUDIT_HEAD = [N_("Time"), N_("User"), N_("Action"), N_("Parameter"), N_("Old →
 
 
 def head(words: list[str], lang: i18n.Lang | None) -> list[str]:
-    return [_lang(lang).gettext(w) for w in words]
+    return [language(lang).gettext(w) for w in words]
 
 
 def _rows_html(head_words: list[str], rows: list[list[Any]], classes: dict[int, Any] | None = None) -> str:
@@ -420,7 +392,7 @@ class Shown(str):
         return made
 
 
-def _param_rows(rows: list[dict], lang: i18n.Lang | None = None) -> list[list[Any]]:
+def param_rows(rows: list[dict], lang: i18n.Lang | None = None) -> list[list[Any]]:
     def number(text: Any) -> Any:  # 12.5 s -> 12,5 s in German (addresses and versions stay as they are)
         return lang.numbers_in(text) if lang is not None and isinstance(text, str) else text
 
@@ -438,7 +410,7 @@ def _result_class(r: list[Any], column: int) -> str:
     return (cell.word if isinstance(cell, Shown) else str(cell)).split(":")[0].replace(" ", "")
 
 
-def _result(status: str, reason: str | None, lang: i18n.Lang | None) -> Shown:
+def result_cell(status: str, reason: str | None, lang: i18n.Lang | None) -> Shown:
     return Shown(word(status, lang) + (f": {reason}" if reason else ""), status)
 
 
@@ -450,7 +422,7 @@ def identity_rows(d: dict, lang: i18n.Lang | None = None) -> list[tuple[str, Any
 
 
 def differ_text(d: dict, changed: list, lang: i18n.Lang | None) -> str:
-    _ = _lang(lang).gettext
+    _ = language(lang).gettext
     return (_(" Settings that differ:") if changed else _(" Every setting equals the approved set.") if d["approved"] else
             _(" The settings read are listed in the appendix."))
 
@@ -458,7 +430,7 @@ def differ_text(d: dict, changed: list, lang: i18n.Lang | None) -> str:
 def device_html(d: dict, plant_signoff: dict | None = None, *, appendix: bool = True, lang: i18n.Lang | None = None) -> str:
     """One device: its summary (identity, sign-off, drift, every checkout run); ``appendix``: its full
     listings (settings, live values, each step with its evidence file, the audit rows) below."""
-    _ = _lang(lang).gettext
+    _ = language(lang).gettext
     out = [f'<h2 id="{_e(d["device"])}">{_e(d["device"])} <small>({_e(d["type"])})</small></h2>']
     if d.get("simulated"):
         out.append(f'<div class="sim">{_e(_(SIMULATED_MARK))}</div>')
@@ -474,13 +446,13 @@ def device_html(d: dict, plant_signoff: dict | None = None, *, appendix: bool = 
         _("Approved set #{id} ({title}) by {by} on {time}. ").format(id=ap["id"], title=ap["title"], by=ap["by"], time=when(ap["time"], lang))
         if ap else _("No approved set. ")) + _e(values_text(d, lang)) + _e(differ_text(d, changed, lang)) + "</p>")
     if changed:
-        out.append(_rows_html(head(SETTING_HEAD[:3], lang) + [""], _param_rows(changed, lang), {3: _verdict_class}))
+        out.append(_rows_html(head(SETTING_HEAD[:3], lang) + [""], param_rows(changed, lang), {3: _verdict_class}))
     out.append("<h3>" + _e(_("Checkout runs")) + "</h3>")
     if not d["checkouts"]:
         out.append("<p>" + _e(_("No checkout run.")) + "</p>")
     else:
         out.append(_rows_html(head(RUNS_HEAD, lang), [
-            [f"#{c['id']}", c["title"], _result(c["status"], c["reason"], lang), c["user"], when(c["time"], lang),
+            [f"#{c['id']}", c["title"], result_cell(c["status"], c["reason"], lang), c["user"], when(c["time"], lang),
              seconds(c["duration_s"], lang)] for c in d["checkouts"]], {2: lambda r: _result_class(r, 2)}))
     if appendix:
         out.append(appendix_html(d, lang))
@@ -497,14 +469,14 @@ def step_detail(s: dict, lang: i18n.Lang | None = None) -> str:
 
 
 def appendix_html(d: dict, lang: i18n.Lang | None = None) -> str:
-    _ = _lang(lang).gettext
+    _ = language(lang).gettext
     device = d["device"]
     out = ["<h3>" + _e(_("Appendix {device}: settings").format(device=device)) + "</h3>"]
-    out.append(_rows_html(head(SETTING_HEAD[:3], lang) + [""], _param_rows(d.get("settings", []), lang), {3: _verdict_class})
+    out.append(_rows_html(head(SETTING_HEAD[:3], lang) + [""], param_rows(d.get("settings", []), lang), {3: _verdict_class})
                if d.get("settings") else "<p>" + _e(_("No settings read.")) + "</p>")
     out.append("<h3>" + _e(_("Appendix {device}: live values (read with the set; states and measurements, no settings)").format(device=device))
                + "</h3>")
-    out.append(_rows_html(head(LIVE_HEAD[:3], lang) + [""], _param_rows(d.get("live_values", []), lang), {3: _verdict_class})
+    out.append(_rows_html(head(LIVE_HEAD[:3], lang) + [""], param_rows(d.get("live_values", []), lang), {3: _verdict_class})
                if d.get("live_values") else "<p>" + _e(_("No live values read.")) + "</p>")
     for c in d["checkouts"]:
         out.append("<h3>" + _e(_("Appendix {device}: checkout run #{id}, {title}: {status}").format(
@@ -525,7 +497,7 @@ def appendix_html(d: dict, lang: i18n.Lang | None = None) -> str:
 
 def cover_lines(p: dict, lang: i18n.Lang | None = None) -> list[str]:
     """The cover's facts: when, with which version, from which plant file, and the record's check."""
-    _ = _lang(lang).gettext
+    _ = language(lang).gettext
     pf = p.get("plant_file") or {}
     plant_line = (_("Plant file {path}, SHA-256 {sha256}").format(path=pf["path"], sha256=pf["sha256"]) if pf.get("sha256") else
                   _("Plant file {path}: not readable ({error})").format(path=pf["path"], error=pf.get("error", "")) if pf.get("path")
@@ -543,26 +515,26 @@ def altered_text(p: dict, lang: i18n.Lang | None = None) -> str:
     check = p.get("record_check") or {}
     if check.get("ok", True):
         return ""
-    return _lang(lang).gettext("The record was altered outside the program: ") + "; ".join(check["problems"])
+    return language(lang).gettext("The record was altered outside the program: ") + "; ".join(check["problems"])
 
 
 def _checkout_summary(d: dict, lang: i18n.Lang | None = None) -> str:
-    return ", ".join(f"{c['title']}: {word(c['last'], lang)}" for c in d.get("checkout_summary", [])) or _lang(lang).gettext("none")
+    return ", ".join(f"{c['title']}: {word(c['last'], lang)}" for c in d.get("checkout_summary", [])) or language(lang).gettext("none")
 
 
 def _signed_word(d: dict, p: dict, lang: i18n.Lang | None = None) -> str:
-    _ = _lang(lang).gettext
+    _ = language(lang).gettext
     return _("signed") if d["signoff"] else _("with the plant") if p.get("signoff") else _("not signed")
 
 
 def plant_html(p: dict, lang: i18n.Lang | None = None) -> str:
-    _ = _lang(lang).gettext
+    _ = language(lang).gettext
     sim = f'<div class="sim every">{_e(_(SIMULATED_MARK))}: {_e(", ".join(p["simulated"]))}</div>' if p.get("simulated") else ""
     altered = f'<div class="altered">{_e(altered_text(p, lang))}</div>' if altered_text(p) else ""
     rows = [summary_rows(d, p, lang) for d in p["devices"]]
     summary = _rows_html(head(SUMMARY_HEAD, lang), rows)
     title = _("As-left report {plant}").format(plant=p["plant"])
-    return (f"<!doctype html><html lang='{_lang(lang).code}'><head><meta charset='utf-8'><title>{_e(title)}</title><style>{CSS}</style></head><body>"
+    return (f"<!doctype html><html lang='{language(lang).code}'><head><meta charset='utf-8'><title>{_e(title)}</title><style>{CSS}</style></head><body>"
             + sim + "<h1>" + _e(_("As-left report: plant {plant}").format(plant=p["plant"])) + "</h1>" + altered
             + "".join(f"<p>{_e(line)}</p>" for line in cover_lines(p, lang))
             + _signoff_html(p["signoff"], _("Plant {plant}").format(plant=p["plant"]), lang=lang) + summary
@@ -570,137 +542,7 @@ def plant_html(p: dict, lang: i18n.Lang | None = None) -> str:
             + "<h2>" + _e(_("Appendix: full listings")) + "</h2>" + "".join(sim + appendix_html(d, lang) for d in p["devices"]) + "</body></html>")
 
 
-# -- PDF (ReportLab, from the same content) ----------------------------------------------------------
-def plant_pdf(p: dict, lang: i18n.Lang | None = None) -> bytes:
-    _ = _lang(lang).gettext
-    from reportlab.lib import colors
-    from reportlab.lib.pagesizes import A4
-    from reportlab.lib.styles import getSampleStyleSheet
-    from reportlab.lib.units import mm
-    from reportlab.platypus import (
-        KeepTogether,
-        PageBreak,
-        Paragraph,
-        SimpleDocTemplate,
-        Spacer,
-        Table,
-        TableStyle,
-    )
-
-    styles = getSampleStyleSheet()
-    small = styles["BodyText"].clone("small", fontSize=7.5, leading=9)
-    warn = styles["BodyText"].clone("warn", textColor=colors.HexColor("#b71c1c"), fontName="Helvetica-Bold")
-    buf = io.BytesIO()
-    doc = SimpleDocTemplate(buf, pagesize=A4, leftMargin=14 * mm, rightMargin=14 * mm, topMargin=18 * mm, bottomMargin=16 * mm,
-                            title=_("As-left report {plant}").format(plant=p["plant"]), author=p.get("tool", "commission"))
-    width = A4[0] - 28 * mm
-    simulated = bool(p.get("simulated"))
-
-    def every_page(canvas, document) -> None:  # the simulated mark on every page, the page number at the foot
-        canvas.saveState()
-        if simulated:
-            canvas.setFillColor(colors.HexColor("#fff3cd"))
-            canvas.rect(14 * mm, A4[1] - 13 * mm, width, 7 * mm, fill=1, stroke=0)
-            canvas.setFillColor(colors.HexColor("#5d4200"))
-            canvas.setFont("Helvetica-Bold", 9)
-            canvas.drawCentredString(A4[0] / 2, A4[1] - 10.8 * mm, _(SIMULATED_MARK))
-        canvas.setFillColor(colors.grey)
-        canvas.setFont("Helvetica", 7)
-        canvas.drawString(14 * mm, 8 * mm, _("As-left report {plant}").format(plant=p["plant"]) + f", {when(p['generated'], lang)}")
-        canvas.drawRightString(A4[0] - 14 * mm, 8 * mm, _("page {n}").format(n=document.page))
-        canvas.restoreState()
-
-    def para(text: Any, style=small) -> Paragraph:
-        return Paragraph(_e(text), style)
-
-    def table(rows: list[list[Any]], widths: list[float], style=small) -> Table:
-        t = Table([[para(c, style if i else small) for i, c in enumerate(r)] for r in rows], colWidths=[w * width for w in widths], repeatRows=1)
-        t.setStyle(TableStyle([("GRID", (0, 0), (-1, -1), 0.3, colors.grey), ("BACKGROUND", (0, 0), (-1, 0), colors.whitesmoke),
-                               ("VALIGN", (0, 0), (-1, -1), "TOP")]))
-        return t
-
-    def sig(s: dict | None, what: str) -> Paragraph:
-        plant = p.get("signoff") if what != plant_what else None
-        return para(signoff_text(s, what, plant, lang), styles["BodyText"])
-
-    plant_what = _("Plant {plant}").format(plant=p["plant"])
-    story: list = [Paragraph(_e(_("As-left report: plant {plant}").format(plant=p["plant"])), styles["Title"])]
-    if altered_text(p):
-        story.append(para(altered_text(p, lang), warn))
-    story += [para(line, styles["BodyText"]) for line in cover_lines(p, lang)]
-    story += [sig(p["signoff"], plant_what), Spacer(1, 4 * mm),
-              table([head(SUMMARY_HEAD, lang)] + [summary_rows(d, p, lang) for d in p["devices"]], [0.13, 0.08, 0.37, 0.16, 0.14, 0.12])]
-    story.append(para(_("Each device follows on the next pages; the full listings (settings, live values, every step with its "
-                        "evidence file and SHA-256, audit rows) are in the appendix."), small))
-    story.append(PageBreak())
-    for d in p["devices"]:  # each device kept on one page where it fits, one after the other
-        part = [Paragraph(_e(f"{d['device']} ({d['type']})"), styles["Heading2"]), sig(d["signoff"], d["device"])]
-        part.append(table([[_("Identity"), ""]] + [[k, v] for k, v in identity_rows(d, lang)], [0.3, 0.7]))
-        part.append(para(commissioned_text(d, bool(p.get("signoff")), lang)))
-        if d["drift"]:
-            part.append(para(_("Changed since approved: ") + ", ".join(f"{r['name']} {r['approved']} -> {r['now']}" for r in d["drift"]), warn))
-        part.append(Paragraph(_e(_("Settings against the approved set")), styles["Heading3"]))
-        changed = [r for r in d.get("settings", []) if r["verdict"] in DIFFERING] if d["approved"] else []
-        part.append(para(values_text(d, lang) + differ_text(d, changed, lang)))
-        if changed:
-            part.append(table([head(SETTING_HEAD, lang)] + _param_rows(changed, lang), [0.4, 0.25, 0.2, 0.15]))
-        part.append(Paragraph(_e(_("Checkout runs")), styles["Heading3"]))
-        if not d["checkouts"]:
-            part.append(para(_("No checkout run.")))
-        else:
-            part.append(table([head(RUNS_HEAD, lang)] + [
-                [f"#{c['id']}", c["title"], _result(c["status"], c["reason"], lang), c["user"], when(c["time"], lang),
-                 seconds(c["duration_s"], lang)] for c in d["checkouts"]], [0.07, 0.2, 0.37, 0.12, 0.15, 0.09]))
-        story += [KeepTogether(part), Spacer(1, 6 * mm)]
-    story += [PageBreak(), Paragraph(_e(_("Appendix: full listings")), styles["Heading1"])]
-    for d in p["devices"]:
-        device = d["device"]
-        story.append(Paragraph(_e(_("{device} ({type}): settings").format(device=device, type=d["type"])), styles["Heading3"]))
-        story.append(table([head(SETTING_HEAD, lang)] + _param_rows(d.get("settings", []), lang), [0.4, 0.25, 0.2, 0.15])
-                     if d.get("settings") else para(_("No settings read.")))
-        story.append(Paragraph(_e(_("{device}: live values (states and measurements, no settings)").format(device=device)), styles["Heading3"]))
-        story.append(table([head(LIVE_HEAD, lang)] + _param_rows(d.get("live_values", []), lang), [0.4, 0.25, 0.2, 0.15])
-                     if d.get("live_values") else para(_("No live values read.")))
-        for c in d["checkouts"]:
-            story.append(Paragraph(_e(_("{device}: checkout run #{id}, {title}: {status}").format(
-                device=device, id=c["id"], title=c["title"], status=word(c["status"], lang))), styles["Heading3"]))
-            story.append(para(_("Run by {user} on {time} in {duration}.").format(user=c["user"], time=when(c["time"], lang),
-                                                                                  duration=seconds(c["duration_s"], lang))))
-            story.append(table([head([N_("Step"), N_("Result"), N_("Measured, answers"), N_("Evidence file, SHA-256")], lang)] + [
-                [s["name"], _result(s["status"], s["reason"], lang), "; ".join(measured_answers(s, lang)), evidence_text(s, lang)] for s in c["steps"]], [0.18, 0.2, 0.34, 0.28]))
-        if d["audit"]:
-            story.append(Paragraph(_e(_("{device}: audit rows ({n})").format(device=device, n=len(d["audit"]))), styles["Heading3"]))
-            story.append(table([head([N_("Time"), N_("User"), N_("Action"), N_("Parameter"), N_("Old -> new"), N_("Result")], lang)] + [
-                [when(a["time"], lang), a["user"], a["action"], a["parameter"], f"{a['old']} -> {a['new']}", a["result"]] for a in d["audit"]],
-                [0.15, 0.1, 0.2, 0.15, 0.2, 0.2]))
-    doc.build(story, onFirstPage=every_page, onLaterPages=every_page)
-    return buf.getvalue()
-
-
 # -- evidence traces and the archive ----------------------------------------------------------------
-def can_trace(frames: list[dict], suffix: str, channel: str) -> bytes:
-    """CAN frames of a step in a standard format: ``.log`` (candump) or ``.trc`` (PEAK), by python-can."""
-    import can
-
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / f"trace{suffix}"
-        writer = can.CanutilsLogWriter(path, channel=channel) if suffix == ".log" else can.TRCWriter(path, channel=1)
-        with writer:
-            for f in frames:
-                writer.on_message_received(can.Message(timestamp=f["t"], arbitration_id=f["id"], is_extended_id=f["ext"],
-                                                       data=bytes.fromhex(f["data"]), is_rx=f["dir"] == "rx",
-                                                       is_error_frame=f.get("err", False), channel=channel))
-        return path.read_bytes()
-
-
-def serial_trace(rows: list[dict]) -> bytes:
-    """Serial, Modbus and LogiTed transactions as text, one a line, times in UTC (the same bytes wherever made)."""
-    def utc(t: float) -> str:
-        return datetime.fromtimestamp(t, timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
-
-    return "".join(f"{utc(r['t'])} TX {r['tx']} RX {r['rx']} {r['decoded']} {r['error']}\n" for r in rows).encode()
-
-
 async def write_plant(runtime, out_dir: Path, content: dict | None = None, *, user: str = "local", role: str = "engineer",
                       lang: i18n.Lang | None = None) -> dict[str, Path]:
     """report.html, report.pdf and the archive (reports, approved sets and snapshots as backup files,
@@ -734,6 +576,8 @@ def _write_files(out_dir: Path, content: dict, backups: dict[str, str], chain: l
                  raw_steps: dict[int, list] | None = None, lang: i18n.Lang | None = None) -> dict[str, Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     name = f"{content['plant']}-as-left"
+    from app.report_pdf import plant_pdf
+
     html_text = plant_html(content, lang)
     pdf = plant_pdf(content, lang)
     paths = {"html": out_dir / f"{name}.html", "pdf": out_dir / f"{name}.pdf", "zip": out_dir / f"{name}.zip"}

@@ -12,9 +12,7 @@ import pytest
 
 from tools import metrics
 
-LONG_MODULES = {  # the modules over 700 lines: none may join them
-    "app/report.py",
-}
+LONG_MODULES: set[str] = set()  # the modules over 700 lines: none may join them
 LARGE_CLASSES: set[str] = set()  # the classes over 30 attributes: none may join them
 CEILINGS = {
     "getattr_default": 59,
