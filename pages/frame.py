@@ -95,6 +95,28 @@ BEAT_JS = """
 
 
 # bus names give way to their icons (state and tooltip stay) when the bus list does not fit the header
+# A language whose decimal sign is a comma (German): a comma typed or pasted into a number entry is its decimal
+# point. The browser's own number entry drops a comma it does not expect, so "12,5" arrived as 125.
+DECIMAL_COMMA_JS = """<script>
+(() => {
+  const number = (t) => t instanceof HTMLInputElement && t.type === 'number';
+  document.addEventListener('keydown', (e) => {
+    if (e.key === ',' && number(e.target) && !e.ctrlKey && !e.metaKey && !e.altKey) {
+      e.preventDefault();
+      document.execCommand('insertText', false, '.');
+    }
+  }, true);
+  document.addEventListener('paste', (e) => {
+    const text = e.clipboardData ? e.clipboardData.getData('text') : '';
+    if (number(e.target) && /^\\s*-?\\d*,\\d+\\s*$/.test(text)) {
+      e.preventDefault();
+      document.execCommand('insertText', false, text.trim().replace(',', '.'));
+    }
+  }, true);
+})();
+</script>"""
+
+
 HEADER_FIT_JS = """
 <script>
 (function () {
@@ -293,6 +315,8 @@ def frame(title: str, beat: bool = True):
     if beat:
         ui.add_body_html(BEAT_JS % (round(BEAT_PERIOD_S * 1000), round(BEAT_WINDOW_S * 1000), BEAT_EVENT))
     ui.add_body_html(HEADER_FIT_JS)
+    if lang.decimal_sign == ",":
+        ui.add_body_html(DECIMAL_COMMA_JS)
 
     # the header runs on every page: built once, then only changed texts and colours go to the browser
     status = HeaderStatus(runtime, user, lang)
