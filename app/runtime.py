@@ -272,9 +272,11 @@ class Runtime:
         self._unsaved_lock = asyncio.Lock()
         self._unsaved_written = self._load_unsaved()
         self._tasks: list[asyncio.Task] = []
+        from app.open_reads import OpenReads
         from app.record import RecordService
 
         self.record = RecordService(self)  # approved sets, snapshots, checkouts, sign-offs (record.sqlite)
+        self.open_reads = OpenReads(self)  # what a device page reads by itself on opening (DeviceType.open_reads)
         from app.replace import ReplacementWatch
 
         self.replacements = ReplacementWatch(self)  # "replaced?": each device's identity against its known one

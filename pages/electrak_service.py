@@ -18,14 +18,12 @@ from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, length_of, refusa
 from pages.cards import DrawnCard, point_values
 from pages.command_client import checked_value, refuse, write_from_page
 from pages.device_page import DeviceView
-from pages.frame import ACTION_ERRORS, fmt_time
+from pages.frame import fmt_time
 from pages.session import current_user
 from pages.widgets import LampStrip, mark_quality, quality_note, range_number
 
 log = logging.getLogger(__name__)
 
-AUTO_READ_AGAIN_S = 30.0  # a page opened on a network whose service parameters were never read reads them once
-_auto_read: dict[str, float] = {}  # network -> when a page last read its service parameters by itself
 
 
 def _answers_text(report: facts.ServiceReport | None, lang=None) -> tuple[str, str]:
@@ -120,26 +118,16 @@ class ServiceCard(DrawnCard):
             self.shown[key] = value
 
     def read_once(self) -> None:
-        """Read the service parameters when the page finds the network answering and none of them ever read, so
-        that the fields start at the actuators' values (a read changes nothing; once per network per 30 s)."""
+        """Run what the device type declares a page reads by itself on opening (the service parameters, when the
+        network answers and none was ever read: the fields then start at the actuators' values; app/open_reads.py),
+        once per page."""
         view = self.view
-        if self.auto_read or view.state.status != "online" or any(view.state.raw(p) is not None for p in PARAMS):
+        if self.auto_read or not view.runtime.open_reads.never_read(view.name):
             return
         self.auto_read = True
-        now = time.monotonic()
-        if now - _auto_read.get(view.name, -AUTO_READ_AGAIN_S) < AUTO_READ_AGAIN_S:
-            return
-        _auto_read[view.name] = now
         user, role = current_user()
-
-        async def read() -> None:
-            try:
-                await view.runtime.worker.gate.invoke(view.name, "read service parameters", None, user=user or "anonymous",
-                                                      role=role, session=view.session)
-            except ACTION_ERRORS as exc:  # the card shows "not read" and the answers; Read all retries
-                log.info("%s: service parameters not read on opening the page: %s", view.name, exc)
-
-        background_tasks.create(read(), name=f"read service parameters {view.name}")
+        background_tasks.create(view.runtime.open_reads.run(view.name, user=user, role=role, session=view.session),
+                                name=f"open reads {view.name}")
 
     def refresh(self) -> None:
         self.read_once()
