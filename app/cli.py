@@ -167,9 +167,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     dbc.add_parser(sub)
 
-    from app import report
+    from app import report_archive
 
-    report.add_parser(sub)  # commission report --plant P --out DIR: the as-left report without a browser
+    report_archive.add_parser(sub)  # commission report --plant P --out DIR: the as-left report without a browser
 
     from app import record_cli
 

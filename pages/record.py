@@ -16,8 +16,7 @@ from pathlib import Path
 
 from nicegui import ui
 
-from app import backup
-from app import i18n
+from app import backup, i18n
 from app import runtime as rt
 from app.checkout import checkout_module
 from app.record_sets import diff_sets
@@ -29,14 +28,14 @@ from app.report import (
     sign_gaps,
     signoff_of,
     with_unit,
-    write_plant,
 )
+from app.report_archive import write_plant
 from app.verify import check_archive
+from pages.command_client import VIEWER_REASON, enable_unless
 from pages.frame import ACTION_ERRORS, fmt_time, frame
 from pages.overview import drift_of
 from pages.session import current_user
 from pages.widgets import upload_button
-from pages.command_client import enable_unless, VIEWER_REASON
 
 STATUS_COLOUR = {"passed": "positive", "failed": "negative", "aborted": "negative", "running": "primary", "pending": "grey",
                  "skipped": "grey", "error": "negative"}

@@ -12,7 +12,8 @@ import pytest
 from webutil import simulated_user
 
 from app.record_store import RecordStore
-from app.report import plant_content, plant_html, write_plant
+from app.report import plant_content, plant_html
+from app.report_archive import write_plant
 from devices.hdlock.params import PARAMS
 from tests.conftest import wait_for
 from tests.recordutil import demo_plant

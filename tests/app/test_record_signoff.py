@@ -22,8 +22,8 @@ from app.report import (
     plant_content,
     plant_html,
     sign_gaps,
-    write_plant,
 )
+from app.report_archive import write_plant
 from app.report_pdf import plant_pdf
 from tests.recordutil import DEMO, demo_plant, run_checkout
 
