@@ -61,7 +61,7 @@ def content() -> None:
                                   result=result.value or "", limit=5000)
 
     async def download() -> None:
-        ui.download(to_csv(await entries()).encode(), f"audit-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
+        ui.download(to_csv(await entries(), lang).encode(), f"audit-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
 
     async def refresh() -> None:
         try:

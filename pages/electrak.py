@@ -8,8 +8,6 @@ change the store pushes); :func:`pages.device_page.device_page` puts the frame, 
 
 from __future__ import annotations
 
-import csv
-import io
 import time
 from datetime import datetime
 
@@ -17,6 +15,7 @@ from nicegui import ui
 
 from app import i18n
 from app import worker as worker_module
+from app.csvfile import csv_text
 from app.i18n import N_
 from devices.electrak import adapter as facts
 from devices.electrak import codec
@@ -24,14 +23,14 @@ from devices.electrak.adapter import FOREIGN_SENDER, SERIES
 from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS
 from devices.electrak.policy import AREA_CLEAR_RISK
 from pages.cards import DeviceCard, DrawnCard, point_values, titled_card
+from pages.charts import HistoryChart
+from pages.command_client import WriteGuard, checked_value, confirm, enable_unless, refuse, write_from_page
 from pages.device_page import DeviceView, StatusRow, device_page
 from pages.electrak_service import ServiceCard, save_parameters
 from pages.frame import fmt_age
 from pages.session import current_user
 from pages.simcontrols import sim_card
-from pages.widgets import entry_age, lamp_html, LampStrip, mark_quality, quality_note, range_number, stop_bar
-from pages.command_client import checked_value, confirm, enable_unless, refuse, write_from_page, WriteGuard
-from pages.charts import HistoryChart
+from pages.widgets import LampStrip, entry_age, lamp_html, mark_quality, quality_note, range_number, stop_bar
 
 WINDOW_S = 60
 TIMEOUT_BIT = 5  # error flags bit 5: Message timeout ("Fehler-Flags")
@@ -179,7 +178,7 @@ class ChartCard(DeviceCard):
                 ui.label(self.view.lang.gettext("Position, current and speed (last {window} s, 100 ms frames)").format(
                     window=WINDOW_S)).classes("text-subtitle1")
                 ui.space()
-                ui.button("CSV", icon="download", on_click=lambda: _export_csv(state, name)).props("flat dense")
+                ui.button("CSV", icon="download", on_click=lambda: _export_csv(state, name, self.view.lang)).props("flat dense")
                 ui.button("PNG", icon="image", on_click=lambda: _export_png(chart, name)).props("flat dense")
             # one figure, three rows over one time axis: one drawing a second for all of them
             chart = HistoryChart(state, rows=CHART_ROWS, row_heights=(1.6, 1, 1), window_s=WINDOW_S, height=520,
@@ -513,14 +512,14 @@ async def _write_bitrate(name: str, param, code, lang=None) -> None:
                           title=_("Set the actuators' bit rate to {value}?"), ok=_("Write bit rate"), lang=lang)
 
 
-def _export_csv(state, name: str) -> None:
-    out = io.StringIO()
-    writer = csv.writer(out)
+def _export_csv(state, name: str, lang=None) -> None:
+    """The history (position, current, speed, drive target) as a CSV file in the page's language."""
     units = dict(zip(SERIES, ("mm", "A", "mm/s", "mm")))
-    writer.writerow(["time", *(f"{s} [{units[s]}]" for s in SERIES)])
-    for t, sample in state.history:
-        writer.writerow([datetime.fromtimestamp(t).isoformat(timespec="milliseconds"), *(sample.get(s) for s in SERIES)])
-    ui.download(out.getvalue().encode(), f"{name}-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
+    shown = i18n.english(lang)
+    head = [N_("time"), *(f"{shown.gettext(s)} [{units[s]}]" for s in SERIES)]
+    rows = ([datetime.fromtimestamp(t).isoformat(timespec="milliseconds"), *(sample.get(s) for s in SERIES)]
+            for t, sample in state.history)
+    ui.download(csv_text(head, rows, lang).encode(), f"{name}-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
 
 
 def _export_png(chart, name: str) -> None:
