@@ -167,22 +167,24 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
     }
 
 
-def sign_gaps(content: dict) -> list[str]:
+def sign_gaps(content: dict, lang: i18n.Lang | None = None) -> list[str]:
     """What a signer is asked about before signing (a plant's or one device's content): devices with
     no checkout, whose last checkout did not pass, without an approved set or with settings not
-    approved or changed since."""
+    approved or changed since; in ``lang`` (checkout titles as the record holds them)."""
+    _ = language(lang).gettext
     gaps = []
     for d in content.get("devices", [content]):
         said = []
         if not d["checkouts"]:
-            said.append("no checkout run")
-        said += [f"last {c['title']} {c['last']}" for c in d.get("checkout_summary", []) if c["last"] != "passed"]
+            said.append(_("no checkout run"))
+        said += [_("last {title} {status}").format(title=c["title"], status=word(c["last"], lang))
+                 for c in d.get("checkout_summary", []) if c["last"] != "passed"]
         if d["approved"] is None:
-            said.append("no approved set")
+            said.append(_("no approved set"))
         elif d["counts"].get("not approved"):
-            said.append(f"{d['counts']['not approved']} not approved")
+            said.append(_("{n} not approved").format(n=d["counts"]["not approved"]))
         if d["counts"].get("changed"):
-            said.append(f"{d['counts']['changed']} changed since approved")
+            said.append(_("{n} changed since approved").format(n=d["counts"]["changed"]))
         if said:
             gaps.append(f"{d['device']}: {', '.join(said)}")
     return gaps

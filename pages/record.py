@@ -6,6 +6,9 @@ Every action goes through ``runtime.record`` (app/record.py), which checks the r
 reads the record and downloads reports, never runs a checkout, approves or signs. An approval and a
 sign-off name an engineer account: a session without one (the loopback address) is asked to log in
 at that moment.
+
+The page's own words are in the catalogs (docs/i18n.md); what the record holds (checkout titles, step
+names, reasons, questions, values, timeline titles) is shown as it was written.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from nicegui import ui
 from app import backup, i18n
 from app import runtime as rt
 from app.checkout import checkout_module
+from app.i18n import N_, NP_, Lang
 from app.record_sets import diff_sets
 from app.report import (
     appendix_html,
@@ -35,10 +39,26 @@ from pages.command_client import VIEWER_REASON, enable_unless
 from pages.frame import ACTION_ERRORS, fmt_time, frame
 from pages.overview import drift_of
 from pages.session import current_user
-from pages.widgets import upload_button
+from pages.widgets import columns, upload_button
 
 STATUS_COLOUR = {"passed": "positive", "failed": "negative", "aborted": "negative", "running": "primary", "pending": "grey",
                  "skipped": "grey", "error": "negative"}
+# the statuses of a run and of its steps (app/checkout.py) that app/report.py's WORDS leave out, shown in the page's language
+STATUS_WORDS = (N_("ready"), N_("running"), N_("pending"), N_("error"))
+# the kinds of record rows (app/record.py), shown in the timeline in the page's language
+KIND = "record kind"
+KIND_WORDS = (NP_("record kind", "approved"), NP_("record kind", "snapshot"), NP_("record kind", "checkout"),
+              NP_("record kind", "signoff"), NP_("record kind", "integrity"))
+# what app/verify.py's check names: the record database or an archive
+CHECKED_WORDS = (N_("record"), N_("archive"))
+TIMELINE_COLUMNS = [{"name": "id", "label": "#", "field": "id"},
+                    {"name": "time", "label": N_("Time"), "field": "time", "align": "left"},
+                    {"name": "kind", "label": N_("Kind"), "field": "kind", "align": "left"},
+                    {"name": "title", "label": N_("What"), "field": "title", "align": "left"},
+                    {"name": "user", "label": N_("By"), "field": "user", "align": "left"}]
+DIFF_COLUMNS = [{"name": "name", "label": N_("Name"), "field": "name", "align": "left"},
+                {"name": "old", "label": N_("Old"), "field": "old", "align": "left"},
+                {"name": "new", "label": N_("New"), "field": "new", "align": "left"}]
 
 
 def content(name: str | None = None) -> None:
@@ -47,14 +67,16 @@ def content(name: str | None = None) -> None:
     name = name if name in devices else (devices[0] if devices else None)
     user, role = current_user()
     engineer = role == "engineer"
-    with frame("Commissioning record"):
+    lang = i18n.page_language()
+    _ = lang.gettext
+    with frame(N_("Commissioning record")):
         with ui.row().classes("items-center gap-3 w-full"):
-            ui.select(devices, value=name, label="Device",
+            ui.select(devices, value=name, label=_("Device"),
                       on_change=lambda e: ui.navigate.to(f"/record/{e.value}")).props("dense outlined").classes("w-56").mark("record-device")
             ui.space()
-            _downloads(runtime, user, role)
+            _downloads(runtime, user, role, lang)
         if name is None:
-            ui.label("The plant has no devices.")
+            ui.label(_("The plant has no devices."))
             return
         state = runtime.store.devices[name]
         drift = ui.label().classes("text-body1").mark("record-drift")
@@ -62,12 +84,13 @@ def content(name: str | None = None) -> None:
         def show_drift() -> None:
             d = drift_of(state)
             if not d.get("approved"):
-                drift.text, cls = "No approved set for this device yet.", "text-grey-8"
+                drift.text, cls = _("No approved set for this device yet."), "text-grey-8"
             elif d["changed"]:
-                drift.text = "Changed since approved: " + ", ".join(f"{r['name']} {r['approved']} → {r['now']}" for r in d["changed"])
+                drift.text = _("Changed since approved: {changes}").format(
+                    changes=", ".join(f"{r['name']} {r['approved']} → {r['now']}" for r in d["changed"]))
                 cls = "text-negative"
             else:
-                drift.text, cls = "Equal to the approved set.", "text-positive"
+                drift.text, cls = _("Equal to the approved set."), "text-positive"
             drift.classes(replace=f"text-body1 {cls}")
 
         show_drift()
@@ -75,71 +98,79 @@ def content(name: str | None = None) -> None:
         ui.context.client.on_disconnect(watch.cancel)
         with ui.row().classes("w-full gap-4 items-start"):
             with ui.card().classes("flex-1 min-w-[320px]"):
-                _checkout_card(runtime, name, user, role, engineer)
+                _checkout_card(runtime, name, user, role, engineer, lang)
             with ui.card().classes("flex-1 min-w-[320px]"):
-                timeline = _timeline_card(runtime, name, user, role, engineer)
+                timeline = _timeline_card(runtime, name, user, role, engineer, lang)
         with ui.card().classes("w-full"):
-            _signoff_card(runtime, name, user, role, engineer, timeline)
+            _signoff_card(runtime, name, user, role, engineer, timeline, lang)
         with ui.card().classes("w-full"):
-            _check_card(runtime)
+            _check_card(runtime, lang)
 
 
-def _downloads(runtime, user: str, role: str) -> None:
+def _downloads(runtime, user: str, role: str, lang: Lang) -> None:
+    _ = lang.gettext
     # the report's language is chosen when it is made: the page's, or the other one for a reader who needs it
-    language = ui.toggle({code: code.upper() for code in sorted(i18n.LANGUAGES)}, value=i18n.page_language().code).props(
-        "dense no-caps").tooltip("language of the report").mark("record-report-language")
+    language = ui.toggle({code: code.upper() for code in sorted(i18n.LANGUAGES)}, value=lang.code).props(
+        "dense no-caps").tooltip(_("language of the report")).mark("record-report-language")
 
     async def download(kind: str) -> None:
         folder = Path(tempfile.mkdtemp(prefix="commission-report-"))
         try:
             paths = await write_plant(runtime, folder, user=user or "viewer", role=role, lang=i18n.get(language.value))
         except ACTION_ERRORS as exc:  # said to the engineer
-            ui.notify(f"report: {exc}", type="negative", multi_line=True)
+            ui.notify(_("report: {error}").format(error=exc), type="negative", multi_line=True)
             return
         ui.download(paths[kind].read_bytes(), paths[kind].name)
 
-    for kind, label in (("html", "HTML"), ("pdf", "PDF"), ("zip", "Archive")):
+    for kind, label in (("html", "HTML"), ("pdf", "PDF"), ("zip", _("Archive"))):
         ui.button(label, icon="download", on_click=lambda k=kind: download(k)).props("outline dense").mark(f"record-download-{kind}")
 
 
-def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool) -> None:
+def _status_text(status: str, reason: str, lang: Lang) -> str:
+    """A run's status in ``lang``, with its reason as the record holds it: ``failed: ...``."""
+    return lang.gettext(status) + (f": {reason}" if reason else "")
+
+
+def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool, lang: Lang) -> None:
+    _ = lang.gettext
     module = checkout_module(runtime.store.devices[name].type)
-    ui.label("Checkout" + (f": {module.TITLE}" if module else "")).classes("text-h6")
+    ui.label(_("Checkout") + (f": {module.TITLE}" if module else "")).classes("text-h6")
     if module is None:
-        ui.label("This device type declares no checkout yet.").classes("text-grey-8")
+        ui.label(_("This device type declares no checkout yet.")).classes("text-grey-8")
         return
     progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
-    status = ui.label("Not run in this session.").mark("checkout-status")
+    status = ui.label(_("Not run in this session.")).mark("checkout-status")
     steps = ui.column().classes("w-full gap-1")
     with ui.row():
-        start = ui.button("Run checkout", icon="play_arrow").mark("checkout-run")
-        abort = ui.button("Abort", icon="stop", color="negative").mark("checkout-abort")
+        start = ui.button(_("Run checkout"), icon="play_arrow").mark("checkout-run")
+        abort = ui.button(_("Abort"), icon="stop", color="negative").mark("checkout-abort")
     abort.set_visibility(False)
     if not engineer:
         start.disable()
-        ui.label("Viewers read the record; checkouts are run by an engineer.").classes("text-caption")
+        ui.label(_("Viewers read the record; checkouts are run by an engineer.")).classes("text-caption")
 
     def draw(run) -> None:
         progress.value = run.progress
-        status.text = f"{run.status}" + (f": {run.as_dict()['reason']}" if run.status in ("failed", "aborted") else "")
+        status.text = _status_text(run.status, run.as_dict()["reason"] if run.status in ("failed", "aborted") else "", lang)
         abort.set_visibility(run.status == "running")
         start.set_enabled(engineer and run.status != "running")
         steps.clear()
         with steps:
             for r in run.results:
                 with ui.row().classes("items-center gap-2 no-wrap"):
-                    ui.badge(r.status, color=STATUS_COLOUR.get(r.status, "grey"))
+                    ui.badge(_(r.status), color=STATUS_COLOUR.get(r.status, "grey"))
                     ui.label(r.name).classes("font-medium")
                     if r.reason:
                         ui.label(r.reason).classes("text-negative text-caption")
                     elif r.values:
-                        ui.label("; ".join(f"{v['name']} {with_unit(v['value'], v['unit'])}" for v in r.values[:3])).classes("text-caption")
+                        ui.label("; ".join(f"{v['name']} {lang.numbers_in(with_unit(v['value'], v['unit']))}"
+                                           for v in r.values[:3])).classes("text-caption")
 
     async def ask(question: str) -> bool:
         twin_action = _twin_action(runtime, name, question)
         with ui.dialog().props("persistent") as dialog, ui.card():
             ui.label(question).classes("text-body1")
-            ui.label(f"Your answer is recorded with your name ({user}).").classes("text-caption")
+            ui.label(_("Your answer is recorded with your name ({user}).").format(user=user)).classes("text-caption")
             if twin_action:  # a simulated device: its inputs are on the twin, offered here so one tab is enough
                 async def act() -> None:
                     from app.record_cli import sim_action
@@ -147,13 +178,13 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool) -> 
                     try:
                         ui.notify(await sim_action(runtime, f"{name}:{twin_action}", user=user, role=role), type="info")
                     except (*ACTION_ERRORS, ValueError) as exc:  # said (no such twin or action: a ValueError)
-                        ui.notify(f"simulation: {exc}", type="negative")
+                        ui.notify(_("simulation: {error}").format(error=exc), type="negative")
 
-                ui.button(f"{twin_action.capitalize()} on the simulated device", icon="smart_toy",
+                ui.button(_("Toggle {input} on the simulated device").format(input=twin_action.split()[1]), icon="smart_toy",
                           on_click=act).props("outline").mark("checkout-twin-action")
             with ui.row():
-                ui.button("Yes", on_click=lambda: dialog.submit(True)).mark("checkout-yes")
-                ui.button("No", color="negative", on_click=lambda: dialog.submit(False)).mark("checkout-no")
+                ui.button(_("Yes"), on_click=lambda: dialog.submit(True)).mark("checkout-yes")
+                ui.button(_("No"), color="negative", on_click=lambda: dialog.submit(False)).mark("checkout-no")
         try:
             return bool(await dialog)
         finally:
@@ -172,7 +203,7 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool) -> 
         except PermissionError as exc:
             ui.notify(str(exc), type="negative")
             return
-        ui.notify(f"checkout {result['status']}" + (f": {result['reason']}" if result["reason"] else ""),
+        ui.notify(_("checkout {status}").format(status=_status_text(result["status"], result["reason"], lang)),
                   type="positive" if result["status"] == "passed" else "negative", multi_line=True)
 
     start.on_click(run_it)
@@ -182,27 +213,28 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool) -> 
         draw(last)
 
 
-async def ask_account(runtime, user: str, what: str) -> str | None:
+async def ask_account(runtime, user: str, what: str, lang: Lang) -> str | None:
     """The engineer account that approves or signs: the session's own when it is one (logged in beyond
     the loopback address), else asked now with a login (throttled and audited as the login page's).
-    None when the person cancels or no account could be checked (said)."""
+    None when the person cancels or no account could be checked (said). ``what``: the act, in ``lang``."""
     from app.auth import check_login
     from pages.session import client_address
 
+    _ = lang.gettext
     known = runtime.users.users.get(user)
     if known is not None and known.role == "engineer":
         return known.name
     if not runtime.users.has_engineer():
-        ui.notify(f"{what} needs a named engineer account and this installation has none yet: create one with "
-                  "'commission user add NAME --role engineer', then try again", type="warning", multi_line=True)
+        ui.notify(_("{what} needs a named engineer account and this installation has none yet: create one with "
+                    "'commission user add NAME --role engineer', then try again").format(what=what), type="warning", multi_line=True)
         return None
     address = client_address() or "unknown address"
     with ui.dialog().props("persistent") as dialog, ui.card().classes("w-96").mark("account-dialog"):
-        ui.label(f"{what}: who is it?").classes("text-h6")
-        ui.label("An approval and a sign-off name an engineer account: log in with yours. The record keeps the "
-                 "account beside the name you type.").classes("text-body2")
-        name = ui.input("Account").props("outlined autofocus maxlength=64").classes("w-full").mark("account-name")
-        password = ui.input("Password", password=True, password_toggle_button=True).props("outlined").classes("w-full").mark(
+        ui.label(_("{what}: who is it?").format(what=what)).classes("text-h6")
+        ui.label(_("An approval and a sign-off name an engineer account: log in with yours. The record keeps the "
+                   "account beside the name you type.")).classes("text-body2")
+        name = ui.input(_("Account")).props("outlined autofocus maxlength=64").classes("w-full").mark("account-name")
+        password = ui.input(_("Password"), password=True, password_toggle_button=True).props("outlined").classes("w-full").mark(
             "account-password")
         message = ui.label().classes("text-negative text-body2").mark("account-message")
 
@@ -211,38 +243,41 @@ async def ask_account(runtime, user: str, what: str) -> str | None:
                                                typed=(name.value or "").strip(), secret=password.value or "", address=address,
                                                via="record page")
             if account is None:
-                message.set_text(words)
+                message.set_text(lang.phrase(words))  # the login's words (app/auth.py), as the login page says them
                 password.set_value("")
                 return
             if account.role != "engineer":
-                message.set_text(f"{account.name} has the {account.role} role: an engineer account approves and signs")
+                message.set_text(_("{name} has the {role} role: an engineer account approves and signs").format(
+                    name=account.name, role=_(account.role)))
                 return
             dialog.submit(account.name)
 
         password.on("keydown.enter", attempt)
         with ui.row():
-            ui.button("Log in and continue", icon="login", on_click=attempt).mark("account-ok")
-            ui.button("Cancel", on_click=lambda: dialog.submit(None)).props("flat").mark("account-cancel")
+            ui.button(_("Log in and continue"), icon="login", on_click=attempt).mark("account-ok")
+            ui.button(_("Cancel"), on_click=lambda: dialog.submit(None)).props("flat").mark("account-cancel")
     try:
         return await dialog
     finally:
         dialog.delete()  # asked again next time, with empty fields
 
 
-async def confirm_gaps(gaps: list[str], what: str) -> bool:
-    """Before a sign-off: the devices without a checkout, with a failed one or with settings not approved."""
+async def confirm_gaps(gaps: list[str], what: str, lang: Lang) -> bool:
+    """Before a sign-off: the devices without a checkout, with a failed one or with settings not approved
+    (``gaps`` and ``what`` in ``lang``)."""
     if not gaps:
         return True
+    _ = lang.gettext
     with ui.dialog().props("persistent") as dialog, ui.card().mark("gaps-dialog"):
-        ui.label(f"Sign {what} although these are open?").classes("text-h6")
+        ui.label(_("Sign {what} although these are open?").format(what=what)).classes("text-h6")
         with ui.column().classes("gap-0"):
             for line in gaps:
                 ui.label(line).classes("text-body2")
-        ui.label("The list is kept in the signed report. Run the missing checkouts and approve the sets first, "
-                 "or sign anyway.").classes("text-caption")
+        ui.label(_("The list is kept in the signed report. Run the missing checkouts and approve the sets first, "
+                   "or sign anyway.")).classes("text-caption")
         with ui.row():
-            ui.button("Sign anyway", color="negative", on_click=lambda: dialog.submit(True)).mark("gaps-sign")
-            ui.button("Cancel", on_click=lambda: dialog.submit(False)).props("flat").mark("gaps-cancel")
+            ui.button(_("Sign anyway"), color="negative", on_click=lambda: dialog.submit(True)).mark("gaps-sign")
+            ui.button(_("Cancel"), on_click=lambda: dialog.submit(False)).props("flat").mark("gaps-cancel")
     try:
         return bool(await dialog)
     finally:
@@ -266,34 +301,32 @@ def _session_id() -> str:
     return ui.context.client.id
 
 
-def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool):
-    ui.label("Timeline").classes("text-h6")
+def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool, lang: Lang):
+    _ = lang.gettext
+    ui.label(_("Timeline")).classes("text-h6")
     with ui.row():
-        approve = ui.button("Approve current set", icon="verified").props("outline dense").mark("record-approve")
-        snap = ui.button("Snapshot now", icon="photo_camera").props("outline dense").mark("record-snapshot")
-    no_set = "" if backup.device_backs_up(runtime, name) else f"{name} has no parameter set to approve or keep"
+        approve = ui.button(_("Approve current set"), icon="verified").props("outline dense").mark("record-approve")
+        snap = ui.button(_("Snapshot now"), icon="photo_camera").props("outline dense").mark("record-snapshot")
+    no_set = "" if backup.device_backs_up(runtime, name) else _("{name} has no parameter set to approve or keep").format(name=name)
     for b in (approve, snap):
-        enable_unless(b, VIEWER_REASON if not engineer else no_set)
+        enable_unless(b, _(VIEWER_REASON) if not engineer else no_set)
 
     async def why_no_set() -> None:  # the adapter's own words (e.g. an M3IO in simple mode keeps no records)
         why = (await backup.why_nothing_to_back_up(runtime, name)).removeprefix("nothing to back up: ")
         if why and engineer:
             for b in (approve, snap):
-                enable_unless(b, f"{name} has no parameter set to approve or keep: {why}")
+                enable_unless(b, _("{name} has no parameter set to approve or keep: {why}").format(name=name, why=why))
 
     if no_set:
         ui.timer(0, why_no_set, once=True)
-    columns = [{"name": "id", "label": "#", "field": "id"}, {"name": "time", "label": "Time", "field": "time", "align": "left"},
-               {"name": "kind", "label": "Kind", "field": "kind", "align": "left"},
-               {"name": "title", "label": "What", "field": "title", "align": "left"},
-               {"name": "user", "label": "By", "field": "user", "align": "left"}]
-    table = ui.table(columns=columns, rows=[], row_key="id", selection="multiple",
+    table = ui.table(columns=columns(TIMELINE_COLUMNS, lang), rows=[], row_key="id", selection="multiple",
                      pagination=8).props("dense flat").classes("w-full").mark("record-timeline")
     diff_box = ui.column().classes("w-full").mark("record-diff")
 
     async def refresh() -> None:
         entries = await runtime.record.timeline(name)
-        table.rows = [{"id": e.id, "time": fmt_time(e.time), "kind": e.kind, "title": e.title, "user": e.user} for e in entries]
+        table.rows = [{"id": e.id, "time": fmt_time(e.time, lang), "kind": lang.pgettext(KIND, e.kind), "title": e.title, "user": e.user}
+                      for e in entries]
         table.update()
 
     async def show_diff() -> None:
@@ -311,32 +344,35 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool):
             sets.append(params or {})
         rows = diff_sets(*sets)
         with diff_box:
-            ui.label(f"#{a.id} {a.kind} → #{b.id} {b.kind}: {len(rows)} difference(s)").classes("font-medium")
+            ui.label(_("#{a} {a_kind} → #{b} {b_kind}: {n} difference(s)").format(
+                a=a.id, a_kind=lang.pgettext(KIND, a.kind), b=b.id, b_kind=lang.pgettext(KIND, b.kind), n=len(rows))).classes("font-medium")
             if rows:
-                ui.table(columns=[{"name": k, "label": k.title(), "field": k, "align": "left"} for k in ("name", "old", "new")],
-                         rows=rows, row_key="name").props("dense flat").classes("w-full")
+                ui.table(columns=columns(DIFF_COLUMNS, lang), rows=rows, row_key="name").props("dense flat").classes("w-full")
 
     table.on("selection", lambda _e: show_diff())
 
     async def act(what: str) -> None:
         try:
             if what == "approve":
-                account = await ask_account(runtime, user, f"Approving the set of {name}")
+                account = await ask_account(runtime, user, _("Approving the set of {name}").format(name=name), lang)
                 if account is None:
                     return
                 await runtime.record.approve(name, user=user, role=role, account=account)
-                ui.notify(f"approved set stored (account {account})", type="positive")
+                ui.notify(_("approved set stored (account {account})").format(account=account), type="positive")
             else:
                 await runtime.record.snapshot(name, user=user, role=role)
-                ui.notify("snapshot stored", type="positive")
+                ui.notify(_("snapshot stored"), type="positive")
         except ACTION_ERRORS as exc:  # said to the engineer
-            ui.notify(f"{what}: {exc}", type="negative", multi_line=True)
+            ui.notify(_("{action}: {error}").format(action=_(ACTIONS[what]), error=exc), type="negative", multi_line=True)
         await refresh()
 
     approve.on_click(lambda: act("approve"))
     snap.on_click(lambda: act("snapshot"))
     ui.timer(0.1, refresh, once=True)
     return refresh
+
+
+ACTIONS = {"approve": N_("approve"), "snapshot": N_("snapshot")}  # the timeline's actions, named in a refusal
 
 
 def _small_headings(text: str) -> str:
@@ -358,23 +394,25 @@ PREVIEW_CSS = """
 """
 
 
-def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refresh_timeline) -> None:
-    lang = i18n.page_language()  # the preview speaks the page's language
-    ui.label("As-left report and sign-off").classes("text-h6")
+def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refresh_timeline, lang: Lang) -> None:
+    _ = lang.gettext  # the preview speaks the page's language too
+    ui.label(_("As-left report and sign-off")).classes("text-h6")
     # in the head of the page: the preview's HTML is sanitized, which drops a <style> of its own (its
     # tables and labels then ran together: "addressaddress 1")
     ui.add_css(PREVIEW_CSS)
     preview = ui.html("").classes("w-full").mark("record-report")
-    with ui.expansion("Full listings: settings, live values, every step with its evidence file, audit rows").classes(
+    with ui.expansion(_("Full listings: settings, live values, every step with its evidence file, audit rows")).classes(
             "w-full").mark("record-listings"):
         listings = ui.html("").classes("w-full")
     with ui.row().classes("items-end gap-3 w-full"):
-        signer = ui.input("Name", value=user if user != "local" else "").props("dense outlined").mark("sign-name")
-        signer_role = ui.input("Role", value="commissioning engineer").props("dense outlined").mark("sign-role")
-        comment = ui.input("Comment").props("dense outlined").classes("flex-1").mark("sign-comment")
+        signer = ui.input(_("Name"), value=user if user != "local" else "").props("dense outlined").mark("sign-name")
+        # the role as the record holds it (English, as the command line's default): the signer writes their own
+        signer_role = ui.input(_("Role"), value="commissioning engineer").props("dense outlined").mark("sign-role")
+        comment = ui.input(_("Comment")).props("dense outlined").classes("flex-1").mark("sign-comment")
+    plant_words = _("plant {plant}").format(plant=runtime.plant.name)
     with ui.row():
-        sign_device = ui.button(f"Sign {name}", icon="draw").mark("sign-device")
-        sign_plant = ui.button(f"Sign plant {runtime.plant.name}", icon="draw").props("outline").mark("sign-plant")
+        sign_device = ui.button(_("Sign {what}").format(what=name), icon="draw").mark("sign-device")
+        sign_plant = ui.button(_("Sign {what}").format(what=plant_words), icon="draw").props("outline").mark("sign-plant")
     for b in (sign_device, sign_plant):
         b.set_enabled(engineer)
 
@@ -387,17 +425,17 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
 
     async def sign(plant: bool) -> None:
         if not signer.value.strip():
-            ui.notify("a sign-off needs a name", type="warning")
+            ui.notify(_("a sign-off needs a name"), type="warning")
             return
-        what = f"plant {runtime.plant.name}" if plant else name
+        what = plant_words if plant else name
         try:
             content = await (plant_content(runtime, user=user, role=role) if plant else device_content(runtime, name, user=user, role=role))
         except ACTION_ERRORS as exc:  # said to the engineer
-            ui.notify(f"sign-off: the report could not be made: {exc}", type="negative", multi_line=True)
+            ui.notify(_("sign-off: the report could not be made: {error}").format(error=exc), type="negative", multi_line=True)
             return
-        if not await confirm_gaps(sign_gaps(content), what):
+        if not await confirm_gaps(sign_gaps(content, lang), what, lang):
             return
-        account = await ask_account(runtime, user, f"Signing {what}")
+        account = await ask_account(runtime, user, _("Signing {what}").format(what=what), lang)
         if account is None:
             return
         try:
@@ -405,10 +443,10 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
                                       signer_role=signer_role.value.strip(), comment=comment.value, content=content,
                                       account=account)
         except ACTION_ERRORS as exc:  # said to the engineer
-            ui.notify(f"sign-off: not signed: {exc}", type="negative", multi_line=True)
+            ui.notify(_("sign-off: not signed: {error}").format(error=exc), type="negative", multi_line=True)
             return
-        ui.notify(f"signed by {signer.value.strip()} with account {account}: the record is frozen; a later sign-off "
-                  "supersedes it", type="positive")
+        ui.notify(_("signed by {name} with account {account}: the record is frozen; a later sign-off supersedes it").format(
+            name=signer.value.strip(), account=account), type="positive")
         await show()
         await refresh_timeline()
 
@@ -418,19 +456,35 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
     ui.timer(5.0, show)  # checkouts, approvals and snapshots of this page or another one show up
 
 
-def _check_card(runtime) -> None:
+def check_summary(check, lang: Lang) -> str:
+    """:meth:`app.verify.Check.summary` in ``lang``: what was checked and whether it is intact; the first
+    alteration as the check words it."""
+    _ = lang.gettext
+    checked, _space, where = check.what.partition(" ")
+    what = f"{_(checked)} {where}".strip()
+    if not check.ok:
+        return _("{what}: ALTERED: {problem}").format(what=what, problem=check.problems[0])
+    parts = [_("{n} record rows chained").format(n=check.rows)]
+    if check.files:
+        parts.append(_("{n} files match the manifest").format(n=check.files))
+    head = _("; last row #{id}, hash {hash}").format(id=check.head[0], hash=check.head[1][:16]) if check.head else ""
+    return _("{what}: intact ({parts}{head})").format(what=what, parts=", ".join(parts), head=head)
+
+
+def _check_card(runtime, lang: Lang) -> None:
     """Whether the record (or an as-left archive someone hands over) was altered: the chain of row
     hashes, the sign-offs, every file against the archive's manifest (app/verify.py)."""
-    ui.label("Check for alterations").classes("text-h6")
-    ui.label("Every record row carries the hash of the row before it; an archive carries the chain and a manifest of "
-             "every file's SHA-256. The same check runs as 'commission verify ARCHIVE'.").classes("text-body2 text-grey-8")
+    _ = lang.gettext
+    ui.label(_("Check for alterations")).classes("text-h6")
+    ui.label(_("Every record row carries the hash of the row before it; an archive carries the chain and a manifest of "
+               "every file's SHA-256. The same check runs as 'commission verify ARCHIVE'.")).classes("text-body2 text-grey-8")
     result = ui.column().classes("w-full gap-0").mark("check-result")
 
     def show(check) -> None:
         result.clear()
         with result:
-            ui.label(check.summary()).classes("text-body1 " + ("text-positive" if check.ok else "text-negative text-weight-bold"))
-            for line in check.problems[1:] + [f"note: {n}" for n in check.notes]:
+            ui.label(check_summary(check, lang)).classes("text-body1 " + ("text-positive" if check.ok else "text-negative text-weight-bold"))
+            for line in check.problems[1:] + [_("note: {note}").format(note=n) for n in check.notes]:
                 ui.label(line).classes("text-body2")
 
     async def check_record() -> None:
@@ -445,7 +499,7 @@ def _check_card(runtime) -> None:
         upload.reset()
 
     with ui.row().classes("items-center gap-3"):
-        ui.button("Check the record", icon="fact_check", on_click=check_record).props("outline").mark("check-record")
+        ui.button(_("Check the record"), icon="fact_check", on_click=check_record).props("outline").mark("check-record")
         upload = ui.upload(auto_upload=True, max_file_size=500_000_000, on_upload=uploaded).props(
             "accept=.zip flat bordered hide-upload-btn").classes("w-72").mark("check-archive")
-        upload.add_slot("header", upload_button("Check an archive (.zip)", "check-archive-upload"))
+        upload.add_slot("header", upload_button(_("Check an archive (.zip)"), "check-archive-upload"))

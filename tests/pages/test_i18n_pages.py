@@ -374,3 +374,59 @@ async def test_the_scu_page_in_german_shows_no_english(tmp_path):
                          what="the remote session's words")
         found = english_but(user, descriptions_of(runtime, "lift"))
         assert found == [], "\n".join(map(str, found))
+
+
+def as_written(text: str, written: set[str]) -> bool:
+    """Whether ``text`` is one of the record's texts, alone or after the page's words (``nicht bestanden: <reason>``)."""
+    return text in written or any(text.endswith(f": {w}") for w in written)
+
+
+def record_texts(entries) -> set[str]:
+    """What the record holds as it was written (English): timeline titles, checkout titles, step names, reasons,
+    questions and answers, values' names."""
+    texts = set()
+    for e in entries:
+        texts |= {e.title, e.data.get("title") or "", e.data.get("reason") or ""}
+        for step in e.data.get("steps", []):
+            texts |= {step.get("name") or "", step.get("reason") or ""}
+            texts |= {v["name"] for v in step.get("values", [])}
+            texts |= {f"{a.get('question')}" for a in step.get("answers", [])}
+    return {t for t in texts if t}
+
+
+async def test_the_record_page_in_german_shows_no_english_but_what_the_record_holds(tmp_path):
+    """The record page (pages/record.py): its cards, buttons, statuses, columns, the report's preview and the sign-off's
+    questions in German; the checkout's title, steps, reasons and questions as the record holds them."""
+    from tests.recordutil import run_checkout
+
+    async with german_locks(tmp_path, "door-1") as (runtime, user):
+        await eventually(lambda: runtime.store.devices["door-1"].value("LockRequestDelay") is not None, timeout=15,
+                         what="door-1's parameters")
+        await run_checkout(runtime, "door-1", answer=False)  # "is the door closed?" no: failed, with its reason
+        await runtime.record.approve("door-1", user="anna", role="engineer")
+        await runtime.record.snapshot("door-1", user="anna", role="engineer")
+        await user.open("/record/door-1")
+        await user.should_see("Inbetriebnahmeprotokoll", retries=50)
+        await user.should_see("Übergabebericht und Abzeichnung")
+        await user.should_see("Gleich dem abgenommenen Satz.", retries=100)
+        await user.should_see("nicht bestanden", retries=100)  # the last run's status
+        timeline = next(iter(user.find(marker="record-timeline").elements))
+        await eventually(lambda: len(timeline.rows) == 3, timeout=5, what="the timeline's rows")
+        assert [c["label"] for c in timeline.columns] == ["#", "Zeit", "Art", "Was", "Von"]
+        assert {row["kind"] for row in timeline.rows} == {"Funktionsprüfung", "Abnahme", "Momentaufnahme"}
+        user.find(marker="check-record").click()
+        await user.should_see("unverändert", retries=100)
+        written = record_texts(await runtime.record.timeline("door-1"))
+        names = set(runtime.store.devices["door-1"].params.by_name)  # the register names, as the document prints them
+        found = [(text, message) for text, message in english_on(user) if not as_written(text, written | names)]
+        assert found == [], "\n".join(map(str, found))
+        assert not i18n.get("de").missing, i18n.get("de").missing
+        user.find(marker="sign-device").click()  # no name yet: said in German
+        await user.should_see("eine Abzeichnung braucht einen Namen", retries=50)
+        next(iter(user.find(marker="sign-name").elements)).value = "Anna Berg"
+        user.find(marker="sign-device").click()  # what is open, asked first
+        await user.should_see("door-1 abzeichnen, obwohl diese Punkte offen sind?", retries=100)
+        await user.should_see("door-1: letzte ", retries=50)
+        found = [(text, message) for text, message in english_on(user) if not as_written(text, written | names)]
+        assert found == [], "\n".join(map(str, found))
+        user.find(marker="gaps-cancel").click()
