@@ -96,10 +96,11 @@ def content(name: str | None = None) -> None:
         show_drift()
         watch = runtime.store.watch(name, show_drift, slow=True)
         ui.context.client.on_disconnect(watch.cancel)
+        # side by side from 1024 px; one above the other on a tablet, where the timeline would hide its titles
         with ui.row().classes("w-full gap-4 items-start"):
-            with ui.card().classes("flex-1 min-w-[320px]"):
+            with ui.card().classes("flex-1 min-w-[360px]"):
                 _checkout_card(runtime, name, user, role, engineer, lang)
-            with ui.card().classes("flex-1 min-w-[320px]"):
+            with ui.card().classes("flex-1 min-w-[360px]"):
                 timeline = _timeline_card(runtime, name, user, role, engineer, lang)
         with ui.card().classes("w-full"):
             _signoff_card(runtime, name, user, role, engineer, timeline, lang)
