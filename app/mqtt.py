@@ -24,7 +24,10 @@ from collections import OrderedDict, deque
 from pathlib import Path
 from typing import Any
 
+import aiomqtt
+
 from app.audit import LogBudget
+from app.broker import BROKER_ERRORS
 from app.plant import MqttConfig
 from app.state import jsonable
 from devices.registry import DEVICE_TYPES
@@ -178,7 +181,7 @@ class MqttPublisher:
                                            self.session)
                 await asyncio.wait_for(client.publish(self._instance_topic, dumps(payload), qos=1, retain=True), 2.0)
                 await asyncio.wait_for(client.__aexit__(None, None, None), 2.0)
-            except Exception as exc:  # noqa: BLE001 - the last will says the same when this fails
+            except BROKER_ERRORS as exc:  # the last will says the same when this fails
                 log.info("mqtt: goodbye not sent (%s); the broker sends the last will", exc)
         self._client = None
         self._set_state("stopped")
@@ -236,7 +239,7 @@ class MqttPublisher:
             for state in list(self.store.devices.values()):
                 try:
                     self.sample_device(state, site, instance, time.time())
-                except Exception:  # noqa: BLE001 - one device's odd value must not stop the others
+                except Exception:  # noqa: BLE001 - the publisher must not die: one device's odd value must not stop the others
                     log.exception("mqtt: cannot build the messages of %s", state.name)
                 await asyncio.sleep(0)  # a large plant is sampled in slices: the loop carries keep-alives
             await asyncio.sleep(max(0.0, period - (time.monotonic() - started)))
@@ -261,8 +264,6 @@ class MqttPublisher:
         return await asyncio.to_thread(ssl.create_default_context, cafile=ca)  # reads the CA file off the loop
 
     async def _connect(self):
-        import aiomqtt
-
         will_payload = dumps(instance_payload(self.config, self.plant_name, list(self.store.devices), "offline",
                                               time.time(), WILL_REASON, self.session))
         client = aiomqtt.Client(
@@ -283,7 +284,7 @@ class MqttPublisher:
                 self._client = await self._connect()
             except asyncio.CancelledError:
                 raise
-            except Exception as exc:  # noqa: BLE001 - refused, unreachable, bad TLS, no password: a state, not a crash
+            except BROKER_ERRORS as exc:  # refused, unreachable, bad TLS, no password: a state, not a crash
                 why = _why(exc)
                 if why != self.last_error:  # logged once per reason, not once per try
                     log.warning("mqtt: broker %s: %s; trying again every %.0f s at most", self.config.url, why, BACKOFF_MAX_S)
@@ -298,14 +299,14 @@ class MqttPublisher:
                 await self._publish_session(self._client)
             except asyncio.CancelledError:
                 raise
-            except Exception as exc:  # noqa: BLE001 - the broker went away or stalled
+            except BROKER_ERRORS as exc:  # the broker went away or stalled
                 self._set_state("down", _why(exc))
                 log.warning("mqtt: lost the broker %s: %s", self.config.url, self.last_error)
                 self.reconnects += 1
                 client, self._client = self._client, None
                 try:
                     await asyncio.wait_for(client.__aexit__(None, None, None), 1.0)
-                except Exception:  # noqa: BLE001 - already gone
+                except BROKER_ERRORS:  # already gone
                     pass
                 self._last.clear()  # a broker without persistence lost every retained message: send all again
                 await asyncio.sleep(backoff)
@@ -347,7 +348,7 @@ class MqttPublisher:
         try:
             await client.subscribe(self._instance_topic, qos=1)
             watcher = asyncio.create_task(self._watch_own_topic(client), name="mqtt own topic")
-        except Exception as exc:  # noqa: BLE001 - a broker that refuses the subscription: publishing goes on
+        except BROKER_ERRORS as exc:  # a broker that refuses the subscription: publishing goes on
             log.info("mqtt: cannot read the instance's own topic (%s): a takeover of its client id is not noticed", _why(exc))
         try:
             await self._publish_until_lost(client)
