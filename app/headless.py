@@ -112,7 +112,7 @@ HOLD_WORDS = ("hold SPACE to answer yes, and keep holding it while the step runs
 
 def simulated(runtime, device: str) -> bool:
     """Whether ``device`` is a twin of this run's simulated plant (nothing real moves when it does)."""
-    return device in getattr(runtime, "twins", {})
+    return device in runtime.twins
 
 
 def terminal_present(stream=None) -> bool:

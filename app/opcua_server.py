@@ -40,6 +40,7 @@ from asyncua.ua.ua_binary import nodeid_from_binary, struct_from_binary
 
 from app.audit import LogBudget
 from app.auth import LoginThrottle, check_login
+from app.capabilities import controller_of
 from devices.live import jsonable
 from devices.registry import DEVICE_TYPES
 
@@ -108,7 +109,7 @@ class ReadOnlyRules(PermissionRuleset):
             ReadOnlyRules.refused += 1
             if _client_lines.take() is not None:
                 log.info("opcua: %s refused for %s (the server is read-only)", action_type,
-                         getattr(user, "name", None) or "anonymous")
+                         (user.name if isinstance(user, User) else None) or "anonymous")
             return False
         return True
 
@@ -554,7 +555,7 @@ class OpcuaServer:
     # -- live values -------------------------------------------------------------------------------------
     def _controlled(self, name: str) -> bool:
         adapter = self.worker.adapters.get(name) if self.worker is not None else None
-        return getattr(adapter, "controller", None) is not None
+        return controller_of(adapter) is not None
 
     async def _update_loop(self) -> None:
         next_revision = 0.0
@@ -567,7 +568,7 @@ class OpcuaServer:
                 await self.update()
             except asyncio.CancelledError:
                 raise
-            except Exception:  # noqa: BLE001 - a bad value must not end the server's updates
+            except Exception:  # the server's one update task must not end: whatever failed is logged with its traceback
                 log.exception("opcua: updating the values failed")
             await asyncio.sleep(max(0.0, 1.0 / self.config.rate - (time.monotonic() - started)))
 
