@@ -30,7 +30,6 @@ from app.audit import LogBudget
 from app.broker import BROKER_ERRORS
 from app.plant import MqttConfig
 from app.state import jsonable
-from devices.registry import DEVICE_TYPES
 
 log = logging.getLogger(__name__)
 
@@ -70,15 +69,6 @@ def status_payload(state, instance: str, now: float) -> dict[str, Any]:
             "type": state.type, "bus": state.bus, "status": s["status"], "online": s["online"], "last_seen": s["last_seen"],
             "last_error": s["last_error"], "counters": s["counters"], "time": now,
             "drift": getattr(state, "drift", None)}
-
-
-def active_alarms(state, now: float) -> list[str]:
-    """The alarms the device's tile declares (devices/registry.py), as the plant view shows them: only on good data."""
-    device_type = DEVICE_TYPES.get(state.type)
-    if device_type is None:
-        return []
-    tile = device_type.tile.evaluate(lambda name: state.entry(name, now), now)
-    return list(tile["alarms"]) if tile["quality"] in ("good", "unknown") else []
 
 
 def instance_payload(config: MqttConfig, plant_name: str, devices: list[str], state: str, now: float,
@@ -218,7 +208,7 @@ class MqttPublisher:
         name = state.name
         self._queue(device_topic(site, name, "state"), state_payload(state, instance, now), now)
         self._queue(device_topic(site, name, "status"), status_payload(state, instance, now), now)
-        alarms = set(active_alarms(state, now))
+        alarms = set(self.store.active_alarms(name, now))  # evaluated in the store, once per change
         before = self._alarms.get(name, set())
         if alarms != before or device_topic(site, name, "alarms") not in self._last:
             for text in sorted(alarms - before):

@@ -27,6 +27,7 @@ import math
 import time
 import weakref
 from collections import OrderedDict
+from collections.abc import Sequence
 from datetime import datetime, timezone
 from typing import Any
 
@@ -322,7 +323,7 @@ def _check_requests_first() -> None:
     OPCUAProtocol.data_received = data_received
 
 
-def health_of(state, controlled: bool, alarms: list[str]) -> int:
+def health_of(state, controlled: bool, alarms: Sequence[str]) -> int:
     """NAMUR NE 107 from the device's state: FAILURE offline, CHECK_FUNCTION while an engineer controls it,
     OFF_SPEC with an active alarm of its tile, MAINTENANCE_REQUIRED with stale values or parameters
     written but not saved in the device, else NORMAL."""
@@ -574,15 +575,13 @@ class OpcuaServer:
 
     async def update(self) -> int:
         """Write every changed value, status, health and identity into the address space; returns the writes."""
-        from app.mqtt import active_alarms
-
         writes = 0
         now = time.time()
         for name, dev in self._devices.items():
             state = self.store.devices.get(name)
             if state is None:
                 continue
-            health = health_of(state, self._controlled(name), active_alarms(state, now) if state.status != "offline" else [])
+            health = health_of(state, self._controlled(name), self.store.active_alarms(name, now) if state.status != "offline" else ())
             if health != dev["last_health"]:
                 dev["last_health"] = health
                 await self.server.write_attribute_value(dev["health"], ua.DataValue(ua.Variant(health, ua.VariantType.Int32)))
