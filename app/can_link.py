@@ -453,8 +453,8 @@ class CanLink:
             elif self.listeners and self._offer(key, msg):
                 for listener in self.listeners:
                     listener(msg)
-        except Exception as exc:  # noqa: BLE001 - a bad frame must never stop the bus
-            log.debug("%s: handler failed for %s: %s", self.name, msg, exc)
+        except Exception:  # a bad frame, or an adapter's bug, must never stop the bus's dispatch: counted, traceback logged
+            log.debug("%s: handler failed for %s", self.name, msg, exc_info=True)
             self.stats.handler_failed()
 
     def _offer(self, key: Key, msg: can.Message) -> bool:

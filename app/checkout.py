@@ -300,7 +300,7 @@ class CheckoutRun:
         for fn in list(self.listeners):
             try:
                 fn()
-            except Exception:  # noqa: BLE001 - a page's callback (one gone away, or its bug) must not end a run on
+            except Exception:  # a page's callback (one gone away, or its bug) must not end a run on
                 log.debug("checkout listener failed", exc_info=True)  # real equipment before its cleanup
 
     async def ask(self, question: str) -> bool:

@@ -229,7 +229,7 @@ class MqttPublisher:
             for state in list(self.store.devices.values()):
                 try:
                     self.sample_device(state, site, instance, time.time())
-                except Exception:  # noqa: BLE001 - the publisher must not die: one device's odd value must not stop the others
+                except Exception:  # the publisher must not die: one device's odd value must not stop the others
                     log.exception("mqtt: cannot build the messages of %s", state.name)
                 await asyncio.sleep(0)  # a large plant is sampled in slices: the loop carries keep-alives
             await asyncio.sleep(max(0.0, period - (time.monotonic() - started)))

@@ -475,7 +475,7 @@ class SparkplugNode:
                     self._on_state(bytes(message.payload))
                 else:
                     await self._on_command(topic, bytes(message.payload))
-            except Exception:  # noqa: BLE001 - anyone may publish: no message, however made, may end the node's listener
+            except Exception:  # anyone may publish: no message, however made, may end the node's listener
                 if _refusal_lines.take() is not None:  # anyone may publish: bounded like the refusals
                     log.exception("sparkplug: cannot handle a message on %s", topic[:200])
 
