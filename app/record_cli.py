@@ -152,7 +152,7 @@ def _run_plant(args, work) -> int:
     from app.users import default_data_dir
 
     plant = load_plant_or_exit(args.plant)
-    data_dir = getattr(args, "data_dir", None) or default_data_dir()
+    data_dir = args.data_dir or default_data_dir()  # the top-level --data-dir, None unless given
     runtime = Runtime(plant, simulate=not args.no_sim, data_dir=data_dir)
 
     async def main() -> int:
