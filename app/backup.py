@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from app import audit, gate
+from app.capabilities import takes_text
 from devices.adapter import BackupAdapter, EntryRestorer, ParamWriter, RestoreDescriber
 from devices.commands import WRITE_PARAMETER
 from devices.commands import find as find_command
@@ -351,13 +352,13 @@ def _plan_row(params, entry: dict, now: dict, adapter: Any = None) -> DiffRow:
     row.current_text = param.display(int(now["raw"]))
     try:
         # a parameter whose value is text (an M3IO customer record's hex bytes) checks the text itself
-        raw = param.validate(value if getattr(param, "text_value", False) and isinstance(value, str) else _file_number(value))
+        raw = param.validate(value if takes_text(param) and isinstance(value, str) else _file_number(value))
     except (BackupError, ValueError) as exc:
         row.error = f"invalid in the file: {exc}"
         return row
     row.backup_raw = raw
     row.backup_text = param.display(raw)
-    hex_raw = getattr(param, "text_value", False) and entry.get("raw") == param.display(raw)  # an older file's record bytes
+    hex_raw = takes_text(param) and entry.get("raw") == param.display(raw)  # an older file's record bytes
     if "raw" in entry and entry["raw"] != raw and not hex_raw:
         row.error = (f"the file's raw {entry['raw']!r} and value {value!r} disagree (edited or damaged file): "
                      "not written")

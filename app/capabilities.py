@@ -1,9 +1,9 @@
-"""What app/ reads of a device adapter beyond the Protocols of devices/adapter.py, each with the value that
-holds for an adapter that does not declare it.
+"""What app/ reads of a device adapter or a parameter beyond the Protocols of devices/adapter.py and the
+fields of devices/params.Param, each with the value that holds for one that does not declare it.
 
-The worker's readers (the OPC UA face, the bus monitor) ask these instead of probing attribute names:
-a capability is a ``runtime_checkable`` Protocol, and the helper next to it returns the declared
-default for an adapter without it.
+The worker's readers (the OPC UA face, the bus monitor) and backup and project ask these instead of probing
+attribute names: a capability is a ``runtime_checkable`` Protocol, and the helper next to it returns the
+declared default for an object without it.
 """
 
 from __future__ import annotations
@@ -35,3 +35,22 @@ def bus_address(adapter: object) -> int | None:
     """The address the adapter talks to now; None where it names none (the plant file's then holds)."""
     address = adapter.address if isinstance(adapter, BusAddressed) else None
     return address if isinstance(address, int) else None
+
+
+@runtime_checkable
+class TextParam(Protocol):
+    """A parameter whose value is text, not a number (an M3IO customer record's hex bytes): a backup or a
+    project takes the text itself, and ``allowed_text`` says what it may be."""
+
+    text_value: bool
+    allowed_text: str
+
+
+def takes_text(param: object) -> bool:
+    """Whether an entry of ``param`` is text (False: a number, the default of every parameter model)."""
+    return isinstance(param, TextParam) and param.text_value
+
+
+def allowed_text(param: object) -> str:
+    """What a text entry of ``param`` may be, in words ("": a number; its range says it)."""
+    return param.allowed_text if isinstance(param, TextParam) else ""
