@@ -298,22 +298,19 @@ class StateStore:
         return True
 
     def _age_tick(self) -> None:
-        """Every tenth of a second: the watched devices whose once-a-second round is due."""
+        """Every tenth of a second: the watched devices whose once-a-second round is due. The next tick is
+        set first: a failure here (a bug, logged by the loop with its traceback) does not end the rounds."""
         loop = self._loop
         if loop is None:
             return
         self._age_handle = loop.call_later(AGE_PERIOD_S / AGE_PHASES, self._age_tick)
         now = time.monotonic()
-        try:
-            for name, watches in self._watches.items():
-                if watches and self._age_due(name, now):
-                    for g in self._groups.values():
-                        if name in g.watches:
-                            g.ages.add(name)
-                            self._schedule(g, now)
-        except Exception:  # the producer must never end
-            self.push_errors += 1
-            log.exception("once-a-second round failed")
+        for name, watches in self._watches.items():
+            if watches and self._age_due(name, now):
+                for g in self._groups.values():
+                    if name in g.watches:
+                        g.ages.add(name)
+                        self._schedule(g, now)
 
     def _schedule(self, g: _Group, now: float) -> None:
         if g.handle is not None or (not g.dirty and not g.ages) or self._loop is None:
@@ -324,7 +321,9 @@ class StateStore:
         g.handle = self._loop.call_later(wait, self._run, g) if wait > 0 else self._loop.call_soon(self._run, g)
 
     def _run(self, g: _Group) -> None:
-        """Call one group's watchers of the devices that changed (or whose round is due) for it."""
+        """Call one group's watchers of the devices that changed (or whose round is due) for it. A watcher's
+        failure is its own (:meth:`_call`); the group's next run is scheduled whatever happens here, so a
+        failure of the round itself (a bug, logged by the loop with its traceback) does not end the producer."""
         g.handle = None
         now = time.monotonic()
         g.due = max(g.due, now) + g.gap
@@ -349,9 +348,6 @@ class StateStore:
                     g.due_device[name] = max(due, now) + g.period
                 g.ages.discard(name)
                 self._call(g.watches.get(name, ()), age)
-        except Exception:  # the producer must never end
-            self.push_errors += 1
-            log.exception("pushing live changes failed")
         finally:
             self.age_round = False
             self._schedule(g, now)
