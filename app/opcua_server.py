@@ -344,15 +344,10 @@ IDENTITY_POINT = "Identity"  # a device's identity record, where its type publis
 
 def published_identity(state) -> dict[str, Any]:
     """The fields of the identity record the device publishes as the point ``Identity`` (a record or a
-    mapping, in its JSON form); a family still writing the older ``info["identity"]`` dict is read too."""
+    mapping, in its JSON form); {} until it has published one."""
     point = state.points.get(IDENTITY_POINT)
-    if point is not None and point.value is not None:
-        fields = jsonable(point.value)
-        if isinstance(fields, dict):
-            return fields
-    legacy = getattr(state, "info", None)  # families not yet moved to points (issue 27)
-    legacy = legacy.get("identity") if isinstance(legacy, dict) else None
-    return legacy if isinstance(legacy, dict) else {}
+    fields = jsonable(point.value) if point is not None and point.value is not None else None
+    return fields if isinstance(fields, dict) else {}
 
 
 def identity_of(state, device_type: str, options: dict[str, Any]) -> dict[str, str]:
