@@ -255,8 +255,8 @@ def _check_requests_first() -> None:
     :data:`_GUARDS` and does nothing for others. Likewise ``OPCUAProtocol.connection_made`` closes
     the oldest connection of an address that holds :data:`MAX_IDLE_PER_CLIENT` without a session.
     """
-    if getattr(UaProcessor.process_message, "checks_requests_first", False):
-        return
+    if UaProcessor.process_message.__module__ == __name__:
+        return  # wrapped already
     original = UaProcessor.process_message
 
     async def process_message(self, seqhdr, body):
@@ -281,7 +281,6 @@ def _check_requests_first() -> None:
                 return True
         return await original(self, seqhdr, body)
 
-    process_message.checks_requests_first = True
     UaProcessor.process_message = process_message
 
     made = OPCUAProtocol.connection_made
