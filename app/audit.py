@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import csv
-import io
 import logging
 import os
 import re
@@ -15,7 +13,8 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
-from app import host
+from app import host, i18n
+from app.i18n import N_
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS audit (
@@ -205,16 +204,17 @@ def csv_cell(text: str) -> str:
     return text
 
 
-def to_csv(entries: list[AuditEntry]) -> str:
-    out = io.StringIO()
-    writer = csv.writer(out)
-    writer.writerow(["time", "user", "role", "device", "action", "parameter", "old", "new", "result"])
-    for e in entries:
-        writer.writerow([
-            time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(e.time)),
-            *(csv_cell(str(v)) for v in (e.user, e.role, e.device, e.action, e.parameter, e.old, e.new, e.result)),
-        ])
-    return out.getvalue()
+CSV_HEAD = (N_("time"), N_("user"), N_("role"), N_("device"), N_("action"), N_("parameter"), N_("old"), N_("new"), N_("result"))
+
+
+def to_csv(entries: list[AuditEntry], lang: i18n.Lang | None = None) -> str:
+    """The rows as a CSV file: headings in ``lang`` (English when None) and its spreadsheets' separator; the
+    rows' texts as they were written (records), each made plain text."""
+    from app.csvfile import csv_text
+
+    return csv_text(CSV_HEAD, ([time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(e.time)),
+                                *(csv_cell(str(v)) for v in (e.user, e.role, e.device, e.action, e.parameter, e.old, e.new,
+                                                              e.result))] for e in entries), lang)
 
 
 def _text(value: object) -> str:

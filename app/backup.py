@@ -26,6 +26,7 @@ import time
 import zipfile
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
+from functools import partial
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -193,7 +194,7 @@ async def backup_device(runtime, name: str, out_dir: Path | None = None, progres
         await asyncio.to_thread(write_atomic, path, json.dumps(document, indent=2, ensure_ascii=False))
         return path
 
-    return await runtime.worker.engineer_action(work, user=user, role=role, describe="backup", target=name, new=path.name)
+    return await runtime.worker.gate.run(work, user=user, role=role, describe="backup", device=name, new=path.name, kind="write")
 
 
 def zip_files(paths: list[Path], target: Path) -> Path:
@@ -467,8 +468,8 @@ def _declared_risk(runtime, device: str, row: DiffRow) -> str:
     if row.param is None or row.error or not _declares_write(runtime, device):
         return row.risk
     try:
-        return gate.question(runtime.worker, device, WRITE_PARAMETER,
-                             {"param": row.param, "value": row.param.decode(row.backup_raw)})
+        return runtime.worker.gate.question(device, WRITE_PARAMETER,
+                                            {"param": row.param, "value": row.param.decode(row.backup_raw)})
     except ValueError as exc:  # refused by the declaration: never written
         row.error = str(exc)
         return ""
@@ -496,9 +497,9 @@ async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, use
             try:
                 if row.param is not None and _declares_write(runtime, plan.device):
                     # the device type's declared write: range, send policy and confirmation as on its page
-                    await gate.invoke(runtime.worker, plan.device, WRITE_PARAMETER,
-                                      {"param": row.param, "value": row.param.decode(row.backup_raw)}, user=user,
-                                      role=role, confirmed=row.key in confirmed, action="restore")
+                    await runtime.worker.gate.invoke(plan.device, WRITE_PARAMETER,
+                                                     {"param": row.param, "value": row.param.decode(row.backup_raw)},
+                                                     user=user, role=role, confirmed=row.key in confirmed, action="restore")
                 else:
                     if row.param is not None:
                         def action(a, row=row):
@@ -506,8 +507,8 @@ async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, use
                     else:
                         def action(a, row=row):
                             return a.restore_entry(row.key, row.backup_raw)
-                    await runtime.worker.command(
-                        plan.device, action, role=role, user=user,
+                    await runtime.worker.gate.run(
+                        partial(action, runtime.worker.gate.adapter(plan.device)), device=plan.device, role=role, user=user,
                         describe="restore", parameter=row.name, old=row.current_text, new=row.backup_text,
                     )
                 report.written.append(row.name)
@@ -522,9 +523,10 @@ async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, use
     if report.written and not report.failed and not report.refused:
         permanent = "; ".join(unsaved_lines(runtime.store.devices[plan.device]))  # restored and earlier changes alike
         try:
-            report.saved = await runtime.worker.command(
-                plan.device, lambda a: a.save_step(), role=role, user=user, describe="restore: save step",
-                new=permanent or "no unsaved changes",
+            adapter = runtime.worker.gate.adapter(plan.device)
+            report.saved = await runtime.worker.gate.run(
+                lambda: adapter.save_step(), device=plan.device, role=role, user=user,
+                describe="restore: save step", new=permanent or "no unsaved changes",
             )
         except CommissionError as exc:
             report.save_error = str(exc)

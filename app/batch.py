@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from app import audit, backup, files, replace
+from app.cli_lang import _
 from devices.commands import READ_PARAMETERS
 from devices.errors import CommissionError
 
@@ -70,7 +71,7 @@ async def source_document(runtime, source: str, device: str) -> dict:
         adapter = runtime.worker.adapters[sibling]
         if not backup.supports_backup(adapter):
             raise backup.BackupError(f"{sibling} has no parameters to copy")
-        entries = await runtime.worker.invoke(sibling, READ_PARAMETERS, user="batch", role="viewer")
+        entries = await runtime.worker.gate.invoke(sibling, READ_PARAMETERS, user="batch", role="viewer")
         state = runtime.store.devices[sibling]
         return backup.make_document(runtime.plant.name, sibling, state.type, state.bus, adapter.backup_identity(), entries)
     path = Path(source.removeprefix("file:"))
@@ -167,18 +168,18 @@ async def apply_batch(runtime, plan: BatchPlan, *, user: str, role: str, confirm
 
 
 def add_parser(sub) -> None:
-    parser = sub.add_parser("apply", help="apply one parameter set to several devices of one type, headless")
-    parser.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
+    parser = sub.add_parser("apply", help=_("apply one parameter set to several devices of one type, headless"))
+    parser.add_argument("--plant", type=Path, default=None, help=_("plant file (default: the built-in demo plant)"))
     parser.add_argument("--from", dest="source", required=True, metavar="SOURCE",
-                        help="a backup file, approved:DEVICE (its approved set), device:DEVICE (a sibling read now) "
-                             "or project (each device's project in the plant file)")
-    parser.add_argument("--devices", required=True, help="comma-separated device names, all of one type and variant")
-    parser.add_argument("--yes", action="store_true", help="write without asking (the diffs are printed anyway); "
-                        "values that need a confirmation are still refused unless named with --accept-risk")
+                        help=_("a backup file, approved:DEVICE (its approved set), device:DEVICE (a sibling read now) "
+                             "or project (each device's project in the plant file)"))
+    parser.add_argument("--devices", required=True, help=_("comma-separated device names, all of one type and variant"))
+    parser.add_argument("--yes", action="store_true", help=_("write without asking (the diffs are printed anyway); "
+                        "values that need a confirmation are still refused unless named with --accept-risk"))
     parser.add_argument("--accept-risk", action="append", default=[], metavar="NAME",
-                        help="write this risky parameter's value (repeatable)")
-    parser.add_argument("--no-sim", action="store_true", help="do not start simulated devices")
-    parser.add_argument("--data-dir", type=Path, default=None, help="data folder (default: the per-user data folder, docs/windows-macos.md)")
+                        help=_("write this risky parameter's value (repeatable)"))
+    parser.add_argument("--no-sim", action="store_true", help=_("do not start simulated devices"))
+    parser.add_argument("--data-dir", type=Path, default=None, help=_("data folder (default: the per-user data folder, docs/windows-macos.md)"))
     parser.set_defaults(func=run_cli)
 
 

@@ -153,8 +153,8 @@ class CheckoutContext:
         confirmed = False
         while True:
             try:
-                return await worker.invoke(self.device, name, args, user=self.user, role=self._run.role,
-                                           session=self.session, confirmed=confirmed)
+                return await worker.gate.invoke(self.device, name, args, user=self.user, role=self._run.role,
+                                                session=self.session, confirmed=confirmed)
             except NeedsConfirmation as exc:
                 if confirmed:
                     raise

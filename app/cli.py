@@ -12,17 +12,11 @@ import sys
 from pathlib import Path
 
 from app import host, i18n
+from app.cli_lang import _, set_language
 from app.headless import bindable, cli_user, load_plant_or_exit, refuse_taken_ports, run_headless
 from app.i18n import N_
 from devices.errors import CommissionError
 
-# the language of the command's messages and help: --lang, else the environment (LANGUAGE, LC_ALL, LC_MESSAGES,
-# LANG); set by main() before the parser is built
-LANG = i18n.get(i18n.DEFAULT)
-
-
-def _(message: str) -> str:
-    return LANG.gettext(message)
 
 
 EPILOG = N_("""\
@@ -175,9 +169,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     dbc.add_parser(sub)
 
-    from app import report
+    from app import report_archive
 
-    report.add_parser(sub)  # commission report --plant P --out DIR: the as-left report without a browser
+    report_archive.add_parser(sub)  # commission report --plant P --out DIR: the as-left report without a browser
 
     from app import record_cli
 
@@ -508,13 +502,6 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(_("commission: stopped (Ctrl-C)"), file=sys.stderr, flush=True)
         return 130
-
-
-def set_language(code: str | None) -> i18n.Lang:
-    """The language of the command's messages and help from now on (``code``; None: from the environment)."""
-    global LANG
-    LANG = i18n.get(code or i18n.environment_language())
-    return LANG
 
 
 def _main(argv: list[str] | None) -> int:

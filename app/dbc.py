@@ -25,6 +25,7 @@ from typing import Any
 from cantools.database import Database
 from cantools.database.can import Message
 
+from app.cli_lang import _
 from app.plant import Plant
 from devices.dbcform import NODE, DbcError, ident
 
@@ -85,11 +86,11 @@ def dbc_text(worker_or_plant: Any, bus: str) -> str:
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """``commission dbc --plant P --bus B --out FILE.dbc``."""
-    parser = subparsers.add_parser("dbc", help="write a DBC of the CAN devices on one bus",
-                                   description="Write a DBC file (cantools) of the CAN devices on one bus of a plant file.")
-    parser.add_argument("--plant", type=Path, required=True, help="plant file (TOML)")
-    parser.add_argument("--bus", required=True, help="name of a CAN bus in the plant file")
-    parser.add_argument("--out", type=Path, required=True, help="the DBC file to write")
+    parser = subparsers.add_parser("dbc", help=_("write a DBC of the CAN devices on one bus"),
+                                   description=_("Write a DBC file (cantools) of the CAN devices on one bus of a plant file."))
+    parser.add_argument("--plant", type=Path, required=True, help=_("plant file (TOML)"))
+    parser.add_argument("--bus", required=True, help=_("name of a CAN bus in the plant file"))
+    parser.add_argument("--out", type=Path, required=True, help=_("the DBC file to write"))
     parser.set_defaults(func=run)
     return parser
 

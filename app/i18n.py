@@ -153,9 +153,14 @@ class Lang:
             return text  # a whole number reads alike in both (and keeps its leading zeros: 08:05:09, 0x0A)
         return self.number(float(text), len(text.split(".", 1)[1]), group=False)
 
+    @property
+    def decimal_sign(self) -> str:
+        """The language's decimal sign: ``,`` in German, ``.`` in English."""
+        return self.locale.number_symbols["latn"]["decimal"]
+
     def numbers_in(self, text: str) -> str:
         """``text`` with each decimal number in it written this language's way (``21.5 °C`` -> ``21,5 °C``)."""
-        if self.locale.number_symbols["latn"]["decimal"] == ".":
+        if self.decimal_sign == ".":
             return text
         return _NUMBER.sub(lambda m: self._number_text(m.group(0)), text)
 

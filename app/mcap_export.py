@@ -24,6 +24,8 @@ from typing import Any
 
 from mcap.writer import CompressionType, Writer
 
+from app.cli_lang import _
+
 FRAME_SCHEMA = {
     "title": "commission.CanFrame", "type": "object",
     "properties": {
@@ -180,16 +182,16 @@ def write_live(rows: list[tuple[float, int, tuple]], out: str | Path) -> int:
 
 # -- commission export --format mcap ---------------------------------------------------------------------
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
-    parser = subparsers.add_parser("export", help="export a CAN recording, or a while of the plant's live data, as MCAP "
-                                   "(Foxglove, PlotJuggler)")
-    parser.add_argument("--format", choices=["mcap"], default="mcap", help="file format (mcap)")
-    parser.add_argument("recording", type=Path, nargs="?", help="a recorded CAN file (.log, .asc, .blf, .csv, .trc)")
-    parser.add_argument("--bus", default=None, help="bus name for the recording's channel (default: the file's name)")
+    parser = subparsers.add_parser("export", help=_("export a CAN recording, or a while of the plant's live data, as MCAP "
+                                   "(Foxglove, PlotJuggler)"))
+    parser.add_argument("--format", choices=["mcap"], default="mcap", help=_("file format (mcap)"))
+    parser.add_argument("recording", type=Path, nargs="?", help=_("a recorded CAN file (.log, .asc, .blf, .csv, .trc)"))
+    parser.add_argument("--bus", default=None, help=_("bus name for the recording's channel (default: the file's name)"))
     parser.add_argument("--live", type=float, default=None, metavar="SECONDS",
-                        help="instead of a recording: run the plant this long and export its live data")
-    parser.add_argument("--plant", type=Path, default=None, help="with --live: plant file (default: the built-in demo plant)")
-    parser.add_argument("--no-sim", action="store_true", help="with --live: do not start simulated devices")
-    parser.add_argument("--out", type=Path, required=True, help="the .mcap file to write")
+                        help=_("instead of a recording: run the plant this long and export its live data"))
+    parser.add_argument("--plant", type=Path, default=None, help=_("with --live: plant file (default: the built-in demo plant)"))
+    parser.add_argument("--no-sim", action="store_true", help=_("with --live: do not start simulated devices"))
+    parser.add_argument("--out", type=Path, required=True, help=_("the .mcap file to write"))
     parser.set_defaults(func=run)
     return parser
 

@@ -371,8 +371,8 @@ class ModbusPoll:
         try:
             confirm = check_write(self.worker.plant, self.bus, unit, address, values, fc)
         except PollError as exc:
-            await self.worker.refused(device=self.bus, user=user, role=role, describe=describe, reason=str(exc),
-                                      parameter=parameter, new=raws)
+            await self.worker.gate.refused(device=self.bus, user=user, role=role, describe=describe, reason=str(exc),
+                                           parameter=parameter, new=raws)
             raise
         if confirm and not confirmed:
             raise NeedsConfirmation(confirm)
@@ -387,8 +387,8 @@ class ModbusPoll:
                                              lambda c: c.write_registers(address, raws, device_id=unit))
             return ""
 
-        await self.worker.engineer_action(do, user=user, role=role, describe=describe,
-                                          target=dev.name if dev else self.bus, parameter=parameter, new=raws)
+        await self.worker.gate.run(do, user=user, role=role, describe=describe,
+                                   device=dev.name if dev else self.bus, parameter=parameter, new=raws, kind="write")
         return describe
 
 
@@ -415,8 +415,8 @@ class ModbusPoll:
             if verdict.refused:
                 raise PollError(f"unit {unit}: {verdict.refused}")
         except PollError as exc:
-            await self.worker.refused(device=self.bus, user=user, role=role, describe=describe, reason=str(exc),
-                                      parameter=f"unit {unit} coil {address}", new=[int(b) for b in states])
+            await self.worker.gate.refused(device=self.bus, user=user, role=role, describe=describe, reason=str(exc),
+                                           parameter=f"unit {unit} coil {address}", new=[int(b) for b in states])
             raise
         if verdict.confirm and not confirmed:
             raise NeedsConfirmation(f"This writes {verdict.name or f'unit {unit} coil {address}'}. "
@@ -432,9 +432,9 @@ class ModbusPoll:
                                              lambda c: c.write_coils(address, states, device_id=unit))
             return ""
 
-        await self.worker.engineer_action(do, user=user, role=role, describe=describe,
-                                          target=dev.name if dev else self.bus, parameter=verdict.name or f"unit {unit} coil {address}",
-                                          new=[int(b) for b in states])
+        await self.worker.gate.run(do, user=user, role=role, describe=describe,
+                                   device=dev.name if dev else self.bus, parameter=verdict.name or f"unit {unit} coil {address}",
+                                   new=[int(b) for b in states], kind="write")
         return describe
 
 

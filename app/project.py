@@ -40,6 +40,7 @@ from typing import Any
 
 from app import backup, files
 from app.capabilities import allowed_text
+from app.cli_lang import _
 from app.plant import Plant, PlantError, load_plant, parse_plant
 from devices.errors import CommissionError
 from devices.params import Param, ParamError
@@ -541,8 +542,8 @@ def save(plant: Plant, device: str, changes: dict[str, Any], expected: dict[str,
 
 
 def add_parser(sub) -> None:
-    parser = sub.add_parser("check", help="check a plant file and its devices' projects without the devices")
-    parser.add_argument("--plant", type=Path, required=True, help="plant file")
+    parser = sub.add_parser("check", help=_("check a plant file and its devices' projects without the devices"))
+    parser.add_argument("--plant", type=Path, required=True, help=_("plant file"))
     parser.set_defaults(func=run_cli)
 
 

@@ -148,7 +148,7 @@ class RecordService:
         adapter = self.runtime.worker.adapters[device]
         if not supports_backup(adapter):
             raise RecordError(f"{device}: this device has no parameter set to read")
-        entries = await self.runtime.worker.invoke(device, READ_PARAMETERS, user=user, role=role)
+        entries = await self.runtime.worker.gate.invoke(device, READ_PARAMETERS, user=user, role=role)
         return adapter.backup_identity(), entries
 
     async def snapshot(self, device: str, *, user: str, role: str, title: str = "on demand") -> int:

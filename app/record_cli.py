@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from app.checkout import StepFailed, checkout_module
+from app.cli_lang import _
 from app.record_store import RecordError
 from devices.errors import CommissionError
 
@@ -37,55 +38,55 @@ SIGNER_ROLE = "commissioning engineer"
 
 # -- shared -------------------------------------------------------------------------------------
 def _common(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
-    parser.add_argument("--no-sim", action="store_true", help="do not start simulated devices")
-    parser.add_argument("--wait", type=float, default=20.0, help="seconds to wait for the devices to come online (default 20)")
+    parser.add_argument("--plant", type=Path, default=None, help=_("plant file (default: the built-in demo plant)"))
+    parser.add_argument("--no-sim", action="store_true", help=_("do not start simulated devices"))
+    parser.add_argument("--wait", type=float, default=20.0, help=_("seconds to wait for the devices to come online (default 20)"))
     parser.add_argument("--data-dir", type=Path, default=argparse.SUPPRESS,
-                        help="data folder with the record (default: the per-user data folder, docs/windows-macos.md)")
+                        help=_("data folder with the record (default: the per-user data folder, docs/windows-macos.md)"))
 
 
-def _account(parser: argparse.ArgumentParser, what: str) -> None:
-    parser.add_argument("--account", required=True, metavar="NAME",
-                        help=f"the engineer account that {what} (its password is asked on the terminal, or read from "
-                             "standard input when that is no terminal)")
+def _account(parser: argparse.ArgumentParser, account_help: str) -> None:
+    parser.add_argument("--account", required=True, metavar="NAME", help=account_help)
 
 
-def _devices(parser: argparse.ArgumentParser, what: str) -> None:
-    parser.add_argument("--device", action="append", default=[], metavar="NAME", help=f"device to {what} (repeatable)")
-    parser.add_argument("--all", action="store_true", help=f"{what} every device of the plant")
+def _devices(parser: argparse.ArgumentParser, device_help: str, all_help: str) -> None:
+    parser.add_argument("--device", action="append", default=[], metavar="NAME", help=device_help)
+    parser.add_argument("--all", action="store_true", help=all_help)
 
 
 def add_parsers(sub) -> None:
-    approve = sub.add_parser("approve", help="store the approved parameter set of devices as read now, headless")
+    approve = sub.add_parser("approve", help=_("store the approved parameter set of devices as read now, headless"))
     _common(approve)
-    _devices(approve, "approve")
-    _account(approve, "approves")
+    _devices(approve, _("device to approve (repeatable)"), _("approve every device of the plant"))
+    _account(approve, _("the engineer account that approves (its password is asked on the terminal, or read from "
+                        "standard input when that is no terminal)"))
     approve.set_defaults(func=run_approve)
 
-    checkout = sub.add_parser("checkout", help="run the declared checkout of devices, headless; exit code 0 only when all passed")
+    checkout = sub.add_parser("checkout", help=_("run the declared checkout of devices, headless; exit code 0 only when all passed"))
     _common(checkout)
-    _devices(checkout, "check out")
+    _devices(checkout, _("device to check out (repeatable)"), _("check out every device of the plant"))
     checkout.add_argument("--answer", choices=["yes", "ask"], default=None,
-                          help="questions to a person: ask on standard input (default when it is a terminal) or "
+                          help=_("questions to a person: ask on standard input (default when it is a terminal) or "
                                "answer yes, recorded as answered by the CLI user; yes answers for simulated devices "
                                "only: real equipment is asked of the person at the terminal, who holds SPACE while "
-                               "it moves (without a terminal such a run does not start)")
+                               "it moves (without a terminal such a run does not start)"))
     checkout.add_argument("--set", action="append", default=[], metavar="DEVICE:KEY=VALUE",
-                          help="a checkout setting of one device, e.g. lift:distance_mm=10 (repeatable)")
+                          help=_("a checkout setting of one device, e.g. lift:distance_mm=10 (repeatable)"))
     checkout.add_argument("--sim-action", action="append", default=[], metavar="DEVICE:ACTION[:K=V,...]",
-                          help="before the checkouts, run a declared control of a simulated device's twin (a fault "
-                               "to see a step fail, e.g. 'heater-hm:blow fuse:channel=1'); simulation only")
+                          help=_("before the checkouts, run a declared control of a simulated device's twin (a fault "
+                               "to see a step fail, e.g. 'heater-hm:blow fuse:channel=1'); simulation only"))
     checkout.set_defaults(func=run_checkout)
 
-    sign = sub.add_parser("sign", help="sign the as-left record of the plant (or of one device), headless")
+    sign = sub.add_parser("sign", help=_("sign the as-left record of the plant (or of one device), headless"))
     _common(sign)
-    sign.add_argument("--name", required=True, help="the name of the person signing")
-    sign.add_argument("--comment", default="", help="free comment of the sign-off")
-    sign.add_argument("--signer-role", default=SIGNER_ROLE, help=f"the signer's role as written in the record (default: {SIGNER_ROLE})")
-    sign.add_argument("--device", default=None, metavar="NAME", help="sign this device's record instead of the plant's")
-    _account(sign, "signs")
-    sign.add_argument("--yes", action="store_true", help="sign even when devices have no checkout, a failed one or "
-                                                         "settings not approved (they are listed either way)")
+    sign.add_argument("--name", required=True, help=_("the name of the person signing"))
+    sign.add_argument("--comment", default="", help=_("free comment of the sign-off"))
+    sign.add_argument("--signer-role", default=SIGNER_ROLE, help=_("the signer's role as written in the record (default: {role})").format(role=SIGNER_ROLE))
+    sign.add_argument("--device", default=None, metavar="NAME", help=_("sign this device's record instead of the plant's"))
+    _account(sign, _("the engineer account that signs (its password is asked on the terminal, or read from "
+                     "standard input when that is no terminal)"))
+    sign.add_argument("--yes", action="store_true", help=_("sign even when devices have no checkout, a failed one or "
+                                                         "settings not approved (they are listed either way)"))
     sign.set_defaults(func=run_sign)
 
     from app import verify
@@ -298,7 +299,7 @@ async def sim_action(runtime, spec: str, *, user: str, role: str) -> str:
             await result
         return ""
 
-    await runtime.worker.checked(act, device=device, role=role, user=user, describe=f"simulation: {describe}", kind="system")
+    await runtime.worker.gate.run(act, device=device, role=role, user=user, describe=f"simulation: {describe}", kind="system")
     return f"{device}: simulation: {describe}"
 
 

@@ -6,7 +6,7 @@ gaps (scaled by ``speed``), can be stopped at any time, is refused on a bus wher
 under control (an adapter's ``holders()`` is not empty) and stops by itself when a device comes
 under control meanwhile. It is under the dead-man rule: registered with ``worker.add_holder``, it
 ends when the engineer's browser goes away. Starting is checked and audited through
-``worker.engineer_action``.
+``worker.gate.run``.
 
 Error frames and remote frames of the file are not sent (the send path carries data frames);
 they are counted in ``skipped``. Every other frame is judged by the one send policy
@@ -331,10 +331,10 @@ async def start_replay(
     :raises PermissionDenied: not an engineer; :raises ReplayError: refused (see :func:`refusal`),
         no frames, none that may go out, or a speed out of range; :raises NeedsConfirmation: not confirmed yet
     """
-    from app.gate import WRITE_ROLES, role_now
+    from app.gate import WRITE_ROLES
 
     screening = await asyncio.to_thread(screen, worker, bus, frames)
-    if not confirmed and role_now(worker, user, role) in WRITE_ROLES:  # another role is refused and audited below
+    if not confirmed and worker.gate.role_now(user, role) in WRITE_ROLES:  # another role is refused and audited below
         _check(worker, bus, frames, screening, name, speed)
         raise NeedsConfirmation(question(worker, bus, frames, screening, name=name, speed=speed),
                                 screening.going_out(frames))
@@ -349,8 +349,8 @@ async def start_replay(
                 f"confirmed{kept_off}")
 
     holder: list[Replay] = []
-    await worker.engineer_action(action, user=user, role=role, target=bus,
-                                 describe=f"replay {name} onto {bus} at {speed:g} x")
+    await worker.gate.run(action, user=user, role=role, device=bus,
+                          describe=f"replay {name} onto {bus} at {speed:g} x", kind="write")
     return holder[0]
 
 

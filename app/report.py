@@ -7,20 +7,16 @@ stores that content frozen in the record (``app/record.py``); a signed report is
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import html
-import io
-import json
-import os
 import re
-import tempfile
 import time
-import zipfile
-from datetime import datetime, timezone
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from app import i18n
+from app.i18n import N_
 from app.record_sets import (
     LIVE_VALUE,
     compare_with_approved,
@@ -29,13 +25,14 @@ from app.record_sets import (
     live_set,
     param_set,
 )
-from app.verify import CHAIN, MANIFEST, MANIFEST_SUM, manifest_sum, seal_archive, sha256
+from app.report_evidence import evidence_named
+from app.verify import sha256
 from devices.adapter import BackupAdapter
 from devices.errors import CommissionError
 from devices.params import Access
 
 AUDIT_ROWS = 200
-SIMULATED_MARK = "SIMULATED DEVICES - made on the built-in twins, not on site equipment"
+SIMULATED_MARK = N_("SIMULATED DEVICES - made on the built-in twins, not on site equipment")
 
 
 def tool_version() -> str:
@@ -56,35 +53,6 @@ def plant_file(plant) -> dict:
         return {"path": str(path), "sha256": sha256(Path(path).read_bytes())}
     except OSError as exc:
         return {"path": str(path), "sha256": None, "error": exc.strerror or str(exc)}
-
-
-def evidence_file(device: str, bus: str, run_id: int, n: int, evidence: dict) -> tuple[str, bytes] | None:
-    """The evidence file of step ``n`` of checkout ``run_id`` (its name in the archive and its bytes):
-    CAN frames as a candump log, serial, Modbus and LogiTed transactions as text; None without traffic."""
-    stem = f"evidence/{device}/checkout-{run_id}-step{n}"
-    if evidence.get("kind") == "can" and evidence.get("frames"):
-        return f"{stem}.log", can_trace(evidence["frames"], ".log", bus)
-    if evidence.get("transactions"):
-        return f"{stem}.txt", serial_trace(evidence["transactions"])
-    return None
-
-
-_EVIDENCE_NAMED: dict[tuple, dict | None] = {}  # (row hash, step) -> name and SHA-256: record rows never change
-EVIDENCE_NAMED_MAX = 4096
-
-
-def evidence_named(row: str | None, device: str, bus: str, run_id: int, n: int, evidence: dict) -> dict | None:
-    """The evidence file of a step as the report names it (file name, SHA-256, how many items); made
-    once per step of a stored run (``row``: its hash; the record page's preview asks every few seconds)."""
-    key = (row, device, bus, run_id, n)
-    if row is None or key not in _EVIDENCE_NAMED:
-        made = evidence_file(device, bus, run_id, n, evidence)
-        if len(_EVIDENCE_NAMED) >= EVIDENCE_NAMED_MAX:
-            _EVIDENCE_NAMED.pop(next(iter(_EVIDENCE_NAMED)))
-        _EVIDENCE_NAMED[key] = None if made is None else {
-            "name": made[0], "sha256": sha256(made[1]), "items": len(evidence.get("frames") or evidence.get("transactions") or []),
-            "what": "CAN frames" if evidence.get("kind") == "can" else "transactions"}
-    return _EVIDENCE_NAMED[key]
 
 
 def _run_summary(runs: list[dict]) -> list[dict]:
@@ -269,71 +237,136 @@ def _e(value: Any) -> str:
     return html.escape("" if value is None else str(value))
 
 
-def commissioned_text(d: dict, plant_signed: bool = False) -> str:
+# The words the content carries as data (a verdict, a run's result) and the report shows in its language;
+# the content itself, frozen in a sign-off, keeps them in English.
+WORDS = (N_("equal"), N_("changed"), N_("not approved"), N_("updated by the device"), N_("live value"), N_("passed"),
+         N_("failed"), N_("aborted"), N_("skipped"), N_("not available"), N_("online"), N_("offline"), N_("stale"),
+         N_("type"), N_("bus"), N_("address"), N_("status"), N_("serial"), N_("firmware"), N_("hardware"), N_("variant"))
+LIVE_VALUES = N_("live values")  # the plural of LIVE_VALUE in a count ("3 live values")
+# the sentences of ``parameters_source`` (content data, English), shown phrase by phrase in the report's language
+SOURCE_PHRASES = (N_("read from the device at "), N_("as the device showed them at "), N_(" (else the last snapshot of "),
+                  N_("of the last snapshot of "), N_("not read: "), N_("no parameters read"),
+                  N_("not read yet: the device has not answered (snapshot or approve to read it)"))
+
+
+def language(lang: i18n.Lang | None) -> i18n.Lang:
+    return i18n.english(lang)
+
+
+def when(t: float | None, lang: i18n.Lang | None = None) -> str:
+    """A date and time as the report writes it: ISO in English (``2026-11-28 14:05:09``), the language's own
+    form otherwise (``28.11.2026, 14:05:09``)."""
+    if not t:
+        return ""
+    return _when(t) if lang is None or lang.code == "en" else lang.datetime(t)
+
+
+def word(text: Any, lang: i18n.Lang | None) -> str:
+    """A word of the content (a verdict, a result, an identity's key) in the report's language."""
+    return "" if text is None else language(lang).gettext(str(text)) if isinstance(text, str) else str(text)
+
+
+def source_text(source: str, lang: i18n.Lang | None) -> str:
+    """Where the values come from (content data, English) in the report's language, phrase by phrase."""
+    lang = language(lang)
+    for phrase in SOURCE_PHRASES:
+        source = source.replace(phrase, lang.gettext(phrase))
+    return source
+
+
+def seconds(value: Any, lang: i18n.Lang | None) -> str:
+    """A duration as recorded (``12.5 s``), with the language's decimal mark."""
+    return f"{value} s" if lang is None else f"{lang.numbers_in(str(value))} s"
+
+
+def commissioned_text(d: dict, plant_signed: bool = False, lang: i18n.Lang | None = None) -> str:
     """Who commissioned the device and when, saying what is missing rather than leaving a blank."""
-    who = ", ".join(d["commissioned_by"]) or "nobody yet (no checkout, approved set or snapshot recorded)"
+    _ = language(lang).gettext
+    who = ", ".join(d["commissioned_by"]) or _("nobody yet (no checkout, approved set or snapshot recorded)")
     first, last = d["commissioned"]
-    when = "" if not first else f" on {first}" if first == last or not last else f" from {first} to {last}"
-    signed = "" if d.get("signoff") or plant_signed else ", not signed yet"
-    return f"Commissioned by {who}{when}{signed}."
+    when_text = "" if not first else (_(" on {first}").format(first=first) if first == last or not last
+                                      else _(" from {first} to {last}").format(first=first, last=last))
+    signed = "" if d.get("signoff") or plant_signed else _(", not signed yet")
+    return _("Commissioned by {who}{when}{signed}.").format(who=who, when=when_text, signed=signed)
 
 
 DIFFERING = ("changed", "not approved")  # settings the summary lists (a value the device measures itself is no difference)
 
 
-def values_text(d: dict) -> str:
+def values_text(d: dict, lang: i18n.Lang | None = None) -> str:
     """Where the parameter values come from and how they compare, one sentence."""
-    counts = ", ".join(f"{n} {k}{'s' if k == LIVE_VALUE and n != 1 else ''}" for k, n in d["counts"].items() if n) or "no parameters"
-    return f"Values {d['parameters_source']}: {counts}."
+    lang = language(lang)
+    _ = lang.gettext
+    counts = ", ".join(f"{n} {word(LIVE_VALUES if k == LIVE_VALUE and n != 1 else k, lang)}"
+                       for k, n in d["counts"].items() if n) or _("no parameters")
+    return _("Values {source}: {counts}.").format(source=source_text(d["parameters_source"], lang), counts=counts)
 
 
-def measured_text(v: dict) -> str:
-    return f'{v["name"]} = {with_unit(v["value"], v["unit"])} ({v["limit"] or "recorded"}: {"ok" if v["ok"] else "FAIL"})'
+def measured_text(v: dict, lang: i18n.Lang | None = None) -> str:
+    _ = language(lang).gettext
+    return "{name} = {value} ({limit}: {verdict})".format(
+        name=v["name"], value=with_unit(v["value"], v["unit"]), limit=v["limit"] or _("recorded"), verdict=_("ok") if v["ok"] else _("FAIL"))
 
 
-def evidence_text(s: dict) -> str:
+def evidence_text(s: dict, lang: i18n.Lang | None = None) -> str:
+    _ = language(lang).gettext
     f = s.get("evidence_file")
     if not f:
-        return "no bus traffic"
-    return f'{f["name"]} ({f["items"]} {f["what"]}), SHA-256 {f["sha256"]}'
+        return _("no bus traffic")
+    return _("{name} ({items} {what}), SHA-256 {sha256}").format(name=f["name"], items=f["items"], what=_(f["what"]), sha256=f["sha256"])
 
 
-def signoff_text(sig: dict | None, what: str, plant: dict | None = None) -> str:
+def signoff_text(sig: dict | None, what: str, plant: dict | None = None, lang: i18n.Lang | None = None) -> str:
+    _ = language(lang).gettext
     if not sig and plant:  # a device of a signed plant: the plant's sign-off covers it
-        return f"{what}: no sign-off of its own; signed with the plant (record #{plant['id']})"
+        return _("{what}: no sign-off of its own; signed with the plant (record #{id})").format(what=what, id=plant["id"])
     if not sig:
-        return f"{what}: not signed"
-    return (f"{what} signed by {sig['name']} ({sig['role']}), account {sig.get('account') or '?'}, on {_when(sig['time'])}. "
-            f"Comment: {sig['comment'] or '-'}. Record #{sig['id']}, content SHA-256 {sig['sha256']}"
-            + (f", row hash {sig['row_hash']}" if sig.get("row_hash") else ""))
+        return _("{what}: not signed").format(what=what)
+    return (_("{what} signed by {name} ({role}), account {account}, on {time}. Comment: {comment}. Record #{id}, content "
+              "SHA-256 {sha256}").format(what=what, name=sig["name"], role=sig["role"], account=sig.get("account") or "?",
+                                         time=when(sig["time"], lang), comment=sig["comment"] or "-", id=sig["id"], sha256=sig["sha256"])
+            + (_(", row hash {hash}").format(hash=sig["row_hash"]) if sig.get("row_hash") else ""))
 
 
-def _signoff_html(sig: dict | None, what: str, plant: dict | None = None) -> str:
+def _signoff_html(sig: dict | None, what: str, plant: dict | None = None, lang: i18n.Lang | None = None) -> str:
     cls = "sig" if sig or plant else "sig unsigned"
-    return f'<div class="{cls}">{_e(signoff_text(sig, what, plant))}</div>'
+    return f'<div class="{cls}">{_e(signoff_text(sig, what, plant, lang))}</div>'
 
 
-def summary_rows(d: dict, p: dict | None = None) -> list[str]:
+def summary_rows(d: dict, p: dict | None = None, lang: i18n.Lang | None = None) -> list[str]:
     """The summary of one device a site manager reads: per checkout its last result and runs, the
     approved set, drift and the sign-off."""
-    runs = "; ".join(f"{c['title']}: {c['last']}"
-                     + (f" ({c['last_reason']})" if c["last"] != "passed" and c["last_reason"] else "")
-                     + f", {c['runs']} run{'s' if c['runs'] != 1 else ''} ({c['passed']} passed, {c['failed']} not)"
-                     + f", by {', '.join(c['by'])}" for c in d.get("checkout_summary", [])) or "no checkout run"
+    lang = language(lang)
+    _ = lang.gettext
+    runs = "; ".join(
+        f"{c['title']}: {word(c['last'], lang)}"
+        + (f" ({c['last_reason']})" if c["last"] != "passed" and c["last_reason"] else "")
+        + ", " + lang.ngettext("{n} run ({passed} passed, {failed} not)", "{n} runs ({passed} passed, {failed} not)",
+                               c["runs"]).format(n=c["runs"], passed=c["passed"], failed=c["failed"])
+        + ", " + _("by {people}").format(people=", ".join(c["by"])) for c in d.get("checkout_summary", [])) or _("no checkout run")
     ap = d["approved"]
-    approved = f"#{ap['id']} by {ap['by']}, {_when(ap['time'])}" if ap else "none"
-    drift = ("no approved set" if not ap else
-             f"{len(d['drift'])} changed: " + ", ".join(f"{r['name']} {r['approved']} -> {r['now']}" for r in d["drift"])
-             if d["drift"] else "none")
-    signed = "signed" if d["signoff"] else "with the plant" if p and p.get("signoff") else "not signed"
-    return [d["device"] + (" (simulated)" if d.get("simulated") else ""), d["type"], runs, approved, drift, signed]
+    approved = _("#{id} by {by}, {time}").format(id=ap["id"], by=ap["by"], time=when(ap["time"], lang)) if ap else _("none")
+    drift = (_("no approved set") if not ap else
+             _("{n} changed: ").format(n=len(d["drift"])) + ", ".join(f"{r['name']} {r['approved']} -> {r['now']}" for r in d["drift"])
+             if d["drift"] else _("none"))
+    signed = _signed_word(d, p or {}, lang)
+    return [d["device"] + (_(" (simulated)") if d.get("simulated") else ""), d["type"], runs, approved, drift, signed]
 
 
-SUMMARY_HEAD = ["Device", "Type", "Checkouts: last result, runs, who ran them", "Approved set", "Drift", "Sign-off"]
+SUMMARY_HEAD = [N_("Device"), N_("Type"), N_("Checkouts: last result, runs, who ran them"), N_("Approved set"), N_("Drift"),
+                N_("Sign-off")]
+SETTING_HEAD = [N_("Setting"), N_("As left"), N_("Approved"), N_("Verdict")]
+LIVE_HEAD = [N_("Value"), N_("As read"), N_("At approval"), N_("Verdict")]
+RUNS_HEAD = [N_("Run"), N_("Checkout"), N_("Result"), N_("Run by"), N_("Time"), N_("Duration")]
+AUDIT_HEAD = [N_("Time"), N_("User"), N_("Action"), N_("Parameter"), N_("Old → new"), N_("Result")]
 
 
-def _rows_html(head: list[str], rows: list[list[Any]], classes: dict[int, Any] | None = None) -> str:
-    out = "<table><tr>" + "".join(f"<th>{_e(h)}</th>" for h in head) + "</tr>"
+def head(words: list[str], lang: i18n.Lang | None) -> list[str]:
+    return [language(lang).gettext(w) for w in words]
+
+
+def _rows_html(head_words: list[str], rows: list[list[Any]], classes: dict[int, Any] | None = None) -> str:
+    out = "<table><tr>" + "".join(f"<th>{_e(h)}</th>" for h in head_words) + "</tr>"
     for r in rows:
         out += "<tr>" + "".join(
             f'<td class="{_e(classes[i](r))}">{_e(c)}</td>' if classes and i in classes else f"<td>{_e(c)}</td>"
@@ -341,355 +374,165 @@ def _rows_html(head: list[str], rows: list[list[Any]], classes: dict[int, Any] |
     return out + "</table>"
 
 
-def _param_rows(rows: list[dict]) -> list[list[Any]]:
-    return [[r["name"], with_unit(r["value"], r["unit"]), r["approved"], r["verdict"]] for r in rows]
+class Shown(str):
+    """A cell's text in the report's language that keeps the English word it shows (its CSS class)."""
+
+    word: str
+
+    def __new__(cls, text: str, english: str):
+        made = super().__new__(cls, text)
+        made.word = english
+        return made
+
+
+def param_rows(rows: list[dict], lang: i18n.Lang | None = None) -> list[list[Any]]:
+    def number(text: Any) -> Any:  # 12.5 s -> 12,5 s in German (addresses and versions stay as they are)
+        return lang.numbers_in(text) if lang is not None and isinstance(text, str) else text
+
+    return [[r["name"], number(with_unit(r["value"], r["unit"])), number(r["approved"]), Shown(word(r["verdict"], lang), r["verdict"])]
+            for r in rows]
 
 
 def _verdict_class(r: list[Any]) -> str:
-    return str(r[-1]).replace(" ", "")
+    cell = r[-1]
+    return (cell.word if isinstance(cell, Shown) else str(cell)).replace(" ", "")
 
 
-def device_html(d: dict, plant_signoff: dict | None = None, *, appendix: bool = True) -> str:
+def _result_class(r: list[Any], column: int) -> str:
+    cell = r[column]
+    return (cell.word if isinstance(cell, Shown) else str(cell)).split(":")[0].replace(" ", "")
+
+
+def result_cell(status: str, reason: str | None, lang: i18n.Lang | None) -> Shown:
+    return Shown(word(status, lang) + (f": {reason}" if reason else ""), status)
+
+
+def identity_rows(d: dict, lang: i18n.Lang | None = None) -> list[tuple[str, Any]]:
+    key, _sep, number = d["address"].partition(" ")  # "address 1": the plant file's key and its value
+    address = f"{word(key, lang)} {number}" if key == "address" else d["address"]
+    ident = {"type": d["type"], "bus": d["bus"], "address": address, **d["identity"], "status": word(d["status"], lang)}
+    return [(word(k, lang), v) for k, v in ident.items()]
+
+
+def differ_text(d: dict, changed: list, lang: i18n.Lang | None) -> str:
+    _ = language(lang).gettext
+    return (_(" Settings that differ:") if changed else _(" Every setting equals the approved set.") if d["approved"] else
+            _(" The settings read are listed in the appendix."))
+
+
+def device_html(d: dict, plant_signoff: dict | None = None, *, appendix: bool = True, lang: i18n.Lang | None = None) -> str:
     """One device: its summary (identity, sign-off, drift, every checkout run); ``appendix``: its full
     listings (settings, live values, each step with its evidence file, the audit rows) below."""
+    _ = language(lang).gettext
     out = [f'<h2 id="{_e(d["device"])}">{_e(d["device"])} <small>({_e(d["type"])})</small></h2>']
     if d.get("simulated"):
-        out.append(f'<div class="sim">{_e(SIMULATED_MARK)}</div>')
-    out.append(_signoff_html(d["signoff"], d["device"], plant_signoff))
-    ident = {"type": d["type"], "bus": d["bus"], "address": d["address"], **d["identity"], "status": d["status"]}
-    out.append("<table>" + "".join(f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in ident.items()) + "</table>")
-    out.append(f"<p>{_e(commissioned_text(d, bool(plant_signoff)))}</p>")
+        out.append(f'<div class="sim">{_e(_(SIMULATED_MARK))}</div>')
+    out.append(_signoff_html(d["signoff"], d["device"], plant_signoff, lang))
+    out.append("<table>" + "".join(f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in identity_rows(d, lang)) + "</table>")
+    out.append(f"<p>{_e(commissioned_text(d, bool(plant_signoff), lang))}</p>")
     if d["drift"]:
-        out.append('<p class="changed">Changed since approved: ' + _e(", ".join(f"{r['name']} {r['approved']} → {r['now']}" for r in d["drift"])) + "</p>")
+        out.append('<p class="changed">' + _e(_("Changed since approved: ")
+                                              + ", ".join(f"{r['name']} {r['approved']} → {r['now']}" for r in d["drift"])) + "</p>")
     ap = d["approved"]
     changed = [r for r in d.get("settings", d["parameters"]) if r["verdict"] in DIFFERING] if ap else []
-    out.append("<h3>Settings against the approved set</h3><p>" + (
-        f"Approved set #{ap['id']} ({_e(ap['title'])}) by {_e(ap['by'])} on {_when(ap['time'])}. " if ap else "No approved set. ")
-        + _e(values_text(d)) + (" Settings that differ:" if changed else " Every setting equals the approved set." if d["approved"] else
-                   " The settings read are listed in the appendix.") + "</p>")
+    out.append("<h3>" + _e(_("Settings against the approved set")) + "</h3><p>" + _e(
+        _("Approved set #{id} ({title}) by {by} on {time}. ").format(id=ap["id"], title=ap["title"], by=ap["by"], time=when(ap["time"], lang))
+        if ap else _("No approved set. ")) + _e(values_text(d, lang)) + _e(differ_text(d, changed, lang)) + "</p>")
     if changed:
-        out.append(_rows_html(["Setting", "As left", "Approved", ""], _param_rows(changed), {3: _verdict_class}))
-    out.append("<h3>Checkout runs</h3>")
+        out.append(_rows_html(head(SETTING_HEAD[:3], lang) + [""], param_rows(changed, lang), {3: _verdict_class}))
+    out.append("<h3>" + _e(_("Checkout runs")) + "</h3>")
     if not d["checkouts"]:
-        out.append("<p>No checkout run.</p>")
+        out.append("<p>" + _e(_("No checkout run.")) + "</p>")
     else:
-        out.append(_rows_html(["Run", "Checkout", "Result", "Run by", "Time", "Duration"], [
-            [f"#{c['id']}", c["title"], c["status"] + (f": {c['reason']}" if c["reason"] else ""), c["user"], _when(c["time"]),
-             f"{c['duration_s']} s"] for c in d["checkouts"]], {2: lambda r: str(r[2]).split(":")[0].replace(" ", "")}))
+        out.append(_rows_html(head(RUNS_HEAD, lang), [
+            [f"#{c['id']}", c["title"], result_cell(c["status"], c["reason"], lang), c["user"], when(c["time"], lang),
+             seconds(c["duration_s"], lang)] for c in d["checkouts"]], {2: lambda r: _result_class(r, 2)}))
     if appendix:
-        out.append(appendix_html(d))
+        out.append(appendix_html(d, lang))
     return "\n".join(out)
 
 
-def appendix_html(d: dict) -> str:
-    out = [f"<h3>Appendix {_e(d['device'])}: settings</h3>"]
-    out.append(_rows_html(["Setting", "As left", "Approved", ""], _param_rows(d.get("settings", [])), {3: _verdict_class})
-               if d.get("settings") else "<p>No settings read.</p>")
-    out.append(f"<h3>Appendix {_e(d['device'])}: live values (read with the set; states and measurements, no settings)</h3>")
-    out.append(_rows_html(["Value", "As read", "At approval", ""], _param_rows(d.get("live_values", [])), {3: _verdict_class})
-               if d.get("live_values") else "<p>No live values read.</p>")
+def measured_answers(s: dict, lang: i18n.Lang | None = None) -> list[str]:
+    """A step's measured values and the answers given to it (questions and answers are recorded as asked)."""
+    return [measured_text(v, lang) for v in s["values"]] + [f'{a["question"]} {a["answer"]} ({a["by"]})' for a in s["answers"]]
+
+
+def step_detail(s: dict, lang: i18n.Lang | None = None) -> str:
+    return "; ".join(measured_answers(s, lang) + ([s["reason"]] if s["reason"] else []))
+
+
+def appendix_html(d: dict, lang: i18n.Lang | None = None) -> str:
+    _ = language(lang).gettext
+    device = d["device"]
+    out = ["<h3>" + _e(_("Appendix {device}: settings").format(device=device)) + "</h3>"]
+    out.append(_rows_html(head(SETTING_HEAD[:3], lang) + [""], param_rows(d.get("settings", []), lang), {3: _verdict_class})
+               if d.get("settings") else "<p>" + _e(_("No settings read.")) + "</p>")
+    out.append("<h3>" + _e(_("Appendix {device}: live values (read with the set; states and measurements, no settings)").format(device=device))
+               + "</h3>")
+    out.append(_rows_html(head(LIVE_HEAD[:3], lang) + [""], param_rows(d.get("live_values", []), lang), {3: _verdict_class})
+               if d.get("live_values") else "<p>" + _e(_("No live values read.")) + "</p>")
     for c in d["checkouts"]:
-        out.append(f"<h3>Appendix {_e(d['device'])}: checkout run #{c['id']}, {_e(c['title'])}: {_e(c['status'])}</h3>"
-                   f"<p>Run by {_e(c['user'])} on {_when(c['time'])} in {c['duration_s']} s.</p>")
-        rows = []
-        for s in c["steps"]:
-            detail = "; ".join([measured_text(v) for v in s["values"]] + [f'{a["question"]} {a["answer"]} ({a["by"]})' for a in s["answers"]]
-                               + ([s["reason"]] if s["reason"] else []))
-            rows.append([s["name"], s["status"], s["limits"], detail, evidence_text(s)])
-        out.append(_rows_html(["Step", "Result", "Limits", "Measured, answers", "Evidence file"], rows,
-                              {1: lambda r: str(r[1]).replace(" ", "")}))
-    out.append(f"<h3>Appendix {_e(d['device'])}: audit rows ({len(d['audit'])})</h3>")
+        out.append("<h3>" + _e(_("Appendix {device}: checkout run #{id}, {title}: {status}").format(
+            device=device, id=c["id"], title=c["title"], status=word(c["status"], lang))) + "</h3><p>"
+            + _e(_("Run by {user} on {time} in {duration}.").format(user=c["user"], time=when(c["time"], lang),
+                                                                    duration=seconds(c["duration_s"], lang))) + "</p>")
+        rows = [[s["name"], Shown(word(s["status"], lang), s["status"]), s["limits"], step_detail(s, lang), evidence_text(s, lang)]
+                for s in c["steps"]]
+        out.append(_rows_html(head([N_("Step"), N_("Result"), N_("Limits"), N_("Measured, answers"), N_("Evidence file")], lang), rows,
+                              {1: lambda r: _result_class(r, 1)}))
+    out.append("<h3>" + _e(_("Appendix {device}: audit rows ({n})").format(device=device, n=len(d["audit"]))) + "</h3>")
     if d["audit"]:
-        out.append(_rows_html(["Time", "User", "Action", "Parameter", "Old → new", "Result"], [
-            [_when(a["time"]), f'{a["user"]} ({a["role"]})', a["action"], a["parameter"], f'{a["old"]} → {a["new"]}', a["result"]]
+        out.append(_rows_html(head(AUDIT_HEAD, lang), [
+            [when(a["time"], lang), f'{a["user"]} ({a["role"]})', a["action"], a["parameter"], f'{a["old"]} → {a["new"]}', a["result"]]
             for a in d["audit"]]))
     return "\n".join(out)
 
 
-def cover_lines(p: dict) -> list[str]:
+def cover_lines(p: dict, lang: i18n.Lang | None = None) -> list[str]:
     """The cover's facts: when, with which version, from which plant file, and the record's check."""
+    _ = language(lang).gettext
     pf = p.get("plant_file") or {}
-    plant_line = (f"Plant file {pf['path']}, SHA-256 {pf['sha256']}" if pf.get("sha256") else
-                  f"Plant file {pf['path']}: not readable ({pf.get('error', '')})" if pf.get("path") else "Plant file: none (plant given without a file)")
+    plant_line = (_("Plant file {path}, SHA-256 {sha256}").format(path=pf["path"], sha256=pf["sha256"]) if pf.get("sha256") else
+                  _("Plant file {path}: not readable ({error})").format(path=pf["path"], error=pf.get("error", "")) if pf.get("path")
+                  else _("Plant file: none (plant given without a file)"))
     check = p.get("record_check") or {}
-    head = check.get("head")
-    lines = [f"Generated {_when(p['generated'])} with {p.get('tool', 'commission')}.", plant_line]
+    head_row = check.get("head")
+    lines = [_("Generated {time} with {tool}.").format(time=when(p["generated"], lang), tool=p.get("tool", "commission")), plant_line]
     if check:
-        lines.append(f"Record check: {'intact' if check['ok'] else 'ALTERED'}" + (
-            f"; last row #{head['id']}, hash {head['hash']}" if head else ""))
+        lines.append(_("Record check: {verdict}").format(verdict=_("intact") if check["ok"] else _("ALTERED")) + (
+            _("; last row #{id}, hash {hash}").format(id=head_row["id"], hash=head_row["hash"]) if head_row else ""))
     return lines
 
 
-def altered_text(p: dict) -> str:
+def altered_text(p: dict, lang: i18n.Lang | None = None) -> str:
     check = p.get("record_check") or {}
     if check.get("ok", True):
         return ""
-    return "The record was altered outside the program: " + "; ".join(check["problems"])
+    return language(lang).gettext("The record was altered outside the program: ") + "; ".join(check["problems"])
 
 
-def _checkout_summary(d: dict) -> str:
-    return ", ".join(f"{c['title']}: {c['last']}" for c in d.get("checkout_summary", [])) or "none"
+def _checkout_summary(d: dict, lang: i18n.Lang | None = None) -> str:
+    return ", ".join(f"{c['title']}: {word(c['last'], lang)}" for c in d.get("checkout_summary", [])) or language(lang).gettext("none")
 
 
-def _signed_word(d: dict, p: dict) -> str:
-    return "signed" if d["signoff"] else "with the plant" if p.get("signoff") else "not signed"
+def _signed_word(d: dict, p: dict, lang: i18n.Lang | None = None) -> str:
+    _ = language(lang).gettext
+    return _("signed") if d["signoff"] else _("with the plant") if p.get("signoff") else _("not signed")
 
 
-def plant_html(p: dict) -> str:
-    sim = f'<div class="sim every">{_e(SIMULATED_MARK)}: {_e(", ".join(p["simulated"]))}</div>' if p.get("simulated") else ""
-    altered = f'<div class="altered">{_e(altered_text(p))}</div>' if altered_text(p) else ""
-    rows = [summary_rows(d, p) for d in p["devices"]]
-    summary = _rows_html(SUMMARY_HEAD, rows)
-    return (f"<!doctype html><html><head><meta charset='utf-8'><title>As-left report {_e(p['plant'])}</title><style>{CSS}</style></head><body>"
-            + sim + f"<h1>As-left report: plant {_e(p['plant'])}</h1>" + altered
-            + "".join(f"<p>{_e(line)}</p>" for line in cover_lines(p))
-            + _signoff_html(p["signoff"], f"Plant {p['plant']}") + summary
-            + "".join(device_html(d, p["signoff"], appendix=False) for d in p["devices"])
-            + "<h2>Appendix: full listings</h2>" + "".join(sim + appendix_html(d) for d in p["devices"]) + "</body></html>")
-
-
-# -- PDF (ReportLab, from the same content) ----------------------------------------------------------
-def plant_pdf(p: dict) -> bytes:
-    from reportlab.lib import colors
-    from reportlab.lib.pagesizes import A4
-    from reportlab.lib.styles import getSampleStyleSheet
-    from reportlab.lib.units import mm
-    from reportlab.platypus import (
-        KeepTogether,
-        PageBreak,
-        Paragraph,
-        SimpleDocTemplate,
-        Spacer,
-        Table,
-        TableStyle,
-    )
-
-    styles = getSampleStyleSheet()
-    small = styles["BodyText"].clone("small", fontSize=7.5, leading=9)
-    warn = styles["BodyText"].clone("warn", textColor=colors.HexColor("#b71c1c"), fontName="Helvetica-Bold")
-    buf = io.BytesIO()
-    doc = SimpleDocTemplate(buf, pagesize=A4, leftMargin=14 * mm, rightMargin=14 * mm, topMargin=18 * mm, bottomMargin=16 * mm,
-                            title=f"As-left report {p['plant']}", author=p.get("tool", "commission"))
-    width = A4[0] - 28 * mm
-    simulated = bool(p.get("simulated"))
-
-    def every_page(canvas, document) -> None:  # the simulated mark on every page, the page number at the foot
-        canvas.saveState()
-        if simulated:
-            canvas.setFillColor(colors.HexColor("#fff3cd"))
-            canvas.rect(14 * mm, A4[1] - 13 * mm, width, 7 * mm, fill=1, stroke=0)
-            canvas.setFillColor(colors.HexColor("#5d4200"))
-            canvas.setFont("Helvetica-Bold", 9)
-            canvas.drawCentredString(A4[0] / 2, A4[1] - 10.8 * mm, SIMULATED_MARK)
-        canvas.setFillColor(colors.grey)
-        canvas.setFont("Helvetica", 7)
-        canvas.drawString(14 * mm, 8 * mm, f"As-left report {p['plant']}, {_when(p['generated'])}")
-        canvas.drawRightString(A4[0] - 14 * mm, 8 * mm, f"page {document.page}")
-        canvas.restoreState()
-
-    def para(text: Any, style=small) -> Paragraph:
-        return Paragraph(_e(text), style)
-
-    def table(rows: list[list[Any]], widths: list[float], style=small) -> Table:
-        t = Table([[para(c, style if i else small) for i, c in enumerate(r)] for r in rows], colWidths=[w * width for w in widths], repeatRows=1)
-        t.setStyle(TableStyle([("GRID", (0, 0), (-1, -1), 0.3, colors.grey), ("BACKGROUND", (0, 0), (-1, 0), colors.whitesmoke),
-                               ("VALIGN", (0, 0), (-1, -1), "TOP")]))
-        return t
-
-    def sig(s: dict | None, what: str) -> Paragraph:
-        plant = p.get("signoff") if what != f"Plant {p['plant']}" else None
-        return para(signoff_text(s, what, plant), styles["BodyText"])
-
-    story: list = [Paragraph(_e(f"As-left report: plant {p['plant']}"), styles["Title"])]
-    if altered_text(p):
-        story.append(para(altered_text(p), warn))
-    story += [para(line, styles["BodyText"]) for line in cover_lines(p)]
-    story += [sig(p["signoff"], f"Plant {p['plant']}"), Spacer(1, 4 * mm),
-              table([SUMMARY_HEAD] + [summary_rows(d, p) for d in p["devices"]], [0.13, 0.08, 0.37, 0.16, 0.14, 0.12])]
-    story.append(para("Each device follows on the next pages; the full listings (settings, live values, every step with its "
-                      "evidence file and SHA-256, audit rows) are in the appendix.", small))
-    story.append(PageBreak())
-    for d in p["devices"]:  # each device kept on one page where it fits, one after the other
-        part = [Paragraph(_e(f"{d['device']} ({d['type']})"), styles["Heading2"]), sig(d["signoff"], d["device"])]
-        ident = {"type": d["type"], "bus": d["bus"], "address": d["address"], **d["identity"], "status": d["status"]}
-        part.append(table([["Identity", ""]] + [[k, v] for k, v in ident.items()], [0.3, 0.7]))
-        part.append(para(commissioned_text(d, bool(p.get("signoff")))))
-        if d["drift"]:
-            part.append(para("Changed since approved: " + ", ".join(f"{r['name']} {r['approved']} -> {r['now']}" for r in d["drift"]), warn))
-        part.append(Paragraph("Settings against the approved set", styles["Heading3"]))
-        changed = [r for r in d.get("settings", []) if r["verdict"] in DIFFERING] if d["approved"] else []
-        part.append(para(values_text(d) + (" Settings that differ:" if changed else " Every setting equals the approved set." if d["approved"] else
-                   " The settings read are listed in the appendix.")))
-        if changed:
-            part.append(table([["Setting", "As left", "Approved", "Verdict"]] + _param_rows(changed), [0.4, 0.25, 0.2, 0.15]))
-        part.append(Paragraph("Checkout runs", styles["Heading3"]))
-        if not d["checkouts"]:
-            part.append(para("No checkout run."))
-        else:
-            part.append(table([["Run", "Checkout", "Result", "Run by", "Time", "Duration"]] + [
-                [f"#{c['id']}", c["title"], c["status"] + (f": {c['reason']}" if c["reason"] else ""), c["user"], _when(c["time"]),
-                 f"{c['duration_s']} s"] for c in d["checkouts"]], [0.07, 0.2, 0.37, 0.12, 0.15, 0.09]))
-        story += [KeepTogether(part), Spacer(1, 6 * mm)]
-    story += [PageBreak(), Paragraph("Appendix: full listings", styles["Heading1"])]
-    for d in p["devices"]:
-        story.append(Paragraph(_e(f"{d['device']} ({d['type']}): settings"), styles["Heading3"]))
-        story.append(table([["Setting", "As left", "Approved", "Verdict"]] + _param_rows(d.get("settings", [])), [0.4, 0.25, 0.2, 0.15])
-                     if d.get("settings") else para("No settings read."))
-        story.append(Paragraph(_e(f"{d['device']}: live values (states and measurements, no settings)"), styles["Heading3"]))
-        story.append(table([["Value", "As read", "At approval", "Verdict"]] + _param_rows(d.get("live_values", [])), [0.4, 0.25, 0.2, 0.15])
-                     if d.get("live_values") else para("No live values read."))
-        for c in d["checkouts"]:
-            story.append(Paragraph(_e(f"{d['device']}: checkout run #{c['id']}, {c['title']}: {c['status']}"), styles["Heading3"]))
-            story.append(para(f"Run by {c['user']} on {_when(c['time'])} in {c['duration_s']} s."))
-            story.append(table([["Step", "Result", "Measured, answers", "Evidence file, SHA-256"]] + [
-                [s["name"], s["status"] + (f": {s['reason']}" if s["reason"] else ""),
-                 "; ".join([measured_text(v) for v in s["values"]] + [f"{a['question']} {a['answer']} ({a['by']})" for a in s["answers"]]),
-                 evidence_text(s)] for s in c["steps"]], [0.18, 0.2, 0.34, 0.28]))
-        if d["audit"]:
-            story.append(Paragraph(_e(f"{d['device']}: audit rows ({len(d['audit'])})"), styles["Heading3"]))
-            story.append(table([["Time", "User", "Action", "Parameter", "Old -> new", "Result"]] + [
-                [_when(a["time"]), a["user"], a["action"], a["parameter"], f"{a['old']} -> {a['new']}", a["result"]] for a in d["audit"]],
-                [0.15, 0.1, 0.2, 0.15, 0.2, 0.2]))
-    doc.build(story, onFirstPage=every_page, onLaterPages=every_page)
-    return buf.getvalue()
+def plant_html(p: dict, lang: i18n.Lang | None = None) -> str:
+    _ = language(lang).gettext
+    sim = f'<div class="sim every">{_e(_(SIMULATED_MARK))}: {_e(", ".join(p["simulated"]))}</div>' if p.get("simulated") else ""
+    altered = f'<div class="altered">{_e(altered_text(p, lang))}</div>' if altered_text(p) else ""
+    rows = [summary_rows(d, p, lang) for d in p["devices"]]
+    summary = _rows_html(head(SUMMARY_HEAD, lang), rows)
+    title = _("As-left report {plant}").format(plant=p["plant"])
+    return (f"<!doctype html><html lang='{language(lang).code}'><head><meta charset='utf-8'><title>{_e(title)}</title><style>{CSS}</style></head><body>"
+            + sim + "<h1>" + _e(_("As-left report: plant {plant}").format(plant=p["plant"])) + "</h1>" + altered
+            + "".join(f"<p>{_e(line)}</p>" for line in cover_lines(p, lang))
+            + _signoff_html(p["signoff"], _("Plant {plant}").format(plant=p["plant"]), lang=lang) + summary
+            + "".join(device_html(d, p["signoff"], appendix=False, lang=lang) for d in p["devices"])
+            + "<h2>" + _e(_("Appendix: full listings")) + "</h2>" + "".join(sim + appendix_html(d, lang) for d in p["devices"]) + "</body></html>")
 
 
 # -- evidence traces and the archive ----------------------------------------------------------------
-def can_trace(frames: list[dict], suffix: str, channel: str) -> bytes:
-    """CAN frames of a step in a standard format: ``.log`` (candump) or ``.trc`` (PEAK), by python-can."""
-    import can
-
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / f"trace{suffix}"
-        writer = can.CanutilsLogWriter(path, channel=channel) if suffix == ".log" else can.TRCWriter(path, channel=1)
-        with writer:
-            for f in frames:
-                writer.on_message_received(can.Message(timestamp=f["t"], arbitration_id=f["id"], is_extended_id=f["ext"],
-                                                       data=bytes.fromhex(f["data"]), is_rx=f["dir"] == "rx",
-                                                       is_error_frame=f.get("err", False), channel=channel))
-        return path.read_bytes()
-
-
-def serial_trace(rows: list[dict]) -> bytes:
-    """Serial, Modbus and LogiTed transactions as text, one a line, times in UTC (the same bytes wherever made)."""
-    def utc(t: float) -> str:
-        return datetime.fromtimestamp(t, timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%f")[:-3] + "Z"
-
-    return "".join(f"{utc(r['t'])} TX {r['tx']} RX {r['rx']} {r['decoded']} {r['error']}\n" for r in rows).encode()
-
-
-async def write_plant(runtime, out_dir: Path, content: dict | None = None, *, user: str = "local", role: str = "engineer") -> dict[str, Path]:
-    """report.html, report.pdf and the archive (reports, approved sets and snapshots as backup files,
-    evidence traces, the record's chain and a manifest of every file's SHA-256) into ``out_dir``."""
-    content = content or await plant_content(runtime, user=user, role=role)
-    snapshots = {}
-    for d in content["devices"]:
-        for kind in ("approved", "snapshot"):
-            entry = await runtime.record.store.run(runtime.record.store.latest, runtime.record.plant, d["device"], kind)
-            if entry is not None:
-                snapshots[f"backups/{d['device']}-{kind}.json"] = json.dumps(_as_backup(runtime, d, entry), indent=1, ensure_ascii=False)
-    chain = await runtime.record.store.run(runtime.record.store.chain_rows)
-    raw = {}
-    for d in content["devices"]:  # the evidence as the checkout rows hold it (the content keeps only its file names)
-        for entry in await runtime.record.timeline(d["device"], ("checkout",)):
-            raw[entry.id] = entry.data.get("steps", [])
-    return await asyncio.to_thread(_write_files, out_dir, content, snapshots, chain, raw)
-
-
-def _as_backup(runtime, d: dict, entry) -> dict:
-    from app.backup import make_document
-
-    params = [{"key": k, "name": v["name"], "raw": v["raw"], "value": v["raw"], "text": v["text"], "unit": v.get("unit", ""),
-               "writable": v.get("writable", False)} for k, v in entry.data["parameters"].items()]
-    return make_document(runtime.plant.name, d["device"], d["type"], d["bus"], entry.data.get("identity", {}), params, entry.time,
-                         user=entry.user, role=entry.role)
-
-
-def _write_files(out_dir: Path, content: dict, backups: dict[str, str], chain: list[dict] | None = None,
-                 raw_steps: dict[int, list] | None = None) -> dict[str, Path]:
-    out_dir.mkdir(parents=True, exist_ok=True)
-    name = f"{content['plant']}-as-left"
-    html_text = plant_html(content)
-    pdf = plant_pdf(content)
-    paths = {"html": out_dir / f"{name}.html", "pdf": out_dir / f"{name}.pdf", "zip": out_dir / f"{name}.zip"}
-    _atomic(paths["html"], html_text.encode())
-    _atomic(paths["pdf"], pdf)
-    files: dict[str, bytes] = {f"{name}.html": html_text.encode(), f"{name}.pdf": pdf,
-                               f"{name}.json": json.dumps(content, indent=1, ensure_ascii=False, default=str).encode()}
-    files.update((path, text.encode()) for path, text in backups.items())
-    for d in content["devices"]:
-        for c in d["checkouts"]:
-            for n, s in enumerate(c["steps"], 1):
-                ev = (raw_steps or {}).get(c["id"], c["steps"])[n - 1].get("evidence") or s.get("evidence") or {}
-                made = evidence_file(d["device"], d["bus"], c["id"], n, ev)
-                if made is not None:
-                    files[made[0]] = made[1]
-                if ev.get("kind") == "can" and ev.get("frames"):
-                    files[made[0].removesuffix(".log") + ".trc"] = can_trace(ev["frames"], ".trc", d["bus"])
-    if chain is not None:
-        files[CHAIN] = "".join(json.dumps(r, ensure_ascii=False, sort_keys=True) + "\n" for r in chain).encode()
-    check = content.get("record_check") or {}
-    manifest = {"format": 1, "plant": content["plant"], "generated": content["generated"], "tool": content.get("tool"),
-                "plant_file": content.get("plant_file"), "simulated": content.get("simulated", []),
-                "chain": {"rows": len(chain or []), "head": None if not chain else {"id": chain[-1]["id"], "hash": chain[-1]["hash"]}},
-                "record_altered": check.get("problems", []),
-                "signoff": content.get("signoff") and {k: content["signoff"].get(k) for k in ("id", "account", "name", "sha256", "row_hash")},
-                "files": {path: {"sha256": sha256(data), "bytes": len(data)} for path, data in files.items()},
-                "check": "commission verify ARCHIVE (app/verify.py describes every rule)"}
-    manifest_bytes = json.dumps(manifest, indent=1, ensure_ascii=False, default=str).encode()
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as archive:
-        archive.writestr(MANIFEST, manifest_bytes)
-        archive.writestr(MANIFEST_SUM, manifest_sum(manifest_bytes))
-        for path, data in files.items():
-            archive.writestr(path, data)
-    _atomic(paths["zip"], seal_archive(buf.getvalue()))
-    return paths
-
-
-def _atomic(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    with os.fdopen(fd, "wb") as handle:
-        handle.write(data)
-        handle.flush()
-        os.fsync(handle.fileno())
-    os.replace(tmp, path)
-
-
-# -- CLI: commission report --plant P --out DIR ----------------------------------------------------------
-def add_parser(sub) -> None:
-    parser = sub.add_parser("report", help="write the as-left report (HTML, PDF) and archive of a plant, headless")
-    parser.add_argument("--plant", type=Path, default=None, help="plant file (default: the built-in demo plant)")
-    parser.add_argument("--out", type=Path, required=True, help="folder for the report files")
-    parser.add_argument("--no-sim", action="store_true", help="do not start simulated devices")
-    parser.add_argument("--wait", type=float, default=20.0, help="seconds to wait for the devices to come online (default 20)")
-    parser.add_argument("--data-dir", type=Path, default=None, help="data folder with the record (default: the per-user data folder, docs/windows-macos.md)")
-    parser.set_defaults(func=run_cli)
-
-
-def run_cli(args: argparse.Namespace) -> int:
-    from app.headless import load_plant_or_exit
-    from app.runtime import Runtime
-    from app.users import default_data_dir
-
-    plant = load_plant_or_exit(args.plant)
-    runtime = Runtime(plant, simulate=not args.no_sim, data_dir=args.data_dir or default_data_dir())
-
-    async def main() -> dict:
-        await runtime.start()
-        try:
-            end = time.monotonic() + args.wait
-            while time.monotonic() < end and not all(s.status == "online" for s in runtime.store.devices.values()):
-                await asyncio.sleep(0.2)
-            content = await plant_content(runtime)
-            return content, await write_plant(runtime, args.out, content)
-        finally:
-            await runtime.stop()
-
-    content, paths = asyncio.run(main())
-    for kind, path in paths.items():
-        print(f"{kind}: {path} ({path.stat().st_size} bytes)")
-    if altered_text(content):  # never passed over in silence: the report says it on its cover too
-        print(f"commission report: {altered_text(content)}")
-        return 1
-    return 0

@@ -10,7 +10,7 @@ import tempfile
 import time
 from pathlib import Path
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 from app import host, memory
 from app.audit import AuditLog
@@ -24,6 +24,20 @@ from app.worker import Worker
 from devices.registry import DEVICE_TYPES
 
 log = logging.getLogger(__name__)
+
+
+@runtime_checkable
+class OptionsKeeper(Protocol):
+    """An adapter that says what the plant file should hold for its device (e.g. a setting the device took)."""
+
+    def plant_options(self) -> dict[str, Any]: ...
+
+
+@runtime_checkable
+class ControlledTwin(Protocol):
+    """A twin that declares its simulation controls (``controls()`` in devices/<type>/sim.py)."""
+
+    def controls(self) -> Any: ...
 
 
 PROCESS_NICE = -5  # the GUI process ahead of a browser and other busy programs of the same machine (keep-alive threads: -10)
@@ -251,16 +265,18 @@ class Runtime:
         self.auth_required = auth_required
         self.store = StateStore()
         self.sim = SimulatedPlant(plant) if simulate else None
-        self.worker = Worker(plant, self.store, audit=self.audit)
-        self.worker.after_change = self.after_change  # reminders and kept options durable before a write is reported done
-        self.worker.role_of = self.role_of  # the gate asks the account store at every action
+        # the gate asks the account store at every action; reminders and kept options are durable before a write
+        # is reported done
+        self.worker = Worker(plant, self.store, audit=self.audit, role_of=self.role_of, after_change=self.after_change)
         self._unsaved_path = self.data_dir / UNSAVED_FILE
         self._unsaved_lock = asyncio.Lock()
         self._unsaved_written = self._load_unsaved()
         self._tasks: list[asyncio.Task] = []
+        from app.open_reads import OpenReads
         from app.record import RecordService
 
         self.record = RecordService(self)  # approved sets, snapshots, checkouts, sign-offs (record.sqlite)
+        self.open_reads = OpenReads(self)  # what a device page reads by itself on opening (DeviceType.open_reads)
         from app.replace import ReplacementWatch
 
         self.replacements = ReplacementWatch(self)  # "replaced?": each device's identity against its known one
@@ -296,8 +312,8 @@ class Runtime:
     def sim_controls(self, device: str):
         """The declared simulation controls of ``device``'s twin (``controls()`` in devices/<type>/sim.py,
         a devices.simcontrols.SimControls), or None: not simulated here, or a twin that declares none yet."""
-        controls = getattr(self.twins.get(device), "controls", None)
-        return controls() if callable(controls) else None
+        twin = self.twins.get(device)
+        return twin.controls() if isinstance(twin, ControlledTwin) else None
 
     # -- unsaved changes survive a restart (volatile device settings) -----------------------
     def _unsaved_now(self) -> dict[str, list[str]]:
@@ -331,16 +347,15 @@ class Runtime:
         from app.plant_options import keep_device_options, options_to_keep
 
         for name, adapter in list(self.worker.adapters.items()):
-            wanted = getattr(adapter, "plant_options", None)
-            if not callable(wanted) or not options_to_keep(self.plant, name, wanted()):
+            if not isinstance(adapter, OptionsKeeper) or not options_to_keep(self.plant, name, adapter.plant_options()):
                 continue  # nothing to keep, or the plant holds it already (no thread for it)
             state = self.store.devices.get(name)
             try:
-                done = await asyncio.to_thread(keep_device_options, self.plant, name, wanted())
+                done = await asyncio.to_thread(keep_device_options, self.plant, name, adapter.plant_options())
             except (OSError, PlantError) as exc:
                 done = ""
                 if state is not None:
-                    state.event("error", f"the plant file could not keep {wanted()}: {exc}")
+                    state.event("error", f"the plant file could not keep {adapter.plant_options()}: {exc}")
             if done and state is not None:
                 state.event("info", done)
 
@@ -380,7 +395,7 @@ class Runtime:
             await asyncio.sleep(1.0)
             try:
                 await asyncio.to_thread(self.users.reload_if_changed)
-            except Exception as exc:  # noqa: BLE001 - a broken file keeps the last good accounts
+            except Exception as exc:  # noqa: BLE001 - a task that must not end: a broken file keeps the last good accounts
                 log.error("accounts: %s", exc)
 
     async def start(self) -> None:

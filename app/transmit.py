@@ -2,7 +2,7 @@
 
 Rows are entered as bytes or built by name from the frames each device type declares
 (``transmit_forms`` in its policy.py). Every send and every cyclic start/stop goes through
-the worker (:meth:`app.worker.Worker.engineer_action` / ``refused``): engineer role, audit row.
+the worker's gate (:meth:`app.gate.CommandGate.run` / ``refused``): engineer role, audit row.
 Frames that a device document forbids are refused by name before anything is sent
 (:func:`forbidden_reason`). Cyclic rows belong to the browser session that started them and stop
 under the worker's dead-man rule (``holders`` / ``session_lost``). The list is saved per bus as
@@ -235,8 +235,8 @@ class TransmitList:
 
     async def _audit_stop(self, row: TxRow, user: str, reason: str) -> None:
         try:
-            await self.worker.checked(self._nothing, device=self.bus, role="engineer", user=user, kind="stop",
-                                      describe=f"transmit: cyclic {row.describe()} stopped: {reason}")
+            await self.worker.gate.run(self._nothing, device=self.bus, role="engineer", user=user, kind="stop",
+                                       describe=f"transmit: cyclic {row.describe()} stopped: {reason}")
         except CommissionError as exc:  # stopped anyway; the audit state shows the failure
             log.error("audit: %s", exc)
 
@@ -307,8 +307,8 @@ class TransmitList:
         and say so when a frame of this tool overrides the row (:meth:`overridden`)."""
         found = verdict(row, bus_devices=self.bus_devices())
         if found.refused:
-            await self.worker.refused(device=self.bus, user=user, role=role, describe=describe, reason=found.refused,
-                                      parameter=found.name or row.id_text(), new=row.data.hex(" "))
+            await self.worker.gate.refused(device=self.bus, user=user, role=role, describe=describe, reason=found.refused,
+                                           parameter=found.name or row.id_text(), new=row.data.hex(" "))
             raise TransmitError(found.refused)
         if confirmed is False:
             note = self.overridden(row)
@@ -321,8 +321,8 @@ class TransmitList:
         describe = f"transmit list {self.bus}: add {row.describe()}"
         await self._refuse_if_forbidden(row, user=user, role=role, describe=describe)
         if len(self.rows) >= MAX_ROWS:
-            await self.worker.refused(device=self.bus, user=user, role=role, describe=describe,
-                                      reason=f"the list holds at most {MAX_ROWS} rows")
+            await self.worker.gate.refused(device=self.bus, user=user, role=role, describe=describe,
+                                           reason=f"the list holds at most {MAX_ROWS} rows")
             raise TransmitError(f"the list holds at most {MAX_ROWS} rows")
 
         async def do() -> str:
@@ -331,8 +331,8 @@ class TransmitList:
             await self.save()
             return ""
 
-        await self.worker.engineer_action(do, user=user, role=role, describe=describe, target=self.bus,
-                                          parameter=row.id_text(), new=row.data.hex(" "))
+        await self.worker.gate.run(do, user=user, role=role, describe=describe, device=self.bus,
+                                   parameter=row.id_text(), new=row.data.hex(" "), kind="write")
         return row
 
     async def remove(self, key: str, *, user: str, role: str, session: str = "") -> None:
@@ -349,8 +349,8 @@ class TransmitList:
             await self.save()
             return ""
 
-        await self.worker.engineer_action(do, user=user, role=role, describe=f"transmit list {self.bus}: remove {row.describe()}",
-                                          target=self.bus, parameter=row.id_text())
+        await self.worker.gate.run(do, user=user, role=role, describe=f"transmit list {self.bus}: remove {row.describe()}",
+                                   device=self.bus, parameter=row.id_text(), kind="write")
 
     # -- sending ---------------------------------------------------------------------------------
     async def send_once(self, key: str, *, user: str, role: str, confirmed: bool = False) -> str:
@@ -372,8 +372,8 @@ class TransmitList:
             return ""
 
         note = self.overridden(row)  # before the send: the ID table then names this frame, not the keep-alive
-        await self.worker.engineer_action(do, user=user, role=role, describe=describe, target=self.bus,
-                                          parameter=found.name or row.id_text(), new=row.data.hex(" "))
+        await self.worker.gate.run(do, user=user, role=role, describe=describe, device=self.bus,
+                                   parameter=found.name or row.id_text(), new=row.data.hex(" "), kind="write")
         return note
 
     async def start(self, key: str, *, user: str, role: str, session: str, confirmed: bool = False) -> str:
@@ -400,8 +400,8 @@ class TransmitList:
             return ""
 
         note = self.overridden(row)
-        await self.worker.engineer_action(do, user=user, role=role, describe=describe, target=self.bus,
-                                          parameter=found.name or row.id_text(), new=row.data.hex(" "))
+        await self.worker.gate.run(do, user=user, role=role, describe=describe, device=self.bus,
+                                   parameter=found.name or row.id_text(), new=row.data.hex(" "), kind="write")
         return note
 
     async def stop(self, key: str, *, user: str, role: str) -> None:
@@ -411,8 +411,8 @@ class TransmitList:
         self.version += 1
         row = self.row(key)
         what = row.describe() if row else key
-        await self.worker.checked(self._nothing, device=self.bus, role=role, user=user, kind="stop",
-                                  describe=f"transmit cyclic on {self.bus}: stop {what}")
+        await self.worker.gate.run(self._nothing, device=self.bus, role=role, user=user, kind="stop",
+                                   describe=f"transmit cyclic on {self.bus}: stop {what}")
 
     def stop_all(self) -> None:
         for key in list(self.running):

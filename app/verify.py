@@ -24,6 +24,8 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from app.cli_lang import _
+
 GENESIS = "0" * 64  # the prev_hash of the first row
 HASHED = ("id", "time", "plant", "device", "kind", "user", "role", "title", "data", "supersedes", "prev_hash")
 MANIFEST = "manifest.json"
@@ -325,11 +327,11 @@ def check_archive(path: Path) -> Check:
 
 # -- CLI: commission verify ------------------------------------------------------------------------
 def add_parser(sub) -> None:
-    parser = sub.add_parser("verify", help="check an as-left archive (or the record database) for alterations; "
-                                           "exit code 0 only when intact")
-    parser.add_argument("archive", nargs="?", type=Path, help="the as-left archive (.zip) to check")
-    parser.add_argument("--record", action="store_true", help="check the record database of the data folder instead")
-    parser.add_argument("--data-dir", type=Path, default=None, help="data folder with the record (default: the per-user data folder, docs/windows-macos.md)")
+    parser = sub.add_parser("verify", help=_("check an as-left archive (or the record database) for alterations; "
+                                           "exit code 0 only when intact"))
+    parser.add_argument("archive", nargs="?", type=Path, help=_("the as-left archive (.zip) to check"))
+    parser.add_argument("--record", action="store_true", help=_("check the record database of the data folder instead"))
+    parser.add_argument("--data-dir", type=Path, default=None, help=_("data folder with the record (default: the per-user data folder, docs/windows-macos.md)"))
     parser.set_defaults(func=run_cli)
 
 

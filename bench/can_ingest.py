@@ -63,16 +63,16 @@ def frames(n: int) -> list[can.Message]:
 
 
 class MonitorRefresh:
-    """What the monitor page does per refresh (pages/can_monitor.py): pick the newest 200 frames,
+    """What the monitor page does per refresh (pages/can_monitor.py, its rows from pages/can_trace.py): pick the newest 200 frames,
     decode and format them, build the overwrite view's rows, and serialise both tables as
     NiceGUI sends them to the browser."""
 
     def __init__(self, worker, bus: str):
         from app import recording as rec
-        from pages.can_monitor import _frame_rows  # imports nicegui: done before measuring
+        from pages.can_trace import frame_rows  # imports nicegui: done before measuring
 
         self.rec = rec
-        self.frame_rows = _frame_rows
+        self.frame_rows = frame_rows
         self.state = worker.store.buses[bus]
         self.decoder = rec.FrameDecoder(worker.known_ids(bus), rec.describers(worker, bus, ["hdlock"]))
         self.filter = rec.FrameFilter()

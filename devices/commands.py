@@ -9,6 +9,11 @@ device. Callers name the command and give the arguments.
 Kinds: ``read`` (any role, not audited), ``stop`` (any role, never refused, sent first and audited
 after), ``write``, ``motion``, ``mains``, ``system`` (engineers only, audited before anything is sent).
 
+A command is bound to code, not to a method name: it names the function of the adapter class that runs
+it (``run=ElectrakAdapter.jog``), or one per adapter class where a type has several (the HD-Lock's Modbus
+and CAN adapters). A bus kind whose adapter class defines none of them does not offer the command
+(:func:`commands_of` with ``bus_type``); tests/devices/test_command_contract.py walks every declaration.
+
 Pure: no I/O; imported by the gate and by tests.
 """
 
@@ -66,7 +71,7 @@ class ParamArg:
             param = None
         if param is None:
             raise CommandError(f"{self.name}: {value!r} is not a parameter of this device type")
-        if not param.writable or getattr(param, "never_write", False):
+        if not param.writable or param.never_write:
             raise CommandError(f"{param.label or param.name} is {param.access.value}: not writable")
         return param
 
@@ -92,7 +97,9 @@ class Command:
 
     :param name: what callers invoke it by (also the audit's action)
     :param kind: one of :data:`KINDS`
-    :param method: the adapter method that runs it: ``method(session?, *args, **options)``
+    :param run: the function of the adapter class that runs it, ``run(adapter, session?, *args, **options)``
+        (e.g. ``ElectrakAdapter.jog``), or a tuple of them, one per adapter class of the type; none for a
+        command declared only for its kind (a wording the worker's own callers run with a callable of theirs)
     :param args: the arguments, in the method's order, with their ranges
     :param flags: further keyword arguments the caller may give (true/false), e.g. ``broadcast``
     :param risk: the confirmation text (or a function of the arguments giving it, "" for none)
@@ -112,7 +119,7 @@ class Command:
 
     name: str
     kind: str
-    method: str = ""
+    run: Callable[..., Any] | tuple[Callable[..., Any], ...] = ()
     args: tuple[Arg, ...] = ()
     flags: tuple[str, ...] = ()
     risk: Risk = ""
@@ -156,9 +163,34 @@ class Command:
     def risk_text(self, values: Mapping[str, Any]) -> str:
         return self.risk(values) if callable(self.risk) else self.risk
 
+    @property
+    def functions(self) -> tuple[Callable[..., Any], ...]:
+        """The declared functions, one per adapter class that serves the command."""
+        return self.run if isinstance(self.run, tuple) else (self.run,)
+
+    def function_for(self, adapter_class: type) -> Callable[..., Any] | None:
+        """The declared function an adapter of ``adapter_class`` runs this command with: the one a class in
+        its method resolution order defines; None where the adapter class serves the command with none."""
+        for function in self.functions:
+            if any(vars(owner).get(function.__name__) is function for owner in adapter_class.__mro__):
+                return function
+        return None
+
+    def bound(self, adapter: Any) -> Callable[..., Any] | None:
+        """The adapter's own binding of the declared function (its class's override, or what was put in its
+        place on the adapter), or None where the adapter's class serves this command with none."""
+        function = self.function_for(type(adapter))
+        return None if function is None else getattr(adapter, function.__name__)
+
     def call(self, adapter: Any, session: str, values: Mapping[str, Any], confirmed: bool = False):
-        """Run the adapter method (returns its awaitable or result)."""
-        method = getattr(adapter, self.method)
+        """Run the declared function of the adapter's class (returns its awaitable or result).
+
+        :raises CommandError: the adapter's class serves this command with no function (its bus kind does
+            not offer it)
+        """
+        method = self.bound(adapter)
+        if method is None:
+            raise CommandError(f"{self.name} is not a command of a {type(adapter).__name__}")
         positional = [session] if self.session else []
         positional += [values[a.name] for a in self.args]
         options = {f: values[f] for f in (*self.flags, *self.extras) if f in values}
@@ -197,18 +229,21 @@ def transmit_forms(type_name: str, options: Mapping[str, Any]) -> list[TxForm]:
     """The frames a device of ``type_name`` with ``options`` offers to build by name (none when it declares none)."""
     from devices.sendpolicy import policy_of
 
-    forms = getattr(policy_of(type_name), "transmit_forms", None)
+    policy = policy_of(type_name)
+    forms = policy.transmit_forms if policy is not None else None
     return list(forms(options)) if forms is not None else []
 
 
 WRITE_PARAMETER = "write parameter"
 
 
-def param_write(params: Any, verdict: Callable[[Any, int], tuple[str, str]] | None = None) -> Command:
+def param_write(params: Any, run: Callable[..., Any] | tuple[Callable[..., Any], ...],
+                verdict: Callable[[Any, int], tuple[str, str]] | None = None, session: bool = False) -> Command:
     """The declared write of one parameter of ``params`` (the page's entry, the API, restore): the value
     is checked by the parameter (type, range, access); ``verdict(param, raw) -> (refused, risk)`` is the
-    type's send policy for that write (default: the parameter's own confirmation). The adapter method is
-    ``write_param(param, value, confirmed=)``."""
+    type's send policy for that write (default: the parameter's own confirmation). ``run`` is the adapter
+    class's ``write_param(param, value, confirmed=)`` (``write_param(session, param, value, confirmed=)``
+    with ``session``)."""
 
     def judged(values: Mapping[str, Any]) -> tuple[str, str]:
         param, raw = values["param"], values["raw"]
@@ -224,34 +259,42 @@ def param_write(params: Any, verdict: Callable[[Any, int], tuple[str, str]] | No
 
     def audit(values: Mapping[str, Any], adapter: Any) -> dict[str, Any]:
         param = values["param"]
-        state = getattr(adapter, "state", None)
-        before = state.raw(param) if state is not None else None
+        before = adapter.state.raw(param)
         return {"action": f"write {param.name}", "parameter": param.label or param.name,
                 "old": "" if before is None else param.display(before), "new": param.display(values["raw"])}
 
-    return Command(WRITE_PARAMETER, "write", method="write_param", args=(ParamArg("param", params), ValueArg("value")),
-                   prepare=prepare, confirmation=True, audit=audit,
+    return Command(WRITE_PARAMETER, "write", run=run, args=(ParamArg("param", params), ValueArg("value")),
+                   session=session, prepare=prepare, confirmation=True, audit=audit,
                    risk=lambda values: judged(values)[1], refuse_if=lambda values, bus, device: judged(values)[0])
 
 
-def commands_of(type_name: str) -> dict[str, Command]:
-    """The declared commands of a device type, by name (none when its package declares none)."""
+def commands_of(type_name: str, bus_type: str = "") -> dict[str, Command]:
+    """The declared commands of a device type, by name (none when its package declares none); with
+    ``bus_type``, only those the type's adapter for that bus kind serves (and those declared for their kind only)."""
+    from devices.registry import DEVICE_TYPES
     from devices.sendpolicy import policy_of
 
     policy = policy_of(type_name)
-    return {c.name: c for c in getattr(policy, "COMMANDS", ())}
+    declared: tuple[Command, ...] = policy.COMMANDS if policy is not None else ()
+    if bus_type:
+        adapter_class = DEVICE_TYPES[type_name].adapter_class(bus_type)
+        declared = tuple(c for c in declared if not c.functions or c.function_for(adapter_class) is not None)
+    return {c.name: c for c in declared}
 
 
 READ_PARAMETERS = "read parameters"
-# what every device type offers whose adapter reads its parameter set (backup, records, batch copies)
-COMMON = {READ_PARAMETERS: Command(READ_PARAMETERS, "read", method="backup_read")}
 
 
-def find(type_name: str, name: str) -> Command | None:
-    """The command called ``name`` (or one declared with ``prefix`` whose name starts it); the
-    :data:`COMMON` ones where the type declares none of that name."""
-    declared = commands_of(type_name)
+def read_parameters(run: Callable[..., Any] | tuple[Callable[..., Any], ...]) -> Command:
+    """What every device type declares whose adapter reads its parameter set (backup, records, batch copies):
+    ``run`` is the adapter class's ``backup_read``."""
+    return Command(READ_PARAMETERS, "read", run=run)
+
+
+def find(type_name: str, name: str, bus_type: str = "") -> Command | None:
+    """The command called ``name`` (or one declared with ``prefix`` whose name starts it); with ``bus_type``,
+    only one the type's adapter for that bus kind serves."""
+    declared = commands_of(type_name, bus_type)
     if name in declared:
         return declared[name]
-    prefixed = next((c for c in declared.values() if c.prefix and name.startswith(c.name)), None)
-    return prefixed if prefixed is not None else COMMON.get(name)
+    return next((c for c in declared.values() if c.prefix and name.startswith(c.name)), None)

@@ -200,6 +200,16 @@ def format_can_ids(first: int, last: int, extended: bool) -> str:
 
 
 @dataclass(frozen=True)
+class OpenRead:
+    """A read a device page runs by itself when it opens on a device that answers and none of whose parameters was
+    ever read, so that its entries start at the device's values (a read changes nothing): the declared command
+    ``command``, once per device per ``again_s`` whatever the number of pages (app/open_reads.py)."""
+
+    command: str
+    again_s: float = 30.0
+
+
+@dataclass(frozen=True)
 class DeviceType:
     """What the application needs to know about one kind of device.
 
@@ -219,6 +229,9 @@ class DeviceType:
     :param line_codec: ``"module"`` of the framing of a line the type's own protocol runs on (its
         bus types that are no shared field bus), for the line's transport: e.g. the token passing of
         a multi-master RS485 line
+    :param open_reads: the reads a device page runs by itself when it opens on a device never read (:class:`OpenRead`)
+    :param scans: bus type -> ``"module:function"`` of ``discover(line, first, last, progress)``, the scan
+        for devices of this type on a line of that bus type
     """
 
     name: str
@@ -236,6 +249,8 @@ class DeviceType:
     extra: dict[str, Any] = field(default_factory=dict)
     manufacturer: str = ""
     line_codec: str = ""
+    scans: dict[str, str] = field(default_factory=dict)
+    open_reads: tuple[OpenRead, ...] = ()  # what a device page reads by itself on opening
 
     def can_id_uses(self, options: dict[str, Any], bus_type: str) -> tuple[CanIdUse, ...]:
         """Every CAN ID a device of this type with ``options`` uses on a bus of ``bus_type``."""
@@ -250,12 +265,9 @@ class DeviceType:
         return _load(self.sims[bus_type]) if bus_type in self.sims else None
 
     def line_scan(self, bus_type: str) -> Callable[..., Any] | None:
-        """The scan for devices of this type on a line of ``bus_type``: the module-level ``discover(line,
-        first, last, progress)`` beside its adapter for that bus type, or None where it offers none."""
-        if bus_type not in self.adapters:
-            return None
-        module = importlib.import_module(self.adapters[bus_type].partition(":")[0])
-        return getattr(module, "discover", None)
+        """The scan for devices of this type on a line of ``bus_type`` (declared in ``scans``), or None where it
+        offers none."""
+        return _load(self.scans[bus_type]) if bus_type in self.scans else None
 
 
 def _load(spec: str) -> Callable[..., Any]:

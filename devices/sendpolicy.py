@@ -6,13 +6,15 @@ erase), values that need a confirmation naming the risk, and the CAN IDs it uses
 asks those rules; every path that sends raw bytes (transmit list, replay, Modbus poll window,
 restore, device commands) calls :func:`check_send` (or one of its two halves) and nothing else.
 
-A policy module may define:
+A policy module declares ``COMMANDS`` (:mod:`devices.commands`) and each of these hooks, None where the
+type has none:
 
 - ``check_can(can_id, extended, data, devices, bus) -> Verdict | None``: ``devices`` are the plant's
   devices of the type on the bus (``.name``, ``.options``), ``bus`` all devices of the bus; called for every frame on a CAN bus
   where the type is configured or whose fixed IDs it reserves on every CAN bus;
 - ``check_modbus(function, address, values, device) -> Verdict``: a write to a unit of the type
-  (``device`` None for a unit that is not in the plant, on a line of that type).
+  (``device`` None for a unit that is not in the plant, on a line of that type);
+- ``transmit_forms(options) -> [TxForm]``: the frames the transmit list builds by name (devices/commands.py).
 
 Pure: no I/O, no imports of ``app`` or ``pages``.
 """
@@ -125,7 +127,7 @@ def check_can(bus_devices: Sequence[Any], can_id: int, extended: bool, data: byt
     verdicts = []
     for type_name in _can_types(bus_devices):
         policy = policy_of(type_name)
-        check = getattr(policy, "check_can", None)
+        check = policy.check_can if policy is not None else None
         if check is None:
             continue
         verdicts.append(check(can_id, extended, data, [d for d in bus_devices if d.type == type_name], bus_devices))
@@ -150,7 +152,8 @@ def check_modbus(line_devices: Sequence[Any], message: ModbusMessage) -> Verdict
     device = next((d for d in line_devices if d.options.get("address") == message.unit), None)
     types = {d.type for d in line_devices}
     type_name = device.type if device is not None else (next(iter(types)) if len(types) == 1 else "")
-    check = getattr(policy_of(type_name), "check_modbus", None) if type_name else None
+    policy = policy_of(type_name) if type_name else None
+    check = policy.check_modbus if policy is not None else None
     if check is None:
         what = "this write" if message.function in (6, 16) else "this coil write"
         where = "coil" if message.function in (5, 15) else "holding"

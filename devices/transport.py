@@ -96,12 +96,14 @@ class ModbusTransport(Protocol):
 
 
 class CanFrame(Protocol):
-    """A received frame as handlers get it (a ``can.Message``)."""
+    """A received frame as handlers get it (a ``can.Message``): ``is_rx`` is False for a frame of this
+    tool's own that the interface handed back."""
 
     arbitration_id: int
     is_extended_id: bool
     data: bytearray
     timestamp: float
+    is_rx: bool
 
 
 class TransportStatus(Protocol):
@@ -151,6 +153,38 @@ class CanTransport(Protocol):
     def cyclic_running(self, key: str) -> bool: ...
 
 
+# -- LogiTed line (MO 64): TCP to one barrier, or a multi-master RS485 line ------------------
+
+
+@runtime_checkable
+class TelegramLine(Protocol):
+    """A LogiTed line: one request and the first telegram ``answers`` accepts at a time; raises a
+    :class:`SerialLineError` on failure. The adapter hooks itself in through the three lists and slots."""
+
+    name: str
+    options: Mapping[str, Any]
+    state: TransportStatus
+    listeners: list[Callable[[bytes], None]]  # given every telegram that answers no request
+    closing: list[Callable[[], list[bytes]]]  # frames to send first as the line closes for good
+    describe: Callable[[bytes], str] | None  # the adapter's decoding of a telegram, for the line's log
+
+    async def transact(self, request: bytes, answers: Callable[[bytes], bool], *, timeout: float | None = None,
+                       describe: str = "", interim: Callable[[bytes], bool] | None = None,
+                       interim_timeout: float = 5.0) -> bytes: ...
+
+
+@runtime_checkable
+class TelegramTcpLine(TelegramLine, Protocol):
+    """The TCP connection to one barrier, which serves one client at a time: it can be given up to another."""
+
+    released: bool  # given up on request until :meth:`resume`
+    connected: bool
+
+    def release(self) -> None: ...
+
+    def resume(self) -> None: ...
+
+
 # -- point-to-point serial line -------------------------------------------------------------
 
 
@@ -181,4 +215,12 @@ class SerialTransport(Protocol):
     async def transact(self, request: bytes, complete: Completion, *, timeout: float | None = None,
                        describe: str = "", decode: Callable[[bytes], str] | None = None) -> bytes:
         """Send ``request`` and return the complete answer; raises a :class:`SerialLineError` on failure."""
+        ...
+
+    async def flush_input(self, quiet_s: float = 0.03, limit_s: float = 0.3) -> int:
+        """Drop what the line still holds until it has been quiet ``quiet_s`` (at most ``limit_s``); the bytes dropped."""
+        ...
+
+    async def wake(self, duration_s: float = 0.15) -> None:
+        """Hold the transmit line at space for ``duration_s`` (a low-power unit's wake-up)."""
         ...

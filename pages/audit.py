@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sqlite3
 from datetime import datetime
 
 from nicegui import ui
@@ -60,13 +61,13 @@ def content() -> None:
                                   result=result.value or "", limit=5000)
 
     async def download() -> None:
-        ui.download(to_csv(await entries()).encode(), f"audit-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
+        ui.download(to_csv(await entries(), lang).encode(), f"audit-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
 
     async def refresh() -> None:
         try:
             found = await entries()
             known = sorted(set(runtime.plant.devices) | set(await audit.adevices()))
-        except Exception as exc:  # noqa: BLE001 - a locked database is shown, not raised
+        except (OSError, sqlite3.Error) as exc:  # a locked or unreadable database is shown, not raised
             problem.set_text(_("The audit log cannot be read: {error}").format(error=exc))
             return
         problem.set_text("")

@@ -13,11 +13,11 @@ from nicegui import events, ui
 from app import backup, i18n, project
 from app import runtime as rt
 from app.i18n import english, N_, Lang
-from pages.frame import frame, notify_error
+from pages.frame import ACTION_ERRORS, frame, notify_error
 from pages.session import can_write, current_user
 from pages.diffrows import DIFF_COLUMNS, STATE_SLOT, WRAP
 from pages.diffrows import count as _count  # noqa: F401 - its tests count with it
-from pages.diffrows import row_state as _row_state
+from pages.diffrows import row_state
 from pages.diffrows import state_text
 from pages.project import ProjectCard
 from pages.widgets import columns, upload_button
@@ -124,7 +124,7 @@ class BackupCard:
             try:
                 self.made.append(await backup.backup_device(self.runtime, name, self.directory, step,
                                                             user=user, role=role))
-            except Exception as exc:  # noqa: BLE001 - one device's failure must not stop the others
+            except ACTION_ERRORS as exc:  # one device's refusal must not stop the others
                 failures.append(f"{name}: {exc}")
             self.progress.set_value((n + 1) / len(chosen))
         self.start.enable()
@@ -293,7 +293,7 @@ class RestoreFlow:
         self.progress.set_value(0)
         try:
             self.plan = await backup.plan_restore(self.runtime, self.device.value, self.document, self.progress.set_value)
-        except Exception as exc:  # noqa: BLE001 - type mismatch, unreadable device ...
+        except ACTION_ERRORS as exc:  # type mismatch, unreadable device ...
             notify_error(self.lang.gettext("Cannot restore: {error}").format(error=exc))
             return
         self.progress.set_value(1)
@@ -301,7 +301,7 @@ class RestoreFlow:
             for warning in self.plan.warnings:
                 ui.label(f"⚠ {warning}").classes("text-warning text-body1")
         rows = [
-            {"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": _row_state(r),
+            {"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": row_state(r),
              "state_text": state_text(r, self.lang), "risk": bool(r.changed and r.risk)}
             for r in self.plan.rows
         ]
@@ -330,7 +330,7 @@ class RestoreFlow:
                                   len(to_write)).format(wear=wear, n=len(to_write)) if wear else ""
         state = self.runtime.store.devices[self.plan.device]
         others = backup.unsaved_lines(state, skip={r.key for r in to_write})
-        if not await _confirm_restore(self.plan.device, to_write, others, wear_text, lang):
+        if not await confirm_restore(self.plan.device, to_write, others, wear_text, lang):
             return
         confirmed: set[str] = set()
         for row in self.plan.risky(selected):  # the same confirmation a manual write of the value asks for
@@ -360,14 +360,14 @@ class RestoreFlow:
     async def compare_quietly(self) -> None:
         try:
             self.plan = await backup.plan_restore(self.runtime, self.plan.device, self.document)
-        except Exception:  # noqa: BLE001 - the report above already says what happened
+        except ACTION_ERRORS:  # the report above already says what happened
             return
         rows = {r.key: r for r in self.plan.rows}
         for row in self.table.rows:
             r = rows.get(row["key"])
             if r is not None:
                 row["current"] = r.current_text
-                row["state"] = _row_state(r)
+                row["state"] = row_state(r)
                 row["state_text"] = state_text(r, self.lang)
                 row["risk"] = bool(r.changed and r.risk)
         self.table.selected = [row for row in self.table.rows if row["state"].startswith("differs")]
@@ -378,7 +378,7 @@ class RestoreFlow:
         self.write.set_visibility(changed > 0)
 
 
-async def _confirm_restore(device: str, to_write: list, others: list[str], wear_text: str, lang: Lang | None = None) -> bool:
+async def confirm_restore(device: str, to_write: list, others: list[str], wear_text: str, lang: Lang | None = None) -> bool:
     """Ask before a restore writes, naming every value the device's save step makes permanent: the
     restored ones and every earlier change not saved yet (as the device page's Save dialog does)."""
     lang = english(lang)

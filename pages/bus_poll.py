@@ -15,7 +15,7 @@ from app import modbus_poll as mp
 from app import runtime as rt
 from app.modbus_line import ModbusLine
 from app.worker import AuditUnavailable, PermissionDenied
-from pages.frame import fmt_age, frame, notify_error
+from pages.frame import ACTION_ERRORS, fmt_age, frame, notify_error
 from pages.session import current_user
 from pages.widgets import range_number, range_text
 from pages.command_client import all_valid, checked_value
@@ -398,7 +398,7 @@ class WriteCard:
         except (mp.PollError, PermissionDenied, AuditUnavailable) as exc:
             notify_error(str(exc))
             return
-        except Exception as exc:  # noqa: BLE001 - the line's error, shown
+        except ACTION_ERRORS as exc:  # the line's error, shown
             notify_error(f"write failed: {exc}")
             return
         ui.notify("written", type="positive")

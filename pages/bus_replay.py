@@ -149,8 +149,8 @@ class ReplayCard:
                 return f"after {replay.sent} of {replay.total} frames"
 
             try:  # a stop is recorded afterwards, never refused
-                await worker.checked(stopped, device=bus, role=role, user=user or "anonymous", kind="stop",
-                                     describe=f"stop replay {replay.name} onto {bus}")
+                await worker.gate.run(stopped, device=bus, role=role, user=user or "anonymous", kind="stop",
+                                      describe=f"stop replay {replay.name} onto {bus}")
             except AuditUnavailable:
                 pass
         self.refresh()

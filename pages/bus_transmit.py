@@ -7,12 +7,14 @@ cyclic rows stop when this browser stops confirming it is alive. Viewers never s
 
 from __future__ import annotations
 
+import weakref
+
 from nicegui import background_tasks, ui
 
 from app import runtime as rt
 from app import transmit as tx
 from app.worker import AuditUnavailable, PermissionDenied
-from pages.frame import frame, notify_error
+from pages.frame import ACTION_ERRORS, frame, notify_error
 from pages.session import current_user
 from pages.widgets import range_number
 from pages.command_client import all_valid, cancelled, confirm
@@ -82,7 +84,7 @@ class TransmitView:
         except (tx.TransmitError, PermissionDenied, AuditUnavailable, KeyError) as exc:
             notify_error(str(exc))
             return False
-        except Exception as exc:  # noqa: BLE001 - shown, never ends the page
+        except ACTION_ERRORS as exc:  # shown, never ends the page
             notify_error(f"{type(exc).__name__}: {exc}")
             return False
         if ok:
@@ -278,10 +280,13 @@ class RowsCard:
             self.refresh()
 
 
+_LOADING: weakref.WeakSet[tx.TransmitList] = weakref.WeakSet()  # the lists whose file is being loaded (once)
+
+
 def _engineer_view(runtime, bus: str) -> None:
     tl = tx.transmit_list(runtime.worker, bus, runtime.data_dir)
-    if not tl.loaded.is_set() and not getattr(tl, "_loading", False):
-        tl._loading = True
+    if not tl.loaded.is_set() and tl not in _LOADING:
+        _LOADING.add(tl)
         background_tasks.create(tl.load(), name=f"load transmit list {bus}")
     view = TransmitView(runtime, bus, tl)
     devices = runtime.plant.devices_on(bus)

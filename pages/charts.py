@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import json
 import time
+import weakref
 from datetime import datetime
 
-from nicegui import context, ui
+from nicegui import Client, context, ui
 from nicegui.element import Element
 
 from app import i18n
@@ -53,6 +54,9 @@ document.addEventListener("visibilitychange", () => {
   if (!document.hidden) for (const id of Object.keys(window.__cx || {})) window.__cxFlush(id, 0);
 });
 </script>"""
+
+
+_EXTENDED: weakref.WeakSet[Client] = weakref.WeakSet()  # the browser pages that have the chart's extend script
 
 
 class _Plot(ui.plotly):
@@ -160,9 +164,9 @@ class HistoryChart:
             ui.toggle(options, value=window_s, on_change=lambda e: self.set_window(int(e.value))) \
                 .props("dense size=sm no-caps").classes("self-end").props('data-chart-window')
         client = context.client
-        if not getattr(client, "commission_extend_js", False):
+        if client not in _EXTENDED:
             ui.add_head_html(EXTEND_JS)
-            client.commission_extend_js = True
+            _EXTENDED.add(client)
         self.plot = _Plot(self.figure).classes("w-full")
         self.max_points = self.MAX_POINTS
         self.update()

@@ -1,9 +1,10 @@
 """The pages' command client: every write, command and question of a page goes through here to the
-worker's gate (``Worker.invoke``), with the confirmation dialogs, refusals and the controls a session
-may not use shown disabled with their reason."""
+worker's gate (``worker.gate``, :class:`app.gate.CommandGate`), with the confirmation dialogs, refusals
+and the controls a session may not use shown disabled with their reason."""
 
 from __future__ import annotations
 
+import inspect
 import logging
 from collections.abc import Awaitable, Callable
 
@@ -58,36 +59,36 @@ async def run_command(
     the page's language. ``parameter`` and ``new``: the parameter's name and value as an engineer reads them,
     for the audit row of a question answered with Cancel.
     """
-    from app.gate import NeedsConfirmation
+    from app.gate import NeedsConfirmation, shown
     from devices.commands import CommandError
-    from devices.errors import DeviceError
+    from devices.errors import CommissionError
     from pages.session import current_user
 
     worker = rt.current().worker
     user, role = current_user()
     try:
         try:
-            result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
-                                         confirmed=confirmed)
+            result = await worker.gate.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
+                                              confirmed=confirmed)
         except NeedsConfirmation as question:
             if not await confirm(title or f"{action}?", question.question,
                                  ok=i18n.client_language().gettext("Send") if ok is None else ok):
-                await cancelled(device, action, parameter=parameter, new=new if parameter else ", ".join(
-                    f"{k}={getattr(v, 'name', v)}" for k, v in (args or {}).items() if k != "known"))
+                await cancelled(device, action, parameter=parameter,
+                                new=new if parameter else shown({k: v for k, v in (args or {}).items() if k != "known"}))
                 return False, None
             user, role = current_user()  # looked up again: the answer may come much later
-            result = await worker.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
-                                         confirmed=True)
+            result = await worker.gate.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
+                                              confirmed=True)
     except PermissionDenied as exc:
         ui.notify(str(exc), type="negative")
         return False, None
     except CommandError as exc:
         ui.notify(f"{action}: {exc}", type="negative", multi_line=True)
         return False, None
-    except DeviceError as exc:  # a refusal of the device, its rules or its line: the message says what to do
+    except CommissionError as exc:  # a refusal of the device, its rules, its line or the audit log: the message says what to do
         ui.notify(f"{action}: {exc}", type="negative", multi_line=True, close_button="OK", timeout=15000)
         return False, None
-    except Exception as exc:  # noqa: BLE001 - not a refusal: a fault of this tool, logged with its traceback
+    except Exception as exc:  # noqa: BLE001 - the page's handler: a fault of this tool is logged with its traceback and said
         log.exception("%s on %s failed", action, device)
         ui.notify(f"{action}: {exc}", type="negative", multi_line=True, close_button="OK", timeout=15000)
         return False, None
@@ -101,19 +102,18 @@ async def refuse(device: str, describe: str, reason: str, parameter: str = "", n
     from pages.session import current_user
 
     user, role = current_user()
-    await rt.current().worker.refused(device=device, user=user or "anonymous", role=role, describe=describe,
-                                      reason=reason, parameter=parameter, new=new)
+    await rt.current().worker.gate.refused(device=device, user=user or "anonymous", role=role, describe=describe,
+                                           reason=reason, parameter=parameter, new=new)
 
 
 async def cancelled(device: str, describe: str, parameter: str = "", new: object = "") -> None:
     """The user answered a question with Cancel: nothing sent, nothing refused (an information on the device,
     audited as cancelled under the parameter's name)."""
-    from app.gate import cancelled as note
     from pages.session import current_user
 
     user, role = current_user()
-    await note(rt.current().worker, device=device, user=user or "anonymous", role=role, describe=describe,
-               parameter=parameter, new=new)
+    await rt.current().worker.gate.cancelled(device=device, user=user or "anonymous", role=role, describe=describe,
+                                             parameter=parameter, new=new)
 
 
 def all_valid(*fields: ui.number, lang: Lang | None = None) -> bool:
@@ -260,13 +260,13 @@ def sim_action(device: str, describe: str, fn: Callable[[], object]) -> Callable
 
         async def act() -> str:
             result = fn()
-            if hasattr(result, "__await__"):
+            if inspect.isawaitable(result):
                 await result
             return ""
 
         try:
-            await rt.current().worker.checked(act, device=device, role=role, user=user or "anonymous",
-                                              describe=f"simulation: {describe}", kind="system")
+            await rt.current().worker.gate.run(act, device=device, role=role, user=user or "anonymous",
+                                               describe=f"simulation: {describe}", kind="system")
         except Exception as exc:  # noqa: BLE001 - refused or failed: said on the page
             ui.notify(str(exc), type="negative")
 

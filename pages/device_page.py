@@ -1,6 +1,7 @@
 """What every device page is made of: a view of one device's live record, small cards with ``build()``
-(in the page's layout) and ``refresh()`` (on every change the store pushes), the status badge and row
-every page starts with, and the page around the cards (frame, event log, the way out, following the store).
+(in the page's layout) and ``refresh()`` (on every change the store pushes; :mod:`pages.cards`), the status
+badge and row every page starts with, and the page around the cards (frame, event log, the way out, following
+the store).
 
 A device page reads::
 
@@ -52,7 +53,7 @@ class DeviceView:
         self.state: DeviceState = runtime.store.devices[name]
         self.session = ui.context.client.id
         self.tag = session_tag(self.session)
-        self.cards: list = []
+        self.cards: list = []  # its cards (pages.cards), refreshed with the page
         self.guard: WriteGuard | None = None  # the page's write and command controls, off with the reason while silent
         self.pushing = False  # while the store's push runs the page's refresh (see :attr:`ages_due`)
         self._keys: dict[str, tuple] = {}  # a register parameter's name -> the (space, address) of its words
@@ -116,6 +117,12 @@ class DeviceView:
         registers = self.state.registers
         return tuple(None if (e := registers.get((p.space, a))) is None else e[0] for p in params for a in p.addresses)
 
+    def readings(self, params: Iterable[Param]) -> tuple:
+        """The register words of ``params`` with their read times, (word, time) each (None for a word not read
+        yet): what a card that shows when each value was read is drawn from."""
+        registers = self.state.registers
+        return tuple([registers.get((p.space, a)) for p in params for a in p.addresses])
+
     def live(self, point: str) -> LiveValue | None:
         return self.state.live(point)
 
@@ -145,88 +152,6 @@ class DeviceView:
         result = await run_command(self.name, command, args=args, session=self.session, success=success, **options)
         self.refresh()
         return result
-
-
-class DeviceCard:
-    """One part of a device page."""
-
-    _drawn: object = None  # the inputs the card last drew (see :meth:`unchanged`)
-    _ages: object = None  # and what its ages were drawn from
-    aging = False  # the card shows a value stale or offline: its mark and age move without a new value
-
-    def __init__(self, view: DeviceView):
-        self.view = view
-
-    def unchanged(self, inputs: object, ages: Callable[[], object] | None = None) -> bool:
-        """Whether the card may skip this refresh: ``inputs`` (what its values are drawn from, e.g.
-        :meth:`DeviceView.inputs`; the device's online state is added here) are what it last drew, no age is due
-        (:attr:`DeviceView.ages_due`) and nothing it shows is stale or offline (:attr:`aging`). Otherwise the inputs
-        are noted as drawn and the card draws. A card whose read times or counters alone moved does nothing.
-
-        ``ages()``: what the card's time-dependent marks are drawn from (the qualities of its values,
-        :meth:`DeviceView.qualities`; an age it shows in words): when ages are due and they are what the card
-        last drew, the once-a-second round skips it as well. Without it the round always draws."""
-        inputs = (self.view.state.online, inputs)
-        if inputs == self._drawn and not self.aging:
-            if not self.view.ages_due:
-                return True
-            if ages is not None:
-                now = ages()
-                if now == self._ages:
-                    return True
-                self._ages = now
-                return False
-        self._drawn = inputs
-        self._ages = None if ages is None else ages()
-        return False
-
-    @property
-    def guard(self) -> WriteGuard:
-        """The page's write guard: controls added to it are off, with the reason, while they may not be used."""
-        return self.view.guard
-
-    def build(self) -> None:
-        raise NotImplementedError
-
-    def refresh(self) -> None:
-        """Show what the store holds now (a card that follows the store itself has nothing to do)."""
-
-
-def point_values(points: dict, names) -> tuple:
-    """What the named points show, not when they were heard: (value, raw, text) of each, None for one not
-    published. A card compares it with what it drew last: a telegram or poll with the same values draws nothing."""
-    return tuple([None if p is None else (p.value, p.raw, p.text) for p in map(points.get, names)])
-
-
-class DrawnCard(DeviceCard):
-    """A card drawn only when what it shows changed (``inputs()``, compared with what it drew last) and on the
-    store's once-a-second round of the device (ages, stale marks); ``draw()`` draws it, and returns False when it
-    showed a value as stale or offline (it is then drawn again with the next push, which may bring the value back).
-    ``context``: what the page passes to every card's refresh (the SCU page: what the user may do)."""
-
-    drawn: object = None
-
-    def inputs(self, *context) -> object:
-        raise NotImplementedError
-
-    def draw(self, *context) -> bool | None:
-        raise NotImplementedError
-
-    def refresh(self, *context) -> None:
-        inputs = self.inputs(*context)
-        if inputs == self.drawn and not self.view.store.age_round:
-            return
-        self.drawn = inputs
-        if self.draw(*context) is False:
-            self.drawn = None
-
-
-@contextmanager
-def titled_card(title: str, classes: str = "w-full") -> Iterator[ui.card]:
-    """A card with its title on top."""
-    with ui.card().classes(classes) as card:
-        ui.label(title).classes("text-subtitle1")
-        yield card
 
 
 class StatusBadge:
@@ -279,4 +204,4 @@ def device_page(view: DeviceView, title: str, stop: Callable[[], object] | None 
     follow(view.state, view.pushed)
 
 
-__all__ = ["DeviceCard", "DeviceView", "DrawnCard", "point_values", "StatusBadge", "StatusRow", "device_page", "titled_card"]
+__all__ = ["DeviceView", "StatusBadge", "StatusRow", "device_page"]

@@ -14,7 +14,7 @@ from app.i18n import english, Lang
 from app.plant import DEMO_PLANT, DeviceConfig, append_device, can_id_conflict, device_toml
 from app.worker import AuditUnavailable, PermissionDenied
 from devices.registry import DEVICE_TYPES, format_can_ids
-from pages.frame import fmt_age
+from pages.frame import ACTION_ERRORS, fmt_age
 from pages.session import current_user
 from pages.widgets import range_number
 from pages.command_client import all_valid
@@ -57,10 +57,10 @@ def open_discover_dialog(bus: str) -> None:
         user, role = current_user()
         try:
             # a scan holds the line's polling and talks to every address: an engineer action, audited
-            found = await runtime.worker.engineer_action(
+            found = await runtime.worker.gate.run(
                 lambda: runtime.worker.discover(bus, a, b, on_progress), user=user, role=role,
-                describe=f"scan line {bus} addresses {a}..{b}", target=bus)
-        except Exception as exc:  # noqa: BLE001 - the scan stops; the engineer is told why
+                describe=f"scan line {bus} addresses {a}..{b}", device=bus, kind="write")
+        except ACTION_ERRORS as exc:  # the scan stops; the engineer is told why
             ui.notify(f"discover failed: {exc}", type="negative")
             found = []
         finally:
@@ -196,9 +196,9 @@ def adopt_dialog(bus: str, entry: dict, tile_row, add_tile: Callable[[str], None
 
             try:
                 # it changes the running plant (and the plant file): an engineer action, audited
-                await runtime.worker.engineer_action(
-                    adopt, user=user, role=role, target=dev.name, new=device_toml(dev).strip(),
-                    describe="adopt discovered device" + (f" and append it to {path.name}" if write else ""))
+                await runtime.worker.gate.run(
+                    adopt, user=user, role=role, device=dev.name, new=device_toml(dev).strip(),
+                    describe="adopt discovered device" + (f" and append it to {path.name}" if write else ""), kind="write")
             except (ValueError, OSError, PermissionDenied, AuditUnavailable) as exc:
                 ui.notify(_("Cannot adopt: {error}").format(error=exc), type="negative", multi_line=True)
                 return

@@ -1,43 +1,39 @@
-"""Electrak HD network page: live charts, flags, control with keep-alive, service parameters.
+"""Electrak HD network page: live charts, flags, control with keep-alive, service parameters
+(:mod:`pages.electrak_service`), bit rate.
 
 Reads only the live store (the points and records :mod:`devices.electrak.adapter` publishes) and invokes
 the declared commands (devices/electrak/policy.py) through the worker's gate. Each card is a
-:class:`pages.device_page.DeviceCard` with ``build()`` (in the page's layout) and ``refresh()`` (on every
+:class:`pages.cards.DeviceCard` with ``build()`` (in the page's layout) and ``refresh()`` (on every
 change the store pushes); :func:`pages.device_page.device_page` puts the frame, events and STOP bar around them."""
 
 from __future__ import annotations
 
-import csv
-import html
-import io
-import logging
 import time
 from datetime import datetime
 
-from nicegui import background_tasks, ui
+from nicegui import ui
 
 from app import i18n
 from app import worker as worker_module
+from app.csvfile import csv_text
 from app.i18n import N_
 from devices.electrak import adapter as facts
 from devices.electrak import codec
 from devices.electrak.adapter import FOREIGN_SENDER, SERIES
-from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS, length_of, refusal
+from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_SPECIFIER, PARAMS
 from devices.electrak.policy import AREA_CLEAR_RISK
-from pages.device_page import DeviceCard, DeviceView, DrawnCard, StatusRow, device_page, point_values, titled_card
-from pages.frame import fmt_age, fmt_time
+from pages.cards import DeviceCard, DrawnCard, point_values, titled_card
+from pages.charts import HistoryChart
+from pages.command_client import WriteGuard, checked_value, confirm, enable_unless, refuse, write_from_page
+from pages.device_page import DeviceView, StatusRow, device_page
+from pages.electrak_service import ServiceCard, save_parameters
+from pages.frame import fmt_age
 from pages.session import current_user
 from pages.simcontrols import sim_card
-from pages.widgets import entry_age, lamp_html, LampStrip, mark_quality, quality_note, range_number, stop_bar
-from pages.command_client import checked_value, confirm, enable_unless, refuse, write_from_page, WriteGuard
-from pages.charts import HistoryChart
-
-log = logging.getLogger(__name__)
+from pages.widgets import LampStrip, entry_age, lamp_html, mark_quality, quality_note, range_number, stop_bar
 
 WINDOW_S = 60
 TIMEOUT_BIT = 5  # error flags bit 5: Message timeout ("Fehler-Flags")
-AUTO_READ_AGAIN_S = 30.0  # a page opened on a network whose service parameters were never read reads them once
-_auto_read: dict[str, float] = {}  # network -> when a page last read its service parameters by itself
 CHART_ROWS = [[facts.P_POSITION, facts.P_DRIVE_TARGET], [facts.P_CURRENT], [facts.P_SPEED]]
 # the points' names and the network's summary of them (devices/electrak/adapter.py), and who else may send 0x06
 POINT_WORDS = (N_("Drive target"), N_("Position"), N_("Current"), N_("Speed"), N_("mean"), N_("highest"),
@@ -94,11 +90,10 @@ class NetworkCard(DrawnCard):
 
     def inputs(self) -> tuple:
         state = self.view.state
-        points = state.points
-        return (state.status, point_values(points, self.NUMBERS), point_values(points, (facts.P_HEARD, facts.P_CONFIGURED,
-                                                                                       facts.P_SATURATED)))
+        return (state.status, point_values(state, self.NUMBERS), point_values(state, (facts.P_HEARD, facts.P_CONFIGURED,
+                                                                                     facts.P_SATURATED)))
 
-    def draw(self) -> None:
+    def draw(self) -> bool:
         view, state = self.view, self.view.state
         _ = view.lang.gettext
         self.status.refresh()
@@ -112,8 +107,7 @@ class NetworkCard(DrawnCard):
         saturated = view.fact(facts.P_SATURATED, "")
         self.saturated.set_text(_(saturated) if saturated and view.online() else "")  # gettext("") is the catalog's header
         self.seen.set_text(_("last status {age}").format(age=fmt_age(state.age, view.lang)))
-        if not self.numbers.draw():
-            self.drawn = None  # a stale or offline value: drawn again with the next telegram (it may be good again)
+        return self.numbers.draw()  # False: a stale or offline value, drawn again with the next telegram (it may be good again)
 
 
 class FlagsCard(DrawnCard):
@@ -143,21 +137,21 @@ class FlagsCard(DrawnCard):
 
     def inputs(self) -> tuple:
         state = self.view.state
-        return state.status, point_values(state.points, self.POINTS)
+        return state.status, point_values(state, self.POINTS)
 
-    def draw(self) -> None:
+    def draw(self) -> bool:
         view, state = self.view, self.view.state
         _ = view.lang.gettext
         online = view.online()
         idle = bool(view.fact(facts.P_IDLE, True))  # Message timeout while nobody sends 0x06: the idle state, not a red fault
-        motion = [(state.point(n), n, _(text)) for n, text in codec.MOTION_FLAGS.values()]
-        errors = [(state.point(n), n, _("{text}. Clears: {clears}.").format(text=_(text), clears=_(clears)), bit)
+        motion = [(state.live(n), n, _(text)) for n, text in codec.MOTION_FLAGS.values()]
+        errors = [(state.live(n), n, _("{text}. Clears: {clears}.").format(text=_(text), clears=_(clears)), bit)
                   for bit, (n, text, clears) in codec.ERROR_FLAGS.items()]
         self.motion.show([lamp_html(n, _(n), entry, text) for entry, n, text in motion])
         self.errors.show([lamp_html(n, _(n), entry, text, "alarm", idle if bit == TIMEOUT_BIT else None)
                           for entry, n, text, bit in errors])
-        if any(entry is not None and entry["quality"] in ("stale", "offline") for entry, *_rest in motion + errors):
-            self.drawn = None  # drawn again with the next telegram, which may bring them back
+        # a stale or offline lamp: drawn again with the next telegram, which may bring them back
+        good = not any(value is not None and value.quality in ("stale", "offline") for value, *_rest in motion + errors)
         errors = view.fact(facts.P_ERRORS, 0)
         self.idle_note.set_text(_("Message timeout is expected while idle: nobody sends the control telegram 0x06. "
                                   "It clears with the first telegrams when you take control.")
@@ -170,6 +164,7 @@ class FlagsCard(DrawnCard):
                 for bit in faults:
                     fault, _text, clears = codec.ERROR_FLAGS[bit]
                     ui.label(_("{fault}: clears: {clears}").format(fault=_(fault), clears=_(clears))).classes("text-negative text-body2")
+        return good
 
 
 class ChartCard(DeviceCard):
@@ -183,7 +178,7 @@ class ChartCard(DeviceCard):
                 ui.label(self.view.lang.gettext("Position, current and speed (last {window} s, 100 ms frames)").format(
                     window=WINDOW_S)).classes("text-subtitle1")
                 ui.space()
-                ui.button("CSV", icon="download", on_click=lambda: _export_csv(state, name)).props("flat dense")
+                ui.button("CSV", icon="download", on_click=lambda: _export_csv(state, name, self.view.lang)).props("flat dense")
                 ui.button("PNG", icon="image", on_click=lambda: _export_png(chart, name)).props("flat dense")
             # one figure, three rows over one time axis: one drawing a second for all of them
             chart = HistoryChart(state, rows=CHART_ROWS, row_heights=(1.6, 1, 1), window_s=WINDOW_S, height=520,
@@ -340,11 +335,10 @@ class DriveCard(DrawnCard):
         return start
 
     def inputs(self) -> tuple:
-        points = self.view.state.points
-        other = points.get(facts.P_FOREIGN)
-        foreign = other is not None and other.value is not None and time.time() - other.value.time <= 2.0
-        return (self.guard.reason, point_values(points, (facts.P_CONTROL, facts.P_TELEGRAM)),
-                other.value if foreign else None, self.area_clear_for)
+        other = self.view.fact(facts.P_FOREIGN)
+        foreign = other is not None and time.time() - other.time <= 2.0
+        return (self.guard.reason, point_values(self.view.state, (facts.P_CONTROL, facts.P_TELEGRAM)),
+                other if foreign else None, self.area_clear_for)
 
     def draw(self) -> None:
         view = self.view
@@ -423,246 +417,10 @@ class NumbersGrid:
             mark_quality(row, quality)
             if quality in ("stale", "offline"):
                 good = False
-                age.set_text(quality_note(quality, entry_age(value.entry()), self.lang))
+                age.set_text(quality_note(quality, entry_age(value), self.lang))
             else:
                 age.set_text("")
         return good
-
-
-def _answers_text(report: facts.ServiceReport | None, lang=None) -> tuple[str, str]:
-    """Short text and tooltip of the last exchange of one parameter with every actuator."""
-    if not report:
-        return "", ""
-    _ = (lang or i18n.get("en")).gettext
-    tip = "; ".join(_("answer {n}: {text}").format(n=n, text=a) for n, a in enumerate(report.answers, 1)) or _("no answer")
-    if report.ok:
-        return _("{n} of {expected} agree").format(n=len(report.answers), expected=report.expected), tip
-    return "; ".join(report.problems), tip
-
-
-class ServiceCard(DrawnCard):
-    """The service parameters (0x0A / 0x0B) of every actuator: value, age, answers, write, save."""
-
-    view: ElectrakView
-
-    def __init__(self, view: ElectrakView):
-        super().__init__(view)
-        self.rows: dict = {}
-        self.entries: dict = {}  # parameter key -> its entry field
-        self.shown: dict = {}  # parameter key -> the device value the field was last set to
-        self.auto_read = False
-
-    def build(self) -> None:
-        view, guard = self.view, self.guard
-        _ = view.lang.gettext
-        with ui.card().classes("w-full"):
-            with ui.row().classes("items-center w-full"):
-                ui.label(_("Service parameters (0x0A / 0x0B)")).classes("text-subtitle1")
-                self.unsaved = ui.badge("", color="orange")
-                ui.space()
-                guard.add(
-                    ui.button(_("Read all"), icon="refresh", on_click=lambda: view.act("read service parameters")).props("outline"),
-                    ui.button(_("Save parameters (0xF0)"), icon="save", on_click=lambda: _save(view)).props("data-testid=save-params"),
-                )
-            ui.label(_("The right password is written to 0xFF before each read or write. Each of the {n} actuators answers "
-                       "for itself: a read or write fails unless every one answers alike. Changes hold until power-off unless "
-                       "saved.").format(n=len(view.actuators))).classes("text-caption text-grey-8")
-            # specifier, name, value, entry, Write: the entry takes what is left up to 12rem, never over the button
-            with ui.grid(columns="auto minmax(7rem, 1fr) minmax(7rem, 1fr) minmax(7rem, 12rem) auto") \
-                    .classes("w-full items-center gap-x-4 gap-y-1"):
-                for h in (N_("Specifier"), N_("Parameter"), N_("Value (every actuator)"), N_("New value"), ""):
-                    ui.label(_(h) if h else "").classes("text-caption text-grey-8")
-                for p in PARAMS:
-                    self._row(p)
-            self.last = ui.label().classes("text-caption mono text-grey-8")
-            self.form = ui.label().classes("text-caption text-grey-8")
-
-    def _row(self, p) -> None:
-        _ = self.view.lang.gettext
-        ui.html(f'<div class="mono text-caption">0x{p.address:02X}</div>'  # static: one element
-                f'<div class="text-caption text-grey-8">{html.escape(specifier_note(p, self.view.lang))}</div>', sanitize=False) \
-            .classes("nicegui-column gap-0").props(f'data-specifier="{p.address:02X}"')
-        with ui.row().classes("items-center gap-1"):
-            ui.label(_(p.name)).tooltip(p.description)
-            mark = ui.badge(_("unsaved"), color="orange")
-        cell = LampStrip("nicegui-column gap-0")  # value, read time or age, the answers: one element, drawn on change
-        if p.address == BITRATE_SPECIFIER:
-            ui.label(_("change it step by step below")).classes("text-caption text-grey-8")
-            ui.element("span")
-        else:
-            entry = service_entry(p, self.view.state.raw(p), self.view.lang)
-            entry.props(f"data-testid=entry-{p.address:02X}")
-            self.shown[p.key] = entry.value
-            entry.on("keydown.enter", lambda: self.write(p, entry))  # Enter writes, as the button does (same question)
-            self.guard.add(ui.button(_("Write"), on_click=lambda: self.write(p, entry))
-                           .props(f"data-testid=write-{p.address:02X}"))
-            self.entries[p.key] = entry
-        self.rows[p.key] = (p, mark, cell)
-
-    async def write(self, param, entry) -> None:
-        """Write the entry; afterwards the field shows the value read back from the actuators, not what was typed."""
-        state = self.view.state
-        before = state.read_time(param)
-        await _write_service(self.view.name, param, entry, self.view.lang)
-        read = state.read_time(param)
-        raw = state.raw(param)
-        if read is not None and read != before and raw is not None:
-            value = param.decode(raw)
-            _show(entry, value)
-            entry.error = None
-            self.shown[param.key] = value
-
-    def follow_entry(self, key: str, p, raw: int | None) -> None:
-        """A field shows the actuators' value until the engineer types into it (hdlock's rule)."""
-        entry = self.entries.get(key)
-        if entry is None or raw is None:
-            return
-        value = p.decode(raw)
-        if entry.value is None or entry.value in (self.shown.get(key), value):  # untouched
-            _show(entry, value)
-            self.shown[key] = value
-
-    def read_once(self) -> None:
-        """Read the service parameters when the page finds the network answering and none of them ever read, so
-        that the fields start at the actuators' values (a read changes nothing; once per network per 30 s)."""
-        view = self.view
-        if self.auto_read or not view.online() or any(view.state.raw(p) is not None for p in PARAMS):
-            return
-        self.auto_read = True
-        now = time.monotonic()
-        if now - _auto_read.get(view.name, -AUTO_READ_AGAIN_S) < AUTO_READ_AGAIN_S:
-            return
-        _auto_read[view.name] = now
-        user, role = current_user()
-
-        async def read() -> None:
-            try:
-                await view.runtime.worker.invoke(view.name, "read service parameters", None, user=user or "anonymous",
-                                                 role=role, session=view.session)
-            except Exception as exc:  # noqa: BLE001 - the card shows "not read" and the answers; Read all retries
-                log.info("%s: service parameters not read on opening the page: %s", view.name, exc)
-
-        background_tasks.create(read(), name=f"read service parameters {view.name}")
-
-    def refresh(self) -> None:
-        self.read_once()
-        state = self.view.state
-        for key, entry in self.entries.items():
-            if entry.value is None:  # a field left empty shows the actuators' value again (a new value: in draw())
-                self.follow_entry(key, self.rows[key][0], state.raw(self.rows[key][0]))
-        super().refresh()
-
-    def inputs(self) -> tuple:
-        state = self.view.state
-        registers = state.registers
-        return (state.status, tuple([registers.get((p.space, a)) for p in PARAMS for a in p.addresses]),
-                frozenset(state.unsaved),
-                point_values(state.points, (facts.P_SERVICE_REPORTS, facts.P_SERVICE_LAST, facts.P_SAVE_FORM)))
-
-    def draw(self) -> None:
-        view, state = self.view, self.view.state
-        lang = view.lang
-        _ = lang.gettext
-        reports = {r.key: r for r in view.fact(facts.P_SERVICE_REPORTS, ())}
-        now = time.time()
-        for key, (p, mark, cell) in self.rows.items():
-            raw = state.raw(p)
-            self.follow_entry(key, p, raw)
-            report = reports.get(key)
-            value = (_("not read") if not report or report.ok else _("no common value")) if raw is None \
-                else lang.numbers_in(p.display(raw))
-            read = state.read_time(p)
-            quality = state.quality(read, False, now)  # read on demand: good while the network answers
-            mark_quality(cell.element, quality if raw is not None else "unknown")
-            note = quality_note(quality, None if read is None else now - read, lang) if quality in ("stale", "offline") else ""
-            age = note or (_("read {time}").format(time=fmt_time(read)) if read is not None and raw is not None else "")
-            text, tip = _answers_text(report, lang)
-            cell.show(['<div class="nicegui-row row items-baseline gap-0 no-wrap">'
-                       f'<div class="mono">{html.escape(value)}</div><div class="q-age" data-testid="age-{p.address:02X}">'
-                       f'{html.escape(age)}</div></div><div class="text-caption '
-                       + ("text-grey-8" if not report or report.ok else "text-negative") + '"'
-                       + (f' data-tip="{html.escape(tip, quote=True)}"' if tip else "") + f'>{html.escape(text)}</div>'])
-            mark.set_visibility(key in state.unsaved)
-        self.unsaved.set_text(_("{n} unsaved").format(n=len(state.unsaved)))
-        self.unsaved.set_visibility(bool(state.unsaved))
-        report = view.fact(facts.P_SERVICE_LAST)
-        self.last.set_text("" if not report else _("last service telegram: {what} at {time}: ").format(
-                               what=report.what, time=fmt_time(report.time))
-                           + ("; ".join(_("answer {n}: {text}").format(n=n, text=a) for n, a in enumerate(report.answers, 1))
-                              or _("no answer"))
-                           + ("" if report.ok else " - " + "; ".join(report.problems)))
-        form = view.fact(facts.P_SAVE_FORM)
-        self.form.set_text(_("last save: the network accepted the {form}").format(form=_(form)) if form else
-                           _("Save sends the {first} and, on WRONG_SIZE, once the {second}.").format(
-                               first=_(codec.SAVE_FORMS[codec.SAVE_LENGTHS[0]]), second=_(codec.SAVE_FORMS[codec.SAVE_LENGTHS[1]])))
-
-
-SAVE_FORM_WORDS = (N_("4-byte form (parameter table)"), N_("1-byte form (document example)"))  # codec.SAVE_FORMS
-
-
-def specifier_note(p, lang=None) -> str:
-    """What the parameter is beside its specifier: its length and unit, and that its password goes to 0xFF first.
-    The password itself is a key, not data: it is never shown (it is in the register map for the adapter only)."""
-    unit = "" if p.enum is not None else f", {p.unit}" if p.unit else ""
-    n = length_of(p)
-    return (lang or i18n.get("en")).ngettext("{n} byte{unit}, password-protected", "{n} bytes{unit}, password-protected",
-                                             n).format(n=n, unit=unit)
-
-
-async def _save(view: ElectrakView) -> None:
-    ok, form = await view.act("save parameters")
-    if ok:
-        _ = view.lang.gettext
-        ui.notify(_("parameters saved: the network accepted the {form}").format(form=_(form)), type="positive")
-
-
-def _show(entry: ui.number, value) -> None:
-    """Put the device's ``value`` in the field as the device has it: 321, not the 321.0 a field shows after
-    it held a fraction (the number element keeps the form of what it held before)."""
-    text = str(int(value)) if float(value).is_integer() else str(value)
-    if entry.value == value and entry.props.get(entry.VALUE_PROP) == text:
-        return
-    entry.value = None  # the element takes the integer form from an empty field
-    entry.value = value
-
-
-def service_entry(param, raw: int | None, lang=None) -> ui.number:
-    """The entry of one service parameter, starting at the actuators' value when it is known: a fraction where
-    the parameter takes whole numbers, a finer step than its unit (0.1 mm) or a value out of its range is
-    marked on the field with what is allowed (never rounded, never clamped)."""
-    low, high = param.limits()
-    value = None if raw is None else param.decode(raw)
-    entry = range_number("", low, high, unit=param.unit, integer=param.scale == 1, value=value, lang=lang).classes("w-full")
-    whole = entry.validation  # range_number's check: whole numbers and the range
-
-    def check(v) -> str | None:
-        if v is None:
-            return None
-        error = whole(v) if callable(whole) else None
-        if error:
-            return error
-        steps = float(v) / param.scale
-        if param.scale != 1 and abs(steps - round(steps)) > 1e-6:
-            return (lang or i18n.get("en")).gettext("steps of {step} {unit} only, {rule}").format(
-                step=f"{param.scale:g}", unit=param.unit, rule=entry.rule).replace("  ", " ")
-        return None
-
-    entry.validation = check
-    return entry
-
-
-async def _write_service(name: str, param, entry, lang=None) -> None:
-    value = await checked_value(entry, name, f"write {param.name}", parameter=param.name)
-    if value is None:
-        return
-    reason = refusal(param, value)  # beyond the range: the document's own refusals (params.refusal)
-    _ = (lang or i18n.get("en")).gettext
-    if reason:
-        entry.error = _(reason)  # the audit row below stays as written: English
-        await refuse(name, f"write {param.name}", reason, parameter=param.name, new=value)
-        return
-    await write_from_page(name, param, value, success=_("{name} = {value} written and read back from every actuator"),
-                          title=_("Set {name} to {value}?"), ok=_("Change bit rate"), field=entry, lang=lang)
 
 
 class BitrateCard(DrawnCard):
@@ -703,7 +461,7 @@ class BitrateCard(DrawnCard):
                                                                                         view.lang)).props("dense"))
                 row, _label = self._step(_("2. Save it (0xF0) on every actuator, or it is lost at power-off"))
                 with row:
-                    self.guard.add(ui.button(_("Save"), icon="save", on_click=lambda: _save(view)).props("dense outline"))
+                    self.guard.add(ui.button(_("Save"), icon="save", on_click=lambda: save_parameters(view)).props("dense outline"))
                 _row, self.switch_text = self._step()
                 self._step(_("4. Restart commission with the changed plant file, then power-cycle the actuators; they come "
                              "back at the new bit rate"))
@@ -712,7 +470,7 @@ class BitrateCard(DrawnCard):
     def inputs(self) -> tuple:
         state = self.view.state
         return (state.status, state.raw(self.param), self.param.key in state.unsaved,
-                point_values(state.points, (facts.P_BITRATE_CHANGE, facts.P_HEARD, facts.P_CONFIGURED)))
+                point_values(state, (facts.P_BITRATE_CHANGE, facts.P_HEARD, facts.P_CONFIGURED)))
 
     def draw(self) -> None:
         view, state, param, bus_rate = self.view, self.view.state, self.param, self.bus_rate
@@ -754,14 +512,14 @@ async def _write_bitrate(name: str, param, code, lang=None) -> None:
                           title=_("Set the actuators' bit rate to {value}?"), ok=_("Write bit rate"), lang=lang)
 
 
-def _export_csv(state, name: str) -> None:
-    out = io.StringIO()
-    writer = csv.writer(out)
+def _export_csv(state, name: str, lang=None) -> None:
+    """The history (position, current, speed, drive target) as a CSV file in the page's language."""
     units = dict(zip(SERIES, ("mm", "A", "mm/s", "mm")))
-    writer.writerow(["time", *(f"{s} [{units[s]}]" for s in SERIES)])
-    for t, sample in state.history:
-        writer.writerow([datetime.fromtimestamp(t).isoformat(timespec="milliseconds"), *(sample.get(s) for s in SERIES)])
-    ui.download(out.getvalue().encode(), f"{name}-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
+    shown = i18n.english(lang)
+    head = [N_("time"), *(f"{shown.gettext(s)} [{units[s]}]" for s in SERIES)]
+    rows = ([datetime.fromtimestamp(t).isoformat(timespec="milliseconds"), *(sample.get(s) for s in SERIES)]
+            for t, sample in state.history)
+    ui.download(csv_text(head, rows, lang).encode(), f"{name}-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
 
 
 def _export_png(chart, name: str) -> None:

@@ -10,7 +10,7 @@ from nicegui import ui
 from app import backup, batch, i18n, project
 from app import runtime as rt
 from app.i18n import N_, Lang
-from pages.frame import frame, notify_error
+from pages.frame import ACTION_ERRORS, frame, notify_error
 from pages.session import can_write, current_user
 from pages.command_client import confirm
 
@@ -102,7 +102,7 @@ class FleetView:
         self.progress.set_value(0)
         try:
             plan = await batch.plan_batch(self.runtime, chosen, self.source.value, self.progress.set_value)
-        except Exception as exc:  # noqa: BLE001 - an unreadable source
+        except ACTION_ERRORS as exc:  # an unreadable source, a device not answering
             notify_error(_("Cannot compare: {error}").format(error=exc))
             return
         finally:

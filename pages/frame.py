@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sqlite3
 from html import escape
 
 import time
@@ -14,6 +15,7 @@ from nicegui import ui
 from app import i18n
 from app import runtime as rt
 from app.i18n import N_, Lang
+from devices.errors import CommissionError
 from pages.session import current_user
 
 CSS = (Path(__file__).resolve().parent.parent / "static" / "commission.css").read_text()
@@ -93,6 +95,28 @@ BEAT_JS = """
 
 
 # bus names give way to their icons (state and tooltip stay) when the bus list does not fit the header
+# A language whose decimal sign is a comma (German): a comma typed or pasted into a number entry is its decimal
+# point. The browser's own number entry drops a comma it does not expect, so "12,5" arrived as 125.
+DECIMAL_COMMA_JS = """<script>
+(() => {
+  const number = (t) => t instanceof HTMLInputElement && t.type === 'number';
+  document.addEventListener('keydown', (e) => {
+    if (e.key === ',' && number(e.target) && !e.ctrlKey && !e.metaKey && !e.altKey) {
+      e.preventDefault();
+      document.execCommand('insertText', false, '.');
+    }
+  }, true);
+  document.addEventListener('paste', (e) => {
+    const text = e.clipboardData ? e.clipboardData.getData('text') : '';
+    if (number(e.target) && /^\\s*-?\\d*,\\d+\\s*$/.test(text)) {
+      e.preventDefault();
+      document.execCommand('insertText', false, text.trim().replace(',', '.'));
+    }
+  }, true);
+})();
+</script>"""
+
+
 HEADER_FIT_JS = """
 <script>
 (function () {
@@ -109,6 +133,12 @@ HEADER_FIT_JS = """
 })();
 </script>
 """
+
+
+#: what a page's action says to the engineer (and goes on) instead of failing: the project's refusals (devices/errors.py:
+#: a device or command refusing, a bad file or entry, a role, the audit log), and a file, folder or database that
+#: cannot be read or written. Anything else is a bug: it ends the action and is logged with its traceback.
+ACTION_ERRORS = (CommissionError, OSError, sqlite3.Error)
 
 
 def notify_error(message: str) -> None:
@@ -170,7 +200,7 @@ def bus_item_html(name: str, connected: bool, lang: Lang | None = None) -> str:
 class HeaderStatus:
     """The header's live part: the audit log's state, the broker, the event-loop lag and the buses."""
 
-    def __init__(self, runtime, user: str | None, lang: Lang | None = None):
+    def __init__(self, runtime: rt.Runtime, user: str | None, lang: Lang | None = None):
         self.runtime = runtime
         self.user = user
         self.lang = lang or i18n.get("en")
@@ -189,7 +219,7 @@ class HeaderStatus:
                 ui.label(self.lang.gettext("audit log not writable: writes refused")).classes("text-white text-caption")
                 self.problem_tip = ui.tooltip("")
             self.problem_box.set_visibility(False)
-            if getattr(runtime, "mqtt", None) is not None:  # only with an [mqtt] table: the broker's state
+            if runtime.mqtt is not None:  # only with an [mqtt] table: the broker's state
                 with ui.badge(self.lang.gettext("broker"), color="orange-4").classes("text-black").props(
                         "data-testid=broker-state") as self.broker_badge:
                     self.broker_tip = ui.tooltip("")
@@ -285,6 +315,8 @@ def frame(title: str, beat: bool = True):
     if beat:
         ui.add_body_html(BEAT_JS % (round(BEAT_PERIOD_S * 1000), round(BEAT_WINDOW_S * 1000), BEAT_EVENT))
     ui.add_body_html(HEADER_FIT_JS)
+    if lang.decimal_sign == ",":
+        ui.add_body_html(DECIMAL_COMMA_JS)
 
     # the header runs on every page: built once, then only changed texts and colours go to the browser
     status = HeaderStatus(runtime, user, lang)

@@ -14,6 +14,7 @@ from nicegui import ui
 from app import i18n
 from app import runtime as rt
 from app.i18n import N_
+from app.state import LiveValue
 from devices.hdlock import codec
 from devices.hdlock.adapter import (
     HISTORY_CAN,
@@ -26,13 +27,14 @@ from devices.hdlock.params import HOLDING, INPUT, LOCK_STATUS_BITS, PARAMS
 from devices.hdlock.policy import unsaved_changes
 from devices.params import Param
 from pages.hdlock_can import CanStatusCard, can_commands_card
-from pages.device_page import DeviceCard, DeviceView, StatusRow, device_page, titled_card
+from pages.cards import DeviceCard, point_values, titled_card
+from pages.device_page import DeviceView, StatusRow, device_page
 from pages.frame import fmt_age, status_text
 from pages.simcontrols import sim_card
 from pages.widgets import entry_age, Lamp, RegisterTable, ValueLine
 from pages.command_client import checked_value, confirm, WriteGuard
 from pages.charts import HistoryChart
-from pages.widgets import mark_quality, quality_note, range_number
+from pages.widgets import mark_quality, quality_note, range_number, RangeNumber
 from pages.command_client import cancelled, enable_unless, refuse, run_command, write_from_page
 
 DEVICE_TYPE = "hdlock"
@@ -181,31 +183,31 @@ class LampsCard(DeviceCard):
         state = self.view.state
         if self.unchanged(self.view.inputs(LAMP_INPUTS), lambda: self.view.qualities(LAMP_INPUTS)):
             return  # the same words, nothing shown stale: no record built, no element touched
-        status = state.entry("LockStatus")
-        aging = status is not None and status["quality"] in ("stale", "offline")
+        status = state.live("LockStatus")
+        aging = status is not None and status.quality in ("stale", "offline")
         for field_name, lamp in self.lamps.items():
-            lamp.show(status, None if status is None else status["fields"][field_name])
+            lamp.show(status, None if status is None else status.fields[field_name])
         lang = self.view.lang
         self.note.set_text(_note(status, lang))
         for key, label in self.labels.items():
-            entry = state.entry(key)
+            entry = state.live(key)
             context = key.split(" ")[0]  # the enumeration's register: DoorState, StateMachineState ...
-            name = entry["name"] if entry else None
+            name = entry.enum if entry else None
             # the states the catalog words (DoorState, StateMachineState); the others as the register map names them
             known = bool(name) and (lang.has(name, context) or lang.has(name))
             label.set_text((lang.phrase(name, context) if known else name
-                            or lang.gettext("undefined ({value})").format(value=entry["value"])) if entry else "-")
-            mark_quality(label, entry["quality"] if entry else "unknown")
+                            or lang.gettext("undefined ({value})").format(value=entry.value)) if entry else "-")
+            mark_quality(label, entry.quality if entry else "unknown")
             self.notes[key].set_text(_note(entry, lang))
-            aging = aging or (entry is not None and entry["quality"] in ("stale", "offline"))
+            aging = aging or (entry is not None and entry.quality in ("stale", "offline"))
         self.aging = aging
 
 
-def _note(entry: dict | None, lang=None) -> str:
+def _note(value: LiveValue | None, lang=None) -> str:
     """``stale 4 s`` / ``offline, last 1 min`` under a value that is not good."""
-    if entry is None or entry["quality"] not in ("stale", "offline"):
+    if value is None or value.quality not in ("stale", "offline"):
         return ""
-    return quality_note(entry["quality"], entry_age(entry), lang)
+    return quality_note(value.quality, entry_age(value), lang)
 
 
 class ParameterCard(DeviceCard):
@@ -217,6 +219,7 @@ class ParameterCard(DeviceCard):
         self.params: list[Param] = []  # the rows' parameters, in order
         self.entries: dict[str, ui.element] = {}
         self.shown: dict[str, object] = {}  # the device value each field was last given
+        self.badges: dict[str, ui.badge] = {}  # parameter key -> its "unsaved" badge, built when first shown
 
     def build(self) -> None:
         name, state, guard = self.view.name, self.view.state, self.view.guard
@@ -284,6 +287,16 @@ class ParameterCard(DeviceCard):
                 entry.value = value
             self.shown[key] = value
 
+    def show_unsaved(self, key: str, row: ui.row, unsaved: bool) -> None:
+        """Show or hide the "unsaved" badge at the end of a parameter's name ``row``, built when first shown."""
+        badge = self.badges.get(key)
+        if badge is None:
+            if not unsaved:
+                return
+            with row:
+                badge = self.badges[key] = ui.badge(self.view.lang.gettext("unsaved"), color="orange")
+        badge.set_visibility(unsaved)
+
     def refresh(self) -> None:
         state, now = self.view.state, time.time()
         if self.unchanged((self.view.words(self.params), frozenset(state.unsaved)),
@@ -300,24 +313,13 @@ class ParameterCard(DeviceCard):
             lang = self.view.lang
             current.show("-" if raw is None else lang.numbers_in(p.display(raw)), quality,
                          quality_note(quality, None if read is None else now - read, lang) if quality in ("stale", "offline") else "")
-            _unsaved_badge(mark, key in state.unsaved, lang)
+            self.show_unsaved(key, mark, key in state.unsaved)
         self.aging = aging
         count = len(state.unsaved)
         self.unsaved_label.set_text(self.view.lang.ngettext("{n} unsaved change", "{n} unsaved changes", count).format(n=count))
         self.unsaved_label.set_visibility(count > 0)
         if self.save.props.get("color") != ("orange" if count else "primary"):
             self.save.props(f"color={'orange' if count else 'primary'}")
-
-
-def _unsaved_badge(row: ui.row, unsaved: bool, lang=None) -> None:
-    """Show or hide the "unsaved" badge at the end of a parameter's name ``row``, built when first shown."""
-    badge = getattr(row, "unsaved_badge", None)
-    if badge is None:
-        if not unsaved:
-            return
-        with row:
-            badge = row.unsaved_badge = ui.badge((lang or i18n.get("en")).gettext("unsaved"), color="orange")  # type: ignore[attr-defined]
-    badge.set_visibility(unsaved)
 
 
 def param_key(p: Param) -> str:
@@ -414,13 +416,13 @@ async def _checked_masks(name: str, describe: str, p1, p2) -> tuple[int, int] | 
     return _parse_word(p1.value), _parse_word(p2.value)
 
 
-def _gate_send(view: HdLockView, button: ui.button, address) -> None:
+def _gate_send(view: HdLockView, button: ui.button, address: RangeNumber) -> None:
     """A Send button of an address change: disabled with the reason while the lock does not answer (or the
     session may not write), while no new address is entered, and while the entry is one the field refuses."""
     view.guard.update()
     reason = view.guard.reason
     if not reason and address.value in (None, ""):
-        reason = view.lang.gettext("enter the new address first ({rule})").format(rule=getattr(address, "rule", "1 .. 254"))
+        reason = view.lang.gettext("enter the new address first ({rule})").format(rule=address.rule)
     elif not reason:
         refused = address.validation(address.value) if callable(address.validation) else None  # the field's own rule
         if refused:  # (checked without touching the field's message: a refusal set on Send stays shown)
@@ -517,12 +519,12 @@ def _line_inputs(view: HdLockView) -> tuple:
     """What :func:`_line_locks` is drawn from, without building it: each lock's address and LockStatus word
     on this line (in the plant file), and the locks a scan found."""
     store, bus = view.store, view.state.bus
-    out: list = [view.state.points.get(P_LINE_LOCKS, (None,))[0]]
+    out: list = [view.fact(P_LINE_LOCKS)]
     for dev in view.runtime.plant.devices_on(bus):
         if dev.type == DEVICE_TYPE:
             other = store.devices[dev.name]
-            address, status = other.points.get(P_ADDRESS), other.registers.get((HOLDING, LOCK_STATUS_ADDRESS))
-            out.append((dev.name, None if address is None else address.value, None if status is None else status[0]))
+            (address,), status = point_values(other, (P_ADDRESS,)), other.registers.get((HOLDING, LOCK_STATUS_ADDRESS))
+            out.append((dev.name, None if address is None else address[0], None if status is None else status[0]))
     return tuple(out)
 
 

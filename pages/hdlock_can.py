@@ -14,7 +14,7 @@ from devices.hdlock.adapter import (
     P_STATUS_FRAME,
 )
 from devices.hdlock.params import PARAMS
-from pages.device_page import DeviceCard, titled_card
+from pages.cards import DeviceCard, titled_card
 from pages.command_client import confirm, WriteGuard
 from pages.command_client import refuse, run_command
 

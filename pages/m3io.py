@@ -19,8 +19,8 @@ from devices.m3io import codec
 from devices.m3io.codec import Variant
 from devices.m3io.params import P2_PARAM, RECORD_PARAMS
 from devices.commands import WRITE_PARAMETER
-from pages.device_page import DeviceView, StatusRow, device_page, point_values, titled_card
-from pages.device_page import DrawnCard as ChangedCard
+from pages.cards import DrawnCard, titled_card
+from pages.device_page import DeviceView, StatusRow, device_page
 from pages.frame import fmt_age
 from pages.session import current_user
 from pages.simcontrols import sim_card
@@ -82,7 +82,7 @@ def _quality(value: LiveValue | None) -> str:
 
 def _age_note(value: LiveValue | None, lang=None) -> str:
     quality = _quality(value)
-    return quality_note(quality, entry_age(value and value.entry()), lang) if quality in ("stale", "offline") else ""
+    return quality_note(quality, entry_age(value), lang) if quality in ("stale", "offline") else ""
 
 
 class M3ioView(DeviceView):
@@ -108,20 +108,6 @@ class M3ioView(DeviceView):
         control = self.fact(facts.P_CONTROL)
         _ = self.lang.gettext
         return _(TAKE_CONTROL) if control is None else _("{user} controls the module").format(user=control.user)
-
-
-class DrawnCard(ChangedCard):
-    """A card drawn only when what it shows changed (its :attr:`POINTS`, the module's status and the page's write
-    guard, compared with what it drew last) and on the page's once-a-second round; ``draw()`` draws it and returns
-    False when it shows a value as stale or offline (drawn again with the next telegram, which may bring it back)."""
-
-    view: M3ioView
-    POINTS: tuple[str, ...] = ()
-
-    def inputs(self) -> object:
-        view = self.view
-        return (view.state.status, view.guard.reason if view.guard is not None else "",
-                point_values(view.state.points, self.POINTS))
 
 
 def _aging(value: LiveValue | None) -> bool:
@@ -248,9 +234,9 @@ class OutputsCard(DrawnCard):
         self.refused.set_visibility(not may_switch)
         good = True
         for key, lamp in self.lamps.items():
-            entry = view.state.point(key)
-            lamp.show(entry)
-            good = good and (entry is None or entry["quality"] not in ("stale", "offline"))
+            value = view.live(key)
+            lamp.show(value)
+            good = good and (value is None or value.quality not in ("stale", "offline"))
         self.no_control.set_visibility(not view.controls() and not (view.guard and view.guard.reason))
         self.led.set_value(bool(view.fact("LED")))
         enable_unless(self.led, view.switch_reason(bool(view.fact("LED"))))

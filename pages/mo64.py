@@ -16,13 +16,8 @@ from devices.mo64 import adapter as facts
 from devices.mo64 import codec
 from devices.mo64.adapter import COMMAND_NAMES
 from devices.mo64.policy import operation_name
-from pages.device_page import (
-    DeviceCard,
-    DeviceView,
-    StatusBadge,
-    device_page,
-    titled_card,
-)
+from pages.cards import DeviceCard, titled_card
+from pages.device_page import DeviceView, StatusBadge, device_page
 from pages.frame import status_text
 from pages.mo64_settings import SettingsCard, show_line, value_line
 from pages.simcontrols import sim_card
@@ -296,9 +291,9 @@ class StatusCard(DeviceCard):
             return  # the same 40 bits, none shown stale
         aging = False
         for bit, lamp in self.lamps.items():
-            entry = self.view.state.point(bit)
-            lamp.show(entry)
-            aging = aging or (entry is not None and entry["quality"] == "stale")
+            value = self.view.live(bit)
+            lamp.show(value)
+            aging = aging or (value is not None and value.quality == "stale")
         self.aging = aging
 
 

@@ -16,10 +16,8 @@ from devices.mo64 import codec
 from devices.commands import WRITE_PARAMETER
 from devices.mo64.params import PARAMS, Mo64Param
 from devices.mo64.policy import EEPROM_RISK, setting_name
-from pages.device_page import (
-    DeviceCard,
-    DeviceView,
-)
+from pages.cards import DeviceCard
+from pages.device_page import DeviceView
 from pages.widgets import columns, entry_age, quality_note, range_number, ValueLine
 from pages.command_client import checked_value, refuse
 
@@ -46,7 +44,7 @@ def value_line(classes: str = "") -> ValueLine:
 def show_line(line: ValueLine, text: str, value: LiveValue | None, lang=None) -> bool:
     """Show a value with its quality (greyed, with its age, while stale or offline); True when it is shown stale or offline (with an age)."""
     quality = "unknown" if value is None else value.quality
-    line.show(text, quality, quality_note(quality, entry_age(value.entry()), lang) if quality in ("stale", "offline") else "")
+    line.show(text, quality, quality_note(quality, entry_age(value), lang) if quality in ("stale", "offline") else "")
     return quality in ("stale", "offline")
 
 

@@ -21,7 +21,7 @@ from app import recording as rec
 from app import runtime as rt
 from app.can_bus import CanBusState
 from app.recording import lines
-from pages.can_monitor import CanMonitor, _frame_rows  # noqa: F401 - _frame_rows: the CAN list's rows (bench/can_ingest.py)
+from pages.can_monitor import CanMonitor
 from pages.frame import frame
 from pages.monitor_common import CSS, SHOWN, tool_links
 
@@ -235,8 +235,8 @@ class LineMonitor:
         bus_state = self.bus_state
         log = list(bus_state.transactions)
         errors = sum(1 for t in log if t.error)
-        cycle = getattr(bus_state, "cycle_s", None)
-        conflicts = getattr(bus_state, "address_conflicts", 0)
+        cycle = bus_state.cycle_s
+        conflicts = bus_state.address_conflicts
         self.summary.set_text(
             f"{len(log)} transactions buffered, {errors} with errors"
             + (f" · line cycle {cycle:.2f} s (every device polled once)" if cycle else "")

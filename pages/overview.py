@@ -9,7 +9,9 @@ from nicegui import ui
 
 from app import i18n
 from app import runtime as rt
+from app.can_bus import CanBusState
 from app.i18n import english, N_, Lang
+from app.state import DeviceState
 from devices.registry import DEVICE_TYPES
 from pages.frame import fmt_age, frame, set_status_badge, status_text
 from pages.plant_view import ICON, Followers, LabelPool, evaluate_tile, plant_tile
@@ -66,15 +68,25 @@ def overview_tile(state, lang: Lang | None = None) -> dict:
     return plant_tile(state, lang)
 
 
+def drift_of(state: DeviceState) -> dict:
+    """The device's drift from its approved set as app/record.py notes it on the record ({} before the first
+    check): the record does not declare it (nor :func:`replaced_of`), so it is read here, once for every page."""
+    return getattr(state, "drift", None) or {}
+
+
+def replaced_of(state: DeviceState) -> dict | None:
+    """The known and the new identity while the device looks replaced (app/replace.py notes it), else None."""
+    return getattr(state, "replaced", None)
+
+
 def drift_rows(state) -> list[dict]:
     """The parameters of ``state`` that differ from its approved set (app/record.py), [] for none."""
-    drift = getattr(state, "drift", None) or {}
-    return list(drift.get("changed") or [])
+    return list(drift_of(state).get("changed") or [])
 
 
 def replaced_text(state, lang: Lang | None = None) -> str:
     """"replaced?" with the known and the new identity (app/replace.py), "" while the identity is as known."""
-    replaced = getattr(state, "replaced", None)
+    replaced = replaced_of(state)
     if not replaced:
         return ""
     from app.replace import identity_text
@@ -85,7 +97,7 @@ def replaced_text(state, lang: Lang | None = None) -> str:
 
 def replaced_short(state, lang: Lang | None = None) -> str:
     """"replaced? serial 660020 → 770077": what differs, old and new."""
-    replaced = getattr(state, "replaced", None)
+    replaced = replaced_of(state)
     if not replaced:
         return ""
     from app.replace import facets
@@ -94,17 +106,17 @@ def replaced_short(state, lang: Lang | None = None) -> str:
     return english(lang).gettext("replaced?") + " " + ", ".join(f"{k} {old[k]} → {new[k]}" for k in replaced["differs"])
 
 
-def unsaved_text(state, lang: Lang | None = None) -> str:
+def unsaved_text(state: DeviceState, lang: Lang | None = None) -> str:
     """"2 unsaved changes" (written, lost at the device's next reset unless saved), "" for none."""
-    count = len(getattr(state, "unsaved", ()) or ())
+    count = len(state.unsaved)
     return english(lang).ngettext("{n} unsaved change", "{n} unsaved changes", count).format(n=count) if count else ""
 
 
-def unsaved_names(state, lang: Lang | None = None) -> str:
+def unsaved_names(state: DeviceState, lang: Lang | None = None) -> str:
     """The unsaved parameters by name (the tile's hover text)."""
-    params = getattr(state, "params", None)
+    params = state.params
     names = []
-    for key in sorted(getattr(state, "unsaved", ()) or ()):
+    for key in sorted(state.unsaved):
         p = params.by_key.get(key) if params is not None else None
         names.append(key if p is None else (p.label or p.name))
     if not names:
@@ -232,7 +244,7 @@ class DeviceTile:
             badge = self._element("replaced", lambda: ui.badge(_("replaced?"), color="red-8").classes("drift-badge")
                                   .props(f'data-replaced="{self.name}"'))
             badge.set_visibility(bool(replaced))
-            badge._props["title"] = replaced
+            badge.props["title"] = replaced
             badge.text = replaced_short(s, lang) or _("replaced?")
             badge.update()
         if self._changed("drift", drift_text(rows)) and (rows or self.drift is not None):
@@ -241,7 +253,7 @@ class DeviceTile:
                                   .classes("drift-badge").props(f'data-drift="{self.name}"'))
             badge.set_visibility(bool(rows))
             badge.text = _("changed since approved ({n})").format(n=len(rows)) if rows else _("changed since approved")
-            badge._props["title"] = _("Changed since approved: {rows}").format(rows=drift_text(rows, lang)) if rows else ""
+            badge.props["title"] = _("Changed since approved: {rows}").format(rows=drift_text(rows, lang)) if rows else ""
             badge.update()
         unsaved = unsaved_text(s, lang)
         if self._changed("unsaved", unsaved) and (unsaved or self.unsaved is not None):
@@ -250,7 +262,7 @@ class DeviceTile:
                                   .props(f'data-unsaved="{self.name}"'))
             badge.set_visibility(bool(unsaved))
             badge.text = unsaved
-            badge._props["title"] = unsaved_names(s, lang)
+            badge.props["title"] = unsaved_names(s, lang)
             badge.update()
         if ticked:
             self.counters.set_text(counters_text(s.counters.as_dict(), self.bus_type, age, lang))
@@ -531,17 +543,18 @@ def _bus_section(runtime, bus, followers: Followers, ticks: list, tiles: dict | 
 
     def show_conn(label=conn, state=bus_state) -> None:
         text = _("connected") if state.connected else _("not connected: {error}").format(error=state.last_error or _("opening..."))
-        if state.connected and hasattr(state, "bus_state"):
+        can = isinstance(state, CanBusState)
+        if state.connected and can:
             text += " · " + _("{state} · {rx} frames in, {errors} error frames").format(
                 state=state.bus_state, rx=state.rx_frames, errors=state.error_frames)
-        if getattr(state, "cycle_s", None):  # Modbus: the measured time to poll every device once
+        if state.cycle_s:  # Modbus: the measured time to poll every device once
             text += " · " + _("cycle {seconds} s").format(seconds=lang.number(state.cycle_s, 2))
-        if getattr(state, "address_conflicts", 0):
+        if state.address_conflicts:
             text += " · " + _("{n} answers from another unit: address conflict on the line?").format(n=state.address_conflicts)
-        shed = getattr(state, "shed", 0)
+        shed = state.shed if can else 0
         if shed:  # the program could not keep up with this bus: say so rather than lag
             text += " · " + _("{n} frames shed: more traffic than this program can handle").format(n=shed)
-        ok = state.connected and getattr(state, "bus_state", "") != "bus-off"
+        ok = state.connected and not (can and state.bus_state == "bus-off")
         classes = "text-caption " + (("text-warning" if shed else "text-positive") if ok else "text-negative")
         if (text, classes) == shown[0]:
             return  # unchanged: nothing goes to the browser

@@ -9,6 +9,7 @@ import json
 import logging
 import re
 import time
+import weakref
 from dataclasses import replace
 from html import escape
 
@@ -17,7 +18,7 @@ from nicegui import ui
 from app import i18n
 from app import runtime as rt
 from app.i18n import N_, Lang
-from app.state import point_inputs
+from app.state import StateStore, point_inputs
 from devices.registry import DEVICE_TYPES, TileAlarm, TileBar, TileLine, TileSpec, _fill
 from pages.frame import CSS, fmt_age
 
@@ -412,18 +413,19 @@ class _Feed:
     pushes (most frames bring the same values, only counters move) cost one comparison, however many pages
     are open. Ages, counters and stale marks are drawn by each page's own tick."""
 
-    def __init__(self, store) -> None:
-        self.store = store
+    def __init__(self, store: StateStore) -> None:
+        self.store = weakref.proxy(store)  # the store keeps its feed (in _FEEDS) as long as it lives, not longer
         self.views: dict[str, dict] = {}  # device -> shows -> [views]
         self.watches: dict = {}
         self.versions: dict[str, int] = {}
         self.shown: dict[tuple, tuple] = {}  # (device, shows) -> what they show now
 
     @staticmethod
-    def of(store) -> "_Feed":
-        feed = getattr(store, "_tile_feed", None)
+    def of(store: StateStore) -> _Feed:
+        """The store's one feed of tiles, made with the first tile that follows it."""
+        feed = _FEEDS.get(store)
         if feed is None:
-            feed = store._tile_feed = _Feed(store)
+            feed = _FEEDS[store] = _Feed(store)
         return feed
 
     def add(self, view, shows) -> None:
@@ -466,6 +468,9 @@ class _Feed:
                     self.store.push_errors += 1
                     log.exception("a tile of %s failed; it is removed", name)
                     self.remove(view, shows)
+
+
+_FEEDS: weakref.WeakKeyDictionary[StateStore, _Feed] = weakref.WeakKeyDictionary()  # a store -> its feed of tiles
 
 
 class Followers:

@@ -23,7 +23,7 @@ from app.i18n import N_, Lang
 from devices.params import Param
 from devices.registry import DEVICE_TYPES
 from pages.diffrows import STATE_SLOT, WRAP, row_state, state_text
-from pages.frame import frame, notify_error
+from pages.frame import ACTION_ERRORS, frame, notify_error
 from pages.session import can_write, current_user
 from pages.widgets import columns, follow
 from pages.command_client import confirm, viewer_reason
@@ -149,7 +149,7 @@ class ProjectCard:
                 ui.label(f"✖ {entry.where}: {entry.error}").classes("text-negative text-body2")
         try:
             self.plan = await backup.plan_restore(self.runtime, name, project.document(self.runtime, name))
-        except Exception as exc:  # noqa: BLE001 - not answering, no parameter model ...
+        except ACTION_ERRORS as exc:  # not answering, no parameter model ...
             if self.compact:
                 self.summary.set_text(self.lang.gettext("not compared: {error}").format(error=exc))
             else:
@@ -220,9 +220,9 @@ class ProjectCard:
             await asyncio.to_thread(project.update_entry, self.runtime.plant, device, key, row.current_value)
 
         try:
-            await self.runtime.worker.engineer_action(rewrite, user=user, role=role, describe="update project",
-                                                      target=device, new=f"{row.name} = {row.current_text}")
-        except Exception as exc:  # noqa: BLE001 - a file that cannot be written, a viewer ...
+            await self.runtime.worker.gate.run(rewrite, user=user, role=role, describe="update project",
+                                               device=device, new=f"{row.name} = {row.current_text}", kind="write")
+        except ACTION_ERRORS as exc:  # a file that cannot be written, a viewer ...
             notify_error(self.lang.gettext("Project not updated: {error}").format(error=exc))
             return
         ui.notify(self.lang.gettext("Project of {device}: {name} = {value}").format(device=device, name=row.name, value=row.current_text),
@@ -252,7 +252,7 @@ class ProjectCard:
         follow(state, changed)
 
 
-def _page_column() -> ui.element | None:
+def page_column() -> ui.element | None:
     """The content column of the page being built (pages.frame.frame's), or None."""
     columns = [e for e in ui.context.client.elements.values()
                if isinstance(e, ui.column) and {"q-pa-md", "gap-4", "w-full"} <= set(e.classes)]
@@ -266,7 +266,7 @@ def device_card(name: str, lang: Lang | None = None) -> None:
     lang = lang or i18n.client_language()
     if name not in runtime.plant.devices:
         return
-    column = _page_column()
+    column = page_column()
     if column is None:
         return
     has = project.has_project(runtime.plant, name)
@@ -428,11 +428,11 @@ class ProjectEditor:
         shown = {k: self.values.get(k) for k in changes}  # what this page showed: refused if another save changed it
         self.save_button.disable()  # one save at a time: a second press waits for the first's values
         try:
-            await self.runtime.worker.engineer_action(
+            await self.runtime.worker.gate.run(
                 lambda: asyncio.to_thread(project.save, self.runtime.plant, self.name, changes, shown), user=user, role=role,
-                describe="edit project", target=self.name, parameter=", ".join(by_key[k].label or by_key[k].name
-                                                                               for k in changes), new=words)
-        except Exception as exc:  # noqa: BLE001 - a viewer, a file that cannot be written ...
+                describe="edit project", device=self.name, parameter=", ".join(by_key[k].label or by_key[k].name
+                                                                               for k in changes), new=words, kind="write")
+        except ACTION_ERRORS as exc:  # a viewer, a file that cannot be written ...
             self.status.set_text(_("Not saved: {errors}").format(errors=exc))
             self.status.classes(replace="text-body2 text-negative")
             return

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from nicegui import ui
 
-from app import backup
+from app import backup, i18n
 from app import runtime as rt
 from app.checkout import checkout_module
 from app.record_sets import diff_sets
@@ -28,13 +28,14 @@ from app.report import (
     sign_gaps,
     signoff_of,
     with_unit,
-    write_plant,
 )
+from app.report_archive import write_plant
 from app.verify import check_archive
-from pages.frame import fmt_time, frame
+from pages.command_client import VIEWER_REASON, enable_unless
+from pages.frame import ACTION_ERRORS, fmt_time, frame
+from pages.overview import drift_of
 from pages.session import current_user
 from pages.widgets import upload_button
-from pages.command_client import enable_unless, VIEWER_REASON
 
 STATUS_COLOUR = {"passed": "positive", "failed": "negative", "aborted": "negative", "running": "primary", "pending": "grey",
                  "skipped": "grey", "error": "negative"}
@@ -59,7 +60,7 @@ def content(name: str | None = None) -> None:
         drift = ui.label().classes("text-body1").mark("record-drift")
 
         def show_drift() -> None:
-            d = getattr(state, "drift", None) or {}
+            d = drift_of(state)
             if not d.get("approved"):
                 drift.text, cls = "No approved set for this device yet.", "text-grey-8"
             elif d["changed"]:
@@ -84,11 +85,15 @@ def content(name: str | None = None) -> None:
 
 
 def _downloads(runtime, user: str, role: str) -> None:
+    # the report's language is chosen when it is made: the page's, or the other one for a reader who needs it
+    language = ui.toggle({code: code.upper() for code in sorted(i18n.LANGUAGES)}, value=i18n.page_language().code).props(
+        "dense no-caps").tooltip("language of the report").mark("record-report-language")
+
     async def download(kind: str) -> None:
         folder = Path(tempfile.mkdtemp(prefix="commission-report-"))
         try:
-            paths = await write_plant(runtime, folder, user=user or "viewer", role=role)
-        except Exception as exc:  # noqa: BLE001 - said to the engineer
+            paths = await write_plant(runtime, folder, user=user or "viewer", role=role, lang=i18n.get(language.value))
+        except ACTION_ERRORS as exc:  # said to the engineer
             ui.notify(f"report: {exc}", type="negative", multi_line=True)
             return
         ui.download(paths[kind].read_bytes(), paths[kind].name)
@@ -141,7 +146,7 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool) -> 
 
                     try:
                         ui.notify(await sim_action(runtime, f"{name}:{twin_action}", user=user, role=role), type="info")
-                    except Exception as exc:  # noqa: BLE001 - said
+                    except (*ACTION_ERRORS, ValueError) as exc:  # said (no such twin or action: a ValueError)
                         ui.notify(f"simulation: {exc}", type="negative")
 
                 ui.button(f"{twin_action.capitalize()} on the simulated device", icon="smart_toy",
@@ -157,7 +162,7 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool) -> 
     async def run_it() -> None:
         try:
             run = runtime.record.new_run(name, user=user, role=role, ask=ask, session=_session_id())
-        except Exception as exc:  # noqa: BLE001
+        except ACTION_ERRORS as exc:  # a checkout running already, a role
             ui.notify(str(exc), type="negative")
             return
         run.listeners.append(lambda: draw(run))
@@ -324,7 +329,7 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool):
             else:
                 await runtime.record.snapshot(name, user=user, role=role)
                 ui.notify("snapshot stored", type="positive")
-        except Exception as exc:  # noqa: BLE001 - said to the engineer
+        except ACTION_ERRORS as exc:  # said to the engineer
             ui.notify(f"{what}: {exc}", type="negative", multi_line=True)
         await refresh()
 
@@ -354,6 +359,7 @@ PREVIEW_CSS = """
 
 
 def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refresh_timeline) -> None:
+    lang = i18n.page_language()  # the preview speaks the page's language
     ui.label("As-left report and sign-off").classes("text-h6")
     # in the head of the page: the preview's HTML is sanitized, which drops a <style> of its own (its
     # tables and labels then ran together: "addressaddress 1")
@@ -375,8 +381,9 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
     async def show() -> None:
         content = await device_content(runtime, name, read=False)
         plant = await runtime.record.store.run(runtime.record.store.latest, runtime.record.plant, "", "signoff")
-        preview.content = "<div class='record-preview'>" + _small_headings(device_html(content, signoff_of(plant), appendix=False)) + "</div>"
-        listings.content = "<div class='record-preview'>" + _small_headings(appendix_html(content)) + "</div>"
+        preview.content = "<div class='record-preview'>" + _small_headings(
+            device_html(content, signoff_of(plant), appendix=False, lang=lang)) + "</div>"
+        listings.content = "<div class='record-preview'>" + _small_headings(appendix_html(content, lang)) + "</div>"
 
     async def sign(plant: bool) -> None:
         if not signer.value.strip():
@@ -385,7 +392,7 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
         what = f"plant {runtime.plant.name}" if plant else name
         try:
             content = await (plant_content(runtime, user=user, role=role) if plant else device_content(runtime, name, user=user, role=role))
-        except Exception as exc:  # noqa: BLE001
+        except ACTION_ERRORS as exc:  # said to the engineer
             ui.notify(f"sign-off: the report could not be made: {exc}", type="negative", multi_line=True)
             return
         if not await confirm_gaps(sign_gaps(content), what):
@@ -397,7 +404,7 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
             await runtime.record.sign("" if plant else name, user=user, role=role, name=signer.value.strip(),
                                       signer_role=signer_role.value.strip(), comment=comment.value, content=content,
                                       account=account)
-        except Exception as exc:  # noqa: BLE001
+        except ACTION_ERRORS as exc:  # said to the engineer
             ui.notify(f"sign-off: not signed: {exc}", type="negative", multi_line=True)
             return
         ui.notify(f"signed by {signer.value.strip()} with account {account}: the record is frozen; a later sign-off "

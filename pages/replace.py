@@ -10,8 +10,10 @@ from nicegui import ui
 from app import backup, i18n, replace
 from app import runtime as rt
 from app.i18n import N_, Lang
-from pages.backup import DIFF_COLUMNS, STATE_TEXT_SLOT, _confirm_restore, _row_state, differ_text, state_text
-from pages.frame import frame, notify_error
+from pages.backup import DIFF_COLUMNS, STATE_TEXT_SLOT, confirm_restore, differ_text, state_text
+from pages.diffrows import row_state
+from pages.frame import ACTION_ERRORS, frame, notify_error
+from pages.overview import replaced_of
 from pages.session import can_write, current_user
 from pages.simcontrols import sim_card
 from pages.widgets import columns, follow
@@ -35,7 +37,7 @@ def notice(name: str, lang: Lang | None = None) -> None:
                 ui.link(_("Replacement assistant"), f"/replace/{name}").props("data-testid=replaced-open")
 
     def update() -> None:
-        replaced = getattr(state, "replaced", None)
+        replaced = replaced_of(state)
         card.set_visibility(bool(replaced))
         if replaced:
             text.set_text(_("replaced? known {old}, now {new}").format(
@@ -50,9 +52,9 @@ def notice(name: str, lang: Lang | None = None) -> None:
 def _offer(name: str, lang: Lang) -> None:
     """The way to the replacement assistant on every device page that keeps parameters (at the page's end),
     not only once a swap was detected."""
-    from pages.project import _page_column
+    from pages.project import page_column
 
-    column = _page_column()
+    column = page_column()
     if column is None:
         return
     with column, ui.row().classes("items-center gap-2").props("data-testid=replace-offer"):
@@ -120,7 +122,7 @@ class Assistant:
         follow(self.state, self.show_identity)
 
     def show_identity(self) -> None:
-        replaced = getattr(self.state, "replaced", None)
+        replaced = replaced_of(self.state)
         watch = replace.watch_of(self.runtime)
         known = (watch.known.get(self.name) or {}) if watch else {}
         now = replace.live_identity(self.runtime, self.name)
@@ -142,7 +144,7 @@ class Assistant:
         self.progress.set_value(0)
         try:
             self.rp = await replace.plan_replacement(self.runtime, self.name, self.progress.set_value)
-        except Exception as exc:  # noqa: BLE001 - no approved set, device not answering ...
+        except ACTION_ERRORS as exc:  # no approved set, device not answering ...
             notify_error(_("Cannot compare: {error}").format(error=exc))
             return
         self.progress.set_value(1)
@@ -169,7 +171,7 @@ class Assistant:
         self.diff_card.set_visibility(True)
 
     def _show_rows(self) -> None:
-        rows = [{"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": _row_state(r),
+        rows = [{"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": row_state(r),
                  "state_text": state_text(r, self.lang), "risk": bool(r.changed and r.risk)} for r in self.rp.plan.rows]
         self.table.rows = rows
         self.table.selected = [row for row in rows if row["state"].startswith("differs")]
@@ -190,7 +192,7 @@ class Assistant:
             ui.notify(_("No differing parameter is selected"), type="warning")
             return
         others = backup.unsaved_lines(self.state, skip={r.key for r in to_write})
-        if not await _confirm_restore(self.name, to_write, others, "", lang):
+        if not await confirm_restore(self.name, to_write, others, "", lang):
             return
         confirmed: set[str] = set()
         for row in self.rp.plan.risky(selected):
@@ -204,7 +206,7 @@ class Assistant:
         try:
             report = await replace.execute_replacement(self.runtime, self.rp, selected, user=user, role=role,
                                                        confirmed=confirmed, progress=self.progress.set_value)
-        except Exception as exc:  # noqa: BLE001
+        except ACTION_ERRORS as exc:  # refused before any write (each write's own refusal is in the report)
             notify_error(_("Not written: {error}").format(error=exc))
             return
         finally:
@@ -224,5 +226,5 @@ class Assistant:
             self.rp = await replace.plan_replacement(self.runtime, self.name)
             if self.rp.plan is not None:
                 self._show_rows()
-        except Exception:  # noqa: BLE001 - the report above says what happened
+        except ACTION_ERRORS:  # the report above says what happened
             pass

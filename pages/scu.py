@@ -1,4 +1,5 @@
-"""Ewellix SCU page: live positions and status, remote session, drive by function, data directory, service table.
+"""Ewellix SCU page: live positions and status, remote session, drive by function, data directory, service table
+(the cards of data read on demand are in :mod:`pages.scu_data`, what every card shares in :mod:`pages.scu_view`).
 
 Reads only the live store (the points and records :mod:`devices.scu.adapter` publishes: session, watching
 mode, control, running functions, emergency stop, scales, line) and invokes the declared commands
@@ -9,7 +10,6 @@ from __future__ import annotations
 
 import html
 import time
-from dataclasses import dataclass
 from datetime import datetime
 
 from nicegui import ui
@@ -17,20 +17,21 @@ from nicegui import ui
 from app import i18n
 from app import worker as worker_module
 from app.i18n import N_
+from app.state import LiveValue
 from devices.scu import facts
 from devices.scu import codec
 from devices.scu import params as p
-from devices.scu.adapter import SERVICE_IDS, WATCH_RG, chart_points
-from devices.scu.model import LIMIT_FIELDS, SESSION, VOLATILE, params_for
-from pages.device_page import DeviceView, StatusRow, device_page, point_values, titled_card
-from pages.device_page import DrawnCard as ChangedCard
-from pages.frame import fmt_age, fmt_time
+from devices.scu.adapter import chart_points
+from pages.cards import DrawnCard, point_values, titled_card
+from pages.device_page import StatusRow, device_page
+from pages.scu_data import DirectoryCard, ServiceCard, SettingsCard
+from pages.scu_view import Access, ScuView
+from pages.frame import fmt_age
 from pages.simcontrols import sim_card
 from pages.widgets import entry_age, follow
 from pages.command_client import checked_value, confirm, enable_unless, WriteGuard
 from pages.charts import HistoryChart
-from pages.widgets import columns, html_attr, INT32_LIMIT, lamp_html, LampStrip, mark_quality, quality_note, range_number
-from pages.command_client import session_role
+from pages.widgets import html_attr, INT32_LIMIT, lamp_html, LampStrip, mark_quality, quality_note, range_number
 from pages.widgets import stop_bar, value_html
 
 # Actuator status 1 (0x0171..) and 2 (0x00E1..): point key -> its words in table 6 (the adapter publishes one point per bit)
@@ -61,20 +62,20 @@ def _stop_rule(lang=None) -> str:
         bound=f"{worker_module.DEADMAN_BOUND_S:g}")
 
 
-def io_text(key: str, entry: dict) -> tuple[str, str]:
+def io_text(key: str, live: LiveValue) -> tuple[str, str]:
     """An I/O line in words, named as its declaration says, and the raw value beside it ("" when the words are the
     number itself)."""
     data_id = IO_POINTS[key]
     item = p.item(data_id)
     title = item.label or key
-    value = entry["value"]
-    raw = entry["raw"] if entry.get("raw") is not None else value
+    value = live.value
+    raw = live.raw if live.raw is not None else value
     if data_id in p.FLAG_WORDS:
         return f"{title}: {p.flags_text(data_id, int(raw))}", f"0x{int(raw):0{2 * item.size}X}"
     if data_id == 0x0166:
         return f"{title}: {p.user_text(int(value))}", f"raw {int(value)}"
     number = f"{value:g}" if isinstance(value, float) else str(value)
-    return f"{title}: {number} {entry['unit'] or item.unit}".strip(), ""
+    return f"{title}: {number} {live.unit or item.unit}".strip(), ""
 
 
 def _error_names(code: int) -> str:
@@ -85,64 +86,6 @@ def _error_names(code: int) -> str:
 
 def _labels(functions) -> list[str]:
     return [codec.FUNCTIONS[codec.Function(f)].label for f in sorted(functions)]
-
-
-@dataclass(frozen=True, slots=True)
-class Access:
-    """Why controls are off now (each "" when not): the role, a unit that does not answer, a lost or released
-    session, the emergency stop; and who holds control."""
-
-    role: str
-    offline: str
-    lost: str
-    estop: str
-    holder: facts.Holder | None
-    mine: bool
-
-
-class ScuView(DeviceView):
-    """What every card of one page shares: the device's live record and the declared commands
-    (devices/scu/policy.py); its cards are refreshed with what controls may be used now (:class:`Access`)."""
-
-    def __init__(self, name: str):
-        super().__init__(name)
-        self.viewer = session_role() == "viewer"
-        self.scales: tuple[facts.ActuatorScale, ...] = self.fact(facts.P_SCALES, ())  # as at page open
-        self.functions: facts.FunctionMap = self.fact(facts.P_FUNCTIONS)
-
-    def access(self) -> Access:
-        self.guard.update()
-        sess = self.fact(facts.P_SESSION, "closed")
-        reason = self.fact(facts.P_SESSION_REASON, "")
-        _ = self.lang.gettext
-        lost = ""  # a lost or released session: nothing reaches the unit until it is open again
-        if sess in ("lost", "released"):
-            lost = (_("the remote session is {state}").format(state=self.lang.phrase(sess, "Session"))
-                    + (f" ({reason})" if reason else "")
-                    + (_("; it is reopened with backoff, or press \"Open the remote session\"") if sess == "lost"
-                       else _("; press \"Open the remote session\" to drive again")))
-        holder = self.fact(facts.P_CONTROL)
-        return Access(role=_("a viewer cannot change anything") if self.viewer else "",
-                      offline=self.guard.reason,  # writes and motion wait for a unit that answers; the stops never do
-                      lost=lost,
-                      estop=_("the emergency stop (function 19) is on: release it first") if self.fact(facts.P_ESTOP) else "",
-                      holder=holder, mine=holder is not None and holder.session == self.tag)
-
-    def refresh(self) -> None:
-        access = self.access()
-        for card in self.cards:
-            card.refresh(access)
-
-
-class DrawnCard(ChangedCard):
-    """A card of the SCU page drawn only when what it shows changed (``inputs(access)``: by default the page's
-    access, the unit's status and its :attr:`POINTS`) and on the once-a-second round (see the base class)."""
-
-    POINTS: tuple[str, ...] = ()
-
-    def inputs(self, access: Access) -> object:
-        state = self.view.state
-        return access, state.status, point_values(state.points, self.POINTS)
 
 
 def _aging(quality: str) -> bool:
@@ -261,15 +204,15 @@ class PositionsCard(DrawnCard):
 
     def inputs(self, access: Access) -> tuple:
         state = self.view.state
-        return state.status, point_values(state.points, self.POINTS)
+        return state.status, point_values(state, self.POINTS)
 
     def draw(self, access: Access) -> bool:
-        point = self.view.state.point
+        point = self.view.live
         good = True
         for number, bar, text, cell, age in self.rows:
             e = point(f"A{number} position")
             lo, hi = point(f"A{number} in end"), point(f"A{number} out end")
-            quality = "unknown" if e is None else e["quality"]
+            quality = "unknown" if e is None else e.quality
             mark_quality(cell, quality)  # greyed, with its age, while stale or offline
             mark_quality(bar, quality)
             age.set_text(quality_note(quality, entry_age(e), self.view.lang) if quality in ("stale", "offline") else "")
@@ -277,9 +220,9 @@ class PositionsCard(DrawnCard):
             if e is None:
                 text.set_text("-")
                 continue
-            text.set_text(self.view.lang.numbers_in(e["text"] or str(e["value"])))
-            if lo and hi and hi["value"] != lo["value"]:
-                bar.set_value(max(0.0, min(1.0, (e["value"] - lo["value"]) / (hi["value"] - lo["value"]))))
+            text.set_text(self.view.lang.numbers_in(e.text or str(e.value)))
+            if lo and hi and hi.value != lo.value:
+                bar.set_value(max(0.0, min(1.0, (e.value - lo.value) / (hi.value - lo.value))))
         return good
 
 
@@ -301,19 +244,19 @@ class StatusCard(DrawnCard):
                         self.columns.append((n, LampStrip("nicegui-column gap-0")))
 
     def draw(self, access: Access) -> bool:
-        point, good = self.view.state.point, True
+        point, good = self.view.live, True
         for n, strip in self.columns:
             parts = []
             for key, words in STATUS_BITS.items():  # each lamp keyed by the point it shows
                 entry = point(f"A{n} {key}")
                 parts.append(lamp_html(f"A{n} {key}", words[0].upper() + words[1:], entry, f"A{n} {key}"))
-                good = good and (entry is None or not _aging(entry["quality"]))
+                good = good and (entry is None or not _aging(entry.quality))
             for what in ("current", "speed"):
                 e = point(f"A{n} {what}")
                 lang = self.view.lang
                 parts.append(value_html(f"A{n} {what}", f"{what}-A{n}",
-                                         "-" if e is None else f"{lang.gettext(what)}: {lang.number(e['value'])} {e['unit']}".strip(), e))
-                good = good and (e is None or not _aging(e["quality"]))
+                                         "-" if e is None else f"{lang.gettext(what)}: {lang.number(e.value)} {e.unit}".strip(), e))
+                good = good and (e is None or not _aging(e.quality))
             strip.show(parts)
         return good
 
@@ -330,7 +273,7 @@ class SupplyCard(DrawnCard):
             self.lines = LampStrip("nicegui-column gap-0 text-body2")  # one line per point
 
     def draw(self, access: Access) -> bool:
-        point, good, parts = self.view.state.point, True, []
+        point, good, parts = self.view.live, True, []
         lamps = [(key, point(key)) for key in SUPPLY_LAMPS]
         _ = self.view.lang.gettext
         self.lamps.show([lamp_html(key, _(key), entry) for key, entry in lamps])
@@ -339,7 +282,7 @@ class SupplyCard(DrawnCard):
             if e is None:
                 continue  # not read (yet): no line
             words, code = io_text(key, e)
-            quality = e["quality"]
+            quality = e.quality
             marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
             parts.append(f'<div class="nicegui-row row items-baseline gap-2 no-wrap{marks}" data-io="{html_attr(key)}" '
                          f'data-quality="{quality}"><div>{html.escape(words)}</div>'
@@ -347,7 +290,7 @@ class SupplyCard(DrawnCard):
                          f'{html.escape(code)}</div></div>')
             good = good and not _aging(quality)
         self.lines.show(parts)
-        return good and not any(e is not None and _aging(e["quality"]) for _key, e in lamps)
+        return good and not any(e is not None and _aging(e.quality) for _key, e in lamps)
 
 
 class ErrorsCard(DrawnCard):
@@ -374,19 +317,19 @@ class ErrorsCard(DrawnCard):
 
     def inputs(self, access: Access) -> tuple:
         state = self.view.state
-        return state.status, point_values(state.points, self.POINTS)
+        return state.status, point_values(state, self.POINTS)
 
     def draw(self, access: Access) -> bool:
         good = True
         for key, (box, head, line, raw, bits, title) in self.rows.items():
-            e = self.view.state.point(key)
+            e = self.view.live(key)
             box.set_visibility(e is not None)
             if e is None:
                 continue
-            value = int(e["value"])
-            mark_quality(head, e["quality"])
-            mark_quality(bits, e["quality"])
-            good = good and not _aging(e["quality"])
+            value = int(e.value)
+            mark_quality(head, e.quality)
+            mark_quality(bits, e.quality)
+            good = good and not _aging(e.quality)
             if self.shown.get(key) == value:
                 continue
             self.shown[key] = value
@@ -574,7 +517,7 @@ class DriveCard(DrawnCard):
         self.target_warning.set_text(self.target_mismatch())
 
     def inputs(self, access: Access) -> tuple:
-        return (access, point_values(self.view.state.points, self.POINTS), self.function.value, self.motion.value,
+        return (access, point_values(self.view.state, self.POINTS), self.function.value, self.motion.value,
                 tuple(self.edited))
 
     def draw(self, access: Access) -> None:
@@ -640,143 +583,6 @@ class FunctionsCard(DrawnCard):
             enable_unless(element, access.role or control)
 
 
-def _read_gate(view: ScuView, access: Access) -> str:
-    """Reads wait for a unit that answers, and for an open session unless the unit answers RG without one."""
-    return access.role or access.offline or (access.lost if view.fact(facts.P_WATCH) != WATCH_RG else "")
-
-
-class DirectoryCard(DrawnCard):
-    """The data directory (section 4.3): read any data ID or group ID, its value and raw bytes."""
-
-    view: ScuView
-
-    def build(self) -> None:
-        _ = self.view.lang.gettext
-        with titled_card(_("Data directory (section 4.3): read any data ID or group ID")):
-            rows = [{"id": e.key, "name": e.name, "type": e.type_name, "unit": e.unit, "access": e.access.value,
-                     "comment": e.comment} for e in p.DIRECTORY.values()]
-            table = ui.table(columns=columns(DIRECTORY_COLUMNS, self.view.lang),
-                             rows=rows, row_key="id", selection="single", pagination=10).classes("w-full text-caption")
-            table.props("dense wrap-cells")
-            with ui.row().classes("items-center gap-4"):
-                self.pick = ui.select({e.data_id: f"{e.key} {e.name}" for e in p.DIRECTORY.values()}, value=0x0010,
-                                      label=_("Data ID"), with_input=True).classes("w-96").props("data-testid=data-id")
-                table.on("selection", lambda e: self.pick.set_value(int(e.args["rows"][0]["id"], 16))
-                         if e.args.get("rows") else None)
-                self.button = ui.button(_("Read (RG)"), on_click=self.read).props("data-testid=read-data")
-            self.shown = ui.label().classes("mono text-body2").props("data-testid=data-value")
-            self.raw = ui.label().classes("mono text-caption text-grey-8").props("data-testid=data-raw")
-
-    async def read(self) -> None:
-        ok, result = await self.view.act("read data", {"data_id": self.pick.value})
-        if ok:
-            self.shown.set_text(f"{result['key']} {result['name']} ({result['type']}): {result['text'] or result['error']}")
-            self.raw.set_text(self.view.lang.gettext("raw: {raw}").format(raw=result["raw"] or self.view.lang.gettext("(no data)")))
-
-    def inputs(self, access: Access) -> tuple:
-        return access, self.view.fact(facts.P_WATCH)
-
-    def draw(self, access: Access) -> None:
-        enable_unless(self.button, _read_gate(self.view, access))
-
-
-class SettingsCard(DrawnCard):
-    """The parameter model (devices/scu/model.py) as the unit answered it: the settings (remote speeds and positions,
-    written with RT and read back with RG by restore, the project and a batch) and, for reference, the read-only
-    values of its configuration and the plant file."""
-
-    view: ScuView
-
-    def build(self) -> None:
-        self.params = params_for(len(self.view.scales))
-        self.keys = [(q.space, a) for q in self.params for a in q.addresses]
-        lang = self.view.lang
-        _ = lang.gettext
-        with titled_card(_("Settings (parameter model)")):
-            self.table = ui.table(columns=columns(SETTINGS_COLUMNS, lang), rows=[], row_key="key").classes("w-full text-caption")
-            self.table.props("dense wrap-cells data-testid=settings-table")
-            self.button = ui.button(_("Read settings (RG)"), on_click=self.read).props("outline data-testid=read-settings")
-            ui.label(_("Remote speeds and positions are the settings: a backup lists them with their names and units, and "
-                       "restore, the project and a batch write them with RT and read each back with RG, refused while a "
-                       "function runs; {volatile}. Conversion factors and virtual limits are the unit's configuration "
-                       "(RT writes only data IDs 3xxx, table 3); the Safety_ID is the plant file's.").format(volatile=_(VOLATILE))).classes(
-                "text-caption text-grey-8")
-
-    async def read(self) -> None:
-        await self.view.act("read parameters")
-
-    @staticmethod
-    def _id(q) -> str:
-        if q.space == SESSION:
-            return "RO"
-        return f"0x{q.address:04X}" + (f" {LIMIT_FIELDS[q.space]}" if q.space in LIMIT_FIELDS else "")
-
-    def inputs(self, access: Access) -> tuple:
-        registers = self.view.state.registers
-        return access, tuple(None if (e := registers.get(k)) is None else e for k in self.keys)
-
-    def draw(self, access: Access) -> None:
-        enable_unless(self.button, _read_gate(self.view, access))
-        state = self.view.state
-        rows = []
-        for q in self.params:
-            raw = state.raw(q)
-            read = state.read_time(q)
-            _ = self.view.lang.gettext
-            rows.append({"key": q.key, "id": self._id(q), "name": q.name,
-                         "value": "-" if raw is None else self.view.lang.numbers_in(q.display(raw)),
-                         "kind": _("setting") if q.setting else _("read-only"), "read": "-" if read is None else fmt_time(read)})
-        if rows != self.table.rows:
-            self.table.rows = rows
-            self.table.update()
-
-
-class ServiceCard(DrawnCard):
-    """The service data read on demand, each row with the time of its reading."""
-
-    view: ScuView
-
-    def build(self) -> None:
-        _ = self.view.lang.gettext
-        with titled_card(_("Service table")):
-            self.table = ui.table(columns=columns(SERVICE_COLUMNS, self.view.lang), rows=[], row_key="id") \
-                .classes("w-full text-caption")
-            self.table.props('dense wrap-cells data-testid=service-table :table-row-class-fn="row => row.quality_class"')
-            self.button = ui.button(_("Read service data (RG)"), on_click=self.read).props("outline data-testid=read-service")
-            ui.label(_("Backup: the Backup page writes the settings of the parameter model (remote speeds and positions, "
-                       "with the conversion factors, virtual limits and Safety_ID for reference) and a record of identity, "
-                       "counters and error history. Restore, the project and a batch write the settings back with RT and "
-                       "read each back with RG; {volatile}.").format(volatile=_(VOLATILE))).classes("text-caption text-grey-8")
-
-    async def read(self) -> None:
-        out = []
-        for data_id in list(SERVICE_IDS) + [0x2000 + s.number for s in self.view.scales]:
-            ok, result = await self.view.act("read data", {"data_id": data_id})
-            if not ok:
-                break
-            out.append({"id": result["key"], "name": result["name"], "value": result["text"] or result["error"],
-                        "time": time.time(), "read": "", "quality_class": ""})
-        self.table.rows = out
-        self.ages()
-
-    def ages(self) -> None:
-        """The rows with the time of their reading; greyed with their age while the unit does not answer."""
-        quality = "offline" if self.view.state.status == "offline" else "good"
-        now = time.time()
-        rows = [{**row, "read": quality_note(quality, now - row["time"], self.view.lang) if quality == "offline" else fmt_time(row["time"]),
-                 "quality_class": "q-offline" if quality == "offline" else ""} for row in self.table.rows]
-        if rows != self.table.rows:
-            self.table.rows = rows
-            self.table.update()
-
-    def inputs(self, access: Access) -> tuple:
-        return access, self.view.fact(facts.P_WATCH), self.view.state.status, len(self.table.rows)
-
-    def draw(self, access: Access) -> None:
-        enable_unless(self.button, _read_gate(self.view, access))
-        self.ages()
-
-
 def content(name: str) -> None:
     view = ScuView(name)
     _ = view.lang.gettext
@@ -793,14 +599,6 @@ def content(name: str) -> None:
         sim_card(name)  # the twin's declared controls, in simulation only
 
 
-DIRECTORY_COLUMNS = [{"name": k, "label": label, "field": k, "align": "left"} for k, label in
-                     (("id", N_("Id")), ("name", N_("Name")), ("type", N_("Type")), ("unit", N_("Unit")),
-                      ("access", N_("Access")), ("comment", N_("Comment")))]
-SETTINGS_COLUMNS = [{"name": k, "label": label, "field": k, "align": "left"} for k, label in
-                    (("id", N_("Data ID")), ("name", N_("Name")), ("value", N_("Value")), ("kind", N_("Kind")),
-                     ("read", N_("Read")))]
-SERVICE_COLUMNS = [{"name": k, "label": label, "field": k, "align": "left"} for k, label in
-                   (("id", N_("Id")), ("name", N_("Name")), ("value", N_("Value")), ("read", N_("Read")))]
 # the motions of para_ID[0] (devices/scu/codec.py MOTION_LABELS, table 7) as the select and the question show them
 MOTION_WORDS = (
     N_('undefined direction'),

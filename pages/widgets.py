@@ -15,7 +15,7 @@ from nicegui import context, ui
 from app import i18n
 from app import runtime as rt
 from app.i18n import N_, Lang
-from app.state import DeviceState
+from app.state import DeviceState, LiveValue
 from devices.params import Param
 
 log = logging.getLogger(__name__)
@@ -49,6 +49,8 @@ class Lamp:
     not a row of a light, a name and a tooltip: the same look and the same ``data-lamp``, ``data-on`` and
     ``data-quality``, at a quarter of the elements (a page of 40 lamps)."""
 
+    _on: bool | None | str = "never"  # what the lamp shows now ("never": not set yet)
+
     def __init__(self, name: str, kind: str = "ok", tooltip: str = "", light: bool = False):
         if light:
             add_css_once("lamp", LAMP_CSS)
@@ -66,7 +68,7 @@ class Lamp:
         self.kind = kind
 
     def set(self, on: bool | None) -> None:
-        if getattr(self, "_on", "never") == on:
+        if self._on == on:
             return  # unchanged: no class or prop work (this runs on every push)
         self._on = on
         self.dot.classes(remove="on unknown")
@@ -76,10 +78,10 @@ class Lamp:
             self.dot.classes(add="on")
         self.row.props(f'data-on="{"unknown" if on is None else int(bool(on))}"')
 
-    def show(self, entry: dict | None, value=None) -> None:
-        """Show a live point (its value, or ``value`` taken from it) with its quality: offline shows unknown."""
-        quality = "unknown" if entry is None else entry["quality"]
-        self.set(None if entry is None or quality == "offline" else bool(entry["value"] if value is None else value))
+    def show(self, live: LiveValue | None, value=None) -> None:
+        """Show a live value (its value, or ``value`` taken from it) with its quality: offline shows unknown."""
+        quality = "unknown" if live is None else live.quality
+        self.set(None if live is None or quality == "offline" else bool(live.value if value is None else value))
         mark_quality(self.row, quality)
 
 
@@ -87,10 +89,11 @@ QUALITY_CLASSES = "q-stale q-offline q-unknown"
 QUALITY_WORDS = {"good": N_("good"), "stale": N_("stale"), "offline": N_("offline"), "unknown": N_("unknown")}
 
 
-def entry_age(entry: dict | None) -> float | None:
+def entry_age(live: LiveValue | None) -> float | None:
+    """How long ago the value was read or heard (None: never)."""
     import time
 
-    return None if entry is None or entry.get("time") is None else max(0.0, time.time() - entry["time"])
+    return None if live is None or live.time is None else max(0.0, time.time() - live.time)
 
 
 def quality_note(quality: str, age: float | None, lang: Lang | None = None) -> str:
@@ -142,34 +145,6 @@ class ValueLine:
         return self.shown[0] if self.shown else ""
 
 
-class LiveValue:
-    """A label showing one live point of the store with its quality (greyed, with its age, when not good)."""
-
-    def __init__(self, state: DeviceState, point: str, fmt=None, classes: str = "text-body1", lang: Lang | None = None):
-        self.state, self.point, self.fmt, self.lang = state, point, fmt, lang
-        with ui.row().classes("items-baseline gap-0 no-wrap") as self.row:
-            self.label = ui.label("-").classes(classes)
-            self.age = ui.label().classes("q-age")
-        self.row.props(f'data-point="{point}"')
-        self.update()
-        follow(state, self.update)
-
-    def update(self) -> None:
-        import time
-
-        entry = self.state.point(self.point)
-        if entry is None:
-            self.label.set_text("-")
-            quality, age = "unknown", None
-        else:
-            self.label.set_text(self.fmt(entry) if self.fmt else (entry["text"] if entry["text"] is not None else
-                                                                   f"{entry['value']} {entry['unit']}".strip()))
-            quality = entry["quality"]
-            age = None if entry["time"] is None else max(0.0, time.time() - entry["time"])
-        mark_quality(self.row, quality)
-        self.age.set_text(quality_note(quality, age, self.lang) if quality in ("stale", "offline") else "")
-
-
 REGISTER_COLUMNS = [
     {"name": "address", "label": N_("Addr"), "field": "address", "align": "right", "sortable": True},
     {"name": "name", "label": N_("Name"), "field": "name", "align": "left"},
@@ -219,12 +194,12 @@ def html_attr(text: str) -> str:
     return html.escape(text, quote=True)
 
 
-def lamp_html(key: str, name: str, entry: dict | None, tip: str = "", kind: str = "ok", idle: bool | None = None) -> str:
+def lamp_html(key: str, name: str, live: LiveValue | None, tip: str = "", kind: str = "ok", idle: bool | None = None) -> str:
     """One lamp as :class:`Lamp` draws it (its data-lamp, data-on and data-quality, the dot's classes;
     ``kind`` "ok", "warn" or "alarm"), in the text of the element that holds it: a lamp costs no element of its own.
     ``idle``: a fault lamp whose fault is the normal state now (grey, never red; data-idle)."""
-    quality = "unknown" if entry is None else entry["quality"]
-    on = None if entry is None or quality == "offline" else bool(entry["value"])
+    quality = "unknown" if live is None else live.quality
+    on = None if live is None or quality == "offline" else bool(live.value)
     dot = " ".join(x for x in ("lamp", "" if kind == "ok" or idle else kind, "unknown" if on is None else "on" if on else "") if x)
     marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
     return (f'<div class="nicegui-row row items-center gap-1 no-wrap{marks}" data-lamp="{html_attr(key)}" '
@@ -234,11 +209,11 @@ def lamp_html(key: str, name: str, entry: dict | None, tip: str = "", kind: str 
             + f'></span><div class="text-body2">{html.escape(name)}</div></div>')
 
 
-def value_html(point: str, testid: str, text: str, entry: dict | None, lang: Lang | None = None) -> str:
-    """A value as :class:`LiveValue` draws it (greyed with its age while stale or offline)."""
-    quality = "unknown" if entry is None else entry["quality"]
+def value_html(point: str, testid: str, text: str, live: LiveValue | None, lang: Lang | None = None) -> str:
+    """A value in the text of the element that holds it, greyed with its age while stale or offline."""
+    quality = "unknown" if live is None else live.quality
     marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
-    note = quality_note(quality, entry_age(entry), lang) if quality in ("stale", "offline") else ""
+    note = quality_note(quality, entry_age(live), lang) if quality in ("stale", "offline") else ""
     return (f'<div class="nicegui-row row items-baseline gap-0 no-wrap{marks}" data-point="{html_attr(point)}" '
             f'data-testid="{testid}" data-quality="{quality}"><div class="mono text-body2">'
             f'{html.escape(text)}</div><div class="q-age">{html.escape(note)}</div></div>')
@@ -260,6 +235,11 @@ class LampStrip:
 
     def show(self, parts: list[str]) -> None:
         self.element.set_content("".join(parts))
+
+
+def _tab_name(value: object) -> object:
+    """The name of the tab a ``ui.tab_panels`` shows (its value: a tab, a panel or the name itself)."""
+    return value.props["name"] if isinstance(value, ui.tab | ui.tab_panel) else value
 
 
 class RegisterTable:
@@ -303,8 +283,7 @@ class RegisterTable:
         changed rows go there (a few bytes, not the whole table with its descriptions and columns, which the
         browser keeps): the table element is sent whole only when its rows are new."""
         panels = self._panels
-        if panels is not None and self.table.rows and \
-                panels._value_to_model_value(panels.value) != self._panel.props.get("name"):
+        if panels is not None and self.table.rows and _tab_name(panels.value) != self._panel.props.get("name"):
             self._words = None  # its tab is not shown: updated when it is chosen
             return
         state = self.state
@@ -537,9 +516,15 @@ def range_text(low: float, high: float, unit: str = "", *, any_beyond: float = I
     return text.strip()
 
 
+class RangeNumber(ui.number):
+    """A number entry that carries its allowed range in words (:attr:`rule`, shown under it)."""
+
+    rule: str = ""
+
+
 def range_number(label: str, low: float, high: float, *, unit: str = "", integer: bool = False, value=None,
                  step: float | None = None, fmt: str | None = None, any_beyond: float = INT32_LIMIT,
-                 lang: Lang | None = None) -> ui.number:
+                 lang: Lang | None = None) -> RangeNumber:
     """A number entry with its allowed range shown under it. What was typed stays as typed: an entry
     outside the range (or a fraction where a whole number is needed) is marked invalid with the
     range, never clamped; :func:`checked_value` refuses it before anything is sent. ``label``: in the
@@ -561,9 +546,9 @@ def range_number(label: str, low: float, high: float, *, unit: str = "", integer
         return None
 
     # no "%d" format for whole numbers: it rounded a typed 12.5 to 12 on leaving the field
-    field = ui.number(label, value=value, step=step, format=fmt, validation=check)
+    field = RangeNumber(label, value=value, step=step, format=fmt, validation=check)
     field.props(f'hint="{rule}" dense outlined')
-    field.rule = rule  # type: ignore[attr-defined]
+    field.rule = rule
     return field
 
 

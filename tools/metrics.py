@@ -73,7 +73,8 @@ NAMEDTUPLE_API = {"_make", "_replace", "_asdict", "_fields", "_field_defaults"} 
 def _is_private(name: str) -> bool:
     """One leading underscore (or a mangled ``__name``), not a dunder, not namedtuple's public methods."""
     dunder = name.startswith("__") and name.endswith("__")
-    return name.startswith("_") and not dunder and name not in NAMEDTUPLE_API
+    gettext = name == "_"  # the translation function by gettext's convention, not a private name
+    return name.startswith("_") and not dunder and not gettext and name not in NAMEDTUPLE_API
 
 
 def _is_own(node: ast.expr) -> bool:

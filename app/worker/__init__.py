@@ -1,9 +1,9 @@
 """The bus worker: owns every transport, polls every device, runs commands from pages.
 
-Pages never touch a transport. They read :class:`~app.state.StateStore` and call
-:meth:`Worker.invoke`, which hands the declared command to the gate (:mod:`app.gate`); it
-checks the role, runs the adapter method on the bus task's transport and returns the result
-or a clear error.
+Pages never touch a transport. They read :class:`~app.state.StateStore` and submit what they
+want done to the worker's one way in, its command gate (``worker.gate``, an
+:class:`app.gate.CommandGate`): it checks the role, writes the audit row, runs the adapter's
+method on the bus task's transport and returns the result or a clear error.
 
 :class:`Worker` is a composition of one part per job, each a module of this package:
 
@@ -16,8 +16,7 @@ or a clear error.
   the page of a session that holds something to beat (through :meth:`Worker.on_beat_ask`: pages beat
   only while they hold something or just after a user interaction);
 - :mod:`.loophealth` measures how late the event loop runs the 50 ms supervision tick (slower while
-  no page is connected and nothing is held);
-- :mod:`.commands` hands commands to the gate and audits them.
+  no page is connected and nothing is held).
 """
 
 from __future__ import annotations
@@ -27,15 +26,14 @@ import logging
 from collections.abc import Awaitable, Callable
 from typing import Any
 
-from app import gate
 from app.audit import AuditLog
 from app.can_bus import CanBus
 from app.gate import WRITE_ROLES  # noqa: F401 - named here for callers
-from app.gate import AuditUnavailable, PermissionDenied  # noqa: F401 - raised by the gate; named here for callers
+from app.gate import AuditUnavailable, CommandGate, PermissionDenied  # noqa: F401 - raised by the gate; named here for callers
 from app.modbus_line import ModbusLine
 from app.plant import DeviceConfig, Plant
 from app.state import StateStore
-from app.worker import commands, loophealth
+from app.worker import loophealth
 from app.worker.adoption import Devices
 from app.worker.deadman import (  # noqa: F401 - the dead-man rule's figures, named here for pages and tests
     BEAT_PERIOD_S,
@@ -64,11 +62,30 @@ log = logging.getLogger(__name__)
 STOP_S = 5.0  # the bus tasks' end, at most this long
 
 
-class Worker:
-    """Every adapter is reached through it; one polling task per bus, one supervision tick."""
+def no_accounts(user: str) -> None:
+    """No account store: every caller's role stands."""
+    return None
 
-    def __init__(self, plant: Plant, store: StateStore | None = None, audit: AuditLog | None = None):
+
+async def nothing_to_keep() -> None:
+    """Nothing to make durable after a change."""
+
+
+class Worker:
+    """Every adapter is reached through it; one polling task per bus, one supervision tick.
+
+    :param role_of: the role of a user as the account store says now, None where no accounts are in use
+        (the runtime's); by default no accounts: the caller's role stands
+    :param after_change: awaited after every action that is not a read (the runtime's: unsaved reminders
+        onto disk before a write is reported done)
+    """
+
+    def __init__(self, plant: Plant, store: StateStore | None = None, audit: AuditLog | None = None, *,
+                 role_of: Callable[[str], str | None] = no_accounts,
+                 after_change: Callable[[], Awaitable[None]] = nothing_to_keep):
         self.plant = plant
+        self.role_of = role_of  # read by the gate at every action
+        self.after_change = after_change
         self.audit = audit
         self.store = store or StateStore()
         self.transports = Transports(plant, self.store)
@@ -78,6 +95,9 @@ class Worker:
         self.deadman = DeadmanSupervisor(self._holder_items)
         self.loop_health = LoopHealth()
         self.hurry = loophealth.Hurry()  # a page connecting or a command coming ends the idle tick's wait
+        # the one way in for commands; after each the tick hurries (a command may have taken control: supervised
+        # from the next tick on, at 50 ms)
+        self.gate = CommandGate(self, done=self.hurry.now)
         # the flood bound is the module's, passed in, so that a test may choose its own
         self.discovery = CanDiscovery(plant, self.transports.can_buses, flood_ids_per_s=FLOOD_NEW_IDS_PER_S)
         for name, can_bus in self.transports.can_buses.items():
@@ -220,62 +240,3 @@ class Worker:
     def _supervise_deadman(self, now: float) -> None:
         """Apply the dead-man rule at monotonic time ``now`` (:meth:`DeadmanSupervisor.supervise`)."""
         self.deadman.supervise(now)
-
-    # -- commands: the hand-off to the gate (:mod:`.commands`, :mod:`app.gate`) ---------------------------
-    async def invoke(self, device: str, name: str, args: dict | None = None, *, user: str, role: str,
-                     session: str = "", confirmed: bool = False) -> Any:
-        """Run the declared command ``name`` of ``device`` (:func:`app.gate.invoke`)."""
-        try:
-            return await gate.invoke(self, device, name, args, user=user, role=role, session=session, confirmed=confirmed)
-        finally:
-            self.hurry.now()  # it may have taken control: supervised from the next tick on, at 50 ms
-
-    async def command(
-        self, device: str, action: Callable[[Any], Awaitable[Any]], *, role: str = "engineer", user: str = "local",
-        describe: str = "", record: bool = True, parameter: str = "", old: Any = "", new: Any = "",
-    ) -> Any:
-        """Run ``action(adapter)`` for ``device`` on behalf of a session (the older way, left to the
-        worker's own callers such as restore's save step; pages, the API and the tools use :meth:`invoke`).
-
-        The kind comes from the device type's declared command named ``describe`` when there is one
-        (:func:`app.gate.kind_for`); anything else counts as a write.
-        """
-        try:
-            return await commands.command(self, device, action, role=role, user=user, describe=describe, record=record,
-                                          parameter=parameter, old=old, new=new)
-        finally:
-            self.hurry.now()
-
-    async def engineer_action(
-        self, action: Callable[[], Awaitable[Any]], *, user: str, role: str, describe: str, target: str = "",
-        parameter: str = "", new: Any = "",
-    ) -> Any:
-        """Anything that changes the plant, the plant file, a device or files on disk
-        (adopting a device, recordings, line scans, backups): engineer only, audited."""
-        return await self.checked(action, device=target, role=role, user=user, describe=describe, parameter=parameter, new=new)
-
-    async def checked(
-        self, action: Callable[[], Awaitable[Any]], *, device: str, role: str, user: str, describe: str,
-        kind: str = "write", record: bool = True, parameter: str = "", old: Any = "", new: Any = "",
-    ) -> Any:
-        """The one place where a change is checked (role) and audited (fail closed) before it runs.
-
-        ``kind`` comes from a declared command (:func:`app.gate.invoke`); the worker's own actions that
-        are no device command (a simulation control, ending a recording, stopping the transmit list or
-        a replay) name theirs. The role is the account store's at this moment (:func:`app.gate.role_now`).
-        A ``stop`` runs for every role, first, and is audited afterwards from a queue; a ``read`` for
-        every role, unaudited.
-        """
-        try:
-            return await commands.checked(self, action, device=device, role=role, user=user, describe=describe, kind=kind,
-                                          record=record, parameter=parameter, old=old, new=new)
-        finally:
-            self.hurry.now()
-
-    async def refused(
-        self, *, device: str, user: str, role: str, describe: str, reason: str, parameter: str = "", new: Any = "",
-    ) -> None:
-        """An entry or a request refused before anything was sent (out of range, not confirmed, forbidden by
-        the device document): logged on the device and in the audit log with the reason."""
-        await commands.refused(self, device=device, user=user, role=role, describe=describe, reason=reason,
-                               parameter=parameter, new=new)

@@ -12,6 +12,7 @@ import asyncio
 import logging
 from typing import Any
 
+from app.modbus_line import ModbusLine
 from app.plant import DeviceConfig, Plant, can_id_conflict
 from app.state import DeviceState, StateStore
 from app.worker.discovery import CanDiscovery
@@ -47,9 +48,9 @@ class Devices:
         self.store.devices[dev.name] = state
         transport = self.transports.of(dev.bus)
         self.adapters[dev.name] = device_type.adapter_class(bus.type)(dev, state, transport)
-        attach = getattr(transport, "attach_device", None)
-        if attach is not None and isinstance(dev.options.get("address"), int):
-            attach(dev.options["address"], state)  # its stale threshold follows the line's measured cycle
+        if isinstance(transport, ModbusLine) and isinstance(dev.options.get("address"), int):
+            # its stale threshold follows the line's measured cycle
+            transport.attach_device(dev.options["address"], state)
 
     def adopt(self, dev: DeviceConfig, discovery: CanDiscovery) -> None:
         """Take a discovered device into the running plant (the plant file is the caller's business).

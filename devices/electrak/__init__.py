@@ -4,7 +4,7 @@ from typing import Any
 
 from devices.electrak import codec
 from devices.electrak.params import PARAMS
-from devices.registry import CanIdUse, DeviceType, TileAlarm, TileBar, TileLine, TileSpec, When
+from devices.registry import CanIdUse, DeviceType, OpenRead, TileAlarm, TileBar, TileLine, TileSpec, When
 
 
 def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str]]:
@@ -80,4 +80,7 @@ DEVICE_TYPE = DeviceType(
     can_codec="devices.electrak.codec",
     can_fixed_ids=CAN_FIXED_IDS,
     tile=TILE,
+    # the service parameters' entries start at the actuators' values: read once when a page opens on a network
+    # never read (a read changes nothing)
+    open_reads=(OpenRead("read service parameters"),),
 )

@@ -164,7 +164,7 @@ class ElectrakAdapter(BackupDefaults):
         limits = self.limits
         state.fact(P_LIMITS, limits, text=f"0..{limits.stroke_mm:g} mm, {limits.speed_min:g}..{limits.speed_max:g} mm/s, "
                                           f"0..{limits.current_a:g} A (0 = calibrated limit)")
-        state.fact(P_BUS_BITRATE, int(getattr(bus, "options", {}).get("bitrate", codec.DEFAULT_BITRATE)), "bit/s")
+        state.fact(P_BUS_BITRATE, int(bus.options.get("bitrate", codec.DEFAULT_BITRATE)), "bit/s")
         state.fact(P_FOREIGN, None, text="none heard")
         state.fact(P_SATURATED, "")
         state.fact(P_SERVICE_LAST, None, text="none yet")
@@ -366,13 +366,13 @@ class ElectrakAdapter(BackupDefaults):
 
     def on_control(self, msg) -> None:
         """A control telegram 0x06 from another node: a PLC, or an actuator with an active control line."""
-        if getattr(msg, "is_rx", True) is False:  # our own frame, handed back by the interface
+        if not msg.is_rx:  # our own frame, handed back by the interface
             return
         now = time.monotonic()
         frames = self._foreign.frames if self._foreign is not None else 0
         try:
             text = codec.describe_frame(codec.CONTROL_ID, False, bytes(msg.data), {(False, codec.STATUS_ID)})
-        except Exception:  # noqa: BLE001 - describe_frame reports malformed frames itself; never let a frame stop the bus
+        except ValueError:  # a codec error: malformed data is shown as its bytes, never stops the bus
             text = bytes(msg.data).hex(" ")
         self._foreign = ForeignSender(frames + 1, time.time(), text or "")
         actions = self.core.foreign_control(now)  # whoever holds control here releases it: never fight it

@@ -346,7 +346,7 @@ def describe_frame(arbitration_id: int, is_extended: bool, data: bytes, known_id
             return f"Electrak status: {s.position_mm:.1f} mm, {s.current_a:.1f} A, {s.speed_mm_s:.1f} mm/s, {flags}"
         if arbitration_id in (SERVICE_REQUEST_ID, SERVICE_RESPONSE_ID):
             m = ServiceMessage.decode(data)
-            kind = ServiceType(m.type).name if m.type in ServiceType._value2member_map_ else f"type 0x{m.type:02X}"
+            kind = ServiceType(m.type).name if m.type in set(ServiceType) else f"type 0x{m.type:02X}"
             extra = f" {m.error_name}" if m.error_code is not None else f" value {m.value}"
             if m.specifier == PASSWORD_SPECIFIER and m.error_code is None:
                 extra = " (password: not shown)"  # a key, not a value: named, never decoded into words

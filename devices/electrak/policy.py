@@ -17,7 +17,8 @@ Go and jog ask that the area is clear, as the SCU's and the MO 64's motion comma
 
 from __future__ import annotations
 
-from devices.commands import Arg, Command, CommandError, param_write
+from devices.commands import Arg, Command, CommandError, param_write, read_parameters
+from devices.electrak.adapter import ElectrakAdapter
 from devices.electrak import codec
 from devices.electrak.control import OVERRIDE_RISK, is_stop
 from devices.electrak.params import PARAMS, SERVICE, length_of, refusal
@@ -25,6 +26,7 @@ from devices.params import ParamError
 from devices.sendpolicy import Verdict
 
 TITLE = "Electrak HD"
+check_modbus = transmit_forms = None  # hooks of devices/sendpolicy.py this type has none of
 
 MOTION_REFUSED = ("Electrak control telegram with enable set drives the actuators: use the Electrak page "
                   "(hold-to-run, a visible stop) instead")
@@ -150,21 +152,22 @@ _CURRENT = Arg("current_a", 0, 6553.5, integer=False, unit="A")
 
 COMMANDS = (
     # -- stops: every role, never refused, sent first and audited afterwards -------------------------------------
-    Command("stop", "stop", method="stop", session=True),
-    Command("jog stop", "stop", method="jog_stop", session=True),
-    Command("release control", "stop", method="release_control", session=True, extras=("reason",)),
+    Command("stop", "stop", run=ElectrakAdapter.stop, session=True),
+    Command("jog stop", "stop", run=ElectrakAdapter.jog_stop, session=True),
+    Command("release control", "stop", run=ElectrakAdapter.release_control, session=True, extras=("reason",)),
     # -- control and motion: engineers; the adapter checks that the session holds control -----------------------
-    Command("take control", "system", method="take_control", session=True, extras=("user",)),
-    Command("set target", "write", method="set_command", session=True, args=(_POSITION, _SPEED, _CURRENT),
+    Command("take control", "system", run=ElectrakAdapter.take_control, session=True, extras=("user",)),
+    Command("set target", "write", run=ElectrakAdapter.set_command, session=True, args=(_POSITION, _SPEED, _CURRENT),
             audit=_set_target_audit),
-    Command("go", "motion", method="go", session=True, audit=_go_audit, risk=AREA_CLEAR_RISK),
-    Command("jog", "motion", method="jog", session=True, args=(Arg("direction", -1, 1), _SPEED), prepare=_jog,
+    Command("go", "motion", run=ElectrakAdapter.go, session=True, audit=_go_audit, risk=AREA_CLEAR_RISK),
+    Command("jog", "motion", run=ElectrakAdapter.jog, session=True, args=(Arg("direction", -1, 1), _SPEED), prepare=_jog,
             audit=_jog_audit, risk=AREA_CLEAR_RISK),
     # asked when set (it resets the number of actuators the network expects); the adapter refuses it unconfirmed
-    Command("override", "write", method="override", session=True, args=(Arg("active", 0, 1),), prepare=_override,
+    Command("override", "write", run=ElectrakAdapter.override, session=True, args=(Arg("active", 0, 1),), prepare=_override,
             risk=_override_risk, confirmation=True),
     # -- service parameters ----------------------------------------------------------------------------------------
-    Command("read service parameters", "read", method="read_all"),
-    Command("save parameters", "system", method="save_parameters"),
-    param_write(PARAMS),  # the parameter's own confirmation (e.g. a Timeout above the default)
+    Command("read service parameters", "read", run=ElectrakAdapter.read_all),
+    Command("save parameters", "system", run=ElectrakAdapter.save_parameters),
+    param_write(PARAMS, ElectrakAdapter.write_param),  # the parameter's own confirmation (e.g. a Timeout above the default)
+    read_parameters(ElectrakAdapter.backup_read),
 )

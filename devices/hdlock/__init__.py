@@ -94,6 +94,7 @@ DEVICE_TYPE = DeviceType(
     params=PARAMS,
     adapters={"modbus-rtu": "devices.hdlock.adapter:HdLockAdapter", "can": "devices.hdlock.can_adapter:HdLockCanAdapter"},
     sims={"modbus-rtu": "devices.hdlock.sim:HdLockSim", "can": "devices.hdlock.sim:HdLockCanSim"},
+    scans={"modbus-rtu": "devices.hdlock.adapter:discover"},
     check_config=_check_config,
     bus_identity=_identity,
     can_codec="devices.hdlock.codec",

@@ -24,8 +24,8 @@ from devices.transport import CanTransport
 def _arrival(msg) -> float:
     """The frame's receive time from the interface, or now when it has none or one from another clock."""
     now = time.time()
-    stamp = getattr(msg, "timestamp", None)
-    return stamp if isinstance(stamp, int | float) and 0 <= now - stamp < 5.0 else now
+    stamp = msg.timestamp
+    return stamp if 0 <= now - stamp < 5.0 else now
 
 
 CAN_FRAME_BITS = 135  # an extended 6-byte answer with stuffing, roughly

@@ -23,7 +23,10 @@ the door is opened, a lock request (IrsAlways) is given, and the bolt must stay 
 from __future__ import annotations
 
 import time
+import weakref
+from typing import Any
 
+from devices import errors
 from devices.commands import WRITE_PARAMETER
 from devices.hdlock import STATUS_FRAME_BOLT
 from devices.hdlock.params import PARAMS
@@ -49,7 +52,7 @@ LOCKED_STATE, UNLOCKED_STATE = 4, 2
 # page and the CLI offer it with the question)
 OPEN_DOOR = "Toggle door now: open the door and keep it open until you are asked to close it."
 CLOSE_DOOR = "Toggle door now: close the door again."
-_SAVED = "_hdlock_before"
+_SAVED: weakref.WeakKeyDictionary[Any, dict[str, Any]] = weakref.WeakKeyDictionary()  # a run's context -> the source before it
 
 
 def _status(ctx, bit: str) -> int | None:
@@ -132,10 +135,9 @@ async def _door(ctx) -> None:
 
 
 async def _write_source(ctx, value: int) -> None:
-    before = getattr(ctx, _SAVED, None)
-    if before is None:
-        setattr(ctx, _SAVED, {"source": _raw(ctx, SOURCE), "in_use": _raw(ctx, SOURCE_IN_USE),
-                              "unsaved": {k for k in (SOURCE.key, SOURCE_IN_USE.key) if k in ctx.state.unsaved}})
+    if ctx not in _SAVED:
+        _SAVED[ctx] = {"source": _raw(ctx, SOURCE), "in_use": _raw(ctx, SOURCE_IN_USE),
+                       "unsaved": {k for k in (SOURCE.key, SOURCE_IN_USE.key) if k in ctx.state.unsaved}}
     await _write(ctx, SOURCE, value)
 
 
@@ -144,7 +146,7 @@ async def _write(ctx, param, raw: int) -> None:
     poll's read of the same register, sent just before, can arrive as the write's echo), a second one fails."""
     try:
         await ctx.invoke(WRITE_PARAMETER, {"param": param, "value": param.decode(raw)})
-    except Exception as exc:  # noqa: BLE001 - only a differing read-back is tried again; the rest is the step's reason
+    except errors.CommandError as exc:  # only a differing read-back is tried again; the rest is the step's reason
         if "instead of" not in str(exc):
             raise
         ctx.note(f"{exc}; written once more")
@@ -278,7 +280,7 @@ async def _refuse_open_door(ctx) -> None:
 async def cleanup(ctx, settings: dict) -> None:
     """LockRequestSource (1002) and the source in use (4) as the lock had them, written back; a change the
     checkout made and undid is not left as an unsaved change (the lock holds what it held before)."""
-    before = getattr(ctx, _SAVED, None)
+    before = _SAVED.get(ctx)
     if before is None:
         return
     for param, raw in ((SOURCE, before["source"]), (SOURCE_IN_USE, before["in_use"])):

@@ -13,7 +13,8 @@ from enum import IntEnum
 from functools import lru_cache
 
 from devices import errors
-from devices.hdlock.params import LOCK_REQUEST_SOURCE, PARAMS
+from devices.hdlock.params import PARAMS
+from devices.hdlock.tables import LOCK_REQUEST_SOURCE
 
 # LockStatus bits (holding 1000, section 3.2.1; bit 4 repeats "LockRequest", see SPEC-NOTES)
 LOCK_REQUEST = 1 << 0

@@ -7,8 +7,11 @@ bytes (transmit list, replay, Modbus poll window, restore, the lock's own comman
 from __future__ import annotations
 
 from devices.hdlock import codec
-from devices.hdlock.params import DOOR_IGNORED_WARNING, PARAMS
-from devices.commands import Arg, Command, TxField, TxForm, param_write
+from devices.hdlock.params import PARAMS
+from devices.hdlock.tables import DOOR_IGNORED_WARNING
+from devices.commands import Arg, Command, TxField, TxForm, param_write, read_parameters
+from devices.hdlock.adapter import HdLockAdapter, HdLockBackup
+from devices.hdlock.can_adapter import HdLockCanAdapter
 from devices.params import ParamError
 from devices.sendpolicy import Verdict, can_id_owner
 
@@ -263,21 +266,27 @@ def _broadcast_refusal(args, bus, device: str) -> str:
 _ADDRESS_ARGS = (Arg("new_address", codec.MODBUS_ADDRESS_MIN, codec.MODBUS_ADDRESS_MAX), Arg("mask", 0, 0xFFFF),
                  Arg("expected", 0, 0xFFFF))
 
+# one function per adapter where both serve a command; a command one adapter lacks is not offered on its bus kind
 COMMANDS = (
-    Command("Save-Settings", "system", method="save_settings", audit=_save_audit),
-    Command("Restore-Settings", "system", method="restore_settings", risk=RESTORE_RISK),
-    Command("cmdSetLockRequestSource", "write", method="set_lock_request_source",
+    Command("Save-Settings", "system", run=(HdLockAdapter.save_settings, HdLockCanAdapter.save_settings),
+            audit=_save_audit),
+    Command("Restore-Settings", "system", run=(HdLockAdapter.restore_settings, HdLockCanAdapter.restore_settings),
+            risk=RESTORE_RISK),
+    # CAN only (section 6.6)
+    Command("cmdSetLockRequestSource", "write", run=HdLockCanAdapter.set_lock_request_source,
             args=(Arg("value", 0, 0x87),), flags=("broadcast",), risk=_source_risk, refuse_if=_source_refusal),
-    Command("cmdSetCANbaudrate", "system", method="set_can_bitrate", args=(Arg("code", 0, 255),), flags=("broadcast",),
-            risk=_bitrate_risk),
-    Command("Set Device Address", "system", method="set_device_address", args=(Arg("new_value", 1, codec.EXT_ID_MAX),),
-            flags=("extended",), risk=DEVICE_ID_RISK, refuse_if=_device_id_refusal),
-    # broadcast first: "Set Modbus Address" answers to names it starts (an older caller's wording)
-    Command("Broadcast Set Modbus Address (255)", "system", method="broadcast_set_address", args=_ADDRESS_ARGS,
+    Command("cmdSetCANbaudrate", "system", run=HdLockCanAdapter.set_can_bitrate, args=(Arg("code", 0, 255),),
+            flags=("broadcast",), risk=_bitrate_risk),
+    Command("Set Device Address", "system", run=HdLockCanAdapter.set_device_address,
+            args=(Arg("new_value", 1, codec.EXT_ID_MAX),), flags=("extended",), risk=DEVICE_ID_RISK,
+            refuse_if=_device_id_refusal),
+    # Modbus only (section 4.3); broadcast first: "Set Modbus Address" answers to names it starts (an older caller's wording)
+    Command("Broadcast Set Modbus Address (255)", "system", run=HdLockAdapter.broadcast_set_address, args=_ADDRESS_ARGS,
             extras=("known",), risk=BROADCAST_ADDRESS_RISK, refuse_if=_broadcast_refusal, audit=_broadcast_audit),
-    Command("Set Modbus Address", "system", method="set_address", prefix=True, args=_ADDRESS_ARGS, risk=ADDRESS_RISK,
-            audit=_address_audit),
-    param_write(PARAMS, _write_verdict),
+    Command("Set Modbus Address", "system", run=HdLockAdapter.set_address, prefix=True, args=_ADDRESS_ARGS,
+            risk=ADDRESS_RISK, audit=_address_audit),
+    param_write(PARAMS, (HdLockAdapter.write_param, HdLockCanAdapter.write_param), _write_verdict),
+    read_parameters(HdLockBackup.backup_read),
 )
 
 

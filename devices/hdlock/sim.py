@@ -24,7 +24,8 @@ from pymodbus.framer import FramerType
 from pymodbus.server import ModbusTcpServer
 
 from devices.hdlock import codec
-from devices.hdlock.params import HOLDING, INPUT, LOCK_REQUEST_SOURCE, PARAMS
+from devices.hdlock.params import HOLDING, INPUT, PARAMS
+from devices.hdlock.tables import LOCK_REQUEST_SOURCE
 from devices.params import Access
 from devices.simcontrols import SimAction, SimControls, SimParam
 

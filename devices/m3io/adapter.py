@@ -160,8 +160,6 @@ class M3ioAdapter(ModuleSettings):
         # keep-alive and its lease, another master; plant file `master = "always"`: this tool is the module's only
         # master (a bench without a PLC) and serves the watchdog with every output off while nobody controls it
         self.core = M3ioControl(self.variant, self.ids.dig_out, config.options.get("master", "on-control") == "always")
-        self.outputs = self.core.outputs  # output -> on (the core's)
-        self.owners = self.core.owners  # output that is on -> page session (NiceGUI client id) that switched it on
         self.product_code: int | None = None
         self.variant_check = codec.check_variant(self.variant, self.ids.addressed, None)
         self._verify_after = 0.0
@@ -180,9 +178,7 @@ class M3ioAdapter(ModuleSettings):
         self._lock = asyncio.Lock()
         state.stale_after = 1.5
         self._init_settings()
-        bus_rate = bus.options.get("bitrate")
-        self.bus_bitrate = bus_rate
-        self.bitrate_mismatch = bus_rate != self.ids.bitrate
+        bus_rate = self.bus_bitrate
         state.fact(P_ADDRESSING, Addressing(self.sw1, self.ids.addressed, self.ids.bitrate, bus_rate, self.ids.dig_out,
                                             tuple(self.ids.by_name().items())),
                    text=f"SW1 0x{self.sw1:02X}: " + ("addressed mode, " if self.ids.addressed else "")
@@ -207,10 +203,34 @@ class M3ioAdapter(ModuleSettings):
         self.key = f"m3io digout {config.name}"
         self.cfg_key = f"m3io cfg {config.name}"
         self.lease = Lease()  # the sender's: granted, renewed and revoked as the core says (devices/lease.py)
-        self.always_master = self.core.always_master
         self.core.variant_checked(self.variant_check.may_switch, self.variant_check.text, time.monotonic())
         self._publish_master()
         bus.subscribe(False, self.ids.dig_out, self.on_foreign_dig_out)
+
+    @property
+    def outputs(self) -> dict[str, bool]:
+        """Output -> on (the core's)."""
+        return self.core.outputs
+
+    @property
+    def owners(self) -> dict[str, str]:
+        """Output that is on -> page session (NiceGUI client id) that switched it on (the core's)."""
+        return self.core.owners
+
+    @property
+    def always_master(self) -> bool:
+        """Plant file ``master = "always"``: this tool is the module's only master (the core's)."""
+        return self.core.always_master
+
+    @property
+    def bus_bitrate(self) -> int | None:
+        """The bit rate the plant file gives the bus."""
+        return self.bus.options.get("bitrate")
+
+    @property
+    def bitrate_mismatch(self) -> bool:
+        """SW1 sets another bit rate than the bus runs at."""
+        return self.bus_bitrate != self.ids.bitrate
 
     # -- the core's actions carried out -------------------------------------------------------------
     @property
@@ -274,7 +294,7 @@ class M3ioAdapter(ModuleSettings):
 
     def on_foreign_dig_out(self, msg) -> None:
         """A DigOut from another node: a PLC serves the module. Never fight it."""
-        if getattr(msg, "is_rx", True) is False:  # our own frame, handed back by the interface
+        if not msg.is_rx:  # our own frame, handed back by the interface
             return
         now = time.monotonic()
         self._other = OtherMaster(True, self._other.frames + 1, time.time(), bytes(msg.data).hex(" "))

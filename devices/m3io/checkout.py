@@ -83,9 +83,8 @@ async def _ask(ctx) -> None:
 
 
 async def _take(ctx) -> None:
-    """Control of the module for the run's session, where the adapter asks for it (take_control)."""
-    if callable(getattr(ctx.adapter, "take_control", None)):
-        await ctx.invoke("take control", {"user": ctx.user})
+    """Control of the module for the run's session (the declared "take control")."""
+    await ctx.invoke("take control", {"user": ctx.user})
     # addressed mode: outputs switch only once the product code matched the plant's variant (7.2.4.2.2)
     await ctx.wait(lambda: ctx.value("Variant check") in ("ok", "not possible", "mismatch"), ctx.settings["settle_s"] + 2)
     if ctx.value("Variant check") == "mismatch":
@@ -170,5 +169,4 @@ async def cleanup(ctx, settings: dict) -> None:
     for output in outputs(ctx.options):
         if ctx.value(output):
             await ctx.invoke(f"{output} off")
-    if callable(getattr(ctx.adapter, "release_control", None)):
-        await ctx.invoke("release control", {"reason": "checkout finished"})
+    await ctx.invoke("release control", {"reason": "checkout finished"})

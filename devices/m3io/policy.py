@@ -12,13 +12,14 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from devices.commands import Arg, Command, CommandError, TxField, TxForm, param_write
+from devices.commands import Arg, Command, CommandError, TxField, TxForm, param_write, read_parameters
 from devices.m3io import codec
-from devices.m3io.adapter import OUTPUT_NAMES
+from devices.m3io.adapter import OUTPUT_NAMES, M3ioAdapter
 from devices.m3io.params import P2_RISK, PARAMS
 from devices.sendpolicy import Verdict
 
 TITLE = "CAN-M3IO"
+check_modbus = None  # hooks of devices/sendpolicy.py this type has none of
 
 MODULE_SENDS = ("DigIn", "Temp1-4", "Temp5-6", "MData")  # sender "Modul" in the tables of section 5.8
 MAINS_RISK = "{device}: DigOut switches {outputs} on: mains voltage on the load(s) (section 7.2.1)."
@@ -106,7 +107,7 @@ def _switch(output: str, on: bool) -> Command:
         kind, risk = "write", ""
     else:
         kind, risk = "mains", THREE_PHASE_RISK if output == "SSR1-3" else MAINS_OUTPUT_RISK
-    return Command(f"{output} {'on' if on else 'off'}", kind, method="set_output", session=True, extras=("name", "on"),
+    return Command(f"{output} {'on' if on else 'off'}", kind, run=M3ioAdapter.set_output, session=True, extras=("name", "on"),
                    prepare=fixed, risk=risk, audit=audit)
 
 
@@ -115,19 +116,20 @@ def _customer_audit(values: Mapping[str, Any], adapter: Any) -> dict[str, Any]:
 
 
 COMMANDS = (
-    Command("take control", "write", method="take_control", session=True, extras=("user",)),
-    Command("release control", "stop", method="release_control", session=True, extras=("reason",)),
+    Command("take control", "write", run=M3ioAdapter.take_control, session=True, extras=("user",)),
+    Command("release control", "stop", run=M3ioAdapter.release_control, session=True, extras=("reason",)),
     *(_switch(output, on) for output in OUTPUT_NAMES for on in (True, False)),
-    Command("all off", "stop", method="all_off_pressed"),
+    Command("all off", "stop", run=M3ioAdapter.all_off_pressed),
     # P2 on asks what the parameter model's P2 asks (a lost phase is no longer a load fault, section 4.3)
-    Command("P2", "write", method="set_two_phase", args=(Arg("on", 0, 1),), risk=lambda values: P2_RISK if values.get("on") else ""),
-    Command("read identity", "read", method="read_identity"),
-    Command("read customer data", "read", method="read_customer", args=(Arg("index", 1, 15),)),
-    Command("write customer data", "write", method="write_customer", args=(Arg("index", 1, 15), BytesArg("payload")),
+    Command("P2", "write", run=M3ioAdapter.set_two_phase, args=(Arg("on", 0, 1),), risk=lambda values: P2_RISK if values.get("on") else ""),
+    Command("read identity", "read", run=M3ioAdapter.read_identity),
+    Command("read customer data", "read", run=M3ioAdapter.read_customer, args=(Arg("index", 1, 15),)),
+    Command("write customer data", "write", run=M3ioAdapter.write_customer, args=(Arg("index", 1, 15), BytesArg("payload")),
             audit=_customer_audit),
-    Command("read load data", "read", method="read_load_data"),
+    Command("read load data", "read", run=M3ioAdapter.read_load_data),
     # the parameter model (devices/m3io/params.py): customer records and P2, checked and confirmed by the model
-    param_write(PARAMS),
+    param_write(PARAMS, M3ioAdapter.write_param),
+    read_parameters(M3ioAdapter.backup_read),
 )
 
 

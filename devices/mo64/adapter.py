@@ -55,8 +55,8 @@ from devices.mo64.facts import (
     value_text,
 )
 from devices.mo64.params import PARAMS
-from devices.mo64.settings import MONITOR_FLAGS, SYN_ACK_TIMEOUT_S, Mo64Settings, setting_method
-from devices.transport import SerialClosed, SerialLineError, SerialTimeout
+from devices.mo64.settings import MONITOR_FLAGS, SYN_ACK_TIMEOUT_S, Mo64Settings
+from devices.transport import SerialClosed, SerialLineError, SerialTimeout, TelegramLine, TelegramTcpLine
 
 MONITORED_POLL_EVERY = 5  # gate state and position, while change monitoring delivers them, every 5th cycle
 MONITOR_FRESH_S = 30.0  # change monitoring counts as delivering this long after its last telegram
@@ -94,11 +94,11 @@ class Mo64Adapter(Mo64Settings):
     params = PARAMS
     backup_available = True
 
-    def __init__(self, config, state: DeviceState, line):
+    def __init__(self, config, state: DeviceState, line: TelegramLine | TelegramTcpLine):
         self.config = config
         self.state = state
         self.line = line
-        line_options = getattr(line, "options", {}) or {}
+        line_options = line.options
         self.rs485 = "address" in config.options or "master_address" in line_options or "baudrate" in line_options
         self.framing = codec.RS485 if self.rs485 else codec.TCP
         self.transport = "logited-rs485" if self.rs485 else "logited-tcp"
@@ -108,8 +108,7 @@ class Mo64Adapter(Mo64Settings):
         self.core = Mo64Control()  # the motion rule: what asks, the levels and their dead-man (sans-I/O)
         # each setting write wears the barrier's EEPROM (document: "EEPROM"): restore says how many
         self.restore_wear = "each written setting wears the barrier's EEPROM"
-        self.eeprom_writes: dict[str, int] = {}
-        self.eeprom_writes_total = 0
+        self.eeprom_writes: dict[str, int] = {}  # EEPROM writes of each session (eeprom_writes_total: all of them)
         self.last_reply = ""
         self.error_memory: list[dict] = []
         self.settings: dict[str, Any] = {}
@@ -151,13 +150,9 @@ class Mo64Adapter(Mo64Settings):
         self._publish_writes()
         fact(P_VERIFIED, ())
         fact(P_CONFIRMED, ())
-        if line is not None:
-            if hasattr(line, "listeners"):
-                line.listeners.append(self._unsolicited)
-            if hasattr(line, "closing"):
-                line.closing.append(self.closing_frames)
-            if hasattr(line, "describe"):
-                line.describe = self.describe_telegram
+        line.listeners.append(self._unsolicited)
+        line.closing.append(self.closing_frames)
+        line.describe = self.describe_telegram
 
     # -- the line -----------------------------------------------------------------------------------
     def _frame(self, telegram: bytes) -> bytes:
@@ -395,7 +390,7 @@ class Mo64Adapter(Mo64Settings):
         """One cycle: the live queries first, each on its own (a nak or no answer of one never holds up
         the others), a counter in turn when one is due (:meth:`_counter_now`), then a few of the start-up reads
         that are still due. Faults are named in the state, never raised."""
-        if getattr(self.line, "released", False):
+        if isinstance(self.line, TelegramTcpLine) and self.line.released:
             self.state.fact(P_CONNECTION, "released")
             return
         problems: list[str] = []
@@ -425,7 +420,7 @@ class Mo64Adapter(Mo64Settings):
             self._act(self.core.tick(time.monotonic()))  # a lapsed lease, a release to send again
             self._cycle += 1
             self._show_reads()
-            self.state.fact(P_CONNECTION, "connected" if getattr(self.line, "connected", True) else "not connected")
+            self.state.fact(P_CONNECTION, "not connected" if isinstance(self.line, TelegramTcpLine) and not self.line.connected else "connected")
             self.state.fact(P_POLLING, POLLING_SLOWER if self.monitoring_active else "every cycle")
 
     async def _optional(self, read: dict, index: int, point: str | None, level: int | None = None) -> bool:
@@ -662,7 +657,7 @@ class Mo64Adapter(Mo64Settings):
         return "reconnecting"
 
 
-# -- the adapter methods the declared commands name (devices/mo64/policy.py) -------------------------------
+# -- the adapter methods the declared commands run (devices/mo64/policy.py) --------------------------------
 def operation_method(cmd: codec.Command, fn: codec.Function) -> str:
     """The adapter method of operating command ``cmd`` with function ``fn``, e.g. ``open_pulse``."""
     return f"{COMMAND_NAMES[cmd]}_{fn.name.lower()}"
@@ -676,16 +671,18 @@ def _operation(cmd: codec.Command, fn: codec.Function):
     run.__doc__ = f"{COMMAND_NAMES[cmd]} {fn.name.lower()} (chapter 5.2.1), as the declared command of that name."
     return run
 
-for _cmd in codec.Command:
-    for _fn in codec.Function:
-        assert not hasattr(Mo64Adapter, operation_method(_cmd, _fn)), operation_method(_cmd, _fn)
-        setattr(Mo64Adapter, operation_method(_cmd, _fn), _operation(_cmd, _fn))
+
+OPERATIONS = {(_cmd, _fn): _operation(_cmd, _fn) for _cmd in codec.Command for _fn in codec.Function}
+"""The method of each operating command with each function, a member of :class:`Mo64Adapter` under its name."""
+for _run in OPERATIONS.values():
+    assert _run.__name__ not in vars(Mo64Adapter), _run.__name__
+    setattr(Mo64Adapter, _run.__name__, _run)
 
 
 __all__ = [
     "BUSY_TEXT", "COMMAND_NAMES", "CommandError", "EepromWrites", "ErrorMemoryLevel", "HeldLevel", "LineFacts",
-    "MONITOR_FLAGS", "Mo64Adapter", "NAMES", "NeedsConfirmation", "P_CONFIRMED", "P_CONNECTION", "P_EEPROM",
+    "MONITOR_FLAGS", "Mo64Adapter", "NAMES", "OPERATIONS", "NeedsConfirmation", "P_CONFIRMED", "P_CONNECTION", "P_EEPROM",
     "P_ERROR_LEVELS", "P_LAST_REPLY", "P_LATE", "P_LEVELS", "P_LEVELS_UNAVAILABLE", "P_LINE", "P_MONITORING",
     "P_POLLING", "P_QUERY_FORM", "P_UNAVAILABLE", "P_UNEXPECTED", "P_VERIFIED", "POLLING_SLOWER", "QUERY_FORM_WORDS",
-    "SYN_ACK_TIMEOUT_S", "UNAVAILABLE", "from_json", "operation_method", "setting_method", "to_json", "value_text",
+    "SYN_ACK_TIMEOUT_S", "UNAVAILABLE", "from_json", "operation_method", "to_json", "value_text",
 ]

@@ -21,6 +21,8 @@ off); the step that checks automatic closing is "not available on this unit" the
 from __future__ import annotations
 
 import time
+import weakref
+from typing import Any
 
 from devices.mo64.adapter import P_LEVELS_UNAVAILABLE
 from devices.mo64.codec import ERROR_MEMORY_LEVELS, GATE_STATE_NAMES, TIME_STEP_S, GateState
@@ -104,9 +106,13 @@ async def _read_memory(ctx) -> tuple[list[tuple[int, int, int]], list[int]]:
     return rows, missing
 
 
+# a run's context -> the error memory rows and the levels the unit refused, read before the cycle
+_MEMORY_BEFORE: weakref.WeakKeyDictionary[Any, tuple[list, list]] = weakref.WeakKeyDictionary()
+
+
 async def _memory_before(ctx) -> None:
     rows, missing = await _read_memory(ctx)
-    ctx._mo64_memory = (rows, missing)
+    _MEMORY_BEFORE[ctx] = (rows, missing)
     if len(missing) >= ERROR_MEMORY_LEVELS or not rows:
         ctx.not_available(f"the barrier refuses every error-memory level (query 0x12, levels {missing or 'all'}): "
                           "its error memory cannot be compared on this unit; read it on the unit's display")
@@ -309,7 +315,7 @@ async def _auto_close(ctx) -> None:
 
 
 async def _memory_after(ctx) -> None:
-    before = getattr(ctx, "_mo64_memory", None)
+    before = _MEMORY_BEFORE.get(ctx)
     if before is None:
         ctx.fail("the error memory was not read before the cycle")
     rows_before, missing_before = before

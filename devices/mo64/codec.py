@@ -1,17 +1,13 @@
-"""Bauer MO 64 motor control, LogiTed bus: frames, telegrams, answer decoders, settings.
+"""Bauer MO 64 motor control, LogiTed bus: telegrams, answer decoders, settings.
 
 Pure: no I/O. Document 003 ("Motorsteuerung MO 64, Protokollbeschreibung", page summaries
 only), chapters 2 to 5; what a public client adds and what is still unknown follow
 SPEC-NOTES.md ("Bauer MO 64"), each decision cited once where taken.
 
-Frames::
-
-    TCP    55 LE type payload... CSH CSL           LE counts type .. payload
-    RS485  55 LE DA SA type payload... CSH CSL     ASSUMED (see RS485 below)
-
-CSH CSL is the CRC-16/CCITT-FALSE (poly 0x1021, preset 0xFFFF, chapter 2.3) over SD, LE and
-the data, high byte first. Every value inside a telegram is little-endian (the document names
-the fields ``_lo`` before ``_hi``).
+The frames around the telegrams (TCP and RS485, CRC, token, splitter) are in :mod:`devices.mo64.frames`,
+the value types of the answers in :mod:`devices.mo64.answer_values`; both are named here too, so that
+a reader of the MO 64's codec imports this one module. Every value inside a telegram is little-endian
+(the document names the fields ``_lo`` before ``_hi``).
 
 The same type byte means different telegrams in each direction (0x01 is ack from the MO 64
 and an operating command to it), so a frame is decoded by direction: :func:`decode_answer`
@@ -24,51 +20,35 @@ Public API:
   :func:`encode_setting` with the directory :data:`SETTINGS` (:class:`Setting`);
 * answers: :func:`decode_answer` -> :class:`Answer` with a typed ``value``;
   a twin's side: :func:`encode_answer`, :func:`decode_request` -> :class:`Request`;
-* frames: :func:`encode_frame` / :func:`decode_frame` for :data:`TCP` and :class:`Rs485`
-  framing, the token telegram (:func:`encode_token`), and :class:`FrameSplitter`, which
+* frames (from :mod:`devices.mo64.frames`): :func:`encode_frame` / :func:`decode_frame` for :data:`TCP`
+  and :data:`RS485` framing, the token telegram (:func:`encode_token`), and :class:`FrameSplitter`, which
   cuts a byte stream into :class:`Frame` values and named :class:`FrameError` values;
 * :data:`ASSUMPTIONS`: every reading beyond the document, as sentences for the page.
 """
 
 from __future__ import annotations
 
-import binascii
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import Any
 
-from devices import errors, framing
 from devices import values as v
+from devices.mo64.answer_values import (  # noqa: F401 - the answers' value types, named here too
+    ANSWER_TYPES, BARRIER_POSITION, BARRIER_STATUS, CHANGE_MONITORING, CONFIG_FIELDS, CONFIG_FLAGS, COUNTER,
+    DEC_BT, DEVICE_CODE, DEVICE_CODES, DIRECTION_LOGIC, DIRECTION_LOGICS, ERROR_ENTRY, ERROR_LEVEL, ERROR_MEMORY,
+    GATE_STATE, GATE_STATE_NAMES, GateState, INDUCTION_LOOPS, LOOP_ADJUST_COUNTERS, MAC_ADDRESS,
+    MAINTENANCE_INTERVAL, MULTI_MODE_NAMES, MULTI_RELAYS, OPERATING_HOURS, PASSWORD, POSITION_UNKNOWN,
+    PROGRAM_VERSION, RAW, SERIAL_NUMBER, STATUS_BITS, STATUS_BIT_NAMES, STATUS_GROUPS, STATUS_MASK, TIME_10MS,
+    TIME_MAX, TIME_STEP_S, VEHICLE_COUNTER, answer_value_type, format_mac, time_s, ERROR_MEMORY_LEVELS,
+)
+from devices.mo64.frames import (  # noqa: F401 - the frame layer, named here too (app/logited.py and the twins read it from here)
+    CHECKSUM, CRC_PRESET, MAX_LE, RS485, RS485_BAUDRATE, RS485_LAYOUT, SD, TCP, TCP_PORT, TOKEN, TOKEN_PASS_LIMIT_S,
+    ChecksumError, CodecError, Frame, FrameError, FrameLengthError, FrameSplitter, Framing, GarbageError, Rs485Layout,
+    TruncatedFrameError, crc16, decode_frame, encode_frame, encode_token,
+)
 
-# -- line and connection (chapters 2.1, 3) ----------------------------------------------------------
-SD = 0x55  # chapter 2.2: "Das Startbyte hat immer den Wert 0x55"
-RS485_BAUDRATE = 38400  # chapter 2.1: 38,4 kBaud, 1 start bit, 8 data bits, 1 stop bit
-TCP_PORT = 52719  # SPEC-NOTES "Bauer MO 64": the public client's port
-TOKEN_PASS_LIMIT_S = 0.2  # chapter 2.6.1: "Der Token muss nach spätestens 200ms weitergegeben werden"
-MAX_LE = 255  # chapter 2.1: 6 to 259 characters, i.e. LE at most 255 (one byte)
-CRC_PRESET = 0xFFFF  # chapter 2.3: the CRC register is loaded with 0xFFFF
-
-
-class CodecError(errors.CodecError):
-    """A telegram that cannot be encoded or decoded."""
-
-
-# -- assumptions beyond the document: all in this one block ------------------------------------------
-@dataclass(frozen=True)
-class Rs485Layout:
-    """The RS485 address fields and token telegram, which the page summaries do not print.
-
-    Every field is an assumption (SPEC-NOTES "Bauer MO 64", "Still unknown").
-    """
-
-    master_address: int = 0x00  # SPEC-NOTES: "the master at 0x00" (chapter 2.6 example: "Master 0x00")
-    # SPEC-NOTES: DA SA follow LE and LE counts DA to the end of the payload (see encode_frame)
-    # chapter 2.1 "6 bis 259 Zeichen": the shortest telegram, SD LE DA SA CSH CSL, is taken as the token
-    token_le: int = 2
-
-
-RS485_LAYOUT = Rs485Layout()
+# -- assumptions beyond the document: all in this one block (and RS485_LAYOUT, devices/mo64/frames.py) ---
 # SPEC-NOTES "Still unknown": the short commands' codes (0x03); one command byte assumed.
 SHORT_COMMAND_BYTES = 1
 # SPEC-NOTES "Still unknown": how a level of the error memory is chosen; an index byte after the
@@ -106,180 +86,6 @@ ASSUMPTIONS: tuple[str, ...] = (
     "loops, direction logics, configuration flags and multi relays that the summary does not number "
     "are shown as raw values.",
 )
-
-
-# -- CRC (chapter 2.3) ------------------------------------------------------------------------------
-def crc16(data: bytes | bytearray) -> int:
-    """CRC-16/CCITT-FALSE of ``data`` (x^16 + x^12 + x^5 + 1, preset 0xFFFF, chapter 2.3)."""
-    return binascii.crc_hqx(bytes(data), CRC_PRESET)
-
-
-CHECKSUM = framing.Checksum(crc16, "big")  # CSH before CSL (chapter 2.1)
-_seal = CHECKSUM.seal
-
-
-# -- framing ---------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Framing:
-    """How a transport wraps the telegram: ``addressed`` adds DA SA (RS485)."""
-
-    name: str
-    addressed: bool
-
-    @property
-    def min_le(self) -> int:
-        """Smallest LE the framing allows (TCP: the type byte; RS485: the token's DA SA)."""
-        return RS485_LAYOUT.token_le if self.addressed else 1
-
-
-TCP = Framing("tcp", False)
-RS485 = Framing("rs485", True)
-TOKEN = -1  # Frame.type of a token telegram (it has no type byte)
-
-
-@dataclass(frozen=True)
-class Frame:
-    """One telegram off the wire: ``type`` and ``payload``; ``da``/``sa`` only on RS485.
-
-    ``type`` is :data:`TOKEN` for a token telegram. ``raw`` holds the bytes as received.
-    """
-
-    type: int
-    payload: bytes = b""
-    da: int | None = None
-    sa: int | None = None
-    raw: bytes = b""
-
-    @property
-    def is_token(self) -> bool:
-        return self.type == TOKEN
-
-
-def _address(value: int, what: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 0xFF:
-        raise CodecError(f"{what} {value!r} is not a bus address 0 .. 255")
-    return value
-
-
-def encode_frame(telegram: bytes, framing: Framing = TCP, *, da: int | None = None,
-                 sa: int | None = None) -> bytes:
-    """Wrap ``telegram`` (type + payload) in SD, LE and the checksum.
-
-    :param framing: :data:`TCP` or :data:`RS485` (then ``da`` is required; ``sa`` defaults to
-        the assumed master address)
-    :raises CodecError: empty telegram, too long, or bad addresses
-    """
-    telegram = bytes(telegram)
-    if not telegram:
-        raise CodecError("a telegram needs at least its type byte")
-    if framing.addressed:
-        if da is None:
-            raise CodecError("an RS485 telegram needs a destination address")
-        sa = RS485_LAYOUT.master_address if sa is None else sa
-        telegram = bytes((_address(da, "DA"), _address(sa, "SA"))) + telegram
-    if len(telegram) > MAX_LE:
-        raise CodecError(f"{len(telegram)} bytes exceed LE {MAX_LE}")
-    return _seal(bytes((SD, len(telegram))) + telegram)
-
-
-def encode_token(da: int, sa: int | None = None) -> bytes:
-    """The RS485 token telegram passing the token to master ``da`` (ASSUMED layout, see above)."""
-    sa = RS485_LAYOUT.master_address if sa is None else sa
-    return _seal(bytes((SD, RS485_LAYOUT.token_le, _address(da, "DA"), _address(sa, "SA"))))
-
-
-def decode_frame(raw: bytes, framing: Framing = TCP) -> Frame:
-    """One complete frame, checked (SD, LE, CRC).
-
-    :raises FrameError: the named error of the splitter
-    """
-    raw = bytes(raw)
-    if len(raw) < 2 or raw[0] != SD:
-        raise GarbageError(raw)
-    le = raw[1]
-    if le < framing.min_le:
-        raise FrameLengthError(f"LE {le} is below {framing.min_le} ({framing.name})", raw)
-    if len(raw) < le + 4:
-        raise TruncatedFrameError(raw)
-    if len(raw) > le + 4:
-        raise FrameLengthError(f"{len(raw)} bytes for LE {le} (expected {le + 4})", raw)
-    if not CHECKSUM.matches(raw):
-        raise ChecksumError(raw)
-    data = raw[2:-2]
-    if not framing.addressed:
-        return Frame(data[0], data[1:], raw=raw)
-    if le == RS485_LAYOUT.token_le:
-        return Frame(TOKEN, b"", da=data[0], sa=data[1], raw=raw)
-    return Frame(data[2], data[3:], da=data[0], sa=data[1], raw=raw)
-
-
-# -- named stream errors (devices/framing.py) ------------------------------------------------------
-# Bad wire data: ``raw`` holds the bytes concerned; the splitter returns these as values. GarbageError:
-# bytes that start no telegram (no SD), skipped; ChecksumError: CSH CSL do not match; FrameLengthError:
-# an LE impossible for the framing; TruncatedFrameError: cut off before its end (silent or closed).
-FrameError, GarbageError, ChecksumError, FrameLengthError, TruncatedFrameError = framing.error_tree(
-    CodecError, __name__, CHECKSUM)
-
-
-class FrameSplitter(framing.Splitter):
-    """Cuts a byte stream (TCP or RS485) into :class:`Frame` values and :class:`FrameError` values.
-
-    ``feed(data)`` returns them in stream order; nothing is raised. A frame cut short stays
-    pending until more bytes come or :meth:`expire` is called (the stream went silent or closed).
-    A checksum failure or an impossible LE resynchronises on the next SD that starts a valid
-    frame, so a stray 0x55 does not swallow the telegram after it.
-
-    :param framing: :data:`TCP` or :data:`RS485`
-    """
-
-    garbage_error = GarbageError
-    truncated_error = TruncatedFrameError
-
-    def __init__(self, framing: Framing = TCP):
-        super().__init__()
-        self.framing = framing
-
-    def _starts_telegram(self, raw: bytes) -> bool:
-        return raw[0] == SD
-
-    def _length_at(self, i: int) -> int | None:
-        """Frame length starting at ``i``: None if more bytes are needed, 0 if impossible."""
-        buf = self._buf
-        if i + 1 >= len(buf):
-            return None
-        le = buf[i + 1]
-        return le + 4 if le >= self.framing.min_le else 0
-
-    def _valid_at(self, i: int) -> bool:
-        """A complete frame with a good CRC starts at ``i``."""
-        n = self._length_at(i)
-        return bool(n) and i + n <= len(self._buf) and CHECKSUM.matches(self._buf[i:i + n])
-
-    def _next_valid(self, start: int, stop: int) -> int | None:
-        for j in range(start, min(stop, len(self._buf))):
-            if self._buf[j] == SD and self._valid_at(j):
-                return j
-        return None
-
-    def _next(self) -> tuple[Any, int]:
-        buf = self._buf
-        if buf[0] != SD:
-            end = buf.find(bytes((SD,)))
-            return self._garbage(len(buf) if end < 0 else end)
-        n = self._length_at(0)
-        if n is None:
-            return None, 0
-        if n == 0:
-            return FrameLengthError(f"LE {buf[1]} is below {self.framing.min_le} ({self.framing.name})",
-                                    bytes(buf[:2])), 2  # an LE below the minimum is never SD
-        if len(buf) < n:
-            later = self._next_valid(1, len(buf))  # a stray SD announcing a long frame
-            return (None, 0) if later is None else self._garbage(later)
-        try:
-            return decode_frame(bytes(buf[:n]), self.framing), n
-        except ChecksumError as exc:
-            later = self._next_valid(1, n)
-            return (exc, n) if later is None else self._garbage(later)
 
 
 # -- telegram types (chapter 5, SPEC-NOTES "Replies") ----------------------------------------------
@@ -324,7 +130,6 @@ TELEGRAMS: dict[int, str] = {
 QUERY_ANSWER_OFFSET = 5  # SPEC-NOTES "Replies": query index n is answered by telegram type n + 5
 QUERY_INDEXES = range(0x00, 0x1B)  # chapter 5.2.2, table 21: 0x00 .. 0x1A
 FORBIDDEN_QUERIES = frozenset(range(0x1B, 0x1F))  # table 21: 0x1B-0x1E "Nicht verwenden!"
-ERROR_MEMORY_LEVELS = 10  # chapter 5.1.23: "10 Ebenen (0...9)"
 # Chapter 5.1.23: the error flags are a 32-bit register; at every change of the flags they are stored together with
 # the operating hours counter's value of that moment, the current value in level 0: level 0 is the newest, 9 the
 # oldest, and each level's time stamp is the operating hours at which the flags took that value. The summary does
@@ -458,132 +263,6 @@ def encode_short_command(code: int) -> bytes:
     if isinstance(code, bool) or not isinstance(code, int) or not 0 <= code <= 0xFF:
         raise CodecError(f"short command {code!r} is not one byte")
     return bytes((RequestType.SHORT_COMMAND, code))
-
-
-# -- value types of the answer telegrams -----------------------------------------------------------
-DEVICE_CODES = {5: "MO 64-V4 (Stand 19.07.2011)"}  # chapter 5.1.5 (0x0001..0x0004 printed "xxx")
-DEVICE_CODE = v.Enum(v.U16LE, DEVICE_CODES)  # Kennung_lo Kennung_hi
-PROGRAM_VERSION = v.U16LE  # SPEC-NOTES: program version u16
-
-STATUS_BIT_NAMES: tuple[tuple[str, ...], ...] = (  # chapter 5.1.7, bit names per SPEC-NOTES
-    ("Funk", "BT", "BTA1", "BTA2", "BTA3", "BTZ1A", "BTZ1B", "BTZ2"),
-    ("BTS", "Baum ab", "LS", "SLZ", "F_ereignis", "SERVICE", "mains monitoring"),
-    ("adjusting loop A", "adjusting loop B", "adjusting loop C",
-     "loop A occupied", "loop B occupied", "loop C occupied", "loop EXT"),
-    tuple(f"multi relay {n}" for n in range(1, 9)),
-    tuple(f"multi relay {n}" for n in range(9, 15)),
-)
-STATUS_GROUPS: dict[str, tuple[str, ...]] = {  # how the page groups the 40 bits (issue 13)
-    "inputs": ("Funk", "BT", "BTA1", "BTA2", "BTA3", "BTZ1A", "BTZ1B", "BTZ2", "BTS", "SLZ"),
-    "safety": ("LS", "Baum ab", "F_ereignis"),
-    "loops": ("adjusting loop A", "adjusting loop B", "adjusting loop C",
-              "loop A occupied", "loop B occupied", "loop C occupied", "loop EXT"),
-    "multi relays": tuple(f"multi relay {n}" for n in range(1, 15)),
-    "service": ("SERVICE", "mains monitoring"),
-}
-STATUS_BITS = v.Bits(v.Int(40), tuple(  # Status0 .. Status4, Status0 first (low byte first)
-    v.BitField(name, 8 * byte + bit) for byte, names in enumerate(STATUS_BIT_NAMES) for bit, name in enumerate(names)
-))
-# SPEC-NOTES: some firmware sends more status bytes: decode the first five, keep the rest raw
-BARRIER_STATUS = v.Struct("barrier_status", (("status", STATUS_BITS), ("more", v.Bytes(None))))
-STATUS_MASK = v.Struct("status_mask", (("mask", STATUS_BITS), ("more", v.Bytes(None))))  # 5.1.8, Maske0..4
-
-CHANGE_MONITORING = v.Bits(v.U16LE, tuple(v.BitField(name, bit) for bit, name in enumerate((
-    "barrier status", "service counter", "maintenance counter", "gate state", "error memory",
-    "vehicle counter", "barrier position", "motor status", "loop debug",
-))))  # chapter 5.1.9, Flaggen_lo Flaggen_hi; bit names from SPEC-NOTES "Change monitoring"
-
-
-class GateState(IntEnum):
-    """Gate state, telegram 0x0C (chapter 5.1.12; numbers from SPEC-NOTES)."""
-
-    OPENING = 0
-    CLOSING = 1
-    PREWARN_OPEN = 2
-    PREWARN_CLOSE = 3
-    OPEN = 4
-    CLOSED = 5
-    INTERMEDIATE = 6
-
-
-GATE_STATE_NAMES = {
-    0: "opening", 1: "closing", 2: "pre-warning before opening", 3: "pre-warning before closing",
-    4: "open", 5: "closed", 6: "intermediate position",
-}
-GATE_STATE = v.Enum(v.U8, GATE_STATE_NAMES)
-COUNTER = v.U32LE  # service / maintenance counter (SPEC-NOTES: u32)
-TIME_10MS = v.U16LE  # t_offen_lo t_offen_hi, in multiples of 10 ms (chapter 5.1.13)
-TIME_STEP_S = 0.01  # chapter 5.1.13: "in Vielfachen von 10ms"
-TIME_MAX = 65500  # chapter 5.2.4.1: "Erlaubter Zahlenbereich: 0 bis 65500"
-# chapter 5.1.16: A9..A1 take bits 17..0 (2 bits each), bit 31 = a radio code is stored
-DEC_BT = v.Bits(v.U32LE, tuple(v.BitField(f"A{n}", 2 * (n - 1), 2) for n in range(1, 10))
-                + (v.BitField("code stored", 31),))
-INDUCTION_LOOPS = v.Array(v.U16LE, 3)  # chapter 5.1.18: one 16-bit mode register per loop A, B, C
-# chapter 5.1.19, table 11: one 32-bit register per direction logic; only the fields numbered there
-DIRECTION_LOGIC = v.Bits(v.U32LE, (
-    v.BitField("input selection", 0, 3),
-    v.BitField("presence right", 18, 2),
-    v.BitField("reserve", 20, 12),
-))
-DIRECTION_LOGICS = v.Array(DIRECTION_LOGIC, 2)
-SERIAL_NUMBER = v.U32LE  # snr_lo0 _lo1 _hi0 _hi1 (chapter 5.1.20)
-MAC_ADDRESS = v.Bytes(6)  # chapter 5.1.21: six bytes, shown in the order received
-OPERATING_HOURS = v.U32LE  # SPEC-NOTES: operating hours u32
-ERROR_LEVEL = v.Struct("error_level", (("flags", v.U32LE), ("timestamp_h", v.U32LE)))  # chapter 5.1.23
-ERROR_ENTRY = v.Struct("error_entry", (("index", v.U8), ("flags", v.U32LE), ("timestamp_h", v.U32LE)))
-ERROR_MEMORY = v.Array(ERROR_LEVEL, ERROR_MEMORY_LEVELS)
-# chapter 5.1.24, tables 13-16: four 16-bit words; only the 2-bit fields whose bits are printed
-CONFIG_FIELDS: tuple[tuple[v.BitField, ...], ...] = (
-    (v.BitField("RtApl blink in end position", 0, 2), v.BitField("RtApl blink at pre-warning open", 2, 2)),
-    (v.BitField("GnApl blink at pre-warning open", 0, 2), v.BitField("GnApl blink at pre-warning close", 2, 2),
-     v.BitField("GnApl blink while opening", 4, 2), v.BitField("GnApl blink while closing", 6, 2),
-     v.BitField("GnApl blink at intermediate stop", 8, 2)),
-    (v.BitField("warning light blink in end position open", 8, 2),),
-    (),
-)
-CONFIG_FLAGS = v.Struct("config_flags", tuple(
-    (f"konfig{i}", v.Bits(v.U16LE, fields)) for i, fields in enumerate(CONFIG_FIELDS)
-))
-MULTI_RELAYS = v.Array(v.U8, 6)  # chapter 5.1.25: multi1 .. multi6, one mode byte each
-MULTI_MODE_NAMES = {0: "off", 1: "fault"}  # chapter 5.1.25: the summary names these modes by number only so far
-MAINTENANCE_INTERVAL = v.U32LE  # ASSUMED width (see ASSUMPTIONS): like the maintenance counter
-VEHICLE_COUNTER = v.I32LE  # chapter 5.2.5: signed 32 bit, RAM only, 0 after power-up
-BARRIER_POSITION = v.I8  # chapter 5.1.29: percent, -1 while unknown
-POSITION_UNKNOWN = -1
-PASSWORD = v.U16LE  # chapter 5.1.30: passwort_lo passwort_hi
-LOOP_ADJUST_COUNTERS = v.Array(v.U16LE, 3)  # chapter 5.1.31: schleife_a/b/c _lo _hi
-RAW = v.Bytes(None)  # a layout the document does not name: kept raw
-
-ANSWER_TYPES: dict[int, v.ValueType] = {
-    0x05: DEVICE_CODE, 0x06: PROGRAM_VERSION, 0x07: BARRIER_STATUS, 0x08: STATUS_MASK,
-    0x09: CHANGE_MONITORING, 0x0A: COUNTER, 0x0B: COUNTER, 0x0C: GATE_STATE,
-    0x0D: TIME_10MS, 0x0E: TIME_10MS, 0x0F: TIME_10MS, 0x10: DEC_BT,
-    0x11: RAW,  # counting function: layout not in the summary
-    0x12: INDUCTION_LOOPS, 0x13: DIRECTION_LOGICS, 0x14: SERIAL_NUMBER, 0x15: MAC_ADDRESS,
-    0x16: OPERATING_HOURS, 0x17: ERROR_ENTRY,  # or ERROR_MEMORY, by length (see decode_value)
-    0x18: CONFIG_FLAGS, 0x19: MULTI_RELAYS, 0x1A: MAINTENANCE_INTERVAL,
-    0x1B: RAW,  # loop periods: layout not in the summary
-    0x1C: VEHICLE_COUNTER, 0x1D: BARRIER_POSITION, 0x1E: PASSWORD, 0x1F: LOOP_ADJUST_COUNTERS,
-}
-
-
-def answer_value_type(answer_type: int, payload_len: int | None = None) -> v.ValueType:
-    """The value type of answer telegram ``answer_type`` (the error memory by its length)."""
-    if answer_type == 0x17 and payload_len == ERROR_MEMORY.size:
-        return ERROR_MEMORY
-    try:
-        return ANSWER_TYPES[answer_type]
-    except KeyError:
-        raise CodecError(f"telegram type 0x{answer_type:02X} is not an answer of chapter 5.1") from None
-
-
-def format_mac(mac: bytes) -> str:
-    return ":".join(f"{b:02X}" for b in mac)
-
-
-def time_s(ticks: int) -> float:
-    """A time register (10 ms units) in seconds."""
-    return round(ticks * TIME_STEP_S, 2)
 
 
 # -- answers (MO 64 -> master) ---------------------------------------------------------------------
@@ -927,4 +606,4 @@ def _short(value: Any) -> str:
 
 
 __all__ = [name for name in dir() if not name.startswith("_") and name not in {
-    "annotations", "binascii", "framing", "Iterable", "Mapping", "dataclass", "IntEnum", "Any", "v"}]
+    "annotations", "Iterable", "Mapping", "dataclass", "IntEnum", "Any", "v"}]

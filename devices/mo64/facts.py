@@ -142,7 +142,7 @@ def value_text(answer_type: int, value: Any) -> str:
         return f"0x{int(value):08X}: radio code stored; switches " + " ".join(
             f"A{n}={int(fields[f'A{n}'])}" for n in range(1, 10))
     if answer_type == 0x05:
-        return f"{int(value)}" + (f" ({value.name})" if getattr(value, "name", None) else "")
+        return f"{int(value)}" + (f" ({value.name})" if isinstance(value, v.EnumValue) and value.name else "")
     if answer_type == 0x1D:
         return "unknown" if int(value) == codec.POSITION_UNKNOWN else f"{int(value)} %"
     if answer_type == 0x19:

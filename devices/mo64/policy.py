@@ -25,16 +25,16 @@ judged by :func:`check_telegram`, the same rule (devices/mo64/control.py):
 
 from __future__ import annotations
 
-import dataclasses
-
-from devices.commands import Arg, Command, param_write
+from devices.commands import Arg, Command, param_write, read_parameters
 from devices.mo64 import codec
 from devices.mo64 import params as model
-from devices.mo64.adapter import COMMAND_NAMES, operation_method, setting_method
+from devices.mo64.adapter import COMMAND_NAMES, OPERATIONS, Mo64Adapter
+from devices.mo64.settings import SETTING_WRITES, Mo64Settings
 from devices.mo64.control import AREA_CLEAR_RISK, EEPROM_RISK, OPEN_LEVEL_RISK, meaning, operation
 from devices.sendpolicy import Verdict
 
 TITLE = "MO 64"
+check_can = check_modbus = transmit_forms = None  # hooks of devices/sendpolicy.py this type has none of
 __all__ = ["AREA_CLEAR_RISK", "OPEN_LEVEL_RISK", "EEPROM_RISK", "check_telegram"]
 CLEAR_LEVELS_RISK = ("Deactivates every level this tool set in the barrier (levels set by another master or at the "
                      "barrier are not touched). An open level released lets the boom close (page 33): check that "
@@ -72,8 +72,8 @@ def setting_name(key: str) -> str:
 def _operation(cmd: codec.Command, fn: codec.Function) -> Command:
     what = operation(cmd, fn)  # the motion rule's own reading (devices/mo64/control.py)
     if what.kind == "stop":
-        return Command(operation_name(cmd, fn), "stop", method=operation_method(cmd, fn), session=True)
-    return Command(operation_name(cmd, fn), what.kind, method=operation_method(cmd, fn), session=True, risk=what.risk)
+        return Command(operation_name(cmd, fn), "stop", run=OPERATIONS[cmd, fn], session=True)
+    return Command(operation_name(cmd, fn), what.kind, run=OPERATIONS[cmd, fn], session=True, risk=what.risk)
 
 
 def check_telegram(telegram: bytes) -> Verdict:
@@ -86,7 +86,7 @@ def check_telegram(telegram: bytes) -> Verdict:
 
 def _setting(key: str) -> Command:
     setting = codec.SETTINGS[key]
-    return Command(setting_name(key), "write", method=setting_method(key), session=True,
+    return Command(setting_name(key), "write", run=SETTING_WRITES[key], session=True,
                    args=tuple(Arg(name, low, high, unit=setting.unit) for name, low, high in codec.setting_fields(key)),
                    flags=("selector_verified",) if setting.assumed else (), risk=_setting_risk(setting))
 
@@ -101,17 +101,18 @@ def _write_verdict(param: model.Mo64Param, raw: int) -> tuple[str, str]:
 
 
 # the gate passes the page's session: its EEPROM writes are counted for it (Mo64Settings.write_param_in)
-WRITE_PARAM = dataclasses.replace(param_write(model.PARAMS, _write_verdict), method="write_param_in", session=True)
+WRITE_PARAM = param_write(model.PARAMS, Mo64Settings.write_param_in, _write_verdict, session=True)
 
 COMMANDS = (
     WRITE_PARAM,
     *(_operation(cmd, fn) for cmd in (codec.Command.OPEN, codec.Command.CLOSE, codec.Command.REVERSE)
       for fn in codec.Function),
-    Command("clear levels", "system", method="clear_levels_asked", session=True, risk=CLEAR_LEVELS_RISK),
+    Command("clear levels", "system", run=Mo64Adapter.clear_levels_asked, session=True, risk=CLEAR_LEVELS_RISK),
     *(_setting(key) for key in codec.SETTINGS if key != "change_monitoring"),
-    Command("change monitoring", "write", method="set_change_monitoring", session=True, args=(Arg("on", 0, 1),),
+    Command("change monitoring", "write", run=Mo64Adapter.set_change_monitoring, session=True, args=(Arg("on", 0, 1),),
             risk=EEPROM_RISK),
-    Command("release the connection", "write", method="release", session=True),
-    Command("take the connection back", "write", method="resume", session=True),
-    Command("read error memory", "read", method="read_error_memory"),
+    Command("release the connection", "write", run=Mo64Adapter.release, session=True),
+    Command("take the connection back", "write", run=Mo64Adapter.resume, session=True),
+    Command("read error memory", "read", run=Mo64Adapter.read_error_memory),
+    read_parameters(Mo64Settings.backup_read),
 )

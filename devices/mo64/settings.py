@@ -46,6 +46,12 @@ class Mo64Settings(BackupDefaults):
     """Settings, the parameter model's writes, backup and restore of one MO 64 (mixed into the adapter)."""
 
     params = model.PARAMS
+    eeprom_writes: dict[str, int]  # EEPROM writes of each session, kept by the adapter
+
+    @property
+    def eeprom_writes_total(self) -> int:
+        """Every EEPROM write this tool made, whichever session asked."""
+        return sum(self.eeprom_writes.values())
 
     async def write_setting(self, session: str, key: str, value: Any, selector_verified: bool = False) -> Any:
         """Write one setting, handle busy / syn / ack / nak, read it back; returns the read-back value.
@@ -117,7 +123,6 @@ class Mo64Settings(BackupDefaults):
 
     def _count_write(self, session: str) -> None:
         self.eeprom_writes[session] = self.eeprom_writes.get(session, 0) + 1
-        self.eeprom_writes_total += 1
         self._publish_writes()
 
     async def set_change_monitoring(self, session: str, on: bool) -> str:
@@ -222,8 +227,10 @@ class Mo64Settings(BackupDefaults):
         return entries
 
     def backup_identity(self) -> dict:
-        pts = self.state.points
-        get = lambda name: getattr(pts.get(name), "value", None)  # noqa: E731
+        def get(name: str) -> Any:
+            point = self.state.points.get(name)
+            return None if point is None else point.value
+
         return {"serial": get("Serial number"), "device code": get("Device code"),
                 "program version": get("Program version"), "mac": get("MAC address"),
                 "transport": self.transport, "address": self.address}
@@ -251,7 +258,7 @@ class Mo64Settings(BackupDefaults):
         return "no save step: the MO 64 stores every setting in its EEPROM as it is written (chapter 4)"
 
 
-# -- the adapter methods the declared "set ..." commands name (devices/mo64/policy.py) ------------------------
+# -- the adapter methods the declared "set ..." commands run (devices/mo64/policy.py) -------------------------
 def setting_method(key: str) -> str:
     """The adapter method of the declared "set ..." command of setting ``key``, e.g. ``write_t_open``."""
     return f"write_{key}"
@@ -266,10 +273,12 @@ def _setting(key: str):
     return run
 
 
-for _key in codec.SETTINGS:
-    if _key != "change_monitoring":  # declared as "change monitoring" (on/off), see set_change_monitoring
-        assert not hasattr(Mo64Settings, setting_method(_key)), setting_method(_key)
-        setattr(Mo64Settings, setting_method(_key), _setting(_key))
+# "change monitoring" is declared as on/off (see set_change_monitoring)
+SETTING_WRITES = {key: _setting(key) for key in codec.SETTINGS if key != "change_monitoring"}
+"""The method of each declared "set ..." command, a member of :class:`Mo64Settings` under its name."""
+for _run in SETTING_WRITES.values():
+    assert _run.__name__ not in vars(Mo64Settings), _run.__name__
+    setattr(Mo64Settings, _run.__name__, _run)
 
 
 def _normal(setting: codec.Setting, value: Any) -> Any:

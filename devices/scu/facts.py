@@ -159,7 +159,7 @@ def value_text(data_id: int, value: Any) -> str:
     """A decoded value in words for tables and the data browser."""
     if isinstance(value, dict):
         return "; ".join(f"0x{k:04X}: {value_text(k, x)}" if isinstance(k, int) else f"{k}: {x}" for k, x in value.items())
-    if isinstance(value, v.FlagsValue) or hasattr(value, "fields"):
+    if isinstance(value, v.FlagsValue):
         on = [k for k, x in value.fields.items() if x is True or (not isinstance(x, bool) and x)]
         if data_id in p.DIRECTORY and p.DIRECTORY[data_id].vtype is p.ACTUATOR_ERRORS:
             return ", ".join(f"{k} {x}" for k, x in value.fields.items())

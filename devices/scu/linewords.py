@@ -116,9 +116,9 @@ class ScuLineDecoder:
         """The cyclic object definitions the line's adapters sent (a reopened session may change them)."""
         found = dict(self.definitions)
         for dev in self.devices:
-            cyclic = getattr(self.adapters.get(dev.name), "cyclic", None)
-            if isinstance(cyclic, scu_params.CyclicDefinition):
-                found[CYCLIC_INDEX] = cyclic
+            adapter = self.adapters.get(dev.name)
+            if isinstance(adapter, scu_adapter.ScuAdapter) and adapter.cyclic is not None:
+                found[CYCLIC_INDEX] = adapter.cyclic
         self._learn(found)
 
     def _learn(self, found: dict[int, scu_params.CyclicDefinition]) -> None:

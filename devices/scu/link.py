@@ -85,15 +85,13 @@ class ScuLink:
 
     async def resync(self) -> None:
         """Flush what the line still holds (the rest of a shifted answer) so the next answer starts clean."""
-        flush = getattr(self.adapter.line, "flush_input", None)
-        if flush is not None:
-            try:
-                dropped = await flush()
-            except SerialLineError:
-                return
-            if dropped:
-                self.resyncs += 1
-                self.publish_counts()
+        try:
+            dropped = await self.adapter.line.flush_input()
+        except SerialLineError:
+            return
+        if dropped:
+            self.resyncs += 1
+            self.publish_counts()
 
     def answered(self) -> None:
         self.last_answer = time.monotonic()
@@ -146,9 +144,7 @@ class ScuLink:
 
     async def wake(self) -> None:
         """Low-power wake-up (section 3, V2B1): RxD held at space for at least 100 ms."""
-        wake = getattr(self.adapter.line, "wake", None)
-        if wake is not None:
-            try:
-                await wake(0.15)
-            except SerialLineError:
-                pass
+        try:
+            await self.adapter.line.wake(0.15)
+        except SerialLineError:
+            pass

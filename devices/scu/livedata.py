@@ -50,8 +50,7 @@ class ScuLiveData:
     @property
     def rotation_s(self) -> float:
         """How long one turn of the data IDs read in turn takes (one a poll)."""
-        options = getattr(self.adapter.line, "options", None) or {}
-        return len(ROTATING_IDS) * float(options.get("poll_period", 0.5) or 0.5)
+        return len(ROTATING_IDS) * float(self.adapter.line.options.get("poll_period", 0.5) or 0.5)
 
     def publish_period(self) -> None:
         gaps = self.adapter.rc.gaps()

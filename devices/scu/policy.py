@@ -12,11 +12,13 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from devices.commands import COMMON, READ_PARAMETERS, Arg, Command, CommandError, param_write
+from devices.commands import Arg, Command, CommandError, param_write, read_parameters
 from devices.scu import codec
+from devices.scu.adapter import ScuAdapter
 from devices.scu.model import PARAMS
 
 TITLE = "Ewellix SCU"
+check_can = check_modbus = transmit_forms = None  # hooks of devices/sendpolicy.py this type has none of
 
 _FUNCTION = Arg("function", 0, 9)  # fnc_ID of F1..F10 (motion functions, section 4.4)
 _RAMP = Arg("ramp", -1, 1)  # para_ID[1]: 1 soft, 0 fast, -1 as configured
@@ -60,12 +62,12 @@ def _stoppable(values: dict[str, Any]) -> dict[str, Any]:
     return values
 
 
-def _speed_audit(values: Mapping[str, Any], adapter: Any) -> dict[str, Any]:
+def _speed_audit(values: Mapping[str, Any], adapter: ScuAdapter) -> dict[str, Any]:
     key = f"F{values['function']} remote speed"
     before = adapter.state.points.get(key)
     return {"action": f"set remote speed F{values['function']}", "parameter": f"Remote Speed F{values['function']} "
             f"(0x{0x3010 + values['function']:04X})", "old": "" if before is None else before.value,
-            "new": f"{values['speed']} {getattr(adapter, 'speed_unit', '')}".strip()}
+            "new": f"{values['speed']} {adapter.speed_unit}".strip()}
 
 
 def _position_audit(values: Mapping[str, Any], adapter: Any) -> dict[str, Any]:
@@ -78,39 +80,39 @@ def _position_audit(values: Mapping[str, Any], adapter: Any) -> dict[str, Any]:
 
 COMMANDS = (
     # -- stops: every role, never refused, sent first and audited afterwards -----------------------------------------
-    Command("stop (RS)", "stop", method="stop", session=True),
-    Command("function off (RS)", "stop", method="stop", session=True, args=(Arg("function", 0, 21),), prepare=_stoppable),
-    Command("jog stop (RS)", "stop", method="jog_stop", session=True, args=(_FUNCTION,)),
-    Command("emergency stop (RE 19)", "stop", method="emergency_stop", session=True, extras=("user",)),
-    Command("release control", "stop", method="release_control", session=True),
+    Command("stop (RS)", "stop", run=ScuAdapter.stop, session=True),
+    Command("function off (RS)", "stop", run=ScuAdapter.stop, session=True, args=(Arg("function", 0, 21),), prepare=_stoppable),
+    Command("jog stop (RS)", "stop", run=ScuAdapter.jog_stop, session=True, args=(_FUNCTION,)),
+    Command("emergency stop (RE 19)", "stop", run=ScuAdapter.emergency_stop, session=True, extras=("user",)),
+    Command("release control", "stop", run=ScuAdapter.release_control, session=True),
     # -- motion: engineers, with control --------------------------------------------------------------------------------
-    Command("go (RE)", "motion", method="run_function", session=True, needs_control=True,
+    Command("go (RE)", "motion", run=ScuAdapter.run_function, session=True, needs_control=True,
             args=(_FUNCTION, Arg("motion", 0, 9), _RAMP), extras=("requested_at",), prepare=_motion, risk=_go_risk),
-    Command("jog (RE)", "motion", method="jog", session=True, needs_control=True,
+    Command("jog (RE)", "motion", run=ScuAdapter.jog, session=True, needs_control=True,
             args=(_FUNCTION, Arg("direction", -1, 1), _RAMP), extras=("requested_at",), prepare=_jog),
-    Command("release emergency stop (RS 19)", "motion", method="release_emergency_stop", session=True,
+    Command("release emergency stop (RS 19)", "motion", run=ScuAdapter.release_emergency_stop, session=True,
             needs_control=True, risk=ESTOP_RELEASE_RISK),
-    Command("withhold RC", "motion", method="withhold_rc", session=True, needs_control=True,
+    Command("withhold RC", "motion", run=ScuAdapter.withhold_rc, session=True, needs_control=True,
             risk="Withhold RC on purpose (the watchdog test, section 5): the unit must stop every drive within "
                  "500 ms, leave remote mode and set error bit 22. A drive that goes on moving fails the test: stand "
                  "by the hand switch's stop."),
     # -- writes: the volatile remote data (table 7), read back --------------------------------------------------------
-    Command("function on (RE)", "write", method="run_function", session=True, needs_control=True,
+    Command("function on (RE)", "write", run=ScuAdapter.run_function, session=True, needs_control=True,
             args=(Arg("function", 10, 21),), prepare=_switch),
-    Command("set remote speed", "write", method="set_remote_speed", session=True, needs_control=True,
+    Command("set remote speed", "write", run=ScuAdapter.set_remote_speed, session=True, needs_control=True,
             args=(Arg("function", 1, 10), Arg("speed", 0, 1000)), audit=_speed_audit),
-    Command("set remote position", "write", method="set_remote_target", session=True, needs_control=True,
+    Command("set remote position", "write", run=ScuAdapter.set_remote_target, session=True, needs_control=True,
             args=(Arg("actuator", 1, 6), Arg("value", -(2 ** 31), 2 ** 31 - 1, integer=False)), flags=("mm",),
             audit=_position_audit),
     # the parameter model's settings (remote speeds and positions, devices/scu/model.py): restore, project, batch and
     # the API; the adapter opens the session for it and refuses it while a function runs (devices/scu/settings.py)
-    param_write(PARAMS),
+    param_write(PARAMS, ScuAdapter.write_param),
     # -- the session --------------------------------------------------------------------------------------------------
-    Command("take control", "system", method="take_control", session=True, extras=("user",)),
-    Command("open remote session", "system", method="reopen", session=True),
-    Command("release the SCU (RA)", "system", method="release_scu", session=True),
+    Command("take control", "system", run=ScuAdapter.take_control, session=True, extras=("user",)),
+    Command("open remote session", "system", run=ScuAdapter.reopen, session=True),
+    Command("release the SCU (RA)", "system", run=ScuAdapter.release_scu, session=True),
     # -- reads ---------------------------------------------------------------------------------------------------------
-    Command("read data", "read", method="read_data", args=(Arg("data_id", 0, 0xFFFF),)),
-    COMMON[READ_PARAMETERS],  # the parameter model's values, as a backup reads them (the page's Settings card)
+    Command("read data", "read", run=ScuAdapter.read_data, args=(Arg("data_id", 0, 0xFFFF),)),
+    read_parameters(ScuAdapter.backup_read),  # the parameter model's values, as a backup reads them (the page's Settings card)
     Command("read 0x", "read", prefix=True),
 )

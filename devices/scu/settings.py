@@ -222,9 +222,8 @@ class ScuSettings:
         """What names the unit: the plant file's serial number (section 4.3 has no data ID for one), else the unit's
         configuration info (name, version and checksum of its parametrisation, 0x0002); firmware info (0x0001)."""
         adapter = self.adapter
-        pts = self.state.points
-        firmware = getattr(pts.get("Firmware info"), "value", None)
-        configuration = getattr(pts.get("Configuration info"), "value", None)
+        firmware, configuration = (None if point is None else point.value for point in
+                                   (self.state.points.get("Firmware info"), self.state.points.get("Configuration info")))
         serial = adapter.config.options.get("serial")
         return {"serial": str(serial) if serial not in (None, "") else configuration, "firmware": firmware,
                 "configuration": configuration, "actuators": len(adapter.scales), "port": adapter.port,

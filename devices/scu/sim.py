@@ -28,6 +28,7 @@ import logging
 import math
 import time
 from collections import deque
+from dataclasses import dataclass, field
 from typing import Any
 
 from devices import simserver
@@ -55,6 +56,57 @@ _ACTUATOR_ERROR_BITS = tuple(codec.ERROR_BITS[14 + n].mask for n in range(1, 7))
 # Bit 22 (remote timeout) names no clearing condition: the twin keeps it until the next motion the same
 # way, so a master that reopens the session can still read why it was lost (section 4.5, table 10).
 _CLEARED_BY_MOTION = codec.CLEARED_BY_NEXT_MOVE
+
+
+@dataclass
+class ScuStrict:
+    """Strict modes a real unit may have (document 002 allows each) and injected faults, off by default; set
+    before the first byte or while the twin runs (``twin.strict.<name>``)."""
+
+    single_ids_only: bool = False  # groups refused with PDE (the document describes only 0x0010, section 4.6)
+    refuse_cyclic_rc: bool = False  # the definition of 0x3001 is taken, RC with index 0..4 answers PDE
+    rg_outside_session: bool = False  # True: RG answered without remote mode (section 4.1 says it is not)
+    cse_on_rs: int = 0  # the next N RS answer CSE and are not executed (-1: every RS)
+    answer_delay_s: float = 0.0  # each answer this late (section 3 allows up to 2000 ms)
+    # the document's other readings (SPEC-NOTES) and older firmware
+    ro_two_bytes_only: bool = False  # PCE to RO with the Safety_ID alone: RO takes para_ID[0] too (table 3)
+    rs_three_bytes_only: bool = False  # PCE to the two-byte RS: RS takes para_ID[0] and para_ID[1] (table 3 text)
+    v2b0: bool = False  # firmware before V2B1: no F20 (table 8), RE/RS 19 answered PDE
+    rt_cyclic_unanswered: bool = False  # the definition of a cyclic object (RT 0x3001..) gets no answer
+    cse_next: dict[str, int] = field(default_factory=dict)  # command -> the next N of it answered CSE (line noise)
+    ignores_watchdog: bool = False  # a broken unit: no RC for 500 ms stops nothing (the checkout must see it)
+    stray_bytes: int = 0  # the next N answers come with a stray byte in front (a noisy line)
+    split_answers: bool = False  # answers come in two pieces with a pause between (inter-byte gap)
+    # data IDs the unit's parametrisation does not have (a function or actuator it was not configured with): RG
+    # and RT of them, and of a group holding one, answer PDE ("Fehler in den Telegramm-Datenbytes", section 4.2)
+    refused_ids: set[int] = field(default_factory=set)
+    line_dropped: bool = False  # fault injection: the unit answers nothing
+
+
+@dataclass
+class ScuIo:
+    """The unit's supply, inputs and outputs (table 6)."""
+
+    mains: bool = True
+    battery_v: float = MAINS_VOLTAGE_V
+    binary_inputs: int = 0
+    analogue: list[int] = field(default_factory=lambda: [0, 0, 0, 0])
+    binary_outputs: int = 0
+    led_hs: int = 0
+    led_lb: int = 0
+    buzzer: bool = False
+    sensor_supply: bool = True
+
+
+@dataclass
+class ScuStatistics:
+    """The unit's statistics data IDs (table 6): error history and the peaks it keeps."""
+
+    history: list[int] = field(default_factory=lambda: [0, 0, 0, 0])  # 0x00D2 .. 0x00D5
+    total_over_current: int = 0
+    max_total_current_a: float = 0.0
+    max_temp_adc: int = 96
+    over_temp_count: int = 0
 
 
 class ScuTwin:
@@ -93,50 +145,20 @@ class ScuTwin:
         self.rc_seen = False
         self.last_rc = 0.0
         self.session_lost_count = 0
-        # I/O
-        self.mains = True
-        self.battery_v = MAINS_VOLTAGE_V
-        self.binary_inputs = 0
-        self.analogue = [0, 0, 0, 0]
-        self.binary_outputs = 0
-        self.led_hs = 0
-        self.led_lb = 0
-        self.buzzer = False
-        self.sensor_supply = True
+        # I/O and the unit's statistics (data IDs 0x00D0..)
+        self.io = ScuIo()
         self.emergency_stop = False
         self.lock_status = 0
         self.error_code = 0
-        self.history = [0, 0, 0, 0]  # 0x00D2 .. 0x00D5
-        self.total_over_current = 0
-        self.max_total_current_a = 0.0
-        self.max_temp_adc = 96
-        self.over_temp_count = 0
-        # strict modes a real unit may have (document 002 allows each), off by default
-        self.single_ids_only = False  # groups refused with PDE (the document describes only 0x0010, section 4.6)
-        self.refuse_cyclic_rc = False  # the definition of 0x3001 is taken, RC with index 0..4 answers PDE
-        self.rg_outside_session = False  # True: RG answered without remote mode (section 4.1 says it is not)
-        self.cse_on_rs = 0  # the next N RS answer CSE and are not executed (-1: every RS)
-        self.answer_delay_s = 0.0  # each answer this late (section 3 allows up to 2000 ms)
-        # the document's other readings (SPEC-NOTES) and older firmware
-        self.ro_two_bytes_only = False  # PCE to RO with the Safety_ID alone: RO takes para_ID[0] too (table 3)
-        self.rs_three_bytes_only = False  # PCE to the two-byte RS: RS takes para_ID[0] and para_ID[1] (table 3 text)
-        self.v2b0 = False  # firmware before V2B1: no F20 (table 8), RE/RS 19 answered PDE
-        self.rt_cyclic_unanswered = False  # the definition of a cyclic object (RT 0x3001..) gets no answer
-        self.cse_next: dict[str, int] = {}  # command -> the next N of it answered CSE (line noise, not executed)
-        self.ignores_watchdog = False  # a broken unit: no RC for 500 ms stops nothing (the checkout must see it)
-        self.stray_bytes = 0  # the next N answers come with a stray byte in front (a noisy line)
-        self.split_answers = False  # answers come in two pieces with a pause between (inter-byte gap)
-        # data IDs the unit's parametrisation does not have (a function or actuator it was not configured with): RG
-        # and RT of them, and of a group holding one, answer PDE ("Fehler in den Telegramm-Datenbytes", section 4.2)
-        self.refused_ids: set[int] = set()
+        self.statistics = ScuStatistics()
+        self.strict = ScuStrict()
         self.resets = 0
         self.keys = 0  # Actual_State_Keys (0x0040)
         self.function_log: list[tuple[str, int]] = []  # (RE/RS, fnc_ID) in the order executed
         self.function_times: list[float] = []  # monotonic time of each function_log entry
         self.watchdog_trips: list[float] = []
         self.rc_received: deque[float] = deque(maxlen=5000)  # monotonic times of the RCs that fed the watchdog  # monotonic times the RC watchdog ended remote mode
-        # fault injection and counters
-        self.line_dropped = False
+        # counters
         self.open_re: dict[int, float] = {}  # fnc_ID -> time of an RE not yet stopped with RS
         self.re_without_rs = 0
         self.answers = 0
@@ -164,7 +186,7 @@ class ScuTwin:
     def _refused(self, data_id: int) -> bool:
         entry = params.DIRECTORY.get(data_id)
         members = entry.members if entry is not None and entry.is_group else ()
-        return data_id in self.refused_ids or any(m in self.refused_ids for m in members)
+        return data_id in self.strict.refused_ids or any(m in self.strict.refused_ids for m in members)
 
     # -- demo controls ----------------------------------------------------------------------------
     def controls(self) -> SimControls:
@@ -177,9 +199,9 @@ class ScuTwin:
                                                  SimParam("amps", "load [A]", 3, -20, 20))),
             SimAction("actuator error", "Trip actuator error", self.trip_actuator_error, icon="error",
                       testid="actuator-error", params=(actuator,)),
-            SimAction("on battery", "On battery (mains off)", self.switch_to_battery, state=lambda: not self.mains,
+            SimAction("on battery", "On battery (mains off)", self.switch_to_battery, state=lambda: not self.io.mains,
                       testid="on-battery"),
-            SimAction("line dropped", "Line dropped (no answers)", self.drop_line, state=lambda: self.line_dropped,
+            SimAction("line dropped", "Line dropped (no answers)", self.drop_line, state=lambda: self.strict.line_dropped,
                       testid="line-dropped"),
             SimAction("reset", "Reset the unit", self.reset, icon="restart_alt", testid="reset-unit"),
         ), note="Load raises the current of a moving actuator (above 12 A it trips); an actuator error stops it fast "
@@ -201,13 +223,13 @@ class ScuTwin:
 
     def switch_to_battery(self, on_battery: bool = True) -> None:
         """Mains off (battery operation) or back on (0x0100 bits 0, 2, 3)."""
-        self.mains = not on_battery
+        self.io.mains = not on_battery
         if on_battery:
-            self.battery_v = min(self.battery_v, BATTERY_FULL_V)
+            self.io.battery_v = min(self.io.battery_v, BATTERY_FULL_V)
 
     def drop_line(self, dropped: bool = True) -> None:
         """Stop answering (a pulled cable or DTR/RTS off): requests are read and ignored."""
-        self.line_dropped = dropped
+        self.strict.line_dropped = dropped
 
     # -- errors -------------------------------------------------------------------------------------
     def raise_error(self, mask: int) -> None:
@@ -216,7 +238,7 @@ class ScuTwin:
         if new == self.error_code:
             return
         if self.error_code:
-            self.history = [self.error_code, *self.history[:-1]]
+            self.statistics.history = [self.error_code, *self.statistics.history[:-1]]
         self.error_code = new
 
     # -- session and motion -------------------------------------------------------------------------
@@ -231,13 +253,13 @@ class ScuTwin:
                 self._stop_actuator(act)  # the twin has no hand switch: every motion is a remote motion
         self.re_without_rs += len(self.open_re)
         self.open_re.clear()
-        self.binary_outputs = 0
-        self.buzzer = False
+        self.io.binary_outputs = 0
+        self.io.buzzer = False
         log.info("%s: remote mode ended (%s)", self.name, reason)
 
     def check_watchdog(self, now: float) -> bool:
         """Drop remote mode when RC did not come for 500 ms (section 4.1, table 3); True if it tripped."""
-        if self.remote and now - self.last_rc > codec.WATCHDOG_S and not self.ignores_watchdog:
+        if self.remote and now - self.last_rc > codec.WATCHDOG_S and not self.strict.ignores_watchdog:
             self.session_lost_count += 1
             self.watchdog_trips.append(now)
             self.raise_error(codec.REMOTE_TIMEOUT_MASK)
@@ -326,16 +348,16 @@ class ScuTwin:
             total += act.current_a
             if act.current_a > PEAK_CURRENT_A:
                 self.trip_actuator_error(act.number)
-        self.max_total_current_a = max(self.max_total_current_a, total)
-        if self.mains:
-            self.battery_v += (MAINS_VOLTAGE_V - self.battery_v) * min(1.0, dt / 5.0)
+        self.statistics.max_total_current_a = max(self.statistics.max_total_current_a, total)
+        if self.io.mains:
+            self.io.battery_v += (MAINS_VOLTAGE_V - self.io.battery_v) * min(1.0, dt / 5.0)
         else:
-            self.battery_v = max(20.0, self.battery_v - (0.002 + 0.01 * total) * dt)
+            self.io.battery_v = max(20.0, self.io.battery_v - (0.002 + 0.01 * total) * dt)
 
     def rest(self, now: float) -> float:
         """How long :meth:`step` has nothing to do (simserver.Ticker): 0 while an actuator moves or the battery
         charges; else until the remote watchdog falls due (if a session is open)."""
-        if any(act.moving for act in self.actuators) or (self.mains and MAINS_VOLTAGE_V - self.battery_v > 0.01):
+        if any(act.moving for act in self.actuators) or (self.io.mains and MAINS_VOLTAGE_V - self.io.battery_v > 0.01):
             return 0.0
         if self.remote:
             # the watchdog is found past its limit as by the ticks every TICK_S: up to one tick late
@@ -378,16 +400,16 @@ class ScuTwin:
         if 0x3001 <= data_id <= 0x3005:
             return list(self.cyclic[data_id - 0x3001])
         if 0x0031 <= data_id <= 0x0034:
-            return self.analogue[data_id - 0x0031] / 100
+            return self.io.analogue[data_id - 0x0031] / 100
         if 0x00D1 <= data_id <= 0x00D5:
-            return [self.error_code, *self.history][data_id - 0x00D1]
-        battery_mains = int(self.mains) | 1 << 1 | int(self.mains) << 2 | int(self.mains and self.battery_v < 27.0) << 3
+            return [self.error_code, *self.statistics.history][data_id - 0x00D1]
+        battery_mains = int(self.io.mains) | 1 << 1 | int(self.io.mains) << 2 | int(self.io.mains and self.io.battery_v < 27.0) << 3
         fixed = {
-            0x0001: FIRMWARE_INFO, 0x0002: CONFIGURATION_INFO, 0x0020: self.binary_inputs, 0x0040: self.keys,
-            0x008F: self.total_over_current, 0x00BF: round(self.max_total_current_a, 1), 0x00C0: self.max_temp_adc,
-            0x00C1: self.over_temp_count, 0x0100: battery_mains, 0x0110: self.binary_outputs, 0x0120: self.led_hs,
-            0x0130: self.led_lb, 0x0140: int(self.buzzer), 0x0150: int(self.sensor_supply),
-            0x0162: self.lock_status, 0x0164: round(self.battery_v, 1), 0x0165: 0, 0x0166: self.user,
+            0x0001: FIRMWARE_INFO, 0x0002: CONFIGURATION_INFO, 0x0020: self.io.binary_inputs, 0x0040: self.keys,
+            0x008F: self.statistics.total_over_current, 0x00BF: round(self.statistics.max_total_current_a, 1), 0x00C0: self.statistics.max_temp_adc,
+            0x00C1: self.statistics.over_temp_count, 0x0100: battery_mains, 0x0110: self.io.binary_outputs, 0x0120: self.io.led_hs,
+            0x0130: self.io.led_lb, 0x0140: int(self.io.buzzer), 0x0150: int(self.io.sensor_supply),
+            0x0162: self.lock_status, 0x0164: round(self.io.battery_v, 1), 0x0165: 0, 0x0166: self.user,
         }
         return fixed[data_id]
 
@@ -407,7 +429,7 @@ class ScuTwin:
                 definition = params.CyclicDefinition.decode(data)
             except (ValueError, KeyError):
                 return Status.PDE  # an unknown data ID, or a write slot outside 0x3xxx (table 7)
-            if self.single_ids_only and any(params.item(i).is_group for i in definition.read_ids):
+            if self.strict.single_ids_only and any(params.item(i).is_group for i in definition.read_ids):
                 return Status.PDE
             self.cyclic[data_id - 0x3001] = tuple(value)
         elif entry.function is not None:
@@ -432,7 +454,7 @@ class ScuTwin:
     def handle(self, item: Any, now: float | None = None) -> bytes | None:
         """The answer to one item of a :class:`devices.scu.codec.FrameSplitter` (requests), or None."""
         now = time.monotonic() if now is None else now
-        if self.line_dropped:
+        if self.strict.line_dropped:
             return None
         self.check_watchdog(now)
         if isinstance(item, codec.Request):
@@ -452,13 +474,13 @@ class ScuTwin:
 
     def _request(self, req: codec.Request, now: float) -> bytes:
         cmd = req.command
-        if self.cse_next.get(cmd.decode()):
-            self.cse_next[cmd.decode()] -= 1
+        if self.strict.cse_next.get(cmd.decode()):
+            self.strict.cse_next[cmd.decode()] -= 1
             return _answer(cmd, Status.CSE)  # damaged on the way (section 4.2): not executed
-        if cmd == codec.RG and not self.remote and self.rg_outside_session:
+        if cmd == codec.RG and not self.remote and self.strict.rg_outside_session:
             return self._rg(req)
         if cmd == codec.RO:
-            if self.ro_two_bytes_only and len(req.params) < 2:
+            if self.strict.ro_two_bytes_only and len(req.params) < 2:
                 return _answer(cmd, Status.PCE)
             self.remote, self.safety_id, self.rc_seen, self.last_rc = True, req.safety_id, False, now
             return _answer(cmd, Status.ACK)
@@ -475,25 +497,25 @@ class ScuTwin:
         if cmd == codec.RG:
             return self._rg(req)
         if cmd == codec.RT:
-            if self.rt_cyclic_unanswered and req.data_id in codec.CYCLIC_OBJECT_IDS:
+            if self.strict.rt_cyclic_unanswered and req.data_id in codec.CYCLIC_OBJECT_IDS:
                 return None
             return _answer(cmd, self.write(req.data_id, req.data))
-        if cmd in (codec.RE, codec.RS) and self.v2b0 and req.function == Function.EMERGENCY_STOP:
+        if cmd in (codec.RE, codec.RS) and self.strict.v2b0 and req.function == Function.EMERGENCY_STOP:
             return _answer(cmd, Status.PDE)  # table 8: F20 from firmware V2B1
         if cmd == codec.RE:
             return _answer(cmd, self._execute(req.function, req.para, now))
         if cmd == codec.RS:
-            if self.rs_three_bytes_only and len(req.params) < 3:
+            if self.strict.rs_three_bytes_only and len(req.params) < 3:
                 return _answer(cmd, Status.PCE)
-            if self.cse_on_rs:
-                self.cse_on_rs -= 1 if self.cse_on_rs > 0 else 0
+            if self.strict.cse_on_rs:
+                self.strict.cse_on_rs -= 1 if self.strict.cse_on_rs > 0 else 0
                 return _answer(cmd, Status.CSE)  # "Fehler in der Telegramm-Checksumme": not executed (section 4.2)
             return _answer(cmd, self._stop(req.function))
         return _answer(cmd, Status.ICE)
 
     def _rg(self, req: codec.Request) -> bytes:
         entry = params.DIRECTORY.get(req.data_id)
-        if entry is None or (self.single_ids_only and entry.is_group) or self._refused(req.data_id):
+        if entry is None or (self.strict.single_ids_only and entry.is_group) or self._refused(req.data_id):
             return _answer(codec.RG, Status.PDE)
         return codec.encode_answer(codec.RG, Status.ACK, self.read(req.data_id))
 
@@ -503,7 +525,7 @@ class ScuTwin:
                 return _answer(codec.RC, Status.PCE)
             status, read = Status.ACK, b""
         else:
-            if self.refuse_cyclic_rc:
+            if self.strict.refuse_cyclic_rc:
                 return _answer(codec.RC, Status.PDE)
             definition = params.CyclicDefinition.decode(params.CYCLIC_OBJECT.encode(self.cyclic[req.index]))
             if len(req.data) != definition.write_size:
@@ -556,13 +578,15 @@ class ScuTwin:
         return Status.ACK
 
     def _switch(self, fn: Function, on: bool) -> None:
-        bit = {Function.BINARY_OUTPUT_1: ("binary_outputs", 1), Function.BINARY_OUTPUT_2: ("binary_outputs", 2),
-               Function.LED_1: ("led_hs", 1), Function.LED_2: ("led_hs", 2)}.get(fn)
+        io = self.io
         if fn == Function.BUZZER:
-            self.buzzer = on
-        elif bit:
-            name, mask = bit
-            setattr(self, name, getattr(self, name) | mask if on else getattr(self, name) & ~mask)
+            io.buzzer = on
+        elif fn in (Function.BINARY_OUTPUT_1, Function.BINARY_OUTPUT_2):
+            mask = 1 if fn == Function.BINARY_OUTPUT_1 else 2
+            io.binary_outputs = io.binary_outputs | mask if on else io.binary_outputs & ~mask
+        elif fn in (Function.LED_1, Function.LED_2):
+            mask = 1 if fn == Function.LED_1 else 2
+            io.led_hs = io.led_hs | mask if on else io.led_hs & ~mask
 
 
 def _looks_like_command(raw: bytes) -> bool:
@@ -618,15 +642,15 @@ class ScuSim:
             if answer is None:
                 return
             if self.wire_delay:
-                raw = getattr(item, "raw", b"")
+                raw = item.raw
                 await asyncio.sleep(codec.wire_time_s(len(raw) + len(answer), self.baudrate))
             twin = self.twin
-            if twin.answer_delay_s:
-                await asyncio.sleep(twin.answer_delay_s)
-            if twin.stray_bytes:
-                twin.stray_bytes -= 1
+            if twin.strict.answer_delay_s:
+                await asyncio.sleep(twin.strict.answer_delay_s)
+            if twin.strict.stray_bytes:
+                twin.strict.stray_bytes -= 1
                 answer = b"\x00" + answer  # noise on the line: one byte that starts no telegram
-            if twin.split_answers:
+            if twin.strict.split_answers:
                 cut = max(1, len(answer) // 2)
                 writer.write(answer[:cut])
                 await writer.drain()

@@ -122,8 +122,8 @@ async def test_viewer_reads_but_cannot_write(secured):
     from app.worker import PermissionDenied
 
     with pytest.raises(PermissionDenied, match="viewer role and may not write"):
-        await runtime.worker.invoke("door-1", "write parameter", {"param": "holding:3000", "value": 300},
-                                    user="tablet", role="engineer")  # the gate takes the account's role, not the caller's
+        await runtime.worker.gate.invoke("door-1", "write parameter", {"param": "holding:3000", "value": 300},
+                                         user="tablet", role="engineer")  # the gate takes the account's role, not the caller's
     assert runtime.twins["door-1"].holding[3000] == 200
     entry = runtime.audit.query(device="door-1")[0]
     assert entry.user == "tablet" and entry.role == "viewer" and entry.result.startswith("refused")

@@ -197,9 +197,8 @@ def test_whole_plant_archive(tmp_path):
 async def test_viewer_write_refused_and_audited(plant_runtime):
     runtime = plant_runtime
     with pytest.raises(PermissionDenied):
-        await runtime.worker.command(
-            "door-1", lambda a: write_raw(a, "holding:3000", 300), role="viewer", user="tablet", describe="write LockRequestDelay",
-        )
+        await runtime.worker.gate.run(lambda: write_raw(runtime.worker.adapters["door-1"], "holding:3000", 300),
+                                      device="door-1", role="viewer", user="tablet", describe="write LockRequestDelay")
     assert runtime.twins["door-1"].holding[3000] == 200
     entry = runtime.audit.query(device="door-1")[0]
     assert (entry.user, entry.role, entry.result) == ("tablet", "viewer", "refused: the viewer role may not write")

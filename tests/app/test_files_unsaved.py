@@ -19,8 +19,8 @@ async def test_the_reminder_is_on_disk_when_the_write_returns(tmp_path):
     await runtime.start()
     try:
         assert await wait_for(lambda: runtime.store.devices["door-1"].status == "online", timeout=10)
-        await runtime.worker.invoke("door-1", WRITE_PARAMETER, {"param": "MaximumTimeLock", "value": 5},
-                                    user="anna", role="engineer")
+        await runtime.worker.gate.invoke("door-1", WRITE_PARAMETER, {"param": "MaximumTimeLock", "value": 5},
+                                         user="anna", role="engineer")
         key = next(iter(runtime.store.devices["door-1"].unsaved))
         # no wait: a process killed now keeps the reminder
         data = json.loads((tmp_path / "data" / UNSAVED_FILE).read_text())

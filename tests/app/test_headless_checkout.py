@@ -143,8 +143,8 @@ async def test_a_released_key_stops_what_the_persons_session_holds(tmp_path):
         person = TerminalPerson(runtime.worker, "cli-checkout-hold", keys, out=lambda _text: None)
         person.start()
         keys.hold_space()
-        await runtime.worker.invoke("gate", "close activate", user="cli:test", role="engineer", session=person.session,
-                                    confirmed=True)
+        await runtime.worker.gate.invoke("gate", "close activate", user="cli:test", role="engineer", session=person.session,
+                                         confirmed=True)
         assert twin.levels[codec.Command.CLOSE]
         await asyncio.sleep(1.0)  # a second with SPACE held: the level must stay
         assert twin.levels[codec.Command.CLOSE], "held while SPACE is held"

@@ -3,12 +3,15 @@ words in German (issue 47)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from app import cli, i18n
 from pages.plant_view import operator_words, state_words
 
 DE, EN = i18n.get("de"), i18n.get("en")
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.parametrize("header, code", [
@@ -90,6 +93,36 @@ def test_the_command_line_help_in_german(capsys):
     for english in ("usage:", "options:", "examples:", "show this help message", "plant file (default"):
         assert english not in out
     assert cli.build_parser().format_help().startswith("usage: commission")  # the language was set back
+
+
+SUBCOMMANDS = ("sim", "backup", "restore", "user", "dbc", "report", "approve", "checkout", "sign", "verify", "apply", "check",
+               "export", "view")
+
+
+def _help_texts(locations: tuple[str, ...]) -> set[str]:
+    """The catalog's texts of these modules (their help among them), as English shows them."""
+    from babel.messages.pofile import read_po
+
+    with open(ROOT / "locale" / "messages.pot", "rb") as f:
+        template = read_po(f)
+    return {m.id for m in template if isinstance(m.id, str) and len(m.id) > 12 and " " in m.id
+            and any(path in locations for path, _line in m.locations)}
+
+
+@pytest.mark.parametrize("command", SUBCOMMANDS)
+def test_every_subcommands_help_in_german(command, capsys):
+    english = _help_texts(("app/cli.py", "app/dbc.py", "app/report.py", "app/record_cli.py", "app/verify.py", "app/batch.py",
+                           "app/project.py", "app/mcap_export.py"))
+    try:
+        with pytest.raises(SystemExit) as exit_:
+            cli.main(["--lang", "de", command, "--help"])
+    finally:
+        cli.set_language("en")
+    assert exit_.value.code == 0
+    out = " ".join(capsys.readouterr().out.split())  # argparse wraps lines
+    assert out.startswith("Aufruf: commission") and "Optionen:" in out
+    shown = [text for text in english if " ".join(text.split()) in out]
+    assert not shown, f"English in commission {command} --help: {shown}"
 
 
 def test_the_command_lines_messages_in_german(capsys, tmp_path):

@@ -12,18 +12,13 @@ import pytest
 
 from tools import metrics
 
-LONG_MODULES = {  # the modules over 700 lines: none may join them
-    "devices/hdlock/params.py", "devices/mo64/codec.py", "devices/mo64/sim.py", "pages/can_monitor.py",
-    "pages/electrak.py", "pages/scu.py",
-}
-LARGE_CLASSES = {  # the classes over 30 attributes: none may join them
-    "M3ioAdapter", "Mo64Adapter", "Mo64Twin", "ScuTwin",
-}
+LONG_MODULES: set[str] = set()  # the modules over 700 lines: none may join them
+LARGE_CLASSES: set[str] = set()  # the classes over 30 attributes: none may join them
 CEILINGS = {
-    "getattr_default": 79,
-    "hasattr": 11,
-    "except_exception": 58,
-    "private_access": 19,
+    "getattr_default": 21,
+    "hasattr": 2,
+    "except_exception": 29,
+    "private_access": 4,
     "exception_roots": 1,
 }
 

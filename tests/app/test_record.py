@@ -12,7 +12,8 @@ import pytest
 from webutil import simulated_user
 
 from app.record_store import RecordStore
-from app.report import plant_content, plant_html, write_plant
+from app.report import plant_content, plant_html
+from app.report_archive import write_plant
 from devices.hdlock.params import PARAMS
 from tests.conftest import wait_for
 from tests.recordutil import demo_plant
@@ -45,7 +46,8 @@ async def test_drift_in_the_api_snapshot_after_save_and_the_signed_report(tmp_pa
         assert (await client.get("/api/devices")).json()[0]["drift"] == {"approved": True, "changed": []}
 
         param = PARAMS.get("holding", 3000)
-        await runtime.worker.command("door-1", lambda a: a.write_param(param, 350), user="anna", describe="write")
+        await runtime.worker.gate.run(lambda: runtime.worker.adapters["door-1"].write_param(param, 350),
+                                      device="door-1", user="anna", describe="write", role="engineer")
 
         async def drifted() -> dict:
             return (await client.get("/api/devices")).json()[0]["drift"]
@@ -54,7 +56,8 @@ async def test_drift_in_the_api_snapshot_after_save_and_the_signed_report(tmp_pa
         assert drift["changed"] == [{"key": "holding:3000", "name": "LockRequestDelay", "approved": "200 ms", "now": "350 ms"}]
         assert "changed since approved" in state.entry("Changed since approved")["text"]
 
-        await runtime.worker.command("door-1", lambda a: a.save_settings(), user="anna", describe="Save-Settings")
+        await runtime.worker.gate.run(lambda: runtime.worker.adapters["door-1"].save_settings(),
+                                      device="door-1", user="anna", describe="Save-Settings", role="engineer")
         assert await wait_for(lambda: runtime.record.snapshots.get("door-1", {}).get("holding:3000", {}).get("raw") == 350, 10)
         timeline = await runtime.record.timeline("door-1")
         assert [e.kind for e in timeline][:2] == ["snapshot", "approved"] and timeline[0].title == "after Save-Settings"
@@ -119,8 +122,8 @@ async def test_values_the_lock_measures_itself_and_a_running_checkout_are_not_dr
         assert verdicts["holding:1004"] == "updated by the device" and verdicts["holding:4"] == "equal"
 
         # a real change is still drift
-        await runtime.worker.command("door-2", lambda a: a.write_param(PARAMS.get("holding", 3000), 350), user="anna",
-                                     describe="write")
+        await runtime.worker.gate.run(lambda: runtime.worker.adapters["door-2"].write_param(PARAMS.get("holding", 3000), 350),
+                                      device="door-2", user="anna", describe="write", role="engineer")
         assert await wait_for(lambda: [r["key"] for r in state.drift["changed"]] == ["holding:3000"], 10)
 
 
@@ -138,12 +141,14 @@ async def test_overview_marks_a_device_changed_since_approved_on_its_tile_and_in
         await user.should_not_see("changed since approved")
 
         param = PARAMS.get("holding", 3000)
-        await runtime.worker.command("door-1", lambda a: a.write_param(param, 350), user="anna", describe="write")
+        await runtime.worker.gate.run(lambda: runtime.worker.adapters["door-1"].write_param(param, 350),
+                                      device="door-1", user="anna", describe="write", role="engineer")
         assert await wait_for(lambda: state.drift["changed"], 5)
         await user.should_see("Changed since approved: LockRequestDelay 200 ms → 350 ms")  # the table's row
         badge = next(iter(user.find(kind=ui.badge, content="changed since approved (1)").elements))
         assert badge.visible and badge._props["title"] == "Changed since approved: LockRequestDelay 200 ms → 350 ms"
 
-        await runtime.worker.command("door-1", lambda a: a.write_param(param, 200), user="anna", describe="write")
+        await runtime.worker.gate.run(lambda: runtime.worker.adapters["door-1"].write_param(param, 200),
+                                      device="door-1", user="anna", describe="write", role="engineer")
         assert await wait_for(lambda: not state.drift["changed"], 5)
         await user.should_not_see("changed since approved")

@@ -157,7 +157,7 @@ async def _signed_plant(runtime, tmp_path):
 
 
 async def test_archive_verifies_and_one_byte_changed_names_the_file(tmp_path):
-    from app.report import write_plant
+    from app.report_archive import write_plant
     from tests.recordutil import demo_runtime
 
     async with demo_runtime(tmp_path, ("door-2",)) as runtime:

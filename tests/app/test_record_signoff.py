@@ -9,9 +9,11 @@ import asyncio
 import hashlib
 import io
 import zipfile
+from pathlib import Path
 
 import pytest
 
+from app import i18n
 from app.plant import load_plant
 from app.record_store import RecordError
 from app.report import (
@@ -20,8 +22,9 @@ from app.report import (
     plant_content,
     plant_html,
     sign_gaps,
-    write_plant,
 )
+from app.report_archive import write_plant
+from app.report_pdf import plant_pdf
 from tests.recordutil import DEMO, demo_plant, run_checkout
 
 pytestmark = pytest.mark.timeout(120)
@@ -112,6 +115,39 @@ async def test_sign_off_needs_an_engineer_account_and_every_run_stays_in_the_rep
     assert "account anna" in first and "SHA-256" in first
     appendix = "\n".join(pages[pages.index(next(t for t in pages if "Appendix" in t)):])
     assert "LockRequestDelay" in appendix and named[0]["name"].split("/")[-1] in appendix.replace("\n", "")
+
+    # the same content in German, chosen when the report is made: none of the report's own English texts
+    german_html = plant_html(content, i18n.get("de"))
+    german_pdf = " ".join(" ".join(page.extract_text().split()) for page in PdfReader(io.BytesIO(plant_pdf(content, i18n.get("de")))).pages)
+    english = _report_texts()
+    assert [f for f in english if f in " ".join(html.split())], "the check must see the English report's texts"
+    for made in (" ".join(german_html.split()), german_pdf):
+        assert not [f for f in english if f in made], [f for f in english if f in made]
+        assert "SIMULIERTE GERÄTE" in made and "Übergabebericht" in made and "Konto anna" in made
+        assert "Läufe" in made and "Anhang" in made and "Prüfung des Protokolls: unverändert" in made
+    assert "<html lang='de'>" in german_html and "Seite 1" in german_pdf
+
+
+def _report_texts() -> list[str]:
+    """The English texts the report writes itself (the catalog entries of app/report*.py), each cut at its fields into
+    the pieces of two words or more (a field's value is the content's: names, times, hashes)."""
+    import re
+
+    from babel.messages.pofile import read_po
+
+    with open(Path(__file__).resolve().parents[2] / "locale" / "messages.pot", "rb") as f:
+        template = read_po(f)
+    pieces = set()
+    for m in template:
+        ids = m.id if isinstance(m.id, tuple) else (m.id,)
+        if not m.id or not any(path.startswith("app/report") for path, _line in m.locations):
+            continue
+        for text in ids:
+            for piece in re.split(r"\{\w*\}", text):
+                piece = " ".join(piece.split()).strip(" ,;:.()#")
+                if len(piece.split()) >= 2 and "SHA-256" not in piece:
+                    pieces.add(piece)
+    return sorted(pieces)
 
 
 def test_sign_gaps_name_each_missing_piece():

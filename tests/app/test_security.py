@@ -211,7 +211,7 @@ async def test_viewer_paths_that_change_files_or_the_plant_are_refused_in_the_wo
                 if describe == "backup":
                     await action()
                 else:
-                    await worker.engineer_action(action, user="tablet", role="viewer", describe=describe, target="line1")
+                    await worker.gate.run(action, user="tablet", role="viewer", describe=describe, device="line1", kind="write")
         refused = [e for e in runtime.audit.query(user="tablet") if e.result.startswith("refused")]
         assert {e.action for e in refused} >= {"backup", "scan line"}
 
@@ -242,18 +242,20 @@ async def test_write_is_refused_while_another_process_locks_the_audit_log(tmp_pa
             lags_before = runtime.worker.loop_health.stalls
             started = time.monotonic()
             with pytest.raises(AuditUnavailable, match="audit log cannot be written"):
-                await runtime.worker.command("door-1", lambda a: a.write_param(param, 321), describe="write LockRequestDelay")
+                await runtime.worker.gate.run(lambda: runtime.worker.adapters["door-1"].write_param(param, 321),
+                                              device="door-1", describe="write LockRequestDelay", user="local", role="engineer")
             assert time.monotonic() - started < 5
             assert runtime.twins["door-1"].holding[3000] == 200  # nothing was sent
             assert runtime.audit.problem  # shown in the header
             assert runtime.worker.loop_health.stalls == lags_before  # waiting for the lock never blocked the loop
             # a stop is not a write: it goes through even without an audit row
-            await runtime.worker.checked(lambda: asyncio.sleep(0), device="door-1", role="engineer", user="local",
-                                         describe="stop", kind="stop")
+            await runtime.worker.gate.run(lambda: asyncio.sleep(0), device="door-1", role="engineer", user="local",
+                                          describe="stop", kind="stop")
         finally:
             locker.kill()
             locker.wait()
-        await runtime.worker.command("door-1", lambda a: a.write_param(param, 321), describe="write LockRequestDelay")
+        await runtime.worker.gate.run(lambda: runtime.worker.adapters["door-1"].write_param(param, 321),
+                                      device="door-1", describe="write LockRequestDelay", user="local", role="engineer")
         assert runtime.twins["door-1"].holding[3000] == 321 and not runtime.audit.problem
     finally:
         await asyncio.wait_for(runtime.stop(), 10)
@@ -271,7 +273,8 @@ async def test_unwritable_audit_log_is_reported_at_start_and_refuses_writes(tmp_
         assert await wait_for(lambda: state.value("LockRequestDelay") is not None, timeout=8)
         param = state.params.by_name["LockRequestDelay"]
         with pytest.raises(AuditUnavailable):
-            await runtime.worker.command("door-1", lambda a: a.write_param(param, 321), describe="write LockRequestDelay")
+            await runtime.worker.gate.run(lambda: runtime.worker.adapters["door-1"].write_param(param, 321),
+                                          device="door-1", describe="write LockRequestDelay", user="local", role="engineer")
         assert runtime.twins["door-1"].holding[3000] == 200
     finally:
         await asyncio.wait_for(runtime.stop(), 10)

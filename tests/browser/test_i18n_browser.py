@@ -92,3 +92,22 @@ def test_an_english_browser_gets_english_and_the_header_follows(app, chromium):
             assert page.locator(selector).count() == 0, selector
     finally:
         context.close()
+
+
+@pytest.mark.browser
+@pytest.mark.timeout(120)
+def test_a_number_entry_in_german_takes_the_decimal_comma(app, chromium):
+    """The browser's number entry drops a comma it does not expect ("12,5" became 125): in German the comma typed
+    or pasted is the decimal point."""
+    context = chromium.new_context(viewport={"width": 1440, "height": 900}, locale="de-DE")
+    try:
+        page = context.new_page()
+        page.goto(f"{app}/device/lift")
+        field = page.locator("input[type=number]").first
+        field.wait_for(timeout=15_000)
+        field.fill("")
+        field.type("12,5")
+        assert field.input_value() == "12.5"
+        assert page.evaluate("(e) => e.valueAsNumber", field.element_handle()) == 12.5
+    finally:
+        context.close()

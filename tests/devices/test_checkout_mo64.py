@@ -77,13 +77,13 @@ async def test_mo64_checkout_fails_a_light_barrier_that_never_reports(tmp_path):
     async with demo_runtime(tmp_path, ("barrier-in",)) as runtime:
         twin = runtime.twins["barrier-in"]
         twin.travel_s = 0.8  # a quick boom: the steps wait on what the barrier reports, not on its speed
-        twin.light_barrier_dead = True
+        twin.strict.light_barrier_dead = True
         result = await run_checkout(runtime, "barrier-in", ask=_engineer(twin), settings=FAST)
         assert result["status"] == "failed"
         step = next(s for s in result["steps"] if s["status"] == "failed")
         assert step["name"] == "Light barrier reverses a closing boom (asked)", step
         assert "LS never reported" in step["reason"], step["reason"]
-        twin.light_barrier_dead = False
+        twin.strict.light_barrier_dead = False
         twin.break_light_barrier(False)
 
 
@@ -95,7 +95,7 @@ async def test_mo64_checkout_without_automatic_closing_and_error_memory(tmp_path
         twin = runtime.twins["barrier-in"]
         twin.travel_s = 0.8  # a quick boom: the steps wait on what the barrier reports, not on its speed
         await _short_t_open(runtime, "barrier-in", 0)
-        twin.refuse_queries.add(Q_ERROR_MEMORY)
+        twin.strict.refuse_queries.add(Q_ERROR_MEMORY)
         twin.open_end_pct = 99.0  # its open limit switch stops the boom at 99 %
         state = runtime.store.devices["barrier-in"]
         twin._start_open()

@@ -60,7 +60,7 @@ async def test_scu_checkout_passes_after_a_line_drop_left_error_bit_22(tmp_path)
 async def test_scu_checkout_fails_a_unit_whose_watchdog_stops_nothing(tmp_path):
     async with demo_runtime(tmp_path, ("lift-1",)) as runtime:
         twin = runtime.twins["lift-1"]
-        twin.ignores_watchdog = True
+        twin.strict.ignores_watchdog = True
         result = await run_checkout(runtime, "lift-1")
         steps = {s["name"]: s for s in result["steps"]}
         watchdog = steps["Watchdog trip (RC withheld)"]

@@ -255,7 +255,8 @@ async def test_viewer_cannot_drive(lift):
         await a.take_control("v", "viewer")
 
     with pytest.raises(PermissionDenied):
-        await runtime.worker.command("lift", take, role="viewer")
+        await runtime.worker.gate.run(lambda: take(runtime.worker.adapters["lift"]),
+                                      device="lift", role="viewer", user="local")
     assert runtime.worker.adapters["lift"].controller is None
 
 

@@ -63,10 +63,10 @@ async def test_override_through_the_gate_asks_first(lift):  # noqa: F811
     runtime, adapter, _state, _twin = lift
     await adapter.take_control("s1", "engineer")
     with pytest.raises(NeedsConfirmation, match="alone"):
-        await runtime.worker.invoke("lift", "override", {"active": 1}, user="engineer", role="engineer", session="s1")
+        await runtime.worker.gate.invoke("lift", "override", {"active": 1}, user="engineer", role="engineer", session="s1")
     assert not adapter.command.override
-    await runtime.worker.invoke("lift", "override", {"active": 1}, user="engineer", role="engineer", session="s1",
-                                confirmed=True)
+    await runtime.worker.gate.invoke("lift", "override", {"active": 1}, user="engineer", role="engineer", session="s1",
+                                     confirmed=True)
     assert adapter.command.override
 
 
@@ -102,7 +102,7 @@ async def test_go_through_the_gate_asks_that_the_area_is_clear(lift):  # noqa: F
     await adapter.take_control("s1", "engineer")
     adapter.set_command("s1", 40.0, 20.0, 0)
     with pytest.raises(NeedsConfirmation, match="area is clear"):
-        await runtime.worker.invoke("lift", "go", None, user="engineer", role="engineer", session="s1")
+        await runtime.worker.gate.invoke("lift", "go", None, user="engineer", role="engineer", session="s1")
     assert not adapter.command.enable
 
 

@@ -216,9 +216,8 @@ async def test_broadcast_set_address_taken_by_the_lock_that_meets_the_condition(
     one, two = running.twins["door-1"], running.twins["door-2"]
     writes_1, writes_2 = spy_writes(one), spy_writes(two)
     adapter = running.worker.adapters["door-2"]
-    outcome = await running.worker.command(
-        "door-2", lambda a: a.broadcast_set_address(9, 0x010C, 0x0104, KNOWN), describe="Broadcast Set Modbus Address (255)",
-    )
+    outcome = await running.worker.gate.run(lambda: running.worker.adapters["door-2"].broadcast_set_address(9, 0x010C, 0x0104, KNOWN),
+                                            device="door-2", describe="Broadcast Set Modbus Address (255)", user="local", role="engineer")
     assert outcome.taken and not outcome.collision
     assert (two.address, one.address) == (9, 1)
     assert adapter.address == 9  # the lock of this page moved: its adapter follows it
@@ -333,9 +332,8 @@ async def test_unknown_address_times_out(running):
 async def test_viewer_cannot_write(running):
     await online(running)
     with pytest.raises(PermissionDenied):
-        await running.worker.command(
-            "door-1", lambda a: a.write_param(PARAMS.by_name["LockRequestDelay"], 300), role="viewer",
-        )
+        await running.worker.gate.run(lambda: running.worker.adapters["door-1"].write_param(PARAMS.by_name["LockRequestDelay"], 300),
+                                      device="door-1", role="viewer", user="local")
     assert running.twins["door-1"].holding[3000] == 200
 
 

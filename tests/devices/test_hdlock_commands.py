@@ -60,8 +60,8 @@ async def test_restore_writes_through_the_declared_write_and_its_send_policy(loc
     delay = next(r for r in plan.rows if r.key == "holding:3000")
     direction = next(r for r in plan.rows if r.key == "holding:3003")
     # the question shown beside the row is the one the page's write asks: the gate's, from the policy
-    assert delay.risk == POLICY_RISK == gate.question(runtime.worker, "door-1", WRITE_PARAMETER,
-                                                      {"param": "holding:3000", "value": 250})
+    assert delay.risk == POLICY_RISK == runtime.worker.gate.question("door-1", WRITE_PARAMETER,
+                                                                     {"param": "holding:3000", "value": 250})
     assert "SettingsDirection 1 refused" in direction.error
     report = await backup.execute_restore(runtime, plan, {delay.key, direction.key})
     assert report.refused and twin.holding[3000] == 200 and twin.holding[3003] == 0
@@ -75,16 +75,16 @@ async def test_api_write_asks_the_policy_and_refuses_what_it_refuses(lock, stric
     runtime = lock
     worker, twin = runtime.worker, runtime.twins["door-1"]
     with pytest.raises(gate.NeedsConfirmation) as asked:
-        await worker.invoke("door-1", WRITE_PARAMETER, {"param": "LockRequestDelay", "value": 250}, user="anna",
-                            role="engineer")
+        await worker.gate.invoke("door-1", WRITE_PARAMETER, {"param": "LockRequestDelay", "value": 250}, user="anna",
+                                 role="engineer")
     assert asked.value.question == POLICY_RISK and twin.holding[3000] == 200
     with pytest.raises(ValueError, match="SettingsDirection 1 refused"):
-        await worker.invoke("door-1", WRITE_PARAMETER, {"param": "holding:3003", "value": 1}, user="anna", role="engineer")
+        await worker.gate.invoke("door-1", WRITE_PARAMETER, {"param": "holding:3003", "value": 1}, user="anna", role="engineer")
     with pytest.raises(ValueError, match="outside"):
-        await worker.invoke("door-1", WRITE_PARAMETER, {"param": "holding:3000", "value": 70000}, user="anna",
-                            role="engineer")
-    await worker.invoke("door-1", WRITE_PARAMETER, {"param": "holding:3000", "value": 250}, user="anna",
-                        role="engineer", confirmed=True)
+        await worker.gate.invoke("door-1", WRITE_PARAMETER, {"param": "holding:3000", "value": 70000}, user="anna",
+                                 role="engineer")
+    await worker.gate.invoke("door-1", WRITE_PARAMETER, {"param": "holding:3000", "value": 250}, user="anna",
+                             role="engineer", confirmed=True)
     assert twin.holding[3000] == 250 and PARAMS.by_key["holding:3000"].key in runtime.store.devices["door-1"].unsaved
     results = [(e.action, e.result) for e in runtime.audit.query(device="door-1")]
     assert ("write LockRequestDelay", "ok") in results
@@ -94,8 +94,8 @@ async def test_api_write_asks_the_policy_and_refuses_what_it_refuses(lock, stric
 async def test_save_settings_audit_lists_what_became_permanent(lock):
     runtime = lock
     worker = runtime.worker
-    await worker.invoke("door-1", WRITE_PARAMETER, {"param": "MaximumTimeUnlock", "value": 1234}, user="anna",
-                        role="engineer")
-    await worker.invoke("door-1", "Save-Settings", {}, user="anna", role="engineer")
+    await worker.gate.invoke("door-1", WRITE_PARAMETER, {"param": "MaximumTimeUnlock", "value": 1234}, user="anna",
+                             role="engineer")
+    await worker.gate.invoke("door-1", "Save-Settings", {}, user="anna", role="engineer")
     row = next(e for e in runtime.audit.query(device="door-1") if e.action == "Save-Settings")
     assert row.result == "ok" and "MaximumTimeUnlock (holding 1003) = 1234" in row.new

@@ -179,14 +179,14 @@ async def test_p2_on_asks_on_the_page_command_and_the_declared_write(tmp_path):
     runtime = await _started(_plant_file(tmp_path), tmp_path)
     try:
         with pytest.raises(gate.NeedsConfirmation, match="P2 on"):
-            await gate.invoke(runtime.worker, "io-a", "P2", {"on": 1}, user="anna", role="engineer")
+            await runtime.worker.gate.invoke("io-a", "P2", {"on": 1}, user="anna", role="engineer")
         with pytest.raises(gate.NeedsConfirmation, match="P2 on"):
-            await gate.invoke(runtime.worker, "io-a", WRITE_PARAMETER, {"param": "cfg:7", "value": 1}, user="anna",
-                              role="engineer")
-        await gate.invoke(runtime.worker, "io-a", "P2", {"on": 0}, user="anna", role="engineer")  # off: no question
+            await runtime.worker.gate.invoke("io-a", WRITE_PARAMETER, {"param": "cfg:7", "value": 1}, user="anna",
+                                             role="engineer")
+        await runtime.worker.gate.invoke("io-a", "P2", {"on": 0}, user="anna", role="engineer")  # off: no question
         with pytest.raises(Exception, match="HMR only"):
-            await gate.invoke(runtime.worker, "io-c", WRITE_PARAMETER, {"param": "cfg:7", "value": 0}, user="anna",
-                              role="engineer")
+            await runtime.worker.gate.invoke("io-c", WRITE_PARAMETER, {"param": "cfg:7", "value": 0}, user="anna",
+                                             role="engineer")
     finally:
         await runtime.stop()
 
@@ -224,8 +224,8 @@ async def test_drift_of_a_changed_record_on_the_overview_and_in_the_api(tmp_path
             return next(d for d in devices if d["name"] == "io-a")["drift"]
 
         assert await drift() == {"approved": True, "changed": []}
-        await gate.invoke(runtime.worker, "io-a", WRITE_PARAMETER, {"param": "Customer data 7", "value": "12 34"},
-                          user="anna", role="engineer")
+        await runtime.worker.gate.invoke("io-a", WRITE_PARAMETER, {"param": "Customer data 7", "value": "12 34"},
+                                         user="anna", role="engineer")
         assert await wait_for(lambda: state.drift["changed"], 5)
         assert (await drift())["changed"] == [{"key": "customer:7", "name": "Customer data 7",
                                                "approved": "ff ff ff ff ff ff", "now": "12 34 ff ff ff ff"}]
@@ -347,8 +347,8 @@ async def test_on_the_demo_plant_heater_hmrs_project_differs_applies_and_a_chang
         report = await backup.execute_restore(runtime, plan, {r.key for r in plan.rows}, user="anna", role="engineer")
         assert report.ok and twin.customer[1] == bytes.fromhex("010203ffffff")
         await runtime.record.approve("heater-hmr", user="anna", role="engineer")
-        await gate.invoke(runtime.worker, "heater-hmr", WRITE_PARAMETER, {"param": "customer:1", "value": "04"},
-                          user="anna", role="engineer")
+        await runtime.worker.gate.invoke("heater-hmr", WRITE_PARAMETER, {"param": "customer:1", "value": "04"},
+                                         user="anna", role="engineer")
         assert await wait_for(lambda: state.drift["changed"], 5)
         devices = (await user.http_client.get("/api/devices")).json()
         drift = next(d for d in devices if d["name"] == "heater-hmr")["drift"]

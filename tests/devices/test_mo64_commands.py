@@ -39,7 +39,7 @@ async def runtime(tmp_path):
 
 
 def invoke(runtime, name, args=None, *, role="engineer", session="s1", confirmed=False):
-    return runtime.worker.invoke("gate", name, args, user=role, role=role, session=session, confirmed=confirmed)
+    return runtime.worker.gate.invoke("gate", name, args, user=role, role=role, session=session, confirmed=confirmed)
 
 
 async def test_a_viewer_gets_only_reads_and_stops_and_the_barrier_is_untouched(runtime):

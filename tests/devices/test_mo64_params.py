@@ -141,7 +141,7 @@ async def test_a_backup_lists_the_model_and_each_piece_is_read_back():
         assert entries["t_open:0"]["value"] == 10.0 and entries["t_open:0"]["text"] == "10 s"
         assert not entries["dec_bt:0"]["writable"] and entries["loop_periods"]["raw"] == "00 00 00 00 00 00"
         assert not any(k.startswith("vehicle_counter") for k in entries)  # RAM only (chapter 5.2.5)
-        sim.twin.eeprom_write_s = 0.6  # a slow EEPROM (strict mode): syn, then ack after 0.6 s
+        sim.twin.strict.eeprom_write_s = 0.6  # a slow EEPROM (strict mode): syn, then ack after 0.6 s
         assert await adapter.write_param("multi_relays:16", 2) == 2
         assert sim.twin.settings["multi_relays"] == (1, 0, 2, 0, 0, 0)
 
@@ -151,11 +151,11 @@ async def test_a_refused_assumed_selector_writes_nothing_and_says_so():
         prewarn = PARAMS.by_name["Pre-warning before opening"]
         with pytest.raises(CommandError, match="assumption"):
             await adapter.write_param(prewarn, 0.8)  # not confirmed as verified on this unit
-        sim.twin.refuse_selectors = {"t_prewarn_open"}  # strict mode: the unit does not take the assumed selector
+        sim.twin.strict.refuse_selectors = {"t_prewarn_open"}  # strict mode: the unit does not take the assumed selector
         with pytest.raises(CommandError, match="answered nak"):
             await adapter.write_param(prewarn, 0.8, confirmed=True)
         assert sim.twin.settings["t_prewarn_open"] == 50 and sim.twin.setting_writes == {}
-        sim.twin.refuse_selectors = set()
+        sim.twin.strict.refuse_selectors = set()
         assert await adapter.write_param(prewarn, 0.8, confirmed=True) == 80
         counter = PARAMS.by_name["Vehicle counter"]  # signed, RAM only: ack without syn, no EEPROM write counted
         assert counter.decode(await adapter.write_param(counter, -5, confirmed=True)) == -5

@@ -148,7 +148,8 @@ async def test_drift_of_a_changed_setting_and_the_page_asks_before_force_monitor
         async def drift() -> dict:
             return next(d for d in (await user.http_client.get("/api/devices")).json() if d["name"] == "gate")["drift"]
         assert (await drift()) == {"approved": True, "changed": []}
-        await runtime.worker.command("gate", lambda a: a.write_param(T_OPEN, 12.5), user="anna", describe="write")
+        await runtime.worker.gate.run(lambda: runtime.worker.adapters["gate"].write_param(T_OPEN, 12.5),
+                                      device="gate", user="anna", describe="write", role="engineer")
         await eventually(lambda: state.drift["changed"], timeout=5, what="drift")
         assert (await drift())["changed"] == [{"key": "t_open:0", "name": "t_offen", "approved": "10 s", "now": "12.5 s"}]
 

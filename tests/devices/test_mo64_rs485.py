@@ -28,8 +28,8 @@ async def test_shared_line_token_within_200_ms_and_an_open_pulse():
         states = runtime.store.devices
         assert await wait_for(lambda: all(states[n].status == "online" for n in ("out-1", "out-2")), timeout=10)
         adapter = runtime.worker.adapters["out-1"]
-        await runtime.worker.command("out-1", lambda a: a.command("test", codec.Command.OPEN, codec.Function.PULSE, confirmed=True),
-                                     describe="open pulse")
+        await runtime.worker.gate.run(lambda: runtime.worker.adapters["out-1"].command("test", codec.Command.OPEN, codec.Function.PULSE, confirmed=True),
+                                      device="out-1", describe="open pulse", user="local", role="engineer")
         twin = runtime.twins["out-1"]
         assert await wait_for(lambda: twin.position_pct == 100, timeout=10)
         assert await wait_for(lambda: (states["out-1"].entry("Gate state") or {}).get("value") == codec.GateState.OPEN, timeout=5)

@@ -18,7 +18,8 @@ from conftest import wait_for
 from webutil import eventually
 
 from devices.mo64 import codec
-from devices.mo64.sim import EEPROM_WRITE_S, Mo64Rs485Sim, Mo64TcpSim
+from devices.mo64.sim import Mo64Rs485Sim, Mo64TcpSim
+from devices.mo64.twin import EEPROM_WRITE_S
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -363,7 +364,7 @@ def run(twin, seconds: float, dt: float = 0.02) -> None:
 
 
 def test_twin_vehicle_fault_error_memory_and_power_up():
-    from devices.mo64.sim import Mo64Twin
+    from devices.mo64.twin import Mo64Twin
     twin = Mo64Twin("gate", travel_s=1.0)
     twin.settings["t_open"] = 50  # 0.5 s
     twin.drive_vehicle()

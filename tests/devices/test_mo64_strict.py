@@ -219,8 +219,8 @@ async def test_rs485_token_is_not_passed_between_syn_and_ack():
         twin = runtime.twins["out-1"]
         for n in range(6):
             value = 1000 + n
-            await runtime.worker.command("out-1", lambda a, v=value: a.write_setting("test", "t_open", v),
-                                         describe="set open time")
+            await runtime.worker.gate.run(lambda v=value: runtime.worker.adapters["out-1"].write_setting("test", "t_open", v),
+                                          device="out-1", describe="set open time", user="local", role="engineer")
             assert twin.settings["t_open"] == value
         print(f"collisions {sim.collisions}, token held at most {max(sim.hold_times_s) * 1000:.0f} ms")
         assert sim.collisions == 0
@@ -267,7 +267,7 @@ async def test_when_the_tool_stops_its_close_level_is_deactivated_and_acknowledg
         assert await wait_for(lambda: runtime.store.devices[name].status == "online", timeout=10)
         twin = runtime.twins[name]
         async with alive(worker, "s1"):  # the browser stays alive: only the stop may release the level
-            await worker.invoke(name, "close activate", user="anna", role="engineer", session="s1", confirmed=True)
+            await worker.gate.invoke(name, "close activate", user="anna", role="engineer", session="s1", confirmed=True)
             assert twin.levels[codec.Command.CLOSE] and worker.adapters[name].holders() == {"s1"}
             await asyncio.wait_for(worker.stop(), 15)
             stopped = True

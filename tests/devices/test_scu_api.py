@@ -46,7 +46,7 @@ async def test_every_live_value_of_the_scu_reaches_the_api_within_15_s(tmp_path,
     runtime = Runtime(parse_plant(plant_text(free_port(), 2)), simulate=True, data_dir=tmp_path / "data")
     twin = runtime.twins["scu"]
     for key, value in strict.items():
-        setattr(twin, key, value)  # before the first byte: the unit refuses groups from the start
+        setattr(twin.strict, key, value)  # before the first byte: the unit refuses groups from the start
     async with simulated_user(runtime) as user:
         values = await values_until(user.http_client, lambda v: all(k in v and v[k]["quality"] == "good" for k in LIVE), 15)
         missing = sorted(k for k in LIVE if k not in values or values[k]["quality"] != "good")

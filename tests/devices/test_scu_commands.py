@@ -53,8 +53,8 @@ async def scu(tmp_path):
 
 
 async def invoke(runtime, name, args=None, *, role="engineer", session="s1", confirmed=False):
-    return await runtime.worker.invoke("scu", name, args, user="anna" if role == "engineer" else "tablet", role=role,
-                                       session=session, confirmed=confirmed)
+    return await runtime.worker.gate.invoke("scu", name, args, user="anna" if role == "engineer" else "tablet", role=role,
+                                            session=session, confirmed=confirmed)
 
 
 async def audit_rows(runtime, text: str):

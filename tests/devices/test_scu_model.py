@@ -93,8 +93,10 @@ async def test_backup_names_every_value_and_restore_writes_the_settings_back_rea
     assert document["identity"]["configuration"].startswith("SCP11")
 
     adapter = runtime.worker.adapters["lift-a"]
-    await runtime.worker.command("lift-a", lambda a: a.write_param(SPEED_F2, 40), user="anna", describe="write")
-    await runtime.worker.command("lift-a", lambda a: a.write_param(POSITION_A1, 1234), user="anna", describe="write")
+    await runtime.worker.gate.run(lambda: runtime.worker.adapters["lift-a"].write_param(SPEED_F2, 40),
+                                  device="lift-a", user="anna", describe="write", role="engineer")
+    await runtime.worker.gate.run(lambda: runtime.worker.adapters["lift-a"].write_param(POSITION_A1, 1234),
+                                  device="lift-a", user="anna", describe="write", role="engineer")
     assert twin.remote_speed[1] == 40 and twin.remote_position[0] == 1234
     assert adapter.state.raw(SPEED_F2) == 40 and adapter.state.raw(POSITION_A1) == 1234
 
@@ -125,25 +127,25 @@ async def test_a_write_is_refused_beyond_the_speed_select_while_a_function_runs_
 
     beating = asyncio.create_task(beat())
     try:
-        await runtime.worker.invoke("lift-a", "take control", session="s1", user="anna", role="engineer")
-        await runtime.worker.invoke("lift-a", "jog (RE)", {"function": 0, "direction": 1, "ramp": 1}, session="s1",
-                                    user="anna", role="engineer")
+        await runtime.worker.gate.invoke("lift-a", "take control", session="s1", user="anna", role="engineer")
+        await runtime.worker.gate.invoke("lift-a", "jog (RE)", {"function": 0, "direction": 1, "ramp": 1}, session="s1",
+                                         user="anna", role="engineer")
         with pytest.raises(Exception, match="F1 .* runs or its stop is owed"):
             await adapter.write_param(SPEED_F1, 50)
-        await runtime.worker.invoke("lift-a", "jog stop (RS)", {"function": 0}, session="s1", user="anna", role="engineer")
-        await runtime.worker.invoke("lift-a", "release control", session="s1", user="anna", role="engineer")
+        await runtime.worker.gate.invoke("lift-a", "jog stop (RS)", {"function": 0}, session="s1", user="anna", role="engineer")
+        await runtime.worker.gate.invoke("lift-a", "release control", session="s1", user="anna", role="engineer")
     finally:
         beating.cancel()
     assert twin.remote_speed[0] == 100
     # strict mode: the unit's parametrisation has no F2 (its remote speed answers PDE)
-    twin.refused_ids = {0x3012}
+    twin.strict.refused_ids = {0x3012}
     with pytest.raises(Exception, match="PDE"):
         await adapter.write_param(SPEED_F2, 50)
     entries = {e["key"] for e in await adapter.backup_read()}  # the group read refused: member by member
     assert SPEED_F1.key in entries and SPEED_F2.key not in entries
     assert adapter.settings.refused[SPEED_F2.key] == "PDE: the unit refuses RG 0x3012"
-    twin.refused_ids = set()
-    twin.single_ids_only = True  # groups refused (the document describes 0x0010 alone): read member by member
+    twin.strict.refused_ids = set()
+    twin.strict.single_ids_only = True  # groups refused (the document describes 0x0010 alone): read member by member
     entries = {e["key"]: e for e in await adapter.backup_read()}
     assert entries[SPEED_F2.key]["raw"] == 100 and entries["limit_out:8194"]["raw"] == 3750
 
@@ -201,10 +203,10 @@ async def test_drift_after_a_reset_and_the_replacement_assistant_writes_the_appr
 async def test_the_declared_write_goes_through_the_gate_for_a_viewer_it_is_refused(lifts):
     runtime = lifts
     with pytest.raises(PermissionDenied):
-        await runtime.worker.invoke("lift-a", WRITE_PARAMETER, {"param": SPEED_F1.key, "value": 20}, user="tab",
-                                    role="viewer")
-    await runtime.worker.invoke("lift-a", WRITE_PARAMETER, {"param": SPEED_F1.key, "value": 20}, user="anna",
-                                role="engineer")
+        await runtime.worker.gate.invoke("lift-a", WRITE_PARAMETER, {"param": SPEED_F1.key, "value": 20}, user="tab",
+                                         role="viewer")
+    await runtime.worker.gate.invoke("lift-a", WRITE_PARAMETER, {"param": SPEED_F1.key, "value": 20}, user="anna",
+                                     role="engineer")
     assert runtime.twins["lift-a"].remote_speed[0] == 20
 
 
@@ -280,7 +282,7 @@ def test_the_twins_strict_modes_refused_data_ids_a_reset_and_the_speed_select():
     assert ask(p.rt_frame(0x3012, 40)).ok and twin.remote_speed[1] == 40
     assert ask(p.rt_frame(0x3012, 101)).status == codec.Status.PDE  # relative: 0 .. 100 % (table 7)
     assert ask(p.rt_frame(0x3023, 5)).status == codec.Status.PDE  # A3: no such actuator on this unit
-    twin.refused_ids = {0x3012}  # the unit's parametrisation has no F2
+    twin.strict.refused_ids = {0x3012}  # the unit's parametrisation has no F2
     assert ask(codec.encode_rg(0x3012)).status == codec.Status.PDE
     assert ask(codec.encode_rg(0x3010)).status == codec.Status.PDE  # a group holding it too
     assert ask(p.rt_frame(0x3012, 50)).status == codec.Status.PDE and twin.remote_speed[1] == 40
@@ -296,12 +298,12 @@ def test_the_twins_strict_modes_refused_data_ids_a_reset_and_the_speed_select():
 async def test_a_unit_watched_with_rg_alone_gets_a_session_for_the_write_and_closes_it_after(lifts):
     runtime = lifts
     twin, adapter = runtime.twins["lift-b"], runtime.worker.adapters["lift-b"]
-    twin.rg_outside_session = True  # it answers RG outside remote mode: watched with RG, no session while idle
+    twin.strict.rg_outside_session = True  # it answers RG outside remote mode: watched with RG, no session while idle
     adapter.watch = None  # asked again at the next poll
     assert await wait_for(lambda: adapter.watch == "rg" and adapter.session == "closed", 20), adapter.session
     assert {e["key"] for e in await adapter.backup_read()} >= {q.key for q in params_for(2)}  # read without a session
     assert adapter.session == "closed"
-    await runtime.worker.invoke("lift-b", WRITE_PARAMETER, {"param": SPEED_F2.key, "value": 45}, user="anna",
-                                role="engineer")
+    await runtime.worker.gate.invoke("lift-b", WRITE_PARAMETER, {"param": SPEED_F2.key, "value": 45}, user="anna",
+                                     role="engineer")
     assert twin.remote_speed[1] == 45
     assert await wait_for(lambda: adapter.session == "closed" and not twin.remote, 20)  # RA once nobody needs it

@@ -64,8 +64,8 @@ async def test_device_filter_lists_every_device_and_no_blank_entry(env: Env):
 
 
 async def test_refusals_are_in_the_log_with_the_whole_reason(env: Env):
-    await env.runtime.worker.refused(device="door-1", user="local", role="engineer", describe="write SettingsRemoveMagnet",
-                                     reason=LONG.removeprefix("refused: "), parameter="SettingsRemoveMagnet", new=1)
+    await env.runtime.worker.gate.refused(device="door-1", user="local", role="engineer", describe="write SettingsRemoveMagnet",
+                                          reason=LONG.removeprefix("refused: "), parameter="SettingsRemoveMagnet", new=1)
     await env.user.open("/audit")
     table = _one(env.user, ui.table)
     await eventually(lambda: len(table.rows) == 1, what="the refusal listed")

@@ -172,7 +172,8 @@ async def test_the_restore_confirmation_names_every_unsaved_change_the_save_make
     deselected in the diff, is made permanent by the restore's Save-Settings: the confirmation names
     it beside the restored row, and counts in words ("1 parameter", not "1 parameters")."""
     output = PARAMS.by_name["SettingOutput1"]  # a setting (a measured maximum is never restored: issue 42 item 4)
-    await env.runtime.worker.command("door-1", lambda a: a.write_param(output, 5), describe="write")
+    await env.runtime.worker.gate.run(lambda: env.runtime.worker.adapters["door-1"].write_param(output, 5),
+                                      device="door-1", describe="write", user="local", role="engineer")
     assert output.key in env.runtime.store.devices["door-1"].unsaved
     entries = []
     for p in PARAMS:

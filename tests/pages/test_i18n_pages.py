@@ -82,11 +82,32 @@ def lock_plant():
     return modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
 
 
-async def test_the_plant_view_in_german_shows_no_english(tmp_path):
+@contextlib.asynccontextmanager
+async def german_locks(tmp_path, *online: str):
+    """The two-lock plant with a German browser, once the ``online`` devices (every device: ``"*"``) answer."""
     runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
     async with german_user(runtime) as user:
-        await eventually(lambda: all(s.status == "online" for s in runtime.store.devices.values()), timeout=15,
-                         what="both locks online")
+        names = list(runtime.store.devices) if online == ("*",) else list(online)
+        if names:
+            await eventually(lambda: all(runtime.store.devices[n].status == "online" for n in names), timeout=15,
+                             what=" and ".join(names) + " online")
+        yield runtime, user
+
+
+def english_but(user, descriptions=frozenset(), skip=(), suffixed: bool = False) -> list[tuple[str, str]]:
+    """The English texts on the page but the parameter model's own descriptions (devices/*/params.py, English; with
+    ``suffixed`` also after a name, ``Name: description``); the simulation card is looked at too (its words are
+    declared by devices/*/sim.py and shown in the catalogs' words by pages/simcontrols.py)."""
+    return [(text, message) for text, message in english_on(user, skip=skip)
+            if text not in descriptions and not (suffixed and any(text.endswith(f": {d}") for d in descriptions))]
+
+
+def descriptions_of(runtime, device: str) -> set[str]:
+    return {p.description for p in runtime.store.devices[device].params.by_name.values()}
+
+
+async def test_the_plant_view_in_german_shows_no_english(tmp_path):
+    async with german_locks(tmp_path, "*") as (runtime, user):
         await user.open("/plant")
         await user.should_see("Anlage plant", retries=50)
         await user.should_see("Tür geöffnet", retries=100)  # the twins' doors start open, bolt in
@@ -117,8 +138,7 @@ async def test_the_login_in_german_shows_no_english(tmp_path):
 
 
 async def test_the_switch_keeps_the_browsers_language(tmp_path):
-    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
-    async with german_user(runtime) as user:
+    async with german_locks(tmp_path) as (runtime, user):
         await user.open("/plant")
         await user.should_see("Anlage plant")
         links = {e.props.get("data-lang"): e for e in user.client.elements.values() if isinstance(e, ui.link) and e.props.get("data-lang")}
@@ -139,9 +159,7 @@ async def test_the_switch_keeps_the_browsers_language(tmp_path):
 async def test_a_device_page_in_german_has_its_frame_events_and_badge_in_german(tmp_path):
     """The parts every device page shares (pages/device_page.py, widgets, command client): status badge, the
     event log's title and columns, the disabled reasons of the write guard."""
-    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
-    async with german_user(runtime) as user:
-        await eventually(lambda: runtime.store.devices["door-1"].status == "online", timeout=15, what="door-1 online")
+    async with german_locks(tmp_path, "door-1") as (runtime, user):
         await user.open("/device/door-1")
         await user.should_see("Ereignisse", retries=100)
         await user.should_see("online", retries=100)
@@ -153,10 +171,7 @@ async def test_a_device_page_in_german_has_its_frame_events_and_badge_in_german(
 
 
 async def test_the_overview_in_german_shows_no_english(tmp_path):
-    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
-    async with german_user(runtime) as user:
-        await eventually(lambda: all(s.status == "online" for s in runtime.store.devices.values()), timeout=15,
-                         what="both locks online")
+    async with german_locks(tmp_path, "*") as (runtime, user):
         await user.open("/")
         await user.should_see("Alle Geräte (2)", retries=50)
         await user.should_see("Tür geöffnet", retries=100)  # the tiles in the documents' words, as on the plant view
@@ -167,10 +182,7 @@ async def test_the_overview_in_german_shows_no_english(tmp_path):
 
 
 async def test_the_backup_page_in_german_shows_no_english(tmp_path):
-    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
-    async with german_user(runtime) as user:
-        await eventually(lambda: all(s.status == "online" for s in runtime.store.devices.values()), timeout=15,
-                         what="both locks online")
+    async with german_locks(tmp_path, "*") as (runtime, user):
         await user.open("/backup")
         await user.should_see("Backup und Wiederherstellung", retries=50)
         await user.should_see("Backups im Ordner")
@@ -206,8 +218,7 @@ async def test_a_project_in_german_shows_no_english(tmp_path):
 
 
 async def test_the_audit_log_in_german_shows_no_english_but_its_records(tmp_path):
-    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
-    async with german_user(runtime) as user:
+    async with german_locks(tmp_path) as (runtime, user):
         await user.open("/audit")
         await user.should_see("Audit-Log", retries=50)
         await user.should_see("Einträge", retries=50)
@@ -217,10 +228,7 @@ async def test_the_audit_log_in_german_shows_no_english_but_its_records(tmp_path
 
 
 async def test_the_fleet_page_in_german_shows_no_english(tmp_path):
-    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
-    async with german_user(runtime) as user:
-        await eventually(lambda: all(s.status == "online" for s in runtime.store.devices.values()), timeout=15,
-                         what="both locks online")
+    async with german_locks(tmp_path, "*") as (runtime, user):
         await user.open("/fleet")
         await user.should_see("Auf mehrere Geräte anwenden", retries=50)
         await user.should_see("Prüfen und vergleichen")
@@ -231,27 +239,22 @@ async def test_the_fleet_page_in_german_shows_no_english(tmp_path):
 
 
 async def test_the_replacement_assistant_in_german_shows_no_english(tmp_path):
-    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
-    async with german_user(runtime) as user:
-        await eventually(lambda: runtime.store.devices["door-1"].status == "online", timeout=15, what="door-1 online")
+    async with german_locks(tmp_path, "door-1") as (runtime, user):
         await user.open("/replace/door-1")
         await user.should_see("door-1 austauschen", retries=50)
         await user.should_see("1. Identität")
         await user.should_see("Identität wie bekannt", retries=50)
-        # the twin's card: its words are declared by devices/*/sim.py and are not in the catalogs yet (docs/i18n.md)
-        assert english_on(user, skip=("sim-card",)) == []
+        assert english_but(user) == []
 
 
 async def test_the_project_editor_in_german_shows_no_english_but_the_parameters_own_words(tmp_path):
     """Parameter names are the documents' names and their descriptions are English in devices/*/params.py: the
     editor's own words are German."""
-    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
-    async with german_user(runtime) as user:
+    async with german_locks(tmp_path) as (runtime, user):
         await user.open("/project/door-1")
         await user.should_see("Projekt von door-1", retries=50)
         await user.should_see("Projekt speichern")
-        descriptions = {p.description for p in runtime.store.devices["door-1"].params.by_name.values()}
-        assert [(text, message) for text, message in english_on(user) if text not in descriptions] == []
+        assert english_but(user, descriptions_of(runtime, "door-1"), skip=()) == []
 
 
 async def test_the_plant_wide_view_in_german_shows_no_english(tmp_path):
@@ -262,8 +265,7 @@ async def test_the_plant_wide_view_in_german_shows_no_english(tmp_path):
 
     store = _store()
     _good(store)
-    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
-    async with german_user(runtime) as user:
+    async with german_locks(tmp_path) as (runtime, user):
         ui.page("/site-view-de")(lambda: site_view.content(store))
         await user.open("/site-view-de")
         await user.should_see("Anlagenweite Ansicht", retries=50)
@@ -295,9 +297,8 @@ async def test_the_mo64_page_in_german_shows_no_english(tmp_path):
         await user.should_see("Seriennummer: 6400001", retries=50)
         await user.should_see("Schleife A belegt")
         await user.should_see("Fehlerspeicher (10 Ebenen, neueste zuerst, Kapitel 5.1.23)")
-        descriptions = mo64_descriptions(runtime, "gate")
-        # the simulation card's words are declared by devices/mo64/sim.py (pages/simcontrols.py joins later)
-        found = [(text, message) for text, message in english_on(user, skip=("sim-card",)) if text not in descriptions]
+        await user.should_see("Ein Fahrzeug durchfahren lassen")  # the twin's card
+        found = english_but(user, mo64_descriptions(runtime, "gate"))
         assert found == [], "\n".join(map(str, found))
         errors = next(e for e in user.client.elements.values() if e.props.get("data-testid") == "error-memory")
         assert [c["label"] for c in errors.columns] == ["Ebene", "Fehlerflaggen", "Roh (für den Hersteller)",
@@ -318,8 +319,7 @@ async def test_the_m3io_page_in_german_shows_no_english(tmp_path):
         await user.should_see("Adressierte Daten (SW1 Schalter 8 ein)")
         await eventually(lambda: any(t.startswith("Watchdog nicht bedient") for t in shown_texts(user)), timeout=5,
                          what="the watchdog's words")
-        # the simulation card's words are declared by devices/m3io/sim.py (pages/simcontrols.py joins later)
-        found = english_on(user, skip=("sim-card",))
+        found = english_but(user)
         assert found == [], "\n".join(map(str, found))
         assert not i18n.get("de").missing, i18n.get("de").missing
 
@@ -338,27 +338,22 @@ async def test_the_electrak_page_in_german_shows_no_english(tmp_path):
         await user.should_see("niemand steuert das Netzwerk: Steuertelegramme sind aus", retries=50)
         await eventually(lambda: any(t.startswith("gehörte Aktuatoren pro 100 ms: 2 von 2") for t in shown_texts(user)),
                          timeout=5, what="the actuators heard")
-        descriptions = {p.description for p in runtime.store.devices["lift"].params.by_name.values()}
-        # the simulation card's words are declared by devices/electrak/sim.py (pages/simcontrols.py joins later)
-        found = [(text, message) for text, message in english_on(user, skip=("sim-card",)) if text not in descriptions]
+        found = english_but(user, descriptions_of(runtime, "lift"))
         assert found == [], "\n".join(map(str, found))
 
 
 async def test_the_hdlock_page_in_german_shows_no_english_but_the_parameters_own_words(tmp_path):
     """The lock's page (document 000): its cards, the LockStatus and the states in German, register and bit names as the
     document prints them, descriptions the parameter model's."""
-    runtime = Runtime(lock_plant(), simulate=True, data_dir=tmp_path)
-    async with german_user(runtime) as user:
-        await eventually(lambda: runtime.store.devices["door-1"].status == "online", timeout=15, what="door-1 online")
+    async with german_locks(tmp_path, "door-1") as (runtime, user):
         await user.open("/device/door-1")
         await user.should_see("HD-Lock door-1", retries=50)
         await user.should_see("Parameter (RW-Holding-Register)")
         await user.should_see("Set Modbus Address an jedes Schloss von line1 (Broadcast 255)")
         await user.should_see("Tür geöffnet", retries=100)  # DoorState in the document's words
-        descriptions = {p.description for p in runtime.store.devices["door-1"].params.by_name.values()}
-        # the simulation card's words are declared by devices/hdlock/sim.py (pages/simcontrols.py joins later)
-        found = [(text, message) for text, message in english_on(user, skip=("sim-card",))
-                 if text not in descriptions and not any(text.endswith(f": {d}") for d in descriptions)]
+        await user.should_see("Simuliertes Schloss")  # the twin's card in the catalogs' words
+        await user.should_see("Starker Magnet")
+        found = english_but(user, descriptions_of(runtime, "door-1"), suffixed=True)
         assert found == [], "\n".join(map(str, found))
         assert not i18n.get("de").missing, i18n.get("de").missing  # nothing looked up that the catalog does not have
 
@@ -377,7 +372,5 @@ async def test_the_scu_page_in_german_shows_no_english(tmp_path):
         await user.should_see("NOT-HALT (F20, Funktion 19)")
         await eventually(lambda: any(t.startswith("Remote-Betrieb: ") for t in shown_texts(user)), timeout=5,
                          what="the remote session's words")
-        descriptions = {p.description for p in runtime.store.devices["lift"].params.by_name.values()}
-        # the simulation card's words are declared by devices/scu/sim.py (pages/simcontrols.py joins later)
-        found = [(text, message) for text, message in english_on(user, skip=("sim-card",)) if text not in descriptions]
+        found = english_but(user, descriptions_of(runtime, "lift"))
         assert found == [], "\n".join(map(str, found))

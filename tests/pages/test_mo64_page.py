@@ -83,8 +83,8 @@ async def test_a_viewer_cannot_clear_levels_or_release_the_connection(env, monke
     adapter = runtime.worker.adapters["gate"]
     await eventually(lambda: "Gate state" in adapter.state.points, timeout=10)
     async with alive(runtime.worker, "engineer-1"):  # the engineer's browser stays alive for this test
-        await runtime.worker.invoke("gate", "close activate", user="anna", role="engineer", session="engineer-1",
-                                    confirmed=True)
+        await runtime.worker.gate.invoke("gate", "close activate", user="anna", role="engineer", session="engineer-1",
+                                         confirmed=True)
         await user.open("/device/gate")
         monkeypatch.setattr("pages.session.current_user", lambda: ("tablet", "viewer"))
         UserInteraction(user, {by_testid(user, "clear-levels")}, None).click()  # refused by the gate before any question
@@ -118,7 +118,8 @@ async def test_mo64_dead_man_deactivates_the_close_level_of_a_silent_session(env
     user, runtime = env
     adapter = runtime.worker.adapters["gate"]
     await eventually(lambda: "Gate state" in adapter.state.points, timeout=10)
-    await runtime.worker.command("gate", lambda a: a.command("browser-x", 2, 1, confirmed=True))
+    await runtime.worker.gate.run(lambda: runtime.worker.adapters["gate"].command("browser-x", 2, 1, confirmed=True),
+                                  device="gate", user="local", role="engineer")
     assert adapter.holders() == {"browser-x"}
     # the session never sends a heartbeat: the worker trips it 0.3 s after it holds something
     await eventually(lambda: adapter.holders() == set(), timeout=1.0)

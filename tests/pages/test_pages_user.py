@@ -332,14 +332,14 @@ async def test_worker_refuses_writes_for_viewer(env: Env):
     await online(env, "door-1")
     writes = spy_writes(twin)
     with pytest.raises(PermissionDenied):
-        await env.runtime.worker.command(
-            "door-1", lambda a: a.write_param(DELAY, 999), role="viewer", user="tester", describe="write LockRequestDelay"
-        )
+        await env.runtime.worker.gate.run(lambda: env.runtime.worker.adapters["door-1"].write_param(DELAY, 999),
+                                          device="door-1", role="viewer", user="tester", describe="write LockRequestDelay")
     assert writes == []
     assert twin.holding[3000] == 200
     assert any(e.level == "warning" and "refused for tester (viewer)" in e.text for e in env.state().events)
     # the engineer may
-    await env.runtime.worker.command("door-1", lambda a: a.write_param(DELAY, 999), role="engineer")
+    await env.runtime.worker.gate.run(lambda: env.runtime.worker.adapters["door-1"].write_param(DELAY, 999),
+                                      device="door-1", role="engineer", user="local")
     assert twin.holding[3000] == 999
     assert writes == [(3000, 999)]  # the spy sees writes that do happen
 

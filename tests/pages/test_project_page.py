@@ -171,9 +171,9 @@ async def test_a_viewer_sees_the_project_read_only_and_the_worker_refuses_the_sa
         # past the page: the worker refuses a viewer's save (and audits the refusal); the file is not touched
         before = path.read_text()
         with pytest.raises(PermissionDenied):
-            await runtime.worker.engineer_action(
+            await runtime.worker.gate.run(
                 lambda: asyncio.to_thread(project.save, runtime.plant, "door-1", {"holding:3000": 1}), user="tablet",
-                role="viewer", describe="edit project", target="door-1")
+                role="viewer", describe="edit project", device="door-1", kind="write")
         assert path.read_text() == before
         row = next(r for r in await runtime.audit.aquery(limit=20) if r.action == "edit project")
         assert row.user == "tablet" and row.result.startswith("refused")

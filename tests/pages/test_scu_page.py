@@ -69,9 +69,9 @@ async def test_scu_dead_man_sends_rs_when_the_session_goes_away(env):
     adapter = runtime.worker.adapters["lift"]
     await eventually(lambda: adapter.session == "open", timeout=10)
     twin = runtime.twins["lift"]
-    await runtime.worker.invoke("lift", "take control", {"user": "anna"}, user="anna", role="engineer", session="browser-x")
-    await runtime.worker.invoke("lift", "go (RE)", {"function": 0, "motion": 2, "ramp": 1}, user="anna", role="engineer",
-                                session="browser-x", confirmed=True)
+    await runtime.worker.gate.invoke("lift", "take control", {"user": "anna"}, user="anna", role="engineer", session="browser-x")
+    await runtime.worker.gate.invoke("lift", "go (RE)", {"function": 0, "motion": 2, "ramp": 1}, user="anna", role="engineer",
+                                     session="browser-x", confirmed=True)
     assert adapter.holders() == {"browser-x"} and twin.actuators[0].moving
     # the session never sends a heartbeat: the worker trips it DEADMAN_TIMEOUT_S after it holds something
     await eventually(lambda: adapter.holders() == set(), timeout=1.0)
@@ -146,7 +146,7 @@ async def test_the_shared_sim_card_acts_on_the_scu_twin_through_the_gate(env):
     assert await runtime.audit.aquery(device="lift", text="simulation: actuator error actuator=2")
     await eventually(lambda: (runtime.store.devices["lift"].point("Error code") or {}).get("value"), timeout=5)
     UserInteraction(user, {by_testid(user, "sim-on-battery")}, None).click()  # the switch goes on
-    await eventually(lambda: not twin.mains, timeout=3)
+    await eventually(lambda: not twin.io.mains, timeout=3)
 
 
 def _props_texts(user, prop: str, value: str) -> str:

@@ -11,7 +11,6 @@ from pathlib import Path
 import can
 import pytest
 
-from app import gate
 from app import replay as rp
 from app import transmit as tx
 from app.can_bus import FrameRecord
@@ -63,8 +62,8 @@ async def test_stop_runs_before_its_audit_row_and_never_waits_for_it():
         return "stopped"
 
     # the audit holds every row: the stop must not wait for it
-    result = await asyncio.wait_for(worker.checked(stop, device="lock", role="viewer", user="tablet",
-                                                   describe="stop", kind="stop"), timeout=1.0)
+    result = await asyncio.wait_for(worker.gate.run(stop, device="lock", role="viewer", user="tablet",
+                                    describe="stop", kind="stop"), timeout=1.0)
     assert result == "stopped" and ran and worker.audit.rows == []
     worker.audit.release.set()
     assert await wait_for(lambda: worker.audit.rows, timeout=2)
@@ -75,8 +74,8 @@ async def test_an_action_by_its_wording_gets_the_declared_kind_or_counts_as_a_wr
     """An action submitted as a callable and its wording gets the kind its type declares for that name;
     a wording the type does not declare is checked as a write, never let through as a read."""
     worker = Worker(_can_plant(), audit=SlowAudit())
-    assert gate.kind_for(worker, "lock", "Save-Settings") == "system"
-    assert gate.kind_for(worker, "lock", "read something") == "write"  # not declared: checked as a write
+    assert worker.gate.kind_for("lock", "Save-Settings") == "system"
+    assert worker.gate.kind_for("lock", "read something") == "write"  # not declared: checked as a write
 
 
 # -- 33.1: the role is the account store's at the moment of the action --------------------------------------
@@ -113,7 +112,7 @@ async def test_downgraded_or_removed_account_loses_its_rights_on_an_open_page(ac
     with pytest.raises(PermissionDenied):
         await tl.send_once(row.key, user="anna", role="engineer")
     with pytest.raises(PermissionDenied):
-        await runtime.worker.engineer_action(lambda: asyncio.sleep(0), user="anna", role="engineer", describe="x")
+        await runtime.worker.gate.run(lambda: asyncio.sleep(0), user="anna", role="engineer", describe="x", kind="write")
     assert await wait_for(lambda: False, timeout=0.1) is False
     assert not [m for m in _drain(listener) if m.arbitration_id == 0x123]
 
@@ -148,19 +147,19 @@ async def test_a_viewer_reaches_no_bus_through_any_declared_command_or_send_path
     walked = 0
     for dev in plant.devices.values():
         adapter = worker.adapters[dev.name]
-        for command in commands_of(dev.type).values():
-            assert command.kind in KINDS
+        for command in commands_of(dev.type, plant.buses[dev.bus].type).values():  # what its bus kind serves (the rest:
+            assert command.kind in KINDS  # not a command of it, test_a_command_the_bus_kind_cannot_serve...)
             if command.open:
                 continue
-            if command.method:
-                setattr(adapter, command.method, lambda *a, _c=command.name, **k: ran.append(_c))
+            if (function := command.function_for(type(adapter))) is not None:
+                setattr(adapter, function.__name__, lambda *a, _c=command.name, **k: ran.append(_c))
             args = {a.name: getattr(a, "low", 0) for a in command.args}
             with pytest.raises(PermissionDenied):
-                await worker.invoke(dev.name, command.name, args, user="tablet", role="viewer", session="v")
+                await worker.gate.invoke(dev.name, command.name, args, user="tablet", role="viewer", session="v")
             # the older way (an adapter callable with the command's wording): the declaration decides the kind
             with pytest.raises(PermissionDenied):
-                await worker.command(dev.name, lambda a, _c=command.name: ran.append(_c), describe=command.name,
-                                     user="tablet", role="viewer")
+                await worker.gate.run(lambda _c=command.name: ran.append(_c), device=dev.name, describe=command.name,
+                                      user="tablet", role="viewer")
             walked += 1
     assert walked >= 10 and ran == []
     assert {t for t in DEVICE_TYPES if commands_of(t)} >= {"hdlock", "mo64", "electrak", "m3io", "scu"}
@@ -181,3 +180,26 @@ async def test_a_viewer_reaches_no_bus_through_any_declared_command_or_send_path
             await ModbusPoll(worker, bus).write(1, 3000, [200], user="tablet", role="viewer", confirmed=True)
     assert spy.calls == []
     await asyncio.sleep(0)
+
+
+async def test_a_command_the_bus_kind_cannot_serve_is_refused_before_any_started_row():
+    """The HD-Lock's CAN-only commands are no commands of a lock on Modbus (and the reverse): refused as not
+    declared, with a refusal row and no "started" row, before anything reaches an adapter."""
+    from devices.commands import CommandError
+    from plants import modbus_plant
+
+    audit = SlowAudit()
+    audit.release.set()
+    worker = Worker(modbus_plant(locks=(("door-1", 1),)), audit=audit)
+    can_only = set(commands_of("hdlock", "can")) - set(commands_of("hdlock", "modbus-rtu"))
+    assert can_only, "the HD-Lock declares commands for CAN only"
+    for name in sorted(can_only):
+        with pytest.raises(CommandError, match="is not a command of door-1"):
+            worker.gate.question("door-1", name, {})
+        with pytest.raises(CommandError, match="is not a command of door-1"):
+            await worker.gate.invoke("door-1", name, {}, user="anna", role="engineer")
+    assert [(row["action"], row["result"]) for row in audit.rows] == [
+        (name, f"refused: {name!r} is not a command of door-1") for name in sorted(can_only)]
+    assert worker.gate.question("door-1", "Save-Settings", {}) is not None  # a command both adapters serve
+    lock = Worker(_can_plant(), audit=SlowAudit())
+    assert lock.gate.declared("lock", sorted(can_only)[0], served=True) is not None

@@ -28,7 +28,7 @@ async def running_f1(adapter, twin) -> None:
 async def test_a_stop_never_acknowledged_with_the_browser_gone_ends_with_the_units_watchdog():
     async with unit() as (adapter, twin):
         await running_f1(adapter, twin)
-        twin.cse_on_rs = -1  # every RS answered CSE: not executed
+        twin.strict.cse_on_rs = -1  # every RS answered CSE: not executed
         adapter.session_lost("s1", "the page is gone")
         await adapter.stopped()
         assert await wait_for(lambda: moving(twin) == [], 2.0), "F1 still drives after a refused stop"
@@ -37,7 +37,7 @@ async def test_a_stop_never_acknowledged_with_the_browser_gone_ends_with_the_uni
         await asyncio.sleep(0.4)  # four RC periods: a reopening must not start the drive
         assert moving(twin) == [], "a reopening started the drive again"
         assert "STOP FAILED" in adapter.state.last_error and "watchdog" in adapter.state.last_error
-        twin.cse_on_rs = 0
+        twin.strict.cse_on_rs = 0
         assert await wait_for(lambda: not adapter.rs_pending, 5), "the owed RS was not sent on reopening"
         assert twin.requests.get("RO", 0) > ro_before
 
@@ -45,7 +45,7 @@ async def test_a_stop_never_acknowledged_with_the_browser_gone_ends_with_the_uni
 async def test_a_stop_failed_with_the_browser_still_open_withholds_rc():
     async with unit() as (adapter, twin):
         await running_f1(adapter, twin)
-        twin.cse_on_rs = -1
+        twin.strict.cse_on_rs = -1
         with pytest.raises(CommandError, match="STOP FAILED.*watchdog"):
             await adapter.stop("s1")
         assert await wait_for(lambda: moving(twin) == [], 1.5), "RC went on after STOP FAILED and F1 drove on"
@@ -87,7 +87,7 @@ async def test_a_reopening_switches_f20_on_again_when_the_cyclic_definition_gets
         await adapter.take_control("s1", "anna")
         await adapter.emergency_stop("s1")
         assert twin.emergency_stop
-        twin.rt_cyclic_unanswered = True
+        twin.strict.rt_cyclic_unanswered = True
         twin.drop_line(True)
         assert await wait_for(lambda: adapter.session != "open", 5)
         twin.emergency_stop = False  # the unit was reset meanwhile
@@ -104,7 +104,7 @@ async def test_a_unit_that_takes_only_the_two_byte_ro_opens_a_session():
 
 async def test_one_cse_is_line_noise_and_remembered_as_nothing():
     async with unit() as (adapter, twin):
-        twin.cse_next = {"RT": 1, "RG": 1}
+        twin.strict.cse_next = {"RT": 1, "RG": 1}
         await session_open(adapter)
         await adapter.take_control("s1", "anna")
         await asyncio.sleep(1.0)  # ten polls with a single CSE each: none may be remembered as a refusal

@@ -169,12 +169,12 @@ async def test_a_lapse_never_sends_rs_19_and_keeps_the_emergency_stop_on(scu):
     await adapter.take_control("s1", "anna")
     await adapter.emergency_stop("s1")
     await adapter.run_function("s1", OUTPUT_1)
-    assert twin.emergency_stop and twin.binary_outputs & 1
+    assert twin.emergency_stop and twin.io.binary_outputs & 1
     blocked = block_loop(BLOCK_S)
     await asyncio.sleep(0)
     during = unit.log_since(blocked)
     assert ("RS", OUTPUT_1) in during and ("RS", ESTOP) not in twin.function_log, during
-    assert twin.emergency_stop and not twin.binary_outputs & 1
+    assert twin.emergency_stop and not twin.io.binary_outputs & 1
     assert twin.session_lost_count == 0, "RC was withheld although the emergency stop is on"
     assert max(unit.rc_gaps(blocked, blocked + BLOCK_S)) < codec.WATCHDOG_S
     assert await wait_for(lambda: adapter.holders() == set() and any("emergency stop is on" in e.text

@@ -37,8 +37,8 @@ async def unit(actuators=2, timeout=0.3, **strict):
     sim = ScuSim(bus, [dev])
     twin = sim.twin
     for key, value in strict.items():
-        assert hasattr(twin, key), key
-        setattr(twin, key, value)
+        assert hasattr(twin.strict, key), key
+        setattr(twin.strict, key, value)
     await sim.start()
     opts = {"port": f"socket://127.0.0.1:{port}", "baudrate": 38400, "timeout": timeout}
     line = SerialLine("rs1", opts, BusState("rs1", "serial", opts["port"]))
@@ -165,7 +165,7 @@ async def test_rs_refused_with_cse_is_sent_again_and_the_actuator_stops():
         await adapter.take_control("s1", "anna")
         await adapter.run_function("s1", F1, codec.Motion.OUT, codec.Ramp.SOFT)
         assert await wait_for(lambda: moving(twin) == [1], 2)
-        twin.cse_on_rs = 2  # the first two RS are not executed (section 4.2: CSE)
+        twin.strict.cse_on_rs = 2  # the first two RS are not executed (section 4.2: CSE)
         assert await adapter.stop("s1") == ["F1"]
         assert moving(twin) == [] and F1 not in twin.open_re
         assert adapter.holders() == set() and not adapter.rs_pending
@@ -176,14 +176,14 @@ async def test_rs_never_acknowledged_is_a_failed_stop_held_and_retried():
         await session_open(adapter)
         await adapter.take_control("s1", "anna")
         await adapter.run_function("s1", F1, codec.Motion.OUT, codec.Ramp.SOFT)
-        twin.cse_on_rs = -1  # every RS refused
+        twin.strict.cse_on_rs = -1  # every RS refused
         with pytest.raises(CommandError, match="STOP FAILED"):
             await adapter.stop("s1")
         assert adapter.holders() == {"s1"} and F1 in adapter.rs_pending  # held: the dead-man rule still covers it
         assert "STOP FAILED" in adapter.state.last_error
         with pytest.raises(CommandError):
             await adapter.run_function("s1", F1, codec.Motion.IN, codec.Ramp.SOFT)  # no new RE before the RS
-        twin.cse_on_rs = 0
+        twin.strict.cse_on_rs = 0
         assert await wait_for(lambda: not adapter.rs_pending, 3)  # the poll sends RS again
         assert moving(twin) == [] and F1 not in twin.open_re and adapter.holders() == set()
 
@@ -234,11 +234,11 @@ async def test_every_live_value_from_a_unit_that_refuses_groups_or_the_cyclic_ob
 async def test_stray_bytes_split_and_late_answers_never_end_the_session():
     async with unit(split_answers=True) as (adapter, twin):
         await session_open(adapter)
-        twin.stray_bytes = 5
+        twin.strict.stray_bytes = 5
         await asyncio.sleep(1.0)  # a second of stray bytes on the line
-        twin.answer_delay_s = 0.45  # late beyond the 0.3 s timeout: the answers arrive during the next request
+        twin.strict.answer_delay_s = 0.45  # late beyond the 0.3 s timeout: the answers arrive during the next request
         await asyncio.sleep(0.8)  # late answers for a while: each arrives during the next request
-        twin.answer_delay_s = 0.0
+        twin.strict.answer_delay_s = 0.0
         await session_open(adapter, 10)
         before = adapter.state.counters.responses
         assert await wait_for(lambda: adapter.state.counters.responses > before + 10, 5)

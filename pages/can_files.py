@@ -1,0 +1,290 @@
+"""The CAN bus monitor's files: recording the bus to a file (an engineer action, audited), the folder of
+recordings, and a recorded file opened in the monitor (uploaded or from that folder), filtered and paged."""
+
+from __future__ import annotations
+
+import asyncio
+import tempfile
+from collections.abc import Awaitable, Callable
+from datetime import datetime
+from pathlib import Path
+
+from nicegui import events, run, ui
+
+from app import recording as rec
+from app import runtime as rt
+from app.can_bus import CanBusState, FrameRecord
+from app.worker import AuditUnavailable, PermissionDenied
+from pages.can_trace import SCROLL_HEIGHT, BusDecoding, FilterCard, clicked_key, frame_rows, frame_table, set_deltas, show_frame_details
+from pages.command_client import enable_unless, viewer_reason
+from pages.frame import notify_error
+from pages.monitor_common import SHOWN
+from pages.session import current_user
+from pages.widgets import upload_button
+
+MAX_UPLOAD_BYTES = 200 * 1024 * 1024
+
+
+class RecordingCard:
+    """Recording the bus to a file (an engineer action), the last recording, and the folder of recordings.
+
+    :param open_file: opens a recorded file in the monitor's file tab
+    """
+
+    def __init__(self, bus: str, state: CanBusState, options: dict, open_file: Callable[[Path], Awaitable[None]]):
+        self.bus = bus
+        self.state = state
+        self.options = options
+        self.open_file = open_file
+        self.last: rec.Recording | None = None
+
+    def build(self) -> None:
+        with ui.card().classes("w-full q-pa-sm"):
+            with ui.row().classes("items-center gap-3 w-full"):
+                ui.icon("fiber_manual_record", color="negative")
+                ui.label("Recording").classes("text-subtitle2")
+                self.format = ui.select({s: label for s, (_, label) in rec.WRITERS.items()}, value=".log", label="Format").props("dense outlined").classes("w-40")
+                self.format.mark("format")
+                self.record_button = ui.button("Record", icon="fiber_manual_record", color="negative", on_click=self.start)
+                self.record_button.mark("record")
+                self.read_only = viewer_reason()  # recording writes files on disk: an engineer's action
+                self.stop_button = ui.button("Stop", icon="stop", on_click=self.stop).mark("stop")
+                self.status = ui.label().classes("text-body2").mark("record-status")
+                self.status.props("data-monitor=record-status")
+                self.download_button = ui.button("Download", icon="download", on_click=self.download_last).props("flat").mark("download")
+            with ui.expansion("Recordings", icon="folder", on_value_change=lambda e: e.value and self.refresh_list()).classes("w-full").props("dense") as self.panel:
+                self.files_box = ui.column().classes("w-full gap-0")
+
+    def refresh(self) -> None:
+        active = rec.active_recording(self.state)
+        if active is not None:
+            self.status.set_text(f"recording {active.path.name}: {active.elapsed:.1f} s, {active.frames} frames, {_size(active.size)}")
+            self.last = active
+        elif self.last is not None:
+            last = self.last
+            if last.active:  # detached by the bus after a write error
+                last.close()
+            problem = f" - {last.error}" if last.error else ""
+            self.status.set_text(f"{last.path.name}: {last.elapsed:.1f} s, {last.frames} frames, {_size(last.size)}{problem}")
+        else:
+            self.status.set_text("not recording")
+        enable_unless(self.record_button, self.read_only or ("recording: stop it first" if active is not None else ""))
+        self.format.set_enabled(active is None and not self.read_only)
+        self.stop_button.set_enabled(active is not None)
+        self.download_button.set_visibility(active is None and self.last is not None)
+
+    async def start(self) -> None:
+        """An engineer action (it writes files on disk): checked and audited in the worker; the file
+        is created in a thread."""
+        user, role = current_user()
+        suffix = self.format.value or ".log"
+
+        async def start():
+            return await asyncio.to_thread(rec.start_recording, self.state, suffix, None, self.options)
+
+        try:
+            self.last = await rt.current().worker.gate.run(
+                start, user=user, role=role, describe=f"start recording {self.bus} ({suffix})", device=self.bus, kind="write")
+        except (rec.RecordingError, PermissionDenied, AuditUnavailable) as exc:
+            notify_error(str(exc))
+            return
+        ui.notify(f"Recording {self.bus} to {self.last.path}", type="info")
+        self.refresh()
+
+    async def stop(self) -> None:
+        user, role = current_user()
+
+        async def stop():
+            return await asyncio.to_thread(rec.stop_recording, self.state)  # writes what is queued, then closes
+
+        # stopping only ends a file: allowed for everyone, audited
+        stopped = await rt.current().worker.gate.run(stop, device=self.bus, role=role, user=user,
+                                                     describe=f"stop recording {self.bus}", kind="stop")
+        if stopped is None:
+            ui.notify("Nothing was being recorded.", type="warning")
+            return
+        self.last = stopped
+        if stopped.error:
+            notify_error(f"Recording {stopped.path.name}: {stopped.error}")
+        else:
+            ui.notify(f"Saved {stopped.frames} frames to {stopped.path.name}", type="positive")
+        self.refresh()
+        await self.refresh_list()
+
+    async def download_last(self) -> None:
+        if self.last is not None:
+            await self.download(self.last.path)
+
+    async def download(self, path: Path) -> None:
+        if not path.is_file():
+            notify_error(f"{path.name} is gone from {path.parent}")
+            await self.refresh_list()
+            return
+        ui.download.file(path, path.name)
+
+    async def refresh_list(self) -> None:
+        files = await asyncio.to_thread(rec.list_recordings)  # a folder listing: not on the event loop
+        self.panel.set_text(f"Recordings ({len(files)}) in {rec.recordings_dir()}")
+        self.files_box.clear()
+        with self.files_box:
+            if not files:
+                ui.label("No recordings yet.").classes("text-caption text-grey-8")
+            for f in files[:50]:
+                with ui.row().classes("items-center gap-2"):
+                    ui.label(f.name).classes("mono text-body2")
+                    ui.label(f"{_size(f.size)} · {datetime.fromtimestamp(f.mtime):%Y-%m-%d %H:%M:%S}").classes("text-caption text-grey-8")
+                    ui.button(icon="download", on_click=lambda p=f.path: self.download(p)).props("flat dense round").tooltip(f"Download {f.name}")
+                    ui.button(icon="table_view", on_click=lambda p=f.path: self.open_file(p)).props("flat dense round").tooltip(f"Open {f.name} here")
+
+
+class FileView:
+    """A recorded file opened in the monitor (uploaded, or from the recordings folder), filtered and paged.
+
+    :param show: brings the file tab to the front
+    """
+
+    def __init__(self, state: CanBusState, filters: FilterCard, decoding: BusDecoding, show: Callable[[], None]):
+        self.state = state
+        self.filters = filters
+        self.decoding = decoding
+        self.show = show
+        self.loaded: rec.LoadedLog | None = None
+        self.decoder = rec.FrameDecoder()
+        self.matches: list[FrameRecord] = []
+        self.shown: dict[int, FrameRecord] = {}
+        self._loading = False
+
+    def build(self) -> None:
+        with ui.row().classes("items-center gap-4 w-full"):
+            self.upload = ui.upload(
+                label="Open a recorded file (" + " ".join(rec.READ_SUFFIXES) + ")",
+                auto_upload=True,
+                max_file_size=MAX_UPLOAD_BYTES,
+                on_upload=self.on_upload,
+                on_rejected=lambda: notify_error(f"The file was refused: files up to {MAX_UPLOAD_BYTES // 2**20} MB can be opened."),
+            ).props("accept=" + ",".join(rec.READ_SUFFIXES) + " flat bordered").classes("w-96").style("max-height: 100px")
+            self.upload.add_slot("header", upload_button(
+                "Open a recorded file (" + " ".join(rec.READ_SUFFIXES) + ")", "monitor-upload"))
+            self.upload.mark("upload")
+            self.upload.props("data-monitor=upload")
+            with ui.column().classes("gap-1"):
+                self.file_info = ui.label("No file opened.").classes("text-body2").mark("file-info")
+                self.file_info.props("data-monitor=file-info")
+                self.progress = ui.linear_progress(0, show_value=False).classes("w-96").props("data-monitor=file-progress")
+                self.progress.set_visibility(False)
+                self.pages = ui.pagination(1, 1, direction_links=True, on_change=self.show_page).props("dense max-pages=9 boundary-numbers")
+                self.pages.mark("file-pages")
+                self.pages.props("data-monitor=file-pages")
+        with ui.element("div").classes("w-full monitor-scroll").style(SCROLL_HEIGHT):
+            self.table = frame_table("file-frames", time_label="Time s")
+        self.table.on("rowClick", self._clicked)
+
+    def _clicked(self, event) -> None:
+        f = self.shown.get(clicked_key(event))
+        if f is not None:
+            show_frame_details(f, self.decoder, None if self.loaded is None else self.loaded.frames[0].time)
+
+    async def on_upload(self, e: events.UploadEventArguments) -> None:
+        name = Path(e.file.name).name
+        suffix = Path(name).suffix.lower()  # only a hint: the format is taken from the content
+        try:
+            with tempfile.TemporaryDirectory(prefix="commission-") as tmp:
+                # the file's own suffix (letters and digits only) so a message can name it; the content decides
+                path = Path(tmp) / f"upload{suffix if suffix[1:].isalnum() else ''}"
+                await e.file.save(path)
+                loaded = await self._load(path, name)
+        finally:
+            self.upload.reset()
+        if loaded is not None:
+            await self._show_loaded(loaded)
+
+    async def open_recording(self, path: Path) -> None:
+        if rec.active_recording(self.state) is not None and rec.active_recording(self.state).path == path:
+            notify_error(f"{path.name} is still being recorded; stop the recording first.")
+            return
+        loaded = await self._load(path, path.name)
+        if loaded is not None:
+            await self._show_loaded(loaded)
+
+    async def _load(self, path: Path, name: str) -> rec.LoadedLog | None:
+        """Read a file in a thread with its progress on the page; a file that cannot be read is named
+        with where and why (on the page and in a message)."""
+        if self._loading:
+            notify_error("A file is being opened already; wait until it is loaded.")
+            return None
+        self._loading = True
+        self.show()
+        self.progress.set_value(0)
+        self.progress.set_visibility(True)
+        self.file_info.set_text(f"opening {name} ...")
+
+        def report(frames: int, fraction: float) -> None:
+            self.progress.set_value(fraction)
+            self.file_info.set_text(f"opening {name}: {frames:,} frames read ({fraction * 100:.0f} %)")
+
+        try:
+            loaded = await rec.load_log(path, name, progress=report)
+            await run.io_bound(set_deltas, loaded.frames)  # O(n) once, off the event loop
+            return loaded
+        except rec.RecordingError as exc:
+            self.file_info.set_text(f"cannot open: {exc}")
+            notify_error(str(exc))
+        except OSError as exc:  # a failing save/temp dir: still a message, never a crash
+            self.file_info.set_text(f"{name}: cannot open: {exc}")
+            notify_error(f"{name}: cannot open: {exc}")
+        finally:
+            self._loading = False
+            self.progress.set_visibility(False)
+        return None
+
+    async def _show_loaded(self, loaded: rec.LoadedLog) -> None:
+        self.loaded = loaded
+        known = await run.io_bound(rec.ids_of_devices, loaded.frames)
+        self.decoder = self.decoding.for_file(known)
+        self.show()
+        await self.refilter()
+        ui.notify(f"Opened {loaded.name}: {len(loaded.frames)} frames", type="positive")
+
+    async def refilter(self) -> None:
+        """The opened file's frames that match the filters, from the first page."""
+        loaded = self.loaded
+        if loaded is None:
+            return
+        flt = self.filters.filter
+        if flt.active:  # up to MAX_FILE_FRAMES frames: filtered in a thread, not on the event loop
+            self.matches = await run.io_bound(lambda: [f for f in loaded.frames if flt.matches_record(f)])
+        else:
+            self.matches = loaded.frames
+        self.pages.max = max(1, -(-len(self.matches) // SHOWN))
+        self.pages.value = 1
+        self.pages.update()
+        first = loaded.frames[0].time
+        start = f", starts {datetime.fromtimestamp(first):%Y-%m-%d %H:%M:%S}" if first > 1e8 else ""
+        fmt = f" ({loaded.format} file)" if loaded.format else ""
+        self.file_info.set_text(
+            f"{loaded.name}{fmt}: {len(loaded.frames)} frames{' (file truncated)' if loaded.truncated else ''}, "
+            f"{loaded.duration:.1f} s{start}, {loaded.error_frames} error frames; "
+            f"{len(self.matches)} match the filters; {SHOWN} per page"
+        )
+        self.show_page()
+
+    def show_page(self) -> None:
+        if self.loaded is None:
+            return
+        page = max(1, int(self.pages.value or 1))
+        first = (page - 1) * SHOWN
+        shown = self.matches[first:first + SHOWN]
+        self.shown = {first + i: f for i, f in enumerate(shown)}
+        self.table.rows = frame_rows(shown, self.decoder, relative_to=self.loaded.frames[0].time, first_key=first)
+        self.table.update()
+
+
+def _size(n: int) -> str:
+    if n < 1024:
+        return f"{n} B"
+    if n < 1024**2:
+        return f"{n / 1024:.1f} KiB"
+    return f"{n / 1024**2:.1f} MiB"
+
+
+__all__ = ["FileView", "RecordingCard"]
