@@ -35,6 +35,7 @@ CREATE INDEX IF NOT EXISTS audit_device ON audit (device);
 log = logging.getLogger(__name__)
 BUSY_TIMEOUT_MS = 2000  # a locked database is waited for this long (in the audit thread), then the write is refused
 
+WRITE_ERRORS = (OSError, sqlite3.Error)  # what a row that cannot be written (or read) raises: file, lock, disk
 COLUMNS = ("id", "time", "user", "role", "device", "action", "parameter", "old", "new", "result")
 
 
@@ -141,7 +142,7 @@ class AuditLog:
         """Put the outcome into a row written before the action; a failure here is logged and shown."""
         try:
             await self._run(self.finish, row, result)
-        except Exception as exc:  # noqa: BLE001 - the action has happened; say that its outcome is not in the log
+        except WRITE_ERRORS as exc:  # the action has happened; say that its outcome is not in the log
             log.error("audit log: the outcome %r of row %s could not be written: %s", result, row, exc)
 
     async def aquery(self, **kwargs) -> list["AuditEntry"]:

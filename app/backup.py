@@ -31,7 +31,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from app import gate
+from app import audit, gate
+from app.capabilities import takes_text
 from devices.adapter import BackupAdapter, EntryRestorer, ParamWriter, RestoreDescriber
 from devices.commands import WRITE_PARAMETER
 from devices.commands import find as find_command
@@ -70,7 +71,7 @@ async def nothing_to_back_up(adapter: Any) -> str:
     if isinstance(adapter, BackupAdapter) and adapter.backup_available is False:
         try:
             await asyncio.wait_for(adapter.backup_read(), timeout=2)
-        except Exception as exc:  # noqa: BLE001 - the reason is the message
+        except (CommissionError, TimeoutError) as exc:  # the refusal's reason is the message
             return str(exc) or "nothing to back up in this configuration"
         return "nothing to back up in this configuration"
     return "this device type has no parameters to back up"
@@ -326,8 +327,8 @@ def _entry_text(adapter: Any, entry: dict, value: Any, now: dict) -> str:
     if isinstance(adapter, RestoreDescriber):
         try:
             return str(adapter.restore_text(entry["key"], value))
-        except Exception:  # noqa: BLE001 - a value the adapter cannot describe is shown as it is
-            pass
+        except (CommissionError, LookupError, TypeError, ValueError):  # an edited file's value the adapter cannot describe:
+            pass  # shown as it is
     if value == now.get("value") and now.get("text"):
         return str(now["text"])
     return value_with_unit(value, entry.get("unit", ""))
@@ -352,13 +353,13 @@ def _plan_row(params, entry: dict, now: dict, adapter: Any = None) -> DiffRow:
     row.current_text = param.display(int(now["raw"]))
     try:
         # a parameter whose value is text (an M3IO customer record's hex bytes) checks the text itself
-        raw = param.validate(value if getattr(param, "text_value", False) and isinstance(value, str) else _file_number(value))
+        raw = param.validate(value if takes_text(param) and isinstance(value, str) else _file_number(value))
     except (BackupError, ValueError) as exc:
         row.error = f"invalid in the file: {exc}"
         return row
     row.backup_raw = raw
     row.backup_text = param.display(raw)
-    hex_raw = getattr(param, "text_value", False) and entry.get("raw") == param.display(raw)  # an older file's record bytes
+    hex_raw = takes_text(param) and entry.get("raw") == param.display(raw)  # an older file's record bytes
     if "raw" in entry and entry["raw"] != raw and not hex_raw:
         row.error = (f"the file's raw {entry['raw']!r} and value {value!r} disagree (edited or damaged file): "
                      "not written")
@@ -422,7 +423,7 @@ def unsaved_lines(state, skip: set[str] = frozenset()) -> list[str]:
         try:
             raw = state.raw(p)
             value = "not read" if raw is None else p.display(raw)
-        except Exception:  # noqa: BLE001 - a value the model cannot show is named without it
+        except ValueError:  # a value the model cannot show (a codec's refusal) is named without it
             value = "not read"
         lines.append(f"{p.label or p.name} ({p.space} {p.address}) = {value}")
     return lines
@@ -513,7 +514,7 @@ async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, use
                 report.written.append(row.name)
             except gate.NeedsConfirmation as question:
                 report.refused.append((row.name, f"{row.backup_text} needs a confirmation: {question.question}"))
-            except Exception as exc:  # noqa: BLE001 - every failure is reported per parameter
+            except CommissionError as exc:  # every refusal is reported per parameter
                 report.failed.append((row.name, str(exc)))
                 if exc.__class__.__name__ in ("PermissionDenied", "AuditUnavailable"):
                     break
@@ -527,10 +528,10 @@ async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, use
                 lambda: adapter.save_step(), device=plan.device, role=role, user=user,
                 describe="restore: save step", new=permanent or "no unsaved changes",
             )
-        except Exception as exc:  # noqa: BLE001
+        except CommissionError as exc:
             report.save_error = str(exc)
     try:
         await runtime.audit.arecord(user=user, role=role, device=plan.device, action="restore", result=report.summary())
-    except Exception:  # noqa: BLE001 - every write above has its own row; the header shows the audit state
+    except audit.WRITE_ERRORS:  # every write above has its own row; the header shows the audit state
         pass
     return report

@@ -16,9 +16,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from app import backup, files, replace
+from app import audit, backup, files, replace
 from app.cli_lang import _
 from devices.commands import READ_PARAMETERS
+from devices.errors import CommissionError
 
 WRITTEN, UNCHANGED, FAILED, SKIPPED, REFUSED = "written", "unchanged", "failed", "skipped", "refused"
 
@@ -114,7 +115,7 @@ async def plan_batch(runtime, devices: list[str], source: str, progress=None) ->
             if not entry.check.ok:
                 raise backup.BackupError("; ".join(entry.check.refusals))
             entry.plan = await backup.plan_restore(runtime, entry.device, document)
-        except Exception as exc:  # noqa: BLE001 - each device says why it cannot take part
+        except (CommissionError, OSError) as exc:  # each device says why it cannot take part
             entry.error = str(exc) or exc.__class__.__name__
         if progress:
             progress((n + 1) / len(result.devices))
@@ -158,7 +159,7 @@ async def apply_batch(runtime, plan: BatchPlan, *, user: str, role: str, confirm
     try:
         await runtime.audit.arecord(user=user, role=role, device=",".join(d.device for d in plan.devices), action="batch apply",
                                     new=plan.source, result=summary[:500])
-    except Exception:  # noqa: BLE001 - each write has its own row; the header shows the audit state
+    except audit.WRITE_ERRORS:  # each write has its own row; the header shows the audit state
         pass
     return results
 

@@ -140,15 +140,13 @@ def recognised_by_a_device_type(arbitration_id: int, is_extended: bool, data: by
         hooks = []
         for t in DEVICE_TYPES.values():
             if t.can_codec and "can" in t.bus_types:
-                hook = vars(importlib.import_module(t.can_codec)).get("discovered")
-                if callable(hook):
-                    hooks.append(hook)
+                hooks.append(importlib.import_module(t.can_codec).discovered)  # DeviceType.can_codec has one
         _RECOGNISERS = hooks
     for hook in _RECOGNISERS:
         try:
             if hook(arbitration_id, is_extended, data):
                 return True
-        except Exception:  # noqa: BLE001, S112 - a frame a codec cannot parse is not its device's
+        except ValueError:  # a frame a codec cannot parse (its CodecError) is not its device's
             continue
     return False
 
@@ -322,7 +320,7 @@ class CanLink:
         if self.bus is not None:
             try:
                 self.bus.shutdown()
-            except Exception as exc:  # noqa: BLE001 - a dying interface may fail to shut down in its own way; it is gone anyway
+            except (can.CanError, OSError) as exc:  # a dying interface may fail to shut down; it is gone anyway
                 log.debug("shutdown of %s failed: %s", self.name, exc)
             self.bus = None
         if self.sock is not None:
@@ -341,7 +339,7 @@ class CanLink:
             if self.bus is None:
                 try:
                     self.bus = await loop.run_in_executor(None, self.open)
-                except Exception as exc:  # noqa: BLE001 - CanInterfaceNotImplementedError, CanInitializationError, OSError ...
+                except (can.CanError, OSError, ValueError) as exc:  # no driver, no such channel, bad options: retried
                     self.state.connected = False
                     self.state.last_error = open_error(self.options, exc)
                     log.warning("%s: %s", self.name, self.state.last_error)
@@ -455,8 +453,8 @@ class CanLink:
             elif self.listeners and self._offer(key, msg):
                 for listener in self.listeners:
                     listener(msg)
-        except Exception as exc:  # noqa: BLE001 - a bad frame must never stop the bus
-            log.debug("%s: handler failed for %s: %s", self.name, msg, exc)
+        except Exception:  # a bad frame, or an adapter's bug, must never stop the bus's dispatch: counted, traceback logged
+            log.debug("%s: handler failed for %s", self.name, msg, exc_info=True)
             self.stats.handler_failed()
 
     def _offer(self, key: Key, msg: can.Message) -> bool:

@@ -19,6 +19,7 @@ from typing import Any
 import can
 
 from app.state import BusState
+from devices.errors import CommissionError
 
 log = logging.getLogger(__name__)
 
@@ -272,7 +273,7 @@ class CanStats:
         if state.recorder is not None:
             try:
                 state.recorder.on_message_received(msg)
-            except Exception as exc:  # noqa: BLE001 - disk full or closed file: stop recording, keep the bus
+            except CommissionError as exc:  # the file failed (disk full, gone): stop recording, keep the bus
                 state.recorder = None
                 state.last_error = f"recording stopped: {exc}"
 

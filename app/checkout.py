@@ -29,7 +29,7 @@ class TrafficTap:
 
     def __init__(self, bus_state):
         self.bus_state = bus_state
-        self.is_can = hasattr(bus_state, "frames")
+        self.is_can = bus_state.type == "can"
         self.items: list = []
         self.since = time.time()
         self._last = self.since - 1e-6
@@ -67,12 +67,15 @@ class StepFailed(CommissionError):
     """A step's check failed; the message is the reason the report shows."""
 
 
+NOT_AVAILABLE = "not available"
+
+
 class NotAvailable(CommissionError):
     """A step this device (or its adapter) cannot do; the message says why. It does not fail the
     checkout: the report lists the step as "not available" with the reason."""
 
+    status = NOT_AVAILABLE  # the step's status in the report
 
-NOT_AVAILABLE = "not available"
 NOT_FAILING = ("passed", NOT_AVAILABLE, "skipped")  # step results that let a checkout pass
 
 
@@ -263,7 +266,7 @@ class CheckoutRun:
             raise RecordError(f"{device}: the {state.type} type declares no checkout")
         self.runtime, self.device, self.user, self.role = runtime, device, user, role
         self.module = module
-        self.settings = {**getattr(module, "SETTINGS", {}), **(settings or {})}
+        self.settings = {**module.SETTINGS, **(settings or {})}
         self.steps_decl = module.steps(runtime.plant.devices[device].options, self.settings)
         self.results = [StepResult(s["name"], s.get("limits", "")) for s in self.steps_decl]
         self.current: StepResult = self.results[0] if self.results else StepResult("-")
@@ -297,8 +300,8 @@ class CheckoutRun:
         for fn in list(self.listeners):
             try:
                 fn()
-            except Exception:  # noqa: BLE001 - a page that went away
-                log.debug("checkout listener failed", exc_info=True)
+            except Exception:  # a page's callback (one gone away, or its bug) must not end a run on
+                log.debug("checkout listener failed", exc_info=True)  # real equipment before its cleanup
 
     async def ask(self, question: str) -> bool:
         if self._ask is None:
@@ -332,10 +335,10 @@ class CheckoutRun:
                 except StepFailed as exc:
                     result.status, result.reason = "failed", str(exc)
                 except NotAvailable as exc:
-                    result.status, result.reason = getattr(exc, "status", NOT_AVAILABLE), str(exc)
+                    result.status, result.reason = exc.status, str(exc)
                 except Aborted as exc:
                     result.status, result.reason = "aborted", str(exc)
-                except Exception as exc:  # noqa: BLE001 - a refused or failed command is the step's reason
+                except CommissionError as exc:  # a refused or failed command is the step's reason
                     result.status, result.reason = "failed", f"{type(exc).__name__}: {exc}" if not str(exc) else str(exc)
                 result.ended = time.time()
                 result.evidence = self._tap.take()
@@ -346,14 +349,12 @@ class CheckoutRun:
                 if result.status == "pending":
                     result.status, result.reason = "skipped", "not run: an earlier step did not pass"
         finally:
-            cleanup = getattr(self.module, "cleanup", None)
-            if cleanup is not None:
-                ctx.step.notes.append("cleanup ran")
-                self.abort_event.clear()  # the cleanup stops and restores: it must run after an abort too
-                try:
-                    await cleanup(ctx, self.settings)
-                except Exception as exc:  # noqa: BLE001 - said in the result
-                    ctx.step.notes.append(f"cleanup failed: {exc}")
+            ctx.step.notes.append("cleanup ran")
+            self.abort_event.clear()  # the cleanup stops and restores: it must run after an abort too
+            try:
+                await self.module.cleanup(ctx, self.settings)
+            except CommissionError as exc:  # a refused or failed command: said in the result
+                ctx.step.notes.append(f"cleanup failed: {exc}")
             if beat is not None:
                 beat.cancel()
         self.ended = time.time()
@@ -364,12 +365,11 @@ class CheckoutRun:
         else:
             self.status = "failed"
         data = self.as_dict()
-        service = getattr(self.runtime, "record", None)
-        if service is not None:
-            service.check_drift(self.device)  # what the checkout changed and restored is no longer held back
-            self.record_id = await service.add(self.device, "checkout", user=self.user, role=self.role, data=data,
-                                               title=f"{self.module.TITLE}: {self.status}")
-            data["record_id"] = self.record_id
+        service = self.runtime.record
+        service.check_drift(self.device)  # what the checkout changed and restored is no longer held back
+        self.record_id = await service.add(self.device, "checkout", user=self.user, role=self.role, data=data,
+                                           title=f"{self.module.TITLE}: {self.status}")
+        data["record_id"] = self.record_id
         self._changed()
         return data
 

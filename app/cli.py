@@ -15,6 +15,7 @@ from app import host, i18n
 from app.cli_lang import _, set_language
 from app.headless import bindable, cli_user, load_plant_or_exit, refuse_taken_ports, run_headless
 from app.i18n import N_
+from devices.errors import CommissionError
 
 
 
@@ -116,6 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=_(EPILOG),
         formatter_class=RawHelpFormatter,
     )
+    parser.set_defaults(func=None)  # a subcommand that brings its own runner sets it (app/dbc.py, ...)
     parser.add_argument("--lang", choices=sorted(i18n.LANGUAGES), default=None,
                         help=_("language of the messages and of this help (default: from LANG, else English)"))
     parser.add_argument("--plant", type=Path, default=None, help=_("plant file (default: the built-in demo plant)"))
@@ -245,7 +247,7 @@ def _tls_files(args) -> tuple[str, str] | None:
         context.load_cert_chain(args.tls_cert, args.tls_key)
     except (OSError, ssl.SSLError) as exc:
         print(_("commission: cannot use {cert} with {key}: {error}").format(
-            cert=args.tls_cert, key=args.tls_key, error=getattr(exc, "strerror", None) or exc), file=sys.stderr)
+            cert=args.tls_cert, key=args.tls_key, error=exc.strerror or exc), file=sys.stderr)
         raise SystemExit(2) from None
     return str(args.tls_cert), str(args.tls_key)
 
@@ -356,7 +358,7 @@ def run_backup(args) -> int:
                 continue
             try:
                 path = await backup.backup_device(runtime, name, args.out, user=cli_user(), role="engineer")
-            except Exception as exc:  # noqa: BLE001 - one device's failure must not stop the others
+            except (CommissionError, OSError) as exc:  # one device's refusal or a file not written: the others go on
                 print(_("{name}: backup failed: {error}").format(name=name, error=exc), file=sys.stderr)
                 failures += 1
                 continue
@@ -384,7 +386,7 @@ def run_restore(args) -> int:
             return 1
         try:
             plan = await backup.plan_restore(runtime, name, document)
-        except Exception as exc:  # noqa: BLE001
+        except CommissionError as exc:
             print(f"commission restore: {exc}", file=sys.stderr)
             return 2
         for warning in plan.warnings:
@@ -509,7 +511,7 @@ def _main(argv: list[str] | None) -> int:
     commands = {"sim": run_sim, "backup": run_backup, "restore": run_restore, "user": run_user, "view": run_view}
     if args.command in commands:
         return commands[args.command](args)
-    if getattr(args, "func", None) is not None:  # subcommands that bring their own runner (dbc)
+    if args.func is not None:  # subcommands that bring their own runner (dbc)
         return args.func(args)
 
     from app.users import UserStore, default_data_dir, is_loopback

@@ -74,7 +74,7 @@ async def run_headless(args, work) -> int:
     plant = load_plant_or_exit(args.plant)
     if not args.no_sim and refuse_taken_ports(plant):
         return 2
-    names = getattr(args, "device", None)
+    names = args.device  # backup: a list (empty: every device); restore: one name; apply: its --devices
     names = [names] if isinstance(names, str) else (names or list(plant.devices))
     for name in names:
         if name not in plant.devices:
@@ -112,7 +112,7 @@ HOLD_WORDS = ("hold SPACE to answer yes, and keep holding it while the step runs
 
 def simulated(runtime, device: str) -> bool:
     """Whether ``device`` is a twin of this run's simulated plant (nothing real moves when it does)."""
-    return device in getattr(runtime, "twins", {})
+    return device in runtime.twins
 
 
 def terminal_present(stream=None) -> bool:

@@ -56,7 +56,8 @@ class _DecodedOnRead(Transaction):
         if text is None:
             try:
                 text = self.__dict__["_decode"]()
-            except Exception as exc:  # noqa: BLE001 - the log shows what could not be decoded
+            except Exception as exc:  # noqa: BLE001 - read lazily by the monitor, a recording or an export: whatever a
+                # decoder raises is the entry's text there, never an error of the reader
                 text = f"cannot decode: {exc}"
             self.__dict__["_decoded"] = text
         return text
@@ -112,6 +113,11 @@ class Backoff:
     def resume(self) -> None:
         """Try at once next time."""
         self.next_try = 0.0
+
+
+# what a pyserial port's read, write or close raises when the port went away: its SerialException is an OSError;
+# a port closed under a reader or writer thread fails with AttributeError or TypeError (its descriptor is None)
+PORT_GONE: tuple[type[Exception], ...] = (OSError, AttributeError, TypeError)
 
 
 def serial_port(options: dict):

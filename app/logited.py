@@ -20,8 +20,9 @@ import logging
 import time
 from collections.abc import Awaitable, Callable
 
-from app.line_base import LineBase, read_burst, serial_port
+from app.line_base import PORT_GONE, LineBase, read_burst, serial_port
 from app.state import BusState
+from devices.errors import DeviceError
 from devices.transport import SerialClosed, SerialTimeout
 
 log = logging.getLogger(__name__)
@@ -45,7 +46,7 @@ class _Waiter:
             return False
         try:
             accepted = self.answers(telegram)
-        except Exception:  # noqa: BLE001 - a telegram the codec cannot read answers nothing
+        except (DeviceError, ValueError):  # a telegram the codec cannot read answers nothing
             accepted = False
         if accepted:
             self.queue.put_nowait(telegram)
@@ -67,7 +68,7 @@ def _closing_frames(hooks: list[Callable[[], list[bytes]]], name: str) -> list[b
     for hook in hooks:
         try:
             frames += hook()
-        except Exception:  # noqa: BLE001 - one adapter's failure must not keep the others' frames back
+        except (DeviceError, ValueError):  # one adapter's refusal must not keep the others' frames back
             log.exception("%s: closing frames", name)
     return frames
 
@@ -99,7 +100,7 @@ class _LogitedLine(LineBase):
         for listener in self.listeners:
             try:
                 listener(telegram)
-            except Exception:  # a bad telegram must never stop the line
+            except (DeviceError, ValueError):  # a bad telegram must never stop the line
                 log.exception("%s: listener failed for %s", self.name, telegram.hex(" "))
 
     def _text(self, telegram: bytes) -> str:
@@ -107,7 +108,7 @@ class _LogitedLine(LineBase):
             return ""
         try:
             return self.describe(telegram)
-        except Exception as exc:  # noqa: BLE001 - shown as what it is
+        except (DeviceError, ValueError) as exc:  # a codec's refusal, shown as what it is
             return f"cannot decode: {exc}"
 
     def _unit(self, request: bytes, answer: bytes) -> int:
@@ -376,7 +377,7 @@ class LogitedRs485(_LogitedLine):
         while self._run and self.port is port:  # a reader of a port closed meanwhile ends (the line may be open again)
             try:
                 data = read_burst(port)  # a telegram at a time: the loop wakes once for it, not once a byte
-            except Exception as exc:  # noqa: BLE001 - unplugged: the loop reopens with backoff
+            except PORT_GONE as exc:  # unplugged or closed: the loop reopens with backoff
                 self._loop.call_soon_threadsafe(self._port_lost, port, str(exc))
                 return
             if not data:
@@ -396,7 +397,7 @@ class LogitedRs485(_LogitedLine):
         """The token onward from the reader thread; False if the write failed (the loop then sees the token)."""
         try:
             port.write(self.codec.encode_token(self.next_master, self.master))
-        except Exception:  # noqa: BLE001 - the loop takes the token and finds the port lost
+        except PORT_GONE:  # the loop takes the token and finds the port lost
             return False
         self.token_holds_ms.append(0.0)
         return True
@@ -428,12 +429,12 @@ class LogitedRs485(_LogitedLine):
                     self._log("on close", frame, b"", "")
                 if frames:
                     port.flush()
-            except Exception as exc:  # noqa: BLE001 - a lost port: nothing more can be sent
+            except PORT_GONE as exc:  # a lost port: nothing more can be sent
                 log.warning("%s: closing frames not sent: %s", self.name, exc)
         if port is not None:
             try:
                 port.close()
-            except Exception:  # noqa: BLE001
+            except PORT_GONE:  # closed already
                 pass
         self.state.connected = False
         self._token.clear()
@@ -488,7 +489,7 @@ class LogitedRs485(_LogitedLine):
         token = self.codec.encode_token(self.next_master, self.master)
         try:
             self.port.write(token)  # a few bytes into the driver's buffer: does not wait for the wire
-        except Exception as exc:  # noqa: BLE001
+        except PORT_GONE as exc:
             self._lost(str(exc))
 
     def _unit(self, request: bytes, answer: bytes) -> int:

@@ -98,7 +98,7 @@ class McapFile:
         self._add(self._channel(f"/can/{bus}", self._frame_schema), rec.time, {
             "timestamp": _stamp(rec.time), "bus": bus, "id": rec.arbitration_id, "extended": bool(rec.is_extended_id),
             "dlc": rec.dlc, "data": list(data), "hex": data.hex(" "), "direction": rec.direction,
-            "error": bool(rec.is_error_frame), "remote": bool(getattr(rec, "is_remote_frame", False)),
+            "error": bool(rec.is_error_frame), "remote": bool(rec.is_remote_frame),
             "device": device, "decoded": decoded})
 
     def points(self, device: str, t: float, values: dict[str, Any], units: dict[str, str] | None = None,
@@ -151,7 +151,7 @@ def collect_live(runtime) -> list[tuple[float, int, tuple]]:
     from app.recording import FrameDecoder, can_codecs, device_owners
 
     rows: list[tuple[float, int, tuple]] = []
-    for name, can_bus in getattr(runtime.worker, "can_buses", {}).items():
+    for name, can_bus in runtime.worker.can_buses.items():
         decoder = FrameDecoder(runtime.worker.known_ids(name), can_codecs())
         decoder.set_owners(device_owners(runtime.worker, name))
         for rec in list(can_bus.state.frames):

@@ -154,7 +154,7 @@ class ModbusLine(LineBase):
             )
         try:
             ok = await self.client.connect()
-        except Exception as exc:  # noqa: BLE001 - pyserial raises SerialException / OSError variants
+        except (ModbusException, OSError, ValueError) as exc:  # pyserial's SerialException is an OSError; bad options
             ok = False
             self.state.last_error = f"cannot open {o['port']}: {exc}"
         if ok:
@@ -222,7 +222,7 @@ class ModbusLine(LineBase):
                     self.address_conflicts[(unit, other)] += 1
                     self.conflicts_by_unit[unit] += 1
                     self.state.address_conflicts = sum(self.conflicts_by_unit.values())
-                    if counters is not None and hasattr(counters, "address_conflicts"):
+                    if counters is not None:
                         counters.address_conflicts += 1
                 elif self._rx:
                     error = "CRC or framing error in the answer"
@@ -242,7 +242,7 @@ class ModbusLine(LineBase):
                     counters.exceptions += 1
             rtt = (time.perf_counter() - start) * 1000
             if response is not None and response.isError():
-                code = getattr(response, "exception_code", 0)
+                code = response.exception_code
                 error = f"exception {code:#04x} ({EXCEPTION_NAMES.get(code, 'unknown')})"
                 failure = LineException(f"unit {unit}: {what}: {error}", code)
                 if counters:
@@ -252,7 +252,7 @@ class ModbusLine(LineBase):
                 counters.responses += 1
             space, address, written = request_target(what)
             answered = response is not None and not error
-            registers = getattr(response, "registers", None) if answered else None
+            registers = response.registers if answered else None  # every pymodbus PDU has them ([] if none)
             if registers is not None:
                 values = tuple(int(v) for v in registers)
             else:
@@ -377,7 +377,4 @@ class ModbusLine(LineBase):
 
 
 def _describe(response) -> str:
-    registers = getattr(response, "registers", None)
-    if registers is not None:
-        return f"{type(response).__name__.replace('Response', '')}: {list(registers)}"
-    return type(response).__name__
+    return f"{type(response).__name__.replace('Response', '')}: {list(response.registers)}"  # every PDU has them ([] if none)

@@ -333,7 +333,7 @@ class ModbusPoll:
                 self.silent = 0  # the unit answered (an exception, a bad CRC): no reason to wait longer
                 self.crc_errors += isinstance(exc, LineCrcError)
             result = PollResult(time.time(), self.last.values if self.last else [], error=str(exc))
-        except Exception as exc:  # noqa: BLE001 - a bad answer is shown, never ends the page
+        except CommissionError as exc:  # a refused request is shown, never ends the page
             self.errors += 1
             log.debug("%s poll: %s", self.bus, exc)
             result = PollResult(time.time(), self.last.values if self.last else [], error=f"{type(exc).__name__}: {exc}")
@@ -342,7 +342,7 @@ class ModbusPoll:
         for listener in list(self.listeners):
             try:
                 listener()
-            except Exception:
+            except Exception:  # a page's listener (one that went away, or its bug) must not end the poll loop
                 log.exception("%s poll window %s: listener failed", self.bus, self.number)
         return result
 

@@ -24,10 +24,12 @@ from collections import OrderedDict, deque
 from pathlib import Path
 from typing import Any
 
+import aiomqtt
+
 from app.audit import LogBudget
+from app.broker import BROKER_ERRORS
 from app.plant import MqttConfig
 from app.state import jsonable
-from devices.registry import DEVICE_TYPES
 
 log = logging.getLogger(__name__)
 
@@ -67,15 +69,6 @@ def status_payload(state, instance: str, now: float) -> dict[str, Any]:
             "type": state.type, "bus": state.bus, "status": s["status"], "online": s["online"], "last_seen": s["last_seen"],
             "last_error": s["last_error"], "counters": s["counters"], "time": now,
             "drift": getattr(state, "drift", None)}
-
-
-def active_alarms(state, now: float) -> list[str]:
-    """The alarms the device's tile declares (devices/registry.py), as the plant view shows them: only on good data."""
-    device_type = DEVICE_TYPES.get(state.type)
-    if device_type is None:
-        return []
-    tile = device_type.tile.evaluate(lambda name: state.entry(name, now), now)
-    return list(tile["alarms"]) if tile["quality"] in ("good", "unknown") else []
 
 
 def instance_payload(config: MqttConfig, plant_name: str, devices: list[str], state: str, now: float,
@@ -178,7 +171,7 @@ class MqttPublisher:
                                            self.session)
                 await asyncio.wait_for(client.publish(self._instance_topic, dumps(payload), qos=1, retain=True), 2.0)
                 await asyncio.wait_for(client.__aexit__(None, None, None), 2.0)
-            except Exception as exc:  # noqa: BLE001 - the last will says the same when this fails
+            except BROKER_ERRORS as exc:  # the last will says the same when this fails
                 log.info("mqtt: goodbye not sent (%s); the broker sends the last will", exc)
         self._client = None
         self._set_state("stopped")
@@ -215,7 +208,7 @@ class MqttPublisher:
         name = state.name
         self._queue(device_topic(site, name, "state"), state_payload(state, instance, now), now)
         self._queue(device_topic(site, name, "status"), status_payload(state, instance, now), now)
-        alarms = set(active_alarms(state, now))
+        alarms = set(self.store.active_alarms(name, now))  # evaluated in the store, once per change
         before = self._alarms.get(name, set())
         if alarms != before or device_topic(site, name, "alarms") not in self._last:
             for text in sorted(alarms - before):
@@ -236,7 +229,7 @@ class MqttPublisher:
             for state in list(self.store.devices.values()):
                 try:
                     self.sample_device(state, site, instance, time.time())
-                except Exception:  # noqa: BLE001 - one device's odd value must not stop the others
+                except Exception:  # the publisher must not die: one device's odd value must not stop the others
                     log.exception("mqtt: cannot build the messages of %s", state.name)
                 await asyncio.sleep(0)  # a large plant is sampled in slices: the loop carries keep-alives
             await asyncio.sleep(max(0.0, period - (time.monotonic() - started)))
@@ -261,8 +254,6 @@ class MqttPublisher:
         return await asyncio.to_thread(ssl.create_default_context, cafile=ca)  # reads the CA file off the loop
 
     async def _connect(self):
-        import aiomqtt
-
         will_payload = dumps(instance_payload(self.config, self.plant_name, list(self.store.devices), "offline",
                                               time.time(), WILL_REASON, self.session))
         client = aiomqtt.Client(
@@ -283,7 +274,7 @@ class MqttPublisher:
                 self._client = await self._connect()
             except asyncio.CancelledError:
                 raise
-            except Exception as exc:  # noqa: BLE001 - refused, unreachable, bad TLS, no password: a state, not a crash
+            except BROKER_ERRORS as exc:  # refused, unreachable, bad TLS, no password: a state, not a crash
                 why = _why(exc)
                 if why != self.last_error:  # logged once per reason, not once per try
                     log.warning("mqtt: broker %s: %s; trying again every %.0f s at most", self.config.url, why, BACKOFF_MAX_S)
@@ -298,14 +289,14 @@ class MqttPublisher:
                 await self._publish_session(self._client)
             except asyncio.CancelledError:
                 raise
-            except Exception as exc:  # noqa: BLE001 - the broker went away or stalled
+            except BROKER_ERRORS as exc:  # the broker went away or stalled
                 self._set_state("down", _why(exc))
                 log.warning("mqtt: lost the broker %s: %s", self.config.url, self.last_error)
                 self.reconnects += 1
                 client, self._client = self._client, None
                 try:
                     await asyncio.wait_for(client.__aexit__(None, None, None), 1.0)
-                except Exception:  # noqa: BLE001 - already gone
+                except BROKER_ERRORS:  # already gone
                     pass
                 self._last.clear()  # a broker without persistence lost every retained message: send all again
                 await asyncio.sleep(backoff)
@@ -347,7 +338,7 @@ class MqttPublisher:
         try:
             await client.subscribe(self._instance_topic, qos=1)
             watcher = asyncio.create_task(self._watch_own_topic(client), name="mqtt own topic")
-        except Exception as exc:  # noqa: BLE001 - a broker that refuses the subscription: publishing goes on
+        except BROKER_ERRORS as exc:  # a broker that refuses the subscription: publishing goes on
             log.info("mqtt: cannot read the instance's own topic (%s): a takeover of its client id is not noticed", _why(exc))
         try:
             await self._publish_until_lost(client)

@@ -27,6 +27,7 @@ import math
 import time
 import weakref
 from collections import OrderedDict
+from collections.abc import Sequence
 from datetime import datetime, timezone
 from typing import Any
 
@@ -40,6 +41,7 @@ from asyncua.ua.ua_binary import nodeid_from_binary, struct_from_binary
 
 from app.audit import LogBudget
 from app.auth import LoginThrottle, check_login
+from app.capabilities import controller_of
 from devices.live import jsonable
 from devices.registry import DEVICE_TYPES
 
@@ -108,7 +110,7 @@ class ReadOnlyRules(PermissionRuleset):
             ReadOnlyRules.refused += 1
             if _client_lines.take() is not None:
                 log.info("opcua: %s refused for %s (the server is read-only)", action_type,
-                         getattr(user, "name", None) or "anonymous")
+                         (user.name if isinstance(user, User) else None) or "anonymous")
             return False
         return True
 
@@ -253,8 +255,8 @@ def _check_requests_first() -> None:
     :data:`_GUARDS` and does nothing for others. Likewise ``OPCUAProtocol.connection_made`` closes
     the oldest connection of an address that holds :data:`MAX_IDLE_PER_CLIENT` without a session.
     """
-    if getattr(UaProcessor.process_message, "checks_requests_first", False):
-        return
+    if UaProcessor.process_message.__module__ == __name__:
+        return  # wrapped already
     original = UaProcessor.process_message
 
     async def process_message(self, seqhdr, body):
@@ -279,7 +281,6 @@ def _check_requests_first() -> None:
                 return True
         return await original(self, seqhdr, body)
 
-    process_message.checks_requests_first = True
     UaProcessor.process_message = process_message
 
     made = OPCUAProtocol.connection_made
@@ -321,7 +322,7 @@ def _check_requests_first() -> None:
     OPCUAProtocol.data_received = data_received
 
 
-def health_of(state, controlled: bool, alarms: list[str]) -> int:
+def health_of(state, controlled: bool, alarms: Sequence[str]) -> int:
     """NAMUR NE 107 from the device's state: FAILURE offline, CHECK_FUNCTION while an engineer controls it,
     OFF_SPEC with an active alarm of its tile, MAINTENANCE_REQUIRED with stale values or parameters
     written but not saved in the device, else NORMAL."""
@@ -342,15 +343,10 @@ IDENTITY_POINT = "Identity"  # a device's identity record, where its type publis
 
 def published_identity(state) -> dict[str, Any]:
     """The fields of the identity record the device publishes as the point ``Identity`` (a record or a
-    mapping, in its JSON form); a family still writing the older ``info["identity"]`` dict is read too."""
+    mapping, in its JSON form); {} until it has published one."""
     point = state.points.get(IDENTITY_POINT)
-    if point is not None and point.value is not None:
-        fields = jsonable(point.value)
-        if isinstance(fields, dict):
-            return fields
-    legacy = getattr(state, "info", None)  # families not yet moved to points (issue 27)
-    legacy = legacy.get("identity") if isinstance(legacy, dict) else None
-    return legacy if isinstance(legacy, dict) else {}
+    fields = jsonable(point.value) if point is not None and point.value is not None else None
+    return fields if isinstance(fields, dict) else {}
 
 
 def identity_of(state, device_type: str, options: dict[str, Any]) -> dict[str, str]:
@@ -554,7 +550,7 @@ class OpcuaServer:
     # -- live values -------------------------------------------------------------------------------------
     def _controlled(self, name: str) -> bool:
         adapter = self.worker.adapters.get(name) if self.worker is not None else None
-        return getattr(adapter, "controller", None) is not None
+        return controller_of(adapter) is not None
 
     async def _update_loop(self) -> None:
         next_revision = 0.0
@@ -567,21 +563,19 @@ class OpcuaServer:
                 await self.update()
             except asyncio.CancelledError:
                 raise
-            except Exception:  # noqa: BLE001 - a bad value must not end the server's updates
+            except Exception:  # the server's one update task must not end: whatever failed is logged with its traceback
                 log.exception("opcua: updating the values failed")
             await asyncio.sleep(max(0.0, 1.0 / self.config.rate - (time.monotonic() - started)))
 
     async def update(self) -> int:
         """Write every changed value, status, health and identity into the address space; returns the writes."""
-        from app.mqtt import active_alarms
-
         writes = 0
         now = time.time()
         for name, dev in self._devices.items():
             state = self.store.devices.get(name)
             if state is None:
                 continue
-            health = health_of(state, self._controlled(name), active_alarms(state, now) if state.status != "offline" else [])
+            health = health_of(state, self._controlled(name), self.store.active_alarms(name, now) if state.status != "offline" else ())
             if health != dev["last_health"]:
                 dev["last_health"] = health
                 await self.server.write_attribute_value(dev["health"], ua.DataValue(ua.Variant(health, ua.VariantType.Int32)))

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from app import backup, files
+from app.capabilities import allowed_text
 from app.cli_lang import _
 from app.plant import Plant, PlantError, load_plant, parse_plant
 from devices.errors import CommissionError
@@ -260,8 +261,8 @@ def editable(plant: Plant, device: str) -> list[Param]:
 
 def allowed(param: Param) -> str:
     """What an entry of ``param`` may be, in words: "0 .. 65535 ms", "one of: 0 Off, 1 On"."""
-    if getattr(param, "allowed_text", ""):  # a value that is not a number says itself (an M3IO record's bytes)
-        return param.allowed_text
+    if text := allowed_text(param):  # a value that is not a number says itself (an M3IO record's bytes)
+        return text
     if param.enum is not None:
         return "one of: " + ", ".join(f"{number} {name}" for number, name in param.enum.items())
     low, high = param.limits()

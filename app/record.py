@@ -34,11 +34,13 @@ import logging
 import time
 from pathlib import Path
 
+from app.audit import WRITE_ERRORS
 from app.checkout import CheckoutRun
 from app.record_sets import drift_of, param_set
 from app.record_store import Entry, RecordError, RecordStore
 from app.verify import Check, content_sha256
 from devices.commands import READ_PARAMETERS
+from devices.errors import CommissionError
 
 log = logging.getLogger(__name__)
 
@@ -187,7 +189,7 @@ class RecordService:
             await asyncio.sleep(AUDIT_FOLLOW_S)
             try:
                 rows = await audit.aquery(since=self._audit_seen, limit=200)
-            except Exception:  # noqa: BLE001 - the audit state is shown in the header
+            except WRITE_ERRORS:  # the audit state is shown in the header
                 continue
             due: dict[str, tuple[str, str, str]] = {}
             for row in sorted(rows, key=lambda r: r.time):
@@ -197,7 +199,7 @@ class RecordService:
             for device, (user, role, action) in due.items():
                 try:
                     await self.snapshot(device, user=user, role=role, title=f"after {action}")
-                except Exception as exc:  # noqa: BLE001 - logged; the next write session tries again
+                except (CommissionError, OSError) as exc:  # logged; the next write session tries again
                     log.warning("%s: automatic snapshot after %s failed: %s", device, action, exc)
 
     # -- checkouts --------------------------------------------------------------------------
@@ -221,9 +223,8 @@ class RecordService:
         if not account or account == "local" or account.startswith("cli:"):
             raise RecordError("a sign-off needs a named account: log in with your account (create one with "
                               "'commission user add NAME --role engineer') and sign again")
-        users = getattr(self.runtime, "users", None)
-        known = None if users is None else users.users.get(account)
-        if users is not None and (known is None or known.role != "engineer"):
+        known = self.runtime.users.users.get(account)
+        if known is None or known.role != "engineer":
             raise RecordError(f"{account} is no engineer account of this installation: a sign-off needs one "
                               "(commission user add NAME --role engineer)")
         previous = await self.store.run(self.store.latest, self.plant, device, "signoff")

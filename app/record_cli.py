@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import inspect
 import sys
 import time
 import uuid
@@ -30,6 +31,7 @@ from typing import Any
 from app.checkout import StepFailed, checkout_module
 from app.cli_lang import _
 from app.record_store import RecordError
+from devices.errors import CommissionError
 
 SIGNER_ROLE = "commissioning engineer"
 
@@ -151,7 +153,7 @@ def _run_plant(args, work) -> int:
     from app.users import default_data_dir
 
     plant = load_plant_or_exit(args.plant)
-    data_dir = getattr(args, "data_dir", None) or default_data_dir()
+    data_dir = args.data_dir or default_data_dir()  # the top-level --data-dir, None unless given
     runtime = Runtime(plant, simulate=not args.no_sim, data_dir=data_dir)
 
     async def main() -> int:
@@ -186,7 +188,7 @@ async def approve_devices(runtime, names: list[str], *, user: str, role: str, ou
         except PermissionError as exc:
             out(f"commission: {exc}")
             return 1
-        except Exception as exc:  # noqa: BLE001 - said, and the exit code says it
+        except (CommissionError, OSError) as exc:  # said, and the exit code says it
             out(f"{name}: not approved: {exc}")
             failures += 1
             continue
@@ -259,7 +261,7 @@ def _step_line(r) -> str:
 
 def _settings(specs: list[str], device: str, module) -> dict[str, Any]:
     settings: dict[str, Any] = {}
-    defaults = getattr(module, "SETTINGS", {})
+    defaults = module.SETTINGS
     for spec in specs:
         name, _, rest = spec.partition(":")
         key, eq, value = rest.partition("=")
@@ -293,7 +295,7 @@ async def sim_action(runtime, spec: str, *, user: str, role: str) -> str:
 
     async def act() -> str:
         result = controls.invoke(action, args)
-        if hasattr(result, "__await__"):
+        if inspect.isawaitable(result):
             await result
         return ""
 
@@ -329,7 +331,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
     for spec in sim_actions:
         try:
             out(await sim_action(runtime, spec, user=user, role=role))
-        except Exception as exc:  # noqa: BLE001
+        except (CommissionError, LookupError, ValueError) as exc:  # a refused action, a spec naming none
             out(f"commission: {exc}")
             return 2
         await asyncio.sleep(0.5)  # the next poll carries the fault
@@ -359,7 +361,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
         try:
             run = runtime.record.new_run(name, user=user, role=role, ask=ask, settings=_settings(list(settings), name, module),
                                          **options)
-        except Exception as exc:  # noqa: BLE001
+        except (CommissionError, LookupError, ValueError) as exc:  # running already, settings its steps refuse
             out(f"{name}: {exc}")
             results.append((name, "not run", str(exc), None))
             continue

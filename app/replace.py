@@ -34,9 +34,10 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from devices.adapter import BackupAdapter
-from app import backup
+from app import audit, backup
 from app.record_store import Entry
+from devices.adapter import BackupAdapter
+from devices.errors import CommissionError
 
 log = logging.getLogger(__name__)
 
@@ -82,10 +83,7 @@ def live_identity(runtime, name: str) -> dict | None:
     state = runtime.store.devices.get(name)
     if adapter is None or state is None or state.online is not True or not backup.supports_backup(adapter):
         return None
-    try:
-        identity = adapter.backup_identity()
-    except Exception:  # noqa: BLE001 - an identity not read yet is no identity
-        return None
+    identity = adapter.backup_identity()  # an identity not read yet has no serial number
     if not isinstance(identity, dict) or facets(identity)["serial"] is None:
         return None
     return dict(identity)
@@ -176,7 +174,7 @@ class ReplacementWatch:
                     ref = {"identity": approved.data["identity"], "time": approved.time, "source": "approved set"}
             if ref is not None:
                 self.known[name] = ref
-            if name in getattr(self.runtime, "twins", {}):
+            if name in self.runtime.twins:
                 self._fresh_twins.add(name)
             self._watches.append(self.runtime.store.watch(name, lambda n=name: self._maybe_check(n)))
             self.check(name)
@@ -197,10 +195,7 @@ class ReplacementWatch:
             return (False,)
         sources = self._sources.get(name)
         if sources is None:  # not in the store under its names: the adapter's own few values
-            try:
-                identity = adapter.backup_identity()
-            except Exception:  # noqa: BLE001 - an identity not read yet is no identity
-                identity = _MISSING
+            identity = adapter.backup_identity() if isinstance(adapter, BackupAdapter) else _MISSING
             return (True, (not isinstance(adapter, BackupAdapter) or adapter.backup_available), id(state.params), identity)
         points, registers = state.points, state.registers
         key = [True, (not isinstance(adapter, BackupAdapter) or adapter.backup_available), id(state.params), len(points), len(registers)]
@@ -282,7 +277,7 @@ class ReplacementWatch:
 
 
 def watch_of(runtime) -> ReplacementWatch | None:
-    return getattr(runtime, "replacements", None)
+    return runtime.replacements
 
 
 # -- the assistant ---------------------------------------------------------------------------------
@@ -413,7 +408,7 @@ async def execute_replacement(runtime, rp: ReplacementPlan, selected: set[str], 
     try:
         await runtime.audit.arecord(user=user, role=role, device=name, action="replacement",
                                     old=identity_text(rp.check.old), new=identity_text(rp.check.new), result=summary[:500])
-    except Exception:  # noqa: BLE001 - every write has its own row; the header shows the audit state
+    except audit.WRITE_ERRORS:  # every write has its own row; the header shows the audit state
         pass
     data = {"replacement": rp.check.as_dict(), "source": rp.source, "selected": sorted(selected),
             "written": report.written, "unchanged": report.unchanged, "failed": report.failed, "skipped": report.skipped,
@@ -422,7 +417,7 @@ async def execute_replacement(runtime, rp: ReplacementPlan, selected: set[str], 
     try:
         await runtime.record.add(name, "restore", user=user, role=role, data=data,
                                  title=f"replacement {identity_text(rp.check.old)} -> {identity_text(rp.check.new)}")
-    except Exception as exc:  # noqa: BLE001 - said in the report; the writes are in the audit log
+    except (CommissionError, OSError) as exc:  # said in the report; the writes are in the audit log
         report.save_error = report.save_error or ""
         log.error("%s: the replacement could not be added to the record: %s", name, exc)
     if report.ok:

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from app.can_bus import FrameRecord
+from devices.adapter import SessionHolder
 from devices.errors import CommissionError
 from devices.sendpolicy import CanMessage, check_send
 
@@ -67,11 +68,8 @@ def controlled_devices(worker: Any, bus: str) -> list[str]:
     """Devices on ``bus`` under control now (their adapter has holders)."""
     names = []
     for dev in worker.plant.devices_on(bus):
-        holders = getattr(worker.adapters.get(dev.name), "holders", None)
-        try:
-            if holders is not None and holders():
-                names.append(dev.name)
-        except Exception:  # noqa: BLE001 - an adapter that cannot say counts as under control
+        adapter = worker.adapters.get(dev.name)
+        if isinstance(adapter, SessionHolder) and adapter.holders():
             names.append(dev.name)
     return names
 
@@ -299,7 +297,7 @@ class Replay:
             if self.running:
                 self.state = "done"
                 self._finish()
-        except Exception as exc:
+        except Exception as exc:  # the replay's own task: whatever ends it is said on its page, with the traceback in the log
             log.exception("replay on %s failed", self.bus)
             if self.running:
                 self.state = "failed"

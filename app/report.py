@@ -27,6 +27,8 @@ from app.record_sets import (
 )
 from app.report_evidence import evidence_named
 from app.verify import sha256
+from devices.adapter import BackupAdapter
+from devices.errors import CommissionError
 from devices.params import Access
 
 AUDIT_ROWS = 200
@@ -44,7 +46,7 @@ def tool_version() -> str:
 
 def plant_file(plant) -> dict:
     """The plant file the report was made with and its SHA-256 (None: a plant given without a file)."""
-    path = getattr(plant, "path", None)
+    path = plant.path
     if path is None:
         return {"path": None, "sha256": None}
     try:
@@ -91,17 +93,15 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
         try:
             identity, entries = await record.read_set(device, user=user, role=role)
             current, source = param_set(entries), f"read from the device at {_when(time.time())}"
-        except Exception as exc:  # noqa: BLE001 - the report says why
+        except CommissionError as exc:  # not answering, refused: the report says why
             source = f"not read: {exc}"
     approved_entry = await record.store.run(record.store.latest, record.plant, device, "approved")
     approved = approved_entry.data["parameters"] if approved_entry else None
     if not current:
         snap = await record.store.run(record.store.latest, record.plant, device, "snapshot")
         if not identity:  # as the device page shows it (the adapter reads it from the live store)
-            try:
-                identity = runtime.worker.adapters[device].backup_identity()
-            except Exception:  # noqa: BLE001 - a device without one: the last snapshot's below
-                identity = {}
+            adapter = runtime.worker.adapters[device]
+            identity = adapter.backup_identity() if isinstance(adapter, BackupAdapter) else {}  # without one: the snapshot's
         if snap is not None:
             identity = identity or snap.data.get("identity", {})
         # what the device page shows: the live store's values (its last poll) first, the last snapshot

@@ -64,7 +64,7 @@ class _LineThread:
             while not self.stop_event.is_set():
                 try:
                     delay = self.tick(self.line.exchange_blocking)
-                except Exception:  # noqa: BLE001 - the thread must go on: a failed tick is logged and counted
+                except Exception:  # the thread must go on: a failed tick is logged and counted
                     self.errors += 1
                     log.exception("%s: cyclic %s failed", self.line.name, self.key)
                     delay = 0.05

@@ -20,8 +20,10 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+import aiomqtt
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from app.broker import BROKER_ERRORS
 from app.mqtt import BACKOFF_FIRST_S, BACKOFF_MAX_S, CONNECT_TIMEOUT_S, INSTANCES, TOPIC_ROOT
 from app.plant import parse_mqtt_url
 
@@ -275,8 +277,6 @@ class SiteStore:
             self._task = None
 
     async def _run(self) -> None:
-        import aiomqtt
-
         backoff = BACKOFF_FIRST_S
         while True:
             self.state = "connecting"
@@ -289,7 +289,7 @@ class SiteStore:
                 await asyncio.wait_for(client.__aenter__(), CONNECT_TIMEOUT_S)
             except asyncio.CancelledError:
                 raise
-            except Exception as exc:  # noqa: BLE001 - a state, shown in the header
+            except BROKER_ERRORS as exc:  # a state, shown in the header
                 self.state, self.last_error = "down", str(exc) or type(exc).__name__
                 await asyncio.sleep(backoff)
                 backoff = min(BACKOFF_MAX_S, backoff * 2)
@@ -303,11 +303,11 @@ class SiteStore:
                     self.handle(str(message.topic), bytes(payload))
             except asyncio.CancelledError:
                 raise
-            except Exception as exc:  # noqa: BLE001
+            except BROKER_ERRORS as exc:  # the broker went away (handle() never raises on bad input)
                 self.state, self.last_error = "down", str(exc) or type(exc).__name__
             finally:
                 try:
                     await asyncio.wait_for(client.__aexit__(None, None, None), 1.0)
-                except Exception:  # noqa: BLE001
+                except BROKER_ERRORS:  # already gone
                     pass
             await asyncio.sleep(backoff)

@@ -41,10 +41,13 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+import aiomqtt
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+from google.protobuf.message import DecodeError
 
-from app.audit import LogBudget
+from app.audit import WRITE_ERRORS, LogBudget
 from app.auth import RefusalRows
+from app.broker import BROKER_ERRORS
 
 log = logging.getLogger(__name__)
 
@@ -279,7 +282,7 @@ class SparkplugNode:
                 await asyncio.wait_for(client.publish(node_topic(self.group, "NDEATH", self.node), self.death_payload(),
                                                       qos=1, retain=False), 2.0)
                 await asyncio.wait_for(client.__aexit__(None, None, None), 2.0)
-            except Exception as exc:  # noqa: BLE001 - the broker sends the will instead
+            except BROKER_ERRORS as exc:  # the broker sends the will instead
                 log.info("sparkplug: NDEATH not sent (%s); the broker sends the will", exc)
         self._client = None
         self.state = "stopped"
@@ -343,8 +346,6 @@ class SparkplugNode:
 
     # -- the connection -------------------------------------------------------------------------------
     async def _connect(self):
-        import aiomqtt
-
         self.bd_seq = (self.bd_seq + 1) % 256
         password = await self._password() if self._password else None
         tls = None
@@ -370,7 +371,7 @@ class SparkplugNode:
                 self._client = await self._connect()
             except asyncio.CancelledError:
                 raise
-            except Exception as exc:  # noqa: BLE001 - a state, not a crash
+            except BROKER_ERRORS as exc:  # refused, unreachable, bad TLS, no password: a state, not a crash
                 if str(exc) != self.last_error:
                     log.warning("sparkplug: broker %s: %s", self.config.url, exc)
                 self.state, self.last_error = "down", str(exc) or type(exc).__name__
@@ -384,7 +385,7 @@ class SparkplugNode:
                 await self._session(client)
             except asyncio.CancelledError:
                 raise
-            except Exception as exc:  # noqa: BLE001 - broker lost, or the primary host went away
+            except BROKER_ERRORS as exc:  # broker lost, or the primary host went away (a ConnectionError)
                 self.state, self.last_error = "down", str(exc) or type(exc).__name__
                 log.info("sparkplug: session ended: %s", self.last_error)
             finally:
@@ -392,7 +393,7 @@ class SparkplugNode:
                 await asyncio.gather(listener, return_exceptions=True)
             try:
                 await asyncio.wait_for(client.__aexit__(None, None, None), 1.0)
-            except Exception:  # noqa: BLE001 - already gone
+            except BROKER_ERRORS:  # already gone
                 pass
             self._client = None
             await asyncio.sleep(backoff)
@@ -474,7 +475,7 @@ class SparkplugNode:
                     self._on_state(bytes(message.payload))
                 else:
                     await self._on_command(topic, bytes(message.payload))
-            except Exception:  # noqa: BLE001 - a bad message must not end the node
+            except Exception:  # anyone may publish: no message, however made, may end the node's listener
                 if _refusal_lines.take() is not None:  # anyone may publish: bounded like the refusals
                     log.exception("sparkplug: cannot handle a message on %s", topic[:200])
 
@@ -501,7 +502,7 @@ class SparkplugNode:
         payload = Payload()
         try:
             payload.ParseFromString(data)
-        except Exception:  # noqa: BLE001 - not a Sparkplug payload
+        except DecodeError:  # not a Sparkplug payload
             await self._refuse(kind, device, "", "not a Sparkplug B payload")
             return
         others = []
@@ -544,5 +545,5 @@ class SparkplugNode:
         try:
             await self.audit.arecord(user="sparkplug", role="unauthenticated", device=self.node, action=f"Sparkplug {row['kind']}",
                                      parameter=names, new=shown, result=result)
-        except Exception as exc:  # noqa: BLE001 - nothing was executed anyway
+        except WRITE_ERRORS as exc:  # nothing was executed anyway
             log.error("audit: %s", exc)

@@ -146,8 +146,9 @@ class StateStore:
         # second (AGE_PHASES phases), so that no round calls every watcher of every page at once
         self._aged: dict[str, float] = {}
         self._phase: dict[str, int] = {}  # device -> its slot of the second
-        self.alarms: dict[str, tuple[str, ...]] = {}  # device -> its tile's alarms as last seen
-        self._alarm_inputs: dict[str, tuple] = {}  # device -> the values its alarms were last evaluated from
+        self.alarms: dict[str, tuple[str, ...]] = {}  # device -> its tile's alarms as last seen (the event log's)
+        self._alarm_inputs: dict[str, tuple] = {}  # device -> the values its alarms were last noted from
+        self._alarm_texts: dict[str, tuple[tuple, tuple[str, ...]]] = {}  # device -> (inputs, the alarms that hold on them)
         self._groups: dict[object, _Group] = {}
         self._alarms = _Group("alarms", PUSH_PERIOD_S, 0, PUSH_PERIOD_S)  # noting alarms: one more reader of every device, bounded like the others
         self._pending: set[str] = set()  # devices written since the last fan-out
@@ -297,22 +298,19 @@ class StateStore:
         return True
 
     def _age_tick(self) -> None:
-        """Every tenth of a second: the watched devices whose once-a-second round is due."""
+        """Every tenth of a second: the watched devices whose once-a-second round is due. The next tick is
+        set first: a failure here (a bug, logged by the loop with its traceback) does not end the rounds."""
         loop = self._loop
         if loop is None:
             return
         self._age_handle = loop.call_later(AGE_PERIOD_S / AGE_PHASES, self._age_tick)
         now = time.monotonic()
-        try:
-            for name, watches in self._watches.items():
-                if watches and self._age_due(name, now):
-                    for g in self._groups.values():
-                        if name in g.watches:
-                            g.ages.add(name)
-                            self._schedule(g, now)
-        except Exception:  # the producer must never end
-            self.push_errors += 1
-            log.exception("once-a-second round failed")
+        for name, watches in self._watches.items():
+            if watches and self._age_due(name, now):
+                for g in self._groups.values():
+                    if name in g.watches:
+                        g.ages.add(name)
+                        self._schedule(g, now)
 
     def _schedule(self, g: _Group, now: float) -> None:
         if g.handle is not None or (not g.dirty and not g.ages) or self._loop is None:
@@ -323,7 +321,9 @@ class StateStore:
         g.handle = self._loop.call_later(wait, self._run, g) if wait > 0 else self._loop.call_soon(self._run, g)
 
     def _run(self, g: _Group) -> None:
-        """Call one group's watchers of the devices that changed (or whose round is due) for it."""
+        """Call one group's watchers of the devices that changed (or whose round is due) for it. A watcher's
+        failure is its own (:meth:`_call`); the group's next run is scheduled whatever happens here, so a
+        failure of the round itself (a bug, logged by the loop with its traceback) does not end the producer."""
         g.handle = None
         now = time.monotonic()
         g.due = max(g.due, now) + g.gap
@@ -348,9 +348,6 @@ class StateStore:
                     g.due_device[name] = max(due, now) + g.period
                 g.ages.discard(name)
                 self._call(g.watches.get(name, ()), age)
-        except Exception:  # the producer must never end
-            self.push_errors += 1
-            log.exception("pushing live changes failed")
         finally:
             self.age_round = False
             self._schedule(g, now)
@@ -391,21 +388,42 @@ class StateStore:
                 self.age_round = False
         return calls
 
+    # -- alarms: evaluated here, once per change of the points they follow -----------------------------
+    def active_alarms(self, name: str, now: float | None = None) -> tuple[str, ...]:
+        """The alarms of the device's tile (devices/registry.py) that hold now, on good data only (a tile whose
+        points are stale or offline raises none): what the MQTT publisher and the OPC UA server publish."""
+        state = self.devices.get(name)
+        device_type = _device_type(state)
+        if device_type is None:
+            return ()
+        now = time.time() if now is None else now
+        if tile_quality(device_type.tile, state, now) not in ALARM_QUALITIES:
+            return ()
+        return self._tile_alarms(name, state, device_type.tile, now)
+
+    def _tile_alarms(self, name: str, state: DeviceState, spec, now: float) -> tuple[str, ...]:
+        """The tile's alarms that hold on the device's values. They follow from the values of the points they
+        name: while those are as at the last evaluation, the tile is not evaluated again (most polls bring the
+        same values)."""
+        inputs = _alarm_inputs(spec, state)
+        known = self._alarm_texts.get(name)
+        if known is not None and known[0] == inputs:
+            return known[1]
+        alarms = tuple(spec.evaluate(lambda point: state.entry(point, now), now)["alarms"])
+        self._alarm_texts[name] = (inputs, alarms)
+        return alarms
+
     def _note_alarms(self, name: str, state: DeviceState) -> None:
         """Faults are states with a history: each tile alarm rising and clearing goes to the event log."""
-        from devices.registry import DEVICE_TYPES
-
-        device_type = DEVICE_TYPES.get(state.type)
+        device_type = _device_type(state)
         if device_type is None or state.online is not True:
             return
-        # the alarms follow from the values of the points they name: when those are as at the last
-        # evaluation that counted, the tile need not be evaluated again (most polls bring the same values)
         inputs = _alarm_inputs(device_type.tile, state)
         if self._alarm_inputs.get(name) == inputs:
             return
-        tile = device_type.tile.evaluate(lambda point: state.entry(point), time.time())
-        if tile["quality"] in ("good", "unknown"):
-            alarms = tuple(tile["alarms"])
+        now = time.time()
+        if tile_quality(device_type.tile, state, now) in ALARM_QUALITIES:
+            alarms = self._tile_alarms(name, state, device_type.tile, now)
             self._alarm_inputs[name] = inputs
         else:
             alarms = self.alarms.get(name, ())
@@ -424,7 +442,27 @@ class StateStore:
         state.version = version  # the events themselves are not a new change to push again
 
 
+ALARM_QUALITIES = ("good", "unknown")  # a tile raises its alarms on these qualities only (not on stale or offline data)
 _ALARM_POINTS: dict[int, tuple[str, ...]] = {}
+_TILE_POINTS: dict[int, tuple[str, ...]] = {}
+
+
+def _device_type(state: DeviceState | None):
+    """The declaration of the device's type (None: no such device, or a type the registry does not know)."""
+    from devices.registry import DEVICE_TYPES
+
+    return DEVICE_TYPES.get(state.type) if state is not None else None
+
+
+def tile_quality(spec, state: DeviceState, now: float) -> str:
+    """The worst quality of the points a tile shows, as its evaluation says it (``unknown``: none heard yet)."""
+    from devices.registry import QUALITY_RANK
+
+    names = _TILE_POINTS.get(id(spec))
+    if names is None:
+        names = _TILE_POINTS[id(spec)] = tuple(sorted(spec.point_names()))
+    qualities = [value.quality for n in names if (value := state.live(n, now)) is not None]
+    return max(qualities, key=QUALITY_RANK.__getitem__, default="unknown")
 
 
 def _alarm_inputs(spec, state: DeviceState) -> tuple:

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from app import recording as rec
 from app.backup import write_atomic
+from app.can_stats import CanBusState
 from devices.commands import TxForm, transmit_forms
 from devices.errors import CommissionError
 from devices.sendpolicy import BusDevice, Verdict, check_can
@@ -154,7 +155,7 @@ def overridden_by(worker, bus: str, can_id: int, extended: bool, *, now: float |
     :param own_rows: IDs of this list's own running cyclic rows (not the keep-alive of a device)
     """
     state = worker.store.buses.get(bus)
-    stats = getattr(state, "ids", {}).get((extended, can_id))
+    stats = state.ids.get((extended, can_id)) if isinstance(state, CanBusState) else None
     if stats is None or stats.direction != "tx" or can_id in own_rows:
         return ""
     cycles = stats.cycles()
@@ -236,7 +237,7 @@ class TransmitList:
         try:
             await self.worker.gate.run(self._nothing, device=self.bus, role="engineer", user=user, kind="stop",
                                        describe=f"transmit: cyclic {row.describe()} stopped: {reason}")
-        except Exception as exc:  # noqa: BLE001 - stopped anyway; the audit state shows the failure
+        except CommissionError as exc:  # stopped anyway; the audit state shows the failure
             log.error("audit: %s", exc)
 
     @staticmethod
@@ -250,7 +251,7 @@ class TransmitList:
             if self.path is not None:
                 rows = await asyncio.to_thread(self._read)
                 self.rows = rows[:MAX_ROWS]
-        except Exception as exc:  # noqa: BLE001 - shown on the page
+        except (OSError, ValueError) as exc:  # unreadable or damaged: shown on the page
             self.load_error = f"the saved list {self.path} could not be read: {exc}"
             log.warning("%s", self.load_error)
         finally:
@@ -261,8 +262,11 @@ class TransmitList:
         if self.path is None or not self.path.exists():
             return []
         doc = json.loads(self.path.read_text(encoding="utf-8"))
+        entries = doc.get("rows", []) if isinstance(doc, dict) else None
+        if not isinstance(entries, list):
+            raise ValueError("it holds no list of rows")
         rows = []
-        for entry in doc.get("rows", []):
+        for entry in entries:
             try:
                 rows.append(TxRow.from_json(entry))
             except (KeyError, ValueError, TypeError) as exc:

@@ -19,6 +19,8 @@ import io
 import json
 import sqlite3
 import zipfile
+import struct
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -203,6 +205,13 @@ def manifest_sum(manifest: bytes) -> bytes:
     return f"{sha256(manifest)}  {MANIFEST}\n".encode()
 
 
+# what the zip reader (and the seal's JSON) raise on altered bytes: its BadZipFile, OSError and EOFError; ValueError
+# (a name or comment that does not decode among them); struct.error for a cut header; zlib's error for broken deflate
+# data; NotImplementedError for a compression method it does not know; RecursionError for JSON nested too deep
+ALTERED: tuple[type[Exception], ...] = (zipfile.BadZipFile, OSError, EOFError, ValueError, struct.error, zlib.error,
+                                        NotImplementedError, RecursionError)
+
+
 def _eocd(data: bytes) -> int:
     """Offset of the zip's end-of-central-directory record (-1: none)."""
     return data.rfind(b"PK\x05\x06", max(0, len(data) - 22 - 65535))
@@ -239,7 +248,7 @@ def _check_seal(data: bytes, check: Check) -> None:
     try:
         seal = json.loads(data[end + 22:])
         spans = _spans(data, end)
-    except Exception:  # noqa: BLE001 - an altered directory breaks the zip reader in many ways
+    except ALTERED:  # an altered directory breaks the zip reader in many ways
         check.problems.append("the archive's seal (its comment) was altered or removed")
         return
     if isinstance(seal, dict) and sha256(data[:end + 22] + json.dumps(seal.get("spans"), separators=(",", ":")).encode()) == seal.get("sha256"):
@@ -263,7 +272,7 @@ def check_archive(path: Path) -> Check:
         data = path.read_bytes()
         archive = zipfile.ZipFile(io.BytesIO(data))
         names = archive.namelist()
-    except Exception as exc:  # noqa: BLE001 - an altered archive breaks the zip reader in many ways
+    except ALTERED as exc:  # an altered archive breaks the zip reader in many ways
         check.problems.append(f"{path} is no readable archive ({exc}): it was altered or is not an as-left archive")
         return check
     sealed = Check(check.what)
@@ -274,7 +283,7 @@ def check_archive(path: Path) -> Check:
             contents[name] = archive.read(name)
         except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:  # a CRC that no longer matches, broken data
             check.problems.append(f"file {name} was altered: its bytes no longer match the archive's check sum ({exc})")
-        except Exception as exc:  # noqa: BLE001 - zlib's own error for broken deflate data
+        except (zlib.error, struct.error, NotImplementedError) as exc:  # broken deflate data, a cut header, an odd method
             check.problems.append(f"file {name} was altered: it cannot be unpacked ({exc})")
     if MANIFEST not in contents or MANIFEST_SUM not in contents:
         if MANIFEST not in names or MANIFEST_SUM not in names:

@@ -13,6 +13,7 @@ import secrets
 import socket
 import time
 import uuid
+import weakref
 from pathlib import Path
 from collections.abc import Callable
 from typing import Any
@@ -154,6 +155,7 @@ class AuthMiddleware:
 SOCKET_EVENTS = ("handshake", "event", "javascript_response", "ack", "log")
 LOG_LEVELS = ("debug", "info", "warning", "error")
 REFUSAL_LOG_PERIOD_S = 10.0  # refused or malformed socket events: one warning per period, the rest counted
+_GUARDS: weakref.WeakSet[Callable] = weakref.WeakSet()  # the handlers a guard installed: never wrapped again
 
 
 class SocketEventGuard:
@@ -174,11 +176,11 @@ class SocketEventGuard:
         handlers = core.sio.handlers.setdefault("/", {})
         for name in SOCKET_EVENTS:
             inner = handlers.get(name)
-            if inner is None or getattr(inner, "commission_guard", False):
+            if inner is None or inner in _GUARDS:
                 continue
             core.sio.on(name, self._wrap(name, inner))
         connect = handlers.get("connect")
-        if connect is not None and not getattr(connect, "commission_guard", False):
+        if connect is not None and connect not in _GUARDS:
             core.sio.on("connect", self._wrap_connect(connect))
 
     def _wrap_connect(self, inner):
@@ -200,7 +202,7 @@ class SocketEventGuard:
                 result = await result
             return result
 
-        handler.commission_guard = True
+        _GUARDS.add(handler)
         return handler
 
     def _note(self, kind: str, what: str, sid: str, name: str) -> None:
@@ -235,7 +237,7 @@ class SocketEventGuard:
                 result = await result
             return result
 
-        handler.commission_guard = True
+        _GUARDS.add(handler)
         return handler
 
 
@@ -312,7 +314,7 @@ UPLOAD_FORM_OVERHEAD = 64 * 1024  # multipart headers around the file
 def upload_limit(element: Any) -> int:
     """Bytes an upload to ``element`` may carry: the size its page states (``max_file_size``), else
     :data:`UPLOAD_MAX_BYTES`; either with the form's overhead."""
-    stated = element._props.get("max-file-size") if element is not None else None  # noqa: SLF001
+    stated = element.props.get("max-file-size") if element is not None else None
     limit = int(stated) if isinstance(stated, int | float) and stated > 0 else UPLOAD_MAX_BYTES
     return min(limit, UPLOAD_MAX_BYTES) + UPLOAD_FORM_OVERHEAD
 

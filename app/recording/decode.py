@@ -61,7 +61,7 @@ def describe(arbitration_id: int, is_extended: bool, data: bytes, known_ids: set
     for codec in can_codecs() if codecs is None else codecs:
         try:
             text = codec.describe_frame(arbitration_id, is_extended, data, known_ids)
-        except Exception as exc:  # noqa: BLE001 - a codec bug must not take the monitor down
+        except (LookupError, ValueError) as exc:  # a codec's refusal (a ValueError) or an unknown code: shown as such
             return f"decode failed: {exc}"
         if text is not None:
             return text
@@ -134,7 +134,7 @@ class FrameDecoder:
 def ids_of_devices(frames: Iterable[FrameRecord], codecs: Iterable[ModuleType] | None = None) -> set[Key]:
     """IDs in a recorded file that some codec recognises as a device (its ``discovered`` hook)."""
     codecs = list(can_codecs() if codecs is None else codecs)
-    hooks = [c.discovered for c in codecs if callable(getattr(c, "discovered", None))]
+    hooks = [c.discovered for c in codecs]  # every CAN codec has one (devices.registry.DeviceType.can_codec)
     found: set[Key] = set()
     for rec in frames:
         key = (rec.is_extended_id, rec.arbitration_id)
@@ -145,6 +145,6 @@ def ids_of_devices(frames: Iterable[FrameRecord], codecs: Iterable[ModuleType] |
                 if hook(rec.arbitration_id, rec.is_extended_id, rec.data):
                     found.add(key)
                     break
-            except Exception:  # noqa: BLE001, S112 - a frame a hook cannot parse is simply not a device
+            except ValueError:  # a frame a codec cannot parse (its CodecError) is simply not a device
                 continue
     return found

@@ -3,7 +3,7 @@ the texts of identifiers, data and times."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Reversible
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
@@ -42,7 +42,7 @@ def owner_of(adapter: Any) -> Owner:
     def safe(arbitration_id: int, is_extended: bool, data: bytes) -> bool:
         try:
             return bool(owns(arbitration_id, is_extended, data))
-        except Exception:  # noqa: BLE001 - a frame the adapter cannot parse is not its frame
+        except (LookupError, ValueError):  # a frame the adapter cannot parse (a codec's ValueError) is not its frame
             return False
 
     return safe
@@ -110,7 +110,7 @@ def newest(frames: Iterable[FrameRecord], flt: FrameFilter, limit: int) -> list[
     Walks from the end, so the cost is bounded by the buffer, not by the traffic.
     """
     result: list[FrameRecord] = []
-    source: Iterator[FrameRecord] = reversed(frames) if hasattr(frames, "__reversed__") else reversed(list(frames))
+    source: Iterator[FrameRecord] = reversed(frames) if isinstance(frames, Reversible) else reversed(list(frames))
     if not flt.active:
         for rec in source:
             result.append(rec)

@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
+from app.capabilities import bus_address
+from app.line_base import Transaction
 from app.recording.base import MAX_CACHE
 from devices.params import ParamMap
 from devices.registry import DEVICE_TYPES
@@ -68,8 +70,8 @@ class TransactionDecoder:
         for dev in self.worker.plant.devices_on(self.bus):
             device_type = DEVICE_TYPES.get(dev.type)
             types.add(dev.type)
-            unit = getattr(self.worker.adapters.get(dev.name), "address", None)
-            if not isinstance(unit, int) and device_type is not None:
+            unit = bus_address(self.worker.adapters.get(dev.name))
+            if unit is None and device_type is not None:
                 unit = device_type.bus_identity(dev.options, bus_type)
             if isinstance(unit, int):
                 units[unit] = (dev.name, device_type.params if device_type is not None else None)
@@ -97,9 +99,9 @@ class TransactionDecoder:
             return f"broadcast (unit {unit})"
         return f"unit {unit}"
 
-    def decoded(self, t: Any) -> str:
+    def decoded(self, t: Transaction) -> str:
         """The transaction's registers by name and value, else the line's own text."""
-        if getattr(t, "error", "") or not getattr(t, "space", "") or getattr(t, "address", None) is None or not t.values:
+        if t.error or not t.space or t.address is None or not t.values:
             return t.decoded
         params = self.units[t.unit][1] if t.unit in self.units else self.line_params
         if params is None:
@@ -112,7 +114,7 @@ class TransactionDecoder:
                 self._cache.clear()
             try:
                 body = describe_registers(params, t.space, t.address, t.values)
-            except Exception as exc:  # noqa: BLE001 - a model bug must not take the monitor down
+            except (LookupError, ValueError) as exc:  # words the model cannot decode (a ValueError) are shown as such
                 body = f"decode failed: {exc}"
             text = self._cache[key] = ("wrote " if write else "") + body
         return text

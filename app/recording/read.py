@@ -9,17 +9,26 @@ import io
 import logging
 import math
 import re
+import struct
 import threading
+import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import can
+from can.io.blf import BLFParseError
 
 from app.can_bus import FrameRecord
 from app.recording.base import MAX_FILE_FRAMES, PROGRESS_FRAMES, READERS, READ_SUFFIXES, SNIFF_BYTES, RecordingError
 
 logger = logging.getLogger("app.recording")  # one logger for the recordings, as before the split
+
+# what python-can's readers raise on a file they cannot read (can/io/*.py): their BLFParseError; ValueError
+# (UnicodeDecodeError among them) for a bad line; struct.error, IndexError or KeyError for a cut or odd record;
+# zlib's error for broken compressed BLF data; NotImplementedError for a TRC version they do not know; OSError
+MALFORMED: tuple[type[Exception], ...] = (BLFParseError, ValueError, LookupError, struct.error, zlib.error,
+                                          NotImplementedError, OSError)
 
 
 # -- reading a recorded file ------------------------------------------------------------------------
@@ -110,7 +119,7 @@ class _CountingText(io.TextIOBase):
 
     @property
     def name(self) -> str:
-        return getattr(self._file, "name", "")
+        return self._file.name
 
     def close(self) -> None:
         self._file.close()
@@ -148,7 +157,7 @@ class _CountingBinary(io.RawIOBase):
 
     @property
     def name(self) -> str:
-        return getattr(self._file, "name", "")
+        return self._file.name
 
     def close(self) -> None:
         self._file.close()
@@ -230,7 +239,7 @@ def iter_log(
     try:
         try:
             reader = READERS[fmt](counted)
-        except Exception as exc:  # noqa: BLE001 - ValueError, BLFParseError, UnicodeDecodeError ... from the readers
+        except MALFORMED as exc:
             raise RecordingError(f"{name}: cannot open as {fmt} file ({counted.where()}): {exc}") from None
         chunk: list[FrameRecord] = []
         try:
@@ -246,7 +255,7 @@ def iter_log(
                         return
         except RecordingError:
             raise
-        except Exception as exc:  # noqa: BLE001 - a malformed line/object: say where it stopped and why
+        except MALFORMED as exc:  # a malformed line or object: say where it stopped and why
             raise RecordingError(
                 f"{name}: not a valid {fmt} file at {counted.where()} (after {frames + len(chunk)} frames): "
                 f"{exc or exc.__class__.__name__}") from None
@@ -258,7 +267,7 @@ def iter_log(
     finally:
         try:
             counted.close()
-        except Exception as exc:  # noqa: BLE001 - closing a broken file may fail too
+        except OSError as exc:  # closing a broken file may fail too
             logger.debug("closing %s failed: %s", name, exc)
 
 

@@ -75,7 +75,7 @@ async def store_upload(upload: Any, directory: str | Path | None = None) -> Path
 
     :raises RecordingError: the file name is unusable, or the file cannot be written
     """
-    name = upload_name(getattr(upload, "name", ""))
+    name = upload_name(upload.name)
     folder = recordings_dir(directory) / UPLOADS_SUBDIR
     path = folder / f"{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}-{next(_UPLOAD_SERIAL):06d}-{name}"
     try:
@@ -176,14 +176,14 @@ class Recording(can.Listener):
                 )
             try:
                 self.writer.on_message_received(msg)
-            except Exception as exc:  # noqa: BLE001 - disk full, file gone: the recording ends and says why
+            except (OSError, ValueError) as exc:  # disk full, file gone or closed: the recording ends and says why
                 self.error = str(exc) or exc.__class__.__name__
                 self.stopped = self.stopped or time.time()
                 continue
             self.frames += 1
         try:
             self.writer.stop()
-        except Exception as exc:  # noqa: BLE001 - a failing close must not hide that the recording ended
+        except (OSError, ValueError) as exc:  # a failing close must not hide that the recording ended
             self.error = self.error or f"closing {self.path.name} failed: {exc}"
 
     @property
@@ -283,7 +283,7 @@ def stop_recording(state: CanBusState) -> Recording | None:
     if recorder is not None:  # some other python-can listener: stop it all the same
         try:
             recorder.stop()
-        except Exception as exc:  # noqa: BLE001 - not ours; it is detached either way
+        except (can.CanError, OSError, ValueError) as exc:  # not ours; it is detached either way
             logger.debug("%s: stopping recorder %r failed: %s", state.name, recorder, exc)
     return None
 

@@ -15,10 +15,10 @@ from tools import metrics
 LONG_MODULES: set[str] = set()  # the modules over 700 lines: none may join them
 LARGE_CLASSES: set[str] = set()  # the classes over 30 attributes: none may join them
 CEILINGS = {
-    "getattr_default": 59,
-    "hasattr": 6,
-    "except_exception": 100,
-    "private_access": 5,
+    "getattr_default": 21,
+    "hasattr": 2,
+    "except_exception": 29,
+    "private_access": 4,
     "exception_roots": 1,
 }
 

@@ -103,6 +103,31 @@ def test_fault_rising_and_clearing_is_in_the_event_log():
     assert texts == [("warning", "fault: SSR2 fuse blown"), ("info", "cleared: SSR2 fuse blown")]
 
 
+def test_alarms_are_evaluated_once_in_the_store_and_raised_on_good_data_only(monkeypatch):
+    """The publishers read the store's alarms: the tile is evaluated once per change of the points its alarms
+    follow, whoever asks (the event log's round too), and a tile on stale or offline data raises none."""
+    from devices.registry import TileSpec
+
+    store, state = _store()
+    evaluations = []
+    evaluate = TileSpec.evaluate
+    monkeypatch.setattr(TileSpec, "evaluate", lambda spec, point, now: evaluations.append(now) or evaluate(spec, point, now))
+    state.mark_seen()
+    state.publish("SSR2 Si", "blown")
+    now = time.time()
+    assert store.active_alarms("io-1", now) == ("SSR2 fuse blown",)
+    store.push(now=0.1)
+    assert store.active_alarms("io-1", now + 1) == ("SSR2 fuse blown",) and len(evaluations) == 1
+    assert [e.text for e in state.events if "fuse" in e.text] == ["fault: SSR2 fuse blown"]
+    assert store.active_alarms("io-1", now + 3600) == ()  # stale data raises no alarm
+    state.publish("SSR2 Si", "ok")
+    assert store.active_alarms("io-1") == () and len(evaluations) == 2
+    state.publish("SSR2 Si", "blown")
+    state.mark_offline("no answer to 3 requests")
+    assert store.active_alarms("io-1") == ()
+    assert store.active_alarms("nobody") == ()
+
+
 def test_going_offline_and_back_is_in_the_event_log():
     _store_, state = _store()
     state.mark_seen()
