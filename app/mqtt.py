@@ -68,7 +68,7 @@ def status_payload(state, instance: str, now: float) -> dict[str, Any]:
     return {"schema": "commission-status", "version": SCHEMA_VERSION, "instance": instance, "device": state.name,
             "type": state.type, "bus": state.bus, "status": s["status"], "online": s["online"], "last_seen": s["last_seen"],
             "last_error": s["last_error"], "counters": s["counters"], "time": now,
-            "drift": getattr(state, "drift", None)}
+            "drift": state.drift}
 
 
 def instance_payload(config: MqttConfig, plant_name: str, devices: list[str], state: str, now: float,

@@ -130,7 +130,7 @@ class RecordService:
         drift = {"approved": approved is not None, "changed": rows}
         if during:
             drift["checkout"] = during
-        if getattr(state, "drift", None) != drift:
+        if state.drift != drift:
             state.drift = drift
             text = ("no approved set" if approved is None else
                     "equal to the approved set" if not rows else
@@ -208,7 +208,7 @@ class RecordService:
         if current is not None and current.status == "running":
             raise RecordError(f"{device}: a checkout is running already")
         run = CheckoutRun(self.runtime, device, **kwargs)
-        drift = getattr(self.runtime.store.devices[device], "drift", None) or {}
+        drift = self.runtime.store.devices[device].drift or {}
         run.drift_before = {r["key"] for r in drift.get("changed", [])}  # drift that was there before the run
         self.runs[device] = run
         return run

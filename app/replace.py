@@ -233,7 +233,7 @@ class ReplacementWatch:
         self._sources[name] = None if now is None else identity_sources(state, now)
         self._keys[name] = self._key(name)
         if now is None:
-            return getattr(state, "replaced", None)
+            return state.replaced
         ref = self.known.get(name)
         if name in self._fresh_twins:
             self._fresh_twins.discard(name)
@@ -249,7 +249,7 @@ class ReplacementWatch:
         differ = differences(ref["identity"], now)
         replaced = {"old": ref["identity"], "new": now, "differs": differ, "source": ref.get("source", ""),
                     "since": time.time()} if differ else None
-        before = getattr(state, "replaced", None)
+        before = state.replaced
         if (before or {}).get("new") == (replaced or {}).get("new") and bool(before) == bool(replaced):
             return before
         version = state.version

@@ -156,7 +156,7 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
         "settings": [r for r in rows if r["setting"]],
         "live_values": [r for r in rows if not r["setting"]],
         "counts": {v: sum(r["verdict"] == v for r in rows) for v in ("equal", "changed", "not approved", "updated by the device", LIVE_VALUE)},
-        "drift": (getattr(state, "drift", None) or {}).get("changed", []),
+        "drift": (state.drift or {}).get("changed", []),
         "checkouts": runs,
         "checkout_summary": _run_summary(runs),
         "audit": [{"time": a.time, "user": a.user, "role": a.role, "action": a.action, "parameter": a.parameter,

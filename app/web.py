@@ -581,5 +581,5 @@ def _summary(state) -> dict:
         "last_seen": s["last_seen"],
         "counters": s["counters"],
         "last_error": s["last_error"],
-        "drift": getattr(state, "drift", None),  # the commissioning record: changed since approved (app/record.py)
+        "drift": state.drift,  # the commissioning record: changed since approved (app/record.py)
     }

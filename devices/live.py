@@ -222,10 +222,9 @@ class DeviceState:
     history: deque = field(default_factory=lambda: deque(maxlen=HISTORY_SECONDS * 10))
     events: deque = field(default_factory=lambda: deque(maxlen=EVENT_LIMIT))
     unsaved: set[str] = field(default_factory=set)  # parameter keys written since Save-Settings
-    # adapter-specific live facts of the families not yet moved to published points (HD-Lock, Electrak,
-    # M3IO, SCU): pages of those families still read it. A moved family (MO 64) publishes every fact as a
-    # point or a record (:meth:`fact`) and writes nothing here; tests/app/test_layering.py lists who still reads it
-    info: dict[str, Any] = field(default_factory=dict)
+    # the commissioning record's view of the device (app/record.py, app/replace.py), read by the pages and faces:
+    drift: dict | None = None  # {"approved": bool, "changed": [rows]}: changed since the approved set; None: not compared yet
+    replaced: dict | None = None  # the identity that differs from the known one ("replaced?"); None: the known one
     points: dict[str, Point] = field(default_factory=dict)  # live points by the document's names
     registers_periodic: bool = True  # False: register values are read on demand (they do not age)
     # (space, address) -> seconds between two readings of a register read more slowly than the device's
@@ -234,7 +233,7 @@ class DeviceState:
     version: int = 0  # bumped by every write below: readers follow changes by comparing it (O(1))
 
     def touch(self) -> None:
-        """Say that something changed that the writers below do not cover (an adapter's ``info``)."""
+        """Say that something changed that the writers below do not cover (the record's ``drift`` or ``replaced``)."""
         self.version += 1
 
     # -- written by adapters -------------------------------------------------------

@@ -71,12 +71,12 @@ def overview_tile(state, lang: Lang | None = None) -> dict:
 def drift_of(state: DeviceState) -> dict:
     """The device's drift from its approved set as app/record.py notes it on the record ({} before the first
     check): the record does not declare it (nor :func:`replaced_of`), so it is read here, once for every page."""
-    return getattr(state, "drift", None) or {}
+    return state.drift or {}
 
 
 def replaced_of(state: DeviceState) -> dict | None:
     """The known and the new identity while the device looks replaced (app/replace.py notes it), else None."""
-    return getattr(state, "replaced", None)
+    return state.replaced
 
 
 def drift_rows(state) -> list[dict]:

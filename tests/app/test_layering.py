@@ -375,9 +375,8 @@ def test_write_flag_reader():
 
 # -- pages read the live store and invoke declared commands, never an adapter, a twin or ``info`` (issue 27) --
 # ``worker.adapters`` (an adapter's attributes), ``runtime.twins`` (a simulator twin; the shared sim card reads
-# the twin's declared controls through Runtime.sim_controls) and ``.info`` (the untyped dict the families not
-# yet moved still write). Each file below still does; delete its line when it is moved (see the MO 64: the
-# adapter publishes every fact as a point or a record, the page reads state.live(...)).
+# the twin's declared controls through Runtime.sim_controls) and ``.info`` (an untyped dict the store once held:
+# every family publishes its facts as points or records now, and the page reads state.live(...)).
 STORE_ONLY_PENDING = {
 }
 STORE_BYPASS = ("adapters", "twins", "info")
