@@ -46,6 +46,16 @@ class Report:
 
 
 @dataclass(frozen=True, slots=True)
+class LeaseChange:
+    """The cyclic sender's own lease (the thread-safe ``devices.lease.Lease`` it reads on its own thread) follows the
+    core's: ``grant``, ``renew`` or ``revoke``. ``at``: the time it counts from (for a renewal, the controlling page's
+    last sign of life when the supervisor tells it); None: the event's time."""
+
+    what: str
+    at: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
 class ControlChanged:
     """The holder changed (``holder`` None: nobody controls the device now)."""
 

@@ -332,13 +332,10 @@ class RestoreFlow:
         others = backup.unsaved_lines(state, skip={r.key for r in to_write})
         if not await confirm_restore(self.plan.device, to_write, others, wear_text, lang):
             return
-        confirmed: set[str] = set()
-        for row in self.plan.risky(selected):  # the same confirmation a manual write of the value asks for
-            if not await confirm(_("Restore {name} = {value}?").format(name=row.name, value=row.backup_text), row.risk,
-                                 ok=_("Write anyway"), lang=lang):
-                ui.notify(_("{name} not confirmed: deselect it to restore the others").format(name=row.name), type="warning")
-                return
-            confirmed.add(row.key)
+        confirmed = await confirm_risky(self.plan.risky(selected), _("Restore {name} = {value}?"),
+                                        _("{name} not confirmed: deselect it to restore the others"), lang)
+        if confirmed is None:
+            return
         user, role = current_user()
         self.write.disable()
         report = await backup.execute_restore(self.runtime, self.plan, selected, user=user, role=role, confirmed=confirmed,
@@ -376,6 +373,20 @@ class RestoreFlow:
         n = len(self.plan.rows)
         self.summary.set_text(differ_text(changed, n, self.lang) + ("" if changed else ": " + self.lang.gettext("the device matches the backup")))
         self.write.set_visibility(changed > 0)
+
+
+async def confirm_risky(rows, question: str, unconfirmed: str, lang: Lang) -> set[str] | None:
+    """Ask for each of ``rows`` (the risky rows of a plan) the confirmation a manual write of its value asks for:
+    ``question`` and ``unconfirmed`` are texts in ``lang`` with ``{name}`` (and the question ``{value}``). The keys
+    of the confirmed rows, or None at the first one not confirmed (said with ``unconfirmed``)."""
+    _ = lang.gettext
+    confirmed: set[str] = set()
+    for row in rows:
+        if not await confirm(question.format(name=row.name, value=row.backup_text), row.risk, ok=_("Write anyway"), lang=lang):
+            ui.notify(unconfirmed.format(name=row.name), type="warning")
+            return None
+        confirmed.add(row.key)
+    return confirmed
 
 
 async def confirm_restore(device: str, to_write: list, others: list[str], wear_text: str, lang: Lang | None = None) -> bool:

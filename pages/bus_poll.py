@@ -8,6 +8,7 @@ confirmed, audited). Requests share the line with the devices' polls.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 from nicegui import app, background_tasks, ui
 
@@ -415,50 +416,19 @@ def _view(runtime, bus: str) -> None:
     background_tasks.create(view.restore(), name=f"modbus poll windows {bus}")
 
 
-def _count_field(value: int, function) -> ui.number:
-    """The count entry, its range that of the chosen function (01/02: 1 .. 2000 bits, 03/04: 1 .. 125
-    registers, :func:`app.modbus_poll.count_range`), checked in the field before Poll sends anything."""
-
-    def limits() -> tuple[int, int]:
-        return mp.count_range(int(function.value or 3))
+def _following_field(label: str, value: int, follows, limits: Callable[[], tuple[int, int]],
+                     rule: Callable[[int, int], str] = range_text) -> ui.number:
+    """A whole-number entry whose range depends on another field, ``follows``: ``limits()`` is the range now, shown
+    as the entry's hint and checked in the field; a wrong entry stays as typed, marked with ``rule(low, high)``."""
 
     def check(v) -> str | None:
         if v is None:
             return None
         low, high = limits()
-        rule = f"{range_text(low, high)} for function {int(function.value or 3):02d}"
+        text = rule(low, high)
         if float(v) != int(float(v)):
-            return f"whole numbers only, {rule}"
-        return None if low <= float(v) <= high else f"out of range: {rule}"
-
-    field = ui.number("Count", value=value, validation=check).props("dense outlined")
-
-    def show_range() -> None:
-        field.rule = range_text(*limits())  # type: ignore[attr-defined]
-        field.props(f'hint="{field.rule}"')
-        if field.value is not None:
-            field.validate()
-
-    show_range()
-    function.on_value_change(lambda _: show_range())
-    return field
-
-
-def _address_field(label: str, value: int, base) -> ui.number:
-    """An address entry whose range follows how addresses are counted: 0 .. 65535 (0-based) or 1 .. 65536
-    (1-based, register 1 = address 0); a wrong entry stays as typed, marked with the range."""
-
-    def limits() -> tuple[int, int]:
-        first = int(base.value or 0)
-        return first, mp.ADDRESS_MAX + first
-
-    def check(v) -> str | None:
-        if v is None:
-            return None
-        low, high = limits()
-        if float(v) != int(float(v)):
-            return f"whole numbers only, {range_text(low, high)}"
-        return None if low <= float(v) <= high else f"out of range: {range_text(low, high)}"
+            return f"whole numbers only, {text}"
+        return None if low <= float(v) <= high else f"out of range: {text}"
 
     field = ui.number(label, value=value, validation=check).props("dense outlined")
 
@@ -469,5 +439,26 @@ def _address_field(label: str, value: int, base) -> ui.number:
             field.validate()
 
     show_range()
-    base.on_value_change(lambda _: show_range())
+    follows.on_value_change(lambda _: show_range())
     return field
+
+
+def _count_field(value: int, function) -> ui.number:
+    """The count entry, its range that of the chosen function (01/02: 1 .. 2000 bits, 03/04: 1 .. 125
+    registers, :func:`app.modbus_poll.count_range`), checked in the field before Poll sends anything."""
+
+    def rule(low: int, high: int) -> str:
+        return f"{range_text(low, high)} for function {int(function.value or 3):02d}"
+
+    return _following_field("Count", value, function, lambda: mp.count_range(int(function.value or 3)), rule)
+
+
+def _address_field(label: str, value: int, base) -> ui.number:
+    """An address entry whose range follows how addresses are counted: 0 .. 65535 (0-based) or 1 .. 65536
+    (1-based, register 1 = address 0); a wrong entry stays as typed, marked with the range."""
+
+    def limits() -> tuple[int, int]:
+        first = int(base.value or 0)
+        return first, mp.ADDRESS_MAX + first
+
+    return _following_field(label, value, base, limits)

@@ -35,7 +35,7 @@ from app.i18n import Lang
 from app.state import DeviceState, LiveValue, session_tag
 from pages.frame import frame, set_status_badge
 from devices.params import Param
-from pages.widgets import counter_line, event_log, follow
+from pages.widgets import counter_line, event_log, follow, stop_bar
 from pages.command_client import run_command, WriteGuard
 
 
@@ -204,4 +204,20 @@ def device_page(view: DeviceView, title: str, stop: Callable[[], object] | None 
     follow(view.state, view.pushed)
 
 
-__all__ = ["DeviceView", "StatusBadge", "StatusRow", "device_page"]
+@contextmanager
+def motion_page(view: DeviceView, title: str, stop_note: str, stop_command: str) -> Iterator[None]:
+    """The page of a device that moves something: :func:`device_page` with a large STOP in the way-out bar (it sends
+    the declared command ``stop_command``; ``stop_note`` says what it does and who may press it) and the page's
+    write guard (:attr:`DeviceView.guard`: write and motion-start controls off, with the reason, while the device
+    does not answer), made before the cards."""
+    _ = view.lang.gettext
+
+    def stop() -> None:
+        stop_bar(stop_note, _("STOP"), "stop_circle", lambda: view.act(stop_command), "stop-bar", "big-stop").classes("text-h6")
+
+    with device_page(view, title, stop=stop):
+        view.guard = WriteGuard(view.state, lang=view.lang)
+        yield
+
+
+__all__ = ["DeviceView", "StatusBadge", "StatusRow", "device_page", "motion_page"]

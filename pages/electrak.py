@@ -24,13 +24,13 @@ from devices.electrak.params import BITRATE_AT_POWER_UP, BITRATE_NAMES, BITRATE_
 from devices.electrak.policy import AREA_CLEAR_RISK
 from pages.cards import DeviceCard, DrawnCard, point_values, titled_card
 from pages.charts import HistoryChart
-from pages.command_client import WriteGuard, checked_value, confirm, enable_unless, refuse, write_from_page
-from pages.device_page import DeviceView, StatusRow, device_page
+from pages.command_client import checked_value, confirm, enable_unless, refuse, write_from_page
+from pages.device_page import DeviceView, StatusRow, motion_page
 from pages.electrak_service import ServiceCard, save_parameters
 from pages.frame import fmt_age
 from pages.session import current_user
 from pages.simcontrols import sim_card
-from pages.widgets import LampStrip, entry_age, lamp_html, mark_quality, quality_note, range_number, stop_bar
+from pages.widgets import LampStrip, entry_age, lamp_html, mark_quality, quality_note, range_number
 
 WINDOW_S = 60
 TIMEOUT_BIT = 5  # error flags bit 5: Message timeout ("Fehler-Flags")
@@ -199,13 +199,8 @@ class ChartCard(DeviceCard):
 def content(name: str) -> None:
     view = ElectrakView(name)
     _ = view.lang.gettext
-
-    def stop() -> None:
-        stop_bar(_("Clears enable at once; anyone may stop, also without control."), _("STOP"), "stop_circle",
-                 lambda: view.act("stop"), "stop-bar", "big-stop").classes("text-h6")
-
-    with device_page(view, _("Electrak HD network {name}").format(name=name), stop=stop):
-        view.guard = WriteGuard(view.state, lang=view.lang)  # write and motion-start controls, disabled with the reason while the network is silent
+    with motion_page(view, _("Electrak HD network {name}").format(name=name),
+                     _("Clears enable at once; anyone may stop, also without control."), "stop"):
         view.add(NetworkCard(view))
         # chart and drive side by side from 1024 px, right under the network's values, so Go and the jog buttons are
         # in sight at 1440x900; on a tablet the drive card below the chart, each full width

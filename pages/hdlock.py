@@ -431,7 +431,43 @@ def _gate_send(view: HdLockView, button: ui.button, address: RangeNumber) -> Non
     enable_unless(button, reason)
 
 
-class SetAddressCard(DeviceCard):
+class _AddressCard(DeviceCard):
+    """What the two Set Modbus Address cards share (section 4.3): the new address and the condition masks P1 and
+    P2, their Send gated on the lock answering and the new address being valid."""
+
+    new: RangeNumber
+    p1: ui.input
+    p2: ui.input
+    button: ui.button
+
+    def follow_entries(self) -> None:
+        """Redraw on every change of the entries; gate Send now."""
+        for element in (self.new, self.p1, self.p2):
+            element.on_value_change(self.refresh)
+        _gate_send(self.view, self.button, self.new)
+
+    def entries_unchanged(self, shown: object) -> bool:
+        """:meth:`unchanged` on the entries, the lock's state and ``shown`` (what else the card is drawn from); where
+        they changed, Send is gated anew."""
+        state = self.view.state
+        if self.unchanged((state.status, state.last_error, self.new.value, self.p1.value, self.p2.value, shown),
+                          lambda: None):
+            return True
+        _gate_send(self.view, self.button, self.new)
+        return False
+
+    async def entries(self, describe: str) -> tuple[int, int, int] | None:
+        """The new address and the masks P1 and P2, or None where an entry is refused (marked on the entry and
+        audited as ``describe``)."""
+        name = self.view.name
+        value = await checked_value(self.new, name, describe, parameter="DeviceAddress")
+        masks = await _checked_masks(name, describe, self.p1, self.p2)
+        if value is None or masks is None:
+            return None
+        return int(value), *masks
+
+
+class SetAddressCard(_AddressCard):
     """Set Modbus Address (command 3) with its two condition masks and a live preview."""
 
     def build(self) -> None:
@@ -445,16 +481,11 @@ class SetAddressCard(DeviceCard):
             self.bits = ui.label().classes("text-caption")
             self.preview = ui.label().classes("text-body2")
             self.button = ui.button(_("Send Set Modbus Address"), icon="pin", on_click=self.send).props("data-testid=sa-send")
-        for element in (self.new, self.p1, self.p2):
-            element.on_value_change(self.refresh)
-        _gate_send(self.view, self.button, self.new)
+        self.follow_entries()
 
     def refresh(self) -> None:
-        state = self.view.state
-        if self.unchanged((state.status, state.last_error, self.new.value, self.p1.value, self.p2.value,
-                           self.view.inputs(("LockStatus",))), lambda: None):
+        if self.entries_unchanged(self.view.inputs(("LockStatus",))):
             return  # the gate of Send and the preview are drawn from these alone
-        _gate_send(self.view, self.button, self.new)
         lang = self.view.lang
         _ = lang.gettext
         m, e = _parse_word(self.p1.value), _parse_word(self.p2.value)
@@ -477,13 +508,11 @@ class SetAddressCard(DeviceCard):
         preview.classes(replace="text-body2 " + ("text-positive" if ok else "text-negative"))
 
     async def send(self) -> None:
-        name = self.view.name
-        value = await checked_value(self.new, name, "Set Modbus Address", parameter="DeviceAddress")
-        masks = await _checked_masks(name, "Set Modbus Address", self.p1, self.p2)
-        if value is None or masks is None:
+        entries = await self.entries("Set Modbus Address")
+        if entries is None:
             return
-        m, e = masks
-        target = int(value)
+        target, m, e = entries
+        name = self.view.name
         # the declared risk (the lock answers only at the new address) is asked by run_command
         ok, outcome = await run_command(name, "Set Modbus Address", args={"new_address": target, "mask": m, "expected": e},
                                         title=self.view.lang.gettext("Change the Modbus address to {address}?").format(
@@ -528,7 +557,7 @@ def _line_inputs(view: HdLockView) -> tuple:
     return tuple(out)
 
 
-class BroadcastAddressCard(DeviceCard):
+class BroadcastAddressCard(_AddressCard):
     """Set Modbus Address to broadcast address 255 (section 4.3): every lock on the line at once."""
 
     def build(self) -> None:
@@ -546,16 +575,12 @@ class BroadcastAddressCard(DeviceCard):
             self.known = ui.label().classes("text-body2").props("data-testid=bc-known")
             self.button = ui.button(_("Send to all locks (255)"), icon="campaign", on_click=self.send) \
                 .props("color=negative data-testid=bc-send")
-        for element in (self.new, self.p1, self.p2):
-            element.on_value_change(self.refresh)
-        _gate_send(self.view, self.button, self.new)
+        self.follow_entries()
 
     def refresh(self) -> None:
-        state = self.view.state
-        if self.unchanged((state.status, state.last_error, self.new.value, self.p1.value, self.p2.value,
-                           _line_inputs(self.view)), lambda: None):
+        if self.entries_unchanged(_line_inputs(self.view)):
             return  # the entries, the gate of Send and the locks of the line (their addresses and LockStatus) as drawn
-        _gate_send(self.view, self.button, self.new)
+        state = self.view.state
         m, e = _parse_word(self.p1.value), _parse_word(self.p2.value)
         known, statuses, in_plant, scanned = _line_locks(self.view.name, state)
         lang = self.view.lang
@@ -575,13 +600,12 @@ class BroadcastAddressCard(DeviceCard):
         self.known.set_text(text)
 
     async def send(self) -> None:
-        name, bus, describe = self.view.name, self.view.state.bus, "Broadcast Set Modbus Address (255)"
-        value = await checked_value(self.new, name, describe, parameter="DeviceAddress")
-        masks = await _checked_masks(name, describe, self.p1, self.p2)
-        if value is None or masks is None:
+        describe = "Broadcast Set Modbus Address (255)"
+        entries = await self.entries(describe)
+        if entries is None:
             return
-        m, e = masks
-        target = int(value)
+        target, m, e = entries
+        name, bus = self.view.name, self.view.state.bus
         known, statuses, in_plant, scanned = _line_locks(name, self.view.state)
         lang = self.view.lang
         _ = lang.gettext

@@ -4,6 +4,7 @@ an entry in its range or of its named choices and Write."""
 from __future__ import annotations
 
 import html
+from collections.abc import Callable
 
 from nicegui import ui
 
@@ -233,14 +234,9 @@ async def _param_value(device: str, param: Mo64Param, field):
     if isinstance(field, ui.number):
         value = await checked_value(field, device, f"write {param.name}", parameter=param.name)
         return None if value is None else (value if param.scale != 1 else int(value))
-    value = field.value
-    problem = "enter a value first" if not (value or "").strip() else _number_problem(param, value)
-    if problem:
-        field.error = i18n.client_language().gettext(problem)  # the audit row below stays as written: English
-        await refuse(device, f"write {param.name}", f"{value!r}: {problem}", parameter=param.name, new=value or "")
+    if await _text_refused(device, f"write {param.name}", param.name, field, lambda text: _number_problem(param, text)):
         return None
-    field.error = None
-    return param.decode(param.validate(value.strip()))
+    return param.decode(param.validate(field.value.strip()))
 
 
 def _limits(key: str) -> tuple[int, int]:
@@ -269,14 +265,22 @@ async def _entry_value(device: str, key: str, field):
         if value is None:
             return None
         return round(float(value) / codec.TIME_STEP_S) if key in TIME_KEYS else int(value)
+    if await _text_refused(device, f"set {setting.name}", setting.name, field, lambda text: _raw_problem(key, text)):
+        return None
+    return _parse(key, field.value)
+
+
+async def _text_refused(device: str, action: str, name: str, field, problem_of: Callable[[str], str | None]) -> bool:
+    """Whether the text entry of setting ``name`` is refused: empty, or ``problem_of(text)`` names a problem. A
+    refused entry keeps what was typed, marked with the reason, and the refusal is audited as ``action``."""
     text = field.value
-    problem = "enter a value first" if not (text or "").strip() else _raw_problem(key, text)
+    problem = "enter a value first" if not (text or "").strip() else problem_of(text)
     if problem:
         field.error = i18n.client_language().gettext(problem)  # the audit row below stays as written: English
-        await refuse(device, f"set {setting.name}", f"{text!r}: {problem}", parameter=setting.name, new=text or "")
-        return None
+        await refuse(device, action, f"{text!r}: {problem}", parameter=name, new=text or "")
+        return True
     field.error = None
-    return _parse(key, text)
+    return False
 
 
 def _parse(key: str, text: str | None):

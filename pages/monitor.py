@@ -13,6 +13,7 @@ most ``SHOWN`` transactions.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from datetime import datetime
 
 from nicegui import ui
@@ -82,6 +83,18 @@ def parse_address(text: str) -> tuple[int, int] | None:
     if not 0 <= low <= high <= 0xFFFF:
         raise ValueError("an address is 0 ... 65535, a range first-last")
     return low, high
+
+
+def _parsed(field: ui.input, parse: Callable[[str], object], rule: str):
+    """``parse(field.value)``, the field's error mark cleared; a ValueError marks the field with ``rule`` and is
+    raised on."""
+    try:
+        value = parse(field.value)
+    except ValueError:
+        field.props(f'error error-message="{rule}"')
+        raise
+    field.props(remove="error")
+    return value
 
 
 def transaction_matches(t, unit: int | None, function: int | None, address: tuple[int, int] | None) -> bool:
@@ -287,18 +300,10 @@ class ModbusMonitor(LineMonitor):
         return t.request, self.decoder.decoded(t), "" if function is None else FUNCTIONS.get(function, f"{function:02d}")
 
     def filters(self) -> tuple[int | None, int | None, tuple[int, int] | None] | None:
-        unit_filter, address_filter = self.unit_filter, self.address_filter
         try:
-            unit = parse_unit(unit_filter.value)
-            unit_filter.props(remove="error")
+            unit = _parsed(self.unit_filter, parse_unit, "0 ... 247")
+            address = _parsed(self.address_filter, parse_address, "0 ... 65535 or first-last")
         except ValueError:
-            unit_filter.props('error error-message="0 ... 247"')
-            return None
-        try:
-            address = parse_address(address_filter.value)
-            address_filter.props(remove="error")
-        except ValueError:
-            address_filter.props('error error-message="0 ... 65535 or first-last"')
             return None
         return unit, (self.function_filter.value or None), address
 

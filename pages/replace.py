@@ -10,14 +10,13 @@ from nicegui import ui
 from app import backup, i18n, replace
 from app import runtime as rt
 from app.i18n import N_, Lang
-from pages.backup import DIFF_COLUMNS, STATE_TEXT_SLOT, confirm_restore, differ_text, state_text
+from pages.backup import DIFF_COLUMNS, STATE_TEXT_SLOT, confirm_restore, confirm_risky, differ_text, state_text
 from pages.diffrows import row_state
 from pages.frame import ACTION_ERRORS, frame, notify_error
 from pages.overview import replaced_of
 from pages.session import can_write, current_user
 from pages.simcontrols import sim_card
 from pages.widgets import columns, follow
-from pages.command_client import confirm
 
 
 def notice(name: str, lang: Lang | None = None) -> None:
@@ -194,13 +193,10 @@ class Assistant:
         others = backup.unsaved_lines(self.state, skip={r.key for r in to_write})
         if not await confirm_restore(self.name, to_write, others, "", lang):
             return
-        confirmed: set[str] = set()
-        for row in self.rp.plan.risky(selected):
-            if not await confirm(_("Write {name} = {value}?").format(name=row.name, value=row.backup_text), row.risk,
-                                 ok=_("Write anyway"), lang=lang):
-                ui.notify(_("{name} not confirmed: deselect it to write the others").format(name=row.name), type="warning")
-                return
-            confirmed.add(row.key)
+        confirmed = await confirm_risky(self.rp.plan.risky(selected), _("Write {name} = {value}?"),
+                                        _("{name} not confirmed: deselect it to write the others"), lang)
+        if confirmed is None:
+            return
         user, role = current_user()
         self.write.disable()
         try:

@@ -23,16 +23,16 @@ from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.adapter import chart_points
 from pages.cards import DrawnCard, point_values, titled_card
-from pages.device_page import StatusRow, device_page
+from pages.device_page import StatusRow, motion_page
 from pages.scu_data import DirectoryCard, ServiceCard, SettingsCard
 from pages.scu_view import Access, ScuView
 from pages.frame import fmt_age
 from pages.simcontrols import sim_card
 from pages.widgets import entry_age, follow
-from pages.command_client import checked_value, confirm, enable_unless, WriteGuard
+from pages.command_client import checked_value, confirm, enable_unless
 from pages.charts import HistoryChart
 from pages.widgets import html_attr, INT32_LIMIT, lamp_html, LampStrip, mark_quality, quality_note, range_number
-from pages.widgets import stop_bar, value_html
+from pages.widgets import value_html
 
 # Actuator status 1 (0x0171..) and 2 (0x00E1..): point key -> its words in table 6 (the adapter publishes one point per bit)
 STATUS_BITS = {f.name: f.description for f in p.ACTUATOR_STATUS_1.fields + p.ACTUATOR_STATUS_2.fields}
@@ -586,13 +586,8 @@ class FunctionsCard(DrawnCard):
 def content(name: str) -> None:
     view = ScuView(name)
     _ = view.lang.gettext
-
-    def stop() -> None:
-        stop_bar(_("RS to every running function; anyone may stop, also without control."), _("STOP"), "stop_circle",
-                 lambda: view.act("stop (RS)"), "stop-bar", "big-stop").classes("text-h6")
-
-    with device_page(view, _("Ewellix SCU {name}").format(name=name), stop=stop):
-        view.guard = WriteGuard(view.state, lang=view.lang)  # why write and motion-start controls are off while the unit does not answer
+    with motion_page(view, _("Ewellix SCU {name}").format(name=name),
+                     _("RS to every running function; anyone may stop, also without control."), "stop (RS)"):
         for card in (EstopCard(view), SessionCard(view), PositionsCard(view), StatusCard(view), SupplyCard(view), ErrorsCard(view),
                      DriveCard(view), FunctionsCard(view), SettingsCard(view), DirectoryCard(view), ServiceCard(view)):
             view.add(card)

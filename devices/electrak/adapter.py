@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 
 from devices.adapter import BackupDefaults
 from devices import errors
-from devices.control import ControlChanged, Report
+from devices.control import ControlChanged, LeaseChange, Report
 from devices.control import Holder as CoreHolder
 from devices.electrak import codec, control
 from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, SERVICE, length_of, password_of, refusal
@@ -330,12 +330,13 @@ class ElectrakAdapter(BackupDefaults):
                                         lease=self.lease, stop_form=stop_form, on_lapse=self._lapsed)
             elif kind is control.StopPeriodic:
                 self.bus.stop_cyclic(self.key)
-            elif kind is control.LeaseGranted:
-                self.lease.grant(action.at)
-            elif kind is control.LeaseRenewed:
-                self.lease.renew(action.at)
-            elif kind is control.LeaseRevoked:
-                self.lease.revoke()
+            elif kind is LeaseChange:
+                if action.what == "grant":
+                    self.lease.grant(action.at)
+                elif action.what == "renew":
+                    self.lease.renew(action.at)
+                else:
+                    self.lease.revoke()
             elif kind is Report:
                 self.state.event(action.level, action.text)
             elif kind in (control.CommandChanged, ControlChanged):

@@ -27,7 +27,7 @@ from __future__ import annotations
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass, replace
 
-from devices.control import LEASE_S, ControlChanged, ControlSession, Decision, Report, Stop
+from devices.control import LEASE_S, ControlChanged, ControlSession, Decision, LeaseChange, Report, Stop
 from devices.electrak import codec
 
 OVERRIDE_PULSE_S = 0.3  # three control periods carry the override/reset bit, then it is cleared by itself
@@ -70,23 +70,6 @@ class ModifyPeriodic:
 @dataclass(frozen=True, slots=True)
 class StopPeriodic:
     """Stop the periodic sender."""
-
-
-@dataclass(frozen=True, slots=True)
-class LeaseGranted:
-    """The lease of what runs was granted at ``at`` (the sender's thread-safe lease follows it)."""
-
-    at: float
-
-
-@dataclass(frozen=True, slots=True)
-class LeaseRenewed:
-    at: float
-
-
-@dataclass(frozen=True, slots=True)
-class LeaseRevoked:
-    """Nothing runs any more: the lease ends without a lapse."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -339,13 +322,13 @@ class ElectrakControl:
             lease = self.session.lease
             at = min(now, max(beat_at, lease.renewed_at or beat_at))  # a press since is a sign of life too
             if h.disconnected is None and lease.valid(now) and lease.renew(at):
-                actions.append(LeaseRenewed(at))
+                actions.append(LeaseChange("renew", at))
             return actions + self._carry(self.session.tick(now), now)
         renewed = self.session.lease.renewed_at
         base = self.session.beat(alive, now)
         actions += self._carry(base, now)
         if self.session.running and self.session.lease.renewed_at != renewed:
-            actions.append(LeaseRenewed(now))
+            actions.append(LeaseChange("renew", now))
         return actions
 
     def tick(self, now: float) -> list:
@@ -373,10 +356,10 @@ class ElectrakControl:
         runs = frame.enable or frame.override
         if runs and self.session.holder is not None:
             self.session.started(now)  # a press of the holder's page just now: it is alive
-            actions.append(LeaseGranted(now))
+            actions.append(LeaseChange("grant", now))
         elif not runs and self.session.running:
             self.session.idle()
-            actions.append(LeaseRevoked())
+            actions.append(LeaseChange("revoke"))
         if not runs:
             self.override_until = None
         self.command = frame
@@ -407,7 +390,7 @@ class ElectrakControl:
                     if self.sending:
                         out.append(ModifyPeriodic(self.command))
                     out.append(CommandChanged(self.command))
-                out.append(LeaseRevoked())
+                out.append(LeaseChange("revoke"))
                 if lapse:
                     lease = self.session.lease
                     renewed = lease.renewed_at
@@ -431,6 +414,6 @@ class ElectrakControl:
         if self.sending:
             actions.append(StopPeriodic())
             self.sending = False
-        actions += [LeaseRevoked(), Send(c), CommandChanged(c), ControlChanged(None),
+        actions += [LeaseChange("revoke"), Send(c), CommandChanged(c), ControlChanged(None),
                     Report(level, f"control {reason} ({user}): enable cleared, control telegrams stopped")]
         return actions

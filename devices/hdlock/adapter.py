@@ -346,11 +346,7 @@ class HdLockAdapter(HdLockBackup):
         old = self.address
         if new_address == old:
             raise CommandError(f"the lock has address {old} already")
-        await self._address_free(new_address)
-        try:
-            writes = codec.encode_system_command(codec.SystemCommand.SET_MODBUS_ADDRESS, new_address, mask, expected).writes
-        except codec.CodecError as exc:
-            raise CommandError(str(exc)) from None
+        writes = await self._set_address_writes(new_address, mask, expected)
         self._changing_address = True
         try:
             try:
@@ -397,11 +393,7 @@ class HdLockAdapter(HdLockBackup):
         known = dict(known or {})
         if new_address in known:
             raise CommandError(f"address {new_address} is {known[new_address]}: choose an address no lock uses")
-        await self._address_free(new_address)
-        try:
-            writes = codec.encode_system_command(codec.SystemCommand.SET_MODBUS_ADDRESS, new_address, mask, expected).writes
-        except codec.CodecError as exc:
-            raise CommandError(str(exc)) from None
+        writes = await self._set_address_writes(new_address, mask, expected)
         unit = codec.MODBUS_BROADCAST_SET_ADDRESS
 
         async def send_quietly(client, register: int, value: int) -> None:
@@ -480,6 +472,15 @@ class HdLockAdapter(HdLockBackup):
         except LineError:
             return None
         return codec.serial_number(high, low)
+
+    async def _set_address_writes(self, new_address: int, mask: int, expected: int) -> tuple[tuple[int, int], ...]:
+        """The register writes of Set Modbus Address (section 4.3), once no lock answers at ``new_address``; a value
+        the codec refuses is a :class:`CommandError`."""
+        await self._address_free(new_address)
+        try:
+            return codec.encode_system_command(codec.SystemCommand.SET_MODBUS_ADDRESS, new_address, mask, expected).writes
+        except codec.CodecError as exc:
+            raise CommandError(str(exc)) from None
 
     async def _address_free(self, address: int) -> None:
         """Section 2.2: every lock needs an address of its own."""

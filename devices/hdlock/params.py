@@ -37,6 +37,13 @@ HOLDING = "holding"
 # input 7 "Calculated proxi (normalized)" and holding 1005 give in [Inc] (sections 3.1, 3.2, 3.2.7, 3.2.8).
 PROXIMITY_UNIT = "Inc"
 
+
+def _command_register(name: str, address: int, description: str) -> Param:
+    """One of holding 2000-2003, the parameters and the ID of a system command (section 4): default 0, written only
+    by the system-command path, never as a parameter."""
+    return Param(name, HOLDING, address, Access.RW, never_write=True, default=0, description=description)
+
+
 # -- the register map ---------------------------------------------------------------------
 
 _INPUTS: list[Param] = [
@@ -472,32 +479,24 @@ _HOLDINGS: list[Param] = [
         label="MaxMotorCurrent (HR1010)",
         description="Maximum motor current. (section 3.2)",
     ),
-    Param(
-        "Parameter 0", HOLDING, 2000, Access.RW,
-        never_write=True,  # command register: written only by the system-command path
-        default=0,
-        description="Parameter 0 of a system command (Set Modbus Address: new address). "
+    _command_register(
+        "Parameter 0", 2000,
+        "Parameter 0 of a system command (Set Modbus Address: new address). "
         "Default 0. (sections 3.2, 4)",
     ),
-    Param(
-        "Parameter 1", HOLDING, 2001, Access.RW,
-        never_write=True,  # command register: written only by the system-command path
-        default=0,
-        description="Parameter 1 of a system command (Set Modbus Address: selection mask "
+    _command_register(
+        "Parameter 1", 2001,
+        "Parameter 1 of a system command (Set Modbus Address: selection mask "
         "of LockStatus bits). Default 0. (sections 3.2, 4)",
     ),
-    Param(
-        "Parameter 2", HOLDING, 2002, Access.RW,
-        never_write=True,  # command register: written only by the system-command path
-        default=0,
-        description="Parameter 2 of a system command (Set Modbus Address: required states "
+    _command_register(
+        "Parameter 2", 2002,
+        "Parameter 2 of a system command (Set Modbus Address: required states "
         "of the selected bits). Default 0. (sections 3.2, 4)",
     ),
-    Param(
-        "Command", HOLDING, 2003, Access.RW,
-        never_write=True,  # command register: written only by the system-command path
-        default=0,
-        description="Command ID, written after parameters 0-2: 1 = Save-Settings, "
+    _command_register(
+        "Command", 2003,
+        "Command ID, written after parameters 0-2: 1 = Save-Settings, "
         "2 = Restore-Settings, 3 = Set Modbus Address. Default 0. (sections 3.2, 4)",
     ),
     Param(

@@ -28,7 +28,7 @@ import math
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 
-from devices.control import LEASE_S, ControlChanged, ControlSession, Decision, Holder, Report, Stop
+from devices.control import LEASE_S, ControlChanged, ControlSession, Decision, Holder, LeaseChange, Report, Stop
 from devices.m3io import codec
 from devices.m3io.codec import Variant
 
@@ -64,15 +64,6 @@ class DigOut:
 @dataclass(frozen=True, slots=True)
 class EndKeepAlive:
     """Stop the cyclic DigOut and the Sync cfg: the module's watchdog switches its outputs off within 2 s."""
-
-
-@dataclass(frozen=True, slots=True)
-class LeaseChange:
-    """The sender's lease: ``grant``, ``renew`` or ``revoke`` at the event's time; a renewal counts from ``at``
-    (the controlling page's last sign of life when the supervisor tells it, else the event's time)."""
-
-    what: str
-    at: float | None = None
 
 
 def stop_form(data: bytes) -> bytes:

@@ -31,14 +31,11 @@ from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, rule
 
 from devices.commands import commands_of
-from devices.control import LEASE_S, LeaseState
+from devices.control import LEASE_S, LeaseChange, LeaseState
 from devices.electrak import codec
 from devices.electrak.control import (
     OVERRIDE_PULSE_S,
     ElectrakControl,
-    LeaseGranted,
-    LeaseRenewed,
-    LeaseRevoked,
     ModifyPeriodic,
     Send,
     StartPeriodic,
@@ -126,11 +123,11 @@ class ElectrakSafety(RuleBasedStateMachine):
                     self.emit(t, self.sender_form(t, a.frame))
             elif isinstance(a, StopPeriodic):
                 self.periodic = None
-            elif isinstance(a, LeaseGranted):
+            elif isinstance(a, LeaseChange) and a.what == "grant":
                 self.sender_lease.grant(a.at)
-            elif isinstance(a, LeaseRenewed):
+            elif isinstance(a, LeaseChange) and a.what == "renew":
                 self.sender_lease.renew(a.at)
-            elif isinstance(a, LeaseRevoked):
+            elif isinstance(a, LeaseChange) and a.what == "revoke":
                 self.sender_lease.revoke()
 
     def sender_form(self, t: float, frame: codec.ControlFrame) -> codec.ControlFrame:
