@@ -259,7 +259,8 @@ class ReplacementWatch:
                                    f"({ref.get('source', '')}), now {identity_text(now)}")
         elif before:
             state.event("info", f"identity as known again: {identity_text(now)}")
-        state.version = version + 1
+        state.version = version  # the events above and the record's change: one change for its readers
+        state.touch()
         return replaced
 
     def approved(self, name: str, identity: dict) -> None:

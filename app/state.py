@@ -99,32 +99,6 @@ class _Group:
         self.handle: asyncio.Handle | None = None
 
 
-class _Devices(dict):
-    """The store's devices: each device record added tells the store when it changes (see :meth:`StateStore.adopt`)."""
-
-    def __init__(self, store: "StateStore"):
-        super().__init__()
-        self._store = store
-
-    def __setitem__(self, name: str, state: DeviceState) -> None:
-        super().__setitem__(name, self._store.adopt(state))
-
-
-def _notifying_class(store: "StateStore") -> type:
-    """A DeviceState whose ``version`` tells ``store`` when it moves: the same record (same fields, same
-    class for ``isinstance``), but every writer of it (adapters bump ``version``) now says that it changed."""
-    changed = store.changed
-
-    def get_version(self) -> int:
-        return self.__dict__["version"]
-
-    def set_version(self, value: int) -> None:
-        self.__dict__["version"] = value
-        changed(self.__dict__["name"])
-
-    return type("DeviceState", (DeviceState,), {"version": property(get_version, set_version), "__slots__": ()})
-
-
 class StateStore:
     """All live state of one plant, and the one producer that tells its readers what changed.
 
@@ -156,8 +130,7 @@ class StateStore:
         self._thread: int | None = None
         self._fan_handle: asyncio.Handle | None = None
         self._age_handle: asyncio.TimerHandle | None = None
-        self._notifying = _notifying_class(self)
-        self.devices: dict[str, DeviceState] = _Devices(self)
+        self.devices: dict[str, DeviceState] = {}  # added by :meth:`add`, each then telling the store of its changes
         self.push_errors = 0
         self.calls = 0  # watcher calls so far (for benchmarks and tests)
         # while watchers run: whether this call is their device's once-a-second round (a watcher
@@ -167,10 +140,11 @@ class StateStore:
     def device(self, name: str) -> DeviceState:
         return self.devices[name]
 
-    def adopt(self, state: DeviceState) -> DeviceState:
-        """Make ``state`` tell this store when it changes (its class becomes the store's DeviceState)."""
-        if type(state) is DeviceState:
-            state.__class__ = self._notifying
+    def add(self, state: DeviceState) -> DeviceState:
+        """Keep ``state`` as the record of its device; from now on each of its writes tells this store
+        (``DeviceState.touch``: the one call that notifies)."""
+        state.on_change = self.changed
+        self.devices[state.name] = state
         self._changed(state.name)
         return state
 
@@ -245,12 +219,12 @@ class StateStore:
         self._loop = None
 
     def changed(self, name: str) -> None:
-        """A device record was written (the call its ``version`` makes when it moves): its readers are called soon,
-        once for all writes of this turn of the loop."""
+        """A device record was written (its ``touch``, the call every write of it ends with): its readers are called
+        soon, once for all writes of this turn of the loop."""
         self._changed(name)
 
     def _changed(self, name: str) -> None:
-        """A device record was written (from its ``version``): fan out soon, once for all writes of this turn."""
+        """A device record was written: fan out soon, once for all writes of this turn."""
         if name in self._pending:
             return
         self._pending.add(name)

@@ -231,10 +231,16 @@ class DeviceState:
     # cycle (settings and identity an adapter reads every few seconds): stale after STALE_READINGS of them
     register_every: dict[tuple[str, int], float] = field(default_factory=dict)
     version: int = 0  # bumped by every write below: readers follow changes by comparing it (O(1))
+    # the store this record belongs to, told of every change (StateStore.add); None: a record of its own (a test's)
+    on_change: Callable[[str], object] | None = field(default=None, repr=False, compare=False)
 
     def touch(self) -> None:
-        """Say that something changed that the writers below do not cover (the record's ``drift`` or ``replaced``)."""
+        """Say that something changed: every writer below ends with it, and so does a writer of what they do not
+        cover (the record's ``drift`` or ``replaced``). The version moves on and the store, if any, is told (the
+        one call that notifies, as Home Assistant's ``async_write_ha_state``)."""
         self.version += 1
+        if self.on_change is not None:
+            self.on_change(self.name)
 
     # -- written by adapters -------------------------------------------------------
     def update_registers(self, space: str, start: int, values: list[int], now: float | None = None) -> None:
@@ -247,7 +253,7 @@ class DeviceState:
                 time: float | None = None, periodic: bool = True, every: float | None = None) -> None:
         """Record the live point ``name`` (O(1); one record per name, replaced on every update)."""
         self.points[name] = Point(value, unit, _now() if time is None else time, raw, text, periodic, every)
-        self.version += 1
+        self.touch()
 
     def publish_telegram(self, now: float, points: Mapping[str, Point], registers: Mapping[tuple[str, int], int] | None = None,
                          sample: Callable[[], dict[str, Any]] | None = None) -> None:
@@ -280,7 +286,7 @@ class DeviceState:
             self.last_error_time = None
         self.online = True
         self.last_seen = time.time() if now is None else now
-        self.version += 1
+        self.touch()
 
     def mark_offline(self, message: str) -> None:
         if self.online is not False:
@@ -291,13 +297,13 @@ class DeviceState:
     def error(self, message: str, log: bool = True) -> None:
         self.last_error = message
         self.last_error_time = time.time()
-        self.version += 1
+        self.touch()
         if log:
             self.event("error", message)
 
     def event(self, level: str, text: str) -> None:
         self.events.append(Event(time.time(), level, text))
-        self.version += 1
+        self.touch()
 
     def sample_of(self, names: tuple[str, ...] | list[str]) -> dict[str, Any]:
         """A chart sample of the published points ``names`` as they are now, keyed by the points' own names (so the
@@ -318,7 +324,7 @@ class DeviceState:
         Families not yet moved key their samples by chart labels (HD-Lock "BoltPosition [Inc]" for the
         point "BoltPosition"); moved ones use :meth:`record_history`, keyed by point names."""
         self._append_history(sample, time.time() if now is None else now)
-        self.version += 1
+        self.touch()
 
     def _append_history(self, sample: dict[str, Any], now: float) -> None:
         history = self.history

@@ -45,7 +45,7 @@ class Devices:
             dev.name, dev.type, dev.bus, params=device_type.params,
             stale_after=max(3.0, 3 * period + 2 * bus.options.get("timeout", 0.5)),
         )
-        self.store.devices[dev.name] = state
+        self.store.add(state)
         transport = self.transports.of(dev.bus)
         self.adapters[dev.name] = device_type.adapter_class(bus.type)(dev, state, transport)
         if isinstance(transport, ModbusLine) and isinstance(dev.options.get("address"), int):

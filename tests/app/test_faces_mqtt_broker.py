@@ -34,7 +34,7 @@ def _publisher(url: str, extra: str = "") -> MqttPublisher:
     state = DeviceState("door-1", "hdlock", "line1", stale_after=1e9)
     state.mark_seen()
     state.publish("Speed", 1.5, "rpm")
-    store.devices["door-1"] = state
+    store.add(state)
     return MqttPublisher(plant.mqtt, store, "cab-a")
 
 

@@ -29,7 +29,7 @@ async def server():
     state = DeviceState("pump", "hdlock", "line1", stale_after=1e9)
     state.mark_seen()
     state.publish("Speed", 1.5, "rpm")
-    store.devices["pump"] = state
+    store.add(state)
     srv = OpcuaServer(plant.opcua, store, plant)
     await srv.start()
     srv.url = f"opc.tcp://127.0.0.1:{port}"

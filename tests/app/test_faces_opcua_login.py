@@ -43,7 +43,7 @@ def _server(tmp_path, anonymous: bool, users=None, throttle=None, audit=None):
     flag = "true" if anonymous else "false"
     plant = parse_plant(f'name = "p"\n[opcua]\nendpoint = "opc.tcp://127.0.0.1:{port}"\nanonymous = {flag}\n')
     store = StateStore()
-    store.devices["pump"] = DeviceState("pump", "hdlock", "line1")
+    store.add(DeviceState("pump", "hdlock", "line1"))
     server = OpcuaServer(plant.opcua, store, plant, users=users, audit=audit, throttle=throttle)
     return server, f"opc.tcp://127.0.0.1:{port}"
 

@@ -23,7 +23,7 @@ DCMD = "spBv1.0/hall/DCMD/cab/door-1"
 def _node(tmp_path):
     plant = parse_plant('name = "cab"\n[mqtt]\nurl = "mqtt://127.0.0.1:1883"\nsite = "hall"\nsparkplug = true\n')
     store = StateStore()
-    store.devices["door-1"] = DeviceState("door-1", "hdlock", "line1")
+    store.add(DeviceState("door-1", "hdlock", "line1"))
     audit = AuditLog(tmp_path / "audit.sqlite")
     return SparkplugNode(plant.mqtt, store, "cab", audit=audit), store, audit
 

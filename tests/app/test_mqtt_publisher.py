@@ -55,7 +55,7 @@ async def test_queue_is_bounded_and_changes_only_while_the_broker_is_away():
     from devices.live import DeviceState
 
     for i in range(5):
-        store.devices[f"d{i}"] = DeviceState(f"d{i}", "hdlock", "line1", stale_after=1e9)
+        store.add(DeviceState(f"d{i}", "hdlock", "line1", stale_after=1e9))
     pub = MqttPublisher(plant.mqtt, store, "p")
     pub.sample(now=1000.0)
     queued = len(pub._pending)

@@ -119,7 +119,7 @@ async def test_accounts_only_when_anonymous_is_off(tmp_path):
     port = free_port()
     plant = parse_plant(f'name = "p"\n[opcua]\nendpoint = "opc.tcp://127.0.0.1:{port}"\nanonymous = false\n')
     store = StateStore()
-    store.devices["pump"] = DeviceState("pump", "hdlock", "line1")
+    store.add(DeviceState("pump", "hdlock", "line1"))
     server = OpcuaServer(plant.opcua, store, plant, users=users)
     await server.start()
     try:

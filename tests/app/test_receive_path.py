@@ -13,7 +13,6 @@ import can
 import pytest
 
 from app.plant import parse_plant
-from app.state import _notifying_class
 from app.worker import Worker
 from devices.hdlock import STATUS_FRAME_BOLT, codec
 from devices.hdlock.adapter import P_FWU, P_PROXIMITY_FRAME, P_SOURCE_FRAME, P_STATUS_FRAME
@@ -47,7 +46,7 @@ def lock(request):
 
     store._changed = counting
     state = store.devices["gate-1"]
-    state.__class__ = _notifying_class(store)  # a record tells the store through the function its class was made with
+    assert state.on_change == store.changed  # a record tells its store through the one call every write ends with
     return w, w.can_buses["can1"], state, calls
 
 

@@ -305,7 +305,7 @@ async def test_primary_host_state_is_honoured(tmp_path):
         state = DeviceState("pump", "hdlock", "line1", stale_after=1e9)
         state.mark_seen()
         state.publish("Speed", 1.5, "rpm")
-        store.devices["pump"] = state
+        store.add(state)
         node = SparkplugNode(plant.mqtt, store, "cab-c")
         async with Host(broker.port) as host:
             await node.start()

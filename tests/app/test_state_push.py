@@ -12,7 +12,7 @@ from app.state import AGE_PERIOD_S, AHEAD, PAGE_GAP_S, PUSH_PERIOD_S, DeviceStat
 def _store() -> tuple[StateStore, DeviceState]:
     store = StateStore()
     state = DeviceState("io-1", "m3io", "can0")
-    store.devices["io-1"] = state
+    store.add(state)
     return store, state
 
 
@@ -48,7 +48,7 @@ def test_once_a_second_rounds_of_many_devices_are_spread_over_the_second():
     store = StateStore()
     calls: list[str] = []
     for i in range(20):  # 20 devices, each shown on a page
-        store.devices[f"d{i}"] = DeviceState(f"d{i}", "m3io", "can0")
+        store.add(DeviceState(f"d{i}", "m3io", "can0"))
         store.watch(f"d{i}", lambda i=i: calls.append(f"d{i}"))
     assert store.push(now=100.0) == 20  # first round: everything is new
     per_round = []
@@ -261,7 +261,7 @@ def test_a_page_following_many_devices_runs_them_together():
             runs.append(turn[0])
 
         for i in range(10):
-            store.devices[f"d{i}"] = DeviceState(f"d{i}", "m3io", "can0")
+            store.add(DeviceState(f"d{i}", "m3io", "can0"))
             store.watch(f"d{i}", called, group="page-1")
         await asyncio.sleep(0.2)  # the store's first round (everything new) is over
         runs.clear()

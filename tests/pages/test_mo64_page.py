@@ -80,17 +80,25 @@ async def test_mo64_page_shows_the_gate_and_opens_after_the_confirmation(env):
 
 async def test_a_viewer_cannot_clear_levels_or_release_the_connection(env, monkeypatch):
     user, runtime = env
+    # what is under test is the viewer's refusal, not the dead-man (tests/safety): the engineer's hold must not lapse
+    # because this process starves on a loaded machine (0.4 s without a beat ends it, as it should)
+    monkeypatch.setattr("app.worker.deadman.DEADMAN_TIMEOUT_S", 10.0)
+    monkeypatch.setattr("app.worker.deadman.SILENCE_LIMIT_S", 10.0)
     adapter = runtime.worker.adapters["gate"]
+    adapter.core.lease_s = 10.0  # the barrier's own dead-man lease (devices/mo64/control.py), likewise
     await eventually(lambda: "Gate state" in adapter.state.points, timeout=10)
     async with alive(runtime.worker, "engineer-1"):  # the engineer's browser stays alive for this test
         await runtime.worker.gate.invoke("gate", "close activate", user="anna", role="engineer", session="engineer-1",
                                          confirmed=True)
         await user.open("/device/gate")
         monkeypatch.setattr("pages.session.current_user", lambda: ("tablet", "viewer"))
+        # the page's write guard holds the buttons disabled while the barrier's answers are late (a loaded machine)
+        await eventually(lambda: by_testid(user, "clear-levels").enabled, timeout=15, what="clear levels enabled")
         UserInteraction(user, {by_testid(user, "clear-levels")}, None).click()  # refused by the gate before any question
         await eventually(lambda: any("refused for tablet: clear levels: the viewer role may not" in e.text for e in adapter.state.events),
                          timeout=10)
         assert adapter.holders() == {"engineer-1"} and twin(runtime).levels[2]  # still active in the barrier
+        await eventually(lambda: by_testid(user, "release").enabled, timeout=15, what="release enabled")
         UserInteraction(user, {by_testid(user, "release")}, None).click()
         await eventually(lambda: any("refused for tablet: release the connection: the viewer role may not" in e.text for e in adapter.state.events),
                          timeout=10)
