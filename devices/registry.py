@@ -155,18 +155,18 @@ class TileSpec:
                 lines.append(line.template.format(list=", ".join(on) if on else line.missing))
             elif line.values:
                 # no-break spaces inside an item: a wrapped line breaks between items only
-                items = [line.item.format(label=label, **_fill(entry)).replace(" ", "\u00a0") for name, label in line.values
+                items = [line.item.format(label=label, **template_fields(entry)).replace(" ", "\u00a0") for name, label in line.values
                          if (entry := entries.get(name)) is not None]
                 if items or line.missing:  # a values line with nothing heard and no ``missing`` text is left out
                     lines.append(line.template.format(list=" · ".join(items)) if items else line.missing)
             else:
                 entry = entries.get(line.point)
-                lines.append(line.missing if entry is None else line.template.format(**_fill(entry)))
+                lines.append(line.missing if entry is None else line.template.format(**template_fields(entry)))
         alarms = []
         for alarm in self.alarms:
             entry = entries.get(alarm.when.point)
             if alarm.when.holds(entry) and not (alarm.unless is not None and alarm.unless.holds(point(alarm.unless.point))):
-                alarms.append(alarm.text.format(**_fill(entry)))
+                alarms.append(alarm.text.format(**template_fields(entry)))
         bar = None
         if self.bar is not None:
             heard = [e for name in self.bar.sources() if (e := entries.get(name)) is not None]
@@ -185,7 +185,8 @@ class TileSpec:
         return {"lines": lines, "alarms": alarms, "bar": bar, "icon": icon, "quality": quality, "age": age}
 
 
-def _fill(entry: dict[str, Any]) -> dict[str, Any]:
+def template_fields(entry: dict[str, Any]) -> dict[str, Any]:
+    """The fields a tile's template may name (``{value}``, ``{unit}``, ``{name}``, ``{text}``) of one live entry."""
     text = entry.get("text")
     value = entry.get("value")
     return {"value": value, "unit": entry.get("unit", ""), "name": entry.get("name") or text or value,

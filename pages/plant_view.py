@@ -19,7 +19,7 @@ from app import i18n
 from app import runtime as rt
 from app.i18n import N_, Lang
 from app.state import StateStore, point_inputs
-from devices.registry import DEVICE_TYPES, TileAlarm, TileBar, TileLine, TileSpec, _fill
+from devices.registry import DEVICE_TYPES, TileAlarm, TileBar, TileLine, TileSpec, template_fields
 from pages.frame import CSS, fmt_age
 
 # the state of a tile in words and colour (never colour alone): what an operator reads from across the room
@@ -154,7 +154,7 @@ def plant_tile(state, lang: Lang | None = None) -> dict:
     for alarm in spec.alarms:
         point = entry(alarm.when.point)
         if alarm.when.holds(point) and not (alarm.unless is not None and alarm.unless.holds(entry(alarm.unless.point))):
-            text = alarm.text.format(**_fill(point))
+            text = alarm.text.format(**template_fields(point))
             if point is not None and isinstance(point.get("value"), str) and text == format(point["value"]):
                 text = f"{alarm.when.point if lang is None else lang.phrase(alarm.when.point)}: {text}"
             alarms.append(text)
