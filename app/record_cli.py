@@ -28,8 +28,10 @@ import uuid
 from pathlib import Path
 from typing import Any
 
+from app import cli_lang
 from app.checkout import StepFailed, checkout_module
 from app.cli_lang import _
+from app.i18n import N_
 from app.record_store import RecordError
 from devices.errors import CommissionError
 
@@ -105,7 +107,7 @@ def read_password(account: str) -> str:
     import getpass
 
     if sys.stdin is not None and sys.stdin.isatty():
-        return getpass.getpass(f"password of {account}: ")
+        return getpass.getpass(_("password of {account}: ").format(account=account))
     return (sys.stdin.readline() if sys.stdin is not None else "").rstrip("\n")
 
 
@@ -115,16 +117,16 @@ async def login_account(runtime, account: str, password: str, *, out=print) -> s
     from app.auth import check_login
 
     if not runtime.users.has_engineer():
-        out("commission: there is no engineer account yet: create one with 'commission user add NAME --role engineer' "
-            "and give it with --account NAME")
+        out(_("commission: there is no engineer account yet: create one with 'commission user add NAME --role engineer' "
+              "and give it with --account NAME"))
         return None
     user, words = await check_login(throttle=runtime.login_throttle, users=runtime.users, audit=runtime.audit, typed=account,
                                     secret=password, address="command line", via="cli")
     if user is None:
-        out(f"commission: {words} for account {account!r}: nothing was signed or approved")
+        out(_("commission: {words} for account {account}: nothing was signed or approved").format(words=words, account=repr(account)))
         return None
     if user.role != "engineer":
-        out(f"commission: {account} has the {user.role} role: only an engineer account signs or approves")
+        out(_("commission: {account} has the {role} role: only an engineer account signs or approves").format(account=account, role=user.role))
         return None
     return user.name
 
@@ -177,10 +179,10 @@ async def approve_devices(runtime, names: list[str], *, user: str, role: str, ou
         state = runtime.store.devices[name]
         reason = await nothing_to_back_up(runtime.worker.adapters[name])
         if reason:
-            out(f"{name}: skipped: {reason}")
+            out(_("{name}: skipped: {reason}").format(name=name, reason=reason))
             continue
         if state.status != "online":
-            out(f"{name}: not answering ({state.last_error or 'no answer'}): not approved")
+            out(_("{name}: not answering ({error}): not approved").format(name=name, error=state.last_error or _("no answer")))
             failures += 1
             continue
         try:
@@ -189,11 +191,11 @@ async def approve_devices(runtime, names: list[str], *, user: str, role: str, ou
             out(f"commission: {exc}")
             return 1
         except (CommissionError, OSError) as exc:  # said, and the exit code says it
-            out(f"{name}: not approved: {exc}")
+            out(_("{name}: not approved: {error}").format(name=name, error=exc))
             failures += 1
             continue
         count = len(runtime.record.approved.get(name, {}))
-        out(f"{name}: approved set stored (record {entry_id}, {count} parameters)")
+        out(_("{name}: approved set stored (record {id}, {count} parameters)").format(name=name, id=entry_id, count=count))
     return 0 if failures == 0 else 1
 
 
@@ -217,7 +219,7 @@ def _answerer(mode: str | None, user: str, out, runtime=None, device: str = ""):
     the twin through its declared control (audited as a simulation action, as the page's sim card does)."""
     if mode == "yes":
         async def yes(question: str) -> bool:
-            out(f"    ? {question} -> yes (answered by {user} with --answer yes)")
+            out(_("    ? {question} -> yes (answered by {user} with --answer yes)").format(question=question, user=user))
             controls = runtime.sim_controls(device) if runtime is not None else None
             words = question.split()
             if controls is not None and len(words) > 1 and words[0] == "Toggle":
@@ -230,15 +232,15 @@ def _answerer(mode: str | None, user: str, out, runtime=None, device: str = ""):
         async def ask(question: str) -> bool:
             while True:
                 try:
-                    line = await asyncio.to_thread(input, f"    ? {question} [yes/no] ")
+                    line = await asyncio.to_thread(input, _("    ? {question} [yes/no] ").format(question=question))
                 except EOFError:
                     raise StepFailed(f"{question} - no answer (standard input closed)") from None
                 word = line.strip().lower()
-                if word in ("y", "yes"):
+                if word in ("y", "yes", "j", "ja"):  # either language's yes and no
                     return True
-                if word in ("n", "no"):
+                if word in ("n", "no", "nein"):
                     return False
-                print("    please answer yes or no", flush=True)
+                print(_("    please answer yes or no"), flush=True)
         return ask
 
     async def nobody(question: str) -> bool:
@@ -263,7 +265,7 @@ def _settings(specs: list[str], device: str, module) -> dict[str, Any]:
     settings: dict[str, Any] = {}
     defaults = module.SETTINGS
     for spec in specs:
-        name, _, rest = spec.partition(":")
+        name, _sep, rest = spec.partition(":")
         key, eq, value = rest.partition("=")
         if not eq or not key:
             raise SystemExit(f"commission: --set {spec!r}: expected DEVICE:KEY=VALUE")
@@ -282,14 +284,14 @@ def _settings(specs: list[str], device: str, module) -> dict[str, Any]:
 
 async def sim_action(runtime, spec: str, *, user: str, role: str) -> str:
     """Run ``DEVICE:ACTION[:K=V,...]`` on a simulated twin through the worker's gate (audited as the page's sim card)."""
-    device, _, rest = spec.partition(":")
-    action, _, arg_text = rest.partition(":")
+    device, _sep, rest = spec.partition(":")
+    action, _sep, arg_text = rest.partition(":")
     controls = runtime.sim_controls(device) if device in runtime.store.devices else None
     if controls is None:
         raise ValueError(f"--sim-action {spec!r}: {device!r} is no simulated device of this plant")
     args: dict[str, Any] = {}
     for item in filter(None, (a.strip() for a in arg_text.split(","))):
-        key, _, value = item.partition("=")
+        key, _sep, value = item.partition("=")
         args[key] = value.lower() in ("1", "on", "true", "yes") if value.lower() in ("on", "off", "true", "false") else int(value, 0)
     describe = controls.describe(action, args)
 
@@ -303,11 +305,20 @@ async def sim_action(runtime, spec: str, *, user: str, role: str) -> str:
     return f"{device}: simulation: {describe}"
 
 
-REAL_WITHOUT_PERSON = ("commission: not started: {devices} {are} real equipment (not a twin of this run): a checkout "
-                       "moves it or switches its mains outputs, so each of its questions is asked of a person at a "
-                       "terminal who holds SPACE while it moves (the run's dead-man). --answer yes answers only for "
-                       "simulated devices. Run 'commission checkout' from a terminal, or the checkout from the "
-                       "device's record page.")
+def real_without_person(real: list[str]) -> str:
+    """Why a run with real equipment does not start without a person at a terminal, in the command line's language."""
+    return cli_lang.lang().ngettext(
+        "commission: not started: {devices} is real equipment (not a twin of this run): a checkout moves it or switches "
+        "its mains outputs, so each of its questions is asked of a person at a terminal who holds SPACE while it moves "
+        "(the run's dead-man). --answer yes answers only for simulated devices. Run 'commission checkout' from a "
+        "terminal, or the checkout from the device's record page.",
+        "commission: not started: {devices} are real equipment (not twins of this run): a checkout moves them or switches "
+        "their mains outputs, so each of its questions is asked of a person at a terminal who holds SPACE while they move "
+        "(the run's dead-man). --answer yes answers only for simulated devices. Run 'commission checkout' from a "
+        "terminal, or the checkout from the devices' record pages.", len(real)).format(devices=", ".join(real))
+
+
+RESULT_WORDS = (N_("not run"),)  # a result the summary names beside the runs' own (passed, failed ...)
 
 
 def real_devices(runtime, names: list[str]) -> list[str]:
@@ -326,7 +337,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
     does not start."""
     real = real_devices(runtime, names)
     if real and person is None:
-        out(REAL_WITHOUT_PERSON.format(devices=", ".join(real), are="is" if len(real) == 1 else "are"))
+        out(real_without_person(real))
         return 2
     for spec in sim_actions:
         try:
@@ -340,12 +351,13 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
         state = runtime.store.devices[name]
         module = checkout_module(state.type)
         if module is None:
-            out(f"{name}: the {state.type} type declares no checkout")
+            out(_("{name}: the {type} type declares no checkout").format(name=name, type=state.type))
             results.append((name, "none", "no checkout declared", None))
             continue
         if state.status != "online":
-            reason = f"not answering ({state.last_error or 'no answer'})"
-            out(f"{name}: {module.TITLE}: not run: {reason}")
+            reason = f"not answering ({state.last_error or 'no answer'})"  # recorded as written
+            out(_("{name}: {title}: not run: {reason}").format(name=name, title=module.TITLE, reason=_("not answering ({error})").format(
+                error=state.last_error or _("no answer"))))
             results.append((name, "not run", reason, None))
             continue
         options: dict[str, Any] = {}
@@ -353,7 +365,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
             ask = person.ask
             options["session"] = person.session
             if answer == "yes":
-                out(f"{name}: real equipment: --answer yes does not answer for it; the questions are yours")
+                out(_("{name}: real equipment: --answer yes does not answer for it; the questions are yours").format(name=name))
         elif person is not None and answer != "yes":  # the terminal reads keys for the person: ask there too
             ask = person.ask
         else:
@@ -365,7 +377,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
             out(f"{name}: {exc}")
             results.append((name, "not run", str(exc), None))
             continue
-        out(f"{name} ({state.type}): {module.TITLE}, {len(run.results)} steps")
+        out(_("{name} ({type}): {title}, {n} steps").format(name=name, type=state.type, title=module.TITLE, n=len(run.results)))
         shown: dict[int, str] = {}
 
         def progress(run=run, shown=shown) -> None:
@@ -381,16 +393,16 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
         except PermissionError as exc:
             out(f"commission: {exc}")
             return 1
-        line = f"{name}: {result['status']} in {result['duration_s']} s"
+        line = _("{name}: {status} in {duration} s").format(name=name, status=_(result["status"]), duration=result["duration_s"])
         if result["reason"]:
             line += f": {result['reason']}"
-        out(line + (f" (record {result.get('record_id')})" if result.get("record_id") else ""))
+        out(line + (_(" (record {id})").format(id=result.get("record_id")) if result.get("record_id") else ""))
         results.append((name, result["status"], result["reason"], result["duration_s"]))
     passed = sum(s == "passed" for _n, s, _r, _d in results)
-    out(f"{passed} of {len(results)} checkouts passed")
+    out(_("{passed} of {n} checkouts passed").format(passed=passed, n=len(results)))
     for n, s, r, _d in results:
         if s != "passed":
-            out(f"  {n}: {s}" + (f": {r}" if r else ""))
+            out(f"  {n}: {_(s)}" + (f": {r}" if r else ""))
     return 0 if results and passed == len(results) else 1
 
 
@@ -410,7 +422,7 @@ def run_checkout(args) -> int:
         chosen = [n for n in plant.devices if args.all or not args.device or n in args.device]
         real = [n for n in chosen if args.no_sim or not plant.buses[plant.devices[n].bus].simulated]
         if real:
-            out(REAL_WITHOUT_PERSON.format(devices=", ".join(real), are="is" if len(real) == 1 else "are"))
+            out(real_without_person(real))
             return 2
 
     async def work(runtime, names: list[str]) -> int:
@@ -437,25 +449,25 @@ async def sign_record(runtime, *, user: str, role: str, name: str, comment: str,
     from app.report import device_content, plant_content, sign_gaps
 
     if not name.strip():
-        out("commission: a sign-off needs a name")
+        out(_("commission: a sign-off needs a name"))
         return 2
     if role != "engineer":  # the page disables the button; the record service refuses as well
-        out(f"commission: {user} has the {role or 'no'} role and may not add to the commissioning record")
+        out(_("commission: {user} has the {role} role and may not add to the commissioning record").format(user=user, role=role or _("no")))
         return 1
     if not account:
-        out("commission: not signed: a sign-off needs a named account: give it with --account NAME (create one with "
-            "'commission user add NAME --role engineer')")
+        out(_("commission: not signed: a sign-off needs a named account: give it with --account NAME (create one with "
+              "'commission user add NAME --role engineer')"))
         return 1
     try:
         content = await (device_content(runtime, device, user=user, role=role) if device
                          else plant_content(runtime, user=user, role=role))
-        gaps = sign_gaps(content)
+        gaps = sign_gaps(content, cli_lang.lang())
         if gaps:
-            out("Signing anyway (--yes) although:" if sign_anyway else "Not signed: before signing, look at these:")
+            out(_("Signing anyway (--yes) although:") if sign_anyway else _("Not signed: before signing, look at these:"))
             for line in gaps:
                 out(f"  {line}")
             if not sign_anyway:
-                out("Run the missing checkouts and approve the sets, or sign anyway with --yes.")
+                out(_("Run the missing checkouts and approve the sets, or sign anyway with --yes."))
                 return 1
         entry_id = await runtime.record.sign(device or "", user=user, role=role, name=name.strip(), signer_role=signer_role,
                                              comment=comment, content=content, account=account)
@@ -463,17 +475,19 @@ async def sign_record(runtime, *, user: str, role: str, name: str, comment: str,
         out(f"commission: {exc}")
         return 1
     except RecordError as exc:
-        out(f"commission: not signed: {exc}")
+        out(_("commission: not signed: {error}").format(error=exc))
         return 1
     entry = await runtime.record.get(entry_id)
-    what = f"device {device}" if device else f"plant {runtime.plant.name}"
-    out(f"{what}: signed by {name.strip()} ({signer_role}) with account {account}, record {entry_id}, "
-        f"sha256 {entry.data['sha256'][:16]}...")
+    what = _("device {name}").format(name=device) if device else _("plant {name}").format(name=runtime.plant.name)
+    out(_("{what}: signed by {name} ({role}) with account {account}, record {id}, sha256 {sha256}...").format(
+        what=what, name=name.strip(), role=signer_role, account=account, id=entry_id, sha256=entry.data["sha256"][:16]))
     if not device:
         for d in content["devices"]:
             counts = d["counts"]
-            checks = ", ".join(f"{c['title']}: {c['last']} ({c['runs']} run{'s' if c['runs'] != 1 else ''})" for c in d["checkout_summary"]) or "no checkout"
-            out(f"  {d['device']}: {checks}; {counts['changed']} changed, {counts['not approved']} not approved")
+            checks = ", ".join(f"{c['title']}: {_(c['last'])} (" + cli_lang.lang().ngettext("{n} run", "{n} runs", c["runs"]).format(n=c["runs"]) + ")"
+                               for c in d["checkout_summary"]) or _("no checkout")
+            out(_("  {device}: {checks}; {changed} changed, {not_approved} not approved").format(
+                device=d["device"], checks=checks, changed=counts["changed"], not_approved=counts["not approved"]))
     return 0
 
 

@@ -165,3 +165,16 @@ def test_the_shared_widgets_word_ranges_and_qualities_per_language():
     assert quality_note("stale", 12, DE) == "veraltet, vor 12 s"
     assert quality_note("offline", 180, DE) == "offline, zuletzt vor 3 min"
     assert quality_note("unknown", None, DE) == "nicht gelesen"
+
+
+def test_the_record_commands_say_in_german_why_a_run_does_not_start():
+    from app import record_cli
+
+    try:
+        cli.set_language("de")
+        one, two = record_cli.real_without_person(["gate"]), record_cli.real_without_person(["gate", "lift"])
+    finally:
+        cli.set_language("en")
+    assert one.startswith("commission: nicht gestartet: gate ist eine echte Anlage") and "LEERTASTE" in one
+    assert two.startswith("commission: nicht gestartet: gate, lift sind echte Anlagen")
+    assert record_cli.real_without_person(["gate"]).startswith("commission: not started: gate is real equipment")
