@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from app import audit, backup, files, replace
-from app.cli_lang import _
+from app.cli_lang import YES, _
 from devices.commands import READ_PARAMETERS
 from devices.errors import CommissionError
 
@@ -188,8 +188,8 @@ def run_cli(args: argparse.Namespace) -> int:
 
     args.device = [d.strip() for d in args.devices.split(",") if d.strip()]
     if not args.device:  # an empty selection must never mean "every device" (the headless runner's default)
-        print(f"commission apply: no device named in --devices {args.devices!r}: name the devices to write, "
-              "separated by commas (--devices door-1,door-2)", file=sys.stderr)
+        print(_("commission apply: no device named in --devices {devices}: name the devices to write, "
+                "separated by commas (--devices door-1,door-2)").format(devices=repr(args.devices)), file=sys.stderr)
         return 2
     source = args.source
     if source not in ("project",) and not source.startswith(("approved:", "device:")):
@@ -197,7 +197,7 @@ def run_cli(args: argparse.Namespace) -> int:
         try:
             files.read_regular(path, files.MAX_DOCUMENT_BYTES, "parameter file")
         except FileNotFoundError:
-            print(f"commission apply: {source}: no such file", file=sys.stderr)
+            print(_("commission apply: {source}: no such file").format(source=source), file=sys.stderr)
             return 2
         except OSError as exc:
             print(f"commission apply: {exc if isinstance(exc, files.FileRefused) else f'{source}: {exc.strerror or exc}'}",
@@ -215,40 +215,40 @@ def run_cli(args: argparse.Namespace) -> int:
         for entry in plan.devices:
             print(f"{entry.device}:")
             if entry.error:
-                print(f"  refused: {entry.error}")
+                print(_("  refused: {error}").format(error=entry.error))
                 continue
             for note in entry.check.notes:
-                print(f"  identity: {note}")
+                print(_("  identity: {note}").format(note=note))
             for warning in entry.plan.warnings:
-                print(f"  warning: {warning}")
+                print(_("  warning: {warning}").format(warning=warning))
             for row in entry.changed:
-                mark = f"   [needs confirmation: {row.risk}]" if row.risk else ""
+                mark = _("   [needs confirmation: {risk}]").format(risk=row.risk) if row.risk else ""
                 print(f"  {row.name}: {row.current_text} -> {row.backup_text}{mark}")
                 if row.risk:
                     risky[row.name] = row.risk
             if not entry.changed:
-                print("  nothing to write")
+                print(_("  nothing to write"))
         if not plan.ready:
-            print("commission apply: nothing written: every device must pass its identity check", file=sys.stderr)
+            print(_("commission apply: nothing written: every device must pass its identity check"), file=sys.stderr)
             return 2
         accepted = {n.lower() for n in args.accept_risk}
         confirmed = {n for n in risky if n.lower() in accepted}
         if not args.yes:
             if not sys.stdin.isatty():
-                print("commission apply: add --yes to write without a terminal to confirm", file=sys.stderr)
+                print(_("commission apply: add --yes to write without a terminal to confirm"), file=sys.stderr)
                 return 2
-            if input(f"apply to {len(plan.devices)} device(s), one by one? [y/N] ").strip().lower() != "y":
-                print("nothing written")
+            if input(_("apply to {n} device(s), one by one? [y/N] ").format(n=len(plan.devices))).strip().lower() not in YES:
+                print(_("nothing written"))
                 return 1
             for name_, risk in risky.items():
-                if name_ not in confirmed and input(f"{name_}: {risk} Write it? [y/N] ").strip().lower() == "y":
+                if name_ not in confirmed and input(_("{name}: {risk} Write it? [y/N] ").format(name=name_, risk=risk)).strip().lower() in YES:
                     confirmed.add(name_)
         unconfirmed = [n for n in risky if n not in confirmed]
         if unconfirmed:
             for name_ in unconfirmed:
-                print(f"commission apply: {name_} needs a confirmation ({risky[name_]}); name it with --accept-risk "
-                      f"{name_} to write it", file=sys.stderr)
-            print("nothing written", file=sys.stderr)
+                print(_("commission apply: {name} needs a confirmation ({risk}); name it with --accept-risk {name} to write it").format(
+                    name=name_, risk=risky[name_]), file=sys.stderr)
+            print(_("nothing written"), file=sys.stderr)
             return 2
 
         def said(result: DeviceResult) -> None:
@@ -257,7 +257,7 @@ def run_cli(args: argparse.Namespace) -> int:
         results = await apply_batch(runtime, plan, user=cli_user(), role="engineer", confirmed=confirmed, on_device=said)
         failed = [r for r in results if r.status in (FAILED, REFUSED)]
         if failed:
-            print(f"commission apply: stopped at {failed[0].device}: {failed[0].text}", file=sys.stderr)
+            print(_("commission apply: stopped at {device}: {error}").format(device=failed[0].device, error=failed[0].text), file=sys.stderr)
         return 1 if failed else 0
 
     return asyncio.run(run_headless(args, work))

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from app import host, i18n
-from app.cli_lang import _, set_language
+from app.cli_lang import YES, _, set_language
 from app.headless import bindable, cli_user, load_plant_or_exit, refuse_taken_ports, run_headless
 from app.i18n import N_
 from devices.errors import CommissionError
@@ -493,7 +493,6 @@ def run_view(args) -> int:
     return 0
 
 
-YES = ("y", "j")  # [y/N] and [j/N]: either is a yes in either language
 
 
 def main(argv: list[str] | None = None) -> int:

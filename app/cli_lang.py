@@ -11,6 +11,7 @@ from __future__ import annotations
 from app import i18n
 
 _current = i18n.get(i18n.DEFAULT)
+YES = ("y", "j")  # [y/N] and [j/N]: either is a yes in either language
 
 
 def lang() -> i18n.Lang:

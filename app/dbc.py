@@ -110,5 +110,5 @@ def run(args: argparse.Namespace) -> int:
         print(f"commission dbc: {exc}", file=sys.stderr)
         return 2
     count = len(bus_database(plant, args.bus).messages)
-    print(f"wrote {args.out}: {count} frames of bus {args.bus}")
+    print(_("wrote {path}: {count} frames of bus {bus}").format(path=args.out, count=count, bus=args.bus))
     return 0

@@ -13,7 +13,9 @@ import sys
 from pathlib import Path
 from urllib.parse import urlparse
 
+from app.cli_lang import _
 from app.host import TerminalKeys
+from app.i18n import N_
 from app.plant import DEMO_PLANT, PlantError, load_plant
 
 
@@ -60,9 +62,9 @@ def refuse_taken_ports(plant, program: str = "commission", every: bool = False) 
     """
     taken = [(bus, host, port) for bus, host, port in _simulated_endpoints(plant, every) if not bindable(host, port)]
     for bus, host, port in taken:
-        print(f"{program}: the simulated bus '{bus}' cannot listen on {host}:{port}: the port is taken "
-              "(another copy of this plant or another program); stop it, or give the bus another port in the plant file",
-              file=sys.stderr)
+        print(_("{program}: the simulated bus '{bus}' cannot listen on {host}:{port}: the port is taken "
+                "(another copy of this plant or another program); stop it, or give the bus another port in the plant file").format(
+                    program=program, bus=bus, host=host, port=port), file=sys.stderr)
     return bool(taken)
 
 
@@ -78,12 +80,13 @@ async def run_headless(args, work) -> int:
     names = [names] if isinstance(names, str) else (names or list(plant.devices))
     for name in names:
         if name not in plant.devices:
-            print(f"commission: the plant has no device named {name!r} (devices: {', '.join(plant.devices)})", file=sys.stderr)
+            print(_("commission: the plant has no device named {name} (devices: {devices})").format(
+                name=repr(name), devices=", ".join(plant.devices)), file=sys.stderr)
             return 2
     runtime = Runtime(plant, simulate=not args.no_sim, data_dir=args.data_dir or default_data_dir())
     await runtime.start()
     try:
-        print(f"waiting up to 15 s for {len(names)} device(s) to answer ...", flush=True)
+        print(_("waiting up to 15 s for {n} device(s) to answer ...").format(n=len(names)), flush=True)
         loop = asyncio.get_running_loop()
         end = loop.time() + 15
         while loop.time() < end and any(runtime.store.devices[n].status != "online" for n in names):
@@ -106,8 +109,8 @@ def cli_user() -> str:
 # -- a person at a terminal: the questions of a checkout on real equipment, and a dead-man of its own --------
 HELD_GAP_S = 0.7  # two presses of SPACE this close together: the key is held (the terminal's auto-repeat)
 NO_KEYS = ("n", "N")
-HOLD_WORDS = ("hold SPACE to answer yes, and keep holding it while the step runs: releasing it stops what moves "
-              "within 0.5 s (dead-man); n = no")
+HOLD_WORDS = N_("hold SPACE to answer yes, and keep holding it while the step runs: releasing it stops what moves "
+                "within 0.5 s (dead-man); n = no")
 
 
 def simulated(runtime, device: str) -> bool:
@@ -162,17 +165,17 @@ class TerminalPerson:
     async def ask(self, question: str) -> bool:
         while not self.presses.empty():  # presses before the question answer nothing
             self.presses.get_nowait()
-        self.out(f"    ? {question}\n      ({HOLD_WORDS})")
+        self.out(f"    ? {question}\n      ({_(HOLD_WORDS)})")
         last: float | None = None
         while True:
             key = await self.presses.get()
             if key in NO_KEYS:
-                self.out("      -> no")
+                self.out(_("      -> no"))
                 return False
             if key != " ":
                 continue
             now = self.clock()
             if last is not None and now - last <= HELD_GAP_S:
-                self.out("      -> yes (SPACE held: keep holding it while the step runs)")
+                self.out(_("      -> yes (SPACE held: keep holding it while the step runs)"))
                 return True
             last = now

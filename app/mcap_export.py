@@ -200,7 +200,7 @@ def run(args: argparse.Namespace) -> int:
     import sys
 
     if (args.recording is None) == (args.live is None):
-        print("commission export: give a recording file or --live SECONDS (one of them)", file=sys.stderr)
+        print(_("commission export: give a recording file or --live SECONDS (one of them)"), file=sys.stderr)
         return 2
     if args.recording is not None:
         from app.recording import RecordingError
@@ -210,7 +210,7 @@ def run(args: argparse.Namespace) -> int:
         except RecordingError as exc:
             print(f"commission export: {exc}", file=sys.stderr)
             return 1
-        print(f"{args.out}: {count} messages from {args.recording}")
+        print(_("{path}: {count} messages from {recording}").format(path=args.out, count=count, recording=args.recording))
         return 0
     import asyncio
 
@@ -229,5 +229,6 @@ def run(args: argparse.Namespace) -> int:
             await runtime.stop()
 
     count = asyncio.run(session())
-    print(f"{args.out}: {count} messages of {args.live:g} s of plant {plant.name}")
+    print(_("{path}: {count} messages of {seconds} s of plant {plant}").format(path=args.out, count=count, seconds=f"{args.live:g}",
+                                                                              plant=plant.name))
     return 0

@@ -18,8 +18,8 @@ import hashlib
 import io
 import json
 import sqlite3
-import zipfile
 import struct
+import zipfile
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -337,7 +337,7 @@ def add_parser(sub) -> None:
 
 def run_cli(args: argparse.Namespace) -> int:
     if args.archive is None and not args.record:
-        print("commission verify: name an archive (commission verify PLANT-as-left.zip) or --record for the data folder's record")
+        print(_("commission verify: name an archive (commission verify PLANT-as-left.zip) or --record for the data folder's record"))
         return 2
     if args.record:
         from app.users import default_data_dir
