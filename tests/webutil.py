@@ -122,6 +122,31 @@ def by_testid(user, testid: str):
     return found[0]
 
 
+def project_card_table(user):
+    """The table of the device page's project card (the one with an actions column) open in ``user``."""
+    from nicegui import ui
+
+    return next(e for e in user.client.elements.values()
+                if isinstance(e, ui.table) and any(c["name"] == "actions" for c in e.columns))
+
+
+def dialog_button(user, text: str):
+    """The buttons labelled ``text`` inside an open dialog of ``user``'s page, to click."""
+    from nicegui import ui
+    from nicegui.testing.user_interaction import UserInteraction
+
+    def in_dialog(element) -> bool:
+        while element is not None:
+            if isinstance(element, ui.dialog):
+                return True
+            element = element.parent_slot.parent if element.parent_slot else None
+        return False
+
+    found = {e for e in user.client.elements.values() if isinstance(e, ui.button) and e.text == text and in_dialog(e)}
+    assert found, f"no {text!r} button in a dialog"
+    return UserInteraction(user, found, None)
+
+
 @dataclass
 class PageEnv:
     """NiceGUI's simulated user and the app it talks to."""
@@ -205,7 +230,7 @@ def private_endpoints(plant, tag: str):
     return plant
 
 
-__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "lock_pages", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "private_endpoints", "running_app", "serve_beyond_loopback",
+__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "dialog_button", "lock_pages", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
            "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "wait_http"]
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from babel.messages.pofile import read_po
 from nicegui import ui
-from plants import free_port, modbus_plant
+from plants import modbus_plant
 from webutil import eventually, simulated_user
 
 from app import i18n
@@ -197,13 +197,11 @@ async def test_the_backup_page_in_german_shows_no_english(tmp_path):
 
 async def test_a_project_in_german_shows_no_english(tmp_path):
     """The project card of the backup page, its comparison with the device and the reconciling buttons."""
-    from test_project_page import PLANT
+    from test_project_page import plant_file
 
     from app.plant import load_plant
 
-    path = tmp_path / "plant.toml"
-    path.write_text(PLANT.format(port=free_port(), silent=free_port()))
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
+    runtime = Runtime(load_plant(plant_file(tmp_path)), simulate=True, data_dir=tmp_path / "data")
     async with german_user(runtime) as user:
         await eventually(lambda: runtime.store.devices["door-1"].status == "online", timeout=15, what="door-1 online")
         await user.open("/backup")

@@ -8,8 +8,7 @@ import pytest
 from nicegui import ui
 from test_m3io_params import _plant_file
 from test_backup_page import emit
-from test_project_page import _card_table, _dialog_button
-from webutil import eventually, simulated_user
+from webutil import dialog_button, eventually, project_card_table, simulated_user
 
 from app.plant import load_plant
 from app.runtime import Runtime
@@ -34,20 +33,20 @@ async def test_the_project_differs_on_the_page_and_is_applied_per_row_with_p2_as
         await user.open("/device/io-a")
         await user.should_see("2 of 2 project entries differ from the device", retries=100)
         await user.should_see(" 3: ff ff ff ff ff ff")  # the records as read
-        table = _card_table(user)
+        table = project_card_table(user)
         assert sorted((r["name"], r["backup"], r["current"]) for r in table.rows) == [
             ("Customer data 3", "01 02 03 ff ff ff", "ff ff ff ff ff ff"),
             ("P2", "two-phase load (P2) (1)", "three-phase load (0)")]
         emit(table, "apply", "customer:3")
         await user.should_see("Write Customer data 3 = 01 02 03 ff ff ff to io-a?")
-        _dialog_button(user, "Write").click()
+        dialog_button(user, "Write").click()
         await user.should_see("1 of 2 project entries differs from the device", retries=100)
         assert twin.customer[3] == bytes.fromhex("010203ffffff")
-        emit(_card_table(user), "apply", "cfg:7")
+        emit(project_card_table(user), "apply", "cfg:7")
         await user.should_see("Write P2 = two-phase load (P2) (1) to io-a?")
-        _dialog_button(user, "Write").click()
+        dialog_button(user, "Write").click()
         await user.should_see("a three-phase load that lost one phase", retries=50)  # the question names it
-        _dialog_button(user, "Write anyway").click()
+        dialog_button(user, "Write anyway").click()
         await user.should_see("device and project agree (2 project entries)", retries=100)
         assert twin.cfg & codec.P2 and load_plant(path).devices["io-a"].options["p2"] is True
         rows = await runtime.audit.aquery(limit=50)
@@ -66,7 +65,7 @@ async def test_the_p2_switch_asks_and_stays_off_when_cancelled(tmp_path):
         switch.set_value(True)
         await user.should_see("Switch P2 on?", retries=50)
         await user.should_see("a three-phase load that lost one phase")
-        _dialog_button(user, "Cancel").click()
+        dialog_button(user, "Cancel").click()
         await eventually(lambda: switch.value is False, timeout=5, what="the switch back off")
         assert not runtime.twins["io-b"].cfg & codec.P2 and not runtime.worker.adapters["io-b"].two_phase
 
