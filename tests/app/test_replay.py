@@ -4,8 +4,10 @@ device is under control, engineers only and audited, and the dead-man rule."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import itertools
 import time
+from collections.abc import AsyncIterator
 from pathlib import Path
 
 import can
@@ -33,15 +35,13 @@ class Audit:
         self.rows[row]["result"] = result
 
 
-def _plant(channel: str, with_m3io: bool = True):
-    devices = [device("io", "m3io", "can9", variant="HM", sw1=0x1A)] if with_m3io else []
-    return plant(can_bus(*devices, name="can9", channel_name=channel, bitrate=500000, simulate=None))
-
-
-@pytest.fixture
-async def env():
-    channel = f"replay-test-{next(_channels)}-{time.monotonic_ns()}"
-    worker = Worker(_plant(channel), audit=Audit())
+@contextlib.asynccontextmanager
+async def replay_env(*devices: str, prefix: str = "replay-test") -> AsyncIterator[tuple[Worker, can.BusABC]]:
+    """A worker on the virtual CAN bus can9 (no twins) with ``devices``, and a listener on the same channel;
+    on leaving, every replay still running is stopped and the bus closed."""
+    channel = f"{prefix}-{next(_channels)}-{time.monotonic_ns()}"
+    worker = Worker(plant(can_bus(*devices, name="can9", channel_name=channel, bitrate=500000, simulate=None)),
+                    audit=Audit())
     await worker.can_buses["can9"].start()
     await eventually(lambda: worker.can_buses["can9"].bus is not None, timeout=5)
     listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
@@ -52,6 +52,12 @@ async def env():
             replay.stop("test over")
         await worker.can_buses["can9"].stop()
         listener.shutdown()
+
+
+@pytest.fixture
+async def env():
+    async with replay_env(device("io", "m3io", "can9", variant="HM", sw1=0x1A)) as env:
+        yield env
 
 
 def _frames(n: int, gap_s: float) -> list[FrameRecord]:

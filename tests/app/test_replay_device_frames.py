@@ -8,16 +8,15 @@ kept off, counted and named; the start asks a confirmation that says how many fr
 from __future__ import annotations
 
 import asyncio
-import time
 
 import can
 import pytest
-from plants import ELECTRAK_ACTUATORS, can_bus, device, plant
-from test_replay import Audit
+from plants import ELECTRAK_ACTUATORS, device
+from test_replay import replay_env
 
 from app import replay as rp
 from app.can_bus import FrameRecord
-from app.worker import PermissionDenied, Worker
+from app.worker import PermissionDenied
 from tests.webutil import eventually
 
 pytestmark = pytest.mark.timeout(60)
@@ -26,22 +25,11 @@ LOCK_ID = 335  # extended (section 6.5: the lock answers with its device ID as C
 
 @pytest.fixture
 async def env():
-    channel = f"replay-device-{time.monotonic_ns()}"
     devices = (device("io", "m3io", "can9", variant="HM", sw1=0x1A),
                device("lock", "hdlock", "can9", device_id=LOCK_ID, extended=True),
                device("arm", "electrak", "can9", actuators=ELECTRAK_ACTUATORS))
-    worker = Worker(plant(can_bus(*devices, name="can9", channel_name=channel, bitrate=500000, simulate=None)),
-                    audit=Audit())
-    await worker.can_buses["can9"].start()
-    await eventually(lambda: worker.can_buses["can9"].bus is not None, timeout=5)
-    listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
-    try:
-        yield worker, listener
-    finally:
-        for replay in [h for h in worker.extra_holders.values() if isinstance(h, rp.Replay)]:
-            replay.stop("test over")
-        await worker.can_buses["can9"].stop()
-        listener.shutdown()
+    async with replay_env(*devices, prefix="replay-device") as env:
+        yield env
 
 
 def _recording() -> list[FrameRecord]:
