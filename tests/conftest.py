@@ -7,7 +7,7 @@ import contextlib
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 import pytest
@@ -347,14 +347,30 @@ async def wait_for(predicate, timeout: float = 5.0, interval: float = 0.05) -> b
     return True
 
 
+def _online(runtime, name: str) -> bool:
+    return runtime.store.devices[name].status == "online"
+
+
+def identified(runtime, name: str) -> bool:
+    """Whether the app has read the identity (serial number, ...) of the device ``name`` of ``runtime``."""
+    from app import replace
+
+    return replace.live_identity(runtime, name) is not None
+
+
 @contextlib.asynccontextmanager
-async def running_plant(plant: Plant):
-    """The app's runtime on ``plant`` with its twins, started; stopped (bounded) on leaving."""
+async def running_plant(plant: Plant, data_dir: Path | None = None, ready: Iterable[str] = (), within_s: float = 8.0,
+                        is_ready: Callable[[object, str], object] = _online):
+    """The app's runtime on ``plant`` with its twins (its data in ``data_dir``, a folder of its own by default),
+    started; it asserts that each device of ``ready`` is ready (``is_ready(runtime, name)``: online by default)
+    within ``within_s``; stopped (bounded) on leaving."""
     from app.runtime import Runtime
 
-    runtime = Runtime(plant, simulate=True)
+    runtime = Runtime(plant, simulate=True, data_dir=data_dir)
     await runtime.start()
     try:
+        for name in ready:
+            assert await wait_for(lambda n=name: is_ready(runtime, n), timeout=within_s), name
         yield runtime
     finally:
         await asyncio.wait_for(runtime.stop(), 5)
@@ -453,5 +469,5 @@ def inside_viewport(page, locator, timeout: float = 5.0) -> None:
     assert box["y"] + box["height"] <= size["height"] + 0.5, f"{locator} sticks out below {size['height']} px: {box}"
 
 
-__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "free_port", "free_udp_port", "inside_viewport", "modbus_plant", "running_plant", "sim_process", "spy_writes",
+__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "free_port", "free_udp_port", "identified", "inside_viewport", "modbus_plant", "running_plant", "sim_process", "spy_writes",
            "wait_devices_online", "wait_for"]

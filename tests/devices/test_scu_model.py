@@ -8,7 +8,7 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from conftest import wait_for
+from conftest import running_plant, wait_for
 from plants import SCU_ACTUATORS, bus, device, free_port, plant, plant_text
 
 from app import backup, batch, project, replace
@@ -67,14 +67,8 @@ async def lifts(tmp_path):
     path.write_text(_two_units('"Remote Speed F1" = 60'))
     from app.plant import load_plant
 
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
-    await runtime.start()
-    for name in ("lift-a", "lift-b"):
-        assert await wait_for(lambda n=name: runtime.store.devices[n].status == "online", timeout=20), name
-    try:
+    async with running_plant(load_plant(path), tmp_path / "data", ready=("lift-a", "lift-b"), within_s=20) as runtime:
         yield runtime
-    finally:
-        await asyncio.wait_for(runtime.stop(), 5)
 
 
 async def test_backup_names_every_value_and_restore_writes_the_settings_back_read_back(lifts, tmp_path):
