@@ -271,3 +271,17 @@ def refresh_on_the_round(store, view) -> None:
         view.refresh()
     finally:
         store.age_round = False
+
+
+async def push_the_same_values(user, runtime, device: str, monkeypatch) -> tuple[object, list[str]]:
+    """Open ``device``'s page in ``user`` and draw it as the store has it; then every point heard again with the
+    same values and pushed: returns the page's view and the names it read on that push (and reads from now on)."""
+    await user.open(f"/device/{device}")
+    view = page_view(user, runtime, device)
+    state = runtime.store.devices[device]
+    heard_again(state)
+    view.refresh()  # everything as the store has it now
+    read = count_reads(state, monkeypatch)
+    heard_again(state)  # heard again, the same values
+    view.refresh()
+    return view, read
