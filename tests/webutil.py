@@ -106,13 +106,22 @@ async def simulated_user(runtime):
 
 
 @contextlib.asynccontextmanager
-async def user_on(plant) -> AsyncIterator[tuple]:
-    """NiceGUI's simulated user on ``plant``, its twins simulated here: yields ``(user, runtime)``."""
+async def user_on(plant, simulate: bool = True) -> AsyncIterator[tuple]:
+    """NiceGUI's simulated user on ``plant``, its twins simulated here (unless ``simulate`` is false): yields
+    ``(user, runtime)``."""
     from app.runtime import Runtime
 
-    runtime = Runtime(plant, simulate=True)
+    runtime = Runtime(plant, simulate=simulate)
     async with simulated_user(runtime) as user:
         yield user, runtime
+
+
+def lone_m3io_user() -> contextlib.AbstractAsyncContextManager[tuple]:
+    """:func:`user_on` an M3IO HM ``io`` on a virtual CAN bus ``can9`` of its own, without a twin (nothing answers)."""
+    from plants import can_bus, channel, m3io_can, plant
+
+    return user_on(plant(can_bus(m3io_can("io", "can9"), name="can9", channel_name=channel("can9"), simulate=None),
+                         name="w"), simulate=False)
 
 
 def by_testid(user, testid: str):
@@ -230,7 +239,7 @@ def private_endpoints(plant, tag: str):
     return plant
 
 
-__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "dialog_button", "lock_pages", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
+__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
            "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "wait_http"]
 
 
