@@ -360,10 +360,10 @@ def identified(runtime, name: str) -> bool:
 
 @contextlib.asynccontextmanager
 async def running_plant(plant: Plant, data_dir: Path | None = None, ready: Iterable[str] = (), within_s: float = 8.0,
-                        is_ready: Callable[[object, str], object] = _online):
+                        is_ready: Callable[[object, str], object] = _online, stop_within_s: float = 5.0):
     """The app's runtime on ``plant`` with its twins (its data in ``data_dir``, a folder of its own by default),
     started; it asserts that each device of ``ready`` is ready (``is_ready(runtime, name)``: online by default)
-    within ``within_s``; stopped (bounded) on leaving."""
+    within ``within_s``; stopped on leaving, within ``stop_within_s``."""
     from app.runtime import Runtime
 
     runtime = Runtime(plant, simulate=True, data_dir=data_dir)
@@ -373,7 +373,7 @@ async def running_plant(plant: Plant, data_dir: Path | None = None, ready: Itera
             assert await wait_for(lambda n=name: is_ready(runtime, n), timeout=within_s), name
         yield runtime
     finally:
-        await asyncio.wait_for(runtime.stop(), 5)
+        await asyncio.wait_for(runtime.stop(), stop_within_s)
 
 
 @pytest.fixture
@@ -381,15 +381,15 @@ def plant() -> Plant:
     return modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
 
 
-@pytest.fixture
-async def can_rig(tmp_path: Path):
-    """The app without twins on :func:`plants.heater_and_lock`'s bus, and a python-can listener on that bus."""
+@contextlib.asynccontextmanager
+async def listening(plant_text: str, channel: str, data_dir: Path):
+    """The app without twins on ``plant_text``, started, and a python-can listener on its virtual CAN ``channel``:
+    yields ``(runtime, listener)``; both closed on leaving."""
     import can
 
     from app.runtime import Runtime
 
-    channel = f"rig-{free_port()}-{time.monotonic_ns()}"
-    runtime = Runtime(parse_plant(heater_and_lock(channel)), simulate=False, data_dir=tmp_path)
+    runtime = Runtime(parse_plant(plant_text), simulate=False, data_dir=data_dir)
     await runtime.start()
     listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
     try:
@@ -397,6 +397,14 @@ async def can_rig(tmp_path: Path):
     finally:
         listener.shutdown()
         await asyncio.wait_for(runtime.stop(), 5)
+
+
+@pytest.fixture
+async def can_rig(tmp_path: Path):
+    """The app without twins on :func:`plants.heater_and_lock`'s bus, and a python-can listener on that bus."""
+    channel = f"rig-{free_port()}-{time.monotonic_ns()}"
+    async with listening(heater_and_lock(channel), channel, tmp_path) as rig:
+        yield rig
 
 
 def spy_writes(twin) -> list[tuple[int, int]]:
@@ -469,5 +477,5 @@ def inside_viewport(page, locator, timeout: float = 5.0) -> None:
     assert box["y"] + box["height"] <= size["height"] + 0.5, f"{locator} sticks out below {size['height']} px: {box}"
 
 
-__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "free_port", "free_udp_port", "identified", "inside_viewport", "modbus_plant", "running_plant", "sim_process", "spy_writes",
+__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "free_port", "free_udp_port", "identified", "inside_viewport", "listening", "modbus_plant", "running_plant", "sim_process", "spy_writes",
            "wait_devices_online", "wait_for"]
