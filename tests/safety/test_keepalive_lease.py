@@ -18,7 +18,7 @@ import time
 import can
 import pytest
 from conftest import wait_for
-from frames import FrameListener
+from can_listener import FrameListener
 from plants import can_bus, channel, m3io_can, plant_text
 from test_electrak import beat, lift, start_lift  # noqa: F401 (fixture)
 
