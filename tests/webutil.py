@@ -187,6 +187,17 @@ class LockPages(PageEnv):
     def state(self, name: str = "door-1"):
         return self.runtime.store.devices[name]
 
+    async def polled(self, *names: str, point: str = "SerialNumber") -> None:
+        """Wait until the worker has polled each of ``names`` (both locks by default) as far as ``point``."""
+
+        def check() -> None:
+            for name in names or ("door-1", "door-2"):
+                state = self.state(name)
+                assert state.status == "online", f"{name} is {state.status}: {state.last_error}"
+                assert state.value(point) is not None, f"{name}: {point} not read yet"
+
+        await eventually(check, timeout=10)
+
 
 @contextlib.asynccontextmanager
 async def lock_pages(caplog) -> AsyncIterator[LockPages]:
@@ -198,6 +209,12 @@ async def lock_pages(caplog) -> AsyncIterator[LockPages]:
         yield LockPages(user, runtime)
     errors = [r for r in caplog.get_records("call") if r.levelno >= logging.ERROR and not r.name.startswith("pymodbus")]
     assert not errors, "unexpected ERROR logs: " + "; ".join(r.getMessage() for r in errors)
+
+
+async def lock_pages_env(caplog) -> AsyncIterator[LockPages]:
+    """:func:`lock_pages` as a test module's fixture: ``env = pytest.fixture(lock_pages_env, name="env")``."""
+    async with lock_pages(caplog) as env:
+        yield env
 
 
 # -- the app as a separate process (browser tests): bench/liveapp.py, as the benchmarks start it ----------
