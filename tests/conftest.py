@@ -360,13 +360,14 @@ def identified(runtime, name: str) -> bool:
 
 @contextlib.asynccontextmanager
 async def running_plant(plant: Plant, data_dir: Path | None = None, ready: Iterable[str] = (), within_s: float = 8.0,
-                        is_ready: Callable[[object, str], object] = _online, stop_within_s: float = 5.0):
-    """The app's runtime on ``plant`` with its twins (its data in ``data_dir``, a folder of its own by default),
+                        is_ready: Callable[[object, str], object] = _online, stop_within_s: float = 5.0,
+                        simulate: bool = True):
+    """The app's runtime on ``plant`` with its twins (unless ``simulate`` is false; its data in ``data_dir``, a folder of its own by default),
     started; it asserts that each device of ``ready`` is ready (``is_ready(runtime, name)``: online by default)
     within ``within_s``; stopped on leaving, within ``stop_within_s``."""
     from app.runtime import Runtime
 
-    runtime = Runtime(plant, simulate=True, data_dir=data_dir)
+    runtime = Runtime(plant, simulate=simulate, data_dir=data_dir)
     await runtime.start()
     try:
         for name in ready:
@@ -379,6 +380,28 @@ async def running_plant(plant: Plant, data_dir: Path | None = None, ready: Itera
 @pytest.fixture
 def plant() -> Plant:
     return modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
+
+
+@contextlib.asynccontextmanager
+async def alive(worker, *sessions: str, period_s: float = 0.1):
+    """Browser ``sessions`` that keep confirming they are alive while inside, every ``period_s`` from now on (what a
+    live page does): the worker's dead-man rule stops nothing of theirs."""
+
+    async def beat() -> None:
+        while True:
+            for session in sessions:
+                worker.heartbeat(session)
+            await asyncio.sleep(period_s)
+
+    task = asyncio.create_task(beat())
+    for session in sessions:
+        worker.heartbeat(session)
+    try:
+        yield
+    finally:
+        task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
 
 
 @contextlib.asynccontextmanager
@@ -477,5 +500,5 @@ def inside_viewport(page, locator, timeout: float = 5.0) -> None:
     assert box["y"] + box["height"] <= size["height"] + 0.5, f"{locator} sticks out below {size['height']} px: {box}"
 
 
-__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "free_port", "free_udp_port", "identified", "inside_viewport", "listening", "modbus_plant", "running_plant", "sim_process", "spy_writes",
+__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "alive", "free_port", "free_udp_port", "identified", "inside_viewport", "listening", "modbus_plant", "running_plant", "sim_process", "spy_writes",
            "wait_devices_online", "wait_for"]
