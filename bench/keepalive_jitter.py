@@ -42,6 +42,8 @@ import can
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from can_flood import flood_frames  # noqa: E402
+from can_flood import sender as flood_sender  # noqa: E402
 from can_listener import FrameListener  # noqa: E402
 
 from app.plant import parse_plant  # noqa: E402
@@ -142,20 +144,6 @@ def in_process_plant(lift: str, heater: str, flood: str, scu_port: int):
     )
 
 
-def flood_sender(channel: str, rate: int, stop: threading.Event) -> None:
-    frames = [can.Message(arbitration_id=0x1000000 + i * 7919 % 0xFFFFFF, is_extended_id=True,
-                          data=bytes([0, 0, i & 0xFF, i >> 8 & 0xFF, 0, 0, 0, 0])) for i in range(20_000)]
-    per_slice = max(1, rate // 100)
-    with can.Bus(interface="virtual", channel=channel) as bus:
-        i, due = 0, time.perf_counter()
-        while not stop.is_set():
-            for _ in range(per_slice):
-                bus.send(frames[i])
-                i = (i + 1) % len(frames)
-            due += 0.01
-            time.sleep(max(0.0, due - time.perf_counter()))
-
-
 async def beat(runtime: Runtime, session: str) -> None:
     while True:
         runtime.worker.heartbeat(session)
@@ -190,7 +178,8 @@ async def in_process(seconds: float) -> float:
         worst = max(worst, report("(a) idle", heard, start, time.time()), report_scu("(a) idle", unit, start, time.time()))
 
         stop = threading.Event()
-        sender = threading.Thread(target=flood_sender, args=(flood_ch, 2 * BUS_LIMIT_FPS, stop), daemon=True)
+        sender = threading.Thread(target=flood_sender, args=(flood_ch, flood_frames("unknown", 20_000), 2 * BUS_LIMIT_FPS, stop, [0]),
+                                  daemon=True)
         sender.start()
         start = time.time()
         await asyncio.sleep(seconds)
