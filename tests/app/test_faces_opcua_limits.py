@@ -112,22 +112,30 @@ async def test_sessions_per_client_address_are_bounded(server):
             await client.disconnect()
 
 
-async def test_idle_connections_of_one_address_are_bounded_and_a_real_client_gets_in(server):
-    loop = asyncio.get_running_loop()
-    idle = []
-    for _ in range(opcua_server.MAX_IDLE_PER_CLIENT * 3):
-        sock = socket.create_connection(("127.0.0.1", server.port))
+async def _connections(port: int, n: int, gap_s: float = 0.0) -> list[socket.socket]:
+    """``n`` plain TCP connections to ``port`` that send nothing (``gap_s`` apart), not blocking."""
+    socks = []
+    for _ in range(n):
+        sock = socket.create_connection(("127.0.0.1", port))
         sock.setblocking(False)
-        idle.append(sock)
-        await asyncio.sleep(0.01)
+        socks.append(sock)
+        if gap_s:
+            await asyncio.sleep(gap_s)
+    return socks
 
-    async def closed(sock) -> bool:
-        try:
-            return await asyncio.wait_for(loop.sock_recv(sock, 1), 0.05) == b""
-        except (asyncio.TimeoutError, ConnectionError):
-            return False
+
+async def _closed(sock: socket.socket, within_s: float) -> bool:
+    """Whether the server closed ``sock`` (it reads the end within ``within_s``)."""
+    try:
+        return await asyncio.wait_for(asyncio.get_running_loop().sock_recv(sock, 1), within_s) == b""
+    except (asyncio.TimeoutError, ConnectionError):
+        return False
+
+
+async def test_idle_connections_of_one_address_are_bounded_and_a_real_client_gets_in(server):
+    idle = await _connections(server.port, opcua_server.MAX_IDLE_PER_CLIENT * 3, gap_s=0.01)
     await asyncio.sleep(0.3)  # the server's idle limit has time to close the surplus connections
-    still_open = [s for s in idle if not await closed(s)]
+    still_open = [s for s in idle if not await _closed(s, 0.05)]
     assert len(still_open) <= opcua_server.MAX_IDLE_PER_CLIENT, len(still_open)
     client = Client(server.url, timeout=5)
     await client.connect()
@@ -179,19 +187,8 @@ async def test_a_chunk_announced_larger_than_the_limit_closes_the_connection(ser
 
 
 async def test_new_connections_per_client_address_are_rate_limited(server):
-    loop = asyncio.get_running_loop()
-    socks = []
-    for _ in range(opcua_server.CONNECTION_BURST * 3):
-        sock = socket.create_connection(("127.0.0.1", server.port))
-        sock.setblocking(False)
-        socks.append(sock)
-
-    async def closed(sock) -> bool:
-        try:
-            return await asyncio.wait_for(loop.sock_recv(sock, 1), 0.2) == b""
-        except (asyncio.TimeoutError, ConnectionError):
-            return False
-    shut = [s for s in socks if await closed(s)]
+    socks = await _connections(server.port, opcua_server.CONNECTION_BURST * 3)
+    shut = [s for s in socks if await _closed(s, 0.2)]
     assert len(shut) >= opcua_server.CONNECTION_BURST, f"{len(shut)} of {len(socks)} closed at once"
     for sock in socks:
         sock.close()
