@@ -165,6 +165,20 @@ class PageEnv:
 
 
 @contextlib.asynccontextmanager
+async def demo_user(folder: Path, tag: str) -> AsyncIterator[tuple]:
+    """NiceGUI's simulated user on the demo plant, its twins simulated here on endpoints of their own (``tag``: see
+    :func:`private_endpoints`), its RS485 line polled every 0.2 s, data in ``folder``: yields ``(user, runtime)``."""
+    from app.plant import load_plant
+    from app.runtime import Runtime
+
+    plant = private_endpoints(load_plant(DEMO_PLANT), tag)
+    plant.buses["line1"].options.update(timeout=0.2, poll_period=0.2)
+    runtime = Runtime(plant, simulate=True, data_dir=folder / "data")
+    async with simulated_user(runtime) as user:
+        yield user, runtime
+
+
+@contextlib.asynccontextmanager
 async def pages_on(plant, folder: Path, online_within_s: float = 15) -> AsyncIterator[PageEnv]:
     """The pages of ``plant`` (its twins simulated here, data in ``folder``) for NiceGUI's simulated user,
     once every device answers."""
@@ -256,7 +270,7 @@ def private_endpoints(plant, tag: str):
     return plant
 
 
-__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
+__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "demo_user", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
            "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "wait_http"]
 
 
