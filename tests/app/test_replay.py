@@ -69,12 +69,13 @@ def _frames(n: int, gap_s: float) -> list[FrameRecord]:
     return frames
 
 
-async def _collect(listener: can.Bus, count: int, timeout: float) -> list[can.Message]:
+async def collect(listener: can.Bus, count: int, timeout: float, poll_s: float = 0.2) -> list[can.Message]:
+    """Up to ``count`` frames that ``listener`` hears within ``timeout``."""
     got: list[can.Message] = []
     loop = asyncio.get_running_loop()
     end = loop.time() + timeout
     while len(got) < count and loop.time() < end:
-        msg = await asyncio.to_thread(listener.recv, 0.2)
+        msg = await asyncio.to_thread(listener.recv, poll_s)
         if msg is not None:
             got.append(msg)
     return got
@@ -93,7 +94,7 @@ async def test_replay_of_a_recording_reproduces_its_frames_in_order(env, tmp_pat
     started = time.monotonic()
     replay = await rp.start_replay(worker, "can9", loaded.frames, name=loaded.name, speed=2.0, session="s1", confirmed=True)
     assert replay.running and rp.running_replay(worker, "can9") is replay
-    got = await _collect(listener, len(loaded.frames), timeout=10)
+    got = await collect(listener, len(loaded.frames), timeout=10)
     await eventually(lambda: replay.state == "done", timeout=5)
     elapsed = time.monotonic() - started
     assert [(m.arbitration_id, m.is_extended_id, bytes(m.data)) for m in got] == [
@@ -115,7 +116,7 @@ async def test_error_frames_are_skipped_and_speed_scales(env):
     elapsed = time.monotonic() - started
     assert replay.sent == 10 and replay.skipped == 1
     assert elapsed > 0.8  # at half speed about 0.9 s
-    got = await _collect(listener, 10, timeout=3)
+    got = await collect(listener, 10, timeout=3)
     assert len(got) == 10
 
 

@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import asyncio
 
-import can
 import pytest
 from plants import ELECTRAK_ACTUATORS, device
-from test_replay import replay_env
+from test_replay import collect, replay_env
 
 from app import replay as rp
 from app.can_bus import FrameRecord
@@ -44,17 +43,6 @@ def _recording() -> list[FrameRecord]:
     ]
 
 
-async def _drain(listener: can.Bus, count: int, timeout: float) -> list[can.Message]:
-    got: list[can.Message] = []
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout
-    while len(got) < count and loop.time() < end:
-        msg = await asyncio.to_thread(listener.recv, 0.1)
-        if msg is not None:
-            got.append(msg)
-    return got
-
-
 async def test_frames_a_device_sends_are_never_replayed_and_each_is_named(env):
     worker, listener = env
     frames = _recording()
@@ -76,7 +64,7 @@ async def test_frames_a_device_sends_are_never_replayed_and_each_is_named(env):
     await eventually(lambda: replay.state == "done", timeout=5)
     assert replay.sent == 2 and replay.filtered == 4
     assert "4 kept off the bus by the device policies" in replay.summary()
-    got = await _drain(listener, 6, 1.0)
+    got = await collect(listener, 6, 1.0, poll_s=0.1)
     assert sorted((m.arbitration_id, m.is_extended_id) for m in got) == [(0x123, False), (0x124, False)], got
     row = worker.audit.rows[-1]
     assert "2 of 6 frames" in row.get("result", "") or "2 of 6 frames" in str(row), row
