@@ -405,6 +405,17 @@ async def alive(worker, *sessions: str, period_s: float = 0.1):
 
 
 @contextlib.asynccontextmanager
+async def closed_after(line, server: asyncio.AbstractServer):
+    """Inside, ``line`` talks to ``server``; on leaving, both are closed (the server waited for)."""
+    try:
+        yield
+    finally:
+        line.close()
+        server.close()
+        await server.wait_closed()
+
+
+@contextlib.asynccontextmanager
 async def listening(plant_text: str, channel: str, data_dir: Path):
     """The app without twins on ``plant_text``, started, and a python-can listener on its virtual CAN ``channel``:
     yields ``(runtime, listener)``; both closed on leaving."""
@@ -500,5 +511,5 @@ def inside_viewport(page, locator, timeout: float = 5.0) -> None:
     assert box["y"] + box["height"] <= size["height"] + 0.5, f"{locator} sticks out below {size['height']} px: {box}"
 
 
-__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "alive", "free_port", "free_udp_port", "identified", "inside_viewport", "listening", "modbus_plant", "running_plant", "sim_process", "spy_writes",
+__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "alive", "closed_after", "free_port", "free_udp_port", "identified", "inside_viewport", "listening", "modbus_plant", "running_plant", "sim_process", "spy_writes",
            "wait_devices_online", "wait_for"]
