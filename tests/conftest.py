@@ -441,6 +441,20 @@ async def can_rig(tmp_path: Path):
         yield rig
 
 
+def one_device_store(name: str):
+    """A state store with one HD-Lock ``name`` on line1, seen and never stale, whose Speed is 1.5 rpm (what the
+    MQTT, Sparkplug and OPC UA faces publish): ``(store, its state)``."""
+    from app.state import StateStore
+    from devices.live import DeviceState
+
+    store = StateStore()
+    state = DeviceState(name, "hdlock", "line1", stale_after=1e9)
+    state.mark_seen()
+    state.publish("Speed", 1.5, "rpm")
+    store.devices[name] = state
+    return store, state
+
+
 def spy_writes(twin) -> list[tuple[int, int]]:
     """Record every register write that reaches ``twin`` (over the wire, via FC 0x06) in the list returned."""
     writes: list[tuple[int, int]] = []
@@ -511,5 +525,5 @@ def inside_viewport(page, locator, timeout: float = 5.0) -> None:
     assert box["y"] + box["height"] <= size["height"] + 0.5, f"{locator} sticks out below {size['height']} px: {box}"
 
 
-__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "alive", "closed_after", "free_port", "free_udp_port", "identified", "inside_viewport", "listening", "modbus_plant", "running_plant", "sim_process", "spy_writes",
+__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "alive", "closed_after", "free_port", "free_udp_port", "identified", "inside_viewport", "listening", "modbus_plant", "one_device_store", "running_plant", "sim_process", "spy_writes",
            "wait_devices_online", "wait_for"]

@@ -10,13 +10,11 @@ import socket
 
 import pytest
 from asyncua import Client, ua
-from conftest import free_port
+from conftest import free_port, one_device_store
 
 from app import opcua_server
 from app.opcua_server import OpcuaServer
 from app.plant import parse_plant
-from app.state import StateStore
-from devices.live import DeviceState
 
 pytestmark = pytest.mark.timeout(90)
 
@@ -25,11 +23,7 @@ pytestmark = pytest.mark.timeout(90)
 async def server():
     port = free_port()
     plant = parse_plant(f'name = "p"\n[opcua]\nendpoint = "opc.tcp://127.0.0.1:{port}"\n')
-    store = StateStore()
-    state = DeviceState("pump", "hdlock", "line1", stale_after=1e9)
-    state.mark_seen()
-    state.publish("Speed", 1.5, "rpm")
-    store.devices["pump"] = state
+    store, _ = one_device_store("pump")
     srv = OpcuaServer(plant.opcua, store, plant)
     await srv.start()
     srv.url = f"opc.tcp://127.0.0.1:{port}"
