@@ -46,16 +46,12 @@ def _registered(n: int) -> ua.RegisteredServer:
 
 
 async def test_register_server_is_refused(server):
-    client = Client(server.url, timeout=5)
-    await client.connect()
-    try:
+    async with Client(server.url, timeout=5) as client:
         for n in range(3):
             with pytest.raises(ua.UaStatusCodeError):
                 await client.uaclient.register_server(_registered(n))
         servers = await client.find_servers()
         assert [s.ApplicationUri for s in servers] == ["urn:commission:p"]
-    finally:
-        await client.disconnect()
 
 
 async def test_subscriptions_per_session_are_bounded(server):
@@ -78,16 +74,12 @@ async def test_subscriptions_per_session_are_bounded(server):
 
 
 async def test_monitored_items_per_request_are_bounded(server):
-    client = Client(server.url, timeout=5)
-    await client.connect()
-    try:
+    async with Client(server.url, timeout=5) as client:
         sub = await client.create_subscription(1000, None)
         node = client.get_node(ua.ObjectIds.Server_ServerStatus_CurrentTime)
         with pytest.raises(ua.UaStatusCodeError) as refused:
             await sub.subscribe_data_change([node] * (opcua_server.MAX_MONITORED_ITEMS_PER_SESSION + 1))
         assert refused.value.code == ua.StatusCodes.BadTooManyMonitoredItems
-    finally:
-        await client.disconnect()
 
 
 async def test_sessions_per_client_address_are_bounded(server):
@@ -148,14 +140,10 @@ async def test_limits_of_the_transport_and_the_server(server):
 
 async def test_outsiders_cannot_fill_the_log(server, caplog):
     caplog.set_level(logging.INFO)
-    client = Client(server.url, timeout=5)
-    await client.connect()
-    try:
+    async with Client(server.url, timeout=5) as client:
         for n in range(200):
             with pytest.raises(ua.UaStatusCodeError):
                 await client.uaclient.register_server(_registered(n))
-    finally:
-        await client.disconnect()
     server_lines = [r for r in caplog.records if r.name.startswith(("asyncua.server", "app.opcua_server"))]
     assert len(server_lines) <= 60, f"{len(server_lines)} log lines for 200 refused requests"
 
