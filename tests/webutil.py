@@ -242,6 +242,15 @@ def demo_plant_text(bus_port: int) -> str:
     return text
 
 
+def page_at(browser, url: str, width: int = 1440, height: int = 900):
+    """A new page of playwright's ``browser`` (``width`` x ``height``) opened at ``url``; every wait on it is bounded
+    by 15 s."""
+    page = browser.new_page(viewport={"width": width, "height": height})
+    page.set_default_timeout(15_000)
+    page.goto(url)
+    return page
+
+
 def serve_beyond_loopback(folder: Path, port: int, data: Path, *args: str) -> subprocess.Popen:
     """``python -m app.cli`` on ``folder/plant.toml`` listening on every interface (every browser logs in),
     its data in ``data``, its output in ``folder/app.log``; run in ``folder``, where NiceGUI keeps its storage."""
@@ -270,7 +279,7 @@ def private_endpoints(plant, tag: str):
     return plant
 
 
-__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "demo_user", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
+__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "demo_user", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "page_at", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
            "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "wait_http"]
 
 
