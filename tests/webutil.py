@@ -212,6 +212,12 @@ class LockPages(PageEnv):
 
         await eventually(check, timeout=10)
 
+    async def open_page(self, name: str = "door-1") -> None:
+        """Once ``name`` is polled, its page opened in the user's browser and its title shown."""
+        await self.polled(name)
+        await self.user.open(f"/device/{name}")
+        await self.user.should_see(f"HD-Lock {name}")
+
 
 @contextlib.asynccontextmanager
 async def lock_pages(caplog) -> AsyncIterator[LockPages]:

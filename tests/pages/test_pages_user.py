@@ -122,9 +122,7 @@ async def test_tile_click_opens_device_page(env: Env):
 
 async def test_device_page_shows_lamps_and_enums(env: Env):
     user = env.user
-    await env.polled("door-1")
-    await user.open("/device/door-1")
-    await user.should_see("HD-Lock door-1")
+    await env.open_page()
     await user.should_see("LockStatus (holding 1000)")
     for lamp in ("LockRequest", "ProximityInPlace", "DoorInPosition", "BoltLocked", "BoltUnlocked", "BoltMovingOut"):
         await user.should_see(kind=ui.label, content=lamp)
@@ -148,9 +146,7 @@ async def test_unknown_device_page(env: Env):
 
 async def test_write_parameter_then_save_settings(env: Env):
     user, twin, state = env.user, env.twin(), env.state()
-    await env.polled("door-1")
-    await user.open("/device/door-1")
-    await user.should_see("HD-Lock door-1")
+    await env.open_page()
     await user.should_not_see(kind=ui.badge, content="unsaved")
     assert twin.holding[3000] == 200
     saved_before = twin.input[101]
@@ -181,9 +177,7 @@ async def test_write_parameter_then_save_settings(env: Env):
 
 async def test_out_of_range_value_is_refused_without_writing(env: Env):
     user, twin = env.user, env.twin()
-    await env.polled("door-1")
-    await user.open("/device/door-1")
-    await user.should_see("HD-Lock door-1")
+    await env.open_page()
     writes = spy_writes(twin)
     requests = env.state().counters.requests
 
@@ -228,9 +222,7 @@ def choose(user: User, param: str, value: int, options: dict[int, str]) -> None:
 
 async def test_remove_magnet_asks_for_confirmation_and_cancel_writes_nothing(env: Env):
     user, twin = env.user, env.twin()
-    await env.polled("door-1")
-    await user.open("/device/door-1")
-    await user.should_see("HD-Lock door-1")
+    await env.open_page()
     writes = spy_writes(twin)
 
     choose(user, "SettingsRemoveMagnet", 1, REMOVE_MAGNET)
@@ -251,9 +243,7 @@ async def test_remove_magnet_asks_for_confirmation_and_cancel_writes_nothing(env
 
 async def test_remove_magnet_written_after_confirmation(env: Env):
     user, twin = env.user, env.twin()
-    await env.polled("door-1")
-    await user.open("/device/door-1")
-    await user.should_see("HD-Lock door-1")
+    await env.open_page()
 
     choose(user, "SettingsRemoveMagnet", 1, REMOVE_MAGNET)
     write_button(user, "SettingsRemoveMagnet").click()
