@@ -248,6 +248,17 @@ def demo_plant_text(bus_port: int) -> str:
     return text
 
 
+@contextlib.contextmanager
+def opened(browser, url: str, width: int = 1440, height: int = 900):
+    """A new page of playwright's ``browser`` (``width`` x ``height``) at ``url``, closed on leaving."""
+    page = browser.new_page(viewport={"width": width, "height": height})
+    try:
+        page.goto(url)
+        yield page
+    finally:
+        page.close()
+
+
 def page_at(browser, url: str, width: int = 1440, height: int = 900):
     """A new page of playwright's ``browser`` (``width`` x ``height``) opened at ``url``; every wait on it is bounded
     by 15 s."""
@@ -285,7 +296,7 @@ def private_endpoints(plant, tag: str):
     return plant
 
 
-__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "demo_user", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "page_at", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
+__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "demo_user", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "opened", "page_at", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
            "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "wait_http"]
 
 
