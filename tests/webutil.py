@@ -106,12 +106,12 @@ async def simulated_user(runtime):
 
 
 @contextlib.asynccontextmanager
-async def user_on(plant, simulate: bool = True) -> AsyncIterator[tuple]:
-    """NiceGUI's simulated user on ``plant``, its twins simulated here (unless ``simulate`` is false): yields
-    ``(user, runtime)``."""
+async def user_on(plant, simulate: bool = True, data_dir: Path | None = None) -> AsyncIterator[tuple]:
+    """NiceGUI's simulated user on ``plant``, its twins simulated here (unless ``simulate`` is false), its data in
+    ``data_dir`` (a folder of its own by default): yields ``(user, runtime)``."""
     from app.runtime import Runtime
 
-    runtime = Runtime(plant, simulate=simulate)
+    runtime = Runtime(plant, simulate=simulate, data_dir=data_dir)
     async with simulated_user(runtime) as user:
         yield user, runtime
 

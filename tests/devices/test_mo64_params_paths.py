@@ -13,7 +13,7 @@ from nicegui.testing.user_interaction import UserInteraction
 from plants import mo64_tcp, plant_text
 from recordutil import demo_plant
 from test_backup_page import emit
-from webutil import by_testid, dialog_button, eventually, project_card_table, simulated_user
+from webutil import by_testid, dialog_button, eventually, project_card_table, simulated_user, user_on
 
 from app import backup, batch, project, replace
 from app.plant import load_plant, parse_plant
@@ -58,8 +58,7 @@ async def test_the_project_differs_on_the_device_page_and_is_applied_per_row(tmp
     problems = project.check_plant(bad)  # commission check: without the device
     assert any("t_offen: 700 is outside 0 .. 655" in p for p in problems), problems
     assert any("unknown parameter 'multi7'" in p for p in problems), problems
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(path), data_dir=tmp_path / "data") as (user, runtime):
         await _online(runtime, "gate")
         twin = runtime.twins["gate"]
         await user.open("/device/gate")

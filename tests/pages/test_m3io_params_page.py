@@ -8,7 +8,7 @@ import pytest
 from nicegui import ui
 from test_m3io_params import _plant_file
 from test_backup_page import emit
-from webutil import dialog_button, eventually, project_card_table, simulated_user
+from webutil import dialog_button, eventually, project_card_table, user_on
 
 from app.plant import load_plant
 from app.runtime import Runtime
@@ -26,8 +26,7 @@ async def _read(runtime: Runtime, *names: str) -> None:
 
 async def test_the_project_differs_on_the_page_and_is_applied_per_row_with_p2_asked(tmp_path):
     path = _plant_file(tmp_path, project_a='"Customer data 3" = "01 02 03", P2 = 1')
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(path), data_dir=tmp_path / "data") as (user, runtime):
         await _read(runtime, "io-a")
         twin = runtime.twins["io-a"]
         await user.open("/device/io-a")
@@ -54,8 +53,7 @@ async def test_the_project_differs_on_the_page_and_is_applied_per_row_with_p2_as
 
 
 async def test_the_p2_switch_asks_and_stays_off_when_cancelled(tmp_path):
-    runtime = Runtime(load_plant(_plant_file(tmp_path)), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(_plant_file(tmp_path)), data_dir=tmp_path / "data") as (user, runtime):
         await _read(runtime, "io-b")
         await user.open("/device/io-b")
         await user.should_see("Three-phase output loaded on two phases only (P2)", retries=100)
@@ -72,8 +70,7 @@ async def test_the_p2_switch_asks_and_stays_off_when_cancelled(tmp_path):
 
 async def test_the_project_editor_takes_records_as_hex_bytes_and_p2_by_name(tmp_path):
     path = _plant_file(tmp_path)
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(path), data_dir=tmp_path / "data") as (user, runtime):
         await user.open("/project/io-a")
         await user.should_see("Edited on the CAN-M3IO parameter model without the device")
         await user.should_see("allowed: 1 to 6 bytes as hex, e.g. 01 02 0a (padded with ff to 6 bytes)")

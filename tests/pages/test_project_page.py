@@ -18,7 +18,7 @@ from nicegui.testing import User
 from plants import bus, device, free_port, modbus_line, mo64_tcp, plant_text
 from test_auth import login
 from test_backup_page import emit
-from webutil import dialog_button, eventually, project_card_table, simulated_user
+from webutil import dialog_button, eventually, project_card_table, simulated_user, user_on
 
 from app import project
 from app.plant import load_plant
@@ -57,8 +57,7 @@ class Env:
 @pytest.fixture
 async def env(tmp_path: Path) -> AsyncIterator[Env]:
     path = plant_file(tmp_path)
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(path), data_dir=tmp_path / "data") as (user, runtime):
         await eventually(lambda: runtime.store.devices["door-1"].status == "online", timeout=15, what="door-1 online")
         yield Env(user, runtime, path)
 
@@ -147,8 +146,7 @@ async def test_the_mo64_project_is_edited_on_its_parameter_model(tmp_path: Path)
     path = tmp_path / "plant.toml"
     path.write_text(plant_text(mo64_tcp("barrier-in", "gate-tcp", travel_s=None, timeout=None, poll_period=None, simulate=None),
                                name="gates"))
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(path), data_dir=tmp_path / "data") as (user, runtime):
         await user.open("/project/barrier-in")  # every family has a parameter model now (devices/mo64/params.py)
         await user.should_see("Kraftüberwachung")
         assert [e for e in user.client.elements.values() if e.props.get("data-project-field")]

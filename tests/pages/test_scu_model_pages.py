@@ -10,10 +10,9 @@ import pytest
 from nicegui import ui
 from plants import SCU_ACTUATORS, bus, device, free_port, plant_text
 from test_backup_page import emit
-from webutil import dialog_button, eventually, project_card_table, simulated_user
+from webutil import dialog_button, eventually, project_card_table, user_on
 
 from app.plant import load_plant
-from app.runtime import Runtime
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -29,8 +28,7 @@ def _plant(tmp_path: Path) -> Path:
 
 
 async def test_project_difference_applied_per_row_on_the_page_and_drift_on_the_overview_and_in_the_api(tmp_path: Path):
-    runtime = Runtime(load_plant(_plant(tmp_path)), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(_plant(tmp_path)), data_dir=tmp_path / "data") as (user, runtime):
         twin, state = runtime.twins["lift-a"], runtime.store.devices["lift-a"]
         await eventually(lambda: state.status == "online", timeout=30, what="lift-a online")
         await user.open("/device/lift-a")
@@ -72,8 +70,7 @@ async def test_project_difference_applied_per_row_on_the_page_and_drift_on_the_o
 
 
 async def test_the_project_editor_offers_the_settings_of_the_model(tmp_path: Path):
-    runtime = Runtime(load_plant(_plant(tmp_path)), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(_plant(tmp_path)), data_dir=tmp_path / "data") as (user, runtime):
         await user.open("/project/lift-a")
         await user.should_see("Edited on the Ewellix SCU parameter model")
         fields = {e.props.get("data-project-field"): e for e in user.client.elements.values()
