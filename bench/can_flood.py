@@ -53,6 +53,8 @@ import can
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from liveapp import free_udp_port  # noqa: E402
+
 from app import realtime  # noqa: E402
 from app.plant import parse_plant  # noqa: E402
 from app.runtime import Runtime  # noqa: E402
@@ -175,6 +177,7 @@ def cpu_of_threads() -> tuple[int, int]:
 
 
 def control_listener(channel: str, stop: threading.Event, times: list[float]) -> None:
+    """Send times of the control telegrams on the lift's bus, as a third node hears them (until ``stop``)."""
     with can.Bus(interface="virtual", channel=channel) as bus:
         while not stop.is_set():
             msg = bus.recv(0.05)
@@ -255,14 +258,6 @@ async def run_via(via: str, seconds: float, factors: list[int]) -> float:
         stop.set()
         await runtime.stop()
     return worst
-
-
-def free_udp_port() -> int:
-    import socket
-
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("", 0))
-        return sock.getsockname()[1]
 
 
 async def run(seconds: float, factors: list[int], ways: list[str]) -> None:

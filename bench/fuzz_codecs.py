@@ -74,9 +74,10 @@ def _scu_sealed_le(body: bytes) -> bytes:
     return body + scu.crc16(body).to_bytes(2, "little")
 
 
-def _mo64_feed(framing: mo64.Framing):
+def _feed(make_splitter):
+    """Chunks fed to a new splitter from ``make_splitter()``, then what it still holds expired."""
     def feed(chunks: list[bytes]) -> None:
-        splitter = mo64.FrameSplitter(framing)
+        splitter = make_splitter()
         for chunk in chunks:
             splitter.feed(chunk)
         splitter.expire()
@@ -89,15 +90,6 @@ def _mo64_describe(raw: bytes, framing: mo64.Framing, to_device: bool) -> None:
     except mo64.FrameError:
         return  # decode_frame has its own target; describe takes frames that passed it
     mo64.describe(frame, to_device)
-
-
-def _scu_feed(direction: str):
-    def feed(chunks: list[bytes]) -> None:
-        splitter = scu.FrameSplitter(direction)
-        for chunk in chunks:
-            splitter.feed(chunk)
-        splitter.expire()
-    return feed
 
 
 _CAN_ID = st.one_of(st.integers(0, 0x7FF), st.integers(0, 0x1FFFFFFF))
@@ -146,14 +138,14 @@ TARGETS: list[Target] = [
            (mo64.CodecError, v.DecodeError)),  # docstring: DecodeError for short/excess data, CodecError for a non-answer
     Target("mo64.describe", st.tuples(_mo64_frame(mo64.TCP), _MO64_FRAMING, st.booleans()),
            lambda a: _mo64_describe(*a), NEVER),
-    Target("mo64.FrameSplitter.feed(tcp)", _CHUNKS, _mo64_feed(mo64.TCP), NEVER),
-    Target("mo64.FrameSplitter.feed(rs485)", _CHUNKS, _mo64_feed(mo64.RS485), NEVER),
+    Target("mo64.FrameSplitter.feed(tcp)", _CHUNKS, _feed(lambda: mo64.FrameSplitter(mo64.TCP)), NEVER),
+    Target("mo64.FrameSplitter.feed(rs485)", _CHUNKS, _feed(lambda: mo64.FrameSplitter(mo64.RS485)), NEVER),
     # Ewellix SCU (serial)
     Target("scu.decode_answer", st.tuples(_scu_frame(), st.one_of(st.none(), st.sampled_from(sorted(scu.COMMANDS)))),
            lambda a: scu.decode_answer(*a), (scu.CodecError,)),
     Target("scu.decode_request", _scu_frame(), scu.decode_request, (scu.CodecError,)),
-    Target("scu.FrameSplitter.feed(answers)", _CHUNKS, _scu_feed(scu.ANSWERS), NEVER),
-    Target("scu.FrameSplitter.feed(requests)", _CHUNKS, _scu_feed(scu.REQUESTS), NEVER),
+    Target("scu.FrameSplitter.feed(answers)", _CHUNKS, _feed(lambda: scu.FrameSplitter(scu.ANSWERS)), NEVER),
+    Target("scu.FrameSplitter.feed(requests)", _CHUNKS, _feed(lambda: scu.FrameSplitter(scu.REQUESTS)), NEVER),
 ]
 
 

@@ -18,7 +18,6 @@ Last line: ``idle_tool_cpu_pct: X`` (the ``--no-sim`` process).
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import tempfile
 import time
@@ -27,17 +26,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from liveapp import (  # noqa: E402
-    across_processes, cpu_s, demo_plant_text, free_port, load, start_app, stop_app, wait_devices_online, wait_http,
+    across_processes, cpu_s, demo_plant_text, free_port, load, start_app, stop_app, thread_cpu_s, wait_devices_online,
+    wait_http,
 )
-
-
-def thread_cpu_s(pid: int, tid: int) -> float:
-    """User + system CPU seconds of one thread of ``pid`` (the main thread, which runs the event loop: ``tid == pid``)."""
-    try:
-        fields = Path(f"/proc/{pid}/task/{tid}/stat").read_text().rsplit(")", 1)[1].split()
-    except OSError:
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def main() -> None:

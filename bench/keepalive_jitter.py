@@ -42,6 +42,10 @@ import can
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from can_flood import flood_frames  # noqa: E402
+from can_flood import sender as flood_sender  # noqa: E402
+from can_listener import FrameListener  # noqa: E402
+
 from app.plant import parse_plant  # noqa: E402
 from app.runtime import Runtime, raise_priority  # noqa: E402
 from devices.electrak import codec as electrak  # noqa: E402
@@ -54,39 +58,18 @@ DIGOUT_ID, DIGOUT_SSR1 = 0x422, 0x02  # M3IO HM, SW1 0x1A
 TIMEOUT_BIT = 1 << 5  # Electrak status byte 7 bit 5: message timeout
 
 
-class Heard:
-    """Frames of the keep-alives (and the Electrak's status telegrams) as a third node of a bus hears them,
-    with their interface time stamps (wall clock)."""
-
-    def __init__(self, bus: can.BusABC):
-        self.bus = bus
-        self.frames: list[tuple[float, int, bytes]] = []
-        self._run = True
-        self.thread = threading.Thread(target=self._loop, daemon=True)
-        self.thread.start()
-
-    def _loop(self) -> None:
-        while self._run:
-            msg = self.bus.recv(0.05)
-            if msg is not None and not msg.is_extended_id and msg.arbitration_id in (electrak.CONTROL_ID, electrak.STATUS_ID, DIGOUT_ID):
-                # the send time (virtual: stamped in the sender's send(); udp_multicast: the kernel's receive
-                # time), not when this thread got the interpreter to look at it
-                self.frames.append((msg.timestamp, msg.arbitration_id, bytes(msg.data)))
-
-    def between(self, can_id: int, start: float, end: float) -> list[tuple[float, bytes]]:
-        return [(t, d) for t, i, d in list(self.frames) if i == can_id and start <= t <= end]
-
-    def close(self) -> None:
-        self._run = False
-        self.thread.join(2)
-        self.bus.shutdown()
+def heard_on(bus: can.BusABC) -> FrameListener:
+    """The keep-alives (and the Electrak's status telegrams) as a third node of ``bus`` hears them, with their
+    interface time stamps (wall clock)."""
+    return FrameListener(bus, sent_time=True, keep=lambda msg: not msg.is_extended_id and msg.arbitration_id in (
+        electrak.CONTROL_ID, electrak.STATUS_ID, DIGOUT_ID))
 
 
-def report(phase: str, heard: dict[str, Heard], start: float, end: float) -> float:
+def report(phase: str, heard: dict[str, FrameListener], start: float, end: float) -> float:
     """Print the figures of one phase; the worst gap ratio."""
     worst = 0.0
     for name, can_id, nominal in (("Electrak 0x06", electrak.CONTROL_ID, electrak.CONTROL_PERIOD_S), ("M3IO DigOut", DIGOUT_ID, m3io.DIGOUT_PERIOD_S)):
-        times = [t for t, _ in heard[name].between(can_id, start, end)]
+        times = [t for t, _ in heard[name].of(can_id, start, end)]
         gaps = [b - a for a, b in zip(times, times[1:], strict=False)]
         if not gaps:
             print(f"  {phase}: {name}: no telegrams heard")
@@ -96,7 +79,7 @@ def report(phase: str, heard: dict[str, Heard], start: float, end: float) -> flo
         ratio = max(gaps) / nominal
         worst = max(worst, ratio)
         if name.startswith("Electrak"):
-            flags = [d for _, d in heard[name].between(electrak.STATUS_ID, start + 0.3, end) if len(d) == 8 and d[7] & TIMEOUT_BIT]
+            flags = [d for _, d in heard[name].of(electrak.STATUS_ID, start + 0.3, end) if len(d) == 8 and d[7] & TIMEOUT_BIT]
             own = f"message-timeout flag {'ROSE (' + str(len(flags)) + ' status telegrams)' if flags else 'never'}"
         else:
             own = f"module watchdog {'RAN OUT' if max(gaps) > m3io.WATCHDOG_S else 'served'}"
@@ -161,20 +144,6 @@ def in_process_plant(lift: str, heater: str, flood: str, scu_port: int):
     )
 
 
-def flood_sender(channel: str, rate: int, stop: threading.Event) -> None:
-    frames = [can.Message(arbitration_id=0x1000000 + i * 7919 % 0xFFFFFF, is_extended_id=True,
-                          data=bytes([0, 0, i & 0xFF, i >> 8 & 0xFF, 0, 0, 0, 0])) for i in range(20_000)]
-    per_slice = max(1, rate // 100)
-    with can.Bus(interface="virtual", channel=channel) as bus:
-        i, due = 0, time.perf_counter()
-        while not stop.is_set():
-            for _ in range(per_slice):
-                bus.send(frames[i])
-                i = (i + 1) % len(frames)
-            due += 0.01
-            time.sleep(max(0.0, due - time.perf_counter()))
-
-
 async def beat(runtime: Runtime, session: str) -> None:
     while True:
         runtime.worker.heartbeat(session)
@@ -188,8 +157,8 @@ async def in_process(seconds: float) -> float:
     unit = ScuTwinThread(plant)
     unit.start()
     runtime = Runtime(plant, simulate=True)
-    heard = {"Electrak 0x06": Heard(can.Bus(interface="virtual", channel=lift_ch)),
-             "M3IO DigOut": Heard(can.Bus(interface="virtual", channel=heater_ch))}
+    heard = {"Electrak 0x06": heard_on(can.Bus(interface="virtual", channel=lift_ch)),
+             "M3IO DigOut": heard_on(can.Bus(interface="virtual", channel=heater_ch))}
     await runtime.start()
     beating = asyncio.create_task(beat(runtime, "bench"))
     worst = 0.0
@@ -209,7 +178,8 @@ async def in_process(seconds: float) -> float:
         worst = max(worst, report("(a) idle", heard, start, time.time()), report_scu("(a) idle", unit, start, time.time()))
 
         stop = threading.Event()
-        sender = threading.Thread(target=flood_sender, args=(flood_ch, 2 * BUS_LIMIT_FPS, stop), daemon=True)
+        sender = threading.Thread(target=flood_sender, args=(flood_ch, flood_frames("unknown", 20_000), 2 * BUS_LIMIT_FPS, stop, [0]),
+                                  daemon=True)
         sender.start()
         start = time.time()
         await asyncio.sleep(seconds)
@@ -231,8 +201,8 @@ async def in_process(seconds: float) -> float:
         worst = max(worst, report("(d) loop blocked 1 s", heard, blocked - 0.3, end))
         # the SCU under control but nothing running: RC goes on from the line's thread through the block
         report_scu("(d) loop blocked 1 s", unit, blocked - 0.3, end)
-        stop_lift = [t for t, d in heard["Electrak 0x06"].between(electrak.CONTROL_ID, blocked, end) if not d[7] & 0x01]
-        stop_heater = [t for t, d in heard["M3IO DigOut"].between(DIGOUT_ID, blocked, end) if not d[0] & DIGOUT_SSR1]
+        stop_lift = [t for t, d in heard["Electrak 0x06"].of(electrak.CONTROL_ID, blocked, end) if not d[7] & 0x01]
+        stop_heater = [t for t, d in heard["M3IO DigOut"].of(DIGOUT_ID, blocked, end) if not d[0] & DIGOUT_SSR1]
         for name, found in (("Electrak enable cleared", stop_lift), ("M3IO SSR1 off", stop_heater)):
             print(f"  (d) {name} on the bus {(found[0] - blocked) * 1000:.0f} ms after the block (bound 500 ms)" if found
                   else f"  (d) {name}: NOT on the bus during the block")
@@ -291,7 +261,7 @@ sw1 = 0x1A
 def with_pages(seconds: float, pages: int) -> float | None:
     """(c): the app in a process of its own, ``pages`` chromium pages open, keep-alives heard from here."""
     sys.path.insert(0, str(ROOT / "bench"))
-    from liveapp import running_app  # the app in a process of its own, as the other benchmarks start it (no tests/)
+    from liveapp import free_udp_port, running_app  # the app in a process of its own, as the other benchmarks start it (no tests/)
 
     try:
         from playwright.sync_api import sync_playwright
@@ -302,16 +272,9 @@ def with_pages(seconds: float, pages: int) -> float | None:
     if not chromium.exists():
         print("  (c) skipped: Debian's chromium is not installed")
         return None
-    import socket
-
-    def udp_port() -> int:
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-            s.bind(("", 0))
-            return s.getsockname()[1]
-
-    lift_port, heater_port = udp_port(), udp_port()
-    heard = {"Electrak 0x06": Heard(can.Bus(interface="udp_multicast", channel="239.74.163.9", port=lift_port)),
-             "M3IO DigOut": Heard(can.Bus(interface="udp_multicast", channel="239.74.163.9", port=heater_port))}
+    lift_port, heater_port = free_udp_port(), free_udp_port()
+    heard = {"Electrak 0x06": heard_on(can.Bus(interface="udp_multicast", channel="239.74.163.9", port=lift_port)),
+             "M3IO DigOut": heard_on(can.Bus(interface="udp_multicast", channel="239.74.163.9", port=heater_port))}
     worst = None
     try:
         with tempfile.TemporaryDirectory() as folder, running_app(CHROMIUM_PLANT.format(lift=lift_port, heater=heater_port), Path(folder)) as url, \

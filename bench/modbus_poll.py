@@ -15,12 +15,14 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import socket
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import liveapp  # noqa: E402
+from liveapp import bus, device, free_port  # noqa: E402
 
 from app.plant import parse_plant  # noqa: E402
 from app.runtime import SimulatedPlant  # noqa: E402
@@ -30,18 +32,10 @@ BAUD = 19200
 BITS_PER_CHAR = 11  # start + 8 data + parity + stop
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def plant_text(port: int, wire_delay: bool) -> str:
-    return (
-        f'[[bus]]\nname = "line1"\ntype = "modbus-rtu"\nport = "socket://127.0.0.1:{port}"\n'
-        f"baudrate = {BAUD}\nparity = \"E\"\nsimulate = true\nwire_delay = {str(wire_delay).lower()}\ntimeout = 1.0\n"
-        '[[device]]\nname = "door-1"\ntype = "hdlock"\nbus = "line1"\naddress = 1\n'
-    )
+    return liveapp.plant_text(
+        bus("line1", "modbus-rtu", device("door-1", "hdlock", "line1", address=1), port=f"socket://127.0.0.1:{port}",
+            baudrate=BAUD, parity="E", simulate=True, wire_delay=wire_delay, timeout=1.0), name=None)
 
 
 def wire_time_per_cycle(adapter) -> tuple[float, int, int]:

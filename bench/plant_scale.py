@@ -41,8 +41,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from liveapp import (  # noqa: E402
-    CHROMIUM, CHROMIUM_ARGS, cpu_s, free_port, load, need_playwright, rss_mb, start_app, stop_app, wait_devices_online,
-    wait_http,
+    CHROMIUM, CHROMIUM_ARGS, cpu_s, free_port, load, need_playwright, rss_mb, start_app, stop_app, thread_cpu_s,
+    wait_devices_online, wait_http,
 )
 from scale_plants import BAUD, family_counts, scale_plant_text, tcp_ports, wait_listening  # noqa: E402
 
@@ -50,14 +50,6 @@ from scale_plants import BAUD, family_counts, scale_plant_text, tcp_ports, wait_
 FAMILIES = (("hdlock-modbus", 16), ("hdlock-can", 8), ("m3io", 8), ("electrak", 4), ("scu", 4), ("mo64", 6))
 BITS_PER_CHAR = 11  # start + 8 data + even parity + stop
 GAP_CHARS = 3.5  # the silence that ends an RTU telegram
-
-
-def thread_cpu_s(pid: int, tid: int) -> float:
-    try:
-        fields = Path(f"/proc/{pid}/task/{tid}/stat").read_text().rsplit(")", 1)[1].split()
-    except OSError:
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def fit(xs: list[float], ys: list[float]) -> tuple[float, float]:

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import socket
 import statistics
 import sys
 import threading
@@ -26,6 +25,9 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import liveapp  # noqa: E402
+from liveapp import bus, device, free_port  # noqa: E402
 
 from app.plant import parse_plant  # noqa: E402
 from app.runtime import SimulatedPlant  # noqa: E402
@@ -36,18 +38,10 @@ BITS_PER_CHAR = 10  # start + 8 data + stop
 WATCHDOG_S = 0.5
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def plant_text(port: int, wire_delay: bool) -> str:
-    return (
-        f'[[bus]]\nname = "rs1"\ntype = "serial"\nport = "socket://127.0.0.1:{port}"\nbaudrate = {BAUD}\n'
-        f"simulate = true\nwire_delay = {str(wire_delay).lower()}\ntimeout = 0.5\n"
-        '[[device]]\nname = "scu"\ntype = "scu"\nbus = "rs1"\nactuators = 2\n'
-    )
+    return liveapp.plant_text(
+        bus("rs1", "serial", device("scu", "scu", "rs1", actuators=2), port=f"socket://127.0.0.1:{port}", baudrate=BAUD,
+            simulate=True, wire_delay=wire_delay, timeout=0.5), name=None)
 
 
 async def measure(wire_delay: bool, cycles: int) -> tuple[float, float, int, float]:

@@ -7,7 +7,7 @@ import contextlib
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 import pytest
@@ -347,17 +347,34 @@ async def wait_for(predicate, timeout: float = 5.0, interval: float = 0.05) -> b
     return True
 
 
+def _online(runtime, name: str) -> bool:
+    return runtime.store.devices[name].status == "online"
+
+
+def identified(runtime, name: str) -> bool:
+    """Whether the app has read the identity (serial number, ...) of the device ``name`` of ``runtime``."""
+    from app import replace
+
+    return replace.live_identity(runtime, name) is not None
+
+
 @contextlib.asynccontextmanager
-async def running_plant(plant: Plant):
-    """The app's runtime on ``plant`` with its twins, started; stopped (bounded) on leaving."""
+async def running_plant(plant: Plant, data_dir: Path | None = None, ready: Iterable[str] = (), within_s: float = 8.0,
+                        is_ready: Callable[[object, str], object] = _online, stop_within_s: float = 5.0,
+                        simulate: bool = True):
+    """The app's runtime on ``plant`` with its twins (unless ``simulate`` is false; its data in ``data_dir``, a folder of its own by default),
+    started; it asserts that each device of ``ready`` is ready (``is_ready(runtime, name)``: online by default)
+    within ``within_s``; stopped on leaving, within ``stop_within_s``."""
     from app.runtime import Runtime
 
-    runtime = Runtime(plant, simulate=True)
+    runtime = Runtime(plant, simulate=simulate, data_dir=data_dir)
     await runtime.start()
     try:
+        for name in ready:
+            assert await wait_for(lambda n=name: is_ready(runtime, n), timeout=within_s), name
         yield runtime
     finally:
-        await asyncio.wait_for(runtime.stop(), 5)
+        await asyncio.wait_for(runtime.stop(), stop_within_s)
 
 
 @pytest.fixture
@@ -365,15 +382,48 @@ def plant() -> Plant:
     return modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
 
 
-@pytest.fixture
-async def can_rig(tmp_path: Path):
-    """The app without twins on :func:`plants.heater_and_lock`'s bus, and a python-can listener on that bus."""
+@contextlib.asynccontextmanager
+async def alive(worker, *sessions: str, period_s: float = 0.1):
+    """Browser ``sessions`` that keep confirming they are alive while inside, every ``period_s`` from now on (what a
+    live page does): the worker's dead-man rule stops nothing of theirs."""
+
+    async def beat() -> None:
+        while True:
+            for session in sessions:
+                worker.heartbeat(session)
+            await asyncio.sleep(period_s)
+
+    task = asyncio.create_task(beat())
+    for session in sessions:
+        worker.heartbeat(session)
+    try:
+        yield
+    finally:
+        task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+
+
+@contextlib.asynccontextmanager
+async def closed_after(line, server: asyncio.AbstractServer):
+    """Inside, ``line`` talks to ``server``; on leaving, both are closed (the server waited for)."""
+    try:
+        yield
+    finally:
+        line.close()
+        server.close()
+        await server.wait_closed()
+
+
+@contextlib.asynccontextmanager
+async def listening(plant_text: str, channel: str, data_dir: Path):
+    """The app without twins on ``plant_text``, started, and a python-can listener on its virtual CAN ``channel``:
+    yields ``(runtime, listener)``; both closed on leaving."""
     import can
 
     from app.runtime import Runtime
 
-    channel = f"rig-{free_port()}-{time.monotonic_ns()}"
-    runtime = Runtime(parse_plant(heater_and_lock(channel)), simulate=False, data_dir=tmp_path)
+    runtime = Runtime(parse_plant(plant_text), simulate=False, data_dir=data_dir)
     await runtime.start()
     listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
     try:
@@ -381,6 +431,28 @@ async def can_rig(tmp_path: Path):
     finally:
         listener.shutdown()
         await asyncio.wait_for(runtime.stop(), 5)
+
+
+@pytest.fixture
+async def can_rig(tmp_path: Path):
+    """The app without twins on :func:`plants.heater_and_lock`'s bus, and a python-can listener on that bus."""
+    channel = f"rig-{free_port()}-{time.monotonic_ns()}"
+    async with listening(heater_and_lock(channel), channel, tmp_path) as rig:
+        yield rig
+
+
+def one_device_store(name: str):
+    """A state store with one HD-Lock ``name`` on line1, seen and never stale, whose Speed is 1.5 rpm (what the
+    MQTT, Sparkplug and OPC UA faces publish): ``(store, its state)``."""
+    from app.state import StateStore
+    from devices.live import DeviceState
+
+    store = StateStore()
+    state = DeviceState(name, "hdlock", "line1", stale_after=1e9)
+    state.mark_seen()
+    state.publish("Speed", 1.5, "rpm")
+    store.add(state)
+    return store, state
 
 
 def spy_writes(twin) -> list[tuple[int, int]]:
@@ -453,5 +525,5 @@ def inside_viewport(page, locator, timeout: float = 5.0) -> None:
     assert box["y"] + box["height"] <= size["height"] + 0.5, f"{locator} sticks out below {size['height']} px: {box}"
 
 
-__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "free_port", "free_udp_port", "inside_viewport", "modbus_plant", "running_plant", "sim_process", "spy_writes",
+__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "alive", "closed_after", "free_port", "free_udp_port", "identified", "inside_viewport", "listening", "modbus_plant", "one_device_store", "running_plant", "sim_process", "spy_writes",
            "wait_devices_online", "wait_for"]

@@ -106,13 +106,22 @@ async def simulated_user(runtime):
 
 
 @contextlib.asynccontextmanager
-async def user_on(plant) -> AsyncIterator[tuple]:
-    """NiceGUI's simulated user on ``plant``, its twins simulated here: yields ``(user, runtime)``."""
+async def user_on(plant, simulate: bool = True, data_dir: Path | None = None) -> AsyncIterator[tuple]:
+    """NiceGUI's simulated user on ``plant``, its twins simulated here (unless ``simulate`` is false), its data in
+    ``data_dir`` (a folder of its own by default): yields ``(user, runtime)``."""
     from app.runtime import Runtime
 
-    runtime = Runtime(plant, simulate=True)
+    runtime = Runtime(plant, simulate=simulate, data_dir=data_dir)
     async with simulated_user(runtime) as user:
         yield user, runtime
+
+
+def lone_m3io_user() -> contextlib.AbstractAsyncContextManager[tuple]:
+    """:func:`user_on` an M3IO HM ``io`` on a virtual CAN bus ``can9`` of its own, without a twin (nothing answers)."""
+    from plants import can_bus, channel, m3io_can, plant
+
+    return user_on(plant(can_bus(m3io_can("io", "can9"), name="can9", channel_name=channel("can9"), simulate=None),
+                         name="w"), simulate=False)
 
 
 def by_testid(user, testid: str):
@@ -122,12 +131,51 @@ def by_testid(user, testid: str):
     return found[0]
 
 
+def project_card_table(user):
+    """The table of the device page's project card (the one with an actions column) open in ``user``."""
+    from nicegui import ui
+
+    return next(e for e in user.client.elements.values()
+                if isinstance(e, ui.table) and any(c["name"] == "actions" for c in e.columns))
+
+
+def dialog_button(user, text: str):
+    """The buttons labelled ``text`` inside an open dialog of ``user``'s page, to click."""
+    from nicegui import ui
+    from nicegui.testing.user_interaction import UserInteraction
+
+    def in_dialog(element) -> bool:
+        while element is not None:
+            if isinstance(element, ui.dialog):
+                return True
+            element = element.parent_slot.parent if element.parent_slot else None
+        return False
+
+    found = {e for e in user.client.elements.values() if isinstance(e, ui.button) and e.text == text and in_dialog(e)}
+    assert found, f"no {text!r} button in a dialog"
+    return UserInteraction(user, found, None)
+
+
 @dataclass
 class PageEnv:
     """NiceGUI's simulated user and the app it talks to."""
 
     user: object  # nicegui.testing.User
     runtime: object  # app.runtime.Runtime
+
+
+@contextlib.asynccontextmanager
+async def demo_user(folder: Path, tag: str) -> AsyncIterator[tuple]:
+    """NiceGUI's simulated user on the demo plant, its twins simulated here on endpoints of their own (``tag``: see
+    :func:`private_endpoints`), its RS485 line polled every 0.2 s, data in ``folder``: yields ``(user, runtime)``."""
+    from app.plant import load_plant
+    from app.runtime import Runtime
+
+    plant = private_endpoints(load_plant(DEMO_PLANT), tag)
+    plant.buses["line1"].options.update(timeout=0.2, poll_period=0.2)
+    runtime = Runtime(plant, simulate=True, data_dir=folder / "data")
+    async with simulated_user(runtime) as user:
+        yield user, runtime
 
 
 @contextlib.asynccontextmanager
@@ -153,6 +201,23 @@ class LockPages(PageEnv):
     def state(self, name: str = "door-1"):
         return self.runtime.store.devices[name]
 
+    async def polled(self, *names: str, point: str = "SerialNumber") -> None:
+        """Wait until the worker has polled each of ``names`` (both locks by default) as far as ``point``."""
+
+        def check() -> None:
+            for name in names or ("door-1", "door-2"):
+                state = self.state(name)
+                assert state.status == "online", f"{name} is {state.status}: {state.last_error}"
+                assert state.value(point) is not None, f"{name}: {point} not read yet"
+
+        await eventually(check, timeout=10)
+
+    async def open_page(self, name: str = "door-1") -> None:
+        """Once ``name`` is polled, its page opened in the user's browser and its title shown."""
+        await self.polled(name)
+        await self.user.open(f"/device/{name}")
+        await self.user.should_see(f"HD-Lock {name}")
+
 
 @contextlib.asynccontextmanager
 async def lock_pages(caplog) -> AsyncIterator[LockPages]:
@@ -166,6 +231,12 @@ async def lock_pages(caplog) -> AsyncIterator[LockPages]:
     assert not errors, "unexpected ERROR logs: " + "; ".join(r.getMessage() for r in errors)
 
 
+async def lock_pages_env(caplog) -> AsyncIterator[LockPages]:
+    """:func:`lock_pages` as a test module's fixture: ``env = pytest.fixture(lock_pages_env, name="env")``."""
+    async with lock_pages(caplog) as env:
+        yield env
+
+
 # -- the app as a separate process (browser tests): bench/liveapp.py, as the benchmarks start it ----------
 
 
@@ -175,6 +246,26 @@ def demo_plant_text(bus_port: int) -> str:
     text = liveapp.demo_plant_text(bus_port)
     assert f"socket://127.0.0.1:{bus_port}" in text, "demo plant no longer names socket://127.0.0.1:5020"
     return text
+
+
+@contextlib.contextmanager
+def opened(browser, url: str, width: int = 1440, height: int = 900):
+    """A new page of playwright's ``browser`` (``width`` x ``height``) at ``url``, closed on leaving."""
+    page = browser.new_page(viewport={"width": width, "height": height})
+    try:
+        page.goto(url)
+        yield page
+    finally:
+        page.close()
+
+
+def page_at(browser, url: str, width: int = 1440, height: int = 900):
+    """A new page of playwright's ``browser`` (``width`` x ``height``) opened at ``url``; every wait on it is bounded
+    by 15 s."""
+    page = browser.new_page(viewport={"width": width, "height": height})
+    page.set_default_timeout(15_000)
+    page.goto(url)
+    return page
 
 
 def serve_beyond_loopback(folder: Path, port: int, data: Path, *args: str) -> subprocess.Popen:
@@ -205,7 +296,7 @@ def private_endpoints(plant, tag: str):
     return plant
 
 
-__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "lock_pages", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "private_endpoints", "running_app", "serve_beyond_loopback",
+__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "demo_user", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "opened", "page_at", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
            "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "wait_http"]
 
 
@@ -246,3 +337,17 @@ def refresh_on_the_round(store, view) -> None:
         view.refresh()
     finally:
         store.age_round = False
+
+
+async def push_the_same_values(user, runtime, device: str, monkeypatch) -> tuple[object, list[str]]:
+    """Open ``device``'s page in ``user`` and draw it as the store has it; then every point heard again with the
+    same values and pushed: returns the page's view and the names it read on that push (and reads from now on)."""
+    await user.open(f"/device/{device}")
+    view = page_view(user, runtime, device)
+    state = runtime.store.devices[device]
+    heard_again(state)
+    view.refresh()  # everything as the store has it now
+    read = count_reads(state, monkeypatch)
+    heard_again(state)  # heard again, the same values
+    view.refresh()
+    return view, read

@@ -14,9 +14,8 @@ from dataclasses import dataclass
 
 import httpx
 import pytest
-from webutil import eventually, private_endpoints, simulated_user
+from webutil import demo_user, eventually
 
-from app.plant import DEMO_PLANT, load_plant
 from app.runtime import Runtime
 from devices.electrak.params import PARAMS as ELECTRAK_PARAMS
 
@@ -60,10 +59,7 @@ async def eventually_async(probe, timeout: float, what: str) -> None:
 
 @pytest.fixture
 async def api(tmp_path) -> AsyncIterator[Api]:
-    plant = private_endpoints(load_plant(DEMO_PLANT), f"api-{tmp_path.name}")  # own ports and CAN channels
-    plant.buses["line1"].options.update(timeout=0.2, poll_period=0.2)
-    runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with demo_user(tmp_path, f"api-{tmp_path.name}") as (user, runtime):
         yield Api(user.http_client, runtime)
 
 

@@ -103,6 +103,15 @@ async def test_wrong_password(secured):
     await user.should_see("Wrong user name or password", retries=50)  # argon2 on a loaded machine
 
 
+async def _delay_300_typed(user, runtime) -> ui.button:
+    """door-1's LockRequestDelay, once read, typed as 300 on the open page: its write button."""
+    state = runtime.store.devices["door-1"]
+    assert await wait_for(lambda: state.value("LockRequestDelay") is not None, timeout=5)
+    delay = next(e for e in user.find(ui.number).elements if e.props.get("data-param") == "LockRequestDelay")
+    delay.set_value(300)
+    return next(e for e in user.find(ui.button).elements if e.props.get("data-write") == "LockRequestDelay")
+
+
 async def test_viewer_reads_but_cannot_write(secured):
     user, runtime = secured
     await login(user, "tablet", "battery staple")
@@ -110,11 +119,7 @@ async def test_viewer_reads_but_cannot_write(secured):
     await user.should_see("HD-Lock door-1")
     await user.should_see("tablet (viewer)")
     await user.should_see("Read-only session (viewer)")
-    state = runtime.store.devices["door-1"]
-    assert await wait_for(lambda: state.value("LockRequestDelay") is not None, timeout=5)
-    delay = next(e for e in user.find(ui.number).elements if e.props.get("data-param") == "LockRequestDelay")
-    delay.set_value(300)
-    write = next(e for e in user.find(ui.button).elements if e.props.get("data-write") == "LockRequestDelay")
+    write = await _delay_300_typed(user, runtime)
     # a viewer sees the write control disabled ...
     assert not write.enabled or write.props.get("disable")
     # ... and the refusal itself comes from the worker's gate, whatever the page shows: the same
@@ -134,11 +139,7 @@ async def test_engineer_can_write(secured):
     await login(user, "anna", "correct horse")
     await user.open("/device/door-1")
     await user.should_see("anna (engineer)")
-    state = runtime.store.devices["door-1"]
-    assert await wait_for(lambda: state.value("LockRequestDelay") is not None, timeout=5)
-    delay = next(e for e in user.find(ui.number).elements if e.props.get("data-param") == "LockRequestDelay")
-    delay.set_value(300)
-    write = next(e for e in user.find(ui.button).elements if e.props.get("data-write") == "LockRequestDelay")
+    write = await _delay_300_typed(user, runtime)
     from nicegui.testing.user_interaction import UserInteraction
 
     UserInteraction(user, {write}, None).click()

@@ -2,17 +2,15 @@
 
 from __future__ import annotations
 
-import asyncio
 import json
 
 import pytest
-from conftest import wait_for
+from conftest import running_plant, wait_for
 from webutil import private_endpoints
 
 from app import backup
 from app.audit import AuditLog, to_csv
 from app.plant import DEMO_PLANT, load_plant
-from app.runtime import Runtime
 from app.worker import PermissionDenied
 
 DEVICES = ("door-1", "gate-1", "lift", "heater-hmr")
@@ -21,14 +19,8 @@ DEVICES = ("door-1", "gate-1", "lift", "heater-hmr")
 @pytest.fixture
 async def plant_runtime(tmp_path):
     plant = private_endpoints(load_plant(DEMO_PLANT), tmp_path.name)  # own ports and CAN channels
-    runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
-    await runtime.start()
-    for name in DEVICES:
-        assert await wait_for(lambda n=name: runtime.store.devices[n].status == "online", timeout=8), name
-    try:
+    async with running_plant(plant, tmp_path / "data", ready=DEVICES) as runtime:
         yield runtime
-    finally:
-        await asyncio.wait_for(runtime.stop(), 5)
 
 
 async def write_raw(adapter, key: str, raw) -> None:

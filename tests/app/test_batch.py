@@ -3,13 +3,12 @@ device by device, stopping at the first failure; from the CLI with the restore's
 
 from __future__ import annotations
 
-import asyncio
 import json
 import subprocess
 import sys
 
 import pytest
-from conftest import modbus_plant, wait_for
+from conftest import modbus_plant, running_plant
 from plants import modbus_line, plant_text
 
 from app import backup, batch
@@ -33,15 +32,9 @@ def _source(tmp_path, delay=420, magnet=0):
 
 @pytest.fixture
 async def locks(tmp_path):
-    plant = modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
-    runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
-    await runtime.start()
-    for name in ("door-1", "door-2"):
-        assert await wait_for(lambda n=name: runtime.store.devices[n].status == "online", timeout=8), name
-    try:
+    async with running_plant(modbus_plant(locks=(("door-1", 1), ("door-2", 2))), tmp_path / "data",
+                             ready=("door-1", "door-2")) as runtime:
         yield runtime
-    finally:
-        await asyncio.wait_for(runtime.stop(), 5)
 
 
 async def test_batch_stops_at_the_first_failure_and_says_so(locks, tmp_path):

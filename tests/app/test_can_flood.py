@@ -9,13 +9,13 @@ import uuid
 
 import can
 import pytest
+from can_flood import control_listener
 from conftest import wait_for
 from plants import ELECTRAK_ACTUATORS, can_bus, electrak_bus, hdlock_can, plant
 
 import app.can_bus
 from app.can_bus import CanBus, CanBusState, open_error
 from app.runtime import Runtime
-from devices.electrak import codec as electrak
 
 SAFETY_GAP_S = 0.25  # Electrak: control telegram timeout 250 ms (message-timeout flag)
 
@@ -23,15 +23,6 @@ SAFETY_GAP_S = 0.25  # Electrak: control telegram timeout 250 ms (message-timeou
 def _plant(flooded: str, lift: str):
     return plant(can_bus(hdlock_can("gate-1", 660100), channel_name=flooded, bitrate=1000000),
                  electrak_bus(channel_name=lift, actuators=ELECTRAK_ACTUATORS[:1]), name=None)
-
-
-def _control_times(channel: str, stop: threading.Event, times: list[float]) -> None:
-    """Send times of the control telegrams on the lift's bus, as a third node hears them."""
-    with can.Bus(interface="virtual", channel=channel) as bus:
-        while not stop.is_set():
-            msg = bus.recv(0.05)
-            if msg is not None and msg.arbitration_id == electrak.CONTROL_ID and not msg.is_extended_id:
-                times.append(msg.timestamp)
 
 
 def _flood(channel: str, stop: threading.Event, sent: list[int]) -> None:
@@ -64,7 +55,7 @@ async def test_flood_is_shed_and_counted_and_the_other_bus_keeps_its_keepalive(m
     runtime = Runtime(_plant(flooded, lift), simulate=True)
     await runtime.start()
     stop, times, sent = threading.Event(), [], [0]
-    threads = [threading.Thread(target=_control_times, args=(lift, stop, times), daemon=True),
+    threads = [threading.Thread(target=control_listener, args=(lift, stop, times), daemon=True),
                threading.Thread(target=_flood, args=(flooded, stop, sent), daemon=True)]
     try:
         adapter = runtime.worker.adapters["lift"]

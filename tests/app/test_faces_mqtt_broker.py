@@ -14,14 +14,12 @@ from pathlib import Path
 
 import aiomqtt
 import pytest
-from conftest import free_port
+from conftest import free_port, one_device_store
 from webutil import eventually
 from test_mqtt_helpers import MOSQUITTO, running_broker
 
 from app.mqtt import MqttPublisher
 from app.plant import parse_plant
-from app.state import StateStore
-from devices.live import DeviceState
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.timeout(90)
@@ -30,11 +28,7 @@ INSTANCE_TOPIC = "commission/hall-3/$instances/cab-a"
 
 def _publisher(url: str, extra: str = "") -> MqttPublisher:
     plant = parse_plant(f'name = "cab-a"\n[mqtt]\nurl = "{url}"\nsite = "hall-3"\ninstance = "cab-a"\nheartbeat = 2\n{extra}')
-    store = StateStore()
-    state = DeviceState("door-1", "hdlock", "line1", stale_after=1e9)
-    state.mark_seen()
-    state.publish("Speed", 1.5, "rpm")
-    store.add(state)
+    store, _ = one_device_store("door-1")
     return MqttPublisher(plant.mqtt, store, "cab-a")
 
 

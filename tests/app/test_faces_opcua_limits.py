@@ -10,13 +10,11 @@ import socket
 
 import pytest
 from asyncua import Client, ua
-from conftest import free_port
+from conftest import free_port, one_device_store
 
 from app import opcua_server
 from app.opcua_server import OpcuaServer
 from app.plant import parse_plant
-from app.state import StateStore
-from devices.live import DeviceState
 
 pytestmark = pytest.mark.timeout(90)
 
@@ -25,11 +23,7 @@ pytestmark = pytest.mark.timeout(90)
 async def server():
     port = free_port()
     plant = parse_plant(f'name = "p"\n[opcua]\nendpoint = "opc.tcp://127.0.0.1:{port}"\n')
-    store = StateStore()
-    state = DeviceState("pump", "hdlock", "line1", stale_after=1e9)
-    state.mark_seen()
-    state.publish("Speed", 1.5, "rpm")
-    store.add(state)
+    store, _ = one_device_store("pump")
     srv = OpcuaServer(plant.opcua, store, plant)
     await srv.start()
     srv.url = f"opc.tcp://127.0.0.1:{port}"
@@ -52,16 +46,12 @@ def _registered(n: int) -> ua.RegisteredServer:
 
 
 async def test_register_server_is_refused(server):
-    client = Client(server.url, timeout=5)
-    await client.connect()
-    try:
+    async with Client(server.url, timeout=5) as client:
         for n in range(3):
             with pytest.raises(ua.UaStatusCodeError):
                 await client.uaclient.register_server(_registered(n))
         servers = await client.find_servers()
         assert [s.ApplicationUri for s in servers] == ["urn:commission:p"]
-    finally:
-        await client.disconnect()
 
 
 async def test_subscriptions_per_session_are_bounded(server):
@@ -84,16 +74,12 @@ async def test_subscriptions_per_session_are_bounded(server):
 
 
 async def test_monitored_items_per_request_are_bounded(server):
-    client = Client(server.url, timeout=5)
-    await client.connect()
-    try:
+    async with Client(server.url, timeout=5) as client:
         sub = await client.create_subscription(1000, None)
         node = client.get_node(ua.ObjectIds.Server_ServerStatus_CurrentTime)
         with pytest.raises(ua.UaStatusCodeError) as refused:
             await sub.subscribe_data_change([node] * (opcua_server.MAX_MONITORED_ITEMS_PER_SESSION + 1))
         assert refused.value.code == ua.StatusCodes.BadTooManyMonitoredItems
-    finally:
-        await client.disconnect()
 
 
 async def test_sessions_per_client_address_are_bounded(server):
@@ -112,22 +98,30 @@ async def test_sessions_per_client_address_are_bounded(server):
             await client.disconnect()
 
 
-async def test_idle_connections_of_one_address_are_bounded_and_a_real_client_gets_in(server):
-    loop = asyncio.get_running_loop()
-    idle = []
-    for _ in range(opcua_server.MAX_IDLE_PER_CLIENT * 3):
-        sock = socket.create_connection(("127.0.0.1", server.port))
+async def _connections(port: int, n: int, gap_s: float = 0.0) -> list[socket.socket]:
+    """``n`` plain TCP connections to ``port`` that send nothing (``gap_s`` apart), not blocking."""
+    socks = []
+    for _ in range(n):
+        sock = socket.create_connection(("127.0.0.1", port))
         sock.setblocking(False)
-        idle.append(sock)
-        await asyncio.sleep(0.01)
+        socks.append(sock)
+        if gap_s:
+            await asyncio.sleep(gap_s)
+    return socks
 
-    async def closed(sock) -> bool:
-        try:
-            return await asyncio.wait_for(loop.sock_recv(sock, 1), 0.05) == b""
-        except (asyncio.TimeoutError, ConnectionError):
-            return False
+
+async def _closed(sock: socket.socket, within_s: float) -> bool:
+    """Whether the server closed ``sock`` (it reads the end within ``within_s``)."""
+    try:
+        return await asyncio.wait_for(asyncio.get_running_loop().sock_recv(sock, 1), within_s) == b""
+    except (asyncio.TimeoutError, ConnectionError):
+        return False
+
+
+async def test_idle_connections_of_one_address_are_bounded_and_a_real_client_gets_in(server):
+    idle = await _connections(server.port, opcua_server.MAX_IDLE_PER_CLIENT * 3, gap_s=0.01)
     await asyncio.sleep(0.3)  # the server's idle limit has time to close the surplus connections
-    still_open = [s for s in idle if not await closed(s)]
+    still_open = [s for s in idle if not await _closed(s, 0.05)]
     assert len(still_open) <= opcua_server.MAX_IDLE_PER_CLIENT, len(still_open)
     client = Client(server.url, timeout=5)
     await client.connect()
@@ -146,14 +140,10 @@ async def test_limits_of_the_transport_and_the_server(server):
 
 async def test_outsiders_cannot_fill_the_log(server, caplog):
     caplog.set_level(logging.INFO)
-    client = Client(server.url, timeout=5)
-    await client.connect()
-    try:
+    async with Client(server.url, timeout=5) as client:
         for n in range(200):
             with pytest.raises(ua.UaStatusCodeError):
                 await client.uaclient.register_server(_registered(n))
-    finally:
-        await client.disconnect()
     server_lines = [r for r in caplog.records if r.name.startswith(("asyncua.server", "app.opcua_server"))]
     assert len(server_lines) <= 60, f"{len(server_lines)} log lines for 200 refused requests"
 
@@ -179,19 +169,8 @@ async def test_a_chunk_announced_larger_than_the_limit_closes_the_connection(ser
 
 
 async def test_new_connections_per_client_address_are_rate_limited(server):
-    loop = asyncio.get_running_loop()
-    socks = []
-    for _ in range(opcua_server.CONNECTION_BURST * 3):
-        sock = socket.create_connection(("127.0.0.1", server.port))
-        sock.setblocking(False)
-        socks.append(sock)
-
-    async def closed(sock) -> bool:
-        try:
-            return await asyncio.wait_for(loop.sock_recv(sock, 1), 0.2) == b""
-        except (asyncio.TimeoutError, ConnectionError):
-            return False
-    shut = [s for s in socks if await closed(s)]
+    socks = await _connections(server.port, opcua_server.CONNECTION_BURST * 3)
+    shut = [s for s in socks if await _closed(s, 0.2)]
     assert len(shut) >= opcua_server.CONNECTION_BURST, f"{len(shut)} of {len(socks)} closed at once"
     for sock in socks:
         sock.close()

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import sqlite3
 import struct
@@ -25,7 +24,7 @@ from app.modbus_poll import (
 )
 from app.runtime import Runtime
 from app.worker import PermissionDenied
-from tests.conftest import free_port, modbus_plant, wait_for
+from tests.conftest import free_port, modbus_plant, running_plant, wait_for
 
 SERIAL = 0x3FC00000  # input 104 = 0x3FC0 (high word), 105 = 0x0000: float 1.5 high word first
 
@@ -34,13 +33,8 @@ SERIAL = 0x3FC00000  # input 104 = 0x3FC0 (high word), 105 = 0x0000: float 1.5 h
 async def line(tmp_path):
     plant = modbus_plant(free_port(), locks=(("door-1", 1),), poll_period=0.2)
     plant.devices["door-1"].options["serial"] = SERIAL
-    runtime = Runtime(plant, simulate=True, data_dir=tmp_path)
-    await runtime.start()
-    try:
-        assert await wait_for(lambda: runtime.store.devices["door-1"].status == "online", timeout=5)
+    async with running_plant(plant, tmp_path, ready=("door-1",), within_s=5, stop_within_s=10) as runtime:
         yield runtime, ModbusPoll(runtime.worker, "line1")
-    finally:
-        await asyncio.wait_for(runtime.stop(), 10)
 
 
 def _audit(runtime) -> list[tuple[str, str, str]]:

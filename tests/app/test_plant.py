@@ -27,6 +27,14 @@ def test_defaults_filled_in():
     assert options["baudrate"] == 19200 and options["parity"] == "E" and options["timeout"] == 0.5
 
 
+def _assert_refused(text: str, line: int, words: str) -> None:
+    """``text`` is refused with an error that names its ``line`` and says ``words``."""
+    with pytest.raises(PlantError) as err:
+        parse_plant(text, None)
+    assert f"<plant>:{line}:" in str(err.value)
+    assert words in str(err.value)
+
+
 @pytest.mark.parametrize(
     ("text", "line", "words"),
     [
@@ -42,10 +50,7 @@ def test_defaults_filled_in():
     ],
 )
 def test_errors_name_line_and_problem(text, line, words):
-    with pytest.raises(PlantError) as err:
-        parse_plant(text, None)
-    assert f"<plant>:{line}:" in str(err.value)
-    assert words in str(err.value)
+    _assert_refused(text, line, words)
 
 
 def test_not_toml():
@@ -97,10 +102,7 @@ CAN = '[[bus]]\nname = "can1"\ntype = "can"\ninterface = "virtual"\nchannel = "c
     ],
 )
 def test_every_mistake_names_its_line_and_the_fix(text, line, words):
-    with pytest.raises(PlantError) as err:
-        parse_plant(text, None)
-    assert f"<plant>:{line}:" in str(err.value)
-    assert words in str(err.value)
+    _assert_refused(text, line, words)
 
 
 def test_can_options_reach_python_can_and_common_keys_stay_checked():

@@ -396,6 +396,21 @@ def test_commission_sim_stops_on_ctrl_c_where_the_loop_has_no_signal_handlers(tm
 
 # -- single keys at a terminal ----------------------------------------------------------------------------------
 
+async def _two_keys(keys, typed=lambda: None) -> list[str]:
+    """What ``keys`` hands on once started and ``typed()`` ran, until two keys came (5 s at the most); stopped after."""
+    got: list[str] = []
+    keys.start(got.append)
+    try:
+        typed()
+        loop = asyncio.get_running_loop()
+        end = loop.time() + 5
+        while len(got) < 2 and loop.time() < end:
+            await asyncio.sleep(0.01)
+    finally:
+        keys.stop()
+    return got
+
+
 def test_windows_terminal_keys_come_from_msvcrt(windows):
     """A checkout's yes/no at a Windows console: msvcrt's key buffer, arrow keys (two codes) skipped."""
     pending = list(" \xe0Hn")
@@ -411,22 +426,10 @@ def test_windows_terminal_keys_come_from_msvcrt(windows):
 
     windows.setitem(sys.modules, "msvcrt", types.SimpleNamespace(kbhit=kbhit, getwch=getwch))
 
-    async def main():
-        from app.headless import TtyKeys
+    from app.headless import TtyKeys
 
-        got: list[str] = []
-        keys = TtyKeys(stream=types.SimpleNamespace(fileno=lambda: (_ for _ in ()).throw(AssertionError("no termios"))))
-        keys.start(got.append)
-        try:
-            loop = asyncio.get_running_loop()
-            end = loop.time() + 5
-            while len(got) < 2 and loop.time() < end:
-                await asyncio.sleep(0.01)
-        finally:
-            keys.stop()
-        return got
-
-    assert asyncio.run(main()) == [" ", "n"]
+    keys = TtyKeys(stream=types.SimpleNamespace(fileno=lambda: (_ for _ in ()).throw(AssertionError("no termios"))))
+    assert asyncio.run(_two_keys(keys)) == [" ", "n"]
 
 
 def test_posix_terminal_keys_use_cbreak_mode_and_restore_it(monkeypatch):
@@ -439,22 +442,11 @@ def test_posix_terminal_keys_use_cbreak_mode_and_restore_it(monkeypatch):
     stream = os.fdopen(follower, "r", closefd=False)
     before = termios.tcgetattr(follower)
     try:
-        async def main():
-            got: list[str] = []
-            keys = host.TerminalKeys(stream)
-            keys.start(got.append)
-            try:
-                assert not termios.tcgetattr(follower)[3] & termios.ICANON  # cbreak: no line editing
-                os.write(leader, b" n")
-                loop = asyncio.get_running_loop()
-                end = loop.time() + 5
-                while len(got) < 2 and loop.time() < end:
-                    await asyncio.sleep(0.01)
-            finally:
-                keys.stop()
-            return got
+        def typed() -> None:
+            assert not termios.tcgetattr(follower)[3] & termios.ICANON  # cbreak: no line editing
+            os.write(leader, b" n")
 
-        assert asyncio.run(main()) == [" ", "n"]
+        assert asyncio.run(_two_keys(host.TerminalKeys(stream), typed)) == [" ", "n"]
         assert termios.tcgetattr(follower) == before
     finally:
         os.close(leader)

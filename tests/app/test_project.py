@@ -9,12 +9,11 @@ import subprocess
 import sys
 
 import pytest
-from conftest import wait_for
+from conftest import running_plant
 from plants import device, modbus_line, plant_text
 
 from app import backup, project
 from app.plant import load_plant
-from app.runtime import Runtime
 from devices.hdlock.params import PARAMS
 from devices.params import backup_entry
 
@@ -65,14 +64,8 @@ def test_check_lists_invalid_and_unknown_entries_with_file_and_line(tmp_path):
 @pytest.fixture
 async def offline(tmp_path):
     path = _files(tmp_path)
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
-    await runtime.start()
-    for name in ("door-1", "door-2"):
-        assert await wait_for(lambda n=name: runtime.store.devices[n].status == "online", timeout=8), name
-    try:
+    async with running_plant(load_plant(path), tmp_path / "data", ready=("door-1", "door-2")) as runtime:
         yield runtime, path
-    finally:
-        await asyncio.wait_for(runtime.stop(), 5)
 
 
 async def test_project_against_devices_applied_and_updated_per_row(offline):

@@ -7,7 +7,7 @@ import asyncio
 import time
 
 import pytest
-from conftest import modbus_plant, wait_for
+from conftest import identified, modbus_plant, running_plant, wait_for
 
 from app import replace
 from app.runtime import Runtime
@@ -17,15 +17,9 @@ NEW_SERIAL = 770077
 
 @pytest.fixture
 async def two_locks(tmp_path):
-    plant = modbus_plant(locks=(("door-1", 1), ("door-2", 2)))
-    runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
-    await runtime.start()
-    for name in ("door-1", "door-2"):
-        assert await wait_for(lambda n=name: replace.live_identity(runtime, n) is not None, timeout=8), name
-    try:
+    async with running_plant(modbus_plant(locks=(("door-1", 1), ("door-2", 2))), tmp_path / "data",
+                             ready=("door-1", "door-2"), is_ready=identified) as runtime:
         yield runtime
-    finally:
-        await asyncio.wait_for(runtime.stop(), 5)
 
 
 async def test_swap_detected_within_one_poll_and_restored_with_verified_write(two_locks):

@@ -4,8 +4,10 @@ device is under control, engineers only and audited, and the dead-man rule."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import itertools
 import time
+from collections.abc import AsyncIterator
 from pathlib import Path
 
 import can
@@ -33,15 +35,13 @@ class Audit:
         self.rows[row]["result"] = result
 
 
-def _plant(channel: str, with_m3io: bool = True):
-    devices = [device("io", "m3io", "can9", variant="HM", sw1=0x1A)] if with_m3io else []
-    return plant(can_bus(*devices, name="can9", channel_name=channel, bitrate=500000, simulate=None))
-
-
-@pytest.fixture
-async def env():
-    channel = f"replay-test-{next(_channels)}-{time.monotonic_ns()}"
-    worker = Worker(_plant(channel), audit=Audit())
+@contextlib.asynccontextmanager
+async def replay_env(*devices: str, prefix: str = "replay-test") -> AsyncIterator[tuple[Worker, can.BusABC]]:
+    """A worker on the virtual CAN bus can9 (no twins) with ``devices``, and a listener on the same channel;
+    on leaving, every replay still running is stopped and the bus closed."""
+    channel = f"{prefix}-{next(_channels)}-{time.monotonic_ns()}"
+    worker = Worker(plant(can_bus(*devices, name="can9", channel_name=channel, bitrate=500000, simulate=None)),
+                    audit=Audit())
     await worker.can_buses["can9"].start()
     await eventually(lambda: worker.can_buses["can9"].bus is not None, timeout=5)
     listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
@@ -54,6 +54,12 @@ async def env():
         listener.shutdown()
 
 
+@pytest.fixture
+async def env():
+    async with replay_env(device("io", "m3io", "can9", variant="HM", sw1=0x1A)) as env:
+        yield env
+
+
 def _frames(n: int, gap_s: float) -> list[FrameRecord]:
     frames = []
     for i in range(n):
@@ -63,12 +69,13 @@ def _frames(n: int, gap_s: float) -> list[FrameRecord]:
     return frames
 
 
-async def _collect(listener: can.Bus, count: int, timeout: float) -> list[can.Message]:
+async def collect(listener: can.Bus, count: int, timeout: float, poll_s: float = 0.2) -> list[can.Message]:
+    """Up to ``count`` frames that ``listener`` hears within ``timeout``."""
     got: list[can.Message] = []
     loop = asyncio.get_running_loop()
     end = loop.time() + timeout
     while len(got) < count and loop.time() < end:
-        msg = await asyncio.to_thread(listener.recv, 0.2)
+        msg = await asyncio.to_thread(listener.recv, poll_s)
         if msg is not None:
             got.append(msg)
     return got
@@ -87,7 +94,7 @@ async def test_replay_of_a_recording_reproduces_its_frames_in_order(env, tmp_pat
     started = time.monotonic()
     replay = await rp.start_replay(worker, "can9", loaded.frames, name=loaded.name, speed=2.0, session="s1", confirmed=True)
     assert replay.running and rp.running_replay(worker, "can9") is replay
-    got = await _collect(listener, len(loaded.frames), timeout=10)
+    got = await collect(listener, len(loaded.frames), timeout=10)
     await eventually(lambda: replay.state == "done", timeout=5)
     elapsed = time.monotonic() - started
     assert [(m.arbitration_id, m.is_extended_id, bytes(m.data)) for m in got] == [
@@ -109,7 +116,7 @@ async def test_error_frames_are_skipped_and_speed_scales(env):
     elapsed = time.monotonic() - started
     assert replay.sent == 10 and replay.skipped == 1
     assert elapsed > 0.8  # at half speed about 0.9 s
-    got = await _collect(listener, 10, timeout=3)
+    got = await collect(listener, 10, timeout=3)
     assert len(got) == 10
 
 

@@ -8,16 +8,14 @@ kept off, counted and named; the start asks a confirmation that says how many fr
 from __future__ import annotations
 
 import asyncio
-import time
 
-import can
 import pytest
-from plants import ELECTRAK_ACTUATORS, can_bus, device, plant
-from test_replay import Audit
+from plants import ELECTRAK_ACTUATORS, device
+from test_replay import collect, replay_env
 
 from app import replay as rp
 from app.can_bus import FrameRecord
-from app.worker import PermissionDenied, Worker
+from app.worker import PermissionDenied
 from tests.webutil import eventually
 
 pytestmark = pytest.mark.timeout(60)
@@ -26,22 +24,11 @@ LOCK_ID = 335  # extended (section 6.5: the lock answers with its device ID as C
 
 @pytest.fixture
 async def env():
-    channel = f"replay-device-{time.monotonic_ns()}"
     devices = (device("io", "m3io", "can9", variant="HM", sw1=0x1A),
                device("lock", "hdlock", "can9", device_id=LOCK_ID, extended=True),
                device("arm", "electrak", "can9", actuators=ELECTRAK_ACTUATORS))
-    worker = Worker(plant(can_bus(*devices, name="can9", channel_name=channel, bitrate=500000, simulate=None)),
-                    audit=Audit())
-    await worker.can_buses["can9"].start()
-    await eventually(lambda: worker.can_buses["can9"].bus is not None, timeout=5)
-    listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
-    try:
-        yield worker, listener
-    finally:
-        for replay in [h for h in worker.extra_holders.values() if isinstance(h, rp.Replay)]:
-            replay.stop("test over")
-        await worker.can_buses["can9"].stop()
-        listener.shutdown()
+    async with replay_env(*devices, prefix="replay-device") as env:
+        yield env
 
 
 def _recording() -> list[FrameRecord]:
@@ -54,17 +41,6 @@ def _recording() -> list[FrameRecord]:
         FrameRecord(t0 + 0.04, 0x423, False, 1, b"\xC1", "rx"),  # the M3IO's DigIn (SW1 0x1A: base 0x422 + 1)
         FrameRecord(t0 + 0.05, 0x124, False, 1, b"\x03", "rx"),  # nobody's frame: goes out
     ]
-
-
-async def _drain(listener: can.Bus, count: int, timeout: float) -> list[can.Message]:
-    got: list[can.Message] = []
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout
-    while len(got) < count and loop.time() < end:
-        msg = await asyncio.to_thread(listener.recv, 0.1)
-        if msg is not None:
-            got.append(msg)
-    return got
 
 
 async def test_frames_a_device_sends_are_never_replayed_and_each_is_named(env):
@@ -88,7 +64,7 @@ async def test_frames_a_device_sends_are_never_replayed_and_each_is_named(env):
     await eventually(lambda: replay.state == "done", timeout=5)
     assert replay.sent == 2 and replay.filtered == 4
     assert "4 kept off the bus by the device policies" in replay.summary()
-    got = await _drain(listener, 6, 1.0)
+    got = await collect(listener, 6, 1.0, poll_s=0.1)
     assert sorted((m.arbitration_id, m.is_extended_id) for m in got) == [(0x123, False), (0x124, False)], got
     row = worker.audit.rows[-1]
     assert "2 of 6 frames" in row.get("result", "") or "2 of 6 frames" in str(row), row

@@ -14,10 +14,10 @@ The RS485 twins answer at once (no wire time): the lines' timing is the benchmar
 from __future__ import annotations
 
 import asyncio
-import threading
 import time
 
 import can
+from can_listener import FrameListener
 from scale_plants import family_counts, scale_plant_text
 from webutil import eventually, simulated_user
 
@@ -29,30 +29,9 @@ from devices.m3io import codec as m3io
 ELECTRAK_TIMEOUT_S = electrak.DEFAULT_TIMEOUT_MS / 1000  # the actuator's message timeout: control must come within it
 
 
-class Heard:
-    """The frames of one CAN id on a bus as a third node hears them, stamped when they were sent."""
-
-    def __init__(self, channel: str, can_id: int):
-        self.bus = can.Bus(interface="virtual", channel=channel)
-        self.can_id = can_id
-        self.frames: list[tuple[float, int, bytes]] = []
-        self._run = True
-        self.thread = threading.Thread(target=self._loop, daemon=True)
-        self.thread.start()
-
-    def _loop(self) -> None:
-        while self._run:
-            msg = self.bus.recv(0.05)
-            if msg is not None:
-                self.frames.append((msg.timestamp, msg.arbitration_id, bytes(msg.data)))
-
-    def times(self, start: float) -> list[float]:
-        return [t for t, i, _ in list(self.frames) if i == self.can_id and t >= start]
-
-    def close(self) -> None:
-        self._run = False
-        self.thread.join(2)
-        self.bus.shutdown()
+def heard(channel: str) -> FrameListener:
+    """The frames on a virtual CAN ``channel`` as a third node hears them, stamped when they were sent."""
+    return FrameListener(can.Bus(interface="virtual", channel=channel), sent_time=True)
 
 
 async def _beat(runtime, session: str) -> None:
@@ -79,8 +58,7 @@ async def test_a_hundred_devices_are_listed_and_keep_alives_stay_on_time(tmp_pat
     plant = parse_plant(text)
     assert len(plant.devices) == 100 and family_counts(100)["hdlock-modbus"] == 64
     channels = {b.name: b.options["channel"] for b in plant.buses.values() if b.type == "can"}
-    lift_heard = Heard(channels["can-lift-1"], electrak.CONTROL_ID)
-    heater_heard = Heard(channels["can-io"], m3io.derive_ids(1).dig_out)
+    lift_heard, heater_heard = heard(channels["can-lift-1"]), heard(channels["can-io"])
     runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
     beating: asyncio.Task | None = None
     try:
@@ -118,7 +96,8 @@ async def test_a_hundred_devices_are_listed_and_keep_alives_stay_on_time(tmp_pat
             await eventually(lambda: len(_listed(rows)) == 100, timeout=5, what="every device online")
 
             await eventually(lambda: time.time() > start + 3.0, timeout=10, interval=0.1, what="3 s of keep-alives")
-            lift_times, heater_times = lift_heard.times(start), heater_heard.times(start)
+            lift_times = [t for t, _ in lift_heard.of(electrak.CONTROL_ID, start)]
+            heater_times = [t for t, _ in heater_heard.of(m3io.derive_ids(1).dig_out, start)]
             lift_gap, heater_gap = _worst_gap(lift_times), _worst_gap(heater_times)
             print(f"Electrak control: {len(lift_times)} telegrams, worst gap {lift_gap * 1000:.0f} ms = "
                   f"{lift_gap / electrak.CONTROL_PERIOD_S:.2f} x period; M3IO DigOut: {len(heater_times)} telegrams, "

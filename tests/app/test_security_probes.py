@@ -9,7 +9,9 @@ tablet viewer); the "browsers" are an HTTP client and a socket.io client each (t
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import sqlite3
+from collections.abc import AsyncIterator
 
 import pytest
 from conftest import free_port
@@ -44,12 +46,22 @@ def audit_rows(data, parameter: str) -> list[tuple[str, str, str, str]]:
         return db.execute("SELECT user, role, new, result FROM audit WHERE parameter = ? ORDER BY id", (parameter,)).fetchall()
 
 
-async def test_an_event_naming_another_browsers_client_does_not_run_as_that_user(beyond_loopback):
-    base, data, _log = beyond_loopback
+@contextlib.asynccontextmanager
+async def logged_in(base: str) -> AsyncIterator[tuple[SocketBrowser, SocketBrowser]]:
+    """An engineer's (anna) and a viewer's (tablet) browser, each logged in to the app at ``base``; closed on leaving."""
     engineer, viewer = SocketBrowser(base), SocketBrowser(base)
     try:
         await engineer.login("anna", "correct horse")
         await viewer.login("tablet", "battery staple")
+        yield engineer, viewer
+    finally:
+        await engineer.aclose()
+        await viewer.aclose()
+
+
+async def test_an_event_naming_another_browsers_client_does_not_run_as_that_user(beyond_loopback):
+    base, data, _log = beyond_loopback
+    async with logged_in(base) as (engineer, viewer):
         victim = await engineer.open("/device/door-1")
         await viewer.open("/device/door-1")
         field, write = victim.find(**{"data-param": "LockRequestDelay"}), victim.find(**{"data-write": "LockRequestDelay"})
@@ -74,9 +86,6 @@ async def test_an_event_naming_another_browsers_client_does_not_run_as_that_user
         rows = audit_rows(data, "LockRequestDelay")
         assert not [row for row in rows if row[2].startswith("175")], rows
         assert all(row[:2] == ("anna", "engineer") for row in rows), rows
-    finally:
-        await engineer.aclose()
-        await viewer.aclose()
 
 
 async def test_junk_socket_events_are_refused_without_a_traceback(beyond_loopback):
@@ -143,10 +152,7 @@ def multipart(name: str, data: bytes) -> bytes:
 
 async def test_uploads_need_the_pages_own_session_and_stay_within_the_stated_size(beyond_loopback):
     base, _data, _log = beyond_loopback
-    viewer, engineer = SocketBrowser(base), SocketBrowser(base)
-    try:
-        await viewer.login("tablet", "battery staple")
-        await engineer.login("anna", "correct horse")
+    async with logged_in(base) as (engineer, viewer):
         page = await viewer.open("/backup")
         route = upload_route(page)
         cookie = "; ".join(f"{k}={v}" for k, v in viewer.http.cookies.items())
@@ -163,6 +169,3 @@ async def test_uploads_need_the_pages_own_session_and_stay_within_the_stated_siz
         assert answer.status_code == 200, answer.text
         too_big = await viewer.http.post(route, files={"file": ("x.json", b" " * 6_000_000, "application/json")})
         assert too_big.status_code == 413
-    finally:
-        await viewer.aclose()
-        await engineer.aclose()

@@ -6,7 +6,7 @@ import asyncio
 import time
 
 import pytest
-from conftest import free_port
+from conftest import closed_after, free_port
 from plants import bus, device, plant, plant_text
 
 from app.plant import PlantError, parse_plant
@@ -52,32 +52,24 @@ async def test_request_and_answer_in_pieces():
     port = free_port()
     server = await serve(port, lambda request: bytes([5]) + request[:5].ljust(5, b"."))
     sl = line(port)
-    try:
+    async with closed_after(sl, server):
         answer = await sl.transact(b"RC\x01\x00\xff", answer_length, describe="RC keep-alive", decode=lambda a: f"{len(a)} bytes")
         assert answer == b"\x05RC\x01\x00\xff" and sl.state.connected
         logged = sl.state.transactions[-1]
         assert logged.request == "RC keep-alive" and logged.decoded == "6 bytes" and logged.error == "" and logged.rtt_ms is not None
-    finally:
-        sl.close()
-        server.close()
-        await server.wait_closed()
 
 
 async def test_silence_is_a_named_timeout_and_the_line_goes_on():
     port = free_port()
     server = await serve(port, lambda request: None if request.startswith(b"XX") else b"\x01A")
     sl = line(port, timeout=0.2)
-    try:
+    async with closed_after(sl, server):
         started = time.monotonic()
         with pytest.raises(SerialTimeout, match="no complete answer within 0.2 s"):
             await sl.transact(b"XX", answer_length)
         assert 0.15 < time.monotonic() - started < 1.0
         assert await sl.transact(b"OK", answer_length) == b"\x01A"  # the next request is answered
         assert sl.state.transactions[-2].error.startswith("no complete answer")
-    finally:
-        sl.close()
-        server.close()
-        await server.wait_closed()
 
 
 async def test_unplugged_port_says_what_to_check_and_reopens_with_backoff():
@@ -87,7 +79,7 @@ async def test_unplugged_port_says_what_to_check_and_reopens_with_backoff():
         await sl.transact(b"RC", answer_length)
     assert not sl.state.connected
     server = await serve(port, lambda request: b"\x01A")
-    try:
+    async with closed_after(sl, server):
         loop = asyncio.get_running_loop()
         end = loop.time() + 5
         while loop.time() < end:
@@ -97,10 +89,6 @@ async def test_unplugged_port_says_what_to_check_and_reopens_with_backoff():
             except SerialClosed:
                 await asyncio.sleep(0.1)
         assert sl.state.connected and sl.state.reconnects == 1
-    finally:
-        sl.close()
-        server.close()
-        await server.wait_closed()
 
 
 def test_plant_serial_bus_defaults_and_baudrates():

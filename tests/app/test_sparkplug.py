@@ -18,6 +18,7 @@ import aiomqtt
 import pytest
 from test_mqtt_helpers import running_broker
 from test_mqtt_site import _spawn, plant_b
+from conftest import one_device_store
 from webutil import demo_plant_text, free_port, stop_app
 
 pytestmark = pytest.mark.timeout(120)
@@ -295,17 +296,11 @@ async def test_births_data_rebirth_refusal_and_death_of_two_instances(tmp_path):
 async def test_primary_host_state_is_honoured(tmp_path):
     from app.plant import parse_plant
     from app.sparkplug import SparkplugNode
-    from app.state import StateStore
-    from devices.live import DeviceState
 
     with running_broker(tmp_path, free_port()) as broker:
         plant = parse_plant(f'name = "cab-c"\n[mqtt]\nurl = "{broker.url}"\nsite = "hall-3"\nsparkplug = true\n'
                             'primary_host = "scada"\nrate = 20\n')
-        store = StateStore()
-        state = DeviceState("pump", "hdlock", "line1", stale_after=1e9)
-        state.mark_seen()
-        state.publish("Speed", 1.5, "rpm")
-        store.add(state)
+        store, state = one_device_store("pump")
         node = SparkplugNode(plant.mqtt, store, "cab-c")
         async with Host(broker.port) as host:
             await node.start()

@@ -20,7 +20,7 @@ from app.transmit import (
     transmit_list,
 )
 from app.worker import DEADMAN_BOUND_S, PermissionDenied
-from tests.conftest import wait_for
+from tests.conftest import alive, wait_for
 
 SESSION = "tx-tab"
 LOCK = {"device_id": 335, "extended": True}
@@ -92,10 +92,16 @@ def test_allowed_frames_pass():
 # -- against the bus ---------------------------------------------------------------------------------
 
 
-async def test_send_once_and_audit(can_rig):
-    runtime, listener = can_rig
+async def _can1_list(runtime):
+    """The transmit list of can1, loaded from the runtime's data folder."""
     tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
     await tl.load()
+    return tl
+
+
+async def test_send_once_and_audit(can_rig):
+    runtime, listener = can_rig
+    tl = await _can1_list(runtime)
     row = await tl.add(named_row("hdlock", "lock", LOCK, "register", {"operation": "input", "register": 104, "count": 2}), user="anna", role="engineer")
     await tl.send_once(row.key, user="anna", role="engineer")
     got = await _frames(listener, 0x702, 0.3)
@@ -106,11 +112,9 @@ async def test_send_once_and_audit(can_rig):
 
 async def test_cyclic_row_keeps_its_period_and_stops(can_rig):
     runtime, listener = can_rig
-    tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
-    await tl.load()
+    tl = await _can1_list(runtime)
     row = await tl.add(make_row(0x321, False, b"\xaa\x55", period_ms=20), user="anna", role="engineer")
-    beat = asyncio.create_task(_beat(runtime.worker, SESSION))
-    try:
+    async with alive(runtime.worker, SESSION):
         await tl.start(row.key, user="anna", role="engineer", session=SESSION)
         got = await _frames(listener, 0x321, 1.0)
         assert 35 <= len(got) <= 65  # about 50 frames in 1 s at 20 ms
@@ -119,8 +123,6 @@ async def test_cyclic_row_keeps_its_period_and_stops(can_rig):
         await tl.stop(row.key, user="anna", role="engineer")
         await _frames(listener, 0x321, 0.05)
         assert await _frames(listener, 0x321, 0.2) == []
-    finally:
-        beat.cancel()
     actions = [a for _u, a, _r in _audit(runtime)]
     assert any("start 0x321" in a for a in actions) and any("stop 0x321" in a for a in actions)
 
@@ -128,8 +130,7 @@ async def test_cyclic_row_keeps_its_period_and_stops(can_rig):
 @pytest.mark.parametrize(("can_id", "data"), [(0x706, b"\x00" * 6), (0x700, b"\x00\x00\x00\x00\x02")])
 async def test_forbidden_refused_by_name_and_audited(can_rig, can_id, data):
     runtime, listener = can_rig
-    tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
-    await tl.load()
+    tl = await _can1_list(runtime)
     with pytest.raises(TransmitError, match="firmware-update"):
         await tl.add(make_row(can_id, False, data), user="anna", role="engineer")
     # a list edited on disk is checked again when sending
@@ -144,8 +145,7 @@ async def test_forbidden_refused_by_name_and_audited(can_rig, can_id, data):
 
 async def test_viewer_refused(can_rig):
     runtime, listener = can_rig
-    tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
-    await tl.load()
+    tl = await _can1_list(runtime)
     row = await tl.add(make_row(0x123, False, b"\x01", period_ms=50), user="anna", role="engineer")
     with pytest.raises(PermissionDenied):
         await tl.send_once(row.key, user="tablet", role="viewer")
@@ -158,21 +158,13 @@ async def test_viewer_refused(can_rig):
     assert sum(1 for u, _a, r in _audit(runtime) if u == "tablet" and r.startswith("refused")) == 3
 
 
-async def _beat(worker, session: str) -> None:
-    while True:
-        worker.heartbeat(session)
-        await asyncio.sleep(0.1)
-
-
 async def test_cyclic_rows_stop_when_the_session_is_lost(can_rig):
     runtime, listener = can_rig
-    tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
-    await tl.load()
+    tl = await _can1_list(runtime)
     row = await tl.add(make_row(0x222, False, b"\x01", period_ms=10), user="anna", role="engineer")
-    beat = asyncio.create_task(_beat(runtime.worker, SESSION))
-    await tl.start(row.key, user="anna", role="engineer", session=SESSION)
-    assert len(await _frames(listener, 0x222, 0.5)) > 20  # kept alive by the heartbeat
-    beat.cancel()
+    async with alive(runtime.worker, SESSION):
+        await tl.start(row.key, user="anna", role="engineer", session=SESSION)
+        assert len(await _frames(listener, 0x222, 0.5)) > 20  # kept alive by the heartbeat
     frozen = time.monotonic()  # the browser stops confirming
     assert await wait_for(lambda: not tl.running, timeout=2)
     stopped_after = time.monotonic() - frozen
@@ -184,8 +176,7 @@ async def test_cyclic_rows_stop_when_the_session_is_lost(can_rig):
 
 async def test_closed_session_stops_its_rows(can_rig):
     runtime, _listener = can_rig
-    tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
-    await tl.load()
+    tl = await _can1_list(runtime)
     row = await tl.add(make_row(0x223, False, b"", period_ms=100), user="anna", role="engineer")
     runtime.worker.heartbeat("other")
     await tl.start(row.key, user="anna", role="engineer", session="other")
@@ -195,8 +186,7 @@ async def test_closed_session_stops_its_rows(can_rig):
 
 async def test_list_saved_per_bus_and_restored(can_rig):
     runtime, _listener = can_rig
-    tl = transmit_list(runtime.worker, "can1", runtime.data_dir)
-    await tl.load()
+    tl = await _can1_list(runtime)
     await tl.add(make_row(0x1ABCDEF, True, b"\x01\x02", period_ms=250, label="x"), user="anna", role="engineer")
     await tl.add(named_row("m3io", "heater", {"sw1": 0x1A, "variant": "HM"}, "DigOut", {"LED": True}), user="anna", role="engineer")
     assert (runtime.data_dir / "transmit-can1.json").exists()

@@ -5,18 +5,14 @@ DigOut sets the outputs back to what the module's page shows."""
 
 from __future__ import annotations
 
-import asyncio
 import time
 
-import can
 import pytest
 
-from app.plant import parse_plant
-from app.runtime import Runtime
 from app.transmit import NeedsConfirmation, make_row, named_row, transmit_list
 from devices.m3io import codec as m3io
 from plants import can_bus, device, hdlock_can, plant_text
-from tests.conftest import free_port, wait_for
+from tests.conftest import free_port, listening, wait_for
 
 pytestmark = pytest.mark.timeout(60)
 SW1 = 0x1A
@@ -31,14 +27,8 @@ async def served(tmp_path):
     text = plant_text(can_bus(device("heater", "m3io", "can1", variant="HM", sw1=SW1, master="always"),
                               hdlock_can("lock", 335, extended=True),
                               channel_name=channel, bitrate=500000, poll_period=0.5, simulate=None), name=None)
-    runtime = Runtime(parse_plant(text), simulate=False, data_dir=tmp_path)
-    await runtime.start()
-    listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
-    try:
-        yield runtime, listener
-    finally:
-        listener.shutdown()
-        await asyncio.wait_for(runtime.stop(), 5)
+    async with listening(text, channel, tmp_path) as rig:
+        yield rig
 
 
 def _keepalive_running(runtime) -> bool:

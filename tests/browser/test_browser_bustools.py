@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 from demo_app import demo_app
+from webutil import page_at
 
 pytest.importorskip("playwright")
 from playwright.sync_api import Browser, Page, expect, sync_playwright
@@ -51,9 +52,7 @@ def shoot(page: Page, name: str) -> None:
 
 
 def test_transmit_list(app_url: str, browser: Browser):
-    page = browser.new_page(viewport={"width": 1440, "height": 900})
-    page.set_default_timeout(15_000)
-    page.goto(f"{app_url}/monitor/can1/transmit")
+    page = page_at(browser, f"{app_url}/monitor/can1/transmit")
     expect(page.get_by_text("Transmit list · can1")).to_be_visible()
     page.get_by_label("ID (hex)").fill("321")
     page.get_by_label("Data (hex bytes)").fill("AA 55")
@@ -101,9 +100,7 @@ def _ask(page, window, start: str, count: str, period: str, function: str | None
 
 
 def test_modbus_poll(app_url: str, browser: Browser):
-    page = browser.new_page(viewport={"width": 1440, "height": 900})
-    page.set_default_timeout(15_000)
-    page.goto(f"{app_url}/monitor/line1/poll")
+    page = page_at(browser, f"{app_url}/monitor/line1/poll")
     expect(page.get_by_text("Modbus poll · line1")).to_be_visible()
     _ask(page, page, "104", "2", "0.5", function="04 Read Input Registers")
     page.get_by_test_id("poll-start").click()
@@ -147,9 +144,7 @@ def test_modbus_poll(app_url: str, browser: Browser):
 
 def test_modbus_poll_windows(app_url: str, browser: Browser):
     """Two poll windows at once, each with its own request and table; a reload of the tab brings them back."""
-    page = browser.new_page(viewport={"width": 1440, "height": 900})
-    page.set_default_timeout(15_000)
-    page.goto(f"{app_url}/monitor/line1/poll")
+    page = page_at(browser, f"{app_url}/monitor/line1/poll")
     first = page.get_by_test_id("poll-window-1")
     expect(first).to_be_visible()
     _ask(page, first, "104", "2", "0.5", function="04 Read Input Registers")

@@ -9,7 +9,7 @@ import pytest
 from conftest import CHROMIUM, inside_viewport
 from playwright.sync_api import expect
 from plants import channel, electrak_bus, plant_text
-from webutil import running_app
+from webutil import opened, running_app
 
 pytestmark = pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed")
 
@@ -108,25 +108,19 @@ def test_message_timeout_while_idle_is_not_a_red_fault(app_url, chromium):
             page.screenshot(path=f"/tmp/shots/electrak-idle-{width}.png")
         finally:
             page.close()
-    page = chromium.new_page(viewport={"width": 1440, "height": 900})
-    try:
-        page.goto(f"{app_url}/device/lift")
+    with opened(chromium, f"{app_url}/device/lift") as page:
         page.get_by_test_id("take-control").click()
         page.get_by_text("you hold control").wait_for(timeout=5_000)
         page.wait_for_function("() => document.querySelector('[data-lamp=\"Message timeout\"]').dataset.on === '0'", timeout=5_000)
         assert page.locator('[data-lamp="Message timeout"]').get_attribute("data-idle") == "0"
         assert page.get_by_test_id("idle-note").inner_text() == ""
         page.screenshot(path="/tmp/shots/electrak-control-1440.png")
-    finally:
-        page.close()
 
 
 def test_jog_is_armed_by_the_area_clear_question_and_override_asks(app_url, chromium):
     """Issue 40: the first press of a jog button asks that the area is clear (a dialog would end the hold), the
     next press moves while held; Override/reset asks its risk before anything is sent."""
-    page = chromium.new_page(viewport={"width": 1440, "height": 900})
-    try:
-        page.goto(f"{app_url}/device/lift")
+    with opened(chromium, f"{app_url}/device/lift") as page:
         page.get_by_text("actuators heard per 100 ms: 2 of 2 configured").wait_for(timeout=10_000)
         page.get_by_test_id("take-control").click()
         page.get_by_text("you hold control").wait_for(timeout=5_000)
@@ -147,16 +141,12 @@ def test_jog_is_armed_by_the_area_clear_question_and_override_asks(app_url, chro
         expect(dialog).to_contain_text("alone")  # names its risk
         dialog.get_by_role("button", name="Cancel").click()
         expect(page.locator(".q-dialog")).to_have_count(0)
-    finally:
-        page.close()
 
 
 def test_service_parameter_entry_in_the_browser(app_url, chromium):
     """Issue 32 item 6: the fields start at the actuators' values; a fraction is refused on the field with what is
     allowed; Enter writes, and the field then holds the value read back."""
-    page = chromium.new_page(viewport={"width": 1440, "height": 900})
-    try:
-        page.goto(f"{app_url}/device/lift")
+    with opened(chromium, f"{app_url}/device/lift") as page:
         soft_start = page.locator('[data-testid="entry-01"] input, input[data-testid="entry-01"]')
         page.wait_for_function("""() => { const e = document.querySelector('[data-testid="entry-01"] input, input[data-testid="entry-01"]');
             return e && e.value !== ''; }""", timeout=10_000)  # the page read the actuators' values by itself
@@ -174,5 +164,3 @@ def test_service_parameter_entry_in_the_browser(app_url, chromium):
             page.set_viewport_size({"width": width, "height": height})
             card.get_by_text("Service parameters").scroll_into_view_if_needed()
             card.screenshot(path=f"/tmp/shots/electrak-service-{width}x{height}.png")
-    finally:
-        page.close()

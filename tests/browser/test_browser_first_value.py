@@ -15,6 +15,7 @@ from collections.abc import Iterator
 
 import pytest
 from conftest import CHROMIUM, wait_devices_online
+from webutil import opened
 from demo_app import demo_app
 
 pytestmark = [pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium at /usr/bin/chromium"),
@@ -82,15 +83,11 @@ def first_poll_row_ms(page, url: str) -> tuple[float, float]:
 
 
 def test_every_page_shows_its_first_live_value(app_url: str, chromium, capsys):
-    page = chromium.new_page(viewport={"width": 1440, "height": 900})
-    try:
-        page.goto(f"{app_url}/")  # the app's scripts in the browser's cache, as for anyone who opened it once
+    with opened(chromium, f"{app_url}/") as page:  # the app's scripts in the browser's cache, as for anyone who opened it once
         page.wait_for_function(FIRST_VALUE_JS, arg=list(PAGES["/"]), timeout=20_000)
         load = os.getloadavg()[0]
         times = {path: first_value_ms(page, f"{app_url}{path}", *PAGES[path]) for path in PAGES}
         ready, answered = first_poll_row_ms(page, f"{app_url}/monitor/line1/poll")
-    finally:
-        page.close()
     with capsys.disabled():
         print(f"\nfirst live value, ms from the start of the navigation (load average {load:.1f} on {os.cpu_count()} cores):")
         print(f"  {'page':40s} {'value':>7s} {'answer':>7s} {'loaded':>7s}")

@@ -12,6 +12,7 @@ from collections.abc import Iterator
 
 import pytest
 from conftest import CHROMIUM, inside_viewport
+from webutil import page_at
 from demo_app import demo_app
 
 pytest.importorskip("playwright")
@@ -36,9 +37,7 @@ def rows(page: Page):
 
 @pytest.mark.parametrize(("width", "height"), SIZES)
 def test_the_scu_monitor_names_telegrams_and_filters_by_command(app_url: str, chromium: Browser, width: int, height: int):
-    page = chromium.new_page(viewport={"width": width, "height": height})
-    page.set_default_timeout(15_000)
-    page.goto(f"{app_url}/monitor/rs232-1")
+    page = page_at(chromium, f"{app_url}/monitor/rs232-1", width, height)
     expect(page.get_by_text("Bus monitor rs232-1")).to_be_visible()
     expect(page.locator("[data-monitor=filter-unit]")).to_have_count(0)
     cyclic = rows(page).filter(has_text="RC keep-alive with CyclicObj 1").first
@@ -55,9 +54,7 @@ def test_the_scu_monitor_names_telegrams_and_filters_by_command(app_url: str, ch
 
 @pytest.mark.parametrize(("width", "height"), SIZES)
 def test_the_logited_monitor_names_another_masters_telegrams(app_url: str, chromium: Browser, width: int, height: int):
-    page = chromium.new_page(viewport={"width": width, "height": height})
-    page.set_default_timeout(15_000)
-    page.goto(f"{app_url}/monitor/gates-485")
+    page = page_at(chromium, f"{app_url}/monitor/gates-485", width, height)
     expect(page.get_by_text("Bus monitor gates-485")).to_be_visible()
     expect(rows(page).filter(has_text="Gate state = closed").first).to_be_visible()
     expect(rows(page).filter(has_text=re.compile(r"master 0x01 -> barrier-out-\d: query gate state")).first).to_be_visible()
@@ -69,9 +66,7 @@ def test_the_logited_monitor_names_another_masters_telegrams(app_url: str, chrom
 
 
 def test_a_digout_the_keepalive_overrides_says_so_before_and_after(app_url: str, chromium: Browser):
-    page = chromium.new_page(viewport={"width": 1440, "height": 900})
-    page.set_default_timeout(15_000)
-    page.goto(f"{app_url}/monitor/can3/transmit")
+    page = page_at(chromium, f"{app_url}/monitor/can3/transmit")
     expect(page.get_by_text("Transmit list · can3")).to_be_visible()
     line = page.get_by_text("heater-hm DigOut", exact=True).locator("xpath=..")
     line.get_by_text("SSR1", exact=True).click()

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from conftest import CHROMIUM, inside_viewport
 from plants import can_bus, device, plant_text
-from webutil import running_app
+from webutil import opened, running_app
 
 pytestmark = pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed")
 
@@ -48,9 +48,7 @@ def _shot_1024(browser, url: str, path, wait_text: str) -> None:
 
 
 def test_blown_fuse_shown_and_cleared_after_reset(app_url, chromium, tmp_path):
-    page = chromium.new_page(viewport={"width": 1440, "height": 900})
-    try:
-        page.goto(f"{app_url}/device/heater-hm")
+    with opened(chromium, f"{app_url}/device/heater-hm") as page:
         page.get_by_text("watchdog not served").wait_for(timeout=10_000)  # nobody controls it: this tool sends nothing
         _take_control(page)
         page.get_by_text("watchdog served: DigOut every 100 ms").wait_for(timeout=10_000)
@@ -76,8 +74,6 @@ def test_blown_fuse_shown_and_cleared_after_reset(app_url, chromium, tmp_path):
         ssr1.get_by_text("fuse: blown").wait_for(timeout=15_000)
         page.screenshot(path=str(tmp_path / "m3io-1440.png"), full_page=True)
         _shot_1024(chromium, f"{app_url}/device/heater-hm", tmp_path / "m3io-1024.png", "fuse: blown")
-    finally:
-        page.close()
 
 
 def test_outputs_off_when_their_page_closes_with_another_tab_open(app_url, chromium):
@@ -100,17 +96,13 @@ def test_outputs_off_when_their_page_closes_with_another_tab_open(app_url, chrom
 
 
 def test_hmr_variant_checked_in_addressed_mode(app_url, chromium, tmp_path):
-    page = chromium.new_page(viewport={"width": 1440, "height": 900})
-    try:
-        page.goto(f"{app_url}/device/heater-hmr")
+    with opened(chromium, f"{app_url}/device/heater-hmr") as page:
         _take_control(page)
         page.get_by_test_id("variant-check").get_by_text("HMR01 (from 08.11.2013): variant HMR as in the plant file").wait_for(timeout=10_000)
         page.locator('[data-channel="SSR1-3"]').get_by_text("load: present").first.wait_for(timeout=5_000)
         inside_viewport(page, page.get_by_test_id("variant-check"))
         page.screenshot(path=str(tmp_path / "m3io-hmr-1440.png"), full_page=True)
         _shot_1024(chromium, f"{app_url}/device/heater-hmr", tmp_path / "m3io-hmr-1024.png", "variant HMR as in the plant file")
-    finally:
-        page.close()
 
 
 @pytest.mark.parametrize("size", [(1440, 900), (768, 1024)], ids=["1440x900", "768x1024"])

@@ -13,6 +13,7 @@ from pathlib import Path
 import can
 import pytest
 from conftest import CHROMIUM
+from webutil import page_at
 from demo_app import demo_app
 
 pytest.importorskip("playwright")
@@ -146,9 +147,7 @@ def test_can_monitor_in_browser(app_url: str, chromium: Browser, tmp_path: Path)
 
 
 def test_modbus_monitor_in_browser(app_url: str, chromium: Browser, tmp_path: Path):
-    page = chromium.new_page(viewport={"width": 1500, "height": 900})
-    page.set_default_timeout(15_000)
-    page.goto(f"{app_url}/monitor/line1")
+    page = page_at(chromium, f"{app_url}/monitor/line1", 1500, 900)
     expect(page.get_by_text("Bus monitor line1")).to_be_visible()
     rows = page.locator(".q-table tbody tr")
     expect(rows.filter(has_text="read ").first).to_be_visible()
@@ -160,9 +159,7 @@ def test_modbus_monitor_in_browser(app_url: str, chromium: Browser, tmp_path: Pa
 def test_monitor_names_devices_and_decodes_values_in_browser(app_url: str, chromium: Browser, tmp_path: Path):
     """Decoded columns by name with signed values, and the Device column, on a CAN bus with locks,
     a CAN bus with M3IO modules and the Modbus line; screenshots at 1440x900 and 1024x768."""
-    page = chromium.new_page(viewport={"width": 1440, "height": 900})
-    page.set_default_timeout(15_000)
-    page.goto(f"{app_url}/monitor/can1")
+    page = page_at(chromium, f"{app_url}/monitor/can1")
     frames = page.locator("[data-monitor=frames] tbody tr")
     answer = frames.filter(has_text="SettingsProximityThresholdLock = -60").first
     expect(answer).to_be_visible()

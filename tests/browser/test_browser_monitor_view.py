@@ -16,6 +16,7 @@ from pathlib import Path
 import can
 import pytest
 from demo_app import demo_app
+from webutil import page_at
 
 pytest.importorskip("playwright")
 from playwright.sync_api import Browser, Page, expect, sync_playwright
@@ -65,9 +66,7 @@ def page_height(page: Page) -> int:
 
 def test_modbus_log_fits_the_screen(app_url: str, browser: Browser):
     SHOTS.mkdir(parents=True, exist_ok=True)
-    page = browser.new_page(viewport={"width": 1440, "height": 900})
-    page.set_default_timeout(15_000)
-    page.goto(f"{app_url}/monitor/line1")
+    page = page_at(browser, f"{app_url}/monitor/line1")
     rows = page.locator("[data-monitor=transactions] tbody tr")
     expect(rows.nth(30)).to_be_visible(timeout=20_000)  # enough rows to make a tall table
     expect(page.locator("[data-monitor=tool-poll]")).to_be_visible()  # loopback: a local engineer
@@ -116,9 +115,7 @@ def test_modbus_log_fits_the_screen(app_url: str, browser: Browser):
 
 
 def test_can_cycle_times_paging_and_details(app_url: str, browser: Browser):
-    page = browser.new_page(viewport={"width": 1440, "height": 900})
-    page.set_default_timeout(15_000)
-    page.goto(f"{app_url}/monitor/can1")
+    page = page_at(browser, f"{app_url}/monitor/can1")
     expect(page.locator("[data-monitor=tool-transmit]")).to_be_visible()
     expect(page.locator("[data-monitor=tool-replay]")).to_be_visible()
     gate1 = page.locator("[data-monitor=overwrite] tbody tr").filter(has_text=GATE1).first

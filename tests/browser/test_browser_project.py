@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 from conftest import CHROMIUM, wait_devices_online
-from test_project_page import PLANT
-from webutil import free_port, running_app
+from test_project_page import project_plant_text
+from webutil import running_app
 
 from app.plant import load_plant
 
@@ -38,7 +38,7 @@ def _shots(page, name: str, part=None) -> None:
 
 
 def test_project_card_and_editor_in_the_browser(tmp_path: Path, chromium):
-    with running_app(PLANT.format(port=free_port(), silent=free_port()), tmp_path) as url:
+    with running_app(project_plant_text(), tmp_path) as url:
         wait_devices_online(url, ["door-1"])
         page = chromium.new_page(viewport={"width": 1440, "height": 900})
         try:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 from conftest import wait_devices_online
-from webutil import demo_plant_text, free_port, running_app
+from webutil import demo_plant_text, free_port, opened, running_app
 
 pytestmark = pytest.mark.timeout(150)
 SHOTS = Path("/tmp/shots")
@@ -37,9 +37,7 @@ def log_in(page) -> None:
 
 def test_checkout_sign_and_drift_from_the_record_page(chromium, app):
     SHOTS.mkdir(exist_ok=True)
-    page = chromium.new_page(viewport={"width": 1440, "height": 900})
-    try:
-        page.goto(f"{app}/record/door-2")
+    with opened(chromium, f"{app}/record/door-2") as page:
         page.get_by_role("button", name="Approve current set").click()
         log_in(page)
         page.get_by_text("approved set stored (account anna)").wait_for(timeout=15000)
@@ -79,8 +77,6 @@ def test_checkout_sign_and_drift_from_the_record_page(chromium, app):
         page.set_viewport_size({"width": 768, "height": 1024})
         page.screenshot(path=str(SHOTS / "record-768x1024.png"), full_page=False)
         page.screenshot(path=str(SHOTS / "record-768x1024-full.png"), full_page=True)
-    finally:
-        page.close()
     with urllib.request.urlopen(f"{app}/api/devices", timeout=5) as response:
         door = next(d for d in json.load(response) if d["name"] == "door-2")
     # the lock raises its measured maximum bolt times (RW holding 1003/1004) during the cycle: measured

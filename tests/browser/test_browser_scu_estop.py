@@ -4,9 +4,8 @@ with who pressed it and when (issue 42 item 1); it stays until its release."""
 from __future__ import annotations
 
 import pytest
-from conftest import CHROMIUM, free_port
-from test_browser_scu import scu_plant
-from webutil import running_app
+from conftest import CHROMIUM
+from test_browser_scu import scu_page
 
 pytestmark = [pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromium is not installed"), pytest.mark.timeout(90)]
 
@@ -14,23 +13,17 @@ pytestmark = [pytest.mark.skipif(not CHROMIUM.exists(), reason="Debian's chromiu
 def test_an_emergency_stop_is_red_on_the_page_and_the_tile(tmp_path, chromium):
     from playwright.sync_api import expect
 
-    with running_app(scu_plant(free_port()), tmp_path) as url:
-        page = chromium.new_page(viewport={"width": 1440, "height": 900})
-        try:
-            page.goto(f"{url}/device/lift-1")
-            expect(page.get_by_test_id("session")).to_contain_text("open", timeout=15_000)
-            banner = page.get_by_test_id("estop-banner")
-            expect(banner).to_be_hidden()
-            page.get_by_test_id("emergency-stop").click()  # no control needed, no question
-            expect(banner).to_be_visible(timeout=5_000)
-            expect(banner).to_contain_text("EMERGENCY STOP")
-            expect(banner).to_contain_text("confirmed by the unit")
-            expect(banner).to_contain_text("pressed by local")  # the account (on loopback: "local"), not a page
-            page.screenshot(path=str(tmp_path / "scu-estop-1440.png"))
-            page.set_viewport_size({"width": 768, "height": 1024})
-            page.screenshot(path=str(tmp_path / "scu-estop-768.png"))
-            page.goto(f"{url}/")
-            expect(page.get_by_text("EMERGENCY STOP (F20)").first).to_be_visible(timeout=10_000)
-            page.screenshot(path=str(tmp_path / "overview-estop-768.png"))
-        finally:
-            page.close()
+    with scu_page(chromium, tmp_path) as (url, page):
+        banner = page.get_by_test_id("estop-banner")
+        expect(banner).to_be_hidden()
+        page.get_by_test_id("emergency-stop").click()  # no control needed, no question
+        expect(banner).to_be_visible(timeout=5_000)
+        expect(banner).to_contain_text("EMERGENCY STOP")
+        expect(banner).to_contain_text("confirmed by the unit")
+        expect(banner).to_contain_text("pressed by local")  # the account (on loopback: "local"), not a page
+        page.screenshot(path=str(tmp_path / "scu-estop-1440.png"))
+        page.set_viewport_size({"width": 768, "height": 1024})
+        page.screenshot(path=str(tmp_path / "scu-estop-768.png"))
+        page.goto(f"{url}/")
+        expect(page.get_by_text("EMERGENCY STOP (F20)").first).to_be_visible(timeout=10_000)
+        page.screenshot(path=str(tmp_path / "overview-estop-768.png"))

@@ -22,7 +22,7 @@ from pathlib import Path
 import can
 import pytest
 from conftest import CHROMIUM, free_port, free_udp_port, inside_viewport
-from frames import FrameListener
+from can_listener import FrameListener
 from plants import ELECTRAK_ACTUATORS, can_bus, electrak_bus, m3io_can, plant_text
 from webutil import running_app
 

@@ -50,12 +50,17 @@ async def test_hdlock_checkout_passes_on_modbus_and_can(tmp_path):
         assert rows and rows[0].data["status"] == "passed"
 
 
+async def _bolted(runtime, holding: int):
+    """door-2's twin, once the app has read its holding register ``holding`` and its bolt is out."""
+    twin, state = runtime.twins["door-2"], runtime.store.devices["door-2"]
+    assert await wait_for(lambda: state.raw(PARAMS.get("holding", holding)) is not None and twin.bolt > 100, 15)
+    return twin
+
+
 async def test_hdlock_checkout_fails_a_bolt_stuck_in_its_locked_end_position(tmp_path):
     """A lock that is locked and never leaves its end position: 'Lock' cannot pass without seeing movement."""
     async with demo_runtime(tmp_path, ("door-2",)) as runtime:
-        twin = runtime.twins["door-2"]
-        state = runtime.store.devices["door-2"]
-        assert await wait_for(lambda: state.raw(PARAMS.get("holding", 26)) is not None and twin.bolt > 100, 15)
+        twin = await _bolted(runtime, 26)
         twin.bolt_stuck = True
         result = await run_checkout(runtime, "door-2", ask=_person(twin))
         assert result["status"] == "failed"
@@ -100,9 +105,7 @@ async def test_hdlock_checkout_fails_a_lock_that_bolts_with_the_door_open(tmp_pa
     """Section 3.2.2 condition 2, tested while it acts: a lock that bolts with the door open fails that step;
     a door said to be opened that the lock still sees in position fails it too, with its own reason."""
     async with demo_runtime(tmp_path, ("door-2",)) as runtime:
-        twin = runtime.twins["door-2"]
-        state = runtime.store.devices["door-2"]
-        assert await wait_for(lambda: state.raw(PARAMS.get("holding", 16)) is not None and twin.bolt > 100, 15)
+        twin = await _bolted(runtime, 16)
         twin.ignores_door = True
         result = await run_checkout(runtime, "door-2", ask=_person(twin))
         step = _step(result, "Lock request refused with the door open (asked)")

@@ -103,6 +103,13 @@ async def start_lift(text: str | None = None):
     return runtime, adapter, state, runtime.twins["lift"]
 
 
+async def drive(adapter, session: str, position_mm: float, speed_mm_s: float, current_a: float) -> None:
+    """``session`` takes control as an engineer and sends the actuators towards ``position_mm``."""
+    await adapter.take_control(session, "engineer")
+    adapter.set_command(session, position_mm, speed_mm_s, current_a)
+    adapter.go(session)
+
+
 @pytest.fixture
 async def lift():
     runtime, adapter, state, twin = await start_lift()
@@ -116,9 +123,7 @@ async def lift():
 
 async def test_move_to_target_and_arrive(lift):
     _runtime, adapter, state, twin = lift
-    await adapter.take_control("s1", "engineer")
-    adapter.set_command("s1", 30.0, 32.0, 0)
-    adapter.go("s1")
+    await drive(adapter, "s1", 30.0, 32.0, 0)
     assert await wait_for(lambda: state.live("Motion flags").value & 1, timeout=2)  # extending
     assert await wait_for(lambda: abs((adapter.position_mm() or 0) - 30.0) < 0.2 and state.live("Motion flags").value == 0, timeout=6)
     assert all(abs(a.position_mm - 30.0) < 0.2 for a in twin.actuators)
@@ -131,9 +136,7 @@ async def test_move_to_target_and_arrive(lift):
 
 async def test_overload_trips_and_clears(lift):
     _runtime, adapter, state, twin = lift
-    await adapter.take_control("s1", "engineer")
-    adapter.set_command("s1", 200.0, 32.0, 3.0)
-    adapter.go("s1")
+    await drive(adapter, "s1", 200.0, 32.0, 3.0)
     assert await wait_for(lambda: state.live("Motion flags").value & 1 and (adapter.position_mm() or 0) > 1.0, timeout=3)  # extending
     twin.set_load(4.0)  # 0.8 A no-load + 4 A > 3 A limit
     assert await wait_for(lambda: state.live("Error flags").value & 0x02, timeout=2)
@@ -147,9 +150,7 @@ async def test_overload_trips_and_clears(lift):
 
 async def test_overload_cleared_by_moving_back(lift):
     _runtime, adapter, state, twin = lift
-    await adapter.take_control("s1", "engineer")
-    adapter.set_command("s1", 200.0, 32.0, 3.0)
-    adapter.go("s1")
+    await drive(adapter, "s1", 200.0, 32.0, 3.0)
     assert await wait_for(lambda: state.live("Motion flags").value & 1 and (adapter.position_mm() or 0) > 1.0, timeout=3)  # extending
     twin.set_load(4.0)
     assert await wait_for(lambda: state.live("Error flags").value & 0x02, timeout=2)
@@ -174,9 +175,7 @@ async def test_timeout_flag_when_control_stops(lift):
 
 async def test_release_sends_enable_cleared_and_stops_keepalive(lift):
     runtime, adapter, state, twin = lift
-    await adapter.take_control("browser-1", "engineer")
-    adapter.set_command("browser-1", 250.0, 20.0, 0)
-    adapter.go("browser-1")
+    await drive(adapter, "browser-1", 250.0, 20.0, 0)
     assert await wait_for(lambda: state.live("Motion flags").value & 1, timeout=2)  # extending
     assert adapter.release_control("browser-1", "released: the controlling browser disconnected")
     assert not runtime.worker.can_buses["can2"].cyclic_running(adapter.key)

@@ -3,24 +3,20 @@ and the Parameters card's long names stay inside their column (chromium at 768 a
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator
 from pathlib import Path
 
 import pytest
 from conftest import CHROMIUM, wait_devices_online
 from nicegui import ui
 from nicegui.testing import User
-from webutil import LockPages, demo_plant_text, eventually, free_port, lock_pages, running_app
+from webutil import LockPages, demo_plant_text, eventually, free_port, lock_pages_env, running_app
 
 pytestmark = pytest.mark.timeout(90)
 
 NO_ADDRESS = "enter the new address first (allowed 1 .. 254)"
 
 
-@pytest.fixture
-async def env(caplog: pytest.LogCaptureFixture) -> AsyncIterator[LockPages]:
-    async with lock_pages(caplog) as env:
-        yield env
+env = pytest.fixture(lock_pages_env, name="env")  # a simulated user on the app of two locks (door-1 at 1, door-2 at 2)
 
 
 def by_testid(user: User, testid: str) -> ui.element:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from conftest import free_port, wait_for
+from conftest import closed_after, free_port, wait_for
 from plants import bus, plant
 from webutil import eventually
 
@@ -63,29 +63,21 @@ async def test_unsolicited_telegram_between_request_and_answer():
     line = tcp(port)
     heard = []
     line.listeners.append(heard.append)
-    try:
+    async with closed_after(line, server):
         answer = await line.transact(bytes.fromhex("55 03 01 01 00 B8 B4"), lambda t: t[2] in (1, 2, 3, 4), describe="open pulse")
         assert answer == ACK and heard == [STATUS] and line.garbage == 1
         log = list(line.state.transactions)
         assert [t.request for t in log] == ["unsolicited", "received", "open pulse"]
         assert log[-1].response_hex == ACK.hex(" ").upper() and log[-1].rtt_ms is not None
-    finally:
-        line.close()
-        server.close()
-        await server.wait_closed()
 
 
 async def test_no_answer_is_a_named_timeout():
     port = free_port()
     server = await barrier(port, lambda data: [GATE])  # answers, but not what was asked
     line = tcp(port, timeout=0.3)
-    try:
+    async with closed_after(line, server):
         with pytest.raises(SerialTimeout, match="no answer within 0.3 s"):
             await line.transact(b"\x55\x02\x02\x02\x65\xfe", lambda t: t[2] == 0x07)
-    finally:
-        line.close()
-        server.close()
-        await server.wait_closed()
 
 
 async def test_refused_then_taken_back_and_released_on_request():
@@ -199,7 +191,7 @@ async def test_rs485_sends_only_with_the_token_and_passes_it_within_200_ms():
     events: list[str] = []
     server = await line_with_second_master(port, holds, requests, events)
     line = rs485(port)
-    try:
+    async with closed_after(line, server):
         query = codec.encode_frame(codec.encode_query(7), codec.RS485, da=0x05, sa=0x00)
         for _ in range(5):
             answer = await line.transact(query, lambda t: codec.decode_frame(t, codec.RS485).sa == 0x05, describe="gate state")
@@ -213,10 +205,6 @@ async def test_rs485_sends_only_with_the_token_and_passes_it_within_200_ms():
         for n, event in enumerate(events):
             if event == "request":
                 assert events[n + 1] == "answer", events
-    finally:
-        line.close()
-        server.close()
-        await server.wait_closed()
 
 
 async def test_rs485_without_the_token_sends_nothing():
@@ -229,14 +217,10 @@ async def test_rs485_without_the_token_sends_nothing():
 
     server = await asyncio.start_server(silent_master, "127.0.0.1", port)
     line = rs485(port, timeout=0.2)
-    try:
+    async with closed_after(line, server):
         with pytest.raises(SerialTimeout, match="the token did not come to master 0x00"):
             await line.transact(codec.encode_frame(codec.encode_query(7), codec.RS485, da=0x05), lambda t: True)
         assert got == []
-    finally:
-        line.close()
-        server.close()
-        await server.wait_closed()
 
 
 def test_plant_logited_rs485_bus():

@@ -4,14 +4,12 @@ One function of the parameter model (``Param.setting``) decides for all of them 
 
 from __future__ import annotations
 
-import asyncio
 import json
 
 import pytest
-from conftest import modbus_plant, wait_for
+from conftest import identified, modbus_plant, running_plant
 
 from app import backup, batch, record_sets, replace
-from app.runtime import Runtime
 from devices.hdlock.params import PARAMS
 from devices.params import backup_entry
 
@@ -31,14 +29,9 @@ def test_the_parameter_model_says_what_is_a_setting():
 
 @pytest.fixture
 async def locks(tmp_path):
-    runtime = Runtime(modbus_plant(locks=(("door-1", 1), ("door-2", 2))), simulate=True, data_dir=tmp_path / "data")
-    await runtime.start()
-    for name in ("door-1", "door-2"):
-        assert await wait_for(lambda n=name: replace.live_identity(runtime, n) is not None, timeout=8), name
-    try:
+    async with running_plant(modbus_plant(locks=(("door-1", 1), ("door-2", 2))), tmp_path / "data",
+                             ready=("door-1", "door-2"), is_ready=identified) as runtime:
         yield runtime
-    finally:
-        await asyncio.wait_for(runtime.stop(), 5)
 
 
 def _document(delay: int, measured: int) -> dict:

@@ -150,10 +150,15 @@ async def test_every_motion_needs_its_own_confirmation_and_pulse_is_no_holder():
     assert adapter.last_reply == "open pulse: nak"
 
 
+def _level_on_and_off(command: codec.Command) -> list:
+    """The script of ``command``'s level activated and deactivated again, each acknowledged."""
+    activate = tcp(codec.encode_command(command, codec.Function.ACTIVATE))
+    deactivate = tcp(codec.encode_command(command, codec.Function.DEACTIVATE))
+    return [(TX, activate), (RX, ACK), (TX, deactivate), (RX, ACK)]
+
+
 async def test_session_lost_deactivates_its_close_level_at_once():
-    activate = tcp(codec.encode_command(codec.Command.CLOSE, codec.Function.ACTIVATE))
-    deactivate = tcp(codec.encode_command(codec.Command.CLOSE, codec.Function.DEACTIVATE))
-    async with Mo64Script([(TX, activate), (RX, ACK), (TX, deactivate), (RX, ACK)]) as script:
+    async with Mo64Script(_level_on_and_off(codec.Command.CLOSE)) as script:
         adapter = make_adapter(script.port)
         await adapter.command("s1", codec.Command.CLOSE, codec.Function.ACTIVATE, confirmed=True)
         assert adapter.holders() == {"s1"}
@@ -168,9 +173,7 @@ async def test_session_lost_deactivates_its_close_level_at_once():
 
 
 async def test_open_level_is_shown_but_not_released_by_the_dead_man_and_cleared_on_request():
-    activate = tcp(codec.encode_command(codec.Command.OPEN, codec.Function.ACTIVATE))
-    deactivate = tcp(codec.encode_command(codec.Command.OPEN, codec.Function.DEACTIVATE))
-    async with Mo64Script([(TX, activate), (RX, ACK), (TX, deactivate), (RX, ACK)]) as script:
+    async with Mo64Script(_level_on_and_off(codec.Command.OPEN)) as script:
         adapter = make_adapter(script.port)
         await adapter.command("s1", codec.Command.OPEN, codec.Function.ACTIVATE, confirmed=True)
         assert adapter.holders() == set()

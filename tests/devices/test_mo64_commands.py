@@ -5,16 +5,14 @@ confirmed without asking again, and a viewer gets nothing but reads and stops.""
 from __future__ import annotations
 
 import ast
-import asyncio
 from pathlib import Path
 
 import pytest
-from conftest import free_port, wait_for
+from conftest import free_port, running_plant, wait_for
 from test_mo64_strict import tcp_plant
 
 from app.gate import NeedsConfirmation
 from app.plant import parse_plant
-from app.runtime import Runtime
 from app.worker import PermissionDenied
 from devices.commands import commands_of
 from devices.mo64 import codec
@@ -27,15 +25,11 @@ OPEN, CLOSE, REVERSE = codec.Command.OPEN, codec.Command.CLOSE, codec.Command.RE
 
 @pytest.fixture
 async def runtime(tmp_path):
-    runtime = Runtime(parse_plant(tcp_plant(free_port())), simulate=True, data_dir=tmp_path / "data")
-    await runtime.start()
-    try:
-        assert await wait_for(lambda: runtime.store.devices["gate"].status == "online", timeout=10)
+    async with running_plant(parse_plant(tcp_plant(free_port())), tmp_path / "data", ready=("gate",), within_s=10,
+                             stop_within_s=15) as runtime:
         adapter = runtime.worker.adapters["gate"]
         assert await wait_for(lambda: "Open time" in adapter.state.points, timeout=10)
         yield runtime
-    finally:
-        await asyncio.wait_for(runtime.stop(), 15)
 
 
 def invoke(runtime, name, args=None, *, role="engineer", session="s1", confirmed=False):

@@ -13,8 +13,7 @@ from nicegui.testing.user_interaction import UserInteraction
 from plants import mo64_tcp, plant_text
 from recordutil import demo_plant
 from test_backup_page import emit
-from test_project_page import _card_table, _dialog_button
-from webutil import by_testid, eventually, simulated_user
+from webutil import by_testid, dialog_button, eventually, project_card_table, simulated_user, user_on
 
 from app import backup, batch, project, replace
 from app.plant import load_plant, parse_plant
@@ -59,18 +58,17 @@ async def test_the_project_differs_on_the_device_page_and_is_applied_per_row(tmp
     problems = project.check_plant(bad)  # commission check: without the device
     assert any("t_offen: 700 is outside 0 .. 655" in p for p in problems), problems
     assert any("unknown parameter 'multi7'" in p for p in problems), problems
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(path), data_dir=tmp_path / "data") as (user, runtime):
         await _online(runtime, "gate")
         twin = runtime.twins["gate"]
         await user.open("/device/gate")
         await user.should_see("1 of 1 project entry differs from the device", retries=100)
-        table = _card_table(user)
+        table = project_card_table(user)
         assert [(r["name"], r["backup"], r["current"], r["changed"]) for r in table.rows] == [
             ("t_offen", "12.5 s", "10 s", True)]
         emit(table, "apply", "t_open:0")
         await user.should_see("Write t_offen = 12.5 s to gate?")
-        _dialog_button(user, "Write").click()
+        dialog_button(user, "Write").click()
         await user.should_see("device and project agree (1 project entry)", retries=100)
         assert twin.settings["t_open"] == 1250 and twin.setting_writes == {"t_open": 1}  # written and read back
         rows = await runtime.audit.aquery(limit=50)
@@ -160,7 +158,7 @@ async def test_drift_of_a_changed_setting_and_the_page_asks_before_force_monitor
         UserInteraction(user, {by_testid(user, "piece-write")}, None).click()
         await user.should_see("Kraftüberwachung (force monitoring) = ohne switches the force monitoring off")
         assert _force_bits(twin) == 1  # asked first, nothing sent
-        _dialog_button(user, "Write anyway").click()
+        dialog_button(user, "Write anyway").click()
         await eventually(lambda: _force_bits(twin) == 0, timeout=10, what="force monitoring off in the barrier")
         await eventually(lambda: any(r["key"] == KRAFT.key for r in state.drift["changed"]), timeout=5,
                          what="drift of the flag")

@@ -10,7 +10,7 @@ import time
 
 import httpx
 import pytest
-from conftest import free_port, wait_for
+from conftest import alive, free_port, wait_for
 from plants import device, mo64_rs485, mo64_tcp, plant_text
 from scripts import RX, TX
 from test_mo64_adapter import Mo64Script, answer, close_lines, make_adapter, query  # noqa: F401 - close_lines: autouse, closes the adapters made here
@@ -255,8 +255,6 @@ async def test_when_the_tool_stops_its_close_level_is_deactivated_and_acknowledg
     """Issue 25.11: the worker's stop awaits the adapter's shutdown before it closes the line: the close
     level this tool set is deactivated in the barrier and the barrier's ack is received (on RS485 in the
     tool's own turn), not merely thrown at a closing line."""
-    from test_mo64_page import alive
-
     text = tcp_plant(free_port()) if line == "tcp" else rs485_plant(free_port())
     name = "gate" if line == "tcp" else "out-1"
     runtime = Runtime(parse_plant(text), simulate=True)
@@ -266,7 +264,7 @@ async def test_when_the_tool_stops_its_close_level_is_deactivated_and_acknowledg
         worker = runtime.worker
         assert await wait_for(lambda: runtime.store.devices[name].status == "online", timeout=10)
         twin = runtime.twins[name]
-        async with alive(worker, "s1"):  # the browser stays alive: only the stop may release the level
+        async with alive(worker, "s1", period_s=0.05):  # the browser stays alive: only the stop may release the level
             await worker.gate.invoke(name, "close activate", user="anna", role="engineer", session="s1", confirmed=True)
             assert twin.levels[codec.Command.CLOSE] and worker.adapters[name].holders() == {"s1"}
             await asyncio.wait_for(worker.stop(), 15)

@@ -6,17 +6,15 @@ from __future__ import annotations
 
 import ast
 import asyncio
-import contextlib
 from pathlib import Path
 
 import pytest
 import plants
-from conftest import free_port, wait_for
+from conftest import alive, free_port, running_plant, wait_for
 from plants import scu_line
 
 from app.gate import NeedsConfirmation
 from app.plant import parse_plant
-from app.runtime import Runtime
 from app.worker import PermissionDenied
 from devices.commands import CommandError, commands_of
 from devices.scu import codec
@@ -32,24 +30,11 @@ def plant_text(port: int) -> str:
 
 @pytest.fixture
 async def scu(tmp_path):
-    runtime = Runtime(parse_plant(plant_text(free_port())), simulate=True, data_dir=tmp_path)
-    await runtime.start()
-
-    async def beat():
-        while True:
-            runtime.worker.heartbeat("s1")
-            await asyncio.sleep(0.1)
-
-    beating = asyncio.create_task(beat())
-    adapter = runtime.worker.adapters["scu"]
-    try:
+    async with running_plant(parse_plant(plant_text(free_port())), tmp_path, stop_within_s=10) as runtime, \
+            alive(runtime.worker, "s1"):
+        adapter = runtime.worker.adapters["scu"]
         assert await wait_for(lambda: adapter.session == "open", 10), adapter.session_reason
         yield runtime, adapter, runtime.twins["scu"]
-    finally:
-        beating.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await beating
-        await asyncio.wait_for(runtime.stop(), 10)
 
 
 async def invoke(runtime, name, args=None, *, role="engineer", session="s1", confirmed=False):

@@ -8,7 +8,7 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from conftest import wait_for
+from conftest import alive, running_plant, wait_for
 from plants import SCU_ACTUATORS, bus, device, free_port, plant, plant_text
 
 from app import backup, batch, project, replace
@@ -67,14 +67,8 @@ async def lifts(tmp_path):
     path.write_text(_two_units('"Remote Speed F1" = 60'))
     from app.plant import load_plant
 
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
-    await runtime.start()
-    for name in ("lift-a", "lift-b"):
-        assert await wait_for(lambda n=name: runtime.store.devices[n].status == "online", timeout=20), name
-    try:
+    async with running_plant(load_plant(path), tmp_path / "data", ready=("lift-a", "lift-b"), within_s=20) as runtime:
         yield runtime
-    finally:
-        await asyncio.wait_for(runtime.stop(), 5)
 
 
 async def test_backup_names_every_value_and_restore_writes_the_settings_back_read_back(lifts, tmp_path):
@@ -120,13 +114,7 @@ async def test_a_write_is_refused_beyond_the_speed_select_while_a_function_runs_
         await adapter.write_param(SPEED_F1, 500)
     assert twin.remote_speed[0] == 100
     # a function runs: a remote speed would change its motion (section 4.6)
-    async def beat():  # the browser of s1 is alive (the worker's dead-man supervisor)
-        while True:
-            runtime.worker.heartbeat("s1")
-            await asyncio.sleep(0.1)
-
-    beating = asyncio.create_task(beat())
-    try:
+    async with alive(runtime.worker, "s1"):  # the browser of s1 is alive (the worker's dead-man supervisor)
         await runtime.worker.gate.invoke("lift-a", "take control", session="s1", user="anna", role="engineer")
         await runtime.worker.gate.invoke("lift-a", "jog (RE)", {"function": 0, "direction": 1, "ramp": 1}, session="s1",
                                          user="anna", role="engineer")
@@ -134,8 +122,6 @@ async def test_a_write_is_refused_beyond_the_speed_select_while_a_function_runs_
             await adapter.write_param(SPEED_F1, 50)
         await runtime.worker.gate.invoke("lift-a", "jog stop (RS)", {"function": 0}, session="s1", user="anna", role="engineer")
         await runtime.worker.gate.invoke("lift-a", "release control", session="s1", user="anna", role="engineer")
-    finally:
-        beating.cancel()
     assert twin.remote_speed[0] == 100
     # strict mode: the unit's parametrisation has no F2 (its remote speed answers PDE)
     twin.strict.refused_ids = {0x3012}

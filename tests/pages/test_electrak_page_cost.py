@@ -7,7 +7,7 @@ import time
 
 import pytest
 from plants import channel, electrak_bus, plant
-from webutil import count_reads, eventually, heard_again, page_view, refresh_on_the_round, simulated_user
+from webutil import eventually, push_the_same_values, refresh_on_the_round, simulated_user
 
 from app.runtime import Runtime
 
@@ -27,14 +27,7 @@ async def test_a_telegram_with_the_same_values_draws_nothing_and_the_round_draws
     async with simulated_user(runtime) as user:
         state = runtime.store.devices["hoist"]
         await eventually(lambda: state.status == "online" and "Position" in state.points, timeout=10)
-        await user.open("/device/hoist")
-        view = page_view(user, runtime, "hoist")
-
-        heard_again(state)
-        view.refresh()  # everything as the store has it now
-        read = count_reads(state, monkeypatch)
-        heard_again(state)  # heard again, the same values
-        view.refresh()
+        view, read = await push_the_same_values(user, runtime, "hoist", monkeypatch)
         assert not [n for n in read if n in DRAWN], read  # nothing drawn again
         refresh_on_the_round(runtime.store, view)  # the once-a-second round: ages and stale marks drawn
         assert set(DRAWN) <= set(read)

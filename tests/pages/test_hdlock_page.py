@@ -6,13 +6,12 @@ Modbus RTU frames, with the app registered as in production (``app.web.register`
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator
 
 import pytest
 from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
-from webutil import LockPages, eventually, lock_pages
+from webutil import LockPages, eventually, lock_pages_env
 
 
 pytestmark = pytest.mark.timeout(30)
@@ -20,22 +19,7 @@ pytestmark = pytest.mark.timeout(30)
 
 Env = LockPages
 
-
-@pytest.fixture
-async def env(caplog: pytest.LogCaptureFixture) -> AsyncIterator[Env]:
-    """A simulated user on the app of a two-lock plant (door-1 at 1, door-2 at 2)."""
-    async with lock_pages(caplog) as env:
-        yield env
-
-
-async def online(env: Env, *names: str) -> None:
-    def check() -> None:
-        for name in names:
-            state = env.state(name)
-            assert state.status == "online", f"{name} is {state.status}: {state.last_error}"
-            assert state.value("LockStatus") is not None, f"{name}: LockStatus not read yet"
-
-    await eventually(check, timeout=10)
+env = pytest.fixture(lock_pages_env, name="env")  # a simulated user on the app of two locks (door-1 at 1, door-2 at 2)
 
 
 def by_testid(user: User, testid: str) -> UserInteraction:
@@ -52,7 +36,7 @@ def fill(user: User, testid: str, value) -> None:
 
 async def test_broadcast_address_change_names_the_known_locks_and_moves_the_one_that_meets_it(env: Env):
     user = env.user
-    await online(env, "door-1", "door-2")
+    await env.polled("door-1", "door-2", point="LockStatus")
     env.twin("door-2").close_door()  # door-2 locks; door-1 stays open
     await eventually(lambda: (env.state("door-2").value("LockStatus") or 0) & 0x0104 == 0x0104, timeout=5)
     await user.open("/device/door-1")
@@ -79,7 +63,7 @@ async def test_broadcast_address_change_names_the_known_locks_and_moves_the_one_
 
 async def test_broadcast_refused_when_two_known_locks_would_take_it(env: Env):
     user = env.user
-    await online(env, "door-1", "door-2")
+    await env.polled("door-1", "door-2", point="LockStatus")
     await user.open("/device/door-1")
     await user.should_see("HD-Lock door-1")
     writes: list[tuple[int, int]] = []
@@ -99,7 +83,7 @@ async def test_broadcast_refused_when_two_known_locks_would_take_it(env: Env):
 async def test_set_address_from_the_page_reports_the_outcome_from_the_new_address(env: Env):
     """The lock stays silent on the command write (the twin's default): the page says so and reports success."""
     user = env.user
-    await online(env, "door-1")
+    await env.polled("door-1", point="LockStatus")
     assert env.twin("door-1").answers_address_command is False
     await user.open("/device/door-1")
     await user.should_see("HD-Lock door-1")

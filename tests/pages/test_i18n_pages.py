@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from babel.messages.pofile import read_po
 from nicegui import ui
-from plants import free_port, modbus_plant
+from plants import modbus_plant
 from webutil import eventually, simulated_user
 
 from app import i18n
@@ -76,6 +76,18 @@ async def german_user(runtime: Runtime):
     async with simulated_user(runtime) as user:
         user.http_client.headers["Accept-Language"] = GERMAN
         yield user
+
+
+@contextlib.asynccontextmanager
+async def german_page(tmp_path, plant, device: str, title: str):
+    """``device``'s page on ``plant`` (its twins simulated) for a German browser, once the device answers and its page
+    shows ``title``: yields ``(runtime, user)``."""
+    runtime = Runtime(plant, simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await eventually(lambda: runtime.store.devices[device].status == "online", timeout=15, what=f"{device} online")
+        await user.open(f"/device/{device}")
+        await user.should_see(title, retries=50)
+        yield runtime, user
 
 
 def lock_plant():
@@ -197,13 +209,11 @@ async def test_the_backup_page_in_german_shows_no_english(tmp_path):
 
 async def test_a_project_in_german_shows_no_english(tmp_path):
     """The project card of the backup page, its comparison with the device and the reconciling buttons."""
-    from test_project_page import PLANT
+    from test_project_page import plant_file
 
     from app.plant import load_plant
 
-    path = tmp_path / "plant.toml"
-    path.write_text(PLANT.format(port=free_port(), silent=free_port()))
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
+    runtime = Runtime(load_plant(plant_file(tmp_path)), simulate=True, data_dir=tmp_path / "data")
     async with german_user(runtime) as user:
         await eventually(lambda: runtime.store.devices["door-1"].status == "online", timeout=15, what="door-1 online")
         await user.open("/backup")
@@ -328,11 +338,7 @@ async def test_the_electrak_page_in_german_shows_no_english(tmp_path):
     """The actuators' page in the words of their document (004): Bewegungs-Flags, Fehler-Flags, Steuertelegramm, Hub."""
     from plants import electrak_bus, plant
 
-    runtime = Runtime(plant(electrak_bus()), simulate=True, data_dir=tmp_path)
-    async with german_user(runtime) as user:
-        await eventually(lambda: runtime.store.devices["lift"].status == "online", timeout=15, what="the network online")
-        await user.open("/device/lift")
-        await user.should_see("Electrak-HD-Netzwerk lift", retries=50)
+    async with german_page(tmp_path, plant(electrak_bus()), "lift", "Electrak-HD-Netzwerk lift") as (runtime, user):
         await user.should_see("Bewegungs-Flags")
         await user.should_see("Serviceparameter (0x0A / 0x0B)")
         await user.should_see("niemand steuert das Netzwerk: Steuertelegramme sind aus", retries=50)
@@ -363,11 +369,7 @@ async def test_the_scu_page_in_german_shows_no_english(tmp_path):
     status bits' words of table 6 and the data directory are the parameter model's."""
     from plants import plant, scu_line
 
-    runtime = Runtime(plant(scu_line()), simulate=True, data_dir=tmp_path)
-    async with german_user(runtime) as user:
-        await eventually(lambda: runtime.store.devices["lift"].status == "online", timeout=15, what="the unit online")
-        await user.open("/device/lift")
-        await user.should_see("Ewellix SCU lift", retries=50)
+    async with german_page(tmp_path, plant(scu_line()), "lift", "Ewellix SCU lift") as (runtime, user):
         await user.should_see("Versorgung und E/A")
         await user.should_see("NOT-HALT (F20, Funktion 19)")
         await eventually(lambda: any(t.startswith("Remote-Betrieb: ") for t in shown_texts(user)), timeout=5,

@@ -7,7 +7,7 @@ import time
 
 import pytest
 from plants import can_bus, m3io_can, plant
-from webutil import count_reads, eventually, heard_again, page_view, refresh_on_the_round, simulated_user
+from webutil import eventually, push_the_same_values, refresh_on_the_round, simulated_user
 
 from app.runtime import Runtime
 
@@ -24,15 +24,8 @@ async def test_telegrams_with_the_same_values_draw_nothing_and_the_round_draws_a
     async with simulated_user(runtime) as user:
         state = runtime.store.devices["heater-hm"]
         await eventually(lambda: all(n in state.points for n in DRAWN), timeout=10)
-        await user.open("/device/heater-hm")
-        view = page_view(user, runtime, "heater-hm")
-
-        heard_again(state)
-        view.refresh()  # everything as the store has it now
-        read = count_reads(state, monkeypatch)
-        heard_again(state)  # heard again, the same values
+        view, read = await push_the_same_values(user, runtime, "heater-hm", monkeypatch)
         now = time.time()
-        view.refresh()
         assert not [n for n in read if n in DRAWN], read  # nothing drawn again
         refresh_on_the_round(runtime.store, view)  # the once-a-second round: ages and stale marks drawn
         assert set(DRAWN) <= set(read)

@@ -8,8 +8,7 @@ import pytest
 from nicegui import ui
 from test_m3io_params import _plant_file
 from test_backup_page import emit
-from test_project_page import _card_table, _dialog_button
-from webutil import eventually, simulated_user
+from webutil import dialog_button, eventually, project_card_table, user_on
 
 from app.plant import load_plant
 from app.runtime import Runtime
@@ -27,27 +26,26 @@ async def _read(runtime: Runtime, *names: str) -> None:
 
 async def test_the_project_differs_on_the_page_and_is_applied_per_row_with_p2_asked(tmp_path):
     path = _plant_file(tmp_path, project_a='"Customer data 3" = "01 02 03", P2 = 1')
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(path), data_dir=tmp_path / "data") as (user, runtime):
         await _read(runtime, "io-a")
         twin = runtime.twins["io-a"]
         await user.open("/device/io-a")
         await user.should_see("2 of 2 project entries differ from the device", retries=100)
         await user.should_see(" 3: ff ff ff ff ff ff")  # the records as read
-        table = _card_table(user)
+        table = project_card_table(user)
         assert sorted((r["name"], r["backup"], r["current"]) for r in table.rows) == [
             ("Customer data 3", "01 02 03 ff ff ff", "ff ff ff ff ff ff"),
             ("P2", "two-phase load (P2) (1)", "three-phase load (0)")]
         emit(table, "apply", "customer:3")
         await user.should_see("Write Customer data 3 = 01 02 03 ff ff ff to io-a?")
-        _dialog_button(user, "Write").click()
+        dialog_button(user, "Write").click()
         await user.should_see("1 of 2 project entries differs from the device", retries=100)
         assert twin.customer[3] == bytes.fromhex("010203ffffff")
-        emit(_card_table(user), "apply", "cfg:7")
+        emit(project_card_table(user), "apply", "cfg:7")
         await user.should_see("Write P2 = two-phase load (P2) (1) to io-a?")
-        _dialog_button(user, "Write").click()
+        dialog_button(user, "Write").click()
         await user.should_see("a three-phase load that lost one phase", retries=50)  # the question names it
-        _dialog_button(user, "Write anyway").click()
+        dialog_button(user, "Write anyway").click()
         await user.should_see("device and project agree (2 project entries)", retries=100)
         assert twin.cfg & codec.P2 and load_plant(path).devices["io-a"].options["p2"] is True
         rows = await runtime.audit.aquery(limit=50)
@@ -55,8 +53,7 @@ async def test_the_project_differs_on_the_page_and_is_applied_per_row_with_p2_as
 
 
 async def test_the_p2_switch_asks_and_stays_off_when_cancelled(tmp_path):
-    runtime = Runtime(load_plant(_plant_file(tmp_path)), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(_plant_file(tmp_path)), data_dir=tmp_path / "data") as (user, runtime):
         await _read(runtime, "io-b")
         await user.open("/device/io-b")
         await user.should_see("Three-phase output loaded on two phases only (P2)", retries=100)
@@ -66,15 +63,14 @@ async def test_the_p2_switch_asks_and_stays_off_when_cancelled(tmp_path):
         switch.set_value(True)
         await user.should_see("Switch P2 on?", retries=50)
         await user.should_see("a three-phase load that lost one phase")
-        _dialog_button(user, "Cancel").click()
+        dialog_button(user, "Cancel").click()
         await eventually(lambda: switch.value is False, timeout=5, what="the switch back off")
         assert not runtime.twins["io-b"].cfg & codec.P2 and not runtime.worker.adapters["io-b"].two_phase
 
 
 async def test_the_project_editor_takes_records_as_hex_bytes_and_p2_by_name(tmp_path):
     path = _plant_file(tmp_path)
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(path), data_dir=tmp_path / "data") as (user, runtime):
         await user.open("/project/io-a")
         await user.should_see("Edited on the CAN-M3IO parameter model without the device")
         await user.should_see("allowed: 1 to 6 bytes as hex, e.g. 01 02 0a (padded with ff to 6 bytes)")

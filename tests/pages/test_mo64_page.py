@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
 from collections.abc import AsyncIterator
 
 import pytest
+from conftest import alive
 from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
@@ -23,22 +22,6 @@ pytestmark = pytest.mark.timeout(40)
 async def env() -> AsyncIterator[tuple[User, Runtime]]:
     async with user_on(plant(mo64_tcp())) as env:
         yield env
-
-
-@contextlib.asynccontextmanager
-async def alive(worker, session: str):
-    """A browser session that keeps confirming it is alive (as a page's worker does, every 0.1 s)."""
-    async def beat():
-        while True:
-            worker.heartbeat(session)
-            await asyncio.sleep(0.05)
-
-    task = asyncio.create_task(beat())
-    worker.heartbeat(session)
-    try:
-        yield
-    finally:
-        task.cancel()
 
 
 def twin(runtime):
@@ -87,7 +70,7 @@ async def test_a_viewer_cannot_clear_levels_or_release_the_connection(env, monke
     adapter = runtime.worker.adapters["gate"]
     adapter.core.lease_s = 10.0  # the barrier's own dead-man lease (devices/mo64/control.py), likewise
     await eventually(lambda: "Gate state" in adapter.state.points, timeout=10)
-    async with alive(runtime.worker, "engineer-1"):  # the engineer's browser stays alive for this test
+    async with alive(runtime.worker, "engineer-1", period_s=0.05):  # the engineer's browser stays alive for this test
         await runtime.worker.gate.invoke("gate", "close activate", user="anna", role="engineer", session="engineer-1",
                                          confirmed=True)
         await user.open("/device/gate")

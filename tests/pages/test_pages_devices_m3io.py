@@ -24,8 +24,11 @@ PLANT = plant_text(can_bus(device("io", "m3io", "can9", variant="HMR", sw1=0xCA)
 
 @pytest.fixture
 async def env():
+    """The simulated user on io's page."""
     runtime = Runtime(parse_plant(PLANT), simulate=False)
     async with simulated_user(runtime) as user:
+        await user.open("/device/io")
+        await user.should_see("CAN-M3IO io (HMR)")
         yield user, runtime
 
 
@@ -37,8 +40,6 @@ def one(user: User, prop: str, value: str, kind=ui.element):
 
 async def test_record_20_stays_typed_marked_and_nothing_is_sent(env):
     user, runtime = env
-    await user.open("/device/io")
-    await user.should_see("CAN-M3IO io (HMR)")
     state = runtime.store.devices["io"]
     record = one(user, "data-testid", "record", ui.number)
     record.value = 20
@@ -60,8 +61,6 @@ async def test_record_20_stays_typed_marked_and_nothing_is_sent(env):
 
 async def test_silent_module_disables_switches_with_the_reason_but_not_all_off(env):
     user, runtime = env
-    await user.open("/device/io")
-    await user.should_see("CAN-M3IO io (HMR)")
     state = runtime.store.devices["io"]
     switch = one(user, "data-output", "SSR4", ui.switch)
     assert not switch.enabled

@@ -18,9 +18,9 @@ import pytest
 from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
-from plants import channel
+from plants import bus, can_bus, channel, device, free_port, m3io_can, plant_text
 from test_auth import login
-from webutil import by_testid, eventually, free_port, simulated_user
+from webutil import by_testid, eventually, simulated_user
 
 from app.plant import load_plant
 from app.runtime import Runtime
@@ -29,46 +29,17 @@ from pages.command_client import VIEWER_REASON
 
 pytestmark = pytest.mark.timeout(90)
 
-PLANT = """name = "roles"
 
-[[bus]]
-name = "line1"
-type = "modbus-rtu"
-port = "socket://127.0.0.1:{port}"
-timeout = 0.3
-retries = 0
-poll_period = 0.2
-simulate = true
 
-[[device]]
-name = "door-1"
-type = "hdlock"
-bus = "line1"
-address = 1
-project = {{ LockRequestDelay = 350 }}
-
-[[device]]
-name = "door-2"
-type = "hdlock"
-bus = "line1"
-address = 2
-
-[[bus]]
-name = "can3"
-type = "can"
-interface = "virtual"
-channel = "{channel}"
-bitrate = 500000
-simulate = true
-
-[[device]]
-name = "heater-hm"
-type = "m3io"
-bus = "can3"
-variant = "HM"
-sw1 = 0x1A
-master = "always"
-"""
+def _plant_text() -> str:
+    """Two HD-Locks (door-1 with a project) on a simulated RTU line and an M3IO HM heater on a CAN bus."""
+    locks = (device("door-1", "hdlock", "line1", address=1, project={"LockRequestDelay": 350}),
+             device("door-2", "hdlock", "line1", address=2))
+    return plant_text(
+        bus("line1", "modbus-rtu", *locks, port=f"socket://127.0.0.1:{free_port()}", timeout=0.3, retries=0,
+            poll_period=0.2, simulate=True),
+        can_bus(m3io_can("heater-hm", "can3", master="always"), name="can3", channel_name=channel("roles"), bitrate=500000),
+        name="roles")
 
 ENGINEER, VIEWER = ("anna", "correct horse"), ("tablet", "battery staple")
 
@@ -81,7 +52,7 @@ class Env:
 
 async def _env(tmp_path: Path, accounts: bool, who: tuple[str, str]) -> AsyncIterator[Env]:
     path = tmp_path / "plant.toml"
-    path.write_text(PLANT.format(port=free_port(), channel=channel("roles")))
+    path.write_text(_plant_text())
     store = UserStore(tmp_path / "users.toml")
     store.add(*ENGINEER[:1], "engineer", ENGINEER[1])
     store.add(*VIEWER[:1], "viewer", VIEWER[1])

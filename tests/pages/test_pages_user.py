@@ -9,14 +9,13 @@ from __future__ import annotations
 
 import re
 import time
-from collections.abc import AsyncIterator
 
 import pytest
 from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
 from conftest import spy_writes
-from webutil import LockPages, eventually, lock_pages
+from webutil import LockPages, eventually, lock_pages_env
 
 from app.worker import PermissionDenied
 from devices.hdlock.params import PARAMS, REMOVE_MAGNET
@@ -28,25 +27,7 @@ pytestmark = pytest.mark.timeout(30)  # each test takes about a second; waits in
 
 Env = LockPages
 
-
-@pytest.fixture
-async def env(caplog: pytest.LogCaptureFixture) -> AsyncIterator[Env]:
-    """A simulated user on the app of a two-lock plant (door-1 at 1, door-2 at 2)."""
-    async with lock_pages(caplog) as env:
-        yield env
-
-
-async def online(env: Env, *names: str) -> None:
-    """Wait until the worker has polled every named lock completely."""
-    names = names or ("door-1", "door-2")
-
-    def check() -> None:
-        for name in names:
-            state = env.state(name)
-            assert state.status == "online", f"{name} is {state.status}: {state.last_error}"
-            assert state.value("SerialNumber") is not None, f"{name}: serial not read yet"
-
-    await eventually(check, timeout=10)
+env = pytest.fixture(lock_pages_env, name="env")  # a simulated user on the app of two locks (door-1 at 1, door-2 at 2)
 
 
 # -- finding elements by the app's data-* props (the pages set no .mark() markers) --------------
@@ -78,7 +59,7 @@ def lamp_on(user: User, name: str) -> str | None:
 
 async def test_line_cycle_time_is_shown_on_the_overview_and_the_monitor(env: Env):
     user = env.user
-    await online(env)
+    await env.polled()
     line = env.runtime.store.buses["line1"]
     await eventually(lambda: line.cycle_s, timeout=10, what="the line measured a cycle")
     await user.open("/")
@@ -100,7 +81,7 @@ async def test_overview_lists_both_locks_online(env: Env):
         await user.should_see(name)
     await user.should_see(kind=ui.label, content="HD-Lock on line1")
     assert len(user.find(kind=ui.label, content="HD-Lock on line1").elements) == 2
-    await online(env)
+    await env.polled()
     # the tiles refresh once a second
     await user.should_see(kind=ui.badge, content="online", retries=30)
 
@@ -141,9 +122,7 @@ async def test_tile_click_opens_device_page(env: Env):
 
 async def test_device_page_shows_lamps_and_enums(env: Env):
     user = env.user
-    await online(env, "door-1")
-    await user.open("/device/door-1")
-    await user.should_see("HD-Lock door-1")
+    await env.open_page()
     await user.should_see("LockStatus (holding 1000)")
     for lamp in ("LockRequest", "ProximityInPlace", "DoorInPosition", "BoltLocked", "BoltUnlocked", "BoltMovingOut"):
         await user.should_see(kind=ui.label, content=lamp)
@@ -167,9 +146,7 @@ async def test_unknown_device_page(env: Env):
 
 async def test_write_parameter_then_save_settings(env: Env):
     user, twin, state = env.user, env.twin(), env.state()
-    await online(env, "door-1")
-    await user.open("/device/door-1")
-    await user.should_see("HD-Lock door-1")
+    await env.open_page()
     await user.should_not_see(kind=ui.badge, content="unsaved")
     assert twin.holding[3000] == 200
     saved_before = twin.input[101]
@@ -200,9 +177,7 @@ async def test_write_parameter_then_save_settings(env: Env):
 
 async def test_out_of_range_value_is_refused_without_writing(env: Env):
     user, twin = env.user, env.twin()
-    await online(env, "door-1")
-    await user.open("/device/door-1")
-    await user.should_see("HD-Lock door-1")
+    await env.open_page()
     writes = spy_writes(twin)
     requests = env.state().counters.requests
 
@@ -221,7 +196,7 @@ async def test_out_of_range_value_is_refused_without_writing(env: Env):
 
 async def test_empty_entry_asks_for_a_value(env: Env):
     user, twin = env.user, env.twin()
-    await online(env, "door-1")
+    await env.polled("door-1")
     await user.open("/device/door-1")
     writes = spy_writes(twin)
     entry_element(user, "LockRequestDelay").value = None  # the field starts with the current value: cleared
@@ -247,9 +222,7 @@ def choose(user: User, param: str, value: int, options: dict[int, str]) -> None:
 
 async def test_remove_magnet_asks_for_confirmation_and_cancel_writes_nothing(env: Env):
     user, twin = env.user, env.twin()
-    await online(env, "door-1")
-    await user.open("/device/door-1")
-    await user.should_see("HD-Lock door-1")
+    await env.open_page()
     writes = spy_writes(twin)
 
     choose(user, "SettingsRemoveMagnet", 1, REMOVE_MAGNET)
@@ -270,9 +243,7 @@ async def test_remove_magnet_asks_for_confirmation_and_cancel_writes_nothing(env
 
 async def test_remove_magnet_written_after_confirmation(env: Env):
     user, twin = env.user, env.twin()
-    await online(env, "door-1")
-    await user.open("/device/door-1")
-    await user.should_see("HD-Lock door-1")
+    await env.open_page()
 
     choose(user, "SettingsRemoveMagnet", 1, REMOVE_MAGNET)
     write_button(user, "SettingsRemoveMagnet").click()
@@ -288,7 +259,7 @@ async def test_remove_magnet_written_after_confirmation(env: Env):
 
 
 async def test_api_devices(env: Env):
-    await online(env)
+    await env.polled()
     client = env.user.http_client
     response = await client.get("/api/devices")
     assert response.status_code == 200
@@ -302,7 +273,7 @@ async def test_api_devices(env: Env):
 
 
 async def test_api_device_values_by_document_name(env: Env):
-    await online(env, "door-1")
+    await env.polled("door-1")
     response = await env.user.http_client.get("/api/devices/door-1")
     assert response.status_code == 200
     body = response.json()
@@ -329,7 +300,7 @@ async def test_api_device_values_by_document_name(env: Env):
 
 async def test_worker_refuses_writes_for_viewer(env: Env):
     twin = env.twin()
-    await online(env, "door-1")
+    await env.polled("door-1")
     writes = spy_writes(twin)
     with pytest.raises(PermissionDenied):
         await env.runtime.worker.gate.run(lambda: env.runtime.worker.adapters["door-1"].write_param(DELAY, 999),

@@ -15,11 +15,10 @@ from pathlib import Path
 import pytest
 from nicegui import ui
 from nicegui.testing import User
-from nicegui.testing.user_interaction import UserInteraction
-from plants import mo64_tcp, plant_text
+from plants import bus, device, free_port, modbus_line, mo64_tcp, plant_text
 from test_auth import login
 from test_backup_page import emit
-from webutil import eventually, free_port, simulated_user
+from webutil import dialog_button, eventually, project_card_table, simulated_user, user_on
 
 from app import project
 from app.plant import load_plant
@@ -29,39 +28,23 @@ from app.gate import PermissionDenied
 
 pytestmark = pytest.mark.timeout(60)
 
-PLANT = """name = "pp"
+def project_plant_text() -> str:
+    """door-1 with a project on a simulated line, door-9 on a line nothing answers on (not wired yet); each
+    with a comment that saving the project must keep."""
+    door_1 = device("door-1", "hdlock", "line1", address=1, project={"LockRequestDelay": 350})
+    return plant_text(
+        bus("line1", "modbus-rtu", door_1.rstrip("\n") + "  # the door closer needs longer\n",
+            port=f"socket://127.0.0.1:{free_port()}", timeout=0.3, retries=0, poll_period=0.2, simulate=True),
+        modbus_line((("door-9", 9),), name="line9", timeout=0.2, poll_period=0.5, simulate=None)
+        + "# the lock of the second door\n",
+        name="pp")
 
-[[bus]]
-name = "line1"
-type = "modbus-rtu"
-port = "socket://127.0.0.1:{port}"
-timeout = 0.3
-retries = 0
-poll_period = 0.2
-simulate = true
 
-[[device]]
-name = "door-1"
-type = "hdlock"
-bus = "line1"
-address = 1
-project = {{ LockRequestDelay = 350 }}  # the door closer needs longer
-
-[[bus]]
-name = "line9"  # not wired yet: nothing answers here
-type = "modbus-rtu"
-port = "socket://127.0.0.1:{silent}"
-timeout = 0.2
-retries = 0
-poll_period = 0.5
-
-[[device]]
-name = "door-9"
-type = "hdlock"
-bus = "line9"
-address = 9
-# the lock of the second door
-"""
+def plant_file(folder: Path) -> Path:
+    """:func:`project_plant_text` in ``folder``'s plant.toml."""
+    path = folder / "plant.toml"
+    path.write_text(project_plant_text())
+    return path
 
 
 @dataclass
@@ -73,42 +56,23 @@ class Env:
 
 @pytest.fixture
 async def env(tmp_path: Path) -> AsyncIterator[Env]:
-    path = tmp_path / "plant.toml"
-    path.write_text(PLANT.format(port=free_port(), silent=free_port()))
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    path = plant_file(tmp_path)
+    async with user_on(load_plant(path), data_dir=tmp_path / "data") as (user, runtime):
         await eventually(lambda: runtime.store.devices["door-1"].status == "online", timeout=15, what="door-1 online")
         yield Env(user, runtime, path)
 
-
-def _card_table(user: User) -> ui.table:
-    return next(e for e in user.client.elements.values()
-                if isinstance(e, ui.table) and any(c["name"] == "actions" for c in e.columns))
-
-
-def _dialog_button(user: User, text: str) -> UserInteraction:
-    def in_dialog(element: ui.element) -> bool:
-        while element is not None:
-            if isinstance(element, ui.dialog):
-                return True
-            element = element.parent_slot.parent if element.parent_slot else None
-        return False
-
-    found = {e for e in user.client.elements.values() if isinstance(e, ui.button) and e.text == text and in_dialog(e)}
-    assert found, f"no {text!r} button in a dialog"
-    return UserInteraction(user, found, None)
 
 
 async def test_device_page_shows_the_differing_entry_and_applies_it_through_the_gate(env: Env):
     twin = env.runtime.twins["door-1"]
     await env.user.open("/device/door-1")
     await env.user.should_see("1 of 1 project entry differs from the device", retries=100)
-    table = _card_table(env.user)
+    table = project_card_table(env.user)
     assert [(r["name"], r["backup"], r["current"], r["changed"]) for r in table.rows] == [
         ("LockRequestDelay", "350 ms", "200 ms", True)]
     emit(table, "apply", "holding:3000")
     await env.user.should_see("Write LockRequestDelay = 350 ms to door-1?")
-    _dialog_button(env.user, "Write").click()
+    dialog_button(env.user, "Write").click()
     await env.user.should_see("device and project agree (1 project entry)", retries=100)
     assert twin.holding[3000] == 350 and twin.flash[3000] == 350  # written, read back and saved
     rows = await env.runtime.audit.aquery(limit=50)
@@ -157,8 +121,7 @@ async def test_project_of_a_device_that_never_answered_is_edited_on_the_paramete
 
 
 async def test_a_viewer_sees_the_project_read_only_and_the_worker_refuses_the_save(tmp_path: Path):
-    path = tmp_path / "plant.toml"
-    path.write_text(PLANT.format(port=free_port(), silent=free_port()))
+    path = plant_file(tmp_path)
     UserStore(tmp_path / "users.toml").add("tablet", "viewer", "battery staple")
     runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path, auth_required=True)
     async with simulated_user(runtime) as user:
@@ -183,8 +146,7 @@ async def test_the_mo64_project_is_edited_on_its_parameter_model(tmp_path: Path)
     path = tmp_path / "plant.toml"
     path.write_text(plant_text(mo64_tcp("barrier-in", "gate-tcp", travel_s=None, timeout=None, poll_period=None, simulate=None),
                                name="gates"))
-    runtime = Runtime(load_plant(path), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(path), data_dir=tmp_path / "data") as (user, runtime):
         await user.open("/project/barrier-in")  # every family has a parameter model now (devices/mo64/params.py)
         await user.should_see("Kraftüberwachung")
         assert [e for e in user.client.elements.values() if e.props.get("data-project-field")]

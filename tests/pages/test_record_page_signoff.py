@@ -26,6 +26,13 @@ def _one(user, marker):
     return next(iter(user.find(marker=marker).elements))
 
 
+def _account(user, name: str, password: str) -> None:
+    """The account asked for in the open dialog, given."""
+    _one(user, "account-name").value = name
+    _one(user, "account-password").value = password
+    user.find(marker="account-ok").click()
+
+
 async def test_sign_off_on_loopback_asks_for_an_account_and_lists_what_is_open(tmp_path):
     from app.runtime import Runtime
 
@@ -44,9 +51,7 @@ async def test_sign_off_on_loopback_asks_for_an_account_and_lists_what_is_open(t
         user.find(marker="account-password").type("vera-password")
         user.find(marker="account-ok").click()
         await user.should_see("vera has the viewer role: an engineer account approves and signs", retries=100)
-        _one(user, "account-name").value = "anna"
-        _one(user, "account-password").value = "anna-password"
-        user.find(marker="account-ok").click()
+        _account(user, "anna", "anna-password")
         await user.should_see("approved set stored (account anna)", retries=100)
         approved = await runtime.record.timeline("door-1", ("approved",))
         assert approved[0].user == "anna" and approved[0].data["account"] == "anna"
@@ -64,9 +69,7 @@ async def test_sign_off_on_loopback_asks_for_an_account_and_lists_what_is_open(t
         await user.should_see("door-1: no checkout run", retries=100)
         user.find(marker="gaps-sign").click()
         await user.should_see("Signing plant demo: who is it?", retries=100)
-        _one(user, "account-name").value = "anna"
-        _one(user, "account-password").value = "wrong"
-        user.find(marker="account-ok").click()
+        _account(user, "anna", "wrong")
         await user.should_see("Wrong user name or password", retries=100)
         assert await runtime.record.timeline(None, ("signoff",)) == []
         _one(user, "account-password").value = "anna-password"

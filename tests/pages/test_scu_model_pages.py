@@ -8,14 +8,11 @@ from pathlib import Path
 
 import pytest
 from nicegui import ui
-from nicegui.testing import User
-from nicegui.testing.user_interaction import UserInteraction
 from plants import SCU_ACTUATORS, bus, device, free_port, plant_text
 from test_backup_page import emit
-from webutil import eventually, simulated_user
+from webutil import dialog_button, eventually, project_card_table, user_on
 
 from app.plant import load_plant
-from app.runtime import Runtime
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -29,37 +26,19 @@ def _plant(tmp_path: Path) -> Path:
     return path
 
 
-def _card_table(user: User) -> ui.table:
-    return next(e for e in user.client.elements.values()
-                if isinstance(e, ui.table) and any(c["name"] == "actions" for c in e.columns))
-
-
-def _dialog_button(user: User, text: str) -> UserInteraction:
-    def in_dialog(element: ui.element) -> bool:
-        while element is not None:
-            if isinstance(element, ui.dialog):
-                return True
-            element = element.parent_slot.parent if element.parent_slot else None
-        return False
-
-    found = {e for e in user.client.elements.values() if isinstance(e, ui.button) and e.text == text and in_dialog(e)}
-    assert found, f"no {text!r} button in a dialog"
-    return UserInteraction(user, found, None)
-
 
 async def test_project_difference_applied_per_row_on_the_page_and_drift_on_the_overview_and_in_the_api(tmp_path: Path):
-    runtime = Runtime(load_plant(_plant(tmp_path)), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(_plant(tmp_path)), data_dir=tmp_path / "data") as (user, runtime):
         twin, state = runtime.twins["lift-a"], runtime.store.devices["lift-a"]
         await eventually(lambda: state.status == "online", timeout=30, what="lift-a online")
         await user.open("/device/lift-a")
         await user.should_see("1 of 2 project entries differs from the device", retries=300)  # A1 is at 600 already
-        table = _card_table(user)
+        table = project_card_table(user)
         assert [(r["name"], r["backup"], r["current"]) for r in table.rows] == [
             ("Remote Speed F1", "60 % or counts/s", "100 % or counts/s")]
         emit(table, "apply", "data:12305")
         await user.should_see("Write Remote Speed F1 = 60 % or counts/s to lift-a?")
-        _dialog_button(user, "Write").click()
+        dialog_button(user, "Write").click()
         await user.should_see("device and project agree (2 project entries)", retries=300)
         assert twin.remote_speed[0] == 60  # written with RT and read back with RG
         rows = await runtime.audit.aquery(limit=50)
@@ -91,8 +70,7 @@ async def test_project_difference_applied_per_row_on_the_page_and_drift_on_the_o
 
 
 async def test_the_project_editor_offers_the_settings_of_the_model(tmp_path: Path):
-    runtime = Runtime(load_plant(_plant(tmp_path)), simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with user_on(load_plant(_plant(tmp_path)), data_dir=tmp_path / "data") as (user, runtime):
         await user.open("/project/lift-a")
         await user.should_see("Edited on the Ewellix SCU parameter model")
         fields = {e.props.get("data-project-field"): e for e in user.client.elements.values()

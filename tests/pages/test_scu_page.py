@@ -12,7 +12,7 @@ from nicegui import ui
 from nicegui.testing import User
 from nicegui.testing.user_interaction import UserInteraction
 from plants import plant, scu_line
-from webutil import by_testid, count_reads, eventually, heard_again, page_view, refresh_on_the_round, user_on
+from webutil import by_testid, eventually, push_the_same_values, refresh_on_the_round, user_on
 
 from app.runtime import Runtime
 from devices.scu import codec
@@ -239,15 +239,8 @@ async def test_a_poll_with_the_same_values_draws_nothing_and_the_round_draws_age
     lamp = f"A1 {next(iter(STATUS_BITS))}"
     drawn = ("A1 position", lamp, "Binary Output Status", "Error code")
     await eventually(lambda: all(n in state.points for n in drawn), timeout=10)
-    await user.open("/device/lift")
-    view = page_view(user, runtime, "lift")
-
-    heard_again(state)
-    view.refresh()  # everything as the store has it now
-    read = count_reads(state, monkeypatch)
-    heard_again(state)  # read again, the same values
+    view, read = await push_the_same_values(user, runtime, "lift", monkeypatch)  # read again, the same values
     now = time.time()
-    view.refresh()
     assert not [n for n in read if n in drawn], read  # nothing drawn again (no flags worded again)
     refresh_on_the_round(runtime.store, view)  # the once-a-second round: ages and stale marks drawn
     assert set(drawn) <= set(read)

@@ -13,9 +13,8 @@ from dataclasses import dataclass
 import pytest
 from nicegui import ui
 from nicegui.testing import User
-from webutil import eventually, private_endpoints, simulated_user
+from webutil import demo_user, eventually
 
-from app.plant import DEMO_PLANT, load_plant
 from app.runtime import Runtime
 from devices.m3io import codec as m3io_codec
 from devices.registry import DEVICE_TYPES, TileSpec
@@ -120,10 +119,7 @@ class Env:
 
 @pytest.fixture
 async def env(tmp_path) -> AsyncIterator[Env]:
-    plant = private_endpoints(load_plant(DEMO_PLANT), f"tiles-{tmp_path.name}")  # own ports and CAN channels
-    plant.buses["line1"].options.update(timeout=0.2, poll_period=0.2)
-    runtime = Runtime(plant, simulate=True, data_dir=tmp_path / "data")
-    async with simulated_user(runtime) as user:
+    async with demo_user(tmp_path, f"tiles-{tmp_path.name}") as (user, runtime):
         yield Env(user, runtime)
 
 

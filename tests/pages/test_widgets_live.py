@@ -9,22 +9,17 @@ import time
 import pytest
 from nicegui import ui
 from plants import can_bus, device, plant_text
-from webutil import eventually, simulated_user
+from webutil import eventually, lone_m3io_user, simulated_user
 
 from app.plant import parse_plant
 from app.runtime import Runtime
 
 pytestmark = pytest.mark.timeout(40)
 
-PLANT = plant_text(can_bus(device("io", "m3io", "can9", variant="HM", sw1=0x1A), name="can9", channel_name="widgets-live",
-                           simulate=None), name="w")
-
-
 @pytest.fixture
 async def user_runtime():
-    runtime = Runtime(parse_plant(PLANT), simulate=False)
-    async with simulated_user(runtime) as user:
-        yield user, runtime
+    async with lone_m3io_user() as env:
+        yield env
 
 
 async def charts_on_page(user, path: str, *makes) -> list:

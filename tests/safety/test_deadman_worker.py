@@ -44,12 +44,28 @@ def tick(worker: Worker, now: float) -> None:
     worker.deadman.tick(now)
 
 
-def test_a_busy_server_is_not_a_dead_browser():
-    t0 = time.monotonic()
+def held_at(t0: float) -> tuple[Worker, Holder]:
+    """A worker at ``t0`` whose session "tab" holds an output and has beaten once."""
     worker = worker_at(t0)
     holder = Holder("tab")
     worker.add_holder("output", holder)
     worker.heartbeat("tab", 1000.0)
+    return worker, holder
+
+
+def tick_until_lost(worker: Worker, holders: list[Holder], start: float) -> int:
+    """Tick every supervision period from ``start`` until every one of ``holders`` is lost (40 ticks at the
+    most); returns how many ticks that took."""
+    n = 0
+    while not all(h.lost for h in holders) and n < 40:
+        n += 1
+        tick(worker, start + n * SUPERVISE_PERIOD_S)
+    return n
+
+
+def test_a_busy_server_is_not_a_dead_browser():
+    t0 = time.monotonic()
+    worker, holder = held_at(t0)
     # the loop stalls for 0.6 s (a page built, a plot serialised): the browser's beats wait in the socket
     tick(worker, t0 + 0.6)
     assert holder.lost == [], "a server stall was taken for a dead browser"
@@ -62,16 +78,8 @@ def test_a_busy_server_is_not_a_dead_browser():
 
 def test_a_silent_browser_trips_while_the_server_runs_on_time():
     t0 = time.monotonic()
-    worker = worker_at(t0)
-    holder = Holder("tab")
-    worker.add_holder("output", holder)
-    worker.heartbeat("tab", 1000.0)
-    last = time.monotonic()
-    n = 0
-    while not holder.lost and n < 40:
-        n += 1
-        tick(worker, last + n * SUPERVISE_PERIOD_S)
-    silent = n * SUPERVISE_PERIOD_S
+    worker, holder = held_at(t0)
+    silent = tick_until_lost(worker, [holder], time.monotonic()) * SUPERVISE_PERIOD_S
     assert holder.lost, "a silent browser was never stopped"
     assert DEADMAN_TIMEOUT_S - 0.01 <= silent <= DEADMAN_BOUND_S
     assert "while this program ran on time" in holder.lost[0] and "not confirmed it is alive" in holder.lost[0]
@@ -79,16 +87,10 @@ def test_a_silent_browser_trips_while_the_server_runs_on_time():
 
 def test_a_trip_after_a_stall_says_how_long_the_server_was_busy():
     t0 = time.monotonic()
-    worker = worker_at(t0)
-    holder = Holder("tab")
-    worker.add_holder("output", holder)
-    worker.heartbeat("tab", 1000.0)
+    worker, holder = held_at(t0)
     last = time.monotonic()
     tick(worker, last + 1.0)  # a 1 s stall, and the browser never beats again
-    n = 0
-    while not holder.lost and n < 40:
-        n += 1
-        tick(worker, last + 1.0 + n * SUPERVISE_PERIOD_S)
+    tick_until_lost(worker, [holder], last + 1.0)
     assert holder.lost
     assert "this program was busy for" in holder.lost[0]
 
@@ -178,10 +180,7 @@ def test_the_rule_is_the_same_for_an_asked_page_that_goes_silent_and_for_one_tha
     worker.add_holder("jog", never)
     worker.heartbeat("tab", 1000.0)
     silent.holding = never.holding = True
-    n = 0
-    while not (silent.lost and never.lost) and n < 40:
-        n += 1
-        tick(worker, t0 + n * SUPERVISE_PERIOD_S)
+    n = tick_until_lost(worker, [silent, never], t0)
     assert silent.lost and never.lost
     assert ("tab", True) in asks and ("other", True) in asks
     assert n * SUPERVISE_PERIOD_S <= DEADMAN_BOUND_S

@@ -10,15 +10,14 @@ their own, so what they see on the bus does not depend on the blocked loop.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import itertools
 import threading
 import time
 
 import can
 import pytest
-from conftest import wait_for
-from frames import FrameListener
+from conftest import alive, running_plant, wait_for
+from can_listener import FrameListener
 from plants import can_bus, channel, m3io_can, plant_text
 from test_electrak import beat, lift, start_lift  # noqa: F401 (fixture)
 
@@ -165,17 +164,12 @@ def m3io_plant(**options) -> str:
 
 @pytest.fixture
 async def m3io_module():
-    runtime = Runtime(parse_plant(m3io_plant()), simulate=True)
-    listener = Listener(runtime.plant.buses["can3"].options["channel"])
-    await runtime.start()
-    beating = asyncio.create_task(beat(runtime, ("s1",)))
+    plant = parse_plant(m3io_plant())
+    listener = Listener(plant.buses["can3"].options["channel"])
     try:
-        yield runtime, listener
+        async with running_plant(plant) as runtime, alive(runtime.worker, "s1"):
+            yield runtime, listener
     finally:
-        beating.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await beating
-        await asyncio.wait_for(runtime.stop(), 5)
         listener.close()
 
 

@@ -12,7 +12,6 @@ Invariants after every step of random operator actions, raw telegrams, answers a
 
 from __future__ import annotations
 
-import asyncio
 
 import pytest
 from hypothesis import settings
@@ -191,19 +190,14 @@ def test_a_refused_stop_of_a_lost_operators_level_is_sent_again():
 
 @pytest.fixture
 async def runtime(tmp_path):
-    from conftest import free_port, wait_for
+    from conftest import free_port, running_plant
     from test_mo64_strict import tcp_plant
 
     from app.plant import parse_plant
-    from app.runtime import Runtime
 
-    runtime = Runtime(parse_plant(tcp_plant(free_port())), simulate=True, data_dir=tmp_path / "data")
-    await runtime.start()
-    try:
-        assert await wait_for(lambda: runtime.store.devices["gate"].status == "online", timeout=10)
+    async with running_plant(parse_plant(tcp_plant(free_port())), tmp_path / "data", ready=("gate",), within_s=10,
+                             stop_within_s=15) as runtime:
         yield runtime
-    finally:
-        await asyncio.wait_for(runtime.stop(), 15)
 
 
 @pytest.mark.timeout(60)

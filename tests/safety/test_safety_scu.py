@@ -413,6 +413,16 @@ class ScuSafety(RuleBasedStateMachine):
                 "the emergency stop left a drive running")
 
 
+def controlled(unit: UnitModel, beating: bool = False) -> Shell:
+    """A shell on ``unit`` whose session s1 has taken control (its browser beating, with ``beating``), 0.5 s on."""
+    shell = Shell(unit)
+    shell.core.control.take("s1", "anna", 0.0, 0.0)
+    if beating:
+        shell.alive.add("s1")
+    shell.advance(0.5)
+    return shell
+
+
 SCU_SETTINGS = settings(derandomize=True, max_examples=60, stateful_step_count=40, deadline=None)
 TestScuSafety = ScuSafety.TestCase
 TestScuSafety.settings = SCU_SETTINGS
@@ -422,10 +432,7 @@ SAFETY_MACHINES = {"scu": ScuSafety}
 def test_no_motion_re_reaches_the_unit_while_the_emergency_stop_is_on():
     """Checked on the unit's log: after a press, the only RE of a motion function follows an acknowledged release."""
     unit = UnitModel(v2b0=True)
-    shell = Shell(unit)
-    shell.core.control.take("s1", "anna", 0.0, 0.0)
-    shell.alive.add("s1")
-    shell.advance(0.5)
+    shell = controlled(unit, beating=True)
     assert shell.run("s1", F1) == ""
     shell.estop("viewer")
     assert shell.core.estop is not None and not shell.core.estop.confirmed
@@ -439,10 +446,7 @@ def test_no_motion_re_reaches_the_unit_while_the_emergency_stop_is_on():
 def test_a_stop_never_acknowledged_withholds_rc_until_the_watchdog_stopped_the_drive(refusal):
     """Issue 40: every RS refused, browser gone: the reopen's RO + RC fed the watchdog and F1 drove on."""
     unit = UnitModel(rs_refusal=refusal)
-    shell = Shell(unit)
-    shell.core.control.take("s1", "anna", 0.0, 0.0)
-    shell.alive.add("s1")
-    shell.advance(0.5)
+    shell = controlled(unit, beating=True)
     shell.run("s1", F1)
     shell.advance(0.3)
     shell.alive.clear()  # the browser is gone
@@ -456,9 +460,7 @@ def test_a_stop_never_acknowledged_withholds_rc_until_the_watchdog_stopped_the_d
 
 def test_the_emergency_stop_is_never_refused_in_a_released_session():
     unit = UnitModel()
-    shell = Shell(unit)
-    shell.core.control.take("s1", "anna", 0.0, 0.0)
-    shell.advance(0.5)
+    shell = controlled(unit)
     shell.release_unit()
     assert shell.core.phase == "released"
     shell.estop("viewer")
@@ -467,10 +469,7 @@ def test_the_emergency_stop_is_never_refused_in_a_released_session():
 
 def test_a_unit_that_takes_only_the_three_byte_rs_is_stopped():
     unit = UnitModel(rs_three_bytes_only=True)
-    shell = Shell(unit)
-    shell.core.control.take("s1", "anna", 0.0, 0.0)
-    shell.alive.add("s1")
-    shell.advance(0.5)
+    shell = controlled(unit, beating=True)
     shell.run("s1", F1)
     shell.stop(F1)
     assert not unit.moving and not shell.core.running and shell.core.rs_three_bytes
@@ -478,7 +477,5 @@ def test_a_unit_that_takes_only_the_three_byte_rs_is_stopped():
 
 def test_a_unit_that_takes_only_the_two_byte_ro_opens_a_session():
     unit = UnitModel(ro_two_bytes_only=True)
-    shell = Shell(unit)
-    shell.core.control.take("s1", "anna", 0.0, 0.0)
-    shell.advance(0.5)
+    shell = controlled(unit)
     assert shell.core.phase == "open" and shell.core.ro_two_bytes

@@ -9,7 +9,7 @@ import asyncio
 
 import pytest
 from conftest import wait_for
-from test_scu_safety import F1, moving, session_open, unit
+from test_scu_safety import F1, in_control, moving, session_open, unit
 
 from devices.scu import codec
 from devices.scu.adapter import CommandError
@@ -19,8 +19,7 @@ ESTOP = int(codec.Function.EMERGENCY_STOP)
 
 
 async def running_f1(adapter, twin) -> None:
-    await session_open(adapter)
-    await adapter.take_control("s1", "anna")
+    await in_control(adapter)
     await adapter.run_function("s1", F1, codec.Motion.OUT, codec.Ramp.SOFT)
     assert await wait_for(lambda: moving(twin) == [1], 2)
 
@@ -72,8 +71,7 @@ async def test_the_emergency_stop_stops_motion_when_the_unit_refuses_re_19():
 
 async def test_the_emergency_stop_is_never_refused_while_the_session_is_released():
     async with unit() as (adapter, twin):
-        await session_open(adapter)
-        await adapter.take_control("s1", "anna")
+        await in_control(adapter)
         await adapter.release_scu("s1")
         assert adapter.session == "released"
         await adapter.emergency_stop("s9")  # a viewer's page: anyone may press it
@@ -83,8 +81,7 @@ async def test_the_emergency_stop_is_never_refused_while_the_session_is_released
 
 async def test_a_reopening_switches_f20_on_again_when_the_cyclic_definition_gets_no_answer():
     async with unit() as (adapter, twin):
-        await session_open(adapter)
-        await adapter.take_control("s1", "anna")
+        await in_control(adapter)
         await adapter.emergency_stop("s1")
         assert twin.emergency_stop
         twin.strict.rt_cyclic_unanswered = True
@@ -105,8 +102,7 @@ async def test_a_unit_that_takes_only_the_two_byte_ro_opens_a_session():
 async def test_one_cse_is_line_noise_and_remembered_as_nothing():
     async with unit() as (adapter, twin):
         twin.strict.cse_next = {"RT": 1, "RG": 1}
-        await session_open(adapter)
-        await adapter.take_control("s1", "anna")
+        await in_control(adapter)
         await asyncio.sleep(1.0)  # ten polls with a single CSE each: none may be remembered as a refusal
         assert not adapter.cyclic_refused, "a CSE to the cyclic definition was remembered as a refusal"
         assert not adapter.single_ids, "a CSE to a group read was remembered as a refusal of groups"

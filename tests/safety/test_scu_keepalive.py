@@ -9,17 +9,15 @@ the unit. What the unit saw is read from the twin: RC arrivals, RE/RS with their
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import itertools
 import threading
 import time
 
 import pytest
-from conftest import free_port, wait_for
+from conftest import alive, free_port, running_plant, wait_for
 from plants import plant_text, scu_line
 
 from app.plant import parse_plant
-from app.runtime import Runtime
 from devices.scu import codec
 from devices.scu.sim import ScuSim
 
@@ -90,24 +88,12 @@ async def scu():
     plant = parse_plant(scu_plant(free_port()))
     unit = TwinThread(plant)
     unit.start()
-    runtime = Runtime(plant, simulate=False)
-    await runtime.start()
-
-    async def beat():  # what a live page does: confirm ten times a second that the browser is alive
-        while True:
-            runtime.worker.heartbeat("s1")
-            await asyncio.sleep(0.1)
-
-    beating = asyncio.create_task(beat())
-    adapter = runtime.worker.adapters["scu"]
     try:
-        assert await wait_for(lambda: adapter.session == "open", 10), adapter.session_reason
-        yield runtime, adapter, unit
+        async with running_plant(plant, simulate=False, stop_within_s=10) as runtime, alive(runtime.worker, "s1"):
+            adapter = runtime.worker.adapters["scu"]
+            assert await wait_for(lambda: adapter.session == "open", 10), adapter.session_reason
+            yield runtime, adapter, unit
     finally:
-        beating.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await beating
-        await asyncio.wait_for(runtime.stop(), 10)
         unit.stop()
 
 

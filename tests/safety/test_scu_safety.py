@@ -73,6 +73,12 @@ async def session_open(adapter, timeout=5.0) -> None:
     assert await wait_for(lambda: adapter.session == "open", timeout), (adapter.session, adapter.session_reason)
 
 
+async def in_control(adapter) -> None:
+    """The session open and s1 (anna) in control of the unit."""
+    await session_open(adapter)
+    await adapter.take_control("s1", "anna")
+
+
 def moving(twin) -> list[int]:
     return [a.number for a in twin.actuators if a.moving]
 
@@ -80,8 +86,7 @@ def moving(twin) -> list[int]:
 # -- 25.1: the emergency stop is released only by the person who asks for it -----------------------------
 async def test_emergency_stop_survives_a_lost_and_reopened_session():
     async with unit() as (adapter, twin):
-        await session_open(adapter)
-        await adapter.take_control("s1", "anna")
+        await in_control(adapter)
         await adapter.emergency_stop("s1")
         assert twin.emergency_stop
         twin.drop_line(True)  # cable out: the watchdog drops remote mode, the adapter loses the session
@@ -101,8 +106,7 @@ async def test_emergency_stop_survives_a_lost_and_reopened_session():
 
 async def test_go_while_the_emergency_stop_is_on_does_not_release_it():
     async with unit() as (adapter, twin):
-        await session_open(adapter)
-        await adapter.take_control("s1", "anna")
+        await in_control(adapter)
         await adapter.emergency_stop("s1")
         with pytest.raises(ControlBusy):
             await adapter.take_control("s2", "bert")  # a second user cannot take control; the holder presses Go
@@ -116,8 +120,7 @@ async def test_go_while_the_emergency_stop_is_on_does_not_release_it():
 # -- 25.2: RS never before its RE --------------------------------------------------------------------------
 async def test_a_jog_tap_on_a_busy_line_leaves_the_actuator_stopped():
     async with unit(answer_delay_s=0.03) as (adapter, twin):  # a busy line: every answer 30 ms late
-        await session_open(adapter)
-        await adapter.take_control("s1", "anna")
+        await in_control(adapter)
         for tap in range(6):
             pressed = time.monotonic()
 
@@ -139,8 +142,7 @@ async def test_a_jog_tap_on_a_busy_line_leaves_the_actuator_stopped():
 
 async def test_go_then_stop_at_once_on_a_busy_line_leaves_the_actuator_stopped():
     async with unit(answer_delay_s=0.03) as (adapter, twin):
-        await session_open(adapter)
-        await adapter.take_control("s1", "anna")
+        await in_control(adapter)
         for tap in range(4):
             pressed = time.monotonic()
 
@@ -161,8 +163,7 @@ async def test_go_then_stop_at_once_on_a_busy_line_leaves_the_actuator_stopped()
 # -- 25.3: a refused RS is sent again; the function stays held until an acknowledged RS --------------------
 async def test_rs_refused_with_cse_is_sent_again_and_the_actuator_stops():
     async with unit() as (adapter, twin):
-        await session_open(adapter)
-        await adapter.take_control("s1", "anna")
+        await in_control(adapter)
         await adapter.run_function("s1", F1, codec.Motion.OUT, codec.Ramp.SOFT)
         assert await wait_for(lambda: moving(twin) == [1], 2)
         twin.strict.cse_on_rs = 2  # the first two RS are not executed (section 4.2: CSE)
@@ -173,8 +174,7 @@ async def test_rs_refused_with_cse_is_sent_again_and_the_actuator_stops():
 
 async def test_rs_never_acknowledged_is_a_failed_stop_held_and_retried():
     async with unit() as (adapter, twin):
-        await session_open(adapter)
-        await adapter.take_control("s1", "anna")
+        await in_control(adapter)
         await adapter.run_function("s1", F1, codec.Motion.OUT, codec.Ramp.SOFT)
         twin.strict.cse_on_rs = -1  # every RS refused
         with pytest.raises(CommandError, match="STOP FAILED"):

@@ -20,10 +20,9 @@ from app import replay as rp
 from app import transmit as tx
 from app.can_bus import FrameRecord
 from app.modbus_poll import ModbusPoll, NeedsConfirmation, PollError
-from app.runtime import Runtime
 from devices.hdlock.params import PARAMS as HDLOCK_PARAMS
 from devices.sendpolicy import BusDevice, ModbusMessage, check_can, check_modbus
-from tests.conftest import free_port, modbus_plant, wait_for
+from tests.conftest import free_port, modbus_plant, running_plant, wait_for
 
 LOCK_EXT = bytes.fromhex("4F 01 00 80")  # extended device 335 (section 6.4 example)
 
@@ -138,13 +137,8 @@ async def test_transmit_named_rows_may_be_cyclic(can_rig):
 @pytest.fixture
 async def line(tmp_path):
     plant = modbus_plant(free_port(), locks=(("door-1", 1),), poll_period=0.2)
-    runtime = Runtime(plant, simulate=True, data_dir=tmp_path)
-    await runtime.start()
-    try:
-        assert await wait_for(lambda: runtime.store.devices["door-1"].status == "online", timeout=5)
+    async with running_plant(plant, tmp_path, ready=("door-1",), within_s=5, stop_within_s=10) as runtime:
         yield runtime, ModbusPoll(runtime.worker, "line1")
-    finally:
-        await asyncio.wait_for(runtime.stop(), 10)
 
 
 @pytest.mark.parametrize(("address", "value"), [(32770, 1), (0, 65535), (2003, 3)])
