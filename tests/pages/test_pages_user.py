@@ -126,7 +126,8 @@ async def test_device_page_shows_lamps_and_enums(env: Env):
     await user.should_see("LockStatus (holding 1000)")
     for lamp in ("LockRequest", "ProximityInPlace", "DoorInPosition", "BoltLocked", "BoltUnlocked", "BoltMovingOut"):
         await user.should_see(kind=ui.label, content=lamp)
-        assert lamp_on(user, lamp) in ("0", "1")
+        # drawn with the page's next push of the LockStatus word (a loaded machine: a moment after the label)
+        await eventually(lambda lamp=lamp: lamp_on(user, lamp) in ("0", "1"), timeout=10, what=f"{lamp} lamp known")
     for key in ("DoorState", "StateMachineState", "MotorState"):
         await user.should_see(kind=ui.label, content=key)
     # the door of door-1 starts open: nothing locks, the bolt is retracted
