@@ -82,10 +82,7 @@ class AuditLog:
         db.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
         db.execute("PRAGMA journal_mode=WAL")
         db.executescript(SCHEMA)
-        for suffix in ("-wal", "-shm"):
-            side = self.path.with_name(self.path.name + suffix)
-            if side.exists():
-                host.protect_file(side)
+        host.protect_database_sidecars(self.path)
         self._db = db
 
     @property

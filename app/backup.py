@@ -31,7 +31,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from app import audit, gate
+from app import audit, files, gate
 from app.capabilities import takes_text
 from devices.adapter import BackupAdapter, EntryRestorer, ParamWriter, RestoreDescriber
 from devices.commands import WRITE_PARAMETER
@@ -155,25 +155,11 @@ def unused_path(path: Path) -> Path:
 
 
 def write_atomic(path: Path, text: str) -> Path:
-    """Write to a temporary file in the same folder, flush it to disk, then rename.
-
-    A crash or error part-way leaves at most a temporary file, never a partial file
-    under the final name.
-    """
+    """Write ``text`` as a whole or not at all (:func:`app.files.replace_atomic`: a temporary file in the same
+    folder, flushed to disk, then renamed), making the folder first. A crash or error part-way leaves at most a
+    temporary file, never a partial file under the final name."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    files.replace_atomic(path, text)
     return path
 
 

@@ -18,6 +18,7 @@ from typing import Any
 
 from app import audit, backup, files, replace
 from app.cli_lang import YES, _
+from app.headless import write_options
 from devices.commands import READ_PARAMETERS
 from devices.errors import CommissionError
 
@@ -174,10 +175,7 @@ def add_parser(sub) -> None:
                         help=_("a backup file, approved:DEVICE (its approved set), device:DEVICE (a sibling read now) "
                              "or project (each device's project in the plant file)"))
     parser.add_argument("--devices", required=True, help=_("comma-separated device names, all of one type and variant"))
-    parser.add_argument("--yes", action="store_true", help=_("write without asking (the diffs are printed anyway); "
-                        "values that need a confirmation are still refused unless named with --accept-risk"))
-    parser.add_argument("--accept-risk", action="append", default=[], metavar="NAME",
-                        help=_("write this risky parameter's value (repeatable)"))
+    write_options(parser)
     parser.add_argument("--no-sim", action="store_true", help=_("do not start simulated devices"))
     parser.add_argument("--data-dir", type=Path, default=None, help=_("data folder (default: the per-user data folder, docs/windows-macos.md)"))
     parser.set_defaults(func=run_cli)

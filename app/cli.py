@@ -13,11 +13,9 @@ from pathlib import Path
 
 from app import host, i18n
 from app.cli_lang import YES, _, set_language
-from app.headless import bindable, cli_user, load_plant_or_exit, refuse_taken_ports, run_headless
+from app.headless import bindable, cli_user, load_plant_or_exit, refuse_taken_ports, run_headless, write_options
 from app.i18n import N_
 from devices.errors import CommissionError
-
-
 
 EPILOG = N_("""\
 examples:
@@ -149,10 +147,7 @@ def build_parser() -> argparse.ArgumentParser:
     restore.add_argument("--plant", type=Path, default=None, help=_("plant file (default: the built-in demo plant)"))
     restore.add_argument("--device", required=True, help=_("device name"))
     restore.add_argument("file", type=Path, help=_("backup file (JSON)"))
-    restore.add_argument("--yes", action="store_true", help=_("write without asking (the diff is printed anyway); "
-                         "values that need a confirmation are still refused unless named with --accept-risk"))
-    restore.add_argument("--accept-risk", action="append", default=[], metavar="NAME",
-                         help=_("confirm a risky value of parameter NAME (repeatable), as the GUI's confirmation does"))
+    write_options(restore)
     restore.add_argument("--no-sim", action="store_true", help=_("do not start simulated devices"))
 
     user = sub.add_parser("user", help=_("manage accounts (needed to serve beyond the loopback address)"))

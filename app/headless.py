@@ -19,6 +19,15 @@ from app.i18n import N_
 from app.plant import DEMO_PLANT, PlantError, load_plant
 
 
+def write_options(parser) -> None:
+    """``--yes`` and ``--accept-risk`` of a command that writes devices (restore, apply): written without asking,
+    and the risky values confirmed by name, as the GUI asks them."""
+    parser.add_argument("--yes", action="store_true", help=_("write without asking (the diffs are printed anyway); "
+                        "values that need a confirmation are still refused unless named with --accept-risk"))
+    parser.add_argument("--accept-risk", action="append", default=[], metavar="NAME",
+                        help=_("confirm a risky value of parameter NAME (repeatable), as the GUI's confirmation does"))
+
+
 def load_plant_or_exit(path: Path | None):
     """The plant file at ``path`` (the demo plant without one); a file that cannot be used ends the command (exit 2)."""
     try:

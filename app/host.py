@@ -139,6 +139,15 @@ def protect_file(path: str | Path) -> None:
         os.chmod(path, 0o600)
 
 
+def protect_database_sidecars(path: str | Path) -> None:
+    """SQLite's write-ahead log and shared memory beside the database ``path`` (``-wal``, ``-shm``), where they
+    exist, as :func:`protect_file` does the database."""
+    for suffix in ("-wal", "-shm"):
+        side = Path(path).with_name(Path(path).name + suffix)
+        if side.exists():
+            protect_file(side)
+
+
 def private_umask() -> None:
     """Files this process creates from now on are its owner's only (POSIX umask 077); Windows has no umask
     that means this (the data folder's ACL does it)."""

@@ -376,19 +376,22 @@ class ModbusPoll:
             raise
         if confirm and not confirmed:
             raise NeedsConfirmation(confirm)
+        if fc == 6:
+            words, call = f"write holding {address}={raws[0]}", lambda c: c.write_register(address, raws[0], device_id=unit)
+        else:
+            words, call = f"write holding {address}+{len(raws)}", lambda c: c.write_registers(address, raws, device_id=unit)
+        return await self._send(unit, describe, words, call, user=user, role=role, parameter=parameter, new=raws)
+
+    async def _send(self, unit: int, describe: str, words: str, call, *, user: str, role: str, parameter: str, new) -> str:
+        """Send one write the checks let through: an audited write of the unit's device (of the bus for an unknown unit)."""
         dev = known_device(self.worker.plant, self.bus, unit)
 
         async def do() -> str:
-            if fc == 6:
-                await self.line.tool_request(unit, f"write holding {address}={raws[0]}",
-                                             lambda c: c.write_register(address, raws[0], device_id=unit))
-            else:
-                await self.line.tool_request(unit, f"write holding {address}+{len(raws)}",
-                                             lambda c: c.write_registers(address, raws, device_id=unit))
+            await self.line.tool_request(unit, words, call)
             return ""
 
-        await self.worker.gate.run(do, user=user, role=role, describe=describe,
-                                   device=dev.name if dev else self.bus, parameter=parameter, new=raws, kind="write")
+        await self.worker.gate.run(do, user=user, role=role, describe=describe, device=dev.name if dev else self.bus,
+                                   parameter=parameter, new=new, kind="write")
         return describe
 
 
@@ -421,21 +424,12 @@ class ModbusPoll:
         if verdict.confirm and not confirmed:
             raise NeedsConfirmation(f"This writes {verdict.name or f'unit {unit} coil {address}'}. "
                                     + " ".join(dict.fromkeys(verdict.confirm)) + " Write?")
-        dev = known_device(self.worker.plant, self.bus, unit)
-
-        async def do() -> str:
-            if fc == 5:
-                await self.line.tool_request(unit, f"write coil {address}={int(states[0])}",
-                                             lambda c: c.write_coil(address, states[0], device_id=unit))
-            else:
-                await self.line.tool_request(unit, f"write coils {address}+{len(states)}",
-                                             lambda c: c.write_coils(address, states, device_id=unit))
-            return ""
-
-        await self.worker.gate.run(do, user=user, role=role, describe=describe,
-                                   device=dev.name if dev else self.bus, parameter=verdict.name or f"unit {unit} coil {address}",
-                                   new=[int(b) for b in states], kind="write")
-        return describe
+        if fc == 5:
+            words, call = f"write coil {address}={int(states[0])}", lambda c: c.write_coil(address, states[0], device_id=unit)
+        else:
+            words, call = f"write coils {address}+{len(states)}", lambda c: c.write_coils(address, states, device_id=unit)
+        return await self._send(unit, describe, words, call, user=user, role=role,
+                                parameter=verdict.name or f"unit {unit} coil {address}", new=[int(b) for b in states])
 
 
 class PollWindows:

@@ -112,10 +112,7 @@ class RecordStore:
             removed = [] if legacy or not existed else [t for t in TRIGGER_SQL if t not in triggers]
             for sql in TRIGGER_SQL.values():
                 db.execute(sql)
-            for suffix in ("-wal", "-shm"):
-                side = self.path.with_name(self.path.name + suffix)
-                if side.exists():
-                    host.protect_file(side)
+            host.protect_database_sidecars(self.path)
             self._db = db
             if legacy:
                 rows = read_rows(db)

@@ -84,7 +84,24 @@ def detect_format(head: bytes) -> str | None:
     return None
 
 
-class _CountingText(io.TextIOBase):
+class _Wrapped:
+    """What both counting files say of the file they wrap: readable, its name, closed with it."""
+
+    _file: io.IOBase
+
+    def readable(self) -> bool:
+        return True
+
+    @property
+    def name(self) -> str:
+        return self._file.name
+
+    def close(self) -> None:
+        self._file.close()
+        super().close()  # the io base class's close, after the wrapper's own
+
+
+class _CountingText(_Wrapped, io.TextIOBase):
     """A text file handed to a python-can reader, counting the lines and characters it took."""
 
     def __init__(self, file: io.TextIOBase):
@@ -114,17 +131,6 @@ class _CountingText(io.TextIOBase):
         self.line += text.count("\n")
         return text
 
-    def readable(self) -> bool:
-        return True
-
-    @property
-    def name(self) -> str:
-        return self._file.name
-
-    def close(self) -> None:
-        self._file.close()
-        super().close()
-
     def where(self) -> str:
         return f"line {self.line}"
 
@@ -133,7 +139,7 @@ class _CountingText(io.TextIOBase):
         return self.chars
 
 
-class _CountingBinary(io.RawIOBase):
+class _CountingBinary(_Wrapped, io.RawIOBase):
     """A binary file handed to python-can's BLF reader, counting the bytes it took."""
 
     def __init__(self, file: io.BufferedIOBase):
@@ -145,23 +151,12 @@ class _CountingBinary(io.RawIOBase):
         self.offset += len(data)
         return data
 
-    def readable(self) -> bool:
-        return True
-
     def seek(self, offset: int, whence: int = 0) -> int:
         self.offset = self._file.seek(offset, whence)
         return self.offset
 
     def tell(self) -> int:
         return self.offset
-
-    @property
-    def name(self) -> str:
-        return self._file.name
-
-    def close(self) -> None:
-        self._file.close()
-        super().close()
 
     def where(self) -> str:
         return f"byte offset {self.offset}"
