@@ -311,8 +311,8 @@ LONGEST_FILES = (
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Mark every real-browser test ``browser`` (a test_browser_*.py file, one of BROWSER_FILES, or a test
-    that uses the ``chromium`` fixture), every test of SLOW_TESTS ``slow`` and every test of REALTIME_FILES
-    ``realtime``; the files of LONGEST_FILES first (a stable sort: each file's tests keep their order)."""
+    that uses the ``chromium`` fixture), every test of SLOW_TESTS ``slow``, every test of REALTIME_FILES
+    ``realtime`` and a browser test among them ``alone``; the files of LONGEST_FILES first (a stable sort: each file's tests keep their order)."""
     rank = {name: i for i, name in enumerate(LONGEST_FILES)}
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
     for item in items:
@@ -324,6 +324,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.slow)
         if name in REALTIME_FILES:
             item.add_marker(pytest.mark.realtime)
+        if item.get_closest_marker("browser") and item.get_closest_marker("realtime"):
+            item.add_marker(pytest.mark.alone)  # a browser held to a real-time bound: a second chromium delays its beats
 
 
 @pytest.fixture(autouse=True)

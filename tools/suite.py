@@ -5,9 +5,10 @@
 Most tests wait on devices, sockets and timers rather than compute (on two cores, six test processes
 keep them about two-thirds busy), so every test without a browser runs six processes at a time; the tests
 that drive chromium (marker ``browser``) each start the app and a browser, so they run afterwards two at
-a time, where they cannot take the cores of a test that holds a device to a real-time bound; last, alone,
-the browser tests that are themselves held to one (the dead-man bound with a real browser: a second
-chromium beside it delays its beats on their way).
+a time, where they cannot take the cores of a test that holds a device to a real-time bound; last, one at a
+time, the tests marked ``alone``: the browser tests that are themselves held to one (the dead-man bound with a
+real browser: a second chromium beside it delays its beats on their way) and the few whose subject is how the
+program uses the cores (a line's thread that must keep up with its own period).
 Every phase runs; the exit status is 0 only when the linter and every phase passed. Options
 given here (``-x``, ``-k ...``, a path) go to every phase.
 """
@@ -19,9 +20,9 @@ import sys
 import time
 
 PHASES = (
-    ("tests without a browser", ["-n", "6", "-m", "not browser"]),
-    ("browser tests", ["-n", "2", "-m", "browser and not realtime"]),
-    ("browser tests held to a real-time bound", ["-n", "0", "-m", "browser and realtime"]),
+    ("tests without a browser", ["-n", "6", "-m", "not browser and not alone"]),
+    ("browser tests", ["-n", "2", "-m", "browser and not alone"]),
+    ("tests that need the cores to themselves", ["-n", "0", "-m", "alone"]),
 )
 
 

@@ -9,14 +9,15 @@ from __future__ import annotations
 import asyncio
 import contextlib
 
+import pytest
 from conftest import wait_for
-from plants import can_bus, channel, m3io_can, plant_text
 from test_scu_keepalive import scu  # noqa: F401 (fixture)
 
 from app.plant import parse_plant
 from app.runtime import Runtime
 from devices.m3io import codec as m3io
 from devices.m3io.adapter import IDLE_DIGOUT_PERIOD_S
+from plants import can_bus, channel, m3io_can, plant_text
 
 
 async def _beat(worker, session: str) -> None:
@@ -154,6 +155,7 @@ async def test_supervision_tick_slower_while_no_page_and_nothing_held_and_fast_a
         await asyncio.wait_for(worker.stop(), 10)
 
 
+@pytest.mark.alone  # the line's thread keeps up with its RC only with the cores to itself (else the loop reads them)
 async def test_scu_data_read_in_turn_rides_on_the_rc_of_the_line_thread(scu):  # noqa: F811 - the fixture imported above
     """With the remote session open and the cyclic object, the data IDs read in turn are read by the line's thread
     right after its RC (one wake-up of the loop for both), not each through a worker thread of the loop; they are

@@ -160,6 +160,9 @@ def test_can_cycle_times_paging_and_details(app_url: str, browser: Browser):
     assert frames.first.locator("td").first.inner_text() == newest_shown
     # a status frame of a lock of this bus (the demo's spare lock is heard but not in the plant)
     status_row = frames.filter(has_text="HD-Lock Status").filter(has_text=re.compile(r"gate-\d")).first
+    if total > 200 and status_row.count() == 0:  # an older page of 200 frames may hold none (1 s apart among the bus's others)
+        pages.get_by_role("button", name="1", exact=True).click()
+        expect(info).to_contain_text("paused: frames 1-")
     status_row.click()
     details = page.locator("[data-monitor=frame-details]")
     expect(details).to_be_visible()
