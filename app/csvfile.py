@@ -26,8 +26,8 @@ def cell(value: Any, lang: i18n.Lang | None) -> Any:
     anything else as it is."""
     if value is None:
         return ""
-    if isinstance(value, float) and lang is not None and lang.decimal_sign != ".":
-        return lang.numbers_in(repr(value)) if "e" not in repr(value) else str(value).replace(".", lang.decimal_sign)
+    if isinstance(value, float) and lang is not None:
+        return repr(value).replace(".", lang.decimal_sign)  # every decimal Python keeps; 1e-05 and inf as they are
     return value
 
 

@@ -513,10 +513,6 @@ def altered_text(p: dict, lang: i18n.Lang | None = None) -> str:
     return language(lang).gettext("The record was altered outside the program: ") + "; ".join(check["problems"])
 
 
-def _checkout_summary(d: dict, lang: i18n.Lang | None = None) -> str:
-    return ", ".join(f"{c['title']}: {word(c['last'], lang)}" for c in d.get("checkout_summary", [])) or language(lang).gettext("none")
-
-
 def _signed_word(d: dict, p: dict, lang: i18n.Lang | None = None) -> str:
     _ = language(lang).gettext
     return _("signed") if d["signoff"] else _("with the plant") if p.get("signoff") else _("not signed")
