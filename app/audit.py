@@ -2,19 +2,16 @@
 
 from __future__ import annotations
 
-import asyncio
 import logging
-import os
 import re
 import sqlite3
-import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
-from app import host, i18n
+from app import i18n
 from app.i18n import N_
+from app.owner_db import OwnerDatabase
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS audit (
@@ -53,7 +50,7 @@ class AuditEntry:
     result: str
 
 
-class AuditLog:
+class AuditLog(OwnerDatabase):
     """A small, thread-safe SQLite store; each record is committed at once.
 
     The ``a...`` methods run in one thread of their own, in order, so a locked or slow
@@ -62,11 +59,8 @@ class AuditLog:
     """
 
     def __init__(self, path: str | Path):
-        self.path = Path(path)
+        super().__init__(path, "audit")
         self.problem = ""
-        self._lock = threading.Lock()
-        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="audit")
-        self._db: sqlite3.Connection | None = None
         try:
             self._open()
         except (OSError, sqlite3.Error) as exc:
@@ -74,16 +68,9 @@ class AuditLog:
             log.error("audit log: %s: every write will be refused until it can be written", self.problem)
 
     def _open(self) -> None:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o600)
-        os.close(fd)
-        host.protect_file(self.path)  # who changed what on which machine is nobody else's business
-        db = sqlite3.connect(str(self.path), check_same_thread=False, isolation_level=None, timeout=BUSY_TIMEOUT_MS / 1000)
-        db.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
-        db.execute("PRAGMA journal_mode=WAL")
+        db = self._connect(BUSY_TIMEOUT_MS / 1000)
         db.executescript(SCHEMA)
-        host.protect_database_sidecars(self.path)
-        self._db = db
+        self._protected(db)
 
     @property
     def healthy(self) -> bool:
@@ -128,25 +115,22 @@ class AuditLog:
     def finish(self, row: int, result: str) -> None:
         self._execute("UPDATE audit SET result = ? WHERE id = ?", (result, row))
 
-    async def _run(self, fn, *args, **kwargs):
-        return await asyncio.get_running_loop().run_in_executor(self._executor, lambda: fn(*args, **kwargs))
-
     async def arecord(self, **kwargs) -> int:
         """:meth:`record` off the event loop; raises when the row cannot be written."""
-        return await self._run(self.record, **kwargs)
+        return await self.run(self.record, **kwargs)
 
     async def afinish(self, row: int, result: str) -> None:
         """Put the outcome into a row written before the action; a failure here is logged and shown."""
         try:
-            await self._run(self.finish, row, result)
+            await self.run(self.finish, row, result)
         except WRITE_ERRORS as exc:  # the action has happened; say that its outcome is not in the log
             log.error("audit log: the outcome %r of row %s could not be written: %s", result, row, exc)
 
     async def aquery(self, **kwargs) -> list["AuditEntry"]:
-        return await self._run(self.query, **kwargs)
+        return await self.run(self.query, **kwargs)
 
     async def adevices(self) -> list[str]:
-        return await self._run(self.devices)
+        return await self.run(self.devices)
 
     def query(
         self, *, device: str = "", user: str = "", text: str = "", since: float | None = None,
@@ -180,13 +164,6 @@ class AuditLog:
 
     def devices(self) -> list[str]:
         return [r[0] for r in self._execute("SELECT DISTINCT device FROM audit ORDER BY device")]
-
-    def close(self) -> None:
-        with self._lock:
-            if self._db is not None:
-                self._db.close()
-                self._db = None
-        self._executor.shutdown(wait=False)
 
 
 FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")  # what a spreadsheet reads as the start of a formula

@@ -10,18 +10,15 @@ report. The kinds of row (:data:`KINDS`) are described in app/record.py.
 
 from __future__ import annotations
 
-import asyncio
 import json
 import logging
 import os
 import sqlite3
-import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
-from app import host
+from app.owner_db import OwnerDatabase
 from app.verify import GENESIS, Check, check_database, head_path, legacy_digest, read_head, read_rows, row_hash
 from devices.errors import CommissionError
 
@@ -83,24 +80,17 @@ class Entry:
                 "role": self.role, "title": self.title, "supersedes": self.supersedes}
 
 
-class RecordStore:
+class RecordStore(OwnerDatabase):
     """Append-only SQLite store, opened like the audit log (owner only, WAL); ``a...`` methods run
     in one thread of their own so the event loop never waits on the disk."""
 
     def __init__(self, path: str | Path):
-        self.path = Path(path)
-        self._lock = threading.Lock()
-        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="record")
-        self._db: sqlite3.Connection | None = None
+        super().__init__(path, "record")
         self.altered: list[str] = []  # what was found changed from outside when the database was opened
 
     def _open(self) -> sqlite3.Connection:
         if self._db is None:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            os.close(os.open(self.path, os.O_RDWR | os.O_CREAT, 0o600))
-            host.protect_file(self.path)  # who approved and signed what is nobody else's business either
-            db = sqlite3.connect(str(self.path), check_same_thread=False, isolation_level=None, timeout=2.0)
-            db.execute("PRAGMA journal_mode=WAL")
+            db = self._connect(2.0)
             existed = db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'record'").fetchone() is not None
             columns = {c[1] for c in db.execute("PRAGMA table_info(record)")}
             triggers = {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type = 'trigger'")}
@@ -112,8 +102,7 @@ class RecordStore:
             removed = [] if legacy or not existed else [t for t in TRIGGER_SQL if t not in triggers]
             for sql in TRIGGER_SQL.values():
                 db.execute(sql)
-            host.protect_database_sidecars(self.path)
-            self._db = db
+            self._protected(db)
             if legacy:
                 rows = read_rows(db)
                 if rows:
@@ -210,12 +199,3 @@ class RecordStore:
         rows = self.list(plant, device, (kind,), limit=1)
         return rows[0] if rows else None
 
-    async def run(self, fn, *args, **kwargs):
-        return await asyncio.get_running_loop().run_in_executor(self._executor, lambda: fn(*args, **kwargs))
-
-    def close(self) -> None:
-        with self._lock:
-            if self._db is not None:
-                self._db.close()
-                self._db = None
-        self._executor.shutdown(wait=False)

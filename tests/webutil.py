@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import liveapp
+import pytest
 from liveapp import DEMO_PLANT, ROOT, free_port, running_app, start_app, stop_app, wait_http  # noqa: F401 - for the tests
 
 
@@ -282,6 +283,33 @@ def serve_beyond_loopback(folder: Path, port: int, data: Path, *args: str) -> su
         )
 
 
+@contextlib.contextmanager
+def demo_app_serving(folder: Path, names: tuple[str, ...] | None = None, online_within_s: float = 20,
+                     data_dir: Path | None = None):
+    """The GUI in its own process on the demo plant (its simulated line on a free port) in ``folder``, its data
+    in ``data_dir`` (default the test run's); yields its URL once ``/api/devices`` answers and ``names`` (every
+    device when None) are online. A fixture that fails prints the app's last output; the app is stopped on
+    leaving."""
+    plant = folder / "plant.toml"
+    plant.write_text(demo_plant_text(free_port()))
+    port = free_port()
+    log = folder / "app.log"
+    url = f"http://127.0.0.1:{port}"
+    with contextlib.ExitStack() as environment:
+        if data_dir is not None:
+            environment.enter_context(pytest.MonkeyPatch.context()).setenv("COMMISSION_DATA_DIR", str(data_dir))
+        proc = start_app(plant, port, log)  # it copies os.environ
+    try:
+        wait_http(url + "/api/devices", proc, timeout=30)
+        liveapp.wait_devices_online(url, names, proc, timeout=online_within_s)
+        yield url
+    except BaseException:
+        print(log.read_text(errors="replace")[-4000:])
+        raise
+    finally:
+        stop_app(proc)
+
+
 def private_endpoints(plant, tag: str):
     """A loaded plant with every simulated endpoint made private to one test: each
     ``socket://127.0.0.1:PORT`` on a free port, each CAN channel suffixed with ``tag``."""
@@ -296,7 +324,7 @@ def private_endpoints(plant, tag: str):
     return plant
 
 
-__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "demo_user", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "opened", "page_at", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
+__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "demo_app_serving", "demo_user", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "opened", "page_at", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
            "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "wait_http"]
 
 

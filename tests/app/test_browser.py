@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 from conftest import CHROMIUM, inside_viewport, wait_devices_online
-from webutil import demo_plant_text, free_port, start_app, stop_app, wait_http
+from webutil import demo_app_serving
 
 if not CHROMIUM.exists():
     pytest.skip(f"{CHROMIUM} is not installed", allow_module_level=True)
@@ -26,22 +26,8 @@ STEP_MS = 10_000  # longest wait for one visible step (page timers tick every 0.
 @pytest.fixture(scope="module")
 def app_url(tmp_path_factory: pytest.TempPathFactory):
     """The GUI on the demo plant (line1 on a free port), until the module's tests are done."""
-    folder = tmp_path_factory.mktemp("browser-app")
-    plant = folder / "plant.toml"
-    plant.write_text(demo_plant_text(free_port()))
-    port = free_port()
-    log = folder / "app.log"
-    proc = start_app(plant, port, log)
-    url = f"http://127.0.0.1:{port}"
-    try:
-        wait_http(url + "/api/devices", proc, timeout=30)
-        wait_devices_online(url, ("door-1", "door-2"), proc, timeout=15)
+    with demo_app_serving(tmp_path_factory.mktemp("browser-app"), ("door-1", "door-2"), online_within_s=15) as url:
         yield url
-    except BaseException:
-        print(log.read_text(errors="replace")[-4000:])
-        raise
-    finally:
-        stop_app(proc)
 
 
 @pytest.fixture

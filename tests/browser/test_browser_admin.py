@@ -14,8 +14,8 @@ import urllib.request
 from pathlib import Path
 
 import pytest
-from conftest import CHROMIUM, wait_devices_online
-from webutil import demo_plant_text, free_port, start_app, stop_app, wait_http
+from conftest import CHROMIUM
+from webutil import demo_app_serving
 
 if not CHROMIUM.exists():
     pytest.skip(f"{CHROMIUM} is not installed", allow_module_level=True)
@@ -34,25 +34,10 @@ PROGRESS_SETTLED_JS = """() => [...document.querySelectorAll('.q-linear-progress
 def app_url(tmp_path_factory: pytest.TempPathFactory):
     """The GUI on the demo plant with its own data folder, until the module's tests are done."""
     folder = tmp_path_factory.mktemp("browser-admin")
-    plant = folder / "plant.toml"
-    plant.write_text(demo_plant_text(free_port()))
     data_dir = folder / "data"
-    port = free_port()
-    log = folder / "app.log"
-    url = f"http://127.0.0.1:{port}"
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("COMMISSION_DATA_DIR", str(data_dir))  # start_app copies os.environ
-        proc = start_app(plant, port, log)
-    try:
-        wait_http(url + "/api/devices", proc, timeout=30)
-        wait_devices_online(url, proc=proc, timeout=20)
+    with demo_app_serving(folder, data_dir=data_dir) as url:
         assert (data_dir / "session-secret").exists(), "the app ignored COMMISSION_DATA_DIR"
         yield url
-    except BaseException:
-        print(log.read_text(errors="replace")[-4000:])
-        raise
-    finally:
-        stop_app(proc)
 
 
 def _get_json(url: str):

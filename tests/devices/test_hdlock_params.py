@@ -64,14 +64,13 @@ def test_writable_exactly():
     assert writable == expected
 
 
-def test_names_verbatim():
-    assert PARAMS.get(hd.INPUT, 7).name == "Calculated proxi (normalized)"
-    assert PARAMS.get(hd.INPUT, 15).name == "SystemCoreClock-Config"
-    assert holding(30).name == "Lock/UnlockFailDelay1"
-    assert holding(40).name == "SettingsOutput1"
-    assert holding(3001).name == "SettingOutput1"
-    assert holding(3002).name == "SettingOutput2"
-    assert holding(2000).name == "Parameter 0"
+@pytest.mark.parametrize(("space", "address", "name"), [
+    (hd.INPUT, 7, "Calculated proxi (normalized)"), (hd.INPUT, 15, "SystemCoreClock-Config"),
+    (hd.HOLDING, 30, "Lock/UnlockFailDelay1"), (hd.HOLDING, 40, "SettingsOutput1"), (hd.HOLDING, 3001, "SettingOutput1"),
+    (hd.HOLDING, 3002, "SettingOutput2"), (hd.HOLDING, 2000, "Parameter 0"),
+])
+def test_names_verbatim(space, address, name):
+    assert PARAMS.get(space, address).name == name
 
 
 def test_duplicate_names_labelled():
@@ -224,15 +223,12 @@ def test_remove_magnet_confirmation():
     assert param.needs_confirmation(0) == ""
 
 
-def test_units():
-    assert PARAMS.get(hd.INPUT, 2).unit == "Inc"
-    assert PARAMS.get(hd.INPUT, 51).unit == "#/s"
-    assert holding(13).unit == "#/s²"
-    assert holding(17).unit == "ADC#"
-    assert holding(31).unit == "s"
-    assert holding(1007).unit == "°C"
-    assert holding(1008).unit == "mV"
-    assert holding(3000).unit == "ms"
+@pytest.mark.parametrize(("space", "address", "unit"), [
+    (hd.INPUT, 2, "Inc"), (hd.INPUT, 51, "#/s"), (hd.HOLDING, 13, "#/s²"), (hd.HOLDING, 17, "ADC#"),
+    (hd.HOLDING, 31, "s"), (hd.HOLDING, 1007, "°C"), (hd.HOLDING, 1008, "mV"), (hd.HOLDING, 3000, "ms"),
+])
+def test_units(space, address, unit):
+    assert PARAMS.get(space, address).unit == unit
 
 
 def test_every_param_has_description():
