@@ -6,14 +6,17 @@ barrier's own TCP port). :class:`TwinServer` starts and stops the port and keeps
 clients, by one of three rules: a point-to-point line where a new master replaces the old one
 (SCU), a device that serves one client at a time and closes a second at once (MO 64 over TCP), or
 a bus every client hears (MO 64 on RS485). :func:`serve_telegrams` reads one client's bytes through
-the family codec's splitter; :class:`Ticker` steps the twins on their own period.
+the family codec's splitter; :class:`Ticker` steps the twins on their own period. :class:`OwnLoop` runs a
+twin on an event loop in a thread of its own, where the program's loop stalling must not stall the twin.
 """
 
 from __future__ import annotations
 
 import asyncio
+import threading
 import time
 from collections.abc import Awaitable, Callable
+from typing import TypeVar
 from urllib.parse import urlparse
 
 # what a second client gets (TwinServer ``clients``)
@@ -22,6 +25,7 @@ REPLACE = "replace"  # the new client replaces the one before (point to point: t
 REFUSE = "refuse"  # one client at a time: a second one is closed at once (counted in ``refused``)
 
 Handler = Callable[[asyncio.StreamReader, asyncio.StreamWriter], Awaitable[None]]
+T = TypeVar("T")
 
 
 def host_port(url: str, what: str) -> tuple[str, int]:
@@ -142,12 +146,15 @@ class Ticker:
         self.rest = rest
         self.idle_s = idle_s
         self.task: asyncio.Task | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: int | None = None  # the thread of the loop it ticks on
         self.ticks = 0  # steps taken (the ticks and the catch-ups of wake())
         self._last = time.monotonic()
         self._sleeper: asyncio.Future | None = None  # set while resting longer than period_s
 
     def start(self, name: str) -> None:
         self._last = time.monotonic()
+        self._loop, self._thread = asyncio.get_running_loop(), threading.get_ident()
         self.task = asyncio.create_task(self._run(), name=name)
 
     def _step(self, step: Callable[[float, float], None] | None = None) -> None:
@@ -175,7 +182,12 @@ class Ticker:
             self._step()
 
     def wake(self) -> None:
-        """Something may start to move: when resting, step up to now and tick at ``period_s`` again."""
+        """Something may start to move: when resting, step up to now and tick at ``period_s`` again (from
+        another thread than the ticker's: on its loop, at once)."""
+        if self._loop is not None and self._thread != threading.get_ident():
+            if not self._loop.is_closed():
+                self._loop.call_soon_threadsafe(self.wake)
+            return
         sleeper = self._sleeper
         if sleeper is not None and not sleeper.done():
             self._step(self.catch_up)
@@ -185,3 +197,38 @@ class Ticker:
         if self.task:
             self.task.cancel()
             self.task = None
+
+
+class OwnLoop:
+    """An event loop in a daemon thread of its own, for a twin that a real unit would not let stall.
+
+    A real unit counts its watchdog in its own time; a twin on the program's event loop counts it only when the
+    loop runs, so a loop held up (a slow page build on a busy laptop) made it find a keep-alive late that the
+    program's line thread had sent on time. On a loop of its own the twin reads each telegram when it comes, as
+    the unit would, and a keep-alive that is really late is still found late. Started by :meth:`call`-ing the
+    twin's start on it; :meth:`close` after its stop.
+    """
+
+    def __init__(self, name: str):
+        self.name = name
+        self.loop: asyncio.AbstractEventLoop | None = None
+        self.thread: threading.Thread | None = None
+
+    async def call(self, work: Callable[[], Awaitable[T]]) -> T:
+        """Run ``work()`` on the own loop (started on the first call) and await its result here."""
+        if self.loop is None:
+            self.loop = asyncio.new_event_loop()
+            self.thread = threading.Thread(target=self.loop.run_forever, name=self.name, daemon=True)
+            self.thread.start()
+        return await asyncio.wrap_future(asyncio.run_coroutine_threadsafe(work(), self.loop))
+
+    def close(self) -> None:
+        """Stop the loop and its thread (what ran on it was stopped by a :meth:`call` before)."""
+        loop, thread = self.loop, self.thread
+        self.loop = self.thread = None
+        if loop is None or thread is None:
+            return
+        loop.call_soon_threadsafe(loop.stop)
+        thread.join(5)
+        if not thread.is_alive():
+            loop.close()

@@ -626,14 +626,25 @@ class ScuSim:
         # which the telegram (an RC) feeds first, as with a tick after its bytes were read
         self._ticker = simserver.Ticker(self.twin.step, TICK_S, self.twin.rest,
                                         catch_up=lambda dt, now: self.twin.step(dt))
+        # the unit's 500 ms RC watchdog counts in the unit's own time: the twin serves its line on a loop of its own
+        self._own = simserver.OwnLoop(f"sim {bus.name}")
 
     @property
     def connections(self) -> int:
         return self.endpoint.connections
 
     async def start(self) -> None:
-        await self.endpoint.start(*simserver.host_port(self.bus.options["port"], "a simulated SCU line"))
-        self._ticker.start(f"sim {self.bus.name}")
+        host, port = simserver.host_port(self.bus.options["port"], "a simulated SCU line")
+
+        async def serve() -> None:
+            await self.endpoint.start(host, port)
+            self._ticker.start(f"sim {self.bus.name}")
+
+        try:
+            await self._own.call(serve)
+        except OSError:
+            self._own.close()
+            raise
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         async def answer(item) -> None:
@@ -663,8 +674,13 @@ class ScuSim:
         await simserver.serve_telegrams(reader, codec.FrameSplitter(codec.REQUESTS), answer, codec.MAX_INTER_BYTE_S)
 
     async def stop(self) -> None:
-        self._ticker.stop()
-        await self.endpoint.stop()
+        async def end() -> None:
+            self._ticker.stop()
+            await self.endpoint.stop()
+
+        if self._own.loop is not None:
+            await self._own.call(end)
+        self._own.close()
 
 
 __all__ = ["ScuSim", "ScuTwin", "ActuatorTwin"]

@@ -58,7 +58,7 @@ async def test_drift_in_the_api_snapshot_after_save_and_the_signed_report(tmp_pa
 
         await runtime.worker.gate.run(lambda: runtime.worker.adapters["door-1"].save_settings(),
                                       device="door-1", user="anna", describe="Save-Settings", role="engineer")
-        assert await wait_for(lambda: runtime.record.snapshots.get("door-1", {}).get("holding:3000", {}).get("raw") == 350, 10)
+        assert await wait_for(lambda: runtime.record.snapshots.get("door-1", {}).get("holding:3000", {}).get("raw") == 350, 30)
         timeline = await runtime.record.timeline("door-1")
         assert [e.kind for e in timeline][:2] == ["snapshot", "approved"] and timeline[0].title == "after Save-Settings"
 

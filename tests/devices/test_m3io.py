@@ -284,9 +284,11 @@ async def modules():
     await runtime.start()
     beat = asyncio.create_task(_beat(runtime.worker, SESSION))
     for name in ("hm", "hmr"):  # the modules answer only while a master serves their watchdog (7.1)
-        await runtime.worker.adapters[name].take_control(SESSION, "engineer")
+        adapter = runtime.worker.adapters[name]
+        assert await wait_for(lambda a=adapter: a.bus.state.connected, timeout=10), f"{adapter.bus.name} not open"
+        await adapter.take_control(SESSION, "engineer")
         state = runtime.store.devices[name]
-        assert await wait_for(lambda s=state: s.status == "online", timeout=4)
+        assert await wait_for(lambda s=state: s.status == "online", timeout=10)
     try:
         yield runtime
     finally:
