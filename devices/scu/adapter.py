@@ -371,6 +371,8 @@ class ScuAdapter(BackupDefaults):
             by_thread = self._rg_by_thread(data_id)
             with self.rc.guard:
                 if not by_thread or len(self.rc.thread_rgs) >= 3:  # the line's thread does not read them now: here
+                    if by_thread:
+                        self.rc.rgs_taken_over += len(self.rc.thread_rgs)
                     live += self.rc.thread_rgs
                     self.rc.thread_rgs.clear()
                 if by_thread:

@@ -69,6 +69,7 @@ class RcKeepAlive:
         # the data IDs read in turn that the line's thread reads right after its next RC (the same wake-up brings
         # them to the loop with the RC): one added by every poll while the session is open with the cyclic object
         self.thread_rgs: deque[int] = deque()
+        self.rgs_taken_over = 0  # of them, read by the poll after all: the line's thread fell three polls behind
         self.lapses = 0
 
     def gaps(self) -> list[float]:

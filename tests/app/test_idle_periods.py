@@ -174,7 +174,12 @@ async def test_scu_data_read_in_turn_rides_on_the_rc_of_the_line_thread(scu):  #
     adapter.line.transact = spying
     read_at = dict(adapter.live.read_at)
     turn = set(ROTATING_IDS)
+    taken_over = adapter.rc.rgs_taken_over
     assert await wait_for(lambda: turn <= {i for i, t in adapter.live.read_at.items() if t > read_at.get(i, 0.0)}, timeout=10)
-    assert [r for r in sent if r[:2] == b"RG"] == []  # none through the loop's worker threads
+    # none through the loop's worker threads, but those the poll took over when the line's thread fell three polls
+    # behind (a machine so busy that the thread did not get its turn; it keeps up on its own)
+    through_loop = [r for r in sent if r[:2] == b"RG"]
+    assert len(through_loop) <= adapter.rc.rgs_taken_over - taken_over, (through_loop, adapter.rc.rgs_taken_over - taken_over)
+    assert len(through_loop) < len(turn)  # most of the turn rode on the RC
     point = adapter.state.points["Battery voltage"]
     assert point.every is not None and point.every < 2 * adapter.live.rotation_s

@@ -97,6 +97,7 @@ async def scu():
         unit.stop()
 
 
+@pytest.mark.alone  # the line's thread held to the stated 0.5 s with its wake-ups on time: not beside five other tests
 async def test_a_stalled_loop_stops_the_jog_by_rs_from_the_line_thread(scu):
     runtime, adapter, unit = scu
     twin = unit.twin
