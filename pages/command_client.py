@@ -221,7 +221,7 @@ async def write_from_page(device: str, param: Param, value, *, success: str, tit
             ui.notify(_("{name}: enter a value first").format(name=param.name), type="warning")
         return
     try:
-        raw = param.validate(value)
+        accepted = param.accept(value)  # the one check of the entry: the gate, the send policy and the adapter take it
     except ParamError as exc:
         if field is not None:
             field.error = str(exc)
@@ -231,13 +231,14 @@ async def write_from_page(device: str, param: Param, value, *, success: str, tit
         return
     if field is not None:
         field.error = None
-    # the device type's declared write (every type declares it): the gate checks the value, asks what its send
-    # policy names (the same question as a restore or the API), audits parameter, old and new
-    await run_command(device, WRITE_PARAMETER, args={"param": param.key, "value": param.decode(raw)},
-                      title=(title or _("Write {name} = {value}?")).format(name=param.name, value=lang.numbers_in(param.display(raw))),
+    # the device type's declared write (every type declares it): the gate asks what its send policy names for the
+    # accepted value (the same question as a restore or the API), audits parameter, old and new
+    shown = lang.numbers_in(accepted.text)
+    await run_command(device, WRITE_PARAMETER, args={"param": param.key, "value": accepted},
+                      title=(title or _("Write {name} = {value}?")).format(name=param.name, value=shown),
                       ok=_("Write anyway") if ok is None else ok,
-                      success=success.format(name=param.name, value=lang.numbers_in(param.display(raw))),
-                      parameter=param.label or param.name, new=param.display(raw))
+                      success=success.format(name=param.name, value=shown),
+                      parameter=param.label or param.name, new=accepted.text)
 
 
 def sim_card_allowed(note_testid: str = "sim-readonly", lang: Lang | None = None) -> bool:
