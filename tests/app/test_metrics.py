@@ -18,7 +18,7 @@ CEILINGS = {
     "getattr_default": 12,
     "hasattr": 2,
     "except_exception": 29,
-    "private_access": 3,
+    "private_access": 0,
     "exception_roots": 1,
 }
 
