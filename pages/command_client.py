@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import inspect
 import logging
+import weakref
 from collections.abc import Awaitable, Callable
 
 from nicegui import ui
@@ -198,10 +199,19 @@ def _show_reason(control: ui.element, reason: str) -> None:
 def enable_unless(control: ui.element, reason: str) -> None:
     """Enable ``control``, or disable it with ``reason`` as its tooltip (changed only when the reason changes):
     for a control whose reason the page works out itself (control held, session open), not the device's silence."""
-    if getattr(control, "gate_reason", None) == reason:
+    if _REASONS.get(control) == reason:
         return
-    control.gate_reason = reason  # type: ignore[attr-defined]
+    _REASONS[control] = reason
     _show_reason(control, reason)
+
+
+def gate_reason(control: ui.element) -> str:
+    """The reason :func:`enable_unless` last disabled ``control`` with ("" while it is enabled, or never asked)."""
+    return _REASONS.get(control, "")
+
+
+# the reason each control was last shown disabled with by enable_unless ("" enabled), as long as the control lives
+_REASONS: weakref.WeakKeyDictionary[ui.element, str] = weakref.WeakKeyDictionary()
 
 
 async def write_from_page(device: str, param: Param, value, *, success: str, title: str = "", ok: str | None = None,
