@@ -39,6 +39,7 @@ from devices.adapter import ControlChecker, SessionHolder
 from devices.commands import OPEN_KINDS as OPEN_KINDS
 from devices.commands import Command, CommandError, find
 from devices.errors import CommissionError
+from devices.params import Accepted, Param
 
 log = logging.getLogger(__name__)
 
@@ -359,5 +360,7 @@ def _outcome(result: Any) -> str:
 
 
 def shown(values: Mapping[str, Any]) -> str:
-    """Arguments as the audit log and a cancelled question show them: a parameter or a choice by its name."""
-    return ", ".join(f"{k}={getattr(v, 'name', v)}" for k, v in values.items())
+    """Arguments as the audit log and a cancelled question show them: a parameter or a choice by its name, a value
+    the parameter model accepted by its value and raw word."""
+    return ", ".join(f"{k}={v.value}, raw={v.raw}" if isinstance(v, Accepted) else f"{k}={v.name if isinstance(v, Param) else v}"
+                     for k, v in values.items())

@@ -217,14 +217,16 @@ def write_verdict(plant, bus: str, unit: int, address: int, values: list[int], f
     return check_modbus(plant.devices_on(bus), ModbusMessage(unit, function, address, tuple(v & 0xFFFF for v in values)))
 
 
-def check_write(plant, bus: str, unit: int, address: int, values: list[int], function: int = 6) -> str:
+def check_write(plant, bus: str, unit: int, address: int, values: list[int], function: int = 6,
+                verdict: Verdict | None = None) -> str:
     """Refuse (raise :class:`PollError`) or return the confirmation text a write needs ("" if none).
 
     What a unit's device type never takes (RO, MFR, never written, not in its register map, firmware
     update, factory reset) is refused by name; a unit that is not in the plant file is checked by the
     type of the line's devices, and a unit of no known type asks before every write (the send policy).
+    ``verdict``: the write's :func:`write_verdict`, where the caller has it already.
     """
-    verdict = write_verdict(plant, bus, unit, address, values, function)
+    verdict = verdict or write_verdict(plant, bus, unit, address, values, function)
     if verdict.refused:
         raise PollError(f"unit {unit}: {verdict.refused}")
     dev = known_device(plant, bus, unit)
@@ -364,12 +366,12 @@ class ModbusPoll:
         describe = (f"Modbus poll {self.bus}: write unit {unit} holding {address}"
                     + (f"+{len(values)}" if fc == 16 else "") + f" = {raws} (function {fc:02d})")
         try:
-            named = write_verdict(self.worker.plant, self.bus, unit, address, values, fc).name
+            verdict = write_verdict(self.worker.plant, self.bus, unit, address, values, fc)
         except PollError:
-            named = ""
-        parameter = named or f"unit {unit} holding {address}"  # the parameter by name where the unit's type knows it
+            verdict = None
+        parameter = (verdict.name if verdict else "") or f"unit {unit} holding {address}"  # by name where the type knows it
         try:
-            confirm = check_write(self.worker.plant, self.bus, unit, address, values, fc)
+            confirm = check_write(self.worker.plant, self.bus, unit, address, values, fc, verdict)
         except PollError as exc:
             await self.worker.gate.refused(device=self.bus, user=user, role=role, describe=describe, reason=str(exc),
                                            parameter=parameter, new=raws)

@@ -13,6 +13,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 from devices.live import (
     EVENT_LIMIT,
@@ -27,10 +28,33 @@ from devices.live import (
     session_tag,
 )
 
+if TYPE_CHECKING:
+    from devices.registry import TileAlarm
+
 __all__ = [
     "EVENT_LIMIT", "HISTORY_SECONDS", "QUALITIES", "BusState", "Counters", "DeviceState", "Event", "LiveValue", "Point",
-    "StateStore", "jsonable", "session_tag",
+    "RaisedAlarm", "StateStore", "jsonable", "session_tag",
 ]
+
+
+@dataclass(frozen=True)
+class RaisedAlarm:
+    """An alarm of a device's tile that holds, as the store found it (:meth:`StateStore.raised_alarms`).
+
+    :param alarm: the declaration (``devices/registry.py`` ``TileAlarm``): its text, a template of the point's fields
+    :param entry: the live entry of the point it follows, as the alarm was evaluated from it (the fields its
+        template names; None where the point was not heard)
+    :param text: the alarm in the engineer's words (the event log, MQTT and OPC UA say it so)
+    """
+
+    alarm: TileAlarm
+    entry: dict[str, Any] | None
+    text: str
+
+    @property
+    def point(self) -> str:
+        """The name of the point the alarm follows."""
+        return self.alarm.when.point
 
 
 @dataclass
@@ -122,7 +146,7 @@ class StateStore:
         self._phase: dict[str, int] = {}  # device -> its slot of the second
         self.alarms: dict[str, tuple[str, ...]] = {}  # device -> its tile's alarms as last seen (the event log's)
         self._alarm_inputs: dict[str, tuple] = {}  # device -> the values its alarms were last noted from
-        self._alarm_texts: dict[str, tuple[tuple, tuple[str, ...]]] = {}  # device -> (inputs, the alarms that hold on them)
+        self._raised: dict[str, tuple[tuple, tuple[RaisedAlarm, ...]]] = {}  # device -> (inputs, the alarms that hold on them)
         self._groups: dict[object, _Group] = {}
         self._alarms = _Group("alarms", PUSH_PERIOD_S, 0, PUSH_PERIOD_S)  # noting alarms: one more reader of every device, bounded like the others
         self._pending: set[str] = set()  # devices written since the last fan-out
@@ -365,7 +389,13 @@ class StateStore:
     # -- alarms: evaluated here, once per change of the points they follow -----------------------------
     def active_alarms(self, name: str, now: float | None = None) -> tuple[str, ...]:
         """The alarms of the device's tile (devices/registry.py) that hold now, on good data only (a tile whose
-        points are stale or offline raises none): what the MQTT publisher and the OPC UA server publish."""
+        points are stale or offline raises none), in the engineer's words: what the MQTT publisher and the OPC UA
+        server publish."""
+        return tuple(raised.text for raised in self.raised_alarms(name, now))
+
+    def raised_alarms(self, name: str, now: float | None = None) -> tuple[RaisedAlarm, ...]:
+        """:meth:`active_alarms` with what each was found from (its declaration, the point and its fields): what the
+        plant view words for an operator, in the operator's language."""
         state = self.devices.get(name)
         device_type = _device_type(state)
         if device_type is None:
@@ -375,17 +405,18 @@ class StateStore:
             return ()
         return self._tile_alarms(name, state, device_type.tile, now)
 
-    def _tile_alarms(self, name: str, state: DeviceState, spec, now: float) -> tuple[str, ...]:
+    def _tile_alarms(self, name: str, state: DeviceState, spec, now: float) -> tuple[RaisedAlarm, ...]:
         """The tile's alarms that hold on the device's values. They follow from the values of the points they
         name: while those are as at the last evaluation, the tile is not evaluated again (most polls bring the
         same values)."""
         inputs = _alarm_inputs(spec, state)
-        known = self._alarm_texts.get(name)
+        known = self._raised.get(name)
         if known is not None and known[0] == inputs:
             return known[1]
-        alarms = tuple(spec.evaluate(lambda point: state.entry(point, now), now)["alarms"])
-        self._alarm_texts[name] = (inputs, alarms)
-        return alarms
+        tile = spec.evaluate(lambda point: state.entry(point, now), now)
+        raised = tuple(RaisedAlarm(alarm, entry, text) for (alarm, entry), text in zip(tile["raised"], tile["alarms"], strict=True))
+        self._raised[name] = (inputs, raised)
+        return raised
 
     def _note_alarms(self, name: str, state: DeviceState) -> None:
         """Faults are states with a history: each tile alarm rising and clearing goes to the event log."""
@@ -397,7 +428,7 @@ class StateStore:
             return
         now = time.time()
         if tile_quality(device_type.tile, state, now) in ALARM_QUALITIES:
-            alarms = self._tile_alarms(name, state, device_type.tile, now)
+            alarms = tuple(raised.text for raised in self._tile_alarms(name, state, device_type.tile, now))
             self._alarm_inputs[name] = inputs
         else:
             alarms = self.alarms.get(name, ())

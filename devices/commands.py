@@ -19,11 +19,12 @@ Pure: no I/O; imported by the gate and by tests.
 
 from __future__ import annotations
 
-from devices.errors import DeviceError
-
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
+
+from devices.errors import DeviceError
+from devices.params import Accepted
 
 KINDS = ("read", "stop", "write", "motion", "mains", "system")
 OPEN_KINDS = frozenset({"read", "stop"})  # what every role may run
@@ -42,6 +43,7 @@ class Arg:
     high: float
     integer: bool = True
     unit: str = ""
+    sent: bool = True  # handed to the declared function (see ParamArg)
 
     def check(self, value: Any) -> int | float:
         if isinstance(value, bool) or not isinstance(value, int | float):
@@ -56,10 +58,12 @@ class Arg:
 @dataclass(frozen=True)
 class ParamArg:
     """An argument naming a writable parameter of the device type's model (by key, name or the
-    :class:`~devices.params.Param` itself); it becomes the parameter."""
+    :class:`~devices.params.Param` itself); it becomes the parameter. Not handed to the declared function:
+    the value the model accepted for it (:class:`~devices.params.Accepted`) names it."""
 
     name: str
     params: Any  # the type's ParamMap
+    sent: bool = False
 
     def check(self, value: Any) -> Any:
         model = self.params
@@ -78,11 +82,15 @@ class ParamArg:
 
 @dataclass(frozen=True)
 class ValueArg:
-    """A value checked by a :class:`ParamArg` of the same command (a number, or an enum name)."""
+    """A value checked by the parameter model for a :class:`ParamArg` of the same command (a number, an enum
+    name, or what the model accepted already: an :class:`~devices.params.Accepted`, carried as it is)."""
 
     name: str
+    sent: bool = True
 
     def check(self, value: Any) -> Any:
+        if isinstance(value, Accepted):
+            return value
         if isinstance(value, bool) or not isinstance(value, int | float | str):
             raise CommandError(f"{self.name}: {value!r} is not a value")
         return value
@@ -164,6 +172,12 @@ class Command:
         return self.risk(values) if callable(self.risk) else self.risk
 
     @property
+    def sent_args(self) -> tuple[Any, ...]:
+        """The arguments handed to the declared function, in its order (a :class:`ParamArg` is not: the value
+        the model accepted for it names the parameter)."""
+        return tuple(a for a in self.args if a.sent)
+
+    @property
     def functions(self) -> tuple[Callable[..., Any], ...]:
         """The declared functions, one per adapter class that serves the command."""
         return self.run if isinstance(self.run, tuple) else (self.run,)
@@ -192,7 +206,7 @@ class Command:
         if method is None:
             raise CommandError(f"{self.name} is not a command of a {type(adapter).__name__}")
         positional = [session] if self.session else []
-        positional += [values[a.name] for a in self.args]
+        positional += [values[a.name] for a in self.sent_args]
         options = {f: values[f] for f in (*self.flags, *self.extras) if f in values}
         if self.confirmation:
             options["confirmed"] = confirmed
@@ -238,30 +252,37 @@ WRITE_PARAMETER = "write parameter"
 
 
 def param_write(params: Any, run: Callable[..., Any] | tuple[Callable[..., Any], ...],
-                verdict: Callable[[Any, int], tuple[str, str]] | None = None, session: bool = False) -> Command:
-    """The declared write of one parameter of ``params`` (the page's entry, the API, restore): the value
-    is checked by the parameter (type, range, access); ``verdict(param, raw) -> (refused, risk)`` is the
-    type's send policy for that write (default: the parameter's own confirmation). ``run`` is the adapter
-    class's ``write_param(param, value, confirmed=)`` (``write_param(session, param, value, confirmed=)``
-    with ``session``)."""
+                verdict: Callable[[Accepted], tuple[str, str]] | None = None, session: bool = False) -> Command:
+    """The declared write of one parameter of ``params`` (the page's entry, the API, restore).
+
+    The entry is checked once, by the parameter model (:meth:`~devices.params.Param.accept`: type, range,
+    access, the confirmation it needs), unless the caller hands what the model accepted already; the result
+    (an :class:`~devices.params.Accepted`) is the ``value`` the send policy judges and the adapter writes.
+    ``verdict(accepted) -> (refused, risk)`` is the type's send policy for that write (default: the parameter's
+    own confirmation). ``run`` is the adapter class's ``write_accepted(accepted, confirmed=)``
+    (``write_accepted(session, accepted, confirmed=)`` with ``session``)."""
 
     def judged(values: Mapping[str, Any]) -> tuple[str, str]:
-        param, raw = values["param"], values["raw"]
-        return verdict(param, raw) if verdict is not None else ("", param.needs_confirmation(raw))
+        accepted = values["value"]
+        return verdict(accepted) if verdict is not None else ("", accepted.risk)
 
     def prepare(values: dict[str, Any]) -> dict[str, Any]:
-        param = values["param"]
+        param, value = values["param"], values["value"]
+        if isinstance(value, Accepted):
+            if value.param is not param:
+                raise CommandError(f"{param.label or param.name}: the value was accepted for {value.param.name}")
+            return values
         try:
-            raw = param.validate(values["value"])
-        except ValueError as exc:
+            return {**values, "value": param.accept(value)}
+        except ValueError as exc:  # ParamError, or a codec's refusal of text it cannot read
             raise CommandError(str(exc)) from None
-        return {**values, "value": param.decode(raw), "raw": raw}
 
     def audit(values: Mapping[str, Any], adapter: Any) -> dict[str, Any]:
-        param = values["param"]
+        accepted = values["value"]
+        param = accepted.param
         before = adapter.state.raw(param)
         return {"action": f"write {param.name}", "parameter": param.label or param.name,
-                "old": "" if before is None else param.display(before), "new": param.display(values["raw"])}
+                "old": "" if before is None else param.display(before), "new": accepted.text}
 
     return Command(WRITE_PARAMETER, "write", run=run, args=(ParamArg("param", params), ValueArg("value")),
                    session=session, prepare=prepare, confirmation=True, audit=audit,

@@ -4,6 +4,10 @@ Pure: no I/O. A :class:`Param` describes one register (or a group of 16-bit
 words forming one value) and knows how to decode, display, validate and encode
 it. Register tables, input validation, the JSON API, backup and restore are all
 driven by these objects, so a new device only has to describe its registers.
+
+A write is checked here once: :meth:`Param.accept` turns an entry into the raw value to store and names the
+confirmation it needs (an :class:`Accepted`), and that result is what the command gate's arguments carry and what
+the send policy and the adapter take, so nothing on the way checks the entry again.
 """
 
 from __future__ import annotations
@@ -209,13 +213,15 @@ class Param:
             raise ParamError(f"{self.name}: {value} is not one of: {allowed}")
         return self.encode(value)
 
-    def prepare_write(self, value: int | float | str, *, confirmed: bool = False) -> int:
-        """:meth:`validate`, then refuse a value that needs a confirmation nobody gave."""
+    def accept(self, value: int | float | str) -> Accepted:
+        """The one check of an entry for writing: :meth:`validate` (type, access, range, value table) and the
+        confirmation the value needs. :raises ParamError: it cannot be written"""
         raw = self.validate(value)
-        warning = self.needs_confirmation(raw)
-        if warning and not confirmed:
-            raise ParamError(f"needs confirmation: {warning}")
-        return raw
+        return Accepted(self, raw, self.needs_confirmation(raw))
+
+    def prepare_write(self, value: int | float | str, *, confirmed: bool = False) -> int:
+        """:meth:`accept`, then refuse a value that needs a confirmation nobody gave; the raw value to write."""
+        return self.accept(value).cleared(confirmed)
 
     def limits(self) -> tuple[float, float]:
         """Range accepted on write: the declared range, else the register's range."""
@@ -235,6 +241,36 @@ class Param:
         if self.confirm and (not self.confirm_values or raw in self.confirm_values):
             return self.confirm
         return ""
+
+
+@dataclass(frozen=True)
+class Accepted:
+    """An entry the parameter model accepted for writing (:meth:`Param.accept`).
+
+    :param param: the parameter written
+    :param raw: the raw value to store (what the device keeps)
+    :param risk: the confirmation the value needs before it is sent ("" for none)
+    """
+
+    param: Param
+    raw: int
+    risk: str = ""
+
+    @property
+    def value(self) -> int | float:
+        """The engineering value (signed, scaled)."""
+        return self.param.decode(self.raw)
+
+    @property
+    def text(self) -> str:
+        """The value as an engineer reads it (:meth:`Param.display`)."""
+        return self.param.display(self.raw)
+
+    def cleared(self, confirmed: bool) -> int:
+        """The raw value to send. :raises ParamError: it needs a confirmation and ``confirmed`` is False"""
+        if self.risk and not confirmed:
+            raise ParamError(f"needs confirmation: {self.risk}")
+        return self.raw
 
 
 class ParamMap:

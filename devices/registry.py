@@ -133,8 +133,10 @@ class TileSpec:
         return names
 
     def evaluate(self, point: Callable[[str], dict[str, Any] | None], now: float) -> dict[str, Any]:
-        """``{"lines", "alarms", "bar": (fraction, label) | None, "icon", "quality", "age"}`` from the points.
+        """``{"lines", "alarms", "raised", "bar": (fraction, label) | None, "icon", "quality", "age"}`` from the points.
 
+        ``alarms`` are the texts of the alarms that hold, ``raised`` the same alarms as ``(TileAlarm, entry)``:
+        the declaration and the entry of the point it follows (what another language words them from).
         ``quality`` is the worst quality of the points the tile shows, ``age`` the age of the oldest of them.
         """
         entries = {name: point(name) for name in self.point_names()}
@@ -162,11 +164,9 @@ class TileSpec:
             else:
                 entry = entries.get(line.point)
                 lines.append(line.missing if entry is None else line.template.format(**template_fields(entry)))
-        alarms = []
-        for alarm in self.alarms:
-            entry = entries.get(alarm.when.point)
-            if alarm.when.holds(entry) and not (alarm.unless is not None and alarm.unless.holds(point(alarm.unless.point))):
-                alarms.append(alarm.text.format(**template_fields(entry)))
+        raised = [(alarm, entry) for alarm in self.alarms if alarm.when.holds(entry := entries.get(alarm.when.point))
+                  and not (alarm.unless is not None and alarm.unless.holds(point(alarm.unless.point)))]
+        alarms = [alarm.text.format(**template_fields(entry)) for alarm, entry in raised]
         bar = None
         if self.bar is not None:
             heard = [e for name in self.bar.sources() if (e := entries.get(name)) is not None]
@@ -182,7 +182,7 @@ class TileSpec:
         quality = max((e["quality"] for e in shown), key=QUALITY_RANK.__getitem__, default="unknown")
         times = [e["time"] for e in shown if e.get("time") is not None]
         age = max(0.0, now - min(times)) if times else None
-        return {"lines": lines, "alarms": alarms, "bar": bar, "icon": icon, "quality": quality, "age": age}
+        return {"lines": lines, "alarms": alarms, "raised": raised, "bar": bar, "icon": icon, "quality": quality, "age": age}
 
 
 def template_fields(entry: dict[str, Any]) -> dict[str, Any]:

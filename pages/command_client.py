@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import inspect
 import logging
+import weakref
 from collections.abc import Awaitable, Callable
 
 from nicegui import ui
@@ -198,10 +199,19 @@ def _show_reason(control: ui.element, reason: str) -> None:
 def enable_unless(control: ui.element, reason: str) -> None:
     """Enable ``control``, or disable it with ``reason`` as its tooltip (changed only when the reason changes):
     for a control whose reason the page works out itself (control held, session open), not the device's silence."""
-    if getattr(control, "gate_reason", None) == reason:
+    if _REASONS.get(control) == reason:
         return
-    control.gate_reason = reason  # type: ignore[attr-defined]
+    _REASONS[control] = reason
     _show_reason(control, reason)
+
+
+def gate_reason(control: ui.element) -> str:
+    """The reason :func:`enable_unless` last disabled ``control`` with ("" while it is enabled, or never asked)."""
+    return _REASONS.get(control, "")
+
+
+# the reason each control was last shown disabled with by enable_unless ("" enabled), as long as the control lives
+_REASONS: weakref.WeakKeyDictionary[ui.element, str] = weakref.WeakKeyDictionary()
 
 
 async def write_from_page(device: str, param: Param, value, *, success: str, title: str = "", ok: str | None = None,
@@ -221,7 +231,7 @@ async def write_from_page(device: str, param: Param, value, *, success: str, tit
             ui.notify(_("{name}: enter a value first").format(name=param.name), type="warning")
         return
     try:
-        raw = param.validate(value)
+        accepted = param.accept(value)  # the one check of the entry: the gate, the send policy and the adapter take it
     except ParamError as exc:
         if field is not None:
             field.error = str(exc)
@@ -231,13 +241,14 @@ async def write_from_page(device: str, param: Param, value, *, success: str, tit
         return
     if field is not None:
         field.error = None
-    # the device type's declared write (every type declares it): the gate checks the value, asks what its send
-    # policy names (the same question as a restore or the API), audits parameter, old and new
-    await run_command(device, WRITE_PARAMETER, args={"param": param.key, "value": param.decode(raw)},
-                      title=(title or _("Write {name} = {value}?")).format(name=param.name, value=lang.numbers_in(param.display(raw))),
+    # the device type's declared write (every type declares it): the gate asks what its send policy names for the
+    # accepted value (the same question as a restore or the API), audits parameter, old and new
+    shown = lang.numbers_in(accepted.text)
+    await run_command(device, WRITE_PARAMETER, args={"param": param.key, "value": accepted},
+                      title=(title or _("Write {name} = {value}?")).format(name=param.name, value=shown),
                       ok=_("Write anyway") if ok is None else ok,
-                      success=success.format(name=param.name, value=lang.numbers_in(param.display(raw))),
-                      parameter=param.label or param.name, new=param.display(raw))
+                      success=success.format(name=param.name, value=shown),
+                      parameter=param.label or param.name, new=accepted.text)
 
 
 def sim_card_allowed(note_testid: str = "sim-readonly", lang: Lang | None = None) -> bool:

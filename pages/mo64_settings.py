@@ -16,6 +16,7 @@ from devices.mo64 import adapter as facts
 from devices.mo64 import codec
 from devices.commands import WRITE_PARAMETER
 from devices.mo64.params import PARAMS, Mo64Param
+from devices.params import Accepted
 from devices.mo64.policy import EEPROM_RISK, setting_name
 from pages.cards import DeviceCard
 from pages.device_page import DeviceView
@@ -145,12 +146,12 @@ class SettingsCard(DeviceCard):
     async def write_param(self, param: Mo64Param, field) -> None:
         """One named setting through the declared write: the gate asks what the model names (a safety flag by its
         name, an assumed selector) and the page's session counts the EEPROM write."""
-        value = await _param_value(self.view.name, param, field)
-        if value is None:
+        accepted = await _param_value(self.view.name, param, field)
+        if accepted is None:
             return
         _ = self.view.lang.gettext
-        shown = param.display(param.validate(value))
-        await self.view.act(WRITE_PARAMETER, {"param": param.key, "value": value},
+        shown = accepted.text
+        await self.view.act(WRITE_PARAMETER, {"param": param.key, "value": accepted},
                             success=_("{name} = {value} written and read back").format(name=param.name, value=shown),
                             title=_("Write {name} = {value}?").format(name=param.name, value=shown), ok=_("Write anyway"),
                             parameter=param.name, new=shown)
@@ -228,15 +229,30 @@ def _number_problem(param: Mo64Param, text: str | None) -> str | None:
     return None
 
 
-async def _param_value(device: str, param: Mo64Param, field):
-    """The value of a named setting's entry as the model takes it, or None: the entry keeps what was typed, marked
-    with the reason, and the refusal is audited; nothing is sent."""
+async def _param_value(device: str, param: Mo64Param, field) -> Accepted | None:
+    """What the model accepts of a named setting's entry (checked once, carried to the gate), or None: the entry
+    keeps what was typed, marked with the reason, and the refusal is audited; nothing is sent."""
+    action = f"write {param.name}"
     if isinstance(field, ui.number):
-        value = await checked_value(field, device, f"write {param.name}", parameter=param.name)
-        return None if value is None else (value if param.scale != 1 else int(value))
-    if await _text_refused(device, f"write {param.name}", param.name, field, lambda text: _number_problem(param, text)):
+        value = await checked_value(field, device, action, parameter=param.name)
+        if value is None:
+            return None
+        try:
+            return param.accept(value if param.scale != 1 else int(value))
+        except ValueError as exc:
+            field.error = str(exc)
+            await refuse(device, action, f"{value:g}: {exc}", parameter=param.name, new=value)
+            return None
+    text = (field.value or "").strip()
+    accepted, problem = None, None
+    if text:
+        try:
+            accepted = param.accept(text)
+        except ValueError as exc:
+            problem = str(exc)
+    if await _text_refused(device, action, param.name, field, lambda _text: problem):
         return None
-    return param.decode(param.validate(field.value.strip()))
+    return accepted
 
 
 def _limits(key: str) -> tuple[int, int]:

@@ -18,7 +18,7 @@ from nicegui import ui
 from app import i18n
 from app import runtime as rt
 from app.i18n import N_, Lang
-from app.state import StateStore, point_inputs
+from app.state import RaisedAlarm, StateStore, point_inputs
 from devices.registry import DEVICE_TYPES, TileAlarm, TileBar, TileLine, TileSpec, template_fields
 from pages.frame import CSS, fmt_age
 
@@ -131,8 +131,8 @@ def evaluate_tile(state) -> dict:
 def plant_tile(state, lang: Lang | None = None) -> dict:
     """The declared tile in an operator's words: each value once (a line of the bar's quantity is left out
     while the bar shows it, a bar in increments or counts shows its share of full travel), texts without
-    codes and diagnoses, an alarm that is a bare state word named by its point; with ``lang`` in that
-    language (:func:`translated_spec`, :func:`operator_words`)."""
+    codes and diagnoses, the alarms the store found (on good data only) worded by :func:`alarm_words`; with
+    ``lang`` in that language (:func:`translated_spec`, :func:`operator_words`)."""
     now = time.time()
     spec = DEVICE_TYPES[state.type].tile
     if lang is not None:
@@ -150,18 +150,22 @@ def plant_tile(state, lang: Lang | None = None) -> dict:
         percent = f"{tile['bar'][0] * 100:.0f}"
         tile["bar"] = (tile["bar"][0], f"{prefix} {percent} % out".strip() if lang is None else
                        lang.gettext("{prefix} {share} out").format(prefix=prefix, share=f"{percent} %").strip())
-    alarms = []
-    for alarm in spec.alarms:
-        point = entry(alarm.when.point)
-        if alarm.when.holds(point) and not (alarm.unless is not None and alarm.unless.holds(entry(alarm.unless.point))):
-            text = alarm.text.format(**template_fields(point))
-            if point is not None and isinstance(point.get("value"), str) and text == format(point["value"]):
-                text = f"{alarm.when.point if lang is None else lang.phrase(alarm.when.point)}: {text}"
-            alarms.append(text)
-    tile["alarms"] = alarms
+    tile["alarms"] = [alarm_words(raised, lang) for raised in rt.current().store.raised_alarms(state.name, now)]
     if tile["quality"] == "unknown" and state.online is False:  # never heard and given up on: offline, not "waiting"
         tile["quality"] = "offline"
     return tile
+
+
+def alarm_words(raised: RaisedAlarm, lang: Lang | None = None) -> str:
+    """An alarm the store found, in an operator's words: its declared text (in ``lang``) with the fields of the
+    point it follows as :func:`operator_words` gives them, and a bare state word named by its point ("lost" ->
+    "CAN link: lost")."""
+    point = operator_words(raised.entry, lang, raised.point)
+    template = raised.alarm.text if lang is None else lang.phrase(raised.alarm.text)
+    text = template.format(**template_fields(point))
+    if point is not None and isinstance(point.get("value"), str) and text == format(point["value"]):
+        text = f"{raised.point if lang is None else lang.phrase(raised.point)}: {text}"
+    return text
 
 
 fresh_evaluate_tile, fresh_plant_tile = evaluate_tile, plant_tile

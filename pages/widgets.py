@@ -338,15 +338,18 @@ class RegisterTable:
         self._aging = aging
         shown = self.table.rows
         if len(rows) != len(shown) or any(a["key"] != b["key"] for a, b in zip(rows, shown)):
-            self.table.rows = rows  # new rows: the whole table (at the start)
-            self.table.update()
-            dict.__setitem__(self.table._props, "rows", rows)  # sent as they are: no observed copy of every row kept
+            self.table.rows = rows  # new rows: the whole table (at the start); NiceGUI keeps its own copy of them
             return
         if not patch:
             return
-        # the rows as the browser now has them, kept here unobserved (a whole update of the element, as for a
-        # reconnecting page, sends them as they are); the browser changes the cells of its own rows in place
-        dict.__setitem__(self.table._props, "rows", rows)
+        # the browser changes the cells of its own rows in place, and so does the table's copy here, without sending
+        # it (a whole update of the element, as for a reconnecting page, sends the rows as the browser has them):
+        # only the changed cells are touched, no row is copied again
+        with self.table.props.suspend_updates():
+            for row in shown:
+                cells = patch.get(row["key"])
+                if cells:
+                    row.update(cells)
         self.table.client.run_javascript(ROW_PATCH_JS % (self.table.id, json.dumps(patch, separators=(",", ":"))))
 
     @staticmethod

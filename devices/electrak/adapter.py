@@ -18,7 +18,7 @@ from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, SERVICE, length_o
 from devices.decoding import decoded
 from devices.lease import Lease
 from devices.live import DeviceState, Holder, Point, session_tag
-from devices.params import Param, ParamError, backup_entry
+from devices.params import Accepted, Param, ParamError, backup_entry
 from devices.transport import CanTransport
 
 NETWORK_IDS = frozenset((codec.CONTROL_ID, codec.STATUS_ID, codec.SERVICE_REQUEST_ID, codec.SERVICE_RESPONSE_ID))
@@ -546,12 +546,25 @@ class ElectrakAdapter(BackupDefaults):
         return {p.name: await self.read_param(p) for p in PARAMS}
 
     async def write_param(self, param: Param, value, *, confirmed: bool = False) -> int:
-        """Password, write, read back from every actuator (document "Passwort", "Beispiel einer Parameter-Änderung")."""
+        """An entry for ``param``, checked by the parameter model, written by :meth:`write_accepted`."""
         reason = refusal(param, value)
         if reason:
             raise CommandError(reason)
         try:
-            raw = param.prepare_write(value, confirmed=confirmed)
+            accepted = param.accept(value)
+        except ParamError as exc:
+            raise CommandError(str(exc)) from None
+        return await self.write_accepted(accepted, confirmed=confirmed)
+
+    async def write_accepted(self, accepted: Accepted, *, confirmed: bool = False) -> int:
+        """Password, write, read back from every actuator (document "Passwort", "Beispiel einer Parameter-Änderung")
+        of a value the parameter model accepted; the document's own refusals (:func:`refusal`) still apply."""
+        param = accepted.param
+        reason = refusal(param, accepted.value)
+        if reason:
+            raise CommandError(reason)
+        try:
+            raw = accepted.cleared(confirmed)
         except ParamError as exc:
             raise CommandError(str(exc)) from None
         async with self._service_lock:

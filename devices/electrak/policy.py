@@ -99,19 +99,20 @@ def _service_write(data: bytes) -> Verdict:
                                "send the value in bytes 4.. of the payload only", name=name)
     value = param.decode(raw)
     reason = refusal(param, value)
+    accepted = None
     if not reason:
         try:
-            param.validate(value)
+            accepted = param.accept(value)
         except ParamError as exc:
             reason = str(exc)
-    if reason:
+    if accepted is None:  # refused: by the document, or by the parameter model
         low, high = param.limits()
         allowed = (f"allowed {low:g} .. {high:g} {param.unit}".rstrip() if param.enum is None else
                    "allowed: " + ", ".join(f"{k} ({v})" for k, v in param.enum.items()))
         return Verdict(refused=f"{reason} ({allowed}). Write a value in range, or use the Electrak page's entry",
                        name=name)
-    own = param.needs_confirmation(raw)
-    return Verdict(confirm=(SERVICE_WRITE_RISK, *((own,) if own else ())), name=f"{name} = {param.display(raw)}",
+    own = accepted.risk
+    return Verdict(confirm=(SERVICE_WRITE_RISK, *((own,) if own else ())), name=f"{name} = {accepted.text}",
                    kind="write")
 
 
@@ -168,6 +169,6 @@ COMMANDS = (
     # -- service parameters ----------------------------------------------------------------------------------------
     Command("read service parameters", "read", run=ElectrakAdapter.read_all),
     Command("save parameters", "system", run=ElectrakAdapter.save_parameters),
-    param_write(PARAMS, ElectrakAdapter.write_param),  # the parameter's own confirmation (e.g. a Timeout above the default)
+    param_write(PARAMS, ElectrakAdapter.write_accepted),  # the parameter's own confirmation (e.g. a Timeout above the default)
     read_parameters(ElectrakAdapter.backup_read),
 )

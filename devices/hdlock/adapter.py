@@ -13,7 +13,7 @@ from devices import errors
 from devices.hdlock import STATUS_FRAME_BOLT, codec
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
 from devices.live import DeviceState
-from devices.params import Param, ParamError, backup_entry
+from devices.params import Accepted, Param, ParamError, backup_entry
 from devices.transport import LineCrcError, LineError, LineException, LineTimeout, ModbusTransport
 
 # -- published facts (DeviceState.fact): every fact the page shows besides the registers ----------------
@@ -137,6 +137,11 @@ def known_addresses(line: ModbusTransport) -> set[int]:
     return {a.address for a in _LINE_LOCKS.get(line, ())} | set(_LINE_SCANS.get(line, {}))
 
 
+def _own(param: Param) -> None:
+    if param not in PARAMS.params:
+        raise CommandError(f"{param.name} is not an HD-Lock parameter")
+
+
 class HdLockBackup(BackupDefaults):
     """Write checks, backup/restore (see app/backup.py) and the worker's session hooks,
     shared by the Modbus and the CAN adapter."""
@@ -152,12 +157,22 @@ class HdLockBackup(BackupDefaults):
     def session_lost(self, session: str, reason: str) -> None:
         """Nothing runs on behalf of a session (see :meth:`holders`): nothing to stop."""
 
-    def _prepare(self, param: Param, value, confirmed: bool) -> int:
-        """The raw value to write, after range, type, access and confirmation checks."""
-        if param not in PARAMS.params:
-            raise CommandError(f"{param.name} is not an HD-Lock parameter")
+    async def write_param(self, param: Param, value, *, confirmed: bool = False) -> int:
+        """An entry for ``param``, checked by the parameter model, written by the adapter's ``write_accepted``
+        (what the declared write runs with the value the model accepted)."""
+        _own(param)
         try:
-            return param.prepare_write(value, confirmed=confirmed)
+            accepted = param.accept(value)
+        except ParamError as exc:
+            raise CommandError(str(exc)) from None
+        return await self.write_accepted(accepted, confirmed=confirmed)
+
+    @staticmethod
+    def _cleared(accepted: Accepted, confirmed: bool) -> int:
+        """The raw value to write: refused when the value needs a confirmation nobody gave."""
+        _own(accepted.param)
+        try:
+            return accepted.cleared(confirmed)
         except ParamError as exc:
             raise CommandError(str(exc)) from None
 
@@ -274,9 +289,9 @@ class HdLockAdapter(HdLockBackup):
         return True
 
     # -- writes -------------------------------------------------------------------------
-    async def write_param(self, param: Param, value, *, confirmed: bool = False) -> int:
-        """Validate, write with FC 0x06 and read back; returns the new raw value."""
-        raw = self._prepare(param, value, confirmed)
+    async def write_accepted(self, accepted: Accepted, *, confirmed: bool = False) -> int:
+        """Write with FC 0x06 and read back; returns the new raw value."""
+        param, raw = accepted.param, self._cleared(accepted, confirmed)
         try:
             await self.line.write_register(self.address, param.address, raw, self.state.counters)
             back = (await self.line.read_holding(self.address, param.address, 1, self.state.counters))[0]

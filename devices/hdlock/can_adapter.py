@@ -17,7 +17,7 @@ from devices.hdlock.adapter import (CAN_SETTINGS_BLOCKS, CAN_STATUS_BLOCKS, HIST
                                     status_frame_text)
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
 from devices.live import DeviceState, Point
-from devices.params import Param
+from devices.params import Accepted
 from devices.transport import CanTransport
 
 
@@ -179,9 +179,9 @@ class HdLockCanAdapter(HdLockBackup):
                                 [(space, a) for a in range(start, start + count)])
 
     # -- writes ----------------------------------------------------------------------------
-    async def write_param(self, param: Param, value, *, confirmed: bool = False) -> int:
-        """Validate, write through 0x704 and check the echoed value (section 6.6.5)."""
-        raw = self._prepare(param, value, confirmed)
+    async def write_accepted(self, accepted: Accepted, *, confirmed: bool = False) -> int:
+        """Write through 0x704 and check the echoed value (section 6.6.5)."""
+        param, raw = accepted.param, self._cleared(accepted, confirmed)
         back = await self._write_register(param.address, raw)
         if back != raw:
             self.state.counters.write_errors += 1

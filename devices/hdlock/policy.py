@@ -12,7 +12,7 @@ from devices.hdlock.tables import DOOR_IGNORED_WARNING
 from devices.commands import Arg, Command, TxField, TxForm, param_write, read_parameters
 from devices.hdlock.adapter import HdLockAdapter, HdLockBackup
 from devices.hdlock.can_adapter import HdLockCanAdapter
-from devices.params import ParamError
+from devices.params import Accepted, ParamError
 from devices.sendpolicy import Verdict, can_id_owner
 
 TITLE = "HD-Lock"
@@ -44,11 +44,12 @@ SOURCE_RISK = DOOR_IGNORED_WARNING  # cmdSetLockRequestSource 0x80-0x87, holding
 
 
 def register_verdict(address: int, value: int) -> Verdict:
-    """A write of ``value`` (a 16-bit word, two's complement for signed registers) to holding ``address``.
+    """A raw write of ``value`` (a 16-bit word, two's complement for signed registers) to holding ``address``
+    (Modbus poll window, transmit list, replay, the CAN command that sets holding 4).
 
-    The one rule for every path (page, API, restore, Modbus poll window, transmit list, replay, the CAN
-    command that sets holding 4): the value is judged as the lock stores it (:func:`codec.stored_value`),
-    by the parameter's own checks (access, range, value table) and its confirmation.
+    The word is taken as the lock stores it (:func:`codec.stored_value`) and turned into the declared write of its
+    parameter: the parameter model checks it (access, range, value table) and :func:`write_verdict` judges it, as
+    it judges the write of a page, the API or a restore.
     """
     if address in NEVER_REGISTERS:
         return Verdict(refused=f"{NEVER_REGISTERS[address]}: never written", name=f"holding {address}")
@@ -59,8 +60,7 @@ def register_verdict(address: int, value: int) -> Verdict:
             return Verdict(refused=f"holding {address} is not in the register map of the HD-Lock: not written",
                            name=f"holding {address}")
         param = covering
-    label = param.label or param.name
-    name = f"{label} (holding {address})"
+    name = _named(param, address)
     if param.never_write:
         return Verdict(refused=f"{name} is never written by this tool", name=name)
     if not param.writable:
@@ -69,11 +69,26 @@ def register_verdict(address: int, value: int) -> Verdict:
     stored = codec.stored_value(address, raw)
     kept = "" if stored == raw else f" (sent as 0x{raw:04X}: the lock keeps the low byte, section 6.6.1.1)"
     try:
-        param.validate(param.decode(stored))  # range and value table, as the declared write checks them
+        accepted = param.accept(param.decode(stored))
     except ParamError as exc:
         return Verdict(refused=f"{exc}{kept}: not written", name=name)
-    risk = param.needs_confirmation(stored)
-    return Verdict(confirm=(risk,) if risk else (), name=f"{name} = {param.display(stored)}{kept}", kind="write")
+    verdict = write_verdict(accepted)
+    return Verdict(verdict.refused, verdict.confirm, verdict.name + kept, verdict.kind)
+
+
+def write_verdict(accepted: Accepted) -> Verdict:
+    """The one rule for a write of a value the parameter model accepted (every path: page, API, restore, and the raw
+    writes of :func:`register_verdict`): never to the registers of :data:`NEVER_REGISTERS`, and confirmed first
+    where the parameter asks."""
+    param = accepted.param
+    if param.address in NEVER_REGISTERS:
+        return Verdict(refused=f"{NEVER_REGISTERS[param.address]}: never written", name=f"holding {param.address}")
+    risk = accepted.risk
+    return Verdict(confirm=(risk,) if risk else (), name=f"{_named(param, param.address)} = {accepted.text}", kind="write")
+
+
+def _named(param, address: int) -> str:
+    return f"{param.label or param.name} (holding {address})"
 
 
 def check_modbus(function: int, address: int, values: list[int], device) -> Verdict:
@@ -229,9 +244,9 @@ def unsaved_changes(state) -> list[str]:
     return lines
 
 
-def _write_verdict(param, raw: int) -> tuple[str, str]:
+def _write_verdict(accepted: Accepted) -> tuple[str, str]:
     """A parameter write judged as the lock's Modbus or CAN write of that register (one policy for every path)."""
-    verdict = register_verdict(param.address, raw)
+    verdict = write_verdict(accepted)
     return verdict.refused, verdict.question
 
 
@@ -285,7 +300,7 @@ COMMANDS = (
             extras=("known",), risk=BROADCAST_ADDRESS_RISK, refuse_if=_broadcast_refusal, audit=_broadcast_audit),
     Command("Set Modbus Address", "system", run=HdLockAdapter.set_address, prefix=True, args=_ADDRESS_ARGS,
             risk=ADDRESS_RISK, audit=_address_audit),
-    param_write(PARAMS, (HdLockAdapter.write_param, HdLockCanAdapter.write_param), _write_verdict),
+    param_write(PARAMS, (HdLockAdapter.write_accepted, HdLockCanAdapter.write_accepted), _write_verdict),
     read_parameters(HdLockBackup.backup_read),
 )
 

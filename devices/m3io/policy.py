@@ -75,6 +75,7 @@ class BytesArg:
 
     name: str
     size: int = 6
+    sent: bool = True
 
     def check(self, value: Any) -> bytes:
         if isinstance(value, bytes | bytearray):
@@ -128,7 +129,7 @@ COMMANDS = (
             audit=_customer_audit),
     Command("read load data", "read", run=M3ioAdapter.read_load_data),
     # the parameter model (devices/m3io/params.py): customer records and P2, checked and confirmed by the model
-    param_write(PARAMS, M3ioAdapter.write_param),
+    param_write(PARAMS, M3ioAdapter.write_accepted),
     read_parameters(M3ioAdapter.backup_read),
 )
 

@@ -15,7 +15,7 @@ from devices.m3io import codec
 from devices.m3io.codec import Variant
 from devices.m3io.params import (ADDRESSING, CFG, CONFIG, CONFIG_PARAMS, CUSTOMER, P2_OPTION, P2_PARAM, PARAMS, RECORD_PARAMS,
                                  SW1_PARAM, record_bytes, record_param, record_raw)
-from devices.params import Param, ParamError, backup_entry
+from devices.params import Accepted, Param, ParamError, backup_entry
 
 # 7.2.4.2.4: the module answers a written record only once it is stored, and is deaf meanwhile; the document
 # gives no time for it, so the answer is awaited far longer than an ordinary request's (control.MDATA_TIMEOUT_S)
@@ -133,10 +133,20 @@ class ModuleSettings(BackupDefaults):
         raise self.error_type(f"{param.name} is not a parameter of a CAN-M3IO")
 
     async def write_param(self, param: Param, value, *, confirmed: bool = False) -> int:
-        """Checked by the model (range, bytes, P2's confirmation), written, and read back: a record from the
-        module's answer (7.2.4.2.4), P2 from area 1's answer in addressed mode."""
+        """An entry for ``param``, checked by the model (range, bytes, P2's confirmation), written by
+        :meth:`write_accepted`."""
         try:
-            raw = param.prepare_write(value, confirmed=confirmed)
+            accepted = param.accept(value)
+        except ParamError as exc:
+            raise self.error_type(str(exc)) from None
+        return await self.write_accepted(accepted, confirmed=confirmed)
+
+    async def write_accepted(self, accepted: Accepted, *, confirmed: bool = False) -> int:
+        """What the model accepted, written and read back: a record from the module's answer (7.2.4.2.4), P2 from
+        area 1's answer in addressed mode."""
+        param = accepted.param
+        try:
+            raw = accepted.cleared(confirmed)
         except ParamError as exc:
             raise self.error_type(str(exc)) from None
         if param.space == CUSTOMER:

@@ -26,6 +26,7 @@ judged by :func:`check_telegram`, the same rule (devices/mo64/control.py):
 from __future__ import annotations
 
 from devices.commands import Arg, Command, param_write, read_parameters
+from devices.params import Accepted
 from devices.mo64 import codec
 from devices.mo64 import params as model
 from devices.mo64.adapter import COMMAND_NAMES, OPERATIONS, Mo64Adapter
@@ -91,12 +92,13 @@ def _setting(key: str) -> Command:
                    flags=("selector_verified",) if setting.assumed else (), risk=_setting_risk(setting))
 
 
-def _write_verdict(param: model.Mo64Param, raw: int) -> tuple[str, str]:
+def _write_verdict(accepted: Accepted) -> tuple[str, str]:
     """The declared write of one parameter: what the model asks (a safety flag switched off, named) and, for an
     assumed selector, that it is verified on this unit. The EEPROM wear is said on the page and in restore."""
+    param = accepted.param
     if not param.setting_key:
         return f"{param.name} is read only: no setting telegram is named for it (chapter 5.2)", ""
-    parts = [param.needs_confirmation(raw)] + ([model.selector_risk(param)] if param.selector_assumed else [])
+    parts = [accepted.risk] + ([model.selector_risk(param)] if param.selector_assumed else [])
     return "", " ".join(p for p in parts if p)
 
 

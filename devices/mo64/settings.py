@@ -25,7 +25,7 @@ from devices.mo64.facts import (
     to_json,
     value_text,
 )
-from devices.params import Param, ParamError, backup_entry
+from devices.params import Accepted, Param, ParamError, backup_entry
 from devices.transport import SerialTimeout
 
 SYN_ACK_TIMEOUT_S = 5.0  # after syn the EEPROM write ends with ack or nak (chapter 5.2.4); bound of the wait
@@ -178,7 +178,18 @@ class Mo64Settings(BackupDefaults):
         if not param.setting_key:
             raise CommandError(f"{param.name} is read only: no setting telegram is named for it (chapter 5.2)")
         try:
-            raw = param.prepare_write(value, confirmed=confirmed)
+            accepted = param.accept(value)
+        except ParamError as exc:
+            raise CommandError(str(exc)) from None
+        return await self.write_accepted(accepted, confirmed=confirmed, session=session)
+
+    async def write_accepted(self, accepted: Accepted, *, confirmed: bool = False, session: str = WRITE_SESSION) -> int:
+        """:meth:`write_param` of a value the model accepted (its range, names and confirmation checked there)."""
+        param = self._model_param(accepted.param)
+        if not param.setting_key:
+            raise CommandError(f"{param.name} is read only: no setting telegram is named for it (chapter 5.2)")
+        try:
+            raw = accepted.cleared(confirmed)
         except ParamError as exc:
             raise CommandError(str(exc)) from None
         key = param.setting_key
@@ -196,11 +207,12 @@ class Mo64Settings(BackupDefaults):
             raise CommandError(f"{param.name}: wrote {param.display(raw)}, read back {param.display(back_raw)}")
         return back_raw
 
-    async def write_param_in(self, session: str, param: Param, value, confirmed: bool = False) -> str:
-        """The declared "write parameter" (devices/mo64/policy.py) from a page's session: the outcome for the
-        audit row; the EEPROM write is counted for that session."""
+    async def write_param_in(self, session: str, accepted: Accepted, confirmed: bool = False) -> str:
+        """The declared "write parameter" (devices/mo64/policy.py) from a page's session, of the value the model
+        accepted: the outcome for the audit row; the EEPROM write is counted for that session."""
+        param = accepted.param
         before = self.state.raw(param)
-        back = await self.write_param(param, value, confirmed=confirmed, session=session or WRITE_SESSION)
+        back = await self.write_accepted(accepted, confirmed=confirmed, session=session or WRITE_SESSION)
         was = "not read" if before is None else param.display(before)
         return f"{param.name}: {was} -> {param.display(back)} (read back)"
 

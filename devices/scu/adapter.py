@@ -41,6 +41,7 @@ from devices.scu.opening import CYCLIC_READ_IDS, PROBE_ID, WATCH_RG, WATCH_SESSI
 from devices.scu.keepalive import RC_KEY, RcKeepAlive
 from devices.scu.livedata import ERROR_BIT_GROUPS, ROTATING_IDS, ScuLiveData  # noqa: F401 - ERROR_BIT_GROUPS: read from here
 from devices.scu.model import PARAMS
+from devices.params import Accepted
 from devices.scu.settings import RESTORE_NOTE, ScuSettings
 from devices.scu.control import (ESTOP, NOT_HELD, OpenSession, Outcome, ScuControl, SendEstop, SendRS,
                                  WithholdRC)
@@ -647,6 +648,9 @@ class ScuAdapter(BackupDefaults):
 
     async def write_param(self, param, value, *, confirmed: bool = False) -> int:
         return await self.settings.write(param, value, confirmed=confirmed)
+
+    async def write_accepted(self, accepted: Accepted, *, confirmed: bool = False) -> int:
+        return await self.settings.write_accepted(accepted, confirmed=confirmed)
 
     async def save_step(self) -> None:
         return None  # remote data are volatile (table 7): there is nothing to save them with

@@ -106,7 +106,7 @@ COMMANDS = (
             audit=_position_audit),
     # the parameter model's settings (remote speeds and positions, devices/scu/model.py): restore, project, batch and
     # the API; the adapter opens the session for it and refuses it while a function runs (devices/scu/settings.py)
-    param_write(PARAMS, ScuAdapter.write_param),
+    param_write(PARAMS, ScuAdapter.write_accepted),
     # -- the session --------------------------------------------------------------------------------------------------
     Command("take control", "system", run=ScuAdapter.take_control, session=True, extras=("user",)),
     Command("open remote session", "system", run=ScuAdapter.reopen, session=True),

@@ -18,7 +18,7 @@ import asyncio
 import time
 from typing import Any
 
-from devices.params import Param, ParamError, backup_entry
+from devices.params import Accepted, Param, ParamError, backup_entry
 from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.facts import CommandError, jsonable
@@ -158,10 +158,19 @@ class ScuSettings:
         return ""
 
     async def write(self, param: Param, value, *, confirmed: bool = False) -> int:
-        """RT and RG read-back (table 3, section 4.6); returns the raw value written and read back."""
-        q = self._own(param)
+        """An entry for ``param``, checked by the model, written by :meth:`write_accepted`."""
         try:
-            raw = q.prepare_write(value, confirmed=confirmed)
+            accepted = self._own(param).accept(value)
+        except ParamError as exc:
+            raise CommandError(str(exc)) from None
+        return await self.write_accepted(accepted, confirmed=confirmed)
+
+    async def write_accepted(self, accepted: Accepted, *, confirmed: bool = False) -> int:
+        """RT and RG read-back (table 3, section 4.6) of a value the model accepted; returns the raw value written
+        and read back."""
+        q = self._own(accepted.param)
+        try:
+            raw = accepted.cleared(confirmed)
         except ParamError as exc:
             raise CommandError(str(exc)) from None
         reason = self.refusal(q, raw)

@@ -76,20 +76,20 @@ async def test_backup_change_restore_round_trip(plant_runtime, name, tmp_path):
     writes = []
     adapter = runtime.worker.adapters[name]
     original = getattr(adapter, "restore_entry", None)
-    original_write = getattr(adapter, "write_param", None)
+    original_write = getattr(adapter, "write_accepted", None)  # what the declared write runs
 
     async def spy(key, raw):
         writes.append(key)
         return await original(key, raw)
 
-    async def spy_write(param, value, *, confirmed=False):
-        writes.append(param.key)
-        return await original_write(param, value, confirmed=confirmed)
+    async def spy_write(accepted, *, confirmed=False):
+        writes.append(accepted.param.key)
+        return await original_write(accepted, confirmed=confirmed)
 
     if original is not None:
         adapter.restore_entry = spy
     if original_write is not None:
-        adapter.write_param = spy_write
+        adapter.write_accepted = spy_write
     report = await backup.execute_restore(runtime, plan, {r.key for r in plan.rows})
     assert report.ok and len(report.written) == changed and not report.failed
     read_only = {e["key"] for e in document["parameters"] if not e["writable"]}

@@ -15,10 +15,10 @@ from tools import metrics
 LONG_MODULES: set[str] = set()  # the modules over 700 lines: none may join them
 LARGE_CLASSES: set[str] = set()  # the classes over 30 attributes: none may join them
 CEILINGS = {
-    "getattr_default": 12,
+    "getattr_default": 10,
     "hasattr": 2,
     "except_exception": 29,
-    "private_access": 3,
+    "private_access": 0,
     "exception_roots": 1,
 }
 

@@ -28,6 +28,7 @@ from app.audit import BUSY_TIMEOUT_MS
 from app.runtime import Runtime, remove_stale_parts
 from app.users import UserStore
 from app.worker import AuditUnavailable, PermissionDenied
+from pages.command_client import gate_reason
 
 pytestmark = pytest.mark.timeout(90)
 
@@ -200,7 +201,7 @@ async def test_viewer_paths_that_change_files_or_the_plant_are_refused_in_the_wo
         await login(user, "tablet", "battery staple")
         await user.open("/backup")
         buttons = user.find("Back up selected").elements
-        assert buttons and all(getattr(b, "gate_reason", "") for b in buttons), "a viewer sees Back up selected enabled"
+        assert buttons and all(gate_reason(b) for b in buttons), "a viewer sees Back up selected enabled"
         UserInteraction(user, buttons, None).click()  # a click on the disabled button does nothing
         assert not runtime.backups_dir.exists() or not list(runtime.backups_dir.glob("*.json"))
         worker = runtime.worker

@@ -24,7 +24,7 @@ WALKED = [(type_name, bus_type) for type_name, device_type in sorted(DEVICE_TYPE
 def _call_shape(command: Command) -> tuple[list[object], dict[str, object]]:
     """What :meth:`Command.call` passes after the adapter: placeholders in the declared order."""
     positional: list[object] = ["session"] if command.session else []
-    positional += [arg.name for arg in command.args]
+    positional += [arg.name for arg in command.sent_args]
     options: dict[str, object] = {name: name for name in (*command.flags, *command.extras)}
     if command.confirmation:
         options["confirmed"] = True

@@ -13,6 +13,7 @@ from app.runtime import Runtime
 from devices.commands import WRITE_PARAMETER
 from devices.hdlock import policy
 from devices.hdlock.params import PARAMS
+from devices.params import Accepted
 from devices.sendpolicy import Verdict
 
 pytestmark = pytest.mark.timeout(60)
@@ -33,16 +34,17 @@ async def lock(tmp_path):
 @pytest.fixture
 def stricter(monkeypatch):
     """The lock's send policy asks about LockRequestDelay = 250 and refuses SettingsDirection = 1."""
-    real = policy.register_verdict
+    real = policy.write_verdict
 
-    def verdict(address: int, value: int) -> Verdict:
+    def verdict(accepted: Accepted) -> Verdict:
+        address, value = accepted.param.address, accepted.raw
         if address == 3000 and value == 250:
             return Verdict(confirm=(POLICY_RISK,), name="LockRequestDelay")
         if address == 3003 and value == 1:
             return Verdict(refused="policy: SettingsDirection 1 refused", name="SettingsDirection")
-        return real(address, value)
+        return real(accepted)
 
-    monkeypatch.setattr(policy, "register_verdict", verdict)
+    monkeypatch.setattr(policy, "write_verdict", verdict)
 
 
 def _edited(document: dict, key: str, value) -> dict:

@@ -89,9 +89,14 @@ def test_a_flag_that_switches_a_safety_function_off_asks_naming_it(param, off, w
     assert param.prepare_write(off, confirmed=True) == raw
     on = next(k for k in param.enum if k != raw)
     assert param.needs_confirmation(on) == ""  # switching it on (or to the safer choice) asks nothing
-    refused, risk = WRITE_PARAM.refuse_if({"param": param, "raw": raw}, [], "gate"), WRITE_PARAM.risk_text(
-        {"param": param, "raw": raw})
+    refused, risk = WRITE_PARAM.refuse_if(_written(param, raw), [], "gate"), WRITE_PARAM.risk_text(
+        _written(param, raw))
     assert not refused and all(w in risk for w in words)
+
+
+def _written(param, raw: int) -> dict:
+    """The declared write's checked arguments for ``raw``: the value the parameter model accepts."""
+    return {"param": param, "value": param.accept(param.decode(raw))}
 
 
 def test_the_whole_setting_and_a_raw_telegram_ask_the_same_question():
@@ -110,8 +115,8 @@ def test_the_whole_setting_and_a_raw_telegram_ask_the_same_question():
 def test_an_assumed_selector_asks_that_it_is_verified_and_a_read_only_value_is_refused():
     prewarn = PARAMS.by_name["Pre-warning before opening"]
     assert prewarn.selector_assumed
-    assert "verified on this unit" in WRITE_PARAM.risk_text({"param": prewarn, "raw": 80})
-    assert WRITE_PARAM.risk_text({"param": PARAMS.by_name["t_offen"], "raw": 80}) == ""  # named in 5.2.4.1
+    assert "verified on this unit" in WRITE_PARAM.risk_text(_written(prewarn, 80))
+    assert WRITE_PARAM.risk_text(_written(PARAMS.by_name["t_offen"], 80)) == ""  # named in 5.2.4.1
     with pytest.raises(ValueError, match="cannot be written"):
         PARAMS.by_name["schleife_a"].validate(1)
 

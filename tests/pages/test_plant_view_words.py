@@ -37,3 +37,17 @@ def test_offline_and_stale_say_so_before_any_fault():
     assert state_words("stale", [], 63.0)[1:] == ("STALE", "last heard 63 s ago")
     assert state_words("good", ["hall sensors overdriven (magnet)"], 0.0)[:2] == ("fault", "FAULT")
     assert state_words("good", [], 0.0)[:2] == ("good", "live")
+
+
+def test_an_alarm_the_store_found_is_worded_from_its_declaration_and_fields():
+    """The plant view words what the store found (app/state.py RaisedAlarm); it evaluates no alarm itself."""
+    from app.state import RaisedAlarm
+    from devices.registry import TileAlarm, When
+    from pages.plant_view import alarm_words
+
+    bare = TileAlarm(When("CAN link", ("lost",)), "{text}")
+    found = RaisedAlarm(bare, _entry("lost", "lost: CRC 0x5100 received"), "lost: CRC 0x5100 received")
+    assert alarm_words(found) == "CAN link: lost"  # a bare state word, named by its point, without the diagnosis
+    named = TileAlarm(When("StateMachineState", of="name", prefix="Error"), "{name}")
+    assert alarm_words(RaisedAlarm(named, _entry(9, "ErrorMotorBlocked (9)", name="ErrorMotorBlocked"),
+                                   "ErrorMotorBlocked")) == "ErrorMotorBlocked"
