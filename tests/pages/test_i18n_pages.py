@@ -432,3 +432,69 @@ async def test_the_record_page_in_german_shows_no_english_but_what_the_record_ho
         found = [(text, message) for text, message in english_on(user) if not as_written(text, written | names)]
         assert found == [], "\n".join(map(str, found))
         user.find(marker="gaps-cancel").click()
+
+
+@contextlib.asynccontextmanager
+async def german_demo(tmp_path, monkeypatch):
+    """The demo plant (every bus kind: a Modbus line, CAN buses, an SCU's RS232 line, LogiTed lines) for a German browser."""
+    from test_monitor import demo_plant
+
+    from app import recording as rec
+
+    monkeypatch.setenv(rec.DIR_ENV, str(tmp_path / "recordings"))
+    runtime = Runtime(demo_plant(), simulate=True, data_dir=tmp_path)
+    try:
+        async with german_user(runtime) as user:
+            yield runtime, user
+    finally:
+        for state in runtime.store.buses.values():
+            if hasattr(state, "frames"):
+                rec.stop_recording(state)
+
+
+def marked_table(user, name: str) -> ui.table:
+    return next(e for e in user.client.elements.values() if isinstance(e, ui.table) and e.props.get("data-monitor") == name)
+
+
+async def test_the_line_monitors_in_german_show_no_english(tmp_path, monkeypatch):
+    """The monitor of a Modbus line, an SCU's RS232 line and a LogiTed line (pages/monitor.py): filters, columns,
+    counts; the transactions in the words of their device pages are the adapters' (still English)."""
+    async with german_demo(tmp_path, monkeypatch) as (runtime, user):
+        await user.open("/monitor/line1")
+        await user.should_see("Busmonitor line1", retries=50)
+        await user.should_see("Nur Fehler")
+        await user.should_see("Modbus-Abfrage")
+        table = marked_table(user, "transactions")
+        await eventually(lambda: table.rows, timeout=15, what="the line's transactions")
+        await eventually(lambda: any("Transaktionen gepuffert" in t for t in shown_texts(user)), timeout=5, what="the counts")
+        assert [c["label"] for c in table.columns] == ["Zeit", "Gerät", "Anfrage", "Anfrage hex", "Antwort hex", "Dekodiert",
+                                                       "RTT ms", "Fehler"]
+        function = next(e for e in user.client.elements.values() if e.props.get("data-monitor") == "filter-function")
+        assert function.options[3] == "03 Holding-Register lesen"
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
+        for bus, filter_name, word in (("rs232-1", "filter-command", "RG Daten lesen"), ("gates-485", "filter-telegram", "Abfragen")):
+            await user.open(f"/monitor/{bus}")
+            await user.should_see(f"Busmonitor {bus}", retries=50)
+            chosen = next(e for e in user.client.elements.values() if e.props.get("data-monitor") == filter_name)
+            assert word in chosen.options.values(), chosen.options
+            found = english_on(user)
+            assert found == [], "\n".join(map(str, found))
+
+
+def test_the_monitors_csv_is_in_the_language_of_its_page():
+    """The transactions' CSV as German spreadsheets read it (app/csvfile.py): German headings, a semicolon between cells,
+    the decimal comma; times ISO and the line's texts as written."""
+    import csv
+    import io
+
+    from pages.monitor import transactions_csv
+
+    row = {"date": "2026-11-24 10:00:00.000", "device": "door-1", "unit": 1, "function": "03 Holding-Register lesen",
+           "request": "read holding 3000+9", "tx": "01 03", "rx": "01 03 12", "decoded": "a = -30", "rtt": "12.5", "error": ""}
+    lines = list(csv.reader(io.StringIO(transactions_csv([row], i18n.get("de"))), delimiter=";"))
+    assert lines[0] == ["Zeit", "Gerät", "Unit-ID", "Funktion", "Anfrage", "Anfrage hex", "Antwort hex", "dekodiert", "RTT ms",
+                        "Fehler"]
+    assert lines[1][0] == "2026-11-24 10:00:00.000" and lines[1][8] == "12,5" and lines[1][7] == "a = -30"
+    english = list(csv.reader(io.StringIO(transactions_csv([row]))))
+    assert english[0][8] == "rtt ms" and english[1][8] == "12.5"
