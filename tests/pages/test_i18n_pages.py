@@ -498,3 +498,47 @@ def test_the_monitors_csv_is_in_the_language_of_its_page():
     assert lines[1][0] == "2026-11-24 10:00:00.000" and lines[1][8] == "12,5" and lines[1][7] == "a = -30"
     english = list(csv.reader(io.StringIO(transactions_csv([row]))))
     assert english[0][8] == "rtt ms" and english[1][8] == "12.5"
+
+
+async def test_the_can_monitor_in_german_shows_no_english(tmp_path, monkeypatch):
+    """The monitor of a CAN bus (pages/can_monitor.py, can_trace.py, can_files.py): bus state, counters, load, filters,
+    the overwrite view and the frame list, a frame's details, recording and a recorded file; the decoded texts are the
+    codecs' (the documents' names of messages and fields)."""
+    from test_monitor import SmallFileUpload
+
+    from app import recording as rec
+
+    async with german_demo(tmp_path, monkeypatch) as (runtime, user):
+        await user.open("/monitor/can1")
+        await user.should_see("Busmonitor can1", retries=50)
+        await user.should_see("Überschreibansicht: eine Zeile pro ID")
+        await user.should_see("fehleraktiv", retries=50)
+        await user.should_see(kind=ui.label, content="Error-Frames 0")
+        frames, overwrite = marked_table(user, "frames"), marked_table(user, "overwrite")
+        await eventually(lambda: frames.rows and overwrite.rows, timeout=15, what="the bus's frames")
+        assert [c["label"] for c in frames.columns] == ["Zeit", "Rtg.", "ID", "Gerät", "Δt ms", "DLC", "Daten", "Dekodiert"]
+        assert [c["label"] for c in overwrite.columns] == ["ID", "Rtg.", "Gerät", "Anzahl", "Zyklus ms",
+                                                           "Daten (geänderte Bytes markiert)", "Dekodiert", "Zuletzt"]
+        await eventually(lambda: any(r["age"].endswith("her") or r["age"] == "gerade eben" for r in overwrite.rows),
+                         timeout=5, what="the ages in German")
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
+        user.find(marker="frames").trigger("rowClick", [None, frames.rows[0]])  # a frame's full decoding
+        await user.should_see("Δt zum vorigen Frame dieser ID", retries=20)
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
+        user.find(marker="record").click()
+        await user.should_see(kind=ui.label, content="Aufzeichnung can1-", retries=50)
+        state = runtime.store.buses["can1"]
+        recording = rec.active_recording(state)
+        await eventually(lambda: recording.frames >= 2, timeout=6, what="frames recorded")
+        user.find(marker="stop").click()
+        await eventually(lambda: rec.active_recording(state) is None and not recording.active, timeout=5)
+        await user.should_see(f"{recording.frames} Frames in {recording.path.name} gespeichert", retries=50)
+        upload = next(iter(user.find(marker="upload").elements))
+        await upload.handle_uploads([SmallFileUpload(recording.path.name, "text/plain", recording.path.read_bytes())])
+        await user.should_see(f"{recording.path.name} geöffnet", retries=50)
+        await eventually(lambda: any("pro Seite" in t for t in shown_texts(user)), timeout=5, what="the file's line")
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
+
