@@ -105,7 +105,8 @@ def show_frame_details(f: FrameRecord, decoder: rec.FrameDecoder, relative_to: f
     name, fields = decoded_fields(text)
     with ui.dialog() as dialog, ui.card().classes("q-pa-md").style("min-width: 520px; max-width: 90vw") as card:
         card.props("data-monitor=frame-details")
-        ui.label(f"{_('error frame') if f.is_error_frame else rec.format_id(f.arbitration_id, f.is_extended_id)} · "
+        ident = _("error frame") if f.is_error_frame else rec.format_id(f.arbitration_id, f.is_extended_id)
+        ui.label(f"{ident} · "
                  f"{f.direction} · {rec.format_time(f.time, relative_to)}").classes("text-h6 mono")
         data = _("remote frame") if f.is_remote_frame else (rec.format_data(f.data) or _("(none)"))
         dt = _("first heard") if f.dt is None else f"{lang.number(f.dt * 1000, 1, group=False)} ms"

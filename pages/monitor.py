@@ -389,7 +389,8 @@ class TaggedMonitor(LineMonitor):
                 chosen.append(spec.parse(text))
                 control.props(remove="error")
             except ValueError as exc:
-                control.props(f'error error-message="{str(exc) or self.lang.gettext("not valid")}"')
+                problem = str(exc) or self.lang.gettext("not valid")
+                control.props(f'error error-message="{problem}"')
                 return None
         return tuple(chosen)
 

@@ -542,3 +542,28 @@ async def test_the_can_monitor_in_german_shows_no_english(tmp_path, monkeypatch)
         found = english_on(user)
         assert found == [], "\n".join(map(str, found))
 
+
+
+def testid(user, name: str) -> ui.element:
+    return next(e for e in user.client.elements.values() if e.props.get("data-testid") == name)
+
+
+async def test_the_modbus_poll_in_german_shows_no_english(tmp_path):
+    """The Modbus poll of a line (pages/bus_poll.py): a window polling, its counts and table, the write card."""
+    from nicegui.testing.user_interaction import UserInteraction
+
+    async with german_locks(tmp_path, "door-1") as (runtime, user):
+        await user.open("/monitor/line1/poll")
+        await user.should_see("Modbus-Abfrage · line1", retries=50)
+        await user.should_see("Fenster 1", retries=50)
+        await user.should_see("Holding-Register oder Coils schreiben")
+        UserInteraction(user, {testid(user, "poll-start")}, None).click()
+        await eventually(lambda: "Abfragen · " in testid(user, "poll-status").text and "aktualisiert" in testid(user, "poll-status").text,
+                         timeout=10, what="the window's answers")
+        table = testid(user, "poll-table")
+        await eventually(lambda: table.rows, timeout=5, what="the values")
+        assert [c["label"] for c in table.columns][:6] == ["Adresse (ab 0)", "Bekanntes Register", "Ohne Vorzeichen",
+                                                           "Mit Vorzeichen", "Hex", "Binär"]
+        assert testid(user, "poll-summary").text.startswith("Unit-ID 1 · 03 Holding-Register lesen · 1000+10 · alle 1 s")
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
