@@ -567,3 +567,25 @@ async def test_the_modbus_poll_in_german_shows_no_english(tmp_path):
         assert testid(user, "poll-summary").text.startswith("Unit-ID 1 · 03 Holding-Register lesen · 1000+10 · alle 1 s")
         found = english_on(user)
         assert found == [], "\n".join(map(str, found))
+
+
+async def test_the_transmit_list_in_german_shows_no_english(tmp_path, monkeypatch):
+    """The transmit list of a CAN bus (pages/bus_transmit.py): the raw and the named frame cards, the rows and their
+    buttons, the device messages by name."""
+    from nicegui.testing.user_interaction import UserInteraction
+
+    async with german_demo(tmp_path, monkeypatch) as (runtime, user):
+        await user.open("/monitor/can1/transmit")
+        await user.should_see("Sendeliste · can1", retries=50)
+        await user.should_see("Frame als Bytes")
+        await user.should_see("Gerätebotschaft nach Namen")
+        await user.should_see("Noch keine Zeilen: oben einen Frame hinzufügen.", retries=50)
+        UserInteraction(user, {testid(user, "transmit-add")}, None).click()
+        table = testid(user, "transmit-table")
+        await eventually(lambda: table.rows, timeout=5, what="the row added")
+        assert table.rows[0]["mode"] == "einmal"
+        assert [c["label"] for c in table.columns][:6] == ["ID", "DLC", "Daten", "Botschaft", "Senden", "Gesendet"]
+        assert 'label="Senden"' in table.slots["body-cell-actions"].template
+        await user.should_see("gate-1 Register")  # a lock's request by name
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
