@@ -589,3 +589,42 @@ async def test_the_transmit_list_in_german_shows_no_english(tmp_path, monkeypatc
         await user.should_see("gate-1 Register")  # a lock's request by name
         found = english_on(user)
         assert found == [], "\n".join(map(str, found))
+
+
+async def test_the_replay_page_in_german_shows_no_english_but_the_replays_own_words(tmp_path):
+    """Replaying a recording (pages/bus_replay.py): the recording, speeds (decimal comma), start, the question and
+    the outcome; what app/replay.py words itself (the question's body, the replay's summary) is still English."""
+    import can
+    from plants import can_bus, channel, plant
+
+    from app import recording as rec
+
+    runtime = Runtime(plant(can_bus(name="can9", channel_name=channel("replay-de"), bitrate=500000, simulate=None)),
+                      simulate=False, data_dir=tmp_path / "data")
+    folder = runtime.data_dir / "recordings"
+    folder.mkdir(parents=True)
+    writer = rec.WRITERS[".log"][0](folder / "can9-test.log")
+    for i in range(20):
+        writer.on_message_received(can.Message(timestamp=100 + i * 0.01, arbitration_id=0x300 + i, data=bytes([i])))
+    writer.stop()
+    async with german_user(runtime) as user:
+        await user.open("/monitor/can9/replay")
+        await user.should_see("Wiedergabe auf can9", retries=50)
+        await user.should_see("keine Datei geladen")
+        speed = next(e for e in user.client.elements.values() if isinstance(e, ui.select) and e.props.get("label") == "Geschwindigkeit")
+        assert speed.options[0.5] == "0,5 x" and speed.options[1.0] == "1 x (Original)"
+        assert english_on(user) == []
+        choice = next(e for e in user.client.elements.values() if e.props.get("label") == "Aufzeichnungen im Datenordner")
+        choice.set_value("can9-test.log")
+        await user.should_see("can9-test.log: 20 Frames", retries=50)
+        user.find("Wiedergabe starten").click()
+        await user.should_see("Auf can9 wiedergeben?", retries=50)
+        question = next(e.text for e in user.client.elements.values()
+                        if isinstance(e, ui.label) and e.text.startswith("Replay 20 recorded frame(s)"))
+        found = [(text, message) for text, message in english_on(user) if text != question]
+        assert found == [], "\n".join(map(str, found))
+        user.find("20 Frames senden").click()
+        status = testid(user, "replay-status")
+        await eventually(lambda: "20 of 20" in status.text, timeout=10, what="the replay's end")
+        found = [(text, message) for text, message in english_on(user) if text != status.text]
+        assert found == [], "\n".join(map(str, found))
