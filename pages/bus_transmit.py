@@ -34,6 +34,7 @@ COLUMNS = [
     {"name": "actions", "label": "", "field": "key", "align": "right"},
 ]
 # a row's buttons: Send (a row sent once), Start (a cyclic row stopped), Stop (a cyclic row running), Remove
+ACTION_WORDS = (N_("Send"), N_("Start"), N_("Stop"))
 ACTIONS_SLOT = r"""
         <q-td :props="props">
           <q-btn v-if="!props.row.cyclic" dense flat icon="send" label="%s" @click="$parent.$emit('send', props.row.key)" />
@@ -255,7 +256,7 @@ class RowsCard:
         t = ui.table(columns=shown_columns(COLUMNS, view.lang), rows=[], row_key="key").props("dense flat bordered").classes(
             "w-full can-table")
         t.props("data-testid=transmit-table")
-        t.add_slot("body-cell-actions", ACTIONS_SLOT % tuple(html.escape(_(word)) for word in ("Send", "Start", "Stop")))
+        t.add_slot("body-cell-actions", ACTIONS_SLOT % tuple(html.escape(_(word)) for word in ACTION_WORDS))
         t.on("send", lambda e: view.guarded(lambda: self.confirmed_send(e.args, False)))
         t.on("start", lambda e: view.guarded(lambda: self.confirmed_send(e.args, True)))
         t.on("stop", lambda e: view.guarded(lambda: tl.stop(e.args, **_who())))

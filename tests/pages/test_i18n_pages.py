@@ -628,3 +628,20 @@ async def test_the_replay_page_in_german_shows_no_english_but_the_replays_own_wo
         await eventually(lambda: "20 of 20" in status.text, timeout=10, what="the replay's end")
         found = [(text, message) for text, message in english_on(user) if text != status.text]
         assert found == [], "\n".join(map(str, found))
+
+
+async def test_the_discover_dialog_in_german_shows_no_english(tmp_path):
+    """The address scan of an RS485 line (pages/discover.py, opened from the overview): its text, range, progress and
+    the locks found."""
+    async with german_locks(tmp_path, "*") as (runtime, user):
+        await user.open("/")
+        await user.should_see("Schlösser suchen", retries=50)
+        user.find(kind=ui.button, content="Schlösser suchen").click()
+        await user.should_see("Schlösser an line1 suchen", retries=20)
+        to = next(e for e in user.client.elements.values() if isinstance(e, ui.number) and e.props.get("label") == "Bis")
+        to.value = 2
+        user.find(kind=ui.button, content="Starten").click()
+        await user.should_see("2 Schlösser gefunden", retries=200)
+        await user.should_see(kind=ui.label, content="in der Anlage als door-2")
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
