@@ -93,7 +93,8 @@ class PollView:
     def intro(self) -> None:
         known = self.known
         _ = self.lang.gettext
-        devices = ", ".join(_("{name} at {address}").format(name=name, address=a) for a, name in sorted(known.items()))
+        at = self.lang.pgettext("unit address", "at")  # a word of its own: "{name} at {address}" would read as any "x at y"
+        devices = ", ".join(f"{name} {at} {a}" for a, name in sorted(known.items()))
         ui.label(_(
             "Each window polls on its own clock; the windows take turns on the line, one request each between the "
             "devices' polls, and a window whose unit does not answer tries again ever further apart (up to "

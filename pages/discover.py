@@ -79,9 +79,8 @@ def open_discover_dialog(bus: str) -> None:
                 plant_name = known.get(entry["address"])
                 serial = entry.get("serial")
                 via = VIA_WORDS.get(entry["via"])
-                parts = [_("address {address}").format(address=entry["address"])]
-                if serial is not None:
-                    parts.append(_("serial {serial}").format(serial=serial))
+                parts = [_("address {address}").format(address=entry["address"]) if serial is None else
+                         _("address {address} · serial {serial}").format(address=entry["address"], serial=serial)]
                 parts.append(_("via {how}").format(how=_(via) if via else entry["via"]))
                 parts.append(_("in plant as {name}").format(name=plant_name) if plant_name else _("not in the plant file"))
                 ui.label(" · ".join(parts)).classes("mono")

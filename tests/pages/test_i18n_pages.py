@@ -544,7 +544,7 @@ async def test_the_can_monitor_in_german_shows_no_english(tmp_path, monkeypatch)
 
 
 
-def testid(user, name: str) -> ui.element:
+def by_testid(user, name: str) -> ui.element:
     return next(e for e in user.client.elements.values() if e.props.get("data-testid") == name)
 
 
@@ -557,14 +557,14 @@ async def test_the_modbus_poll_in_german_shows_no_english(tmp_path):
         await user.should_see("Modbus-Abfrage · line1", retries=50)
         await user.should_see("Fenster 1", retries=50)
         await user.should_see("Holding-Register oder Coils schreiben")
-        UserInteraction(user, {testid(user, "poll-start")}, None).click()
-        await eventually(lambda: "Abfragen · " in testid(user, "poll-status").text and "aktualisiert" in testid(user, "poll-status").text,
+        UserInteraction(user, {by_testid(user, "poll-start")}, None).click()
+        await eventually(lambda: "Abfragen · " in by_testid(user, "poll-status").text and "aktualisiert" in by_testid(user, "poll-status").text,
                          timeout=10, what="the window's answers")
-        table = testid(user, "poll-table")
+        table = by_testid(user, "poll-table")
         await eventually(lambda: table.rows, timeout=5, what="the values")
         assert [c["label"] for c in table.columns][:6] == ["Adresse (ab 0)", "Bekanntes Register", "Ohne Vorzeichen",
                                                            "Mit Vorzeichen", "Hex", "Binär"]
-        assert testid(user, "poll-summary").text.startswith("Unit-ID 1 · 03 Holding-Register lesen · 1000+10 · alle 1 s")
+        assert by_testid(user, "poll-summary").text.startswith("Unit-ID 1 · 03 Holding-Register lesen · 1000+10 · alle 1 s")
         found = english_on(user)
         assert found == [], "\n".join(map(str, found))
 
@@ -580,8 +580,8 @@ async def test_the_transmit_list_in_german_shows_no_english(tmp_path, monkeypatc
         await user.should_see("Frame als Bytes")
         await user.should_see("Gerätebotschaft nach Namen")
         await user.should_see("Noch keine Zeilen: oben einen Frame hinzufügen.", retries=50)
-        UserInteraction(user, {testid(user, "transmit-add")}, None).click()
-        table = testid(user, "transmit-table")
+        UserInteraction(user, {by_testid(user, "transmit-add")}, None).click()
+        table = by_testid(user, "transmit-table")
         await eventually(lambda: table.rows, timeout=5, what="the row added")
         assert table.rows[0]["mode"] == "einmal"
         assert [c["label"] for c in table.columns][:6] == ["ID", "DLC", "Daten", "Botschaft", "Senden", "Gesendet"]
@@ -624,7 +624,7 @@ async def test_the_replay_page_in_german_shows_no_english_but_the_replays_own_wo
         found = [(text, message) for text, message in english_on(user) if text != question]
         assert found == [], "\n".join(map(str, found))
         user.find("20 Frames senden").click()
-        status = testid(user, "replay-status")
+        status = by_testid(user, "replay-status")
         await eventually(lambda: "20 of 20" in status.text, timeout=10, what="the replay's end")
         found = [(text, message) for text, message in english_on(user) if text != status.text]
         assert found == [], "\n".join(map(str, found))
