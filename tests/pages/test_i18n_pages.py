@@ -440,6 +440,7 @@ async def german_demo(tmp_path, monkeypatch):
     from test_monitor import demo_plant
 
     from app import recording as rec
+    from app.can_bus import CanBusState
 
     monkeypatch.setenv(rec.DIR_ENV, str(tmp_path / "recordings"))
     runtime = Runtime(demo_plant(), simulate=True, data_dir=tmp_path)
@@ -448,7 +449,7 @@ async def german_demo(tmp_path, monkeypatch):
             yield runtime, user
     finally:
         for state in runtime.store.buses.values():
-            if hasattr(state, "frames"):
+            if isinstance(state, CanBusState):
                 rec.stop_recording(state)
 
 
