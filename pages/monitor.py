@@ -140,8 +140,8 @@ def transaction_matches(t, unit: int | None, function: int | None, address: tupl
 
 
 def _csv_value(key: str, value: object) -> object:
-    """A row's cell for the CSV: the round trip a number (written the language's way by :func:`app.csvfile.cell`),
-    a text as a spreadsheet shows it, never runs."""
+    """A row's cell for the CSV: the round trip as a number (written the language's way by :func:`app.csvfile.cell`),
+    any other cell as text a spreadsheet shows and never runs."""
     from app.audit import csv_cell
 
     if key == "rtt" and value != "-":
