@@ -14,6 +14,7 @@ from nicegui import events, run, ui
 from app import recording as rec
 from app import runtime as rt
 from app.can_bus import CanBusState, FrameRecord
+from app.i18n import N_, Lang
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.can_trace import SCROLL_HEIGHT, BusDecoding, FilterCard, clicked_key, frame_rows, frame_table, set_deltas, show_frame_details
 from pages.command_client import enable_unless, viewer_reason
@@ -31,7 +32,9 @@ class RecordingCard:
     :param open_file: opens a recorded file in the monitor's file tab
     """
 
-    def __init__(self, bus: str, state: CanBusState, options: dict, open_file: Callable[[Path], Awaitable[None]]):
+    def __init__(self, bus: str, state: CanBusState, options: dict, open_file: Callable[[Path], Awaitable[None]],
+                 lang: Lang):
+        self.lang = lang
         self.bus = bus
         self.state = state
         self.options = options
@@ -39,36 +42,43 @@ class RecordingCard:
         self.last: rec.Recording | None = None
 
     def build(self) -> None:
+        _ = self.lang.gettext
         with ui.card().classes("w-full q-pa-sm"):
             with ui.row().classes("items-center gap-3 w-full"):
                 ui.icon("fiber_manual_record", color="negative")
-                ui.label("Recording").classes("text-subtitle2")
-                self.format = ui.select({s: label for s, (_, label) in rec.WRITERS.items()}, value=".log", label="Format").props("dense outlined").classes("w-40")
+                ui.label(_("Recording")).classes("text-subtitle2")
+                self.format = ui.select({s: label for s, (_w, label) in rec.WRITERS.items()}, value=".log", label=_("Format")).props("dense outlined").classes("w-40")
                 self.format.mark("format")
-                self.record_button = ui.button("Record", icon="fiber_manual_record", color="negative", on_click=self.start)
+                self.record_button = ui.button(self.lang.pgettext("recording", "Record"), icon="fiber_manual_record", color="negative", on_click=self.start)
                 self.record_button.mark("record")
-                self.read_only = viewer_reason()  # recording writes files on disk: an engineer's action
-                self.stop_button = ui.button("Stop", icon="stop", on_click=self.stop).mark("stop")
+                self.read_only = viewer_reason(self.lang)  # recording writes files on disk: an engineer's action
+                self.stop_button = ui.button(_("Stop"), icon="stop", on_click=self.stop).mark("stop")
                 self.status = ui.label().classes("text-body2").mark("record-status")
                 self.status.props("data-monitor=record-status")
-                self.download_button = ui.button("Download", icon="download", on_click=self.download_last).props("flat").mark("download")
-            with ui.expansion("Recordings", icon="folder", on_value_change=lambda e: e.value and self.refresh_list()).classes("w-full").props("dense") as self.panel:
+                self.download_button = ui.button(_("Download"), icon="download", on_click=self.download_last).props("flat").mark("download")
+            with ui.expansion(_("Recordings"), icon="folder", on_value_change=lambda e: e.value and self.refresh_list()).classes("w-full").props("dense") as self.panel:
                 self.files_box = ui.column().classes("w-full gap-0")
 
     def refresh(self) -> None:
+        lang = self.lang
+        _ = lang.gettext
         active = rec.active_recording(self.state)
         if active is not None:
-            self.status.set_text(f"recording {active.path.name}: {active.elapsed:.1f} s, {active.frames} frames, {_size(active.size)}")
+            self.status.set_text(_("recording {name}: {seconds} s, {frames} frames, {size}").format(
+                name=active.path.name, seconds=lang.number(active.elapsed, 1, group=False), frames=active.frames,
+                size=_size(active.size, lang)))
             self.last = active
         elif self.last is not None:
             last = self.last
             if last.active:  # detached by the bus after a write error
                 last.close()
             problem = f" - {last.error}" if last.error else ""
-            self.status.set_text(f"{last.path.name}: {last.elapsed:.1f} s, {last.frames} frames, {_size(last.size)}{problem}")
+            self.status.set_text(_("{name}: {seconds} s, {frames} frames, {size}").format(
+                name=last.path.name, seconds=lang.number(last.elapsed, 1, group=False), frames=last.frames,
+                size=_size(last.size, lang)) + problem)
         else:
-            self.status.set_text("not recording")
-        enable_unless(self.record_button, self.read_only or ("recording: stop it first" if active is not None else ""))
+            self.status.set_text(_("not recording"))
+        enable_unless(self.record_button, self.read_only or (_("recording: stop it first") if active is not None else ""))
         self.format.set_enabled(active is None and not self.read_only)
         self.stop_button.set_enabled(active is not None)
         self.download_button.set_visibility(active is None and self.last is not None)
@@ -88,7 +98,7 @@ class RecordingCard:
         except (rec.RecordingError, PermissionDenied, AuditUnavailable) as exc:
             notify_error(str(exc))
             return
-        ui.notify(f"Recording {self.bus} to {self.last.path}", type="info")
+        ui.notify(self.lang.gettext("Recording {bus} to {path}").format(bus=self.bus, path=self.last.path), type="info")
         self.refresh()
 
     async def stop(self) -> None:
@@ -100,14 +110,15 @@ class RecordingCard:
         # stopping only ends a file: allowed for everyone, audited
         stopped = await rt.current().worker.gate.run(stop, device=self.bus, role=role, user=user,
                                                      describe=f"stop recording {self.bus}", kind="stop")
+        _ = self.lang.gettext
         if stopped is None:
-            ui.notify("Nothing was being recorded.", type="warning")
+            ui.notify(_("Nothing was being recorded."), type="warning")
             return
         self.last = stopped
         if stopped.error:
-            notify_error(f"Recording {stopped.path.name}: {stopped.error}")
+            notify_error(_("Recording {name}: {error}").format(name=stopped.path.name, error=stopped.error))
         else:
-            ui.notify(f"Saved {stopped.frames} frames to {stopped.path.name}", type="positive")
+            ui.notify(_("Saved {n} frames to {name}").format(n=stopped.frames, name=stopped.path.name), type="positive")
         self.refresh()
         await self.refresh_list()
 
@@ -117,24 +128,27 @@ class RecordingCard:
 
     async def download(self, path: Path) -> None:
         if not path.is_file():
-            notify_error(f"{path.name} is gone from {path.parent}")
+            notify_error(self.lang.gettext("{name} is gone from {folder}").format(name=path.name, folder=path.parent))
             await self.refresh_list()
             return
         ui.download.file(path, path.name)
 
     async def refresh_list(self) -> None:
         files = await asyncio.to_thread(rec.list_recordings)  # a folder listing: not on the event loop
-        self.panel.set_text(f"Recordings ({len(files)}) in {rec.recordings_dir()}")
+        _ = self.lang.gettext
+        self.panel.set_text(_("Recordings ({n}) in {folder}").format(n=len(files), folder=rec.recordings_dir()))
         self.files_box.clear()
         with self.files_box:
             if not files:
-                ui.label("No recordings yet.").classes("text-caption text-grey-8")
+                ui.label(_("No recordings yet.")).classes("text-caption text-grey-8")
             for f in files[:50]:
                 with ui.row().classes("items-center gap-2"):
                     ui.label(f.name).classes("mono text-body2")
-                    ui.label(f"{_size(f.size)} · {datetime.fromtimestamp(f.mtime):%Y-%m-%d %H:%M:%S}").classes("text-caption text-grey-8")
-                    ui.button(icon="download", on_click=lambda p=f.path: self.download(p)).props("flat dense round").tooltip(f"Download {f.name}")
-                    ui.button(icon="table_view", on_click=lambda p=f.path: self.open_file(p)).props("flat dense round").tooltip(f"Open {f.name} here")
+                    ui.label(f"{_size(f.size, self.lang)} · {datetime.fromtimestamp(f.mtime):%Y-%m-%d %H:%M:%S}").classes("text-caption text-grey-8")
+                    ui.button(icon="download", on_click=lambda p=f.path: self.download(p)).props("flat dense round").tooltip(
+                        _("Download {name}").format(name=f.name))
+                    ui.button(icon="table_view", on_click=lambda p=f.path: self.open_file(p)).props("flat dense round").tooltip(
+                        _("Open {name} here").format(name=f.name))
 
 
 class FileView:
@@ -143,7 +157,8 @@ class FileView:
     :param show: brings the file tab to the front
     """
 
-    def __init__(self, state: CanBusState, filters: FilterCard, decoding: BusDecoding, show: Callable[[], None]):
+    def __init__(self, state: CanBusState, filters: FilterCard, decoding: BusDecoding, show: Callable[[], None], lang: Lang):
+        self.lang = lang
         self.state = state
         self.filters = filters
         self.decoding = decoding
@@ -155,20 +170,22 @@ class FileView:
         self._loading = False
 
     def build(self) -> None:
+        _ = self.lang.gettext
+        open_label = _("Open a recorded file ({suffixes})").format(suffixes=" ".join(rec.READ_SUFFIXES))
+        refused = _("The file was refused: files up to {n} MB can be opened.").format(n=MAX_UPLOAD_BYTES // 2**20)
         with ui.row().classes("items-center gap-4 w-full"):
             self.upload = ui.upload(
-                label="Open a recorded file (" + " ".join(rec.READ_SUFFIXES) + ")",
+                label=open_label,
                 auto_upload=True,
                 max_file_size=MAX_UPLOAD_BYTES,
                 on_upload=self.on_upload,
-                on_rejected=lambda: notify_error(f"The file was refused: files up to {MAX_UPLOAD_BYTES // 2**20} MB can be opened."),
+                on_rejected=lambda: notify_error(refused),
             ).props("accept=" + ",".join(rec.READ_SUFFIXES) + " flat bordered").classes("w-96").style("max-height: 100px")
-            self.upload.add_slot("header", upload_button(
-                "Open a recorded file (" + " ".join(rec.READ_SUFFIXES) + ")", "monitor-upload"))
+            self.upload.add_slot("header", upload_button(open_label, "monitor-upload"))
             self.upload.mark("upload")
             self.upload.props("data-monitor=upload")
             with ui.column().classes("gap-1"):
-                self.file_info = ui.label("No file opened.").classes("text-body2").mark("file-info")
+                self.file_info = ui.label(_("No file opened.")).classes("text-body2").mark("file-info")
                 self.file_info.props("data-monitor=file-info")
                 self.progress = ui.linear_progress(0, show_value=False).classes("w-96").props("data-monitor=file-progress")
                 self.progress.set_visibility(False)
@@ -176,13 +193,13 @@ class FileView:
                 self.pages.mark("file-pages")
                 self.pages.props("data-monitor=file-pages")
         with ui.element("div").classes("w-full monitor-scroll").style(SCROLL_HEIGHT):
-            self.table = frame_table("file-frames", time_label="Time s")
+            self.table = frame_table("file-frames", self.lang, time_label=N_("Time s"))
         self.table.on("rowClick", self._clicked)
 
     def _clicked(self, event) -> None:
         f = self.shown.get(clicked_key(event))
         if f is not None:
-            show_frame_details(f, self.decoder, None if self.loaded is None else self.loaded.frames[0].time)
+            show_frame_details(f, self.decoder, None if self.loaded is None else self.loaded.frames[0].time, self.lang)
 
     async def on_upload(self, e: events.UploadEventArguments) -> None:
         name = Path(e.file.name).name
@@ -200,7 +217,7 @@ class FileView:
 
     async def open_recording(self, path: Path) -> None:
         if rec.active_recording(self.state) is not None and rec.active_recording(self.state).path == path:
-            notify_error(f"{path.name} is still being recorded; stop the recording first.")
+            notify_error(self.lang.gettext("{name} is still being recorded; stop the recording first.").format(name=path.name))
             return
         loaded = await self._load(path, path.name)
         if loaded is not None:
@@ -209,29 +226,32 @@ class FileView:
     async def _load(self, path: Path, name: str) -> rec.LoadedLog | None:
         """Read a file in a thread with its progress on the page; a file that cannot be read is named
         with where and why (on the page and in a message)."""
+        lang = self.lang
+        _ = lang.gettext
         if self._loading:
-            notify_error("A file is being opened already; wait until it is loaded.")
+            notify_error(_("A file is being opened already; wait until it is loaded."))
             return None
         self._loading = True
         self.show()
         self.progress.set_value(0)
         self.progress.set_visibility(True)
-        self.file_info.set_text(f"opening {name} ...")
+        self.file_info.set_text(_("opening {name} ...").format(name=name))
 
         def report(frames: int, fraction: float) -> None:
             self.progress.set_value(fraction)
-            self.file_info.set_text(f"opening {name}: {frames:,} frames read ({fraction * 100:.0f} %)")
+            self.file_info.set_text(_("opening {name}: {frames} frames read ({percent} %)").format(
+                name=name, frames=lang.number(frames), percent=lang.number(round(fraction * 100))))
 
         try:
             loaded = await rec.load_log(path, name, progress=report)
             await run.io_bound(set_deltas, loaded.frames)  # O(n) once, off the event loop
             return loaded
         except rec.RecordingError as exc:
-            self.file_info.set_text(f"cannot open: {exc}")
+            self.file_info.set_text(_("cannot open: {error}").format(error=exc))
             notify_error(str(exc))
         except OSError as exc:  # a failing save/temp dir: still a message, never a crash
-            self.file_info.set_text(f"{name}: cannot open: {exc}")
-            notify_error(f"{name}: cannot open: {exc}")
+            self.file_info.set_text(_("{name}: cannot open: {error}").format(name=name, error=exc))
+            notify_error(_("{name}: cannot open: {error}").format(name=name, error=exc))
         finally:
             self._loading = False
             self.progress.set_visibility(False)
@@ -243,7 +263,7 @@ class FileView:
         self.decoder = self.decoding.for_file(known)
         self.show()
         await self.refilter()
-        ui.notify(f"Opened {loaded.name}: {len(loaded.frames)} frames", type="positive")
+        ui.notify(self.lang.gettext("Opened {name}: {n} frames").format(name=loaded.name, n=len(loaded.frames)), type="positive")
 
     async def refilter(self) -> None:
         """The opened file's frames that match the filters, from the first page."""
@@ -258,13 +278,16 @@ class FileView:
         self.pages.max = max(1, -(-len(self.matches) // SHOWN))
         self.pages.value = 1
         self.pages.update()
+        lang = self.lang
+        _ = lang.gettext
         first = loaded.frames[0].time
-        start = f", starts {datetime.fromtimestamp(first):%Y-%m-%d %H:%M:%S}" if first > 1e8 else ""
-        fmt = f" ({loaded.format} file)" if loaded.format else ""
+        start = _(", starts {time}").format(time=f"{datetime.fromtimestamp(first):%Y-%m-%d %H:%M:%S}") if first > 1e8 else ""
+        fmt = " " + _("({format} file)").format(format=loaded.format) if loaded.format else ""
+        frames = _("{n} frames").format(n=len(loaded.frames)) + (" " + _("(file truncated)") if loaded.truncated else "")
         self.file_info.set_text(
-            f"{loaded.name}{fmt}: {len(loaded.frames)} frames{' (file truncated)' if loaded.truncated else ''}, "
-            f"{loaded.duration:.1f} s{start}, {loaded.error_frames} error frames; "
-            f"{len(self.matches)} match the filters; {SHOWN} per page"
+            f"{loaded.name}{fmt}: {frames}, {lang.number(loaded.duration, 1, group=False)} s{start}, "
+            + _("{n} error frames").format(n=loaded.error_frames) + "; "
+            + _("{n} match the filters; {shown} per page").format(n=len(self.matches), shown=SHOWN)
         )
         self.show_page()
 
@@ -275,16 +298,16 @@ class FileView:
         first = (page - 1) * SHOWN
         shown = self.matches[first:first + SHOWN]
         self.shown = {first + i: f for i, f in enumerate(shown)}
-        self.table.rows = frame_rows(shown, self.decoder, relative_to=self.loaded.frames[0].time, first_key=first)
+        self.table.rows = frame_rows(shown, self.decoder, self.lang, relative_to=self.loaded.frames[0].time, first_key=first)
         self.table.update()
 
 
-def _size(n: int) -> str:
+def _size(n: int, lang: Lang) -> str:
     if n < 1024:
         return f"{n} B"
     if n < 1024**2:
-        return f"{n / 1024:.1f} KiB"
-    return f"{n / 1024**2:.1f} MiB"
+        return f"{lang.number(n / 1024, 1, group=False)} KiB"
+    return f"{lang.number(n / 1024**2, 1, group=False)} MiB"
 
 
 __all__ = ["FileView", "RecordingCard"]

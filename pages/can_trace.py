@@ -12,29 +12,40 @@ from nicegui import ui
 from app import recording as rec
 from app import runtime as rt
 from app.can_bus import FrameRecord
+from app.i18n import N_, Lang
+from pages.widgets import columns as shown_columns
 
 SCROLL_HEIGHT = "max-height: 56vh; overflow-y: auto"  # each table scrolls inside its box: the page height stays bounded
 FRAME_COLUMNS = [
-    {"name": "time", "label": "Time", "field": "time", "align": "left", "classes": "mono"},
-    {"name": "dir", "label": "Dir", "field": "dir", "align": "center"},
+    {"name": "time", "label": N_("Time"), "field": "time", "align": "left", "classes": "mono"},
+    {"name": "dir", "label": N_("Dir"), "field": "dir", "align": "center"},
     {"name": "id", "label": "ID", "field": "id", "align": "left", "classes": "mono"},
-    {"name": "device", "label": "Device", "field": "device", "align": "left"},
+    {"name": "device", "label": N_("Device"), "field": "device", "align": "left"},
     {"name": "dt", "label": "Δt ms", "field": "dt", "align": "right", "classes": "mono nowrap"},
     {"name": "dlc", "label": "DLC", "field": "dlc", "align": "right"},
-    {"name": "data", "label": "Data", "field": "data", "align": "left", "classes": "mono bytes"},
-    {"name": "decoded", "label": "Decoded", "field": "decoded", "align": "left"},
+    {"name": "data", "label": N_("Data"), "field": "data", "align": "left", "classes": "mono bytes"},
+    {"name": "decoded", "label": N_("Decoded"), "field": "decoded", "align": "left"},
 ]
 DECODED_SLOT = (
     '<q-td :props="props" class="decoded" :class="props.row.err ? \'text-negative text-weight-bold\' : '
-    "(props.value === 'unknown' ? 'text-grey-6' : '')\">{{ props.value }}</q-td>"
+    "(props.row.unknown ? 'text-grey-6' : '')\">{{ props.value }}</q-td>"
 )
+# the decoder's own words for a frame no codec names (app/recording): shown in the page's language
+DECODER_WORDS = {rec.UNKNOWN: N_("unknown"), "error frame": N_("error frame")}
+
+
+def decoded_text(text: str, lang: Lang) -> str:
+    """A frame's decoded text as shown: the codecs' words as they are, the decoder's own in ``lang``."""
+    word = DECODER_WORDS.get(text)
+    return lang.gettext(word) if word else text
 ROW_CLASS_FN = ":table-row-class-fn"  # Quasar: a JS function (row) -> class
 
 
-def frame_table(mark: str, time_label: str = "Time") -> ui.table:
+def frame_table(mark: str, lang: Lang, time_label: str = N_("Time")) -> ui.table:
+    """The frame list's table in ``lang``, its first column's label ``time_label`` (marked ``N_``)."""
     columns = [dict(c) for c in FRAME_COLUMNS]
     columns[0]["label"] = time_label
-    table = ui.table(columns=columns, rows=[], row_key="k", pagination=0).classes("w-full can-table")
+    table = ui.table(columns=shown_columns(columns, lang), rows=[], row_key="k", pagination=0).classes("w-full can-table")
     table.props("dense flat bordered hide-bottom")
     table.props(f'{ROW_CLASS_FN}="row => row.err ? \'row-error\' : \'\'"')
     table.add_slot("body-cell-decoded", DECODED_SLOT)
@@ -43,26 +54,33 @@ def frame_table(mark: str, time_label: str = "Time") -> ui.table:
     return table
 
 
-def frame_rows(frames: list[FrameRecord], decoder: rec.FrameDecoder, relative_to: float | None = None, first_key: int = 0) -> list[dict]:
+def frame_rows(frames: list[FrameRecord], decoder: rec.FrameDecoder, lang: Lang, relative_to: float | None = None,
+               first_key: int = 0) -> list[dict]:
+    """The table's rows of ``frames``: times, IDs and bytes as the bus has them, the words in ``lang``; the decoded
+    text is the codecs' (the documents' names of messages and fields)."""
+    _ = lang.gettext
+    error_frame, remote = _("error frame"), _("remote")
     rows = []
     for i, f in enumerate(frames):
+        decoded = decoder.record(f)
         rows.append({
             "k": first_key + i,
             "time": rec.format_time(f.time, relative_to),
             "dir": f.direction,
-            "id": "error frame" if f.is_error_frame else rec.format_id(f.arbitration_id, f.is_extended_id),
+            "id": error_frame if f.is_error_frame else rec.format_id(f.arbitration_id, f.is_extended_id),
             "device": decoder.record_device(f),
-            "dt": _ms(f.dt),
+            "dt": _ms(f.dt, lang),
             "dlc": f.dlc,
-            "data": "remote" if f.is_remote_frame else rec.format_data(f.data),
-            "decoded": decoder.record(f),
+            "data": remote if f.is_remote_frame else rec.format_data(f.data),
+            "decoded": decoded_text(decoded, lang),
+            "unknown": decoded == rec.UNKNOWN,
             "err": f.is_error_frame,
         })
     return rows
 
 
-def _ms(seconds: float | None) -> str:
-    return "-" if seconds is None else f"{seconds * 1000:.1f}"
+def _ms(seconds: float | None, lang: Lang) -> str:
+    return "-" if seconds is None else lang.number(seconds * 1000, 1, group=False)
 
 
 _FIELD_SPLIT = re.compile(r";\s+|,\s+(?![^\[]*\])")
@@ -76,36 +94,44 @@ def decoded_fields(text: str) -> tuple[str, list[str]]:
     return head, [part for part in _FIELD_SPLIT.split(rest) if part]
 
 
-def show_frame_details(f: FrameRecord, decoder: rec.FrameDecoder, relative_to: float | None) -> None:
-    """A dialog with one frame's full decoding: its device, message, fields and bytes."""
+BYTE_COLUMNS = [{"name": c, "label": label, "field": c, "align": "left"}
+                for c, label in (("byte", N_("Byte")), ("hex", N_("Hex")), ("dec", N_("Dec")), ("bin", N_("Bin")))]
+
+
+def show_frame_details(f: FrameRecord, decoder: rec.FrameDecoder, relative_to: float | None, lang: Lang) -> None:
+    """A dialog with one frame's full decoding: its device, message, fields and bytes (its words in ``lang``)."""
+    _ = lang.gettext
     text = decoder.record(f)
     name, fields = decoded_fields(text)
     with ui.dialog() as dialog, ui.card().classes("q-pa-md").style("min-width: 520px; max-width: 90vw") as card:
         card.props("data-monitor=frame-details")
-        ui.label(f"{'error frame' if f.is_error_frame else rec.format_id(f.arbitration_id, f.is_extended_id)} · "
+        ident = _("error frame") if f.is_error_frame else rec.format_id(f.arbitration_id, f.is_extended_id)
+        ui.label(f"{ident} · "
                  f"{f.direction} · {rec.format_time(f.time, relative_to)}").classes("text-h6 mono")
-        facts = [
-            ("Device", decoder.record_device(f) or "not a device of this bus"),
-            ("Message", name),
-            ("DLC", str(f.dlc)),
-            ("Data", "remote frame" if f.is_remote_frame else (rec.format_data(f.data) or "(none)")),
-            ("Δt to the previous frame of this ID", "first heard" if f.dt is None else f"{f.dt * 1000:.1f} ms"),
+        data = _("remote frame") if f.is_remote_frame else (rec.format_data(f.data) or _("(none)"))
+        dt = _("first heard") if f.dt is None else f"{lang.number(f.dt * 1000, 1, group=False)} ms"
+        facts = [  # (label, value, in the bytes' typeface)
+            (_("Device"), decoder.record_device(f) or _("not a device of this bus"), False),
+            (_("Message"), decoded_text(name, lang), False),
+            ("DLC", str(f.dlc), False),
+            (_("Data"), data, True),
+            (_("Δt to the previous frame of this ID"), dt, False),
         ]
         with ui.grid(columns="auto 1fr").classes("gap-x-4 gap-y-1"):
-            for label, value in facts:
+            for label, value, mono in facts:
                 ui.label(label).classes("text-grey-8")
-                ui.label(value).classes("mono" if label == "Data" else "")
+                ui.label(value).classes("mono" if mono else "")
         if fields:
-            ui.label("Fields").classes("text-subtitle2 q-mt-sm")
+            ui.label(_("Fields")).classes("text-subtitle2 q-mt-sm")
             with ui.column().classes("gap-0").props("data-monitor=frame-fields"):
                 for item in fields:
                     ui.label(item).classes("text-body2")
         if f.data and not f.is_remote_frame:
-            ui.label("Bytes").classes("text-subtitle2 q-mt-sm")
-            ui.table(columns=[{"name": c, "label": c.capitalize(), "field": c, "align": "left"} for c in ("byte", "hex", "dec", "bin")],
+            ui.label(_("Bytes")).classes("text-subtitle2 q-mt-sm")
+            ui.table(columns=shown_columns(BYTE_COLUMNS, lang),
                      rows=[{"byte": i, "hex": f"{b:02X}", "dec": b, "bin": f"{b:08b}"} for i, b in enumerate(f.data)],
                      row_key="byte").props("dense flat bordered hide-bottom").classes("mono")
-        ui.button("Close", on_click=dialog.close).props("flat")
+        ui.button(_("Close"), on_click=dialog.close).props("flat")
     dialog.on("hide", dialog.delete)
     dialog.open()
 
@@ -173,7 +199,8 @@ class FilterCard:
     """
 
     def __init__(self, devices: list[str], decoding: BusDecoding, on_change: Callable[[], None],
-                 on_pause: Callable[[], None]):
+                 on_pause: Callable[[], None], lang: Lang):
+        self.lang = lang
         self.devices = devices
         self.decoding = decoding
         self.on_change = on_change
@@ -182,16 +209,17 @@ class FilterCard:
         self.version = 0  # counts the changes: a list built with an older filter is built again
 
     def build(self) -> None:
+        _ = self.lang.gettext
         with ui.row().classes("items-end gap-3 w-full"):
-            self.id_from = ui.input("ID from (hex)", on_change=self.changed).props("dense outlined clearable").classes("w-36 mono")
-            self.id_to = ui.input("ID to (hex)", on_change=self.changed).props("dense outlined clearable").classes("w-36 mono")
+            self.id_from = ui.input(_("ID from (hex)"), on_change=self.changed).props("dense outlined clearable").classes("w-36 mono")
+            self.id_to = ui.input(_("ID to (hex)"), on_change=self.changed).props("dense outlined clearable").classes("w-36 mono")
             self.id_from.mark("id-from")
             self.id_to.mark("id-to")
-            options = {"": "all devices", **{name: name for name in self.devices}}
-            self.device = ui.select(options, value="", label="Device", on_change=self.changed).props("dense outlined").classes("w-44")
+            options = {"": _("all devices"), **{name: name for name in self.devices}}
+            self.device = ui.select(options, value="", label=_("Device"), on_change=self.changed).props("dense outlined").classes("w-44")
             self.device.mark("device")
-            self.errors_only = ui.switch("Error frames only", on_change=self.changed)
-            self.pause = ui.switch("Pause", on_change=self.on_pause).mark("pause")
+            self.errors_only = ui.switch(_("Error frames only"), on_change=self.changed)
+            self.pause = ui.switch(_("Pause"), on_change=self.on_pause).mark("pause")
             self.pause.props("data-monitor=pause")
             self.filter_info = ui.label().classes("text-caption text-grey-8")
 
@@ -208,7 +236,7 @@ class FilterCard:
                 field_input.props(remove="error")
             except ValueError:
                 bounds.append(None)
-                problems.append(f"'{field_input.value}' is not a hex CAN ID")
+                problems.append(self.lang.gettext("'{value}' is not a hex CAN ID").format(value=field_input.value))
                 field_input.props("error")
         owner = self.decoding.owner(self.device.value) if self.device.value else None
         self.filter = rec.FrameFilter(bounds[0], bounds[1], owner, bool(self.errors_only.value))
@@ -218,4 +246,4 @@ class FilterCard:
         self.on_change()
 
 
-__all__ = ["BusDecoding", "DECODED_SLOT", "FilterCard", "FRAME_COLUMNS", "SCROLL_HEIGHT", "clicked_key", "decoded_fields", "frame_rows", "frame_table", "set_deltas", "show_frame_details"]
+__all__ = ["BusDecoding", "DECODED_SLOT", "decoded_text", "FilterCard", "FRAME_COLUMNS", "SCROLL_HEIGHT", "clicked_key", "decoded_fields", "frame_rows", "frame_table", "set_deltas", "show_frame_details"]

@@ -9,8 +9,9 @@ from collections.abc import Callable
 
 from nicegui import ui
 
+from app import i18n
 from app import runtime as rt
-from app.i18n import english, Lang
+from app.i18n import english, N_, Lang
 from app.plant import DEMO_PLANT, DeviceConfig, append_device, can_id_conflict, device_toml
 from app.worker import AuditUnavailable, PermissionDenied
 from devices.registry import DEVICE_TYPES, format_can_ids
@@ -20,40 +21,47 @@ from pages.widgets import range_number
 from pages.command_client import all_valid
 
 
+# how a lock was found (devices/hdlock/adapter.py), as the dialog says it
+VIA_WORDS = {"broadcast": N_("broadcast"), "scan": N_("scan"), "broadcast address change": N_("broadcast address change")}
+
+
 def open_discover_dialog(bus: str) -> None:
+    """The address scan of an RS485 line, in the language of the page whose button opened it."""
     runtime = rt.current()
+    lang = i18n.client_language()
+    _ = lang.gettext
     known = {d.options.get("address"): d.name for d in runtime.plant.devices_on(bus)}
     with ui.dialog() as dialog, ui.card().classes("w-[36rem]"):
-        ui.label(f"Discover locks on {bus}").classes("text-h6")
-        ui.label(
+        ui.label(_("Discover locks on {bus}").format(bus=bus)).classes("text-h6")
+        ui.label(_(
             "First a read at broadcast address 0 (answered when a single lock is on the line; left out where "
             "several devices are known on it, whose answers would collide, section 5.6), then a scan "
             "of the address range. Polling on this line pauses meanwhile. Each silent address costs one timeout."
-        ).classes("text-caption text-grey-8")
+        )).classes("text-caption text-grey-8")
         with ui.row():
-            first = range_number("From", 1, 254, integer=True, value=1).classes("w-32")
-            last = range_number("To", 1, 254, integer=True, value=16).classes("w-32")
+            first = range_number(_("From"), 1, 254, integer=True, value=1, lang=lang).classes("w-32")
+            last = range_number(_("To"), 1, 254, integer=True, value=16, lang=lang).classes("w-32")
         progress = ui.linear_progress(value=0, show_value=False).classes("w-full")
         status = ui.label().classes("text-body2")
         results = ui.column().classes("gap-1")
         with ui.row().classes("justify-end w-full"):
-            ui.button("Close", on_click=dialog.close).props("flat")
-            start = ui.button("Start", icon="search")
+            ui.button(_("Close"), on_click=dialog.close).props("flat")
+            start = ui.button(_("Start"), icon="search")
 
     def on_progress(done: int, total: int) -> None:
         progress.set_value(done / total)
-        status.set_text(f"scanned {done} of {total} addresses")
+        status.set_text(_("scanned {done} of {total} addresses").format(done=done, total=total))
 
     async def run() -> None:
-        if not all_valid(first, last):
+        if not all_valid(first, last, lang=lang):
             return  # each field says what it allows; nothing is scanned
         a, b = int(first.value), int(last.value)
         if a > b:
-            last.error = f"To must not be below From ({a})"
+            last.error = _("To must not be below From ({first})").format(first=a)
             return
         start.disable()
         results.clear()
-        status.set_text("reading broadcast address 0 ..." if len(known) <= 1 else "scanning ...")
+        status.set_text(_("reading broadcast address 0 ...") if len(known) <= 1 else _("scanning ..."))
         user, role = current_user()
         try:
             # a scan holds the line's polling and talks to every address: an engineer action, audited
@@ -61,21 +69,21 @@ def open_discover_dialog(bus: str) -> None:
                 lambda: runtime.worker.discover(bus, a, b, on_progress), user=user, role=role,
                 describe=f"scan line {bus} addresses {a}..{b}", device=bus, kind="write")
         except ACTION_ERRORS as exc:  # the scan stops; the engineer is told why
-            ui.notify(f"discover failed: {exc}", type="negative")
+            ui.notify(_("discover failed: {error}").format(error=exc), type="negative")
             found = []
         finally:
             start.enable()
-        status.set_text(f"found {len(found)} lock{'s' if len(found) != 1 else ''}")
+        status.set_text(lang.ngettext("found {n} lock", "found {n} locks", len(found)).format(n=len(found)))
         with results:
             for entry in found:
                 plant_name = known.get(entry["address"])
                 serial = entry.get("serial")
-                ui.label(
-                    f"address {entry['address']}"
-                    + (f" · serial {serial}" if serial is not None else "")
-                    + f" · via {entry['via']}"
-                    + (f" · in plant as {plant_name}" if plant_name else " · not in the plant file")
-                ).classes("mono")
+                via = VIA_WORDS.get(entry["via"])
+                parts = [_("address {address}").format(address=entry["address"]) if serial is None else
+                         _("address {address} · serial {serial}").format(address=entry["address"], serial=serial)]
+                parts.append(_("via {how}").format(how=_(via) if via else entry["via"]))
+                parts.append(_("in plant as {name}").format(name=plant_name) if plant_name else _("not in the plant file"))
+                ui.label(" · ".join(parts)).classes("mono")
 
     start.on_click(run)
     dialog.open()

@@ -18,26 +18,30 @@ from datetime import datetime
 
 from nicegui import ui
 
+from app import i18n
 from app import recording as rec
 from app import runtime as rt
 from app.can_bus import CanBusState
+from app.csvfile import csv_text
+from app.i18n import N_, Lang
 from app.recording import lines
 from pages.can_monitor import CanMonitor
 from pages.frame import frame
 from pages.monitor_common import CSS, SHOWN, tool_links
+from pages.widgets import columns as shown_columns
 
 # -- Modbus / serial lines: transaction log ----------------------------------------------------------
 
 COLUMNS = [  # widths in % of a fixed-layout table: hex wraps between bytes (never cut), the decoded text shows
     # two lines with the whole of it on hover, so a transaction takes one or two lines and a screen holds many
-    {"name": "time", "label": "Time", "field": "time", "align": "left", "headerStyle": "width: 7%"},
-    {"name": "device", "label": "Device", "field": "device", "align": "left", "headerStyle": "width: 9%"},
-    {"name": "request", "label": "Request", "field": "request", "align": "left", "headerStyle": "width: 11%"},
-    {"name": "tx", "label": "Request hex", "field": "tx", "align": "left", "headerStyle": "width: 14%"},
-    {"name": "rx", "label": "Response hex", "field": "rx", "align": "left", "headerStyle": "width: 24%"},
-    {"name": "decoded", "label": "Decoded", "field": "decoded", "align": "left", "headerStyle": "width: 22%"},
-    {"name": "rtt", "label": "RTT ms", "field": "rtt", "align": "right", "headerStyle": "width: 5%"},
-    {"name": "error", "label": "Error", "field": "error", "align": "left", "headerStyle": "width: 7%"},
+    {"name": "time", "label": N_("Time"), "field": "time", "align": "left", "headerStyle": "width: 7%"},
+    {"name": "device", "label": N_("Device"), "field": "device", "align": "left", "headerStyle": "width: 9%"},
+    {"name": "request", "label": N_("Request"), "field": "request", "align": "left", "headerStyle": "width: 11%"},
+    {"name": "tx", "label": N_("Request hex"), "field": "tx", "align": "left", "headerStyle": "width: 14%"},
+    {"name": "rx", "label": N_("Response hex"), "field": "rx", "align": "left", "headerStyle": "width: 24%"},
+    {"name": "decoded", "label": N_("Decoded"), "field": "decoded", "align": "left", "headerStyle": "width: 22%"},
+    {"name": "rtt", "label": N_("RTT ms"), "field": "rtt_text", "align": "right", "headerStyle": "width: 5%"},
+    {"name": "error", "label": N_("Error"), "field": "error", "align": "left", "headerStyle": "width: 7%"},
 ]
 # a line worded like its device page: the request is a name ("RG 0x0011 Actual_Position Actuator 1"), so it gets the
 # room the hex of a short SCU or LogiTed request does not need
@@ -47,9 +51,22 @@ CUT_SLOT = '<q-td :props="props" :class="\'cut \' + (props.col.name === \'error\
 HEX_SLOT = '<q-td :props="props" class="mono hex">{{ props.value }}</q-td>'
 WRAP_SLOT = '<q-td :props="props" class="clamp" :title="props.value"><div>{{ props.value }}</div></q-td>'
 FIRST_SHOWN = 40  # rows in the page's first answer (more than a screen holds): the rest follow with the first refresh
-FUNCTIONS = {1: "01 read coils", 2: "02 read discrete inputs", 3: "03 read holding registers", 4: "04 read input registers",
-             5: "05 write coil", 6: "06 write register", 15: "15 write coils", 16: "16 write registers"}
-CSV_HEADER = ["time", "device", "unit", "function", "request", "request hex", "response hex", "decoded", "rtt ms", "error"]
+FUNCTIONS = {1: N_("01 read coils"), 2: N_("02 read discrete inputs"), 3: N_("03 read holding registers"),
+             4: N_("04 read input registers"), 5: N_("05 write coil"), 6: N_("06 write register"), 15: N_("15 write coils"),
+             16: N_("16 write registers")}
+CSV_HEADER = [N_("time"), N_("device"), N_("unit"), N_("function"), N_("request"), N_("request hex"), N_("response hex"),
+              N_("decoded"), N_("rtt ms"), N_("error")]
+CSV_FIELDS = ("date", "device", "unit", "function", "request", "tx", "rx", "decoded", "rtt", "error")
+# the filters the device types declare for their lines (devices/scu/linewords.py, devices/mo64/linewords.py): their
+# labels, hints and choices, shown in the page's language (an answer's choice "answer 0x0C Gate state" by its parts)
+LINE_FILTER_WORDS = (
+    N_("Command"), N_("Data ID (hex)"), N_("0011 or 0010"),
+    N_("A group ID (0x0010) also finds its members and the cyclic objects that carry them"),
+    N_("RO open remote mode"), N_("RC keep-alive / cyclic object"), N_("RG read data"), N_("RT write remote data"),
+    N_("RE start a function"), N_("RS stop a function"), N_("RA end remote mode"),
+    N_("Telegram"), N_("operating commands"), N_("queries"), N_("settings"), N_("ack, nak, busy, syn"), N_("answers"),
+    N_("unsolicited (change monitoring)"), N_("another master's"), N_("token"),
+)
 
 
 def transaction_function(t) -> int | None:
@@ -59,6 +76,16 @@ def transaction_function(t) -> int | None:
         return int(parts[1], 16) if len(parts) > 1 else None
     except ValueError:
         return None
+
+
+def filter_word(text: str, lang: Lang) -> str:
+    """A label, hint or choice of a line's filter (:data:`LINE_FILTER_WORDS`) in ``lang``; an answer's choice
+    ``answer 0x0C Gate state`` with the name its device page gives the value."""
+    head, _sep, rest = text.partition(" ")
+    code, _sep, name = rest.partition(" ")
+    if head == "answer" and code.startswith("0x") and name:
+        return lang.gettext("answer {type} {name}").format(type=code, name=lang.phrase(name))
+    return lang.gettext(text)
 
 
 def parse_unit(text: str) -> int | None:
@@ -112,20 +139,20 @@ def transaction_matches(t, unit: int | None, function: int | None, address: tupl
     return True
 
 
-def transactions_csv(rows: list[dict]) -> str:
-    """The shown rows as CSV (what a spreadsheet shows as text, never runs)."""
-    import csv
-    import io
-
+def _csv_value(key: str, value: object) -> object:
+    """A row's cell for the CSV: the round trip as a number (written the language's way by :func:`app.csvfile.cell`),
+    any other cell as text a spreadsheet shows and never runs."""
     from app.audit import csv_cell
 
-    out = io.StringIO()
-    writer = csv.writer(out)
-    writer.writerow(CSV_HEADER)
-    for r in rows:
-        writer.writerow([csv_cell(str(r[k])) for k in ("date", "device", "unit", "function", "request", "tx", "rx",
-                                                       "decoded", "rtt", "error")])
-    return out.getvalue()
+    if key == "rtt" and value != "-":
+        return float(str(value))
+    return csv_cell(str(value))
+
+
+def transactions_csv(rows: list[dict], lang: Lang | None = None) -> str:
+    """The shown rows as CSV as ``lang``'s spreadsheets read it (:mod:`app.csvfile`: headings in the language, in
+    German a semicolon between cells and decimal commas; English when None); times ISO, the line's texts as written."""
+    return csv_text(CSV_HEADER, ([_csv_value(k, r[k]) for k in CSV_FIELDS] for r in rows), lang)
 
 
 def content(bus: str) -> None:
@@ -137,15 +164,16 @@ def content(bus: str) -> None:
 
 def modbus_content(bus: str) -> None:
     """The monitor of a request/answer line, with the filters and decoding of its kind."""
-    with frame(f"Bus monitor {bus}"):
+    lang = i18n.page_language()
+    with frame(lang.gettext("Bus monitor {bus}").format(bus=bus)):
         ui.add_css(CSS)
         words = lines.line_words(rt.current().worker, bus)
         if words is not None:
-            TaggedMonitor(bus, words)
+            TaggedMonitor(bus, lang, words)
         elif rt.current().store.buses[bus].type == "modbus-rtu":
-            ModbusMonitor(bus)
+            ModbusMonitor(bus, lang)
         else:
-            LineMonitor(bus)
+            LineMonitor(bus, lang)
 
 
 class LineMonitor:
@@ -155,9 +183,10 @@ class LineMonitor:
     columns = COLUMNS
     clamped = ("decoded",)  # columns shown in two lines, the whole on hover
 
-    def __init__(self, bus: str):
+    def __init__(self, bus: str, lang: Lang):
         runtime = rt.current()
         self.bus = bus
+        self.lang = lang
         self.bus_state = runtime.store.buses[bus]
         self._build()
         self.decoder = rec.TransactionDecoder(runtime.worker, bus)
@@ -171,18 +200,20 @@ class LineMonitor:
 
     def _build(self) -> None:
         bus_state = self.bus_state
+        _ = self.lang.gettext
         with ui.row().classes("items-center gap-3 w-full"):
             ui.label(f"{bus_state.type} · {bus_state.endpoint}").classes("text-caption text-grey-8")
             if bus_state.type == "modbus-rtu":
-                tool_links(self.bus, [("Modbus poll", "poll", "table_rows")])
+                tool_links(self.bus, [(_("Modbus poll"), "poll", "table_rows")])
         with ui.row().classes("items-center gap-3"):
-            self.paused = ui.switch("Pause")
-            self.errors_only = ui.switch("Errors only")
+            self.paused = ui.switch(_("Pause"))
+            self.errors_only = ui.switch(_("Errors only"))
             self.build_filters()
-            self.export = ui.button("Export CSV", icon="download").props("flat dense no-caps data-monitor=export")
+            self.export = ui.button(_("Export CSV"), icon="download").props("flat dense no-caps data-monitor=export")
             self.summary = ui.label().classes("text-body2")
         with ui.element("div").classes("w-full monitor-scroll monitor-fill").props("data-monitor=transactions-box"):
-            table = ui.table(columns=self.columns, rows=[], row_key="id", pagination=0).classes("w-full reg-table")
+            table = ui.table(columns=shown_columns(self.columns, self.lang), rows=[], row_key="id", pagination=0).classes(
+                "w-full reg-table")
         table.props("dense flat bordered hide-bottom data-monitor=transactions")
         for name in ("time", "device", "request", "rtt", "error"):
             if name not in self.clamped:
@@ -231,7 +262,8 @@ class LineMonitor:
             "tx": t.request_hex,
             "rx": t.response_hex,
             "decoded": decoded,
-            "rtt": "-" if t.rtt_ms is None else f"{t.rtt_ms:.1f}",
+            "rtt": "-" if t.rtt_ms is None else f"{t.rtt_ms:.1f}",  # the CSV's number; the table shows rtt_text
+            "rtt_text": "-" if t.rtt_ms is None else self.lang.number(t.rtt_ms, 1, group=False),
             "error": t.error,
         }
         if len(made) > 4 * SHOWN:  # the log's ring buffer dropped the oldest: forget rows no longer listed
@@ -250,10 +282,14 @@ class LineMonitor:
         errors = sum(1 for t in log if t.error)
         cycle = bus_state.cycle_s
         conflicts = bus_state.address_conflicts
-        self.summary.set_text(
-            f"{len(log)} transactions buffered, {errors} with errors"
-            + (f" · line cycle {cycle:.2f} s (every device polled once)" if cycle else "")
-            + (f" · {conflicts} answers from another unit: address conflict on the line?" if conflicts else ""))
+        lang = self.lang
+        _ = lang.gettext
+        parts = [_("{n} transactions buffered, {errors} with errors").format(n=len(log), errors=errors)]
+        if cycle:
+            parts.append(_("line cycle {cycle} s (every device polled once)").format(cycle=lang.number(cycle, 2, group=False)))
+        if conflicts:
+            parts.append(_("{n} answers from another unit: address conflict on the line?").format(n=conflicts))
+        self.summary.set_text(" · ".join(parts))
         if self.paused.value:
             return
         chosen = self.filters()
@@ -274,7 +310,7 @@ class LineMonitor:
         self.update()
 
     def download(self) -> None:
-        ui.download(transactions_csv(self.table.rows).encode(),
+        ui.download(transactions_csv(self.table.rows, self.lang).encode(),
                     f"{self.bus}-transactions-{datetime.now():%Y%m%d-%H%M%S}.csv", "text/csv")
 
 
@@ -282,11 +318,13 @@ class ModbusMonitor(LineMonitor):
     """A Modbus line: filtered by unit, function and any register asked; decoded through the parameter model."""
 
     def build_filters(self) -> None:
-        self.unit_filter = ui.input("Unit", placeholder="any").props(
+        _ = self.lang.gettext
+        self.unit_filter = ui.input(self.lang.pgettext("Modbus", "Unit"), placeholder=_("any")).props(
             "dense clearable data-monitor=filter-unit").classes("w-24")
-        self.function_filter = ui.select({0: "any function", **FUNCTIONS}, value=0, label="Function") \
+        functions = {0: _("any function"), **{code: _(text) for code, text in FUNCTIONS.items()}}
+        self.function_filter = ui.select(functions, value=0, label=_("Function")) \
             .props("dense data-monitor=filter-function").classes("w-56")
-        self.address_filter = ui.input("Address", placeholder="3000 or 3000-3010") \
+        self.address_filter = ui.input(_("Address"), placeholder=_("3000 or 3000-3010")) \
             .props("dense clearable data-monitor=filter-address").classes("w-44")
 
     def filter_controls(self) -> tuple:
@@ -297,12 +335,13 @@ class ModbusMonitor(LineMonitor):
 
     def words(self, t) -> tuple[str, str, str]:
         function = transaction_function(t)
-        return t.request, self.decoder.decoded(t), "" if function is None else FUNCTIONS.get(function, f"{function:02d}")
+        named = FUNCTIONS.get(function) if function is not None else None
+        return t.request, self.decoder.decoded(t), "" if function is None else self.lang.gettext(named) if named else f"{function:02d}"
 
     def filters(self) -> tuple[int | None, int | None, tuple[int, int] | None] | None:
         try:
             unit = _parsed(self.unit_filter, parse_unit, "0 ... 247")
-            address = _parsed(self.address_filter, parse_address, "0 ... 65535 or first-last")
+            address = _parsed(self.address_filter, parse_address, self.lang.gettext("0 ... 65535 or first-last"))
         except ValueError:
             return None
         return unit, (self.function_filter.value or None), address
@@ -316,21 +355,24 @@ class TaggedMonitor(LineMonitor):
     columns = WORDED_COLUMNS
     clamped = ("request", "decoded")
 
-    def __init__(self, bus: str, words: lines.LineWords):
+    def __init__(self, bus: str, lang: Lang, words: lines.LineWords):
         self.line_words = words
         self.filter_fields: list[tuple[lines.LineFilter, ui.element]] = []
-        super().__init__(bus)
+        super().__init__(bus, lang)
 
     def build_filters(self) -> None:
+        lang = self.lang
         for spec in self.line_words.filters:
             if spec.choices:
-                control = ui.select({"": "any", **spec.choices}, value="", label=spec.label) \
+                choices = {key: filter_word(text, lang) for key, text in spec.choices.items()}
+                control = ui.select({"": lang.gettext("any"), **choices}, value="", label=filter_word(spec.label, lang)) \
                     .props(f"dense data-monitor=filter-{spec.key}").classes("w-60")
             else:
-                control = ui.input(spec.label, placeholder=spec.placeholder) \
+                placeholder = filter_word(spec.placeholder, lang) if spec.placeholder else spec.placeholder
+                control = ui.input(filter_word(spec.label, lang), placeholder=placeholder) \
                     .props(f"dense clearable data-monitor=filter-{spec.key}").classes("w-40")
             if spec.hint:
-                control.tooltip(spec.hint)
+                control.tooltip(filter_word(spec.hint, lang))
             self.filter_fields.append((spec, control))
 
     def filter_controls(self) -> tuple:
@@ -347,7 +389,8 @@ class TaggedMonitor(LineMonitor):
                 chosen.append(spec.parse(text))
                 control.props(remove="error")
             except ValueError as exc:
-                control.props(f'error error-message="{str(exc) or "not valid"}"')
+                problem = str(exc) or self.lang.gettext("not valid")
+                control.props(f'error error-message="{problem}"')
                 return None
         return tuple(chosen)
 

@@ -111,3 +111,33 @@ def test_a_number_entry_in_german_takes_the_decimal_comma(app, chromium):
         assert page.evaluate("(e) => e.valueAsNumber", field.element_handle()) == 12.5
     finally:
         context.close()
+
+
+BUS_TOOLS = [("/monitor/line1", "Nur Fehler"), ("/monitor/rs232-1", "Nur Fehler"), ("/monitor/can1", "Überschreibansicht"),
+             ("/monitor/line1/poll", "Fenster 1"), ("/monitor/can1/transmit", "Frame als Bytes"),
+             ("/monitor/can1/replay", "Wiedergabe starten")]
+# the page's own texts: what the lines and buses carried (transactions and frames, decoded in the devices' words) and
+# the icons' names left out
+OWN_TEXTS_JS = """() => { const c = document.querySelector('.nicegui-content').cloneNode(true);
+  c.querySelectorAll('[data-monitor=transactions] tbody, [data-monitor=frames] tbody, [data-monitor=overwrite] tbody, '
+   + '.q-icon').forEach(e => e.remove());  /* an icon's text is its name (close, send) */
+  document.body.appendChild(c); const text = c.innerText; c.remove(); return text; }"""
+
+
+@pytest.mark.browser
+@pytest.mark.timeout(180)
+@pytest.mark.parametrize("width,height", SIZES, ids=[f"{w}x{h}" for w, h in SIZES])
+def test_the_bus_tools_in_german(app, chromium, width: int, height: int):
+    """The bus monitors (a Modbus line, an SCU's RS232 line, a CAN bus), the Modbus poll, the transmit list and the
+    replay page with a German browser: no text of the English catalog, nothing scrolls sideways."""
+    context = chromium.new_context(viewport={"width": width, "height": height}, locale="de-DE")
+    try:
+        page = context.new_page()
+        for path, text in BUS_TOOLS:
+            page.goto(f"{app}{path}")
+            page.get_by_text(text).first.wait_for(timeout=15_000)
+            page.wait_for_timeout(1500)  # the first refresh of the lists and counters
+            assert english_in([page.evaluate(OWN_TEXTS_JS)]) == [], path
+            assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth + 1"), path
+    finally:
+        context.close()

@@ -432,3 +432,217 @@ async def test_the_record_page_in_german_shows_no_english_but_what_the_record_ho
         found = [(text, message) for text, message in english_on(user) if not as_written(text, written | names)]
         assert found == [], "\n".join(map(str, found))
         user.find(marker="gaps-cancel").click()
+
+
+@contextlib.asynccontextmanager
+async def german_demo(tmp_path, monkeypatch):
+    """The demo plant (every bus kind: a Modbus line, CAN buses, an SCU's RS232 line, LogiTed lines) for a German browser."""
+    from test_monitor import demo_plant
+
+    from app import recording as rec
+    from app.can_bus import CanBusState
+
+    monkeypatch.setenv(rec.DIR_ENV, str(tmp_path / "recordings"))
+    runtime = Runtime(demo_plant(), simulate=True, data_dir=tmp_path)
+    try:
+        async with german_user(runtime) as user:
+            yield runtime, user
+    finally:
+        for state in runtime.store.buses.values():
+            if isinstance(state, CanBusState):
+                rec.stop_recording(state)
+
+
+def marked_table(user, name: str) -> ui.table:
+    return next(e for e in user.client.elements.values() if isinstance(e, ui.table) and e.props.get("data-monitor") == name)
+
+
+async def test_the_line_monitors_in_german_show_no_english(tmp_path, monkeypatch):
+    """The monitor of a Modbus line, an SCU's RS232 line and a LogiTed line (pages/monitor.py): filters, columns,
+    counts; the transactions in the words of their device pages are the adapters' (still English)."""
+    async with german_demo(tmp_path, monkeypatch) as (runtime, user):
+        await user.open("/monitor/line1")
+        await user.should_see("Busmonitor line1", retries=50)
+        await user.should_see("Nur Fehler")
+        await user.should_see("Modbus-Abfrage")
+        table = marked_table(user, "transactions")
+        await eventually(lambda: table.rows, timeout=15, what="the line's transactions")
+        await eventually(lambda: any("Transaktionen gepuffert" in t for t in shown_texts(user)), timeout=5, what="the counts")
+        assert [c["label"] for c in table.columns] == ["Zeit", "Gerät", "Anfrage", "Anfrage hex", "Antwort hex", "Dekodiert",
+                                                       "RTT ms", "Fehler"]
+        function = next(e for e in user.client.elements.values() if e.props.get("data-monitor") == "filter-function")
+        assert function.options[3] == "03 Holding-Register lesen"
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
+        for bus, filter_name, word in (("rs232-1", "filter-command", "RG Daten lesen"), ("gates-485", "filter-telegram", "Abfragen")):
+            await user.open(f"/monitor/{bus}")
+            await user.should_see(f"Busmonitor {bus}", retries=50)
+            chosen = next(e for e in user.client.elements.values() if e.props.get("data-monitor") == filter_name)
+            assert word in chosen.options.values(), chosen.options
+            found = english_on(user)
+            assert found == [], "\n".join(map(str, found))
+
+
+def test_the_monitors_csv_is_in_the_language_of_its_page():
+    """The transactions' CSV as German spreadsheets read it (app/csvfile.py): German headings, a semicolon between cells,
+    the decimal comma; times ISO and the line's texts as written."""
+    import csv
+    import io
+
+    from pages.monitor import transactions_csv
+
+    row = {"date": "2026-11-24 10:00:00.000", "device": "door-1", "unit": 1, "function": "03 Holding-Register lesen",
+           "request": "read holding 3000+9", "tx": "01 03", "rx": "01 03 12", "decoded": "a = -30", "rtt": "12.5", "error": ""}
+    lines = list(csv.reader(io.StringIO(transactions_csv([row], i18n.get("de"))), delimiter=";"))
+    assert lines[0] == ["Zeit", "Gerät", "Unit-ID", "Funktion", "Anfrage", "Anfrage hex", "Antwort hex", "dekodiert", "RTT ms",
+                        "Fehler"]
+    assert lines[1][0] == "2026-11-24 10:00:00.000" and lines[1][8] == "12,5" and lines[1][7] == "a = -30"
+    english = list(csv.reader(io.StringIO(transactions_csv([row]))))
+    assert english[0][8] == "rtt ms" and english[1][8] == "12.5"
+
+
+async def test_the_can_monitor_in_german_shows_no_english(tmp_path, monkeypatch):
+    """The monitor of a CAN bus (pages/can_monitor.py, can_trace.py, can_files.py): bus state, counters, load, filters,
+    the overwrite view and the frame list, a frame's details, recording and a recorded file; the decoded texts are the
+    codecs' (the documents' names of messages and fields)."""
+    from test_monitor import SmallFileUpload
+
+    from app import recording as rec
+
+    async with german_demo(tmp_path, monkeypatch) as (runtime, user):
+        await user.open("/monitor/can1")
+        await user.should_see("Busmonitor can1", retries=50)
+        await user.should_see("Überschreibansicht: eine Zeile pro ID")
+        await user.should_see("fehleraktiv", retries=50)
+        await user.should_see(kind=ui.label, content="Error-Frames 0")
+        frames, overwrite = marked_table(user, "frames"), marked_table(user, "overwrite")
+        await eventually(lambda: frames.rows and overwrite.rows, timeout=15, what="the bus's frames")
+        assert [c["label"] for c in frames.columns] == ["Zeit", "Rtg.", "ID", "Gerät", "Δt ms", "DLC", "Daten", "Dekodiert"]
+        assert [c["label"] for c in overwrite.columns] == ["ID", "Rtg.", "Gerät", "Anzahl", "Zyklus ms",
+                                                           "Daten (geänderte Bytes markiert)", "Dekodiert", "Zuletzt"]
+        await eventually(lambda: any(r["age"].endswith("her") or r["age"] == "gerade eben" for r in overwrite.rows),
+                         timeout=5, what="the ages in German")
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
+        user.find(marker="frames").trigger("rowClick", [None, frames.rows[0]])  # a frame's full decoding
+        await user.should_see("Δt zum vorigen Frame dieser ID", retries=20)
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
+        user.find(marker="record").click()
+        await user.should_see(kind=ui.label, content="Aufzeichnung can1-", retries=50)
+        state = runtime.store.buses["can1"]
+        recording = rec.active_recording(state)
+        await eventually(lambda: recording.frames >= 2, timeout=6, what="frames recorded")
+        user.find(marker="stop").click()
+        await eventually(lambda: rec.active_recording(state) is None and not recording.active, timeout=5)
+        await user.should_see(f"{recording.frames} Frames in {recording.path.name} gespeichert", retries=50)
+        upload = next(iter(user.find(marker="upload").elements))
+        await upload.handle_uploads([SmallFileUpload(recording.path.name, "text/plain", recording.path.read_bytes())])
+        await user.should_see(f"{recording.path.name} geöffnet", retries=50)
+        await eventually(lambda: any("pro Seite" in t for t in shown_texts(user)), timeout=5, what="the file's line")
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
+
+
+
+def by_testid(user, name: str) -> ui.element:
+    return next(e for e in user.client.elements.values() if e.props.get("data-testid") == name)
+
+
+async def test_the_modbus_poll_in_german_shows_no_english(tmp_path):
+    """The Modbus poll of a line (pages/bus_poll.py): a window polling, its counts and table, the write card."""
+    from nicegui.testing.user_interaction import UserInteraction
+
+    async with german_locks(tmp_path, "door-1") as (runtime, user):
+        await user.open("/monitor/line1/poll")
+        await user.should_see("Modbus-Abfrage · line1", retries=50)
+        await user.should_see("Fenster 1", retries=50)
+        await user.should_see("Holding-Register oder Coils schreiben")
+        UserInteraction(user, {by_testid(user, "poll-start")}, None).click()
+        await eventually(lambda: "Abfragen · " in by_testid(user, "poll-status").text and "aktualisiert" in by_testid(user, "poll-status").text,
+                         timeout=10, what="the window's answers")
+        table = by_testid(user, "poll-table")
+        await eventually(lambda: table.rows, timeout=5, what="the values")
+        assert [c["label"] for c in table.columns][:6] == ["Adresse (ab 0)", "Bekanntes Register", "Ohne Vorzeichen",
+                                                           "Mit Vorzeichen", "Hex", "Binär"]
+        assert by_testid(user, "poll-summary").text.startswith("Unit-ID 1 · 03 Holding-Register lesen · 1000+10 · alle 1 s")
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
+
+
+async def test_the_transmit_list_in_german_shows_no_english(tmp_path, monkeypatch):
+    """The transmit list of a CAN bus (pages/bus_transmit.py): the raw and the named frame cards, the rows and their
+    buttons, the device messages by name."""
+    from nicegui.testing.user_interaction import UserInteraction
+
+    async with german_demo(tmp_path, monkeypatch) as (runtime, user):
+        await user.open("/monitor/can1/transmit")
+        await user.should_see("Sendeliste · can1", retries=50)
+        await user.should_see("Frame als Bytes")
+        await user.should_see("Gerätebotschaft nach Namen")
+        await user.should_see("Noch keine Zeilen: oben einen Frame hinzufügen.", retries=50)
+        UserInteraction(user, {by_testid(user, "transmit-add")}, None).click()
+        table = by_testid(user, "transmit-table")
+        await eventually(lambda: table.rows, timeout=5, what="the row added")
+        assert table.rows[0]["mode"] == "einmal"
+        assert [c["label"] for c in table.columns][:6] == ["ID", "DLC", "Daten", "Botschaft", "Senden", "Gesendet"]
+        assert 'label="Senden"' in table.slots["body-cell-actions"].template
+        await user.should_see("gate-1 Register")  # a lock's request by name
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
+
+
+async def test_the_replay_page_in_german_shows_no_english_but_the_replays_own_words(tmp_path):
+    """Replaying a recording (pages/bus_replay.py): the recording, speeds (decimal comma), start, the question and
+    the outcome; what app/replay.py words itself (the question's body, the replay's summary) is still English."""
+    import can
+    from plants import can_bus, channel, plant
+
+    from app import recording as rec
+
+    runtime = Runtime(plant(can_bus(name="can9", channel_name=channel("replay-de"), bitrate=500000, simulate=None)),
+                      simulate=False, data_dir=tmp_path / "data")
+    folder = runtime.data_dir / "recordings"
+    folder.mkdir(parents=True)
+    writer = rec.WRITERS[".log"][0](folder / "can9-test.log")
+    for i in range(20):
+        writer.on_message_received(can.Message(timestamp=100 + i * 0.01, arbitration_id=0x300 + i, data=bytes([i])))
+    writer.stop()
+    async with german_user(runtime) as user:
+        await user.open("/monitor/can9/replay")
+        await user.should_see("Wiedergabe auf can9", retries=50)
+        await user.should_see("keine Datei geladen")
+        speed = next(e for e in user.client.elements.values() if isinstance(e, ui.select) and e.props.get("label") == "Geschwindigkeit")
+        assert speed.options[0.5] == "0,5 x" and speed.options[1.0] == "1 x (Original)"
+        assert english_on(user) == []
+        choice = next(e for e in user.client.elements.values() if e.props.get("label") == "Aufzeichnungen im Datenordner")
+        choice.set_value("can9-test.log")
+        await user.should_see("can9-test.log: 20 Frames", retries=50)
+        user.find("Wiedergabe starten").click()
+        await user.should_see("Auf can9 wiedergeben?", retries=50)
+        question = next(e.text for e in user.client.elements.values()
+                        if isinstance(e, ui.label) and e.text.startswith("Replay 20 recorded frame(s)"))
+        found = [(text, message) for text, message in english_on(user) if text != question]
+        assert found == [], "\n".join(map(str, found))
+        user.find("20 Frames senden").click()
+        status = by_testid(user, "replay-status")
+        await eventually(lambda: "20 of 20" in status.text, timeout=10, what="the replay's end")
+        found = [(text, message) for text, message in english_on(user) if text != status.text]
+        assert found == [], "\n".join(map(str, found))
+
+
+async def test_the_discover_dialog_in_german_shows_no_english(tmp_path):
+    """The address scan of an RS485 line (pages/discover.py, opened from the overview): its text, range, progress and
+    the locks found."""
+    async with german_locks(tmp_path, "*") as (runtime, user):
+        await user.open("/")
+        await user.should_see("Schlösser suchen", retries=50)
+        user.find(kind=ui.button, content="Schlösser suchen").click()
+        await user.should_see("Schlösser an line1 suchen", retries=20)
+        to = next(e for e in user.client.elements.values() if isinstance(e, ui.number) and e.props.get("label") == "Bis")
+        to.value = 2
+        user.find(kind=ui.button, content="Starten").click()
+        await user.should_see("2 Schlösser gefunden", retries=200)
+        await user.should_see(kind=ui.label, content="in der Anlage als door-2")
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
