@@ -34,6 +34,7 @@ from app.report import (
     with_unit,
 )
 from app.report_archive import write_plant
+from app.message import said
 from app.verify import check_archive
 from pages.command_client import VIEWER_REASON, enable_unless
 from pages.frame import ACTION_ERRORS, fmt_time, frame
@@ -49,8 +50,6 @@ STATUS_WORDS = (N_("ready"), N_("running"), N_("pending"), N_("error"))
 KIND = "record kind"
 KIND_WORDS = (NP_("record kind", "approved"), NP_("record kind", "snapshot"), NP_("record kind", "checkout"),
               NP_("record kind", "signoff"), NP_("record kind", "integrity"))
-# what app/verify.py's check names: the record database or an archive
-CHECKED_WORDS = (N_("record"), N_("archive"))
 TIMELINE_COLUMNS = [{"name": "id", "label": "#", "field": "id"},
                     {"name": "time", "label": N_("Time"), "field": "time", "align": "left"},
                     {"name": "kind", "label": N_("Kind"), "field": "kind", "align": "left"},
@@ -457,21 +456,6 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
     ui.timer(5.0, show)  # checkouts, approvals and snapshots of this page or another one show up
 
 
-def check_summary(check, lang: Lang) -> str:
-    """:meth:`app.verify.Check.summary` in ``lang``: what was checked and whether it is intact; the first
-    alteration as the check words it."""
-    _ = lang.gettext
-    checked, _space, where = check.what.partition(" ")
-    what = f"{_(checked)} {where}".strip()
-    if not check.ok:
-        return _("{what}: ALTERED: {problem}").format(what=what, problem=check.problems[0])
-    parts = [_("{n} record rows chained").format(n=check.rows)]
-    if check.files:
-        parts.append(_("{n} files match the manifest").format(n=check.files))
-    head = _("; last row #{id}, hash {hash}").format(id=check.head[0], hash=check.head[1][:16]) if check.head else ""
-    return _("{what}: intact ({parts}{head})").format(what=what, parts=", ".join(parts), head=head)
-
-
 def _check_card(runtime, lang: Lang) -> None:
     """Whether the record (or an as-left archive someone hands over) was altered: the chain of row
     hashes, the sign-offs, every file against the archive's manifest (app/verify.py)."""
@@ -484,8 +468,8 @@ def _check_card(runtime, lang: Lang) -> None:
     def show(check) -> None:
         result.clear()
         with result:
-            ui.label(check_summary(check, lang)).classes("text-body1 " + ("text-positive" if check.ok else "text-negative text-weight-bold"))
-            for line in check.problems[1:] + [_("note: {note}").format(note=n) for n in check.notes]:
+            ui.label(said(check.summary(), lang)).classes("text-body1 " + ("text-positive" if check.ok else "text-negative text-weight-bold"))
+            for line in [said(p, lang) for p in check.problems[1:]] + [_("note: {note}").format(note=said(n, lang)) for n in check.notes]:
                 ui.label(line).classes("text-body2")
 
     async def check_record() -> None:

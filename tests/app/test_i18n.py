@@ -3,6 +3,7 @@ words in German (issue 47)."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -178,3 +179,70 @@ def test_the_record_commands_say_in_german_why_a_run_does_not_start():
     assert one.startswith("commission: nicht gestartet: gate ist eine echte Anlage") and "LEERTASTE" in one
     assert two.startswith("commission: nicht gestartet: gate, lift sind echte Anlagen")
     assert record_cli.real_without_person(["gate"]).startswith("commission: not started: gate is real equipment")
+
+
+def _english_pieces(modules: tuple[str, ...]) -> set[str]:
+    """The words of the catalog's texts of these modules between their fields, as English prints them (the pieces
+    long enough to be English of their own: "is missing from the archive", not "file")."""
+    from babel.messages.pofile import read_po
+
+    with open(ROOT / "locale" / "messages.pot", "rb") as f:
+        template = read_po(f)
+    pieces = set()
+    for m in template:
+        if isinstance(m.id, str) and any(path in modules for path, _line in m.locations):
+            pieces.update(p.strip(" :;,.()'") for p in re.split(r"\{[^{}]*\}", m.id))
+    return {p for p in pieces if len(p) > 14 and " " in p}
+
+
+def _german(argv: list[str], capsys) -> str:
+    try:
+        code = cli.main(["--lang", "de", *argv])
+    finally:
+        cli.set_language("en")
+    captured = capsys.readouterr()
+    return code, captured.out + captured.err
+
+
+def test_commission_check_words_its_findings_in_german(tmp_path, capsys):
+    from plants import device, modbus_line, plant_text
+
+    path = tmp_path / "plant.toml"
+    path.write_text(plant_text(modbus_line(locks=()) + device("door-1", "hdlock", "line1", address=1,
+                                                               project={"LockReqDelay": 3, "LockRequestDelay": "x"}), name="p"))
+    code, out = _german(["check", "--plant", str(path)], capsys)
+    assert code == 1
+    assert "Gerät 'door-1': unbekannter Parameter 'LockReqDelay'; war " in out
+    assert "1 Geräte, 2 Projekteinträge, 2 ungültig oder unbekannt" in out
+    english = _english_pieces(("app/project.py", "app/plant.py"))
+    assert not [p for p in english if p in out], out
+    path.write_text(plant_text(modbus_line(locks=()), name="p") + "\n[[devices]]\nname = \"x\"\n")
+    code, out = _german(["check", "--plant", str(path)], capsys)
+    assert code == 2 and "unbekannter Abschnitt [[devices]]; war [[device]] gemeint? bekannt: " in out, out
+    assert not [p for p in english if p in out], out
+
+
+def test_commission_verify_words_its_checks_in_german(tmp_path, capsys):
+    import sqlite3
+
+    from app.record_store import RecordStore
+
+    store = RecordStore(tmp_path / "record.sqlite")
+    for title in ("one", "two", "three"):
+        store.add(plant="p", device="door", kind="checkout", user="anna", role="engineer", title=title, data={})
+    store.close()
+    code, out = _german(["verify", "--record", "--data-dir", str(tmp_path)], capsys)
+    assert code == 0 and "Protokoll " in out and ": unverändert (3 Protokollzeilen verkettet; letzte Zeile #3, Hash " in out, out
+    db = sqlite3.connect(tmp_path / "record.sqlite")
+    db.execute("DROP TRIGGER record_no_delete")
+    db.execute("DELETE FROM record WHERE id = 2")
+    db.commit()
+    db.close()
+    code, out = _german(["verify", "--record", "--data-dir", str(tmp_path)], capsys)
+    assert code == 1, out
+    assert "VERÄNDERT: Zeile #2 fehlt (außerhalb des Programms gelöscht): Zeile #3 folgt auf #1" in out
+    assert "verändert: der Schutz record_no_delete des Protokolls wurde außerhalb des Programms entfernt" in out
+    english = _english_pieces(("app/verify.py",))
+    assert not [p for p in english if p in out], out
+    code, out = _german(["verify", str(tmp_path / "record.sqlite")], capsys)
+    assert code == 1 and "ist kein lesbares Archiv" in out and not [p for p in english if p in out], out
