@@ -118,7 +118,7 @@ def _downloads(runtime, user: str, role: str, lang: Lang) -> None:
         try:
             paths = await write_plant(runtime, folder, user=user or "viewer", role=role, lang=i18n.get(language.value))
         except ACTION_ERRORS as exc:  # said to the engineer
-            ui.notify(_("report: {error}").format(error=exc), type="negative", multi_line=True)
+            ui.notify(_("report: {error}").format(error=said(exc, lang)), type="negative", multi_line=True)
             return
         ui.download(paths[kind].read_bytes(), paths[kind].name)
 
@@ -194,14 +194,14 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool, lan
         try:
             run = runtime.record.new_run(name, user=user, role=role, ask=ask, session=_session_id())
         except ACTION_ERRORS as exc:  # a checkout running already, a role
-            ui.notify(str(exc), type="negative")
+            ui.notify(said(exc, lang), type="negative")
             return
         run.listeners.append(lambda: draw(run))
         abort.on_click(lambda: run.abort(f"aborted by {user}"))
         try:
             result = await run.run()
         except PermissionError as exc:
-            ui.notify(str(exc), type="negative")
+            ui.notify(said(exc, lang), type="negative")
             return
         ui.notify(_("checkout {status}").format(status=_status_text(result["status"], result["reason"], lang)),
                   type="positive" if result["status"] == "passed" else "negative", multi_line=True)
@@ -243,7 +243,7 @@ async def ask_account(runtime, user: str, what: str, lang: Lang) -> str | None:
                                                typed=(name.value or "").strip(), secret=password.value or "", address=address,
                                                via="record page")
             if account is None:
-                message.set_text(lang.phrase(words))  # the login's words (app/auth.py), as the login page says them
+                message.set_text(said(words, lang))  # the login's words (app/auth.py), as the login page says them
                 password.set_value("")
                 return
             if account.role != "engineer":
@@ -363,7 +363,7 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool, lan
                 await runtime.record.snapshot(name, user=user, role=role)
                 ui.notify(_("snapshot stored"), type="positive")
         except ACTION_ERRORS as exc:  # said to the engineer
-            ui.notify(_("{action}: {error}").format(action=_(ACTIONS[what]), error=exc), type="negative", multi_line=True)
+            ui.notify(_("{action}: {error}").format(action=_(ACTIONS[what]), error=said(exc, lang)), type="negative", multi_line=True)
         await refresh()
 
     approve.on_click(lambda: act("approve"))
@@ -431,7 +431,8 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
         try:
             content = await (plant_content(runtime, user=user, role=role) if plant else device_content(runtime, name, user=user, role=role))
         except ACTION_ERRORS as exc:  # said to the engineer
-            ui.notify(_("sign-off: the report could not be made: {error}").format(error=exc), type="negative", multi_line=True)
+            ui.notify(_("sign-off: the report could not be made: {error}").format(error=said(exc, lang)), type="negative",
+                      multi_line=True)
             return
         if not await confirm_gaps(sign_gaps(content, lang), what, lang):
             return
@@ -443,7 +444,7 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
                                       signer_role=signer_role.value.strip(), comment=comment.value, content=content,
                                       account=account)
         except ACTION_ERRORS as exc:  # said to the engineer
-            ui.notify(_("sign-off: not signed: {error}").format(error=exc), type="negative", multi_line=True)
+            ui.notify(_("sign-off: not signed: {error}").format(error=said(exc, lang)), type="negative", multi_line=True)
             return
         ui.notify(_("signed by {name} with account {account}: the record is frozen; a later sign-off supersedes it").format(
             name=signer.value.strip(), account=account), type="positive")

@@ -9,6 +9,8 @@ from pathlib import Path
 import pytest
 
 from app import cli, i18n
+from app.i18n import N_
+from app.message import Message
 from pages.plant_view import operator_words, state_words
 
 DE, EN = i18n.get("de"), i18n.get("en")
@@ -246,3 +248,23 @@ def test_commission_verify_words_its_checks_in_german(tmp_path, capsys):
     assert not [p for p in english if p in out], out
     code, out = _german(["verify", str(tmp_path / "record.sqlite")], capsys)
     assert code == 1 and "ist kein lesbares Archiv" in out and not [p for p in english if p in out], out
+
+
+def test_the_commissioning_dates_are_written_the_languages_way():
+    from app.report import commissioned_text
+
+    d = {"commissioned_by": ["anna"], "commissioned": ["2026-11-28 14:05:09", "2026-11-29 08:00:00"], "signoff": {"id": 1}}
+    assert commissioned_text(d) == "Commissioned by anna from 2026-11-28 14:05:09 to 2026-11-29 08:00:00."
+    assert commissioned_text(d, lang=EN) == "Commissioned by anna from 2026-11-28 14:05:09 to 2026-11-29 08:00:00."
+    german = commissioned_text(d, lang=DE)
+    assert "28.11.2026, 14:05:09" in german and "29.11.2026, 08:00:00" in german, german
+
+
+def test_the_login_and_the_records_refusals_keep_their_english_and_say_it_in_german():
+    from app.message import said
+    from app.record import RecordError
+
+    refusal = RecordError(Message(N_("{device}: a checkout is running already"), device="door-1"))
+    assert str(refusal) == "door-1: a checkout is running already"
+    assert said(refusal, DE) == "door-1: eine Funktionsprüfung läuft bereits"
+    assert said(refusal, None) == said(refusal, EN) == "door-1: a checkout is running already"

@@ -432,3 +432,38 @@ async def test_the_record_page_in_german_shows_no_english_but_what_the_record_ho
         found = [(text, message) for text, message in english_on(user) if not as_written(text, written | names)]
         assert found == [], "\n".join(map(str, found))
         user.find(marker="gaps-cancel").click()
+
+
+async def test_the_record_page_in_german_says_why_a_checkout_does_not_start_and_a_login_refusal(tmp_path):
+    """What app/ refuses (app/record.py, app/auth.py) said in the page's language: a checkout already running, and
+    the account dialog's wrong password."""
+    import asyncio
+
+    asked, answered = asyncio.Event(), asyncio.Event()
+
+    async def ask(question: str) -> bool:  # the first question waits until the test has pressed start
+        asked.set()
+        await answered.wait()
+        return False
+
+    UserStore(tmp_path / "users.toml").add("anna", "engineer", "correct horse")
+    async with german_locks(tmp_path, "door-1") as (runtime, user):
+        await user.open("/record/door-1")
+        await user.should_see("Inbetriebnahmeprotokoll", retries=50)
+        run = runtime.record.new_run("door-1", user="anna", role="engineer", ask=ask)  # from another tab, meanwhile
+        task = asyncio.create_task(run.run())
+        try:
+            await eventually(asked.is_set, timeout=30, what="the checkout's first question")
+            user.find(marker="checkout-run").click()
+            await user.should_see("door-1: eine Funktionsprüfung läuft bereits", retries=50)
+        finally:
+            answered.set()
+            await asyncio.wait_for(task, 30)
+        assert not [m for m in user.notify.messages if "a checkout is running already" in m], user.notify.messages
+        user.find(marker="record-approve").click()
+        await user.should_see("Konto", retries=50)
+        next(iter(user.find(marker="account-name").elements)).value = "anna"
+        next(iter(user.find(marker="account-password").elements)).value = "wrong"
+        user.find(marker="account-ok").click()
+        await user.should_see("Falscher Benutzername oder falsches Passwort", retries=100)
+        user.find(marker="account-cancel").click()
