@@ -63,11 +63,18 @@ def joined(parts: list[str], separator: str = ", ") -> Message:
     return Message(separator.join("{%s}" % name for name in fields), **fields)
 
 
+def message_of(error: BaseException) -> str:
+    """What ``error`` says: the :class:`Message` it carries (worded by its reader), else its text."""
+    if len(error.args) == 1 and isinstance(error.args[0], Message):
+        return error.args[0]
+    return str(error)
+
+
 def said(text: object, lang: Lang | None) -> str:
     """``text`` in ``lang``: a :class:`Message` (also one an error carries as its message) worded in it; any
     other text as it is."""
-    if isinstance(text, BaseException) and len(text.args) == 1 and isinstance(text.args[0], Message):
-        text = text.args[0]
+    if isinstance(text, BaseException):
+        text = message_of(text)
     if isinstance(text, Message):
         return text.text(lang)
     return str(text)

@@ -43,7 +43,7 @@ from app.capabilities import allowed_text
 from app import cli_lang
 from app.cli_lang import _
 from app.i18n import N_
-from app.message import Message, said
+from app.message import Message, message_of, said
 from app.plant import Plant, PlantError, load_plant, parse_plant
 from devices.errors import CommissionError
 from devices.params import Param, ParamError
@@ -214,7 +214,7 @@ def document(runtime, device: str) -> dict:
     restore's diff as "not written" with the reason)."""
     plant = runtime.plant
     if not has_project(plant, device):
-        raise backup.BackupError(f"{device}: the plant file names no project for it")
+        raise backup.BackupError(Message(N_("{device}: the plant file names no project for it"), device=device))
     state = runtime.store.devices[device]
     items = []
     for entry in entries(plant, device):
@@ -268,15 +268,18 @@ def editable(plant: Plant, device: str) -> list[Param]:
 
 
 def allowed(param: Param) -> str:
-    """What an entry of ``param`` may be, in words: "0 .. 65535 ms", "one of: 0 Off, 1 On"."""
+    """What an entry of ``param`` may be, in words: "0 .. 65535 ms (whole numbers)", "one of: 0 Off, 1 On" (a
+    :class:`~app.message.Message` but for the parameter model's own words)."""
     if text := allowed_text(param):  # a value that is not a number says itself (an M3IO record's bytes)
         return text
     if param.enum is not None:
-        return "one of: " + ", ".join(f"{number} {name}" for number, name in param.enum.items())
+        return Message(N_("one of: {values}"), values=", ".join(f"{number} {name}" for number, name in param.enum.items()))
     low, high = param.limits()
     number = (lambda x: f"{x:g}") if param.scale != 1 else (lambda x: str(int(x)))
-    step = f" in steps of {param.scale:g}" if param.scale != 1 else " (whole numbers)"
-    return f"{number(low)} .. {number(high)} {param.unit}".rstrip() + step
+    span = f"{number(low)} .. {number(high)} {param.unit}".rstrip()
+    if param.scale != 1:
+        return Message(N_("{range} in steps of {step}"), range=span, step=f"{param.scale:g}")
+    return Message(N_("{range} (whole numbers)"), range=span)
 
 
 def parse_value(param: Param, text: str | int | float) -> int | float:
@@ -285,14 +288,14 @@ def parse_value(param: Param, text: str | int | float) -> int | float:
     :raises ProjectError: not a number, out of range, no enum value; the message says what is allowed
     """
     if isinstance(text, str) and not text.strip():
-        raise ProjectError(f"{param.label or param.name}: empty; allowed: {allowed(param)}")
+        raise ProjectError(Message(N_("{name}: empty; allowed: {allowed}"), name=param.label or param.name, allowed=allowed(param)))
     try:
         raw = param.validate(text)
     except ParamError as exc:
-        message = str(exc)
+        message = message_of(exc)
         if "outside" in message or "not one of" in message:
             raise ProjectError(message) from None
-        raise ProjectError(f"{message}; allowed: {allowed(param)}") from None
+        raise ProjectError(Message(N_("{error}; allowed: {allowed}"), error=message, allowed=allowed(param))) from None
     return param.decode(raw)
 
 

@@ -268,3 +268,26 @@ def test_the_login_and_the_records_refusals_keep_their_english_and_say_it_in_ger
     assert str(refusal) == "door-1: a checkout is running already"
     assert said(refusal, DE) == "door-1: eine Funktionsprüfung läuft bereits"
     assert said(refusal, None) == said(refusal, EN) == "door-1: a checkout is running already"
+
+
+def test_the_texts_app_hands_the_pages_keep_their_english_and_come_in_german():
+    from collections import deque
+
+    from app import batch
+    from app.backup import RestoreReport
+    from app.message import said
+    from app.project import allowed
+    from app.replace import identity_text
+    from app.worker.discovery import _Candidate
+    from devices.hdlock.params import PARAMS
+
+    report = RestoreReport(written=["LockRequestDelay"], unchanged=["LockDelay", "LockMode"], saved="Save-Settings")
+    assert report.summary() == "1 written, 2 unchanged, 0 failed, 0 skipped; Save-Settings done"
+    assert said(report.summary(), DE) == "1 geschrieben, 2 unverändert, 0 fehlgeschlagen, 0 übersprungen; Save-Settings ausgeführt"
+    identity = identity_text({"serial": 660020, "FirmwareVersion": 57})
+    assert identity == "serial 660020, firmware 57" and said(identity, DE) == "Seriennummer 660020, Firmware 57"
+    whole = allowed(PARAMS.by_name["LockRequestDelay"])
+    assert whole == "0 .. 65535 ms (whole numbers)" and said(whole, DE) == "0 .. 65535 ms (ganze Zahlen)"
+    evidence = _Candidate(entry={}, heard=0.0, first_seen=0.0, frames=3, streak=3, intervals=deque([0.1, 0.1])).evidence_text()
+    assert evidence == "3 frames in a row, 0.10, 0.10 s apart" and said(evidence, DE) == "3 Frames in Folge, 0,10, 0,10 s Abstand"
+    assert batch.status_text(batch.WRITTEN, DE) == "geschrieben" and batch.status_text(batch.FAILED, EN) == "failed"
