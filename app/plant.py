@@ -16,7 +16,7 @@ from typing import Any
 import tomllib
 
 from app.i18n import N_
-from app.message import Message
+from app.message import Message, message_of
 from devices.errors import CommissionError
 from devices.registry import DEVICE_TYPES, format_can_ids
 
@@ -473,15 +473,16 @@ def parse_mqtt_url(url: str) -> tuple[str, int, bool]:
         parts = urlsplit(url)
         port = parts.port
     except ValueError as exc:
-        raise ValueError(f"{url!r} is not a broker URL ({exc})") from None
+        raise ValueError(Message(N_("{url!r} is not a broker URL ({error})"), url=url, error=exc)) from None
     if parts.scheme not in MQTT_SCHEMES:
-        raise ValueError(f"{url!r} must start with mqtt:// or mqtts:// (TLS)")
+        raise ValueError(Message(N_("{url!r} must start with mqtt:// or mqtts:// (TLS)"), url=url))
     if not parts.hostname:
-        raise ValueError(f"{url!r} names no broker host, e.g. mqtt://broker.local:1883")
+        raise ValueError(Message(N_("{url!r} names no broker host, e.g. mqtt://broker.local:1883"), url=url))
     if parts.username or parts.password:
-        raise ValueError(f"{url!r} carries a user or password; use username = ... and password_env or password_file")
+        raise ValueError(Message(N_("{url!r} carries a user or password; use username = ... and password_env or password_file"),
+                                 url=url))
     if parts.path not in ("", "/") or parts.query or parts.fragment:
-        raise ValueError(f"{url!r}: a broker URL has no path or query, e.g. mqtt://broker.local:1883")
+        raise ValueError(Message(N_("{url!r}: a broker URL has no path or query, e.g. mqtt://broker.local:1883"), url=url))
     return parts.hostname, port or MQTT_SCHEMES[parts.scheme], parts.scheme == "mqtts"
 
 
@@ -489,55 +490,65 @@ def parse_mqtt(text: str, raw: Any, plant_name: str, path: Path | None, fail) ->
     """The ``[mqtt]`` table: every key checked, errors as ``file:line: what is wrong``."""
     line = _section_line(text, "mqtt")
     if not isinstance(raw, dict):
-        raise fail(line, '[mqtt] must be a table, e.g. [mqtt] url = "mqtt://broker.local:1883"')
+        raise fail(line, Message(N_('[mqtt] must be a table, e.g. [mqtt] url = "mqtt://broker.local:1883"')))
     at = lambda key: _key_line(text, line, key)  # noqa: E731
     for key in raw:
         if key == "password":
-            raise fail(at(key), "[mqtt]: a password never goes in the plant file; name an environment variable "
-                       "(password_env = \"MQTT_PASSWORD\") or a file (password_file = \"mqtt-password.txt\") that holds it")
+            raise fail(at(key), Message(N_("[mqtt]: a password never goes in the plant file; name an environment variable "
+                                           "(password_env = \"MQTT_PASSWORD\") or a file (password_file = \"mqtt-password.txt\") "
+                                           "that holds it")))
         if key not in MQTT_KEYS:
             raise fail(at(key), _unknown_key("[mqtt]", key, MQTT_KEYS))
     for key in ("url", "site", "instance", "username", "password_env", "password_file", "ca_file"):
         if key in raw and not isinstance(raw[key], str):
             raise fail(at(key), _wrong_type("[mqtt]", key, raw[key], str))
     if "url" not in raw:
-        raise fail(line, '[mqtt]: \'url\' is required (add url = "mqtt://broker.local:1883")')
+        raise fail(line, Message(N_('[mqtt]: \'url\' is required (add url = "mqtt://broker.local:1883")')))
     try:
         host, port, tls = parse_mqtt_url(raw["url"])
     except ValueError as exc:
-        raise fail(at("url"), f"[mqtt]: url {exc}") from None
+        raise fail(at("url"), Message(N_("[mqtt]: url {problem}"), problem=message_of(exc))) from None
     site = raw.get("site", plant_name)
     instance = raw.get("instance", plant_name)
     for key, value in (("site", site), ("instance", instance)):
         if not TOPIC_PART.fullmatch(value):
             where = at(key) if key in raw else line
-            raise fail(where, f"[mqtt]: {key} {value!r} becomes a topic level: use letters, digits, '_', '.', '-' only"
-                       + ("" if key in raw else f" (it defaults to the plant name; set {key} = \"...\")"))
+            raise fail(where, Message(N_("[mqtt]: {key} {value!r} becomes a topic level: use letters, digits, '_', '.', '-' only")
+                                      if key in raw else
+                                      N_("[mqtt]: {key} {value!r} becomes a topic level: use letters, digits, '_', '.', '-' only "
+                                         "(it defaults to the plant name; set {key} = \"...\")"), key=key, value=value))
     if "password_env" in raw and "password_file" in raw:
-        raise fail(at("password_file"), "[mqtt]: give password_env or password_file, not both")
+        raise fail(at("password_file"), Message(N_("[mqtt]: give password_env or password_file, not both")))
     if "password_env" in raw and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", raw["password_env"]):
-        raise fail(at("password_env"), f"[mqtt]: password_env names an environment variable (e.g. \"MQTT_PASSWORD\"), not {raw['password_env']!r}")
+        raise fail(at("password_env"), Message(N_("[mqtt]: password_env names an environment variable (e.g. \"MQTT_PASSWORD\"), "
+                                                  "not {value!r}"), value=raw["password_env"]))
     if ("password_env" in raw or "password_file" in raw) and "username" not in raw:
-        raise fail(at("password_env" if "password_env" in raw else "password_file"), "[mqtt]: a password needs username = \"...\"")
+        raise fail(at("password_env" if "password_env" in raw else "password_file"),
+                   Message(N_("[mqtt]: a password needs username = \"...\"")))
     if "ca_file" in raw and not tls:
-        raise fail(at("ca_file"), "[mqtt]: ca_file is for TLS: write the url as mqtts://...")
+        raise fail(at("ca_file"), Message(N_("[mqtt]: ca_file is for TLS: write the url as mqtts://...")))
     base = path.parent if path else Path.cwd()
     files = {key: (base / raw[key]) if key in raw else None for key in ("password_file", "ca_file")}
     for key in ("rate", "heartbeat"):
         if key in raw and not (_seconds(raw[key]) and raw[key] <= 3600):
-            raise fail(at(key), f"[mqtt]: {key} must be a number above 0 (and at most 3600), not {raw[key]!r}")
+            raise fail(at(key), Message(N_("[mqtt]: {key} must be a number above 0 (and at most 3600), not {value!r}"), key=key,
+                                        value=raw[key]))
     rate = float(raw.get("rate", 2.0))
     if rate > 50:
-        raise fail(at("rate"), f"[mqtt]: rate {rate:g} messages/s per device is more than any subscriber needs; at most 50")
+        raise fail(at("rate"), Message(N_("[mqtt]: rate {rate} messages/s per device is more than any subscriber needs; at most 50"),
+                                       rate=f"{rate:g}"))
     buffer = raw.get("buffer", 1000)
     if isinstance(buffer, bool) or not isinstance(buffer, int) or not 10 <= buffer <= 100_000:
-        raise fail(at("buffer"), f"[mqtt]: buffer must be a whole number of messages in 10..100000, not {buffer!r}")
+        raise fail(at("buffer"), Message(N_("[mqtt]: buffer must be a whole number of messages in 10..100000, not {value!r}"),
+                                         value=buffer))
     if "sparkplug" in raw and not isinstance(raw["sparkplug"], bool):
-        raise fail(at("sparkplug"), f"[mqtt]: sparkplug must be true or false (without quotes), not {raw['sparkplug']!r}")
+        raise fail(at("sparkplug"), Message(N_("[mqtt]: sparkplug must be true or false (without quotes), not {value!r}"),
+                                            value=raw["sparkplug"]))
     if "primary_host" in raw and not TOPIC_PART.fullmatch(raw["primary_host"]):
-        raise fail(at("primary_host"), f"[mqtt]: primary_host {raw['primary_host']!r} becomes a topic level: use letters, digits, '_', '.', '-' only")
+        raise fail(at("primary_host"), Message(N_("[mqtt]: primary_host {value!r} becomes a topic level: use letters, digits, '_', "
+                                                  "'.', '-' only"), value=raw["primary_host"]))
     if "primary_host" in raw and not raw.get("sparkplug"):
-        raise fail(at("primary_host"), "[mqtt]: primary_host is a Sparkplug setting: add sparkplug = true")
+        raise fail(at("primary_host"), Message(N_("[mqtt]: primary_host is a Sparkplug setting: add sparkplug = true")))
     return MqttConfig(url=raw["url"], host=host, port=port, tls=tls, site=site, instance=instance,
                       username=raw.get("username"), password_env=raw.get("password_env"),
                       password_file=files["password_file"], ca_file=files["ca_file"], rate=rate,
@@ -552,7 +563,7 @@ def parse_opcua(text: str, raw: Any, path: Path | None, fail) -> OpcuaConfig:
     """The ``[opcua]`` table (the read-only OPC UA server; off without it)."""
     line = _section_line(text, "opcua")
     if not isinstance(raw, dict):
-        raise fail(line, '[opcua] must be a table, e.g. [opcua] endpoint = "opc.tcp://127.0.0.1:4840"')
+        raise fail(line, Message(N_('[opcua] must be a table, e.g. [opcua] endpoint = "opc.tcp://127.0.0.1:4840"')))
     at = lambda key: _key_line(text, line, key)  # noqa: E731
     for key in raw:
         if key not in OPCUA_KEYS:
@@ -562,19 +573,28 @@ def parse_opcua(text: str, raw: Any, path: Path | None, fail) -> OpcuaConfig:
             raise fail(at(key), _wrong_type("[opcua]", key, raw[key], str))
     endpoint = raw.get("endpoint", OpcuaConfig.endpoint)
     if not re.fullmatch(r"opc\.tcp://[^/:]+(:\d{1,5})?(/.*)?", endpoint):
-        raise fail(at("endpoint"), f"[opcua]: endpoint must look like opc.tcp://127.0.0.1:4840, not {endpoint!r}")
+        raise fail(at("endpoint"), Message(N_("[opcua]: endpoint must look like opc.tcp://127.0.0.1:4840, not {value!r}"),
+                                           value=endpoint))
     if "anonymous" in raw and not isinstance(raw["anonymous"], bool):
-        raise fail(at("anonymous"), f"[opcua]: anonymous must be true or false (without quotes), not {raw['anonymous']!r}")
+        raise fail(at("anonymous"), Message(N_("[opcua]: anonymous must be true or false (without quotes), not {value!r}"),
+                                            value=raw["anonymous"]))
     if ("certificate" in raw) != ("private_key" in raw):
-        raise fail(at("certificate" if "certificate" in raw else "private_key"), "[opcua]: encryption needs both certificate and private_key")
+        raise fail(at("certificate" if "certificate" in raw else "private_key"),
+                   Message(N_("[opcua]: encryption needs both certificate and private_key")))
     if "rate" in raw and not (_seconds(raw["rate"]) and raw["rate"] <= 100):
-        raise fail(at("rate"), f"[opcua]: rate must be a number above 0 and at most 100 (updates a second), not {raw['rate']!r}")
+        raise fail(at("rate"), Message(N_("[opcua]: rate must be a number above 0 and at most 100 (updates a second), not {value!r}"),
+                                       value=raw["rate"]))
     base = path.parent if path else Path.cwd()
     files = {key: (base / raw[key]) if key in raw else None for key in ("certificate", "private_key")}
     return OpcuaConfig(endpoint=endpoint, anonymous=raw.get("anonymous", True), rate=float(raw.get("rate", 10.0)), **files)
 
 
-def can_id_conflict(devices: list[DeviceConfig], bus: BusConfig) -> tuple[DeviceConfig, str] | None:
+def _can_ids(span: tuple[int, int], extended: bool) -> Message:
+    ids = format_can_ids(*span, extended)
+    return Message(N_("CAN ID {ids}"), ids=ids) if span[0] == span[1] else Message(N_("CAN IDs {ids}"), ids=ids)
+
+
+def can_id_conflict(devices: list[DeviceConfig], bus: BusConfig) -> tuple[DeviceConfig, Message] | None:
     """The first CAN ID that two devices on ``bus`` (or one device twice) would both use.
 
     Each device type declares the IDs it sends and receives (``DeviceType.can_id_uses``).
@@ -583,7 +603,7 @@ def can_id_conflict(devices: list[DeviceConfig], bus: BusConfig) -> tuple[Device
     if bus.type != "can":
         return None
     # HD-Lock document 6.2 b: "jede CAN-ID [darf] jeweils nur von einem Busteilnehmer verwendet werden"
-    rule = "A CAN ID may carry one sender's messages only: change an address or use separate buses."
+    rule = Message(N_("A CAN ID may carry one sender's messages only: change an address or use separate buses."))
     earlier = []
     for dev in devices:
         device_type = DEVICE_TYPES[dev.type]
@@ -592,18 +612,21 @@ def can_id_conflict(devices: list[DeviceConfig], bus: BusConfig) -> tuple[Device
             for b in uses[i + 1:]:
                 span = None if a.shared and b.shared else a.overlap(b)
                 if span:
-                    ids = ("CAN ID " if span[0] == span[1] else "CAN IDs ") + format_can_ids(*span, a.extended)
-                    return dev, (f"device '{dev.name}': {ids} is used twice by this {device_type.title} on bus '{bus.name}', "
-                                 f"as {a.use} and as {b.use}. {rule}")
+                    ids = _can_ids(span, a.extended)
+                    return dev, Message(N_("device '{name}': {ids} is used twice by this {type} on bus '{bus}', as {use} and as "
+                                           "{other_use}. {rule}"), name=dev.name, ids=ids, type=device_type.title, bus=bus.name,
+                                        use=a.use, other_use=b.use, rule=rule)
         for other, other_type, other_uses in earlier:
             same_type = other.type == dev.type
             for a in uses:
                 for b in other_uses:
                     span = None if same_type and a.shared and b.shared else a.overlap(b)
                     if span:
-                        ids = ("CAN ID " if span[0] == span[1] else "CAN IDs ") + format_can_ids(*span, a.extended)
-                        return dev, (f"device '{dev.name}': {ids} is used twice on bus '{bus.name}': by '{dev.name}' "
-                                     f"({device_type.title}) as {a.use}, and by '{other.name}' ({other_type.title}) as {b.use}. {rule}")
+                        ids = _can_ids(span, a.extended)
+                        return dev, Message(N_("device '{name}': {ids} is used twice on bus '{bus}': by '{name}' ({type}) as "
+                                               "{use}, and by '{other}' ({other_type}) as {other_use}. {rule}"), name=dev.name,
+                                            ids=ids, bus=bus.name, type=device_type.title, use=a.use, other=other.name,
+                                            other_type=other_type.title, other_use=b.use, rule=rule)
         earlier.append((dev, device_type, uses))
     return None
 
