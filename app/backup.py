@@ -175,7 +175,7 @@ async def backup_device(runtime, name: str, out_dir: Path | None = None, progres
     audited with the real user); returns the path."""
     adapter = runtime.worker.adapters[name]
     if not supports_backup(adapter):
-        raise BackupError(f"{name}: this device type has no parameters to back up")
+        raise BackupError(Message(N_("{name}: this device type has no parameters to back up"), name=name))
     state = runtime.store.devices[name]
     path = await asyncio.to_thread(unused_path, (out_dir or runtime.backups_dir) / file_name(name))
 
@@ -216,41 +216,47 @@ def load_document(text: str | bytes, source: str = "backup") -> dict:
     (never with a traceback): too large, not UTF-8, not JSON, nested too deep, numbers too long,
     or fields of the wrong kind."""
     if len(text) > MAX_BACKUP_BYTES:
-        raise BackupError(f"{source}: {len(text) / 1e6:.1f} MB is too large for a backup (at most {MAX_BACKUP_BYTES / 1e6:.0f} MB)")
+        raise BackupError(Message(N_("{source}: {size} MB is too large for a backup (at most {most} MB)"), source=source,
+                                  size=f"{len(text) / 1e6:.1f}", most=f"{MAX_BACKUP_BYTES / 1e6:.0f}"))
     try:
         data = json.loads(text)
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise BackupError(f"{source}: not a readable backup (truncated or not JSON: {exc})") from None
+        raise BackupError(Message(N_("{source}: not a readable backup (truncated or not JSON: {error})"), source=source,
+                                  error=exc)) from None
     except RecursionError:  # the decoder counts its depth: 200,000 nested brackets end here, not in a crash
-        raise BackupError(f"{source}: not a backup: nested too deep") from None
+        raise BackupError(Message(N_("{source}: not a backup: nested too deep"), source=source)) from None
     except ValueError as exc:  # e.g. a number of more than 4300 digits
-        raise BackupError(f"{source}: not a readable backup: {str(exc).split(';')[0]}") from None
+        raise BackupError(Message(N_("{source}: not a readable backup: {error}"), source=source,
+                                  error=str(exc).split(";")[0])) from None
     if not isinstance(data, dict) or data.get("schema") != SCHEMA:
         schema = data.get("schema") if isinstance(data, dict) else None
-        raise BackupError(f"{source}: not a commission backup file (schema {str(schema)[:40]!r})")
+        raise BackupError(Message(N_("{source}: not a commission backup file (schema {schema!r})"), source=source,
+                                  schema=str(schema)[:40]))
     if data.get("version") != VERSION:
-        raise BackupError(f"{source}: backup schema version {str(data.get('version'))[:20]} is not supported "
-                          f"(this tool reads version {VERSION})")
+        raise BackupError(Message(N_("{source}: backup schema version {version} is not supported (this tool reads version "
+                                     "{supported})"), source=source, version=str(data.get("version"))[:20], supported=VERSION))
     device = data.get("device")
     params = data.get("parameters")
     if not isinstance(device, dict) or not isinstance(params, list):
-        raise BackupError(f"{source}: the backup lacks its device or parameter list (damaged file)")
+        raise BackupError(Message(N_("{source}: the backup lacks its device or parameter list (damaged file)"), source=source))
     for key in ("name", "type", "bus"):
         if key in device and not isinstance(device[key], str):
-            raise BackupError(f"{source}: the device's {key} is not a text (damaged file)")
+            raise BackupError(Message(N_("{source}: the device's {key} is not a text (damaged file)"), source=source, key=key))
     for key in ("identity", "tool", "taken_by"):
         if data.get(key) is not None and not isinstance(data[key], dict):
-            raise BackupError(f"{source}: \"{key}\" is not an object (damaged or edited file)")
+            raise BackupError(Message(N_("{source}: \"{key}\" is not an object (damaged or edited file)"), source=source, key=key))
     for key in ("plant", "time"):
         if data.get(key) is not None and not isinstance(data[key], str):
-            raise BackupError(f"{source}: \"{key}\" is not a text (damaged or edited file)")
+            raise BackupError(Message(N_("{source}: \"{key}\" is not a text (damaged or edited file)"), source=source, key=key))
     for entry in params:
         if not isinstance(entry, dict) or not {"key", "name", "raw", "writable"} <= set(entry):
-            raise BackupError(f"{source}: a parameter entry is incomplete (damaged file)")
+            raise BackupError(Message(N_("{source}: a parameter entry is incomplete (damaged file)"), source=source))
         if not isinstance(entry["key"], str) or not isinstance(entry["name"], str) or not isinstance(entry["writable"], bool):
-            raise BackupError(f"{source}: a parameter entry's key, name or writable flag is of the wrong kind (damaged file)")
+            raise BackupError(Message(N_("{source}: a parameter entry's key, name or writable flag is of the wrong kind (damaged "
+                                         "file)"), source=source))
         if "unit" in entry and not isinstance(entry["unit"], str):
-            raise BackupError(f"{source}: parameter {entry['name'][:40]!r}: its unit is not a text (damaged file)")
+            raise BackupError(Message(N_("{source}: parameter {name!r}: its unit is not a text (damaged file)"), source=source,
+                                      name=entry["name"][:40]))
     return data
 
 
@@ -299,7 +305,7 @@ class RestorePlan:
 def _file_number(value: Any) -> int | float:
     """The entry's value as the file holds it, accepted only as a JSON number."""
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise BackupError(f"{value!r} in the file is not a number")
+        raise BackupError(Message(N_("{value!r} in the file is not a number"), value=value))
     return value
 
 

@@ -54,7 +54,7 @@ def _files(directory: Path, lang: Lang | None = None) -> list[dict]:
             device, dtype, when = doc["device"].get("name", "?"), doc["device"].get("type", "?"), doc.get("time", "")
             when, by = backup.local_time(when), backup.taken_by(doc)
         except backup.BackupError as exc:
-            device, dtype, when, by = "-", lang.gettext("unreadable"), str(exc)[:60], ""
+            device, dtype, when, by = "-", lang.gettext("unreadable"), said(exc, lang)[:60], ""
         rows.append({"name": path.name, "device": device, "type": dtype, "time": when, "by": by,
                      "size": f"{lang.number(path.stat().st_size / 1024, 1)} kB"})
     return rows
