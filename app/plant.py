@@ -84,7 +84,6 @@ TYPE_WORDS = {bool: N_("true or false (without quotes)"), int: N_("a whole numbe
 COMMON_DEVICE_KEYS = {"name", "type", "bus", "description"}
 OUTSIDE = N_("{owner}: {key} {value} is outside {range}")
 NOT_ONE_OF = N_("{owner}: {key} {value} is not one of {known}")
-SECTION_WORDS = (N_("bus"), N_("device"))  # one [[bus]] table per bus, one [[device]] table per device
 
 
 class PlantError(CommissionError, ValueError):
@@ -216,19 +215,13 @@ def _did_you_mean(key: str, known) -> str | None:
 
 def _unknown_key(owner: str, key: str, known) -> Message:
     guess = _did_you_mean(key, known)
-    if guess:
-        return Message(N_("{owner}: unknown key '{key}'; did you mean '{guess}'? known: {known}"), owner=owner, key=key,
-                       guess=guess, known=", ".join(known))
-    return Message(N_("{owner}: unknown key '{key}'; known: {known}"), owner=owner, key=key, known=", ".join(known))
+    return Message(N_("{owner}: unknown key '{key}'; did you mean '{guess}'? known: {known}") if guess else
+                   N_("{owner}: unknown key '{key}'; known: {known}"), owner=owner, key=key, guess=guess, known=", ".join(known))
 
 
 def _wrong_type(owner: str, key: str, value: Any, typ) -> Message:
-    if typ == (int, float):
-        want = Message(N_("a number (without quotes)"))
-    elif typ in TYPE_WORDS:
-        want = Message(TYPE_WORDS[typ])
-    else:
-        want = "a " + " or ".join(t.__name__ for t in typ) if isinstance(typ, tuple) else typ.__name__
+    want = Message(N_("a number (without quotes)") if typ == (int, float) else TYPE_WORDS.get(
+        typ, "a " + " or ".join(t.__name__ for t in typ) if isinstance(typ, tuple) else typ.__name__))
     if isinstance(typ, tuple) and str in typ:
         want = Message(N_("a text in quotes or a whole number"))
     return Message(N_("{owner}: {key} must be {want}, not {value!r}"), owner=owner, key=key, want=want, value=value)
@@ -411,7 +404,7 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
         if key in data and not (isinstance(data[key], list) and all(isinstance(t, dict) for t in data[key])):
             raise fail(_section_line(text, key), Message(
                 N_("[{key}] is one table; write [[{key}]] (double brackets): one [[{key}]] table per {what}"), key=key,
-                what=Message(N_("simulated device")) if key == "sim_device" else Message(key)))
+                what=Message({"bus": N_("bus"), "device": N_("device"), "sim_device": N_("simulated device")}[key])))
     if "name" in data and not isinstance(data["name"], str):
         raise fail(_section_line(text, "name"), Message(N_("name must be a text in quotes, e.g. name = \"hall-3\", not {value!r}"),
                                                         value=data["name"]))
@@ -479,8 +472,7 @@ def parse_mqtt_url(url: str) -> tuple[str, int, bool]:
     if not parts.hostname:
         raise ValueError(Message(N_("{url!r} names no broker host, e.g. mqtt://broker.local:1883"), url=url))
     if parts.username or parts.password:
-        raise ValueError(Message(N_("{url!r} carries a user or password; use username = ... and password_env or password_file"),
-                                 url=url))
+        raise ValueError(Message(N_("{url!r} carries a user or password; use username = ... and password_env or password_file"), url=url))
     if parts.path not in ("", "/") or parts.query or parts.fragment:
         raise ValueError(Message(N_("{url!r}: a broker URL has no path or query, e.g. mqtt://broker.local:1883"), url=url))
     return parts.hostname, port or MQTT_SCHEMES[parts.scheme], parts.scheme == "mqtts"
@@ -590,8 +582,7 @@ def parse_opcua(text: str, raw: Any, path: Path | None, fail) -> OpcuaConfig:
 
 
 def _can_ids(span: tuple[int, int], extended: bool) -> Message:
-    ids = format_can_ids(*span, extended)
-    return Message(N_("CAN ID {ids}"), ids=ids) if span[0] == span[1] else Message(N_("CAN IDs {ids}"), ids=ids)
+    return Message(N_("CAN ID {ids}") if span[0] == span[1] else N_("CAN IDs {ids}"), ids=format_can_ids(*span, extended))
 
 
 def can_id_conflict(devices: list[DeviceConfig], bus: BusConfig) -> tuple[DeviceConfig, Message] | None:
