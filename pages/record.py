@@ -312,7 +312,7 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool, lan
         enable_unless(b, _(VIEWER_REASON) if not engineer else no_set)
 
     async def why_no_set() -> None:  # the adapter's own words (e.g. an M3IO in simple mode keeps no records)
-        why = (await backup.why_nothing_to_back_up(runtime, name)).removeprefix("nothing to back up: ")
+        why = said(await backup.why_nothing_to_back_up(runtime, name), lang).removeprefix("nothing to back up: ")
         if why and engineer:
             for b in (approve, snap):
                 enable_unless(b, _("{name} has no parameter set to approve or keep: {why}").format(name=name, why=why))
