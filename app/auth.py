@@ -14,6 +14,9 @@ import time
 from collections import OrderedDict
 from dataclasses import dataclass
 
+from app.i18n import N_
+from app.message import Message
+
 SESSION_LIFETIME_S = 12 * 3600  # a shift
 TICKET_LIFETIME_S = 30.0
 MAX_SESSIONS = 1000  # bounded: the oldest sessions go first
@@ -170,7 +173,7 @@ async def check_login(*, throttle: LoginThrottle, users, audit, typed: str, secr
     check (an attempt cut off half-way still counts); the password is hashed in a thread, never on the
     event loop; a name or password too long for an account is refused without hashing; refusals write
     audit rows within ``throttle.rows``. ``via`` names the face in the audit rows (``"opcua"``).
-    Returns ``(account or None, words for the user)``.
+    Returns ``(account or None, words for the user)``: a :class:`~app.message.Message`, worded in the reader's language.
     """
     import asyncio
 
@@ -189,14 +192,14 @@ async def check_login(*, throttle: LoginThrottle, users, audit, typed: str, secr
     wait = throttle.wait_s(*keys)
     if wait > 0:
         await refused(f"refused: throttled ({wait:.0f} s) from {source}")
-        return None, f"Too many wrong passwords: try again in {wait:.0f} s."
+        return None, Message(N_("Too many wrong passwords: try again in {seconds} s."), seconds=round(wait))
     failures = throttle.failed(*keys)
     user = None
     if users is not None and account == typed and len(secret) <= LOGIN_PASSWORD_MAX:
         user = await asyncio.to_thread(users.verify, typed, secret)
     if user is None:
         await refused(f"failed: wrong user name or password from {source} ({failures} in a row)")
-        return None, "Wrong user name or password"
+        return None, Message(N_("Wrong user name or password"))
     throttle.succeeded(*keys)
     if audit is not None:
         await audit.arecord(user=user.name, role=user.role, device="", action="login", result=f"ok from {source}")

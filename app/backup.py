@@ -33,6 +33,8 @@ from typing import Any
 
 from app import audit, files, gate
 from app.capabilities import takes_text
+from app.i18n import N_
+from app.message import Message, joined, message_of
 from devices.adapter import BackupAdapter, EntryRestorer, ParamWriter, RestoreDescriber
 from devices.commands import WRITE_PARAMETER
 from devices.commands import find as find_command
@@ -53,6 +55,9 @@ def tool_version() -> str:
         return "unknown"
 
 
+NOTHING_HERE = N_("nothing to back up in this configuration")
+
+
 def supports_backup(adapter: Any) -> bool:
     """The adapter takes part, and (``backup_available``) this device has something to back up."""
     restores = isinstance(adapter, ParamWriter | EntryRestorer)
@@ -60,7 +65,8 @@ def supports_backup(adapter: Any) -> bool:
 
 
 async def nothing_to_back_up(adapter: Any) -> str:
-    """Why a device has nothing to back up, in words ("" when it has something).
+    """Why a device has nothing to back up, in words ("" when it has something; the adapter's own words, else a
+    :class:`~app.message.Message`).
 
     An adapter that takes part but has no data in this configuration (``backup_available``
     False, e.g. an M3IO in unaddressed mode) names the reason when asked to read, without bus
@@ -72,9 +78,9 @@ async def nothing_to_back_up(adapter: Any) -> str:
         try:
             await asyncio.wait_for(adapter.backup_read(), timeout=2)
         except (CommissionError, TimeoutError) as exc:  # the refusal's reason is the message
-            return str(exc) or "nothing to back up in this configuration"
-        return "nothing to back up in this configuration"
-    return "this device type has no parameters to back up"
+            return message_of(exc) or Message(NOTHING_HERE)
+        return Message(NOTHING_HERE)
+    return Message(N_("this device type has no parameters to back up"))
 
 
 # -- what pages ask of a device by name (they never hold an adapter: ARCHITECTURE.md rule 5) ----------------
@@ -169,7 +175,7 @@ async def backup_device(runtime, name: str, out_dir: Path | None = None, progres
     audited with the real user); returns the path."""
     adapter = runtime.worker.adapters[name]
     if not supports_backup(adapter):
-        raise BackupError(f"{name}: this device type has no parameters to back up")
+        raise BackupError(Message(N_("{name}: this device type has no parameters to back up"), name=name))
     state = runtime.store.devices[name]
     path = await asyncio.to_thread(unused_path, (out_dir or runtime.backups_dir) / file_name(name))
 
@@ -210,41 +216,47 @@ def load_document(text: str | bytes, source: str = "backup") -> dict:
     (never with a traceback): too large, not UTF-8, not JSON, nested too deep, numbers too long,
     or fields of the wrong kind."""
     if len(text) > MAX_BACKUP_BYTES:
-        raise BackupError(f"{source}: {len(text) / 1e6:.1f} MB is too large for a backup (at most {MAX_BACKUP_BYTES / 1e6:.0f} MB)")
+        raise BackupError(Message(N_("{source}: {size} MB is too large for a backup (at most {most} MB)"), source=source,
+                                  size=f"{len(text) / 1e6:.1f}", most=f"{MAX_BACKUP_BYTES / 1e6:.0f}"))
     try:
         data = json.loads(text)
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise BackupError(f"{source}: not a readable backup (truncated or not JSON: {exc})") from None
+        raise BackupError(Message(N_("{source}: not a readable backup (truncated or not JSON: {error})"), source=source,
+                                  error=exc)) from None
     except RecursionError:  # the decoder counts its depth: 200,000 nested brackets end here, not in a crash
-        raise BackupError(f"{source}: not a backup: nested too deep") from None
+        raise BackupError(Message(N_("{source}: not a backup: nested too deep"), source=source)) from None
     except ValueError as exc:  # e.g. a number of more than 4300 digits
-        raise BackupError(f"{source}: not a readable backup: {str(exc).split(';')[0]}") from None
+        raise BackupError(Message(N_("{source}: not a readable backup: {error}"), source=source,
+                                  error=str(exc).split(";")[0])) from None
     if not isinstance(data, dict) or data.get("schema") != SCHEMA:
         schema = data.get("schema") if isinstance(data, dict) else None
-        raise BackupError(f"{source}: not a commission backup file (schema {str(schema)[:40]!r})")
+        raise BackupError(Message(N_("{source}: not a commission backup file (schema {schema!r})"), source=source,
+                                  schema=str(schema)[:40]))
     if data.get("version") != VERSION:
-        raise BackupError(f"{source}: backup schema version {str(data.get('version'))[:20]} is not supported "
-                          f"(this tool reads version {VERSION})")
+        raise BackupError(Message(N_("{source}: backup schema version {version} is not supported (this tool reads version "
+                                     "{supported})"), source=source, version=str(data.get("version"))[:20], supported=VERSION))
     device = data.get("device")
     params = data.get("parameters")
     if not isinstance(device, dict) or not isinstance(params, list):
-        raise BackupError(f"{source}: the backup lacks its device or parameter list (damaged file)")
+        raise BackupError(Message(N_("{source}: the backup lacks its device or parameter list (damaged file)"), source=source))
     for key in ("name", "type", "bus"):
         if key in device and not isinstance(device[key], str):
-            raise BackupError(f"{source}: the device's {key} is not a text (damaged file)")
+            raise BackupError(Message(N_("{source}: the device's {key} is not a text (damaged file)"), source=source, key=key))
     for key in ("identity", "tool", "taken_by"):
         if data.get(key) is not None and not isinstance(data[key], dict):
-            raise BackupError(f"{source}: \"{key}\" is not an object (damaged or edited file)")
+            raise BackupError(Message(N_("{source}: \"{key}\" is not an object (damaged or edited file)"), source=source, key=key))
     for key in ("plant", "time"):
         if data.get(key) is not None and not isinstance(data[key], str):
-            raise BackupError(f"{source}: \"{key}\" is not a text (damaged or edited file)")
+            raise BackupError(Message(N_("{source}: \"{key}\" is not a text (damaged or edited file)"), source=source, key=key))
     for entry in params:
         if not isinstance(entry, dict) or not {"key", "name", "raw", "writable"} <= set(entry):
-            raise BackupError(f"{source}: a parameter entry is incomplete (damaged file)")
+            raise BackupError(Message(N_("{source}: a parameter entry is incomplete (damaged file)"), source=source))
         if not isinstance(entry["key"], str) or not isinstance(entry["name"], str) or not isinstance(entry["writable"], bool):
-            raise BackupError(f"{source}: a parameter entry's key, name or writable flag is of the wrong kind (damaged file)")
+            raise BackupError(Message(N_("{source}: a parameter entry's key, name or writable flag is of the wrong kind (damaged "
+                                         "file)"), source=source))
         if "unit" in entry and not isinstance(entry["unit"], str):
-            raise BackupError(f"{source}: parameter {entry['name'][:40]!r}: its unit is not a text (damaged file)")
+            raise BackupError(Message(N_("{source}: parameter {name!r}: its unit is not a text (damaged file)"), source=source,
+                                      name=entry["name"][:40]))
     return data
 
 
@@ -279,7 +291,7 @@ class RestorePlan:
     device: str
     document: dict
     rows: list[DiffRow]
-    warnings: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)  # each a :class:`~app.message.Message`
 
     @property
     def invalid(self) -> list[DiffRow]:
@@ -293,7 +305,7 @@ class RestorePlan:
 def _file_number(value: Any) -> int | float:
     """The entry's value as the file holds it, accepted only as a JSON number."""
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise BackupError(f"{value!r} in the file is not a number")
+        raise BackupError(Message(N_("{value!r} in the file is not a number"), value=value))
     return value
 
 
@@ -333,7 +345,7 @@ def _plan_row(params, entry: dict, now: dict, adapter: Any = None) -> DiffRow:
         row.backup_text = _entry_text(adapter, entry, value, now)
         return row
     if param is None:
-        row.error = "not a parameter of this device type"
+        row.error = Message(N_("not a parameter of this device type"))
         return row
     row.param = param
     row.current_text = param.display(int(now["raw"]))
@@ -341,14 +353,14 @@ def _plan_row(params, entry: dict, now: dict, adapter: Any = None) -> DiffRow:
         # a parameter whose value is text (an M3IO customer record's hex bytes) checks the text itself
         raw = param.validate(value if takes_text(param) and isinstance(value, str) else _file_number(value))
     except (BackupError, ValueError) as exc:
-        row.error = f"invalid in the file: {exc}"
+        row.error = Message(N_("invalid in the file: {error}"), error=message_of(exc))
         return row
     row.backup_raw = raw
     row.backup_text = param.display(raw)
     hex_raw = takes_text(param) and entry.get("raw") == param.display(raw)  # an older file's record bytes
     if "raw" in entry and entry["raw"] != raw and not hex_raw:
-        row.error = (f"the file's raw {entry['raw']!r} and value {value!r} disagree (edited or damaged file): "
-                     "not written")
+        row.error = Message(N_("the file's raw {raw!r} and value {value!r} disagree (edited or damaged file): not written"),
+                            raw=entry["raw"], value=value)
         return row
     row.risk = param.needs_confirmation(raw)
     return row
@@ -360,9 +372,10 @@ async def plan_restore(runtime, name: str, document: dict, progress=None) -> Res
     state = runtime.store.devices[name]
     backup_type = document["device"].get("type")
     if backup_type != state.type:
-        raise BackupError(f"the backup is of a {backup_type!r}, but {name} is a {state.type!r}: refused")
+        raise BackupError(Message(N_("the backup is of a {type!r}, but {name} is a {device_type!r}: refused"), type=backup_type,
+                                  name=name, device_type=state.type))
     if not supports_backup(adapter):
-        raise BackupError(f"{name}: this device type cannot be restored")
+        raise BackupError(Message(N_("{name}: this device type cannot be restored"), name=name))
     if adapter.restore_refused:
         raise BackupError(f"{name}: {adapter.restore_refused}")
     current = {e["key"]: e for e in await adapter.backup_read(progress)}
@@ -370,12 +383,11 @@ async def plan_restore(runtime, name: str, document: dict, progress=None) -> Res
     ident_now, ident_then = adapter.backup_identity(), document.get("identity") or {}
     for key in ("serial",):
         if key in ident_then and key in ident_now and str(ident_then[key]) != str(ident_now[key]):
-            warnings.append(
-                f"the backup was taken from serial number {ident_then[key]}, this device is {ident_now[key]} "
-                "(a replaced device?): check before restoring"
-            )
+            warnings.append(Message(N_("the backup was taken from serial number {then}, this device is {now} (a replaced "
+                                       "device?): check before restoring"), then=ident_then[key], now=ident_now[key]))
     if document["device"].get("name") != name:
-        warnings.append(f"the backup was taken from device '{document['device'].get('name')}' of plant '{document.get('plant')}'")
+        warnings.append(Message(N_("the backup was taken from device '{device}' of plant '{plant}'"),
+                                device=document["device"].get("name"), plant=document.get("plant")))
     rows = []
     for entry in document["parameters"]:
         if not entry.get("writable"):
@@ -385,13 +397,13 @@ async def plan_restore(runtime, name: str, document: dict, progress=None) -> Res
             continue  # measured by the device (a maximum so far): kept for reference, never copied (Param.setting)
         now = current.get(entry["key"])
         if now is None or not now.get("writable"):
-            warnings.append(f"{entry['name']} is not writable on this device: skipped")
+            warnings.append(Message(N_("{name} is not writable on this device: skipped"), name=entry["name"]))
             continue
         rows.append(_plan_row(state.params, entry, now, adapter))
     for row in rows:
         row.risk = _declared_risk(runtime, name, row)
         if row.error:
-            warnings.append(f"{row.name}: {row.error}")
+            warnings.append(Message("{name}: {error}", name=row.name, error=row.error))
     return RestorePlan(name, document, rows, warnings)
 
 
@@ -415,6 +427,9 @@ def unsaved_lines(state, skip: set[str] = frozenset()) -> list[str]:
     return lines
 
 
+NEEDS_CONFIRMATION = N_("{value} needs a confirmation: {risk}")
+
+
 @dataclass
 class RestoreReport:
     written: list[str] = field(default_factory=list)
@@ -429,18 +444,20 @@ class RestoreReport:
     def ok(self) -> bool:
         return not self.failed and not self.save_error and not self.refused
 
-    def summary(self) -> str:
-        text = (f"{len(self.written)} written, {len(self.unchanged)} unchanged, {len(self.failed)} failed, "
-                f"{len(self.skipped)} skipped")
+    def summary(self) -> Message:
+        """What the restore did, in one line (written in the audit row as English)."""
+        parts = [Message(N_("{written} written, {unchanged} unchanged, {failed} failed, {skipped} skipped"),
+                         written=len(self.written), unchanged=len(self.unchanged), failed=len(self.failed),
+                         skipped=len(self.skipped))]
         if self.refused:
-            text += f", {len(self.refused)} refused"
+            parts[0] = Message(N_("{counts}, {n} refused"), counts=parts[0], n=len(self.refused))
         if self.saved:
-            text += f"; {self.saved} done"
+            parts.append(Message(N_("{step} done"), step=self.saved))
         elif self.written and (self.failed or self.refused):
-            text += "; not saved because a write failed or was refused"
+            parts.append(Message(N_("not saved because a write failed or was refused")))
         if self.save_error:
-            text += f"; saving failed: {self.save_error}"
-        return text
+            parts.append(Message(N_("saving failed: {error}"), error=self.save_error))
+        return joined(parts, "; ")
 
 
 def _declares_write(runtime, device: str) -> bool:
@@ -478,7 +495,7 @@ async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, use
         elif row.key not in selected:
             report.skipped.append(row.name)
         elif row.risk and row.key not in confirmed:
-            report.refused.append((row.name, f"{row.backup_text} needs a confirmation: {row.risk}"))
+            report.refused.append((row.name, Message(NEEDS_CONFIRMATION, value=row.backup_text, risk=row.risk)))
         else:
             try:
                 if row.param is not None and _declares_write(runtime, plan.device):
@@ -499,7 +516,7 @@ async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, use
                     )
                 report.written.append(row.name)
             except gate.NeedsConfirmation as question:
-                report.refused.append((row.name, f"{row.backup_text} needs a confirmation: {question.question}"))
+                report.refused.append((row.name, Message(NEEDS_CONFIRMATION, value=row.backup_text, risk=question.question)))
             except CommissionError as exc:  # every refusal is reported per parameter
                 report.failed.append((row.name, str(exc)))
                 if exc.__class__.__name__ in ("PermissionDenied", "AuditUnavailable"):

@@ -17,12 +17,23 @@ from pathlib import Path
 from typing import Any
 
 from app import audit, backup, files, replace
+from app import cli_lang
 from app.cli_lang import YES, _
+from app.i18n import N_, NP_, Lang
+from app.message import Message, joined, message_of, said
 from app.headless import write_options
 from devices.commands import READ_PARAMETERS
 from devices.errors import CommissionError
 
-WRITTEN, UNCHANGED, FAILED, SKIPPED, REFUSED = "written", "unchanged", "failed", "skipped", "refused"
+STATUS = "batch status"  # the catalogs' context of a device's status in a batch
+WRITTEN, UNCHANGED, FAILED, SKIPPED, REFUSED = (NP_("batch status", "written"), NP_("batch status", "unchanged"),
+                                                NP_("batch status", "failed"), NP_("batch status", "skipped"),
+                                                NP_("batch status", "refused"))
+
+
+def status_text(status: str, lang: Lang | None) -> str:
+    """A device's status in a batch (:data:`WRITTEN` ...) in ``lang`` (None: as it is)."""
+    return status if lang is None else lang.pgettext(STATUS, status)
 
 
 @dataclass
@@ -30,7 +41,7 @@ class DevicePlan:
     device: str
     check: replace.IdentityCheck | None = None
     plan: backup.RestorePlan | None = None
-    error: str = ""  # refused before anything is written (type, variant, unreadable device)
+    error: str = ""  # refused before anything is written (type, variant, unreadable device); a Message
 
     @property
     def changed(self) -> list[backup.DiffRow]:
@@ -42,7 +53,7 @@ class BatchPlan:
     source: str
     device_type: str
     devices: list[DevicePlan]
-    errors: list[str] = field(default_factory=list)  # the batch as a whole cannot run
+    errors: list[str] = field(default_factory=list)  # the batch as a whole cannot run; each a Message
 
     @property
     def ready(self) -> bool:
@@ -52,8 +63,8 @@ class BatchPlan:
 @dataclass
 class DeviceResult:
     device: str
-    status: str  # written, unchanged, failed, skipped, refused
-    text: str = ""
+    status: str  # written, unchanged, failed, skipped, refused (a page words it)
+    text: str = ""  # a Message
     report: backup.RestoreReport | None = None
 
 
@@ -68,10 +79,10 @@ async def source_document(runtime, source: str, device: str) -> dict:
     if source.startswith("device:"):
         sibling = source.split(":", 1)[1]
         if sibling not in runtime.worker.adapters:
-            raise backup.BackupError(f"no device named {sibling!r} in this plant")
+            raise backup.BackupError(Message(N_("no device named {name} in this plant"), name=repr(sibling)))
         adapter = runtime.worker.adapters[sibling]
         if not backup.supports_backup(adapter):
-            raise backup.BackupError(f"{sibling} has no parameters to copy")
+            raise backup.BackupError(Message(N_("{name} has no parameters to copy"), name=sibling))
         entries = await runtime.worker.gate.invoke(sibling, READ_PARAMETERS, user="batch", role="viewer")
         state = runtime.store.devices[sibling]
         return backup.make_document(runtime.plant.name, sibling, state.type, state.bus, adapter.backup_identity(), entries)
@@ -90,17 +101,19 @@ async def plan_batch(runtime, devices: list[str], source: str, progress=None) ->
     errors = []
     unknown = [d for d in devices if d not in runtime.store.devices]
     if unknown:
-        return BatchPlan(source, "", [], [f"no device named {', '.join(map(repr, unknown))} in this plant"])
+        return BatchPlan(source, "", [], [Message(N_("no device named {name} in this plant"), name=", ".join(map(repr, unknown)))])
     if not devices:
-        return BatchPlan(source, "", [], ["choose at least one device"])
+        return BatchPlan(source, "", [], [Message(N_("choose at least one device"))])
     types = {runtime.store.devices[d].type for d in devices}
     variants = {str(_variant(runtime, d)) for d in devices}
     if len(types) > 1:
-        errors.append(f"the devices are of {len(types)} types ({', '.join(sorted(types))}): a batch takes one type")
+        errors.append(Message(N_("the devices are of {n} types ({types}): a batch takes one type"), n=len(types),
+                              types=", ".join(sorted(types))))
     if len(variants) > 1:
-        errors.append(f"the devices are of {len(variants)} variants ({', '.join(sorted(variants))}): a batch takes one variant")
+        errors.append(Message(N_("the devices are of {n} variants ({variants}): a batch takes one variant"), n=len(variants),
+                              variants=", ".join(sorted(variants))))
     if len(set(devices)) != len(devices):
-        errors.append("a device is named twice")
+        errors.append(Message(N_("a device is named twice")))
     result = BatchPlan(source, next(iter(types)), [DevicePlan(d) for d in devices], errors)
     if errors:
         return result
@@ -109,15 +122,16 @@ async def plan_batch(runtime, devices: list[str], source: str, progress=None) ->
             document = await source_document(runtime, source, entry.device)
             state = runtime.store.devices[entry.device]
             if state.status != "online":
-                raise backup.BackupError(f"not answering ({state.last_error or 'no answer'})")
+                raise backup.BackupError(Message(N_("not answering ({error})"),
+                                                 error=state.last_error or Message(N_("no answer"))))
             adapter = runtime.worker.adapters[entry.device]
             current = {e["key"] for e in await adapter.backup_read()}
             entry.check = await replace.check_identity(runtime, entry.device, document, current)
             if not entry.check.ok:
-                raise backup.BackupError("; ".join(entry.check.refusals))
+                raise backup.BackupError(joined(entry.check.refusals, "; "))
             entry.plan = await backup.plan_restore(runtime, entry.device, document)
         except (CommissionError, OSError) as exc:  # each device says why it cannot take part
-            entry.error = str(exc) or exc.__class__.__name__
+            entry.error = message_of(exc) or exc.__class__.__name__
         if progress:
             progress((n + 1) / len(result.devices))
     return result
@@ -132,14 +146,14 @@ async def apply_batch(runtime, plan: BatchPlan, *, user: str, role: str, confirm
     """
     results: list[DeviceResult] = []
     if not plan.ready:
-        return [DeviceResult(d.device, REFUSED, d.error or "; ".join(plan.errors)) for d in plan.devices]
+        return [DeviceResult(d.device, REFUSED, d.error or joined(plan.errors, "; ")) for d in plan.devices]
     stopped = ""
     total = max(1, len(plan.devices))
     for n, entry in enumerate(plan.devices):
         if stopped:
-            result = DeviceResult(entry.device, SKIPPED, f"not started: {stopped}")
+            result = DeviceResult(entry.device, SKIPPED, Message(N_("not started: {why}"), why=stopped))
         elif not entry.changed:
-            result = DeviceResult(entry.device, UNCHANGED, "already holds every value of the source")
+            result = DeviceResult(entry.device, UNCHANGED, Message(N_("already holds every value of the source")))
         else:
             selected = {r.key for r in entry.changed}
             keys = {r.key for r in entry.plan.risky(selected) if r.key in confirmed or r.name in confirmed}
@@ -148,9 +162,10 @@ async def apply_batch(runtime, plan: BatchPlan, *, user: str, role: str, confirm
             if report.ok:
                 result = DeviceResult(entry.device, WRITTEN, report.summary(), report)
             else:
-                why = "; ".join(f"{p}: {e}" for p, e in report.failed + report.refused) or report.save_error
-                result = DeviceResult(entry.device, FAILED, f"{report.summary()} ({why})", report)
-                stopped = f"the batch stopped at {entry.device}, which failed"
+                why = joined([Message("{name}: {error}", name=p, error=e) for p, e in report.failed + report.refused], "; ") \
+                    or report.save_error
+                result = DeviceResult(entry.device, FAILED, Message("{summary} ({why})", summary=report.summary(), why=why), report)
+                stopped = Message(N_("the batch stopped at {device}, which failed"), device=entry.device)
         results.append(result)
         if progress:
             progress((n + 1) / total)
@@ -205,20 +220,21 @@ def run_cli(args: argparse.Namespace) -> int:
 
     async def work(runtime, names) -> int:
         plan = await plan_batch(runtime, names, source)
+        lang = cli_lang.lang()
         for error in plan.errors:
-            print(f"commission apply: {error}", file=sys.stderr)
+            print(f"commission apply: {said(error, lang)}", file=sys.stderr)
         if plan.errors:
             return 2
         risky: dict[str, str] = {}
         for entry in plan.devices:
             print(f"{entry.device}:")
             if entry.error:
-                print(_("  refused: {error}").format(error=entry.error))
+                print(_("  refused: {error}").format(error=said(entry.error, lang)))
                 continue
             for note in entry.check.notes:
-                print(_("  identity: {note}").format(note=note))
+                print(_("  identity: {note}").format(note=said(note, lang)))
             for warning in entry.plan.warnings:
-                print(_("  warning: {warning}").format(warning=warning))
+                print(_("  warning: {warning}").format(warning=said(warning, lang)))
             for row in entry.changed:
                 mark = _("   [needs confirmation: {risk}]").format(risk=row.risk) if row.risk else ""
                 print(f"  {row.name}: {row.current_text} -> {row.backup_text}{mark}")
@@ -249,13 +265,14 @@ def run_cli(args: argparse.Namespace) -> int:
             print(_("nothing written"), file=sys.stderr)
             return 2
 
-        def said(result: DeviceResult) -> None:
-            print(f"{result.device}: {result.status}: {result.text}", flush=True)
+        def done(result: DeviceResult) -> None:
+            print(f"{result.device}: {status_text(result.status, lang)}: {said(result.text, lang)}", flush=True)
 
-        results = await apply_batch(runtime, plan, user=cli_user(), role="engineer", confirmed=confirmed, on_device=said)
+        results = await apply_batch(runtime, plan, user=cli_user(), role="engineer", confirmed=confirmed, on_device=done)
         failed = [r for r in results if r.status in (FAILED, REFUSED)]
         if failed:
-            print(_("commission apply: stopped at {device}: {error}").format(device=failed[0].device, error=failed[0].text), file=sys.stderr)
+            print(_("commission apply: stopped at {device}: {error}").format(device=failed[0].device, error=said(failed[0].text, lang)),
+                  file=sys.stderr)
         return 1 if failed else 0
 
     return asyncio.run(run_headless(args, work))

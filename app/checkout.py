@@ -15,13 +15,21 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from app.i18n import N_
+from app.message import Message
 from app.record_store import RecordError
 from devices.errors import CommissionError
 
 log = logging.getLogger(__name__)
 
 
+def role_refusal(user: str, role: str, with_role: str, without_role: str) -> Message:
+    """Why ``user`` may not act: ``with_role`` names the ``role``, ``without_role`` says there is none."""
+    return Message(with_role, user=user, role=Message(role)) if role else Message(without_role, user=user)
+
+
 # -- evidence: the bus traffic of a checkout step ------------------------------------------------
+
 class TrafficTap:
     """Collects what the bus monitor buffers of one bus hold from the moment it starts: CAN frames
     (``CanBusState.frames``) or serial, Modbus and LogiTed transactions (``BusState.transactions``).
@@ -263,7 +271,7 @@ class CheckoutRun:
         state = runtime.store.devices[device]
         module = checkout_module(state.type)
         if module is None:
-            raise RecordError(f"{device}: the {state.type} type declares no checkout")
+            raise RecordError(Message(N_("{device}: the {type} type declares no checkout"), device=device, type=state.type))
         self.runtime, self.device, self.user, self.role = runtime, device, user, role
         self.module = module
         self.settings = {**module.SETTINGS, **(settings or {})}
@@ -317,7 +325,8 @@ class CheckoutRun:
         """Run every step in order; the first failure ends the run (later steps are skipped), the
         cleanup always runs. Returns the result as stored (its ``record_id`` set)."""
         if self.role != "engineer":
-            raise PermissionError(f"{self.user} has the {self.role or 'no'} role and may not run checkouts")
+            raise PermissionError(role_refusal(self.user, self.role, N_("{user} has the {role} role and may not run checkouts"),
+                                               N_("{user} has the no role and may not run checkouts")))
         ctx = CheckoutContext(self)
         beat = asyncio.create_task(self._beat()) if self._own_session else None
         self.status, self.started = "running", time.time()

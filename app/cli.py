@@ -11,10 +11,11 @@ import socket
 import sys
 from pathlib import Path
 
-from app import host, i18n
+from app import cli_lang, host, i18n
 from app.cli_lang import YES, _, set_language
 from app.headless import bindable, cli_user, load_plant_or_exit, refuse_taken_ports, run_headless, write_options
 from app.i18n import N_
+from app.message import said
 from devices.errors import CommissionError
 
 EPILOG = N_("""\
@@ -344,7 +345,7 @@ def run_backup(args) -> int:
             state = runtime.store.devices[name]
             reason = await backup.nothing_to_back_up(runtime.worker.adapters[name])
             if reason:
-                print(_("{name}: skipped: {reason}").format(name=name, reason=reason), flush=True)
+                print(_("{name}: skipped: {reason}").format(name=name, reason=said(reason, cli_lang.lang())), flush=True)
                 continue
             if state.status != "online":
                 print(_("{name}: not answering ({error}): skipped").format(name=name, error=state.last_error or _("no answer")),
@@ -354,7 +355,7 @@ def run_backup(args) -> int:
             try:
                 path = await backup.backup_device(runtime, name, args.out, user=cli_user(), role="engineer")
             except (CommissionError, OSError) as exc:  # one device's refusal or a file not written: the others go on
-                print(_("{name}: backup failed: {error}").format(name=name, error=exc), file=sys.stderr)
+                print(_("{name}: backup failed: {error}").format(name=name, error=said(exc, cli_lang.lang())), file=sys.stderr)
                 failures += 1
                 continue
             print(f"{name}: {path}")
@@ -371,7 +372,7 @@ def run_restore(args) -> int:
 
         document = backup.load_document(files.read_regular(args.file, files.MAX_DOCUMENT_BYTES, "backup file"), str(args.file))
     except (OSError, backup.BackupError) as exc:
-        print(f"commission restore: {exc}", file=sys.stderr)
+        print(f"commission restore: {said(exc, cli_lang.lang())}", file=sys.stderr)
         return 2
 
     async def work(runtime, names) -> int:
@@ -382,10 +383,10 @@ def run_restore(args) -> int:
         try:
             plan = await backup.plan_restore(runtime, name, document)
         except CommissionError as exc:
-            print(f"commission restore: {exc}", file=sys.stderr)
+            print(f"commission restore: {said(exc, cli_lang.lang())}", file=sys.stderr)
             return 2
         for warning in plan.warnings:
-            print(_("warning: {warning}").format(warning=warning))
+            print(_("warning: {warning}").format(warning=said(warning, cli_lang.lang())))
         changed = [r for r in plan.rows if r.changed]
         for row in changed:
             mark = _("   [needs confirmation: {risk}]").format(risk=row.risk) if row.risk else ""
@@ -423,8 +424,8 @@ def run_restore(args) -> int:
             return 2
         report = await backup.execute_restore(runtime, plan, selected, user=cli_user(), confirmed=confirmed)
         for parameter, error in report.failed + report.refused:
-            print(_("  failed: {parameter}: {error}").format(parameter=parameter, error=error), file=sys.stderr)
-        print(report.summary())
+            print(_("  failed: {parameter}: {error}").format(parameter=parameter, error=said(error, cli_lang.lang())), file=sys.stderr)
+        print(said(report.summary(), cli_lang.lang()))
         return 0 if report.ok else 1
 
     return asyncio.run(run_headless(args, work))
@@ -441,7 +442,7 @@ def run_view(args) -> int:
     try:
         parse_mqtt_url(args.broker)
     except ValueError as exc:
-        print(f"commission view: --broker {exc}", file=sys.stderr)
+        print(f"commission view: --broker {said(exc, cli_lang.lang())}", file=sys.stderr)
         return 2
     if args.ca_file and not args.broker.startswith("mqtts://"):
         print(_("commission view: --ca-file is for TLS: give the broker as mqtts://..."), file=sys.stderr)

@@ -15,6 +15,8 @@ from typing import Any
 
 import tomllib
 
+from app.i18n import N_
+from app.message import Message, message_of
 from devices.errors import CommissionError
 from devices.registry import DEVICE_TYPES, format_can_ids
 
@@ -78,12 +80,14 @@ SIM_UDP_PORTS = (43114, 2000)  # first port and span of the ports derived for si
 STANDARD_BAUDRATES = (1200, 2400, 4800, 9600, 14400, 19200, 38400, 57600, 115200)
 SERIAL_SIM_TYPES = {"modbus-rtu", "serial", "logited-rs485"}  # their twins serve a TCP port (socket://host:port)
 CAN_SIM_INTERFACES = ("virtual", "udp_multicast")  # python-can interfaces the twins can sit on
-TYPE_WORDS = {bool: "true or false (without quotes)", int: "a whole number (without quotes)", str: "a text in quotes"}
+TYPE_WORDS = {bool: N_("true or false (without quotes)"), int: N_("a whole number (without quotes)"), str: N_("a text in quotes")}
 COMMON_DEVICE_KEYS = {"name", "type", "bus", "description"}
+OUTSIDE = N_("{owner}: {key} {value} is outside {range}")
+NOT_ONE_OF = N_("{owner}: {key} {value} is not one of {known}")
 
 
 class PlantError(CommissionError, ValueError):
-    """A plant file that cannot be used; the message says where and what."""
+    """A plant file that cannot be used; the message says where and what (a :class:`~app.message.Message`)."""
 
 
 @dataclass
@@ -209,19 +213,18 @@ def _did_you_mean(key: str, known) -> str | None:
     return found[0] if found else None
 
 
-def _unknown_key(owner: str, key: str, known) -> str:
+def _unknown_key(owner: str, key: str, known) -> Message:
     guess = _did_you_mean(key, known)
-    return f"{owner}: unknown key '{key}'; " + (f"did you mean '{guess}'? " if guess else "") + f"known: {', '.join(known)}"
+    return Message(N_("{owner}: unknown key '{key}'; did you mean '{guess}'? known: {known}") if guess else
+                   N_("{owner}: unknown key '{key}'; known: {known}"), owner=owner, key=key, guess=guess, known=", ".join(known))
 
 
-def _wrong_type(owner: str, key: str, value: Any, typ) -> str:
-    if typ == (int, float):
-        want = "a number (without quotes)"
-    else:
-        want = TYPE_WORDS.get(typ, "a " + " or ".join(t.__name__ for t in typ) if isinstance(typ, tuple) else typ.__name__)
+def _wrong_type(owner: str, key: str, value: Any, typ) -> Message:
+    want = Message(N_("a number (without quotes)") if typ == (int, float) else TYPE_WORDS.get(
+        typ, "a " + " or ".join(t.__name__ for t in typ) if isinstance(typ, tuple) else typ.__name__))
     if isinstance(typ, tuple) and str in typ:
-        want = "a text in quotes or a whole number"
-    return f"{owner}: {key} must be {want}, not {value!r}"
+        want = Message(N_("a text in quotes or a whole number"))
+    return Message(N_("{owner}: {key} must be {want}, not {value!r}"), owner=owner, key=key, want=want, value=value)
 
 
 def _sub_table_line(text: str, start: int, table: str) -> int:
@@ -243,16 +246,17 @@ def _seconds(value: Any) -> bool:
 def _parse_bus(text: str, raw: dict[str, Any], line: int, plant: Plant, fail) -> BusConfig:
     name = raw.get("name")
     if not isinstance(name, str) or not name:
-        raise fail(line, "bus without a name (add name = \"...\")")
+        raise fail(line, Message(N_("bus without a name (add name = \"...\")")))
     if name in plant.buses:
-        raise fail(line, f"duplicate bus name '{name}' (first at line {plant.buses[name].line})")
+        raise fail(line, Message(N_("duplicate bus name '{name}' (first at line {line})"), name=name, line=plant.buses[name].line))
     btype = raw.get("type")
     if btype not in BUS_KEYS:
         guess = _did_you_mean(str(btype), BUS_KEYS)
-        raise fail(_key_line(text, line, "type"), f"bus '{name}': unknown type {btype!r}; "
-                   + (f"did you mean '{guess}'? " if guess else "") + f"known: {', '.join(BUS_KEYS)}")
+        raise fail(_key_line(text, line, "type"), Message(
+            N_("bus '{name}': unknown type {type!r}; did you mean '{guess}'? known: {known}") if guess else
+            N_("bus '{name}': unknown type {type!r}; known: {known}"), name=name, type=btype, guess=guess, known=", ".join(BUS_KEYS)))
     spec = BUS_KEYS[btype]
-    owner = f"bus '{name}'"
+    owner = Message(N_("bus '{name}'"), name=name)
     at = lambda key: _key_line(text, line, key)  # noqa: E731
     options: dict[str, Any] = {}
     extra: dict[str, Any] = {}
@@ -262,17 +266,20 @@ def _parse_bus(text: str, raw: dict[str, Any], line: int, plant: Plant, fail) ->
         if key == CAN_OPTIONS_TABLE and btype == "can":
             sub_line = _sub_table_line(text, line, key)
             if not isinstance(value, dict):
-                raise fail(at(key), f"{owner}: {key} must be a table: [bus.{key}] with one python-can key per line")
+                raise fail(at(key), Message(N_("{owner}: {key} must be a table: [bus.{key}] with one python-can key per line"),
+                                            owner=owner, key=key))
             for sub_key in value:
                 if sub_key in spec or sub_key in COMMON_BUS_KEYS:
                     raise fail(_key_line(text, sub_line, sub_key),
-                               f"{owner}: {sub_key} belongs in the [[bus]] table, not in [bus.{key}] (which is for further python-can keys)")
+                               Message(N_("{owner}: {sub_key} belongs in the [[bus]] table, not in [bus.{key}] (which is for further "
+                                          "python-can keys)"), owner=owner, sub_key=sub_key, key=key))
             extra = dict(value)
             continue
         if key not in spec:
             message = _unknown_key(owner, key, spec)
             if btype == "can":
-                message += f"; keys of a python-can interface go in a [bus.{CAN_OPTIONS_TABLE}] table below this one"
+                message = Message(N_("{message}; keys of a python-can interface go in a [bus.{table}] table below this one"),
+                                  message=message, table=CAN_OPTIONS_TABLE)
             raise fail(at(key), message)
         typ = spec[key][0]
         if isinstance(value, bool) and typ is not bool or not isinstance(value, typ):
@@ -281,41 +288,46 @@ def _parse_bus(text: str, raw: dict[str, Any], line: int, plant: Plant, fail) ->
     for key, (_typ, default) in spec.items():
         if key not in options:
             if default is None:
-                raise fail(line, f"{owner}: '{key}' is required (add {key} = ...)")
+                raise fail(line, Message(N_("{owner}: '{key}' is required (add {key} = ...)"), owner=owner, key=key))
             options[key] = default
     for key in ("timeout", "poll_period"):
         if not _seconds(options[key]):
-            raise fail(at(key), f"{owner}: {key} must be a number of seconds above 0, not {options[key]!r}")
+            raise fail(at(key), Message(N_("{owner}: {key} must be a number of seconds above 0, not {value!r}"), owner=owner, key=key,
+                                        value=options[key]))
     if btype == "modbus-rtu":
         if options["parity"] not in ("N", "E", "O"):
-            raise fail(at("parity"), f"{owner}: parity must be \"N\", \"E\" or \"O\", not {options['parity']!r}")
+            raise fail(at("parity"), Message(N_("{owner}: parity must be \"N\", \"E\" or \"O\", not {value!r}"), owner=owner,
+                                             value=options["parity"]))
         if options["stopbits"] not in (1, 2):
-            raise fail(at("stopbits"), f"{owner}: stopbits must be 1 or 2, not {options['stopbits']}")
+            raise fail(at("stopbits"), Message(N_("{owner}: stopbits must be 1 or 2, not {value}"), owner=owner, value=options["stopbits"]))
         if options["bytesize"] not in (7, 8):
-            raise fail(at("bytesize"), f"{owner}: bytesize must be 7 or 8, not {options['bytesize']}")
+            raise fail(at("bytesize"), Message(N_("{owner}: bytesize must be 7 or 8, not {value}"), owner=owner, value=options["bytesize"]))
         if not 0 <= options["retries"] <= 10:
-            raise fail(at("retries"), f"{owner}: retries {options['retries']} is outside 0..10")
+            raise fail(at("retries"), Message(OUTSIDE, owner=owner, key="retries", value=options["retries"], range="0..10"))
     if btype in ("modbus-rtu", "logited-rs485") and options["baudrate"] not in STANDARD_BAUDRATES:
-        raise fail(at("baudrate"), f"{owner}: baudrate {options['baudrate']} is not one of {', '.join(map(str, STANDARD_BAUDRATES))}")
+        raise fail(at("baudrate"), Message(NOT_ONE_OF, owner=owner, key="baudrate", value=options["baudrate"],
+                                           known=", ".join(map(str, STANDARD_BAUDRATES))))
     if btype == "logited-rs485":
         for key in ("master_address", "next_master"):
             if not 0 <= options[key] <= 255:
-                raise fail(at(key), f"{owner}: {key} {options[key]} is outside 0..255")
+                raise fail(at(key), Message(OUTSIDE, owner=owner, key=key, value=options[key], range="0..255"))
         if options["shared"] and options["next_master"] == options["master_address"]:
-            raise fail(at("next_master"), f"{owner}: next_master must be another master than this tool ({options['master_address']})")
+            raise fail(at("next_master"), Message(N_("{owner}: next_master must be another master than this tool ({address})"),
+                                                  owner=owner, address=options["master_address"]))
     if btype == "serial" and options["baudrate"] not in (9600, 19200, 38400):
-        raise fail(at("baudrate"), f"{owner}: baudrate {options['baudrate']} is not one of 9600, 19200, 38400")
+        raise fail(at("baudrate"), Message(NOT_ONE_OF, owner=owner, key="baudrate", value=options["baudrate"], known="9600, 19200, 38400"))
     if btype == "logited-tcp" and not 1 <= options["port"] <= 65535:
-        raise fail(at("port"), f"{owner}: port {options['port']} is outside 1..65535")
+        raise fail(at("port"), Message(OUTSIDE, owner=owner, key="port", value=options["port"], range="1..65535"))
     if btype == "can":
         if not 5000 <= options["bitrate"] <= 1_000_000:
-            raise fail(at("bitrate"), f"{owner}: bitrate {options['bitrate']} is outside 5000..1000000 bit/s")
+            raise fail(at("bitrate"), Message(OUTSIDE, owner=owner, key="bitrate", value=options["bitrate"], range="5000..1000000 bit/s"))
         udp = options["interface"] == "udp_multicast"
         if "port" in raw and not udp:
-            raise fail(at("port"), f"{owner}: port is the UDP port of interface \"udp_multicast\"; "
-                       f"keys of interface {options['interface']!r} go in [bus.{CAN_OPTIONS_TABLE}]")
+            raise fail(at("port"), Message(N_("{owner}: port is the UDP port of interface \"udp_multicast\"; keys of interface "
+                                              "{interface!r} go in [bus.{table}]"), owner=owner, interface=options["interface"],
+                                           table=CAN_OPTIONS_TABLE))
         if udp and "port" in raw and not 1024 <= options["port"] <= 65535:
-            raise fail(at("port"), f"{owner}: port {options['port']} is outside 1024..65535")
+            raise fail(at("port"), Message(OUTSIDE, owner=owner, key="port", value=options["port"], range="1024..65535"))
         if not udp:
             del options["port"]
         elif "port" not in raw:
@@ -323,12 +335,14 @@ def _parse_bus(text: str, raw: dict[str, Any], line: int, plant: Plant, fail) ->
         if "filter_own" not in raw:
             del options["filter_own"]  # the CAN bus picks its own default per interface
         if options["simulate"] and options["interface"] not in CAN_SIM_INTERFACES:
-            raise fail(at("simulate"), f"{owner}: simulate = true needs interface \"virtual\" (one process) or \"udp_multicast\" "
-                       f"(across processes), not {options['interface']!r}; remove simulate for a real bus")
+            raise fail(at("simulate"), Message(N_("{owner}: simulate = true needs interface \"virtual\" (one process) or "
+                                                  "\"udp_multicast\" (across processes), not {interface!r}; remove simulate for a "
+                                                  "real bus"), owner=owner, interface=options["interface"]))
         options.update(extra)  # the CAN bus passes them to python-can
     if btype in SERIAL_SIM_TYPES and options["simulate"] and not re.fullmatch(r"socket://[^/:]*:\d+", options["port"]):
-        raise fail(at("simulate"), f"{owner}: simulate = true needs a port of the form \"socket://127.0.0.1:PORT\" "
-                   f"(the simulated devices serve a TCP port), not {options['port']!r}; remove simulate for a real line")
+        raise fail(at("simulate"), Message(N_("{owner}: simulate = true needs a port of the form \"socket://127.0.0.1:PORT\" (the "
+                                              "simulated devices serve a TCP port), not {port!r}; remove simulate for a real line"),
+                                           owner=owner, port=options["port"]))
     return BusConfig(name, btype, options, line)
 
 
@@ -350,8 +364,9 @@ def _check_udp_ports(text: str, plant: Plant, fail) -> None:
         if port in seen:
             other = seen[port]
             raise fail(_key_line(text, bus.line, "port") if _key_line(text, bus.line, "port") != bus.line else bus.line,
-                       f"bus '{bus.name}': udp_multicast port {port} is already used by bus '{other.name}' (line {other.line}); "
-                       "udp_multicast groups on one port receive each other's frames: give this bus port = <another port>")
+                       Message(N_("bus '{name}': udp_multicast port {port} is already used by bus '{other}' (line {line}); "
+                                  "udp_multicast groups on one port receive each other's frames: give this bus port = <another port>"),
+                               name=bus.name, port=port, other=other.name, line=other.line))
         seen[port] = bus
 
 
@@ -360,11 +375,11 @@ def load_plant(path: str | Path) -> Plant:
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
-        raise PlantError(f"{path}: cannot read the plant file: {exc.strerror or exc}") from None
+        raise PlantError(Message(N_("{path}: cannot read the plant file: {error}"), path=path, error=exc.strerror or exc)) from None
     except UnicodeDecodeError as exc:
         line = path.read_bytes()[:exc.start].count(b"\n") + 1
-        raise PlantError(f"{path}:{line}: the plant file is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset "
-                         f"{exc.start}); save it as UTF-8") from None
+        raise PlantError(Message(N_("{path}:{line}: the plant file is not UTF-8 text (byte 0x{byte:02x} at offset {offset}); "
+                                    "save it as UTF-8"), path=path, line=line, byte=exc.object[exc.start], offset=exc.start)) from None
     return parse_plant(text, path)
 
 
@@ -373,33 +388,41 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise PlantError(f"{where}: not valid TOML: {exc}") from None
+        raise PlantError(Message(N_("{where}: not valid TOML: {error}"), where=where, error=exc)) from None
 
     def fail(line: int, message: str) -> PlantError:
-        return PlantError(f"{where}:{line}: {message}")
+        return PlantError(Message("{where}:{line}: {message}", where=where, line=line, message=message))
 
     for key in data:
         if key not in TOP_LEVEL:
             guess = _did_you_mean(key, TOP_LEVEL)
-            hint = f"did you mean {_section(guess)}? " if guess else ""
-            raise fail(_section_line(text, key), f"unknown section {_section(key)}; {hint}known: [[bus]], [[device]], [[sim_device]], [plant_view], [mqtt], [opcua], name")
+            known = "[[bus]], [[device]], [[sim_device]], [plant_view], [mqtt], [opcua], name"
+            raise fail(_section_line(text, key), Message(
+                N_("unknown section {section}; did you mean {guess}? known: {known}") if guess else
+                N_("unknown section {section}; known: {known}"), section=_section(key), guess=guess and _section(guess), known=known))
     for key in ("bus", "device", "sim_device"):
         if key in data and not (isinstance(data[key], list) and all(isinstance(t, dict) for t in data[key])):
-            raise fail(_section_line(text, key), f"[{key}] is one table; write [[{key}]] (double brackets): one [[{key}]] table per {key.replace('sim_', 'simulated ')}")
+            raise fail(_section_line(text, key), Message(
+                N_("[{key}] is one table; write [[{key}]] (double brackets): one [[{key}]] table per {what}"), key=key,
+                what=Message({"bus": N_("bus"), "device": N_("device"), "sim_device": N_("simulated device")}[key])))
     if "name" in data and not isinstance(data["name"], str):
-        raise fail(_section_line(text, "name"), f"name must be a text in quotes, e.g. name = \"hall-3\", not {data['name']!r}")
+        raise fail(_section_line(text, "name"), Message(N_("name must be a text in quotes, e.g. name = \"hall-3\", not {value!r}"),
+                                                        value=data["name"]))
     plant = Plant(name=str(data.get("name") or (path.stem if path else "plant")), path=path)
     pv = data.get("plant_view", {})
     pv_line = _section_line(text, "plant_view")
     if not isinstance(pv, dict):
-        raise fail(pv_line, "[plant_view] must be a table, e.g. [plant_view] public = true")
+        raise fail(pv_line, Message(N_("[plant_view] must be a table, e.g. [plant_view] public = true")))
     for key in sorted(set(pv) - {"public"}):
         guess = _did_you_mean(key, ["public"])
-        raise fail(_key_line(text, pv_line, key), f"[plant_view]: unknown key '{key}'; {f'did you mean {guess!r}? ' if guess else ''}known: public (true or false)")
+        raise fail(_key_line(text, pv_line, key), Message(
+            N_("[plant_view]: unknown key '{key}'; did you mean {guess!r}? known: public (true or false)") if guess else
+            N_("[plant_view]: unknown key '{key}'; known: public (true or false)"), key=key, guess=guess))
     public = pv.get("public", False)
     if not isinstance(public, bool):
         # a string such as "false" would be true in Python: only a real boolean opens the view
-        raise fail(_key_line(text, pv_line, "public"), f"[plant_view] public must be true or false (without quotes), not {public!r}")
+        raise fail(_key_line(text, pv_line, "public"), Message(N_("[plant_view] public must be true or false (without quotes), not "
+                                                                  "{value!r}"), value=public))
     plant.plant_view = PlantViewConfig(public=public)
     if "mqtt" in data:
         plant.mqtt = parse_mqtt(text, data["mqtt"], plant.name, path, fail)
@@ -421,8 +444,9 @@ def parse_plant(text: str, path: Path | None = None) -> Plant:
         for dev in plant.devices_on(bus.name) + [d for d in plant.sim_devices.values() if d.bus == bus.name]:
             ident = DEVICE_TYPES[dev.type].bus_identity(dev.options, bus.type)
             if ident is not None and ident in seen:
-                what = f"address {ident}" if isinstance(ident, int) else str(ident)  # a type may name its own identity
-                raise fail(dev.line, f"device '{dev.name}': {what} is already used by '{seen[ident]}' on bus '{bus.name}'")
+                what = Message(N_("address {address}"), address=ident) if isinstance(ident, int) else str(ident)  # a type may name its own
+                raise fail(dev.line, Message(N_("device '{name}': {what} is already used by '{other}' on bus '{bus}'"), name=dev.name,
+                                             what=what, other=seen[ident], bus=bus.name))
             if ident is not None:
                 seen[ident] = dev.name
         conflict = can_id_conflict(plant.devices_on(bus.name) + [d for d in plant.sim_devices.values() if d.bus == bus.name], bus)
@@ -442,15 +466,15 @@ def parse_mqtt_url(url: str) -> tuple[str, int, bool]:
         parts = urlsplit(url)
         port = parts.port
     except ValueError as exc:
-        raise ValueError(f"{url!r} is not a broker URL ({exc})") from None
+        raise ValueError(Message(N_("{url!r} is not a broker URL ({error})"), url=url, error=exc)) from None
     if parts.scheme not in MQTT_SCHEMES:
-        raise ValueError(f"{url!r} must start with mqtt:// or mqtts:// (TLS)")
+        raise ValueError(Message(N_("{url!r} must start with mqtt:// or mqtts:// (TLS)"), url=url))
     if not parts.hostname:
-        raise ValueError(f"{url!r} names no broker host, e.g. mqtt://broker.local:1883")
+        raise ValueError(Message(N_("{url!r} names no broker host, e.g. mqtt://broker.local:1883"), url=url))
     if parts.username or parts.password:
-        raise ValueError(f"{url!r} carries a user or password; use username = ... and password_env or password_file")
+        raise ValueError(Message(N_("{url!r} carries a user or password; use username = ... and password_env or password_file"), url=url))
     if parts.path not in ("", "/") or parts.query or parts.fragment:
-        raise ValueError(f"{url!r}: a broker URL has no path or query, e.g. mqtt://broker.local:1883")
+        raise ValueError(Message(N_("{url!r}: a broker URL has no path or query, e.g. mqtt://broker.local:1883"), url=url))
     return parts.hostname, port or MQTT_SCHEMES[parts.scheme], parts.scheme == "mqtts"
 
 
@@ -458,55 +482,65 @@ def parse_mqtt(text: str, raw: Any, plant_name: str, path: Path | None, fail) ->
     """The ``[mqtt]`` table: every key checked, errors as ``file:line: what is wrong``."""
     line = _section_line(text, "mqtt")
     if not isinstance(raw, dict):
-        raise fail(line, '[mqtt] must be a table, e.g. [mqtt] url = "mqtt://broker.local:1883"')
+        raise fail(line, Message(N_('[mqtt] must be a table, e.g. [mqtt] url = "mqtt://broker.local:1883"')))
     at = lambda key: _key_line(text, line, key)  # noqa: E731
     for key in raw:
         if key == "password":
-            raise fail(at(key), "[mqtt]: a password never goes in the plant file; name an environment variable "
-                       "(password_env = \"MQTT_PASSWORD\") or a file (password_file = \"mqtt-password.txt\") that holds it")
+            raise fail(at(key), Message(N_("[mqtt]: a password never goes in the plant file; name an environment variable "
+                                           "(password_env = \"MQTT_PASSWORD\") or a file (password_file = \"mqtt-password.txt\") "
+                                           "that holds it")))
         if key not in MQTT_KEYS:
             raise fail(at(key), _unknown_key("[mqtt]", key, MQTT_KEYS))
     for key in ("url", "site", "instance", "username", "password_env", "password_file", "ca_file"):
         if key in raw and not isinstance(raw[key], str):
             raise fail(at(key), _wrong_type("[mqtt]", key, raw[key], str))
     if "url" not in raw:
-        raise fail(line, '[mqtt]: \'url\' is required (add url = "mqtt://broker.local:1883")')
+        raise fail(line, Message(N_('[mqtt]: \'url\' is required (add url = "mqtt://broker.local:1883")')))
     try:
         host, port, tls = parse_mqtt_url(raw["url"])
     except ValueError as exc:
-        raise fail(at("url"), f"[mqtt]: url {exc}") from None
+        raise fail(at("url"), Message(N_("[mqtt]: url {problem}"), problem=message_of(exc))) from None
     site = raw.get("site", plant_name)
     instance = raw.get("instance", plant_name)
     for key, value in (("site", site), ("instance", instance)):
         if not TOPIC_PART.fullmatch(value):
             where = at(key) if key in raw else line
-            raise fail(where, f"[mqtt]: {key} {value!r} becomes a topic level: use letters, digits, '_', '.', '-' only"
-                       + ("" if key in raw else f" (it defaults to the plant name; set {key} = \"...\")"))
+            raise fail(where, Message(N_("[mqtt]: {key} {value!r} becomes a topic level: use letters, digits, '_', '.', '-' only")
+                                      if key in raw else
+                                      N_("[mqtt]: {key} {value!r} becomes a topic level: use letters, digits, '_', '.', '-' only "
+                                         "(it defaults to the plant name; set {key} = \"...\")"), key=key, value=value))
     if "password_env" in raw and "password_file" in raw:
-        raise fail(at("password_file"), "[mqtt]: give password_env or password_file, not both")
+        raise fail(at("password_file"), Message(N_("[mqtt]: give password_env or password_file, not both")))
     if "password_env" in raw and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", raw["password_env"]):
-        raise fail(at("password_env"), f"[mqtt]: password_env names an environment variable (e.g. \"MQTT_PASSWORD\"), not {raw['password_env']!r}")
+        raise fail(at("password_env"), Message(N_("[mqtt]: password_env names an environment variable (e.g. \"MQTT_PASSWORD\"), "
+                                                  "not {value!r}"), value=raw["password_env"]))
     if ("password_env" in raw or "password_file" in raw) and "username" not in raw:
-        raise fail(at("password_env" if "password_env" in raw else "password_file"), "[mqtt]: a password needs username = \"...\"")
+        raise fail(at("password_env" if "password_env" in raw else "password_file"),
+                   Message(N_("[mqtt]: a password needs username = \"...\"")))
     if "ca_file" in raw and not tls:
-        raise fail(at("ca_file"), "[mqtt]: ca_file is for TLS: write the url as mqtts://...")
+        raise fail(at("ca_file"), Message(N_("[mqtt]: ca_file is for TLS: write the url as mqtts://...")))
     base = path.parent if path else Path.cwd()
     files = {key: (base / raw[key]) if key in raw else None for key in ("password_file", "ca_file")}
     for key in ("rate", "heartbeat"):
         if key in raw and not (_seconds(raw[key]) and raw[key] <= 3600):
-            raise fail(at(key), f"[mqtt]: {key} must be a number above 0 (and at most 3600), not {raw[key]!r}")
+            raise fail(at(key), Message(N_("[mqtt]: {key} must be a number above 0 (and at most 3600), not {value!r}"), key=key,
+                                        value=raw[key]))
     rate = float(raw.get("rate", 2.0))
     if rate > 50:
-        raise fail(at("rate"), f"[mqtt]: rate {rate:g} messages/s per device is more than any subscriber needs; at most 50")
+        raise fail(at("rate"), Message(N_("[mqtt]: rate {rate} messages/s per device is more than any subscriber needs; at most 50"),
+                                       rate=f"{rate:g}"))
     buffer = raw.get("buffer", 1000)
     if isinstance(buffer, bool) or not isinstance(buffer, int) or not 10 <= buffer <= 100_000:
-        raise fail(at("buffer"), f"[mqtt]: buffer must be a whole number of messages in 10..100000, not {buffer!r}")
+        raise fail(at("buffer"), Message(N_("[mqtt]: buffer must be a whole number of messages in 10..100000, not {value!r}"),
+                                         value=buffer))
     if "sparkplug" in raw and not isinstance(raw["sparkplug"], bool):
-        raise fail(at("sparkplug"), f"[mqtt]: sparkplug must be true or false (without quotes), not {raw['sparkplug']!r}")
+        raise fail(at("sparkplug"), Message(N_("[mqtt]: sparkplug must be true or false (without quotes), not {value!r}"),
+                                            value=raw["sparkplug"]))
     if "primary_host" in raw and not TOPIC_PART.fullmatch(raw["primary_host"]):
-        raise fail(at("primary_host"), f"[mqtt]: primary_host {raw['primary_host']!r} becomes a topic level: use letters, digits, '_', '.', '-' only")
+        raise fail(at("primary_host"), Message(N_("[mqtt]: primary_host {value!r} becomes a topic level: use letters, digits, '_', "
+                                                  "'.', '-' only"), value=raw["primary_host"]))
     if "primary_host" in raw and not raw.get("sparkplug"):
-        raise fail(at("primary_host"), "[mqtt]: primary_host is a Sparkplug setting: add sparkplug = true")
+        raise fail(at("primary_host"), Message(N_("[mqtt]: primary_host is a Sparkplug setting: add sparkplug = true")))
     return MqttConfig(url=raw["url"], host=host, port=port, tls=tls, site=site, instance=instance,
                       username=raw.get("username"), password_env=raw.get("password_env"),
                       password_file=files["password_file"], ca_file=files["ca_file"], rate=rate,
@@ -521,7 +555,7 @@ def parse_opcua(text: str, raw: Any, path: Path | None, fail) -> OpcuaConfig:
     """The ``[opcua]`` table (the read-only OPC UA server; off without it)."""
     line = _section_line(text, "opcua")
     if not isinstance(raw, dict):
-        raise fail(line, '[opcua] must be a table, e.g. [opcua] endpoint = "opc.tcp://127.0.0.1:4840"')
+        raise fail(line, Message(N_('[opcua] must be a table, e.g. [opcua] endpoint = "opc.tcp://127.0.0.1:4840"')))
     at = lambda key: _key_line(text, line, key)  # noqa: E731
     for key in raw:
         if key not in OPCUA_KEYS:
@@ -531,19 +565,27 @@ def parse_opcua(text: str, raw: Any, path: Path | None, fail) -> OpcuaConfig:
             raise fail(at(key), _wrong_type("[opcua]", key, raw[key], str))
     endpoint = raw.get("endpoint", OpcuaConfig.endpoint)
     if not re.fullmatch(r"opc\.tcp://[^/:]+(:\d{1,5})?(/.*)?", endpoint):
-        raise fail(at("endpoint"), f"[opcua]: endpoint must look like opc.tcp://127.0.0.1:4840, not {endpoint!r}")
+        raise fail(at("endpoint"), Message(N_("[opcua]: endpoint must look like opc.tcp://127.0.0.1:4840, not {value!r}"),
+                                           value=endpoint))
     if "anonymous" in raw and not isinstance(raw["anonymous"], bool):
-        raise fail(at("anonymous"), f"[opcua]: anonymous must be true or false (without quotes), not {raw['anonymous']!r}")
+        raise fail(at("anonymous"), Message(N_("[opcua]: anonymous must be true or false (without quotes), not {value!r}"),
+                                            value=raw["anonymous"]))
     if ("certificate" in raw) != ("private_key" in raw):
-        raise fail(at("certificate" if "certificate" in raw else "private_key"), "[opcua]: encryption needs both certificate and private_key")
+        raise fail(at("certificate" if "certificate" in raw else "private_key"),
+                   Message(N_("[opcua]: encryption needs both certificate and private_key")))
     if "rate" in raw and not (_seconds(raw["rate"]) and raw["rate"] <= 100):
-        raise fail(at("rate"), f"[opcua]: rate must be a number above 0 and at most 100 (updates a second), not {raw['rate']!r}")
+        raise fail(at("rate"), Message(N_("[opcua]: rate must be a number above 0 and at most 100 (updates a second), not {value!r}"),
+                                       value=raw["rate"]))
     base = path.parent if path else Path.cwd()
     files = {key: (base / raw[key]) if key in raw else None for key in ("certificate", "private_key")}
     return OpcuaConfig(endpoint=endpoint, anonymous=raw.get("anonymous", True), rate=float(raw.get("rate", 10.0)), **files)
 
 
-def can_id_conflict(devices: list[DeviceConfig], bus: BusConfig) -> tuple[DeviceConfig, str] | None:
+def _can_ids(span: tuple[int, int], extended: bool) -> Message:
+    return Message(N_("CAN ID {ids}") if span[0] == span[1] else N_("CAN IDs {ids}"), ids=format_can_ids(*span, extended))
+
+
+def can_id_conflict(devices: list[DeviceConfig], bus: BusConfig) -> tuple[DeviceConfig, Message] | None:
     """The first CAN ID that two devices on ``bus`` (or one device twice) would both use.
 
     Each device type declares the IDs it sends and receives (``DeviceType.can_id_uses``).
@@ -552,7 +594,7 @@ def can_id_conflict(devices: list[DeviceConfig], bus: BusConfig) -> tuple[Device
     if bus.type != "can":
         return None
     # HD-Lock document 6.2 b: "jede CAN-ID [darf] jeweils nur von einem Busteilnehmer verwendet werden"
-    rule = "A CAN ID may carry one sender's messages only: change an address or use separate buses."
+    rule = Message(N_("A CAN ID may carry one sender's messages only: change an address or use separate buses."))
     earlier = []
     for dev in devices:
         device_type = DEVICE_TYPES[dev.type]
@@ -561,18 +603,21 @@ def can_id_conflict(devices: list[DeviceConfig], bus: BusConfig) -> tuple[Device
             for b in uses[i + 1:]:
                 span = None if a.shared and b.shared else a.overlap(b)
                 if span:
-                    ids = ("CAN ID " if span[0] == span[1] else "CAN IDs ") + format_can_ids(*span, a.extended)
-                    return dev, (f"device '{dev.name}': {ids} is used twice by this {device_type.title} on bus '{bus.name}', "
-                                 f"as {a.use} and as {b.use}. {rule}")
+                    ids = _can_ids(span, a.extended)
+                    return dev, Message(N_("device '{name}': {ids} is used twice by this {type} on bus '{bus}', as {use} and as "
+                                           "{other_use}. {rule}"), name=dev.name, ids=ids, type=device_type.title, bus=bus.name,
+                                        use=a.use, other_use=b.use, rule=rule)
         for other, other_type, other_uses in earlier:
             same_type = other.type == dev.type
             for a in uses:
                 for b in other_uses:
                     span = None if same_type and a.shared and b.shared else a.overlap(b)
                     if span:
-                        ids = ("CAN ID " if span[0] == span[1] else "CAN IDs ") + format_can_ids(*span, a.extended)
-                        return dev, (f"device '{dev.name}': {ids} is used twice on bus '{bus.name}': by '{dev.name}' "
-                                     f"({device_type.title}) as {a.use}, and by '{other.name}' ({other_type.title}) as {b.use}. {rule}")
+                        ids = _can_ids(span, a.extended)
+                        return dev, Message(N_("device '{name}': {ids} is used twice on bus '{bus}': by '{name}' ({type}) as "
+                                               "{use}, and by '{other}' ({other_type}) as {other_use}. {rule}"), name=dev.name,
+                                            ids=ids, bus=bus.name, type=device_type.title, use=a.use, other=other.name,
+                                            other_type=other_type.title, other_use=b.use, rule=rule)
         earlier.append((dev, device_type, uses))
     return None
 
@@ -584,44 +629,52 @@ def _parse_devices(text, data, plant, table, target, fail) -> None:
         line = device_lines[index] if index < len(device_lines) else 1
         name = raw.get("name")
         if not isinstance(name, str) or not name:
-            raise fail(line, "device without a name (add name = \"...\")")
+            raise fail(line, Message(N_("device without a name (add name = \"...\")")))
         if not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
-            raise fail(line, f"device name '{name}' may only contain letters, digits, '_', '.', '-'")
+            raise fail(line, Message(N_("device name '{name}' may only contain letters, digits, '_', '.', '-'"), name=name))
         if name in plant.devices or name in plant.sim_devices:
             first = (plant.devices.get(name) or plant.sim_devices[name]).line
-            raise fail(line, f"duplicate device name '{name}' (first at line {first})")
+            raise fail(line, Message(N_("duplicate device name '{name}' (first at line {line})"), name=name, line=first))
         dtype = raw.get("type")
         if dtype not in DEVICE_TYPES:
-            raise fail(_key_line(text, line, "type"), f"device '{name}': unknown type {dtype!r}; known: {', '.join(DEVICE_TYPES)}")
+            raise fail(_key_line(text, line, "type"), Message(N_("device '{name}': unknown type {type!r}; known: {known}"), name=name,
+                                                              type=dtype, known=", ".join(DEVICE_TYPES)))
         bus = raw.get("bus")
         if bus not in plant.buses:
-            raise fail(_key_line(text, line, "bus"), f"device '{name}': unknown bus {bus!r}; defined buses: {', '.join(plant.buses) or 'none'}")
+            raise fail(_key_line(text, line, "bus"), Message(N_("device '{name}': unknown bus {bus!r}; defined buses: {known}"), name=name,
+                                                             bus=bus, known=", ".join(plant.buses) or Message(N_("none"))))
         device_type = DEVICE_TYPES[dtype]
         if plant.buses[bus].type not in device_type.bus_types:
-            raise fail(_key_line(text, line, "bus"), f"device '{name}': a {dtype} cannot sit on a {plant.buses[bus].type} bus")
+            raise fail(_key_line(text, line, "bus"), Message(N_("device '{name}': a {type} cannot sit on a {bus_type} bus"), name=name,
+                                                             type=dtype, bus_type=plant.buses[bus].type))
         options = {k: v for k, v in raw.items() if k not in COMMON_DEVICE_KEYS}
         project = options.pop("project", None)  # the device's intended parameters, checked by app/project.py
         if project is not None and not isinstance(project, dict | str):
-            raise fail(_key_line(text, line, "project"), f"device '{name}': project must be a table of parameter = value "
-                       f"or the name of a parameter file in quotes, not {project!r}")
+            raise fail(_key_line(text, line, "project"), Message(N_("device '{name}': project must be a table of parameter = value or "
+                                                                    "the name of a parameter file in quotes, not {value!r}"),
+                                                                 name=name, value=project))
         for key, message in device_type.check_config(options, plant.buses[bus].type):
             raise fail(*_device_problem(text, line, name, options, key, message))
         target[name] = DeviceConfig(name, dtype, bus, options, line, project)
 
 
-def _device_problem(text: str, line: int, name: str, options: dict[str, Any], key: str, message: str) -> tuple[int, str]:
-    """The line and message of a device-type check, naming a misspelt or mistyped key where that is the cause."""
-    owner = f"device '{name}'"
+def _device_problem(text: str, line: int, name: str, options: dict[str, Any], key: str, message: str) -> tuple[int, Message]:
+    """The line and message of a device-type check, naming a misspelt or mistyped key where that is the cause (the
+    type's own words, ``message``, as it gives them)."""
+    owner = Message(N_("device '{name}'"), name=name)
     if key not in options and "required" in message:
         guess = _did_you_mean(key, [k for k in options if isinstance(k, str)])
         if guess is not None:
-            return _key_line(text, line, guess), f"{owner}: unknown key '{guess}'; did you mean '{key}'? ({message})"
+            return _key_line(text, line, guess), Message(N_("{owner}: unknown key '{guess}'; did you mean '{key}'? ({message})"),
+                                                         owner=owner, guess=guess, key=key, message=message)
     elif key in options and "required" in message:
         value = options[key]
         if isinstance(value, str) and re.fullmatch(r"\s*[-+]?(0x)?[0-9a-fA-F_.]+\s*", value):
-            return _key_line(text, line, key), f"{owner}: {key} must be a number (without quotes), not {value!r}; write {key} = {value.strip()}"
-        return _key_line(text, line, key), f"{owner}: {key} = {value!r} has the wrong kind of value: {message}"
-    return _key_line(text, line, key), f"{owner}: {message}"
+            return _key_line(text, line, key), Message(N_("{owner}: {key} must be a number (without quotes), not {value!r}; write "
+                                                          "{key} = {written}"), owner=owner, key=key, value=value, written=value.strip())
+        return _key_line(text, line, key), Message(N_("{owner}: {key} = {value!r} has the wrong kind of value: {message}"),
+                                                   owner=owner, key=key, value=value, message=message)
+    return _key_line(text, line, key), Message("{owner}: {message}", owner=owner, message=message)
 
 
 def device_toml(dev: DeviceConfig) -> str:

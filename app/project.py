@@ -40,7 +40,10 @@ from typing import Any
 
 from app import backup, files
 from app.capabilities import allowed_text
+from app import cli_lang
 from app.cli_lang import _
+from app.i18n import N_
+from app.message import Message, message_of, said
 from app.plant import Plant, PlantError, load_plant, parse_plant
 from devices.errors import CommissionError
 from devices.params import Param, ParamError
@@ -60,7 +63,7 @@ class ProjectEntry:
     line: int
     key: str = ""  # the parameter's key when the model knows it
     raw: int | None = None  # what would be written, when valid
-    error: str = ""
+    error: str = ""  # what is wrong, a :class:`~app.message.Message` (or the parameter model's own words)
     param: Param | None = None
 
     @property
@@ -109,14 +112,15 @@ def _entry_line(text: str, start: int, name: str) -> int:
 
 def _check(params, device: str, name: str, value: Any) -> tuple[Param | None, int | None, str]:
     if params is None:
-        return None, None, "this device type has no parameter model: its project cannot be checked or applied"
+        return None, None, Message(N_("this device type has no parameter model: its project cannot be checked or applied"))
     param = _lookup(params, name)
     if param is None:
         close = [p for p in params.by_name if p.lower().startswith(name.lower()[:6])][:3]
-        hint = f"; did you mean {', '.join(close)}?" if close else ""
-        return None, None, f"unknown parameter {name!r}{hint}"
+        if close:
+            return None, None, Message(N_("unknown parameter {name!r}; did you mean {close}?"), name=name, close=", ".join(close))
+        return None, None, Message(N_("unknown parameter {name!r}"), name=name)
     if isinstance(value, bool) or not isinstance(value, int | float | str):
-        return param, None, f"{name}: {value!r} is not a number or an enum name"
+        return param, None, Message(N_("{name}: {value!r} is not a number or an enum name"), name=name, value=value)
     try:
         raw = param.validate(value)
     except ParamError as exc:
@@ -155,17 +159,20 @@ def entries(plant: Plant, device: str) -> list[ProjectEntry]:
         text = files.read_regular_text(path, files.MAX_DOCUMENT_BYTES, "parameter file")
         document = backup.load_document(text, str(path))
     except files.FileRefused as exc:
-        return [ProjectEntry(device, "", None, where, config.line, error=f"project file {exc}")]
+        return [ProjectEntry(device, "", None, where, config.line, error=Message(N_("project file {error}"), error=exc))]
     except OSError as exc:
-        return [ProjectEntry(device, "", None, where, config.line, error=f"project file {path}: {exc.strerror or exc}")]
+        return [ProjectEntry(device, "", None, where, config.line,
+                             error=Message(N_("project file {path}: {error}"), path=path, error=exc.strerror or exc))]
     except UnicodeDecodeError:
-        return [ProjectEntry(device, "", None, where, config.line, error=f"project file {path}: not UTF-8 text (a backup file is JSON)")]
+        return [ProjectEntry(device, "", None, where, config.line,
+                             error=Message(N_("project file {path}: not UTF-8 text (a backup file is JSON)"), path=path))]
     except backup.BackupError as exc:
         return [ProjectEntry(device, "", None, str(path), 1, error=str(exc))]
     doc_type = document["device"].get("type")
     if doc_type != config.type:
         return [ProjectEntry(device, "", None, str(path), 1,
-                             error=f"the parameter file is of a {doc_type!r}, device '{device}' is a {config.type!r}")]
+                             error=Message(N_("the parameter file is of a {type!r}, device '{device}' is a {device_type!r}"),
+                                           type=doc_type, device=device, device_type=config.type))]
     lines = text.splitlines()
     for item in document["parameters"]:
         if not item.get("writable"):
@@ -175,12 +182,13 @@ def entries(plant: Plant, device: str) -> list[ProjectEntry]:
         entry = ProjectEntry(device, item["name"], item.get("value"), str(path), line)
         param = params.by_key.get(key) if params is not None else None
         if param is None and params is not None:
-            entry.error = f"unknown parameter {item['name']!r} ({key})"
+            entry.error = Message(N_("unknown parameter {name!r} ({key})"), name=item["name"], key=key)
         else:
             entry.param, entry.raw, entry.error = _check(params, device, param.label or param.name if param else item["name"],
                                                          item.get("value"))
             if not entry.error and "raw" in item and item["raw"] != entry.raw:
-                entry.error = f"{item['name']}: raw {item['raw']!r} and value {item.get('value')!r} disagree"
+                entry.error = Message(N_("{name}: raw {raw!r} and value {value!r} disagree"), name=item["name"], raw=item["raw"],
+                                      value=item.get("value"))
         entry.key = entry.param.key if entry.param is not None else key
         found.append(entry)
     return found
@@ -192,7 +200,7 @@ def check_plant(plant: Plant) -> list[str]:
     for name in plant.devices:
         for entry in entries(plant, name):
             if entry.error:
-                problems.append(f"{entry.where}: device '{name}': {entry.error}")
+                problems.append(Message(N_("{where}: device '{name}': {problem}"), where=entry.where, name=name, problem=entry.error))
     return problems
 
 
@@ -206,7 +214,7 @@ def document(runtime, device: str) -> dict:
     restore's diff as "not written" with the reason)."""
     plant = runtime.plant
     if not has_project(plant, device):
-        raise backup.BackupError(f"{device}: the plant file names no project for it")
+        raise backup.BackupError(Message(N_("{device}: the plant file names no project for it"), device=device))
     state = runtime.store.devices[device]
     items = []
     for entry in entries(plant, device):
@@ -260,15 +268,18 @@ def editable(plant: Plant, device: str) -> list[Param]:
 
 
 def allowed(param: Param) -> str:
-    """What an entry of ``param`` may be, in words: "0 .. 65535 ms", "one of: 0 Off, 1 On"."""
+    """What an entry of ``param`` may be, in words: "0 .. 65535 ms (whole numbers)", "one of: 0 Off, 1 On" (a
+    :class:`~app.message.Message` but for the parameter model's own words)."""
     if text := allowed_text(param):  # a value that is not a number says itself (an M3IO record's bytes)
         return text
     if param.enum is not None:
-        return "one of: " + ", ".join(f"{number} {name}" for number, name in param.enum.items())
+        return Message(N_("one of: {values}"), values=", ".join(f"{number} {name}" for number, name in param.enum.items()))
     low, high = param.limits()
     number = (lambda x: f"{x:g}") if param.scale != 1 else (lambda x: str(int(x)))
-    step = f" in steps of {param.scale:g}" if param.scale != 1 else " (whole numbers)"
-    return f"{number(low)} .. {number(high)} {param.unit}".rstrip() + step
+    span = f"{number(low)} .. {number(high)} {param.unit}".rstrip()
+    if param.scale != 1:
+        return Message(N_("{range} in steps of {step}"), range=span, step=f"{param.scale:g}")
+    return Message(N_("{range} (whole numbers)"), range=span)
 
 
 def parse_value(param: Param, text: str | int | float) -> int | float:
@@ -277,14 +288,14 @@ def parse_value(param: Param, text: str | int | float) -> int | float:
     :raises ProjectError: not a number, out of range, no enum value; the message says what is allowed
     """
     if isinstance(text, str) and not text.strip():
-        raise ProjectError(f"{param.label or param.name}: empty; allowed: {allowed(param)}")
+        raise ProjectError(Message(N_("{name}: empty; allowed: {allowed}"), name=param.label or param.name, allowed=allowed(param)))
     try:
         raw = param.validate(text)
     except ParamError as exc:
-        message = str(exc)
+        message = message_of(exc)
         if "outside" in message or "not one of" in message:
             raise ProjectError(message) from None
-        raise ProjectError(f"{message}; allowed: {allowed(param)}") from None
+        raise ProjectError(Message(N_("{error}; allowed: {allowed}"), error=message, allowed=allowed(param))) from None
     return param.decode(raw)
 
 
@@ -551,12 +562,13 @@ def run_cli(args: argparse.Namespace) -> int:
     try:
         plant = load_plant(args.plant)
     except PlantError as exc:
-        print(exc, file=sys.stderr)
+        print(said(exc, cli_lang.lang()), file=sys.stderr)
         return 2
     problems = check_plant(plant)
     for problem in problems:
-        print(problem)
+        print(said(problem, cli_lang.lang()))
     counted = sum(len(entries(plant, d)) for d in plant.devices if has_project(plant, d))
-    print(f"{args.plant}: {len(plant.devices)} devices, {counted} project entries, "
-          f"{len(problems)} invalid or unknown", file=sys.stderr if problems else sys.stdout)
+    print(_("{plant}: {devices} devices, {entries} project entries, {problems} invalid or unknown").format(
+        plant=args.plant, devices=len(plant.devices), entries=counted, problems=len(problems)),
+        file=sys.stderr if problems else sys.stdout)
     return 1 if problems else 0

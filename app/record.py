@@ -35,7 +35,9 @@ import time
 from pathlib import Path
 
 from app.audit import WRITE_ERRORS
-from app.checkout import CheckoutRun
+from app.checkout import CheckoutRun, role_refusal
+from app.i18n import N_
+from app.message import Message
 from app.record_sets import drift_of, param_set
 from app.record_store import Entry, RecordError, RecordStore
 from app.verify import Check, content_sha256
@@ -72,7 +74,8 @@ class RecordService:
     async def add(self, device: str, kind: str, *, user: str, role: str, data: dict, title: str = "",
                   supersedes: int | None = None) -> int:
         if role != "engineer":
-            raise PermissionError(f"{user} has the {role or 'no'} role and may not add to the commissioning record")
+            raise PermissionError(role_refusal(user, role, N_("{user} has the {role} role and may not add to the commissioning record"),
+                                               N_("{user} has the no role and may not add to the commissioning record")))
         try:
             return await self.store.run(self.store.add, plant=self.plant, device=device, kind=kind, user=user, role=role,
                                         data=data, title=title, supersedes=supersedes)
@@ -147,7 +150,7 @@ class RecordService:
 
         adapter = self.runtime.worker.adapters[device]
         if not supports_backup(adapter):
-            raise RecordError(f"{device}: this device has no parameter set to read")
+            raise RecordError(Message(N_("{device}: this device has no parameter set to read"), device=device))
         entries = await self.runtime.worker.gate.invoke(device, READ_PARAMETERS, user=user, role=role)
         return adapter.backup_identity(), entries
 
@@ -166,7 +169,8 @@ class RecordService:
         account that approved (the page and the CLI ask for one); it is the row's user."""
         if document is not None:
             if document.get("device", {}).get("type") != self.runtime.store.devices[device].type:
-                raise RecordError(f"the backup is of a {document.get('device', {}).get('type')!r}, not of {device}'s type")
+                raise RecordError(Message(N_("the backup is of a {type!r}, not of {device}'s type"),
+                                          type=document.get("device", {}).get("type"), device=device))
             identity, params = document.get("identity") or {}, param_set(document["parameters"])
             source = f"backup of {document.get('time', '?')}"
         else:
@@ -206,7 +210,7 @@ class RecordService:
     def new_run(self, device: str, **kwargs) -> CheckoutRun:
         current = self.runs.get(device)
         if current is not None and current.status == "running":
-            raise RecordError(f"{device}: a checkout is running already")
+            raise RecordError(Message(N_("{device}: a checkout is running already"), device=device))
         run = CheckoutRun(self.runtime, device, **kwargs)
         drift = self.runtime.store.devices[device].drift or {}
         run.drift_before = {r["key"] for r in drift.get("changed", [])}  # drift that was there before the run
@@ -221,12 +225,12 @@ class RecordService:
         ``account``: the named account that signed (logged in at that moment, also on the loopback
         address): a sign-off without one is refused."""
         if not account or account == "local" or account.startswith("cli:"):
-            raise RecordError("a sign-off needs a named account: log in with your account (create one with "
-                              "'commission user add NAME --role engineer') and sign again")
+            raise RecordError(Message(N_("a sign-off needs a named account: log in with your account (create one with "
+                                         "'commission user add NAME --role engineer') and sign again")))
         known = self.runtime.users.users.get(account)
         if known is None or known.role != "engineer":
-            raise RecordError(f"{account} is no engineer account of this installation: a sign-off needs one "
-                              "(commission user add NAME --role engineer)")
+            raise RecordError(Message(N_("{account} is no engineer account of this installation: a sign-off needs one "
+                                         "(commission user add NAME --role engineer)"), account=account))
         previous = await self.store.run(self.store.latest, self.plant, device, "signoff")
         return await self.add(device, "signoff", user=account, role=role, title=f"signed by {name} ({signer_role}) as {account}",
                               supersedes=previous.id if previous else None,

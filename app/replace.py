@@ -35,6 +35,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from app import audit, backup
+from app.i18n import N_
+from app.message import Message, joined
 from app.record_store import Entry
 from devices.adapter import BackupAdapter
 from devices.errors import CommissionError
@@ -65,10 +67,15 @@ def facets(identity: dict | None) -> dict[str, Any]:
             "hardware": _pick(identity, HARDWARE_KEYS), "variant": _pick(identity, VARIANT_KEYS)}
 
 
-def identity_text(identity: dict | None) -> str:
+FACET_WORDS = {"serial": N_("serial {value}"), "firmware": N_("firmware {value}"), "hardware": N_("hardware {value}"),
+               "variant": N_("variant {value}")}
+
+
+def identity_text(identity: dict | None) -> Message:
+    """"serial 660020, firmware 57" (English as stored in the record and the audit log; a page words it)."""
     f = facets(identity)
-    parts = [f"{k} {v}" for k, v in f.items() if v is not None]
-    return ", ".join(parts) if parts else "unknown"
+    parts = [Message(FACET_WORDS[k], value=v) for k, v in f.items() if v is not None]
+    return joined(parts) if parts else Message(N_("unknown"))
 
 
 def differences(old: dict | None, new: dict | None) -> list[str]:
@@ -171,7 +178,7 @@ class ReplacementWatch:
             approved: Entry | None = await record.store.run(record.store.latest, record.plant, name, "approved")
             if approved is not None and approved.data.get("identity") and facets(approved.data["identity"])["serial"] is not None:
                 if ref is None or float(ref.get("time") or 0) < approved.time:
-                    ref = {"identity": approved.data["identity"], "time": approved.time, "source": "approved set"}
+                    ref = {"identity": approved.data["identity"], "time": approved.time, "source": Message(N_("approved set"))}
             if ref is not None:
                 self.known[name] = ref
             if name in self.runtime.twins:
@@ -243,7 +250,7 @@ class ReplacementWatch:
                                     f"({identity_text(ref['identity'])}); taken as known")
                 ref = None
         if ref is None:  # first seen: this is the device as installed
-            self.known[name] = {"identity": now, "time": time.time(), "source": "first seen"}
+            self.known[name] = {"identity": now, "time": time.time(), "source": Message(N_("first seen"))}
             self._persist()
             return None
         differ = differences(ref["identity"], now)
@@ -268,7 +275,7 @@ class ReplacementWatch:
         unit swapped after the approval is named even where this watch had not compared the unit yet."""
         if name in self.runtime.store.devices and identity and facets(identity)["serial"] is not None:
             self._fresh_twins.discard(name)
-            self.accept(name, identity, "approved set")
+            self.accept(name, identity, Message(N_("approved set")))
 
     def accept(self, name: str, identity: dict, source: str) -> None:
         """The engineer took the device as it is now (end of a replacement): its identity becomes the known one."""
@@ -291,8 +298,8 @@ class IdentityCheck:
     old: dict
     new: dict
     ok: bool
-    refusals: list[str] = field(default_factory=list)  # type or variant do not match: nothing is written
-    notes: list[str] = field(default_factory=list)  # serial, firmware, hardware differences named
+    refusals: list[str] = field(default_factory=list)  # type or variant do not match: nothing is written (Messages)
+    notes: list[str] = field(default_factory=list)  # serial, firmware, hardware differences named (Messages)
     lacks: list[str] = field(default_factory=list)  # approved parameters the new device does not have
     adds: list[str] = field(default_factory=list)  # parameters of the new device the approved set does not name
 
@@ -305,14 +312,15 @@ async def approved_document(runtime, name: str) -> tuple[dict, str]:
     """The device's approved set as a backup document (what the assistant restores), and its source."""
     record = runtime.record
     entry = await record.store.run(record.store.latest, record.plant, name, "approved")
-    source = "approved set"
+    source = Message(N_("approved set"))
     if entry is None:
         entry = await record.store.run(record.store.latest, record.plant, name, "snapshot")
-        source = "last snapshot (no approved set)"
+        source = Message(N_("last snapshot (no approved set)"))
     if entry is None:
-        raise backup.BackupError(f"{name}: the record holds no approved set and no snapshot to restore from")
+        raise backup.BackupError(Message(N_("{name}: the record holds no approved set and no snapshot to restore from"), name=name))
     return set_document(runtime, name, entry.data.get("parameters") or {}, entry.data.get("identity") or {},
-                        f"{source} #{entry.id}"), f"{source} #{entry.id} ({entry.title})"
+                        Message("{source} #{id}", source=source, id=entry.id)), \
+        Message("{source} #{id} ({title})", source=source, id=entry.id, title=entry.title)
 
 
 def set_document(runtime, name: str, params: dict[str, dict], identity: dict, source: str) -> dict:
@@ -346,20 +354,21 @@ async def check_identity(runtime, name: str, document: dict, current_keys: set[s
     check = IdentityCheck(name, state.type, old, new, True)
     doc_type = (document.get("device") or {}).get("type")
     if doc_type != state.type:
-        check.refusals.append(f"the set is of a {doc_type!r}, the device is a {state.type!r}")
+        check.refusals.append(Message(N_("the set is of a {type!r}, the device is a {device_type!r}"), type=doc_type,
+                                      device_type=state.type))
     a, b = facets(old), facets(new)
     variant_now = b["variant"] if b["variant"] is not None else _variant_of(runtime, name)
     if a["variant"] is not None and variant_now is not None and str(a["variant"]) != str(variant_now):
-        check.refusals.append(f"variant {a['variant']} in the set, {variant_now} on the device")
+        check.refusals.append(Message(N_("variant {then} in the set, {now} on the device"), then=a["variant"], now=variant_now))
     if not new:
-        check.refusals.append("the device has not told its identity (not answering?)")
+        check.refusals.append(Message(N_("the device has not told its identity (not answering?)")))
     # a set taken from another device (a batch's source) has that device's serial: no sign of a replacement
     own = (document.get("device") or {}).get("name") in (None, name)
     if own and a["serial"] is not None and b["serial"] is not None and str(a["serial"]) != str(b["serial"]):
-        check.notes.append(f"serial number {a['serial']} -> {b['serial']} (the replacement)")
-    for facet in ("firmware", "hardware"):
+        check.notes.append(Message(N_("serial number {then} -> {now} (the replacement)"), then=a["serial"], now=b["serial"]))
+    for facet, words in (("firmware", N_("firmware version {then} -> {now}")), ("hardware", N_("hardware version {then} -> {now}"))):
         if a[facet] is not None and b[facet] is not None and str(a[facet]) != str(b[facet]):
-            check.notes.append(f"{facet} version {a[facet]} -> {b[facet]}")
+            check.notes.append(Message(words, then=a[facet], now=b[facet]))
     if current_keys is not None:
         names = {e["key"]: e["name"] for e in document.get("parameters", [])}
         check.lacks = [names[k] for k in names if k not in current_keys]
@@ -367,11 +376,11 @@ async def check_identity(runtime, name: str, document: dict, current_keys: set[s
         check.adds = [(p.label or p.name) for p in (model or []) if p.key in current_keys and p.key not in names and p.setting]
     if any(n.startswith("firmware") for n in check.notes):
         if check.lacks or check.adds:
-            check.notes.append(f"with the new firmware the device lacks {len(check.lacks)} and adds {len(check.adds)} "
-                               "parameter(s) against the set (listed below)")
+            check.notes.append(Message(N_("with the new firmware the device lacks {lacks} and adds {adds} parameter(s) against "
+                                          "the set (listed below)"), lacks=len(check.lacks), adds=len(check.adds)))
         else:
-            check.notes.append("the parameter model knows no parameter that this firmware lacks or adds: "
-                               "the same parameters on both")
+            check.notes.append(Message(N_("the parameter model knows no parameter that this firmware lacks or adds: the same "
+                                          "parameters on both")))
     check.ok = not check.refusals
     return check
 
@@ -401,7 +410,7 @@ async def execute_replacement(runtime, rp: ReplacementPlan, selected: set[str], 
     """Write the selected rows through restore's verified path (gate, read-back, save step), then record
     the replacement in the device's timeline and the audit log and take the new identity as known."""
     if rp.plan is None or not rp.check.ok:
-        raise backup.BackupError("; ".join(rp.check.refusals) or "no plan")
+        raise backup.BackupError(joined(rp.check.refusals, "; ") or Message(N_("no plan")))
     name = rp.plan.device
     report = await backup.execute_restore(runtime, rp.plan, selected, user=user, role=role, confirmed=confirmed,
                                           progress=progress)
@@ -424,5 +433,5 @@ async def execute_replacement(runtime, rp: ReplacementPlan, selected: set[str], 
     if report.ok:
         watch = watch_of(runtime)
         if watch is not None:
-            watch.accept(name, rp.check.new, f"replacement by {user}")
+            watch.accept(name, rp.check.new, Message(N_("replacement by {user}"), user=user))
     return report

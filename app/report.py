@@ -263,6 +263,13 @@ def when(t: float | None, lang: i18n.Lang | None = None) -> str:
     return _when(t) if lang is None or lang.code == "en" else lang.datetime(t)
 
 
+def _recorded_when(text: str, lang: i18n.Lang | None) -> str:
+    """A date and time the content holds as :func:`_when` wrote it (ISO), as :func:`when` writes it in ``lang``."""
+    if not text or lang is None or lang.code == "en":
+        return text
+    return lang.datetime(datetime.strptime(text, "%Y-%m-%d %H:%M:%S").timestamp())
+
+
 def word(text: Any, lang: i18n.Lang | None) -> str:
     """A word of the content (a verdict, a result, an identity's key) in the report's language."""
     return "" if text is None else language(lang).gettext(str(text)) if isinstance(text, str) else str(text)
@@ -285,7 +292,7 @@ def commissioned_text(d: dict, plant_signed: bool = False, lang: i18n.Lang | Non
     """Who commissioned the device and when, saying what is missing rather than leaving a blank."""
     _ = language(lang).gettext
     who = ", ".join(d["commissioned_by"]) or _("nobody yet (no checkout, approved set or snapshot recorded)")
-    first, last = d["commissioned"]
+    first, last = (_recorded_when(t, lang) for t in d["commissioned"])
     when_text = "" if not first else (_(" on {first}").format(first=first) if first == last or not last
                                       else _(" from {first} to {last}").format(first=first, last=last))
     signed = "" if d.get("signoff") or plant_signed else _(", not signed yet")

@@ -24,7 +24,10 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from app import cli_lang
 from app.cli_lang import _
+from app.i18n import N_, Lang
+from app.message import Message, joined, said
 
 GENESIS = "0" * 64  # the prev_hash of the first row
 HASHED = ("id", "time", "plant", "device", "kind", "user", "role", "title", "data", "supersedes", "prev_hash")
@@ -32,6 +35,8 @@ MANIFEST = "manifest.json"
 MANIFEST_SUM = "manifest.sha256"
 CHAIN = "record/chain.jsonl"
 TRIGGERS = ("record_no_update", "record_no_delete", "record_no_replace")
+DIRECTORY = N_("(the archive's directory)")  # a seal's span beside the members
+SEAL_ALTERED = N_("the archive's seal (its comment) was altered or removed")
 
 
 def row_hash(row: dict) -> str:
@@ -57,8 +62,8 @@ class Check:
     """The result of a check: ``problems`` in the order found (the first names the first row or file
     that differs), ``notes`` that are no alteration (rows kept before the chain began)."""
 
-    what: str
-    problems: list[str] = field(default_factory=list)
+    what: str  # what was checked: "record PATH" or "archive NAME" (a :class:`Message`)
+    problems: list[str] = field(default_factory=list)  # each a :class:`Message`: English, worded in any language
     notes: list[str] = field(default_factory=list)
     rows: int = 0
     files: int = 0
@@ -68,17 +73,21 @@ class Check:
     def ok(self) -> bool:
         return not self.problems
 
-    def summary(self) -> str:
+    def summary(self) -> Message:
+        """Whether it is intact, in one line; the first alteration as found."""
         if self.ok:
-            parts = [f"{self.rows} record rows chained"] + ([f"{self.files} files match the manifest"] if self.files else [])
-            head = f"; last row #{self.head[0]}, hash {self.head[1][:16]}" if self.head else ""
-            return f"{self.what}: intact ({', '.join(parts)}{head})"
-        return f"{self.what}: ALTERED: {self.problems[0]}"
+            parts = [Message(N_("{n} record rows chained"), n=self.rows)]
+            if self.files:
+                parts.append(Message(N_("{n} files match the manifest"), n=self.files))
+            head = Message(N_("; last row #{id}, hash {hash}"), id=self.head[0], hash=self.head[1][:16]) if self.head else ""
+            return Message(N_("{what}: intact ({parts}{head})"), what=self.what, parts=joined(parts), head=head)
+        return Message(N_("{what}: ALTERED: {problem}"), what=self.what, problem=self.problems[0])
 
-    def lines(self) -> list[str]:
-        out = [self.summary()]
-        out += [f"  altered: {p}" for p in self.problems[1:]]
-        out += [f"  note: {n}" for n in self.notes]
+    def lines(self, lang: Lang | None = None) -> list[str]:
+        """The summary, every further alteration and the notes, in ``lang`` (None: English)."""
+        out = [said(self.summary(), lang)]
+        out += ["  " + said(Message(N_("altered: {problem}"), problem=p), lang) for p in self.problems[1:]]
+        out += ["  " + said(Message(N_("note: {note}"), note=n), lang) for n in self.notes]
         return out
 
 
@@ -103,28 +112,36 @@ def check_chain(rows: list[dict], check: Check, head: dict | None = None) -> Non
         except (TypeError, ValueError):
             named = None
         if named and named.get("rows") == len(legacy) and named.get("sha256") == legacy_digest(legacy):
-            check.notes.append(f"{len(legacy)} rows were recorded before the record kept its chain; row #{start['id']} "
-                               "holds their digest, which matches")
+            check.notes.append(Message(N_("{n} rows were recorded before the record kept its chain; row #{id} holds their "
+                                          "digest, which matches"), n=len(legacy), id=start["id"]))
         elif named:
-            check.problems.append(f"rows #{legacy[0]['id']} to #{legacy[-1]['id']}, recorded before the chain began, were "
-                                  f"changed: their digest is not the one row #{start['id']} holds")
+            check.problems.append(Message(N_("rows #{first} to #{last}, recorded before the chain began, were changed: their "
+                                             "digest is not the one row #{id} holds"),
+                                          first=legacy[0]["id"], last=legacy[-1]["id"], id=start["id"]))
         else:
-            check.problems.append(f"row #{legacy[0]['id']} ({legacy[0].get('kind')} {legacy[0].get('title')!r}) has no hash: "
-                                  "it was written or replaced from outside the program")
+            check.problems.append(Message(N_("row #{id} ({kind} {title!r}) has no hash: it was written or replaced from outside "
+                                             "the program"), id=legacy[0]["id"], kind=legacy[0].get("kind"),
+                                          title=legacy[0].get("title")))
     before = None
     for row in chained:
         check.rows += 1
         rid = row.get("id")
         if before is not None and rid != before["id"] + 1:
-            missing = f"#{before['id'] + 1}" if rid == before["id"] + 2 else f"#{before['id'] + 1} to #{rid - 1}"
-            check.problems.append(f"row {missing} is missing (deleted from outside the program): row #{rid} follows #{before['id']}")
+            if rid == before["id"] + 2:
+                check.problems.append(Message(N_("row #{missing} is missing (deleted from outside the program): row #{id} "
+                                                 "follows #{before}"), missing=before["id"] + 1, id=rid, before=before["id"]))
+            else:
+                check.problems.append(Message(N_("row #{first} to #{last} is missing (deleted from outside the program): row "
+                                                 "#{id} follows #{before}"), first=before["id"] + 1, last=rid - 1, id=rid,
+                                              before=before["id"]))
         if row.get("hash") != row_hash(row):
-            check.problems.append(f"row #{rid} ({row.get('kind')} {row.get('title')!r}) was changed after it was written: "
-                                  "its content no longer matches its hash")
+            check.problems.append(Message(N_("row #{id} ({kind} {title!r}) was changed after it was written: its content no "
+                                             "longer matches its hash"), id=rid, kind=row.get("kind"), title=row.get("title")))
         elif before is not None and rid == before["id"] + 1 and row.get("prev_hash") != before["hash"]:
-            check.problems.append(f"row #{before['id']} was changed or replaced: row #{rid} no longer links to it")
+            check.problems.append(Message(N_("row #{before} was changed or replaced: row #{id} no longer links to it"),
+                                          before=before["id"], id=rid))
         elif before is None and row.get("prev_hash") != GENESIS:
-            check.problems.append(f"row #{rid} does not start the chain: the rows before it were deleted")
+            check.problems.append(Message(N_("row #{id} does not start the chain: the rows before it were deleted"), id=rid))
         before = row
     if before is not None:
         check.head = (before["id"], before["hash"])
@@ -132,9 +149,10 @@ def check_chain(rows: list[dict], check: Check, head: dict | None = None) -> Non
         by_id = {r.get("id"): r for r in rows}
         kept = by_id.get(head.get("id"))
         if kept is None:
-            check.problems.append(f"row #{head.get('id')}, the last one written, is missing (deleted from outside the program)")
+            check.problems.append(Message(N_("row #{id}, the last one written, is missing (deleted from outside the program)"),
+                                          id=head.get("id")))
         elif kept.get("hash") != head.get("hash"):
-            check.problems.append(f"row #{head.get('id')}, the last one written, was changed or replaced")
+            check.problems.append(Message(N_("row #{id}, the last one written, was changed or replaced"), id=head.get("id")))
 
 
 def check_signoffs(rows: list[dict], check: Check) -> None:
@@ -147,18 +165,19 @@ def check_signoffs(rows: list[dict], check: Check) -> None:
             except (TypeError, ValueError):
                 removed = None
             if removed:
-                check.problems.append(f"row #{row.get('id')}: the program found the record's protection ({', '.join(removed)}) "
-                                      "removed from outside the program; rows may have been changed or deleted then")
+                check.problems.append(Message(N_("row #{id}: the program found the record's protection ({triggers}) removed from "
+                                                 "outside the program; rows may have been changed or deleted then"),
+                                              id=row.get("id"), triggers=", ".join(removed)))
         if row.get("kind") != "signoff":
             continue
         try:
             data = json.loads(row["data"])
         except (TypeError, ValueError):
-            check.problems.append(f"row #{row.get('id')} (sign-off) cannot be read")
+            check.problems.append(Message(N_("row #{id} (sign-off) cannot be read"), id=row.get("id")))
             continue
         if "content" in data and data.get("sha256") != content_sha256(data["content"]):
-            check.problems.append(f"row #{row.get('id')} (sign-off by {data.get('name')}): the signed content does not "
-                                  "match its SHA-256")
+            check.problems.append(Message(N_("row #{id} (sign-off by {name}): the signed content does not match its SHA-256"),
+                                          id=row.get("id"), name=data.get("name")))
 
 
 # -- the record database -------------------------------------------------------------------------
@@ -182,9 +201,9 @@ def read_head(db_path: Path) -> dict | None:
 
 def check_database(path: Path) -> Check:
     """Check a record database read-only (another program may have it open)."""
-    check = Check(f"record {path}")
+    check = Check(Message(N_("record {path}"), path=path))
     if not path.exists():
-        check.problems.append(f"{path} does not exist")
+        check.problems.append(Message(N_("{path} does not exist"), path=path))
         return check
     db = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
     try:
@@ -195,7 +214,7 @@ def check_database(path: Path) -> Check:
     check_chain(rows, check, read_head(path))
     for name in TRIGGERS:
         if name not in triggers:
-            check.problems.append(f"the record's protection {name} was removed from outside the program")
+            check.problems.append(Message(N_("the record's protection {name} was removed from outside the program"), name=name))
     check_signoffs(rows, check)
     return check
 
@@ -223,7 +242,7 @@ def _spans(data: bytes, end: int) -> list[tuple[str, int, int]]:
     cd_start = int.from_bytes(data[end + 16:end + 20], "little")
     infos = sorted(archive.infolist(), key=lambda i: i.header_offset)
     starts = [i.header_offset for i in infos] + [cd_start]
-    return [(i.filename, starts[n], starts[n + 1]) for n, i in enumerate(infos)] + [("(the archive's directory)", cd_start, end + 20)]
+    return [(i.filename, starts[n], starts[n + 1]) for n, i in enumerate(infos)] + [(DIRECTORY, cd_start, end + 20)]
 
 
 def seal_archive(data: bytes) -> bytes:
@@ -243,37 +262,39 @@ def seal_archive(data: bytes) -> bytes:
 def _check_seal(data: bytes, check: Check) -> None:
     end = _eocd(data)
     if end < 0:
-        check.problems.append("the archive's directory is missing: it was altered")
+        check.problems.append(Message(N_("the archive's directory is missing: it was altered")))
         return
     try:
         seal = json.loads(data[end + 22:])
         spans = _spans(data, end)
     except ALTERED:  # an altered directory breaks the zip reader in many ways
-        check.problems.append("the archive's seal (its comment) was altered or removed")
+        check.problems.append(Message(SEAL_ALTERED))
         return
     if isinstance(seal, dict) and sha256(data[:end + 22] + json.dumps(seal.get("spans"), separators=(",", ":")).encode()) == seal.get("sha256"):
         return
     if not isinstance(seal, dict) or not isinstance(seal.get("spans"), dict):
-        check.problems.append("the archive's seal (its comment) was altered or removed")
+        check.problems.append(Message(SEAL_ALTERED))
         return
     for name, a, b in spans:
         if seal.get("spans", {}).get(name) != sha256(data[a:b]):
-            check.problems.append(f"file {name} was altered: its stored bytes are not the ones sealed when the archive was made"
-                                  if not name.startswith("(") else f"{name} was altered")
+            check.problems.append(Message(N_("file {name} was altered: its stored bytes are not the ones sealed when the archive "
+                                             "was made"), name=name) if name != DIRECTORY else
+                                  Message(N_("{name} was altered"), name=Message(DIRECTORY)))
             return
-    check.problems.append("the archive was altered: its bytes are not the ones sealed when it was made")
+    check.problems.append(Message(N_("the archive was altered: its bytes are not the ones sealed when it was made")))
 
 
 def check_archive(path: Path) -> Check:
     """Check an as-left archive: its manifest, every file against the manifest, the record chain it
     carries, the sign-offs, and that the chain it carries is the one the manifest names."""
-    check = Check(f"archive {path.name}")
+    check = Check(Message(N_("archive {name}"), name=path.name))
     try:
         data = path.read_bytes()
         archive = zipfile.ZipFile(io.BytesIO(data))
         names = archive.namelist()
     except ALTERED as exc:  # an altered archive breaks the zip reader in many ways
-        check.problems.append(f"{path} is no readable archive ({exc}): it was altered or is not an as-left archive")
+        check.problems.append(Message(N_("{path} is no readable archive ({error}): it was altered or is not an as-left archive"),
+                                      path=path, error=exc))
         return check
     sealed = Check(check.what)
     _check_seal(data, sealed)
@@ -282,46 +303,49 @@ def check_archive(path: Path) -> Check:
         try:
             contents[name] = archive.read(name)
         except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:  # a CRC that no longer matches, broken data
-            check.problems.append(f"file {name} was altered: its bytes no longer match the archive's check sum ({exc})")
+            check.problems.append(Message(N_("file {name} was altered: its bytes no longer match the archive's check sum ({error})"),
+                                          name=name, error=exc))
         except (zlib.error, struct.error, NotImplementedError) as exc:  # broken deflate data, a cut header, an odd method
-            check.problems.append(f"file {name} was altered: it cannot be unpacked ({exc})")
+            check.problems.append(Message(N_("file {name} was altered: it cannot be unpacked ({error})"), name=name, error=exc))
     if MANIFEST not in contents or MANIFEST_SUM not in contents:
         if MANIFEST not in names or MANIFEST_SUM not in names:
-            check.problems.append(f"the archive has no {MANIFEST} and {MANIFEST_SUM}: it is no verifiable as-left archive")
+            check.problems.append(Message(N_("the archive has no {manifest} and {sum}: it is no verifiable as-left archive"),
+                                          manifest=MANIFEST, sum=MANIFEST_SUM))
         return check
     if contents[MANIFEST_SUM] != manifest_sum(contents[MANIFEST]):
-        check.problems.append(f"file {MANIFEST} was altered: its SHA-256 is not the one in {MANIFEST_SUM}")
+        check.problems.append(Message(N_("file {name} was altered: its SHA-256 is not the one in {sum}"), name=MANIFEST,
+                                      sum=MANIFEST_SUM))
         return check
     try:
         manifest = json.loads(contents[MANIFEST])
     except ValueError:
-        check.problems.append(f"file {MANIFEST} cannot be read")
+        check.problems.append(Message(N_("file {name} cannot be read"), name=MANIFEST))
         return check
     listed: dict[str, dict] = manifest.get("files", {})
     for name in sorted(listed, key=lambda n: (n != CHAIN, n)):
         if name not in names:
-            check.problems.append(f"file {name} is missing from the archive")
+            check.problems.append(Message(N_("file {name} is missing from the archive"), name=name))
         elif name in contents and sha256(contents[name]) != listed[name].get("sha256"):
-            check.problems.append(f"file {name} was altered: its SHA-256 is not the one in the manifest")
+            check.problems.append(Message(N_("file {name} was altered: its SHA-256 is not the one in the manifest"), name=name))
         else:
             check.files += 1
     for name in names:
         if name not in listed and name not in (MANIFEST, MANIFEST_SUM):
-            check.problems.append(f"file {name} was added: it is not in the manifest")
+            check.problems.append(Message(N_("file {name} was added: it is not in the manifest"), name=name))
     if CHAIN in contents:
         rows = [json.loads(line) for line in contents[CHAIN].decode("utf-8", "replace").splitlines() if line.strip()]
         chain = Check(check.what)
         check_chain(rows, chain, manifest.get("chain", {}).get("head"))
         check_signoffs(rows, chain)
-        check.problems += [f"in {CHAIN}: {p}" for p in chain.problems]
+        check.problems += [Message(N_("in {file}: {problem}"), file=CHAIN, problem=p) for p in chain.problems]
         check.notes += chain.notes
         check.rows, check.head = chain.rows, chain.head
     check.problems += [p for p in sealed.problems if p not in check.problems and not any(
         p.split(" was altered")[0] == q.split(" was altered")[0] for q in check.problems)]
     if manifest.get("simulated"):
-        check.notes.append("made on simulated devices: " + ", ".join(manifest["simulated"]))
-    for problem in manifest.get("record_altered", []):
-        check.notes.append(f"the record was already altered when the archive was made: {problem}")
+        check.notes.append(Message(N_("made on simulated devices: {devices}"), devices=", ".join(manifest["simulated"])))
+    for problem in manifest.get("record_altered", []):  # as the manifest holds it: the English of when it was made
+        check.notes.append(Message(N_("the record was already altered when the archive was made: {problem}"), problem=problem))
     return check
 
 
@@ -345,6 +369,6 @@ def run_cli(args: argparse.Namespace) -> int:
         check = check_database((args.data_dir or default_data_dir()) / "record.sqlite")
     else:
         check = check_archive(args.archive)
-    for line in check.lines():
+    for line in check.lines(cli_lang.lang()):
         print(line)
     return 0 if check.ok else 1

@@ -13,6 +13,7 @@ from nicegui import events, ui
 from app import backup, i18n, project
 from app import runtime as rt
 from app.i18n import english, N_, Lang
+from app.message import said
 from pages.frame import ACTION_ERRORS, frame, notify_error
 from pages.session import can_write, current_user
 from pages.diffrows import DIFF_COLUMNS, STATE_SLOT, WRAP
@@ -53,7 +54,7 @@ def _files(directory: Path, lang: Lang | None = None) -> list[dict]:
             device, dtype, when = doc["device"].get("name", "?"), doc["device"].get("type", "?"), doc.get("time", "")
             when, by = backup.local_time(when), backup.taken_by(doc)
         except backup.BackupError as exc:
-            device, dtype, when, by = "-", lang.gettext("unreadable"), str(exc)[:60], ""
+            device, dtype, when, by = "-", lang.gettext("unreadable"), said(exc, lang)[:60], ""
         rows.append({"name": path.name, "device": device, "type": dtype, "time": when, "by": by,
                      "size": f"{lang.number(path.stat().st_size / 1024, 1)} kB"})
     return rows
@@ -99,7 +100,7 @@ class BackupCard:
 
     async def explain_left_out(self) -> None:
         for name in self.without:
-            reason = (await backup.why_nothing_to_back_up(self.runtime, name)).removeprefix("nothing to back up: ")
+            reason = said(await backup.why_nothing_to_back_up(self.runtime, name), self.lang).removeprefix("nothing to back up: ")
             with self.reasons:
                 ui.label(self.lang.gettext("{name} ({type}): nothing to back up: {reason}").format(
                     name=name, type=self.runtime.store.devices[name].type, reason=reason)).classes(
@@ -197,7 +198,7 @@ class FilesCard:
         try:
             document = await asyncio.to_thread(backup.load_document, data, source)  # off the event loop
         except backup.BackupError as exc:
-            notify_error(str(exc))
+            notify_error(said(exc, self.lang))
             return
         with restore_box:
             flow = RestoreFlow(document, source, self.lang)
@@ -294,12 +295,12 @@ class RestoreFlow:
         try:
             self.plan = await backup.plan_restore(self.runtime, self.device.value, self.document, self.progress.set_value)
         except ACTION_ERRORS as exc:  # type mismatch, unreadable device ...
-            notify_error(self.lang.gettext("Cannot restore: {error}").format(error=exc))
+            notify_error(self.lang.gettext("Cannot restore: {error}").format(error=said(exc, self.lang)))
             return
         self.progress.set_value(1)
         with self.warnings:
             for warning in self.plan.warnings:
-                ui.label(f"⚠ {warning}").classes("text-warning text-body1")
+                ui.label(f"⚠ {said(warning, self.lang)}").classes("text-warning text-body1")
         rows = [
             {"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": row_state(r),
              "state_text": state_text(r, self.lang), "risk": bool(r.changed and r.risk)}
@@ -343,13 +344,13 @@ class RestoreFlow:
         self.write.enable()
         self.report.clear()
         with self.report:
-            ui.label(report.summary()).classes("text-body1 " + ("text-positive" if report.ok else "text-negative")).props(
+            ui.label(said(report.summary(), lang)).classes("text-body1 " + ("text-positive" if report.ok else "text-negative")).props(
                 "data-testid=restore-report"
             )
             for name, error in report.failed:
-                ui.label(_("failed: {name}: {error}").format(name=name, error=error)).classes("text-negative")
+                ui.label(_("failed: {name}: {error}").format(name=name, error=said(error, lang))).classes("text-negative")
             for name, error in report.refused:
-                ui.label(_("refused: {name}: {error}").format(name=name, error=error)).classes("text-negative")
+                ui.label(_("refused: {name}: {error}").format(name=name, error=said(error, lang))).classes("text-negative")
             if report.written:
                 ui.label(_("written: {names}").format(names=", ".join(report.written))).classes("text-caption")
         await self.compare_quietly()

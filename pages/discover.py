@@ -12,6 +12,7 @@ from nicegui import ui
 from app import i18n
 from app import runtime as rt
 from app.i18n import english, N_, Lang
+from app.message import said
 from app.plant import DEMO_PLANT, DeviceConfig, append_device, can_id_conflict, device_toml
 from app.worker import AuditUnavailable, PermissionDenied
 from devices.registry import DEVICE_TYPES, format_can_ids
@@ -106,7 +107,7 @@ def discovered_section(bus: str, tile_row, add_tile: Callable[[str], None], lang
     ages: dict = {}  # key -> the label with evidence and age, updated in place (the Adopt button stays put)
 
     def age_text(entry: dict) -> str:
-        return f"{entry.get('evidence') or ''} · " + _("{n} frames, last {age}").format(
+        return f"{said(entry.get('evidence') or '', lang)} · " + _("{n} frames, last {age}").format(
             n=entry["frames"], age=fmt_age(time.time() - entry["last_seen"], lang))
 
     def refresh() -> None:

@@ -10,6 +10,7 @@ from nicegui import ui
 from app import backup, batch, i18n, project
 from app import runtime as rt
 from app.i18n import N_, Lang
+from app.message import said
 from pages.frame import ACTION_ERRORS, frame, notify_error
 from pages.session import can_write, current_user
 from pages.command_client import confirm
@@ -103,7 +104,7 @@ class FleetView:
         try:
             plan = await batch.plan_batch(self.runtime, chosen, self.source.value, self.progress.set_value)
         except ACTION_ERRORS as exc:  # an unreadable source, a device not answering
-            notify_error(_("Cannot compare: {error}").format(error=exc))
+            notify_error(_("Cannot compare: {error}").format(error=said(exc, self.lang)))
             return
         finally:
             self.compare.enable()
@@ -113,7 +114,7 @@ class FleetView:
         with self.results:
             ui.label(self._source_line(plan)).classes("text-body2").props("data-testid=fleet-source-line")
             for error in plan.errors:
-                ui.label(f"✖ {error}").classes("text-negative text-body1")
+                ui.label(f"✖ {said(error, self.lang)}").classes("text-negative text-body1")
             for entry in plan.devices:
                 self._show_entry(entry)
         ready = plan.ready and any(e.changed for e in plan.devices)
@@ -144,17 +145,17 @@ class FleetView:
             with ui.row().classes("items-center gap-3"):
                 ui.label(entry.device).classes("text-subtitle1 text-weight-bold")
                 self.labels[entry.device] = ui.label(
-                    _("refused: {reason}").format(reason=entry.error) if entry.error else
+                    _("refused: {reason}").format(reason=said(entry.error, self.lang)) if entry.error else
                     _("{n} to write (dry run)").format(n=len(entry.changed))) \
                     .classes("text-body1 " + ("text-negative" if entry.error else "")).props("data-fleet-status")
             if entry.check is not None:
                 for note in entry.check.notes:
-                    ui.label(f"⚠ {note}").classes("text-caption text-warning")
+                    ui.label(f"⚠ {said(note, self.lang)}").classes("text-caption text-warning")
             if entry.plan is not None:
                 for warning in entry.plan.warnings:
                     # another device's serial and name are what a batch from it means, not a warning
                     if not warning.startswith(("the backup was taken from serial number", "the backup was taken from device")):
-                        ui.label(f"⚠ {warning}").classes("text-caption text-warning")
+                        ui.label(f"⚠ {said(warning, self.lang)}").classes("text-caption text-warning")
                 for row in entry.changed:
                     risk = "  " + _("(needs confirmation: {risk})").format(risk=row.risk) if row.risk else ""
                     ui.label(f"{row.name}: {row.current_text} → {row.backup_text}{risk}").classes(
@@ -183,7 +184,7 @@ class FleetView:
     def _said(self, result: batch.DeviceResult) -> None:
         label = self.labels.get(result.device)
         if label is not None:
-            label.set_text(f"{result.status}: {result.text}")
+            label.set_text(f"{batch.status_text(result.status, self.lang)}: {said(result.text, self.lang)}")
             label.classes(replace="text-body1 " + STATUS_CLASS.get(result.status, ""))
 
     async def run_apply(self) -> None:
@@ -207,9 +208,9 @@ class FleetView:
         finally:
             self.compare.enable()
         failed = [r for r in done if r.status in (batch.FAILED, batch.REFUSED)]
-        self.summary.set_text(", ".join(f"{r.device} {r.status}" for r in done)
+        self.summary.set_text(", ".join(f"{r.device} {batch.status_text(r.status, self.lang)}" for r in done)
                               + (": " + self.lang.gettext("stopped at {device}, {reason}").format(
-                                  device=failed[0].device, reason=failed[0].text) if failed else ""))
+                                  device=failed[0].device, reason=said(failed[0].text, self.lang)) if failed else ""))
         self.summary.classes(replace="text-body1 " + ("text-negative" if failed else "text-positive"))
         self.apply.set_visibility(False)
 

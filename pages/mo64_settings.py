@@ -10,6 +10,7 @@ from nicegui import ui
 
 from app import i18n
 from app.i18n import N_
+from app.message import said
 from app.project import allowed
 from app.state import LiveValue
 from devices.mo64 import adapter as facts
@@ -100,7 +101,7 @@ class SettingsCard(DeviceCard):
 
     def _chosen(self, key: str | None) -> None:
         param = PARAMS.by_key.get(key or "")
-        self.piece_value.props(f'hint="{html.escape(allowed(param))}"' if param is not None else 'hint=""')
+        self.piece_value.props(f'hint="{html.escape(said(allowed(param), self.view.lang))}"' if param is not None else 'hint=""')
 
     async def write_piece(self) -> None:
         param = PARAMS.by_key.get(self.piece.value or "")
@@ -188,7 +189,7 @@ class SettingsCard(DeviceCard):
         self.aging = aging
         _ = view.lang.gettext
         rows = [{"key": p.key, "name": p.name + (" " + _("(assumed bit position)") if p.assumed else ""),
-                 "value": "-" if (raw := state.raw(p)) is None else p.display(raw), "allowed": allowed(p),
+                 "value": "-" if (raw := state.raw(p)) is None else p.display(raw), "allowed": said(allowed(p), view.lang),
                  "description": p.description} for p in PIECES]
         if self.pieces is not None and rows != self.pieces.rows:
             self.pieces.rows = rows

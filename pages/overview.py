@@ -89,10 +89,11 @@ def replaced_text(state, lang: Lang | None = None) -> str:
     replaced = replaced_of(state)
     if not replaced:
         return ""
+    from app.message import said
     from app.replace import identity_text
 
     return english(lang).gettext("replaced? known {old}, now {new}").format(
-        old=identity_text(replaced["old"]), new=identity_text(replaced["new"]))
+        old=said(identity_text(replaced["old"]), lang), new=said(identity_text(replaced["new"]), lang))
 
 
 def replaced_short(state, lang: Lang | None = None) -> str:
@@ -100,10 +101,12 @@ def replaced_short(state, lang: Lang | None = None) -> str:
     replaced = replaced_of(state)
     if not replaced:
         return ""
-    from app.replace import facets
+    from app.message import Message, said
+    from app.replace import FACET_WORDS, facets
 
     old, new = facets(replaced["old"]), facets(replaced["new"])
-    return english(lang).gettext("replaced?") + " " + ", ".join(f"{k} {old[k]} → {new[k]}" for k in replaced["differs"])
+    return english(lang).gettext("replaced?") + " " + ", ".join(
+        said(Message(FACET_WORDS[k], value=f"{old[k]} → {new[k]}"), lang) for k in replaced["differs"])
 
 
 def unsaved_text(state: DeviceState, lang: Lang | None = None) -> str:

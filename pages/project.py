@@ -20,6 +20,7 @@ from nicegui import background_tasks, ui
 from app import backup, i18n, project
 from app import runtime as rt
 from app.i18n import N_, Lang
+from app.message import said
 from devices.params import Param
 from devices.registry import DEVICE_TYPES
 from pages.diffrows import STATE_SLOT, WRAP, row_state, state_text
@@ -146,14 +147,14 @@ class ProjectCard:
         problems = [e for e in await asyncio.to_thread(project.entries, self.runtime.plant, name) if e.error]
         with self.problems:
             for entry in problems:
-                ui.label(f"✖ {entry.where}: {entry.error}").classes("text-negative text-body2")
+                ui.label(f"✖ {entry.where}: {said(entry.error, self.lang)}").classes("text-negative text-body2")
         try:
             self.plan = await backup.plan_restore(self.runtime, name, project.document(self.runtime, name))
         except ACTION_ERRORS as exc:  # not answering, no parameter model ...
             if self.compact:
-                self.summary.set_text(self.lang.gettext("not compared: {error}").format(error=exc))
+                self.summary.set_text(self.lang.gettext("not compared: {error}").format(error=said(exc, self.lang)))
             else:
-                notify_error(self.lang.gettext("Cannot compare: {error}").format(error=exc))
+                notify_error(self.lang.gettext("Cannot compare: {error}").format(error=said(exc, self.lang)))
             return
         self.kept = {k for k in self.kept if k.startswith(name + "/")}
         self.show()
@@ -206,7 +207,7 @@ class ProjectCard:
             confirmed.add(key)
         user, role = current_user()
         report = await backup.execute_restore(self.runtime, self.plan, {key}, user=user, role=role, confirmed=confirmed)
-        ui.notify(f"{row.name}: {report.summary()}", type="positive" if report.ok else "negative", multi_line=True)
+        ui.notify(f"{row.name}: {said(report.summary(), self.lang)}", type="positive" if report.ok else "negative", multi_line=True)
         await self.compare()
 
     async def update(self, key: str) -> None:
@@ -223,7 +224,7 @@ class ProjectCard:
             await self.runtime.worker.gate.run(rewrite, user=user, role=role, describe="update project",
                                                device=device, new=f"{row.name} = {row.current_text}", kind="write")
         except ACTION_ERRORS as exc:  # a file that cannot be written, a viewer ...
-            notify_error(self.lang.gettext("Project not updated: {error}").format(error=exc))
+            notify_error(self.lang.gettext("Project not updated: {error}").format(error=said(exc, self.lang)))
             return
         ui.notify(self.lang.gettext("Project of {device}: {name} = {value}").format(device=device, name=row.name, value=row.current_text),
                   type="positive")
@@ -352,7 +353,7 @@ class ProjectEditor:
         with ui.element("div").style(PARAM_ROW):
             with ui.column().classes("gap-0"):
                 ui.label(param.label or param.name).classes("text-body2 text-weight-medium")
-                allowed = _("one of the listed values") if param.enum is not None else self.lang.numbers_in(project.allowed(param))
+                allowed = _("one of the listed values") if param.enum is not None else self.lang.numbers_in(said(project.allowed(param), self.lang))
                 ui.label(_("allowed: {allowed}").format(allowed=allowed)).classes("text-caption text-grey-9")
                 if param.confirm:
                     ui.label("⚠ " + _("asks before it is written: {risk}").format(risk=param.confirm)).classes("text-caption text-negative").style(WRAP)
@@ -369,14 +370,13 @@ class ProjectEditor:
             field.disable()
         self.fields[param.key] = field
 
-    @staticmethod
-    def _error(param: Param, text) -> str | None:
+    def _error(self, param: Param, text) -> str | None:
         if text is None or not str(text).strip():
             return None
         try:
             project.parse_value(param, str(text))
         except project.ProjectError as exc:
-            return str(exc)
+            return said(exc, self.lang)
         return None
 
     def load(self) -> None:
@@ -387,7 +387,7 @@ class ProjectEditor:
         with self.problems:
             for entry in entries:
                 if entry.error:
-                    ui.label(f"✖ {entry.where}: {entry.error}").classes("text-negative text-body2")
+                    ui.label(f"✖ {entry.where}: {said(entry.error, self.lang)}").classes("text-negative text-body2")
         for param in self.params:
             self.fields[param.key].set_value(_shown(param, self.values.get(param.key)))
 
@@ -404,7 +404,7 @@ class ProjectEditor:
             try:
                 value = project.parse_value(param, text)
             except project.ProjectError as exc:
-                errors.append(str(exc))
+                errors.append(said(exc, self.lang))
                 continue
             if old is None or _shown(param, old) != str(value):
                 changes[param.key] = value
@@ -433,7 +433,7 @@ class ProjectEditor:
                 describe="edit project", device=self.name, parameter=", ".join(by_key[k].label or by_key[k].name
                                                                                for k in changes), new=words, kind="write")
         except ACTION_ERRORS as exc:  # a viewer, a file that cannot be written ...
-            self.status.set_text(_("Not saved: {errors}").format(errors=exc))
+            self.status.set_text(_("Not saved: {errors}").format(errors=said(exc, self.lang)))
             self.status.classes(replace="text-body2 text-negative")
             return
         finally:

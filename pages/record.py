@@ -34,6 +34,7 @@ from app.report import (
     with_unit,
 )
 from app.report_archive import write_plant
+from app.message import said
 from app.verify import check_archive
 from pages.command_client import VIEWER_REASON, enable_unless
 from pages.frame import ACTION_ERRORS, fmt_time, frame
@@ -49,8 +50,6 @@ STATUS_WORDS = (N_("ready"), N_("running"), N_("pending"), N_("error"))
 KIND = "record kind"
 KIND_WORDS = (NP_("record kind", "approved"), NP_("record kind", "snapshot"), NP_("record kind", "checkout"),
               NP_("record kind", "signoff"), NP_("record kind", "integrity"))
-# what app/verify.py's check names: the record database or an archive
-CHECKED_WORDS = (N_("record"), N_("archive"))
 TIMELINE_COLUMNS = [{"name": "id", "label": "#", "field": "id"},
                     {"name": "time", "label": N_("Time"), "field": "time", "align": "left"},
                     {"name": "kind", "label": N_("Kind"), "field": "kind", "align": "left"},
@@ -119,7 +118,7 @@ def _downloads(runtime, user: str, role: str, lang: Lang) -> None:
         try:
             paths = await write_plant(runtime, folder, user=user or "viewer", role=role, lang=i18n.get(language.value))
         except ACTION_ERRORS as exc:  # said to the engineer
-            ui.notify(_("report: {error}").format(error=exc), type="negative", multi_line=True)
+            ui.notify(_("report: {error}").format(error=said(exc, lang)), type="negative", multi_line=True)
             return
         ui.download(paths[kind].read_bytes(), paths[kind].name)
 
@@ -195,14 +194,14 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool, lan
         try:
             run = runtime.record.new_run(name, user=user, role=role, ask=ask, session=_session_id())
         except ACTION_ERRORS as exc:  # a checkout running already, a role
-            ui.notify(str(exc), type="negative")
+            ui.notify(said(exc, lang), type="negative")
             return
         run.listeners.append(lambda: draw(run))
         abort.on_click(lambda: run.abort(f"aborted by {user}"))
         try:
             result = await run.run()
         except PermissionError as exc:
-            ui.notify(str(exc), type="negative")
+            ui.notify(said(exc, lang), type="negative")
             return
         ui.notify(_("checkout {status}").format(status=_status_text(result["status"], result["reason"], lang)),
                   type="positive" if result["status"] == "passed" else "negative", multi_line=True)
@@ -244,7 +243,7 @@ async def ask_account(runtime, user: str, what: str, lang: Lang) -> str | None:
                                                typed=(name.value or "").strip(), secret=password.value or "", address=address,
                                                via="record page")
             if account is None:
-                message.set_text(lang.phrase(words))  # the login's words (app/auth.py), as the login page says them
+                message.set_text(said(words, lang))  # the login's words (app/auth.py), as the login page says them
                 password.set_value("")
                 return
             if account.role != "engineer":
@@ -313,7 +312,7 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool, lan
         enable_unless(b, _(VIEWER_REASON) if not engineer else no_set)
 
     async def why_no_set() -> None:  # the adapter's own words (e.g. an M3IO in simple mode keeps no records)
-        why = (await backup.why_nothing_to_back_up(runtime, name)).removeprefix("nothing to back up: ")
+        why = said(await backup.why_nothing_to_back_up(runtime, name), lang).removeprefix("nothing to back up: ")
         if why and engineer:
             for b in (approve, snap):
                 enable_unless(b, _("{name} has no parameter set to approve or keep: {why}").format(name=name, why=why))
@@ -364,7 +363,7 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool, lan
                 await runtime.record.snapshot(name, user=user, role=role)
                 ui.notify(_("snapshot stored"), type="positive")
         except ACTION_ERRORS as exc:  # said to the engineer
-            ui.notify(_("{action}: {error}").format(action=_(ACTIONS[what]), error=exc), type="negative", multi_line=True)
+            ui.notify(_("{action}: {error}").format(action=_(ACTIONS[what]), error=said(exc, lang)), type="negative", multi_line=True)
         await refresh()
 
     approve.on_click(lambda: act("approve"))
@@ -432,7 +431,8 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
         try:
             content = await (plant_content(runtime, user=user, role=role) if plant else device_content(runtime, name, user=user, role=role))
         except ACTION_ERRORS as exc:  # said to the engineer
-            ui.notify(_("sign-off: the report could not be made: {error}").format(error=exc), type="negative", multi_line=True)
+            ui.notify(_("sign-off: the report could not be made: {error}").format(error=said(exc, lang)), type="negative",
+                      multi_line=True)
             return
         if not await confirm_gaps(sign_gaps(content, lang), what, lang):
             return
@@ -444,7 +444,7 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
                                       signer_role=signer_role.value.strip(), comment=comment.value, content=content,
                                       account=account)
         except ACTION_ERRORS as exc:  # said to the engineer
-            ui.notify(_("sign-off: not signed: {error}").format(error=exc), type="negative", multi_line=True)
+            ui.notify(_("sign-off: not signed: {error}").format(error=said(exc, lang)), type="negative", multi_line=True)
             return
         ui.notify(_("signed by {name} with account {account}: the record is frozen; a later sign-off supersedes it").format(
             name=signer.value.strip(), account=account), type="positive")
@@ -455,21 +455,6 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
     sign_plant.on_click(lambda: sign(True))
     ui.timer(0.2, show, once=True)
     ui.timer(5.0, show)  # checkouts, approvals and snapshots of this page or another one show up
-
-
-def check_summary(check, lang: Lang) -> str:
-    """:meth:`app.verify.Check.summary` in ``lang``: what was checked and whether it is intact; the first
-    alteration as the check words it."""
-    _ = lang.gettext
-    checked, _space, where = check.what.partition(" ")
-    what = f"{_(checked)} {where}".strip()
-    if not check.ok:
-        return _("{what}: ALTERED: {problem}").format(what=what, problem=check.problems[0])
-    parts = [_("{n} record rows chained").format(n=check.rows)]
-    if check.files:
-        parts.append(_("{n} files match the manifest").format(n=check.files))
-    head = _("; last row #{id}, hash {hash}").format(id=check.head[0], hash=check.head[1][:16]) if check.head else ""
-    return _("{what}: intact ({parts}{head})").format(what=what, parts=", ".join(parts), head=head)
 
 
 def _check_card(runtime, lang: Lang) -> None:
@@ -484,8 +469,8 @@ def _check_card(runtime, lang: Lang) -> None:
     def show(check) -> None:
         result.clear()
         with result:
-            ui.label(check_summary(check, lang)).classes("text-body1 " + ("text-positive" if check.ok else "text-negative text-weight-bold"))
-            for line in check.problems[1:] + [_("note: {note}").format(note=n) for n in check.notes]:
+            ui.label(said(check.summary(), lang)).classes("text-body1 " + ("text-positive" if check.ok else "text-negative text-weight-bold"))
+            for line in [said(p, lang) for p in check.problems[1:]] + [_("note: {note}").format(note=said(n, lang)) for n in check.notes]:
                 ui.label(line).classes("text-body2")
 
     async def check_record() -> None:

@@ -10,6 +10,7 @@ from nicegui import ui
 from app import backup, i18n, replace
 from app import runtime as rt
 from app.i18n import N_, Lang
+from app.message import said
 from pages.backup import DIFF_COLUMNS, STATE_TEXT_SLOT, confirm_restore, confirm_risky, differ_text, state_text
 from pages.diffrows import row_state
 from pages.frame import ACTION_ERRORS, frame, notify_error
@@ -40,7 +41,7 @@ def notice(name: str, lang: Lang | None = None) -> None:
         card.set_visibility(bool(replaced))
         if replaced:
             text.set_text(_("replaced? known {old}, now {new}").format(
-                old=replace.identity_text(replaced["old"]), new=replace.identity_text(replaced["new"])))
+                old=said(replace.identity_text(replaced["old"]), lang), new=said(replace.identity_text(replaced["new"]), lang)))
 
     update()
     follow(state, update)
@@ -128,11 +129,11 @@ class Assistant:
         _ = self.lang.gettext
         if replaced:
             text = _("replaced? known {old} ({source}), now {new}").format(
-                old=replace.identity_text(replaced["old"]), source=replaced.get("source") or _("known"),
-                new=replace.identity_text(replaced["new"]))
+                old=said(replace.identity_text(replaced["old"]), self.lang), source=said(replaced.get("source") or _("known"), self.lang),
+                new=said(replace.identity_text(replaced["new"]), self.lang))
         else:
-            text = (_("identity as known: {identity}").format(identity=replace.identity_text(now or known.get("identity")))
-                    + (f" ({known.get('source')})" if known.get("source") else ""))
+            text = (_("identity as known: {identity}").format(identity=said(replace.identity_text(now or known.get("identity")), self.lang))
+                    + (f" ({said(known['source'], self.lang)})" if known.get("source") else ""))
         if self.identity.text != text:
             self.identity.set_text(text)
             self.identity.classes(replace="text-body1 " + ("text-negative text-weight-medium" if replaced else ""))
@@ -144,18 +145,18 @@ class Assistant:
         try:
             self.rp = await replace.plan_replacement(self.runtime, self.name, self.progress.set_value)
         except ACTION_ERRORS as exc:  # no approved set, device not answering ...
-            notify_error(_("Cannot compare: {error}").format(error=exc))
+            notify_error(_("Cannot compare: {error}").format(error=said(exc, self.lang)))
             return
         self.progress.set_value(1)
         check = self.rp.check
         with self.check:
-            ui.label(_("known {old}; the device now {new}").format(old=replace.identity_text(check.old),
-                                                                    new=replace.identity_text(check.new))) \
+            ui.label(_("known {old}; the device now {new}").format(old=said(replace.identity_text(check.old), self.lang),
+                                                                    new=said(replace.identity_text(check.new), self.lang))) \
                 .classes("text-body2")
             for refusal in check.refusals:
-                ui.label("✖ " + _("refused: {reason}").format(reason=refusal)).classes("text-negative text-body1").props("data-testid=replace-refused")
+                ui.label("✖ " + _("refused: {reason}").format(reason=said(refusal, self.lang))).classes("text-negative text-body1").props("data-testid=replace-refused")
             for note in check.notes:
-                ui.label(f"⚠ {note}").classes("text-warning text-body1").props("data-testid=replace-note")
+                ui.label(f"⚠ {said(note, self.lang)}").classes("text-warning text-body1").props("data-testid=replace-note")
             if check.lacks:
                 ui.label(_("the device lacks: {names}").format(names=", ".join(check.lacks))).classes("text-body2")
             if check.adds:
@@ -165,7 +166,8 @@ class Assistant:
         if self.rp.plan is None:
             self.diff_card.set_visibility(False)
             return
-        self.source.set_text(_("from the {source}").format(source=self.rp.source) + ("; " + "; ".join(self.rp.plan.warnings) if self.rp.plan.warnings else ""))
+        warnings = [said(w, self.lang) for w in self.rp.plan.warnings]
+        self.source.set_text(_("from the {source}").format(source=said(self.rp.source, self.lang)) + ("; " + "; ".join(warnings) if warnings else ""))
         self._show_rows()
         self.diff_card.set_visibility(True)
 
@@ -203,16 +205,16 @@ class Assistant:
             report = await replace.execute_replacement(self.runtime, self.rp, selected, user=user, role=role,
                                                        confirmed=confirmed, progress=self.progress.set_value)
         except ACTION_ERRORS as exc:  # refused before any write (each write's own refusal is in the report)
-            notify_error(_("Not written: {error}").format(error=exc))
+            notify_error(_("Not written: {error}").format(error=said(exc, lang)))
             return
         finally:
             self.write.enable()
         self.report.clear()
         with self.report:
-            ui.label(report.summary()).classes("text-body1 " + ("text-positive" if report.ok else "text-negative")).props(
+            ui.label(said(report.summary(), lang)).classes("text-body1 " + ("text-positive" if report.ok else "text-negative")).props(
                 "data-testid=replace-report")
             for name, error in report.failed + report.refused:
-                ui.label(_("failed: {name}: {error}").format(name=name, error=error)).classes("text-negative")
+                ui.label(_("failed: {name}: {error}").format(name=name, error=said(error, lang))).classes("text-negative")
             if report.written:
                 ui.label(_("written and read back: {names}").format(names=", ".join(report.written))).classes("text-caption")
             ui.label(_("Recorded in the device's timeline and the audit log; the new identity is the known one now.") if report.ok

@@ -17,6 +17,8 @@ from collections import OrderedDict, deque
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
+from app.i18n import N_
+from app.message import Message, joined
 from app.plant import Plant
 from devices.registry import DEVICE_TYPES, CanIdUse, fixed_can_id_uses
 
@@ -72,11 +74,12 @@ class _Candidate:
     def convinced(self) -> bool:
         return self.streak >= (self.entry.get("evidence") or {}).get("frames", 1)
 
-    def evidence_text(self) -> str:
+    def evidence_text(self) -> Message:
+        """"3 frames in a row, 0.10, 0.10 s apart" (a page words it in its language)."""
         if not self.intervals:
-            return f"{self.frames} frame{'s' if self.frames != 1 else ''}"
-        shown = ", ".join(f"{i:.2f}" for i in list(self.intervals)[-(self.streak - 1):])
-        return f"{self.streak} frames in a row, {shown} s apart"
+            return Message(N_("{n} frame") if self.frames == 1 else N_("{n} frames"), n=self.frames)
+        shown = joined([Message("{s:.2f}", s=i) for i in list(self.intervals)[-(self.streak - 1):]])
+        return Message(N_("{n} frames in a row, {intervals} s apart"), n=self.streak, intervals=shown)
 
 
 @dataclass

@@ -3,11 +3,14 @@ words in German (issue 47)."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
 
 from app import cli, i18n
+from app.i18n import N_
+from app.message import Message
 from pages.plant_view import operator_words, state_words
 
 DE, EN = i18n.get("de"), i18n.get("en")
@@ -178,3 +181,113 @@ def test_the_record_commands_say_in_german_why_a_run_does_not_start():
     assert one.startswith("commission: nicht gestartet: gate ist eine echte Anlage") and "LEERTASTE" in one
     assert two.startswith("commission: nicht gestartet: gate, lift sind echte Anlagen")
     assert record_cli.real_without_person(["gate"]).startswith("commission: not started: gate is real equipment")
+
+
+def _english_pieces(modules: tuple[str, ...]) -> set[str]:
+    """The words of the catalog's texts of these modules between their fields, as English prints them (the pieces
+    long enough to be English of their own: "is missing from the archive", not "file")."""
+    from babel.messages.pofile import read_po
+
+    with open(ROOT / "locale" / "messages.pot", "rb") as f:
+        template = read_po(f)
+    pieces = set()
+    for m in template:
+        if isinstance(m.id, str) and any(path in modules for path, _line in m.locations):
+            pieces.update(p.strip(" :;,.()'") for p in re.split(r"\{[^{}]*\}", m.id))
+    return {p for p in pieces if len(p) > 14 and " " in p}
+
+
+def _german(argv: list[str], capsys) -> str:
+    try:
+        code = cli.main(["--lang", "de", *argv])
+    finally:
+        cli.set_language("en")
+    captured = capsys.readouterr()
+    return code, captured.out + captured.err
+
+
+def test_commission_check_words_its_findings_in_german(tmp_path, capsys):
+    from plants import device, modbus_line, plant_text
+
+    path = tmp_path / "plant.toml"
+    path.write_text(plant_text(modbus_line(locks=()) + device("door-1", "hdlock", "line1", address=1,
+                                                               project={"LockReqDelay": 3, "LockRequestDelay": "x"}), name="p"))
+    code, out = _german(["check", "--plant", str(path)], capsys)
+    assert code == 1
+    assert "Gerät 'door-1': unbekannter Parameter 'LockReqDelay'; war " in out
+    assert "1 Geräte, 2 Projekteinträge, 2 ungültig oder unbekannt" in out
+    english = _english_pieces(("app/project.py", "app/plant.py"))
+    assert not [p for p in english if p in out], out
+    path.write_text(plant_text(modbus_line(locks=()), name="p") + "\n[[devices]]\nname = \"x\"\n")
+    code, out = _german(["check", "--plant", str(path)], capsys)
+    assert code == 2 and "unbekannter Abschnitt [[devices]]; war [[device]] gemeint? bekannt: " in out, out
+    assert not [p for p in english if p in out], out
+
+
+def test_commission_verify_words_its_checks_in_german(tmp_path, capsys):
+    import sqlite3
+
+    from app.record_store import RecordStore
+
+    store = RecordStore(tmp_path / "record.sqlite")
+    for title in ("one", "two", "three"):
+        store.add(plant="p", device="door", kind="checkout", user="anna", role="engineer", title=title, data={})
+    store.close()
+    code, out = _german(["verify", "--record", "--data-dir", str(tmp_path)], capsys)
+    assert code == 0 and "Protokoll " in out and ": unverändert (3 Protokollzeilen verkettet; letzte Zeile #3, Hash " in out, out
+    db = sqlite3.connect(tmp_path / "record.sqlite")
+    db.execute("DROP TRIGGER record_no_delete")
+    db.execute("DELETE FROM record WHERE id = 2")
+    db.commit()
+    db.close()
+    code, out = _german(["verify", "--record", "--data-dir", str(tmp_path)], capsys)
+    assert code == 1, out
+    assert "VERÄNDERT: Zeile #2 fehlt (außerhalb des Programms gelöscht): Zeile #3 folgt auf #1" in out
+    assert "verändert: der Schutz record_no_delete des Protokolls wurde außerhalb des Programms entfernt" in out
+    english = _english_pieces(("app/verify.py",))
+    assert not [p for p in english if p in out], out
+    code, out = _german(["verify", str(tmp_path / "record.sqlite")], capsys)
+    assert code == 1 and "ist kein lesbares Archiv" in out and not [p for p in english if p in out], out
+
+
+def test_the_commissioning_dates_are_written_the_languages_way():
+    from app.report import commissioned_text
+
+    d = {"commissioned_by": ["anna"], "commissioned": ["2026-11-28 14:05:09", "2026-11-29 08:00:00"], "signoff": {"id": 1}}
+    assert commissioned_text(d) == "Commissioned by anna from 2026-11-28 14:05:09 to 2026-11-29 08:00:00."
+    assert commissioned_text(d, lang=EN) == "Commissioned by anna from 2026-11-28 14:05:09 to 2026-11-29 08:00:00."
+    german = commissioned_text(d, lang=DE)
+    assert "28.11.2026, 14:05:09" in german and "29.11.2026, 08:00:00" in german, german
+
+
+def test_the_login_and_the_records_refusals_keep_their_english_and_say_it_in_german():
+    from app.message import said
+    from app.record import RecordError
+
+    refusal = RecordError(Message(N_("{device}: a checkout is running already"), device="door-1"))
+    assert str(refusal) == "door-1: a checkout is running already"
+    assert said(refusal, DE) == "door-1: eine Funktionsprüfung läuft bereits"
+    assert said(refusal, None) == said(refusal, EN) == "door-1: a checkout is running already"
+
+
+def test_the_texts_app_hands_the_pages_keep_their_english_and_come_in_german():
+    from collections import deque
+
+    from app import batch
+    from app.backup import RestoreReport
+    from app.message import said
+    from app.project import allowed
+    from app.replace import identity_text
+    from app.worker.discovery import _Candidate
+    from devices.hdlock.params import PARAMS
+
+    report = RestoreReport(written=["LockRequestDelay"], unchanged=["LockDelay", "LockMode"], saved="Save-Settings")
+    assert report.summary() == "1 written, 2 unchanged, 0 failed, 0 skipped; Save-Settings done"
+    assert said(report.summary(), DE) == "1 geschrieben, 2 unverändert, 0 fehlgeschlagen, 0 übersprungen; Save-Settings ausgeführt"
+    identity = identity_text({"serial": 660020, "FirmwareVersion": 57})
+    assert identity == "serial 660020, firmware 57" and said(identity, DE) == "Seriennummer 660020, Firmware 57"
+    whole = allowed(PARAMS.by_name["LockRequestDelay"])
+    assert whole == "0 .. 65535 ms (whole numbers)" and said(whole, DE) == "0 .. 65535 ms (ganze Zahlen)"
+    evidence = _Candidate(entry={}, heard=0.0, first_seen=0.0, frames=3, streak=3, intervals=deque([0.1, 0.1])).evidence_text()
+    assert evidence == "3 frames in a row, 0.10, 0.10 s apart" and said(evidence, DE) == "3 Frames in Folge, 0,10, 0,10 s Abstand"
+    assert batch.status_text(batch.WRITTEN, DE) == "geschrieben" and batch.status_text(batch.FAILED, EN) == "failed"

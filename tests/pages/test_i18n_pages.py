@@ -646,3 +646,71 @@ async def test_the_discover_dialog_in_german_shows_no_english(tmp_path):
         await user.should_see(kind=ui.label, content="in der Anlage als door-2")
         found = english_on(user)
         assert found == [], "\n".join(map(str, found))
+async def test_the_record_page_in_german_says_why_a_checkout_does_not_start_and_a_login_refusal(tmp_path):
+    """What app/ refuses (app/record.py, app/auth.py) said in the page's language: a checkout already running, and
+    the account dialog's wrong password."""
+    import asyncio
+
+    asked, answered = asyncio.Event(), asyncio.Event()
+
+    async def ask(question: str) -> bool:  # the first question waits until the test has pressed start
+        asked.set()
+        await answered.wait()
+        return False
+
+    UserStore(tmp_path / "users.toml").add("anna", "engineer", "correct horse")
+    async with german_locks(tmp_path, "door-1") as (runtime, user):
+        await user.open("/record/door-1")
+        await user.should_see("Inbetriebnahmeprotokoll", retries=50)
+        run = runtime.record.new_run("door-1", user="anna", role="engineer", ask=ask)  # from another tab, meanwhile
+        task = asyncio.create_task(run.run())
+        try:
+            await eventually(asked.is_set, timeout=30, what="the checkout's first question")
+            user.find(marker="checkout-run").click()
+            await user.should_see("door-1: eine Funktionsprüfung läuft bereits", retries=50)
+        finally:
+            answered.set()
+            await asyncio.wait_for(task, 30)
+        assert not [m for m in user.notify.messages if "a checkout is running already" in m], user.notify.messages
+        user.find(marker="record-approve").click()
+        await user.should_see("Konto", retries=50)
+        next(iter(user.find(marker="account-name").elements)).value = "anna"
+        next(iter(user.find(marker="account-password").elements)).value = "wrong"
+        user.find(marker="account-ok").click()
+        await user.should_see("Falscher Benutzername oder falsches Passwort", retries=100)
+        user.find(marker="account-cancel").click()
+
+
+async def test_a_restore_in_german_says_its_warnings_and_summary_in_german(tmp_path):
+    """What app/backup.py hands the backup page (a restore's warnings, its report's summary) in the page's language;
+    the audit row keeps the English."""
+    import json
+
+    from test_backup_page import _wait_table, emit
+
+    from app import backup
+    from devices.hdlock.params import PARAMS
+    from devices.params import backup_entry
+
+    entries = [backup_entry(p, 250 if p.name == "LockRequestDelay" else p.default if p.default is not None else 0)
+               for p in PARAMS]
+    document = backup.make_document("other", "door-9", "hdlock", "line1", {}, entries)
+    async with german_locks(tmp_path, "door-1") as (runtime, user):
+        runtime.backups_dir.mkdir(parents=True, exist_ok=True)
+        (runtime.backups_dir / "door-9.json").write_text(json.dumps(document))
+        await user.open("/backup")
+        files = next(t for t in user.client.elements.values() if isinstance(t, ui.table) and any(c["name"] == "by" for c in t.columns))
+        await eventually(lambda: [r["name"] for r in files.rows] == ["door-9.json"], what="the file listed")
+        emit(files, "restore", "door-9.json")
+        await user.should_see("Mit dem Gerät vergleichen", retries=50)
+        user.find(content="Mit dem Gerät vergleichen").click()
+        table = await _wait_table(user)
+        await user.should_see("das Backup stammt von Gerät 'door-9' der Anlage 'other'", retries=50)
+        table.selected = [r for r in table.rows if r["name"] == "LockRequestDelay"]
+        user.find(content="Auswahl schreiben").click()
+        await user.should_see(marker="restore-confirm-ok", retries=50)
+        user.find(marker="restore-confirm-ok").click()
+        await user.should_see("1 geschrieben, ", retries=100)
+        assert english_but(user, descriptions_of(runtime, "door-1")) == []
+        rows = runtime.audit.query(device="door-1")
+        assert any(r.action == "restore" and r.result.startswith("1 written, ") for r in rows), rows
