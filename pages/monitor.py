@@ -45,6 +45,9 @@ COLUMNS = [  # widths in % of a fixed-layout table: hex wraps between bytes (nev
 ]
 # a line worded like its device page: the request is a name ("RG 0x0011 Actual_Position Actuator 1"), so it gets the
 # room the hex of a short SCU or LogiTed request does not need
+# the plant file's bus types in words, the type itself beside them (what the plant file says)
+BUS_TYPES = {"modbus-rtu": N_("Modbus RTU line"), "serial": N_("RS232 line"), "logited-rs485": N_("LogiTed RS485 line"),
+             "logited-tcp": N_("LogiTed TCP connection")}
 WORDED_WIDTHS = {"time": 9, "device": 10, "request": 16, "tx": 11, "rx": 19, "decoded": 25, "rtt": 5, "error": 5}
 WORDED_COLUMNS = [{**c, "headerStyle": f"width: {WORDED_WIDTHS[c['name']]}%"} for c in COLUMNS]
 CUT_SLOT = '<q-td :props="props" :class="\'cut \' + (props.col.name === \'error\' ? \'text-negative\' : \'\')" :title="props.value">{{ props.value }}</q-td>'
@@ -202,7 +205,8 @@ class LineMonitor:
         bus_state = self.bus_state
         _ = self.lang.gettext
         with ui.row().classes("items-center gap-3 w-full"):
-            ui.label(f"{bus_state.type} · {bus_state.endpoint}").classes("text-caption text-grey-8")
+            kind = _(BUS_TYPES[bus_state.type]) + f" ({bus_state.type})" if bus_state.type in BUS_TYPES else bus_state.type
+            ui.label(f"{kind} · {bus_state.endpoint}").classes("text-caption text-grey-8")
             if bus_state.type == "modbus-rtu":
                 tool_links(self.bus, [(_("Modbus poll"), "poll", "table_rows")])
         with ui.row().classes("items-center gap-3"):
