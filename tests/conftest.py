@@ -85,6 +85,7 @@ REALTIME_FILES = {
     "test_scu_keepalive.py",
     "test_scu_page.py",
     "test_scu_safety.py",
+    "test_scu_sim.py",  # the twin runs on a loop of its own: the test's telegrams come on time or not, as a master's
     "test_serial_line.py",
     "test_state_push.py",
     "test_transmit.py",
@@ -146,6 +147,7 @@ SLOW_TESTS: set[str] = {
     "test_scu_keepalive.py",
     "test_scu_page.py",
     "test_scu_safety.py",
+    "test_scu_sim.py",  # the twin runs on a loop of its own: the test's telegrams come on time or not, as a master's
     "test_security.py",
     "test_security_probes.py",
     "test_sparkplug.py",

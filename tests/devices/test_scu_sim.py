@@ -228,8 +228,8 @@ async def test_watchdog_drops_remote_mode_and_stops_motion_after_500_ms_without_
 async def test_rc_within_500_ms_keeps_remote_mode(unit):
     sim, twin, line = unit
     await open_session(line)
-    for _ in range(8):
-        await asyncio.sleep(0.3)  # RC every 300 ms, inside the 500 ms watchdog (section 4.1)
+    for _ in range(12):
+        await asyncio.sleep(0.2)  # RC every 200 ms, inside the 500 ms watchdog (section 4.1) of a twin on its own loop
         assert await line.talk(RC) == ack("RC", b"")
     assert twin.remote and not twin.error_code
 
