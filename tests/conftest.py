@@ -493,6 +493,7 @@ def sim_process(plant_file: Path) -> Iterator[tuple[subprocess.Popen, str]]:
 # -- browser tests ----------------------------------------------------------------------------
 
 CHROMIUM = Path("/usr/bin/chromium")
+EXPECT_MS = 15_000  # the longest a browser test's expect() waits for what it asserts, unless it says otherwise
 
 
 @pytest.fixture(scope="module")
@@ -504,8 +505,11 @@ def chromium():
     """
     if not CHROMIUM.exists():
         pytest.skip(f"{CHROMIUM} is not installed")
-    from playwright.sync_api import sync_playwright
+    from playwright.sync_api import expect, sync_playwright
 
+    # an assertion on a page waits for what it expects up to 15 s (playwright's default: 5 s): a page of an app
+    # that shares two cores with other tests and browsers shows a change late, not never
+    expect.set_options(timeout=EXPECT_MS)
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
         try:

@@ -183,7 +183,7 @@ def _interrupted(args, ready: str, tmp_path) -> subprocess.CompletedProcess:
             seen += proc.stdout.readline()
         assert ready in seen, seen + (proc.stderr.read() if proc.poll() is not None else "")
         proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=15)
+        out, err = proc.communicate(timeout=30)  # the runtime stops its lines and twins first: slow on a busy machine
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -176,10 +176,10 @@ async def test_scu_data_read_in_turn_rides_on_the_rc_of_the_line_thread(scu):  #
     turn = set(ROTATING_IDS)
     taken_over = adapter.rc.rgs_taken_over
     assert await wait_for(lambda: turn <= {i for i, t in adapter.live.read_at.items() if t > read_at.get(i, 0.0)}, timeout=10)
-    # none through the loop's worker threads, but those the poll took over when the line's thread fell three polls
-    # behind (a machine so busy that the thread did not get its turn; it keeps up on its own)
+    # through the loop's worker threads only what the poll read itself: those it took over from a line thread three
+    # polls behind, or one read while the thread was not to read it (a machine so busy that the thread did not get
+    # its turn): most of the turn rides on the RC
     through_loop = [r for r in sent if r[:2] == b"RG"]
-    assert len(through_loop) <= adapter.rc.rgs_taken_over - taken_over, (through_loop, adapter.rc.rgs_taken_over - taken_over)
-    assert len(through_loop) < len(turn)  # most of the turn rode on the RC
+    assert len(through_loop) < len(turn) / 2, (through_loop, adapter.rc.rgs_taken_over - taken_over)
     point = adapter.state.points["Battery voltage"]
     assert point.every is not None and point.every < 2 * adapter.live.rotation_s
