@@ -39,6 +39,7 @@ from devices.adapter import BackupAdapter, EntryRestorer, ParamWriter, RestoreDe
 from devices.commands import WRITE_PARAMETER
 from devices.commands import find as find_command
 from devices.errors import CommissionError
+from devices.params import Accepted
 
 SCHEMA = "commission-backup"
 VERSION = 1
@@ -280,6 +281,7 @@ class DiffRow:
     error: str = ""  # why the entry cannot be written (invalid in the file): never written
     risk: str = ""  # the confirmation a manual write of this value asks for
     param: Any = None
+    accepted: Accepted | None = None  # what the parameter model accepted of the entry: what is written, unchecked again
 
     @property
     def changed(self) -> bool:
@@ -351,18 +353,18 @@ def _plan_row(params, entry: dict, now: dict, adapter: Any = None) -> DiffRow:
     row.current_text = param.display(int(now["raw"]))
     try:
         # a parameter whose value is text (an M3IO customer record's hex bytes) checks the text itself
-        raw = param.validate(value if takes_text(param) and isinstance(value, str) else _file_number(value))
+        accepted = param.accept(value if takes_text(param) and isinstance(value, str) else _file_number(value))
     except (BackupError, ValueError) as exc:
         row.error = Message(N_("invalid in the file: {error}"), error=message_of(exc))
         return row
-    row.backup_raw = raw
+    raw = row.backup_raw = accepted.raw
     row.backup_text = param.display(raw)
     hex_raw = takes_text(param) and entry.get("raw") == param.display(raw)  # an older file's record bytes
     if "raw" in entry and entry["raw"] != raw and not hex_raw:
         row.error = Message(N_("the file's raw {raw!r} and value {value!r} disagree (edited or damaged file): not written"),
                             raw=entry["raw"], value=value)
         return row
-    row.risk = param.needs_confirmation(raw)
+    row.accepted, row.risk = accepted, accepted.risk
     return row
 
 
@@ -471,8 +473,7 @@ def _declared_risk(runtime, device: str, row: DiffRow) -> str:
     if row.param is None or row.error or not _declares_write(runtime, device):
         return row.risk
     try:
-        return runtime.worker.gate.question(device, WRITE_PARAMETER,
-                                            {"param": row.param, "value": row.param.decode(row.backup_raw)})
+        return runtime.worker.gate.question(device, WRITE_PARAMETER, {"param": row.param, "value": row.accepted})
     except ValueError as exc:  # refused by the declaration: never written
         row.error = str(exc)
         return ""
@@ -500,13 +501,12 @@ async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, use
             try:
                 if row.param is not None and _declares_write(runtime, plan.device):
                     # the device type's declared write: range, send policy and confirmation as on its page
-                    await runtime.worker.gate.invoke(plan.device, WRITE_PARAMETER,
-                                                     {"param": row.param, "value": row.param.decode(row.backup_raw)},
+                    await runtime.worker.gate.invoke(plan.device, WRITE_PARAMETER, {"param": row.param, "value": row.accepted},
                                                      user=user, role=role, confirmed=row.key in confirmed, action="restore")
                 else:
                     if row.param is not None:
                         def action(a, row=row):
-                            return a.write_param(row.param, row.param.decode(row.backup_raw), confirmed=row.key in confirmed)
+                            return a.write_accepted(row.accepted, confirmed=row.key in confirmed)
                     else:
                         def action(a, row=row):
                             return a.restore_entry(row.key, row.backup_raw)

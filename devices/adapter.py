@@ -56,9 +56,12 @@ class BackupAdapter(Protocol):
 
 @runtime_checkable
 class ParamWriter(Protocol):
-    """Restores by writing parameters of its parameter model (validated, read back)."""
+    """Restores by writing parameters of its parameter model (validated, read back): an entry as it is
+    (``write_param``), or what the parameter model accepted already (``write_accepted``, not checked again)."""
 
     async def write_param(self, param: Any, value: Any, *, confirmed: bool = False) -> int: ...
+
+    async def write_accepted(self, accepted: Any, *, confirmed: bool = False) -> int: ...
 
 
 @runtime_checkable
