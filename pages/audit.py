@@ -12,20 +12,16 @@ from app import runtime as rt
 from app.audit import to_csv
 from app.i18n import N_
 from pages.frame import frame
-from pages.widgets import columns
+from pages.widgets import column, columns
 
 COLUMNS = [
-    {"name": "time", "label": N_("Time"), "field": "time", "align": "left", "sortable": True},
-    {"name": "user", "label": N_("User"), "field": "user", "align": "left"},
-    {"name": "role", "label": N_("Role"), "field": "role", "align": "left"},
-    {"name": "device", "label": N_("Device"), "field": "device", "align": "left"},
-    {"name": "action", "label": N_("Action"), "field": "action", "align": "left"},
-    {"name": "parameter", "label": N_("Parameter"), "field": "parameter", "align": "left"},
-    {"name": "old", "label": N_("Old"), "field": "old", "align": "left"},
-    {"name": "new", "label": N_("New"), "field": "new", "align": "left"},
+    column("time", N_("Time"), sortable=True),
+    *(column(name, label) for name, label in (("user", N_("User")), ("role", N_("Role")), ("device", N_("Device")),
+                                              ("action", N_("Action")), ("parameter", N_("Parameter")),
+                                              ("old", N_("Old")), ("new", N_("New")))),
     # the whole result, wrapped inside the screen (a refusal's reason is the point of the row)
-    {"name": "result", "label": N_("Result"), "field": "result", "align": "left",
-     "style": "white-space: normal; overflow-wrap: break-word; min-width: 14rem", "classes": "audit-result"},
+    column("result", N_("Result"), style="white-space: normal; overflow-wrap: break-word; min-width: 14rem",
+           classes="audit-result"),
 ]
 for _column in COLUMNS:  # old and new values (a restored setting's text) wrap too
     if _column["name"] in ("action", "parameter", "old", "new"):

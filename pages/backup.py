@@ -21,16 +21,16 @@ from pages.diffrows import count as _count  # noqa: F401 - its tests count with 
 from pages.diffrows import row_state
 from pages.diffrows import state_text
 from pages.project import ProjectCard
-from pages.widgets import columns, upload_button
+from pages.widgets import column, columns, upload_button
 from pages.command_client import confirm, enable_unless, viewer_reason
 
 FILE_COLUMNS = [
-    {"name": "name", "label": N_("File"), "field": "name", "align": "left", "style": WRAP},
-    {"name": "device", "label": N_("Device"), "field": "device", "align": "left"},
-    {"name": "type", "label": N_("Type"), "field": "type", "align": "left"},
-    {"name": "time", "label": N_("Taken (local time)"), "field": "time", "align": "left"},
-    {"name": "by", "label": N_("By"), "field": "by", "align": "left"},
-    {"name": "size", "label": N_("Size"), "field": "size", "align": "left"},
+    column("name", N_("File"), style=WRAP),
+    column("device", N_("Device")),
+    column("type", N_("Type")),
+    column("time", N_("Taken (local time)")),
+    column("by", N_("By")),
+    column("size", N_("Size")),
     {"name": "actions", "label": "", "field": "name"},
 ]
 DIFF_WORDS = (N_("Parameter"), N_("Device now"), N_("In the backup"))  # the labels of pages/diffrows.py's columns

@@ -19,6 +19,7 @@ from app.i18n import N_, Lang
 from app.modbus_line import ModbusLine
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import ACTION_ERRORS, fmt_age, frame, notify_error
+from pages.monitor_common import bus_tool_opened
 from pages.session import current_user
 from pages.widgets import range_number, range_text
 from pages.command_client import all_valid, checked_value
@@ -64,11 +65,9 @@ def content(bus: str) -> None:
     lang = i18n.page_language()
     _ = lang.gettext
     with frame(_("Modbus poll · {bus}").format(bus=bus)):
-        ui.link(_("← bus monitor {bus}").format(bus=bus), f"/monitor/{bus}")
-        if not isinstance(runtime.worker.lines.get(bus), ModbusLine):
-            ui.label(_("{bus} is not a Modbus RTU line: the poll is for Modbus lines.").format(bus=bus))
-            return
-        _view(runtime, bus, lang)
+        modbus = isinstance(runtime.worker.lines.get(bus), ModbusLine)
+        if bus_tool_opened(bus, lang, "" if modbus else _("{bus} is not a Modbus RTU line: the poll is for Modbus lines.").format(bus=bus)):
+            _view(runtime, bus, lang)
 
 
 class PollView:

@@ -18,6 +18,7 @@ from app import transmit as tx
 from app.i18n import N_, Lang
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import ACTION_ERRORS, frame, notify_error
+from pages.monitor_common import bus_tool_opened
 from pages.session import current_user
 from pages.widgets import columns as shown_columns
 from pages.widgets import range_number
@@ -77,9 +78,8 @@ def content(bus: str) -> None:
     lang = i18n.page_language()
     _ = lang.gettext
     with frame(_("Transmit list · {bus}").format(bus=bus)):
-        ui.link(_("← bus monitor {bus}").format(bus=bus), f"/monitor/{bus}")
-        if bus not in runtime.worker.can_buses:
-            ui.label(_("{bus} is not a CAN bus: transmit lists are for CAN buses.").format(bus=bus))
+        can = bus in runtime.worker.can_buses
+        if not bus_tool_opened(bus, lang, "" if can else _("{bus} is not a CAN bus: transmit lists are for CAN buses.").format(bus=bus)):
             return
         _user, role = current_user()
         if role != "engineer":

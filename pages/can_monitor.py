@@ -143,14 +143,18 @@ class BusStatusCard:
             last=lang.numbers_in(f"{cb.LOAD_PEAK_S:g}"))
 
 
-class OverwriteCard:
-    """The overwrite view: one row per ID (count, cycle, data with the changed bytes marked, decoded)."""
+class FrameView:
+    """A view of the bus's frames: its state, the filters that choose them, their decoder and the page's language."""
 
     def __init__(self, state: CanBusState, filters: FilterCard, decoder: rec.FrameDecoder, lang: Lang):
         self.state = state
         self.filters = filters
         self.decoder = decoder
         self.lang = lang
+
+
+class OverwriteCard(FrameView):
+    """The overwrite view: one row per ID (count, cycle, data with the changed bytes marked, decoded)."""
 
     def build(self) -> None:
         with ui.row().classes("items-center gap-2"):
@@ -203,14 +207,11 @@ class OverwriteCard:
         }
 
 
-class FramesCard:
+class FramesCard(FrameView):
     """The newest frames of the bus; while paused, the whole buffer as it was, in pages."""
 
     def __init__(self, state: CanBusState, filters: FilterCard, decoder: rec.FrameDecoder, lang: Lang):
-        self.state = state
-        self.filters = filters
-        self.decoder = decoder
-        self.lang = lang
+        super().__init__(state, filters, decoder, lang)
         self.snapshot: list[FrameRecord] = []  # the whole buffer (matching the filters), newest first, while paused
         self.shown: dict[int, FrameRecord] = {}  # row key -> frame of the rows on screen
         self._signature: tuple | None = None

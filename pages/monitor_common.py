@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from nicegui import ui
 
+from app.i18n import Lang
+
 from pages.session import can_write
 
 SHOWN = 200  # rows of a frame/transaction list (one page while paused)
@@ -50,3 +52,13 @@ def tool_links(bus: str, tools: list[tuple[str, str, str]]) -> None:
         for label, tool, icon in tools:
             ui.button(label, icon=icon, on_click=lambda t=tool: ui.navigate.to(f"/monitor/{bus}/{t}")).props(
                 f"flat dense no-caps data-monitor=tool-{tool}")
+
+
+def bus_tool_opened(bus: str, lang: Lang, not_for_it: str = "") -> bool:
+    """The head of a bus tool's page: the link back to the bus monitor, then ``not_for_it`` (why the tool is not for
+    this bus) where there is a reason. Whether the tool goes on."""
+    _ = lang.gettext
+    ui.link(_("← bus monitor {bus}").format(bus=bus), f"/monitor/{bus}")
+    if not_for_it:
+        ui.label(not_for_it)
+    return not not_for_it

@@ -157,6 +157,12 @@ REGISTER_COLUMNS = [
 ]
 
 
+def column(name: str, label: str, **more) -> dict:
+    """A left-aligned table column showing the rows' field ``name`` under ``label`` (marked ``N_``); ``more``:
+    Quasar's other column options (``sortable``, ``style``, a ``field`` of another name ...)."""
+    return {"name": name, "label": label, "field": name, "align": "left", **more}
+
+
 def columns(table: list[dict], lang: Lang | None) -> list[dict]:
     """A table's columns with their labels (marked ``N_``) in ``lang``."""
     if lang is None:

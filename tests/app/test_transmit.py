@@ -99,6 +99,12 @@ async def _can1_list(runtime):
     return tl
 
 
+async def _cyclic_row(runtime, can_id: int, data: bytes, period_ms: int):
+    """can1's transmit list with a cyclic row of ``can_id`` added by an engineer; the list and the row."""
+    tl = await _can1_list(runtime)
+    return tl, await tl.add(make_row(can_id, False, data, period_ms=period_ms), user="anna", role="engineer")
+
+
 async def test_send_once_and_audit(can_rig):
     runtime, listener = can_rig
     tl = await _can1_list(runtime)
@@ -112,8 +118,7 @@ async def test_send_once_and_audit(can_rig):
 
 async def test_cyclic_row_keeps_its_period_and_stops(can_rig):
     runtime, listener = can_rig
-    tl = await _can1_list(runtime)
-    row = await tl.add(make_row(0x321, False, b"\xaa\x55", period_ms=20), user="anna", role="engineer")
+    tl, row = await _cyclic_row(runtime, 0x321, b"\xaa\x55", 20)
     async with alive(runtime.worker, SESSION):
         await tl.start(row.key, user="anna", role="engineer", session=SESSION)
         got = await _frames(listener, 0x321, 1.0)
@@ -160,8 +165,7 @@ async def test_viewer_refused(can_rig):
 
 async def test_cyclic_rows_stop_when_the_session_is_lost(can_rig):
     runtime, listener = can_rig
-    tl = await _can1_list(runtime)
-    row = await tl.add(make_row(0x222, False, b"\x01", period_ms=10), user="anna", role="engineer")
+    tl, row = await _cyclic_row(runtime, 0x222, b"\x01", 10)
     async with alive(runtime.worker, SESSION):
         await tl.start(row.key, user="anna", role="engineer", session=SESSION)
         assert len(await _frames(listener, 0x222, 0.5)) > 20  # kept alive by the heartbeat

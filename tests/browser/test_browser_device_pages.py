@@ -35,6 +35,19 @@ def open_page(chromium: Browser, url: str, size: tuple[int, int]) -> Page:
     return page
 
 
+def page_with_chart(chromium: Browser, url: str, size: tuple[int, int], heading: str, drawn_js: str) -> Page:
+    """:func:`open_page` once its ``heading`` is shown and a chart of it is drawn as ``drawn_js`` (a function of
+    one plotly chart) tells."""
+    page = open_page(chromium, url, size)
+    try:
+        expect(page.get_by_text(heading)).to_be_visible()
+        page.wait_for_function(f"() => [...document.querySelectorAll('.js-plotly-plot')].some({drawn_js})")
+    except BaseException:
+        page.context.close()
+        raise
+    return page
+
+
 def field(page: Page, testid: str):
     return page.locator(f'input[data-testid="{testid}"], [data-testid="{testid}"] input')
 
@@ -46,12 +59,10 @@ def lock_values(url: str) -> dict:
 
 @pytest.mark.parametrize("size", SIZES, ids=["1440x900", "1024x768"])
 def test_hdlock_entry_save_dialog_and_chart(app_url: str, chromium: Browser, tmp_path: Path, size):
-    page = open_page(chromium, app_url + "/device/door-1", size)
+    # the chart: increments on the left axis, mA on a right one, the last 30 s chosen
+    page = page_with_chart(chromium, app_url + "/device/door-1", size, "Modbus address 1 ·", "p => p.layout && "
+                           "p.layout.yaxis2 && p.layout.yaxis2.overlaying === 'y' && p.layout.yaxis2.side === 'right'")
     try:
-        expect(page.get_by_text("Modbus address 1 ·")).to_be_visible()
-        # the chart: increments on the left axis, mA on a right one, the last 30 s chosen
-        page.wait_for_function("() => [...document.querySelectorAll('.js-plotly-plot')].some(p => p.layout && "
-                               "p.layout.yaxis2 && p.layout.yaxis2.overlaying === 'y' && p.layout.yaxis2.side === 'right')")
         expect(page.locator("[data-chart-window] button[aria-pressed=true]")).to_have_text(re.compile(r"30 s"))
         expect(page.locator(".js-plotly-plot .y2title")).to_have_text("mA")  # each axis titled with its unit
         expect(page.locator(".js-plotly-plot .ytitle")).to_have_text("Inc")
@@ -129,11 +140,9 @@ def test_hdlock_silent_lock_greys_lamps_ages_rows_and_disables_writes(app_url: s
 
 @pytest.mark.parametrize("size", SIZES, ids=["1440x900", "1024x768"])
 def test_m3io_page_record_entry_keeps_what_was_typed(app_url: str, chromium: Browser, tmp_path: Path, size):
-    page = open_page(chromium, app_url + "/device/heater-hmr", size)
+    page = page_with_chart(chromium, app_url + "/device/heater-hmr", size, "CAN-M3IO heater-hmr (HMR)",
+                           "p => (p.data || []).some(t => t.y && t.y.length >= 2)")
     try:
-        expect(page.get_by_text("CAN-M3IO heater-hmr (HMR)")).to_be_visible()
-        page.wait_for_function("() => [...document.querySelectorAll('.js-plotly-plot')].some("
-                               "p => (p.data || []).some(t => t.y && t.y.length >= 2))")
         record = field(page, "record")
         record.scroll_into_view_if_needed()
         record.fill("20")

@@ -595,19 +595,9 @@ async def test_the_transmit_list_in_german_shows_no_english(tmp_path, monkeypatc
 async def test_the_replay_page_in_german_shows_no_english_but_the_replays_own_words(tmp_path):
     """Replaying a recording (pages/bus_replay.py): the recording, speeds (decimal comma), start, the question and
     the outcome; what app/replay.py words itself (the question's body, the replay's summary) is still English."""
-    import can
-    from plants import can_bus, channel, plant
+    from test_replay_page import replay_runtime
 
-    from app import recording as rec
-
-    runtime = Runtime(plant(can_bus(name="can9", channel_name=channel("replay-de"), bitrate=500000, simulate=None)),
-                      simulate=False, data_dir=tmp_path / "data")
-    folder = runtime.data_dir / "recordings"
-    folder.mkdir(parents=True)
-    writer = rec.WRITERS[".log"][0](folder / "can9-test.log")
-    for i in range(20):
-        writer.on_message_received(can.Message(timestamp=100 + i * 0.01, arbitration_id=0x300 + i, data=bytes([i])))
-    writer.stop()
+    runtime = replay_runtime(tmp_path, "replay-de")
     async with german_user(runtime) as user:
         await user.open("/monitor/can9/replay")
         await user.should_see("Wiedergabe auf can9", retries=50)

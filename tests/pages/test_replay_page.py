@@ -13,14 +13,22 @@ from tests.webutil import eventually, simulated_user
 
 
 
-async def test_replay_page_replays_a_recording(tmp_path):
-    runtime = Runtime(plant(can_bus(name="can9", channel_name=channel("replay-page"), bitrate=500000, simulate=None)), simulate=False, data_dir=tmp_path / "data")
+def replay_runtime(tmp_path, tag: str) -> Runtime:
+    """A runtime with one CAN bus ``can9`` (a channel of its own, no twin) and a recording of 20 frames,
+    ``can9-test.log``, in its data folder."""
+    runtime = Runtime(plant(can_bus(name="can9", channel_name=channel(tag), bitrate=500000, simulate=None)), simulate=False,
+                      data_dir=tmp_path / "data")
     folder = runtime.data_dir / "recordings"
     folder.mkdir(parents=True)
     writer = rec.WRITERS[".log"][0](folder / "can9-test.log")
     for i in range(20):
         writer.on_message_received(can.Message(timestamp=100 + i * 0.01, arbitration_id=0x300 + i, data=bytes([i])))
     writer.stop()
+    return runtime
+
+
+async def test_replay_page_replays_a_recording(tmp_path):
+    runtime = replay_runtime(tmp_path, "replay-page")
     async with simulated_user(runtime) as user:
         await user.open("/monitor/can9/replay")
         await user.should_see("Replay onto can9")
