@@ -17,6 +17,7 @@ from nicegui import ui
 from app import i18n
 from app import worker as worker_module
 from app.i18n import N_
+from app.message import Message, said
 from app.state import LiveValue
 from devices.scu import facts
 from devices.scu import codec
@@ -62,18 +63,18 @@ def _stop_rule(lang=None) -> str:
         bound=f"{worker_module.DEADMAN_BOUND_S:g}")
 
 
-def io_text(key: str, live: LiveValue) -> tuple[str, str]:
+def io_text(key: str, live: LiveValue, lang=None) -> tuple[str, str]:
     """An I/O line in words, named as its declaration says, and the raw value beside it ("" when the words are the
-    number itself)."""
+    number itself); table 6's words in ``lang``."""
     data_id = IO_POINTS[key]
     item = p.item(data_id)
     title = item.label or key
     value = live.value
     raw = live.raw if live.raw is not None else value
     if data_id in p.FLAG_WORDS:
-        return f"{title}: {p.flags_text(data_id, int(raw))}", f"0x{int(raw):0{2 * item.size}X}"
+        return f"{title}: {said(p.flags_text(data_id, int(raw)), lang)}", f"0x{int(raw):0{2 * item.size}X}"
     if data_id == 0x0166:
-        return f"{title}: {p.user_text(int(value))}", f"raw {int(value)}"
+        return f"{title}: {said(p.user_text(int(value)), lang)}", f"raw {int(value)}"
     number = f"{value:g}" if isinstance(value, float) else str(value)
     return f"{title}: {number} {live.unit or item.unit}".strip(), ""
 
@@ -178,8 +179,9 @@ class EstopCard(DrawnCard):
         estop = self.view.state.live(facts.P_ESTOP)
         on = bool(estop is not None and estop.value)
         self.banner.set_visibility(on)
-        self.text.set_text(self.view.lang.gettext("EMERGENCY STOP (F20) {text}").format(text=self.view.lang.phrase(estop.text))
-                           if on else "")
+        lang = self.view.lang
+        details = "" if not on else said(estop.text, lang) if isinstance(estop.text, Message) else lang.phrase(estop.text)
+        self.text.set_text(lang.gettext("EMERGENCY STOP (F20) {text}").format(text=details) if on else "")
 
 
 class PositionsCard(DrawnCard):
@@ -249,6 +251,7 @@ class StatusCard(DrawnCard):
             parts = []
             for key, words in STATUS_BITS.items():  # each lamp keyed by the point it shows
                 entry = point(f"A{n} {key}")
+                words = self.view.lang.gettext(words)  # table 6's words, marked in devices/scu/params.py
                 parts.append(lamp_html(f"A{n} {key}", words[0].upper() + words[1:], entry, f"A{n} {key}"))
                 good = good and (entry is None or not _aging(entry.quality))
             for what in ("current", "speed"):
@@ -281,7 +284,7 @@ class SupplyCard(DrawnCard):
             e = point(key)
             if e is None:
                 continue  # not read (yet): no line
-            words, code = io_text(key, e)
+            words, code = io_text(key, e, self.view.lang)
             quality = e.quality
             marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
             parts.append(f'<div class="nicegui-row row items-baseline gap-2 no-wrap{marks}" data-io="{html_attr(key)}" '
@@ -344,8 +347,8 @@ class ErrorsCard(DrawnCard):
             with bits:
                 for b in codec.error_bits(value):
                     ui.label(lang.phrase(f"bit {b.bit}: {b.cause}", "Error code")
-                             + (" — " + _("condition: {text}").format(text=b.condition) if b.condition else "")
-                             + " — " + _("behaviour: {text}").format(text=b.behaviour)).classes("text-caption text-negative" if key == "Error code" else "text-caption")
+                             + (" — " + _("condition: {text}").format(text=_(b.condition)) if b.condition else "")
+                             + " — " + _("behaviour: {text}").format(text=_(b.behaviour))).classes("text-caption text-negative" if key == "Error code" else "text-caption")
                 if key == "Error code" and value & codec.CLEARED_BY_NEXT_MOVE:
                     ui.label(_("What clears it: the next movement (table 10). Take control and jog any actuator "
                                "briefly (hold IN or OUT), or run the checkout, which starts with a move.")) \

@@ -378,6 +378,26 @@ async def test_the_scu_page_in_german_shows_no_english(tmp_path):
         assert found == [], "\n".join(map(str, found))
 
 
+async def test_the_scu_page_in_german_words_table_6_and_the_emergency_stop_in_the_documents_words(tmp_path):
+    """The status bits of table 6 (Actuator Status 1, the I/O lines) and the emergency stop's details, worded by
+    devices/scu, in German on the SCU page."""
+    from plants import plant, scu_line
+
+    from devices.scu.control import Estop
+
+    async with german_page(tmp_path, plant(scu_line()), "lift", "Ewellix SCU lift") as (runtime, user):
+        await eventually(lambda: "Antrieb vorhanden" in shown_texts(user), timeout=10, what="table 6's status words")
+        await eventually(lambda: any(t.startswith("Binary outputs: Ausgang 1 aus") for t in shown_texts(user)), timeout=10,
+                         what="the outputs' line in table 6's words")
+        adapter = runtime.worker.adapters["lift"]
+        adapter.core.estop = Estop("anna", 0.0, confirmed=True)
+        adapter.publish_estop()
+        await eventually(lambda: any("EIN seit " in t and "ausgelöst von anna; von der Steuereinheit bestätigt" in t
+                                     for t in shown_texts(user)), timeout=10, what="the emergency stop's details")
+        texts = shown_texts(user)
+        assert not [t for t in texts if "actuator present" in t.lower() or "pressed by" in t], texts
+
+
 def as_written(text: str, written: set[str]) -> bool:
     """Whether ``text`` is one of the record's texts, alone or after the page's words (``nicht bestanden: <reason>``)."""
     return text in written or any(text.endswith(f": {w}") for w in written)
