@@ -44,8 +44,8 @@ SUPPLY_LAMPS = ("Mains", "Battery", "Charger on", "Charging", "Output 1", "Outpu
 SUPPLY_WORDS = (N_("Mains"), N_("Battery"), N_("Charger on"), N_("Charging"), N_("Output 1"), N_("Output 2"),
                 N_("Sensor supply"))  # the lamps' names (data 0x0100 Battery Mains, 0x0110 outputs)
 # the I/O lines: point key (as the adapter publishes it) -> data ID, whose declaration names and words it
-IO_POINTS = {"Battery voltage": 0x0164, "Actual_State_Binary Inputs 1 ... 4": 0x0020, "Analogue input 1": 0x0031,
-             "Analogue input 2": 0x0032, "Analogue input 3": 0x0033, "Analogue input 4": 0x0034,
+IO_POINTS = {N_("Battery voltage"): 0x0164, "Actual_State_Binary Inputs 1 ... 4": 0x0020, N_("Analogue input 1"): 0x0031,
+             N_("Analogue input 2"): 0x0032, N_("Analogue input 3"): 0x0033, N_("Analogue input 4"): 0x0034,
              "Binary Output Status": 0x0110, "LED HS": 0x0120, "LED LB": 0x0130, "Lock Status": 0x0162,
              "Locking Box detected": 0x0165, "Benutzer": 0x0166}
 ERROR_POINTS = {"Error code": N_("Error code (last)"), "Error history 1": N_("Error history 1"),
@@ -68,7 +68,9 @@ def io_text(key: str, live: LiveValue, lang=None) -> tuple[str, str]:
     number itself); table 6's words in ``lang``."""
     data_id = IO_POINTS[key]
     item = p.item(data_id)
-    title = item.label or key
+    title = item.label or key  # the labels of table 6's I/O items are marked where they are declared
+    if lang is not None:
+        title = lang.gettext(title)
     value = live.value
     raw = live.raw if live.raw is not None else value
     if data_id in p.FLAG_WORDS:
@@ -76,6 +78,8 @@ def io_text(key: str, live: LiveValue, lang=None) -> tuple[str, str]:
     if data_id == 0x0166:
         return f"{title}: {said(p.user_text(int(value)), lang)}", f"raw {int(value)}"
     number = f"{value:g}" if isinstance(value, float) else str(value)
+    if lang is not None:
+        number = lang.numbers_in(number)
     return f"{title}: {number} {live.unit or item.unit}".strip(), ""
 
 

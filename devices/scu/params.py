@@ -164,7 +164,7 @@ _ITEMS: list[DataItem] = [
              group=0x0000),
     DataItem(0x0020, "Actual_State_Binary Inputs 1 ... 4", BINARY_INPUTS,
              comment="Bits 0..3: logical level of inputs 1..4; bits 4..7: input level of inputs 1..4 "
-                     "(0 = not active, 1 = active)", label="Binary inputs 1-4 (Actual_State_Binary Inputs)"),
+                     "(0 = not active, 1 = active)", label=N_("Binary inputs 1-4 (Actual_State_Binary Inputs)")),
     DataItem(0x0040, "Actual_State_Keys", v.U32LE, comment="(no comment in the document)", label="Keys (Actual_State_Keys)"),
     DataItem(0x008F, "Number_Total_Over_Current", v.U32LE, group=0x0080),
     DataItem(0x00BF, "Max_Total_Current", CURRENT, "A", comment="0 ... 1000, fixed point 0.1 A, 0 ... 100 A",
@@ -175,18 +175,18 @@ _ITEMS: list[DataItem] = [
              comment="Bit 0 mains connected, 1 battery connected, 2 charge controller on, 3 charging active",
              label="Battery and mains"),
     DataItem(0x0110, "Binary Output Status", BINARY_OUTPUTS, comment="Bit 0 binary output 1 on, bit 1 output 2 on",
-             label="Binary outputs"),
+             label=N_("Binary outputs")),
     DataItem(0x0120, "LED HS", LED_HS, comment="Bit 0/1: LED1/LED2 of the hand switch on",
-             label="Hand switch LEDs (LED HS)"),  # HS = Handschalter
+             label=N_("Hand switch LEDs (LED HS)")),  # HS = Handschalter
     DataItem(0x0130, "LED LB", LED_LB, comment="Bit 0..7: LED1..LED8 of the locking box on",
-             label="Locking box LEDs (LED LB)"),  # LB = Lockingbox
+             label=N_("Locking box LEDs (LED LB)")),  # LB = Lockingbox
     DataItem(0x0140, "Buzzer", BUZZER, comment="Bit 0: buzzer on"),
     DataItem(0x0150, "Sensor Supply", SENSOR_SUPPLY, comment="Bit 0: sensor supply on"),
     DataItem(0x0162, "Lock Status", LOCK_STATUS, comment="Bit n: function n (F(n+1)) locked",
-             label="Locked functions (Lock Status)"),
+             label=N_("Locked functions (Lock Status)")),
     DataItem(0x0164, "Battery voltage", BATTERY_VOLTAGE, "V", comment="fixed point 0.1 V, 0 ... 40.0 V"),
-    DataItem(0x0165, "Locking Box detected", v.U8, comment="0 ... 2 locking boxes", label="Locking boxes detected"),
-    DataItem(0x0166, "Benutzer", v.U8, comment="user 1 ... 4", label="Active user (Benutzer)"),  # Benutzer = user
+    DataItem(0x0165, "Locking Box detected", v.U8, comment="0 ... 2 locking boxes", label=N_("Locking boxes detected")),
+    DataItem(0x0166, "Benutzer", v.U8, comment="user 1 ... 4", label=N_("Active user (Benutzer)")),  # Benutzer = user
 ]
 
 _PER_ACTUATOR = [  # (group, name pattern, type, unit, comment)

@@ -413,7 +413,7 @@ async def test_the_scu_page_in_german_words_table_6_and_the_emergency_stop_in_th
 
     async with german_page(tmp_path, plant(scu_line()), "lift", "Ewellix SCU lift") as (runtime, user):
         await eventually(lambda: "Antrieb vorhanden" in shown_texts(user), timeout=10, what="table 6's status words")
-        await eventually(lambda: any(t.startswith("Binary outputs: Ausgang 1 aus") for t in shown_texts(user)), timeout=10,
+        await eventually(lambda: any(t.startswith("Binärausgänge: Ausgang 1 aus") for t in shown_texts(user)), timeout=10,
                          what="the outputs' line in table 6's words")
         adapter = runtime.worker.adapters["lift"]
         adapter.core.estop = Estop("anna", 0.0, confirmed=True)
