@@ -44,6 +44,31 @@ POINT_WORDS = (
     NP_("StateMachineState", "Error locking pause short"), NP_("StateMachineState", "Error locking pause long"),
     NP_("StateMachineState", "Error locking waiting"), NP_("StateMachineState", "Error unlocked"),
     NP_("StateMachineState", "Error unlocking"),
+    # doc: HD-Lock, 000, section 3.1, input register 3 MotorState (Verfahr-Richtung) and 53 MotorState (Motorzustand)
+    NP_("MotorState", "Inactive"), NP_("MotorState", "Extending"), NP_("MotorState", "Retracting"),
+    NP_("MotorState", "Braking"), NP_("MotorState", "Forward"), NP_("MotorState", "Backward"),
+    NP_("MotorState", "Braked"), NP_("MotorState", "Last state"), NP_("MotorState", "Active"),
+    # doc: HD-Lock, 000, section 3.1, input register 54 MotorResult (Grund für letzten Motorstopp): the document's names
+    NP_("MotorResult", "None"), NP_("MotorResult", "AtPos"), NP_("MotorResult", "MinSpeed"),
+    NP_("MotorResult", "Timeout"), NP_("MotorResult", "userStop"), NP_("MotorResult", "OutStageDisabled"),
+    NP_("MotorResult", "Currentlimit"),
+    # doc: HD-Lock, 000, section 3.2.2 LockRequestSource (Bezeichnung; 0x80 and up: condition 2 always 1, the door ignored)
+    NP_("LockRequestSource", "IrsNever"), NP_("LockRequestSource", "IrsAlways"), NP_("LockRequestSource", "IrsOverrange"),
+    NP_("LockRequestSource", "IrsLine"), NP_("LockRequestSource", "IrsNotLine"),
+    NP_("LockRequestSource", "IrsToggleOnLineEdge"), NP_("LockRequestSource", "IrsToggleOnLinePEdge"),
+    NP_("LockRequestSource", "IrsToggleOnLineNEdge"), NP_("LockRequestSource", "IrsNever (door ignored)"),
+    NP_("LockRequestSource", "IrsAlways (door ignored)"), NP_("LockRequestSource", "IrsOverrange (door ignored)"),
+    NP_("LockRequestSource", "IrsLine (door ignored)"), NP_("LockRequestSource", "IrsNotLine (door ignored)"),
+    NP_("LockRequestSource", "IrsToggleOnLineEdge (door ignored)"),
+    NP_("LockRequestSource", "IrsToggleOnLinePEdge (door ignored)"),
+    NP_("LockRequestSource", "IrsToggleOnLineNEdge (door ignored)"),
+    # doc: MO 64, 003, 4 (LogiTed bus, TCP/IP) and 5.1.12 / page 33 (02 Auswahl index): the link, how often it polls, the
+    # query form the unit takes (devices/mo64/adapter.py, facts.py)
+    NP_("Connection", "connected"), NP_("Connection", "not connected"), NP_("Connection", "released"),
+    NP_("Connection", "reconnecting"), NP_("Polling", "every cycle"),
+    NP_("Polling", "gate state and position slower (changes are reported); status every cycle"),
+    NP_("Query form", "not known yet"), NP_("Query form", "{0} Auswahl index (the document's, page {1})"),
+    NP_("Query form", "{0} Auswahl (the document's form refused)"),
     # doc: MO 64, 003, 5.1.12 tele_torzustand 0x0C (Torzustand Bedeutung)
     NP_("Gate state", "opening"), NP_("Gate state", "closing"), NP_("Gate state", "pre-warning before opening"),
     NP_("Gate state", "pre-warning before closing"), NP_("Gate state", "open"), NP_("Gate state", "closed"),

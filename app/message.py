@@ -1,73 +1,21 @@
 """A text that app/ words for someone to read, in the language of whoever reads it (docs/i18n.md).
 
-What app/ finds, refuses or reports is worded before anyone knows who reads it: a page in German, the command
-line in English, the audit log and the record (which keep it as written, in English). A :class:`Message` is that
-text in English, a ``str`` like any other (compared, stored, hashed and written as the English it always was),
-that keeps its marked template and fields, so a page or the command line words it in its own language::
+:class:`~devices.message.Message` (with :func:`joined` and :func:`message_of`) lives in ``devices/message.py``, so
+the device layer words its own texts too; here :func:`said` words any of them in a reader's :class:`Lang`::
 
     raise RecordError(Message(N_("{device}: a checkout is running already"), device=device))
     ...
     ui.notify(said(exc, lang))   # "gate: eine Prüfung läuft bereits"
 
-A field that is a :class:`Message` itself is worded in the same language; a decimal number gets the language's
-decimal sign. What was stored as plain text (a record row, an audit row) stays as it was written.
+What was stored as plain text (a record row, an audit row) stays as it was written.
 """
 
 from __future__ import annotations
 
-from typing import Any
-
 from app.i18n import Lang
+from devices.message import Message, joined, message_of
 
-
-class Message(str):
-    """English ``template`` filled with ``fields``; :meth:`text` words it in another language."""
-
-    template: str
-    fields: dict[str, Any]
-
-    def __new__(cls, template: str, /, **fields: Any) -> Message:
-        made = super().__new__(cls, template.format(**fields) if fields else template)
-        made.template = template
-        made.fields = fields
-        return made
-
-    def __reduce__(self):  # copies and pickles keep the template, not only the English
-        return _rebuild, (self.template, self.fields)
-
-    def text(self, lang: Lang | None) -> str:
-        """This text in ``lang`` (None: English, as written)."""
-        if lang is None:
-            return str(self)
-        template = lang.gettext(self.template)
-        if not self.fields:
-            return template
-        return template.format(**{name: _field(value, lang) for name, value in self.fields.items()})
-
-
-def _rebuild(template: str, fields: dict[str, Any]) -> Message:
-    return Message(template, **fields)
-
-
-def _field(value: Any, lang: Lang) -> Any:
-    if isinstance(value, Message):
-        return value.text(lang)
-    if isinstance(value, float):
-        return lang.value(value)
-    return value
-
-
-def joined(parts: list[str], separator: str = ", ") -> Message:
-    """``parts`` (messages or plain texts) joined by ``separator``, each worded in the reader's language."""
-    fields = {f"p{n}": part for n, part in enumerate(parts)}
-    return Message(separator.join("{%s}" % name for name in fields), **fields)
-
-
-def message_of(error: BaseException) -> str:
-    """What ``error`` says: the :class:`Message` it carries (worded by its reader), else its text."""
-    if len(error.args) == 1 and isinstance(error.args[0], Message):
-        return error.args[0]
-    return str(error)
+__all__ = ["Message", "joined", "message_of", "said"]
 
 
 def said(text: object, lang: Lang | None) -> str:

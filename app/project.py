@@ -124,7 +124,7 @@ def _check(params, device: str, name: str, value: Any) -> tuple[Param | None, in
     try:
         raw = param.validate(value)
     except ParamError as exc:
-        return param, None, str(exc)
+        return param, None, message_of(exc)
     return param, raw, ""
 
 

@@ -18,6 +18,7 @@ from enum import Enum
 
 from devices import values
 from devices.errors import DeviceError
+from devices.message import Message, N_
 
 
 class Access(str, Enum):
@@ -30,7 +31,16 @@ class Access(str, Enum):
 
 
 class ParamError(DeviceError, ValueError):
-    """An entry that cannot be written to a parameter (range, type, access)."""
+    """An entry that cannot be written to a parameter (range, type, access); its message is a
+    :class:`~devices.message.Message`, worded in the reader's language where it is shown."""
+
+
+def outside(name: str, value: float, low: float, high: float, unit: str = "") -> Message:
+    """The refusal of a value out of range: ``"Timeout: 70000 is outside 0 .. 65535 ms"``."""
+    if unit:
+        return Message(N_("{name}: {value} is outside {low} .. {high} {unit}"), name=name, value=value, low=low,
+                       high=high, unit=unit)
+    return Message(N_("{name}: {value} is outside {low} .. {high}"), name=name, value=value, low=low, high=high)
 
 
 @dataclass(frozen=True)
@@ -188,7 +198,8 @@ class Param:
         with a message that says what is allowed.
         """
         if not self.writable:
-            raise ParamError(f"{self.name} is {self.access.value} and cannot be written")
+            raise ParamError(Message(N_("{name} is {access} and cannot be written"), name=self.name,
+                                     access=self.access.value))
         if isinstance(value, str):
             text = value.strip()
             if self.enum is not None:
@@ -200,17 +211,18 @@ class Param:
                 try:
                     value = float(text) if "." in text else int(text, 0)
                 except ValueError:
-                    raise ParamError(f"{self.name}: '{text}' is not a number") from None
+                    raise ParamError(Message(N_("{name}: '{text}' is not a number"), name=self.name, text=text)) from None
         if isinstance(value, float) and self.scale == 1:
             if not value.is_integer():
-                raise ParamError(f"{self.name}: {value} is not a whole number")
+                raise ParamError(Message(N_("{name}: {value} is not a whole number"), name=self.name, value=value))
             value = int(value)
         low, high = self.limits()
         if not low <= value <= high:
-            raise ParamError(f"{self.name}: {value} is outside {low} .. {high} {self.unit}".rstrip())
+            raise ParamError(outside(self.name, value, low, high, self.unit))
         if self.enum is not None and int(value) not in self.enum:
             allowed = ", ".join(f"{k} {v}" for k, v in self.enum.items())
-            raise ParamError(f"{self.name}: {value} is not one of: {allowed}")
+            raise ParamError(Message(N_("{name}: {value} is not one of: {allowed}"), name=self.name, value=value,
+                                     allowed=allowed))
         return self.encode(value)
 
     def accept(self, value: int | float | str) -> Accepted:
@@ -269,7 +281,7 @@ class Accepted:
     def cleared(self, confirmed: bool) -> int:
         """The raw value to send. :raises ParamError: it needs a confirmation and ``confirmed`` is False"""
         if self.risk and not confirmed:
-            raise ParamError(f"needs confirmation: {self.risk}")
+            raise ParamError(Message(N_("needs confirmation: {risk}"), risk=self.risk))
         return self.raw
 
 

@@ -14,6 +14,7 @@ from nicegui import ui
 from app import i18n
 from app import runtime as rt
 from app.i18n import N_, Lang
+from app.message import said
 from app.state import DeviceState
 from app.worker import PermissionDenied
 from devices.commands import WRITE_PARAMETER
@@ -234,9 +235,9 @@ async def write_from_page(device: str, param: Param, value, *, success: str, tit
         accepted = param.accept(value)  # the one check of the entry: the gate, the send policy and the adapter take it
     except ParamError as exc:
         if field is not None:
-            field.error = str(exc)
+            field.error = said(exc, lang)
         else:
-            ui.notify(str(exc), type="negative")
+            ui.notify(said(exc, lang), type="negative")
         await refuse(device, f"write {param.name}", str(exc), parameter=param.label or param.name, new=value)
         return
     if field is not None:

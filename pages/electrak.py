@@ -17,6 +17,7 @@ from app import i18n
 from app import worker as worker_module
 from app.csvfile import csv_text
 from app.i18n import N_
+from app.message import said
 from devices.electrak import adapter as facts
 from devices.electrak import codec
 from devices.electrak.adapter import FOREIGN_SENDER, SERIES
@@ -105,7 +106,7 @@ class NetworkCard(DrawnCard):
               "check wiring and power, or the plant file.").format(heard=heard, configured=configured)
             if view.online() and heard != configured else "")
         saturated = view.fact(facts.P_SATURATED, "")
-        self.saturated.set_text(_(saturated) if saturated and view.online() else "")  # gettext("") is the catalog's header
+        self.saturated.set_text(said(saturated, view.lang) if saturated and view.online() else "")
         self.seen.set_text(_("last status {age}").format(age=fmt_age(state.age, view.lang)))
         return self.numbers.draw()  # False: a stale or offline value, drawn again with the next telegram (it may be good again)
 
@@ -365,7 +366,7 @@ class DriveCard(DrawnCard):
         self.armed.set_text("" if not mine else _("jog armed: the area was confirmed clear; hold In or Out to move") if armed
                             else _("the first press of In or Out asks that the area is clear, then arms the jog"))
         telegram = view.state.live(facts.P_TELEGRAM)
-        self.sent.set_text("" if telegram is None else telegram.shown)
+        self.sent.set_text("" if telegram is None else said(telegram.shown, view.lang))
 
 
 class NumbersGrid:

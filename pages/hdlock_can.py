@@ -8,6 +8,7 @@ from nicegui import ui
 
 from app import i18n
 from app.i18n import N_
+from app.message import said
 from devices.hdlock import codec
 from devices.hdlock.adapter import (
     P_FWU,
@@ -35,7 +36,7 @@ class CanStatusCard(DeviceCard):
         if status is not None:
             self.text.set_text(status.shown)
         fwu = self.view.state.live(P_FWU)
-        self.fwu.set_text("" if fwu is None or fwu.value is None else fwu.shown)
+        self.fwu.set_text("" if fwu is None or fwu.value is None else said(fwu.shown, self.view.lang))
 
 
 def can_commands_card(name: str, state, guard: WriteGuard, lang=None) -> None:

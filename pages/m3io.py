@@ -12,6 +12,7 @@ from nicegui import ui
 
 from app import i18n
 from app.i18n import N_, NP_
+from app.message import Message, said
 from app.state import LiveValue
 from app.worker import DEADMAN_BOUND_S
 from devices.m3io import adapter as facts
@@ -61,19 +62,16 @@ def temp_text(variant: Variant, channel: int, word: codec.TempWord, lang=None) -
     return lang.gettext("out of range ({value} °C)").format(value=lang.number(word.celsius, 1))
 
 
-VARIANT_UNCHECKABLE = N_(
-    "The variant cannot be checked: with SW1 switch 8 off the module does not report its product code. "
-    'Make sure the module is the variant the plant file names (variant = "{variant}"): '
-    "HM and HMR switch different SSRs with the same DigOut bits.")
-
-
 def variant_text(check: LiveValue, view: M3ioView) -> str:
-    """The variant check's words (devices/m3io/codec.py check_variant) in the page's language; a module that
-    reports another variant is named in English (docs/i18n.md)."""
-    variant = view.variant.value
-    if check.value == "not possible" and check.text == VARIANT_UNCHECKABLE.format(variant=variant):
-        return view.lang.gettext(VARIANT_UNCHECKABLE).format(variant=variant)
-    return view.lang.gettext(check.text)
+    """The variant check's words (devices/m3io/codec.py check_variant) in the page's language."""
+    return said(check.text, view.lang) if isinstance(check.text, Message) else view.lang.gettext(check.text)
+
+
+def _p2_words(text: str, lang) -> str:
+    """What the module's P2 check says (devices/m3io/adapter.py) in ``lang``."""
+    if isinstance(text, Message):
+        return said(text, lang)
+    return lang.gettext(text) if text else ""  # gettext("") would be the catalog's header
 
 
 def _quality(value: LiveValue | None) -> str:
@@ -246,7 +244,7 @@ class OutputsCard(DrawnCard):
             self.p2.set_value(bool(view.fact(facts.P_P2)))
             p2_check = view.live(facts.P_P2_CHECK)
             self.p2_check.set_text("" if p2_check is None else _("P2 in the module: {text}").format(
-                text=_(p2_check.shown) if p2_check.shown else ""))  # gettext("") would be the catalog's header
+                text=_p2_words(p2_check.shown, view.lang)))
             self.p2_check.classes(replace="text-caption " + ("text-negative" if p2_check and p2_check.value == "mismatch"
                                                              else "text-grey-8"))
         return good
@@ -310,7 +308,7 @@ class ChannelRow:
                 parts.append(_text_html(view.lang.gettext("switched on from another page: it goes off when that page goes away"),
                                         "text-caption text-warning"))
             if group_fault:
-                parts.append(_text_html(view.lang.gettext(group_fault), "text-negative text-body2"))
+                parts.append(_text_html(said(group_fault, view.lang), "text-negative text-body2"))
             for channel, (load, fuse, triac, heard) in zip(self.channels, shown[2]):
                 parts.append(self._show(channel, load, fuse, triac, heard))
             self.details.set_content("".join(parts))

@@ -195,10 +195,12 @@ class GateCard(DeviceCard):
         on = [b for b in ALARM_BITS if view.fact(b)]
         self.alarms.set_text(", ".join(_(ALARM_WORDS[b]) for b in sorted(on)))
         late = view.fact(facts.P_LATE, 0)
-        self.link.set_text(_("connection: {text}").format(text=view.text(facts.P_CONNECTION))
+        words = view.lang.phrase  # the adapter's words of these points (app/device_words.py)
+        self.link.set_text(_("connection: {text}").format(text=words(view.text(facts.P_CONNECTION), facts.P_CONNECTION))
                            + (f" ({bus.last_error})" if bus is not None and bus.last_error else "")
                            + _("; polling {polling}; query form: {form}").format(
-                               polling=view.text(facts.P_POLLING), form=view.text(facts.P_QUERY_FORM))
+                               polling=words(view.text(facts.P_POLLING), facts.P_POLLING),
+                               form=words(view.text(facts.P_QUERY_FORM), facts.P_QUERY_FORM))
                            + (_("; late answers {n}").format(n=late) if late else ""))
         missing = view.fact(facts.P_UNAVAILABLE, ())
         levels_missing = view.fact(facts.P_LEVELS_UNAVAILABLE, ())

@@ -10,7 +10,7 @@ from nicegui import ui
 
 from app import i18n
 from app.i18n import N_
-from app.message import said
+from app.message import Message, message_of, said
 from app.project import allowed
 from app.state import LiveValue
 from devices.mo64 import adapter as facts
@@ -125,7 +125,7 @@ class SettingsCard(DeviceCard):
             if param.scale != 1:
                 field = range_number(_("seconds"), low, high, unit=param.unit, step=param.scale, lang=lang).classes("w-40")
             elif param.fields:
-                field = ui.input(_("number (0x.. allowed)"), validation=lambda text, p=param: _number_problem(p, text)) \
+                field = ui.input(_("number (0x.. allowed)"), validation=lambda text, p=param: _number_problem(p, text, lang)) \
                     .classes("w-48").props("dense outlined")
             else:
                 field = _whole_number(_("value"), int(low), int(high), lang).classes("w-48")
@@ -220,13 +220,13 @@ def _whole_number(label: str, low: int, high: int, lang=None) -> ui.number:
     return field
 
 
-def _number_problem(param: Mo64Param, text: str | None) -> str | None:
+def _number_problem(param: Mo64Param, text: str | None, lang=None) -> str | None:
     if not (text or "").strip():
         return None
     try:
         param.validate(text.strip())
     except ValueError as exc:
-        return str(exc)
+        return said(exc, lang)
     return None
 
 
@@ -241,7 +241,7 @@ async def _param_value(device: str, param: Mo64Param, field) -> Accepted | None:
         try:
             return param.accept(value if param.scale != 1 else int(value))
         except ValueError as exc:
-            field.error = str(exc)
+            field.error = said(exc, i18n.client_language())
             await refuse(device, action, f"{value:g}: {exc}", parameter=param.name, new=value)
             return None
     text = (field.value or "").strip()
@@ -250,7 +250,7 @@ async def _param_value(device: str, param: Mo64Param, field) -> Accepted | None:
         try:
             accepted = param.accept(text)
         except ValueError as exc:
-            problem = str(exc)
+            problem = message_of(exc)
     if await _text_refused(device, action, param.name, field, lambda _text: problem):
         return None
     return accepted
@@ -293,7 +293,8 @@ async def _text_refused(device: str, action: str, name: str, field, problem_of: 
     text = field.value
     problem = "enter a value first" if not (text or "").strip() else problem_of(text)
     if problem:
-        field.error = i18n.client_language().gettext(problem)  # the audit row below stays as written: English
+        lang = i18n.client_language()  # the audit row below stays as written: English
+        field.error = said(problem, lang) if isinstance(problem, Message) else lang.gettext(problem)
         await refuse(device, action, f"{text!r}: {problem}", parameter=name, new=text or "")
         return True
     field.error = None

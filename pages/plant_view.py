@@ -18,6 +18,7 @@ from nicegui import ui
 from app import i18n
 from app import runtime as rt
 from app.i18n import N_, Lang
+from app.message import Message, said
 from app.state import RaisedAlarm, StateStore, point_inputs
 from devices.registry import DEVICE_TYPES, TileAlarm, TileBar, TileLine, TileSpec, template_fields
 from pages.frame import CSS, fmt_age
@@ -53,7 +54,8 @@ def operator_words(entry: dict | None, lang: Lang | None = None, point: str | No
             words = HEX_CODE.sub("", text).replace("_", " ")
     if lang is None:
         return {**entry, "text": words}
-    return {**entry, "text": lang.value(words, point), "name": lang.value(name, point), "value": lang.value(value, point)}
+    text = said(words, lang) if isinstance(words, Message) else lang.value(words, point)  # an adapter's own words
+    return {**entry, "text": text, "name": lang.value(name, point), "value": lang.value(value, point)}
 
 
 SHARED_S = 0.25  # a tile evaluated for one page serves every other page (and row) showing it this long, unchanged

@@ -17,6 +17,7 @@ from nicegui import ui
 from app import i18n
 from app import worker as worker_module
 from app.i18n import N_
+from app.message import Message, said
 from app.state import LiveValue
 from devices.scu import facts
 from devices.scu import codec
@@ -43,8 +44,8 @@ SUPPLY_LAMPS = ("Mains", "Battery", "Charger on", "Charging", "Output 1", "Outpu
 SUPPLY_WORDS = (N_("Mains"), N_("Battery"), N_("Charger on"), N_("Charging"), N_("Output 1"), N_("Output 2"),
                 N_("Sensor supply"))  # the lamps' names (data 0x0100 Battery Mains, 0x0110 outputs)
 # the I/O lines: point key (as the adapter publishes it) -> data ID, whose declaration names and words it
-IO_POINTS = {"Battery voltage": 0x0164, "Actual_State_Binary Inputs 1 ... 4": 0x0020, "Analogue input 1": 0x0031,
-             "Analogue input 2": 0x0032, "Analogue input 3": 0x0033, "Analogue input 4": 0x0034,
+IO_POINTS = {N_("Battery voltage"): 0x0164, "Actual_State_Binary Inputs 1 ... 4": 0x0020, N_("Analogue input 1"): 0x0031,
+             N_("Analogue input 2"): 0x0032, N_("Analogue input 3"): 0x0033, N_("Analogue input 4"): 0x0034,
              "Binary Output Status": 0x0110, "LED HS": 0x0120, "LED LB": 0x0130, "Lock Status": 0x0162,
              "Locking Box detected": 0x0165, "Benutzer": 0x0166}
 ERROR_POINTS = {"Error code": N_("Error code (last)"), "Error history 1": N_("Error history 1"),
@@ -62,19 +63,23 @@ def _stop_rule(lang=None) -> str:
         bound=f"{worker_module.DEADMAN_BOUND_S:g}")
 
 
-def io_text(key: str, live: LiveValue) -> tuple[str, str]:
+def io_text(key: str, live: LiveValue, lang=None) -> tuple[str, str]:
     """An I/O line in words, named as its declaration says, and the raw value beside it ("" when the words are the
-    number itself)."""
+    number itself); table 6's words in ``lang``."""
     data_id = IO_POINTS[key]
     item = p.item(data_id)
-    title = item.label or key
+    title = item.label or key  # the labels of table 6's I/O items are marked where they are declared
+    if lang is not None:
+        title = lang.gettext(title)
     value = live.value
     raw = live.raw if live.raw is not None else value
     if data_id in p.FLAG_WORDS:
-        return f"{title}: {p.flags_text(data_id, int(raw))}", f"0x{int(raw):0{2 * item.size}X}"
+        return f"{title}: {said(p.flags_text(data_id, int(raw)), lang)}", f"0x{int(raw):0{2 * item.size}X}"
     if data_id == 0x0166:
-        return f"{title}: {p.user_text(int(value))}", f"raw {int(value)}"
+        return f"{title}: {said(p.user_text(int(value)), lang)}", f"raw {int(value)}"
     number = f"{value:g}" if isinstance(value, float) else str(value)
+    if lang is not None:
+        number = lang.numbers_in(number)
     return f"{title}: {number} {live.unit or item.unit}".strip(), ""
 
 
@@ -178,8 +183,9 @@ class EstopCard(DrawnCard):
         estop = self.view.state.live(facts.P_ESTOP)
         on = bool(estop is not None and estop.value)
         self.banner.set_visibility(on)
-        self.text.set_text(self.view.lang.gettext("EMERGENCY STOP (F20) {text}").format(text=self.view.lang.phrase(estop.text))
-                           if on else "")
+        lang = self.view.lang
+        details = "" if not on else said(estop.text, lang) if isinstance(estop.text, Message) else lang.phrase(estop.text)
+        self.text.set_text(lang.gettext("EMERGENCY STOP (F20) {text}").format(text=details) if on else "")
 
 
 class PositionsCard(DrawnCard):
@@ -249,6 +255,7 @@ class StatusCard(DrawnCard):
             parts = []
             for key, words in STATUS_BITS.items():  # each lamp keyed by the point it shows
                 entry = point(f"A{n} {key}")
+                words = self.view.lang.gettext(words)  # table 6's words, marked in devices/scu/params.py
                 parts.append(lamp_html(f"A{n} {key}", words[0].upper() + words[1:], entry, f"A{n} {key}"))
                 good = good and (entry is None or not _aging(entry.quality))
             for what in ("current", "speed"):
@@ -281,7 +288,7 @@ class SupplyCard(DrawnCard):
             e = point(key)
             if e is None:
                 continue  # not read (yet): no line
-            words, code = io_text(key, e)
+            words, code = io_text(key, e, self.view.lang)
             quality = e.quality
             marks = f" q-{quality}" if quality in ("stale", "offline", "unknown") else ""
             parts.append(f'<div class="nicegui-row row items-baseline gap-2 no-wrap{marks}" data-io="{html_attr(key)}" '
@@ -344,8 +351,8 @@ class ErrorsCard(DrawnCard):
             with bits:
                 for b in codec.error_bits(value):
                     ui.label(lang.phrase(f"bit {b.bit}: {b.cause}", "Error code")
-                             + (" — " + _("condition: {text}").format(text=b.condition) if b.condition else "")
-                             + " — " + _("behaviour: {text}").format(text=b.behaviour)).classes("text-caption text-negative" if key == "Error code" else "text-caption")
+                             + (" — " + _("condition: {text}").format(text=_(b.condition)) if b.condition else "")
+                             + " — " + _("behaviour: {text}").format(text=_(b.behaviour))).classes("text-caption text-negative" if key == "Error code" else "text-caption")
                 if key == "Error code" and value & codec.CLEARED_BY_NEXT_MOVE:
                     ui.label(_("What clears it: the next movement (table 10). Take control and jog any actuator "
                                "briefly (hold IN or OUT), or run the checkout, which starts with a move.")) \

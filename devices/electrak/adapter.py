@@ -18,6 +18,7 @@ from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, SERVICE, length_o
 from devices.decoding import decoded
 from devices.lease import Lease
 from devices.live import DeviceState, Holder, Point, session_tag
+from devices.message import Message, N_, message_of
 from devices.params import Accepted, Param, ParamError, backup_entry
 from devices.transport import CanTransport
 
@@ -60,6 +61,16 @@ SERIES = (P_POSITION, P_CURRENT, P_SPEED, P_DRIVE_TARGET)  # the history (and th
 
 
 stop_form = control.stop_form_bytes  # the control telegram 0x06 with enable and override cleared, the rest kept
+
+
+def telegram_text(c: codec.ControlFrame, sent: str) -> Message:
+    """The control telegram 0x06 this tool sends, its bytes and what they mean (target, speed, current, flags)."""
+    fields = {"bytes": sent, "position": float(c.position_mm), "speed": float(c.speed_mm_s), "current": float(c.current_a),
+              "enable": Message(N_("enable")) if c.enable else Message(N_("no enable"))}
+    if c.override:
+        return Message(N_("0x006: {bytes} (target {position:g} mm, {speed:g} mm/s, {current:g} A, {enable}, override)"),
+                       **fields)
+    return Message(N_("0x006: {bytes} (target {position:g} mm, {speed:g} mm/s, {current:g} A, {enable})"), **fields)
 
 
 class CommandError(errors.CommandError):
@@ -284,9 +295,8 @@ class ElectrakAdapter(BackupDefaults):
         try:
             sent = c.encode().hex(" ").upper()
         except codec.CodecError as exc:  # never sent (the limits refuse it first): said, not raised
-            sent = f"not encodable: {exc}"
-        fact(P_TELEGRAM, c, text=f"0x006: {sent} (target {c.position_mm:g} mm, {c.speed_mm_s:g} mm/s, {c.current_a:g} A, "
-                                 f"{'enable' if c.enable else 'no enable'}{', override' if c.override else ''})")
+            sent = Message(N_("not encodable: {error}"), error=message_of(exc))
+        fact(P_TELEGRAM, c, text=telegram_text(c, sent))
         target = self.target_mm()
         fact(P_DRIVE_TARGET, target, "mm", text="not driven" if target is None else None)
         fact(P_IDLE, self.idle())
@@ -301,10 +311,10 @@ class ElectrakAdapter(BackupDefaults):
         if self._saturated_since is None:
             self._saturated_since = now
         if now - self._saturated_since >= codec.SATURATED_WARN_S and not self._saturated_warning:
-            self._saturated_warning = (
-                f"Saturated has stayed on for more than {codec.SATURATED_WARN_S:g} s: an actuator runs at the highest speed "
-                "its supply and load allow and the network cannot keep synchronised. Lower the speed (or the load)."
-            )
+            self._saturated_warning = Message(N_(
+                "Saturated has stayed on for more than {seconds:g} s: an actuator runs at the highest speed "
+                "its supply and load allow and the network cannot keep synchronised. Lower the speed (or the load)."),
+                seconds=float(codec.SATURATED_WARN_S))
             self.state.fact(P_SATURATED, self._saturated_warning)
             self.state.event("warning", self._saturated_warning)
 

@@ -13,6 +13,7 @@ from devices import errors
 from devices.hdlock import STATUS_FRAME_BOLT, codec
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
 from devices.live import DeviceState
+from devices.message import Message, N_
 from devices.params import Accepted, Param, ParamError, backup_entry
 from devices.transport import LineCrcError, LineError, LineException, LineTimeout, ModbusTransport
 
@@ -104,9 +105,12 @@ def status_frame_text(frame: codec.StatusFrame) -> str:
 
 
 def fwu_text(frame: codec.FwuStatusFrame | None) -> str:
-    return "" if frame is None else (
-        f"FWU status: firmware-update mode, {'flashing' if frame.flashing else 'not flashing'}, "
-        f"{'application' if frame.application else 'boot loader'} (no status frames meanwhile)")
+    """The FWU status (section 6.5.2) in words, a :class:`~devices.message.Message` ("" without a frame)."""
+    if frame is None:
+        return ""
+    return Message(N_("FWU status: firmware-update mode, {flashing}, {program} (no status frames meanwhile)"),
+                   flashing=Message(N_("flashing")) if frame.flashing else Message(N_("not flashing")),
+                   program=Message(N_("application")) if frame.application else Message(N_("boot loader")))
 
 
 class CommandError(errors.CommandError):

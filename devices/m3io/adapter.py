@@ -24,6 +24,7 @@ from devices import errors
 from devices.decoding import decoded
 from devices.lease import Lease
 from devices.live import DeviceState, session_tag
+from devices.message import Message, N_, joined, message_of
 from devices.control import Decision, Report
 from devices.m3io import codec
 from devices.m3io.codec import Variant
@@ -189,8 +190,8 @@ class M3ioAdapter(ModuleSettings):
             for index in range(1, 7):
                 state.fact(f"SSR{index} load data", None, text="not read")
         if self.variant is Variant.HMR:
-            state.fact(P_P2_CHECK, None, text="read back once this tool serves the module" if self.ids.addressed
-                       else "cannot be read back in simple mode (SW1 switch 8 off): sent with every DigOut")
+            state.fact(P_P2_CHECK, None, text=Message(N_("read back once this tool serves the module")) if self.ids.addressed
+                       else Message(N_("cannot be read back in simple mode (SW1 switch 8 off): sent with every DigOut")))
         if bus_rate != self.ids.bitrate:
             state.event("warning", f"SW1 0x{self.sw1:02X} sets {self.ids.bitrate // 1000} kbit/s but bus {bus.name} runs at {bus_rate // 1000} kbit/s")
         self._publish()
@@ -398,7 +399,7 @@ class M3ioAdapter(ModuleSettings):
         except CommandError as exc:
             self._p2_checked = False
             self._verify_after = time.time() + VERIFY_RETRY_S
-            self.state.fact(P_P2_CHECK, "not read", text=f"P2 not verified: {exc}")
+            self.state.fact(P_P2_CHECK, "not read", text=Message(N_("P2 not verified: {error}"), error=message_of(exc)))
             return
         self._check_p2(answer.payload[0])
 
@@ -409,10 +410,13 @@ class M3ioAdapter(ModuleSettings):
         reported = bool(config & codec.P2)
         if reported == self.two_phase:
             self.state.fact(P_P2_CHECK, "verified", raw=config,
-                            text=f"verified: the module reports cfg 0x{config:02X} (P2 {int(reported)})")
+                            text=Message(N_("verified: the module reports cfg {cfg} (P2 {p2})"), cfg=f"0x{config:02X}",
+                                         p2=int(reported)))
             return
-        text = (f"the module reports P2 {int(reported)} (cfg 0x{config:02X}), this tool sets P2 {int(self.two_phase)}"
-                + ("" if self.served else ": sent once this tool serves the module"))
+        fields = {"reported": int(reported), "cfg": f"0x{config:02X}", "p2": int(self.two_phase)}
+        text = (Message(N_("the module reports P2 {reported} (cfg {cfg}), this tool sets P2 {p2}"), **fields) if self.served
+                else Message(N_("the module reports P2 {reported} (cfg {cfg}), this tool sets P2 {p2}: sent once this tool "
+                                "serves the module"), **fields))
         old = self.state.points.get(P_P2_CHECK)
         self.state.fact(P_P2_CHECK, "mismatch", raw=config, text=text)
         if self.served and (old is None or old.value != "mismatch"):
@@ -506,12 +510,13 @@ class M3ioAdapter(ModuleSettings):
         """Facts for tiles and the plant view, and the commanded state as live points."""
         faults = []
         if self.variant_check.state == "mismatch":
-            faults.append(f"variant mismatch: {codec.product_name(self.product_code)} on the bus, {self.variant.value} in the plant file")
+            faults.append(Message(N_("variant mismatch: {product} on the bus, {variant} in the plant file"),
+                                  product=codec.product_name(self.product_code), variant=self.variant.value))
         for channel, monitor in self.channels.items():
             if monitor.fuse == "blown":
-                faults.append(f"SSR{channel} fuse blown")
+                faults.append(Message(N_("SSR{n} fuse blown"), n=channel))
             if monitor.triac == "defective":
-                faults.append(f"SSR{channel} triac defective")
+                faults.append(Message(N_("SSR{n} triac defective"), n=channel))
         group = self.group_load_fault()
         if group:
             faults.append(group)
@@ -530,7 +535,7 @@ class M3ioAdapter(ModuleSettings):
         fact(P_VARIANT_CHECK, self.variant_check.state, text=self.variant_check.text, raw=self.variant_check.may_switch)
         if self.variant is Variant.HMR:
             fact(P_P2, self.two_phase, text="two-phase load" if self.two_phase else "three-phase load")
-        fact(P_FAULTS, tuple(faults), text="; ".join(faults) or "none")
+        fact(P_FAULTS, tuple(faults), text=joined(faults, "; ") if faults else "none")
         rate, bus_rate = self.ids.bitrate, self.bus_bitrate
         fact(P_BITRATE_CHECK, "mismatch" if self.bitrate_mismatch else "ok",
              text=f"bit rate mismatch: module {rate // 1000} kbit/s, bus {(bus_rate or 0) // 1000} kbit/s"
@@ -556,7 +561,7 @@ class M3ioAdapter(ModuleSettings):
             text = "not served: outputs are off in the module; take control to serve it"
         fact(P_WATCHDOG, self.served, text=text)
 
-    def group_load_fault(self) -> str | None:
+    def group_load_fault(self) -> Message | None:
         """HMR, SSR1-3 switched on: three phases must report a load, exactly two with P2 (4.3)."""
         if self.variant is not Variant.HMR or not self.outputs["SSR1-3"] or not all(i in self.temps for i in (1, 2, 3)):
             return None
@@ -564,7 +569,11 @@ class M3ioAdapter(ModuleSettings):
         expected = 2 if self.two_phase else 3
         if loaded == expected:
             return None
-        return f"SSR1-3 load fault: {loaded} of 3 phases report a load, {'P2 (two-phase load)' if self.two_phase else 'a three-phase load'} needs {expected}"
+        if self.two_phase:
+            return Message(N_("SSR1-3 load fault: {loaded} of 3 phases report a load, P2 (two-phase load) needs {expected}"),
+                           loaded=loaded, expected=expected)
+        return Message(N_("SSR1-3 load fault: {loaded} of 3 phases report a load, a three-phase load needs {expected}"),
+                       loaded=loaded, expected=expected)
 
     # -- what the page shows ------------------------------------------------------------------
     def channel_on(self, channel: int) -> bool:

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 from devices import errors
+from devices.message import Message, N_
 
 
 class CodecError(errors.CodecError):
@@ -337,7 +338,7 @@ class VariantCheck:
     """The plant file's variant against the module's product code."""
 
     state: str  # "ok", "mismatch", "unchecked" (not read yet), "not possible" (simple mode)
-    text: str
+    text: str  # a :class:`~devices.message.Message`, worded in the reader's language where it is shown
     may_switch: bool  # outputs may be switched on
 
 
@@ -347,28 +348,32 @@ def check_variant(variant: Variant, addressed: bool, code: int | None) -> Varian
     if not addressed:
         return VariantCheck(
             "not possible",
-            "The variant cannot be checked: with SW1 switch 8 off the module does not report its product code. "
-            f'Make sure the module is the variant the plant file names (variant = "{variant.value}"): '
-            "HM and HMR switch different SSRs with the same DigOut bits.",
+            Message(N_("The variant cannot be checked: with SW1 switch 8 off the module does not report its product code. "
+                       'Make sure the module is the variant the plant file names (variant = "{variant}"): '
+                       "HM and HMR switch different SSRs with the same DigOut bits."), variant=variant.value),
             True,
         )
     if code is None:
-        return VariantCheck("unchecked", "The product code has not been read yet: outputs stay off until it matches the plant file.", False)
+        return VariantCheck("unchecked", Message(N_("The product code has not been read yet: outputs stay off until it "
+                                                    "matches the plant file.")), False)
     reported = product_variant(code)
     name = f"0x{code:04X} {product_name(code)}"
     if reported is variant:
-        return VariantCheck("ok", f"The module reports {name}: variant {variant.value} as in the plant file.", True)
+        return VariantCheck("ok", Message(N_("The module reports {name}: variant {variant} as in the plant file."),
+                                          name=name, variant=variant.value), True)
     if reported is None:
         return VariantCheck(
             "mismatch",
-            f'The module reports {name}, which is no CAN-M3IO (KM, HM, HMR), but the plant file says variant = "{variant.value}": '
-            "check that SW1 addresses the right module; outputs are refused.",
+            Message(N_('The module reports {name}, which is no CAN-M3IO (KM, HM, HMR), but the plant file says variant = '
+                       '"{variant}": check that SW1 addresses the right module; outputs are refused.'),
+                    name=name, variant=variant.value),
             False,
         )
     return VariantCheck(
         "mismatch",
-        f'The module reports {name}, i.e. variant {reported.value}, but the plant file says variant = "{variant.value}": '
-        f'change it to variant = "{reported.value}" in the plant file (or fit the right module); outputs are refused.',
+        Message(N_('The module reports {name}, i.e. variant {reported}, but the plant file says variant = "{variant}": '
+                   'change it to variant = "{reported}" in the plant file (or fit the right module); outputs are refused.'),
+                name=name, reported=reported.value, variant=variant.value),
         False,
     )
 

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 from devices import values
 from devices.m3io import codec
+from devices.message import Message, N_
 from devices.params import Access, Field, Param, ParamError, ParamMap
 
 CUSTOMER = "customer"  # area 3 read / area 4 write, index 1..15 (7.2.4.2.3/4)
@@ -102,10 +103,11 @@ class RecordParam(ModuleParam):
     def validate(self, value) -> int:
         """Hex text or bytes (1 to 6 of them; fewer are padded with 0xFF as the module does), or the raw number."""
         if not self.writable:
-            raise ParamError(f"{self.name} is {self.access.value} and cannot be written")
+            raise ParamError(Message(N_("{name} is {access} and cannot be written"), name=self.name,
+                                     access=self.access.value))
         if isinstance(value, int) and not isinstance(value, bool):
             if not 0 <= value < 1 << 48:
-                raise ParamError(f"{self.name}: {value} does not fit 6 bytes")
+                raise ParamError(Message(N_("{name}: {value} does not fit 6 bytes"), name=self.name, value=value))
             return value
         return record_raw(parse_record(value, self.name))
 
@@ -128,13 +130,16 @@ def parse_record(value, name: str = "customer record") -> bytes:
         try:
             payload = bytes.fromhex(text) if " " in text else bytes.fromhex(compact)
         except ValueError:
-            raise ParamError(f"{name}: {value!r} is not bytes as hex, e.g. 01 02 0a") from None
+            raise ParamError(Message(N_("{name}: {value!r} is not bytes as hex, e.g. 01 02 0a"), name=name,
+                                     value=value)) from None
     else:
-        raise ParamError(f"{name}: {value!r} is not bytes as hex")
+        raise ParamError(Message(N_("{name}: {value!r} is not bytes as hex"), name=name, value=value))
     if not payload:
-        raise ParamError(f"{name}: no bytes given (at least 1, at most {RECORD_BYTES}; ff ff ff ff ff ff is an empty record)")
+        raise ParamError(Message(N_("{name}: no bytes given (at least 1, at most {count}; ff ff ff ff ff ff is an "
+                                    "empty record)"), name=name, count=RECORD_BYTES))
     if len(payload) > RECORD_BYTES:
-        raise ParamError(f"{name}: a customer record holds {RECORD_BYTES} bytes, {len(payload)} given")
+        raise ParamError(Message(N_("{name}: a customer record holds {count} bytes, {given} given"), name=name,
+                                 count=RECORD_BYTES, given=len(payload)))
     return codec.pad6(payload)
 
 
@@ -206,5 +211,5 @@ RECORD_PARAMS = tuple(PARAMS.space(CUSTOMER))
 def record_param(index: int) -> RecordParam:
     param = PARAMS.get(CUSTOMER, index)
     if param is None:
-        raise ParamError(f"customer record {index} is outside 1..15")
+        raise ParamError(Message(N_("customer record {index} is outside 1..15"), index=index))
     return param

@@ -31,6 +31,7 @@ from devices import values as v
 from devices.control import ControlChanged, Report
 from devices.lease import Lease
 from devices.live import DeviceState, Holder, session_tag
+from devices.message import Message, N_
 from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.facts import (  # noqa: F401 - the published names, also read from here by older callers
@@ -523,10 +524,11 @@ class ScuAdapter(BackupDefaults):
         e = self.core.estop
         if e is None:
             return "off"
-        unit = ("confirmed by the unit" if e.confirmed else
-                f"not confirmed by the unit ({e.refusal})" if e.refusal else "not yet confirmed by the unit")
-        return (f"ON since {time.strftime('%H:%M:%S', time.localtime(e.at))}, pressed by {e.who}; {unit}; released "
-                "only by its release (RS 19)")
+        unit = (Message(N_("confirmed by the unit")) if e.confirmed else
+                Message(N_("not confirmed by the unit ({refusal})"), refusal=e.refusal) if e.refusal else
+                Message(N_("not yet confirmed by the unit")))
+        return Message(N_("ON since {time}, pressed by {who}; {unit}; released only by its release (RS 19)"),
+                       time=time.strftime('%H:%M:%S', time.localtime(e.at)), who=e.who, unit=unit)
 
     def publish_estop(self) -> None:
         self.state.fact(P_ESTOP, self.estop, text=self.estop_text())

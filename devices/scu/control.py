@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 from devices.control import ControlSession, Decision, Report, Stop
+from devices.message import Message, N_
 from devices.scu import codec
 
 WITHHOLD_S = codec.WATCHDOG_S + 0.3  # RC withheld this long: the unit's 500 ms watchdog has tripped, with margin
@@ -198,7 +199,7 @@ class ScuControl:
     def _unconfirm_estop(self) -> None:
         """Remote mode ended: whether F20 is still on in the unit is not known until the session is open again."""
         if self.estop is not None and self.estop.confirmed:
-            self.estop = Estop(self.estop.who, self.estop.at, confirmed=False, refusal="remote mode ended")
+            self.estop = Estop(self.estop.who, self.estop.at, confirmed=False, refusal=Message(N_("remote mode ended")))
 
     def closed(self, reason: str) -> None:
         """Nobody needs the session (watching with RG): RA sent."""
@@ -284,7 +285,7 @@ class ScuControl:
             # the release was not acknowledged: it stays on here, and RE 19 goes out again so that the unit (which may
             # have executed the RS whose answer was lost) is in the same state as the tool says
             if self.estop is not None:
-                self.estop = Estop(self.estop.who, self.estop.at, confirmed=False, refusal="release not acknowledged")
+                self.estop = Estop(self.estop.who, self.estop.at, confirmed=False, refusal=Message(N_("release not acknowledged")))
             return [Report("error", f"RS 19 ({action.why}) not acknowledged ({outcome.value}): the emergency stop "
                                     "stays on; RE 19 is sent again"), SendEstop("release not acknowledged")]
         self.rs_pending[fn] = action.why

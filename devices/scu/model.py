@@ -26,6 +26,7 @@ import struct
 from dataclasses import dataclass
 
 from devices import values as v
+from devices.message import Message, N_
 from devices.params import Access, Param, ParamError, ParamMap
 from devices.scu import codec
 from devices.scu import params as p
@@ -90,7 +91,8 @@ class DataParam(Param):
 
     def validate(self, value: int | float | str) -> int:
         if self.is_float:
-            raise ParamError(f"{self.name} is {self.access.value} and cannot be written")
+            raise ParamError(Message(N_("{name} is {access} and cannot be written"), name=self.name,
+                                     access=self.access.value))
         return super().validate(value)
 
 

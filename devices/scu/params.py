@@ -22,6 +22,7 @@ from typing import Any
 
 from devices import values as v
 from devices.errors import CommissionError
+from devices.message import Message, N_, joined
 from devices.params import Access
 from devices.scu import codec
 
@@ -97,8 +98,8 @@ FIRMWARE_INFO = v.String(31, encoding="latin-1")
 CONFIGURATION_INFO = v.String(36, encoding="latin-1")
 
 BINARY_INPUTS = v.Bits(v.U8, (
-    *(v.BitField(f"input_{n}", n - 1, description=f"input {n} (logical level)") for n in range(1, 5)),
-    *(v.BitField(f"input_{n}_level", n + 3, description=f"input {n} (input level)") for n in range(1, 5)),
+    *(v.BitField(f"input_{n}", n - 1, description=Message(N_("input {n} (logical level)"), n=n)) for n in range(1, 5)),
+    *(v.BitField(f"input_{n}_level", n + 3, description=Message(N_("input {n} (input level)"), n=n)) for n in range(1, 5)),
 ))
 # 0x0081..: "2 B: Linearantriebfehler 1 B: Spitzenstrom erreicht 1 B: Kurzschluss-Detektionen", read in
 # wire order (LS byte first, section 3): bits 0..15 actuator errors, 16..23 peak current, 24..31 short circuit.
@@ -111,32 +112,33 @@ ERROR_CODE = v.Bits(v.U32LE, tuple(
     v.BitField(b.key, b.bit - 1, description=b.cause) for b in codec.ERROR_BITS.values()
 ))
 ACTUATOR_STATUS_2 = v.Bits(v.U8, (
-    v.BitField("initialised", 0, description="initialised"), v.BitField("enable_in", 1, description="enable flag, inward direction"),
-    v.BitField("enable_out", 2, description="enable flag, outward direction"),
+    v.BitField("initialised", 0, description=N_("initialised")),
+    v.BitField("enable_in", 1, description=N_("enable flag, inward direction")),
+    v.BitField("enable_out", 2, description=N_("enable flag, outward direction")),
 ))
 BATTERY_MAINS = v.Bits(v.U8, (
-    v.BitField("mains", 0, description="mains connected"), v.BitField("battery", 1, description="battery connected"),
-    v.BitField("charger_on", 2, description="charge controller on"),
-    v.BitField("charging", 3, description="charging active"),
+    v.BitField("mains", 0, description=N_("mains connected")), v.BitField("battery", 1, description=N_("battery connected")),
+    v.BitField("charger_on", 2, description=N_("charge controller on")),
+    v.BitField("charging", 3, description=N_("charging active")),
 ))
 # 0x0110 names "Binary Output 1" for bit 0 and bit 1: bit 1 is binary output 2 (section 4.3, print error).
-BINARY_OUTPUTS = v.Bits(v.U8, (v.BitField("output_1", 0, description="output 1"),
-                               v.BitField("output_2", 1, description="output 2")))
+BINARY_OUTPUTS = v.Bits(v.U8, (v.BitField("output_1", 0, description=N_("output 1")),
+                               v.BitField("output_2", 1, description=N_("output 2"))))
 LED_HS = v.Bits(v.U8, (v.BitField("led_1", 0, description="LED1"), v.BitField("led_2", 1, description="LED2")))
 LED_LB = v.Bits(v.U8, tuple(v.BitField(f"led_{n}", n - 1, description=f"LED{n}") for n in range(1, 9)))
-BUZZER = v.Bits(v.U8, (v.BitField("buzzer", 0, description="buzzer"),))
-SENSOR_SUPPLY = v.Bits(v.U8, (v.BitField("sensor_supply", 0, description="sensor supply"),))
+BUZZER = v.Bits(v.U8, (v.BitField("buzzer", 0, description=N_("buzzer")),))
+SENSOR_SUPPLY = v.Bits(v.U8, (v.BitField("sensor_supply", 0, description=N_("sensor supply")),))
 # 0x0162 reads "Bit 0: Funktion 0 ... Bit 9: Funktion 10": bit n is fnc_ID n, i.e. F(n+1) (section 4.3 / 4.4).
 LOCK_STATUS = v.Bits(v.U16LE, tuple(v.BitField(f"F{n + 1}_locked", n, description=f"F{n + 1}")
                                     for n in range(FUNCTIONS)))
 ACTUATOR_STATUS_1 = v.Bits(v.U8, (  # descriptions: table 6, 0x0171 ("signal limit_in_out" is the document's term)
-    v.BitField("present", 0, description="actuator present"),
-    v.BitField("limit_in_out", 1, description="limit in/out signal (limit_in_out)"),
-    v.BitField("switch_1", 2, description="switch 1 signal"), v.BitField("switch_2", 3, description="switch 2 signal"),
-    v.BitField("motion", 4, description="motion active"),
-    v.BitField("in_position", 5, description="in position reached"),
-    v.BitField("out_position", 6, description="out position reached"),
-    v.BitField("stroke_recorded", 7, description="stroke recorded"),
+    v.BitField("present", 0, description=N_("actuator present")),
+    v.BitField("limit_in_out", 1, description=N_("limit in/out signal (limit_in_out)")),
+    v.BitField("switch_1", 2, description=N_("switch 1 signal")), v.BitField("switch_2", 3, description=N_("switch 2 signal")),
+    v.BitField("motion", 4, description=N_("motion active")),
+    v.BitField("in_position", 5, description=N_("in position reached")),
+    v.BitField("out_position", 6, description=N_("out position reached")),
+    v.BitField("stroke_recorded", 7, description=N_("stroke recorded")),
 ))
 
 _POSITION_NAMES = ("Position_Memory_1", "Position_Memory_2", "Position_Memory_3", "Position_Memory_4",
@@ -162,7 +164,7 @@ _ITEMS: list[DataItem] = [
              group=0x0000),
     DataItem(0x0020, "Actual_State_Binary Inputs 1 ... 4", BINARY_INPUTS,
              comment="Bits 0..3: logical level of inputs 1..4; bits 4..7: input level of inputs 1..4 "
-                     "(0 = not active, 1 = active)", label="Binary inputs 1-4 (Actual_State_Binary Inputs)"),
+                     "(0 = not active, 1 = active)", label=N_("Binary inputs 1-4 (Actual_State_Binary Inputs)")),
     DataItem(0x0040, "Actual_State_Keys", v.U32LE, comment="(no comment in the document)", label="Keys (Actual_State_Keys)"),
     DataItem(0x008F, "Number_Total_Over_Current", v.U32LE, group=0x0080),
     DataItem(0x00BF, "Max_Total_Current", CURRENT, "A", comment="0 ... 1000, fixed point 0.1 A, 0 ... 100 A",
@@ -173,18 +175,18 @@ _ITEMS: list[DataItem] = [
              comment="Bit 0 mains connected, 1 battery connected, 2 charge controller on, 3 charging active",
              label="Battery and mains"),
     DataItem(0x0110, "Binary Output Status", BINARY_OUTPUTS, comment="Bit 0 binary output 1 on, bit 1 output 2 on",
-             label="Binary outputs"),
+             label=N_("Binary outputs")),
     DataItem(0x0120, "LED HS", LED_HS, comment="Bit 0/1: LED1/LED2 of the hand switch on",
-             label="Hand switch LEDs (LED HS)"),  # HS = Handschalter
+             label=N_("Hand switch LEDs (LED HS)")),  # HS = Handschalter
     DataItem(0x0130, "LED LB", LED_LB, comment="Bit 0..7: LED1..LED8 of the locking box on",
-             label="Locking box LEDs (LED LB)"),  # LB = Lockingbox
+             label=N_("Locking box LEDs (LED LB)")),  # LB = Lockingbox
     DataItem(0x0140, "Buzzer", BUZZER, comment="Bit 0: buzzer on"),
     DataItem(0x0150, "Sensor Supply", SENSOR_SUPPLY, comment="Bit 0: sensor supply on"),
     DataItem(0x0162, "Lock Status", LOCK_STATUS, comment="Bit n: function n (F(n+1)) locked",
-             label="Locked functions (Lock Status)"),
+             label=N_("Locked functions (Lock Status)")),
     DataItem(0x0164, "Battery voltage", BATTERY_VOLTAGE, "V", comment="fixed point 0.1 V, 0 ... 40.0 V"),
-    DataItem(0x0165, "Locking Box detected", v.U8, comment="0 ... 2 locking boxes", label="Locking boxes detected"),
-    DataItem(0x0166, "Benutzer", v.U8, comment="user 1 ... 4", label="Active user (Benutzer)"),  # Benutzer = user
+    DataItem(0x0165, "Locking Box detected", v.U8, comment="0 ... 2 locking boxes", label=N_("Locking boxes detected")),
+    DataItem(0x0166, "Benutzer", v.U8, comment="user 1 ... 4", label=N_("Active user (Benutzer)")),  # Benutzer = user
 ]
 
 _PER_ACTUATOR = [  # (group, name pattern, type, unit, comment)
@@ -262,11 +264,11 @@ class UnknownDataId(CommissionError, KeyError):
 
 # How the set and clear bits of a bit-field item read (section 4.3, table 6): (set, clear, no bit set).
 FLAG_WORDS: dict[int, tuple[str, str, str]] = {
-    0x0020: ("active", "not active", "no input active"),
-    0x0100: ("", "", "none"),  # only what is there: "mains connected, battery connected, charge controller on"
-    0x0110: ("on", "off", "all off"), 0x0120: ("on", "off", "all off"), 0x0130: ("on", "off", "all off"),
+    0x0020: (N_("active"), N_("not active"), N_("no input active")),
+    0x0100: ("", "", N_("none")),  # only what is there: "mains connected, battery connected, charge controller on"
+    0x0110: (N_("on"), N_("off"), N_("all off")), 0x0120: ("on", "off", "all off"), 0x0130: ("on", "off", "all off"),
     0x0140: ("on", "off", "off"), 0x0150: ("on", "off", "off"),
-    0x0162: ("locked", "unlocked", "no function locked"),
+    0x0162: (N_("locked"), N_("unlocked"), N_("no function locked")),
 }
 FLAGS_EACH = 4  # up to this many bits each is named with its state; more (or no state words): only the set ones
 
@@ -282,16 +284,33 @@ def flags_text(data_id: int, raw: int) -> str:
     raw = int(raw)
     named = sum(f.mask for f in fields)
     extra = [n for n in range(32) if raw >> n & 1 and not named >> n & 1]
-    tail = f"; undocumented bits set: {', '.join(map(str, extra))}" if extra else ""
+    set_ = [_word(f.description) for f in fields if raw & f.mask]
     if len(fields) <= FLAGS_EACH and on:
-        return ", ".join(f"{f.description} {on if raw & f.mask else off}" for f in fields) + tail
-    set_ = [f.description for f in fields if raw & f.mask]
-    return (f"{', '.join(set_)} {on}".rstrip() if set_ else none) + tail
+        text = joined([_stated(f.description, on if raw & f.mask else off) for f in fields])
+    elif set_:
+        text = _stated(joined(set_), on) if on else joined(set_)
+    else:
+        text = Message(none)
+    if extra:
+        return joined([text, Message(N_("undocumented bits set: {bits}"), bits=", ".join(map(str, extra)))], "; ")
+    return text
+
+
+def _word(text: str) -> Message:
+    """A word of table 6 (marked where it is declared) as a :class:`Message`; one that is a Message already as it is."""
+    return text if isinstance(text, Message) else Message(text)
+
+
+def _stated(what: str, state: str) -> Message:
+    """A bit's name and its state (``"output 1 off"``), each in the reader's language."""
+    return Message("{what} {state}", what=_word(what), state=_word(state))
 
 
 def user_text(value: int) -> str:
     """0x0166 Benutzer: "User 1 ... 4" (table 6)."""
-    return f"user {value}" if 1 <= value <= USERS else f"{value} (not one of user 1 ... {USERS})"
+    if 1 <= value <= USERS:
+        return Message(N_("user {n}"), n=value)
+    return Message(N_("{value} (not one of user 1 ... {users})"), value=value, users=USERS)
 
 
 def item(data_id: int) -> DataItem:

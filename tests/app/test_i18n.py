@@ -224,6 +224,22 @@ def test_commission_check_words_its_findings_in_german(tmp_path, capsys):
     assert not [p for p in english if p in out], out
 
 
+def test_commission_check_words_the_parameter_models_refusals_in_german(tmp_path, capsys):
+    from plants import device, modbus_line, plant_text
+
+    from devices.hdlock.params import PARAMS
+
+    delay = PARAMS.by_name["LockRequestDelay"]
+    low, high = delay.limits()
+    path = tmp_path / "plant.toml"
+    path.write_text(plant_text(modbus_line(locks=()) + device("door-1", "hdlock", "line1", address=1,
+                                                               project={"LockRequestDelay": 70000}), name="p"))
+    code, out = _german(["check", "--plant", str(path)], capsys)
+    assert code == 1
+    assert f"Gerät 'door-1': LockRequestDelay: 70000 liegt außerhalb von {low} .. {high} {delay.unit}" in out, out
+    assert "is outside" not in out, out
+
+
 def test_commission_verify_words_its_checks_in_german(tmp_path, capsys):
     import sqlite3
 

@@ -364,6 +364,32 @@ async def test_the_hdlock_page_in_german_shows_no_english_but_the_parameters_own
         assert not i18n.get("de").missing, i18n.get("de").missing  # nothing looked up that the catalog does not have
 
 
+async def test_the_device_pages_in_german_word_what_the_adapters_say_in_the_documents_words(tmp_path):
+    """What the adapters word themselves, in German on their pages: the MO 64's connection, polling and query form,
+    the Electrak's control telegram line, the HD-Lock's MotorState."""
+    from plants import electrak_bus, mo64_tcp, plant
+
+    def shown(user, *pieces: str) -> bool:
+        return any(all(piece in text for piece in pieces) for text in shown_texts(user))
+
+    runtime = Runtime(plant(mo64_tcp()), simulate=True, data_dir=tmp_path / "mo64")
+    async with german_user(runtime) as user:
+        await eventually(lambda: "Gate state" in runtime.store.devices["gate"].points, timeout=15, what="the barrier")
+        await user.open("/device/gate")
+        await eventually(lambda: shown(user, ": verbunden", "in jedem Zyklus"), timeout=10,
+                         what="the MO 64's connection and polling words")
+        assert not shown(user, "every cycle") and not shown(user, "not known yet")
+    async with german_page(tmp_path / "electrak", plant(electrak_bus()), "lift", "Electrak-HD-Netzwerk lift") as (runtime, user):
+        await eventually(lambda: shown(user, "0x006: ", "(Ziel ", "keine Freigabe)"), timeout=10,
+                         what="the control telegram's line")
+        assert not shown(user, "(target ")
+    async with german_locks(tmp_path / "locks", "door-1") as (runtime, user):
+        await user.open("/device/door-1")
+        await user.should_see("HD-Lock door-1", retries=50)
+        await eventually(lambda: "inaktiv" in shown_texts(user), timeout=10, what="MotorState in the document's words")
+        assert "Inactive" not in shown_texts(user)
+
+
 async def test_the_scu_page_in_german_shows_no_english(tmp_path):
     """The control unit's page (document 002): Remote-Betrieb, NOT-HALT, Netz, Akku, the error codes of table 10; the
     status bits' words of table 6 and the data directory are the parameter model's."""
@@ -376,6 +402,26 @@ async def test_the_scu_page_in_german_shows_no_english(tmp_path):
                          what="the remote session's words")
         found = english_but(user, descriptions_of(runtime, "lift"))
         assert found == [], "\n".join(map(str, found))
+
+
+async def test_the_scu_page_in_german_words_table_6_and_the_emergency_stop_in_the_documents_words(tmp_path):
+    """The status bits of table 6 (Actuator Status 1, the I/O lines) and the emergency stop's details, worded by
+    devices/scu, in German on the SCU page."""
+    from plants import plant, scu_line
+
+    from devices.scu.control import Estop
+
+    async with german_page(tmp_path, plant(scu_line()), "lift", "Ewellix SCU lift") as (runtime, user):
+        await eventually(lambda: "Antrieb vorhanden" in shown_texts(user), timeout=10, what="table 6's status words")
+        await eventually(lambda: any(t.startswith("Binärausgänge: Ausgang 1 aus") for t in shown_texts(user)), timeout=10,
+                         what="the outputs' line in table 6's words")
+        adapter = runtime.worker.adapters["lift"]
+        adapter.core.estop = Estop("anna", 0.0, confirmed=True)
+        adapter.publish_estop()
+        await eventually(lambda: any("EIN seit " in t and "ausgelöst von anna; von der Steuereinheit bestätigt" in t
+                                     for t in shown_texts(user)), timeout=10, what="the emergency stop's details")
+        texts = shown_texts(user)
+        assert not [t for t in texts if "actuator present" in t.lower() or "pressed by" in t], texts
 
 
 def as_written(text: str, written: set[str]) -> bool:
