@@ -120,6 +120,13 @@ class BitrateChange:
     saved: float | None = None
 
 
+def _refuse_as_the_document(param: Param, value) -> None:
+    """:raises CommandError: the document refuses ``value`` for ``param`` (:func:`refusal`)"""
+    reason = refusal(param, value)
+    if reason:
+        raise CommandError(reason)
+
+
 class ElectrakAdapter(BackupDefaults):
     """The network of actuators of one plant device (status frames cannot be told apart)."""
 
@@ -557,9 +564,7 @@ class ElectrakAdapter(BackupDefaults):
 
     async def write_param(self, param: Param, value, *, confirmed: bool = False) -> int:
         """An entry for ``param``, checked by the parameter model, written by :meth:`write_accepted`."""
-        reason = refusal(param, value)
-        if reason:
-            raise CommandError(reason)
+        _refuse_as_the_document(param, value)
         try:
             accepted = param.accept(value)
         except ParamError as exc:
@@ -570,9 +575,7 @@ class ElectrakAdapter(BackupDefaults):
         """Password, write, read back from every actuator (document "Passwort", "Beispiel einer Parameter-Änderung")
         of a value the parameter model accepted; the document's own refusals (:func:`refusal`) still apply."""
         param = accepted.param
-        reason = refusal(param, accepted.value)
-        if reason:
-            raise CommandError(reason)
+        _refuse_as_the_document(param, accepted.value)
         try:
             raw = accepted.cleared(confirmed)
         except ParamError as exc:

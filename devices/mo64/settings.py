@@ -174,20 +174,23 @@ class Mo64Settings(BackupDefaults):
         asks), the setting read from the unit, the piece replaced (the other bits as the unit holds them),
         written and read back. ``confirmed``: the engineer confirmed what the declared write asked, which for
         an assumed selector includes that it is verified on this unit. Returns the raw value read back."""
-        param = self._model_param(param)
-        if not param.setting_key:
-            raise CommandError(f"{param.name} is read only: no setting telegram is named for it (chapter 5.2)")
+        param = self._settable(param)
         try:
             accepted = param.accept(value)
         except ParamError as exc:
             raise CommandError(str(exc)) from None
         return await self.write_accepted(accepted, confirmed=confirmed, session=session)
 
-    async def write_accepted(self, accepted: Accepted, *, confirmed: bool = False, session: str = WRITE_SESSION) -> int:
-        """:meth:`write_param` of a value the model accepted (its range, names and confirmation checked there)."""
-        param = self._model_param(accepted.param)
+    def _settable(self, param: Param | str) -> Param:
+        """The model's parameter of ``param``. :raises CommandError: no setting telegram writes it (read only)"""
+        param = self._model_param(param)
         if not param.setting_key:
             raise CommandError(f"{param.name} is read only: no setting telegram is named for it (chapter 5.2)")
+        return param
+
+    async def write_accepted(self, accepted: Accepted, *, confirmed: bool = False, session: str = WRITE_SESSION) -> int:
+        """:meth:`write_param` of a value the model accepted (its range, names and confirmation checked there)."""
+        param = self._settable(accepted.param)
         try:
             raw = accepted.cleared(confirmed)
         except ParamError as exc:
