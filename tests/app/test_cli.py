@@ -174,8 +174,11 @@ def _interrupted(args, ready: str, tmp_path) -> subprocess.CompletedProcess:
     import time
 
     env = {k: v for k, v in os.environ.items() if k != "PYTEST_CURRENT_TEST"}  # NiceGUI would take it for its own test mode
+    # as at a terminal, where Ctrl-C is not ignored: a program started with SIGINT ignored keeps ignoring it (a
+    # shell's background job), and a test process can have come to ignore it through a library an earlier test used
     proc = subprocess.Popen([sys.executable, "-m", "app.cli", *args, "--data-dir", str(tmp_path / "d")],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT, env=env)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT, env=env,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         end = time.monotonic() + 20
         seen = ""
