@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 from conftest import CHROMIUM, inside_viewport, wait_devices_online
-from webutil import demo_plant_text, free_port, running_app
+from webutil import demo_plant_text, eventually_sync, free_port, running_app
 
 if not CHROMIUM.exists():
     pytest.skip(f"{CHROMIUM} is not installed", allow_module_level=True)
@@ -91,9 +91,12 @@ def test_hdlock_entry_save_dialog_and_chart(app_url: str, chromium: Browser, tmp
         # a written parameter is listed by the Save-Settings confirmation
         delay = page.locator('input[data-param="LockRequestDelay"], [data-param="LockRequestDelay"] input')
         delay.scroll_into_view_if_needed()
-        delay.fill("350" if size[0] == 1440 else "360")
+        typed = 350 if size[0] == 1440 else 360
+        delay.fill(str(typed))
         delay.press("Tab")
         page.locator('[data-write="LockRequestDelay"]').click()
+        # written and read back (an earlier size's unsaved change may be listed already: wait for this one's value)
+        eventually_sync(lambda: lock_values(app_url)["LockRequestDelay"]["value"] == typed, timeout=15, what="written")
         expect(page.get_by_text("unsaved change").first).to_be_visible()
         page.locator('[data-testid="save-settings"]').click()
         dialog = page.locator('[data-testid="save-dialog"]')
