@@ -66,6 +66,9 @@ def _save_shot(page: Page, folder: Path, name: str, shows: Locator, full_page: b
 # -- 1. the read-only plant view on a 10-inch tablet --------------------------------------------
 
 
+# alone: every tile must be live and free of faults, the SCU's too, whose unit drops remote mode (bit 22) when an RC
+# comes later than 500 ms; with two more apps and browsers beside it the app's RC came late on the idle CI machine
+@pytest.mark.alone
 @pytest.mark.parametrize("width,height", [(1024, 768), (768, 1024)], ids=["landscape", "portrait"])
 def test_plant_view_on_a_tablet(app_url: str, chromium: Browser, tmp_path: Path, width: int, height: int):
     devices = [d["name"] for d in _get_json(app_url + "/api/devices")]
