@@ -18,6 +18,7 @@ from app import recording as rec
 from app import replay as rp
 from app import runtime as rt
 from app.i18n import N_, Lang
+from app.message import said
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import frame, notify_error
 from pages.session import current_user
@@ -74,7 +75,7 @@ class RecordingCard:
         try:
             log = await rec.load_log(path, name, progress=report)
         except rec.RecordingError as exc:
-            file_status.set_text(str(exc))
+            file_status.set_text(said(exc, lang))
             load_bar.set_visibility(False)
             return
         self.log = log
@@ -90,7 +91,7 @@ class RecordingCard:
             try:
                 path = await asyncio.to_thread(rec.recording_path, self.choice.value)
             except rec.RecordingError as exc:
-                self.file_status.set_text(str(exc))
+                self.file_status.set_text(said(exc, self.lang))
                 return
             await self.load(path, self.choice.value)
 
@@ -98,7 +99,7 @@ class RecordingCard:
         try:  # streamed into the one uploads folder under a safe name ('..' is refused by name)
             path = await rec.store_upload(event.file)
         except rec.RecordingError as exc:
-            self.file_status.set_text(str(exc))
+            self.file_status.set_text(said(exc, self.lang))
             return
         await self.load(path, rec.upload_name(event.file.name))
 
