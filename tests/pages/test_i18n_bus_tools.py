@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 from nicegui import ui
 from nicegui.elements.upload_files import SmallFileUpload
-from test_i18n_pages import english_on, german_demo, german_user
+from test_i18n_pages import by_testid, english_on, german_demo, german_locks, german_user, shown_texts
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -41,3 +41,36 @@ async def test_a_replays_refused_upload_in_german(tmp_path):
         await upload.handle_uploads([SmallFileUpload("..", "text/plain", b"(1700000000.000000) can0 301#01\n")])
         await user.should_see("'..' ist kein Dateiname für eine Aufzeichnung (z. B. trace.log)", retries=50)
         assert english_on(user) == []
+
+
+async def test_the_modbus_polls_question_and_refusal_in_german(tmp_path):
+    """The Modbus poll's write card (pages/bus_poll.py): a write to a unit that is not in the plant asks in German,
+    with the send policy's note of the type it was checked as (devices/sendpolicy.py); the device policy's own name of
+    the register stays as it declares it."""
+    from app import i18n
+
+    async with german_locks(tmp_path, "door-1") as (runtime, user):
+        await user.open("/monitor/line1/poll")
+        await user.should_see("Holding-Register oder Coils schreiben", retries=50)
+        unit_label = i18n.get("de").pgettext("Modbus", "Unit")
+        unit = next(e for e in user.client.elements.values() if isinstance(e, ui.number) and e.props.get("label") == unit_label)
+        unit.value = 9
+        user.find(kind=ui.button, content="Schreiben").click()
+        await user.should_see("Unit 9 steht nicht in der Anlagendatei: geprüft als hdlock", retries=50)
+        question = next(t for t in shown_texts(user) if "steht nicht in der Anlagendatei" in t)
+        assert question.startswith("Dies schreibt Unit 9 ") and question.endswith(" Schreiben?"), question
+        assert "This writes" not in question and "Write?" not in question, question
+
+
+async def test_the_transmit_lists_refusal_in_german(tmp_path, monkeypatch):
+    """The transmit list (pages/bus_transmit.py): a frame of nine data bytes is refused in German (app/transmit.py)."""
+    from nicegui.testing.user_interaction import UserInteraction
+
+    async with german_demo(tmp_path, monkeypatch) as (runtime, user):
+        await user.open("/monitor/can1/transmit")
+        await user.should_see("Frame als Bytes", retries=50)
+        data = next(e for e in user.client.elements.values() if isinstance(e, ui.input) and e.props.get("label") == "Daten (Hex-Bytes)")
+        data.value = "01 02 03 04 05 06 07 08 09"
+        UserInteraction(user, {by_testid(user, "transmit-add")}, None).click()
+        await user.should_see("9 Datenbytes: ein klassischer CAN-Frame trägt 0..8", retries=50)
+        assert not [m for m in user.notify.messages if "classic CAN frame" in m], user.notify.messages
