@@ -9,6 +9,7 @@ import pytest
 from nicegui import ui
 from nicegui.elements.upload_files import SmallFileUpload
 from test_i18n_pages import by_testid, english_on, german_demo, german_locks, german_user, shown_texts
+from webutil import eventually
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -74,3 +75,37 @@ async def test_the_transmit_lists_refusal_in_german(tmp_path, monkeypatch):
         UserInteraction(user, {by_testid(user, "transmit-add")}, None).click()
         await user.should_see("9 Datenbytes: ein klassischer CAN-Frame trägt 0..8", retries=50)
         assert not [m for m in user.notify.messages if "classic CAN frame" in m], user.notify.messages
+
+
+async def test_a_replays_screening_question_and_summary_in_german(tmp_path):
+    """The replay page (pages/bus_replay.py) words what app/replay.py says in German: the frames the send policy keeps
+    off (the device policy's own reason stays as it declares it), the question, and a stopped replay's summary."""
+    import can
+    from test_replay_page import replay_runtime
+
+    from app import recording as rec
+
+    runtime = replay_runtime(tmp_path, "replay-screen-de")
+    writer = rec.WRITERS[".log"][0](runtime.data_dir / "recordings" / "can9-slow.log")
+    for i in range(20):  # 0x706: an HD-Lock firmware-update request, never sent
+        writer.on_message_received(can.Message(timestamp=100 + i * 0.5, arbitration_id=0x706 if i == 3 else 0x300 + i,
+                                               is_extended_id=False, data=bytes([i])))
+    writer.stop()
+    async with german_user(runtime) as user:
+        await user.open("/monitor/can9/replay")
+        await user.should_see("Wiedergabe auf can9", retries=50)
+        choice = next(e for e in user.client.elements.values() if e.props.get("label") == "Aufzeichnungen im Datenordner")
+        choice.set_value("can9-slow.log")
+        await user.should_see("1 Frame(s) werden nicht gesendet: 1 x HD-Lock", retries=50)
+        user.find("Wiedergabe starten").click()
+        await user.should_see("19 aufgezeichnete(n) Frame(s) von can9-slow.log auf can9 wiedergeben", retries=50)
+        await user.should_see(". 1 Frame(s) werden nicht gesendet: 1 x HD-Lock")
+        user.find("19 Frames senden").click()
+        status = by_testid(user, "replay-status")
+        await eventually(lambda: "läuft: " in status.text, timeout=10, what="the replay running")
+        user.find(kind=ui.button, content="Stopp").click()
+        await eventually(lambda: "gestoppt: " in status.text and "(gestoppt von " in status.text, timeout=10,
+                         what="the stopped replay's summary")
+        assert "von 20 Frames gesendet" in status.text, status.text
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
