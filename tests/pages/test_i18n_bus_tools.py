@@ -109,3 +109,31 @@ async def test_a_replays_screening_question_and_summary_in_german(tmp_path):
         assert "von 20 Frames gesendet" in status.text, status.text
         found = english_on(user)
         assert found == [], "\n".join(map(str, found))
+
+
+async def test_the_overviews_bus_line_words_the_can_controllers_state_in_german(tmp_path, monkeypatch):
+    """The overview's line of a CAN bus (pages/overview.py) says the controller's state as the CAN monitor's badge
+    does: fehleraktiv, not the store's error-active."""
+    async with german_demo(tmp_path, monkeypatch) as (runtime, user):
+        await user.open("/")
+        await eventually(lambda: any(t.startswith("verbunden · fehleraktiv · ") for t in shown_texts(user)), timeout=15,
+                         what="a CAN bus's line in German")
+        assert not [t for t in shown_texts(user) if "error-active" in t]
+
+
+async def test_the_pages_of_an_unknown_bus_device_and_tool_in_german(tmp_path):
+    """The server's pages for what the plant does not have (server/__init__.py), in German."""
+    async with german_locks(tmp_path) as (runtime, user):
+        await user.open("/monitor/nowhere")
+        await user.should_see("Unbekannter Bus", retries=50)
+        await user.should_see("Die Anlage hat keinen Bus namens 'nowhere'.")
+        assert english_on(user) == []
+        await user.open("/monitor/line1/juggle")
+        await user.should_see("Unbekannte Seite", retries=50)
+        await user.should_see("Es gibt kein Werkzeug 'juggle' für einen Bus namens 'line1'.")
+        await user.should_see("Zurück zur Übersicht")
+        assert english_on(user) == []
+        await user.open("/device/nobody")
+        await user.should_see("Unbekanntes Gerät", retries=50)
+        await user.should_see("Die Anlage hat kein Gerät namens 'nobody'.")
+        assert english_on(user) == []
