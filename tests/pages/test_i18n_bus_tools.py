@@ -137,3 +137,36 @@ async def test_the_pages_of_an_unknown_bus_device_and_tool_in_german(tmp_path):
         await user.should_see("Unbekanntes Gerät", retries=50)
         await user.should_see("Die Anlage hat kein Gerät namens 'nobody'.")
         assert english_on(user) == []
+
+
+async def test_the_line_monitors_own_words_of_a_transaction_in_german(tmp_path):
+    """The monitor of a Modbus line (pages/monitor.py): the words app/recording adds to a transaction (the device at a
+    unit) in German; the parameter model's names and values as they are."""
+    from test_i18n_pages import marked_table
+
+    async with german_locks(tmp_path, "door-1") as (runtime, user):
+        await user.open("/monitor/line1")
+        await user.should_see("Busmonitor line1", retries=50)
+        table = marked_table(user, "transactions")
+        await eventually(lambda: any(r["device"] == "door-1 (Unit 1)" for r in table.rows), timeout=15,
+                         what="a transaction of door-1 in German")
+        assert not [r["device"] for r in table.rows if "(unit " in r["device"]], [r["device"] for r in table.rows]
+        found = english_on(user)
+        assert found == [], "\n".join(map(str, found))
+
+
+def test_the_decoders_own_words_in_german():
+    """What app/recording words around the device's names and values: a register's words, a write, a remote request,
+    a failed decode; the English as before."""
+    from app import i18n
+    from app import recording as rec
+    from app.can_bus import FrameRecord
+    from app.message import said
+    from devices.hdlock.params import PARAMS
+
+    de = i18n.get("de")
+    text = rec.describe_registers(PARAMS, "holding", 60000, list(range(20)))  # no register of the HD-Lock there
+    assert str(text).endswith("... 4 more") and said(text, de).endswith("... 4 weitere"), said(text, de)
+    remote = FrameRecord(1.0, 0x123, False, 0, b"", "rx", False, True)
+    decoded = rec.FrameDecoder(codecs=[]).record(remote)
+    assert decoded == "remote request" and said(decoded, de) == "Remote-Anforderung"
