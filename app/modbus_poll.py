@@ -253,14 +253,17 @@ def write_question(head: Message, verdict: Verdict) -> Message:
 
 
 def unit_refused(unit: int, refusal: str) -> Message:
+    """The send policy's ``refusal`` of a write to ``unit``."""
     return Message(N_("unit {unit}: {refusal}"), unit=unit, refusal=refusal)
 
 
 def one_unit_refused(unit: int) -> Message:
+    """A write to ``unit`` that is no single unit (0 is the broadcast, which answers nothing)."""
     return Message(N_("writes go to one unit (1..{high}), not {unit}"), high=UNIT_MAX, unit=unit)
 
 
 def addresses_refused(address: int, count: int) -> Message:
+    """``count`` registers from ``address`` on that run past the last address."""
     return Message(N_("addresses {first}..{last} do not fit 0..65535"), first=address, last=address + count - 1)
 
 

@@ -91,6 +91,7 @@ def parse_bytes(text: str) -> bytes:
 
 
 def too_many_bytes(n: int) -> Message:
+    """``n`` data bytes, more than a classic CAN frame carries."""
     return Message(N_("{n} data bytes: a classic CAN frame carries 0..8"), n=n)
 
 
