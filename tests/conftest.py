@@ -525,7 +525,7 @@ def inside_viewport(page, locator, timeout: float = 5.0) -> None:
     box = locator.bounding_box(timeout=timeout * 1000)
     while box is None and time.monotonic() < end:
         page.wait_for_timeout(50)
-        box = locator.bounding_box(timeout=max(1.0, (end - time.monotonic()) * 1000))
+        box = locator.bounding_box(timeout=max(1000.0, (end - time.monotonic()) * 1000))
     assert box is not None, f"{locator} is not rendered"
     size = page.viewport_size or page.evaluate("({width: window.innerWidth, height: window.innerHeight})")
     assert box["x"] >= 0 and box["y"] >= 0, f"{locator} starts outside the viewport: {box}"

@@ -110,7 +110,7 @@ def test_plant_view_on_a_tablet(app_url: str, chromium: Browser, tmp_path: Path,
         expect(clock).to_have_text(re.compile(r"^\d\d:\d\d:\d\d$"))
         before = clock.inner_text()
         page.wait_for_function(
-            "before => document.querySelector('.q-header .text-h6').textContent.trim() !== before", arg=before, timeout=2500
+            "before => document.querySelector('.q-header .text-h6').textContent.trim() !== before", arg=before
         )
 
         first_tile = page.locator(f'[data-plant-tile="{devices[0]}"]')
@@ -205,8 +205,7 @@ def test_restore_through_the_diff(app_url: str, chromium: Browser, tmp_path: Pat
         # the device has the backed-up value again
         page.wait_for_function(
             """async () => (await (await fetch('/api/devices/door-1')).json()).values.LockRequestDelay.value === 200""",
-            polling=200, timeout=5_000,
-        )
+            polling=200)
         assert _get_json(app_url + "/api/devices/door-1")["values"]["LockRequestDelay"]["value"] == 200
 
         # and the audit log names the restore

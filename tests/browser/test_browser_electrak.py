@@ -36,22 +36,21 @@ def test_go_moves_the_position_chart_toward_the_target(app_url, chromium, tmp_pa
     page = chromium.new_page(viewport={"width": 1400, "height": 1100})
     try:
         page.goto(f"{app_url}/device/lift")
-        page.get_by_text("actuators heard per 100 ms: 2 of 2 configured").wait_for(timeout=10_000)
+        page.get_by_text("actuators heard per 100 ms: 2 of 2 configured").wait_for()
         assert "within 0.5 s of this browser going away" in page.get_by_test_id("stop-rule").inner_text()
         page.get_by_test_id("take-control").click()
-        page.get_by_text("you hold control").wait_for(timeout=5_000)
+        page.get_by_text("you hold control").wait_for()
         target = page.get_by_label("Target position [mm]", exact=False)
         target.fill("40")
         page.get_by_test_id("go").click()
         dialog = page.locator(".q-dialog")
         expect(dialog).to_contain_text("area is clear")  # Go asks first (issue 40), as the SCU's and MO 64's motion does
         dialog.get_by_role("button", name="The area is clear: Go").click()
-        page.get_by_text("Extending").first.wait_for(timeout=5_000)
+        page.get_by_text("Extending").first.wait_for()
         page.wait_for_function(
             """() => { const p = document.querySelector('.js-plotly-plot');
                        const ys = p && p.data && p.data[0].y; return ys && ys.length && ys[ys.length - 1] > 10; }""",
-            timeout=10_000,
-        )
+            )
         first = last_position(page)
         page.wait_for_function(
             """() => { const p = document.querySelector('.js-plotly-plot');
@@ -70,16 +69,16 @@ def test_go_moves_the_position_chart_toward_the_target(app_url, chromium, tmp_pa
         page.screenshot(path=str(tmp_path / "electrak.png"), full_page=True)
         # the big stop is always there
         page.get_by_test_id("big-stop").click()
-        page.get_by_text("no enable").first.wait_for(timeout=5_000)
+        page.get_by_text("no enable").first.wait_for()
         # the bit rate, step by step: write and read back, then save
         page.get_by_test_id("new-bitrate").click()
         page.get_by_role("option", name="250 kbit/s").click()
         page.get_by_test_id("bitrate-card").get_by_role("button", name="Write").click()
         page.get_by_role("button", name="Write bit rate").click()  # the confirmation names the whole sequence
         status = page.get_by_test_id("bitrate-status")
-        status.get_by_text("NOT saved").wait_for(timeout=10_000)
+        status.get_by_text("NOT saved").wait_for()
         page.get_by_test_id("bitrate-card").get_by_role("button", name="Save").click()
-        status.get_by_text("250 kbit/s saved").wait_for(timeout=10_000)
+        status.get_by_text("250 kbit/s saved").wait_for()
         assert "2 of 2 agree" in page.get_by_text("2 of 2 agree").first.inner_text()
         for width, height in ((1440, 900), (1024, 768)):
             page.set_viewport_size({"width": width, "height": height})
@@ -98,20 +97,20 @@ def test_message_timeout_while_idle_is_not_a_red_fault(app_url, chromium):
         page = chromium.new_page(viewport={"width": width, "height": height})
         try:
             page.goto(f"{app_url}/device/lift")
-            page.get_by_text("actuators heard per 100 ms: 2 of 2 configured").wait_for(timeout=10_000)
+            page.get_by_text("actuators heard per 100 ms: 2 of 2 configured").wait_for()
             lamp = page.locator('[data-lamp="Message timeout"]')
-            page.wait_for_function("() => document.querySelector('[data-lamp=\"Message timeout\"]').dataset.on === '1'", timeout=5_000)
+            page.wait_for_function("() => document.querySelector('[data-lamp=\"Message timeout\"]').dataset.on === '1'")
             assert lamp.get_attribute("data-idle") == "1"
             assert "alarm" not in lamp.locator(".lamp").get_attribute("class")  # not red
-            page.get_by_test_id("idle-note").get_by_text("expected while idle").wait_for(timeout=5_000)
+            page.get_by_test_id("idle-note").get_by_text("expected while idle").wait_for()
             assert page.get_by_text("Message timeout: clears").count() == 0  # not listed among the faults
             page.screenshot(path=f"/tmp/shots/electrak-idle-{width}.png")
         finally:
             page.close()
     with opened(chromium, f"{app_url}/device/lift") as page:
         page.get_by_test_id("take-control").click()
-        page.get_by_text("you hold control").wait_for(timeout=5_000)
-        page.wait_for_function("() => document.querySelector('[data-lamp=\"Message timeout\"]').dataset.on === '0'", timeout=5_000)
+        page.get_by_text("you hold control").wait_for()
+        page.wait_for_function("() => document.querySelector('[data-lamp=\"Message timeout\"]').dataset.on === '0'")
         assert page.locator('[data-lamp="Message timeout"]').get_attribute("data-idle") == "0"
         assert page.get_by_test_id("idle-note").inner_text() == ""
         page.screenshot(path="/tmp/shots/electrak-control-1440.png")
@@ -121,22 +120,22 @@ def test_jog_is_armed_by_the_area_clear_question_and_override_asks(app_url, chro
     """Issue 40: the first press of a jog button asks that the area is clear (a dialog would end the hold), the
     next press moves while held; Override/reset asks its risk before anything is sent."""
     with opened(chromium, f"{app_url}/device/lift") as page:
-        page.get_by_text("actuators heard per 100 ms: 2 of 2 configured").wait_for(timeout=10_000)
+        page.get_by_text("actuators heard per 100 ms: 2 of 2 configured").wait_for()
         page.get_by_test_id("take-control").click()
-        page.get_by_text("you hold control").wait_for(timeout=5_000)
+        page.get_by_text("you hold control").wait_for()
         jog = page.get_by_test_id("jog-out")
         jog.click()
         dialog = page.locator(".q-dialog")
         expect(dialog).to_contain_text("area is clear")
         dialog.get_by_role("button", name="The area is clear").click()
-        page.get_by_test_id("jog-armed").get_by_text("jog armed").wait_for(timeout=5_000)
+        page.get_by_test_id("jog-armed").get_by_text("jog armed").wait_for()
         assert page.locator('[data-lamp="Extending"]').get_attribute("data-on") != "1"  # the arming press moved nothing
         box = jog.bounding_box()
         page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
         page.mouse.down()  # hold-to-run, asked nothing more
-        page.wait_for_function("() => document.querySelector('[data-lamp=\"Extending\"]').dataset.on === '1'", timeout=5_000)
+        page.wait_for_function("() => document.querySelector('[data-lamp=\"Extending\"]').dataset.on === '1'")
         page.mouse.up()
-        page.wait_for_function("() => document.querySelector('[data-lamp=\"Extending\"]').dataset.on === '0'", timeout=5_000)
+        page.wait_for_function("() => document.querySelector('[data-lamp=\"Extending\"]').dataset.on === '0'")
         page.get_by_test_id("override").click()
         expect(dialog).to_contain_text("alone")  # names its risk
         dialog.get_by_role("button", name="Cancel").click()
@@ -149,7 +148,7 @@ def test_service_parameter_entry_in_the_browser(app_url, chromium):
     with opened(chromium, f"{app_url}/device/lift") as page:
         soft_start = page.locator('[data-testid="entry-01"] input, input[data-testid="entry-01"]')
         page.wait_for_function("""() => { const e = document.querySelector('[data-testid="entry-01"] input, input[data-testid="entry-01"]');
-            return e && e.value !== ''; }""", timeout=10_000)  # the page read the actuators' values by itself
+            return e && e.value !== ''; }""")  # the page read the actuators' values by itself
         soft_start.fill("12.5")
         soft_start.press("Enter")
         card = page.locator(".q-card", has=soft_start)
@@ -157,7 +156,7 @@ def test_service_parameter_entry_in_the_browser(app_url, chromium):
         assert soft_start.input_value() == "12.5"  # kept as typed, not rounded to 12
         soft_start.fill("321")
         soft_start.press("Enter")
-        page.locator(".q-notification").get_by_text("Soft start time = 321 ms written and read back").wait_for(timeout=10_000)
+        page.locator(".q-notification").get_by_text("Soft start time = 321 ms written and read back").wait_for()
         assert soft_start.input_value() == "321"
         expect(card.get_by_text("whole numbers only")).to_have_count(0)  # the mark went with the good value
         for width, height in ((1440, 900), (768, 1024)):

@@ -48,17 +48,17 @@ def test_bus_names_table_names_and_the_digout_period(app, chromium, width: int, 
         })""")
         assert lines and all(line["oneLine"] for line in lines), lines
         page.goto(app + "/monitor/can1")  # the CAN monitor's tables fit: Decoded in sight without scrolling sideways
-        page.wait_for_function("document.querySelectorAll('.can-table tbody tr').length >= 2", timeout=10000)
+        page.wait_for_function("document.querySelectorAll('.can-table tbody tr').length >= 2")
         widths = """() => [...document.querySelectorAll('.can-table .q-table__middle')]
             .filter(m => m.offsetParent !== null).map(m => [m.scrollWidth, m.clientWidth])"""
         try:  # the rows drawn and laid out (bounded)
-            page.wait_for_function(f"({widths})().every(([s, c]) => s <= c + 1)", timeout=5000)
+            page.wait_for_function(f"({widths})().every(([s, c]) => s <= c + 1)")
         except Exception:  # noqa: BLE001 - said below with the widths
             pass
         overflow = page.evaluate(widths)
         assert overflow and all(scroll <= client + 1 for scroll, client in overflow), overflow
         page.goto(app + "/device/heater-hm")
-        page.get_by_text("DigOut every 500 ms").first.wait_for(timeout=10000)
+        page.get_by_text("DigOut every 500 ms").first.wait_for()
         assert page.get_by_text("DigOut every 100 ms").count() == 0
     finally:
         page.close()

@@ -30,14 +30,14 @@ def test_open_the_barrier_and_see_it_open(tmp_path, chromium):
             page.get_by_test_id("pulse-open").click()
             page.get_by_role("button", name="Send").click()  # the declared risk, asked for every motion
             # it goes through opening (or the pre-warning before it), then stands open
-            expect(gate).to_have_text(re.compile(r"gate state: (opening|pre-warning before opening)"), timeout=10_000)
+            expect(gate).to_have_text(re.compile(r"gate state: (opening|pre-warning before opening)"))
             expect(gate).to_have_text("gate state: open", timeout=20_000)
-            expect(page.get_by_test_id("position")).to_have_text("position: 100 %", timeout=5_000)
+            expect(page.get_by_test_id("position")).to_have_text("position: 100 %")
             for testid in ("gate-state", "position", "pulse-close"):
                 inside_viewport(page, page.get_by_test_id(testid))
             page.screenshot(path=str(tmp_path / f"mo64-open-{width}.png"))
             page.get_by_test_id("pulse-close").click()  # the second motion of the session asks again
-            expect(page.get_by_text("nobody stands under it (the area is clear)")).to_be_visible(timeout=5_000)
+            expect(page.get_by_text("nobody stands under it (the area is clear)")).to_be_visible()
             expect(gate).to_have_text("gate state: open")  # nothing sent before the answer
             page.get_by_role("button", name="Send").click()
             expect(gate).to_have_text("gate state: closed", timeout=20_000)

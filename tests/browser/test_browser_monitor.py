@@ -46,7 +46,7 @@ def count_of(page: Page, can_id: str) -> int:
 def wait_count_grows(page: Page, can_id: str) -> None:
     """Wait until the overwrite view's count of ``can_id`` is above what it shows now."""
     before = count_of(page, can_id)
-    expect(count_cell(page, can_id)).not_to_have_text(re.compile(rf"^\s*{before}\s*$"), timeout=6_000)
+    expect(count_cell(page, can_id)).not_to_have_text(re.compile(rf"^\s*{before}\s*$"))
     assert count_of(page, can_id) > before
 
 

@@ -52,7 +52,7 @@ def take_control(page) -> None:
     for _ in range(3):
         page.get_by_test_id("take-control").click()
         try:
-            page.get_by_text("you hold control").wait_for(timeout=8_000)
+            page.get_by_text("you hold control").wait_for()
             return
         except PlaywrightTimeout:
             continue
@@ -70,7 +70,7 @@ def check_layout(page, tmp_path, name: str) -> None:
         page.set_viewport_size({"width": width, "height": height})
         page.evaluate("window.scrollTo(0, 0)")
         # nothing sticks out sideways (once the charts have followed the new width)
-        page.wait_for_function(f"() => document.documentElement.scrollWidth <= {width}", timeout=5_000)
+        page.wait_for_function(f"() => document.documentElement.scrollWidth <= {width}")
         assert page.evaluate(COVERED_JS) == [], f"{name} at {width}x{height}"
         stop = page.get_by_test_id("big-stop")
         if stop.count():
@@ -102,14 +102,14 @@ def test_lift_entry_numbers_stop_layout_and_silence(app_url, chromium, tmp_path)
         page.get_by_text("actuators heard per 100 ms: 2 of 2 configured").wait_for(timeout=15_000)
         for i in (1, 2):  # each actuator's position, current and speed as numbers
             for what, unit in (("position", "mm"), ("current", "A"), ("speed", "mm/s")):
-                expect(page.get_by_test_id(f"actuator-{i}-{what}")).to_contain_text(f" {unit}", timeout=5_000)
+                expect(page.get_by_test_id(f"actuator-{i}-{what}")).to_contain_text(f" {unit}")
         take_control(page)
         sent = page.get_by_text("0x006:")
         before = sent.inner_text()
         speed = page.get_by_label("Speed [mm/s]")
         speed.fill("50")
         page.get_by_test_id("apply").click()
-        expect(page.get_by_role("alert").filter(has_text="out of range: allowed 6 .. 32 mm/s")).to_be_visible(timeout=5_000)
+        expect(page.get_by_role("alert").filter(has_text="out of range: allowed 6 .. 32 mm/s")).to_be_visible()
         speed.blur()
         assert float(speed.input_value()) == 50  # kept as typed, not clamped to 32
         assert sent.inner_text() == before  # nothing sent
@@ -117,7 +117,7 @@ def test_lift_entry_numbers_stop_layout_and_silence(app_url, chromium, tmp_path)
         check_layout(page, tmp_path, "lift")
         # the network falls silent: values greyed, start buttons disabled with the reason, STOP enabled
         page.get_by_role("button", name="Release").click()
-        page.get_by_text("nobody controls the network").wait_for(timeout=5_000)
+        page.get_by_text("nobody controls the network").wait_for()
         for i in (1, 2):
             page.get_by_role("switch", name=f"actuator {i} connected").click()
         take = page.get_by_test_id("take-control")
@@ -147,7 +147,7 @@ def test_scu_and_mo64_entries_and_layout(app_url, chromium, tmp_path):
         speed = page.get_by_test_id("remote-speed")
         speed.fill("5000")
         page.get_by_test_id("set-speed").click()
-        expect(page.get_by_role("alert").filter(has_text="out of range: allowed 0 .. 100 ")).to_be_visible(timeout=5_000)
+        expect(page.get_by_role("alert").filter(has_text="out of range: allowed 0 .. 100 ")).to_be_visible()
         assert speed.input_value() == "5000"
         check_layout(page, tmp_path, "scu")
         page.get_by_role("button", name="Release control").click()
@@ -157,7 +157,7 @@ def test_scu_and_mo64_entries_and_layout(app_url, chromium, tmp_path):
         t_open = page.get_by_test_id("entry-t_open")
         t_open.fill("700")
         page.get_by_test_id("write-t_open").click()
-        expect(page.get_by_role("alert").filter(has_text="out of range: allowed 0 .. 655 s")).to_be_visible(timeout=5_000)
+        expect(page.get_by_role("alert").filter(has_text="out of range: allowed 0 .. 655 s")).to_be_visible()
         assert t_open.input_value() == "700"
         assert page.locator(".q-dialog").count() == 0  # no EEPROM question: nothing sent
         check_layout(page, tmp_path, "mo64")

@@ -63,7 +63,7 @@ def test_tiles_equal_named_on_one_line_and_plant_fits(app, chromium, tmp_path: P
         page.goto(url + "/plant")
         offline = page.locator('[data-plant-tile="door-22"]')
         offline.locator('[data-plant-state="offline"]').wait_for(timeout=15_000)
-        page.locator('[data-plant-tile="gate-1"] .bar-label').get_by_text("% out", exact=False).wait_for(timeout=10_000)
+        page.locator('[data-plant-tile="gate-1"] .bar-label').get_by_text("% out", exact=False).wait_for()
         page.screenshot(path=str(tmp_path / f"plant-{width}.png"))
         tiles = _tile_boxes(page, "[data-plant-tile]")
         with urllib.request.urlopen(url + "/api/devices", timeout=5) as response:
@@ -77,13 +77,13 @@ def test_tiles_equal_named_on_one_line_and_plant_fits(app, chromium, tmp_path: P
             assert set(below) <= {"frame-lock", "door-22"}, f"demo tiles below the screen at 1024x768: {below}"
         more = page.locator("[data-plant-more]")
         if below:  # the layout says how to page
-            more.get_by_text(f"{len(below)} more below: scroll down").wait_for(timeout=5_000)
+            more.get_by_text(f"{len(below)} more below: scroll down").wait_for()
         else:
             assert not more.is_visible()
         _plant_view_reads_at_arms_length(page, width, height)
 
         page.goto(url + "/")
-        page.locator('[data-device="gate-1"] [data-tile-counters]').get_by_text("frames heard", exact=False).wait_for(timeout=10_000)
+        page.locator('[data-device="gate-1"] [data-tile-counters]').get_by_text("frames heard", exact=False).wait_for()
         page.screenshot(path=str(tmp_path / f"overview-{width}.png"), full_page=True)
         tiles = _tile_boxes(page, "[data-device]")
         _grid_widths_equal(tiles)
@@ -97,7 +97,7 @@ def test_tiles_equal_named_on_one_line_and_plant_fits(app, chromium, tmp_path: P
         # (open in a new tab), and the tiles use the width instead of one short row per bus
         with urllib.request.urlopen(url + "/api/devices", timeout=5) as response:
             names = {d["name"] for d in json.load(response)}
-        page.locator('[data-glance="door-22"]').get_by_text("offline").wait_for(timeout=10_000)
+        page.locator('[data-glance="door-22"]').get_by_text("offline").wait_for()
         rows = page.evaluate("""() => [...document.querySelectorAll('[data-glance]')].map(r => ({
                                    name: r.getAttribute('data-glance'), bottom: r.getBoundingClientRect().bottom}))""")
         assert {r["name"] for r in rows} == names
@@ -112,7 +112,7 @@ def test_tiles_equal_named_on_one_line_and_plant_fits(app, chromium, tmp_path: P
         # one wording for an Electrak network nobody controls, on both pages
         assert "idle (no controller)" in page.locator('[data-device="lift"]').inner_text()
         page.goto(url + "/plant")
-        page.locator('[data-plant-tile="lift"]').get_by_text("idle (no controller)").wait_for(timeout=5_000)
+        page.locator('[data-plant-tile="lift"]').get_by_text("idle (no controller)").wait_for()
     finally:
         page.close()
 
@@ -120,7 +120,7 @@ def test_tiles_equal_named_on_one_line_and_plant_fits(app, chromium, tmp_path: P
 def _plant_view_reads_at_arms_length(page, width: int, height: int) -> None:
     """Issue 32.10: offline stands out (colour and words, the tile not faded), no text is cut, the store's
     words instead of raw codes, each value once, large values on a tablet."""
-    page.locator('[data-plant-tile="lift-1"]').get_by_text("supply:", exact=False).wait_for(timeout=10_000)
+    page.locator('[data-plant-tile="lift-1"]').get_by_text("supply:", exact=False).wait_for()
     offline = page.locator('[data-plant-tile="door-22"] [data-plant-state]')
     assert offline.get_attribute("data-plant-state") == "offline"
     assert "OFFLINE" in offline.inner_text() and "never heard" in offline.inner_text()
@@ -174,14 +174,14 @@ def test_a_status_frame_reaches_the_plant_view_and_tiles_are_not_rebuilt(app, ch
 
             page.goto(url + "/plant")
             send(40)
-            tile.get_by_text("bolt 35 % out", exact=True).wait_for(timeout=10_000)
+            tile.get_by_text("bolt 35 % out", exact=True).wait_for()
             # mark the tile's line elements: updated in place, they keep the mark
             page.evaluate("""() => document.querySelectorAll('[data-plant-tile="frame-lock"] .q-card__section, '
                               + '[data-plant-tile="frame-lock"] div').forEach(e => e.__kept = true)""")
             for value, percent in ((77, 67), (91, 79), (12, 10)):
                 sent = time.monotonic()
                 send(value)
-                tile.get_by_text(f"bolt {percent} % out", exact=True).wait_for(timeout=5_000)
+                tile.get_by_text(f"bolt {percent} % out", exact=True).wait_for()
                 assert time.monotonic() - sent < 1.0, f"bolt {value} shown after {time.monotonic() - sent:.2f} s"
             rebuilt = page.evaluate("""() => [...document.querySelectorAll('[data-plant-tile="frame-lock"] div')]
                                           .filter(e => !e.__kept).length""")
@@ -189,12 +189,12 @@ def test_a_status_frame_reaches_the_plant_view_and_tiles_are_not_rebuilt(app, ch
             # a fault stands out in colour and words (issue 32.10): the hall sensors overdriven
             bus.send(can.Message(arbitration_id=HEARD_ID, is_extended_id=True,
                                  data=codec.encode_status(codec.StatusFrame(0x0108, 115, 20, 4))))
-            tile.get_by_text("hall sensors overdriven (magnet)", exact=False).wait_for(timeout=5_000)
+            tile.get_by_text("hall sensors overdriven (magnet)", exact=False).wait_for()
             band = tile.locator("[data-plant-state]")
             assert band.get_attribute("data-plant-state") == "fault" and "FAULT" in band.inner_text()
             assert page.evaluate("""() => getComputedStyle(document.querySelector(
                 '[data-plant-tile="frame-lock"] [data-plant-state]')).backgroundColor""") == "rgb(176, 0, 18)"
             send(12)
-            tile.locator('[data-plant-state="good"]').wait_for(timeout=5_000)
+            tile.locator('[data-plant-state="good"]').wait_for()
     finally:
         page.close()

@@ -45,7 +45,7 @@ def test_project_card_and_editor_in_the_browser(tmp_path: Path, chromium):
             # the device page: the one differing entry, applied through the gate
             page.goto(url + "/device/door-1")
             card = page.get_by_test_id("project-card")
-            expect(card.get_by_test_id("project-summary")).to_contain_text("1 of 1 project entry differs", timeout=10000)
+            expect(card.get_by_test_id("project-summary")).to_contain_text("1 of 1 project entry differs")
             row = card.locator("tr", has_text="LockRequestDelay")
             expect(row).to_contain_text("350 ms")
             expect(row).to_contain_text("200 ms")
@@ -54,7 +54,7 @@ def test_project_card_and_editor_in_the_browser(tmp_path: Path, chromium):
             click_until(card.locator('[data-project-apply="holding:3000"]'), dialog)
             expect(dialog).to_contain_text("Write LockRequestDelay = 350 ms to door-1?")
             dialog.get_by_role("button", name="Write", exact=True).click()
-            expect(card.get_by_test_id("project-summary")).to_contain_text("device and project agree", timeout=10000)
+            expect(card.get_by_test_id("project-summary")).to_contain_text("device and project agree")
             with urllib.request.urlopen(f"{url}/api/devices/door-1", timeout=5) as response:
                 assert json.load(response)["values"]["LockRequestDelay"]["value"] == 350
 

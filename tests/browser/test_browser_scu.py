@@ -54,12 +54,12 @@ def test_move_actuator_1_to_a_remote_position_and_stop(tmp_path, chromium):
     with scu_page(chromium, tmp_path) as (_url, page):
         start = counts(page)
         page.get_by_test_id("take-control").click()
-        expect(page.get_by_text("you hold control")).to_be_visible(timeout=10_000)
+        expect(page.get_by_text("you hold control")).to_be_visible()
         target = page.get_by_test_id("remote-pos-A1")
         target.scroll_into_view_if_needed()
         target.fill("120")  # mm: 1200 counts at 10 counts per mm
         page.get_by_test_id("set-pos-A1").click()
-        expect(page.get_by_text("remote position written and read back")).to_be_visible(timeout=10_000)
+        expect(page.get_by_text("remote position written and read back")).to_be_visible()
         page.get_by_test_id("go").click()
         page.get_by_role("button", name="The area is clear: Go").click()  # Go asks first (issue 25.4)
         # the position rises
@@ -69,12 +69,12 @@ def test_move_actuator_1_to_a_remote_position_and_stop(tmp_path, chromium):
             raise AssertionError(f"A1 did not rise from {start} counts: it shows {counts(page)}; events: "
                                  f"{page.get_by_test_id('events').inner_text()[:1500]}") from None
         page.get_by_test_id("stop").click()
-        expect(page.get_by_text("RS pending: none")).to_be_visible(timeout=5_000)
+        expect(page.get_by_text("RS pending: none")).to_be_visible()
         # standing still: the shown position stops changing (two equal readings 1.5 s apart, longer than the page refresh)
         page.wait_for_function(
             f"""() => new Promise(done => {{ const a = ({COUNTS_JS})();
                     setTimeout(() => done(a !== null && ({COUNTS_JS})() === a), 1500); }})""",
-            timeout=8_000, polling=100,
+            polling=100,
         )
         stopped = counts(page)
         assert stopped < 1200, f"actuator 1 reached its target {stopped} counts: Stop (RS) did nothing"
@@ -82,9 +82,9 @@ def test_move_actuator_1_to_a_remote_position_and_stop(tmp_path, chromium):
         inside_viewport(page, page.get_by_test_id("pos-A1"))
         page.screenshot(path=str(tmp_path / "scu-moved.png"))
         try:
-            expect(page.get_by_text("you hold control")).to_be_visible(timeout=5_000)
+            expect(page.get_by_text("you hold control")).to_be_visible()
         except AssertionError:
             raise AssertionError("control lost after the stop; events: "
                                  f"{page.get_by_test_id('events').inner_text()[:1500]}") from None
         page.get_by_role("button", name="Release control").click()
-        expect(page.get_by_text("nobody holds control")).to_be_visible(timeout=10_000)
+        expect(page.get_by_text("nobody holds control")).to_be_visible()

@@ -17,7 +17,7 @@ def test_an_emergency_stop_is_red_on_the_page_and_the_tile(tmp_path, chromium):
         banner = page.get_by_test_id("estop-banner")
         expect(banner).to_be_hidden()
         page.get_by_test_id("emergency-stop").click()  # no control needed, no question
-        expect(banner).to_be_visible(timeout=5_000)
+        expect(banner).to_be_visible()
         expect(banner).to_contain_text("EMERGENCY STOP")
         expect(banner).to_contain_text("confirmed by the unit")
         expect(banner).to_contain_text("pressed by local")  # the account (on loopback: "local"), not a page
@@ -25,5 +25,5 @@ def test_an_emergency_stop_is_red_on_the_page_and_the_tile(tmp_path, chromium):
         page.set_viewport_size({"width": 768, "height": 1024})
         page.screenshot(path=str(tmp_path / "scu-estop-768.png"))
         page.goto(f"{url}/")
-        expect(page.get_by_text("EMERGENCY STOP (F20)").first).to_be_visible(timeout=10_000)
+        expect(page.get_by_text("EMERGENCY STOP (F20)").first).to_be_visible()
         page.screenshot(path=str(tmp_path / "overview-estop-768.png"))

@@ -34,8 +34,8 @@ def test_view_page_shows_site_tiles_without_controls(tmp_path):
                     for width, height in ((1440, 900), (1024, 768)):
                         page = browser.new_page(viewport={"width": width, "height": height})
                         page.goto(view)
-                        page.wait_for_selector('[data-site-tile="hall-3/door-1"]', timeout=10_000)
-                        page.wait_for_selector('[data-instance="hall-3/cab-a"]', timeout=10_000)
+                        page.wait_for_selector('[data-site-tile="hall-3/door-1"]')
+                        page.wait_for_selector('[data-instance="hall-3/cab-a"]')
                         assert page.locator("text=Site hall-3").count() == 1
                         assert page.locator("[data-site-tile]").count() == 11
                         assert page.locator("button, input, textarea, select").count() == 0  # read-only by construction
