@@ -32,6 +32,7 @@ from app import cli_lang
 from app.checkout import StepFailed, checkout_module
 from app.cli_lang import _
 from app.i18n import N_
+from app.message import Message, said
 from app.record_store import RecordError
 from devices.errors import CommissionError
 
@@ -39,6 +40,11 @@ SIGNER_ROLE = "commissioning engineer"
 
 
 # -- shared -------------------------------------------------------------------------------------
+def _said(text: object) -> str:
+    """A refusal, a finding or an error (a :class:`Message`, or one an error carries) in the command line's language."""
+    return said(text, cli_lang.lang())
+
+
 def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plant", type=Path, default=None, help=_("plant file (default: the built-in demo plant)"))
     parser.add_argument("--no-sim", action="store_true", help=_("do not start simulated devices"))
@@ -123,10 +129,10 @@ async def login_account(runtime, account: str, password: str, *, out=print) -> s
     user, words = await check_login(throttle=runtime.login_throttle, users=runtime.users, audit=runtime.audit, typed=account,
                                     secret=password, address="command line", via="cli")
     if user is None:
-        out(_("commission: {words} for account {account}: nothing was signed or approved").format(words=words, account=repr(account)))
+        out(_("commission: {words} for account {account}: nothing was signed or approved").format(words=_said(words), account=repr(account)))
         return None
     if user.role != "engineer":
-        out(_("commission: {account} has the {role} role: only an engineer account signs or approves").format(account=account, role=user.role))
+        out(_("commission: {account} has the {role} role: only an engineer account signs or approves").format(account=account, role=_(user.role)))
         return None
     return user.name
 
@@ -137,8 +143,8 @@ def _chosen(runtime, args) -> list[str]:
         return names
     unknown = [n for n in args.device if n not in runtime.plant.devices]
     if unknown:
-        raise SystemExit(f"commission: no device {', '.join(unknown)} in plant {runtime.plant.name} "
-                         f"(devices: {', '.join(names)})")
+        raise SystemExit(_("commission: no device {devices} in plant {plant} (devices: {known})").format(
+            devices=", ".join(unknown), plant=runtime.plant.name, known=", ".join(names)))
     return list(dict.fromkeys(args.device))
 
 
@@ -179,19 +185,19 @@ async def approve_devices(runtime, names: list[str], *, user: str, role: str, ou
         state = runtime.store.devices[name]
         reason = await nothing_to_back_up(runtime.worker.adapters[name])
         if reason:
-            out(_("{name}: skipped: {reason}").format(name=name, reason=reason))
+            out(_("{name}: skipped: {reason}").format(name=name, reason=_said(reason)))
             continue
         if state.status != "online":
-            out(_("{name}: not answering ({error}): not approved").format(name=name, error=state.last_error or _("no answer")))
+            out(_("{name}: not answering ({error}): not approved").format(name=name, error=_said(state.last_error or _("no answer"))))
             failures += 1
             continue
         try:
             entry_id = await runtime.record.approve(name, user=user, role=role, account=account)
         except PermissionError as exc:
-            out(f"commission: {exc}")
+            out(f"commission: {_said(exc)}")
             return 1
         except (CommissionError, OSError) as exc:  # said, and the exit code says it
-            out(_("{name}: not approved: {error}").format(name=name, error=exc))
+            out(_("{name}: not approved: {error}").format(name=name, error=_said(exc)))
             failures += 1
             continue
         count = len(runtime.record.approved.get(name, {}))
@@ -268,17 +274,18 @@ def _settings(specs: list[str], device: str, module) -> dict[str, Any]:
         name, _sep, rest = spec.partition(":")
         key, eq, value = rest.partition("=")
         if not eq or not key:
-            raise SystemExit(f"commission: --set {spec!r}: expected DEVICE:KEY=VALUE")
+            raise SystemExit(_("commission: --set {spec}: expected DEVICE:KEY=VALUE").format(spec=repr(spec)))
         if name != device:
             continue
         if key not in defaults:
-            raise SystemExit(f"commission: --set {spec!r}: the {device} checkout has no setting {key!r} "
-                             f"(settings: {', '.join(defaults)})")
+            raise SystemExit(_("commission: --set {spec}: the {device} checkout has no setting {key} (settings: {known})").format(
+                spec=repr(spec), device=device, key=repr(key), known=", ".join(defaults)))
         kind = type(defaults[key])
         try:
             settings[key] = (value.lower() in ("1", "true", "yes")) if kind is bool else kind(value)
         except ValueError:
-            raise SystemExit(f"commission: --set {spec!r}: {value!r} is no {kind.__name__}") from None
+            raise SystemExit(_("commission: --set {spec}: {value} is no {kind}").format(spec=repr(spec), value=repr(value),
+                                                                                         kind=kind.__name__)) from None
     return settings
 
 
@@ -288,7 +295,8 @@ async def sim_action(runtime, spec: str, *, user: str, role: str) -> str:
     action, _sep, arg_text = rest.partition(":")
     controls = runtime.sim_controls(device) if device in runtime.store.devices else None
     if controls is None:
-        raise ValueError(f"--sim-action {spec!r}: {device!r} is no simulated device of this plant")
+        raise ValueError(Message(N_("--sim-action {spec}: {device} is no simulated device of this plant"), spec=repr(spec),
+                                 device=repr(device)))
     args: dict[str, Any] = {}
     for item in filter(None, (a.strip() for a in arg_text.split(","))):
         key, _sep, value = item.partition("=")
@@ -343,7 +351,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
         try:
             out(await sim_action(runtime, spec, user=user, role=role))
         except (CommissionError, LookupError, ValueError) as exc:  # a refused action, a spec naming none
-            out(f"commission: {exc}")
+            out(f"commission: {_said(exc)}")
             return 2
         await asyncio.sleep(0.5)  # the next poll carries the fault
     results: list[tuple[str, str, str, float | None]] = []
@@ -357,7 +365,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
         if state.status != "online":
             reason = f"not answering ({state.last_error or 'no answer'})"  # recorded as written
             out(_("{name}: {title}: not run: {reason}").format(name=name, title=module.TITLE, reason=_("not answering ({error})").format(
-                error=state.last_error or _("no answer"))))
+                error=_said(state.last_error or _("no answer")))))
             results.append((name, "not run", reason, None))
             continue
         options: dict[str, Any] = {}
@@ -374,7 +382,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
             run = runtime.record.new_run(name, user=user, role=role, ask=ask, settings=_settings(list(settings), name, module),
                                          **options)
         except (CommissionError, LookupError, ValueError) as exc:  # running already, settings its steps refuse
-            out(f"{name}: {exc}")
+            out(f"{name}: {_said(exc)}")
             results.append((name, "not run", str(exc), None))
             continue
         out(_("{name} ({type}): {title}, {n} steps").format(name=name, type=state.type, title=module.TITLE, n=len(run.results)))
@@ -391,7 +399,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
         try:
             result = await run.run()
         except PermissionError as exc:
-            out(f"commission: {exc}")
+            out(f"commission: {_said(exc)}")
             return 1
         line = _("{name}: {status} in {duration} s").format(name=name, status=_(result["status"]), duration=result["duration_s"])
         if result["reason"]:
@@ -452,7 +460,7 @@ async def sign_record(runtime, *, user: str, role: str, name: str, comment: str,
         out(_("commission: a sign-off needs a name"))
         return 2
     if role != "engineer":  # the page disables the button; the record service refuses as well
-        out(_("commission: {user} has the {role} role and may not add to the commissioning record").format(user=user, role=role or _("no")))
+        out(_("commission: {user} has the {role} role and may not add to the commissioning record").format(user=user, role=_(role) if role else _("no")))
         return 1
     if not account:
         out(_("commission: not signed: a sign-off needs a named account: give it with --account NAME (create one with "
@@ -472,10 +480,10 @@ async def sign_record(runtime, *, user: str, role: str, name: str, comment: str,
         entry_id = await runtime.record.sign(device or "", user=user, role=role, name=name.strip(), signer_role=signer_role,
                                              comment=comment, content=content, account=account)
     except PermissionError as exc:
-        out(f"commission: {exc}")
+        out(f"commission: {_said(exc)}")
         return 1
     except RecordError as exc:
-        out(_("commission: not signed: {error}").format(error=exc))
+        out(_("commission: not signed: {error}").format(error=_said(exc)))
         return 1
     entry = await runtime.record.get(entry_id)
     what = _("device {name}").format(name=device) if device else _("plant {name}").format(name=runtime.plant.name)
