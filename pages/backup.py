@@ -126,7 +126,7 @@ class BackupCard:
                 self.made.append(await backup.backup_device(self.runtime, name, self.directory, step,
                                                             user=user, role=role))
             except ACTION_ERRORS as exc:  # one device's refusal must not stop the others
-                failures.append(f"{name}: {exc}")
+                failures.append(f"{name}: {said(exc, self.lang)}")
             self.progress.set_value((n + 1) / len(chosen))
         self.start.enable()
         self.status.set_text(_("{n} backup file(s) written").format(n=len(self.made))

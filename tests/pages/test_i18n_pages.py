@@ -750,3 +750,22 @@ async def test_a_restore_in_german_says_its_warnings_and_summary_in_german(tmp_p
         assert english_but(user, descriptions_of(runtime, "door-1")) == []
         rows = runtime.audit.query(device="door-1")
         assert any(r.action == "restore" and r.result.startswith("1 written, ") for r in rows), rows
+
+
+async def test_the_gates_refusals_in_the_command_clients_notifications_in_german(tmp_path):
+    """What the gate refuses reaches a page as the command client's notification (pages/command_client.py): the parameter
+    model's refusal of a write and a command the device type does not declare, in the page's language."""
+    from devices.commands import WRITE_PARAMETER
+    from devices.hdlock.params import PARAMS
+    from pages.command_client import run_command
+
+    low, high = PARAMS.by_name["LockRequestDelay"].limits()
+    async with german_locks(tmp_path) as (runtime, user):
+        await user.open("/device/door-1")
+        await user.should_see("HD-Lock door-1", retries=50)
+        with user.client:
+            assert await run_command("door-1", WRITE_PARAMETER, args={"param": "LockRequestDelay", "value": 70000}) == (False, None)
+            assert await run_command("door-1", "fly") == (False, None)
+        await user.should_see(f"write parameter: LockRequestDelay: 70000 liegt außerhalb von {low} .. {high} ms", retries=20)
+        await user.should_see("fly: 'fly' ist kein Befehl von door-1", retries=20)
+        assert not [m for m in user.notify.messages if "is outside" in m or "is not a command" in m], user.notify.messages
