@@ -218,6 +218,9 @@ def run_approve(args) -> int:
 
 
 # -- checkout -----------------------------------------------------------------------------------
+TOGGLE = "toggle "  # a twin's action that toggles an input ("toggle E1", "toggle door")
+
+
 def _answerer(mode: str | None, user: str, out, runtime=None, device: str = ""):
     """The ``ask`` of a CLI run: answered yes (recorded as the CLI user's answer), asked on stdin, or none.
 
@@ -231,7 +234,7 @@ def _answerer(mode: str | None, user: str, out, runtime=None, device: str = ""):
             if controls is not None and len(words) > 1 and words[0] == "Toggle":
                 action = f"toggle {words[1]}"
                 if any(a.name == action for a in controls.actions):
-                    out("      " + await sim_action(runtime, f"{device}:{action}", user=user, role="engineer"))
+                    out("      " + _said(await sim_action(runtime, f"{device}:{action}", user=user, role="engineer")))
             return True
         return yes
     if mode == "ask":
@@ -289,8 +292,9 @@ def _settings(specs: list[str], device: str, module) -> dict[str, Any]:
     return settings
 
 
-async def sim_action(runtime, spec: str, *, user: str, role: str) -> str:
-    """Run ``DEVICE:ACTION[:K=V,...]`` on a simulated twin through the worker's gate (audited as the page's sim card)."""
+async def sim_action(runtime, spec: str, *, user: str, role: str) -> Message:
+    """Run ``DEVICE:ACTION[:K=V,...]`` on a simulated twin through the worker's gate (audited as the page's sim card);
+    what was done, as the audit row says it (a toggle of an input, a checkout's request to act, in the reader's words)."""
     device, _sep, rest = spec.partition(":")
     action, _sep, arg_text = rest.partition(":")
     controls = runtime.sim_controls(device) if device in runtime.store.devices else None
@@ -310,7 +314,9 @@ async def sim_action(runtime, spec: str, *, user: str, role: str) -> str:
         return ""
 
     await runtime.worker.gate.run(act, device=device, role=role, user=user, describe=f"simulation: {describe}", kind="system")
-    return f"{device}: simulation: {describe}"
+    if describe == action and action.startswith(TOGGLE):  # "toggle E1": what a checkout's "Toggle E1 now ..." asks for
+        return Message(N_("{device}: simulation: toggle {input}"), device=device, input=action.removeprefix(TOGGLE))
+    return Message(N_("{device}: simulation: {action}"), device=device, action=describe)
 
 
 def real_without_person(real: list[str]) -> str:
@@ -349,7 +355,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
         return 2
     for spec in sim_actions:
         try:
-            out(await sim_action(runtime, spec, user=user, role=role))
+            out(_said(await sim_action(runtime, spec, user=user, role=role)))
         except (CommissionError, LookupError, ValueError) as exc:  # a refused action, a spec naming none
             out(f"commission: {_said(exc)}")
             return 2

@@ -61,10 +61,12 @@ def _files(directory: Path, lang: Lang | None = None) -> list[dict]:
 
 
 def _identity_words(identity: object, lang: Lang | None = None) -> str:
-    """A backup's device identity as words (``serial 660020, FirmwareVersion 57``), not as JSON."""
+    """A backup's device identity as words (``serial 660020, FirmwareVersion 57``), not as JSON; its keys as the
+    catalogs label them in ``lang`` (app/replace.py, ``IDENTITY_KEYS``)."""
+    lang = english(lang)
     if not isinstance(identity, dict) or not identity:
-        return english(lang).gettext("not recorded")
-    return ", ".join(f"{key} {value}" for key, value in identity.items() if value not in (None, ""))
+        return lang.gettext("not recorded")
+    return ", ".join(f"{lang.gettext(key)} {value}" for key, value in identity.items() if value not in (None, ""))
 
 
 class BackupCard:
