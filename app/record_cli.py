@@ -32,7 +32,7 @@ from app import cli_lang
 from app.checkout import StepFailed, checkout_module
 from app.cli_lang import _
 from app.i18n import N_
-from app.message import Message, said
+from app.message import Message, message_of, said
 from app.record_store import RecordError
 from devices.errors import CommissionError
 
@@ -366,12 +366,11 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
         module = checkout_module(state.type)
         if module is None:
             out(_("{name}: the {type} type declares no checkout").format(name=name, type=state.type))
-            results.append((name, "none", "no checkout declared", None))
+            results.append((name, "none", Message(N_("no checkout declared")), None))
             continue
         if state.status != "online":
-            reason = f"not answering ({state.last_error or 'no answer'})"  # recorded as written
-            out(_("{name}: {title}: not run: {reason}").format(name=name, title=module.TITLE, reason=_("not answering ({error})").format(
-                error=_said(state.last_error or _("no answer")))))
+            reason = Message(N_("not answering ({error})"), error=state.last_error or Message(N_("no answer")))
+            out(_("{name}: {title}: not run: {reason}").format(name=name, title=module.TITLE, reason=_said(reason)))
             results.append((name, "not run", reason, None))
             continue
         options: dict[str, Any] = {}
@@ -389,7 +388,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
                                          **options)
         except (CommissionError, LookupError, ValueError) as exc:  # running already, settings its steps refuse
             out(f"{name}: {_said(exc)}")
-            results.append((name, "not run", str(exc), None))
+            results.append((name, "not run", message_of(exc), None))
             continue
         out(_("{name} ({type}): {title}, {n} steps").format(name=name, type=state.type, title=module.TITLE, n=len(run.results)))
         shown: dict[int, str] = {}
@@ -416,7 +415,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
     out(_("{passed} of {n} checkouts passed").format(passed=passed, n=len(results)))
     for n, s, r, _d in results:
         if s != "passed":
-            out(f"  {n}: {_(s)}" + (f": {r}" if r else ""))
+            out(f"  {n}: {_(s)}" + (f": {_said(r)}" if r else ""))  # a run's reason as the record holds it
     return 0 if results and passed == len(results) else 1
 
 

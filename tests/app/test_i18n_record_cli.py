@@ -96,6 +96,7 @@ async def test_the_roles_a_running_checkout_and_a_sign_off_without_an_engineer_a
             answered.set()
             await asyncio.wait_for(task, 30)
         assert "door-2: door-2: eine Funktionsprüfung läuft bereits" in said, said
+        assert said[-1] == "  door-2: nicht gelaufen: door-2: eine Funktionsprüfung läuft bereits", said  # the summary
 
         runtime.users.add("anna", "engineer", "anna-password")
         assert await sign_record(runtime, user="cli:anna", role="engineer", name="Anna", comment="", out=said.append,
