@@ -12,6 +12,7 @@ from __future__ import annotations
 import secrets
 import time
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from app.i18n import N_
@@ -132,16 +133,18 @@ class LoginThrottle:
 
     After :data:`FREE_FAILURES` failures a key must wait 2, 4, 8 ... up to
     :data:`MAX_DELAY_S` seconds after its last failure before its next attempt is checked.
-    ``rows`` bounds the audit rows the refusals write.
+    ``rows`` bounds the audit rows the refusals write. ``clock`` gives the seconds the delays are counted in
+    (monotonic: a clock set back never frees an account early).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self.clock = clock
         self._failures: OrderedDict[str, tuple[int, float]] = OrderedDict()
         self.rows = RefusalRows()
 
     def wait_s(self, *keys: str, now: float | None = None) -> float:
         """Seconds until an attempt for these keys will be checked (0: now)."""
-        now = time.time() if now is None else now
+        now = self.clock() if now is None else now
         wait = 0.0
         for key in keys:
             count, last = self._failures.get(key, (0, 0.0))
@@ -151,7 +154,7 @@ class LoginThrottle:
         return max(0.0, wait)
 
     def failed(self, *keys: str, now: float | None = None) -> int:
-        now = time.time() if now is None else now
+        now = self.clock() if now is None else now
         worst = 0
         for key in keys:
             count = self._failures.pop(key, (0, 0.0))[0] + 1

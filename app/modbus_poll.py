@@ -22,6 +22,8 @@ import struct
 import time
 from dataclasses import dataclass, field
 
+from app.i18n import N_
+from app.message import Message
 from app.modbus_line import LineError, ModbusLine
 from devices.errors import CommissionError
 from devices.params import Param
@@ -31,7 +33,8 @@ from devices.transport import LineClosed, LineCrcError, LineTimeout
 
 log = logging.getLogger(__name__)
 
-FUNCTIONS = {1: "01 Read Coils", 2: "02 Read Discrete Inputs", 3: "03 Read Holding Registers", 4: "04 Read Input Registers"}
+FUNCTION_NAMES = {1: N_("Read Coils"), 2: N_("Read Discrete Inputs"), 3: N_("Read Holding Registers"), 4: N_("Read Input Registers")}
+FUNCTIONS = {code: f"{code:02d} {name}" for code, name in FUNCTION_NAMES.items()}
 SPACES = {3: "holding", 4: "input"}  # the register spaces of the parameter models
 MAX_REGISTERS = 125  # Modbus application protocol 6.3/6.4: 1..125 registers per read
 MAX_BITS = 2000  # 6.1/6.2: 1..2000 coils or inputs per read
@@ -72,17 +75,19 @@ class PollSpec:
 
     def check(self) -> PollSpec:
         if not UNIT_MIN <= self.unit <= UNIT_MAX:
-            raise PollError(f"unit address {self.unit} is outside {UNIT_MIN}..{UNIT_MAX}")
+            raise PollError(Message(N_("unit address {unit} is outside {low}..{high}"), unit=self.unit, low=UNIT_MIN, high=UNIT_MAX))
         if self.function not in FUNCTIONS:
-            raise PollError(f"function {self.function:02d} is not one of 01, 02, 03, 04")
+            raise PollError(Message(N_("function {function:02d} is not one of 01, 02, 03, 04"), function=self.function))
         low, limit = count_range(self.function)
         if not low <= self.count <= limit:
-            raise PollError(f"count {self.count} is outside {low}..{limit} for function {self.function:02d} "
-                            f"({FUNCTIONS[self.function][3:]})")
+            raise PollError(Message(N_("count {count} is outside {low}..{limit} for function {function:02d} ({name})"),
+                                    count=self.count, low=low, limit=limit, function=self.function,
+                                    name=Message(FUNCTION_NAMES[self.function])))
         if not 0 <= self.address <= 0xFFFF or self.address + self.count > 0x10000:
-            raise PollError(f"addresses {self.address}..{self.address + self.count - 1} do not fit 0..65535")
+            raise PollError(addresses_refused(self.address, self.count))
         if not PERIOD_MIN_S <= self.period_s <= PERIOD_MAX_S:
-            raise PollError(f"poll period {self.period_s} s is outside {PERIOD_MIN_S}..{PERIOD_MAX_S:g} s")
+            raise PollError(Message(N_("poll period {period} s is outside {low}..{high:g} s"), period=self.period_s,
+                                    low=PERIOD_MIN_S, high=PERIOD_MAX_S))
         return self
 
 
@@ -206,14 +211,14 @@ def write_verdict(plant, bus: str, unit: int, address: int, values: list[int], f
     :raises PollError: outside what Modbus allows (unit, count, addresses, 16-bit values)
     """
     if not 1 <= unit <= UNIT_MAX:
-        raise PollError(f"writes go to one unit (1..{UNIT_MAX}), not {unit}")
+        raise PollError(one_unit_refused(unit))
     if not 1 <= len(values) <= MAX_WRITE_REGISTERS:
-        raise PollError(f"1..{MAX_WRITE_REGISTERS} registers per write, not {len(values)}")
+        raise PollError(Message(N_("1..{limit} registers per write, not {n}"), limit=MAX_WRITE_REGISTERS, n=len(values)))
     if not 0 <= address <= 0xFFFF or address + len(values) > 0x10000:
-        raise PollError(f"addresses {address}..{address + len(values) - 1} do not fit 0..65535")
+        raise PollError(addresses_refused(address, len(values)))
     for v in values:
         if not -0x8000 <= v <= 0xFFFF:
-            raise PollError(f"{v} does not fit a 16-bit register (-32768..65535)")
+            raise PollError(Message(N_("{value} does not fit a 16-bit register (-32768..65535)"), value=v))
     return check_modbus(plant.devices_on(bus), ModbusMessage(unit, function, address, tuple(v & 0xFFFF for v in values)))
 
 
@@ -228,13 +233,38 @@ def check_write(plant, bus: str, unit: int, address: int, values: list[int], fun
     """
     verdict = verdict or write_verdict(plant, bus, unit, address, values, function)
     if verdict.refused:
-        raise PollError(f"unit {unit}: {verdict.refused}")
+        raise PollError(unit_refused(unit, verdict.refused))
     dev = known_device(plant, bus, unit)
     if dev is None and not verdict.confirm:
         return ""
-    head = f"This writes {verdict.name or f'unit {unit} holding {address}'}"
-    head += f" of {dev.name} ({dev.type})" if dev is not None and dev.name not in verdict.name else ""
-    return f"{head}. " + (" ".join(dict.fromkeys(verdict.confirm)) + " " if verdict.confirm else "") + "Write?"
+    what = verdict.name or Message(N_("unit {unit} holding {address}"), unit=unit, address=address)
+    if dev is not None and dev.name not in verdict.name:
+        head = Message(N_("This writes {what} of {device} ({type})"), what=what, device=dev.name, type=dev.type)
+    else:
+        head = Message(N_("This writes {what}"), what=what)
+    return write_question(head, verdict)
+
+
+def write_question(head: Message, verdict: Verdict) -> Message:
+    """``head`` (what a write writes), the risks the send policy names (each once), and the question."""
+    if verdict.confirm:
+        return Message(N_("{head}. {risks} Write?"), head=head, risks=verdict.question)
+    return Message(N_("{head}. Write?"), head=head)
+
+
+def unit_refused(unit: int, refusal: str) -> Message:
+    """The send policy's ``refusal`` of a write to ``unit``."""
+    return Message(N_("unit {unit}: {refusal}"), unit=unit, refusal=refusal)
+
+
+def one_unit_refused(unit: int) -> Message:
+    """A write to ``unit`` that is no single unit (0 is the broadcast, which answers nothing)."""
+    return Message(N_("writes go to one unit (1..{high}), not {unit}"), high=UNIT_MAX, unit=unit)
+
+
+def addresses_refused(address: int, count: int) -> Message:
+    """``count`` registers from ``address`` on that run past the last address."""
+    return Message(N_("addresses {first}..{last} do not fit 0..65535"), first=address, last=address + count - 1)
 
 
 # -- the poll ----------------------------------------------------------------------------------------
@@ -410,22 +440,23 @@ class ModbusPoll:
                     + (f"+{len(states)}" if fc == 15 else "") + f" = {[int(b) for b in states]} (function {fc:02d})")
         try:
             if not 1 <= unit <= UNIT_MAX:
-                raise PollError(f"writes go to one unit (1..{UNIT_MAX}), not {unit}")
+                raise PollError(one_unit_refused(unit))
             if not 1 <= len(states) <= MAX_WRITE_COILS:
-                raise PollError(f"1..{MAX_WRITE_COILS} coils per write, not {len(states)}")
+                raise PollError(Message(N_("1..{limit} coils per write, not {n}"), limit=MAX_WRITE_COILS, n=len(states)))
             if not 0 <= address <= ADDRESS_MAX or address + len(states) > ADDRESS_MAX + 1:
-                raise PollError(f"coils {address}..{address + len(states) - 1} do not fit 0..{ADDRESS_MAX}")
+                raise PollError(Message(N_("coils {first}..{last} do not fit 0..{high}"), first=address,
+                                        last=address + len(states) - 1, high=ADDRESS_MAX))
             verdict = check_modbus(self.worker.plant.devices_on(self.bus),
                                    ModbusMessage(unit, fc, address, tuple(int(b) for b in states)))
             if verdict.refused:
-                raise PollError(f"unit {unit}: {verdict.refused}")
+                raise PollError(unit_refused(unit, verdict.refused))
         except PollError as exc:
             await self.worker.gate.refused(device=self.bus, user=user, role=role, describe=describe, reason=str(exc),
                                            parameter=f"unit {unit} coil {address}", new=[int(b) for b in states])
             raise
         if verdict.confirm and not confirmed:
-            raise NeedsConfirmation(f"This writes {verdict.name or f'unit {unit} coil {address}'}. "
-                                    + " ".join(dict.fromkeys(verdict.confirm)) + " Write?")
+            what = verdict.name or Message(N_("unit {unit} coil {address}"), unit=unit, address=address)
+            raise NeedsConfirmation(write_question(Message(N_("This writes {what}"), what=what), verdict))
         if fc == 5:
             words, call = f"write coil {address}={int(states[0])}", lambda c: c.write_coil(address, states[0], device_id=unit)
         else:
@@ -454,7 +485,7 @@ class PollWindows:
         :raises PollError: :data:`MAX_WINDOWS` are open already
         """
         if len(self.windows) >= MAX_WINDOWS:
-            raise PollError(f"at most {MAX_WINDOWS} poll windows on one page: each adds its requests to the line")
+            raise PollError(Message(N_("at most {n} poll windows on one page: each adds its requests to the line"), n=MAX_WINDOWS))
         window = ModbusPoll(self.worker, self.bus, max((w.number for w in self.windows), default=0) + 1)
         self.windows.append(window)
         return window

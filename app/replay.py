@@ -35,6 +35,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from app.can_bus import FrameRecord
+from app.i18n import N_
+from app.message import Message, joined
 from devices.adapter import SessionHolder
 from devices.errors import CommissionError
 from devices.sendpolicy import CanMessage, check_send
@@ -45,6 +47,13 @@ SPEED_MIN, SPEED_MAX = 0.01, 100.0  # replay speed factors offered (x recorded s
 MAX_GAP_S = 60.0  # a recorded pause longer than this (after scaling) is shortened to it
 BURST_FRAMES = 64  # frames sent in one go when late, before the loop runs anything else
 CONTROL_CHECK_S = 0.2  # how often a running replay looks whether a device came under control
+# a replay's summary by its state (ready, running, done, stopped, failed)
+SUMMARIES = {"ready": N_("ready: {sent} of {total} frames sent"), "running": N_("running: {sent} of {total} frames sent"),
+             "done": N_("done: {sent} of {total} frames sent"), "stopped": N_("stopped: {sent} of {total} frames sent"),
+             "failed": N_("failed: {sent} of {total} frames sent")}
+# what sending a frame does (devices.sendpolicy.KINDS), as a replay names a frame it keeps off for a confirmation (a
+# read or a stop is never asked)
+KIND_WORDS = {"write": N_("write"), "system": N_("system"), "mains": N_("mains"), "motion": N_("motion")}
 
 
 class ReplayError(CommissionError):
@@ -54,10 +63,13 @@ class ReplayError(CommissionError):
 class NeedsConfirmation(ReplayError):
     """The replay may start once the engineer confirmed the question: how many frames go out onto which bus."""
 
-    def __init__(self, question: str, frames: int):
+    def __init__(self, question: Message, frames: int):
         super().__init__(question)
         self.question = question
         self.frames = frames
+
+
+STOPPED_BY_THE_ENGINEER = Message(N_("stopped by the engineer"))
 
 
 def holder_name(bus: str) -> str:
@@ -74,17 +86,19 @@ def controlled_devices(worker: Any, bus: str) -> list[str]:
     return names
 
 
-def refusal(worker: Any, bus: str) -> str | None:
+def refusal(worker: Any, bus: str) -> Message | None:
     """Why a replay cannot start on ``bus`` now, else None."""
     if bus not in worker.can_buses:
-        return f"{bus} is not a CAN bus of this plant: only CAN recordings can be replayed"
+        return Message(N_("{bus} is not a CAN bus of this plant: only CAN recordings can be replayed"), bus=bus)
     controlled = controlled_devices(worker, bus)
     if controlled:
-        return (f"{', '.join(controlled)} on {bus} {'is' if len(controlled) == 1 else 'are'} under control: "
-                "release the control first (a replay would interfere with it)")
+        template = (N_("{devices} on {bus} is under control: release the control first (a replay would interfere with it)")
+                    if len(controlled) == 1 else
+                    N_("{devices} on {bus} are under control: release the control first (a replay would interfere with it)"))
+        return Message(template, devices=", ".join(controlled), bus=bus)
     running = worker.extra_holders.get(holder_name(bus))
     if isinstance(running, Replay) and running.running:
-        return f"a replay of {running.name} runs on {bus} already"
+        return Message(N_("a replay of {name} runs on {bus} already"), name=running.name, bus=bus)
     return None
 
 
@@ -95,11 +109,11 @@ class Screening:
     blocked: frozenset[int] = frozenset()  # indexes of the frames not sent
     reasons: dict[str, int] = field(default_factory=dict)  # reason -> frames
 
-    def text(self) -> str:
+    def text(self) -> str | Message:
         if not self.blocked:
             return ""
-        return (f"{len(self.blocked)} frame(s) will not be sent: "
-                + "; ".join(f"{n} x {reason}" for reason, n in sorted(self.reasons.items(), key=lambda i: -i[1])))
+        counted = [Message("{n} x {reason}", n=n, reason=reason) for reason, n in sorted(self.reasons.items(), key=lambda i: -i[1])]
+        return Message(N_("{n} frame(s) will not be sent: {reasons}"), n=len(self.blocked), reasons=joined(counted, "; "))
 
     def going_out(self, frames: Sequence[FrameRecord]) -> int:
         """How many of ``frames`` a replay sends: data frames the policy lets through."""
@@ -124,7 +138,7 @@ def device_sent(bus_devices: Sequence[Any], can_id: int, extended: bool) -> str:
     return ""
 
 
-def frame_reason(bus_devices: Sequence[Any], can_id: int, extended: bool, data: bytes) -> str:
+def frame_reason(bus_devices: Sequence[Any], can_id: int, extended: bool, data: bytes) -> str | Message:
     """Why a replay keeps this frame off the bus ("" : it goes out): the send policy's verdict, the same as
     every other path's; a frame a device sends is never replayed."""
     verdict = check_send(bus_devices, CanMessage(can_id, extended, bytes(data)))
@@ -132,10 +146,11 @@ def frame_reason(bus_devices: Sequence[Any], can_id: int, extended: bool, data: 
         return verdict.refused
     own = device_sent(bus_devices, can_id, extended)
     if own:
-        return f"sent by a device: {own} (a replay never impersonates a device)"
+        return Message(N_("sent by a device: {use} (a replay never impersonates a device)"), use=own)
     if verdict.confirm:
-        return (f"{verdict.kind}: {verdict.name or 'needs a confirmation'} (confirmed frame by frame only, never "
-                "from a file)")
+        kind = Message(KIND_WORDS[verdict.kind]) if verdict.kind in KIND_WORDS else verdict.kind
+        return Message(N_("{kind}: {name} (confirmed frame by frame only, never from a file)"), kind=kind,
+                       name=verdict.name or Message(N_("needs a confirmation")))
     return ""
 
 
@@ -179,7 +194,7 @@ class Replay:
     screening: Screening = field(default_factory=Screening)
     filtered: int = 0  # frames the send policy kept off the bus
     state: str = "ready"  # ready, running, done, stopped, failed
-    reason: str = ""
+    reason: str = ""  # why it ended (a Message where the replay words it)
     started: float = 0.0
     ended: float = 0.0
     send_times: list[float] = field(default_factory=list)  # loop time of each send, when measuring (bench)
@@ -208,15 +223,18 @@ class Replay:
         """Recorded duration at the chosen speed."""
         return (self.frames[-1].time - self.frames[0].time) / self.speed if len(self.frames) > 1 else 0.0
 
-    def summary(self) -> str:
-        text = f"{self.state}: {self.sent} of {self.total} frames sent"
+    def summary(self) -> Message:
+        """How far it got: the frames sent, skipped, kept off and refused, and why it ended."""
+        parts = [Message(SUMMARIES[self.state], sent=self.sent, total=self.total)]
         if self.skipped:
-            text += f", {self.skipped} error/remote frames skipped"
+            parts.append(Message(N_(", {n} error/remote frames skipped"), n=self.skipped))
         if self.filtered:
-            text += f", {self.filtered} kept off the bus by the device policies"
+            parts.append(Message(N_(", {n} kept off the bus by the device policies"), n=self.filtered))
         if self.failed:
-            text += f", {self.failed} refused by the bus"
-        return text + (f" ({self.reason})" if self.reason else "")
+            parts.append(Message(N_(", {n} refused by the bus"), n=self.failed))
+        if self.reason:
+            parts.append(Message(" ({reason})", reason=self.reason))
+        return joined(parts, "")
 
     # -- dead-man hooks (worker.add_holder) --------------------------------------------------------------
     def holders(self) -> set[str]:
@@ -227,7 +245,7 @@ class Replay:
             self.stop(reason)
 
     # -- control ---------------------------------------------------------------------------------------
-    def stop(self, reason: str = "stopped by the engineer") -> None:
+    def stop(self, reason: str = STOPPED_BY_THE_ENGINEER) -> None:
         """Stop at once (no frame is sent after this returns)."""
         if self.running:
             self.state = "stopped"
@@ -280,7 +298,7 @@ class Replay:
                     next_check = loop.time() + CONTROL_CHECK_S
                     controlled = controlled_devices(self.worker, self.bus)
                     if controlled:
-                        self.stop(f"{', '.join(controlled)} came under control")
+                        self.stop(Message(N_("{devices} came under control"), devices=", ".join(controlled)))
                         return
                 if rec.is_error_frame or rec.is_remote_frame:
                     self.skipped += 1
@@ -306,16 +324,18 @@ class Replay:
 
 
 def question(worker: Any, bus: str, frames: Sequence[FrameRecord], screening: Screening, *, name: str,
-             speed: float) -> str:
+             speed: float) -> Message:
     """The confirmation a replay asks: how many frames go out onto which bus, what is kept off and why."""
     going = screening.going_out(frames)
     config = worker.plant.buses.get(bus)
-    kind = "a simulated bus" if config is not None and config.simulated else "a live bus: real devices receive them"
+    kind = (Message(N_("a simulated bus")) if config is not None and config.simulated
+            else Message(N_("a live bus: real devices receive them")))
     duration = (frames[-1].time - frames[0].time) / speed if len(frames) > 1 else 0.0
-    text = (f"Replay {going} recorded frame(s) of {name} onto {bus} ({kind}) over {duration:.1f} s at {speed:g} x. "
-            "Every device on the bus acts on them as if this tool sent each one now.")
+    text = Message(N_("Replay {n} recorded frame(s) of {name} onto {bus} ({kind}) over {duration:.1f} s at {speed:g} x. "
+                      "Every device on the bus acts on them as if this tool sent each one now."),
+                   n=going, name=name, bus=bus, kind=kind, duration=duration, speed=speed)
     if screening.blocked:
-        text += f" {screening.text()}."
+        return joined([text, Message(" {kept_off}.", kept_off=screening.text())], "")
     return text
 
 
@@ -356,11 +376,13 @@ async def start_replay(
 
 def _check(worker: Any, bus: str, frames: Sequence[FrameRecord], screening: Screening, name: str, speed: float) -> None:
     if not SPEED_MIN <= speed <= SPEED_MAX:
-        raise ReplayError(f"speed {speed:g} is outside {SPEED_MIN:g}..{SPEED_MAX:g} x")
+        raise ReplayError(Message(N_("speed {speed:g} is outside {low:g}..{high:g} x"), speed=speed, low=SPEED_MIN,
+                                  high=SPEED_MAX))
     if not frames:
-        raise ReplayError(f"{name} has no frames to replay")
+        raise ReplayError(Message(N_("{name} has no frames to replay"), name=name))
     if not screening.going_out(frames):
-        raise ReplayError(f"nothing of {name} may go out onto {bus}: {screening.text() or 'no data frames'}")
+        raise ReplayError(Message(N_("nothing of {name} may go out onto {bus}: {reason}"), name=name, bus=bus,
+                                  reason=screening.text() or Message(N_("no data frames"))))
     problem = refusal(worker, bus)
     if problem:
         raise ReplayError(problem)

@@ -22,6 +22,8 @@ from pathlib import Path
 from app import recording as rec
 from app.backup import write_atomic
 from app.can_stats import CanBusState
+from app.i18n import N_
+from app.message import Message, joined, message_of
 from devices.commands import TxForm, transmit_forms
 from devices.errors import CommissionError
 from devices.sendpolicy import BusDevice, Verdict, check_can
@@ -82,10 +84,15 @@ def parse_bytes(text: str) -> bytes:
     try:
         data = bytes(int(b, 16) for b in cleaned)
     except ValueError:
-        raise TransmitError(f"'{text}' is not a list of hex bytes (e.g. 01 02 FF)") from None
+        raise TransmitError(Message(N_("'{text}' is not a list of hex bytes (e.g. 01 02 FF)"), text=text)) from None
     if len(data) > 8:
-        raise TransmitError(f"{len(data)} data bytes: a classic CAN frame carries 0..8")
+        raise TransmitError(too_many_bytes(len(data)))
     return data
+
+
+def too_many_bytes(n: int) -> Message:
+    """``n`` data bytes, more than a classic CAN frame carries."""
+    return Message(N_("{n} data bytes: a classic CAN frame carries 0..8"), n=n)
 
 
 def make_row(can_id: int, extended: bool, data: bytes, period_ms: int | None = None, label: str = "", *,
@@ -93,13 +100,15 @@ def make_row(can_id: int, extended: bool, data: bytes, period_ms: int | None = N
     """A checked row: ID range by format, DLC 0..8 matching the data, period 10 ms .. 10 s."""
     limit = EXT_ID_MAX if extended else STD_ID_MAX
     if not 0 <= can_id <= limit:
-        raise TransmitError(f"ID 0x{can_id:X} does not fit a {'29' if extended else '11'}-bit ID (0..0x{limit:X})")
+        raise TransmitError(Message(N_("ID 0x{id:X} does not fit a {bits}-bit ID (0..0x{limit:X})"), id=can_id,
+                                    bits=29 if extended else 11, limit=limit))
     if dlc is not None and dlc != len(data):
-        raise TransmitError(f"DLC {dlc} but {len(data)} data bytes")
+        raise TransmitError(Message(N_("DLC {dlc} but {n} data bytes"), dlc=dlc, n=len(data)))
     if len(data) > 8:
-        raise TransmitError(f"{len(data)} data bytes: a classic CAN frame carries 0..8")
+        raise TransmitError(too_many_bytes(len(data)))
     if period_ms is not None and not PERIOD_MIN_MS <= int(period_ms) <= PERIOD_MAX_MS:
-        raise TransmitError(f"cycle time {period_ms} ms is outside {PERIOD_MIN_MS} ms .. {PERIOD_MAX_MS // 1000} s")
+        raise TransmitError(Message(N_("cycle time {period} ms is outside {low} ms .. {high} s"), period=period_ms,
+                                    low=PERIOD_MIN_MS, high=PERIOD_MAX_MS // 1000))
     row = TxRow(can_id, extended, bytes(data), None if period_ms is None else int(period_ms), label)
     if key:
         row.key = key
@@ -142,12 +151,12 @@ OWN_CYCLIC_HEARD_S = 1.0  # a cyclic frame of this tool counts as running while 
 # within three of its cycles)
 
 
-def _cycle_text(cycle_s: float) -> str:
-    return f"{cycle_s * 1000:.0f} ms" if cycle_s < 1.0 else f"{cycle_s:.1f} s"
+def _cycle_text(cycle_s: float) -> Message:
+    return Message("{ms:.0f} ms", ms=cycle_s * 1000) if cycle_s < 1.0 else Message("{s:.1f} s", s=cycle_s)
 
 
 def overridden_by(worker, bus: str, can_id: int, extended: bool, *, now: float | None = None,
-                  own_rows: tuple[int, ...] = ()) -> str:
+                  own_rows: tuple[int, ...] = ()) -> str | Message:
     """Why a frame sent now does not last, or "": this tool itself sends the same ID cyclically (a device's
     keep-alive it serves, such as an M3IO's DigOut), and its next frame replaces what was sent. Read from what the
     bus heard this tool send (its ID table), so any device's keep-alive is found by the same rule.
@@ -173,10 +182,11 @@ def overridden_by(worker, bus: str, can_id: int, extended: bool, *, now: float |
     cycle = _cycle_text(cycle_s)
     ident = f"0x{can_id:08X} ext" if extended else f"0x{can_id:03X}"
     if owner:
-        return (f"{owner} is served by this tool, which sends {ident} itself every {cycle}{what}: its next one, "
-                f"within {cycle}, sets {owner} back to what its page shows. To change {owner}, use its page.")
-    return (f"This tool sends {ident} itself every {cycle}{what}: its next one, within {cycle}, replaces what "
-            "you send.")
+        return Message(N_("{owner} is served by this tool, which sends {ident} itself every {cycle}{what}: its next one, "
+                          "within {cycle}, sets {owner} back to what its page shows. To change {owner}, use its page."),
+                       owner=owner, ident=ident, cycle=cycle, what=what)
+    return Message(N_("This tool sends {ident} itself every {cycle}{what}: its next one, within {cycle}, replaces what "
+                      "you send."), ident=ident, cycle=cycle, what=what)
 
 
 # -- rows built from device messages ----------------------------------------------------------------
@@ -192,11 +202,11 @@ def named_row(type_name: str, device: str, options: dict, form: str, values: dic
     values its codec refuses)."""
     found = next((f for f in named_forms(type_name, options) if f.title == form), None)
     if found is None:
-        raise TransmitError(f"{device} offers no frame called {form!r}")
+        raise TransmitError(Message(N_("{device} offers no frame called {form!r}"), device=device, form=form))
     try:
         can_id, extended, data, label = found.build(device, options, values)
     except (KeyError, TypeError, ValueError) as exc:
-        raise TransmitError(f"{device} {form}: {exc}") from None
+        raise TransmitError(Message("{device} {form}: {error}", device=device, form=form, error=message_of(exc))) from None
     return make_row(can_id, extended, data, label=label)
 
 
@@ -252,7 +262,7 @@ class TransmitList:
                 rows = await asyncio.to_thread(self._read)
                 self.rows = rows[:MAX_ROWS]
         except (OSError, ValueError) as exc:  # unreadable or damaged: shown on the page
-            self.load_error = f"the saved list {self.path} could not be read: {exc}"
+            self.load_error = Message(N_("the saved list {path} could not be read: {error}"), path=self.path, error=message_of(exc))
             log.warning("%s", self.load_error)
         finally:
             self.version += 1
@@ -264,7 +274,7 @@ class TransmitList:
         doc = json.loads(self.path.read_text(encoding="utf-8"))
         entries = doc.get("rows", []) if isinstance(doc, dict) else None
         if not isinstance(entries, list):
-            raise ValueError("it holds no list of rows")
+            raise ValueError(Message(N_("it holds no list of rows")))
         rows = []
         for entry in entries:
             try:
@@ -313,7 +323,7 @@ class TransmitList:
         if confirmed is False:
             note = self.overridden(row)
             if found.confirm or note:
-                raise NeedsConfirmation(" ".join(t for t in (found.question, note) if t))
+                raise NeedsConfirmation(joined([t for t in (found.question, note) if t], " "))
         return found
 
     # -- edits (engineer only, audited) -------------------------------------------------------
@@ -321,9 +331,9 @@ class TransmitList:
         describe = f"transmit list {self.bus}: add {row.describe()}"
         await self._refuse_if_forbidden(row, user=user, role=role, describe=describe)
         if len(self.rows) >= MAX_ROWS:
-            await self.worker.gate.refused(device=self.bus, user=user, role=role, describe=describe,
-                                           reason=f"the list holds at most {MAX_ROWS} rows")
-            raise TransmitError(f"the list holds at most {MAX_ROWS} rows")
+            full = Message(N_("the list holds at most {n} rows"), n=MAX_ROWS)
+            await self.worker.gate.refused(device=self.bus, user=user, role=role, describe=describe, reason=full)
+            raise TransmitError(full)
 
         async def do() -> str:
             self.rows.append(row)
@@ -338,7 +348,7 @@ class TransmitList:
     async def remove(self, key: str, *, user: str, role: str, session: str = "") -> None:
         row = self.row(key)
         if row is None:
-            raise TransmitError("no such row")
+            raise TransmitError(Message(N_("no such row")))
         if key in self.running:
             await self.stop(key, user=user, role=role)
 
@@ -360,13 +370,14 @@ class TransmitList:
             ``confirmed`` is False"""
         row = self.row(key)
         if row is None:
-            raise TransmitError("no such row")
+            raise TransmitError(Message(N_("no such row")))
         describe = f"transmit once on {self.bus}: {row.describe()}"
         found = await self._refuse_if_forbidden(row, user=user, role=role, describe=describe, confirmed=confirmed)
 
         async def do() -> str:
             if not self._can().send(row.can_id, row.data, row.extended):
-                raise TransmitError(f"bus {self.bus} did not take the frame: {self._can().state.last_error or 'not open'}")
+                raise TransmitError(Message(N_("bus {bus} did not take the frame: {error}"), bus=self.bus,
+                                            error=self._can().state.last_error or Message(N_("not open"))))
             self.sent[key] = self.sent.get(key, 0) + 1
             self.version += 1
             return ""
@@ -381,13 +392,13 @@ class TransmitList:
         frames do not last ("" when nothing of this tool sends the same ID)."""
         row = self.row(key)
         if row is None:
-            raise TransmitError("no such row")
+            raise TransmitError(Message(N_("no such row")))
         if row.period_ms is None:
-            raise TransmitError("this row is sent once: give it a cycle time to send it cyclically")
+            raise TransmitError(Message(N_("this row is sent once: give it a cycle time to send it cyclically")))
         describe = f"transmit cyclic every {row.period_ms} ms on {self.bus}: start {row.describe()}"
         found = await self._refuse_if_forbidden(row, user=user, role=role, describe=describe, confirmed=confirmed)
         if not session:
-            raise TransmitError("a cyclic row needs a browser session to keep it alive")
+            raise TransmitError(Message(N_("a cyclic row needs a browser session to keep it alive")))
 
         def make() -> tuple[int, bytes, bool]:
             self.sent[key] = self.sent.get(key, 0) + 1

@@ -27,6 +27,8 @@ from dataclasses import dataclass, field
 from types import ModuleType
 from typing import Any
 
+from devices.message import N_, Message, joined
+
 # how much each kind of action weighs: a verdict over several findings takes the heaviest
 KINDS = ("read", "stop", "write", "system", "mains", "motion")
 _WEIGHT = {k: i for i, k in enumerate(KINDS)}
@@ -51,8 +53,8 @@ class Verdict:
 
     @property
     def question(self) -> str:
-        """The confirmation text (every risk, each once), or ""."""
-        return " ".join(dict.fromkeys(self.confirm))
+        """The confirmation text (every risk, each once, each in the reader's language), or ""."""
+        return joined(list(dict.fromkeys(self.confirm)), " ") if self.confirm else ""
 
 
 def combine(verdicts: Sequence[Verdict], default: Verdict | None = None) -> Verdict:
@@ -60,7 +62,8 @@ def combine(verdicts: Sequence[Verdict], default: Verdict | None = None) -> Verd
     found = [v for v in verdicts if v is not None]
     if not found:
         return default or Verdict()
-    refused = "; ".join(dict.fromkeys(v.refused for v in found if v.refused))
+    refusals = list(dict.fromkeys(v.refused for v in found if v.refused))
+    refused = joined(refusals, "; ") if refusals else ""
     confirm = tuple(dict.fromkeys(c for v in found for c in v.confirm))
     name = next((v.name for v in found if v.name), "")
     kind = max((v.kind for v in found), key=lambda k: _WEIGHT.get(k, _WEIGHT["write"]))
@@ -134,8 +137,8 @@ def check_can(bus_devices: Sequence[Any], can_id: int, extended: bool, data: byt
     return combine(verdicts)
 
 
-UNKNOWN_UNIT_RISK = ("unit {unit} is not a device of the plant and the device type on this line is not known: "
-                     "nothing checks what {what} does to it.")
+UNKNOWN_UNIT_RISK = N_("unit {unit} is not a device of the plant and the device type on this line is not known: "
+                       "nothing checks what {what} does to it.")
 
 
 def check_modbus(line_devices: Sequence[Any], message: ModbusMessage) -> Verdict:
@@ -148,22 +151,24 @@ def check_modbus(line_devices: Sequence[Any], message: ModbusMessage) -> Verdict
     if message.function in READ_FUNCTIONS:
         return Verdict(kind="read")
     if message.function not in WRITE_FUNCTIONS:
-        return Verdict(refused=f"function {message.function:02d} is not sent by this tool")
+        return Verdict(refused=Message(N_("function {function:02d} is not sent by this tool"), function=message.function))
     device = next((d for d in line_devices if d.options.get("address") == message.unit), None)
     types = {d.type for d in line_devices}
     type_name = device.type if device is not None else (next(iter(types)) if len(types) == 1 else "")
     policy = policy_of(type_name) if type_name else None
     check = policy.check_modbus if policy is not None else None
     if check is None:
-        what = "this write" if message.function in (6, 16) else "this coil write"
-        where = "coil" if message.function in (5, 15) else "holding"
-        return Verdict(confirm=(UNKNOWN_UNIT_RISK.format(unit=message.unit, what=what),),
-                       name=f"unit {message.unit} {where} {message.address}", kind="write")
+        what = Message(N_("this write")) if message.function in (6, 16) else Message(N_("this coil write"))
+        where = N_("unit {unit} coil {address}") if message.function in (5, 15) else N_("unit {unit} holding {address}")
+        return Verdict(confirm=(Message(UNKNOWN_UNIT_RISK, unit=message.unit, what=what),),
+                       name=Message(where, unit=message.unit, address=message.address), kind="write")
     verdict = check(message.function, message.address, list(message.values), device)
     if device is None:
-        note = f"unit {message.unit} is not in the plant file: checked as {type_name} (the type of every device on this line)"
-        verdict = Verdict(verdict.refused, (*verdict.confirm, note + ".") if not verdict.refused else (),
-                          f"unit {message.unit} {verdict.name}".strip(), verdict.kind)
+        note = Message(N_("unit {unit} is not in the plant file: checked as {type} (the type of every device on this line)."),
+                       unit=message.unit, type=type_name)
+        name = (Message(N_("unit {unit} {name}"), unit=message.unit, name=verdict.name) if verdict.name
+                else Message(N_("unit {unit}"), unit=message.unit))
+        verdict = Verdict(verdict.refused, (*verdict.confirm, note) if not verdict.refused else (), name, verdict.kind)
     return verdict
 
 

@@ -16,6 +16,7 @@ from app import i18n
 from app import modbus_poll as mp
 from app import runtime as rt
 from app.i18n import N_, Lang
+from app.message import said
 from app.modbus_line import ModbusLine
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import ACTION_ERRORS, fmt_age, frame, notify_error
@@ -115,7 +116,7 @@ class PollView:
         try:
             window = self.windows.add()
         except mp.PollError as exc:
-            notify_error(str(exc))
+            notify_error(said(exc, self.lang))
             return None
         card = WindowCard(self, window)
         with self.container:
@@ -269,7 +270,7 @@ class WindowCard:
         try:
             self.window.start(self.current_spec())
         except mp.PollError as exc:
-            notify_error(self.view.lang.gettext("window {n}: {error}").format(n=self.window.number, error=exc))
+            notify_error(self.view.lang.gettext("window {n}: {error}").format(n=self.window.number, error=said(exc, self.view.lang)))
             return
         self.wanted = True
         self.shown_polls = -1
@@ -430,10 +431,10 @@ class WriteCard:
                 await poll.write(int(self.w_unit.value or 0), address, values, user=user or "anonymous", role=role,
                                  confirmed=confirmed, multiple=bool(self.w_multi.value) or len(values) > 1)
         except mp.NeedsConfirmation as exc:
-            self._ask(str(exc))
+            self._ask(said(exc, view.lang))
             return
         except (mp.PollError, PermissionDenied, AuditUnavailable) as exc:
-            notify_error(str(exc))
+            notify_error(said(exc, view.lang))
             return
         except ACTION_ERRORS as exc:  # the line's error, shown
             notify_error(view.lang.gettext("write failed: {error}").format(error=exc))

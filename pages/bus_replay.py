@@ -18,6 +18,7 @@ from app import recording as rec
 from app import replay as rp
 from app import runtime as rt
 from app.i18n import N_, Lang
+from app.message import Message, said
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import frame, notify_error
 from pages.session import current_user
@@ -74,7 +75,7 @@ class RecordingCard:
         try:
             log = await rec.load_log(path, name, progress=report)
         except rec.RecordingError as exc:
-            file_status.set_text(str(exc))
+            file_status.set_text(said(exc, lang))
             load_bar.set_visibility(False)
             return
         self.log = log
@@ -83,14 +84,14 @@ class RecordingCard:
         file_status.set_text(_("{name}: {frames} frames, {seconds} s ({format})").format(
             name=name, frames=len(log.frames), seconds=lang.number(log.duration, 1, group=False), format=log.format)
                              + (" - " + _("only the first frames (file too long)") if log.truncated else "")
-                             + (f". {screening.text()}" if screening.blocked else ""))
+                             + (f". {said(screening.text(), lang)}" if screening.blocked else ""))
 
     async def on_choice(self) -> None:
         if self.choice.value:
             try:
                 path = await asyncio.to_thread(rec.recording_path, self.choice.value)
             except rec.RecordingError as exc:
-                self.file_status.set_text(str(exc))
+                self.file_status.set_text(said(exc, self.lang))
                 return
             await self.load(path, self.choice.value)
 
@@ -98,7 +99,7 @@ class RecordingCard:
         try:  # streamed into the one uploads folder under a safe name ('..' is refused by name)
             path = await rec.store_upload(event.file)
         except rec.RecordingError as exc:
-            self.file_status.set_text(str(exc))
+            self.file_status.set_text(said(exc, self.lang))
             return
         await self.load(path, rec.upload_name(event.file.name))
 
@@ -145,14 +146,14 @@ class ReplayCard:
                 await rp.start_replay(self.worker, self.bus, log.frames, name=log.name, speed=speed,
                                       session=self.session, user=user or "anonymous", role=role, confirmed=confirmed)
             except rp.NeedsConfirmation as question:
-                if confirmed or not await confirm(_("Replay onto {bus}?").format(bus=self.bus), question.question,
+                if confirmed or not await confirm(_("Replay onto {bus}?").format(bus=self.bus), said(question.question, self.lang),
                                                   ok=_("Send {n} frames").format(n=question.frames), lang=self.lang):
                     self.status.set_text(_("not started: the replay was not confirmed"))
                     break
                 confirmed = True
                 continue
             except (rp.ReplayError, PermissionDenied, AuditUnavailable) as exc:
-                self.status.set_text(_("refused: {error}").format(error=exc))
+                self.status.set_text(_("refused: {error}").format(error=said(exc, self.lang)))
             break
         self.refresh()
 
@@ -161,7 +162,7 @@ class ReplayCard:
         replay = rp.running_replay(worker, bus)
         user, role = current_user()
         if replay is not None and replay.running:
-            replay.stop(f"stopped by {user or 'anonymous'}")  # at once, whatever the audit log says
+            replay.stop(Message(N_("stopped by {user}"), user=user or "anonymous"))  # at once, whatever the audit log says
 
             async def stopped() -> str:
                 return f"after {replay.sent} of {replay.total} frames"
@@ -182,7 +183,7 @@ class ReplayCard:
             self.progress.set_value(0)
         else:
             self.progress.set_value(replay.fraction)
-            self.status.set_text(f"{replay.name}: {replay.summary()}")
+            self.status.set_text(f"{replay.name}: {said(replay.summary(), self.lang)}")
         running = replay is not None and replay.running
         self.start_button.set_enabled(not running)
         self.stop_button.set_enabled(running)

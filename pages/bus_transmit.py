@@ -16,6 +16,7 @@ from app import i18n
 from app import runtime as rt
 from app import transmit as tx
 from app.i18n import N_, Lang
+from app.message import said
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.frame import ACTION_ERRORS, frame, notify_error
 from pages.monitor_common import bus_tool_opened
@@ -114,10 +115,10 @@ class TransmitView:
         try:
             await action()
         except tx.NeedsConfirmation as exc:
-            notify_error(str(exc))
+            notify_error(said(exc, self.lang))
             return False
         except (tx.TransmitError, PermissionDenied, AuditUnavailable, KeyError) as exc:
-            notify_error(str(exc))
+            notify_error(said(exc, self.lang))
             return False
         except ACTION_ERRORS as exc:  # shown, never ends the page
             notify_error(f"{type(exc).__name__}: {exc}")
@@ -279,13 +280,14 @@ class RowsCard:
         try:
             note = await go(False)
         except tx.NeedsConfirmation as exc:
-            if not await confirm(_("Send {what}?").format(what=what), str(exc), ok=_("Send"), lang=lang):
+            if not await confirm(_("Send {what}?").format(what=what), said(exc, lang), ok=_("Send"), lang=lang):
                 await cancelled(bus, f"transmit on {bus}: {what}", parameter=row.id_text() if row else "")
                 return
             note = await go(True)
         # a frame this tool sends itself replaces it: said again after the send, and kept under the list
-        said = _("Started {what}; {note}") if start else _("Sent {what}; {note}")
-        self.overridden.set_text(said.format(what=what, note=note) if note else "")
+        note = said(note, lang)
+        told = _("Started {what}; {note}") if start else _("Sent {what}; {note}")
+        self.overridden.set_text(told.format(what=what, note=note) if note else "")
         self.overridden.set_visibility(bool(note))
         if note:
             warning = _("Started, but it does not last: {note}") if start else _("Sent once, but it does not last: {note}")
@@ -295,7 +297,7 @@ class RowsCard:
     def refresh(self) -> None:
         tl, t = self.view.tl, self.table
         _ = self.view.lang.gettext
-        self.error.set_text(tl.load_error or "")
+        self.error.set_text(said(tl.load_error, self.view.lang))
         self.error.set_visibility(bool(tl.load_error))
         loaded = tl.loaded.is_set()
         once, running = _("once"), " · " + _("running")

@@ -15,6 +15,7 @@ from app import recording as rec
 from app import runtime as rt
 from app.can_bus import CanBusState, FrameRecord
 from app.i18n import N_, Lang
+from app.message import said
 from app.worker import AuditUnavailable, PermissionDenied
 from pages.can_trace import SCROLL_HEIGHT, BusDecoding, FilterCard, clicked_key, frame_rows, frame_table, set_deltas, show_frame_details
 from pages.command_client import enable_unless, viewer_reason
@@ -72,7 +73,7 @@ class RecordingCard:
             last = self.last
             if last.active:  # detached by the bus after a write error
                 last.close()
-            problem = f" - {last.error}" if last.error else ""
+            problem = f" - {said(last.error, lang)}" if last.error else ""
             self.status.set_text(_("{name}: {seconds} s, {frames} frames, {size}").format(
                 name=last.path.name, seconds=lang.number(last.elapsed, 1, group=False), frames=last.frames,
                 size=_size(last.size, lang)) + problem)
@@ -96,7 +97,7 @@ class RecordingCard:
             self.last = await rt.current().worker.gate.run(
                 start, user=user, role=role, describe=f"start recording {self.bus} ({suffix})", device=self.bus, kind="write")
         except (rec.RecordingError, PermissionDenied, AuditUnavailable) as exc:
-            notify_error(str(exc))
+            notify_error(said(exc, self.lang))
             return
         ui.notify(self.lang.gettext("Recording {bus} to {path}").format(bus=self.bus, path=self.last.path), type="info")
         self.refresh()
@@ -116,7 +117,7 @@ class RecordingCard:
             return
         self.last = stopped
         if stopped.error:
-            notify_error(_("Recording {name}: {error}").format(name=stopped.path.name, error=stopped.error))
+            notify_error(_("Recording {name}: {error}").format(name=stopped.path.name, error=said(stopped.error, self.lang)))
         else:
             ui.notify(_("Saved {n} frames to {name}").format(n=stopped.frames, name=stopped.path.name), type="positive")
         self.refresh()
@@ -247,8 +248,8 @@ class FileView:
             await run.io_bound(set_deltas, loaded.frames)  # O(n) once, off the event loop
             return loaded
         except rec.RecordingError as exc:
-            self.file_info.set_text(_("cannot open: {error}").format(error=exc))
-            notify_error(str(exc))
+            self.file_info.set_text(_("cannot open: {error}").format(error=said(exc, lang)))
+            notify_error(said(exc, lang))
         except OSError as exc:  # a failing save/temp dir: still a message, never a crash
             self.file_info.set_text(_("{name}: cannot open: {error}").format(name=name, error=exc))
             notify_error(_("{name}: cannot open: {error}").format(name=name, error=exc))

@@ -29,7 +29,7 @@ from pages.can_files import FileView, RecordingCard
 from pages.can_trace import (BusDecoding, FilterCard, DECODED_SLOT, SCROLL_HEIGHT, clicked_key, decoded_text, frame_rows, frame_table,
                              show_frame_details)
 from pages.frame import fmt_age, frame, notify_error
-from pages.monitor_common import CSS, SHOWN, tool_links
+from pages.monitor_common import CSS, SHOWN, controller_state, tool_links
 from pages.widgets import columns as shown_columns
 
 SHOWN_IDS = 300  # rows of the overwrite view
@@ -50,9 +50,6 @@ BYTES_SLOT = (
     "</q-td>"
 )
 STATE_COLOR = {"error-active": "positive", "error-passive": "warning", "bus-off": "negative"}
-# the controller's state (python-can's words, the CAN standard's error states) as the badge shows it
-STATE_WORDS = {"error-active": N_("error-active"), "error-passive": N_("error-passive"), "bus-off": N_("bus-off"),
-               "not connected": N_("not connected"), "unknown": N_("unknown")}
 
 
 def cycle_text(cycles: list[tuple[int, int, float, float]], lang: Lang | None = None) -> str:
@@ -112,8 +109,7 @@ class BusStatusCard:
         lang = self.lang
         _ = lang.gettext
         bus_state = s.bus_state if s.connected else "not connected"
-        word = STATE_WORDS.get(bus_state)
-        self.state_badge.set_text(_(word) if word else bus_state)
+        self.state_badge.set_text(controller_state(bus_state, lang))
         self.state_badge.props(f"color={STATE_COLOR.get(bus_state, 'grey')}")
         self.connected_badge.set_text(_("connected") if s.connected else _("disconnected"))
         self.connected_badge.props(f"color={'positive' if s.connected else 'negative'} outline")

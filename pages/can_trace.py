@@ -13,6 +13,7 @@ from app import recording as rec
 from app import runtime as rt
 from app.can_bus import FrameRecord
 from app.i18n import N_, Lang
+from app.message import said
 from pages.widgets import columns as shown_columns
 
 SCROLL_HEIGHT = "max-height: 56vh; overflow-y: auto"  # each table scrolls inside its box: the page height stays bounded
@@ -37,7 +38,7 @@ DECODER_WORDS = {rec.UNKNOWN: N_("unknown"), "error frame": N_("error frame")}
 def decoded_text(text: str, lang: Lang) -> str:
     """A frame's decoded text as shown: the codecs' words as they are, the decoder's own in ``lang``."""
     word = DECODER_WORDS.get(text)
-    return lang.gettext(word) if word else text
+    return lang.gettext(word) if word else said(text, lang)
 ROW_CLASS_FN = ":table-row-class-fn"  # Quasar: a JS function (row) -> class
 
 

@@ -294,11 +294,6 @@ class HeaderStatus:
                                      dropped=lang.number(broker["dropped"])))
 
 
-# the titles other modules hand to frame() as they are (the server's pages for an address that names nothing): the
-# catalog has them, so frame() names every page in the browser's language
-TITLES = (N_("Overview"), N_("Unknown device"), N_("Unknown bus"), N_("Unknown page"))
-
-
 @contextmanager
 def frame(title: str, beat: bool = True):
     """Header, navigation and a content column; yields inside the column. ``beat``: the page can confirm it is

@@ -24,6 +24,7 @@ from app import runtime as rt
 from app.can_bus import CanBusState
 from app.csvfile import csv_text
 from app.i18n import N_, Lang
+from app.message import said
 from app.recording import lines
 from pages.can_monitor import CanMonitor
 from pages.frame import frame
@@ -254,12 +255,13 @@ class LineMonitor:
         if cached is not None and cached[0] is t:
             return cached[1]
         request, decoded, function = self.words(t)
+        request, decoded = said(request, self.lang), said(decoded, self.lang)  # what app/ words itself, in the page's language
         row = {
             "id": id(t),
             # a narrow column breaks before the milliseconds, not inside a number (a zero-width space there)
             "time": datetime.fromtimestamp(t.time).strftime("%H:%M:%S\u200b.%f")[:-3],
             "date": datetime.fromtimestamp(t.time).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3],
-            "device": decoder.device(t.unit),
+            "device": said(decoder.device(t.unit), self.lang),
             "unit": t.unit,
             "function": function,
             "request": request,

@@ -5,11 +5,21 @@ from __future__ import annotations
 
 from nicegui import ui
 
-from app.i18n import Lang
+from app.i18n import N_, Lang
 
 from pages.session import can_write
 
 SHOWN = 200  # rows of a frame/transaction list (one page while paused)
+# the CAN controller's state (python-can's words, the CAN standard's error states) as the CAN monitor's badge and the
+# overview's bus line show it
+STATE_WORDS = {"error-active": N_("error-active"), "error-passive": N_("error-passive"), "bus-off": N_("bus-off"),
+               "not connected": N_("not connected"), "unknown": N_("unknown")}
+
+
+def controller_state(state: str, lang: Lang) -> str:
+    """The CAN controller's state ``state`` in ``lang`` (one it has no word for as it is)."""
+    word = STATE_WORDS.get(state)
+    return lang.gettext(word) if word else state
 
 CSS = """
 .can-table .q-table td, .can-table .q-table th { padding: 1px 8px; height: 24px; font-size: 13px; }

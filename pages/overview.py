@@ -18,6 +18,7 @@ from pages.plant_view import ICON, Followers, LabelPool, evaluate_tile, plant_ti
 from pages.widgets import mark_quality, quality_note
 from pages.command_client import enable_unless, viewer_reason
 from pages.discover import discovered_section
+from pages.monitor_common import controller_state
 
 
 TILE_CSS = """
@@ -549,7 +550,7 @@ def _bus_section(runtime, bus, followers: Followers, ticks: list, tiles: dict | 
         can = isinstance(state, CanBusState)
         if state.connected and can:
             text += " · " + _("{state} · {rx} frames in, {errors} error frames").format(
-                state=state.bus_state, rx=state.rx_frames, errors=state.error_frames)
+                state=controller_state(state.bus_state, lang), rx=state.rx_frames, errors=state.error_frames)
         if state.cycle_s:  # Modbus: the measured time to poll every device once
             text += " · " + _("cycle {seconds} s").format(seconds=lang.number(state.cycle_s, 2))
         if state.address_conflicts:

@@ -11,7 +11,8 @@ import importlib
 
 from nicegui import ui
 
-from app import web
+from app import i18n, web
+from app.i18n import N_
 from app.runtime import Runtime
 
 BUS_TOOLS = ("transmit", "poll", "replay")  # pages/bus_<tool>.py, linked from the bus monitor
@@ -97,9 +98,10 @@ def register_pages(runtime: Runtime) -> None:
 
         state = runtime.store.devices.get(name)
         if state is None:
-            with frame("Unknown device"):
-                ui.label(f"The plant has no device named '{name}'.")
-                ui.link("Back to the overview", "/")
+            _ = i18n.page_language().gettext
+            with frame(N_("Unknown device")):
+                ui.label(_("The plant has no device named '{name}'.").format(name=name))
+                ui.link(_("Back to the overview"), "/")
             return
         importlib.import_module(f"pages.{state.type}").content(name)
         from pages.project import device_card
@@ -120,8 +122,9 @@ def register_pages(runtime: Runtime) -> None:
         from pages.frame import frame
 
         if bus not in runtime.store.buses:
-            with frame("Unknown bus"):
-                ui.label(f"The plant has no bus named '{bus}'.")
+            _ = i18n.page_language().gettext
+            with frame(N_("Unknown bus")):
+                ui.label(_("The plant has no bus named '{bus}'.").format(bus=bus))
             return
         monitor.content(bus)
 
@@ -131,8 +134,9 @@ def register_pages(runtime: Runtime) -> None:
         from pages.frame import frame
 
         if bus not in runtime.store.buses or tool not in BUS_TOOLS:
-            with frame("Unknown page"):
-                ui.label(f"There is no tool '{tool}' for a bus named '{bus}'.")
-                ui.link("Back to the overview", "/")
+            _ = i18n.page_language().gettext
+            with frame(N_("Unknown page")):
+                ui.label(_("There is no tool '{tool}' for a bus named '{bus}'.").format(tool=tool, bus=bus))
+                ui.link(_("Back to the overview"), "/")
             return
         importlib.import_module(f"pages.bus_{tool}").content(bus)

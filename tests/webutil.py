@@ -269,6 +269,23 @@ def page_at(browser, url: str, width: int = 1440, height: int = 900):
     return page
 
 
+def click_until(button, appears, tries: int = 3, each_ms: int = 5_000) -> None:
+    """Click ``button`` (a playwright locator) until ``appears`` is visible: a live table that draws its rows anew
+    (a device that came back and was compared again) can take a click into the rows it replaces. It is clicked
+    again only while ``appears`` is not there, so a slow answer to the first click is never doubled."""
+    from playwright.sync_api import expect
+
+    for attempt in range(tries):
+        if attempt == 0 or not appears.is_visible():
+            button.click()
+        try:
+            expect(appears).to_be_visible(timeout=each_ms)
+            return
+        except AssertionError:
+            if attempt == tries - 1:
+                raise
+
+
 def serve_beyond_loopback(folder: Path, port: int, data: Path, *args: str) -> subprocess.Popen:
     """``python -m app.cli`` on ``folder/plant.toml`` listening on every interface (every browser logs in),
     its data in ``data``, its output in ``folder/app.log``; run in ``folder``, where NiceGUI keeps its storage."""
@@ -324,7 +341,7 @@ def private_endpoints(plant, tag: str):
     return plant
 
 
-__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "demo_app_serving", "demo_user", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "opened", "page_at", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
+__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "click_until", "demo_app_serving", "demo_user", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "opened", "page_at", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
            "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "wait_http"]
 
 

@@ -8,6 +8,8 @@ from types import ModuleType
 from typing import Any
 
 from app.can_bus import FrameRecord
+from app.i18n import N_
+from app.message import Message, message_of
 from app.recording.base import MAX_CACHE, UNKNOWN, Key
 from app.recording.filters import Owner, device_of
 from devices.adapter import FrameDescriber
@@ -62,7 +64,7 @@ def describe(arbitration_id: int, is_extended: bool, data: bytes, known_ids: set
         try:
             text = codec.describe_frame(arbitration_id, is_extended, data, known_ids)
         except (LookupError, ValueError) as exc:  # a codec's refusal (a ValueError) or an unknown code: shown as such
-            return f"decode failed: {exc}"
+            return Message(N_("decode failed: {error}"), error=message_of(exc))
         if text is not None:
             return text
     return UNKNOWN
@@ -127,7 +129,7 @@ class FrameDecoder:
             return "error frame"
         if rec.is_remote_frame:
             meaning = self(rec.arbitration_id, rec.is_extended_id, b"")
-            return "remote request" + ("" if meaning == UNKNOWN else f" ({meaning})")
+            return Message(N_("remote request")) if meaning == UNKNOWN else Message(N_("remote request ({meaning})"), meaning=meaning)
         return self(rec.arbitration_id, rec.is_extended_id, rec.data)
 
 

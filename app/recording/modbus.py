@@ -6,7 +6,9 @@ from collections.abc import Iterable
 from typing import Any
 
 from app.capabilities import bus_address
+from app.i18n import N_
 from app.line_base import Transaction
+from app.message import Message, joined, message_of
 from app.recording.base import MAX_CACHE
 from devices.params import ParamMap
 from devices.registry import DEVICE_TYPES
@@ -17,11 +19,13 @@ from devices.registry import DEVICE_TYPES
 MAX_DECODED_REGISTERS = 16  # registers named in one transaction's text; the rest are counted
 
 
-def describe_registers(params: ParamMap, space: str, address: int, values: Iterable[int]) -> str:
+def describe_registers(params: ParamMap, space: str, address: int, values: Iterable[int]) -> Message:
     """Registers from ``address`` on as ``Name = value`` through the parameter model (signed, scaled,
-    enum and bit names, unit); a value of several words is joined; unlisted registers by number."""
+    enum and bit names, unit); a value of several words is joined; unlisted registers by number. The names and
+    values are the parameter model's; the words around them (``first word``, ``word 2 of 2``, ``3 more``) a
+    page words in its language."""
     values = [int(v) & 0xFFFF for v in values]
-    parts: list[str] = []
+    parts: list[str | Message] = []
     i = 0
     while i < len(values) and len(parts) < MAX_DECODED_REGISTERS:
         addr = address + i
@@ -34,15 +38,16 @@ def describe_registers(params: ParamMap, space: str, address: int, values: Itera
         if param is not None and param.words == 1:
             parts.append(f"{param.label or param.name} = {param.display(values[i])}")
         elif param is not None:
-            parts.append(f"{param.label or param.name} (first word) = {values[i]}")
+            parts.append(Message(N_("{name} (first word) = {value}"), name=param.label or param.name, value=values[i]))
         else:
             whole = next((p for p in params.space(space) if addr in p.addresses), None)
-            parts.append(f"{whole.label or whole.name} (word {addr - whole.address + 1} of {whole.words}) = {values[i]}"
+            parts.append(Message(N_("{name} (word {n} of {words}) = {value}"), name=whole.label or whole.name,
+                                 n=addr - whole.address + 1, words=whole.words, value=values[i])
                          if whole is not None else f"{space} {addr} = {values[i]}")
         i += 1
     if i < len(values):
-        parts.append(f"... {len(values) - i} more")
-    return "; ".join(parts)
+        parts.append(Message(N_("... {n} more"), n=len(values) - i))
+    return joined(parts, "; ")
 
 
 class TransactionDecoder:
@@ -58,7 +63,7 @@ class TransactionDecoder:
         self.bus = bus
         self.units: dict[int, tuple[str, ParamMap | None]] = {}
         self.line_params: ParamMap | None = None
-        self._cache: dict[tuple, str] = {}
+        self._cache: dict[tuple, str | Message] = {}
         self.refresh()
 
     def refresh(self) -> None:
@@ -83,7 +88,7 @@ class TransactionDecoder:
             self.units, self.line_params = units, line_params
             self._cache.clear()
 
-    def device(self, unit: int) -> str:
+    def device(self, unit: int) -> str | Message:
         """``door-1 (unit 1)``; ``broadcast (unit 0)``; ``unit 7`` for an address no device has.
 
         Other lines name their device by its bus address (``barrier-out-1 (address 16)``), or name
@@ -92,14 +97,16 @@ class TransactionDecoder:
         if self.only:
             return self.only
         if not self.modbus:
-            return f"{self.units[unit][0]} (address {unit})" if unit in self.units else (f"address {unit}" if unit else "")
+            if unit in self.units:
+                return Message(N_("{device} (address {address})"), device=self.units[unit][0], address=unit)
+            return Message(N_("address {address}"), address=unit) if unit else ""
         if unit in self.units:
-            return f"{self.units[unit][0]} (unit {unit})"
+            return Message(N_("{device} (unit {unit})"), device=self.units[unit][0], unit=unit)
         if unit in (0, 255):  # Modbus broadcast 0; 255 broadcast of the HD-Lock's Set Modbus Address (section 4.3)
-            return f"broadcast (unit {unit})"
-        return f"unit {unit}"
+            return Message(N_("broadcast (unit {unit})"), unit=unit)
+        return Message(N_("unit {unit}"), unit=unit)
 
-    def decoded(self, t: Transaction) -> str:
+    def decoded(self, t: Transaction) -> str | Message:
         """The transaction's registers by name and value, else the line's own text."""
         if t.error or not t.space or t.address is None or not t.values:
             return t.decoded
@@ -115,6 +122,6 @@ class TransactionDecoder:
             try:
                 body = describe_registers(params, t.space, t.address, t.values)
             except (LookupError, ValueError) as exc:  # words the model cannot decode (a ValueError) are shown as such
-                body = f"decode failed: {exc}"
-            text = self._cache[key] = ("wrote " if write else "") + body
+                body = Message(N_("decode failed: {error}"), error=message_of(exc))
+            text = self._cache[key] = Message(N_("wrote {registers}"), registers=body) if write else body
         return text

@@ -20,6 +20,8 @@ import can
 from can.io.blf import BLFParseError
 
 from app.can_bus import FrameRecord
+from app.i18n import N_
+from app.message import Message, message_of
 from app.recording.base import MAX_FILE_FRAMES, PROGRESS_FRAMES, READERS, READ_SUFFIXES, SNIFF_BYTES, RecordingError
 
 logger = logging.getLogger("app.recording")  # one logger for the recordings, as before the split
@@ -131,8 +133,8 @@ class _CountingText(_Wrapped, io.TextIOBase):
         self.line += text.count("\n")
         return text
 
-    def where(self) -> str:
-        return f"line {self.line}"
+    def where(self) -> Message:
+        return Message(N_("line {n}"), n=self.line)
 
     @property
     def done(self) -> int:
@@ -158,8 +160,8 @@ class _CountingBinary(_Wrapped, io.RawIOBase):
     def tell(self) -> int:
         return self.offset
 
-    def where(self) -> str:
-        return f"byte offset {self.offset}"
+    def where(self) -> Message:
+        return Message(N_("byte offset {n}"), n=self.offset)
 
     @property
     def done(self) -> int:
@@ -175,16 +177,22 @@ def _record_of(msg: can.Message) -> FrameRecord:
     :raises ValueError: naming what is wrong (the reader adds where)
     """
     if not math.isfinite(float(msg.timestamp)):
-        raise ValueError(f"time stamp {msg.timestamp!r} is not a number")
+        raise ValueError(Message(N_("time stamp {stamp!r} is not a number"), stamp=msg.timestamp))
     limit = 0x1FFFFFFF if msg.is_extended_id else 0x7FF
     if not 0 <= int(msg.arbitration_id) <= limit:
-        raise ValueError(f"CAN ID 0x{int(msg.arbitration_id):X} does not fit {'29' if msg.is_extended_id else '11'} bits")
+        raise ValueError(Message(N_("CAN ID 0x{id:X} does not fit {bits} bits"), id=int(msg.arbitration_id),
+                                 bits=29 if msg.is_extended_id else 11))
     if len(msg.data) > 64:
-        raise ValueError(f"{len(msg.data)} data bytes (a CAN FD frame holds at most 64)")
+        raise ValueError(Message(N_("{n} data bytes (a CAN FD frame holds at most 64)"), n=len(msg.data)))
     return FrameRecord(
         float(msg.timestamp), int(msg.arbitration_id), bool(msg.is_extended_id), int(msg.dlc),
         bytes(msg.data), "rx" if msg.is_rx else "tx", bool(msg.is_error_frame), bool(msg.is_remote_frame),
     )
+
+
+def cannot_open(name: str, exc: OSError) -> Message:
+    """Why the file ``name`` cannot be opened: the system's words for it (as it says them)."""
+    return Message(N_("{name}: cannot open: {error}"), name=name, error=exc.strerror or str(exc))
 
 
 def file_format(path: str | Path, name: str | None = None) -> str:
@@ -198,15 +206,16 @@ def file_format(path: str | Path, name: str | None = None) -> str:
         with path.open("rb") as file:
             head = file.read(SNIFF_BYTES)
     except OSError as exc:
-        raise RecordingError(f"{name}: cannot open: {exc.strerror or exc}") from None
+        raise RecordingError(cannot_open(name, exc)) from None
     found = detect_format(head)
     if found is not None:
         return found
     suffix = path.suffix.lower()
     if suffix in READERS:
         return suffix
-    raise RecordingError(f"{name}: unsupported file type {suffix or '(none)'} and the content is not a recording "
-                         f"python-can reads; readable are {', '.join(READ_SUFFIXES)}")
+    raise RecordingError(Message(N_("{name}: unsupported file type {suffix} and the content is not a recording python-can "
+                                    "reads; readable are {readable}"), name=name, suffix=suffix or Message(N_("(none)")),
+                                 readable=", ".join(READ_SUFFIXES)))
 
 
 def iter_log(
@@ -228,14 +237,15 @@ def iter_log(
         total = max(1, path.stat().st_size)
         raw = path.open("rb") if fmt == ".blf" else path.open("r", encoding="utf-8", newline=None)
     except OSError as exc:
-        raise RecordingError(f"{name}: cannot open: {exc.strerror or exc}") from None
+        raise RecordingError(cannot_open(name, exc)) from None
     counted: _CountingText | _CountingBinary = _CountingBinary(raw) if fmt == ".blf" else _CountingText(raw)
     frames = 0
     try:
         try:
             reader = READERS[fmt](counted)
         except MALFORMED as exc:
-            raise RecordingError(f"{name}: cannot open as {fmt} file ({counted.where()}): {exc}") from None
+            raise RecordingError(Message(N_("{name}: cannot open as {format} file ({where}): {error}"), name=name, format=fmt,
+                                         where=counted.where(), error=message_of(exc))) from None
         chunk: list[FrameRecord] = []
         try:
             for msg in reader:
@@ -251,9 +261,9 @@ def iter_log(
         except RecordingError:
             raise
         except MALFORMED as exc:  # a malformed line or object: say where it stopped and why
-            raise RecordingError(
-                f"{name}: not a valid {fmt} file at {counted.where()} (after {frames + len(chunk)} frames): "
-                f"{exc or exc.__class__.__name__}") from None
+            raise RecordingError(Message(
+                N_("{name}: not a valid {format} file at {where} (after {n} frames): {error}"), name=name, format=fmt,
+                where=counted.where(), n=frames + len(chunk), error=message_of(exc))) from None
         if chunk:
             frames += len(chunk)
             yield chunk
@@ -294,7 +304,7 @@ def read_log(
         else:
             loaded.truncated = cancel is not None and cancel.is_set()
     if not loaded.frames:
-        raise RecordingError(f"{name}: no CAN frames found in this {fmt} file")
+        raise RecordingError(Message(N_("{name}: no CAN frames found in this {format} file"), name=name, format=fmt))
     return loaded
 
 

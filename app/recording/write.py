@@ -21,6 +21,8 @@ from can.io.canutils import CanutilsLogWriter
 from can.util import channel2int
 
 from app.can_bus import CanBusState
+from app.i18n import N_
+from app.message import Message
 from app.recording.base import DIR_ENV, READ_SUFFIXES, WRITERS, RecordingError
 
 logger = logging.getLogger("app.recording")  # one logger for the recordings, as before the split
@@ -61,7 +63,7 @@ def upload_name(name: str | None) -> str:
     """
     base = re.split(r"[\\/]", name or "")[-1].strip().replace("\0", "")
     if base in ("", ".", "..") or base.startswith("."):
-        raise RecordingError(f"{(name or '')[:60]!r} is not a file name for a recording (e.g. trace.log)")
+        raise RecordingError(Message(N_("{name!r} is not a file name for a recording (e.g. trace.log)"), name=(name or "")[:60]))
     return base[-120:]
 
 
@@ -83,7 +85,8 @@ async def store_upload(upload: Any, directory: str | Path | None = None) -> Path
         await upload.save(path)
     except OSError as exc:
         await asyncio.to_thread(path.unlink, missing_ok=True)
-        raise RecordingError(f"{name}: cannot store the upload: {exc.strerror or exc}") from None
+        raise RecordingError(Message(N_("{name}: cannot store the upload: {error}"), name=name,
+                                     error=exc.strerror or str(exc))) from None
     await asyncio.to_thread(_prune_uploads, folder, keep=path)
     return path
 
@@ -153,7 +156,7 @@ class Recording(can.Listener):
     def on_message_received(self, msg: can.Message) -> None:
         """Queue one frame (event loop; O(1), never blocks); raises once the file has failed."""
         if self.error:
-            raise RecordingError(f"{self.path.name}: {self.error}")
+            raise RecordingError(Message("{name}: {error}", name=self.path.name, error=self.error))
         if self.stopped is not None:
             return
         try:
@@ -184,7 +187,7 @@ class Recording(can.Listener):
         try:
             self.writer.stop()
         except (OSError, ValueError) as exc:  # a failing close must not hide that the recording ended
-            self.error = self.error or f"closing {self.path.name} failed: {exc}"
+            self.error = self.error or Message(N_("closing {name} failed: {error}"), name=self.path.name, error=str(exc))
 
     @property
     def active(self) -> bool:
@@ -246,9 +249,11 @@ def start_recording(
     suffix = suffix if suffix.startswith(".") else f".{suffix}"
     suffix = suffix.lower()
     if suffix not in WRITERS:
-        raise RecordingError(f"cannot record to {suffix!r}: choose one of {', '.join(WRITERS)}")
+        raise RecordingError(Message(N_("cannot record to {suffix!r}: choose one of {formats}"), suffix=suffix,
+                                     formats=", ".join(WRITERS)))
     if active_recording(state) is not None:
-        raise RecordingError(f"{state.name} is being recorded already ({state.recorder.path.name})")
+        raise RecordingError(Message(N_("{bus} is being recorded already ({file})"), bus=state.name,
+                                     file=state.recorder.path.name))
     folder = recordings_dir(directory)
     stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
     try:
@@ -264,7 +269,8 @@ def start_recording(
         else:
             writer = writer_class(path)
     except OSError as exc:
-        raise RecordingError(f"cannot create a recording in {folder}: {exc.strerror or exc}") from None
+        raise RecordingError(Message(N_("cannot create a recording in {folder}: {error}"), folder=folder,
+                                     error=exc.strerror or str(exc))) from None
     recording = Recording(state.name, path, writer)
     state.recorder = recording
     return recording
@@ -320,5 +326,5 @@ def recording_path(name: str, directory: str | Path | None = None) -> Path:
     folder = recordings_dir(directory).resolve()
     path = (folder / name).resolve()
     if path.parent != folder or not path.is_file():
-        raise RecordingError(f"no recording named {name!r} in {folder}")
+        raise RecordingError(Message(N_("no recording named {name!r} in {folder}"), name=name, folder=folder))
     return path

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from conftest import CHROMIUM, wait_devices_online
 from test_project_page import project_plant_text
-from webutil import running_app
+from webutil import click_until, running_app
 
 from app.plant import load_plant
 
@@ -50,8 +50,8 @@ def test_project_card_and_editor_in_the_browser(tmp_path: Path, chromium):
             expect(row).to_contain_text("350 ms")
             expect(row).to_contain_text("200 ms")
             _shots(page, "device-project", card)
-            card.locator('[data-project-apply="holding:3000"]').click()
             dialog = page.locator(".q-dialog")
+            click_until(card.locator('[data-project-apply="holding:3000"]'), dialog)
             expect(dialog).to_contain_text("Write LockRequestDelay = 350 ms to door-1?")
             dialog.get_by_role("button", name="Write", exact=True).click()
             expect(card.get_by_test_id("project-summary")).to_contain_text("device and project agree", timeout=10000)

@@ -638,9 +638,9 @@ async def test_the_transmit_list_in_german_shows_no_english(tmp_path, monkeypatc
         assert found == [], "\n".join(map(str, found))
 
 
-async def test_the_replay_page_in_german_shows_no_english_but_the_replays_own_words(tmp_path):
+async def test_the_replay_page_in_german_shows_no_english(tmp_path):
     """Replaying a recording (pages/bus_replay.py): the recording, speeds (decimal comma), start, the question and
-    the outcome; what app/replay.py words itself (the question's body, the replay's summary) is still English."""
+    the outcome; what app/replay.py words itself (the question's body, the replay's summary) in German too."""
     from test_replay_page import replay_runtime
 
     runtime = replay_runtime(tmp_path, "replay-de")
@@ -656,14 +656,14 @@ async def test_the_replay_page_in_german_shows_no_english_but_the_replays_own_wo
         await user.should_see("can9-test.log: 20 Frames", retries=50)
         user.find("Wiedergabe starten").click()
         await user.should_see("Auf can9 wiedergeben?", retries=50)
-        question = next(e.text for e in user.client.elements.values()
-                        if isinstance(e, ui.label) and e.text.startswith("Replay 20 recorded frame(s)"))
-        found = [(text, message) for text, message in english_on(user) if text != question]
+        await user.should_see("20 aufgezeichnete(n) Frame(s) von can9-test.log auf can9 wiedergeben (ein echter Bus: "
+                              "reale Geräte empfangen sie), über 0,2 s bei 1 x.")
+        found = english_on(user)
         assert found == [], "\n".join(map(str, found))
         user.find("20 Frames senden").click()
         status = by_testid(user, "replay-status")
-        await eventually(lambda: "20 of 20" in status.text, timeout=10, what="the replay's end")
-        found = [(text, message) for text, message in english_on(user) if text != status.text]
+        await eventually(lambda: "fertig: 20 von 20 Frames gesendet" in status.text, timeout=10, what="the replay's end")
+        found = english_on(user)
         assert found == [], "\n".join(map(str, found))
 
 
@@ -815,13 +815,3 @@ async def test_the_record_page_in_german_says_a_twin_actions_answer(tmp_path):
         audit = await runtime.audit.aquery(device="heater-hmr", text="simulation: toggle E")
         assert audit, "the audit row keeps the English"
 
-
-async def test_the_servers_pages_for_an_unknown_address_are_titled_in_german(tmp_path):
-    """The titles other modules hand to frame() as they are: the catalog has them (pages/frame.py, TITLES)."""
-    async with german_locks(tmp_path) as (runtime, user):
-        await user.open("/device/nope")
-        await user.should_see("Unbekanntes Gerät", retries=50)
-        await user.open("/monitor/nope")
-        await user.should_see("Unbekannter Bus", retries=50)
-        await user.open("/monitor/line1/nope")
-        await user.should_see("Unbekannte Seite", retries=50)

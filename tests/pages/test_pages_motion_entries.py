@@ -29,6 +29,14 @@ def click(user: User, testid: str) -> None:
     UserInteraction(user, {by_testid(user, testid)}, None).click()
 
 
+async def click_enabled(user: User, testid: str) -> None:
+    """Click the button once it is enabled: a disabled one (a remote session still being set up, a device that
+    missed a poll on a loaded machine) takes no click."""
+    button = by_testid(user, testid)
+    await eventually(lambda: button.enabled, timeout=10, what=f"{testid} enabled")
+    click(user, testid)
+
+
 async def open_online(user: User, runtime: Runtime, device: str) -> None:
     await eventually(lambda: runtime.store.devices[device].status == "online", timeout=10, what=f"{device} online")
     await user.open(f"/device/{device}")
@@ -76,7 +84,7 @@ async def test_scu_and_mo64_entries_are_kept_and_refused_with_their_range(env):
     await eventually(lambda: scu.controller is not None, timeout=5, what="SCU control taken")
     speed = by_testid(user, "remote-speed")
     speed.value = 5000
-    click(user, "set-speed")
+    await click_enabled(user, "set-speed")
     await eventually(lambda: speed.error, timeout=3, what="SCU speed marked invalid")
     assert speed.value == 5000 and "0 .. 100 " in speed.error + " "  # relative speed select (0-100 %) by default
     assert scu.state.point("F1 remote speed") is None  # nothing written
@@ -86,13 +94,13 @@ async def test_scu_and_mo64_entries_are_kept_and_refused_with_their_range(env):
     await open_online(user, runtime, "gate")
     t_open = by_testid(user, "entry-t_open")
     t_open.value = 700
-    click(user, "write-t_open")
+    await click_enabled(user, "write-t_open")
     await eventually(lambda: t_open.error, timeout=3, what="open time marked invalid")
     assert t_open.value == 700 and "0 .. 655 s" in t_open.error
     assert mo64.eeprom_writes_total == 0  # nothing sent, not even the EEPROM question
     relays = by_testid(user, "entry-multi_relays")
     relays.value = "1,x"
-    click(user, "write-multi_relays")
+    await click_enabled(user, "write-multi_relays")
     await eventually(lambda: relays.error, timeout=3, what="raw entry marked invalid")
     assert relays.value == "1,x"
     assert not user.notify.messages
