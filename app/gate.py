@@ -72,7 +72,7 @@ def not_declared(device: str, name: str) -> Message:
     return Message(N_("{name} is not a command of {device}"), name=repr(name), device=device)
 
 
-def role_refusal(user: str, role: str, action: str) -> Message:
+def write_refusal(user: str, role: str, action: str) -> Message:
     """Why ``user`` with ``role`` may not write (``action`` names what was asked), worded in the reader's language."""
     who = user or Message(N_("anonymous"))
     if role:
@@ -243,7 +243,7 @@ class CommandGate:
         if not may_run(command.kind, role):
             await self.refused(device=device, user=user, role=role, describe=command.name, new=shown(values),
                                reason=f"the {role or 'anonymous'} role may not run a {command.kind} command")
-            raise PermissionDenied(role_refusal(user, role, command.name))
+            raise PermissionDenied(write_refusal(user, role, command.name))
         try:
             values = command.checked_args(values)
         except CommandError as exc:
@@ -359,7 +359,7 @@ class CommandGate:
         if state is not None:
             state.event("warning", f"refused for {row.user} ({row.role}): {row.action}")
         await self._note("audit: %s", **row.fields(), result=f"refused: the {row.role or 'anonymous'} role may not write")
-        raise PermissionDenied(role_refusal(row.user, row.role, row.action))
+        raise PermissionDenied(write_refusal(row.user, row.role, row.action))
 
 
 def _controls(adapter: Any, session: str) -> bool:
