@@ -475,7 +475,7 @@ def _declared_risk(runtime, device: str, row: DiffRow) -> str:
     try:
         return runtime.worker.gate.question(device, WRITE_PARAMETER, {"param": row.param, "value": row.accepted})
     except ValueError as exc:  # refused by the declaration: never written
-        row.error = str(exc)
+        row.error = message_of(exc)
         return ""
 
 
@@ -518,7 +518,7 @@ async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, use
             except gate.NeedsConfirmation as question:
                 report.refused.append((row.name, Message(NEEDS_CONFIRMATION, value=row.backup_text, risk=question.question)))
             except CommissionError as exc:  # every refusal is reported per parameter
-                report.failed.append((row.name, str(exc)))
+                report.failed.append((row.name, message_of(exc)))
                 if exc.__class__.__name__ in ("PermissionDenied", "AuditUnavailable"):
                     break
         if progress:
@@ -532,7 +532,7 @@ async def execute_restore(runtime, plan: RestorePlan, selected: set[str], *, use
                 describe="restore: save step", new=permanent or "no unsaved changes",
             )
         except CommissionError as exc:
-            report.save_error = str(exc)
+            report.save_error = message_of(exc)
     try:
         await runtime.audit.arecord(user=user, role=role, device=plan.device, action="restore", result=report.summary())
     except audit.WRITE_ERRORS:  # every write above has its own row; the header shows the audit state

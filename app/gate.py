@@ -33,6 +33,8 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from app.audit import AuditLog
+from app.i18n import N_
+from app.message import Message, message_of
 from app.plant import Plant
 from app.state import StateStore
 from devices.adapter import ControlChecker, SessionHolder
@@ -63,6 +65,19 @@ class NeedsConfirmation(CommissionError):
         super().__init__(question)
         self.command = command
         self.question = question
+
+
+def not_declared(device: str, name: str) -> Message:
+    """The refusal of a command ``device``'s type does not declare."""
+    return Message(N_("{name} is not a command of {device}"), name=repr(name), device=device)
+
+
+def write_refusal(user: str, role: str, action: str) -> Message:
+    """Why ``user`` with ``role`` may not write (``action`` names what was asked), worded in the reader's language."""
+    who = user or Message(N_("anonymous"))
+    if role:
+        return Message(N_("{user} has the {role} role and may not write ({action})"), user=who, role=Message(role), action=action)
+    return Message(N_("{user} has the no role and may not write ({action})"), user=who, action=action)
 
 
 class GateWorker(Protocol):
@@ -209,7 +224,7 @@ class CommandGate:
         refused by the device type's send policy."""
         command = self.declared(device, name, served=True)
         if command is None:
-            raise CommandError(f"{name!r} is not a command of {device}")
+            raise CommandError(not_declared(device, name))
         values = command.checked_args(dict(args or {}))
         reason = self._policy_refusal(command, device, values)
         if reason:
@@ -222,13 +237,13 @@ class CommandGate:
         adapter = self.adapter(device)
         command = self.declared(device, name, served=True)
         if command is None:
-            reason = f"{name!r} is not a command of {device}"
+            reason = not_declared(device, name)
             await self.refused(device=device, user=user, role=role, describe=name, reason=reason)
             raise CommandError(reason)
         if not may_run(command.kind, role):
             await self.refused(device=device, user=user, role=role, describe=command.name, new=shown(values),
                                reason=f"the {role or 'anonymous'} role may not run a {command.kind} command")
-            raise PermissionDenied(f"{user or 'anonymous'} has the {role or 'no'} role and may not write ({command.name})")
+            raise PermissionDenied(write_refusal(user, role, command.name))
         try:
             values = command.checked_args(values)
         except CommandError as exc:
@@ -240,9 +255,9 @@ class CommandGate:
         try:
             reason = self._policy_refusal(command, device, values)
         except Exception as exc:  # noqa: BLE001 - a policy that cannot judge the request refuses it
-            reason = f"the send policy could not check it: {exc}"
+            reason = Message(N_("the send policy could not check it: {error}"), error=message_of(exc))
         if not reason and command.needs_control and command.kind not in OPEN_KINDS and not _controls(adapter, session):
-            reason = "take control of the device first"
+            reason = Message(N_("take control of the device first"))
         if reason:
             await self.refused(device=device, user=user, role=role, describe=command.name, reason=reason,
                                new=shown(values))
@@ -321,10 +336,10 @@ class CommandGate:
             state = self.worker.store.devices.get(row.device)
             if state is not None:
                 state.event("error", f"{row.action} refused: the audit log cannot be written ({exc})")
-            raise AuditUnavailable(
-                f"{row.action} refused: the audit log cannot be written ({exc}). Nothing was sent. "
-                f"Free or repair {audit.path} (locked by another program, read-only or disk full) and try again."
-            ) from None
+            raise AuditUnavailable(Message(
+                N_("{action} refused: the audit log cannot be written ({error}). Nothing was sent. Free or repair {path} "
+                   "(locked by another program, read-only or disk full) and try again."),
+                action=row.action, error=str(exc), path=str(audit.path))) from None
 
     async def _note(self, failure: str, **row: Any) -> None:
         """Write the audit row of a request that sends nothing (refused, cancelled). A row that cannot be
@@ -344,7 +359,7 @@ class CommandGate:
         if state is not None:
             state.event("warning", f"refused for {row.user} ({row.role}): {row.action}")
         await self._note("audit: %s", **row.fields(), result=f"refused: the {row.role or 'anonymous'} role may not write")
-        raise PermissionDenied(f"{row.user or 'anonymous'} has the {row.role or 'no'} role and may not write ({row.action})")
+        raise PermissionDenied(write_refusal(row.user, row.role, row.action))
 
 
 def _controls(adapter: Any, session: str) -> bool:

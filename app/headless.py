@@ -13,9 +13,11 @@ import sys
 from pathlib import Path
 from urllib.parse import urlparse
 
+from app import cli_lang
 from app.cli_lang import _
 from app.host import TerminalKeys
 from app.i18n import N_
+from app.message import said
 from app.plant import DEMO_PLANT, PlantError, load_plant
 
 
@@ -33,7 +35,7 @@ def load_plant_or_exit(path: Path | None):
     try:
         return load_plant(path or DEMO_PLANT)
     except PlantError as exc:
-        print(f"commission: {exc}", file=sys.stderr)
+        print(f"commission: {said(exc, cli_lang.lang())}", file=sys.stderr)
         raise SystemExit(2) from None
 
 

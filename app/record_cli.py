@@ -32,6 +32,7 @@ from app import cli_lang
 from app.checkout import StepFailed, checkout_module
 from app.cli_lang import _
 from app.i18n import N_
+from app.message import Message, message_of, said
 from app.record_store import RecordError
 from devices.errors import CommissionError
 
@@ -39,6 +40,11 @@ SIGNER_ROLE = "commissioning engineer"
 
 
 # -- shared -------------------------------------------------------------------------------------
+def _said(text: object) -> str:
+    """A refusal, a finding or an error (a :class:`Message`, or one an error carries) in the command line's language."""
+    return said(text, cli_lang.lang())
+
+
 def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plant", type=Path, default=None, help=_("plant file (default: the built-in demo plant)"))
     parser.add_argument("--no-sim", action="store_true", help=_("do not start simulated devices"))
@@ -123,10 +129,10 @@ async def login_account(runtime, account: str, password: str, *, out=print) -> s
     user, words = await check_login(throttle=runtime.login_throttle, users=runtime.users, audit=runtime.audit, typed=account,
                                     secret=password, address="command line", via="cli")
     if user is None:
-        out(_("commission: {words} for account {account}: nothing was signed or approved").format(words=words, account=repr(account)))
+        out(_("commission: {words} for account {account}: nothing was signed or approved").format(words=_said(words), account=repr(account)))
         return None
     if user.role != "engineer":
-        out(_("commission: {account} has the {role} role: only an engineer account signs or approves").format(account=account, role=user.role))
+        out(_("commission: {account} has the {role} role: only an engineer account signs or approves").format(account=account, role=_(user.role)))
         return None
     return user.name
 
@@ -137,8 +143,8 @@ def _chosen(runtime, args) -> list[str]:
         return names
     unknown = [n for n in args.device if n not in runtime.plant.devices]
     if unknown:
-        raise SystemExit(f"commission: no device {', '.join(unknown)} in plant {runtime.plant.name} "
-                         f"(devices: {', '.join(names)})")
+        raise SystemExit(_("commission: no device {devices} in plant {plant} (devices: {known})").format(
+            devices=", ".join(unknown), plant=runtime.plant.name, known=", ".join(names)))
     return list(dict.fromkeys(args.device))
 
 
@@ -179,19 +185,19 @@ async def approve_devices(runtime, names: list[str], *, user: str, role: str, ou
         state = runtime.store.devices[name]
         reason = await nothing_to_back_up(runtime.worker.adapters[name])
         if reason:
-            out(_("{name}: skipped: {reason}").format(name=name, reason=reason))
+            out(_("{name}: skipped: {reason}").format(name=name, reason=_said(reason)))
             continue
         if state.status != "online":
-            out(_("{name}: not answering ({error}): not approved").format(name=name, error=state.last_error or _("no answer")))
+            out(_("{name}: not answering ({error}): not approved").format(name=name, error=_said(state.last_error or _("no answer"))))
             failures += 1
             continue
         try:
             entry_id = await runtime.record.approve(name, user=user, role=role, account=account)
         except PermissionError as exc:
-            out(f"commission: {exc}")
+            out(f"commission: {_said(exc)}")
             return 1
         except (CommissionError, OSError) as exc:  # said, and the exit code says it
-            out(_("{name}: not approved: {error}").format(name=name, error=exc))
+            out(_("{name}: not approved: {error}").format(name=name, error=_said(exc)))
             failures += 1
             continue
         count = len(runtime.record.approved.get(name, {}))
@@ -212,6 +218,9 @@ def run_approve(args) -> int:
 
 
 # -- checkout -----------------------------------------------------------------------------------
+TOGGLE = "toggle "  # a twin's action that toggles an input ("toggle E1", "toggle door")
+
+
 def _answerer(mode: str | None, user: str, out, runtime=None, device: str = ""):
     """The ``ask`` of a CLI run: answered yes (recorded as the CLI user's answer), asked on stdin, or none.
 
@@ -225,7 +234,7 @@ def _answerer(mode: str | None, user: str, out, runtime=None, device: str = ""):
             if controls is not None and len(words) > 1 and words[0] == "Toggle":
                 action = f"toggle {words[1]}"
                 if any(a.name == action for a in controls.actions):
-                    out("      " + await sim_action(runtime, f"{device}:{action}", user=user, role="engineer"))
+                    out("      " + _said(await sim_action(runtime, f"{device}:{action}", user=user, role="engineer")))
             return True
         return yes
     if mode == "ask":
@@ -268,27 +277,30 @@ def _settings(specs: list[str], device: str, module) -> dict[str, Any]:
         name, _sep, rest = spec.partition(":")
         key, eq, value = rest.partition("=")
         if not eq or not key:
-            raise SystemExit(f"commission: --set {spec!r}: expected DEVICE:KEY=VALUE")
+            raise SystemExit(_("commission: --set {spec}: expected DEVICE:KEY=VALUE").format(spec=repr(spec)))
         if name != device:
             continue
         if key not in defaults:
-            raise SystemExit(f"commission: --set {spec!r}: the {device} checkout has no setting {key!r} "
-                             f"(settings: {', '.join(defaults)})")
+            raise SystemExit(_("commission: --set {spec}: the {device} checkout has no setting {key} (settings: {known})").format(
+                spec=repr(spec), device=device, key=repr(key), known=", ".join(defaults)))
         kind = type(defaults[key])
         try:
             settings[key] = (value.lower() in ("1", "true", "yes")) if kind is bool else kind(value)
         except ValueError:
-            raise SystemExit(f"commission: --set {spec!r}: {value!r} is no {kind.__name__}") from None
+            raise SystemExit(_("commission: --set {spec}: {value} is no {kind}").format(spec=repr(spec), value=repr(value),
+                                                                                         kind=kind.__name__)) from None
     return settings
 
 
-async def sim_action(runtime, spec: str, *, user: str, role: str) -> str:
-    """Run ``DEVICE:ACTION[:K=V,...]`` on a simulated twin through the worker's gate (audited as the page's sim card)."""
+async def sim_action(runtime, spec: str, *, user: str, role: str) -> Message:
+    """Run ``DEVICE:ACTION[:K=V,...]`` on a simulated twin through the worker's gate (audited as the page's sim card);
+    what was done, as the audit row says it (a toggle of an input, a checkout's request to act, in the reader's words)."""
     device, _sep, rest = spec.partition(":")
     action, _sep, arg_text = rest.partition(":")
     controls = runtime.sim_controls(device) if device in runtime.store.devices else None
     if controls is None:
-        raise ValueError(f"--sim-action {spec!r}: {device!r} is no simulated device of this plant")
+        raise ValueError(Message(N_("--sim-action {spec}: {device} is no simulated device of this plant"), spec=repr(spec),
+                                 device=repr(device)))
     args: dict[str, Any] = {}
     for item in filter(None, (a.strip() for a in arg_text.split(","))):
         key, _sep, value = item.partition("=")
@@ -302,7 +314,9 @@ async def sim_action(runtime, spec: str, *, user: str, role: str) -> str:
         return ""
 
     await runtime.worker.gate.run(act, device=device, role=role, user=user, describe=f"simulation: {describe}", kind="system")
-    return f"{device}: simulation: {describe}"
+    if describe == action and action.startswith(TOGGLE):  # "toggle E1": what a checkout's "Toggle E1 now ..." asks for
+        return Message(N_("{device}: simulation: toggle {input}"), device=device, input=action.removeprefix(TOGGLE))
+    return Message(N_("{device}: simulation: {action}"), device=device, action=describe)
 
 
 def real_without_person(real: list[str]) -> str:
@@ -341,9 +355,9 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
         return 2
     for spec in sim_actions:
         try:
-            out(await sim_action(runtime, spec, user=user, role=role))
+            out(_said(await sim_action(runtime, spec, user=user, role=role)))
         except (CommissionError, LookupError, ValueError) as exc:  # a refused action, a spec naming none
-            out(f"commission: {exc}")
+            out(f"commission: {_said(exc)}")
             return 2
         await asyncio.sleep(0.5)  # the next poll carries the fault
     results: list[tuple[str, str, str, float | None]] = []
@@ -352,12 +366,11 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
         module = checkout_module(state.type)
         if module is None:
             out(_("{name}: the {type} type declares no checkout").format(name=name, type=state.type))
-            results.append((name, "none", "no checkout declared", None))
+            results.append((name, "none", Message(N_("no checkout declared")), None))
             continue
         if state.status != "online":
-            reason = f"not answering ({state.last_error or 'no answer'})"  # recorded as written
-            out(_("{name}: {title}: not run: {reason}").format(name=name, title=module.TITLE, reason=_("not answering ({error})").format(
-                error=state.last_error or _("no answer"))))
+            reason = Message(N_("not answering ({error})"), error=state.last_error or Message(N_("no answer")))
+            out(_("{name}: {title}: not run: {reason}").format(name=name, title=module.TITLE, reason=_said(reason)))
             results.append((name, "not run", reason, None))
             continue
         options: dict[str, Any] = {}
@@ -374,8 +387,8 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
             run = runtime.record.new_run(name, user=user, role=role, ask=ask, settings=_settings(list(settings), name, module),
                                          **options)
         except (CommissionError, LookupError, ValueError) as exc:  # running already, settings its steps refuse
-            out(f"{name}: {exc}")
-            results.append((name, "not run", str(exc), None))
+            out(f"{name}: {_said(exc)}")
+            results.append((name, "not run", message_of(exc), None))
             continue
         out(_("{name} ({type}): {title}, {n} steps").format(name=name, type=state.type, title=module.TITLE, n=len(run.results)))
         shown: dict[int, str] = {}
@@ -391,7 +404,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
         try:
             result = await run.run()
         except PermissionError as exc:
-            out(f"commission: {exc}")
+            out(f"commission: {_said(exc)}")
             return 1
         line = _("{name}: {status} in {duration} s").format(name=name, status=_(result["status"]), duration=result["duration_s"])
         if result["reason"]:
@@ -402,7 +415,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
     out(_("{passed} of {n} checkouts passed").format(passed=passed, n=len(results)))
     for n, s, r, _d in results:
         if s != "passed":
-            out(f"  {n}: {_(s)}" + (f": {r}" if r else ""))
+            out(f"  {n}: {_(s)}" + (f": {_said(r)}" if r else ""))  # a run's reason as the record holds it
     return 0 if results and passed == len(results) else 1
 
 
@@ -452,7 +465,7 @@ async def sign_record(runtime, *, user: str, role: str, name: str, comment: str,
         out(_("commission: a sign-off needs a name"))
         return 2
     if role != "engineer":  # the page disables the button; the record service refuses as well
-        out(_("commission: {user} has the {role} role and may not add to the commissioning record").format(user=user, role=role or _("no")))
+        out(_("commission: {user} has the {role} role and may not add to the commissioning record").format(user=user, role=_(role) if role else _("no")))
         return 1
     if not account:
         out(_("commission: not signed: a sign-off needs a named account: give it with --account NAME (create one with "
@@ -472,10 +485,10 @@ async def sign_record(runtime, *, user: str, role: str, name: str, comment: str,
         entry_id = await runtime.record.sign(device or "", user=user, role=role, name=name.strip(), signer_role=signer_role,
                                              comment=comment, content=content, account=account)
     except PermissionError as exc:
-        out(f"commission: {exc}")
+        out(f"commission: {_said(exc)}")
         return 1
     except RecordError as exc:
-        out(_("commission: not signed: {error}").format(error=exc))
+        out(_("commission: not signed: {error}").format(error=_said(exc)))
         return 1
     entry = await runtime.record.get(entry_id)
     what = _("device {name}").format(name=device) if device else _("plant {name}").format(name=runtime.plant.name)

@@ -30,6 +30,7 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
+import re
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -50,6 +51,15 @@ FIRMWARE_KEYS = ("FirmwareVersion", "firmware", "version", "sw_version")
 HARDWARE_KEYS = ("HardwareVersion", "hardware")
 VARIANT_KEYS = ("variant", "product", "model")
 FACET_KEYS = (SERIAL_KEYS, FIRMWARE_KEYS, HARDWARE_KEYS, VARIANT_KEYS)
+# The keys of the identities the device types give (``backup_identity``) besides the facets' words (app/report.py's
+# WORDS): labelled in the catalogs, so the record page's preview, the report and the backup page name them in the
+# reader's language; the record and the backup files keep the keys as they are.
+IDENTITY_KEYS = (N_("FirmwareVersion"), N_("HardwareVersion"), N_("actuators"), N_("configuration"), N_("port"),
+                 N_("baudrate"), N_("product"), N_("version"), N_("sw1"), N_("device code"), N_("program version"),
+                 N_("mac"), N_("transport"))
+# Where a known identity came from: kept in the watch's file as the English, and read back as the message it was
+APPROVED_SET, FIRST_SEEN, REPLACED_BY = N_("approved set"), N_("first seen"), N_("replacement by {user}")
+SOURCES = (APPROVED_SET, FIRST_SEEN, REPLACED_BY)
 _MISSING = object()
 
 
@@ -69,6 +79,18 @@ def facets(identity: dict | None) -> dict[str, Any]:
 
 FACET_WORDS = {"serial": N_("serial {value}"), "firmware": N_("firmware {value}"), "hardware": N_("hardware {value}"),
                "variant": N_("variant {value}")}
+
+
+def source_message(text: object) -> str:
+    """Where a known identity came from, as the watch's file holds it (the English of one of :data:`SOURCES`), as
+    the :class:`Message` it was written from, so a page words it after a restart; any other text as it is."""
+    text = str(text or "")
+    for template in SOURCES:
+        pattern = re.sub(r"\\\{(\w+)\\\}", r"(?P<\1>.+)", re.escape(template))
+        found = re.fullmatch(pattern, text)
+        if found is not None:
+            return Message(template, **found.groupdict())
+    return text
 
 
 def identity_text(identity: dict | None) -> Message:
@@ -175,10 +197,12 @@ class ReplacementWatch:
             if not backup.supports_backup(self.runtime.worker.adapters.get(name)):
                 continue
             ref = stored.get(name) if isinstance(stored.get(name), dict) else None
+            if ref is not None:
+                ref = {**ref, "source": source_message(ref.get("source"))}
             approved: Entry | None = await record.store.run(record.store.latest, record.plant, name, "approved")
             if approved is not None and approved.data.get("identity") and facets(approved.data["identity"])["serial"] is not None:
                 if ref is None or float(ref.get("time") or 0) < approved.time:
-                    ref = {"identity": approved.data["identity"], "time": approved.time, "source": Message(N_("approved set"))}
+                    ref = {"identity": approved.data["identity"], "time": approved.time, "source": Message(APPROVED_SET)}
             if ref is not None:
                 self.known[name] = ref
             if name in self.runtime.twins:
@@ -250,7 +274,7 @@ class ReplacementWatch:
                                     f"({identity_text(ref['identity'])}); taken as known")
                 ref = None
         if ref is None:  # first seen: this is the device as installed
-            self.known[name] = {"identity": now, "time": time.time(), "source": Message(N_("first seen"))}
+            self.known[name] = {"identity": now, "time": time.time(), "source": Message(FIRST_SEEN)}
             self._persist()
             return None
         differ = differences(ref["identity"], now)
@@ -275,7 +299,7 @@ class ReplacementWatch:
         unit swapped after the approval is named even where this watch had not compared the unit yet."""
         if name in self.runtime.store.devices and identity and facets(identity)["serial"] is not None:
             self._fresh_twins.discard(name)
-            self.accept(name, identity, Message(N_("approved set")))
+            self.accept(name, identity, Message(APPROVED_SET))
 
     def accept(self, name: str, identity: dict, source: str) -> None:
         """The engineer took the device as it is now (end of a replacement): its identity becomes the known one."""
@@ -433,5 +457,5 @@ async def execute_replacement(runtime, rp: ReplacementPlan, selected: set[str], 
     if report.ok:
         watch = watch_of(runtime)
         if watch is not None:
-            watch.accept(name, rp.check.new, Message(N_("replacement by {user}"), user=user))
+            watch.accept(name, rp.check.new, Message(REPLACED_BY, user=user))
     return report

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from devices.errors import DeviceError
+from devices.message import message_of
 from devices.params import Accepted
 
 KINDS = ("read", "stop", "write", "motion", "mains", "system")
@@ -275,7 +276,7 @@ def param_write(params: Any, run: Callable[..., Any] | tuple[Callable[..., Any],
         try:
             return {**values, "value": param.accept(value)}
         except ValueError as exc:  # ParamError, or a codec's refusal of text it cannot read
-            raise CommandError(str(exc)) from None
+            raise CommandError(message_of(exc)) from None
 
     def audit(values: Mapping[str, Any], adapter: Any) -> dict[str, Any]:
         accepted = values["value"]

@@ -61,10 +61,12 @@ def _files(directory: Path, lang: Lang | None = None) -> list[dict]:
 
 
 def _identity_words(identity: object, lang: Lang | None = None) -> str:
-    """A backup's device identity as words (``serial 660020, FirmwareVersion 57``), not as JSON."""
+    """A backup's device identity as words (``serial 660020, FirmwareVersion 57``), not as JSON; its keys as the
+    catalogs label them in ``lang`` (app/replace.py, ``IDENTITY_KEYS``)."""
+    lang = english(lang)
     if not isinstance(identity, dict) or not identity:
-        return english(lang).gettext("not recorded")
-    return ", ".join(f"{key} {value}" for key, value in identity.items() if value not in (None, ""))
+        return lang.gettext("not recorded")
+    return ", ".join(f"{lang.gettext(key)} {value}" for key, value in identity.items() if value not in (None, ""))
 
 
 class BackupCard:
@@ -126,7 +128,7 @@ class BackupCard:
                 self.made.append(await backup.backup_device(self.runtime, name, self.directory, step,
                                                             user=user, role=role))
             except ACTION_ERRORS as exc:  # one device's refusal must not stop the others
-                failures.append(f"{name}: {exc}")
+                failures.append(f"{name}: {said(exc, self.lang)}")
             self.progress.set_value((n + 1) / len(chosen))
         self.start.enable()
         self.status.set_text(_("{n} backup file(s) written").format(n=len(self.made))

@@ -67,14 +67,15 @@ async def run_command(
     from pages.session import current_user
 
     worker = rt.current().worker
+    lang = i18n.client_language()
     user, role = current_user()
     try:
         try:
             result = await worker.gate.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
                                               confirmed=confirmed)
         except NeedsConfirmation as question:
-            if not await confirm(title or f"{action}?", question.question,
-                                 ok=i18n.client_language().gettext("Send") if ok is None else ok):
+            if not await confirm(title or f"{action}?", said(question.question, lang),
+                                 ok=lang.gettext("Send") if ok is None else ok):
                 await cancelled(device, action, parameter=parameter,
                                 new=new if parameter else shown({k: v for k, v in (args or {}).items() if k != "known"}))
                 return False, None
@@ -82,13 +83,13 @@ async def run_command(
             result = await worker.gate.invoke(device, action, args, user=user or "anonymous", role=role, session=session,
                                               confirmed=True)
     except PermissionDenied as exc:
-        ui.notify(str(exc), type="negative")
+        ui.notify(said(exc, lang), type="negative")
         return False, None
-    except CommandError as exc:
-        ui.notify(f"{action}: {exc}", type="negative", multi_line=True)
+    except CommandError as exc:  # the gate's refusal (the parameter model's among them), in the page's language
+        ui.notify(f"{action}: {said(exc, lang)}", type="negative", multi_line=True)
         return False, None
     except CommissionError as exc:  # a refusal of the device, its rules, its line or the audit log: the message says what to do
-        ui.notify(f"{action}: {exc}", type="negative", multi_line=True, close_button="OK", timeout=15000)
+        ui.notify(f"{action}: {said(exc, lang)}", type="negative", multi_line=True, close_button="OK", timeout=15000)
         return False, None
     except Exception as exc:  # noqa: BLE001 - the page's handler: a fault of this tool is logged with its traceback and said
         log.exception("%s on %s failed", action, device)
@@ -280,6 +281,6 @@ def sim_action(device: str, describe: str, fn: Callable[[], object]) -> Callable
             await rt.current().worker.gate.run(act, device=device, role=role, user=user or "anonymous",
                                                describe=f"simulation: {describe}", kind="system")
         except Exception as exc:  # noqa: BLE001 - refused or failed: said on the page
-            ui.notify(str(exc), type="negative")
+            ui.notify(said(exc, i18n.client_language()), type="negative")
 
     return run

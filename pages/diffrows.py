@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from app import backup
 from app.i18n import Lang
+from app.message import said
 
 WRAP = "white-space: normal; overflow-wrap: break-word"  # long texts wrap inside the screen, never cut off
 DIFF_COLUMNS = [
@@ -39,7 +40,7 @@ def state_text(row: backup.DiffRow, lang: Lang) -> str:
     """:func:`pages.diffrows.row_state` in ``lang`` (the row's error and risk as the device's record words them)."""
     _ = lang.gettext
     if row.error:
-        return _("not written: {error}").format(error=row.error)
+        return _("not written: {error}").format(error=said(row.error, lang))
     if not row.changed:
         return _("same")
     return _("differs; risk, needs confirmation: {risk}").format(risk=row.risk) if row.risk else _("differs")

@@ -147,10 +147,10 @@ def discovered_section(bus: str, tile_row, add_tile: Callable[[str], None], lang
                         f'data-adopt="{entry["device_id"]}"'
                     )
             if flood:  # a flood is shown as a flood, never as devices
-                ui.label(_("Discovery on {bus}: {flood}").format(bus=bus, flood=flood)).classes("text-body2 text-negative").props("data-discovery-flood")
+                ui.label(_("Discovery on {bus}: {flood}").format(bus=bus, flood=said(flood, lang))).classes("text-body2 text-negative").props("data-discovery-flood")
             notes = []
             if watching:
-                rules = "; ".join(summary.get("rules") or [])
+                rules = "; ".join(said(rule, lang) for rule in summary.get("rules") or [])
                 notes.append(lang.ngettext("watching {n} unknown ID", "watching {n} unknown IDs", watching).format(n=watching)
                              + (" " + _("(listed after {rules})").format(rules=rules) if rules else ""))
             if left_out:

@@ -176,9 +176,9 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool, lan
                     from app.record_cli import sim_action
 
                     try:
-                        ui.notify(await sim_action(runtime, f"{name}:{twin_action}", user=user, role=role), type="info")
+                        ui.notify(said(await sim_action(runtime, f"{name}:{twin_action}", user=user, role=role), lang), type="info")
                     except (*ACTION_ERRORS, ValueError) as exc:  # said (no such twin or action: a ValueError)
-                        ui.notify(_("simulation: {error}").format(error=exc), type="negative")
+                        ui.notify(_("simulation: {error}").format(error=said(exc, lang)), type="negative")
 
                 ui.button(_("Toggle {input} on the simulated device").format(input=twin_action.split()[1]), icon="smart_toy",
                           on_click=act).props("outline").mark("checkout-twin-action")

@@ -32,6 +32,9 @@ CANDIDATE_STALE_PERIODS = 2.5  # a candidate silent for this many of its periods
 # watches nothing, and says so; it resumes once FLOOD_QUIET_S passed without such a second.
 FLOOD_NEW_IDS_PER_S = 64
 FLOOD_QUIET_S = 10.0
+# what a device type's DISCOVERY_EVIDENCE names the frames it waits for (the HD-Lock's "status frames"), as the
+# overview words the discovery rules
+EVIDENCE_WORDS = (N_("frames"), N_("status frames"))
 
 
 @dataclass(slots=True)
@@ -282,13 +285,14 @@ class CanDiscovery:
         for type_name, codec in self.codecs.items():
             evidence = getattr(codec, "DISCOVERY_EVIDENCE", None)
             if evidence:
-                rules.append(f"{DEVICE_TYPES[type_name].title}: {evidence['frames']} {evidence.get('text', 'frames')} "
-                             f"about {evidence['period_s']:g} s apart")
+                rules.append(Message(N_("{type}: {n} {frames} about {period:g} s apart"), type=Message(DEVICE_TYPES[type_name].title),
+                                     n=evidence["frames"], frames=Message(evidence.get("text", EVIDENCE_WORDS[0])),
+                                     period=float(evidence["period_s"])))
         flood = ""
         if table.flood_until and time.time() < table.flood_end:
-            flood = (f"flood of new CAN IDs since {time.strftime('%H:%M:%S', time.localtime(table.flood_since))} "
-                     f"(over {table.flood_ids_per_s} new IDs a second): "
-                     f"nothing is listed until it has been quiet for {FLOOD_QUIET_S:.0f} s")
+            flood = Message(N_("flood of new CAN IDs since {since} (over {n} new IDs a second): nothing is listed until it has "
+                               "been quiet for {quiet} s"), since=time.strftime("%H:%M:%S", time.localtime(table.flood_since)),
+                            n=table.flood_ids_per_s, quiet=f"{FLOOD_QUIET_S:.0f}")
         return {"candidates": len(table.candidates), "dropped": table.dropped, "refused_frames": table.refused_frames,
                 "listed_dropped": table.listed_dropped, "rules": rules, "flood": flood, "floods": table.floods,
                 "flood_frames": table.flood_frames}

@@ -750,3 +750,68 @@ async def test_a_restore_in_german_says_its_warnings_and_summary_in_german(tmp_p
         assert english_but(user, descriptions_of(runtime, "door-1")) == []
         rows = runtime.audit.query(device="door-1")
         assert any(r.action == "restore" and r.result.startswith("1 written, ") for r in rows), rows
+
+
+async def test_the_gates_refusals_in_the_command_clients_notifications_in_german(tmp_path):
+    """What the gate refuses reaches a page as the command client's notification (pages/command_client.py): the parameter
+    model's refusal of a write and a command the device type does not declare, in the page's language."""
+    from devices.commands import WRITE_PARAMETER
+    from devices.hdlock.params import PARAMS
+    from pages.command_client import run_command
+
+    low, high = PARAMS.by_name["LockRequestDelay"].limits()
+    async with german_locks(tmp_path) as (runtime, user):
+        await user.open("/device/door-1")
+        await user.should_see("HD-Lock door-1", retries=50)
+        with user.client:
+            assert await run_command("door-1", WRITE_PARAMETER, args={"param": "LockRequestDelay", "value": 70000}) == (False, None)
+            assert await run_command("door-1", "fly") == (False, None)
+        await user.should_see(f"write parameter: LockRequestDelay: 70000 liegt außerhalb von {low} .. {high} ms", retries=20)
+        await user.should_see("fly: 'fly' ist kein Befehl von door-1", retries=20)
+        assert not [m for m in user.notify.messages if "is outside" in m or "is not a command" in m], user.notify.messages
+
+
+async def test_the_record_page_in_german_names_the_identity_from_the_catalog(tmp_path):
+    """The record page's preview names the identity's keys from the catalog (Firmware-Version for FirmwareVersion)."""
+    async with german_locks(tmp_path, "door-1") as (runtime, user):
+        await eventually(lambda: runtime.store.devices["door-1"].value("FirmwareVersion") is not None, timeout=15,
+                         what="door-1's identity")
+        await user.open("/record/door-1")
+        await user.should_see("Inbetriebnahmeprotokoll", retries=50)
+        await eventually(lambda: "Firmware-Version" in shown_texts(user), timeout=10, what="the preview's identity")
+        assert "Hardware-Version" in shown_texts(user)  # the listings below name the registers as the document prints them
+
+
+async def test_the_record_page_in_german_says_a_twin_actions_answer(tmp_path):
+    """The M3IO checkout asks to toggle an input; the twin's control offered with the question answers in German, and
+    the audit row keeps the English."""
+    import asyncio
+
+    from tests.recordutil import demo_plant
+
+    runtime = Runtime(demo_plant(("heater-hmr",)), simulate=True, data_dir=tmp_path / "data")
+    async with german_user(runtime) as user:
+        await eventually(lambda: runtime.store.devices["heater-hmr"].status == "online", timeout=15, what="the heater")
+        await user.open("/record/heater-hmr")
+        await user.should_see("Inbetriebnahmeprotokoll", retries=50)
+        user.find(marker="checkout-run").click()
+        for _ in range(300):  # the steps run (questions answered yes) until one asks a person to toggle an input
+            runtime.worker.heartbeat(user.client.id)  # the page's browser is alive (the simulated user sends no beats)
+            try:
+                user.find(marker="checkout-twin-action")
+                break
+            except AssertionError:
+                try:
+                    user.find(marker="checkout-yes").click()
+                except AssertionError:
+                    pass
+                await asyncio.sleep(0.1)
+        user.find(marker="checkout-twin-action").click()
+        await eventually(lambda: any(re.fullmatch(r"heater-hmr: Simulation: E\d umgeschaltet", m) for m in user.notify.messages),
+                         timeout=10, what="the twin's answer in German")
+        user.find(marker="checkout-no").click()
+        await eventually(lambda: runtime.record.runs["heater-hmr"].status not in ("ready", "running"), timeout=30,
+                         what="the run's end")
+        audit = await runtime.audit.aquery(device="heater-hmr", text="simulation: toggle E")
+        assert audit, "the audit row keeps the English"
+
