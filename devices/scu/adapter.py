@@ -631,7 +631,8 @@ class ScuAdapter(BackupDefaults):
         try:
             value = p.decode_data(data_id, answer.data)
         except (v.DecodeError, ValueError) as exc:
-            result["error"] = f"cannot decode {len(answer.data)} bytes as {entry.type_name}: {exc}"
+            result["error"] = Message(N_("cannot decode {n} bytes as {type}: {error}"), n=len(answer.data),
+                                      type=entry.type_name, error=str(exc))
             return result
         result["value"] = value
         result["text"] = value_text(data_id, value)
