@@ -27,6 +27,8 @@ from dataclasses import dataclass, field
 from types import ModuleType
 from typing import Any
 
+from devices.message import joined
+
 # how much each kind of action weighs: a verdict over several findings takes the heaviest
 KINDS = ("read", "stop", "write", "system", "mains", "motion")
 _WEIGHT = {k: i for i, k in enumerate(KINDS)}
@@ -51,8 +53,8 @@ class Verdict:
 
     @property
     def question(self) -> str:
-        """The confirmation text (every risk, each once), or ""."""
-        return " ".join(dict.fromkeys(self.confirm))
+        """The confirmation text (every risk, each once; a Message its reader words), or ""."""
+        return joined(list(dict.fromkeys(self.confirm)), " ") if self.confirm else ""
 
 
 def combine(verdicts: Sequence[Verdict], default: Verdict | None = None) -> Verdict:

@@ -248,7 +248,7 @@ async def _write_service(name: str, param, entry, lang=None) -> None:
     reason = refusal(param, value)  # beyond the range: the document's own refusals (params.refusal)
     _ = (lang or i18n.get("en")).gettext
     if reason:
-        entry.error = _(reason)  # the audit row below stays as written: English
+        entry.error = said(reason, lang)  # the audit row below stays as written: English
         await refuse(name, f"write {param.name}", reason, parameter=param.name, new=value)
         return
     await write_from_page(name, param, value, success=_("{name} = {value} written and read back from every actuator"),

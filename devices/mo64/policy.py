@@ -33,6 +33,7 @@ from devices.mo64.adapter import COMMAND_NAMES, OPERATIONS, Mo64Adapter
 from devices.mo64.settings import SETTING_WRITES, Mo64Settings
 from devices.mo64.control import AREA_CLEAR_RISK, EEPROM_RISK, OPEN_LEVEL_RISK, meaning, operation
 from devices.sendpolicy import Verdict
+from devices.message import joined
 
 TITLE = "MO 64"
 check_can = check_modbus = transmit_forms = None  # hooks of devices/sendpolicy.py this type has none of
@@ -99,7 +100,7 @@ def _write_verdict(accepted: Accepted) -> tuple[str, str]:
     if not param.setting_key:
         return f"{param.name} is read only: no setting telegram is named for it (chapter 5.2)", ""
     parts = [accepted.risk] + ([model.selector_risk(param)] if param.selector_assumed else [])
-    return "", " ".join(p for p in parts if p)
+    return "", joined([p for p in parts if p], " ")
 
 
 # the gate passes the page's session: its EEPROM writes are counted for it (Mo64Settings.write_param_in)
