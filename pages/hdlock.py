@@ -156,7 +156,7 @@ class HealthCard(DeviceCard):
         self.ident.set_text(_("{where} · serial {serial} · firmware V{firmware}").format(
             where=where, serial=serial if serial is not None else "-", firmware=fw if fw is not None else "-"))
         self.seen.set_text(_("last seen {age}").format(age=fmt_age(state.age, view.lang)))
-        self.error.set_text(state.last_error if state.status != "online" else "")
+        self.error.set_text(said(state.last_error, view.lang) if state.status != "online" else "")
 
 
 class LampsCard(DeviceCard):

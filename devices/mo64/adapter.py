@@ -108,7 +108,7 @@ class Mo64Adapter(Mo64Settings):
         self.masters = {self.master, int(line_options.get("next_master", self.master + 1))}  # the masters of a shared line
         self.core = Mo64Control()  # the motion rule: what asks, the levels and their dead-man (sans-I/O)
         # each setting write wears the barrier's EEPROM (document: "EEPROM"): restore says how many
-        self.restore_wear = "each written setting wears the barrier's EEPROM"
+        self.restore_wear = Message(N_("each written setting wears the barrier's EEPROM"))
         self.eeprom_writes: dict[str, int] = {}  # EEPROM writes of each session (eeprom_writes_total: all of them)
         self.last_reply = ""
         self.error_memory: list[dict] = []

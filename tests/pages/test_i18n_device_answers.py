@@ -121,3 +121,16 @@ async def test_the_scu_page_words_the_data_directory_and_service_values_in_germa
         counters = next(row for row in service.rows if row["id"] == "0x0080")
         assert counters["name"] == "Fehlerzähler der Antriebe und Gesamt-Überstrom"
         assert "0x0081: Linearantriebfehler 0, Spitzenstrom erreicht 0, Kurzschluss-Detektionen 0" in counters["value"]
+
+
+async def test_the_scu_page_words_why_the_remote_session_ended_in_german(tmp_path):
+    """The session's reason (devices/scu/control.py) after RA, on the SCU page: in German; the store keeps the English."""
+    from plants import plant, scu_line
+
+    async with german_page(tmp_path, plant(scu_line()), "lift", "Ewellix SCU lift") as (runtime, user):
+        await runtime.worker.adapters["lift"].release_scu()
+        await eventually(lambda: shown(user, "an den Handschalter abgegeben (RA); Remote-Betrieb erneut öffnen, um zu fahren"),
+                         timeout=10, what="the session's reason in German")
+        assert not shown(user, "released to the hand switch")
+        reason = runtime.store.devices["lift"].live("Session reason")
+        assert reason.value == "released to the hand switch (RA); open the session again to drive it"
