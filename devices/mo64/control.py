@@ -31,15 +31,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from devices.control import LEASE_S, STOP_DEADLINE_S, LeaseState, Report
-from devices.message import Message, N_
+from devices.message import Message, N_, joined
 from devices.mo64 import codec
 from devices.mo64 import params as model
 
 AREA_CLEAR_RISK = "The boom moves: check that nobody stands under it (the area is clear)."
 OPEN_LEVEL_RISK = ("Deactivating the open level lets the boom close (page 33): check that nobody stands under it "
                    "(the area is clear).")
-EEPROM_RISK = ("Every setting write wears the barrier's EEPROM (chapter 4: the number of writes is limited). "
-               "Write only what must change.")
+EEPROM_RISK = Message(N_("Every setting write wears the barrier's EEPROM (chapter 4: the number of writes is limited). "
+                         "Write only what must change."))
 # the levels released by the dead-man rule (close and reverse: they keep the boom moving towards a person)
 DEAD_MAN_LEVELS = frozenset({codec.Command.CLOSE, codec.Command.REVERSE})
 COMMAND_NAMES = {codec.Command.OPEN: N_("open"), codec.Command.CLOSE: N_("close"), codec.Command.REVERSE: N_("reverse")}
@@ -112,7 +112,7 @@ def meaning(telegram: bytes) -> Meaning:
     # a flag the value switches off (force monitoring, light-barrier test, ...) is named first (devices/mo64/params.py)
     questions = model.safety_questions(request.setting.key, model.setting_int(request.setting.key, request.value))
     return Meaning(Message(N_("set {setting}"), setting=Message(request.setting.name)), "write",
-                   " ".join(questions + ([EEPROM_RISK] if request.setting.eeprom else [])))
+                   joined(questions + ([EEPROM_RISK] if request.setting.eeprom else []), " "))
 
 
 # -- actions and answers -----------------------------------------------------------------------------

@@ -266,9 +266,10 @@ def safety_questions(key: str, number: int) -> list[str]:
 
 def selector_risk(param: Mo64Param) -> str:
     setting = codec.SETTINGS[param.setting_key]
-    return (f"The selector 0x{setting.telegram:02X} 0x{setting.selector:02X} of {param.name} is an assumption "
-            f"({setting.assumed}); the manual's summary does not name it, and a wrong selector writes another "
-            f"EEPROM setting. Confirm only if you verified on this unit that it is {setting.name}.")
+    return Message(N_("The selector 0x{telegram:02X} 0x{selector:02X} of {name} is an assumption ({assumed}); the manual's "
+                      "summary does not name it, and a wrong selector writes another EEPROM setting. Confirm only if you "
+                      "verified on this unit that it is {setting}."), telegram=setting.telegram, selector=setting.selector,
+                   name=param.name, assumed=setting.assumed, setting=Message(setting.name))
 
 
 __all__ = ["PARAMS", "Mo64Param", "SAFETY", "extract", "replace", "setting_value", "setting_int", "value_int",

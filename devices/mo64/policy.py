@@ -33,7 +33,7 @@ from devices.mo64.adapter import COMMAND_NAMES, OPERATIONS, Mo64Adapter
 from devices.mo64.settings import SETTING_WRITES, Mo64Settings
 from devices.mo64.control import AREA_CLEAR_RISK, EEPROM_RISK, OPEN_LEVEL_RISK, meaning, operation
 from devices.sendpolicy import Verdict
-from devices.message import joined
+from devices.message import Message, N_, joined
 
 TITLE = "MO 64"
 check_can = check_modbus = transmit_forms = None  # hooks of devices/sendpolicy.py this type has none of
@@ -44,9 +44,10 @@ CLEAR_LEVELS_RISK = ("Deactivates every level this tool set in the barrier (leve
 
 
 def selector_risk(setting: codec.Setting) -> str:
-    return (f"The selector 0x{setting.telegram:02X} 0x{setting.selector:02X} of {setting.name} is an assumption "
-            f"({setting.assumed}); the manual's summary does not name it, and a wrong selector writes another "
-            f"EEPROM setting. Confirm only if you verified on this unit that it is {setting.name}.")
+    return Message(N_("The selector 0x{telegram:02X} 0x{selector:02X} of {name} is an assumption ({assumed}); the manual's "
+                      "summary does not name it, and a wrong selector writes another EEPROM setting. Confirm only if you "
+                      "verified on this unit that it is {setting}."), telegram=setting.telegram, selector=setting.selector,
+                   name=Message(setting.name), assumed=setting.assumed, setting=Message(setting.name))
 
 
 def _setting_risk(setting: codec.Setting):
@@ -58,7 +59,7 @@ def _setting_risk(setting: codec.Setting):
             parts = model.safety_questions(setting.key, number) + parts
         except (KeyError, codec.CodecError):
             pass  # out of range: refused by the argument check
-        return " ".join(parts + ([EEPROM_RISK] if setting.eeprom else []))
+        return joined(parts + ([EEPROM_RISK] if setting.eeprom else []), " ")
     return risk
 
 

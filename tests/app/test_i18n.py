@@ -335,3 +335,16 @@ def test_commission_backup_says_why_a_device_has_nothing_to_back_up_in_german(tm
                         capsys)
     assert code == 0
     assert "nichts zu sichern: Kundendaten brauchen den adressierten Modus (SW1 Schalter 8 ein; SW1 ist 0x1A)" in out, out
+
+
+def test_every_device_types_plant_file_checks_word_themselves_in_german():
+    """What each device type's check_config says of an empty device and an unknown key: a Message with its German."""
+    from app.message import said
+    from devices.registry import DEVICE_TYPES
+
+    for name, device_type in DEVICE_TYPES.items():
+        for bus_type in device_type.bus_types:
+            found = device_type.check_config({"bogus": 1}, bus_type)
+            for key, message in found:
+                assert isinstance(message, Message), (name, bus_type, key, message)
+                assert said(message, DE) != message, (name, bus_type, key, message)

@@ -51,3 +51,22 @@ def test_a_refusal_keeps_the_models_name_and_words_its_sentence():
     assert reason.startswith("Timeout 150 ms is below 200 ms, twice the control period of 100 ms")  # English as it was
     assert said(reason, i18n.get("de")).startswith("Timeout 150 ms liegt unter 200 ms, der doppelten Steuerperiode von "
                                                    "100 ms")
+
+
+async def test_the_electrak_timeout_asks_and_refuses_in_german(tmp_path):
+    """Timeout (document 004): above 250 ms the question names the timeout's risk in German."""
+    from nicegui.testing.user_interaction import UserInteraction
+    from plants import electrak_bus, plant
+    from test_i18n_pages import german_page
+    from webutil import by_testid
+
+    async with german_page(tmp_path, plant(electrak_bus()), "lift", "Electrak-HD-Netzwerk lift") as (runtime, user):
+        state = runtime.store.devices["lift"]
+        await eventually(lambda: all(state.raw(p) is not None for p in ELECTRAK_PARAMS), timeout=10,
+                         what="service parameters read")
+        entry = by_testid(user, "entry-06")
+        entry.value = 300
+        UserInteraction(user, {entry}, None).trigger("keydown.enter")
+        await user.should_see("Über der Voreinstellung von 250 ms bewegen sich die Aktuatoren so lange weiter", retries=50)
+        await user.should_not_see("keep moving for that long")
+        dialog_button(user, "Abbrechen").click()
