@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from devices import errors
+from devices.message import Message, N_
 
 
 @dataclass(frozen=True)
@@ -70,7 +71,8 @@ class ChecksumError(FrameError):
         raw = bytes(raw)
         self.expected = self.checksum.crc16(raw[:-2]) if len(raw) >= 2 else 0
         self.received = self.checksum.received(raw) if len(raw) >= 2 else 0
-        super().__init__(f"CRC 0x{self.received:04X} received, 0x{self.expected:04X} computed: {raw.hex(' ')}", raw)
+        super().__init__(Message(N_("CRC 0x{received:04X} received, 0x{expected:04X} computed: {raw}"), received=self.received,
+                                 expected=self.expected, raw=raw.hex(" ")), raw)
 
 
 class FrameLengthError(FrameError):

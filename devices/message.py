@@ -53,7 +53,7 @@ class Message(str):
 
     def text(self, lang: Language | None) -> str:
         """This text in ``lang`` (None: English, as written)."""
-        if lang is None:
+        if lang is None or not self.template:  # "" (nothing joined) is not the catalog's header
             return str(self)
         template = lang.gettext(self.template)
         if not self.fields:
@@ -65,9 +65,26 @@ def _rebuild(template: str, fields: dict[str, Any]) -> Message:
     return Message(template, **fields)
 
 
+class Word(str):
+    """A device's word as a field of a :class:`Message`: a value of the live point ``context`` (``IrsLine`` of
+    ``LockRequestSource``), worded as the catalog has it for that point (``app/device_words.py``)."""
+
+    context: str
+
+    def __new__(cls, word: str, context: str) -> Word:
+        made = super().__new__(cls, word)
+        made.context = context
+        return made
+
+    def __reduce__(self):
+        return Word, (str(self), self.context)
+
+
 def _field(value: Any, lang: Language) -> Any:
     if isinstance(value, Message):
         return value.text(lang)
+    if isinstance(value, Word):
+        return lang.value(str(value), value.context)
     if isinstance(value, float):
         return lang.value(value)
     return value

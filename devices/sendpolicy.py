@@ -53,7 +53,7 @@ class Verdict:
 
     @property
     def question(self) -> str:
-        """The confirmation text (every risk, each once, each in the reader's language), or ""."""
+        """The confirmation text (every risk, each once; a Message its reader words), or ""."""
         return joined(list(dict.fromkeys(self.confirm)), " ") if self.confirm else ""
 
 

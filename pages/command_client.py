@@ -38,7 +38,7 @@ async def confirm(title: str, text: str, ok: str | None = None, danger: bool = T
     ok = _("Continue") if ok is None else ok
     with ui.dialog() as dialog, ui.card().classes("max-w-lg"):
         ui.label(title).classes("text-h6")
-        ui.label(text).classes("text-body1" + (" text-negative" if danger else ""))
+        ui.label(said(text, lang or i18n.client_language())).classes("text-body1" + (" text-negative" if danger else ""))
         with ui.row().classes("justify-end w-full"):
             ui.button(_("Cancel"), on_click=lambda: dialog.submit(False)).props("flat")
             ui.button(ok, color="negative" if danger else "primary", on_click=lambda: dialog.submit(True))

@@ -12,6 +12,7 @@ from nicegui import background_tasks, ui
 
 from app import i18n
 from app.i18n import N_
+from app.message import said
 from devices.electrak import adapter as facts
 from devices.electrak import codec
 from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, length_of, refusal
@@ -31,10 +32,16 @@ def _answers_text(report: facts.ServiceReport | None, lang=None) -> tuple[str, s
     if not report:
         return "", ""
     _ = (lang or i18n.get("en")).gettext
-    tip = "; ".join(_("answer {n}: {text}").format(n=n, text=a) for n, a in enumerate(report.answers, 1)) or _("no answer")
     if report.ok:
-        return _("{n} of {expected} agree").format(n=len(report.answers), expected=report.expected), tip
-    return "; ".join(report.problems), tip
+        return _("{n} of {expected} agree").format(n=len(report.answers), expected=report.expected), _answered(report, lang)
+    return "; ".join(said(p, lang) for p in report.problems), _answered(report, lang)
+
+
+def _answered(report: facts.ServiceReport, lang=None) -> str:
+    """Each actuator's answer to the last service telegram (``answer 1: value 12; answer 2: value 12``)."""
+    _ = (lang or i18n.get("en")).gettext
+    return "; ".join(_("answer {n}: {text}").format(n=n, text=said(a, lang))
+                     for n, a in enumerate(report.answers, 1)) or _("no answer")
 
 
 class ServiceCard(DrawnCard):
@@ -171,10 +178,9 @@ class ServiceCard(DrawnCard):
         self.unsaved.set_visibility(bool(state.unsaved))
         report = view.fact(facts.P_SERVICE_LAST)
         self.last.set_text("" if not report else _("last service telegram: {what} at {time}: ").format(
-                               what=report.what, time=fmt_time(report.time))
-                           + ("; ".join(_("answer {n}: {text}").format(n=n, text=a) for n, a in enumerate(report.answers, 1))
-                              or _("no answer"))
-                           + ("" if report.ok else " - " + "; ".join(report.problems)))
+                               what=said(report.what, lang), time=fmt_time(report.time))
+                           + _answered(report, lang)
+                           + ("" if report.ok else " - " + "; ".join(said(p, lang) for p in report.problems)))
         form = view.fact(facts.P_SAVE_FORM)
         self.form.set_text(_("last save: the network accepted the {form}").format(form=_(form)) if form else
                            _("Save sends the {first} and, on WRONG_SIZE, once the {second}.").format(
@@ -242,7 +248,7 @@ async def _write_service(name: str, param, entry, lang=None) -> None:
     reason = refusal(param, value)  # beyond the range: the document's own refusals (params.refusal)
     _ = (lang or i18n.get("en")).gettext
     if reason:
-        entry.error = _(reason)  # the audit row below stays as written: English
+        entry.error = said(reason, lang)  # the audit row below stays as written: English
         await refuse(name, f"write {param.name}", reason, parameter=param.name, new=value)
         return
     await write_from_page(name, param, value, success=_("{name} = {value} written and read back from every actuator"),

@@ -14,6 +14,7 @@ from nicegui import ui
 from app import i18n
 from app import runtime as rt
 from app.i18n import N_
+from app.message import said
 from app.state import LiveValue
 from devices.hdlock import codec
 from devices.hdlock.adapter import (
@@ -155,7 +156,7 @@ class HealthCard(DeviceCard):
         self.ident.set_text(_("{where} · serial {serial} · firmware V{firmware}").format(
             where=where, serial=serial if serial is not None else "-", firmware=fw if fw is not None else "-"))
         self.seen.set_text(_("last seen {age}").format(age=fmt_age(state.age, view.lang)))
-        self.error.set_text(state.last_error if state.status != "online" else "")
+        self.error.set_text(said(state.last_error, view.lang) if state.status != "online" else "")
 
 
 class LampsCard(DeviceCard):
@@ -518,7 +519,8 @@ class SetAddressCard(_AddressCard):
                                         title=self.view.lang.gettext("Change the Modbus address to {address}?").format(
                                             address=target))
         if ok:
-            ui.notify(outcome.text, type="positive" if outcome.taken else "warning", multi_line=True, close_button="OK", timeout=15000)
+            ui.notify(said(outcome.text, self.view.lang), type="positive" if outcome.taken else "warning", multi_line=True,
+                      close_button="OK", timeout=15000)
 
 
 def _line_locks(name: str, state) -> tuple[dict[int, str], dict[str, int | None], int, int]:
@@ -643,5 +645,6 @@ class BroadcastAddressCard(_AddressCard):
         ok, outcome = await run_command(name, "Broadcast Set Modbus Address (255)", confirmed=True,
                                         args={"new_address": target, "mask": m, "expected": e, "known": known})
         if ok:
-            ui.notify(outcome.text, type="positive" if outcome.taken else "warning", multi_line=True, close_button="OK", timeout=20000)
+            ui.notify(said(outcome.text, lang), type="positive" if outcome.taken else "warning", multi_line=True,
+                      close_button="OK", timeout=20000)
         self.refresh()

@@ -34,7 +34,7 @@ class CanStatusCard(DeviceCard):
             return
         status = self.view.state.live(P_STATUS_FRAME)
         if status is not None:
-            self.text.set_text(status.shown)
+            self.text.set_text(said(status.shown, self.view.lang))
         fwu = self.view.state.live(P_FWU)
         self.fwu.set_text("" if fwu is None or fwu.value is None else said(fwu.shown, self.view.lang))
 

@@ -12,6 +12,7 @@ import html
 from nicegui import ui
 
 from app.i18n import N_, NP_
+from app.message import said
 from devices.mo64 import adapter as facts
 from devices.mo64 import codec
 from devices.mo64.adapter import COMMAND_NAMES
@@ -265,7 +266,8 @@ class CommandsCard(DeviceCard):
         mine = sorted(_(level.command) + (_(" (dead-man)") if level.dead_man else "")
                       for level in self.view.fact(facts.P_LEVELS, ()))
         self.levels.set_text(_("levels this tool set: {list}").format(list=", ".join(mine) if mine else _("none")))
-        self.reply.set_text(_("last answer: {text}").format(text=self.view.text(facts.P_LAST_REPLY)))
+        reply = said(self.view.text(facts.P_LAST_REPLY), self.view.lang)
+        self.reply.set_text(_("last answer: {text}").format(text=reply))
 
 
 class StatusCard(DeviceCard):

@@ -356,7 +356,7 @@ class ProjectEditor:
                 allowed = _("one of the listed values") if param.enum is not None else self.lang.numbers_in(said(project.allowed(param), self.lang))
                 ui.label(_("allowed: {allowed}").format(allowed=allowed)).classes("text-caption text-grey-9")
                 if param.confirm:
-                    ui.label("⚠ " + _("asks before it is written: {risk}").format(risk=param.confirm)).classes("text-caption text-negative").style(WRAP)
+                    ui.label("⚠ " + _("asks before it is written: {risk}").format(risk=said(param.confirm, self.lang))).classes("text-caption text-negative").style(WRAP)
                 if param.description:
                     ui.label(param.description).classes("text-caption text-grey-7").style(WRAP)
             if param.enum is not None:

@@ -9,6 +9,7 @@ import time
 from nicegui import ui
 
 from app.i18n import N_
+from app.message import said
 from devices.scu import facts
 from devices.scu import params as p
 from devices.scu.adapter import SERVICE_IDS, WATCH_RG
@@ -29,6 +30,11 @@ SERVICE_COLUMNS = [{"name": k, "label": label, "field": k, "align": "left"} for 
                    (("id", N_("Id")), ("name", N_("Name")), ("value", N_("Value")), ("read", N_("Read")))]
 
 
+def item_name(entry: p.DataItem, gettext) -> str:
+    """An item of the data directory by its name: the document's own (``Strom A1``), a group's in the page's language."""
+    return gettext(entry.name) if entry.members else entry.name
+
+
 def _read_gate(view: ScuView, access: Access) -> str:
     """Reads wait for a unit that answers, and for an open session unless the unit answers RG without one."""
     return access.role or access.offline or (access.lost if view.fact(facts.P_WATCH) != WATCH_RG else "")
@@ -42,13 +48,13 @@ class DirectoryCard(DrawnCard):
     def build(self) -> None:
         _ = self.view.lang.gettext
         with titled_card(_("Data directory (section 4.3): read any data ID or group ID")):
-            rows = [{"id": e.key, "name": e.name, "type": e.type_name, "unit": e.unit, "access": e.access.value,
-                     "comment": e.comment} for e in p.DIRECTORY.values()]
+            rows = [{"id": e.key, "name": item_name(e, _), "type": e.type_name, "unit": e.unit, "access": e.access.value,
+                     "comment": _(e.comment) if e.comment else ""} for e in p.DIRECTORY.values()]
             table = ui.table(columns=columns(DIRECTORY_COLUMNS, self.view.lang),
                              rows=rows, row_key="id", selection="single", pagination=10).classes("w-full text-caption")
             table.props("dense wrap-cells")
             with ui.row().classes("items-center gap-4"):
-                self.pick = ui.select({e.data_id: f"{e.key} {e.name}" for e in p.DIRECTORY.values()}, value=0x0010,
+                self.pick = ui.select({e.data_id: f"{e.key} {item_name(e, _)}" for e in p.DIRECTORY.values()}, value=0x0010,
                                       label=_("Data ID"), with_input=True).classes("w-96").props("data-testid=data-id")
                 table.on("selection", lambda e: self.pick.set_value(int(e.args["rows"][0]["id"], 16))
                          if e.args.get("rows") else None)
@@ -59,8 +65,10 @@ class DirectoryCard(DrawnCard):
     async def read(self) -> None:
         ok, result = await self.view.act("read data", {"data_id": self.pick.value})
         if ok:
-            self.shown.set_text(f"{result['key']} {result['name']} ({result['type']}): {result['text'] or result['error']}")
-            self.raw.set_text(self.view.lang.gettext("raw: {raw}").format(raw=result["raw"] or self.view.lang.gettext("(no data)")))
+            lang = self.view.lang
+            name = item_name(p.DIRECTORY[result["data_id"]], lang.gettext)
+            self.shown.set_text(f"{result['key']} {name} ({result['type']}): {lang.numbers_in(said(result['text'] or result['error'], lang))}")
+            self.raw.set_text(lang.gettext("raw: {raw}").format(raw=result["raw"] or lang.gettext("(no data)")))
 
     def inputs(self, access: Access) -> tuple:
         return access, self.view.fact(facts.P_WATCH)
@@ -141,7 +149,8 @@ class ServiceCard(DrawnCard):
             ok, result = await self.view.act("read data", {"data_id": data_id})
             if not ok:
                 break
-            out.append({"id": result["key"], "name": result["name"], "value": result["text"] or result["error"],
+            out.append({"id": result["key"], "name": item_name(p.DIRECTORY[result["data_id"]], self.view.lang.gettext),
+                        "value": self.view.lang.numbers_in(said(result["text"] or result["error"], self.view.lang)),
                         "time": time.time(), "read": "", "quality_class": ""})
         self.table.rows = out
         self.ages()

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from app.message import said
 from devices.scu import facts
 from pages.command_client import session_role
 from pages.device_page import DeviceView
@@ -41,7 +42,7 @@ class ScuView(DeviceView):
         lost = ""  # a lost or released session: nothing reaches the unit until it is open again
         if sess in ("lost", "released"):
             lost = (_("the remote session is {state}").format(state=self.lang.phrase(sess, "Session"))
-                    + (f" ({reason})" if reason else "")
+                    + (f" ({said(reason, self.lang)})" if reason else "")
                     + (_("; it is reopened with backoff, or press \"Open the remote session\"") if sess == "lost"
                        else _("; press \"Open the remote session\" to drive again")))
         holder = self.fact(facts.P_CONTROL)

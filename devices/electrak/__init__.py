@@ -4,6 +4,7 @@ from typing import Any
 
 from devices.electrak import codec
 from devices.electrak.params import PARAMS
+from devices.message import Message, N_
 from devices.registry import CanIdUse, DeviceType, OpenRead, TileAlarm, TileBar, TileLine, TileSpec, When
 
 
@@ -11,27 +12,31 @@ def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str
     errors = []
     actuators = options.get("actuators")
     if not isinstance(actuators, list) or not actuators:
-        return [("actuators", 'actuators = [{ model = "HD24", gearing = "B026", stroke_mm = 300 }, ...] is required, one entry per networked actuator')]
+        return [("actuators", Message(N_("actuators = {example} is required, one entry per networked actuator"),
+                                      example='[{ model = "HD24", gearing = "B026", stroke_mm = 300 }, ...]'))]
     for n, a in enumerate(actuators, 1):
         if not isinstance(a, dict):
-            errors.append(("actuators", f"actuator {n}: expected a table with model, gearing, stroke_mm"))
+            errors.append(("actuators", Message(N_("actuator {n}: expected a table with model, gearing, stroke_mm"), n=n)))
             continue
         if a.get("model") not in codec.CURRENT_LIMIT_A:
-            errors.append(("actuators", f"actuator {n}: model {a.get('model')!r} is not one of {', '.join(codec.CURRENT_LIMIT_A)}"))
+            errors.append(("actuators", Message(N_("actuator {n}: model {model!r} is not one of {known}"), n=n, model=a.get("model"),
+                                                known=", ".join(codec.CURRENT_LIMIT_A))))
         if a.get("gearing") not in codec.SPEED_RANGE_MM_S:
-            errors.append(("actuators", f"actuator {n}: gearing {a.get('gearing')!r} is not one of {', '.join(codec.SPEED_RANGE_MM_S)}"))
+            errors.append(("actuators", Message(N_("actuator {n}: gearing {gearing!r} is not one of {known}"), n=n,
+                                                gearing=a.get("gearing"), known=", ".join(codec.SPEED_RANGE_MM_S))))
         stroke = a.get("stroke_mm")
         if not isinstance(stroke, int | float) or isinstance(stroke, bool) or not 0 < stroke <= 6553.5:
-            errors.append(("actuators", f"actuator {n}: stroke_mm must be the ordered stroke in mm (0 < stroke <= 6553.5)"))
+            errors.append(("actuators", Message(N_("actuator {n}: stroke_mm must be the ordered stroke in mm (0 < stroke <= "
+                                                   "6553.5)"), n=n)))
         for key in sorted(set(a) - {"model", "gearing", "stroke_mm"}):
-            errors.append(("actuators", f"actuator {n}: unknown key '{key}'"))
+            errors.append(("actuators", Message(N_("actuator {n}: unknown key '{key}'"), n=n, key=key)))
     if not errors:
         try:  # one control telegram drives every actuator at one speed
             codec.Limits.of([codec.Actuator(a["model"], a["gearing"], float(a["stroke_mm"])) for a in actuators])
         except codec.CodecError as exc:
             errors.append(("actuators", str(exc)))
     for key in sorted(set(options) - {"actuators"}):
-        errors.append((key, f"unknown key '{key}' for an Electrak network; known: actuators"))
+        errors.append((key, Message(N_("unknown key '{key}' for an Electrak network; known: actuators"), key=key)))
     return errors
 
 

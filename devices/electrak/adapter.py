@@ -18,7 +18,7 @@ from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, SERVICE, length_o
 from devices.decoding import decoded
 from devices.lease import Lease
 from devices.live import DeviceState, Holder, Point, session_tag
-from devices.message import Message, N_, message_of
+from devices.message import Message, N_, joined, message_of
 from devices.params import Accepted, Param, ParamError, backup_entry
 from devices.transport import CanTransport
 
@@ -53,6 +53,9 @@ P_FOREIGN = "Foreign control sender"  # ForeignSender: the last control telegram
 P_SATURATED = "Saturated warning"  # "" or the warning: Saturated stayed on too long
 P_SERVICE_LAST = "Last service telegram"  # ServiceReport of the last service exchange
 P_SERVICE_ANSWERS = "Service answers"  # answers to the last service telegram
+# a service telegram in words (``read 0x0A``), the kind of request and its specifier
+SERVICE_KINDS = {codec.ServiceType.READ_REQUEST: N_("read 0x{specifier:02X}"),
+                 codec.ServiceType.WRITE_REQUEST: N_("write 0x{specifier:02X}")}
 P_SERVICE_REPORTS = "Service reports"  # tuple of ServiceReport: the last exchange of each parameter
 P_BITRATE_CHANGE = "Bit rate change"  # BitrateChange: a bit rate written (and saved), None: none
 P_SAVE_FORM = "Save form"  # the form of save (0xF0) the network accepted last, None: not saved yet
@@ -528,20 +531,22 @@ class ElectrakAdapter(BackupDefaults):
         return answers
 
     def _report(self, request, answers, problems, what: str, key: str | None) -> None:
-        kind = {codec.ServiceType.READ_REQUEST: "read", codec.ServiceType.WRITE_REQUEST: "write"}.get(request.type, f"type 0x{request.type:02X}")
-        report = ServiceReport(f"{kind} 0x{request.specifier:02X}" + (f" ({what})" if what else ""), time.time(),
+        kind = SERVICE_KINDS.get(request.type, N_("type 0x{type:02X} 0x{specifier:02X}"))
+        asked = Message(kind, type=request.type, specifier=request.specifier)
+        report = ServiceReport(Message("{asked} ({what})", asked=asked, what=what) if what else asked, time.time(),
                                tuple(codec.describe_answer(a) for a in answers), len(self.actuators), tuple(problems),
                                not problems, key)
-        answered = "; ".join(f"answer {n}: {a}" for n, a in enumerate(report.answers, 1)) or "no answer"
+        answered = joined([codec.numbered(n, a) for n, a in enumerate(report.answers, 1)], "; ") or Message(N_("no answer"))
         self.state.fact(P_SERVICE_ANSWERS, len(answers))
-        self.state.fact(P_SERVICE_LAST, report, text=f"{report.what}: {answered}"
-                        + ("" if report.ok else " - " + "; ".join(report.problems)))
+        self.state.fact(P_SERVICE_LAST, report, text=Message("{what}: {answered}{problems}", what=report.what, answered=answered,
+                                                             problems="" if report.ok else Message(
+                                                                 " - {problems}", problems=joined(list(report.problems), "; "))))
         if key is not None:
             self._reports[key] = report
             self.state.fact(P_SERVICE_REPORTS, tuple(self._reports.values()))
 
     async def _unlock(self, param: Param) -> None:
-        await self._service(codec.password_request(password_of(param)), f"password for {param.name}")
+        await self._service(codec.password_request(password_of(param)), Message(N_("password for {name}"), name=param.name))
 
     async def _read(self, param: Param) -> int:
         answers = await self._service(codec.read_request(param.address, length_of(param)), param.name, param.key)

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 
 from devices import errors
+from devices.message import Message, N_, joined
 
 CONTROL_ID = 0x06  # sent by the master every 100 ms
 STATUS_ID = 0x07  # sent by every actuator every 100 ms
@@ -232,18 +233,24 @@ def belongs_to(request: ServiceMessage, answer: ServiceMessage) -> bool:
     return answer.type == ServiceType.ERROR_RESPONSE or (answer.specifier == request.specifier and answer.type == ANSWER_TYPE.get(request.type))
 
 
-def describe_answer(answer: ServiceMessage) -> str:
+def describe_answer(answer: ServiceMessage) -> Message:
+    """One actuator's answer to a service telegram in words, a Message its reader words."""
     if answer.type == ServiceType.ERROR_RESPONSE:
-        return f"error {answer.error_name}"
+        return Message(N_("error {name}"), name=answer.error_name)
     if answer.type == ServiceType.WRITE_CONFIRMATION:
-        return "confirmed"
+        return Message(N_("confirmed"))
     if answer.type == ServiceType.READ_RESPONSE:
-        return f"value {answer.value}"
-    return f"type 0x{answer.type:02X}"
+        return Message(N_("value {value}"), value=answer.value)
+    return Message(N_("type 0x{type:02X}"), type=answer.type)
 
 
-def answer_problems(request: ServiceMessage, answers: list[ServiceMessage], expected: int) -> list[str]:
-    """What is wrong with the answers of a network of ``expected`` actuators, in words; empty when
+def numbered(n: int, text: object) -> Message:
+    """The ``n``-th answer of a service exchange (``answer 2: confirmed``)."""
+    return Message(N_("answer {n}: {text}"), n=n, text=text)
+
+
+def answer_problems(request: ServiceMessage, answers: list[ServiceMessage], expected: int) -> list[Message]:
+    """What is wrong with the answers of a network of ``expected`` actuators, in words (Messages); empty when
     every actuator answered as asked and (reads) every one reports the same value.
 
     Every networked device answers a service request ("Gerätekonfiguration"), and the answers
@@ -253,14 +260,17 @@ def answer_problems(request: ServiceMessage, answers: list[ServiceMessage], expe
     wanted = ANSWER_TYPE.get(request.type)
     for n, answer in enumerate(answers, 1):
         if answer.type != wanted:
-            problems.append(f"answer {n}: {describe_answer(answer)}")
+            problems.append(numbered(n, describe_answer(answer)))
     if len(answers) < expected:
-        problems.append(f"{expected - len(answers)} of {expected} actuators did not answer")
+        problems.append(Message(N_("{missing} of {expected} actuators did not answer"),
+                                missing=expected - len(answers), expected=expected))
     elif len(answers) > expected:
-        problems.append(f"{len(answers)} answers, but {expected} actuators are configured")
+        problems.append(Message(N_("{n} answers, but {expected} actuators are configured"), n=len(answers),
+                                expected=expected))
     values = [a.value for a in answers if a.type == ServiceType.READ_RESPONSE]
     if len(set(values)) > 1:
-        problems.append("the actuators disagree: " + ", ".join(f"answer {n}: {v}" for n, v in enumerate(values, 1)))
+        problems.append(Message(N_("the actuators disagree: {answers}"),
+                                answers=joined([numbered(n, v) for n, v in enumerate(values, 1)])))
     return problems
 
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from devices import values
 from devices.electrak import codec
+from devices.message import Message, N_
 from devices.params import Access, Param, ParamMap
 
 SERVICE = "service"
@@ -27,11 +28,11 @@ TIMEOUT_SPECIFIER = 0x06
 # old bit rate and takes effect when the actuators are powered up again.
 BITRATE_AT_POWER_UP = True
 
-BITRATE_WARNING = (
+BITRATE_WARNING = Message(N_(
     "The actuators keep the old bit rate until they are powered up again: write it, read it back from every actuator, "
     "save it (0xF0), then set the bus's bitrate in the plant file, restart commission and power-cycle the actuators. "
     "Every device on this bus must be switched alike, or it leaves the bus."
-)
+))
 
 # "CAN-Steuerung": the control telegram comes every 100 ms; a timeout that is not well above that
 # period (its jitter on a loaded machine reaches tens of ms) sets the message-timeout flag
@@ -43,15 +44,13 @@ TIMEOUT_DEFAULT_MS = 250
 # the timeout is how long motion outlives this tool when it stops sending: at most a second, and
 # anything above the default is confirmed (65535 ms let an actuator run on for a minute)
 TIMEOUT_MAX_MS = 1000
-TIMEOUT_REFUSAL = (
-    f"below {TIMEOUT_MIN_MS} ms, twice the control period of {CONTROL_PERIOD_MS} ms: the control telegram comes every "
-    f"{CONTROL_PERIOD_MS} ms with jitter, "
-    "so the message-timeout flag would be set between telegrams and the actuators would stop"
-)
-TIMEOUT_WARNING = (
-    f"Above the default {TIMEOUT_DEFAULT_MS} ms the actuators keep moving for that long after this tool (or a controller) "
-    "stops sending, e.g. when the program hangs or the cable is pulled."
-)
+TIMEOUT_REFUSAL = Message(
+    N_("below {minimum} ms, twice the control period of {period} ms: the control telegram comes every {period} ms with "
+       "jitter, so the message-timeout flag would be set between telegrams and the actuators would stop"),
+    minimum=TIMEOUT_MIN_MS, period=CONTROL_PERIOD_MS)
+TIMEOUT_WARNING = Message(
+    N_("Above the default {default} ms the actuators keep moving for that long after this tool (or a controller) stops "
+       "sending, e.g. when the program hangs or the cable is pulled."), default=TIMEOUT_DEFAULT_MS)
 
 
 @dataclass(frozen=True)
@@ -103,11 +102,14 @@ def length_of(param: Param) -> int:
 
 
 def refusal(param: Param, value) -> str:
-    """Why ``value`` must not be written to ``param`` beyond its range, or ``""``."""
+    """Why ``value`` must not be written to ``param`` beyond its range (a Message, the parameter by the model's
+    name), or ``""``."""
     if param.address != TIMEOUT_SPECIFIER:
         return ""
     try:
         number = float(value)
     except (TypeError, ValueError):
         return ""
-    return f"{param.name} {number:g} ms is {TIMEOUT_REFUSAL}" if number < TIMEOUT_MIN_MS else ""
+    if number >= TIMEOUT_MIN_MS:
+        return ""
+    return Message(N_("{name} {value} ms is {refusal}"), name=param.name, value=f"{number:g}", refusal=TIMEOUT_REFUSAL)

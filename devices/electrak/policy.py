@@ -22,6 +22,7 @@ from devices.electrak.adapter import ElectrakAdapter
 from devices.electrak import codec
 from devices.electrak.control import OVERRIDE_RISK, is_stop
 from devices.electrak.params import PARAMS, SERVICE, length_of, refusal
+from devices.message import Message, N_
 from devices.params import ParamError
 from devices.sendpolicy import Verdict
 
@@ -30,9 +31,9 @@ check_modbus = transmit_forms = None  # hooks of devices/sendpolicy.py this type
 
 MOTION_REFUSED = ("Electrak control telegram with enable set drives the actuators: use the Electrak page "
                   "(hold-to-run, a visible stop) instead")
-SERVICE_WRITE_RISK = ("Electrak service write: changes a parameter of the actuators of this network "
-                      "(permanent once saved; section 'Service-Telegramm').")
-SAVE_RISK = "Electrak save (specifier 0xF0): writes the service parameters to the actuators' non-volatile memory."
+SERVICE_WRITE_RISK = Message(N_("Electrak service write: changes a parameter of the actuators of this network "
+                                "(permanent once saved; section 'Service-Telegramm')."))
+SAVE_RISK = Message(N_("Electrak save (specifier 0xF0): writes the service parameters to the actuators' non-volatile memory."))
 AREA_CLEAR_RISK = ("The actuators move: check that the area is clear (nobody and nothing in the stroke of any "
                    "actuator of the network, nor under the load they carry).")
 SHORT_CONTROL_RISK = ("Electrak control telegram of {n} bytes: the document defines 8 (target, current limit, speed, "

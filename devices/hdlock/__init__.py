@@ -4,6 +4,7 @@ from typing import Any
 
 from devices.hdlock import codec
 from devices.hdlock.params import PARAMS
+from devices.message import Message, N_
 from devices.registry import CanIdUse, DeviceType, TileAlarm, TileBar, TileLine, TileSpec, When
 
 SIM_KEYS = {"serial": "simulated twin: serial number", "door": 'simulated twin: "open" or "closed"'}
@@ -15,24 +16,27 @@ def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str
         known = {"address"}
         address = options.get("address")
         if not isinstance(address, int) or isinstance(address, bool):
-            errors.append(("address", "'address' (Modbus slave address 1..254) is required"))
+            errors.append(("address", Message(N_("'address' (Modbus slave address 1..254) is required"))))
         elif not codec.MODBUS_ADDRESS_MIN <= address <= codec.MODBUS_ADDRESS_MAX:
-            errors.append(("address", f"address {address} is outside {codec.MODBUS_ADDRESS_MIN}..{codec.MODBUS_ADDRESS_MAX}"))
+            errors.append(("address", Message(N_("address {address} is outside {low}..{high}"), address=address,
+                                              low=codec.MODBUS_ADDRESS_MIN, high=codec.MODBUS_ADDRESS_MAX)))
     else:
         known = {"device_id", "extended"}
         device_id = options.get("device_id")
         if not isinstance(device_id, int) or isinstance(device_id, bool):
-            errors.append(("device_id", "'device_id' (the lock's CAN device ID; factory default: its serial number) is required"))
+            errors.append(("device_id", Message(N_("'device_id' (the lock's CAN device ID; factory default: its serial number) is "
+                                                  "required"))))
         elif not 1 <= device_id <= codec.EXT_ID_MAX:
-            errors.append(("device_id", f"device_id {device_id} is outside 1..0x1FFFFFFF"))
+            errors.append(("device_id", Message(N_("device_id {device_id} is outside 1..0x1FFFFFFF"), device_id=device_id)))
         if "extended" in options and not isinstance(options["extended"], bool):
-            errors.append(("extended", "extended must be true or false"))
+            errors.append(("extended", Message(N_("extended must be true or false"))))
     serial = options.get("serial", 0)
     if not isinstance(serial, int) or not 0 <= serial <= 0xFFFFFFFF:
-        errors.append(("serial", "serial must be a 32-bit number"))
+        errors.append(("serial", Message(N_("serial must be a 32-bit number"))))
     for key in sorted(set(options) - known - set(SIM_KEYS)):
         allowed = ", ".join(sorted(known | set(SIM_KEYS)))
-        errors.append((key, f"unknown key '{key}' for an HD-Lock on a {bus_type} bus; known: {allowed}"))
+        errors.append((key, Message(N_("unknown key '{key}' for an HD-Lock on a {bus_type} bus; known: {allowed}"), key=key,
+                                   bus_type=bus_type, allowed=allowed)))
     return errors
 
 

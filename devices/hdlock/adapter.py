@@ -13,7 +13,7 @@ from devices import errors
 from devices.hdlock import STATUS_FRAME_BOLT, codec
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
 from devices.live import DeviceState
-from devices.message import Message, N_
+from devices.message import Message, N_, Word
 from devices.params import Accepted, Param, ParamError, backup_entry
 from devices.transport import LineCrcError, LineError, LineException, LineTimeout, ModbusTransport
 
@@ -98,10 +98,13 @@ def chart_sample(state: DeviceState, names: tuple[str, ...]) -> dict:
     return {n: state.points[n].value if n in state.points else state.value(n) for n in names}
 
 
-def status_frame_text(frame: codec.StatusFrame) -> str:
+def status_frame_text(frame: codec.StatusFrame) -> Message:
+    """The periodic status frame (section 6.5.1) in words, its fields by the document's names; the source's name
+    (LockRequestSource, section 3.2.2) is worded by the page."""
     source = PARAMS.by_name["LockRequestSource"].enum.get(frame.lock_request_source, "?")
-    return (f"Status 0x{frame.status:04X} · motorPos {frame.motor_pos} Inc · proximity {frame.proximity} Inc"
-            f" · LockRequestSource 0x{frame.lock_request_source:02X} {source}")
+    return Message(N_("Status 0x{status:04X} · motorPos {motor_pos} Inc · proximity {proximity} Inc · LockRequestSource "
+                      "0x{code:02X} {source}"), status=frame.status, motor_pos=frame.motor_pos, proximity=frame.proximity,
+                   code=frame.lock_request_source, source=Word(source, "LockRequestSource"))
 
 
 def fwu_text(frame: codec.FwuStatusFrame | None) -> str:
@@ -123,7 +126,7 @@ class AddressChange:
 
     new_address: int
     taken: bool  # one lock answers cleanly at the new address
-    text: str
+    text: str  # a Message, worded by the page that shows it
     answered_old: bool | None = None  # the write of 2003 at the old address: answered, silent, or garbled (None)
     collision: bool = False  # a garbled answer at the new address: more than one lock took it
     serial: int | None = None  # serial number of the lock that answers at the new address
@@ -385,12 +388,13 @@ class HdLockAdapter(HdLockBackup):
                 raise CommandError(f"garbled answer at address {new_address}: two locks may answer there now; {how}")
             if found is not None:
                 self._moved_to(old, new_address)
-                text = (f"the lock answers at address {new_address} now ({how}): send Save-Settings to keep it "
-                        f"and change address = {new_address} in the plant file")
+                text = Message(N_("the lock answers at address {new} now ({how}): send Save-Settings to keep it and "
+                                  "change address = {new} in the plant file"), new=new_address, how=how)
                 self.state.event("warning", f"address changed {old} -> {new_address}: {text}")
                 return AddressChange(new_address, True, text, answered_old=answered, serial=serial)
             if await self._probe(old) is not None:
-                text = f"no answer at address {new_address}; the lock still answers at address {old} ({how}): the condition did not hold"
+                text = Message(N_("no answer at address {new}; the lock still answers at address {old} ({how}): the "
+                                  "condition did not hold"), new=new_address, old=old, how=how)
                 self.state.event("warning", f"address change to {new_address} refused: {text}")
                 return AddressChange(new_address, False, text, answered_old=answered)
             raise CommandError(
@@ -438,18 +442,18 @@ class HdLockAdapter(HdLockBackup):
                 self._moved_to(self.address, new_address)
         finally:
             self._changing_address = False
-        gone = f"; no longer answering at their old address: {', '.join(moved)}" if moved else ""
+        gone = Message(N_("; no longer answering at their old address: {names}"), names=", ".join(moved)) if moved else ""
         if found == "garbled":
-            text = (f"garbled answers at address {new_address}: more than one lock took it and they now answer together"
-                    f"{gone}. Give each its own address again (Set Modbus Address at {new_address} with a condition only "
-                    "one of them meets), then change the plant file")
+            text = Message(N_("garbled answers at address {new}: more than one lock took it and they now answer together"
+                              "{gone}. Give each its own address again (Set Modbus Address at {new} with a condition only "
+                              "one of them meets), then change the plant file"), new=new_address, gone=gone)
             result = AddressChange(new_address, False, text, collision=True, moved=moved)
         elif found is None:
-            text = f"no lock answers at address {new_address}: no lock met the condition{gone}"
+            text = Message(N_("no lock answers at address {new}: no lock met the condition{gone}"), new=new_address, gone=gone)
             result = AddressChange(new_address, False, text, moved=moved)
         else:
-            text = (f"lock serial {found} answers at address {new_address}{gone}. Send Save-Settings to it at {new_address} "
-                    "to keep the address, and change the plant file")
+            text = Message(N_("lock serial {serial} answers at address {new}{gone}. Send Save-Settings to it at {new} to keep "
+                              "the address, and change the plant file"), serial=found, new=new_address, gone=gone)
             result = AddressChange(new_address, True, text, serial=found, moved=moved)
         scans = _LINE_SCANS.setdefault(self.line, {})
         for address, name in known.items():
@@ -532,12 +536,14 @@ def _check_address(address: int) -> None:
         raise CommandError(f"new address {address} is outside {codec.MODBUS_ADDRESS_MIN}..{codec.MODBUS_ADDRESS_MAX}")
 
 
-def _command_answer_text(answered: bool | None, old: int) -> str:
+def _command_answer_text(answered: bool | None, old: int) -> Message:
     if answered is None:
-        return f"the write of the command at address {old} got a garbled answer"
+        return Message(N_("the write of the command at address {old} got a garbled answer"), old=old)
     if answered:
-        return f"the lock answered the command at address {old}"
-    return f"no answer to the command at address {old}" + ("" if codec.ADDRESS_COMMAND_ANSWERED else ", as expected")
+        return Message(N_("the lock answered the command at address {old}"), old=old)
+    if codec.ADDRESS_COMMAND_ANSWERED:
+        return Message(N_("no answer to the command at address {old}"), old=old)
+    return Message(N_("no answer to the command at address {old}, as expected"), old=old)
 
 
 async def discover(line: ModbusTransport, first: int = 1, last: int = 247, progress=None) -> list[dict]:

@@ -6,6 +6,7 @@ The words each register's values stand for, the fields of its bit words and the 
 
 from __future__ import annotations
 
+from devices.message import Message, N_
 from devices.params import Field
 
 # -- value tables -----------------------------------------------------------------------
@@ -190,13 +191,13 @@ SYSTEM_CORE_CLOCK_CONFIG_FIELDS: tuple[Field, ...] = (
 
 # section 3.2.2: with 0x80-0x87 condition 2 (door closed) is always met: the bolt moves by condition 1 alone
 DOOR_IGNORED_SOURCES = tuple(range(0x80, 0x88))
-DOOR_IGNORED_WARNING = (
+DOOR_IGNORED_WARNING = Message(N_(
     "With LockRequestSource 0x80-0x87 the lock ignores the door (section 3.2.2, condition 2 always met): "
     "the bolt extends by its condition alone, also while the door is open, and can strike the door or its frame."
-)
-REMOVE_MAGNET_WARNING = (
+))
+REMOVE_MAGNET_WARNING = Message(N_(
     "Security risk: with SettingsRemoveMagnet = 1 the bolt retracts as soon as the magnetic "
     "field of the strike plate weakens, even while locking is requested. The lock can then be "
     "unlocked from outside by manipulating the magnetic field (section 3.2.6). "
     "Write 1 only if this behaviour is explicitly required."
-)
+))

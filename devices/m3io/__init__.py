@@ -4,37 +4,39 @@ from typing import Any
 
 from devices.m3io import codec
 from devices.m3io.params import P2_OPTION, PARAMS
+from devices.message import Message, N_
 from devices.registry import CanIdUse, DeviceType, TileAlarm, TileLine, TileSpec, When
 
 
 def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str]]:
     errors = []
     if options.get("variant") not in {v.value for v in codec.Variant}:
-        errors.append(("variant", 'variant must be "KM", "HM" or "HMR"'))
+        errors.append(("variant", Message(N_('variant must be "KM", "HM" or "HMR"'))))
     sw1 = options.get("sw1")
     if not isinstance(sw1, int) or isinstance(sw1, bool) or not 0 <= sw1 <= 255:
-        errors.append(("sw1", "sw1 (the DIP switch SW1, 0..255, e.g. 0x1A) is required"))
+        errors.append(("sw1", Message(N_("sw1 (the DIP switch SW1, 0..255, e.g. 0x1A) is required"))))
     serial = options.get("serial", 0)
     if not isinstance(serial, int) or not 0 <= serial <= 99_999_999:
-        errors.append(("serial", "serial (simulated twin) must have at most 8 digits"))
+        errors.append(("serial", Message(N_("serial (simulated twin) must have at most 8 digits"))))
     if options.get("master", "on-control") not in ("on-control", "always"):
-        errors.append(("master", 'master must be "on-control" (DigOut only while an engineer controls the module, the default) '
-                                 'or "always" (this tool is the module\'s only master: it serves the watchdog with every output off '
-                                 'whenever nobody controls it and no other master is heard)'))
+        errors.append(("master", Message(N_('master must be "on-control" (DigOut only while an engineer controls the module, the '
+                                            'default) or "always" (this tool is the module\'s only master: it serves the watchdog '
+                                            'with every output off whenever nobody controls it and no other master is heard)'))))
     p2 = options.get(P2_OPTION, False)
     if not isinstance(p2, bool):
-        errors.append((P2_OPTION, "p2 (the HMR's three-phase output loaded on two phases, section 4.3) is true or false"))
+        errors.append((P2_OPTION, Message(N_("p2 (the HMR's three-phase output loaded on two phases, section 4.3) is true or "
+                                              "false"))))
     elif p2 and options.get("variant") != "HMR":
-        errors.append((P2_OPTION, "p2 = true exists on the HMR only (its three-phase output SSR1-3, section 4.3)"))
+        errors.append((P2_OPTION, Message(N_("p2 = true exists on the HMR only (its three-phase output SSR1-3, section 4.3)"))))
     firmware = options.get("firmware", 0x1201)
     if isinstance(firmware, bool) or not isinstance(firmware, int) or not 0 <= firmware <= 0xFFFF:
-        errors.append(("firmware", "firmware (simulated twin) is the SW version word, e.g. 0x1201 for 18.1"))
+        errors.append(("firmware", Message(N_("firmware (simulated twin) is the SW version word, e.g. 0x1201 for 18.1"))))
     store_s = options.get("store_s", 0.03)
     if isinstance(store_s, bool) or not isinstance(store_s, int | float) or not 0 <= store_s <= 2.5:
-        errors.append(("store_s", "store_s (simulated twin: seconds to store a customer record) is 0 .. 2.5"))
+        errors.append(("store_s", Message(N_("store_s (simulated twin: seconds to store a customer record) is 0 .. 2.5"))))
     for key in sorted(set(options) - {"variant", "sw1", "serial", "master", P2_OPTION, "firmware", "store_s"}):
-        errors.append((key, f"unknown key '{key}' for an M3IO; known: variant, sw1, master, p2, serial, firmware and "
-                            "store_s (simulated twin)"))
+        errors.append((key, Message(N_("unknown key '{key}' for an M3IO; known: variant, sw1, master, p2, serial, firmware "
+                                       "and store_s (simulated twin)"), key=key)))
     return errors
 
 

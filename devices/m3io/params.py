@@ -37,9 +37,9 @@ P2_BIT = 7
 
 P2_OPTION = "p2"  # the plant file's device option that keeps P2 across a restart (the module forgets it)
 P2_NAMES = {0: "three-phase load", 1: "two-phase load (P2)"}
-P2_RISK = ("P2 on: the module then reports a load fault on SSR1-3 unless exactly two of the three phases carry "
-           "a load (section 4.3): a three-phase load that lost one phase (a blown fuse, a broken wire) is no longer "
-           "switched off as a fault. Set it only for a load wired on two phases.")
+P2_RISK = Message(N_("P2 on: the module then reports a load fault on SSR1-3 unless exactly two of the three phases carry "
+                     "a load (section 4.3): a three-phase load that lost one phase (a blown fuse, a broken wire) is no "
+                     "longer switched off as a fault. Set it only for a load wired on two phases."))
 
 
 @dataclass(frozen=True)
@@ -89,7 +89,7 @@ class RecordParam(ModuleParam):
     size: int = RECORD_BYTES
     words: int = 3
     text_value: bool = True  # its value is text (hex bytes), not a number: restore and projects take it as such
-    allowed_text: str = "1 to 6 bytes as hex, e.g. 01 02 0a (padded with ff to 6 bytes)"
+    allowed_text: str = Message(N_("1 to 6 bytes as hex, e.g. 01 02 0a (padded with ff to 6 bytes)"))
 
     def decode(self, raw: int) -> str:
         return record_text(raw)

@@ -15,6 +15,7 @@ from devices.m3io import codec
 from devices.m3io.codec import Variant
 from devices.m3io.params import (ADDRESSING, CFG, CONFIG, CONFIG_PARAMS, CUSTOMER, P2_OPTION, P2_PARAM, PARAMS, RECORD_PARAMS,
                                  SW1_PARAM, record_bytes, record_param, record_raw)
+from devices.message import Message, N_
 from devices.params import Accepted, Param, ParamError, backup_entry
 
 # 7.2.4.2.4: the module answers a written record only once it is stored, and is deaf meanwhile; the document
@@ -190,8 +191,8 @@ class ModuleSettings(BackupDefaults):
     async def backup_read(self, progress=None) -> list[dict]:
         """SW1, P2 (HMR), and in addressed mode the area 2 values (for reference) and the 15 customer records."""
         if not self.backup_available:
-            raise self.error_type(f"nothing to back up: customer data needs addressed mode (SW1 switch 8 on; "
-                                  f"SW1 is 0x{self.sw1:02X}) and P2 exists on the HMR only")
+            raise self.error_type(Message(N_("nothing to back up: customer data needs addressed mode (SW1 switch 8 on; "
+                                             "SW1 is 0x{sw1:02X}) and P2 exists on the HMR only"), sw1=self.sw1))
         if self.ids.addressed:
             await self.read_identity()  # the area 2 values, for reference (and the page's identity record)
         entries = [backup_entry(SW1_PARAM, self.sw1)]

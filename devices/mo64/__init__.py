@@ -6,6 +6,7 @@ Codec (:mod:`devices.mo64.codec`), adapter (:mod:`devices.mo64.adapter`), twin
 
 from typing import Any
 
+from devices.message import Message, N_
 from devices.mo64.params import PARAMS
 from devices.registry import DeviceType, TileAlarm, TileBar, TileLine, TileSpec, When
 
@@ -18,13 +19,13 @@ def _check_config(options: dict[str, Any], bus_type: str) -> list[tuple[str, str
     address = options.get("address")
     if bus_type == "logited-rs485":
         if address is None:
-            errors.append(("address", "an MO 64 on RS485 needs its bus address: address = 1 .. 254"))
+            errors.append(("address", Message(N_("an MO 64 on RS485 needs its bus address: address = 1 .. 254"))))
         elif isinstance(address, bool) or not isinstance(address, int) or not 1 <= address <= 254:
-            errors.append(("address", f"address = {address!r}: an MO 64 bus address is 1 .. 254"))
+            errors.append(("address", Message(N_("address = {address!r}: an MO 64 bus address is 1 .. 254"), address=address)))
     elif address is not None:
-        errors.append(("address", "an MO 64 on TCP has no bus address: the connection names it (remove address)"))
+        errors.append(("address", Message(N_("an MO 64 on TCP has no bus address: the connection names it (remove address)"))))
     for key in sorted(set(options) - _KEYS):
-        errors.append((key, f"unknown key '{key}' for an MO 64; known: {', '.join(sorted(_KEYS))}"))
+        errors.append((key, Message(N_("unknown key '{key}' for an MO 64; known: {known}"), key=key, known=", ".join(sorted(_KEYS)))))
     return errors
 
 

@@ -22,6 +22,7 @@ from typing import Any
 from devices.control import Report
 from devices.decoding import decoded, malformed
 from devices.live import DeviceState, session_tag
+from devices.message import Message, N_
 from devices.mo64 import codec
 from devices.mo64.control import DEAD_MAN_LEVELS, Mo64Control, Send
 from devices.mo64.facts import (
@@ -107,7 +108,7 @@ class Mo64Adapter(Mo64Settings):
         self.masters = {self.master, int(line_options.get("next_master", self.master + 1))}  # the masters of a shared line
         self.core = Mo64Control()  # the motion rule: what asks, the levels and their dead-man (sans-I/O)
         # each setting write wears the barrier's EEPROM (document: "EEPROM"): restore says how many
-        self.restore_wear = "each written setting wears the barrier's EEPROM"
+        self.restore_wear = Message(N_("each written setting wears the barrier's EEPROM"))
         self.eeprom_writes: dict[str, int] = {}  # EEPROM writes of each session (eeprom_writes_total: all of them)
         self.last_reply = ""
         self.error_memory: list[dict] = []
@@ -211,7 +212,7 @@ class Mo64Adapter(Mo64Settings):
         kept (``query_form``, shown on the page). SPEC-NOTES "Query form".
         """
         answer_type = index + codec.QUERY_ANSWER_OFFSET
-        what = codec.TELEGRAMS[answer_type] + (f" level {level}" if level is not None else "")
+        what = telegram_words(answer_type, level)
         forms = [self.query_form] if self.query_form else list(codec.QUERY_FORMS)
         telegrams = list(dict.fromkeys(codec.encode_query(index, level, form) for form in forms))
         answer = None
@@ -233,12 +234,15 @@ class Mo64Adapter(Mo64Settings):
                         else "short form 02 Auswahl (the document's form was refused)"))
                 break
         if answer.reply is codec.Reply.NAK:
-            self._reply(f"query {what}: nak")
+            self._reply(Message(N_("query {telegram}"), telegram=what), "nak")
             raise CommandError(f"the barrier answered the query for {what} with nak")
         self._publish(answer)
         return answer
 
-    def _reply(self, text: str) -> None:
+    def _reply(self, what: str, result: str) -> None:
+        """The barrier's last answer: what was sent and what came back (``open pulse: ack``), a Message its page
+        words (a reply word, the document's ``tele_ack``, as it is; a telegram by its name)."""
+        text = Message("{what}: {result}", what=what, result=Message(result))
         self.last_reply = text
         self.state.fact(P_LAST_REPLY, text, text=text or "-")
 
@@ -493,7 +497,7 @@ class Mo64Adapter(Mo64Settings):
         self._publish_levels()
         answer = await self._carry(send, {codec.Reply.ACK, codec.Reply.NAK, codec.Reply.BUSY})
         result = answer.reply.name.lower() if answer.reply is not None else answer.name
-        self._reply(f"{send.words}: {result}")
+        self._reply(send.words, result)
         if answer.reply is not codec.Reply.ACK:
             self.state.event("warning", f"{send.words}: {result}")
             raise CommandError(f"{send.words}: the barrier answered {result}"
@@ -511,7 +515,7 @@ class Mo64Adapter(Mo64Settings):
         self._publish_levels()
         answer = await self._carry(send, set(codec.REPLY_TYPES) | set(codec.ANSWER_TYPES))
         result = answer.reply.name.lower() if answer.reply is not None else answer.name
-        self._reply(f"{send.words}: {result}")
+        self._reply(send.words, result)
         if answer.reply is None:
             self._publish(answer)
         return result
@@ -543,13 +547,13 @@ class Mo64Adapter(Mo64Settings):
         self._publish_levels()
 
     async def _release(self, send: Send) -> bool:
-        words = f"{send.words} ({send.why})" if send.why else send.words
+        words = Message("{words} ({why})", words=send.words, why=send.why) if send.why else send.words
         try:
             answer = await self._carry(send, {codec.Reply.ACK, codec.Reply.NAK, codec.Reply.BUSY}, words)
         except (SerialLineError, codec.CodecError) as exc:
             self.state.error(f"{words} not answered: {exc}")
             return False
-        self._reply(f"{words}: {answer.name}")
+        self._reply(words, answer.name)
         if answer.reply is not codec.Reply.ACK:
             self.state.event("warning", f"{words}: {answer.name}")
             return False
@@ -658,6 +662,12 @@ class Mo64Adapter(Mo64Settings):
 
 
 # -- the adapter methods the declared commands run (devices/mo64/policy.py) --------------------------------
+def telegram_words(answer_type: int, level: int | None = None) -> Message:
+    """An answer telegram by its name (``gate state``, ``error memory level 3``), worded by its reader."""
+    name = Message(codec.TELEGRAMS[answer_type])
+    return name if level is None else Message(N_("{telegram} level {level}"), telegram=name, level=level)
+
+
 def operation_method(cmd: codec.Command, fn: codec.Function) -> str:
     """The adapter method of operating command ``cmd`` with function ``fn``, e.g. ``open_pulse``."""
     return f"{COMMAND_NAMES[cmd]}_{fn.name.lower()}"

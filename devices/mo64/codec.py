@@ -34,6 +34,7 @@ from enum import IntEnum
 from typing import Any
 
 from devices import values as v
+from devices.message import N_
 from devices.mo64.answer_values import (  # noqa: F401 - the answers' value types, named here too
     ANSWER_TYPES, BARRIER_POSITION, BARRIER_STATUS, CHANGE_MONITORING, CONFIG_FIELDS, CONFIG_FLAGS, COUNTER,
     DEC_BT, DEVICE_CODE, DEVICE_CODES, DIRECTION_LOGIC, DIRECTION_LOGICS, ERROR_ENTRY, ERROR_LEVEL, ERROR_MEMORY,
@@ -118,14 +119,14 @@ SETTING_VALUE_BYTES = {0x04: 2, 0x05: 4, 0x06: 5, 0x07: 6, 0x08: 8}  # chapter 5
 
 # answer telegram type -> name (chapter 5.1.5-5.1.31; a query index n is answered by type n + 5)
 TELEGRAMS: dict[int, str] = {
-    0x05: "device", 0x06: "program version", 0x07: "barrier status", 0x08: "status mask",
-    0x09: "change monitoring", 0x0A: "service counter", 0x0B: "maintenance counter",
-    0x0C: "gate state", 0x0D: "open time", 0x0E: "pre-warning before opening",
-    0x0F: "pre-warning before closing", 0x10: "dec_bt", 0x11: "counting function",
-    0x12: "induction loops", 0x13: "direction logics", 0x14: "serial number", 0x15: "MAC address",
-    0x16: "operating hours", 0x17: "error memory", 0x18: "configuration flags", 0x19: "multi relays",
-    0x1A: "maintenance interval", 0x1B: "loop periods", 0x1C: "vehicle counter",
-    0x1D: "barrier position", 0x1E: "password", 0x1F: "loop-adjust counters",
+    0x05: N_("device"), 0x06: N_("program version"), 0x07: N_("barrier status"), 0x08: N_("status mask"),
+    0x09: N_("change monitoring"), 0x0A: N_("service counter"), 0x0B: N_("maintenance counter"),
+    0x0C: N_("gate state"), 0x0D: N_("open time"), 0x0E: N_("pre-warning before opening"),
+    0x0F: N_("pre-warning before closing"), 0x10: N_("dec_bt"), 0x11: N_("counting function"),
+    0x12: N_("induction loops"), 0x13: N_("direction logics"), 0x14: N_("serial number"), 0x15: N_("MAC address"),
+    0x16: N_("operating hours"), 0x17: N_("error memory"), 0x18: N_("configuration flags"), 0x19: N_("multi relays"),
+    0x1A: N_("maintenance interval"), 0x1B: N_("loop periods"), 0x1C: N_("vehicle counter"),
+    0x1D: N_("barrier position"), 0x1E: N_("password"), 0x1F: N_("loop-adjust counters"),
 }
 QUERY_ANSWER_OFFSET = 5  # SPEC-NOTES "Replies": query index n is answered by telegram type n + 5
 QUERY_INDEXES = range(0x00, 0x1B)  # chapter 5.2.2, table 21: 0x00 .. 0x1A
@@ -393,24 +394,24 @@ class Setting:
 _MASK_40 = v.Bits(v.Int(40), STATUS_BITS.fields)  # setting 0x06 0x00 takes exactly Maske0..Maske4
 
 SETTINGS: dict[str, Setting] = {s.key: s for s in (
-    Setting("t_open", "open time", 0x04, 0x00, TIME_10MS, Q_T_OPEN, "10 ms", limits=(0, TIME_MAX),
+    Setting("t_open", N_("open time"), 0x04, 0x00, TIME_10MS, Q_T_OPEN, "10 ms", limits=(0, TIME_MAX),
             doc="0 switches automatic closing off (chapter 5.2.4.1)"),
-    Setting("t_prewarn_open", "pre-warning before opening", 0x04, 0x01, TIME_10MS, Q_T_PREWARN_OPEN, "10 ms",
+    Setting("t_prewarn_open", N_("pre-warning before opening"), 0x04, 0x01, TIME_10MS, Q_T_PREWARN_OPEN, "10 ms",
             limits=(0, TIME_MAX), assumed="selector 0x01 follows the order of answers 0x0D-0x0F"),
-    Setting("t_prewarn_close", "pre-warning before closing", 0x04, 0x02, TIME_10MS, Q_T_PREWARN_CLOSE, "10 ms",
+    Setting("t_prewarn_close", N_("pre-warning before closing"), 0x04, 0x02, TIME_10MS, Q_T_PREWARN_CLOSE, "10 ms",
             limits=(0, TIME_MAX), assumed="selector 0x02 follows the order of answers 0x0D-0x0F"),
-    Setting("change_monitoring", "change monitoring", 0x04, 0x04, CHANGE_MONITORING, Q_CHANGE_MONITORING,
+    Setting("change_monitoring", N_("change monitoring"), 0x04, 0x04, CHANGE_MONITORING, Q_CHANGE_MONITORING,
             doc="unsolicited telegrams over TCP (chapter 5.2.4.5)"),
-    Setting("vehicle_counter", "vehicle counter", 0x05, 0x00, VEHICLE_COUNTER, Q_VEHICLE_COUNTER,
+    Setting("vehicle_counter", N_("vehicle counter"), 0x05, 0x00, VEHICLE_COUNTER, Q_VEHICLE_COUNTER,
             backup=False, eeprom=False, assumed="selector 0x00 not in the summary (chapter 5.2.5)",
             doc="RAM only, 0 after power-up; answered ack (chapter 5.2.5)"),
-    Setting("maintenance_interval", "maintenance interval", 0x05, 0x01, MAINTENANCE_INTERVAL,
+    Setting("maintenance_interval", N_("maintenance interval"), 0x05, 0x01, MAINTENANCE_INTERVAL,
             Q_MAINTENANCE_INTERVAL, assumed="selector 0x01 and u32 width not in the summary"),
-    Setting("status_mask", "status mask", 0x06, 0x00, _MASK_40, Q_STATUS_MASK,
+    Setting("status_mask", N_("status mask"), 0x06, 0x00, _MASK_40, Q_STATUS_MASK,
             doc="status bits watched for change (chapter 5.2.6.1)"),
-    Setting("multi_relays", "multi-relay modes", 0x07, 0x00, MULTI_RELAYS, Q_MULTI_RELAYS,
+    Setting("multi_relays", N_("multi-relay modes"), 0x07, 0x00, MULTI_RELAYS, Q_MULTI_RELAYS,
             doc="multi1 .. multi6 (chapter 5.2.7.1)"),
-    Setting("config_flags", "configuration flags", 0x08, 0x00, CONFIG_FLAGS, Q_CONFIG_FLAGS,
+    Setting("config_flags", N_("configuration flags"), 0x08, 0x00, CONFIG_FLAGS, Q_CONFIG_FLAGS,
             doc="konfig0 .. konfig3 (chapter 5.2.8.1)"),
 )}
 

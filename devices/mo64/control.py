@@ -31,17 +31,21 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from devices.control import LEASE_S, STOP_DEADLINE_S, LeaseState, Report
+from devices.message import Message, N_, joined
 from devices.mo64 import codec
 from devices.mo64 import params as model
 
 AREA_CLEAR_RISK = "The boom moves: check that nobody stands under it (the area is clear)."
 OPEN_LEVEL_RISK = ("Deactivating the open level lets the boom close (page 33): check that nobody stands under it "
                    "(the area is clear).")
-EEPROM_RISK = ("Every setting write wears the barrier's EEPROM (chapter 4: the number of writes is limited). "
-               "Write only what must change.")
+EEPROM_RISK = Message(N_("Every setting write wears the barrier's EEPROM (chapter 4: the number of writes is limited). "
+                         "Write only what must change."))
 # the levels released by the dead-man rule (close and reverse: they keep the boom moving towards a person)
 DEAD_MAN_LEVELS = frozenset({codec.Command.CLOSE, codec.Command.REVERSE})
-COMMAND_NAMES = {codec.Command.OPEN: "open", codec.Command.CLOSE: "close", codec.Command.REVERSE: "reverse"}
+COMMAND_NAMES = {codec.Command.OPEN: N_("open"), codec.Command.CLOSE: N_("close"), codec.Command.REVERSE: N_("reverse")}
+# an operating command in words ("open pulse", "close deactivate"): a Message the page words in its language
+FUNCTION_WORDS = {codec.Function.PULSE: N_("{command} pulse"), codec.Function.ACTIVATE: N_("{command} activate"),
+                  codec.Function.DEACTIVATE: N_("{command} deactivate")}
 RETRY_S = 0.2  # a dead-man deactivation the barrier did not acknowledge is sent again this often
 WRITE_ROLES = frozenset({"engineer"})
 __all__ = ["LEASE_S", "STOP_DEADLINE_S", "Report"]
@@ -65,9 +69,14 @@ class Meaning:
         return self.kind == "motion"
 
 
+def command_words(cmd: codec.Command, fn: codec.Function) -> Message:
+    """An operating command in words (``open pulse``), worded by its reader (:mod:`devices.message`)."""
+    return Message(FUNCTION_WORDS[fn], command=Message(COMMAND_NAMES[cmd]))
+
+
 def operation(cmd: codec.Command, fn: codec.Function) -> Meaning:
     """An operating command (chapter 5.2.1): every one moves the boom but the release of a close or reverse level."""
-    name = f"{COMMAND_NAMES[cmd]} {fn.name.lower()}"
+    name = command_words(cmd, fn)
     if fn is codec.Function.DEACTIVATE and cmd in DEAD_MAN_LEVELS:
         return Meaning(name, "stop", command=cmd, function=fn)
     risk = OPEN_LEVEL_RISK if fn is codec.Function.DEACTIVATE else AREA_CLEAR_RISK
@@ -102,8 +111,8 @@ def meaning(telegram: bytes) -> Meaning:
                                "selector writes another EEPROM setting")
     # a flag the value switches off (force monitoring, light-barrier test, ...) is named first (devices/mo64/params.py)
     questions = model.safety_questions(request.setting.key, model.setting_int(request.setting.key, request.value))
-    return Meaning(f"set {request.setting.name}", "write",
-                   " ".join(questions + ([EEPROM_RISK] if request.setting.eeprom else [])))
+    return Meaning(Message(N_("set {setting}"), setting=Message(request.setting.name)), "write",
+                   joined(questions + ([EEPROM_RISK] if request.setting.eeprom else []), " "))
 
 
 # -- actions and answers -----------------------------------------------------------------------------
@@ -256,7 +265,7 @@ class Mo64Control:
             if level.session != session or not level.dead_man:
                 continue
             if level.state != "deactivating":
-                actions += self._release(level, f"dead-man: {reason}", now)
+                actions += self._release(level, Message(N_("dead-man: {reason}"), reason=reason), now)
             elif level.gone_at is None:  # a stop is on its way: should it be refused, it is sent again
                 level.gone_at = now
         return actions
@@ -276,21 +285,22 @@ class Mo64Control:
                 continue
             if level.state != "deactivating":
                 if not level.lease.valid(now):
-                    actions += self._release(level, "dead-man: the lease lapsed (the operator stopped confirming "
-                                                    "it is alive, or this program stalled)", now)
+                    actions += self._release(level, Message(N_("dead-man: the lease lapsed (the operator stopped "
+                                                               "confirming it is alive, or this program stalled)")), now)
             elif level.next_try is not None and now >= level.next_try:
                 level.next_try = None
                 cmd = level.command
                 actions.append(self._send(codec.encode_command(cmd, codec.Function.DEACTIVATE),
-                                          f"{COMMAND_NAMES[cmd]} deactivate", level.session, cmd,
-                                          codec.Function.DEACTIVATE, "stop", "dead-man: sent again"))
+                                          command_words(cmd, codec.Function.DEACTIVATE), level.session, cmd,
+                                          codec.Function.DEACTIVATE, "stop", Message(N_("dead-man: sent again"))))
         return actions
 
     def _release(self, level: Level, why: str, now: float) -> list:
         level.state, level.gone_at, level.next_try = "deactivating", now, None
         cmd = level.command
         return [Report("warning", f"{why}; deactivating {COMMAND_NAMES[cmd]}"),
-                self._send(codec.encode_command(cmd, codec.Function.DEACTIVATE), f"{COMMAND_NAMES[cmd]} deactivate",
+                self._send(codec.encode_command(cmd, codec.Function.DEACTIVATE),
+                           command_words(cmd, codec.Function.DEACTIVATE),
                            level.session, cmd, codec.Function.DEACTIVATE, "stop", why)]
 
     def closing(self) -> list[Send]:

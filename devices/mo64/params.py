@@ -27,6 +27,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from devices.message import Message, N_
 from devices.mo64 import codec
 from devices.params import Access, Field, Param, ParamMap
 
@@ -88,15 +89,15 @@ KONFIG_BITS = 16  # chapter 5.1.24: four 16-bit parameters konfig0 .. konfig3
 ASSUMED_POSITION = ("bit position not printed in the summary: packed after the printed bits in the printed order, "
                     "as wide as its printed choices need")
 
-KRAFT_RISK = ("Kraftüberwachung (force monitoring) = ohne switches the force monitoring off: the boom no longer "
-              "stops or reverses when it meets a person or a vehicle. Confirm only where another protection "
-              "covers the closing edge.")
-LS_TEST_RISK = ("LS-Test off switches the light-barrier test off: a failed light barrier is no longer found before "
-                "the boom closes, and the boom may close onto a person it does not see.")
-LOOP_SAFETY_RISK = ("Induktionsschleifen-Sichern-Modus = Stopp weakens the loop safety mode: a vehicle on the "
-                    "safety loop only stops the closing boom above it, the boom no longer opens again.")
-LS_MODE_RISK = ("Lichtschranken-Modus = Stopp weakens the light barrier's reaction: an interrupted light barrier "
-                "only stops the closing boom above the person, it no longer opens again.")
+KRAFT_RISK = Message(N_("Kraftüberwachung (force monitoring) = ohne switches the force monitoring off: the boom no longer "
+                        "stops or reverses when it meets a person or a vehicle. Confirm only where another protection "
+                        "covers the closing edge."))
+LS_TEST_RISK = Message(N_("LS-Test off switches the light-barrier test off: a failed light barrier is no longer found before "
+                          "the boom closes, and the boom may close onto a person it does not see."))
+LOOP_SAFETY_RISK = Message(N_("Induktionsschleifen-Sichern-Modus = Stopp weakens the loop safety mode: a vehicle on the "
+                              "safety loop only stops the closing boom above it, the boom no longer opens again."))
+LS_MODE_RISK = Message(N_("Lichtschranken-Modus = Stopp weakens the light barrier's reaction: an interrupted light barrier "
+                          "only stops the closing boom above the person, it no longer opens again."))
 BLINK = "2-bit field; the summary names the lamp and the event, not what each value does"
 
 
@@ -265,9 +266,10 @@ def safety_questions(key: str, number: int) -> list[str]:
 
 def selector_risk(param: Mo64Param) -> str:
     setting = codec.SETTINGS[param.setting_key]
-    return (f"The selector 0x{setting.telegram:02X} 0x{setting.selector:02X} of {param.name} is an assumption "
-            f"({setting.assumed}); the manual's summary does not name it, and a wrong selector writes another "
-            f"EEPROM setting. Confirm only if you verified on this unit that it is {setting.name}.")
+    return Message(N_("The selector 0x{telegram:02X} 0x{selector:02X} of {name} is an assumption ({assumed}); the manual's "
+                      "summary does not name it, and a wrong selector writes another EEPROM setting. Confirm only if you "
+                      "verified on this unit that it is {setting}."), telegram=setting.telegram, selector=setting.selector,
+                   name=param.name, assumed=setting.assumed, setting=Message(setting.name))
 
 
 __all__ = ["PARAMS", "Mo64Param", "SAFETY", "extract", "replace", "setting_value", "setting_int", "value_int",

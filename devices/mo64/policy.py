@@ -33,6 +33,7 @@ from devices.mo64.adapter import COMMAND_NAMES, OPERATIONS, Mo64Adapter
 from devices.mo64.settings import SETTING_WRITES, Mo64Settings
 from devices.mo64.control import AREA_CLEAR_RISK, EEPROM_RISK, OPEN_LEVEL_RISK, meaning, operation
 from devices.sendpolicy import Verdict
+from devices.message import Message, N_, joined
 
 TITLE = "MO 64"
 check_can = check_modbus = transmit_forms = None  # hooks of devices/sendpolicy.py this type has none of
@@ -43,9 +44,10 @@ CLEAR_LEVELS_RISK = ("Deactivates every level this tool set in the barrier (leve
 
 
 def selector_risk(setting: codec.Setting) -> str:
-    return (f"The selector 0x{setting.telegram:02X} 0x{setting.selector:02X} of {setting.name} is an assumption "
-            f"({setting.assumed}); the manual's summary does not name it, and a wrong selector writes another "
-            f"EEPROM setting. Confirm only if you verified on this unit that it is {setting.name}.")
+    return Message(N_("The selector 0x{telegram:02X} 0x{selector:02X} of {name} is an assumption ({assumed}); the manual's "
+                      "summary does not name it, and a wrong selector writes another EEPROM setting. Confirm only if you "
+                      "verified on this unit that it is {setting}."), telegram=setting.telegram, selector=setting.selector,
+                   name=Message(setting.name), assumed=setting.assumed, setting=Message(setting.name))
 
 
 def _setting_risk(setting: codec.Setting):
@@ -57,7 +59,7 @@ def _setting_risk(setting: codec.Setting):
             parts = model.safety_questions(setting.key, number) + parts
         except (KeyError, codec.CodecError):
             pass  # out of range: refused by the argument check
-        return " ".join(parts + ([EEPROM_RISK] if setting.eeprom else []))
+        return joined(parts + ([EEPROM_RISK] if setting.eeprom else []), " ")
     return risk
 
 
@@ -99,7 +101,7 @@ def _write_verdict(accepted: Accepted) -> tuple[str, str]:
     if not param.setting_key:
         return f"{param.name} is read only: no setting telegram is named for it (chapter 5.2)", ""
     parts = [accepted.risk] + ([model.selector_risk(param)] if param.selector_assumed else [])
-    return "", " ".join(p for p in parts if p)
+    return "", joined([p for p in parts if p], " ")
 
 
 # the gate passes the page's session: its EEPROM writes are counted for it (Mo64Settings.write_param_in)

@@ -15,6 +15,7 @@ import time
 from typing import Any
 
 from devices.adapter import BackupDefaults
+from devices.message import Message, N_
 from devices.mo64 import codec
 from devices.mo64 import params as model
 from devices.mo64.facts import (
@@ -95,7 +96,7 @@ class Mo64Settings(BackupDefaults):
             if syn and setting.eeprom:
                 self._count_write(session)
         result = answer.name
-        self._reply(f"set {setting.name}: {result}")
+        self._reply(Message(N_("set {setting}"), setting=Message(setting.name)), result)
         if answer.reply is codec.Reply.BUSY:
             raise CommandError(f"{setting.name}: busy: {BUSY_TEXT}")
         if answer.reply is not codec.Reply.ACK:

@@ -31,7 +31,7 @@ from devices import values as v
 from devices.control import ControlChanged, Report
 from devices.lease import Lease
 from devices.live import DeviceState, Holder, session_tag
-from devices.message import Message, N_
+from devices.message import Message, N_, message_of
 from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.facts import (  # noqa: F401 - the published names, also read from here by older callers
@@ -350,7 +350,8 @@ class ScuAdapter(BackupDefaults):
             try:
                 await self.opening.probe()
             except (SerialLineError, codec.CodecError, v.DecodeError) as exc:
-                self.core.open_failed(f"no answer to the first RG: {exc}", time.monotonic(), answered_before=False)
+                self.core.open_failed(Message(N_("no answer to the first RG: {error}"), error=message_of(exc)), time.monotonic(),
+                                      answered_before=False)
                 return
         if self._needs_session() and self.session != "open":
             if self.core.may_open(time.monotonic()):
@@ -631,7 +632,8 @@ class ScuAdapter(BackupDefaults):
         try:
             value = p.decode_data(data_id, answer.data)
         except (v.DecodeError, ValueError) as exc:
-            result["error"] = f"cannot decode {len(answer.data)} bytes as {entry.type_name}: {exc}"
+            result["error"] = Message(N_("cannot decode {n} bytes as {type}: {error}"), n=len(answer.data),
+                                      type=entry.type_name, error=str(exc))
             return result
         result["value"] = value
         result["text"] = value_text(data_id, value)

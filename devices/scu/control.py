@@ -32,6 +32,7 @@ WITHHOLD_S = codec.WATCHDOG_S + 0.3  # RC withheld this long: the unit's 500 ms 
 REOPEN_BACKOFF_S = (0.2, 0.5, 1.0, 2.0, 5.0)
 RS_ATTEMPTS = 3
 ESTOP = int(codec.Function.EMERGENCY_STOP)
+LEASE_LAPSED = N_("the lease of the running functions lapsed")  # RC withheld for it (section 5's watchdog stops the drives)
 NOT_HELD = frozenset({ESTOP})  # the emergency stop runs under no lease: nothing ends it but its release
 MOTION = frozenset(int(f) for f in codec.MOTION_FUNCTIONS)
 PHASES = ("closed", "opening", "open", "lost", "released")
@@ -207,7 +208,7 @@ class ScuControl:
 
     def released(self) -> None:
         """RA by the operator: the hand switch has the unit; no reopening until asked (the emergency stop stays on)."""
-        self.phase, self.reason = "released", "released to the hand switch (RA); open the session again to drive it"
+        self.phase, self.reason = "released", Message(N_("released to the hand switch (RA); open the session again to drive it"))
 
     def reopen_asked(self) -> None:
         if self.phase != "open":
@@ -224,7 +225,7 @@ class ScuControl:
         if self.withheld_since is None:
             self.withheld_since, self.withheld_reason = now, reason
         was_open = self.phase == "open"
-        self.phase, self.reason = "lost", f"RC withheld: {reason}"
+        self.phase, self.reason = "lost", Message(N_("RC withheld: {reason}"), reason=reason)
         self._unconfirm_estop()
         if was_open:
             self._backoff(now)
@@ -294,7 +295,7 @@ class ScuControl:
         actions: list = []
         if outcome == Outcome.PE:
             # not possible in the unit's mode: remote mode has ended (its watchdog stopped every remote drive, section 5)
-            actions += self.lost(f"PE to RS {label(fn)}: the unit is no longer in remote mode", now)
+            actions += self.lost(Message(N_("PE to RS {function}: the unit is no longer in remote mode"), function=label(fn)), now)
         if self.estop is not None and self.estop.confirmed:
             reason = (f"RS {label(fn)} ({action.why}) not acknowledged ({outcome.value}); the emergency stop F20 is on "
                       "in the unit and keeps every drive stopped; RS is sent again")
@@ -342,7 +343,7 @@ class ScuControl:
         text = {Outcome.PDE: "refused (PDE): F20 exists from firmware V2B1 only (table 8)",
                 Outcome.LOST: "not answered"}.get(outcome, f"refused ({outcome.value})")
         self.estop = Estop(self.estop.who, self.estop.at, confirmed=False, refusal=text)
-        actions: list = self.lost("PE to RE 19: the unit is no longer in remote mode", now) if outcome == Outcome.PE else []
+        actions: list = self.lost(Message(N_("PE to RE 19: the unit is no longer in remote mode")), now) if outcome == Outcome.PE else []
         actions += [Report("error", f"RE 19 (emergency stop) {text}: the running functions get their RS; "
                                          "the emergency stop stays on in this tool and no motion starts until it is released")]
         return actions
@@ -391,7 +392,7 @@ class ScuControl:
             return actions  # with F20 on in the unit RC goes on: remote mode keeps the emergency stop in force
         # a lapse means this program or the page stalled: RC is withheld first, so the unit's watchdog stops every
         # drive within 500 ms whatever becomes of the RS that follow
-        return self.withhold("the lease of the running functions lapsed", now) + actions
+        return self.withhold(Message(LEASE_LAPSED), now) + actions
 
     def session_lost(self, session: str, reason: str) -> list:
         """The page of ``session`` went away or froze: RS at once for what it runs, and its control released."""

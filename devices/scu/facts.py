@@ -11,6 +11,7 @@ from typing import Any
 from devices import errors
 from devices import values as v
 from devices.live import Holder, Point  # noqa: F401 - Holder: the record of P_CONTROL
+from devices.message import Message, N_, joined
 from devices.scu import codec
 from devices.scu import params as p
 
@@ -155,17 +156,24 @@ def describe_answer(raw: bytes) -> str:
     return f"{a.status_name}" + (f", {len(a.data)} data bytes" if a.has_ctp else "")
 
 
+# the error counters of 0x0081.. (table 6: "Fehlerzähler: 2 B: Linearantriebfehler 1 B: Spitzenstrom erreicht 1 B:
+# Kurzschluss-Detektionen"), named by their fields
+ERROR_COUNTER_WORDS = {"actuator_errors": N_("actuator_errors {n}"), "peak_current": N_("peak_current {n}"),
+                       "short_circuit": N_("short_circuit {n}")}
+
+
 def value_text(data_id: int, value: Any) -> str:
-    """A decoded value in words for tables and the data browser."""
+    """A decoded value in words for tables and the data browser (a Message where it has words: the page words it)."""
     if isinstance(value, dict):
-        return "; ".join(f"0x{k:04X}: {value_text(k, x)}" if isinstance(k, int) else f"{k}: {x}" for k, x in value.items())
+        return joined([Message("0x{id:04X}: {text}", id=k, text=value_text(k, x)) if isinstance(k, int)
+                       else f"{k}: {x}" for k, x in value.items()], "; ")
     if isinstance(value, v.FlagsValue):
         on = [k for k, x in value.fields.items() if x is True or (not isinstance(x, bool) and x)]
         if data_id in p.DIRECTORY and p.DIRECTORY[data_id].vtype is p.ACTUATOR_ERRORS:
-            return ", ".join(f"{k} {x}" for k, x in value.fields.items())
+            return joined([Message(ERROR_COUNTER_WORDS[k], n=x) for k, x in value.fields.items()])
         if data_id in p.FLAG_WORDS:  # in the words the page uses (params.flags_text)
             return p.flags_text(data_id, int(value))
-        return f"0x{int(value):X}: " + (", ".join(on) if on else "none")
+        return Message("0x{value:X}: {flags}", value=int(value), flags=", ".join(on) if on else Message(N_("none")))
     if isinstance(value, float):
         return f"{value:g}"
     return str(value)

@@ -14,6 +14,7 @@ import time
 from typing import TYPE_CHECKING
 
 from devices.live import session_tag
+from devices.message import Message, N_
 from devices.scu import codec
 from devices.scu.control import ESTOP, NOT_HELD, SendRS
 from devices.scu.facts import CommandError, ControlBusy
@@ -201,7 +202,7 @@ class ScuFunctions:
         is opened again after that, and every RE still running gets its RS."""
         self.adapter.check_holder(session)
         self.adapter.check_open()
-        for action in self.adapter.core.withhold("withheld on purpose: the watchdog test (section 5)", time.monotonic()):
+        for action in self.adapter.core.withhold(Message(N_("withheld on purpose: the watchdog test (section 5)")), time.monotonic()):
             self.adapter.apply(action)
         self.adapter.state.event("warning", "RC withheld on purpose (watchdog test): the unit must stop every drive within "
                                     "500 ms and leave remote mode")

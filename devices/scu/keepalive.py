@@ -19,9 +19,10 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 from devices import values as v
 from devices.decoding import malformed
+from devices.message import Message, N_
 from devices.scu import codec
 from devices.scu import params as p
-from devices.scu.control import NOT_HELD, RS_ATTEMPTS
+from devices.scu.control import LEASE_LAPSED, NOT_HELD, RS_ATTEMPTS
 from devices.scu.facts import answer_length, describe_answer, header_offset
 from devices.transport import SerialLineError, SerialTimeout
 
@@ -258,7 +259,7 @@ class RcKeepAlive:
         self.adapter.state.counters.exceptions += 1
         info = codec.CommandRefused(answer.command, answer.status).info
         if answer.status == codec.Status.PE:
-            self.adapter.lost("PE (permission error) to the RC keep-alive: the unit is no longer in remote mode")
+            self.adapter.lost(Message(N_("PE (permission error) to the RC keep-alive: the unit is no longer in remote mode")))
             return
         if answer.status == codec.Status.CSE:
             return  # line noise (section 4.2): sent again, remembered as nothing
@@ -302,5 +303,5 @@ class RcKeepAlive:
         else:
             # not reopened before the unit's watchdog has tripped: a reopening's RO + RC would feed it again
             withheld_at = min(time.monotonic(), lapsed_at + 0.05)
-            self.adapter.core.withhold("the lease of the running functions lapsed", withheld_at)
+            self.adapter.core.withhold(Message(LEASE_LAPSED), withheld_at)
             self.adapter.sync_phase()

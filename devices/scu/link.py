@@ -9,6 +9,7 @@ import time
 from typing import TYPE_CHECKING
 
 from devices.decoding import malformed
+from devices.message import Message, N_
 from devices.scu import codec
 from devices.scu.facts import P_CRC_RETRIES, P_REFUSAL, P_RESYNCS, P_SKIPPED, Refusal, answer_length, describe_answer, header_offset
 from devices.transport import SerialClosed, SerialLineError, SerialTimeout
@@ -104,7 +105,7 @@ class ScuLink:
             self.silent_since = self.last_answer if self.last_answer is not None else now
         silent = now - self.silent_since
         if self.adapter.session == "open" and silent > codec.WATCHDOG_S:
-            self.adapter.lost("no answer for more than 500 ms: the unit has dropped remote mode (watchdog)")
+            self.adapter.lost(Message(N_("no answer for more than 500 ms: the unit has dropped remote mode (watchdog)")))
         if silent >= codec.MAX_ANSWER_DELAY_S or self.last_answer is None and self.adapter.core.failures >= 1:
             self.state.mark_offline(self.offline_message())
 
@@ -126,7 +127,7 @@ class ScuLink:
             self.state.error(f"{describe}: {info.name} ({info.title}): {info.meaning}. {info.remedy}")
         if answer.status == codec.Status.PE and self.adapter.session == "open":
             if answer.command == codec.RC:
-                self.adapter.lost(f"PE (permission error) to {describe}: the unit is no longer in remote mode")
+                self.adapter.lost(Message(N_("PE (permission error) to {what}: the unit is no longer in remote mode"), what=describe))
             elif answer.command not in (codec.RO, codec.RA):
                 # PE also means "not possible in the unit's current state" (an emergency stop, a locked
                 # function): only an RC refused as well shows that remote mode is gone (section 4.2).

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 from devices import values as v
 from devices.live import Point
+from devices.message import Message, N_
 from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.facts import P_RC_GAP, P_RC_PERIOD, chart_points, point_collector, value_text
@@ -107,7 +108,7 @@ class ScuLiveData:
         """Error bit 22 (remote communication timeout) of 0x00D1 newly set while the session is open: it is lost."""
         timeout = bool(int(x) & codec.REMOTE_TIMEOUT_MASK)
         if timeout and not self.remote_timeout_seen and self.adapter.session == "open" and self.adapter.rc.times and len(self.adapter.rc.times) > 2:
-            self.adapter.lost("error bit 22 (remote communication timeout) is set")
+            self.adapter.lost(Message(N_("error bit 22 (remote communication timeout) is set")))
         self.remote_timeout_seen = timeout
 
     def publish_one(self, data_id: int, x: Any, now: float, every: float | None = None, pub=None) -> None:

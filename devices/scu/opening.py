@@ -9,6 +9,7 @@ import time
 from typing import TYPE_CHECKING
 
 from devices import values as v
+from devices.message import message_of
 from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.facts import ActuatorScale
@@ -110,7 +111,8 @@ class ScuOpening:
                 await self.adapter.link.request(self.ro_frame(), f"RO Safety_ID {sid}, para_ID[0] -1", keepalive=False)
             await self.adapter.link.request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)  # section 5: RC before any other command
         except (SerialLineError, codec.CodecError) as exc:
-            self.adapter.core.open_failed(str(exc), time.monotonic(), answered_before=self.adapter.link.last_answer is not None)
+            self.adapter.core.open_failed(message_of(exc), time.monotonic(),
+                                          answered_before=self.adapter.link.last_answer is not None)
             self.adapter.sync_phase()
             if forced:
                 for action in self.adapter.core.estop_unreachable(str(exc), time.monotonic()):

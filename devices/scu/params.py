@@ -153,99 +153,99 @@ NO_DATA_ID = 0xFFFF
 
 
 def _status1_text() -> str:
-    return ("Bit 0 actuator present, 1 signal limit_in_out, 2 signal switch 1, 3 signal switch 2, 4 motion active, "
-            "5 in position reached, 6 out position reached, 7 stroke recorded")
+    return N_("Bit 0 actuator present, 1 signal limit_in_out, 2 signal switch 1, 3 signal switch 2, 4 motion active, "
+              "5 in position reached, 6 out position reached, 7 stroke recorded")
 
 
 # -- the tables ---------------------------------------------------------------------------------------
 _ITEMS: list[DataItem] = [
-    DataItem(0x0001, "Firmware info", FIRMWARE_INFO, comment="Name, version, CS; size = 31 B", group=0x0000),
-    DataItem(0x0002, "Configuration info", CONFIGURATION_INFO, comment="Name, version, CS; size = 36 B",
+    DataItem(0x0001, "Firmware info", FIRMWARE_INFO, comment=N_("Name, version, CS; size = 31 B"), group=0x0000),
+    DataItem(0x0002, "Configuration info", CONFIGURATION_INFO, comment=N_("Name, version, CS; size = 36 B"),
              group=0x0000),
     DataItem(0x0020, "Actual_State_Binary Inputs 1 ... 4", BINARY_INPUTS,
-             comment="Bits 0..3: logical level of inputs 1..4; bits 4..7: input level of inputs 1..4 "
-                     "(0 = not active, 1 = active)", label=N_("Binary inputs 1-4 (Actual_State_Binary Inputs)")),
-    DataItem(0x0040, "Actual_State_Keys", v.U32LE, comment="(no comment in the document)", label="Keys (Actual_State_Keys)"),
+             comment=N_("Bits 0..3: logical level of inputs 1..4; bits 4..7: input level of inputs 1..4 "
+                        "(0 = not active, 1 = active)"), label=N_("Binary inputs 1-4 (Actual_State_Binary Inputs)")),
+    DataItem(0x0040, "Actual_State_Keys", v.U32LE, comment=N_("(no comment in the document)"), label="Keys (Actual_State_Keys)"),
     DataItem(0x008F, "Number_Total_Over_Current", v.U32LE, group=0x0080),
-    DataItem(0x00BF, "Max_Total_Current", CURRENT, "A", comment="0 ... 1000, fixed point 0.1 A, 0 ... 100 A",
+    DataItem(0x00BF, "Max_Total_Current", CURRENT, "A", comment=N_("0 ... 1000, fixed point 0.1 A, 0 ... 100 A"),
              group=0x00B0),
-    DataItem(0x00C0, "Max_Temp_Rectifer_FET", v.U8, "ADC", comment="ADC value 0 ... 255"),
+    DataItem(0x00C0, "Max_Temp_Rectifer_FET", v.U8, "ADC", comment=N_("ADC value 0 ... 255")),
     DataItem(0x00C1, "Number_Over_Temp_Rectifer_FET", v.U32LE),
     DataItem(0x0100, "Battery Mains", BATTERY_MAINS,
-             comment="Bit 0 mains connected, 1 battery connected, 2 charge controller on, 3 charging active",
+             comment=N_("Bit 0 mains connected, 1 battery connected, 2 charge controller on, 3 charging active"),
              label="Battery and mains"),
-    DataItem(0x0110, "Binary Output Status", BINARY_OUTPUTS, comment="Bit 0 binary output 1 on, bit 1 output 2 on",
+    DataItem(0x0110, "Binary Output Status", BINARY_OUTPUTS, comment=N_("Bit 0 binary output 1 on, bit 1 output 2 on"),
              label=N_("Binary outputs")),
-    DataItem(0x0120, "LED HS", LED_HS, comment="Bit 0/1: LED1/LED2 of the hand switch on",
+    DataItem(0x0120, "LED HS", LED_HS, comment=N_("Bit 0/1: LED1/LED2 of the hand switch on"),
              label=N_("Hand switch LEDs (LED HS)")),  # HS = Handschalter
-    DataItem(0x0130, "LED LB", LED_LB, comment="Bit 0..7: LED1..LED8 of the locking box on",
+    DataItem(0x0130, "LED LB", LED_LB, comment=N_("Bit 0..7: LED1..LED8 of the locking box on"),
              label=N_("Locking box LEDs (LED LB)")),  # LB = Lockingbox
-    DataItem(0x0140, "Buzzer", BUZZER, comment="Bit 0: buzzer on"),
-    DataItem(0x0150, "Sensor Supply", SENSOR_SUPPLY, comment="Bit 0: sensor supply on"),
-    DataItem(0x0162, "Lock Status", LOCK_STATUS, comment="Bit n: function n (F(n+1)) locked",
+    DataItem(0x0140, "Buzzer", BUZZER, comment=N_("Bit 0: buzzer on")),
+    DataItem(0x0150, "Sensor Supply", SENSOR_SUPPLY, comment=N_("Bit 0: sensor supply on")),
+    DataItem(0x0162, "Lock Status", LOCK_STATUS, comment=N_("Bit n: function n (F(n+1)) locked"),
              label=N_("Locked functions (Lock Status)")),
-    DataItem(0x0164, "Battery voltage", BATTERY_VOLTAGE, "V", comment="fixed point 0.1 V, 0 ... 40.0 V"),
-    DataItem(0x0165, "Locking Box detected", v.U8, comment="0 ... 2 locking boxes", label=N_("Locking boxes detected")),
-    DataItem(0x0166, "Benutzer", v.U8, comment="user 1 ... 4", label=N_("Active user (Benutzer)")),  # Benutzer = user
+    DataItem(0x0164, "Battery voltage", BATTERY_VOLTAGE, "V", comment=N_("fixed point 0.1 V, 0 ... 40.0 V")),
+    DataItem(0x0165, "Locking Box detected", v.U8, comment=N_("0 ... 2 locking boxes"), label=N_("Locking boxes detected")),
+    DataItem(0x0166, "Benutzer", v.U8, comment=N_("user 1 ... 4"), label=N_("Active user (Benutzer)")),  # Benutzer = user
 ]
 
 _PER_ACTUATOR = [  # (group, name pattern, type, unit, comment)
-    (0x0010, "Actual_Position Actuator {n}", POSITION, COUNTS, "unit: encoder edges (counts)"),
-    (0x0060, "Number_cycle_of_on_of_Relay_in A{n}", v.U32LE, "", "switching cycles of the relay 'in'"),
-    (0x0070, "Number_cycle_of_on_of_Relay_out A{n}", v.U32LE, "", "switching cycles of the relay 'out'"),
+    (0x0010, "Actual_Position Actuator {n}", POSITION, COUNTS, N_("unit: encoder edges (counts)")),
+    (0x0060, "Number_cycle_of_on_of_Relay_in A{n}", v.U32LE, "", N_("switching cycles of the relay 'in'")),
+    (0x0070, "Number_cycle_of_on_of_Relay_out A{n}", v.U32LE, "", N_("switching cycles of the relay 'out'")),
     (0x0080, "Number_Actuator error A{n}", ACTUATOR_ERRORS, "",
-     "error counter: 2 B linear actuator errors, 1 B peak current reached, 1 B short-circuit detections"),
-    (0x0090, "Cumulated_Stroke A{n}", v.U32LE, COUNTS, "unit: encoder edges"),
-    (0x00A0, "Strom A{n}", CURRENT, "A", "0 ... 1000, fixed point 0.1 A, 0 ... 100 A"),
-    (0x00B0, "Max_Current A{n}", CURRENT, "A", "0 ... 1000, fixed point 0.1 A, 0 ... 100 A"),
+     N_("error counter: 2 B linear actuator errors, 1 B peak current reached, 1 B short-circuit detections")),
+    (0x0090, "Cumulated_Stroke A{n}", v.U32LE, COUNTS, N_("unit: encoder edges")),
+    (0x00A0, "Strom A{n}", CURRENT, "A", N_("0 ... 1000, fixed point 0.1 A, 0 ... 100 A")),
+    (0x00B0, "Max_Current A{n}", CURRENT, "A", N_("0 ... 1000, fixed point 0.1 A, 0 ... 100 A")),
     (0x00E0, "Actuator status 2 A{n}", ACTUATOR_STATUS_2, "",
-     "Bit 0 initialised, 1 enable flag inward, 2 enable flag outward, 3..7 unused"),
+     N_("Bit 0 initialised, 1 enable flag inward, 2 enable flag outward, 3..7 unused")),
     (0x00F0, "Speed A{n}", v.U16LE, "% or counts/s",
-     "speed select relative: %, 0 ... 100 (absolute: encoder edges/s)"),
+     N_("speed select relative: %, 0 ... 100 (absolute: encoder edges/s)")),
     (0x0170, "Actuator Status 1 A{n}", ACTUATOR_STATUS_1, "", _status1_text()),
     (0x1010, "Conversion factor A{n}", v.F32LE, "", "FLOAT"),
-    (0x2000, "UserPositionData A{n}", ACTUATOR_POSITIONS, COUNTS, "struct ACTUATOR_POSITIONS (section 7)"),
+    (0x2000, "UserPositionData A{n}", ACTUATOR_POSITIONS, COUNTS, N_("struct ACTUATOR_POSITIONS (section 7)")),
 ]
 for _group, _name, _type, _unit, _comment in _PER_ACTUATOR:
     for _n in range(1, ACTUATORS + 1):
         _ITEMS.append(DataItem(_group + _n, _name.format(n=_n), _type, _unit, READ, _comment, _group, _n))
 for _n in range(1, 5):
     _ITEMS.append(DataItem(0x0030 + _n, f"Actual_State_Analogue_Input_{_n}", ANALOGUE, "V",
-                           comment="0 ... 600, resolution 0.01 V, 0 ... 6.00 V", group=0x0030))
+                           comment=N_("0 ... 600, resolution 0.01 V, 0 ... 6.00 V"), group=0x0030))
 for _n, _label in enumerate(("last recent", "History 1", "History 2", "History 3", "History 4"), 1):
     _ITEMS.append(DataItem(0x00D0 + _n, f"Error_Code {_n} ({_label})", ERROR_CODE,
-                           comment="error code bits, see section 4.5 (Bit n = mask 1 << (n-1))", group=0x00D0))
+                           comment=N_("error code bits, see section 4.5 (Bit n = mask 1 << (n-1))"), group=0x00D0))
 for _n in range(1, 6):
     _ITEMS.append(DataItem(0x3000 + _n, f"CyclicObj {_n}", CYCLIC_OBJECT, access=REMOTE_WRITE, group=0x3000,
-                           comment="data IDs para[0..5] written with every RC, para[6..11] read back with it; "
-                                   "-1 = no transfer; default -1"))
+                           comment=N_("data IDs para[0..5] written with every RC, para[6..11] read back with it; "
+                                      "-1 = no transfer; default -1")))
 for _n in range(1, FUNCTIONS + 1):
     _ITEMS.append(DataItem(0x3010 + _n, f"Remote Speed F{_n}", v.U16LE, "% or counts/s", REMOTE_WRITE,
-                           "default: the function's configured speed; relative: %, 0 ... 100; "
-                           "absolute: encoder edges/s, 0 ... 1000", 0x3010, function=_n))
+                           N_("default: the function's configured speed; relative: %, 0 ... 100; "
+                              "absolute: encoder edges/s, 0 ... 1000"), 0x3010, function=_n))
 for _n in range(1, ACTUATORS + 1):
     _ITEMS.append(DataItem(0x3020 + _n, f"Remote Position A{_n}", POSITION, COUNTS, REMOTE_WRITE,
-                           "default: Memory 1 / User 1 position of UserPositionData; unit: encoder edges",
+                           N_("default: Memory 1 / User 1 position of UserPositionData; unit: encoder edges"),
                            0x3020, _n))
 
 # Group IDs: only 0x0010 is described (section 4.6, all six positions). The other blocks are taken
 # to answer their members in ID order the same way (section 4.3: "ganze Blöcke"); a block of another
 # length is reported by decode_data as a named error with its raw bytes.
 _GROUP_NAMES = {
-    0x0000: "Firmware and configuration info", 0x0010: "Actual_Position, all actuators",
-    0x0030: "Analogue inputs 1 ... 4", 0x0060: "Relay in cycles, all actuators",
-    0x0070: "Relay out cycles, all actuators", 0x0080: "Actuator error counters and total over-current",
-    0x0090: "Cumulated stroke, all actuators", 0x00A0: "Currents, all actuators",
-    0x00B0: "Max currents and max total current", 0x00D0: "Error code and history",
-    0x00E0: "Actuator status 2, all actuators", 0x00F0: "Speeds, all actuators",
-    0x0170: "Actuator status 1, all actuators", 0x1010: "Conversion factors, all actuators",
-    0x2000: "User position data, all actuators", 0x3000: "Cyclic objects 1 ... 5",
-    0x3010: "Remote speeds F1 ... F10", 0x3020: "Remote positions, all actuators",
+    0x0000: N_("Firmware and configuration info"), 0x0010: N_("Actual_Position, all actuators"),
+    0x0030: N_("Analogue inputs 1 ... 4"), 0x0060: N_("Relay in cycles, all actuators"),
+    0x0070: N_("Relay out cycles, all actuators"), 0x0080: N_("Actuator error counters and total over-current"),
+    0x0090: N_("Cumulated stroke, all actuators"), 0x00A0: N_("Currents, all actuators"),
+    0x00B0: N_("Max currents and max total current"), 0x00D0: N_("Error code and history"),
+    0x00E0: N_("Actuator status 2, all actuators"), 0x00F0: N_("Speeds, all actuators"),
+    0x0170: N_("Actuator status 1, all actuators"), 0x1010: N_("Conversion factors, all actuators"),
+    0x2000: N_("User position data, all actuators"), 0x3000: N_("Cyclic objects 1 ... 5"),
+    0x3010: N_("Remote speeds F1 ... F10"), 0x3020: N_("Remote positions, all actuators"),
 }
 for _group, _name in _GROUP_NAMES.items():
     _members = tuple(sorted(i.data_id for i in _ITEMS if i.group == _group))
     _struct = v.Struct(_name, tuple((f"0x{m:04X}", next(i.vtype for i in _ITEMS if i.data_id == m)) for m in _members))
-    _ITEMS.append(DataItem(_group, _name, _struct, comment="group ID: the block of its members in ID order",
+    _ITEMS.append(DataItem(_group, _name, _struct, comment=N_("group ID: the block of its members in ID order"),
                            members=_members))
 
 DIRECTORY: dict[int, DataItem] = {i.data_id: i for i in sorted(_ITEMS, key=lambda i: i.data_id)}

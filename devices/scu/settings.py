@@ -18,6 +18,7 @@ import asyncio
 import time
 from typing import Any
 
+from devices.message import Message, N_
 from devices.params import Accepted, Param, ParamError, backup_entry
 from devices.scu import codec
 from devices.scu import params as p
@@ -31,7 +32,7 @@ SESSION_WAIT_S = 3.0  # a read or write waits this long for a remote session tha
 RECORD_IDS = (0x0001, 0x0002, 0x0060, 0x0070, 0x0080, 0x0090, 0x00B0, 0x00C0, 0x00C1, 0x00D0)
 # The groups that hold the model's values (one RG each; a unit that refuses a group is read member by member)
 MODEL_GROUPS = (0x3010, 0x3020, 0x1010, 0x2000)
-RESTORE_NOTE = f"each written setting is {VOLATILE}"
+RESTORE_NOTE = Message(N_("each written setting is {volatile}"), volatile=Message(VOLATILE))
 
 
 class ScuSettings:

@@ -307,3 +307,44 @@ def test_the_texts_app_hands_the_pages_keep_their_english_and_come_in_german():
     evidence = _Candidate(entry={}, heard=0.0, first_seen=0.0, frames=3, streak=3, intervals=deque([0.1, 0.1])).evidence_text()
     assert evidence == "3 frames in a row, 0.10, 0.10 s apart" and said(evidence, DE) == "3 Frames in Folge, 0,10, 0,10 s Abstand"
     assert batch.status_text(batch.WRITTEN, DE) == "geschrieben" and batch.status_text(batch.FAILED, EN) == "failed"
+
+
+
+def test_commission_check_prints_a_device_types_own_check_in_german(tmp_path, capsys):
+    """A device type's plant-file check (devices/hdlock check_config): German after --lang de, English without."""
+    from plants import can_bus, device, plant_text
+
+    plant = tmp_path / "plant.toml"
+    plant.write_text(plant_text(can_bus(device("gate-1", "hdlock", "can1"), name="can1"), name=None))
+    code, err = _german(["check", "--plant", str(plant)], capsys)
+    assert code == 2
+    assert "Gerät 'gate-1': 'device_id' (die CAN-Geräte-ID des Schlosses; Werkseinstellung: seine Seriennummer) ist " \
+           "anzugeben" in err, err
+    assert cli.main(["check", "--plant", str(plant)]) == 2
+    assert "'device_id' (the lock's CAN device ID; factory default: its serial number) is required" in capsys.readouterr().err
+
+
+def test_commission_backup_says_why_a_device_has_nothing_to_back_up_in_german(tmp_path, capsys):
+    """An M3IO in simple mode: its own reason (devices/m3io/settings.py), in German."""
+    from plants import can_bus, device, plant_text
+
+    plant = tmp_path / "plant.toml"
+    plant.write_text(plant_text(can_bus(device("heater", "m3io", "can3", variant="HM", sw1=0x1A), name="can3",
+                                        bitrate=500000), name=None))
+    code, out = _german(["backup", "--plant", str(plant), "--out", str(tmp_path / "out"), "--data-dir", str(tmp_path / "d")],
+                        capsys)
+    assert code == 0
+    assert "nichts zu sichern: Kundendaten brauchen den adressierten Modus (SW1 Schalter 8 ein; SW1 ist 0x1A)" in out, out
+
+
+def test_every_device_types_plant_file_checks_word_themselves_in_german():
+    """What each device type's check_config says of an empty device and an unknown key: a Message with its German."""
+    from app.message import said
+    from devices.registry import DEVICE_TYPES
+
+    for name, device_type in DEVICE_TYPES.items():
+        for bus_type in device_type.bus_types:
+            found = device_type.check_config({"bogus": 1}, bus_type)
+            for key, message in found:
+                assert isinstance(message, Message), (name, bus_type, key, message)
+                assert said(message, DE) != message, (name, bus_type, key, message)
