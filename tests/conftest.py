@@ -330,13 +330,33 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.alone)  # a browser held to a real-time bound: a second chromium delays its beats
 
 
+_MODULE_DATA_DIRS: set[str] = set()
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _module_data_dir(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """Each test module its own data folder, set before its module fixtures start an app: the apps of the
+    modules that run side by side (one per test process) never share an audit log, a record or a backup
+    folder, nor wait on another's database lock."""
+    import os
+
+    if _RUN_DATA_DIR is None or os.environ.get("COMMISSION_DATA_DIR") != _RUN_DATA_DIR:
+        yield  # a folder chosen by whoever started the tests
+        return
+    folder = str(tmp_path_factory.mktemp("module-data"))
+    _MODULE_DATA_DIRS.add(folder)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("COMMISSION_DATA_DIR", folder)
+        yield
+
+
 @pytest.fixture(autouse=True)
 def _own_data_dir(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> None:
     """Each test its own data folder (its own audit log: no test waits on another's database lock),
     unless a module fixture already chose one for the app it runs."""
     import os
 
-    if _RUN_DATA_DIR is not None and os.environ.get("COMMISSION_DATA_DIR") == _RUN_DATA_DIR:
+    if os.environ.get("COMMISSION_DATA_DIR") in _MODULE_DATA_DIRS | {_RUN_DATA_DIR}:
         monkeypatch.setenv("COMMISSION_DATA_DIR", str(request.getfixturevalue("tmp_path") / "data"))
 
 
