@@ -167,7 +167,7 @@ def entries(plant: Plant, device: str) -> list[ProjectEntry]:
         return [ProjectEntry(device, "", None, where, config.line,
                              error=Message(N_("project file {path}: not UTF-8 text (a backup file is JSON)"), path=path))]
     except backup.BackupError as exc:
-        return [ProjectEntry(device, "", None, str(path), 1, error=str(exc))]
+        return [ProjectEntry(device, "", None, str(path), 1, error=message_of(exc))]
     doc_type = document["device"].get("type")
     if doc_type != config.type:
         return [ProjectEntry(device, "", None, str(path), 1,

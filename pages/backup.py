@@ -330,7 +330,7 @@ class RestoreFlow:
             return
         wear = backup.restore_wear(self.runtime, self.plan.device)
         wear_text = lang.ngettext("Note: {wear}: this restore makes {n} such write.", "Note: {wear}: this restore makes {n} such writes.",
-                                  len(to_write)).format(wear=wear, n=len(to_write)) if wear else ""
+                                  len(to_write)).format(wear=said(wear, lang), n=len(to_write)) if wear else ""
         state = self.runtime.store.devices[self.plan.device]
         others = backup.unsaved_lines(state, skip={r.key for r in to_write})
         if not await confirm_restore(self.plan.device, to_write, others, wear_text, lang):

@@ -43,4 +43,4 @@ def state_text(row: backup.DiffRow, lang: Lang) -> str:
         return _("not written: {error}").format(error=said(row.error, lang))
     if not row.changed:
         return _("same")
-    return _("differs; risk, needs confirmation: {risk}").format(risk=row.risk) if row.risk else _("differs")
+    return _("differs; risk, needs confirmation: {risk}").format(risk=said(row.risk, lang)) if row.risk else _("differs")

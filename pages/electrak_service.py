@@ -252,7 +252,8 @@ async def _write_service(name: str, param, entry, lang=None) -> None:
         await refuse(name, f"write {param.name}", reason, parameter=param.name, new=value)
         return
     await write_from_page(name, param, value, success=_("{name} = {value} written and read back from every actuator"),
-                          title=_("Set {name} to {value}?"), ok=_("Change bit rate"), field=entry, lang=lang)
+                          title=_("Set {name} to {value}?"), field=entry, lang=lang,
+                          ok=_("Change bit rate") if param.address == BITRATE_SPECIFIER else _("Write"))
 
 
 __all__ = ["ServiceCard", "save_parameters", "service_entry"]

@@ -157,7 +157,7 @@ class FleetView:
                     if not warning.startswith(("the backup was taken from serial number", "the backup was taken from device")):
                         ui.label(f"⚠ {said(warning, self.lang)}").classes("text-caption text-warning")
                 for row in entry.changed:
-                    risk = "  " + _("(needs confirmation: {risk})").format(risk=row.risk) if row.risk else ""
+                    risk = "  " + _("(needs confirmation: {risk})").format(risk=said(row.risk, self.lang)) if row.risk else ""
                     ui.label(f"{row.name}: {row.current_text} → {row.backup_text}{risk}").classes(
                         "text-body2 mono" + (" text-negative" if row.risk else ""))
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import os
 import subprocess
 import sys
 import time
@@ -538,6 +539,19 @@ def chromium():
             browser.close()
 
 
+#: a folder to keep the screenshots the browser tests take for a person to look at (``COMMISSION_TEST_SHOTS=1`` keeps
+#: each where its test names it); unset, none is taken: a full page's screenshot costs chromium one to three seconds of
+#: CPU, which the suite's other browsers and apps wait for
+TEST_SHOTS = os.environ.get("COMMISSION_TEST_SHOTS", "")
+
+
+def shot(target, path, **options) -> None:
+    """``target.screenshot(path=path, **options)`` (a page, a locator) when ``COMMISSION_TEST_SHOTS`` is set."""
+    if TEST_SHOTS:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        target.screenshot(path=str(path), **options)
+
+
 def inside_viewport(page, locator, timeout: float = 5.0) -> None:
     """Assert that the element of ``locator`` is visible and lies wholly inside the page's viewport. A live table may
     draw its rows anew meanwhile: the element is looked up again until it is rendered (``timeout`` seconds at most)."""
@@ -553,5 +567,5 @@ def inside_viewport(page, locator, timeout: float = 5.0) -> None:
     assert box["y"] + box["height"] <= size["height"] + 0.5, f"{locator} sticks out below {size['height']} px: {box}"
 
 
-__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "alive", "closed_after", "free_port", "free_udp_port", "identified", "inside_viewport", "listening", "modbus_plant", "one_device_store", "running_plant", "sim_process", "spy_writes",
+__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "TEST_SHOTS", "shot", "alive", "closed_after", "free_port", "free_udp_port", "identified", "inside_viewport", "listening", "modbus_plant", "one_device_store", "running_plant", "sim_process", "spy_writes",
            "wait_devices_online", "wait_for"]

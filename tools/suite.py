@@ -46,7 +46,7 @@ def compiled_environment() -> dict[str, str]:
     """This environment with compiled modules kept, and the suite collected once so that they are there."""
     env = {key: value for key, value in os.environ.items() if key != "PYTHONDONTWRITEBYTECODE"}
     collecting = [subprocess.Popen([sys.executable, "-m", "pytest", "-q", "--collect-only", "-p", "no:xdist",
-                                    "-o", "addopts=-p nicegui.testing.user_plugin", *half], env=env,
+                                    "-o", "addopts=-p nicegui.testing.user_plugin -p no:benchmark", *half], env=env,
                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for half in HALVES]
     for process in collecting:
         process.wait()  # a module that does not import fails in its phase, with its error shown there

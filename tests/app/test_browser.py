@@ -10,7 +10,7 @@ import re
 from pathlib import Path
 
 import pytest
-from conftest import CHROMIUM, inside_viewport, wait_devices_online
+from conftest import CHROMIUM, inside_viewport, shot, wait_devices_online
 from webutil import demo_app_serving
 
 if not CHROMIUM.exists():
@@ -65,7 +65,7 @@ def bolt_position(page: Page) -> int:
 def save_shot(page: Page, tmp_path: Path, name: str, full_page: bool = True) -> Path:
     """A screenshot for a person to look at, under the test's own temporary folder."""
     path = tmp_path / name
-    page.screenshot(path=str(path), full_page=full_page)
+    shot(page, str(path), full_page=full_page)
     return path
 
 

@@ -28,6 +28,7 @@ if not CHROMIUM.exists():
     pytest.skip(f"{CHROMIUM} is not installed", allow_module_level=True)
 
 from playwright.sync_api import expect, sync_playwright  # noqa: E402
+from conftest import shot
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -106,7 +107,7 @@ def test_backup_and_audit_pages_show_everything(tmp_path: Path):
                     cell.scroll_into_view_if_needed()
                     expect(cell).to_be_visible()
                     _inside(page, cell)
-                    page.screenshot(path=str(SHOTS / f"audit-{width}x{height}.png"))
+                    shot(page, str(SHOTS / f"audit-{width}x{height}.png"))
 
                     page.goto(url + "/backup")
                     reason = page.get_by_text("heater-hm (m3io): nothing to back up")
@@ -139,7 +140,7 @@ def test_backup_and_audit_pages_show_everything(tmp_path: Path):
                     assert colour != same.locator("td").nth(1).evaluate("e => getComputedStyle(e).backgroundColor")
                     page.wait_for_timeout(2300)  # the progress bar glides to its value before the picture
                     page.evaluate("window.scrollTo(0, 0)")  # a full-page shot draws the fixed header where the page is
-                    page.screenshot(path=str(SHOTS / f"backup-{width}x{height}.png"), full_page=True)
+                    shot(page, str(SHOTS / f"backup-{width}x{height}.png"), full_page=True)
                     page.close()
             finally:
                 browser.close()

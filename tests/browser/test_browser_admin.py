@@ -14,7 +14,7 @@ import urllib.request
 from pathlib import Path
 
 import pytest
-from conftest import CHROMIUM
+from conftest import CHROMIUM, shot
 from webutil import demo_app_serving
 
 if not CHROMIUM.exists():
@@ -59,7 +59,7 @@ def _save_shot(page: Page, folder: Path, name: str, shows: Locator, full_page: b
     if not full_page:
         expect(shows).to_be_in_viewport()
     path = folder / name
-    page.screenshot(path=str(path), full_page=full_page)
+    shot(page, str(path), full_page=full_page)
     return path
 
 

@@ -16,6 +16,7 @@ from webutil import page_at
 
 pytest.importorskip("playwright")
 from playwright.sync_api import Browser, Page, expect, sync_playwright
+from conftest import shot
 
 CHROMIUM = Path("/usr/bin/chromium")
 SHOTS = Path("/tmp/commission-shots")
@@ -48,7 +49,7 @@ def shoot(page: Page, name: str) -> None:
     SHOTS.mkdir(exist_ok=True)
     for width, height in ((1440, 900), (1024, 768)):
         page.set_viewport_size({"width": width, "height": height})
-        page.screenshot(path=str(SHOTS / f"{name}-{width}x{height}.png"), full_page=True)
+        shot(page, str(SHOTS / f"{name}-{width}x{height}.png"), full_page=True)
 
 
 @pytest.mark.alone  # a cyclic row sends only while its page beats (dead-man): a browser beside it delays the beats
@@ -167,7 +168,7 @@ def test_modbus_poll_windows(app_url: str, browser: Browser):
     for width, height in ((1440, 900), (768, 1024)):
         page.set_viewport_size({"width": width, "height": height})
         expect(second.get_by_test_id("poll-table")).to_be_visible()
-        page.screenshot(path=str(SHOTS / f"modbus-poll-windows-{width}x{height}.png"), full_page=True)
+        shot(page, str(SHOTS / f"modbus-poll-windows-{width}x{height}.png"), full_page=True)
     page.set_viewport_size({"width": 1440, "height": 900})
     # a reload of the tab brings both windows back, each polling what it polled
     page.reload()

@@ -8,7 +8,7 @@ import urllib.request
 from pathlib import Path
 
 import pytest
-from conftest import CHROMIUM, inside_viewport, wait_devices_online
+from conftest import CHROMIUM, inside_viewport, shot, wait_devices_online
 from webutil import demo_plant_text, eventually_sync, free_port, running_app
 
 if not CHROMIUM.exists():
@@ -69,7 +69,7 @@ def test_hdlock_entry_save_dialog_and_chart(app_url: str, chromium: Browser, tmp
         expect(page.locator(".js-plotly-plot .ytitle")).to_be_visible()
         page.wait_for_function("() => { const t = document.querySelector('.js-plotly-plot .ytitle');"
                                " return t && t.getBoundingClientRect().x >= 0; }")  # not clipped at the left edge
-        page.screenshot(path=str(tmp_path / f"door-1-top-{size[0]}.png"))
+        shot(page, str(tmp_path / f"door-1-top-{size[0]}.png"))
 
         # address 300: kept as typed, marked with the range, Send off with the field's reason: nothing can be sent
         # (no confirmation, the lock keeps address 1)
@@ -86,7 +86,7 @@ def test_hdlock_entry_save_dialog_and_chart(app_url: str, chromium: Browser, tmp
         expect(page.locator(".q-dialog")).to_have_count(0)
         expect(page.get_by_text("Modbus address 1 ·")).to_be_visible()
         inside_viewport(page, page.locator('[data-testid="sa-send"]'))
-        page.screenshot(path=str(tmp_path / f"door-1-address-{size[0]}.png"))
+        shot(page, str(tmp_path / f"door-1-address-{size[0]}.png"))
 
         # a written parameter is listed by the Save-Settings confirmation
         delay = page.locator('input[data-param="LockRequestDelay"], [data-param="LockRequestDelay"] input')
@@ -102,7 +102,7 @@ def test_hdlock_entry_save_dialog_and_chart(app_url: str, chromium: Browser, tmp
         dialog = page.locator('[data-testid="save-dialog"]')
         expect(dialog).to_contain_text(f"LockRequestDelay (holding 3000) = {delay.input_value()} ms")
         inside_viewport(page, dialog)
-        page.screenshot(path=str(tmp_path / f"door-1-save-{size[0]}.png"))
+        shot(page, str(tmp_path / f"door-1-save-{size[0]}.png"))
         dialog.get_by_role("button", name="Cancel").click()
         expect(dialog).to_have_count(0)
         assert lock_values(app_url)["SavedSettings"]["value"] == 0  # cancelled: the flash was not written
@@ -133,7 +133,7 @@ def test_hdlock_silent_lock_greys_lamps_ages_rows_and_disables_writes(app_url: s
         expect(page.locator('[data-testid="save-settings"]')).to_be_disabled()
         rows = page.locator(".q-tab-panel:visible tr.q-offline")
         expect(rows.first).to_contain_text(re.compile(r"offline, last \d+ s ago"))
-        page.screenshot(path=str(tmp_path / "door-1-offline-1440.png"), full_page=True)
+        shot(page, str(tmp_path / "door-1-offline-1440.png"), full_page=True)
         page.locator('[data-testid="sim-silent"]').click()
         expect(page.locator('[data-write="LockRequestDelay"]')).to_be_enabled(timeout=15_000)
         expect(page.locator('[data-testid="events"] tbody tr').first).to_contain_text(re.compile("back online|answering again"))
@@ -156,7 +156,7 @@ def test_m3io_page_record_entry_keeps_what_was_typed(app_url: str, chromium: Bro
         expect(card).to_contain_text("out of range: allowed 1 .. 15")
         expect(record).to_have_value("20")
         expect(page.locator('[data-testid="events"] tbody tr').first).to_contain_text("refused")
-        page.screenshot(path=str(tmp_path / f"heater-hmr-{size[0]}.png"), full_page=True)
+        shot(page, str(tmp_path / f"heater-hmr-{size[0]}.png"), full_page=True)
         chart = page.locator(".js-plotly-plot").first
         assert chart.bounding_box()["width"] < size[0] / 2  # beside the outputs from 1024 px
         if size[0] == 1024:  # an upright tablet: the temperatures below the outputs, the chart as wide as the page
@@ -164,7 +164,7 @@ def test_m3io_page_record_entry_keeps_what_was_typed(app_url: str, chromium: Bro
             expect(chart).to_be_visible()
             width = chart.bounding_box()["width"]
             assert width > 0.75 * 768, f"the temperature chart is {width:.0f} px wide on a 768 px tablet"
-            page.screenshot(path=str(tmp_path / "heater-hmr-768.png"), full_page=True)
+            shot(page, str(tmp_path / "heater-hmr-768.png"), full_page=True)
     finally:
         page.context.close()
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import re
 
 import pytest
-from conftest import CHROMIUM, inside_viewport
+from conftest import CHROMIUM, inside_viewport, shot
 from playwright.sync_api import expect
 from plants import channel, electrak_bus, plant_text
 from webutil import opened, running_app
@@ -66,7 +66,7 @@ def test_go_moves_the_position_chart_toward_the_target(app_url, chromium, tmp_pa
         with page.expect_download() as download:
             page.get_by_role("button", name="PNG", exact=True).click()
         assert re.fullmatch(r"lift-\d{8}-\d{6}\.png", download.value.suggested_filename)
-        page.screenshot(path=str(tmp_path / "electrak.png"), full_page=True)
+        shot(page, str(tmp_path / "electrak.png"), full_page=True)
         # the big stop is always there
         page.get_by_test_id("big-stop").click()
         page.get_by_text("no enable").first.wait_for()
@@ -85,7 +85,7 @@ def test_go_moves_the_position_chart_toward_the_target(app_url, chromium, tmp_pa
             page.evaluate("window.scrollTo(0, 0)")
             inside_viewport(page, page.get_by_test_id("big-stop"))  # the stop is in sight without scrolling
             assert page.evaluate("document.documentElement.scrollWidth") <= width  # nothing sticks out sideways
-            page.screenshot(path=str(tmp_path / f"electrak-{width}x{height}.png"), full_page=True)
+            shot(page, str(tmp_path / f"electrak-{width}x{height}.png"), full_page=True)
     finally:
         page.close()
 
@@ -104,7 +104,7 @@ def test_message_timeout_while_idle_is_not_a_red_fault(app_url, chromium):
             assert "alarm" not in lamp.locator(".lamp").get_attribute("class")  # not red
             page.get_by_test_id("idle-note").get_by_text("expected while idle").wait_for()
             assert page.get_by_text("Message timeout: clears").count() == 0  # not listed among the faults
-            page.screenshot(path=f"/tmp/shots/electrak-idle-{width}.png")
+            shot(page, f"/tmp/shots/electrak-idle-{width}.png")
         finally:
             page.close()
     with opened(chromium, f"{app_url}/device/lift") as page:
@@ -113,7 +113,7 @@ def test_message_timeout_while_idle_is_not_a_red_fault(app_url, chromium):
         page.wait_for_function("() => document.querySelector('[data-lamp=\"Message timeout\"]').dataset.on === '0'")
         assert page.locator('[data-lamp="Message timeout"]').get_attribute("data-idle") == "0"
         assert page.get_by_test_id("idle-note").inner_text() == ""
-        page.screenshot(path="/tmp/shots/electrak-control-1440.png")
+        shot(page, "/tmp/shots/electrak-control-1440.png")
 
 
 def test_jog_is_armed_by_the_area_clear_question_and_override_asks(app_url, chromium):
@@ -162,4 +162,4 @@ def test_service_parameter_entry_in_the_browser(app_url, chromium):
         for width, height in ((1440, 900), (768, 1024)):
             page.set_viewport_size({"width": width, "height": height})
             card.get_by_text("Service parameters").scroll_into_view_if_needed()
-            card.screenshot(path=f"/tmp/shots/electrak-service-{width}x{height}.png")
+            shot(card, f"/tmp/shots/electrak-service-{width}x{height}.png")

@@ -9,7 +9,7 @@ import urllib.request
 from pathlib import Path
 
 import pytest
-from conftest import CHROMIUM, CHROMIUM_ARGS, wait_devices_online
+from conftest import CHROMIUM, CHROMIUM_ARGS, shot, wait_devices_online
 from plants import bus, device, plant_text
 from webutil import free_port, running_app
 
@@ -39,7 +39,7 @@ def _shots(page, name: str) -> None:
     SHOTS.mkdir(exist_ok=True)
     for width, height in ((1440, 900), (768, 1024)):
         page.set_viewport_size({"width": width, "height": height})
-        page.screenshot(path=str(SHOTS / f"{name}-{width}x{height}.png"), full_page=True)
+        shot(page, str(SHOTS / f"{name}-{width}x{height}.png"), full_page=True)
     page.set_viewport_size({"width": 1440, "height": 900})
 
 

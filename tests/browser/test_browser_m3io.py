@@ -4,7 +4,7 @@ rule of the outputs; outputs off when their page closes although another tab sta
 from __future__ import annotations
 
 import pytest
-from conftest import CHROMIUM, inside_viewport
+from conftest import CHROMIUM, inside_viewport, shot
 from plants import can_bus, device, plant_text
 from webutil import opened, running_app
 
@@ -42,7 +42,7 @@ def _shot_1024(browser, url: str, path, wait_text: str) -> None:
         page.locator(".js-plotly-plot .main-svg").first.wait_for()
         assert page.evaluate("document.documentElement.scrollWidth") <= 1024  # nothing sticks out sideways
         inside_viewport(page, page.get_by_test_id("all-off"))  # the way out is in sight without scrolling
-        page.screenshot(path=str(path), full_page=True)
+        shot(page, str(path), full_page=True)
     finally:
         page.close()
 
@@ -72,7 +72,7 @@ def test_blown_fuse_shown_and_cleared_after_reset(app_url, chromium, tmp_path):
         # while, and the page's beats with it (a dead-man trip there released the control the steps above need)
         page.get_by_test_id("sim-blow-fuse").click()
         ssr1.get_by_text("fuse: blown").wait_for(timeout=15_000)
-        page.screenshot(path=str(tmp_path / "m3io-1440.png"), full_page=True)
+        shot(page, str(tmp_path / "m3io-1440.png"), full_page=True)
         _shot_1024(chromium, f"{app_url}/device/heater-hm", tmp_path / "m3io-1024.png", "fuse: blown")
 
 
@@ -101,7 +101,7 @@ def test_hmr_variant_checked_in_addressed_mode(app_url, chromium, tmp_path):
         page.get_by_test_id("variant-check").get_by_text("HMR01 (from 08.11.2013): variant HMR as in the plant file").wait_for()
         page.locator('[data-channel="SSR1-3"]').get_by_text("load: present").first.wait_for()
         inside_viewport(page, page.get_by_test_id("variant-check"))
-        page.screenshot(path=str(tmp_path / "m3io-hmr-1440.png"), full_page=True)
+        shot(page, str(tmp_path / "m3io-hmr-1440.png"), full_page=True)
         _shot_1024(chromium, f"{app_url}/device/heater-hmr", tmp_path / "m3io-hmr-1024.png", "variant HMR as in the plant file")
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import re
 
 import pytest
-from conftest import CHROMIUM, free_port, inside_viewport
+from conftest import CHROMIUM, free_port, inside_viewport, shot
 from plants import mo64_tcp, plant_text
 from webutil import running_app
 
@@ -35,7 +35,7 @@ def test_open_the_barrier_and_see_it_open(tmp_path, chromium):
             expect(page.get_by_test_id("position")).to_have_text("position: 100 %")
             for testid in ("gate-state", "position", "pulse-close"):
                 inside_viewport(page, page.get_by_test_id(testid))
-            page.screenshot(path=str(tmp_path / f"mo64-open-{width}.png"))
+            shot(page, str(tmp_path / f"mo64-open-{width}.png"))
             page.get_by_test_id("pulse-close").click()  # the second motion of the session asks again
             expect(page.get_by_text("nobody stands under it (the area is clear)")).to_be_visible()
             expect(gate).to_have_text("gate state: open")  # nothing sent before the answer

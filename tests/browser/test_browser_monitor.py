@@ -12,7 +12,7 @@ from pathlib import Path
 
 import can
 import pytest
-from conftest import CHROMIUM
+from conftest import CHROMIUM, shot
 from webutil import page_at
 from demo_app import demo_app
 
@@ -89,7 +89,7 @@ def test_can_monitor_in_browser(app_url: str, chromium: Browser, tmp_path: Path)
     page.get_by_label("ID to (hex)").fill("")
     expect(frames.filter(has_text=GATE1).first).to_be_visible()
     expect(frames.filter(has_text=GATE2).first).to_be_visible()
-    page.screenshot(path=str(tmp_path / "monitor.png"))
+    shot(page, str(tmp_path / "monitor.png"))
 
     # record in .blf for a few seconds, download it
     page.get_by_label("Format").click()
@@ -134,7 +134,7 @@ def test_can_monitor_in_browser(app_url: str, chromium: Browser, tmp_path: Path)
         page.locator("[data-monitor=file-pages] button", has_text=re.compile(rf"^{number}$")).click()
         expect(file_rows.first.locator("td").first).not_to_have_text("0.000")
     expect(file_rows.filter(has_text="HD-Lock Status").first).to_be_visible()
-    page.screenshot(path=str(tmp_path / "monitor-file.png"))
+    shot(page, str(tmp_path / "monitor-file.png"))
 
     # a broken file: a message, and the page still works
     broken = tmp_path / "broken.blf"
@@ -152,7 +152,7 @@ def test_modbus_monitor_in_browser(app_url: str, chromium: Browser, tmp_path: Pa
     rows = page.locator(".q-table tbody tr")
     expect(rows.filter(has_text="read ").first).to_be_visible()
     expect(page.get_by_text(re.compile(r"\d+ transactions buffered"))).to_be_visible()
-    page.screenshot(path=str(tmp_path / "monitor-line1.png"))
+    shot(page, str(tmp_path / "monitor-line1.png"))
     page.close()
 
 
@@ -166,7 +166,7 @@ def test_monitor_names_devices_and_decodes_values_in_browser(app_url: str, chrom
     assert answer.locator("td").nth(3).inner_text().strip() in ("gate-1", "gate-2")
     gate1 = page.locator("[data-monitor=overwrite] tbody tr").filter(has_text=GATE1).first
     expect(gate1.locator("td").nth(2)).to_have_text("gate-1")
-    page.screenshot(path=str(tmp_path / "monitor-names-1440.png"))
+    shot(page, str(tmp_path / "monitor-names-1440.png"))
     page.set_viewport_size({"width": 1024, "height": 768})
     # the Device column is on screen at 1024 px: measured across only, and without scrolling to the row,
     # which the live list moves down with every new frame (it is never still long enough to scroll to)
@@ -177,7 +177,7 @@ def test_monitor_names_devices_and_decodes_values_in_browser(app_url: str, chrom
             break
         page.wait_for_timeout(100)
     assert device is not None and 0 <= device["x"] and device["x"] + device["width"] <= 1024, device
-    page.screenshot(path=str(tmp_path / "monitor-names-1024.png"))
+    shot(page, str(tmp_path / "monitor-names-1024.png"))
 
     # (the M3IO modules of can3 send their TEMP frames only while served: tests/app/test_monitor.py decodes them)
     page.set_viewport_size({"width": 1440, "height": 900})
@@ -185,8 +185,8 @@ def test_monitor_names_devices_and_decodes_values_in_browser(app_url: str, chrom
     rows = page.locator(".q-table tbody tr")
     named = rows.filter(has_text="door-1 (unit 1)").filter(has_text="SettingsProximityThresholdLock = -60").first
     expect(named).to_be_visible()
-    page.screenshot(path=str(tmp_path / "monitor-line1-1440.png"))
+    shot(page, str(tmp_path / "monitor-line1-1440.png"))
     page.set_viewport_size({"width": 1024, "height": 768})
     expect(named).to_be_visible()
-    page.screenshot(path=str(tmp_path / "monitor-line1-1024.png"))
+    shot(page, str(tmp_path / "monitor-line1-1024.png"))
     page.close()

@@ -20,6 +20,7 @@ from webutil import page_at
 
 pytest.importorskip("playwright")
 from playwright.sync_api import Browser, Page, expect, sync_playwright
+from conftest import shot
 
 CHROMIUM = Path("/usr/bin/chromium")
 SHOTS = Path("/tmp/commission-shots")
@@ -90,7 +91,7 @@ def test_modbus_log_fits_the_screen(app_url: str, browser: Browser):
                 return [...document.querySelectorAll('[data-monitor=transactions] tbody tr')].filter(r => {
                     const b = r.getBoundingClientRect(); return b.top >= box.top && b.bottom <= Math.min(box.bottom, innerHeight); }).length; }""")
             assert visible >= 12, f"{visible} transactions in sight at 1440x900"
-        page.screenshot(path=str(SHOTS / f"monitor-modbus-{width}.png"))
+        shot(page, str(SHOTS / f"monitor-modbus-{width}.png"))
     # the first answer carries the newest rows, not the whole table (it took 2.8-6.4 s to show a first value)
     expect(rows.nth(60)).to_be_visible(timeout=20_000)
     with urllib.request.urlopen(f"{app_url}/monitor/line1", timeout=10) as response:
@@ -140,7 +141,7 @@ def test_can_cycle_times_paging_and_details(app_url: str, browser: Browser):
         overflow = page.locator("[data-monitor=overwrite-box]").evaluate("el => el.scrollWidth - el.clientWidth")
         assert overflow <= 1, f"the overwrite view is {overflow} px wider than its box: Last is cut off"
         assert page_height(page) <= 2 * height
-        page.screenshot(path=str(SHOTS / f"monitor-can-{width}.png"))
+        shot(page, str(SHOTS / f"monitor-can-{width}.png"))
     page.set_viewport_size({"width": 1440, "height": 900})
 
     # paused: the whole buffer in pages; a frame opened for its full decoding
@@ -169,7 +170,7 @@ def test_can_cycle_times_paging_and_details(app_url: str, browser: Browser):
     expect(details).to_contain_text("gate-")
     expect(details).to_contain_text("HD-Lock Status")
     expect(details.locator("tbody tr")).to_have_count(8)  # every byte with hex, decimal, binary
-    page.screenshot(path=str(SHOTS / "monitor-can-details-1440.png"))
+    shot(page, str(SHOTS / "monitor-can-details-1440.png"))
     page.keyboard.press("Escape")
     page.close()
 
@@ -192,7 +193,7 @@ def test_a_large_recorded_file_opens_paged(app_url: str, browser: Browser, tmp_p
     expect(page.locator("[data-monitor=file-frames] tbody tr")).to_have_count(200)
     expect(page.locator("[data-monitor=file-pages]")).to_contain_text("500")
     assert page_height(page) <= 2 * 900
-    page.screenshot(path=str(SHOTS / "monitor-file-1440.png"))
+    shot(page, str(SHOTS / "monitor-file-1440.png"))
     page.locator("[data-monitor=upload] input[type=file]").set_input_files(str(bad))
     expect(info).to_contain_text("line 2")  # where the file broke
     page.close()

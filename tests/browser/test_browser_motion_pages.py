@@ -5,7 +5,7 @@ network greys its values and disables its start buttons with the reason while ST
 from __future__ import annotations
 
 import pytest
-from conftest import CHROMIUM, inside_viewport
+from conftest import CHROMIUM, inside_viewport, shot
 from plants import motion_plant_text
 from webutil import running_app
 
@@ -84,7 +84,7 @@ def check_layout(page, tmp_path, name: str) -> None:
                 hits = [b.inner_text() for b in others if (ob := b.bounding_box()) and overlaps(box, ob)]
                 assert hits == [], f"{name}: the big STOP overlaps {hits} at {width}x{height}"
         page.evaluate("window.scrollTo(0, 0)")
-        page.screenshot(path=str(tmp_path / f"{name}-{width}x{height}.png"), full_page=True)
+        shot(page, str(tmp_path / f"{name}-{width}x{height}.png"), full_page=True)
 
 
 @pytest.fixture(scope="module")
@@ -128,7 +128,7 @@ def test_lift_entry_numbers_stop_layout_and_silence(app_url, chromium, tmp_path)
         expect(page.get_by_test_id("stop")).to_be_enabled()
         assert page.get_by_test_id("network-position").get_attribute("data-quality") == "offline"
         expect(page.get_by_test_id("events").locator("tbody tr").first).to_contain_text("error")
-        page.screenshot(path=str(tmp_path / "lift-offline.png"), full_page=True)
+        shot(page, str(tmp_path / "lift-offline.png"), full_page=True)
         for i in (1, 2):
             page.get_by_role("switch", name=f"actuator {i} connected").click()
         expect(take).to_be_enabled(timeout=15_000)

@@ -14,7 +14,7 @@ import urllib.request
 from pathlib import Path
 
 import pytest
-from conftest import free_udp_port, wait_devices_online
+from conftest import free_udp_port, shot, wait_devices_online
 from plants import bus, hdlock_can
 from webutil import demo_plant_text, free_port, running_app
 
@@ -64,7 +64,7 @@ def test_tiles_equal_named_on_one_line_and_plant_fits(app, chromium, tmp_path: P
         offline = page.locator('[data-plant-tile="door-22"]')
         offline.locator('[data-plant-state="offline"]').wait_for(timeout=15_000)
         page.locator('[data-plant-tile="gate-1"] .bar-label').get_by_text("% out", exact=False).wait_for()
-        page.screenshot(path=str(tmp_path / f"plant-{width}.png"))
+        shot(page, str(tmp_path / f"plant-{width}.png"))
         tiles = _tile_boxes(page, "[data-plant-tile]")
         with urllib.request.urlopen(url + "/api/devices", timeout=5) as response:
             assert len(tiles) == len(json.load(response))
@@ -84,7 +84,7 @@ def test_tiles_equal_named_on_one_line_and_plant_fits(app, chromium, tmp_path: P
 
         page.goto(url + "/")
         page.locator('[data-device="gate-1"] [data-tile-counters]').get_by_text("frames heard", exact=False).wait_for()
-        page.screenshot(path=str(tmp_path / f"overview-{width}.png"), full_page=True)
+        shot(page, str(tmp_path / f"overview-{width}.png"), full_page=True)
         tiles = _tile_boxes(page, "[data-device]")
         _grid_widths_equal(tiles)
         assert [t["name"] for t in tiles if not t["nameOneLine"]] == []

@@ -9,7 +9,7 @@ import urllib.request
 from pathlib import Path
 
 import pytest
-from conftest import CHROMIUM, wait_devices_online
+from conftest import CHROMIUM, shot, wait_devices_online
 from test_project_page import project_plant_text
 from webutil import click_until, running_app
 
@@ -31,9 +31,9 @@ def _shots(page, name: str, part=None) -> None:
         page.set_viewport_size({"width": width, "height": height})
         path = str(SHOTS / f"{name}-{width}x{height}.png")
         if part is not None:
-            part.screenshot(path=path)
+            shot(part, path)
         else:
-            page.screenshot(path=path, full_page=True)
+            shot(page, path, full_page=True)
     page.set_viewport_size({"width": 1440, "height": 900})
 
 

@@ -8,7 +8,7 @@ import urllib.request
 from pathlib import Path
 
 import pytest
-from conftest import wait_devices_online
+from conftest import shot, wait_devices_online
 from webutil import demo_plant_text, free_port, opened, running_app
 
 pytestmark = pytest.mark.timeout(150)
@@ -31,7 +31,7 @@ def log_in(page) -> None:
     """The account asked for at the moment of approving or signing (the page is on the loopback address)."""
     page.get_by_label("Account").fill("anna")
     page.get_by_label("Password").fill("anna-password")
-    page.screenshot(path=str(SHOTS / "record-account-1440x900.png"), full_page=False)
+    shot(page, str(SHOTS / "record-account-1440x900.png"), full_page=False)
     page.get_by_role("button", name="Log in and continue").click()
 
 
@@ -56,27 +56,27 @@ def test_checkout_sign_and_drift_from_the_record_page(chromium, app):
         try:
             passed.wait_for(timeout=30000)
         except Exception:
-            page.screenshot(path=str(SHOTS / "record-checkout-failed.png"))
+            shot(page, str(SHOTS / "record-checkout-failed.png"))
             raise
         page.get_by_label("Name").fill("Anna Berg")
         page.get_by_label("Comment").fill("door-2 cycled on site")
         page.get_by_role("button", name="Sign plant demo").click()
         page.get_by_text("Sign plant demo although these are open?").wait_for(timeout=90000)  # the other devices: no checkout
-        page.screenshot(path=str(SHOTS / "record-sign-open-items-1440x900.png"), full_page=False)
+        shot(page, str(SHOTS / "record-sign-open-items-1440x900.png"), full_page=False)
         page.get_by_role("button", name="Sign anyway").click()
         log_in(page)
         try:
             page.get_by_text("signed by Anna Berg with account anna").wait_for(timeout=90000)
         except Exception:
-            page.screenshot(path=str(SHOTS / "record-failed.png"))
+            shot(page, str(SHOTS / "record-failed.png"))
             raise
         page.get_by_role("button", name="Check the record").click()
         page.get_by_text("intact (").wait_for(timeout=15000)
-        page.screenshot(path=str(SHOTS / "record-1440x900.png"), full_page=False)
-        page.screenshot(path=str(SHOTS / "record-1440x900-full.png"), full_page=True)
+        shot(page, str(SHOTS / "record-1440x900.png"), full_page=False)
+        shot(page, str(SHOTS / "record-1440x900-full.png"), full_page=True)
         page.set_viewport_size({"width": 768, "height": 1024})
-        page.screenshot(path=str(SHOTS / "record-768x1024.png"), full_page=False)
-        page.screenshot(path=str(SHOTS / "record-768x1024-full.png"), full_page=True)
+        shot(page, str(SHOTS / "record-768x1024.png"), full_page=False)
+        shot(page, str(SHOTS / "record-768x1024-full.png"), full_page=True)
     with urllib.request.urlopen(f"{app}/api/devices", timeout=5) as response:
         door = next(d for d in json.load(response) if d["name"] == "door-2")
     # the lock raises its measured maximum bolt times (RW holding 1003/1004) during the cycle: measured

@@ -9,7 +9,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from conftest import CHROMIUM, free_port, inside_viewport
+from conftest import CHROMIUM, free_port, inside_viewport, shot
 from plants import plant_text, scu_line
 from webutil import running_app
 
@@ -80,7 +80,7 @@ def test_move_actuator_1_to_a_remote_position_and_stop(tmp_path, chromium):
         assert stopped < 1200, f"actuator 1 reached its target {stopped} counts: Stop (RS) did nothing"
         page.get_by_test_id("pos-A1").scroll_into_view_if_needed()
         inside_viewport(page, page.get_by_test_id("pos-A1"))
-        page.screenshot(path=str(tmp_path / "scu-moved.png"))
+        shot(page, str(tmp_path / "scu-moved.png"))
         try:
             expect(page.get_by_text("you hold control")).to_be_visible()
         except AssertionError:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import can
 import pytest
-from conftest import CHROMIUM, free_port, free_udp_port, inside_viewport
+from conftest import CHROMIUM, free_port, free_udp_port, inside_viewport, shot
 from can_listener import FrameListener
 from plants import ELECTRAK_ACTUATORS, can_bus, electrak_bus, m3io_can, plant_text
 from webutil import running_app
@@ -107,7 +107,7 @@ def test_frozen_browser_stops_motion_and_mains_outputs_within_the_bound(tmp_path
             lift.get_by_test_id("jog-out").scroll_into_view_if_needed()
             inside_viewport(lift, lift.get_by_test_id("jog-out"))
             # photographed armed, before the jog: a screenshot holds the browser up for a while, and the beats with it
-            lift.screenshot(path=str(tmp_path / "deadman-lift-armed.png"))
+            shot(lift, str(tmp_path / "deadman-lift-armed.png"))
             box = lift.get_by_test_id("jog-out").bounding_box()
             lift.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
             lift.mouse.down()  # hold-to-run: held, never released

@@ -8,7 +8,7 @@ import re
 from pathlib import Path
 
 import pytest
-from conftest import wait_devices_online
+from conftest import shot, wait_devices_online
 from test_i18n_pages import english_patterns
 from webutil import demo_plant_text, free_port, running_app
 
@@ -61,7 +61,7 @@ def test_the_plant_view_in_german(app, chromium, tmp_path: Path, width: int, hei
             '.bar-label, .value-line, .alarm-text')].some(e => e.getBoundingClientRect().right > t.getBoundingClientRect().right + 1))
             .map(t => t.getAttribute('data-plant-tile'))""")
         assert overflowing == [], f"texts run out of their tiles: {overflowing}"
-        page.screenshot(path=str(tmp_path / f"plant-de-{width}x{height}.png"), full_page=True)
+        shot(page, str(tmp_path / f"plant-de-{width}x{height}.png"), full_page=True)
     finally:
         context.close()
 

@@ -13,7 +13,7 @@ import time
 import can
 import pytest
 import plants
-from conftest import wait_for
+from conftest import shot, wait_for
 from plants import ELECTRAK_ACTUATORS, can_bus, device, hdlock_can
 
 from app.plant import DeviceConfig, parse_plant
@@ -297,7 +297,7 @@ def test_overview_lists_the_spare_lock_with_its_evidence_and_adopts_it(tmp_path,
                 expect(listing).to_contain_text("3 frames in a row")
                 adopt.scroll_into_view_if_needed()
                 inside_viewport(page, adopt)
-                page.screenshot(path=str(tmp_path / f"overview-discovered-{width}.png"))
+                shot(page, str(tmp_path / f"overview-discovered-{width}.png"))
                 adopt.click()
                 dialog = page.locator(".q-dialog .q-card")
                 expect(dialog).to_contain_text("CAN IDs it uses: 0x000A1286 (ext) HD-Lock device ID 660102")
@@ -305,7 +305,7 @@ def test_overview_lists_the_spare_lock_with_its_evidence_and_adopts_it(tmp_path,
                 page.wait_for_function(DIALOG_OPEN_JS)
                 inside_viewport(page, dialog)
                 expect(dialog.get_by_role("button", name="Add to the running plant")).to_be_visible()
-                page.screenshot(path=str(tmp_path / f"overview-adopt-{width}.png"))
+                shot(page, str(tmp_path / f"overview-adopt-{width}.png"))
                 if width == 1024:
                     page.get_by_role("button", name="Add to the running plant").click()
                     expect(page.locator('[data-device="hdlock-660102"]')).to_be_visible()

@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from conftest import CHROMIUM, wait_devices_online
+from conftest import CHROMIUM, shot, wait_devices_online
 from nicegui import ui
 from nicegui.testing import User
 from webutil import LockPages, demo_plant_text, eventually, free_port, lock_pages_env, running_app
@@ -98,6 +98,6 @@ if CHROMIUM.exists():
                 assert row["currentRight"] <= row["entryLeft"] + 0.5, row
             widest = max(row["currentRight"] for row in boxes)
             assert boxes[0]["entryLeft"] - widest <= 48, boxes  # no wide gap between Current and New value
-            page.screenshot(path=str(tmp_path / f"param-grid-{size[0]}.png"), full_page=True)
+            shot(page, str(tmp_path / f"param-grid-{size[0]}.png"), full_page=True)
         finally:
             page.context.close()
