@@ -241,13 +241,13 @@ async def test_register_table_is_built_once_in_the_once_a_second_round(user_runt
     store._aged = {name: time.monotonic() + 1e9 for name in store.devices}  # no once-a-second round for now
     builds.clear()
     state.version += 1
-    await eventually(lambda: builds, timeout=5.0)
+    await eventually(lambda: builds, timeout=15.0, what="the table drawn after a change")  # a loaded machine: late, not never
     # a change: values only (pushed as it comes, so a write of the starting runtime may add one more)
     assert builds and set(builds) == {False}
     builds.clear()
     store._aged = {name: 0.0 for name in store.devices}  # the next round is the once-a-second round
     state.version += 1
-    await eventually(lambda: builds, timeout=5.0)
+    await eventually(lambda: builds, timeout=15.0, what="the table drawn in the once-a-second round")
     assert builds[0] is True and builds.count(True) == 1  # a change in the once-a-second round: one build with the read times
 
 
