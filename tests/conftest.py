@@ -552,9 +552,9 @@ def shot(target, path, **options) -> None:
         target.screenshot(path=str(path), **options)
 
 
-def inside_viewport(page, locator, timeout: float = 5.0) -> None:
+def inside_viewport(page, locator, timeout: float = 15.0) -> None:
     """Assert that the element of ``locator`` is visible and lies wholly inside the page's viewport. A live table may
-    draw its rows anew meanwhile: the element is looked up again until it is rendered (``timeout`` seconds at most)."""
+    draw its rows anew meanwhile: the element is looked up again until it is rendered (``timeout`` seconds at most: a loaded machine draws late, not never)."""
     end = time.monotonic() + timeout
     box = locator.bounding_box(timeout=timeout * 1000)
     while box is None and time.monotonic() < end:
