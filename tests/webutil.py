@@ -132,6 +132,13 @@ def by_testid(user, testid: str):
     return found[0]
 
 
+def switch_starting(user, text: str):
+    """The switch on the user's page whose label starts with ``text``."""
+    from nicegui import ui
+
+    return next(e for e in user.client.elements.values() if isinstance(e, ui.switch) and e.text.startswith(text))
+
+
 def project_card_table(user):
     """The table of the device page's project card (the one with an actions column) open in ``user``."""
     from nicegui import ui
@@ -342,7 +349,7 @@ def private_endpoints(plant, tag: str):
 
 
 __all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "click_until", "demo_app_serving", "demo_user", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "opened", "page_at", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
-           "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "wait_http"]
+           "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "switch_starting", "wait_http"]
 
 
 # -- what an open device page costs per push (issue 34): the page's view and what it reads ------------------------

@@ -5,10 +5,9 @@ parameter by the model's own name with the sentence around it translated."""
 from __future__ import annotations
 
 import pytest
-from nicegui import ui
 from test_i18n_pages import german_user
 from test_m3io_params import _plant_file
-from webutil import dialog_button, eventually
+from webutil import dialog_button, eventually, switch_starting
 
 from app import i18n
 from app.message import said
@@ -27,8 +26,7 @@ async def test_the_p2_switch_asks_its_risk_in_german(tmp_path):
         await eventually(lambda: runtime.store.devices["io-b"].status == "online", timeout=15, what="io-b online")
         await user.open("/device/io-b")
         await user.should_see("Drehstromausgang mit 2-poliger Last (P2)", retries=100)
-        switch = next(e for e in user.client.elements.values()
-                      if isinstance(e, ui.switch) and e.text.startswith("Drehstromausgang"))
+        switch = switch_starting(user, "Drehstromausgang")
         await eventually(lambda: switch.enabled, timeout=10, what="the P2 switch enabled")
         switch.set_value(True)
         await user.should_see("eine Drehstromlast, die eine Phase verloren hat", retries=50)

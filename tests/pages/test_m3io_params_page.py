@@ -8,7 +8,7 @@ import pytest
 from nicegui import ui
 from test_m3io_params import _plant_file
 from test_backup_page import emit
-from webutil import dialog_button, eventually, project_card_table, user_on
+from webutil import dialog_button, eventually, project_card_table, switch_starting, user_on
 
 from app.plant import load_plant
 from app.runtime import Runtime
@@ -57,8 +57,7 @@ async def test_the_p2_switch_asks_and_stays_off_when_cancelled(tmp_path):
         await _read(runtime, "io-b")
         await user.open("/device/io-b")
         await user.should_see("Three-phase output loaded on two phases only (P2)", retries=100)
-        switch = next(e for e in user.client.elements.values()
-                      if isinstance(e, ui.switch) and e.text.startswith("Three-phase output"))
+        switch = switch_starting(user, "Three-phase output")
         await eventually(lambda: switch.enabled, timeout=10, what="the P2 switch enabled")
         switch.set_value(True)
         await user.should_see("Switch P2 on?", retries=50)
