@@ -26,6 +26,7 @@ from typing import Any
 
 import aiomqtt
 
+from app.aio import end_tasks
 from app.audit import LogBudget
 from app.broker import BROKER_ERRORS
 from app.plant import MqttConfig
@@ -161,9 +162,7 @@ class MqttPublisher:
         if self.sparkplug is not None:
             await self.sparkplug.stop()  # its NDEATH first, while the store still holds the devices
         client = self._client if self.connected else None
-        for task in self._tasks:
-            task.cancel()
-        await asyncio.gather(*self._tasks, return_exceptions=True)
+        await end_tasks(self._tasks, "mqtt")
         self._tasks = []
         if client is not None:
             try:
@@ -344,8 +343,7 @@ class MqttPublisher:
             await self._publish_until_lost(client)
         finally:
             if watcher is not None:
-                watcher.cancel()
-                await asyncio.gather(watcher, return_exceptions=True)
+                await end_tasks([watcher], "mqtt own topic")
 
     async def _publish_until_lost(self, client) -> None:
         birth = instance_payload(self.config, self.plant_name, list(self.store.devices), "online", time.time(),

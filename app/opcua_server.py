@@ -39,6 +39,7 @@ from asyncua.server.internal_session import SessionState
 from asyncua.server.uaprocessor import UaProcessor
 from asyncua.ua.ua_binary import nodeid_from_binary, struct_from_binary
 
+from app.aio import end_tasks
 from app.audit import LogBudget
 from app.auth import LoginThrottle, check_login
 from app.capabilities import controller_of
@@ -485,8 +486,7 @@ class OpcuaServer:
 
     async def stop(self) -> None:
         if self._task is not None:
-            self._task.cancel()
-            await asyncio.gather(self._task, return_exceptions=True)
+            await end_tasks([self._task], "opc ua")
             self._task = None
         if self.server is not None and self.started:
             await self.server.stop()

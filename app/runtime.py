@@ -13,6 +13,7 @@ from collections.abc import Callable
 from typing import Any, Protocol, runtime_checkable
 
 from app import host, memory
+from app.aio import end_tasks
 from app.audit import AuditLog
 from app.auth import AuthSessions, LoginThrottle
 from app.backup import write_atomic
@@ -424,9 +425,7 @@ class Runtime:
             await self.opcua.stop()
         if self.mqtt is not None:
             await self.mqtt.stop()  # bounded; says "offline, stopped" to the broker while the store still holds the devices
-        for task in self._tasks:
-            task.cancel()
-        await asyncio.gather(*self._tasks, return_exceptions=True)
+        await end_tasks(self._tasks, "runtime")
         self._tasks = []
         now = self._unsaved_now()
         if now != self._unsaved_written:

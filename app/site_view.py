@@ -23,6 +23,7 @@ from typing import Any, Literal
 import aiomqtt
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from app.aio import end_tasks
 from app.broker import BROKER_ERRORS
 from app.mqtt import BACKOFF_FIRST_S, BACKOFF_MAX_S, CONNECT_TIMEOUT_S, INSTANCES, TOPIC_ROOT
 from app.plant import parse_mqtt_url
@@ -272,8 +273,7 @@ class SiteStore:
 
     async def stop(self) -> None:
         if self._task is not None:
-            self._task.cancel()
-            await asyncio.gather(self._task, return_exceptions=True)
+            await end_tasks([self._task], "site view")
             self._task = None
 
     async def _run(self) -> None:

@@ -45,6 +45,7 @@ import aiomqtt
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from google.protobuf.message import DecodeError
 
+from app.aio import end_tasks
 from app.audit import WRITE_ERRORS, LogBudget
 from app.auth import RefusalRows
 from app.broker import BROKER_ERRORS
@@ -274,8 +275,7 @@ class SparkplugNode:
         """A clean goodbye: NDEATH (the bdSeq of the birth) and disconnect, bounded; the will covers the rest."""
         client = self._client if self.state == "online" else None
         if self._task is not None:
-            self._task.cancel()
-            await asyncio.gather(self._task, return_exceptions=True)
+            await end_tasks([self._task], "sparkplug")
             self._task = None
         if client is not None:
             try:
@@ -389,8 +389,7 @@ class SparkplugNode:
                 self.state, self.last_error = "down", str(exc) or type(exc).__name__
                 log.info("sparkplug: session ended: %s", self.last_error)
             finally:
-                listener.cancel()
-                await asyncio.gather(listener, return_exceptions=True)
+                await end_tasks([listener], "sparkplug listener")
             try:
                 await asyncio.wait_for(client.__aexit__(None, None, None), 1.0)
             except BROKER_ERRORS:  # already gone
