@@ -24,6 +24,7 @@ sys.path[:0] = [str(TESTS)] + [str(TESTS / layer) for layer in ("app", "browser"
 
 from liveapp import CHROMIUM_ARGS, free_port, free_udp_port, wait_devices_online  # noqa: E402
 from plants import heater_and_lock, modbus_plant  # noqa: E402
+import page_events  # noqa: E402
 
 from app.plant import Plant, parse_plant  # noqa: E402
 
@@ -332,6 +333,23 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 _MODULE_DATA_DIRS: set[str] = set()
+
+
+@pytest.fixture(autouse=True)
+def _page_events(request: pytest.FixtureRequest) -> None:
+    """A browser test's pages are watched; their events start empty for each test (tests/page_events.py)."""
+    if request.node.get_closest_marker("browser") is not None:
+        page_events.watch_pages()
+    page_events.EVENTS.clear()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
+    """A failing test's report says what its pages did besides what it asserts (reloads, lost connections)."""
+    outcome = yield
+    report = outcome.get_result()
+    if report.failed and page_events.EVENTS and hasattr(report.longrepr, "addsection"):
+        report.longrepr.addsection("what the test's pages did", "\n".join(page_events.EVENTS[-40:]))
 
 
 @pytest.fixture(scope="module", autouse=True)

@@ -16,7 +16,9 @@
    the cores (a line's thread that must keep up with its own period, a stalled loop's stop).
 
 Every phase runs; the exit status is 0 only when the linter and every phase passed. Options given here (``-x``,
-``-k ...``, a path) go to every phase.
+``-k ...``, a path) go to every phase. At the end, after the phases' times, every failed test is named again with
+the lines of its error (``E ...``) and what its browser pages did: the last screen of a long run says what failed
+and why, not only that a phase failed.
 
 Python's compiled modules are kept (``__pycache__``, ignored by git) even where ``PYTHONDONTWRITEBYTECODE`` is set:
 every test process would otherwise compile the package and rewrite the asserts of every test module it collects
@@ -30,7 +32,10 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import tempfile
 import time
+import xml.etree.ElementTree as ET
+from pathlib import Path
 
 PHASES = (
     ("tests without a browser or a real-time bound", ["-n", "6", "-m", "not browser and not realtime and not alone"]),
@@ -55,6 +60,34 @@ def compiled_environment() -> dict[str, str]:
     return env
 
 
+RECAP_LINES = 12  # of each failed test's error lines
+
+
+def failures(report: Path) -> list[str]:
+    """The failed and erring tests of a phase's JUnit report: the test, then its error's ``E`` lines and its
+    pages' events (at most :data:`RECAP_LINES` each), indented."""
+    try:
+        root = ET.parse(report).getroot()
+    except (OSError, ET.ParseError):
+        return []
+    lines = []
+    for case in root.iter("testcase"):
+        for bad in [*case.findall("failure"), *case.findall("error")]:
+            test = f"{case.get('classname', '').replace('.', '/')}.py::{case.get('name')}"
+            text = bad.text or ""
+            said = [line for line in text.splitlines() if line.startswith("E ")][:RECAP_LINES]
+            if not said:
+                said = [(bad.get("message") or "").splitlines()[0][:300]] if bad.get("message") else []
+            pages = text.split("what the test's pages did", 1)[1].splitlines()[1:RECAP_LINES + 1] if (
+                "what the test's pages did" in text) else []
+            lines.append(f"suite: {bad.tag}: {test}")
+            lines += [f"    {line}" for line in said]
+            if pages:
+                lines.append("    its pages:")
+                lines += [f"      {line}" for line in pages if line.strip()]
+    return lines
+
+
 def main(argv: list[str] | None = None) -> int:
     extra = list(sys.argv[1:] if argv is None else argv)
     started = time.monotonic()
@@ -65,14 +98,21 @@ def main(argv: list[str] | None = None) -> int:
     env = compiled_environment()
     print(f"suite: the suite collected and compiled in {time.monotonic() - started:.0f} s", flush=True)
     results: list[tuple[str, int, float]] = []
-    for name, options in PHASES:
-        begun = time.monotonic()
-        print(f"suite: {name} ({' '.join(options)})", flush=True)
-        run = subprocess.run([sys.executable, "-m", "pytest", "-q", *options, *extra], check=False, env=env)
-        # 5: nothing was selected (a -k or a path outside this phase), not a failure
-        results.append((name, 0 if run.returncode == 5 else run.returncode, time.monotonic() - begun))
+    recap: list[str] = []
+    with tempfile.TemporaryDirectory(prefix="suite-") as reports:
+        for n, (name, options) in enumerate(PHASES):
+            begun = time.monotonic()
+            print(f"suite: {name} ({' '.join(options)})", flush=True)
+            report = Path(reports) / f"phase-{n}.xml"
+            run = subprocess.run([sys.executable, "-m", "pytest", "-q", *options, f"--junitxml={report}", *extra],
+                                 check=False, env=env)
+            # 5: nothing was selected (a -k or a path outside this phase), not a failure
+            results.append((name, 0 if run.returncode == 5 else run.returncode, time.monotonic() - begun))
+            recap += failures(report)
     for name, code, seconds in results:
         print(f"suite: {name}: {'passed' if code == 0 else f'FAILED (exit {code})'} in {seconds / 60:.1f} min", flush=True)
+    for line in recap:
+        print(line, flush=True)
     failed = [code for _name, code, _s in results if code != 0]
     print(f"suite: {'passed' if not failed else 'FAILED'} in {(time.monotonic() - started) / 60:.1f} min", flush=True)
     return failed[0] if failed else 0

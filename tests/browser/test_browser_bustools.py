@@ -96,9 +96,9 @@ def _ask(page, window, start: str, count: str, period: str, function: str | None
     if function is not None:
         window.get_by_label("Function").click()
         page.get_by_role("option", name=function).click()
-    window.get_by_label("Start address").fill(start)
-    window.get_by_label("Count").fill(count)
-    window.get_by_label("Period s").fill(period)
+    for label, value in (("Start address", start), ("Count", count), ("Period s", period)):
+        window.get_by_label(label).fill(value)
+        expect(window.get_by_label(label)).to_have_value(value)  # a redraw did not put the old value back
 
 
 def test_modbus_poll(app_url: str, browser: Browser):
@@ -160,6 +160,9 @@ def test_modbus_poll_windows(app_url: str, browser: Browser):
     second.get_by_label("32-bit values").click()
     page.get_by_role("option", name="none", exact=True).click()
     second.get_by_test_id("poll-start").click()
+    # what each window polls, as the page took it (a typed entry that did not arrive would show here first)
+    expect(first.get_by_test_id("poll-summary")).to_contain_text("104+2")
+    expect(second.get_by_test_id("poll-summary")).to_contain_text("3000+4")
     expect(first.get_by_test_id("poll-table").locator("tbody tr").first).to_contain_text("SerialNumber")
     expect(second.get_by_test_id("poll-table").locator("tbody tr").first).to_contain_text("LockRequestDelay")
     expect(second.get_by_test_id("poll-status")).to_contain_text(re.compile(r"([2-9]|\d\d+) polls · 0 errors \(0 timeouts\)"))

@@ -1,0 +1,54 @@
+"""What the browser pages of a test did besides what it asserts: reloads, lost connections, script errors.
+
+A browser test that fails on a loaded machine says little about why a typed value or a press did not arrive;
+NiceGUI's page reloads itself when its connection cannot be taken up again, and says so on the console. Every page
+that playwright opens in a test process is watched (``watch_pages``); a failing test's report gets the events of its
+pages as a section of its own (``tests/conftest.py``)."""
+
+from __future__ import annotations
+
+import time
+
+EVENTS: list[str] = []  # this test's, emptied before each test
+_started = time.monotonic()
+WORDS = ("reload", "disconnect", "connect_error", "timed out", "handshake")
+
+
+def _stamp() -> str:
+    return f"{time.monotonic() - _started:8.2f} s"
+
+
+def watch(page) -> None:
+    """Keep ``page``'s navigations, console lines about its connection, console errors and script errors."""
+
+    def console(message) -> None:
+        text = message.text
+        if message.type == "error" or any(word in text.lower() for word in WORDS):
+            EVENTS.append(f"{_stamp()} {page.url}: console {message.type}: {text[:400]}")
+
+    def navigated(frame) -> None:
+        if frame == page.main_frame:
+            EVENTS.append(f"{_stamp()} navigated to {frame.url}")
+
+    page.on("console", console)
+    page.on("framenavigated", navigated)
+    page.on("pageerror", lambda error: EVENTS.append(f"{_stamp()} {page.url}: script error: {str(error)[:400]}"))
+    page.on("crash", lambda _page: EVENTS.append(f"{_stamp()} {page.url}: the page crashed"))
+
+
+def watch_pages() -> None:
+    """Every page playwright's sync API opens in this process is watched (patched once, idempotent)."""
+    from playwright.sync_api._generated import Browser, BrowserContext
+
+    if getattr(Browser, "_events_watched", False):
+        return
+    for cls in (Browser, BrowserContext):
+        original = cls.new_page
+
+        def new_page(self, *args, _original=original, **kwargs):
+            page = _original(self, *args, **kwargs)
+            watch(page)
+            return page
+
+        cls.new_page = new_page
+    Browser._events_watched = True
