@@ -11,7 +11,13 @@ import time
 
 EVENTS: list[str] = []  # this test's, emptied before each test
 _started = time.monotonic()
-WORDS = ("reload", "disconnect", "connect_error", "timed out", "handshake")
+WORDS = ("reload", "disconnect", "connect_error", "timed out", "handshake", "notification: ")
+# each notification the page shows, said on its console (what a refused or failed press said)
+NOTIFICATIONS = """new MutationObserver((changes) => {
+  for (const change of changes) for (const node of change.addedNodes)
+    if (node.nodeType === 1 && node.classList.contains("q-notification"))
+      console.log("notification: " + node.innerText.replace(/\\s+/g, " ").slice(0, 300));
+}).observe(document, {childList: true, subtree: true});"""
 
 
 def _stamp() -> str:
@@ -19,7 +25,8 @@ def _stamp() -> str:
 
 
 def watch(page) -> None:
-    """Keep ``page``'s navigations, console lines about its connection, console errors and script errors."""
+    """Keep ``page``'s navigations, notifications, console lines about its connection, console errors and script
+    errors (from its next navigation on: a page is watched before it opens its first address)."""
 
     def console(message) -> None:
         text = message.text
@@ -30,6 +37,7 @@ def watch(page) -> None:
         if frame == page.main_frame:
             EVENTS.append(f"{_stamp()} navigated to {frame.url}")
 
+    page.add_init_script(NOTIFICATIONS)
     page.on("console", console)
     page.on("framenavigated", navigated)
     page.on("pageerror", lambda error: EVENTS.append(f"{_stamp()} {page.url}: script error: {str(error)[:400]}"))

@@ -66,6 +66,9 @@ def test_blown_fuse_shown_and_cleared_after_reset(app_url, chromium, tmp_path):
         assert ssr1.get_by_text("fuse: blown").is_visible()  # the module keeps Si = 0 until its 24 V are cut
         page.get_by_test_id("sim-power-cycle").click()
         ssr1.get_by_text("fuse: ok").wait_for(timeout=15_000)
+        # switched on again with all three bits 1 (7.2.3): only a channel seen so can be told blown while it is off;
+        # before it, an off channel's Last = 0 and Si = 0 read as no load, fuse unknown
+        ssr1.get_by_text("triac: ok").wait_for(timeout=15_000)
         page.get_by_test_id("all-off").click()
         page.wait_for_function("() => !document.querySelector('[data-channel=\"SSR1\"] .q-toggle__inner--truthy')")
         # photographed last, with the outputs off: a screenshot or a second page holds the browser up for a
