@@ -480,12 +480,14 @@ def run_view(args) -> int:
     from nicegui import ui
 
     import server
+    from app import web
 
     server.register_view(store, host=args.host, allowed_hosts=args.allowed_host)
     print(_("commission view: {broker} at {url} (read-only)").format(broker=args.broker, url=f"http://{args.host}:{args.port}/"),
           flush=True)
     ui.run(host=args.host, port=args.port, title="commission view", reload=False, show=False,
-           show_welcome_message=False, favicon="🔧", tailwind=False)  # rules compiled beforehand: app/assets.py
+           show_welcome_message=False, favicon="🔧", tailwind=False,  # rules compiled beforehand: app/assets.py
+           reconnect_timeout=web.RECONNECT_S)
     return 0
 
 
@@ -615,6 +617,7 @@ def _main(argv: list[str] | None) -> int:
         # sending it (with 20 pages open, a third of the loop's time); the messages are small JSON
         ws_per_message_deflate=False,
         tailwind=False,  # the pages' Tailwind rules are compiled beforehand, not in every browser (app/assets.py)
+        reconnect_timeout=web.RECONNECT_S,  # a page survives a busy browser and a short network outage
     )
     if signal.SIGINT in interrupted:
         raise KeyboardInterrupt  # the one-line message of main()

@@ -154,6 +154,13 @@ class AuthMiddleware:
 
 SOCKET_EVENTS = ("handshake", "event", "javascript_response", "ack", "log")
 LOG_LEVELS = ("debug", "info", "warning", "error")
+#: how long a page whose connection dropped may take to come back before it is gone for good (NiceGUI's
+#: ``reconnect_timeout``; it also sets the socket's ping: every 8 s, answered within 4 s). NiceGUI's 3 s dropped the
+#: connection of a browser busy for 2 s (a device page drawing its chart on a loaded laptop) and reloaded the page when
+#: it came back later than 3 s: what was typed and the page's poll windows were lost. Motion and mains outputs do not
+#: wait for it: they stop at once when the connection drops and within 0.5 s of the page's last beat (dead-man rule);
+#: only idle control of a page that is gone is released this much later.
+RECONNECT_S = 10.0
 REFUSAL_LOG_PERIOD_S = 10.0  # refused or malformed socket events: one warning per period, the rest counted
 _GUARDS: weakref.WeakSet[Callable] = weakref.WeakSet()  # the handlers a guard installed: never wrapped again
 
