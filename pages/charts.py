@@ -6,6 +6,7 @@ import json
 import time
 import weakref
 from datetime import datetime
+from pathlib import Path
 
 from nicegui import Client, context, ui
 from nicegui.element import Element
@@ -59,9 +60,13 @@ document.addEventListener("visibilitychange", () => {
 _EXTENDED: weakref.WeakSet[Client] = weakref.WeakSet()  # the browser pages that have the chart's extend script
 
 
-class _Plot(ui.plotly):
-    """A plotly element that sends the figure as it is: NiceGUI's own keeps an observed copy of every list of
-    the figure's data beside it (a second copy of the chart's window for each open page)."""
+STATIC = Path(__file__).resolve().parent.parent / "static"
+
+
+class _Plot(ui.plotly, component=STATIC / "history_plot.js", esm={"commission-plotly": str(STATIC / "plotly-basic")}):
+    """A plotly element on plotly.js's basic bundle (the charts draw lines only: static/history_plot.js says what it
+    saves the browser), that sends the figure as it is: NiceGUI's own keeps an observed copy of every list of the
+    figure's data beside it (a second copy of the chart's window for each open page)."""
 
     def update(self) -> None:
         dict.__setitem__(self._props, "options", self._get_figure_json())

@@ -522,6 +522,6 @@ def _export_png(chart, name: str) -> None:
     """The chart as drawn (position, current and speed), 1200x800 px."""
     stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
     ui.run_javascript(
-        f"Plotly.downloadImage(getElement({chart.plot.id}).$el,"
+        f"const vm = getElement({chart.plot.id}); vm.Plotly.downloadImage(vm.$el,"
         f" {{format: 'png', filename: '{name}-{stamp}', width: 1200, height: 800}})"
     )
