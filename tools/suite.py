@@ -75,9 +75,10 @@ def failures(report: Path) -> list[str]:
         for bad in [*case.findall("failure"), *case.findall("error")]:
             test = f"{case.get('classname', '').replace('.', '/')}.py::{case.get('name')}"
             text = bad.text or ""
-            said = [line for line in text.splitlines() if line.startswith("E ")][:RECAP_LINES]
-            if not said:
-                said = [(bad.get("message") or "").splitlines()[0][:300]] if bad.get("message") else []
+            said = [line for line in text.splitlines() if line.lstrip().startswith("E ")][:RECAP_LINES]
+            if not said:  # no assertion lines: the report's message, else the end of its text
+                said = (bad.get("message") or "").splitlines()[:1] or [
+                    line for line in text.splitlines() if line.strip()][-5:]
             pages = text.split("what the test's pages did", 1)[1].splitlines()[1:RECAP_LINES + 1] if (
                 "what the test's pages did" in text) else []
             lines.append(f"suite: {bad.tag}: {test}")

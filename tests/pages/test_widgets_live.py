@@ -146,7 +146,7 @@ async def test_tile_counters_of_a_page_move_together_once_a_second():
         while time.monotonic() < end:  # frames ten times a second on both devices
             for state in states:
                 state.counters.responses += 1
-                state.version += 1
+                state.touch()  # a frame: what every write ends with
             await asyncio.sleep(0.1)
         rounds: list[list[tuple[float, str]]] = []
         for t, name in sent:
@@ -240,13 +240,13 @@ async def test_register_table_is_built_once_in_the_once_a_second_round(user_runt
     store = runtime.store
     store._aged = {name: time.monotonic() + 1e9 for name in store.devices}  # no once-a-second round for now
     builds.clear()
-    state.version += 1
+    state.touch()  # a write: the store is told (not only the version moved)
     await eventually(lambda: builds, timeout=15.0, what="the table drawn after a change")  # a loaded machine: late, not never
     # a change: values only (pushed as it comes, so a write of the starting runtime may add one more)
     assert builds and set(builds) == {False}
     builds.clear()
     store._aged = {name: 0.0 for name in store.devices}  # the next round is the once-a-second round
-    state.version += 1
+    state.touch()  # a write: the store is told (not only the version moved)
     await eventually(lambda: builds, timeout=15.0, what="the table drawn in the once-a-second round")
     assert builds[0] is True and builds.count(True) == 1  # a change in the once-a-second round: one build with the read times
 
@@ -270,7 +270,7 @@ async def test_a_frame_that_changes_nothing_shown_redraws_no_tile_or_row(user_ru
     pushed.clear()
     for _ in range(8):
         state.counters.responses += 1
-        state.version += 1
+        state.touch()
         await asyncio.sleep(0.1)
     assert pushed == []
     state.publish("TEMP2", 30.0, "°C", text="30.0 °C")
@@ -295,7 +295,7 @@ async def test_tiles_are_light_and_seldom_shown_marks_are_built_when_needed(user
     assert list(row.descendants()) == []
     monkeypatch.setattr(runtime.record, "check_drift", lambda device: [])  # the drift below stays as set
     state.drift = {"changed": [{"key": "holding:3000", "name": "Delay", "approved": "200 ms", "now": "350 ms"}]}
-    state.version += 1
+    state.touch()  # a write: the store is told (not only the version moved)
     await eventually(lambda: any("data-drift" in e.props for e in _tile_elements(user, "data-device", "io")), 2.0)
     card = next(e for e in user.client.elements.values() if e.props.get("data-device") == "io")
     order = [("drift" if "data-drift" in e.props else "values" if "data-tile-values" in e.props else
