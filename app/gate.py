@@ -54,6 +54,10 @@ class PermissionDenied(CommissionError):
     """A session without the engineer role asked for a write."""
 
 
+class UnknownDevice(CommissionError, KeyError):
+    """A request names no device of the plant (a ``KeyError`` too, as callers look a device up)."""
+
+
 class AuditUnavailable(CommissionError):
     """The audit log cannot be written: the write is refused (fail closed)."""
 
@@ -153,10 +157,10 @@ class CommandGate:
         return command.kind if command is not None else "write"
 
     def adapter(self, device: str) -> Any:
-        """:raises KeyError: no such device"""
+        """:raises UnknownDevice: no such device (a ``KeyError``)"""
         adapter = self.worker.adapters.get(device)
         if adapter is None:
-            raise KeyError(f"no device named {device!r} in this plant")
+            raise UnknownDevice(Message(N_("no device named {name} in this plant"), name=repr(device)))
         return adapter
 
     # -- the ways in ---------------------------------------------------------------------------------------------
@@ -166,7 +170,7 @@ class CommandGate:
 
         ``action`` names the workflow in the audit row (e.g. "restore") in place of the command's own wording.
 
-        :raises KeyError: no such device; :raises CommandError: not declared, or an argument out of range
+        :raises UnknownDevice: no such device (a ``KeyError``); :raises CommandError: not declared, or an argument out of range
             (audited as a refusal); :raises PermissionDenied: the role may not (audited);
             :raises NeedsConfirmation: it names a risk and ``confirmed`` is False (nothing audited: a question)
         """

@@ -43,7 +43,7 @@ from app.capabilities import allowed_text
 from app import cli_lang
 from app.cli_lang import _
 from app.i18n import N_
-from app.message import Message, message_of, said
+from app.message import Message, joined, message_of, said
 from app.plant import Plant, PlantError, load_plant, parse_plant
 from devices.errors import CommissionError
 from devices.params import Param, ParamError
@@ -51,7 +51,12 @@ from devices.registry import DEVICE_TYPES
 
 
 class ProjectError(CommissionError, ValueError):
-    """A project that cannot be read or changed; the message names file and line."""
+    """A project that cannot be read or changed; the message (a :class:`~app.message.Message`) names file and line."""
+
+
+NO_FILE = N_("the plant has no file to write")
+NO_LONGER_LOADS = N_("the plant file no longer loads ({error}): fix it, then reload the project")
+NOT_NAMED = N_("{path} no longer names device '{device}' (changed meanwhile): reload")
 
 
 @dataclass
@@ -250,9 +255,10 @@ def update_entry(plant: Plant, device: str, key: str, value: Any) -> ProjectEntr
     params = DEVICE_TYPES[plant.devices[device].type].params
     param = params.by_key.get(key) if params is not None else None
     if param is None:
-        raise ProjectError(f"{key!r} is not a parameter of {device}")
+        raise ProjectError(Message(N_("{key} is not a parameter of {device}"), key=repr(key), device=device))
     if not any(e.key == key for e in entries(plant, device)):
-        raise ProjectError(f"the project of {device} does not name {param.label or param.name}: add it to the plant file")
+        raise ProjectError(Message(N_("the project of {device} does not name {name}: add it to the plant file"), device=device,
+                                   name=param.label or param.name))
     save(plant, device, {key: value})
     return next(e for e in entries(plant, device) if e.key == key)
 
@@ -337,7 +343,7 @@ def _closing_brace(line: str, opening: int) -> int:
     for i, ch, depth in _outside_strings(line[opening:]):
         if ch == "}" and depth == 0:
             return opening + i
-    raise ProjectError("the project's inline table does not close on its line")
+    raise ProjectError(Message(N_("the project's inline table does not close on its line")))
 
 
 def _rewrite_inline(line: str, changes: dict[str, Any]) -> str:
@@ -418,37 +424,39 @@ def _write_with_backup(path: Path, old_text: str, new_text: str) -> None:
         backup.write_atomic(target.with_name(target.name + ".bak"), old_text)
         files.replace_atomic(target, new_text)
     except files.FileRefused as exc:
-        raise ProjectError(str(exc)) from None
+        raise ProjectError(message_of(exc)) from None
     except OSError as exc:
-        raise ProjectError(f"{path}: cannot be written ({exc.strerror or exc}): nothing saved") from None
+        raise ProjectError(Message(N_("{path}: cannot be written ({error}): nothing saved"), path=path,
+                                   error=exc.strerror or exc)) from None
 
 
 def _fresh_plant(plant: Plant) -> Plant:
     """The plant file as it is on disk now (another page, a text editor may have changed it)."""
     if plant.path is None:
-        raise ProjectError("the plant has no file to write")
+        raise ProjectError(Message(NO_FILE))
     try:
         return parse_plant(plant.path.read_text(encoding="utf-8"), plant.path)
     except PlantError as exc:
-        raise ProjectError(f"the plant file no longer loads ({exc}): fix it, then reload the project") from None
+        raise ProjectError(Message(NO_LONGER_LOADS, error=message_of(exc))) from None
     except OSError as exc:
-        raise ProjectError(f"{plant.path}: cannot be read ({exc.strerror or exc})") from None
+        raise ProjectError(Message(N_("{path}: cannot be read ({error})"), path=plant.path, error=exc.strerror or exc)) from None
 
 
 def _save_inline(plant: Plant, device: str, changes: dict[str, Any]) -> None:
     """``changes`` (by key) into the device's inline or ``[device.project]`` table, on the file as it is now."""
     if plant.path is None:
-        raise ProjectError("the plant has no file to write")
+        raise ProjectError(Message(NO_FILE))
     text = plant.path.read_text(encoding="utf-8")
     try:
         current = parse_plant(text, plant.path)
     except PlantError as exc:
-        raise ProjectError(f"the plant file no longer loads ({exc}): fix it, then reload the project") from None
+        raise ProjectError(Message(NO_LONGER_LOADS, error=message_of(exc))) from None
     config = current.devices.get(device)
     if config is None:
-        raise ProjectError(f"{plant.path} no longer names device '{device}' (changed meanwhile): reload")
+        raise ProjectError(Message(NOT_NAMED, path=plant.path, device=device))
     if isinstance(config.project, str):
-        raise ProjectError(f"{plant.path}: the project of {device} is now a parameter file (changed meanwhile): reload")
+        raise ProjectError(Message(N_("{path}: the project of {device} is now a parameter file (changed meanwhile): reload"),
+                                   path=plant.path, device=device))
     named = _names_for(config, DEVICE_TYPES[config.type].params, changes)
     lines = text.splitlines(keepends=True)
     span = _device_span(lines, config.line)
@@ -471,9 +479,9 @@ def _save_inline(plant: Plant, device: str, changes: dict[str, Any]) -> None:
     try:
         new_plant = parse_plant(new_text, plant.path)
     except PlantError as exc:
-        raise ProjectError(f"the rewritten plant file would not load: {exc}") from None
+        raise ProjectError(Message(N_("the rewritten plant file would not load: {error}"), error=message_of(exc))) from None
     if new_plant.devices[device].project != expected:
-        raise ProjectError(f"{plant.path}: the rewrite would not give the project asked for: nothing written")
+        raise ProjectError(Message(N_("{path}: the rewrite would not give the project asked for: nothing written"), path=plant.path))
     _write_with_backup(plant.path, text, new_text)
     running = plant.devices[device]
     running.project, running.line = new_plant.devices[device].project, new_plant.devices[device].line
@@ -501,6 +509,13 @@ def _save_file(path: Path, params, changes: dict[str, Any]) -> None:
     _write_with_backup(path, text, new_text)
 
 
+def _now(name: str, value: Any) -> Message:
+    """An entry another save changed, as the project holds it now (``value`` None: dropped from it)."""
+    if value is None:
+        return Message(N_("{name} is now not in the project"), name=name)
+    return Message(N_("{name} is now {value}"), name=name, value=value)
+
+
 _SAVING = threading.Lock()  # project saves one at a time: each reads the file it changes, then writes it
 
 
@@ -520,12 +535,12 @@ def save(plant: Plant, device: str, changes: dict[str, Any], expected: dict[str,
     config = plant.devices[device]
     params = DEVICE_TYPES[config.type].params
     if params is None:
-        raise ProjectError(f"{device}: its type has no parameter model a project can be written in")
+        raise ProjectError(Message(N_("{device}: its type has no parameter model a project can be written in"), device=device))
     checked = {}
     for key, value in changes.items():
         param = params.by_key.get(key)
         if param is None or not param.writable:
-            raise ProjectError(f"{key!r} is not a writable parameter of {device}")
+            raise ProjectError(Message(N_("{key} is not a writable parameter of {device}"), key=repr(key), device=device))
         checked[key] = None if value is None else parse_value(param, value)
     if not checked:
         return entries(plant, device)
@@ -533,15 +548,14 @@ def save(plant: Plant, device: str, changes: dict[str, Any], expected: dict[str,
         if expected is not None:
             source = plant if isinstance(config.project, str) else _fresh_plant(plant)
             if device not in source.devices:
-                raise ProjectError(f"{plant.path} no longer names device '{device}' (changed meanwhile): reload")
+                raise ProjectError(Message(NOT_NAMED, path=plant.path, device=device))
             now = {e.key: e.value for e in entries(source, device) if e.key}
             # changed by someone else since the editor showed it, and not to what this save asks for anyway
             moved = [k for k in checked if k in expected and now.get(k) != expected[k] and now.get(k) != checked[k]]
             if moved:
-                words = ", ".join(f"{params.by_key[k].label or params.by_key[k].name} is now "
-                                  f"{'not in the project' if now.get(k) is None else now[k]}" for k in moved)
-                raise ProjectError(f"the project of {device} was changed meanwhile ({words}): nothing saved; "
-                                   "reload the project and make the change again")
+                words = joined([_now(params.by_key[k].label or params.by_key[k].name, now.get(k)) for k in moved])
+                raise ProjectError(Message(N_("the project of {device} was changed meanwhile ({changes}): nothing saved; reload the "
+                                              "project and make the change again"), device=device, changes=words))
         if isinstance(config.project, str):
             _save_file(project_file(plant, device), params, checked)
         else:

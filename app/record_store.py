@@ -18,6 +18,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from app.i18n import N_
+from app.message import Message
 from app.owner_db import OwnerDatabase
 from app.verify import GENESIS, Check, check_database, head_path, legacy_digest, read_head, read_rows, row_hash
 from devices.errors import CommissionError
@@ -57,7 +59,8 @@ COLUMNS = ("id", "time", "plant", "device", "kind", "user", "role", "title", "da
 
 
 class RecordError(CommissionError):
-    """A record that cannot be written or read; the message says which and why."""
+    """A record that cannot be written or read; the message says which and why (a :class:`~app.message.Message`, or the
+    database's path with SQLite's own words)."""
 
 
 @dataclass(frozen=True)
@@ -154,7 +157,7 @@ class RecordStore(OwnerDatabase):
     def add(self, *, plant: str, device: str, kind: str, user: str, role: str, data: dict, title: str = "",
             supersedes: int | None = None, when: float | None = None) -> int:
         if kind not in KINDS:
-            raise RecordError(f"unknown record kind {kind!r}")
+            raise RecordError(Message(N_("unknown record kind {kind}"), kind=repr(kind)))
         with self._lock:
             try:
                 return self._append(self._open(), plant=plant, device=device, kind=kind, user=user, role=role, data=data,

@@ -13,6 +13,13 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
+from devices.message import N_, Message, Word
+
+CONTEXT = "simulation"  # the catalogs' context of a twin's declared words (app/device_words.py, SIM_WORDS)
+
+
+NOT_WHOLE = N_("{label}: {value} is not a whole number")
+
 
 @dataclass(frozen=True, slots=True)
 class SimParam:
@@ -27,14 +34,20 @@ class SimParam:
     kind: Literal["int"] = "int"
 
     def check(self, value: Any) -> int:
-        """The value as the action takes it; :class:`ValueError` says why it is refused."""
+        """The value as the action takes it; :class:`ValueError` says why it is refused (a :class:`Message`, the
+        parameter by its label as the simulation card shows it)."""
+        label = Word(self.label, CONTEXT)
         if isinstance(value, str):
-            value = int(value.strip(), 0)
+            try:
+                value = int(value.strip(), 0)
+            except ValueError:
+                raise ValueError(Message(NOT_WHOLE, label=label, value=repr(value))) from None
         if isinstance(value, bool) or not isinstance(value, int | float) or float(value) != int(value):
-            raise ValueError(f"{self.label}: {value!r} is not a whole number")
+            raise ValueError(Message(NOT_WHOLE, label=label, value=repr(value)))
         if not self.low <= int(value) <= self.high:
             shown = (lambda x: f"0x{x:X}") if self.hex else str
-            raise ValueError(f"{self.label}: {value} is outside {shown(self.low)} .. {shown(self.high)}")
+            raise ValueError(Message(N_("{label}: {value} is outside {low} .. {high}"), label=label, value=value,
+                                     low=shown(self.low), high=shown(self.high)))
         return int(value)
 
 
@@ -75,12 +88,12 @@ class SimControls:
         action, args = self.action(name), dict(args or {})
         if action.switch:
             if set(args) - {"on"} or not isinstance(args.get("on"), bool):
-                raise ValueError(f"{name}: a switch takes on=True or on=False")
+                raise ValueError(Message(N_("{name}: a switch takes on=True or on=False"), name=name))
             return {"on": args["on"]}
         known = {p.name: p for p in action.params}
         unknown = set(args) - set(known)
         if unknown:
-            raise ValueError(f"{name}: no parameter {', '.join(sorted(unknown))}")
+            raise ValueError(Message(N_("{name}: no parameter {names}"), name=name, names=", ".join(sorted(unknown))))
         return {p.name: p.check(args.get(p.name, p.default)) for p in action.params}
 
     def describe(self, name: str, args: Mapping[str, Any] | None = None) -> str:

@@ -70,7 +70,7 @@ def open_discover_dialog(bus: str) -> None:
                 lambda: runtime.worker.discover(bus, a, b, on_progress), user=user, role=role,
                 describe=f"scan line {bus} addresses {a}..{b}", device=bus, kind="write")
         except ACTION_ERRORS as exc:  # the scan stops; the engineer is told why
-            ui.notify(_("discover failed: {error}").format(error=exc), type="negative")
+            ui.notify(_("discover failed: {error}").format(error=said(exc, lang)), type="negative")
             found = []
         finally:
             start.enable()
@@ -209,7 +209,7 @@ def adopt_dialog(bus: str, entry: dict, tile_row, add_tile: Callable[[str], None
                     adopt, user=user, role=role, device=dev.name, new=device_toml(dev).strip(),
                     describe="adopt discovered device" + (f" and append it to {path.name}" if write else ""), kind="write")
             except (ValueError, OSError, PermissionDenied, AuditUnavailable) as exc:
-                ui.notify(_("Cannot adopt: {error}").format(error=exc), type="negative", multi_line=True)
+                ui.notify(_("Cannot adopt: {error}").format(error=said(exc, lang)), type="negative", multi_line=True)
                 return
             with tile_row:
                 add_tile(dev.name)

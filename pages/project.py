@@ -201,7 +201,7 @@ class ProjectCard:
             return
         confirmed = set()
         if row.risk:
-            if not await confirm(_("Write {name} = {value}?").format(name=row.name, value=row.backup_text), row.risk,
+            if not await confirm(_("Write {name} = {value}?").format(name=row.name, value=row.backup_text), said(row.risk, self.lang),
                                  ok=_("Write anyway"), lang=self.lang):
                 return
             confirmed.add(key)

@@ -10,7 +10,8 @@ from nicegui import ui
 
 from app import i18n
 from app import runtime as rt
-from devices.simcontrols import SimAction, SimControls
+from app.message import said
+from devices.simcontrols import CONTEXT, SimAction, SimControls
 from pages.command_client import sim_action, sim_card_allowed
 
 
@@ -34,7 +35,6 @@ def sim_card(device: str, only: tuple[str, ...] = (), skip: tuple[str, ...] = ()
                 _control(device, controls, action, lang)
 
 
-CONTEXT = "simulation"  # the catalogs' context of a twin's words (app/device_words.py, SIM_WORDS)
 _TOKEN = re.compile(r"0x[0-9A-Fa-f]+|-?\d+(?:\.\d+)?")  # a value in a twin's text: a number or a hex literal
 _NAMED = re.compile(r"(.*) \(([^()]+)\)")  # a title's trailing "(plant)"
 
@@ -71,8 +71,8 @@ def _control(device: str, controls: SimControls, action: SimAction, lang: i18n.L
     def run(args: dict):
         try:
             describe = controls.describe(action.name, args)
-        except ValueError as exc:
-            ui.notify(str(exc), type="warning")
+        except ValueError as exc:  # a value the action does not take: said in the page's language
+            ui.notify(said(exc, lang), type="warning")
             return None
         return sim_action(device, describe, lambda: controls.invoke(action.name, args))()
 

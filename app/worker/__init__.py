@@ -29,7 +29,7 @@ from typing import Any
 from app.audit import AuditLog
 from app.can_bus import CanBus
 from app.gate import WRITE_ROLES  # noqa: F401 - named here for callers
-from app.gate import AuditUnavailable, CommandGate, PermissionDenied  # noqa: F401 - raised by the gate; named here for callers
+from app.gate import AuditUnavailable, CommandGate, PermissionDenied, UnknownDevice  # noqa: F401 - raised by the gate; named here for callers
 from app.modbus_line import ModbusLine
 from app.plant import DeviceConfig, Plant
 from app.state import StateStore

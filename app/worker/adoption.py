@@ -12,6 +12,8 @@ import asyncio
 import logging
 from typing import Any
 
+from app.i18n import N_
+from app.message import Message
 from app.modbus_line import ModbusLine
 from app.plant import DeviceConfig, Plant, can_id_conflict
 from app.state import DeviceState, StateStore
@@ -55,13 +57,14 @@ class Devices:
     def adopt(self, dev: DeviceConfig, discovery: CanDiscovery) -> None:
         """Take a discovered device into the running plant (the plant file is the caller's business).
 
-        :raises ValueError: the name exists, or the device would share a CAN ID with a device of the bus
+        :raises ValueError: the name exists, or the device would share a CAN ID with a device of the bus (its message a
+            :class:`~app.message.Message`)
         """
         if dev.name in self.plant.devices:
-            raise ValueError(f"a device named {dev.name!r} exists already")
+            raise ValueError(Message(N_("a device named {name} exists already"), name=repr(dev.name)))
         bus = self.plant.buses.get(dev.bus)
         if bus is None:
-            raise ValueError(f"no bus named {dev.bus!r} in this plant")
+            raise ValueError(Message(N_("no bus named {name} in this plant"), name=repr(dev.bus)))
         conflict = can_id_conflict(self.plant.devices_on(dev.bus) + [dev], bus)
         if conflict is not None:
             raise ValueError(conflict[1])

@@ -29,10 +29,11 @@ from dataclasses import dataclass, replace
 
 from devices.control import LEASE_S, ControlChanged, ControlSession, Decision, LeaseChange, Report, Stop
 from devices.electrak import codec
+from devices.message import N_, Message
 
 OVERRIDE_PULSE_S = 0.3  # three control periods carry the override/reset bit, then it is cleared by itself
 # (its lease, LEASE_S, is not renewed: a program that stalls meanwhile stops sending it 0.35 s after the confirmation)
-FOREIGN_SENDER = "a PLC, or an actuator whose manual control line is active"
+FOREIGN_SENDER = Message(N_("a PLC, or an actuator whose manual control line is active"))
 
 OVERRIDE_RISK = (
     "Override/reset resets the number of actuators the network expects to the ones it hears now (document, "
@@ -180,10 +181,12 @@ class ElectrakControl:
         if h is not None and h.session == session:
             return Decision()
         if self.foreign_sender(now):
-            return Decision(f"control telegrams 0x06 from another sender are on the bus ({FOREIGN_SENDER}): taking control "
-                            "would fight it. Stop that sender (or release the control line) and try again.")
+            return Decision(Message(N_("control telegrams 0x06 from another sender are on the bus ({who}): taking control "
+                                       "would fight it. Stop that sender (or release the control line) and try again."),
+                                    who=FOREIGN_SENDER))
         if self.listen_remaining(now) > 0:
-            return Decision(f"listening for another sender of 0x06 for {codec.LISTEN_S:g} s first: try again in a moment")
+            return Decision(Message(N_("listening for another sender of 0x06 for {seconds:g} s first: try again in a moment"),
+                                    seconds=codec.LISTEN_S))
         actions: list = []
         if h is not None and h.disconnected is not None:  # taken over from a page that disconnected
             actions += self._release("taken over by another page: the page that held it had disconnected", now)

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from devices.control import LEASE_S, ControlChanged, ControlSession, Decision, Holder, LeaseChange, Report, Stop
 from devices.m3io import codec
 from devices.m3io.codec import Variant
+from devices.message import N_, Message
 
 LISTEN_S = 0.6  # listened this long since the bus opened before taking control: longer than the 500 ms temperature period (7.2.2)
 FOREIGN_WINDOW_S = codec.WATCHDOG_S  # a master must send DigOut within 2 s (7.1): one heard within this window is active
@@ -38,7 +39,7 @@ TEMP_SLACK_S = 0.6  # after the watchdog ran out, a temperature telegram already
 IDLE_DIGOUT_PERIOD_S = 0.5  # master = "always", nobody in control: every output off, the 2 s watchdog served with room
 MDATA_TIMEOUT_S = 0.5  # an addressed request (7.2.4.2) waits this long for its MData
 ANSWER_WINDOW_S = MDATA_TIMEOUT_S + 0.5  # an MData this long after this tool's own request answers it (a late one too)
-FOREIGN_MASTER = "a PLC or another master"
+FOREIGN_MASTER = Message(N_("a PLC or another master"))
 ENGINEER = "engineer"
 MODULE_FRAMES = ("DigIn", "Temp", "MData")
 
@@ -156,11 +157,12 @@ class M3ioControl:
             return self.session.take(session, user, now, wall)  # refused: busy
         left = self.listen_left(now, link)
         if left > 0:
-            return Decision(f"still listening for another master on the bus ({left:.1f} s): try again")
+            return Decision(Message(N_("still listening for another master on the bus ({seconds:.1f} s): try again"),
+                                    seconds=round(left, 1)))
         if self.foreign_master(now):
-            return Decision(f"another master serves this module ({FOREIGN_MASTER}: DigOut 0x{self.dig_out_id:03X} or the "
-                            f"module's answers heard within {FOREIGN_WINDOW_S:g} s): taking control would fight it. "
-                            "Stop that master and try again.")
+            return Decision(Message(N_("another master serves this module ({who}: DigOut 0x{id:03X} or the module's answers "
+                                       "heard within {seconds:g} s): taking control would fight it. Stop that master and "
+                                       "try again."), who=FOREIGN_MASTER, id=self.dig_out_id, seconds=FOREIGN_WINDOW_S))
         actions: list = []
         if holder is not None:  # its page had disconnected: taken over
             actions += self._release("taken over by another page: the page that held it had disconnected", now)

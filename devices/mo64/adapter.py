@@ -480,7 +480,8 @@ class Mo64Adapter(Mo64Settings):
 
     def _decided(self, decision) -> Send:
         if decision.question:
-            raise NeedsConfirmation(f"{decision.question} Confirm it for this command (each motion asks again).")
+            raise NeedsConfirmation(Message(N_("{question} Confirm it for this command (each motion asks again)."),
+                                            question=decision.question))
         if decision.refused:
             raise CommandError(decision.refused)
         self._act([a for a in decision.actions if not isinstance(a, Send)])
@@ -580,8 +581,8 @@ class Mo64Adapter(Mo64Settings):
         barrier is not touched). An engineer command (the worker checks the role); it asks first
         (``confirmed``), since deactivating an open level lets the boom close (page 33)."""
         if not confirmed:
-            raise NeedsConfirmation("clearing the levels may move the boom (an open level released lets it "
-                                    "close): check that nobody stands under it, then confirm")
+            raise NeedsConfirmation(Message(N_("clearing the levels may move the boom (an open level released lets it "
+                                               "close): check that nobody stands under it, then confirm")))
         cleared, failed = [], []
         for cmd in list(self.levels):
             if await self._deactivate(cmd, "clear levels"):

@@ -35,9 +35,9 @@ from devices.message import Message, N_, joined
 from devices.mo64 import codec
 from devices.mo64 import params as model
 
-AREA_CLEAR_RISK = "The boom moves: check that nobody stands under it (the area is clear)."
-OPEN_LEVEL_RISK = ("Deactivating the open level lets the boom close (page 33): check that nobody stands under it "
-                   "(the area is clear).")
+AREA_CLEAR_RISK = Message(N_("The boom moves: check that nobody stands under it (the area is clear)."))
+OPEN_LEVEL_RISK = Message(N_("Deactivating the open level lets the boom close (page 33): check that nobody stands under it "
+                             "(the area is clear)."))
 EEPROM_RISK = Message(N_("Every setting write wears the barrier's EEPROM (chapter 4: the number of writes is limited). "
                          "Write only what must change."))
 # the levels released by the dead-man rule (close and reverse: they keep the boom moving towards a person)

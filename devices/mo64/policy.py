@@ -38,9 +38,9 @@ from devices.message import Message, N_, joined
 TITLE = "MO 64"
 check_can = check_modbus = transmit_forms = None  # hooks of devices/sendpolicy.py this type has none of
 __all__ = ["AREA_CLEAR_RISK", "OPEN_LEVEL_RISK", "EEPROM_RISK", "check_telegram"]
-CLEAR_LEVELS_RISK = ("Deactivates every level this tool set in the barrier (levels set by another master or at the "
-                     "barrier are not touched). An open level released lets the boom close (page 33): check that "
-                     "nobody stands under it (the area is clear).")
+CLEAR_LEVELS_RISK = Message(N_("Deactivates every level this tool set in the barrier (levels set by another master or at the "
+                               "barrier are not touched). An open level released lets the boom close (page 33): check that "
+                               "nobody stands under it (the area is clear)."))
 
 
 def selector_risk(setting: codec.Setting) -> str:
