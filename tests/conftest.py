@@ -45,10 +45,17 @@ def pytest_configure(config: pytest.Config) -> None:
 
     realtime.HOLDERS_REAL_TIME = os.environ["COMMISSION_RT_HOLDERS"] != "0"
     if "COMMISSION_DATA_DIR" not in os.environ:
-        _RUN_DATA_DIR = os.environ["COMMISSION_DATA_DIR"] = tempfile.mkdtemp(prefix="commission-tests-")
+        os.environ["COMMISSION_DATA_DIR"] = os.environ[RUN_DIR_VARIABLE] = tempfile.mkdtemp(prefix="commission-tests-")
+    # pytest-xdist's workers inherit the folder the controller made: theirs too (each test module and test then gets
+    # a folder of its own below, as in one process). Taken as a folder chosen by whoever started the tests, every
+    # app of every worker shared one record and audit log: a test altering the record in one worker showed another
+    # worker's record page an altered record.
+    if os.environ.get(RUN_DIR_VARIABLE) == os.environ["COMMISSION_DATA_DIR"]:
+        _RUN_DATA_DIR = os.environ["COMMISSION_DATA_DIR"]
 
 
 _RUN_DATA_DIR: str | None = None
+RUN_DIR_VARIABLE = "COMMISSION_TEST_RUN_DIR"  # the data folder this test run made (not one given by whoever started it)
 
 
 # -- markers: the fast loop is ``pytest -m "not browser and not slow"`` ------------------------

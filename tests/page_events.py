@@ -12,11 +12,11 @@ import time
 EVENTS: list[str] = []  # this test's, emptied before each test
 _started = time.monotonic()
 WORDS = ("reload", "disconnect", "connect_error", "timed out", "handshake", "notification: ")
-# each notification the page shows, said on its console (what a refused or failed press said)
+# each notification the page shows, said on its console (what a refused or failed press said) once drawn
 NOTIFICATIONS = """new MutationObserver((changes) => {
   for (const change of changes) for (const node of change.addedNodes)
     if (node.nodeType === 1 && node.classList.contains("q-notification"))
-      console.log("notification: " + node.innerText.replace(/\\s+/g, " ").slice(0, 300));
+      setTimeout(() => console.log("notification: " + node.innerText.replace(/\\s+/g, " ").slice(0, 300)), 200);
 }).observe(document, {childList: true, subtree: true});"""
 
 
