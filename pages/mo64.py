@@ -16,6 +16,7 @@ from app.message import said
 from devices.mo64 import adapter as facts
 from devices.mo64 import codec
 from devices.mo64.adapter import COMMAND_NAMES
+from devices.mo64.control import command_words
 from devices.mo64.policy import operation_name
 from pages.cards import DeviceCard, titled_card
 from pages.device_page import DeviceView, StatusBadge, device_page
@@ -130,9 +131,10 @@ class Mo64View(DeviceView):
     (devices/mo64/policy.py)."""
 
     async def move(self, cmd: codec.Command, fn: codec.Function) -> None:
-        words = operation_name(cmd, fn)
+        words = said(command_words(cmd, fn), self.lang)  # "öffnen Impuls": the declared name is the audit's
         # the declared risk ("the area is clear") is asked by the gate for every motion, every time
-        await self.act(words, success=self.lang.gettext("{operation}: ack").format(operation=words))
+        await self.act(operation_name(cmd, fn), title=f"{words}?",
+                       success=self.lang.gettext("{operation}: ack").format(operation=words))
 
 
 class GateCard(DeviceCard):

@@ -37,6 +37,7 @@ async def test_the_mo64_page_words_the_barriers_last_answer_in_german(tmp_path):
         UserInteraction(user, {by_testid(user, "pulse-open")}, None).click()
         await eventually(lambda: any(isinstance(e, ui.button) and e.props.get("label") == "Senden"
                                      for e in user.client.elements.values()), timeout=5, what="the question")
+        assert any(isinstance(e, ui.label) and e.text == "öffnen Impuls?" for e in user.client.elements.values())  # the title
         send = {e for e in user.client.elements.values() if isinstance(e, ui.button) and e.props.get("label") == "Senden"}
         UserInteraction(user, send, None).click()
         await eventually(lambda: by_testid(user, "reply").text == "letzte Antwort: öffnen Impuls: ack", timeout=5,
