@@ -26,6 +26,7 @@ import logging
 from collections.abc import Awaitable, Callable
 from typing import Any
 
+from app.aio import end_tasks
 from app.audit import AuditLog
 from app.can_bus import CanBus
 from app.gate import WRITE_ROLES  # noqa: F401 - named here for callers
@@ -151,17 +152,9 @@ class Worker:
         self.store.ensure_running()  # the one producer that pushes changes to pages and publishers
 
     async def stop(self) -> None:
-        # A cancellation can be swallowed when pymodbus's wait_for gets its answer in the same
-        # loop iteration: cancel again until every task has really ended (bounded).
-        pending = set(self.tasks)
-        loop = asyncio.get_running_loop()
-        end = loop.time() + STOP_S
-        while pending and loop.time() < end:
-            for task in pending:
-                task.cancel()
-            _done, pending = await asyncio.wait(pending, timeout=0.2)
-        for task in pending:
-            log.error("bus task %s did not end", task.get_name())
+        # a cancellation can be swallowed when pymodbus's wait_for gets its answer in the same loop iteration:
+        # cancelled again until every task has really ended (bounded, app/aio.py)
+        await end_tasks(self.tasks, "bus tasks", STOP_S)
         self.tasks.clear()
         await self.devices.shutdown()  # on the still open lines
         await self.transports.close()
