@@ -18,7 +18,8 @@
 Every phase runs; the exit status is 0 only when the linter and every phase passed. Options given here (``-x``,
 ``-k ...``, a path) go to every phase. At the end, after the phases' times, every failed test is named again with
 the lines of its error (``E ...``) and what its browser pages did: the last screen of a long run says what failed
-and why, not only that a phase failed.
+and why, not only that a phase failed. The phases' JUnit reports (each test's time) are kept in the folder that
+``COMMISSION_SUITE_REPORTS`` names, when it is set.
 
 Python's compiled modules are kept (``__pycache__``, ignored by git) even where ``PYTHONDONTWRITEBYTECODE`` is set:
 every test process would otherwise compile the package and rewrite the asserts of every test module it collects
@@ -100,7 +101,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"suite: the suite collected and compiled in {time.monotonic() - started:.0f} s", flush=True)
     results: list[tuple[str, int, float]] = []
     recap: list[str] = []
-    with tempfile.TemporaryDirectory(prefix="suite-") as reports:
+    with tempfile.TemporaryDirectory(prefix="suite-") as scratch:
+        reports = os.environ.get("COMMISSION_SUITE_REPORTS") or scratch  # kept there when named, for study
+        Path(reports).mkdir(parents=True, exist_ok=True)
         for n, (name, options) in enumerate(PHASES):
             begun = time.monotonic()
             print(f"suite: {name} ({' '.join(options)})", flush=True)
