@@ -4,6 +4,7 @@ notification; the release reasons these modules give stay in the device's event 
 
 from __future__ import annotations
 
+import asyncio
 import time
 
 import pytest
@@ -58,8 +59,19 @@ async def test_the_m3io_page_refuses_control_while_another_master_is_heard_in_ge
         await user.open("/device/io")
         await user.should_see("CAN-M3IO io (HMR)", retries=50)
         adapter = runtime.worker.adapters["io"]
-        adapter.core.foreign_dig_out(time.monotonic())  # a PLC's DigOut, as the adapter hears it
-        user.find(kind=ui.button, content="Steuerung übernehmen").click()
-        await user.should_see("ein anderer Master bedient dieses Modul (eine SPS oder ein anderer Master: DigOut 0x", retries=50)
-        assert adapter.controller is None
+
+        async def plc() -> None:  # a PLC's DigOut every 100 ms, as the adapter hears it
+            while True:
+                adapter.core.foreign_dig_out(time.monotonic())
+                await asyncio.sleep(0.1)
+
+        sender = asyncio.create_task(plc())
+        try:
+            await asyncio.sleep(0)
+            user.find(kind=ui.button, content="Steuerung übernehmen").click()
+            await user.should_see("ein anderer Master bedient dieses Modul (eine SPS oder ein anderer Master: DigOut 0x",
+                                  retries=50)
+            assert adapter.controller is None
+        finally:
+            sender.cancel()
         assert not [m for m in user.notify.messages if "another master" in m], user.notify.messages
