@@ -23,6 +23,7 @@ ROOT = Path(__file__).resolve().parent.parent
 DEMO_PLANT = ROOT / "plants" / "demo.toml"
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+LOGS: list[Path] = []  # the log of every app this process started (a failing test's report quotes what they logged)
 
 
 # Ports for the simulated endpoints are taken below the kernel's ephemeral range (Linux: 32768-60999), where
@@ -180,6 +181,7 @@ def start_app(plant_file: Path, port: int, log_file: Path, *args: str, root: Pat
             cwd=root, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=die_with_parent,
         )
     proc.log_file = log_file  # type: ignore[attr-defined]
+    LOGS.append(log_file)
     return proc
 
 

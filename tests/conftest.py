@@ -376,6 +376,7 @@ def _page_events(request: pytest.FixtureRequest) -> None:
     if request.node.get_closest_marker("browser") is not None:
         page_events.watch_pages()
     page_events.EVENTS.clear()
+    page_events.app_logs_began()
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -383,8 +384,12 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
     """A failing test's report says what its pages did besides what it asserts (reloads, lost connections)."""
     outcome = yield
     report = outcome.get_result()
-    if report.failed and page_events.EVENTS and hasattr(report.longrepr, "addsection"):
-        report.longrepr.addsection("what the test's pages did", "\n".join(page_events.EVENTS[-40:]))
+    if report.failed and hasattr(report.longrepr, "addsection"):
+        if page_events.EVENTS:
+            report.longrepr.addsection("what the test's pages did", "\n".join(page_events.EVENTS[-40:]))
+        logged = page_events.app_log_lines()
+        if logged:
+            report.longrepr.addsection("what its apps logged", "\n".join(logged))
 
 
 @pytest.fixture(scope="module", autouse=True)

@@ -3,11 +3,16 @@
 A browser test that fails on a loaded machine says little about why a typed value or a press did not arrive;
 NiceGUI's page reloads itself when its connection cannot be taken up again, and says so on the console. Every page
 that playwright opens in a test process is watched (``watch_pages``); a failing test's report gets the events of its
-pages as a section of its own (``tests/conftest.py``)."""
+pages as a section of its own (``tests/conftest.py``), with what the apps that the test process started logged
+meanwhile: their warnings and errors, and the dead-man's words (a beat late on its way, a session that stopped
+confirming it is alive)."""
 
 from __future__ import annotations
 
 import time
+from pathlib import Path
+
+import liveapp
 
 EVENTS: list[str] = []  # this test's, emptied before each test
 _started = time.monotonic()
@@ -60,3 +65,31 @@ def watch_pages() -> None:
 
         cls.new_page = new_page
     Browser._events_watched = True
+
+
+_LOG_WORDS = (" WARNING ", " ERROR ", " CRITICAL ", "deadman", "Traceback")
+_log_offsets: dict[Path, int] = {}  # each app log's size when the test began
+
+
+def app_logs_began() -> None:
+    """Note where each app log of this process stands: what a test's report quotes begins there."""
+    for path in liveapp.LOGS:
+        try:
+            _log_offsets[path] = path.stat().st_size
+        except OSError:
+            _log_offsets[path] = 0
+
+
+def app_log_lines(limit: int = 30) -> list[str]:
+    """The lines with :data:`_LOG_WORDS` that the apps of this process logged since :func:`app_logs_began` (an app
+    started since then from its first line), the last ``limit`` of them."""
+    lines = []
+    for path in dict.fromkeys(liveapp.LOGS):
+        try:
+            with open(path, "rb") as log:
+                log.seek(_log_offsets.get(path, 0))
+                text = log.read(1 << 20).decode(errors="replace")
+        except OSError:
+            continue
+        lines += [f"{path.parent.name}: {line[:400]}" for line in text.splitlines() if any(w in line for w in _LOG_WORDS)]
+    return lines[-limit:]

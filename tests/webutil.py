@@ -299,6 +299,7 @@ def serve_beyond_loopback(folder: Path, port: int, data: Path, *args: str) -> su
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     for key in ("NICEGUI_USER_SIMULATION", "PYTEST_CURRENT_TEST", "NICEGUI_STORAGE_PATH"):
         env.pop(key, None)
+    liveapp.LOGS.append(folder / "app.log")
     with open(folder / "app.log", "wb") as out:
         return subprocess.Popen(
             [sys.executable, "-m", "app.cli", "--plant", str(folder / "plant.toml"), "--host", "0.0.0.0", "--port", str(port),

@@ -31,6 +31,7 @@ processes collect the suite's halves once, so the processes of every phase find 
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -64,9 +65,22 @@ def compiled_environment() -> dict[str, str]:
 RECAP_LINES = 12  # of each failed test's error lines
 
 
+def _sections(text: str) -> dict[str, list[str]]:
+    """The sections a test's report adds after its error (``---- title ----`` and their lines that are not empty)."""
+    sections: dict[str, list[str]] = {}
+    current = None
+    for line in text.splitlines():
+        heading = re.fullmatch(r"-{3,} (.+?) -{3,}", line.strip())
+        if heading:
+            current = sections.setdefault(heading.group(1), [])
+        elif current is not None and line.strip():
+            current.append(line.strip())
+    return sections
+
+
 def failures(report: Path) -> list[str]:
-    """The failed and erring tests of a phase's JUnit report: the test, then its error's ``E`` lines and its
-    pages' events (at most :data:`RECAP_LINES` each), indented."""
+    """The failed and erring tests of a phase's JUnit report: the test, then its error's ``E`` lines, its pages'
+    events and what its apps logged (at most :data:`RECAP_LINES` each, the last ones), indented."""
     try:
         root = ET.parse(report).getroot()
     except (OSError, ET.ParseError):
@@ -80,13 +94,13 @@ def failures(report: Path) -> list[str]:
             if not said:  # no assertion lines: the report's message, else the end of its text
                 said = (bad.get("message") or "").splitlines()[:1] or [
                     line for line in text.splitlines() if line.strip()][-5:]
-            pages = text.split("what the test's pages did", 1)[1].splitlines()[1:RECAP_LINES + 1] if (
-                "what the test's pages did" in text) else []
+            sections = _sections(text)
             lines.append(f"suite: {bad.tag}: {test}")
             lines += [f"    {line}" for line in said]
-            if pages:
-                lines.append("    its pages:")
-                lines += [f"      {line}" for line in pages if line.strip()]
+            for title in ("what the test's pages did", "what its apps logged"):
+                if sections.get(title):
+                    lines.append(f"    {title}:")
+                    lines += [f"      {line}" for line in sections[title][-RECAP_LINES:]]
     return lines
 
 
