@@ -24,7 +24,9 @@ from typing import Any
 
 from mcap.writer import CompressionType, Writer
 
+from app import cli_lang
 from app.cli_lang import _
+from app.message import said
 
 FRAME_SCHEMA = {
     "title": "commission.CanFrame", "type": "object",
@@ -207,8 +209,8 @@ def run(args: argparse.Namespace) -> int:
 
         try:
             count = export_recording(args.recording, args.out, bus=args.bus)
-        except RecordingError as exc:
-            print(f"commission export: {exc}", file=sys.stderr)
+        except RecordingError as exc:  # a file it cannot read, said in the command line's language (where it stopped)
+            print(f"commission export: {said(exc, cli_lang.lang())}", file=sys.stderr)
             return 1
         print(_("{path}: {count} messages from {recording}").format(path=args.out, count=count, recording=args.recording))
         return 0

@@ -5,6 +5,11 @@ with its parameters (a range for numbers) or as a switch with its current state.
 (``pages/simcontrols.py``) shows them; every action runs through the worker's gate (engineers only,
 audited "simulation: <action>"), so pages never hold a twin or name its attributes. Pure data: no I/O,
 no ``app`` or ``pages`` imports.
+
+The names of the actions and their parameters are the audit's words; the twins mark those of the actions other than
+switches with :func:`NP_` (context ``simulation``) where they declare them, and :meth:`SimControls.describe` says
+such an action as a :class:`~devices.message.Message` whose names a page words in its language ("Sicherung auslösen
+Kanal=4").
 """
 
 from __future__ import annotations
@@ -16,6 +21,12 @@ from typing import Any, Literal
 from devices.message import N_, Message, Word
 
 CONTEXT = "simulation"  # the catalogs' context of a twin's declared words (app/device_words.py, SIM_WORDS)
+
+
+def NP_(context: str, message: str) -> str:
+    """Marks ``message`` for the catalog with its ``context`` where it is defined (``pybabel extract -k NP_:1c,2``): a
+    twin's action and parameter names, context ``simulation``; worded where they are shown."""
+    return message
 
 
 NOT_WHOLE = N_("{label}: {value} is not a whole number")
@@ -97,12 +108,17 @@ class SimControls:
         return {p.name: p.check(args.get(p.name, p.default)) for p in action.params}
 
     def describe(self, name: str, args: Mapping[str, Any] | None = None) -> str:
-        """The action in words for the audit row: ``light barrier interrupted on``, ``raise fault flags=0x1``."""
+        """The action in words for the audit row: ``light barrier interrupted on``, ``raise fault flags=0x1``; the names
+        of an action other than a switch, and of its parameters, are the twin's words (context ``simulation``), worded
+        where they are shown (a switch's name and state stay as the twin declares them)."""
         action, checked = self.action(name), self.arguments(name, args)
         if action.switch:
             return f"{name} {'on' if checked['on'] else 'off'}"
-        shown = [f"{p.name}=" + (f"0x{checked[p.name]:X}" if p.hex else str(checked[p.name])) for p in action.params]
-        return " ".join([name, *shown])
+        fields: dict[str, Any] = {"action": Word(name, CONTEXT)}
+        for n, p in enumerate(action.params):
+            fields[f"p{n}"] = Word(p.name, CONTEXT)
+            fields[f"v{n}"] = f"0x{checked[p.name]:X}" if p.hex else str(checked[p.name])
+        return Message(" ".join(["{action}", *(f"{{p{n}}}={{v{n}}}" for n in range(len(action.params)))]), **fields)
 
     def invoke(self, name: str, args: Mapping[str, Any] | None = None) -> object:
         """Run action ``name`` with checked arguments (the caller is the worker's gate)."""

@@ -14,7 +14,7 @@ from nicegui import ui
 from app import i18n
 from app import runtime as rt
 from app.i18n import N_, Lang
-from app.message import said
+from app.message import Message, said
 from app.state import DeviceState
 from app.worker import PermissionDenied
 from devices.commands import WRITE_PARAMETER
@@ -279,7 +279,7 @@ def sim_action(device: str, describe: str, fn: Callable[[], object]) -> Callable
 
         try:
             await rt.current().worker.gate.run(act, device=device, role=role, user=user or "anonymous",
-                                               describe=f"simulation: {describe}", kind="system")
+                                               describe=Message(N_("simulation: {action}"), action=describe), kind="system")
         except Exception as exc:  # noqa: BLE001 - refused or failed: said on the page
             ui.notify(said(exc, i18n.client_language()), type="negative")
 

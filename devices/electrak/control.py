@@ -35,12 +35,12 @@ OVERRIDE_PULSE_S = 0.3  # three control periods carry the override/reset bit, th
 # (its lease, LEASE_S, is not renewed: a program that stalls meanwhile stops sending it 0.35 s after the confirmation)
 FOREIGN_SENDER = Message(N_("a PLC, or an actuator whose manual control line is active"))
 
-OVERRIDE_RISK = (
+OVERRIDE_RISK = Message(N_(
     "Override/reset resets the number of actuators the network expects to the ones it hears now (document, "
     "'Fehler-Flags' bit 7 'zu wenige Geräte'). With an actuator missing, the 'Too few devices' lock is gone and "
     "one actuator of a pair may then move alone and twist or drop the load. It also holds motion while set. "
     "Send it only when every actuator is connected, or when the missing one is meant to stay off the network."
-)
+))
 OVERRIDE_UNCONFIRMED = ("override/reset needs a confirmation naming its risk (it resets the number of actuators the "
                         "network expects): confirm it on the Electrak page, or pass the confirmation")
 

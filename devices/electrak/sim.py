@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from devices import simserver
 from devices.electrak import codec
 from devices.electrak.params import BITRATE_SPECIFIER, PARAMS, TIMEOUT_SPECIFIER, length_of, password_of
-from devices.simcontrols import SimAction, SimControls, SimParam
+from devices.simcontrols import NP_, SimAction, SimControls, SimParam
 
 TICK_S = 0.01
 STARTUP_S = 0.15  # the current limit does not apply while the motor starts (inrush)
@@ -210,25 +210,25 @@ class ElectrakNetworkTwin:
                              state=lambda: self.actuators[i].present, testid=f"connected-{i + 1}")
 
         actions = [
-            SimAction("extra load", "Set load", lambda amps: self.set_load(amps), icon="fitness_center", testid="load",
-                      params=(SimParam("amps", "extra load [A]", 0, 0, 25),)),
-            SimAction("static load", "Set static load", lambda speed: self.set_backdrive(speed), icon="south_east",
-                      testid="static-load",
-                      params=(SimParam("speed", "rod load [mm/s]", 0, -5, 5),)),
+            SimAction(NP_("simulation", "extra load"), "Set load", lambda amps: self.set_load(amps), icon="fitness_center",
+                      testid="load", params=(SimParam(NP_("simulation", "amps"), "extra load [A]", 0, 0, 25),)),
+            SimAction(NP_("simulation", "static load"), "Set static load", lambda speed: self.set_backdrive(speed),
+                      icon="south_east", testid="static-load",
+                      params=(SimParam(NP_("simulation", "speed"), "rod load [mm/s]", 0, -5, 5),)),
             *(connected(i) for i in range(len(self.actuators))),
             SimAction("supply voltage fault", "Supply voltage fault", self.set_voltage_fault,
                       state=lambda: any(a.voltage_fault for a in self.actuators), testid="voltage-fault"),
             SimAction("temperature fault", "Temperature fault", self.set_temperature_fault,
                       state=lambda: self.actuators[0].temperature_fault, testid="temperature-fault"),
-            SimAction("manual control line", "Set manual control line", lambda direction: self.set_manual_line(direction),
-                      icon="settings_remote", testid="manual-line",
-                      params=(SimParam("direction", "1 out, -1 in, 0 off", 0, -1, 1),)),
+            SimAction(NP_("simulation", "manual control line"), "Set manual control line",
+                      lambda direction: self.set_manual_line(direction), icon="settings_remote", testid="manual-line",
+                      params=(SimParam(NP_("simulation", "direction"), "1 out, -1 in, 0 off", 0, -1, 1),)),
         ]
         if len(self.actuators) > 1:
             actions.append(SimAction("last actuator disagrees", "last actuator disagrees", self.disagree,
                                      state=self.disagrees, testid="disagree"))
-        actions.append(SimAction("power cycle", "Power-cycle actuators", self.power_cycle, icon="power_settings_new",
-                                 testid="power-cycle"))
+        actions.append(SimAction(NP_("simulation", "power cycle"), "Power-cycle actuators", self.power_cycle,
+                                 icon="power_settings_new", testid="power-cycle"))
         return SimControls("Simulated actuators (demo)", tuple(actions),
                            note="Load raises the motor current (above the limit: overload); a rod load moves a standing "
                                 "rod (Backdrive; negative pushes it in); an active manual control line makes the network send 0x06 "

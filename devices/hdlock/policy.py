@@ -1,7 +1,9 @@
 """What this tool never sends to an HD-Lock, and what it confirms first (the HD-Lock document).
 
 Pure data and checks over it, asked through :mod:`devices.sendpolicy` by every path that sends
-bytes (transmit list, replay, Modbus poll window, restore, the lock's own commands).
+bytes (transmit list, replay, Modbus poll window, restore, the lock's own commands). Its refusals, risks and
+names are :class:`~devices.message.Message` texts: the bus tools and the lock's page word them in their language,
+the audit keeps the English.
 """
 
 from __future__ import annotations
@@ -12,33 +14,33 @@ from devices.hdlock.tables import DOOR_IGNORED_WARNING
 from devices.commands import Arg, Command, TxField, TxForm, param_write, read_parameters
 from devices.hdlock.adapter import HdLockAdapter, HdLockBackup
 from devices.hdlock.can_adapter import HdLockCanAdapter
+from devices.message import Message, N_, joined, message_of
 from devices.params import Accepted, ParamError
 from devices.sendpolicy import Verdict, can_id_owner
 
 TITLE = "HD-Lock"
 
 # -- never sent ---------------------------------------------------------------------------------------------
-NEVER_CAN_IDS = {
-    codec.CAN_FWU_ERASE: "a firmware-update request (section 6.6.7, not for users)",
-    codec.CAN_FWU_WRITE: "a firmware-update request (section 6.6.7, not for users)",
-}
+FWU_REQUEST = Message(N_("a firmware-update request (section 6.6.7, not for users)"))
+NEVER_CAN_IDS = {codec.CAN_FWU_ERASE: FWU_REQUEST, codec.CAN_FWU_WRITE: FWU_REQUEST}
 NEVER_CAN_COMMANDS = {  # byte 4 of a Command (0x700), section 6.6.1.3
-    codec.CanCommand.FIRMWARE_UPDATE_ENTER: "cmdFirmwareUpdateEnter is a firmware-update command (section 6.6.1.3)",
-    codec.CanCommand.BOOTLOADER_UPDATE_ENTER: "cmdBootloaderUpdateEnter is a firmware-update command (boot loader, section 6.6.1.3)",
-    codec.CanCommand.UPDATE_LEAVE: "cmdUpdateLeave is a firmware-update command (section 6.6.1.3)",
+    codec.CanCommand.FIRMWARE_UPDATE_ENTER: Message(N_("cmdFirmwareUpdateEnter is a firmware-update command (section 6.6.1.3)")),
+    codec.CanCommand.BOOTLOADER_UPDATE_ENTER: Message(N_("cmdBootloaderUpdateEnter is a firmware-update command (boot loader, "
+                                                         "section 6.6.1.3)")),
+    codec.CanCommand.UPDATE_LEAVE: Message(N_("cmdUpdateLeave is a firmware-update command (section 6.6.1.3)")),
 }
 NEVER_REGISTERS = {  # holding registers, whatever the access class says
-    0: "SettingsRevision (holding 0): a decrement restores the factory settings, an increment saves (section 3.2)",
-    codec.REG_FW_UPDATE: "FwUpdateCommandRegister (holding 32770) restarts the lock for a firmware update (section 3.2)",
-    codec.REG_COMMAND: "the system-command register (holding 2003): system commands go through the lock's page",
+    0: Message(N_("SettingsRevision (holding 0): a decrement restores the factory settings, an increment saves (section 3.2)")),
+    codec.REG_FW_UPDATE: Message(N_("FwUpdateCommandRegister (holding 32770) restarts the lock for a firmware update (section 3.2)")),
+    codec.REG_COMMAND: Message(N_("the system-command register (holding 2003): system commands go through the lock's page")),
 }
 
 # -- confirmed first ------------------------------------------------------------------------------------------
-BROADCAST_RISK = "Sent to broadcast: every HD-Lock on this bus takes it."
-BITRATE_RISK = ("cmdSetCANbaudrate: the lock changes its CAN bit rate and drops off this bus until the bus runs at "
-                "the new rate (section 6.6.1.2).")
-DEVICE_ID_RISK = ("Set Device Address: the lock answers only under its new device ID (section 6.6.2); each CAN ID may "
-                  "belong to one participant only (section 6.2 b).")
+BROADCAST_RISK = Message(N_("Sent to broadcast: every HD-Lock on this bus takes it."))
+BITRATE_RISK = Message(N_("cmdSetCANbaudrate: the lock changes its CAN bit rate and drops off this bus until the bus runs "
+                          "at the new rate (section 6.6.1.2)."))
+DEVICE_ID_RISK = Message(N_("Set Device Address: the lock answers only under its new device ID (section 6.6.2); each CAN "
+                            "ID may belong to one participant only (section 6.2 b)."))
 RESERVED_STD_FIRST = 0x7F0  # CAN 2.0A: identifiers 0x7F0-0x7FF (seven recessive MSBs) are not allowed
 SOURCE_RISK = DOOR_IGNORED_WARNING  # cmdSetLockRequestSource 0x80-0x87, holding 4 and 1002
 
@@ -52,28 +54,32 @@ def register_verdict(address: int, value: int) -> Verdict:
     it judges the write of a page, the API or a restore.
     """
     if address in NEVER_REGISTERS:
-        return Verdict(refused=f"{NEVER_REGISTERS[address]}: never written", name=f"holding {address}")
+        return _never_written(address)
     param = PARAMS.get("holding", address)
     if param is None:
         covering = next((p for p in PARAMS.space("holding") if address in p.addresses), None)
         if covering is None:
-            return Verdict(refused=f"holding {address} is not in the register map of the HD-Lock: not written",
-                           name=f"holding {address}")
+            return Verdict(refused=Message(N_("holding {address} is not in the register map of the HD-Lock: not written"),
+                                           address=address), name=_holding(address))
         param = covering
     name = _named(param, address)
     if param.never_write:
-        return Verdict(refused=f"{name} is never written by this tool", name=name)
+        return Verdict(refused=Message(N_("{name} is never written by this tool"), name=name), name=name)
     if not param.writable:
-        return Verdict(refused=f"{name} is {param.access.value}: not writable", name=name)
+        return Verdict(refused=Message(N_("{name} is {access}: not writable"), name=name, access=param.access.value),
+                       name=name)
     raw = value & 0xFFFF
     stored = codec.stored_value(address, raw)
-    kept = "" if stored == raw else f" (sent as 0x{raw:04X}: the lock keeps the low byte, section 6.6.1.1)"
+
+    def kept(text: str) -> str:  # a word the lock stores as its low byte says so
+        return text if stored == raw else Message(N_("{text} (sent as 0x{raw:04X}: the lock keeps the low byte, "
+                                                     "section 6.6.1.1)"), text=text, raw=raw)
     try:
         accepted = param.accept(param.decode(stored))
     except ParamError as exc:
-        return Verdict(refused=f"{exc}{kept}: not written", name=name)
+        return Verdict(refused=Message(N_("{error}: not written"), error=kept(message_of(exc))), name=name)
     verdict = write_verdict(accepted)
-    return Verdict(verdict.refused, verdict.confirm, verdict.name + kept, verdict.kind)
+    return Verdict(verdict.refused, verdict.confirm, kept(verdict.name), verdict.kind)
 
 
 def write_verdict(accepted: Accepted) -> Verdict:
@@ -82,13 +88,22 @@ def write_verdict(accepted: Accepted) -> Verdict:
     where the parameter asks."""
     param = accepted.param
     if param.address in NEVER_REGISTERS:
-        return Verdict(refused=f"{NEVER_REGISTERS[param.address]}: never written", name=f"holding {param.address}")
+        return _never_written(param.address)
     risk = accepted.risk
-    return Verdict(confirm=(risk,) if risk else (), name=f"{_named(param, param.address)} = {accepted.text}", kind="write")
+    return Verdict(confirm=(risk,) if risk else (), kind="write",
+                   name=Message("{name} = {value}", name=_named(param, param.address), value=accepted.text))
 
 
-def _named(param, address: int) -> str:
-    return f"{param.label or param.name} (holding {address})"
+def _never_written(address: int) -> Verdict:
+    return Verdict(refused=Message(N_("{why}: never written"), why=NEVER_REGISTERS[address]), name=_holding(address))
+
+
+def _holding(address: int) -> Message:
+    return Message(N_("holding {address}"), address=address)
+
+
+def _named(param, address: int) -> Message:
+    return Message(N_("{name} (holding {address})"), name=param.label or param.name, address=address)
 
 
 def check_modbus(function: int, address: int, values: list[int], device) -> Verdict:
@@ -96,15 +111,15 @@ def check_modbus(function: int, address: int, values: list[int], device) -> Verd
     from devices.sendpolicy import combine
 
     if function in (5, 15):
-        return Verdict(refused="the HD-Lock has no coils (section 5: holding and input registers only)",
-                       name=f"coil {address}")
+        return Verdict(refused=Message(N_("the HD-Lock has no coils (section 5: holding and input registers only)")),
+                       name=Message(N_("coil {address}"), address=address))
     if not values:
-        return Verdict(refused="no value to write")
-    owner = f"{device.name} " if device is not None else ""
+        return Verdict(refused=Message(N_("no value to write")))
     verdicts = [register_verdict(address + i, v) for i, v in enumerate(values)]
     merged = combine(verdicts)
-    names = ", ".join(v.name for v in verdicts if v.name)
-    return Verdict(merged.refused, merged.confirm, f"{owner}{names}".strip(), merged.kind)
+    names = joined([v.name for v in verdicts if v.name])
+    name = Message("{device} {names}", device=device.name, names=names) if device is not None and names else names
+    return Verdict(merged.refused, merged.confirm, name or (device.name if device is not None else ""), merged.kind)
 
 
 def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verdict | None:
@@ -113,67 +128,75 @@ def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verd
     sender = next((d.name for d in devices if _device_id(d) == (extended, can_id)), None)
     if sender is not None:
         ident = codec.DeviceId(can_id, extended)
-        return Verdict(refused=f"CAN ID {ident} is what HD-Lock {sender} sends under its device ID (its status, "
-                               "answers and firmware-update status, section 6.5): this tool never sends it, so "
-                               "nothing can pose as the lock", name=f"{sender} frame", kind="system")
+        return Verdict(refused=Message(N_("CAN ID {ident} is what HD-Lock {sender} sends under its device ID (its status, "
+                                          "answers and firmware-update status, section 6.5): this tool never sends it, so "
+                                          "nothing can pose as the lock"), ident=str(ident), sender=sender),
+                       name=Message(N_("{sender} frame"), sender=sender), kind="system")
     if extended or can_id not in codec.CAN_REQUEST_IDS:
         return None
     name = codec.CAN_REQUEST_NAMES[can_id]
     if can_id in NEVER_CAN_IDS:
-        return Verdict(refused=f"HD-Lock '{name}' (0x{can_id:03X}) is {NEVER_CAN_IDS[can_id]}: never sent",
-                       name=f"HD-Lock {name}", kind="system")
+        return Verdict(refused=Message(N_("HD-Lock '{name}' (0x{id:03X}) is {what}: never sent"), name=name, id=can_id,
+                                       what=NEVER_CAN_IDS[can_id]), name=f"HD-Lock {name}", kind="system")
     if len(data) < 4:
-        return Verdict(refused=f"HD-Lock '{name}' (0x{can_id:03X}) needs the target address in bytes 0-3", name=name)
+        return Verdict(refused=Message(N_("HD-Lock '{name}' (0x{id:03X}) needs the target address in bytes 0-3"), name=name,
+                                       id=can_id), name=name)
     target = int.from_bytes(data[0:4], "little")
     broadcast = (BROADCAST_RISK,) if target == codec.CAN_BROADCAST else ()
     if can_id in (codec.CAN_READ_INPUT, codec.CAN_READ_HOLDING):
         return Verdict(name=f"HD-Lock {name}", kind="read")
     if can_id == codec.CAN_COMMAND:
         if len(data) < 5:
-            return Verdict(refused="HD-Lock Command (0x700) without a command byte (section 6.6.1)", name=name)
+            return Verdict(refused=Message(N_("HD-Lock Command (0x700) without a command byte (section 6.6.1)")), name=name)
         command = data[4]
         if command in NEVER_CAN_COMMANDS:
             cmd_name = codec.CanCommand(command).name
-            return Verdict(refused=f"HD-Lock Command {command} ({cmd_name}): {NEVER_CAN_COMMANDS[command]}: never sent",
+            return Verdict(refused=Message(N_("HD-Lock Command {command} ({name}): {why}: never sent"), command=command,
+                                           name=cmd_name, why=NEVER_CAN_COMMANDS[command]),
                            name=f"HD-Lock Command {command}", kind="system")
         value = int.from_bytes(data[6:8], "little") if len(data) >= 8 else None
         if command == codec.CanCommand.SET_LOCK_REQUEST_SOURCE:
             if value is None:
-                return Verdict(refused="HD-Lock cmdSetLockRequestSource needs its value in bytes 6-7 (8 bytes, "
-                                       "section 6.6.1)", name=f"HD-Lock {name}")
+                return Verdict(refused=Message(N_("HD-Lock cmdSetLockRequestSource needs its value in bytes 6-7 (8 bytes, "
+                                                  "section 6.6.1)")), name=f"HD-Lock {name}")
             # the command sets holding 4 (section 6.5.1): judged as that write, on the byte the lock keeps
             verdict = register_verdict(codec.REG_LOCK_REQUEST_SOURCE, value)
-            return Verdict(verdict.refused and f"HD-Lock cmdSetLockRequestSource: {verdict.refused}",
-                           verdict.confirm + broadcast, f"HD-Lock cmdSetLockRequestSource: {verdict.name}", "write")
+            source = "HD-Lock cmdSetLockRequestSource: {text}"
+            return Verdict(verdict.refused and Message(source, text=verdict.refused), verdict.confirm + broadcast,
+                           Message(source, text=verdict.name), "write")
         if command == codec.CanCommand.SET_CAN_BAUDRATE:
             return Verdict(confirm=(BITRATE_RISK,) + broadcast, name=f"HD-Lock cmdSetCANbaudrate = {value}", kind="system")
-        return Verdict(refused=f"HD-Lock Command {command} is not in the document (section 6.6.1): not sent",
-                       name=f"HD-Lock Command {command}")
+        return Verdict(refused=Message(N_("HD-Lock Command {command} is not in the document (section 6.6.1): not sent"),
+                                       command=command), name=f"HD-Lock Command {command}")
     if can_id == codec.CAN_SET_DEVICE_ADDRESS:
         if len(data) < 8:
-            return Verdict(refused="HD-Lock Set Device Address needs the new ID in bytes 4-7 (section 6.6.2)", name=name)
+            return Verdict(refused=Message(N_("HD-Lock Set Device Address needs the new ID in bytes 4-7 (section 6.6.2)")),
+                           name=name)
         try:
             new = codec.DeviceId.from_u32(int.from_bytes(data[4:8], "little"))
         except codec.CodecError as exc:
-            return Verdict(refused=f"HD-Lock Set Device Address: {exc} (section 6.6.2)", name=name, kind="system")
+            return Verdict(refused=Message(N_("HD-Lock Set Device Address: {error} (section 6.6.2)"), error=message_of(exc)),
+                           name=name, kind="system")
         owner = can_id_owner(bus, new.value, new.extended, exclude=_target_name(devices, target))
         if new.value == codec.CAN_BROADCAST:
-            return Verdict(refused="device ID 0 is the broadcast address (section 6.4)", name=name, kind="system")
+            return Verdict(refused=Message(N_("device ID 0 is the broadcast address (section 6.4)")), name=name, kind="system")
         if not new.extended and new.value >= RESERVED_STD_FIRST:
-            return Verdict(refused=f"CAN ID {new}: standard IDs 0x7F0-0x7FF are not allowed (CAN 2.0A: the seven most "
-                                   "significant identifier bits must not all be recessive)", name=name, kind="system")
+            return Verdict(refused=Message(N_("CAN ID {ident}: standard IDs 0x7F0-0x7FF are not allowed (CAN 2.0A: the seven "
+                                              "most significant identifier bits must not all be recessive)"), ident=str(new)),
+                           name=name, kind="system")
         if owner:
-            return Verdict(refused=f"CAN ID {new} is used by {owner}: each CAN ID belongs to one participant only "
-                                   "(section 6.2 b)", name=name, kind="system")
+            return Verdict(refused=Message(N_("CAN ID {ident} is used by {owner}: each CAN ID belongs to one participant "
+                                              "only (section 6.2 b)"), ident=str(new), owner=owner), name=name, kind="system")
         return Verdict(confirm=(DEVICE_ID_RISK,) + broadcast, name=f"HD-Lock Set Device Address {new}", kind="system")
     # Write / Silent Write Holding-Register: bytes 4-5 address, 6-7 the value (SPEC-NOTES)
     if len(data) < 8:
-        return Verdict(refused=f"HD-Lock '{name}' needs address and value (8 bytes, section 6.6.5)", name=name)
+        return Verdict(refused=Message(N_("HD-Lock '{name}' needs address and value (8 bytes, section 6.6.5)"), name=name),
+                       name=name)
     address = int.from_bytes(data[4:6], "little")
     value = int.from_bytes(data[6:8], "little")
     verdict = register_verdict(address, value)
-    return Verdict(verdict.refused and f"HD-Lock '{name}' of {verdict.refused}", verdict.confirm + broadcast,
-                   f"HD-Lock {name} {verdict.name}", verdict.kind)
+    return Verdict(verdict.refused and Message(N_("HD-Lock '{name}' of {refusal}"), name=name, refusal=verdict.refused),
+                   verdict.confirm + broadcast, Message("HD-Lock {name} {what}", name=name, what=verdict.name), verdict.kind)
 
 
 def _device_id(dev) -> tuple[bool, int] | None:
@@ -198,7 +221,8 @@ def _target_name(devices, target: int) -> str:
 
 def _source_risk(args) -> str:
     risks = list(register_verdict(codec.REG_LOCK_REQUEST_SOURCE, args["value"]).confirm)
-    return " ".join(risks + ([BROADCAST_RISK] if args.get("broadcast") else []))
+    risks += [BROADCAST_RISK] if args.get("broadcast") else []
+    return joined(risks, " ") if risks else ""
 
 
 def _source_refusal(args, bus, device: str) -> str:
@@ -207,7 +231,7 @@ def _source_refusal(args, bus, device: str) -> str:
 
 
 def _bitrate_risk(args) -> str:
-    return BITRATE_RISK + (" " + BROADCAST_RISK if args.get("broadcast") else "")
+    return joined([BITRATE_RISK, BROADCAST_RISK], " ") if args.get("broadcast") else BITRATE_RISK
 
 
 def _device_id_refusal(args, bus, device: str) -> str:
@@ -217,18 +241,19 @@ def _device_id_refusal(args, bus, device: str) -> str:
     try:
         new = codec.DeviceId.make(int(args["new_value"]), args.get("extended") or None)
     except codec.CodecError as exc:
-        return str(exc)
+        return message_of(exc)
     this = next((d for d in bus if d.name == device), None)
     target = codec.DeviceId.make(int(this.options["device_id"]), this.options.get("extended")) if this else codec.BROADCAST_ID
     frame = codec.encode_set_device_address(target, new)
     return check_can(bus, frame.arbitration_id, frame.is_extended_id, frame.data).refused
 
 
-RESTORE_RISK = "All changes not yet saved are discarded and the saved values reloaded (section 4.2)."
-BROADCAST_ADDRESS_RISK = ("Set Modbus Address to broadcast address 255 (section 4.3): every lock on the line whose "
-                          "LockStatus meets (P1 & LockStatus) ^ P2 == 0 takes the new address at once, and none answers.")
-ADDRESS_RISK = ("Set Modbus Address (section 4.3): if the condition holds the lock answers only at the new address "
-                "from now on; send Save-Settings afterwards to keep it, and change the address in the plant file.")
+RESTORE_RISK = Message(N_("All changes not yet saved are discarded and the saved values reloaded (section 4.2)."))
+BROADCAST_ADDRESS_RISK = Message(N_("Set Modbus Address to broadcast address 255 (section 4.3): every lock on the line whose "
+                                    "LockStatus meets (P1 & LockStatus) ^ P2 == 0 takes the new address at once, and none "
+                                    "answers."))
+ADDRESS_RISK = Message(N_("Set Modbus Address (section 4.3): if the condition holds the lock answers only at the new address "
+                          "from now on; send Save-Settings afterwards to keep it, and change the address in the plant file."))
 
 
 def unsaved_changes(state) -> list[str]:
@@ -275,7 +300,9 @@ def _broadcast_audit(args, adapter) -> dict:
 def _broadcast_refusal(args, bus, device: str) -> str:
     known = args.get("known") or {}
     target = args["new_address"]
-    return f"address {target} is {known[target]}: choose an address no lock uses" if target in known else ""
+    if target not in known:
+        return ""
+    return Message(N_("address {address} is {lock}: choose an address no lock uses"), address=target, lock=known[target])
 
 
 _ADDRESS_ARGS = (Arg("new_address", codec.MODBUS_ADDRESS_MIN, codec.MODBUS_ADDRESS_MAX), Arg("mask", 0, 0xFFFF),

@@ -27,7 +27,7 @@ from devices.hdlock import codec
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
 from devices.hdlock.tables import LOCK_REQUEST_SOURCE
 from devices.params import Access
-from devices.simcontrols import SimAction, SimControls, SimParam
+from devices.simcontrols import NP_, SimAction, SimControls, SimParam
 
 log = logging.getLogger(__name__)
 
@@ -213,27 +213,29 @@ class HdLockTwin:
                              state=lambda: bool(getattr(self, attribute)), testid=testid)
 
         actions = [
-            SimAction("close door", "Close door", self.close_door, icon="door_front", testid="close"),
-            SimAction("open door", "Open door", self.open_door, icon="meeting_room", testid="open"),
-            SimAction("toggle door", "Open / close door", self.toggle_door, testid="toggle-door"),
+            SimAction(NP_("simulation", "close door"), "Close door", self.close_door, icon="door_front", testid="close"),
+            SimAction(NP_("simulation", "open door"), "Open door", self.open_door, icon="meeting_room", testid="open"),
+            SimAction(NP_("simulation", "toggle door"), "Open / close door", self.toggle_door, testid="toggle-door"),
             switch("LOCK-REQUEST input", "LOCK-REQUEST input active", "line_input", "line-input"),
             switch("strong magnet", "Strong magnet", "strong_magnet", "strong-magnet"),
-            switch("bolt blocked", "Bolt blocked (never leaves its end position)", "bolt_stuck", "bolt-stuck"),
-            switch("ignores the door", "Locks with the door open (broken)", "ignores_door", "ignores-door"),
+            switch("bolt blocked", "Bolt blocked (never leaves its end position)", "bolt_stuck",
+                   "bolt-stuck"),
+            switch("ignores the door", "Locks with the door open (broken)", "ignores_door",
+                   "ignores-door"),
             switch("stop answering", "Stop answering", "silent", "silent"),
         ]
         if can:
             actions += [switch("firmware-update mode", "Firmware-update mode", "fwu_mode", "fwu"),
-                        SimAction("back to the bus bit rate", "Back to the bus bit rate", self.back_to_bus_bitrate,
-                                  testid="bus-bitrate")]
+                        SimAction(NP_("simulation", "back to the bus bit rate"), "Back to the bus bit rate",
+                                  self.back_to_bus_bitrate, testid="bus-bitrate")]
         else:
-            actions.append(switch("answer Set Modbus Address", "Answer Set Modbus Address at the old address",
-                                  "answers_address_command", "answer-address"))
+            actions.append(switch("answer Set Modbus Address",
+                                  "Answer Set Modbus Address at the old address", "answers_address_command", "answer-address"))
         actions += [
             switch("refuse writes", "Refuse every write (exception 04)", "refuse_writes", "refuse-writes"),
-            SimAction("swap for a new device", "Swap for a new device",
+            SimAction(NP_("simulation", "swap for a new device"), "Swap for a new device",
                       lambda **args: self.swap_for_new(args["new-serial"]), icon="swap_horiz", testid="swap",
-                      params=(SimParam("new-serial", "New serial number", min(self.serial + 100000, 0xFFFFFFFF),
+                      params=(SimParam(NP_("simulation", "new-serial"), "New serial number", min(self.serial + 100000, 0xFFFFFFFF),
                                        1, 0xFFFFFFFF),)),
         ]
         note = (f"simulated lock runs at {self.can_bitrate} bit/s, device ID {self.device_id}. " if can else "") + (

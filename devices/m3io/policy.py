@@ -3,7 +3,8 @@
 DigOut with an SSR bit switches mains voltage onto a load (section 7.2.1): confirmed in the
 transmit list, never replayed. What the module sends (DigIn, temperatures, MData) is never sent. Sync frames that write the configuration or customer data
 (section 7.2.4, areas 1 and 4) are confirmed; a cfg byte with P2 set (the Sync cfg, or area 1 index 15) asks what the
-declared write of P2 asks (devices/m3io/params.py). Asked through :mod:`devices.sendpolicy`.
+declared write of P2 asks (devices/m3io/params.py). Asked through :mod:`devices.sendpolicy`. Its refusals, risks and
+names are :class:`~devices.message.Message` texts: the bus tools word them in their language, the audit keeps the English.
 """
 
 from __future__ import annotations
@@ -16,14 +17,16 @@ from devices.commands import Arg, Command, CommandError, TxField, TxForm, param_
 from devices.m3io import codec
 from devices.m3io.adapter import OUTPUT_NAMES, M3ioAdapter
 from devices.m3io.params import P2_RISK, PARAMS
+from devices.message import Message, N_
 from devices.sendpolicy import Verdict
 
 TITLE = "CAN-M3IO"
 check_modbus = None  # hooks of devices/sendpolicy.py this type has none of
 
 MODULE_SENDS = ("DigIn", "Temp1-4", "Temp5-6", "MData")  # sender "Modul" in the tables of section 5.8
-MAINS_RISK = "{device}: DigOut switches {outputs} on: mains voltage on the load(s) (section 7.2.1)."
-CONFIG_RISK = "{device}: Sync {what} writes the module's {target} (section 7.2.4)."
+MAINS_RISK = N_("{device}: DigOut switches {outputs} on: mains voltage on the load(s) (section 7.2.1).")
+CONFIG_RISK = N_("{device}: Sync area 1 writes the module's configuration (section 7.2.4).")
+CUSTOMER_RISK = N_("{device}: Sync area 4 writes the module's customer data (section 7.2.4).")
 
 
 def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verdict | None:
@@ -38,35 +41,39 @@ def check_can(can_id: int, extended: bool, data: bytes, devices, bus=()) -> Verd
         sent_by_module = {name: i for name, i in ids.by_name().items() if name in MODULE_SENDS}
         if can_id in sent_by_module.values():
             frame = next(name for name, i in sent_by_module.items() if i == can_id)
-            return Verdict(refused=f"{dev.name}: {frame} (0x{can_id:03X}) is what the module sends (sections 5.8, 7.2): "
-                                   "this tool never sends it, so nothing can pose as the module", name=f"{dev.name} {frame}",
+            return Verdict(refused=Message(N_("{device}: {frame} (0x{id:03X}) is what the module sends (sections 5.8, "
+                                              "7.2): this tool never sends it, so nothing can pose as the module"),
+                                           device=dev.name, frame=frame, id=can_id), name=f"{dev.name} {frame}",
                            kind="system")
         if can_id == ids.dig_out:
             if len(data) != 1:
-                return Verdict(refused=f"{dev.name}: DigOut has 1 byte (section 7.2.1), not {len(data)}", name=f"{dev.name} DigOut")
+                return Verdict(refused=Message(N_("{device}: DigOut has 1 byte (section 7.2.1), not {n}"), device=dev.name,
+                                               n=len(data)), name=f"{dev.name} DigOut")
             outputs = codec.decode_dig_out(variant, data)
             mains = [n for n, on in outputs.items() if on and n != "LED"]
-            on = " ".join(n for n, v in outputs.items() if v) or "all off"
+            on = " ".join(n for n, v in outputs.items() if v) or Message(N_("all off"))
+            name = Message("{device} DigOut: {on}", device=dev.name, on=on)
             if mains:
-                return Verdict(confirm=(MAINS_RISK.format(device=dev.name, outputs=", ".join(mains)),),
-                               name=f"{dev.name} DigOut: {on}", kind="mains")
-            return Verdict(name=f"{dev.name} DigOut: {on}", kind="stop" if not any(outputs.values()) else "write")
+                return Verdict(confirm=(Message(MAINS_RISK, device=dev.name, outputs=", ".join(mains)),), name=name,
+                               kind="mains")
+            return Verdict(name=name, kind="stop" if not any(outputs.values()) else "write")
         if can_id == ids.sync and data:
             if len(data) == 1 and data[0] & codec.P2:  # the Sync cfg byte with P2 (7.2.4)
                 return Verdict(confirm=(P2_RISK,), name=f"{dev.name} Sync cfg P2", kind="write")
             if data[0] == codec.AREA_WRITE_CONFIG:
                 p2 = (P2_RISK,) if len(data) > 2 and data[2] & codec.P2 else ()
-                return Verdict(confirm=(CONFIG_RISK.format(device=dev.name, what="area 1", target="configuration"), *p2),
-                               name=f"{dev.name} write config", kind="write")
+                return Verdict(confirm=(Message(CONFIG_RISK, device=dev.name), *p2),
+                               name=Message(N_("{device} write config"), device=dev.name), kind="write")
             if data[0] == codec.AREA_WRITE_CUSTOMER:
-                return Verdict(confirm=(CONFIG_RISK.format(device=dev.name, what="area 4", target="customer data"),),
-                               name=f"{dev.name} write customer data", kind="write")
+                return Verdict(confirm=(Message(CUSTOMER_RISK, device=dev.name),),
+                               name=Message(N_("{device} write customer data"), device=dev.name), kind="write")
             return Verdict(name=f"{dev.name} Sync", kind="read")
     return None
 
 
-THREE_PHASE_RISK = "The three-phase output switches 400 V to the connected load. Make sure nobody works on it."
-MAINS_OUTPUT_RISK = "This output switches mains voltage (230/400 V) to the connected load. Make sure nobody works on it."
+THREE_PHASE_RISK = Message(N_("The three-phase output switches 400 V to the connected load. Make sure nobody works on it."))
+MAINS_OUTPUT_RISK = Message(N_("This output switches mains voltage (230/400 V) to the connected load. Make sure nobody works "
+                               "on it."))
 
 
 @dataclass(frozen=True)
@@ -84,11 +91,13 @@ class BytesArg:
             try:
                 payload = bytes.fromhex(value)
             except ValueError:
-                raise CommandError(f"{self.name}: {value!r} is not bytes as hex, e.g. 01 02 0A") from None
+                raise CommandError(Message(N_("{name}: {value} is not bytes as hex, e.g. 01 02 0A"), name=self.name,
+                                           value=repr(value))) from None
         else:
-            raise CommandError(f"{self.name}: {value!r} is not bytes as hex")
+            raise CommandError(Message(N_("{name}: {value} is not bytes as hex"), name=self.name, value=repr(value)))
         if len(payload) > self.size:
-            raise CommandError(f"{self.name}: at most {self.size} bytes ({len(payload)} given)")
+            raise CommandError(Message(N_("{name}: at most {size} bytes ({n} given)"), name=self.name, size=self.size,
+                                       n=len(payload)))
         return payload
 
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from devices import simserver
 from devices.m3io import codec
 from devices.m3io.codec import Variant
-from devices.simcontrols import SimAction, SimControls, SimParam
+from devices.simcontrols import NP_, SimAction, SimControls, SimParam
 
 TICK_S = 0.01
 STORE_S = 0.03  # a customer record takes this long to store (7.2.4.2.4)
@@ -108,25 +108,30 @@ class M3ioTwin:
             self.wake()
             setattr(self.ssr[channel], attribute, value)
 
-        return SimAction(name, label, run, params=(SimParam("channel", "SSR", 1, 1, 6),),
+        return SimAction(name, label, run, params=(SimParam(NP_("simulation", "channel"), "SSR", 1, 1, 6),),
                          icon="warning" if danger else "")
 
     def controls(self) -> SimControls:
         """What an engineer may do to this module in simulation (shown by pages/simcontrols.py)."""
-        actions = [SimAction(f"toggle E{i}", f"E{i}", lambda i=i: self.toggle_input(f"E{i}"), testid=f"toggle-e{i}")
+        toggle = NP_("simulation", "toggle E{0}")  # the input's number as {0}, as the catalog words it
+        actions = [SimAction(toggle.format(i), f"E{i}", lambda i=i: self.toggle_input(f"E{i}"), testid=f"toggle-e{i}")
                    for i in range(1, 7)]
         if self.variant is not Variant.KM:
+            channel = NP_("simulation", "channel")
             actions += [
-                self._ssr_action("remove load", "Remove load", "load", False),
-                self._ssr_action("connect load", "Connect load", "load", True),
-                self._ssr_action("blow fuse", "Blow fuse", "fuse_ok", False, danger=True),
-                self._ssr_action("break triac", "Break triac", "triac_ok", False, danger=True),
-                self._ssr_action("short triac", "Short triac", "triac_shorted", True, danger=True),
-                SimAction("repair", "Repair", self.repair, params=(SimParam("channel", "SSR", 1, 1, 6),)),
-                SimAction("set temperature", "Set", lambda channel, tenths: self.set_temperature(channel, tenths / 10),
-                          params=(SimParam("channel", "Pt100 input", 1, 1, 6), SimParam("tenths", "0.1 °C", 250, -500, 2047))),
+                self._ssr_action(NP_("simulation", "remove load"), "Remove load", "load", False),
+                self._ssr_action(NP_("simulation", "connect load"), "Connect load", "load", True),
+                self._ssr_action(NP_("simulation", "blow fuse"), "Blow fuse", "fuse_ok", False, danger=True),
+                self._ssr_action(NP_("simulation", "break triac"), "Break triac", "triac_ok", False, danger=True),
+                self._ssr_action(NP_("simulation", "short triac"), "Short triac", "triac_shorted", True, danger=True),
+                SimAction(NP_("simulation", "repair"), "Repair", self.repair, params=(SimParam(channel, "SSR", 1, 1, 6),)),
+                SimAction(NP_("simulation", "set temperature"), "Set",
+                          lambda channel, tenths: self.set_temperature(channel, tenths / 10),
+                          params=(SimParam(channel, "Pt100 input", 1, 1, 6),
+                                  SimParam(NP_("simulation", "tenths"), "0.1 °C", 250, -500, 2047))),
             ]
-        actions.append(SimAction("cut 24 V", "Cut 24 V (reset)", self.power_cycle, icon="power_off", testid="power-cycle"))
+        actions.append(SimAction(NP_("simulation", "cut 24 V"), "Cut 24 V (reset)", self.power_cycle, icon="power_off",
+                                 testid="power-cycle"))
         note = "Toggle the inputs E1-E6" + ("" if self.variant is Variant.KM else
                                            "; an SSR's faults by its number. The module reports a blown fuse until "
                                            "its 24 V are cut, even after repair.")

@@ -99,7 +99,7 @@ def _write_verdict(accepted: Accepted) -> tuple[str, str]:
     assumed selector, that it is verified on this unit. The EEPROM wear is said on the page and in restore."""
     param = accepted.param
     if not param.setting_key:
-        return f"{param.name} is read only: no setting telegram is named for it (chapter 5.2)", ""
+        return Message(N_("{name} is read only: no setting telegram is named for it (chapter 5.2)"), name=param.name), ""
     parts = [accepted.risk] + ([model.selector_risk(param)] if param.selector_assumed else [])
     return "", joined([p for p in parts if p], " ")
 

@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from devices.mo64 import codec
-from devices.simcontrols import SimAction, SimControls, SimParam
+from devices.simcontrols import NP_, SimAction, SimControls, SimParam
 from devices.mo64.codec import Command, Function, GateState, Reply, RequestType
 
 log = logging.getLogger(__name__)
@@ -58,6 +58,9 @@ PROGRAM_VERSION = 0x0412
 DEVICE_CODE = 5  # chapter 5.1.5: 0x0005 = MO 64-V4
 VEHICLE_WAIT_OPEN_S = 15.0
 INTERRUPT_AT_PCT = 60.0  # interrupt_at_next_close: the person steps into the beam once the boom is down to here
+# the loops' toggles by name (the audit's words; the catalog's, context simulation, each named whole: a loop is a letter)
+LOOP_TOGGLED = {"A": NP_("simulation", "toggle loop-A"), "B": NP_("simulation", "toggle loop-B"),
+                "C": NP_("simulation", "toggle loop-C")}
 
 _STATUS = {f.name: f.shift for f in codec.STATUS_BITS.fields}
 _MOTOR_RUNS = (GateState.OPENING, GateState.CLOSING)
@@ -278,23 +281,24 @@ class Mo64Twin:
     def controls(self) -> SimControls:
         """What an engineer may do to this barrier in simulation (shown by pages/simcontrols.py)."""
         return SimControls("Simulated barrier (demo)", (
-            SimAction("drive a vehicle", "Drive a vehicle through", self.drive_vehicle, icon="directions_car",
-                      testid="vehicle"),
+            SimAction(NP_("simulation", "drive a vehicle"), "Drive a vehicle through", self.drive_vehicle,
+                      icon="directions_car", testid="vehicle"),
             SimAction("light barrier interrupted", "Light barrier interrupted", self.break_light_barrier,
                       state=lambda: self.light_barrier, testid="light-barrier"),
-            SimAction("toggle LS", "Light barrier: interrupt at the next close / free", self.toggle_light_barrier,
-                      testid="toggle-ls"),
+            SimAction(NP_("simulation", "toggle LS"), "Light barrier: interrupt at the next close / free",
+                      self.toggle_light_barrier, testid="toggle-ls"),
             *(SimAction(f"loop {x} occupied", f"Loop {x} occupied", lambda on, x=x: self.occupy_loop(x, on),
                         state=lambda x=x: self.loops[x], testid=f"loop-{x.lower()}") for x in "ABC"),
-            *(SimAction(f"toggle loop-{x}", f"Loop {x}: occupy / free", lambda x=x: self.occupy_loop(x, not self.loops[x]),
+            *(SimAction(LOOP_TOGGLED[x], f"Loop {x}: occupy / free", lambda x=x: self.occupy_loop(x, not self.loops[x]),
                         testid=f"toggle-loop-{x.lower()}") for x in "ABC"),
             SimAction("light barrier never reports", "Light barrier never reports (broken)",
                       lambda on: setattr(self.strict, "light_barrier_dead", on), state=lambda: self.strict.light_barrier_dead,
                       testid="light-barrier-dead"),
-            SimAction("raise fault", "Raise fault", self.raise_fault, icon="error", testid="raise-fault",
-                      params=(SimParam("flags", "error flags", 0x0001, 1, 0xFFFFFFFF, hex=True),)),
-            SimAction("clear faults", "Clear faults", self.clear_fault, testid="clear-faults"),
-            SimAction("mains back", "Mains back (power up)", self.power_up, icon="power", testid="power-up"),
+            SimAction(NP_("simulation", "raise fault"), "Raise fault", self.raise_fault, icon="error", testid="raise-fault",
+                      params=(SimParam(NP_("simulation", "flags"), "error flags", 0x0001, 1, 0xFFFFFFFF, hex=True),)),
+            SimAction(NP_("simulation", "clear faults"), "Clear faults", self.clear_fault, testid="clear-faults"),
+            SimAction(NP_("simulation", "mains back"), "Mains back (power up)", self.power_up, icon="power",
+                      testid="power-up"),
         ), note="A vehicle opens the barrier on loop A and passes the light barrier; a fault stops the motor "
                 "and is recorded in the error memory; after mains the position is unknown until an end position.")
 

@@ -4,7 +4,8 @@ The SCU sits on a point-to-point RS232 line where no raw-byte tool of this progr
 declares no frame rules. Stops (RS, jog release, the emergency stop RE 19, releasing control) are
 never refused. Starting a function (RE) is motion and needs control of the unit; Go asks that the
 area is clear; releasing the emergency stop (RS 19, table 8) is motion too, asked and by the holder
-of control only. The page, the API and the CLI invoke these by name (pages/scu.py).
+of control only. The page, the API and the CLI invoke these by name (pages/scu.py). The risks and refusals are
+:class:`~devices.message.Message` texts, worded in the reader's language where they are shown; the audit keeps the English.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from devices.commands import Arg, Command, CommandError, param_write, read_parameters
+from devices.message import Message, N_
 from devices.scu import codec
 from devices.scu.adapter import ScuAdapter
 from devices.scu.model import PARAMS
@@ -25,40 +27,46 @@ _RAMP = Arg("ramp", -1, 1)  # para_ID[1]: 1 soft, 0 fast, -1 as configured
 _SWITCHES = frozenset(int(f) for f in (codec.Function.BUZZER, codec.Function.BINARY_OUTPUT_1,
                                         codec.Function.BINARY_OUTPUT_2, codec.Function.LED_1, codec.Function.LED_2))
 _STOPPABLE = frozenset(int(f) for f in codec.Function) - {int(codec.Function.EMERGENCY_STOP)}
-ESTOP_RELEASE_RISK = ("Release the emergency stop (RS 19, table 8)? Every drive may be started again. Only the person "
-                      "who set it releases it: check that the reason for it is gone and the area is clear.")
+ESTOP_RELEASE_RISK = Message(N_("Release the emergency stop (RS 19, table 8)? Every drive may be started again. Only the "
+                                "person who set it releases it: check that the reason for it is gone and the area is clear."))
+WITHHOLD_RC_RISK = Message(N_("Withhold RC on purpose (the watchdog test, section 5): the unit must stop every drive within "
+                              "500 ms, leave remote mode and set error bit 22. A drive that goes on moving fails the test: "
+                              "stand by the hand switch's stop."))
 
 
 def _go_risk(values: Mapping[str, Any]) -> str:
     label = codec.FUNCTIONS[codec.Function(values["function"])].label
-    return (f"{label} starts motion ({codec.MOTION_LABELS.get(codec.Motion(values['motion']), values['motion'])}). "
-            "Check that the area is clear: nobody and nothing in the stroke of the actuators it drives.")
+    motion = codec.MOTION_LABELS.get(codec.Motion(values["motion"]))  # table 9's motions, in the catalog (pages/scu.py)
+    return Message(N_("{function} starts motion ({motion}). Check that the area is clear: nobody and nothing in the stroke "
+                      "of the actuators it drives."), function=label,
+                   motion=Message(motion) if motion else values["motion"])
 
 
 def _motion(values: dict[str, Any]) -> dict[str, Any]:
     try:
         codec.Motion(values["motion"])
     except ValueError:
-        raise CommandError(f"motion {values['motion']} is not a para_ID[0] of table 9") from None
+        raise CommandError(Message(N_("motion {motion} is not a para_ID[0] of table 9"), motion=values["motion"])) from None
     return values
 
 
 def _jog(values: dict[str, Any]) -> dict[str, Any]:
     if values["direction"] == 0:
-        raise CommandError("direction: -1 (in) or +1 (out); the release is 'jog stop (RS)'")
+        raise CommandError(Message(N_("direction: -1 (in) or +1 (out); the release is 'jog stop (RS)'")))
     return values
 
 
 def _switch(values: dict[str, Any]) -> dict[str, Any]:
     if values["function"] not in _SWITCHES:
-        raise CommandError(f"function {values['function']} is not the buzzer, a binary output or an LED (16, 17, 20, 21, 10)")
+        raise CommandError(Message(N_("function {function} is not the buzzer, a binary output or an LED (16, 17, 20, 21, 10)"),
+                                   function=values["function"]))
     return values
 
 
 def _stoppable(values: dict[str, Any]) -> dict[str, Any]:
     if values["function"] not in _STOPPABLE:
-        raise CommandError(f"function {values['function']}: RS only to F1..F10, the buzzer, the outputs and LEDs; "
-                           "the emergency stop is released by its own command")
+        raise CommandError(Message(N_("function {function}: RS only to F1..F10, the buzzer, the outputs and LEDs; the "
+                                      "emergency stop is released by its own command"), function=values["function"]))
     return values
 
 
@@ -93,9 +101,7 @@ COMMANDS = (
     Command("release emergency stop (RS 19)", "motion", run=ScuAdapter.release_emergency_stop, session=True,
             needs_control=True, risk=ESTOP_RELEASE_RISK),
     Command("withhold RC", "motion", run=ScuAdapter.withhold_rc, session=True, needs_control=True,
-            risk="Withhold RC on purpose (the watchdog test, section 5): the unit must stop every drive within "
-                 "500 ms, leave remote mode and set error bit 22. A drive that goes on moving fails the test: stand "
-                 "by the hand switch's stop."),
+            risk=WITHHOLD_RC_RISK),
     # -- writes: the volatile remote data (table 7), read back --------------------------------------------------------
     Command("function on (RE)", "write", run=ScuAdapter.run_function, session=True, needs_control=True,
             args=(Arg("function", 10, 21),), prepare=_switch),

@@ -36,7 +36,7 @@ from devices.scu import codec, params
 from devices.scu.actuator_twin import (DEFAULT_COUNTS_PER_MM, DEFAULT_IN_COUNTS, DEFAULT_OUT_COUNTS, IDLE_CURRENT_A,
                                        ActuatorTwin, actuator_configs)
 from devices.scu.codec import Function, Motion, Ramp, Status
-from devices.simcontrols import SimAction, SimControls, SimParam
+from devices.simcontrols import NP_, SimAction, SimControls, SimParam
 
 log = logging.getLogger(__name__)
 
@@ -192,18 +192,18 @@ class ScuTwin:
     def controls(self) -> SimControls:
         """What an engineer may do to this unit in simulation (shown by pages/simcontrols.py, through the gate)."""
         n = len(self.actuators)
-        actuator = SimParam("actuator", "actuator", 1, 1, n)
+        actuator = SimParam(NP_("simulation", "actuator"), "actuator", 1, 1, n)
         return SimControls("Simulated SCU (demo)", (
-            SimAction("add load", "Add load", lambda to, amps: self.add_load(to, amps), icon="fitness_center",
-                      testid="add-load", params=(SimParam("to", "load on actuator", 1, 1, n),
-                                                 SimParam("amps", "load [A]", 3, -20, 20))),
-            SimAction("actuator error", "Trip actuator error", self.trip_actuator_error, icon="error",
+            SimAction(NP_("simulation", "add load"), "Add load", lambda to, amps: self.add_load(to, amps), icon="fitness_center",
+                      testid="add-load", params=(SimParam(NP_("simulation", "to"), "load on actuator", 1, 1, n),
+                                                 SimParam(NP_("simulation", "amps"), "load [A]", 3, -20, 20))),
+            SimAction(NP_("simulation", "actuator error"), "Trip actuator error", self.trip_actuator_error, icon="error",
                       testid="actuator-error", params=(actuator,)),
-            SimAction("on battery", "On battery (mains off)", self.switch_to_battery, state=lambda: not self.io.mains,
-                      testid="on-battery"),
-            SimAction("line dropped", "Line dropped (no answers)", self.drop_line, state=lambda: self.strict.line_dropped,
-                      testid="line-dropped"),
-            SimAction("reset", "Reset the unit", self.reset, icon="restart_alt", testid="reset-unit"),
+            SimAction("on battery", "On battery (mains off)", self.switch_to_battery,
+                      state=lambda: not self.io.mains, testid="on-battery"),
+            SimAction("line dropped", "Line dropped (no answers)", self.drop_line,
+                      state=lambda: self.strict.line_dropped, testid="line-dropped"),
+            SimAction(NP_("simulation", "reset"), "Reset the unit", self.reset, icon="restart_alt", testid="reset-unit"),
         ), note="Load raises the current of a moving actuator (above 12 A it trips); an actuator error stops it fast "
                 "and sets its error bit; a dropped line ends remote mode within 500 ms; a reset ends remote mode and "
                 "sets the remote speeds and positions back to their defaults (volatile, table 7).")

@@ -47,3 +47,46 @@ async def test_the_simulation_card_refuses_a_value_in_german(tmp_path):
             await user.should_see(said_de, retries=20)
         assert not [m for m in user.notify.messages if "is outside" in m or "whole number" in m], user.notify.messages
         assert all(ssr.fuse_ok for ssr in runtime.twins["io"].ssr.values())  # refused: nothing blown
+
+
+def test_an_actions_words_keep_their_english_and_come_in_german():
+    """``SimControls.describe``: the audit's words of an action other than a switch (its name, its parameters' names) as
+    the twins declare them, and in German as the catalog words them (context simulation)."""
+    from devices.m3io.codec import Variant
+    from devices.m3io.sim import M3ioTwin
+    from devices.mo64.twin import Mo64Twin
+
+    module = M3ioTwin(Variant.HMR, 0x9A).controls()
+    blow = module.describe("blow fuse", {"channel": 4})
+    assert blow == "blow fuse channel=4" and said(blow, DE) == "Sicherung auslösen Kanal=4"
+    toggle = module.describe("toggle E3")
+    assert toggle == "toggle E3" and said(toggle, DE) == "E3 umschalten"
+    temperature = module.describe("set temperature", {"channel": 2, "tenths": 300})
+    assert said(temperature, DE) == "Temperatur setzen Kanal=2 Zehntel=300"
+    barrier = Mo64Twin().controls()
+    toggle_loop = barrier.describe("toggle loop-B")
+    assert toggle_loop == "toggle loop-B" and said(toggle_loop, DE) == "Schleife-B umschalten"
+    assert barrier.describe("loop B occupied", {"on": True}) == "loop B occupied on"  # a switch: as the twin declares it
+    fault = barrier.describe("raise fault", {"flags": 2})
+    assert fault == "raise fault flags=0x2" and said(fault, DE) == "Fehler auslösen Flaggen=0x2"
+
+
+async def test_the_simulation_card_names_an_action_in_german(tmp_path):
+    """An action the card cannot run (the audit log cannot be written: nothing is done) is named in the card's
+    words: Simulation: Sicherung auslösen Kanal=4, not the audit's blow fuse channel=4."""
+    runtime = Runtime(plant(can_bus(m3io_can("io", variant="HMR", sw1=0x9A), name="can3")), simulate=True, data_dir=tmp_path)
+    async with german_user(runtime) as user:
+        await user.open("/device/io")
+        await user.should_see("CAN-M3IO io (HMR)", retries=50)
+        await user.should_see("Sicherung auslösen")
+
+        async def unwritable(**row):
+            raise OSError("disk full")
+
+        runtime.worker.audit.arecord = unwritable
+        for field in (e for e in user.client.elements.values() if e.props.get("data-testid") == "sim-channel"):
+            field.set_value("4")
+        user.find(kind=ui.button, content="Sicherung auslösen").click()
+        await user.should_see("Simulation: Sicherung auslösen Kanal=4 abgelehnt: das Audit-Log kann nicht geschrieben werden", retries=20)
+        assert not [m for m in user.notify.messages if "blow fuse" in m], user.notify.messages
+        assert all(ssr.fuse_ok for ssr in runtime.twins["io"].ssr.values())  # nothing done
