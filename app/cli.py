@@ -361,7 +361,7 @@ def run_backup(args) -> int:
             print(f"{name}: {path}")
         return 1 if failures else 0
 
-    return asyncio.run(run_headless(args, work))
+    return asyncio.run(run_headless(args, work, answers_needed=backup.device_backs_up))
 
 
 def run_restore(args) -> int:

@@ -79,8 +79,15 @@ def refuse_taken_ports(plant, program: str = "commission", every: bool = False) 
     return bool(taken)
 
 
-async def run_headless(args, work) -> int:
-    """Start the plant without GUI, wait until its devices answer, run ``work(runtime)``."""
+ONLINE_WAIT_S = 15.0  # how long a headless run waits for its devices to answer
+
+
+async def run_headless(args, work, answers_needed=None) -> int:
+    """Start the plant without GUI, wait until its devices answer, run ``work(runtime, names)``.
+
+    ``answers_needed(runtime, name)`` says whether the work needs device ``name`` to answer (default: every one):
+    a device the work will skip anyway is not waited for (an M3IO that nobody serves stays silent, and in simple
+    mode it has nothing to back up)."""
     from app.runtime import Runtime
     from app.users import default_data_dir
 
@@ -97,10 +104,12 @@ async def run_headless(args, work) -> int:
     runtime = Runtime(plant, simulate=not args.no_sim, data_dir=args.data_dir or default_data_dir())
     await runtime.start()
     try:
-        print(_("waiting up to 15 s for {n} device(s) to answer ...").format(n=len(names)), flush=True)
+        awaited = [n for n in names if answers_needed is None or answers_needed(runtime, n)]
+        if awaited:
+            print(_("waiting up to 15 s for {n} device(s) to answer ...").format(n=len(awaited)), flush=True)
         loop = asyncio.get_running_loop()
-        end = loop.time() + 15
-        while loop.time() < end and any(runtime.store.devices[n].status != "online" for n in names):
+        end = loop.time() + ONLINE_WAIT_S
+        while loop.time() < end and any(runtime.store.devices[n].status != "online" for n in awaited):
             await asyncio.sleep(0.2)
         return await work(runtime, names)
     finally:
