@@ -276,6 +276,25 @@ def page_at(browser, url: str, width: int = 1440, height: int = 900):
     return page
 
 
+# counts the element updates the server pushes to a page and when the last one came
+_PUSHES_JS = """() => {
+  if (!window.__pushes) {
+    window.__pushes = {n: 0, at: performance.now()};
+    window.socket.on('update', () => { window.__pushes.n++; window.__pushes.at = performance.now(); });
+  }
+  return window.__pushes.n;
+}"""
+
+
+def settled(page, pushes: int = 2, quiet_ms: int = 1000, timeout_ms: int = 15_000) -> None:
+    """Wait until the server has pushed ``pushes`` more element updates to ``page`` (the first is the header's, right
+    after the page connects; then its timers refresh the live values, lists and counters it shows), or none for
+    ``quiet_ms`` (a page with nothing live refreshes only its header, every 2 s)."""
+    start = page.evaluate(_PUSHES_JS)
+    page.wait_for_function("([target, quiet]) => window.__pushes.n >= target || performance.now() - window.__pushes.at >= quiet",
+                           arg=[start + pushes, quiet_ms], timeout=timeout_ms)
+
+
 def click_until(button, appears, tries: int = 3, each_ms: int = 5_000) -> None:
     """Click ``button`` (a playwright locator) until ``appears`` is visible: a live table that draws its rows anew
     (a device that came back and was compared again) can take a click into the rows it replaces. It is clicked

@@ -4,7 +4,9 @@ A test waits on a condition (``eventually()`` in tests/webutil.py), never on a c
 remains are real delays: a time the device document or the design names (a watchdog, a lease, a
 status period) that has to pass so that the test can show that something did *not* happen, a pause a
 script plays as a person or a bus would, or the poll interval of a loop that waits on a condition with
-a bound. This script lists every ``asyncio.sleep``/``time.sleep`` call under tests/ with its kind:
+a bound. A browser test waits for what it asserts (playwright's ``wait_for``, ``expect``, ``wait_for_function``,
+``settled()`` in tests/webutil.py). This script lists every ``asyncio.sleep``/``time.sleep`` call and every
+playwright ``wait_for_timeout`` under tests/ with its kind:
 
 - ``poll``: inside a loop (a bounded wait on a condition, or a sender's period);
 - ``yield``: ``sleep(0)``, handing the event loop over once;
@@ -36,8 +38,11 @@ class Sleep:
 
 
 def _is_sleep(node: ast.Call) -> bool:
+    """``asyncio.sleep``, ``time.sleep``, or a playwright page's ``wait_for_timeout`` (whatever holds the page)."""
     func = node.func
-    return isinstance(func, ast.Attribute) and isinstance(func.value, ast.Name) and (func.value.id, func.attr) in SLEEPS
+    if not isinstance(func, ast.Attribute):
+        return False
+    return func.attr == "wait_for_timeout" or (isinstance(func.value, ast.Name) and (func.value.id, func.attr) in SLEEPS)
 
 
 def _reason(lines: list[str], lineno: int) -> str:

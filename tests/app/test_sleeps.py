@@ -18,6 +18,9 @@ def test_the_scan_tells_a_poll_from_a_delay(tmp_path, monkeypatch):
         "        await asyncio.sleep(0.1)\n"
         "    await asyncio.sleep(0.3)  # three status periods\n"
         "    time.sleep(1)\n"
+        "def g(page):\n"
+        "    page.wait_for_timeout(1500)\n"
+        "    page.wait_for_timeout(700)  # two refresh periods: a paused list must not move\n"
     )
     kinds = [(s.line, s.kind) for s in sleeps.scan(tmp_path / "t.py")]
-    assert kinds == [(3, "yield"), (5, "poll"), (6, "delay"), (7, "UNEXPLAINED")]
+    assert kinds == [(3, "yield"), (5, "poll"), (6, "delay"), (7, "UNEXPLAINED"), (9, "UNEXPLAINED"), (10, "delay")]

@@ -64,7 +64,7 @@ def test_blown_fuse_shown_and_cleared_after_reset(app_url, chromium, tmp_path):
         ssr1.get_by_text("replace fuse SI3 (10 A").wait_for()
         inside_viewport(page, page.get_by_test_id("all-off"))
         page.get_by_role("button", name="Repair").click()
-        page.wait_for_timeout(1_200)
+        page.wait_for_timeout(1_200)  # more than two 500 ms status telegrams (7.2.2) with Si = 0: the latch holds
         assert ssr1.get_by_text("fuse: blown").is_visible()  # the module keeps Si = 0 until its 24 V are cut
         page.get_by_test_id("sim-power-cycle").click()
         ssr1.get_by_text("fuse: ok").wait_for(timeout=15_000)

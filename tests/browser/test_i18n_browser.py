@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from conftest import shot, wait_devices_online
 from test_i18n_pages import english_patterns
-from webutil import demo_plant_text, free_port, running_app
+from webutil import demo_plant_text, free_port, running_app, settled
 
 SIZES = [(1440, 900), (768, 1024)]
 SHOWN = ["door-1", "gate-1", "lift", "lift-1", "barrier-in", "barrier-out-1"]
@@ -138,7 +138,7 @@ def test_the_bus_tools_in_german(app, chromium, width: int, height: int):
         for path, text in BUS_TOOLS:
             page.goto(f"{app}{path}")
             page.get_by_text(text).first.wait_for(timeout=15_000)
-            page.wait_for_timeout(1500)  # the first refresh of the lists and counters
+            settled(page)  # the first refresh of the lists and counters
             assert english_in([page.evaluate(OWN_TEXTS_JS)]) == [], path
             assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth + 1"), path
     finally:

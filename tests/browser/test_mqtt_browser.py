@@ -9,7 +9,7 @@ import pytest
 from test_mqtt_helpers import running_broker
 from test_mqtt_site import _devices, _spawn, _until
 from webutil import demo_plant_text, free_port, stop_app, wait_http
-from conftest import shot
+from conftest import TEST_SHOTS, shot
 
 pytestmark = pytest.mark.timeout(90)
 
@@ -41,7 +41,8 @@ def test_view_page_shows_site_tiles_without_controls(tmp_path):
                         assert page.locator("[data-site-tile]").count() == 11
                         assert page.locator("button, input, textarea, select").count() == 0  # read-only by construction
                         assert "broker connected" in page.locator("[data-testid=broker-state]").inner_text()
-                        page.wait_for_timeout(1200)  # one refresh of the tiles, for the picture
+                        if TEST_SHOTS:
+                            page.wait_for_timeout(1200)  # one refresh of the tiles, for the picture
                         shot(page, str((SHOTS or tmp_path) / f"site-view-{width}x{height}.png"), full_page=False)
                         page.close()
                 finally:

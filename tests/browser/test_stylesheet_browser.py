@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from webutil import demo_plant_text, free_port, running_app
+from webutil import demo_plant_text, free_port, running_app, settled
 
 from tools.stylesheet import STYLESHEET, build, class_tokens, compile_css, utility_classes
 
@@ -27,7 +27,7 @@ def test_every_tailwind_class_on_the_pages_has_its_rule_and_no_compiler_runs(chr
         page = chromium.new_page(viewport={"width": 1440, "height": 900})
         for path in PAGES:
             page.goto(url + path)
-            page.wait_for_timeout(1200)  # live values, charts and their classes in
+            settled(page)  # live values, charts and their classes in
             seen |= set(page.evaluate("() => [...document.querySelectorAll('[class]')].flatMap(e => [...e.classList])"))
             scripts = page.evaluate("() => [...document.scripts].map(s => s.src)")
             assert not any("tailwindcss" in src for src in scripts), path

@@ -52,7 +52,7 @@ class Beats:
     def over(self, seconds: float) -> int:
         """Beats sent within the next ``seconds``."""
         start = time.monotonic()
-        self.page.wait_for_timeout(seconds * 1000)
+        self.page.wait_for_timeout(seconds * 1000)  # the beats are counted over this stretch of real time
         return self.count(start)
 
     def wait_silent(self, timeout: float) -> float:
@@ -72,7 +72,7 @@ class Beats:
             self.page.wait_for_timeout(50)
 
     def wait_until(self, moment: float) -> None:
-        self.page.wait_for_timeout(max(0.0, moment - time.monotonic()) * 1000)
+        self.page.wait_for_timeout(max(0.0, moment - time.monotonic()) * 1000)  # a stated window (BEAT_WINDOW_S) has to pass
 
 
 def open_page(context, url: str):
