@@ -8,6 +8,7 @@ with the reason it is allowed.
 from __future__ import annotations
 
 import ast
+import functools
 import importlib
 from pathlib import Path
 
@@ -25,12 +26,23 @@ ENTRY_POINT_IMPORTS = {"app/cli.py": "server"}
 PENDING: set[tuple[str, str]] = set()
 
 
+@functools.cache
+def _parse(source: str) -> ast.Module:
+    """``ast.parse(source)``, once per text: the tests here read the same files again and again (read only)."""
+    return ast.parse(source)
+
+
 def imports_of(source: str, module: str) -> list[tuple[str, bool]]:
     """``(imported module, inside a function)`` for every import statement of ``source``.
 
     :param module: the dotted name of the module the source belongs to (resolves relative imports)
     """
-    tree = ast.parse(source)
+    return list(_imports_of(source, module))
+
+
+@functools.cache
+def _imports_of(source: str, module: str) -> tuple[tuple[str, bool], ...]:
+    tree = _parse(source)
     package = module.split(".")[:-1]
     found: list[tuple[str, bool]] = []
 
@@ -51,7 +63,7 @@ def imports_of(source: str, module: str) -> list[tuple[str, bool]]:
             visit(child, nested)
 
     visit(tree, False)
-    return found
+    return tuple(found)
 
 
 def layer_of(name: str) -> str | None:
@@ -133,7 +145,7 @@ def import_graph(files: list[Path], root: Path = ROOT) -> dict[str, set[str]]:
     for module, path in modules.items():
         package = module.split(".") if path.name == "__init__.py" else module.split(".")[:-1]
         targets = set()
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for node in ast.walk(_parse(path.read_text(encoding="utf-8"))):
             names: list[str] = []
             if isinstance(node, ast.Import):
                 names = [alias.name for alias in node.names]
@@ -274,7 +286,7 @@ def _tokens(text: str) -> set[str]:
 def device_type_names_in(source: str) -> list[tuple[int, str]]:
     """``(line, text)`` of every identifier, attribute, import or string (docstrings aside) that names a device type."""
     found = []
-    tree = ast.parse(source)
+    tree = _parse(source)
     docs = {id(n.value) for n in ast.walk(tree) if isinstance(n, ast.Expr) and isinstance(n.value, ast.Constant)}
     for node in ast.walk(tree):
         texts: list[str] = []
@@ -302,8 +314,10 @@ def device_type_names_in(source: str) -> list[tuple[int, str]]:
 
 def write_flags_in(source: str) -> list[int]:
     """Lines of calls of run_command / command / checked that pass ``write=`` (the caller deciding the kind)."""
-    lines = []
-    for node in ast.walk(ast.parse(source)):
+    lines: list[int] = []
+    if "write=" not in source:  # no call in it passes write= (most files: none is parsed for nothing)
+        return lines
+    for node in ast.walk(_parse(source)):
         if not isinstance(node, ast.Call):
             continue
         func = node.func
@@ -384,7 +398,7 @@ STORE_BYPASS = ("adapters", "twins", "info")
 
 def store_bypasses_in(source: str) -> list[str]:
     """``.adapters``, ``.twins`` and ``.info`` read in ``source`` (``log.info(...)`` is a call, not a read)."""
-    tree = ast.parse(source)
+    tree = _parse(source)
     called = {id(node.func) for node in ast.walk(tree) if isinstance(node, ast.Call)}
     return [f"{node.attr} (line {node.lineno})" for node in ast.walk(tree)
             if isinstance(node, ast.Attribute) and node.attr in STORE_BYPASS and id(node) not in called]
@@ -443,7 +457,7 @@ def long_functions_in(source: str, limit: int = MAX_FUNCTION_LINES) -> dict[str,
             else:
                 visit(child, prefix)
 
-    visit(ast.parse(source), "")
+    visit(_parse(source), "")
     return found
 
 
@@ -497,7 +511,7 @@ def test_every_part_of_the_worker_is_small():
 def instance_attributes(source: str) -> dict[str, int]:
     """``{class name: how many attributes its methods set on self}`` of every class in ``source``."""
     counts = {}
-    for node in ast.walk(ast.parse(source)):
+    for node in ast.walk(_parse(source)):
         if isinstance(node, ast.ClassDef):
             counts[node.name] = len({n.attr for n in ast.walk(node) if isinstance(n, ast.Attribute)
                                      and isinstance(n.ctx, ast.Store) and getattr(n.value, "id", "") == "self"})
