@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 from dataclasses import dataclass
@@ -113,7 +114,7 @@ class UserStore:
         """The user when the password matches, else None (timing of a miss stays the same)."""
         user = self.users.get(name)
         try:
-            _hasher.verify(user.password_hash if user else _DUMMY, password)
+            _hasher.verify(user.password_hash if user else _dummy_hash(), password)
         except (VerificationError, InvalidHashError):
             return None
         return user
@@ -122,7 +123,12 @@ class UserStore:
         return any(u.role == "engineer" for u in self.users.values())
 
 
-_DUMMY = _hasher.hash("not a password of anyone")
+@functools.cache
+def _dummy_hash() -> str:
+    """What a name nobody has is checked against, so that a miss takes as long as a wrong password. Made at the
+    first miss, not at import: a hash costs 0.2-0.7 s of CPU, and every process that starts a plant (a command line
+    run, the GUI) imports this module, most of them never checking a password."""
+    return _hasher.hash("not a password of anyone")
 
 
 def is_loopback(host: str) -> bool:

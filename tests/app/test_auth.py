@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import io
 from collections.abc import AsyncIterator
+from pathlib import Path
 
 import pytest
 from conftest import modbus_plant, wait_for
@@ -17,6 +18,21 @@ from app.runtime import Runtime
 from app.users import UserError, UserStore, is_loopback
 
 pytestmark = pytest.mark.timeout(40)
+
+
+def test_a_name_nobody_has_is_checked_against_a_hash_made_at_the_first_miss(tmp_path):
+    """A miss takes as long as a wrong password (a real argon2 check), but the hash it is checked against is not made
+    when the module is imported: every process that starts a plant imports it, most never check a password."""
+    import subprocess
+    import sys
+
+    from app import users
+
+    fresh = subprocess.run([sys.executable, "-c", "import app.runtime, app.users as u; print(u._dummy_hash.cache_info().currsize)"],
+                           capture_output=True, text=True, check=True, cwd=Path(__file__).resolve().parents[2])
+    assert fresh.stdout.strip() == "0"
+    assert UserStore(tmp_path / "users.toml").verify("nobody", "x" * 8) is None
+    assert users._dummy_hash().startswith("$argon2id$")
 
 
 def test_accounts_store_salted_hashes(tmp_path):
