@@ -23,7 +23,7 @@ import time
 from dataclasses import dataclass, field
 
 from app.i18n import N_
-from app.message import Message
+from app.message import Message, message_of
 from app.modbus_line import LineError, ModbusLine
 from devices.errors import CommissionError
 from devices.params import Param
@@ -364,7 +364,7 @@ class ModbusPoll:
             else:
                 self.silent = 0  # the unit answered (an exception, a bad CRC): no reason to wait longer
                 self.crc_errors += isinstance(exc, LineCrcError)
-            result = PollResult(time.time(), self.last.values if self.last else [], error=str(exc))
+            result = PollResult(time.time(), self.last.values if self.last else [], error=message_of(exc))
         except CommissionError as exc:  # a refused request is shown, never ends the page
             self.errors += 1
             log.debug("%s poll: %s", self.bus, exc)
