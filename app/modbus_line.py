@@ -5,8 +5,9 @@ which serialises access, counts results per device, classifies failures (timeout
 CRC/framing, an answer from another unit address, Modbus exception, port lost) and keeps a
 bounded transaction log.
 
-What it diagnoses is a :class:`~app.message.Message` (docs/i18n.md): the errors it raises, the bus's and the
-transaction's error, English where they are stored and recorded, in the reader's language where a page shows them.
+What it says is a :class:`~app.message.Message` (docs/i18n.md): its diagnoses (the errors it raises, the bus's and the
+transaction's error) and the words of a request (``read holding 3000+9``, :func:`read_words`), English where they are
+stored, recorded and parsed (:func:`request_target`), in the reader's language where a page shows them.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from app.state import BusState, Counters, DeviceState
 from devices.transport import LineClosed, LineCrcError, LineError, LineException, LineTimeout
 
 __all__ = ["LineClosed", "LineCrcError", "LineError", "LineException", "LineTimeout", "ModbusLine", "Transaction",
-           "request_target", "stale_threshold"]
+           "read_words", "request_target", "stale_threshold", "write_words"]
 
 log = logging.getLogger(__name__)
 
@@ -58,7 +59,20 @@ def stale_threshold(cycle_s: float | None) -> float:
     return STALE_MIN_S if cycle_s is None else max(STALE_MIN_S, STALE_CYCLES * cycle_s)
 
 
-# "read holding 3000+12", "write holding 3006=65476", "scan holding 103", "broadcast write holding 2000=8"
+def read_words(space: str, address: int, count: int) -> Message:
+    """The words of a read of ``count`` registers of ``space`` (holding, input) from ``address``: read holding 3000+9."""
+    if space == "input":
+        return Message(N_("read input {address}+{count}"), address=address, count=count)
+    return Message(N_("read holding {address}+{count}"), address=address, count=count)
+
+
+def write_words(address: int, value: int) -> Message:
+    """The words of a write of ``value`` to holding register ``address``: write holding 3006=65476."""
+    return Message(N_("write holding {address}={value}"), address=address, value=value)
+
+
+# "read holding 3000+12", "write holding 3006=65476", "scan holding 103", "broadcast write holding 2000=8": the English
+# a request is stored as (a Message's str), whatever language a page shows it in
 _TARGET = re.compile(r"\b(holding|input) (\d+)(?:\+\d+|=(\d+))?")
 
 
@@ -362,21 +376,21 @@ class ModbusLine(LineBase):
 
     async def read_holding(self, unit: int, address: int, count: int, counters: Counters | None = None) -> list[int]:
         rr = await self.transact(
-            unit, f"read holding {address}+{count}", counters,
+            unit, read_words("holding", address, count), counters,
             lambda c: c.read_holding_registers(address, count=count, device_id=unit),
         )
         return list(rr.registers)
 
     async def read_input(self, unit: int, address: int, count: int, counters: Counters | None = None) -> list[int]:
         rr = await self.transact(
-            unit, f"read input {address}+{count}", counters,
+            unit, read_words("input", address, count), counters,
             lambda c: c.read_input_registers(address, count=count, device_id=unit),
         )
         return list(rr.registers)
 
     async def write_register(self, unit: int, address: int, value: int, counters: Counters | None = None) -> None:
         await self.transact(
-            unit, f"write holding {address}={value}", counters,
+            unit, write_words(address, value), counters,
             lambda c: c.write_register(address, value, device_id=unit),
             retries=0,  # a write is not repeated blindly; the caller reads back instead
         )

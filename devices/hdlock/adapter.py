@@ -431,7 +431,8 @@ class HdLockAdapter(HdLockBackup):
             try:
                 for register, value in writes:
                     await self.line.transact(
-                        unit, f"broadcast write holding {register}={value}", self.state.counters,
+                        unit, Message(N_("broadcast write holding {address}={value}"), address=register, value=value),
+                        self.state.counters,
                         lambda c, r=register, v=value: send_quietly(c, r, v), retries=0,
                     )
             except LineError as exc:
@@ -570,7 +571,7 @@ async def discover(line: ModbusTransport, first: int = 1, last: int = 247, progr
     for n, unit in enumerate(range(first, last + 1), 1):
         try:
             reg = (await line.transact(
-                unit, "scan holding 103", None,
+                unit, Message(N_("scan holding {address}"), address=103), None,
                 lambda c, u=unit: c.read_holding_registers(103, count=1, device_id=u), retries=0,
             )).registers[0]
             serial = await line.read_input(unit, 104, 2)
