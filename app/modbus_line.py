@@ -4,6 +4,10 @@ Every transaction of every device on the line goes through :meth:`ModbusLine.tra
 which serialises access, counts results per device, classifies failures (timeout,
 CRC/framing, an answer from another unit address, Modbus exception, port lost) and keeps a
 bounded transaction log.
+
+What it says is a :class:`~app.message.Message` (docs/i18n.md): its diagnoses (the errors it raises, the bus's and the
+transaction's error) and the words of a request (``read holding 3000+9``, :func:`read_words`), English where they are
+stored, recorded and parsed (:func:`request_target`), in the reader's language where a page shows them.
 """
 
 from __future__ import annotations
@@ -19,24 +23,26 @@ from pymodbus.client import AsyncModbusSerialClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 from pymodbus.framer import FramerRTU, FramerType
 
+from app.i18n import N_
 from app.line_base import LineBase, Transaction
+from app.message import Message
 from app.state import BusState, Counters, DeviceState
 from devices.transport import LineClosed, LineCrcError, LineError, LineException, LineTimeout
 
 __all__ = ["LineClosed", "LineCrcError", "LineError", "LineException", "LineTimeout", "ModbusLine", "Transaction",
-           "request_target", "stale_threshold"]
+           "read_words", "request_target", "stale_threshold", "write_words"]
 
 log = logging.getLogger(__name__)
 
-EXCEPTION_NAMES = {
-    1: "illegal function",
-    2: "illegal data address",
-    3: "illegal data value",
-    4: "device failure",
-    5: "acknowledge",
-    6: "device busy",
-    10: "gateway path unavailable",
-    11: "gateway target did not respond",
+EXCEPTION_NAMES = {  # the Modbus application protocol's names of the exception codes (section 7)
+    1: N_("illegal function"),
+    2: N_("illegal data address"),
+    3: N_("illegal data value"),
+    4: N_("device failure"),
+    5: N_("acknowledge"),
+    6: N_("device busy"),
+    10: N_("gateway path unavailable"),
+    11: N_("gateway target did not respond"),
 }
 
 
@@ -53,7 +59,20 @@ def stale_threshold(cycle_s: float | None) -> float:
     return STALE_MIN_S if cycle_s is None else max(STALE_MIN_S, STALE_CYCLES * cycle_s)
 
 
-# "read holding 3000+12", "write holding 3006=65476", "scan holding 103", "broadcast write holding 2000=8"
+def read_words(space: str, address: int, count: int) -> Message:
+    """The words of a read of ``count`` registers of ``space`` (holding, input) from ``address``: read holding 3000+9."""
+    if space == "input":
+        return Message(N_("read input {address}+{count}"), address=address, count=count)
+    return Message(N_("read holding {address}+{count}"), address=address, count=count)
+
+
+def write_words(address: int, value: int) -> Message:
+    """The words of a write of ``value`` to holding register ``address``: write holding 3006=65476."""
+    return Message(N_("write holding {address}={value}"), address=address, value=value)
+
+
+# "read holding 3000+12", "write holding 3006=65476", "scan holding 103", "broadcast write holding 2000=8": the English
+# a request is stored as (a Message's str), whatever language a page shows it in
 _TARGET = re.compile(r"\b(holding|input) (\d+)(?:\+\d+|=(\d+))?")
 
 
@@ -156,14 +175,14 @@ class ModbusLine(LineBase):
             ok = await self.client.connect()
         except (ModbusException, OSError, ValueError) as exc:  # pyserial's SerialException is an OSError; bad options
             ok = False
-            self.state.last_error = f"cannot open {o['port']}: {exc}"
+            self.state.last_error = Message(N_("cannot open {port}: {error}"), port=o["port"], error=str(exc))
         if ok:
             if not self.state.connected:
                 self.state.reconnects += 1
             self._opened()
             return True
-        self._open_failed(self.state.last_error or f"cannot open {o['port']}: check the cable/adapter and the port name",
-                          hold=False)
+        self._open_failed(self.state.last_error or Message(N_("cannot open {port}: check the cable/adapter and the port name"),
+                                                           port=o["port"]), hold=False)
         self.client.close()
         self.client = None
         return False
@@ -197,7 +216,7 @@ class ModbusLine(LineBase):
     async def _once(self, unit: int, what: str, counters: Counters | None, call):
         async with self.lock:
             if not await self.connect():
-                raise LineClosed(f"line {self.name}: {self.state.last_error}")
+                raise LineClosed(Message(N_("line {name}: {error}"), name=self.name, error=self.state.last_error))
             assert self.client is not None
             self._tx.clear()
             self._rx.clear()
@@ -209,42 +228,43 @@ class ModbusLine(LineBase):
             try:
                 response = await call(self.client)
             except ConnectionException as exc:
-                error = f"port lost: {exc}"
+                error = Message(N_("port lost: {error}"), error=str(exc))
                 self.close()
                 self.state.last_error = error
-                failure: LineError = LineClosed(f"line {self.name}: {error}")
+                failure: LineError = LineClosed(Message(N_("line {name}: {error}"), name=self.name, error=error))
             except (ModbusIOException, asyncio.TimeoutError) as exc:
                 found = _RECEIVED_UNIT.search(str(exc))
                 other = int(found.group(1)) if found else foreign_unit(b"".join(self._rx), unit)
                 if other is not None and other != unit:
-                    error = f"answer from unit {other}: address conflict on the line?"
-                    failure = LineError(f"unit {unit}: {error}")
+                    error = Message(N_("answer from unit {other}: address conflict on the line?"), other=other)
+                    failure = LineError(_unit_said(unit, error))
                     self.address_conflicts[(unit, other)] += 1
                     self.conflicts_by_unit[unit] += 1
                     self.state.address_conflicts = sum(self.conflicts_by_unit.values())
                     if counters is not None:
                         counters.address_conflicts += 1
                 elif self._rx:
-                    error = "CRC or framing error in the answer"
-                    failure = LineCrcError(f"unit {unit}: {error}")
+                    error = Message(N_("CRC or framing error in the answer"))
+                    failure = LineCrcError(_unit_said(unit, error))
                     if counters:
                         counters.crc_errors += 1
                 else:
-                    error = f"no answer within {self.options['timeout']} s"
-                    failure = LineTimeout(f"unit {unit}: {error}")
+                    error = Message(N_("no answer within {timeout} s"), timeout=self.options["timeout"])
+                    failure = LineTimeout(_unit_said(unit, error))
                     if counters:
                         counters.timeouts += 1
                 log.debug("%s unit %s %s: %s", self.name, unit, what, exc)
             except ModbusException as exc:
-                error = f"Modbus error: {exc}"
-                failure = LineError(f"unit {unit}: {error}")
+                error = Message(N_("Modbus error: {error}"), error=str(exc))
+                failure = LineError(_unit_said(unit, error))
                 if counters:
                     counters.exceptions += 1
             rtt = (time.perf_counter() - start) * 1000
             if response is not None and response.isError():
                 code = response.exception_code
-                error = f"exception {code:#04x} ({EXCEPTION_NAMES.get(code, 'unknown')})"
-                failure = LineException(f"unit {unit}: {what}: {error}", code)
+                name = Message(EXCEPTION_NAMES.get(code, N_("unknown")))
+                error = Message(N_("exception {code:#04x} ({name})"), code=code, name=name)
+                failure = LineException(Message(N_("unit {unit}: {request}: {error}"), unit=unit, request=what, error=error), code)
                 if counters:
                     counters.exceptions += 1
                     counters.responses += 1
@@ -356,24 +376,29 @@ class ModbusLine(LineBase):
 
     async def read_holding(self, unit: int, address: int, count: int, counters: Counters | None = None) -> list[int]:
         rr = await self.transact(
-            unit, f"read holding {address}+{count}", counters,
+            unit, read_words("holding", address, count), counters,
             lambda c: c.read_holding_registers(address, count=count, device_id=unit),
         )
         return list(rr.registers)
 
     async def read_input(self, unit: int, address: int, count: int, counters: Counters | None = None) -> list[int]:
         rr = await self.transact(
-            unit, f"read input {address}+{count}", counters,
+            unit, read_words("input", address, count), counters,
             lambda c: c.read_input_registers(address, count=count, device_id=unit),
         )
         return list(rr.registers)
 
     async def write_register(self, unit: int, address: int, value: int, counters: Counters | None = None) -> None:
         await self.transact(
-            unit, f"write holding {address}={value}", counters,
+            unit, write_words(address, value), counters,
             lambda c: c.write_register(address, value, device_id=unit),
             retries=0,  # a write is not repeated blindly; the caller reads back instead
         )
+
+
+def _unit_said(unit: int, error: Message) -> Message:
+    """A diagnosis of a transaction with the unit asked: ``unit 3: no answer within 0.5 s``."""
+    return Message(N_("unit {unit}: {error}"), unit=unit, error=error)
 
 
 def _describe(response) -> str:

@@ -23,8 +23,8 @@ import time
 from dataclasses import dataclass, field
 
 from app.i18n import N_
-from app.message import Message
-from app.modbus_line import LineError, ModbusLine
+from app.message import Message, message_of
+from app.modbus_line import LineError, ModbusLine, write_words
 from devices.errors import CommissionError
 from devices.params import Param
 from devices.registry import DEVICE_TYPES
@@ -282,14 +282,14 @@ async def read_once(line: ModbusLine, spec: PollSpec) -> list[int]:
     """One read through the line owner; raises :class:`LineError` on failure."""
     spec.check()
     unit, a, n = spec.unit, spec.address, spec.count
-    calls = {
-        1: ("coils", lambda c: c.read_coils(a, count=n, device_id=unit)),
-        2: ("discrete inputs", lambda c: c.read_discrete_inputs(a, count=n, device_id=unit)),
-        3: ("holding", lambda c: c.read_holding_registers(a, count=n, device_id=unit)),
-        4: ("input", lambda c: c.read_input_registers(a, count=n, device_id=unit)),
+    calls = {  # the request's words in the line's log: the English stored, the monitor's language shown
+        1: (N_("poll coils {address}+{count}"), lambda c: c.read_coils(a, count=n, device_id=unit)),
+        2: (N_("poll discrete inputs {address}+{count}"), lambda c: c.read_discrete_inputs(a, count=n, device_id=unit)),
+        3: (N_("poll holding {address}+{count}"), lambda c: c.read_holding_registers(a, count=n, device_id=unit)),
+        4: (N_("poll input {address}+{count}"), lambda c: c.read_input_registers(a, count=n, device_id=unit)),
     }
-    what, call = calls[spec.function]
-    response = await line.tool_request(unit, f"poll {what} {a}+{n}", call)
+    words, call = calls[spec.function]
+    response = await line.tool_request(unit, Message(words, address=a, count=n), call)
     if spec.function in (1, 2):
         return [int(bool(b)) for b in list(response.bits)[:n]]
     return [int(v) & 0xFFFF for v in response.registers]
@@ -364,7 +364,7 @@ class ModbusPoll:
             else:
                 self.silent = 0  # the unit answered (an exception, a bad CRC): no reason to wait longer
                 self.crc_errors += isinstance(exc, LineCrcError)
-            result = PollResult(time.time(), self.last.values if self.last else [], error=str(exc))
+            result = PollResult(time.time(), self.last.values if self.last else [], error=message_of(exc))
         except CommissionError as exc:  # a refused request is shown, never ends the page
             self.errors += 1
             log.debug("%s poll: %s", self.bus, exc)
@@ -409,9 +409,10 @@ class ModbusPoll:
         if confirm and not confirmed:
             raise NeedsConfirmation(confirm)
         if fc == 6:
-            words, call = f"write holding {address}={raws[0]}", lambda c: c.write_register(address, raws[0], device_id=unit)
+            words, call = write_words(address, raws[0]), lambda c: c.write_register(address, raws[0], device_id=unit)
         else:
-            words, call = f"write holding {address}+{len(raws)}", lambda c: c.write_registers(address, raws, device_id=unit)
+            words, call = (Message(N_("write holding {address}+{count}"), address=address, count=len(raws)),
+                           lambda c: c.write_registers(address, raws, device_id=unit))
         return await self._send(unit, describe, words, call, user=user, role=role, parameter=parameter, new=raws)
 
     async def _send(self, unit: int, describe: str, words: str, call, *, user: str, role: str, parameter: str, new) -> str:
@@ -458,9 +459,11 @@ class ModbusPoll:
             what = verdict.name or Message(N_("unit {unit} coil {address}"), unit=unit, address=address)
             raise NeedsConfirmation(write_question(Message(N_("This writes {what}"), what=what), verdict))
         if fc == 5:
-            words, call = f"write coil {address}={int(states[0])}", lambda c: c.write_coil(address, states[0], device_id=unit)
+            words, call = (Message(N_("write coil {address}={value}"), address=address, value=int(states[0])),
+                           lambda c: c.write_coil(address, states[0], device_id=unit))
         else:
-            words, call = f"write coils {address}+{len(states)}", lambda c: c.write_coils(address, states, device_id=unit)
+            words, call = (Message(N_("write coils {address}+{count}"), address=address, count=len(states)),
+                           lambda c: c.write_coils(address, states, device_id=unit))
         return await self._send(unit, describe, words, call, user=user, role=role,
                                 parameter=verdict.name or f"unit {unit} coil {address}", new=[int(b) for b in states])
 

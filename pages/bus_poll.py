@@ -308,7 +308,7 @@ class WindowCard:
             parts.append(_("no answer {n} times in a row: tries every {interval} s").format(
                 n=window.silent, interval=lang.number(window.interval_s(spec), 1, group=False)))
         self.status.set_text(" · ".join(parts))
-        error = last.error if last is not None else ""
+        error = said(last.error, lang) if last is not None else ""  # the line's diagnosis (app/modbus_line.py)
         self.error.set_text(error)
         self.error.set_visibility(bool(error))
 
@@ -437,7 +437,7 @@ class WriteCard:
             notify_error(said(exc, view.lang))
             return
         except ACTION_ERRORS as exc:  # the line's error, shown
-            notify_error(view.lang.gettext("write failed: {error}").format(error=exc))
+            notify_error(view.lang.gettext("write failed: {error}").format(error=said(exc, view.lang)))
             return
         ui.notify(view.lang.gettext("written"), type="positive")
 

@@ -176,7 +176,7 @@ class WriteGuard:
             reason = self.read_only
         elif status in ("offline", "unknown"):
             _ = self.lang.gettext
-            reason = ((_("the device does not answer: {error}").format(error=self.state.last_error) if self.state.last_error
+            reason = ((_("the device does not answer: {error}").format(error=said(self.state.last_error, self.lang)) if self.state.last_error
                        else _("the device does not answer"))
                       if status == "offline" else _("waiting for the device's first answer"))
         else:

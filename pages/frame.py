@@ -15,6 +15,7 @@ from nicegui import ui
 from app import i18n
 from app import runtime as rt
 from app.i18n import N_, Lang
+from app.message import said
 from devices.errors import CommissionError
 from pages.session import current_user
 
@@ -268,7 +269,7 @@ class HeaderStatus:
             p99=lang.number(loop["p99_ms"]), worst=lang.number(loop["worst_ms"]), stalls=lang.number(loop["stalls"])))
         for bus in runtime.store.buses.values():
             icon, link = self.bus_chips[bus.name]
-            words = _("connected") if bus.connected else bus.last_error or _("not connected")
+            words = _("connected") if bus.connected else said(bus.last_error, lang) or _("not connected")
             if self.bus_shown.get(bus.name) == (bus.connected, words):
                 continue  # unchanged: nothing goes to the browser
             self.bus_shown[bus.name] = (bus.connected, words)

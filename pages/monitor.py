@@ -270,7 +270,7 @@ class LineMonitor:
             "decoded": decoded,
             "rtt": "-" if t.rtt_ms is None else f"{t.rtt_ms:.1f}",  # the CSV's number; the table shows rtt_text
             "rtt_text": "-" if t.rtt_ms is None else self.lang.number(t.rtt_ms, 1, group=False),
-            "error": t.error,
+            "error": said(t.error, self.lang),  # the line's diagnosis (app/modbus_line.py) in the page's language
         }
         if len(made) > 4 * SHOWN:  # the log's ring buffer dropped the oldest: forget rows no longer listed
             live = {id(x) for x in self.bus_state.transactions}

@@ -11,6 +11,7 @@ from app import i18n
 from app import runtime as rt
 from app.can_bus import CanBusState
 from app.i18n import english, N_, Lang
+from app.message import said
 from app.state import DeviceState
 from devices.registry import DEVICE_TYPES
 from pages.frame import fmt_age, frame, set_status_badge, status_text
@@ -240,7 +241,7 @@ class DeviceTile:
         note = quality_note(quality, tile["age"], lang) if marked != "good" else ""
         if self._changed("note", note) and (note or self.quality_note is not None):
             self._element("quality_note", lambda: ui.label().classes("q-age")).set_text(note)
-        error = s.last_error if status != "online" else ""
+        error = said(s.last_error, lang) if status != "online" else ""  # a Message of the adapter or the line
         if self._changed("error", error) and (error or self.error is not None):
             self._element("error", lambda: ui.label().classes("text-caption text-negative")).set_text(error)
         if self._changed("replaced", replaced) and (replaced or self.replaced is not None):
@@ -546,7 +547,7 @@ def _bus_section(runtime, bus, followers: Followers, ticks: list, tiles: dict | 
     shown: list = [None]
 
     def show_conn(label=conn, state=bus_state) -> None:
-        text = _("connected") if state.connected else _("not connected: {error}").format(error=state.last_error or _("opening..."))
+        text = _("connected") if state.connected else _("not connected: {error}").format(error=said(state.last_error, lang) or _("opening..."))
         can = isinstance(state, CanBusState)
         if state.connected and can:
             text += " · " + _("{state} · {rx} frames in, {errors} error frames").format(

@@ -13,7 +13,7 @@ from devices import errors
 from devices.hdlock import STATUS_FRAME_BOLT, codec
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
 from devices.live import DeviceState
-from devices.message import Message, N_, Word
+from devices.message import Message, N_, Word, message_of
 from devices.params import Accepted, Param, ParamError, backup_entry
 from devices.transport import LineCrcError, LineError, LineException, LineTimeout, ModbusTransport
 
@@ -215,7 +215,8 @@ class HdLockBackup(BackupDefaults):
         await self.poll()
         missing = [p.label or p.name for p in PARAMS if (self.state.read_time(p) or 0) < started]
         if missing:
-            raise CommandError(f"could not read {len(missing)} parameters (first: {missing[0]}): {self.state.last_error}")
+            raise CommandError(Message(N_("could not read {n} parameters (first: {first}): {error}"), n=len(missing),
+                                       first=missing[0], error=self.state.last_error))
         if progress:
             progress(1.0)
         return [backup_entry(p, self.state.raw(p)) for p in PARAMS]
@@ -273,10 +274,10 @@ class HdLockAdapter(HdLockBackup):
         except LineError as exc:
             self.read_settings_next()
             self._fails += 1
-            if self._fails >= 2 or self.state.online is None:
-                self.state.mark_offline(f"{exc}")
+            if self._fails >= 2 or self.state.online is None:  # the line's diagnosis (a Message the pages word)
+                self.state.mark_offline(message_of(exc))
             else:
-                self.state.error(str(exc))
+                self.state.error(message_of(exc))
             return
         if self._fails:
             self.state.event("info", f"answering again at address {self.address}")
@@ -304,7 +305,7 @@ class HdLockAdapter(HdLockBackup):
             back = (await self.line.read_holding(self.address, param.address, 1, self.state.counters))[0]
         except LineError as exc:
             self.state.counters.write_errors += 1
-            raise CommandError(f"writing {param.name} failed: {exc}") from None
+            raise CommandError(Message(N_("writing {name} failed: {error}"), name=param.name, error=message_of(exc))) from None
         self.state.update_registers(HOLDING, param.address, [back])
         if back != raw:
             self.state.counters.write_errors += 1
@@ -329,7 +330,8 @@ class HdLockAdapter(HdLockBackup):
             self.read_settings_next()
         except LineError as exc:
             self.state.counters.write_errors += 1
-            raise CommandError(f"{command.name.replace('_', '-').title()} failed: {exc}") from None
+            raise CommandError(Message(N_("{command} failed: {error}"), command=command.name.replace("_", "-").title(),
+                                       error=message_of(exc))) from None
 
     async def save_settings(self) -> None:
         """Command 1 (section 4.1): holding registers to non-volatile memory."""
@@ -376,7 +378,8 @@ class HdLockAdapter(HdLockBackup):
                     await self.line.write_register(old, register, value, self.state.counters)
             except LineError as exc:
                 self.state.counters.write_errors += 1
-                raise CommandError(f"Set Modbus Address: writing the parameters failed: {exc}") from None
+                raise CommandError(Message(N_("Set Modbus Address: writing the parameters failed: {error}"),
+                                           error=message_of(exc))) from None
             answered = await self._write_command(old, *writes[-1])
             await asyncio.sleep(codec.ADDRESS_SETTLE_S)
             found = await self._probe(new_address)
@@ -428,12 +431,13 @@ class HdLockAdapter(HdLockBackup):
             try:
                 for register, value in writes:
                     await self.line.transact(
-                        unit, f"broadcast write holding {register}={value}", self.state.counters,
+                        unit, Message(N_("broadcast write holding {address}={value}"), address=register, value=value),
+                        self.state.counters,
                         lambda c, r=register, v=value: send_quietly(c, r, v), retries=0,
                     )
             except LineError as exc:
                 self.state.counters.write_errors += 1
-                raise CommandError(f"broadcast Set Modbus Address failed: {exc}") from None
+                raise CommandError(Message(N_("broadcast Set Modbus Address failed: {error}"), error=message_of(exc))) from None
             await asyncio.sleep(max(0.0, codec.ADDRESS_SETTLE_S - codec.BROADCAST_TURNAROUND_S))
             found = await self._probe(new_address)
             moved = [name for address, name in sorted(known.items()) if await self._probe(address) is None]
@@ -478,10 +482,10 @@ class HdLockAdapter(HdLockBackup):
             return None
         except LineException as exc:
             self.state.counters.write_errors += 1
-            raise CommandError(f"the lock refused Set Modbus Address: {exc}") from None
+            raise CommandError(Message(N_("the lock refused Set Modbus Address: {error}"), error=message_of(exc))) from None
         except LineError as exc:
             self.state.counters.write_errors += 1
-            raise CommandError(f"Set Modbus Address failed: {exc}") from None
+            raise CommandError(Message(N_("Set Modbus Address failed: {error}"), error=message_of(exc))) from None
         self.state.counters.responses += 1
         return True
 
@@ -526,7 +530,8 @@ class HdLockAdapter(HdLockBackup):
             else:
                 value = (await self.line.read_holding(self.address, address, 1, self.state.counters))[0]
         except LineError as exc:
-            raise CommandError(f"reading {space} {address} failed: {exc}") from None
+            words = N_("reading input {address} failed: {error}") if space == INPUT else N_("reading holding {address} failed: {error}")
+            raise CommandError(Message(words, address=address, error=message_of(exc))) from None
         self.state.update_registers(space, address, [value])
         return value
 
@@ -566,7 +571,7 @@ async def discover(line: ModbusTransport, first: int = 1, last: int = 247, progr
     for n, unit in enumerate(range(first, last + 1), 1):
         try:
             reg = (await line.transact(
-                unit, "scan holding 103", None,
+                unit, Message(N_("scan holding {address}"), address=103), None,
                 lambda c, u=unit: c.read_holding_registers(103, count=1, device_id=u), retries=0,
             )).registers[0]
             serial = await line.read_input(unit, 104, 2)
