@@ -104,6 +104,18 @@ REALTIME_FILES = {
 #: ``--durations=0`` of the fast loop): a file name (every test in it, where most of its tests are slow)
 #: or a node id without its parameters (every parametrisation). The fast loop leaves them out.
 SLOW_TESTS: set[str] = {
+    # measured 2026-11-29 04:15 UTC at 1.5 s or more in the fast loop (the German pages, each a whole page built and
+    # read in German, and the new German tests of the bus tools and the Modbus line)
+    "test_i18n_pages.py",
+    "test_mqtt_site.py::test_sigkill_of_an_instance_marks_its_devices_vanished",
+    "test_i18n_bus_verdicts.py::test_the_transmit_lists_refusal_and_confirmation_in_german",
+    "test_i18n_bus_tools.py::test_the_pages_of_an_unknown_bus_device_and_tool_in_german",
+    "test_i18n_bus_tools.py::test_a_replays_screening_question_and_summary_in_german",
+    "test_i18n_bus_tools.py::test_the_line_monitors_own_words_of_a_transaction_in_german",
+    "test_electrak_page_cost.py::test_a_telegram_with_the_same_values_draws_nothing_and_the_round_draws_ages",
+    "test_i18n_modbus_line.py::test_a_silent_locks_timeout_in_german_on_its_page_the_overview_and_the_monitor",
+    "test_i18n_modbus_line.py::test_the_modbus_polls_exception_and_timeout_in_german",
+    "test_i18n_device_params.py::test_the_electrak_timeout_asks_and_refuses_in_german",
     # measured 2026-11-29 at 1.5 s or more in the fast loop (its new German page tests among them)
     "test_i18n.py::test_commission_backup_says_why_a_device_has_nothing_to_back_up_in_german",
     "test_i18n_pages.py::test_the_record_page_in_german_says_a_twin_actions_answer",
