@@ -204,6 +204,35 @@ def run(args: argparse.Namespace) -> int:
     if (args.recording is None) == (args.live is None):
         print(_("commission export: give a recording file or --live SECONDS (one of them)"), file=sys.stderr)
         return 2
+    unwritable = _unwritable(Path(args.out))  # said before a recording is read or the plant runs for --live
+    if unwritable:
+        print(_("commission export: cannot write {path}: {reason}").format(path=args.out, reason=unwritable), file=sys.stderr)
+        return 2
+    try:
+        return _export(args)
+    except OSError as exc:  # the disk filled up meanwhile, the folder went away ...
+        print(_("commission export: cannot write {path}: {reason}").format(path=args.out, reason=exc.strerror or exc),
+              file=sys.stderr)
+        return 1
+
+
+def _unwritable(out: Path) -> str:
+    """Why the export cannot be written to ``out`` ("" when it can, as far as can be told before writing)."""
+    import os
+
+    folder = out.parent if str(out.parent) else Path(".")
+    if out.is_dir():
+        return _("it is a folder; name a file, e.g. {example}").format(example=out / "export.mcap")
+    if not folder.is_dir():
+        return _("the folder {folder} does not exist").format(folder=folder)
+    if not os.access(folder, os.W_OK) or (out.exists() and not os.access(out, os.W_OK)):
+        return _("no permission to write there")
+    return ""
+
+
+def _export(args: argparse.Namespace) -> int:
+    import sys
+
     if args.recording is not None:
         from app.recording import RecordingError
 

@@ -41,3 +41,16 @@ def test_a_recording_export_cannot_read_is_said_in_german(name, content, german,
 def test_a_missing_recording_is_said_in_german(tmp_path, capsys):
     code, out = _export([str(tmp_path / "gone.asc"), "--out", str(tmp_path / "out.mcap")], capsys, "de")
     assert code == 1 and out.startswith("commission export: gone.asc: kann nicht geöffnet werden: "), out
+
+
+def test_an_output_it_cannot_write_is_said_before_anything_runs(tmp_path, capsys):
+    """A folder that does not exist, or a folder named as the file: said at once (for --live before the plant runs
+    its seconds), with what to do, and no traceback."""
+    source = tmp_path / "one.log"
+    source.write_bytes(b"(1700000000.000000) can0 301#01\n")
+    code, out = _export([str(source), "--out", str(tmp_path / "gone" / "out.mcap")], capsys, "en")
+    assert code == 2 and out.startswith(f"commission export: cannot write {tmp_path / 'gone' / 'out.mcap'}: the folder "), out
+    assert "Traceback" not in out
+    code, out = _export(["--live", "600", "--out", str(tmp_path)], capsys, "de")
+    assert code == 2 and out.startswith(f"commission export: {tmp_path} kann nicht geschrieben werden: "), out
+    assert "ein Ordner" in out and "export.mcap" in out
