@@ -348,7 +348,8 @@ def run_backup(args) -> int:
                 print(_("{name}: skipped: {reason}").format(name=name, reason=said(reason, cli_lang.lang())), flush=True)
                 continue
             if state.status != "online":
-                print(_("{name}: not answering ({error}): skipped").format(name=name, error=state.last_error or _("no answer")),
+                print(_("{name}: not answering ({error}): skipped").format(
+                    name=name, error=said(state.last_error, cli_lang.lang()) if state.last_error else _("no answer")),
                       file=sys.stderr)
                 failures += 1
                 continue
@@ -378,7 +379,8 @@ def run_restore(args) -> int:
     async def work(runtime, names) -> int:
         name = names[0]
         if runtime.store.devices[name].status != "online":
-            print(_("{name}: not answering: {error}").format(name=name, error=runtime.store.devices[name].last_error), file=sys.stderr)
+            print(_("{name}: not answering: {error}").format(name=name, error=said(runtime.store.devices[name].last_error or "",
+                                                                                   cli_lang.lang())), file=sys.stderr)
             return 1
         try:
             plan = await backup.plan_restore(runtime, name, document)
