@@ -53,6 +53,9 @@ DRIFT_POINT = "Changed since approved"
 # -- the service the runtime holds -------------------------------------------------------------
 AUTO_SNAPSHOT_ACTIONS = ("Save-Settings", "restore: save step", "restore")  # the end of a write session
 AUDIT_FOLLOW_S = 1.0
+UNFINISHED_FORGET_S = 900.0  # an audit row still "started" after this long (its action never ended) is not waited for
+SNAPSHOT_TRIES = 4  # an automatic snapshot that fails (the device busy storing, a timeout) is tried again ...
+SNAPSHOT_RETRY_S = 3.0  # ... this long after, so that the record holds the set a write session ended with
 STOP_WAIT_S = 2.0  # the longest stop() waits for the snapshot task to end
 
 
@@ -68,7 +71,9 @@ class RecordService:
         self.runs: dict[str, CheckoutRun] = {}  # device -> the checkout running or last run in this process
         self._watches = []
         self._task: asyncio.Task | None = None
-        self._audit_seen = 0.0
+        self._audit_seen = 0.0  # audit rows from this time on are read again: the oldest one still running, or newer
+        self._audit_acted: dict[int, float] = {}  # rows from _audit_seen on that were acted on already: id -> time
+        self._snapshots_due: dict[str, tuple[str, str, str, int, float]] = {}  # device -> user, role, action, tries, when
         self.problem = ""
 
     # -- storage -----------------------------------------------------------------------------
@@ -185,24 +190,53 @@ class RecordService:
         return entry_id
 
     async def _follow_audit(self) -> None:
-        """A write session ends with Save-Settings or a restore: take a snapshot then (by itself)."""
+        """A write session ends with Save-Settings or a restore: take a snapshot then (by itself), and again a few
+        times while it fails (SNAPSHOT_TRIES, SNAPSHOT_RETRY_S apart: a device still storing, a timeout on a busy
+        line), so that the record holds the set the session ended with."""
         audit = self.runtime.audit
+        due = self._snapshots_due
         while True:
             await asyncio.sleep(AUDIT_FOLLOW_S)
             try:
                 rows = await audit.aquery(since=self._audit_seen, limit=200)
             except WRITE_ERRORS:  # the audit state is shown in the header
-                continue
-            due: dict[str, tuple[str, str, str]] = {}
-            for row in sorted(rows, key=lambda r: r.time):
-                self._audit_seen = max(self._audit_seen, row.time + 1e-6)
+                rows = []
+            for row in self._finished_rows(rows):
                 if row.action in AUTO_SNAPSHOT_ACTIONS and row.result.startswith("ok") and row.device in self.runtime.store.devices:
-                    due[row.device] = (row.user, row.role, row.action)
-            for device, (user, role, action) in due.items():
+                    due[row.device] = (row.user, row.role, row.action, 0, 0.0)  # a new session's end: tried afresh
+            now = time.monotonic()
+            for device, (user, role, action, tries, when) in list(due.items()):
+                if when > now:
+                    continue
+                del due[device]  # only this task changes what is due
                 try:
                     await self.snapshot(device, user=user, role=role, title=f"after {action}")
-                except (CommissionError, OSError) as exc:  # logged; the next write session tries again
-                    log.warning("%s: automatic snapshot after %s failed: %s", device, action, exc)
+                except (CommissionError, OSError) as exc:
+                    tries += 1
+                    again = tries < SNAPSHOT_TRIES
+                    log.warning("%s: automatic snapshot after %s failed (%d of %d)%s: %s", device, action, tries,
+                                SNAPSHOT_TRIES, f"; tried again in {SNAPSHOT_RETRY_S:g} s" if again else "", exc)
+                    if again:
+                        due[device] = (user, role, action, tries, time.monotonic() + SNAPSHOT_RETRY_S)
+
+    def _finished_rows(self, rows: list) -> list:
+        """The audit rows not acted on yet whose action has ended, oldest first.
+
+        The gate writes a row before its action runs (result ``started``) and finishes it with the outcome: a row
+        read while its action still ran (a Save-Settings that takes a while on a busy line) is read again until it
+        has ended, so the session's end is never missed."""
+        wall = time.time()
+        running = [r.time for r in rows if r.result == "started" and wall - r.time < UNFINISHED_FORGET_S]
+        finished = []
+        for row in sorted(rows, key=lambda r: (r.time, r.id)):
+            if row.id in self._audit_acted or (row.result == "started" and wall - row.time < UNFINISHED_FORGET_S):
+                continue
+            self._audit_acted[row.id] = row.time
+            finished.append(row)
+        if rows:
+            self._audit_seen = min(running) if running else max(r.time for r in rows) + 1e-6
+            self._audit_acted = {i: t for i, t in self._audit_acted.items() if t >= self._audit_seen}
+        return finished
 
     # -- checkouts --------------------------------------------------------------------------
     def new_run(self, device: str, **kwargs) -> CheckoutRun:

@@ -3,6 +3,7 @@ snapshot after Save-Settings, the as-left report (HTML, PDF, archive) and the si
 
 from __future__ import annotations
 
+import asyncio
 import io
 import sqlite3
 import stat
@@ -32,6 +33,58 @@ def test_records_are_append_only_and_owner_only(tmp_path):
     assert store.latest("p", "d", "signoff").id == second and store.get(second).supersedes == first
     assert stat.S_IMODE((tmp_path / "record.sqlite").stat().st_mode) == 0o600
     store.close()
+
+
+async def test_a_save_still_running_when_the_audit_is_read_is_not_missed(tmp_path):
+    """The gate writes a row before the action runs (``started``) and finishes it with the outcome. A Save-Settings
+    that took a while on a busy line was read while it ran, skipped as not ok, and never read again: the record
+    lacked the snapshot of the set the session ended with."""
+    from app.record import AUDIT_FOLLOW_S
+    from app.runtime import Runtime
+
+    runtime = Runtime(demo_plant(("door-1",)), simulate=True, data_dir=tmp_path / "data")
+    async with simulated_user(runtime):
+        state = runtime.store.devices["door-1"]
+        assert await wait_for(lambda: state.status == "online" and state.value("LockRequestDelay") is not None, 15)
+        record = runtime.record
+        row = runtime.audit.record(user="anna", role="engineer", device="door-1", action="Save-Settings", result="started")
+        await asyncio.sleep(2.5 * AUDIT_FOLLOW_S)  # the audit is read twice while the save still runs
+        assert "door-1" not in record.snapshots
+        runtime.audit.finish(row, "ok")
+        assert await wait_for(lambda: "door-1" in record.snapshots, 15)
+        assert [e.title for e in await record.timeline("door-1", ("snapshot",))] == ["after Save-Settings"]
+        await asyncio.sleep(2 * AUDIT_FOLLOW_S)  # two more readings: the row is acted on once
+        assert len(await record.timeline("door-1", ("snapshot",))) == 1
+
+
+async def test_an_automatic_snapshot_that_fails_is_tried_again(tmp_path, monkeypatch, caplog):
+    """The device still storing, a timeout on a busy line: the snapshot after Save-Settings is tried again, so the
+    record holds the set the write session ended with (it was dropped until the next session's end)."""
+    from app import record as record_module
+    from app.runtime import Runtime
+    from devices.errors import CommissionError
+
+    monkeypatch.setattr(record_module, "SNAPSHOT_RETRY_S", 0.2)
+    runtime = Runtime(demo_plant(("door-1",)), simulate=True, data_dir=tmp_path / "data")
+    async with simulated_user(runtime):
+        state = runtime.store.devices["door-1"]
+        assert await wait_for(lambda: state.status == "online" and state.value("LockRequestDelay") is not None, 15)
+        record = runtime.record
+        read_set, failures = record.read_set, []
+
+        async def busy_once(device, **kwargs):
+            if not failures:
+                failures.append(device)
+                raise CommissionError("door-1: no answer within 0.5 s (timeout)")
+            return await read_set(device, **kwargs)
+
+        monkeypatch.setattr(record, "read_set", busy_once)
+        runtime.audit.record(user="anna", role="engineer", device="door-1", action="Save-Settings", result="ok")
+        assert await wait_for(lambda: "door-1" in record.snapshots, 15)
+        assert failures == ["door-1"]
+        timeline = await record.timeline("door-1", ("snapshot",))
+        assert [e.title for e in timeline] == ["after Save-Settings"]
+        assert "automatic snapshot after Save-Settings failed (1 of 4); tried again in 0.2 s" in caplog.text
 
 
 async def test_drift_in_the_api_snapshot_after_save_and_the_signed_report(tmp_path):
