@@ -15,9 +15,10 @@ from nicegui.testing.user_interaction import UserInteraction
 from webutil import eventually, simulated_user
 
 from app.runtime import Runtime
+from devices.hdlock.adapter import SETTINGS_PERIOD_S
 from devices.hdlock.params import PARAMS
 
-pytestmark = pytest.mark.timeout(40)
+pytestmark = pytest.mark.timeout(60)
 
 
 @dataclass
@@ -65,4 +66,5 @@ async def test_a_parameter_entry_starts_with_the_value_keeps_fractions_writes_on
     assert not entry.error
     assert entry.value == 250
     env.runtime.twins["door-1"].holding[delay.address] = 300  # changed elsewhere: the untouched field follows
-    await eventually(lambda: entry.value == 300, timeout=10, what="the field following the device's new value")
+    # the lock's settings are read again every SETTINGS_PERIOD_S (10 s): the change shows at the next of those reads
+    await eventually(lambda: entry.value == 300, timeout=SETTINGS_PERIOD_S + 10, what="the field following the device's new value")
