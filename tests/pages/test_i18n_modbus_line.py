@@ -1,8 +1,8 @@
 """The Modbus line's own words in German (issue 47): its diagnoses (app/modbus_line.py: a timeout, an exception answer
 with its code's name, a CRC error, an answer from another unit) where a user meets them, a device's last error on its
 page and in the overview's tile, the bus monitor's error column, the Modbus poll's window and the HD-Lock's failed
-write in the command client's notification; and the words of a request (``read holding 3000+9``: Holding-Register lesen
-3000+9, as the HD-Lock's document words its registers) in the monitor's rows and inside a diagnosis. The store, the
+write in the command client's notification; and the words of a request (``read holding 3000+9``: HR lesen 3000+9, the
+registers as the pages name them beside a parameter) in the monitor's rows and inside a diagnosis. The store, the
 transaction log and the event log keep the English (request_target() parses the request's)."""
 
 from __future__ import annotations
@@ -51,8 +51,8 @@ async def test_a_silent_locks_timeout_in_german_on_its_page_the_overview_and_the
         table = marked_table(user, "transactions")
         await eventually(lambda: table.rows, timeout=15, what="the line's transactions")
         requests = {r["request"] for r in table.rows}
-        assert any(r.startswith("Holding-Register lesen ") for r in requests), requests
-        assert any(r.startswith("Input-Register lesen ") for r in requests), requests
+        assert any(r.startswith("HR lesen ") for r in requests), requests
+        assert any(r.startswith("IR lesen ") for r in requests), requests
         assert not [r for r in table.rows if r["request"].startswith(("read ", "write "))]
         next(e for e in user.client.elements.values() if isinstance(e, ui.switch) and e.text == "Nur Fehler").value = True
         await eventually(lambda: any(r["device"] == "door-2 (Unit 2)" and r["error"].startswith("keine Antwort innerhalb von ")
@@ -82,7 +82,7 @@ async def test_the_modbus_polls_exception_and_timeout_in_german(tmp_path):
         field(ui.number, DE.gettext("Count")).value = 2
         UserInteraction(user, {by_testid(user, "poll-start")}, None).click()
         error = by_testid(user, "poll-error")
-        await eventually(lambda: error.text == "Unit 1: Holding-Register abfragen 60000+2: Exception 0x02 (unzulässige "
+        await eventually(lambda: error.text == "Unit 1: HR abfragen 60000+2: Exception 0x02 (unzulässige "
                                                "Datenadresse)", timeout=10, what=error.text)
         assert "exception 0x02 (illegal data address)" in {t.error for t in runtime.store.buses["line1"].transactions}
 
@@ -97,7 +97,7 @@ async def test_the_modbus_polls_exception_and_timeout_in_german(tmp_path):
         await user.open("/monitor/line1")
         await user.should_see("Busmonitor line1", retries=50)
         table = marked_table(user, "transactions")
-        await eventually(lambda: any(r["request"] == "Holding-Register abfragen 60000+2" and
+        await eventually(lambda: any(r["request"] == "HR abfragen 60000+2" and
                                      r["error"] == "Exception 0x02 (unzulässige Datenadresse)" for r in table.rows),
                          timeout=10, what="the poll's exception in the monitor in German")
 
@@ -114,8 +114,8 @@ async def test_the_hdlocks_failed_write_says_the_lines_diagnosis_in_german(tmp_p
         with user.client:
             ok, _result = await run_command("door-1", WRITE_PARAMETER, args={"param": "LockRequestDelay", "value": 420})
         assert not ok
-        await eventually(lambda: any(m.endswith("Schreiben von LockRequestDelay fehlgeschlagen: Unit 1: Holding-Register "
-                                                "schreiben 3000=420: Exception 0x04 (Gerätefehler)") for m in user.notify.messages),
+        await eventually(lambda: any(m.endswith("Schreiben von LockRequestDelay fehlgeschlagen: Unit 1: HR schreiben 3000=420: "
+                                                "Exception 0x04 (Gerätefehler)") for m in user.notify.messages),
                          timeout=10, what=user.notify.messages)
         assert not [m for m in user.notify.messages if "failed" in m or "device failure" in m], user.notify.messages
 
@@ -126,16 +126,16 @@ def test_the_lines_words_keep_their_english_and_say_it_in_german():
     from app.i18n import N_
 
     read = read_words("holding", 3000, 9)
-    assert read == "read holding 3000+9" and said(read, DE) == "Holding-Register lesen 3000+9"
+    assert read == "read holding 3000+9" and said(read, DE) == "HR lesen 3000+9"
     assert request_target(read) == ("holding", 3000, None)
-    assert said(read_words("input", 104, 2), DE) == "Input-Register lesen 104+2"
+    assert said(read_words("input", 104, 2), DE) == "IR lesen 104+2"
     write = write_words(3006, 65476)
-    assert request_target(write) == ("holding", 3006, 65476) and said(write, DE) == "Holding-Register schreiben 3006=65476"
+    assert request_target(write) == ("holding", 3006, 65476) and said(write, DE) == "HR schreiben 3006=65476"
     broadcast = Message(N_("broadcast write holding {address}={value}"), address=2000, value=8)
     assert request_target(broadcast) == ("holding", 2000, 8)
-    assert said(broadcast, DE) == "Broadcast: Holding-Register schreiben 2000=8"
+    assert said(broadcast, DE) == "Broadcast: HR schreiben 2000=8"
     scan = Message(N_("scan holding {address}"), address=103)
-    assert request_target(scan) == ("holding", 103, None) and said(scan, DE) == "Suchlauf Holding-Register 103"
+    assert request_target(scan) == ("holding", 103, None) and said(scan, DE) == "Suchlauf HR 103"
 
     for code, name in EXCEPTION_NAMES.items():
         assert DE.gettext(name) != name, (code, name)
