@@ -106,7 +106,8 @@ async def run_headless(args, work, answers_needed=None) -> int:
     try:
         awaited = [n for n in names if answers_needed is None or answers_needed(runtime, n)]
         if awaited:
-            print(_("waiting up to 15 s for {n} device(s) to answer ...").format(n=len(awaited)), flush=True)
+            print(_("waiting up to {seconds:g} s for {n} device(s) to answer ...").format(seconds=ONLINE_WAIT_S, n=len(awaited)),
+                  flush=True)
         loop = asyncio.get_running_loop()
         end = loop.time() + ONLINE_WAIT_S
         while loop.time() < end and any(runtime.store.devices[n].status != "online" for n in awaited):
