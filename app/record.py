@@ -33,6 +33,7 @@ import asyncio
 import logging
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 from app.aio import end_tasks
 from app.audit import WRITE_ERRORS
@@ -59,6 +60,17 @@ SNAPSHOT_RETRY_S = 3.0  # ... this long after, so that the record holds the set 
 STOP_WAIT_S = 2.0  # the longest stop() waits for the snapshot task to end
 
 
+class _Due(NamedTuple):
+    """An automatic snapshot to take: for whom (the audit row's user and role), after which action, how often it
+    failed so far, and not before ``at`` (``time.monotonic()``)."""
+
+    user: str
+    role: str
+    action: str
+    tries: int = 0
+    at: float = 0.0
+
+
 class RecordService:
     """The commissioning record of one running plant (``runtime.record``)."""
 
@@ -73,7 +85,7 @@ class RecordService:
         self._task: asyncio.Task | None = None
         self._audit_seen = 0.0  # audit rows from this time on are read again: the oldest one still running, or newer
         self._audit_acted: dict[int, float] = {}  # rows from _audit_seen on that were acted on already: id -> time
-        self._snapshots_due: dict[str, tuple[str, str, str, int, float]] = {}  # device -> user, role, action, tries, when
+        self._snapshots_due: dict[str, _Due] = {}  # device -> the automatic snapshot to take
         self.problem = ""
 
     # -- storage -----------------------------------------------------------------------------
@@ -203,21 +215,21 @@ class RecordService:
                 rows = []
             for row in self._finished_rows(rows):
                 if row.action in AUTO_SNAPSHOT_ACTIONS and row.result.startswith("ok") and row.device in self.runtime.store.devices:
-                    due[row.device] = (row.user, row.role, row.action, 0, 0.0)  # a new session's end: tried afresh
+                    due[row.device] = _Due(row.user, row.role, row.action)  # a new session's end: tried afresh
             now = time.monotonic()
-            for device, (user, role, action, tries, when) in list(due.items()):
-                if when > now:
+            for device, job in list(due.items()):
+                if job.at > now:
                     continue
                 del due[device]  # only this task changes what is due
                 try:
-                    await self.snapshot(device, user=user, role=role, title=f"after {action}")
+                    await self.snapshot(device, user=job.user, role=job.role, title=f"after {job.action}")
                 except (CommissionError, OSError) as exc:
-                    tries += 1
+                    tries = job.tries + 1
                     again = tries < SNAPSHOT_TRIES
-                    log.warning("%s: automatic snapshot after %s failed (%d of %d)%s: %s", device, action, tries,
+                    log.warning("%s: automatic snapshot after %s failed (%d of %d)%s: %s", device, job.action, tries,
                                 SNAPSHOT_TRIES, f"; tried again in {SNAPSHOT_RETRY_S:g} s" if again else "", exc)
                     if again:
-                        due[device] = (user, role, action, tries, time.monotonic() + SNAPSHOT_RETRY_S)
+                        due[device] = job._replace(tries=tries, at=time.monotonic() + SNAPSHOT_RETRY_S)
 
     def _finished_rows(self, rows: list) -> list:
         """The audit rows not acted on yet whose action has ended, oldest first.
@@ -226,15 +238,15 @@ class RecordService:
         read while its action still ran (a Save-Settings that takes a while on a busy line) is read again until it
         has ended, so the session's end is never missed."""
         wall = time.time()
-        running = [r.time for r in rows if r.result == "started" and wall - r.time < UNFINISHED_FORGET_S]
+        running = {r.id: r.time for r in rows if r.result == "started" and wall - r.time < UNFINISHED_FORGET_S}
         finished = []
         for row in sorted(rows, key=lambda r: (r.time, r.id)):
-            if row.id in self._audit_acted or (row.result == "started" and wall - row.time < UNFINISHED_FORGET_S):
+            if row.id in self._audit_acted or row.id in running:
                 continue
             self._audit_acted[row.id] = row.time
             finished.append(row)
         if rows:
-            self._audit_seen = min(running) if running else max(r.time for r in rows) + 1e-6
+            self._audit_seen = min(running.values()) if running else max(r.time for r in rows) + 1e-6
             self._audit_acted = {i: t for i, t in self._audit_acted.items() if t >= self._audit_seen}
         return finished
 
