@@ -220,7 +220,7 @@ def _unwritable(out: Path) -> str:
     """Why the export cannot be written to ``out`` ("" when it can, as far as can be told before writing)."""
     import os
 
-    folder = out.parent if str(out.parent) else Path(".")
+    folder = out.parent  # "." for a bare file name
     if out.is_dir():
         return _("it is a folder; name a file, e.g. {example}").format(example=out / "export.mcap")
     if not folder.is_dir():
