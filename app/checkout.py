@@ -2,6 +2,10 @@
 order, the context a step acts through (every command through the worker's gate), the answers a
 person gave, and the bus traffic of each step as evidence. The record service (app/record.py)
 starts runs and stores their results in the commissioning record.
+
+What a person reads of a run (titles, step names, limits, questions, reasons, notes, the runner's own words) is a
+:class:`~app.message.Message`: the record stores its English, and beside it (``worded``) the template and fields
+of each, so that a page, the report and the command line word the run in their language, also after a restart.
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from app.i18n import N_
-from app.message import Message
+from app.message import Message, message_of, worded_table
 from app.record_store import RecordError
 from devices.errors import CommissionError
 
@@ -67,6 +71,11 @@ class TrafficTap:
 
 
 # -- checkouts ---------------------------------------------------------------------------------
+def _with_unit(value: object, unit: str) -> Message:
+    """A measured value or a limit with its unit (none: alone), as the step records it and a reason says it."""
+    return Message("{value} {unit}", value=value, unit=unit) if unit else Message("{value}", value=value)
+
+
 class Aborted(CommissionError):
     """The engineer aborted the checkout (or the page that ran it went away)."""
 
@@ -148,7 +157,7 @@ class CheckoutContext:
 
     def check_abort(self) -> None:
         if self._run.abort_event.is_set():
-            raise Aborted(self._run.abort_reason or "aborted")
+            raise Aborted(self._run.abort_reason or Message(N_("aborted")))
 
     async def invoke(self, name: str, args: dict | None = None) -> Any:
         """Run the device type's declared command ``name`` through the worker's gate, for the run's
@@ -169,7 +178,8 @@ class CheckoutContext:
                 if exc.question not in self._run.confirmed:
                     await self.ask(exc.question)
                 else:
-                    self.note(f"{name}: {exc.question!r} answered yes earlier in this run")
+                    self.note(Message(N_("{command}: {question!r} answered yes earlier in this run"), command=name,
+                                      question=exc.question))
                 confirmed = True
 
     async def wait(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
@@ -203,23 +213,23 @@ class CheckoutContext:
                 expect: Any = None, fail: bool = True) -> bool:
         """Record a measured value against its limit; a value outside it fails the step (``fail``)."""
         ok = True
-        limit = ""
+        limit: str = ""
         if value is None:
-            ok, limit = False, "a value"
+            ok, limit = False, Message(N_("a value"))
         if expect is not None:
-            limit = f"= {expect}"
+            limit = Message("= {expect}", expect=expect)
             ok = ok and value == expect
         if low is not None:
-            limit = f">= {low:g}" if high is None else f"{low:g} .. {high:g}"
+            limit = Message(">= {low:g}", low=low) if high is None else Message("{low:g} .. {high:g}", low=low, high=high)
             ok = ok and value is not None and value >= low
         if high is not None:
-            limit = limit or f"<= {high:g}"
+            limit = limit or Message("<= {high:g}", high=high)
             ok = ok and value is not None and value <= high
-        self.step.values.append({"name": name, "value": value, "unit": unit, "limit": f"{limit} {unit}".strip() if limit else "",
+        self.step.values.append({"name": name, "value": value, "unit": unit, "limit": _with_unit(limit, unit) if limit else "",
                                  "ok": ok})
         if not ok and fail:
-            shown = "no value" if value is None else f"{value} {unit}".strip()
-            raise StepFailed(f"{name}: {shown}, expected {limit} {unit}".strip())
+            shown = Message(N_("no value")) if value is None else _with_unit(value, unit)
+            raise StepFailed(Message(N_("{name}: {value}, expected {limit}"), name=name, value=shown, limit=_with_unit(limit, unit)))
         return ok
 
     def note(self, text: str) -> None:
@@ -243,7 +253,7 @@ class CheckoutContext:
         self.step.answers.append({"question": question, "answer": "yes" if answer else "no", "by": self.user,
                                   "role": self._run.role, "time": time.time()})
         if not answer:
-            raise StepFailed(f"{question} - answered no by {self.user}")
+            raise StepFailed(Message(N_("{question} - answered no by {user}"), question=question, user=self.user))
         self._run.confirmed.add(question)
         return True
 
@@ -255,7 +265,7 @@ class CheckoutContext:
         self.step.answers.append({"question": question, "answer": "yes" if answer else "no", "by": self.user,
                                   "role": self._run.role, "time": time.time()})
         if not answer:
-            self.note(f"answered no by {self.user}: {no_means}")
+            self.note(Message(N_("answered no by {user}: {consequence}"), user=self.user, consequence=no_means))
         return bool(answer)
 
 
@@ -297,8 +307,8 @@ class CheckoutRun:
         done = sum(r.status not in ("pending", "running") for r in self.results)
         return done / max(1, len(self.results))
 
-    def abort(self, reason: str = "aborted by the engineer") -> None:
-        self.abort_reason = reason
+    def abort(self, reason: str = "") -> None:
+        self.abort_reason = reason or Message(N_("aborted by the engineer"))
         self.abort_event.set()
 
     def tap_sweep(self) -> None:
@@ -313,7 +323,7 @@ class CheckoutRun:
 
     async def ask(self, question: str) -> bool:
         if self._ask is None:
-            raise StepFailed(f"{question} - nobody to ask (run it from the device's record page)")
+            raise StepFailed(Message(N_("{question} - nobody to ask (run it from the device's record page)"), question=question))
         return await self._ask(question)
 
     async def _beat(self) -> None:
@@ -342,13 +352,13 @@ class CheckoutRun:
                     await decl["run"](ctx)
                     result.status = "passed"
                 except StepFailed as exc:
-                    result.status, result.reason = "failed", str(exc)
+                    result.status, result.reason = "failed", message_of(exc)
                 except NotAvailable as exc:
-                    result.status, result.reason = exc.status, str(exc)
+                    result.status, result.reason = exc.status, message_of(exc)
                 except Aborted as exc:
-                    result.status, result.reason = "aborted", str(exc)
+                    result.status, result.reason = "aborted", message_of(exc)
                 except CommissionError as exc:  # a refused or failed command is the step's reason
-                    result.status, result.reason = "failed", f"{type(exc).__name__}: {exc}" if not str(exc) else str(exc)
+                    result.status, result.reason = "failed", f"{type(exc).__name__}: " if not str(exc) else message_of(exc)
                 result.ended = time.time()
                 result.evidence = self._tap.take()
                 self._changed()
@@ -356,14 +366,14 @@ class CheckoutRun:
                     break
             for result in self.results:
                 if result.status == "pending":
-                    result.status, result.reason = "skipped", "not run: an earlier step did not pass"
+                    result.status, result.reason = "skipped", Message(N_("not run: an earlier step did not pass"))
         finally:
-            ctx.step.notes.append("cleanup ran")
+            ctx.step.notes.append(Message(N_("cleanup ran")))
             self.abort_event.clear()  # the cleanup stops and restores: it must run after an abort too
             try:
                 await self.module.cleanup(ctx, self.settings)
             except CommissionError as exc:  # a refused or failed command: said in the result
-                ctx.step.notes.append(f"cleanup failed: {exc}")
+                ctx.step.notes.append(Message(N_("cleanup failed: {error}"), error=message_of(exc)))
             if beat is not None:
                 beat.cancel()
         self.ended = time.time()
@@ -374,10 +384,11 @@ class CheckoutRun:
         else:
             self.status = "failed"
         data = self.as_dict()
+        title = Message("{title}: {status}", title=self.module.TITLE, status=Message(self.status))
+        data["worded"] = worded_table([data, title], leave_out=("evidence",))  # the English's templates, for its readers
         service = self.runtime.record
         service.check_drift(self.device)  # what the checkout changed and restored is no longer held back
-        self.record_id = await service.add(self.device, "checkout", user=self.user, role=self.role, data=data,
-                                           title=f"{self.module.TITLE}: {self.status}")
+        self.record_id = await service.add(self.device, "checkout", user=self.user, role=self.role, data=data, title=title)
         data["record_id"] = self.record_id
         self._changed()
         return data

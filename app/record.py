@@ -129,7 +129,7 @@ class RecordService:
             await end_tasks([self._task], "record: automatic snapshots", STOP_WAIT_S)
             self._task = None
         for run in self.runs.values():
-            run.abort("the program is stopping")
+            run.abort(Message(N_("the program is stopping")))
         self.store.close()
 
     # -- drift ------------------------------------------------------------------------------

@@ -10,15 +10,17 @@ CAN control ("Der Anwender muss sicherstellen, dass dieses Bit bei keinem Gerät
 
 Declared here, run by the generic runner (``app/record.py``); reads the published points and invokes the
 declared commands (devices/electrak/policy.py). Control is taken for the run's session (under the dead-man
-rule); the cleanup stops and releases it, also after an abort.
+rule); the cleanup stops and releases it, also after an abort. What a person reads is a ``Message`` (docs/i18n.md).
 """
 
 from __future__ import annotations
 
 from devices.electrak import codec
 from devices.electrak.policy import AREA_CLEAR_RISK
+from devices.message import N_, Message
 
-TITLE = "Move out and back"
+TITLE = Message(N_("Move out and back"))
+ERROR_FLAGS, POSITION = Message(N_("Error flags")), Message(N_("Position"))  # the points, measured by their names
 SETTINGS = {
     "distance_mm": 20.0,
     "speed_mm_s": None,  # None: the middle of the speed range every actuator's gearing accepts
@@ -48,14 +50,16 @@ def limits_of(options: dict, settings: dict) -> tuple[float, float]:
 
 def steps(options: dict, settings: dict) -> list[dict]:
     speed, current = limits_of(options, settings)
-    move = (f"{settings['distance_mm']:g} mm at {speed:g} mm/s (middle of the gearings' range), position within "
-            f"±{settings['tolerance_mm']:g} mm, current after start-up <= {current:g} A (the models' limit), no error "
-            f"flags, Saturated not on for {settings['saturated_max_s']:g} s")
+    move = Message(N_("{distance:g} mm at {speed:g} mm/s (middle of the gearings' range), position within "
+                      "±{tolerance:g} mm, current after start-up <= {current:g} A (the models' limit), no error "
+                      "flags, Saturated not on for {saturated:g} s"), distance=settings["distance_mm"], speed=speed,
+                   tolerance=settings["tolerance_mm"], current=current, saturated=settings["saturated_max_s"])
     return [
-        {"name": "Area clear (asked)", "limits": "the engineer confirms", "run": _ask},
-        {"name": "Take control, no faults", "limits": "every configured actuator heard; error flags 0", "run": _take},
-        {"name": "Move out", "limits": move, "run": lambda ctx: _move(ctx, +1)},
-        {"name": "Move back", "limits": move, "run": lambda ctx: _move(ctx, -1)},
+        {"name": Message(N_("Area clear (asked)")), "limits": Message(N_("the engineer confirms")), "run": _ask},
+        {"name": Message(N_("Take control, no faults")), "limits": Message(N_("every configured actuator heard; error flags 0")),
+         "run": _take},
+        {"name": Message(N_("Move out")), "limits": move, "run": lambda ctx: _move(ctx, +1)},
+        {"name": Message(N_("Move back")), "limits": move, "run": lambda ctx: _move(ctx, -1)},
     ]
 
 
@@ -73,14 +77,14 @@ async def _take(ctx) -> None:
     await ctx.invoke("take control", {"user": ctx.user})
     # a message-timeout flag from before control was taken clears with the first control telegrams
     await ctx.wait(lambda: ctx.value("Error flags") == 0, 2.0)
-    ctx.measure("Error flags", ctx.value("Error flags"), expect=0, fail=False)
+    ctx.measure(ERROR_FLAGS, ctx.value("Error flags"), expect=0, fail=False)
     if ctx.value("Error flags"):
-        ctx.fail(f"error flags set before moving: {_flags(ctx)}")
+        ctx.fail(Message(N_("error flags set before moving: {flags}"), flags=_flags(ctx)))
     configured = ctx.value("Devices configured")
     await ctx.wait(lambda: (ctx.value("Devices heard") or 0) >= (configured or 1), 2.0)
-    ctx.measure("Devices heard (status telegrams per 100 ms)", ctx.value("Devices heard"), low=configured or 1)
+    ctx.measure(Message(N_("Devices heard (status telegrams per 100 ms)")), ctx.value("Devices heard"), low=configured or 1)
     ctx.start_mm = ctx.value("Position")
-    ctx.measure("Start position", ctx.start_mm, "mm")
+    ctx.measure(Message(N_("Start position")), ctx.start_mm, "mm")
 
 
 async def _move(ctx, direction: int) -> None:
@@ -121,19 +125,21 @@ async def _move(ctx, direction: int) -> None:
     reached = await ctx.wait(arrived, s["move_timeout_s"])
     await ctx.invoke("stop")
     if peak["errors"]:
-        ctx.measure("Error flags", peak["errors"], expect=0, fail=False)
-        ctx.fail(f"error flags during the move: {_flags(ctx)} (peak current after start-up {peak['a']:.1f} A)")
-    ctx.measure("Saturated, longest time on", round(peak["saturated_s"], 2), "s", high=s["saturated_max_s"], fail=False)
+        ctx.measure(ERROR_FLAGS, peak["errors"], expect=0, fail=False)
+        ctx.fail(Message(N_("error flags during the move: {flags} (peak current after start-up {current:.1f} A)"),
+                         flags=_flags(ctx), current=peak["a"]))
+    ctx.measure(Message(N_("Saturated, longest time on")), round(peak["saturated_s"], 2), "s", high=s["saturated_max_s"], fail=False)
     if peak["saturated_s"] >= s["saturated_max_s"]:
-        ctx.fail(f"Saturated stayed on for {peak['saturated_s']:.1f} s: the actuators run at the highest speed their supply "
-                 f"and load allow at {speed:g} mm/s; the document: it must not stay on under CAN control (lower the speed, "
-                 "check the supply voltage and the load)")
-    ctx.measure("Position", ctx.value("Position"), "mm", low=target - s["tolerance_mm"], high=target + s["tolerance_mm"],
+        ctx.fail(Message(N_("Saturated stayed on for {on:.1f} s: the actuators run at the highest speed their supply and load "
+                            "allow at {speed:g} mm/s; the document: it must not stay on under CAN control (lower the speed, "
+                            "check the supply voltage and the load)"), on=peak["saturated_s"], speed=speed))
+    ctx.measure(POSITION, ctx.value("Position"), "mm", low=target - s["tolerance_mm"], high=target + s["tolerance_mm"],
                 fail=reached)
     if not reached:
-        ctx.fail(f"target {target:g} mm not reached within {s['move_timeout_s']:g} s (at {ctx.value('Position')} mm)")
-    ctx.measure("Peak current after start-up", round(peak["a"], 2), "A", high=current_max)
-    ctx.measure("Error flags", ctx.value("Error flags"), expect=0)
+        ctx.fail(Message(N_("target {target:g} mm not reached within {timeout:g} s (at {position} mm)"), target=target,
+                         timeout=s["move_timeout_s"], position=ctx.value("Position")))
+    ctx.measure(Message(N_("Peak current after start-up")), round(peak["a"], 2), "A", high=current_max)
+    ctx.measure(ERROR_FLAGS, ctx.value("Error flags"), expect=0)
 
 
 async def cleanup(ctx, settings: dict) -> None:

@@ -14,6 +14,8 @@ commissioned module means a broken or unconnected sensor: the step fails with th
 Inputs E1..E6 (DigIn, bits 0-5): for each the engineer is asked whether a test input is wired
 (no: the step is skipped, recorded with who said so), then to toggle it and to toggle it back;
 each change must reach the module's DigIn within ``toggle_timeout_s``.
+
+What a person reads is a ``Message`` (docs/i18n.md), in the document's words (Last, Si, Triac, Sicherung).
 """
 
 from __future__ import annotations
@@ -22,8 +24,9 @@ import time
 
 from devices.m3io import codec
 from devices.m3io.adapter import P_LOAD_CHECK, P_P2, temp_channels
+from devices.message import N_, Message, joined
 
-TITLE = "SSR outputs on and off"
+TITLE = Message(N_("SSR outputs on and off"))
 SETTINGS = {"settle_s": 3.0,  # the module reports the load state in its next temperature frames
             "toggle_timeout_s": 10.0}  # after the engineer was asked to toggle an input
 INPUTS = tuple(f"E{n}" for n in range(1, 7))
@@ -39,46 +42,56 @@ def outputs(options: dict) -> list[str]:
 
 
 def steps(options: dict, settings: dict) -> list[dict]:
-    listed = [{"name": "Loads connected, area safe (asked)", "limits": "the engineer confirms", "run": _ask}]
+    listed = [{"name": Message(N_("Loads connected, area safe (asked)")), "limits": Message(N_("the engineer confirms")),
+               "run": _ask}]
     if temp_channels(codec.Variant(options.get("variant", "HM"))):
-        listed.append({"name": "Pt100 inputs in range", "limits": f"every Pt100 input reads 0 .. 200 °C within "
-                       f"{settings['settle_s']:g} s (outside: sensor broken or not connected, 7.2.2)", "run": _pt100})
+        listed.append({"name": Message(N_("Pt100 inputs in range")),
+                       "limits": Message(N_("every Pt100 input reads 0 .. 200 °C within {settle:g} s (outside: sensor broken or "
+                                            "not connected, 7.2.2)"), settle=settings["settle_s"]), "run": _pt100})
     for output in outputs(options):
-        listed.append({"name": f"{output} on then off",
-                       "limits": (f"on: Last, Si and Triac ok within {settings['settle_s']:g} s"
-                                  + ("; three phases with a load, exactly two with P2 (4.3)" if output == "SSR1-3" else "")
-                                  + "; off: output off"),
+        limits = (N_("on: Last, Si and Triac ok within {settle:g} s; three phases with a load, exactly two with P2 (4.3); off: "
+                     "output off") if output == "SSR1-3" else N_("on: Last, Si and Triac ok within {settle:g} s; off: output off"))
+        listed.append({"name": Message(N_("{output} on then off"), output=output),
+                       "limits": Message(limits, settle=settings["settle_s"]),
                        "run": lambda ctx, o=output: _cycle(ctx, o)})
     for name in INPUTS:
-        listed.append({"name": f"{name} toggled (asked)",
-                       "limits": f"where a test input is wired: each toggle seen in DigIn within {settings['toggle_timeout_s']:g} s",
+        listed.append({"name": Message(N_("{input} toggled (asked)"), input=name),
+                       "limits": Message(N_("where a test input is wired: each toggle seen in DigIn within {timeout:g} s"),
+                                         timeout=settings["toggle_timeout_s"]),
                        "run": lambda ctx, n=name: _toggle(ctx, n)})
     return listed
 
 
-def _on_off(value) -> str:
-    return "unknown" if value is None else ("on" if value else "off")
+def _on_off(value) -> Message:
+    return Message(N_("unknown")) if value is None else (Message(N_("on")) if value else Message(N_("off")))
 
 
 async def _toggle(ctx, name: str) -> None:
-    if not await ctx.choose(f"Is a test input wired to {name}?", f"{name} skipped"):
-        ctx.skip(f"{name}: no test input wired (answered by {ctx.user})")
+    if not await ctx.choose(Message(N_("Is a test input wired to {input}?"), input=name),
+                            Message(N_("{input} skipped"), input=name)):
+        ctx.skip(Message(N_("{input}: no test input wired (answered by {user})"), input=name, user=ctx.user))
     if not await ctx.wait(lambda: ctx.value(name) is not None, ctx.settings["settle_s"]):
-        ctx.fail(f"{name}: no DigIn from the module")
+        ctx.fail(Message(N_("{input}: no DigIn from the module"), input=name))
     before = ctx.value(name)
-    for turn, expect in (("now", not before), ("back", before)):
+    for turn, expect in ((N_("Toggle {input} now (it reads {state}), then answer yes"), not before),
+                         (N_("Toggle {input} back (it reads {state}), then answer yes"), before)):
         t0 = time.monotonic()
-        await ctx.ask(f"Toggle {name} {turn} (it reads {_on_off(ctx.value(name))}), then answer yes")
+        await ctx.ask(Message(turn, input=name, state=_on_off(ctx.value(name))))
         seen = await ctx.wait(lambda e=expect: ctx.value(name) == e, ctx.settings["toggle_timeout_s"])
-        ctx.measure(f"{name} {_on_off(expect)}", _on_off(ctx.value(name)), expect=_on_off(expect), fail=False)
+        ctx.measure(Message("{input} {state}", input=name, state=_on_off(expect)), _on_off(ctx.value(name)),
+                    expect=_on_off(expect), fail=False)
         if not seen:
-            ctx.fail(f"{name} stayed {_on_off(ctx.value(name))} for {ctx.settings['toggle_timeout_s']:g} s after "
-                     f"'toggle {turn}': is the test input wired to {name}, is it supplied?")
-        ctx.measure(f"{name} {_on_off(expect)}: seen after the answer", round(time.monotonic() - t0, 2), "s", fail=False)
+            stayed = (N_("{input} stayed {state} for {timeout:g} s after 'toggle now': is the test input wired to {input}, is "
+                         "it supplied?") if expect != before else
+                      N_("{input} stayed {state} for {timeout:g} s after 'toggle back': is the test input wired to {input}, is "
+                         "it supplied?"))
+            ctx.fail(Message(stayed, input=name, state=_on_off(ctx.value(name)), timeout=ctx.settings["toggle_timeout_s"]))
+        ctx.measure(Message(N_("{input} {state}: seen after the answer"), input=name, state=_on_off(expect)),
+                    round(time.monotonic() - t0, 2), "s", fail=False)
 
 
 async def _ask(ctx) -> None:
-    await ctx.ask("Are the loads connected and supplied, and is it safe to switch the mains outputs?")
+    await ctx.ask(Message(N_("Are the loads connected and supplied, and is it safe to switch the mains outputs?")))
     await _take(ctx)
 
 
@@ -96,17 +109,17 @@ async def _pt100(ctx) -> None:
     names = [f"TEMP{c}" for c in temp_channels(codec.Variant(ctx.options.get("variant", "HM")))]
     if not await ctx.wait(lambda: all((ctx.entry(n) or {}).get("raw") is not None for n in names), ctx.settings["settle_s"]):
         missing = [n for n in names if (ctx.entry(n) or {}).get("raw") is None]
-        ctx.fail(f"no reading of {', '.join(missing)} within {ctx.settings['settle_s']:g} s: is the module served "
-                 "(temperatures come only while DigOut arrives every 2 s)?")
+        ctx.fail(Message(N_("no reading of {inputs} within {settle:g} s: is the module served (temperatures come only while "
+                            "DigOut arrives every 2 s)?"), inputs=", ".join(missing), settle=ctx.settings["settle_s"]))
     broken = []
     for name in names:
         word = codec.TempWord(int(ctx.entry(name)["raw"]))
         ctx.measure(name, word.celsius, "°C", low=codec.TEMP_MIN_RAW / 10, high=codec.TEMP_MAX_RAW / 10, fail=False)
         if not word.in_range:
-            broken.append(f"{name} reads {word.celsius:.1f} °C")
+            broken.append(Message(N_("{input} reads {celsius:.1f} °C"), input=name, celsius=word.celsius))
     if broken:
-        ctx.fail(f"{'; '.join(broken)}: outside the measuring range 0 .. 200 °C (7.2.2), the Pt100 is broken or "
-                 "not connected; check its wiring and the sensor")
+        ctx.fail(Message(N_("{readings}: outside the measuring range 0 .. 200 °C (7.2.2), the Pt100 is broken or not "
+                            "connected; check its wiring and the sensor"), readings=joined(broken, "; ")))
 
 
 def _point(ctx, name: str):
@@ -137,17 +150,18 @@ async def _cycle(ctx, output: str) -> None:
     healthy = await ctx.wait(lambda: _healthy(ctx, output, channels) and ctx.value(output) is True, settle)
     if output == "SSR1-3":
         loaded = sum(_point(ctx, f"SSR{c} Last") is True for c in channels)
-        ctx.measure("Phases with a load" + (" (P2: two-phase load)" if two_phase else ""), loaded,
-                    expect=2 if two_phase else 3, fail=False)
+        ctx.measure(Message(N_("Phases with a load (P2: two-phase load)")) if two_phase else Message(N_("Phases with a load")),
+                    loaded, expect=2 if two_phase else 3, fail=False)
         if ctx.value(P_LOAD_CHECK) is not None:
             ctx.measure(P_LOAD_CHECK, ctx.value(P_LOAD_CHECK), expect="ok", fail=False)
     for c in channels:
         if two_phase and _point(ctx, f"SSR{c} Last") is not True:
-            ctx.note(f"SSR{c}: no load, as P2 (two-phase load) says: its fuse and triac are not monitored (7.2.3)")
-            ctx.measure(f"SSR{c} Last (load)", _point(ctx, f"SSR{c} Last"), fail=False)
+            ctx.note(Message(N_("SSR{channel}: no load, as P2 (two-phase load) says: its fuse and triac are not monitored "
+                                "(7.2.3)"), channel=c))
+            ctx.measure(Message(N_("SSR{channel} Last (load)"), channel=c), _point(ctx, f"SSR{c} Last"), fail=False)
             continue
-        ctx.measure(f"SSR{c} Last (load)", _point(ctx, f"SSR{c} Last"), expect=True, fail=False)
-        ctx.measure(f"SSR{c} Si (fuse)", _point(ctx, f"SSR{c} Si"), expect="ok", fail=False)
+        ctx.measure(Message(N_("SSR{channel} Last (load)"), channel=c), _point(ctx, f"SSR{c} Last"), expect=True, fail=False)
+        ctx.measure(Message(N_("SSR{channel} Si (fuse)"), channel=c), _point(ctx, f"SSR{c} Si"), expect="ok", fail=False)
         ctx.measure(f"SSR{c} Triac", _point(ctx, f"SSR{c} Triac"), expect="ok", fail=False)
     temp = ctx.value(f"TEMP{channels[0]}")
     if temp is not None:
@@ -155,13 +169,16 @@ async def _cycle(ctx, output: str) -> None:
     faults = ctx.value("Faults") or ()  # the module's faults in words (devices/m3io/adapter.py P_FAULTS)
     await ctx.invoke(f"{output} off")
     off = await ctx.wait(lambda: ctx.value(output) is False, 1.0)
-    ctx.measure(f"{output} off again", ctx.value(output), expect=False)
+    ctx.measure(Message(N_("{output} off again"), output=output), ctx.value(output), expect=False)
     if not healthy:
-        bad = [v for v in ctx.step.values if not v["ok"]]
-        why = "; ".join(f"{v['name']} {v['value']}" for v in bad) or "no answer"
-        ctx.fail(f"{output}: {why}" + (f" (module reports: {'; '.join(faults)})" if faults else ""))
+        bad = [Message("{name} {value}", name=v["name"], value=v["value"]) for v in ctx.step.values if not v["ok"]]
+        why = joined(bad, "; ") if bad else Message(N_("no answer"))
+        if faults:
+            ctx.fail(Message(N_("{output}: {why} (module reports: {faults})"), output=output, why=why,
+                             faults=joined(list(faults), "; ")))
+        ctx.fail(Message("{output}: {why}", output=output, why=why))
     if not off:
-        ctx.fail(f"{output} did not switch off")
+        ctx.fail(Message(N_("{output} did not switch off"), output=output))
 
 
 async def cleanup(ctx, settings: dict) -> None:

@@ -16,6 +16,9 @@ loop that is switched on (0x12, bit 0 of its mode register) is occupied and must
 and free again. Positions are checked within ``position_tolerance_pct`` of 100 % and 0 %. An open boom
 closes by itself only when t_offen (0x0D) is not 0 (chapter 5.2.4.1: 0 switches automatic closing
 off); the step that checks automatic closing is "not available on this unit" then.
+
+What a person reads is a ``Message`` (docs/i18n.md): the gate states as the plant view words them (Torzustand), the
+light barrier (LS), loops and F_ereignis in the document's words.
 """
 
 from __future__ import annotations
@@ -25,10 +28,12 @@ import weakref
 from typing import Any
 
 from devices.mo64.adapter import P_LEVELS_UNAVAILABLE
-from devices.mo64.codec import ERROR_MEMORY_LEVELS, GATE_STATE_NAMES, TIME_STEP_S, GateState
+from devices.message import N_, Message, Word, joined
+from devices.mo64.codec import ERROR_MEMORY_LEVELS, GATE_STATE_NAMES, TIME_STEP_S, Command, Function, GateState
+from devices.mo64.control import COMMAND_NAMES, FUNCTION_WORDS
 from devices.mo64.policy import AREA_CLEAR_RISK
 
-TITLE = "Open and close cycle"
+TITLE = Message(N_("Open and close cycle"))
 SETTINGS = {
     "open_time_max_s": 8.0,  # open pulse to "open" seen (pre-warning, travel, one poll period)
     "close_time_max_s": 8.0,  # close pulse to "closed" seen
@@ -39,8 +44,10 @@ SETTINGS = {
 }
 LOOPS = ("loop A occupied", "loop B occupied", "loop C occupied")
 SAFETY = ("LS", "F_ereignis", "Baum ab")
-_WHY = {"LS": "light barrier interrupted (LS)", "F_ereignis": "fault event (F_ereignis)", "Baum ab": "boom off (Baum ab)",
-        **{loop: loop for loop in LOOPS}}
+_WHY = {"LS": Message(N_("light barrier interrupted (LS)")), "F_ereignis": Message(N_("fault event (F_ereignis)")),
+        "Baum ab": Message(N_("boom off (Baum ab)")), "loop A occupied": Message(N_("loop A occupied")),
+        "loop B occupied": Message(N_("loop B occupied")), "loop C occupied": Message(N_("loop C occupied"))}
+GATE_STATE, POSITION = Message(N_("Gate state")), Message(N_("Position"))  # the points, measured by their names
 T_OPEN = "Open time"  # 0x0D t_offen, 10 ms units (adapter NAMES)
 LOOP_MODES = "Induction-loop modes"  # 0x12, one 16-bit mode register per loop A, B, C (adapter NAMES)
 LOOP_ON_BIT = 0x0001  # chapter 5.1.18: the first row of each loop's mode register, "Schleife eingeschaltet"
@@ -48,30 +55,43 @@ _CLOSING = (GateState.PREWARN_CLOSE, GateState.CLOSING)
 _REVERSED = (GateState.OPENING, GateState.OPEN, GateState.PREWARN_OPEN)
 # what a person is asked to do; "Toggle LS" / "Toggle loop-A" name the twin's controls where the barrier is
 # simulated (the record page and the CLI offer them with the question)
-LS_READY = ("Toggle LS as the boom closes: stand ready at the light barrier, interrupt it once the boom starts to "
-            "close and keep it interrupted until you are asked to free it. Ready?")
-LS_FREE = "Toggle LS now: free the light barrier."
+LS_READY = Message(N_("Toggle LS as the boom closes: stand ready at the light barrier, interrupt it once the boom starts "
+                      "to close and keep it interrupted until you are asked to free it. Ready?"))
+LS_FREE = Message(N_("Toggle LS now: free the light barrier."))
+OPEN_PULSE, CLOSE_PULSE = "open pulse", "close pulse"  # the declared commands (devices/mo64/policy.py)
+
+
+def _command(command: str) -> Message:
+    """A declared pulse command in words, as the device page names it ("open pulse", "öffnen Impuls")."""
+    return Message(FUNCTION_WORDS[Function.PULSE], command=Message(COMMAND_NAMES[Command.OPEN if command == OPEN_PULSE
+                                                                               else Command.CLOSE]))
 
 
 def steps(options: dict, settings: dict) -> list[dict]:
     tol = settings["position_tolerance_pct"]
     return [
-        {"name": "Area clear (asked)", "limits": "the engineer confirms", "run": _ask},
-        {"name": "Error memory before", "limits": "all 10 levels read (or not available on this unit)", "run": _memory_before},
-        {"name": "Light barrier, loops, no fault", "limits": "LS, loops A-C, F_ereignis, Baum ab all 0; boom closed",
-         "run": _idle},
-        {"name": "Open", "limits": f"open within {settings['open_time_max_s']:g} s, position >= {100 - tol} %; "
-         "pre-warning, opening, open in that order", "run": _open},
-        {"name": "Light barrier reverses a closing boom (asked)",
-         "limits": f"interrupted while the boom closes: LS reported and the boom reverses within "
-         f"{settings['reverse_timeout_s']:g} s", "run": _light_barrier},
-        {"name": "Induction loops (asked)", "limits": f"each loop switched on: occupied and free again seen within "
-         f"{settings['safety_seen_s']:g} s", "run": _loops},
-        {"name": "Automatic closing (t_offen)", "limits": "with t_offen != 0: the open boom closes by itself within "
-         f"t_offen + {settings['close_time_max_s']:g} s (5.2.4.1); t_offen = 0: not available", "run": _auto_close},
-        {"name": "Close", "limits": f"closed within {settings['close_time_max_s']:g} s, position <= {tol} %; "
-         "light barrier and loops free throughout", "run": _close},
-        {"name": "Error memory unchanged", "limits": "every level as before the cycle; F_ereignis 0", "run": _memory_after},
+        {"name": Message(N_("Area clear (asked)")), "limits": Message(N_("the engineer confirms")), "run": _ask},
+        {"name": Message(N_("Error memory before")), "limits": Message(N_("all 10 levels read (or not available on this unit)")),
+         "run": _memory_before},
+        {"name": Message(N_("Light barrier, loops, no fault")),
+         "limits": Message(N_("LS, loops A-C, F_ereignis, Baum ab all 0; boom closed")), "run": _idle},
+        {"name": Message(N_("Open")),
+         "limits": Message(N_("open within {limit:g} s, position >= {position} %; pre-warning, opening, open in that order"),
+                           limit=settings["open_time_max_s"], position=100 - tol), "run": _open},
+        {"name": Message(N_("Light barrier reverses a closing boom (asked)")),
+         "limits": Message(N_("interrupted while the boom closes: LS reported and the boom reverses within {limit:g} s"),
+                           limit=settings["reverse_timeout_s"]), "run": _light_barrier},
+        {"name": Message(N_("Induction loops (asked)")),
+         "limits": Message(N_("each loop switched on: occupied and free again seen within {limit:g} s"),
+                           limit=settings["safety_seen_s"]), "run": _loops},
+        {"name": Message(N_("Automatic closing (t_offen)")),
+         "limits": Message(N_("with t_offen != 0: the open boom closes by itself within t_offen + {limit:g} s (5.2.4.1); "
+                              "t_offen = 0: not available"), limit=settings["close_time_max_s"]), "run": _auto_close},
+        {"name": Message(N_("Close")),
+         "limits": Message(N_("closed within {limit:g} s, position <= {position} %; light barrier and loops free throughout"),
+                           limit=settings["close_time_max_s"], position=tol), "run": _close},
+        {"name": Message(N_("Error memory unchanged")), "limits": Message(N_("every level as before the cycle; F_ereignis 0")),
+         "run": _memory_after},
     ]
 
 
@@ -84,7 +104,10 @@ def _state(ctx) -> int | None:
 
 
 def _state_name(value) -> str:
-    return "unknown" if value is None else GATE_STATE_NAMES.get(value, f"state {value}")
+    if value is None:
+        return Message(N_("unknown"))
+    name = GATE_STATE_NAMES.get(value)
+    return Message(N_("state {value}"), value=value) if name is None else Message("{state}", state=Word(name, "Gate state"))
 
 
 def _t_open_s(ctx) -> float | None:
@@ -114,37 +137,40 @@ async def _memory_before(ctx) -> None:
     rows, missing = await _read_memory(ctx)
     _MEMORY_BEFORE[ctx] = (rows, missing)
     if len(missing) >= ERROR_MEMORY_LEVELS or not rows:
-        ctx.not_available(f"the barrier refuses every error-memory level (query 0x12, levels {missing or 'all'}): "
-                          "its error memory cannot be compared on this unit; read it on the unit's display")
+        ctx.not_available(Message(N_("the barrier refuses every error-memory level (query 0x12, levels {levels}): its error "
+                                     "memory cannot be compared on this unit; read it on the unit's display"),
+                                  levels=str(missing) if missing else Message(N_("all"))))
     if missing:
-        ctx.note(f"error memory levels not available on this unit: {missing}; the others are compared")
-    ctx.measure("Error memory levels read", len(rows), fail=False)
-    ctx.measure("Error memory level 0 flags", f"0x{rows[0][1]:08X}", fail=False)
+        ctx.note(Message(N_("error memory levels not available on this unit: {levels}; the others are compared"),
+                         levels=str(missing)))
+    ctx.measure(Message(N_("Error memory levels read")), len(rows), fail=False)
+    ctx.measure(Message(N_("Error memory level 0 flags")), f"0x{rows[0][1]:08X}", fail=False)
 
 
 async def _idle(ctx) -> None:
     s = ctx.settings
     if not await ctx.wait(lambda: all(ctx.value(name) is not None for name in (*SAFETY, *LOOPS)) and _state(ctx) is not None,
                           s["start_timeout_s"]):
-        ctx.fail("no barrier status or gate state from the barrier")
+        ctx.fail(Message(N_("no barrier status or gate state from the barrier")))
     bad = [_WHY[name] for name in (*SAFETY, *LOOPS) if ctx.value(name)]
     for name in (*SAFETY, *LOOPS):
-        ctx.measure(name, ctx.value(name), expect=False, fail=False)
+        ctx.measure(_WHY[name] if name in LOOPS else name, ctx.value(name), expect=False, fail=False)
     if bad:
-        ctx.fail(f"not ready for the cycle: {', '.join(bad)}")
+        ctx.fail(Message(N_("not ready for the cycle: {why}"), why=joined(bad)))
     if _state(ctx) != GateState.CLOSED:
         t_open = _t_open_s(ctx)
         if t_open:  # chapter 5.2.4.1: an open boom closes by itself after t_offen ...
-            ctx.note(f"the boom was {_state_name(_state(ctx))} at the start: waiting for it to close by itself "
-                     f"(t_offen {t_open:g} s)")
+            ctx.note(Message(N_("the boom was {state} at the start: waiting for it to close by itself (t_offen {t_open:g} s)"),
+                             state=_state_name(_state(ctx)), t_open=t_open))
             await ctx.wait(lambda: _state(ctx) == GateState.CLOSED, t_open + s["close_time_max_s"])
         else:  # ... unless t_offen = 0 switches automatic closing off: it is closed by command
-            why = "t_offen = 0: automatic closing is off" if t_open == 0 else "t_offen not read"
-            ctx.note(f"the boom was {_state_name(_state(ctx))} at the start ({why}): closing it by command")
+            why = Message(N_("t_offen = 0: automatic closing is off")) if t_open == 0 else Message(N_("t_offen not read"))
+            ctx.note(Message(N_("the boom was {state} at the start ({why}): closing it by command"),
+                             state=_state_name(_state(ctx)), why=why))
             await ctx.ask(AREA_CLEAR_RISK)
-            await ctx.invoke("close pulse")
+            await ctx.invoke(CLOSE_PULSE)
             await ctx.wait(lambda: _state(ctx) == GateState.CLOSED, s["close_time_max_s"] + 1.0)
-    ctx.measure("Gate state", _state_name(_state(ctx)), expect=_state_name(GateState.CLOSED))
+    ctx.measure(GATE_STATE, _state_name(_state(ctx)), expect=_state_name(GateState.CLOSED))
 
 
 def _at_end(ctx, goal: GateState) -> bool:
@@ -171,38 +197,42 @@ async def _cycle(ctx, command: str, goal: GateState, limit_s: float, ask: bool =
         await ctx.ask(AREA_CLEAR_RISK)  # every motion asks, right before it goes out (issue 42 item 6)
     t0 = time.monotonic()
     answer = await ctx.invoke(command)
-    ctx.measure(f"{command}: the barrier's answer", answer, expect="ack")
+    ctx.measure(Message(N_("{command}: the barrier's answer"), command=_command(command)), answer, expect="ack")
     reached = await ctx.wait(follow, limit_s + 1.0)
     took = round(time.monotonic() - t0, 2)
-    transitions = " -> ".join(f"{_state_name(state)} at {t - t0:.2f} s" for t, state in seen)
-    ctx.note(f"gate state: {transitions or 'no change seen'}")
+    transitions = joined([Message(N_("{state} at {seconds:.2f} s"), state=_state_name(state), seconds=t - t0)
+                          for t, state in seen], " -> ")
+    ctx.note(Message(N_("gate state: {transitions}"), transitions=transitions if seen else Message(N_("no change seen"))))
     for t, state in seen[1:]:
-        ctx.measure(f"Gate state {_state_name(state)} seen after", round(t - t0, 2), "s", fail=False)
+        ctx.measure(Message(N_("Gate state {state} seen after"), state=_state_name(state)), round(t - t0, 2), "s", fail=False)
     if not reached:
-        why = ", ".join(_WHY[name] for name in sorted(safety))
-        ctx.fail(f"not {_state_name(goal)} within {limit_s:g} s: the gate state went {transitions or 'nowhere'}, "
-                 f"position {ctx.value('Position')} %" + (f"; {why}" if why else ""))
-    ctx.measure(f"{command} to {_state_name(goal)} seen", took, "s", high=limit_s)
+        why = [_WHY[name] for name in sorted(safety)]
+        went = Message(N_("not {state} within {limit:g} s: the gate state went {transitions}, position {position} %"),
+                       state=_state_name(goal), limit=limit_s, transitions=transitions if seen else Message(N_("nowhere")),
+                       position=ctx.value("Position"))
+        ctx.fail(Message("{went}; {why}", went=went, why=joined(why)) if why else went)
+    ctx.measure(Message(N_("{command} to {state} seen"), command=_command(command), state=_state_name(goal)), took, "s",
+                high=limit_s)
     tol = ctx.settings["position_tolerance_pct"]
     if goal == GateState.OPEN:
-        ctx.measure("Position", ctx.value("Position"), "%", low=100 - tol, high=100)
+        ctx.measure(POSITION, ctx.value("Position"), "%", low=100 - tol, high=100)
     else:
-        ctx.measure("Position", ctx.value("Position"), "%", low=0, high=tol)
+        ctx.measure(POSITION, ctx.value("Position"), "%", low=0, high=tol)
     if safety:
-        ctx.fail(f"{', '.join(_WHY[name] for name in sorted(safety))} during the move")
+        ctx.fail(Message(N_("{why} during the move"), why=joined([_WHY[name] for name in sorted(safety)])))
     for name in ("LS", *LOOPS):
         ctx.measure(name, ctx.value(name), expect=False)
     return took
 
 
 async def _open(ctx) -> None:
-    await _cycle(ctx, "open pulse", GateState.OPEN, ctx.settings["open_time_max_s"])
+    await _cycle(ctx, OPEN_PULSE, GateState.OPEN, ctx.settings["open_time_max_s"])
 
 
 async def _ensure_open(ctx) -> None:
     if _state(ctx) == GateState.OPEN and _at_end(ctx, GateState.OPEN):
         return
-    await _cycle(ctx, "open pulse", GateState.OPEN, ctx.settings["open_time_max_s"])
+    await _cycle(ctx, OPEN_PULSE, GateState.OPEN, ctx.settings["open_time_max_s"])
 
 
 async def _light_barrier(ctx) -> None:
@@ -225,28 +255,30 @@ async def _light_barrier(ctx) -> None:
         return closing_seen and ls_seen and state in _REVERSED
 
     t0 = time.monotonic()
-    answer = await ctx.invoke("close pulse")
-    ctx.measure("close pulse: the barrier's answer", answer, expect="ack")
+    answer = await ctx.invoke(CLOSE_PULSE)
+    ctx.measure(Message(N_("{command}: the barrier's answer"), command=_command(CLOSE_PULSE)), answer, expect="ack")
     reversed_ = await ctx.wait(follow, s["reverse_timeout_s"])
     took = round(time.monotonic() - t0, 2)
-    went = " -> ".join(_state_name(x) for x in seen) or "nowhere"
-    ctx.note(f"gate state: {went}")
-    ctx.measure("LS reported while the boom closed", ls_seen, expect=True, fail=False)
+    went = joined([_state_name(x) for x in seen], " -> ") if seen else Message(N_("nowhere"))
+    ctx.note(Message(N_("gate state: {transitions}"), transitions=went))
+    ctx.measure(Message(N_("LS reported while the boom closed")), ls_seen, expect=True, fail=False)
     if not reversed_:
         if not closing_seen:
-            ctx.fail(f"the boom did not start to close (gate state went {went}): nothing to interrupt; is the light "
-                     "barrier already interrupted, a loop occupied or an open level held?")
+            ctx.fail(Message(N_("the boom did not start to close (gate state went {went}): nothing to interrupt; is the light "
+                                "barrier already interrupted, a loop occupied or an open level held?"), went=went))
         if not ls_seen:
-            ctx.fail(f"the light barrier was to be interrupted while the boom closed, but LS never reported it (gate "
-                     f"state went {went}, position {ctx.value('Position')} %): check the light barrier's wiring, "
-                     "alignment and supply, and its mode in the configuration flags")
-        ctx.fail(f"LS reported, but the boom did not reverse within {s['reverse_timeout_s']:g} s (gate state went "
-                 f"{went}, position {ctx.value('Position')} %): the light barrier's safety function does not act")
-    ctx.measure("Close pulse to the boom reversing", took, "s", high=s["reverse_timeout_s"])
+            ctx.fail(Message(N_("the light barrier was to be interrupted while the boom closed, but LS never reported it (gate "
+                                "state went {went}, position {position} %): check the light barrier's wiring, alignment and "
+                                "supply, and its mode in the configuration flags"), went=went, position=ctx.value("Position")))
+        ctx.fail(Message(N_("LS reported, but the boom did not reverse within {limit:g} s (gate state went {went}, position "
+                            "{position} %): the light barrier's safety function does not act"), limit=s["reverse_timeout_s"],
+                         went=went, position=ctx.value("Position")))
+    ctx.measure(Message(N_("Close pulse to the boom reversing")), took, "s", high=s["reverse_timeout_s"])
     await ctx.ask(LS_FREE)
     if not await ctx.wait(lambda: not ctx.value("LS"), s["safety_seen_s"]):
-        ctx.fail(f"LS still reported {s['safety_seen_s']:g} s after the light barrier was freed: is something in the beam?")
-    ctx.measure("LS after freeing", ctx.value("LS"), expect=False)
+        ctx.fail(Message(N_("LS still reported {limit:g} s after the light barrier was freed: is something in the beam?"),
+                         limit=s["safety_seen_s"]))
+    ctx.measure(Message(N_("LS after freeing")), ctx.value("LS"), expect=False)
 
 
 def _loops_on(ctx) -> list[str] | None:
@@ -261,34 +293,37 @@ async def _loops(ctx) -> None:
     s = ctx.settings
     on = _loops_on(ctx)
     if on is None:
-        on = [x for x in "ABC" if await ctx.choose(f"The loop modes (0x12) were not read: is loop {x} installed and "
-                                                      "switched on?", f"loop {x} not tested")]
+        on = [x for x in "ABC" if await ctx.choose(
+            Message(N_("The loop modes (0x12) were not read: is loop {loop} installed and switched on?"), loop=x),
+            Message(N_("loop {loop} not tested"), loop=x))]
     else:
-        ctx.note(f"loops switched on (0x12): {', '.join(on) or 'none'}")
+        ctx.note(Message(N_("loops switched on (0x12): {loops}"), loops=", ".join(on) if on else Message(N_("none"))))
     if not on:
-        ctx.not_available("no induction loop is switched on at this barrier (0x12)")
+        ctx.not_available(Message(N_("no induction loop is switched on at this barrier (0x12)")))
     for loop in on:
         name = f"loop {loop} occupied"
-        await ctx.ask(f"Toggle loop-{loop} now: occupy loop {loop} (drive or place a vehicle on it) and leave it "
-                      "occupied until you are asked to free it.")
+        await ctx.ask(Message(N_("Toggle loop-{loop} now: occupy loop {loop} (drive or place a vehicle on it) and leave it "
+                                 "occupied until you are asked to free it."), loop=loop))
         occupied = await ctx.wait(lambda n=name: ctx.value(n) is True, s["safety_seen_s"])
-        ctx.measure(f"Loop {loop} occupied seen", ctx.value(name), expect=True, fail=False)
+        ctx.measure(Message(N_("Loop {loop} occupied seen"), loop=loop), ctx.value(name), expect=True, fail=False)
         if not occupied:
-            ctx.fail(f"loop {loop} was to be occupied, but the barrier did not report it within {s['safety_seen_s']:g} s: "
-                     "check the loop, its detector's sensitivity and the loop-adjust state")
-        await ctx.ask(f"Toggle loop-{loop} now: free loop {loop}.")
+            ctx.fail(Message(N_("loop {loop} was to be occupied, but the barrier did not report it within {limit:g} s: check "
+                                "the loop, its detector's sensitivity and the loop-adjust state"), loop=loop,
+                             limit=s["safety_seen_s"]))
+        await ctx.ask(Message(N_("Toggle loop-{loop} now: free loop {loop}."), loop=loop))
         freed = await ctx.wait(lambda n=name: ctx.value(n) is False, s["safety_seen_s"])
-        ctx.measure(f"Loop {loop} free again", ctx.value(name), expect=False, fail=False)
+        ctx.measure(Message(N_("Loop {loop} free again"), loop=loop), ctx.value(name), expect=False, fail=False)
         if not freed:
-            ctx.fail(f"loop {loop} still reported occupied {s['safety_seen_s']:g} s after it was freed")
+            ctx.fail(Message(N_("loop {loop} still reported occupied {limit:g} s after it was freed"), loop=loop,
+                             limit=s["safety_seen_s"]))
 
 
 async def _close(ctx) -> None:
     if _state(ctx) in _CLOSING:  # closing by itself (t_offen) meanwhile: let it end, then open to close by command
         await ctx.wait(lambda: _state(ctx) == GateState.CLOSED, ctx.settings["close_time_max_s"])
     if _state(ctx) != GateState.OPEN:
-        await _cycle(ctx, "open pulse", GateState.OPEN, ctx.settings["open_time_max_s"])
-    await _cycle(ctx, "close pulse", GateState.CLOSED, ctx.settings["close_time_max_s"])
+        await _cycle(ctx, OPEN_PULSE, GateState.OPEN, ctx.settings["open_time_max_s"])
+    await _cycle(ctx, CLOSE_PULSE, GateState.CLOSED, ctx.settings["close_time_max_s"])
 
 
 async def _auto_close(ctx) -> None:
@@ -296,44 +331,48 @@ async def _auto_close(ctx) -> None:
     s = ctx.settings
     t_open = _t_open_s(ctx)
     if t_open is None:
-        ctx.not_available("t_offen (0x0D) was not read from this barrier: whether it closes by itself is unknown")
+        ctx.not_available(Message(N_("t_offen (0x0D) was not read from this barrier: whether it closes by itself is unknown")))
     ctx.measure("t_offen", round(t_open, 2), "s", fail=False)
     if t_open == 0:
-        ctx.not_available("t_offen = 0: automatic closing is switched off on this unit (5.2.4.1)")
+        ctx.not_available(Message(N_("t_offen = 0: automatic closing is switched off on this unit (5.2.4.1)")))
     if _state(ctx) != GateState.OPEN:
-        await _cycle(ctx, "open pulse", GateState.OPEN, s["open_time_max_s"])
+        await _cycle(ctx, OPEN_PULSE, GateState.OPEN, s["open_time_max_s"])
     t0 = time.monotonic()
     limit = t_open + s["close_time_max_s"]
     closed = await ctx.wait(lambda: _state(ctx) == GateState.CLOSED and _at_end(ctx, GateState.CLOSED), limit + 1.0)
     took = round(time.monotonic() - t0, 2)
     if not closed:
-        ctx.fail(f"t_offen is {t_open:g} s, but the boom did not close by itself within {limit:g} s (gate state "
-                 f"{_state_name(_state(ctx))}, position {ctx.value('Position')} %; light barrier "
-                 f"{'interrupted' if ctx.value('LS') else 'free'})")
-    ctx.measure("Open to closed by itself", took, "s", high=limit)
-    ctx.measure("Position", ctx.value("Position"), "%", low=0, high=s["position_tolerance_pct"])
+        ctx.fail(Message(N_("t_offen is {t_open:g} s, but the boom did not close by itself within {limit:g} s (gate state "
+                            "{state}, position {position} %; light barrier {barrier})"), t_open=t_open, limit=limit,
+                         state=_state_name(_state(ctx)), position=ctx.value("Position"),
+                         barrier=Message(N_("interrupted")) if ctx.value("LS") else Message(N_("free"))))
+    ctx.measure(Message(N_("Open to closed by itself")), took, "s", high=limit)
+    ctx.measure(POSITION, ctx.value("Position"), "%", low=0, high=s["position_tolerance_pct"])
 
 
 async def _memory_after(ctx) -> None:
     before = _MEMORY_BEFORE.get(ctx)
     if before is None:
-        ctx.fail("the error memory was not read before the cycle")
+        ctx.fail(Message(N_("the error memory was not read before the cycle")))
     rows_before, missing_before = before
     if len(missing_before) >= ERROR_MEMORY_LEVELS or not rows_before:
-        ctx.not_available("the barrier refuses every error-memory level: nothing to compare (see 'Error memory before')")
+        ctx.not_available(Message(N_("the barrier refuses every error-memory level: nothing to compare (see 'Error memory "
+                                     "before')")))
     after, missing = await _read_memory(ctx)
-    ctx.measure("F_ereignis (fault event)", ctx.value("F_ereignis"), expect=False, fail=False)
+    ctx.measure(Message(N_("F_ereignis (fault event)")), ctx.value("F_ereignis"), expect=False, fail=False)
     levels = {r[0] for r in rows_before} & {r[0] for r in after}
     if not levels:
-        ctx.fail(f"the error memory could not be read after the cycle (levels not available: {missing})")
+        ctx.fail(Message(N_("the error memory could not be read after the cycle (levels not available: {levels})"),
+                         levels=str(missing)))
     b, a = ({r[0]: r for r in rows if r[0] in levels} for rows in (rows_before, after))
-    changed = [f"level {n}: flags 0x{b[n][1]:08X} -> 0x{a[n][1]:08X} at {a[n][2]} h" for n in sorted(levels) if a[n] != b[n]]
-    ctx.measure("Error memory levels compared", len(levels), fail=False)
-    ctx.measure("Error memory levels changed", len(changed), expect=0, fail=False)
+    changed = [Message(N_("level {level}: flags {before} -> {after} at {hours} h"), level=n, before=f"0x{b[n][1]:08X}",
+                       after=f"0x{a[n][1]:08X}", hours=a[n][2]) for n in sorted(levels) if a[n] != b[n]]
+    ctx.measure(Message(N_("Error memory levels compared")), len(levels), fail=False)
+    ctx.measure(Message(N_("Error memory levels changed")), len(changed), expect=0, fail=False)
     if changed:
-        ctx.fail("the error memory changed during the cycle: " + "; ".join(changed))
+        ctx.fail(Message(N_("the error memory changed during the cycle: {levels}"), levels=joined(changed, "; ")))
     if ctx.value("F_ereignis"):
-        ctx.fail("fault event (F_ereignis) set after the cycle")
+        ctx.fail(Message(N_("fault event (F_ereignis) set after the cycle")))
 
 
 async def cleanup(ctx, settings: dict) -> None:
@@ -342,7 +381,9 @@ async def cleanup(ctx, settings: dict) -> None:
     if _state(ctx) not in (GateState.CLOSED, None):
         t_open = _t_open_s(ctx)
         if t_open:
-            ctx.note(f"the boom was left {_state_name(_state(ctx))}: it closes by itself after t_offen ({t_open:g} s)")
+            ctx.note(Message(N_("the boom was left {state}: it closes by itself after t_offen ({t_open:g} s)"),
+                             state=_state_name(_state(ctx)), t_open=t_open))
         else:
-            ctx.note(f"the boom was left {_state_name(_state(ctx))} and does not close by itself "
-                     f"({'t_offen = 0' if t_open == 0 else 't_offen unknown'}): close it from the device page")
+            ctx.note(Message(N_("the boom was left {state} and does not close by itself ({why}): close it from the device page"),
+                             state=_state_name(_state(ctx)),
+                             why="t_offen = 0" if t_open == 0 else Message(N_("t_offen unknown"))))
