@@ -186,7 +186,7 @@ class TerminalPerson:
     async def ask(self, question: str) -> bool:
         while not self.presses.empty():  # presses before the question answer nothing
             self.presses.get_nowait()
-        self.out(f"    ? {question}\n      ({_(HOLD_WORDS)})")
+        self.out(f"    ? {said(question, cli_lang.lang())}\n      ({_(HOLD_WORDS)})")
         last: float | None = None
         while True:
             key = await self.presses.get()

@@ -228,7 +228,7 @@ def _answerer(mode: str | None, user: str, out, runtime=None, device: str = ""):
     the twin through its declared control (audited as a simulation action, as the page's sim card does)."""
     if mode == "yes":
         async def yes(question: str) -> bool:
-            out(_("    ? {question} -> yes (answered by {user} with --answer yes)").format(question=question, user=user))
+            out(_("    ? {question} -> yes (answered by {user} with --answer yes)").format(question=_said(question), user=user))
             controls = runtime.sim_controls(device) if runtime is not None else None
             words = question.split()
             if controls is not None and len(words) > 1 and words[0] == "Toggle":
@@ -241,9 +241,9 @@ def _answerer(mode: str | None, user: str, out, runtime=None, device: str = ""):
         async def ask(question: str) -> bool:
             while True:
                 try:
-                    line = await asyncio.to_thread(input, _("    ? {question} [yes/no] ").format(question=question))
+                    line = await asyncio.to_thread(input, _("    ? {question} [yes/no] ").format(question=_said(question)))
                 except EOFError:
-                    raise StepFailed(f"{question} - no answer (standard input closed)") from None
+                    raise StepFailed(Message(N_("{question} - no answer (standard input closed)"), question=question)) from None
                 word = line.strip().lower()
                 if word in ("y", "yes", "j", "ja"):  # either language's yes and no
                     return True
@@ -253,20 +253,23 @@ def _answerer(mode: str | None, user: str, out, runtime=None, device: str = ""):
         return ask
 
     async def nobody(question: str) -> bool:
-        raise StepFailed(f"{question} - nobody to ask (standard input is no terminal: use --answer ask or --answer yes)")
+        raise StepFailed(Message(N_("{question} - nobody to ask (standard input is no terminal: use --answer ask or --answer "
+                                    "yes)"), question=question))
     return nobody
 
 
 def _step_line(r) -> str:
-    from app.report import with_unit
+    from app.report import recorded, with_unit
 
-    line = f"  [{r.status}] {r.name}"
+    lang = cli_lang.lang()
+    line = f"  [{_(r.status)}] {_said(r.name)}"
     if r.ended and r.started:
-        line += f" ({r.ended - r.started:.1f} s)"
+        line += f" ({lang.number(r.ended - r.started, 1, group=False)} s)"
     if r.reason:
-        line += f": {r.reason}"
+        line += f": {_said(r.reason)}"
     elif r.values:
-        line += ": " + "; ".join(f"{v['name']} {with_unit(v['value'], v['unit'])}" for v in r.values[:4])
+        line += ": " + "; ".join(f"{_said(v['name'])} {lang.numbers_in(with_unit(recorded(v['value'], {}, lang), v['unit']))}"
+                                 for v in r.values[:4])
     return line
 
 
@@ -370,7 +373,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
             continue
         if state.status != "online":
             reason = Message(N_("not answering ({error})"), error=state.last_error or Message(N_("no answer")))
-            out(_("{name}: {title}: not run: {reason}").format(name=name, title=module.TITLE, reason=_said(reason)))
+            out(_("{name}: {title}: not run: {reason}").format(name=name, title=_said(module.TITLE), reason=_said(reason)))
             results.append((name, "not run", reason, None))
             continue
         options: dict[str, Any] = {}
@@ -390,7 +393,7 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
             out(f"{name}: {_said(exc)}")
             results.append((name, "not run", message_of(exc), None))
             continue
-        out(_("{name} ({type}): {title}, {n} steps").format(name=name, type=state.type, title=module.TITLE, n=len(run.results)))
+        out(_("{name} ({type}): {title}, {n} steps").format(name=name, type=state.type, title=_said(module.TITLE), n=len(run.results)))
         shown: dict[int, str] = {}
 
         def progress(run=run, shown=shown) -> None:
@@ -408,14 +411,14 @@ async def checkout_devices(runtime, names: list[str], *, user: str, role: str, a
             return 1
         line = _("{name}: {status} in {duration} s").format(name=name, status=_(result["status"]), duration=result["duration_s"])
         if result["reason"]:
-            line += f": {result['reason']}"
+            line += f": {_said(result['reason'])}"
         out(line + (_(" (record {id})").format(id=result.get("record_id")) if result.get("record_id") else ""))
         results.append((name, result["status"], result["reason"], result["duration_s"]))
     passed = sum(s == "passed" for _n, s, _r, _d in results)
     out(_("{passed} of {n} checkouts passed").format(passed=passed, n=len(results)))
     for n, s, r, _d in results:
         if s != "passed":
-            out(f"  {n}: {_(s)}" + (f": {_said(r)}" if r else ""))  # a run's reason as the record holds it
+            out(f"  {n}: {_(s)}" + (f": {_said(r)}" if r else ""))
     return 0 if results and passed == len(results) else 1
 
 
@@ -459,7 +462,7 @@ async def sign_record(runtime, *, user: str, role: str, name: str, comment: str,
     """The sign-off of the plant (``device`` None) or of one device by a named ``account``, as the
     record page's sign buttons do; devices without a checkout, with a failed one or with settings not
     approved are listed, and nothing is signed unless ``sign_anyway``."""
-    from app.report import device_content, plant_content, sign_gaps
+    from app.report import device_content, plant_content, recorded, sign_gaps
 
     if not name.strip():
         out(_("commission: a sign-off needs a name"))
@@ -497,7 +500,7 @@ async def sign_record(runtime, *, user: str, role: str, name: str, comment: str,
     if not device:
         for d in content["devices"]:
             counts = d["counts"]
-            checks = ", ".join(f"{c['title']}: {_(c['last'])} (" + cli_lang.lang().ngettext("{n} run", "{n} runs", c["runs"]).format(n=c["runs"]) + ")"
+            checks = ", ".join(f"{recorded(c['title'], c, cli_lang.lang())}: {_(c['last'])} (" + cli_lang.lang().ngettext("{n} run", "{n} runs", c["runs"]).format(n=c["runs"]) + ")"
                                for c in d["checkout_summary"]) or _("no checkout")
             out(_("  {device}: {checks}; {changed} changed, {not_approved} not approved").format(
                 device=d["device"], checks=checks, changed=counts["changed"], not_approved=counts["not approved"]))

@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from app import i18n
-from app.i18n import N_
+from app.i18n import N_, NP_
+from app.message import reworded, said
 from app.record_sets import (
     LIVE_VALUE,
     compare_with_approved,
@@ -62,7 +63,9 @@ def _run_summary(runs: list[dict]) -> list[dict]:
         s = by_title.setdefault(run["title"], {"title": run["title"], "runs": 0, "passed": 0, "failed": 0, "by": []})
         s["runs"] += 1
         s["passed" if run["status"] == "passed" else "failed"] += 1
-        s.update(last=run["status"], last_reason=run["reason"], last_time=run["time"], last_id=run["id"])
+        table = run.get("worded") or {}
+        s.update(last=run["status"], last_reason=run["reason"], last_time=run["time"], last_id=run["id"],
+                 worded={text: table[text] for text in (run["title"], run["reason"]) if text in table})
         if run["user"] not in s["by"]:
             s["by"].append(run["user"])
     return list(by_title.values())
@@ -138,7 +141,8 @@ async def device_content(runtime, device: str, *, read: bool = True, user: str =
             named = evidence_named(entry.hash, device, config.bus, entry.id, n, step.get("evidence") or {})
             steps.append({**step, "evidence_file": named})
         runs.append({"id": entry.id, "time": entry.time, "settings": entry.data.get("settings", {}), "steps": steps,
-                     **{k: entry.data.get(k) for k in ("title", "status", "reason", "user", "duration_s")}})
+                     **{k: entry.data.get(k) for k in ("title", "status", "reason", "user", "duration_s")},
+                     "worded": entry.data.get("worded") or {}})
     entries = await record.timeline(device)
     since = min((e.time for e in entries), default=time.time() - 86400) - 60
     audit = await runtime.audit.aquery(device=device, since=since, limit=AUDIT_ROWS) if runtime.audit else []
@@ -177,7 +181,7 @@ def sign_gaps(content: dict, lang: i18n.Lang | None = None) -> list[str]:
         said = []
         if not d["checkouts"]:
             said.append(_("no checkout run"))
-        said += [_("last {title} {status}").format(title=c["title"], status=word(c["last"], lang))
+        said += [_("last {title} {status}").format(title=recorded(c["title"], c, lang), status=word(c["last"], lang))
                  for c in d.get("checkout_summary", []) if c["last"] != "passed"]
         if d["approved"] is None:
             said.append(_("no approved set"))
@@ -275,6 +279,20 @@ def word(text: Any, lang: i18n.Lang | None) -> str:
     return "" if text is None else language(lang).gettext(str(text)) if isinstance(text, str) else str(text)
 
 
+def recorded(text: Any, run: dict, lang: i18n.Lang | None) -> Any:
+    """A text of a checkout ``run`` (a title, a step's name, a reason, a question) as the record holds it, in ``lang``
+    where the run keeps its template (``worded``, app/checkout.py); else as it was written."""
+    return said(reworded(text, run.get("worded")), lang) if isinstance(text, str) else text
+
+
+def answer_word(answer: str, lang: i18n.Lang | None) -> str:
+    """A recorded answer (``yes``, ``no``) in ``lang``."""
+    return language(lang).pgettext("answer", answer)
+
+
+ANSWERS = (NP_("answer", "yes"), NP_("answer", "no"))
+
+
 def source_text(source: str, lang: i18n.Lang | None) -> str:
     """Where the values come from (content data, English) in the report's language, phrase by phrase."""
     lang = language(lang)
@@ -311,10 +329,14 @@ def values_text(d: dict, lang: i18n.Lang | None = None) -> str:
     return _("Values {source}: {counts}.").format(source=source_text(d["parameters_source"], lang), counts=counts)
 
 
-def measured_text(v: dict, lang: i18n.Lang | None = None) -> str:
+def measured_text(v: dict, lang: i18n.Lang | None = None, run: dict | None = None) -> str:
+    """A measured value against its limit; its name, value and limit in ``lang`` where ``run`` keeps their templates."""
     _ = language(lang).gettext
+    run = run or {}
+    value = with_unit(recorded(v["value"], run, lang), v["unit"])
     return "{name} = {value} ({limit}: {verdict})".format(
-        name=v["name"], value=with_unit(v["value"], v["unit"]), limit=v["limit"] or _("recorded"), verdict=_("ok") if v["ok"] else _("FAIL"))
+        name=recorded(v["name"], run, lang), value=lang.numbers_in(value) if lang is not None else value,
+        limit=recorded(v["limit"], run, lang) or _("recorded"), verdict=_("ok") if v["ok"] else _("FAIL"))
 
 
 def evidence_text(s: dict, lang: i18n.Lang | None = None) -> str:
@@ -348,8 +370,8 @@ def summary_rows(d: dict, p: dict | None = None, lang: i18n.Lang | None = None) 
     lang = language(lang)
     _ = lang.gettext
     runs = "; ".join(
-        f"{c['title']}: {word(c['last'], lang)}"
-        + (f" ({c['last_reason']})" if c["last"] != "passed" and c["last_reason"] else "")
+        f"{recorded(c['title'], c, lang)}: {word(c['last'], lang)}"
+        + (f" ({recorded(c['last_reason'], c, lang)})" if c["last"] != "passed" and c["last_reason"] else "")
         + ", " + lang.ngettext("{n} run ({passed} passed, {failed} not)", "{n} runs ({passed} passed, {failed} not)",
                                c["runs"]).format(n=c["runs"], passed=c["passed"], failed=c["failed"])
         + ", " + _("by {people}").format(people=", ".join(c["by"])) for c in d.get("checkout_summary", [])) or _("no checkout run")
@@ -454,20 +476,22 @@ def device_html(d: dict, plant_signoff: dict | None = None, *, appendix: bool = 
         out.append("<p>" + _e(_("No checkout run.")) + "</p>")
     else:
         out.append(_rows_html(head(RUNS_HEAD, lang), [
-            [f"#{c['id']}", c["title"], result_cell(c["status"], c["reason"], lang), c["user"], when(c["time"], lang),
-             seconds(c["duration_s"], lang)] for c in d["checkouts"]], {2: lambda r: _result_class(r, 2)}))
+            [f"#{c['id']}", recorded(c["title"], c, lang), result_cell(c["status"], recorded(c["reason"], c, lang), lang), c["user"],
+             when(c["time"], lang), seconds(c["duration_s"], lang)] for c in d["checkouts"]], {2: lambda r: _result_class(r, 2)}))
     if appendix:
         out.append(appendix_html(d, lang))
     return "\n".join(out)
 
 
-def measured_answers(s: dict, lang: i18n.Lang | None = None) -> list[str]:
-    """A step's measured values and the answers given to it (questions and answers are recorded as asked)."""
-    return [measured_text(v, lang) for v in s["values"]] + [f'{a["question"]} {a["answer"]} ({a["by"]})' for a in s["answers"]]
+def measured_answers(s: dict, lang: i18n.Lang | None = None, run: dict | None = None) -> list[str]:
+    """A step's measured values and the answers given to it, in ``lang`` where ``run`` keeps their templates."""
+    run = run or {}
+    return [measured_text(v, lang, run) for v in s["values"]] + [
+        f'{recorded(a["question"], run, lang)} {answer_word(a["answer"], lang)} ({a["by"]})' for a in s["answers"]]
 
 
-def step_detail(s: dict, lang: i18n.Lang | None = None) -> str:
-    return "; ".join(measured_answers(s, lang) + ([s["reason"]] if s["reason"] else []))
+def step_detail(s: dict, lang: i18n.Lang | None = None, run: dict | None = None) -> str:
+    return "; ".join(measured_answers(s, lang, run) + ([recorded(s["reason"], run or {}, lang)] if s["reason"] else []))
 
 
 def appendix_html(d: dict, lang: i18n.Lang | None = None) -> str:
@@ -482,11 +506,11 @@ def appendix_html(d: dict, lang: i18n.Lang | None = None) -> str:
                if d.get("live_values") else "<p>" + _e(_("No live values read.")) + "</p>")
     for c in d["checkouts"]:
         out.append("<h3>" + _e(_("Appendix {device}: checkout run #{id}, {title}: {status}").format(
-            device=device, id=c["id"], title=c["title"], status=word(c["status"], lang))) + "</h3><p>"
+            device=device, id=c["id"], title=recorded(c["title"], c, lang), status=word(c["status"], lang))) + "</h3><p>"
             + _e(_("Run by {user} on {time} in {duration}.").format(user=c["user"], time=when(c["time"], lang),
                                                                     duration=seconds(c["duration_s"], lang))) + "</p>")
-        rows = [[s["name"], Shown(word(s["status"], lang), s["status"]), s["limits"], step_detail(s, lang), evidence_text(s, lang)]
-                for s in c["steps"]]
+        rows = [[recorded(s["name"], c, lang), Shown(word(s["status"], lang), s["status"]), recorded(s["limits"], c, lang),
+                 step_detail(s, lang, c), evidence_text(s, lang)] for s in c["steps"]]
         out.append(_rows_html(head([N_("Step"), N_("Result"), N_("Limits"), N_("Measured, answers"), N_("Evidence file")], lang), rows,
                               {1: lambda r: _result_class(r, 1)}))
     out.append("<h3>" + _e(_("Appendix {device}: audit rows ({n})").format(device=device, n=len(d["audit"]))) + "</h3>")

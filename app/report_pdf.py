@@ -27,6 +27,7 @@ from app.report import (
     language,
     measured_answers,
     param_rows,
+    recorded,
     result_cell,
     seconds,
     signoff_text,
@@ -120,8 +121,9 @@ def plant_pdf(p: dict, lang: i18n.Lang | None = None) -> bytes:
             part.append(para(_("No checkout run.")))
         else:
             part.append(table([head(RUNS_HEAD, lang)] + [
-                [f"#{c['id']}", c["title"], result_cell(c["status"], c["reason"], lang), c["user"], when(c["time"], lang),
-                 seconds(c["duration_s"], lang)] for c in d["checkouts"]], [0.07, 0.2, 0.37, 0.12, 0.15, 0.09]))
+                [f"#{c['id']}", recorded(c["title"], c, lang), result_cell(c["status"], recorded(c["reason"], c, lang), lang),
+                 c["user"], when(c["time"], lang), seconds(c["duration_s"], lang)] for c in d["checkouts"]],
+                [0.07, 0.2, 0.37, 0.12, 0.15, 0.09]))
         story += [KeepTogether(part), Spacer(1, 6 * mm)]
     story += [PageBreak(), Paragraph(_escape(_("Appendix: full listings")), styles["Heading1"])]
     for d in p["devices"]:
@@ -134,11 +136,12 @@ def plant_pdf(p: dict, lang: i18n.Lang | None = None) -> bytes:
                      if d.get("live_values") else para(_("No live values read.")))
         for c in d["checkouts"]:
             story.append(Paragraph(_escape(_("{device}: checkout run #{id}, {title}: {status}").format(
-                device=device, id=c["id"], title=c["title"], status=word(c["status"], lang))), styles["Heading3"]))
+                device=device, id=c["id"], title=recorded(c["title"], c, lang), status=word(c["status"], lang))), styles["Heading3"]))
             story.append(para(_("Run by {user} on {time} in {duration}.").format(user=c["user"], time=when(c["time"], lang),
                                                                                   duration=seconds(c["duration_s"], lang))))
             story.append(table([head([N_("Step"), N_("Result"), N_("Measured, answers"), N_("Evidence file, SHA-256")], lang)] + [
-                [s["name"], result_cell(s["status"], s["reason"], lang), "; ".join(measured_answers(s, lang)), evidence_text(s, lang)] for s in c["steps"]], [0.18, 0.2, 0.34, 0.28]))
+                [recorded(s["name"], c, lang), result_cell(s["status"], recorded(s["reason"], c, lang), lang),
+                 "; ".join(measured_answers(s, lang, c)), evidence_text(s, lang)] for s in c["steps"]], [0.18, 0.2, 0.34, 0.28]))
         if d["audit"]:
             story.append(Paragraph(_escape(_("{device}: audit rows ({n})").format(device=device, n=len(d["audit"]))), styles["Heading3"]))
             story.append(table([head([N_("Time"), N_("User"), N_("Action"), N_("Parameter"), N_("Old -> new"), N_("Result")], lang)] + [

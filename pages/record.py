@@ -7,8 +7,10 @@ reads the record and downloads reports, never runs a checkout, approves or signs
 sign-off name an engineer account: a session without one (the loopback address) is asked to log in
 at that moment.
 
-The page's own words are in the catalogs (docs/i18n.md); what the record holds (checkout titles, step
-names, reasons, questions, values, timeline titles) is shown as it was written.
+The page's own words are in the catalogs (docs/i18n.md); a checkout's texts (its title, step names, reasons,
+questions, measured names and values) in the page's language too: a run of this process carries its messages, a
+stored one the table its record row keeps beside the English (``worded``, app/checkout.py). What else the record
+holds (timeline titles of other rows, parameter names) is shown as it was written.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from app.report import (
     with_unit,
 )
 from app.report_archive import write_plant
-from app.message import said
+from app.message import Message, reworded, said
 from app.verify import check_archive
 from pages.command_client import VIEWER_REASON, enable_unless
 from pages.frame import ACTION_ERRORS, fmt_time, frame
@@ -127,14 +129,20 @@ def _downloads(runtime, user: str, role: str, lang: Lang) -> None:
 
 
 def _status_text(status: str, reason: str, lang: Lang) -> str:
-    """A run's status in ``lang``, with its reason as the record holds it: ``failed: ...``."""
-    return lang.gettext(status) + (f": {reason}" if reason else "")
+    """A run's status in ``lang``, with its reason: ``failed: ...``."""
+    return lang.gettext(status) + (f": {said(reason, lang)}" if reason else "")
+
+
+def _worded(value, lang: Lang, table: dict | None = None):
+    """A checkout's text or measured value in ``lang``: a message (``stayed in``), also one stored with its template in
+    ``table`` (a record row's ``worded``), as the catalog has it; a number as it is."""
+    return said(reworded(value, table), lang) if isinstance(value, str) else value
 
 
 def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool, lang: Lang) -> None:
     _ = lang.gettext
     module = checkout_module(runtime.store.devices[name].type)
-    ui.label(_("Checkout") + (f": {module.TITLE}" if module else "")).classes("text-h6")
+    ui.label(_("Checkout") + (f": {said(module.TITLE, lang)}" if module else "")).classes("text-h6")
     if module is None:
         ui.label(_("This device type declares no checkout yet.")).classes("text-grey-8")
         return
@@ -159,17 +167,17 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool, lan
             for r in run.results:
                 with ui.row().classes("items-center gap-2 no-wrap"):
                     ui.badge(_(r.status), color=STATUS_COLOUR.get(r.status, "grey"))
-                    ui.label(r.name).classes("font-medium")
+                    ui.label(said(r.name, lang)).classes("font-medium")
                     if r.reason:
-                        ui.label(r.reason).classes("text-negative text-caption")
+                        ui.label(said(r.reason, lang)).classes("text-negative text-caption")
                     elif r.values:
-                        ui.label("; ".join(f"{v['name']} {lang.numbers_in(with_unit(v['value'], v['unit']))}"
+                        ui.label("; ".join(f"{said(v['name'], lang)} {lang.numbers_in(with_unit(_worded(v['value'], lang), v['unit']))}"
                                            for v in r.values[:3])).classes("text-caption")
 
     async def ask(question: str) -> bool:
         twin_action = _twin_action(runtime, name, question)
         with ui.dialog().props("persistent") as dialog, ui.card():
-            ui.label(question).classes("text-body1")
+            ui.label(said(question, lang)).classes("text-body1")
             ui.label(_("Your answer is recorded with your name ({user}).").format(user=user)).classes("text-caption")
             if twin_action:  # a simulated device: its inputs are on the twin, offered here so one tab is enough
                 async def act() -> None:
@@ -197,7 +205,7 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool, lan
             ui.notify(said(exc, lang), type="negative")
             return
         run.listeners.append(lambda: draw(run))
-        abort.on_click(lambda: run.abort(f"aborted by {user}"))
+        abort.on_click(lambda: run.abort(Message(N_("aborted by {user}"), user=user)))
         try:
             result = await run.run()
         except PermissionError as exc:
@@ -325,8 +333,8 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool, lan
 
     async def refresh() -> None:
         entries = await runtime.record.timeline(name)
-        table.rows = [{"id": e.id, "time": fmt_time(e.time, lang), "kind": lang.pgettext(KIND, e.kind), "title": e.title, "user": e.user}
-                      for e in entries]
+        table.rows = [{"id": e.id, "time": fmt_time(e.time, lang), "kind": lang.pgettext(KIND, e.kind),
+                       "title": said(reworded(e.title, e.data.get("worded")), lang), "user": e.user} for e in entries]
         table.update()
 
     async def show_diff() -> None:
@@ -339,7 +347,9 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool, lan
         for e in (a, b):
             params = e.data.get("parameters")
             if params is None and e.kind == "checkout":
-                params = {f"{s['name']}/{v['name']}": {"name": f"{s['name']}: {v['name']}", "raw": v["value"], "text": f"{v['value']} {v['unit']}".strip()}
+                worded = e.data.get("worded")
+                params = {f"{s['name']}/{v['name']}": {"name": f"{_worded(s['name'], lang, worded)}: {_worded(v['name'], lang, worded)}",
+                                                       "raw": v["value"], "text": f"{_worded(v['value'], lang, worded)} {v['unit']}".strip()}
                           for s in e.data["steps"] for v in s["values"]}
             sets.append(params or {})
         rows = diff_sets(*sets)
