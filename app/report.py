@@ -281,8 +281,10 @@ def word(text: Any, lang: i18n.Lang | None) -> str:
 
 def recorded(text: Any, run: dict, lang: i18n.Lang | None) -> Any:
     """A text of a checkout ``run`` (a title, a step's name, a reason, a question) as the record holds it, in ``lang``
-    where the run keeps its template (``worded``, app/checkout.py); else as it was written."""
-    return said(reworded(text, run.get("worded")), lang) if isinstance(text, str) else text
+    where the run keeps its template (``worded``, app/checkout.py); else, and in English, as it was written."""
+    if not isinstance(text, str) or lang is None or lang.code == "en":
+        return text
+    return said(reworded(text, run.get("worded")), lang)
 
 
 def answer_word(answer: str, lang: i18n.Lang | None) -> str:
