@@ -1,21 +1,24 @@
 """A checkout's texts in the reader's language (docs/i18n.md): the record keeps the English it stored (hashed, checked
 by ``commission verify``) and beside it the template of each text (``worded``), so that after a restart the record
-page, the as-left report and the command line word a run in German; a row written without that table reads as
+page, the as-left report (HTML and PDF) and the command line word a run in German; a row written without that table reads as
 before."""
 
 from __future__ import annotations
 
+import io
 import re
 from html import unescape
 from pathlib import Path
 
 import pytest
 from babel.messages.pofile import read_po
+from pypdf import PdfReader
 
 from app import cli_lang, i18n
 from app.message import Message, reworded, said, worded_table
 from app.record_cli import checkout_devices
 from app.report import plant_content, plant_html
+from app.report_pdf import plant_pdf
 from devices.message import N_, Word
 from tests.conftest import wait_for
 from tests.recordutil import demo_runtime, run_checkout
@@ -101,6 +104,8 @@ async def test_a_checkout_run_is_worded_in_german_after_a_restart(tmp_path):
         assert english_in(german) == [], english_in(german)
         assert "Verriegeln und Entriegeln" in german and "Tür in Position, Näherungssensor" in german
         assert "mit nein beantwortet von anna" in german and "Ist die Tür geschlossen" in german
+        pdf = " ".join(" ".join(page.extract_text() for page in PdfReader(io.BytesIO(plant_pdf(content, DE))).pages).split())
+        assert "Verriegeln und Entriegeln" in pdf and [m for m, pattern in checkout_patterns() if pattern.search(pdf)] == []
         english = plant_html(content, i18n.get("en"))
         assert english_in(english), "the English report is seen as English (the check of the German one sees)"
         assert "Is the door closed and is nobody in the way of the bolt? yes (anna)" in english
