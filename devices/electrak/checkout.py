@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from devices.electrak import codec
 from devices.electrak.policy import AREA_CLEAR_RISK
-from devices.message import N_, Message
+from devices.message import N_, Message, Word
 
 TITLE = Message(N_("Move out and back"))
 ERROR_FLAGS, POSITION = Message(N_("Error flags")), Message(N_("Position"))  # the points, measured by their names
@@ -68,9 +68,10 @@ async def _ask(ctx) -> None:
     await ctx.ask(AREA_CLEAR_RISK)
 
 
-def _flags(ctx) -> str:
+def _flags(ctx) -> Word:
+    """The error flags in the adapter's words, worded as the device page words them (the point's context)."""
     e = ctx.entry("Error flags")
-    return (e or {}).get("text") or str((e or {}).get("value"))
+    return Word((e or {}).get("text") or str((e or {}).get("value")), "Error flags")
 
 
 async def _take(ctx) -> None:

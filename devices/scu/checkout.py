@@ -65,9 +65,10 @@ async def _ask(ctx) -> None:
     await ctx.ask(Message(N_("Is the area around the actuators clear for a short move out and back of each?")))
 
 
-def _error_text(ctx) -> str:
+def _error_text(ctx) -> Word:
+    """Error_Code in table 10's words (``bit 14: total current exceeded``), worded as the page words the point."""
     e = ctx.entry("Error code") or {}
-    return e.get("text") or str(e.get("value"))
+    return Word(e.get("text") or str(e.get("value")), "Error code")
 
 
 async def _take(ctx) -> None:
