@@ -30,6 +30,7 @@ processes collect the suite's halves once, so the processes of every phase find 
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import subprocess
@@ -37,11 +38,12 @@ import sys
 import tempfile
 import time
 import xml.etree.ElementTree as ET
+from collections import defaultdict
 from pathlib import Path
 
 PHASES = (
-    ("tests without a browser or a real-time bound", ["-n", "6", "-m", "not browser and not realtime and not alone"]),
-    ("tests held to a real-time bound", ["-n", "4", "-m", "realtime and not browser and not alone"]),
+    ("tests without a browser or a real-time bound", ["-n", "8", "--dist", "worksteal", "-m", "not browser and not realtime and not alone"]),
+    ("tests held to a real-time bound", ["-n", "6", "--dist", "worksteal", "-m", "realtime and not browser and not alone"]),
     ("browser tests", ["-n", "2", "-m", "browser and not alone"]),
     ("tests that need the cores to themselves", ["-n", "0", "-m", "alone"]),
 )
@@ -51,15 +53,31 @@ PHASES = (
 HALVES = (["tests/app", "tests/safety"], ["tests/devices", "tests/pages", "tests/browser"])
 
 
-def compiled_environment() -> dict[str, str]:
-    """This environment with compiled modules kept, and the suite collected once so that they are there."""
+def compiled_environment(scratch: Path) -> tuple[dict[str, str], list[list]]:
+    """This environment with compiled modules kept, and the suite collected once so that they are there; with each
+    collected test's file and markers (none when a half did not collect: then every phase collects the whole suite)."""
     env = {key: value for key, value in os.environ.items() if key != "PYTHONDONTWRITEBYTECODE"}
-    collecting = [subprocess.Popen([sys.executable, "-m", "pytest", "-q", "--collect-only", "-p", "no:xdist",
-                                    "-o", "addopts=-p nicegui.testing.user_plugin -p no:benchmark", *half], env=env,
-                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for half in HALVES]
-    for process in collecting:
-        process.wait()  # a module that does not import fails in its phase, with its error shown there
-    return env
+    collecting = []
+    for n, half in enumerate(HALVES):
+        marks = scratch / f"marks-{n}.json"
+        collecting.append((marks, subprocess.Popen(
+            [sys.executable, "-m", "pytest", "-q", "--collect-only", "-p", "no:xdist", "-p", "tools.phase_files",
+             "-o", "addopts=-p nicegui.testing.user_plugin -p no:benchmark", *half], env={**env, "COMMISSION_SUITE_MARKS": str(marks)},
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)))
+    tests: list[list] = []
+    for marks, process in collecting:
+        # a module that does not import fails in its phase, with its error shown there
+        if process.wait() != 0 or not marks.exists():
+            return env, []
+        tests += json.loads(marks.read_text(encoding="utf-8"))
+    return env, tests
+
+
+def phase_files(tests: list[list], options: list[str]) -> list[str]:
+    """The files that hold a test the phase's ``-m`` expression selects (a phase's processes collect only those)."""
+    expression = options[options.index("-m") + 1]
+    return sorted({file for file, marks in tests
+                   if eval(expression, {"__builtins__": {}}, defaultdict(bool, dict.fromkeys(marks, True)))})  # noqa: S307 (our own phases' expressions)
 
 
 RECAP_LINES = 12  # of each failed test's error lines
@@ -111,18 +129,23 @@ def main(argv: list[str] | None = None) -> int:
     if lint.returncode != 0:
         print("suite: ruff found the problems above; fix them first", flush=True)
         return lint.returncode
-    env = compiled_environment()
-    print(f"suite: the suite collected and compiled in {time.monotonic() - started:.0f} s", flush=True)
     results: list[tuple[str, int, float]] = []
     recap: list[str] = []
     with tempfile.TemporaryDirectory(prefix="suite-") as scratch:
+        env, tests = compiled_environment(Path(scratch))
+        print(f"suite: the suite collected and compiled in {time.monotonic() - started:.0f} s", flush=True)
         reports = os.environ.get("COMMISSION_SUITE_REPORTS") or scratch  # kept there when named, for study
         Path(reports).mkdir(parents=True, exist_ok=True)
         for n, (name, options) in enumerate(PHASES):
             begun = time.monotonic()
             print(f"suite: {name} ({' '.join(options)})", flush=True)
             report = Path(reports) / f"phase-{n}.xml"
-            run = subprocess.run([sys.executable, "-m", "pytest", "-q", *options, f"--junitxml={report}", *extra],
+            # the phase's own files, unless a path or an option given here chooses (or the collection failed)
+            files = phase_files(tests, options) if tests and not extra else []
+            if tests and not extra and not files:
+                results.append((name, 0, 0.0))  # no test of this phase
+                continue
+            run = subprocess.run([sys.executable, "-m", "pytest", "-q", *options, f"--junitxml={report}", *extra, *files],
                                  check=False, env=env)
             # 5: nothing was selected (a -k or a path outside this phase), not a failure
             results.append((name, 0 if run.returncode == 5 else run.returncode, time.monotonic() - begun))
