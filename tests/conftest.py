@@ -52,6 +52,7 @@ def pytest_configure(config: pytest.Config) -> None:
     # worker's record page an altered record.
     if os.environ.get(RUN_DIR_VARIABLE) == os.environ["COMMISSION_DATA_DIR"]:
         _RUN_DATA_DIR = os.environ["COMMISSION_DATA_DIR"]
+    config.pluginmanager.register(_Dealer(), "commission-dealer")  # the order of the tests where processes steal work
 
 
 _RUN_DATA_DIR: str | None = None
@@ -133,10 +134,8 @@ SLOW_TESTS: set[str] = {
     "test_i18n_device_answers.py::test_the_hdlock_can_status_card_words_the_source_in_german",
     "test_i18n_device_params.py::test_the_p2_switch_asks_its_risk_in_german",
     "test_i18n_device_answers.py::test_the_hdlock_page_words_an_address_change_in_german",
-    # a checkout on the demo plant's lock, then the record read again, in German (2026-11-29, 40 s)
+    # a checkout on the demo plant's lock, then the record read again, in German (2026-11-29, 10 s)
     "test_i18n_checkout.py::test_a_checkout_run_is_worded_in_german_after_a_restart",
-    "test_i18n_checkout.py::test_a_checkout_row_without_its_table_reads_as_written",
-    "test_i18n_checkout.py::test_commission_checkout_says_a_runs_steps_and_reasons_in_german",
     "test_can_reader_idle.py::test_a_quiet_udp_multicast_bus_is_read_with_the_longest_wait",
     "test_scale_plant.py",
     "test_metrics.py",
@@ -352,6 +351,85 @@ LONGEST_FILES = (
     "test_browser_admin.py", "test_browser_scu.py", "test_checkout_hdlock.py", "test_browser_m3io.py",
     "test_browser_motion_pages.py", "test_hdlock_adapter.py", "test_backup_page.py", "test_faces_opcua_limits.py",
 )
+
+
+#: the longest tests of the phases whose processes steal work from each other (``--dist worksteal``), with their
+#: seconds in the suite's JUnit reports (2026-11-29): each process starts with a share of them (see :class:`_Dealer`)
+LONG_TESTS = {
+    "test_record_cli.py::test_checkout_sign_and_a_fault_from_the_command_line": 49,
+    "test_checkout_mo64.py::test_mo64_checkout_passes_and_an_interrupted_light_barrier_fails_the_close": 26,
+    "test_checkout_hdlock.py::test_hdlock_checkout_passes_on_modbus_and_can": 20,
+    "test_headless_checkout.py::test_the_person_answers_by_holding_space_and_no_means_nothing_moves": 18,
+    "test_checkout_m3io.py::test_m3io_checkout_passes_and_a_blown_fuse_fails_its_step": 14,
+    "test_checkout_mo64.py::test_mo64_checkout_without_automatic_closing_and_error_memory": 14,
+    "test_safety_mo64.py::test_the_checkout_asks_that_the_area_is_clear_before_each_motion": 14,
+    "test_tiles.py::test_overview_tiles_and_device_pages_mark_stale_values": 13,
+    "test_record_page_signoff.py::test_a_question_to_act_on_a_simulated_device_offers_the_twin_control_in_the_same_tab": 12,
+    "test_api.py::test_m3io_values_then_offline[heater-hmr]": 12,
+    "test_checkout_hdlock.py::test_hdlock_checkout_fails_a_lock_that_bolts_with_the_door_open": 11,
+    "test_api.py::test_m3io_values_then_offline[heater-hm]": 10,
+    "test_pages_roles.py::test_an_engineer_keeps_the_m3io_control_and_the_header_names_the_period[accounts]": 10,
+    "test_pages_roles.py::test_an_engineer_keeps_the_m3io_control_and_the_header_names_the_period[loopback]": 10,
+    "test_record_chain.py::test_archive_verifies_and_one_byte_changed_names_the_file": 10,
+    "test_checkout_mo64.py::test_mo64_checkout_fails_a_light_barrier_that_never_reports": 10,
+    "test_record.py::test_values_the_lock_measures_itself_and_a_running_checkout_are_not_drift": 10,
+    "test_i18n_checkout.py::test_a_checkout_run_is_worded_in_german_after_a_restart": 10,
+    "test_i18n_pages.py::test_the_record_page_in_german_says_a_twin_actions_answer": 9,
+    "test_record_cli.py::test_viewers_can_neither_run_checkouts_nor_sign": 9,
+    "test_record_chain.py::test_a_record_changed_from_outside_is_reported_altered_by_verify_and_the_report": 9,
+    "test_monitor.py::test_can_monitor_page": 9,
+    "test_record_signoff.py::test_sign_off_needs_an_engineer_account_and_every_run_stays_in_the_report": 9,
+    "test_api.py::test_hdlock_values_with_quality_then_offline[can]": 8,
+    "test_tiles.py::test_plant_view_tiles_from_declarations_then_offline": 8,
+    "test_api.py::test_electrak_network_values_then_offline": 8,
+    "test_checkout_mo64.py::test_mo64_checkout_fails_a_loop_that_never_reports": 8,
+    "test_pages_roles.py::test_a_viewer_sees_write_buttons_disabled_with_the_reason": 8,
+    # the real-time phase's
+    "test_modbus_stale.py::test_sixteen_locks_at_19200_baud_do_not_flap": 14,
+    "test_scale_plant.py::test_a_hundred_devices_are_listed_and_keep_alives_stay_on_time": 12,
+    "test_scu_adapter.py::test_adapter_against_the_twin_keeps_rc_gaps_below_500_ms_moves_and_stops": 10,
+    "test_keepalive_lease.py::test_control_refused_while_another_master_sends_digout": 5,
+    "test_scu_adapter.py::test_stopped_twin_gives_offline_and_recovery": 5,
+}
+
+
+def dealt(items: list, workers: int, seconds) -> list:
+    """``items`` ordered for ``workers`` processes that steal work: pytest-xdist gives each process its share of the
+    list in one piece at the start (the first ``len // workers`` items, then of the rest ...), and a process that is
+    done takes half of the rest of the longest queue from its end. A long test at the end of a share would therefore
+    start last and run alone; here each share begins with its part of the long tests (``seconds(item)`` > 0, the
+    longest to the share with the fewest seconds yet) and is filled up with the others in their order."""
+    sizes, left = [], len(items)
+    for remaining in range(workers, 0, -1):
+        sizes.append(left // remaining)
+        left -= sizes[-1]
+    long = sorted((item for item in items if seconds(item) > 0), key=seconds, reverse=True)
+    shares: list[list] = [[] for _ in range(workers)]
+    loads = [0.0] * workers
+    for item in long:
+        k = min(range(workers), key=lambda n: (loads[n] if len(shares[n]) < sizes[n] else float("inf"), n))
+        shares[k].append(item)
+        loads[k] += seconds(item)
+    taken = {id(item) for item in long}
+    others = iter([item for item in items if id(item) not in taken])
+    for share, size in zip(shares, sizes, strict=True):
+        share.extend(item for _, item in zip(range(size - len(share)), others, strict=False))
+    return [item for share in shares for item in share] + list(others)
+
+
+class _Dealer:
+    """Orders the selected tests by :func:`dealt` where processes steal work; after ``-m`` has chosen them."""
+
+    @pytest.hookimpl(trylast=True)
+    def pytest_collection_modifyitems(self, config: pytest.Config, items: list[pytest.Item]) -> None:
+        worker = getattr(config, "workerinput", None)  # a pytest-xdist worker collects; its options say "no" to dist
+        if worker and worker["workercount"] > 1 and _stealing(worker.get("mainargv", [])):
+            items[:] = dealt(items, worker["workercount"], lambda item: LONG_TESTS.get(item.nodeid.split("/")[-1], 0))
+
+
+def _stealing(argv: list[str]) -> bool:
+    """The run's command line (as pytest-xdist gives its workers) asks for processes that steal work."""
+    return "--dist=worksteal" in argv or any(a == "--dist" and b == "worksteal" for a, b in zip(argv, argv[1:], strict=False))
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

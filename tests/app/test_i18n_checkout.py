@@ -5,6 +5,7 @@ before."""
 
 from __future__ import annotations
 
+import functools
 import io
 import re
 from html import unescape
@@ -52,6 +53,7 @@ def test_a_stored_text_is_its_message_again_and_anything_else_stays_as_stored():
     assert reworded(str(state), broken) == str(state) and not isinstance(reworded(str(state), broken), Message)
 
 
+@functools.cache
 def checkout_patterns() -> list[tuple[str, re.Pattern]]:
     """Every English text of the checkouts and of their runner whose German differs: its words between its fields
     (12 letters or more, so that a word of the documents kept in German, ``Triac``, is no finding)."""
