@@ -1,6 +1,6 @@
 """In chromium: the project against the devices reconciled per row (apply, update), a swapped lock shown
 as "replaced?" on the overview and restored by the replacement assistant, a batch from a sibling with
-per-device results. One app, two HD-Locks on a simulated Modbus line, four page loads."""
+per-device results. One app, two HD-Locks on a simulated Modbus line, five page loads."""
 
 from __future__ import annotations
 
@@ -68,6 +68,11 @@ def test_project_replacement_and_batch_in_the_browser(tmp_path: Path):
             expect(card.get_by_test_id("project-summary")).to_contain_text("device and project agree")
             assert "SettingsProximityOffsetRight = 0 }" in (tmp_path / "plant.toml").read_text()
             assert _value(url, "door-2", "SettingsProximityOffsetRight") == 0  # nothing written to the device
+
+            # the project's write to door-1 ended with its save step: the record takes a snapshot by itself, the set
+            # the replacement below is compared with (taken after the swap, it would be the new lock's own)
+            page.goto(url + "/record/door-1")
+            expect(page.get_by_role("cell", name="snapshot", exact=True).first).to_be_visible(timeout=15_000)
 
             # 2. door-1 swapped for a new lock: "replaced?" on the overview, restored by the assistant
             page.goto(url + "/replace/door-1")
