@@ -71,8 +71,7 @@ BROWSER_FILES = {
 
 #: test files that hold a device, a bus or a page to a real-time bound (a keep-alive period, the dead-man
 #: bound, a poll cycle against the wire time): ``-m realtime`` runs just them; the whole suite
-#: (tools/suite.py) runs them beside the browser tests, never beside the hundreds of apps and simulators the tests
-#: without a browser start.
+#: (tools/suite.py) never runs them beside a browser test, whose chromium and app take the cores.
 REALTIME_FILES = {
     "test_beat_on_demand.py",
     "test_can_flood.py",

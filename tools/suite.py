@@ -2,23 +2,18 @@
 
     python3 -m tools.suite [pytest options ...]
 
-1. The tests without a browser and held to no real-time bound, eight processes that steal work from each other:
-   they wait on devices, sockets and timers far more than they compute (measured on 2026-11-29: 307 s of CPU in
-   202 s on two cores, the cores 75 % busy).
+1. The tests without a browser and held to no real-time bound, six processes at a time: they wait on devices,
+   sockets and timers far more than they compute (measured with ``/usr/bin/time``: 342 s of CPU in 286 s on two
+   cores).
 2. The tests that hold a device, a bus or a page to a real-time bound (marker ``realtime``: a keep-alive period,
-   the dead-man bound, a poll cycle against the wire time), six processes, beside the browser tests: they compute
-   little (13 s of CPU in 45 s) and wait on their periods, which a busy program beside them does not delay much
-   (they pass with a CPU hog on each core: ``tools/stress_suite.sh``); beside the first phase's eight processes,
-   which start apps and simulators by the hundred, some did not keep their bounds.
+   the dead-man bound, a poll cycle against the wire time), four at a time, with nothing else beside them.
 3. The tests that drive chromium (marker ``browser``), two at a time: each starts the app and a browser and
-   waits on what its page shows. Three at a time took as long (195 s against 190 s, 2026-11-29): each test's
-   pages drew that much slower.
+   waits on what its page shows. Chromium's drawing is most of their CPU: measured on 2026-11-28, two at a time keep
+   the two cores 89 % busy (6.0 min), three at a time 95 % (5.0 min), and there now and then a page's beat or an
+   entry typed into it came late enough to fail its test.
 4. One at a time, the tests marked ``alone``: the browser tests that are themselves held to a real-time bound (a
    second chromium beside one delays its beats on their way) and the few whose subject is how the program uses
    the cores (a line's thread that must keep up with its own period, a stalled loop's stop).
-
-Before the phases the suite is collected once (two processes, a half each), and each phase's processes collect
-only the files that hold a test of that phase (``tools/phase_files.py``).
 
 Every phase runs; the exit status is 0 only when the linter and every phase passed. Options given here (``-x``,
 ``-k ...``, a path) go to every phase. At the end, after the phases' times, every failed test is named again with
@@ -41,7 +36,6 @@ import re
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 import xml.etree.ElementTree as ET
 from collections import defaultdict
@@ -53,7 +47,6 @@ PHASES = (
     ("browser tests", ["-n", "2", "-m", "browser and not alone"]),
     ("tests that need the cores to themselves", ["-n", "0", "-m", "alone"]),
 )
-BESIDE_NEXT = {1}  # the phases that run beside the phase after them (their output is shown when they end)
 
 
 #: the halves of the suite that two processes collect side by side before the first phase (about equal in size)
@@ -129,28 +122,6 @@ def failures(report: Path) -> list[str]:
     return lines
 
 
-class _Beside:
-    """A phase that runs beside the next one: its output kept in a file and shown when both have ended."""
-
-    def __init__(self, name: str, process: subprocess.Popen, begun: float, output: Path, report: Path):
-        self.name, self.process, self.begun, self.output, self.report = name, process, begun, output, report
-        self.seconds: float | None = None
-        self._waiter = threading.Thread(target=self._wait, daemon=True)
-        self._waiter.start()
-
-    def _wait(self) -> None:
-        self.process.wait()
-        self.seconds = time.monotonic() - self.begun  # its own time, not that of the phase beside it
-
-    def ended(self, other: str) -> tuple[str, int, float]:
-        """Wait for it; show its output; its result as the suite lists the phases'."""
-        self._waiter.join()
-        print(f"suite: {self.name} (ran beside {other})", flush=True)
-        print(self.output.read_text(errors="replace"), end="", flush=True)
-        code = self.process.returncode
-        return self.name, 0 if code == 5 else code, self.seconds or 0.0
-
-
 def main(argv: list[str] | None = None) -> int:
     extra = list(sys.argv[1:] if argv is None else argv)
     started = time.monotonic()
@@ -165,35 +136,20 @@ def main(argv: list[str] | None = None) -> int:
         print(f"suite: the suite collected and compiled in {time.monotonic() - started:.0f} s", flush=True)
         reports = os.environ.get("COMMISSION_SUITE_REPORTS") or scratch  # kept there when named, for study
         Path(reports).mkdir(parents=True, exist_ok=True)
-        beside: _Beside | None = None  # a phase running beside this one
         for n, (name, options) in enumerate(PHASES):
             begun = time.monotonic()
+            print(f"suite: {name} ({' '.join(options)})", flush=True)
             report = Path(reports) / f"phase-{n}.xml"
             # the phase's own files, unless a path or an option given here chooses (or the collection failed)
             files = phase_files(tests, options) if tests and not extra else []
             if tests and not extra and not files:
                 results.append((name, 0, 0.0))  # no test of this phase
                 continue
-            command = [sys.executable, "-m", "pytest", "-q", *options, f"--junitxml={report}", *extra, *files]
-            if n in BESIDE_NEXT:
-                print(f"suite: {name} ({' '.join(options)}), beside the next phase", flush=True)
-                output = Path(scratch) / f"phase-{n}.out"
-                with output.open("w") as out:
-                    beside = _Beside(name, subprocess.Popen(command, env=env, stdout=out, stderr=subprocess.STDOUT), begun,
-                                     output, report)
-                continue
-            print(f"suite: {name} ({' '.join(options)})", flush=True)
-            run = subprocess.run(command, check=False, env=env)
+            run = subprocess.run([sys.executable, "-m", "pytest", "-q", *options, f"--junitxml={report}", *extra, *files],
+                                 check=False, env=env)
             # 5: nothing was selected (a -k or a path outside this phase), not a failure
             results.append((name, 0 if run.returncode == 5 else run.returncode, time.monotonic() - begun))
             recap += failures(report)
-            if beside is not None:
-                results.insert(len(results) - 1, beside.ended(name))
-                recap += failures(beside.report)
-                beside = None
-        if beside is not None:  # the phases after it had no test
-            results.append(beside.ended("no other phase"))
-            recap += failures(beside.report)
     for name, code, seconds in results:
         print(f"suite: {name}: {'passed' if code == 0 else f'FAILED (exit {code})'} in {seconds / 60:.1f} min", flush=True)
     for line in recap:
