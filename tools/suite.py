@@ -2,18 +2,22 @@
 
     python3 -m tools.suite [pytest options ...]
 
-1. The tests without a browser and held to no real-time bound, six processes at a time: they wait on devices,
-   sockets and timers far more than they compute (measured with ``/usr/bin/time``: 342 s of CPU in 286 s on two
-   cores).
+1. The tests without a browser and held to no real-time bound, eight processes that steal work from each other:
+   they wait on devices, sockets and timers far more than they compute (measured on 2026-11-29: 307 s of CPU in
+   202 s on two cores, the cores 75 % busy).
 2. The tests that hold a device, a bus or a page to a real-time bound (marker ``realtime``: a keep-alive period,
-   the dead-man bound, a poll cycle against the wire time), four at a time, with nothing else beside them.
+   the dead-man bound, a poll cycle against the wire time), six processes, with nothing else beside them. They
+   compute little (13 s of CPU in 45 s), but run beside the browser tests five of them missed their bounds
+   (2026-11-29: a keep-alive gap of 0.46 s, an SCU's RC 0.76 s apart).
 3. The tests that drive chromium (marker ``browser``), two at a time: each starts the app and a browser and
-   waits on what its page shows. Chromium's drawing is most of their CPU: measured on 2026-11-28, two at a time keep
-   the two cores 89 % busy (6.0 min), three at a time 95 % (5.0 min), and there now and then a page's beat or an
-   entry typed into it came late enough to fail its test.
+   waits on what its page shows. Three at a time took as long (195 s against 190 s, 2026-11-29): each test's
+   pages drew that much slower.
 4. One at a time, the tests marked ``alone``: the browser tests that are themselves held to a real-time bound (a
    second chromium beside one delays its beats on their way) and the few whose subject is how the program uses
    the cores (a line's thread that must keep up with its own period, a stalled loop's stop).
+
+Before the phases the suite is collected once (two processes, a half each), and each phase's processes collect
+only the files that hold a test of that phase (``tools/phase_files.py``).
 
 Every phase runs; the exit status is 0 only when the linter and every phase passed. Options given here (``-x``,
 ``-k ...``, a path) go to every phase. At the end, after the phases' times, every failed test is named again with
