@@ -36,7 +36,7 @@ from app.message import Message, message_of, said
 from app.record_store import RecordError
 from devices.errors import CommissionError
 
-SIGNER_ROLE = "commissioning engineer"
+SIGNER_ROLE = N_("commissioning engineer")  # offered in the reader's language; the record keeps what was signed with
 
 
 # -- shared -------------------------------------------------------------------------------------
@@ -89,7 +89,7 @@ def add_parsers(sub) -> None:
     _common(sign)
     sign.add_argument("--name", required=True, help=_("the name of the person signing"))
     sign.add_argument("--comment", default="", help=_("free comment of the sign-off"))
-    sign.add_argument("--signer-role", default=SIGNER_ROLE, help=_("the signer's role as written in the record (default: {role})").format(role=SIGNER_ROLE))
+    sign.add_argument("--signer-role", default=_(SIGNER_ROLE), help=_("the signer's role as written in the record (default: {role})").format(role=_(SIGNER_ROLE)))
     sign.add_argument("--device", default=None, metavar="NAME", help=_("sign this device's record instead of the plant's"))
     _account(sign, _("the engineer account that signs (its password is asked on the terminal, or read from "
                      "standard input when that is no terminal)"))

@@ -25,6 +25,7 @@ from app import backup, i18n
 from app import runtime as rt
 from app.checkout import checkout_module
 from app.i18n import N_, NP_, Lang
+from app.record_cli import SIGNER_ROLE
 from app.record_sets import diff_sets
 from app.report import (
     appendix_html,
@@ -417,7 +418,7 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
     with ui.row().classes("items-end gap-3 w-full"):
         signer = ui.input(_("Name"), value=user if user != "local" else "").props("dense outlined").mark("sign-name")
         # the role as the record holds it (English, as the command line's default): the signer writes their own
-        signer_role = ui.input(_("Role"), value="commissioning engineer").props("dense outlined").mark("sign-role")
+        signer_role = ui.input(_("Role"), value=_(SIGNER_ROLE)).props("dense outlined").mark("sign-role")
         comment = ui.input(_("Comment")).props("dense outlined").classes("flex-1").mark("sign-comment")
     plant_words = _("plant {plant}").format(plant=runtime.plant.name)
     with ui.row():

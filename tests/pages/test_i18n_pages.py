@@ -465,6 +465,8 @@ async def test_the_record_page_in_german_shows_no_english_but_what_the_record_ho
         found = [(text, message) for text, message in english_on(user) if not as_written(text, written | names)]
         assert found == [], "\n".join(map(str, found))
         assert not i18n.get("de").missing, i18n.get("de").missing
+        role = next(iter(user.find(marker="sign-role").elements))
+        assert role.value == "Inbetriebnehmer"  # the signer's role offered in German (the record keeps what is signed)
         user.find(marker="sign-device").click()  # no name yet: said in German
         await user.should_see("eine Abzeichnung braucht einen Namen", retries=50)
         next(iter(user.find(marker="sign-name").elements)).value = "Anna Berg"
