@@ -81,6 +81,7 @@ class RecordService:
         self.approved: dict[str, dict[str, dict]] = {}  # device -> approved parameter set
         self.snapshots: dict[str, dict[str, dict]] = {}  # device -> its last snapshot's set
         self.runs: dict[str, CheckoutRun] = {}  # device -> the checkout running or last run in this process
+        self.rows_added: dict[str, int] = {}  # device ("" the plant) -> rows added for it in this process (pages follow it)
         self._watches = []
         self._task: asyncio.Task | None = None
         self._audit_seen = 0.0  # audit rows from this time on are read again: the oldest one still running, or newer
@@ -95,11 +96,13 @@ class RecordService:
             raise PermissionError(role_refusal(user, role, N_("{user} has the {role} role and may not add to the commissioning record"),
                                                N_("{user} has the no role and may not add to the commissioning record")))
         try:
-            return await self.store.run(self.store.add, plant=self.plant, device=device, kind=kind, user=user, role=role,
-                                        data=data, title=title, supersedes=supersedes)
+            entry_id = await self.store.run(self.store.add, plant=self.plant, device=device, kind=kind, user=user, role=role,
+                                            data=data, title=title, supersedes=supersedes)
         except RecordError as exc:
             self.problem = str(exc)
             raise
+        self.rows_added[device] = self.rows_added.get(device, 0) + 1
+        return entry_id
 
     async def timeline(self, device: str | None = None, kinds: tuple[str, ...] = ()) -> list[Entry]:
         return await self.store.run(self.store.list, self.plant, device, kinds)

@@ -19,7 +19,7 @@ import asyncio
 import tempfile
 from pathlib import Path
 
-from nicegui import ui
+from nicegui import background_tasks, ui
 
 from app import backup, i18n
 from app import runtime as rt
@@ -43,7 +43,7 @@ from pages.command_client import VIEWER_REASON, enable_unless
 from pages.frame import ACTION_ERRORS, fmt_time, frame
 from pages.overview import drift_of
 from pages.session import current_user
-from pages.widgets import columns, upload_button
+from pages.widgets import columns, follow, upload_button
 
 STATUS_COLOUR = {"passed": "positive", "failed": "negative", "aborted": "negative", "running": "primary", "pending": "grey",
                  "skipped": "grey", "error": "negative"}
@@ -136,7 +136,9 @@ def _status_text(status: str, reason: str, lang: Lang) -> str:
 
 def _worded(value, lang: Lang, table: dict | None = None):
     """A checkout's text or measured value in ``lang``: a message (``stayed in``), also one stored with its template in
-    ``table`` (a record row's ``worded``), as the catalog has it; a number as it is."""
+    ``table`` (a record row's ``worded``), as the catalog has it; a yes/no in its words; a number as it is."""
+    if isinstance(value, bool):
+        return lang.gettext(str(value))  # a measured flag: "ja" in German
     return said(reworded(value, table), lang) if isinstance(value, str) else value
 
 
@@ -380,6 +382,15 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool, lan
     approve.on_click(lambda: act("approve"))
     snap.on_click(lambda: act("snapshot"))
     ui.timer(0.1, refresh, once=True)
+    shown = {"rows": runtime.record.rows_added.get(name, 0)}
+
+    def follow_record() -> None:  # a checkout run here or elsewhere, an automatic snapshot: the new row shows up
+        rows = runtime.record.rows_added.get(name, 0)
+        if rows != shown["rows"]:
+            shown["rows"] = rows
+            background_tasks.create(refresh(), name=f"record timeline {name}")
+
+    follow(runtime.store.devices[name], follow_record)  # on every change of the device, and once a second
     return refresh
 
 
@@ -417,7 +428,7 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
         listings = ui.html("").classes("w-full")
     with ui.row().classes("items-end gap-3 w-full"):
         signer = ui.input(_("Name"), value=user if user != "local" else "").props("dense outlined").mark("sign-name")
-        # the role as the record holds it (English, as the command line's default): the signer writes their own
+        # offered in the page's language (as the command line's default in its own); the record keeps what is signed
         signer_role = ui.input(_("Role"), value=_(SIGNER_ROLE)).props("dense outlined").mark("sign-role")
         comment = ui.input(_("Comment")).props("dense outlined").classes("flex-1").mark("sign-comment")
     plant_words = _("plant {plant}").format(plant=runtime.plant.name)

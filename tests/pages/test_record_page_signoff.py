@@ -128,3 +128,6 @@ async def test_a_question_to_act_on_a_simulated_device_offers_the_twin_control_i
         assert run is not None and run.status == "passed", "; ".join(f"{r.name}: {r.status} {r.reason}" for r in run.results if r.status != "passed")
         audit = await runtime.audit.aquery(device="heater-hmr", limit=50)
         assert any(a.action.startswith("simulation: toggle E") for a in audit), [a.action for a in audit]
+        timeline = _one(user, "record-timeline")  # the run's row shows up in the page's timeline, without a reload
+        assert await wait_for(lambda: any(r["title"] == "SSR outputs on and off: passed" for r in timeline.rows), 5), \
+            timeline.rows
