@@ -335,7 +335,8 @@ def measured_text(v: dict, lang: i18n.Lang | None = None, run: dict | None = Non
     """A measured value against its limit; its name, value and limit in ``lang`` where ``run`` keeps their templates."""
     _ = language(lang).gettext
     run = run or {}
-    value = with_unit(recorded(v["value"], run, lang), v["unit"])
+    value = v["value"]
+    value = with_unit(language(lang).gettext(str(value)) if isinstance(value, bool) else recorded(value, run, lang), v["unit"])
     return "{name} = {value} ({limit}: {verdict})".format(
         name=recorded(v["name"], run, lang), value=lang.numbers_in(value) if lang is not None else value,
         limit=recorded(v["limit"], run, lang) or _("recorded"), verdict=_("ok") if v["ok"] else _("FAIL"))

@@ -80,7 +80,13 @@ class Word(str):
         return Word, (str(self), self.context)
 
 
+#: a yes/no field (a measured flag, its expected state) in the reader's language: "True" in English, "ja" in German
+BOOLEANS = (N_("True"), N_("False"))
+
+
 def _field(value: Any, lang: Language) -> Any:
+    if isinstance(value, bool):
+        return lang.gettext(str(value))
     if isinstance(value, Message):
         return value.text(lang)
     if isinstance(value, Word):

@@ -32,7 +32,7 @@ from devices import errors
 from devices.commands import WRITE_PARAMETER
 from devices.hdlock import STATUS_FRAME_BOLT
 from devices.hdlock.params import PARAMS
-from devices.message import N_, Message, joined, message_of
+from devices.message import N_, Message, Word, joined, message_of
 
 TITLE = Message(N_("Lock and unlock cycle"))
 SETTINGS = {
@@ -86,7 +86,10 @@ def _still_at(ctx, ok_param, start: int | None, *, locked: bool) -> bool:
 def _state_name(value: int | None) -> str:
     if value is None:
         return Message(N_("unknown"))
-    return f"{value} {STATE.enum.get(value, '?')}" if STATE.enum else str(value)
+    if not STATE.enum:
+        return str(value)
+    # the state's name as the lock's pages word it (a value of the point StateMachineState): "4 verriegelt" in German
+    return Message("{value} {name}", value=value, name=Word(STATE.enum.get(value, "?"), STATE.name))
 
 
 def _limit(ctx, param, unit: str) -> int:

@@ -82,7 +82,8 @@ async def _take(ctx) -> None:
     if code & ~codec.CLEARED_BY_NEXT_MOVE:
         ctx.fail(Message(N_("error bits set before moving: {errors}"), errors=_error_text(ctx)))
     if code:
-        names = joined([Message(N_("bit {bit} ({cause})"), bit=b.bit, cause=b.cause) for b in codec.error_bits(code)])
+        # each bit with its cause as table 10 and the SCU's page word it ("Bit 14: Summenstrom wurde überschritten")
+        names = joined([Message("{cause}", cause=Word(f"bit {b.bit}: {b.cause}", "Error code")) for b in codec.error_bits(code)])
         ctx.note(Message(N_("{bits}: reset by the next movement (table 10); the first move must clear it"), bits=names))
 
 

@@ -18,7 +18,7 @@ from pypdf import PdfReader
 from app import cli_lang, i18n
 from app.message import Message, reworded, said, worded_table
 from app.record_cli import checkout_devices
-from app.report import plant_content, plant_html
+from app.report import measured_text, plant_content, plant_html
 from app.report_pdf import plant_pdf
 from devices.message import N_, Word
 from tests.conftest import wait_for
@@ -54,6 +54,16 @@ def test_a_stored_text_is_its_message_again_and_anything_else_stays_as_stored():
 
 
 @functools.cache
+def test_a_measured_flag_is_ja_or_nein_in_german_and_true_or_false_as_stored():
+    limit = Message("= {expect}", expect=True)
+    assert limit == "= True" and said(limit, DE) == "= ja" and said(limit, i18n.get("en")) == "= True"
+    value = {"name": Message(N_("LS after freeing")), "value": False, "unit": "", "limit": Message("= {expect}", expect=False),
+             "ok": True}
+    run = {"worded": worded_table({"values": [value]})}
+    assert measured_text(value, DE, run) == "LS nach dem Freigeben = nein (= nein: ok)", measured_text(value, DE, run)
+    assert measured_text(value, i18n.get("en"), run) == "LS after freeing = False (= False: ok)"
+
+
 def checkout_patterns() -> list[tuple[str, re.Pattern]]:
     """Every English text of the checkouts and of their runner whose German differs: its words between its fields
     (12 letters or more, so that a word of the documents kept in German, ``Triac``, is no finding)."""
@@ -106,6 +116,7 @@ async def test_a_checkout_run_is_worded_in_german_after_a_restart(tmp_path):
         assert english_in(german) == [], english_in(german)
         assert "Verriegeln und Entriegeln" in german and "Tür in Position, Näherungssensor" in german
         assert "mit nein beantwortet von anna" in german and "Ist die Tür geschlossen" in german
+        assert "StateMachineState = 4 verriegelt" in german  # the lock's state named as its pages name it
         pdf = " ".join(" ".join(page.extract_text() for page in PdfReader(io.BytesIO(plant_pdf(content, DE))).pages).split())
         assert "Verriegeln und Entriegeln" in pdf and [m for m, pattern in checkout_patterns() if pattern.search(pdf)] == []
         english = plant_html(content, i18n.get("en"))
