@@ -163,7 +163,9 @@ class RcKeepAlive:
             if first:
                 self.withheld = True
             withheld = self.withheld
-            lapsed_at = self.adapter.lease.lapsed_at
+            # a lease ended by the loop outside this guard (the generic control's idle()) while functions are still
+            # held has no lapse time: it is a lapse noticed now, stopped and reported as one
+            lapsed_at = self.adapter.lease.lapsed_at or time.monotonic()
         if first:
             why = "lease lapsed: this program stalled or the controlling browser is gone"
             results = {fn: self.send_rs(exchange, fn, why) for fn in sorted(held)}

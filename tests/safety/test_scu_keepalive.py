@@ -167,3 +167,19 @@ async def test_a_lapse_never_sends_rs_19_and_keeps_the_emergency_stop_on(scu):
     assert await wait_for(lambda: adapter.holders() == set() and any("emergency stop is on" in e.text
                                                                       for e in adapter.state.events), 3)
     assert adapter.session == "open" and adapter.estop
+
+
+async def test_a_lease_ended_beside_the_held_functions_is_stopped_as_a_lapse(scu, caplog):
+    """The generic control ends the lease without the keep-alive's guard (a dead-man release): the line's thread
+    saw F1 held and no lease, and the loop's report of the lapse failed on its missing time (a TypeError in the
+    callback, 2026-11-29), so the lapse was never handed to the session. Now it is a lapse noticed then."""
+    runtime, adapter, unit = scu
+    twin = unit.twin
+    await adapter.take_control("s1", "anna")
+    await adapter.jog("s1", F1, +1)
+    assert await wait_for(lambda: twin.actuators[0].moving, 2)
+    adapter.lease.revoke()  # as devices/control.py idle() does, F1 still held
+    assert await wait_for(lambda: not twin.actuators[0].moving, 2), "F1 drove on"
+    assert await wait_for(lambda: any("lease" in e.text and "RS to F1" in e.text for e in adapter.state.events
+                                      if e.level == "error"), 3), [e.text for e in adapter.state.events][-5:]
+    assert "Exception in callback" not in caplog.text, caplog.text
