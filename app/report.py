@@ -281,7 +281,10 @@ def word(text: Any, lang: i18n.Lang | None) -> str:
 
 def recorded(text: Any, run: dict, lang: i18n.Lang | None) -> Any:
     """A text of a checkout ``run`` (a title, a step's name, a reason, a question) as the record holds it, in ``lang``
-    where the run keeps its template (``worded``, app/checkout.py); else, and in English, as it was written."""
+    where the run keeps its template (``worded``, app/checkout.py); else, and in English, as it was written. A
+    measured flag (stored ``True``/``False``) in the language's words (``ja``/``nein``)."""
+    if isinstance(text, bool):
+        return language(lang).gettext(str(text))
     if not isinstance(text, str) or lang is None or lang.code == "en":
         return text
     return said(reworded(text, run.get("worded")), lang)
@@ -335,8 +338,7 @@ def measured_text(v: dict, lang: i18n.Lang | None = None, run: dict | None = Non
     """A measured value against its limit; its name, value and limit in ``lang`` where ``run`` keeps their templates."""
     _ = language(lang).gettext
     run = run or {}
-    value = v["value"]
-    value = with_unit(language(lang).gettext(str(value)) if isinstance(value, bool) else recorded(value, run, lang), v["unit"])
+    value = with_unit(recorded(v["value"], run, lang), v["unit"])
     return "{name} = {value} ({limit}: {verdict})".format(
         name=recorded(v["name"], run, lang), value=lang.numbers_in(value) if lang is not None else value,
         limit=recorded(v["limit"], run, lang) or _("recorded"), verdict=_("ok") if v["ok"] else _("FAIL"))

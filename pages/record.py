@@ -32,6 +32,7 @@ from app.report import (
     device_content,
     device_html,
     plant_content,
+    recorded,
     sign_gaps,
     signoff_of,
     with_unit,
@@ -134,14 +135,6 @@ def _status_text(status: str, reason: str, lang: Lang) -> str:
     return lang.gettext(status) + (f": {said(reason, lang)}" if reason else "")
 
 
-def _worded(value, lang: Lang, table: dict | None = None):
-    """A checkout's text or measured value in ``lang``: a message (``stayed in``), also one stored with its template in
-    ``table`` (a record row's ``worded``), as the catalog has it; a yes/no in its words; a number as it is."""
-    if isinstance(value, bool):
-        return lang.gettext(str(value))  # a measured flag: "ja" in German
-    return said(reworded(value, table), lang) if isinstance(value, str) else value
-
-
 def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool, lang: Lang) -> None:
     _ = lang.gettext
     module = checkout_module(runtime.store.devices[name].type)
@@ -174,7 +167,7 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool, lan
                     if r.reason:
                         ui.label(said(r.reason, lang)).classes("text-negative text-caption")
                     elif r.values:
-                        ui.label("; ".join(f"{said(v['name'], lang)} {lang.numbers_in(with_unit(_worded(v['value'], lang), v['unit']))}"
+                        ui.label("; ".join(f"{said(v['name'], lang)} {lang.numbers_in(with_unit(recorded(v['value'], {}, lang), v['unit']))}"
                                            for v in r.values[:3])).classes("text-caption")
 
     async def ask(question: str) -> bool:
@@ -350,9 +343,8 @@ def _timeline_card(runtime, name: str, user: str, role: str, engineer: bool, lan
         for e in (a, b):
             params = e.data.get("parameters")
             if params is None and e.kind == "checkout":
-                worded = e.data.get("worded")
-                params = {f"{s['name']}/{v['name']}": {"name": f"{_worded(s['name'], lang, worded)}: {_worded(v['name'], lang, worded)}",
-                                                       "raw": v["value"], "text": f"{_worded(v['value'], lang, worded)} {v['unit']}".strip()}
+                params = {f"{s['name']}/{v['name']}": {"name": f"{recorded(s['name'], e.data, lang)}: {recorded(v['name'], e.data, lang)}",
+                                                       "raw": v["value"], "text": f"{recorded(v['value'], e.data, lang)} {v['unit']}".strip()}
                           for s in e.data["steps"] for v in s["values"]}
             sets.append(params or {})
         rows = diff_sets(*sets)

@@ -16,8 +16,8 @@
    second chromium beside one delays its beats on their way) and the few whose subject is how the program uses
    the cores (a line's thread that must keep up with its own period, a stalled loop's stop).
 
-Before the phases the suite is collected once (two processes, a half each), and each phase's processes collect
-only the files that hold a test of that phase (``tools/phase_files.py``).
+Each phase's processes collect only the files that hold a test of that phase: the collection before the first
+phase (below) notes each test's markers (``tools/phase_files.py``).
 
 Every phase runs; the exit status is 0 only when the linter and every phase passed. Options given here (``-x``,
 ``-k ...``, a path) go to every phase. At the end, after the phases' times, every failed test is named again with
@@ -144,11 +144,12 @@ def main(argv: list[str] | None = None) -> int:
             begun = time.monotonic()
             print(f"suite: {name} ({' '.join(options)})", flush=True)
             report = Path(reports) / f"phase-{n}.xml"
-            # the phase's own files, unless a path or an option given here chooses (or the collection failed)
-            files = phase_files(tests, options) if tests and not extra else []
-            if tests and not extra and not files:
-                results.append((name, 0, 0.0))  # no test of this phase
-                continue
+            files: list[str] = []
+            if tests and not extra:  # the phase's own files, unless a path or an option given here chooses
+                files = phase_files(tests, options)
+                if not files:
+                    results.append((name, 0, 0.0))  # no test of this phase
+                    continue
             run = subprocess.run([sys.executable, "-m", "pytest", "-q", *options, f"--junitxml={report}", *extra, *files],
                                  check=False, env=env)
             # 5: nothing was selected (a -k or a path outside this phase), not a failure
