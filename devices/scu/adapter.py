@@ -230,7 +230,13 @@ class ScuAdapter(BackupDefaults):
                                 + (" (three-byte form)" if action.three_bytes else ""), keepalive=False)
         except (SerialLineError, codec.CodecError) as e:
             exc = e
-        follow = self.core.rs_answered(action, self.outcome(exc), time.monotonic())
+        outcome = self.outcome(exc)
+        # An acknowledged RS may end the lease (nothing held any more: devices/control.py idle()). The line's thread
+        # must see that end and the held functions change as one: between the two it saw F1 held and no lease, a
+        # lapse that never was (withheld RC, a stopped session)
+        with self.rc.guard:
+            follow = self.core.rs_answered(action, outcome, time.monotonic())
+            self.rc.held = self.core.held
         if action.fn == ESTOP:
             self.publish_estop()
         return follow

@@ -163,8 +163,9 @@ class RcKeepAlive:
             if first:
                 self.withheld = True
             withheld = self.withheld
-            # a lease ended by the loop outside this guard (the generic control's idle()) while functions are still
-            # held has no lapse time: it is a lapse noticed now, stopped and reported as one
+            # the loop ends the lease only under this guard, together with the held functions (adapter.sync_held,
+            # _rs_action): a lease ended while functions are still held would be a fault of this program, so it is
+            # taken as a lapse noticed now, stopped and reported as one
             lapsed_at = self.adapter.lease.lapsed_at or time.monotonic()
         if first:
             why = "lease lapsed: this program stalled or the controlling browser is gone"

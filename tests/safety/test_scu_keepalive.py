@@ -187,3 +187,28 @@ async def test_a_lease_ended_beside_the_held_functions_is_stopped_as_a_lapse(scu
     assert await wait_for(lambda: any("lease" in e.text and "RS to F1" in e.text for e in adapter.state.events
                                       if e.level == "error"), 3), [e.text for e in adapter.state.events][-5:]
     assert "Exception in callback" not in caplog.text, caplog.text
+
+
+async def test_the_lease_ends_only_with_the_held_functions_so_a_stop_is_never_a_lapse(scu):
+    """An acknowledged RS ends the lease (nothing held any more). The loop did so outside the keep-alive's guard
+    and told the line's thread of the held functions only later: a thread that looked in between saw F1 held and
+    no lease, a lapse that never was. Every end of the lease is checked here as the thread would see it."""
+    runtime, adapter, unit = scu
+    twin = unit.twin
+    lease, seen = adapter.lease, []
+    revoke = lease.revoke
+
+    def revoked() -> None:
+        # the thread reads the held functions and the lease under the guard: held by the loop now, or nothing held
+        seen.append(adapter.rc.guard.locked() or not adapter.rc.held)
+        revoke()
+
+    lease.revoke = revoked
+    await adapter.take_control("s1", "anna")
+    for direction in (+1, -1, +1):
+        await adapter.jog("s1", F1, direction)
+        assert await wait_for(lambda: twin.actuators[0].moving, 2)
+        await adapter.jog("s1", F1, 0)
+        assert await wait_for(lambda: not twin.actuators[0].moving and not adapter.holders(), 2)
+    assert seen and all(seen), f"the lease ended {seen.count(False)} of {len(seen)} times with functions still held"
+    assert adapter.rc.lapses == 0 and not any("lapsed" in e.text for e in adapter.state.events)
