@@ -53,7 +53,6 @@ def test_a_stored_text_is_its_message_again_and_anything_else_stays_as_stored():
     assert reworded(str(state), broken) == str(state) and not isinstance(reworded(str(state), broken), Message)
 
 
-@functools.cache
 def test_a_measured_flag_is_ja_or_nein_in_german_and_true_or_false_as_stored():
     limit = Message("= {expect}", expect=True)
     assert limit == "= True" and said(limit, DE) == "= ja" and said(limit, i18n.get("en")) == "= True"
@@ -64,6 +63,7 @@ def test_a_measured_flag_is_ja_or_nein_in_german_and_true_or_false_as_stored():
     assert measured_text(value, i18n.get("en"), run) == "LS after freeing = False (= False: ok)"
 
 
+@functools.cache
 def checkout_patterns() -> list[tuple[str, re.Pattern]]:
     """Every English text of the checkouts and of their runner whose German differs: its words between its fields
     (12 letters or more, so that a word of the documents kept in German, ``Triac``, is no finding)."""
