@@ -295,6 +295,38 @@ def settled(page, pushes: int = 2, quiet_ms: int = 1000, timeout_ms: int = 15_00
                            arg=[start + pushes, quiet_ms], timeout=timeout_ms)
 
 
+@contextlib.contextmanager
+def at_size(page, width: int, height: int):
+    """``page`` (loaded once) made ``width`` x ``height`` for the checks inside, once laid out anew: its window has
+    the size, and two frames have been drawn since (its resize handlers and observers have run). An assertion or a
+    wait of playwright's that fails inside says the size it failed at."""
+    from playwright.sync_api import Error as PlaywrightError
+
+    page.set_viewport_size({"width": width, "height": height})
+    page.wait_for_function("([w, h]) => window.innerWidth === w && window.innerHeight === h", arg=[width, height])
+    page.evaluate("() => new Promise(done => requestAnimationFrame(() => requestAnimationFrame(() => done())))")
+    try:
+        yield page
+    except (AssertionError, PlaywrightError) as exc:
+        raise AssertionError(f"at {width}x{height}: {exc}") from exc
+
+
+#: every plotly chart shown is drawn as wide as its box (plotly draws itself anew 100 ms after its box changed size)
+_CHARTS_FIT_JS = """() => [...document.querySelectorAll('.js-plotly-plot')].filter(p => p.offsetParent !== null).every(p => {
+    const svg = p.querySelector('.main-svg');
+    return svg && Math.abs(svg.getBoundingClientRect().width - p.getBoundingClientRect().width) <= 1; })"""
+
+
+def charts_fit(page, timeout_ms: int = 10_000) -> None:
+    """Wait until every chart ``page`` shows is drawn anew for the width of its box (after a resize)."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
+    try:
+        page.wait_for_function(_CHARTS_FIT_JS, timeout=timeout_ms)
+    except PlaywrightTimeout:
+        raise AssertionError(f"a chart is not drawn for its width within {timeout_ms} ms") from None
+
+
 def click_until(button, appears, tries: int = 3, each_ms: int = 5_000) -> None:
     """Click ``button`` (a playwright locator) until ``appears`` is visible: a live table that draws its rows anew
     (a device that came back and was compared again) can take a click into the rows it replaces. It is clicked
@@ -368,7 +400,7 @@ def private_endpoints(plant, tag: str):
     return plant
 
 
-__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "by_testid", "click_until", "demo_app_serving", "demo_user", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "opened", "page_at", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
+__all__ = ["DEMO_PLANT", "LockPages", "PageEnv", "ROOT", "at_size", "by_testid", "charts_fit", "click_until", "demo_app_serving", "demo_user", "dialog_button", "lock_pages", "lone_m3io_user", "user_on", "pages_on", "demo_plant_text", "eventually", "free_port", "opened", "page_at", "private_endpoints", "project_card_table", "running_app", "serve_beyond_loopback",
            "simulated_user", "start_app", "stop_app", "stop_worker_tasks", "switch_starting", "wait_http"]
 
 

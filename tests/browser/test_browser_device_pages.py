@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 from conftest import CHROMIUM, inside_viewport, shot, wait_devices_online
-from webutil import demo_plant_text, eventually_sync, free_port, running_app
+from webutil import at_size, charts_fit, demo_plant_text, eventually_sync, free_port, running_app
 
 if not CHROMIUM.exists():
     pytest.skip(f"{CHROMIUM} is not installed", allow_module_level=True)
@@ -57,67 +57,76 @@ def lock_values(url: str) -> dict:
         return json.load(response)["values"]
 
 
-@pytest.mark.parametrize("size", SIZES, ids=["1440x900", "1024x768"])
-def test_hdlock_entry_save_dialog_and_chart(app_url: str, chromium: Browser, tmp_path: Path, size):
+def test_hdlock_entry_save_dialog_and_chart(app_url: str, chromium: Browser, tmp_path: Path):
+    """Loaded once at 1440x900 and made 1024x768 (and for the register table 768x1024): at each size the chart, a
+    refused address, a written parameter in the Save-Settings confirmation and the register table."""
     # the chart: increments on the left axis, mA on a right one, the last 30 s chosen
-    page = page_with_chart(chromium, app_url + "/device/door-1", size, "Modbus address 1 ·", "p => p.layout && "
+    page = page_with_chart(chromium, app_url + "/device/door-1", SIZES[0], "Modbus address 1 ·", "p => p.layout && "
                            "p.layout.yaxis2 && p.layout.yaxis2.overlaying === 'y' && p.layout.yaxis2.side === 'right'")
     try:
-        expect(page.locator("[data-chart-window] button[aria-pressed=true]")).to_have_text(re.compile(r"30 s"))
-        expect(page.locator(".js-plotly-plot .y2title")).to_have_text("mA")  # each axis titled with its unit
-        expect(page.locator(".js-plotly-plot .ytitle")).to_have_text("Inc")
-        expect(page.locator(".js-plotly-plot .ytitle")).to_be_visible()
-        page.wait_for_function("() => { const t = document.querySelector('.js-plotly-plot .ytitle');"
-                               " return t && t.getBoundingClientRect().x >= 0; }")  # not clipped at the left edge
-        shot(page, str(tmp_path / f"door-1-top-{size[0]}.png"))
-
-        # address 300: kept as typed, marked with the range, Send off with the field's reason: nothing can be sent
-        # (no confirmation, the lock keeps address 1)
-        card = page.locator(".q-card", has_text="Set Modbus Address (command 3)")
-        address = card.get_by_label("New address")
-        address.scroll_into_view_if_needed()
-        address.fill("300")
-        address.press("Tab")  # the entry is taken on change, as a person leaves the field
-        expect(card).to_contain_text("out of range: allowed 1 .. 254")
-        expect(address).to_have_value("300")
-        send = page.locator('[data-testid="sa-send"]')
-        expect(send).to_be_disabled()
-        expect(send).to_have_attribute("data-disabled-reason", "address 300 is refused: out of range: allowed 1 .. 254")
-        expect(page.locator(".q-dialog")).to_have_count(0)
-        expect(page.get_by_text("Modbus address 1 ·")).to_be_visible()
-        inside_viewport(page, page.locator('[data-testid="sa-send"]'))
-        shot(page, str(tmp_path / f"door-1-address-{size[0]}.png"))
-
-        # a written parameter is listed by the Save-Settings confirmation
-        delay = page.locator('input[data-param="LockRequestDelay"], [data-param="LockRequestDelay"] input')
-        delay.scroll_into_view_if_needed()
-        typed = 350 if size[0] == 1440 else 360
-        delay.fill(str(typed))
-        delay.press("Tab")
-        page.locator('[data-write="LockRequestDelay"]').click()
-        # written and read back (an earlier size's unsaved change may be listed already: wait for this one's value)
-        eventually_sync(lambda: lock_values(app_url)["LockRequestDelay"]["value"] == typed, timeout=15, what="written")
-        expect(page.get_by_text("unsaved change").first).to_be_visible()
-        page.locator('[data-testid="save-settings"]').click()
-        dialog = page.locator('[data-testid="save-dialog"]')
-        expect(dialog).to_contain_text(f"LockRequestDelay (holding 3000) = {delay.input_value()} ms")
-        inside_viewport(page, dialog)
-        shot(page, str(tmp_path / f"door-1-save-{size[0]}.png"))
-        dialog.get_by_role("button", name="Cancel").click()
-        expect(dialog).to_have_count(0)
-        assert lock_values(app_url)["SavedSettings"]["value"] == 0  # cancelled: the flash was not written
-
-        # the register table shows every column, its Quality too, without scrolling sideways
-        table = page.locator(".q-tab-panel .reg-table .q-table__middle").first
-        table.scroll_into_view_if_needed()
-        expect(table).to_contain_text("SystemCoreClock-Config")  # the longest value of the lock's input registers
-        widths = [size[0]] + ([768] if size[0] == 1024 else [])  # and on a tablet held upright
-        for width in widths:
-            page.set_viewport_size({"width": width, "height": 1024 if width == 768 else size[1]})
-            overflow = table.evaluate("e => e.scrollWidth - e.clientWidth")
-            assert overflow <= 1, f"the register table is {overflow} px wider than its box at {width} px"
+        for size in SIZES:
+            with at_size(page, *size):
+                _hdlock_entry_at(page, app_url, tmp_path, size)
     finally:
         page.context.close()
+
+
+def _hdlock_entry_at(page: Page, app_url: str, tmp_path: Path, size: tuple[int, int]) -> None:
+    page.evaluate("window.scrollTo(0, 0)")
+    charts_fit(page)
+    expect(page.locator("[data-chart-window] button[aria-pressed=true]")).to_have_text(re.compile(r"30 s"))
+    expect(page.locator(".js-plotly-plot .y2title")).to_have_text("mA")  # each axis titled with its unit
+    expect(page.locator(".js-plotly-plot .ytitle")).to_have_text("Inc")
+    expect(page.locator(".js-plotly-plot .ytitle")).to_be_visible()
+    page.wait_for_function("() => { const t = document.querySelector('.js-plotly-plot .ytitle');"
+                           " return t && t.getBoundingClientRect().x >= 0; }")  # not clipped at the left edge
+    shot(page, str(tmp_path / f"door-1-top-{size[0]}.png"))
+
+    # address 300: kept as typed, marked with the range, Send off with the field's reason: nothing can be sent
+    # (no confirmation, the lock keeps address 1)
+    card = page.locator(".q-card", has_text="Set Modbus Address (command 3)")
+    address = card.get_by_label("New address")
+    address.scroll_into_view_if_needed()
+    address.fill("300")
+    address.press("Tab")  # the entry is taken on change, as a person leaves the field
+    expect(card).to_contain_text("out of range: allowed 1 .. 254")
+    expect(address).to_have_value("300")
+    send = page.locator('[data-testid="sa-send"]')
+    expect(send).to_be_disabled()
+    expect(send).to_have_attribute("data-disabled-reason", "address 300 is refused: out of range: allowed 1 .. 254")
+    expect(page.locator(".q-dialog")).to_have_count(0)
+    expect(page.get_by_text("Modbus address 1 ·")).to_be_visible()
+    inside_viewport(page, page.locator('[data-testid="sa-send"]'))
+    shot(page, str(tmp_path / f"door-1-address-{size[0]}.png"))
+
+    # a written parameter is listed by the Save-Settings confirmation
+    delay = page.locator('input[data-param="LockRequestDelay"], [data-param="LockRequestDelay"] input')
+    delay.scroll_into_view_if_needed()
+    typed = 350 if size[0] == 1440 else 360
+    delay.fill(str(typed))
+    delay.press("Tab")
+    page.locator('[data-write="LockRequestDelay"]').click()
+    # written and read back (an earlier size's unsaved change may be listed already: wait for this one's value)
+    eventually_sync(lambda: lock_values(app_url)["LockRequestDelay"]["value"] == typed, timeout=15, what="written")
+    expect(page.get_by_text("unsaved change").first).to_be_visible()
+    page.locator('[data-testid="save-settings"]').click()
+    dialog = page.locator('[data-testid="save-dialog"]')
+    expect(dialog).to_contain_text(f"LockRequestDelay (holding 3000) = {delay.input_value()} ms")
+    inside_viewport(page, dialog)
+    shot(page, str(tmp_path / f"door-1-save-{size[0]}.png"))
+    dialog.get_by_role("button", name="Cancel").click()
+    expect(dialog).to_have_count(0)
+    assert lock_values(app_url)["SavedSettings"]["value"] == 0  # cancelled: the flash was not written
+
+    # the register table shows every column, its Quality too, without scrolling sideways
+    table = page.locator(".q-tab-panel .reg-table .q-table__middle").first
+    table.scroll_into_view_if_needed()
+    expect(table).to_contain_text("SystemCoreClock-Config")  # the longest value of the lock's input registers
+    widths = [size[0]] + ([768] if size[0] == 1024 else [])  # and on a tablet held upright
+    for width in widths:
+        page.set_viewport_size({"width": width, "height": 1024 if width == 768 else size[1]})
+        overflow = table.evaluate("e => e.scrollWidth - e.clientWidth")
+        assert overflow <= 1, f"the register table is {overflow} px wider than its box at {width} px"
 
 
 def test_hdlock_silent_lock_greys_lamps_ages_rows_and_disables_writes(app_url: str, chromium: Browser, tmp_path: Path):
@@ -141,9 +150,10 @@ def test_hdlock_silent_lock_greys_lamps_ages_rows_and_disables_writes(app_url: s
         page.context.close()
 
 
-@pytest.mark.parametrize("size", SIZES, ids=["1440x900", "1024x768"])
-def test_m3io_page_record_entry_keeps_what_was_typed(app_url: str, chromium: Browser, tmp_path: Path, size):
-    page = page_with_chart(chromium, app_url + "/device/heater-hmr", size, "CAN-M3IO heater-hmr (HMR)",
+def test_m3io_page_record_entry_keeps_what_was_typed(app_url: str, chromium: Browser, tmp_path: Path):
+    """The refused record entry, and the temperature chart beside the outputs from 1024 px and as wide as the page
+    on an upright tablet: loaded once at 1440x900, made 1024x768 and then 768x1024."""
+    page = page_with_chart(chromium, app_url + "/device/heater-hmr", SIZES[0], "CAN-M3IO heater-hmr (HMR)",
                            "p => (p.data || []).some(t => t.y && t.y.length >= 2)")
     try:
         record = field(page, "record")
@@ -156,11 +166,16 @@ def test_m3io_page_record_entry_keeps_what_was_typed(app_url: str, chromium: Bro
         expect(card).to_contain_text("out of range: allowed 1 .. 15")
         expect(record).to_have_value("20")
         expect(page.locator('[data-testid="events"] tbody tr').first).to_contain_text("refused")
-        shot(page, str(tmp_path / f"heater-hmr-{size[0]}.png"), full_page=True)
         chart = page.locator(".js-plotly-plot").first
-        assert chart.bounding_box()["width"] < size[0] / 2  # beside the outputs from 1024 px
-        if size[0] == 1024:  # an upright tablet: the temperatures below the outputs, the chart as wide as the page
-            page.set_viewport_size({"width": 768, "height": 1024})
+        for size in SIZES:
+            with at_size(page, *size):
+                charts_fit(page)
+                expect(card).to_contain_text("out of range: allowed 1 .. 15")
+                expect(record).to_have_value("20")
+                shot(page, str(tmp_path / f"heater-hmr-{size[0]}.png"), full_page=True)
+                assert chart.bounding_box()["width"] < size[0] / 2  # beside the outputs from 1024 px
+        with at_size(page, 768, 1024):  # an upright tablet: the temperatures below the outputs, the chart as wide as the page
+            charts_fit(page)
             expect(chart).to_be_visible()
             width = chart.bounding_box()["width"]
             assert width > 0.75 * 768, f"the temperature chart is {width:.0f} px wide on a 768 px tablet"

@@ -12,7 +12,7 @@ from collections.abc import Iterator
 
 import pytest
 from conftest import CHROMIUM, inside_viewport
-from webutil import page_at
+from webutil import at_size, page_at
 from demo_app import demo_app
 
 pytest.importorskip("playwright")
@@ -35,33 +35,46 @@ def rows(page: Page):
     return page.locator("[data-monitor=transactions] tbody tr")
 
 
-@pytest.mark.parametrize(("width", "height"), SIZES)
-def test_the_scu_monitor_names_telegrams_and_filters_by_command(app_url: str, chromium: Browser, width: int, height: int):
-    page = page_at(chromium, f"{app_url}/monitor/rs232-1", width, height)
+def choose(page: Page, filter_key: str, option: str) -> None:
+    """``option`` chosen in the monitor's filter ``filter_key``."""
+    page.locator(f"[data-monitor=filter-{filter_key}]").click()
+    page.get_by_role("option", name=option, exact=True).click()
+
+
+def test_the_scu_monitor_names_telegrams_and_filters_by_command(app_url: str, chromium: Browser):
+    """Loaded once at 1440x900 and made 768x1024: at each size the telegrams named, the decoded text in sight and the
+    command filter (set back to any before the next size)."""
+    page = page_at(chromium, f"{app_url}/monitor/rs232-1", *SIZES[0])
     expect(page.get_by_text("Bus monitor rs232-1")).to_be_visible()
     expect(page.locator("[data-monitor=filter-unit]")).to_have_count(0)
-    cyclic = rows(page).filter(has_text="RC keep-alive with CyclicObj 1").first
-    expect(cyclic).to_contain_text("Actual_Position, all actuators: A1 ")
-    expect(rows(page).filter(has_text=re.compile(r"ACK, \d+ data bytes"))).to_have_count(0)
-    inside_viewport(page, cyclic.locator("td").nth(5))  # the decoded text is in sight on a tablet too
-    page.locator("[data-monitor=filter-command]").click()
-    page.get_by_role("option", name="RG read data").click()
-    first = rows(page).first
-    expect(first.locator("td").nth(2)).to_have_text(re.compile(r"^RG 0x[0-9A-F]{4} \S"))
-    expect(rows(page).filter(has_text="RC keep-alive")).to_have_count(0)
+    for width, height in SIZES:
+        with at_size(page, width, height):
+            cyclic = rows(page).filter(has_text="RC keep-alive with CyclicObj 1").first
+            expect(cyclic).to_contain_text("Actual_Position, all actuators: A1 ")
+            expect(rows(page).filter(has_text=re.compile(r"ACK, \d+ data bytes"))).to_have_count(0)
+            inside_viewport(page, cyclic.locator("td").nth(5))  # the decoded text is in sight on a tablet too
+            choose(page, "command", "RG read data")
+            first = rows(page).first
+            expect(first.locator("td").nth(2)).to_have_text(re.compile(r"^RG 0x[0-9A-F]{4} \S"))
+            expect(rows(page).filter(has_text="RC keep-alive")).to_have_count(0)
+            choose(page, "command", "any")
     page.close()
 
 
-@pytest.mark.parametrize(("width", "height"), SIZES)
-def test_the_logited_monitor_names_another_masters_telegrams(app_url: str, chromium: Browser, width: int, height: int):
-    page = page_at(chromium, f"{app_url}/monitor/gates-485", width, height)
+def test_the_logited_monitor_names_another_masters_telegrams(app_url: str, chromium: Browser):
+    """Loaded once at 1440x900 and made 768x1024: at each size the telegrams named and the telegram filter (set back
+    to any before the next size)."""
+    page = page_at(chromium, f"{app_url}/monitor/gates-485", *SIZES[0])
     expect(page.get_by_text("Bus monitor gates-485")).to_be_visible()
-    expect(rows(page).filter(has_text="Gate state = closed").first).to_be_visible()
-    expect(rows(page).filter(has_text=re.compile(r"master 0x01 -> barrier-out-\d: query gate state")).first).to_be_visible()
-    expect(rows(page).filter(has_text="between others")).to_have_count(0)
-    page.locator("[data-monitor=filter-telegram]").click()
-    page.get_by_role("option", name="another master's").click()
-    expect(rows(page).first).to_contain_text("master 0x01")
+    for width, height in SIZES:
+        with at_size(page, width, height):
+            expect(rows(page).filter(has_text="Gate state = closed").first).to_be_visible()
+            query = re.compile(r"master 0x01 -> barrier-out-\d: query gate state")
+            expect(rows(page).filter(has_text=query).first).to_be_visible()
+            expect(rows(page).filter(has_text="between others")).to_have_count(0)
+            choose(page, "telegram", "another master's")
+            expect(rows(page).first).to_contain_text("master 0x01")
+            choose(page, "telegram", "any")
     page.close()
 
 
