@@ -18,6 +18,9 @@ TILE_TEXTS = (
     N_("hall sensors overdriven (magnet)"), N_("bolt {value} Inc"),
     # doc: CAN-M3IO, 001, sections 7.2.2 (TEMPx), 7.2.3 (Si, Triac, Last) and 7.2.4 (SSR outputs)
     N_("CAN-M3IO"), N_("outputs on: {list}"), N_("none"), N_("SSR{0} fuse blown"), N_("SSR{0} triac defective"),
+    # doc: CAN-M3IO, 001, section 4.3 (HMR: Drehstromausgang; with P2 a Lastfehler unless exactly 2 of the 3 Lastausgänge
+    # report a load): the module's check of the three-phase output SSR1-3 (devices/m3io/adapter.py P_LOAD_CHECK) and its states
+    N_("SSR1-3 load check"), NP_("SSR1-3 load check", "ok"), NP_("SSR1-3 load check", "fault"),
     # doc: Electrak HD, 004, status telegram 0x07: Bewegungs-Flags and Fehler-Flags
     N_("Electrak HD network"), N_("moving: extending"), N_("moving: retracting"), N_("idle (no controller)"),
     N_("standing"), N_("waiting for status telegrams"), N_("actuators heard: {value}"), N_("actuators heard: {0}"),
