@@ -251,6 +251,9 @@ SIM_WORDS = (
     NP_("simulation", "actuator"),
     NP_("simulation", "On battery (mains off)"),
     NP_("simulation", "Line dropped (no answers)"),
+    # the SCU twin's switch names as its audit rows say them (devices/scu/sim.py declares them; "on battery on")
+    NP_("simulation", "on battery"),
+    NP_("simulation", "line dropped"),
     NP_("simulation", "Reset the unit"),
     NP_("simulation", "Simulated barrier ({0})"),
     NP_("simulation", "A vehicle opens the barrier on loop A and passes the light barrier; a fault stops the motor and is recorded in the error memory; after mains the position is unknown until an end position."),
