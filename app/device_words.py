@@ -21,6 +21,10 @@ TILE_TEXTS = (
     # doc: CAN-M3IO, 001, section 4.3 (HMR: Drehstromausgang; with P2 a Lastfehler unless exactly 2 of the 3 Lastausgänge
     # report a load): the module's check of the three-phase output SSR1-3 (devices/m3io/adapter.py P_LOAD_CHECK) and its states
     N_("SSR1-3 load check"), NP_("SSR1-3 load check", "ok"), NP_("SSR1-3 load check", "fault"),
+    # doc: CAN-M3IO, 001, section 7.2.4.2.2 (Produktcode: Gerät): the products' names (devices/m3io/codec.py PRODUCT_CODES)
+    NP_("Product", "MIO"), NP_("Product", "New KKD01"), NP_("Product", "KKD01"), NP_("Product", "KKD02"),
+    NP_("Product", "ABB KKD01"), NP_("Product", "ABB KKD02"), NP_("Product", "HM01"), NP_("Product", "KM01 (until 07.11.2013)"),
+    NP_("Product", "HMR01 (until 07.11.2013)"), NP_("Product", "KM01 (from 08.11.2013)"), NP_("Product", "HMR01 (from 08.11.2013)"),
     # doc: Electrak HD, 004, status telegram 0x07: Bewegungs-Flags and Fehler-Flags
     N_("Electrak HD network"), N_("moving: extending"), N_("moving: retracting"), N_("idle (no controller)"),
     N_("standing"), N_("waiting for status telegrams"), N_("actuators heard: {value}"), N_("actuators heard: {0}"),

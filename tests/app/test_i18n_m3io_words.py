@@ -59,3 +59,31 @@ async def test_an_hmr_checkout_names_the_load_check_in_german_and_keeps_the_engl
     assert "SSR1-3 Lastfehlerprüfung = ok" in german and "load check" not in german
     english = unescape(TAG.sub("\n", plant_html(content, EN)))
     assert "SSR1-3 load check = ok (= ok: ok)" in english
+
+
+def test_the_product_and_its_identity_in_the_documents_words():
+    """7.2.4.2.2 (Produktcode: Gerät "HMR01 ab 08.11.2013"): the variant check and the identity the module reports, as
+    the module's page shows them; the English as before."""
+    from devices.m3io import codec
+
+    assert codec.product_name(0x300A) == "HMR01 (from 08.11.2013)" and codec.product_name(0x1234) == "unknown product 0x1234"
+    check = codec.check_variant(codec.Variant.HMR, True, 0x300A)
+    assert check.text == "The module reports 0x300A HMR01 (from 08.11.2013): variant HMR as in the plant file."
+    assert said(check.text, DE) == "Das Modul meldet 0x300A HMR01 ab 08.11.2013: Variante HMR wie in der Anlagendatei."
+    DE.missing.clear()
+    for code in codec.PRODUCT_CODES:
+        said(Message("{product}", product=codec.product_name(code)), DE)
+    assert not DE.missing, DE.missing
+
+
+async def test_the_identity_read_from_the_module_is_worded_on_its_page(tmp_path):
+    async with demo_runtime(tmp_path, ("heater-hmr",)) as runtime:
+        await runtime.worker.adapters["heater-hmr"].read_identity()
+        shown = runtime.store.devices["heater-hmr"].live("Identity").shown
+    assert shown == (
+        "serial 42120023 · product 0x300A HMR01 (from 08.11.2013) · software 18.1 (assumed decoding) · configuration 0x00"
+    )
+    assert said(shown, DE) == (
+        "Seriennummer 42120023 · Produkt 0x300A HMR01 ab 08.11.2013 · Software 18.1 (angenommene "
+        "Entschlüsselung) · Konfiguration 0x00"
+    )
