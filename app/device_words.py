@@ -18,6 +18,13 @@ TILE_TEXTS = (
     N_("hall sensors overdriven (magnet)"), N_("bolt {value} Inc"),
     # doc: CAN-M3IO, 001, sections 7.2.2 (TEMPx), 7.2.3 (Si, Triac, Last) and 7.2.4 (SSR outputs)
     N_("CAN-M3IO"), N_("outputs on: {list}"), N_("none"), N_("SSR{0} fuse blown"), N_("SSR{0} triac defective"),
+    # doc: CAN-M3IO, 001, section 4.3 (HMR: Drehstromausgang; with P2 a Lastfehler unless exactly 2 of the 3 Lastausgänge
+    # report a load): the module's check of the three-phase output SSR1-3 (devices/m3io/adapter.py P_LOAD_CHECK) and its states
+    N_("SSR1-3 load check"), NP_("SSR1-3 load check", "ok"), NP_("SSR1-3 load check", "fault"),
+    # doc: CAN-M3IO, 001, section 7.2.4.2.2 (Produktcode: Gerät): the products' names (devices/m3io/codec.py PRODUCT_CODES)
+    NP_("Product", "MIO"), NP_("Product", "New KKD01"), NP_("Product", "KKD01"), NP_("Product", "KKD02"),
+    NP_("Product", "ABB KKD01"), NP_("Product", "ABB KKD02"), NP_("Product", "HM01"), NP_("Product", "KM01 (until 07.11.2013)"),
+    NP_("Product", "HMR01 (until 07.11.2013)"), NP_("Product", "KM01 (from 08.11.2013)"), NP_("Product", "HMR01 (from 08.11.2013)"),
     # doc: Electrak HD, 004, status telegram 0x07: Bewegungs-Flags and Fehler-Flags
     N_("Electrak HD network"), N_("moving: extending"), N_("moving: retracting"), N_("idle (no controller)"),
     N_("standing"), N_("waiting for status telegrams"), N_("actuators heard: {value}"), N_("actuators heard: {0}"),
@@ -248,6 +255,9 @@ SIM_WORDS = (
     NP_("simulation", "actuator"),
     NP_("simulation", "On battery (mains off)"),
     NP_("simulation", "Line dropped (no answers)"),
+    # the SCU twin's switch names as its audit rows say them (devices/scu/sim.py declares them; "on battery on")
+    NP_("simulation", "on battery"),
+    NP_("simulation", "line dropped"),
     NP_("simulation", "Reset the unit"),
     NP_("simulation", "Simulated barrier ({0})"),
     NP_("simulation", "A vehicle opens the barrier on loop A and passes the light barrier; a fault stops the motor and is recorded in the error memory; after mains the position is unknown until an end position."),

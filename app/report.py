@@ -186,9 +186,9 @@ def sign_gaps(content: dict, lang: i18n.Lang | None = None) -> list[str]:
         if d["approved"] is None:
             said.append(_("no approved set"))
         elif d["counts"].get("not approved"):
-            said.append(_("{n} not approved").format(n=d["counts"]["not approved"]))
+            said.append(count_text("not approved", d["counts"]["not approved"], lang))
         if d["counts"].get("changed"):
-            said.append(_("{n} changed since approved").format(n=d["counts"]["changed"]))
+            said.append(count_text("changed", d["counts"]["changed"], lang))
         if said:
             gaps.append(f"{d['device']}: {', '.join(said)}")
     return gaps
@@ -248,7 +248,6 @@ def _e(value: Any) -> str:
 WORDS = (N_("equal"), N_("changed"), N_("not approved"), N_("updated by the device"), N_("live value"), N_("passed"),
          N_("failed"), N_("aborted"), N_("skipped"), N_("not available"), N_("online"), N_("offline"), N_("stale"),
          N_("type"), N_("bus"), N_("address"), N_("status"), N_("serial"), N_("firmware"), N_("hardware"), N_("variant"))
-LIVE_VALUES = N_("live values")  # the plural of LIVE_VALUE in a count ("3 live values")
 # the sentences of ``parameters_source`` (content data, English), shown phrase by phrase in the report's language
 SOURCE_PHRASES = (N_("read from the device at "), N_("as the device showed them at "), N_(" (else the last snapshot of "),
                   N_("of the last snapshot of "), N_("not read: "), N_("no parameters read"),
@@ -299,11 +298,15 @@ ANSWERS = (NP_("answer", "yes"), NP_("answer", "no"))
 
 
 def source_text(source: str, lang: i18n.Lang | None) -> str:
-    """Where the values come from (content data, English) in the report's language, phrase by phrase."""
+    """Where the values come from (content data, English) in the report's language, phrase by phrase, and its times
+    (ISO, as :func:`_when` wrote them) as :func:`when` writes them (``29.11.2026, 07:30:43`` in German)."""
     lang = language(lang)
     for phrase in SOURCE_PHRASES:
         source = source.replace(phrase, lang.gettext(phrase))
-    return source
+    return _ISO_TIME.sub(lambda m: _recorded_when(m.group(0), lang), source)
+
+
+_ISO_TIME = re.compile(r"\b\d{4}-\d{2}-\d{2} \d{2}:\d{2}:\d{2}\b")
 
 
 def seconds(value: Any, lang: i18n.Lang | None) -> str:
@@ -325,12 +328,29 @@ def commissioned_text(d: dict, plant_signed: bool = False, lang: i18n.Lang | Non
 DIFFERING = ("changed", "not approved")  # settings the summary lists (a value the device measures itself is no difference)
 
 
+def count_text(verdict: str, n: int, lang: i18n.Lang | None = None) -> str:
+    """How many parameters of a set have a verdict, as a phrase of the language (``95 parameters not approved``)."""
+    ngettext = language(lang).ngettext
+    if verdict == "equal":
+        text = ngettext("{n} parameter equal to the approved set", "{n} parameters equal to the approved set", n)
+    elif verdict == "changed":
+        text = ngettext("{n} parameter changed since approved", "{n} parameters changed since approved", n)
+    elif verdict == "not approved":
+        text = ngettext("{n} parameter not approved", "{n} parameters not approved", n)
+    elif verdict == "updated by the device":
+        text = ngettext("{n} parameter updated by the device", "{n} parameters updated by the device", n)
+    elif verdict == LIVE_VALUE:
+        text = ngettext("{n} live value", "{n} live values", n)
+    else:
+        return f"{n} {word(verdict, lang)}"
+    return text.format(n=n)
+
+
 def values_text(d: dict, lang: i18n.Lang | None = None) -> str:
     """Where the parameter values come from and how they compare, one sentence."""
     lang = language(lang)
     _ = lang.gettext
-    counts = ", ".join(f"{n} {word(LIVE_VALUES if k == LIVE_VALUE and n != 1 else k, lang)}"
-                       for k, n in d["counts"].items() if n) or _("no parameters")
+    counts = ", ".join(count_text(k, n, lang) for k, n in d["counts"].items() if n) or _("no parameters")
     return _("Values {source}: {counts}.").format(source=source_text(d["parameters_source"], lang), counts=counts)
 
 

@@ -6,10 +6,10 @@ with its parameters (a range for numbers) or as a switch with its current state.
 audited "simulation: <action>"), so pages never hold a twin or name its attributes. Pure data: no I/O,
 no ``app`` or ``pages`` imports.
 
-The names of the actions and their parameters are the audit's words; the twins mark those of the actions other than
-switches with :func:`NP_` (context ``simulation``) where they declare them, and :meth:`SimControls.describe` says
-such an action as a :class:`~devices.message.Message` whose names a page words in its language ("Sicherung auslösen
-Kanal=4").
+The names of the actions and their parameters are the audit's words; the twins mark them with :func:`NP_` (context
+``simulation``) where they declare them (the SCU's switches in app/device_words.py), and :meth:`SimControls.describe`
+says an action as a :class:`~devices.message.Message` whose names a page words in its language ("Sicherung auslösen
+Kanal=4", "Starker Magnet ein").
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ def NP_(context: str, message: str) -> str:
 
 
 NOT_WHOLE = N_("{label}: {value} is not a whole number")
+SWITCH_STATES = (NP_("simulation", "on"), NP_("simulation", "off"))  # a switch's state as describe() says it
 
 
 @dataclass(frozen=True, slots=True)
@@ -109,11 +110,11 @@ class SimControls:
 
     def describe(self, name: str, args: Mapping[str, Any] | None = None) -> str:
         """The action in words for the audit row: ``light barrier interrupted on``, ``raise fault flags=0x1``; the names
-        of an action other than a switch, and of its parameters, are the twin's words (context ``simulation``), worded
-        where they are shown (a switch's name and state stay as the twin declares them)."""
+        of the actions (a switch's with its state ``on``, ``off``) and of their parameters are the twin's words (context
+        ``simulation``), worded where they are shown ("Starker Magnet ein"); the audit keeps the English."""
         action, checked = self.action(name), self.arguments(name, args)
-        if action.switch:
-            return f"{name} {'on' if checked['on'] else 'off'}"
+        if action.switch:  # "strong magnet on": its name (marked where the twin declares it) and state, worded where shown
+            return Message("{action} {state}", action=Word(name, CONTEXT), state=Word("on" if checked["on"] else "off", CONTEXT))
         fields: dict[str, Any] = {"action": Word(name, CONTEXT)}
         for n, p in enumerate(action.params):
             fields[f"p{n}"] = Word(p.name, CONTEXT)

@@ -441,7 +441,7 @@ class AddressedCard(DrawnCard):
         view = self.view
         _ = view.lang.gettext
         identity = view.live(facts.P_IDENTITY)
-        self.identity.set_text(_("not read") if identity is None else _(identity.shown) if identity.shown else "")
+        self.identity.set_text(_("not read") if identity is None else said(identity.shown, view.lang) if identity.shown else "")
         for label, param in zip(self.records, RECORD_PARAMS):
             raw = view.state.raw(param)
             label.set_text(f"{param.address:>2}: {_('not read') if raw is None else param.display(raw)}")

@@ -216,16 +216,16 @@ class ElectrakNetworkTwin:
                       icon="south_east", testid="static-load",
                       params=(SimParam(NP_("simulation", "speed"), "rod load [mm/s]", 0, -5, 5),)),
             *(connected(i) for i in range(len(self.actuators))),
-            SimAction("supply voltage fault", "Supply voltage fault", self.set_voltage_fault,
+            SimAction(NP_("simulation", "supply voltage fault"), "Supply voltage fault", self.set_voltage_fault,
                       state=lambda: any(a.voltage_fault for a in self.actuators), testid="voltage-fault"),
-            SimAction("temperature fault", "Temperature fault", self.set_temperature_fault,
+            SimAction(NP_("simulation", "temperature fault"), "Temperature fault", self.set_temperature_fault,
                       state=lambda: self.actuators[0].temperature_fault, testid="temperature-fault"),
             SimAction(NP_("simulation", "manual control line"), "Set manual control line",
                       lambda direction: self.set_manual_line(direction), icon="settings_remote", testid="manual-line",
                       params=(SimParam(NP_("simulation", "direction"), "1 out, -1 in, 0 off", 0, -1, 1),)),
         ]
         if len(self.actuators) > 1:
-            actions.append(SimAction("last actuator disagrees", "last actuator disagrees", self.disagree,
+            actions.append(SimAction(NP_("simulation", "last actuator disagrees"), "last actuator disagrees", self.disagree,
                                      state=self.disagrees, testid="disagree"))
         actions.append(SimAction(NP_("simulation", "power cycle"), "Power-cycle actuators", self.power_cycle,
                                  icon="power_settings_new", testid="power-cycle"))

@@ -216,23 +216,23 @@ class HdLockTwin:
             SimAction(NP_("simulation", "close door"), "Close door", self.close_door, icon="door_front", testid="close"),
             SimAction(NP_("simulation", "open door"), "Open door", self.open_door, icon="meeting_room", testid="open"),
             SimAction(NP_("simulation", "toggle door"), "Open / close door", self.toggle_door, testid="toggle-door"),
-            switch("LOCK-REQUEST input", "LOCK-REQUEST input active", "line_input", "line-input"),
-            switch("strong magnet", "Strong magnet", "strong_magnet", "strong-magnet"),
-            switch("bolt blocked", "Bolt blocked (never leaves its end position)", "bolt_stuck",
+            switch(NP_("simulation", "LOCK-REQUEST input"), "LOCK-REQUEST input active", "line_input", "line-input"),
+            switch(NP_("simulation", "strong magnet"), "Strong magnet", "strong_magnet", "strong-magnet"),
+            switch(NP_("simulation", "bolt blocked"), "Bolt blocked (never leaves its end position)", "bolt_stuck",
                    "bolt-stuck"),
-            switch("ignores the door", "Locks with the door open (broken)", "ignores_door",
+            switch(NP_("simulation", "ignores the door"), "Locks with the door open (broken)", "ignores_door",
                    "ignores-door"),
-            switch("stop answering", "Stop answering", "silent", "silent"),
+            switch(NP_("simulation", "stop answering"), "Stop answering", "silent", "silent"),
         ]
         if can:
-            actions += [switch("firmware-update mode", "Firmware-update mode", "fwu_mode", "fwu"),
+            actions += [switch(NP_("simulation", "firmware-update mode"), "Firmware-update mode", "fwu_mode", "fwu"),
                         SimAction(NP_("simulation", "back to the bus bit rate"), "Back to the bus bit rate",
                                   self.back_to_bus_bitrate, testid="bus-bitrate")]
         else:
-            actions.append(switch("answer Set Modbus Address",
+            actions.append(switch(NP_("simulation", "answer Set Modbus Address"),
                                   "Answer Set Modbus Address at the old address", "answers_address_command", "answer-address"))
         actions += [
-            switch("refuse writes", "Refuse every write (exception 04)", "refuse_writes", "refuse-writes"),
+            switch(NP_("simulation", "refuse writes"), "Refuse every write (exception 04)", "refuse_writes", "refuse-writes"),
             SimAction(NP_("simulation", "swap for a new device"), "Swap for a new device",
                       lambda **args: self.swap_for_new(args["new-serial"]), icon="swap_horiz", testid="swap",
                       params=(SimParam(NP_("simulation", "new-serial"), "New serial number", min(self.serial + 100000, 0xFFFFFFFF),

@@ -186,7 +186,7 @@ class M3ioAdapter(ModuleSettings):
                    + f"{self.ids.bitrate // 1000} kbit/s")
         state.fact(P_VARIANT, self.variant.value)
         if self.ids.addressed:  # read on demand: "not read" until then
-            state.fact(P_IDENTITY, None, text="not read")
+            state.fact(P_IDENTITY, None, text=Message(N_("not read")))
             for index in range(1, 7):
                 state.fact(f"SSR{index} load data", None, text="not read")
         if self.variant is Variant.HMR:
@@ -671,8 +671,10 @@ class M3ioAdapter(ModuleSettings):
                             codec.decode_version(raw_version), raw_version, config.payload[0])
         self.identity = identity
         fact = self.state.fact  # read on demand: does not age while online
-        fact(P_IDENTITY, identity, text=f"serial {identity.serial} · product 0x{code:04X} {identity.product} · software "
-                                        f"{identity.version} (assumed decoding) · configuration 0x{identity.config:02X}")
+        fact(P_IDENTITY, identity, text=Message(N_("serial {serial} · product {code} {product} · software {version} (assumed "
+                                                   "decoding) · configuration {config}"), serial=str(identity.serial),
+                                                code=f"0x{code:04X}", product=identity.product, version=identity.version,
+                                                config=f"0x{identity.config:02X}"))
         fact(P_SERIAL, identity.serial, raw=serial.payload.hex(" "))
         fact(P_PRODUCT_CODE, code, raw=code, text=identity.product)
         fact(P_PRODUCT, identity.product, raw=code)

@@ -24,7 +24,7 @@ import time
 
 from devices.m3io import codec
 from devices.m3io.adapter import P_LOAD_CHECK, P_P2, temp_channels
-from devices.message import N_, Message, joined
+from devices.message import N_, Message, Word, joined
 
 TITLE = Message(N_("SSR outputs on and off"))
 SETTINGS = {"settle_s": 3.0,  # the module reports the load state in its next temperature frames
@@ -126,6 +126,12 @@ def _point(ctx, name: str):
     return ctx.value(name)
 
 
+def _state(point: str, value):
+    """A point's state word (``ok``, ``fault``, ``blown``) as a measured value, worded as the point's value
+    (app/device_words.py, pages/m3io.py); no value stays None."""
+    return None if value is None else Message("{state}", state=Word(str(value), point))
+
+
 def _two_phase(ctx, output: str) -> bool:
     return output == "SSR1-3" and ctx.value(P_P2) is True
 
@@ -152,8 +158,9 @@ async def _cycle(ctx, output: str) -> None:
         loaded = sum(_point(ctx, f"SSR{c} Last") is True for c in channels)
         ctx.measure(Message(N_("Phases with a load (P2: two-phase load)")) if two_phase else Message(N_("Phases with a load")),
                     loaded, expect=2 if two_phase else 3, fail=False)
-        if ctx.value(P_LOAD_CHECK) is not None:
-            ctx.measure(P_LOAD_CHECK, ctx.value(P_LOAD_CHECK), expect="ok", fail=False)
+        if ctx.value(P_LOAD_CHECK) is not None:  # the point keeps its key; its name and state as the pages word them
+            ctx.measure(Message(N_("SSR1-3 load check")), _state(P_LOAD_CHECK, ctx.value(P_LOAD_CHECK)),
+                        expect=_state(P_LOAD_CHECK, "ok"), fail=False)
     for c in channels:
         if two_phase and _point(ctx, f"SSR{c} Last") is not True:
             ctx.note(Message(N_("SSR{channel}: no load, as P2 (two-phase load) says: its fuse and triac are not monitored "
@@ -161,8 +168,10 @@ async def _cycle(ctx, output: str) -> None:
             ctx.measure(Message(N_("SSR{channel} Last (load)"), channel=c), _point(ctx, f"SSR{c} Last"), fail=False)
             continue
         ctx.measure(Message(N_("SSR{channel} Last (load)"), channel=c), _point(ctx, f"SSR{c} Last"), expect=True, fail=False)
-        ctx.measure(Message(N_("SSR{channel} Si (fuse)"), channel=c), _point(ctx, f"SSR{c} Si"), expect="ok", fail=False)
-        ctx.measure(f"SSR{c} Triac", _point(ctx, f"SSR{c} Triac"), expect="ok", fail=False)
+        ctx.measure(Message(N_("SSR{channel} Si (fuse)"), channel=c), _state(f"SSR{c} Si", _point(ctx, f"SSR{c} Si")),
+                    expect=_state(f"SSR{c} Si", "ok"), fail=False)
+        ctx.measure(f"SSR{c} Triac", _state(f"SSR{c} Triac", _point(ctx, f"SSR{c} Triac")), expect=_state(f"SSR{c} Triac", "ok"),
+                    fail=False)
     temp = ctx.value(f"TEMP{channels[0]}")
     if temp is not None:
         ctx.measure(f"TEMP{channels[0]}", temp, "°C", fail=False)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 from devices import errors
-from devices.message import Message, N_
+from devices.message import Message, N_, Word
 
 
 class CodecError(errors.CodecError):
@@ -325,8 +325,14 @@ def decode_serial(payload: bytes) -> str:
     return f"{int.from_bytes(payload[:4], 'little'):08d}"
 
 
+P_PRODUCT = "Product"  # the live point of the product's name (devices/m3io/adapter.py), the catalogs' context of the names
+
+
 def product_name(code: int) -> str:
-    return PRODUCT_CODES.get(code, f"unknown product 0x{code:04X}")
+    """The product's name (7.2.4.2.2), a word of the point ``Product`` that pages word in the document's words ("HMR01 ab
+    08.11.2013"); the English as before."""
+    name = PRODUCT_CODES.get(code)
+    return f"unknown product 0x{code:04X}" if name is None else Word(name, P_PRODUCT)
 
 
 def product_variant(code: int) -> Variant | None:
@@ -357,7 +363,7 @@ def check_variant(variant: Variant, addressed: bool, code: int | None) -> Varian
         return VariantCheck("unchecked", Message(N_("The product code has not been read yet: outputs stay off until it "
                                                     "matches the plant file.")), False)
     reported = product_variant(code)
-    name = f"0x{code:04X} {product_name(code)}"
+    name = Message("0x{code} {product}", code=f"{code:04X}", product=product_name(code))
     if reported is variant:
         return VariantCheck("ok", Message(N_("The module reports {name}: variant {variant} as in the plant file."),
                                           name=name, variant=variant.value), True)

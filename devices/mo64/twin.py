@@ -59,6 +59,8 @@ DEVICE_CODE = 5  # chapter 5.1.5: 0x0005 = MO 64-V4
 VEHICLE_WAIT_OPEN_S = 15.0
 INTERRUPT_AT_PCT = 60.0  # interrupt_at_next_close: the person steps into the beam once the boom is down to here
 # the loops' toggles by name (the audit's words; the catalog's, context simulation, each named whole: a loop is a letter)
+LOOP_OCCUPIED = {"A": NP_("simulation", "loop A occupied"), "B": NP_("simulation", "loop B occupied"),
+                 "C": NP_("simulation", "loop C occupied")}
 LOOP_TOGGLED = {"A": NP_("simulation", "toggle loop-A"), "B": NP_("simulation", "toggle loop-B"),
                 "C": NP_("simulation", "toggle loop-C")}
 
@@ -283,15 +285,15 @@ class Mo64Twin:
         return SimControls("Simulated barrier (demo)", (
             SimAction(NP_("simulation", "drive a vehicle"), "Drive a vehicle through", self.drive_vehicle,
                       icon="directions_car", testid="vehicle"),
-            SimAction("light barrier interrupted", "Light barrier interrupted", self.break_light_barrier,
+            SimAction(NP_("simulation", "light barrier interrupted"), "Light barrier interrupted", self.break_light_barrier,
                       state=lambda: self.light_barrier, testid="light-barrier"),
             SimAction(NP_("simulation", "toggle LS"), "Light barrier: interrupt at the next close / free",
                       self.toggle_light_barrier, testid="toggle-ls"),
-            *(SimAction(f"loop {x} occupied", f"Loop {x} occupied", lambda on, x=x: self.occupy_loop(x, on),
+            *(SimAction(LOOP_OCCUPIED[x], f"Loop {x} occupied", lambda on, x=x: self.occupy_loop(x, on),
                         state=lambda x=x: self.loops[x], testid=f"loop-{x.lower()}") for x in "ABC"),
             *(SimAction(LOOP_TOGGLED[x], f"Loop {x}: occupy / free", lambda x=x: self.occupy_loop(x, not self.loops[x]),
                         testid=f"toggle-loop-{x.lower()}") for x in "ABC"),
-            SimAction("light barrier never reports", "Light barrier never reports (broken)",
+            SimAction(NP_("simulation", "light barrier never reports"), "Light barrier never reports (broken)",
                       lambda on: setattr(self.strict, "light_barrier_dead", on), state=lambda: self.strict.light_barrier_dead,
                       testid="light-barrier-dead"),
             SimAction(NP_("simulation", "raise fault"), "Raise fault", self.raise_fault, icon="error", testid="raise-fault",

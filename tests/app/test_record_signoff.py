@@ -153,7 +153,7 @@ def _report_texts() -> list[str]:
 def test_sign_gaps_name_each_missing_piece():
     device = {"device": "m1", "checkouts": [{"id": 1}], "checkout_summary": [{"title": "SSR", "last": "failed"}],
               "approved": {"id": 2}, "counts": {"not approved": 95, "changed": 1}}
-    assert sign_gaps({"devices": [device]}) == ["m1: last SSR failed, 95 not approved, 1 changed since approved"]
+    assert sign_gaps({"devices": [device]}) == ["m1: last SSR failed, 95 parameters not approved, 1 parameter changed since approved"]
     assert sign_gaps(device) == sign_gaps({"devices": [device]})
 
 
