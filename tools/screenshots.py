@@ -6,6 +6,11 @@ Debian's chromium through playwright (no browser download)::
 
     python -m tools.screenshots            # writes docs/img/*.png
     python -m tools.screenshots --out DIR
+    python -m tools.screenshots --every-page --out DIR   # every page, in German and English, at two sizes
+
+``--every-page`` follows every link of the app from the overview (each path once, its query left out) and writes
+``DIR/<lang>/<width>x<height>/<page>.png`` for German and English at 1440x900 (a laptop) and 768x1024 (a tablet),
+for a person to look at after a change of pages or of the catalogs.
 
 Run it again after a page changed, so the pictures never show an older program.
 """
@@ -61,9 +66,66 @@ def take(url: str, out: Path, timeout_ms: int = 30_000) -> list[Path]:
     return written
 
 
+#: the sizes of --every-page: an engineer's laptop and an operator's tablet
+SIZES = ((1440, 900), (768, 1024))
+#: paths --every-page does not photograph: downloads, the API and its documentation, logging out
+NOT_PAGES = ("/api/", "/docs", "/redoc", "/openapi.json", "/logout", "/_nicegui")
+
+
+def slug(path: str) -> str:
+    """A file name for a page's path: ``/device/door-1`` -> ``device_door-1``, ``/`` -> ``overview``."""
+    return path.strip("/").replace("/", "_") or "overview"
+
+
+def settle(page, timeout_ms: int) -> None:
+    """Wait until ``page`` is drawn: its fonts in, nothing waiting for the server."""
+    page.evaluate("document.fonts.ready")
+    page.wait_for_load_state("networkidle", timeout=timeout_ms)
+
+
+def every_page(url: str, out: Path, langs=("de", "en"), limit: int = 80, timeout_ms: int = 30_000) -> list[Path]:
+    """Every page linked from the overview (followed breadth first, ``limit`` at most), photographed in each of
+    ``langs`` at each of SIZES into ``out/<lang>/<w>x<h>/``; returns the files written."""
+    sync_playwright = need_playwright()
+    written: list[Path] = []
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        try:
+            for lang in langs:
+                context = browser.new_context(viewport=dict(zip(("width", "height"), SIZES[0], strict=True)))
+                page = context.new_page()
+                page.goto(f"{url}/?lang={lang}", wait_until="networkidle", timeout=timeout_ms)  # kept for this browser
+                todo, seen = ["/"], {"/"}
+                while todo and len(seen) <= limit:
+                    path = todo.pop(0)
+                    page.set_viewport_size(dict(zip(("width", "height"), SIZES[0], strict=True)))
+                    page.goto(url + path, wait_until="networkidle", timeout=timeout_ms)
+                    settle(page, timeout_ms)
+                    for href in page.eval_on_selector_all("a[href^='/']", "links => links.map(a => a.getAttribute('href'))"):
+                        link = href.split("?")[0].split("#")[0]
+                        if link not in seen and not link.startswith(NOT_PAGES) and "." not in link.rsplit("/", 1)[-1]:
+                            seen.add(link)
+                            todo.append(link)
+                    for width, height in SIZES:
+                        page.set_viewport_size({"width": width, "height": height})
+                        page.wait_for_function("([w, h]) => innerWidth === w && innerHeight === h", arg=[width, height])
+                        settle(page, timeout_ms)
+                        target = out / lang / f"{width}x{height}" / f"{slug(path)}.png"
+                        target.parent.mkdir(parents=True, exist_ok=True)
+                        page.screenshot(path=str(target), full_page=True)
+                        written.append(target)
+                    print(f"{lang} {path}: {len(SIZES)} sizes", flush=True)
+                context.close()
+        finally:
+            browser.close()
+    return written
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tools.screenshots", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, default=OUT, help=f"folder for the PNG files (default {OUT.relative_to(ROOT)})")
+    parser.add_argument("--every-page", action="store_true",
+                        help="every page linked from the overview, in German and English, at 1440x900 and 768x1024")
     args = parser.parse_args(argv)
     if not Path(CHROMIUM).exists():
         print(f"{CHROMIUM} is not installed: apt-get install chromium (or run bash .ci/run once)", file=sys.stderr)
@@ -71,7 +133,11 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="commission-screenshots-") as folder:
         with running_app(demo_plant_text(), Path(folder)) as url:
             wait_devices_online(url, timeout=60)
-            take(url, args.out)
+            if args.every_page:
+                written = every_page(url, args.out)
+                print(f"{len(written)} screenshots in {args.out}")
+            else:
+                take(url, args.out)
     return 0
 
 
