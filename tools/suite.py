@@ -47,7 +47,7 @@ from pathlib import Path
 
 PHASES = (
     ("tests without a browser or a real-time bound", ["-n", "8", "--dist", "worksteal", "-m", "not browser and not realtime and not alone"]),
-    ("tests held to a real-time bound", ["-n", "6", "--dist", "worksteal", "-m", "realtime and not browser and not alone"]),
+    ("tests held to a real-time bound", ["-n", "8", "--dist", "worksteal", "-m", "realtime and not browser and not alone"]),
     ("browser tests", ["-n", "2", "-m", "browser and not alone"]),
     ("tests that need the cores to themselves", ["-n", "0", "-m", "alone"]),
 )
