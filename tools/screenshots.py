@@ -95,13 +95,15 @@ def every_page(url: str, out: Path, langs=("de", "en"), limit: int = 80, timeout
                 context = browser.new_context(viewport=dict(zip(("width", "height"), SIZES[0], strict=True)))
                 page = context.new_page()
                 page.goto(f"{url}/?lang={lang}", wait_until="networkidle", timeout=timeout_ms)  # kept for this browser
-                todo, seen = ["/"], {"/"}
+                todo, seen = ["/", "/login"], {"/", "/login"}
                 while todo and len(seen) <= limit:
                     path = todo.pop(0)
                     page.set_viewport_size(dict(zip(("width", "height"), SIZES[0], strict=True)))
                     page.goto(url + path, wait_until="networkidle", timeout=timeout_ms)
                     settle(page, timeout_ms)
-                    for href in page.eval_on_selector_all("a[href^='/']", "links => links.map(a => a.getAttribute('href'))"):
+                    links = page.eval_on_selector_all("a[href^='/']", "links => links.map(a => a.getAttribute('href'))")
+                    tools = page.eval_on_selector_all("[data-monitor^='tool-']", "bs => bs.map(b => b.dataset.monitor.slice(5))")
+                    for href in links + [f"{path}/{tool}" for tool in tools]:  # a bus monitor's tools are buttons
                         link = href.split("?")[0].split("#")[0]
                         if link not in seen and not link.startswith(NOT_PAGES) and "." not in link.rsplit("/", 1)[-1]:
                             seen.add(link)

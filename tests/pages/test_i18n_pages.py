@@ -5,6 +5,7 @@ header's switch keeps a browser's language."""
 from __future__ import annotations
 
 import contextlib
+import functools
 import re
 from html import unescape
 from pathlib import Path
@@ -26,9 +27,12 @@ GERMAN = "de-DE,de;q=0.9,en;q=0.5"
 TAG = re.compile(r"<[^>]+>")
 
 
+@functools.cache
 def english_patterns() -> list[tuple[str, re.Pattern]]:
     """Every English text of the catalog whose German differs, as a pattern of a whole shown text (a field
-    ``{...}`` stands for anything); texts of 12 or more letters without fields are also looked for inside texts."""
+    ``{...}`` stands for anything); texts of 12 or more letters without fields are also looked for inside texts,
+    but for a word of the device vocabulary (an entry with its context, ``NP_``): the parameter model's and the
+    document's English descriptions use the same words ("strong magnet at the sensors")."""
     with open(LOCALE / "de" / "LC_MESSAGES" / "messages.po", "rb") as f:
         german = read_po(f)
     patterns = []
@@ -42,7 +46,8 @@ def english_patterns() -> list[tuple[str, re.Pattern]]:
                 continue
             parts = re.split(r"\{[^{}]*\}", text.strip())
             whole = ".+?".join(re.escape(part) for part in parts)
-            patterns.append((text, re.compile(whole if len(parts) > 1 or len(text) < 12 else f".*{whole}.*", re.S)))
+            inside = len(parts) == 1 and len(text) >= 12 and not message.context
+            patterns.append((text, re.compile(f".*{whole}.*" if inside else whole, re.S)))
     return patterns
 
 
