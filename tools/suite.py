@@ -46,9 +46,9 @@ from collections import defaultdict
 from pathlib import Path
 
 PHASES = (
-    ("tests without a browser or a real-time bound", ["-n", "8", "--dist", "worksteal", "-m", "not browser and not realtime and not alone"]),
+    ("tests without a browser or a real-time bound", ["-n", "10", "--dist", "worksteal", "-m", "not browser and not realtime and not alone"]),
     ("tests held to a real-time bound", ["-n", "8", "--dist", "worksteal", "-m", "realtime and not browser and not alone"]),
-    ("browser tests", ["-n", "2", "-m", "browser and not alone"]),
+    ("browser tests", ["-n", "3", "-m", "browser and not alone"]),
     ("tests that need the cores to themselves", ["-n", "0", "-m", "alone"]),
 )
 
