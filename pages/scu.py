@@ -258,11 +258,11 @@ class StatusCard(DrawnCard):
                 words = self.view.lang.gettext(words)  # table 6's words, marked in devices/scu/params.py
                 parts.append(lamp_html(f"A{n} {key}", words[0].upper() + words[1:], entry, f"A{n} {key}"))
                 good = good and (entry is None or not _aging(entry.quality))
-            for what in ("current", "speed"):
+            for what, label in (("current", N_("current")), ("speed", N_("speed"))):
                 e = point(f"A{n} {what}")
                 lang = self.view.lang
                 parts.append(value_html(f"A{n} {what}", f"{what}-A{n}",
-                                         "-" if e is None else f"{lang.gettext(what)}: {lang.number(e.value)} {e.unit}".strip(), e))
+                                         "-" if e is None else f"{lang.gettext(label)}: {lang.number(e.value)} {e.unit}".strip(), e))
                 good = good and (e is None or not _aging(e.quality))
             strip.show(parts)
         return good

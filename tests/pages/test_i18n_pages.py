@@ -405,6 +405,9 @@ async def test_the_scu_page_in_german_shows_no_english(tmp_path):
         await user.should_see("NOT-HALT (F20, Funktion 19)")
         await eventually(lambda: any(t.startswith("Remote-Betrieb: ") for t in shown_texts(user)), timeout=5,
                          what="the remote session's words")
+        await eventually(lambda: any(t.startswith("Strom: ") for t in shown_texts(user)), timeout=5,
+                         what="an actuator's current in German")  # the status strip's "current: 0 A" was English
+        assert not [t for t in shown_texts(user) if t.startswith(("current: ", "speed: "))]
         found = english_but(user, descriptions_of(runtime, "lift"))
         assert found == [], "\n".join(map(str, found))
 
