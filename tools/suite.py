@@ -2,16 +2,16 @@
 
     python3 -m tools.suite [pytest options ...]
 
-1. The tests without a browser and held to no real-time bound, eight processes that steal work from each other:
+1. The tests without a browser and held to no real-time bound, ten processes that steal work from each other:
    they wait on devices, sockets and timers far more than they compute (measured on 2026-11-29: 307 s of CPU in
-   202 s on two cores, the cores 75 % busy).
+   202 s on two cores, the cores 75 % busy; 175 s in ten processes against 198 s in eight).
 2. The tests that hold a device, a bus or a page to a real-time bound (marker ``realtime``: a keep-alive period,
-   the dead-man bound, a poll cycle against the wire time), six processes, with nothing else beside them. They
+   the dead-man bound, a poll cycle against the wire time), eight processes, with nothing else beside them. They
    compute little (13 s of CPU in 45 s), but run beside the browser tests five of them missed their bounds
    (2026-11-29: a keep-alive gap of 0.46 s, an SCU's RC 0.76 s apart).
-3. The tests that drive chromium (marker ``browser``), two at a time: each starts the app and a browser and
-   waits on what its page shows. Three at a time took as long (195 s against 190 s, 2026-11-29): each test's
-   pages drew that much slower.
+3. The tests that drive chromium (marker ``browser``), three at a time, each test file whole in one process: each
+   starts the app and a browser and waits on what its page shows (2026-11-29: 152 s with the cores 92 % busy,
+   against 172 s and 76 % two at a time).
 4. One at a time, the tests marked ``alone``: the browser tests that are themselves held to a real-time bound (a
    second chromium beside one delays its beats on their way) and the few whose subject is how the program uses
    the cores (a line's thread that must keep up with its own period, a stalled loop's stop).
