@@ -127,18 +127,27 @@ class HdLockCanAdapter(HdLockBackup):
         if not self.bus.send(frame.arbitration_id, frame.data, frame.is_extended_id):
             raise CommandError(f"CAN bus {self.bus.name} did not take the frame: {self.bus.state.last_error or 'bus not open'}")
 
-    async def _request(self, frame: codec.CanFrame, expect: list[tuple[str, int]]) -> dict[tuple[str, int], int]:
-        """Send a request and wait for one answer frame per expected register."""
+    async def _request(self, frame: codec.CanFrame, expect: list[tuple[str, int]], *, own_answer: bool = False) -> dict[tuple[str, int], int]:
+        """Send a request and wait for one answer frame per expected register.
+
+        Reads of a register in flight together share its next answer. The lock answers a read and echoes a write alike
+        (the register and its value, section 6.6.5), so a write (``own_answer``) is sent only once the answer already
+        awaited for its register has come (a poll's read): the next answer is then its own echo, not the old value.
+        """
         loop = asyncio.get_running_loop()
+        wire = len(expect) * CAN_FRAME_BITS / self.bus.options.get("bitrate", 250_000)
+        if own_answer:
+            in_flight = [f for key in expect if (f := self._waiting.get(key)) is not None and not f.done()]
+            if in_flight:
+                await asyncio.wait(in_flight, timeout=self.timeout + 2 * wire)
         futures = {}
         for key in expect:
             old = self._waiting.get(key)
-            futures[key] = old if old is not None and not old.done() else loop.create_future()
+            futures[key] = old if old is not None and not old.done() and not own_answer else loop.create_future()
             self._waiting[key] = futures[key]
         self.state.counters.requests += 1
         try:
             self._send(frame)
-            wire = len(expect) * CAN_FRAME_BITS / self.bus.options.get("bitrate", 250_000)
             done, pending = await asyncio.wait(futures.values(), timeout=self.timeout + 2 * wire)
         finally:
             for key in expect:
@@ -196,7 +205,7 @@ class HdLockCanAdapter(HdLockBackup):
 
     async def _write_register(self, address: int, raw: int) -> int:
         try:
-            answer = await self._request(codec.encode_write(self.device_id, address, raw), [(HOLDING, address)])
+            answer = await self._request(codec.encode_write(self.device_id, address, raw), [(HOLDING, address)], own_answer=True)
         except CommandError:
             self.state.counters.write_errors += 1
             raise

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 
 import can
 import pytest
@@ -354,3 +355,21 @@ async def test_across_processes_on_udp_multicast(tmp_path):
             assert await wait_for(lambda: (True, 660102) in runtime.worker.discovered["can1"], timeout=3)
         finally:
             await runtime.stop()
+
+
+async def test_a_write_is_checked_against_its_own_echo_not_a_read_in_flight(running):
+    """A read of a register (a poll's) and a write of it overlap. The lock answers a read and echoes a write alike
+    (section 6.6.5); the write took the read's answer, the old value, for its echo and was reported refused: "the lock
+    answered 200 ms instead of 250 ms" (a fresh-clone run on a loaded machine, 2026-11-29)."""
+    state = await online(running, "gate-2")
+    adapter = running.worker.adapters["gate-2"]
+    param = PARAMS.by_name["LockRequestDelay"]
+    before = state.value("LockRequestDelay")
+    new = 300 if before == 250 else 250
+    key = ("holding", param.address)
+    read = asyncio.create_task(adapter._request(codec.encode_read(adapter.device_id, "holding", param.address), [key]))
+    await asyncio.sleep(0)  # the read is sent and waits for its answer: no frame is taken in before the write below
+    assert key in adapter._waiting and not adapter._waiting[key].done()
+    await adapter.write_param(param, new)
+    assert state.value("LockRequestDelay") == new
+    assert (await read)[key] == before
