@@ -28,18 +28,20 @@ LOGS: list[Path] = []  # the log of every app this process started (a failing te
 
 # Ports for the simulated endpoints are taken below the kernel's ephemeral range (Linux: 32768-60999), where
 # no outgoing connection is given one meanwhile, and from a block of their own per process: the suite runs
-# up to eight test processes side by side (pytest-xdist's gw0..gw7), a benchmark or a single run uses block 8
-# or 9. A port asked of the kernel (bind to port 0) and let go could be handed to another process's
-# connection before the simulation binds it ("address already in use").
-PORT_BLOCKS_FROM, PORT_BLOCK = 12000, 2000  # ten blocks: 12000-31999
+# up to ten test processes side by side (pytest-xdist's gw0..gw9; up to sixteen have a block of their own), a
+# benchmark or a single run uses one of blocks 16-19. A port asked of the kernel (bind to port 0) and let go could
+# be handed to another process's connection before the simulation binds it ("address already in use"); two
+# processes sharing a block did so too (gw8 took gw0's block while there were eight blocks, 2026-11-29).
+PORT_BLOCKS_FROM, PORT_BLOCK = 12000, 1000  # twenty blocks: 12000-31999
+WORKER_BLOCKS = 16
 _next_port: dict[int, int] = {}
 
 
 def _block() -> int:
     worker = os.environ.get("PYTEST_XDIST_WORKER", "")
     if worker.startswith("gw") and worker[2:].isdigit():
-        return int(worker[2:]) % 8
-    return 8 + os.getpid() % 2
+        return int(worker[2:]) % WORKER_BLOCKS
+    return WORKER_BLOCKS + os.getpid() % 4
 
 
 def _free(kind: int, host: str) -> int:
