@@ -366,7 +366,7 @@ class RegisterTable:
             "key": p.key,
             "address": p.address if p.words == 1 else f"{p.address}-{p.address + p.words - 1}",
             "name": p.label or p.name,
-            "value": "-" if raw is None else p.display(raw) if lang is None else lang.numbers_in(p.display(raw)),
+            "value": "-" if raw is None else p.display(raw) if lang is None else _register_value(p, raw, lang),
             "raw": "-" if raw is None else f"0x{raw:0{4 * p.words}X}",
             "access": p.access.value + (" " + _("(never written)") if p.never_write and p.access.value == "RW" else ""),
             "age": _clock(read),
@@ -377,6 +377,16 @@ class RegisterTable:
                                                 or _(QUALITY_WORDS.get(quality, quality))),
             "quality_class": f"q-{quality}" if quality in ("stale", "offline") else "",
         }
+
+
+def _register_value(p: Param, raw: int, lang: Lang) -> str:
+    """A register's value as the table shows it in ``lang``: an enum's name as the device vocabulary words it where
+    the catalog has it as a value of this register (``DoorState``: ``Tür geöffnet (1)``), with its number; else as
+    the parameter model names it (the document's own word, ``IrsNotLine (4)``)."""
+    name = p.enum_name(raw)
+    if name and lang.has(name, p.name):
+        return f"{lang.pgettext(p.name, name)} ({lang.numbers_in(str(p.decode(raw)))})"
+    return lang.numbers_in(p.display(raw))
 
 
 _CLOCKS: dict[int, str] = {}  # whole seconds -> "HH:MM:SS": the rows of one poll share their second

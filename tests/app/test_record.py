@@ -51,7 +51,8 @@ async def test_a_save_still_running_when_the_audit_is_read_is_not_missed(tmp_pat
         await asyncio.sleep(2.5 * AUDIT_FOLLOW_S)  # the audit is read twice while the save still runs
         assert "door-1" not in record.snapshots
         runtime.audit.finish(row, "ok")
-        assert await wait_for(lambda: "door-1" in record.snapshots, 15)
+        # the snapshot reads the lock anew (a loaded line: tried again up to 4 times, 3 s apart, app/record.py)
+        assert await wait_for(lambda: "door-1" in record.snapshots, 30)
         assert [e.title for e in await record.timeline("door-1", ("snapshot",))] == ["after Save-Settings"]
         await asyncio.sleep(2 * AUDIT_FOLLOW_S)  # two more readings: the row is acted on once
         assert len(await record.timeline("door-1", ("snapshot",))) == 1
@@ -80,7 +81,8 @@ async def test_an_automatic_snapshot_that_fails_is_tried_again(tmp_path, monkeyp
 
         monkeypatch.setattr(record, "read_set", busy_once)
         runtime.audit.record(user="anna", role="engineer", device="door-1", action="Save-Settings", result="ok")
-        assert await wait_for(lambda: "door-1" in record.snapshots, 15)
+        # the snapshot reads the lock anew (a loaded line: tried again up to 4 times, 3 s apart, app/record.py)
+        assert await wait_for(lambda: "door-1" in record.snapshots, 30)
         assert failures == ["door-1"]
         timeline = await record.timeline("door-1", ("snapshot",))
         assert [e.title for e in timeline] == ["after Save-Settings"]

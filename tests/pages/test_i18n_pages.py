@@ -362,6 +362,10 @@ async def test_the_hdlock_page_in_german_shows_no_english_but_the_parameters_own
         await user.should_see("Parameter (RW-Holding-Register)")
         await user.should_see("Set Modbus Address an jedes Schloss von line1 (Broadcast 255)")
         await user.should_see("Tür geöffnet", retries=100)  # DoorState in the document's words
+        tables = [e for e in user.client.elements.values() if isinstance(e, ui.table)]
+        await eventually(lambda: any(r.get("name") == "DoorState" and r.get("value") == "Tür geöffnet (1)"
+                                     for t in tables for r in t.rows), timeout=10,
+                         what="DoorState in the register table as the tiles word it, with its number")
         await user.should_see("Simuliertes Schloss")  # the twin's card in the catalogs' words
         await user.should_see("Starker Magnet")
         found = english_but(user, descriptions_of(runtime, "door-1"), suffixed=True)
