@@ -110,7 +110,10 @@ class RecordService:
     async def get(self, entry_id: int) -> Entry | None:
         return await self.store.run(self.store.get, entry_id)
 
-    async def start(self) -> None:
+    async def start(self, since: float | None = None) -> None:
+        """Read the newest approved set and snapshot of each device and follow the audit from ``since`` (the wall time
+        the program started: a write session that ended while the devices came up and this ran is acted on too)."""
+        since = time.time() if since is None else since
         for name in self.runtime.store.devices:
             latest = await self.store.run(self.store.latest, self.plant, name, "approved")
             if latest is not None:
@@ -120,7 +123,7 @@ class RecordService:
                 self.snapshots[name] = snap.data["parameters"]
             self._watches.append(self.runtime.store.watch(name, lambda n=name: self.check_drift(n), slow=True))
             self.check_drift(name)
-        self._audit_seen = time.time()
+        self._audit_seen = since
         self._task = asyncio.create_task(self._follow_audit(), name="record: auto snapshots")
 
     async def stop(self) -> None:

@@ -400,6 +400,7 @@ class Runtime:
                 log.error("accounts: %s", exc)
 
     async def start(self) -> None:
+        started = time.time()  # the record acts on every audit row from now on (app/record.py)
         problem = await asyncio.to_thread(self.audit.check_writable)
         if problem:
             log.error("the audit log cannot be written (%s): every write will be refused until it can", problem)
@@ -412,7 +413,7 @@ class Runtime:
         if self.opcua is not None:
             await self.opcua.start()  # before the buses: building its address space takes the loop for a moment
         await self.worker.start()
-        await self.record.start()
+        await self.record.start(since=started)
         await self.replacements.start()
         self._tasks = [asyncio.create_task(self._keep_unsaved(), name="unsaved reminders"),
                        asyncio.create_task(self._watch_accounts(), name="accounts"),

@@ -35,6 +35,31 @@ def test_records_are_append_only_and_owner_only(tmp_path):
     store.close()
 
 
+async def test_a_session_that_ends_while_the_record_starts_is_not_missed(tmp_path):
+    """The record started after the worker and followed the audit from the moment it was ready. A Save-Settings that
+    ended meanwhile (the devices up, the record still reading its newest sets: a loaded machine) was never acted on,
+    and the record lacked the snapshot of the set the session ended with. It follows the audit from the program's
+    start now."""
+    from app.runtime import Runtime
+
+    runtime = Runtime(demo_plant(("door-1",)), simulate=True, data_dir=tmp_path / "data")
+    record, written = runtime.record, []
+    reading = record.store.run
+
+    async def run(*args, **kwargs):  # the record reads its newest sets: a write session ends meanwhile
+        if not written:
+            row = runtime.audit.record(user="anna", role="engineer", device="door-1", action="Save-Settings", result="started")
+            runtime.audit.finish(row, "ok")
+            written.append(row)
+        return await reading(*args, **kwargs)
+
+    record.store.run = run
+    async with simulated_user(runtime):
+        assert await wait_for(lambda: written, 15), "the record read nothing at its start"
+        assert await wait_for(lambda: "door-1" in record.snapshots, 30)
+        assert [e.title for e in await record.timeline("door-1", ("snapshot",))] == ["after Save-Settings"]
+
+
 async def test_a_save_still_running_when_the_audit_is_read_is_not_missed(tmp_path):
     """The gate writes a row before the action runs (``started``) and finishes it with the outcome. A Save-Settings
     that took a while on a busy line was read while it ran, skipped as not ok, and never read again: the record
