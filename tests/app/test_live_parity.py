@@ -29,7 +29,9 @@ def mo64_plant() -> Plant:
 
 
 def hdlock_plant() -> Plant:
-    return plant(modbus_line())
+    # the line's answers wait on this process's loop, where the twin runs too: on a loaded machine the lines' usual
+    # 0.2 s (tests/plants.py) left every poll of a cycle failing for 45 s (2026-11-29); parity is the subject here
+    return plant(modbus_line(timeout=1.0))
 
 
 def hdlock_can_plant() -> Plant:
