@@ -54,9 +54,7 @@ def take(url: str, out: Path, timeout_ms: int = 30_000) -> list[Path]:
                 page.get_by_text(text).first.wait_for(state="visible", timeout=timeout_ms)
                 if chart:
                     page.locator(".js-plotly-plot .main-svg").first.wait_for(state="visible", timeout=timeout_ms)
-                # the page is drawn: its fonts are in, nothing is waiting for the server
-                page.evaluate("document.fonts.ready")
-                page.wait_for_load_state("networkidle", timeout=timeout_ms)
+                settle(page, timeout_ms)
                 target = out / name
                 page.screenshot(path=str(target))
                 written.append(target)
@@ -67,7 +65,7 @@ def take(url: str, out: Path, timeout_ms: int = 30_000) -> list[Path]:
 
 
 #: the sizes of --every-page: an engineer's laptop and an operator's tablet
-SIZES = ((1440, 900), (768, 1024))
+SIZES = (VIEWPORT, {"width": 768, "height": 1024})
 #: paths --every-page does not photograph: downloads, the API and its documentation, logging out
 NOT_PAGES = ("/api/", "/docs", "/redoc", "/openapi.json", "/logout", "/_nicegui")
 
@@ -92,13 +90,13 @@ def every_page(url: str, out: Path, langs=("de", "en"), limit: int = 80, timeout
         browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         try:
             for lang in langs:
-                context = browser.new_context(viewport=dict(zip(("width", "height"), SIZES[0], strict=True)))
+                context = browser.new_context(viewport=SIZES[0])
                 page = context.new_page()
                 page.goto(f"{url}/?lang={lang}", wait_until="networkidle", timeout=timeout_ms)  # kept for this browser
                 todo, seen = ["/", "/login"], {"/", "/login"}
                 while todo and len(seen) <= limit:
                     path = todo.pop(0)
-                    page.set_viewport_size(dict(zip(("width", "height"), SIZES[0], strict=True)))
+                    page.set_viewport_size(SIZES[0])
                     page.goto(url + path, wait_until="networkidle", timeout=timeout_ms)
                     settle(page, timeout_ms)
                     links = page.eval_on_selector_all("a[href^='/']", "links => links.map(a => a.getAttribute('href'))")
@@ -108,8 +106,9 @@ def every_page(url: str, out: Path, langs=("de", "en"), limit: int = 80, timeout
                         if link not in seen and not link.startswith(NOT_PAGES) and "." not in link.rsplit("/", 1)[-1]:
                             seen.add(link)
                             todo.append(link)
-                    for width, height in SIZES:
-                        page.set_viewport_size({"width": width, "height": height})
+                    for size in SIZES:
+                        width, height = size["width"], size["height"]
+                        page.set_viewport_size(size)
                         page.wait_for_function("([w, h]) => innerWidth === w && innerHeight === h", arg=[width, height])
                         settle(page, timeout_ms)
                         target = out / lang / f"{width}x{height}" / f"{slug(path)}.png"

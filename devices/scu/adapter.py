@@ -310,7 +310,7 @@ class ScuAdapter(BackupDefaults):
     def sync_held(self) -> None:
         """The functions the lease covers follow ``running``; nothing held: the lease ends without a lapse."""
         with self.rc.guard:
-            self.rc.held = frozenset(fn for fn in self.running if fn not in NOT_HELD)
+            self.rc.held = self.core.held
             if not self.rc.held:
                 self.lease.revoke()
         names = lambda fns: ", ".join(codec.FUNCTIONS[codec.Function(f)].label for f in fns) or "none"  # noqa: E731
