@@ -33,7 +33,7 @@ TILE_TEXTS = (
     N_("Severe fault"), N_("Too few devices"),
     # doc: MO 64, 003, 5.1.3 tele_schrankenstatus (F_ereignis, LS, Baum ab) and 5.1.12 tele_torzustand
     N_("Bauer MO 64"), N_("gate: {text}"), N_("gate state: not read yet"), N_("position: {text}"),
-    N_("fault event (F_ereignis)"), N_("light barrier interrupted"), N_("boom off (Baum ab)"), N_("{value} % open"),
+    N_("fault event (F_ereignis)"), N_("Barrier status"), N_("light barrier interrupted"), N_("boom off (Baum ab)"), N_("{value} % open"),
     # doc: Ewellix SCU, 002, section 5 (remote session RO/RC/RA), data 0x0100 (Battery Mains), function F20
     N_("Ewellix SCU"), N_("remote session: {text}"), N_("remote session: closed"), N_("A1 {text}"),
     N_("A1: no position yet"), N_("supply: {text}"), N_("EMERGENCY STOP (F20) {text}"), N_("error: {text}"),
@@ -86,6 +86,9 @@ POINT_WORDS = (
     # doc: Ewellix SCU, 002, data ID 0x0100 Battery Mains: bit 0 mains, 1 battery, 2 charge controller, 3 charging
     NP_("Battery Mains", "mains connected"), NP_("Battery Mains", "battery connected"),
     NP_("Battery Mains", "charge controller on"), NP_("Battery Mains", "charging active"),
+    # doc: Ewellix SCU, 002, data 0x0010 (Einheit: Encoder Flanken (Count)), 0x3011 (Wenn speed select relativ: Einheit: %;
+    # absolut: Encoder Flanken/ s): the units of positions and speeds as devices/scu/model.py and params.py give them
+    NP_("unit", "counts"), NP_("unit", "counts/mm"), NP_("unit", "% or counts/s"),
     # doc: CAN-M3IO, 001, section 7.2.2: readings outside 0-200 °C are out of the measuring range
     N_("out of range ({0})"),
     # doc: CAN-M3IO, 001, sections 6.1 (bit rate) and 4 (variants): the module against the plant file

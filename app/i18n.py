@@ -89,6 +89,11 @@ class Lang:
     def pgettext(self, context: str, message: str) -> str:
         return self.translations.pgettext(context, message)
 
+    def unit(self, unit: str) -> str:
+        """A unit as this language writes it: the catalog's entry with context ``unit`` (the SCU's ``counts`` are the
+        document's ``Flanken``), else as it is (``ms``, ``°C``, ``Inc``)."""
+        return self.pgettext("unit", unit) if unit and has_words(unit) else unit
+
     def has(self, message: str, context: str | None = None) -> bool:
         """Whether the catalog holds ``message`` (with ``context``), translated or not."""
         found = self._probe.gettext(message) if context is None else self._probe.pgettext(context, message)

@@ -85,7 +85,7 @@ class ServiceCard(DrawnCard):
                 f'<div class="text-caption text-grey-8">{html.escape(specifier_note(p, self.view.lang))}</div>', sanitize=False) \
             .classes("nicegui-column gap-0").props(f'data-specifier="{p.address:02X}"')
         with ui.row().classes("items-center gap-1"):
-            ui.label(_(p.name)).tooltip(p.description)
+            ui.label(_(p.name)).tooltip(said(p.description, self.view.lang))
             mark = ui.badge(_("unsaved"), color="orange")
         cell = LampStrip("nicegui-column gap-0")  # value, read time or age, the answers: one element, drawn on change
         if p.address == BITRATE_SPECIFIER:

@@ -169,7 +169,7 @@ class LampsCard(DeviceCard):
                 ui.label(_("LockStatus (holding 1000)")).classes("text-subtitle1")
                 self.note = ui.label().classes("q-age").props("data-testid=lockstatus-quality")
             with ui.row().classes("gap-5"):
-                self.lamps = {f.name: Lamp(f.name, LAMP_KIND.get(f.name, "ok"), f.description, light=True)
+                self.lamps = {f.name: Lamp(f.name, LAMP_KIND.get(f.name, "ok"), said(f.description, self.view.lang), light=True)
                               for f in LOCK_STATUS_BITS}
             with ui.row().classes("gap-8 q-mt-sm"):
                 self.labels, self.notes = {}, {}
@@ -256,7 +256,7 @@ class ParameterCard(DeviceCard):
         with ui.row().classes("items-center gap-1").style("min-width: 0") as mark:
             label = p.label or p.name
             ui.label(label).style(NAME_WRAP).props(f'data-param-name="{key}"') \
-                .tooltip(f"{label}: {p.description}" if p.description else label)
+                .tooltip(f"{label}: {said(p.description, self.view.lang)}" if p.description else label)
             if not p.setting:  # the lock measures it (Param.setting): written only to reset it, never from a set
                 ui.badge(_("measured"), color="grey-6").props(f'data-measured="{key}" outline').tooltip(
                     _("Measured by the lock, not a setting: write it only to reset it. Restore, batch apply and the "

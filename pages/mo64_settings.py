@@ -116,9 +116,9 @@ class SettingsCard(DeviceCard):
         _ = lang.gettext
         notes = [n for n in (_("assumed selector") if param.selector_assumed else "",
                              _("assumed bit position") if param.assumed and not param.selector_assumed else "") if n]
-        assumption = " " + _("Assumption: {text}").format(text=param.assumed) if param.assumed else ""
+        assumption = " " + _("Assumption: {text}").format(text=said(param.assumed, lang)) if param.assumed else ""
         ui.label(_(param.name) + (f" ({', '.join(notes)})" if notes else "")).classes("text-body2") \
-            .props(f'title="{html.escape(param.description + assumption)}"')
+            .props(f'title="{html.escape(said(param.description, lang) + assumption)}"')
         self.values[param.key] = value_line("mono text-body2")
         with ui.row().classes("items-center gap-1 no-wrap"):
             low, high = param.limits()
@@ -190,7 +190,7 @@ class SettingsCard(DeviceCard):
         _ = view.lang.gettext
         rows = [{"key": p.key, "name": p.name + (" " + _("(assumed bit position)") if p.assumed else ""),
                  "value": "-" if (raw := state.raw(p)) is None else p.display(raw), "allowed": said(allowed(p), view.lang),
-                 "description": p.description} for p in PIECES]
+                 "description": said(p.description, view.lang)} for p in PIECES]
         if self.pieces is not None and rows != self.pieces.rows:
             self.pieces.rows = rows
             self.pieces.update()

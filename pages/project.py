@@ -301,6 +301,10 @@ def _shown(param: Param, value) -> str:
         return str(value)  # an invalid entry is shown as written, so it can be corrected
 
 
+#: device types whose parameter names the catalog words (pages/mo64_settings.py, pages/electrak_service.py)
+WORDED_NAMES = ("mo64", "electrak")
+
+
 class ProjectEditor:
     """Every writable parameter of the device type's parameter model with the project's value, checked as typed,
     saved into the project (an engineer's action, audited); read-only for a viewer."""
@@ -310,6 +314,9 @@ class ProjectEditor:
         self.lang = lang or i18n.get("en")
         self.name = name
         self.params = project.editable(self.runtime.plant, name)
+        # the barrier's and the actuators' parameter names are the tool's words, in the catalog (their pages word them
+        # so); the others are the documents' register names, shown as the documents print them
+        self.names_worded = self.runtime.plant.devices[name].type in WORDED_NAMES
         self.fields: dict[str, ui.input | ui.select] = {}
         self.values: dict[str, object] = {}
         self.read_only = viewer_reason(self.lang)
@@ -352,18 +359,19 @@ class ProjectEditor:
         _ = self.lang.gettext
         with ui.element("div").style(PARAM_ROW):
             with ui.column().classes("gap-0"):
-                ui.label(param.label or param.name).classes("text-body2 text-weight-medium")
+                label = param.label or param.name
+                ui.label(_(label) if self.names_worded else label).classes("text-body2 text-weight-medium")
                 allowed = _("one of the listed values") if param.enum is not None else self.lang.numbers_in(said(project.allowed(param), self.lang))
                 ui.label(_("allowed: {allowed}").format(allowed=allowed)).classes("text-caption text-grey-9")
                 if param.confirm:
                     ui.label("⚠ " + _("asks before it is written: {risk}").format(risk=said(param.confirm, self.lang))).classes("text-caption text-negative").style(WRAP)
                 if param.description:
-                    ui.label(param.description).classes("text-caption text-grey-7").style(WRAP)
+                    ui.label(said(param.description, self.lang)).classes("text-caption text-grey-7").style(WRAP)
             if param.enum is not None:
                 options = {"": _("(not in the project)")} | {str(n): f"{text} ({n})" for n, text in param.enum.items()}
                 field = ui.select(options, value="").props("dense outlined options-dense")
             else:
-                field = ui.input(placeholder=_("not in the project"), suffix=param.unit or None,
+                field = ui.input(placeholder=_("not in the project"), suffix=self.lang.unit(param.unit) or None,
                                  validation=lambda v, p=param: self._error(p, v)).props("dense outlined")
         field.props(f'data-project-field="{param.key}"')
         if self.read_only:

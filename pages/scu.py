@@ -80,7 +80,8 @@ def io_text(key: str, live: LiveValue, lang=None) -> tuple[str, str]:
     number = f"{value:g}" if isinstance(value, float) else str(value)
     if lang is not None:
         number = lang.numbers_in(number)
-    return f"{title}: {number} {live.unit or item.unit}".strip(), ""
+    unit = live.unit or item.unit
+    return f"{title}: {number} {lang.unit(unit) if lang is not None else unit}".strip(), ""
 
 
 def _error_names(code: int) -> str:
@@ -262,7 +263,7 @@ class StatusCard(DrawnCard):
                 e = point(f"A{n} {what}")
                 lang = self.view.lang
                 parts.append(value_html(f"A{n} {what}", f"{what}-A{n}",
-                                         "-" if e is None else f"{lang.gettext(label)}: {lang.number(e.value)} {e.unit}".strip(), e))
+                                         "-" if e is None else f"{lang.gettext(label)}: {lang.number(e.value)} {lang.unit(e.unit)}".strip(), e))
                 good = good and (e is None or not _aging(e.quality))
             strip.show(parts)
         return good
@@ -414,7 +415,7 @@ class DriveCard(DrawnCard):
             self.ramp = ui.select({1: _("soft start/stop"), 0: _("fast start/stop"), 255: _("as configured (-1)")}, value=1,
                                   label=_("Ramp (para_ID[1])")).classes("w-48")
             # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s, as the unit is parametrised (plant file)
-            self.speed = range_number(_("Remote speed [{unit}]").format(unit=speed.unit), 0, speed.high, integer=True,
+            self.speed = range_number(_("Remote speed [{unit}]").format(unit=lang.unit(speed.unit)), 0, speed.high, integer=True,
                                       value=50, step=1, lang=lang) \
                 .classes("w-56").props("data-testid=remote-speed")
             self.moves.append(ui.button(_("Set speed (RT)"), on_click=self.write_speed).props("outline data-testid=set-speed"))
@@ -433,7 +434,7 @@ class DriveCard(DrawnCard):
         # without a stroke the entry accepts what INT32 counts can say: shown as "any", not as 2.1e+09
         any_beyond = INT32_LIMIT if s.stroke_mm else min(abs(low), abs(high))
         _ = self.view.lang.gettext
-        field = range_number(_("A{n} remote position [{unit}]").format(n=s.number, unit=unit), low, high, unit=unit, value=0,
+        field = range_number(_("A{n} remote position [{unit}]").format(n=s.number, unit=self.view.lang.unit(unit)), low, high, unit=unit, value=0,
                              integer=unit == "counts", any_beyond=any_beyond, lang=self.view.lang).classes("w-56").props(f"data-testid=remote-pos-A{s.number}")
 
         async def write_position() -> None:

@@ -48,7 +48,7 @@ class DirectoryCard(DrawnCard):
     def build(self) -> None:
         _ = self.view.lang.gettext
         with titled_card(_("Data directory (section 4.3): read any data ID or group ID")):
-            rows = [{"id": e.key, "name": item_name(e, _), "type": e.type_name, "unit": e.unit, "access": e.access.value,
+            rows = [{"id": e.key, "name": item_name(e, _), "type": e.type_name, "unit": self.view.lang.unit(e.unit), "access": e.access.value,
                      "comment": _(e.comment) if e.comment else ""} for e in p.DIRECTORY.values()]
             table = ui.table(columns=columns(DIRECTORY_COLUMNS, self.view.lang),
                              rows=rows, row_key="id", selection="single", pagination=10).classes("w-full text-caption")

@@ -14,6 +14,7 @@ from nicegui import context, ui
 
 from app import i18n
 from app import runtime as rt
+from app.message import said
 from app.i18n import N_, Lang
 from app.state import DeviceState, LiveValue
 from devices.params import Param
@@ -370,7 +371,7 @@ class RegisterTable:
             "raw": "-" if raw is None else f"0x{raw:0{4 * p.words}X}",
             "access": p.access.value + (" " + _("(never written)") if p.never_write and p.access.value == "RW" else ""),
             "age": _clock(read),
-            "description": p.description,
+            "description": said(p.description, lang),
             "unsaved": unsaved,
             # good: the Read column gives the time; stale or offline: how old the value is
             "quality": "-" if raw is None else (quality_note(quality, None if read is None else now - read, lang)
@@ -386,7 +387,10 @@ def _register_value(p: Param, raw: int, lang: Lang) -> str:
     name = p.enum_name(raw)
     if name and lang.has(name, p.name):
         return f"{lang.pgettext(p.name, name)} ({lang.numbers_in(str(p.decode(raw)))})"
-    return lang.numbers_in(p.display(raw))
+    text = lang.numbers_in(p.display(raw))
+    if p.unit and text.endswith(" " + p.unit):  # the unit as the language writes it (the SCU's counts: Flanken)
+        text = text[: -len(p.unit)] + lang.unit(p.unit)
+    return text
 
 
 _CLOCKS: dict[int, str] = {}  # whole seconds -> "HH:MM:SS": the rows of one poll share their second
@@ -455,8 +459,9 @@ LEVEL_WORDS = {"info": N_("info"), "warning": N_("warning"), "error": N_("error"
 
 def event_log(state, lang: Lang | None = None) -> ui.table:
     """The device's events newest first (state changes, faults rising and clearing, offline and back,
-    commands and refusals), updated in place when one is added; as bounded as the store's list. The events'
-    texts are the device's record and stay as written (docs/i18n.md); their level and time are in ``lang``."""
+    commands and refusals), updated in place when one is added; as bounded as the store's list. An event's text
+    that is a :class:`~devices.message.Message` is worded in ``lang``, as its level and time are; the store, MQTT
+    and the API keep the English it holds (docs/i18n.md)."""
     _ = (lang or i18n.get("en")).gettext
     table = ui.table(columns=columns(EVENT_COLUMNS, lang), rows=[], row_key="id", pagination=0).classes("w-full")
     table.props("dense flat hide-bottom data-testid=events").style("max-height: 16rem")
@@ -476,7 +481,7 @@ def event_log(state, lang: Lang | None = None) -> ui.table:
         shown[0], shown[1] = newest, len(events)
         count = len(events)
         table.rows = [{"id": count - i, "time": clock_text(e.time, lang), "level": e.level,
-                       "level_text": _(LEVEL_WORDS[e.level]) if e.level in LEVEL_WORDS else e.level, "text": e.text}
+                       "level_text": _(LEVEL_WORDS[e.level]) if e.level in LEVEL_WORDS else e.level, "text": said(e.text, lang)}
                       for i, e in enumerate(reversed(events))]
         table.update()
 
@@ -523,6 +528,7 @@ def range_text(low: float, high: float, unit: str = "", *, any_beyond: float = I
     """``allowed 1 .. 254 mm``; a limit at or beyond ``any_beyond`` (by default the 32-bit range) is no limit:
     ``allowed up to 500 mm``, ``allowed from 0 mm``, ``allowed: any mm``."""
     _ = (lang or i18n.get("en")).gettext
+    unit = lang.unit(unit) if lang is not None else unit
     open_low, open_high = abs(low) >= any_beyond, abs(high) >= any_beyond
     if open_low and open_high:
         text = _("allowed: any {unit}").format(unit=unit) if unit else _("allowed: any value")
@@ -561,7 +567,7 @@ def range_number(label: str, low: float, high: float, *, unit: str = "", integer
             if bounded:
                 return _("out of range: {rule}").format(rule=rule)
             return _("out of range: allowed {low} .. {high} {unit}").format(
-                low=number_text(low, lang), high=number_text(high, lang), unit=unit).strip()
+                low=number_text(low, lang), high=number_text(high, lang), unit=lang.unit(unit) if lang else unit).strip()
         return None
 
     # no "%d" format for whole numbers: it rounded a typed 12.5 to 12 on leaving the field

@@ -77,19 +77,24 @@ def _param(name, specifier, password, length, unit="", scale=1.0, description=""
 
 PARAMS = ParamMap([
     _param("Soft start time", 0x01, PASSWORD_A, 2, "ms", minimum=0, maximum=65535,
-           description="Time in milliseconds the actuator takes to reach full speed: adjusts the soft start."),
+           description=Message(N_("Time in milliseconds the actuator takes to reach full speed: adjusts the soft "
+                                  "start."))),
     _param("Soft stop distance", 0x02, PASSWORD_A, 2, "mm", 0.1, minimum=0, maximum=6553.5,
-           description="Distance to the target (0.1 mm units) from which the actuator starts to slow down: adjusts the soft stop."),
+           description=Message(N_("Distance to the target (0.1 mm units) from which the actuator starts to slow down: "
+                                  "adjusts the soft stop."))),
     _param("Bit rate", BITRATE_SPECIFIER, PASSWORD_B, 1, enum=BITRATE_NAMES, confirm=BITRATE_WARNING,
-           description="CAN bit rate of the actuator (default 500 kbit/s)."),
+           description=Message(N_("CAN bit rate of the actuator (default 500 kbit/s)."))),
     _param("Timeout", TIMEOUT_SPECIFIER, PASSWORD_B, 2, "ms", minimum=TIMEOUT_MIN_MS, maximum=TIMEOUT_MAX_MS,
            confirm=TIMEOUT_WARNING, confirm_values=tuple(range(TIMEOUT_DEFAULT_MS + 1, TIMEOUT_MAX_MS + 1)),
-           description="Time in milliseconds without a control telegram after which the actuators set the message-timeout "
-                       f"flag and stop: how long motion outlives this tool when it stops sending (default {TIMEOUT_DEFAULT_MS} ms, "
-                       f"{TIMEOUT_MIN_MS} .. {TIMEOUT_MAX_MS} ms: above the {CONTROL_PERIOD_MS} ms control period with its jitter; "
-                       "above the default asks first)."),
+           description=Message(N_("Time in milliseconds without a control telegram after which the actuators set the "
+                                  "message-timeout flag and stop: how long motion outlives this tool when it stops "
+                                  "sending (default {default} ms, {minimum} .. {maximum} ms: above the {period} ms control "
+                                  "period with its jitter; above the default asks first)."),
+                               default=TIMEOUT_DEFAULT_MS, minimum=TIMEOUT_MIN_MS, maximum=TIMEOUT_MAX_MS,
+                               period=CONTROL_PERIOD_MS)),
     _param("Speed", 0x08, PASSWORD_C, 2, "mm/s", 0.1, minimum=0, maximum=6553.5,
-           description="Target speed of the device in 0.1 mm/s units; lowers the speed when driven through the manual lines."),
+           description=Message(N_("Target speed of the device in 0.1 mm/s units; lowers the speed when driven through "
+                                  "the manual lines."))),
 ])
 
 

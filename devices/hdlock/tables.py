@@ -147,46 +147,48 @@ BAUDRATES: tuple[int, ...] = (300, 1200, 4800, 9600, 14400, 19200, 38400, 56000,
 # Section 3.2.1; bits 5, 6, 12-15 unused; bit 4 is printed as a second "LockRequest"
 # and shown as "LockRequest (bit 4)" (SPEC-NOTES).
 LOCK_STATUS_BITS: tuple[Field, ...] = (
-    Field("LockRequest", 0, description="Active when a lock request is active."),
-    Field("ProximityInPlace", 1, description="Active when the strike plate (door) is in position."),
+    Field("LockRequest", 0, description=Message(N_("Active when a lock request is active."))),
+    Field("ProximityInPlace", 1, description=Message(N_("Active when the strike plate (door) is in position."))),
     Field(
         "DoorInPosition",
         2,
-        description="Active when the strike plate (door) is in position, after the disturbance delay.",
+        description=Message(N_("Active when the strike plate (door) is in position, after the disturbance delay.")),
     ),
     Field(
         "ProximityOverrange",
         3,
-        description="Active when both hall sensors are overdriven (strong magnet at the sensors).",
+        description=Message(N_("Active when both hall sensors are overdriven (strong magnet at the sensors).")),
     ),
     Field(
         "LockRequest (bit 4)",
         4,
-        description="Printed a second time as 'LockRequest' in the bit table of section 3.2.1; "
-        "meaning not described separately.",
+        description=Message(N_(
+            "Printed a second time as 'LockRequest' in the bit table of section 3.2.1; "
+            "meaning not described separately."
+        )),
     ),
     Field(
         "ForceActive",
         7,
-        description="Active when the bolt is driven independently of the strike plate (door).",
+        description=Message(N_("Active when the bolt is driven independently of the strike plate (door).")),
     ),
-    Field("BoltLocked", 8, description="Active when the bolt is fully extended."),
-    Field("BoltUnlocked", 9, description="Active when the bolt is fully retracted."),
-    Field("BoltMovingOut", 10, description="Active while the bolt is extending."),
-    Field("BoltMovingIn", 11, description="Active while the bolt is retracting."),
+    Field("BoltLocked", 8, description=Message(N_("Active when the bolt is fully extended."))),
+    Field("BoltUnlocked", 9, description=Message(N_("Active when the bolt is fully retracted."))),
+    Field("BoltMovingOut", 10, description=Message(N_("Active while the bolt is extending."))),
+    Field("BoltMovingIn", 11, description=Message(N_("Active while the bolt is retracting."))),
 )
 
 HALL_FIELDS: tuple[Field, ...] = (
-    Field("H1", 8, 8, description="8-bit analogue value of hall sensor 1 (high byte)."),
-    Field("H2", 0, 8, description="8-bit analogue value of hall sensor 2 (low byte)."),
+    Field("H1", 8, 8, description=Message(N_("8-bit analogue value of hall sensor 1 (high byte)."))),
+    Field("H2", 0, 8, description=Message(N_("8-bit analogue value of hall sensor 2 (low byte)."))),
 )
 
 SYSTEM_CORE_CLOCK_CONFIG_FIELDS: tuple[Field, ...] = (
-    Field("HSI ready", 0, description="Internal oscillator (HSI) ready."),
-    Field("HSE ready", 1, description="External oscillator (HSE) ready."),
-    Field("PLL ready", 2, description="Phase-locked loop (PLL) ready."),
-    Field("HSE active", 3, description="0 = internal oscillator (HSI) active, 1 = external (HSE) active."),
-    Field("SysClkSource", 4, 2, description="System clock source: 0 = HSI, 1 = HSE, 2 = PLL."),
+    Field("HSI ready", 0, description=Message(N_("Internal oscillator (HSI) ready."))),
+    Field("HSE ready", 1, description=Message(N_("External oscillator (HSE) ready."))),
+    Field("PLL ready", 2, description=Message(N_("Phase-locked loop (PLL) ready."))),
+    Field("HSE active", 3, description=Message(N_("0 = internal oscillator (HSI) active, 1 = external (HSE) active."))),
+    Field("SysClkSource", 4, 2, description=Message(N_("System clock source: 0 = HSI, 1 = HSE, 2 = PLL."))),
 )
 
 # section 3.2.2: with 0x80-0x87 condition 2 (door closed) is always met: the bolt moves by condition 1 alone

@@ -168,9 +168,10 @@ def describe_sw1(sw1: int) -> str:
 def _record(index: int) -> RecordParam:
     return RecordParam(
         f"Customer data {index}", CUSTOMER, index, Access.RW,
-        description=f"Customer-data record {index}: 6 bytes the module stores (area 3 reads it, area 4 writes it, "
-                    "section 7.2.4.2.3/4; addressed mode only). Fewer bytes are padded with ff; an unwritten record "
-                    "reads ff ff ff ff ff ff. Every write is read back from the module's answer.",
+        description=Message(N_("Customer-data record {index}: 6 bytes the module stores (area 3 reads it, area 4 writes "
+                               "it, section 7.2.4.2.3/4; addressed mode only). Fewer bytes are padded with ff; an "
+                               "unwritten record reads ff ff ff ff ff ff. Every write is read back from the module's "
+                               "answer."), index=index),
     )
 
 
@@ -181,25 +182,31 @@ def _words(size: int) -> int:
 PARAMS = ParamMap([
     *(_record(i) for i in codec.CUSTOMER_RECORDS),
     ModuleParam("P2", CFG, P2_BIT, Access.RW, enum=P2_NAMES, default=0, confirm=P2_RISK, confirm_values=(1,),
-                description="HMR only: the three-phase output SSR1-3 is loaded on two phases only (Sync cfg bit 7, "
-                            "section 4.3 and 7.2.4; firmware 17.0 and later). The module forgets it at any reset: this "
-                            "tool keeps it in the plant file (p2 = true) and sends it with every DigOut period; in "
-                            "addressed mode it is also written in area 1 index 15 and read back in area 2 index 15."),
+                description=Message(N_("HMR only: the three-phase output SSR1-3 is loaded on two phases only (Sync cfg "
+                                       "bit 7, section 4.3 and 7.2.4; firmware 17.0 and later). The module forgets it "
+                                       "at any reset: this tool keeps it in the plant file (p2 = true) and sends it "
+                                       "with every DigOut period; in addressed mode it is also written in area 1 "
+                                       "index 15 and read back in area 2 index 15."))),
     ModuleParam("Serial number", CONFIG, codec.CONFIG_SERIAL, Access.RO, size=4, words=_words(4),
-                description="Area 2 index 1 (7.2.4.2.2): 32 bits, shown with 8 digits. Addressed mode only."),
+                description=Message(N_("Area 2 index 1 (7.2.4.2.2): 32 bits, shown with 8 digits. Addressed mode "
+                                       "only."))),
     ModuleParam("Product code", CONFIG, codec.CONFIG_PRODUCT, Access.RO, size=2, words=1,
-                description="Area 2 index 2 (7.2.4.2.2): the device; 0x3000 HM01, 0x3009 KM01, 0x300A HMR01 (from "
-                            "08.11.2013). Checked against the plant file's variant. Addressed mode only."),
+                description=Message(N_("Area 2 index 2 (7.2.4.2.2): the device; 0x3000 HM01, 0x3009 KM01, 0x300A HMR01 "
+                                       "(from 08.11.2013). Checked against the plant file's variant. Addressed mode "
+                                       "only."))),
     ModuleParam("Software version", CONFIG, codec.CONFIG_VERSION, Access.RO, size=2, words=1,
-                description=f"Area 2 index 3 (7.2.4.2.2); {codec.VERSION_ASSUMPTION}. Addressed mode only."),
+                # the assumption is worded in the catalog where app/device_words.py marks it (M3IO_ASSUMPTIONS)
+                description=Message(N_("Area 2 index 3 (7.2.4.2.2); {assumption}. Addressed mode only."),
+                                    assumption=Message(codec.VERSION_ASSUMPTION))),
     ModuleParam("Dynamic configuration", CONFIG, codec.CONFIG_DYNAMIC, Access.RO, size=1, words=1,
-                fields=(Field("P2", P2_BIT, description="two-phase load"),), device_updates=True,
-                description="Area 2 index 15 (7.2.4.2.2): the cfg byte the module holds now (bit 7 P2); 0 after any "
-                            "reset until this tool sends P2 again. Addressed mode only."),
+                fields=(Field("P2", P2_BIT, description=Message(N_("two-phase load"))),), device_updates=True,
+                description=Message(N_("Area 2 index 15 (7.2.4.2.2): the cfg byte the module holds now (bit 7 P2); 0 "
+                                       "after any reset until this tool sends P2 again. Addressed mode only."))),
     ModuleParam("SW1", ADDRESSING, 0, Access.R,
-                description="The DIP switch SW1 (section 5.8) as the plant file gives it: S8 off, base 0x3A0 + 5 x "
-                            "S7..S1 at 500 kbit/s; S8 on, addressed mode: S7 the function-ID table, S6 1 Mbit/s, S4..S1 "
-                            "the module address. Set on the module itself, never over the bus."),
+                description=Message(N_("The DIP switch SW1 (section 5.8) as the plant file gives it: S8 off, base 0x3A0 "
+                                       "+ 5 x S7..S1 at 500 kbit/s; S8 on, addressed mode: S7 the function-ID table, S6 "
+                                       "1 Mbit/s, S4..S1 the module address. Set on the module itself, never over the "
+                                       "bus."))),
 ])
 
 P2_PARAM = PARAMS.get(CFG, P2_BIT)

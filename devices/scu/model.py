@@ -37,8 +37,11 @@ SESSION = "session"  # the remote session's own parameters (RO)
 SPEED_UNIT = "% or counts/s"  # table 7: relative (%) or absolute (counts/s) speed select, as parametrised
 SPEED_MAX = 1000  # table 7: relative 0 .. 100 %, absolute 0 .. 1000 counts/s (the adapter holds the unit's own)
 LIMIT_FIELDS = {LIMIT_IN: "Position_Virtual_Limit_In", LIMIT_OUT: "Position_Virtual_Limit_Out"}
-VOLATILE = ("volatile remote data (table 7): the unit keeps it until its next reset, then starts again with its "
-            "configured default")
+VOLATILE = Message(N_("volatile remote data (table 7): the unit keeps it until its next reset, then starts again with "
+                      "its configured default"))
+# the same as a sentence of its own (a description's last), worded in the catalog as one
+_VOLATILE_SENTENCE = Message(N_("Volatile remote data (table 7): the unit keeps it until its next reset, then starts again "
+                                "with its configured default"))
 
 
 @dataclass(frozen=True)
@@ -99,10 +102,11 @@ class DataParam(Param):
 def _speed(n: int) -> DataParam:
     return DataParam(
         f"Remote Speed F{n}", DATA, p.speed_id(n), Access.RW, SPEED_UNIT, minimum=0, maximum=SPEED_MAX,
-        description=(f"Speed of motion function F{n} when it is started by this tool (RT 0x{p.speed_id(n):04X}, read back "
-                     "with RG; table 7, section 4.6). % (0 .. 100) with speed select relative, the standard "
-                     "parametrisation; counts/s (0 .. 1000) with speed select absolute (the plant file's speed_select). "
-                     f"Default: the function's speed from the unit's configuration. {VOLATILE.capitalize()}."),
+        description=Message(N_("Speed of motion function F{n} when it is started by this tool (RT {data_id}, read back "
+                               "with RG; table 7, section 4.6). % (0 .. 100) with speed select relative, the standard "
+                               "parametrisation; counts/s (0 .. 1000) with speed select absolute (the plant file's "
+                               "speed_select). Default: the function's speed from the unit's configuration. {volatile}."),
+                            n=n, data_id=f"0x{p.speed_id(n):04X}", volatile=_VOLATILE_SENTENCE),
         extra={"type": "UINT16", "section": "4.3 table 7, 4.6"})
 
 
@@ -110,38 +114,46 @@ def _position(n: int) -> DataParam:
     return DataParam(
         f"Remote Position A{n}", DATA, p.remote_position_id(n), Access.RW, "counts", words=2, signed=True,
         minimum=-(2 ** 31), maximum=2 ** 31 - 1,
-        description=(f"Target of actuator {n} for 'move to remote position' (RE with para_ID 9), in encoder counts "
-                     f"(RT 0x{p.remote_position_id(n):04X}, read back with RG; table 7, section 4.6). Default: the "
-                     f"Memory 1 / User 1 position of UserPositionData. {VOLATILE.capitalize()}."),
+        description=Message(N_("Target of actuator {n} for 'move to remote position' (RE with para_ID 9), in encoder "
+                               "counts (RT {data_id}, read back with RG; table 7, section 4.6). Default: the Memory 1 / "
+                               "User 1 position of UserPositionData. {volatile}."),
+                            n=n, data_id=f"0x{p.remote_position_id(n):04X}", volatile=_VOLATILE_SENTENCE),
         extra={"type": "INT32", "section": "4.3 table 7, 4.6"})
 
 
 def _factor(n: int) -> DataParam:
     return DataParam(
         f"Conversion factor A{n}", DATA, 0x1010 + n, Access.RO, "counts/mm", words=2,
-        description=(f"Conversion factor of actuator {n} (0x{0x1010 + n:04X}, FLOAT, table 6; no unit in the table, "
-                     "read as encoder counts per mm). Part of the unit's configuration: RT cannot write it "
-                     "(table 3: only data IDs 3xxx)."),
+        description=Message(N_("Conversion factor of actuator {n} ({data_id}, FLOAT, table 6; no unit in the table, read "
+                               "as encoder counts per mm). Part of the unit's configuration: RT cannot write it (table "
+                               "3: only data IDs 3xxx)."), n=n, data_id=f"0x{0x1010 + n:04X}"),
         extra={"type": "FLOAT", "section": "4.3 table 6"})
 
 
+# a whole sentence for each of the two limits (the translator words "in" and "out" with the sentence around them)
+_LIMIT_TEXTS = {
+    LIMIT_IN: N_("Virtual in limit of actuator {n}: Position_Virtual_Limit_In of UserPositionData {data_id} (struct "
+                 "ACTUATOR_POSITIONS, section 7), in encoder counts. Part of the unit's configuration: RT cannot write "
+                 "it (table 3: only data IDs 3xxx); the position bars and mm use it as the actuator's end."),
+    LIMIT_OUT: N_("Virtual out limit of actuator {n}: Position_Virtual_Limit_Out of UserPositionData {data_id} (struct "
+                  "ACTUATOR_POSITIONS, section 7), in encoder counts. Part of the unit's configuration: RT cannot write "
+                  "it (table 3: only data IDs 3xxx); the position bars and mm use it as the actuator's end."),
+}
+
+
 def _limit(n: int, space: str) -> DataParam:
-    which = "in" if space == LIMIT_IN else "out"
     return DataParam(
         f"{LIMIT_FIELDS[space]} A{n}", space, 0x2000 + n, Access.RO, "counts", words=2, signed=True,
-        description=(f"Virtual {which} limit of actuator {n}: {LIMIT_FIELDS[space]} of UserPositionData "
-                     f"0x{0x2000 + n:04X} (struct ACTUATOR_POSITIONS, section 7), in encoder counts. Part of the "
-                     "unit's configuration: RT cannot write it (table 3: only data IDs 3xxx); the position bars "
-                     "and mm use it as the actuator's end."),
+        description=Message(_LIMIT_TEXTS[space], n=n, data_id=f"0x{0x2000 + n:04X}"),
         extra={"type": "INT32", "section": "4.3 table 6, 7", "field": LIMIT_FIELDS[space]})
 
 
 SAFETY_ID = DataParam(
     "Safety_ID", SESSION, 0, Access.RO, enum={int(k): k.name.lower().replace("_", " ") for k in codec.SafetyId},
-    description=("What the unit does on a communication timeout (0.5 s): 0 stops every motion and starts none, "
-                 "1 stops every motion, 2 stops only the remote motion (firmware V2B3). Sent with every RO (table 3); "
-                 "the unit has no data ID to read it back, its RO acknowledgement is the answer. Set in the plant "
-                 "file (safety_id), not in the unit."),
+    description=Message(N_("What the unit does on a communication timeout (0.5 s): 0 stops every motion and starts "
+                           "none, 1 stops every motion, 2 stops only the remote motion (firmware V2B3). Sent with every "
+                           "RO (table 3); the unit has no data ID to read it back, its RO acknowledgement is the answer. "
+                           "Set in the plant file (safety_id), not in the unit.")),
     extra={"type": "UINT8", "section": "4.1 table 3"})
 
 PARAMS = ParamMap([

@@ -104,41 +104,43 @@ BINARY_INPUTS = v.Bits(v.U8, (
 # 0x0081..: "2 B: Linearantriebfehler 1 B: Spitzenstrom erreicht 1 B: Kurzschluss-Detektionen", read in
 # wire order (LS byte first, section 3): bits 0..15 actuator errors, 16..23 peak current, 24..31 short circuit.
 ACTUATOR_ERRORS = v.Bits(v.U32LE, (
-    v.BitField("actuator_errors", 0, 16, description="linear actuator errors"),
-    v.BitField("peak_current", 16, 8, description="peak current reached"),
-    v.BitField("short_circuit", 24, 8, description="short-circuit detections"),
+    v.BitField("actuator_errors", 0, 16, description=Message(N_("linear actuator errors"))),
+    v.BitField("peak_current", 16, 8, description=Message(N_("peak current reached"))),
+    v.BitField("short_circuit", 24, 8, description=Message(N_("short-circuit detections"))),
 ))
 ERROR_CODE = v.Bits(v.U32LE, tuple(
     v.BitField(b.key, b.bit - 1, description=b.cause) for b in codec.ERROR_BITS.values()
 ))
 ACTUATOR_STATUS_2 = v.Bits(v.U8, (
-    v.BitField("initialised", 0, description=N_("initialised")),
-    v.BitField("enable_in", 1, description=N_("enable flag, inward direction")),
-    v.BitField("enable_out", 2, description=N_("enable flag, outward direction")),
+    v.BitField("initialised", 0, description=Message(N_("initialised"))),
+    v.BitField("enable_in", 1, description=Message(N_("enable flag, inward direction"))),
+    v.BitField("enable_out", 2, description=Message(N_("enable flag, outward direction"))),
 ))
 BATTERY_MAINS = v.Bits(v.U8, (
-    v.BitField("mains", 0, description=N_("mains connected")), v.BitField("battery", 1, description=N_("battery connected")),
-    v.BitField("charger_on", 2, description=N_("charge controller on")),
-    v.BitField("charging", 3, description=N_("charging active")),
+    v.BitField("mains", 0, description=Message(N_("mains connected"))),
+    v.BitField("battery", 1, description=Message(N_("battery connected"))),
+    v.BitField("charger_on", 2, description=Message(N_("charge controller on"))),
+    v.BitField("charging", 3, description=Message(N_("charging active"))),
 ))
 # 0x0110 names "Binary Output 1" for bit 0 and bit 1: bit 1 is binary output 2 (section 4.3, print error).
-BINARY_OUTPUTS = v.Bits(v.U8, (v.BitField("output_1", 0, description=N_("output 1")),
-                               v.BitField("output_2", 1, description=N_("output 2"))))
+BINARY_OUTPUTS = v.Bits(v.U8, (v.BitField("output_1", 0, description=Message(N_("output 1"))),
+                               v.BitField("output_2", 1, description=Message(N_("output 2")))))
 LED_HS = v.Bits(v.U8, (v.BitField("led_1", 0, description="LED1"), v.BitField("led_2", 1, description="LED2")))
 LED_LB = v.Bits(v.U8, tuple(v.BitField(f"led_{n}", n - 1, description=f"LED{n}") for n in range(1, 9)))
-BUZZER = v.Bits(v.U8, (v.BitField("buzzer", 0, description=N_("buzzer")),))
-SENSOR_SUPPLY = v.Bits(v.U8, (v.BitField("sensor_supply", 0, description=N_("sensor supply")),))
+BUZZER = v.Bits(v.U8, (v.BitField("buzzer", 0, description=Message(N_("buzzer"))),))
+SENSOR_SUPPLY = v.Bits(v.U8, (v.BitField("sensor_supply", 0, description=Message(N_("sensor supply"))),))
 # 0x0162 reads "Bit 0: Funktion 0 ... Bit 9: Funktion 10": bit n is fnc_ID n, i.e. F(n+1) (section 4.3 / 4.4).
 LOCK_STATUS = v.Bits(v.U16LE, tuple(v.BitField(f"F{n + 1}_locked", n, description=f"F{n + 1}")
                                     for n in range(FUNCTIONS)))
 ACTUATOR_STATUS_1 = v.Bits(v.U8, (  # descriptions: table 6, 0x0171 ("signal limit_in_out" is the document's term)
-    v.BitField("present", 0, description=N_("actuator present")),
-    v.BitField("limit_in_out", 1, description=N_("limit in/out signal (limit_in_out)")),
-    v.BitField("switch_1", 2, description=N_("switch 1 signal")), v.BitField("switch_2", 3, description=N_("switch 2 signal")),
-    v.BitField("motion", 4, description=N_("motion active")),
-    v.BitField("in_position", 5, description=N_("in position reached")),
-    v.BitField("out_position", 6, description=N_("out position reached")),
-    v.BitField("stroke_recorded", 7, description=N_("stroke recorded")),
+    v.BitField("present", 0, description=Message(N_("actuator present"))),
+    v.BitField("limit_in_out", 1, description=Message(N_("limit in/out signal (limit_in_out)"))),
+    v.BitField("switch_1", 2, description=Message(N_("switch 1 signal"))),
+    v.BitField("switch_2", 3, description=Message(N_("switch 2 signal"))),
+    v.BitField("motion", 4, description=Message(N_("motion active"))),
+    v.BitField("in_position", 5, description=Message(N_("in position reached"))),
+    v.BitField("out_position", 6, description=Message(N_("out position reached"))),
+    v.BitField("stroke_recorded", 7, description=Message(N_("stroke recorded"))),
 ))
 
 _POSITION_NAMES = ("Position_Memory_1", "Position_Memory_2", "Position_Memory_3", "Position_Memory_4",
