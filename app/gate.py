@@ -207,7 +207,8 @@ class CommandGate:
         the device document): noted on the device and in the audit log with the reason."""
         state = self.worker.store.devices.get(device)
         if state is not None:
-            state.event("warning", f"refused for {user or 'anonymous'}: {describe or 'entry'}: {reason}")
+            state.event("warning", Message(N_("refused for {user}: {action}: {reason}"), user=user or Message(N_("anonymous")),
+                                           action=describe or Message(N_("entry")), reason=reason))
         await self._note("audit: %s", user=user, role=role, device=device, action=describe or "entry",
                          parameter=parameter, new=new, result=f"refused: {reason}"[:500])
 
@@ -217,8 +218,10 @@ class CommandGate:
         device as information and in the audit log (``CANCELLED``), under the parameter's name where there is one."""
         state = self.worker.store.devices.get(device)
         if state is not None:
-            state.event("info", f"cancelled by {user or 'anonymous'}: {describe}" + (f" = {new}" if new != "" else "")
-                        + ": not confirmed, nothing sent")
+            state.event("info", Message(N_("cancelled by {user}: {action} = {value}: not confirmed, nothing sent"),
+                                        user=user or Message(N_("anonymous")), action=describe, value=new) if new != "" else
+                        Message(N_("cancelled by {user}: {action}: not confirmed, nothing sent"),
+                                user=user or Message(N_("anonymous")), action=describe))
         await self._note(f"audit of a cancelled {describe} failed: %s", user=user, role=role, device=device,
                          action=describe, parameter=parameter, new=new, result=CANCELLED)
 
@@ -339,7 +342,8 @@ class CommandGate:
         except Exception as exc:  # noqa: BLE001 - fail closed: whatever stops the row, nothing is sent
             state = self.worker.store.devices.get(row.device)
             if state is not None:
-                state.event("error", f"{row.action} refused: the audit log cannot be written ({exc})")
+                state.event("error", Message(N_("{action} refused: the audit log cannot be written ({error})"),
+                                             action=row.action, error=str(exc)))
             raise AuditUnavailable(Message(
                 N_("{action} refused: the audit log cannot be written ({error}). Nothing was sent. Free or repair {path} "
                    "(locked by another program, read-only or disk full) and try again."),
@@ -361,7 +365,8 @@ class CommandGate:
         """The role may not run it: noted on the device and in the audit log. :raises PermissionDenied: always"""
         state = self.worker.store.devices.get(row.device)
         if state is not None:
-            state.event("warning", f"refused for {row.user} ({row.role}): {row.action}")
+            state.event("warning", Message(N_("refused for {user} ({role}): {action}"), user=row.user, role=Message(row.role),
+                                           action=row.action))
         await self._note("audit: %s", **row.fields(), result=f"refused: the {row.role or 'anonymous'} role may not write")
         raise PermissionDenied(write_refusal(row.user, row.role, row.action))
 

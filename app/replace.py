@@ -269,9 +269,9 @@ class ReplacementWatch:
         if name in self._fresh_twins:
             self._fresh_twins.discard(name)
             if ref is not None and differences(ref["identity"], now):
-                state.event("info", f"simulated plant started afresh: the twin has the plant file's identity "
-                                    f"({identity_text(now)}) and factory settings again, not those of the last run "
-                                    f"({identity_text(ref['identity'])}); taken as known")
+                state.event("info", Message(N_("simulated plant started afresh: the twin has the plant file's identity "
+                                               "({now}) and factory settings again, not those of the last run ({known}); "
+                                               "taken as known"), now=identity_text(now), known=identity_text(ref["identity"])))
                 ref = None
         if ref is None:  # first seen: this is the device as installed
             self.known[name] = {"identity": now, "time": time.time(), "source": Message(FIRST_SEEN)}
@@ -286,10 +286,12 @@ class ReplacementWatch:
         version = state.version
         state.replaced = replaced
         if replaced:
-            state.event("warning", f"replaced? {', '.join(differ)} differ: known {identity_text(ref['identity'])} "
-                                   f"({ref.get('source', '')}), now {identity_text(now)}")
+            state.event("warning", Message(N_("replaced? {facets} differ: known {known} ({source}), now {now}"),
+                                           facets=joined([Message(facet) for facet in differ]),  # the facets' words (app/report.py)
+                                           known=identity_text(ref["identity"]), source=ref.get("source", ""),
+                                           now=identity_text(now)))
         elif before:
-            state.event("info", f"identity as known again: {identity_text(now)}")
+            state.event("info", Message(N_("identity as known again: {identity}"), identity=identity_text(now)))
         state.version = version  # the events above and the record's change: one change for its readers
         state.touch()
         return replaced

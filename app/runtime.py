@@ -18,6 +18,8 @@ from app.audit import AuditLog
 from app.auth import AuthSessions, LoginThrottle
 from app.backup import write_atomic
 from app.can_bus import CanBus, CanBusState
+from app.i18n import N_
+from app.message import Message, message_of
 from app.plant import Plant
 from app.state import StateStore
 from app.users import UserStore
@@ -333,7 +335,8 @@ class Runtime:
             state = self.store.devices.get(name)
             if state is not None and isinstance(keys, list):
                 state.unsaved.update(str(k) for k in keys)
-                state.event("warning", f"{len(keys)} parameter(s) written in an earlier session are not saved in the device yet")
+                state.event("warning", Message(N_("{count} parameter(s) written in an earlier session are not saved in the "
+                                                  "device yet"), count=len(keys)))
         return self._unsaved_now()
 
     async def after_change(self) -> None:
@@ -356,7 +359,8 @@ class Runtime:
             except (OSError, PlantError) as exc:
                 done = ""
                 if state is not None:
-                    state.event("error", f"the plant file could not keep {adapter.plant_options()}: {exc}")
+                    state.event("error", Message(N_("the plant file could not keep {options}: {error}"),
+                                                 options=str(adapter.plant_options()), error=message_of(exc)))
             if done and state is not None:
                 state.event("info", done)
 

@@ -15,6 +15,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from app.i18n import N_
+from app.message import Message
 from devices.live import (
     EVENT_LIMIT,
     HISTORY_SECONDS,
@@ -440,10 +442,10 @@ class StateStore:
         version = state.version
         for text in alarms:
             if text not in before:
-                state.event("warning", f"fault: {text}")
+                state.event("warning", Message(N_("fault: {text}"), text=text))
         for text in before:
             if text not in alarms:
-                state.event("info", f"cleared: {text}")
+                state.event("info", Message(N_("cleared: {text}"), text=text))
         state.version = version  # the events themselves are not a new change to push again
 
 

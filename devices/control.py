@@ -24,8 +24,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+from devices.message import Message, N_
+
 LEASE_S = 0.35  # as devices.lease.LEASE_S: a lease renewed every 50 ms lapses 0.35 s after its last renewal
 STOP_DEADLINE_S = 0.5  # what runs stops within this long after the controlling operator is gone (ARCHITECTURE.md, rule 7)
+RELEASED = Message(N_("released"))  # control given back by its holder ("control released (alice)")
 
 
 # -- actions ---------------------------------------------------------------------------------------------
@@ -155,17 +158,17 @@ class ControlSession:
         actions: list = []
         h = self.holder
         if h is not None and h.session != session and h.disconnected is not None:
-            actions += self._drop(f"taken over by {user}: the page that held it had disconnected")
+            actions += self._drop(Message(N_("taken over by {user}: the page that held it had disconnected"), user=user))
             h = None
         if h is not None and h.session != session:
             return Decision(f"{h.user} holds control since {_clock(h.since)}", busy=True)
         if h is not None:
             return Decision(actions=tuple(actions))
         self.holder = Holder(session, user, wall)
-        actions += [ControlChanged(self.holder), Report("info", f"{user} took control")]
+        actions += [ControlChanged(self.holder), Report("info", Message(N_("{user} took control"), user=user))]
         return Decision(actions=tuple(actions))
 
-    def release(self, session: str, reason: str = "released") -> list:
+    def release(self, session: str, reason: str = RELEASED) -> list:
         """The holder gives control back (``session`` "" : whoever holds it); what runs stops first."""
         if self.holder is None or (session and self.holder.session != session):
             return []
@@ -178,7 +181,7 @@ class ControlSession:
         self.holder = replace(self.holder, disconnected=now)
         if not self.running:
             return []
-        return [Stop(reason), Report("warning", f"stopped: {reason} ({self.holder.user})")]
+        return [Stop(reason), Report("warning", Message(N_("stopped: {reason} ({user})"), reason=reason, user=self.holder.user))]
 
     def back(self, session: str) -> list:
         """The page of ``session`` is alive again: its control is its own again (nothing restarts)."""
@@ -190,7 +193,7 @@ class ControlSession:
         """The page of ``session`` is gone for good (or froze): stop and release."""
         if not self.controls(session):
             return []
-        return self._drop(f"released: {reason}")
+        return self._drop(Message(N_("released: {reason}"), reason=reason))
 
     # -- what runs, and its lease ---------------------------------------------------------------------
     def started(self, now: float) -> None:
@@ -220,18 +223,19 @@ class ControlSession:
         lapsed_at, renewed_at = self.lease.lapsed_at, self.lease.renewed_at
         late_ms = ((lapsed_at - renewed_at) * 1000 if lapsed_at is not None and renewed_at is not None
                    else self.lease.valid_s * 1000)
-        return [Stop("lease lapsed: the controlling page stopped confirming it is alive, or this program stalled",
-                     lapse=True),
-                Report("error", f"stopped: the lease of what ran was not renewed for {late_ms:.0f} ms (this program "
-                                "stalled, or the controlling browser stopped confirming it is alive). Press again to go on")]
+        return [Stop(Message(N_("lease lapsed: the controlling page stopped confirming it is alive, or this program "
+                                "stalled")), lapse=True),
+                Report("error", Message(N_("stopped: the lease of what ran was not renewed for {ms:.0f} ms (this program "
+                                           "stalled, or the controlling browser stopped confirming it is alive). Press "
+                                           "again to go on"), ms=late_ms))]
 
     def _drop(self, reason: str, level: str = "warning") -> list:
-        user = self.holder.user if self.holder is not None else "nobody"
+        user = self.holder.user if self.holder is not None else Message(N_("nobody"))
         actions: list = []
         if self.running:
             actions.append(Stop(reason))
         self.holder = None
-        actions += [ControlChanged(None), Report(level, f"control {reason} ({user})")]
+        actions += [ControlChanged(None), Report(level, Message(N_("control {reason} ({user})"), reason=reason, user=user))]
         return actions
 
 

@@ -25,6 +25,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal, NamedTuple
 
+from devices.message import Message, N_
 from devices.params import Param, ParamMap
 
 _now = time.time
@@ -281,7 +282,7 @@ class DeviceState:
 
     def mark_seen(self, now: float | None = None) -> None:
         if self.online is False and self.last_error:  # recovered: the old error stays in the event log only
-            self.event("info", f"back online (last error: {self.last_error})")
+            self.event("info", Message(N_("back online (last error: {error})"), error=self.last_error))
             self.last_error = ""
             self.last_error_time = None
         self.online = True

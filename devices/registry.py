@@ -233,6 +233,8 @@ class DeviceType:
     :param open_reads: the reads a device page runs by itself when it opens on a device never read (:class:`OpenRead`)
     :param scans: bus type -> ``"module:function"`` of ``discover(line, first, last, progress)``, the scan
         for devices of this type on a line of that bus type
+    :param worded_names: the parameter model's names are this tool's words, in the catalogs (the barrier's "Open
+        time"), not the document's register names (``LockRequestDelay``), which pages show as the document prints them
     """
 
     name: str
@@ -252,6 +254,7 @@ class DeviceType:
     line_codec: str = ""
     scans: dict[str, str] = field(default_factory=dict)
     open_reads: tuple[OpenRead, ...] = ()  # what a device page reads by itself on opening
+    worded_names: bool = False
 
     def can_id_uses(self, options: dict[str, Any], bus_type: str) -> tuple[CanIdUse, ...]:
         """Every CAN ID a device of this type with ``options`` uses on a bus of ``bus_type``."""

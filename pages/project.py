@@ -301,10 +301,6 @@ def _shown(param: Param, value) -> str:
         return str(value)  # an invalid entry is shown as written, so it can be corrected
 
 
-#: device types whose parameter names the catalog words (pages/mo64_settings.py, pages/electrak_service.py)
-WORDED_NAMES = ("mo64", "electrak")
-
-
 class ProjectEditor:
     """Every writable parameter of the device type's parameter model with the project's value, checked as typed,
     saved into the project (an engineer's action, audited); read-only for a viewer."""
@@ -314,9 +310,8 @@ class ProjectEditor:
         self.lang = lang or i18n.get("en")
         self.name = name
         self.params = project.editable(self.runtime.plant, name)
-        # the barrier's and the actuators' parameter names are the tool's words, in the catalog (their pages word them
-        # so); the others are the documents' register names, shown as the documents print them
-        self.names_worded = self.runtime.plant.devices[name].type in WORDED_NAMES
+        # a type's parameter names are worded where they are the tool's words (DeviceType.worded_names), as its page does
+        self.names_worded = DEVICE_TYPES[self.runtime.plant.devices[name].type].worded_names
         self.fields: dict[str, ui.input | ui.select] = {}
         self.values: dict[str, object] = {}
         self.read_only = viewer_reason(self.lang)

@@ -73,6 +73,7 @@ TILE = TileSpec(
 
 
 DEVICE_TYPE = DeviceType(
+    worded_names=True,  # its parameter names are the tool's words, worded by the catalogs (docs/i18n.md)
     name="electrak",
     title="Electrak HD network",
     manufacturer="Thomson",

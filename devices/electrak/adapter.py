@@ -331,7 +331,8 @@ class ElectrakAdapter(BackupDefaults):
     async def poll(self) -> None:
         """Service parameters are read on demand; the status arrives by itself."""
         if self.state.age is not None and self.state.age > self.state.stale_after * 3 and self.state.online:
-            self.state.mark_offline("no status telegram for more than 3 s: check the bus and the actuators' power")
+            self.state.mark_offline(Message(N_("no status telegram for more than 3 s: check the bus and the actuators' "
+                                               "power")))
 
     # -- control: the core (devices/electrak/control.py) decides, this shell carries it out ----------------
     def _carry(self, actions) -> None:
@@ -427,7 +428,7 @@ class ElectrakAdapter(BackupDefaults):
             raise ForeignControl(decision.refused)
         self._decided(decision)
 
-    def release_control(self, session: str, reason: str = "released") -> bool:
+    def release_control(self, session: str, reason: str = control.RELEASED) -> bool:
         """Drop the enable bit, send it once more and stop the keep-alive."""
         actions = self.core.release(session, reason, time.monotonic())
         self._carry(actions)
@@ -604,11 +605,11 @@ class ElectrakAdapter(BackupDefaults):
             raise CommandError(f"{param.name}: read back {param.display(back)} instead of {param.display(raw)}")
         if param.address == BITRATE_SPECIFIER:
             self._publish_bitrate_change(BitrateChange(raw, time.time()))
-            self.state.event("warning", f"bit rate {param.display(raw)} written and read back from every actuator: "
-                                        "save it, switch the bus, restart the actuators")
+            self.state.event("warning", Message(N_("bit rate {value} written and read back from every actuator: save it, "
+                                                   "switch the bus, restart the actuators"), value=param.display(raw)))
         else:
-            self.state.event("info", f"{param.name} = {param.display(raw)} written and read back from "
-                                     f"{len(self.actuators)} actuator(s) (not yet saved)")
+            self.state.event("info", Message(N_("{name} = {value} written and read back from {n} actuator(s) (not yet "
+                                                "saved)"), name=param.name, value=param.display(raw), n=len(self.actuators)))
         return raw
 
     # -- backup and restore (app/backup.py) --------------------------------------------------
@@ -659,14 +660,19 @@ class ElectrakAdapter(BackupDefaults):
         forms = {length: n for length, n in accepted.items() if n}
         if len(forms) == 1:
             form = codec.SAVE_FORMS[next(iter(forms))]
+            said = Message(form)  # the form's words are marked by the Electrak service page (SAVE_FORM_WORDS)
         else:
             form = " and ".join(f"{codec.SAVE_FORMS[length]} by {n} actuator{'s' if n > 1 else ''}" for length, n in forms.items())
+            parts = [Message(N_("{form} by {n} actuators") if n > 1 else N_("{form} by {n} actuator"),
+                             form=Message(codec.SAVE_FORMS[length]), n=n) for length, n in forms.items()]
+            said = (Message(N_("{first} and {second}"), first=parts[0], second=parts[1]) if len(parts) == 2
+                    else joined(parts, " and "))
         self.state.fact(P_SAVE_FORM, form)
         change = self.bitrate_change
         if change is not None and PARAMS.get(SERVICE, BITRATE_SPECIFIER).key in self.state.unsaved:
             self._publish_bitrate_change(replace(change, saved=time.time()))
         self.state.unsaved.clear()
-        self.state.event("info", f"parameters saved (0xF0); the network accepted the {form}")
+        self.state.event("info", Message(N_("parameters saved (0xF0); the network accepted the {form}"), form=said))
         return form
 
     @property

@@ -41,6 +41,8 @@ OVERRIDE_RISK = Message(N_(
     "one actuator of a pair may then move alone and twist or drop the load. It also holds motion while set. "
     "Send it only when every actuator is connected, or when the missing one is meant to stay off the network."
 ))
+RELEASED = Message(N_("released"))  # control released (the page's Release)
+TAKEN_OVER = Message(N_("taken over by another page: the page that held it had disconnected"))
 OVERRIDE_UNCONFIRMED = ("override/reset needs a confirmation naming its risk (it resets the number of actuators the "
                         "network expects): confirm it on the Electrak page, or pass the confirmation")
 
@@ -161,8 +163,9 @@ class ElectrakControl:
         self.foreign_at = now
         if self.session.holder is None:
             return []
-        return self._release(f"lost: another sender of the control telegram 0x06 is on the bus ({FOREIGN_SENDER}); "
-                             "this tool stopped sending so as not to fight it", now, level="error")
+        return self._release(Message(N_("lost: another sender of the control telegram 0x06 is on the bus ({who}); this "
+                                        "tool stopped sending so as not to fight it"), who=FOREIGN_SENDER),
+                             now, level="error")
 
     def actuators_heard(self, heard: int, now: float) -> list:
         """The number of actuators heard changed. After an override/reset that counted fewer than configured, the
@@ -170,9 +173,10 @@ class ElectrakControl:
         self.heard = heard
         if heard >= self.configured or self.count_reset_to is None or not self.command.enable:
             return []
-        return self._stop_motion(now, "error", f"motion stopped: only {heard} of the {self.configured} actuators are heard "
-                                               "and Override/reset has turned off the network's own 'Too few devices' lock. "
-                                               "Reconnect the missing actuator, then press Override/reset again")
+        return self._stop_motion(now, "error", Message(N_(
+            "motion stopped: only {heard} of the {configured} actuators are heard and Override/reset has turned off the "
+            "network's own 'Too few devices' lock. Reconnect the missing actuator, then press Override/reset again"),
+            heard=heard, configured=self.configured))
 
     # -- operator events ---------------------------------------------------------------------------------
     def take(self, session: str, user: str, now: float, wall: float) -> Decision:
@@ -189,15 +193,15 @@ class ElectrakControl:
                                     seconds=codec.LISTEN_S))
         actions: list = []
         if h is not None and h.disconnected is not None:  # taken over from a page that disconnected
-            actions += self._release("taken over by another page: the page that held it had disconnected", now)
+            actions += self._release(TAKEN_OVER, now)
         decision = self.session.take(session, user, now, wall)
         if not decision.ok:
             return decision
         c = stop_form(self.command)
         self.command, self.sending = c, True
         actions += [*decision.actions, StartPeriodic(c), CommandChanged(c),
-                    Report("info", f"{user} took control (no other sender of 0x06 heard for {codec.LISTEN_S:g} s); "
-                                   "control telegrams every 100 ms")]
+                    Report("info", Message(N_("{user} took control (no other sender of 0x06 heard for {seconds:g} s); "
+                                              "control telegrams every 100 ms"), user=user, seconds=codec.LISTEN_S))]
         return Decision(actions=tuple(actions))
 
     def release(self, session: str, reason: str, now: float) -> list:
@@ -230,7 +234,8 @@ class ElectrakControl:
             return Decision("; ".join(problems))
         actions = self.tick(now)  # a lapse not yet seen is reported first; this press starts anew
         actions += self._command(codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, enable=True), now)
-        actions.append(Report("info", f"go: target {c.position_mm:g} mm at {c.speed_mm_s:g} mm/s, limit {c.current_a:g} A"))
+        actions.append(Report("info", Message(N_("go: target {position:g} mm at {speed:g} mm/s, limit {current:g} A"),
+                                              position=c.position_mm, speed=c.speed_mm_s, current=c.current_a)))
         return Decision(actions=tuple(actions))
 
     def jog(self, session: str, direction: int, speed_mm_s: float | None, now: float,
@@ -268,7 +273,7 @@ class ElectrakControl:
         self.override_until = None
         actions = self._command(c, now, send_now=False)
         actions.append(ModifyPeriodic(c) if self.sending else Send(c))
-        actions.append(Report("info", "stop: enable cleared"))
+        actions.append(Report("info", Message(N_("stop: enable cleared"))))
         return actions
 
     def override(self, session: str, active: bool, now: float, *, confirmed: bool = False) -> Decision:
@@ -287,9 +292,12 @@ class ElectrakControl:
         self.count_reset_to = heard if heard is not None and heard < self.configured else None
         self.override_until = now + OVERRIDE_PULSE_S
         actions = self._command(codec.ControlFrame(c.position_mm, c.current_a, c.speed_mm_s, override=True), now)
-        counted = (f"; the network now expects the {heard} actuator(s) it hears, not the {self.configured} configured: "
-                   "Go and jog are refused until all are heard" if self.count_reset_to is not None else "")
-        actions.append(Report("warning" if counted else "info", f"override/reset sent (confirmed){counted}"))
+        if self.count_reset_to is not None:
+            actions.append(Report("warning", Message(N_(
+                "override/reset sent (confirmed); the network now expects the {heard} actuator(s) it hears, not the "
+                "{configured} configured: Go and jog are refused until all are heard"), heard=heard, configured=self.configured)))
+        else:
+            actions.append(Report("info", Message(N_("override/reset sent (confirmed)"))))
         return Decision(actions=tuple(actions))
 
     # -- the page's life ---------------------------------------------------------------------------------
@@ -299,7 +307,8 @@ class ElectrakControl:
         if not any(isinstance(a, Stop) for a in actions):
             return actions
         user = self.session.holder.user
-        return self._stop_motion(now, "warning", f"motion stopped: {reason} ({user}); enable cleared")
+        return self._stop_motion(now, "warning", Message(N_("motion stopped: {reason} ({user}); enable cleared"),
+                                                         reason=reason, user=user))
 
     def back(self, session: str) -> list:
         return self.session.back(session)
@@ -308,7 +317,7 @@ class ElectrakControl:
         """The browser of ``session`` went away or froze: stop at once and release its control."""
         if not self.session.controls(session):
             return []
-        return self._release(f"released: {reason}", now)
+        return self._release(Message(N_("released: {reason}"), reason=reason), now)
 
     # -- time ----------------------------------------------------------------------------------------------
     def beat(self, alive: Collection[str] | Mapping[str, float], now: float) -> list:
@@ -398,10 +407,10 @@ class ElectrakControl:
                     lease = self.session.lease
                     renewed = lease.renewed_at
                     stalled_ms = (now - renewed) * 1000 if renewed is not None else lease.valid_s * 1000
-                    out.append(Report("error", f"motion stopped: this program stalled ({stalled_ms:.0f} ms without "
-                                               f"renewing the motion's lease, limit {lease.valid_s * 1000:.0f} ms); the "
-                                               "control telegram's sender cleared enable by itself. The browser was not "
-                                               "at fault: press again to move"))
+                    out.append(Report("error", Message(N_(
+                        "motion stopped: this program stalled ({stalled:.0f} ms without renewing the motion's lease, limit "
+                        "{limit:.0f} ms); the control telegram's sender cleared enable by itself. The browser was not at "
+                        "fault: press again to move"), stalled=stalled_ms, limit=lease.valid_s * 1000)))
             else:
                 out.append(action)
         return out
@@ -418,5 +427,6 @@ class ElectrakControl:
             actions.append(StopPeriodic())
             self.sending = False
         actions += [LeaseChange("revoke"), Send(c), CommandChanged(c), ControlChanged(None),
-                    Report(level, f"control {reason} ({user}): enable cleared, control telegrams stopped")]
+                    Report(level, Message(N_("control {reason} ({user}): enable cleared, control telegrams stopped"),
+                                          reason=reason, user=user))]
         return actions

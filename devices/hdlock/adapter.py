@@ -280,7 +280,7 @@ class HdLockAdapter(HdLockBackup):
                 self.state.error(message_of(exc))
             return
         if self._fails:
-            self.state.event("info", f"answering again at address {self.address}")
+            self.state.event("info", Message(N_("answering again at address {address}"), address=self.address))
         self._fails = 0
         self.state.add_history(chart_sample(self.state, HISTORY_MODBUS))
 
@@ -316,7 +316,8 @@ class HdLockAdapter(HdLockBackup):
         if param.address != codec.REG_COMMAND:
             self.state.unsaved.add(param.key)
         self.read_settings_next()  # a write may move other settings (a command register, a derived value)
-        self.state.event("info", f"{param.label or param.name} = {param.display(raw)} written and read back")
+        self.state.event("info", Message(N_("{name} = {value} written and read back"), name=param.label or param.name,
+                                         value=param.display(raw)))
         return raw
 
     async def _command(self, command: codec.SystemCommand, p0: int = 0, p1: int = 0, p2: int = 0) -> None:
@@ -341,7 +342,7 @@ class HdLockAdapter(HdLockBackup):
         if after == before:
             raise CommandError("Save-Settings sent, but SavedSettings (input 101) did not count up: check the lock")
         self.state.unsaved.clear()
-        self.state.event("info", f"settings saved (SavedSettings = {after})")
+        self.state.event("info", Message(N_("settings saved (SavedSettings = {count})"), count=after))
 
     async def restore_settings(self) -> None:
         """Command 2 (section 4.2): reload the saved settings, dropping unsaved changes."""
@@ -349,7 +350,7 @@ class HdLockAdapter(HdLockBackup):
         self.state.unsaved.clear()
         self.read_settings_next()
         await self.poll()
-        self.state.event("info", "saved settings restored; unsaved changes discarded")
+        self.state.event("info", Message(N_("saved settings restored; unsaved changes discarded")))
 
     def set_address_preview(self, mask: int, expected: int) -> tuple[bool, int, int | None]:
         """Would the lock take a new address now? (accepted, result, LockStatus used)."""
@@ -393,12 +394,13 @@ class HdLockAdapter(HdLockBackup):
                 self._moved_to(old, new_address)
                 text = Message(N_("the lock answers at address {new} now ({how}): send Save-Settings to keep it and "
                                   "change address = {new} in the plant file"), new=new_address, how=how)
-                self.state.event("warning", f"address changed {old} -> {new_address}: {text}")
+                self.state.event("warning", Message(N_("address changed {old} -> {new}: {text}"), old=old, new=new_address,
+                                                    text=text))
                 return AddressChange(new_address, True, text, answered_old=answered, serial=serial)
             if await self._probe(old) is not None:
                 text = Message(N_("no answer at address {new}; the lock still answers at address {old} ({how}): the "
                                   "condition did not hold"), new=new_address, old=old, how=how)
-                self.state.event("warning", f"address change to {new_address} refused: {text}")
+                self.state.event("warning", Message(N_("address change to {new} refused: {text}"), new=new_address, text=text))
                 return AddressChange(new_address, False, text, answered_old=answered)
             raise CommandError(
                 f"no answer at the new address {new_address} nor at the old address {old} ({how}): "
@@ -465,7 +467,8 @@ class HdLockAdapter(HdLockBackup):
                 scans.pop(address, None)
         if result.taken:
             scans[new_address] = {"address": new_address, "serial": found, "via": "broadcast address change"}
-        self.state.event("warning", f"broadcast Set Modbus Address {new_address} (P1 0x{mask:04X}, P2 0x{expected:04X}): {text}")
+        self.state.event("warning", Message(N_("broadcast Set Modbus Address {new} (P1 {mask}, P2 {expected}): {text}"),
+                                            new=new_address, mask=f"0x{mask:04X}", expected=f"0x{expected:04X}", text=text))
         return result
 
     # -- address change helpers ------------------------------------------------------------

@@ -17,6 +17,7 @@ from devices.hdlock.adapter import (CAN_SETTINGS_BLOCKS, CAN_STATUS_BLOCKS, HIST
                                     status_frame_text)
 from devices.hdlock.params import HOLDING, INPUT, PARAMS
 from devices.live import DeviceState, Point
+from devices.message import Message, N_, message_of
 from devices.params import Accepted
 from devices.transport import CanTransport
 
@@ -178,9 +179,9 @@ class HdLockCanAdapter(HdLockBackup):
         except CommandError as exc:
             self.read_settings_next()
             if self.state.age is None or self.state.age > self.state.stale_after:
-                self.state.mark_offline(str(exc))
+                self.state.mark_offline(message_of(exc))  # an error's Message, worded by the page
             else:
-                self.state.error(str(exc), log=False)
+                self.state.error(message_of(exc), log=False)
 
     async def _read_blocks(self, blocks: list[tuple[str, int, int]]) -> None:
         for space, start, count in blocks:
@@ -200,7 +201,8 @@ class HdLockCanAdapter(HdLockBackup):
             )
         self.state.unsaved.add(param.key)
         self.read_settings_next()
-        self.state.event("info", f"{param.label or param.name} = {param.display(raw)} written, echo checked")
+        self.state.event("info", Message(N_("{name} = {value} written, echo checked"), name=param.label or param.name,
+                                         value=param.display(raw)))
         return raw
 
     async def _write_register(self, address: int, raw: int) -> int:
@@ -223,14 +225,14 @@ class HdLockCanAdapter(HdLockBackup):
         if after == before:
             raise CommandError("Save-Settings sent, but SavedSettings (input 101) did not count up: check the lock")
         self.state.unsaved.clear()
-        self.state.event("info", f"settings saved (SavedSettings = {after})")
+        self.state.event("info", Message(N_("settings saved (SavedSettings = {count})"), count=after))
 
     async def restore_settings(self) -> None:
         await self._system_command(codec.SystemCommand.RESTORE_SETTINGS)
         self.state.unsaved.clear()
         self.read_settings_next()
         await self.poll()
-        self.state.event("info", "saved settings restored; unsaved changes discarded")
+        self.state.event("info", Message(N_("saved settings restored; unsaved changes discarded")))
 
     # -- CAN commands (section 6.6.1, 6.6.2) ------------------------------------------------
     def _target(self, broadcast: bool) -> codec.DeviceId:
@@ -243,9 +245,10 @@ class HdLockCanAdapter(HdLockBackup):
         except codec.CodecError as exc:
             raise CommandError(str(exc)) from None
         self._send(frame)
-        who = "all locks (broadcast)" if broadcast else f"lock {self.device_id}"
+        who = Message(N_("all locks (broadcast)")) if broadcast else Message(N_("lock {device_id}"), device_id=self.device_id)
         if broadcast:
-            self.state.event("warning", f"LockRequestSource 0x{value:02X} sent to {who}")
+            self.state.event("warning", Message(N_("LockRequestSource {value} sent to {target}"), value=f"0x{value:02X}",
+                                                target=who))
             return
         await asyncio.sleep(0.05)
         key = (HOLDING, codec.REG_LOCK_REQUEST_SOURCE)
@@ -253,7 +256,8 @@ class HdLockCanAdapter(HdLockBackup):
         if back != value:
             raise CommandError(f"LockRequestSource (holding 4) reads 0x{back:02X} after the command, not 0x{value:02X}")
         self.state.unsaved.add(PARAMS.get(*key).key)  # volatile until Save-Settings (section 3)
-        self.state.event("info", f"LockRequestSource 0x{value:02X} set on {who}, read back from holding 4")
+        self.state.event("info", Message(N_("LockRequestSource {value} set on {target}, read back from holding 4"),
+                                         value=f"0x{value:02X}", target=who))
 
     async def set_can_bitrate(self, code: int, broadcast: bool = False) -> None:
         """cmdSetCANbaudrate: the lock leaves this bus until the bus runs at the new rate too."""
@@ -263,8 +267,9 @@ class HdLockCanAdapter(HdLockBackup):
             raise CommandError(str(exc)) from None
         self._send(frame)
         rate = codec.CAN_BITRATES[code][0]
-        who = "all locks (broadcast)" if broadcast else f"lock {self.device_id}"
-        self.state.event("warning", f"CAN bit rate {rate} bit/s sent to {who}: switch the bus to {rate} bit/s to reach it again")
+        who = Message(N_("all locks (broadcast)")) if broadcast else Message(N_("lock {device_id}"), device_id=self.device_id)
+        self.state.event("warning", Message(N_("CAN bit rate {rate} bit/s sent to {target}: switch the bus to {rate} bit/s "
+                                               "to reach it again"), rate=rate, target=who))
 
     async def set_device_address(self, new_value: int, extended: bool | None = None) -> bool:
         """Set Device Address (0x701), section 6.6.2. Refused when anything is heard under the new ID first (a lock
@@ -300,7 +305,8 @@ class HdLockCanAdapter(HdLockBackup):
             try:
                 await asyncio.wait_for(status.wait(), timeout=2.5)  # the status comes every 1000 ms
             except asyncio.TimeoutError:
-                self.state.event("warning", f"no frame under the new ID {new} within 2.5 s: the lock kept {old}?")
+                self.state.event("warning", Message(N_("no frame under the new ID {new} within 2.5 s: the lock kept {old}?"),
+                                                    new=new, old=old))
                 return False
         finally:
             self.bus.unsubscribe(new.extended, new.value, on_new)
@@ -312,14 +318,16 @@ class HdLockCanAdapter(HdLockBackup):
         if answered != serial:
             self._listen_under(old)
             self.read_settings_next()
-            found = "no serial number answered there" if answered is None else f"the lock answering there has serial number {answered}"
-            self.state.event("error", f"Set Device Address {old} -> {new}: a status frame came under {new}, but {found}, "
-                                      f"not {serial} (this lock's): another lock may use that ID now. Check both locks")
+            found = (Message(N_("no serial number answered there")) if answered is None else
+                     Message(N_("the lock answering there has serial number {serial}"), serial=answered))
+            self.state.event("error", Message(N_("Set Device Address {old} -> {new}: a status frame came under {new}, but "
+                                                 "{found}, not {serial} (this lock's): another lock may use that ID now. "
+                                                 "Check both locks"), old=old, new=new, found=found, serial=serial))
             raise CommandError(f"not confirmed: under {new} {found}, not this lock's {serial}"
                                + (f" ({why})" if answered is None else "") + f"; this page keeps talking to {old}. "
                                "Check which lock uses which ID (the bus monitor shows their status frames)")
-        self.state.event("warning", f"device ID changed {old} -> {new} (serial number {serial} answers there): "
-                                    "change device_id in the plant file")
+        self.state.event("warning", Message(N_("device ID changed {old} -> {new} (serial number {serial} answers there): "
+                                               "change device_id in the plant file"), old=old, new=new, serial=serial))
         return True
 
     def _listen_under(self, ident: codec.DeviceId) -> None:

@@ -30,9 +30,9 @@ from devices.m3io import codec
 from devices.m3io.codec import Variant
 from devices.m3io.params import P2_OPTION, PARAMS
 from devices.m3io.settings import ModuleSettings
-from devices.m3io.control import (FOREIGN_MASTER, FOREIGN_WINDOW_S, IDLE_DIGOUT_PERIOD_S, LISTEN_S,  # noqa: F401 (names of this module)
-                                  MDATA_TIMEOUT_S, TEMP_SLACK_S, DigOut, EndKeepAlive, KeepAlive, LeaseChange, M3ioControl,
-                                  stop_form)
+from devices.m3io.control import (ALL_OFF, FOREIGN_MASTER, FOREIGN_WINDOW_S, IDLE_DIGOUT_PERIOD_S,  # noqa: F401 (names of this module)
+                                  LISTEN_S, MDATA_TIMEOUT_S, RELEASED, TEMP_SLACK_S, DigOut, EndKeepAlive, KeepAlive,
+                                  LeaseChange, M3ioControl, stop_form)
 from devices.transport import CanTransport
 
 OFFLINE_AFTER_S = 2.5
@@ -193,7 +193,8 @@ class M3ioAdapter(ModuleSettings):
             state.fact(P_P2_CHECK, None, text=Message(N_("read back once this tool serves the module")) if self.ids.addressed
                        else Message(N_("cannot be read back in simple mode (SW1 switch 8 off): sent with every DigOut")))
         if bus_rate != self.ids.bitrate:
-            state.event("warning", f"SW1 0x{self.sw1:02X} sets {self.ids.bitrate // 1000} kbit/s but bus {bus.name} runs at {bus_rate // 1000} kbit/s")
+            state.event("warning", Message(N_("SW1 0x{sw1:02X} sets {module} kbit/s but bus {bus} runs at {rate} kbit/s"),
+                                           sw1=self.sw1, module=self.ids.bitrate // 1000, bus=bus.name, rate=bus_rate // 1000))
         self._publish()
         bus.subscribe(False, self.ids.dig_in, self.on_dig_in)
         if self.variant is not Variant.KM:
@@ -330,7 +331,7 @@ class M3ioAdapter(ModuleSettings):
             raise ControlBusy(f"{self.controller.user} took control meanwhile")
         self._decided(decision, now, ForeignMaster if self.core.foreign_master(now) else CommandError)
 
-    def release_control(self, session: str, reason: str = "released") -> bool:
+    def release_control(self, session: str, reason: str = RELEASED) -> bool:
         if self.controller is None or (session and self.controller.session != session):
             return False
         now = time.monotonic()
@@ -370,13 +371,15 @@ class M3ioAdapter(ModuleSettings):
                 self._gone_since = self.last_answer
                 if self.state.online is not False:
                     if self.controller is None and not self.foreign_master():
-                        self.state.mark_offline("silent: the module answers only while a master serves its 2 s watchdog "
-                                                "(7.1); take control to serve it")
+                        self.state.mark_offline(Message(N_("silent: the module answers only while a master serves its 2 s "
+                                                           "watchdog (7.1); take control to serve it")))
                     else:
-                        self.state.mark_offline(f"no DigIn/temperatures for {OFFLINE_AFTER_S} s: check 24 V, CAN wiring, SW1 0x{self.sw1:02X}")
+                        self.state.mark_offline(Message(N_("no DigIn/temperatures for {seconds} s: check 24 V, CAN wiring, "
+                                                           "SW1 0x{sw1:02X}"), seconds=OFFLINE_AFTER_S, sw1=self.sw1))
             return
         if self._gone_since is not None:
-            self.state.event("info", f"the module answers again after {self.last_answer - self._gone_since:.1f} s of silence")
+            self.state.event("info", Message(N_("the module answers again after {seconds:.1f} s of silence"),
+                                             seconds=self.last_answer - self._gone_since))
             self._gone_since = None
             if self.ids.addressed:
                 self._set_product(None)  # it may have been exchanged meanwhile: check its variant again
@@ -420,7 +423,7 @@ class M3ioAdapter(ModuleSettings):
         old = self.state.points.get(P_P2_CHECK)
         self.state.fact(P_P2_CHECK, "mismatch", raw=config, text=text)
         if self.served and (old is None or old.value != "mismatch"):
-            self.state.event("warning", f"P2 {text}")
+            self.state.event("warning", Message("P2 {text}", text=text))
             self._p2_checked = False  # sent again with the next DigOut period: read back after a while
             self._verify_after = time.time() + VERIFY_RETRY_S
 
@@ -482,7 +485,7 @@ class M3ioAdapter(ModuleSettings):
             monitor = self.channels[channel]
             monitor.update(word, self.channel_on(channel))
             if monitor.cleared:
-                self.state.event("info", f"SSR{channel} fuse fault cleared: {monitor.cleared}")
+                self.state.event("info", Message(N_("SSR{n} fuse fault cleared: {reason}"), n=channel, reason=monitor.cleared))
             self._publish_channel(channel, word, self.last_answer)
         self._publish()
         if first == 5 or self.variant is Variant.HMR:
@@ -594,14 +597,14 @@ class M3ioAdapter(ModuleSettings):
         now = time.monotonic()
         self._decided(self.core.set_output(session, name, on, now), now)
 
-    def all_off(self, reason: str = "all off") -> None:
+    def all_off(self, reason: str = ALL_OFF) -> None:
         now = time.monotonic()
         self._do(self.core.all_off(now, reason), now)
         self._publish()
 
     def all_off_pressed(self) -> None:
         """The page's All off (a stop: never refused)."""
-        self.all_off("all off pressed")
+        self.all_off(Message(N_("all off pressed")))
 
     def holders(self) -> set[str]:
         """The page sessions that keep outputs on through this adapter (for the worker's dead-man rule)."""
@@ -639,8 +642,13 @@ class M3ioAdapter(ModuleSettings):
         self._p2_off_unsent = not on and not self.served
         self._start_cfg()
         self._publish()
-        self.state.event("info", f"P2 {'on: three-phase output loaded on two phases' if on else 'off: three phases'}"
-                         + ("" if self.served else " (sent once this tool controls the module)"))
+        if self.served:
+            said = (Message(N_("P2 on: three-phase output loaded on two phases")) if on
+                    else Message(N_("P2 off: three phases")))
+        else:
+            said = (Message(N_("P2 on: three-phase output loaded on two phases (sent once this tool controls the module)"))
+                    if on else Message(N_("P2 off: three phases (sent once this tool controls the module)")))
+        self.state.event("info", said)
 
     # -- addressed data (7.2.4.2) ---------------------------------------------------------------
     async def _request(self, area: int, index: int, payload: bytes = b"", timeout: float = MDATA_TIMEOUT_S) -> codec.MData:

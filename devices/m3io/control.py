@@ -40,6 +40,9 @@ IDLE_DIGOUT_PERIOD_S = 0.5  # master = "always", nobody in control: every output
 MDATA_TIMEOUT_S = 0.5  # an addressed request (7.2.4.2) waits this long for its MData
 ANSWER_WINDOW_S = MDATA_TIMEOUT_S + 0.5  # an MData this long after this tool's own request answers it (a late one too)
 FOREIGN_MASTER = Message(N_("a PLC or another master"))
+RELEASED = Message(N_("released"))  # control released (the page's Release)
+ALL_OFF = Message(N_("all off"))
+TAKEN_OVER = Message(N_("taken over by another page: the page that held it had disconnected"))
 ENGINEER = "engineer"
 MODULE_FRAMES = ("DigIn", "Temp", "MData")
 
@@ -165,7 +168,7 @@ class M3ioControl:
                                        "try again."), who=FOREIGN_MASTER, id=self.dig_out_id, seconds=FOREIGN_WINDOW_S))
         actions: list = []
         if holder is not None:  # its page had disconnected: taken over
-            actions += self._release("taken over by another page: the page that held it had disconnected", now)
+            actions += self._release(TAKEN_OVER, now)
         decision = self.session.take(session, user, now, wall)
         if not decision.ok:
             return decision
@@ -174,11 +177,12 @@ class M3ioControl:
         self.serving = "control"
         actions += [ControlChanged(self.holder), LeaseChange("revoke"),
                     KeepAlive(self.dig_out_data(), codec.DIGOUT_PERIOD_S, leased=True),
-                    Report("info", f"{user} took control (no other master heard): DigOut 0x{self.dig_out_id:03X} "
-                                   f"every {codec.DIGOUT_PERIOD_S * 1000:.0f} ms serves the 2 s watchdog")]
+                    Report("info", Message(N_("{user} took control (no other master heard): DigOut 0x{id:03X} every "
+                                              "{ms:.0f} ms serves the 2 s watchdog"),
+                                           user=user, id=self.dig_out_id, ms=codec.DIGOUT_PERIOD_S * 1000))]
         return Decision(actions=tuple(actions))
 
-    def release(self, session: str, now: float, reason: str = "released") -> list:
+    def release(self, session: str, now: float, reason: str = RELEASED) -> list:
         """The holder gives control back (``session`` "": whoever holds it): every output off, DigOut stops."""
         if self.holder is None or (session and self.holder.session != session):
             return []
@@ -206,14 +210,16 @@ class M3ioControl:
         else:
             self.owners.pop(name, None)
         self.outputs[name] = on
-        actions = lapsed + self._leased(now) + self._resend() + [Report("info", f"{name} {'on' if on else 'off'}")]
+        said = Message(N_("{output} on"), output=name) if on else Message(N_("{output} off"), output=name)
+        actions = lapsed + self._leased(now) + self._resend() + [Report("info", said)]
         return Decision(actions=tuple(actions))
 
-    def all_off(self, now: float, reason: str = "all off") -> list:
+    def all_off(self, now: float, reason: str = ALL_OFF) -> list:
         """Every output off (a stop: never refused)."""
         lapsed = self.tick(now)
         self._clear_outputs()
-        return lapsed + self._leased(now) + self._resend() + [Report("warning", f"every output switched off: {reason}")]
+        return lapsed + self._leased(now) + self._resend() + [Report(
+            "warning", Message(N_("every output switched off: {reason}"), reason=reason))]
 
     def disconnected(self, session: str, reason: str, now: float) -> list:
         """The page of ``session`` disconnected: its outputs off at once; its control (the watchdog with every
@@ -227,7 +233,8 @@ class M3ioControl:
             return lapsed
         for name in names:
             self.outputs[name] = False
-        return lapsed + self._leased(now) + self._resend() + [Report("warning", f"{', '.join(names)} off: {reason}")]
+        return lapsed + self._leased(now) + self._resend() + [Report(
+            "warning", Message(N_("{outputs} off: {reason}"), outputs=", ".join(names), reason=reason))]
 
     def back(self, session: str) -> list:
         """The page of ``session`` is alive again: its control is its own again (nothing switches on)."""
@@ -237,7 +244,7 @@ class M3ioControl:
         """``session`` is gone or stopped confirming it is alive: its outputs off, its control released."""
         actions = self.disconnected(session, reason, now)
         if self.controls(session):
-            actions += self._release(f"released: {reason}", now)
+            actions += self._release(Message(N_("released: {reason}"), reason=reason), now)
         return actions
 
     # -- the lease -------------------------------------------------------------------------------------
@@ -283,19 +290,21 @@ class M3ioControl:
             return []
         self.serving = "idle"
         return [KeepAlive(codec.encode_dig_out(self.variant, {}), IDLE_DIGOUT_PERIOD_S, leased=False),
-                Report("info", f"serving the watchdog with every output off (master = \"always\" in the plant file): "
-                               f"DigOut 0x{self.dig_out_id:03X} every {IDLE_DIGOUT_PERIOD_S * 1000:.0f} ms")]
+                Report("info", Message(N_("serving the watchdog with every output off (master = \"always\" in the plant "
+                                          "file): DigOut 0x{id:03X} every {ms:.0f} ms"),
+                                       id=self.dig_out_id, ms=IDLE_DIGOUT_PERIOD_S * 1000))]
 
     def foreign_dig_out(self, now: float) -> list:
         """A DigOut from another node: a PLC serves the module. Never fight it: stop sending, without a last frame."""
         self.foreign_at = now
         if self.holder is not None:
-            return self._release(f"lost: another master sends DigOut 0x{self.dig_out_id:03X} ({FOREIGN_MASTER}); "
-                                 "this tool stopped sending so as not to fight it", now, level="error", last=False)
+            return self._release(Message(N_("lost: another master sends DigOut 0x{id:03X} ({who}); this tool stopped "
+                                            "sending so as not to fight it"), id=self.dig_out_id, who=FOREIGN_MASTER),
+                                 now, level="error", last=False)
         if self.serving == "idle":
             return self._end_serving(now) + [Report(
-                "warning", f"stopped serving the watchdog: another master sends DigOut 0x{self.dig_out_id:03X} "
-                           f"({FOREIGN_MASTER}): this tool only listens now")]
+                "warning", Message(N_("stopped serving the watchdog: another master sends DigOut 0x{id:03X} ({who}): "
+                                      "this tool only listens now"), id=self.dig_out_id, who=FOREIGN_MASTER))]
         return []
 
     def request_sent(self, area: int, index: int, now: float) -> None:
@@ -318,7 +327,7 @@ class M3ioControl:
         was = self.may_switch
         self.may_switch, self.may_switch_text = may_switch, text
         if not may_switch and any(self.outputs.values()):
-            return self.all_off(now, "the module is not the variant the plant file names")
+            return self.all_off(now, Message(N_("the module is not the variant the plant file names")))
         if may_switch and not was and any(self.outputs.values()):
             return self._resend()
         return []
@@ -352,7 +361,8 @@ class M3ioControl:
         self.session.idle()
         out: list = [LeaseChange("revoke"), *self._resend()]
         if names:
-            out += [Report(a.level, f"{', '.join(names)} off, by the DigOut keep-alive itself: {a.text}")
+            out += [Report(a.level, Message(N_("{outputs} off, by the DigOut keep-alive itself: {reason}"),
+                                            outputs=", ".join(names), reason=a.text))
                     for a in actions if isinstance(a, Report)]
         return out
 
@@ -374,6 +384,7 @@ class M3ioControl:
         actions += [ControlChanged(None)]
         if self.serving:
             actions += self._end_serving(now)
-        actions.append(Report(level, f"control {reason} ({user})" + (f": {', '.join(on)} off" if on else "")
-                              + "; DigOut stopped"))
+        actions.append(Report(level, Message(N_("control {reason} ({user}): {outputs} off; DigOut stopped"), reason=reason,
+                                             user=user, outputs=", ".join(on)) if on
+                              else Message(N_("control {reason} ({user}); DigOut stopped"), reason=reason, user=user)))
         return actions

@@ -72,7 +72,8 @@ class ModuleSettings(BackupDefaults):
                 f"customer record {index}: the module stored {answer.payload.hex(' ')} instead of "
                 f"{codec.pad6(payload).hex(' ')}: write it again"
             )
-        self.state.event("info", f"customer record {index} = {answer.payload.hex(' ')} written and verified")
+        self.state.event("info", Message(N_("customer record {index} = {data} written and verified"), index=index,
+                                         data=answer.payload.hex(" ")))
         return answer.payload
 
     def _record(self, index: int) -> Param:

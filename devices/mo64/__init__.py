@@ -50,6 +50,7 @@ TILE = TileSpec(
 )
 
 DEVICE_TYPE = DeviceType(
+    worded_names=True,  # its parameter names are the tool's words, worded by the catalogs (docs/i18n.md)
     name="mo64",
     title="Bauer MO 64",
     manufacturer="Bauer",

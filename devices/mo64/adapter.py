@@ -22,9 +22,9 @@ from typing import Any
 from devices.control import Report
 from devices.decoding import decoded, malformed
 from devices.live import DeviceState, session_tag
-from devices.message import Message, N_
+from devices.message import Message, N_, message_of
 from devices.mo64 import codec
-from devices.mo64.control import DEAD_MAN_LEVELS, Mo64Control, Send
+from devices.mo64.control import DEAD_MAN_LEVELS, TOOL_STOPS, Mo64Control, Send
 from devices.mo64.facts import (
     BUSY_TEXT,
     NAMES,
@@ -229,9 +229,10 @@ class Mo64Adapter(Mo64Settings):
                 if self.query_form is None and len(telegrams) > 1:
                     self.query_form = forms[n]
                     self.state.fact(P_QUERY_FORM, self.query_form, text=QUERY_FORM_WORDS[self.query_form])
-                    self.state.event("info", "queries: the unit takes the " + (
-                        "document's form 02 Auswahl index (page 33)" if forms[n] == "document"
-                        else "short form 02 Auswahl (the document's form was refused)"))
+                    self.state.event("info", Message(N_("queries: the unit takes the document's form 02 Auswahl index "
+                                                        "(page 33)")) if forms[n] == "document"
+                                     else Message(N_("queries: the unit takes the short form 02 Auswahl (the document's "
+                                                     "form was refused)")))
                 break
         if answer.reply is codec.Reply.NAK:
             self._reply(Message(N_("query {telegram}"), telegram=what), "nak")
@@ -272,11 +273,12 @@ class Mo64Adapter(Mo64Settings):
             return
         now = time.monotonic()
         if answer.reply is not None:
-            self._count_late(f"{answer.name} that answers no request")
+            self._count_late(Message(N_("{telegram} that answers no request"), telegram=Message(answer.name)))
             return
         asked = self._timed_out.pop(answer.type, None)
         if asked is not None and now - asked < LATE_WINDOW_S:
-            self._count_late(f"{answer.name} after its query timed out")  # not change monitoring
+            self._count_late(Message(N_("{telegram} after its query timed out"),  # not change monitoring
+                                     telegram=Message(answer.name)))
         elif self.armed(answer.type):
             self._monitor_last = now
         else:
@@ -286,11 +288,13 @@ class Mo64Adapter(Mo64Settings):
         before = self.state.points.get(NAMES.get(answer.type, ""))
         self._publish(answer)
         after = self.state.points.get(NAMES.get(answer.type, ""))
-        text = after.text if after is not None and after.text is not None else answer.name
+        text = after.text if after is not None and after.text is not None else Message(answer.name)
         if answer.error:
-            self.state.event("warning", f"change reported: {answer.name}: {answer.error}")
+            self.state.event("warning", Message(N_("change reported: {telegram}: {error}"), telegram=Message(answer.name),
+                                                error=answer.error))
         elif before is None or before.raw != after.raw:
-            self.state.event("info", f"change reported: {answer.name} = {text}")
+            self.state.event("info", Message(N_("change reported: {telegram} = {value}"), telegram=Message(answer.name),
+                                             value=text))
 
     # -- publishing -------------------------------------------------------------------------------------
     def _publish(self, answer: codec.Answer) -> None:
@@ -321,8 +325,8 @@ class Mo64Adapter(Mo64Settings):
         elif t == 0x17:
             self._error_entry(x)
         elif t == 0x1C:
-            pub("Vehicle counter", int(x), raw=int(x), text=f"{int(x)} (RAM only: 0 after power-up)", time=now,
-                every=self._rotation_s)
+            pub("Vehicle counter", int(x), raw=int(x), text=Message(N_("{count} (RAM only: 0 after power-up)"), count=int(x)),
+                time=now, every=self._rotation_s)
         elif t in (0x0A, 0x0B, 0x16):  # counters read in turn: stale after a few of their own rounds
             pub(name, int(x), "h" if t == 0x16 else "", raw=int(x), time=now, every=self._rotation_s)
         elif t in (0x14, 0x06, 0x1A):
@@ -377,7 +381,7 @@ class Mo64Adapter(Mo64Settings):
     def _count_late(self, what: str) -> None:
         self.late_answers += 1
         self.state.fact(P_LATE, self.late_answers)
-        self.state.event("warning", f"late answer: {what}")
+        self.state.event("warning", Message(N_("late answer: {what}"), what=what))
 
     @property
     def monitoring_active(self) -> bool:
@@ -500,11 +504,11 @@ class Mo64Adapter(Mo64Settings):
         result = answer.reply.name.lower() if answer.reply is not None else answer.name
         self._reply(send.words, result)
         if answer.reply is not codec.Reply.ACK:
-            self.state.event("warning", f"{send.words}: {result}")
+            self.state.event("warning", Message("{what}: {result}", what=send.words, result=Message(result)))
             raise CommandError(f"{send.words}: the barrier answered {result}"
                                + (f" ({BUSY_TEXT})" if answer.reply is codec.Reply.BUSY else ""))
         self.counters_next()
-        self.state.event("info", f"{send.words}: ack")
+        self.state.event("info", Message("{what}: ack", what=send.words))
         return "ack"
 
     async def send_raw(self, session: str, telegram: bytes, confirmed: bool = False, role: str = "engineer") -> str:
@@ -552,11 +556,11 @@ class Mo64Adapter(Mo64Settings):
         try:
             answer = await self._carry(send, {codec.Reply.ACK, codec.Reply.NAK, codec.Reply.BUSY}, words)
         except (SerialLineError, codec.CodecError) as exc:
-            self.state.error(f"{words} not answered: {exc}")
+            self.state.error(Message(N_("{command} not answered: {error}"), command=words, error=message_of(exc)))
             return False
         self._reply(words, answer.name)
         if answer.reply is not codec.Reply.ACK:
-            self.state.event("warning", f"{words}: {answer.name}")
+            self.state.event("warning", Message("{what}: {result}", what=words, result=Message(answer.name)))
             return False
         return True
 
@@ -585,7 +589,7 @@ class Mo64Adapter(Mo64Settings):
                                                "close): check that nobody stands under it, then confirm")))
         cleared, failed = [], []
         for cmd in list(self.levels):
-            if await self._deactivate(cmd, "clear levels"):
+            if await self._deactivate(cmd, Message(N_("clear levels"))):
                 cleared.append(COMMAND_NAMES[cmd])
             else:
                 failed.append(COMMAND_NAMES[cmd])
@@ -608,9 +612,10 @@ class Mo64Adapter(Mo64Settings):
         await self.stopped()  # dead-man deactivations already on their way
         done = []
         for cmd in [c for c in self.levels if c in HELD_LEVELS]:
-            if await self._deactivate(cmd, "the tool stops"):
+            if await self._deactivate(cmd, TOOL_STOPS):
                 done.append(COMMAND_NAMES[cmd])
-                self.state.event("info", f"the tool stops: {COMMAND_NAMES[cmd]} deactivated (ack)")
+                self.state.event("info", Message(N_("the tool stops: {level} deactivated (ack)"),
+                                                 level=Message(COMMAND_NAMES[cmd])))
         return done
 
     def closing_frames(self) -> list[bytes]:
@@ -619,7 +624,7 @@ class Mo64Adapter(Mo64Settings):
         frames = []
         for send in self.core.closing():
             frames.append(self._frame(send.telegram))
-            self.state.event("warning", f"the tool stops: {send.words} sent")
+            self.state.event("warning", Message(N_("the tool stops: {command} sent"), command=send.words))
         self._publish_levels()
         return frames
 
@@ -649,7 +654,7 @@ class Mo64Adapter(Mo64Settings):
         if self.rs485:
             raise CommandError("an RS485 line is not released: the token passing shares it")
         self.line.release()
-        self.state.event("info", "connection released: another client may connect to the barrier")
+        self.state.event("info", Message(N_("connection released: another client may connect to the barrier")))
         self.state.fact(P_CONNECTION, "released")
         return "released"
 
@@ -657,7 +662,7 @@ class Mo64Adapter(Mo64Settings):
         if self.rs485:
             return "connected"
         self.line.resume()
-        self.state.event("info", "connection taken back")
+        self.state.event("info", Message(N_("connection taken back")))
         self.state.fact(P_CONNECTION, "reconnecting")
         return "reconnecting"
 

@@ -46,6 +46,7 @@ COMMAND_NAMES = {codec.Command.OPEN: N_("open"), codec.Command.CLOSE: N_("close"
 # an operating command in words ("open pulse", "close deactivate"): a Message the page words in its language
 FUNCTION_WORDS = {codec.Function.PULSE: N_("{command} pulse"), codec.Function.ACTIVATE: N_("{command} activate"),
                   codec.Function.DEACTIVATE: N_("{command} deactivate")}
+TOOL_STOPS = Message(N_("the tool stops"))  # why the close and reverse levels are deactivated as the tool ends
 RETRY_S = 0.2  # a dead-man deactivation the barrier did not acknowledge is sent again this often
 WRITE_ROLES = frozenset({"engineer"})
 __all__ = ["LEASE_S", "STOP_DEADLINE_S", "Report"]
@@ -249,9 +250,10 @@ class Mo64Control:
                 return []
             if level.gone_at is not None:  # the dead-man rule's release: again until acknowledged
                 level.next_try = now + self.retry_s
-                return [Report("error", f"{pending.words}: {answer}: the {COMMAND_NAMES[cmd]} level is still "
-                                        f"active in the barrier; sent again every {self.retry_s:g} s until it is "
-                                        "acknowledged")]
+                return [Report("error", Message(N_("{command}: {answer}: the {level} level is still active in the barrier; "
+                                                   "sent again every {seconds:g} s until it is acknowledged"),
+                                                command=pending.words, answer=answer, level=Message(COMMAND_NAMES[cmd]),
+                                                seconds=self.retry_s))]
             level.state = "active" if answer in ("nak", "busy") else level.state  # the operator's own: still held
             if answer == "lost":
                 level.next_try = now + self.retry_s
@@ -298,7 +300,7 @@ class Mo64Control:
     def _release(self, level: Level, why: str, now: float) -> list:
         level.state, level.gone_at, level.next_try = "deactivating", now, None
         cmd = level.command
-        return [Report("warning", f"{why}; deactivating {COMMAND_NAMES[cmd]}"),
+        return [Report("warning", Message(N_("{why}; deactivating {level}"), why=why, level=Message(COMMAND_NAMES[cmd]))),
                 self._send(codec.encode_command(cmd, codec.Function.DEACTIVATE),
                            command_words(cmd, codec.Function.DEACTIVATE),
                            level.session, cmd, codec.Function.DEACTIVATE, "stop", why)]
@@ -310,8 +312,8 @@ class Mo64Control:
             if level.dead_man:
                 cmd = level.command
                 sends.append(self._send(codec.encode_command(cmd, codec.Function.DEACTIVATE),
-                                        f"{COMMAND_NAMES[cmd]} deactivate", level.session, cmd,
-                                        codec.Function.DEACTIVATE, "stop", "the tool stops"))
+                                        command_words(cmd, codec.Function.DEACTIVATE), level.session, cmd,
+                                        codec.Function.DEACTIVATE, "stop", TOOL_STOPS))
                 del self.levels[cmd]
         return sends
 

@@ -107,7 +107,8 @@ class Mo64Settings(BackupDefaults):
         if to_json(back) != to_json(_normal(setting, value)):
             self.state.counters.write_errors += 1
             raise CommandError(f"{setting.name}: wrote {to_json(value)}, read back {to_json(back)}")
-        self.state.event("info", f"set {setting.name} = {value_text(back_answer.type, back_answer.value)} (read back)")
+        self.state.event("info", Message(N_("set {setting} = {value} (read back)"), setting=Message(setting.name),
+                                         value=value_text(back_answer.type, back_answer.value)))
         return back
 
     async def write_declared(self, session: str, key: str, numbers: list[int], selector_verified: bool = False) -> str:

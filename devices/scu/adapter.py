@@ -28,7 +28,7 @@ from typing import Any
 
 from devices.adapter import BackupDefaults
 from devices import values as v
-from devices.control import ControlChanged, Report
+from devices.control import RELEASED, ControlChanged, Report
 from devices.lease import Lease
 from devices.live import DeviceState, Holder, session_tag
 from devices.message import Message, N_, message_of
@@ -290,12 +290,12 @@ class ScuAdapter(BackupDefaults):
 
     def watch_text(self) -> str:
         if self.watch == WATCH_RG:
-            return ("watching with RG outside a remote session: the unit answers RG without remote mode; the "
-                    "session (RO, RC) is opened only while someone holds control or a function runs")
+            return Message(N_("watching with RG outside a remote session: the unit answers RG without remote mode; the "
+                              "session (RO, RC) is opened only while someone holds control or a function runs"))
         if self.watch == WATCH_SESSION:
-            return ("the remote session is open for reading only: the unit refuses RG outside remote mode "
-                    "(section 4.1); no RE is sent unless a page holds control")
-        return "not known yet: the first RG outside a session tells"
+            return Message(N_("the remote session is open for reading only: the unit refuses RG outside remote mode "
+                              "(section 4.1); no RE is sent unless a page holds control"))
+        return Message(N_("not known yet: the first RG outside a session tells"))
 
     def set_session(self, session: str, reason: str = "") -> None:
         self.core.phase, self.core.reason = session, reason
@@ -420,8 +420,9 @@ class ScuAdapter(BackupDefaults):
                 if read_id == data_id and entry is not None and entry.is_group and data_id not in self.single_ids:
                     self.single_ids.add(data_id)  # remembered for this unit: its members one by one from now on
                     self.state.fact(P_SINGLE_IDS, tuple(sorted(f"0x{g:04X}" for g in self.single_ids)))
-                    self.state.event("warning", f"the unit refused the group read 0x{data_id:04X} ({exc.info.name}): "
-                                                "its data IDs are read one by one")
+                    self.state.event("warning", Message(N_("the unit refused the group read {data_id} ({status}): its data "
+                                                           "IDs are read one by one"), data_id=f"0x{data_id:04X}",
+                                                        status=exc.info.name))
                     await self._read_live(data_id)
                 continue
             self.live.publish_read(read_id, answer)
@@ -460,7 +461,7 @@ class ScuAdapter(BackupDefaults):
         if not self.core.may_open(time.monotonic()):
             await self.open_session()
 
-    async def release_control(self, session: str, reason: str = "released") -> bool:
+    async def release_control(self, session: str, reason: str = RELEASED) -> bool:
         if self.controller is None or (session and self.controller.session != session):
             return False
         holder = self.controller.session
@@ -601,18 +602,20 @@ class ScuAdapter(BackupDefaults):
         remote mode within 500 ms (section 5). The result says which, and the event says the same.
         """
         for fn in [f for f in self.running if f not in NOT_HELD]:
-            await self.send_rs(fn, "release of the SCU")
-        how = "released (RA acknowledged): normal mode, the hand switch has the unit"
+            await self.send_rs(fn, Message(N_("release of the SCU")))
+        how = Message(N_("released (RA acknowledged): normal mode, the hand switch has the unit"))
         try:
             await self.link.request(codec.encode_ra(), "RA release the SCU", keepalive=False)
         except (SerialLineError, codec.CodecError) as exc:
-            how = (f"released without an acknowledged RA ({exc}): RC has stopped, so the unit's watchdog ends remote "
-                   "mode within 500 ms (section 5) and the hand switch has the unit then")
+            how = Message(N_("released without an acknowledged RA ({error}): RC has stopped, so the unit's watchdog ends "
+                             "remote mode within 500 ms (section 5) and the hand switch has the unit then"),
+                          error=message_of(exc))
         finally:
             self.cyclic = None
             self.core.released()
             self.sync_phase()
-        self.state.event("info" if how.startswith("released (RA") else "warning", f"SCU {how}")
+        self.state.event("info" if how.startswith("released (RA") else "warning",
+                         Message("SCU {how}", how=how))  # a template without words: not marked (docs/i18n.md)
         return how
 
     async def reopen(self, session: str | None = None) -> str:

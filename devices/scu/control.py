@@ -33,6 +33,7 @@ REOPEN_BACKOFF_S = (0.2, 0.5, 1.0, 2.0, 5.0)
 RS_ATTEMPTS = 3
 ESTOP = int(codec.Function.EMERGENCY_STOP)
 LEASE_LAPSED = N_("the lease of the running functions lapsed")  # RC withheld for it (section 5's watchdog stops the drives)
+EMERGENCY_STOP = Message(N_("emergency stop"))  # why RE 19 and the RS of the running functions are sent
 NOT_HELD = frozenset({ESTOP})  # the emergency stop runs under no lease: nothing ends it but its release
 MOTION = frozenset(int(f) for f in codec.MOTION_FUNCTIONS)
 PHASES = ("closed", "opening", "open", "lost", "released")
@@ -142,16 +143,16 @@ class ScuControl:
     def may_open(self, now: float, forced: bool = False) -> str:
         """Why the session may not be opened now ("" = it may)."""
         if self.phase == "open":
-            return "the session is open"
+            return Message(N_("the session is open"))
         if self.watchdog_owed(now):
-            return (f"RC is withheld ({self.withheld_reason}) until the unit's watchdog has stopped every drive "
-                    f"({WITHHOLD_S * 1000:.0f} ms)")
+            return Message(N_("RC is withheld ({reason}) until the unit's watchdog has stopped every drive ({ms:.0f} ms)"),
+                           reason=self.withheld_reason, ms=WITHHOLD_S * 1000)
         if forced:
             return ""
         if self.phase == "released":
-            return "released to the hand switch (RA): open the session again to drive it"
+            return Message(N_("released to the hand switch (RA): open the session again to drive it"))
         if now < self.next_open:
-            return f"reopening in {self.next_open - now:.1f} s (backoff)"
+            return Message(N_("reopening in {seconds:.1f} s (backoff)"), seconds=self.next_open - now)
         return ""
 
     def needs_session(self, watched_in_session: bool) -> bool:
@@ -179,9 +180,10 @@ class ScuControl:
         actions: list = []
         if self.estop is not None:
             self.estop = Estop(self.estop.who, self.estop.at)  # to be confirmed again by this session
-            actions.append(SendEstop("kept on after reopening"))
+            actions.append(SendEstop(Message(N_("kept on after reopening"))))
         for fn in sorted((set(self.running) | set(self.rs_pending)) - NOT_HELD):
-            actions.append(SendRS(fn, self.rs_pending.get(fn) or "after the lost session", three_bytes=self.rs_three_bytes))
+            actions.append(SendRS(fn, self.rs_pending.get(fn) or Message(N_("after the lost session")),
+                                  three_bytes=self.rs_three_bytes))
         return actions
 
     def open_failed(self, reason: str, now: float, answered_before: bool) -> None:
@@ -195,7 +197,7 @@ class ScuControl:
         self.phase, self.reason = "lost", reason
         self._unconfirm_estop()
         self._backoff(now)
-        return [Report("error", f"remote session lost: {reason}; reopening with backoff")]
+        return [Report("error", Message(N_("remote session lost: {reason}; reopening with backoff"), reason=reason))]
 
     def _unconfirm_estop(self) -> None:
         """Remote mode ended: whether F20 is still on in the unit is not known until the session is open again."""
@@ -257,7 +259,7 @@ class ScuControl:
         """The RE's answer: anything but ACK is followed by its RS at once (a lost answer may have been executed)."""
         if outcome == Outcome.ACK:
             return []
-        return [SendRS(fn, "RE not confirmed", three_bytes=self.rs_three_bytes)]
+        return [SendRS(fn, Message(N_("RE not confirmed")), three_bytes=self.rs_three_bytes)]
 
     def stop_targets(self, fn: int | None, started: set[int]) -> list[int]:
         """What a Stop sends RS to: ``fn``, or every function that runs, ran this session or owes an RS (F1 at least)."""
@@ -287,8 +289,9 @@ class ScuControl:
             # have executed the RS whose answer was lost) is in the same state as the tool says
             if self.estop is not None:
                 self.estop = Estop(self.estop.who, self.estop.at, confirmed=False, refusal=Message(N_("release not acknowledged")))
-            return [Report("error", f"RS 19 ({action.why}) not acknowledged ({outcome.value}): the emergency stop "
-                                    "stays on; RE 19 is sent again"), SendEstop("release not acknowledged")]
+            return [Report("error", Message(N_("RS 19 ({why}) not acknowledged ({outcome}): the emergency stop stays on; "
+                                               "RE 19 is sent again"), why=action.why, outcome=outcome.value)),
+                    SendEstop(Message(N_("release not acknowledged")))]
         self.rs_pending[fn] = action.why
         self.running.setdefault(fn, "")
         self.stop_failures += 1
@@ -297,15 +300,18 @@ class ScuControl:
             # not possible in the unit's mode: remote mode has ended (its watchdog stopped every remote drive, section 5)
             actions += self.lost(Message(N_("PE to RS {function}: the unit is no longer in remote mode"), function=label(fn)), now)
         if self.estop is not None and self.estop.confirmed:
-            reason = (f"RS {label(fn)} ({action.why}) not acknowledged ({outcome.value}); the emergency stop F20 is on "
-                      "in the unit and keeps every drive stopped; RS is sent again")
+            reason = Message(N_("RS {function} ({why}) not acknowledged ({outcome}); the emergency stop F20 is on in the "
+                                "unit and keeps every drive stopped; RS is sent again"),
+                             function=label(fn), why=action.why, outcome=outcome.value)
         else:
-            reason = f"RS {label(fn)} ({action.why}) not acknowledged ({outcome.value})"
+            reason = Message(N_("RS {function} ({why}) not acknowledged ({outcome})"),
+                             function=label(fn), why=action.why, outcome=outcome.value)
             actions += self.withhold(reason, now)
-        actions.append(Report("error", f"STOP FAILED: {reason}. " + (
-            "RC is withheld, so the unit's own watchdog ends remote mode and stops every drive within 500 ms "
-            "(section 5); the session is opened again after that and the RS sent again. If the actuator still moves, "
-            "use the hand switch's stop or cut the supply" if self.withheld_since is not None else "")))
+        actions.append(Report("error", Message(
+            N_("STOP FAILED: {reason}. RC is withheld, so the unit's own watchdog ends remote mode and stops every drive "
+               "within 500 ms (section 5); the session is opened again after that and the RS sent again. If the actuator "
+               "still moves, use the hand switch's stop or cut the supply"), reason=reason)
+            if self.withheld_since is not None else Message(N_("STOP FAILED: {reason}. "), reason=reason)))
         return actions
 
     def _held_changed(self) -> None:
@@ -318,21 +324,21 @@ class ScuControl:
         it if needed, whatever the backoff or an RA), and RS to every running function whatever the unit answers."""
         if self.estop is None:
             self.estop = Estop(who, wall)
-        actions: list = [Report("warning", f"emergency stop (function 19, F20) pressed by {who}")]
+        actions: list = [Report("warning", Message(N_("emergency stop (function 19, F20) pressed by {who}"), who=who))]
         if self.phase != "open":
-            actions.append(OpenSession("emergency stop", forced=True))  # opened() then sends RE 19 and the RS
+            actions.append(OpenSession(EMERGENCY_STOP, forced=True))  # opened() then sends RE 19 and the RS
             return actions
-        actions.append(SendEstop("emergency stop"))
-        actions += [SendRS(fn, "emergency stop", three_bytes=self.rs_three_bytes) for fn in sorted(self.held)]
+        actions.append(SendEstop(EMERGENCY_STOP))
+        actions += [SendRS(fn, EMERGENCY_STOP, three_bytes=self.rs_three_bytes) for fn in sorted(self.held)]
         return actions
 
     def estop_unreachable(self, reason: str, now: float) -> list:
         """The session could not be opened for the emergency stop: nothing the tool sends reaches the unit, so
         no RC feeds its watchdog and no remote motion runs; the stop stays on in the tool."""
-        return [Report("error", f"emergency stop: the unit did not answer ({reason}). The tool sends no RC, so the "
-                                "unit's watchdog keeps remote mode off and no remote motion runs; the emergency stop "
-                                "stays on here and is switched on in the unit as soon as it answers. Use the hardware "
-                                "emergency stop if anything moves")]
+        return [Report("error", Message(N_("emergency stop: the unit did not answer ({reason}). The tool sends no RC, so "
+                                           "the unit's watchdog keeps remote mode off and no remote motion runs; the "
+                                           "emergency stop stays on here and is switched on in the unit as soon as it "
+                                           "answers. Use the hardware emergency stop if anything moves"), reason=reason))]
 
     def estop_answered(self, outcome: Outcome, now: float) -> list:
         if self.estop is None:
@@ -340,12 +346,14 @@ class ScuControl:
         if outcome == Outcome.ACK:
             self.estop = Estop(self.estop.who, self.estop.at, confirmed=True)
             return []
-        text = {Outcome.PDE: "refused (PDE): F20 exists from firmware V2B1 only (table 8)",
-                Outcome.LOST: "not answered"}.get(outcome, f"refused ({outcome.value})")
+        text = {Outcome.PDE: Message(N_("refused (PDE): F20 exists from firmware V2B1 only (table 8)")),
+                Outcome.LOST: Message(N_("not answered"))}.get(outcome, Message(N_("refused ({outcome})"),
+                                                                              outcome=outcome.value))
         self.estop = Estop(self.estop.who, self.estop.at, confirmed=False, refusal=text)
         actions: list = self.lost(Message(N_("PE to RE 19: the unit is no longer in remote mode")), now) if outcome == Outcome.PE else []
-        actions += [Report("error", f"RE 19 (emergency stop) {text}: the running functions get their RS; "
-                                         "the emergency stop stays on in this tool and no motion starts until it is released")]
+        actions += [Report("error", Message(N_("RE 19 (emergency stop) {refusal}: the running functions get their RS; the "
+                                               "emergency stop stays on in this tool and no motion starts until it is "
+                                               "released"), refusal=text))]
         return actions
 
     def estop_release(self, session: str) -> Decision:
@@ -354,7 +362,7 @@ class ScuControl:
             return decision
         if self.estop is None:
             return Decision("the emergency stop is not on")
-        return Decision(actions=(SendRS(ESTOP, "emergency stop released", three_bytes=self.rs_three_bytes),))
+        return Decision(actions=(SendRS(ESTOP, Message(N_("emergency stop released")), three_bytes=self.rs_three_bytes),))
 
     # -- control and the dead-man rule -----------------------------------------------------------------------------
     def _stops(self, actions: list, session: str | None) -> list:
@@ -362,7 +370,7 @@ class ScuControl:
         out: list = []
         for a in actions:
             if isinstance(a, Stop):
-                out += [SendRS(fn, ("lease lapsed" if a.lapse else a.reason), three_bytes=self.rs_three_bytes)
+                out += [SendRS(fn, (Message(N_("lease lapsed")) if a.lapse else a.reason), three_bytes=self.rs_three_bytes)
                         for fn, s in sorted(self.running.items())
                         if fn not in NOT_HELD and (session is None or s == session)]
             else:
@@ -396,7 +404,7 @@ class ScuControl:
 
     def session_lost(self, session: str, reason: str) -> list:
         """The page of ``session`` went away or froze: RS at once for what it runs, and its control released."""
-        actions = [SendRS(fn, f"dead-man: {reason}", three_bytes=self.rs_three_bytes)
+        actions = [SendRS(fn, Message(N_("dead-man: {reason}"), reason=reason), three_bytes=self.rs_three_bytes)
                    for fn, s in sorted(self.running.items()) if s == session and fn not in NOT_HELD]
         if self.control.controls(session):
             running = self.control.running

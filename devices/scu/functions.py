@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 from devices.live import session_tag
 from devices.message import Message, N_
 from devices.scu import codec
-from devices.scu.control import ESTOP, NOT_HELD, SendRS
+from devices.scu.control import EMERGENCY_STOP, ESTOP, NOT_HELD, SendRS
 from devices.scu.facts import CommandError, ControlBusy
 
 if TYPE_CHECKING:
@@ -42,8 +42,10 @@ class ScuFunctions:
         for fn in held:
             self.stop_marks[fn] = now
         if held:
-            self.adapter.state.event("warning", f"dead-man: {reason}; RS to " + ", ".join(codec.FUNCTIONS[codec.Function(f)].label for f in held))
-            task = asyncio.get_running_loop().create_task(self.stop_functions(held, f"dead-man: {reason}"))
+            self.adapter.state.event("warning", Message(N_("dead-man: {reason}; RS to {functions}"), reason=reason, functions=", ".join(
+                codec.FUNCTIONS[codec.Function(f)].label for f in held)))
+            task = asyncio.get_running_loop().create_task(self.stop_functions(held, Message(N_("dead-man: {reason}"),
+                                                                                            reason=reason)))
             self.stop_tasks.add(task)
             task.add_done_callback(self.stop_tasks.discard)
         for action in actions:
@@ -114,6 +116,10 @@ class ScuFunctions:
         label = codec.FUNCTIONS[fn].label
         words = (f"{label} {codec.MOTION_LABELS[codec.Motion(motion)]}, ramp {codec.Ramp(ramp & 0xFF).name.lower()}"
                  if fn in codec.MOTION_FUNCTIONS else f"{label} {codec.FUNCTIONS[fn].description}")
+        sent = (Message(N_("RE {function} {motion}, ramp {ramp}"), function=label, motion=codec.MOTION_LABELS[codec.Motion(motion)],
+                        ramp=codec.Ramp(ramp & 0xFF).name.lower())
+                if fn in codec.MOTION_FUNCTIONS else  # a template without words: not marked (docs/i18n.md)
+                Message("RE {function} {description}", function=label, description=codec.FUNCTIONS[fn].description))
         async with self.fn_lock(int(fn)):
             if self.stopped_since(int(fn), requested_at):
                 raise CommandError(f"{label}: a stop came after this request: no RE sent")
@@ -131,10 +137,10 @@ class ScuFunctions:
                 await self.adapter.carry_out(self.adapter.core.re_answered(int(fn), self.adapter.outcome(exc)))
                 raise
             if self.stopped_since(int(fn), requested_at):
-                await self.rs(int(fn), "stop requested while the RE was on the line")
+                await self.rs(int(fn), Message(N_("stop requested while the RE was on the line")))
                 raise CommandError(f"{label}: stopped right after its RE (a stop came while the RE was on the line)")
         self.started.add(int(fn))
-        self.adapter.state.event("info", f"RE {words}")
+        self.adapter.state.event("info", sent)
         return words
 
     async def stop(self, session: str | None = None, function: int | None = None) -> list[str]:
@@ -148,7 +154,7 @@ class ScuFunctions:
             return [f"nothing sent: the session is {self.adapter.session}; without RC the unit has stopped remote motion"]
         await self.adapter.ensure_open()
         targets = self.adapter.core.stop_targets(function, self.started)
-        failed = await self.stop_functions(targets, "stop")
+        failed = await self.stop_functions(targets, Message(N_("stop")))
         if failed:
             withheld = self.adapter.core.withheld_since is not None
             raise CommandError("STOP FAILED: no acknowledged RS for "
@@ -166,7 +172,7 @@ class ScuFunctions:
             self.stop_marks[fn] = time.monotonic()  # a press whose RE has not gone out yet sends none
             lock = self.fn_locks.get(fn)
             if self.adapter.running.get(fn) == session or (lock is not None and lock.locked()) or fn in self.adapter.rs_pending:
-                if not await self.send_rs(fn, "jog released"):
+                if not await self.send_rs(fn, Message(N_("jog released"))):
                     raise CommandError(f"STOP FAILED: RS {codec.FUNCTIONS[codec.Function(fn)].label} not acknowledged")
             return "stopped"
         return await self.run_function(session, function, codec.Motion.OUT if direction > 0 else codec.Motion.IN, ramp,
@@ -189,7 +195,7 @@ class ScuFunctions:
         await self.adapter.carry_out(actions)
         self.adapter.publish_estop()
         # what ran before the press and has not had an acknowledged RS yet gets it now (under its lock)
-        await self.stop_functions(sorted(self.adapter.core.held), "emergency stop")
+        await self.stop_functions(sorted(self.adapter.core.held), EMERGENCY_STOP)
         e = self.adapter.core.estop
         if e is not None and e.confirmed:
             return "emergency stop active"
@@ -204,8 +210,8 @@ class ScuFunctions:
         self.adapter.check_open()
         for action in self.adapter.core.withhold(Message(N_("withheld on purpose: the watchdog test (section 5)")), time.monotonic()):
             self.adapter.apply(action)
-        self.adapter.state.event("warning", "RC withheld on purpose (watchdog test): the unit must stop every drive within "
-                                    "500 ms and leave remote mode")
+        self.adapter.state.event("warning", Message(N_("RC withheld on purpose (watchdog test): the unit must stop every "
+                                                       "drive within 500 ms and leave remote mode")))
         return "RC withheld: the unit's watchdog must stop every drive within 500 ms"
 
     async def release_emergency_stop(self, session: str) -> str:
@@ -220,6 +226,6 @@ class ScuFunctions:
         self.adapter.publish_estop()
         if self.adapter.core.estop is not None:
             raise CommandError("RS 19 not acknowledged: the emergency stop is still on (RE 19 was sent again)")
-        self.adapter.state.event("info", "emergency stop released (RS 19)")
+        self.adapter.state.event("info", Message(N_("emergency stop released (RS 19)")))
         return "emergency stop released"
 

@@ -269,8 +269,9 @@ class RcKeepAlive:
         if self.adapter.cyclic is not None:
             self.adapter.cyclic = None
             self.adapter.cyclic_refused = True
-            self.adapter.cyclic_note = (f"the unit refused RC with the cyclic object ({info.name}: {info.title}); "
-                                "RC without data keeps the session, live data is read with RG")
+            self.adapter.cyclic_note = Message(N_("the unit refused RC with the cyclic object ({name}: {title}); RC "
+                                                  "without data keeps the session, live data is read with RG"),
+                                               name=info.name, title=info.title)
             self.adapter.publish_cyclic()
             self.adapter.state.event("warning", self.adapter.cyclic_note)
 
@@ -290,16 +291,20 @@ class RcKeepAlive:
                 self.adapter.rs_pending[fn] = "lease lapsed"
         self.adapter.sync_held()
         names = lambda fns: ", ".join(codec.FUNCTIONS[codec.Function(f)].label for f in fns)  # noqa: E731
-        text = (f"motion stopped: the lease of the running functions lapsed (not renewed for {late_ms:.0f} ms: this "
-                "program stalled, or the controlling browser stopped confirming it is alive); the serial line's own "
-                f"thread sent RS to {names(results) or 'nothing'} by itself")
+        sent_to = names(results) or Message(N_("nothing"))
+        unacknowledged = ""
         if [fn for fn, ok in results.items() if not ok]:
-            text += f" (not acknowledged: {names([f for f, ok in results.items() if not ok])}; RS is sent again)"
+            unacknowledged = Message(N_(" (not acknowledged: {functions}; RS is sent again)"),
+                                     functions=names([f for f, ok in results.items() if not ok]))
         confirmed = self.estop_confirmed()
-        text += (" and kept RC going: the emergency stop is on (F20, confirmed by the unit)" if confirmed else
-                 " and withheld RC, so the unit's watchdog ends remote mode and stops every drive (section 5); the "
-                 "session is opened again only after that")
-        self.adapter.state.event("error", text + ". Press again to move")
+        rc = (Message(N_("and kept RC going: the emergency stop is on (F20, confirmed by the unit)")) if confirmed else
+              Message(N_("and withheld RC, so the unit's watchdog ends remote mode and stops every drive (section 5); the "
+                         "session is opened again only after that")))
+        self.adapter.state.event("error", Message(N_(
+            "motion stopped: the lease of the running functions lapsed (not renewed for {ms:.0f} ms: this program stalled, "
+            "or the controlling browser stopped confirming it is alive); the serial line's own thread sent RS to "
+            "{functions} by itself{unacknowledged} {rc}. Press again to move"),
+            ms=late_ms, functions=sent_to, unacknowledged=unacknowledged, rc=rc))
         if confirmed:
             with self.guard:
                 self.withheld = False  # RC went on; a function still held after a failed RS gets RS again

@@ -9,7 +9,7 @@ import time
 from typing import TYPE_CHECKING
 
 from devices import values as v
-from devices.message import message_of
+from devices.message import Message, N_, message_of
 from devices.scu import codec
 from devices.scu import params as p
 from devices.scu.facts import ActuatorScale
@@ -44,8 +44,9 @@ class ScuOpening:
                 # The definition was taken but RC with it is refused: RC without data from now on, RG for the rest.
                 self.adapter.cyclic = None
                 self.adapter.cyclic_refused = True
-                self.adapter.cyclic_note = (f"the unit refused RC with the cyclic object ({exc.info.name}: {exc.info.title}); "
-                                    "RC without data keeps the session, live data is read with RG")
+                self.adapter.cyclic_note = Message(N_("the unit refused RC with the cyclic object ({name}: {title}); RC "
+                                                      "without data keeps the session, live data is read with RG"),
+                                                   name=exc.info.name, title=exc.info.title)
                 self.adapter.publish_cyclic()
                 self.adapter.state.event("warning", self.adapter.cyclic_note)
                 return await self.adapter.link.request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)
@@ -88,8 +89,8 @@ class ScuOpening:
         why_not = self.adapter.core.may_open(time.monotonic(), forced)
         if why_not:
             if forced and self.adapter.core.phase != "open":
-                self.adapter.state.event("error", f"emergency stop: the session is not opened now ({why_not}); F20 is switched "
-                                          "on in the unit as soon as it is")
+                self.adapter.state.event("error", Message(N_("emergency stop: the session is not opened now ({reason}); F20 "
+                                                             "is switched on in the unit as soon as it is"), reason=why_not))
             return
         answered_before = self.adapter.link.last_answer is not None
         self.adapter.core.opening()
@@ -106,8 +107,9 @@ class ScuOpening:
             except codec.CommandRefused as exc:
                 if not self.adapter.core.ro_refused(self.adapter.outcome(exc)):
                     raise
-                self.adapter.state.event("warning", "the unit answered PCE to RO with the Safety_ID alone: it takes RO with "
-                                            "Safety_ID and para_ID[0] as table 3 lists it; that form from now on")
+                self.adapter.state.event("warning", Message(N_("the unit answered PCE to RO with the Safety_ID alone: it takes "
+                                                               "RO with Safety_ID and para_ID[0] as table 3 lists it; that "
+                                                               "form from now on")))
                 await self.adapter.link.request(self.ro_frame(), f"RO Safety_ID {sid}, para_ID[0] -1", keepalive=False)
             await self.adapter.link.request(codec.KEEP_ALIVE, "RC keep-alive", keepalive=False)  # section 5: RC before any other command
         except (SerialLineError, codec.CodecError) as exc:
@@ -115,7 +117,7 @@ class ScuOpening:
                                           answered_before=self.adapter.link.last_answer is not None)
             self.adapter.sync_phase()
             if forced:
-                for action in self.adapter.core.estop_unreachable(str(exc), time.monotonic()):
+                for action in self.adapter.core.estop_unreachable(message_of(exc), time.monotonic()):
                     self.adapter.apply(action)
             return
         actions = self.adapter.core.opened(time.monotonic())
@@ -127,29 +129,32 @@ class ScuOpening:
         if self.adapter.core.phase != "open":
             return  # an RS was not acknowledged: RC is withheld until the unit's watchdog has stopped every drive
         if self.adapter.cyclic_refused:
-            self.adapter.cyclic_note = "RC without data (the unit refused the cyclic object); live data is read with RG"
+            self.adapter.cyclic_note = Message(N_("RC without data (the unit refused the cyclic object); live data is read "
+                                                  "with RG"))
         else:
             definition = p.CyclicDefinition(read_ids=self.cyclic_ids())
             try:
                 await self.adapter.link.request(codec.encode_rt(0x3001, definition.encode()), "RT CyclicObj 1 definition")
                 self.adapter.cyclic = definition
-                self.adapter.cyclic_note = ("cyclic object 0x3001: positions, status 1 and 2, currents, error code, "
-                                    "mains/battery with every RC")
+                self.adapter.cyclic_note = Message(N_("cyclic object 0x3001: positions, status 1 and 2, currents, error "
+                                                      "code, mains/battery with every RC"))
             except codec.CommandRefused as exc:
                 if exc.code == codec.Status.PE:
                     return
                 if exc.code == codec.Status.CSE:
-                    self.adapter.cyclic_note = ("the cyclic object's definition arrived damaged (CSE, line noise): live data "
-                                        "is read with RG until the next opening defines it again")
+                    self.adapter.cyclic_note = Message(N_("the cyclic object's definition arrived damaged (CSE, line noise): "
+                                                          "live data is read with RG until the next opening defines it again"))
                 else:
                     self.adapter.cyclic_refused = True
-                    self.adapter.cyclic_note = (f"the unit refused the cyclic object definition ({exc.info.name}: {exc.info.title}); "
-                                        "live data is read with RG requests instead")
+                    self.adapter.cyclic_note = Message(N_("the unit refused the cyclic object definition ({name}: {title}); "
+                                                          "live data is read with RG requests instead"),
+                                                       name=exc.info.name, title=exc.info.title)
                     self.adapter.state.event("warning", self.adapter.cyclic_note)
             except (SerialLineError, codec.CodecError):
                 return
         self.adapter.publish_cyclic()
-        self.adapter.state.event("info", f"remote session open (Safety_ID {int(self.adapter.safety_id)}); {self.adapter.cyclic_note}")
+        self.adapter.state.event("info", Message(N_("remote session open (Safety_ID {safety_id}); {note}"),
+                                                 safety_id=int(self.adapter.safety_id), note=self.adapter.cyclic_note))
         try:
             await self.read_end_positions()
         except (SerialLineError, codec.CodecError, v.DecodeError):

@@ -199,7 +199,8 @@ class ScuSettings:
                                        f"({exc.info.title})") from None
         finally:
             self.writing -= 1
-        self.state.event("info", f"{q.name} = {q.display(raw)} written (RT) and read back (RG); {VOLATILE}")
+        self.state.event("info", Message(N_("{name} = {value} written (RT) and read back (RG); {volatile}"), name=q.name,
+                                         value=q.display(raw), volatile=Message(VOLATILE)))
         return raw
 
     # -- backup ------------------------------------------------------------------------------------
