@@ -20,7 +20,9 @@ import logging
 import time
 from collections.abc import Awaitable, Callable
 
+from app.i18n import N_
 from app.line_base import PORT_GONE, LineBase, read_burst, serial_port
+from app.message import Message
 from app.state import BusState
 from devices.errors import DeviceError
 from devices.transport import SerialClosed, SerialTimeout
@@ -109,7 +111,7 @@ class _LogitedLine(LineBase):
         try:
             return self.describe(telegram)
         except (DeviceError, ValueError) as exc:  # a codec's refusal, shown as what it is
-            return f"cannot decode: {exc}"
+            return Message(N_("cannot decode: {error}"), error=str(exc))
 
     def _unit(self, request: bytes, answer: bytes) -> int:
         """The device address a log line concerns (0: the line has one device)."""

@@ -17,6 +17,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from devices.message import N_, Message
+
 MAX_CACHE = 20_000  # texts kept per line decoder
 
 
@@ -69,7 +71,7 @@ def cached(cache: dict, key: tuple, make: Callable[[], LineText]) -> LineText:
         try:
             text = make()
         except Exception as exc:  # noqa: BLE001 - a codec bug must not take the monitor down
-            text = LineText(str(key[0]), f"cannot decode: {exc}")
+            text = LineText(str(key[0]), Message(N_("cannot decode: {error}"), error=str(exc)))
         cache[key] = text
     return text
 

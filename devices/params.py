@@ -43,6 +43,13 @@ def outside(name: str, value: float, low: float, high: float, unit: str = "") ->
     return Message(N_("{name}: {value} is outside {low} .. {high}"), name=name, value=value, low=low, high=high)
 
 
+def _worded(item) -> None:
+    """A description marked ``N_("...")`` where it is declared becomes a :class:`Message`, so a page words it in its
+    language (``said``); one without an entry in the catalogs reads as written."""
+    if item.description and not isinstance(item.description, Message):
+        object.__setattr__(item, "description", Message(item.description))
+
+
 @dataclass(frozen=True)
 class Field:
     """A named group of bits inside a register (a status bit is a 1-bit field)."""
@@ -51,6 +58,9 @@ class Field:
     shift: int
     width: int = 1
     description: str = ""
+
+    def __post_init__(self) -> None:
+        _worded(self)
 
     def extract(self, raw: int) -> int:
         return (raw >> self.shift) & ((1 << self.width) - 1)
@@ -95,6 +105,9 @@ class Param:
     device_updates: bool = False
     label: str = ""  # display name where the document's name is not unique
     extra: Mapping[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        _worded(self)
 
     # -- identity -------------------------------------------------------------------
     @property

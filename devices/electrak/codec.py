@@ -341,6 +341,12 @@ class Limits:
         return problems
 
 
+# the bus monitor's words (Messages: the page words them as the Electrak page does, Freigabe, Übersteuerung)
+_ENABLE, _OVERRIDE, _NO_ENABLE = Message(N_("enable")), Message(N_("override")), Message(N_("no enable"))
+_IDLE = Message(N_("idle"))
+_INTERNAL = Message(N_("Electrak internal (actuator to actuator)"))
+
+
 def describe_frame(arbitration_id: int, is_extended: bool, data: bytes, known_ids: set) -> str | None:
     """Bus monitor text for Electrak telegrams (on a bus where an Electrak network listens for 0x07)."""
     if is_extended or (False, STATUS_ID) not in known_ids:
@@ -348,23 +354,29 @@ def describe_frame(arbitration_id: int, is_extended: bool, data: bytes, known_id
     try:
         if arbitration_id == CONTROL_ID:
             c = ControlFrame.decode(data)
-            bits = ", ".join(n for n, on in (("enable", c.enable), ("override", c.override)) if on) or "no enable"
-            return f"Electrak control: target {c.position_mm:.1f} mm, limit {c.current_a:.1f} A, speed {c.speed_mm_s:.1f} mm/s, {bits}"
+            bits = [word for word, on in ((_ENABLE, c.enable), (_OVERRIDE, c.override)) if on]
+            return Message(N_("Electrak control: target {position:.1f} mm, limit {current:.1f} A, speed {speed:.1f} mm/s, "
+                              "{bits}"), position=float(c.position_mm), current=float(c.current_a),
+                           speed=float(c.speed_mm_s), bits=joined(bits) if bits else _NO_ENABLE)
         if arbitration_id == STATUS_ID:
             s = StatusFrame.decode(data)
-            flags = ", ".join(s.motion_names + s.error_names) or "idle"
-            return f"Electrak status: {s.position_mm:.1f} mm, {s.current_a:.1f} A, {s.speed_mm_s:.1f} mm/s, {flags}"
+            names = s.motion_names + s.error_names  # the flags by the names the Electrak page gives them
+            return Message(N_("Electrak status: {position:.1f} mm, {current:.1f} A, {speed:.1f} mm/s, {flags}"),
+                           position=float(s.position_mm), current=float(s.current_a), speed=float(s.speed_mm_s),
+                           flags=joined([Message(n) for n in names]) if names else _IDLE)
         if arbitration_id in (SERVICE_REQUEST_ID, SERVICE_RESPONSE_ID):
             m = ServiceMessage.decode(data)
             kind = ServiceType(m.type).name if m.type in set(ServiceType) else f"type 0x{m.type:02X}"
-            extra = f" {m.error_name}" if m.error_code is not None else f" value {m.value}"
-            if m.specifier == PASSWORD_SPECIFIER and m.error_code is None:
-                extra = " (password: not shown)"  # a key, not a value: named, never decoded into words
-            return f"Electrak service {kind} 0x{m.specifier:02X} len {m.length}{extra}"
+            fields = {"kind": kind, "specifier": m.specifier, "length": m.length}
+            if m.error_code is not None:
+                return Message("Electrak service {kind} 0x{specifier:02X} len {length} {error}", error=m.error_name, **fields)
+            if m.specifier == PASSWORD_SPECIFIER:  # a key, not a value: named, never decoded into words
+                return Message(N_("Electrak service {kind} 0x{specifier:02X} len {length} (password: not shown)"), **fields)
+            return Message(N_("Electrak service {kind} 0x{specifier:02X} len {length} value {value}"), value=m.value, **fields)
         if arbitration_id in INTERNAL_IDS:
-            return "Electrak internal (actuator to actuator)"
+            return _INTERNAL
     except CodecError as exc:
-        return f"Electrak, malformed: {exc}"
+        return Message(N_("Electrak, malformed: {error}"), error=str(exc))
     return None
 
 

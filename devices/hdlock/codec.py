@@ -13,6 +13,7 @@ from enum import IntEnum
 from functools import lru_cache
 
 from devices import errors
+from devices.message import N_, Message, Word
 from devices.hdlock.params import PARAMS
 from devices.hdlock.tables import LOCK_REQUEST_SOURCE
 
@@ -408,38 +409,43 @@ def looks_like_status(data: bytes) -> bool:
 
 
 def describe_request(frame: CanFrame) -> str:
-    """Human text of a request frame for the bus monitor."""
+    """Human text of a request frame for the bus monitor (a :class:`Message`: the page words it; the request names
+    are the document's, section 6.6)."""
     try:
         req = decode_request(frame)
     except CodecError as exc:
-        return f"HD-Lock request, malformed: {exc}"
-    target = "broadcast" if req.target.value == CAN_BROADCAST else f"lock {req.target}"
+        return Message(N_("HD-Lock request, malformed: {error}"), error=str(exc))
+    target = Message(N_("broadcast")) if req.target.value == CAN_BROADCAST else Message(N_("lock {id}"), id=str(req.target))
     name = CAN_REQUEST_NAMES[req.kind]
     if req.kind == CAN_COMMAND:
         try:
             command = CanCommand(req.a).name
         except ValueError:
-            command = f"command {req.a}"
-        detail = f"{command} value {req.b}"
+            command = Message(N_("command {number}"), number=req.a)
+        detail = Message(N_("{command} value {value}"), command=command, value=req.b)
         if req.a in FIVE_BYTE_COMMANDS:
-            detail = f"{command} (firmware update, section 6.6.1: never sent by this tool)"
+            detail = Message(N_("{command} (firmware update, section 6.6.1: never sent by this tool)"), command=command)
         if req.a == CanCommand.SET_LOCK_REQUEST_SOURCE:
-            detail += f" ({LOCK_REQUEST_SOURCE.get(req.b, 'undefined')})"
+            source = LOCK_REQUEST_SOURCE.get(req.b)
+            detail = Message("{detail} ({source})", detail=detail,
+                             source=Word(source, "LockRequestSource") if source else Message(N_("undefined")))
         if req.a == CanCommand.SET_CAN_BAUDRATE and req.b in CAN_BITRATES:
-            detail += f" ({CAN_BITRATES[req.b][0] // 1000} kbit/s)"
+            detail = Message("{detail} ({kbit} kbit/s)", detail=detail, kbit=CAN_BITRATES[req.b][0] // 1000)
     elif req.kind == CAN_SET_DEVICE_ADDRESS:
         try:
-            detail = f"new ID {req.new_id}"
+            detail = Message(N_("new ID {id}"), id=str(req.new_id))
         except CodecError as exc:  # section 6.4: a device ID has at most 29 bits
-            return f"HD-Lock request, malformed: {exc}"
+            return Message(N_("HD-Lock request, malformed: {error}"), error=str(exc))
     elif req.kind in (CAN_READ_INPUT, CAN_READ_HOLDING):
         param = PARAMS.get("input" if req.kind == CAN_READ_INPUT else "holding", req.a)
-        detail = f"{req.a}{' ' + (param.label or param.name) if param else ''} count {req.b}"
+        detail = (Message(N_("{address} {name} count {count}"), address=req.a, name=param.label or param.name, count=req.b)
+                  if param else Message(N_("{address} count {count}"), address=req.a, count=req.b))
     elif req.kind in (CAN_WRITE_HOLDING, CAN_SILENT_WRITE_HOLDING):
-        detail = f"register {req.a} {describe_register('holding', req.a, req.b)} (0x{req.b & 0xFFFF:04X})"
+        detail = Message(N_("register {address} {value} (0x{raw:04X})"), address=req.a,
+                         value=describe_register("holding", req.a, req.b), raw=req.b & 0xFFFF)
     else:
-        detail = "firmware update"
-    return f"{name} -> {target}: {detail}"
+        detail = Message(N_("firmware update"))
+    return Message("{name} -> {target}: {detail}", name=name, target=target, detail=detail)
 
 
 @lru_cache(maxsize=1024)
@@ -449,20 +455,36 @@ def _status_names(status: int) -> str:
     return ", ".join(name for name, on in lock_status_bits(status).items() if on) or "-"
 
 
+# the words of a lock's frames (a Message each: the page words it, the codec looks nothing up)
+_STATUS = N_("Status 0x{status:04X} [{bits}] motorPos {motor_pos} proximity {proximity} source {code}")
+_STATUS_SOURCE = N_("Status 0x{status:04X} [{bits}] motorPos {motor_pos} proximity {proximity} source {code} {source}")
+_REGISTER_ANSWER = {"input": N_("Input register {address} {value} (0x{raw:04X})"),
+                    "holding": N_("Holding register {address} {value} (0x{raw:04X})")}
+_FWU_STATUS = {True: N_("FWU status: flashing, {program}"), False: N_("FWU status: idle, {program}")}
+_PROGRAM = {True: Message(N_("application")), False: Message(N_("boot loader"))}
+
+
 def describe_lock_frame(data: bytes) -> str:
+    """A frame a lock sends under its device ID in words (a :class:`Message`), its register and bit names as the
+    document prints them."""
     try:
         frame = decode_lock_frame(data)
     except CodecError as exc:
-        return f"HD-Lock frame, malformed: {exc}"
+        return Message(N_("HD-Lock frame, malformed: {error}"), error=str(exc))
     if isinstance(frame, StatusFrame):
         source = LOCK_REQUEST_SOURCE.get(frame.lock_request_source)  # 6 bits: 0x0n and 0x8n share a name (SPEC-NOTES)
-        return (
-            f"Status 0x{frame.status:04X} [{_status_names(frame.status)}] motorPos {frame.motor_pos} "
-            f"proximity {frame.proximity} source {frame.lock_request_source}{' ' + source if source else ''}"
-        )
+        if source:
+            return Message(_STATUS_SOURCE, status=frame.status, bits=_status_names(frame.status), motor_pos=frame.motor_pos,
+                           proximity=frame.proximity, code=frame.lock_request_source, source=Word(source, "LockRequestSource"))
+        return Message(_STATUS, status=frame.status, bits=_status_names(frame.status), motor_pos=frame.motor_pos,
+                       proximity=frame.proximity, code=frame.lock_request_source)
     if isinstance(frame, FwuStatusFrame):
-        return f"FWU status: {'flashing' if frame.flashing else 'idle'}, {'application' if frame.application else 'boot loader'}"
-    return f"{frame.space.title()} register {frame.address} {describe_register(frame.space, frame.address, frame.value)} (0x{frame.value:04X})"
+        return Message(_FWU_STATUS[frame.flashing], program=_PROGRAM[frame.application])
+    template = _REGISTER_ANSWER.get(frame.space)
+    if template is None:  # decode_lock_frame knows two spaces only
+        return f"{frame.space.title()} register {frame.address} {describe_register(frame.space, frame.address, frame.value)} (0x{frame.value:04X})"
+    return Message(template, address=frame.address, value=describe_register(frame.space, frame.address, frame.value),
+                   raw=frame.value)
 
 
 def describe_register(space: str, address: int, raw: int) -> str:
@@ -475,21 +497,21 @@ def describe_register(space: str, address: int, raw: int) -> str:
     if param is None:
         owner = next((p for p in PARAMS.space(space) if address in p.addresses), None)
         if owner is None:
-            return f"(not in the register map) = {raw & 0xFFFF}"
-        word = "high word" if address == owner.address else "low word"  # SPEC-NOTES: 104 high, 105 low
-        return f"{owner.label or owner.name} ({word}) = {raw & 0xFFFF}"
+            return Message(N_("(not in the register map) = {value}"), value=raw & 0xFFFF)
+        word = N_("{name} (high word) = {value}") if address == owner.address else N_("{name} (low word) = {value}")  # SPEC-NOTES: 104 high, 105 low
+        return Message(word, name=owner.label or owner.name, value=raw & 0xFFFF)
     name = param.label or param.name
     if param.words > 1:
-        return f"{name} (high word) = {raw & 0xFFFF}"
+        return Message(N_("{name} (high word) = {value}"), name=name, value=raw & 0xFFFF)
     return f"{name} = {param.display(raw & 0xFFFF)}"
 
 
 def describe_frame(arbitration_id: int, is_extended: bool, data: bytes, lock_ids: set[tuple[bool, int]]) -> str | None:
     """Bus monitor: the meaning of a frame this device type owns, else None."""
     if not is_extended and arbitration_id in CAN_REQUEST_IDS:
-        return "HD-Lock " + describe_request(CanFrame(arbitration_id, data, False))
+        return Message("HD-Lock {text}", text=describe_request(CanFrame(arbitration_id, data, False)))
     if (is_extended, arbitration_id) in lock_ids:
-        return "HD-Lock " + describe_lock_frame(data)
+        return Message("HD-Lock {text}", text=describe_lock_frame(data))
     return None
 
 

@@ -122,8 +122,7 @@ class OtherMaster:
 
 @dataclass(frozen=True, slots=True)
 class Identity:
-    """Addressed mode, area 2 (7.2.4.2.2): serial, product code, software version (decoded as assumed, see
-    codec.VERSION_ASSUMPTION), dynamic configuration."""
+    """Addressed mode, area 2 (7.2.4.2.2): serial, product, software version (codec.VERSION_ASSUMPTION), dynamic cfg."""
 
     serial: str
     product_code: int
@@ -237,8 +236,7 @@ class M3ioAdapter(ModuleSettings):
     # -- the core's actions carried out -------------------------------------------------------------
     @property
     def controller(self):
-        """The engineer's session this tool serves the watchdog for (devices.control.Holder: session, user,
-        since, disconnected), or None."""
+        """The session this tool serves the watchdog for (devices.control.Holder: session, user, since, ...), or None."""
         return self.core.holder
 
     @property
@@ -642,13 +640,8 @@ class M3ioAdapter(ModuleSettings):
         self._p2_off_unsent = not on and not self.served
         self._start_cfg()
         self._publish()
-        if self.served:
-            said = (Message(N_("P2 on: three-phase output loaded on two phases")) if on
-                    else Message(N_("P2 off: three phases")))
-        else:
-            said = (Message(N_("P2 on: three-phase output loaded on two phases (sent once this tool controls the module)"))
-                    if on else Message(N_("P2 off: three phases (sent once this tool controls the module)")))
-        self.state.event("info", said)
+        p2 = Message(N_("P2 on: three-phase output loaded on two phases")) if on else Message(N_("P2 off: three phases"))
+        self.state.event("info", p2 if self.served else Message(N_("{p2} (sent once this tool controls the module)"), p2=p2))
 
     # -- addressed data (7.2.4.2) ---------------------------------------------------------------
     async def _request(self, area: int, index: int, payload: bytes = b"", timeout: float = MDATA_TIMEOUT_S) -> codec.MData:

@@ -393,34 +393,46 @@ def describe_temp(variant: Variant, word_number: int, word: TempWord) -> str:
     """One temperature word for the bus monitor: the reading (or "out of range", 7.2.2) and the
     status bits of SSR<n> named as section 7.2.3 names them; with Last = 0, Si and Triac mean nothing."""
     temp = f"TEMP{temp_input(variant, word_number)}"
-    reading = f"{temp} {word.celsius:.1f} °C" if word.in_range else f"{temp} out of range ({word.celsius:.1f} °C)"
-    if not word.load:
-        status = "no load: fuse, triac unknown"
-    else:
-        status = f"load, fuse {'ok' if word.fuse else 'blown'}, triac {'ok' if word.triac else 'not conducting'}"
-    return f"{reading} · SSR{word_number} {status}"
+    reading = Message(_READING if word.in_range else _OUT_OF_RANGE, temp=temp, value=word.celsius)
+    status = _STATUS[(bool(word.fuse), bool(word.triac))] if word.load else _NO_LOAD
+    return Message("{reading} · SSR{n} {status}", reading=reading, n=word_number, status=status)
 
 
-SYNC_AREAS = {
-    AREA_WRITE_CONFIG: "write config", AREA_READ_CONFIG: "read config", AREA_READ_CUSTOMER: "read customer data",
-    AREA_WRITE_CUSTOMER: "write customer data", AREA_LOAD_DATA: "load data",
+# the bus monitor's words of a temperature word (7.2.2, 7.2.3: Si, Triac, Last), Messages the page words
+_READING = "{temp} {value:.1f} °C"
+_OUT_OF_RANGE = N_("{temp} out of range ({value:.1f} °C)")
+_NO_LOAD = Message(N_("no load: fuse, triac unknown"))
+_LOAD = N_("load, fuse {fuse}, triac {triac}")
+_FUSE = {True: Message(N_("ok")), False: Message(N_("blown"))}
+_TRIAC = {True: Message(N_("ok")), False: Message(N_("not conducting"))}
+_STATUS = {(fuse, triac): Message(_LOAD, fuse=_FUSE[fuse], triac=_TRIAC[triac]) for fuse in (True, False)
+           for triac in (True, False)}  # made once: the monitor words every temperature frame
+
+
+SYNC_AREAS = {  # the DBC's value table too (devices/m3io/dbc.py): plain texts, worded where the monitor shows them
+    AREA_WRITE_CONFIG: N_("write config"), AREA_READ_CONFIG: N_("read config"), AREA_READ_CUSTOMER: N_("read customer data"),
+    AREA_WRITE_CUSTOMER: N_("write customer data"), AREA_LOAD_DATA: N_("load data"),
 }
-CONFIG_NAMES = {CONFIG_SERIAL: "serial number", CONFIG_PRODUCT: "product code", CONFIG_VERSION: "SW version",
-                CONFIG_DYNAMIC: "dyn. configuration"}
+CONFIG_NAMES = {CONFIG_SERIAL: N_("serial number"), CONFIG_PRODUCT: N_("product code"), CONFIG_VERSION: N_("SW version"),
+                CONFIG_DYNAMIC: N_("dyn. configuration")}
 
 
 def _record_name(area: int, index: int) -> str:
-    """``read config serial number``, ``load data SSR3``, ``write customer data 7`` (7.2.4.2)."""
-    name = SYNC_AREAS.get(area, f"area {area}")
+    """``read config serial number``, ``load data SSR3``, ``write customer data 7`` (7.2.4.2), a :class:`Message`."""
+    name = Message(SYNC_AREAS[area]) if area in SYNC_AREAS else Message(N_("area {area}"), area=area)
     if area in (AREA_WRITE_CONFIG, AREA_READ_CONFIG):
-        return f"{name} {CONFIG_NAMES.get(index, f'index {index}')}"
+        item = Message(CONFIG_NAMES[index]) if index in CONFIG_NAMES else Message(N_("index {index}"), index=index)
+        return Message("{name} {item}", name=name, item=item)
     if area == AREA_LOAD_DATA:
-        return f"{name} SSR{index}"
-    return f"{name} {index}"
+        return Message("{name} SSR{index}", name=name, index=index)
+    return Message("{name} {index}", name=name, index=index)
+
+
+_CFG = {True: N_("cfg 0x{cfg:02X} (P2 {p2}: two-phase load)"), False: N_("cfg 0x{cfg:02X} (P2 {p2}: three-phase load)")}
 
 
 def _describe_cfg(cfg: int) -> str:
-    return f"cfg 0x{cfg:02X} (P2 {int(bool(cfg & P2))}: {'two-phase' if cfg & P2 else 'three-phase'} load)"
+    return Message(_CFG[bool(cfg & P2)], cfg=cfg, p2=int(bool(cfg & P2)))
 
 
 def describe_mdata(variant: Variant, m: MData) -> str:
@@ -430,7 +442,7 @@ def describe_mdata(variant: Variant, m: MData) -> str:
         value = decode_serial(m.payload)
     elif m.area == AREA_READ_CONFIG and m.index == CONFIG_PRODUCT:
         code = decode_u16(m.payload)
-        value = f"0x{code:04X} {product_name(code)}"
+        value = Message("0x{code:04X} {product}", code=code, product=product_name(code))
     elif m.area == AREA_READ_CONFIG and m.index == CONFIG_VERSION:
         value = str(decode_u16(m.payload))
     elif m.area in (AREA_WRITE_CONFIG, AREA_READ_CONFIG) and m.index == CONFIG_DYNAMIC:
@@ -439,7 +451,12 @@ def describe_mdata(variant: Variant, m: MData) -> str:
         value = describe_temp(variant, m.index, TempWord(decode_u16(m.payload)))
     else:
         value = m.payload.hex(" ")
-    return f"{name}: {value}"
+    return Message("{name}: {value}", name=name, value=value)
+
+
+_TEMPS = {n: "M3IO " + "; ".join("{t%d}" % i for i in range(n)) for n in range(7)}
+_ALL_OFF = Message(N_("all off"))
+_NO_INPUT = Message(N_("no input"))
 
 
 def describe_frame_for(ids: CanIds, variant: Variant, arbitration_id: int, data: bytes) -> str | None:
@@ -447,23 +464,26 @@ def describe_frame_for(ids: CanIds, variant: Variant, arbitration_id: int, data:
     try:
         if arbitration_id == ids.dig_out:
             on = [k for k, v in decode_dig_out(variant, data).items() if v]
-            return f"M3IO DigOut: {', '.join(on) or 'all off'}"
+            return Message("M3IO DigOut: {outputs}", outputs=", ".join(on) if on else _ALL_OFF)
         if arbitration_id == ids.dig_in:
             on = [k for k, v in decode_dig_in(data).items() if v]
-            return f"M3IO DigIn: {', '.join(on) or 'no input'}"
+            return Message("M3IO DigIn: {inputs}", inputs=", ".join(on) if on else _NO_INPUT)
         if arbitration_id in (ids.temp14, ids.temp56):
             words = decode_temps(data, 4 if arbitration_id == ids.temp14 else 2)
             first = 1 if arbitration_id == ids.temp14 else 5
-            return "M3IO " + "; ".join(describe_temp(variant, first + i, w) for i, w in enumerate(words))
+            temps = {f"t{i}": describe_temp(variant, first + i, w) for i, w in enumerate(words)}  # one Message per frame
+            return Message(_TEMPS[len(temps)], **temps)
         if arbitration_id == ids.sync:
             if len(data) <= 1:
-                return f"M3IO Sync {_describe_cfg(data[0])}" if data else "M3IO Sync"
+                return Message("M3IO Sync {cfg}", cfg=_describe_cfg(data[0])) if data else "M3IO Sync"
             if ids.addressed:
-                payload = f" data {bytes(data[2:]).hex(' ')}" if len(data) > 2 else ""
-                return f"M3IO Sync {_record_name(data[0], data[1])}{payload}"
+                if len(data) > 2:
+                    return Message(N_("M3IO Sync {record} data {bytes}"), record=_record_name(data[0], data[1]),
+                                   bytes=bytes(data[2:]).hex(" "))
+                return Message("M3IO Sync {record}", record=_record_name(data[0], data[1]))
             return f"M3IO Sync {bytes(data).hex(' ')}"
         if ids.mdata is not None and arbitration_id == ids.mdata:
-            return f"M3IO MData {describe_mdata(variant, MData.decode(data))}"
+            return Message("M3IO MData {text}", text=describe_mdata(variant, MData.decode(data)))
     except CodecError as exc:
-        return f"M3IO, malformed: {exc}"
+        return Message(N_("M3IO, malformed: {error}"), error=str(exc))
     return None

@@ -229,10 +229,9 @@ class Mo64Adapter(Mo64Settings):
                 if self.query_form is None and len(telegrams) > 1:
                     self.query_form = forms[n]
                     self.state.fact(P_QUERY_FORM, self.query_form, text=QUERY_FORM_WORDS[self.query_form])
-                    self.state.event("info", Message(N_("queries: the unit takes the document's form 02 Auswahl index "
-                                                        "(page 33)")) if forms[n] == "document"
-                                     else Message(N_("queries: the unit takes the short form 02 Auswahl (the document's "
-                                                     "form was refused)")))
+                    self.state.event("info", Message(N_("queries: the unit takes the document's form 02 Auswahl index (page 33)"))
+                                     if forms[n] == "document" else Message(N_("queries: the unit takes the short form 02 "
+                                                                                "Auswahl (the document's form was refused)")))
                 break
         if answer.reply is codec.Reply.NAK:
             self._reply(Message(N_("query {telegram}"), telegram=what), "nak")
@@ -290,11 +289,9 @@ class Mo64Adapter(Mo64Settings):
         after = self.state.points.get(NAMES.get(answer.type, ""))
         text = after.text if after is not None and after.text is not None else Message(answer.name)
         if answer.error:
-            self.state.event("warning", Message(N_("change reported: {telegram}: {error}"), telegram=Message(answer.name),
-                                                error=answer.error))
+            self.state.event("warning", Message(N_("change reported: {telegram}: {error}"), telegram=Message(answer.name), error=answer.error))
         elif before is None or before.raw != after.raw:
-            self.state.event("info", Message(N_("change reported: {telegram} = {value}"), telegram=Message(answer.name),
-                                             value=text))
+            self.state.event("info", Message(N_("change reported: {telegram} = {value}"), telegram=Message(answer.name), value=text))
 
     # -- publishing -------------------------------------------------------------------------------------
     def _publish(self, answer: codec.Answer) -> None:
@@ -614,8 +611,7 @@ class Mo64Adapter(Mo64Settings):
         for cmd in [c for c in self.levels if c in HELD_LEVELS]:
             if await self._deactivate(cmd, TOOL_STOPS):
                 done.append(COMMAND_NAMES[cmd])
-                self.state.event("info", Message(N_("the tool stops: {level} deactivated (ack)"),
-                                                 level=Message(COMMAND_NAMES[cmd])))
+                self.state.event("info", Message(N_("the tool stops: {level} deactivated (ack)"), level=Message(COMMAND_NAMES[cmd])))
         return done
 
     def closing_frames(self) -> list[bytes]:

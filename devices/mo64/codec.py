@@ -34,7 +34,7 @@ from enum import IntEnum
 from typing import Any
 
 from devices import values as v
-from devices.message import N_
+from devices.message import N_, Message, joined
 from devices.mo64.answer_values import (  # noqa: F401 - the answers' value types, named here too
     ANSWER_TYPES, BARRIER_POSITION, BARRIER_STATUS, CHANGE_MONITORING, CONFIG_FIELDS, CONFIG_FLAGS, COUNTER,
     DEC_BT, DEVICE_CODE, DEVICE_CODES, DIRECTION_LOGIC, DIRECTION_LOGICS, ERROR_ENTRY, ERROR_LEVEL, ERROR_MEMORY,
@@ -138,7 +138,7 @@ FORBIDDEN_QUERIES = frozenset(range(0x1B, 0x1F))  # table 21: 0x1B-0x1E "Nicht v
 ERROR_MEMORY_MEANING = ("Each level is one change of the 32 error flags with the operating hours at that change "
                         "(chapter 5.1.23): level 0 the newest, level 9 the oldest. The document summary does not "
                         "name the flags: a set flag is shown by its bit number.")
-NO_ERROR = "no error"
+NO_ERROR = N_("no error")
 
 
 def error_flag_bits(flags: int) -> list[int]:
@@ -155,27 +155,30 @@ def error_flags_text(flags: int, older: int | None = None) -> str:
     flags = int(flags)
     now = error_flag_bits(flags)
     before = set(error_flag_bits(older)) if older is not None else None
-    def flags_(numbers: list[int]) -> str:
-        return f"flag{'s' if len(numbers) > 1 else ''} {', '.join(map(str, numbers))}"
+
+    def numbers(bits: list[int]) -> str:
+        return ", ".join(map(str, bits))
 
     changes = []
     if before is not None:
         new = [n for n in now if n not in before]
         gone = sorted(before - set(now))
         if new and before:
-            changes.append(f"{', '.join(map(str, new))} new")
+            changes.append(Message(N_("{list} new"), list=numbers(new)))
         if gone:
-            changes.append(f"{flags_(gone) if not now else ', '.join(map(str, gone))} cleared")
-    tail = f" ({'; '.join(changes)})" if changes else ""
-    return (NO_ERROR if not now else f"error {flags_(now)} set") + tail
+            cleared = N_("{list} cleared") if now else N_("flags {list} cleared") if len(gone) > 1 else N_("flag {list} cleared")
+            changes.append(Message(cleared, list=numbers(gone)))
+    text = Message(NO_ERROR) if not now else Message(N_("error flags {list} set") if len(now) > 1 else
+                                                     N_("error flag {list} set"), list=numbers(now))
+    return Message("{text} ({changes})", text=text, changes=joined(changes, "; ")) if changes else text
 
 
-EMPTY_LEVEL = "empty: no change stored"  # flags 0 at 0 operating hours: a level no change has reached yet
+EMPTY_LEVEL = N_("empty: no change stored")  # flags 0 at 0 operating hours: a level no change has reached yet
 
 
 def error_level_meaning(flags: int, timestamp_h: int, older: int | None = None) -> str:
     """One level in words (:func:`error_flags_text`), or :data:`EMPTY_LEVEL` for a level never written."""
-    return EMPTY_LEVEL if int(flags) == 0 and int(timestamp_h) == 0 else error_flags_text(flags, older)
+    return Message(EMPTY_LEVEL) if int(flags) == 0 and int(timestamp_h) == 0 else error_flags_text(flags, older)
 
 
 def error_level_text(level: int) -> str:
@@ -397,16 +400,16 @@ SETTINGS: dict[str, Setting] = {s.key: s for s in (
     Setting("t_open", N_("open time"), 0x04, 0x00, TIME_10MS, Q_T_OPEN, "10 ms", limits=(0, TIME_MAX),
             doc="0 switches automatic closing off (chapter 5.2.4.1)"),
     Setting("t_prewarn_open", N_("pre-warning before opening"), 0x04, 0x01, TIME_10MS, Q_T_PREWARN_OPEN, "10 ms",
-            limits=(0, TIME_MAX), assumed="selector 0x01 follows the order of answers 0x0D-0x0F"),
+            limits=(0, TIME_MAX), assumed=Message(N_("selector 0x01 follows the order of answers 0x0D-0x0F"))),
     Setting("t_prewarn_close", N_("pre-warning before closing"), 0x04, 0x02, TIME_10MS, Q_T_PREWARN_CLOSE, "10 ms",
-            limits=(0, TIME_MAX), assumed="selector 0x02 follows the order of answers 0x0D-0x0F"),
+            limits=(0, TIME_MAX), assumed=Message(N_("selector 0x02 follows the order of answers 0x0D-0x0F"))),
     Setting("change_monitoring", N_("change monitoring"), 0x04, 0x04, CHANGE_MONITORING, Q_CHANGE_MONITORING,
             doc="unsolicited telegrams over TCP (chapter 5.2.4.5)"),
     Setting("vehicle_counter", N_("vehicle counter"), 0x05, 0x00, VEHICLE_COUNTER, Q_VEHICLE_COUNTER,
-            backup=False, eeprom=False, assumed="selector 0x00 not in the summary (chapter 5.2.5)",
+            backup=False, eeprom=False, assumed=Message(N_("selector 0x00 not in the summary (chapter 5.2.5)")),
             doc="RAM only, 0 after power-up; answered ack (chapter 5.2.5)"),
     Setting("maintenance_interval", N_("maintenance interval"), 0x05, 0x01, MAINTENANCE_INTERVAL,
-            Q_MAINTENANCE_INTERVAL, assumed="selector 0x01 and u32 width not in the summary"),
+            Q_MAINTENANCE_INTERVAL, assumed=Message(N_("selector 0x01 and u32 width not in the summary"))),
     Setting("status_mask", N_("status mask"), 0x06, 0x00, _MASK_40, Q_STATUS_MASK,
             doc="status bits watched for change (chapter 5.2.6.1)"),
     Setting("multi_relays", N_("multi-relay modes"), 0x07, 0x00, MULTI_RELAYS, Q_MULTI_RELAYS,
@@ -569,25 +572,43 @@ def decode_request(frame: Frame | bytes, framing: Framing = TCP) -> Request:
 def describe(frame: Frame, to_device: bool) -> str:
     """One line for the bus monitor: what the frame is, decoded as far as possible."""
     where = f"{frame.sa:02X}->{frame.da:02X} " if frame.da is not None else ""
+
+    def placed(text: str) -> str:  # a Message (the page words it) after the addresses
+        return Message("{where}{text}", where=where, text=text) if where else text
+
     if frame.is_token:
-        return f"{where}token"
+        return placed(Message(N_("token")))
     try:
         if to_device:
             r = decode_request(frame)
             if r.kind is RequestType.QUERY:
-                return f"{where}query 0x{r.query:02X} ({TELEGRAMS[r.query + QUERY_ANSWER_OFFSET]})"
+                return placed(Message(N_("query 0x{query:02X} ({telegram})"), query=r.query,
+                                      telegram=Message(TELEGRAMS[r.query + QUERY_ANSWER_OFFSET])))
             if r.kind is RequestType.COMMAND:
-                return f"{where}{r.command.name.lower()} {r.function.name.lower()}"
+                template = _FUNCTION_WORDS.get(r.function)
+                command = r.command.name.lower()
+                if template is None or command not in _COMMAND_WORDS:
+                    return f"{where}{command} {r.function.name.lower()}"
+                return placed(Message(template, command=Message(_COMMAND_WORDS[command])))
             if r.kind is RequestType.SHORT_COMMAND:
-                return f"{where}short command 0x{r.code:02X}"
-            name = r.setting.name if r.setting else f"setting 0x{r.kind:02X}/0x{r.selector:02X}"
-            return f"{where}set {name} = {r.value!r}"
+                return placed(Message(N_("short command 0x{code:02X}"), code=r.code))
+            name = r.setting.name if r.setting else Message(N_("setting 0x{kind:02X}/0x{selector:02X}"), kind=r.kind,
+                                                            selector=r.selector)
+            return placed(Message(N_("set {name} = {value}"), name=name, value=repr(r.value)))
         a = decode_answer(frame)
     except CodecError as exc:
         return f"{where}{exc}"
     if a.error:
-        return f"{where}{a.name}: {a.error} ({a.payload.hex(' ')})"
-    return f"{where}{a.name}" + ("" if a.reply is not None else f" = {_short(a.value)}")
+        return placed(Message("{name}: {error} ({raw})", name=Message(a.name), error=a.error, raw=a.payload.hex(" ")))
+    if a.reply is not None:
+        return placed(Message(a.name))
+    return placed(Message("{name} = {value}", name=Message(a.name), value=_short(a.value)))
+
+
+# an operating command in the words devices/mo64/control.py gives it ("open pulse")
+_COMMAND_WORDS = {"open": N_("open"), "close": N_("close"), "reverse": N_("reverse")}
+_FUNCTION_WORDS = {Function.PULSE: N_("{command} pulse"), Function.ACTIVATE: N_("{command} activate"),
+                   Function.DEACTIVATE: N_("{command} deactivate")}
 
 
 def _short(value: Any) -> str:

@@ -13,6 +13,7 @@ from typing import Any
 
 from devices import values as v
 from devices.linewords import LineFilter, LineText, cached, from_hex
+from devices.message import N_, Message, Word, joined
 from devices.scu import adapter as scu_adapter
 from devices.scu import codec as scu
 from devices.scu import params as scu_params
@@ -56,16 +57,27 @@ def scu_id_tags(data_id: int) -> set[str]:
     return tags
 
 
+# The words below are Messages (devices/message.py): the monitor words them in the page's language as the SCU page
+# does (a group's name, the units with the catalog's context ``unit``: counts are Flanken); the English as before.
+
+
+def _title(item: scu_params.DataItem) -> str:
+    """An item as the SCU page names it: a group by its name in the reader's language, an item by the document's."""
+    return Message(item.title) if item.is_group and not item.label else item.title
+
+
 def scu_title(data_id: int) -> str:
     item = scu_params.DIRECTORY.get(data_id)
-    return f"0x{data_id:04X} {item.title}" if item is not None else f"0x{data_id:04X} (not in the data directory)"
+    if item is None:
+        return Message(N_("0x{id:04X} (not in the data directory)"), id=data_id)
+    return Message("0x{id:04X} {title}", id=data_id, title=_title(item))
 
 
 def _member(data_id: int) -> str:
     item = scu_params.DIRECTORY.get(data_id)
     if item is None:
         return f"0x{data_id:04X}"
-    return f"A{item.actuator}" if item.actuator else f"F{item.function}" if item.function else item.title
+    return f"A{item.actuator}" if item.actuator else f"F{item.function}" if item.function else _title(item)
 
 
 def scu_value(data_id: int, value: Any) -> str:
@@ -73,12 +85,17 @@ def scu_value(data_id: int, value: Any) -> str:
     by actuator (``A1 1200 counts, A2 0 counts, ...``)."""
     item = scu_params.DIRECTORY.get(data_id)
     if isinstance(value, dict):
-        parts = [f"{_member(k)} {scu_value(k, x)}" for k, x in list(value.items())[:MAX_VALUES]]
-        return ", ".join(parts) + (f", ... {len(value) - MAX_VALUES} more" if len(value) > MAX_VALUES else "")
+        parts = [Message("{member} {value}", member=_member(k), value=scu_value(k, x))
+                 for k, x in list(value.items())[:MAX_VALUES]]
+        if len(value) > MAX_VALUES:
+            parts.append(Message(N_("... {n} more"), n=len(value) - MAX_VALUES))
+        return joined(parts)
     text = scu_adapter.value_text(data_id, value)
     unit = item.unit if item is not None else ""
     if unit and isinstance(value, (int, float)) and not isinstance(value, bool) and not isinstance(value, v.FlagsValue):
-        text += f" {unit}"
+        if isinstance(value, float) and text == f"{value:g}":  # a decimal number with the reader's decimal sign
+            return Message("{value:g} {unit}", value=value, unit=Word(unit, "unit"))
+        return Message("{value} {unit}", value=text, unit=Word(unit, "unit"))
     return text
 
 
@@ -86,9 +103,10 @@ def scu_values(values: dict[int, Any]) -> str:
     """Several data IDs' values (an RC's cyclic object), each named; a block as ``name: A1 .., A2 ..``."""
     parts = []
     for k, x in values.items():
-        name = scu_params.DIRECTORY[k].title if k in scu_params.DIRECTORY else f"0x{k:04X}"
-        parts.append(f"{name}: {scu_value(k, x)}" if isinstance(x, dict) else f"{name} = {scu_value(k, x)}")
-    return "; ".join(parts)
+        name = _title(scu_params.DIRECTORY[k]) if k in scu_params.DIRECTORY else f"0x{k:04X}"
+        parts.append(Message("{name}: {value}" if isinstance(x, dict) else "{name} = {value}", name=name,
+                             value=scu_value(k, x)))
+    return joined(parts, "; ")
 
 
 def scu_function(function: int) -> str:
@@ -138,7 +156,8 @@ class ScuLineDecoder:
             r = scu.decode_request(request)
         except scu.CodecError as exc:
             return LineText(own or request[:2].decode("ascii", "replace"),
-                            self._answer(None, answer) if answer else f"request not decodable: {exc}", frozenset(tags))
+                            self._answer(None, answer) if answer else
+                            Message(N_("request not decodable: {error}"), error=str(exc)), frozenset(tags))
         words = self._request(r, tags)
         return LineText(words, self._answer(r, answer) if answer else "", frozenset(tags))
 
@@ -147,45 +166,53 @@ class ScuLineDecoder:
         if command == scu.RO:
             return f"RO Safety_ID {r.safety_id}" + (", para_ID[0] -1" if r.para else "")
         if command == scu.RA:
-            return "RA end remote mode"
+            return Message(N_("RA end remote mode"))
         if command == scu.RC:
             if r.index == -1:
-                return "RC keep-alive"
-            words = f"RC keep-alive with CyclicObj {r.index + 1}"
+                return Message(N_("RC keep-alive"))
+            words = Message(N_("RC keep-alive with CyclicObj {n}"), n=r.index + 1)
             definition = self.definitions.get(r.index)
             if definition is not None:
                 for data_id in definition.read_ids + definition.write_ids:
                     tags.update(scu_id_tags(data_id))
                 if definition.write_ids and r.data:
-                    words += ", writes " + scu_values(definition.decode_write(r.data))
+                    words = Message(N_("RC keep-alive with CyclicObj {n}, writes {values}"), n=r.index + 1,
+                                    values=scu_values(definition.decode_write(r.data)))
             return words
         if command == scu.RG:
             tags.update(scu_id_tags(r.data_id))
-            return f"RG {scu_title(r.data_id)}"
+            return Message("RG {title}", title=scu_title(r.data_id))
         if command == scu.RT:
             tags.update(scu_id_tags(r.data_id))
             try:
                 value = scu_params.decode_data(r.data_id, r.data)
             except (scu_params.UnknownDataId, v.ValueCodecError):
-                return f"RT {scu_title(r.data_id)} = {r.data.hex(' ').upper()}"
+                return Message("RT {title} = {data}", title=scu_title(r.data_id), data=r.data.hex(" ").upper())
             if 0x3001 <= r.data_id <= 0x3005:  # a cyclic object's definition: what its RC carries from now on
                 definition = scu_params.CyclicDefinition.decode(r.data)
                 self._learn({**self.definitions, r.data_id - 0x3001: definition})
-                return (f"RT {scu_title(r.data_id)} definition: reads "
-                        + (", ".join(f"0x{i:04X}" for i in definition.read_ids) or "nothing")
-                        + (", writes " + ", ".join(f"0x{i:04X}" for i in definition.write_ids) if definition.write_ids else ""))
-            return f"RT {scu_title(r.data_id)} = {scu_value(r.data_id, value)}"
+                reads = ", ".join(f"0x{i:04X}" for i in definition.read_ids) or Message(N_("nothing"))
+                if definition.write_ids:
+                    return Message(N_("RT {title} definition: reads {reads}, writes {writes}"), title=scu_title(r.data_id),
+                                   reads=reads, writes=", ".join(f"0x{i:04X}" for i in definition.write_ids))
+                return Message(N_("RT {title} definition: reads {reads}"), title=scu_title(r.data_id), reads=reads)
+            return Message("RT {title} = {value}", title=scu_title(r.data_id), value=scu_value(r.data_id, value))
         label = scu_function(r.function)
         if command == scu.RE:
             function = scu.Function(r.function)
             if function in scu.MOTION_FUNCTIONS:
-                motion = scu.MOTION_LABELS.get(scu.Motion(r.para[0]), f"motion {r.para[0]}")
+                motion = scu.MOTION_LABELS.get(scu.Motion(r.para[0]))  # table 7's motions as the SCU page words them
+                motion = Message(motion) if motion else Message(N_("motion {n}"), n=r.para[0])
                 ramp = scu.Ramp(r.para[1]).name.lower()
-                return f"RE {label} {motion}, ramp {ramp}"
-            return f"RE {label} {scu.FUNCTIONS[function].description}"
+                return Message(N_("RE {function} {motion}, ramp {ramp}"), function=label, motion=motion, ramp=ramp)
+            return Message("RE {function} {description}", function=label,
+                           description=Message(scu.FUNCTIONS[function].description))
         if command == scu.RS:
             function = scu.Function(r.function)
-            return f"RS {label}" + ("" if function in scu.MOTION_FUNCTIONS else f" {scu.FUNCTIONS[function].description}")
+            if function in scu.MOTION_FUNCTIONS:
+                return f"RS {label}"
+            return Message("RS {function} {description}", function=label,
+                           description=Message(scu.FUNCTIONS[function].description))
         return command.decode("ascii", "replace")
 
     def _answer(self, r: scu.Request | None, raw: bytes) -> str:
@@ -193,30 +220,37 @@ class ScuLineDecoder:
         try:
             a = scu.decode_answer(raw[start:])
         except scu.CodecError as exc:
-            return f"answer not decodable: {exc}"
-        head = f"(after {start} stray bytes) " if start else ""
+            return Message(N_("answer not decodable: {error}"), error=str(exc))
+
+        def head(text: str) -> str:
+            return Message(N_("(after {n} stray bytes) {text}"), n=start, text=text) if start else text
+
         if not a.ok:
-            info = a.status_info
-            return head + (f"{info.name} ({info.title}): {info.meaning}" if info else f"status 0x{a.status:02X}")
+            info = a.status_info  # table 4.4's name, title and meaning (devices/scu/codec.py STATUS_INFO)
+            return head(Message("{name} ({title}): {meaning}", name=info.name, title=Message(info.title),
+                                meaning=Message(info.meaning)) if info else
+                        Message(N_("status 0x{status:02X}"), status=a.status))
         if r is None or not a.has_ctp:
-            return head + "ACK"
+            return head("ACK")
         if r.command == scu.RG:
             try:
-                return head + scu_values({r.data_id: scu_params.decode_data(r.data_id, a.data)})
+                return head(scu_values({r.data_id: scu_params.decode_data(r.data_id, a.data)}))
             except (scu_params.UnknownDataId, v.ValueCodecError) as exc:
-                return head + f"ACK, {len(a.data)} data bytes ({exc}): {a.data.hex(' ').upper()}"
+                return head(Message(N_("ACK, {n} data bytes ({error}): {data}"), n=len(a.data), error=str(exc),
+                                    data=a.data.hex(" ").upper()))
         if r.command == scu.RC:
             definition = self.definitions.get(r.index) if r.index is not None else None
             if not a.data:
-                return head + "ACK"
+                return head("ACK")
             if definition is None:
-                return head + (f"ACK, {len(a.data)} data bytes of CyclicObj {r.index + 1} (its definition was not "
-                               "seen on the line)")
+                return head(Message(N_("ACK, {n} data bytes of CyclicObj {index} (its definition was not seen on the line)"),
+                                    n=len(a.data), index=r.index + 1))
             try:
-                return head + scu_values(definition.decode_read(a.data))
+                return head(scu_values(definition.decode_read(a.data)))
             except v.ValueCodecError as exc:
-                return head + f"ACK, {len(a.data)} data bytes: not CyclicObj {r.index + 1} as defined ({exc})"
-        return head + "ACK"
+                return head(Message(N_("ACK, {n} data bytes: not CyclicObj {index} as defined ({error})"), n=len(a.data),
+                                    index=r.index + 1, error=str(exc)))
+        return head("ACK")
 
 
 
