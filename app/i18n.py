@@ -94,6 +94,13 @@ class Lang:
         document's ``Flanken``), else as it is (``ms``, ``°C``, ``Inc``)."""
         return self.pgettext("unit", unit) if unit and has_words(unit) else unit
 
+    def with_unit(self, text: str, unit: str) -> str:
+        """A value as a parameter model writes it (``60 % or counts/s``) with its numbers and its unit in this language."""
+        text = self.numbers_in(text)
+        if unit and has_words(unit) and text.endswith(" " + unit):
+            text = text[: -len(unit)] + self.unit(unit)
+        return text
+
     def has(self, message: str, context: str | None = None) -> bool:
         """Whether the catalog holds ``message`` (with ``context``), translated or not."""
         found = self._probe.gettext(message) if context is None else self._probe.pgettext(context, message)

@@ -467,7 +467,15 @@ def identity_rows(d: dict, lang: i18n.Lang | None = None) -> list[tuple[str, Any
     key, _sep, number = d["address"].partition(" ")  # "address 1": the plant file's key and its value
     address = f"{word(key, lang)} {number}" if key == "address" else d["address"]
     ident = {"type": d["type"], "bus": d["bus"], "address": address, **d["identity"], "status": word(d["status"], lang)}
-    return [(word(k, lang), v) for k, v in ident.items()]
+    return [(word(k, lang), product(v, lang) if k == "product" else v) for k, v in ident.items()]
+
+
+def product(name: Any, lang: i18n.Lang | None) -> Any:
+    """A product's name as the snapshot stored it (``HMR01 (from 08.11.2013)``), as its document names it in ``lang``
+    where the device vocabulary has it (``HMR01 ab 08.11.2013``, context ``Product``)."""
+    if lang is None or not isinstance(name, str) or not lang.has(name, "Product"):
+        return name
+    return lang.pgettext("Product", name)
 
 
 def differ_text(d: dict, changed: list, lang: i18n.Lang | None) -> str:

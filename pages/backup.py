@@ -304,7 +304,7 @@ class RestoreFlow:
             for warning in self.plan.warnings:
                 ui.label(f"⚠ {said(warning, self.lang)}").classes("text-warning text-body1")
         rows = [
-            {"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": row_state(r),
+            {"key": r.key, "name": r.name, "current": self.lang.with_unit(r.current_text, r.unit), "backup": self.lang.with_unit(r.backup_text, r.unit), "state": row_state(r),
              "state_text": state_text(r, self.lang), "risk": bool(r.changed and r.risk)}
             for r in self.plan.rows
         ]
@@ -366,7 +366,7 @@ class RestoreFlow:
         for row in self.table.rows:
             r = rows.get(row["key"])
             if r is not None:
-                row["current"] = r.current_text
+                row["current"] = self.lang.with_unit(r.current_text, r.unit)
                 row["state"] = row_state(r)
                 row["state_text"] = state_text(r, self.lang)
                 row["risk"] = bool(r.changed and r.risk)

@@ -327,7 +327,7 @@ class ValuesCard(DeviceCard):
         aging = False
         lang = self.view.lang
         for point, line in self.lines.items():
-            aging = show_line(line, f"{lang.gettext(point)}: {lang.numbers_in(self.view.text(point))}", self.view.live(point),
+            aging = show_line(line, f"{lang.gettext(point)}: {lang.numbers_in(said(self.view.text(point), lang))}", self.view.live(point),
                                lang) or aging
         self.aging = aging
 

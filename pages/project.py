@@ -167,7 +167,7 @@ class ProjectCard:
         for r in self.plan.rows:
             kept = f"{name}/{r.key}" in self.kept and r.changed
             state = "differs; the device's value kept" if kept else row_state(r)
-            rows.append({"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": state,
+            rows.append({"key": r.key, "name": r.name, "current": lang.with_unit(r.current_text, r.unit), "backup": lang.with_unit(r.backup_text, r.unit), "state": state,
                          "state_text": _("differs; the device's value kept") if kept else _state_text(r, lang),
                          "risk": bool(r.changed and r.risk), "changed": r.changed and not kept, "can_write": self.may_write})
         changed = sum(1 for row in rows if row["changed"])

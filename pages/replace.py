@@ -172,7 +172,7 @@ class Assistant:
         self.diff_card.set_visibility(True)
 
     def _show_rows(self) -> None:
-        rows = [{"key": r.key, "name": r.name, "current": r.current_text, "backup": r.backup_text, "state": row_state(r),
+        rows = [{"key": r.key, "name": r.name, "current": self.lang.with_unit(r.current_text, r.unit), "backup": self.lang.with_unit(r.backup_text, r.unit), "state": row_state(r),
                  "state_text": state_text(r, self.lang), "risk": bool(r.changed and r.risk)} for r in self.rp.plan.rows]
         self.table.rows = rows
         self.table.selected = [row for row in rows if row["state"].startswith("differs")]

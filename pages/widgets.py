@@ -387,10 +387,7 @@ def _register_value(p: Param, raw: int, lang: Lang) -> str:
     name = p.enum_name(raw)
     if name and lang.has(name, p.name):
         return f"{lang.pgettext(p.name, name)} ({lang.numbers_in(str(p.decode(raw)))})"
-    text = lang.numbers_in(p.display(raw))
-    if p.unit and text.endswith(" " + p.unit):  # the unit as the language writes it (the SCU's counts: Flanken)
-        text = text[: -len(p.unit)] + lang.unit(p.unit)
-    return text
+    return lang.with_unit(p.display(raw), p.unit)  # the unit as the language writes it (the SCU's counts: Flanken)
 
 
 _CLOCKS: dict[int, str] = {}  # whole seconds -> "HH:MM:SS": the rows of one poll share their second
