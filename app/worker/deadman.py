@@ -37,6 +37,7 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 from app.worker.loophealth import SUPERVISE_PERIOD_S
+from devices.message import Message, N_
 from devices.adapter import LeaseRenewer, SessionHolder, SessionResumer, SessionStopper
 
 log = logging.getLogger(__name__)
@@ -131,7 +132,7 @@ class DeadmanSupervisor:
         self._forget_beats(session)
         self.asked.pop(session, None)  # a request sent meanwhile may be lost: asked again when it is back (session_connected)
         self.dropped.add(session)
-        reason = "the controlling browser disconnected"
+        reason = Message(N_("the controlling browser disconnected"))
         for name, holder in self._holders():
             if _can(holder, SessionStopper):
                 stop = holder.session_stop
@@ -248,10 +249,11 @@ class DeadmanSupervisor:
         if silent <= DEADMAN_TIMEOUT_S and waited <= SILENCE_LIMIT_S:
             return False
         busy = max(0.0, waited - silent)
-        reason = (f"dead-man: the controlling browser has not confirmed it is alive for {silent * 1000:.0f} ms "
-                  "while this program ran on time (the browser is frozen, asleep or its network is lost)")
+        reason = Message(N_("dead-man: the controlling browser has not confirmed it is alive for {ms:.0f} ms while this program "
+                            "ran on time (the browser is frozen, asleep or its network is lost)"), ms=silent * 1000)
         if busy > SUPERVISE_PERIOD_S:
-            reason += f"; besides, this program was busy for {busy * 1000:.0f} ms of the {waited * 1000:.0f} ms since its last beat"
+            reason = Message(N_("{reason}; besides, this program was busy for {busy:.0f} ms of the {waited:.0f} ms since its last "
+                                "beat"), reason=reason, busy=busy * 1000, waited=waited * 1000)
         log.warning("session %s: %s", session, reason)
         self.session_lost(session, reason)
         self.holding_since.pop(session, None)

@@ -211,7 +211,8 @@ class ChannelMonitor:
         if self.fuse_blown and word.fuse and word.load:
             # 7.2.3: only cutting the 24 V resets Si = 0 in the module, so it was reset: follow it
             self.fuse_blown = self.seen_ok = False
-            self.cleared = "the module was reset (24 V cut) and reports its fuse ok with a load again (Si = 1, Last = 1)"
+            self.cleared = Message(N_("the module was reset (24 V cut) and reports its fuse ok with a load again (Si = 1, "
+                                      "Last = 1)"))
         if switched_on and word.load and word.fuse and word.triac:
             self.seen_ok = True
         if not word.fuse and (word.load or self.seen_ok):
