@@ -157,7 +157,7 @@ class SessionCard(DrawnCard):
         watch = state.live(facts.P_WATCH)
         self.cyclic.set_text(" · ".join(_(x) for x in (watch.text if watch else "", view.fact(facts.P_CYCLIC, "")) if x))
         refusal = state.live(facts.P_REFUSAL)
-        self.refusal.set_text(_("last error answer: {text}").format(text=refusal.text) if refusal is not None and refusal.value else "")
+        self.refusal.set_text(_("last error answer: {text}").format(text=said(refusal.text, view.lang)) if refusal is not None and refusal.value else "")
         self.error_line.set_text(said(state.last_error, view.lang) if state.online is False else "")
         # opening again is how a session recovers; RA hands the unit back
         enable_unless(self.reopen, access.role or (_("the remote session is open") if view.fact(facts.P_SESSION) == "open" else ""))

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 
 from devices import errors, framing
+from devices.message import Message, N_
 from devices.scu.errorcodes import (  # noqa: F401 - the error code bits (table 10) are part of the codec's names
     CLEARED_BY_NEXT_MOVE, ERROR_BITS, NO_ERROR, REMOTE_TIMEOUT_MASK, ErrorBit, error_bits, error_hex, error_text,
     unknown_error_bits)
@@ -138,14 +139,14 @@ class FunctionInfo:
 
 
 FUNCTIONS: dict[Function, FunctionInfo] = {
-    **{f: FunctionInfo(f"F{f + 1}", f"Motion function F{f + 1} (actuators and behaviour per the unit's configuration)",
-                       True) for f in MOTION_FUNCTIONS},
-    Function.BUZZER: FunctionInfo("F11", "Buzzer", False, "V2B1"),
-    Function.BINARY_OUTPUT_1: FunctionInfo("F17", "Binary output 1", False, "V2B1"),
-    Function.BINARY_OUTPUT_2: FunctionInfo("F18", "Binary output 2", False, "V2B1"),
-    Function.EMERGENCY_STOP: FunctionInfo("F20", "Emergency stop", False, "V2B1"),
-    Function.LED_1: FunctionInfo("F21", "Operating unit LED1", False, "V2B1"),
-    Function.LED_2: FunctionInfo("F22", "Operating unit LED2", False, "V2B1"),
+    **{f: FunctionInfo(f"F{f + 1}", Message(N_("Motion function F{n} (actuators and behaviour per the unit's configuration)"),
+                                            n=f + 1), True) for f in MOTION_FUNCTIONS},
+    Function.BUZZER: FunctionInfo("F11", Message(N_("Buzzer")), False, "V2B1"),
+    Function.BINARY_OUTPUT_1: FunctionInfo("F17", Message(N_("Binary output 1")), False, "V2B1"),
+    Function.BINARY_OUTPUT_2: FunctionInfo("F18", Message(N_("Binary output 2")), False, "V2B1"),
+    Function.EMERGENCY_STOP: FunctionInfo("F20", Message(N_("Emergency stop")), False, "V2B1"),
+    Function.LED_1: FunctionInfo("F21", Message(N_("Operating unit LED1")), False, "V2B1"),
+    Function.LED_2: FunctionInfo("F22", Message(N_("Operating unit LED2")), False, "V2B1"),
 }
 
 
@@ -225,24 +226,24 @@ class StatusInfo:
 
 
 STATUS_INFO: dict[int, StatusInfo] = {
-    Status.ACK: StatusInfo("ACK", "Command acknowledged", "the request was accepted", ""),
+    Status.ACK: StatusInfo("ACK", "Command acknowledged", Message(N_("the request was accepted")), ""),
     Status.CSE: StatusInfo(
-        "CSE", "Checksum error", "the unit received the telegram with a wrong checksum",
-        "resend; if it repeats, check the cable, its screen and earthing, and the baud rate"),
+        "CSE", "Checksum error", Message(N_("the unit received the telegram with a wrong checksum")),
+        Message(N_("resend; if it repeats, check the cable, its screen and earthing, and the baud rate"))),
     Status.PDE: StatusInfo(
-        "PDE", "Parameter data error", "a data byte of the telegram is not valid (unknown data ID or function, "
-        "a value out of range, a write to a data ID outside 0x3xxx)",
-        "check the data ID, function or value against the data and function directories"),
+        "PDE", "Parameter data error", Message(N_("a data byte of the telegram is not valid (unknown data ID or function, "
+        "a value out of range, a write to a data ID outside 0x3xxx)")),
+        Message(N_("check the data ID, function or value against the data and function directories"))),
     Status.PCE: StatusInfo(
-        "PCE", "Parameter count error", "the number of data bytes does not match (ctp, or the size of the data ID)",
-        "send exactly the bytes the data ID or cyclic object defines, with a matching ctp"),
+        "PCE", "Parameter count error", Message(N_("the number of data bytes does not match (ctp, or the size of the data ID)")),
+        Message(N_("send exactly the bytes the data ID or cyclic object defines, with a matching ctp"))),
     Status.ICE: StatusInfo(
-        "ICE", "Invalid command error", "the unit does not know the command code",
-        "check the command letters; the unit's firmware may be older than the function needs (V2B1)"),
+        "ICE", "Invalid command error", Message(N_("the unit does not know the command code")),
+        Message(N_("check the command letters; the unit's firmware may be older than the function needs (V2B1)"))),
     Status.PE: StatusInfo(
-        "PE", "Permission error", "the command is not possible in the unit's current mode or state "
-        "(remote mode not open, or dropped after a 500 ms gap without RC)",
-        "open remote mode with RO and keep it with RC at least every 500 ms, then repeat the command"),
+        "PE", "Permission error", Message(N_("the command is not possible in the unit's current mode or state "
+        "(remote mode not open, or dropped after a 500 ms gap without RC)")),
+        Message(N_("open remote mode with RO and keep it with RC at least every 500 ms, then repeat the command"))),
 }
 
 
@@ -253,10 +254,13 @@ class CommandRefused(CodecError):
         self.command = command
         self.code = code
         self.info = STATUS_INFO.get(code) or StatusInfo(
-            f"0x{code:02X}", "Unknown status", "an undocumented answer code",
-            "note the code and the command and ask the vendor")
-        super().__init__(f"{command.decode('ascii', 'replace')}: {self.info.name} ({self.info.title}): "
-                         f"{self.info.meaning}; {self.info.remedy}".rstrip("; "))
+            f"0x{code:02X}", "Unknown status", Message(N_("an undocumented answer code")),
+            Message(N_("note the code and the command and ask the vendor")))
+        info, sent = self.info, command.decode("ascii", "replace")
+        super().__init__(Message("{command}: {name} ({title}): {meaning}; {remedy}", command=sent, name=info.name, title=info.title,
+                                 meaning=info.meaning, remedy=info.remedy) if info.remedy else
+                         Message("{command}: {name} ({title}): {meaning}", command=sent, name=info.name, title=info.title,
+                                 meaning=info.meaning))
 
 
 # -- requests ----------------------------------------------------------------------------------------

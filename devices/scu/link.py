@@ -110,11 +110,12 @@ class ScuLink:
             self.state.mark_offline(self.offline_message())
 
     def offline_message(self) -> str:
-        return (f"no answer from the SCU within {codec.MAX_ANSWER_DELAY_S:g} s on {self.adapter.port}: check the RS232 cable "
-                "(9-pin Sub-D, RxD/TxD/GND), that DTR and RTS are on (they power the unit's RS232 converter; or a "
-                f"separate 5.5-15 V supply on pin 4 or 7), and the baud rate ({self.adapter.baudrate}; standard units 38400, "
-                "custom 9600 or 19200); a unit on battery with Low Power enabled is woken by RxD at space for "
-                "100 ms (firmware V2B1), which is sent before every reopening")
+        return Message(N_("no answer from the SCU within {seconds:g} s on {port}: check the RS232 cable (9-pin Sub-D, "
+                          "RxD/TxD/GND), that DTR and RTS are on (they power the unit's RS232 converter; or a separate 5.5-15 V "
+                          "supply on pin 4 or 7), and the baud rate ({baud}; standard units 38400, custom 9600 or 19200); a unit "
+                          "on battery with Low Power enabled is woken by RxD at space for 100 ms (firmware V2B1), which is sent "
+                          "before every reopening"), seconds=codec.MAX_ANSWER_DELAY_S, port=self.adapter.port,
+                       baud=self.adapter.baudrate)
 
     async def refused(self, describe: str, answer: codec.Answer, *, quiet: bool = False) -> None:
         exc = codec.CommandRefused(answer.command, answer.status)
@@ -122,9 +123,11 @@ class ScuLink:
         info = exc.info
         if not quiet:
             refusal = Refusal(describe, info.name, info.title, info.meaning, info.remedy, time.time())
-            self.state.fact(P_REFUSAL, refusal, text=f"{info.name} ({info.title}) to {describe}: {info.meaning}. "
-                                                     f"What to do: {info.remedy}")
-            self.state.error(f"{describe}: {info.name} ({info.title}): {info.meaning}. {info.remedy}")
+            self.state.fact(P_REFUSAL, refusal, text=Message(N_("{name} ({title}) to {what}: {meaning}. What to do: {remedy}"),
+                                                             name=info.name, title=info.title, what=describe,
+                                                             meaning=info.meaning, remedy=info.remedy))
+            self.state.error(Message("{what}: {name} ({title}): {meaning}. {remedy}", what=describe, name=info.name,
+                                     title=info.title, meaning=info.meaning, remedy=info.remedy))
         if answer.status == codec.Status.PE and self.adapter.session == "open":
             if answer.command == codec.RC:
                 self.adapter.lost(Message(N_("PE (permission error) to {what}: the unit is no longer in remote mode"), what=describe))

@@ -18,7 +18,7 @@ import asyncio
 import time
 from typing import Any
 
-from devices.message import Message, N_
+from devices.message import Message, N_, message_of
 from devices.params import Accepted, Param, ParamError, backup_entry
 from devices.scu import codec
 from devices.scu import params as p
@@ -163,7 +163,7 @@ class ScuSettings:
         try:
             accepted = self._own(param).accept(value)
         except ParamError as exc:
-            raise CommandError(str(exc)) from None
+            raise CommandError(message_of(exc)) from None
         return await self.write_accepted(accepted, confirmed=confirmed)
 
     async def write_accepted(self, accepted: Accepted, *, confirmed: bool = False) -> int:
@@ -173,7 +173,7 @@ class ScuSettings:
         try:
             raw = accepted.cleared(confirmed)
         except ParamError as exc:
-            raise CommandError(str(exc)) from None
+            raise CommandError(message_of(exc)) from None
         reason = self.refusal(q, raw)
         if reason:
             raise CommandError(reason)
