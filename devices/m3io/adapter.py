@@ -430,7 +430,7 @@ class M3ioAdapter(ModuleSettings):
             answer = await self._request(codec.AREA_READ_CONFIG, codec.CONFIG_PRODUCT)
         except CommandError as exc:
             self._verify_after = time.time() + VERIFY_RETRY_S
-            self.state.error(f"product code not read: {exc}", log=False)
+            self.state.error(Message(N_("product code not read: {error}"), error=message_of(exc)), log=False)
             return
         self._set_product(codec.decode_u16(answer.payload))
 

@@ -15,7 +15,7 @@ from devices.m3io import codec
 from devices.m3io.codec import Variant
 from devices.m3io.params import (ADDRESSING, CFG, CONFIG, CONFIG_PARAMS, CUSTOMER, P2_OPTION, P2_PARAM, PARAMS, RECORD_PARAMS,
                                  SW1_PARAM, record_bytes, record_param, record_raw)
-from devices.message import Message, N_
+from devices.message import Message, N_, message_of
 from devices.params import Accepted, Param, ParamError, backup_entry
 
 # 7.2.4.2.4: the module answers a written record only once it is stored, and is deaf meanwhile; the document
@@ -181,7 +181,7 @@ class ModuleSettings(BackupDefaults):
             await self.read_settings()
         except self.error_type as exc:
             self._settings_after = time.time() + SETTINGS_RETRY_S
-            self.state.error(f"settings not read: {exc}", log=False)
+            self.state.error(Message(N_("settings not read: {error}"), error=message_of(exc)), log=False)
 
     # -- backup and restore (app/backup.py) ------------------------------------------------------
     @property

@@ -22,7 +22,7 @@ from typing import Any
 from devices.control import Report
 from devices.decoding import decoded, malformed
 from devices.live import DeviceState, session_tag
-from devices.message import Message, N_, message_of
+from devices.message import Message, N_, joined, message_of
 from devices.mo64 import codec
 from devices.mo64.control import DEAD_MAN_LEVELS, TOOL_STOPS, Mo64Control, Send
 from devices.mo64.facts import (
@@ -406,7 +406,7 @@ class Mo64Adapter(Mo64Settings):
                 try:
                     await self.query(index)
                 except (CommandError, SerialTimeout, codec.CodecError) as exc:
-                    problems.append(str(exc))
+                    problems.append(message_of(exc))
             index = self._counter_now()
             if index is not None:
                 await self._optional(self._optional_live.setdefault(index, {"state": "pending", "failures": 0, "next": 0.0}),
@@ -418,7 +418,7 @@ class Mo64Adapter(Mo64Settings):
                 else:
                     await self._optional(self._reads[(kind, n)], codec.Q_ERROR_MEMORY, None, level=n)
             if problems:
-                self.state.error(f"poll: {'; '.join(problems)}", log=False)
+                self.state.error(Message(N_("poll: {problems}"), problems=joined(problems, "; ")), log=False)
         except (SerialLineError, codec.CodecError) as exc:
             self.state.error(f"poll: {exc}", log=False)
         finally:

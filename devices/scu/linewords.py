@@ -73,7 +73,11 @@ def scu_title(data_id: int) -> str:
     return Message("0x{id:04X} {title}", id=data_id, title=_title(item))
 
 
-def _member(data_id: int) -> str:
+def _member(data_id: int | str) -> str:
+    """A member of a block: a data ID by its actuator or function (``A1``), a struct's field by its name
+    (UserPositionData's ``Position_Memory_1[USER_1]``)."""
+    if isinstance(data_id, str):
+        return data_id
     item = scu_params.DIRECTORY.get(data_id)
     if item is None:
         return f"0x{data_id:04X}"

@@ -185,3 +185,13 @@ def test_decoded_meanings_are_messages_kept_by_the_decoders_cache():
 
 MARKED = set(GERMAN) | {"all off", "no enable",
                         "Electrak control: target {position:.1f} mm, limit {current:.1f} A, speed {speed:.1f} mm/s, {bits}"}
+
+
+def test_an_scu_struct_read_is_named_by_its_fields_not_refused_as_undecodable():
+    """RG of UserPositionData (0x2001..0x2006, a struct of table 6) answers a block keyed by the struct's field names,
+    not by data IDs; the monitor said "cannot decode: Unknown format code 'X' for object of type 'str'" for it."""
+    positions = b"".join(n.to_bytes(4, "little", signed=True) for n in range(100, 2700, 100))  # 26 INT32 fields
+    read = scu_words.ScuLineDecoder([], {}).text(line(scu.encode_rg(0x2001), scu.encode_answer(scu.RG, scu.ACK, positions)))
+    assert read.request == "RG 0x2001 UserPositionData A1"
+    assert read.decoded.startswith("UserPositionData A1: Position_Memory_1[USER_1] 100, Position_Memory_2[USER_1] 200, ")
+    assert "decod" not in said(read.decoded, i18n.get("de"))
