@@ -279,3 +279,24 @@ SIM_WORDS = (
     NP_("simulation", "Clear faults"),
     NP_("simulation", "Mains back (power up)"),
 )
+
+# doc: HD-Lock, 000, sections 3.1 (input registers 0, 1, 11), 3.2.4 (Ausgang 1/2: Registerwert), 3.2.6 and holding 101
+# (Parity): the values of the registers the parameter model names in English, as the register tables and entries show them
+HDLOCK_VALUES = (
+    NP_("LockState", "Unlocked (bolt retracted)"), NP_("LockState", "Locked (bolt extended)"),
+    NP_("LockRequest", "Inactive"), NP_("LockRequest", "Active"),
+    NP_("Direction", "Always right-hinged"), NP_("Direction", "Automatic"), NP_("Direction", "Always left-hinged"),
+    NP_("SettingsDirection", "Always right-hinged"), NP_("SettingsDirection", "Automatic"), NP_("SettingsDirection", "Always left-hinged"),
+    NP_("SettingsOutput1", "Always off"), NP_("SettingsOutput1", "Always on"), NP_("SettingsOutput1", "Door closed"), NP_("SettingsOutput1", "Door open"), NP_("SettingsOutput1", "Bolt extended"), NP_("SettingsOutput1", "Bolt retracted"), NP_("SettingsOutput1", "Lock request"), NP_("SettingsOutput1", "No lock request"), NP_("SettingsOutput1", "Blink ~1 Hz"), NP_("SettingsOutput1", "Hall sensors overdriven"),
+    NP_("SettingsOutput2", "Always off"), NP_("SettingsOutput2", "Always on"), NP_("SettingsOutput2", "Door closed"), NP_("SettingsOutput2", "Door open"), NP_("SettingsOutput2", "Bolt extended"), NP_("SettingsOutput2", "Bolt retracted"), NP_("SettingsOutput2", "Lock request"), NP_("SettingsOutput2", "No lock request"), NP_("SettingsOutput2", "Blink ~1 Hz"), NP_("SettingsOutput2", "Hall sensors overdriven"),
+    NP_("SettingOutput1", "Always off"), NP_("SettingOutput1", "Always on"), NP_("SettingOutput1", "Door closed"), NP_("SettingOutput1", "Door open"), NP_("SettingOutput1", "Bolt extended"), NP_("SettingOutput1", "Bolt retracted"), NP_("SettingOutput1", "Lock request"), NP_("SettingOutput1", "No lock request"), NP_("SettingOutput1", "Blink ~1 Hz"), NP_("SettingOutput1", "Hall sensors overdriven"),
+    NP_("SettingOutput2", "Always off"), NP_("SettingOutput2", "Always on"), NP_("SettingOutput2", "Door closed"), NP_("SettingOutput2", "Door open"), NP_("SettingOutput2", "Bolt extended"), NP_("SettingOutput2", "Bolt retracted"), NP_("SettingOutput2", "Lock request"), NP_("SettingOutput2", "No lock request"), NP_("SettingOutput2", "Blink ~1 Hz"), NP_("SettingOutput2", "Hall sensors overdriven"),
+    NP_("Parity", "None"), NP_("Parity", "Odd"), NP_("Parity", "Even"),
+    NP_("SettingsRemoveMagnet", "Off (secure)"), NP_("SettingsRemoveMagnet", "Retract when magnet removed"),
+    # doc: CAN-M3IO, 001, section 4.3 and 7.2.4 (P2: Drehstromausgang mit zweiphasiger Last)
+    NP_("P2", "three-phase load"), NP_("P2", "two-phase load (P2)"),
+    # doc: MO 64, 003, chapter 5.1.25 (Multirelais: Störung)
+    NP_("multi1", "fault"), NP_("multi2", "fault"), NP_("multi3", "fault"), NP_("multi4", "fault"), NP_("multi5", "fault"), NP_("multi6", "fault"),
+    # doc: Ewellix SCU, 002, table 3 (RO, Safety_ID 0, 1, 2)
+    NP_("Safety_ID", "no start after timeout"), NP_("Safety_ID", "stop all"), NP_("Safety_ID", "stop remote"),
+)

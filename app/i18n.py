@@ -94,6 +94,11 @@ class Lang:
         document's ``Flanken``), else as it is (``ms``, ``°C``, ``Inc``)."""
         return self.pgettext("unit", unit) if unit and has_words(unit) else unit
 
+    def value_word(self, point: str, word: str) -> str:
+        """A value's name (an enum's) of the register or point ``point`` as the device vocabulary words it in this
+        language (``LockState`` ``Unlocked (bolt retracted)``: ``geöffnet (Bolzen eingefahren)``), else as it is."""
+        return self.pgettext(point, word) if self.has(word, point) else word
+
     def with_unit(self, text: str, unit: str) -> str:
         """A value as a parameter model writes it (``60 % or counts/s``) with its numbers and its unit in this language."""
         text = self.numbers_in(text)

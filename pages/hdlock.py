@@ -264,7 +264,7 @@ class ParameterCard(DeviceCard):
             # its "unsaved" badge is built when the parameter is first written (most never are)
         current = ValueLine("mono")  # the value, greyed with its age while stale or offline: one element
         if p.enum is not None:
-            entry = ui.select({k: f"{v} ({k})" for k, v in p.enum.items()}, value=None) \
+            entry = ui.select({k: f"{self.view.lang.value_word(p.name, v)} ({k})" for k, v in p.enum.items()}, value=None) \
                 .props("dense outlined options-dense").classes("w-64")
         else:
             low, high = p.limits()

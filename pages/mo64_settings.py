@@ -52,6 +52,14 @@ def show_line(line: ValueLine, text: str, value: LiveValue | None, lang=None) ->
 
 
 
+def piece_value(p: Mo64Param, raw: int, lang) -> str:
+    """A relay mode or a configuration flag as the table shows it: a relay mode's name as the device vocabulary words it
+    (``multi1``'s ``fault``: ``Störung (1)``), a flag's value as the document names it (``Stopp und öffnen (0)``)."""
+    if p.names is not None and p.enum is None and (name := p.names.get(int(p.decode(raw)))):
+        return f"{lang.value_word(p.name, name)} ({int(p.decode(raw))})"
+    return lang.numbers_in(p.display(raw))
+
+
 class SettingsCard(DeviceCard):
     """Settings (chapter 5.2.4-5.2.8) by the parameter model (devices/mo64/params.py): each named setting with its
     value, an entry in its range or of its named choices and Write (the declared "write parameter": a flag that
@@ -189,7 +197,7 @@ class SettingsCard(DeviceCard):
         self.aging = aging
         _ = view.lang.gettext
         rows = [{"key": p.key, "name": p.name + (" " + _("(assumed bit position)") if p.assumed else ""),
-                 "value": "-" if (raw := state.raw(p)) is None else p.display(raw), "allowed": said(allowed(p), view.lang),
+                 "value": "-" if (raw := state.raw(p)) is None else piece_value(p, raw, view.lang), "allowed": said(allowed(p), view.lang),
                  "description": said(p.description, view.lang)} for p in PIECES]
         if self.pieces is not None and rows != self.pieces.rows:
             self.pieces.rows = rows

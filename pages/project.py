@@ -363,7 +363,7 @@ class ProjectEditor:
                 if param.description:
                     ui.label(said(param.description, self.lang)).classes("text-caption text-grey-7").style(WRAP)
             if param.enum is not None:
-                options = {"": _("(not in the project)")} | {str(n): f"{text} ({n})" for n, text in param.enum.items()}
+                options = {"": _("(not in the project)")} | {str(n): f"{self.lang.value_word(param.name, text)} ({n})" for n, text in param.enum.items()}
                 field = ui.select(options, value="").props("dense outlined options-dense")
             else:
                 field = ui.input(placeholder=_("not in the project"), suffix=self.lang.unit(param.unit) or None,

@@ -121,8 +121,14 @@ def english_but(user, descriptions=frozenset(), skip=(), suffixed: bool = False)
 
 
 def descriptions_of(runtime, device: str) -> set[str]:
-    """The parameter model's descriptions that are not in the catalogs yet (a marked one is a Message, shown in German)."""
-    return {p.description for p in runtime.store.devices[device].params.by_name.values() if not isinstance(p.description, Message)}
+    """The parameter model's own words a German page shows as they are: descriptions not in the catalogs (a marked one
+    is a Message, shown in German) and the enum values German shows as the document prints them (the HD-Lock's
+    MotorResult ``None``, section 3.1's names), which the check would otherwise take for the same word worded elsewhere
+    (Parity's ``None``: ``keine``)."""
+    de = i18n.get("de")
+    params = runtime.store.devices[device].params.by_name.values()
+    return ({p.description for p in params if not isinstance(p.description, Message)}
+            | {v for p in params for v in (p.enum or {}).values() if de.value_word(p.name, v) == v})
 
 
 async def test_the_plant_view_in_german_shows_no_english(tmp_path):
