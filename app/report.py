@@ -228,12 +228,13 @@ td,th{border:1px solid #bbb;padding:2px 6px;text-align:left;vertical-align:top}t
 """
 
 
-def with_unit(value: Any, unit: str) -> str:
-    """A value with its unit once (the model's text often carries the unit already, also before a remark)."""
+def with_unit(value: Any, unit: str, lang: i18n.Lang | None = None) -> str:
+    """A value with its unit once (the model's text often carries the unit already, also before a remark); with
+    ``lang`` its numbers and its unit as the language writes them (the SCU's ``counts``: ``Flanken``)."""
     text = "" if value is None else str(value)
-    if not unit or text.endswith(unit) or re.search(rf"(?<![\w]){re.escape(unit)}(?![\w])", text):
-        return text
-    return f"{text} {unit}".strip()
+    if unit and not (text.endswith(unit) or re.search(rf"(?<![\w]){re.escape(unit)}(?![\w])", text)):
+        text = f"{text} {unit}".strip()
+    return lang.with_unit(text, unit) if lang is not None else text
 
 
 _with_unit = with_unit  # the older name
@@ -358,9 +359,9 @@ def measured_text(v: dict, lang: i18n.Lang | None = None, run: dict | None = Non
     """A measured value against its limit; its name, value and limit in ``lang`` where ``run`` keeps their templates."""
     _ = language(lang).gettext
     run = run or {}
-    value = with_unit(recorded(v["value"], run, lang), v["unit"])
+    value = with_unit(recorded(v["value"], run, lang), v["unit"], lang)
     return "{name} = {value} ({limit}: {verdict})".format(
-        name=recorded(v["name"], run, lang), value=lang.numbers_in(value) if lang is not None else value,
+        name=recorded(v["name"], run, lang), value=value,
         limit=recorded(v["limit"], run, lang) or _("recorded"), verdict=_("ok") if v["ok"] else _("FAIL"))
 
 
@@ -442,11 +443,11 @@ class Shown(str):
 
 
 def param_rows(rows: list[dict], lang: i18n.Lang | None = None) -> list[list[Any]]:
-    def number(text: Any) -> Any:  # 12.5 s -> 12,5 s in German (addresses and versions stay as they are)
-        return lang.numbers_in(text) if lang is not None and isinstance(text, str) else text
+    def approved(text: Any, unit: str) -> Any:  # 12.5 s -> 12,5 s in German; "-" where there is none
+        return lang.with_unit(text, unit) if lang is not None and isinstance(text, str) else text
 
-    return [[r["name"], number(with_unit(r["value"], r["unit"])), number(r["approved"]), Shown(word(r["verdict"], lang), r["verdict"])]
-            for r in rows]
+    return [[r["name"], with_unit(r["value"], r["unit"], lang), approved(r["approved"], r["unit"]),
+             Shown(word(r["verdict"], lang), r["verdict"])] for r in rows]
 
 
 def _verdict_class(r: list[Any]) -> str:

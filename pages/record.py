@@ -167,7 +167,7 @@ def _checkout_card(runtime, name: str, user: str, role: str, engineer: bool, lan
                     if r.reason:
                         ui.label(said(r.reason, lang)).classes("text-negative text-caption")
                     elif r.values:
-                        ui.label("; ".join(f"{said(v['name'], lang)} {lang.numbers_in(with_unit(recorded(v['value'], {}, lang), v['unit']))}"
+                        ui.label("; ".join(f"{said(v['name'], lang)} {with_unit(recorded(v['value'], {}, lang), v['unit'], lang)}"
                                            for v in r.values[:3])).classes("text-caption")
 
     async def ask(question: str) -> bool:

@@ -6,7 +6,7 @@ phrases that name what they count (``95 Parameter nicht abgenommen``, ``95 param
 from __future__ import annotations
 
 from app import i18n
-from app.report import sign_gaps, source_text, values_text
+from app.report import measured_text, param_rows, sign_gaps, source_text, values_text
 
 DE, EN = i18n.get("de"), i18n.get("en")
 SOURCE = "as the device showed them at 2026-11-29 07:30:43 (else the last snapshot of 2026-11-28 14:05:09)"
@@ -55,3 +55,17 @@ def test_a_sign_offs_gaps_count_parameters_too():
     assert sign_gaps(d, DE) == [
         "m1: keine Funktionsprüfung gelaufen, 95 Parameter nicht abgenommen, 1 Parameter seit der Abnahme geändert"
     ]
+
+
+def test_a_units_words_are_the_reports_language_and_its_english_as_written():
+    """The SCU's speeds and positions in the as-left report: its counts are the document's Flanken in German (data
+    0x3011: Encoder Flanken/s), with the decimal comma; the English report as the snapshot wrote them."""
+    de, en = i18n.get("de"), i18n.get("en")
+    row = {"name": "Remote Speed F1", "value": "60 % or counts/s", "unit": "% or counts/s", "approved": "100 % or counts/s",
+           "verdict": "differs"}
+    assert param_rows([row], de)[0][1:3] == ["60 % oder Flanken/s", "100 % oder Flanken/s"]
+    assert param_rows([row], en)[0][1:3] == ["60 % or counts/s", "100 % or counts/s"]
+    assert param_rows([dict(row, approved="-")], de)[0][2] == "-"  # nothing approved: as it was
+    travel = {"name": "A1 travel", "value": 12.5, "unit": "counts", "limit": "", "ok": True}
+    assert measured_text(travel, de).startswith("A1 travel = 12,5 Flanken (")
+    assert measured_text(travel, en).startswith("A1 travel = 12.5 counts (")
