@@ -297,6 +297,8 @@ HDLOCK_VALUES = (
     NP_("P2", "three-phase load"), NP_("P2", "two-phase load (P2)"),
     # doc: MO 64, 003, chapter 5.1.25 (Multirelais: Störung)
     NP_("multi1", "fault"), NP_("multi2", "fault"), NP_("multi3", "fault"), NP_("multi4", "fault"), NP_("multi5", "fault"), NP_("multi6", "fault"),
+    # doc: Ewellix SCU, 002, table 9 (RE para_ID[1] motion_stop: 0 ohne, 1 mit Start/Stop-Rampe, -1 wie konfiguriert)
+    NP_("Ramp", "fast"), NP_("Ramp", "soft"), NP_("Ramp", "default"),
     # doc: Ewellix SCU, 002, table 3 (RO, Safety_ID 0, 1, 2)
     NP_("Safety_ID", "no start after timeout"), NP_("Safety_ID", "stop all"), NP_("Safety_ID", "stop remote"),
 )

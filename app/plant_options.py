@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from app.plant import DEMO_PLANT, Plant, PlantError, parse_plant
+from devices.message import Message, N_
 
 
 def _option_toml(value: Any) -> str:
@@ -89,6 +90,6 @@ def keep_device_options(plant: Plant, device: str, options: dict[str, Any]) -> s
     plant.devices[device].options.update(changed)
     words = ", ".join(f"{k} = {_option_toml(v)}" for k, v in changed.items())
     if plant.path is None or plant.path.resolve() == DEMO_PLANT.resolve():
-        return f"{words} holds until this program ends: the built-in demo plant is not rewritten"
+        return Message(N_("{options} holds until this program ends: the built-in demo plant is not rewritten"), options=words)
     set_device_options(plant.path, device, changed)
-    return f"{words} kept in the plant file {plant.path.name}"
+    return Message(N_("{options} kept in the plant file {file}"), options=words, file=plant.path.name)

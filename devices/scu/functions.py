@@ -14,7 +14,7 @@ import time
 from typing import TYPE_CHECKING
 
 from devices.live import session_tag
-from devices.message import Message, N_
+from devices.message import Message, N_, Word
 from devices.scu import codec
 from devices.scu.control import EMERGENCY_STOP, ESTOP, NOT_HELD, SendRS
 from devices.scu.facts import CommandError, ControlBusy
@@ -116,8 +116,9 @@ class ScuFunctions:
         label = codec.FUNCTIONS[fn].label
         words = (f"{label} {codec.MOTION_LABELS[codec.Motion(motion)]}, ramp {codec.Ramp(ramp & 0xFF).name.lower()}"
                  if fn in codec.MOTION_FUNCTIONS else f"{label} {codec.FUNCTIONS[fn].description}")
-        sent = (Message(N_("RE {function} {motion}, ramp {ramp}"), function=label, motion=codec.MOTION_LABELS[codec.Motion(motion)],
-                        ramp=codec.Ramp(ramp & 0xFF).name.lower())
+        sent = (Message(N_("RE {function} {motion}, ramp {ramp}"), function=label,
+                        motion=Message(codec.MOTION_LABELS[codec.Motion(motion)]),
+                        ramp=Word(codec.Ramp(ramp & 0xFF).name.lower(), "Ramp"))
                 if fn in codec.MOTION_FUNCTIONS else  # a template without words: not marked (docs/i18n.md)
                 Message("RE {function} {description}", function=label, description=codec.FUNCTIONS[fn].description))
         async with self.fn_lock(int(fn)):

@@ -207,7 +207,7 @@ class ScuLineDecoder:
             if function in scu.MOTION_FUNCTIONS:
                 motion = scu.MOTION_LABELS.get(scu.Motion(r.para[0]))  # table 7's motions as the SCU page words them
                 motion = Message(motion) if motion else Message(N_("motion {n}"), n=r.para[0])
-                ramp = scu.Ramp(r.para[1]).name.lower()
+                ramp = Word(scu.Ramp(r.para[1]).name.lower(), "Ramp")
                 return Message(N_("RE {function} {motion}, ramp {ramp}"), function=label, motion=motion, ramp=ramp)
             return Message("RE {function} {description}", function=label,
                            description=Message(scu.FUNCTIONS[function].description))
