@@ -80,6 +80,11 @@ class Word(str):
         return Word, (str(self), self.context)
 
 
+def as_word(text: str, context: str) -> str:
+    """A point's text as a field: a :class:`Message` as it is, a plain device word as a :class:`Word` of ``context``."""
+    return text if isinstance(text, Message) else Word(text, context)
+
+
 #: a yes/no field (a measured flag, its expected state) in the reader's language: "True" in English, "ja" in German
 BOOLEANS = (N_("True"), N_("False"))
 

@@ -22,7 +22,7 @@ from typing import Any
 from devices.control import Report
 from devices.decoding import decoded, malformed
 from devices.live import DeviceState, session_tag
-from devices.message import Message, N_, joined, message_of
+from devices.message import Message, N_, as_word, joined, message_of
 from devices.mo64 import codec
 from devices.mo64.control import DEAD_MAN_LEVELS, TOOL_STOPS, Mo64Control, Send
 from devices.mo64.facts import (
@@ -287,7 +287,7 @@ class Mo64Adapter(Mo64Settings):
         before = self.state.points.get(NAMES.get(answer.type, ""))
         self._publish(answer)
         after = self.state.points.get(NAMES.get(answer.type, ""))
-        text = after.text if after is not None and after.text is not None else Message(answer.name)
+        text = as_word(after.text, answer.name) if after is not None and after.text is not None else Message(answer.name)
         if answer.error:
             self.state.event("warning", Message(N_("change reported: {telegram}: {error}"), telegram=Message(answer.name), error=answer.error))
         elif before is None or before.raw != after.raw:
