@@ -28,6 +28,14 @@ from devices.message import Message, N_
 
 LEASE_S = 0.35  # as devices.lease.LEASE_S: a lease renewed every 50 ms lapses 0.35 s after its last renewal
 STOP_DEADLINE_S = 0.5  # what runs stops within this long after the controlling operator is gone (ARCHITECTURE.md, rule 7)
+def dead_man(reason: str) -> Message:
+    """What stops under the dead-man rule, with its reason, named once: the worker's own reason for a silent page says
+    "dead-man: ..." already, a page that went away ("the controlling browser disconnected") gets it here."""
+    if str(reason).startswith("dead-man"):
+        return reason if isinstance(reason, Message) else Message(reason)
+    return Message(N_("dead-man: {reason}"), reason=reason)
+
+
 RELEASED = Message(N_("released"))  # control given back by its holder ("control released (alice)")
 
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from devices.control import LEASE_S, STOP_DEADLINE_S, LeaseState, Report
+from devices.control import LEASE_S, STOP_DEADLINE_S, LeaseState, Report, dead_man
 from devices.message import Message, N_, joined
 from devices.mo64 import codec
 from devices.mo64 import params as model
@@ -267,7 +267,7 @@ class Mo64Control:
             if level.session != session or not level.dead_man:
                 continue
             if level.state != "deactivating":
-                actions += self._release(level, Message(N_("dead-man: {reason}"), reason=reason), now)
+                actions += self._release(level, dead_man(reason), now)
             elif level.gone_at is None:  # a stop is on its way: should it be refused, it is sent again
                 level.gone_at = now
         return actions

@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
-from devices.control import ControlSession, Decision, Report, Stop
+from devices.control import ControlSession, Decision, Report, Stop, dead_man
 from devices.message import Message, N_
 from devices.scu import codec
 
@@ -404,7 +404,7 @@ class ScuControl:
 
     def session_lost(self, session: str, reason: str) -> list:
         """The page of ``session`` went away or froze: RS at once for what it runs, and its control released."""
-        actions = [SendRS(fn, Message(N_("dead-man: {reason}"), reason=reason), three_bytes=self.rs_three_bytes)
+        actions = [SendRS(fn, dead_man(reason), three_bytes=self.rs_three_bytes)
                    for fn, s in sorted(self.running.items()) if s == session and fn not in NOT_HELD]
         if self.control.controls(session):
             running = self.control.running

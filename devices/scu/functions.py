@@ -14,6 +14,7 @@ import time
 from typing import TYPE_CHECKING
 
 from devices.live import session_tag
+from devices.control import dead_man
 from devices.message import Message, N_, Word
 from devices.scu import codec
 from devices.scu.control import EMERGENCY_STOP, ESTOP, NOT_HELD, SendRS
@@ -42,10 +43,9 @@ class ScuFunctions:
         for fn in held:
             self.stop_marks[fn] = now
         if held:
-            self.adapter.state.event("warning", Message(N_("dead-man: {reason}; RS to {functions}"), reason=reason, functions=", ".join(
+            self.adapter.state.event("warning", Message(N_("{reason}; RS to {functions}"), reason=dead_man(reason), functions=", ".join(
                 codec.FUNCTIONS[codec.Function(f)].label for f in held)))
-            task = asyncio.get_running_loop().create_task(self.stop_functions(held, Message(N_("dead-man: {reason}"),
-                                                                                            reason=reason)))
+            task = asyncio.get_running_loop().create_task(self.stop_functions(held, dead_man(reason)))
             self.stop_tasks.add(task)
             task.add_done_callback(self.stop_tasks.discard)
         for action in actions:

@@ -181,6 +181,28 @@ async def test_dead_man_sends_rs_at_once_and_releases_control():
         assert any("disconnected" in e.text for e in adapter.state.events)
 
 
+@pytest.mark.parametrize("reason", [
+    "dead-man: the controlling browser has not confirmed it is alive for 1200 ms while this program ran on time",
+    "the controlling browser disconnected",
+])
+async def test_a_dead_man_stop_is_named_once_whatever_the_reason_says(reason):
+    """The worker's reason for a silent page says "dead-man: ..." already; a page that went away does not. The event
+    and the RS's reason name the rule once ("dead-man: dead-man: ..." before)."""
+    async with ScuScript(OPENING) as script:
+        adapter = make_adapter(script.port)
+        await adapter.poll()
+        await adapter.take_control("s1", "anna")
+        script.add((TX, codec.encode_re(1, codec.Motion.OUT, codec.Ramp.SOFT)), (RX, ok(codec.RE)))
+        await adapter.run_function("s1", 1, codec.Motion.OUT, codec.Ramp.SOFT)
+        script.add((TX, codec.encode_rs(1)), (RX, ok(codec.RS)))
+        adapter.session_lost("s1", reason)
+        await adapter.stopped()
+        script.done()
+        named = [e.text for e in adapter.state.events if "dead-man" in e.text]
+        assert named and all(text.count("dead-man") == 1 for text in named), named
+        assert any(text.startswith(f"dead-man: {reason.removeprefix('dead-man: ')}; RS to F2") for text in named), named
+
+
 async def test_bad_crc_is_counted_and_retried_and_error_answers_are_named():
     bad = bytearray(ok(codec.RO))
     bad[-1] ^= 0xFF
