@@ -6,7 +6,7 @@ from __future__ import annotations
 import liveapp
 import page_events
 
-from tools.suite import failures
+from tools.suite import PHASES, failures, phase_files
 
 REPORT = """<?xml version="1.0" encoding="utf-8"?>
 <testsuites><testsuite name="pytest" errors="0" failures="1" tests="2">
@@ -49,3 +49,12 @@ def test_a_report_quotes_what_its_apps_logged_while_it_ran(tmp_path, monkeypatch
     assert page_events.app_log_lines() == [
         "app: 2026-11-29 03:40:01,000 INFO app.worker.deadman: session s: a beat came 1170 ms after the one before",
         "app: 2026-11-29 03:40:02,000 WARNING app.worker.loophealth: event loop stalled for 244 ms"]
+
+
+def test_each_phase_takes_the_files_of_its_marks_as_pytest_reads_its_expression():
+    """Every test falls into exactly one phase: the phases' ``-m`` expressions read by pytest's own parser."""
+    tests = [["plain.py", []], ["page.py", ["browser"]], ["bound.py", ["realtime"]], ["both.py", ["browser", "realtime"]],
+             ["alone.py", ["alone", "browser"]], ["slow.py", ["slow"]]]
+    taken = {name: phase_files(tests, options) for name, options in PHASES}
+    assert list(taken.values()) == [["plain.py", "slow.py"], ["bound.py"], ["both.py", "page.py"], ["alone.py"]]
+    assert sorted(f for files in taken.values() for f in files) == sorted(file for file, _marks in tests)
