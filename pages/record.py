@@ -468,7 +468,20 @@ def _signoff_card(runtime, name: str, user: str, role: str, engineer: bool, refr
     sign_device.on_click(lambda: sign(False))
     sign_plant.on_click(lambda: sign(True))
     ui.timer(0.2, show, once=True)
-    ui.timer(5.0, show)  # checkouts, approvals and snapshots of this page or another one show up
+    # checkouts, approvals, snapshots and sign-offs of this page or another one show up: the report is made again when
+    # the record gained a row for this device or the plant (looked at once a second, a dict lookup), and once a minute
+    # for what it reads besides (a replaced device's identity), not every 5 s whatever happened
+    added = runtime.record.rows_added
+    seen = {"rows": (added.get(name, 0), added.get("", 0))}
+
+    def follow_report() -> None:
+        rows = (added.get(name, 0), added.get("", 0))
+        if rows != seen["rows"]:
+            seen["rows"] = rows
+            background_tasks.create(show(), name=f"record report {name}")
+
+    ui.timer(1.0, follow_report)
+    ui.timer(60.0, show)
 
 
 def _check_card(runtime, lang: Lang) -> None:
