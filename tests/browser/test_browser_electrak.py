@@ -32,6 +32,8 @@ def last_position(page) -> float:
     )
 
 
+@pytest.mark.alone  # it drives for about 15 s while its page beats (dead-man, 0.4 s): beside two other browsers the
+# page's beats once came 409 ms apart, the drive stopped short of its target and the chart never got there
 def test_go_moves_the_position_chart_toward_the_target(app_url, chromium, tmp_path):
     page = chromium.new_page(viewport={"width": 1400, "height": 1100})
     try:
