@@ -9,9 +9,11 @@
    the dead-man bound, a poll cycle against the wire time), eight processes, with nothing else beside them. They
    compute little (13 s of CPU in 45 s), but run beside the browser tests five of them missed their bounds
    (2026-11-29: a keep-alive gap of 0.46 s, an SCU's RC 0.76 s apart).
-3. The tests that drive chromium (marker ``browser``), three at a time, each test file whole in one process: each
-   starts the app and a browser and waits on what its page shows (2026-11-29: 152 s with the cores 92 % busy,
-   against 172 s and 76 % two at a time).
+3. The tests that drive chromium (marker ``browser``), two at a time, each test file whole in one process: each
+   starts the app and a browser and waits on what its page shows. Three at a time took 152 s against 172 s, with
+   the cores 92 % busy, but two runs in a row then failed a browser test on a starved page (2026-11-29: a drive's
+   beats 409 ms apart stopped it under the dead-man rule; a number typed into the Modbus poll was put back by
+   its page), so the phase keeps the slack two processes leave.
 4. One at a time, the tests marked ``alone``: the browser tests that are themselves held to a real-time bound (a
    second chromium beside one delays its beats on their way) and the few whose subject is how the program uses
    the cores (a line's thread that must keep up with its own period, a stalled loop's stop).
@@ -47,7 +49,7 @@ from pathlib import Path
 PHASES = (
     ("tests without a browser or a real-time bound", ["-n", "10", "--dist", "worksteal", "-m", "not browser and not realtime and not alone"]),
     ("tests held to a real-time bound", ["-n", "8", "--dist", "worksteal", "-m", "realtime and not browser and not alone"]),
-    ("browser tests", ["-n", "3", "-m", "browser and not alone"]),
+    ("browser tests", ["-n", "2", "-m", "browser and not alone"]),
     ("tests that need the cores to themselves", ["-n", "0", "-m", "alone"]),
 )
 
