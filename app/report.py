@@ -474,9 +474,7 @@ def identity_rows(d: dict, lang: i18n.Lang | None = None) -> list[tuple[str, Any
 def product(name: Any, lang: i18n.Lang | None) -> Any:
     """A product's name as the snapshot stored it (``HMR01 (from 08.11.2013)``), as its document names it in ``lang``
     where the device vocabulary has it (``HMR01 ab 08.11.2013``, context ``Product``)."""
-    if lang is None or not isinstance(name, str) or not lang.has(name, "Product"):
-        return name
-    return lang.pgettext("Product", name)
+    return lang.value_word("Product", name) if lang is not None and isinstance(name, str) else name
 
 
 def differ_text(d: dict, changed: list, lang: i18n.Lang | None) -> str:

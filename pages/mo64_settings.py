@@ -55,8 +55,8 @@ def show_line(line: ValueLine, text: str, value: LiveValue | None, lang=None) ->
 def piece_value(p: Mo64Param, raw: int, lang) -> str:
     """A relay mode or a configuration flag as the table shows it: a relay mode's name as the device vocabulary words it
     (``multi1``'s ``fault``: ``Störung (1)``), a flag's value as the document names it (``Stopp und öffnen (0)``)."""
-    if p.names is not None and p.enum is None and (name := p.names.get(int(p.decode(raw)))):
-        return f"{lang.value_word(p.name, name)} ({int(p.decode(raw))})"
+    if p.names is not None and p.enum is None and (name := p.names.get(value := int(p.decode(raw)))):
+        return f"{lang.value_word(p.name, name)} ({value})"
     return lang.numbers_in(p.display(raw))
 
 

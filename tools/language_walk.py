@@ -21,15 +21,14 @@ import argparse
 import json
 import re
 import sys
-import tempfile
 from collections import Counter
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.append(str(ROOT / "bench"))
 
-from liveapp import CHROMIUM, CHROMIUM_ARGS, demo_plant_text, need_playwright, running_app, wait_devices_online  # noqa: E402
-from tools.screenshots import NOT_PAGES, settle  # noqa: E402
+from liveapp import CHROMIUM, CHROMIUM_ARGS, need_playwright  # noqa: E402
+from tools.screenshots import VIEWPORT, crawl, demo_plant, no_chromium  # noqa: E402
 
 ENGLISH = set("the of and to is are not from with after before when which this that be by or it its on for no any has "
               "have only until then than must may".split())
@@ -65,20 +64,9 @@ def walk(url: str, lang: str, timeout_ms: int = 30_000) -> dict[str, list[str]]:
     with need_playwright()() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         try:
-            page = browser.new_context(viewport={"width": 1440, "height": 900}).new_page()
+            page = browser.new_context(viewport=VIEWPORT).new_page()
             page.goto(f"{url}/?lang={lang}", wait_until="networkidle", timeout=timeout_ms)  # kept for this browser
-            todo, seen = ["/", "/login"], {"/", "/login"}
-            while todo:
-                path = todo.pop(0)
-                page.goto(url + path, wait_until="networkidle", timeout=timeout_ms)
-                settle(page, timeout_ms)
-                links = page.eval_on_selector_all("a[href^='/']", "links => links.map(a => a.getAttribute('href'))")
-                tools = page.eval_on_selector_all("[data-monitor^='tool-']", "bs => bs.map(b => b.dataset.monitor.slice(5))")
-                for href in links + [f"{path}/{tool}" for tool in tools]:
-                    link = href.split("?")[0].split("#")[0]
-                    if link not in seen and not link.startswith(NOT_PAGES) and "." not in link.rsplit("/", 1)[-1]:
-                        seen.add(link)
-                        todo.append(link)
+            for path in crawl(page, url, timeout_ms):
                 lines = page.evaluate("document.body.innerText").split("\n")
                 lines += page.eval_on_selector_all("[title]", "es => es.map(e => e.title)")
                 found[path] = sorted({line.strip() for line in lines if line.strip() and other(line.strip())})
@@ -94,13 +82,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, help="write the lines found, by page, into this file")
     parser.add_argument("--traffic", action="store_true", help="list the bus monitors' rows of traffic too")
     args = parser.parse_args(argv)
-    if not Path(CHROMIUM).exists():
-        print(f"{CHROMIUM} is not installed: apt-get install chromium (or run bash .ci/run once)", file=sys.stderr)
+    if no_chromium():
         return 2
-    with tempfile.TemporaryDirectory(prefix="commission-walk-") as folder:
-        with running_app(demo_plant_text(), Path(folder)) as url:
-            wait_devices_online(url, timeout=60)
-            found = walk(url, args.lang)
+    with demo_plant("commission-walk-") as url:
+        found = walk(url, args.lang)
     if not args.traffic:
         found = {path: [line for line in lines if not TRAFFIC.match(line)] for path, lines in found.items()}
     if args.json:

@@ -18,8 +18,10 @@ Run it again after a page changed, so the pictures never show an older program.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -81,6 +83,40 @@ def settle(page, timeout_ms: int) -> None:
     page.wait_for_load_state("networkidle", timeout=timeout_ms)
 
 
+def crawl(page, url: str, timeout_ms: int, limit: int | None = None) -> Iterator[str]:
+    """Every page linked from the overview, followed breadth first (``limit`` at most): ``page`` is taken to each in
+    turn and settled, and its path yielded; a bus monitor's tools (buttons) count as links."""
+    todo, seen = ["/", "/login"], {"/", "/login"}
+    while todo and (limit is None or len(seen) <= limit):
+        path = todo.pop(0)
+        page.goto(url + path, wait_until="networkidle", timeout=timeout_ms)
+        settle(page, timeout_ms)
+        links = page.eval_on_selector_all("a[href^='/']", "links => links.map(a => a.getAttribute('href'))")
+        tools = page.eval_on_selector_all("[data-monitor^='tool-']", "bs => bs.map(b => b.dataset.monitor.slice(5))")
+        for href in links + [f"{path}/{tool}" for tool in tools]:
+            link = href.split("?")[0].split("#")[0]
+            if link not in seen and not link.startswith(NOT_PAGES) and "." not in link.rsplit("/", 1)[-1]:
+                seen.add(link)
+                todo.append(link)
+        yield path
+
+
+@contextlib.contextmanager
+def demo_plant(prefix: str) -> Iterator[str]:
+    """``commission`` on the built-in demo plant (its data in a temporary folder) with every device online: its URL."""
+    with tempfile.TemporaryDirectory(prefix=prefix) as folder, running_app(demo_plant_text(), Path(folder)) as url:
+        wait_devices_online(url, timeout=60)
+        yield url
+
+
+def no_chromium() -> bool:
+    """Whether Debian's chromium is missing (said on stderr, with what to do)."""
+    if Path(CHROMIUM).exists():
+        return False
+    print(f"{CHROMIUM} is not installed: apt-get install chromium (or run bash .ci/run once)", file=sys.stderr)
+    return True
+
+
 def every_page(url: str, out: Path, langs=("de", "en"), limit: int = 80, timeout_ms: int = 30_000) -> list[Path]:
     """Every page linked from the overview (followed breadth first, ``limit`` at most), photographed in each of
     ``langs`` at each of SIZES into ``out/<lang>/<w>x<h>/``; returns the files written."""
@@ -93,19 +129,7 @@ def every_page(url: str, out: Path, langs=("de", "en"), limit: int = 80, timeout
                 context = browser.new_context(viewport=SIZES[0])
                 page = context.new_page()
                 page.goto(f"{url}/?lang={lang}", wait_until="networkidle", timeout=timeout_ms)  # kept for this browser
-                todo, seen = ["/", "/login"], {"/", "/login"}
-                while todo and len(seen) <= limit:
-                    path = todo.pop(0)
-                    page.set_viewport_size(SIZES[0])
-                    page.goto(url + path, wait_until="networkidle", timeout=timeout_ms)
-                    settle(page, timeout_ms)
-                    links = page.eval_on_selector_all("a[href^='/']", "links => links.map(a => a.getAttribute('href'))")
-                    tools = page.eval_on_selector_all("[data-monitor^='tool-']", "bs => bs.map(b => b.dataset.monitor.slice(5))")
-                    for href in links + [f"{path}/{tool}" for tool in tools]:  # a bus monitor's tools are buttons
-                        link = href.split("?")[0].split("#")[0]
-                        if link not in seen and not link.startswith(NOT_PAGES) and "." not in link.rsplit("/", 1)[-1]:
-                            seen.add(link)
-                            todo.append(link)
+                for path in crawl(page, url, timeout_ms, limit):  # each page loaded at the laptop's size
                     for size in SIZES:
                         width, height = size["width"], size["height"]
                         page.set_viewport_size(size)
@@ -115,6 +139,7 @@ def every_page(url: str, out: Path, langs=("de", "en"), limit: int = 80, timeout
                         target.parent.mkdir(parents=True, exist_ok=True)
                         page.screenshot(path=str(target), full_page=True)
                         written.append(target)
+                    page.set_viewport_size(SIZES[0])
                     print(f"{lang} {path}: {len(SIZES)} sizes", flush=True)
                 context.close()
         finally:
@@ -128,17 +153,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--every-page", action="store_true",
                         help="every page linked from the overview, in German and English, at 1440x900 and 768x1024")
     args = parser.parse_args(argv)
-    if not Path(CHROMIUM).exists():
-        print(f"{CHROMIUM} is not installed: apt-get install chromium (or run bash .ci/run once)", file=sys.stderr)
+    if no_chromium():
         return 2
-    with tempfile.TemporaryDirectory(prefix="commission-screenshots-") as folder:
-        with running_app(demo_plant_text(), Path(folder)) as url:
-            wait_devices_online(url, timeout=60)
-            if args.every_page:
-                written = every_page(url, args.out)
-                print(f"{len(written)} screenshots in {args.out}")
-            else:
-                take(url, args.out)
+    with demo_plant("commission-screenshots-") as url:
+        if args.every_page:
+            written = every_page(url, args.out)
+            print(f"{len(written)} screenshots in {args.out}")
+        else:
+            take(url, args.out)
     return 0
 
 

@@ -164,14 +164,21 @@ async def test_move_to_a_remote_position_is_followed_by_its_rs():
         assert adapter.holders() == set()
 
 
+async def running_f2(script):
+    """An adapter on ``script``'s line that opened the session, gave s1 (anna) control and runs F2 out; its RS is
+    the next answer the script expects."""
+    adapter = make_adapter(script.port)
+    await adapter.poll()
+    await adapter.take_control("s1", "anna")
+    script.add((TX, codec.encode_re(1, codec.Motion.OUT, codec.Ramp.SOFT)), (RX, ok(codec.RE)))
+    await adapter.run_function("s1", 1, codec.Motion.OUT, codec.Ramp.SOFT)
+    script.add((TX, codec.encode_rs(1)), (RX, ok(codec.RS)))
+    return adapter
+
+
 async def test_dead_man_sends_rs_at_once_and_releases_control():
     async with ScuScript(OPENING) as script:
-        adapter = make_adapter(script.port)
-        await adapter.poll()
-        await adapter.take_control("s1", "anna")
-        script.add((TX, codec.encode_re(1, codec.Motion.OUT, codec.Ramp.SOFT)), (RX, ok(codec.RE)))
-        await adapter.run_function("s1", 1, codec.Motion.OUT, codec.Ramp.SOFT)
-        script.add((TX, codec.encode_rs(1)), (RX, ok(codec.RS)))
+        adapter = await running_f2(script)
         started = time.monotonic()
         adapter.session_lost("s1", "the controlling browser disconnected")
         await adapter.stopped()
@@ -189,12 +196,7 @@ async def test_a_dead_man_stop_is_named_once_whatever_the_reason_says(reason):
     """The worker's reason for a silent page says "dead-man: ..." already; a page that went away does not. The event
     and the RS's reason name the rule once ("dead-man: dead-man: ..." before)."""
     async with ScuScript(OPENING) as script:
-        adapter = make_adapter(script.port)
-        await adapter.poll()
-        await adapter.take_control("s1", "anna")
-        script.add((TX, codec.encode_re(1, codec.Motion.OUT, codec.Ramp.SOFT)), (RX, ok(codec.RE)))
-        await adapter.run_function("s1", 1, codec.Motion.OUT, codec.Ramp.SOFT)
-        script.add((TX, codec.encode_rs(1)), (RX, ok(codec.RS)))
+        adapter = await running_f2(script)
         adapter.session_lost("s1", reason)
         await adapter.stopped()
         script.done()
