@@ -144,6 +144,8 @@ def test_modbus_poll(app_url: str, browser: Browser):
     page.close()
 
 
+@pytest.mark.alone  # beside another browser (twice on 2026-11-29, the app's loop stalling 130-140 ms) the second
+# window's entries came back with the values it was built with after they were typed; the cause is not found yet
 def test_modbus_poll_windows(app_url: str, browser: Browser):
     """Two poll windows at once, each with its own request and table; a reload of the tab brings them back."""
     page = page_at(browser, f"{app_url}/monitor/line1/poll")
